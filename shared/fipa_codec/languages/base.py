@@ -1,0 +1,92 @@
+"""Registry of content languages and strict content encoding/decoding."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import msgspec
+
+
+class ContentError(ValueError):
+    """Content that does not conform to its language (wrong bytes, wrong type, unknown language)."""
+
+
+@dataclass(frozen=True)
+class Language:
+    """A content language: a ``name`` (the ACL ``language`` parameter), the ``ontology`` its
+    terms come from, and the Struct types that form its vocabulary (a tagged union)."""
+
+    name: str
+    ontology: str
+    types: tuple[type[msgspec.Struct], ...]
+
+    def __post_init__(self) -> None:
+        union: Any = self.types[0] if len(self.types) == 1 else _union(self.types)
+        object.__setattr__(self, "_decoder", msgspec.msgpack.Decoder(union))
+
+    def decode(self, data: bytes) -> msgspec.Struct:
+        """Decode ``data``; raises ContentError when it is not a term of this language."""
+        try:
+            return self._decoder.decode(data)  # type: ignore[attr-defined, no-any-return]
+        except (msgspec.DecodeError, msgspec.ValidationError, ValueError) as exc:
+            raise ContentError(f"{self.name}: {str(exc).splitlines()[0]}") from None
+
+
+def _union(types: tuple[type[msgspec.Struct], ...]) -> Any:
+    import functools
+    import operator
+
+    return functools.reduce(operator.or_, types)
+
+
+_encoder = msgspec.msgpack.Encoder()
+LANGUAGES: dict[str, Language] = {}
+_BY_TYPE: dict[type, Language] = {}
+
+
+def register(language: Language) -> Language:
+    """Add ``language`` to the registry; raises ValueError if a name or type is taken."""
+    if language.name in LANGUAGES:
+        raise ValueError(f"language {language.name} registered twice")
+    for t in language.types:
+        if t in _BY_TYPE:
+            raise ValueError(f"{t.__name__} already belongs to {_BY_TYPE[t].name}")
+        _BY_TYPE[t] = language
+    LANGUAGES[language.name] = language
+    return language
+
+
+def language_of(term: msgspec.Struct) -> Language:
+    """The language whose vocabulary contains ``term``'s type; raises ContentError if none."""
+    _load_all()
+    try:
+        return _BY_TYPE[type(term)]
+    except KeyError:
+        raise ContentError(f"{type(term).__name__} belongs to no content language") from None
+
+
+def encode_content(term: msgspec.Struct) -> tuple[str, bytes]:
+    """Encode a language term: returns (language name, msgpack bytes)."""
+    return language_of(term).name, _encoder.encode(term)
+
+
+def decode_content(language: str | None, data: bytes) -> msgspec.Struct:
+    """Decode ``data`` as a term of ``language``; raises ContentError for an unknown language
+    or content that does not conform to it."""
+    _load_all()
+    if language is None or language not in LANGUAGES:
+        raise ContentError(f"unknown content language {language!r}")
+    return LANGUAGES[language].decode(data)
+
+
+def _load_all() -> None:
+    # Importing the language modules registers them.
+    from shared.fipa_codec.languages import (  # noqa: F401
+        l_ex,
+        l_hc,
+        l_hfsm,
+        l_sd,
+        l_sw,
+        l_wm,
+    )

@@ -1,0 +1,108 @@
+"""L_HFSM: ground task networks (C3 request) and hierarchical plans (C3 inform, C1 request).
+
+A plan is a hierarchical finite state machine (paper §5.4): each :class:`PlanNode` is a state;
+a composite state runs its children in order and succeeds when the last one does; a leaf state
+runs one :data:`Action` in a_ta. Any failing state fails its parents (a_ta reports Error).
+A plan with ``complete=False`` ends in a sensing step after which the planner must be asked
+again (interleaved planning and execution, paper §5.7): a_ta then reports Replan.
+"""
+
+from __future__ import annotations
+
+import msgspec
+
+from shared.fipa_codec.languages.base import Language, register
+from shared.fipa_codec.languages.l_ex import ExecutorCommand
+from shared.fipa_codec.languages.l_hc import TaskAtom
+
+
+class GroundTaskNetwork(msgspec.Struct, frozen=True, tag="gtn", kw_only=True):
+    """The planning problem a_co sends to a_pl: the tasks to achieve, in order, for command
+    ``task_id``; ``plan_index`` counts the plans requested for it (1, 2, …)."""
+
+    task_id: str
+    tasks: tuple[TaskAtom, ...]
+    plan_index: int = 1
+
+
+class Execute(msgspec.Struct, frozen=True, tag="execute"):
+    """Leaf action: request ``command`` from ag_ex on C5 and wait for its result."""
+
+    command: ExecutorCommand
+
+
+class Perceive(msgspec.Struct, frozen=True, tag="perceive"):
+    """Leaf action: request an Observe from ag_ex and inform a_km of what was seen (C6).
+    ``objects`` empty means the whole scene."""
+
+    objects: tuple[str, ...] = ()
+
+
+class Assert(msgspec.Struct, frozen=True, tag="assert", kw_only=True):
+    """Leaf action: inform a_km (C6) that ``subject`` now stands in ``relation`` (``heldBy``,
+    ``on``, ``in``) to ``object`` (an empty object retracts the relation)."""
+
+    subject: str
+    relation: str
+    object: str
+
+
+class CheckContent(msgspec.Struct, frozen=True, tag="check_content", kw_only=True):
+    """Leaf action: observe ``container`` and fail unless it holds at least ``min_fraction``
+    of the scene's content particles."""
+
+    container: str
+    min_fraction: float
+
+
+Action = Execute | Perceive | Assert | CheckContent
+
+
+class PlanNode(msgspec.Struct, frozen=True, kw_only=True):
+    """A state of the plan HFSM: ``name``; either ``children`` (a composite state, run in
+    order) or an ``action`` (a leaf state). ``task`` names the HTN task it refines."""
+
+    name: str
+    children: tuple[PlanNode, ...] = ()
+    action: Action | None = None
+    task: str | None = None
+
+    def leaves(self, prefix: str = "") -> list[tuple[str, PlanNode]]:
+        """All leaf states in execution order, each with its path (``a/b/c``)."""
+        path = f"{prefix}/{self.name}" if prefix else self.name
+        if not self.children:
+            return [(path, self)]
+        out: list[tuple[str, PlanNode]] = []
+        for child in self.children:
+            out.extend(child.leaves(path))
+        return out
+
+
+class HierarchicalPlan(msgspec.Struct, frozen=True, tag="plan", kw_only=True):
+    """A plan for ``task_id``: the HFSM ``root``; ``complete`` False when a replan must follow;
+    ``cost`` expected execution time (s); ``km_queries`` and ``planning_time_s`` describe how
+    it was made."""
+
+    plan_id: str
+    task_id: str
+    root: PlanNode
+    complete: bool = True
+    cost: float = 0.0
+    km_queries: int = 0
+    planning_time_s: float = 0.0
+
+
+class PlanFailure(msgspec.Struct, frozen=True, tag="plan_failure", kw_only=True):
+    """Why no plan exists for ``task_id``, in words a person can read."""
+
+    task_id: str
+    reason: str
+
+
+L_HFSM = register(
+    Language(
+        "L_HFSM",
+        "O_RoCo",
+        (GroundTaskNetwork, HierarchicalPlan, PlanFailure, Execute, Perceive, Assert, CheckContent),
+    )
+)

@@ -1,0 +1,155 @@
+"""L_WM: world-model queries, answers and updates over ontology O_RoCo (C4 and C6).
+
+Queries travel in ``query-ref`` (a_pl → a_km, a_ta → a_km), answers in ``inform-ref``-style
+``inform`` replies; updates travel in the ``fipa-subscribe`` conversation a_km opens with a_ta.
+Lengths in metres, poses in the world frame, stamps in simulation seconds.
+"""
+
+from __future__ import annotations
+
+import msgspec
+
+from shared.fipa_codec.languages.base import Language, register
+from shared.fipa_codec.languages.common import Pose, Vec3
+
+
+class SparqlQuery(msgspec.Struct, frozen=True, tag="sparql"):
+    """A SPARQL 1.1 SELECT or ASK over the knowledge base (prefix ``roco:`` predefined)."""
+
+    query: str
+
+
+class ObjectQuery(msgspec.Struct, frozen=True, tag="object"):
+    """Everything known about the individual ``name``."""
+
+    name: str
+
+
+class SceneQuery(msgspec.Struct, frozen=True, tag="scene"):
+    """Everything known about every physical object (the largest answer)."""
+
+
+class GraspQuery(msgspec.Struct, frozen=True, tag="grasps", kw_only=True):
+    """The grasp affordances of ``object`` for the hand of ``arm``."""
+
+    object: str
+    arm: str
+
+
+class PlacementQuery(msgspec.Struct, frozen=True, tag="placement", kw_only=True):
+    """Where on ``surface`` the ``object`` can be put down."""
+
+    object: str
+    surface: str
+
+
+class PourQuery(msgspec.Struct, frozen=True, tag="pour", kw_only=True):
+    """How to pour from ``source`` into ``target`` (pivot offset and tilt)."""
+
+    source: str
+    target: str
+
+
+class Subscription(msgspec.Struct, frozen=True, tag="subscription"):
+    """a_km's fipa-subscribe to a_ta: send every observation of ``topic`` (``environment``)."""
+
+    topic: str = "environment"
+
+
+class ObjectInfo(msgspec.Struct, frozen=True, kw_only=True):
+    """An individual: ``name``, its ``type`` (an O_RoCo class), ``pose`` with ``pose_stamp``,
+    bounding ``size`` (x, y, z extents), where it is (``location`` with ``relation`` in/on),
+    who holds it (``held_by``), whether its pose was ``localised`` since it last moved, and
+    for containers the count of ``particles`` inside."""
+
+    name: str
+    type: str
+    pose: Pose | None = None
+    pose_stamp: float | None = None
+    size: Vec3 | None = None
+    location: str | None = None
+    relation: str | None = None
+    held_by: str | None = None
+    localised: bool = False
+    particles: int | None = None
+
+
+class GraspAffordance(msgspec.Struct, frozen=True, kw_only=True):
+    """One way to grasp an object: the grip frame's pose relative to the object frame
+    (``grip_in_object``), the ``approach`` direction in the object frame (unit vector the
+    hand travels along to reach the grasp), the approach ``distance`` (m) and the finger
+    ``spread`` (rad)."""
+
+    name: str
+    grip_in_object: Pose
+    approach: Vec3
+    distance: float
+    spread: float = 0.0
+
+
+class PourAffordance(msgspec.Struct, frozen=True, kw_only=True):
+    """Pouring ``source`` into ``target``: the source's mouth goes to ``offset`` (m, world
+    axes) from the target's frame, then tilts by ``angle`` (rad) about ``axis``."""
+
+    offset: Vec3
+    axis: Vec3
+    angle: float
+    duration: float
+
+
+class PlacementInfo(msgspec.Struct, frozen=True, kw_only=True):
+    """Free places for an object on a surface: world positions of the object's frame."""
+
+    surface: str
+    positions: tuple[Vec3, ...]
+
+
+class Answer(msgspec.Struct, frozen=True, tag="answer", kw_only=True):
+    """The answer to an L_WM query; exactly one field is set, matching the query."""
+
+    objects: tuple[ObjectInfo, ...] = ()
+    grasps: tuple[GraspAffordance, ...] = ()
+    placement: PlacementInfo | None = None
+    pour: PourAffordance | None = None
+    variables: tuple[str, ...] = ()
+    rows: tuple[tuple[str | None, ...], ...] = ()
+    boolean: bool | None = None
+
+
+class ObjectUpdate(msgspec.Struct, frozen=True, kw_only=True):
+    """A change to one individual: a new ``pose``; ``held_by`` ("" = released); a new
+    ``location``/``relation``; ``particles`` inside. Unset fields stay as they were."""
+
+    name: str
+    pose: Pose | None = None
+    held_by: str | None = None
+    location: str | None = None
+    relation: str | None = None
+    particles: int | None = None
+
+
+class WorldUpdate(msgspec.Struct, frozen=True, tag="update", kw_only=True):
+    """Observations and changes a_ta sends a_km (C6) at simulation time ``stamp``."""
+
+    stamp: float
+    objects: tuple[ObjectUpdate, ...]
+    total_particles: int | None = None
+
+
+L_WM = register(
+    Language(
+        "L_WM",
+        "O_RoCo",
+        (
+            SparqlQuery,
+            ObjectQuery,
+            SceneQuery,
+            GraspQuery,
+            PlacementQuery,
+            PourQuery,
+            Subscription,
+            Answer,
+            WorldUpdate,
+        ),
+    )
+)

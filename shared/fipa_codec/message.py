@@ -1,0 +1,91 @@
+"""The communicate (paper eq. 3) as the FIPA ACL message of FIPA SC00061.
+
+All 13 message parameters of SC00061 §2 are fields of :class:`Communicate`; user-defined
+parameters (SC00061 §2.1: names starting with ``X-``) travel in ``user_params``.
+Times (``reply_by``) are POSIX seconds (UTC), as floats.
+"""
+
+from __future__ import annotations
+
+import uuid
+
+import msgspec
+
+from shared.fipa_codec.acts import Performative
+from shared.fipa_codec.aid import AgentIdentifier
+
+
+class Communicate(msgspec.Struct, frozen=True, omit_defaults=True, kw_only=True, rename="kebab"):
+    """A FIPA ACL message M = ⟨V, Z, L, O, I, t_b, m_w, m_t, m_c⟩ (paper eq. 3) plus addressing.
+
+    Fields (FIPA SC00061 §2, wire names in kebab case):
+      performative: the communicative act V (one of the 22 of SC00037).
+      sender, receiver, reply_to: agent identifiers; ``receiver`` holds one or more.
+      content: Z, bytes in the content language ``language`` under ``encoding``
+        (roco's languages use ``encoding="msgpack"``; see ``shared.fipa_codec.languages``).
+      language, encoding, ontology: L, the content encoding, O.
+      protocol: I, the interaction protocol name (``fipa-request``, ``coordinate``…).
+      conversation_id, reply_with, in_reply_to: m_c, m_w, m_t.
+      reply_by: t_b, POSIX time in seconds by which a reply is expected.
+      user_params: ``X-`` parameters; keys must start with ``X-``.
+    Raises ValueError on construction when ``receiver`` is empty or a user parameter lacks ``X-``.
+    """
+
+    performative: Performative
+    sender: AgentIdentifier | None = None
+    receiver: tuple[AgentIdentifier, ...] = ()
+    reply_to: tuple[AgentIdentifier, ...] = ()
+    content: bytes = b""
+    language: str | None = None
+    encoding: str | None = None
+    ontology: str | None = None
+    protocol: str | None = None
+    conversation_id: str | None = None
+    reply_with: str | None = None
+    in_reply_to: str | None = None
+    reply_by: float | None = None
+    user_params: dict[str, str] = {}
+
+    def __post_init__(self) -> None:
+        for key in self.user_params:
+            if not key.startswith(("X-", "x-")):
+                raise ValueError(f"user-defined parameter {key!r} must start with 'X-'")
+
+    def reply(
+        self,
+        performative: Performative,
+        sender: AgentIdentifier,
+        *,
+        content: bytes = b"",
+        language: str | None = None,
+        ontology: str | None = None,
+        reply_with: str | None = None,
+        reply_by: float | None = None,
+    ) -> Communicate:
+        """A reply in the same conversation (SC00061 §2.4): receiver = reply-to or sender,
+        in-reply-to = this reply-with; protocol, conversation-id, ontology carried over.
+
+        Raises ValueError when this communicate has no sender and no reply-to.
+        """
+        targets = self.reply_to or ((self.sender,) if self.sender is not None else ())
+        if not targets:
+            raise ValueError("cannot reply to a communicate without sender or reply-to")
+        return Communicate(
+            performative=performative,
+            sender=sender,
+            receiver=targets,
+            content=content,
+            language=language if language is not None else (self.language if content else None),
+            encoding="msgpack" if content else None,
+            ontology=ontology if ontology is not None else self.ontology,
+            protocol=self.protocol,
+            conversation_id=self.conversation_id,
+            in_reply_to=self.reply_with,
+            reply_with=reply_with,
+            reply_by=reply_by,
+        )
+
+
+def new_id(prefix: str = "") -> str:
+    """A fresh identifier for conversation-id or reply-with: ``prefix`` + 12 hex digits."""
+    return f"{prefix}{uuid.uuid4().hex[:12]}"
