@@ -1,0 +1,232 @@
+"""The knowledge base of a_km: an RDF graph over ontology O_RoCo (rdflib), answering L_WM
+queries and applying L_WM updates (paper §5.4, §5.5 Table 5).
+
+Poses are individuals ``roco:<object>_pose`` holding position, orientation, frame and stamp;
+an update replaces them (a stale observation is superseded, never duplicated). Vectors are
+literals of datatype ``roco:Vec3`` ("x y z") and ``roco:Quat`` ("w x y z").
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from rdflib import RDF, RDFS, Graph, Literal, Namespace, URIRef
+from rdflib.query import Result
+
+from shared.fipa_codec.languages.common import Pose, Vec3
+from shared.fipa_codec.languages.l_wm import (
+    Answer,
+    GraspAffordance,
+    GraspQuery,
+    ObjectInfo,
+    ObjectQuery,
+    PlacementInfo,
+    PlacementQuery,
+    PourAffordance,
+    PourQuery,
+    SceneQuery,
+    SparqlQuery,
+    WorldUpdate,
+)
+
+ROCO = Namespace("https://w3id.org/roco/O_RoCo#")
+HERE = Path(__file__).parent
+DEFAULT_FILES = (HERE / "o_roco.ttl", HERE / "kitchen.ttl")
+Query = SparqlQuery | ObjectQuery | SceneQuery | GraspQuery | PlacementQuery | PourQuery
+
+
+class KnowledgeError(ValueError):
+    """A query about something the knowledge base does not know, or a malformed query."""
+
+
+def _vec(text: object) -> tuple[float, ...]:
+    return tuple(float(v) for v in str(text).split())
+
+
+def _vec3(text: object) -> Vec3:
+    v = _vec(text)
+    if len(v) != 3:
+        raise KnowledgeError(f"not a 3-vector: {text!r}")
+    return (v[0], v[1], v[2])
+
+
+def _lit(values: tuple[float, ...] | list[float]) -> Literal:
+    return Literal(" ".join(repr(float(v)) for v in values))
+
+
+class WorldModel:
+    """An rdflib graph with O_RoCo and the kitchen; :meth:`answer` and :meth:`apply`."""
+
+    def __init__(self, files: tuple[Path, ...] = DEFAULT_FILES) -> None:
+        self.graph = Graph()
+        self.graph.bind("roco", ROCO)
+        for f in files:
+            self.graph.parse(f, format="turtle")
+        self.total_particles: int | None = None
+
+    # ---- queries ----
+    def answer(self, query: Query) -> Answer:
+        """Answer an L_WM query. Raises KnowledgeError for unknown individuals or bad SPARQL."""
+        if isinstance(query, ObjectQuery):
+            return Answer(objects=(self.object_info(query.name),))
+        if isinstance(query, SceneQuery):
+            return Answer(objects=tuple(self.object_info(n) for n in self.physical_objects()))
+        if isinstance(query, GraspQuery):
+            return Answer(grasps=self.grasps(query.object, query.arm))
+        if isinstance(query, PlacementQuery):
+            return Answer(placement=self.placement(query.object, query.surface))
+        if isinstance(query, PourQuery):
+            return Answer(pour=self.pour(query.source, query.target))
+        if isinstance(query, SparqlQuery):
+            return self.sparql(query.query)
+        raise KnowledgeError(f"unsupported query {type(query).__name__}")
+
+    def _node(self, name: str) -> URIRef:
+        node = ROCO[name]
+        if (node, RDF.type, None) not in self.graph:
+            raise KnowledgeError(f"nothing is known about {name!r}")
+        return node
+
+    def physical_objects(self) -> list[str]:
+        """Names of every individual whose class is a subclass of roco:PhysicalObject."""
+        q = """SELECT DISTINCT ?o WHERE { ?o a ?c . ?c rdfs:subClassOf* roco:PhysicalObject .
+               FILTER NOT EXISTS { ?c rdfs:subClassOf* roco:RobotPart } }"""
+        rows = self.graph.query(q, initNs={"roco": ROCO, "rdfs": RDFS})
+        return sorted(str(r[0]).removeprefix(str(ROCO)) for r in rows)  # type: ignore[index]
+
+    def object_info(self, name: str) -> ObjectInfo:
+        node = self._node(name)
+        g = self.graph
+        cls = g.value(node, RDF.type)
+        pose_node = g.value(node, ROCO.hasPose)
+        pose = stamp = None
+        localised = False
+        if pose_node is not None:
+            pose = Pose(
+                position=_vec3(g.value(pose_node, ROCO.position)),
+                orientation=tuple(_vec(g.value(pose_node, ROCO.orientation))),  # type: ignore[arg-type]
+                frame=str(g.value(pose_node, ROCO.frame) or "world"),
+            )
+            stamp_lit = g.value(pose_node, ROCO.stamp)
+            stamp = float(stamp_lit) if stamp_lit is not None else None
+            localised = bool(g.value(pose_node, ROCO.localised))
+        location = relation = None
+        for rel in ("in", "on"):
+            where = g.value(node, ROCO[rel])
+            if where is not None:
+                location, relation = str(where).removeprefix(str(ROCO)), rel
+        held = g.value(node, ROCO.heldBy)
+        size = g.value(node, ROCO.size)
+        particles = g.value(node, ROCO.particles)
+        return ObjectInfo(
+            name=name,
+            type=str(cls).removeprefix(str(ROCO)) if cls is not None else "Thing",
+            pose=pose,
+            pose_stamp=stamp,
+            size=_vec3(size) if size is not None else None,
+            location=location,
+            relation=relation,
+            held_by=str(held).removeprefix(str(ROCO)) if held is not None else None,
+            localised=localised,
+            particles=int(particles) if particles is not None else None,
+        )
+
+    def grasps(self, obj: str, arm: str) -> tuple[GraspAffordance, ...]:
+        node = self._node(obj)
+        g = self.graph
+        out = []
+        for aff in sorted(g.subjects(ROCO.affordanceOf, node)):
+            if (aff, RDF.type, ROCO.GraspAffordance) not in g or str(g.value(aff, ROCO.forArm)) != arm:
+                continue
+            out.append(
+                GraspAffordance(
+                    name=str(aff).removeprefix(str(ROCO)),
+                    grip_in_object=Pose(
+                        position=_vec3(g.value(aff, ROCO.gripPosition)),
+                        orientation=tuple(_vec(g.value(aff, ROCO.gripOrientation))),  # type: ignore[arg-type]
+                        frame=obj,
+                    ),
+                    approach=_vec3(g.value(aff, ROCO.approach)),
+                    distance=float(g.value(aff, ROCO.approachDistance)),  # type: ignore[arg-type]
+                    spread=float(g.value(aff, ROCO.spread) or 0.0),  # type: ignore[arg-type]
+                )
+            )
+        return tuple(out)
+
+    def placement(self, obj: str, surface: str) -> PlacementInfo:
+        self._node(obj)
+        node = self._node(surface)
+        positions = tuple(sorted(_vec3(p) for p in self.graph.objects(node, ROCO.placementPosition)))
+        return PlacementInfo(surface=surface, positions=positions)
+
+    def pour(self, source: str, target: str) -> PourAffordance | None:
+        g = self.graph
+        src, dst = self._node(source), self._node(target)
+        for aff in g.subjects(ROCO.source, src):
+            if (aff, ROCO.target, dst) in g:
+                return PourAffordance(
+                    offset=_vec3(g.value(aff, ROCO.offset)),
+                    axis=_vec3(g.value(aff, ROCO.axis)),
+                    angle=float(g.value(aff, ROCO.angle)),  # type: ignore[arg-type]
+                    duration=float(g.value(aff, ROCO.duration)),  # type: ignore[arg-type]
+                )
+        return None
+
+    def sparql(self, text: str) -> Answer:
+        try:
+            result: Result = self.graph.query(text, initNs={"roco": ROCO, "rdf": RDF, "rdfs": RDFS})
+        except Exception as exc:  # rdflib raises parser-specific exceptions
+            raise KnowledgeError(f"bad SPARQL: {str(exc).splitlines()[0]}") from None
+        if result.type == "ASK":
+            return Answer(boolean=bool(result.askAnswer))
+        if result.type != "SELECT":
+            raise KnowledgeError("only SELECT and ASK are answered")
+        variables = tuple(str(v) for v in (result.vars or ()))
+        rows = tuple(
+            tuple(None if v is None else str(v) for v in row)  # type: ignore[union-attr]
+            for row in result
+        )
+        return Answer(variables=variables, rows=rows)
+
+    # ---- updates ----
+    def apply(self, update: WorldUpdate) -> int:
+        """Apply an update; returns the number of objects changed. Unknown objects are added
+        as roco:PhysicalObject (something new was seen)."""
+        g = self.graph
+        if update.total_particles is not None:
+            self.total_particles = update.total_particles
+        for change in update.objects:
+            node = ROCO[change.name]
+            if (node, RDF.type, None) not in g:
+                g.add((node, RDF.type, ROCO.PhysicalObject))
+            if change.pose is not None:
+                pose_node = ROCO[f"{change.name}_pose"]
+                g.remove((pose_node, None, None))
+                g.set((node, ROCO.hasPose, pose_node))
+                g.add((pose_node, RDF.type, ROCO.Pose))
+                g.add((pose_node, ROCO.position, _lit(list(change.pose.position))))
+                g.add((pose_node, ROCO.orientation, _lit(list(change.pose.orientation))))
+                g.add((pose_node, ROCO.frame, Literal(change.pose.frame)))
+                g.add((pose_node, ROCO.stamp, Literal(update.stamp)))
+                g.add((pose_node, ROCO.localised, Literal(True)))
+            if change.held_by is not None:
+                g.remove((node, ROCO.heldBy, None))
+                if change.held_by:
+                    g.add((node, ROCO.heldBy, ROCO[change.held_by]))
+                    # held objects leave where they were; their pose is no longer localised
+                    g.remove((node, ROCO["in"], None))
+                    g.remove((node, ROCO.on, None))
+                    pose_node = g.value(node, ROCO.hasPose)
+                    if pose_node is not None:
+                        g.set((pose_node, ROCO.localised, Literal(False)))
+            if change.location is not None and change.relation in ("in", "on"):
+                g.remove((node, ROCO["in"], None))
+                g.remove((node, ROCO.on, None))
+                if change.location:
+                    g.add((node, ROCO[change.relation], ROCO[change.location]))
+                    pose_node = g.value(node, ROCO.hasPose)
+                    if pose_node is not None:
+                        g.set((pose_node, ROCO.localised, Literal(False)))
+            if change.particles is not None:
+                g.set((node, ROCO.particles, Literal(change.particles)))
+        return len(update.objects)

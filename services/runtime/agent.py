@@ -1,0 +1,368 @@
+"""The embodied agent's control subsystem c_j (paper §3.2, eq. 2) on a transport.
+
+A subclass declares its ``name`` (as in the specification), builds its FSM of behaviours in
+:meth:`Agent.build_fsm` and keeps its internal memory as attributes. The runtime provides:
+
+- the transmission input buffer ``x`` (:class:`Received` communicates, acquired each step),
+- the receptor input buffer ``r`` (events from the agent's own receptors: human text,
+  executor results),
+- :meth:`send` / :meth:`reply`, which fill the output buffer dispatched after each step,
+- checking against the specification: a received communicate outside the agent's interface,
+  malformed, or in a language it does not accept is answered with ``not-understood`` and
+  dropped; a communicate the agent itself may not send raises :class:`SpecViolation`,
+- reply-by deadlines ending in a local ``failure``.
+
+The elementary action (paper §3.2): compute the transition function, dispatch the output
+buffer, increment i, acquire new inputs. It repeats until the behaviour's terminal or error
+condition holds; then the FSM's initial conditions choose the next behaviour.
+"""
+
+from __future__ import annotations
+
+import logging
+import queue
+import threading
+import time
+from collections import Counter, deque
+from dataclasses import dataclass
+from typing import Any, ClassVar
+
+import msgspec
+
+from services.runtime import keys
+from services.runtime.behaviour import FSM
+from services.runtime.conversations import Conversations, Pending
+from services.runtime.transport import Transport
+from services.spec.model import Interface, SystemSpec, channel_between, default_spec, interface
+from shared.fipa_codec import (
+    AgentIdentifier,
+    Communicate,
+    DecodeError,
+    Performative,
+    decode,
+    encode,
+)
+from shared.fipa_codec.languages import ContentError, decode_content, encode_content
+from shared.fipa_codec.message import new_id
+
+STREAMING_PROTOCOLS = frozenset({"fipa-subscribe", "coordinate"})
+_OPENERS = frozenset({Performative.REQUEST, Performative.SUBSCRIBE})
+"""Performatives that open a streaming conversation (many replies to one message)."""
+
+
+class SpecViolation(RuntimeError):
+    """The agent tried to send a communicate its specified interface does not allow."""
+
+
+@dataclass(frozen=True)
+class Received:
+    """One acquired communicate: the message, its decoded ``content`` (a term of its
+    language, or None), the ``channel`` it came on, and ``local`` True for a failure the
+    runtime synthesised when a reply-by deadline passed."""
+
+    msg: Communicate
+    content: msgspec.Struct | None
+    channel: str
+    local: bool = False
+
+    @property
+    def performative(self) -> Performative:
+        return self.msg.performative
+
+    @property
+    def sender(self) -> str:
+        return self.msg.sender.name if self.msg.sender else ""
+
+
+class Agent:
+    """Base class of every roco agent (a purely computational agent: control subsystem only,
+    paper §5.5). Subclasses set ``name`` and implement :meth:`build_fsm`."""
+
+    name: ClassVar[str]
+    period: ClassVar[float] = 0.1
+    """Sampling period (s) of communication states: the longest a waiting behaviour blocks."""
+
+    def __init__(self, transport: Transport, spec: SystemSpec | None = None) -> None:
+        self.spec = spec or default_spec()
+        self.transport = transport
+        self.aid = AgentIdentifier(self.name)
+        self.interface: Interface = interface(self.spec, self.name)
+        self.log = logging.getLogger(self.name)
+        self.x: deque[Received] = deque()
+        self.r: deque[Any] = deque()
+        self.i = 0
+        self.state = ""
+        self.counters: Counter[str] = Counter()
+        self.conversations = Conversations()
+        self._y: list[tuple[str, bytes]] = []
+        self._queue: queue.SimpleQueue[tuple[str, Any]] = queue.SimpleQueue()
+        self._stop = threading.Event()
+        self.fsm = self.build_fsm()
+
+    # ---- to be provided by agents -------------------------------------------------------
+    def build_fsm(self) -> FSM:
+        """The agent's FSM of behaviours (paper §3.2). Called once, in ``__init__``."""
+        raise NotImplementedError
+
+    def setup(self) -> None:
+        """Runs once after the transport is bound, before the first behaviour."""
+
+    # ---- sending -------------------------------------------------------------------------
+    def send(
+        self,
+        to: str,
+        performative: Performative,
+        content: msgspec.Struct | None = None,
+        *,
+        protocol: str,
+        conversation_id: str | None = None,
+        reply_with: str | None = None,
+        in_reply_to: str | None = None,
+        reply_by_s: float | None = None,
+        expect_reply: bool = False,
+    ) -> Communicate:
+        """Put a communicate for ``to`` into the output buffer (sent after this step).
+
+        ``content`` is a term of a content language (its language is set from its type).
+        ``expect_reply`` (or ``reply_by_s``) registers the conversation so that replies are
+        matched and, after ``reply_by_s`` seconds, a local failure ends it.
+        Raises SpecViolation when no channel joins the agents or the interface forbids it.
+        """
+        channel = channel_between(self.spec, self.name, to)
+        if channel is None:
+            raise SpecViolation(f"{self.name}: no channel to {to}")
+        language, body = encode_content(content) if content is not None else (None, b"")
+        self._check_send(to, performative.value, protocol, language)
+        if (expect_reply or reply_by_s is not None) and reply_with is None:
+            reply_with = new_id(f"{self.name}-")
+        deadline = time.time() + reply_by_s if reply_by_s is not None else None
+        msg = Communicate(
+            performative=performative,
+            sender=self.aid,
+            receiver=(AgentIdentifier(to),),
+            content=body,
+            language=language,
+            encoding="msgpack" if body else None,
+            ontology="O_RoCo" if language else None,
+            protocol=protocol,
+            conversation_id=conversation_id or new_id("c-"),
+            reply_with=reply_with,
+            in_reply_to=in_reply_to,
+            reply_by=deadline,
+        )
+        if reply_with is not None:
+            self.conversations.expect(
+                Pending(
+                    reply_with,
+                    to,
+                    protocol,
+                    msg.conversation_id,
+                    deadline,
+                    streaming=protocol in STREAMING_PROTOCOLS and performative in _OPENERS,
+                )
+            )
+        self._y.append((keys.fipa_key(channel.name, self.name, to), encode(msg)))
+        self.counters[f"sent.{performative.value}"] += 1
+        return msg
+
+    def reply(
+        self,
+        to: Received,
+        performative: Performative,
+        content: msgspec.Struct | None = None,
+        *,
+        reply_with: str | None = None,
+        reply_by_s: float | None = None,
+        expect_reply: bool = False,
+    ) -> Communicate:
+        """Reply within ``to``'s conversation: same protocol and conversation-id,
+        in-reply-to = its reply-with."""
+        return self.send(
+            to.sender,
+            performative,
+            content,
+            protocol=to.msg.protocol or "",
+            conversation_id=to.msg.conversation_id,
+            in_reply_to=to.msg.reply_with,
+            reply_with=reply_with,
+            reply_by_s=reply_by_s,
+            expect_reply=expect_reply,
+        )
+
+    def not_understood(self, sender: str, channel: str, why: str, about: Communicate | None) -> None:
+        """Answer ``sender`` with not-understood; content is the reason as UTF-8 text."""
+        self.counters["rejected"] += 1
+        self.log.warning("not-understood to %s: %s", sender, why)
+        if about is not None and about.performative is Performative.NOT_UNDERSTOOD:
+            return  # never answer a not-understood with one: no loops
+        msg = Communicate(
+            performative=Performative.NOT_UNDERSTOOD,
+            sender=self.aid,
+            receiver=(AgentIdentifier(sender),),
+            content=why.encode(),
+            encoding="utf-8",
+            protocol=about.protocol if about else None,
+            conversation_id=about.conversation_id if about else None,
+            in_reply_to=about.reply_with if about else None,
+        )
+        self._y.append((keys.fipa_key(channel, self.name, sender), encode(msg)))
+
+    def _check_send(self, to: str, performative: str, protocol: str, language: str | None) -> None:
+        for kind in self.interface.sends:
+            if kind.receiver == to and kind.performative == performative and kind.protocol == protocol:
+                if language is not None and kind.languages and language not in kind.languages:
+                    raise SpecViolation(
+                        f"{self.name}: {performative} to {to} in {protocol} must use "
+                        f"{'/'.join(kind.languages)}, not {language}"
+                    )
+                return
+        raise SpecViolation(f"{self.name}: may not send {performative} to {to} in {protocol}")
+
+    def emit(self, key: str, payload: bytes) -> None:
+        """Put a payload for one of the agent's effectors (a non-FIPA key, e.g. a_hi's
+        ``roco/human/out``) into the output buffer."""
+        self._y.append((key, payload))
+
+    # ---- receiving -----------------------------------------------------------------------
+    def post(self, event: Any) -> None:
+        """Put a receptor event into the agent (thread-safe; wakes a waiting behaviour)."""
+        self._queue.put(("r", event))
+
+    def _on_payload(self, key: str, payload: bytes) -> None:
+        self._queue.put((key, payload))  # Zenoh thread: enqueue only
+
+    def _acquire(self, timeout: float) -> None:
+        """Acquire new inputs into x and r, blocking up to ``timeout`` for the first."""
+        deadline = self.conversations.next_deadline()
+        if deadline is not None:
+            timeout = max(0.0, min(timeout, deadline - time.time()))
+        try:
+            item = self._queue.get(timeout=timeout) if timeout > 0 else self._queue.get_nowait()
+        except queue.Empty:
+            item = None
+        while item is not None:
+            self._take(*item)
+            try:
+                item = self._queue.get_nowait()
+            except queue.Empty:
+                item = None
+        for p in self.conversations.expired(time.time()):
+            self.counters["deadline_failures"] += 1
+            synthetic = Communicate(
+                performative=Performative.FAILURE,
+                sender=AgentIdentifier(p.peer),
+                receiver=(self.aid,),
+                content=b"reply-by deadline passed",
+                encoding="utf-8",
+                protocol=p.protocol,
+                conversation_id=p.conversation_id,
+                in_reply_to=p.reply_with,
+            )
+            self.x.append(Received(synthetic, None, "", local=True))
+
+    def _take(self, key: str, payload: Any) -> None:
+        if key == "r":
+            self.r.append(payload)
+            return
+        try:
+            channel, sender, _receiver = keys.parse_fipa_key(key)
+        except ValueError:
+            self.counters["bad_key"] += 1
+            return
+        try:
+            msg = decode(payload)
+        except DecodeError as exc:
+            self.not_understood(sender, channel, f"malformed communicate: {exc.reason}", None)
+            return
+        self.counters[f"received.{msg.performative.value}"] += 1
+        if msg.sender is None or msg.sender.name != sender:
+            self.not_understood(sender, channel, "sender does not match the key it came on", msg)
+            return
+        kind = self.interface.accepts(sender, msg.performative.value, msg.protocol)
+        if kind is None or kind.channel != channel:
+            self.not_understood(
+                sender,
+                channel,
+                f"unexpected {msg.performative.value} in protocol {msg.protocol} on {channel}",
+                msg,
+            )
+            return
+        content: msgspec.Struct | None = None
+        if kind.languages and msg.content:
+            if msg.language not in kind.languages:
+                self.not_understood(
+                    sender, channel, f"language {msg.language} not accepted here", msg
+                )
+                return
+            try:
+                content = decode_content(msg.language, msg.content)
+            except ContentError as exc:
+                self.not_understood(sender, channel, str(exc), msg)
+                return
+        if msg.in_reply_to is not None and self.conversations.knows(msg.in_reply_to):
+            self.conversations.answered(msg.in_reply_to, msg.performative.value)
+        self.x.append(Received(msg, content, channel))
+
+    # ---- the loop -----------------------------------------------------------------------
+    def _dispatch(self) -> None:
+        for key, payload in self._y:
+            self.transport.publish(key, payload)
+        self._y.clear()
+
+    def bind(self) -> None:
+        """Subscribe the input buffer and announce liveliness."""
+        self.transport.subscribe(keys.inbox_key(self.name), self._on_payload)
+        self.transport.announce(keys.alive_key(self.name))
+
+    def stop(self) -> None:
+        self._stop.set()
+        self._queue.put(("r", None))
+
+    @property
+    def stopping(self) -> bool:
+        return self._stop.is_set()
+
+    def run(self) -> None:
+        """Run the FSM until :meth:`stop`."""
+        self.setup()
+        self._dispatch()
+        state = self.fsm.initial
+        while not self._stop.is_set():
+            self.state = state
+            behaviour = self.fsm.states[state]
+            self.log.debug("behaviour %s", behaviour.name)
+            behaviour.on_enter()
+            while not self._stop.is_set():
+                behaviour.transition()
+                self._dispatch()
+                self.i += 1
+                self._acquire(self.period if behaviour.waits else 0.0)
+                if behaviour.error() or behaviour.terminal():
+                    break
+            if self._stop.is_set():
+                break
+            state = self.fsm.next_state(state)
+        self._dispatch()
+
+    # ---- helpers for behaviours ---------------------------------------------------------
+    def take(self, predicate: Any) -> Received | None:
+        """Remove and return the first received communicate satisfying ``predicate``."""
+        for item in self.x:
+            if predicate(item):
+                self.x.remove(item)
+                return item
+        return None
+
+    def reject_unhandled(self, keep: Any) -> None:
+        """Answer every received communicate for which ``keep`` is False with not-understood
+        (it arrived in a state where it cannot be handled) and drop it."""
+        for item in list(self.x):
+            if not keep(item):
+                self.x.remove(item)
+                if not item.local:
+                    self.not_understood(
+                        item.sender,
+                        item.channel,
+                        f"{item.performative.value} not expected in state {self.state}",
+                        item.msg,
+                    )

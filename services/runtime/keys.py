@@ -1,0 +1,50 @@
+"""Zenoh key expressions of roco (design.md: a key names channel, sender and receiver).
+
+``roco/fipa/<channel>/<sender>/<receiver>``  one communicate (msgpack :class:`Communicate`)
+``roco/alive/<agent>``                       liveliness token of a running agent (white pages)
+``roco/human/in`` / ``roco/human/out``       a_hi's receptor and effector: text from/to a person
+``roco/state/<agent>``                       state snapshots (executor, for viewers)
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+PREFIX = "roco"
+FIPA_ALL = f"{PREFIX}/fipa/**"
+ALIVE_ALL = f"{PREFIX}/alive/*"
+HUMAN_IN = f"{PREFIX}/human/in"
+HUMAN_OUT = f"{PREFIX}/human/out"
+
+
+class FipaKey(NamedTuple):
+    channel: str
+    sender: str
+    receiver: str
+
+
+def fipa_key(channel: str, sender: str, receiver: str) -> str:
+    """The key one communicate from ``sender`` to ``receiver`` on ``channel`` is put on."""
+    return f"{PREFIX}/fipa/{channel}/{sender}/{receiver}"
+
+
+def inbox_key(agent: str) -> str:
+    """The key expression an agent subscribes to: every channel, every sender, to it."""
+    return f"{PREFIX}/fipa/*/*/{agent}"
+
+
+def parse_fipa_key(key: str) -> FipaKey:
+    """Split a communicate key; raises ValueError when it is not ``roco/fipa/C/S/R``."""
+    parts = key.split("/")
+    if len(parts) != 5 or parts[0] != PREFIX or parts[1] != "fipa":
+        raise ValueError(f"not a communicate key: {key!r}")
+    return FipaKey(parts[2], parts[3], parts[4])
+
+
+def alive_key(agent: str) -> str:
+    """The liveliness token key of ``agent``."""
+    return f"{PREFIX}/alive/{agent}"
+
+
+def state_key(agent: str) -> str:
+    return f"{PREFIX}/state/{agent}"

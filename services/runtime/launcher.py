@@ -1,0 +1,160 @@
+"""The local launcher: a Zenoh router, the traffic recorder and one OS process per agent.
+
+Processes are started with ``subprocess`` (fork + immediate exec of a fresh interpreter, i.e.
+spawn semantics: no Zenoh state is inherited, platform-notes.md). Each process gets its
+configuration through the environment (``services.runtime.main``). The launcher ends only the
+processes it started, by their PID.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import socket
+import subprocess
+import sys
+import time
+from collections.abc import Iterable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import zenoh
+
+from services.runtime import keys
+from services.runtime.transport import client_config
+
+AGENT_ORDER = ("a_km", "a_pl", "a_co", "ag_ex", "a_ta", "a_hi")
+"""Start order: servers before their clients, a_hi last (it accepts the human's command)."""
+
+
+class LaunchError(RuntimeError):
+    """A process of the fleet did not start or did not come alive in time."""
+
+
+def free_port() -> int:
+    """A TCP port on 127.0.0.1 that is free now."""
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+@dataclass
+class Fleet:
+    """A running set of processes: router (optional), recorder, agents.
+
+    ``endpoint``: the router endpoint clients connect to; ``run_dir``: where logs and traffic
+    go; ``env``: extra environment for every process (e.g. ``ROCO_REALTIME``).
+    """
+
+    run_dir: Path
+    endpoint: str
+    env: dict[str, str] = field(default_factory=dict)
+    processes: dict[str, subprocess.Popen[bytes]] = field(default_factory=dict)
+
+    def _environ(self) -> dict[str, str]:
+        env = dict(os.environ)
+        env.update(self.env)
+        env["ROCO_ROUTER"] = self.endpoint
+        env["ROCO_RUN_DIR"] = str(self.run_dir)
+        env.setdefault("PYTHONUNBUFFERED", "1")
+        return env
+
+    def _spawn(self, name: str, args: list[str]) -> None:
+        log = (self.run_dir / "logs" / f"{name}.stderr").open("ab")
+        self.processes[name] = subprocess.Popen(
+            [sys.executable, *args],
+            env=self._environ(),
+            stdout=log,
+            stderr=subprocess.STDOUT,
+            stdin=subprocess.DEVNULL,
+            start_new_session=True,
+        )
+
+    def start_router(self, timeout: float = 10.0) -> None:
+        """Start the embedded router on ``endpoint`` and wait until it accepts connections."""
+        self._spawn("router", ["-m", "services.runtime.router", "--listen", self.endpoint])
+        host, port = self.endpoint.split("/", 1)[1].rsplit(":", 1)
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            self._check_alive(["router"])
+            try:
+                with socket.create_connection((host, int(port)), timeout=0.2):
+                    return
+            except OSError:
+                time.sleep(0.05)
+        raise LaunchError(f"router did not listen on {self.endpoint} within {timeout:.0f} s")
+
+    def start_recorder(self) -> None:
+        self._spawn("recorder", ["-m", "services.recorder.recorder"])
+
+    def start_agents(self, names: Iterable[str] = AGENT_ORDER) -> None:
+        for name in names:
+            self._spawn(name, ["-m", "services.runtime.main", name])
+
+    def _check_alive(self, names: Iterable[str]) -> None:
+        for name in names:
+            proc = self.processes.get(name)
+            if proc is not None and proc.poll() is not None:
+                log = self.run_dir / "logs" / f"{name}.stderr"
+                tail = log.read_text(errors="replace").strip().splitlines()[-1:] if log.exists() else []
+                raise LaunchError(
+                    f"{name} exited with code {proc.returncode}" + (f": {tail[0]}" if tail else "")
+                )
+
+    def wait_alive(self, session: zenoh.Session, names: Iterable[str], timeout: float = 60.0) -> float:
+        """Block until every name in ``names`` has a liveliness token; returns seconds waited.
+        Raises LaunchError naming the missing ones, or a process that exited."""
+        wanted = set(names)
+        t0 = time.monotonic()
+        while True:
+            alive = alive_agents(session)
+            missing = wanted - alive
+            if not missing:
+                return time.monotonic() - t0
+            self._check_alive(wanted)
+            if time.monotonic() - t0 > timeout:
+                raise LaunchError(f"not alive after {timeout:.0f} s: {', '.join(sorted(missing))}")
+            time.sleep(0.1)
+
+    def dead(self) -> list[str]:
+        """Names of processes that have exited."""
+        return [n for n, p in self.processes.items() if p.poll() is not None]
+
+    def stop(self, timeout: float = 10.0) -> None:
+        """SIGTERM every started process (agents first, router last), then SIGKILL stragglers."""
+        order = [n for n in self.processes if n not in ("router", "recorder")] + ["recorder", "router"]
+        for name in order:
+            proc = self.processes.get(name)
+            if proc is None or proc.poll() is not None:
+                continue
+            proc.send_signal(signal.SIGTERM)
+            if name in ("recorder", "router"):
+                _wait(proc, timeout)
+        deadline = time.monotonic() + timeout
+        for proc in self.processes.values():
+            _wait(proc, max(0.1, deadline - time.monotonic()))
+
+    def pids(self) -> dict[str, int]:
+        return {n: p.pid for n, p in self.processes.items()}
+
+
+def _wait(proc: subprocess.Popen[bytes], timeout: float) -> None:
+    try:
+        proc.wait(timeout=timeout)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        proc.wait()
+
+
+def open_client(endpoint: str, *, wait_for_router: bool = False) -> zenoh.Session:
+    """A Zenoh client session for tools (CLI, tests). Raises zenoh.ZError when no router answers."""
+    return zenoh.open(client_config([endpoint], wait_for_router=wait_for_router))
+
+
+def alive_agents(session: zenoh.Session, timeout: float = 1.0) -> set[str]:
+    """Names with a liveliness token under ``roco/alive/*`` (the white pages)."""
+    names = set()
+    for reply in session.liveliness().get(keys.ALIVE_ALL, timeout=timeout):
+        if reply.ok is not None:
+            names.add(str(reply.ok.key_expr).rsplit("/", 1)[-1])
+    return names

@@ -1,0 +1,96 @@
+"""One agent process: ``python -m services.runtime.main AGENT``.
+
+Configuration comes from the environment so that the same command serves the local launcher
+and a container: ``ROCO_ROUTER`` (comma-separated Zenoh endpoints, default
+``tcp/127.0.0.1:7447``), ``ROCO_RUN_DIR`` (run folder; logs go to stderr otherwise),
+``ROCO_SPEC`` (specification file), ``ROCO_LOG_LEVEL``. SIGTERM and SIGINT stop the agent
+cleanly. Exit code 2 on a configuration error.
+"""
+
+from __future__ import annotations
+
+import importlib
+import logging
+import os
+import signal
+import sys
+from pathlib import Path
+from types import FrameType
+
+from services.runtime.agent import Agent
+from services.runtime.transport import ZenohTransport
+from services.spec.model import DEFAULT_SPEC, SpecError, SystemSpec, load
+
+DEFAULT_ROUTER = "tcp/127.0.0.1:7447"
+
+
+def router_endpoints() -> list[str]:
+    """Endpoints from ``ROCO_ROUTER``."""
+    return [e.strip() for e in os.environ.get("ROCO_ROUTER", DEFAULT_ROUTER).split(",") if e.strip()]
+
+
+def agent_class(spec: SystemSpec, name: str) -> type[Agent]:
+    """Import the implementation the specification names for agent ``name``.
+    Raises SpecError when the agent or its implementation is unknown."""
+    for a in spec.agents:
+        if a.name == name:
+            module, _, cls = a.implementation.partition(":")
+            try:
+                found = getattr(importlib.import_module(module), cls)
+            except (ImportError, AttributeError) as exc:
+                raise SpecError(f"agent {name}: cannot load {a.implementation}: {exc}") from None
+            if not (isinstance(found, type) and issubclass(found, Agent)):
+                raise SpecError(f"agent {name}: {a.implementation} is not an Agent")
+            return found
+    raise SpecError(f"no agent {name!r} in the specification")
+
+
+def setup_logging(name: str) -> None:
+    level = os.environ.get("ROCO_LOG_LEVEL", "INFO").upper()
+    run_dir = os.environ.get("ROCO_RUN_DIR")
+    handler: logging.Handler
+    if run_dir:
+        (Path(run_dir) / "logs").mkdir(parents=True, exist_ok=True)
+        handler = logging.FileHandler(Path(run_dir) / "logs" / f"{name}.log")
+    else:
+        handler = logging.StreamHandler(sys.stderr)
+    handler.setFormatter(logging.Formatter("%(asctime)s %(name)s %(levelname)s %(message)s"))
+    logging.basicConfig(level=level, handlers=[handler], force=True)
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = sys.argv[1:] if argv is None else argv
+    if len(args) != 1:
+        print("usage: python -m services.runtime.main AGENT", file=sys.stderr)
+        return 2
+    name = args[0]
+    setup_logging(name)
+    try:
+        spec = load(Path(os.environ.get("ROCO_SPEC", str(DEFAULT_SPEC))))
+        cls = agent_class(spec, name)
+    except SpecError as exc:
+        print(f"roco: {exc}", file=sys.stderr)
+        return 2
+    transport = ZenohTransport(router_endpoints())
+    agent = cls(transport, spec)
+
+    def on_signal(signum: int, frame: FrameType | None) -> None:
+        agent.stop()
+
+    signal.signal(signal.SIGTERM, on_signal)
+    signal.signal(signal.SIGINT, on_signal)
+    agent.bind()
+    logging.getLogger(name).info("started (pid %d)", os.getpid())
+    try:
+        agent.run()
+    finally:
+        logging.getLogger(name).info("stopping; counters %s", dict(agent.counters))
+        close = getattr(agent, "close", None)
+        if callable(close):
+            close()
+        transport.close()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,92 @@
+"""Transport: how buffers reach other agents. Zenoh in client mode against a router
+(design.md), explicit endpoints, no multicast scouting.
+
+Subscriber callbacks run on Zenoh's threads and only enqueue (calling Zenoh from inside a
+callback has deadlocked: platform-notes.md); all publishing happens on the agent's thread.
+"""
+
+from __future__ import annotations
+
+import json
+import threading
+from collections.abc import Callable
+from typing import Protocol
+
+import zenoh
+
+Callback = Callable[[str, bytes], None]
+
+
+class Transport(Protocol):
+    """What the runtime needs of a transport."""
+
+    def publish(self, key: str, payload: bytes) -> None: ...
+    def subscribe(self, key_expr: str, callback: Callback) -> None: ...
+    def announce(self, key: str) -> None: ...
+    def close(self) -> None: ...
+
+
+def client_config(endpoints: list[str], *, wait_for_router: bool = True) -> zenoh.Config:
+    """A Zenoh client configuration connecting to ``endpoints`` (e.g. ``tcp/127.0.0.1:7447``)
+    with multicast scouting off. ``wait_for_router`` retries forever instead of failing
+    ``zenoh.open`` after ~0.1 s when no router answers (platform-notes.md)."""
+    conf = zenoh.Config()
+    conf.insert_json5("mode", '"client"')
+    conf.insert_json5("connect/endpoints", json.dumps(endpoints))
+    conf.insert_json5("scouting/multicast/enabled", "false")
+    if wait_for_router:
+        conf.insert_json5("connect/timeout_ms", "-1")
+    return conf
+
+
+def router_config(listen: list[str], connect: list[str] | None = None) -> zenoh.Config:
+    """A Zenoh router configuration listening on ``listen``, optionally meshed with other
+    routers at ``connect``; multicast scouting off."""
+    conf = zenoh.Config()
+    conf.insert_json5("mode", '"router"')
+    conf.insert_json5("listen/endpoints", json.dumps(listen))
+    conf.insert_json5("scouting/multicast/enabled", "false")
+    if connect:
+        conf.insert_json5("connect/endpoints", json.dumps(connect))
+    return conf
+
+
+class ZenohTransport:
+    """A :class:`Transport` over one Zenoh session."""
+
+    def __init__(self, endpoints: list[str], *, wait_for_router: bool = True) -> None:
+        self.session = zenoh.open(client_config(endpoints, wait_for_router=wait_for_router))
+        self._subs: list[zenoh.Subscriber] = []  # type: ignore[type-arg]
+        self._tokens: list[zenoh.LivelinessToken] = []
+        self._lock = threading.Lock()
+
+    def publish(self, key: str, payload: bytes) -> None:
+        self.session.put(key, payload)
+
+    def subscribe(self, key_expr: str, callback: Callback) -> None:
+        def on_sample(sample: zenoh.Sample) -> None:
+            callback(str(sample.key_expr), sample.payload.to_bytes())
+
+        with self._lock:
+            self._subs.append(self.session.declare_subscriber(key_expr, on_sample))
+
+    def announce(self, key: str) -> None:
+        """Declare a liveliness token on ``key`` for the life of this transport."""
+        with self._lock:
+            self._tokens.append(self.session.liveliness().declare_token(key))
+
+    def alive(self, key_expr: str, timeout: float = 1.0) -> list[str]:
+        """Keys of the liveliness tokens currently matching ``key_expr``."""
+        replies = self.session.liveliness().get(key_expr, timeout=timeout)
+        out = []
+        for reply in replies:
+            if reply.ok is not None:
+                out.append(str(reply.ok.key_expr))
+        return sorted(out)
+
+    def close(self) -> None:
+        for tok in self._tokens:
+            tok.undeclare()
+        for sub in self._subs:
+            sub.undeclare()
+        self.session.close()

@@ -1,0 +1,161 @@
+"""The communication specification as data (paper §4 steps 3–4, §5.4) and the agent
+interfaces derived from it.
+
+Loaded from TOML (``robot_companion.toml`` beside this module) into typed Structs; msgspec
+validates the shape, :func:`load` the cross references. An agent's interface is the set of
+(channel, peer, performative, protocol, language) it may send or receive (paper §4 step 4:
+the sets yV̂_j, xV̂_j, yL̂_j, xL̂_j).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import cache
+from pathlib import Path
+
+import msgspec
+
+DEFAULT_SPEC = Path(__file__).with_name("robot_companion.toml")
+NOT_UNDERSTOOD = "not-understood"
+
+
+class SpecError(ValueError):
+    """A specification file that is malformed or inconsistent; the message names file and place."""
+
+
+class AgentSpec(msgspec.Struct, frozen=True):
+    """An agent: its ``name``, the decomposition ``group`` it substitutes, its ``job``, and the
+    ``implementation`` (``module:Class``) the launcher starts for it."""
+
+    name: str
+    group: str
+    implementation: str
+    job: str = ""
+
+
+class ProtocolRoles(msgspec.Struct, frozen=True):
+    """Performatives each role of an interaction protocol may send."""
+
+    initiator: tuple[str, ...]
+    participant: tuple[str, ...]
+
+
+class ChannelProtocol(msgspec.Struct, frozen=True):
+    """One protocol on a channel: who initiates, and the content language per performative."""
+
+    protocol: str
+    initiator: str
+    languages: dict[str, str | tuple[str, ...]] = {}
+
+
+class ChannelSpec(msgspec.Struct, frozen=True):
+    """A communication channel C^k between two agents (paper §3.1) and its protocols."""
+
+    name: str
+    ends: tuple[str, str]
+    transmits: str
+    protocols: tuple[ChannelProtocol, ...]
+
+
+class SystemSpec(msgspec.Struct, frozen=True):
+    system: str
+    agents: tuple[AgentSpec, ...]
+    protocols: dict[str, ProtocolRoles]
+    channels: tuple[ChannelSpec, ...]
+
+
+@dataclass(frozen=True)
+class MessageKind:
+    """One kind of communicate an agent may send or receive."""
+
+    channel: str
+    sender: str
+    receiver: str
+    performative: str
+    protocol: str
+    languages: tuple[str, ...]
+
+
+@dataclass(frozen=True)
+class Interface:
+    """An agent's interface: the kinds of communicates it sends and receives."""
+
+    agent: str
+    sends: tuple[MessageKind, ...]
+    receives: tuple[MessageKind, ...]
+
+    def accepts(self, sender: str, performative: str, protocol: str | None) -> MessageKind | None:
+        """The received kind matching a communicate, or None when it is outside the interface."""
+        for kind in self.receives:
+            if (
+                kind.sender == sender
+                and kind.performative == performative
+                and kind.protocol == protocol
+            ):
+                return kind
+        return None
+
+
+def load(path: Path = DEFAULT_SPEC) -> SystemSpec:
+    """Load and cross-check a specification. Raises SpecError naming the file and the problem."""
+    try:
+        spec = msgspec.toml.decode(path.read_bytes(), type=SystemSpec)
+    except FileNotFoundError:
+        raise SpecError(f"{path}: no such specification file") from None
+    except (msgspec.DecodeError, msgspec.ValidationError) as exc:
+        raise SpecError(f"{path}: {exc}") from None
+    names = {a.name for a in spec.agents}
+    for ch in spec.channels:
+        for end in ch.ends:
+            if end not in names:
+                raise SpecError(f"{path}: channel {ch.name} names unknown agent {end!r}")
+        for cp in ch.protocols:
+            if cp.protocol not in spec.protocols:
+                raise SpecError(f"{path}: channel {ch.name} uses unknown protocol {cp.protocol!r}")
+            if cp.initiator not in ch.ends:
+                raise SpecError(
+                    f"{path}: channel {ch.name}: initiator {cp.initiator!r} is not an end"
+                )
+    return spec
+
+
+@cache
+def default_spec() -> SystemSpec:
+    """The Robot Companion's specification, loaded once per process."""
+    return load()
+
+
+def channel_between(spec: SystemSpec, a: str, b: str) -> ChannelSpec | None:
+    """The channel joining agents ``a`` and ``b`` (in either order), or None."""
+    for ch in spec.channels:
+        if set(ch.ends) == {a, b}:
+            return ch
+    return None
+
+
+def interface(spec: SystemSpec, agent: str) -> Interface:
+    """Derive ``agent``'s interface from the channels it ends (paper §4 step 4)."""
+    sends: list[MessageKind] = []
+    receives: list[MessageKind] = []
+    for ch in spec.channels:
+        if agent not in ch.ends:
+            continue
+        peer = ch.ends[1] if ch.ends[0] == agent else ch.ends[0]
+        for cp in ch.protocols:
+            roles = spec.protocols[cp.protocol]
+            mine = roles.initiator if cp.initiator == agent else roles.participant
+            theirs = roles.participant if cp.initiator == agent else roles.initiator
+            for perf in (*mine, NOT_UNDERSTOOD):
+                sends.append(MessageKind(ch.name, agent, peer, perf, cp.protocol, _langs(cp, perf)))
+            for perf in (*theirs, NOT_UNDERSTOOD):
+                receives.append(
+                    MessageKind(ch.name, peer, agent, perf, cp.protocol, _langs(cp, perf))
+                )
+    return Interface(agent, tuple(sends), tuple(receives))
+
+
+def _langs(cp: ChannelProtocol, performative: str) -> tuple[str, ...]:
+    lang = cp.languages.get(performative)
+    if lang is None:
+        return ()
+    return (lang,) if isinstance(lang, str) else tuple(lang)

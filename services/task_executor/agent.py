@@ -1,0 +1,259 @@
+"""a_ta — the task executor (paper §5.5, Table 6, Figure 11d).
+
+FSM states: idle (await a plan from a_co by the coordinate protocol), running (the plan is a
+hierarchical FSM; its leaf states send L_EX requests to ag_ex on C5 and inform a_km of
+changes on C6; every state change is informed to a_co in L_SW), finished (await a_co's
+confirmation of the final state). a_km's fipa-subscribe to environment updates is answered
+in every state; the first observation of the scene is taken at start-up (paper Table 7,
+0–37 s: initial knowledge).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from services.runtime.agent import Agent, Received
+from services.runtime.behaviour import FSM, Arc, Behaviour
+from shared.fipa_codec import Performative
+from shared.fipa_codec.languages.l_ex import MoveJoints, MoveTool, Observe, Tilt, Wait
+from shared.fipa_codec.languages.l_hfsm import (
+    Assert,
+    CheckContent,
+    Execute,
+    HierarchicalPlan,
+    PlanNode,
+    Perceive,
+)
+from shared.fipa_codec.languages.l_sd import Observation
+from shared.fipa_codec.languages.l_sw import SWState, SWStatus
+from shared.fipa_codec.languages.l_wm import ObjectUpdate, Subscription, WorldUpdate
+
+OBSERVE_REPLY_BY_S = 30.0
+COMMAND_MARGIN_S = 60.0
+CONFIRM_REPLY_BY_S = 30.0
+
+
+@dataclass
+class Step:
+    """The leaf state being executed: its HFSM path, node, and the C5 request awaiting reply."""
+
+    path: str
+    node: PlanNode
+    waiting_for: str | None = None
+
+
+class TaskExecutor(Agent):
+    name = "a_ta"
+
+    def build_fsm(self) -> FSM:
+        self.subscription: Received | None = None
+        self.initial_observe: str | None = None
+        self.initial_done = False
+        self.plan: HierarchicalPlan | None = None
+        self.plan_request: Received | None = None
+        self.leaves: list[tuple[str, PlanNode]] = []
+        self.index = 0
+        self.step: Step | None = None
+        self.outcome: SWState | None = None
+        self.reason: str | None = None
+        self.cancel_requested = False
+        self.final_inform: str | None = None
+        self.confirmed = False
+        return FSM(
+            initial="idle",
+            states={
+                "idle": Behaviour("idle", self._idle, terminal=lambda: self.plan is not None,
+                                  doc="await a plan execution request from a_co"),
+                "running": Behaviour("running", self._running, terminal=lambda: self.outcome is not None,
+                                     on_enter=self._start_plan, doc="execute the plan's HFSM"),
+                "finished": Behaviour("finished", self._finished, terminal=lambda: self.confirmed,
+                                      on_enter=self._report_final,
+                                      doc="await a_co's acknowledgement of the final state"),
+            },
+            arcs=[Arc("idle", "running"), Arc("running", "finished"), Arc("finished", "idle")],
+        )
+
+    # ---- communicates handled in every state ----
+    def _common(self) -> None:
+        for item in list(self.x):
+            if item.sender == "a_km" and item.performative is Performative.SUBSCRIBE:
+                self.x.remove(item)
+                if isinstance(item.content, Subscription):
+                    self.subscription = item
+                    self.reply(item, Performative.AGREE)
+                    self._observe_initial()
+                else:
+                    self.reply(item, Performative.REFUSE)
+            elif item.sender == "a_co" and item.performative is Performative.CONFIRM:
+                self.x.remove(item)
+                if self.final_inform is not None and item.msg.in_reply_to == self.final_inform:
+                    self.confirmed = True
+            elif item.sender == "a_co" and item.performative is Performative.CANCEL:
+                self.x.remove(item)
+                if self.plan_request is not None and item.msg.conversation_id == self.plan_request.msg.conversation_id:
+                    self.cancel_requested = True
+                    self._inform_co(SWState.TERMINATING, reason="cancelled by a_co")
+            elif item.sender == "ag_ex" and item.msg.in_reply_to == self.initial_observe:
+                self.x.remove(item)
+                self.initial_observe = None
+                if isinstance(item.content, Observation):
+                    self.initial_done = True
+                    self._update_km(item.content)
+                else:
+                    self._observe_initial()  # deadline passed or failure: ask again
+            elif item.local and item.msg.conversation_id == (
+                self.subscription.msg.conversation_id if self.subscription else None
+            ):
+                self.x.remove(item)
+
+    def _observe_initial(self) -> None:
+        if self.initial_done or self.initial_observe is not None:
+            return
+        msg = self.send("ag_ex", Performative.REQUEST, Observe(), protocol="fipa-request",
+                        reply_by_s=OBSERVE_REPLY_BY_S)
+        self.initial_observe = msg.reply_with
+
+    def _update_km(self, obs: Observation) -> None:
+        update = WorldUpdate(
+            stamp=obs.stamp,
+            objects=tuple(ObjectUpdate(name=o.name, pose=o.pose, particles=o.particles_inside) for o in obs.objects),
+            total_particles=obs.total_particles,
+        )
+        self._inform_km(update)
+
+    def _inform_km(self, update: WorldUpdate) -> None:
+        if self.subscription is None:
+            self.log.warning("no subscription from a_km yet; update at %.2f s not sent", update.stamp)
+            return
+        self.reply(self.subscription, Performative.INFORM, update)
+
+    def _inform_co(self, state: SWState, step: str | None = None, reason: str | None = None,
+                   expect: bool = False) -> str | None:
+        if self.plan_request is None or self.plan is None:
+            return None
+        msg = self.reply(
+            self.plan_request, Performative.INFORM,
+            SWStatus(state=state, plan_id=self.plan.plan_id, step=step, reason=reason),
+            reply_with=f"{self.plan.plan_id}-{self.i}",
+            reply_by_s=CONFIRM_REPLY_BY_S if expect else None,
+        )
+        return msg.reply_with
+
+    # ---- idle ----
+    def _idle(self) -> None:
+        self._common()
+        item = self.take(lambda i: i.sender == "a_co" and i.performative is Performative.REQUEST)
+        if item is None:
+            self.reject_unhandled(lambda i: i.local)
+            return
+        if isinstance(item.content, HierarchicalPlan):
+            self.plan, self.plan_request = item.content, item
+        else:
+            self.reply(item, Performative.REFUSE)
+
+    # ---- running ----
+    def _start_plan(self) -> None:
+        assert self.plan is not None
+        self.leaves = self.plan.root.leaves()
+        self.index = 0
+        self.step = None
+        self.outcome = None
+        self.reason = None
+        self.cancel_requested = False
+        self.log.info("plan %s: %d leaf states", self.plan.plan_id, len(self.leaves))
+        self._inform_co(SWState.RUNNING)
+
+    def _running(self) -> None:
+        self._common()
+        if self.step is not None and self.step.waiting_for is not None:
+            reply = self.take(lambda i: i.msg.in_reply_to == self.step.waiting_for)  # type: ignore[union-attr]
+            if reply is None:
+                self.reject_unhandled(lambda i: i.local or i.sender == "ag_ex")
+                return
+            self._complete(reply)
+            if self.outcome is not None:
+                return
+        if self.cancel_requested:
+            self._end(SWState.PREEMPTED, "cancelled by a_co")
+            return
+        if self.index >= len(self.leaves):
+            assert self.plan is not None
+            self._end(SWState.SUCCEEDED if self.plan.complete else SWState.REPLAN,
+                      None if self.plan.complete else "the plan ends with sensing; a new plan is needed")
+            return
+        path, node = self.leaves[self.index]
+        self.step = Step(path, node)
+        self._inform_co(SWState.RUNNING, step=path)
+        self._begin(self.step)
+
+    def _begin(self, step: Step) -> None:
+        action = step.node.action
+        if isinstance(action, Execute):
+            cmd = action.command
+            duration = cmd.duration if isinstance(cmd, MoveTool | MoveJoints | Tilt | Wait) else 10.0
+            msg = self.send("ag_ex", Performative.REQUEST, cmd, protocol="fipa-request",
+                            reply_by_s=duration * 2 + COMMAND_MARGIN_S)
+            step.waiting_for = msg.reply_with
+        elif isinstance(action, Perceive | CheckContent):
+            objects = action.objects if isinstance(action, Perceive) else (action.container,)
+            msg = self.send("ag_ex", Performative.REQUEST, Observe(objects=objects), protocol="fipa-request",
+                            reply_by_s=OBSERVE_REPLY_BY_S)
+            step.waiting_for = msg.reply_with
+        elif isinstance(action, Assert):
+            self._assert(action)
+            self.index += 1
+            self.step = None
+        else:
+            self.index += 1  # a composite state with no leaves
+            self.step = None
+
+    def _assert(self, action: Assert) -> None:
+        if action.relation == "heldBy":
+            change = ObjectUpdate(name=action.subject, held_by=action.object)
+        else:
+            change = ObjectUpdate(name=action.subject, location=action.object, relation=action.relation,
+                                  held_by="")
+        self._inform_km(WorldUpdate(stamp=-1.0, objects=(change,)))
+
+    def _complete(self, reply: Received) -> None:
+        assert self.step is not None
+        action = self.step.node.action
+        if reply.performative is not Performative.INFORM:
+            reason = getattr(reply.content, "reason", None) or reply.msg.content.decode("utf-8", "replace")
+            self._end(SWState.ERROR, f"{self.step.path}: {reply.performative.value}: {reason}")
+            return
+        if isinstance(action, Perceive | CheckContent) and isinstance(reply.content, Observation):
+            self._update_km(reply.content)
+            if isinstance(action, CheckContent):
+                inside = {o.name: o.particles_inside or 0 for o in reply.content.objects}
+                total = max(1, reply.content.total_particles)
+                fraction = inside.get(action.container, 0) / total
+                self.log.info("%s holds %.0f %% of the content", action.container, 100 * fraction)
+                if fraction < action.min_fraction:
+                    self._end(SWState.ERROR, f"{action.container} holds only {100 * fraction:.0f} % of the "
+                              f"content (needs {100 * action.min_fraction:.0f} %)")
+                    return
+        self.index += 1
+        self.step = None
+
+    def _end(self, state: SWState, reason: str | None) -> None:
+        self.outcome, self.reason = state, reason
+        self.log.info("plan ends %s %s", state.value, reason or "")
+
+    # ---- finished ----
+    def _report_final(self) -> None:
+        assert self.outcome is not None
+        self.confirmed = False
+        self.final_inform = self._inform_co(self.outcome, reason=self.reason, expect=True)
+
+    def _finished(self) -> None:
+        self._common()
+        for item in list(self.x):
+            if item.local and item.msg.in_reply_to == self.final_inform:
+                self.x.remove(item)
+                self.log.warning("a_co did not confirm the final state; going idle")
+                self.confirmed = True
+        if self.confirmed:
+            self.plan = None
+            self.plan_request = None
+            self.final_inform = None
