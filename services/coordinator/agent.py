@@ -20,6 +20,8 @@ from shared.fipa_codec.languages.l_hfsm import GroundTaskNetwork, HierarchicalPl
 from shared.fipa_codec.languages.l_sw import SWState, SWStatus
 
 PLAN_REPLY_BY_S = 600.0
+MAX_PLANS_PER_TASK = 6
+"""Plans a_co orders for one command before it gives up (replanning must converge)."""
 DEFAULT_DEADLINE_S = 3600.0
 
 
@@ -51,24 +53,37 @@ class Coordinator(Agent):
             initial="trigger",
             states={
                 "trigger": Behaviour(
-                    "trigger", self._trigger, terminal=self._has_work,
+                    "trigger",
+                    self._trigger,
+                    terminal=self._has_work,
                     doc="idle: receive commands from a_hi and a_ta's states",
                 ),
                 "procReq": Behaviour(
-                    "procReq", self._proc_req, terminal=lambda: True, waits=False,
+                    "procReq",
+                    self._proc_req,
+                    terminal=lambda: True,
+                    waits=False,
                     doc="store the new tasks; compute deadline and start time",
                 ),
                 "compSP": Behaviour(
-                    "compSP", self._comp_sp_step, terminal=self._plans_collected,
+                    "compSP",
+                    self._comp_sp_step,
+                    terminal=self._plans_collected,
                     on_enter=self._request_plans,
                     doc="request plans of all waiting tasks from a_pl; collect them",
                 ),
                 "schedule": Behaviour(
-                    "schedule", self._schedule, terminal=lambda: True, waits=False,
+                    "schedule",
+                    self._schedule,
+                    terminal=lambda: True,
+                    waits=False,
                     doc="decide: switch the plan a_ta runs, or continue",
                 ),
                 "switch": Behaviour(
-                    "switch", self._switch, terminal=lambda: True, waits=False,
+                    "switch",
+                    self._switch,
+                    terminal=lambda: True,
+                    waits=False,
                     doc="start the chosen plan on a_ta (coordinate protocol)",
                 ),
             },
@@ -111,8 +126,11 @@ class Coordinator(Agent):
     def _proc_req(self) -> None:
         while (item := self.take(self._is_command)) is not None:
             if not isinstance(item.content, HumanCommand):
-                self.reply(item, Performative.REFUSE, CommandOutcome(command_id="", succeeded=False,
-                                                                     detail="no command in the request"))
+                self.reply(
+                    item,
+                    Performative.REFUSE,
+                    CommandOutcome(command_id="", succeeded=False, detail="no command in the request"),
+                )
                 continue
             now = time.time()
             task_id = item.msg.conversation_id or f"task-{len(self.tasks)}"
@@ -122,13 +140,22 @@ class Coordinator(Agent):
             self.log.info("task %s: %s (priority %d)", task_id, item.content.text, item.content.priority)
 
     def _request_plans(self) -> None:
-        for task in self.tasks.values():
+        for task in list(self.tasks.values()):
             if task.needs_plan and task.planning is None:
+                if task.plan_index >= MAX_PLANS_PER_TASK:
+                    self._finish(task, False, f"no progress after {task.plan_index} plans")
+                    continue
                 task.plan_index += 1
-                gtn = GroundTaskNetwork(task_id=task.task_id, tasks=(task.command.goal,), plan_index=task.plan_index)
+                gtn = GroundTaskNetwork(
+                    task_id=task.task_id, tasks=(task.command.goal,), plan_index=task.plan_index
+                )
                 msg = self.send(
-                    "a_pl", Performative.REQUEST, gtn, protocol="fipa-request",
-                    conversation_id=f"{task.task_id}-plan{task.plan_index}", reply_by_s=PLAN_REPLY_BY_S,
+                    "a_pl",
+                    Performative.REQUEST,
+                    gtn,
+                    protocol="fipa-request",
+                    conversation_id=f"{task.task_id}-plan{task.plan_index}",
+                    reply_by_s=PLAN_REPLY_BY_S,
                 )
                 task.planning = msg.reply_with
                 self.log.info("task %s: requested plan #%d", task.task_id, task.plan_index)
@@ -147,8 +174,12 @@ class Coordinator(Agent):
         task = min(candidates, key=lambda t: (-t.command.priority, t.deadline))
         assert task.plan is not None
         msg = self.send(
-            "a_ta", Performative.REQUEST, task.plan, protocol="coordinate",
-            conversation_id=f"{task.task_id}-exec{task.plan_index}", expect_reply=True,
+            "a_ta",
+            Performative.REQUEST,
+            task.plan,
+            protocol="coordinate",
+            conversation_id=f"{task.task_id}-exec{task.plan_index}",
+            expect_reply=True,
         )
         task.running = True
         self.ta_task = task.task_id
@@ -185,12 +216,18 @@ class Coordinator(Agent):
             task.plan = item.content
             task.needs_plan = False
             self.log.info(
-                "task %s: plan #%d received (%s, %d km queries)", task.task_id, task.plan_index,
-                "complete" if item.content.complete else "partial", item.content.km_queries,
+                "task %s: plan #%d received (%s, %d km queries)",
+                task.task_id,
+                task.plan_index,
+                "complete" if item.content.complete else "partial",
+                item.content.km_queries,
             )
             return
-        reason = item.content.reason if isinstance(item.content, PlanFailure) else item.msg.content.decode(
-            "utf-8", "replace")
+        reason = (
+            item.content.reason
+            if isinstance(item.content, PlanFailure)
+            else item.msg.content.decode("utf-8", "replace")
+        )
         self._finish(task, False, f"no plan: {reason}")
 
     def _from_ta(self, item: Received) -> None:
@@ -212,15 +249,21 @@ class Coordinator(Agent):
             return
         if item.performative in (Performative.FAILURE, Performative.REFUSE, Performative.NOT_UNDERSTOOD):
             if in_conversation and task is not None:
-                self._finish(task, False, f"a_ta {item.performative.value}: "
-                             f"{item.msg.content.decode('utf-8', 'replace')}")
+                self._finish(
+                    task,
+                    False,
+                    f"a_ta {item.performative.value}: {item.msg.content.decode('utf-8', 'replace')}",
+                )
             return
         self.not_understood(item.sender, item.channel, f"unexpected {item.performative.value}", item.msg)
 
     def _release_ta(self) -> None:
         if self.ta_conversation is not None:
-            for p in [p for p in list(self.conversations._pending.values())
-                      if p.conversation_id == self.ta_conversation]:
+            for p in [
+                p
+                for p in list(self.conversations._pending.values())
+                if p.conversation_id == self.ta_conversation
+            ]:
                 self.conversations.forget(p.reply_with)
         self.ta_task = None
         self.ta_conversation = None

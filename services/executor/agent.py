@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import os
 from dataclasses import dataclass
+from typing import Any
 
 import msgspec
 
@@ -34,15 +35,21 @@ class Done:
 class ExecutorAgent(Agent):
     name = "ag_ex"
 
-    def build_fsm(self) -> FSM:
+    def make_executor(self) -> Any:
+        """The hard-timing executor this agent serves (velma's, pacing from ROCO_REALTIME)."""
         from velma.executor import Executor
 
-        self.executor = Executor(realtime=os.environ.get("ROCO_REALTIME", "0") == "1")
+        return Executor(realtime=os.environ.get("ROCO_REALTIME", "0") == "1")
+
+    def build_fsm(self) -> FSM:
+        self.executor = self.make_executor()
         return FSM(
             initial="serve",
             states={
                 "serve": Behaviour(
-                    "serve", self._serve, terminal=lambda: False,
+                    "serve",
+                    self._serve,
+                    terminal=lambda: False,
                     doc="pass a_ta's commands to the control loop; answer with their results",
                 )
             },
@@ -63,7 +70,9 @@ class ExecutorAgent(Agent):
             elif item.performative is Performative.CANCEL:
                 self.log.info("cancel from %s: the running command completes, queued ones stay", item.sender)
             elif item.performative is not Performative.NOT_UNDERSTOOD and not item.local:
-                self.not_understood(item.sender, item.channel, f"cannot serve {item.performative.value}", item.msg)
+                self.not_understood(
+                    item.sender, item.channel, f"cannot serve {item.performative.value}", item.msg
+                )
         while self.r:
             event = self.r.popleft()
             if isinstance(event, Done):

@@ -50,7 +50,9 @@ class HumanInterface(Agent):
 
     def _report(self, request_id: str, kind: ReportKind, text: str) -> None:
         self.log.info("to person [%s] %s: %s", request_id, kind.value, text)
-        self.emit(keys.HUMAN_OUT, msgspec.json.encode(HumanReport(request_id=request_id, kind=kind, text=text)))
+        self.emit(
+            keys.HUMAN_OUT, msgspec.json.encode(HumanReport(request_id=request_id, kind=kind, text=text))
+        )
 
     def _interact(self) -> None:
         while self.r:
@@ -92,7 +94,9 @@ class HumanInterface(Agent):
             kind = ReportKind.SUCCEEDED if item.content.succeeded else ReportKind.FAILED
             self._report(request_id, kind, item.content.detail)
         else:
-            reason = item.content.detail if isinstance(item.content, CommandOutcome) else item.msg.content.decode(
-                "utf-8", "replace"
+            reason = (
+                item.content.detail
+                if isinstance(item.content, CommandOutcome)
+                else item.msg.content.decode("utf-8", "replace")
             )
             self._report(request_id, ReportKind.FAILED, f"{perf.value}: {reason}")

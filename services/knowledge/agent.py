@@ -39,14 +39,26 @@ class KnowledgeManager(Agent):
         return FSM(
             initial="idle",
             states={
-                "idle": Behaviour("idle", self._idle, terminal=lambda: self.current is not None,
-                                  doc="await a query or an observation"),
+                "idle": Behaviour(
+                    "idle",
+                    self._idle,
+                    terminal=lambda: self.current is not None,
+                    doc="await a query or an observation",
+                ),
                 "questionAnswering": Behaviour(
-                    "questionAnswering", self._answer, terminal=lambda: True, waits=False,
-                    doc="reason over the knowledge base; reply to the query"),
+                    "questionAnswering",
+                    self._answer,
+                    terminal=lambda: True,
+                    waits=False,
+                    doc="reason over the knowledge base; reply to the query",
+                ),
                 "knowledgeSaving": Behaviour(
-                    "knowledgeSaving", self._save, terminal=lambda: True, waits=False,
-                    doc="update the knowledge base with an observation"),
+                    "knowledgeSaving",
+                    self._save,
+                    terminal=lambda: True,
+                    waits=False,
+                    doc="update the knowledge base with an observation",
+                ),
             },
             arcs=[
                 Arc("idle", "questionAnswering", self._is_query_current, "query"),
@@ -60,19 +72,31 @@ class KnowledgeManager(Agent):
         self._subscribe()
 
     def _subscribe(self) -> None:
-        msg = self.send("a_ta", Performative.SUBSCRIBE, Subscription("environment"), protocol="fipa-subscribe",
-                        conversation_id="km-environment", reply_by_s=SUBSCRIBE_RETRY_S)
+        msg = self.send(
+            "a_ta",
+            Performative.SUBSCRIBE,
+            Subscription("environment"),
+            protocol="fipa-subscribe",
+            conversation_id="km-environment",
+            reply_by_s=SUBSCRIBE_RETRY_S,
+        )
         self.subscribe_reply = msg.reply_with
 
     def _is_query_current(self) -> bool:
         return self.current is not None and self.current.performative in (
-            Performative.QUERY_REF, Performative.QUERY_IF)
+            Performative.QUERY_REF,
+            Performative.QUERY_IF,
+        )
 
     def _idle(self) -> None:
         self.current = None
         while self.x:
             item = self.x.popleft()
-            if item.msg.in_reply_to == self.subscribe_reply and item.msg.conversation_id == "km-environment":
+            if (
+                item.msg.in_reply_to == self.subscribe_reply
+                and item.msg.conversation_id == "km-environment"
+                and item.performative is not Performative.INFORM
+            ):
                 if item.performative is Performative.AGREE:
                     self.subscribed = True
                     self.log.info("a_ta agreed to send environment updates")
@@ -90,7 +114,9 @@ class KnowledgeManager(Agent):
                 self._subscribe()
                 continue
             if not item.local and item.performative is not Performative.NOT_UNDERSTOOD:
-                self.not_understood(item.sender, item.channel, f"unexpected {item.performative.value}", item.msg)
+                self.not_understood(
+                    item.sender, item.channel, f"unexpected {item.performative.value}", item.msg
+                )
 
     def _answer(self) -> None:
         item = self.current
@@ -103,8 +129,14 @@ class KnowledgeManager(Agent):
             answer = self.world.answer(query)
         except KnowledgeError as exc:
             self.log.info("query %s failed: %s", type(query).__name__, exc)
-            self.send(item.sender, Performative.FAILURE, None, protocol=item.msg.protocol or "fipa-query",
-                      conversation_id=item.msg.conversation_id, in_reply_to=item.msg.reply_with)
+            self.send(
+                item.sender,
+                Performative.FAILURE,
+                None,
+                protocol=item.msg.protocol or "fipa-query",
+                conversation_id=item.msg.conversation_id,
+                in_reply_to=item.msg.reply_with,
+            )
             return
         self.reply(item, Performative.INFORM_REF, answer)
 

@@ -39,8 +39,14 @@ def to_record(seq: int, t: float, key: str, payload: bytes) -> TrafficRecord:
         msg = decode(payload)
     except DecodeError:
         return TrafficRecord(
-            seq=seq, t=t, size=len(payload), channel=channel, sender=sender,
-            receivers=(receiver,), performative="malformed", key=key,
+            seq=seq,
+            t=t,
+            size=len(payload),
+            channel=channel,
+            sender=sender,
+            receivers=(receiver,),
+            performative="malformed",
+            key=key,
         )
     return TrafficRecord(
         seq=seq,

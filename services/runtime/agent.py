@@ -290,9 +290,7 @@ class Agent:
         content: msgspec.Struct | None = None
         if kind.languages and msg.content:
             if msg.language not in kind.languages:
-                self.not_understood(
-                    sender, channel, f"language {msg.language} not accepted here", msg
-                )
+                self.not_understood(sender, channel, f"language {msg.language} not accepted here", msg)
                 return
             try:
                 content = decode_content(msg.language, msg.content)
@@ -336,8 +334,10 @@ class Agent:
                 behaviour.transition()
                 self._dispatch()
                 self.i += 1
-                self._acquire(self.period if behaviour.waits else 0.0)
-                if behaviour.error() or behaviour.terminal():
+                # a communication state blocks for new input only while it has nothing to end on
+                done = behaviour.error() or behaviour.terminal()
+                self._acquire(self.period if behaviour.waits and not done else 0.0)
+                if done or behaviour.error() or behaviour.terminal():
                     break
             if self._stop.is_set():
                 break

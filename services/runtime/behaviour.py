@@ -91,7 +91,7 @@ class FSM:
 
     def to_dot(self, name: str) -> str:
         """Graphviz source of the FSM (paper Figure 11 style)."""
-        lines = [f'digraph "{name}" {{', "  rankdir=LR;", '  start [shape=point];']
+        lines = [f'digraph "{name}" {{', "  rankdir=LR;", "  start [shape=point];"]
         lines.append(f"  start -> {self.initial};")
         for s in self.states:
             lines.append(f'  {s} [shape=box, style=rounded, label="{s}"];')

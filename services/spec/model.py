@@ -87,11 +87,7 @@ class Interface:
     def accepts(self, sender: str, performative: str, protocol: str | None) -> MessageKind | None:
         """The received kind matching a communicate, or None when it is outside the interface."""
         for kind in self.receives:
-            if (
-                kind.sender == sender
-                and kind.performative == performative
-                and kind.protocol == protocol
-            ):
+            if kind.sender == sender and kind.performative == performative and kind.protocol == protocol:
                 return kind
         return None
 
@@ -113,9 +109,7 @@ def load(path: Path = DEFAULT_SPEC) -> SystemSpec:
             if cp.protocol not in spec.protocols:
                 raise SpecError(f"{path}: channel {ch.name} uses unknown protocol {cp.protocol!r}")
             if cp.initiator not in ch.ends:
-                raise SpecError(
-                    f"{path}: channel {ch.name}: initiator {cp.initiator!r} is not an end"
-                )
+                raise SpecError(f"{path}: channel {ch.name}: initiator {cp.initiator!r} is not an end")
     return spec
 
 
@@ -148,9 +142,7 @@ def interface(spec: SystemSpec, agent: str) -> Interface:
             for perf in (*mine, NOT_UNDERSTOOD):
                 sends.append(MessageKind(ch.name, agent, peer, perf, cp.protocol, _langs(cp, perf)))
             for perf in (*theirs, NOT_UNDERSTOOD):
-                receives.append(
-                    MessageKind(ch.name, peer, agent, perf, cp.protocol, _langs(cp, perf))
-                )
+                receives.append(MessageKind(ch.name, peer, agent, perf, cp.protocol, _langs(cp, perf)))
     return Interface(agent, tuple(sends), tuple(receives))
 
 

@@ -21,8 +21,8 @@ from shared.fipa_codec.languages.l_hfsm import (
     CheckContent,
     Execute,
     HierarchicalPlan,
-    PlanNode,
     Perceive,
+    PlanNode,
 )
 from shared.fipa_codec.languages.l_sd import Observation
 from shared.fipa_codec.languages.l_sw import SWState, SWStatus
@@ -62,13 +62,26 @@ class TaskExecutor(Agent):
         return FSM(
             initial="idle",
             states={
-                "idle": Behaviour("idle", self._idle, terminal=lambda: self.plan is not None,
-                                  doc="await a plan execution request from a_co"),
-                "running": Behaviour("running", self._running, terminal=lambda: self.outcome is not None,
-                                     on_enter=self._start_plan, doc="execute the plan's HFSM"),
-                "finished": Behaviour("finished", self._finished, terminal=lambda: self.confirmed,
-                                      on_enter=self._report_final,
-                                      doc="await a_co's acknowledgement of the final state"),
+                "idle": Behaviour(
+                    "idle",
+                    self._idle,
+                    terminal=lambda: self.plan is not None,
+                    doc="await a plan execution request from a_co",
+                ),
+                "running": Behaviour(
+                    "running",
+                    self._running,
+                    terminal=lambda: self.outcome is not None,
+                    on_enter=self._start_plan,
+                    doc="execute the plan's HFSM",
+                ),
+                "finished": Behaviour(
+                    "finished",
+                    self._finished,
+                    terminal=lambda: self.confirmed,
+                    on_enter=self._report_final,
+                    doc="await a_co's acknowledgement of the final state",
+                ),
             },
             arcs=[Arc("idle", "running"), Arc("running", "finished"), Arc("finished", "idle")],
         )
@@ -90,7 +103,10 @@ class TaskExecutor(Agent):
                     self.confirmed = True
             elif item.sender == "a_co" and item.performative is Performative.CANCEL:
                 self.x.remove(item)
-                if self.plan_request is not None and item.msg.conversation_id == self.plan_request.msg.conversation_id:
+                if (
+                    self.plan_request is not None
+                    and item.msg.conversation_id == self.plan_request.msg.conversation_id
+                ):
                     self.cancel_requested = True
                     self._inform_co(SWState.TERMINATING, reason="cancelled by a_co")
             elif item.sender == "ag_ex" and item.msg.in_reply_to == self.initial_observe:
@@ -109,14 +125,17 @@ class TaskExecutor(Agent):
     def _observe_initial(self) -> None:
         if self.initial_done or self.initial_observe is not None:
             return
-        msg = self.send("ag_ex", Performative.REQUEST, Observe(), protocol="fipa-request",
-                        reply_by_s=OBSERVE_REPLY_BY_S)
+        msg = self.send(
+            "ag_ex", Performative.REQUEST, Observe(), protocol="fipa-request", reply_by_s=OBSERVE_REPLY_BY_S
+        )
         self.initial_observe = msg.reply_with
 
     def _update_km(self, obs: Observation) -> None:
         update = WorldUpdate(
             stamp=obs.stamp,
-            objects=tuple(ObjectUpdate(name=o.name, pose=o.pose, particles=o.particles_inside) for o in obs.objects),
+            objects=tuple(
+                ObjectUpdate(name=o.name, pose=o.pose, particles=o.particles_inside) for o in obs.objects
+            ),
             total_particles=obs.total_particles,
         )
         self._inform_km(update)
@@ -127,12 +146,14 @@ class TaskExecutor(Agent):
             return
         self.reply(self.subscription, Performative.INFORM, update)
 
-    def _inform_co(self, state: SWState, step: str | None = None, reason: str | None = None,
-                   expect: bool = False) -> str | None:
+    def _inform_co(
+        self, state: SWState, step: str | None = None, reason: str | None = None, expect: bool = False
+    ) -> str | None:
         if self.plan_request is None or self.plan is None:
             return None
         msg = self.reply(
-            self.plan_request, Performative.INFORM,
+            self.plan_request,
+            Performative.INFORM,
             SWStatus(state=state, plan_id=self.plan.plan_id, step=step, reason=reason),
             reply_with=f"{self.plan.plan_id}-{self.i}",
             reply_by_s=CONFIRM_REPLY_BY_S if expect else None,
@@ -178,8 +199,10 @@ class TaskExecutor(Agent):
             return
         if self.index >= len(self.leaves):
             assert self.plan is not None
-            self._end(SWState.SUCCEEDED if self.plan.complete else SWState.REPLAN,
-                      None if self.plan.complete else "the plan ends with sensing; a new plan is needed")
+            self._end(
+                SWState.SUCCEEDED if self.plan.complete else SWState.REPLAN,
+                None if self.plan.complete else "the plan ends with sensing; a new plan is needed",
+            )
             return
         path, node = self.leaves[self.index]
         self.step = Step(path, node)
@@ -191,13 +214,23 @@ class TaskExecutor(Agent):
         if isinstance(action, Execute):
             cmd = action.command
             duration = cmd.duration if isinstance(cmd, MoveTool | MoveJoints | Tilt | Wait) else 10.0
-            msg = self.send("ag_ex", Performative.REQUEST, cmd, protocol="fipa-request",
-                            reply_by_s=duration * 2 + COMMAND_MARGIN_S)
+            msg = self.send(
+                "ag_ex",
+                Performative.REQUEST,
+                cmd,
+                protocol="fipa-request",
+                reply_by_s=duration * 2 + COMMAND_MARGIN_S,
+            )
             step.waiting_for = msg.reply_with
         elif isinstance(action, Perceive | CheckContent):
             objects = action.objects if isinstance(action, Perceive) else (action.container,)
-            msg = self.send("ag_ex", Performative.REQUEST, Observe(objects=objects), protocol="fipa-request",
-                            reply_by_s=OBSERVE_REPLY_BY_S)
+            msg = self.send(
+                "ag_ex",
+                Performative.REQUEST,
+                Observe(objects=objects),
+                protocol="fipa-request",
+                reply_by_s=OBSERVE_REPLY_BY_S,
+            )
             step.waiting_for = msg.reply_with
         elif isinstance(action, Assert):
             self._assert(action)
@@ -211,8 +244,9 @@ class TaskExecutor(Agent):
         if action.relation == "heldBy":
             change = ObjectUpdate(name=action.subject, held_by=action.object)
         else:
-            change = ObjectUpdate(name=action.subject, location=action.object, relation=action.relation,
-                                  held_by="")
+            change = ObjectUpdate(
+                name=action.subject, location=action.object, relation=action.relation, held_by=""
+            )
         self._inform_km(WorldUpdate(stamp=-1.0, objects=(change,)))
 
     def _complete(self, reply: Received) -> None:
@@ -230,8 +264,11 @@ class TaskExecutor(Agent):
                 fraction = inside.get(action.container, 0) / total
                 self.log.info("%s holds %.0f %% of the content", action.container, 100 * fraction)
                 if fraction < action.min_fraction:
-                    self._end(SWState.ERROR, f"{action.container} holds only {100 * fraction:.0f} % of the "
-                              f"content (needs {100 * action.min_fraction:.0f} %)")
+                    self._end(
+                        SWState.ERROR,
+                        f"{action.container} holds only {100 * fraction:.0f} % of the "
+                        f"content (needs {100 * action.min_fraction:.0f} %)",
+                    )
                     return
         self.index += 1
         self.step = None

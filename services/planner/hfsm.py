@@ -1,0 +1,87 @@
+"""From GTPyhop's action list to the L_HFSM plan a_ta runs (paper §5.4: plans as HFSMs)."""
+
+from __future__ import annotations
+
+from typing import Any
+
+from shared.fipa_codec.languages.l_ex import Arm, Grasp, LookAt, MoveTool, Release, Tilt, Wait
+from shared.fipa_codec.languages.l_hfsm import Action, Assert, CheckContent, Execute, Perceive, PlanNode
+
+OBSERVE_COST_S = 1.0
+
+
+def leaf_action(name: str, args: tuple[Any, ...]) -> tuple[Action | None, float]:
+    """The L_HFSM leaf action of one planner action, and its expected duration (s).
+    Raises ValueError for an action name the HFSM does not know."""
+    if name == "a_move":
+        arm, target, duration = args
+        return Execute(MoveTool(arm=Arm(arm), target=target, duration=duration)), duration
+    if name == "a_open":
+        return Execute(Release(arm=Arm(args[0]))), 1.0
+    if name == "a_grasp":
+        arm, _obj, spread = args
+        return Execute(Grasp(arm=Arm(arm), spread=spread)), 1.5
+    if name == "a_held":
+        obj, arm = args
+        return Assert(subject=obj, relation="heldBy", object=f"{arm}_gripper"), 0.0
+    if name == "a_release":
+        return Execute(Release(arm=Arm(args[0]))), 1.0
+    if name == "a_put":
+        obj, surface = args
+        return Assert(subject=obj, relation="on", object=surface), 0.0
+    if name == "a_look":
+        (point,) = args
+        return Execute(LookAt(point=tuple(point))), 1.0
+    if name == "a_perceive":
+        return Perceive(objects=(args[0],) if args[0] else ()), OBSERVE_COST_S
+    if name == "a_tilt":
+        arm, pivot, axis, angle, duration = args
+        return Execute(Tilt(arm=Arm(arm), pivot=pivot, axis=axis, angle=angle, duration=duration)), duration
+    if name == "a_wait":
+        return Execute(Wait(duration=args[0])), args[0]
+    if name == "a_check":
+        container, share = args
+        return CheckContent(container=container, min_fraction=share), OBSERVE_COST_S
+    if name == "a_replan":
+        return None, 0.0
+    raise ValueError(f"unknown planner action {name}")
+
+
+def to_hfsm(actions: list[tuple[Any, ...]]) -> tuple[PlanNode, bool, float]:
+    """Build the plan HFSM from ``(name, path, *args)`` actions.
+
+    Returns (root state, complete, cost): ``complete`` is False when the plan ends with a
+    replan marker; ``cost`` is the sum of expected leaf durations (s).
+    Raises ValueError when actions do not share one root.
+    """
+    order: dict[str, list[str]] = {}
+    complete, cost = True, 0.0
+    root_name: str | None = None
+    leaves: dict[str, Action] = {}
+    for name, path, *args in actions:
+        action, duration = leaf_action(name, tuple(args))
+        cost += duration
+        if action is None:
+            complete = False
+            continue
+        parts = path.split("/")
+        if root_name is None:
+            root_name = parts[0]
+        elif parts[0] != root_name:
+            raise ValueError(f"action {path} outside root {root_name}")
+        for depth in range(1, len(parts)):
+            parent, child = "/".join(parts[:depth]), "/".join(parts[: depth + 1])
+            kids = order.setdefault(parent, [])
+            if child not in kids:
+                kids.append(child)
+        leaves[path] = action
+    if root_name is None:
+        raise ValueError("empty plan")
+
+    def build(path: str) -> PlanNode:
+        name = path.rsplit("/", 1)[-1]
+        if path in leaves:
+            return PlanNode(name=name, action=leaves[path])
+        return PlanNode(name=name, children=tuple(build(c) for c in order.get(path, [])), task=name)
+
+    return build(root_name), complete, round(cost, 2)

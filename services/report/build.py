@@ -1,0 +1,87 @@
+"""Assembling the report of a run folder and writing ``report.md``."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from services.report.content import sphere_share
+from services.report.load import Message, RunData, load_run
+from services.report.markdown import render
+from services.report.model import Header, Report
+from services.report.planning import plan_phases
+from services.report.stats import agent_matrix, channel_stats, size_stats
+from services.report.timeline import command_text, find_command, find_outcome, timeline
+from shared.fipa_codec.languages.l_hc import CommandOutcome
+
+REPORT_MD = "report.md"
+
+
+def build_report(run_dir: Path, container: str = "bowl") -> Report:
+    """The report of ``run_dir`` as data. Raises FileNotFoundError when the folder does not
+    exist; missing or corrupt files inside it become ``Report.notes``."""
+    run = load_run(Path(run_dir))
+    messages = run.messages
+    command = find_command(messages)
+    outcome = find_outcome(messages)
+    plans = plan_phases(messages)
+    notes = list(run.notes)
+    if messages and command is None:
+        notes.append("no human command (C2 request) in the traffic")
+    if messages and outcome is None:
+        notes.append("no final outcome (C2 CommandOutcome or failure) in the traffic")
+    return Report(
+        header=_header(run, command, outcome),
+        sizes=size_stats(messages),
+        channels=channel_stats(messages),
+        matrix=agent_matrix(messages),
+        events=timeline(messages, plans, command, outcome),
+        plans=plans,
+        content=sphere_share(messages, container),
+        notes=notes,
+    )
+
+
+def write_report(run_dir: Path) -> Path:
+    """Build the report of ``run_dir`` and write it as Markdown to ``run_dir/report.md``;
+    returns that path. Raises FileNotFoundError when the folder does not exist."""
+    run_dir = Path(run_dir)
+    report = build_report(run_dir)
+    path = run_dir / REPORT_MD
+    path.write_text(render(report), encoding="utf-8")
+    return path
+
+
+def _header(run: RunData, command: Message | None, outcome: Message | None) -> Header:
+    info = run.info
+    h = Header(run_dir=str(run.run_dir))
+    h.command = command_text(command) or (info.command if info else "")
+    if outcome is not None:
+        if isinstance(outcome.content, CommandOutcome):
+            h.succeeded = outcome.content.succeeded
+            h.detail = outcome.content.detail
+            h.outcome_source = "C2 CommandOutcome"
+        else:
+            h.succeeded = False
+            h.outcome_source = f"C2 {outcome.performative}"
+        h.finished_t = outcome.t
+    elif info is not None and info.succeeded is not None:
+        h.succeeded = info.succeeded
+        h.detail = info.detail
+        h.outcome_source = "run.json"
+        if info.ended is not None:
+            h.finished_t = info.ended - run.t0
+    if not h.detail and info is not None:
+        h.detail = info.detail
+    if command is not None:
+        h.command_t = command.t
+    elif info is not None and info.command_sent is not None:
+        h.command_t = info.command_sent - run.t0
+    if h.command_t is not None and h.finished_t is not None:
+        h.task_duration_s = h.finished_t - h.command_t
+    if info is not None:
+        h.started_wall = info.started or None
+        h.command_wall = info.command_sent
+        h.ended_wall = info.ended
+    if run.messages:
+        h.last_record_t = run.messages[-1].t
+    return h

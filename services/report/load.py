@@ -1,0 +1,211 @@
+"""Reading a run folder tolerantly: every problem becomes a note, never an exception
+(except a missing folder).
+
+Sources: ``run.json`` (:class:`RunInfo`), ``traffic.jsonl`` (:class:`TrafficRecord` per line)
+and ``traffic.msgpack`` (raw communicates, matched to records by ``seq``).
+"""
+
+from __future__ import annotations
+
+import errno
+from collections.abc import Iterable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import msgspec
+
+from services.recorder.record import TRAFFIC_JSONL, TRAFFIC_RAW, TrafficRecord, read_payloads
+from services.runtime.run_folder import RUN_INFO, RunInfo, read_run_info
+from shared.fipa_codec import Communicate, DecodeError, decode
+from shared.fipa_codec.languages import ContentError, decode_content
+
+_record_decoder = msgspec.json.Decoder(TrafficRecord)
+
+
+@dataclass(frozen=True)
+class Message:
+    """One recorded communicate: its record ``rec``, arrival ``t`` in s since run start, the
+    decoded communicate ``comm`` (None: no or undecodable payload) and its decoded content
+    term ``content`` (None: no content or not decodable)."""
+
+    rec: TrafficRecord
+    t: float
+    comm: Communicate | None = None
+    content: msgspec.Struct | None = None
+
+    @property
+    def channel(self) -> str:
+        return self.rec.channel
+
+    @property
+    def sender(self) -> str:
+        return self.rec.sender
+
+    @property
+    def performative(self) -> str:
+        return self.rec.performative
+
+    @property
+    def conversation(self) -> str | None:
+        return self.rec.conversation_id
+
+    def is_(self, channel: str, sender: str | None = None, *performatives: str) -> bool:
+        """True when on ``channel``, from ``sender`` (None: anyone), with one of
+        ``performatives`` (none given: any)."""
+        return (
+            self.rec.channel == channel
+            and (sender is None or self.rec.sender == sender)
+            and (not performatives or self.rec.performative in performatives)
+        )
+
+
+@dataclass
+class RunData:
+    """A run folder as read: ``info`` (None if run.json is missing or corrupt), ``t0`` the
+    run start (POSIX s), ``messages`` in arrival order, ``notes`` on what went wrong."""
+
+    run_dir: Path
+    info: RunInfo | None
+    t0: float
+    messages: list[Message]
+    notes: list[str] = field(default_factory=list)
+
+
+def load_run(run_dir: Path) -> RunData:
+    """Read ``run_dir``. Raises FileNotFoundError (naming the path) when it is not a folder;
+    anything else missing or corrupt is noted and skipped."""
+    run_dir = Path(run_dir)
+    if not run_dir.is_dir():
+        raise FileNotFoundError(errno.ENOENT, "run folder not found", str(run_dir))
+    notes: list[str] = []
+    info = _read_info(run_dir, notes)
+    records = _read_records(run_dir, notes)
+    payloads = _read_raw(run_dir, notes, expect=bool(records))
+    if info is not None and info.started > 0:
+        t0 = info.started
+    elif records:
+        t0 = min(r.t for r in records)
+        notes.append("run start unknown (no run.json `started`): times count from the first record")
+    else:
+        t0 = 0.0
+    raw_present = (run_dir / TRAFFIC_RAW).exists()
+    messages = _decode_all(records, payloads, t0, notes, raw_present)
+    messages.sort(key=lambda m: (m.rec.t, m.rec.seq))
+    return RunData(run_dir, info, t0, messages, notes)
+
+
+def _read_info(run_dir: Path, notes: list[str]) -> RunInfo | None:
+    try:
+        return read_run_info(run_dir)
+    except FileNotFoundError:
+        notes.append(f"no {RUN_INFO}: command, outcome and wall times come from the traffic only")
+    except (msgspec.DecodeError, OSError) as exc:
+        notes.append(f"{RUN_INFO} unreadable ({_first_line(exc)}): ignored")
+    return None
+
+
+def _read_records(run_dir: Path, notes: list[str]) -> list[TrafficRecord]:
+    path = run_dir / TRAFFIC_JSONL
+    try:
+        data = path.read_bytes()
+    except FileNotFoundError:
+        notes.append(f"no traffic record ({TRAFFIC_JSONL} missing): no communicates to report")
+        return []
+    except OSError as exc:
+        notes.append(f"{TRAFFIC_JSONL} unreadable ({_first_line(exc)})")
+        return []
+    records: list[TrafficRecord] = []
+    bad: list[int] = []
+    first_error = ""
+    for lineno, line in enumerate(data.splitlines(), start=1):
+        if not line.strip():
+            continue
+        try:
+            records.append(_record_decoder.decode(line))
+        except msgspec.DecodeError as exc:
+            bad.append(lineno)
+            first_error = first_error or _first_line(exc)
+    if bad:
+        notes.append(
+            f"{TRAFFIC_JSONL}: {len(bad)} corrupt line(s) skipped ({_listing('line', bad)}; "
+            f"first error: {first_error})"
+        )
+    if not records:
+        notes.append(f"{TRAFFIC_JSONL} holds no communicates")
+    return records
+
+
+def _read_raw(run_dir: Path, notes: list[str], expect: bool) -> dict[int, bytes]:
+    if not (run_dir / TRAFFIC_RAW).exists():
+        if expect:
+            notes.append(f"no {TRAFFIC_RAW}: contents not decoded, content-based events missing")
+        return {}
+    out: dict[int, bytes] = {}
+    try:
+        for seq, payload in read_payloads(run_dir):
+            out[seq] = payload
+    except (ValueError, IndexError) as exc:  # msgspec.DecodeError is a ValueError
+        notes.append(f"{TRAFFIC_RAW} corrupt after {len(out)} payload(s) ({_first_line(exc)}): rest ignored")
+    return out
+
+
+def _decode_all(
+    records: list[TrafficRecord],
+    payloads: dict[int, bytes],
+    t0: float,
+    notes: list[str],
+    raw_present: bool,
+) -> list[Message]:
+    messages: list[Message] = []
+    missing: list[int] = []
+    undecodable: list[int] = []
+    bad_content: list[int] = []
+    size_mismatch: list[int] = []
+    for rec in records:
+        raw = payloads.get(rec.seq)
+        comm: Communicate | None = None
+        content: msgspec.Struct | None = None
+        if raw is None:
+            missing.append(rec.seq)
+        else:
+            if len(raw) != rec.size:
+                size_mismatch.append(rec.seq)
+            try:
+                comm = decode(raw)
+            except DecodeError:
+                undecodable.append(rec.seq)
+            if comm is not None and comm.content:
+                try:
+                    content = decode_content(comm.language, comm.content)
+                except ContentError:
+                    bad_content.append(rec.seq)
+        messages.append(Message(rec, rec.t - t0, comm, content))
+    if missing and raw_present:
+        notes.append(f"{len(missing)} record(s) without raw payload ({_listing('seq', missing)})")
+    if undecodable:
+        notes.append(
+            f"{len(undecodable)} payload(s) not decodable as a communicate "
+            f"({_listing('seq', undecodable)}): counted by their record only"
+        )
+    if bad_content:
+        notes.append(
+            f"{len(bad_content)} content(s) not decodable in their language ({_listing('seq', bad_content)})"
+        )
+    if size_mismatch:
+        notes.append(
+            f"{len(size_mismatch)} record size(s) differ from the raw payload length "
+            f"({_listing('seq', size_mismatch)}): the record's size is used"
+        )
+    return messages
+
+
+def _listing(word: str, items: Iterable[int], limit: int = 5) -> str:
+    items = list(items)
+    shown = ", ".join(str(i) for i in items[:limit])
+    more = f", … ({len(items)} in all)" if len(items) > limit else ""
+    return f"{word} {shown}{more}"
+
+
+def _first_line(exc: BaseException) -> str:
+    text = str(exc).strip()
+    return text.splitlines()[0] if text else type(exc).__name__

@@ -1,0 +1,297 @@
+"""Rendering a :class:`Report` as Markdown, with the paper's figures (§5.7, Tables 7 and 8)
+beside or below this run's."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from datetime import UTC, datetime
+from pathlib import Path
+
+from services.report import paper
+from services.report.model import AgentMatrix, Event, Header, PlanPhase, Report
+
+HOW_MEASURED = (
+    "**How measured.** Times are the arrival times of the communicates at the traffic "
+    "recorder (wall clock), in seconds since the run start (`run.json` `started`, else the "
+    "first record). Sizes are the payload on the wire: the msgpack-encoded communicate "
+    "(`TrafficRecord.size`). The paper logged send times and sizes of its ROS 1 messages, "
+    "so sizes compare in order of magnitude only."
+)
+
+
+def render(report: Report) -> str:
+    """The whole report as Markdown text."""
+    parts = [
+        _header(report.header),
+        _statistics(report),
+        _matrix_section(report.matrix),
+        _timeline(report.events),
+        _planning(report.plans),
+        _content(report),
+        _notes(report.notes),
+    ]
+    return "\n\n".join(parts) + "\n"
+
+
+def _cell(text: str) -> str:
+    return text.replace("|", "\\|").replace("\n", " ")
+
+
+def _table(head: Sequence[str], rows: Sequence[Sequence[str]]) -> str:
+    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    lines += ["| " + " | ".join(_cell(c) for c in row) + " |" for row in rows]
+    return "\n".join(lines)
+
+
+def _s(x: float | None) -> str:
+    return "—" if x is None else f"{x:.1f}"
+
+
+def _span(start: float, end: float | None) -> str:
+    if end is None or f"{end:.1f}" == f"{start:.1f}":
+        return _s(start)
+    return f"{_s(start)}–{_s(end)}"
+
+
+def _bytes(n: float | None) -> str:
+    if n is None:
+        return "—"
+    text = f"{n:.0f} B" if isinstance(n, int) else f"{n:.1f} B"
+    return text if n < 1000 else f"{text} ({n / 1000:.1f} kB)"
+
+
+def _pct(x: float | None) -> str:
+    return "—" if x is None else f"{100 * x:.1f} %"
+
+
+def _kbps(x: float | None) -> str:
+    return "—" if x is None else f"{x:.1f}"
+
+
+def _wall(t: float | None) -> str:
+    if t is None:
+        return "—"
+    return datetime.fromtimestamp(t, UTC).strftime("%Y-%m-%d %H:%M:%S UTC")
+
+
+def _header(h: Header) -> str:
+    outcome = {None: "unknown", True: "succeeded", False: "failed"}[h.succeeded]
+    if h.detail:
+        outcome += f" — {h.detail}"
+    outcome += f" (source: {h.outcome_source})"
+    if h.task_duration_s is not None:
+        duration = (
+            f"{_s(h.task_duration_s)} s (human command at {_s(h.command_t)} s → "
+            f"outcome at {_s(h.finished_t)} s)"
+        )
+    else:
+        duration = "— (command or outcome not recorded)"
+    rows = [
+        ["Command", h.command or "—"],
+        ["Outcome", outcome],
+        ["Task duration", duration],
+        ["Run started", _wall(h.started_wall)],
+        ["Command sent", _wall(h.command_wall)],
+        ["Run ended", _wall(h.ended_wall)],
+        ["Last communicate", f"{_s(h.last_record_t)} s after the start"],
+    ]
+    title = f"# Experiment report: {Path(h.run_dir).name}"
+    return "\n\n".join([title, f"Run folder: `{h.run_dir}`", _table(["", ""], rows), HOW_MEASURED])
+
+
+def _statistics(report: Report) -> str:
+    s, h = report.sizes, report.header
+    under = "—" if s.count == 0 else f"{_pct(s.share_under_500)} ({s.under_500} of {s.count})"
+    paper_duration = (
+        f"{paper.TASK_END_S:.0f} s from the log's start; "
+        f"{paper.TASK_END_S - paper.COMMAND_T_S:.0f} s from the command at "
+        f"{paper.COMMAND_T_S:.0f} s"
+    )
+    rows = [
+        ["communicates", str(s.count), f"{paper.COMMUNICATES} (Table 8 totals {paper.TABLE8_TOTAL})"],
+        ["total size", _bytes(s.total_bytes), "—"],
+        ["min size", _bytes(s.min_bytes), f"{paper.MIN_SIZE_B} B"],
+        ["mean size", _bytes(s.mean_bytes), f"{paper.MEAN_SIZE_B} B"],
+        [
+            "max size",
+            _bytes(s.max_bytes),
+            f"{paper.MAX_SIZE_B // 1000} kB (text also: {paper.MAX_SIZE_ALT_B // 1000} kB)",
+        ],
+        ["share under 0.5 kB (500 B)", under, f"{paper.SHARE_UNDER_500 * 100:.0f} %"],
+        ["task duration", f"{_s(h.task_duration_s)} s", paper_duration],
+    ]
+    derived = paper.table8_channel_counts()
+    ch_rows = []
+    for c in report.channels:
+        ends = paper.CHANNEL_ENDS.get(c.channel)
+        ch_rows.append(
+            [
+                c.channel,
+                "–".join(ends) if ends else "—",
+                str(c.count),
+                _bytes(c.bytes),
+                str(derived.get(c.channel, 0)) if ends else "—",
+            ]
+        )
+    ch_rows.append(["none", "a_km–ag_ex", "—", "—", str(derived.get("none", 0))])
+    return "\n\n".join(
+        [
+            "## 1. Communication statistics",
+            _table(["quantity", "this run", "paper (§5.7)"], rows),
+            "### Per channel",
+            _table(
+                [
+                    "channel",
+                    "agents",
+                    "this run: communicates",
+                    "this run: bytes",
+                    "paper: communicates (derived from Table 8)",
+                ],
+                ch_rows,
+            ),
+        ]
+    )
+
+
+def _matrix_table(
+    agents: Sequence[str],
+    rows: Sequence[str],
+    cells: dict[str, dict[str, int]],
+    received: dict[str, int],
+    sent: dict[str, int],
+    total: int,
+) -> str:
+    body = []
+    for r in rows:
+        row = cells.get(r, {})
+        body.append([r] + [str(row[s]) if row.get(s) else "" for s in agents] + [str(received.get(r, 0))])
+    body.append(["send"] + [str(sent.get(s, 0)) for s in agents] + [str(total)])
+    return _table(["receiver \\ sender", *agents, "Received"], body)
+
+
+def _matrix_section(m: AgentMatrix) -> str:
+    ours = _matrix_table(m.agents, m.agents, m.cells, m.received, m.sent, m.total)
+    theirs = _matrix_table(
+        paper.AGENTS,
+        list(paper.TABLE8),
+        paper.TABLE8,
+        paper.table8_received(),
+        paper.table8_sent(),
+        paper.TABLE8_TOTAL,
+    )
+    return "\n\n".join(
+        [
+            "## 2. Communicates sent and received per agent (paper Table 8 layout)",
+            "Rows: receivers; columns: senders. A communicate with several receivers counts "
+            "once per receiver.",
+            "**This run**",
+            ours,
+            "**Paper, Table 8** (no a_hi row; a_km ↔ ag_ex cells have no channel in the "
+            "specification; totals 1865 against 1856 in the text)",
+            theirs,
+        ]
+    )
+
+
+def _timeline(events: Sequence[Event]) -> str:
+    ours = [[_span(e.start, e.end), e.text, ", ".join(e.channels) or "—"] for e in events]
+    theirs = [list(row) for row in paper.TABLE7]
+    head = ["time [s]", "event", "channels used"]
+    return "\n\n".join(
+        [
+            "## 3. Event timeline (paper Table 7 layout)",
+            "**This run** (s since the run start)",
+            _table(head, ours) if ours else "No events: the traffic record is empty.",
+            "**Paper, Table 7**",
+            _table(head, theirs),
+        ]
+    )
+
+
+def _planning(plans: Sequence[PlanPhase]) -> str:
+    head = [
+        "plan",
+        "requested [s]",
+        "answered [s]",
+        "C4 communicates",
+        "C4 bytes",
+        "query-refs",
+        "a_km queries (plan)",
+        "planning time (plan) [s]",
+        "mean kbps",
+        "peak kbps (1 s)",
+        "result",
+    ]
+    rows = [
+        [
+            f"#{p.index}",
+            _s(p.requested_t),
+            _s(p.received_t),
+            str(p.c4_count),
+            _bytes(p.c4_bytes),
+            str(p.c4_queries),
+            "—" if p.km_queries is None else str(p.km_queries),
+            _s(p.planning_time_s),
+            _kbps(p.mean_kbps),
+            _kbps(p.peak_kbps),
+            p.outcome,
+        ]
+        for p in plans
+    ]
+    paper_rows = [
+        [
+            f"#{p.number}",
+            f"{p.requested:.0f}",
+            f"{p.received:.0f}",
+            str(p.c4_communicates),
+            f"{p.generated_until - p.requested:.0f}",
+            f"{p.mean_kbps:.0f}",
+            "—" if p.peak_kbps is None else f"{p.peak_kbps:.0f}",
+        ]
+        for p in paper.PLANS
+    ]
+    return "\n\n".join(
+        [
+            "## 4. Planning phases",
+            "C4 traffic counted from the plan request (C3) to a_pl's answer; mean bandwidth "
+            "over that span, peak over 1 s bins (paper Figure 13).",
+            _table(head, rows) if rows else "No plan request (C3) in the traffic.",
+            "**Paper** (§5.7, Table 7, Figure 13)",
+            _table(
+                [
+                    "plan",
+                    "requested [s]",
+                    "received [s]",
+                    "C4 communicates",
+                    "generation [s]",
+                    "mean kbps",
+                    "peak kbps",
+                ],
+                paper_rows,
+            ),
+        ]
+    )
+
+
+def _content(report: Report) -> str:
+    c = report.content
+    if not c.observed:
+        text = f"Spheres in the {c.container}: not observed (no L_SD Observation reports them)."
+    else:
+        text = (
+            f"{c.inside} of {c.total} spheres ({_pct(c.share)}) ended in the {c.container}, "
+            f"from the last observation (ag_ex → a_ta, C5) at {_s(c.t)} s "
+            f"(simulation time {_s(c.stamp)} s)."
+        )
+    return "\n\n".join(
+        [
+            "## 5. Content outcome",
+            text,
+            "Paper: “the content of the jar is poured into the bowl” at 763 s; no count given.",
+        ]
+    )
+
+
+def _notes(notes: Sequence[str]) -> str:
+    body = "\n".join(f"- {n}" for n in notes) if notes else "None: every file was read completely."
+    return f"## Notes\n\n{body}"

@@ -1,0 +1,140 @@
+"""The report as data: what :func:`services.report.build_report` returns.
+
+Conventions: times named ``*_t``/``start``/``end`` are seconds relative to the run start
+(``run.json`` ``started``, else the first record); ``*_wall`` are POSIX seconds; sizes are
+payload bytes on the wire (the msgpack-encoded communicate); bandwidths kbit/s (1000 bit/s).
+"""
+
+from __future__ import annotations
+
+import msgspec
+
+
+class Header(msgspec.Struct, kw_only=True):
+    """What was asked, how it ended, and when.
+
+    command: the human command's text (L_HC ``HumanCommand.text``, else ``run.json``).
+    succeeded, detail: the outcome; ``outcome_source`` says where it was read
+    (``"C2 CommandOutcome"``, ``"C2 failure"``, ``"run.json"`` or ``"none"``).
+    command_t, finished_t: arrival of the command (C2 request a_hi → a_co) and of the final
+    outcome (C2 inform/failure a_co → a_hi); task_duration_s is their difference (paper:
+    778 s counted from the log's start, command at 83 s).
+    started_wall, command_wall, ended_wall: POSIX times from ``run.json`` (None if absent).
+    """
+
+    run_dir: str
+    command: str = ""
+    succeeded: bool | None = None
+    detail: str = ""
+    outcome_source: str = "none"
+    command_t: float | None = None
+    finished_t: float | None = None
+    task_duration_s: float | None = None
+    started_wall: float | None = None
+    command_wall: float | None = None
+    ended_wall: float | None = None
+    last_record_t: float | None = None
+
+
+class SizeStats(msgspec.Struct, kw_only=True):
+    """Sizes of all recorded communicates (paper §5.7: 1856 communicates, min 231 B,
+    mean 654 B, max 98 kB, 86 % below 0.5 kB). min/mean/max are None when count is 0."""
+
+    count: int
+    total_bytes: int
+    min_bytes: int | None
+    mean_bytes: float | None
+    max_bytes: int | None
+    under_500: int
+    share_under_500: float | None
+
+
+class ChannelStats(msgspec.Struct, kw_only=True):
+    """Communicates and bytes on one channel (C1..C6 or whatever the record names)."""
+
+    channel: str
+    count: int
+    bytes: int
+
+
+class AgentMatrix(msgspec.Struct, kw_only=True):
+    """Paper Table 8 layout: ``cells[receiver][sender]`` = number of communicates (a
+    communicate with several receivers counts once per receiver). ``received`` row sums,
+    ``sent`` column sums, ``total`` their common sum; ``agents`` the row/column order."""
+
+    agents: list[str]
+    cells: dict[str, dict[str, int]]
+    received: dict[str, int]
+    sent: dict[str, int]
+    total: int
+
+
+class Event(msgspec.Struct, kw_only=True):
+    """One row of the timeline (paper Table 7 layout): ``start`` and ``end`` (None for an
+    instant) in s since run start, ``text``, the ``channels`` used, and a ``kind`` for
+    filtering (``initial_knowledge``, ``command``, ``plan_request``, ``planning``,
+    ``plan_received``, ``plan_failed``, ``execution``, ``cancel``, ``grasp``, ``release``,
+    ``tilt``, ``observation``, ``action_failed``, ``environment``, ``finished``)."""
+
+    start: float
+    text: str
+    channels: list[str]
+    kind: str
+    end: float | None = None
+
+
+class PlanPhase(msgspec.Struct, kw_only=True):
+    """One planning process (paper: #1 1598 C4 communicates 97–152 s, #2 57 in 681–682 s).
+
+    index: ``GroundTaskNetwork.plan_index`` (else the request's ordinal); requested_t: C3
+    request; received_t: a_pl's answer (None: no answer); c4_count/c4_bytes/c4_queries: C4
+    communicates, their bytes and a_pl's ``query-ref``s between request and answer;
+    c4_last_t: the last of them; mean_kbps: c4_bytes over [requested_t, received_t];
+    peak_kbps: the busiest 1 s bin from requested_t (paper Figure 13). From the plan itself
+    (L_HFSM ``HierarchicalPlan``): plan_id, km_queries, planning_time_s, complete.
+    outcome: ``complete``, ``partial``, ``failed: <reason>`` or ``no answer``.
+    """
+
+    index: int
+    requested_t: float
+    received_t: float | None
+    c4_count: int
+    c4_bytes: int
+    c4_queries: int
+    c4_last_t: float | None
+    mean_kbps: float | None
+    peak_kbps: float | None
+    outcome: str
+    plan_id: str | None = None
+    km_queries: int | None = None
+    planning_time_s: float | None = None
+    complete: bool | None = None
+
+
+class ContentOutcome(msgspec.Struct, kw_only=True):
+    """Spheres of the jar that ended in ``container``, from the last L_SD ``Observation``
+    (ag_ex → a_ta, C5) reporting ``particles_inside`` for it. ``observed`` False when none;
+    ``share`` = inside / total (None when total is 0); ``t`` arrival (s since run start);
+    ``stamp`` simulation time of the observation (s)."""
+
+    container: str
+    observed: bool
+    inside: int | None = None
+    total: int | None = None
+    share: float | None = None
+    t: float | None = None
+    stamp: float | None = None
+
+
+class Report(msgspec.Struct, kw_only=True):
+    """The experiment report of one run folder (paper §5.7). ``notes`` lists what was
+    missing or could not be read."""
+
+    header: Header
+    sizes: SizeStats
+    channels: list[ChannelStats]
+    matrix: AgentMatrix
+    events: list[Event]
+    plans: list[PlanPhase]
+    content: ContentOutcome
+    notes: list[str]

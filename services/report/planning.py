@@ -1,0 +1,88 @@
+"""Planning phases (paper §5.7, Figure 13): each C3 plan request, a_pl's answer, and the
+C4 traffic between them."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+from services.report.load import Message
+from services.report.model import PlanPhase
+from shared.fipa_codec.languages.l_hfsm import GroundTaskNetwork, HierarchicalPlan, PlanFailure
+
+PLAN_ANSWERS = ("inform", "failure", "refuse")
+"""Performatives by which a_pl ends a C3 plan request (an ``agree`` does not end it)."""
+
+PEAK_BIN_S = 1.0
+"""Width of the bins for the peak bandwidth (s); the paper's Figure 13 uses 1 s."""
+
+
+def plan_phases(messages: Sequence[Message]) -> list[PlanPhase]:
+    """One :class:`PlanPhase` per C3 ``request``, in order. C4 communicates are counted from
+    the request to a_pl's answer (or, without one, to the next request or the last record)."""
+    requests = [(i, m) for i, m in enumerate(messages) if m.is_("C3", None, "request")]
+    phases: list[PlanPhase] = []
+    for n, (pos, req) in enumerate(requests):
+        answer = _answer(messages, pos, req)
+        if answer is not None:
+            end = answer.t
+        elif n + 1 < len(requests):
+            end = requests[n + 1][1].t
+        else:
+            end = messages[-1].t
+        c4 = [m for m in messages if m.channel == "C4" and req.t <= m.t <= end]
+        c4_bytes = sum(m.rec.size for m in c4)
+        duration = end - req.t
+        plan = answer.content if answer is not None else None
+        gtn = req.content if isinstance(req.content, GroundTaskNetwork) else None
+        phase = PlanPhase(
+            index=gtn.plan_index if gtn is not None else n + 1,
+            requested_t=req.t,
+            received_t=answer.t if answer is not None else None,
+            c4_count=len(c4),
+            c4_bytes=c4_bytes,
+            c4_queries=sum(1 for m in c4 if m.performative == "query-ref"),
+            c4_last_t=c4[-1].t if c4 else None,
+            mean_kbps=c4_bytes * 8 / 1000 / duration if c4 and duration > 0 else None,
+            peak_kbps=_peak_kbps(c4, req.t),
+            outcome=_outcome(answer),
+        )
+        if isinstance(plan, HierarchicalPlan):
+            phase.plan_id = plan.plan_id
+            phase.km_queries = plan.km_queries
+            phase.planning_time_s = plan.planning_time_s
+            phase.complete = plan.complete
+        phases.append(phase)
+    return phases
+
+
+def _answer(messages: Sequence[Message], pos: int, req: Message) -> Message | None:
+    for m in messages[pos + 1 :]:
+        if (
+            m.is_("C3", None, *PLAN_ANSWERS)
+            and m.sender != req.sender
+            and (req.conversation is None or m.conversation == req.conversation)
+        ):
+            return m
+    return None
+
+
+def _peak_kbps(c4: Sequence[Message], start: float) -> float | None:
+    if not c4:
+        return None
+    bins: dict[int, int] = {}
+    for m in c4:
+        k = int((m.t - start) // PEAK_BIN_S)
+        bins[k] = bins.get(k, 0) + m.rec.size
+    return max(bins.values()) * 8 / 1000 / PEAK_BIN_S
+
+
+def _outcome(answer: Message | None) -> str:
+    if answer is None:
+        return "no answer"
+    content = answer.content
+    if answer.performative == "inform":
+        if isinstance(content, HierarchicalPlan):
+            return "complete" if content.complete else "partial"
+        return "received (content not decoded)"
+    reason = content.reason if isinstance(content, PlanFailure) else answer.performative
+    return f"failed: {reason}"

@@ -1,0 +1,339 @@
+"""The event timeline of a run in the layout of paper Table 7 (time [s], event, channels).
+
+Events are derived from the conversations of a pour run (see the module functions); times
+are arrival times at the recorder, in s since the run start.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import msgspec
+
+from services.report.load import Message
+from services.report.model import Event, PlanPhase
+from shared.fipa_codec.languages.l_ex import (
+    CommandResult,
+    Grasp,
+    Observe,
+    Release,
+    Tilt,
+)
+from shared.fipa_codec.languages.l_hc import CommandOutcome, HumanCommand
+from shared.fipa_codec.languages.l_hfsm import HierarchicalPlan
+from shared.fipa_codec.languages.l_sd import Observation
+from shared.fipa_codec.languages.l_sw import TERMINAL_SW_STATES, SWState, SWStatus
+from shared.fipa_codec.languages.l_wm import WorldUpdate
+
+ENV_GAP_S = 2.0
+"""Environment updates (C5 observations, C6 informs to a_km) closer than this (s) form one
+episode, as in Table 7's "293–315 a_km receives information about the modified environment"."""
+
+
+def find_command(messages: Sequence[Message]) -> Message | None:
+    """The human command: the first C2 ``request`` (a_hi → a_co, L_HC ``HumanCommand``)."""
+    for m in messages:
+        if m.is_("C2", None, "request"):
+            return m
+    return None
+
+
+def find_outcome(messages: Sequence[Message]) -> Message | None:
+    """The final outcome: the last C2 communicate carrying a ``CommandOutcome``, else the last
+    C2 ``failure`` from a_co."""
+    for m in reversed(messages):
+        if m.channel == "C2" and isinstance(m.content, CommandOutcome):
+            return m
+    for m in reversed(messages):
+        if m.is_("C2", "a_co", "failure"):
+            return m
+    return None
+
+
+def command_text(command: Message | None) -> str:
+    """The command's text ("" when not decodable)."""
+    if command is not None and isinstance(command.content, HumanCommand):
+        return command.content.text
+    return ""
+
+
+def timeline(
+    messages: Sequence[Message],
+    plans: Sequence[PlanPhase],
+    command: Message | None,
+    outcome: Message | None,
+) -> list[Event]:
+    """All events, sorted by start time (ties keep the order: knowledge, command, planning,
+    execution, robot actions, environment, finish)."""
+    if command is not None:
+        cutoff = command.t
+    elif plans:
+        cutoff = plans[0].requested_t
+    else:
+        cutoff = math.inf
+    events: list[Event] = []
+    events += _initial_knowledge(messages, cutoff)
+    if command is not None:
+        text = command_text(command)
+        said = f" “{text}”" if text else ""
+        events.append(
+            Event(
+                start=command.t,
+                text=f"a_co receives the command{said} from a_hi",
+                channels=["C2"],
+                kind="command",
+            )
+        )
+    for p in plans:
+        events += _plan_events(p)
+    events += _executions(messages, plans)
+    events += _robot_actions(messages, cutoff)
+    events += _environment(messages, cutoff)
+    if outcome is not None:
+        events.append(
+            Event(
+                start=outcome.t,
+                text=f"the task is finished: {_outcome_words(outcome)}",
+                channels=["C2"],
+                kind="finished",
+            )
+        )
+    events.sort(key=lambda e: e.start)
+    return events
+
+
+def _outcome_words(outcome: Message) -> str:
+    c = outcome.content
+    if isinstance(c, CommandOutcome):
+        word = "succeeded" if c.succeeded else "failed"
+        return f"{word} ({c.detail})" if c.detail else word
+    return "failed" if outcome.performative == "failure" else outcome.performative
+
+
+def _channels(ms: Sequence[Message]) -> list[str]:
+    return sorted({m.channel for m in ms})
+
+
+def _initial_knowledge(messages: Sequence[Message], cutoff: float) -> list[Event]:
+    pre = [m for m in messages if m.channel in ("C5", "C6") and m.t < cutoff]
+    if not pre:
+        return []
+    return [
+        Event(
+            start=pre[0].t,
+            end=pre[-1].t,
+            text=f"a_km receives an initial knowledge about the environment ({len(pre)} communicates)",
+            channels=_channels(pre),
+            kind="initial_knowledge",
+        )
+    ]
+
+
+def _num(x: float | None, unit: str, digits: int = 1) -> str:
+    return "—" if x is None else f"{x:.{digits}f} {unit}"
+
+
+def _plan_events(p: PlanPhase) -> list[Event]:
+    k = p.index
+    out = [
+        Event(
+            start=p.requested_t,
+            text=f"a_co requests a_pl for the plan #{k}",
+            channels=["C3"],
+            kind="plan_request",
+        )
+    ]
+    if p.c4_count:
+        out.append(
+            Event(
+                start=p.requested_t,
+                end=p.c4_last_t,
+                text=f"a_pl generates the plan #{k}, and queries a_km: {p.c4_count} "
+                f"communicates on C4, mean {_num(p.mean_kbps, 'kbps')}, "
+                f"peak {_num(p.peak_kbps, 'kbps')}",
+                channels=["C4"],
+                kind="planning",
+            )
+        )
+    if p.received_t is not None:
+        if p.outcome.startswith("failed"):
+            text, kind = f"a_pl answers plan request #{k}: {p.outcome}", "plan_failed"
+        else:
+            extra = ""
+            if p.km_queries is not None:
+                extra = f"; {p.km_queries} a_km queries, planning time {_num(p.planning_time_s, 's')}"
+            text = f"a_co receives the generated plan #{k} from a_pl ({p.outcome}{extra})"
+            kind = "plan_received"
+        out.append(Event(start=p.received_t, text=text, channels=["C3"], kind=kind))
+    return out
+
+
+@dataclass
+class _Execution:
+    plan_id: str | None
+    first: float
+    last: float
+    reports: int = 0
+    last_state: str = ""
+
+
+def _executions(messages: Sequence[Message], plans: Sequence[PlanPhase]) -> list[Event]:
+    """One span per executed plan: first to last C1 ``inform`` of a_ta (L_SW states), grouped
+    by the C1 conversation a_co opened with the plan (else by ``SWStatus.plan_id``)."""
+    index_of = {p.plan_id: p.index for p in plans if p.plan_id}
+    conv_plan: dict[str, str] = {}
+    runs: dict[str, _Execution] = {}
+    out: list[Event] = []
+    for m in messages:
+        if m.is_("C1", "a_co", "request") and isinstance(m.content, HierarchicalPlan):
+            if m.conversation:
+                conv_plan[m.conversation] = m.content.plan_id
+        elif m.is_("C1", "a_co", "cancel"):
+            out.append(
+                Event(start=m.t, text="a_co cancels the plan execution", channels=["C1"], kind="cancel")
+            )
+        elif m.is_("C1", "a_ta", "inform"):
+            status = m.content if isinstance(m.content, SWStatus) else None
+            plan_id = conv_plan.get(m.conversation or "") or (status.plan_id if status else None)
+            key = m.conversation if m.conversation in conv_plan else (plan_id or m.conversation or "?")
+            run = runs.setdefault(key, _Execution(plan_id or None, m.t, m.t))
+            run.last = m.t
+            run.reports += 1
+            if status is not None:
+                run.last_state = status.state.value
+    for run in runs.values():
+        if run.plan_id in index_of:
+            label = f"plan #{index_of[run.plan_id]}"
+        else:
+            label = f"plan {run.plan_id}" if run.plan_id else "plan"
+        last = f", last: {run.last_state}" if run.last_state else ""
+        out.append(
+            Event(
+                start=run.first,
+                end=run.last,
+                text=f"a_ta executes the {label}, reports its state to a_co "
+                f"({run.reports} state reports{last})",
+                channels=["C1"],
+                kind="execution",
+            )
+        )
+    return out
+
+
+def _request_for(reply: Message, requests: Sequence[Message]) -> Message | None:
+    """The C5 request ``reply`` answers: by in-reply-to, else conversation, else the latest."""
+    irt = reply.comm.in_reply_to if reply.comm is not None else None
+    for r in reversed(requests):
+        if irt is not None and r.comm is not None and r.comm.reply_with == irt:
+            return r
+    for r in reversed(requests):
+        if reply.conversation is not None and r.conversation == reply.conversation:
+            return r
+    return requests[-1] if requests else None
+
+
+def _robot_actions(messages: Sequence[Message], cutoff: float) -> list[Event]:
+    """Grasps, releases, tilts, observations and failed commands from ag_ex's C5 answers
+    after ``cutoff``, named after the request they answer and the HFSM step running then."""
+    requests: list[Message] = []
+    step: str | None = None
+    out: list[Event] = []
+    for m in messages:
+        if m.is_("C1", "a_co", "request"):
+            step = None  # a new plan starts
+        elif m.is_("C1", "a_ta", "inform") and isinstance(m.content, SWStatus):
+            if m.content.state == SWState.RUNNING and m.content.step:
+                step = m.content.step
+            elif m.content.state in TERMINAL_SW_STATES:
+                step = None
+        elif m.is_("C5", "a_ta", "request"):
+            requests.append(m)
+        elif m.is_("C5", "ag_ex", "inform", "failure") and m.t >= cutoff:
+            req = _request_for(m, requests)
+            described = _describe(req.content if req is not None else None, m)
+            if described is None:
+                continue
+            kind, text = described
+            if step:
+                text += f" (step {step})"
+            out.append(Event(start=m.t, text=text, channels=["C5"], kind=kind))
+    return out
+
+
+def _describe(cmd: msgspec.Struct | None, reply: Message) -> tuple[str, str] | None:
+    result = reply.content
+    ok = reply.performative == "inform" and not (isinstance(result, CommandResult) and not result.ok)
+    reason = (result.reason if isinstance(result, CommandResult) else None) or reply.performative
+    if isinstance(result, Observation) or (isinstance(cmd, Observe) and ok):
+        return "observation", _observed(result)
+    if isinstance(cmd, Grasp):
+        if ok:
+            return "grasp", f"{cmd.arm} hand grasps"
+        return "action_failed", f"{cmd.arm} hand fails to grasp: {reason}"
+    if isinstance(cmd, Release):
+        if ok:
+            return "release", f"{cmd.arm} hand releases"
+        return "action_failed", f"{cmd.arm} hand fails to release: {reason}"
+    if isinstance(cmd, Tilt):
+        if ok:
+            return "tilt", f"{cmd.arm} hand tilts the held object (pouring)"
+        return "action_failed", f"{cmd.arm} hand fails to tilt: {reason}"
+    if not ok:
+        name = type(cmd).__name__ if cmd is not None else "an executor command"
+        return "action_failed", f"{name} fails: {reason}"
+    return None
+
+
+def _observed(result: msgspec.Struct | None) -> str:
+    if not isinstance(result, Observation) or not result.objects:
+        return "the scene is observed"
+    names = ", ".join(o.name for o in result.objects)
+    text = f"{names} localised"
+    for o in result.objects:
+        if o.particles_inside is not None:
+            text += f"; {o.particles_inside} of {result.total_particles} spheres in the {o.name}"
+    return text
+
+
+def _environment(messages: Sequence[Message], cutoff: float) -> list[Event]:
+    """Episodes in which a_km learns about the changed environment: C6 informs a_ta → a_km
+    (with the C5 observations they follow) after ``cutoff``, merged when closer than
+    :data:`ENV_GAP_S`; an episode without a C6 inform is not listed."""
+    members = [
+        m
+        for m in messages
+        if m.t >= cutoff
+        and (
+            m.is_("C6", "a_ta", "inform")
+            or (m.is_("C5", "ag_ex", "inform") and isinstance(m.content, Observation))
+        )
+    ]
+    episodes: list[list[Message]] = []
+    for m in members:
+        if episodes and m.t - episodes[-1][-1].t <= ENV_GAP_S:
+            episodes[-1].append(m)
+        else:
+            episodes.append([m])
+    out: list[Event] = []
+    for ep in episodes:
+        updates = [m for m in ep if m.channel == "C6"]
+        if not updates:
+            continue
+        names: list[str] = []
+        for m in updates:
+            if isinstance(m.content, WorldUpdate):
+                names += [o.name for o in m.content.objects if o.name not in names]
+        about = f": {', '.join(names)}" if names else ""
+        out.append(
+            Event(
+                start=ep[0].t,
+                end=ep[-1].t if len(ep) > 1 else None,
+                text=f"a_km receives information about the modified environment from a_ta "
+                f"({len(updates)} update(s){about})",
+                channels=_channels(ep),
+                kind="environment",
+            )
+        )
+    return out
