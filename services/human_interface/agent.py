@@ -90,13 +90,11 @@ class HumanInterface(Agent):
             self._report(request_id, ReportKind.ACCEPTED, "a_co accepted the command")
             return
         self.requests.pop(item.msg.conversation_id or "", None)
-        if perf is Performative.INFORM and isinstance(item.content, CommandOutcome):
-            kind = ReportKind.SUCCEEDED if item.content.succeeded else ReportKind.FAILED
-            self._report(request_id, kind, item.content.detail)
-        else:
-            reason = (
-                item.content.detail
-                if isinstance(item.content, CommandOutcome)
-                else item.msg.content.decode("utf-8", "replace")
+        if isinstance(item.content, CommandOutcome):
+            succeeded = perf is Performative.INFORM and item.content.succeeded
+            self._report(
+                request_id, ReportKind.SUCCEEDED if succeeded else ReportKind.FAILED, item.content.detail
             )
-            self._report(request_id, ReportKind.FAILED, f"{perf.value}: {reason}")
+        else:
+            reason = item.msg.content.decode("utf-8", "replace") or "no reason given"
+            self._report(request_id, ReportKind.FAILED, f"a_co answered {perf.value}: {reason}")
