@@ -28,7 +28,9 @@ class Communicate(msgspec.Struct, frozen=True, omit_defaults=True, kw_only=True,
       conversation_id, reply_with, in_reply_to: m_c, m_w, m_t.
       reply_by: t_b, POSIX time in seconds by which a reply is expected.
       user_params: ``X-`` parameters; keys must start with ``X-``.
-    Raises ValueError on construction when ``receiver`` is empty or a user parameter lacks ``X-``.
+    Raises ValueError on construction when a user parameter lacks ``X-``. Only
+    ``performative`` is mandatory (SC00061 §2); an empty ``receiver`` is accepted.
+    The FIPA string form (SC00070) is in ``shared.fipa_codec.string_form``.
     """
 
     performative: Performative

@@ -46,6 +46,8 @@ class MemoryFleet:
         dec = msgspec.json.Decoder(HumanReport)
         self.bus.subscribe(keys.HUMAN_OUT, lambda k, p: self.reports.put(dec.decode(p)))
         self.threads: list[threading.Thread] = []
+        self.knowledge = threading.Event()
+        self.bus.subscribe(keys.fipa_key("C6", "a_ta", "a_km"), lambda k, p: self.knowledge.set())
 
     def agent(self, name: str) -> Agent:
         return next(a for a in self.agents if a.name == name)
@@ -64,6 +66,11 @@ class MemoryFleet:
             a.stop()
         for t in self.threads:
             t.join(timeout=5)
+
+    def wait_for_initial_knowledge(self, timeout: float = 10.0) -> None:
+        """Block until a_ta has sent a_km its first observation (paper Table 7, 0–37 s)."""
+        if not self.knowledge.wait(timeout):
+            raise TimeoutError("no initial knowledge")
 
     def command(self, text: str, request_id: str = "r1", timeout: float = 30.0) -> list[HumanReport]:
         """Send a sentence to a_hi; return its reports up to the final one."""

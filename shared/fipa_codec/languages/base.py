@@ -28,7 +28,7 @@ class Language:
     def decode(self, data: bytes) -> msgspec.Struct:
         """Decode ``data``; raises ContentError when it is not a term of this language."""
         try:
-            return self._decoder.decode(data)  # type: ignore[attr-defined, no-any-return]
+            return self._decoder.decode(data)  # type: ignore[attr-defined]
         except (msgspec.DecodeError, msgspec.ValidationError, ValueError) as exc:
             raise ContentError(f"{self.name}: {str(exc).splitlines()[0]}") from None
 
@@ -52,6 +52,7 @@ def register(language: Language) -> Language:
     for t in language.types:
         if t in _BY_TYPE:
             raise ValueError(f"{t.__name__} already belongs to {_BY_TYPE[t].name}")
+    for t in language.types:  # only once all are known to be free: no half registration
         _BY_TYPE[t] = language
     LANGUAGES[language.name] = language
     return language

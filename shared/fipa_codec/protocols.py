@@ -1,0 +1,523 @@
+"""FIPA interaction protocols (FIPA SC00025 library) as checkable finite state machines.
+
+A :class:`Protocol` is data: states, an initial state, final states and a transition table
+``(state, role, performative) -> state``, where ``role`` is ``"initiator"`` (the agent that
+sent the first message) or ``"participant"``. A :class:`ConversationTracker` follows one
+conversation (one ``conversation-id`` between one initiator and one participant) through it
+and raises :class:`ProtocolViolation` on a message the protocol does not allow.
+
+Conventions shared by all protocols (each after the FIPA specification cited):
+
+* ``not-understood`` (FIPA SC00037 §3.12) may be sent by either role in every state after
+  the first message; it ends the conversation in the final state ``not-understood``.
+* The *cancel meta-protocol* (SC00026 §2, SC00027 §2, SC00028 §2, SC00029 §2, SC00035 §2):
+  where a protocol allows it, the initiator may send ``cancel`` while the participant owes
+  it an outcome; the participant answers ``inform`` (cancelled) or ``failure`` (could not
+  cancel), both ending the conversation (states ``cancelled``/``cancel-failed``). The
+  tracker cannot tell an outcome that crossed the ``cancel`` on the wire from the answer to
+  the ``cancel``: an ``inform`` in state ``cancelling`` is taken as the answer.
+* FIPA's ``inform-done``/``inform-result``/``inform-t/f`` are all the performative
+  ``inform``.
+
+The protocols, by their FIPA ``protocol`` parameter name (:data:`PROTOCOLS`):
+
+``fipa-request`` (SC00026), ``fipa-query`` (SC00027), ``fipa-request-when`` (SC00028),
+``fipa-contract-net`` (SC00029, one tracker per participant), ``fipa-subscribe``
+(SC00035), ``fipa-propose`` (SC00036) and roco's ``coordinate`` (paper §5.4, Figure 8).
+
+The ``coordinate`` protocol tells apart an ``inform`` that reports a terminal L_SW state
+(Succeeded, Error, Preempted, Replan) from one that reports any other state; the
+transition table has a second part, ``terminal_transitions``, used when
+:meth:`ConversationTracker.step` is called with ``terminal=True``
+(:meth:`ConversationTracker.observe` works the flag out from the content).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass, field
+from types import MappingProxyType
+from typing import Final, Literal
+
+from shared.fipa_codec.acts import Performative
+from shared.fipa_codec.languages import ContentError, decode_content
+from shared.fipa_codec.message import Communicate
+
+__all__ = [
+    "INITIATOR",
+    "PARTICIPANT",
+    "PROTOCOLS",
+    "ConversationTracker",
+    "Protocol",
+    "ProtocolViolation",
+    "Role",
+    "is_terminal_report",
+]
+
+Role = Literal["initiator", "participant"]
+INITIATOR: Final = "initiator"
+PARTICIPANT: Final = "participant"
+_ROLES: tuple[Role, Role] = (INITIATOR, PARTICIPANT)
+_ABBREV = {INITIATOR: "I", PARTICIPANT: "P"}
+
+Key = tuple[str, Role, Performative]
+"""A transition's trigger: (state, role of the sender, performative)."""
+
+
+@dataclass(frozen=True, eq=False)
+class Protocol:
+    """An interaction protocol as a finite state machine (FIPA SC00025 §2 IP library).
+
+    ``transitions`` maps (state, sender's role, performative) to the next state;
+    ``terminal_transitions`` the same for an ``inform`` flagged ``terminal=True`` (only the
+    ``coordinate`` protocol has any). ``spec`` names the FIPA specification (or the paper
+    section). The machine is checked on construction: the initial and final states are
+    states, no transition leaves a final state, every state is reachable from ``initial``
+    and can reach a final state; ValueError otherwise.
+    """
+
+    name: str
+    states: frozenset[str]
+    initial: str
+    final: frozenset[str]
+    transitions: Mapping[Key, str]
+    terminal_transitions: Mapping[Key, str] = field(default_factory=dict)
+    spec: str = ""
+    description: str = ""
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "transitions", MappingProxyType(dict(self.transitions)))
+        object.__setattr__(self, "terminal_transitions", MappingProxyType(dict(self.terminal_transitions)))
+        problems = self._problems()
+        if problems:
+            raise ValueError(f"protocol {self.name}: " + "; ".join(problems))
+
+    def _edges(self) -> Iterable[tuple[Key, str, bool]]:
+        for key, target in self.transitions.items():
+            yield key, target, False
+        for key, target in self.terminal_transitions.items():
+            yield key, target, True
+
+    def _problems(self) -> list[str]:
+        problems = []
+        if self.initial not in self.states:
+            problems.append(f"initial state {self.initial!r} is not a state")
+        if self.initial in self.final:
+            problems.append("the initial state is final")
+        problems += [f"final state {s!r} is not a state" for s in sorted(self.final - self.states)]
+        successors: dict[str, set[str]] = {s: set() for s in self.states}
+        for (source, role, performative), target, _ in self._edges():
+            if role not in _ROLES:
+                problems.append(f"unknown role {role!r}")
+            if not isinstance(performative, Performative):
+                problems.append(f"{performative!r} is not a Performative")
+            for s in (source, target):
+                if s not in self.states:
+                    problems.append(f"transition uses unknown state {s!r}")
+            if source in self.final:
+                problems.append(f"transition leaves final state {source!r}")
+            if source in successors and target in self.states:
+                successors[source].add(target)
+        if problems:
+            return problems
+        reached = _closure({self.initial}, successors)
+        problems += [f"state {s!r} is unreachable" for s in sorted(self.states - reached)]
+        predecessors: dict[str, set[str]] = {s: set() for s in self.states}
+        for source, targets in successors.items():
+            for target in targets:
+                predecessors[target].add(source)
+        finishing = _closure(set(self.final), predecessors)
+        problems += [f"no final state can be reached from {s!r}" for s in sorted(self.states - finishing)]
+        return problems
+
+    def allowed(self, state: str) -> list[tuple[Role, Performative, bool]]:
+        """What may be sent in ``state``: (role, performative, terminal) triples, where
+        ``terminal`` is True for a transition taken only by a terminal ``inform``."""
+        out = {
+            (role, perf, terminal) for (source, role, perf), _, terminal in self._edges() if source == state
+        }
+        return sorted(out, key=lambda x: (_ROLES.index(x[0]), x[1].value, x[2]))
+
+    def next_state(
+        self, state: str, role: Role, performative: Performative, terminal: bool = False
+    ) -> str | None:
+        """The state after ``role`` sends ``performative`` in ``state``, or None when the
+        protocol does not allow it. With ``terminal`` a terminal transition is preferred."""
+        key = (state, role, performative)
+        if terminal and key in self.terminal_transitions:
+            return self.terminal_transitions[key]
+        return self.transitions.get(key)
+
+    def to_dot(self, *, not_understood: bool = False) -> str:
+        """The state machine in Graphviz DOT: the initial state marked by an arrow from a
+        point, final states as double circles, edges labelled ``I: request`` (initiator)
+        or ``P: inform [terminal]`` (participant). ``not-understood`` edges are drawn only
+        when ``not_understood`` is true (they go from every state but the first)."""
+        labels: dict[tuple[str, str], list[str]] = {}
+        for (source, role, perf), target, terminal in self._edges():
+            if perf is Performative.NOT_UNDERSTOOD and not not_understood:
+                continue
+            label = f"{_ABBREV[role]}: {perf.value}" + (" [terminal]" if terminal else "")
+            labels.setdefault((source, target), []).append(label)
+        states = sorted(self.states)
+        if not not_understood:
+            states = [s for s in states if s != "not-understood" or any(s in edge for edge in labels)]
+        lines = [
+            f"digraph {_q(self.name)} {{",
+            "  rankdir=LR;",
+            f"  label={_q(f'{self.name} ({self.spec})' if self.spec else self.name)};",
+            "  node [shape=circle];",
+            "  __start [shape=point];",
+            f"  __start -> {_q(self.initial)};",
+        ]
+        for s in states:
+            shape = "doublecircle" if s in self.final else "circle"
+            lines.append(f"  {_q(s)} [shape={shape}];")
+        for (source, target), texts in sorted(labels.items()):
+            lines.append(f"  {_q(source)} -> {_q(target)} [label={_q(chr(10).join(texts))}];")
+        lines.append("}")
+        return "\n".join(lines) + "\n"
+
+
+def _q(text: str) -> str:
+    return '"' + text.replace("\\", "\\\\").replace('"', '\\"').replace("\n", "\\n") + '"'
+
+
+def _closure(start: set[str], graph: Mapping[str, set[str]]) -> set[str]:
+    seen = set(start)
+    todo = list(start)
+    while todo:
+        for nxt in graph.get(todo.pop(), ()):
+            if nxt not in seen:
+                seen.add(nxt)
+                todo.append(nxt)
+    return seen
+
+
+class ProtocolViolation(ValueError):
+    """A message the protocol does not allow in the conversation's current state.
+
+    Attributes: ``protocol`` (name), ``state``, ``role``, ``performative`` of the offending
+    message, and ``allowed``: what :meth:`Protocol.allowed` permits in that state.
+    """
+
+    def __init__(
+        self,
+        protocol: str,
+        state: str,
+        role: str,
+        performative: Performative,
+        allowed: list[tuple[Role, Performative, bool]],
+        finished: bool = False,
+    ) -> None:
+        self.protocol = protocol
+        self.state = state
+        self.role = role
+        self.performative = performative
+        self.allowed = allowed
+        if finished:
+            text = (
+                f"{protocol}: the conversation already ended in state {state!r}; "
+                f"the {role} may not send {performative.value!r}"
+            )
+        else:
+            if allowed:
+                options = ", ".join(f"{r} {p.value}" + (" (terminal)" if t else "") for r, p, t in allowed)
+            else:
+                options = "nothing"
+            text = (
+                f"{protocol}: the {role} may not send {performative.value!r} in state "
+                f"{state!r}; allowed: {options}"
+            )
+        super().__init__(text)
+
+
+def is_terminal_report(msg: Communicate) -> bool:
+    """True when ``msg`` is an ``inform`` whose L_SW content reports a terminal
+    supervised-worker state (Succeeded, Error, Preempted, Replan; paper §5.4)."""
+    from shared.fipa_codec.languages.l_sw import TERMINAL_SW_STATES, SWStatus
+
+    if msg.performative is not Performative.INFORM or msg.language != "L_SW":
+        return False
+    try:
+        status = decode_content(msg.language, msg.content)
+    except ContentError:
+        return False
+    return isinstance(status, SWStatus) and status.state in TERMINAL_SW_STATES
+
+
+class ConversationTracker:
+    """Follows one conversation through ``protocol`` (a :class:`Protocol` or a name in
+    :data:`PROTOCOLS`), starting in its initial state.
+
+    ``state`` is the current state, ``history`` the accepted steps as (role, performative,
+    new state). A rejected message leaves the tracker unchanged.
+    """
+
+    def __init__(self, protocol: Protocol | str) -> None:
+        if isinstance(protocol, str):
+            if protocol not in PROTOCOLS:
+                raise ValueError(f"unknown interaction protocol {protocol!r}; known: {', '.join(PROTOCOLS)}")
+            protocol = PROTOCOLS[protocol]
+        self.protocol = protocol
+        self.state = protocol.initial
+        self.history: list[tuple[Role, Performative, str]] = []
+        self.initiator: str | None = None
+
+    @property
+    def is_finished(self) -> bool:
+        """True once the conversation is in a final state."""
+        return self.state in self.protocol.final
+
+    def allowed(self) -> list[tuple[Role, Performative, bool]]:
+        """What may be sent now (see :meth:`Protocol.allowed`)."""
+        return self.protocol.allowed(self.state)
+
+    def step(self, role: Role | str, performative: Performative | str, *, terminal: bool = False) -> str:
+        """Record that ``role`` sent ``performative``; returns the new state.
+
+        ``terminal`` matters only for an ``inform`` in a protocol with terminal
+        transitions (``coordinate``): True when the inform reports a terminal L_SW state
+        (Succeeded, Error, Preempted, Replan), False for any other state; other
+        protocols ignore it. Raises ProtocolViolation when the protocol does not allow the
+        message now (including any message after a final state), ValueError for an
+        unknown role or performative.
+        """
+        if role not in _ROLES:
+            raise ValueError(f"role must be 'initiator' or 'participant', not {role!r}")
+        perf = Performative(performative)
+        checked_role: Role = INITIATOR if role == INITIATOR else PARTICIPANT
+        target = self.protocol.next_state(self.state, checked_role, perf, terminal)
+        if target is None:
+            raise ProtocolViolation(
+                self.protocol.name,
+                self.state,
+                checked_role,
+                perf,
+                self.allowed(),
+                finished=self.is_finished,
+            )
+        self.state = target
+        self.history.append((checked_role, perf, target))
+        return target
+
+    def observe(self, msg: Communicate) -> str:
+        """Record communicate ``msg``: its role is ``initiator`` when its sender sent the
+        conversation's first message (or this is the first message), else ``participant``;
+        the ``terminal`` flag comes from :func:`is_terminal_report`. Returns the new state.
+        Raises ValueError when ``msg`` has no sender, ProtocolViolation as :meth:`step`."""
+        if msg.sender is None:
+            raise ValueError("cannot tell the role of a communicate without sender")
+        initiator = self.initiator if self.initiator is not None else msg.sender.name
+        role: Role = INITIATOR if msg.sender.name == initiator else PARTICIPANT
+        state = self.step(role, msg.performative, terminal=is_terminal_report(msg))
+        self.initiator = initiator
+        return state
+
+
+# ---------------------------------------------------------------------------------------------
+# The protocol library
+
+_I: Final = "initiator"
+_R: Final = "participant"  # the responder
+_P = Performative
+
+
+def _build(
+    name: str,
+    spec: str,
+    description: str,
+    edges: Iterable[tuple[str, Role, Performative | tuple[Performative, ...], str]],
+    final: Iterable[str],
+    *,
+    cancellable: Iterable[str] = (),
+    terminal_edges: Iterable[tuple[str, Role, Performative, str]] = (),
+    initial: str = "start",
+) -> Protocol:
+    """A protocol from its edges, adding the cancel meta-protocol from the ``cancellable``
+    states and ``not-understood`` from every state but the initial one."""
+    transitions: dict[Key, str] = {}
+    finals = set(final)
+
+    def add(table: dict[Key, str], key: Key, target: str) -> None:
+        if key in table and table[key] != target:
+            raise ValueError(f"{name}: {key} leads to both {table[key]!r} and {target!r}")
+        table[key] = target
+
+    for source, role, perfs, target in edges:
+        for perf in perfs if isinstance(perfs, tuple) else (perfs,):
+            add(transitions, (source, role, perf), target)
+    terminal: dict[Key, str] = {}
+    for source, role, perf, target in terminal_edges:
+        add(terminal, (source, role, perf), target)
+    cancellable = list(cancellable)
+    if cancellable:
+        for source in cancellable:
+            add(transitions, (source, _I, _P.CANCEL), "cancelling")
+        add(transitions, ("cancelling", _R, _P.INFORM), "cancelled")
+        add(transitions, ("cancelling", _R, _P.FAILURE), "cancel-failed")
+        finals |= {"cancelled", "cancel-failed"}
+    states = {initial} | finals
+    for (source, _, _), target in [*transitions.items(), *terminal.items()]:
+        states |= {source, target}
+    finals.add("not-understood")
+    for source in sorted(states - finals - {initial}):
+        for role in _ROLES:
+            add(transitions, (source, role, _P.NOT_UNDERSTOOD), "not-understood")
+    states.add("not-understood")
+    return Protocol(
+        name=name,
+        states=frozenset(states),
+        initial=initial,
+        final=frozenset(finals),
+        transitions=transitions,
+        terminal_transitions=terminal,
+        spec=spec,
+        description=description,
+    )
+
+
+FIPA_REQUEST = _build(
+    "fipa-request",
+    "FIPA SC00026",
+    "The initiator requests an action; the participant refuses, or agrees and later "
+    "reports failure or inform (done/result). The agree may be left out when the answer "
+    "comes at once (SC00026 §2).",
+    [
+        ("start", _I, _P.REQUEST, "requested"),
+        ("requested", _R, _P.REFUSE, "refused"),
+        ("requested", _R, _P.AGREE, "agreed"),
+        ("requested", _R, _P.FAILURE, "failed"),
+        ("requested", _R, _P.INFORM, "done"),
+        ("agreed", _R, _P.FAILURE, "failed"),
+        ("agreed", _R, _P.INFORM, "done"),
+    ],
+    ["refused", "failed", "done"],
+    cancellable=["requested", "agreed"],
+)
+
+FIPA_QUERY = _build(
+    "fipa-query",
+    "FIPA SC00027",
+    "The initiator asks query-if (is it true?) or query-ref (which objects?); the "
+    "participant refuses, or (optionally after agree) answers inform or reports failure "
+    "(SC00027 §2).",
+    [
+        ("start", _I, (_P.QUERY_IF, _P.QUERY_REF), "queried"),
+        ("queried", _R, _P.REFUSE, "refused"),
+        ("queried", _R, _P.AGREE, "agreed"),
+        ("queried", _R, _P.FAILURE, "failed"),
+        ("queried", _R, _P.INFORM, "answered"),
+        ("agreed", _R, _P.FAILURE, "failed"),
+        ("agreed", _R, _P.INFORM, "answered"),
+    ],
+    ["refused", "failed", "answered"],
+    cancellable=["queried", "agreed"],
+)
+
+FIPA_REQUEST_WHEN = _build(
+    "fipa-request-when",
+    "FIPA SC00028",
+    "The initiator asks for an action to be done when a precondition becomes true; the "
+    "participant refuses or agrees, and once the condition holds and the action is "
+    "attempted, reports failure or inform (SC00028 §2).",
+    [
+        ("start", _I, _P.REQUEST_WHEN, "requested"),
+        ("requested", _R, _P.REFUSE, "refused"),
+        ("requested", _R, _P.AGREE, "agreed"),
+        ("agreed", _R, _P.FAILURE, "failed"),
+        ("agreed", _R, _P.INFORM, "done"),
+    ],
+    ["refused", "failed", "done"],
+    cancellable=["requested", "agreed"],
+)
+
+FIPA_SUBSCRIBE = _build(
+    "fipa-subscribe",
+    "FIPA SC00035",
+    "The initiator subscribes to changes of an object; the participant refuses, or agrees "
+    "and then informs at every change until it fails or the initiator cancels "
+    "(cancel answered by inform or failure) (SC00035 §2).",
+    [
+        ("start", _I, _P.SUBSCRIBE, "subscribed"),
+        ("subscribed", _R, _P.REFUSE, "refused"),
+        ("subscribed", _R, _P.AGREE, "active"),
+        ("active", _R, _P.INFORM, "active"),
+        ("active", _R, _P.FAILURE, "failed"),
+    ],
+    ["refused", "failed"],
+    cancellable=["subscribed", "active"],
+)
+
+FIPA_CONTRACT_NET = _build(
+    "fipa-contract-net",
+    "FIPA SC00029",
+    "The initiator calls for proposals (cfp); the participant refuses or proposes; the "
+    "initiator rejects or accepts the proposal; an accepted participant reports failure "
+    "or inform (done/result). Tracked per participant (SC00029 §2).",
+    [
+        ("start", _I, _P.CFP, "cfp-sent"),
+        ("cfp-sent", _R, _P.REFUSE, "refused"),
+        ("cfp-sent", _R, _P.PROPOSE, "proposed"),
+        ("proposed", _I, _P.REJECT_PROPOSAL, "rejected"),
+        ("proposed", _I, _P.ACCEPT_PROPOSAL, "accepted"),
+        ("accepted", _R, _P.FAILURE, "failed"),
+        ("accepted", _R, _P.INFORM, "done"),
+    ],
+    ["refused", "rejected", "failed", "done"],
+    cancellable=["accepted"],
+)
+
+FIPA_PROPOSE = _build(
+    "fipa-propose",
+    "FIPA SC00036",
+    "The initiator proposes to perform an action; the participant accepts or rejects the "
+    "proposal (SC00036 §2).",
+    [
+        ("start", _I, _P.PROPOSE, "proposed"),
+        ("proposed", _R, _P.ACCEPT_PROPOSAL, "accepted"),
+        ("proposed", _R, _P.REJECT_PROPOSAL, "rejected"),
+    ],
+    ["accepted", "rejected"],
+)
+
+COORDINATE = _build(
+    "coordinate",
+    "paper §5.4, Figure 8",
+    "a_co requests a_ta to execute a plan (L_HFSM); a_ta informs its supervised-worker "
+    "states (L_SW), each confirmed by a_co before the next; a_co may cancel at any time "
+    "while the plan runs (a_ta then goes on reporting, e.g. Terminating, Preempted); the "
+    "conversation ends when a terminal state (Succeeded, Error, Preempted, Replan) is "
+    "confirmed. A cancel that crosses the terminal inform on the wire is tolerated.",
+    [
+        ("start", _I, _P.REQUEST, "requested"),
+        ("requested", _R, _P.INFORM, "reported"),
+        ("reported", _I, _P.CONFIRM, "running"),
+        ("running", _R, _P.INFORM, "reported"),
+        ("ending", _I, _P.CONFIRM, "finished"),
+        # cancel: a request to a_ta, not a state change of the conversation
+        ("requested", _I, _P.CANCEL, "requested"),
+        ("reported", _I, _P.CANCEL, "reported"),
+        ("running", _I, _P.CANCEL, "running"),
+        ("ending", _I, _P.CANCEL, "ending"),
+    ],
+    ["finished"],
+    terminal_edges=[
+        ("requested", _R, _P.INFORM, "ending"),
+        ("running", _R, _P.INFORM, "ending"),
+    ],
+)
+
+PROTOCOLS: dict[str, Protocol] = {
+    p.name: p
+    for p in (
+        FIPA_REQUEST,
+        FIPA_QUERY,
+        FIPA_REQUEST_WHEN,
+        FIPA_SUBSCRIBE,
+        FIPA_CONTRACT_NET,
+        FIPA_PROPOSE,
+        COORDINATE,
+    )
+}
+"""The interaction protocols by their FIPA ``protocol`` parameter value."""

@@ -1,0 +1,76 @@
+"""The five agents and ag_ex's communication side, in one process on a MemoryBus with a
+kinematic test double of the robot: the protocols of paper §5.4 carry a pour to the end."""
+
+from __future__ import annotations
+
+from shared.fipa_codec import decode
+from shared.fipa_codec.languages import decode_content
+from shared.fipa_codec.languages.l_hfsm import HierarchicalPlan
+from shared.fipa_codec.languages.l_sw import SWState, SWStatus
+from services.human_interface.messages import ReportKind
+from tests.support.fake_executor import PARTICLES, FakeExecutor
+from tests.support.memory_fleet import MemoryFleet
+
+
+def _traffic(fleet: MemoryFleet) -> list[tuple[str, object]]:
+    out = []
+    for key, payload in fleet.bus.published:
+        if not key.startswith("roco/fipa/"):
+            continue
+        msg = decode(payload)
+        content = decode_content(msg.language, msg.content) if msg.language and msg.content else None
+        out.append((key, (msg, content)))
+    return out
+
+
+def test_pour_runs_two_plans_and_succeeds() -> None:
+    with MemoryFleet() as fleet:
+        fleet.wait_for_initial_knowledge()
+        reports = fleet.command("pour the jar into the bowl")
+        traffic = _traffic(fleet)
+    assert [r.kind for r in reports] == [ReportKind.ACCEPTED, ReportKind.SUCCEEDED]
+    assert fleet.executor.inside == {"jar": 0, "bowl": PARTICLES}
+    plans = [c for _, (m, c) in traffic if isinstance(c, HierarchicalPlan) and m.sender.name == "a_pl"]
+    assert [p.complete for p in plans] == [False, True]
+    assert all(p.km_queries > 0 for p in plans)
+    states = [c.state for k, (m, c) in traffic if isinstance(c, SWStatus)]
+    assert states.count(SWState.REPLAN) == 1 and states[-1] is SWState.SUCCEEDED
+    channels = {k.split("/")[2] for k, _ in traffic}
+    assert channels == {"C1", "C2", "C3", "C4", "C5", "C6"}
+    # every L_SW inform of a_ta is confirmed by a_co (paper §5.4)
+    informs = [m.reply_with for k, (m, c) in traffic if isinstance(c, SWStatus)]
+    confirms = {m.in_reply_to for k, (m, c) in traffic if m.performative.value == "confirm"}
+    assert set(informs) <= confirms
+
+
+def test_unknown_sentence_is_reported_not_understood() -> None:
+    with MemoryFleet() as fleet:
+        reports = fleet.command("sing me a song")
+    assert [r.kind for r in reports] == [ReportKind.NOT_UNDERSTOOD]
+    assert "pour the jar into the bowl" in reports[0].text
+
+
+def test_unknown_object_fails_with_a_readable_reason() -> None:
+    with MemoryFleet() as fleet:
+        fleet.wait_for_initial_knowledge()
+        reports = fleet.command("pour the teapot into the bowl")
+    assert reports[-1].kind is ReportKind.FAILED
+    assert "teapot" in reports[-1].text
+
+
+def test_executor_failure_ends_the_task_with_error() -> None:
+    with MemoryFleet(FakeExecutor(fail={"Grasp"})) as fleet:
+        fleet.wait_for_initial_knowledge()
+        reports = fleet.command("pour the jar into the bowl")
+    assert reports[-1].kind is ReportKind.FAILED
+    assert "grasp" in reports[-1].text and "injected failure" in reports[-1].text
+
+
+def test_fleet_serves_a_second_command_after_the_first() -> None:
+    with MemoryFleet() as fleet:
+        fleet.wait_for_initial_knowledge()
+        first = fleet.command("pour the jar into the bowl", request_id="r1")
+        second = fleet.command("pour the jar into the bowl", request_id="r2")
+    assert first[-1].kind is ReportKind.SUCCEEDED
+    # the jar is now empty and held: the second pour still runs and the check still passes
+    assert second[-1].kind is ReportKind.SUCCEEDED

@@ -1,0 +1,218 @@
+"""Hypothesis strategies and sample terms shared by the fipa_codec tests."""
+
+from __future__ import annotations
+
+import msgspec
+from hypothesis import strategies as st
+
+from shared.fipa_codec import AgentIdentifier, Communicate, Performative
+from shared.fipa_codec.languages import encode_content
+from shared.fipa_codec.languages.common import Pose
+from shared.fipa_codec.languages.l_ex import (
+    Arm,
+    CommandResult,
+    Grasp,
+    LookAt,
+    MoveJoints,
+    MoveTool,
+    Observe,
+    Release,
+    Tilt,
+    Wait,
+)
+from shared.fipa_codec.languages.l_hc import CommandOutcome, HumanCommand, TaskAtom
+from shared.fipa_codec.languages.l_hfsm import (
+    Assert,
+    CheckContent,
+    Execute,
+    GroundTaskNetwork,
+    HierarchicalPlan,
+    Perceive,
+    PlanFailure,
+    PlanNode,
+)
+from shared.fipa_codec.languages.l_sd import ObjectObservation, Observation
+from shared.fipa_codec.languages.l_sw import SWState, SWStatus
+from shared.fipa_codec.languages.l_wm import (
+    Answer,
+    GraspAffordance,
+    GraspQuery,
+    ObjectInfo,
+    ObjectQuery,
+    ObjectUpdate,
+    PlacementInfo,
+    PlacementQuery,
+    PourAffordance,
+    PourQuery,
+    SceneQuery,
+    SparqlQuery,
+    Subscription,
+    WorldUpdate,
+)
+
+POSE = Pose((0.6, -0.1, 1.02), (0.707, 0.0, 0.707, 0.0), "world")
+MOVE = MoveTool(arm=Arm.RIGHT, target=POSE, duration=2.5, stiffness=(800, 800, 800, 50, 50, 50))
+PLAN_ROOT = PlanNode(
+    name="pour_jar_bowl",
+    task="pour",
+    children=(
+        PlanNode(name="look", action=Perceive(("jar", "bowl"))),
+        PlanNode(
+            name="fetch_jar",
+            children=(
+                PlanNode(name="approach", action=Execute(MOVE)),
+                PlanNode(name="grasp", action=Execute(Grasp(arm=Arm.RIGHT, spread=0.1))),
+                PlanNode(
+                    name="held",
+                    action=Assert(subject="jar", relation="heldBy", object="right_hand"),
+                ),
+            ),
+        ),
+        PlanNode(name="check", action=CheckContent(container="bowl", min_fraction=0.8)),
+    ),
+)
+
+SAMPLE_TERMS: list[msgspec.Struct] = [
+    # L_HC
+    HumanCommand(text="Pour the jar into the bowl", goal=TaskAtom("pour", ("jar", "bowl"))),
+    HumanCommand(text="żółw", goal=TaskAtom("fetch"), priority=3, deadline_s=60.0),
+    CommandOutcome(command_id="cmd-1", succeeded=True, detail="done"),
+    # L_HFSM
+    GroundTaskNetwork(task_id="t1", tasks=(TaskAtom("pour", ("jar", "bowl")),), plan_index=2),
+    HierarchicalPlan(plan_id="p1", task_id="t1", root=PLAN_ROOT, complete=False, cost=12.5),
+    PlanFailure(task_id="t1", reason="no jar"),
+    Execute(Wait(duration=0.5)),
+    Perceive(),
+    Assert(subject="jar", relation="on", object=""),
+    CheckContent(container="bowl", min_fraction=0.5),
+    # L_SW
+    *[SWStatus(state=s, plan_id="p1", step="fetch_jar/grasp", reason="r") for s in SWState],
+    SWStatus(state=SWState.IDLE),
+    # L_WM
+    SparqlQuery("SELECT ?x WHERE { ?x a roco:Container }"),
+    ObjectQuery("jar"),
+    SceneQuery(),
+    GraspQuery(object="jar", arm="right"),
+    PlacementQuery(object="jar", surface="table"),
+    PourQuery(source="jar", target="bowl"),
+    Subscription(),
+    Answer(
+        objects=(
+            ObjectInfo(
+                name="jar",
+                type="Jar",
+                pose=POSE,
+                pose_stamp=1.5,
+                size=(0.08, 0.08, 0.15),
+                location="table",
+                relation="on",
+                localised=True,
+                particles=120,
+            ),
+        ),
+        grasps=(GraspAffordance(name="side", grip_in_object=POSE, approach=(1.0, 0.0, 0.0), distance=0.1),),
+        placement=PlacementInfo(surface="table", positions=((0.5, 0.0, 0.75),)),
+        pour=PourAffordance(offset=(0.0, 0.05, 0.2), axis=(1, 0, 0), angle=2.0, duration=3.0),
+        variables=("x",),
+        rows=(("a", None),),
+        boolean=True,
+    ),
+    Answer(),
+    WorldUpdate(
+        stamp=3.0,
+        objects=(ObjectUpdate(name="jar", pose=POSE, held_by="", particles=0),),
+        total_particles=200,
+    ),
+    # L_EX
+    MOVE,
+    MoveJoints(positions={"torso_0_joint": 0.3, "left_arm_3_joint": -1.2}, duration=2.0),
+    Grasp(arm=Arm.LEFT),
+    Release(arm=Arm.LEFT, opening=0.2),
+    LookAt(point=(1.0, 0.0, 1.0)),
+    Tilt(arm=Arm.RIGHT, pivot=(0.5, 0, 1), axis=(1, 0, 0), angle=1.9, duration=4.0),
+    Observe(objects=("jar",)),
+    Wait(duration=1.0),
+    CommandResult(command="grasp", ok=False, reason="no contact", sim_time=4.2, tool_error=0.01),
+    # L_SD
+    Observation(
+        stamp=2.0,
+        objects=(ObjectObservation(name="bowl", pose=POSE, particles_inside=17),),
+        total_particles=200,
+    ),
+]
+
+# ---------------------------------------------------------------------------------------------
+# Strategies
+
+agent_names = st.from_regex(r"[A-Za-z][A-Za-z0-9_.\-@]{0,15}", fullmatch=True)
+any_text = st.text(max_size=30)
+agents = st.builds(AgentIdentifier, agent_names, st.lists(any_text, max_size=3).map(tuple))
+# keys: X- plus anything without white space or parentheses (writable in the string form)
+user_keys = st.tuples(
+    st.sampled_from(["X-", "x-"]),
+    st.text(
+        st.characters(exclude_characters="()", exclude_categories=("Cs",), min_codepoint=0x21),
+        max_size=12,
+    ),
+).map("".join)
+# reply-by at millisecond resolution, years 0001-9999 (what the string form carries)
+reply_times = st.integers(-62_135_596_800_000, 253_402_300_799_999).map(lambda ms: ms / 1000)
+language_content = st.sampled_from(SAMPLE_TERMS).map(encode_content)
+
+
+@st.composite
+def contents(draw: st.DrawFn) -> tuple[bytes, str | None]:
+    """(content bytes, language): binary, text, or a term of a content language."""
+    kind = draw(st.sampled_from(["binary", "text", "term", "empty"]))
+    if kind == "binary":
+        return draw(st.binary(max_size=64)), draw(st.none() | any_text)
+    if kind == "text":
+        return draw(st.text(max_size=40)).encode(), draw(st.none() | any_text)
+    if kind == "term":
+        language, data = draw(language_content)
+        return data, language
+    return b"", None
+
+
+@st.composite
+def communicates(draw: st.DrawFn) -> Communicate:
+    """Arbitrary communicates: every performative, every parameter optional."""
+    content, language = draw(contents())
+    opt_text = st.none() | any_text
+    return Communicate(
+        performative=draw(st.sampled_from(Performative)),
+        sender=draw(st.none() | agents),
+        receiver=tuple(draw(st.lists(agents, max_size=4))),
+        reply_to=tuple(draw(st.lists(agents, max_size=2))),
+        content=content,
+        language=language,
+        encoding=draw(st.none() | st.just("msgpack") | any_text),
+        ontology=draw(opt_text),
+        protocol=draw(st.none() | st.sampled_from(["fipa-request", "coordinate"]) | any_text),
+        conversation_id=draw(opt_text),
+        reply_with=draw(opt_text),
+        in_reply_to=draw(opt_text),
+        reply_by=draw(st.none() | reply_times),
+        user_params=draw(st.dictionaries(user_keys, any_text, max_size=3)),
+    )
+
+
+def full_communicate(performative: Performative = Performative.INFORM) -> Communicate:
+    """A communicate with every one of the 13 SC00061 parameters and a user parameter set."""
+    language, content = encode_content(ObjectQuery("jar"))
+    return Communicate(
+        performative=performative,
+        sender=AgentIdentifier("a_pl", ("tcp/127.0.0.1:7447",)),
+        receiver=(AgentIdentifier("a_km"), AgentIdentifier("a_ta", ("tcp/10.0.0.2:7447",))),
+        reply_to=(AgentIdentifier("a_co"),),
+        content=content,
+        language=language,
+        encoding="msgpack",
+        ontology="O_RoCo",
+        protocol="fipa-query",
+        conversation_id="c-ab12cd34ef56",
+        reply_with="rw-1",
+        in_reply_to="rw-0",
+        reply_by=1795275000.123,
+        user_params={"X-priority": "2", "X-note": 'with "quotes" and \\ (parens)'},
+    )

@@ -1,0 +1,417 @@
+"""FIPA SC00070 string representation: exact round trips, the content-bytes scheme, dates,
+rejection of bad text as StringFormError, and the human forms."""
+
+from __future__ import annotations
+
+import math
+import re
+
+import pytest
+from fipa_strategies import SAMPLE_TERMS, communicates, full_communicate
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from shared.fipa_codec import AgentIdentifier, Communicate, Performative
+from shared.fipa_codec.languages import encode_content
+from shared.fipa_codec.languages.l_wm import ObjectQuery
+from shared.fipa_codec.string_form import (
+    StringFormError,
+    content_as_json,
+    format_datetime,
+    parse,
+    parse_datetime,
+    summary,
+    to_bytes,
+    to_string,
+)
+
+INFORM = Performative.INFORM
+
+
+def _msg(**kw: object) -> Communicate:
+    return Communicate(performative=INFORM, **kw)  # type: ignore[arg-type]
+
+
+# -- round trips ---------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("performative", list(Performative))
+@pytest.mark.parametrize("pretty", [False, True])
+def test_every_act_with_every_parameter_round_trips(performative: Performative, pretty: bool) -> None:
+    msg = full_communicate(performative)
+    text = to_string(msg, pretty=pretty)
+    assert text.startswith(f"({performative.value}")
+    assert parse(text) == msg
+    assert parse(to_bytes(msg, pretty=pretty)) == msg
+
+
+@given(communicates())
+@settings(max_examples=400, suppress_health_check=[HealthCheck.too_slow])
+def test_string_round_trip(msg: Communicate) -> None:
+    assert parse(to_string(msg)) == msg
+
+
+@given(communicates())
+@settings(max_examples=400, suppress_health_check=[HealthCheck.too_slow])
+def test_bytes_round_trip(msg: Communicate) -> None:
+    wire = to_bytes(msg, pretty=True)
+    assert parse(wire) == msg
+    assert parse(bytearray(wire)) == msg
+
+
+@given(communicates())
+@settings(max_examples=100, suppress_health_check=[HealthCheck.too_slow])
+def test_string_survives_utf8_storage(msg: Communicate) -> None:
+    # e.g. written to a UTF-8 log file and read back
+    assert parse(to_string(msg).encode("utf-8").decode("utf-8")) == msg
+
+
+def test_example_form() -> None:
+    msg = Communicate(
+        performative=Performative.REQUEST,
+        sender=AgentIdentifier("a_co", ("tcp/127.0.0.1:7447",)),
+        receiver=(AgentIdentifier("a_ta"), AgentIdentifier("ag_ex")),
+        content=b'say "hi" \\ now',
+        language="L_HC",
+        conversation_id="c1",
+        reply_by=1795275000.0,
+        user_params={"X-priority": "high"},
+    )
+    assert to_string(msg) == (
+        "(request :sender (agent-identifier :name a_co :addresses (sequence tcp/127.0.0.1:7447))"
+        " :receiver (set (agent-identifier :name a_ta) (agent-identifier :name ag_ex))"
+        ' :content "say \\"hi\\" \\\\ now" :language L_HC :conversation-id c1'
+        " :reply-by 20261121T153000000Z :X-priority high)"
+    )
+
+
+# -- content bytes -------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize(
+    ("content", "form"),
+    [
+        (b"hello world", '"hello world"'),
+        ("żółw → ∑".encode(), '"żółw → ∑"'),
+        (b'a"b\\c', '"a\\"b\\\\c"'),
+        (b"line\nbreak", '#10"line\nbreak'),  # control character: byte-length encoded
+        (b"\x00\xff", '#2"\x00\xff'),
+        (b"\xc3\x28", '#2"\xc3('),  # invalid UTF-8
+        ("\u0085".encode(), '#2"\xc2\x85'),  # C1 control
+        (b")", '")"'),
+    ],
+)
+def test_content_forms(content: bytes, form: str) -> None:
+    msg = _msg(content=content)
+    text = to_string(msg)
+    assert text == f"(inform :content {form})"
+    assert parse(text).content == content
+    assert parse(to_bytes(msg)).content == content
+
+
+def test_byte_length_encoded_octets_are_raw_in_bytes_form() -> None:
+    assert to_bytes(_msg(content=b"\x00\xff)")) == b'(inform :content #3"\x00\xff))'
+
+
+@given(st.binary(max_size=100))
+def test_any_content_round_trips(content: bytes) -> None:
+    msg = _msg(content=content)
+    assert parse(to_string(msg)).content == content
+    assert parse(to_bytes(msg)).content == content
+
+
+@pytest.mark.parametrize("term", SAMPLE_TERMS, ids=lambda t: type(t).__name__)
+def test_language_content_round_trips(term: object) -> None:
+    language, data = encode_content(term)  # type: ignore[arg-type]
+    msg = _msg(content=data, language=language, encoding="msgpack")
+    assert parse(to_string(msg)) == msg
+
+
+def test_foreign_forms_are_read() -> None:
+    text = (
+        "(INFORM\n\t:Sender (AGENT-IDENTIFIER :name a_co)\r\n"
+        ':receiver (set (agent-identifier :addresses (sequence "tcp/x y") :name b))'
+        ' :content #5"hello :language fipa-sl :protocol "fipa-request"'
+        ' :reply-with 42 :in-reply-to (a (b "c)") d) :ontology #2"ok'
+        ' :conversation-id "back\\slash" :x-Lower-Case ok)'
+    )
+    msg = parse(text)
+    assert msg.performative is INFORM
+    assert msg.sender == AgentIdentifier("a_co")
+    assert msg.receiver == (AgentIdentifier("b", ("tcp/x y",)),)
+    assert msg.content == b"hello"
+    assert msg.language == "fipa-sl"
+    assert msg.protocol == "fipa-request"
+    assert msg.reply_with == "42"
+    assert msg.in_reply_to == '(a (b "c)") d)'
+    assert msg.ontology == "ok"
+    assert msg.conversation_id == "back\\slash"  # a lone backslash stands for itself
+    assert msg.user_params == {"x-Lower-Case": "ok"}
+
+
+def test_empty_sets_and_strings() -> None:
+    msg = parse('(inform :receiver (set) :reply-to (set) :content "" :X-e "")')
+    assert msg == _msg(user_params={"X-e": ""})
+
+
+# -- times ---------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize(
+    ("t", "token"),
+    [
+        (0.0, "19700101T000000000Z"),
+        (1795275000.0, "20261121T153000000Z"),
+        (1795275000.123, "20261121T153000123Z"),
+        (-0.001, "19691231T235959999Z"),
+        (-62135596800.0, "00010101T000000000Z"),
+        (253402300799.999, "99991231T235959999Z"),
+    ],
+)
+def test_datetime(t: float, token: str) -> None:
+    assert format_datetime(t) == token
+    assert parse_datetime(token) == t
+
+
+def test_reply_by_is_rounded_to_the_millisecond() -> None:
+    msg = _msg(reply_by=1795275000.0006)
+    assert parse(to_string(msg)).reply_by == 1795275000.001
+
+
+@pytest.mark.parametrize("t", [math.inf, -math.inf, math.nan, 1e300, -1e14])
+def test_unwritable_times(t: float) -> None:
+    with pytest.raises(ValueError):
+        format_datetime(t)
+    with pytest.raises(ValueError):
+        to_string(_msg(reply_by=t))
+
+
+@pytest.mark.parametrize(
+    ("token", "reason"),
+    [
+        ("20261121T153000000", "local time"),
+        ("+20261121T153000000Z", "relative"),
+        ("20261121T153000000B", "time zone"),
+        ("20261321T153000000Z", "invalid date-time"),
+        ("20261121T253000000Z", "invalid date-time"),
+        ("2026-11-21T15:30:00Z", "not a date-time"),
+        ("tomorrow", "not a date-time"),
+    ],
+)
+def test_bad_datetime(token: str, reason: str) -> None:
+    with pytest.raises(StringFormError, match=reason):
+        parse(f"(inform :reply-by {token})")
+
+
+# -- rejection -----------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize(
+    ("text", "reason", "position"),
+    [
+        ("", "unexpected end", 0),
+        ("inform", "expected '('", 0),
+        ("(shout)", "unknown performative", 1),
+        ("(inform", "unexpected end", 7),
+        ("(inform) (inform)", "text after the end", 9),
+        ("(inform :colour red)", "unknown message parameter", 8),
+        ("(inform :language a :language b)", "repeated", 20),
+        ("(inform :language)", "expected a value", 17),
+        ("(inform :language :ontology x)", "found parameter", 18),
+        ("(inform language x)", "expected a message parameter", 8),
+        ('(inform :content "abc)', "unterminated string", 17),
+        ('(inform :content #5"abc)', "announces 5 octets", 17),
+        ('(inform :content #"abc")', "byte-length-encoded", 17),
+        ('(inform :content #2"\u0100x)', "U+0000-U+00FF", 20),
+        ("(inform :content abc)", ":content must be a string", 17),
+        ("(inform :content (a b))", ":content must be a string", 17),
+        ("(inform :sender a_co)", "expected '(agent-identifier'", 16),
+        ("(inform :sender (agent a_co))", "expected 'agent-identifier'", 17),
+        ("(inform :sender (agent-identifier))", "without :name", 16),
+        ("(inform :sender (agent-identifier :name 9x))", "invalid agent name", 16),
+        ("(inform :sender (agent-identifier :name a :name b))", "repeated", 42),
+        (
+            "(inform :sender (agent-identifier :name a :resolvers (sequence)))",
+            "not supported",
+            42,
+        ),
+        ("(inform :receiver (agent-identifier :name a))", "expected 'set'", 19),
+        ("(inform :receiver (set (agent-identifier :name a)", "unterminated", 19),
+        ("(inform :receiver (set a))", "expected '(agent-identifier'", 23),
+        ('(inform :reply-by "20261121T153000000Z")', "expected a date-time", 18),
+        ("(inform :in-reply-to (a (b)", "closing the expression", 27),
+        ('(inform :ontology #1"\xff)', "not valid UTF-8", 18),
+        ("(inform :ontology \ud800)", "lone surrogate", 18),
+        (")", "expected '('", 0),
+    ],
+)
+def test_bad_text_is_string_form_error(text: str, reason: str, position: int) -> None:
+    with pytest.raises(StringFormError, match=re.escape(reason)) as info:
+        parse(text)
+    assert info.value.position == position
+    assert isinstance(info.value, ValueError)
+
+
+def test_bytes_input_positions_are_byte_offsets() -> None:
+    with pytest.raises(StringFormError) as info:
+        parse('(inform :ontology "ż" :x)'.encode())
+    assert info.value.position == 23
+    with pytest.raises(StringFormError, match="invalid UTF-8") as info:
+        parse(b"(inform :ontology ab\xffc)")
+    assert info.value.position == 20
+
+
+def test_oversized_input() -> None:
+    with pytest.raises(StringFormError, match="exceeds"):
+        parse("(inform)", max_size=4)
+
+
+def test_unwritable_user_parameter_name() -> None:
+    with pytest.raises(ValueError, match="user parameter name"):
+        to_string(_msg(user_params={"X-a b": "1"}))
+
+
+def _parses_or_string_form_error(data: str | bytes) -> None:
+    try:
+        result = parse(data)
+    except StringFormError as exc:
+        assert exc.reason
+        assert 0 <= exc.position <= len(data)
+    else:
+        assert isinstance(result, Communicate)
+
+
+@given(st.text(max_size=80) | st.binary(max_size=80))
+@settings(max_examples=1000)
+def test_random_input_gives_string_form_error_only(data: str | bytes) -> None:
+    _parses_or_string_form_error(data)
+
+
+_ALPHABET = st.sampled_from(
+    [
+        "(",
+        ")",
+        '"',
+        "\\",
+        "#",
+        "3",
+        ":",
+        " ",
+        "x",
+        "-",
+        ":sender",
+        "(set",
+        "(sequence",
+        "(agent-identifier",
+        ":name",
+        "a_co",
+        "inform",
+        ":content",
+        ":reply-by",
+        "20261121T153000000Z",
+        ":X-a",
+        '#2"',
+        "\xff",
+        "ż",
+    ]
+)
+
+
+@given(st.lists(_ALPHABET, max_size=30).map("".join))
+@settings(max_examples=1000)
+def test_token_soup_gives_string_form_error_only(text: str) -> None:
+    _parses_or_string_form_error(text)
+    _parses_or_string_form_error(text.encode("utf-8"))
+
+
+@given(communicates(), st.data())
+@settings(max_examples=300, suppress_health_check=[HealthCheck.too_slow])
+def test_truncated_and_mutated_text_gives_string_form_error_only(
+    msg: Communicate, data: st.DataObject
+) -> None:
+    for form in (to_string(msg), to_bytes(msg)):
+        cut = data.draw(st.integers(0, len(form) - 1))
+        with pytest.raises(StringFormError):
+            parse(form[:cut])
+        pos = data.draw(st.integers(0, len(form) - 1))
+        if isinstance(form, str):
+            mutated: str | bytes = form[:pos] + data.draw(st.characters()) + form[pos + 1 :]
+        else:
+            mutated = form[:pos] + bytes([data.draw(st.integers(0, 255))]) + form[pos + 1 :]
+        _parses_or_string_form_error(mutated)
+
+
+def test_deep_nesting_does_not_overflow() -> None:
+    with pytest.raises(StringFormError):
+        parse("(inform :in-reply-to " + "(" * 100_000)
+    deep = "(" * 50_000 + ")" * 50_000
+    assert parse(f"(inform :in-reply-to {deep})").in_reply_to == deep
+
+
+# -- human forms ---------------------------------------------------------------------------
+
+
+def _query() -> Communicate:
+    language, data = encode_content(ObjectQuery("jar"))
+    return Communicate(
+        performative=Performative.QUERY_REF,
+        sender=AgentIdentifier("a_pl"),
+        receiver=(AgentIdentifier("a_km"),),
+        content=data,
+        language=language,
+        encoding="msgpack",
+        protocol="fipa-query",
+        conversation_id="ab12cd34ef56",
+    )
+
+
+def test_content_as_json() -> None:
+    assert content_as_json(_query()) == '{"type":"object","name":"jar"}'
+    assert content_as_json(_msg()) is None  # no content
+    assert content_as_json(_msg(content=b"\x00", language="L_WM")) is None  # bad content
+    assert content_as_json(_msg(content=b"\x80", language="fipa-sl")) is None  # unknown language
+    q = _query()
+    other = Communicate(performative=q.performative, content=q.content, language=q.language, encoding="json")
+    assert content_as_json(other) is None  # not msgpack
+    no_encoding = Communicate(performative=q.performative, content=q.content, language=q.language)
+    assert content_as_json(no_encoding) == '{"type":"object","name":"jar"}'
+
+
+@pytest.mark.parametrize("term", SAMPLE_TERMS, ids=lambda t: type(t).__name__)
+def test_content_as_json_for_every_sample(term: object) -> None:
+    language, data = encode_content(term)  # type: ignore[arg-type]
+    rendered = content_as_json(_msg(content=data, language=language))
+    assert rendered is not None and rendered.startswith("{") and "\n" not in rendered
+
+
+def test_summary() -> None:
+    assert summary(_query()) == (
+        'a_pl → a_km  query-ref  [fipa-query c=ab12…]  L_WM  {"type":"object","name":"jar"}'
+    )
+    assert summary(_msg()) == "? → ?  inform"
+    assert summary(_msg(content=b"\x00\x01\x02", language="L_WM")) == ("? → ?  inform  L_WM  <3 bytes>")
+    assert summary(_msg(conversation_id="abc")) == "? → ?  inform  [c=abc]"
+    assert summary(_msg(content=b"x"), content_text="line\nbreak\x1b[31m") == (
+        "? → ?  inform  line\\nbreak\\x1b[31m"
+    )
+    long = summary(_msg(), content_text="y" * 500, max_content=10)
+    assert long.endswith("yyyyyyyyy…")
+    assert "\n" not in summary(full_communicate())
+
+
+def test_human_string_form() -> None:
+    text = to_string(_query(), human=True)
+    assert ':content "{\\"type\\":\\"object\\",\\"name\\":\\"jar\\"}"' in text
+    assert parse(text).content == b'{"type":"object","name":"jar"}'  # display only
+    binary = to_string(_msg(content=b"\x00\x01"), human=True)
+    assert binary == '(inform :content "<2 bytes, base64 AAE=>")'
+    assert to_string(_msg(content=b"plain"), human=True) == '(inform :content "plain")'
+
+
+def test_user_parameter_names_keep_their_case() -> None:
+    msg = _msg(user_params={"X-a": "1", "x-a": "2", "X-A": "3"})
+    assert parse(to_string(msg)) == msg
+    with pytest.raises(StringFormError, match="repeated"):
+        parse("(inform :X-a 1 :X-a 2)")
+    with pytest.raises(StringFormError, match="repeated"):
+        parse("(inform :language a :LANGUAGE b)")

@@ -1,0 +1,172 @@
+"""The report of a complete synthetic pour run (see conftest.py): counts, sizes, the Table 8
+matrix, the Table 7 timeline, planning phases, sphere share, and the Markdown."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from services.report import Event, Report, build_report, paper, write_report
+
+COMMAND = "pour the jar into the bowl"
+
+
+@pytest.fixture
+def report(run_dir: Path) -> Report:
+    return build_report(run_dir)
+
+
+def _event(report: Report, kind: str, n: int = 0) -> Event:
+    found = [e for e in report.events if e.kind == kind]
+    assert len(found) > n, f"no event #{n} of kind {kind}: {report.events}"
+    return found[n]
+
+
+def test_counts_and_sizes(report: Report, pour: Any) -> None:
+    sizes = pour.sizes()
+    s = report.sizes
+    assert s.count == 40
+    assert s.total_bytes == sum(sizes)
+    assert s.min_bytes == min(sizes)
+    assert s.max_bytes == max(sizes)
+    assert s.max_bytes is not None and s.max_bytes > 3000  # the Answer with 20 grasps
+    assert s.mean_bytes == pytest.approx(sum(sizes) / 40)
+    assert s.under_500 == 39
+    assert s.share_under_500 == pytest.approx(39 / 40)
+
+
+def test_channels(report: Report, pour: Any) -> None:
+    counts = {c.channel: c.count for c in report.channels}
+    assert counts == {"C1": 10, "C2": 3, "C3": 4, "C4": 8, "C5": 10, "C6": 5}
+    c4_bytes = sum(r.size for r in pour.records if r.channel == "C4")
+    assert {c.channel: c.bytes for c in report.channels}["C4"] == c4_bytes
+
+
+def test_table8_matrix(report: Report) -> None:
+    m = report.matrix
+    assert m.agents == ["a_co", "a_hi", "a_km", "a_pl", "a_ta", "ag_ex"]
+    nonzero = {r: {s: n for s, n in row.items() if n} for r, row in m.cells.items()}
+    assert nonzero == {
+        "a_co": {"a_hi": 1, "a_pl": 2, "a_ta": 4},
+        "a_hi": {"a_co": 2},
+        "a_km": {"a_ta": 4, "a_pl": 4},
+        "a_pl": {"a_co": 2, "a_km": 4},
+        "a_ta": {"a_km": 1, "ag_ex": 5, "a_co": 6},
+        "ag_ex": {"a_ta": 5},
+    }
+    assert m.received == {"a_co": 7, "a_hi": 2, "a_km": 8, "a_pl": 6, "a_ta": 12, "ag_ex": 5}
+    assert m.sent == {"a_co": 10, "a_hi": 1, "a_km": 5, "a_pl": 6, "a_ta": 13, "ag_ex": 5}
+    assert m.total == 40
+
+
+def test_header(report: Report) -> None:
+    h = report.header
+    assert h.command == COMMAND
+    assert h.succeeded is True
+    assert h.detail == "poured 17 of 20"
+    assert h.outcome_source == "C2 CommandOutcome"
+    assert h.command_t == pytest.approx(10.0)
+    assert h.finished_t == pytest.approx(44.0)
+    assert h.task_duration_s == pytest.approx(34.0)
+
+
+def test_timeline(report: Report) -> None:
+    init = _event(report, "initial_knowledge")
+    assert (init.start, init.end) == pytest.approx((1.0, 3.0))
+    assert init.channels == ["C5", "C6"]
+    assert _event(report, "command").start == pytest.approx(10.0)
+    assert COMMAND in _event(report, "command").text
+    req = [e.start for e in report.events if e.kind == "plan_request"]
+    assert req == pytest.approx([12.0, 27.0])
+    p1, p2 = _event(report, "planning", 0), _event(report, "planning", 1)
+    assert (p1.start, p1.end) == pytest.approx((12.0, 16.0))
+    assert "plan #1" in p1.text and "6 communicates on C4" in p1.text
+    assert (p2.start, p2.end) == pytest.approx((27.0, 28.0))
+    assert "2 communicates on C4" in p2.text
+    got = [(e.start, e.text) for e in report.events if e.kind == "plan_received"]
+    assert [t for t, _ in got] == pytest.approx([17.0, 29.0])
+    assert "partial" in got[0][1] and "complete" in got[1][1]
+    x1, x2 = _event(report, "execution", 0), _event(report, "execution", 1)
+    assert (x1.start, x1.end) == pytest.approx((18.0, 26.0))
+    assert "plan #1" in x1.text and "Replan" in x1.text
+    assert (x2.start, x2.end) == pytest.approx((31.0, 43.0))
+    assert "plan #2" in x2.text and "Succeeded" in x2.text
+    grasp = _event(report, "grasp")
+    assert grasp.start == pytest.approx(21.0)
+    assert grasp.text == "left hand grasps (step fetch_jar/grasp)"
+    assert _event(report, "tilt").start == pytest.approx(40.0)
+    obs = [e for e in report.events if e.kind == "observation"]
+    assert [e.start for e in obs] == pytest.approx([24.5, 42.0])
+    assert obs[0].text.startswith("bowl localised")
+    assert "17 of 20 spheres in the bowl" in obs[1].text
+    env = [e for e in report.events if e.kind == "environment"]
+    assert [(e.start, e.end) for e in env] == [(pytest.approx(22.0), None),
+                                               (pytest.approx(24.5), pytest.approx(25.0))]
+    assert env[1].channels == ["C5", "C6"]
+    fin = _event(report, "finished")
+    assert fin.start == pytest.approx(44.0)
+    assert "succeeded" in fin.text
+    starts = [e.start for e in report.events]
+    assert starts == sorted(starts)
+
+
+def test_planning_phases(report: Report, pour: Any) -> None:
+    p1, p2 = report.plans
+    assert (p1.index, p1.c4_count, p1.c4_queries, p1.km_queries) == (1, 6, 3, 3)
+    assert (p1.planning_time_s, p1.complete, p1.outcome) == (4.8, False, "partial")
+    assert (p2.index, p2.c4_count, p2.c4_queries, p2.km_queries) == (2, 2, 1, 1)
+    assert (p2.planning_time_s, p2.complete, p2.outcome) == (1.9, True, "complete")
+    c4 = [(r.t - 1_700_000_000.0, r.size) for r in pour.records if r.channel == "C4"]
+    b1 = sum(size for t, size in c4 if t < 20)
+    assert p1.c4_bytes == b1
+    assert p1.mean_kbps == pytest.approx(b1 * 8 / 1000 / 5.0)  # 12.0 → 17.0 s
+    # 1 s bins from 12.0: the largest holds the 14.0 s answer and the 14.5 s query
+    big = sum(size for t, size in c4 if 14.0 <= t < 15.0)
+    assert p1.peak_kbps == pytest.approx(big * 8 / 1000)
+
+
+def test_sphere_share(report: Report) -> None:
+    c = report.content
+    assert c.observed and c.container == "bowl"
+    assert (c.inside, c.total) == (17, 20)
+    assert c.share == pytest.approx(0.85)
+    assert c.t == pytest.approx(42.0)
+    assert c.stamp == pytest.approx(30.0)
+
+
+def test_no_notes_for_clean_run(report: Report) -> None:
+    assert report.notes == []
+
+
+def test_markdown(run_dir: Path, pour: Any) -> None:
+    path = write_report(run_dir)
+    assert path == run_dir / "report.md"
+    md = path.read_text(encoding="utf-8")
+    sizes = pour.sizes()
+    assert f"| communicates | 40 | {paper.COMMUNICATES} " in md
+    assert f"| min size | {min(sizes)} B | 231 B |" in md
+    assert f"{sum(sizes) / 40:.1f} B" in md
+    assert f"{max(sizes)} B ({max(sizes) / 1000:.1f} kB)" in md
+    assert "97.5 % (39 of 40)" in md
+    assert "| 86 % |" in md
+    assert "34.0 s (human command at 10.0 s → outcome at 44.0 s)" in md
+    assert "succeeded — poured 17 of 20" in md
+    # Table 8, ours and the paper's
+    assert "| a_ta | 6 |  | 1 |  |  | 5 | 12 |" in md
+    assert "| send | 10 | 1 | 5 | 6 | 13 | 5 | 40 |" in md
+    assert "| a_km |  |  |  | 925 | 83 | 24 | 1032 |" in md
+    assert "| send | 6 | 1 | 815 | 927 | 92 | 24 | 1865 |" in md
+    # timeline, ours and the paper's
+    assert "| 1.0–3.0 | a_km receives an initial knowledge" in md
+    assert "| 12.0–16.0 | a_pl generates the plan #1" in md
+    assert "| 21.0 | left hand grasps (step fetch_jar/grasp) | C5 |" in md
+    assert "| 44.0 | the task is finished: succeeded" in md
+    assert "| 97–152 | a_pl generates the plan #1, and queries a_km | C4 |" in md
+    # planning and content
+    assert "| #1 | 12.0 | 17.0 | 6 |" in md
+    assert "| partial |" in md and "| complete |" in md
+    assert "| #1 | 97 | 153 | 1598 |" in md
+    assert "17 of 20 spheres (85.0 %) ended in the bowl" in md
+    assert "None: every file was read completely." in md

@@ -1,0 +1,185 @@
+"""The control subsystem on a transport: elementary actions, buffers, checking against the
+specification, not-understood, reply-by deadlines (paper §3.2; FIPA SC00061)."""
+
+from __future__ import annotations
+
+import queue
+import threading
+from collections.abc import Iterator
+
+import msgspec
+import pytest
+
+from services.runtime import keys
+from services.runtime.agent import Agent, Received, SpecViolation
+from services.runtime.behaviour import FSM, Arc, Behaviour
+from services.runtime.memory_transport import MemoryBus
+from shared.fipa_codec import AgentIdentifier, Communicate, Performative, decode, encode
+from shared.fipa_codec.languages import encode_content
+from shared.fipa_codec.languages.l_wm import Answer, ObjectQuery
+from shared.fipa_codec.languages.l_sw import SWStatus, SWState
+
+
+class Counter(Agent):
+    """Behaviour 'count' runs its transition 5 times, then 'answer' serves queries forever."""
+
+    name = "a_km"
+
+    def build_fsm(self) -> FSM:
+        self.count = 0
+        self.trace: list[str] = []
+        return FSM(
+            initial="count",
+            states={
+                "count": Behaviour("count", self._count, terminal=lambda: self.count >= 5, waits=False),
+                "answer": Behaviour("answer", self._answer, terminal=lambda: False),
+            },
+            arcs=[Arc("count", "answer", lambda: self.count >= 5)],
+        )
+
+    def _count(self) -> None:
+        self.count += 1
+        self.trace.append(f"count{self.count}")
+
+    def _answer(self) -> None:
+        while self.x:
+            item = self.x.popleft()
+            if item.performative is Performative.QUERY_REF and isinstance(item.content, ObjectQuery):
+                self.reply(item, Performative.INFORM_REF, Answer())
+
+
+@pytest.fixture
+def running() -> Iterator[tuple[MemoryBus, Counter, queue.SimpleQueue[Communicate]]]:
+    bus = MemoryBus()
+    agent = Counter(bus.transport())
+    agent.bind()
+    to_pl: queue.SimpleQueue[Communicate] = queue.SimpleQueue()
+    bus.subscribe(keys.inbox_key("a_pl"), lambda k, p: to_pl.put(decode(p)))
+    t = threading.Thread(target=agent.run, daemon=True)
+    t.start()
+    yield bus, agent, to_pl
+    agent.stop()
+    t.join(timeout=5)
+    assert not t.is_alive()
+
+
+def query(reply_with: str = "q1", **overrides: object) -> Communicate:
+    lang, body = encode_content(ObjectQuery("jar"))
+    fields: dict[str, object] = dict(
+        performative=Performative.QUERY_REF,
+        sender=AgentIdentifier("a_pl"),
+        receiver=(AgentIdentifier("a_km"),),
+        content=body,
+        language=lang,
+        protocol="fipa-query",
+        conversation_id="c1",
+        reply_with=reply_with,
+    )
+    fields.update(overrides)
+    return Communicate(**fields)  # type: ignore[arg-type]
+
+
+KEY = keys.fipa_key("C4", "a_pl", "a_km")
+
+
+def test_behaviour_iterates_until_terminal_then_switches(running: tuple) -> None:
+    bus, agent, to_pl = running
+    bus.publish(KEY, encode(query()))
+    reply = to_pl.get(timeout=5)
+    assert reply.performative is Performative.INFORM_REF
+    assert agent.trace == [f"count{i}" for i in range(1, 6)]
+    assert agent.state == "answer"
+
+
+@pytest.mark.parametrize(
+    ("payload", "why"),
+    [
+        (b"\x00garbage", "malformed communicate"),
+        (encode(query(performative=Performative.PROPOSE)), "unexpected propose"),
+        (encode(query(protocol="fipa-request")), "unexpected query-ref in protocol fipa-request"),
+        (encode(query(language="L_SW")), "language L_SW not accepted"),
+        (encode(query(content=b"\x91\x01")), "L_WM"),
+        (encode(query(sender=AgentIdentifier("a_co"))), "sender does not match"),
+    ],
+)
+def test_bad_input_gets_not_understood_and_agent_keeps_serving(running: tuple, payload: bytes, why: str) -> None:
+    bus, agent, to_pl = running
+    bus.publish(KEY, payload)
+    nu = to_pl.get(timeout=5)
+    assert nu.performative is Performative.NOT_UNDERSTOOD
+    assert why in nu.content.decode()
+    bus.publish(KEY, encode(query("q2")))
+    ok = to_pl.get(timeout=5)
+    assert ok.performative is Performative.INFORM_REF and ok.in_reply_to == "q2"
+    assert agent.counters["rejected"] == 1
+
+
+def test_not_understood_is_never_answered_with_not_understood(running: tuple) -> None:
+    bus, agent, to_pl = running
+    bus.publish(KEY, encode(query(performative=Performative.NOT_UNDERSTOOD, content=b"", language=None)))
+    bus.publish(KEY, encode(query("q3")))
+    first = to_pl.get(timeout=5)
+    assert first.performative is Performative.INFORM_REF and first.in_reply_to == "q3"
+
+
+def test_sending_outside_the_interface_raises() -> None:
+    agent = Counter(MemoryBus().transport())
+    with pytest.raises(SpecViolation, match="no channel"):
+        agent.send("a_hi", Performative.INFORM, protocol="fipa-request")
+    with pytest.raises(SpecViolation, match="may not send request"):
+        agent.send("a_pl", Performative.REQUEST, protocol="fipa-query")
+    with pytest.raises(SpecViolation, match="must use L_WM"):
+        agent.send("a_pl", Performative.INFORM_REF, SWStatus(state=SWState.IDLE), protocol="fipa-query")
+
+
+class Asker(Agent):
+    """a_pl asking a_km something nobody answers, with a reply-by deadline."""
+
+    name = "a_pl"
+    period = 0.01
+
+    def build_fsm(self) -> FSM:
+        self.got: queue.SimpleQueue[Received] = queue.SimpleQueue()
+        return FSM(initial="ask", states={"ask": Behaviour("ask", self._step, terminal=lambda: False)})
+
+    def setup(self) -> None:
+        self.send("a_km", Performative.QUERY_REF, ObjectQuery("jar"), protocol="fipa-query", reply_by_s=0.2)
+
+    def _step(self) -> None:
+        while self.x:
+            self.got.put(self.x.popleft())
+
+
+def test_reply_by_deadline_ends_the_conversation_with_a_local_failure() -> None:
+    bus = MemoryBus()
+    agent = Asker(bus.transport())
+    agent.bind()
+    t = threading.Thread(target=agent.run, daemon=True)
+    t.start()
+    try:
+        item = agent.got.get(timeout=5)
+        assert item.local and item.performative is Performative.FAILURE
+        assert item.msg.content == b"reply-by deadline passed"
+        assert agent.counters["deadline_failures"] == 1
+        assert len(agent.conversations) == 0
+    finally:
+        agent.stop()
+        t.join(timeout=5)
+
+
+def test_liveliness_token_is_announced() -> None:
+    bus = MemoryBus()
+    Counter(bus.transport()).bind()
+    assert keys.alive_key("a_km") in bus.alive()
+
+
+def test_memory_bus_messages_are_valid_msgpack_communicates() -> None:
+    bus = MemoryBus()
+    agent = Counter(bus.transport())
+    agent.send("a_pl", Performative.INFORM_REF, Answer(), protocol="fipa-query", conversation_id="x")
+    agent._dispatch()
+    (key, payload), = bus.published
+    assert key == keys.fipa_key("C4", "a_km", "a_pl")
+    msg = decode(payload)
+    assert msg.language == "L_WM" and msg.conversation_id == "x"
+    assert msgspec.msgpack.decode(msg.content)["type"] == "answer"
