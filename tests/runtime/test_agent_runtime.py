@@ -16,8 +16,8 @@ from services.runtime.behaviour import FSM, Arc, Behaviour
 from services.runtime.memory_transport import MemoryBus
 from shared.fipa_codec import AgentIdentifier, Communicate, Performative, decode, encode
 from shared.fipa_codec.languages import encode_content
+from shared.fipa_codec.languages.l_sw import SWState, SWStatus
 from shared.fipa_codec.languages.l_wm import Answer, ObjectQuery
-from shared.fipa_codec.languages.l_sw import SWStatus, SWState
 
 
 class Counter(Agent):
@@ -102,7 +102,9 @@ def test_behaviour_iterates_until_terminal_then_switches(running: tuple) -> None
         (encode(query(sender=AgentIdentifier("a_co"))), "sender does not match"),
     ],
 )
-def test_bad_input_gets_not_understood_and_agent_keeps_serving(running: tuple, payload: bytes, why: str) -> None:
+def test_bad_input_gets_not_understood_and_agent_keeps_serving(
+    running: tuple, payload: bytes, why: str
+) -> None:
     bus, agent, to_pl = running
     bus.publish(KEY, payload)
     nu = to_pl.get(timeout=5)
@@ -115,7 +117,7 @@ def test_bad_input_gets_not_understood_and_agent_keeps_serving(running: tuple, p
 
 
 def test_not_understood_is_never_answered_with_not_understood(running: tuple) -> None:
-    bus, agent, to_pl = running
+    bus, _agent, to_pl = running
     bus.publish(KEY, encode(query(performative=Performative.NOT_UNDERSTOOD, content=b"", language=None)))
     bus.publish(KEY, encode(query("q3")))
     first = to_pl.get(timeout=5)
@@ -178,7 +180,7 @@ def test_memory_bus_messages_are_valid_msgpack_communicates() -> None:
     agent = Counter(bus.transport())
     agent.send("a_pl", Performative.INFORM_REF, Answer(), protocol="fipa-query", conversation_id="x")
     agent._dispatch()
-    (key, payload), = bus.published
+    ((key, payload),) = bus.published
     assert key == keys.fipa_key("C4", "a_km", "a_pl")
     msg = decode(payload)
     assert msg.language == "L_WM" and msg.conversation_id == "x"

@@ -38,5 +38,9 @@ def test_fsm_describes_itself_as_data_and_dot() -> None:
         states={"idle": Behaviour("idle", lambda: None, terminal=lambda: True, doc="wait")},
         arcs=[Arc("idle", "idle", label="again")],
     )
-    assert fsm.describe() == {"initial": "idle", "states": {"idle": "wait"}, "arcs": [("idle", "idle", "again")]}
+    assert fsm.describe() == {
+        "initial": "idle",
+        "states": {"idle": "wait"},
+        "arcs": [("idle", "idle", "again")],
+    }
     assert 'idle -> idle [label="again"]' in fsm.to_dot("x")

@@ -37,11 +37,19 @@ def fleet(tmp_path: Path) -> Iterator[tuple[Fleet, zenoh.Session]]:
 def test_agent_process_answers_queries_and_rejects_garbage(fleet: tuple[Fleet, zenoh.Session]) -> None:
     f, session = fleet
     replies: queue.SimpleQueue[Communicate] = queue.SimpleQueue()
-    session.declare_subscriber(keys.fipa_key("C4", "a_km", "a_pl"), lambda s: replies.put(decode(s.payload.to_bytes())))
+    session.declare_subscriber(
+        keys.fipa_key("C4", "a_km", "a_pl"), lambda s: replies.put(decode(s.payload.to_bytes()))
+    )
     lang, body = encode_content(ObjectQuery("jar"))
     q = Communicate(
-        performative=Performative.QUERY_REF, sender=AgentIdentifier("a_pl"), receiver=(AgentIdentifier("a_km"),),
-        content=body, language=lang, protocol="fipa-query", conversation_id="c", reply_with="q1",
+        performative=Performative.QUERY_REF,
+        sender=AgentIdentifier("a_pl"),
+        receiver=(AgentIdentifier("a_km"),),
+        content=body,
+        language=lang,
+        protocol="fipa-query",
+        conversation_id="c",
+        reply_with="q1",
     )
     key = keys.fipa_key("C4", "a_pl", "a_km")
     session.put(key, b"\xc1not msgpack")
@@ -60,7 +68,9 @@ def test_liveliness_and_status_command(fleet: tuple[Fleet, zenoh.Session]) -> No
     assert "a_km" in alive_agents(session)
     out = subprocess.run(
         [sys.executable, "-m", "services.cli", "status", "--router", f.endpoint],
-        capture_output=True, text=True, timeout=60,
+        capture_output=True,
+        text=True,
+        timeout=60,
     )
     assert out.returncode == 1  # the other agents are absent
     assert "a_km      alive" in out.stdout and "a_co      absent" in out.stdout
@@ -72,7 +82,9 @@ def test_liveliness_and_status_command(fleet: tuple[Fleet, zenoh.Session]) -> No
 def test_status_without_router_is_one_clear_line() -> None:
     out = subprocess.run(
         [sys.executable, "-m", "services.cli", "status", "--router", f"tcp/127.0.0.1:{free_port()}"],
-        capture_output=True, text=True, timeout=60,
+        capture_output=True,
+        text=True,
+        timeout=60,
     )
     assert out.returncode == 1
     assert out.stderr.strip().startswith("roco: no router answers at tcp/127.0.0.1:")

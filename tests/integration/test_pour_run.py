@@ -1,0 +1,77 @@
+"""The main job, as a user runs it: ``roco run "pour the jar into the bowl"`` starts a router,
+the recorder and one OS process per agent, and the robot pours the jar into the bowl in
+MuJoCo (paper §5.7). Faster than real time (the executor is not paced)."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from services.recorder.record import read_records
+from services.report import build_report
+from services.runtime.run_folder import read_run_info
+
+pytestmark = pytest.mark.slow
+
+
+@pytest.fixture(scope="module")
+def pour_run(tmp_path_factory: pytest.TempPathFactory) -> tuple[subprocess.CompletedProcess[str], Path]:
+    runs = tmp_path_factory.mktemp("runs")
+    proc = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "services.cli",
+            "run",
+            "pour the jar into the bowl",
+            "--runs-dir",
+            str(runs),
+            "--timeout",
+            "900",
+        ],
+        capture_output=True,
+        text=True,
+        timeout=1200,
+    )
+    (run_dir,) = [p for p in runs.iterdir() if p.is_dir()]
+    return proc, run_dir
+
+
+def test_pour_succeeds_and_most_spheres_end_in_the_bowl(pour_run: tuple) -> None:
+    proc, run_dir = pour_run
+    assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-2000:]
+    report = build_report(run_dir)
+    assert report.header.succeeded is True
+    assert report.content.observed and report.content.share is not None
+    assert report.content.share >= 0.9, report.content
+
+
+def test_each_agent_ran_as_its_own_process(pour_run: tuple) -> None:
+    _, run_dir = pour_run
+    info = read_run_info(run_dir)
+    agents = ("a_hi", "a_co", "a_pl", "a_km", "a_ta", "ag_ex")
+    assert set(agents) <= set(info.processes)
+    assert len({info.processes[a] for a in agents}) == len(agents)
+
+
+def test_traffic_shows_both_planning_phases_and_all_six_participants(pour_run: tuple) -> None:
+    _, run_dir = pour_run
+    records = read_records(run_dir)
+    senders = {r.sender for r in records}
+    assert senders >= {"a_hi", "a_co", "a_pl", "a_km", "a_ta", "ag_ex"}
+    assert {r.channel for r in records} == {"C1", "C2", "C3", "C4", "C5", "C6"}
+    report = build_report(run_dir)
+    assert [p.outcome for p in report.plans][-2:] == ["partial", "complete"]
+    md = (run_dir / "report.md").read_text()
+    assert "Table 8" in md and "Table 7" in md
+
+
+def test_progress_was_printed_as_it_happened(pour_run: tuple) -> None:
+    proc, _ = pour_run
+    out = proc.stdout
+    assert "plan #1 requested" in out and "plan #2 requested" in out
+    assert "Replan" in out and "Succeeded" in out
+    assert out.index("plan #1 requested") < out.index("Replan") < out.index("plan #2 requested")
