@@ -118,6 +118,8 @@ class WorldModel:
         held = g.value(node, ROCO.heldBy)
         size = g.value(node, ROCO.size)
         particles = g.value(node, ROCO.particles)
+        facing = g.value(node, ROCO.facing)
+        view = g.value(node, ROCO.viewPoint)
         return ObjectInfo(
             name=name,
             type=str(cls).removeprefix(str(ROCO)) if cls is not None else "Thing",
@@ -129,7 +131,23 @@ class WorldModel:
             held_by=str(held).removeprefix(str(ROCO)) if held is not None else None,
             localised=localised,
             particles=int(particles) if particles is not None else None,
+            facing=float(facing) if facing is not None else None,  # type: ignore[arg-type]
+            view_point=_vec3(view) if view is not None else None,
         )
+
+    def _float(self, node: URIRef, prop: URIRef, default: float | None = None) -> float:
+        value = self.graph.value(node, prop)
+        if value is None:
+            if default is None:
+                raise KnowledgeError(f"{node.removeprefix(str(ROCO))} has no {prop.removeprefix(str(ROCO))}")
+            return default
+        return float(value)  # type: ignore[arg-type]
+
+    def _vec3(self, node: URIRef, prop: URIRef) -> Vec3:
+        value = self.graph.value(node, prop)
+        if value is None:
+            raise KnowledgeError(f"{node.removeprefix(str(ROCO))} has no {prop.removeprefix(str(ROCO))}")
+        return _vec3(value)
 
     def grasps(self, obj: str, arm: str) -> tuple[GraspAffordance, ...]:
         node = self._node(obj)
@@ -138,17 +156,25 @@ class WorldModel:
         for aff in sorted(g.subjects(ROCO.affordanceOf, node)):
             if (aff, RDF.type, ROCO.GraspAffordance) not in g or str(g.value(aff, ROCO.forArm)) != arm:
                 continue
+            assert isinstance(aff, URIRef)
+            entry = g.value(aff, ROCO.entry)
             out.append(
                 GraspAffordance(
-                    name=str(aff).removeprefix(str(ROCO)),
+                    name=aff.removeprefix(str(ROCO)),
                     grip_in_object=Pose(
-                        position=_vec3(g.value(aff, ROCO.gripPosition)),
+                        position=self._vec3(aff, ROCO.gripPosition),
                         orientation=tuple(_vec(g.value(aff, ROCO.gripOrientation))),  # type: ignore[arg-type]
                         frame=obj,
                     ),
-                    approach=_vec3(g.value(aff, ROCO.approach)),
-                    distance=float(g.value(aff, ROCO.approachDistance)),  # type: ignore[arg-type]
-                    spread=float(g.value(aff, ROCO.spread) or 0.0),  # type: ignore[arg-type]
+                    approach=self._vec3(aff, ROCO.approach),
+                    distance=self._float(aff, ROCO.approachDistance),
+                    spread=self._float(aff, ROCO.spread, 0.0),
+                    preshape=self._float(aff, ROCO.preshape, 0.5),
+                    entry=_vec3(entry) if entry is not None else None,
+                    entry_distance=self._float(aff, ROCO.entryDistance, 0.0),
+                    lift=self._float(aff, ROCO.lift, 0.04),
+                    retreat=self._vec3(aff, ROCO.retreat),
+                    retreat_distance=self._float(aff, ROCO.retreatDistance, 0.25),
                 )
             )
         return tuple(out)
@@ -157,18 +183,29 @@ class WorldModel:
         self._node(obj)
         node = self._node(surface)
         positions = tuple(sorted(_vec3(p) for p in self.graph.objects(node, ROCO.placementPosition)))
-        return PlacementInfo(surface=surface, positions=positions)
+        if not positions:
+            raise KnowledgeError(f"nothing can be put on {surface}")
+        return PlacementInfo(
+            surface=surface,
+            positions=positions,
+            clearance=self._float(node, ROCO.placeClearance, 0.005),
+            approach=self._float(node, ROCO.placeApproach, 0.08),
+        )
 
     def pour(self, source: str, target: str) -> PourAffordance | None:
         g = self.graph
         src, dst = self._node(source), self._node(target)
         for aff in g.subjects(ROCO.source, src):
             if (aff, ROCO.target, dst) in g:
+                assert isinstance(aff, URIRef)
                 return PourAffordance(
-                    offset=_vec3(g.value(aff, ROCO.offset)),
-                    axis=_vec3(g.value(aff, ROCO.axis)),
-                    angle=float(g.value(aff, ROCO.angle)),  # type: ignore[arg-type]
-                    duration=float(g.value(aff, ROCO.duration)),  # type: ignore[arg-type]
+                    lip_in_target=self._vec3(aff, ROCO.lipInTarget),
+                    lip_in_source=self._vec3(aff, ROCO.lipInSource),
+                    axis=self._vec3(aff, ROCO.axis),
+                    angle=self._float(aff, ROCO.angle),
+                    duration=self._float(aff, ROCO.duration),
+                    wait=self._float(aff, ROCO.wait, 2.0),
+                    untilt_duration=self._float(aff, ROCO.untiltDuration, 3.0),
                 )
         return None
 

@@ -166,6 +166,9 @@ class Planner(Agent):
                 self.actions.extend(find_plan(self.knowledge, (t.name, *t.args), root))
         except PlanningFailure as exc:
             self.failure = str(exc)
+        except Exception as exc:  # a bug in the domain must not take a_pl down
+            self.log.exception("planner error")
+            self.failure = f"planner error: {exc}"
 
     def _finalize(self) -> None:
         assert self.request is not None and self.problem is not None

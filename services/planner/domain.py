@@ -10,17 +10,21 @@ where it stands. While the bowl is still in the cabinet, ``pour`` refines into g
 objects out, putting the bowl on the table and localising it, and ends with ``a_replan``:
 the plan is partial and a_co asks for plan #2 once it has run.
 
-Geometry is computed from a_km's knowledge only: object poses, grasp affordances (grip frame
-in the object frame, approach direction and distance), placement positions and pouring
-parameters; plus the motion constants below (lift height, retreat distance, durations).
+Geometry is computed from a_km's knowledge only: object poses, where Velma faces each piece
+of furniture, grasp affordances (grip frame in the object frame, approach, entry, lift and
+retreat), placement positions and pouring parameters; plus the move durations below. Turning
+the torso turns the hands and what they hold about the torso axis (world z through the
+origin).
 """
 
 from __future__ import annotations
 
 import contextlib
 import io
-import math
 from typing import Any
+
+import numpy as np
+import pinocchio as pin
 
 from services.planner import geometry as geo
 from services.planner.knowledge import ARMS, Knowledge
@@ -30,15 +34,12 @@ from shared.fipa_codec.languages.l_wm import GraspAffordance
 with contextlib.redirect_stdout(io.StringIO()):  # GTPyhop prints a banner on import
     import gtpyhop
 
-LIFT_M = 0.04
-"""Height an object is lifted off its support before it is moved (m)."""
-RETREAT_M = 0.30
-"""Distance an object is pulled out of the cabinet towards the robot (m)."""
-CARRY_HEIGHT_M = 0.12
-"""Height above the placement/pour pose the object travels at (m)."""
-SPEED_M_S = 0.15
-"""Nominal tool speed used to choose move durations (m/s)."""
-MIN_MOVE_S = 1.5
+LONG_MOVE_S = 3.0
+"""Duration of a move between work places, or a torso turn (s)."""
+SHORT_MOVE_S = 1.5
+"""Duration of a move out of or along a cabinet shelf, or down to a placement (s)."""
+CONTACT_SPEED_M_S = 0.133
+"""Speed of the final approach to a grasp (m/s); at least 1 s."""
 CONTENT_SHARE_REQUIRED = 0.9
 """Share of the content that must end in the target for a pour to count as done."""
 
@@ -55,13 +56,21 @@ def _k(s: Any) -> Knowledge:
     return k
 
 
-def _duration(a: Pose, b: Pose) -> float:
-    d = math.dist(a.position, b.position)
-    return round(max(MIN_MOVE_S, d / SPEED_M_S), 2)
+def _rot_z(angle: float) -> Pose:
+    return geo.from_se3(pin.SE3(pin.rpy.rpyToMatrix(0.0, 0.0, angle), np.zeros(3)))
 
 
-def _grip_target(obj_pose: Pose, grasp: GraspAffordance) -> Pose:
-    return geo.compose(obj_pose, Pose(grasp.grip_in_object.position, grasp.grip_in_object.orientation))
+def _turned(pose: Pose, angle: float) -> Pose:
+    """``pose`` rotated by ``angle`` about the torso axis (world z through the origin)."""
+    return geo.compose(_rot_z(angle), pose)
+
+
+def _scaled(v: Vec3, k: float) -> Vec3:
+    return (v[0] * k, v[1] * k, v[2] * k)
+
+
+def _grasp_pose(grasp: GraspAffordance) -> Pose:
+    return Pose(grasp.grip_in_object.position, grasp.grip_in_object.orientation)
 
 
 def _best_grasp(s: Any, obj: str, arm: str) -> GraspAffordance | None:
@@ -77,17 +86,6 @@ def _free_arm_for(s: Any, obj: str, exclude: str | None = None) -> str | None:
         if arm != exclude and s.holding[arm] is None and _best_grasp(s, obj, arm) is not None:
             return arm
     return None
-
-
-def _move(s: Any, path: str, arm: str, target: Pose) -> tuple[Any, ...]:
-    return ("a_move", path, arm, target, _duration(s.tool[arm], target) if s.tool[arm] else 3.0)
-
-
-def _retreat_vector(pose: Pose, distance: float) -> Vec3:
-    """Horizontal unit vector from ``pose`` towards the robot (world origin), times distance."""
-    x, y, _ = pose.position
-    n = math.hypot(x, y) or 1.0
-    return (-x / n * distance, -y / n * distance, 0.0)
 
 
 # ------------------------------------------------------------------ actions (operators)
@@ -107,7 +105,7 @@ def a_move(s: Any, path: str, arm: str, target: Pose, duration: float) -> Any:
     return _step(s)
 
 
-def a_open(s: Any, path: str, arm: str) -> Any:
+def a_preshape(s: Any, path: str, arm: str, opening: float) -> Any:
     return _step(s) if s.holding[arm] is None else False
 
 
@@ -127,7 +125,7 @@ def a_held(s: Any, path: str, obj: str, arm: str) -> Any:
     return _step(s)
 
 
-def a_release(s: Any, path: str, arm: str, obj: str) -> Any:
+def a_release(s: Any, path: str, arm: str, obj: str, opening: float) -> Any:
     if s.holding[arm] != obj:
         return False
     s.holding[arm] = None
@@ -136,6 +134,20 @@ def a_release(s: Any, path: str, arm: str, obj: str) -> Any:
 
 def a_put(s: Any, path: str, obj: str, surface: str) -> Any:
     s.where[obj] = ("on", surface)
+    return _step(s)
+
+
+def a_face(s: Any, path: str, angle: float, duration: float) -> Any:
+    """Turn the torso to ``angle``; hands and what they hold turn with it."""
+    if s.torso is not None and abs(s.torso - angle) > 1e-9:
+        delta = angle - s.torso
+        for arm in ARMS:
+            if s.tool[arm] is not None:
+                s.tool[arm] = _turned(s.tool[arm], delta)
+            held = s.holding[arm]
+            if held is not None and s.pose.get(held) is not None:
+                s.pose[held] = _turned(s.pose[held], delta)
+    s.torso = angle
     return _step(s)
 
 
@@ -215,83 +227,126 @@ def m_pour_prepare(s: Any, path: str, src: str, dst: str) -> Any:
     return todo
 
 
+def _face(s: Any, path: str, furniture: str) -> list[tuple[Any, ...]]:
+    """Turn to ``furniture`` unless already facing it; look at its view point."""
+    info = _k(s).objects.get(furniture)
+    if info is None or info.facing is None:
+        return []
+    steps: list[tuple[Any, ...]] = []
+    if s.torso is None or abs(s.torso - info.facing) > 1e-9:
+        steps.append(("a_face", f"{path}/face_{furniture}", info.facing, LONG_MOVE_S))
+    if info.view_point is not None:
+        steps.append(("a_look", f"{path}/look_at_{furniture}", info.view_point))
+    return steps
+
+
 def m_fetch(s: Any, path: str, obj: str, arm: str) -> Any:
-    """Approach, grasp, lift and pull ``obj`` out towards the robot."""
+    """Face the furniture ``obj`` is in, open the hand, (enter,) approach, grasp, lift, withdraw."""
     pose = s.pose.get(obj)
     grasp = _best_grasp(s, obj, arm)
     if pose is None or grasp is None or s.holding[arm] is not None:
         return False
-    grip = _grip_target(pose, grasp)
-    approach_world = geo.rotate(grasp.approach, pose)
-    pre = geo.translated(grip, tuple(-grasp.distance * c for c in approach_world))  # type: ignore[arg-type]
-    lifted = geo.translated(grip, (0.0, 0.0, LIFT_M))
-    out = geo.translated(lifted, _retreat_vector(pose, RETREAT_M))
-    s_pre = pre
+    where = s.where.get(obj, ("", ""))[1]
+    # containers are rotationally symmetric: a grasp ignores their yaw (world axes)
+    obj_frame = Pose(pose.position)
+    grip = geo.compose(obj_frame, _grasp_pose(grasp))
+    approach = geo.rotate(grasp.approach, obj_frame)
+    pre = geo.translated(grip, _scaled(approach, -grasp.distance))
+    lifted = geo.translated(grip, (0.0, 0.0, grasp.lift))
+    out = geo.translated(lifted, _scaled(geo.rotate(grasp.retreat, obj_frame), grasp.retreat_distance))
+    steps: list[tuple[Any, ...]] = [
+        *_face(s, path, where),
+        ("a_preshape", f"{path}/open_hand", arm, grasp.preshape),
+    ]
+    if grasp.entry is not None and grasp.entry_distance > 0:
+        entry = geo.translated(pre, _scaled(geo.rotate(grasp.entry, obj_frame), -grasp.entry_distance))
+        steps += [
+            ("a_move", f"{path}/enter", arm, entry, LONG_MOVE_S),
+            ("a_move", f"{path}/pregrasp", arm, pre, SHORT_MOVE_S),
+        ]
+    else:
+        steps.append(("a_move", f"{path}/pregrasp", arm, pre, LONG_MOVE_S))
+    reach_s = round(max(1.0, grasp.distance / CONTACT_SPEED_M_S), 2)
     return [
-        ("a_open", f"{path}/open_hand", arm),
-        ("a_move", f"{path}/pregrasp", arm, s_pre, _duration(s.tool[arm], s_pre) if s.tool[arm] else 4.0),
-        ("a_move", f"{path}/reach", arm, grip, _duration(pre, grip)),
+        *steps,
+        ("a_move", f"{path}/reach", arm, grip, reach_s),
         ("a_grasp", f"{path}/grasp", arm, obj, grasp.spread),
         ("a_held", f"{path}/held", obj, arm),
-        ("a_move", f"{path}/lift", arm, lifted, _duration(grip, lifted)),
-        ("a_move", f"{path}/pull_out", arm, out, _duration(lifted, out)),
+        ("a_move", f"{path}/lift", arm, lifted, 1.0),
+        ("a_move", f"{path}/withdraw", arm, out, SHORT_MOVE_S),
     ]
 
 
 def m_place(s: Any, path: str, obj: str, surface: str, arm: str) -> Any:
-    """Carry ``obj`` above a free place on ``surface``, lower it, release, retreat."""
+    """Face ``surface``, bring ``obj`` above a free place, lower it, release, lift the hand."""
     if s.holding[arm] != obj:
         return False
     placement = _k(s).placements.get((obj, surface))
-    if placement is None or not placement.positions:
+    info = _k(s).objects.get(surface)
+    if placement is None or not placement.positions or info is None or info.facing is None:
         return False
-    current = s.pose[obj]
-    target_obj = Pose(placement.positions[0], geo.upright(current).orientation)
-    grip = geo.compose(target_obj, s.grip[obj])
-    above = geo.translated(grip, (0.0, 0.0, CARRY_HEIGHT_M))
-    back = geo.translated(above, _retreat_vector(target_obj, 0.10))
+    steps = [("a_face", f"{path}/face_{surface}", info.facing, LONG_MOVE_S)] if s.torso != info.facing else []
+    # the held object turns with the torso; its yaw on the surface is what it has then
+    yaw_now = s.torso if s.torso is not None else 0.0
+    turn = info.facing - yaw_now
+    obj_yaw = geo.upright(_turned(s.pose[obj], turn))
+    x, y, z = placement.positions[0]
+    target = Pose((x, y, z + placement.clearance), obj_yaw.orientation)
+    grip = geo.compose(target, s.grip[obj])
+    above = geo.translated(grip, (0.0, 0.0, placement.approach))
+    grasp = _best_grasp(s, obj, arm)
+    opening = grasp.preshape if grasp is not None else 0.5
     return [
-        ("a_move", f"{path}/carry", arm, above, _duration(s.tool[arm], above)),
-        ("a_move", f"{path}/lower", arm, grip, _duration(above, grip)),
-        ("a_release", f"{path}/release", arm, obj),
+        *steps,
+        ("a_look", f"{path}/look_at_place", (x, y, z)),
+        ("a_move", f"{path}/carry", arm, above, LONG_MOVE_S),
+        ("a_move", f"{path}/lower", arm, grip, SHORT_MOVE_S),
+        ("a_release", f"{path}/release", arm, obj, opening),
         ("a_put", f"{path}/put", obj, surface),
-        ("a_move", f"{path}/retreat", arm, above, _duration(grip, above)),
-        ("a_move", f"{path}/clear", arm, back, _duration(above, back)),
+        ("a_move", f"{path}/clear", arm, above, 1.0),
     ]
 
 
 def m_localise(s: Any, path: str, obj: str) -> Any:
-    pose = s.pose.get(obj)
-    if pose is None:
+    """Observe ``obj`` (and what the hands hold: their poses changed with every move)."""
+    if s.pose.get(obj) is None:
         return False
-    return [("a_look", f"{path}/look", pose.position), ("a_perceive", f"{path}/perceive", obj)]
+    held = [o for o in s.holding.values() if o is not None and o != obj]
+    return [("a_perceive", f"{path}/perceive", ",".join([obj, *held]))]
 
 
 def m_pour_into(s: Any, path: str, src: str, dst: str, arm: str) -> Any:
-    """Bring ``src`` (held by ``arm``) over ``dst``, tilt to pour, wait, tilt back."""
+    """Face the target's surface, bring the source's lip over the target, tilt about the lip,
+    wait for the content to run out, tilt back."""
     pour = _k(s).pours.get((src, dst))
     dst_pose = s.pose.get(dst)
-    if pour is None or dst_pose is None or s.holding[arm] != src:
+    src_pose = s.pose.get(src)
+    if pour is None or dst_pose is None or src_pose is None or s.holding[arm] != src:
         return False
-    src_now = geo.upright(s.pose[src])
-    x, y, z = dst_pose.position
-    src_target = Pose((x + pour.offset[0], y + pour.offset[1], z + pour.offset[2]), src_now.orientation)
+    surface = s.where.get(dst, ("", ""))[1]
+    info = _k(s).objects.get(surface)
+    facing = info.facing if info is not None and info.facing is not None else (s.torso or 0.0)
+    steps = [("a_face", f"{path}/face_{surface}", facing, LONG_MOVE_S)] if s.torso != facing else []
+    turn = _rot_z(facing)
+    src_upright = geo.upright(src_pose if s.torso is None else _turned(src_pose, facing - s.torso))
+    lip = geo.translated(Pose(dst_pose.position), geo.rotate(pour.lip_in_target, turn)).position
+    src_origin = geo.translated(Pose(lip), _scaled(geo.rotate(pour.lip_in_source, src_upright), -1.0))
+    src_target = Pose(src_origin.position, src_upright.orientation)
     grip = geo.compose(src_target, s.grip[src])
-    above = geo.translated(grip, (0.0, 0.0, CARRY_HEIGHT_M))
-    size = _k(s).objects[src].size or (0.0, 0.0, 0.0)
-    pivot = (src_target.position[0], src_target.position[1], src_target.position[2] + size[2])
+    axis = geo.rotate(pour.axis, turn)
     return [
-        ("a_move", f"{path}/carry", arm, above, _duration(s.tool[arm], above)),
-        ("a_move", f"{path}/approach", arm, grip, _duration(above, grip)),
-        ("a_tilt", f"{path}/tilt", arm, pivot, pour.axis, pour.angle, pour.duration),
-        ("a_wait", f"{path}/empty", 2.0),
-        ("a_tilt", f"{path}/tilt_back", arm, pivot, pour.axis, -pour.angle, pour.duration),
+        *steps,
+        ("a_move", f"{path}/bring_over", arm, grip, LONG_MOVE_S),
+        ("a_tilt", f"{path}/tilt", arm, lip, axis, pour.angle, pour.duration),
+        ("a_wait", f"{path}/let_run_out", pour.wait),
+        ("a_tilt", f"{path}/tilt_back", arm, lip, axis, -pour.angle, pour.untilt_duration),
     ]
 
 
 ACTIONS = (
     a_move,
-    a_open,
+    a_face,
+    a_preshape,
     a_grasp,
     a_held,
     a_release,
@@ -335,6 +390,7 @@ def initial_state(k: Knowledge, tool_poses: dict[str, Pose | None]) -> Any:
     s.observed = set()
     s.partial = False
     s.steps = 0
+    s.torso = None
     for n, o in k.objects.items():
         if o.held_by:
             arm = o.held_by.removesuffix("_gripper")

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from shared.fipa_codec.languages.l_ex import Arm, Grasp, LookAt, MoveTool, Release, Tilt, Wait
+from shared.fipa_codec.languages.l_ex import Arm, Grasp, LookAt, MoveJoints, MoveTool, Release, Tilt, Wait
 from shared.fipa_codec.languages.l_hfsm import Action, Assert, CheckContent, Execute, Perceive, PlanNode
 
 OBSERVE_COST_S = 1.0
@@ -16,8 +16,12 @@ def leaf_action(name: str, args: tuple[Any, ...]) -> tuple[Action | None, float]
     if name == "a_move":
         arm, target, duration = args
         return Execute(MoveTool(arm=Arm(arm), target=target, duration=duration)), duration
-    if name == "a_open":
-        return Execute(Release(arm=Arm(args[0]))), 1.0
+    if name == "a_face":
+        angle, duration = args
+        return Execute(MoveJoints(positions={"torso_0_joint": angle}, duration=duration)), duration
+    if name == "a_preshape":
+        arm, opening = args
+        return Execute(Release(arm=Arm(arm), opening=opening)), 1.0
     if name == "a_grasp":
         arm, _obj, spread = args
         return Execute(Grasp(arm=Arm(arm), spread=spread)), 1.5
@@ -25,7 +29,8 @@ def leaf_action(name: str, args: tuple[Any, ...]) -> tuple[Action | None, float]
         obj, arm = args
         return Assert(subject=obj, relation="heldBy", object=f"{arm}_gripper"), 0.0
     if name == "a_release":
-        return Execute(Release(arm=Arm(args[0]))), 1.0
+        arm, _obj, opening = args
+        return Execute(Release(arm=Arm(arm), opening=opening)), 1.0
     if name == "a_put":
         obj, surface = args
         return Assert(subject=obj, relation="on", object=surface), 0.0
@@ -33,7 +38,7 @@ def leaf_action(name: str, args: tuple[Any, ...]) -> tuple[Action | None, float]
         (point,) = args
         return Execute(LookAt(point=tuple(point))), 1.0
     if name == "a_perceive":
-        return Perceive(objects=(args[0],) if args[0] else ()), OBSERVE_COST_S
+        return Perceive(objects=tuple(args[0].split(",")) if args[0] else ()), OBSERVE_COST_S
     if name == "a_tilt":
         arm, pivot, axis, angle, duration = args
         return Execute(Tilt(arm=Arm(arm), pivot=pivot, axis=axis, angle=angle, duration=duration)), duration

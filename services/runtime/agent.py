@@ -330,8 +330,18 @@ class Agent:
             behaviour = self.fsm.states[state]
             self.log.debug("behaviour %s", behaviour.name)
             behaviour.on_enter()
+            failed = False
             while not self._stop.is_set():
-                behaviour.transition()
+                try:
+                    behaviour.transition()
+                except Exception:
+                    # a fault in one behaviour must not stop the agent: end the behaviour,
+                    # drop what it was about to send, and go back to the initial state
+                    self.log.exception("transition function of %s raised", behaviour.name)
+                    self.counters["behaviour_errors"] += 1
+                    self._y.clear()
+                    failed = True
+                    break
                 self._dispatch()
                 self.i += 1
                 # a communication state blocks for new input only while it has nothing to end on
@@ -341,7 +351,7 @@ class Agent:
                     break
             if self._stop.is_set():
                 break
-            state = self.fsm.next_state(state)
+            state = self.fsm.initial if failed else self.fsm.next_state(state)
         self._dispatch()
 
     # ---- helpers for behaviours ---------------------------------------------------------

@@ -185,3 +185,40 @@ def test_memory_bus_messages_are_valid_msgpack_communicates() -> None:
     msg = decode(payload)
     assert msg.language == "L_WM" and msg.conversation_id == "x"
     assert msgspec.msgpack.decode(msg.content)["type"] == "answer"
+
+
+class Faulty(Agent):
+    """A transition function that raises once; the agent must keep serving."""
+
+    name = "a_km"
+
+    def build_fsm(self) -> FSM:
+        self.raised = False
+        return FSM(initial="serve", states={"serve": Behaviour("serve", self._serve, terminal=lambda: False)})
+
+    def _serve(self) -> None:
+        while self.x:
+            item = self.x.popleft()
+            if not self.raised:
+                self.raised = True
+                raise RuntimeError("a bug")
+            self.reply(item, Performative.INFORM_REF, Answer())
+
+
+def test_an_exception_in_a_behaviour_does_not_stop_the_agent() -> None:
+    bus = MemoryBus()
+    agent = Faulty(bus.transport())
+    agent.bind()
+    to_pl: queue.SimpleQueue[Communicate] = queue.SimpleQueue()
+    bus.subscribe(keys.inbox_key("a_pl"), lambda k, p: to_pl.put(decode(p)))
+    t = threading.Thread(target=agent.run, daemon=True)
+    t.start()
+    try:
+        bus.publish(KEY, encode(query("q1")))
+        bus.publish(KEY, encode(query("q2")))
+        reply = to_pl.get(timeout=5)
+        assert reply.in_reply_to == "q2"
+        assert agent.counters["behaviour_errors"] == 1
+    finally:
+        agent.stop()
+        t.join(timeout=5)

@@ -60,7 +60,8 @@ class ObjectInfo(msgspec.Struct, frozen=True, kw_only=True):
     """An individual: ``name``, its ``type`` (an O_RoCo class), ``pose`` with ``pose_stamp``,
     bounding ``size`` (x, y, z extents), where it is (``location`` with ``relation`` in/on),
     who holds it (``held_by``), whether its pose was ``localised`` since it last moved, and
-    for containers the count of ``particles`` inside."""
+    for containers the count of ``particles`` inside. For furniture: ``facing``, the torso
+    angle (rad) at which Velma works at it, and ``view_point``, where the head looks (world)."""
 
     name: str
     type: str
@@ -72,36 +73,55 @@ class ObjectInfo(msgspec.Struct, frozen=True, kw_only=True):
     held_by: str | None = None
     localised: bool = False
     particles: int | None = None
+    facing: float | None = None
+    view_point: Vec3 | None = None
 
 
 class GraspAffordance(msgspec.Struct, frozen=True, kw_only=True):
-    """One way to grasp an object: the grip frame's pose relative to the object frame
-    (``grip_in_object``), the ``approach`` direction in the object frame (unit vector the
-    hand travels along to reach the grasp), the approach ``distance`` (m) and the finger
-    ``spread`` (rad)."""
+    """One way to grasp an object (object frame = bottom centre, world axes; m, rad).
+
+    ``grip_in_object``: the grip frame's pose in the object frame. The hand opens to
+    ``preshape`` (proximal angle), reaches a pre-grasp ``distance`` back along ``approach``
+    (the unit direction it then moves in to the grasp), optionally first an entry point
+    ``entry_distance`` back along ``entry`` from there; closes with finger ``spread``; lifts
+    by ``lift``; and withdraws ``retreat_distance`` along ``retreat``."""
 
     name: str
     grip_in_object: Pose
     approach: Vec3
     distance: float
     spread: float = 0.0
+    preshape: float = 0.5
+    entry: Vec3 | None = None
+    entry_distance: float = 0.0
+    lift: float = 0.04
+    retreat: Vec3 = (-1.0, 0.0, 0.0)
+    retreat_distance: float = 0.25
 
 
 class PourAffordance(msgspec.Struct, frozen=True, kw_only=True):
-    """Pouring ``source`` into ``target``: the source's mouth goes to ``offset`` (m, world
-    axes) from the target's frame, then tilts by ``angle`` (rad) about ``axis``."""
+    """Pouring ``source`` into ``target`` facing the target's furniture: the source's lip
+    (``lip_in_source``, source frame) goes to ``lip_in_target`` (target frame turned with the
+    torso), then the source tilts by ``angle`` rad about ``axis`` (torso frame) through the
+    lip in ``duration`` s, waits ``wait`` s, and tilts back in ``untilt_duration`` s."""
 
-    offset: Vec3
+    lip_in_target: Vec3
+    lip_in_source: Vec3
     axis: Vec3
     angle: float
     duration: float
+    wait: float = 2.0
+    untilt_duration: float = 3.0
 
 
 class PlacementInfo(msgspec.Struct, frozen=True, kw_only=True):
-    """Free places for an object on a surface: world positions of the object's frame."""
+    """Free places for an object on a surface: world ``positions`` of the object's frame; the
+    object is released ``clearance`` m above and comes down from ``approach`` m above."""
 
     surface: str
     positions: tuple[Vec3, ...]
+    clearance: float = 0.005
+    approach: float = 0.08
 
 
 class Answer(msgspec.Struct, frozen=True, tag="answer", kw_only=True):
