@@ -23,6 +23,7 @@ from typing import Annotated
 
 import msgspec
 import typer
+import zenoh
 
 from services.human_interface.messages import FINAL_REPORTS, HumanInput, HumanReport, ReportKind
 from services.runtime import keys
@@ -89,10 +90,13 @@ def run(
         fleet.start_recorder()
         fleet.wait_alive(session, ["recorder"], timeout=60)
         if not quiet:
-            session.declare_subscriber(
-                keys.FIPA_ALL,
-                lambda s: (line := progress_line(str(s.key_expr), s.payload.to_bytes())) and lines.put(line),
-            )
+
+            def on_traffic(sample: zenoh.Sample) -> None:
+                line = progress_line(str(sample.key_expr), sample.payload.to_bytes())
+                if line is not None:
+                    lines.put(line)
+
+            session.declare_subscriber(keys.FIPA_ALL, on_traffic)
         session.declare_subscriber(keys.HUMAN_OUT, lambda s: lines.put(decoder.decode(s.payload.to_bytes())))
         knowledge = threading.Event()
         session.declare_subscriber(keys.fipa_key("C6", "a_ta", "a_km"), lambda s: knowledge.set())

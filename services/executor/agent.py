@@ -21,7 +21,7 @@ from shared.fipa_codec import Performative
 from shared.fipa_codec.languages.l_ex import CommandResult, ExecutorCommand
 from shared.fipa_codec.languages.l_sd import Observation
 
-COMMAND_TYPES = tuple(t for t in ExecutorCommand.__args__)  # type: ignore[attr-defined]
+COMMAND_TYPES = tuple(t for t in ExecutorCommand.__args__)
 
 
 @dataclass(frozen=True)
@@ -66,7 +66,7 @@ class ExecutorAgent(Agent):
             item = self.x.popleft()
             if item.performative is Performative.REQUEST and isinstance(item.content, COMMAND_TYPES):
                 command: msgspec.Struct = item.content
-                self.executor.submit(command, lambda result, req=item: self.post(Done(req, result)))  # type: ignore[arg-type]
+                self.executor.submit(command, lambda result, req=item: self.post(Done(req, result)))
             elif item.performative is Performative.CANCEL:
                 self.log.info("cancel from %s: the running command completes, queued ones stay", item.sender)
             elif item.performative is not Performative.NOT_UNDERSTOOD and not item.local:

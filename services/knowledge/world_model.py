@@ -108,7 +108,7 @@ class WorldModel:
                 frame=str(g.value(pose_node, ROCO.frame) or "world"),
             )
             stamp_lit = g.value(pose_node, ROCO.stamp)
-            stamp = float(stamp_lit) if stamp_lit is not None else None
+            stamp = float(str(stamp_lit)) if stamp_lit is not None else None
             localised = bool(g.value(pose_node, ROCO.localised))
         location = relation = None
         for rel in ("in", "on"):
@@ -130,7 +130,7 @@ class WorldModel:
             relation=relation,
             held_by=str(held).removeprefix(str(ROCO)) if held is not None else None,
             localised=localised,
-            particles=int(particles) if particles is not None else None,
+            particles=int(str(particles)) if particles is not None else None,
             facing=float(facing) if facing is not None else None,  # type: ignore[arg-type]
             view_point=_vec3(view) if view is not None else None,
         )
@@ -153,7 +153,7 @@ class WorldModel:
         node = self._node(obj)
         g = self.graph
         out = []
-        for aff in sorted(g.subjects(ROCO.affordanceOf, node)):
+        for aff in sorted(g.subjects(ROCO.affordanceOf, node), key=str):
             if (aff, RDF.type, ROCO.GraspAffordance) not in g or str(g.value(aff, ROCO.forArm)) != arm:
                 continue
             assert isinstance(aff, URIRef)
@@ -253,17 +253,17 @@ class WorldModel:
                     # held objects leave where they were; their pose is no longer localised
                     g.remove((node, ROCO["in"], None))
                     g.remove((node, ROCO.on, None))
-                    pose_node = g.value(node, ROCO.hasPose)
-                    if pose_node is not None:
-                        g.set((pose_node, ROCO.localised, Literal(False)))
+                    held_pose = g.value(node, ROCO.hasPose)
+                    if held_pose is not None:
+                        g.set((held_pose, ROCO.localised, Literal(False)))
             if change.location is not None and change.relation in ("in", "on"):
                 g.remove((node, ROCO["in"], None))
                 g.remove((node, ROCO.on, None))
                 if change.location:
                     g.add((node, ROCO[change.relation], ROCO[change.location]))
-                    pose_node = g.value(node, ROCO.hasPose)
-                    if pose_node is not None:
-                        g.set((pose_node, ROCO.localised, Literal(False)))
+                    held_pose = g.value(node, ROCO.hasPose)
+                    if held_pose is not None:
+                        g.set((held_pose, ROCO.localised, Literal(False)))
             if change.particles is not None:
                 g.set((node, ROCO.particles, Literal(change.particles)))
         return len(update.objects)

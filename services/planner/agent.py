@@ -10,6 +10,8 @@ from __future__ import annotations
 
 import time
 
+import msgspec
+
 from services.planner.domain import PlanningFailure, find_plan
 from services.planner.hfsm import to_hfsm
 from services.planner.knowledge import ARMS, Knowledge
@@ -99,12 +101,12 @@ class Planner(Agent):
             [(t.name, t.args) for t in item.content.tasks],
         )
 
-    def _query(self, kind: str, key: tuple[str, ...], query: object) -> None:
+    def _query(self, kind: str, key: tuple[str, ...], query: msgspec.Struct) -> None:
         msg = self.send(
             "a_km",
             Performative.QUERY_REF,
             query,
-            protocol="fipa-query",  # type: ignore[arg-type]
+            protocol="fipa-query",
             reply_by_s=QUERY_REPLY_BY_S,
         )
         assert msg.reply_with is not None
@@ -181,7 +183,7 @@ class Planner(Agent):
             )
             self.log.info("no plan: %s", self.failure)
         else:
-            root, complete, cost = to_hfsm(self.actions)  # type: ignore[arg-type]
+            root, complete, cost = to_hfsm(self.actions)
             plan = HierarchicalPlan(
                 plan_id=f"{self.problem.task_id}-p{self.problem.plan_index}",
                 task_id=self.problem.task_id,

@@ -56,7 +56,7 @@ class ZenohTransport:
 
     def __init__(self, endpoints: list[str], *, wait_for_router: bool = True) -> None:
         self.session = zenoh.open(client_config(endpoints, wait_for_router=wait_for_router))
-        self._subs: list[zenoh.Subscriber] = []  # type: ignore[type-arg]
+        self._subs: list[zenoh.Subscriber] = []
         self._tokens: list[zenoh.LivelinessToken] = []
         self._lock = threading.Lock()
 

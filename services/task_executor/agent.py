@@ -187,7 +187,7 @@ class TaskExecutor(Agent):
     def _running(self) -> None:
         self._common()
         if self.step is not None and self.step.waiting_for is not None:
-            reply = self.take(lambda i: i.msg.in_reply_to == self.step.waiting_for)  # type: ignore[union-attr]
+            reply = self.take(lambda i: i.msg.in_reply_to == self.step.waiting_for)
             if reply is None:
                 self.reject_unhandled(lambda i: i.local or i.sender == "ag_ex")
                 return
