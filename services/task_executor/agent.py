@@ -10,6 +10,7 @@ in every state; the first observation of the scene is taken at start-up (paper T
 
 from __future__ import annotations
 
+from collections import deque
 from dataclasses import dataclass
 
 from services.runtime.agent import Agent, Received
@@ -25,7 +26,7 @@ from shared.fipa_codec.languages.l_hfsm import (
     PlanNode,
 )
 from shared.fipa_codec.languages.l_sd import Observation
-from shared.fipa_codec.languages.l_sw import SWState, SWStatus
+from shared.fipa_codec.languages.l_sw import TERMINAL_SW_STATES, SWState, SWStatus
 from shared.fipa_codec.languages.l_wm import ObjectUpdate, Subscription, WorldUpdate
 
 OBSERVE_REPLY_BY_S = 30.0
@@ -59,6 +60,8 @@ class TaskExecutor(Agent):
         self.cancel_requested = False
         self.final_inform: str | None = None
         self.confirmed = False
+        self.sw_queue: deque[SWStatus] = deque()
+        self.awaiting: str | None = None  # reply-with of the L_SW inform a_co has not confirmed
         return FSM(
             initial="idle",
             states={
@@ -97,8 +100,14 @@ class TaskExecutor(Agent):
                     self._observe_initial()
                 else:
                     self.reply(item, Performative.REFUSE)
-            elif item.sender == "a_co" and item.performative is Performative.CONFIRM:
+            elif (item.sender == "a_co" and item.performative is Performative.CONFIRM) or (
+                item.local and self.awaiting is not None and item.msg.in_reply_to == self.awaiting
+            ):
                 self.x.remove(item)
+                if item.local:
+                    self.log.warning("a_co did not confirm %s in time", item.msg.in_reply_to)
+                if item.msg.in_reply_to == self.awaiting:
+                    self.awaiting = None
                 if self.final_inform is not None and item.msg.in_reply_to == self.final_inform:
                     self.confirmed = True
             elif item.sender == "a_co" and item.performative is Performative.CANCEL:
@@ -121,6 +130,8 @@ class TaskExecutor(Agent):
                 self.subscription.msg.conversation_id if self.subscription else None
             ):
                 self.x.remove(item)
+
+        self._flush_sw()
 
     def _observe_initial(self) -> None:
         if self.initial_done or self.initial_observe is not None:
@@ -146,19 +157,28 @@ class TaskExecutor(Agent):
             return
         self.reply(self.subscription, Performative.INFORM, update)
 
-    def _inform_co(
-        self, state: SWState, step: str | None = None, reason: str | None = None, expect: bool = False
-    ) -> str | None:
+    def _inform_co(self, state: SWState, step: str | None = None, reason: str | None = None) -> None:
+        """Queue an L_SW inform for a_co; informs go one at a time, each after a_co confirmed
+        the previous one (coordinate protocol, paper Figure 8: loop of inform and confirm)."""
         if self.plan_request is None or self.plan is None:
-            return None
+            return
+        self.sw_queue.append(SWStatus(state=state, plan_id=self.plan.plan_id, step=step, reason=reason))
+        self._flush_sw()
+
+    def _flush_sw(self) -> None:
+        if self.awaiting is not None or not self.sw_queue or self.plan_request is None:
+            return
+        status = self.sw_queue.popleft()
         msg = self.reply(
             self.plan_request,
             Performative.INFORM,
-            SWStatus(state=state, plan_id=self.plan.plan_id, step=step, reason=reason),
-            reply_with=f"{self.plan.plan_id}-{self.i}",
-            reply_by_s=CONFIRM_REPLY_BY_S if expect else None,
+            status,
+            reply_with=f"{status.plan_id}-{self.i}-{len(self.sw_queue)}",
+            reply_by_s=CONFIRM_REPLY_BY_S,
         )
-        return msg.reply_with
+        self.awaiting = msg.reply_with
+        if status.state in TERMINAL_SW_STATES:
+            self.final_inform = msg.reply_with
 
     # ---- idle ----
     def _idle(self) -> None:
@@ -281,15 +301,11 @@ class TaskExecutor(Agent):
     def _report_final(self) -> None:
         assert self.outcome is not None
         self.confirmed = False
-        self.final_inform = self._inform_co(self.outcome, reason=self.reason, expect=True)
+        self.final_inform = None
+        self._inform_co(self.outcome, reason=self.reason)
 
     def _finished(self) -> None:
         self._common()
-        for item in list(self.x):
-            if item.local and item.msg.in_reply_to == self.final_inform:
-                self.x.remove(item)
-                self.log.warning("a_co did not confirm the final state; going idle")
-                self.confirmed = True
         if self.confirmed:
             self.plan = None
             self.plan_request = None

@@ -401,15 +401,16 @@ FIPA_QUERY = _build(
     "FIPA SC00027",
     "The initiator asks query-if (is it true?) or query-ref (which objects?); the "
     "participant refuses, or (optionally after agree) answers inform or reports failure "
-    "(SC00027 §2).",
+    "(SC00027 §2). The answer may also be inform-ref, as the paper's a_km sends it "
+    "(paper §5.4, Figure 9).",
     [
         ("start", _I, (_P.QUERY_IF, _P.QUERY_REF), "queried"),
         ("queried", _R, _P.REFUSE, "refused"),
         ("queried", _R, _P.AGREE, "agreed"),
         ("queried", _R, _P.FAILURE, "failed"),
-        ("queried", _R, _P.INFORM, "answered"),
+        ("queried", _R, (_P.INFORM, _P.INFORM_REF), "answered"),
         ("agreed", _R, _P.FAILURE, "failed"),
-        ("agreed", _R, _P.INFORM, "answered"),
+        ("agreed", _R, (_P.INFORM, _P.INFORM_REF), "answered"),
     ],
     ["refused", "failed", "answered"],
     cancellable=["queried", "agreed"],

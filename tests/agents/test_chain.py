@@ -3,11 +3,11 @@ kinematic test double of the robot: the protocols of paper §5.4 carry a pour to
 
 from __future__ import annotations
 
+from services.human_interface.messages import ReportKind
 from shared.fipa_codec import decode
 from shared.fipa_codec.languages import decode_content
 from shared.fipa_codec.languages.l_hfsm import HierarchicalPlan
 from shared.fipa_codec.languages.l_sw import SWState, SWStatus
-from services.human_interface.messages import ReportKind
 from tests.support.fake_executor import PARTICLES, FakeExecutor
 from tests.support.memory_fleet import MemoryFleet
 
