@@ -1,0 +1,42 @@
+"""`roco up`, `roco status`, `roco send`, `roco down` against a fleet of real processes."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from services.runtime.launcher import free_port
+
+pytestmark = pytest.mark.slow
+
+
+def roco(*args: str, timeout: float = 180) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(
+        [sys.executable, "-m", "services.cli", *args], capture_output=True, text=True, timeout=timeout
+    )
+
+
+def test_up_status_send_down(tmp_path: Path) -> None:
+    runs = str(tmp_path)
+    up = roco("up", "--port", str(free_port()), "--runs-dir", runs)
+    assert up.returncode == 0, up.stderr
+    try:
+        assert "fleet up on tcp/127.0.0.1:" in up.stdout
+        again = roco("up", "--runs-dir", runs)
+        assert again.returncode == 1 and "already up" in again.stderr
+        status = roco("status", "--runs-dir", runs)
+        assert status.returncode == 0, status.stdout + status.stderr
+        for agent in ("a_hi", "a_co", "a_pl", "a_km", "a_ta", "ag_ex"):
+            assert f"{agent:9s} alive" in status.stdout
+        sent = roco("send", "sing me a song", "--runs-dir", runs, timeout=60)
+        assert sent.returncode == 1
+        assert sent.stdout.startswith("not-understood: I do not understand 'sing me a song'")
+    finally:
+        down = roco("down", "--runs-dir", runs)
+    assert down.returncode == 0, down.stderr
+    assert not (tmp_path / ".fleet.json").exists()
+    after = roco("down", "--runs-dir", runs)
+    assert after.returncode == 1 and after.stderr.startswith("roco: no fleet is up")
