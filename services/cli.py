@@ -70,7 +70,7 @@ def run(
 ) -> None:
     """Start router, recorder and one process per agent; give a_hi the command; wait for the
     outcome; stop everything; write the run folder's report. Exit 0 only on success."""
-    from services.monitor import progress_line
+    from services.monitor import is_world_update, progress_line
 
     run_dir = new_run_dir(runs_dir)
     endpoint = f"tcp/127.0.0.1:{free_port()}"
@@ -99,7 +99,12 @@ def run(
             session.declare_subscriber(keys.FIPA_ALL, on_traffic)
         session.declare_subscriber(keys.HUMAN_OUT, lambda s: lines.put(decoder.decode(s.payload.to_bytes())))
         knowledge = threading.Event()
-        session.declare_subscriber(keys.fipa_key("C6", "a_ta", "a_km"), lambda s: knowledge.set())
+
+        def on_knowledge(sample: zenoh.Sample) -> None:
+            if is_world_update(sample.payload.to_bytes()):
+                knowledge.set()
+
+        session.declare_subscriber(keys.fipa_key("C6", "a_ta", "a_km"), on_knowledge)
         fleet.start_agents()
         waited = fleet.wait_alive(session, AGENT_ORDER, timeout=120)
         typer.echo(f"{_clock(t0)} all agents alive after {waited:.1f} s: {', '.join(AGENT_ORDER)}")

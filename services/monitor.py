@@ -56,3 +56,14 @@ def progress_line(key: str, payload: bytes) -> str | None:
     if perf is Performative.NOT_UNDERSTOOD:
         return f"{head}: not-understood: {msg.content.decode('utf-8', 'replace')}"
     return None
+
+
+def is_world_update(payload: bytes) -> bool:
+    """True when ``payload`` is an inform carrying an L_WM WorldUpdate (an observation)."""
+    try:
+        msg = decode(payload)
+        return msg.performative is Performative.INFORM and isinstance(
+            decode_content(msg.language, msg.content), WorldUpdate
+        )
+    except (DecodeError, ContentError):
+        return False

@@ -50,6 +50,10 @@ def _vec3(text: object) -> Vec3:
     return (v[0], v[1], v[2])
 
 
+def g_has(graph: Graph, node: URIRef, prop: URIRef) -> bool:
+    return graph.value(node, prop) is not None
+
+
 def _lit(values: tuple[float, ...] | list[float]) -> Literal:
     return Literal(" ".join(repr(float(v)) for v in values))
 
@@ -119,6 +123,7 @@ class WorldModel:
         size = g.value(node, ROCO.size)
         particles = g.value(node, ROCO.particles)
         facing = g.value(node, ROCO.facing)
+        picked = g.value(node, ROCO.pickedFrom)
         view = g.value(node, ROCO.viewPoint)
         return ObjectInfo(
             name=name,
@@ -133,6 +138,9 @@ class WorldModel:
             particles=int(str(particles)) if particles is not None else None,
             facing=float(facing) if facing is not None else None,  # type: ignore[arg-type]
             view_point=_vec3(view) if view is not None else None,
+            picked_from=str(picked).removeprefix(str(ROCO))
+            if held is not None and picked is not None
+            else None,
         )
 
     def _float(self, node: URIRef, prop: URIRef, default: float | None = None) -> float:
@@ -172,6 +180,7 @@ class WorldModel:
                     preshape=self._float(aff, ROCO.preshape, 0.5),
                     entry=_vec3(entry) if entry is not None else None,
                     entry_distance=self._float(aff, ROCO.entryDistance, 0.0),
+                    posture=_vec(g.value(aff, ROCO.posture) or ""),
                     lift=self._float(aff, ROCO.lift, 0.04),
                     retreat=self._vec3(aff, ROCO.retreat),
                     retreat_distance=self._float(aff, ROCO.retreatDistance, 0.25),
@@ -190,6 +199,9 @@ class WorldModel:
             positions=positions,
             clearance=self._float(node, ROCO.placeClearance, 0.005),
             approach=self._float(node, ROCO.placeApproach, 0.08),
+            park=self._vec3(node, ROCO.parkOffset)
+            if g_has(self.graph, node, ROCO.parkOffset)
+            else (0.0, 0.0, 0.1),
         )
 
     def pour(self, source: str, target: str) -> PourAffordance | None:
@@ -199,8 +211,10 @@ class WorldModel:
             if (aff, ROCO.target, dst) in g:
                 assert isinstance(aff, URIRef)
                 return PourAffordance(
-                    lip_in_target=self._vec3(aff, ROCO.lipInTarget),
-                    lip_in_source=self._vec3(aff, ROCO.lipInSource),
+                    facing=self._float(aff, ROCO.facing),
+                    source_in_target=self._vec3(aff, ROCO.sourceInTarget),
+                    approach_height=self._float(aff, ROCO.approachHeight, 0.08),
+                    pivot_in_target=self._vec3(aff, ROCO.pivotInTarget),
                     axis=self._vec3(aff, ROCO.axis),
                     angle=self._float(aff, ROCO.angle),
                     duration=self._float(aff, ROCO.duration),
@@ -250,6 +264,9 @@ class WorldModel:
                 g.remove((node, ROCO.heldBy, None))
                 if change.held_by:
                     g.add((node, ROCO.heldBy, ROCO[change.held_by]))
+                    where = g.value(node, ROCO["in"]) or g.value(node, ROCO.on)
+                    if where is not None:
+                        g.set((node, ROCO.pickedFrom, where))
                     # held objects leave where they were; their pose is no longer localised
                     g.remove((node, ROCO["in"], None))
                     g.remove((node, ROCO.on, None))

@@ -105,6 +105,11 @@ def a_move(s: Any, path: str, arm: str, target: Pose, duration: float) -> Any:
     return _step(s)
 
 
+def a_posture(s: Any, path: str, arm: str, positions: tuple[float, ...], duration: float) -> Any:
+    s.tool[arm] = None  # the grip pose after a joint move is not tracked
+    return _step(s)
+
+
 def a_preshape(s: Any, path: str, arm: str, opening: float) -> Any:
     return _step(s) if s.holding[arm] is None else False
 
@@ -115,12 +120,13 @@ def a_grasp(s: Any, path: str, arm: str, obj: str, spread: float) -> Any:
     return _step(s)
 
 
-def a_held(s: Any, path: str, obj: str, arm: str) -> Any:
+def a_held(s: Any, path: str, obj: str, arm: str, picked_from: str) -> Any:
     grasp = _best_grasp(s, obj, arm)
     if grasp is None:
         return False
     s.holding[arm] = obj
     s.where[obj] = ("heldBy", f"{arm}_gripper")
+    s.picked_from[obj] = picked_from
     s.grip[obj] = Pose(grasp.grip_in_object.position, grasp.grip_in_object.orientation)
     return _step(s)
 
@@ -227,21 +233,33 @@ def m_pour_prepare(s: Any, path: str, src: str, dst: str) -> Any:
     return todo
 
 
+def _face_steps(s: Any, path: str, name: str, angle: float) -> list[tuple[Any, ...]]:
+    """Turn the torso to ``angle`` unless it is there already: a long turn slowly."""
+    if s.torso is not None and abs(s.torso - angle) < 1e-9:
+        return []
+    duration = LONG_MOVE_S if s.torso is not None and abs(s.torso - angle) > 0.5 else SHORT_MOVE_S
+    return [("a_face", f"{path}/face_{name}", angle, duration)]
+
+
 def _face(s: Any, path: str, furniture: str) -> list[tuple[Any, ...]]:
-    """Turn to ``furniture`` unless already facing it; look at its view point."""
+    """Look at ``furniture``'s view point and turn to it."""
     info = _k(s).objects.get(furniture)
     if info is None or info.facing is None:
         return []
-    steps: list[tuple[Any, ...]] = []
-    if s.torso is None or abs(s.torso - info.facing) > 1e-9:
-        steps.append(("a_face", f"{path}/face_{furniture}", info.facing, LONG_MOVE_S))
-    if info.view_point is not None:
-        steps.append(("a_look", f"{path}/look_at_{furniture}", info.view_point))
-    return steps
+    look = [("a_look", f"{path}/look_at_{furniture}", info.view_point)] if info.view_point is not None else []
+    return [*look, *_face_steps(s, path, furniture, info.facing)]
+
+
+def _grasp_facing(s: Any, obj: str) -> float:
+    """The torso angle at which ``obj`` was grasped (the facing of where it was picked)."""
+    where = s.picked_from.get(obj)
+    info = _k(s).objects.get(where) if where else None
+    return info.facing if info is not None and info.facing is not None else 0.0
 
 
 def m_fetch(s: Any, path: str, obj: str, arm: str) -> Any:
-    """Face the furniture ``obj`` is in, open the hand, (enter,) approach, grasp, lift, withdraw."""
+    """Face the furniture ``obj`` is in, (take the grasp's arm posture,) open the hand,
+    (enter,) approach, grasp, lift, withdraw."""
     pose = s.pose.get(obj)
     grasp = _best_grasp(s, obj, arm)
     if pose is None or grasp is None or s.holding[arm] is not None:
@@ -254,56 +272,57 @@ def m_fetch(s: Any, path: str, obj: str, arm: str) -> Any:
     pre = geo.translated(grip, _scaled(approach, -grasp.distance))
     lifted = geo.translated(grip, (0.0, 0.0, grasp.lift))
     out = geo.translated(lifted, _scaled(geo.rotate(grasp.retreat, obj_frame), grasp.retreat_distance))
-    steps: list[tuple[Any, ...]] = [
-        *_face(s, path, where),
-        ("a_preshape", f"{path}/open_hand", arm, grasp.preshape),
-    ]
+    steps: list[tuple[Any, ...]] = _face(s, path, where)
+    if grasp.posture:
+        steps.append(("a_posture", f"{path}/arm_posture", arm, grasp.posture, SHORT_MOVE_S))
+    steps.append(("a_preshape", f"{path}/open_hand", arm, grasp.preshape))
+    first_move = SHORT_MOVE_S if grasp.posture else LONG_MOVE_S
     if grasp.entry is not None and grasp.entry_distance > 0:
         entry = geo.translated(pre, _scaled(geo.rotate(grasp.entry, obj_frame), -grasp.entry_distance))
         steps += [
-            ("a_move", f"{path}/enter", arm, entry, LONG_MOVE_S),
+            ("a_move", f"{path}/enter", arm, entry, first_move),
             ("a_move", f"{path}/pregrasp", arm, pre, SHORT_MOVE_S),
         ]
     else:
-        steps.append(("a_move", f"{path}/pregrasp", arm, pre, LONG_MOVE_S))
+        steps.append(("a_move", f"{path}/pregrasp", arm, pre, first_move))
     reach_s = round(max(1.0, grasp.distance / CONTACT_SPEED_M_S), 2)
     return [
         *steps,
         ("a_move", f"{path}/reach", arm, grip, reach_s),
         ("a_grasp", f"{path}/grasp", arm, obj, grasp.spread),
-        ("a_held", f"{path}/held", obj, arm),
+        ("a_held", f"{path}/held", obj, arm, where),
         ("a_move", f"{path}/lift", arm, lifted, 1.0),
         ("a_move", f"{path}/withdraw", arm, out, SHORT_MOVE_S),
     ]
 
 
 def m_place(s: Any, path: str, obj: str, surface: str, arm: str) -> Any:
-    """Face ``surface``, bring ``obj`` above a free place, lower it, release, lift the hand."""
+    """Face ``surface``, bring ``obj`` above a free place, lower it, release, lift the hand
+    and park it out of the way."""
     if s.holding[arm] != obj:
         return False
     placement = _k(s).placements.get((obj, surface))
     info = _k(s).objects.get(surface)
     if placement is None or not placement.positions or info is None or info.facing is None:
         return False
-    steps = [("a_face", f"{path}/face_{surface}", info.facing, LONG_MOVE_S)] if s.torso != info.facing else []
-    # the held object turns with the torso; its yaw on the surface is what it has then
-    yaw_now = s.torso if s.torso is not None else 0.0
-    turn = info.facing - yaw_now
-    obj_yaw = geo.upright(_turned(s.pose[obj], turn))
     x, y, z = placement.positions[0]
-    target = Pose((x, y, z + placement.clearance), obj_yaw.orientation)
+    # the held object turned with the torso: facing the surface it has this yaw
+    yaw = _rot_z(info.facing - _grasp_facing(s, obj))
+    target = Pose((x, y, z + placement.clearance), yaw.orientation)
     grip = geo.compose(target, s.grip[obj])
     above = geo.translated(grip, (0.0, 0.0, placement.approach))
+    park = geo.translated(grip, geo.rotate(placement.park, _rot_z(info.facing)))
     grasp = _best_grasp(s, obj, arm)
     opening = grasp.preshape if grasp is not None else 0.5
     return [
-        *steps,
+        *_face_steps(s, path, surface, info.facing),
         ("a_look", f"{path}/look_at_place", (x, y, z)),
         ("a_move", f"{path}/carry", arm, above, LONG_MOVE_S),
         ("a_move", f"{path}/lower", arm, grip, SHORT_MOVE_S),
         ("a_release", f"{path}/release", arm, obj, opening),
         ("a_put", f"{path}/put", obj, surface),
         ("a_move", f"{path}/clear", arm, above, 1.0),
+        ("a_move", f"{path}/park", arm, park, SHORT_MOVE_S),
     ]
 
 
@@ -316,35 +335,32 @@ def m_localise(s: Any, path: str, obj: str) -> Any:
 
 
 def m_pour_into(s: Any, path: str, src: str, dst: str, arm: str) -> Any:
-    """Face the target's surface, bring the source's lip over the target, tilt about the lip,
+    """Turn to pour, bring the source upright beside the target, tilt it about the pivot,
     wait for the content to run out, tilt back."""
     pour = _k(s).pours.get((src, dst))
     dst_pose = s.pose.get(dst)
-    src_pose = s.pose.get(src)
-    if pour is None or dst_pose is None or src_pose is None or s.holding[arm] != src:
+    if pour is None or dst_pose is None or s.holding[arm] != src or src not in s.grip:
         return False
-    surface = s.where.get(dst, ("", ""))[1]
-    info = _k(s).objects.get(surface)
-    facing = info.facing if info is not None and info.facing is not None else (s.torso or 0.0)
-    steps = [("a_face", f"{path}/face_{surface}", facing, LONG_MOVE_S)] if s.torso != facing else []
-    turn = _rot_z(facing)
-    src_upright = geo.upright(src_pose if s.torso is None else _turned(src_pose, facing - s.torso))
-    lip = geo.translated(Pose(dst_pose.position), geo.rotate(pour.lip_in_target, turn)).position
-    src_origin = geo.translated(Pose(lip), _scaled(geo.rotate(pour.lip_in_source, src_upright), -1.0))
-    src_target = Pose(src_origin.position, src_upright.orientation)
+    turn = _rot_z(pour.facing)
+    origin = geo.translated(Pose(dst_pose.position), geo.rotate(pour.source_in_target, turn))
+    src_target = Pose(origin.position, _rot_z(pour.facing - _grasp_facing(s, src)).orientation)
     grip = geo.compose(src_target, s.grip[src])
+    above = geo.translated(grip, (0.0, 0.0, pour.approach_height))
+    pivot = geo.translated(Pose(dst_pose.position), geo.rotate(pour.pivot_in_target, turn)).position
     axis = geo.rotate(pour.axis, turn)
     return [
-        *steps,
-        ("a_move", f"{path}/bring_over", arm, grip, LONG_MOVE_S),
-        ("a_tilt", f"{path}/tilt", arm, lip, axis, pour.angle, pour.duration),
+        *_face_steps(s, path, "pour", pour.facing),
+        ("a_move", f"{path}/bring_over", arm, above, LONG_MOVE_S),
+        ("a_move", f"{path}/lower", arm, grip, SHORT_MOVE_S),
+        ("a_tilt", f"{path}/tilt", arm, pivot, axis, pour.angle, pour.duration),
         ("a_wait", f"{path}/let_run_out", pour.wait),
-        ("a_tilt", f"{path}/tilt_back", arm, lip, axis, -pour.angle, pour.untilt_duration),
+        ("a_tilt", f"{path}/tilt_back", arm, pivot, axis, -pour.angle, pour.untilt_duration),
     ]
 
 
 ACTIONS = (
     a_move,
+    a_posture,
     a_face,
     a_preshape,
     a_grasp,
@@ -391,6 +407,7 @@ def initial_state(k: Knowledge, tool_poses: dict[str, Pose | None]) -> Any:
     s.partial = False
     s.steps = 0
     s.torso = None
+    s.picked_from = {n: o.picked_from for n, o in k.objects.items() if o.picked_from}
     for n, o in k.objects.items():
         if o.held_by:
             arm = o.held_by.removesuffix("_gripper")

@@ -25,8 +25,12 @@ def leaf_action(name: str, args: tuple[Any, ...]) -> tuple[Action | None, float]
     if name == "a_grasp":
         arm, _obj, spread = args
         return Execute(Grasp(arm=Arm(arm), spread=spread)), 1.5
+    if name == "a_posture":
+        arm, positions, duration = args
+        joints = {f"{arm}_arm_{i}_joint": float(q) for i, q in enumerate(positions)}
+        return Execute(MoveJoints(positions=joints, duration=duration)), duration
     if name == "a_held":
-        obj, arm = args
+        obj, arm, _picked_from = args
         return Assert(subject=obj, relation="heldBy", object=f"{arm}_gripper"), 0.0
     if name == "a_release":
         arm, _obj, opening = args

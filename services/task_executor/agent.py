@@ -30,6 +30,7 @@ from shared.fipa_codec.languages.l_sw import TERMINAL_SW_STATES, SWState, SWStat
 from shared.fipa_codec.languages.l_wm import ObjectUpdate, Subscription, WorldUpdate
 
 OBSERVE_REPLY_BY_S = 30.0
+INITIAL_OBSERVE_RETRY_S = 3.0
 COMMAND_MARGIN_S = 60.0
 CONFIRM_REPLY_BY_S = 30.0
 
@@ -126,6 +127,13 @@ class TaskExecutor(Agent):
                     self._update_km(item.content)
                 else:
                     self._observe_initial()  # deadline passed or failure: ask again
+            elif (
+                item.sender == "ag_ex"
+                and not item.local
+                and (self.step is None or item.msg.in_reply_to != self.step.waiting_for)
+            ):
+                self.x.remove(item)  # a late reply to a request whose deadline already passed
+                self.log.info("late %s from ag_ex ignored", item.performative.value)
             elif item.local and item.msg.conversation_id == (
                 self.subscription.msg.conversation_id if self.subscription else None
             ):
@@ -136,8 +144,13 @@ class TaskExecutor(Agent):
     def _observe_initial(self) -> None:
         if self.initial_done or self.initial_observe is not None:
             return
+        # ag_ex may not listen yet at start-up: ask again soon rather than wait long
         msg = self.send(
-            "ag_ex", Performative.REQUEST, Observe(), protocol="fipa-request", reply_by_s=OBSERVE_REPLY_BY_S
+            "ag_ex",
+            Performative.REQUEST,
+            Observe(),
+            protocol="fipa-request",
+            reply_by_s=INITIAL_OBSERVE_RETRY_S,
         )
         self.initial_observe = msg.reply_with
 

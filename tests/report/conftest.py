@@ -141,8 +141,17 @@ def pour_run() -> RunBuilder:
     # initial knowledge 1.0–3.0 s: C6 subscription, C5 observe, C6 update
     b.add(1.0, "C6", "a_km", "a_ta", "subscribe", Subscription(), **sub)
     b.add(1.1, "C6", "a_ta", "a_km", "agree", **sub)
-    b.add(2.0, "C5", "a_ta", "ag_ex", "request", Observe(), conversation="ex-1",
-          protocol="fipa-request", reply_with="r1")
+    b.add(
+        2.0,
+        "C5",
+        "a_ta",
+        "ag_ex",
+        "request",
+        Observe(),
+        conversation="ex-1",
+        protocol="fipa-request",
+        reply_with="r1",
+    )
     scene = Observation(
         stamp=0.5,
         objects=(
@@ -151,30 +160,60 @@ def pour_run() -> RunBuilder:
         ),
         total_particles=20,
     )
-    b.add(2.5, "C5", "ag_ex", "a_ta", "inform", scene, conversation="ex-1",
-          protocol="fipa-request", in_reply_to="r1")
-    b.add(3.0, "C6", "a_ta", "a_km", "inform",
-          WorldUpdate(stamp=0.5, objects=(ObjectUpdate(name="jar", pose=_pose(0.1)),
-                                          ObjectUpdate(name="bowl", pose=_pose(0.3)))),
-          **sub)
+    b.add(
+        2.5,
+        "C5",
+        "ag_ex",
+        "a_ta",
+        "inform",
+        scene,
+        conversation="ex-1",
+        protocol="fipa-request",
+        in_reply_to="r1",
+    )
+    b.add(
+        3.0,
+        "C6",
+        "a_ta",
+        "a_km",
+        "inform",
+        WorldUpdate(
+            stamp=0.5,
+            objects=(ObjectUpdate(name="jar", pose=_pose(0.1)), ObjectUpdate(name="bowl", pose=_pose(0.3))),
+        ),
+        **sub,
+    )
     # the command at 10.0 s
     cmd: dict[str, Any] = dict(conversation="cmd-1", protocol="fipa-request")
-    b.add(10.0, "C2", "a_hi", "a_co", "request",
-          HumanCommand(text=COMMAND_TEXT, goal=TaskAtom("pour", ("jar", "bowl"))), **cmd)
+    b.add(
+        10.0,
+        "C2",
+        "a_hi",
+        "a_co",
+        "request",
+        HumanCommand(text=COMMAND_TEXT, goal=TaskAtom("pour", ("jar", "bowl"))),
+        **cmd,
+    )
     b.add(10.1, "C2", "a_co", "a_hi", "agree", **cmd)
     # plan #1: request 12.0, 3 queries + 3 answers on C4 (one large), plan at 17.0
     p1: dict[str, Any] = dict(conversation="plan-req-1", protocol="fipa-request")
-    b.add(12.0, "C3", "a_co", "a_pl", "request",
-          GroundTaskNetwork(task_id="cmd-1", tasks=(TaskAtom("fetch", ("jar",)),), plan_index=1),
-          **p1)
+    b.add(
+        12.0,
+        "C3",
+        "a_co",
+        "a_pl",
+        "request",
+        GroundTaskNetwork(task_id="cmd-1", tasks=(TaskAtom("fetch", ("jar",)),), plan_index=1),
+        **p1,
+    )
     q: dict[str, Any] = dict(protocol="fipa-query")
     b.add(12.5, "C4", "a_pl", "a_km", "query-ref", ObjectQuery("jar"), conversation="q1", **q)
     b.add(13.0, "C4", "a_km", "a_pl", "inform", Answer(), conversation="q1", **q)
-    b.add(13.5, "C4", "a_pl", "a_km", "query-ref", GraspQuery(object="jar", arm="left"),
-          conversation="q2", **q)
+    b.add(
+        13.5, "C4", "a_pl", "a_km", "query-ref", GraspQuery(object="jar", arm="left"), conversation="q2", **q
+    )
     grasps = tuple(
-        GraspAffordance(name=f"g{i}", grip_in_object=_pose(i / 10), approach=(1.0, 0.0, 0.0),
-                        distance=0.1)
+        GraspAffordance(name=f"g{i}", grip_in_object=_pose(i / 10), approach=(1.0, 0.0, 0.0), distance=0.1)
         for i in range(20)
     )
     b.add(14.0, "C4", "a_km", "a_pl", "inform", Answer(grasps=grasps), conversation="q2", **q)
@@ -184,59 +223,178 @@ def pour_run() -> RunBuilder:
     # execution of plan #1: 18.0–26.0 on C1
     x1: dict[str, Any] = dict(conversation="exec-1", protocol="coordinate")
     b.add(17.5, "C1", "a_co", "a_ta", "request", _plan("plan-1", False, 3, 4.8), **x1)
-    b.add(18.0, "C1", "a_ta", "a_co", "inform",
-          SWStatus(state=SWState.RUNNING, plan_id="plan-1", step="fetch_jar/grasp"), **x1)
+    b.add(
+        18.0,
+        "C1",
+        "a_ta",
+        "a_co",
+        "inform",
+        SWStatus(state=SWState.RUNNING, plan_id="plan-1", step="fetch_jar/grasp"),
+        **x1,
+    )
     b.add(18.1, "C1", "a_co", "a_ta", "confirm", **x1)
-    b.add(19.0, "C5", "a_ta", "ag_ex", "request", Grasp(arm=Arm.LEFT), conversation="ex-2",
-          protocol="fipa-request", reply_with="r2")
-    b.add(21.0, "C5", "ag_ex", "a_ta", "inform", CommandResult(command="grasp", ok=True),
-          conversation="ex-2", protocol="fipa-request", in_reply_to="r2")
-    b.add(22.0, "C6", "a_ta", "a_km", "inform",
-          WorldUpdate(stamp=8.0, objects=(ObjectUpdate(name="jar", held_by="left"),)), **sub)
-    b.add(24.0, "C5", "a_ta", "ag_ex", "request", Observe(objects=("bowl",)), conversation="ex-3",
-          protocol="fipa-request", reply_with="r3")
-    b.add(24.5, "C5", "ag_ex", "a_ta", "inform",
-          Observation(stamp=10.0, objects=(ObjectObservation(name="bowl", pose=_pose(0.4),
-                                                             particles_inside=0),),
-                      total_particles=20),
-          conversation="ex-3", protocol="fipa-request", in_reply_to="r3")
-    b.add(25.0, "C6", "a_ta", "a_km", "inform",
-          WorldUpdate(stamp=10.0, objects=(ObjectUpdate(name="bowl", pose=_pose(0.4)),)), **sub)
-    b.add(26.0, "C1", "a_ta", "a_co", "inform",
-          SWStatus(state=SWState.REPLAN, plan_id="plan-1", reason="bowl localised"), **x1)
+    b.add(
+        19.0,
+        "C5",
+        "a_ta",
+        "ag_ex",
+        "request",
+        Grasp(arm=Arm.LEFT),
+        conversation="ex-2",
+        protocol="fipa-request",
+        reply_with="r2",
+    )
+    b.add(
+        21.0,
+        "C5",
+        "ag_ex",
+        "a_ta",
+        "inform",
+        CommandResult(command="grasp", ok=True),
+        conversation="ex-2",
+        protocol="fipa-request",
+        in_reply_to="r2",
+    )
+    b.add(
+        22.0,
+        "C6",
+        "a_ta",
+        "a_km",
+        "inform",
+        WorldUpdate(stamp=8.0, objects=(ObjectUpdate(name="jar", held_by="left"),)),
+        **sub,
+    )
+    b.add(
+        24.0,
+        "C5",
+        "a_ta",
+        "ag_ex",
+        "request",
+        Observe(objects=("bowl",)),
+        conversation="ex-3",
+        protocol="fipa-request",
+        reply_with="r3",
+    )
+    b.add(
+        24.5,
+        "C5",
+        "ag_ex",
+        "a_ta",
+        "inform",
+        Observation(
+            stamp=10.0,
+            objects=(ObjectObservation(name="bowl", pose=_pose(0.4), particles_inside=0),),
+            total_particles=20,
+        ),
+        conversation="ex-3",
+        protocol="fipa-request",
+        in_reply_to="r3",
+    )
+    b.add(
+        25.0,
+        "C6",
+        "a_ta",
+        "a_km",
+        "inform",
+        WorldUpdate(stamp=10.0, objects=(ObjectUpdate(name="bowl", pose=_pose(0.4)),)),
+        **sub,
+    )
+    b.add(
+        26.0,
+        "C1",
+        "a_ta",
+        "a_co",
+        "inform",
+        SWStatus(state=SWState.REPLAN, plan_id="plan-1", reason="bowl localised"),
+        **x1,
+    )
     b.add(26.1, "C1", "a_co", "a_ta", "confirm", **x1)
     # plan #2: request 27.0, 1 query + 1 answer, plan at 29.0
     p2: dict[str, Any] = dict(conversation="plan-req-2", protocol="fipa-request")
-    b.add(27.0, "C3", "a_co", "a_pl", "request",
-          GroundTaskNetwork(task_id="cmd-1", tasks=(TaskAtom("pour", ("jar", "bowl")),),
-                            plan_index=2),
-          **p2)
+    b.add(
+        27.0,
+        "C3",
+        "a_co",
+        "a_pl",
+        "request",
+        GroundTaskNetwork(task_id="cmd-1", tasks=(TaskAtom("pour", ("jar", "bowl")),), plan_index=2),
+        **p2,
+    )
     b.add(27.5, "C4", "a_pl", "a_km", "query-ref", ObjectQuery("bowl"), conversation="q4", **q)
     b.add(28.0, "C4", "a_km", "a_pl", "inform", Answer(), conversation="q4", **q)
     b.add(29.0, "C3", "a_pl", "a_co", "inform", _plan("plan-2", True, 1, 1.9), **p2)
     # execution of plan #2: 31.0–43.0 on C1
     x2: dict[str, Any] = dict(conversation="exec-2", protocol="coordinate")
     b.add(30.0, "C1", "a_co", "a_ta", "request", _plan("plan-2", True, 1, 1.9), **x2)
-    b.add(31.0, "C1", "a_ta", "a_co", "inform",
-          SWStatus(state=SWState.RUNNING, plan_id="plan-2", step="pour/tilt"), **x2)
+    b.add(
+        31.0,
+        "C1",
+        "a_ta",
+        "a_co",
+        "inform",
+        SWStatus(state=SWState.RUNNING, plan_id="plan-2", step="pour/tilt"),
+        **x2,
+    )
     b.add(31.1, "C1", "a_co", "a_ta", "confirm", **x2)
-    b.add(32.0, "C5", "a_ta", "ag_ex", "request",
-          Tilt(arm=Arm.LEFT, pivot=(0.3, 0.5, 1.0), axis=(1.0, 0.0, 0.0), angle=2.0, duration=5.0),
-          conversation="ex-4", protocol="fipa-request", reply_with="r4")
-    b.add(40.0, "C5", "ag_ex", "a_ta", "inform", CommandResult(command="tilt", ok=True),
-          conversation="ex-4", protocol="fipa-request", in_reply_to="r4")
-    b.add(41.0, "C5", "a_ta", "ag_ex", "request", Observe(objects=("bowl",)), conversation="ex-5",
-          protocol="fipa-request", reply_with="r5")
-    b.add(42.0, "C5", "ag_ex", "a_ta", "inform",
-          Observation(stamp=30.0, objects=(ObjectObservation(name="bowl", pose=_pose(0.4),
-                                                             particles_inside=17),),
-                      total_particles=20),
-          conversation="ex-5", protocol="fipa-request", in_reply_to="r5")
-    b.add(43.0, "C1", "a_ta", "a_co", "inform",
-          SWStatus(state=SWState.SUCCEEDED, plan_id="plan-2"), **x2)
+    b.add(
+        32.0,
+        "C5",
+        "a_ta",
+        "ag_ex",
+        "request",
+        Tilt(arm=Arm.LEFT, pivot=(0.3, 0.5, 1.0), axis=(1.0, 0.0, 0.0), angle=2.0, duration=5.0),
+        conversation="ex-4",
+        protocol="fipa-request",
+        reply_with="r4",
+    )
+    b.add(
+        40.0,
+        "C5",
+        "ag_ex",
+        "a_ta",
+        "inform",
+        CommandResult(command="tilt", ok=True),
+        conversation="ex-4",
+        protocol="fipa-request",
+        in_reply_to="r4",
+    )
+    b.add(
+        41.0,
+        "C5",
+        "a_ta",
+        "ag_ex",
+        "request",
+        Observe(objects=("bowl",)),
+        conversation="ex-5",
+        protocol="fipa-request",
+        reply_with="r5",
+    )
+    b.add(
+        42.0,
+        "C5",
+        "ag_ex",
+        "a_ta",
+        "inform",
+        Observation(
+            stamp=30.0,
+            objects=(ObjectObservation(name="bowl", pose=_pose(0.4), particles_inside=17),),
+            total_particles=20,
+        ),
+        conversation="ex-5",
+        protocol="fipa-request",
+        in_reply_to="r5",
+    )
+    b.add(43.0, "C1", "a_ta", "a_co", "inform", SWStatus(state=SWState.SUCCEEDED, plan_id="plan-2"), **x2)
     b.add(43.1, "C1", "a_co", "a_ta", "confirm", **x2)
-    b.add(44.0, "C2", "a_co", "a_hi", "inform",
-          CommandOutcome(command_id="cmd-1", succeeded=True, detail="poured 17 of 20"), **cmd)
+    b.add(
+        44.0,
+        "C2",
+        "a_co",
+        "a_hi",
+        "inform",
+        CommandOutcome(command_id="cmd-1", succeeded=True, detail="poured 17 of 20"),
+        **cmd,
+    )
     return b
 
 

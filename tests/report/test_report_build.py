@@ -102,8 +102,10 @@ def test_timeline(report: Report) -> None:
     assert obs[0].text.startswith("bowl localised")
     assert "17 of 20 spheres in the bowl" in obs[1].text
     env = [e for e in report.events if e.kind == "environment"]
-    assert [(e.start, e.end) for e in env] == [(pytest.approx(22.0), None),
-                                               (pytest.approx(24.5), pytest.approx(25.0))]
+    assert [(e.start, e.end) for e in env] == [
+        (pytest.approx(22.0), None),
+        (pytest.approx(24.5), pytest.approx(25.0)),
+    ]
     assert env[1].channels == ["C5", "C6"]
     fin = _event(report, "finished")
     assert fin.start == pytest.approx(44.0)

@@ -139,12 +139,33 @@ def test_without_run_json_times_count_from_first_record(make_run: MakeRun, pour:
 def test_failures_appear_in_timeline_and_planning(make_run: MakeRun, pour: Any) -> None:
     t = 50.0
     pour.add(t, "C5", "a_ta", "ag_ex", "request", Grasp(arm=Arm.RIGHT), conversation="ex-9")
-    pour.add(t + 1, "C5", "ag_ex", "a_ta", "inform",
-             CommandResult(command="grasp", ok=False, reason="no contact"), conversation="ex-9")
-    pour.add(t + 2, "C3", "a_co", "a_pl", "request",
-             GroundTaskNetwork(task_id="cmd-1", tasks=(), plan_index=3), conversation="p3")
-    pour.add(t + 3, "C3", "a_pl", "a_co", "failure",
-             PlanFailure(task_id="cmd-1", reason="jar unreachable"), conversation="p3")
+    pour.add(
+        t + 1,
+        "C5",
+        "ag_ex",
+        "a_ta",
+        "inform",
+        CommandResult(command="grasp", ok=False, reason="no contact"),
+        conversation="ex-9",
+    )
+    pour.add(
+        t + 2,
+        "C3",
+        "a_co",
+        "a_pl",
+        "request",
+        GroundTaskNetwork(task_id="cmd-1", tasks=(), plan_index=3),
+        conversation="p3",
+    )
+    pour.add(
+        t + 3,
+        "C3",
+        "a_pl",
+        "a_co",
+        "failure",
+        PlanFailure(task_id="cmd-1", reason="jar unreachable"),
+        conversation="p3",
+    )
     report = build_report(make_run(pour))
     failed = [e for e in report.events if e.kind == "action_failed"]
     assert [e.text for e in failed] == ["right hand fails to grasp: no contact"]

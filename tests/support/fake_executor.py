@@ -17,7 +17,7 @@ from shared.fipa_codec.languages.l_ex import (
     Release,
     Tilt,
 )
-from shared.fipa_codec.languages.l_sd import Observation, ObjectObservation
+from shared.fipa_codec.languages.l_sd import ObjectObservation, Observation
 
 PARTICLES = 20
 

@@ -61,7 +61,8 @@ class ObjectInfo(msgspec.Struct, frozen=True, kw_only=True):
     bounding ``size`` (x, y, z extents), where it is (``location`` with ``relation`` in/on),
     who holds it (``held_by``), whether its pose was ``localised`` since it last moved, and
     for containers the count of ``particles`` inside. For furniture: ``facing``, the torso
-    angle (rad) at which Velma works at it, and ``view_point``, where the head looks (world)."""
+    angle (rad) at which Velma works at it, and ``view_point``, where the head looks (world).
+    A held object names the furniture it was ``picked_from``."""
 
     name: str
     type: str
@@ -75,6 +76,7 @@ class ObjectInfo(msgspec.Struct, frozen=True, kw_only=True):
     particles: int | None = None
     facing: float | None = None
     view_point: Vec3 | None = None
+    picked_from: str | None = None
 
 
 class GraspAffordance(msgspec.Struct, frozen=True, kw_only=True):
@@ -84,7 +86,8 @@ class GraspAffordance(msgspec.Struct, frozen=True, kw_only=True):
     ``preshape`` (proximal angle), reaches a pre-grasp ``distance`` back along ``approach``
     (the unit direction it then moves in to the grasp), optionally first an entry point
     ``entry_distance`` back along ``entry`` from there; closes with finger ``spread``; lifts
-    by ``lift``; and withdraws ``retreat_distance`` along ``retreat``."""
+    by ``lift``; and withdraws ``retreat_distance`` along ``retreat``. A non-empty
+    ``posture`` (the arm's seven joint angles, rad) is taken first, by a joint move."""
 
     name: str
     grip_in_object: Pose
@@ -97,16 +100,20 @@ class GraspAffordance(msgspec.Struct, frozen=True, kw_only=True):
     lift: float = 0.04
     retreat: Vec3 = (-1.0, 0.0, 0.0)
     retreat_distance: float = 0.25
+    posture: tuple[float, ...] = ()
 
 
 class PourAffordance(msgspec.Struct, frozen=True, kw_only=True):
-    """Pouring ``source`` into ``target`` facing the target's furniture: the source's lip
-    (``lip_in_source``, source frame) goes to ``lip_in_target`` (target frame turned with the
-    torso), then the source tilts by ``angle`` rad about ``axis`` (torso frame) through the
-    lip in ``duration`` s, waits ``wait`` s, and tilts back in ``untilt_duration`` s."""
+    """Pouring ``source`` into ``target``: the torso turns to ``facing`` (rad); in the target
+    frame turned with the torso, the upright source's frame goes to ``source_in_target``
+    (coming down from ``approach_height`` above), then the source tilts by ``angle`` rad about
+    ``axis`` (torso frame) through ``pivot_in_target`` in ``duration`` s, waits ``wait`` s,
+    and tilts back in ``untilt_duration`` s. Metres, radians, seconds."""
 
-    lip_in_target: Vec3
-    lip_in_source: Vec3
+    facing: float
+    source_in_target: Vec3
+    approach_height: float
+    pivot_in_target: Vec3
     axis: Vec3
     angle: float
     duration: float
@@ -116,12 +123,14 @@ class PourAffordance(msgspec.Struct, frozen=True, kw_only=True):
 
 class PlacementInfo(msgspec.Struct, frozen=True, kw_only=True):
     """Free places for an object on a surface: world ``positions`` of the object's frame; the
-    object is released ``clearance`` m above and comes down from ``approach`` m above."""
+    object is released ``clearance`` m above and comes down from ``approach`` m above; the
+    hand then parks at ``park`` from the release pose (frame turned with the torso)."""
 
     surface: str
     positions: tuple[Vec3, ...]
     clearance: float = 0.005
     approach: float = 0.08
+    park: Vec3 = (0.0, 0.0, 0.1)
 
 
 class Answer(msgspec.Struct, frozen=True, tag="answer", kw_only=True):

@@ -1,0 +1,57 @@
+"""The whole experiment through the threaded Executor (slow: ≈ 50 s simulated)."""
+
+from __future__ import annotations
+
+import threading
+
+import pytest
+
+from shared.fipa_codec.languages.l_ex import CommandResult, Observe
+from shared.fipa_codec.languages.l_sd import Observation
+from velma.executor import Executor
+from velma.scenario import pour_script, run_script
+
+
+def test_executor_fifo_and_snapshot() -> None:
+    ex = Executor(realtime=False, seed=0)
+    ex.start()
+    try:
+        done = threading.Event()
+        seen: list[object] = []
+
+        def on_done(result: CommandResult | Observation) -> None:
+            seen.append(result)
+            if len(seen) == 2:
+                done.set()
+
+        ex.submit(Observe(objects=("jar",)), on_done)
+        ex.submit(Observe(objects=("bowl",)), on_done)
+        assert done.wait(60)
+        assert [o.objects[0].name for o in seen] == ["jar", "bowl"]  # type: ignore[attr-defined]
+        snap = ex.snapshot()
+        assert set(snap.grip) == {"left", "right"} and "torso_0_joint" in snap.joints
+        assert ex.timing()["cycles"] >= 1
+    finally:
+        ex.stop()
+
+
+@pytest.mark.slow
+def test_pour_script_fills_the_bowl() -> None:
+    ex = Executor(realtime=False, seed=0)
+    ex.start()
+    try:
+        first = run_script(ex.submit, [Observe()])[0]
+        assert isinstance(first, Observation)
+        commands = pour_script(first)
+        results = run_script(ex.submit, commands)
+    finally:
+        ex.stop()
+    assert len(results) == len(commands)
+    for command, result in zip(commands, results, strict=True):
+        assert not isinstance(result, CommandResult) or result.ok, (command, result)
+    final = results[-1]
+    assert isinstance(final, Observation)
+    bowl = next(o for o in final.objects if o.name == "bowl")
+    assert bowl.particles_inside is not None
+    assert bowl.particles_inside >= 0.9 * final.total_particles
+    assert final.stamp <= 90.0

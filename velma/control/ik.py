@@ -1,0 +1,109 @@
+"""Numerical inverse kinematics of one arm's grip frame (damped least squares, Pinocchio).
+
+Used by the executor to decide whether a MoveTool/Tilt target is reachable (``unreachable``)
+and to give the Cartesian impedance law a null-space posture that agrees with the target.
+Only the seven arm joints move; torso, head and hand joints keep their values in ``q``.
+Joint limits are enforced by clamping each iterate, with a 0.05 rad margin.
+
+Source: standard DLS IK (Wampler 1986); kinematics from velma.xml via Pinocchio.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import pinocchio as pin
+
+from velma.control.robot_model import Array, RobotModel, arm_joints
+
+LIMIT_MARGIN = 0.05  # rad
+
+
+@dataclass(frozen=True)
+class IkResult:
+    """``q``: full Pinocchio configuration (rad, shape (33,)); ``ok``: converged within
+    tolerance; ``position_error`` (m) and ``rotation_error`` (rad) at ``q``."""
+
+    q: Array
+    ok: bool
+    position_error: float
+    rotation_error: float
+
+
+def solve_ik_multi(
+    robot: RobotModel,
+    side: str,
+    target: pin.SE3,
+    q0: Array,
+    *,
+    restarts: int = 12,
+    seed: int = 0,
+) -> IkResult:
+    """``solve_ik`` from ``q0``, then (if that fails) from up to ``restarts`` deterministic
+    random arm configurations; among converged solutions the one closest to ``q0`` wins."""
+    first = solve_ik(robot, side, target, q0, posture=q0)
+    if first.ok:
+        return first
+    idx = robot.v_indices(arm_joints(side))
+    lo = robot.model.lowerPositionLimit[idx]
+    hi = robot.model.upperPositionLimit[idx]
+    rng = np.random.default_rng(seed)
+    best: IkResult | None = None
+    for _ in range(restarts):
+        q = np.array(q0, dtype=float)
+        q[idx] = rng.uniform(0.7 * lo, 0.7 * hi)
+        r = solve_ik(robot, side, target, q)
+        if r.ok and (
+            best is None or np.linalg.norm(r.q[idx] - q0[idx]) < np.linalg.norm(best.q[idx] - q0[idx])
+        ):
+            best = r
+            if np.linalg.norm(r.q[idx] - q0[idx]) < 1.0:
+                break
+    return best if best is not None else first
+
+
+def solve_ik(
+    robot: RobotModel,
+    side: str,
+    target: pin.SE3,
+    q0: Array,
+    *,
+    max_iter: int = 200,
+    pos_tol: float = 2e-3,
+    rot_tol: float = 1e-2,
+    damping: float = 1e-3,
+    posture: Array | None = None,
+) -> IkResult:
+    """Arm joints of ``side`` that put the grip frame at ``target`` (world), from ``q0``.
+
+    ``posture`` (shape (33,)), if given, pulls the redundant (elbow) DOF towards it in the
+    Jacobian's null space. Never raises for an unreachable target: returns ``ok=False``.
+    """
+    model, data = robot.model, robot.data
+    idx = robot.v_indices(arm_joints(side))
+    lo = model.lowerPositionLimit[idx] + LIMIT_MARGIN
+    hi = model.upperPositionLimit[idx] - LIMIT_MARGIN
+    fid = robot.grip_frame_id[side]
+    q = np.array(q0, dtype=float)
+    q[idx] = np.clip(q[idx], lo, hi)
+    perr = rerr = float("inf")
+    for _ in range(max_iter):
+        pin.framesForwardKinematics(model, data, q)
+        cur = data.oMf[fid]
+        err = pin.log6(cur.actInv(target)).vector  # in the current grip frame
+        perr = float(np.linalg.norm(target.translation - cur.translation))
+        rerr = float(np.linalg.norm(err[3:]))
+        if perr < pos_tol and rerr < rot_tol:
+            return IkResult(q, True, perr, rerr)
+        jac = pin.computeFrameJacobian(model, data, q, fid, pin.LOCAL)[:, idx]
+        jjt = jac @ jac.T + damping * np.eye(6)
+        dq = jac.T @ np.linalg.solve(jjt, err)
+        if posture is not None:
+            null = np.eye(7) - jac.T @ np.linalg.solve(jjt, jac)
+            dq += null @ (0.1 * (posture[idx] - q[idx]))
+        step = float(np.max(np.abs(dq)))
+        if step > 0.3:
+            dq *= 0.3 / step
+        q[idx] = np.clip(q[idx] + dq, lo, hi)
+    return IkResult(q, perr < pos_tol and rerr < rot_tol, perr, rerr)

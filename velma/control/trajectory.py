@@ -1,0 +1,118 @@
+"""Setpoint generators: minimum-jerk time scaling, straight-line + slerp pose paths, and
+rotations of a pose about a fixed axis (pouring).
+
+Poses are ``pinocchio.SE3`` (metres, rotation matrices); twists are (linear m/s, angular
+rad/s) in the world frame. Source: Flash & Hogan (1985) minimum-jerk profile.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import pinocchio as pin
+
+from velma.control.robot_model import Array
+
+
+def min_jerk(t: float, duration: float) -> tuple[float, float]:
+    """Phase ``s`` ∈ [0, 1] and its rate ``ds/dt`` (1/s) of the minimum-jerk profile at time
+    ``t`` (s) of a motion lasting ``duration`` (s); (1, 0) for ``duration`` ≤ 0 or t ≥ end."""
+    if duration <= 0.0 or t >= duration:
+        return 1.0, 0.0
+    if t <= 0.0:
+        return 0.0, 0.0
+    x = t / duration
+    s = x**3 * (10.0 - 15.0 * x + 6.0 * x * x)
+    ds = 30.0 * x * x * (1.0 - x) ** 2 / duration
+    return s, ds
+
+
+MIN_JERK_PEAK_RATE = 1.875
+"""max ds/dt × duration of the minimum-jerk profile (peak velocity = 1.875 Δ / T)."""
+
+
+def axis_angle(rot: Array) -> tuple[Array, float]:
+    """Unit axis (3,) and angle (rad, in [0, π]) of a rotation matrix; axis x for angle 0."""
+    w = pin.log3(rot)
+    angle = float(np.linalg.norm(w))
+    if angle < 1e-12:
+        return np.array([1.0, 0.0, 0.0]), 0.0
+    return w / angle, angle
+
+
+@dataclass(frozen=True)
+class PosePath:
+    """Straight line from ``start`` to ``goal`` (positions) and a slerp of orientations,
+    timed by a minimum-jerk profile of ``duration`` seconds."""
+
+    start: pin.SE3
+    goal: pin.SE3
+    duration: float
+
+    def sample(self, t: float) -> tuple[pin.SE3, Array]:
+        """Pose and world twist (6,) = (v, ω) at time ``t`` (s)."""
+        s, ds = min_jerk(t, self.duration)
+        rel = self.start.rotation.T @ self.goal.rotation
+        axis, angle = axis_angle(rel)
+        rot = self.start.rotation @ pin.exp3(axis * angle * s)
+        delta = self.goal.translation - self.start.translation
+        pos = self.start.translation + s * delta
+        omega = self.start.rotation @ axis * angle * ds
+        return pin.SE3(rot, pos), np.concatenate([delta * ds, omega])
+
+
+@dataclass(frozen=True)
+class RotationPath:
+    """Rotation of ``start`` by ``angle`` rad about the world ``axis`` through ``pivot``
+    (world, m), timed by a minimum-jerk profile of ``duration`` seconds (the pour)."""
+
+    start: pin.SE3
+    pivot: Array
+    axis: Array
+    angle: float
+    duration: float
+
+    def sample(self, t: float) -> tuple[pin.SE3, Array]:
+        """Pose and world twist (6,) at time ``t`` (s)."""
+        s, ds = min_jerk(t, self.duration)
+        unit = self.axis / np.linalg.norm(self.axis)
+        rot = pin.exp3(unit * self.angle * s)
+        pos = self.pivot + rot @ (self.start.translation - self.pivot)
+        omega = unit * self.angle * ds
+        vel = np.cross(omega, pos - self.pivot)
+        return pin.SE3(rot @ self.start.rotation, pos), np.concatenate([vel, omega])
+
+    @property
+    def goal(self) -> pin.SE3:
+        """The pose at the end of the rotation."""
+        return self.sample(self.duration)[0]
+
+
+def quat_wxyz(rot: Array) -> tuple[float, float, float, float]:
+    """Unit quaternion (w, x, y, z) of a rotation matrix, with w ≥ 0."""
+    q = pin.Quaternion(rot)
+    w, x, y, z = float(q.w), float(q.x), float(q.y), float(q.z)
+    if w < 0:
+        w, x, y, z = -w, -x, -y, -z
+    return (w, x, y, z)
+
+
+def rot_from_wxyz(q: tuple[float, float, float, float]) -> Array:
+    """Rotation matrix of a (w, x, y, z) quaternion (normalised first).
+
+    Raises ``ValueError`` for a zero quaternion."""
+    arr = np.asarray(q, dtype=float)
+    n = float(np.linalg.norm(arr))
+    if n < 1e-9:
+        raise ValueError("zero quaternion")
+    w, x, y, z = arr / n
+    out: Array = pin.Quaternion(w, x, y, z).toRotationMatrix()
+    return out
+
+
+def rotation_error(a: Array, b: Array) -> float:
+    """Angle (rad) of the rotation between rotation matrices ``a`` and ``b``."""
+    c = (np.trace(a.T @ b) - 1.0) / 2.0
+    return math.acos(max(-1.0, min(1.0, float(c))))

@@ -1,0 +1,479 @@
+"""The executor's motion primitives, one per L_EX command (paper §5.3, ag_ex).
+
+Each primitive is a small state machine driven by the loop thread: ``start`` is called once
+in the cycle the command begins, ``step`` every cycle after that; either returns the result
+(``CommandResult`` or, for Observe, ``Observation``) to end the command, or None.
+
+Failure reasons: ``unreachable`` (IK finds no arm configuration, a joint target outside its
+limits, a look-at point outside the neck's range), ``timeout`` (not converged in time),
+``no contact`` (fingers closed fully), ``contact lost`` (a held object left the hand during
+a motion), ``unknown joint: NAME``, ``unknown frame: NAME``.
+
+Grasps hold by contact and friction only (no welds, no attachment).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Protocol
+
+import numpy as np
+import pinocchio as pin
+
+from shared.fipa_codec.languages.common import Pose
+from shared.fipa_codec.languages.l_ex import (
+    CommandResult,
+    ExecutorCommand,
+    Grasp,
+    LookAt,
+    MoveJoints,
+    MoveTool,
+    Observe,
+    Release,
+    Tilt,
+    Wait,
+)
+from shared.fipa_codec.languages.l_sd import Observation
+from velma.control.hand import PROXIMAL_MAX, STALL_SPEED
+from velma.control.ik import solve_ik_multi
+from velma.control.impedance import DEFAULT_CART_STIFFNESS
+from velma.control.robot_model import HEAD_JOINTS, SIDES, TORSO_JOINT, Array, arm_joints
+from velma.control.trajectory import (
+    MIN_JERK_PEAK_RATE,
+    PosePath,
+    RotationPath,
+    min_jerk,
+    rot_from_wxyz,
+    rotation_error,
+)
+from velma.executor.runtime import Runtime, torso_frame
+
+Result = CommandResult | Observation
+
+POS_TOL = 0.01  # m, MoveTool/Tilt convergence
+ROT_TOL = 0.05  # rad
+SETTLE_TIMEOUT = 2.0  # s after the nominal duration
+JOINT_TOL = 0.03  # rad, MoveJoints convergence
+TORSO_VEL = 0.52  # rad/s (velma-facts.md)
+HEAD_VEL = 1.04  # rad/s
+ARM_VEL = 2.0  # rad/s (velma-facts.md: arm joint velocity limit in control)
+GRASP_SETTLE = 0.1  # s of stall that ends a grasp
+GRASP_TIMEOUT = 5.0  # s
+RELEASE_TIMEOUT = 2.5  # s
+CLOSED = PROXIMAL_MAX - 0.1  # rad: a finger this far closed has met nothing
+HEAD_TOL = 0.02  # rad
+HEAD_TIMEOUT = 4.0  # s
+CAMERA_HEIGHT = 0.06  # m, camera above the tilt axis (velma.xml head_camera)
+
+
+class Primitive(Protocol):
+    """One running command."""
+
+    def start(self, rt: Runtime) -> Result | None: ...
+
+    def step(self, rt: Runtime) -> Result | None: ...
+
+
+def _result(
+    rt: Runtime, name: str, ok: bool, reason: str | None = None, err: float | None = None
+) -> CommandResult:
+    return CommandResult(command=name, ok=ok, reason=reason, sim_time=rt.time, tool_error=err)
+
+
+def pose_to_se3(pose: Pose) -> pin.SE3:
+    """A world ``Pose`` as SE3. Raises ValueError for another frame or a zero quaternion."""
+    if pose.frame != "world":
+        raise ValueError(f"unknown frame: {pose.frame}")
+    return pin.SE3(rot_from_wxyz(pose.orientation), np.array(pose.position, dtype=float))
+
+
+class _CartesianMotion:
+    """Shared part of MoveTool and Tilt: follow a path, then wait for convergence."""
+
+    name = "move_tool"
+
+    def __init__(self, side: str, duration: float, stiffness: tuple[float, ...] | None) -> None:
+        self.side = side
+        self.duration = max(0.0, float(duration))
+        self.stiffness = np.array(stiffness if stiffness is not None else DEFAULT_CART_STIFFNESS, dtype=float)
+        self.path: PosePath | RotationPath | None = None
+        self.goal = pin.SE3.Identity()
+        self.q0 = np.zeros(7)
+        self.q_goal = np.zeros(7)
+        self.t0 = 0.0
+
+    def _begin(self, rt: Runtime, start: pin.SE3, goal: pin.SE3) -> Result | None:
+        q = rt.q()
+        idx = rt.ctrl.arm_slice[self.side]
+        ik = solve_ik_multi(rt.robot, self.side, goal, q)
+        if not ik.ok:
+            return _result(
+                rt,
+                self.name,
+                False,
+                "unreachable",
+                float(np.linalg.norm(goal.translation - start.translation)),
+            )
+        self.goal = goal
+        self.q0 = q[idx].copy()
+        self.q_goal = ik.q[idx].copy()
+        cmd = rt.ctrl.arm[self.side]
+        cmd.mode = "cart"
+        cmd.stiffness = self.stiffness
+        cmd.posture = self.q0.copy()
+        self.t0 = rt.time
+        return None
+
+    def start_pose(self, rt: Runtime) -> pin.SE3:
+        """The current Cartesian setpoint, or the measured grip pose if not in Cartesian mode."""
+        cmd = rt.ctrl.arm[self.side]
+        if cmd.mode == "cart":
+            return cmd.pose.copy()
+        return rt.grip(self.side).copy()
+
+    def step(self, rt: Runtime) -> Result | None:
+        assert self.path is not None
+        t = rt.time - self.t0
+        pose, twist = self.path.sample(t)
+        cmd = rt.ctrl.arm[self.side]
+        cmd.pose = pose
+        cmd.twist = twist
+        s, _ = min_jerk(t, self.duration)
+        cmd.posture = self.q0 + s * (self.q_goal - self.q0)
+        if rt.hold_lost(self.side):
+            cmd.pose = rt.grip(self.side).copy()
+            cmd.twist = np.zeros(6)
+            return _result(rt, self.name, False, "contact lost", self._perr(rt))
+        if t >= self.duration:
+            cmd.twist = np.zeros(6)
+            perr = self._perr(rt)
+            rerr = rotation_error(rt.grip(self.side).rotation, self.goal.rotation)
+            if perr < POS_TOL and rerr < ROT_TOL:
+                return _result(rt, self.name, True, None, perr)
+            if t >= self.duration + SETTLE_TIMEOUT:
+                return _result(rt, self.name, False, "timeout", perr)
+        return None
+
+    def _perr(self, rt: Runtime) -> float:
+        return float(np.linalg.norm(rt.grip(self.side).translation - self.goal.translation))
+
+
+class MoveToolPrimitive(_CartesianMotion):
+    """Minimum-jerk straight line + slerp of the grip frame to ``target`` (world)."""
+
+    name = "move_tool"
+
+    def __init__(self, cmd: MoveTool) -> None:
+        super().__init__(cmd.arm.value, cmd.duration, cmd.stiffness)
+        self.cmd = cmd
+
+    def start(self, rt: Runtime) -> Result | None:
+        try:
+            goal = pose_to_se3(self.cmd.target)
+        except ValueError as exc:
+            return _result(rt, self.name, False, str(exc))
+        start = self.start_pose(rt)
+        fail = self._begin(rt, start, goal)
+        if fail is not None:
+            return fail
+        self.path = PosePath(start, goal, self.duration)
+        return None
+
+
+class TiltPrimitive(_CartesianMotion):
+    """Rotation of the grip frame by ``angle`` about ``axis`` through ``pivot`` (world)."""
+
+    name = "tilt"
+
+    def __init__(self, cmd: Tilt) -> None:
+        super().__init__(cmd.arm.value, cmd.duration, None)
+        self.cmd = cmd
+
+    def start(self, rt: Runtime) -> Result | None:
+        axis = np.array(self.cmd.axis, dtype=float)
+        if np.linalg.norm(axis) < 1e-9:
+            return _result(rt, self.name, False, "zero axis")
+        start = self.start_pose(rt)
+        path = RotationPath(
+            start, np.array(self.cmd.pivot, dtype=float), axis, float(self.cmd.angle), self.duration
+        )
+        fail = self._begin(rt, start, path.goal)
+        if fail is not None:
+            return fail
+        self.path = path
+        return None
+
+
+class MoveJointsPrimitive:
+    """Joint-space minimum-jerk motion of the named joints under joint impedance. The
+    duration is stretched if needed so that no joint exceeds its velocity limit (torso
+    0.52, head 1.04, arms 2.0 rad/s)."""
+
+    name = "move_joints"
+
+    def __init__(self, cmd: MoveJoints) -> None:
+        self.cmd = cmd
+        self.duration = 0.0
+        self.t0 = 0.0
+        self.arm_start: dict[str, Array] = {}
+        self.arm_goal: dict[str, Array] = {}
+        self.torso: tuple[float, float] | None = None
+        self.carried: dict[str, pin.SE3] = {}
+
+    def start(self, rt: Runtime) -> Result | None:
+        model = rt.robot.model
+        q = rt.q()
+        peak = 0.0
+        arm_targets: dict[str, dict[int, float]] = {s: {} for s in SIDES}
+        head = rt.head_target.copy()
+        for name, value in self.cmd.positions.items():
+            try:
+                i = rt.joint_index(name)
+            except KeyError:
+                return _result(rt, self.name, False, f"unknown joint: {name}")
+            if not model.lowerPositionLimit[i] <= value <= model.upperPositionLimit[i]:
+                return _result(rt, self.name, False, "unreachable")
+            side = next((s for s in SIDES if name in arm_joints(s)), None)
+            if side is not None:
+                arm_targets[side][arm_joints(side).index(name)] = value
+                peak = max(peak, abs(value - q[i]) / ARM_VEL)
+            elif name == TORSO_JOINT:
+                self.torso = (rt.ctrl.torso_q, value)
+                peak = max(peak, abs(value - rt.ctrl.torso_q) / TORSO_VEL)
+            elif name in HEAD_JOINTS:
+                head[HEAD_JOINTS.index(name)] = value
+                peak = max(peak, abs(value - q[i]) / HEAD_VEL)
+            else:
+                return _result(rt, self.name, False, f"unknown joint: {name}")
+        self.duration = max(float(self.cmd.duration), MIN_JERK_PEAK_RATE * peak)
+        for side, targets in arm_targets.items():
+            cmd = rt.ctrl.arm[side]
+            if targets:
+                start = q[rt.ctrl.arm_slice[side]].copy()
+                goal = start.copy()
+                for k, value in targets.items():
+                    goal[k] = value
+                self.arm_start[side], self.arm_goal[side] = start, goal
+                cmd.mode = "joint"
+                cmd.q = start.copy()
+                cmd.qd = np.zeros(7)
+            elif cmd.mode == "cart" and self.torso is not None:
+                self.carried[side] = torso_frame(self.torso[0]).actInv(cmd.pose)
+        rt.head_target = head
+        self.t0 = rt.time
+        return None
+
+    def step(self, rt: Runtime) -> Result | None:
+        t = rt.time - self.t0
+        s, ds = min_jerk(t, self.duration)
+        for side, start in self.arm_start.items():
+            goal = self.arm_goal[side]
+            cmd = rt.ctrl.arm[side]
+            cmd.q = start + s * (goal - start)
+            cmd.qd = ds * (goal - start)
+        if self.torso is not None:
+            a, b = self.torso
+            rt.ctrl.torso_q = a + s * (b - a)
+            rt.ctrl.torso_qd = ds * (b - a)
+            frame = torso_frame(rt.ctrl.torso_q)
+            for side, rel in self.carried.items():
+                rt.ctrl.arm[side].pose = frame.act(rel)
+                rt.ctrl.arm[side].twist = np.zeros(6)
+        if t < self.duration:
+            return None
+        rt.ctrl.torso_qd = 0.0
+        for side in self.arm_start:
+            rt.ctrl.arm[side].qd = np.zeros(7)
+        err = self._error(rt)
+        if err < JOINT_TOL:
+            return _result(rt, self.name, True)
+        if t >= self.duration + SETTLE_TIMEOUT:
+            return _result(rt, self.name, False, "timeout")
+        return None
+
+    def _error(self, rt: Runtime) -> float:
+        q = rt.q()
+        err = 0.0
+        for name, value in self.cmd.positions.items():
+            err = max(err, abs(float(q[rt.joint_index(name)]) - value))
+        return err
+
+
+class GraspPrimitive:
+    """Set the spread, then close the three fingers (distal = proximal / 3) until every
+    finger has stalled on the object or closed fully."""
+
+    name = "grasp"
+
+    def __init__(self, cmd: Grasp) -> None:
+        self.side = cmd.arm.value
+        self.spread = float(cmd.spread)
+        self.phase = "spread"
+        self.t0 = 0.0
+        self.stall_since: float | None = None
+
+    def start(self, rt: Runtime) -> Result | None:
+        hs = rt.hands.set[self.side]
+        rt.hands.command(self.side, float(np.max(hs.proximal)), self.spread)
+        self.t0 = rt.time
+        return None
+
+    def step(self, rt: Runtime) -> Result | None:
+        t = rt.time - self.t0
+        if t > GRASP_TIMEOUT:
+            return _result(rt, self.name, False, "timeout")
+        if self.phase == "spread":
+            if rt.hands.ramp_done(self.side):
+                rt.hands.command(self.side, PROXIMAL_MAX)
+                self.phase = "close"
+                self.t0 = rt.time
+            return None
+        if t < 0.2:
+            return None
+        prox = rt.hands.proximal(rt.data, self.side)
+        speed = np.abs(rt.hands.proximal_speed(rt.data, self.side))
+        settled = bool(np.all((speed < STALL_SPEED) | (prox > CLOSED)))
+        if not settled:
+            self.stall_since = None
+            return None
+        if self.stall_since is None:
+            self.stall_since = rt.time
+            return None
+        if rt.time - self.stall_since < GRASP_SETTLE:
+            return None
+        if bool(np.all(prox > CLOSED)):
+            return _result(rt, self.name, False, "no contact")
+        touch = rt.contacts.touching(rt.data, self.side)
+        if not touch:
+            return _result(rt, self.name, False, "no contact")
+        body = max(touch, key=lambda b: touch[b])
+        rt.held[self.side] = body
+        rt.lost_cycles[self.side] = 0
+        return _result(rt, self.name, True)
+
+
+class ReleasePrimitive:
+    """Open the hand to ``opening`` (proximal, rad; distal = opening / 3)."""
+
+    name = "release"
+
+    def __init__(self, cmd: Release) -> None:
+        self.side = cmd.arm.value
+        self.opening = float(cmd.opening)
+        self.t0 = 0.0
+
+    def start(self, rt: Runtime) -> Result | None:
+        rt.hands.command(self.side, self.opening)
+        rt.held[self.side] = None
+        self.t0 = rt.time
+        return None
+
+    def step(self, rt: Runtime) -> Result | None:
+        t = rt.time - self.t0
+        prox = rt.hands.proximal(rt.data, self.side)
+        if rt.hands.ramp_done(self.side) and bool(np.all(np.abs(prox - self.opening) < 0.05)):
+            return _result(rt, self.name, True)
+        if t > RELEASE_TIMEOUT:
+            return _result(rt, self.name, False, "timeout")
+        return None
+
+
+class LookAtPrimitive:
+    """Pan and tilt the head so that the camera looks at ``point`` (world)."""
+
+    name = "look_at"
+
+    def __init__(self, cmd: LookAt) -> None:
+        self.point = np.array(cmd.point, dtype=float)
+        self.t0 = 0.0
+        self.target = np.zeros(2)
+
+    def start(self, rt: Runtime) -> Result | None:
+        data, model = rt.data, rt.model
+        base = data.xpos[model.body("head_pan_link").id]
+        torso = torso_frame(float(rt.q()[rt.ctrl.torso_idx]))
+        rel = torso.rotation.T @ (self.point - base)
+        pan = math.atan2(rel[1], rel[0])
+        horizontal = math.hypot(rel[0], rel[1])
+        tilt = math.atan2(-(rel[2] - 0.048 - CAMERA_HEIGHT), horizontal)
+        lo = model.jnt_range[[model.joint(j).id for j in HEAD_JOINTS], 0]
+        hi = model.jnt_range[[model.joint(j).id for j in HEAD_JOINTS], 1]
+        wanted = np.array([pan, tilt])
+        self.target = np.clip(wanted, lo, hi)
+        if np.max(np.abs(self.target - wanted)) > 0.05:
+            return _result(rt, self.name, False, "unreachable")
+        rt.head_target = self.target.copy()
+        self.t0 = rt.time
+        return None
+
+    def step(self, rt: Runtime) -> Result | None:
+        q = rt.data.qpos[rt.head_qadr]
+        if np.max(np.abs(q - self.target)) < HEAD_TOL:
+            return _result(rt, self.name, True)
+        if rt.time - self.t0 > HEAD_TIMEOUT:
+            return _result(rt, self.name, False, "timeout")
+        return None
+
+
+class WaitPrimitive:
+    """Hold the current setpoints for ``duration`` seconds."""
+
+    name = "wait"
+
+    def __init__(self, cmd: Wait) -> None:
+        self.duration = float(cmd.duration)
+        self.t0 = 0.0
+
+    def start(self, rt: Runtime) -> Result | None:
+        self.t0 = rt.time
+        for side in SIDES:
+            rt.ctrl.arm[side].twist = np.zeros(6)
+        return None
+
+    def step(self, rt: Runtime) -> Result | None:
+        if rt.time - self.t0 >= self.duration - 1e-9:
+            return _result(rt, self.name, True)
+        return None
+
+
+class ObservePrimitive:
+    """Report the Observation (simulated perception, see perception.py) at once."""
+
+    name = "observe"
+
+    def __init__(self, cmd: Observe) -> None:
+        self.objects = tuple(cmd.objects)
+
+    def start(self, rt: Runtime) -> Result | None:
+        return rt.perception.observe(rt.data, self.objects)
+
+    def step(self, rt: Runtime) -> Result | None:  # pragma: no cover - never reached
+        return rt.perception.observe(rt.data, self.objects)
+
+
+def make_primitive(command: ExecutorCommand) -> Primitive:
+    """The primitive that executes ``command``. Raises TypeError for a non-L_EX command."""
+    if isinstance(command, MoveTool):
+        return MoveToolPrimitive(command)
+    if isinstance(command, MoveJoints):
+        return MoveJointsPrimitive(command)
+    if isinstance(command, Grasp):
+        return GraspPrimitive(command)
+    if isinstance(command, Release):
+        return ReleasePrimitive(command)
+    if isinstance(command, LookAt):
+        return LookAtPrimitive(command)
+    if isinstance(command, Tilt):
+        return TiltPrimitive(command)
+    if isinstance(command, Observe):
+        return ObservePrimitive(command)
+    if isinstance(command, Wait):
+        return WaitPrimitive(command)
+    raise TypeError(f"not an executor command: {type(command).__name__}")
+
+
+def command_name(command: object) -> str:
+    """The L_EX tag of a command (``move_tool``…), or its class name."""
+    config = getattr(type(command), "__struct_config__", None)
+    tag = getattr(config, "tag", None)
+    return str(tag) if tag else type(command).__name__

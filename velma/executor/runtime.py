@@ -1,0 +1,152 @@
+"""The single-threaded robot runtime: the MuJoCo kitchen, the controllers and the per-cycle
+step (read state → controllers → actuators → physics step). ``Executor`` runs it in its loop
+thread; tests may drive it directly.
+
+Cycle (1 kHz, physics dt = 1 ms, paper §5.3 / velma-facts.md "Loop: 1 kHz"):
+1. the running primitive updates the setpoints;
+2. ``VelmaController`` computes arm and torso torques (Pinocchio, from MuJoCo's state mapped
+   by joint name), the hands and the head get their position-servo controls;
+3. ``mujoco.mj_step``.
+
+Cartesian setpoints are kept in the world frame; when the torso turns (MoveJoints), the
+setpoints of arms in Cartesian mode are carried with it (they are re-expressed each cycle
+from their pose relative to torso_link0 at the start of the motion).
+"""
+
+from __future__ import annotations
+
+import math
+
+import mujoco
+import numpy as np
+import pinocchio as pin
+
+from velma.control.hand import ContactMonitor, Hands
+from velma.control.impedance import VelmaController
+from velma.control.robot_model import (
+    HEAD_JOINTS,
+    SIDES,
+    TORSO_JOINT,
+    Array,
+    JointMap,
+    RobotModel,
+    arm_joints,
+)
+from velma.executor.perception import Perception
+from velma.model.scene import initial_state, load_kitchen
+
+DT = 0.001  # s
+HEAD_RATE = 1.04  # rad/s (velma-facts.md: neck velocity limit)
+CONTACT_PERIOD = 10  # cycles between contact scans (10 ms)
+TORSO_Z = 0.03  # m, torso_0_joint above torso_base
+
+
+def torso_frame(angle: float) -> pin.SE3:
+    """World pose of torso_link0 at torso angle ``angle`` (rad)."""
+    c, s = math.cos(angle), math.sin(angle)
+    return pin.SE3(np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]]), np.array([0.0, 0.0, TORSO_Z]))
+
+
+class Runtime:
+    """Simulation plus controllers. Not thread-safe: one thread calls ``cycle``."""
+
+    def __init__(self, *, seed: int = 0, n_particles: int | None = None) -> None:
+        self.model = load_kitchen(seed=seed) if n_particles is None else load_kitchen(n_particles, seed)
+        self.model.opt.timestep = DT
+        self.data = initial_state(self.model)
+        self.robot = RobotModel()
+        self.jmap = JointMap.build(self.model, self.robot)
+        self.ctrl = VelmaController(self.robot, DT)
+        self.hands = Hands(self.model)
+        self.contacts = ContactMonitor(self.model)
+        self.perception = Perception(self.model)
+        self.arm_act = {s: np.array([self.jmap.ctrl[f"{s}_arm_{k}_motor"] for k in range(7)]) for s in SIDES}
+        self.torso_act = self.jmap.ctrl["torso_0_motor"]
+        self.head_act = (self.jmap.ctrl["head_pan_servo"], self.jmap.ctrl["head_tilt_servo"])
+        self.head_qadr = np.array([self.model.joint(j).qposadr[0] for j in HEAD_JOINTS])
+        self.head_target = self.data.qpos[self.head_qadr].copy()
+        self.head_set = self.head_target.copy()
+        self.held: dict[str, int | None] = {s: None for s in SIDES}
+        self.touch: dict[str, dict[int, int]] = {s: {} for s in SIDES}
+        self.lost_cycles: dict[str, int] = {s: 0 for s in SIDES}
+        self.cycles = 0
+        q = self.q()
+        for s in SIDES:
+            self.ctrl.arm[s].q = q[self.ctrl.arm_slice[s]].copy()
+        self.ctrl.torso_q = float(q[self.ctrl.torso_idx])
+        self.hands.reset_from(self.data)
+        self.ctrl.kinematics(q, self.v())
+        for s in SIDES:
+            self.ctrl.state[s].grip = self.ctrl.grip_pose(s)
+
+    # ------------------------------------------------------------------ state
+    @property
+    def time(self) -> float:
+        """Simulation time (s)."""
+        return float(self.data.time)
+
+    def q(self) -> Array:
+        """Pinocchio q (33,) rad from MuJoCo."""
+        return self.jmap.q(self.data)
+
+    def v(self) -> Array:
+        """Pinocchio v (33,) rad/s from MuJoCo."""
+        return self.jmap.v(self.data)
+
+    def arm_q(self, side: str) -> Array:
+        """Measured arm joint positions (7,) rad."""
+        out: Array = self.q()[self.ctrl.arm_slice[side]].copy()
+        return out
+
+    def grip(self, side: str) -> pin.SE3:
+        """Measured grip-frame pose (world) as of the last control update."""
+        return self.ctrl.state[side].grip
+
+    def joint_index(self, name: str) -> int:
+        """Pinocchio v index of a Velma joint; raises KeyError for an unknown name."""
+        if name not in self.robot.joint_names:
+            raise KeyError(name)
+        return self.robot.v_index(name)
+
+    def hold_lost(self, side: str) -> bool:
+        """True when the held object of ``side`` has touched no hand geom for ≥ 100 ms."""
+        return self.held[side] is not None and self.lost_cycles[side] * CONTACT_PERIOD >= 100
+
+    # ------------------------------------------------------------------ cycle
+    def cycle(self) -> None:
+        """One 1 ms control cycle after the setpoints were updated (see module docstring)."""
+        data = self.data
+        q, v = self.q(), self.v()
+        taus, tau_torso = self.ctrl.update(q, v)
+        for s in SIDES:
+            data.ctrl[self.arm_act[s]] = taus[s]
+        data.ctrl[self.torso_act] = tau_torso
+        self.hands.step(data, DT)
+        dh = np.clip(self.head_target - self.head_set, -HEAD_RATE * DT, HEAD_RATE * DT)
+        self.head_set = self.head_set + dh
+        data.ctrl[self.head_act[0]] = self.head_set[0]
+        data.ctrl[self.head_act[1]] = self.head_set[1]
+        mujoco.mj_step(self.model, data)
+        self.cycles += 1
+        if self.cycles % CONTACT_PERIOD == 0:
+            for s in SIDES:
+                self.touch[s] = self.contacts.touching(data, s)
+                b = self.held[s]
+                if b is not None and self.touch[s].get(b, 0) == 0:
+                    self.lost_cycles[s] += 1
+                else:
+                    self.lost_cycles[s] = 0
+
+    # ------------------------------------------------------------------ helpers
+    def torso_angle_cmd(self) -> float:
+        """Commanded torso angle (rad)."""
+        return self.ctrl.torso_q
+
+    def arm_names(self, side: str) -> tuple[str, ...]:
+        """Arm joint names of ``side``."""
+        return arm_joints(side)
+
+    @staticmethod
+    def torso_joint() -> str:
+        """Name of the torso joint."""
+        return TORSO_JOINT
