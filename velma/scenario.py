@@ -193,8 +193,10 @@ class Poses:
     pour_axis: Vec3
 
 
-def script_poses(obs: Observation) -> Poses:
-    """The grip poses of the script for the observed jar and bowl positions."""
+def script_poses(obs: Observation, bowl_on_table: Vec3 | None = None) -> Poses:
+    """The grip poses of the script for the observed jar and bowl positions; the pour is
+    computed for the bowl at ``bowl_on_table`` (its observed position after placing; default
+    the nominal BOWL_PLACE_POSITION)."""
     jar = _position(obs, "jar")
     bowl = _position(obs, "bowl")
     up = np.array([0.0, 0.0, 1.0])
@@ -214,9 +216,10 @@ def script_poses(obs: Observation) -> Poses:
     bowl_place = place + r_bowl_place @ (r_bowl.T @ np.array(BOWL_GRIP_IN_OBJECT[0]))
     pour_turn = _rot_z(TORSO_POUR)
     r_jar_pour = pour_turn @ r_jar
-    jar_origin = np.array(BOWL_PLACE_POSITION) + pour_turn @ np.array(JAR_POUR_START_IN_BOWL)
+    bowl_now = np.array(bowl_on_table if bowl_on_table is not None else BOWL_PLACE_POSITION)
+    jar_origin = bowl_now + pour_turn @ np.array(JAR_POUR_START_IN_BOWL)
     jar_pour_grip = jar_origin + pour_turn @ np.array(JAR_GRIP_IN_OBJECT[0])
-    pivot = np.array(BOWL_PLACE_POSITION) + pour_turn @ np.array(POUR_PIVOT_IN_BOWL)
+    pivot = bowl_now + pour_turn @ np.array(POUR_PIVOT_IN_BOWL)
     axis = pour_turn @ np.array(POUR_AXIS_IN_TORSO)
     return Poses(
         jar_pregrasp=_pose(jar_grasp - JAR_APPROACH_DISTANCE * jar_app, r_jar),
@@ -238,11 +241,12 @@ def script_poses(obs: Observation) -> Poses:
     )
 
 
-def pour_script(obs: Observation) -> list[ExecutorCommand]:
-    """The full L_EX command sequence of the experiment for the observed scene ``obs``.
+def pour_script(obs: Observation, bowl_on_table: Vec3 | None = None) -> list[ExecutorCommand]:
+    """The full L_EX command sequence of the experiment for the observed scene ``obs``, the
+    pour aimed at the bowl at ``bowl_on_table`` (see :func:`script_poses`).
 
     Raises ``KeyError`` if ``obs`` lacks the jar or the bowl."""
-    p = script_poses(obs)
+    p = script_poses(obs, bowl_on_table)
     left, right = JAR_ARM, BOWL_ARM
     place = np.array(BOWL_PLACE_POSITION)
     right_names = [f"right_arm_{k}_joint" for k in range(7)]

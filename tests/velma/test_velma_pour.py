@@ -43,7 +43,15 @@ def test_pour_script_fills_the_bowl() -> None:
         first = run_script(ex.submit, [Observe()])[0]
         assert isinstance(first, Observation)
         commands = pour_script(first)
-        results = run_script(ex.submit, commands)
+        # interleaved as the agents do it: run up to the observation of the placed bowl,
+        # then aim the pour at where the bowl really is
+        split = next(i for i, c in enumerate(commands) if isinstance(c, Observe) and c.objects) + 1
+        results = run_script(ex.submit, commands[:split])
+        placed = results[-1]
+        assert isinstance(placed, Observation), placed
+        bowl_now = next(o for o in placed.objects if o.name == "bowl").pose.position
+        commands = commands[:split] + pour_script(first, bowl_on_table=bowl_now)[split:]
+        results += run_script(ex.submit, commands[split:])
     finally:
         ex.stop()
     assert len(results) == len(commands)
