@@ -259,12 +259,7 @@ class Coordinator(Agent):
 
     def _release_ta(self) -> None:
         if self.ta_conversation is not None:
-            for p in [
-                p
-                for p in list(self.conversations._pending.values())
-                if p.conversation_id == self.ta_conversation
-            ]:
-                self.conversations.forget(p.reply_with)
+            self.conversations.forget_conversation(self.ta_conversation)
         self.ta_task = None
         self.ta_conversation = None
 

@@ -129,14 +129,7 @@ class KnowledgeManager(Agent):
             answer = self.world.answer(query)
         except KnowledgeError as exc:
             self.log.info("query %s failed: %s", type(query).__name__, exc)
-            self.send(
-                item.sender,
-                Performative.FAILURE,
-                None,
-                protocol=item.msg.protocol or "fipa-query",
-                conversation_id=item.msg.conversation_id,
-                in_reply_to=item.msg.reply_with,
-            )
+            self.fail(item, Performative.FAILURE, str(exc))
             return
         self.reply(item, Performative.INFORM_REF, answer)
 

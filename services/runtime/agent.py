@@ -42,12 +42,14 @@ from shared.fipa_codec import (
     decode,
     encode,
 )
-from shared.fipa_codec.languages import ContentError, decode_content, encode_content
+from shared.fipa_codec.languages import ContentError, decode_content, encode_content, language_of
 from shared.fipa_codec.message import new_id
 
 STREAMING_PROTOCOLS = frozenset({"fipa-subscribe", "coordinate"})
 _OPENERS = frozenset({Performative.REQUEST, Performative.SUBSCRIBE})
 """Performatives that open a streaming conversation (many replies to one message)."""
+_REASONS = frozenset({Performative.FAILURE, Performative.REFUSE, Performative.NOT_UNDERSTOOD})
+"""Performatives whose content may be a plain UTF-8 reason instead of a language term."""
 
 
 class SpecViolation(RuntimeError):
@@ -132,6 +134,7 @@ class Agent:
         if channel is None:
             raise SpecViolation(f"{self.name}: no channel to {to}")
         language, body = encode_content(content) if content is not None else (None, b"")
+        ontology = language_of(content).ontology if content is not None else None
         self._check_send(to, performative.value, protocol, language)
         if (expect_reply or reply_by_s is not None) and reply_with is None:
             reply_with = new_id(f"{self.name}-")
@@ -143,7 +146,7 @@ class Agent:
             content=body,
             language=language,
             encoding="msgpack" if body else None,
-            ontology="O_RoCo" if language else None,
+            ontology=ontology,
             protocol=protocol,
             conversation_id=conversation_id or new_id("c-"),
             reply_with=reply_with,
@@ -188,6 +191,27 @@ class Agent:
             reply_by_s=reply_by_s,
             expect_reply=expect_reply,
         )
+
+    def fail(self, to: Received, performative: Performative, reason: str) -> None:
+        """Answer ``to`` with ``failure`` or ``refuse`` whose content is ``reason`` as UTF-8
+        text (FIPA SC00037: the reason a person or agent can read). Raises SpecViolation when
+        the interface does not allow that performative in ``to``'s protocol."""
+        protocol = to.msg.protocol or ""
+        self._check_send(to.sender, performative.value, protocol, None)
+        channel = channel_between(self.spec, self.name, to.sender)
+        assert channel is not None  # _check_send found a kind, so a channel exists
+        msg = Communicate(
+            performative=performative,
+            sender=self.aid,
+            receiver=(AgentIdentifier(to.sender),),
+            content=reason.encode(),
+            encoding="utf-8",
+            protocol=protocol,
+            conversation_id=to.msg.conversation_id,
+            in_reply_to=to.msg.reply_with,
+        )
+        self._y.append((keys.fipa_key(channel.name, self.name, to.sender), encode(msg)))
+        self.counters[f"sent.{performative.value}"] += 1
 
     def not_understood(self, sender: str, channel: str, why: str, about: Communicate | None) -> None:
         """Answer ``sender`` with not-understood; content is the reason as UTF-8 text."""
@@ -288,7 +312,8 @@ class Agent:
             )
             return
         content: msgspec.Struct | None = None
-        if kind.languages and msg.content:
+        plain_reason = msg.language is None and msg.encoding == "utf-8" and msg.performative in _REASONS
+        if kind.languages and msg.content and not plain_reason:
             if msg.language not in kind.languages:
                 self.not_understood(sender, channel, f"language {msg.language} not accepted here", msg)
                 return

@@ -58,6 +58,11 @@ class Conversations:
     def forget(self, reply_with: str) -> None:
         self._pending.pop(reply_with, None)
 
+    def forget_conversation(self, conversation_id: str) -> None:
+        """Stop waiting for any reply in conversation ``conversation_id``."""
+        for key in [k for k, p in self._pending.items() if p.conversation_id == conversation_id]:
+            del self._pending[key]
+
     def expired(self, now: float) -> list[Pending]:
         """Remove and return the entries whose deadline has passed."""
         out = [p for p in self._pending.values() if p.deadline is not None and p.deadline <= now]

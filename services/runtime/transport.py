@@ -75,15 +75,6 @@ class ZenohTransport:
         with self._lock:
             self._tokens.append(self.session.liveliness().declare_token(key))
 
-    def alive(self, key_expr: str, timeout: float = 1.0) -> list[str]:
-        """Keys of the liveliness tokens currently matching ``key_expr``."""
-        replies = self.session.liveliness().get(key_expr, timeout=timeout)
-        out = []
-        for reply in replies:
-            if reply.ok is not None:
-                out.append(str(reply.ok.key_expr))
-        return sorted(out)
-
     def close(self) -> None:
         for tok in self._tokens:
             tok.undeclare()
