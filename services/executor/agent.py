@@ -1,20 +1,36 @@
 """ag_ex on the communication side (paper §5.3): the participant of fipa-request on C5.
 
-It hands each L_EX command from a_ta to the hard-timing executor (``velma.executor``), which
-runs the control loop in its own thread, and answers with the result: ``inform`` with an
-L_EX CommandResult (or an L_SD Observation for ``observe``), or ``failure`` with the
-CommandResult that says why. Results cross from the loop thread through the agent's receptor
-buffer; nothing here blocks the loop. ``ROCO_REALTIME=1`` paces the simulation to wall time.
+It hands each L_EX command from a_ta to the hard-timing executor (``velma.executor``), whose
+1 kHz control loop runs in a process of its own, and answers with the result: ``inform`` with
+an L_EX CommandResult (or an L_SD Observation for ``observe``), or ``failure`` with the
+CommandResult that says why. Results come back through the agent's receptor buffer; nothing
+here blocks the loop. ``ROCO_REALTIME=1`` paces the loop to wall time.
+
+Besides the C5 conversation, ag_ex
+
+- publishes the robot state with the loop's deadline statistics on ``roco/state/ag_ex``
+  (msgpack ``RobotSnapshot``, every ``STATE_PERIOD`` s), for viewers;
+- writes the latest deadline statistics to ``<ROCO_RUN_DIR>/ag_ex_timing.json`` (for the run
+  report) every ``TIMING_FILE_PERIOD`` s and when it stops;
+- watches the liveliness tokens of the agents that command it (the initiators on its
+  channels in the specification: a_ta). When one disappears the executor holds position in
+  joint impedance, with the hands closed as they are, so a held object is never dropped
+  because a peer died; ag_ex logs a warning and the published state says ``holding``.
 """
 
 from __future__ import annotations
 
+import json
 import os
+import time
+from collections.abc import Callable
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 import msgspec
 
+from services.runtime import keys
 from services.runtime.agent import Agent, Received
 from services.runtime.behaviour import FSM, Behaviour
 from shared.fipa_codec import Performative
@@ -22,27 +38,45 @@ from shared.fipa_codec.languages.l_ex import CommandResult, ExecutorCommand
 from shared.fipa_codec.languages.l_sd import Observation
 
 COMMAND_TYPES = tuple(t for t in ExecutorCommand.__args__)
+STATE_PERIOD = 0.05  # s between robot-state publications (20 Hz)
+TIMING_FILE_PERIOD = 5.0  # s between writes of ag_ex_timing.json
+TIMING_FILE = "ag_ex_timing.json"
 
 
 @dataclass(frozen=True)
 class Done:
-    """A command's result from the loop thread, with the request it answers."""
+    """A command's result from the loop, with the request it answers."""
 
     request: Received
     result: CommandResult | Observation
 
 
+@dataclass(frozen=True)
+class PeerChange:
+    """A commanding agent's liveliness token appeared (``alive``) or disappeared."""
+
+    agent: str
+    alive: bool
+
+
 class ExecutorAgent(Agent):
     name = "ag_ex"
+    period = STATE_PERIOD
 
     def make_executor(self) -> Any:
-        """The hard-timing executor this agent serves (velma's, pacing from ROCO_REALTIME)."""
-        from velma.executor import Executor
+        """The hard-timing executor this agent serves: velma's loop in its own process, paced
+        to wall time when ROCO_REALTIME=1."""
+        from velma.executor import ExecutorProcess
 
-        return Executor(realtime=os.environ.get("ROCO_REALTIME", "0") == "1")
+        return ExecutorProcess(realtime=os.environ.get("ROCO_REALTIME", "0") == "1")
 
     def build_fsm(self) -> FSM:
         self.executor = self.make_executor()
+        self.commanders = self._commanders()
+        self.alive_peers: set[str] = set()
+        self._next_state = 0.0
+        self._next_timing_file = 0.0
+        self._encode = msgspec.msgpack.Encoder().encode
         return FSM(
             initial="serve",
             states={
@@ -50,15 +84,39 @@ class ExecutorAgent(Agent):
                     "serve",
                     self._serve,
                     terminal=lambda: False,
-                    doc="pass a_ta's commands to the control loop; answer with their results",
+                    doc="pass a_ta's commands to the control loop; answer with their results; "
+                    "hold position when a_ta is gone",
                 )
             },
         )
 
+    def _commanders(self) -> tuple[str, ...]:
+        """Agents that initiate conversations with ag_ex (from the specification)."""
+        return tuple(
+            sorted(
+                {
+                    cp.initiator
+                    for ch in self.spec.channels
+                    if self.name in ch.ends
+                    for cp in ch.protocols
+                    if cp.initiator != self.name
+                }
+            )
+        )
+
     def setup(self) -> None:
         self.executor.start()
+        for peer in self.commanders:
+            self.transport.watch(keys.alive_key(peer), self._on_liveliness(peer))
+
+    def _on_liveliness(self, peer: str) -> Callable[[str, bool], None]:
+        def changed(_key: str, alive: bool) -> None:  # Zenoh thread: enqueue only
+            self.post(PeerChange(peer, alive))
+
+        return changed
 
     def close(self) -> None:
+        self._write_timing_file()
         self.executor.stop()
 
     def _serve(self) -> None:
@@ -78,3 +136,51 @@ class ExecutorAgent(Agent):
             if isinstance(event, Done):
                 ok = not isinstance(event.result, CommandResult) or event.result.ok
                 self.reply(event.request, Performative.INFORM if ok else Performative.FAILURE, event.result)
+            elif isinstance(event, PeerChange):
+                self._peer_changed(event)
+        now = time.monotonic()
+        if now >= self._next_state:
+            self._next_state = now + STATE_PERIOD
+            self._publish_state()
+        if now >= self._next_timing_file:
+            self._next_timing_file = now + TIMING_FILE_PERIOD
+            self._write_timing_file()
+
+    def _peer_changed(self, event: PeerChange) -> None:
+        if event.alive:
+            if event.agent not in self.alive_peers:
+                self.log.info("%s is alive", event.agent)
+            self.alive_peers.add(event.agent)
+            return
+        self.alive_peers.discard(event.agent)
+        hold = getattr(self.executor, "hold", None)
+        asked = bool(hold(f"{event.agent} lost")) if hold is not None else False
+        self.counters["holds"] += 1
+        self.log.warning(
+            "%s lost (liveliness token gone): %s",
+            event.agent,
+            "holding position in joint impedance, hands as they are"
+            if asked
+            else "could not ask the loop to hold",
+        )
+        self._publish_state()
+
+    def _publish_state(self) -> None:
+        snapshot = getattr(self.executor, "snapshot", None)
+        snap = snapshot() if snapshot is not None else None
+        if snap is not None:
+            self.emit(keys.state_key(self.name), self._encode(snap))
+
+    def _write_timing_file(self) -> None:
+        run_dir = os.environ.get("ROCO_RUN_DIR")
+        timing = getattr(self.executor, "timing", None)
+        if not run_dir or timing is None:
+            return
+        try:
+            stats = timing()
+        except RuntimeError:
+            return
+        path = Path(run_dir) / TIMING_FILE
+        tmp = path.with_suffix(".tmp")
+        tmp.write_text(json.dumps(msgspec.to_builtins(stats), indent=1))
+        tmp.replace(path)

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import msgspec
+
 from services.report.content import sphere_share
 from services.report.load import Message, RunData, load_run
 from services.report.markdown import render
@@ -12,6 +14,9 @@ from services.report.planning import plan_phases
 from services.report.stats import agent_matrix, channel_stats, size_stats
 from services.report.timeline import command_text, find_command, find_outcome, timeline
 from shared.fipa_codec.languages.l_hc import CommandOutcome
+from velma.executor.timing import TimingStats
+
+TIMING_JSON = "ag_ex_timing.json"  # written by services/executor/agent.py
 
 REPORT_MD = "report.md"
 
@@ -29,6 +34,7 @@ def build_report(run_dir: Path, container: str = "bowl") -> Report:
         notes.append("no human command (C2 request) in the traffic")
     if messages and outcome is None:
         notes.append("no final outcome (C2 CommandOutcome or failure) in the traffic")
+    control = _control_timing(Path(run_dir), notes)
     return Report(
         header=_header(run, command, outcome),
         sizes=size_stats(messages),
@@ -38,7 +44,20 @@ def build_report(run_dir: Path, container: str = "bowl") -> Report:
         plans=plans,
         content=sphere_share(messages, container),
         notes=notes,
+        control=control,
     )
+
+
+def _control_timing(run_dir: Path, notes: list[str]) -> TimingStats | None:
+    path = run_dir / TIMING_JSON
+    if not path.exists():
+        notes.append(f"no {TIMING_JSON}: ag_ex did not write its control-loop timing")
+        return None
+    try:
+        return msgspec.json.decode(path.read_bytes(), type=TimingStats)
+    except (msgspec.DecodeError, OSError) as exc:
+        notes.append(f"{TIMING_JSON} unreadable: {exc}")
+        return None
 
 
 def write_report(run_dir: Path) -> Path:

@@ -28,6 +28,7 @@ def render(report: Report) -> str:
         _timeline(report.events),
         _planning(report.plans),
         _content(report),
+        _control(report),
         _notes(report.notes),
     ]
     return "\n\n".join(parts) + "\n"
@@ -290,6 +291,49 @@ def _content(report: Report) -> str:
             "Paper: “the content of the jar is poured into the bowl” at 763 s; no count given.",
         ]
     )
+
+
+def _control(report: Report) -> str:
+    c = report.control
+    title = "## 6. Control loop (ag_ex, 1 kHz)"
+    if c is None:
+        return f"{title}\n\nNot recorded (see Notes)."
+    head = ("", "p50", "p99", "max")
+    rows = [
+        (
+            "compute time per cycle (µs)",
+            f"{c.compute_p50_us:.0f}",
+            f"{c.compute_p99_us:.0f}",
+            f"{c.compute_max_us:.0f}",
+        ),
+        (
+            "lateness of the cycle start (µs)",
+            f"{c.lateness_p50_us:.0f}",
+            f"{c.lateness_p99_us:.0f}",
+            f"{c.lateness_max_us:.0f}",
+        ),
+    ]
+    setup = c.setup
+    if setup is None:
+        granted = "The loop did not report its scheduling."
+    else:
+        pin_text = f"pinned to CPU {setup.cpus[0]}" if setup.pinned and setup.cpus else "not pinned"
+        policy = f"{setup.policy} priority {setup.priority}" if setup.policy == "SCHED_FIFO" else setup.policy
+        why = f" ({'; '.join(setup.notes)})" if setup.notes else ""
+        granted = f"Scheduling: {policy}, {pin_text}{why}."
+    text = (
+        f"Pacing: {c.pacing}. {c.cycles} cycles ({c.sim_time:.1f} s of simulation); "
+        f"{c.overruns} overruns ({c.overrun_share * 100:.3f} %), at most "
+        f"{c.max_consecutive_overruns} in a row. {granted} Percentiles over the last "
+        f"{c.window} cycles."
+    )
+    how = (
+        "**How measured.** `time.perf_counter` in the loop process around each cycle (command "
+        "hand-off, motion primitive, control law, physics step, state publication); lateness "
+        "is the start's delay after the cycle's release time; an overrun is a cycle that "
+        "ended after the next release time (velma/executor/timing.py)."
+    )
+    return "\n\n".join([title, text, _table(head, rows), how])
 
 
 def _notes(notes: Sequence[str]) -> str:

@@ -9,6 +9,8 @@ from __future__ import annotations
 
 import msgspec
 
+from velma.executor.timing import TimingStats
+
 
 class Header(msgspec.Struct, kw_only=True):
     """What was asked, how it ended, and when.
@@ -138,3 +140,5 @@ class Report(msgspec.Struct, kw_only=True):
     plans: list[PlanPhase]
     content: ContentOutcome
     notes: list[str]
+    control: TimingStats | None = None
+    """ag_ex's control-loop deadline statistics (``ag_ex_timing.json``), if written."""

@@ -8,7 +8,7 @@ import threading
 
 import zenoh
 
-from services.runtime.transport import Callback
+from services.runtime.transport import AliveCallback, Callback
 
 
 class MemoryBus:
@@ -17,6 +17,7 @@ class MemoryBus:
     def __init__(self) -> None:
         self._subs: list[tuple[zenoh.KeyExpr, Callback]] = []
         self._tokens: set[str] = set()
+        self._watchers: list[tuple[zenoh.KeyExpr, AliveCallback]] = []
         self._lock = threading.Lock()
         self.published: list[tuple[str, bytes]] = []
 
@@ -36,8 +37,32 @@ class MemoryBus:
             self._subs.append((zenoh.KeyExpr(key_expr), callback))
 
     def announce(self, key: str) -> None:
+        self._token_changed(key, True)
+
+    def withdraw(self, key: str) -> None:
+        """Remove a liveliness token (as when its owner's session ends)."""
+        self._token_changed(key, False)
+
+    def watch(self, key_expr: str, callback: AliveCallback) -> None:
+        ke = zenoh.KeyExpr(key_expr)
         with self._lock:
-            self._tokens.add(key)
+            self._watchers.append((ke, callback))
+            present = [k for k in self._tokens if ke.intersects(zenoh.KeyExpr(k))]
+        for key in present:
+            callback(key, True)
+
+    def _token_changed(self, key: str, alive: bool) -> None:
+        ke = zenoh.KeyExpr(key)
+        with self._lock:
+            if alive == (key in self._tokens):
+                return
+            if alive:
+                self._tokens.add(key)
+            else:
+                self._tokens.discard(key)
+            targets = [cb for expr, cb in self._watchers if expr.intersects(ke)]
+        for cb in targets:
+            cb(key, alive)
 
     def alive(self) -> set[str]:
         with self._lock:
@@ -49,6 +74,7 @@ class MemoryTransport:
 
     def __init__(self, bus: MemoryBus) -> None:
         self.bus = bus
+        self._tokens: list[str] = []
 
     def publish(self, key: str, payload: bytes) -> None:
         self.bus.publish(key, payload)
@@ -57,7 +83,14 @@ class MemoryTransport:
         self.bus.subscribe(key_expr, callback)
 
     def announce(self, key: str) -> None:
+        self._tokens.append(key)
         self.bus.announce(key)
 
+    def watch(self, key_expr: str, callback: AliveCallback) -> None:
+        self.bus.watch(key_expr, callback)
+
     def close(self) -> None:
-        return None
+        """Withdraw this transport's liveliness tokens (as a closed Zenoh session does)."""
+        for key in self._tokens:
+            self.bus.withdraw(key)
+        self._tokens.clear()

@@ -15,6 +15,7 @@ from typing import Protocol
 import zenoh
 
 Callback = Callable[[str, bytes], None]
+AliveCallback = Callable[[str, bool], None]
 
 
 class Transport(Protocol):
@@ -23,6 +24,7 @@ class Transport(Protocol):
     def publish(self, key: str, payload: bytes) -> None: ...
     def subscribe(self, key_expr: str, callback: Callback) -> None: ...
     def announce(self, key: str) -> None: ...
+    def watch(self, key_expr: str, callback: AliveCallback) -> None: ...
     def close(self) -> None: ...
 
 
@@ -74,6 +76,17 @@ class ZenohTransport:
         """Declare a liveliness token on ``key`` for the life of this transport."""
         with self._lock:
             self._tokens.append(self.session.liveliness().declare_token(key))
+
+    def watch(self, key_expr: str, callback: AliveCallback) -> None:
+        """Call ``callback(key, alive)`` whenever a liveliness token matching ``key_expr``
+        appears (True; tokens alive at the time of the call included) or disappears (False:
+        undeclared, or its owner's session ended or was lost). Runs on Zenoh's threads."""
+
+        def on_sample(sample: zenoh.Sample) -> None:
+            callback(str(sample.key_expr), sample.kind == zenoh.SampleKind.PUT)
+
+        with self._lock:
+            self._subs.append(self.session.liveliness().declare_subscriber(key_expr, on_sample, history=True))
 
     def close(self) -> None:
         for tok in self._tokens:

@@ -19,6 +19,7 @@ import pytest
 from services.recorder.record import TRAFFIC_JSONL, TRAFFIC_RAW, TrafficRecord
 from services.runtime.run_folder import RunInfo, write_run_info
 from shared.fipa_codec import Communicate, Performative, encode
+from velma.executor.timing import RealtimeSetup, TimingStats
 from shared.fipa_codec.aid import aid
 from shared.fipa_codec.languages import encode_content
 from shared.fipa_codec.languages.common import Pose
@@ -414,16 +415,45 @@ def _run_info() -> RunInfo:
     )
 
 
+CONTROL_TIMING = TimingStats(
+    pacing="realtime",
+    cycles=56_000,
+    window=56_000,
+    compute_p50_us=410.0,
+    compute_p99_us=720.0,
+    compute_max_us=1300.0,
+    lateness_p50_us=40.0,
+    lateness_p99_us=90.0,
+    lateness_max_us=400.0,
+    overruns=14,
+    overrun_share=14 / 56_000,
+    max_consecutive_overruns=2,
+    sim_time=56.0,
+    setup=RealtimeSetup(policy="SCHED_FIFO", priority=80, cpus=(1,), pinned=True),
+)
+"""What ag_ex writes to ag_ex_timing.json (velma.executor.timing.TimingStats)."""
+
+
+@pytest.fixture
+def control_timing() -> TimingStats:
+    """The control-loop timing every ``make_run`` folder holds (unless ``timing=False``)."""
+    return CONTROL_TIMING
+
+
 @pytest.fixture
 def make_run(tmp_path: Path) -> Callable[..., Path]:
     """``make_run(builder, info=True, name="run")``: a run folder under ``tmp_path`` with
     ``run.json`` (unless ``info`` is False) and the builder's traffic."""
 
-    def make(builder: RunBuilder, info: bool = True, name: str = "20250101-120000") -> Path:
+    def make(
+        builder: RunBuilder, info: bool = True, name: str = "20250101-120000", timing: bool = True
+    ) -> Path:
         d = tmp_path / name
         (d / "logs").mkdir(parents=True)
         if info:
             write_run_info(d, _run_info())
+        if timing:
+            (d / "ag_ex_timing.json").write_bytes(msgspec.json.encode(CONTROL_TIMING))
         write_traffic(d, builder)
         return d
 

@@ -3,6 +3,7 @@ matrix, the Table 7 timeline, planning phases, sphere share, and the Markdown.""
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -172,3 +173,26 @@ def test_markdown(run_dir: Path, pour: Any) -> None:
     assert "| #1 | 97 | 153 | 1598 |" in md
     assert "17 of 20 spheres (85.0 %) ended in the bowl" in md
     assert "None: every file was read completely." in md
+
+
+def test_control_loop_section(run_dir: Path, control_timing: Any) -> None:
+    report = build_report(run_dir)
+    assert report.control == control_timing
+    text = write_report(run_dir).read_text(encoding="utf-8")
+    section = text.split("## 6. Control loop")[1].split("## Notes")[0]
+    assert "14 overruns (0.025 %)" in section
+    assert "SCHED_FIFO priority 80, pinned to CPU 1" in section
+    assert "| compute time per cycle (µs) | 410 | 720 | 1300 |" in section
+
+
+def test_control_loop_missing_or_corrupt(make_run: Callable[..., Path], pour: Any) -> None:
+    missing = make_run(pour, timing=False, name="a")
+    report = build_report(missing)
+    assert report.control is None
+    assert any("ag_ex_timing.json" in n for n in report.notes)
+    assert "Not recorded" in write_report(missing).read_text(encoding="utf-8")
+    corrupt = make_run(pour, name="b")
+    (corrupt / "ag_ex_timing.json").write_text("{not json")
+    report = build_report(corrupt)
+    assert report.control is None
+    assert any("unreadable" in n for n in report.notes)

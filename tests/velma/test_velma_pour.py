@@ -30,7 +30,7 @@ def test_executor_fifo_and_snapshot() -> None:
         assert [o.objects[0].name for o in seen] == ["jar", "bowl"]  # type: ignore[attr-defined]
         snap = ex.snapshot()
         assert set(snap.grip) == {"left", "right"} and "torso_0_joint" in snap.joints
-        assert ex.timing()["cycles"] >= 1
+        assert ex.timing().cycles >= 1
     finally:
         ex.stop()
 

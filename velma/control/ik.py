@@ -10,6 +10,7 @@ Source: standard DLS IK (Wampler 1986); kinematics from velma.xml via Pinocchio.
 
 from __future__ import annotations
 
+from collections.abc import Generator
 from dataclasses import dataclass
 
 import numpy as np
@@ -42,7 +43,55 @@ def solve_ik_multi(
 ) -> IkResult:
     """``solve_ik`` from ``q0``, then (if that fails) from up to ``restarts`` deterministic
     random arm configurations; among converged solutions the one closest to ``q0`` wins."""
-    first = solve_ik(robot, side, target, q0, posture=q0)
+    search = IkSearch(robot, side, target, q0, restarts=restarts, seed=seed)
+    while True:
+        result = search.advance(1_000_000)
+        if result is not None:
+            return result
+
+
+class IkSearch:
+    """``solve_ik_multi`` as a resumable computation, for the 1 kHz loop: ``advance(n)`` runs
+    at most ``n`` damped-least-squares iterations (≈ 20 µs each) and returns the result when
+    the search has ended, else None. The search never blocks the loop for longer than the
+    iterations it is given.
+
+    ``data`` is the Pinocchio data the search may overwrite (default: a private one, so that
+    the controller's ``robot.data`` is left alone)."""
+
+    def __init__(
+        self,
+        robot: RobotModel,
+        side: str,
+        target: pin.SE3,
+        q0: Array,
+        *,
+        restarts: int = 12,
+        seed: int = 0,
+        data: pin.Data | None = None,
+    ) -> None:
+        self.iterations = 0
+        self._gen = _search(robot, data or robot.model.createData(), side, target, q0, restarts, seed)
+        self._result: IkResult | None = None
+
+    def advance(self, iterations: int) -> IkResult | None:
+        """Run up to ``iterations`` iterations; the result once the search is over."""
+        if self._result is not None:
+            return self._result
+        for _ in range(iterations):
+            try:
+                next(self._gen)
+                self.iterations += 1
+            except StopIteration as stop:
+                self._result = stop.value
+                return self._result
+        return None
+
+
+def _search(
+    robot: RobotModel, data: pin.Data, side: str, target: pin.SE3, q0: Array, restarts: int, seed: int
+) -> Generator[None, None, IkResult]:
+    first = yield from _dls(robot, data, side, target, q0, posture=q0)
     if first.ok:
         return first
     idx = robot.v_indices(arm_joints(side))
@@ -53,7 +102,7 @@ def solve_ik_multi(
     for _ in range(restarts):
         q = np.array(q0, dtype=float)
         q[idx] = rng.uniform(0.7 * lo, 0.7 * hi)
-        r = solve_ik(robot, side, target, q)
+        r = yield from _dls(robot, data, side, target, q)
         if r.ok and (
             best is None or np.linalg.norm(r.q[idx] - q0[idx]) < np.linalg.norm(best.q[idx] - q0[idx])
         ):
@@ -79,8 +128,43 @@ def solve_ik(
 
     ``posture`` (shape (33,)), if given, pulls the redundant (elbow) DOF towards it in the
     Jacobian's null space. Never raises for an unreachable target: returns ``ok=False``.
+    Uses (overwrites) ``robot.data``.
     """
-    model, data = robot.model, robot.data
+    gen = _dls(
+        robot,
+        robot.data,
+        side,
+        target,
+        q0,
+        max_iter=max_iter,
+        pos_tol=pos_tol,
+        rot_tol=rot_tol,
+        damping=damping,
+        posture=posture,
+    )
+    while True:
+        try:
+            next(gen)
+        except StopIteration as stop:
+            result: IkResult = stop.value
+            return result
+
+
+def _dls(
+    robot: RobotModel,
+    data: pin.Data,
+    side: str,
+    target: pin.SE3,
+    q0: Array,
+    *,
+    max_iter: int = 200,
+    pos_tol: float = 2e-3,
+    rot_tol: float = 1e-2,
+    damping: float = 1e-3,
+    posture: Array | None = None,
+) -> Generator[None, None, IkResult]:
+    """The DLS iteration of ``solve_ik``; yields after each iteration."""
+    model = robot.model
     idx = robot.v_indices(arm_joints(side))
     lo = model.lowerPositionLimit[idx] + LIMIT_MARGIN
     hi = model.upperPositionLimit[idx] - LIMIT_MARGIN
@@ -106,4 +190,5 @@ def solve_ik(
         if step > 0.3:
             dq *= 0.3 / step
         q[idx] = np.clip(q[idx] + dq, lo, hi)
+        yield None
     return IkResult(q, perr < pos_tol and rerr < rot_tol, perr, rerr)

@@ -35,7 +35,7 @@ from shared.fipa_codec.languages.l_ex import (
 )
 from shared.fipa_codec.languages.l_sd import Observation
 from velma.control.hand import PROXIMAL_MAX, STALL_SPEED
-from velma.control.ik import solve_ik_multi
+from velma.control.ik import IkSearch
 from velma.control.impedance import DEFAULT_CART_STIFFNESS
 from velma.control.robot_model import HEAD_JOINTS, SIDES, TORSO_JOINT, Array, arm_joints
 from velma.control.trajectory import (
@@ -63,6 +63,7 @@ RELEASE_TIMEOUT = 2.5  # s
 CLOSED = PROXIMAL_MAX - 0.1  # rad: a finger this far closed has met nothing
 HEAD_TOL = 0.02  # rad
 HEAD_TIMEOUT = 4.0  # s
+IK_ITERATIONS_PER_CYCLE = 4  # DLS iterations (≈ 20 µs each) per 1 ms cycle while a target is solved
 CAMERA_HEIGHT = 0.06  # m, camera above the tilt axis (velma.xml head_camera)
 
 
@@ -97,30 +98,44 @@ class _CartesianMotion:
         self.duration = max(0.0, float(duration))
         self.stiffness = np.array(stiffness if stiffness is not None else DEFAULT_CART_STIFFNESS, dtype=float)
         self.path: PosePath | RotationPath | None = None
+        self.pending: PosePath | RotationPath | None = None
+        self.search: IkSearch | None = None
         self.goal = pin.SE3.Identity()
         self.q0 = np.zeros(7)
         self.q_goal = np.zeros(7)
         self.t0 = 0.0
 
-    def _begin(self, rt: Runtime, start: pin.SE3, goal: pin.SE3) -> Result | None:
-        q = rt.q()
-        idx = rt.ctrl.arm_slice[self.side]
-        ik = solve_ik_multi(rt.robot, self.side, goal, q)
+    def _begin(self, rt: Runtime, path: PosePath | RotationPath, goal: pin.SE3) -> None:
+        """Start the IK search for ``goal``; ``path`` is followed once it has succeeded. The
+        arm keeps its current setpoint while the search runs (a few ms)."""
+        self.goal = goal
+        self.pending = path
+        self.search = IkSearch(rt.robot, self.side, goal, rt.q(), data=rt.ik_data)
+
+    def _solve(self, rt: Runtime) -> Result | None:
+        """Advance the IK search by ``IK_ITERATIONS_PER_CYCLE``; when it has converged,
+        switch the arm to Cartesian impedance on the path. Returns a failure if unreachable."""
+        assert self.search is not None and self.pending is not None
+        ik = self.search.advance(IK_ITERATIONS_PER_CYCLE)
+        if ik is None:
+            return None
         if not ik.ok:
+            start = self.pending.sample(0.0)[0]
             return _result(
                 rt,
                 self.name,
                 False,
                 "unreachable",
-                float(np.linalg.norm(goal.translation - start.translation)),
+                float(np.linalg.norm(self.goal.translation - start.translation)),
             )
-        self.goal = goal
-        self.q0 = q[idx].copy()
+        idx = rt.ctrl.arm_slice[self.side]
+        self.q0 = rt.q()[idx].copy()
         self.q_goal = ik.q[idx].copy()
         cmd = rt.ctrl.arm[self.side]
         cmd.mode = "cart"
         cmd.stiffness = self.stiffness
         cmd.posture = self.q0.copy()
+        self.path = self.pending
         self.t0 = rt.time
         return None
 
@@ -132,7 +147,8 @@ class _CartesianMotion:
         return rt.grip(self.side).copy()
 
     def step(self, rt: Runtime) -> Result | None:
-        assert self.path is not None
+        if self.path is None:
+            return self._solve(rt)
         t = rt.time - self.t0
         pose, twist = self.path.sample(t)
         cmd = rt.ctrl.arm[self.side]
@@ -174,10 +190,7 @@ class MoveToolPrimitive(_CartesianMotion):
         except ValueError as exc:
             return _result(rt, self.name, False, str(exc))
         start = self.start_pose(rt)
-        fail = self._begin(rt, start, goal)
-        if fail is not None:
-            return fail
-        self.path = PosePath(start, goal, self.duration)
+        self._begin(rt, PosePath(start, goal, self.duration), goal)
         return None
 
 
@@ -198,10 +211,7 @@ class TiltPrimitive(_CartesianMotion):
         path = RotationPath(
             start, np.array(self.cmd.pivot, dtype=float), axis, float(self.cmd.angle), self.duration
         )
-        fail = self._begin(rt, start, path.goal)
-        if fail is not None:
-            return fail
-        self.path = path
+        self._begin(rt, path, path.goal)
         return None
 
 

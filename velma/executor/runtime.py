@@ -55,6 +55,9 @@ class Runtime:
         self.model.opt.timestep = DT
         self.data = initial_state(self.model)
         self.robot = RobotModel()
+        self.ik_data = self.robot.model.createData()  # the IK search's own (see primitives)
+        self.joint_v_index = tuple(self.robot.v_index(n) for n in self.robot.joint_names)
+        self.grip_site = {s: self.model.site(f"{s}_HandGripLink").id for s in SIDES}
         self.jmap = JointMap.build(self.model, self.robot)
         self.ctrl = VelmaController(self.robot, DT)
         self.hands = Hands(self.model)

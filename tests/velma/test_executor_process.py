@@ -1,0 +1,121 @@
+"""ag_ex's executor with its control loop in a process of its own (velma/executor/process.py):
+results cross back, the state and timing are readable, holding ends commands and keeps the
+hands, a dead loop process fails open commands, and stop answers what is queued."""
+
+from __future__ import annotations
+
+import os
+import queue
+import signal
+from collections.abc import Iterator
+
+import numpy as np
+import pytest
+
+from shared.fipa_codec.languages.l_ex import Arm, CommandResult, Grasp, MoveJoints, Observe, Wait
+from shared.fipa_codec.languages.l_sd import Observation
+from velma.executor import ExecutorProcess
+from velma.executor.loop import ControlLoop
+from velma.executor.runtime import Runtime
+
+Result = CommandResult | Observation
+
+
+@pytest.fixture(scope="module")
+def ex() -> Iterator[ExecutorProcess]:
+    e = ExecutorProcess(realtime=False)
+    e.start()
+    yield e
+    e.stop()
+
+
+def _submit(ex: ExecutorProcess, command: object) -> queue.SimpleQueue[Result]:
+    out: queue.SimpleQueue[Result] = queue.SimpleQueue()
+    ex.submit(command, out.put)  # type: ignore[arg-type]
+    return out
+
+
+def test_commands_cross_and_state_is_published(ex: ExecutorProcess) -> None:
+    assert ex.pid is not None and ex.pid != os.getpid()
+    r = _submit(ex, Wait(duration=0.2)).get(timeout=60)
+    assert isinstance(r, CommandResult) and r.ok and r.sim_time >= 0.2
+    obs = _submit(ex, Observe(objects=("jar", "bowl"))).get(timeout=60)
+    assert isinstance(obs, Observation)
+    assert {o.name for o in obs.objects} >= {"jar", "bowl"}
+    snap = ex.snapshot()
+    assert snap is not None and snap.sim_time >= 0.2
+    assert len(snap.joints) == 33 and snap.holding is None
+    assert snap.timing is not None and snap.timing.cycles >= 200 and snap.timing.pacing == "fast"
+    assert ex.setup is not None and ex.setup.notes == ("not requested",)
+
+
+def test_bad_command_is_answered_and_loop_goes_on(ex: ExecutorProcess) -> None:
+    r = _submit(ex, MoveJoints(positions={"no_such_joint": 0.0}, duration=1.0)).get(timeout=60)
+    assert isinstance(r, CommandResult) and not r.ok and r.reason == "unknown joint: no_such_joint"
+    assert _submit(ex, Wait(duration=0.01)).get(timeout=60).ok  # type: ignore[union-attr]
+
+
+def test_hold_ends_commands_and_says_so(ex: ExecutorProcess) -> None:
+    long = _submit(ex, Wait(duration=1000.0))
+    queued = _submit(ex, Wait(duration=1.0))
+    assert ex.hold("a_ta lost")
+    for q in (long, queued):
+        r = q.get(timeout=60)
+        assert isinstance(r, CommandResult) and not r.ok and r.reason == "held: a_ta lost"
+    first = ex.snapshot()
+    assert first is not None
+    snap = first
+    # the state is rewritten every 20 cycles: read until it says so, or 1 s of loop time later
+    while snap.holding is None and snap.sim_time < first.sim_time + 1.0:
+        snap = ex.snapshot() or snap
+    assert snap.holding == "a_ta lost"
+    assert _submit(ex, Wait(duration=0.01)).get(timeout=60).ok  # type: ignore[union-attr]
+
+
+def test_dead_loop_fails_open_commands() -> None:
+    e = ExecutorProcess(realtime=False)
+    e.start()
+    try:
+        pending = _submit(e, Wait(duration=1000.0))
+        assert e.pid is not None
+        os.kill(e.pid, signal.SIGKILL)
+        r = pending.get(timeout=60)
+        assert isinstance(r, CommandResult) and not r.ok and "exited" in (r.reason or "")
+        late = _submit(e, Wait(duration=0.1)).get(timeout=10)
+        assert isinstance(late, CommandResult) and not late.ok and "not running" in (late.reason or "")
+    finally:
+        e.stop()
+
+
+def test_stop_answers_queued_commands() -> None:
+    e = ExecutorProcess(realtime=False)
+    e.start()
+    pending = [_submit(e, Wait(duration=1000.0)) for _ in range(3)]
+    e.stop()
+    for q in pending:
+        r = q.get(timeout=10)
+        assert isinstance(r, CommandResult) and r.reason == "stopped"
+    assert not e.alive
+
+
+def test_hold_keeps_the_hands_and_the_arms_still() -> None:
+    """While a grasp closes the fingers, holding ends it but does not open the hand; the arms
+    then stay where they are in joint impedance (under gravity)."""
+    rt = Runtime()
+    loop: ControlLoop[int] = ControlLoop(rt)
+    loop.submit(1, Grasp(arm=Arm.RIGHT, spread=0.0))
+    for _ in range(400):
+        assert loop.cycle() is None
+    closing = rt.hands.proximal(rt.data, "right").copy()
+    assert np.all(closing > 0.3)  # the fingers are closing
+    ended = loop.hold("a_ta lost")
+    assert [(t, r.reason) for t, r in ended] == [(1, "held: a_ta lost")]
+    q0 = rt.q().copy()
+    for _ in range(1000):
+        assert loop.cycle() is None
+    assert np.all(rt.hands.proximal(rt.data, "right") >= closing - 0.01)  # not opened
+    for side in ("right", "left"):
+        sl = rt.ctrl.arm_slice[side]
+        assert rt.ctrl.arm[side].mode == "joint"
+        assert np.max(np.abs(rt.q()[sl] - q0[sl])) < 0.02
+    assert loop.holding == "a_ta lost"

@@ -1,0 +1,73 @@
+"""The deadline monitor and the real-time setup of the control loop (velma/executor/timing.py)."""
+
+from __future__ import annotations
+
+import multiprocessing
+import os
+
+import pytest
+
+from velma.executor.timing import DeadlineMonitor, RealtimeSetup, enter_realtime
+
+DT = 0.001
+
+
+def test_overruns_lateness_and_runs() -> None:
+    m = DeadlineMonitor(DT, realtime=True, window=8)
+    # (release, start, end) in s
+    assert not m.record(0.000, 0.0000, 0.0005)  # on time
+    assert m.record(0.001, 0.0012, 0.0021)  # started late, ended after the next release
+    assert m.record(0.002, 0.0025, 0.0031)
+    assert not m.record(0.003, 0.0031, 0.0035)
+    assert m.record(0.004, 0.0040, 0.0052)
+    s = m.stats(sim_time=0.005)
+    assert s.cycles == 5 and s.overruns == 3
+    assert s.max_consecutive_overruns == 2
+    assert s.overrun_share == pytest.approx(0.6)
+    assert s.compute_max_us == pytest.approx(1200.0)
+    assert s.lateness_max_us == pytest.approx(500.0)
+    assert s.lateness_p50_us == pytest.approx(100.0)
+    assert s.pacing == "realtime"
+
+
+def test_window_wraps_and_totals_stay() -> None:
+    m = DeadlineMonitor(DT, realtime=False, window=4)
+    for k in range(10):
+        t = k * 0.01
+        m.record(t, t, t + (0.002 if k < 6 else 0.0001))  # the first six overran
+    s = m.stats()
+    assert s.cycles == 10 and s.overruns == 6 and s.window == 4
+    assert s.compute_max_us == pytest.approx(100.0)  # the window holds only the last four
+
+
+def test_shared_buffer_is_read_by_another_monitor() -> None:
+    buf = memoryview(bytearray(DeadlineMonitor.nbytes(16)))
+    writer = DeadlineMonitor(DT, realtime=True, window=16, buffer=buf)
+    reader = DeadlineMonitor(DT, realtime=True, window=16, buffer=buf)
+    writer.record(0.0, 0.0, 0.0004)
+    writer.record(0.001, 0.001, 0.0025)
+    s = reader.stats()
+    assert s.cycles == 2 and s.overruns == 1 and s.compute_max_us == pytest.approx(1500.0)
+    with pytest.raises(ValueError, match="smaller"):
+        DeadlineMonitor(DT, realtime=True, window=17, buffer=buf)
+
+
+def _setup_in_child(out: multiprocessing.queues.Queue[tuple[RealtimeSetup, int, set[int]]]) -> None:
+    setup = enter_realtime(priority=10)
+    out.put((setup, os.sched_getscheduler(0), os.sched_getaffinity(0)))
+
+
+def test_enter_realtime_reports_what_it_got() -> None:
+    """Run in a spawned child (never change the test process's scheduling): whatever the OS
+    granted, the report matches the process's actual policy and CPU set."""
+    ctx = multiprocessing.get_context("spawn")
+    q: multiprocessing.queues.Queue[tuple[RealtimeSetup, int, set[int]]] = ctx.Queue()
+    p = ctx.Process(target=_setup_in_child, args=(q,))
+    p.start()
+    setup, policy, cpus = q.get(timeout=30)
+    p.join(10)
+    assert (setup.policy == "SCHED_FIFO") == (policy == os.SCHED_FIFO)
+    assert set(setup.cpus) == cpus
+    assert setup.pinned == (len(cpus) == 1 and len(os.sched_getaffinity(0)) > 1)
+    if setup.policy != "SCHED_FIFO":
+        assert any("SCHED_FIFO" in n for n in setup.notes)

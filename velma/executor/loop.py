@@ -1,0 +1,114 @@
+"""One cycle of ag_ex's control loop, independent of how the loop is paced or hosted (paper
+§5.3): take the next L_EX command when none runs, advance the running motion primitive,
+compute the control law and step the physics (``Runtime.cycle``).
+
+``ControlLoop`` owns no thread, lock or clock: ``velma.executor.core.Executor`` runs it in a
+thread of the calling process (tests, scripts), ``velma.executor.process`` in a process of its
+own (ag_ex). Commands carry an opaque ``token`` that comes back with their result, so each
+host can map results to its callers.
+
+Holding (``hold``): the running and queued commands end with ``failure`` (reason ``held:
+<why>``), the arms switch to joint impedance at their measured configuration, the torso to its
+measured angle; the hands keep their setpoints, so a grasped object stays grasped. The loop
+holds until the next command arrives.
+"""
+
+from __future__ import annotations
+
+import collections
+from typing import Generic, TypeVar
+
+import numpy as np
+
+from shared.fipa_codec.languages.l_ex import CommandResult, ExecutorCommand
+from velma.control.robot_model import SIDES
+from velma.executor.primitives import Primitive, Result, command_name, make_primitive
+from velma.executor.runtime import Runtime
+
+T = TypeVar("T")
+
+
+class ControlLoop(Generic[T]):
+    """FIFO of (token, command) run one at a time on ``rt`` (see module docstring).
+
+    ``errors`` collects (command name, exception text) of primitives that raised; they are
+    answered with ``failure`` (reason ``error: …``) and the loop goes on. The host drains
+    ``errors`` off the loop's path (no logging in the loop)."""
+
+    def __init__(self, rt: Runtime) -> None:
+        self.rt = rt
+        self.queue: collections.deque[tuple[T, ExecutorCommand]] = collections.deque()
+        self.current: tuple[T, ExecutorCommand, Primitive] | None = None
+        self.holding: str | None = None
+        self.errors: collections.deque[tuple[str, str]] = collections.deque(maxlen=64)
+
+    def submit(self, token: T, command: ExecutorCommand) -> None:
+        """Queue ``command``; its result comes back from ``cycle`` with ``token``."""
+        self.queue.append((token, command))
+
+    def pending(self) -> list[tuple[T, ExecutorCommand]]:
+        """The running and queued commands, oldest first; removes them (no results)."""
+        out = [(c[0], c[1]) for c in ([self.current] if self.current else [])] + list(self.queue)
+        self.current = None
+        self.queue.clear()
+        return out
+
+    def abort(self, reason: str) -> list[tuple[T, CommandResult]]:
+        """End the running and queued commands with ``failure`` (``reason``)."""
+        t = self.rt.time
+        return [
+            (token, CommandResult(command=command_name(cmd), ok=False, reason=reason, sim_time=t))
+            for token, cmd in self.pending()
+        ]
+
+    def hold(self, why: str) -> list[tuple[T, CommandResult]]:
+        """Hold position in joint impedance (see module docstring); returns the failures of
+        the commands it ended."""
+        ended = self.abort(f"held: {why}")
+        rt = self.rt
+        q = rt.q()
+        for side in SIDES:
+            cmd = rt.ctrl.arm[side]
+            cmd.mode = "joint"
+            cmd.q = q[rt.ctrl.arm_slice[side]].copy()
+            cmd.qd = np.zeros(7)
+            cmd.twist = np.zeros(6)
+        rt.ctrl.torso_q = float(q[rt.ctrl.torso_idx])
+        rt.ctrl.torso_qd = 0.0
+        self.holding = why
+        return ended
+
+    def cycle(self) -> tuple[T, Result] | None:
+        """One 1 ms cycle: start or advance the command, control, physics step. Returns the
+        (token, result) of a command that ended in this cycle."""
+        rt = self.rt
+        finished: tuple[T, Result] | None = None
+        if self.current is None and self.queue:
+            token, command = self.queue.popleft()
+            self.holding = None
+            try:
+                prim = make_primitive(command)
+                result = prim.start(rt)
+            except Exception as exc:  # a bad command must not kill the loop
+                result = self._error(command, exc)
+                prim = None
+            if result is not None:
+                finished = (token, result)
+            elif prim is not None:
+                self.current = (token, command, prim)
+        elif self.current is not None:
+            token, command, running = self.current
+            try:
+                result = running.step(rt)
+            except Exception as exc:
+                result = self._error(command, exc)
+            if result is not None:
+                finished = (token, result)
+                self.current = None
+        rt.cycle()
+        return finished
+
+    def _error(self, command: ExecutorCommand, exc: Exception) -> CommandResult:
+        name = command_name(command)
+        self.errors.append((name, f"{type(exc).__name__}: {exc}"))
+        return CommandResult(command=name, ok=False, reason=f"error: {exc}", sim_time=self.rt.time)

@@ -1,0 +1,433 @@
+"""ag_ex's hard-timing executor: the 1 kHz control loop in a process of its own (paper §5.3),
+connected to the communication side only through lock-free bounded hand-offs in shared
+memory (velma.executor.handoff).
+
+Why a process: in one Python process the loop thread shares the interpreter lock with Zenoh's
+callback threads and the agent's behaviours; a thread switch can hold the loop for the whole
+switch interval (5 ms). In its own process the loop competes only for a CPU, which
+``enter_realtime`` (SCHED_FIFO, a CPU of its own) settles where the OS permits it.
+
+Hand-offs (all non-blocking on the loop's side):
+
+- commands: ``SpscRing`` communication side → loop (``Submit``, ``Hold``, ``Shutdown``), polled
+  once per cycle (up to ``INBOX_PER_CYCLE`` messages);
+- results: ``SpscRing`` loop → communication side (``Ready``, ``Done``, ``Fault``), plus one byte
+  on a non-blocking pipe (a doorbell) so that the reader thread sleeps until there is news;
+- robot state: ``LatestValue`` (sequence lock) rewritten every ``STATE_PERIOD`` cycles;
+- timing: the ``DeadlineMonitor``'s arrays live in shared memory; the communication side
+  computes percentiles from them, never the loop.
+
+The loop process ends when asked (``Shutdown``), when its parent process disappears (checked
+every second) or when it is killed; the communication side then answers every open command
+with ``failure``.
+"""
+
+from __future__ import annotations
+
+import collections
+import contextlib
+import gc
+import itertools
+import logging
+import multiprocessing
+import multiprocessing.connection
+import os
+import threading
+import time
+from collections.abc import Callable
+from multiprocessing import shared_memory
+
+import msgspec
+
+from shared.fipa_codec.languages.l_ex import CommandResult, ExecutorCommand
+from shared.fipa_codec.languages.l_sd import Observation
+from velma.executor.handoff import LatestValue, SpscRing, shared_view
+from velma.executor.state import RobotSnapshot
+from velma.executor.timing import DEFAULT_WINDOW, DeadlineMonitor, RealtimeSetup, TimingStats
+
+log = logging.getLogger(__name__)
+
+DT = 0.001  # s (velma.executor.runtime.DT; repeated so that this module imports no MuJoCo)
+SLOTS = 64  # messages per ring
+SLOT_SIZE = 65536  # B per message (an L_SD Observation of the kitchen is ≈ 3 KiB)
+STATE_CAPACITY = 65536  # B
+STATE_PERIOD = 20  # cycles between robot-state publications (50 Hz)
+INBOX_PER_CYCLE = 4  # messages taken from the command ring per cycle
+PARENT_CHECK = 1000  # cycles between checks that the parent process still exists
+START_TIMEOUT = 120.0  # s for the loop process to build the scene and report Ready
+
+OnDone = Callable[[CommandResult | Observation], None]
+
+
+# ---------------------------------------------------------------------- wire messages
+class Submit(msgspec.Struct, frozen=True, tag="submit"):
+    """Run ``command``; its result comes back as ``Done`` with the same ``token``."""
+
+    token: int
+    command: ExecutorCommand
+
+
+class Hold(msgspec.Struct, frozen=True, tag="hold"):
+    """Hold position in joint impedance (velma.executor.loop), because ``why``."""
+
+    why: str
+
+
+class Shutdown(msgspec.Struct, frozen=True, tag="shutdown"):
+    """End the loop process (open commands end with ``stopped``)."""
+
+
+class Ready(msgspec.Struct, frozen=True, tag="ready"):
+    """The loop runs in process ``pid`` with ``setup`` (SCHED_FIFO? pinned?)."""
+
+    pid: int
+    setup: RealtimeSetup
+
+
+class Done(msgspec.Struct, frozen=True, tag="done"):
+    """The result of the command submitted with ``token``."""
+
+    token: int
+    result: CommandResult | Observation
+
+
+class Fault(msgspec.Struct, frozen=True, tag="fault"):
+    """A motion primitive raised (``text``) while running ``command``; it was answered with a
+    failure and the loop went on. Logged by the communication side."""
+
+    command: str
+    text: str
+
+
+ToLoop = Submit | Hold | Shutdown
+FromLoop = Ready | Done | Fault
+
+
+class LoopConfig(msgspec.Struct, frozen=True, kw_only=True):
+    """What the loop process needs: pacing, scene seed, and the names of the shared blocks."""
+
+    realtime: bool
+    seed: int
+    realtime_priority: bool
+    commands: str
+    results: str
+    state: str
+    monitor: str
+    window: int
+    parent_pid: int
+
+
+# ---------------------------------------------------------------------- loop process side
+def loop_main(config: bytes, doorbell: multiprocessing.connection.Connection) -> None:
+    """Entry point of the loop process (started with spawn by ``ExecutorProcess``)."""
+    from velma.executor.loop import ControlLoop
+    from velma.executor.runtime import Runtime
+    from velma.executor.state import robot_snapshot
+    from velma.executor.timing import enter_realtime
+
+    cfg = msgspec.msgpack.decode(config, type=LoopConfig)
+    inbox = SpscRing.attach(cfg.commands, SLOTS, SLOT_SIZE)
+    outbox_ring = SpscRing.attach(cfg.results, SLOTS, SLOT_SIZE)
+    state = LatestValue.attach(cfg.state, STATE_CAPACITY)
+    mon_shm = shared_memory.SharedMemory(name=cfg.monitor)
+    monitor = DeadlineMonitor(DT, realtime=cfg.realtime, window=cfg.window, buffer=shared_view(mon_shm))
+    bell = doorbell.fileno()
+    os.set_blocking(bell, False)
+    encode = msgspec.msgpack.Encoder().encode
+    decode = msgspec.msgpack.Decoder(ToLoop).decode
+
+    rt = Runtime(seed=cfg.seed)
+    loop: ControlLoop[int] = ControlLoop(rt)
+    if cfg.realtime and cfg.realtime_priority:
+        setup = enter_realtime()
+    else:
+        setup = RealtimeSetup(
+            policy="SCHED_OTHER",
+            priority=0,
+            cpus=tuple(sorted(os.sched_getaffinity(0))) if hasattr(os, "sched_getaffinity") else (),
+            pinned=False,
+            notes=("not requested",),
+        )
+    pending: collections.deque[bytes] = collections.deque()
+
+    def ring() -> None:
+        while pending and outbox_ring.push(pending[0]):
+            pending.popleft()
+        # a full pipe means the reader has a wake-up pending anyway; broken: the parent is gone
+        with contextlib.suppress(BlockingIOError, BrokenPipeError):
+            os.write(bell, b"\x01")
+
+    pending.append(encode(Ready(pid=os.getpid(), setup=setup)))
+    state.write(encode(robot_snapshot(rt, None)))
+    ring()
+    # the scene and the controller are built: everything allocated so far lives for the whole
+    # run; freezing it keeps the collector's passes short (gc.freeze, Python ≥ 3.7)
+    gc.collect()
+    gc.freeze()
+
+    running = True
+    cycle = 0
+    release = time.perf_counter()
+    while running:
+        start = time.perf_counter()
+        if not cfg.realtime:
+            release = start
+        for _ in range(INBOX_PER_CYCLE):
+            raw = inbox.pop()
+            if raw is None:
+                break
+            msg = decode(raw)
+            if isinstance(msg, Submit):
+                loop.submit(msg.token, msg.command)
+            elif isinstance(msg, Hold):
+                pending.extend(encode(Done(token=t, result=r)) for t, r in loop.hold(msg.why))
+            else:
+                running = False
+        done = loop.cycle()
+        if done is not None:
+            pending.append(encode(Done(token=done[0], result=done[1])))
+        while loop.errors:
+            name, text = loop.errors.popleft()
+            pending.append(encode(Fault(command=name, text=text)))
+        if pending:
+            ring()
+        if cycle % STATE_PERIOD == 0:
+            state.write(encode(robot_snapshot(rt, loop.holding)))
+        if cycle % PARENT_CHECK == 0 and os.getppid() != cfg.parent_pid:
+            running = False  # orphaned: the communication side is gone
+        cycle += 1
+        end = time.perf_counter()
+        monitor.record(release, start, end)
+        if cfg.realtime:
+            release += DT
+            now = time.perf_counter()
+            if release > now:
+                time.sleep(release - now)
+            elif now - release > DT:  # more than a cycle behind: skip, do not burst
+                release = now
+    pending.extend(encode(Done(token=t, result=r)) for t, r in loop.abort("stopped"))
+    ring()
+    del monitor
+    for block in (inbox, outbox_ring, state):
+        block.close()
+    mon_shm.close()
+
+
+def _command_name(command: ExecutorCommand) -> str:
+    tag = type(command).__struct_config__.tag
+    return str(tag) if tag else type(command).__name__
+
+
+# ---------------------------------------------------------------------- communication side
+class ExecutorProcess:
+    """The executor with its loop in a separate process; same interface as
+    ``velma.executor.Executor`` (``start``, ``stop``, ``submit``, ``hold``, ``snapshot``,
+    ``timing``).
+
+    ``realtime`` paces the loop to wall time; ``realtime_priority`` then asks for SCHED_FIFO
+    and a CPU of its own (see ``enter_realtime``). ``on_done`` callbacks run on this side's
+    reader thread, once per command. ``start`` raises ``RuntimeError`` if the loop process
+    does not come up within ``START_TIMEOUT`` s.
+    """
+
+    def __init__(
+        self,
+        *,
+        realtime: bool = False,
+        seed: int = 0,
+        realtime_priority: bool = True,
+        window: int = DEFAULT_WINDOW,
+    ) -> None:
+        self.realtime = realtime
+        self.seed = seed
+        self.realtime_priority = realtime_priority
+        self.window = window
+        self.setup: RealtimeSetup | None = None
+        self.exit_reason: str | None = None
+        self._callbacks: dict[int, tuple[OnDone, str]] = {}
+        self._tokens = itertools.count(1)
+        self._lock = threading.Lock()
+        self._ready = threading.Event()
+        self._proc: multiprocessing.process.BaseProcess | None = None
+        self._reader: threading.Thread | None = None
+        self._bell: multiprocessing.connection.Connection | None = None
+        self._commands: SpscRing | None = None
+        self._results: SpscRing | None = None
+        self._state: LatestValue | None = None
+        self._mon_shm: shared_memory.SharedMemory | None = None
+        self._monitor: DeadlineMonitor | None = None
+        self._decode = msgspec.msgpack.Decoder(FromLoop).decode
+        self._encode = msgspec.msgpack.Encoder().encode
+
+    # ------------------------------------------------------------------ lifecycle
+    def start(self, timeout: float = START_TIMEOUT) -> None:
+        """Spawn the loop process and wait until it runs (idempotent)."""
+        if self._proc is not None:
+            return
+        self._commands = SpscRing.create(SLOTS, SLOT_SIZE)
+        self._results = SpscRing.create(SLOTS, SLOT_SIZE)
+        self._state = LatestValue.create(STATE_CAPACITY)
+        self._mon_shm = shared_memory.SharedMemory(create=True, size=DeadlineMonitor.nbytes(self.window))
+        shared_view(self._mon_shm)[:] = bytes(self._mon_shm.size)
+        self._monitor = DeadlineMonitor(
+            DT, realtime=self.realtime, window=self.window, buffer=self._mon_shm.buf
+        )
+        cfg = LoopConfig(
+            realtime=self.realtime,
+            seed=self.seed,
+            realtime_priority=self.realtime_priority,
+            commands=self._commands.name,
+            results=self._results.name,
+            state=self._state.name,
+            monitor=self._mon_shm.name,
+            window=self.window,
+            parent_pid=os.getpid(),
+        )
+        ctx = multiprocessing.get_context("spawn")
+        reader_end, writer_end = ctx.Pipe(duplex=False)
+        self._bell = reader_end
+        proc = ctx.Process(
+            target=loop_main, args=(msgspec.msgpack.encode(cfg), writer_end), name="velma-loop", daemon=True
+        )
+        proc.start()
+        writer_end.close()
+        self._proc = proc
+        self._reader = threading.Thread(target=self._read, name="velma-loop-reader", daemon=True)
+        self._reader.start()
+        if not self._ready.wait(timeout):
+            reason = self.exit_reason or f"no Ready within {timeout:.0f} s"
+            self.stop()
+            raise RuntimeError(f"executor loop process did not start: {reason}")
+        if self.exit_reason is not None and self.setup is None:
+            reason = self.exit_reason
+            self.stop()
+            raise RuntimeError(f"executor loop process did not start: {reason}")
+
+    def stop(self, timeout: float = 5.0) -> None:
+        """Ask the loop process to end, wait for it (then terminate it), answer open commands
+        with ``stopped`` and free the shared memory."""
+        proc = self._proc
+        if proc is None:
+            return
+        if self._commands is not None and proc.is_alive():
+            self._commands.push(self._encode(Shutdown()))
+        proc.join(timeout)
+        if proc.is_alive():
+            proc.terminate()
+            proc.join(timeout)
+        if self._reader is not None:
+            self._reader.join(timeout)
+        self._fail_open("stopped")
+        self._monitor = None
+        for block in (self._commands, self._results, self._state):
+            if block is not None:
+                block.close()
+                block.unlink()
+        if self._mon_shm is not None:
+            self._mon_shm.close()
+            self._mon_shm.unlink()
+        if self._bell is not None:
+            self._bell.close()
+        self._commands = self._results = self._state = None
+        self._mon_shm = None
+        self._proc = None
+
+    @property
+    def pid(self) -> int | None:
+        """Process id of the loop process (None before ``start``)."""
+        return self._proc.pid if self._proc is not None else None
+
+    @property
+    def alive(self) -> bool:
+        """True while the loop process runs."""
+        return self._proc is not None and self._proc.is_alive()
+
+    # ------------------------------------------------------------------ API
+    def submit(self, command: ExecutorCommand, on_done: OnDone) -> None:
+        """Queue ``command``; ``on_done(result)`` is called once when it ends. A full command
+        ring or a dead loop answers at once with ``failure``."""
+        token = next(self._tokens)
+        with self._lock:
+            self._callbacks[token] = (on_done, _command_name(command))
+        reason: str | None = None
+        if self._commands is None or not self.alive:
+            reason = f"executor loop not running{': ' + self.exit_reason if self.exit_reason else ''}"
+        elif not self._commands.push(self._encode(Submit(token=token, command=command))):
+            reason = "executor busy: command queue full"
+        if reason is not None:
+            self._answer(token, CommandResult(command=_command_name(command), ok=False, reason=reason))
+
+    def hold(self, why: str) -> bool:
+        """Ask the loop to hold position (velma.executor.loop); False if it could not be asked."""
+        return self._commands is not None and self.alive and self._commands.push(self._encode(Hold(why=why)))
+
+    def snapshot(self) -> RobotSnapshot | None:
+        """The latest robot state (≤ ``STATE_PERIOD`` ms old) with the loop's timing, or None
+        before the loop published one."""
+        raw = self._state.read() if self._state is not None else None
+        if raw is None:
+            return None
+        snap = msgspec.msgpack.decode(raw, type=RobotSnapshot)
+        return msgspec.structs.replace(snap, timing=self.timing(snap.sim_time))
+
+    def timing(self, sim_time: float = 0.0) -> TimingStats:
+        """The loop's deadline statistics (computed here, from the shared monitor)."""
+        if self._monitor is None:
+            raise RuntimeError("executor loop not started")
+        self._monitor.setup = self.setup
+        return self._monitor.stats(sim_time)
+
+    # ------------------------------------------------------------------ reader thread
+    def _read(self) -> None:
+        assert self._bell is not None and self._results is not None
+        fd = self._bell.fileno()
+        while True:
+            try:
+                news = os.read(fd, 4096)
+            except OSError:
+                news = b""
+            self._drain()
+            if not news:
+                break  # EOF: the loop process has exited
+        proc = self._proc
+        if proc is not None:
+            proc.join(1.0)
+            code = proc.exitcode
+            if self.exit_reason is None:
+                self.exit_reason = f"loop process exited with code {code}"
+        self._fail_open(self.exit_reason or "loop process exited")
+        self._ready.set()
+
+    def _drain(self) -> None:
+        results = self._results
+        if results is None:
+            return
+        while (raw := results.pop()) is not None:
+            msg = self._decode(raw)
+            if isinstance(msg, Done):
+                self._answer(msg.token, msg.result)
+            elif isinstance(msg, Ready):
+                self.setup = msg.setup
+                self._ready.set()
+            else:
+                log.error("executor command %s raised %s", msg.command, msg.text)
+
+    def _answer(self, token: int, result: CommandResult | Observation) -> None:
+        with self._lock:
+            entry = self._callbacks.pop(token, None)
+        if entry is None:
+            return
+        try:
+            entry[0](result)
+        except Exception:
+            log.exception("on_done callback raised")
+
+    def _fail_open(self, reason: str) -> None:
+        with self._lock:
+            open_ = list(self._callbacks.items())
+            self._callbacks.clear()
+        for _token, (on_done, name) in open_:
+            try:
+                on_done(CommandResult(command=name, ok=False, reason=reason))
+            except Exception:
+                log.exception("on_done callback raised")

@@ -1,0 +1,196 @@
+"""Deadline monitor and real-time setup of the 1 kHz control loop (paper §5.3: ag_ex is the
+hard-timing part of the system; velma-facts.md "Loop: 1 kHz").
+
+Definitions (per cycle k, period ``dt`` = 1 ms):
+
+- *release time* r_k = t_0 + k·dt in real-time pacing (the wall-clock instant cycle k is due
+  to start); in as-fast-as-possible pacing, the instant the cycle starts.
+- *lateness* = start_k − r_k (s, ≥ 0): how late the loop woke up (scheduler latency, the
+  previous cycle's overrun).
+- *compute time* = end_k − start_k (s): the work of one cycle (command hand-off, motion
+  primitive, control law, physics step, state publication).
+- *overrun*: end_k > r_k + dt, i.e. the cycle did not finish before the next one was due.
+  In as-fast-as-possible pacing this is compute time > dt.
+
+``DeadlineMonitor.record`` is O(1) and writes into preallocated arrays (no allocation of
+containers on the loop's path); ``stats`` computes percentiles over the last ``window`` cycles
+on the caller's side.
+
+``enter_realtime`` asks the OS for SCHED_FIFO and a CPU of its own for the calling process,
+and reports what it got: both need privileges (CAP_SYS_NICE) that a container may not grant.
+"""
+
+from __future__ import annotations
+
+import os
+import platform
+
+import msgspec
+import numpy as np
+
+DEFAULT_WINDOW = 120_000  # cycles (2 min at 1 kHz) kept for percentiles
+FIFO_PRIORITY = 80  # SCHED_FIFO priority of the loop (1..99), above threaded IRQ handlers (50)
+
+
+class RealtimeSetup(msgspec.Struct, frozen=True, kw_only=True):
+    """What the OS granted the control loop: ``policy`` (``SCHED_FIFO`` or ``SCHED_OTHER``),
+    ``priority`` (FIFO priority, 0 for OTHER), ``cpus`` (the CPU set the loop may run on),
+    ``pinned`` (True when the set was narrowed to one CPU), ``notes`` (why something was
+    not granted)."""
+
+    policy: str
+    priority: int
+    cpus: tuple[int, ...]
+    pinned: bool
+    notes: tuple[str, ...] = ()
+
+
+class TimingStats(msgspec.Struct, frozen=True, kw_only=True):
+    """Loop timing over the last ``window`` cycles (µs), plus totals since start.
+
+    ``pacing`` is ``realtime`` or ``fast``; ``cycles`` and ``overruns`` count since start;
+    ``overrun_share`` = overruns / cycles; ``max_consecutive_overruns`` is the longest run of
+    overrunning cycles (Franka stops a robot at 20, velma-facts.md); ``setup`` says whether the
+    loop got SCHED_FIFO and a CPU of its own."""
+
+    pacing: str
+    cycles: int
+    window: int
+    compute_p50_us: float
+    compute_p99_us: float
+    compute_max_us: float
+    lateness_p50_us: float
+    lateness_p99_us: float
+    lateness_max_us: float
+    overruns: int
+    overrun_share: float
+    max_consecutive_overruns: int
+    sim_time: float
+    setup: RealtimeSetup | None = None
+
+
+class DeadlineMonitor:
+    """Counts every cycle's compute time, lateness and overruns (see module docstring).
+
+    ``window`` (cycles) bounds the memory used for percentiles: 2 float64 arrays of that
+    length plus 4 int64 counters. ``buffer`` (at least ``DeadlineMonitor.nbytes(window)``
+    bytes, e.g. a shared memory block) holds them when given, so that another process can
+    read ``stats`` while the loop records; a reader may see a window torn by one cycle, the
+    counters are single aligned 8-byte stores."""
+
+    @staticmethod
+    def nbytes(window: int) -> int:
+        """Size (B) of the buffer a monitor of ``window`` cycles needs."""
+        return 8 * (4 + 2 * window)
+
+    def __init__(
+        self, dt: float, *, realtime: bool, window: int = DEFAULT_WINDOW, buffer: memoryview | None = None
+    ) -> None:
+        if window <= 0:
+            raise ValueError(f"window must be positive, got {window}")
+        self.dt = dt
+        self.realtime = realtime
+        self.window = window
+        buf = buffer if buffer is not None else memoryview(bytearray(self.nbytes(window)))
+        if len(buf) < self.nbytes(window):
+            raise ValueError(f"buffer of {len(buf)} B is smaller than {self.nbytes(window)} B")
+        self._counters = np.ndarray((4,), dtype=np.int64, buffer=buf, offset=0)
+        self._compute = np.ndarray((window,), dtype=np.float64, buffer=buf, offset=32)
+        self._lateness = np.ndarray((window,), dtype=np.float64, buffer=buf, offset=32 + 8 * window)
+        self._cycles = int(self._counters[0])
+        self._overruns = int(self._counters[1])
+        self._consecutive = int(self._counters[2])
+        self._max_consecutive = int(self._counters[3])
+        self.setup: RealtimeSetup | None = None
+
+    @property
+    def cycles(self) -> int:
+        """Cycles recorded since start."""
+        return int(self._counters[0])
+
+    @property
+    def overruns(self) -> int:
+        """Overrunning cycles since start."""
+        return int(self._counters[1])
+
+    def record(self, release: float, start: float, end: float) -> bool:
+        """Record one cycle (times in s, same clock). Returns True when it overran."""
+        i = self._cycles % self.window
+        self._compute[i] = end - start
+        self._lateness[i] = start - release if start > release else 0.0
+        self._cycles += 1
+        self._counters[0] = self._cycles
+        over = end > release + self.dt
+        if over:
+            self._overruns += 1
+            self._consecutive += 1
+            self._counters[1] = self._overruns
+            if self._consecutive > self._max_consecutive:
+                self._max_consecutive = self._consecutive
+                self._counters[3] = self._max_consecutive
+        else:
+            self._consecutive = 0
+        return over
+
+    def stats(self, sim_time: float = 0.0) -> TimingStats:
+        """Percentiles over the window (µs) and the totals (see ``TimingStats``)."""
+        cycles, overruns, _, max_consecutive = (int(x) for x in self._counters)
+        n = min(cycles, self.window)
+        comp = self._compute[:n] * 1e6
+        late = self._lateness[:n] * 1e6
+
+        def pct(a: np.ndarray, q: float) -> float:
+            return float(np.percentile(a, q)) if n else 0.0
+
+        return TimingStats(
+            pacing="realtime" if self.realtime else "fast",
+            cycles=cycles,
+            window=n,
+            compute_p50_us=pct(comp, 50),
+            compute_p99_us=pct(comp, 99),
+            compute_max_us=float(comp.max()) if n else 0.0,
+            lateness_p50_us=pct(late, 50),
+            lateness_p99_us=pct(late, 99),
+            lateness_max_us=float(late.max()) if n else 0.0,
+            overruns=overruns,
+            overrun_share=overruns / cycles if cycles else 0.0,
+            max_consecutive_overruns=max_consecutive,
+            sim_time=sim_time,
+            setup=self.setup,
+        )
+
+
+def enter_realtime(*, priority: int = FIFO_PRIORITY, cpu: int | None = None) -> RealtimeSetup:
+    """Ask for SCHED_FIFO at ``priority`` and pin the calling process to ``cpu`` (default: the
+    highest-numbered CPU it may use). Never raises: what was refused is in ``notes``.
+
+    A SCHED_FIFO task that never blocks would starve its CPU; the loop sleeps until each
+    release time, so it uses only its compute time. Linux ignores timer slack for real-time
+    tasks, which makes those sleeps precise (sched(7), prctl(2) PR_SET_TIMERSLACK)."""
+    notes: list[str] = []
+    policy, prio = "SCHED_OTHER", 0
+    if platform.system() != "Linux" or not hasattr(os, "sched_setscheduler"):
+        notes.append("SCHED_FIFO: not available on this OS")
+    else:
+        try:
+            os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
+            policy, prio = "SCHED_FIFO", priority
+        except OSError as exc:  # EPERM without CAP_SYS_NICE / rtprio limit
+            notes.append(f"SCHED_FIFO refused: {exc.strerror}")
+    cpus: tuple[int, ...] = ()
+    pinned = False
+    if hasattr(os, "sched_getaffinity"):
+        allowed = sorted(os.sched_getaffinity(0))
+        want = cpu if cpu is not None else allowed[-1]
+        if len(allowed) > 1 and want in allowed:
+            try:
+                os.sched_setaffinity(0, {want})
+                pinned = True
+            except OSError as exc:
+                notes.append(f"CPU affinity refused: {exc.strerror}")
+        elif len(allowed) <= 1:
+            notes.append("one CPU available: not pinned")
+        cpus = tuple(sorted(os.sched_getaffinity(0)))
+    else:
+        notes.append("CPU affinity: not available on this OS")
+    return RealtimeSetup(policy=policy, priority=prio, cpus=cpus, pinned=pinned, notes=tuple(notes))
