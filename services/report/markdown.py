@@ -324,8 +324,9 @@ def _control(report: Report) -> str:
     text = (
         f"Pacing: {c.pacing}. {c.cycles} cycles ({c.sim_time:.1f} s of simulation); "
         f"{c.overruns} overruns ({c.overrun_share * 100:.3f} %), at most "
-        f"{c.max_consecutive_overruns} in a row. {granted} Percentiles over the last "
-        f"{c.window} cycles."
+        f"{c.max_consecutive_overruns} in a row; the longest cycle took {c.worst_compute_us:.0f} µs "
+        f"(cycle {c.worst_cycle}, simulation time {c.worst_cycle * 0.001:.3f} s). {granted} "
+        f"Percentiles over the last {c.window} cycles."
     )
     how = (
         "**How measured.** `time.perf_counter` in the loop process around each cycle (command "

@@ -71,3 +71,12 @@ def test_enter_realtime_reports_what_it_got() -> None:
     assert setup.pinned == (len(cpus) == 1 and len(os.sched_getaffinity(0)) > 1)
     if setup.policy != "SCHED_FIFO":
         assert any("SCHED_FIFO" in n for n in setup.notes)
+
+
+def test_worst_cycle_is_remembered_beyond_the_window() -> None:
+    m = DeadlineMonitor(DT, realtime=False, window=2)
+    for k, compute in enumerate([0.0003, 0.004, 0.0002, 0.0001, 0.0002]):
+        m.record(k * 0.01, k * 0.01, k * 0.01 + compute)
+    s = m.stats()
+    assert s.worst_cycle == 1 and s.worst_compute_us == pytest.approx(4000.0)
+    assert s.compute_max_us == pytest.approx(200.0)

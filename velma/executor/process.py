@@ -370,10 +370,15 @@ class ExecutorProcess:
         snap = msgspec.msgpack.decode(raw, type=RobotSnapshot)
         return msgspec.structs.replace(snap, timing=self.timing(snap.sim_time))
 
-    def timing(self, sim_time: float = 0.0) -> TimingStats:
-        """The loop's deadline statistics (computed here, from the shared monitor)."""
-        if self._monitor is None:
+    def timing(self, sim_time: float | None = None) -> TimingStats:
+        """The loop's deadline statistics (computed here, from the shared monitor) at
+        ``sim_time`` (default: that of the latest robot state). Raises ``RuntimeError``
+        before ``start``."""
+        if self._monitor is None or self._state is None:
             raise RuntimeError("executor loop not started")
+        if sim_time is None:
+            raw = self._state.read()
+            sim_time = msgspec.msgpack.decode(raw, type=RobotSnapshot).sim_time if raw is not None else 0.0
         self._monitor.setup = self.setup
         return self._monitor.stats(sim_time)
 

@@ -67,13 +67,18 @@ class TimingStats(msgspec.Struct, frozen=True, kw_only=True):
     max_consecutive_overruns: int
     sim_time: float
     setup: RealtimeSetup | None = None
+    worst_cycle: int = 0
+    """Index (since start) of the cycle with the longest compute time ever recorded; at 1 kHz
+    it is also the simulation time in ms, which tells what the robot was doing."""
+    worst_compute_us: float = 0.0
+    """That cycle's compute time (µs), over the whole run, not only the window."""
 
 
 class DeadlineMonitor:
     """Counts every cycle's compute time, lateness and overruns (see module docstring).
 
     ``window`` (cycles) bounds the memory used for percentiles: 2 float64 arrays of that
-    length plus 4 int64 counters. ``buffer`` (at least ``DeadlineMonitor.nbytes(window)``
+    length plus 6 counters. ``buffer`` (at least ``DeadlineMonitor.nbytes(window)``
     bytes, e.g. a shared memory block) holds them when given, so that another process can
     read ``stats`` while the loop records; a reader may see a window torn by one cycle, the
     counters are single aligned 8-byte stores."""
@@ -81,7 +86,7 @@ class DeadlineMonitor:
     @staticmethod
     def nbytes(window: int) -> int:
         """Size (B) of the buffer a monitor of ``window`` cycles needs."""
-        return 8 * (4 + 2 * window)
+        return 8 * (6 + 2 * window)
 
     def __init__(
         self, dt: float, *, realtime: bool, window: int = DEFAULT_WINDOW, buffer: memoryview | None = None
@@ -94,13 +99,15 @@ class DeadlineMonitor:
         buf = buffer if buffer is not None else memoryview(bytearray(self.nbytes(window)))
         if len(buf) < self.nbytes(window):
             raise ValueError(f"buffer of {len(buf)} B is smaller than {self.nbytes(window)} B")
-        self._counters = np.ndarray((4,), dtype=np.int64, buffer=buf, offset=0)
-        self._compute = np.ndarray((window,), dtype=np.float64, buffer=buf, offset=32)
-        self._lateness = np.ndarray((window,), dtype=np.float64, buffer=buf, offset=32 + 8 * window)
+        self._counters = np.ndarray((5,), dtype=np.int64, buffer=buf, offset=0)
+        self._worst = np.ndarray((1,), dtype=np.float64, buffer=buf, offset=40)
+        self._compute = np.ndarray((window,), dtype=np.float64, buffer=buf, offset=48)
+        self._lateness = np.ndarray((window,), dtype=np.float64, buffer=buf, offset=48 + 8 * window)
         self._cycles = int(self._counters[0])
         self._overruns = int(self._counters[1])
         self._consecutive = int(self._counters[2])
         self._max_consecutive = int(self._counters[3])
+        self._worst_compute = float(self._worst[0])
         self.setup: RealtimeSetup | None = None
 
     @property
@@ -116,7 +123,12 @@ class DeadlineMonitor:
     def record(self, release: float, start: float, end: float) -> bool:
         """Record one cycle (times in s, same clock). Returns True when it overran."""
         i = self._cycles % self.window
-        self._compute[i] = end - start
+        compute = end - start
+        self._compute[i] = compute
+        if compute > self._worst_compute:
+            self._worst_compute = compute
+            self._counters[4] = self._cycles
+            self._worst[0] = compute
         self._lateness[i] = start - release if start > release else 0.0
         self._cycles += 1
         self._counters[0] = self._cycles
@@ -134,7 +146,7 @@ class DeadlineMonitor:
 
     def stats(self, sim_time: float = 0.0) -> TimingStats:
         """Percentiles over the window (µs) and the totals (see ``TimingStats``)."""
-        cycles, overruns, _, max_consecutive = (int(x) for x in self._counters)
+        cycles, overruns, _, max_consecutive, worst_cycle = (int(x) for x in self._counters)
         n = min(cycles, self.window)
         comp = self._compute[:n] * 1e6
         late = self._lateness[:n] * 1e6
@@ -157,6 +169,8 @@ class DeadlineMonitor:
             max_consecutive_overruns=max_consecutive,
             sim_time=sim_time,
             setup=self.setup,
+            worst_cycle=worst_cycle,
+            worst_compute_us=float(self._worst[0]) * 1e6,
         )
 
 

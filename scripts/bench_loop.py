@@ -1,0 +1,159 @@
+"""Benchmark of ag_ex's 1 kHz control loop: per-cycle compute time, lateness and overruns
+(velma/executor/timing.py), in two conditions, printed as a table.
+
+1. ``alone``: the loop process paced in real time (``ExecutorProcess(realtime=True)``, as ag_ex
+   runs it) executes the scripted pour of velma/scenario.py; nothing else runs.
+2. ``fleet``: ``roco run "pour the jar into the bowl" --realtime``: router, recorder and the six
+   agent processes on the same machine; the figures are the ``ag_ex_timing.json`` that ag_ex
+   wrote into the run folder.
+
+Usage: ``python scripts/bench_loop.py [--repeat N] [--skip-fleet] [--runs-dir DIR]``.
+Percentiles are over the last 120 000 cycles of each run (the whole pour is ≈ 56 000).
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import platform
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+import msgspec  # noqa: E402
+
+from velma.executor.timing import TimingStats  # noqa: E402
+
+
+def machine() -> str:
+    """CPU model, cores and library versions (what the figures were measured on)."""
+    import mujoco
+    import pinocchio
+
+    cpu = "unknown CPU"
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                cpu = line.split(":", 1)[1].strip()
+                break
+    except OSError:
+        pass
+    return (
+        f"{cpu}, {os.cpu_count()} cores; Python {platform.python_version()}, "
+        f"MuJoCo {mujoco.__version__}, Pinocchio {pinocchio.__version__}"
+    )
+
+
+def run_alone(seed: int) -> tuple[TimingStats, str]:
+    """The scripted pour through ExecutorProcess in real time; returns timing and outcome."""
+    from shared.fipa_codec.languages.l_ex import CommandResult, Observe
+    from shared.fipa_codec.languages.l_sd import Observation
+    from velma.executor import ExecutorProcess
+    from velma.scenario import pour_script
+
+    ex = ExecutorProcess(realtime=True, seed=seed)
+    ex.start()
+    try:
+        done = threading.Event()
+        box: list[CommandResult | Observation] = []
+
+        def call(command: object) -> CommandResult | Observation:
+            done.clear()
+            box.clear()
+            ex.submit(command, lambda r: (box.append(r), done.set()))  # type: ignore[arg-type]
+            if not done.wait(600):
+                raise TimeoutError(f"{command} did not end")
+            return box[0]
+
+        obs = call(Observe(objects=("jar", "bowl", "table", "cabinet")))
+        assert isinstance(obs, Observation)
+        outcome = "ok"
+        for command in pour_script(obs):
+            r = call(command)
+            if isinstance(r, CommandResult) and not r.ok:
+                outcome = f"{r.command} failed: {r.reason}"
+                break
+        return ex.timing(), outcome
+    finally:
+        ex.stop()
+
+
+def run_fleet(runs_dir: Path) -> tuple[TimingStats, str]:
+    """``roco run … --realtime``; timing from the run folder's ag_ex_timing.json."""
+    before = set(runs_dir.glob("*")) if runs_dir.exists() else set()
+    proc = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "services.cli",
+            "run",
+            "pour the jar into the bowl",
+            "--realtime",
+            "--quiet",
+            "--runs-dir",
+            str(runs_dir),
+        ],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        check=False,
+    )
+    new = sorted(set(runs_dir.glob("*")) - before)
+    if not new:
+        raise RuntimeError(f"roco run made no run folder: {proc.stderr.strip()}")
+    run_dir = new[-1]
+    stats = msgspec.json.decode((run_dir / "ag_ex_timing.json").read_bytes(), type=TimingStats)
+    return stats, ("ok" if proc.returncode == 0 else f"failed ({run_dir})")
+
+
+def row(name: str, s: TimingStats, outcome: str) -> str:
+    setup = s.setup
+    sched = "?" if setup is None else f"{setup.policy}{' pinned' if setup.pinned else ''}"
+    return (
+        f"| {name} | {s.cycles} | {s.compute_p50_us:.0f} | {s.compute_p99_us:.0f} | {s.compute_max_us:.0f} | "
+        f"{s.lateness_p99_us:.0f} | {s.overruns} ({s.overrun_share * 100:.3f} %) | "
+        f"{s.max_consecutive_overruns} | {sched} | {outcome} |"
+    )
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--repeat", type=int, default=1, help="runs per condition")
+    ap.add_argument("--skip-fleet", action="store_true", help="only the loop alone")
+    ap.add_argument("--skip-alone", action="store_true", help="only the fleet run")
+    ap.add_argument(
+        "--runs-dir", type=Path, default=None, help="where the fleet runs go (default: a temp dir)"
+    )
+    args = ap.parse_args()
+    print(f"# ag_ex control loop at 1 kHz, real-time pacing\n\nMeasured on: {machine()}\n")
+    print(
+        "| condition | cycles | compute p50 µs | compute p99 µs | compute max µs | lateness p99 µs "
+        "| overruns | max in a row | scheduling | pour |"
+    )
+    print("|---|---|---|---|---|---|---|---|---|---|")
+    runs_dir = args.runs_dir or Path(tempfile.mkdtemp(prefix="roco-bench-"))
+    for k in range(args.repeat):
+        if not args.skip_alone:
+            t0 = time.time()
+            stats, outcome = run_alone(seed=k)
+            print(row(f"alone (seed {k}, {time.time() - t0:.0f} s)", stats, outcome), flush=True)
+        if not args.skip_fleet:
+            t0 = time.time()
+            stats, outcome = run_fleet(runs_dir)
+            print(row(f"fleet: roco run ({time.time() - t0:.0f} s)", stats, outcome), flush=True)
+    print(
+        "\nCompute: loop work per cycle (command hand-off, primitive, control law, physics step, "
+        "state publication). Lateness: cycle start after its release time. Overrun: a cycle that "
+        "ended after the next release time."
+    )
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
