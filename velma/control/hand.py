@@ -1,15 +1,33 @@
-"""BarrettHand BH8-282 position control with the proximal/distal coupling, and contact
-monitoring of the hand against the scene.
+"""BarrettHand BH8-282 position control with the proximal/distal coupling and the breakaway
+clutch, and contact monitoring of the hand against the scene.
 
 Each finger's proximal and distal joints have force-limited position servos (velma.xml);
-this module commands ``distal = proximal / 3`` (velma-facts.md coupling) and one spread value
-for both spread joints. Closing ramps the proximal setpoints at ``CLOSE_RATE`` towards the
-limit; a finger that meets the object stops because its servo saturates (force limit
-1.5 N·m proximal, 0.6 N·m distal), and the saturated servo is the grip force.
+this module writes their setpoints, and one spread value for both spread joints
+(velma-facts.md: "the two spread joints share one command"). Closing ramps the proximal
+setpoints at ``CLOSE_RATE`` towards the target.
 
-Simplifications (named): the breakaway clutch is not modelled (the distal joint does not
-keep closing after the proximal stalls, beyond its own servo's travel); grip force comes
-from servo saturation, not from a force controller.
+Coupling and breakaway (velma-facts.md, BarrettHand: "distal = proximal / 3"; "the proximal
+link stops when it meets resistance and the distal link keeps closing (≈ 2 N / 1 N·m)"):
+
+- A free finger is coupled: distal setpoint = proximal setpoint / 3.
+- While a finger closes, its clutch *breaks away* when the proximal servo's torque reaches
+  ``BREAKAWAY_TORQUE`` (1 N·m): the link met resistance. From then on the proximal setpoint
+  stops ramping: it is held at ``measured angle + BREAKAWAY_TORQUE / kp``, so the proximal
+  link stays where the object stopped it and presses on it with ≈ the breakaway torque (a
+  slipping clutch transmits its slip torque). The setpoint only ratchets closed: if the
+  object yields, the link follows it with that torque; if the object pushes the link open,
+  the setpoint stays and the servo resists up to its own limit (the real hand's worm gear is
+  not back-drivable). Meanwhile the distal setpoint keeps closing at ``CLOSE_RATE / 3`` (the
+  motor keeps turning; only the distal link moves) up to its limit ``DISTAL_MAX``
+  (0.8377 rad); the distal servo's torque limit (0.6 N·m) caps its force on the object.
+- Opening (a command whose target is below a finger's current proximal setpoint) re-engages
+  the clutch: the distal setpoint returns to proximal / 3 at ``OPEN_RATE`` and the finger is
+  coupled again.
+
+Simplifications (named): the clutch is decided from the simulated servo torque, per finger,
+with no hysteresis beyond "opening resets it"; grip force comes from servo torque limits, not
+from a force controller; the distal link's own breakaway (none on the real hand) is not
+modelled.
 """
 
 from __future__ import annotations
@@ -22,8 +40,10 @@ import numpy.typing as npt
 
 from velma.control.robot_model import SIDES, Array, distal_joints, proximal_joints, spread_joints
 
-PROXIMAL_MAX = 2.4434  # rad
-DISTAL_RATIO = 1.0 / 3.0
+PROXIMAL_MAX = 2.4434  # rad (velma-facts.md, BarrettHand table)
+DISTAL_MAX = 0.8377  # rad (velma-facts.md, BarrettHand table)
+DISTAL_RATIO = 1.0 / 3.0  # velma-facts.md: distal = proximal / 3
+BREAKAWAY_TORQUE = 1.0  # N·m, proximal torque at which the clutch slips (velma-facts.md ≈ 1 N·m)
 CLOSE_RATE = 1.5  # rad/s, proximal setpoint rate while closing (real finger ≤ 3.27 rad/s)
 OPEN_RATE = 2.0  # rad/s
 SPREAD_RATE = 1.5  # rad/s
@@ -32,17 +52,26 @@ STALL_SPEED = 0.03  # rad/s: below this a closing finger counts as stalled
 
 @dataclass
 class HandSetpoint:
-    """Commanded spread (rad) and proximal angles (3,) rad of one hand; ``target`` is where
-    the proximal setpoints are ramping to."""
+    """Setpoints of one hand.
+
+    ``spread`` / ``spread_target``: commanded and final spread (rad); ``proximal`` (3,) rad:
+    the proximal setpoints of fingers One, Two, Three; ``target`` (3,) rad: where they are
+    ramping to; ``distal`` (3,) rad: the distal setpoints; ``broken`` (3,) bool: the finger's
+    clutch has broken away (proximal stopped at the object, distal closing on its own)."""
 
     spread: float = 0.0
     spread_target: float = 0.0
     proximal: Array = field(default_factory=lambda: np.zeros(3))
     target: Array = field(default_factory=lambda: np.zeros(3))
+    distal: Array = field(default_factory=lambda: np.zeros(3))
+    broken: npt.NDArray[np.bool_] = field(default_factory=lambda: np.zeros(3, dtype=bool))
 
 
 class Hands:
-    """Setpoints and MuJoCo actuator/joint indices of both hands."""
+    """Setpoints and MuJoCo actuator/joint indices of both hands.
+
+    Raises ``KeyError`` if ``model`` lacks one of the hand servos (``…KnuckleOneServo``,
+    ``…KnuckleTwoServo``, ``…KnuckleThreeServo``) or joints."""
 
     def __init__(self, model: mujoco.MjModel) -> None:
         self.set = {s: HandSetpoint() for s in SIDES}
@@ -60,45 +89,81 @@ class Hands:
             return np.array([model.joint(n).dofadr[0] for n in names], dtype=np.int64)
 
         self.spread_act = {s: [act(j.replace("Joint", "Servo")) for j in spread_joints(s)] for s in SIDES}
-        self.prox_act = {s: [act(j.replace("Joint", "Servo")) for j in proximal_joints(s)] for s in SIDES}
-        self.dist_act = {s: [act(j.replace("Joint", "Servo")) for j in distal_joints(s)] for s in SIDES}
+        self.prox_act = {
+            s: np.array([act(j.replace("Joint", "Servo")) for j in proximal_joints(s)], dtype=np.int64)
+            for s in SIDES
+        }
+        self.dist_act = {
+            s: np.array([act(j.replace("Joint", "Servo")) for j in distal_joints(s)], dtype=np.int64)
+            for s in SIDES
+        }
         self.prox_q = {s: qadr(proximal_joints(s)) for s in SIDES}
         self.prox_v = {s: dadr(proximal_joints(s)) for s in SIDES}
+        self.dist_q = {s: qadr(distal_joints(s)) for s in SIDES}
         self.spread_q = {s: qadr(spread_joints(s)) for s in SIDES}
+        # proximal servo stiffness (N·m/rad), for the frozen setpoint after breakaway
+        self.prox_kp = {s: model.actuator_gainprm[self.prox_act[s], 0].copy() for s in SIDES}
 
     def reset_from(self, data: mujoco.MjData) -> None:
-        """Setpoints = current joint positions (no jump when the loop starts)."""
+        """Setpoints = current joint positions (no jump when the loop starts); clutches
+        engaged."""
         for s in SIDES:
             hs = self.set[s]
             hs.proximal = data.qpos[self.prox_q[s]].copy()
             hs.target = hs.proximal.copy()
+            hs.distal = data.qpos[self.dist_q[s]].copy()
+            hs.broken = np.zeros(3, dtype=bool)
             hs.spread = hs.spread_target = float(data.qpos[self.spread_q[s][0]])
 
     def command(self, side: str, proximal: float, spread: float | None = None) -> None:
-        """Ramp ``side``'s proximal setpoints to ``proximal`` (rad) and the spread to
-        ``spread`` (rad, unchanged if None)."""
+        """Ramp ``side``'s proximal setpoints to ``proximal`` (rad, clipped to 0..PROXIMAL_MAX)
+        and the spread to ``spread`` (rad, clipped to 0..π; unchanged if None). A finger whose
+        target is below its current proximal setpoint is opening: its clutch re-engages.
+        Raises ``KeyError`` for an unknown side."""
         hs = self.set[side]
         hs.target = np.full(3, float(np.clip(proximal, 0.0, PROXIMAL_MAX)))
+        hs.broken = hs.broken & ~(hs.target < hs.proximal)
         if spread is not None:
             hs.spread_target = float(np.clip(spread, 0.0, np.pi))
 
     def step(self, data: mujoco.MjData, dt: float) -> None:
-        """Advance the ramps by ``dt`` (s) and write the servo controls into ``data.ctrl``."""
+        """Advance the ramps and the clutches by ``dt`` (s) from the state in ``data``
+        (measured proximal angles and servo torques), and write the servo controls into
+        ``data.ctrl`` (rad)."""
         for s in SIDES:
             hs = self.set[s]
             delta = hs.target - hs.proximal
-            rate = np.where(delta > 0, CLOSE_RATE, OPEN_RATE) * dt
-            hs.proximal = hs.proximal + np.clip(delta, -rate, rate)
+            closing = delta > 0
+            torque = data.actuator_force[self.prox_act[s]]
+            slip = closing & ~hs.broken & (torque >= BREAKAWAY_TORQUE)
+            if np.any(slip | hs.broken):
+                # the setpoint at which the proximal servo pushes with the breakaway torque
+                press = data.qpos[self.prox_q[s]] + BREAKAWAY_TORQUE / self.prox_kp[s]
+                follow = np.minimum(np.maximum(hs.proximal, press), hs.target)  # ratchet: never back
+                hs.proximal = np.where(slip, np.minimum(hs.proximal, press), hs.proximal)
+                hs.proximal = np.where(hs.broken, follow, hs.proximal)
+                hs.broken = hs.broken | slip
+            rate = np.where(closing, CLOSE_RATE, OPEN_RATE) * dt
+            ramp = np.clip(delta, -rate, rate)
+            hs.proximal = np.where(hs.broken, hs.proximal, hs.proximal + ramp)
+            distal_goal = np.where(hs.broken, DISTAL_MAX, hs.proximal * DISTAL_RATIO)
+            distal_rate = np.where(hs.broken, CLOSE_RATE * DISTAL_RATIO, OPEN_RATE) * dt
+            hs.distal = hs.distal + np.clip(distal_goal - hs.distal, -distal_rate, distal_rate)
             ds = hs.spread_target - hs.spread
             hs.spread += float(np.clip(ds, -SPREAD_RATE * dt, SPREAD_RATE * dt))
             for a in self.spread_act[s]:
                 data.ctrl[a] = hs.spread
             data.ctrl[self.prox_act[s]] = hs.proximal
-            data.ctrl[self.dist_act[s]] = hs.proximal * DISTAL_RATIO
+            data.ctrl[self.dist_act[s]] = hs.distal
 
     def proximal(self, data: mujoco.MjData, side: str) -> Array:
         """Measured proximal angles (3,) rad."""
         out: Array = data.qpos[self.prox_q[side]]
+        return out
+
+    def distal(self, data: mujoco.MjData, side: str) -> Array:
+        """Measured distal angles (3,) rad."""
+        out: Array = data.qpos[self.dist_q[side]]
         return out
 
     def proximal_speed(self, data: mujoco.MjData, side: str) -> Array:
@@ -106,10 +171,16 @@ class Hands:
         out: Array = data.qvel[self.prox_v[side]]
         return out
 
+    def broken_away(self, side: str) -> npt.NDArray[np.bool_]:
+        """(3,) bool: which fingers' clutches have broken away (a copy)."""
+        return self.set[side].broken.copy()
+
     def ramp_done(self, side: str) -> bool:
-        """True when the proximal and spread setpoints have reached their targets."""
+        """True when the spread setpoint and every finger's proximal setpoint have reached
+        their targets; a finger whose clutch broke away counts as done (it met the object)."""
         hs = self.set[side]
-        return bool(np.all(hs.proximal == hs.target)) and hs.spread == hs.spread_target
+        prox_done = (hs.proximal == hs.target) | hs.broken
+        return bool(np.all(prox_done)) and hs.spread == hs.spread_target
 
 
 class ContactMonitor:

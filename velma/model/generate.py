@@ -1,24 +1,55 @@
-"""Writes ``velma.xml``, the MJCF model of the Velma robot, from the facts in velma-facts.md.
+"""Writes ``velma.xml`` (the MJCF model of the Velma robot) and ``kitchen.xml`` (the scene of
+the pouring experiment) from the numbers in this file.
 
-Run ``python -m velma.model.generate`` after changing a number here; ``velma.xml`` is the
-output and is kept in the repository (a test checks that it is up to date). The generator
-exists so that every number (offsets, rpy → quaternions, inertias) is computed once, from the
-facts, rather than copied by hand into two arms and two hands.
+Run ``python -m velma.model.generate`` after changing a number here; both XML files are the
+output and are kept in the repository (a test checks that they are up to date). The generator
+exists so that every number (offsets, rpy → quaternions, inertias) is computed once, from its
+source, rather than copied by hand into two arms and two hands.
 
-Sources: velma-facts.md (kinematics, limits, masses, tool chain, hand geometry, contact
-advice). Simplifications (named):
+Sources. Every constant below names one of:
+
+- *facts*: /work/shared/velma-facts.md, the numbers of the real robot gathered from RCPRG's
+  velma_robot, lwr_robot and barrett_hand_robot descriptions and the KUKA/Barrett documents
+  (the section is named, e.g. "facts, KUKA LWR4+");
+- *derived*: computed here from facts (the formula is next to it);
+- *placeholder*: no public number exists (or the public model had a placeholder too); a
+  physically plausible value is chosen and the reason is given;
+- *everyday size*: for kitchen objects, the size or mass of a common household item.
+
+Masses and inertias (what was chosen and why):
+
+- torso_base and torso_link0: 30 kg each (facts), inertia of a uniform cylinder / box of the
+  drawn size (placeholder shape).
+- LWR4+ arm: the public URDF has placeholders (2.0 kg links 1–5, 0.2 kg link 6); the real arm
+  weighs 16 kg (facts). The 16 kg are split as base 1.6 kg, links 1–4 2.7 kg each (they hold
+  the large drive modules of joints 1–4, which give 100 N·m), link 5 1.7 kg and link 6 1.6 kg
+  (the smaller 60 N·m wrist drives), link 7 (flange) 0.3 kg: sum 16.0 kg. Inertia: uniform
+  cylinders of the link's length. Placeholder, not identified data.
+- BarrettHand BH8-282: palm 0.6335, knuckle-one 0.1625, proximal 0.058, distal 0.0342 kg
+  (facts), 1.235 kg in all. The hand assembly load on the wrist is 1.53 kg (facts); the
+  remaining 0.295 kg (derived) is the gripper mount and F/T sensor housing, a separate
+  jointless body between the flange and the palm. The palm's centre of mass is solved for so
+  that the whole assembly (spread 0, fingers open) has its centre of mass at the facts'
+  (0.152, 0.011, −0.069) m in the gripper-mount frame (derived). The wrist F/T sensor measures
+  the palm and fingers only (everything beyond its measuring plane): hanging still, it reads
+  ≈ 1.235 kg × g ≈ 12.1 N.
+- Head: 0.8 + 0.5 + 1.5 kg for neck base, pan link and head with cameras (placeholder: a
+  pan-tilt unit and a Kinect-class sensor head).
+
+Simplifications (named):
 
 - Geometry is capsules, cylinders, boxes and spheres instead of meshes.
-- LWR4+ link masses: the public URDF has placeholders (2 kg links 1–5, 0.2 kg link 6); here
-  a plausible split of the real 16 kg arm is used (base 1.6, links 2.7/2.7/2.7/2.7/1.7/1.6/0.3
-  kg), with the inertia of uniform cylinders. Placeholder, not identified data.
-- Joint armature (reflected motor inertia) and arm joint damping are plausible values, not
-  data: the facts give damping only for the torso (10 N·m·s/rad).
-- The F/T sensor, gripper mount and BarrettHand are one rigid hand assembly of 1.53 kg whose
-  centre of mass is near the facts' (0.152, 0.011, −0.069) m in the link-7 frame.
-- The hand's breakaway clutch is not modelled: proximal and distal joints have their own
-  force-limited position servos and the controller commands distal = proximal / 3.
+- Joint armature (reflected motor inertia), arm joint damping and the servo gains of the
+  hand and neck are plausible values, not data: the facts give damping only for the torso.
+- Velocity limits have no MJCF field: they are the constants below (``velocity_limits()``),
+  enforced by the controllers (velma/control, velma/executor), not by the physics.
+- The hand's breakaway clutch is modelled in the hand controller (velma/control/hand.py),
+  with independent position servos on the proximal and distal joints here.
 - Robot self-collision is off (robot geoms only collide with the environment).
+
+Numbers written inline in the ``<geom>`` elements (shape sizes and positions, colours) and
+the inertial offsets of the torso and head bodies are drawing geometry: placeholder shapes
+sized to the link lengths above, not data.
 """
 
 from __future__ import annotations
@@ -32,60 +63,166 @@ import numpy.typing as npt
 
 MODEL_DIR = Path(__file__).resolve().parent
 VELMA_XML = MODEL_DIR / "velma.xml"
+KITCHEN_XML = MODEL_DIR / "kitchen.xml"
 
 Vec = tuple[float, float, float]
+Quat = tuple[float, float, float, float]
 
-# ----------------------------------------------------------------- facts (velma-facts.md)
-TORSO_JOINT_Z = 0.03
-TORSO_LIMIT = 1.57
-TORSO_DAMPING = 10.0
-HEAD_BASE = (0.0105, -0.001, 1.3117)
-HEAD_PAN_Z = 0.087
-HEAD_TILT_Z = 0.048
-ARM_MOUNT = {
+# ============================================================== Velma (velma.xml)
+# ----------------------------------------------------------------- torso (facts, "Structure")
+TORSO_JOINT_Z = 0.03  # m, torso_0_joint above torso_base (facts)
+TORSO_LIMIT = 1.57  # rad (facts)
+TORSO_VELOCITY = 0.52  # rad/s, 30 °/s (facts)
+TORSO_DAMPING = 10.0  # N·m·s/rad (facts)
+TORSO_BASE_MASS = 30.0  # kg (facts)
+TORSO_LINK0_MASS = 30.0  # kg (facts)
+TORSO_ARMATURE = 0.5  # kg·m², placeholder (reflected inertia of a large geared drive)
+TORSO_TORQUE = 300.0  # N·m, placeholder (not in the facts; ≥ what joint impedance K = 1200 asks)
+
+# ----------------------------------------------------------------- head (facts, "Structure")
+HEAD_BASE = (0.0105, -0.001, 1.3117)  # m, head_base on torso_link0 (facts)
+HEAD_PAN_Z = 0.087  # m (facts)
+HEAD_TILT_Z = 0.048  # m (facts)
+HEAD_PAN_RANGE = (-1.57, 1.57)  # rad (facts)
+HEAD_TILT_RANGE = (-1.0, 1.3)  # rad (facts)
+HEAD_PAN_VELOCITY = 1.57  # rad/s (facts)
+NECK_VELOCITY = 1.04  # rad/s, the neck's velocity limit in control, both joints (facts)
+HEAD_MASSES = (0.8, 0.5, 1.5)  # kg: head_base, pan link, tilt link (placeholder, see docstring)
+HEAD_ARMATURE = 0.01  # kg·m², placeholder
+HEAD_DAMPING = 0.5  # N·m·s/rad, placeholder
+HEAD_SERVO_KP = (40.0, 60.0)  # N·m/rad, pan, tilt: placeholder position-servo gains
+HEAD_SERVO_TORQUE = (10.0, 15.0)  # N·m, pan, tilt: placeholder servo torque limits
+# Head camera: a Kinect-class RGB-D camera on the head ("Cameras and a Kinect sit on the head",
+# facts). Its field of view is the Kinect (v1) RGB camera's 57° × 43° (everyday size: the
+# sensor's data sheet); MJCF's fovy is the vertical one. Position on the head: placeholder
+# (0.1 m ahead of and 0.06 m above the tilt axis; velma/executor/primitives.py uses 0.06).
+HEAD_CAMERA_POS = (0.1, 0.0, 0.06)  # m, in head_tilt_link
+HEAD_CAMERA_FOVY = 43.0  # degrees
+
+# ----------------------------------------------------------------- arms (facts, "Structure")
+ARM_MOUNT = {  # (xyz m, rpy rad) of {side}_arm_base_link in torso_link0 (facts)
     "right": ((-0.0004, -0.000889, 1.17335), (-0.00045, -1.04747, 1.57047)),
     "left": ((-0.0006, -0.001311, 1.17335), (0.00087, 1.04750, 1.57243)),
 }
-# (z offset from the previous joint, axis, limit in degrees)
-ARM_JOINTS: tuple[tuple[float, Vec, float], ...] = (
-    (0.11, (0, 0, 1), 170.0),
-    (0.2005, (0, 1, 0), 120.0),
-    (0.20, (0, 0, 1), 170.0),
-    (0.20, (0, -1, 0), 120.0),
-    (0.20, (0, 0, 1), 170.0),
-    (0.19, (0, 1, 0), 120.0),
-    (0.078, (0, 0, 1), 170.0),
+# KUKA LWR4+ (facts, "KUKA LWR4+" table): per joint k = 0..6 the z offset of its origin from the
+# previous link (m), its axis, its limit (±degrees), its velocity limit (degrees/s) and the
+# torque limit used on Velma (N·m: 100 for joints 0–4, 60 for 5–6).
+ARM_JOINTS: tuple[tuple[float, Vec, float, float, float], ...] = (
+    (0.11, (0, 0, 1), 170.0, 110.0, 100.0),
+    (0.2005, (0, 1, 0), 120.0, 110.0, 100.0),
+    (0.20, (0, 0, 1), 170.0, 130.0, 100.0),
+    (0.20, (0, -1, 0), 120.0, 130.0, 100.0),
+    (0.20, (0, 0, 1), 170.0, 130.0, 100.0),
+    (0.19, (0, 1, 0), 120.0, 180.0, 60.0),
+    (0.078, (0, 0, 1), 170.0, 180.0, 60.0),
 )
-# Masses of arm_1_link … arm_7_link (placeholder split of the real 16 kg arm, see docstring).
-ARM_LINK_MASS = (2.7, 2.7, 2.7, 2.7, 1.7, 1.6, 0.3)
-ARM_BASE_MASS = 1.6
-ARM_RADIUS = 0.06
-ARM_ARMATURE = (0.2, 0.2, 0.1, 0.1, 0.05, 0.03, 0.03)  # kg·m², plausible reflected inertia
-ARM_DAMPING = 0.5  # N·m·s/rad, plausible (not in the facts)
-FT_IN_LINK7 = ((0.115, 0.0, -0.078), (0.0, math.pi / 2, 0.0))
-PALM_IN_FT_Z = 0.005
-GRIP_IN_PALM_Z = 0.12
-HAND_MASS = 1.53  # total hand assembly load on the wrist
-PALM_MASS = 0.6335
-KNUCKLE_ONE_MASS = 0.1625
-PROXIMAL_MASS = 0.058
-DISTAL_MASS = 0.0342
-FINGER_SPREAD_RANGE = (0.0, math.pi)
-PROXIMAL_RANGE = (0.0, 2.4434)
-DISTAL_RANGE = (0.0, 0.8377)
-DISTAL_BEND = -0.690452252
-FINGER_ARMATURE = 0.01  # kg·m², the hand's geared motors (plausible)
-FINGER_DAMPING = 0.05
+ARM_CONTROL_VELOCITY = 2.0  # rad/s, arm joint velocity limit in control (facts)
+ARM_MASS = 16.0  # kg, the real LWR4+ (facts)
+ARM_BASE_MASS = 1.6  # kg, placeholder split of ARM_MASS (see docstring)
+ARM_LINK_MASS = (2.7, 2.7, 2.7, 2.7, 1.7, 1.6, 0.3)  # kg, arm_1_link … arm_7_link, placeholder split
+ARM_RADIUS = 0.06  # m, LWR4+ links are ≈ 0.12 m thick (placeholder shape)
+ARM_ARMATURE = (0.2, 0.2, 0.1, 0.1, 0.05, 0.03, 0.03)  # kg·m², placeholder reflected motor inertia
+ARM_DAMPING = 0.5  # N·m·s/rad, placeholder (the facts give damping for the torso only)
 
-# Contacts of the hand pads (velma-facts.md "MuJoCo notes": elliptic cones, impratio 10
-# are set in <option>; pads soft-but-stiff, friction ≈ 1).
+# ----------------------------------------------------------------- tool chain (facts, "KUKA LWR4+")
+MOUNT_YAW = {"right": 0.0, "left": math.pi}  # rad, gripper_mount in arm_7_link (facts)
+FT_IN_MOUNT = ((0.115, 0.0, -0.078), (0.0, math.pi / 2, 0.0))  # F/T sensor (xyz m, rpy rad) (facts)
+PALM_IN_FT_Z = 0.005  # m (facts)
+GRIP_IN_PALM_Z = 0.12  # m, {side}_HandGripLink (facts)
+HAND_ASSEMBLY_MASS = 1.53  # kg, total load on the wrist (facts)
+HAND_ASSEMBLY_COM = (0.152, 0.011, -0.069)  # m, in the gripper-mount (link-7) frame (facts)
+# Gripper mount + F/T sensor housing (a box between flange and palm): its centre, placeholder.
+BRACKET_COM = (0.0575, 0.0, -0.078)  # m, in the gripper-mount frame
+
+# ----------------------------------------------------------------- BarrettHand BH8-282 (facts)
+PALM_MASS = 0.6335  # kg (facts)
+KNUCKLE_ONE_MASS = 0.1625  # kg (facts)
+PROXIMAL_MASS = 0.058  # kg (facts)
+DISTAL_MASS = 0.0342  # kg (facts)
+SPREAD_ORIGIN_X = 0.02497  # m, ± for fingers One/Two (facts)
+SPREAD_ORIGIN_Z = 0.0587966  # m (facts)
+SPREAD_YAW = math.pi / 2  # rad, rpy yaw of both knuckle-one frames (facts give it for F1; F2
+# needs the same yaw for fingers One and Two to oppose finger Three, as on the real hand)
+PROXIMAL_IN_KNUCKLE = (0.05, 0.0, 0.0166034)  # m, F1/F2 (facts)
+PROXIMAL_RPY = (-math.pi / 2, 0.0, 0.0)  # rad, F1/F2 (facts)
+F3_PROXIMAL_IN_PALM = ((0.0, -0.05, 0.0754), (-math.pi / 2, 0.0, -math.pi / 2))  # (facts)
+DISTAL_IN_PROXIMAL_X = 0.07  # m (facts)
+DISTAL_BEND = -0.690452252  # rad, rpy yaw of the distal origin (facts: −0.69045, more digits kept)
+FINGER_SPREAD_RANGE = (0.0, math.pi)  # rad (facts)
+PROXIMAL_RANGE = (0.0, 2.4434)  # rad (facts)
+DISTAL_RANGE = (0.0, 0.8377)  # rad (facts)
+FINGER_VELOCITY = 3.27  # rad/s (facts)
+DISTAL_HALF = (0.025, 0.01, 0.01)  # m, distal collision box ≈ 0.05 × 0.02 × 0.02 (facts)
+PROXIMAL_HALF = (0.035, 0.01, 0.012)  # m, placeholder (0.07 m long link)
+FINGER_ARMATURE = 0.01  # kg·m², placeholder (the hand's geared motors)
+FINGER_DAMPING = 0.05  # N·m·s/rad, placeholder
+# Position servos (kp N·m/rad, torque limit N·m), placeholders: the real hand is position
+# controlled (facts); the limits give ≈ 10 N at the fingertip, enough to hold the 0.33 kg jar
+# by friction. The breakaway torque of the proximal clutch (≈ 1 N·m, facts) is applied by the
+# hand controller (velma/control/hand.py), below the proximal servo's limit.
+SPREAD_SERVO = (10.0, 2.0)
+PROXIMAL_SERVO = (20.0, 1.5)
+DISTAL_SERVO = (10.0, 0.6)
+
+# Contacts of the hand pads (facts, "MuJoCo notes": elliptic cones and impratio 10 are set
+# in <option>; pads soft-but-stiff (solref ≈ 0.004), friction ≈ 0.7–1.0).
 PAD_FRICTION = "1.0 0.02 0.001"
 PAD_SOLREF = "0.004 1"
-PAD_SOLIMP = "0.95 0.99 0.001"
+PAD_SOLIMP = "0.95 0.99 0.001"  # placeholder (stiff once in contact)
+ROBOT_FRICTION = "0.8 0.02 0.001"  # placeholder (rubber/aluminium on wood or glass)
+
+# Simulation options (facts, "MuJoCo notes" and "Control on the real robot": 1 kHz loop,
+# CG solver for granular content, elliptic cones, impratio ≈ 10; the iteration count and
+# tolerance are placeholders that converge for the 27-sphere pour).
+OPTION = (
+    '<option timestep="0.001" integrator="implicitfast" cone="elliptic" impratio="10" '
+    'solver="CG" iterations="60" tolerance="1e-8"/>'
+)
+
+
+def velocity_limits() -> dict[str, float]:
+    """Joint velocity limits of the real robot, rad/s, by joint name (33 joints).
+
+    Sources: facts (torso 0.52, head pan 1.57, neck 1.04 for the tilt joint, LWR4+ table,
+    finger joints 3.27). MJCF has no velocity-limit field; the controllers enforce them (the
+    arms are further limited to ``ARM_CONTROL_VELOCITY`` = 2 rad/s in control)."""
+    out = {
+        "torso_0_joint": TORSO_VELOCITY,
+        "head_pan_joint": HEAD_PAN_VELOCITY,
+        "head_tilt_joint": NECK_VELOCITY,
+    }
+    for side in ("right", "left"):
+        for k, joint in enumerate(ARM_JOINTS):
+            out[f"{side}_arm_{k}_joint"] = math.radians(joint[3])
+        for finger_name in ("One", "Two", "Three"):
+            for link in ("One", "Two", "Three"):
+                if link == "One" and finger_name == "Three":
+                    continue  # finger Three has no spread joint
+                out[f"{side}_HandFinger{finger_name}Knuckle{link}Joint"] = FINGER_VELOCITY
+    return out
+
+
+def effort_limits() -> dict[str, float]:
+    """Actuator torque limits, N·m, by joint name (33 joints), as written into velma.xml
+    (``forcerange`` of each actuator and ``actuatorfrcrange`` of each joint).
+
+    Sources: facts for the arms (100 N·m joints 0–4, 60 N·m joints 5–6); placeholders for the
+    torso, neck and hand servos (see the constants)."""
+    out = {"torso_0_joint": TORSO_TORQUE}
+    out["head_pan_joint"], out["head_tilt_joint"] = HEAD_SERVO_TORQUE
+    for side in ("right", "left"):
+        for k, joint in enumerate(ARM_JOINTS):
+            out[f"{side}_arm_{k}_joint"] = joint[4]
+        for finger_name in ("One", "Two", "Three"):
+            if finger_name != "Three":
+                out[f"{side}_HandFinger{finger_name}KnuckleOneJoint"] = SPREAD_SERVO[1]
+            out[f"{side}_HandFinger{finger_name}KnuckleTwoJoint"] = PROXIMAL_SERVO[1]
+            out[f"{side}_HandFinger{finger_name}KnuckleThreeJoint"] = DISTAL_SERVO[1]
+    return out
 
 
 # ----------------------------------------------------------------- small math helpers
-def rpy_to_quat(rpy: Vec) -> tuple[float, float, float, float]:
+def rpy_to_quat(rpy: Vec) -> Quat:
     """URDF roll-pitch-yaw (fixed axes X, Y, Z; R = Rz·Ry·Rx) → MuJoCo quaternion (w, x, y, z)."""
     r, p, y = rpy
     cr, sr = math.cos(r / 2), math.sin(r / 2)
@@ -99,7 +236,7 @@ def rpy_to_quat(rpy: Vec) -> tuple[float, float, float, float]:
     )
 
 
-def quat_mul(a: tuple[float, ...], b: tuple[float, ...]) -> tuple[float, float, float, float]:
+def quat_mul(a: tuple[float, ...], b: tuple[float, ...]) -> Quat:
     """Hamilton product of two (w, x, y, z) quaternions."""
     aw, ax, ay, az = a
     bw, bx, by, bz = b
@@ -111,18 +248,27 @@ def quat_mul(a: tuple[float, ...], b: tuple[float, ...]) -> tuple[float, float, 
     )
 
 
-def quat_rotate(q: tuple[float, ...], v: Vec) -> Vec:
-    """Rotate vector ``v`` by unit quaternion ``q`` (w, x, y, z)."""
+def quat_matrix(q: tuple[float, ...]) -> npt.NDArray[np.float64]:
+    """Rotation matrix (3, 3) of unit quaternion ``q`` (w, x, y, z)."""
     w, x, y, z = q
-    r = np.array(
+    return np.array(
         [
             [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
             [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
             [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
         ]
     )
-    out: npt.NDArray[np.float64] = r @ np.asarray(v, dtype=float)
+
+
+def quat_rotate(q: tuple[float, ...], v: Vec) -> Vec:
+    """Rotate vector ``v`` by unit quaternion ``q`` (w, x, y, z)."""
+    out = quat_matrix(q) @ np.asarray(v, dtype=float)
     return (float(out[0]), float(out[1]), float(out[2]))
+
+
+def add(a: Vec, b: Vec) -> Vec:
+    """Sum of two 3-vectors."""
+    return (a[0] + b[0], a[1] + b[1], a[2] + b[2])
 
 
 def f(*values: float) -> str:
@@ -143,10 +289,10 @@ def box_inertia(mass: float, half: Vec) -> Vec:
 
 
 def inertial(pos: Vec, mass: float, diag: Vec) -> str:
+    """An MJCF ``<inertial>`` element (m, kg, kg·m²)."""
     return f'<inertial pos="{f(*pos)}" mass="{f(mass)}" diaginertia="{f(*diag)}"/>'
 
 
-# ----------------------------------------------------------------- model pieces
 class Writer:
     """Accumulates indented XML lines."""
 
@@ -166,56 +312,114 @@ class Writer:
         self.add(f"</{tag}>")
 
 
+# ----------------------------------------------------------------- hand geometry (derived)
+PROXIMAL_COM = (0.035, 0.0, 0.0)  # m, in the proximal link frame (middle of the 0.07 m link)
+DISTAL_COM = (0.025, 0.0, 0.0)  # m, in the distal link frame (middle of the collision box)
+KNUCKLE_COM = (0.025, 0.0, 0.008)  # m, in the knuckle-one frame (placeholder: middle of the link)
+
+
+def palm_frame_in_mount() -> tuple[Vec, Quat]:
+    """Pose (position m, quaternion) of the palm in the gripper-mount frame (facts)."""
+    q_ft = rpy_to_quat(FT_IN_MOUNT[1])
+    return add(FT_IN_MOUNT[0], quat_rotate(q_ft, (0.0, 0.0, PALM_IN_FT_Z))), q_ft
+
+
+def fingers_mass_moment() -> tuple[float, Vec]:
+    """Mass (kg) and first moment Σ m·c (kg·m) of the knuckle, proximal and distal links of
+    the three fingers in the palm frame, at spread 0 with the fingers open (derived)."""
+    q_knuckle = rpy_to_quat((0.0, 0.0, SPREAD_YAW))
+    q_distal = rpy_to_quat((0.0, 0.0, DISTAL_BEND))
+    total = 0.0
+    moment = np.zeros(3)
+
+    def link(pos: Vec, q: Quat) -> None:
+        nonlocal total, moment
+        prox_c = add(pos, quat_rotate(q, PROXIMAL_COM))
+        d_pos = add(pos, quat_rotate(q, (DISTAL_IN_PROXIMAL_X, 0.0, 0.0)))
+        dist_c = add(d_pos, quat_rotate(quat_mul(q, q_distal), DISTAL_COM))
+        moment += PROXIMAL_MASS * np.array(prox_c) + DISTAL_MASS * np.array(dist_c)
+        total += PROXIMAL_MASS + DISTAL_MASS
+
+    for sign in (1.0, -1.0):
+        k_pos = (sign * SPREAD_ORIGIN_X, 0.0, SPREAD_ORIGIN_Z)
+        moment += KNUCKLE_ONE_MASS * np.array(add(k_pos, quat_rotate(q_knuckle, KNUCKLE_COM)))
+        total += KNUCKLE_ONE_MASS
+        link(
+            add(k_pos, quat_rotate(q_knuckle, PROXIMAL_IN_KNUCKLE)),
+            quat_mul(q_knuckle, rpy_to_quat(PROXIMAL_RPY)),
+        )
+    link(F3_PROXIMAL_IN_PALM[0], rpy_to_quat(F3_PROXIMAL_IN_PALM[1]))
+    return total, (float(moment[0]), float(moment[1]), float(moment[2]))
+
+
+def bracket_mass() -> float:
+    """Gripper mount + F/T sensor mass, kg (derived: assembly minus palm and fingers)."""
+    return HAND_ASSEMBLY_MASS - PALM_MASS - fingers_mass_moment()[0]
+
+
+def palm_com() -> Vec:
+    """Centre of mass of the palm link in the palm frame, m (derived: puts the centre of mass
+    of bracket + palm + open fingers at ``HAND_ASSEMBLY_COM``)."""
+    palm_pos, q_palm = palm_frame_in_mount()
+    r = quat_matrix(q_palm)
+    target = r.T @ (np.array(HAND_ASSEMBLY_COM) - np.array(palm_pos))  # in the palm frame
+    bracket = r.T @ (np.array(BRACKET_COM) - np.array(palm_pos))
+    _, moment = fingers_mass_moment()
+    c = (HAND_ASSEMBLY_MASS * target - bracket_mass() * bracket - np.array(moment)) / PALM_MASS
+    return (float(c[0]), float(c[1]), float(c[2]))
+
+
+# ----------------------------------------------------------------- model pieces
 def finger(w: Writer, side: str, finger_name: str) -> None:
     """Proximal (KnuckleTwo) and distal (KnuckleThree) links of one finger; the caller has
     opened the body that holds the proximal joint's origin."""
-    prox_inertia = box_inertia(PROXIMAL_MASS, (0.035, 0.01, 0.012))
-    dist_inertia = box_inertia(DISTAL_MASS, (0.025, 0.01, 0.01))
-    w.add(inertial((0.035, 0.0, 0.0), PROXIMAL_MASS, prox_inertia))
+    w.add(inertial(PROXIMAL_COM, PROXIMAL_MASS, box_inertia(PROXIMAL_MASS, PROXIMAL_HALF)))
     w.add(
         f'<joint name="{side}_HandFinger{finger_name}KnuckleTwoJoint" class="finger" '
-        f'axis="0 0 -1" range="{f(*PROXIMAL_RANGE)}"/>'
+        f'axis="0 0 -1" range="{f(*PROXIMAL_RANGE)}" '
+        f'actuatorfrcrange="{f(-PROXIMAL_SERVO[1], PROXIMAL_SERVO[1])}"/>'
     )
     w.add(f'<geom name="{side}_f{finger_name}_prox" class="pad" fromto="0.012 0 0 0.062 0 0" size="0.011"/>')
     w.open(
-        f'<body name="{side}_HandFinger{finger_name}KnuckleThreeLink" pos="0.07 0 0" '
+        f'<body name="{side}_HandFinger{finger_name}KnuckleThreeLink" pos="{f(DISTAL_IN_PROXIMAL_X, 0, 0)}" '
         f'quat="{f(*rpy_to_quat((0.0, 0.0, DISTAL_BEND)))}">'
     )
-    w.add(inertial((0.025, 0.0, 0.0), DISTAL_MASS, dist_inertia))
+    w.add(inertial(DISTAL_COM, DISTAL_MASS, box_inertia(DISTAL_MASS, DISTAL_HALF)))
     w.add(
         f'<joint name="{side}_HandFinger{finger_name}KnuckleThreeJoint" class="finger" '
-        f'axis="0 0 -1" range="{f(*DISTAL_RANGE)}"/>'
+        f'axis="0 0 -1" range="{f(*DISTAL_RANGE)}" '
+        f'actuatorfrcrange="{f(-DISTAL_SERVO[1], DISTAL_SERVO[1])}"/>'
     )
+    # capsule 0.008–0.045 m, radius 0.01: ≈ the facts' 0.05 × 0.02 × 0.02 m box, rounded
     w.add(f'<geom name="{side}_f{finger_name}_dist" class="pad" fromto="0.008 0 0 0.045 0 0" size="0.01"/>')
     w.close("body")
 
 
 def hand(w: Writer, side: str) -> None:
-    """F/T sensor site, palm, grip-frame site and the three fingers of a BarrettHand BH8-282,
-    attached to ``{side}_arm_7_link`` (the caller has that body open)."""
-    mount_yaw = 0.0 if side == "right" else math.pi  # gripper_mount (velma-facts.md)
-    q_mount = rpy_to_quat((0.0, 0.0, mount_yaw))
-    ft_pos = quat_rotate(q_mount, FT_IN_LINK7[0])
-    q_ft = quat_mul(q_mount, rpy_to_quat(FT_IN_LINK7[1]))
-    palm_pos = tuple(a + b for a, b in zip(ft_pos, quat_rotate(q_ft, (0.0, 0.0, PALM_IN_FT_Z)), strict=True))
-    fingers_mass = 2 * KNUCKLE_ONE_MASS + 3 * (PROXIMAL_MASS + DISTAL_MASS)
-    bracket_mass = HAND_MASS - PALM_MASS - fingers_mass
-    # Bracket (gripper mount + F/T sensor): in link 7, between flange and palm.
-    bx = 0.5 * ft_pos[0]
+    """Gripper mount (with the F/T sensor housing), palm with the F/T sensor site and the
+    grip-frame site, and the three fingers of a BarrettHand BH8-282, attached to
+    ``{side}_arm_7_link`` (the caller has that body open).
+
+    The mount and the palm are both jointless children of arm_7_link (siblings), not a chain:
+    Pinocchio 4.1's MJCF parser misplaces sites of a body nested two jointless levels deep
+    (it drops the middle body's rotation; tests/velma/test_velma_model.py checks every site)."""
+    q_mount = rpy_to_quat((0.0, 0.0, MOUNT_YAW[side]))
+    w.open(f'<body name="{side}_gripper_mount_link" quat="{f(*q_mount)}">')
+    half = (abs(0.5 * FT_IN_MOUNT[0][0]) + 0.03, 0.035, 0.03)  # placeholder bracket shape
+    w.add(inertial(BRACKET_COM, bracket_mass(), box_inertia(bracket_mass(), half)))
     w.add(
-        f'<geom name="{side}_hand_bracket" class="robot" type="box" pos="{f(bx, 0, -0.078)}" '
-        f'size="{f(abs(bx) + 0.03, 0.035, 0.03)}" rgba="0.3 0.3 0.32 1"/>'
+        f'<geom name="{side}_hand_bracket" class="robot" type="box" pos="{f(*BRACKET_COM)}" '
+        f'size="{f(*half)}" rgba="0.3 0.3 0.32 1"/>'
     )
-    w.open(f'<body name="{side}_HandPalmLink" pos="{f(*palm_pos)}" quat="{f(*q_ft)}">')
-    # Palm + bracket mass lumped in the palm body: bracket mass sits ~0.06 m behind the palm.
-    palm_com_z = (PALM_MASS * 0.035 + bracket_mass * (-0.02)) / (PALM_MASS + bracket_mass)
-    w.add(
-        inertial(
-            (0.0, 0.011, palm_com_z),
-            PALM_MASS + bracket_mass,
-            cylinder_inertia(PALM_MASS + bracket_mass, 0.045, 0.09),
-        )
+    w.close("body")
+    palm_pos, q_palm = palm_frame_in_mount()
+    w.open(
+        f'<body name="{side}_HandPalmLink" pos="{f(*quat_rotate(q_mount, palm_pos))}" '
+        f'quat="{f(*quat_mul(q_mount, q_palm))}">'
     )
+    w.add(inertial(palm_com(), PALM_MASS, cylinder_inertia(PALM_MASS, 0.045, 0.09)))
+    # The F/T sensor frame (facts: palm = F/T + 0.005 z); MuJoCo's force/torque sensors on
+    # this site measure the wrench that the mount exerts on the palm body's subtree.
     w.add(f'<site name="{side}_ft_sensor" pos="0 0 {f(-PALM_IN_FT_Z)}" size="0.01" rgba="1 0.5 0 1"/>')
     w.add(f'<site name="{side}_HandGripLink" pos="0 0 {f(GRIP_IN_PALM_Z)}" size="0.008" rgba="0 1 0 0.6"/>')
     w.add(
@@ -227,35 +431,31 @@ def hand(w: Writer, side: str) -> None:
         'rgba="0.15 0.15 0.15 1"/>'
     )
     w.add(f'<geom name="{side}_palm_pad" class="pad" type="box" pos="0 0 0.066" size="0.04 0.04 0.006"/>')
-    spread_joints = (("One", 0.02497, "0 0 -1"), ("Two", -0.02497, "0 0 1"))
+    spread_joints = (("One", SPREAD_ORIGIN_X, "0 0 -1"), ("Two", -SPREAD_ORIGIN_X, "0 0 1"))  # (facts)
     for name, x, axis in spread_joints:
         w.open(
-            f'<body name="{side}_HandFinger{name}KnuckleOneLink" pos="{f(x, 0, 0.0587966)}" '
-            f'quat="{f(*rpy_to_quat((0.0, 0.0, math.pi / 2)))}">'
+            f'<body name="{side}_HandFinger{name}KnuckleOneLink" pos="{f(x, 0, SPREAD_ORIGIN_Z)}" '
+            f'quat="{f(*rpy_to_quat((0.0, 0.0, SPREAD_YAW)))}">'
         )
-        w.add(
-            inertial(
-                (0.025, 0.0, 0.008), KNUCKLE_ONE_MASS, box_inertia(KNUCKLE_ONE_MASS, (0.025, 0.012, 0.01))
-            )
-        )
+        w.add(inertial(KNUCKLE_COM, KNUCKLE_ONE_MASS, box_inertia(KNUCKLE_ONE_MASS, (0.025, 0.012, 0.01))))
         w.add(
             f'<joint name="{side}_HandFinger{name}KnuckleOneJoint" class="finger" axis="{axis}" '
-            f'range="{f(*FINGER_SPREAD_RANGE)}"/>'
+            f'range="{f(*FINGER_SPREAD_RANGE)}" actuatorfrcrange="{f(-SPREAD_SERVO[1], SPREAD_SERVO[1])}"/>'
         )
         w.add(
             f'<geom name="{side}_f{name}_knuckle" class="robot" type="box" pos="0.03 0 0.004" '
             'size="0.022 0.012 0.008" rgba="0.2 0.2 0.2 1"/>'
         )
         w.open(
-            f'<body name="{side}_HandFinger{name}KnuckleTwoLink" pos="0.05 0 0.0166034" '
-            f'quat="{f(*rpy_to_quat((-math.pi / 2, 0.0, 0.0)))}">'
+            f'<body name="{side}_HandFinger{name}KnuckleTwoLink" pos="{f(*PROXIMAL_IN_KNUCKLE)}" '
+            f'quat="{f(*rpy_to_quat(PROXIMAL_RPY))}">'
         )
         finger(w, side, name)
         w.close("body")
         w.close("body")
     w.open(
-        f'<body name="{side}_HandFingerThreeKnuckleTwoLink" pos="0 -0.05 0.0754" '
-        f'quat="{f(*rpy_to_quat((-math.pi / 2, 0.0, -math.pi / 2)))}">'
+        f'<body name="{side}_HandFingerThreeKnuckleTwoLink" pos="{f(*F3_PROXIMAL_IN_PALM[0])}" '
+        f'quat="{f(*rpy_to_quat(F3_PROXIMAL_IN_PALM[1]))}">'
     )
     finger(w, side, "Three")
     w.close("body")
@@ -272,7 +472,7 @@ def arm(w: Writer, side: str) -> None:
         'rgba="0.9 0.5 0.1 1"/>'
     )
     opened = 1
-    for k, (dz, axis, limit) in enumerate(ARM_JOINTS):
+    for k, (dz, axis, limit, _velocity, torque) in enumerate(ARM_JOINTS):
         w.open(f'<body name="{side}_arm_{k + 1}_link" pos="0 0 {f(dz)}">')
         opened += 1
         next_dz = ARM_JOINTS[k + 1][0] if k + 1 < len(ARM_JOINTS) else 0.02
@@ -285,7 +485,7 @@ def arm(w: Writer, side: str) -> None:
         lim = math.radians(limit)
         w.add(
             f'<joint name="{side}_arm_{k}_joint" class="arm" axis="{f(*axis)}" range="{f(-lim, lim)}" '
-            f'armature="{f(ARM_ARMATURE[k])}"/>'
+            f'armature="{f(ARM_ARMATURE[k])}" actuatorfrcrange="{f(-torque, torque)}"/>'
         )
         rgba = "0.9 0.5 0.1 1" if k % 2 == 0 else "0.85 0.85 0.85 1"
         if k < 5:
@@ -311,40 +511,55 @@ def arm(w: Writer, side: str) -> None:
 
 def head(w: Writer) -> None:
     """Neck (pan, tilt) and head with the camera ``head_camera`` looking along the tilt
-    link's +x."""
+    link's +x (image x = −y, image up = +z of head_tilt_link); the site ``head_camera_site``
+    has the camera's pose (for Pinocchio, which does not read cameras)."""
+    m_base, m_pan, m_tilt = HEAD_MASSES
     w.open(f'<body name="head_base" pos="{f(*HEAD_BASE)}">')
-    w.add(inertial((0, 0, 0.04), 0.8, cylinder_inertia(0.8, 0.05, 0.08)))
+    w.add(inertial((0, 0, 0.04), m_base, cylinder_inertia(m_base, 0.05, 0.08)))
     w.add('<geom class="robot" type="cylinder" pos="0 0 0.04" size="0.05 0.04" rgba="0.3 0.3 0.3 1"/>')
     w.open(f'<body name="head_pan_link" pos="0 0 {f(HEAD_PAN_Z)}">')
-    w.add(inertial((0, 0, 0.02), 0.5, cylinder_inertia(0.5, 0.04, 0.04)))
-    w.add('<joint name="head_pan_joint" class="head" axis="0 0 1" range="-1.57 1.57"/>')
+    w.add(inertial((0, 0, 0.02), m_pan, cylinder_inertia(m_pan, 0.04, 0.04)))
+    w.add(
+        f'<joint name="head_pan_joint" class="head" axis="0 0 1" range="{f(*HEAD_PAN_RANGE)}" '
+        f'actuatorfrcrange="{f(-HEAD_SERVO_TORQUE[0], HEAD_SERVO_TORQUE[0])}"/>'
+    )
     w.open(f'<body name="head_tilt_link" pos="0 0 {f(HEAD_TILT_Z)}">')
-    w.add(inertial((0.02, 0, 0.06), 1.5, box_inertia(1.5, (0.06, 0.12, 0.06))))
-    w.add('<joint name="head_tilt_joint" class="head" axis="0 1 0" range="-1.0 1.3"/>')
+    w.add(inertial((0.02, 0, 0.06), m_tilt, box_inertia(m_tilt, (0.06, 0.12, 0.06))))
+    w.add(
+        f'<joint name="head_tilt_joint" class="head" axis="0 1 0" range="{f(*HEAD_TILT_RANGE)}" '
+        f'actuatorfrcrange="{f(-HEAD_SERVO_TORQUE[1], HEAD_SERVO_TORQUE[1])}"/>'
+    )
     w.add('<geom class="robot" type="box" pos="0.02 0 0.06" size="0.06 0.12 0.06" rgba="0.8 0.8 0.8 1"/>')
     w.add('<geom class="robot" type="box" pos="0.085 0 0.05" size="0.015 0.09 0.02" rgba="0.1 0.1 0.1 1"/>')
-    w.add('<camera name="head_camera" pos="0.1 0 0.06" xyaxes="0 -1 0 0 0 1" fovy="58"/>')
-    w.add('<site name="head_camera_site" pos="0.1 0 0.06" size="0.01"/>')
+    w.add(
+        f'<camera name="head_camera" pos="{f(*HEAD_CAMERA_POS)}" xyaxes="0 -1 0 0 0 1" '
+        f'fovy="{f(HEAD_CAMERA_FOVY)}"/>'
+    )
+    w.add(f'<site name="head_camera_site" pos="{f(*HEAD_CAMERA_POS)}" xyaxes="0 -1 0 0 0 1" size="0.01"/>')
     for _ in range(3):
         w.close("body")
 
 
 def build() -> str:
-    """The full velma.xml text."""
+    """The full velma.xml text.
+
+    Raises ``ValueError`` if the arm's link masses do not add up to ``ARM_MASS`` or the hand
+    parts weigh more than the assembly (inconsistent constants)."""
+    if not math.isclose(ARM_BASE_MASS + sum(ARM_LINK_MASS), ARM_MASS):
+        raise ValueError(f"arm link masses add up to {ARM_BASE_MASS + sum(ARM_LINK_MASS)} kg, not {ARM_MASS}")
+    if bracket_mass() <= 0.0:
+        raise ValueError("BarrettHand parts weigh more than the hand assembly")
     w = Writer()
     w.add(
-        "<!-- GENERATED by velma/model/generate.py from velma-facts.md: edit the generator, "
-        "not this file. -->"
+        "<!-- GENERATED by velma/model/generate.py (sources: velma-facts.md, placeholders named "
+        "there): edit the generator, not this file. -->"
     )
     w.open('<mujoco model="velma">')
     w.add('<compiler angle="radian" autolimits="true"/>')
-    w.add(
-        '<option timestep="0.001" integrator="implicitfast" cone="elliptic" impratio="10" '
-        'solver="CG" iterations="60" tolerance="1e-8"/>'
-    )
+    w.add(OPTION)
     w.open("<default>")
     w.open('<default class="velma">')
-    w.add('<geom contype="2" conaffinity="1" condim="3" friction="0.8 0.02 0.001"/>')
+    w.add(f'<geom contype="2" conaffinity="1" condim="3" friction="{ROBOT_FRICTION}"/>')
     w.open('<default class="robot">')
     w.add('<geom contype="2" conaffinity="1"/>')
     w.close("default")
@@ -363,19 +578,20 @@ def build() -> str:
     )
     w.close("default")
     w.open('<default class="head">')
-    w.add('<joint type="hinge" damping="0.5" armature="0.01" limited="true"/>')
+    w.add(f'<joint type="hinge" damping="{f(HEAD_DAMPING)}" armature="{f(HEAD_ARMATURE)}" limited="true"/>')
     w.close("default")
     w.close("default")
     w.close("default")
     w.open("<worldbody>")
     w.open('<body name="torso_base" childclass="velma">')
-    w.add(inertial((0, 0, 0.25), 30.0, cylinder_inertia(30.0, 0.25, 0.5)))
+    w.add(inertial((0, 0, 0.25), TORSO_BASE_MASS, cylinder_inertia(TORSO_BASE_MASS, 0.25, 0.5)))
     w.add('<geom class="robot" type="cylinder" pos="0 0 0.015" size="0.3 0.015" rgba="0.25 0.25 0.25 1"/>')
     w.open(f'<body name="torso_link0" pos="0 0 {f(TORSO_JOINT_Z)}">')
-    w.add(inertial((0, 0, 0.7), 30.0, box_inertia(30.0, (0.12, 0.18, 0.6))))
+    w.add(inertial((0, 0, 0.7), TORSO_LINK0_MASS, box_inertia(TORSO_LINK0_MASS, (0.12, 0.18, 0.6))))
     w.add(
         f'<joint name="torso_0_joint" type="hinge" axis="0 0 1" range="{f(-TORSO_LIMIT, TORSO_LIMIT)}" '
-        f'damping="{f(TORSO_DAMPING)}" armature="0.5"/>'
+        f'damping="{f(TORSO_DAMPING)}" armature="{f(TORSO_ARMATURE)}" '
+        f'actuatorfrcrange="{f(-TORSO_TORQUE, TORSO_TORQUE)}"/>'
     )
     w.add('<geom class="robot" type="cylinder" pos="0 0 0.55" size="0.11 0.55" rgba="0.6 0.6 0.62 1"/>')
     w.add('<geom class="robot" type="box" pos="-0.03 0 1.16" size="0.1 0.14 0.09" rgba="0.6 0.6 0.62 1"/>')
@@ -388,41 +604,44 @@ def build() -> str:
     w.open("<actuator>")
     for side in ("right", "left"):
         for k in range(7):
-            lim = 100.0 if k < 5 else 60.0
+            lim = ARM_JOINTS[k][4]
             w.add(
                 f'<motor name="{side}_arm_{k}_motor" joint="{side}_arm_{k}_joint" '
-                f'ctrlrange="{f(-lim, lim)}"/>'
+                f'ctrlrange="{f(-lim, lim)}" forcerange="{f(-lim, lim)}"/>'
             )
-    w.add('<motor name="torso_0_motor" joint="torso_0_joint" ctrlrange="-300 300"/>')
     w.add(
-        '<position name="head_pan_servo" joint="head_pan_joint" kp="40" dampratio="1" ctrlrange="-1.57 1.57" '
-        'forcerange="-10 10"/>'
+        f'<motor name="torso_0_motor" joint="torso_0_joint" ctrlrange="{f(-TORSO_TORQUE, TORSO_TORQUE)}" '
+        f'forcerange="{f(-TORSO_TORQUE, TORSO_TORQUE)}"/>'
     )
-    w.add(
-        '<position name="head_tilt_servo" joint="head_tilt_joint" kp="60" dampratio="1" ctrlrange="-1.0 1.3" '
-        'forcerange="-15 15"/>'
-    )
+    for joint, kp, torque, lo_hi in (
+        ("head_pan", HEAD_SERVO_KP[0], HEAD_SERVO_TORQUE[0], HEAD_PAN_RANGE),
+        ("head_tilt", HEAD_SERVO_KP[1], HEAD_SERVO_TORQUE[1], HEAD_TILT_RANGE),
+    ):
+        w.add(
+            f'<position name="{joint}_servo" joint="{joint}_joint" kp="{f(kp)}" dampratio="1" '
+            f'ctrlrange="{f(*lo_hi)}" forcerange="{f(-torque, torque)}"/>'
+        )
     for side in ("right", "left"):
         for name in ("One", "Two"):
             w.add(
                 f'<position name="{side}_HandFinger{name}KnuckleOneServo" '
-                f'joint="{side}_HandFinger{name}KnuckleOneJoint" kp="10" dampratio="1" '
-                f'ctrlrange="{f(*FINGER_SPREAD_RANGE)}" forcerange="-2 2"/>'
+                f'joint="{side}_HandFinger{name}KnuckleOneJoint" kp="{f(SPREAD_SERVO[0])}" dampratio="1" '
+                f'ctrlrange="{f(*FINGER_SPREAD_RANGE)}" forcerange="{f(-SPREAD_SERVO[1], SPREAD_SERVO[1])}"/>'
             )
         for name in ("One", "Two", "Three"):
             w.add(
                 f'<position name="{side}_HandFinger{name}KnuckleTwoServo" '
-                f'joint="{side}_HandFinger{name}KnuckleTwoJoint" kp="20" dampratio="1" '
-                f'ctrlrange="{f(*PROXIMAL_RANGE)}" forcerange="-1.5 1.5"/>'
+                f'joint="{side}_HandFinger{name}KnuckleTwoJoint" kp="{f(PROXIMAL_SERVO[0])}" dampratio="1" '
+                f'ctrlrange="{f(*PROXIMAL_RANGE)}" forcerange="{f(-PROXIMAL_SERVO[1], PROXIMAL_SERVO[1])}"/>'
             )
             w.add(
                 f'<position name="{side}_HandFinger{name}KnuckleThreeServo" '
-                f'joint="{side}_HandFinger{name}KnuckleThreeJoint" kp="10" dampratio="1" '
-                f'ctrlrange="{f(*DISTAL_RANGE)}" forcerange="-0.6 0.6"/>'
+                f'joint="{side}_HandFinger{name}KnuckleThreeJoint" kp="{f(DISTAL_SERVO[0])}" dampratio="1" '
+                f'ctrlrange="{f(*DISTAL_RANGE)}" forcerange="{f(-DISTAL_SERVO[1], DISTAL_SERVO[1])}"/>'
             )
     w.close("actuator")
     w.open("<sensor>")
-    for side in ("right", "left"):
+    for side in ("right", "left"):  # 6-axis F/T sensor at each wrist (facts)
         w.add(f'<force name="{side}_ft_force" site="{side}_ft_sensor"/>')
         w.add(f'<torque name="{side}_ft_torque" site="{side}_ft_sensor"/>')
     w.close("sensor")
@@ -430,13 +649,298 @@ def build() -> str:
     return "\n".join(w.lines) + "\n"
 
 
+# ============================================================== kitchen (kitchen.xml)
+# World frame: z up, origin on the floor under Velma's torso, x forward (towards the cabinet
+# at torso angle 0). Object frames are at the object's bottom centre, z up.
+#
+# Cabinet (the "shelf"): a kitchen base cabinet whose worktop is the shelf the jar and bowl
+# stand on, 0.85 m high (everyday size: kitchen worktops are 0.85–0.95 m high, the standard
+# base cabinet is 0.85 m), with an open compartment above (0.46 m clear height, 0.86 m wide
+# and 0.38 m deep inside: a wall-cabinet-sized opening, everyday size), 1.35 m high in all.
+# Fixed to the world: a cabinet is ≥ 30 kg and fixed to the wall.
+CABINET_POS = (0.82, 0.0, 0.0)  # m, placeholder placement in front of Velma (paper §5.3 scene)
+CABINET_HALF = (0.2, 0.45)  # m, half depth, half width (outer)
+SHELF_HEIGHT = 0.85  # m, top of the base (everyday size)
+CABINET_HEIGHT = 1.35  # m, top of the top board (everyday size)
+PANEL = 0.01  # m, half thickness of the side/back panels (a 20 mm board)
+TOP_HALF = 0.02  # m, half thickness of the top board
+# Table to the robot's right: a small kitchen table, top at 0.75 m (everyday size: tables are
+# 0.72–0.76 m high), 0.6 × 0.6 m, 40 mm top, 50 mm legs. Fixed to the world (placeholder: a
+# table is ≥ 15 kg and is only touched lightly when the bowl is put down).
+TABLE_POS = (0.3, -0.65, 0.0)  # m, placeholder placement (paper §5.3 scene)
+TABLE_TOP_HEIGHT = 0.75  # m
+TABLE_HALF = 0.3  # m
+TABLE_TOP_HALF_THICKNESS = 0.02  # m
+TABLE_LEG_HALF = 0.025  # m
+# Jar: an open glass jar of ≈ 0.6 l: outer ø 0.09 m, 0.12 m high, 0.25 kg (everyday size:
+# 0.5–0.7 l glass jars weigh 0.2–0.3 kg). Walls are 4 mm thick (a real jar's 2.5–3 mm, made
+# thicker for robust contacts), bottom 6 mm; 16 wall boxes around a disc.
+JAR_POS = (0.70, 0.2, 0.85)  # m, on the shelf (placeholder placement)
+JAR_RADIUS = 0.045  # m, outer
+JAR_HEIGHT = 0.12  # m
+JAR_WALL = 0.004  # m
+JAR_BOTTOM = 0.006  # m
+JAR_MASS = 0.25  # kg
+JAR_WALLS = 16
+JAR_WALL_HALF_WIDTH = 0.0092  # m: 0.043·tan(π/16) = 0.0086 m closes the polygon; boxes overlap a little
+# Bowl: a small ceramic bowl: ø 0.13 m at the rim, 0.061 m high, walls flared 12°, 0.2 kg
+# (everyday size: a 0.4 l cereal/dessert bowl weighs 0.2–0.3 kg). 20 wall boxes on a disc.
+BOWL_POS = (0.70, -0.2, 0.85)  # m, on the shelf (placeholder placement)
+BOWL_MASS = 0.2  # kg
+BOWL_BOTTOM_RADIUS = 0.05  # m
+BOWL_BOTTOM = 0.006  # m, thickness
+BOWL_WALL_RADIUS = 0.0565  # m, radius of the wall boxes' centres
+BOWL_WALL_HALF = (0.0025, 0.0101, 0.0305)  # m, 5 mm thick walls
+BOWL_FLARE = 0.21  # rad, ≈ 12°
+BOWL_WALLS = 20
+BOWL_INNER_RADIUS = 0.055  # m, the counting volume's radius (inside the flared walls at mid height)
+BOWL_INNER_TOP = 0.06  # m, top of the counting volume (≈ the rim)
+CONTAINER_FRICTION = "0.9 0.02 0.001"  # glass/glazed ceramic against rubber pads (placeholder)
+ENV_FRICTION = "0.8 0.02 0.001"  # placeholder
+
+
+def _box_tensor(mass: float, half: Vec, rot: npt.NDArray[np.float64], pos: Vec) -> npt.NDArray[np.float64]:
+    """Inertia tensor (3, 3) about the origin of a uniform box (mass kg, half-sizes m)
+    rotated by ``rot`` and centred at ``pos``."""
+    local = np.diag(box_inertia(mass, half))
+    p = np.asarray(pos, dtype=float)
+    out: npt.NDArray[np.float64] = rot @ local @ rot.T + mass * (p @ p * np.eye(3) - np.outer(p, p))
+    return out
+
+
+def _cylinder_tensor(mass: float, radius: float, half_height: float, z: float) -> npt.NDArray[np.float64]:
+    """Inertia tensor (3, 3) about the origin of a uniform disc on the z axis at height z."""
+    p = np.array([0.0, 0.0, z])
+    local = np.diag(cylinder_inertia(mass, radius, 2 * half_height))
+    out: npt.NDArray[np.float64] = local + mass * (p @ p * np.eye(3) - np.outer(p, p))
+    return out
+
+
+def ring_inertial(
+    total_mass: float,
+    bottom: tuple[float, float],
+    walls: int,
+    wall_pos: Vec,
+    wall_half: Vec,
+    wall_pitch: float,
+) -> tuple[Vec, Vec]:
+    """Centre of mass (m) and principal inertia (kg·m², about the centre of mass) of a
+    container made of a bottom disc (radius, thickness) and ``walls`` boxes at ``wall_pos``
+    (half-sizes ``wall_half``, pitched by ``wall_pitch`` rad about y) repeated about z, with
+    ``total_mass`` spread uniformly over the volume (derived from the collision geometry)."""
+    v_bottom = math.pi * bottom[0] ** 2 * bottom[1]
+    v_wall = 8 * wall_half[0] * wall_half[1] * wall_half[2]
+    density = total_mass / (v_bottom + walls * v_wall)
+    m_bottom, m_wall = density * v_bottom, density * v_wall
+    tensor = _cylinder_tensor(m_bottom, bottom[0], bottom[1] / 2, bottom[1] / 2)
+    moment = m_bottom * np.array([0.0, 0.0, bottom[1] / 2])
+    pitch = quat_matrix(rpy_to_quat((0.0, wall_pitch, 0.0)))
+    for i in range(walls):
+        yaw = quat_matrix(rpy_to_quat((0.0, 0.0, 2 * math.pi * i / walls)))
+        pos = yaw @ np.asarray(wall_pos, dtype=float)
+        tensor += _box_tensor(m_wall, wall_half, yaw @ pitch, (float(pos[0]), float(pos[1]), float(pos[2])))
+        moment += m_wall * pos
+    com = moment / total_mass
+    about_com = tensor - total_mass * (com @ com * np.eye(3) - np.outer(com, com))
+    # symmetric about z: the tensor is diagonal (off-diagonal terms vanish to rounding)
+    diag = np.diag(about_com)
+    return (0.0, 0.0, float(com[2])), (float(diag[0]), float(diag[1]), float(diag[2]))
+
+
+def jar_inertial() -> tuple[Vec, Vec]:
+    """Centre of mass and principal inertia of the jar (derived, see ``ring_inertial``)."""
+    wall_z = (JAR_HEIGHT + JAR_BOTTOM) / 2
+    half = (JAR_WALL / 2, JAR_WALL_HALF_WIDTH, (JAR_HEIGHT - JAR_BOTTOM) / 2)
+    return ring_inertial(
+        JAR_MASS, (JAR_RADIUS, JAR_BOTTOM), JAR_WALLS, (JAR_RADIUS - JAR_WALL / 2, 0.0, wall_z), half, 0.0
+    )
+
+
+def bowl_inertial() -> tuple[Vec, Vec]:
+    """Centre of mass and principal inertia of the bowl (derived, see ``ring_inertial``)."""
+    return ring_inertial(
+        BOWL_MASS,
+        (BOWL_BOTTOM_RADIUS, BOWL_BOTTOM),
+        BOWL_WALLS,
+        (BOWL_WALL_RADIUS, 0.0, BOWL_WALL_HALF[2]),
+        BOWL_WALL_HALF,
+        BOWL_FLARE,
+    )
+
+
+def g(*values: float) -> str:
+    """Format numbers for MJCF attributes (6 significant digits: derived inertias)."""
+    return " ".join(f"{v + 0.0:.6g}" for v in values)
+
+
+KITCHEN_HEADER = """<!--
+  GENERATED by velma/model/generate.py: edit the generator, not this file.
+
+  The kitchen of the pouring experiment (paper §5.3): Velma (velma.xml), an open cabinet
+  holding a jar and a bowl, and a table. World frame: z up, origin on the floor under Velma's
+  torso, x forward (towards the cabinet at torso angle 0).
+
+  Object frames (jar, bowl, table, cabinet) are the body frames, at the object's bottom
+  centre, z up. The jar's content (free spheres jar_content_0..N-1) is added at load time by
+  velma/model/scene.py (load_kitchen), which also reads the containers' inner volumes from
+  the sites jar_inner / bowl_inner (cylinders: radius, half height). Sizes and masses, with
+  their sources: velma/model/generate.py.
+
+  Simplifications (named): containers are rings of boxes (polygonal walls) on a disc;
+  the cabinet and table are fixed boxes; the content is rigid spheres (no granular cohesion).
+-->"""
+
+
+def build_kitchen() -> str:
+    """The full kitchen.xml text."""
+    w = Writer()
+    for line in KITCHEN_HEADER.splitlines():
+        w.lines.append(line)
+    w.open('<mujoco model="kitchen">')
+    w.add('<include file="velma.xml"/>')
+    w.add(OPTION)
+    w.add('<size memory="64M"/>')
+    w.open("<visual>")
+    w.add('<global offwidth="1280" offheight="960"/>')
+    w.add('<quality shadowsize="2048"/>')
+    w.close("visual")
+    w.open("<asset>")
+    w.add(
+        '<texture name="floor_tex" type="2d" builtin="checker" rgb1="0.55 0.55 0.5" rgb2="0.45 0.45 0.42" '
+        'width="256" height="256"/>'
+    )
+    w.add('<material name="floor_mat" texture="floor_tex" texrepeat="8 8" reflectance="0.05"/>')
+    w.add('<material name="wood" rgba="0.62 0.45 0.3 1"/>')
+    w.add('<material name="cabinet_mat" rgba="0.85 0.82 0.75 1"/>')
+    w.add('<material name="glass" rgba="0.6 0.8 0.9 0.45"/>')
+    w.add('<material name="ceramic" rgba="0.9 0.9 0.95 1"/>')
+    w.close("asset")
+    w.open("<default>")
+    w.open('<default class="env">')
+    w.add(f'<geom contype="1" conaffinity="3" condim="3" friction="{ENV_FRICTION}"/>')
+    w.open('<default class="jar_wall">')
+    w.add(f'<geom type="box" material="glass" friction="{CONTAINER_FRICTION}" solref="0.004 1"/>')
+    w.close("default")
+    w.open('<default class="bowl_wall">')
+    w.add(f'<geom type="box" material="ceramic" friction="{CONTAINER_FRICTION}" solref="0.004 1"/>')
+    w.close("default")
+    w.close("default")
+    w.close("default")
+    w.open("<worldbody>")
+    w.add('<light name="sun" pos="0.5 -0.5 3" dir="-0.1 0.2 -1" directional="true" diffuse="0.7 0.7 0.7"/>')
+    w.add('<light name="fill" pos="-1.5 0 2.5" dir="1 0 -0.8" diffuse="0.35 0.35 0.35"/>')
+    w.add('<geom name="floor" class="env" type="plane" size="4 4 0.05" material="floor_mat"/>')
+    for name, pos, axes in (
+        ("overview", "-0.7 1.3 1.9", "-0.781 -0.625 0 0.288 -0.361 0.887"),
+        ("cabinet_view", "0.1 1.0 1.5", "-0.857 -0.514 0 0.219 -0.366 0.904"),
+        ("pour_view", "0.9 0.2 1.3", "-0.800 0.600 0 -0.268 -0.358 0.894"),
+        ("cabinet_right", "0.15 -0.9 1.4", "0.824 -0.567 0 0.259 0.377 0.889"),
+        ("side_view", "0.4 1.8 1.2", "-1 0 0 0 -0.110 0.994"),
+    ):
+        w.add(f'<camera name="{name}" pos="{pos}" xyaxes="{axes}"/>')  # viewpoints for rendering only
+
+    # cabinet: open toward -x (toward the robot)
+    dx, dy = CABINET_HALF
+    zc = (SHELF_HEIGHT + CABINET_HEIGHT) / 2  # side and back panels: from the shelf to the top
+    hc = (CABINET_HEIGHT - SHELF_HEIGHT) / 2
+    w.add(
+        "<!-- Cabinet, open toward -x (the robot): base up to the 0.85 m shelf, a compartment "
+        "0.86 x 0.38 m inside, 0.46 m clear. -->"
+    )
+    w.open(f'<body name="cabinet" pos="{f(*CABINET_POS)}">')
+    for part, at, size in (
+        ("cabinet_base", (0, 0, SHELF_HEIGHT / 2), (dx, dy, SHELF_HEIGHT / 2)),
+        ("cabinet_back", (dx - PANEL, 0, zc), (PANEL, dy, hc)),
+        ("cabinet_left", (0, dy - PANEL, zc), (dx, PANEL, hc)),
+        ("cabinet_right", (0, -(dy - PANEL), zc), (dx, PANEL, hc)),
+        ("cabinet_top", (0, 0, CABINET_HEIGHT - TOP_HALF), (dx, dy, TOP_HALF)),
+    ):
+        w.add(
+            f'<geom name="{part}" class="env" type="box" pos="{f(*at)}" size="{f(*size)}" '
+            'material="cabinet_mat"/>'
+        )
+    w.close("body")
+
+    # table
+    top_z = TABLE_TOP_HEIGHT - TABLE_TOP_HALF_THICKNESS
+    leg_half_h = (TABLE_TOP_HEIGHT - 2 * TABLE_TOP_HALF_THICKNESS) / 2
+    leg_xy = TABLE_HALF - 0.04
+    w.add("<!-- Table to the robot's right: top at 0.75 m, 0.6 x 0.6 m. -->")
+    w.open(f'<body name="table" pos="{f(*TABLE_POS)}">')
+    w.add(
+        f'<geom name="table_top" class="env" type="box" pos="{f(0, 0, top_z)}" '
+        f'size="{f(TABLE_HALF, TABLE_HALF, TABLE_TOP_HALF_THICKNESS)}" material="wood"/>'
+    )
+    for i, (sx, sy) in enumerate(((1, 1), (-1, 1), (1, -1), (-1, -1))):
+        w.add(
+            f'<geom name="table_leg{i}" class="env" type="box" '
+            f'pos="{f(sx * leg_xy, sy * leg_xy, leg_half_h)}" '
+            f'size="{f(TABLE_LEG_HALF, TABLE_LEG_HALF, leg_half_h)}" material="wood"/>'
+        )
+    w.close("body")
+
+    # jar
+    jar_com, jar_inertia = jar_inertial()
+    wall_half_h = (JAR_HEIGHT - JAR_BOTTOM) / 2
+    inner_r = JAR_RADIUS - JAR_WALL
+    w.add("<!-- Jar: open glass jar, outer diameter 0.09 m, 0.12 m high, 0.25 kg. -->")
+    w.open(f'<body name="jar" pos="{f(*JAR_POS)}">')
+    w.add('<freejoint name="jar_free"/>')
+    w.add(f'<inertial pos="{g(*jar_com)}" mass="{g(JAR_MASS)}" diaginertia="{g(*jar_inertia)}"/>')
+    w.add(
+        f'<geom name="jar_bottom" class="jar_wall" type="cylinder" pos="{f(0, 0, JAR_BOTTOM / 2)}" '
+        f'size="{f(JAR_RADIUS, JAR_BOTTOM / 2)}"/>'
+    )
+    w.open(f'<replicate count="{JAR_WALLS}" euler="0 0 {f(2 * math.pi / JAR_WALLS)}">')
+    w.add(
+        f'<geom name="jar_wall" class="jar_wall" '
+        f'pos="{f(JAR_RADIUS - JAR_WALL / 2, 0, JAR_BOTTOM + wall_half_h)}" '
+        f'size="{f(JAR_WALL / 2, JAR_WALL_HALF_WIDTH, wall_half_h)}"/>'
+    )
+    w.close("replicate")
+    w.add(
+        f'<site name="jar_inner" type="cylinder" pos="{f(0, 0, JAR_BOTTOM + wall_half_h)}" '
+        f'size="{f(inner_r, wall_half_h)}" rgba="0 0 1 0" group="5"/>'
+    )
+    w.close("body")
+
+    # bowl
+    bowl_com, bowl_inertia = bowl_inertial()
+    w.add("<!-- Bowl: ceramic, 0.13 m across the rim, 0.06 m high, walls flared 12 degrees, 0.2 kg. -->")
+    w.open(f'<body name="bowl" pos="{f(*BOWL_POS)}">')
+    w.add('<freejoint name="bowl_free"/>')
+    w.add(f'<inertial pos="{g(*bowl_com)}" mass="{g(BOWL_MASS)}" diaginertia="{g(*bowl_inertia)}"/>')
+    w.add(
+        f'<geom name="bowl_bottom" class="bowl_wall" type="cylinder" pos="{f(0, 0, BOWL_BOTTOM / 2)}" '
+        f'size="{f(BOWL_BOTTOM_RADIUS, BOWL_BOTTOM / 2)}"/>'
+    )
+    w.open(f'<replicate count="{BOWL_WALLS}" euler="0 0 {f(2 * math.pi / BOWL_WALLS)}">')
+    w.add(
+        f'<geom name="bowl_wall" class="bowl_wall" pos="{f(BOWL_WALL_RADIUS, 0, BOWL_WALL_HALF[2])}" '
+        f'euler="0 {f(BOWL_FLARE)} 0" size="{f(*BOWL_WALL_HALF)}"/>'
+    )
+    w.close("replicate")
+    # inner volume: above the bottom, inside the rim (a sphere whose centre is here is "in the bowl")
+    half = (BOWL_INNER_TOP - BOWL_BOTTOM) / 2
+    w.add(
+        f'<site name="bowl_inner" type="cylinder" pos="{f(0, 0, BOWL_BOTTOM + half)}" '
+        f'size="{f(BOWL_INNER_RADIUS, half)}" rgba="0 0 1 0" group="5"/>'
+    )
+    w.close("body")
+    w.close("worldbody")
+    w.close("mujoco")
+    return "\n".join(w.lines) + "\n"
+
+
 def main(argv: list[str] | None = None) -> int:
-    """Write velma.xml (or ``--check``: exit 1 when it differs from the generator's output)."""
+    """Write velma.xml and kitchen.xml (or ``--check``: exit 1 when either differs from the
+    generator's output)."""
     args = sys.argv[1:] if argv is None else argv
-    text = build()
+    outputs = ((VELMA_XML, build()), (KITCHEN_XML, build_kitchen()))
     if "--check" in args:
-        return 0 if VELMA_XML.read_text() == text else 1
-    VELMA_XML.write_text(text)
+        return 0 if all(path.read_text() == text for path, text in outputs) else 1
+    for path, text in outputs:
+        path.write_text(text)
     return 0
 
 

@@ -6,6 +6,13 @@ helix inside the jar; ``seed`` jitters their start positions by up to ±1.5 mm s
 different seeds give different (but always valid) piles. ``initial_state`` puts the robot in
 its home posture and lets the content settle.
 
+Pose randomisation (for robustness benchmarks): ``pose_seed`` (None by default: the poses of
+kitchen.xml, exactly) moves the jar and the bowl on the shelf by independent uniform offsets
+within ±``POSE_OFFSET_MAX`` (2 cm) in x and y and turns each about its vertical axis by a
+uniform angle within ±``POSE_YAW_MAX`` (10°), deterministically from the seed. The jar's
+content is placed in the moved jar's frame, so it starts inside it. ``scene_perturbation``
+returns what a seed applies, for benchmarks to print.
+
 Simplification (named): the content is rigid spheres of ø18 mm, 3 g each (density
 ≈ 1000 kg/m³, like dried peas or beans in size class), with plain Coulomb friction.
 """
@@ -13,9 +20,11 @@ Simplification (named): the content is rigid spheres of ø18 mm, 3 g each (densi
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import mujoco
 import numpy as np
+import numpy.typing as npt
 
 from velma.model import KITCHEN_XML
 
@@ -27,6 +36,9 @@ HELIX_RADIUS = 0.022  # m, in the jar frame
 HELIX_PER_TURN = 7
 HELIX_PITCH = 0.021  # m per turn
 HELIX_Z0 = 0.017  # m above the jar frame (bottom centre)
+PERTURBED_OBJECTS = ("jar", "bowl")
+POSE_OFFSET_MAX = 0.02  # m, |dx|, |dy| bound of the pose randomisation
+POSE_YAW_MAX = math.radians(10.0)  # rad, |yaw| bound of the pose randomisation
 
 # Home posture (rad), hands open. Left arm bent in front of the torso; right arm in the
 # palm-down "ready" posture above the shelf (velma/scenario.py RIGHT_PICK_POSTURE explains
@@ -57,15 +69,77 @@ def particle_names(n: int = N_PARTICLES) -> list[str]:
     return [f"{PARTICLE_PREFIX}{i}" for i in range(n)]
 
 
-def build_spec(n_particles: int = N_PARTICLES, seed: int = 0) -> mujoco.MjSpec:
+@dataclass(frozen=True)
+class ObjectPerturbation:
+    """Offset of one object from its kitchen.xml pose: ``dx``, ``dy`` (m, world x/y) and
+    ``yaw`` (rad, about the object's vertical axis, applied before its own rotation)."""
+
+    dx: float = 0.0
+    dy: float = 0.0
+    yaw: float = 0.0
+
+
+@dataclass(frozen=True)
+class ScenePerturbation:
+    """The pose randomisation applied to the kitchen: one ``ObjectPerturbation`` per object
+    of ``PERTURBED_OBJECTS`` (jar, bowl); ``seed`` is the pose seed (None: no perturbation)."""
+
+    seed: int | None
+    jar: ObjectPerturbation
+    bowl: ObjectPerturbation
+
+    def as_dict(self) -> dict[str, dict[str, float]]:
+        """{object: {"dx": m, "dy": m, "yaw": rad}}, for printing and reports."""
+        return {n: {"dx": p.dx, "dy": p.dy, "yaw": p.yaw} for n, p in self.objects().items()}
+
+    def objects(self) -> dict[str, ObjectPerturbation]:
+        """{object name: its perturbation}."""
+        return {"jar": self.jar, "bowl": self.bowl}
+
+
+def scene_perturbation(pose_seed: int | None) -> ScenePerturbation:
+    """The perturbation that ``build_spec(..., pose_seed=pose_seed)`` applies: for each of jar
+    and bowl (in that order) dx, dy uniform in ±``POSE_OFFSET_MAX`` m and yaw uniform in
+    ±``POSE_YAW_MAX`` rad, drawn from ``numpy.random.default_rng(pose_seed)``; all zero for
+    None. Raises ``ValueError`` for a negative seed (as numpy does)."""
+    if pose_seed is None:
+        return ScenePerturbation(seed=None, jar=ObjectPerturbation(), bowl=ObjectPerturbation())
+    rng = np.random.default_rng(pose_seed)
+    draws = []
+    for _ in PERTURBED_OBJECTS:
+        dx, dy = rng.uniform(-POSE_OFFSET_MAX, POSE_OFFSET_MAX, size=2)
+        yaw = rng.uniform(-POSE_YAW_MAX, POSE_YAW_MAX)
+        draws.append(ObjectPerturbation(dx=float(dx), dy=float(dy), yaw=float(yaw)))
+    return ScenePerturbation(seed=pose_seed, jar=draws[0], bowl=draws[1])
+
+
+def _yaw_quat(yaw: float) -> npt.NDArray[np.float64]:
+    """Quaternion (w, x, y, z) of a rotation by ``yaw`` rad about z."""
+    return np.array([math.cos(yaw / 2), 0.0, 0.0, math.sin(yaw / 2)])
+
+
+def build_spec(n_particles: int = N_PARTICLES, seed: int = 0, pose_seed: int | None = None) -> mujoco.MjSpec:
     """kitchen.xml as an MjSpec with the jar content added (see module docstring).
 
-    Raises ``ValueError`` if ``n_particles`` does not fit the helix (more than 35)."""
+    ``seed`` jitters the content's start positions; ``pose_seed`` randomises the jar and bowl
+    poses (``scene_perturbation``; None keeps kitchen.xml's poses exactly). Raises
+    ``ValueError`` if ``n_particles`` does not fit the helix (more than 35)."""
     if not 0 <= n_particles <= 35:
         raise ValueError(f"n_particles={n_particles}: the jar holds 0..35 spheres")
     spec = mujoco.MjSpec.from_file(str(KITCHEN_XML))
+    perturbation = scene_perturbation(pose_seed)
+    if pose_seed is not None:
+        for name, p in perturbation.objects().items():
+            body = spec.body(name)
+            body.pos = np.array(body.pos, dtype=float) + np.array([p.dx, p.dy, 0.0])
+            quat = np.zeros(4)
+            mujoco.mju_mulQuat(quat, _yaw_quat(p.yaw), np.array(body.quat, dtype=float))
+            body.quat = quat
     jar = spec.body("jar")
     jar_pos = np.array(jar.pos, dtype=float)
+    jar_mat = np.zeros(9)
+    mujoco.mju_quat2Mat(jar_mat, np.array(jar.quat, dtype=float))
+    jar_rot = jar_mat.reshape(3, 3)
     rng = np.random.default_rng(seed)
     for i, name in enumerate(particle_names(n_particles)):
         angle = 2 * math.pi * i / HELIX_PER_TURN
@@ -77,7 +151,7 @@ def build_spec(n_particles: int = N_PARTICLES, seed: int = 0) -> mujoco.MjSpec:
             ]
         )
         local[:2] += rng.uniform(-0.0015, 0.0015, size=2)
-        body = spec.worldbody.add_body(name=name, pos=jar_pos + local)
+        body = spec.worldbody.add_body(name=name, pos=jar_pos + jar_rot @ local)  # in the jar frame
         body.add_freejoint()
         body.add_geom(
             name=f"{name}_geom",
@@ -94,9 +168,12 @@ def build_spec(n_particles: int = N_PARTICLES, seed: int = 0) -> mujoco.MjSpec:
     return spec
 
 
-def load_kitchen(n_particles: int = N_PARTICLES, seed: int = 0) -> mujoco.MjModel:
-    """Compiled kitchen model with ``n_particles`` content spheres (see ``build_spec``)."""
-    return build_spec(n_particles, seed).compile()
+def load_kitchen(
+    n_particles: int = N_PARTICLES, seed: int = 0, pose_seed: int | None = None
+) -> mujoco.MjModel:
+    """Compiled kitchen model with ``n_particles`` content spheres and, for a ``pose_seed``,
+    randomised jar and bowl poses (see ``build_spec``; same errors)."""
+    return build_spec(n_particles, seed, pose_seed).compile()
 
 
 def set_posture(model: mujoco.MjModel, data: mujoco.MjData, posture: dict[str, float]) -> None:
