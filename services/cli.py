@@ -67,6 +67,10 @@ def run(
     realtime: Annotated[bool, typer.Option(help="pace the simulation to wall time")] = False,
     timeout: Annotated[float, typer.Option(help="give up after this many seconds")] = 900.0,
     quiet: Annotated[bool, typer.Option(help="print only the outcome")] = False,
+    seed: Annotated[int, typer.Option(min=0, help="jitter of the jar content's start positions")] = 0,
+    pose_seed: Annotated[
+        int | None, typer.Option(min=0, help="randomise the jar and bowl poses (±2 cm, ±10°) with this seed")
+    ] = None,
 ) -> None:
     """Start router, recorder and one process per agent; give a_hi the command; wait for the
     outcome; stop everything; write the run folder's report. Exit 0 only on success."""
@@ -74,8 +78,15 @@ def run(
 
     run_dir = new_run_dir(runs_dir)
     endpoint = f"tcp/127.0.0.1:{free_port()}"
-    info = RunInfo(command=command, started=time.time(), router=endpoint, realtime=realtime)
-    fleet = Fleet(run_dir, endpoint, env={"ROCO_REALTIME": "1" if realtime else "0"})
+    info = RunInfo(
+        command=command,
+        started=time.time(),
+        router=endpoint,
+        realtime=realtime,
+        seed=seed,
+        pose_seed=pose_seed,
+    )
+    fleet = Fleet(run_dir, endpoint, env=_scene_env(realtime, seed, pose_seed))
     t0 = info.started
     lines: queue.SimpleQueue[str | HumanReport] = queue.SimpleQueue()
     request_id = uuid.uuid4().hex[:8]
@@ -154,6 +165,14 @@ def run(
         raise fail(f"the task failed: {info.detail} (run folder {run_dir})")
 
 
+def _scene_env(realtime: bool, seed: int, pose_seed: int | None) -> dict[str, str]:
+    """The environment that tells ag_ex its pacing and scene (services/executor/agent.py)."""
+    env = {"ROCO_REALTIME": "1" if realtime else "0", "ROCO_SEED": str(seed)}
+    if pose_seed is not None:
+        env["ROCO_POSE_SEED"] = str(pose_seed)
+    return env
+
+
 def _finish_report(run_dir: Path, info: RunInfo) -> None:
     from services.report import build_report, write_report
 
@@ -176,6 +195,10 @@ def up(
     port: Annotated[int, typer.Option(help="router TCP port on 127.0.0.1")] = 7447,
     runs_dir: Annotated[Path, typer.Option(help="where the fleet's run folder is made")] = Path("runs"),
     realtime: Annotated[bool, typer.Option(help="pace the simulation to wall time")] = True,
+    seed: Annotated[int, typer.Option(min=0, help="jitter of the jar content's start positions")] = 0,
+    pose_seed: Annotated[
+        int | None, typer.Option(min=0, help="randomise the jar and bowl poses (±2 cm, ±10°) with this seed")
+    ] = None,
 ) -> None:
     """Start router, recorder and all agents in the background; they keep running until
     ``roco down``."""
@@ -184,7 +207,7 @@ def up(
         raise fail(f"a fleet is already up ({state_file}); run 'roco down' first")
     run_dir = new_run_dir(runs_dir)
     endpoint = f"tcp/127.0.0.1:{port}"
-    fleet = Fleet(run_dir, endpoint, env={"ROCO_REALTIME": "1" if realtime else "0"})
+    fleet = Fleet(run_dir, endpoint, env=_scene_env(realtime, seed, pose_seed))
     try:
         fleet.start_router()
         session = open_client(endpoint)
@@ -197,7 +220,15 @@ def up(
         fleet.stop()
         raise fail(str(exc)) from None
     write_run_info(
-        run_dir, RunInfo(started=time.time(), router=endpoint, processes=fleet.pids(), realtime=realtime)
+        run_dir,
+        RunInfo(
+            started=time.time(),
+            router=endpoint,
+            processes=fleet.pids(),
+            realtime=realtime,
+            seed=seed,
+            pose_seed=pose_seed,
+        ),
     )
     state_file.write_bytes(msgspec.json.encode(FleetState(endpoint, str(run_dir), fleet.pids())))
     typer.echo(f"roco: fleet up on {endpoint} in {waited:.1f} s; run folder {run_dir}")

@@ -65,10 +65,16 @@ class ExecutorAgent(Agent):
 
     def make_executor(self) -> Any:
         """The hard-timing executor this agent serves: velma's loop in its own process, paced
-        to wall time when ROCO_REALTIME=1."""
+        to wall time when ROCO_REALTIME=1; ROCO_SEED (default 0) jitters the jar's content,
+        ROCO_POSE_SEED (unset: none) randomises the jar and bowl poses."""
         from velma.executor import ExecutorProcess
 
-        return ExecutorProcess(realtime=os.environ.get("ROCO_REALTIME", "0") == "1")
+        pose = os.environ.get("ROCO_POSE_SEED", "")
+        return ExecutorProcess(
+            realtime=os.environ.get("ROCO_REALTIME", "0") == "1",
+            seed=int(os.environ.get("ROCO_SEED", "0")),
+            pose_seed=int(pose) if pose else None,
+        )
 
     def build_fsm(self) -> FSM:
         self.executor = self.make_executor()

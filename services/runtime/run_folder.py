@@ -31,6 +31,10 @@ class RunInfo(msgspec.Struct, kw_only=True):
     router: str = ""
     processes: dict[str, int] = {}
     realtime: bool = False
+    seed: int = 0
+    """Jitter of the jar content's start positions (ag_ex's ROCO_SEED)."""
+    pose_seed: int | None = None
+    """Randomisation of the jar and bowl poses (ag_ex's ROCO_POSE_SEED; None: none)."""
 
 
 def new_run_dir(root: Path) -> Path:

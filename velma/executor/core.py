@@ -33,15 +33,23 @@ OnDone = Callable[[CommandResult | Observation], None]
 class Executor:
     """Runs L_EX commands on the simulated Velma in the kitchen (kitchen.xml), in a thread.
 
-    ``seed`` selects the jitter of the jar content's start positions (see
-    velma/model/scene.py). ``submit`` and ``hold`` are thread-safe; ``on_done`` is called from
-    the loop thread exactly once per command (exceptions it raises are logged and swallowed).
+    ``seed`` selects the jitter of the jar content's start positions, ``pose_seed`` a
+    randomisation of the jar and bowl poses (±2 cm, ±10°; see velma/model/scene.py).
+    ``submit`` and ``hold`` are thread-safe; ``on_done`` is called from the loop thread
+    exactly once per command (exceptions it raises are logged and swallowed).
     Commands still queued at ``stop`` are answered with ``ok=False, reason="stopped"``.
     """
 
-    def __init__(self, *, realtime: bool = False, seed: int = 0, runtime: Runtime | None = None) -> None:
+    def __init__(
+        self,
+        *,
+        realtime: bool = False,
+        seed: int = 0,
+        pose_seed: int | None = None,
+        runtime: Runtime | None = None,
+    ) -> None:
         self.realtime = realtime
-        self.rt = runtime if runtime is not None else Runtime(seed=seed)
+        self.rt = runtime if runtime is not None else Runtime(seed=seed, pose_seed=pose_seed)
         self.loop: ControlLoop[OnDone] = ControlLoop(self.rt)
         self.monitor = DeadlineMonitor(DT, realtime=realtime)
         self._lock = threading.Lock()

@@ -108,6 +108,7 @@ class LoopConfig(msgspec.Struct, frozen=True, kw_only=True):
 
     realtime: bool
     seed: int
+    pose_seed: int | None
     realtime_priority: bool
     commands: str
     results: str
@@ -136,7 +137,7 @@ def loop_main(config: bytes, doorbell: multiprocessing.connection.Connection) ->
     encode = msgspec.msgpack.Encoder().encode
     decode = msgspec.msgpack.Decoder(ToLoop).decode
 
-    rt = Runtime(seed=cfg.seed)
+    rt = Runtime(seed=cfg.seed, pose_seed=cfg.pose_seed)
     loop: ControlLoop[int] = ControlLoop(rt)
     if cfg.realtime and cfg.realtime_priority:
         setup = enter_realtime()
@@ -224,6 +225,7 @@ class ExecutorProcess:
     ``velma.executor.Executor`` (``start``, ``stop``, ``submit``, ``hold``, ``snapshot``,
     ``timing``).
 
+    ``seed`` and ``pose_seed`` select the scene (``velma.executor.runtime.Runtime``).
     ``realtime`` paces the loop to wall time; ``realtime_priority`` then asks for SCHED_FIFO
     and a CPU of its own (see ``enter_realtime``). ``on_done`` callbacks run on this side's
     reader thread, once per command. ``start`` raises ``RuntimeError`` if the loop process
@@ -235,11 +237,13 @@ class ExecutorProcess:
         *,
         realtime: bool = False,
         seed: int = 0,
+        pose_seed: int | None = None,
         realtime_priority: bool = True,
         window: int = DEFAULT_WINDOW,
     ) -> None:
         self.realtime = realtime
         self.seed = seed
+        self.pose_seed = pose_seed
         self.realtime_priority = realtime_priority
         self.window = window
         self.setup: RealtimeSetup | None = None
@@ -275,6 +279,7 @@ class ExecutorProcess:
         cfg = LoopConfig(
             realtime=self.realtime,
             seed=self.seed,
+            pose_seed=self.pose_seed,
             realtime_priority=self.realtime_priority,
             commands=self._commands.name,
             results=self._results.name,

@@ -33,7 +33,7 @@ from velma.control.robot_model import (
     arm_joints,
 )
 from velma.executor.perception import Perception
-from velma.model.scene import initial_state, load_kitchen
+from velma.model.scene import N_PARTICLES, initial_state, load_kitchen
 
 DT = 0.001  # s
 HEAD_RATE = 1.04  # rad/s (velma-facts.md: neck velocity limit)
@@ -50,8 +50,13 @@ def torso_frame(angle: float) -> pin.SE3:
 class Runtime:
     """Simulation plus controllers. Not thread-safe: one thread calls ``cycle``."""
 
-    def __init__(self, *, seed: int = 0, n_particles: int | None = None) -> None:
-        self.model = load_kitchen(seed=seed) if n_particles is None else load_kitchen(n_particles, seed)
+    def __init__(
+        self, *, seed: int = 0, n_particles: int | None = None, pose_seed: int | None = None
+    ) -> None:
+        """``seed`` jitters the jar content, ``pose_seed`` randomises the jar and bowl poses
+        (velma/model/scene.py; None: the poses of kitchen.xml)."""
+        self.pose_seed = pose_seed
+        self.model = load_kitchen(N_PARTICLES if n_particles is None else n_particles, seed, pose_seed)
         self.model.opt.timestep = DT
         self.data = initial_state(self.model)
         self.robot = RobotModel()
