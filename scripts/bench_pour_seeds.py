@@ -1,0 +1,160 @@
+"""Robustness benchmark: the pour over N seeds with the jar and bowl poses randomised (±2 cm in
+x and y, ±10° about the vertical; velma/model/scene.py ``scene_perturbation``), printed as a
+table: per seed the perturbation, the outcome, the spheres in the bowl and the wall time, then
+the success rate.
+
+Two modes:
+
+- ``fleet`` (default): ``roco run "pour the jar into the bowl" --seed K --pose-seed K``, the
+  whole system (router, recorder, six agent processes, the loop process) planning from what
+  ag_ex observes. Spheres are read from the run's last L_SD Observation.
+- ``script``: the robot alone (velma/scenario.py ``pour_script`` on the threaded executor,
+  aimed at the observed poses as the agents' plan is; no agents).
+
+Success: every command succeeded (grasps by contact and friction) and ≥ ``--min-share``
+(default 90 %) of the spheres ended in the bowl.
+
+Usage: ``python scripts/bench_pour_seeds.py [--mode fleet|script] [--seeds 20] [--first 1]``
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import platform
+import subprocess
+import sys
+import tempfile
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+from velma.model.scene import scene_perturbation  # noqa: E402
+
+
+@dataclass
+class Outcome:
+    ok: bool
+    inside: int | None
+    total: int | None
+    detail: str
+    wall: float
+
+
+def run_fleet(seed: int, runs_dir: Path, realtime: bool) -> Outcome:
+    """One ``roco run`` with ``--seed seed --pose-seed seed``."""
+    from services.report import build_report
+
+    t0 = time.time()
+    before = set(runs_dir.glob("*")) if runs_dir.exists() else set()
+    cmd = [
+        sys.executable, "-m", "services.cli", "run", "pour the jar into the bowl", "--quiet",
+        "--runs-dir", str(runs_dir), "--seed", str(seed), "--pose-seed", str(seed),
+    ]  # fmt: skip
+    if realtime:
+        cmd.append("--realtime")
+    proc = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, check=False)
+    wall = time.time() - t0
+    new = sorted(set(runs_dir.glob("*")) - before)
+    if not new:
+        return Outcome(False, None, None, f"no run folder: {proc.stderr.strip()[-200:]}", wall)
+    report = build_report(new[-1])
+    c = report.content
+    detail = report.header.detail or ("succeeded" if proc.returncode == 0 else "failed")
+    return Outcome(proc.returncode == 0, c.inside, c.total, f"{detail} ({new[-1].name})", wall)
+
+
+def run_script(seed: int) -> Outcome:
+    """The scripted pour on the threaded executor, the pour aimed at the observed bowl."""
+    from shared.fipa_codec.languages.l_ex import CommandResult, Observe
+    from shared.fipa_codec.languages.l_sd import Observation
+    from velma.executor import Executor
+    from velma.scenario import pour_script
+    from velma.scenario import run_script as run
+
+    t0 = time.time()
+    ex = Executor(realtime=False, seed=seed, pose_seed=seed)
+    ex.start()
+    try:
+        first = run(ex.submit, [Observe()])[0]
+        assert isinstance(first, Observation)
+        commands = pour_script(first)
+        split = next(i for i, c in enumerate(commands) if isinstance(c, Observe) and c.objects) + 1
+        results = run(ex.submit, commands[:split])
+        last = results[-1]
+        if isinstance(last, Observation):
+            bowl_now = next(o for o in last.objects if o.name == "bowl").pose.position
+            results += run(ex.submit, pour_script(first, bowl_on_table=bowl_now)[split:])
+    finally:
+        ex.stop()
+    wall = time.time() - t0
+    failed = next((r for r in results if isinstance(r, CommandResult) and not r.ok), None)
+    final = results[-1]
+    inside = total = None
+    if isinstance(final, Observation):
+        bowl = next(o for o in final.objects if o.name == "bowl")
+        inside, total = bowl.particles_inside, final.total_particles
+    if failed is not None:
+        return Outcome(False, inside, total, f"{failed.command} failed: {failed.reason}", wall)
+    return Outcome(True, inside, total, "all commands succeeded", wall)
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--mode", choices=("fleet", "script"), default="fleet")
+    ap.add_argument("--seeds", type=int, default=20, help="how many seeds")
+    ap.add_argument("--first", type=int, default=1, help="first seed")
+    ap.add_argument("--min-share", type=float, default=0.9, help="share of spheres that counts as success")
+    ap.add_argument("--realtime", action="store_true", help="fleet mode: pace the loop to wall time")
+    ap.add_argument("--runs-dir", type=Path, default=None, help="fleet mode: where run folders go")
+    args = ap.parse_args()
+    runs_dir = args.runs_dir or Path(tempfile.mkdtemp(prefix="roco-seeds-"))
+    cpu = next(
+        (
+            ln.split(":", 1)[1].strip()
+            for ln in Path("/proc/cpuinfo").read_text().splitlines()
+            if "model name" in ln
+        ),
+        platform.processor() or "unknown CPU",
+    )
+    print(f"# Pour robustness, {args.mode} mode, seeds {args.first}..{args.first + args.seeds - 1}\n")
+    print(f"Measured on: {cpu}, {os.cpu_count()} cores, Python {platform.python_version()}")
+    if args.mode == "fleet":
+        print(f"Run folders: {runs_dir}")
+    print(
+        "\n| seed | jar dx, dy (mm), yaw (°) | bowl dx, dy (mm), yaw (°) | spheres in bowl | share "
+        "| success | wall s | detail |"
+    )
+    print("|---|---|---|---|---|---|---|---|")
+    successes = 0
+    shares: list[float] = []
+    for seed in range(args.first, args.first + args.seeds):
+        p = scene_perturbation(seed)
+        out = run_fleet(seed, runs_dir, args.realtime) if args.mode == "fleet" else run_script(seed)
+        share = out.inside / out.total if out.inside is not None and out.total else 0.0
+        ok = out.ok and share >= args.min_share
+        successes += ok
+        shares.append(share)
+
+        def pert(o: object) -> str:
+            return f"{o.dx * 1000:+.0f}, {o.dy * 1000:+.0f}, {o.yaw * 57.2958:+.1f}"  # type: ignore[attr-defined]
+
+        inside = f"{out.inside}/{out.total}" if out.inside is not None else "not observed"
+        print(
+            f"| {seed} | {pert(p.jar)} | {pert(p.bowl)} | {inside} | {share * 100:.0f} % | "
+            f"{'yes' if ok else 'NO'} | {out.wall:.0f} | {out.detail} |",
+            flush=True,
+        )
+    n = args.seeds
+    print(
+        f"\nSuccess (all commands ok and ≥ {args.min_share * 100:.0f} % of the spheres in the bowl): "
+        f"{successes} of {n}; mean share {sum(shares) / n * 100:.1f} %, lowest {min(shares) * 100:.0f} %."
+    )
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
