@@ -19,7 +19,6 @@ import pytest
 from services.recorder.record import TRAFFIC_JSONL, TRAFFIC_RAW, TrafficRecord
 from services.runtime.run_folder import RunInfo, write_run_info
 from shared.fipa_codec import Communicate, Performative, encode
-from velma.executor.timing import RealtimeSetup, TimingStats
 from shared.fipa_codec.aid import aid
 from shared.fipa_codec.languages import encode_content
 from shared.fipa_codec.languages.common import Pose
@@ -42,6 +41,7 @@ from shared.fipa_codec.languages.l_wm import (
     Subscription,
     WorldUpdate,
 )
+from velma.executor.timing import RealtimeSetup, TimingStats
 
 STARTED = 1_700_000_000.0
 COMMAND_TEXT = "pour the jar into the bowl"

@@ -14,6 +14,7 @@ import pytest
 
 from shared.fipa_codec.languages.l_ex import Arm, CommandResult, Grasp, MoveJoints, Observe, Wait
 from shared.fipa_codec.languages.l_sd import Observation
+from velma.control.trajectory import quat_wxyz
 from velma.executor import ExecutorProcess
 from velma.executor.loop import ControlLoop
 from velma.executor.runtime import Runtime
@@ -119,3 +120,29 @@ def test_hold_keeps_the_hands_and_the_arms_still() -> None:
         assert rt.ctrl.arm[side].mode == "joint"
         assert np.max(np.abs(rt.q()[sl] - q0[sl])) < 0.02
     assert loop.holding == "a_ta lost"
+
+
+def test_cartesian_setpoint_is_valid_when_the_law_switches_to_it() -> None:
+    """MoveTool switches an arm from joint to Cartesian impedance once its IK has converged;
+    in that cycle the setpoint is the current grip pose, not a stale (identity) one."""
+    from shared.fipa_codec.languages.common import Pose
+    from shared.fipa_codec.languages.l_ex import MoveTool
+
+    rt = Runtime()
+    loop: ControlLoop[int] = ControlLoop(rt)
+    grip = rt.grip("right")
+    target = grip.translation + np.array([0.0, 0.0, 0.05])
+    w, x, y, z = quat_wxyz(grip.rotation)
+    loop.submit(
+        1,
+        MoveTool(arm=Arm.RIGHT, target=Pose(position=tuple(target), orientation=(w, x, y, z)), duration=1.0),
+    )
+    assert rt.ctrl.arm["right"].mode == "joint"
+    for _ in range(200):
+        loop.cycle()
+        if rt.ctrl.arm["right"].mode == "cart":
+            break
+    assert rt.ctrl.arm["right"].mode == "cart"
+    assert np.linalg.norm(rt.ctrl.arm["right"].pose.translation - grip.translation) < 0.01
+    v = rt.v()[rt.ctrl.arm_slice["right"]]
+    assert np.max(np.abs(v)) < 0.5  # no jolt towards the world origin

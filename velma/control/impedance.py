@@ -2,22 +2,63 @@
 
 Cartesian impedance, per arm (velma-facts.md "Control on the real robot", paper §5.3):
 
-    τ = Jᵀ (K p + D (J q̇_d − J q̇)) + N τ_ns + g(q) + C(q, q̇) q̇
+    τ = Jᵀ (K p + D (J q̇_d − J q̇)) + N τ_ns + g(q) + C(q, q̇) q̇ + τ_safety
 
 - ``J`` (6 × 7) is the grip frame's Jacobian in that frame (Pinocchio ``LOCAL``) for the
   seven arm joints; ``p`` = (R⁻¹ (p_cmd − p), vec(quat(R⁻¹ R_cmd))): translation error and
-  the vector part of the error quaternion, both in the current end-effector frame, as on the
-  real robot (so the rotational stiffness acts on ≈ half the angle).
-- ``Λ = (J M⁻¹ Jᵀ)⁻¹``; damping by double diagonalisation of K and Λ with damping ratio ξ
-  (0.7 by default, the "calmer simulation" value of the facts).
+  the vector part of the error quaternion (w ≥ 0), both in the current end-effector frame, as
+  on the real robot (so the rotational stiffness acts on ≈ half the angle).
+- ``Λ = (J M⁻¹ Jᵀ + εI)⁻¹`` (ε = ``LAMBDA_REGULARISATION`` bounds Λ near singularities);
+  damping by double diagonalisation of K and Λ with damping ratio ξ (0.7 by default, the
+  "calmer simulation" value of the facts): with Λ = Q Qᵀ and K = Q S Qᵀ, D = Q 2ξ√S Qᵀ.
 - ``N = I − Jᵀ Λ J M⁻¹`` (dynamically consistent null space); ``τ_ns`` is a joint-space
   posture spring-damper.
 - ``g + C q̇`` is Pinocchio's ``nonLinearEffects``.
 - The desired twist (feed-forward of the setpoint velocity) enters the damping term, so a
   moving setpoint is tracked without lag from D.
 
-Joint impedance (MoveJoints, torso): τ = K (q_d − q) + D (q̇_d − q̇) + g + C q̇, D from the
-generalised eigenproblem of K and M (double diagonalisation), ξ = 0.7.
+Joint impedance (mode ``"joint"``: MoveJoints and ``hold``; mode ``"safe"``; the torso):
+τ = K (q_d − q) + D (q̇_d − q̇) + g + C q̇ + τ_safety, D from the generalised eigenproblem of K
+and M (double diagonalisation). Gains (velma-facts.md): ``"joint"`` K = 200 N·m/rad
+(Velma's jnt_imp for the arms), ξ = 0.7; ``"safe"`` K = 5 N·m/rad, ξ = 1.9 for every arm
+joint; torso K = 1200 N·m/rad, ξ = 0.7.
+
+``τ_safety`` (velma/control/limits.py, velma-facts.md "Control on the real robot"):
+- the joint-limit avoidance band (all modes) and the singularity avoidance band of joints 1,
+  3, 5 (Cartesian mode), each with its damping. In joint and safe mode they are added in full.
+  In Cartesian mode they join τ_ns, i.e. act through the null space N, as RCPRG's
+  ``JointLimitAvoidance`` output feeds the ``NullSpaceTorqueCommand`` of its
+  ``CartesianImpedance`` (orocos_controllers), scaled by 0.25 (limits.py
+  ``NULL_SPACE_BAND_SCALE``): they use the redundancy and do not pull the grip off its
+  target. Exception: joint 3 (the elbow), whose band torques are added in full, as the
+  self-motion of the S-R-S arm cannot move it (limits.py ``FULL_BAND_JOINTS``).
+- the joint velocity limit (arms 2 rad/s, torso 0.52 rad/s): braking of the excess only,
+  τ = −M (q̇ − sat(q̇)) / T_v, added after the torque rate limit (a rate-limited brake of this
+  gain oscillates) and before the magnitude limit;
+- the torque rate limit (``TORQUE_RATE_LIMIT`` × dt per cycle, not on the first cycle) and
+  the torque limits (100 N·m joints 0–4, 60 N·m joints 5–6; torso 300 N·m).
+
+How it is computed (both arms in Cartesian mode plus the torso, on the quiet 2-core
+development machine: ≈ 64 µs per ``update`` in a tight loop; between MuJoCo steps of the
+kitchen scene p50 ≈ 75–80 µs, p99 ≈ 120–155 µs; before this rewrite p50 ≈ 195 µs, p99 ≈
+300–470 µs; see scripts/bench_controller.py):
+- Pinocchio: ``crba`` with the WORLD convention (mass matrix plus the joint Jacobians and
+  placements, so no separate ``computeJointJacobians``), ``nonLinearEffects``, and the two
+  grip frames only (``updateFramePlacement``).
+- Both arms are computed as one batch of stacked matrices (numpy), the decompositions per arm.
+- M⁻¹ by Eigen's LLT on the arm block's lower triangle (eigenpy, which Pinocchio ships and
+  imports): Pinocchio fills only the upper triangle of M, so its transpose is passed as is.
+- Double diagonalisation without Cholesky nor inverse of Λ: for a diagonal K > 0, with
+  B = K^½ Λ⁻¹ K^½ = V W Vᵀ (one symmetric eigendecomposition, Eigen's), the generalised
+  eigenvectors are Q = K^½ V W^-½, so Λ = K^½ V W⁻¹ Vᵀ K^½ and D = 2ξ K^½ V W^-½ Vᵀ K^½ —
+  both applied to vectors, never formed. In joint space the same identity with C = K^-½ M K^-½ = V W Vᵀ
+  gives D = 2ξ K^½ V W^½ Vᵀ K^½. (A zero stiffness falls back to the Cholesky form,
+  ``double_diagonalisation_damping``.)
+- N τ_ns is applied as τ_ns − Jᵀ Λ (J M⁻¹ τ_ns), never forming N; J M⁻¹ Jᵀ and J M⁻¹ τ_ns
+  come from one product with M⁻¹ [Jᵀ | τ_ns].
+- The quaternion error comes from Pinocchio (``SE3ToXYZQUAT`` of grip⁻¹ · target).
+- The safety terms are skipped after one cheap test when no joint is near a band and no
+  joint is faster than its limit.
 
 Simplifications (named):
 - Each arm's law uses the 7 × 7 arm block of the full 33-DOF mass matrix: the coupling to the
@@ -26,30 +67,99 @@ Simplifications (named):
 - The torso is not part of the Cartesian chain (the real robot stacks 15 DOF); it is held by
   joint impedance K = 1200 N·m/rad.
 - The payload (a held object) is not compensated; the impedance absorbs it as a small sag.
-- Torques are clipped to the joint limits (100 N·m joints 0–4, 60 N·m joints 5–6) and their
-  change per cycle to ``TORQUE_RATE_LIMIT`` × dt.
+- No self-collision repulsion (velma-facts.md lists it from 0.15 m).
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
+import eigenpy  # Eigen's decompositions, installed with (and imported by) pinocchio
 import numpy as np
 import pinocchio as pin
 
+from velma.control.limits import (
+    ARM_TORQUE_LIMIT,
+    ARM_VELOCITY_LIMIT,
+    BAND_DAMPING_RATIO,
+    FULL_BAND_JOINTS,
+    LIMIT_BAND,
+    LIMIT_BAND_TORQUE,
+    NULL_SPACE_BAND_SCALE,
+    SINGULAR_JOINTS,
+    SINGULARITY_BAND,
+    SINGULARITY_BAND_TORQUE,
+    SINGULARITY_HALF_WIDTH,
+    TORQUE_RATE_LIMIT,
+    TORSO_TORQUE_LIMIT,
+    TORSO_VELOCITY_LIMIT,
+    VELOCITY_LIMIT_TIME_CONSTANT,
+    BoolArray,
+    band_damping,
+    position_band_torque,
+    singularity_band_torque,
+    velocity_limit_torque,
+)
 from velma.control.robot_model import SIDES, TORSO_JOINT, Array, RobotModel, arm_joints
+
+__all__ = [
+    "ARM_JOINT_STIFFNESS",
+    "ARM_TORQUE_LIMIT",
+    "DAMPING_RATIO",
+    "DEFAULT_CART_STIFFNESS",
+    "HOLD_STIFFNESS",
+    "SAFE_DAMPING_RATIO",
+    "SAFE_STIFFNESS",
+    "TORQUE_RATE_LIMIT",
+    "TORSO_TORQUE_LIMIT",
+    "ArmCommand",
+    "ArmState",
+    "SafetyLimits",
+    "VelmaController",
+    "diagonal_double_diagonalisation_damping",
+    "double_diagonalisation_damping",
+    "pose_error",
+]
 
 DEFAULT_CART_STIFFNESS = (1000.0, 1000.0, 1000.0, 150.0, 150.0, 150.0)
 """N/m (x, y, z) and N·m/rad (rx, ry, rz), in the grip frame (velma-facts.md, tests value)."""
 DAMPING_RATIO = 0.7
-ARM_JOINT_STIFFNESS = 200.0  # N·m/rad (Velma jnt_imp for the arms)
-TORSO_STIFFNESS = 1200.0  # N·m/rad
-NULLSPACE_STIFFNESS = 10.0  # N·m/rad
-NULLSPACE_DAMPING = 2.0  # N·m·s/rad
-ARM_TORQUE_LIMIT = np.array([100.0, 100.0, 100.0, 100.0, 100.0, 60.0, 60.0])  # N·m
-TORSO_TORQUE_LIMIT = 300.0  # N·m (placeholder: not in the facts)
-TORQUE_RATE_LIMIT = 1000.0  # N·m/s (1 N·m per 1 ms tick, as franka_ros)
-LAMBDA_REGULARISATION = 1e-3  # 1/kg, bounds Λ near singularities
+"""ξ of the Cartesian and joint impedance (velma-facts.md: 0.7 for a calmer simulation)."""
+ARM_JOINT_STIFFNESS = 200.0
+"""N·m/rad, Velma's jnt_imp for the arms (velma-facts.md)."""
+HOLD_STIFFNESS = ARM_JOINT_STIFFNESS
+"""N·m/rad of ``VelmaController.hold`` (Velma's jnt_imp; ξ = ``DAMPING_RATIO``)."""
+SAFE_STIFFNESS = 5.0
+"""N·m/rad, safe mode, every arm joint (velma-facts.md)."""
+SAFE_DAMPING_RATIO = 1.9
+"""ξ of safe mode (velma-facts.md)."""
+TORSO_STIFFNESS = 1200.0
+"""N·m/rad, Velma's jnt_imp for the torso (velma-facts.md)."""
+NULLSPACE_STIFFNESS = 10.0
+"""N·m/rad, null-space posture spring of the Cartesian law."""
+NULLSPACE_DAMPING = 2.0
+"""N·m·s/rad, null-space posture damper of the Cartesian law."""
+LAMBDA_REGULARISATION = 1e-3
+"""1/kg, added to J M⁻¹ Jᵀ before inversion: bounds Λ near singularities."""
+MODES = ("cart", "joint", "safe")
+"""Valid ``ArmCommand.mode`` values."""
+
+
+def _cholesky(lower: Array) -> eigenpy.LLT:
+    """Eigen's LLT of a symmetric positive-definite matrix given by its lower triangle (the
+    upper one is not read). Raises ``numpy.linalg.LinAlgError`` if it is not positive
+    definite."""
+    llt = eigenpy.LLT(lower)
+    if llt.info() != eigenpy.ComputationInfo.Success:
+        raise np.linalg.LinAlgError("mass matrix is not positive definite")
+    return llt
+
+
+def _symmetric(lower: Array) -> Array:
+    """The symmetric matrix whose lower triangle is that of ``lower``."""
+    out: Array = np.tril(lower) + np.tril(lower, -1).T
+    return out
 
 
 def double_diagonalisation_damping(stiffness: Array, inertia: Array, xi: float) -> Array:
@@ -59,14 +169,33 @@ def double_diagonalisation_damping(stiffness: Array, inertia: Array, xi: float) 
     ``stiffness`` (n × n, symmetric positive semi-definite) and ``inertia`` (n × n, symmetric
     positive definite). With Λ = L Lᵀ (Cholesky) and L⁻¹ K L⁻ᵀ = U S Uᵀ, Q = L U gives
     Λ = Q Qᵀ, K = Q S Qᵀ and D = Q (2 ξ √S) Qᵀ. Raises ``numpy.linalg.LinAlgError`` if
-    ``inertia`` is not positive definite.
+    ``inertia`` is not positive definite. Source: velma-facts.md "Control on the real robot"
+    (double diagonalisation, as RCPRG's controllers).
     """
     chol = np.linalg.cholesky(inertia)
-    linv = np.linalg.inv(chol)
-    ktilde = linv @ stiffness @ linv.T
-    s, u = np.linalg.eigh(0.5 * (ktilde + ktilde.T))
+    linv_k = np.linalg.solve(chol, stiffness)  # L⁻¹ K
+    ktilde = np.linalg.solve(chol, linv_k.T)  # L⁻¹ (L⁻¹ K)ᵀ = L⁻¹ K L⁻ᵀ
+    s, u = np.linalg.eigh(ktilde)
     q = chol @ u
-    out: Array = q @ np.diag(2.0 * xi * np.sqrt(np.clip(s, 0.0, None))) @ q.T
+    out: Array = (q * (2.0 * xi * np.sqrt(np.clip(s, 0.0, None)))) @ q.T
+    return out
+
+
+def diagonal_double_diagonalisation_damping(stiffness: Array, inertia: Array, xi: float) -> Array:
+    """The same D as ``double_diagonalisation_damping`` for a diagonal stiffness, from one
+    eigendecomposition: D = 2ξ K^½ (K^-½ Λ K^-½)^½ K^½.
+
+    ``stiffness`` (..., n) the diagonal of K (all > 0, N/m or N·m/rad); ``inertia``
+    (..., n, n) symmetric positive definite. Returns (..., n, n). Raises ``ValueError`` for a
+    non-positive stiffness."""
+    k = np.asarray(stiffness, dtype=float)
+    if np.any(k <= 0.0):
+        raise ValueError("diagonal_double_diagonalisation_damping needs a positive stiffness")
+    s = np.sqrt(k)
+    c = inertia / (s[..., :, None] * s[..., None, :])
+    w, v = np.linalg.eigh(c)
+    root = (v * np.sqrt(w)[..., None, :]) @ np.swapaxes(v, -1, -2)
+    out: Array = (2.0 * xi) * root * s[..., :, None] * s[..., None, :]
     return out
 
 
@@ -84,9 +213,11 @@ def pose_error(current: pin.SE3, target: pin.SE3) -> Array:
 @dataclass
 class ArmCommand:
     """Setpoint of one arm. ``mode`` is ``"cart"`` (pose ``pose``: world SE3, twist
-    ``twist`` (6,) world (v, ω), stiffness ``stiffness`` (6,), null-space posture
-    ``posture`` (7,) rad) or ``"joint"`` (``q`` (7,) rad, ``qd`` (7,) rad/s, joint stiffness
-    ``joint_stiffness`` N·m/rad)."""
+    ``twist`` (6,) world (v m/s, ω rad/s), stiffness ``stiffness`` (6,) N/m and N·m/rad,
+    null-space posture ``posture`` (7,) rad), ``"joint"`` (``q`` (7,) rad, ``qd`` (7,) rad/s,
+    joint stiffness ``joint_stiffness`` N·m/rad, a float or (7,), ξ = ``DAMPING_RATIO``) or
+    ``"safe"`` (``q``, ``qd`` as in joint mode with K = ``SAFE_STIFFNESS``, ξ =
+    ``SAFE_DAMPING_RATIO``). See ``VelmaController.hold`` and ``VelmaController.safe``."""
 
     mode: str = "joint"
     pose: pin.SE3 = field(default_factory=pin.SE3.Identity)
@@ -95,24 +226,43 @@ class ArmCommand:
     posture: Array = field(default_factory=lambda: np.zeros(7))
     q: Array = field(default_factory=lambda: np.zeros(7))
     qd: Array = field(default_factory=lambda: np.zeros(7))
-    joint_stiffness: float = ARM_JOINT_STIFFNESS
+    joint_stiffness: float | Array = ARM_JOINT_STIFFNESS
 
 
 @dataclass
 class ArmState:
     """Quantities of one arm computed each cycle (for monitoring): grip pose (world), the
-    Cartesian error (6,) and the commanded torque (7,)."""
+    Cartesian error (6,) (m, quaternion vector; updated in Cartesian mode only) and the
+    commanded torque (7,) N·m."""
 
     grip: pin.SE3 = field(default_factory=pin.SE3.Identity)
     error: Array = field(default_factory=lambda: np.zeros(6))
     torque: Array = field(default_factory=lambda: np.zeros(7))
 
 
+@dataclass(frozen=True)
+class SafetyLimits:
+    """The safety terms' parameters (defaults and sources: velma/control/limits.py). Set a
+    band torque to 0 or a velocity limit to ``inf`` to switch that term off."""
+
+    limit_band: float = LIMIT_BAND
+    limit_band_torque: float = LIMIT_BAND_TORQUE
+    singularity_half_width: float = SINGULARITY_HALF_WIDTH
+    singularity_band: float = SINGULARITY_BAND
+    singularity_band_torque: float = SINGULARITY_BAND_TORQUE
+    band_damping_ratio: float = BAND_DAMPING_RATIO
+    null_space_band_scale: float = NULL_SPACE_BAND_SCALE
+    arm_velocity: float = ARM_VELOCITY_LIMIT
+    torso_velocity: float = TORSO_VELOCITY_LIMIT
+    velocity_time_constant: float = VELOCITY_LIMIT_TIME_CONSTANT
+
+
 class VelmaController:
     """Computes arm and torso torques each cycle from Pinocchio's q, v (rad, rad/s, (33,)).
 
-    Call ``update`` once per control cycle; it runs forward kinematics, the joint Jacobians,
-    CRBA and the non-linear effects on the full model, then both arm laws and the torso law.
+    Call ``update`` once per control cycle (see the module docstring for the laws). Uses and
+    overwrites ``robot.data``. Raises ``RuntimeError`` at construction if an arm's joints are
+    not contiguous in Pinocchio's v.
     """
 
     def __init__(self, robot: RobotModel, dt: float = 0.001) -> None:
@@ -128,12 +278,38 @@ class VelmaController:
         self.torso_q = 0.0
         self.torso_qd = 0.0
         self.state = {s: ArmState() for s in SIDES}
-        self.prev_arm_tau = {s: np.zeros(7) for s in SIDES}
-        self.prev_torso_tau = 0.0
-        self._first = True
+        self.limits = SafetyLimits()
+        model = robot.model
+        self._idx = np.stack([self.arm_idx[s] for s in SIDES])  # (2, 7)
+        i = np.arange(7)
+        self._arm_sl = (self.arm_slice[SIDES[0]], self.arm_slice[SIDES[1]])
+        self._lower = np.array(model.lowerPositionLimit)[self._idx]
+        self._upper = np.array(model.upperPositionLimit)[self._idx]
+        self._abs_limit = np.minimum(self._upper, -self._lower)  # (2, 7) rad
+        self._singular = np.isin(i, SINGULAR_JOINTS)
+        self._in_full = np.isin(i, FULL_BAND_JOINTS).astype(float)  # Cartesian mode
+        self._via_null_space = 1.0 - self._in_full
+        self._fid = tuple(robot.grip_frame_id[s] for s in SIDES)
+        self._reg = LAMBDA_REGULARISATION * np.eye(6)
+        self._coef = np.array([2.0 * DAMPING_RATIO, -1.0])
+        self._rot_buf = np.empty((2, 3, 3))  # grip rotations of the current cycle
+        self._prev_arm: Array | None = None
+        self._edges_limits: SafetyLimits | None = None  # _band_edges' cache
+        self._edges_cart: list[bool] = []
+        self._edges: tuple[Array, Array, BoolArray, Array, Array] = (
+            np.zeros((2, 7)),
+            np.zeros((2, 7)),
+            np.zeros((2, 7), bool),
+            np.zeros((2, 7)),
+            np.zeros((2, 7)),
+        )
+        self._prev_torso: float | None = None
+        self._q_arm: Array | None = None  # last measured arm q (2, 7)
 
+    # ------------------------------------------------------------------ kinematics
     def kinematics(self, q: Array, v: Array) -> None:
-        """Forward kinematics, Jacobians, M (upper triangle) and nle for ``q``, ``v``."""
+        """Forward kinematics, all frame placements, Jacobians, M (upper triangle) and nle for
+        ``q``, ``v`` (33,) into ``robot.data``."""
         model, data = self.robot.model, self.robot.data
         pin.computeJointJacobians(model, data, q)
         pin.updateFramePlacements(model, data)
@@ -141,67 +317,303 @@ class VelmaController:
         pin.nonLinearEffects(model, data, q, v)
 
     def grip_pose(self, side: str) -> pin.SE3:
-        """World pose of ``side``'s grip frame after ``kinematics``."""
+        """World pose of ``side``'s grip frame after ``kinematics`` or ``update``."""
         out: pin.SE3 = self.robot.data.oMf[self.robot.grip_frame_id[side]]
         return out.copy()
 
+    # ------------------------------------------------------------------ modes
+    def hold(self, side: str, q_arm: Array | None = None) -> None:
+        """Switch ``side`` to joint impedance (K = ``HOLD_STIFFNESS`` = 200 N·m/rad, Velma's
+        jnt_imp, ξ = ``DAMPING_RATIO``) at ``q_arm`` (7,) rad, by default the configuration
+        measured in the last ``update``. Raises ``ValueError`` for a wrong shape,
+        ``RuntimeError`` if there is no measurement yet."""
+        cmd = self.arm[side]
+        cmd.q = self._setpoint(side, q_arm)
+        cmd.qd = np.zeros(7)
+        cmd.joint_stiffness = HOLD_STIFFNESS
+        cmd.mode = "joint"
+
+    def safe(self, side: str, q_arm: Array | None = None) -> None:
+        """Switch ``side`` to safe mode: joint impedance K = 5 N·m/rad, ξ = 1.9 for every
+        joint, plus gravity compensation (velma-facts.md), about ``q_arm`` (7,) rad, by
+        default the last measured configuration. Errors as ``hold``."""
+        cmd = self.arm[side]
+        cmd.q = self._setpoint(side, q_arm)
+        cmd.qd = np.zeros(7)
+        cmd.mode = "safe"
+
+    def _setpoint(self, side: str, q_arm: Array | None) -> Array:
+        if q_arm is None:
+            if self._q_arm is None:
+                raise RuntimeError("no measured configuration yet: call update first or pass q_arm")
+            return self._q_arm[SIDES.index(side)].copy()
+        out = np.array(q_arm, dtype=float)
+        if out.shape != (7,):
+            raise ValueError(f"q_arm must have shape (7,), got {out.shape}")
+        return out
+
+    # ------------------------------------------------------------------ the cycle
     def update(self, q: Array, v: Array) -> tuple[dict[str, Array], float]:
-        """Torques: per side (7,) N·m and the torso's N·m, limited (see module docstring)."""
-        self.kinematics(q, v)
-        data = self.robot.data
-        torques: dict[str, Array] = {}
-        for side in SIDES:
-            sl = self.arm_slice[side]
-            m_upper = data.M[sl, sl]
-            m_arm = np.triu(m_upper) + np.triu(m_upper, 1).T
-            cmd = self.arm[side]
-            if cmd.mode == "cart":
-                tau = self._cartesian(side, cmd, q[sl], v[sl], m_arm)
-            else:
-                self.state[side].grip = self.grip_pose(side)
-                kq = np.full(7, cmd.joint_stiffness)
-                dmat = double_diagonalisation_damping(np.diag(kq), m_arm, DAMPING_RATIO)
-                tau = kq * (cmd.q - q[sl]) + dmat @ (cmd.qd - v[sl])
-            tau = tau + data.nle[sl]
-            tau = self._limit(tau, self.prev_arm_tau[side], ARM_TORQUE_LIMIT)
-            self.prev_arm_tau[side] = tau
-            self.state[side].torque = tau
-            torques[side] = tau
-        t = self.torso_idx
-        m_tt = float(data.M[t, t])
-        d_t = 2.0 * DAMPING_RATIO * np.sqrt(TORSO_STIFFNESS * m_tt)
-        tau_t = TORSO_STIFFNESS * (self.torso_q - q[t]) + d_t * (self.torso_qd - v[t]) + float(data.nle[t])
-        tau_t = float(
-            self._limit(np.array([tau_t]), np.array([self.prev_torso_tau]), np.array([TORSO_TORQUE_LIMIT]))[0]
-        )
-        self.prev_torso_tau = tau_t
-        self._first = False
-        return torques, tau_t
-
-    def _cartesian(self, side: str, cmd: ArmCommand, q_arm: Array, v_arm: Array, m_arm: Array) -> Array:
+        """Torques for one cycle: per side (7,) N·m and the torso's N·m, from q, v (33,) rad
+        and rad/s (see the module docstring). Raises ``ValueError`` for an unknown mode and
+        ``numpy.linalg.LinAlgError`` if a mass matrix is not positive definite."""
         model, data = self.robot.model, self.robot.data
-        fid = self.robot.grip_frame_id[side]
-        cur: pin.SE3 = data.oMf[fid]
-        jac = pin.getFrameJacobian(model, data, fid, pin.LOCAL)[:, self.arm_slice[side]]
-        err = pose_error(cur, cmd.pose)
-        rt = cur.rotation.T
-        twist_d = np.concatenate([rt @ cmd.twist[:3], rt @ cmd.twist[3:]])
-        m_inv = np.linalg.inv(m_arm)
-        a = jac @ m_inv @ jac.T
-        lam = np.linalg.inv(a + LAMBDA_REGULARISATION * np.eye(6))
-        kmat = np.diag(cmd.stiffness)
-        dmat = double_diagonalisation_damping(kmat, lam, DAMPING_RATIO)
-        wrench = kmat @ err + dmat @ (twist_d - jac @ v_arm)
-        tau = jac.T @ wrench
-        null = np.eye(7) - jac.T @ lam @ jac @ m_inv
-        tau_ns = NULLSPACE_STIFFNESS * (cmd.posture - q_arm) - NULLSPACE_DAMPING * v_arm
-        st = self.state[side]
-        st.grip = cur.copy()
-        st.error = err
-        out: Array = tau + null @ tau_ns
-        return out
+        pin.crba(model, data, q, pin.Convention.WORLD)  # also data.J and data.oMi
+        pin.nonLinearEffects(model, data, q, v)
+        m_full = data.M  # upper triangle valid (crba)
+        # arm blocks as views whose lower triangle is valid: all that Eigen's LLT and
+        # SelfAdjointEigenSolver read (no symmetrisation copy)
+        mb = (m_full[self._arm_sl[0], self._arm_sl[0]].T, m_full[self._arm_sl[1], self._arm_sl[1]].T)
+        idx = self._idx
+        qa: Array = q[idx]
+        va: Array = v[idx]
+        self._q_arm = qa
+        cmds = (self.arm[SIDES[0]], self.arm[SIDES[1]])
+        grips = []
+        for k in (0, 1):
+            grip = pin.updateFramePlacement(model, data, self._fid[k]).copy()
+            self._rot_buf[k] = grip.rotation
+            self.state[SIDES[k]].grip = grip
+            grips.append(grip)
+        cart = [cmds[0].mode == "cart", cmds[1].mode == "cart"]
+        bands, braking = self._safety(qa, va, mb, cart)
+        tau = np.empty((2, 7))
+        if cart[0] and cart[1]:
+            self._cartesian(slice(0, 2), cmds, grips, qa, va, mb, bands, tau)
+        elif cart[0] or cart[1]:
+            c = 0 if cart[0] else 1
+            self._cartesian(slice(c, c + 1), cmds, grips, qa, va, mb, bands, tau)
+            self._joint(slice(1 - c, 2 - c), cmds, qa, va, mb, tau)
+            if bands is not None:
+                tau[1 - c] += bands[1 - c]
+        else:
+            self._joint(slice(0, 2), cmds, qa, va, mb, tau)
+            if bands is not None:
+                tau += bands
+        tau += data.nle[idx]
+        # torque rate limit, then magnitude limit; as the previous torque is within the
+        # magnitude limit, both are one clip to [max(prev − rate, −L), min(prev + rate, L)]
+        rate = TORQUE_RATE_LIMIT * self.dt
+        prev = self._prev_arm
+        if prev is None:
+            np.maximum(tau, -ARM_TORQUE_LIMIT, out=tau)
+            np.minimum(tau, ARM_TORQUE_LIMIT, out=tau)
+        else:
+            np.maximum(tau, np.maximum(prev - rate, -ARM_TORQUE_LIMIT), out=tau)
+            np.minimum(tau, np.minimum(prev + rate, ARM_TORQUE_LIMIT), out=tau)
+        self._prev_arm = tau
+        if braking is not None:  # exempt from the rate limit (limits.py), not the magnitude
+            tau = np.clip(tau + braking, -ARM_TORQUE_LIMIT, ARM_TORQUE_LIMIT)
+        torques = {}
+        for k, side in enumerate(SIDES):
+            torques[side] = tau[k]
+            self.state[side].torque = tau[k]
+        return torques, self._torso(q, v, float(m_full[self.torso_idx, self.torso_idx]), rate)
 
-    def _limit(self, tau: Array, prev: Array, limit: Array) -> Array:
-        rate = np.inf if self._first else TORQUE_RATE_LIMIT * self.dt
-        out: Array = np.clip(np.clip(tau, prev - rate, prev + rate), -limit, limit)
-        return out
+    def _cartesian(
+        self,
+        sl: slice,
+        cmds: tuple[ArmCommand, ArmCommand],
+        grips: list[pin.SE3],
+        qa: Array,
+        va: Array,
+        mb: tuple[Array, Array],
+        bands: Array | None,
+        out: Array,
+    ) -> None:
+        """Cartesian impedance (module docstring) of the arms ``sl`` into ``out[sl]``; the
+        band torques ``bands`` (2, 7) join τ_ns (they act in the null space)."""
+        model, data = self.robot.model, self.robot.data
+        arms = range(2)[sl]
+        n = len(arms)
+        err = np.empty((n, 7))  # R⁻¹ (p_cmd − p), then quat(R⁻¹ R_cmd) as (x, y, z, w)
+        twist = np.empty((n, 6))
+        kst = np.empty((n, 6))
+        posture = np.empty((n, 7))
+        jac = np.empty((n, 6, 7))
+        for i, k in enumerate(arms):
+            cmd = cmds[k]
+            err[i] = pin.SE3ToXYZQUAT(grips[k].actInv(cmd.pose))
+            if err[i, 6] < 0.0:  # the quaternion with w ≥ 0
+                err[i, 3:6] *= -1.0
+            twist[i] = cmd.twist
+            kst[i] = cmd.stiffness
+            posture[i] = cmd.posture
+            jac[i] = pin.getFrameJacobian(model, data, self._fid[k], pin.LOCAL)[:, self.arm_slice[SIDES[k]]]
+        p_err = err[:, :6]
+        q_s, v_s = qa[sl], va[sl]
+        tau_ns = NULLSPACE_STIFFNESS * (posture - q_s) - NULLSPACE_DAMPING * v_s
+        if bands is not None:  # through the null space, scaled, but the elbow's in full (limits.py)
+            tau_ns += bands[sl] * (self.limits.null_space_band_scale * self._via_null_space)
+        # setpoint twist in the grip frame (rotated only), minus J q̇
+        ev = (twist.reshape(n, 2, 3) @ self._rot_buf[sl]).reshape(n, 6)  # rows: Rᵀ v, Rᵀ ω
+        ev -= (jac @ v_s[:, :, None])[:, :, 0]
+        if kst.min() > 0.0:
+            s = np.sqrt(kst)
+            # G = [K^½-scaled Jᵀ | τ_ns]; P = K^½ J M⁻¹ G = [K^½ J M⁻¹ Jᵀ K^½ | K^½ J M⁻¹ τ_ns]
+            js = jac * s[:, :, None]
+            g_t = np.empty((n, 7, 7))  # Gᵀ, so that each G = g_t[i].T is column-major for Eigen
+            g_t[:, :6, :] = js
+            g_t[:, 6, :] = tau_ns
+            m_inv_g = np.empty((n, 7, 7))
+            for i, k in enumerate(arms):
+                m_inv_g[i] = _cholesky(mb[k]).solve(g_t[i].T)
+            prod = js @ m_inv_g
+            # K^½ (J M⁻¹ Jᵀ + εI) K^½ = K^½ Λ⁻¹ K^½: ε k_j added in place on the diagonal of the
+            # leading 6 × 6 block of each (6 × 7) product (flat stride 8)
+            prod.reshape(n, 42)[:, ::8] += LAMBDA_REGULARISATION * kst
+            b = prod[:, :, :6]
+            w_b = np.empty((n, 6))
+            v_b = np.empty((n, 6, 6))
+            for i in range(n):
+                eig = eigenpy.SelfAdjointEigenSolver(b[i])  # B = V W Vᵀ
+                w_b[i] = eig.eigenvalues()
+                v_b[i] = eig.eigenvectors()
+            y = np.empty((n, 6, 2))
+            y[:, :, 0] = s * ev
+            y[:, :, 1] = prod[:, :, 6]
+            z = v_b.transpose(0, 2, 1) @ y
+            z[:, :, 0] /= np.sqrt(w_b)
+            z[:, :, 1] /= w_b
+            # Jᵀ (K p + D ev − Λ J M⁻¹ τ_ns) with D = 2ξ K^½ V W^-½ Vᵀ K^½, Λ = K^½ V W⁻¹ Vᵀ K^½,
+            # written (K^½ J)ᵀ (K^½ p + V W^-½ Vᵀ K^½ ev 2ξ − V W⁻¹ Vᵀ K^½ J M⁻¹ τ_ns)
+            scaled = s * p_err + (v_b @ z) @ self._coef
+            out[sl] = (js.transpose(0, 2, 1) @ scaled[:, :, None])[:, :, 0] + tau_ns
+        else:  # a zero stiffness: the general (Cholesky) double diagonalisation
+            jac_t = jac.transpose(0, 2, 1)
+            wrench = np.empty((n, 6))
+            for i, k in enumerate(arms):
+                m_inv = np.linalg.inv(_symmetric(mb[k]))
+                lam = np.linalg.inv(jac[i] @ m_inv @ jac_t[i] + self._reg)
+                dmat = double_diagonalisation_damping(np.diag(kst[i]), lam, DAMPING_RATIO)
+                wrench[i] = kst[i] * p_err[i] + dmat @ ev[i] - lam @ (jac[i] @ (m_inv @ tau_ns[i]))
+            out[sl] = (jac_t @ wrench[:, :, None])[:, :, 0] + tau_ns
+        if bands is not None:
+            out[sl] += bands[sl] * self._in_full
+        for i, k in enumerate(arms):
+            self.state[SIDES[k]].error = p_err[i]
+
+    def _joint(
+        self,
+        sl: slice,
+        cmds: tuple[ArmCommand, ArmCommand],
+        qa: Array,
+        va: Array,
+        mb: tuple[Array, Array],
+        out: Array,
+    ) -> None:
+        """Joint impedance (modes "joint" and "safe") of the arms ``sl`` into ``out[sl]``."""
+        arms = range(2)[sl]
+        n = len(arms)
+        kq = np.empty((n, 7))
+        xi = np.empty((n, 1))
+        q_set = np.empty((n, 7))
+        qd_set = np.empty((n, 7))
+        for i, k in enumerate(arms):
+            cmd = cmds[k]
+            if cmd.mode == "joint":
+                kq[i] = cmd.joint_stiffness
+                xi[i] = DAMPING_RATIO
+            elif cmd.mode == "safe":
+                kq[i] = SAFE_STIFFNESS
+                xi[i] = SAFE_DAMPING_RATIO
+            else:
+                raise ValueError(f"{SIDES[k]} arm: unknown mode {cmd.mode!r} (expected one of {MODES})")
+            q_set[i] = cmd.q
+            qd_set[i] = cmd.qd
+        ve = qd_set - va[sl]
+        if kq.min() > 0.0:
+            s = np.sqrt(kq)
+            w_c = np.empty((n, 7))
+            v_c = np.empty((n, 7, 7))
+            for i, k in enumerate(arms):
+                eig = eigenpy.SelfAdjointEigenSolver(mb[k] / np.outer(s[i], s[i]))  # C = K^-½ M K^-½
+                w_c[i] = eig.eigenvalues()  # C = V W Vᵀ
+                v_c[i] = eig.eigenvectors()
+            z = (v_c.transpose(0, 2, 1) @ (s * ve)[:, :, None])[:, :, 0] * np.sqrt(w_c)
+            damp = (2.0 * xi) * s * (v_c @ z[:, :, None])[:, :, 0]  # D = 2ξ K^½ V W^½ Vᵀ K^½
+        else:
+            damp = np.empty((n, 7))
+            for i, k in enumerate(arms):
+                dmat = double_diagonalisation_damping(np.diag(kq[i]), _symmetric(mb[k]), float(xi[i, 0]))
+                damp[i] = dmat @ ve[i]
+        out[sl] = kq * (q_set - qa[sl]) + damp
+
+    def _safety(
+        self, qa: Array, va: Array, mb: tuple[Array, Array], cart: list[bool]
+    ) -> tuple[Array | None, Array | None]:
+        """The safety torques of both arms, (2, 7) each or None when zero: the band torques
+        (joint-limit band in all modes, singularity band in Cartesian mode, with their
+        damping) and the velocity-limit braking (velma/control/limits.py)."""
+        lim = self.limits
+        bands: Array | None = None
+        aq = np.abs(qa)
+        limit_edge, singular_edge, singular_mask, centre, half = self._band_edges(cart)
+        # cheap test first: a joint may be in the limit band only if |q| is beyond the band's
+        # inner edge for the nearer limit, in the singularity band only if |q| is below its
+        # edge; both at once: | |q| − centre | > half
+        if (np.abs(aq - centre) > half).any():
+            near_limit = bool((aq > limit_edge).any())
+            near_singular = bool((aq < singular_edge).any())
+            m_diag = np.array([np.diagonal(mb[0]), np.diagonal(mb[1])])
+            xi = lim.band_damping_ratio
+            if near_limit:
+                bands, active = position_band_torque(
+                    qa, self._lower, self._upper, lim.limit_band, lim.limit_band_torque
+                )
+                bands += band_damping(active, lim.limit_band_torque / lim.limit_band, m_diag, va, xi)
+            if near_singular:
+                tau_s, active_s = singularity_band_torque(
+                    qa,
+                    singular_mask,
+                    lim.singularity_half_width,
+                    lim.singularity_band,
+                    lim.singularity_band_torque,
+                )
+                k_sing = lim.singularity_band_torque / lim.singularity_band
+                tau_s += band_damping(active_s, k_sing, m_diag, va, xi)
+                bands = tau_s if bands is None else bands + tau_s
+        braking = None
+        if np.abs(va).max() > lim.arm_velocity:
+            inertia = np.array([_symmetric(mb[0]), _symmetric(mb[1])])
+            braking = velocity_limit_torque(va, lim.arm_velocity, inertia, lim.velocity_time_constant)
+        return bands, braking
+
+    def _band_edges(self, cart: list[bool]) -> tuple[Array, Array, BoolArray, Array, Array]:
+        """(2, 7) edges on |q| of the limit band (inner edge for the nearer limit) and of the
+        singularity band (−1 where it does not apply), the singularity band's joint mask, and
+        the centre and half-width of the interval between the edges; cached while ``limits``
+        and the Cartesian arms stay the same."""
+        lim = self.limits
+        if lim is not self._edges_limits or cart != self._edges_cart:
+            mask = self._singular & np.array(cart)[:, None]
+            limit_edge = self._abs_limit - lim.limit_band
+            singular_edge = np.where(mask, lim.singularity_half_width + lim.singularity_band, -1.0)
+            self._edges = (
+                limit_edge,
+                singular_edge,
+                mask,
+                0.5 * (limit_edge + singular_edge),
+                0.5 * (limit_edge - singular_edge),
+            )
+            self._edges_limits, self._edges_cart = lim, list(cart)
+        return self._edges
+
+    def _torso(self, q: Array, v: Array, m_tt: float, rate: float) -> float:
+        """Torso joint impedance (K = 1200 N·m/rad, ξ = 0.7), torque rate and magnitude
+        limits, velocity-limit braking (exempt from the rate limit, as the arms')."""
+        t = self.torso_idx
+        qt, vt = float(q[t]), float(v[t])
+        d_t = 2.0 * DAMPING_RATIO * math.sqrt(TORSO_STIFFNESS * m_tt)
+        tau = (
+            TORSO_STIFFNESS * (self.torso_q - qt) + d_t * (self.torso_qd - vt) + float(self.robot.data.nle[t])
+        )
+        if self._prev_torso is not None:
+            tau = min(max(tau, self._prev_torso - rate), self._prev_torso + rate)
+        tau = min(max(tau, -TORSO_TORQUE_LIMIT), TORSO_TORQUE_LIMIT)
+        self._prev_torso = tau
+        vmax = self.limits.torso_velocity
+        if abs(vt) > vmax:
+            tau -= m_tt * (vt - math.copysign(vmax, vt)) / self.limits.velocity_time_constant
+            tau = min(max(tau, -TORSO_TORQUE_LIMIT), TORSO_TORQUE_LIMIT)
+        return tau

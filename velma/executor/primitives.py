@@ -132,9 +132,12 @@ class _CartesianMotion:
         self.q0 = rt.q()[idx].copy()
         self.q_goal = ik.q[idx].copy()
         cmd = rt.ctrl.arm[self.side]
-        cmd.mode = "cart"
+        start, _ = self.pending.sample(0.0)
+        cmd.pose = start  # the setpoint must be valid before the law switches to it
+        cmd.twist = np.zeros(6)
         cmd.stiffness = self.stiffness
         cmd.posture = self.q0.copy()
+        cmd.mode = "cart"
         self.path = self.pending
         self.t0 = rt.time
         return None
