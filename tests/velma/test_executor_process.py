@@ -146,3 +146,22 @@ def test_cartesian_setpoint_is_valid_when_the_law_switches_to_it() -> None:
     assert np.linalg.norm(rt.ctrl.arm["right"].pose.translation - grip.translation) < 0.01
     v = rt.v()[rt.ctrl.arm_slice["right"]]
     assert np.max(np.abs(v)) < 0.5  # no jolt towards the world origin
+
+
+def test_safe_mode_is_soft_and_gravity_compensated(ex: ExecutorProcess) -> None:
+    pending = _submit(ex, Wait(duration=1000.0))
+    assert ex.safe("operator")
+    r = pending.get(timeout=60)
+    assert isinstance(r, CommandResult) and r.reason == "safe mode: operator"
+    first = ex.snapshot()
+    assert first is not None
+    snap = first
+    while snap.holding is None and snap.sim_time < first.sim_time + 1.0:
+        snap = ex.snapshot() or snap
+    assert snap.holding == "safe mode: operator"
+    later = snap
+    while later.sim_time < snap.sim_time + 1.0:  # one simulated second in safe mode
+        later = ex.snapshot() or later
+    drift = max(abs(later.joints[j] - snap.joints[j]) for j in snap.joints if "_arm_" in j)
+    assert drift < 0.05  # gravity compensated: the soft arms do not fall
+    assert _submit(ex, Wait(duration=0.01)).get(timeout=60).ok  # type: ignore[union-attr]

@@ -89,6 +89,13 @@ class Executor:
         for on_done, result in ended:
             self._notify(on_done, result)
 
+    def safe(self, why: str) -> None:
+        """Enter safe mode, ending every command with ``safe mode: why`` (velma.executor.loop)."""
+        with self._lock:
+            ended = self.loop.safe(why)
+        for on_done, result in ended:
+            self._notify(on_done, result)
+
     def snapshot(self) -> RobotSnapshot:
         """A consistent copy of the robot's state, with the loop's timing (thread-safe)."""
         with self._lock:

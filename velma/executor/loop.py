@@ -9,8 +9,8 @@ host can map results to its callers.
 
 Holding (``hold``): the running and queued commands end with ``failure`` (reason ``held:
 <why>``), the arms switch to joint impedance at their measured configuration, the torso to its
-measured angle; the hands keep their setpoints, so a grasped object stays grasped. The loop
-holds until the next command arrives.
+measured angle; the hands keep their setpoints, so a grasped object stays grasped. ``safe``
+does the same with Velma's safe-mode gains. The loop holds until the next command arrives.
 """
 
 from __future__ import annotations
@@ -64,18 +64,28 @@ class ControlLoop(Generic[T]):
     def hold(self, why: str) -> list[tuple[T, CommandResult]]:
         """Hold position in joint impedance (see module docstring); returns the failures of
         the commands it ended."""
-        ended = self.abort(f"held: {why}")
+        return self._stop_motion(f"held: {why}", why, safe=False)
+
+    def safe(self, why: str) -> list[tuple[T, CommandResult]]:
+        """Safe mode: like ``hold`` but with the arms in Velma's safe joint impedance (K = 5
+        N·m/rad, ξ = 1.9, gravity compensated: they can be pushed by hand); commands end with
+        ``safe mode: why``."""
+        return self._stop_motion(f"safe mode: {why}", f"safe mode: {why}", safe=True)
+
+    def _stop_motion(self, reason: str, holding: str, *, safe: bool) -> list[tuple[T, CommandResult]]:
+        ended = self.abort(reason)
         rt = self.rt
         q = rt.q()
         for side in SIDES:
-            cmd = rt.ctrl.arm[side]
-            cmd.mode = "joint"
-            cmd.q = q[rt.ctrl.arm_slice[side]].copy()
-            cmd.qd = np.zeros(7)
-            cmd.twist = np.zeros(6)
+            q_arm = q[rt.ctrl.arm_slice[side]].copy()
+            if safe:
+                rt.ctrl.safe(side, q_arm)
+            else:
+                rt.ctrl.hold(side, q_arm)
+            rt.ctrl.arm[side].twist = np.zeros(6)
         rt.ctrl.torso_q = float(q[rt.ctrl.torso_idx])
         rt.ctrl.torso_qd = 0.0
-        self.holding = why
+        self.holding = holding
         return ended
 
     def cycle(self) -> tuple[T, Result] | None:

@@ -9,7 +9,7 @@ switch interval (5 ms). In its own process the loop competes only for a CPU, whi
 
 Hand-offs (all non-blocking on the loop's side):
 
-- commands: ``SpscRing`` communication side → loop (``Submit``, ``Hold``, ``Shutdown``), polled
+- commands: ``SpscRing`` communication side → loop (``Submit``, ``Hold``, ``Safe``, ``Shutdown``), polled
   once per cycle (up to ``INBOX_PER_CYCLE`` messages);
 - results: ``SpscRing`` loop → communication side (``Ready``, ``Done``, ``Fault``), plus one byte
   on a non-blocking pipe (a doorbell) so that the reader thread sleeps until there is news;
@@ -73,6 +73,12 @@ class Hold(msgspec.Struct, frozen=True, tag="hold"):
     why: str
 
 
+class Safe(msgspec.Struct, frozen=True, tag="safe"):
+    """Enter safe mode (velma.executor.loop), because ``why``."""
+
+    why: str
+
+
 class Shutdown(msgspec.Struct, frozen=True, tag="shutdown"):
     """End the loop process (open commands end with ``stopped``)."""
 
@@ -99,7 +105,7 @@ class Fault(msgspec.Struct, frozen=True, tag="fault"):
     text: str
 
 
-ToLoop = Submit | Hold | Shutdown
+ToLoop = Submit | Hold | Safe | Shutdown
 FromLoop = Ready | Done | Fault
 
 
@@ -182,6 +188,8 @@ def loop_main(config: bytes, doorbell: multiprocessing.connection.Connection) ->
                 loop.submit(msg.token, msg.command)
             elif isinstance(msg, Hold):
                 pending.extend(encode(Done(token=t, result=r)) for t, r in loop.hold(msg.why))
+            elif isinstance(msg, Safe):
+                pending.extend(encode(Done(token=t, result=r)) for t, r in loop.safe(msg.why))
             else:
                 running = False
         done = loop.cycle()
@@ -365,6 +373,10 @@ class ExecutorProcess:
     def hold(self, why: str) -> bool:
         """Ask the loop to hold position (velma.executor.loop); False if it could not be asked."""
         return self._commands is not None and self.alive and self._commands.push(self._encode(Hold(why=why)))
+
+    def safe(self, why: str) -> bool:
+        """Ask the loop to enter safe mode (velma.executor.loop); False if it could not be asked."""
+        return self._commands is not None and self.alive and self._commands.push(self._encode(Safe(why=why)))
 
     def snapshot(self) -> RobotSnapshot | None:
         """The latest robot state (≤ ``STATE_PERIOD`` ms old) with the loop's timing, or None
