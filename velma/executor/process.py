@@ -54,6 +54,7 @@ STATE_CAPACITY = 65536  # B
 STATE_PERIOD = 20  # cycles between robot-state publications (50 Hz)
 INBOX_PER_CYCLE = 4  # messages taken from the command ring per cycle
 PARENT_CHECK = 1000  # cycles between checks that the parent process still exists
+DEFAULT_SPIN = 0.0003  # s before each release time that the real-time loop busy-waits instead of sleeping
 START_TIMEOUT = 120.0  # s for the loop process to build the scene and report Ready
 
 OnDone = Callable[[CommandResult | Observation], None]
@@ -116,6 +117,7 @@ class LoopConfig(msgspec.Struct, frozen=True, kw_only=True):
     seed: int
     pose_seed: int | None
     realtime_priority: bool
+    spin: float
     commands: str
     results: str
     state: str
@@ -210,8 +212,11 @@ def loop_main(config: bytes, doorbell: multiprocessing.connection.Connection) ->
         if cfg.realtime:
             release += DT
             now = time.perf_counter()
+            if release - cfg.spin > now:
+                time.sleep(release - cfg.spin - now)
             if release > now:
-                time.sleep(release - now)
+                while time.perf_counter() < release:  # the last ``spin`` s: keep the CPU awake
+                    pass
             elif now - release > DT:  # more than a cycle behind: skip, do not burst
                 release = now
     pending.extend(encode(Done(token=t, result=r)) for t, r in loop.abort("stopped"))
@@ -247,12 +252,14 @@ class ExecutorProcess:
         seed: int = 0,
         pose_seed: int | None = None,
         realtime_priority: bool = True,
+        spin: float = DEFAULT_SPIN,
         window: int = DEFAULT_WINDOW,
     ) -> None:
         self.realtime = realtime
         self.seed = seed
         self.pose_seed = pose_seed
         self.realtime_priority = realtime_priority
+        self.spin = spin
         self.window = window
         self.setup: RealtimeSetup | None = None
         self.exit_reason: str | None = None
@@ -289,6 +296,7 @@ class ExecutorProcess:
             seed=self.seed,
             pose_seed=self.pose_seed,
             realtime_priority=self.realtime_priority,
+            spin=self.spin,
             commands=self._commands.name,
             results=self._results.name,
             state=self._state.name,
