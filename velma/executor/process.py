@@ -118,6 +118,8 @@ class LoopConfig(msgspec.Struct, frozen=True, kw_only=True):
     pose_seed: int | None
     realtime_priority: bool
     spin: float
+    cpu: int | None
+    pin: bool
     commands: str
     results: str
     state: str
@@ -148,7 +150,7 @@ def loop_main(config: bytes, doorbell: multiprocessing.connection.Connection) ->
     rt = Runtime(seed=cfg.seed, pose_seed=cfg.pose_seed)
     loop: ControlLoop[int] = ControlLoop(rt)
     if cfg.realtime and cfg.realtime_priority:
-        setup = enter_realtime()
+        setup = enter_realtime(cpu=cfg.cpu, pin=cfg.pin)
     else:
         setup = RealtimeSetup(
             policy="SCHED_OTHER",
@@ -240,8 +242,10 @@ class ExecutorProcess:
 
     ``seed`` and ``pose_seed`` select the scene (``velma.executor.runtime.Runtime``).
     ``realtime`` paces the loop to wall time; ``realtime_priority`` then asks for SCHED_FIFO
-    and a CPU of its own (see ``enter_realtime``). ``on_done`` callbacks run on this side's
-    reader thread, once per command. ``start`` raises ``RuntimeError`` if the loop process
+    and a CPU of its own (``cpu``, default the last one; see ``enter_realtime``); ``spin`` (s)
+    is how long before each release the loop busy-waits instead of sleeping; ``pin=False``
+    keeps SCHED_FIFO but lets the loop run on any CPU. ``on_done`` callbacks run on this
+    side's reader thread, once per command. ``start`` raises ``RuntimeError`` if the loop process
     does not come up within ``START_TIMEOUT`` s.
     """
 
@@ -253,6 +257,8 @@ class ExecutorProcess:
         pose_seed: int | None = None,
         realtime_priority: bool = True,
         spin: float = DEFAULT_SPIN,
+        cpu: int | None = None,
+        pin: bool = True,
         window: int = DEFAULT_WINDOW,
     ) -> None:
         self.realtime = realtime
@@ -260,6 +266,8 @@ class ExecutorProcess:
         self.pose_seed = pose_seed
         self.realtime_priority = realtime_priority
         self.spin = spin
+        self.cpu = cpu
+        self.pin = pin
         self.window = window
         self.setup: RealtimeSetup | None = None
         self.exit_reason: str | None = None
@@ -297,6 +305,8 @@ class ExecutorProcess:
             pose_seed=self.pose_seed,
             realtime_priority=self.realtime_priority,
             spin=self.spin,
+            cpu=self.cpu,
+            pin=self.pin,
             commands=self._commands.name,
             results=self._results.name,
             state=self._state.name,

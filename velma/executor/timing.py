@@ -174,9 +174,12 @@ class DeadlineMonitor:
         )
 
 
-def enter_realtime(*, priority: int = FIFO_PRIORITY, cpu: int | None = None) -> RealtimeSetup:
-    """Ask for SCHED_FIFO at ``priority`` and pin the calling process to ``cpu`` (default: the
-    highest-numbered CPU it may use). Never raises: what was refused is in ``notes``.
+def enter_realtime(
+    *, priority: int = FIFO_PRIORITY, cpu: int | None = None, pin: bool = True
+) -> RealtimeSetup:
+    """Ask for SCHED_FIFO at ``priority`` and, if ``pin``, pin the calling process to ``cpu``
+    (default: the highest-numbered CPU it may use). Never raises: what was refused is in
+    ``notes``.
 
     A SCHED_FIFO task that never blocks would starve its CPU; the loop sleeps until each
     release time, so it uses only its compute time. Linux ignores timer slack for real-time
@@ -196,7 +199,9 @@ def enter_realtime(*, priority: int = FIFO_PRIORITY, cpu: int | None = None) -> 
     if hasattr(os, "sched_getaffinity"):
         allowed = sorted(os.sched_getaffinity(0))
         want = cpu if cpu is not None else allowed[-1]
-        if len(allowed) > 1 and want in allowed:
+        if not pin:
+            notes.append("not pinned (by request)")
+        elif len(allowed) > 1 and want in allowed:
             try:
                 os.sched_setaffinity(0, {want})
                 pinned = True
