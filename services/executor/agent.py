@@ -43,6 +43,17 @@ TIMING_FILE_PERIOD = 5.0  # s between writes of ag_ex_timing.json
 TIMING_FILE = "ag_ex_timing.json"
 
 
+def _seed(name: str, text: str) -> int:
+    """A non-negative seed from an environment variable; ValueError naming it otherwise."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise ValueError(f"{name}={text!r} is not an integer") from None
+    if value < 0:
+        raise ValueError(f"{name}={value} is negative")
+    return value
+
+
 @dataclass(frozen=True)
 class Done:
     """A command's result from the loop, with the request it answers."""
@@ -72,8 +83,8 @@ class ExecutorAgent(Agent):
         pose = os.environ.get("ROCO_POSE_SEED", "")
         return ExecutorProcess(
             realtime=os.environ.get("ROCO_REALTIME", "0") == "1",
-            seed=int(os.environ.get("ROCO_SEED", "0")),
-            pose_seed=int(pose) if pose else None,
+            seed=_seed("ROCO_SEED", os.environ.get("ROCO_SEED", "0")),
+            pose_seed=_seed("ROCO_POSE_SEED", pose) if pose else None,
         )
 
     def build_fsm(self) -> FSM:

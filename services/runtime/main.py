@@ -72,7 +72,12 @@ def main(argv: list[str] | None = None) -> int:
         print(f"roco: {exc}", file=sys.stderr)
         return 2
     transport = ZenohTransport(router_endpoints())
-    agent = cls(transport, spec)
+    try:
+        agent = cls(transport, spec)
+    except (SpecError, ValueError) as exc:  # e.g. a malformed ROCO_SEED
+        transport.close()
+        print(f"roco: agent {name}: {exc}", file=sys.stderr)
+        return 2
 
     def on_signal(signum: int, frame: FrameType | None) -> None:
         agent.stop()

@@ -74,3 +74,15 @@ def test_holds_when_a_ta_disappears_and_publishes_state() -> None:
     finally:
         agent.stop()
         thread.join(10)
+
+
+def test_malformed_seed_is_a_clear_configuration_error(monkeypatch: Any) -> None:
+    import pytest
+
+    monkeypatch.setenv("ROCO_SEED", "abc")
+    with pytest.raises(ValueError, match="ROCO_SEED='abc' is not an integer"):
+        ExecutorAgent(MemoryBus().transport())
+    monkeypatch.setenv("ROCO_SEED", "1")
+    monkeypatch.setenv("ROCO_POSE_SEED", "-3")
+    with pytest.raises(ValueError, match="ROCO_POSE_SEED=-3 is negative"):
+        ExecutorAgent(MemoryBus().transport())
