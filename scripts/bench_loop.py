@@ -50,14 +50,18 @@ def machine() -> str:
     )
 
 
-def run_alone(seed: int) -> tuple[TimingStats, str]:
+def run_alone(seed: int, spin: float | None) -> tuple[TimingStats, str]:
     """The scripted pour through ExecutorProcess in real time; returns timing and outcome."""
     from shared.fipa_codec.languages.l_ex import CommandResult, Observe
     from shared.fipa_codec.languages.l_sd import Observation
     from velma.executor import ExecutorProcess
     from velma.scenario import pour_script
 
-    ex = ExecutorProcess(realtime=True, seed=seed)
+    ex = (
+        ExecutorProcess(realtime=True, seed=seed)
+        if spin is None
+        else ExecutorProcess(realtime=True, seed=seed, spin=spin)
+    )
     ex.start()
     try:
         done = threading.Event()
@@ -125,6 +129,7 @@ def row(name: str, s: TimingStats, outcome: str) -> str:
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeat", type=int, default=1, help="runs per condition")
+    ap.add_argument("--spin-us", type=float, default=None, help="alone: busy-wait before each release (µs)")
     ap.add_argument("--skip-fleet", action="store_true", help="only the loop alone")
     ap.add_argument("--skip-alone", action="store_true", help="only the fleet run")
     ap.add_argument(
@@ -141,7 +146,7 @@ def main() -> int:
     for k in range(args.repeat):
         if not args.skip_alone:
             t0 = time.time()
-            stats, outcome = run_alone(seed=k)
+            stats, outcome = run_alone(k, None if args.spin_us is None else args.spin_us * 1e-6)
             print(row(f"alone (seed {k}, {time.time() - t0:.0f} s)", stats, outcome), flush=True)
         if not args.skip_fleet:
             t0 = time.time()

@@ -7,6 +7,7 @@ from __future__ import annotations
 import os
 import queue
 import signal
+import time
 from collections.abc import Iterator
 
 import numpy as np
@@ -43,8 +44,13 @@ def test_commands_cross_and_state_is_published(ex: ExecutorProcess) -> None:
     obs = _submit(ex, Observe(objects=("jar", "bowl"))).get(timeout=60)
     assert isinstance(obs, Observation)
     assert {o.name for o in obs.objects} >= {"jar", "bowl"}
+    # the state is rewritten every STATE_PERIOD cycles: read until it has caught up with the
+    # result (the loop keeps running), giving up after 10 s of wall time
+    deadline = time.monotonic() + 10.0
     snap = ex.snapshot()
-    assert snap is not None and snap.sim_time >= 0.2
+    while (snap is None or snap.sim_time < r.sim_time) and time.monotonic() < deadline:
+        snap = ex.snapshot()
+    assert snap is not None and snap.sim_time >= r.sim_time
     assert len(snap.joints) == 33 and snap.holding is None
     assert snap.timing is not None and snap.timing.cycles >= 200 and snap.timing.pacing == "fast"
     assert ex.setup is not None and ex.setup.notes == ("not requested",)

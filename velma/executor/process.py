@@ -52,6 +52,7 @@ SLOTS = 64  # messages per ring
 SLOT_SIZE = 65536  # B per message (an L_SD Observation of the kitchen is ≈ 3 KiB)
 STATE_CAPACITY = 65536  # B
 STATE_PERIOD = 20  # cycles between robot-state publications (50 Hz)
+STATE_PHASE = 3  # … in cycles 3, 23, 43…: not in those of the hands' contact scans (0, 5 mod 10)
 INBOX_PER_CYCLE = 4  # messages taken from the command ring per cycle
 PARENT_CHECK = 1000  # cycles between checks that the parent process still exists
 DEFAULT_SPIN = 0.0003  # s before each release time that the real-time loop busy-waits instead of sleeping
@@ -204,7 +205,7 @@ def loop_main(config: bytes, doorbell: multiprocessing.connection.Connection) ->
             pending.append(encode(Fault(command=name, text=text)))
         if pending:
             ring()
-        if cycle % STATE_PERIOD == 0:
+        if cycle % STATE_PERIOD == STATE_PHASE:
             state.write(encode(robot_snapshot(rt, loop.holding)))
         if cycle % PARENT_CHECK == 0 and os.getppid() != cfg.parent_pid:
             running = False  # orphaned: the communication side is gone

@@ -78,6 +78,7 @@ class Runtime:
         self.touch: dict[str, dict[int, int]] = {s: {} for s in SIDES}
         self.lost_cycles: dict[str, int] = {s: 0 for s in SIDES}
         self.cycles = 0
+        self._scan_phase = {0: SIDES[0], CONTACT_PERIOD // 2: SIDES[1]}
         q = self.q()
         for s in SIDES:
             self.ctrl.arm[s].q = q[self.ctrl.arm_slice[s]].copy()
@@ -136,14 +137,17 @@ class Runtime:
         data.ctrl[self.head_act[1]] = self.head_set[1]
         mujoco.mj_step(self.model, data)
         self.cycles += 1
-        if self.cycles % CONTACT_PERIOD == 0:
-            for s in SIDES:
-                self.touch[s] = self.contacts.touching(data, s)
-                b = self.held[s]
-                if b is not None and self.touch[s].get(b, 0) == 0:
-                    self.lost_cycles[s] += 1
-                else:
-                    self.lost_cycles[s] = 0
+        # each hand is scanned every CONTACT_PERIOD cycles, the two half a period apart, so
+        # that no cycle carries both scans
+        phase = self.cycles % CONTACT_PERIOD
+        if phase in self._scan_phase:
+            s = self._scan_phase[phase]
+            self.touch[s] = self.contacts.touching(data, s)
+            b = self.held[s]
+            if b is not None and self.touch[s].get(b, 0) == 0:
+                self.lost_cycles[s] += 1
+            else:
+                self.lost_cycles[s] = 0
 
     # ------------------------------------------------------------------ helpers
     def torso_angle_cmd(self) -> float:
