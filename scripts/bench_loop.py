@@ -19,7 +19,6 @@ import platform
 import subprocess
 import sys
 import tempfile
-import threading
 import time
 from pathlib import Path
 
@@ -52,10 +51,9 @@ def machine() -> str:
 
 def run_alone(seed: int, spin: float | None) -> tuple[TimingStats, str]:
     """The scripted pour through ExecutorProcess in real time; returns timing and outcome."""
-    from shared.fipa_codec.languages.l_ex import CommandResult, Observe
-    from shared.fipa_codec.languages.l_sd import Observation
+    from shared.fipa_codec.languages.l_ex import CommandResult
     from velma.executor import ExecutorProcess
-    from velma.scenario import pour_script
+    from velma.scenario import run_pour
 
     ex = (
         ExecutorProcess(realtime=True, seed=seed)
@@ -64,28 +62,12 @@ def run_alone(seed: int, spin: float | None) -> tuple[TimingStats, str]:
     )
     ex.start()
     try:
-        done = threading.Event()
-        box: list[CommandResult | Observation] = []
-
-        def call(command: object) -> CommandResult | Observation:
-            done.clear()
-            box.clear()
-            ex.submit(command, lambda r: (box.append(r), done.set()))  # type: ignore[arg-type]
-            if not done.wait(600):
-                raise TimeoutError(f"{command} did not end")
-            return box[0]
-
-        obs = call(Observe(objects=("jar", "bowl", "table", "cabinet")))
-        assert isinstance(obs, Observation)
-        outcome = "ok"
-        for command in pour_script(obs):
-            r = call(command)
-            if isinstance(r, CommandResult) and not r.ok:
-                outcome = f"{r.command} failed: {r.reason}"
-                break
-        return ex.timing(), outcome
+        _, results = run_pour(ex.submit)
+        timing = ex.timing()
     finally:
         ex.stop()
+    failed = next((r for r in results if isinstance(r, CommandResult) and not r.ok), None)
+    return timing, "ok" if failed is None else f"{failed.command} failed: {failed.reason}"
 
 
 def run_fleet(runs_dir: Path) -> tuple[TimingStats, str]:

@@ -69,25 +69,16 @@ def run_fleet(seed: int, runs_dir: Path, realtime: bool) -> Outcome:
 
 def run_script(seed: int) -> Outcome:
     """The scripted pour on the threaded executor, the pour aimed at the observed bowl."""
-    from shared.fipa_codec.languages.l_ex import CommandResult, Observe
+    from shared.fipa_codec.languages.l_ex import CommandResult
     from shared.fipa_codec.languages.l_sd import Observation
     from velma.executor import Executor
-    from velma.scenario import pour_script
-    from velma.scenario import run_script as run
+    from velma.scenario import run_pour
 
     t0 = time.time()
     ex = Executor(realtime=False, seed=seed, pose_seed=seed)
     ex.start()
     try:
-        first = run(ex.submit, [Observe()])[0]
-        assert isinstance(first, Observation)
-        commands = pour_script(first)
-        split = next(i for i, c in enumerate(commands) if isinstance(c, Observe) and c.objects) + 1
-        results = run(ex.submit, commands[:split])
-        last = results[-1]
-        if isinstance(last, Observation):
-            bowl_now = next(o for o in last.objects if o.name == "bowl").pose.position
-            results += run(ex.submit, pour_script(first, bowl_on_table=bowl_now)[split:])
+        _, results = run_pour(ex.submit)
     finally:
         ex.stop()
     wall = time.time() - t0

@@ -320,3 +320,28 @@ def run_script(
         if stop_on_failure and isinstance(box[0], CommandResult) and not box[0].ok:
             break
     return results
+
+
+def run_pour(
+    submit: Callable[[ExecutorCommand, Callable[[CommandResult | Observation], None]], None],
+    *,
+    timeout: float = 600.0,
+) -> tuple[list[ExecutorCommand], list[CommandResult | Observation]]:
+    """The whole experiment as the agents' plans run it: observe the scene, run
+    ``pour_script`` up to the observation of the placed bowl, then aim the pour at where the
+    bowl really is. Returns the commands sent and their results (shorter than the commands
+    when one failed). Raises ``TimeoutError`` as ``run_script``; ``KeyError`` if the first
+    observation lacks the jar or the bowl."""
+    first = run_script(submit, [Observe()], timeout=timeout)[0]
+    if not isinstance(first, Observation):
+        raise RuntimeError(f"the first observation failed: {first}")
+    commands = pour_script(first)
+    split = next(i for i, c in enumerate(commands) if isinstance(c, Observe) and c.objects) + 1
+    results = run_script(submit, commands[:split], timeout=timeout)
+    placed = results[-1]
+    if len(results) < split or not isinstance(placed, Observation):
+        return commands[: len(results)], results
+    bowl_now = next(o for o in placed.objects if o.name == "bowl").pose.position
+    commands = commands[:split] + pour_script(first, bowl_on_table=bowl_now)[split:]
+    results += run_script(submit, commands[split:], timeout=timeout)
+    return commands[: len(results)], results

@@ -9,7 +9,7 @@ import pytest
 from shared.fipa_codec.languages.l_ex import CommandResult, Observe
 from shared.fipa_codec.languages.l_sd import Observation
 from velma.executor import Executor
-from velma.scenario import pour_script, run_script
+from velma.scenario import run_pour
 
 
 def test_executor_fifo_and_snapshot() -> None:
@@ -40,18 +40,8 @@ def test_pour_script_fills_the_bowl() -> None:
     ex = Executor(realtime=False, seed=0)
     ex.start()
     try:
-        first = run_script(ex.submit, [Observe()])[0]
-        assert isinstance(first, Observation)
-        commands = pour_script(first)
-        # interleaved as the agents do it: run up to the observation of the placed bowl,
-        # then aim the pour at where the bowl really is
-        split = next(i for i, c in enumerate(commands) if isinstance(c, Observe) and c.objects) + 1
-        results = run_script(ex.submit, commands[:split])
-        placed = results[-1]
-        assert isinstance(placed, Observation), placed
-        bowl_now = next(o for o in placed.objects if o.name == "bowl").pose.position
-        commands = commands[:split] + pour_script(first, bowl_on_table=bowl_now)[split:]
-        results += run_script(ex.submit, commands[split:])
+        # interleaved as the agents do it: the pour is aimed at the observed placed bowl
+        commands, results = run_pour(ex.submit)
     finally:
         ex.stop()
     assert len(results) == len(commands)

@@ -18,12 +18,14 @@ import threading
 import time
 from collections.abc import Callable
 
+import msgspec
+
 from shared.fipa_codec.languages.l_ex import CommandResult, ExecutorCommand
 from shared.fipa_codec.languages.l_sd import Observation
 from velma.executor.loop import ControlLoop
 from velma.executor.runtime import DT, Runtime
 from velma.executor.state import RobotSnapshot, robot_snapshot
-from velma.executor.timing import DeadlineMonitor, TimingStats
+from velma.executor.timing import DeadlineMonitor, Pacer, TimingStats
 
 log = logging.getLogger(__name__)
 
@@ -100,16 +102,7 @@ class Executor:
         """A consistent copy of the robot's state, with the loop's timing (thread-safe)."""
         with self._lock:
             snap = robot_snapshot(self.rt, self.loop.holding)
-        timing = self.monitor.stats(snap.sim_time)
-        return RobotSnapshot(
-            sim_time=snap.sim_time,
-            joints=snap.joints,
-            grip=snap.grip,
-            held=snap.held,
-            held_object=snap.held_object,
-            holding=snap.holding,
-            timing=timing,
-        )
+        return msgspec.structs.replace(snap, timing=self.monitor.stats(snap.sim_time))
 
     def timing(self) -> TimingStats:
         """The deadline monitor's statistics (velma.executor.timing.TimingStats)."""
@@ -117,27 +110,18 @@ class Executor:
 
     # ------------------------------------------------------------------ loop
     def _run(self) -> None:
-        release = time.perf_counter()
+        pacer = Pacer(DT, realtime=self.realtime)
         while not self._stop.is_set():
-            start = time.perf_counter()
-            if not self.realtime:
-                release = start
+            start = pacer.begin()
             with self._lock:
                 done = self.loop.cycle()
-            end = time.perf_counter()
-            self.monitor.record(release, start, end)
+            self.monitor.record(pacer.release, start, time.perf_counter())
             if done is not None:
                 self._notify(*done)
             while self.loop.errors:
                 name, text = self.loop.errors.popleft()
                 log.error("command %s raised %s", name, text)
-            if self.realtime:
-                release += DT
-                now = time.perf_counter()
-                if release > now:
-                    time.sleep(release - now)
-                elif now - release > DT:  # more than a cycle behind: do not catch up in a burst
-                    release = now
+            pacer.wait()
 
     @staticmethod
     def _notify(on_done: OnDone, result: CommandResult | Observation) -> None:

@@ -20,9 +20,9 @@ from typing import Generic, TypeVar
 
 import numpy as np
 
-from shared.fipa_codec.languages.l_ex import CommandResult, ExecutorCommand
+from shared.fipa_codec.languages.l_ex import CommandResult, ExecutorCommand, command_name
 from velma.control.robot_model import SIDES
-from velma.executor.primitives import Primitive, Result, command_name, make_primitive
+from velma.executor.primitives import Primitive, Result, make_primitive
 from velma.executor.runtime import Runtime
 
 T = TypeVar("T")

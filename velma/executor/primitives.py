@@ -484,10 +484,3 @@ def make_primitive(command: ExecutorCommand) -> Primitive:
     if isinstance(command, Wait):
         return WaitPrimitive(command)
     raise TypeError(f"not an executor command: {type(command).__name__}")
-
-
-def command_name(command: object) -> str:
-    """The L_EX tag of a command (``move_tool``…), or its class name."""
-    config = getattr(type(command), "__struct_config__", None)
-    tag = getattr(config, "tag", None)
-    return str(tag) if tag else type(command).__name__

@@ -39,11 +39,11 @@ from multiprocessing import shared_memory
 
 import msgspec
 
-from shared.fipa_codec.languages.l_ex import CommandResult, ExecutorCommand
+from shared.fipa_codec.languages.l_ex import CommandResult, ExecutorCommand, command_name
 from shared.fipa_codec.languages.l_sd import Observation
 from velma.executor.handoff import LatestValue, SpscRing, shared_view
 from velma.executor.state import RobotSnapshot
-from velma.executor.timing import DEFAULT_WINDOW, DeadlineMonitor, RealtimeSetup, TimingStats
+from velma.executor.timing import DEFAULT_WINDOW, DeadlineMonitor, Pacer, RealtimeSetup, TimingStats
 
 log = logging.getLogger(__name__)
 
@@ -180,11 +180,9 @@ def loop_main(config: bytes, doorbell: multiprocessing.connection.Connection) ->
 
     running = True
     cycle = 0
-    release = time.perf_counter()
+    pacer = Pacer(DT, realtime=cfg.realtime, spin=cfg.spin)
     while running:
-        start = time.perf_counter()
-        if not cfg.realtime:
-            release = start
+        start = pacer.begin()
         for _ in range(INBOX_PER_CYCLE):
             raw = inbox.pop()
             if raw is None:
@@ -212,28 +210,14 @@ def loop_main(config: bytes, doorbell: multiprocessing.connection.Connection) ->
             running = False  # orphaned: the communication side is gone
         cycle += 1
         end = time.perf_counter()
-        monitor.record(release, start, end)
-        if cfg.realtime:
-            release += DT
-            now = time.perf_counter()
-            if release - cfg.spin > now:
-                time.sleep(release - cfg.spin - now)
-            if release > now:
-                while time.perf_counter() < release:  # the last ``spin`` s: keep the CPU awake
-                    pass
-            elif now - release > DT:  # more than a cycle behind: skip, do not burst
-                release = now
+        monitor.record(pacer.release, start, end)
+        pacer.wait()
     pending.extend(encode(Done(token=t, result=r)) for t, r in loop.abort("stopped"))
     ring()
     del monitor
     for block in (inbox, outbox_ring, state):
         block.close()
     mon_shm.close()
-
-
-def _command_name(command: ExecutorCommand) -> str:
-    tag = type(command).__struct_config__.tag
-    return str(tag) if tag else type(command).__name__
 
 
 # ---------------------------------------------------------------------- communication side
@@ -382,14 +366,14 @@ class ExecutorProcess:
         ring or a dead loop answers at once with ``failure``."""
         token = next(self._tokens)
         with self._lock:
-            self._callbacks[token] = (on_done, _command_name(command))
+            self._callbacks[token] = (on_done, command_name(command))
         reason: str | None = None
         if self._commands is None or not self.alive:
             reason = f"executor loop not running{': ' + self.exit_reason if self.exit_reason else ''}"
         elif not self._commands.push(self._encode(Submit(token=token, command=command))):
             reason = "executor busy: command queue full"
         if reason is not None:
-            self._answer(token, CommandResult(command=_command_name(command), ok=False, reason=reason))
+            self._answer(token, CommandResult(command=command_name(command), ok=False, reason=reason))
 
     def hold(self, why: str) -> bool:
         """Ask the loop to hold position (velma.executor.loop); False if it could not be asked."""

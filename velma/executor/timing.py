@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import os
 import platform
+import time
 
 import msgspec
 import numpy as np
@@ -172,6 +173,44 @@ class DeadlineMonitor:
             worst_cycle=worst_cycle,
             worst_compute_us=float(self._worst[0]) * 1e6,
         )
+
+
+class Pacer:
+    """Release times of a loop of period ``dt`` (s) on ``time.perf_counter``.
+
+    Call ``begin`` at the start of each cycle (it returns the start time) and ``wait`` at its
+    end. In real-time pacing cycle k is released at t₀ + k·``dt``: ``wait`` sleeps until
+    ``spin`` s before the next release and busy-waits the rest (a sleeping CPU of a virtual
+    machine wakes late); a loop more than one period behind skips ahead instead of catching up
+    in a burst. Otherwise ``wait`` returns at once and each cycle is released when it starts.
+    ``release`` is the current cycle's release time, for ``DeadlineMonitor.record``."""
+
+    def __init__(self, dt: float, *, realtime: bool, spin: float = 0.0) -> None:
+        self.dt = dt
+        self.realtime = realtime
+        self.spin = spin
+        self.release = time.perf_counter()
+
+    def begin(self) -> float:
+        """Start a cycle; returns its start time (s)."""
+        start = time.perf_counter()
+        if not self.realtime:
+            self.release = start
+        return start
+
+    def wait(self) -> None:
+        """End a cycle: in real-time pacing, return at the next release time."""
+        if not self.realtime:
+            return
+        self.release += self.dt
+        now = time.perf_counter()
+        if self.release - self.spin > now:
+            time.sleep(self.release - self.spin - now)
+        if self.release > now:
+            while time.perf_counter() < self.release:
+                pass
+        elif now - self.release > self.dt:
+            self.release = now
 
 
 def enter_realtime(

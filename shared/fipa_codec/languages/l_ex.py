@@ -85,6 +85,14 @@ class Wait(msgspec.Struct, frozen=True, tag="wait", kw_only=True):
 ExecutorCommand = MoveTool | MoveJoints | Grasp | Release | LookAt | Tilt | Observe | Wait
 
 
+def command_name(command: object) -> str:
+    """The L_EX tag of a command (``move_tool``, ``grasp``…), or its class name for anything
+    else (used to name the command in its ``CommandResult``)."""
+    config = getattr(type(command), "__struct_config__", None)
+    tag = getattr(config, "tag", None)
+    return str(tag) if tag else type(command).__name__
+
+
 class CommandResult(msgspec.Struct, frozen=True, tag="result", kw_only=True):
     """The outcome of one executor command: ``ok`` and, when not, a ``reason``
     (``unreachable``, ``contact lost``, ``timeout``, ``no contact``…). ``sim_time`` is the
