@@ -20,11 +20,22 @@ from shared.fipa_codec.languages.l_ex import (
     Tilt,
     Wait,
 )
-from shared.fipa_codec.languages.l_hc import CommandOutcome, HumanCommand, TaskAtom
+from shared.fipa_codec.languages.l_hc import (
+    CommandOutcome,
+    HumanCommand,
+    Progress,
+    ProgressSubscription,
+    Status,
+    StatusQuery,
+    TaskAtom,
+    TaskState,
+    TaskStatus,
+)
 from shared.fipa_codec.languages.l_hfsm import (
     Assert,
     CheckContent,
     Execute,
+    ExpectedPosition,
     GroundTaskNetwork,
     HierarchicalPlan,
     Perceive,
@@ -37,6 +48,7 @@ from shared.fipa_codec.languages.l_wm import (
     Answer,
     GraspAffordance,
     GraspQuery,
+    HypotheticalQuery,
     ObjectInfo,
     ObjectQuery,
     ObjectUpdate,
@@ -77,9 +89,25 @@ SAMPLE_TERMS: list[msgspec.Struct] = [
     HumanCommand(text="Pour the jar into the bowl", goal=TaskAtom("pour", ("jar", "bowl"))),
     HumanCommand(text="żółw", goal=TaskAtom("fetch"), priority=3, deadline_s=60.0),
     CommandOutcome(command_id="cmd-1", succeeded=True, detail="done"),
+    ProgressSubscription(),
+    Progress(command_id="cmd-1", state=TaskState.RUNNING, step="pour(jar,bowl)/fetch_jar/grasp"),
+    StatusQuery(),
+    Status(
+        tasks=(
+            TaskStatus(command_id="cmd-1", text="pour", state=TaskState.PREEMPTED, priority=1),
+            TaskStatus(command_id="cmd-2", text="fetch", state=TaskState.RUNNING, deadline_in_s=-3.5),
+        )
+    ),
     # L_HFSM
     GroundTaskNetwork(task_id="t1", tasks=(TaskAtom("pour", ("jar", "bowl")),), plan_index=2),
     HierarchicalPlan(plan_id="p1", task_id="t1", root=PLAN_ROOT, complete=False, cost=12.5),
+    HierarchicalPlan(
+        plan_id="p2",
+        task_id="t1",
+        root=PlanNode(name="r", children=(PlanNode(name="a", action=Perceive(), on_cancel="s0"),), atomic=True),
+        safe_stops={"s0": PLAN_ROOT},
+    ),
+    Perceive(("jar",), expect=(ExpectedPosition(object="jar", position=(0.8, 0.2, 0.9), tolerance=0.02),)),
     PlanFailure(task_id="t1", reason="no jar"),
     Execute(Wait(duration=0.5)),
     Perceive(),
@@ -95,6 +123,10 @@ SAMPLE_TERMS: list[msgspec.Struct] = [
     GraspQuery(object="jar", arm="right"),
     PlacementQuery(object="jar", surface="table"),
     PourQuery(source="jar", target="bowl"),
+    HypotheticalQuery(
+        changes=(ObjectUpdate(name="jar", location="table", relation="on", held_by=""),),
+        query=SparqlQuery("ASK { roco:jar roco:on roco:table }"),
+    ),
     Subscription(),
     Answer(
         objects=(

@@ -1,6 +1,18 @@
-"""L_HC: human commands (C2, a_hi → a_co, fipa-request) and their outcome."""
+"""L_HC: what a_hi and a_co say on C2 (paper §5.2).
+
+- fipa-request (a_hi initiates): a :class:`HumanCommand`; a_co agrees, and ends with a
+  :class:`CommandOutcome` in ``inform`` (done) or ``failure``/``refuse``. a_hi stops a
+  command with ``cancel`` in its conversation; a_co answers ``inform`` with the outcome
+  ("stopped") once the robot is in a safe state.
+- fipa-subscribe (a_hi initiates): a :class:`ProgressSubscription`; a_co agrees and informs a
+  :class:`Progress` at every change of a command's state.
+- fipa-query (a_hi initiates): ``query-ref`` of a :class:`StatusQuery` ("what are you
+  doing?"); a_co answers ``inform-ref`` with a :class:`Status`.
+"""
 
 from __future__ import annotations
+
+import enum
 
 import msgspec
 
@@ -32,4 +44,63 @@ class CommandOutcome(msgspec.Struct, frozen=True, tag="outcome", kw_only=True):
     detail: str = ""
 
 
-L_HC = register(Language("L_HC", "O_RoCo", (HumanCommand, CommandOutcome)))
+class TaskState(enum.StrEnum):
+    """Where a command stands in a_co (paper Table 3)."""
+
+    WAITING = "waiting"
+    """accepted, waiting for a plan or for the robot"""
+    PLANNING = "planning"
+    RUNNING = "running"
+    TERMINATING = "terminating"
+    """cancelled or preempted; the robot is reaching a safe state"""
+    PREEMPTED = "preempted"
+    """interrupted for a more urgent command; resumed later"""
+    SUCCEEDED = "succeeded"
+    FAILED = "failed"
+    STOPPED = "stopped"
+
+
+class ProgressSubscription(msgspec.Struct, frozen=True, tag="progress_subscription"):
+    """a_hi's fipa-subscribe to a_co: inform a :class:`Progress` at every change."""
+
+
+class Progress(msgspec.Struct, frozen=True, tag="progress", kw_only=True):
+    """Command ``command_id`` (its C2 conversation-id) is now in ``state``; ``step`` names the
+    plan's HFSM state being executed (``pour(jar,bowl)/fetch_jar/grasp``), ``detail`` says
+    why in words a person can read."""
+
+    command_id: str
+    state: TaskState
+    step: str | None = None
+    detail: str = ""
+
+
+class StatusQuery(msgspec.Struct, frozen=True, tag="status_query"):
+    """"What are you doing?": the state of every command a_co holds."""
+
+
+class TaskStatus(msgspec.Struct, frozen=True, kw_only=True):
+    """One command in a :class:`Status`: its ``text``, ``state``, current ``step``,
+    ``priority`` and seconds left to its deadline (``deadline_in_s``, negative when missed)."""
+
+    command_id: str
+    text: str
+    state: TaskState
+    step: str | None = None
+    priority: int = 0
+    deadline_in_s: float | None = None
+
+
+class Status(msgspec.Struct, frozen=True, tag="status", kw_only=True):
+    """a_co's answer to a :class:`StatusQuery`: every command it holds, the running one first."""
+
+    tasks: tuple[TaskStatus, ...] = ()
+
+
+L_HC = register(
+    Language(
+        "L_HC",
+        "O_RoCo",
+        (HumanCommand, CommandOutcome, ProgressSubscription, Progress, StatusQuery, Status),
+    )
+)

@@ -5,6 +5,12 @@ a composite state runs its children in order and succeeds when the last one does
 runs one :data:`Action` in a_ta. Any failing state fails its parents (a_ta reports Error).
 A plan with ``complete=False`` ends in a sensing step after which the planner must be asked
 again (interleaved planning and execution, paper §5.7): a_ta then reports Replan.
+
+Safe interruption (paper §3.2, the cup of tea): a_co may cancel a running plan. a_ta first
+finishes the ``atomic`` state it is in (a grasp, a pour: states that must not stop half-way),
+then runs the plan's safe-stop HFSM named by the next leaf's ``on_cancel`` (the planner
+computed it from what the hands hold at that point: put it down in a safe place), and only
+then reports Preempted.
 """
 
 from __future__ import annotations
@@ -12,6 +18,7 @@ from __future__ import annotations
 import msgspec
 
 from shared.fipa_codec.languages.base import Language, register
+from shared.fipa_codec.languages.common import Vec3
 from shared.fipa_codec.languages.l_ex import ExecutorCommand
 from shared.fipa_codec.languages.l_hc import TaskAtom
 
@@ -31,11 +38,22 @@ class Execute(msgspec.Struct, frozen=True, tag="execute"):
     command: ExecutorCommand
 
 
+class ExpectedPosition(msgspec.Struct, frozen=True, kw_only=True):
+    """What the plan assumes: ``object``'s frame is within ``tolerance`` m of ``position``
+    (world, m)."""
+
+    object: str
+    position: Vec3
+    tolerance: float = 0.03
+
+
 class Perceive(msgspec.Struct, frozen=True, tag="perceive"):
     """Leaf action: request an Observe from ag_ex and inform a_km of what was seen (C6).
-    ``objects`` empty means the whole scene."""
+    ``objects`` empty means the whole scene. When an object is not where ``expect`` says (or
+    not seen), the world differs from the plan: a_ta reports Replan."""
 
     objects: tuple[str, ...] = ()
+    expect: tuple[ExpectedPosition, ...] = ()
 
 
 class Assert(msgspec.Struct, frozen=True, tag="assert", kw_only=True):
@@ -60,12 +78,17 @@ Action = Execute | Perceive | Assert | CheckContent
 
 class PlanNode(msgspec.Struct, frozen=True, kw_only=True):
     """A state of the plan HFSM: ``name``; either ``children`` (a composite state, run in
-    order) or an ``action`` (a leaf state). ``task`` names the HTN task it refines."""
+    order) or an ``action`` (a leaf state). ``task`` names the HTN task it refines.
+    ``atomic``: once entered, a cancel takes effect only after the state ends. ``on_cancel``
+    (leaves): the key in :attr:`HierarchicalPlan.safe_stops` of the HFSM to run when a cancel
+    takes effect before this leaf starts (None: nothing to put down)."""
 
     name: str
     children: tuple[PlanNode, ...] = ()
     action: Action | None = None
     task: str | None = None
+    atomic: bool = False
+    on_cancel: str | None = None
 
     def leaves(self, prefix: str = "") -> list[tuple[str, PlanNode]]:
         """All leaf states in execution order, each with its path (``a/b/c``)."""
@@ -77,11 +100,31 @@ class PlanNode(msgspec.Struct, frozen=True, kw_only=True):
             out.extend(child.leaves(path))
         return out
 
+    def atomic_spans(self, prefix: str = "") -> list[tuple[int, int]]:
+        """Leaf index ranges ``[start, end)`` of the atomic states, in execution order (an
+        atomic state inside another is covered by the outer one)."""
+        spans: list[tuple[int, int]] = []
+
+        def walk(node: PlanNode, start: int) -> int:
+            if not node.children:
+                return start + 1
+            end = start
+            for child in node.children:
+                end = walk(child, end)
+            if node.atomic:
+                spans[:] = [s for s in spans if not (start <= s[0] and s[1] <= end)]
+                spans.append((start, end))
+            return end
+
+        walk(self, 0)
+        return sorted(spans)
+
 
 class HierarchicalPlan(msgspec.Struct, frozen=True, tag="plan", kw_only=True):
     """A plan for ``task_id``: the HFSM ``root``; ``complete`` False when a replan must follow;
     ``cost`` expected execution time (s); ``km_queries`` and ``planning_time_s`` describe how
-    it was made."""
+    it was made. ``safe_stops``: the HFSMs that put held objects down in a safe place, by the
+    key the leaves' ``on_cancel`` names."""
 
     plan_id: str
     task_id: str
@@ -90,6 +133,7 @@ class HierarchicalPlan(msgspec.Struct, frozen=True, tag="plan", kw_only=True):
     cost: float = 0.0
     km_queries: int = 0
     planning_time_s: float = 0.0
+    safe_stops: dict[str, PlanNode] = msgspec.field(default_factory=dict)
 
 
 class PlanFailure(msgspec.Struct, frozen=True, tag="plan_failure", kw_only=True):

@@ -50,6 +50,30 @@ class PourQuery(msgspec.Struct, frozen=True, tag="pour", kw_only=True):
     target: str
 
 
+class ObjectUpdate(msgspec.Struct, frozen=True, kw_only=True):
+    """A change to one individual: a new ``pose``; ``held_by`` ("" = released); a new
+    ``location``/``relation``; ``particles`` inside. Unset fields stay as they were."""
+
+    name: str
+    pose: Pose | None = None
+    held_by: str | None = None
+    location: str | None = None
+    relation: str | None = None
+    particles: int | None = None
+
+
+AnyQuery = SparqlQuery | ObjectQuery | SceneQuery | GraspQuery | PlacementQuery | PourQuery
+
+
+class HypotheticalQuery(msgspec.Struct, frozen=True, tag="hypothetical", kw_only=True):
+    """Answer ``query`` in the hypothetical state of the knowledge base after ``changes``
+    (paper §5.7: "creation of the hypothetical state of the knowledge base"). The real state
+    is not touched. ``changes`` are applied in order, as :class:`WorldUpdate` objects are."""
+
+    changes: tuple[ObjectUpdate, ...]
+    query: AnyQuery
+
+
 class Subscription(msgspec.Struct, frozen=True, tag="subscription"):
     """a_km's fipa-subscribe to a_ta: send every observation of ``topic`` (``environment``)."""
 
@@ -145,18 +169,6 @@ class Answer(msgspec.Struct, frozen=True, tag="answer", kw_only=True):
     boolean: bool | None = None
 
 
-class ObjectUpdate(msgspec.Struct, frozen=True, kw_only=True):
-    """A change to one individual: a new ``pose``; ``held_by`` ("" = released); a new
-    ``location``/``relation``; ``particles`` inside. Unset fields stay as they were."""
-
-    name: str
-    pose: Pose | None = None
-    held_by: str | None = None
-    location: str | None = None
-    relation: str | None = None
-    particles: int | None = None
-
-
 class WorldUpdate(msgspec.Struct, frozen=True, tag="update", kw_only=True):
     """Observations and changes a_ta sends a_km (C6) at simulation time ``stamp``."""
 
@@ -176,6 +188,7 @@ L_WM = register(
             GraspQuery,
             PlacementQuery,
             PourQuery,
+            HypotheticalQuery,
             Subscription,
             Answer,
             WorldUpdate,
