@@ -1,6 +1,7 @@
 """``roco``: run the Robot Companion, talk to a running fleet, and read run folders.
 
     roco run "pour the jar into the bowl"   whole system headless, to the end of the task
+    roco scenario NAME|FILE                  several commands, interruptions, restarts; checked
     roco up / roco down                      start / stop a fleet that keeps running
     roco send "<command>"                    give a running fleet a command
     roco status                              which agents are alive (Zenoh liveliness)
@@ -15,7 +16,6 @@ import os
 import queue
 import signal
 import sys
-import threading
 import time
 import uuid
 from pathlib import Path
@@ -23,11 +23,10 @@ from typing import Annotated
 
 import msgspec
 import typer
-import zenoh
 
 from services.human_interface.messages import FINAL_REPORTS, HumanInput, HumanReport, ReportKind
 from services.runtime import keys
-from services.runtime.launcher import AGENT_ORDER, Fleet, LaunchError, alive_agents, free_port, open_client
+from services.runtime.launcher import AGENT_ORDER, Fleet, LaunchError, alive_agents, open_client
 from services.runtime.run_folder import RunInfo, new_run_dir, write_run_info
 
 app = typer.Typer(add_completion=False, no_args_is_help=True, help=__doc__)
@@ -74,95 +73,72 @@ def run(
 ) -> None:
     """Start router, recorder and one process per agent; give a_hi the command; wait for the
     outcome; stop everything; write the run folder's report. Exit 0 only on success."""
-    from services.monitor import is_world_update, progress_line
+    from services.scenario.model import Scenario, Step
 
-    run_dir = new_run_dir(runs_dir)
-    endpoint = f"tcp/127.0.0.1:{free_port()}"
-    info = RunInfo(
-        command=command,
-        started=time.time(),
-        router=endpoint,
-        realtime=realtime,
-        seed=seed,
-        pose_seed=pose_seed,
+    scenario = Scenario(
+        name="", steps=(Step(say=command),), seed=seed, pose_seed=pose_seed, timeout_s=timeout
     )
-    fleet = Fleet(run_dir, endpoint, env=_scene_env(realtime, seed, pose_seed))
-    t0 = info.started
-    lines: queue.SimpleQueue[str | HumanReport] = queue.SimpleQueue()
-    request_id = uuid.uuid4().hex[:8]
-    decoder = msgspec.json.Decoder(HumanReport)
-    outcome: HumanReport | None = None
-    session = None
-    signal.signal(signal.SIGTERM, _interrupt)
+    _run_scenario(scenario, runs_dir, realtime=realtime, quiet=quiet)
+
+
+@app.command()
+def scenario(
+    name: Annotated[
+        str | None, typer.Argument(help="a scenario file, or the name of one in the library")
+    ] = None,
+    runs_dir: Annotated[Path, typer.Option(help="where run folders are made")] = Path("runs"),
+    realtime: Annotated[bool, typer.Option(help="pace the simulation to wall time")] = False,
+    quiet: Annotated[bool, typer.Option(help="print only the outcome")] = False,
+    list_: Annotated[bool, typer.Option("--list", help="list the library's scenarios")] = False,
+) -> None:
+    """Run a scenario (several commands, interruptions, disturbances, restarts; see
+    services/scenario/model.py) headless, check every command's outcome against what the
+    scenario expects, and write the report. Exit 0 only when everything went as expected."""
+    from services.scenario.model import ScenarioError, library, load_scenario
+
+    if list_:
+        for stem, sc in library().items():
+            typer.echo(f"{stem:24s} {sc.name}: {sc.description}")
+        return
+    if name is None:
+        raise fail("name a scenario file or a library scenario (roco scenario --list)", code=2)
     try:
-        typer.echo(f"roco: run folder {run_dir}; router {endpoint}")
-        fleet.start_router()
-        session = open_client(endpoint)
-        fleet.start_recorder()
-        fleet.wait_alive(session, ["recorder"], timeout=60)
-        if not quiet:
+        sc = load_scenario(name)
+    except ScenarioError as exc:
+        raise fail(str(exc), code=2) from None
+    _run_scenario(sc, runs_dir, realtime=realtime, quiet=quiet)
 
-            def on_traffic(sample: zenoh.Sample) -> None:
-                line = progress_line(str(sample.key_expr), sample.payload.to_bytes())
-                if line is not None:
-                    lines.put(line)
 
-            session.declare_subscriber(keys.FIPA_ALL, on_traffic)
-        session.declare_subscriber(keys.HUMAN_OUT, lambda s: lines.put(decoder.decode(s.payload.to_bytes())))
-        knowledge = threading.Event()
+def _run_scenario(sc: object, runs_dir: Path, *, realtime: bool, quiet: bool) -> None:
+    from services.monitor import progress_line
+    from services.scenario.model import Scenario
+    from services.scenario.runner import ScenarioRunner
 
-        def on_knowledge(sample: zenoh.Sample) -> None:
-            if is_world_update(sample.payload.to_bytes()):
-                knowledge.set()
-
-        session.declare_subscriber(keys.fipa_key("C6", "a_ta", "a_km"), on_knowledge)
-        fleet.start_agents()
-        waited = fleet.wait_alive(session, AGENT_ORDER, timeout=120)
-        typer.echo(f"{_clock(t0)} all agents alive after {waited:.1f} s: {', '.join(AGENT_ORDER)}")
-        # paper Table 7: a_km receives initial knowledge about the environment before the command
-        if not knowledge.wait(timeout=60):
-            raise LaunchError("a_km received no initial knowledge from a_ta within 60 s")
-        typer.echo(f"{_clock(t0)} a_km has initial knowledge of the scene")
-        info.processes = fleet.pids()
-        info.command_sent = time.time()
-        write_run_info(run_dir, info)
-        _send_command(session, command, request_id)
-        typer.echo(f"{_clock(t0)} person → a_hi: “{command}”")
-        deadline = time.monotonic() + timeout
-        while outcome is None:
-            if time.monotonic() > deadline:
-                raise LaunchError(f"no outcome within {timeout:.0f} s")
-            dead = fleet.dead()
-            if dead:
-                raise LaunchError(f"process {dead[0]} exited during the run (see {run_dir}/logs)")
-            try:
-                item = lines.get(timeout=0.5)
-            except queue.Empty:
-                continue
-            if isinstance(item, HumanReport):
-                if item.request_id != request_id:
-                    continue
-                typer.echo(f"{_clock(t0)} a_hi → person: {item.kind.value}: {item.text}")
-                if item.kind in FINAL_REPORTS:
-                    outcome = item
-            else:
-                typer.echo(f"{_clock(t0)} {item}")
-    except LaunchError as exc:
-        info.detail = str(exc)
-    except KeyboardInterrupt:
-        info.detail = "interrupted"
-    finally:
-        if session is not None:
-            session.close()
-        fleet.stop()
-    info.ended = time.time()
-    info.succeeded = outcome is not None and outcome.kind is ReportKind.SUCCEEDED
-    if outcome is not None:
-        info.detail = outcome.text
-    write_run_info(run_dir, info)
+    assert isinstance(sc, Scenario)
+    run_dir = new_run_dir(runs_dir)
+    info = RunInfo(
+        started=time.time(),
+        realtime=realtime,
+        seed=sc.seed,
+        pose_seed=sc.pose_seed,
+        scenario=sc.name,
+    )
+    signal.signal(signal.SIGTERM, _interrupt)
+    runner = ScenarioRunner(
+        sc,
+        run_dir,
+        env=_scene_env(realtime, sc.seed, sc.pose_seed),
+        echo=lambda line: typer.echo(line) if not quiet or "a_hi → person" in line else None,
+        traffic_lines=None if quiet else progress_line,
+        info=info,
+    )
+    outcome = runner.run()
     _finish_report(run_dir, info)
-    if not info.succeeded:
-        raise fail(f"the task failed: {info.detail} (run folder {run_dir})")
+    if sc.name:
+        typer.echo(outcome.summary())
+    if not outcome.ok:
+        what = "the task failed" if not sc.name else f"scenario “{sc.name}” did not go as expected"
+        raise fail(f"{what}: {info.detail} (run folder {run_dir})")
 
 
 def _scene_env(realtime: bool, seed: int, pose_seed: int | None) -> dict[str, str]:
@@ -310,11 +286,54 @@ def send(
                 continue
             typer.echo(f"{report.kind.value}: {report.text}")
             if report.kind in FINAL_REPORTS:
-                if report.kind is not ReportKind.SUCCEEDED:
+                if report.kind is not _success_kind(command):
                     raise typer.Exit(1)
                 return
     finally:
         session.close()
+
+
+def _success_kind(sentence: str) -> ReportKind:
+    """The final report kind that means "done as asked" for ``sentence``: ``stopped`` for a
+    stop request, ``status`` for a status request, ``succeeded`` for a command."""
+    from services.human_interface.language import NotUnderstood, StatusRequest, Stop, interpret
+
+    try:
+        intent = interpret(sentence)
+    except NotUnderstood:
+        return ReportKind.SUCCEEDED
+    if isinstance(intent, Stop):
+        return ReportKind.STOPPED
+    if isinstance(intent, StatusRequest):
+        return ReportKind.STATUS
+    return ReportKind.SUCCEEDED
+
+
+@app.command()
+def disturb(
+    obj: Annotated[str, typer.Argument(metavar="OBJECT", help="a free body of the kitchen: jar, bowl, cup")],
+    dx: Annotated[float, typer.Option(help="metres along world x")] = 0.0,
+    dy: Annotated[float, typer.Option(help="metres along world y")] = 0.0,
+    dz: Annotated[float, typer.Option(help="metres along world z")] = 0.0,
+    router: Annotated[str | None, typer.Option(help="router endpoint")] = None,
+    runs_dir: Annotated[Path, typer.Option()] = Path("runs"),
+) -> None:
+    """Move an object of the simulated kitchen, as a person would (a disturbance of the
+    world, not a robot command): ag_ex moves the body and its content and stops them."""
+    import json
+
+    endpoint = _endpoint(router, runs_dir)
+    try:
+        session = open_client(endpoint)
+    except Exception:
+        raise fail(f"no router answers at {endpoint}; is the fleet up?") from None
+    try:
+        if "ag_ex" not in alive_agents(session):
+            raise fail(f"ag_ex is not alive at {endpoint}")
+        session.put(keys.SIM_DISTURB, json.dumps({"object": obj, "delta": [dx, dy, dz]}))
+    finally:
+        session.close()
+    typer.echo(f"roco: asked ag_ex to move the {obj} by ({dx:+.3f}, {dy:+.3f}, {dz:+.3f}) m")
 
 
 @app.command()

@@ -1,44 +1,74 @@
 """a_co — the coordinator (paper §5.5, Table 3, Figure 11a).
 
-FSM states: trigger (idle; a_hi commands and a_ta states arrive), procReq (store the task,
-compute its deadline and start time), compSP (request plans from a_pl for every task awaiting
-execution, collect them), schedule (decide continue or switch), switch (start a plan on a_ta
-with the coordinate protocol). Communicates from a_ta are handled in every state; each L_SW
+FSM states: trigger (idle; a_hi's commands, cancels, subscriptions and queries and a_ta's
+states arrive), procReq (store new commands with priority and deadline; stop cancelled
+ones), compSP (request plans from a_pl for every command that needs one, collect them),
+schedule (continue the running plan or switch: services/coordinator/scheduling.py, after
+TaskER), switch (the coordinate protocol on C1: ``cancel`` the running plan — a_ta goes
+Terminating, puts held objects down safely, reports Preempted — or ``request`` a_ta to run
+the chosen plan). Communicates from a_ta and a_pl are handled in every state; each L_SW
 inform is confirmed (paper §5.4).
+
+A preempted command is planned again from the world as it then is and resumed when the
+schedule picks it. Whenever a_ta ends a plan the world has changed, so the plans of waiting
+commands are dropped and made again before they run.
+
+Towards the person (C2, L_HC): commands by fipa-request (agree, then inform or failure with a
+CommandOutcome; a ``cancel`` stops a command and is answered once the robot is safe), progress
+by fipa-subscribe (a Progress inform at every change), status by fipa-query (Status).
 """
 
 from __future__ import annotations
 
+import itertools
 import time
 from dataclasses import dataclass
 
+from services.coordinator.scheduling import Candidate, Decision, Running, decide
 from services.runtime.agent import Agent, Received
 from services.runtime.behaviour import FSM, Arc, Behaviour
 from shared.fipa_codec import Performative
-from shared.fipa_codec.languages.l_hc import CommandOutcome, HumanCommand
-from shared.fipa_codec.languages.l_hfsm import GroundTaskNetwork, HierarchicalPlan, PlanFailure
+from shared.fipa_codec.languages.l_hc import (
+    CommandOutcome,
+    HumanCommand,
+    Progress,
+    ProgressSubscription,
+    Status,
+    StatusQuery,
+    TaskState,
+    TaskStatus,
+)
+from shared.fipa_codec.languages.l_hfsm import GroundTaskNetwork, HierarchicalPlan, PlanFailure, PlanNode
 from shared.fipa_codec.languages.l_sw import SWState, SWStatus
 
 PLAN_REPLY_BY_S = 600.0
-MAX_PLANS_PER_TASK = 6
-"""Plans a_co orders for one command before it gives up (replanning must converge)."""
-DEFAULT_DEADLINE_S = 3600.0
+MAX_REPLANS_PER_TASK = 6
+"""Replan reports a_co accepts for one command before it gives up (replanning must converge)."""
+
+_ON_TA = (TaskState.RUNNING, TaskState.TERMINATING)
 
 
 @dataclass
 class Task:
-    """A command being coordinated. ``task_id`` is the C2 conversation-id."""
+    """A command being coordinated. ``task_id`` is the C2 conversation-id; ``deadline`` a
+    POSIX time (None: none); ``order`` the order of acceptance."""
 
     task_id: str
     command: HumanCommand
     request: Received
     accepted_at: float
-    deadline: float
-    plan_index: int = 0
+    deadline: float | None
+    order: int
+    state: TaskState = TaskState.WAITING
     plan: HierarchicalPlan | None = None
+    plan_index: int = 0
+    replans: int = 0
     needs_plan: bool = True
     planning: str | None = None  # reply-with of the outstanding plan request
-    running: bool = False
+    step: str | None = None
+    leaf: int = 0  # index of the leaf a_ta runs
+    cancel: Received | None = None  # the person's cancel, answered when the robot is safe
+    detail: str = ""
 
 
 class Coordinator(Agent):
@@ -46,9 +76,14 @@ class Coordinator(Agent):
 
     def build_fsm(self) -> FSM:
         self.tasks: dict[str, Task] = {}
-        self.ta_task: str | None = None  # task whose plan a_ta runs
+        self.ta_task: str | None = None  # task whose plan a_ta runs (or is terminating)
         self.ta_conversation: str | None = None
-        self.decision = "continue"
+        self.ta_cancelled = False  # cancel sent in the current C1 conversation
+        self.subscription: Received | None = None  # a_hi's progress subscription
+        self.decision: Decision = Decision(None, False, "")
+        self.reschedule = False
+        self.decisions: list[Decision] = []
+        self._order = itertools.count()
         return FSM(
             initial="trigger",
             states={
@@ -63,58 +98,66 @@ class Coordinator(Agent):
                     self._proc_req,
                     terminal=lambda: True,
                     waits=False,
-                    doc="store the new tasks; compute deadline and start time",
+                    doc="store new commands (priority, deadline); stop cancelled ones",
                 ),
                 "compSP": Behaviour(
                     "compSP",
                     self._comp_sp_step,
                     terminal=self._plans_collected,
                     on_enter=self._request_plans,
-                    doc="request plans of all waiting tasks from a_pl; collect them",
+                    doc="request plans of all waiting commands from a_pl; collect them",
                 ),
                 "schedule": Behaviour(
                     "schedule",
                     self._schedule,
                     terminal=lambda: True,
                     waits=False,
-                    doc="decide: switch the plan a_ta runs, or continue",
+                    doc="decide from the plans' costs: continue, or switch the plan a_ta runs",
                 ),
                 "switch": Behaviour(
                     "switch",
                     self._switch,
                     terminal=lambda: True,
                     waits=False,
-                    doc="start the chosen plan on a_ta (coordinate protocol)",
+                    doc="coordinate protocol on C1: cancel the running plan, or start the chosen one",
                 ),
             },
             arcs=[
-                Arc("trigger", "procReq", self._new_command, "new command"),
+                Arc("trigger", "procReq", self._person_spoke, "command or cancel"),
                 Arc("trigger", "compSP", self._plans_needed, "plan needed"),
-                Arc("trigger", "schedule", lambda: True, "a_ta changed"),
+                Arc("trigger", "schedule", lambda: True, "plan ready or a_ta changed"),
                 Arc("procReq", "compSP"),
                 Arc("compSP", "schedule"),
-                Arc("schedule", "switch", lambda: self.decision == "switch", "switch"),
-                Arc("schedule", "trigger", lambda: self.decision == "continue", "continue"),
+                Arc("schedule", "switch", lambda: self.decision.switch_to is not None, "switch"),
+                Arc("schedule", "trigger", lambda: self.decision.switch_to is None, "continue"),
                 Arc("switch", "trigger"),
             ],
         )
 
     # ---- conditions ----
-    def _new_command(self) -> bool:
-        return any(self._is_command(i) for i in self.x)
+    def _person_spoke(self) -> bool:
+        return any(self._is_command(i) or self._is_cancel(i) for i in self.x)
 
     @staticmethod
     def _is_command(item: Received) -> bool:
         return item.sender == "a_hi" and item.performative is Performative.REQUEST
 
-    def _plans_needed(self) -> bool:
-        return any(t.needs_plan and t.planning is None for t in self.tasks.values())
+    @staticmethod
+    def _is_cancel(item: Received) -> bool:
+        return (
+            item.sender == "a_hi"
+            and item.performative is Performative.CANCEL
+            and item.msg.protocol == "fipa-request"
+        )
 
-    def _ready_to_start(self) -> bool:
-        return self.ta_task is None and any(t.plan is not None and not t.running for t in self.tasks.values())
+    def _plans_needed(self) -> bool:
+        return any(t.needs_plan and t.planning is None and t.state not in _ON_TA for t in self.tasks.values())
+
+    def _robot_free(self) -> bool:
+        return self.ta_task is None
 
     def _has_work(self) -> bool:
-        return self._new_command() or self._plans_needed() or self._ready_to_start()
+        return self._person_spoke() or self._plans_needed() or self.reschedule
 
     def _plans_collected(self) -> bool:
         return all(t.planning is None for t in self.tasks.values())
@@ -124,55 +167,124 @@ class Coordinator(Agent):
         self._handle_async()
 
     def _proc_req(self) -> None:
-        while (item := self.take(self._is_command)) is not None:
-            if not isinstance(item.content, HumanCommand):
-                self.reply(
-                    item,
-                    Performative.REFUSE,
-                    CommandOutcome(command_id="", succeeded=False, detail="no command in the request"),
-                )
-                continue
-            now = time.time()
-            task_id = item.msg.conversation_id or f"task-{len(self.tasks)}"
-            deadline = now + (item.content.deadline_s or DEFAULT_DEADLINE_S)
-            self.tasks[task_id] = Task(task_id, item.content, item, now, deadline)
-            self.reply(item, Performative.AGREE)
-            self.log.info("task %s: %s (priority %d)", task_id, item.content.text, item.content.priority)
+        for item in list(self.x):
+            if self._is_command(item):
+                self.x.remove(item)
+                self._accept(item)
+            elif self._is_cancel(item):
+                self.x.remove(item)
+                self._stop_command(item)
+
+    def _accept(self, item: Received) -> None:
+        if not isinstance(item.content, HumanCommand):
+            self.fail(item, Performative.REFUSE, "no command in the request")
+            return
+        now = time.time()
+        task_id = item.msg.conversation_id or f"task-{len(self.tasks)}"
+        if task_id in self.tasks:
+            self.fail(item, Performative.REFUSE, f"command {task_id} is already being carried out")
+            return
+        deadline = now + item.content.deadline_s if item.content.deadline_s is not None else None
+        task = Task(task_id, item.content, item, now, deadline, next(self._order))
+        self.tasks[task_id] = task
+        self.reply(item, Performative.AGREE)
+        self._progress(task, TaskState.WAITING, detail="accepted")
+        self.log.info("task %s: %s (priority %d)", task_id, item.content.text, item.content.priority)
+
+    def _stop_command(self, item: Received) -> None:
+        """The person cancels command ``item.conversation_id`` (FIPA cancel meta-protocol:
+        answered by inform when stopped, failure when it cannot be)."""
+        task = self.tasks.get(item.msg.conversation_id or "")
+        if task is None:
+            self.fail(item, Performative.FAILURE, "no such command (it may have ended already)")
+            return
+        task.cancel = item
+        if task.task_id == self.ta_task:
+            self._cancel_ta(f"stopped by the person: {task.command.text}")
+            return
+        if task.planning is not None:
+            self.conversations.forget(task.planning)
+        self._finish(task, False, "stopped; the robot was not working on it", stopped=True)
 
     def _request_plans(self) -> None:
         for task in list(self.tasks.values()):
-            if task.needs_plan and task.planning is None:
-                if task.plan_index >= MAX_PLANS_PER_TASK:
-                    self._finish(task, False, f"no progress after {task.plan_index} plans")
-                    continue
-                task.plan_index += 1
-                gtn = GroundTaskNetwork(
-                    task_id=task.task_id, tasks=(task.command.goal,), plan_index=task.plan_index
-                )
-                msg = self.send(
-                    "a_pl",
-                    Performative.REQUEST,
-                    gtn,
-                    protocol="fipa-request",
-                    conversation_id=f"{task.task_id}-plan{task.plan_index}",
-                    reply_by_s=PLAN_REPLY_BY_S,
-                )
-                task.planning = msg.reply_with
-                self.log.info("task %s: requested plan #%d", task.task_id, task.plan_index)
+            if not (task.needs_plan and task.planning is None and task.state not in _ON_TA):
+                continue
+            if task.replans > MAX_REPLANS_PER_TASK:
+                self._finish(task, False, f"no progress after {task.replans} replans")
+                continue
+            task.plan_index += 1
+            gtn = GroundTaskNetwork(
+                task_id=task.task_id, tasks=(task.command.goal,), plan_index=task.plan_index
+            )
+            msg = self.send(
+                "a_pl",
+                Performative.REQUEST,
+                gtn,
+                protocol="fipa-request",
+                conversation_id=f"{task.task_id}-plan{task.plan_index}",
+                reply_by_s=PLAN_REPLY_BY_S,
+            )
+            task.planning = msg.reply_with
+            if task.state is not TaskState.PREEMPTED:
+                self._progress(task, TaskState.PLANNING, detail=f"plan #{task.plan_index} requested")
+            self.log.info("task %s: requested plan #%d", task.task_id, task.plan_index)
 
     def _comp_sp_step(self) -> None:
         self._handle_async()
 
     def _schedule(self) -> None:
         self._handle_async()
-        self.decision = "switch" if self._ready_to_start() else "continue"
+        self.reschedule = False
+        now = time.time()
+        waiting = [
+            self._candidate(t, now, t.plan.cost)
+            for t in self.tasks.values()
+            if t.plan is not None and t.state not in _ON_TA
+        ]
+        running: Running | None = None
+        if self.ta_task is not None:
+            if self.ta_cancelled:  # a_ta is on its way to a safe state: wait for Preempted
+                self.decision = Decision(None, False, "a_ta is terminating")
+                return
+            r = self.tasks.get(self.ta_task)
+            if r is not None and r.plan is not None:
+                leaves = r.plan.root.leaves()
+                remaining = sum(n.duration for _, n in leaves[r.leaf :])
+                running = Running(
+                    self._candidate(r, now, remaining), remaining, self._interruption(r, leaves)
+                )
+        self.decision = decide(running, waiting)
+        if self.decision.switch_to is not None:
+            self.decisions.append(self.decision)
+            self.log.info("schedule: %s", self.decision.reason)
+
+    def _candidate(self, task: Task, now: float, duration: float) -> Candidate:
+        left = task.deadline - now if task.deadline is not None else None
+        return Candidate(task.task_id, task.command.priority, duration, left, task.order)
+
+    @staticmethod
+    def _interruption(task: Task, leaves: list[tuple[str, PlanNode]]) -> float:
+        """Expected time (s) of the safe stop a_ta would run if cancelled now."""
+        assert task.plan is not None
+        for _, node in leaves[task.leaf :]:
+            if node.on_cancel is not None:
+                stop = task.plan.safe_stops.get(node.on_cancel)
+                return sum(n.duration for _, n in stop.leaves()) if stop is not None else 0.0
+            return 0.0
+        return 0.0
 
     def _switch(self) -> None:
-        candidates = [t for t in self.tasks.values() if t.plan is not None and not t.running]
-        # Highest priority first, then earliest deadline (TaskER-style ordering; preemption of a
-        # running plan is not needed while one command runs at a time).
-        task = min(candidates, key=lambda t: (-t.command.priority, t.deadline))
-        assert task.plan is not None
+        if self.decision.preempt:
+            running = self.tasks.get(self.ta_task or "")
+            chosen = self.tasks.get(self.decision.switch_to or "")
+            why = f"preempted for “{chosen.command.text}”" if chosen else "preempted"
+            if running is not None:
+                running.detail = why
+            self._cancel_ta(why)
+            return
+        task = self.tasks[self.decision.switch_to or ""]
+        assert task.plan is not None and self._robot_free()
         msg = self.send(
             "a_ta",
             Performative.REQUEST,
@@ -181,10 +293,32 @@ class Coordinator(Agent):
             conversation_id=f"{task.task_id}-exec{task.plan_index}",
             expect_reply=True,
         )
-        task.running = True
+        resumed = task.state is TaskState.PREEMPTED
         self.ta_task = task.task_id
         self.ta_conversation = msg.conversation_id
+        self.ta_cancelled = False
+        task.leaf = 0
+        self._progress(task, TaskState.RUNNING, detail="resumed" if resumed else f"plan {task.plan.plan_id}")
         self.log.info("task %s: plan %s sent to a_ta", task.task_id, task.plan.plan_id)
+
+    def _cancel_ta(self, why: str) -> None:
+        """Cancel the plan a_ta runs (coordinate protocol): a_ta reports Terminating, then
+        Preempted once the robot is safe."""
+        if self.ta_cancelled or self.ta_conversation is None:
+            return
+        task = self.tasks.get(self.ta_task or "")
+        plan_id = task.plan.plan_id if task is not None and task.plan is not None else ""
+        self.send(
+            "a_ta",
+            Performative.CANCEL,
+            SWStatus(state=SWState.TERMINATING, plan_id=plan_id, reason=why),
+            protocol="coordinate",
+            conversation_id=self.ta_conversation,
+        )
+        self.ta_cancelled = True
+        if task is not None:
+            self._progress(task, TaskState.TERMINATING, detail=why)
+        self.log.info("cancel sent to a_ta: %s", why)
 
     # ---- communicates that may arrive in any state ----
     def _handle_async(self) -> None:
@@ -195,7 +329,47 @@ class Coordinator(Agent):
             elif item.sender == "a_pl":
                 self.x.remove(item)
                 self._from_pl(item)
-        self.reject_unhandled(self._is_command)
+            elif item.sender == "a_hi" and item.msg.protocol in ("fipa-subscribe", "fipa-query"):
+                self.x.remove(item)
+                self._from_hi(item)
+        self.reject_unhandled(lambda i: self._is_command(i) or self._is_cancel(i))
+
+    def _from_hi(self, item: Received) -> None:
+        perf = item.performative
+        if perf is Performative.SUBSCRIBE and isinstance(item.content, ProgressSubscription):
+            self.subscription = item
+            self.reply(item, Performative.AGREE)
+        elif perf is Performative.CANCEL and item.msg.protocol == "fipa-subscribe":
+            if (
+                self.subscription is not None
+                and item.msg.conversation_id == self.subscription.msg.conversation_id
+            ):
+                self.subscription = None
+            self.reply(item, Performative.INFORM)
+        elif perf is Performative.QUERY_REF and isinstance(item.content, StatusQuery):
+            self.reply(item, Performative.INFORM_REF, self.status())
+        elif perf is Performative.CANCEL:
+            self.reply(item, Performative.INFORM)  # nothing lasting to cancel in a query
+        else:
+            self.fail(item, Performative.REFUSE, f"cannot answer {perf.value} with this content")
+
+    def status(self) -> Status:
+        """Every command a_co holds, the one on a_ta first, then by acceptance."""
+        now = time.time()
+        tasks = sorted(self.tasks.values(), key=lambda t: (t.task_id != self.ta_task, t.order))
+        return Status(
+            tasks=tuple(
+                TaskStatus(
+                    command_id=t.task_id,
+                    text=t.command.text,
+                    state=t.state,
+                    step=t.step,
+                    priority=t.command.priority,
+                    deadline_in_s=round(t.deadline - now, 1) if t.deadline is not None else None,
+                )
+                for t in tasks
+            )
+        )
 
     def _task_by_reply(self, in_reply_to: str | None) -> Task | None:
         for t in self.tasks.values():
@@ -206,8 +380,8 @@ class Coordinator(Agent):
     def _from_pl(self, item: Received) -> None:
         task = self._task_by_reply(item.msg.in_reply_to)
         if task is None:
-            if item.performative is not Performative.NOT_UNDERSTOOD:
-                self.not_understood(item.sender, item.channel, "no such plan request", item.msg)
+            if item.performative is not Performative.NOT_UNDERSTOOD and not item.local:
+                self.log.info("reply from a_pl to a plan request no longer wanted: dropped")
             return
         if item.performative is Performative.AGREE:
             return
@@ -215,18 +389,22 @@ class Coordinator(Agent):
         if item.performative is Performative.INFORM and isinstance(item.content, HierarchicalPlan):
             task.plan = item.content
             task.needs_plan = False
+            self.reschedule = True
+            if task.state is TaskState.PLANNING:
+                self._progress(task, TaskState.WAITING, detail=f"plan #{task.plan_index} ready")
             self.log.info(
-                "task %s: plan #%d received (%s, %d km queries)",
+                "task %s: plan #%d received (%s, %.0f s expected, %d km queries)",
                 task.task_id,
                 task.plan_index,
                 "complete" if item.content.complete else "partial",
+                item.content.cost,
                 item.content.km_queries,
             )
             return
         reason = (
             item.content.reason
             if isinstance(item.content, PlanFailure)
-            else item.msg.content.decode("utf-8", "replace")
+            else item.msg.content.decode("utf-8", "replace") or item.performative.value
         )
         self._finish(task, False, f"no plan: {reason}")
 
@@ -237,36 +415,92 @@ class Coordinator(Agent):
             self.reply(item, Performative.CONFIRM)
             if not in_conversation or task is None:
                 return
-            status = item.content
-            self.log.info("a_ta %s %s", status.state.value, status.step or "")
-            if status.state is SWState.SUCCEEDED:
-                self._finish(task, True, "the task succeeded")
-            elif status.state is SWState.REPLAN or status.state is SWState.PREEMPTED:
-                task.running, task.plan, task.needs_plan = False, None, True
-                self._release_ta()
-            elif status.state is SWState.ERROR:
-                self._finish(task, False, f"execution failed: {status.reason or 'unknown error'}")
+            self._sw_state(task, item.content)
             return
         if item.performative in (Performative.FAILURE, Performative.REFUSE, Performative.NOT_UNDERSTOOD):
-            if in_conversation and task is not None:
-                self._finish(
-                    task,
-                    False,
-                    f"a_ta {item.performative.value}: {item.msg.content.decode('utf-8', 'replace')}",
-                )
+            if in_conversation and task is not None and not item.local:
+                reason = item.msg.content.decode("utf-8", "replace")
+                self._release_ta()
+                self._finish(task, False, f"a_ta {item.performative.value}: {reason}")
             return
         self.not_understood(item.sender, item.channel, f"unexpected {item.performative.value}", item.msg)
+
+    def _sw_state(self, task: Task, status: SWStatus) -> None:
+        self.log.info("a_ta %s %s", status.state.value, status.step or status.reason or "")
+        state = status.state
+        if state is SWState.RUNNING:
+            if status.step and task.plan is not None:
+                task.leaf = next(
+                    (i for i, (path, _) in enumerate(task.plan.root.leaves()) if path == status.step),
+                    task.leaf,
+                )
+                self._progress(task, task.state, step=status.step)
+            return
+        if state is SWState.TERMINATING:
+            self._progress(task, TaskState.TERMINATING, step=status.step, detail=status.reason or task.detail)
+            return
+        if state not in (SWState.SUCCEEDED, SWState.REPLAN, SWState.PREEMPTED, SWState.ERROR):
+            return
+        self._release_ta()
+        self._world_changed(task)
+        if task.cancel is not None:  # the person's stop: the robot is safe now
+            if state is SWState.SUCCEEDED:
+                self._finish(task, True, "the task had already succeeded", stopped=True)
+            else:
+                self._finish(task, False, f"stopped; {status.reason or 'the robot is safe'}", stopped=True)
+        elif state is SWState.SUCCEEDED:
+            self._finish(task, True, "the task succeeded")
+        elif state is SWState.ERROR:
+            self._finish(task, False, f"execution failed: {status.reason or 'unknown error'}")
+        elif state is SWState.REPLAN:
+            task.replans += 1
+            task.plan, task.needs_plan = None, True
+            self._progress(
+                task, TaskState.PLANNING, detail=status.reason or "the world differs from the plan"
+            )
+        else:  # PREEMPTED
+            task.plan, task.needs_plan = None, True
+            self._progress(task, TaskState.PREEMPTED, detail=task.detail or "preempted")
+
+    def _world_changed(self, ended: Task) -> None:
+        """a_ta ended a plan: the world moved, so waiting plans were made for another world."""
+        self.reschedule = True
+        for t in self.tasks.values():
+            if t is not ended and t.plan is not None and t.state not in _ON_TA:
+                t.plan, t.needs_plan = None, True
 
     def _release_ta(self) -> None:
         if self.ta_conversation is not None:
             self.conversations.forget_conversation(self.ta_conversation)
         self.ta_task = None
         self.ta_conversation = None
+        self.ta_cancelled = False
 
-    def _finish(self, task: Task, succeeded: bool, detail: str) -> None:
+    def _progress(self, task: Task, state: TaskState, *, step: str | None = None, detail: str = "") -> None:
+        task.state = state
+        if step is not None:
+            task.step = step
+        if self.subscription is None:
+            return
+        self.reply(
+            self.subscription,
+            Performative.INFORM,
+            Progress(command_id=task.task_id, state=state, step=task.step, detail=detail),
+        )
+
+    def _finish(self, task: Task, succeeded: bool, detail: str, *, stopped: bool = False) -> None:
         outcome = CommandOutcome(command_id=task.task_id, succeeded=succeeded, detail=detail)
-        self.reply(task.request, Performative.INFORM if succeeded else Performative.FAILURE, outcome)
+        if stopped and task.cancel is not None:
+            # FIPA cancel meta-protocol: the answer to the cancel ends the conversation
+            perf = Performative.FAILURE if succeeded else Performative.INFORM
+            self.reply(task.cancel, perf, outcome)
+            self._progress(task, TaskState.SUCCEEDED if succeeded else TaskState.STOPPED, detail=detail)
+        else:
+            self.reply(task.request, Performative.INFORM if succeeded else Performative.FAILURE, outcome)
+            self._progress(task, TaskState.SUCCEEDED if succeeded else TaskState.FAILED, detail=detail)
         self.log.info("task %s %s: %s", task.task_id, "succeeded" if succeeded else "failed", detail)
         if self.ta_task == task.task_id:
             self._release_ta()
+        if task.planning is not None:
+            self.conversations.forget(task.planning)
         del self.tasks[task.task_id]

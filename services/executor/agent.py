@@ -62,6 +62,15 @@ class Done:
     result: CommandResult | Observation
 
 
+class Disturbance(msgspec.Struct, frozen=True, forbid_unknown_fields=True):
+    """What ``roco/sim/disturb`` carries (JSON): move free body ``object`` by ``delta``
+    (world, m). A disturbance of the simulated world — a person moving an object — used by
+    scenarios and ``roco disturb``; a real robot has no such input."""
+
+    object: str
+    delta: tuple[float, float, float]
+
+
 @dataclass(frozen=True)
 class PeerChange:
     """A commanding agent's liveliness token appeared (``alive``) or disappeared."""
@@ -125,6 +134,15 @@ class ExecutorAgent(Agent):
         self.executor.start()
         for peer in self.commanders:
             self.transport.watch(keys.alive_key(peer), self._on_liveliness(peer))
+        decoder = msgspec.json.Decoder(Disturbance)
+
+        def on_disturb(_key: str, payload: bytes) -> None:  # Zenoh thread: enqueue only
+            try:
+                self.post(decoder.decode(payload))
+            except msgspec.DecodeError as exc:
+                self.log.warning("ignored malformed disturbance: %s", exc)
+
+        self.transport.subscribe(keys.SIM_DISTURB, on_disturb)
 
     def _on_liveliness(self, peer: str) -> Callable[[str, bool], None]:
         def changed(_key: str, alive: bool) -> None:  # Zenoh thread: enqueue only
@@ -155,6 +173,8 @@ class ExecutorAgent(Agent):
                 self.reply(event.request, Performative.INFORM if ok else Performative.FAILURE, event.result)
             elif isinstance(event, PeerChange):
                 self._peer_changed(event)
+            elif isinstance(event, Disturbance):
+                self._disturb(event)
         now = time.monotonic()
         if now >= self._next_state:
             self._next_state = now + STATE_PERIOD
@@ -162,6 +182,18 @@ class ExecutorAgent(Agent):
         if now >= self._next_timing_file:
             self._next_timing_file = now + TIMING_FILE_PERIOD
             self._write_timing_file()
+
+    def _disturb(self, event: Disturbance) -> None:
+        displace = getattr(self.executor, "displace", None)
+        try:
+            done = bool(displace(event.object, event.delta)) if displace is not None else False
+        except (KeyError, ValueError) as exc:
+            self.log.warning("disturbance not applied: %s", exc)
+            return
+        self.counters["disturbances"] += 1
+        self.log.info(
+            "the world: %s moved by %s m%s", event.object, event.delta, "" if done else " (not applied)"
+        )
 
     def _peer_changed(self, event: PeerChange) -> None:
         if event.alive:

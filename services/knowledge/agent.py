@@ -1,20 +1,32 @@
 """a_km — the knowledge manager (paper §5.5, Table 5, Figure 11c).
 
 FSM states: idle (wait for a query from a_pl or a_ta, or an observation), questionAnswering
-(answer one query from the knowledge base: inform-ref with an L_WM Answer, or failure with
-the reason), knowledgeSaving (apply one observation). At start-up it opens the
-fipa-subscribe conversation with a_ta for environment updates, repeating the subscribe
-until a_ta agrees (a_ta may start later).
+(answer one query from the knowledge base, hypothetical queries of §5.7 included: inform-ref
+with an L_WM Answer to query-ref, inform to query-if; ``refuse`` with the reason for a query
+a_km does not answer, ``failure`` with the reason for one it cannot answer), knowledgeSaving
+(apply one observation or asserted change). At start-up it opens the fipa-subscribe
+conversation with a_ta for environment updates, repeating the subscribe until a_ta agrees
+(a_ta may start later).
+
+The knowledge persists across restarts of a_km (see :mod:`services.knowledge.world_model`):
+the store is the directory ``ROCO_KM_STORE``; when that is unset, ``<ROCO_RUN_DIR>/km_store``;
+when neither is set, the knowledge is kept in memory only. :meth:`KnowledgeManager.close`
+(called by ``services.runtime.main`` after the agent stops) flushes and releases the store.
 """
 
 from __future__ import annotations
 
-from services.knowledge.world_model import KnowledgeError, Query, WorldModel
+import os
+from collections.abc import Mapping
+from pathlib import Path
+
+from services.knowledge.world_model import KnowledgeError, UnsupportedQuery, WorldModel
 from services.runtime.agent import Agent, Received
 from services.runtime.behaviour import FSM, Arc, Behaviour
 from shared.fipa_codec import Performative
 from shared.fipa_codec.languages.l_wm import (
     GraspQuery,
+    HypotheticalQuery,
     ObjectQuery,
     PlacementQuery,
     PourQuery,
@@ -24,15 +36,38 @@ from shared.fipa_codec.languages.l_wm import (
     WorldUpdate,
 )
 
-QUERY_TYPES = (SparqlQuery, ObjectQuery, SceneQuery, GraspQuery, PlacementQuery, PourQuery)
+QUERY_TYPES = (SparqlQuery, ObjectQuery, SceneQuery, GraspQuery, PlacementQuery, PourQuery, HypotheticalQuery)
 SUBSCRIBE_RETRY_S = 2.0
+STORE_ENV = "ROCO_KM_STORE"
+RUN_DIR_ENV = "ROCO_RUN_DIR"
+STORE_IN_RUN_DIR = "km_store"
+
+
+def store_path(environ: Mapping[str, str] | None = None) -> Path | None:
+    """The knowledge store's directory from the environment (default ``os.environ``):
+    ``ROCO_KM_STORE``; else ``<ROCO_RUN_DIR>/km_store``; else None (in memory). Empty values
+    count as unset."""
+    env = os.environ if environ is None else environ
+    if env.get(STORE_ENV):
+        return Path(env[STORE_ENV])
+    if env.get(RUN_DIR_ENV):
+        return Path(env[RUN_DIR_ENV]) / STORE_IN_RUN_DIR
+    return None
 
 
 class KnowledgeManager(Agent):
     name = "a_km"
 
     def build_fsm(self) -> FSM:
-        self.world = WorldModel()
+        path = store_path()
+        # the knowledge base; StoreError (a ValueError) when the store cannot be opened
+        self.world = WorldModel(path)
+        self.log.info(
+            "knowledge in %s: %d triples%s",
+            path or "memory",
+            len(self.world),
+            " (kept from before)" if self.world.kept else "",
+        )
         self.subscribe_reply: str | None = None
         self.subscribed = False
         self.current: Received | None = None
@@ -70,6 +105,11 @@ class KnowledgeManager(Agent):
 
     def setup(self) -> None:
         self._subscribe()
+
+    def close(self) -> None:
+        """Flush and release the knowledge store (the hook ``services.runtime.main`` calls after
+        :meth:`run` ends). Idempotent."""
+        self.world.close()
 
     def _subscribe(self) -> None:
         msg = self.send(
@@ -121,20 +161,39 @@ class KnowledgeManager(Agent):
     def _answer(self) -> None:
         item = self.current
         assert item is not None
-        if not isinstance(item.content, QUERY_TYPES):
-            self.reply(item, Performative.REFUSE)
+        query = item.content
+        self.counters["queries"] += 1
+        if not isinstance(query, QUERY_TYPES):
+            what = type(query).__name__ if query is not None else "no content"
+            self.log.info("refused a %s from %s: not an L_WM query", what, item.sender)
+            self.fail(item, Performative.REFUSE, f"not an L_WM query: {what}")
             return
-        query: Query = item.content
         try:
             answer = self.world.answer(query)
+        except UnsupportedQuery as exc:
+            self.log.info("refused %s: %s", type(query).__name__, exc)
+            self.fail(item, Performative.REFUSE, str(exc))
+            return
         except KnowledgeError as exc:
             self.log.info("query %s failed: %s", type(query).__name__, exc)
             self.fail(item, Performative.FAILURE, str(exc))
             return
-        self.reply(item, Performative.INFORM_REF, answer)
+        except Exception as exc:  # a fault must not leave the querier waiting for its deadline
+            self.log.exception("query %s raised", type(query).__name__)
+            self.counters["query_errors"] += 1
+            self.fail(item, Performative.FAILURE, f"internal error: {type(exc).__name__}: {exc}")
+            return
+        answered = (
+            Performative.INFORM if item.performative is Performative.QUERY_IF else Performative.INFORM_REF
+        )
+        self.reply(item, answered, answer)
 
     def _save(self) -> None:
         item = self.current
         assert item is not None and isinstance(item.content, WorldUpdate)
         n = self.world.apply(item.content)
+        self.counters["updates"] += 1
+        self.counters["stale_poses"] = self.world.stale_poses
+        self.counters["unstamped_poses"] = self.world.unstamped_poses
+        self.counters["rejected_changes"] = self.world.rejected_changes
         self.log.info("saved %d object updates (t=%.2f)", n, item.content.stamp)

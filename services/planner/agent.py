@@ -1,9 +1,12 @@
 """a_pl — the planner (paper §5.5, Table 4, Figure 11b).
 
 FSM states: idle (await a planning problem from a_co, fipa-request on C3), initialize (query
-a_km for the knowledge the problem needs: fipa-query on C4, several conversations at once),
-search (HTN search with GTPyhop), finalize (turn the plan into an L_HFSM hierarchical plan and
-inform a_co, or answer failure with a reason a person can read).
+a_km for the knowledge the problem needs: fipa-query on C4, several conversations at once;
+what the scene answer reveals — objects already held — is asked about next), search (HTN
+search with GTPyhop, and the safe stop of every step), finalize (ask a_km whether the plan's
+effects achieve its goal in a hypothetical state of the knowledge base, paper §5.7; then
+inform a_co of the L_HFSM hierarchical plan, or answer failure with a reason a person can
+read).
 """
 
 from __future__ import annotations
@@ -12,7 +15,8 @@ import time
 
 import msgspec
 
-from services.planner.domain import PlanningFailure, find_plan
+from services.planner.domain import ATOMIC_STATES, PlanActions, PlanningFailure, plan_task
+from services.planner.goals import effects, goal_query
 from services.planner.hfsm import to_hfsm
 from services.planner.knowledge import ARMS, Knowledge
 from services.runtime.agent import Agent, Received
@@ -22,6 +26,7 @@ from shared.fipa_codec.languages.l_hfsm import GroundTaskNetwork, HierarchicalPl
 from shared.fipa_codec.languages.l_wm import (
     Answer,
     GraspQuery,
+    HypotheticalQuery,
     ObjectQuery,
     PlacementQuery,
     PourQuery,
@@ -29,7 +34,8 @@ from shared.fipa_codec.languages.l_wm import (
 )
 
 QUERY_REPLY_BY_S = 30.0
-SURFACE = "table"
+FURNITURE = ("table", "cabinet")
+"""Where objects can be put: a_pl asks a_km for placements on each."""
 
 
 class Planner(Agent):
@@ -41,7 +47,10 @@ class Planner(Agent):
         self.knowledge = Knowledge()
         self.pending: dict[str, tuple[str, tuple[str, ...]]] = {}  # reply-with → (kind, key)
         self.failure: str | None = None
-        self.actions: list[tuple[object, ...]] = []
+        self.result: PlanActions | None = None
+        self.plan: HierarchicalPlan | None = None
+        self.check: str | None = None  # reply-with of the hypothetical-state query
+        self.asked: set[tuple[str, tuple[str, ...]]] = set()
         self.started = 0.0
         return FSM(
             initial="idle",
@@ -69,9 +78,9 @@ class Planner(Agent):
                 "finalize": Behaviour(
                     "finalize",
                     self._finalize,
-                    terminal=lambda: True,
-                    waits=False,
-                    doc="build the hierarchical plan; reply to a_co",
+                    terminal=lambda: self.request is None,
+                    on_enter=self._verify,
+                    doc="check the plan's effects in a hypothetical state (a_km); reply to a_co",
                 ),
             },
             arcs=[
@@ -92,7 +101,8 @@ class Planner(Agent):
             self.reply(item, Performative.REFUSE, PlanFailure(task_id="", reason="no ground task network"))
             return
         self.request, self.problem = item, item.content
-        self.knowledge, self.failure, self.actions = Knowledge(), None, []
+        self.knowledge, self.failure, self.result, self.plan = Knowledge(), None, None, None
+        self.asked = set()
         self.started = time.monotonic()
         self.log.info(
             "planning #%d for %s: %s",
@@ -102,6 +112,9 @@ class Planner(Agent):
         )
 
     def _query(self, kind: str, key: tuple[str, ...], query: msgspec.Struct) -> None:
+        if (kind, key) in self.asked:
+            return
+        self.asked.add((kind, key))
         msg = self.send(
             "a_km",
             Performative.QUERY_REF,
@@ -125,13 +138,18 @@ class Planner(Agent):
             self._query("object", (f"{arm}_gripper",), ObjectQuery(f"{arm}_gripper"))
         for obj in objects:
             self._query("object", (obj,), ObjectQuery(obj))
-            for arm in ARMS:
-                self._query("grasps", (obj, arm), GraspQuery(object=obj, arm=arm))
-            if obj != SURFACE:
-                self._query("placement", (obj, SURFACE), PlacementQuery(object=obj, surface=SURFACE))
+            if obj not in FURNITURE:
+                self._ask_movable(obj)
         for t in self.problem.tasks:
             if t.name == "pour" and len(t.args) == 2:
                 self._query("pour", t.args, PourQuery(source=t.args[0], target=t.args[1]))
+
+    def _ask_movable(self, obj: str) -> None:
+        """Grasps of ``obj`` for each hand and its places on each piece of furniture."""
+        for arm in ARMS:
+            self._query("grasps", (obj, arm), GraspQuery(object=obj, arm=arm))
+        for furniture in FURNITURE:
+            self._query("placement", (obj, furniture), PlacementQuery(object=obj, surface=furniture))
 
     def _collect(self) -> None:
         for item in list(self.x):
@@ -153,6 +171,8 @@ class Planner(Agent):
         if kind in ("object", "scene"):
             for info in answer.objects:
                 k.objects[info.name] = info
+                if info.held_by:  # the safe stop must know how to put it down
+                    self._ask_movable(info.name)
         elif kind == "grasps":
             k.grasps[(key[0], key[1])] = answer.grasps
         elif kind == "placement" and answer.placement is not None:
@@ -162,45 +182,84 @@ class Planner(Agent):
 
     def _search(self) -> None:
         assert self.problem is not None
+        if len(self.problem.tasks) != 1:
+            self.failure = "I plan one task at a time"
+            return
+        t = self.problem.tasks[0]
         try:
-            for t in self.problem.tasks:
-                root = f"{t.name}({','.join(t.args)})"
-                self.actions.extend(find_plan(self.knowledge, (t.name, *t.args), root))
+            self.result = plan_task(self.knowledge, (t.name, *t.args), f"{t.name}({','.join(t.args)})")
+            self.plan = self._hierarchical_plan(self.result)
         except PlanningFailure as exc:
             self.failure = str(exc)
         except Exception as exc:  # a bug in the domain must not take a_pl down
             self.log.exception("planner error")
             self.failure = f"planner error: {exc}"
 
+    def _hierarchical_plan(self, result: PlanActions) -> HierarchicalPlan:
+        assert self.problem is not None
+        root, complete, cost = to_hfsm(result.actions, on_cancel=result.on_cancel, atomic=ATOMIC_STATES)
+        stops = {key: to_hfsm(acts, atomic=ATOMIC_STATES)[0] for key, acts in result.safe_stops.items()}
+        return HierarchicalPlan(
+            plan_id=f"{self.problem.task_id}-p{self.problem.plan_index}",
+            task_id=self.problem.task_id,
+            root=root,
+            complete=complete,
+            cost=cost,
+            km_queries=self.knowledge.queries,
+            safe_stops=stops,
+        )
+
+    def _verify(self) -> None:
+        """Ask a_km whether the goal holds after the plan's effects (hypothetical state)."""
+        self.check = None
+        if self.failure is not None or self.result is None or self.plan is None:
+            return
+        query = goal_query(self.result.task, self.result.args, self.result.actions, self.plan.complete)
+        if query is None:
+            return
+        msg = self.send(
+            "a_km",
+            Performative.QUERY_REF,
+            HypotheticalQuery(changes=effects(self.result.actions), query=query),
+            protocol="fipa-query",
+            reply_by_s=QUERY_REPLY_BY_S,
+        )
+        self.check = msg.reply_with
+        self.knowledge.queries += 1
+
     def _finalize(self) -> None:
         assert self.request is not None and self.problem is not None
+        if self.check is not None:
+            check = self.check
+            answer = self.take(lambda i: i.msg.in_reply_to == check)
+            if answer is None:
+                self.reject_unhandled(lambda i: i.local or i.sender == "a_co")
+                return
+            self.check = None
+            holds = isinstance(answer.content, Answer) and answer.content.boolean is True
+            if not holds:
+                why = answer.msg.content.decode("utf-8", "replace") if not answer.content else "it is false"
+                self.failure = f"the plan would not reach its goal in a_km's hypothetical state ({why})"
         elapsed = time.monotonic() - self.started
-        if self.failure is not None:
+        if self.failure is not None or self.plan is None:
+            reason = self.failure or "no plan"
             self.reply(
-                self.request,
-                Performative.FAILURE,
-                PlanFailure(task_id=self.problem.task_id, reason=self.failure),
+                self.request, Performative.FAILURE, PlanFailure(task_id=self.problem.task_id, reason=reason)
             )
-            self.log.info("no plan: %s", self.failure)
+            self.log.info("no plan: %s", reason)
         else:
-            root, complete, cost = to_hfsm(self.actions)
-            plan = HierarchicalPlan(
-                plan_id=f"{self.problem.task_id}-p{self.problem.plan_index}",
-                task_id=self.problem.task_id,
-                root=root,
-                complete=complete,
-                cost=cost,
-                km_queries=self.knowledge.queries,
-                planning_time_s=round(elapsed, 3),
+            plan = msgspec.structs.replace(
+                self.plan, km_queries=self.knowledge.queries, planning_time_s=round(elapsed, 3)
             )
             self.reply(self.request, Performative.INFORM, plan)
             self.log.info(
-                "plan %s: %d leaves, %s, %.1f s expected, %d queries, %.3f s",
+                "plan %s: %d leaves, %d safe stops, %s, %.1f s expected, %d queries, %.3f s",
                 plan.plan_id,
-                len(root.leaves()),
-                "complete" if complete else "partial",
-                cost,
-                self.knowledge.queries,
+                len(plan.root.leaves()),
+                len(plan.safe_stops),
+                "complete" if plan.complete else "partial",
+                plan.cost,
+                plan.km_queries,
                 elapsed,
             )
         self.request = self.problem = None

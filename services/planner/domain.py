@@ -1,9 +1,21 @@
 """The kitchen HTN domain of a_pl, on GTPyhop (Nau et al.'s Python HTN planner).
 
-Tasks: ``pour(src, dst)``, ``fetch(obj, arm)``, ``place(obj, surface, arm)``,
-``localise(obj)``, ``pour_into(src, dst, arm)``. Primitive actions are the leaf states of
-the HFSM a_ta runs (L_HFSM). Each task and action carries the path of the HFSM state it
-becomes, so the plan keeps its hierarchy (``pour(jar,bowl)/fetch_jar/grasp``).
+Tasks: ``pour(src, dst)``, ``move_to(obj, furniture)`` (fetch if needed, then place: "bring
+the cup to the table", "put the bowl back in the cabinet"), ``fetch(obj, arm)``,
+``place(obj, furniture, arm)``, ``localise(obj)``, ``pour_into(src, dst, arm)`` and
+``safe_stop()`` (put whatever the hands hold down in a free place on the table: the HFSM a_ta
+runs when cancelled, paper §3.2). Primitive actions are the leaf states of the HFSM a_ta runs
+(L_HFSM). Each task and action carries the path of the HFSM state it becomes, so the plan
+keeps its hierarchy (``pour(jar,bowl)/fetch_jar/take/grasp``). States named in
+``ATOMIC_STATES`` must not stop half-way (a grasp, setting an object down, the tilt of a
+pour): a cancel waits for them to end.
+
+Grasp affordances are defined for objects standing in the cabinet (facing ``GRASP_FACING``);
+for an object standing elsewhere the planner turns the grasp about the vertical by the
+facing of the furniture it stands on, and turns the torso to that facing: Velma stands to
+every piece of furniture as to the cabinet. The frame a grasp is relative to ("grasp frame")
+is the object's position with the yaw of the facing it was taken at; a held object keeps the
+hand's relative pose, so it is put down with the yaw of the facing where it is put down.
 
 Interleaved planning and execution (paper §5.7): pouring needs the target's pose observed
 where it stands. While the bowl is still in the cabinet, ``pour`` refines into getting both
@@ -21,6 +33,7 @@ from __future__ import annotations
 
 import contextlib
 import io
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -42,6 +55,16 @@ CONTACT_SPEED_M_S = 0.133
 """Speed of the final approach to a grasp (m/s); at least 1 s."""
 CONTENT_SHARE_REQUIRED = 0.9
 """Share of the content that must end in the target for a pour to count as done."""
+GRASP_FACING = 0.0
+"""Torso facing (rad) for which grasp affordances are given (the cabinet's)."""
+EXPECT_TOLERANCE_M = 0.03
+"""How far an object may be from where the plan expects it before a grasp (m)."""
+FREE_RADIUS_M = 0.12
+"""A placement position is free when no other object's frame is this close (horizontal, m)."""
+ATOMIC_STATES = frozenset({"take", "set_down", "tilt_pour"})
+"""HFSM states a cancel does not interrupt (see module docstring)."""
+SAFE_SURFACE = "table"
+"""Where the safe stop puts held objects down."""
 
 DOMAIN_NAME = "roco_kitchen"
 
@@ -138,8 +161,11 @@ def a_release(s: Any, path: str, arm: str, obj: str, opening: float) -> Any:
     return _step(s)
 
 
-def a_put(s: Any, path: str, obj: str, surface: str) -> Any:
-    s.where[obj] = ("on", surface)
+def a_put(s: Any, path: str, obj: str, furniture: str, relation: str, position: Vec3) -> Any:
+    """``obj`` now stands ``relation`` (in/on) ``furniture`` at ``position``; it must be seen
+    again before its pose counts as localised."""
+    s.where[obj] = (relation, furniture)
+    s.localised[obj] = False
     return _step(s)
 
 
@@ -161,7 +187,9 @@ def a_look(s: Any, path: str, point: Vec3) -> Any:
     return _step(s)
 
 
-def a_perceive(s: Any, path: str, obj: str) -> Any:
+def a_perceive(s: Any, path: str, obj: str, expect: tuple[str, Vec3] | None) -> Any:
+    """Observe the objects named in ``obj`` (comma-separated; "" the whole scene);
+    ``expect`` (object, position) is checked by a_ta before the plan goes on."""
     s.observed.add(obj)
     return _step(s)
 
@@ -189,7 +217,7 @@ def m_pour_locate(s: Any, path: str, src: str, dst: str) -> Any:
     missing = [o for o in (src, dst) if s.pose.get(o) is None]
     if not missing:
         return False
-    return [("a_perceive", f"{path}/observe_scene", ""), ("a_replan", f"{path}/replan")]
+    return [("a_perceive", f"{path}/observe_scene", "", None), ("a_replan", f"{path}/replan")]
 
 
 def m_pour_now(s: Any, path: str, src: str, dst: str) -> Any:
@@ -227,8 +255,7 @@ def m_pour_prepare(s: Any, path: str, src: str, dst: str) -> Any:
         if dst_arm is None:
             return False
         todo.append(("fetch", f"{path}/fetch_{dst}", dst, dst_arm))
-    todo.append(("place", f"{path}/place_{dst}", dst, "table", dst_arm))
-    todo.append(("localise", f"{path}/localise_{dst}", dst))
+    todo.append(("place", f"{path}/place_{dst}", dst, "table", dst_arm))  # ends by localising it
     todo.append(("a_replan", f"{path}/replan"))
     return todo
 
@@ -241,6 +268,11 @@ def _face_steps(s: Any, path: str, name: str, angle: float) -> list[tuple[Any, .
     return [("a_face", f"{path}/face_{name}", angle, duration)]
 
 
+def _facing(s: Any, furniture: str) -> float | None:
+    info = _k(s).objects.get(furniture)
+    return info.facing if info is not None else None
+
+
 def _face(s: Any, path: str, furniture: str) -> list[tuple[Any, ...]]:
     """Look at ``furniture``'s view point and turn to it."""
     info = _k(s).objects.get(furniture)
@@ -250,30 +282,32 @@ def _face(s: Any, path: str, furniture: str) -> list[tuple[Any, ...]]:
     return [*look, *_face_steps(s, path, furniture, info.facing)]
 
 
-def _grasp_facing(s: Any, obj: str) -> float:
-    """The torso angle at which ``obj`` was grasped (the facing of where it was picked)."""
-    where = s.picked_from.get(obj)
-    info = _k(s).objects.get(where) if where else None
-    return info.facing if info is not None and info.facing is not None else 0.0
+def _relation(s: Any, furniture: str) -> str:
+    """``in`` for containers (the cabinet), ``on`` for surfaces."""
+    info = _k(s).objects.get(furniture)
+    return "in" if info is not None and info.type == "Cabinet" else "on"
 
 
 def m_fetch(s: Any, path: str, obj: str, arm: str) -> Any:
-    """Face the furniture ``obj`` is in, (take the grasp's arm posture,) open the hand,
-    (enter,) approach, grasp, lift, withdraw."""
+    """Face the furniture ``obj`` stands on or in, (take the grasp's arm posture,) open the
+    hand, (enter,) go to the pre-grasp pose, check the object is where it should be, and
+    take it: approach, grasp, lift, withdraw (atomic)."""
     pose = s.pose.get(obj)
     grasp = _best_grasp(s, obj, arm)
     if pose is None or grasp is None or s.holding[arm] is not None:
         return False
     where = s.where.get(obj, ("", ""))[1]
-    # containers are rotationally symmetric: a grasp ignores their yaw (world axes)
-    obj_frame = Pose(pose.position)
+    facing = _facing(s, where)
+    turn = (facing if facing is not None else GRASP_FACING) - GRASP_FACING
+    # containers are rotationally symmetric: a grasp ignores their yaw (the grasp frame)
+    obj_frame = Pose(pose.position, _rot_z(turn).orientation)
     grip = geo.compose(obj_frame, _grasp_pose(grasp))
     approach = geo.rotate(grasp.approach, obj_frame)
     pre = geo.translated(grip, _scaled(approach, -grasp.distance))
     lifted = geo.translated(grip, (0.0, 0.0, grasp.lift))
     out = geo.translated(lifted, _scaled(geo.rotate(grasp.retreat, obj_frame), grasp.retreat_distance))
     steps: list[tuple[Any, ...]] = _face(s, path, where)
-    if grasp.posture:
+    if grasp.posture and abs(turn) < 1e-9:  # a posture is given for the grasp's own facing
         steps.append(("a_posture", f"{path}/arm_posture", arm, grasp.posture, SHORT_MOVE_S))
     steps.append(("a_preshape", f"{path}/open_hand", arm, grasp.preshape))
     first_move = SHORT_MOVE_S if grasp.posture else LONG_MOVE_S
@@ -285,45 +319,86 @@ def m_fetch(s: Any, path: str, obj: str, arm: str) -> Any:
         ]
     else:
         steps.append(("a_move", f"{path}/pregrasp", arm, pre, first_move))
+    steps.append(("a_perceive", f"{path}/see_{obj}", obj, (obj, pose.position)))
     reach_s = round(max(1.0, grasp.distance / CONTACT_SPEED_M_S), 2)
+    take = f"{path}/take"
     return [
         *steps,
-        ("a_move", f"{path}/reach", arm, grip, reach_s),
-        ("a_grasp", f"{path}/grasp", arm, obj, grasp.spread),
-        ("a_held", f"{path}/held", obj, arm, where),
-        ("a_move", f"{path}/lift", arm, lifted, 1.0),
-        ("a_move", f"{path}/withdraw", arm, out, SHORT_MOVE_S),
+        ("a_move", f"{take}/reach", arm, grip, reach_s),
+        ("a_grasp", f"{take}/grasp", arm, obj, grasp.spread),
+        ("a_held", f"{take}/held", obj, arm, where),
+        ("a_move", f"{take}/lift", arm, lifted, 1.0),
+        ("a_move", f"{take}/withdraw", arm, out, SHORT_MOVE_S),
     ]
 
 
-def m_place(s: Any, path: str, obj: str, surface: str, arm: str) -> Any:
-    """Face ``surface``, bring ``obj`` above a free place, lower it, release, lift the hand
-    and park it out of the way."""
+def _free_position(s: Any, obj: str, furniture: str) -> tuple[float, float, float] | None:
+    """The first placement position on ``furniture`` no other object occupies."""
+    placement = _k(s).placements.get((obj, furniture))
+    if placement is None:
+        return None
+    others = [
+        p.position
+        for o, p in s.pose.items()
+        if o != obj and p is not None and s.where.get(o, ("", ""))[1] == furniture
+    ]
+    for x, y, z in placement.positions:
+        if all(np.hypot(x - ox, y - oy) >= FREE_RADIUS_M for ox, oy, _ in others):
+            return (x, y, z)
+    return None
+
+
+def m_place(s: Any, path: str, obj: str, furniture: str, arm: str) -> Any:
+    """Face ``furniture``, bring ``obj`` above a free place, set it down (lower, release,
+    clear: atomic), park the hand out of the way, and look at where it stands."""
     if s.holding[arm] != obj:
         return False
-    placement = _k(s).placements.get((obj, surface))
-    info = _k(s).objects.get(surface)
-    if placement is None or not placement.positions or info is None or info.facing is None:
+    placement = _k(s).placements.get((obj, furniture))
+    facing = _facing(s, furniture)
+    spot = _free_position(s, obj, furniture)
+    if placement is None or facing is None or spot is None:
         return False
-    x, y, z = placement.positions[0]
-    # the held object turned with the torso: facing the surface it has this yaw
-    yaw = _rot_z(info.facing - _grasp_facing(s, obj))
-    target = Pose((x, y, z + placement.clearance), yaw.orientation)
+    x, y, z = spot
+    # the held object keeps the hand's relative pose: its grasp frame turns with the torso
+    target = Pose((x, y, z + placement.clearance), _rot_z(facing).orientation)
     grip = geo.compose(target, s.grip[obj])
     above = geo.translated(grip, (0.0, 0.0, placement.approach))
-    park = geo.translated(grip, geo.rotate(placement.park, _rot_z(info.facing)))
+    park = geo.translated(grip, geo.rotate(placement.park, _rot_z(facing)))
     grasp = _best_grasp(s, obj, arm)
     opening = grasp.preshape if grasp is not None else 0.5
+    down = f"{path}/set_down"
     return [
-        *_face_steps(s, path, surface, info.facing),
+        *_face_steps(s, path, furniture, facing),
         ("a_look", f"{path}/look_at_place", (x, y, z)),
         ("a_move", f"{path}/carry", arm, above, LONG_MOVE_S),
-        ("a_move", f"{path}/lower", arm, grip, SHORT_MOVE_S),
-        ("a_release", f"{path}/release", arm, obj, opening),
-        ("a_put", f"{path}/put", obj, surface),
-        ("a_move", f"{path}/clear", arm, above, 1.0),
+        ("a_move", f"{down}/lower", arm, grip, SHORT_MOVE_S),
+        ("a_release", f"{down}/release", arm, obj, opening),
+        ("a_put", f"{down}/put", obj, furniture, _relation(s, furniture), (x, y, z)),
+        ("a_move", f"{down}/clear", arm, above, 1.0),
         ("a_move", f"{path}/park", arm, park, SHORT_MOVE_S),
+        ("localise", f"{path}/localise_{obj}", obj),
     ]
+
+
+def m_move_to(s: Any, path: str, obj: str, furniture: str) -> Any:
+    """Take ``obj`` if no hand holds it, then place it on or in ``furniture``."""
+    if s.where.get(obj, ("", ""))[1] == furniture and s.localised.get(obj):
+        return []  # already there
+    arm = next((a for a in ARMS if s.holding[a] == obj), None)
+    todo: list[tuple[Any, ...]] = []
+    if arm is None:
+        arm = _free_arm_for(s, obj)
+        if arm is None:
+            return False
+        todo.append(("fetch", f"{path}/fetch_{obj}", obj, arm))
+    todo.append(("place", f"{path}/place_{obj}", obj, furniture, arm))
+    return todo
+
+
+def m_safe_stop(s: Any, path: str) -> Any:
+    """Put everything the hands hold down in free places on the table."""
+    held = [(arm, o) for arm, o in s.holding.items() if o is not None]
+    return [("place", f"{path}/put_down_{o}", o, SAFE_SURFACE, arm) for arm, o in held]
 
 
 def m_localise(s: Any, path: str, obj: str) -> Any:
@@ -331,30 +406,31 @@ def m_localise(s: Any, path: str, obj: str) -> Any:
     if s.pose.get(obj) is None:
         return False
     held = [o for o in s.holding.values() if o is not None and o != obj]
-    return [("a_perceive", f"{path}/perceive", ",".join([obj, *held]))]
+    return [("a_perceive", f"{path}/perceive", ",".join([obj, *held]), None)]
 
 
 def m_pour_into(s: Any, path: str, src: str, dst: str, arm: str) -> Any:
-    """Turn to pour, bring the source upright beside the target, tilt it about the pivot,
-    wait for the content to run out, tilt back."""
+    """Turn to pour, bring the source upright beside the target, then (atomic) tilt it about
+    the pivot, wait for the content to run out, tilt back."""
     pour = _k(s).pours.get((src, dst))
     dst_pose = s.pose.get(dst)
     if pour is None or dst_pose is None or s.holding[arm] != src or src not in s.grip:
         return False
     turn = _rot_z(pour.facing)
     origin = geo.translated(Pose(dst_pose.position), geo.rotate(pour.source_in_target, turn))
-    src_target = Pose(origin.position, _rot_z(pour.facing - _grasp_facing(s, src)).orientation)
+    src_target = Pose(origin.position, turn.orientation)
     grip = geo.compose(src_target, s.grip[src])
     above = geo.translated(grip, (0.0, 0.0, pour.approach_height))
     pivot = geo.translated(Pose(dst_pose.position), geo.rotate(pour.pivot_in_target, turn)).position
     axis = geo.rotate(pour.axis, turn)
+    tilt = f"{path}/tilt_pour"
     return [
         *_face_steps(s, path, "pour", pour.facing),
         ("a_move", f"{path}/bring_over", arm, above, LONG_MOVE_S),
         ("a_move", f"{path}/lower", arm, grip, SHORT_MOVE_S),
-        ("a_tilt", f"{path}/tilt", arm, pivot, axis, pour.angle, pour.duration),
-        ("a_wait", f"{path}/let_run_out", pour.wait),
-        ("a_tilt", f"{path}/tilt_back", arm, pivot, axis, -pour.angle, pour.untilt_duration),
+        ("a_tilt", f"{tilt}/tilt", arm, pivot, axis, pour.angle, pour.duration),
+        ("a_wait", f"{tilt}/let_run_out", pour.wait),
+        ("a_tilt", f"{tilt}/tilt_back", arm, pivot, axis, -pour.angle, pour.untilt_duration),
     ]
 
 
@@ -385,10 +461,12 @@ def declare() -> None:
         gtpyhop.Domain(DOMAIN_NAME)
         gtpyhop.declare_actions(*ACTIONS)
         gtpyhop.declare_task_methods("pour", m_pour_locate, m_pour_now, m_pour_prepare)
+        gtpyhop.declare_task_methods("move_to", m_move_to)
         gtpyhop.declare_task_methods("fetch", m_fetch)
         gtpyhop.declare_task_methods("place", m_place)
         gtpyhop.declare_task_methods("localise", m_localise)
         gtpyhop.declare_task_methods("pour_into", m_pour_into)
+        gtpyhop.declare_task_methods("safe_stop", m_safe_stop)
         gtpyhop.set_verbose_level(0)
         gtpyhop.set_recursive_planning(True)
 
@@ -425,30 +503,120 @@ def initial_state(k: Knowledge, tool_poses: dict[str, Pose | None]) -> Any:
     return s
 
 
-def find_plan(k: Knowledge, task: tuple[str, ...], root: str) -> list[tuple[Any, ...]]:
-    """A list of action tuples ``(name, path, *args)`` achieving ``task``.
-    Raises PlanningFailure with a readable reason when there is none."""
-    declare()
-    s = initial_state(k, {})
-    name, *args = task
-    if name not in ("pour", "fetch", "place", "localise"):
-        # other tasks would need their own methods; say so rather than guess
-        raise PlanningFailure(f"I know no way to {name}")
+TASKS: dict[str, tuple[int, str]] = {
+    "pour": (2, "pour X into Y"),
+    "place": (2, "put X on/in Y"),
+    "bring": (1, "bring X to the table"),
+    "hand_over": (1, "hand X over (put on the table in front of you)"),
+    "return": (1, "put X back in the cabinet"),
+    "fetch": (1, "take X in a hand"),
+    "localise": (1, "look where X is"),
+}
+"""Goal tasks a_pl accepts: number of arguments and what they mean."""
+STORAGE = "cabinet"
+"""Where ``return`` puts things back."""
+
+_ACTIONS = {f.__name__: f for f in ACTIONS}
+
+
+@dataclass
+class PlanActions:
+    """A plan as GTPyhop actions ``(name, path, *args)``; ``on_cancel[i]`` names the safe
+    stop (a key of ``safe_stops``) to run when a cancel takes effect before action i."""
+
+    actions: list[tuple[Any, ...]]
+    on_cancel: list[str | None]
+    safe_stops: dict[str, list[tuple[Any, ...]]]
+    task: str = ""
+    args: list[Any] = field(default_factory=list)
+    """the domain task the goal became, and its arguments"""
+
+
+def _goal(s: Any, name: str, args: list[str]) -> tuple[str, list[Any]]:
+    """The domain task for a goal task, with its arguments; PlanningFailure if impossible."""
+    k = _k(s)
+    if name not in TASKS:
+        known = "; ".join(v[1] for v in TASKS.values())
+        raise PlanningFailure(f"I know no way to {name}; I can: {known}")
+    if len(args) != TASKS[name][0]:
+        raise PlanningFailure(f"{name} needs {TASKS[name][0]} object(s): {TASKS[name][1]}")
     for obj in args:
         if obj not in k.objects:
             raise PlanningFailure(f"I know of no {obj}")
+    movable = lambda o: any(k.grasps.get((o, a)) for a in ARMS)  # noqa: E731
+    if name in ("bring", "hand_over", "return", "fetch", "place") and not movable(args[0]):
+        raise PlanningFailure(f"I cannot pick up the {args[0]}")
+    if name == "pour":
+        src, dst = args
+        if k.pours.get((src, dst)) is None:
+            raise PlanningFailure(f"I do not know how to pour the {src} into the {dst}")
+        return "pour", args
     if name == "fetch":
         arm = _free_arm_for(s, args[0])
         if arm is None:
             raise PlanningFailure(f"no free hand can grasp the {args[0]}")
-        args = [args[0], arm]
-    elif name == "place":
-        arm = next((a for a in ARMS if s.holding[a] == args[0]), None)
-        if arm is None:
-            raise PlanningFailure(f"the {args[0]} is not in a hand")
-        args = [args[0], args[1], arm]
+        return "fetch", [args[0], arm]
+    if name == "localise":
+        return "localise", args
+    obj = args[0]
+    furniture = {"place": args[-1], "return": STORAGE}.get(name, "table")
+    if (obj, furniture) not in k.placements:
+        raise PlanningFailure(f"I know no place to put the {obj} {_relation(s, furniture)} the {furniture}")
+    if s.where.get(obj, ("", ""))[1] == furniture:
+        raise PlanningFailure(f"the {obj} is already {_relation(s, furniture)} the {furniture}")
+    return "move_to", [obj, furniture]
+
+
+def _run(s: Any, task: list[Any]) -> list[tuple[Any, ...]] | None:
     with contextlib.redirect_stdout(io.StringIO()):
-        plan = gtpyhop.find_plan(s, [(name, root, *args)])
-    if not plan:
+        plan = gtpyhop.find_plan(s, [tuple(task)])
+    return list(plan) if plan else None
+
+
+def safe_stops(s0: Any, actions: list[tuple[Any, ...]]) -> tuple[list[str | None], dict[str, list[Any]]]:
+    """For every action boundary, the safe stop for what the hands hold there (None: empty
+    hands); the same holding and torso angle share one safe stop. Replays ``actions`` from
+    state ``s0`` (not modified)."""
+    s = s0.copy()
+    keys: list[str | None] = []
+    stops: dict[str, list[Any]] = {}
+    seen: dict[tuple[Any, ...], str] = {}
+    for name, path, *args in actions:
+        held = tuple(sorted((a, o) for a, o in s.holding.items() if o is not None))
+        key: str | None = None
+        if held:
+            signature = (held, None if s.torso is None else round(s.torso, 6))
+            key = seen.get(signature)
+            if key is None:
+                key = f"safe_stop_{len(seen) + 1}"
+                found = _run(s.copy(), ["safe_stop", key])
+                if found is not None:
+                    seen[signature] = key
+                    stops[key] = found
+                else:
+                    key = None  # nowhere to put it down: a cancel then stops in place
+        keys.append(key)
+        _ACTIONS[name](s, path, *args)
+    return keys, stops
+
+
+def find_plan(k: Knowledge, task: tuple[str, ...], root: str) -> list[tuple[Any, ...]]:
+    """A list of action tuples ``(name, path, *args)`` achieving ``task`` (see ``TASKS``).
+    Raises PlanningFailure with a readable reason when there is none."""
+    return plan_task(k, task, root, with_safe_stops=False).actions
+
+
+def plan_task(k: Knowledge, task: tuple[str, ...], root: str, *, with_safe_stops: bool = True) -> PlanActions:
+    """The plan for goal ``task`` from a_km's knowledge ``k``, with the safe stop of every
+    step. Raises PlanningFailure with a reason a person can read."""
+    declare()
+    s = initial_state(k, {})
+    name, *args = task
+    domain_task, domain_args = _goal(s, name, list(args))
+    actions = _run(s, [domain_task, root, *domain_args])
+    if not actions:
         raise PlanningFailure(f"no way to {name} {' '.join(map(str, args))} from what I know")
-    return list(plan)
+    if not with_safe_stops:
+        return PlanActions(actions, [None] * len(actions), {}, domain_task, domain_args)
+    keys, stops = safe_stops(s, actions)
+    return PlanActions(actions, keys, stops, domain_task, domain_args)

@@ -5,9 +5,19 @@ from __future__ import annotations
 from typing import Any
 
 from shared.fipa_codec.languages.l_ex import Arm, Grasp, LookAt, MoveJoints, MoveTool, Release, Tilt, Wait
-from shared.fipa_codec.languages.l_hfsm import Action, Assert, CheckContent, Execute, Perceive, PlanNode
+from shared.fipa_codec.languages.l_hfsm import (
+    Action,
+    Assert,
+    CheckContent,
+    Execute,
+    ExpectedPosition,
+    Perceive,
+    PlanNode,
+)
 
 OBSERVE_COST_S = 1.0
+EXPECT_TOLERANCE_M = 0.03
+"""How far an object may be from where a Perceive step expects it (m)."""
 
 
 def leaf_action(name: str, args: tuple[Any, ...]) -> tuple[Action | None, float]:
@@ -36,13 +46,19 @@ def leaf_action(name: str, args: tuple[Any, ...]) -> tuple[Action | None, float]
         arm, _obj, opening = args
         return Execute(Release(arm=Arm(arm), opening=opening)), 1.0
     if name == "a_put":
-        obj, surface = args
-        return Assert(subject=obj, relation="on", object=surface), 0.0
+        obj, furniture, relation, _position = args
+        return Assert(subject=obj, relation=relation, object=furniture), 0.0
     if name == "a_look":
         (point,) = args
         return Execute(LookAt(point=tuple(point))), 1.0
     if name == "a_perceive":
-        return Perceive(objects=tuple(args[0].split(",")) if args[0] else ()), OBSERVE_COST_S
+        names, expect = args
+        expected = (
+            (ExpectedPosition(object=expect[0], position=tuple(expect[1]), tolerance=EXPECT_TOLERANCE_M),)
+            if expect is not None
+            else ()
+        )
+        return Perceive(objects=tuple(names.split(",")) if names else (), expect=expected), OBSERVE_COST_S
     if name == "a_tilt":
         arm, pivot, axis, angle, duration = args
         return Execute(Tilt(arm=Arm(arm), pivot=pivot, axis=axis, angle=angle, duration=duration)), duration
@@ -56,18 +72,24 @@ def leaf_action(name: str, args: tuple[Any, ...]) -> tuple[Action | None, float]
     raise ValueError(f"unknown planner action {name}")
 
 
-def to_hfsm(actions: list[tuple[Any, ...]]) -> tuple[PlanNode, bool, float]:
+def to_hfsm(
+    actions: list[tuple[Any, ...]],
+    *,
+    on_cancel: list[str | None] | None = None,
+    atomic: frozenset[str] = frozenset(),
+) -> tuple[PlanNode, bool, float]:
     """Build the plan HFSM from ``(name, path, *args)`` actions.
 
-    Returns (root state, complete, cost): ``complete`` is False when the plan ends with a
-    replan marker; ``cost`` is the sum of expected leaf durations (s).
-    Raises ValueError when actions do not share one root.
+    ``on_cancel[i]`` becomes the ``on_cancel`` of action i's leaf; composite states whose
+    name is in ``atomic`` are marked atomic. Returns (root state, complete, cost):
+    ``complete`` is False when the plan ends with a replan marker; ``cost`` is the sum of
+    expected leaf durations (s). Raises ValueError when actions do not share one root.
     """
     order: dict[str, list[str]] = {}
     complete, cost = True, 0.0
     root_name: str | None = None
-    leaves: dict[str, Action] = {}
-    for name, path, *args in actions:
+    leaves: dict[str, PlanNode] = {}
+    for i, (name, path, *args) in enumerate(actions):
         action, duration = leaf_action(name, tuple(args))
         cost += duration
         if action is None:
@@ -83,14 +105,24 @@ def to_hfsm(actions: list[tuple[Any, ...]]) -> tuple[PlanNode, bool, float]:
             kids = order.setdefault(parent, [])
             if child not in kids:
                 kids.append(child)
-        leaves[path] = action
+        leaves[path] = PlanNode(
+            name=parts[-1],
+            action=action,
+            duration=round(duration, 3),
+            on_cancel=on_cancel[i] if on_cancel is not None else None,
+        )
     if root_name is None:
         raise ValueError("empty plan")
 
     def build(path: str) -> PlanNode:
-        name = path.rsplit("/", 1)[-1]
         if path in leaves:
-            return PlanNode(name=name, action=leaves[path])
-        return PlanNode(name=name, children=tuple(build(c) for c in order.get(path, [])), task=name)
+            return leaves[path]
+        name = path.rsplit("/", 1)[-1]
+        return PlanNode(
+            name=name,
+            children=tuple(build(c) for c in order.get(path, [])),
+            task=name,
+            atomic=name in atomic,
+        )
 
     return build(root_name), complete, round(cost, 2)

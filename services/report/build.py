@@ -7,6 +7,7 @@ from pathlib import Path
 import msgspec
 
 from services.report.content import sphere_share
+from services.report.coordination import commands, coordination
 from services.report.load import Message, RunData, load_run
 from services.report.markdown import render
 from services.report.model import Header, Report
@@ -45,6 +46,8 @@ def build_report(run_dir: Path, container: str = "bowl") -> Report:
         content=sphere_share(messages, container),
         notes=notes,
         control=control,
+        commands=commands(messages),
+        coordination=coordination(messages),
     )
 
 

@@ -29,6 +29,7 @@ def render(report: Report) -> str:
         _planning(report.plans),
         _content(report),
         _control(report),
+        _coordination(report),
         _notes(report.notes),
     ]
     return "\n\n".join(parts) + "\n"
@@ -335,6 +336,40 @@ def _control(report: Report) -> str:
         "ended after the next release time (velma/executor/timing.py)."
     )
     return "\n\n".join([title, text, _table(head, rows), how])
+
+
+def _coordination(report: Report) -> str:
+    title = "## 7. Commands and coordination (C2, C1)"
+    if not report.commands and not report.coordination:
+        return f"{title}\n\nNo command reached a_co."
+    rows = [
+        (
+            str(i),
+            c.text,
+            str(c.priority),
+            _s(c.requested_t),
+            _s(c.cancelled_t) if c.cancelled_t is not None else "",
+            _s(c.ended_t) if c.ended_t is not None else "",
+            c.outcome or "no outcome",
+            c.detail,
+        )
+        for i, c in enumerate(report.commands, 1)
+    ]
+    commands = _table(
+        ("#", "command", "priority", "requested", "stopped", "ended", "outcome", "detail"), rows
+    )
+    events = _table(
+        ("t (s)", "who", "performative", "what"),
+        [(_s(e.t), e.who, e.performative, e.text) for e in report.coordination],
+    )
+    how = (
+        "**How read.** Commands are the C2 fipa-request conversations (a_hi → a_co); the second "
+        "table lists the coordinate protocol on C1: a_co's plan requests and cancels, and a_ta's "
+        "Terminating (first of each conversation), Preempted, Replan, Succeeded and Error "
+        "informs. A preemption reads: cancel → Terminating → (safe stop) → Preempted, then the "
+        "urgent command's plan, then the preempted command's new plan."
+    )
+    return "\n\n".join([title, commands, events, how])
 
 
 def _notes(notes: Sequence[str]) -> str:

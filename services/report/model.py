@@ -91,7 +91,8 @@ class PlanPhase(msgspec.Struct, kw_only=True):
     index: ``GroundTaskNetwork.plan_index`` (else the request's ordinal); requested_t: C3
     request; received_t: a_pl's answer (None: no answer); c4_count/c4_bytes/c4_queries: C4
     communicates, their bytes and a_pl's ``query-ref``s between request and answer;
-    c4_last_t: the last of them; mean_kbps: c4_bytes over [requested_t, received_t];
+    c4_last_t: the last of them; mean_kbps: c4_bytes over [requested_t, received_t], at
+    least one peak bin (1 s) long;
     peak_kbps: the busiest 1 s bin from requested_t (paper Figure 13). From the plan itself
     (L_HFSM ``HierarchicalPlan``): plan_id, km_queries, planning_time_s, complete.
     outcome: ``complete``, ``partial``, ``failed: <reason>`` or ``no answer``.
@@ -128,6 +129,34 @@ class ContentOutcome(msgspec.Struct, kw_only=True):
     stamp: float | None = None
 
 
+class CommandRow(msgspec.Struct, kw_only=True):
+    """One human command (C2 conversation): its ``text`` and ``priority``; when it was
+    requested, cancelled by the person (None: never) and ended (s since run start);
+    ``outcome`` succeeded / failed / stopped (None: no outcome recorded) with a_co's
+    ``detail``."""
+
+    conversation: str
+    text: str
+    priority: int = 0
+    requested_t: float
+    cancelled_t: float | None = None
+    ended_t: float | None = None
+    outcome: str | None = None
+    detail: str = ""
+
+
+class CoordinationEvent(msgspec.Struct, kw_only=True):
+    """One C1 exchange of the coordinate protocol (paper Figure 8) that changes what the
+    robot does: at ``t`` (s since run start), ``who`` (sender → receiver), the
+    ``performative`` and what it says; ``conversation`` is the C1 conversation-id."""
+
+    t: float
+    who: str
+    performative: str
+    text: str
+    conversation: str | None = None
+
+
 class Report(msgspec.Struct, kw_only=True):
     """The experiment report of one run folder (paper §5.7). ``notes`` lists what was
     missing or could not be read."""
@@ -142,3 +171,5 @@ class Report(msgspec.Struct, kw_only=True):
     notes: list[str]
     control: TimingStats | None = None
     """ag_ex's control-loop deadline statistics (``ag_ex_timing.json``), if written."""
+    commands: list[CommandRow] = []
+    coordination: list[CoordinationEvent] = []

@@ -42,7 +42,8 @@ def plan_phases(messages: Sequence[Message]) -> list[PlanPhase]:
             c4_bytes=c4_bytes,
             c4_queries=sum(1 for m in c4 if m.performative == "query-ref"),
             c4_last_t=c4[-1].t if c4 else None,
-            mean_kbps=c4_bytes * 8 / 1000 / duration if c4 and duration > 0 else None,
+            # over at least one peak bin, so that a sub-second planning's mean stays ≤ its peak
+            mean_kbps=c4_bytes * 8 / 1000 / max(duration, PEAK_BIN_S) if c4 else None,
             peak_kbps=_peak_kbps(c4, req.t),
             outcome=_outcome(answer),
         )

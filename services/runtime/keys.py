@@ -4,6 +4,8 @@
 ``roco/alive/<agent>``                       liveliness token of a running agent (white pages)
 ``roco/human/in`` / ``roco/human/out``       a_hi's receptor and effector: text from/to a person
 ``roco/state/<agent>``                       state snapshots (executor, for viewers)
+``roco/sim/disturb``                         the simulated world's disturbances (a person moves an
+                                             object): JSON :class:`services.executor.agent.Disturbance`
 """
 
 from __future__ import annotations
@@ -15,6 +17,7 @@ FIPA_ALL = f"{PREFIX}/fipa/**"
 ALIVE_ALL = f"{PREFIX}/alive/*"
 HUMAN_IN = f"{PREFIX}/human/in"
 HUMAN_OUT = f"{PREFIX}/human/out"
+SIM_DISTURB = f"{PREFIX}/sim/disturb"
 
 
 class FipaKey(NamedTuple):

@@ -134,6 +134,21 @@ class Fleet:
         for proc in self.processes.values():
             _wait(proc, max(0.1, deadline - time.monotonic()))
 
+    def restart(self, name: str, timeout: float = 10.0) -> int:
+        """Stop process ``name`` (SIGTERM, then SIGKILL after ``timeout`` s) and start it again;
+        returns the new PID. Raises KeyError for a process this fleet did not start."""
+        proc = self.processes[name]
+        if proc.poll() is None:
+            proc.send_signal(signal.SIGTERM)
+            _wait(proc, timeout)
+        if name == "recorder":
+            self.start_recorder()
+        elif name == "router":
+            raise LaunchError("the router is not restarted by a scenario")
+        else:
+            self.start_agents([name])
+        return self.processes[name].pid
+
     def pids(self) -> dict[str, int]:
         return {n: p.pid for n, p in self.processes.items()}
 

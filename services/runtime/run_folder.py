@@ -35,6 +35,10 @@ class RunInfo(msgspec.Struct, kw_only=True):
     """Jitter of the jar content's start positions (ag_ex's ROCO_SEED)."""
     pose_seed: int | None = None
     """Randomisation of the jar and bowl poses (ag_ex's ROCO_POSE_SEED; None: none)."""
+    scenario: str = ""
+    """The scenario's name (``roco scenario``), empty for a single ``roco run`` command."""
+    commands: list[str] = []
+    """Every sentence said to a_hi, in order (``command`` is the first)."""
 
 
 def new_run_dir(root: Path) -> Path:

@@ -6,17 +6,27 @@ changes on C6; every state change is informed to a_co in L_SW), finished (await 
 confirmation of the final state). a_km's fipa-subscribe to environment updates is answered
 in every state; the first observation of the scene is taken at start-up (paper Table 7,
 0–37 s: initial knowledge).
+
+Safe interruption (paper §3.2): a ``cancel`` from a_co makes a_ta report Terminating, finish
+the atomic state it is in (the plan marks grasps and pours atomic), run the safe-stop HFSM
+the next leaf names (put what the hands hold down in a safe place), and only then report
+Preempted. It never opens a hand that holds something outside such a plan.
+
+When the world differs from the plan — an object is not where a Perceive step expects it,
+a grasp closes on nothing, a held object slips out — a_ta observes the scene, informs a_km of
+what it saw, and reports Replan with the difference in words.
 """
 
 from __future__ import annotations
 
+import math
 from collections import deque
 from dataclasses import dataclass
 
 from services.runtime.agent import Agent, Received
 from services.runtime.behaviour import FSM, Arc, Behaviour
 from shared.fipa_codec import Performative
-from shared.fipa_codec.languages.l_ex import MoveJoints, MoveTool, Observe, Tilt, Wait
+from shared.fipa_codec.languages.l_ex import CommandResult, MoveJoints, MoveTool, Observe, Tilt, Wait
 from shared.fipa_codec.languages.l_hfsm import (
     Assert,
     CheckContent,
@@ -33,6 +43,9 @@ OBSERVE_REPLY_BY_S = 30.0
 INITIAL_OBSERVE_RETRY_S = 3.0
 COMMAND_MARGIN_S = 60.0
 CONFIRM_REPLY_BY_S = 30.0
+REPLAN_FAILURES = frozenset({"no contact", "contact lost"})
+"""ag_ex failure reasons that mean the world differs from the plan (the grasp closed on
+nothing; a held object left the hand): a_ta reports Replan instead of Error."""
 
 
 @dataclass
@@ -42,6 +55,7 @@ class Step:
     path: str
     node: PlanNode
     waiting_for: str | None = None
+    replan_reason: str | None = None  # set on the observation made before reporting Replan
 
 
 class TaskExecutor(Agent):
@@ -59,6 +73,9 @@ class TaskExecutor(Agent):
         self.outcome: SWState | None = None
         self.reason: str | None = None
         self.cancel_requested = False
+        self.terminating = False  # running the safe-stop HFSM
+        self.safe_stop_key: str | None = None
+        self.atomic_spans: list[tuple[int, int]] = []
         self.final_inform: str | None = None
         self.confirmed = False
         self.sw_queue: deque[SWStatus] = deque()
@@ -209,38 +226,69 @@ class TaskExecutor(Agent):
     def _start_plan(self) -> None:
         assert self.plan is not None
         self.leaves = self.plan.root.leaves()
+        self.atomic_spans = self.plan.root.atomic_spans()
         self.index = 0
         self.step = None
         self.outcome = None
         self.reason = None
         self.cancel_requested = False
+        self.terminating = False
         self.log.info("plan %s: %d leaf states", self.plan.plan_id, len(self.leaves))
         self._inform_co(SWState.RUNNING)
+
+    def _in_atomic(self) -> bool:
+        """True while the next leaf belongs to an atomic state already entered."""
+        return any(start < self.index < end for start, end in self.atomic_spans)
 
     def _running(self) -> None:
         self._common()
         if self.step is not None and self.step.waiting_for is not None:
-            reply = self.take(lambda i: i.msg.in_reply_to == self.step.waiting_for)
+            waiting_for = self.step.waiting_for
+            reply = self.take(lambda i: i.msg.in_reply_to == waiting_for)
             if reply is None:
                 self.reject_unhandled(lambda i: i.local or i.sender == "ag_ex")
                 return
             self._complete(reply)
             if self.outcome is not None:
                 return
-        if self.cancel_requested:
-            self._end(SWState.PREEMPTED, "cancelled by a_co")
-            return
+        if self.cancel_requested and not self.terminating and not self._in_atomic():
+            self._begin_safe_stop()
         if self.index >= len(self.leaves):
             assert self.plan is not None
-            self._end(
-                SWState.SUCCEEDED if self.plan.complete else SWState.REPLAN,
-                None if self.plan.complete else "the plan ends with sensing; a new plan is needed",
-            )
+            if self.terminating:
+                self._end(SWState.PREEMPTED, self._safe_stop_summary())
+            elif self.plan.complete:
+                self._end(SWState.SUCCEEDED, None)
+            else:
+                self._end(SWState.REPLAN, "the plan ends with sensing; a new plan is needed")
             return
         path, node = self.leaves[self.index]
         self.step = Step(path, node)
-        self._inform_co(SWState.RUNNING, step=path)
+        self._inform_co(SWState.TERMINATING if self.terminating else SWState.RUNNING, step=path)
         self._begin(self.step)
+
+    def _begin_safe_stop(self) -> None:
+        """Switch to the safe-stop HFSM the next leaf names (paper §3.2: put what is held
+        down safely before reporting Preempted); none: stop where the robot is."""
+        assert self.plan is not None
+        self.terminating = True
+        key = self.leaves[self.index][1].on_cancel if self.index < len(self.leaves) else None
+        stop = self.plan.safe_stops.get(key) if key is not None else None
+        self.safe_stop_key = key if stop is not None else None
+        self.leaves = stop.leaves() if stop is not None else []
+        self.atomic_spans = stop.atomic_spans() if stop is not None else []
+        self.index = 0
+        self.log.info("terminating: safe stop %s (%d steps)", key or "none", len(self.leaves))
+
+    def _safe_stop_summary(self) -> str:
+        held = [
+            n.action.subject
+            for _, n in self.leaves
+            if isinstance(n.action, Assert) and n.action.relation in ("on", "in")
+        ]
+        if not held:
+            return "cancelled by a_co; nothing was held"
+        return f"cancelled by a_co; put {', '.join(held)} down safely"
 
     def _begin(self, step: Step) -> None:
         action = step.node.action
@@ -257,14 +305,7 @@ class TaskExecutor(Agent):
             step.waiting_for = msg.reply_with
         elif isinstance(action, Perceive | CheckContent):
             objects = action.objects if isinstance(action, Perceive) else (action.container,)
-            msg = self.send(
-                "ag_ex",
-                Performative.REQUEST,
-                Observe(objects=objects),
-                protocol="fipa-request",
-                reply_by_s=OBSERVE_REPLY_BY_S,
-            )
-            step.waiting_for = msg.reply_with
+            self._observe(step, objects)
         elif isinstance(action, Assert):
             self._assert(action)
             self.index += 1
@@ -272,6 +313,16 @@ class TaskExecutor(Agent):
         else:
             self.index += 1  # a composite state with no leaves
             self.step = None
+
+    def _observe(self, step: Step, objects: tuple[str, ...]) -> None:
+        msg = self.send(
+            "ag_ex",
+            Performative.REQUEST,
+            Observe(objects=objects),
+            protocol="fipa-request",
+            reply_by_s=OBSERVE_REPLY_BY_S,
+        )
+        step.waiting_for = msg.reply_with
 
     def _assert(self, action: Assert) -> None:
         if action.relation == "heldBy":
@@ -283,14 +334,37 @@ class TaskExecutor(Agent):
         self._inform_km(WorldUpdate(stamp=-1.0, objects=(change,)))
 
     def _complete(self, reply: Received) -> None:
-        assert self.step is not None
-        action = self.step.node.action
+        step = self.step
+        assert step is not None
+        action = step.node.action
+        if step.replan_reason is not None:  # the observation made after a surprise
+            if isinstance(reply.content, Observation):
+                self._update_km(reply.content)
+            self._end(SWState.REPLAN, step.replan_reason)
+            return
         if reply.performative is not Performative.INFORM:
             reason = getattr(reply.content, "reason", None) or reply.msg.content.decode("utf-8", "replace")
-            self._end(SWState.ERROR, f"{self.step.path}: {reply.performative.value}: {reason}")
+            if (
+                isinstance(reply.content, CommandResult)
+                and reply.content.reason in REPLAN_FAILURES
+                and not self.terminating
+            ):
+                what = (
+                    "the grasp closed on nothing"
+                    if reply.content.reason == "no contact"
+                    else ("the held object left the hand")
+                )
+                self._surprise(step, f"{step.path}: {what}")
+                return
+            self._end(SWState.ERROR, f"{step.path}: {reply.performative.value}: {reason}")
             return
         if isinstance(action, Perceive | CheckContent) and isinstance(reply.content, Observation):
             self._update_km(reply.content)
+            if isinstance(action, Perceive) and action.expect and not self.terminating:
+                difference = self._differences(action, reply.content)
+                if difference:
+                    self._end(SWState.REPLAN, f"{step.path}: {difference}")
+                    return
             if isinstance(action, CheckContent):
                 inside = {o.name: o.particles_inside or 0 for o in reply.content.objects}
                 total = max(1, reply.content.total_particles)
@@ -305,6 +379,28 @@ class TaskExecutor(Agent):
                     return
         self.index += 1
         self.step = None
+
+    def _surprise(self, step: Step, reason: str) -> None:
+        """The world differs from the plan: observe the whole scene (a_km learns it), then
+        report Replan with ``reason``."""
+        self.log.info("surprise: %s", reason)
+        step.replan_reason = reason
+        self._observe(step, ())
+
+    @staticmethod
+    def _differences(action: Perceive, obs: Observation) -> str:
+        """The expected positions the observation contradicts, in words ("" when none)."""
+        seen = {o.name: o.pose.position for o in obs.objects}
+        out = []
+        for e in action.expect:
+            where = seen.get(e.object)
+            if where is None:
+                out.append(f"the {e.object} was not seen")
+                continue
+            d = math.dist(where, e.position)
+            if d > e.tolerance:
+                out.append(f"the {e.object} is {100 * d:.0f} cm from where the plan expects it")
+        return "; ".join(out)
 
     def _end(self, state: SWState, reason: str | None) -> None:
         self.outcome, self.reason = state, reason

@@ -104,7 +104,9 @@ SAMPLE_TERMS: list[msgspec.Struct] = [
     HierarchicalPlan(
         plan_id="p2",
         task_id="t1",
-        root=PlanNode(name="r", children=(PlanNode(name="a", action=Perceive(), on_cancel="s0"),), atomic=True),
+        root=PlanNode(
+            name="r", children=(PlanNode(name="a", action=Perceive(), on_cancel="s0"),), atomic=True
+        ),
         safe_stops={"s0": PLAN_ROOT},
     ),
     Perceive(("jar",), expect=(ExpectedPosition(object="jar", position=(0.8, 0.2, 0.9), tolerance=0.02),)),

@@ -27,10 +27,11 @@ class FakeExecutor:
         self.poses = {
             "jar": Pose((0.85, 0.25, 0.9)),
             "bowl": Pose((0.85, -0.25, 0.9)),
+            "cup": Pose((1.0, 0.0, 0.9)),
             "table": Pose((0.8, -0.5, 0.0)),
             "cabinet": Pose((1.0, 0.0, 0.0)),
         }
-        self.inside = {"jar": PARTICLES, "bowl": 0}
+        self.inside = {"jar": PARTICLES, "bowl": 0, "cup": 0}
         self.tool: dict[str, Pose | None] = {"left": None, "right": None}
         self.held: dict[str, str | None] = {"left": None, "right": None}
         self.fail = fail or set()
@@ -44,7 +45,7 @@ class FakeExecutor:
         tool = self.tool[arm]
         if tool is None:
             return None
-        best = min(("jar", "bowl"), key=lambda o: math.dist(self.poses[o].position, tool.position))
+        best = min(("jar", "bowl", "cup"), key=lambda o: math.dist(self.poses[o].position, tool.position))
         return best if math.dist(self.poses[best].position, tool.position) < 0.3 else None
 
     def submit(

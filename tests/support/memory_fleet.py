@@ -13,6 +13,7 @@ from services.executor.agent import ExecutorAgent
 from services.human_interface.agent import HumanInterface
 from services.human_interface.messages import FINAL_REPORTS, HumanInput, HumanReport
 from services.knowledge.agent import KnowledgeManager
+from services.monitor import is_world_update
 from services.planner.agent import Planner
 from services.runtime import keys
 from services.runtime.agent import Agent
@@ -47,7 +48,12 @@ class MemoryFleet:
         self.bus.subscribe(keys.HUMAN_OUT, lambda k, p: self.reports.put(dec.decode(p)))
         self.threads: list[threading.Thread] = []
         self.knowledge = threading.Event()
-        self.bus.subscribe(keys.fipa_key("C6", "a_ta", "a_km"), lambda k, p: self.knowledge.set())
+        self.bus.subscribe(keys.fipa_key("C6", "a_ta", "a_km"), self._on_c6)
+
+    def _on_c6(self, _key: str, payload: bytes) -> None:
+        # the first observation, not a_ta's agree to a_km's subscription
+        if is_world_update(payload):
+            self.knowledge.set()
 
     def agent(self, name: str) -> Agent:
         return next(a for a in self.agents if a.name == name)

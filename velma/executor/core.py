@@ -91,6 +91,13 @@ class Executor:
         for on_done, result in ended:
             self._notify(on_done, result)
 
+    def displace(self, body: str, delta: tuple[float, float, float]) -> bool:
+        """Move free body ``body`` by ``delta`` (world, m): a disturbance of the simulated
+        world. Raises KeyError/ValueError as Runtime.displace."""
+        with self._lock:
+            self.rt.displace(body, delta)
+        return True
+
     def safe(self, why: str) -> None:
         """Enter safe mode, ending every command with ``safe mode: why`` (velma.executor.loop)."""
         with self._lock:

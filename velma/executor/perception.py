@@ -16,8 +16,10 @@ from shared.fipa_codec.languages.common import Pose
 from shared.fipa_codec.languages.l_sd import ObjectObservation, Observation
 from velma.model.scene import PARTICLE_PREFIX
 
-KNOWN_OBJECTS = ("jar", "bowl", "table", "cabinet")
-CONTAINERS = ("jar", "bowl")
+KNOWN_OBJECTS = ("jar", "bowl", "cup", "table", "cabinet")
+CONTAINERS = ("jar", "bowl", "cup")
+"""Objects with an inner volume (site ``{name}_inner``): their observation counts the content
+spheres inside (the cup holds none at the start, but content poured into it would count)."""
 
 
 class Perception:

@@ -82,6 +82,14 @@ class Safe(msgspec.Struct, frozen=True, tag="safe"):
     why: str
 
 
+class Displace(msgspec.Struct, frozen=True, tag="displace"):
+    """Move free body ``body`` by ``delta`` (world, m): a disturbance of the simulated world
+    (velma.executor.runtime.Runtime.displace)."""
+
+    body: str
+    delta: tuple[float, float, float]
+
+
 class Shutdown(msgspec.Struct, frozen=True, tag="shutdown"):
     """End the loop process (open commands end with ``stopped``)."""
 
@@ -108,7 +116,7 @@ class Fault(msgspec.Struct, frozen=True, tag="fault"):
     text: str
 
 
-ToLoop = Submit | Hold | Safe | Shutdown
+ToLoop = Submit | Hold | Safe | Displace | Shutdown
 FromLoop = Ready | Done | Fault
 
 
@@ -194,6 +202,11 @@ def loop_main(config: bytes, doorbell: multiprocessing.connection.Connection) ->
                 pending.extend(encode(Done(token=t, result=r)) for t, r in loop.hold(msg.why))
             elif isinstance(msg, Safe):
                 pending.extend(encode(Done(token=t, result=r)) for t, r in loop.safe(msg.why))
+            elif isinstance(msg, Displace):
+                try:
+                    loop.rt.displace(msg.body, msg.delta)
+                except (KeyError, ValueError) as exc:
+                    pending.append(encode(Fault(command="displace", text=str(exc))))
             else:
                 running = False
         done = loop.cycle()
@@ -378,6 +391,12 @@ class ExecutorProcess:
     def hold(self, why: str) -> bool:
         """Ask the loop to hold position (velma.executor.loop); False if it could not be asked."""
         return self._commands is not None and self.alive and self._commands.push(self._encode(Hold(why=why)))
+
+    def displace(self, body: str, delta: tuple[float, float, float]) -> bool:
+        """Move free body ``body`` by ``delta`` (world, m) in the simulated world; False when
+        the loop is not running or its inbox is full."""
+        msg = Displace(body=body, delta=delta)
+        return self._commands is not None and self.alive and self._commands.push(self._encode(msg))
 
     def safe(self, why: str) -> bool:
         """Ask the loop to enter safe mode (velma.executor.loop); False if it could not be asked."""

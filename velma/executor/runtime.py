@@ -149,6 +149,30 @@ class Runtime:
             else:
                 self.lost_cycles[s] = 0
 
+    def displace(self, body: str, delta: tuple[float, float, float]) -> None:
+        """Move free body ``body`` by ``delta`` (world, m) and stop it: a disturbance of the
+        simulated world (a person moves an object), not a robot action. Raises KeyError for a
+        body that is not in the scene, ValueError for one without a free joint."""
+        try:
+            b = self.model.body(body)
+        except KeyError:
+            raise KeyError(f"no body {body!r} in the scene") from None
+        j = int(self.model.body_jntadr[b.id])
+        if j < 0 or self.model.jnt_type[j] != mujoco.mjtJoint.mjJNT_FREE:
+            raise ValueError(f"{body} is not a free body")
+        qa, va = int(self.model.jnt_qposadr[j]), int(self.model.jnt_dofadr[j])
+        self.data.qpos[qa : qa + 3] += np.asarray(delta, dtype=float)
+        self.data.qvel[va : va + 6] = 0.0
+        # what the body carries (the jar's content) moves with it
+        for other in range(self.model.nbody):
+            if other != b.id and self.model.body(other).name.startswith(f"{body}_content"):
+                jo = int(self.model.body_jntadr[other])
+                if jo >= 0 and self.model.jnt_type[jo] == mujoco.mjtJoint.mjJNT_FREE:
+                    qo, vo = int(self.model.jnt_qposadr[jo]), int(self.model.jnt_dofadr[jo])
+                    self.data.qpos[qo : qo + 3] += np.asarray(delta, dtype=float)
+                    self.data.qvel[vo : vo + 6] = 0.0
+        mujoco.mj_forward(self.model, self.data)
+
     # ------------------------------------------------------------------ helpers
     def torso_angle_cmd(self) -> float:
         """Commanded torso angle (rad)."""

@@ -76,7 +76,7 @@ class Progress(msgspec.Struct, frozen=True, tag="progress", kw_only=True):
 
 
 class StatusQuery(msgspec.Struct, frozen=True, tag="status_query"):
-    """"What are you doing?": the state of every command a_co holds."""
+    """ "What are you doing?": the state of every command a_co holds."""
 
 
 class TaskStatus(msgspec.Struct, frozen=True, kw_only=True):

@@ -81,7 +81,8 @@ class PlanNode(msgspec.Struct, frozen=True, kw_only=True):
     order) or an ``action`` (a leaf state). ``task`` names the HTN task it refines.
     ``atomic``: once entered, a cancel takes effect only after the state ends. ``on_cancel``
     (leaves): the key in :attr:`HierarchicalPlan.safe_stops` of the HFSM to run when a cancel
-    takes effect before this leaf starts (None: nothing to put down)."""
+    takes effect before this leaf starts (None: nothing to put down). ``duration``: the
+    leaf's expected execution time (s), for a_co's schedule step."""
 
     name: str
     children: tuple[PlanNode, ...] = ()
@@ -89,6 +90,7 @@ class PlanNode(msgspec.Struct, frozen=True, kw_only=True):
     task: str | None = None
     atomic: bool = False
     on_cancel: str | None = None
+    duration: float = 0.0
 
     def leaves(self, prefix: str = "") -> list[tuple[str, PlanNode]]:
         """All leaf states in execution order, each with its path (``a/b/c``)."""

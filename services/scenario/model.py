@@ -1,0 +1,147 @@
+"""A scenario as data (TOML): what the person says, to what the world is subjected, when,
+and what each command is expected to end in.
+
+    name = "urgent command mid-pour"
+    [[steps]]
+    say = "pour the jar into the bowl"
+    expect = "succeeded"
+    [[steps]]
+    say = "urgently bring the cup to the table"
+    after = { step = "tilt_pour" }     # when a_ta reports a plan step containing this
+    expect = "succeeded"
+
+A step does exactly one of: ``say`` (a sentence to a_hi, with an optional ``priority``),
+``disturb`` (move an object in the simulated world by ``dx, dy, dz`` metres: a person
+moving it), ``restart`` (stop an agent's process and start it again). It runs when its
+``after`` trigger holds: ``step`` (a_ta reported a plan step whose path contains the text),
+``ended`` (the n-th ``say`` command, counted from 1, has ended), ``knowledge`` (a_km has the
+initial observation: the default of the first step); with no trigger a step runs right after
+the one before. ``expect`` is the final report kind of a ``say`` command (``succeeded``,
+``failed``, ``stopped``, ``not-understood``); ``expect_text`` a text its final report must
+contain.
+"""
+
+from __future__ import annotations
+
+import tomllib
+from pathlib import Path
+
+import msgspec
+
+LIBRARY = Path(__file__).parent / "library"
+"""The scenarios shipped with roco (``roco scenario --list``)."""
+FINAL_KINDS = frozenset({"succeeded", "failed", "stopped", "not-understood"})
+AGENTS = frozenset({"a_hi", "a_co", "a_pl", "a_km", "a_ta", "ag_ex"})
+
+
+class ScenarioError(ValueError):
+    """A scenario file that cannot be read or does not make sense; the message says where."""
+
+
+class Trigger(msgspec.Struct, frozen=True, forbid_unknown_fields=True, kw_only=True):
+    """When a step runs (see module docstring); at most one field set."""
+
+    step: str | None = None
+    ended: int | None = None
+    knowledge: bool = False
+
+
+class Disturb(msgspec.Struct, frozen=True, forbid_unknown_fields=True, kw_only=True):
+    """Move ``object`` (a free body of the kitchen) by (dx, dy, dz) metres, world frame."""
+
+    object: str
+    dx: float = 0.0
+    dy: float = 0.0
+    dz: float = 0.0
+
+
+class Step(msgspec.Struct, frozen=True, forbid_unknown_fields=True, kw_only=True):
+    """One thing that happens in a scenario (see module docstring)."""
+
+    say: str | None = None
+    priority: int = 0
+    disturb: Disturb | None = None
+    restart: str | None = None
+    after: Trigger | None = None
+    expect: str | None = None
+    expect_text: str | None = None
+
+    @property
+    def action(self) -> str:
+        return "say" if self.say is not None else "disturb" if self.disturb is not None else "restart"
+
+
+class Scenario(msgspec.Struct, frozen=True, forbid_unknown_fields=True, kw_only=True):
+    """A whole scenario: its steps in order, the scene's seeds, and how long it may take (wall
+    seconds)."""
+
+    name: str
+    description: str = ""
+    steps: tuple[Step, ...]
+    seed: int = 0
+    pose_seed: int | None = None
+    timeout_s: float = 1200.0
+
+    @property
+    def commands(self) -> list[Step]:
+        """The ``say`` steps, in order (command n is ``commands[n - 1]``)."""
+        return [s for s in self.steps if s.say is not None]
+
+
+def _check(scenario: Scenario, where: str) -> Scenario:
+    if not scenario.steps:
+        raise ScenarioError(f"{where}: no steps")
+    said = 0
+    for i, step in enumerate(scenario.steps, 1):
+        actions = [step.say is not None, step.disturb is not None, step.restart is not None]
+        if sum(actions) != 1:
+            raise ScenarioError(f"{where}: step {i} must do exactly one of say, disturb, restart")
+        if step.restart is not None and step.restart not in AGENTS:
+            raise ScenarioError(f"{where}: step {i}: no agent {step.restart!r} to restart")
+        if step.expect is not None and step.expect not in FINAL_KINDS:
+            kinds = ", ".join(sorted(FINAL_KINDS))
+            raise ScenarioError(f"{where}: step {i}: expect must be one of {kinds}, not {step.expect!r}")
+        if (step.expect is not None or step.expect_text is not None) and step.say is None:
+            raise ScenarioError(f"{where}: step {i}: only a say step can expect an outcome")
+        t = step.after
+        if t is not None:
+            if sum([t.step is not None, t.ended is not None, t.knowledge]) != 1:
+                raise ScenarioError(f"{where}: step {i}: after needs exactly one of step, ended, knowledge")
+            if t.ended is not None and not 1 <= t.ended <= said:
+                raise ScenarioError(
+                    f"{where}: step {i}: after.ended = {t.ended}, but only {said} command(s) before it"
+                )
+        said += step.say is not None
+    return scenario
+
+
+def parse_scenario(text: str, where: str = "<scenario>") -> Scenario:
+    """A scenario from TOML text. Raises ScenarioError naming the problem."""
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise ScenarioError(f"{where}: not TOML: {exc}") from None
+    try:
+        scenario = msgspec.convert(data, Scenario)
+    except msgspec.ValidationError as exc:
+        raise ScenarioError(f"{where}: {exc}") from None
+    return _check(scenario, where)
+
+
+def load_scenario(name_or_path: str | Path) -> Scenario:
+    """A scenario from a file, or by name from the library (``LIBRARY/<name>.toml``).
+    Raises ScenarioError when there is none or it is malformed."""
+    path = Path(name_or_path)
+    if not path.exists():
+        path = LIBRARY / f"{name_or_path}.toml"
+    if not path.exists():
+        known = ", ".join(sorted(p.stem for p in LIBRARY.glob("*.toml")))
+        raise ScenarioError(
+            f"no scenario file {name_or_path!r} and none of that name in the library ({known})"
+        )
+    return parse_scenario(path.read_text(), str(path))
+
+
+def library() -> dict[str, Scenario]:
+    """Every scenario in the library, by file stem."""
+    return {p.stem: load_scenario(p) for p in sorted(LIBRARY.glob("*.toml"))}

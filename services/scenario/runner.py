@@ -1,0 +1,249 @@
+"""Run a scenario against a fleet of processes (router, recorder, one process per agent), as
+``roco run`` and ``roco scenario`` do: start everything, wait for a_km's initial knowledge
+(paper Table 7), carry out the steps when their triggers hold, wait for every command's
+outcome, stop everything. The run folder keeps the traffic, logs and ``run.json``.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import queue
+import threading
+import time
+import uuid
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import msgspec
+import zenoh
+
+from services.human_interface.messages import FINAL_REPORTS, HumanInput, HumanReport
+from services.runtime import keys
+from services.runtime.launcher import AGENT_ORDER, Fleet, LaunchError, free_port, open_client
+from services.runtime.run_folder import RunInfo, write_run_info
+from services.scenario.model import Scenario, Step
+from shared.fipa_codec import DecodeError, Performative, decode
+from shared.fipa_codec.languages import ContentError, decode_content
+from shared.fipa_codec.languages.l_sw import SWStatus
+
+Echo = Callable[[str], None]
+
+
+@dataclass
+class CommandRecord:
+    """One ``say`` step: its number (from 1), the sentence, a_hi's request id, every report
+    a_hi gave about it, the final one, and what was expected."""
+
+    number: int
+    text: str
+    request_id: str
+    expect: str | None = None
+    expect_text: str | None = None
+    reports: list[HumanReport] = field(default_factory=list)
+    final: HumanReport | None = None
+
+    @property
+    def as_expected(self) -> bool:
+        """Ended, in the expected kind (default: succeeded) and with the expected text."""
+        if self.final is None:
+            return False
+        kind_ok = self.final.kind.value == (self.expect or "succeeded")
+        text_ok = self.expect_text is None or self.expect_text.lower() in self.final.text.lower()
+        return kind_ok and text_ok
+
+
+@dataclass
+class ScenarioOutcome:
+    """How the scenario went: the commands, and ``detail`` when it stopped early."""
+
+    commands: list[CommandRecord]
+    detail: str = ""
+
+    @property
+    def ok(self) -> bool:
+        return not self.detail and all(c.as_expected for c in self.commands)
+
+    def summary(self) -> str:
+        """One line per command."""
+        lines = []
+        for c in self.commands:
+            got = f"{c.final.kind.value}: {c.final.text}" if c.final else "no outcome"
+            mark = "ok" if c.as_expected else f"expected {c.expect or 'succeeded'}"
+            lines.append(f"#{c.number} “{c.text}” → {got} [{mark}]")
+        if self.detail:
+            lines.append(self.detail)
+        return "\n".join(lines)
+
+
+class ScenarioRunner:
+    """Runs ``scenario`` in ``run_dir`` (created by the caller). ``env`` is the extra
+    environment of every process (ag_ex's pacing and scene); ``echo`` receives progress
+    lines (None: silent)."""
+
+    def __init__(
+        self,
+        scenario: Scenario,
+        run_dir: Path,
+        *,
+        env: dict[str, str] | None = None,
+        echo: Echo | None = None,
+        traffic_lines: Callable[[str, bytes], str | None] | None = None,
+        info: RunInfo | None = None,
+    ) -> None:
+        self.scenario = scenario
+        self.run_dir = run_dir
+        self.endpoint = f"tcp/127.0.0.1:{free_port()}"
+        self.fleet = Fleet(run_dir, self.endpoint, env=env or {})
+        self.echo = echo or (lambda line: None)
+        self.traffic_lines = traffic_lines
+        self.info = info or RunInfo()
+        self.info.router = self.endpoint
+        self.events: queue.SimpleQueue[tuple[str, object]] = queue.SimpleQueue()
+        self.steps_seen: list[str] = []  # a_ta's plan steps (C1 L_SW), in order
+        self.knowledge = threading.Event()
+        self.commands: list[CommandRecord] = []
+        self.t0 = time.time()
+
+    # ---- events from Zenoh (callback threads: enqueue only) ----
+    def _on_report(self, sample: zenoh.Sample) -> None:
+        with contextlib.suppress(msgspec.DecodeError):
+            self.events.put(("report", msgspec.json.decode(sample.payload.to_bytes(), type=HumanReport)))
+
+    def _on_traffic(self, sample: zenoh.Sample) -> None:
+        key, payload = str(sample.key_expr), sample.payload.to_bytes()
+        if self.traffic_lines is not None:
+            line = self.traffic_lines(key, payload)
+            if line is not None:
+                self.events.put(("line", line))
+        if not key.startswith(keys.fipa_key("C1", "a_ta", "a_co")) and not key.startswith(
+            keys.fipa_key("C6", "a_ta", "a_km")
+        ):
+            return
+        try:
+            msg = decode(payload)
+            content = decode_content(msg.language, msg.content) if msg.language and msg.content else None
+        except (DecodeError, ContentError):
+            return
+        if isinstance(content, SWStatus) and content.step:
+            self.events.put(("step", content.step))
+        elif key.endswith("/a_km") and msg.performative is Performative.INFORM:
+            self.knowledge.set()
+
+    # ---- the run ----
+    def _clock(self) -> str:
+        return f"[{time.time() - self.t0:7.1f} s]"
+
+    def _say(self, line: str) -> None:
+        self.echo(f"{self._clock()} {line}")
+
+    def _pump(self, timeout: float, deadline: float) -> None:
+        """Take events for up to ``timeout`` s; raise LaunchError past ``deadline`` or when a
+        process died that was not being restarted."""
+        if time.monotonic() > deadline:
+            raise LaunchError(f"the scenario did not end within {self.scenario.timeout_s:.0f} s")
+        dead = self.fleet.dead()
+        if dead:
+            raise LaunchError(f"process {dead[0]} exited during the run (see {self.run_dir}/logs)")
+        try:
+            kind, item = self.events.get(timeout=timeout)
+        except queue.Empty:
+            return
+        if kind == "line":
+            self._say(str(item))
+        elif kind == "step":
+            self.steps_seen.append(str(item))
+        elif kind == "report" and isinstance(item, HumanReport):
+            record = next((c for c in self.commands if c.request_id == item.request_id), None)
+            if record is None:
+                return
+            record.reports.append(item)
+            self._say(f"a_hi → person (#{record.number}): {item.kind.value}: {item.text}")
+            if item.kind in FINAL_REPORTS:
+                record.final = item
+
+    def _ready(self, step: Step, steps_before: int) -> bool:
+        t = step.after
+        if t is None:
+            return True
+        if t.knowledge:
+            return self.knowledge.is_set()
+        if t.ended is not None:
+            return self.commands[t.ended - 1].final is not None
+        assert t.step is not None
+        return any(t.step in s for s in self.steps_seen[steps_before:])
+
+    def _act(self, session: zenoh.Session, step: Step) -> None:
+        if step.say is not None:
+            record = CommandRecord(
+                len(self.commands) + 1, step.say, uuid.uuid4().hex[:8], step.expect, step.expect_text
+            )
+            self.commands.append(record)
+            payload = HumanInput(text=step.say, request_id=record.request_id, priority=step.priority)
+            session.put(keys.HUMAN_IN, msgspec.json.encode(payload))
+            if self.info.command_sent is None:
+                self.info.command_sent = time.time()
+                self.info.command = step.say
+            self.info.commands.append(step.say)
+            write_run_info(self.run_dir, self.info)
+            self._say(f"person → a_hi (#{record.number}): “{step.say}”")
+        elif step.disturb is not None:
+            d = step.disturb
+            session.put(keys.SIM_DISTURB, json.dumps({"object": d.object, "delta": [d.dx, d.dy, d.dz]}))
+            self._say(f"the world: {d.object} moved by ({d.dx:+.3f}, {d.dy:+.3f}, {d.dz:+.3f}) m")
+        elif step.restart is not None:
+            pid = self.fleet.restart(step.restart)
+            self.fleet.wait_alive(session, [step.restart], timeout=120)
+            self.info.processes[step.restart] = pid
+            write_run_info(self.run_dir, self.info)
+            self._say(f"{step.restart} restarted (pid {pid})")
+
+    def run(self) -> ScenarioOutcome:
+        """Run to the end; never raises for a failed run (the outcome says why)."""
+        session: zenoh.Session | None = None
+        detail = ""
+        deadline = time.monotonic() + self.scenario.timeout_s
+        try:
+            self._say(f"run folder {self.run_dir}; router {self.endpoint}")
+            self.fleet.start_router()
+            session = open_client(self.endpoint)
+            self.fleet.start_recorder()
+            self.fleet.wait_alive(session, ["recorder"], timeout=60)
+            session.declare_subscriber(keys.FIPA_ALL, self._on_traffic)
+            session.declare_subscriber(keys.HUMAN_OUT, self._on_report)
+            self.fleet.start_agents()
+            waited = self.fleet.wait_alive(session, AGENT_ORDER, timeout=120)
+            self._say(f"all agents alive after {waited:.1f} s: {', '.join(AGENT_ORDER)}")
+            self.info.processes = self.fleet.pids()
+            write_run_info(self.run_dir, self.info)
+            # paper Table 7: a_km receives initial knowledge about the environment first
+            knowledge_by = time.monotonic() + 60
+            while not self.knowledge.is_set():
+                if time.monotonic() > knowledge_by:
+                    raise LaunchError("a_km received no initial knowledge from a_ta within 60 s")
+                self._pump(0.1, deadline)
+            self._say("a_km has initial knowledge of the scene")
+            for step in self.scenario.steps:
+                before = len(self.steps_seen)
+                while not self._ready(step, before):
+                    self._pump(0.2, deadline)
+                self._act(session, step)
+            while any(c.final is None for c in self.commands):
+                self._pump(0.5, deadline)
+        except LaunchError as exc:
+            detail = str(exc)
+        except KeyboardInterrupt:
+            detail = "interrupted"
+        finally:
+            if session is not None:
+                session.close()
+            self.fleet.stop()
+        outcome = ScenarioOutcome(self.commands, detail)
+        self.info.ended = time.time()
+        self.info.succeeded = outcome.ok
+        self.info.detail = detail or "; ".join(
+            f"#{c.number} {c.final.kind.value}: {c.final.text}" for c in self.commands if c.final
+        )
+        write_run_info(self.run_dir, self.info)
+        return outcome

@@ -1,0 +1,168 @@
+"""a_km as an agent (services/knowledge/agent.py) on a MemoryBus: its knowledge survives a
+restart on the same store, and queries it cannot answer get refuse/failure with a reason while
+it keeps running."""
+
+from __future__ import annotations
+
+import queue
+import threading
+from collections.abc import Iterator
+from contextlib import contextmanager
+from pathlib import Path
+
+import msgspec
+import pytest
+
+from services.knowledge.agent import KnowledgeManager, store_path
+from services.runtime import keys
+from services.runtime.memory_transport import MemoryBus
+from shared.fipa_codec import AgentIdentifier, Communicate, Performative, decode, encode
+from shared.fipa_codec.languages import decode_content, encode_content
+from shared.fipa_codec.languages.common import Pose
+from shared.fipa_codec.languages.l_wm import (
+    Answer,
+    HypotheticalQuery,
+    ObjectInfo,
+    ObjectQuery,
+    ObjectUpdate,
+    SparqlQuery,
+    Subscription,
+    WorldUpdate,
+)
+
+TIMEOUT_S = 10.0
+
+
+class Peer:
+    """Plays a_pl (queries on C4) and a_ta (updates on C6) towards one a_km on a bus."""
+
+    def __init__(self, bus: MemoryBus) -> None:
+        self.bus = bus
+        self.replies: queue.SimpleQueue[Communicate] = queue.SimpleQueue()
+        bus.subscribe(keys.fipa_key("C4", "a_km", "a_pl"), lambda _k, p: self.replies.put(decode(p)))
+        self.n = 0
+
+    def _send(self, channel: str, sender: str, msg: Communicate) -> None:
+        self.bus.publish(keys.fipa_key(channel, sender, "a_km"), encode(msg))
+
+    def query(
+        self, content: msgspec.Struct | None, performative: Performative = Performative.QUERY_REF
+    ) -> tuple[Communicate, msgspec.Struct | str | None]:
+        """Send a query as a_pl; return a_km's reply and its decoded content (a reason as str)."""
+        self.n += 1
+        language, body = encode_content(content) if content is not None else (None, b"")
+        msg = Communicate(
+            performative=performative,
+            sender=AgentIdentifier("a_pl"),
+            receiver=(AgentIdentifier("a_km"),),
+            content=body,
+            language=language,
+            encoding="msgpack" if body else None,
+            protocol="fipa-query",
+            conversation_id=f"q{self.n}",
+            reply_with=f"q{self.n}",
+        )
+        self._send("C4", "a_pl", msg)
+        reply = self.replies.get(timeout=TIMEOUT_S)
+        assert reply.in_reply_to == f"q{self.n}"
+        if reply.language is not None:
+            return reply, decode_content(reply.language, reply.content)
+        return reply, reply.content.decode() or None
+
+    def update(self, update: WorldUpdate) -> None:
+        """Send an observation or asserted change as a_ta (in the subscription a_km opened)."""
+        language, body = encode_content(update)
+        self._send(
+            "C6",
+            "a_ta",
+            Communicate(
+                performative=Performative.INFORM,
+                sender=AgentIdentifier("a_ta"),
+                receiver=(AgentIdentifier("a_km"),),
+                content=body,
+                language=language,
+                encoding="msgpack",
+                protocol="fipa-subscribe",
+                conversation_id="km-environment",
+            ),
+        )
+
+    def object(self, name: str) -> ObjectInfo:
+        reply, content = self.query(ObjectQuery(name))
+        assert reply.performative is Performative.INFORM_REF and isinstance(content, Answer)
+        return content.objects[0]
+
+
+@contextmanager
+def running_km() -> Iterator[tuple[KnowledgeManager, Peer]]:
+    bus = MemoryBus()
+    peer = Peer(bus)
+    km = KnowledgeManager(bus.transport())
+    km.bind()
+    thread = threading.Thread(target=km.run, name="a_km", daemon=True)
+    thread.start()
+    try:
+        yield km, peer
+    finally:
+        km.stop()
+        thread.join(timeout=TIMEOUT_S)
+        assert not thread.is_alive()
+        km.close()  # what services.runtime.main does after run() ends
+
+
+def test_store_path_comes_from_the_environment(tmp_path: Path) -> None:
+    assert store_path({"ROCO_KM_STORE": str(tmp_path / "a"), "ROCO_RUN_DIR": str(tmp_path)}) == tmp_path / "a"
+    assert store_path({"ROCO_RUN_DIR": str(tmp_path)}) == tmp_path / "km_store"
+    assert store_path({"ROCO_KM_STORE": "", "ROCO_RUN_DIR": ""}) is None
+    assert store_path({}) is None
+
+
+def test_a_restarted_km_answers_with_the_knowledge_the_first_saved(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setenv("ROCO_KM_STORE", str(tmp_path / "km"))
+    monkeypatch.delenv("ROCO_RUN_DIR", raising=False)
+    with running_km() as (km, peer):
+        assert km.world.path == tmp_path / "km" and not km.world.kept
+        peer.update(WorldUpdate(stamp=3.0, objects=(ObjectUpdate(name="jar", pose=Pose((0.8, 0.22, 0.9))),)))
+        peer.update(WorldUpdate(stamp=-1.0, objects=(ObjectUpdate(name="bowl", held_by="right_gripper"),)))
+        # a_km takes its inputs in order: the answer comes after both updates were saved
+        assert peer.object("bowl").held_by == "right_gripper"
+        assert km.counters["updates"] == 2
+    with running_km() as (km, peer):
+        assert km.world.kept
+        jar = peer.object("jar")
+        assert jar.pose == Pose((0.8, 0.22, 0.9)) and jar.pose_stamp == 3.0
+        bowl = peer.object("bowl")
+        assert bowl.held_by == "right_gripper" and bowl.picked_from == "cabinet"
+
+
+def test_unanswerable_queries_get_a_reason_and_km_keeps_running(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.delenv("ROCO_KM_STORE", raising=False)
+    monkeypatch.delenv("ROCO_RUN_DIR", raising=False)
+    with running_km() as (km, peer):
+        assert km.world.path is None
+        cases = [
+            (ObjectQuery("teapot"), Performative.FAILURE, "teapot"),
+            (SparqlQuery("SELECT WHERE {"), Performative.FAILURE, "bad SPARQL"),
+            (SparqlQuery("DESCRIBE roco:jar"), Performative.REFUSE, "SELECT and ASK"),
+            (Subscription("environment"), Performative.REFUSE, "not an L_WM query: Subscription"),
+            (None, Performative.REFUSE, "no content"),
+        ]
+        for query, performative, reason in cases:
+            reply, content = peer.query(query)
+            assert reply.performative is performative, query
+            assert isinstance(content, str) and reason in content
+        # still answering, hypothetical queries included (through questionAnswering)
+        reply, content = peer.query(
+            HypotheticalQuery(
+                changes=(ObjectUpdate(name="jar", held_by="left_gripper"),),
+                query=SparqlQuery("ASK { roco:jar roco:heldBy roco:left_gripper }"),
+            )
+        )
+        assert reply.performative is Performative.INFORM_REF
+        assert isinstance(content, Answer) and content.boolean is True
+        reply, content = peer.query(SparqlQuery("ASK { roco:jar roco:heldBy ?g }"), Performative.QUERY_IF)
+        assert reply.performative is Performative.INFORM
+        assert isinstance(content, Answer) and content.boolean is False
+        assert km.counters["behaviour_errors"] == 0
