@@ -214,13 +214,7 @@ def script_poses(obs: Observation, bowl_on_table: Vec3 | None = None) -> Poses:
     place = np.array(BOWL_PLACE_POSITION) + np.array([0.0, 0.0, PLACE_CLEARANCE])
     r_bowl_place = turn @ r_bowl
     bowl_place = place + r_bowl_place @ (r_bowl.T @ np.array(BOWL_GRIP_IN_OBJECT[0]))
-    pour_turn = _rot_z(TORSO_POUR)
-    r_jar_pour = pour_turn @ r_jar
-    bowl_now = np.array(bowl_on_table if bowl_on_table is not None else BOWL_PLACE_POSITION)
-    jar_origin = bowl_now + pour_turn @ np.array(JAR_POUR_START_IN_BOWL)
-    jar_pour_grip = jar_origin + pour_turn @ np.array(JAR_GRIP_IN_OBJECT[0])
-    pivot = bowl_now + pour_turn @ np.array(POUR_PIVOT_IN_BOWL)
-    axis = pour_turn @ np.array(POUR_AXIS_IN_TORSO)
+    pour = pour_poses(bowl_on_table if bowl_on_table is not None else BOWL_PLACE_POSITION)
     return Poses(
         jar_pregrasp=_pose(jar_grasp - JAR_APPROACH_DISTANCE * jar_app, r_jar),
         jar_grasp=_pose(jar_grasp, r_jar),
@@ -233,12 +227,58 @@ def script_poses(obs: Observation, bowl_on_table: Vec3 | None = None) -> Poses:
         bowl_retreat=_pose(bowl_lift - np.array([BOWL_RETREAT, 0.0, 0.0]), r_bowl),
         bowl_above_place=_pose(bowl_place + PLACE_APPROACH * up, r_bowl_place),
         bowl_place=_pose(bowl_place, r_bowl_place),
+        jar_above_pour=pour.jar_above_pour,
+        jar_pour_start=pour.jar_pour_start,
+        right_park=_pose(bowl_place + turn @ np.array(RIGHT_PARK_OFFSET), r_bowl_place),
+        pour_pivot=pour.pour_pivot,
+        pour_axis=pour.pour_axis,
+    )
+
+
+@dataclass(frozen=True)
+class PourPoses:
+    """World poses of the pour into the bowl at a given position (see :func:`pour_poses`)."""
+
+    jar_above_pour: Pose
+    jar_pour_start: Pose
+    pour_pivot: Vec3
+    pour_axis: Vec3
+
+
+def pour_poses(bowl: Vec3) -> PourPoses:
+    """The left grip poses and the tilt of the pour into the bowl standing at ``bowl`` (world,
+    m), the jar held with the side grasp (JAR_GRIP_IN_OBJECT turned with the torso)."""
+    up = np.array([0.0, 0.0, 1.0])
+    pour_turn = _rot_z(TORSO_POUR)
+    r_jar_pour = pour_turn @ _quat_to_rot(JAR_GRIP_IN_OBJECT[1])
+    bowl_now = np.array(bowl, dtype=float)
+    jar_origin = bowl_now + pour_turn @ np.array(JAR_POUR_START_IN_BOWL)
+    jar_pour_grip = jar_origin + pour_turn @ np.array(JAR_GRIP_IN_OBJECT[0])
+    pivot = bowl_now + pour_turn @ np.array(POUR_PIVOT_IN_BOWL)
+    axis = pour_turn @ np.array(POUR_AXIS_IN_TORSO)
+    return PourPoses(
         jar_above_pour=_pose(jar_pour_grip + POUR_APPROACH_HEIGHT * up, r_jar_pour),
         jar_pour_start=_pose(jar_pour_grip, r_jar_pour),
-        right_park=_pose(bowl_place + turn @ np.array(RIGHT_PARK_OFFSET), r_bowl_place),
         pour_pivot=(float(pivot[0]), float(pivot[1]), float(pivot[2])),
         pour_axis=(float(axis[0]), float(axis[1]), float(axis[2])),
     )
+
+
+def pour_commands(bowl: Vec3) -> list[ExecutorCommand]:
+    """The pour part of the experiment, the jar in the left hand (side grasp), into the bowl
+    standing at ``bowl`` (world, m): turn to TORSO_POUR, bring the jar over, tilt, wait, tilt
+    back, observe."""
+    p = pour_poses(bowl)
+    left = JAR_ARM
+    return [
+        MoveJoints(positions={"torso_0_joint": TORSO_POUR}, duration=SHORT_MOVE),
+        MoveTool(arm=left, target=p.jar_above_pour, duration=MOVE_DURATION),
+        MoveTool(arm=left, target=p.jar_pour_start, duration=SHORT_MOVE),
+        Tilt(arm=left, pivot=p.pour_pivot, axis=p.pour_axis, angle=POUR_ANGLE, duration=POUR_DURATION),
+        Wait(duration=POUR_WAIT),
+        Tilt(arm=left, pivot=p.pour_pivot, axis=p.pour_axis, angle=-POUR_ANGLE, duration=UNTILT_DURATION),
+        Observe(),
+    ]
 
 
 def pour_script(obs: Observation, bowl_on_table: Vec3 | None = None) -> list[ExecutorCommand]:
@@ -279,13 +319,7 @@ def pour_script(obs: Observation, bowl_on_table: Vec3 | None = None) -> list[Exe
         MoveTool(arm=right, target=p.right_park, duration=SHORT_MOVE),
         Observe(objects=("bowl", "jar")),
         # --- pour
-        MoveJoints(positions={"torso_0_joint": TORSO_POUR}, duration=SHORT_MOVE),
-        MoveTool(arm=left, target=p.jar_above_pour, duration=MOVE_DURATION),
-        MoveTool(arm=left, target=p.jar_pour_start, duration=SHORT_MOVE),
-        Tilt(arm=left, pivot=p.pour_pivot, axis=p.pour_axis, angle=POUR_ANGLE, duration=POUR_DURATION),
-        Wait(duration=POUR_WAIT),
-        Tilt(arm=left, pivot=p.pour_pivot, axis=p.pour_axis, angle=-POUR_ANGLE, duration=UNTILT_DURATION),
-        Observe(),
+        *pour_commands(bowl_on_table if bowl_on_table is not None else BOWL_PLACE_POSITION),
     ]
 
 

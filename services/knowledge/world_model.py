@@ -447,16 +447,41 @@ class WorldModel:
         return tuple(out)
 
     def placement(self, obj: str, surface: str) -> PlacementInfo:
-        """Where on ``surface`` the ``obj`` can be put down (world positions, m). Raises
-        KnowledgeError for unknown individuals or a surface with no placement positions."""
-        self._node(obj)
-        _node, p = self._props(surface)
-        positions = tuple(sorted(_vec3(v) for v in p.get(ROCO.placementPosition, ())))
+        """Where on ``surface`` the ``obj`` can be put down, in order of preference: the
+        surface's ``roco:Place`` individuals meant for ``obj`` (``roco:forObject``) or for
+        anything (none given), by ``roco:rank``; then its plain ``roco:placementPosition``
+        values. World positions in m; each place's torso angle (``roco:facing``, rad) or None
+        for the surface's own. Raises KnowledgeError for unknown individuals or a surface
+        with no place for ``obj``."""
+        obj_node = self._node(obj)
+        surface_node, p = self._props(surface)
+        places: list[tuple[float, Vec3, float | None, float | None, Vec3 | None]] = []
+        for place in self.graph.subjects(ROCO.placeOn, surface_node):
+            pp = self._node_props(place)
+            meant = pp.get(ROCO.forObject, [])
+            if meant and obj_node not in meant:
+                continue
+            name = _name(place)
+            rank = self._float(name, pp, ROCO.rank, 50.0)
+            facing = self._float(name, pp, ROCO.facing) if ROCO.facing in pp else None
+            approach = self._float(name, pp, ROCO.placeApproach) if ROCO.placeApproach in pp else None
+            park = self._req_vec3(name, pp, ROCO.parkOffset) if ROCO.parkOffset in pp else None
+            places.append((rank, self._req_vec3(name, pp, ROCO.placePosition), facing, approach, park))
+        places.sort(key=lambda t: (t[0], t[1]))
+        plain = sorted(_vec3(v) for v in p.get(ROCO.placementPosition, ()))
+        positions = tuple([t[1] for t in places] + plain)
         if not positions:
             raise KnowledgeError(f"nothing can be put on {surface}")
+        n = len(plain)
+        facings: list[float | None] = [t[2] for t in places] + [None] * n
+        approaches: list[float | None] = [t[3] for t in places] + [None] * n
+        parks: list[Vec3 | None] = [t[4] for t in places] + [None] * n
         return PlacementInfo(
             surface=surface,
             positions=positions,
+            facings=tuple(facings),
+            approaches=tuple(approaches),
+            parks=tuple(parks),
             clearance=self._float(surface, p, ROCO.placeClearance, 0.005),
             approach=self._float(surface, p, ROCO.placeApproach, 0.08),
             park=self._req_vec3(surface, p, ROCO.parkOffset) if ROCO.parkOffset in p else (0.0, 0.0, 0.1),

@@ -273,13 +273,14 @@ def _facing(s: Any, furniture: str) -> float | None:
     return info.facing if info is not None else None
 
 
-def _face(s: Any, path: str, furniture: str) -> list[tuple[Any, ...]]:
-    """Look at ``furniture``'s view point and turn to it."""
+def _face(s: Any, path: str, furniture: str, facing: float | None = None) -> list[tuple[Any, ...]]:
+    """Look at ``furniture``'s view point and turn to ``facing`` (default: the furniture's)."""
     info = _k(s).objects.get(furniture)
-    if info is None or info.facing is None:
+    angle = facing if facing is not None else (info.facing if info is not None else None)
+    if info is None or angle is None:
         return []
     look = [("a_look", f"{path}/look_at_{furniture}", info.view_point)] if info.view_point is not None else []
-    return [*look, *_face_steps(s, path, furniture, info.facing)]
+    return [*look, *_face_steps(s, path, furniture, angle)]
 
 
 def _relation(s: Any, furniture: str) -> str:
@@ -297,7 +298,7 @@ def m_fetch(s: Any, path: str, obj: str, arm: str) -> Any:
     if pose is None or grasp is None or s.holding[arm] is not None:
         return False
     where = s.where.get(obj, ("", ""))[1]
-    facing = _facing(s, where)
+    facing = _place_facing(s, obj, where, pose.position)
     turn = (facing if facing is not None else GRASP_FACING) - GRASP_FACING
     # containers are rotationally symmetric: a grasp ignores their yaw (the grasp frame)
     obj_frame = Pose(pose.position, _rot_z(turn).orientation)
@@ -306,7 +307,7 @@ def m_fetch(s: Any, path: str, obj: str, arm: str) -> Any:
     pre = geo.translated(grip, _scaled(approach, -grasp.distance))
     lifted = geo.translated(grip, (0.0, 0.0, grasp.lift))
     out = geo.translated(lifted, _scaled(geo.rotate(grasp.retreat, obj_frame), grasp.retreat_distance))
-    steps: list[tuple[Any, ...]] = _face(s, path, where)
+    steps: list[tuple[Any, ...]] = _face(s, path, where, facing)
     if grasp.posture and abs(turn) < 1e-9:  # a posture is given for the grasp's own facing
         steps.append(("a_posture", f"{path}/arm_posture", arm, grasp.posture, SHORT_MOVE_S))
     steps.append(("a_preshape", f"{path}/open_hand", arm, grasp.preshape))
@@ -332,9 +333,22 @@ def m_fetch(s: Any, path: str, obj: str, arm: str) -> Any:
     ]
 
 
-def _free_position(s: Any, obj: str, furniture: str) -> tuple[float, float, float] | None:
-    """The first placement position on ``furniture`` no other object occupies."""
+def _place_facing(s: Any, obj: str, furniture: str, position: Vec3) -> float | None:
+    """The torso angle to work at ``obj`` standing at ``position`` on ``furniture``: that of
+    the place it stands on (the nearest within FREE_RADIUS_M), else the furniture's."""
     placement = _k(s).placements.get((obj, furniture))
+    if placement is not None:
+        for i, (x, y, _z) in enumerate(placement.positions):
+            if np.hypot(x - position[0], y - position[1]) < FREE_RADIUS_M and placement.facing(i) is not None:
+                return placement.facing(i)
+    return _facing(s, furniture)
+
+
+def _free_place(s: Any, obj: str, furniture: str) -> tuple[int, Vec3, float] | None:
+    """The first place for ``obj`` on ``furniture`` (in a_km's order of preference) no other
+    object occupies: its index, position and the torso angle to work there."""
+    placement = _k(s).placements.get((obj, furniture))
+    default = _facing(s, furniture)
     if placement is None:
         return None
     others = [
@@ -342,28 +356,29 @@ def _free_position(s: Any, obj: str, furniture: str) -> tuple[float, float, floa
         for o, p in s.pose.items()
         if o != obj and p is not None and s.where.get(o, ("", ""))[1] == furniture
     ]
-    for x, y, z in placement.positions:
-        if all(np.hypot(x - ox, y - oy) >= FREE_RADIUS_M for ox, oy, _ in others):
-            return (x, y, z)
+    for i, (x, y, z) in enumerate(placement.positions):
+        facing = placement.facing(i)
+        facing = default if facing is None else facing
+        if facing is not None and all(np.hypot(x - ox, y - oy) >= FREE_RADIUS_M for ox, oy, _ in others):
+            return i, (x, y, z), facing
     return None
 
 
 def m_place(s: Any, path: str, obj: str, furniture: str, arm: str) -> Any:
-    """Face ``furniture``, bring ``obj`` above a free place, set it down (lower, release,
-    clear: atomic), park the hand out of the way, and look at where it stands."""
+    """Face the place, bring ``obj`` above a free place, set it down (lower, release, clear:
+    atomic), park the hand out of the way, and look at where it stands."""
     if s.holding[arm] != obj:
         return False
     placement = _k(s).placements.get((obj, furniture))
-    facing = _facing(s, furniture)
-    spot = _free_position(s, obj, furniture)
-    if placement is None or facing is None or spot is None:
+    free = _free_place(s, obj, furniture)
+    if placement is None or free is None:
         return False
-    x, y, z = spot
+    i, (x, y, z), facing = free
     # the held object keeps the hand's relative pose: its grasp frame turns with the torso
     target = Pose((x, y, z + placement.clearance), _rot_z(facing).orientation)
     grip = geo.compose(target, s.grip[obj])
-    above = geo.translated(grip, (0.0, 0.0, placement.approach))
-    park = geo.translated(grip, geo.rotate(placement.park, _rot_z(facing)))
+    above = geo.translated(grip, (0.0, 0.0, placement.approach_at(i)))
+    park = geo.translated(grip, geo.rotate(placement.park_at(i), _rot_z(facing)))
     grasp = _best_grasp(s, obj, arm)
     opening = grasp.preshape if grasp is not None else 0.5
     down = f"{path}/set_down"

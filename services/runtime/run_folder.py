@@ -5,6 +5,7 @@
 | ``run.json`` | launcher | :class:`RunInfo` |
 | ``traffic.jsonl``, ``traffic.msgpack`` | traffic recorder | see ``services.recorder.record`` |
 | ``logs/<agent>.log`` | each agent process | its log |
+| ``km_store/`` | a_km | the knowledge base (Oxigraph on disk), kept across a_km restarts |
 | ``report.md`` | ``roco report`` | the experiment report |
 """
 

@@ -130,12 +130,15 @@ class TaskExecutor(Agent):
                     self.confirmed = True
             elif item.sender == "a_co" and item.performative is Performative.CANCEL:
                 self.x.remove(item)
-                if (
+                ours = (
                     self.plan_request is not None
                     and item.msg.conversation_id == self.plan_request.msg.conversation_id
-                ):
+                )
+                if ours and self.outcome is None and not self.cancel_requested:
                     self.cancel_requested = True
                     self._inform_co(SWState.TERMINATING, reason="cancelled by a_co")
+                else:  # the plan has ended (the cancel crossed its final state) or is ending
+                    self.log.info("cancel from a_co for a plan that is not running: nothing to do")
             elif item.sender == "ag_ex" and item.msg.in_reply_to == self.initial_observe:
                 self.x.remove(item)
                 self.initial_observe = None
@@ -219,6 +222,7 @@ class TaskExecutor(Agent):
             return
         if isinstance(item.content, HierarchicalPlan):
             self.plan, self.plan_request = item.content, item
+            self.outcome, self.cancel_requested = None, False
         else:
             self.reply(item, Performative.REFUSE)
 

@@ -15,7 +15,8 @@ Conventions shared by all protocols (each after the FIPA specification cited):
   it an outcome; the participant answers ``inform`` (cancelled) or ``failure`` (could not
   cancel), both ending the conversation (states ``cancelled``/``cancel-failed``). The
   tracker cannot tell an outcome that crossed the ``cancel`` on the wire from the answer to
-  the ``cancel``: an ``inform`` in state ``cancelling`` is taken as the answer.
+  the ``cancel``: an ``inform`` in state ``cancelling`` is taken as the answer, and an
+  ``agree`` there as one that crossed the ``cancel``.
 * FIPA's ``inform-done``/``inform-result``/``inform-t/f`` are all the performative
   ``inform``.
 
@@ -356,6 +357,9 @@ def _build(
             add(transitions, (source, _I, _P.CANCEL), "cancelling")
         add(transitions, ("cancelling", _R, _P.INFORM), "cancelled")
         add(transitions, ("cancelling", _R, _P.FAILURE), "cancel-failed")
+        if any(role == _R and perf is _P.AGREE for _, role, perf in transitions):
+            # an agree sent before the cancel arrived, crossing it on the wire
+            add(transitions, ("cancelling", _R, _P.AGREE), "cancelling")
         finals |= {"cancelled", "cancel-failed"}
     states = {initial} | finals
     for (source, _, _), target in [*transitions.items(), *terminal.items()]:

@@ -265,3 +265,44 @@ def test_the_report_of_a_preemption_shows_cancel_terminating_preempted(tmp_path:
     assert "put jar down safely" in texts[preempted]
     md = render(report)
     assert "## 7. Commands and coordination" in md and "Preempted" in md
+
+
+def test_every_conversation_of_a_preemption_and_a_stop_follows_its_protocol() -> None:
+    from collections import defaultdict
+
+    from shared.fipa_codec import Communicate
+    from shared.fipa_codec.protocols import PROTOCOLS, ConversationTracker
+
+    robot = GatedExecutor(turning_to_pour)
+    with Session(robot) as s:
+        s.wait_for_initial_knowledge()
+        s.say("pour the jar into the bowl", "pour")
+        assert robot.gated.wait(TIMEOUT)
+        s.say("urgently bring the cup to the table", "cup")
+        s.wait_for(is_cancel_to_ta)
+        s.say("what are you doing", "q")
+        s.final("q")
+        robot.release()
+        s.final("cup")
+        s.final("pour")
+        s.say("put the cup back in the cabinet", "back")
+        s.say("stop", "halt")
+        s.final("halt")
+        s.final("back")
+        published = list(s.bus.published)
+    conversations: dict[str, list[Communicate]] = defaultdict(list)
+    for key, payload in published:
+        if key.startswith("roco/fipa/"):
+            msg = decode(payload)
+            conversations[msg.conversation_id or ""].append(msg)
+    seen = set()
+    for cid, msgs in conversations.items():
+        tracker = ConversationTracker(PROTOCOLS[msgs[0].protocol or ""])
+        for msg in msgs:
+            tracker.observe(msg)  # raises ProtocolViolation on a step outside the protocol
+        seen.add((msgs[0].protocol, msgs[0].performative.value))
+        if msgs[0].protocol != "fipa-subscribe":
+            assert tracker.is_finished, (cid, [m.performative.value for m in msgs])
+    assert ("coordinate", "request") in seen and ("fipa-query", "query-ref") in seen
+    cancels = [m for ms in conversations.values() for m in ms if m.performative is Performative.CANCEL]
+    assert {m.protocol for m in cancels} >= {"coordinate"}

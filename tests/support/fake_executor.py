@@ -27,7 +27,7 @@ class FakeExecutor:
         self.poses = {
             "jar": Pose((0.85, 0.25, 0.9)),
             "bowl": Pose((0.85, -0.25, 0.9)),
-            "cup": Pose((1.0, 0.0, 0.9)),
+            "cup": Pose((0.85, 0.0, 0.9)),
             "table": Pose((0.8, -0.5, 0.0)),
             "cabinet": Pose((1.0, 0.0, 0.0)),
         }

@@ -697,10 +697,11 @@ BOWL_INNER_RADIUS = 0.055  # m, the counting volume's radius (inside the flared 
 BOWL_INNER_TOP = 0.06  # m, top of the counting volume (≈ the rim)
 # Cup: an open ceramic cup (no handle): outer ø 0.08 m, 0.10 m high, 0.2 kg (everyday size: a
 # 0.3 l ceramic cup or small mug without its handle weighs 0.2–0.3 kg). Walls 5 mm, bottom
-# 6 mm; 16 wall boxes around a disc, like the jar. It stands at the back of the compartment,
-# midway between jar and bowl, where neither grasp's fingers reach (placeholder placement:
-# the jar's side grasp and the bowl's rim grasp stay ≥ 0.1 m away from it).
-CUP_POS = (0.90, 0.0, 0.85)  # m, on the shelf
+# 6 mm; 16 wall boxes around a disc, like the jar. It stands midway between jar and bowl, in
+# line with them (placeholder placement: the right hand reaches it with the bowl's top grasp;
+# the open fingers of the jar's and the bowl's grasps pass it ≥ 2 cm away, ≥ 1.5 cm with the
+# ±2 cm pose randomisation of velma/model/scene.py).
+CUP_POS = (0.70, 0.0, 0.85)  # m, on the shelf
 CUP_RADIUS = 0.04  # m, outer
 CUP_HEIGHT = 0.10  # m
 CUP_WALL = 0.005  # m

@@ -146,15 +146,35 @@ class PourAffordance(msgspec.Struct, frozen=True, kw_only=True):
 
 
 class PlacementInfo(msgspec.Struct, frozen=True, kw_only=True):
-    """Free places for an object on a surface: world ``positions`` of the object's frame; the
-    object is released ``clearance`` m above and comes down from ``approach`` m above; the
-    hand then parks at ``park`` from the release pose (frame turned with the torso)."""
+    """Places for an object on a surface, in order of preference: world ``positions`` of the
+    object's frame and, for each, the torso angle Velma works there at (``facings``, rad;
+    None or missing: the surface's own facing); the object is released ``clearance`` m above
+    and comes down from ``approach`` m above; the hand then parks at ``park`` from the
+    release pose (frame turned with the torso). ``approaches`` and ``parks`` override
+    ``approach`` and ``park`` for single places (None or missing: no override)."""
 
     surface: str
     positions: tuple[Vec3, ...]
     clearance: float = 0.005
     approach: float = 0.08
     park: Vec3 = (0.0, 0.0, 0.1)
+    facings: tuple[float | None, ...] = ()
+    approaches: tuple[float | None, ...] = ()
+    parks: tuple[Vec3 | None, ...] = ()
+
+    def facing(self, i: int) -> float | None:
+        """The torso angle for place ``i`` (None: the surface's facing)."""
+        return self.facings[i] if i < len(self.facings) else None
+
+    def approach_at(self, i: int) -> float:
+        """The height (m) the object comes down from at place ``i``."""
+        value = self.approaches[i] if i < len(self.approaches) else None
+        return self.approach if value is None else value
+
+    def park_at(self, i: int) -> Vec3:
+        """Where the hand parks after releasing at place ``i`` (m, turned frame)."""
+        value = self.parks[i] if i < len(self.parks) else None
+        return self.park if value is None else value
 
 
 class Answer(msgspec.Struct, frozen=True, tag="answer", kw_only=True):

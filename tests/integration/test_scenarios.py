@@ -1,0 +1,84 @@
+"""Issue 4's scenarios with everything real: ``roco scenario NAME`` starts a router, the
+recorder and one process per agent, ag_ex simulates Velma in MuJoCo, and the scenario's
+expectations are checked; the run folder's report is read back (services/scenario/library)."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from services.report import build_report
+from services.report.load import load_run
+from services.runtime.run_folder import read_run_info
+from shared.fipa_codec.languages.l_sw import SWState, SWStatus
+
+pytestmark = pytest.mark.slow
+
+
+def scenario(name: str, runs: Path) -> tuple[subprocess.CompletedProcess[str], Path]:
+    proc = subprocess.run(
+        [sys.executable, "-m", "services.cli", "scenario", name, "--runs-dir", str(runs), "--quiet"],
+        capture_output=True,
+        text=True,
+        timeout=1500,
+    )
+    (run_dir,) = [p for p in runs.iterdir() if p.is_dir()]
+    return proc, run_dir
+
+
+def sw_states(run_dir: Path) -> list[SWStatus]:
+    return [
+        m.content
+        for m in load_run(run_dir).messages
+        if m.channel == "C1" and m.sender == "a_ta" and isinstance(m.content, SWStatus)
+    ]
+
+
+def test_an_urgent_command_preempts_the_pour_which_resumes(tmp_path: Path) -> None:
+    proc, run_dir = scenario("urgent_mid_pour", tmp_path)
+    assert proc.returncode == 0, proc.stdout[-4000:] + proc.stderr[-2000:]
+    report = build_report(run_dir)
+    assert [c.outcome for c in report.commands] == ["succeeded", "succeeded"]
+    texts = [e.text for e in report.coordination]
+    cancel = next(i for i, t in enumerate(texts) if t.startswith("cancel"))
+    terminating = next(i for i, t in enumerate(texts) if t.startswith("Terminating"))
+    preempted = next(i for i, t in enumerate(texts) if t.startswith("Preempted"))
+    assert cancel < terminating < preempted
+    assert "put jar down safely" in texts[preempted]
+    # the cup's plan ran between the preemption and the pour's end, and the pour finished
+    assert report.content.observed and report.content.share is not None and report.content.share >= 0.9
+    assert "## 7. Commands and coordination" in (run_dir / "report.md").read_text()
+
+
+def test_two_commands_in_a_row(tmp_path: Path) -> None:
+    proc, run_dir = scenario("two_commands", tmp_path)
+    assert proc.returncode == 0, proc.stdout[-4000:] + proc.stderr[-2000:]
+    report = build_report(run_dir)
+    assert [c.outcome for c in report.commands] == ["succeeded", "succeeded"]
+    assert report.content.share is not None and report.content.share >= 0.9
+
+
+def test_an_object_moved_after_it_was_seen_makes_a_ta_replan(tmp_path: Path) -> None:
+    proc, run_dir = scenario("moved_object", tmp_path)
+    assert proc.returncode == 0, proc.stdout[-4000:] + proc.stderr[-2000:]
+    reasons = [s.reason or "" for s in sw_states(run_dir) if s.state is SWState.REPLAN]
+    assert any("jar is 4 cm from where the plan expects it" in r for r in reasons), reasons
+
+
+def test_impossible_commands_are_refused_with_a_reason(tmp_path: Path) -> None:
+    proc, run_dir = scenario("impossible", tmp_path)
+    assert proc.returncode == 0, proc.stdout[-4000:] + proc.stderr[-2000:]
+    assert [c.outcome for c in build_report(run_dir).commands] == ["failed", "failed"]
+
+
+def test_a_km_restarted_between_commands_keeps_its_knowledge(tmp_path: Path) -> None:
+    proc, run_dir = scenario("km_restart", tmp_path)
+    assert proc.returncode == 0, proc.stdout[-4000:] + proc.stderr[-2000:]
+    log = (run_dir / "logs" / "a_km.log").read_text()
+    assert "knowledge kept" in log
+    info = read_run_info(run_dir)
+    assert info.commands == ["bring the cup to the table", "bring the cup to the table"]
+    assert [c.outcome for c in build_report(run_dir).commands] == ["succeeded", "failed"]
