@@ -159,7 +159,9 @@ def _finish_report(run_dir: Path, info: RunInfo) -> None:
         typer.echo(f"roco: report not written: {exc}", err=True)
         return
     c = report.content
+    poured = any("pour" in text for text in info.commands)
     share = f"{c.inside} of {c.total} spheres in the {c.container}" if c.observed else "content not observed"
+    share = share if poured else f"{len(info.commands)} command(s)"
     typer.echo(
         f"roco: {'succeeded' if info.succeeded else 'failed'} in {info.ended - info.started:.1f} s wall; "  # type: ignore[operator]
         f"{report.sizes.count} communicates; {share}; report {path}"

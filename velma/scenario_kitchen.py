@@ -23,16 +23,29 @@ Conventions as velma/scenario.py: grip frame ``{side}_HandGripLink``; quaternion
 z); metres, radians, seconds; "turned frame": world axes turned about z by the torso angle
 (x forward, y the robot's left).
 
-Geometry found by simulation (scripts/bench_kitchen_tasks.py reproduces it):
+Geometry found by simulation (IK scans of velma.control.ik with collision checks, then runs
+on the executor; scripts/bench_kitchen_tasks.py repeats the runs over seeds):
 
-- The jar's side grasp works on the table, but not at the table's facing −0.95: the left
-  hand's palm faces the torso's forward direction, and the left arm reaches that orientation
-  at table height only left of the torso's centre line; the wrist (flange 0.08 m below and
-  0.24 m behind the grip frame) must hang beyond a table edge. The only such free spot is by
-  the table's edge nearest the cabinet, left of the bowl, at torso angle −1.5
-  (``JAR_TABLE_FACING``); there the horizontal approach passes 2–3 cm beside the bowl.
-- The cup is taken with the right hand's top grasp (the bowl's, palm down) and put on the
-  table at the table's facing −0.95.
+- The jar's side grasp, turned by the table's facing −0.95, does not work on the table: the
+  left arm reaches the palm-forward orientation at table height only left of the torso's
+  centre line (turned y ≥ 0.05 m), and the wrist (flange 0.08 m below and 0.24 m behind the
+  grip frame, 0.05 m thick) must hang beyond a table edge or it hits the table top. At −0.95
+  the spots that satisfy both (by the edge nearest the cabinet, x ≈ 0.5 m) put the bowl in
+  the way of the open fingers on the horizontal approach. It works at
+  torso angle −1.5 (``JAR_TABLE_FACING``) in the table's corner nearest the robot, right of
+  the bowl (``JAR_TABLE``): set down, released, re-grasped with the horizontal approach along
+  the torso's forward direction (the open finger Three passes 2.2 cm beside the bowl), and
+  poured with the unchanged pour.
+- The cup is taken with the right hand's top grasp (as the bowl, palm down, after
+  RIGHT_PICK_POSTURE) and put on the table at the table's facing −0.95 (``CUP_TABLE``).
+- Back in the cabinet, the right hand must not rise more than ≈ 0.05 m above where it
+  releases the bowl: the palm-down forearm then meets the cabinet's top board
+  (``BOWL_CABINET``).
+- Parking poses matter for the next torso turn: a hand parked far out on the right side is
+  carried into the cabinet's side panel when the torso turns back to 0 (``CUP_TABLE``).
+- Grip of a held object: the grip in the object frame is the affordance's turned by the
+  facing at which it was grasped (:func:`place_poses`); the world grip at a placement is
+  then the affordance's turned by the placement's facing.
 """
 
 from __future__ import annotations
@@ -168,9 +181,10 @@ reaching palm down into the middle of the cabinet raises it (the bowl's grasp pa
 
 # ----------------------------------------------------------------- placements
 JAR_TABLE = Placement(position=(0.11, -0.46, 0.75), facing=JAR_TABLE_FACING, park=(-0.20, 0.0, 0.10))
-"""The jar on the table: 0.23 m left of the bowl (seen from the robot), 6.5 cm from the
-table's edges at x = 0 and y = −0.35 (wall to edge); the wrist hangs beyond the y = −0.35
-edge. The left hand parks back and up, away from the bowl."""
+"""The jar on the table: in the table's corner nearest the robot, 0.22 m from the bowl (to its
+right, seen from the robot at the table), its wall 6.5 cm from the table's edges at x = 0
+and y = −0.35; the wrist hangs beyond the y = −0.35 edge (the edge nearest the cabinet). The
+left hand parks back and up, away from the bowl."""
 CUP_TABLE = Placement(position=(0.25, -0.70, 0.75), facing=TABLE_FACING, park=(-0.25, 0.0, 0.20))
 """The cup on the table, right of the bowl and beyond it (seen from the robot), 0.25 m from
 the bowl and 0.28 m from the jar's table spot, ≥ 0.21 m from the table's edges. The hand
@@ -241,12 +255,15 @@ def fetch_commands(
 ) -> list[ExecutorCommand]:
     """Take the object at ``position`` (world, m) with ``grasp``, working at torso angle
     ``facing`` (rad; the torso is at ``torso`` now): look at ``look`` (if given), face,
-    (posture,) open the hand, (enter,) approach, grasp, lift, withdraw (planner ``m_fetch``)."""
+    (posture,) open the hand, (enter,) approach, grasp, lift, withdraw (planner ``m_fetch``).
+    The posture is taken only at the grasp's own facing (the cabinet's), as the planner does;
+    elsewhere the arm is already in the grasp's branch (it parked there) and it is not
+    needed: the bowl is taken from the table either way."""
     p = grasp_poses(grasp, position, facing)
     arm = grasp.arm
     cmds: list[ExecutorCommand] = [LookAt(point=look)] if look is not None else []
     cmds += face(torso, facing)
-    if grasp.posture:
+    if grasp.posture and abs(facing - CABINET_FACING) < 1e-9:
         names = arm_joint_names(arm)
         cmds.append(MoveJoints(positions=dict(zip(names, grasp.posture, strict=True)), duration=SHORT_MOVE))
     cmds.append(Release(arm=arm, opening=grasp.preshape))

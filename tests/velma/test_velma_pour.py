@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 import threading
 
 import pytest
@@ -9,6 +10,7 @@ import pytest
 from shared.fipa_codec.languages.l_ex import CommandResult, Observe
 from shared.fipa_codec.languages.l_sd import Observation
 from velma.executor import Executor
+from velma.model.generate import CUP_POS
 from velma.scenario import run_pour
 
 
@@ -53,3 +55,6 @@ def test_pour_script_fills_the_bowl() -> None:
     assert bowl.particles_inside is not None
     assert bowl.particles_inside >= 0.9 * final.total_particles
     assert final.stamp <= 90.0
+    # the cup between jar and bowl in the cabinet was not touched
+    cup = next(o for o in final.objects if o.name == "cup")
+    assert math.dist(cup.pose.position, CUP_POS) < 2e-3
