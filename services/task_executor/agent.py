@@ -285,14 +285,14 @@ class TaskExecutor(Agent):
         self.log.info("terminating: safe stop %s (%d steps)", key or "none", len(self.leaves))
 
     def _safe_stop_summary(self) -> str:
-        held = [
-            n.action.subject
+        put = [
+            f"the {n.action.subject} down {'in' if n.action.relation == 'in' else 'on'} the {n.action.object}"
             for _, n in self.leaves
             if isinstance(n.action, Assert) and n.action.relation in ("on", "in")
         ]
-        if not held:
+        if not put:
             return "cancelled by a_co; nothing was held"
-        return f"cancelled by a_co; put {', '.join(held)} down safely"
+        return f"cancelled by a_co; put {' and '.join(put)}"
 
     def _begin(self, step: Step) -> None:
         action = step.node.action

@@ -262,7 +262,7 @@ def test_the_report_of_a_preemption_shows_cancel_terminating_preempted(tmp_path:
     terminating = next(i for i, t in enumerate(texts) if t.startswith("Terminating"))
     preempted = next(i for i, t in enumerate(texts) if t.startswith("Preempted"))
     assert cancel < terminating < preempted
-    assert "put jar down safely" in texts[preempted]
+    assert "put the jar down on the table" in texts[preempted]
     md = render(report)
     assert "## 7. Commands and coordination" in md and "Preempted" in md
 

@@ -47,7 +47,7 @@ def test_an_urgent_command_preempts_the_pour_which_resumes(tmp_path: Path) -> No
     terminating = next(i for i, t in enumerate(texts) if t.startswith("Terminating"))
     preempted = next(i for i, t in enumerate(texts) if t.startswith("Preempted"))
     assert cancel < terminating < preempted
-    assert "put jar down safely" in texts[preempted]
+    assert "put the jar down on the table" in texts[preempted]
     # the cup's plan ran between the preemption and the pour's end, and the pour finished
     assert report.content.observed and report.content.share is not None and report.content.share >= 0.9
     assert "## 7. Commands and coordination" in (run_dir / "report.md").read_text()
@@ -82,3 +82,17 @@ def test_a_km_restarted_between_commands_keeps_its_knowledge(tmp_path: Path) -> 
     info = read_run_info(run_dir)
     assert info.commands == ["bring the cup to the table", "bring the cup to the table"]
     assert [c.outcome for c in build_report(run_dir).commands] == ["succeeded", "failed"]
+
+
+def test_a_stop_mid_pour_puts_the_jar_down(tmp_path: Path) -> None:
+    proc, run_dir = scenario("stop_mid_pour", tmp_path)
+    assert proc.returncode == 0, proc.stdout[-4000:] + proc.stderr[-2000:]
+    report = build_report(run_dir)
+    assert [c.outcome for c in report.commands] == ["stopped"]
+    assert any("put the jar down on the table" in e.text for e in report.coordination)
+
+
+def test_after_the_pour_jar_and_bowl_go_back_in_the_cabinet(tmp_path: Path) -> None:
+    proc, run_dir = scenario("tidy_up", tmp_path)
+    assert proc.returncode == 0, proc.stdout[-4000:] + proc.stderr[-2000:]
+    assert [c.outcome for c in build_report(run_dir).commands] == ["succeeded"] * 3

@@ -1,0 +1,57 @@
+"""Every scenario of the library (services/scenario/library), run as a user runs it
+(``roco scenario NAME --quiet``: router, recorder, one process per agent, MuJoCo not paced),
+printed as a table: outcome as expected or not, wall time, communicates, commands' outcomes.
+
+Usage: ``python scripts/bench_scenarios.py [NAME ...]``
+"""
+
+from __future__ import annotations
+
+import platform
+import re
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+from services.scenario.model import library  # noqa: E402
+
+
+def main() -> int:
+    names = sys.argv[1:] or list(library())
+    print(
+        f"# roco scenario, each once ({time.strftime('%Y-%m-%d')}, {platform.machine()}, "
+        f"Python {platform.python_version()}, not paced)"
+    )
+    print()
+    print("| scenario | as expected | wall (s) | communicates | outcomes |")
+    print("|---|---|---|---|---|")
+    failures = 0
+    for name in names:
+        with tempfile.TemporaryDirectory() as runs:
+            t0 = time.monotonic()
+            proc = subprocess.run(
+                [sys.executable, "-m", "services.cli", "scenario", name, "--runs-dir", runs, "--quiet"],
+                capture_output=True,
+                text=True,
+                cwd=ROOT,
+                timeout=1800,
+            )
+            wall = time.monotonic() - t0
+        out = proc.stdout + proc.stderr
+        count = re.search(r"(\d+) communicates", out)
+        outcomes = re.findall(r"→ (\w[\w-]*):", out)
+        failures += proc.returncode != 0
+        print(
+            f"| {name} | {'yes' if proc.returncode == 0 else 'NO'} | {wall:.1f} | "
+            f"{count.group(1) if count else '?'} | {', '.join(outcomes)} |"
+        )
+    return 1 if failures else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
