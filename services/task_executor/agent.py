@@ -253,8 +253,8 @@ class TaskExecutor(Agent):
                 self.reject_unhandled(lambda i: i.local or i.sender == "ag_ex")
                 return
             self._complete(reply)
-            if self.outcome is not None:
-                return
+            if self.outcome is not None or (self.step is not None and self.step.waiting_for != waiting_for):
+                return  # ended, or the step asked ag_ex something more (a look after a surprise)
         if self.cancel_requested and not self.terminating and not self._in_atomic():
             self._begin_safe_stop()
         if self.index >= len(self.leaves):

@@ -306,3 +306,39 @@ def test_every_conversation_of_a_preemption_and_a_stop_follows_its_protocol() ->
     assert ("coordinate", "request") in seen and ("fipa-query", "query-ref") in seen
     cancels = [m for ms in conversations.values() for m in ms if m.performative is Performative.CANCEL]
     assert {m.protocol for m in cancels} >= {"coordinate"}
+
+
+class SlippingExecutor(FakeExecutor):
+    """The kinematic double whose first grasp closes on nothing (the object was not there)."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.slipped = False
+
+    def submit(
+        self, command: ExecutorCommand, on_done: Callable[[CommandResult | Observation], None]
+    ) -> None:
+        from shared.fipa_codec.languages.l_ex import Grasp
+
+        if isinstance(command, Grasp) and not self.slipped:
+            self.slipped = True
+            self.commands.append(command)
+            on_done(CommandResult(command="grasp", ok=False, reason="no contact", sim_time=self.t))
+            return
+        super().submit(command, on_done)
+
+
+def test_a_grasp_that_closes_on_nothing_makes_a_ta_look_and_replan() -> None:
+    robot = SlippingExecutor()
+    with Session(robot) as s:
+        s.wait_for_initial_knowledge()
+        s.say("bring the cup to the table", "r1")
+        assert s.final("r1").kind is ReportKind.SUCCEEDED
+        states = s.sw_states()
+        traffic = s.traffic()
+    replans = [c for c in states if c.state is SWState.REPLAN]
+    assert replans and "the grasp closed on nothing" in (replans[0].reason or "")
+    # a_ta looked at the whole scene before reporting Replan, and told a_km what it saw
+    replan_at = next(i for i, (k, m, c) in enumerate(traffic) if c is replans[0] or c == replans[0])
+    seen = [c for k, m, c in traffic[:replan_at] if isinstance(c, WorldUpdate) and len(c.objects) >= 4]
+    assert len(seen) >= 2  # the initial observation and the one after the failed grasp

@@ -33,7 +33,13 @@ def test_up_status_send_down(tmp_path: Path) -> None:
             assert f"{agent:9s} alive" in status.stdout
         sent = roco("send", "sing me a song", "--runs-dir", runs, timeout=60)
         assert sent.returncode == 1
-        assert sent.stdout.startswith("not-understood: I do not understand 'sing me a song'")
+        assert sent.stdout.startswith("not-understood: ") and "'sing me a song'" in sent.stdout
+        asked = roco("send", "what are you doing?", "--runs-dir", runs, timeout=60)
+        assert asked.returncode == 0, asked.stdout + asked.stderr
+        assert asked.stdout.startswith("status: ")
+        stopped = roco("send", "stop", "--runs-dir", runs, timeout=60)
+        assert stopped.returncode == 0, stopped.stdout + stopped.stderr
+        assert "nothing to stop" in stopped.stdout.lower()
     finally:
         down = roco("down", "--runs-dir", runs)
     assert down.returncode == 0, down.stderr
