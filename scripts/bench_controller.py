@@ -28,9 +28,9 @@ import os
 import platform
 import time
 from collections.abc import Callable
-from pathlib import Path
 from typing import Any
 
+import benchlib  # scripts/benchlib.py, beside this file
 import mujoco
 import numpy as np
 import pinocchio as pin
@@ -43,14 +43,8 @@ TARGET_P99_US = 150.0  # the controller alone, µs (issue requirement)
 
 
 def cpu_model() -> str:
-    """The CPU model name from /proc/cpuinfo ("unknown" if absent)."""
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                return line.split(":", 1)[1].strip()
-    except OSError:
-        pass
-    return platform.processor() or "unknown"
+    """The CPU model name (scripts/benchlib.py)."""
+    return benchlib.cpu_model()
 
 
 def describe() -> str:

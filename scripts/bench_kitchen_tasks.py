@@ -15,14 +15,14 @@ Usage: ``python scripts/bench_kitchen_tasks.py [--task interrupted|tidy] [--seed
 from __future__ import annotations
 
 import argparse
-import os
-import platform
 import sys
 import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
+
+import benchlib  # noqa: E402  (scripts/benchlib.py, beside this file)
 
 from shared.fipa_codec.languages.l_ex import CommandResult  # noqa: E402
 from shared.fipa_codec.languages.l_sd import Observation  # noqa: E402
@@ -72,7 +72,7 @@ def main() -> int:
     ap.add_argument("--first", type=int, default=1, help="first seed")
     args = ap.parse_args()
     print(f"# Kitchen task '{args.task}', seeds {args.first}..{args.first + args.seeds - 1}\n")
-    print(f"Machine: {os.cpu_count()} cores, Python {platform.python_version()}\n")
+    print(f"Machine: {benchlib.machine(('mujoco', 'pin'))}\n")
     print("| seed | success | detail | sim s | wall s |")
     print("|---|---|---|---|---|")
     for seed in range(args.first, args.first + args.seeds):

@@ -27,15 +27,13 @@ Usage: ``python scripts/bench_km.py [--repeats 200]``
 from __future__ import annotations
 
 import argparse
-import os
-import platform
 import statistics
 import tempfile
 import time
 from collections.abc import Callable
-from importlib.metadata import version
 from pathlib import Path
 
+import benchlib  # scripts/benchlib.py, beside this file
 import msgspec
 from rdflib import Graph
 
@@ -111,19 +109,7 @@ def row(label: str, ms: list[float]) -> str:
 
 
 def machine() -> str:
-    cpu = platform.processor() or platform.machine()
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                cpu = line.split(":", 1)[1].strip()
-                break
-    except OSError:
-        pass
-    libs = ", ".join(f"{p} {version(p)}" for p in ("pyoxigraph", "oxrdflib", "rdflib"))
-    return (
-        f"{platform.node()}: {os.cpu_count()} CPUs ({cpu}), {platform.system()} {platform.release()}, "
-        f"Python {platform.python_version()}; {libs}"
-    )
+    return benchlib.machine(("pyoxigraph", "oxrdflib", "rdflib"))
 
 
 def bench(name: str, world: WorldModel, repeats: int) -> None:

@@ -14,8 +14,6 @@ Percentiles are over the last 120 000 cycles of each run (the whole pour is ≈ 
 from __future__ import annotations
 
 import argparse
-import os
-import platform
 import subprocess
 import sys
 import tempfile
@@ -25,6 +23,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
+import benchlib  # noqa: E402  (scripts/benchlib.py, beside this file)
 import msgspec  # noqa: E402
 
 from velma.executor.timing import TimingStats  # noqa: E402
@@ -32,21 +31,7 @@ from velma.executor.timing import TimingStats  # noqa: E402
 
 def machine() -> str:
     """CPU model, cores and library versions (what the figures were measured on)."""
-    import mujoco
-    import pinocchio
-
-    cpu = "unknown CPU"
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                cpu = line.split(":", 1)[1].strip()
-                break
-    except OSError:
-        pass
-    return (
-        f"{cpu}, {os.cpu_count()} cores; Python {platform.python_version()}, "
-        f"MuJoCo {mujoco.__version__}, Pinocchio {pinocchio.__version__}"
-    )
+    return benchlib.machine(("mujoco", "pin"))
 
 
 def run_alone(seed: int, spin: float | None) -> tuple[TimingStats, str]:

@@ -16,8 +16,6 @@ Usage: ``python scripts/bench_planning.py [--runs 20]``
 from __future__ import annotations
 
 import argparse
-import importlib.metadata
-import platform
 import queue
 import statistics
 import sys
@@ -28,6 +26,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
+import benchlib  # noqa: E402  (scripts/benchlib.py, beside this file)
 
 from services.runtime import keys  # noqa: E402
 from services.runtime.launcher import Fleet, free_port, open_client  # noqa: E402
@@ -122,10 +121,7 @@ def main() -> int:
     print(
         f"# a_pl plan #1 of pour(jar, bowl), {args.runs} requests over Zenoh (router + a_km + a_pl processes)"
     )
-    print(
-        f"Machine: {platform.processor() or platform.machine()}, Python {platform.python_version()}, "
-        f"eclipse-zenoh {importlib.metadata.version('eclipse-zenoh')}"
-    )
+    print(f"Machine: {benchlib.machine(('eclipse-zenoh', 'pyoxigraph', 'gtpyhop-core'))}")
     print()
     print("| run | request → plan (s) | a_pl planning time (s) | a_km queries | plan leaves |")
     print("|---|---|---|---|---|")

@@ -20,8 +20,6 @@ Usage: ``python scripts/bench_pour_seeds.py [--mode fleet|script] [--seeds 20] [
 from __future__ import annotations
 
 import argparse
-import os
-import platform
 import subprocess
 import sys
 import tempfile
@@ -31,6 +29,8 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
+
+import benchlib  # noqa: E402  (scripts/benchlib.py, beside this file)
 
 from velma.model.scene import scene_perturbation  # noqa: E402
 
@@ -103,16 +103,8 @@ def main() -> int:
     ap.add_argument("--runs-dir", type=Path, default=None, help="fleet mode: where run folders go")
     args = ap.parse_args()
     runs_dir = args.runs_dir or Path(tempfile.mkdtemp(prefix="roco-seeds-"))
-    cpu = next(
-        (
-            ln.split(":", 1)[1].strip()
-            for ln in Path("/proc/cpuinfo").read_text().splitlines()
-            if "model name" in ln
-        ),
-        platform.processor() or "unknown CPU",
-    )
     print(f"# Pour robustness, {args.mode} mode, seeds {args.first}..{args.first + args.seeds - 1}\n")
-    print(f"Measured on: {cpu}, {os.cpu_count()} cores, Python {platform.python_version()}")
+    print(f"Measured on: {benchlib.machine(('mujoco', 'pin'))}")
     if args.mode == "fleet":
         print(f"Run folders: {runs_dir}")
     print(

@@ -7,7 +7,6 @@ Usage: ``python scripts/bench_scenarios.py [NAME ...]``
 
 from __future__ import annotations
 
-import platform
 import re
 import subprocess
 import sys
@@ -18,15 +17,15 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
+import benchlib  # noqa: E402  (scripts/benchlib.py, beside this file)
+
 from services.scenario.model import library  # noqa: E402
 
 
 def main() -> int:
     names = sys.argv[1:] or list(library())
-    print(
-        f"# roco scenario, each once ({time.strftime('%Y-%m-%d')}, {platform.machine()}, "
-        f"Python {platform.python_version()}, not paced)"
-    )
+    print(f"# roco scenario, each once ({time.strftime('%Y-%m-%d')}, not paced)")
+    print(f"Machine: {benchlib.machine(('mujoco', 'pin', 'eclipse-zenoh'))}")
     print()
     print("| scenario | as expected | wall (s) | communicates | outcomes |")
     print("|---|---|---|---|---|")

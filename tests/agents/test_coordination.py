@@ -123,6 +123,14 @@ def is_cancel_to_ta(key: str, msg: Any, content: Any) -> bool:
     return key == keys.fipa_key("C1", "a_co", "a_ta") and msg.performative is Performative.CANCEL
 
 
+def interrupt_pour(s: Session, robot: GatedExecutor, sentence: str, request_id: str) -> None:
+    """Start the pour, and say ``sentence`` while the robot turns to pour (the jar in hand)."""
+    s.wait_for_initial_knowledge()
+    s.say("pour the jar into the bowl", "pour")
+    assert robot.gated.wait(TIMEOUT), "the pour never turned to pour"
+    s.say(sentence, request_id)
+
+
 def test_two_commands_in_a_row() -> None:
     with Session() as s:
         s.wait_for_initial_knowledge()
@@ -138,10 +146,7 @@ def test_two_commands_in_a_row() -> None:
 def test_an_urgent_command_preempts_the_pour_which_resumes_and_finishes() -> None:
     robot = GatedExecutor(turning_to_pour)
     with Session(robot) as s:
-        s.wait_for_initial_knowledge()
-        s.say("pour the jar into the bowl", "pour")
-        assert robot.gated.wait(TIMEOUT), "the pour never turned to pour"
-        s.say("urgently bring the cup to the table", "cup")
+        interrupt_pour(s, robot, "urgently bring the cup to the table", "cup")
         s.wait_for(is_cancel_to_ta)
         robot.release()
         assert s.final("cup").kind is ReportKind.SUCCEEDED
@@ -162,10 +167,7 @@ def test_an_urgent_command_preempts_the_pour_which_resumes_and_finishes() -> Non
 def test_a_stop_puts_the_held_jar_down_safely() -> None:
     robot = GatedExecutor(turning_to_pour)
     with Session(robot) as s:
-        s.wait_for_initial_knowledge()
-        s.say("pour the jar into the bowl", "pour")
-        assert robot.gated.wait(TIMEOUT)
-        s.say("stop", "halt")
+        interrupt_pour(s, robot, "stop", "halt")
         s.wait_for(is_cancel_to_ta)
         robot.release()
         assert s.final("pour").kind is ReportKind.STOPPED
@@ -199,10 +201,7 @@ def test_an_impossible_command_is_refused_with_a_reason() -> None:
 def test_what_are_you_doing_names_the_running_command() -> None:
     robot = GatedExecutor(turning_to_pour)
     with Session(robot) as s:
-        s.wait_for_initial_knowledge()
-        s.say("pour the jar into the bowl", "pour")
-        assert robot.gated.wait(TIMEOUT)
-        s.say("what are you doing?", "q")
+        interrupt_pour(s, robot, "what are you doing?", "q")
         status = s.final("q")
         robot.release()
         s.final("pour")
@@ -238,10 +237,7 @@ def test_the_report_of_a_preemption_shows_cancel_terminating_preempted(tmp_path:
 
     robot = GatedExecutor(turning_to_pour)
     with Session(robot) as s:
-        s.wait_for_initial_knowledge()
-        s.say("pour the jar into the bowl", "pour")
-        assert robot.gated.wait(TIMEOUT)
-        s.say("urgently bring the cup to the table", "cup")
+        interrupt_pour(s, robot, "urgently bring the cup to the table", "cup")
         s.wait_for(is_cancel_to_ta)
         robot.release()
         s.final("cup")
@@ -275,10 +271,7 @@ def test_every_conversation_of_a_preemption_and_a_stop_follows_its_protocol() ->
 
     robot = GatedExecutor(turning_to_pour)
     with Session(robot) as s:
-        s.wait_for_initial_knowledge()
-        s.say("pour the jar into the bowl", "pour")
-        assert robot.gated.wait(TIMEOUT)
-        s.say("urgently bring the cup to the table", "cup")
+        interrupt_pour(s, robot, "urgently bring the cup to the table", "cup")
         s.wait_for(is_cancel_to_ta)
         s.say("what are you doing", "q")
         s.final("q")
