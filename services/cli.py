@@ -357,6 +357,76 @@ def status(
         raise typer.Exit(1)
 
 
+spec_app = typer.Typer(
+    add_completion=False,
+    no_args_is_help=True,
+    help="The specification (services/spec/robot_companion.toml): show it, check it, verify code and runs.",
+)
+app.add_typer(spec_app, name="spec")
+SpecFile = Annotated[
+    Path | None, typer.Option("--spec", help="a specification file (default: the shipped one)")
+]
+
+
+def _spec_path(path: Path | None) -> Path:
+    from services.spec.model import DEFAULT_SPEC
+
+    return path if path is not None else DEFAULT_SPEC
+
+
+@spec_app.command("show")
+def spec_show(
+    spec: SpecFile = None,
+    svg: Annotated[Path | None, typer.Option(help="write the agent/channel graph as SVG here")] = None,
+    dot: Annotated[Path | None, typer.Option(help="write the graph as Graphviz DOT here")] = None,
+) -> None:
+    """The decomposition step by step (paper Tables 1–2), the fringe after each step, and the
+    agents' interfaces; the agent/channel graph as SVG or DOT."""
+    from services.spec.decomposition import load_decomposition
+    from services.spec.model import SpecError, load
+    from services.spec.show import graph_dot, graph_svg, interfaces_markdown, steps_markdown
+
+    path = _spec_path(spec)
+    try:
+        system, d = load(path), load_decomposition(path)
+    except SpecError as exc:
+        raise fail(str(exc), code=2) from None
+    typer.echo(steps_markdown(d))
+    typer.echo(interfaces_markdown(system))
+    if svg is not None:
+        svg.write_text(graph_svg(system))
+        typer.echo(f"\nroco: graph written to {svg}")
+    if dot is not None:
+        dot.write_text(graph_dot(system))
+        typer.echo(f"roco: graph written to {dot}")
+
+
+@spec_app.command("check")
+def spec_check(spec: SpecFile = None) -> None:
+    """Check the decomposition (each step splits one fringe group in two, reallocated channels
+    end at groups that exist, every requirement addressed, the stop condition) and that the
+    agents' interfaces match the channels. Exit 1 with one line per problem."""
+    from services.spec.check import check_report
+
+    ok, text = check_report(_spec_path(spec))
+    typer.echo(text)
+    if not ok:
+        raise typer.Exit(1)
+
+
+@spec_app.command("verify-code")
+def spec_verify_code(spec: SpecFile = None) -> None:
+    """Every message an agent may receive by the specification has a handler in its code, and
+    every message its code sends is allowed (the paper's ClassInterfaceInfo check). Exit 1
+    with one line per problem."""
+    from services.spec.code_check import verify_code_report
+
+    ok, text = verify_code_report(_spec_path(spec))
+    typer.echo(text)
+    if not ok:
+        raise typer.Exit(1)
+
+
 @app.command()
 def report(run_dir: Annotated[Path, typer.Argument(help="a run folder")]) -> None:
     """Write RUN/report.md from the run's traffic record."""

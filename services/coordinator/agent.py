@@ -348,6 +348,8 @@ class Coordinator(Agent):
             self.reply(item, Performative.INFORM)
         elif perf is Performative.QUERY_REF and isinstance(item.content, StatusQuery):
             self.reply(item, Performative.INFORM_REF, self.status())
+        elif perf is Performative.QUERY_IF:
+            self.fail(item, Performative.REFUSE, "I answer what I am doing (query-ref), not yes/no questions")
         elif perf is Performative.CANCEL:
             self.reply(item, Performative.INFORM)  # nothing lasting to cancel in a query
         else:

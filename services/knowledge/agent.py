@@ -143,6 +143,10 @@ class KnowledgeManager(Agent):
                 elif item.local or item.performative in (Performative.REFUSE, Performative.NOT_UNDERSTOOD):
                     self._subscribe()
                 continue
+            if item.performative is Performative.CANCEL:
+                # queries are answered at once: by the time a cancel arrives there is nothing left
+                self.fail(item, Performative.FAILURE, "nothing to cancel: the query was already answered")
+                continue
             if item.performative in (Performative.QUERY_REF, Performative.QUERY_IF):
                 self.current = item
                 return

@@ -48,6 +48,7 @@ class Planner(Agent):
         self.pending: dict[str, tuple[str, tuple[str, ...]]] = {}  # reply-with → (kind, key)
         self.failure: str | None = None
         self.result: PlanActions | None = None
+        self.cancelled = False
         self.plan: HierarchicalPlan | None = None
         self.check: str | None = None  # reply-with of the hypothetical-state query
         self.asked: set[tuple[str, tuple[str, ...]]] = set()
@@ -92,7 +93,25 @@ class Planner(Agent):
             ],
         )
 
+    def _cancels(self) -> None:
+        """a_co's cancel of a plan request (FIPA cancel meta-protocol): the current one is
+        dropped and the cancel answered ``inform``; any other answered ``failure``."""
+        while (
+            item := self.take(lambda i: i.sender == "a_co" and i.performative is Performative.CANCEL)
+        ) is not None:
+            current = (
+                self.request is not None and item.msg.conversation_id == self.request.msg.conversation_id
+            )
+            if not current:
+                self.fail(item, Performative.FAILURE, "no such planning request (it has been answered)")
+                continue
+            self.reply(item, Performative.INFORM)
+            self.log.info("planning cancelled by a_co")
+            self.cancelled = True
+            self.failure = "cancelled"
+
     def _idle(self) -> None:
+        self._cancels()
         item = self.take(lambda i: i.sender == "a_co" and i.performative is Performative.REQUEST)
         if item is None:
             self.reject_unhandled(lambda i: i.local)
@@ -102,6 +121,7 @@ class Planner(Agent):
             return
         self.request, self.problem = item, item.content
         self.knowledge, self.failure, self.result, self.plan = Knowledge(), None, None, None
+        self.cancelled = False
         self.asked = set()
         self.started = time.monotonic()
         self.log.info(
@@ -152,6 +172,7 @@ class Planner(Agent):
             self._query("placement", (obj, furniture), PlacementQuery(object=obj, surface=furniture))
 
     def _collect(self) -> None:
+        self._cancels()
         for item in list(self.x):
             entry = self.pending.pop(item.msg.in_reply_to or "", None)
             if entry is None:
@@ -229,6 +250,12 @@ class Planner(Agent):
 
     def _finalize(self) -> None:
         assert self.request is not None and self.problem is not None
+        self._cancels()
+        if self.cancelled:  # the cancel was answered: the request's conversation has ended
+            self.request = self.problem = None
+            self.pending.clear()
+            self.check = None
+            return
         if self.check is not None:
             check = self.check
             answer = self.take(lambda i: i.msg.in_reply_to == check)

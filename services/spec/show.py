@@ -1,0 +1,138 @@
+"""``roco spec show``: the decomposition as the paper presents it (one table per step, as
+Tables 1–2: requirements, decomposition, tasks, reallocated and new channels, what each
+channel transmits; the fringe after the step), the agents' interfaces (paper §4 step 4),
+and the agent/channel graph (Figures 6 and 10) as SVG or Graphviz DOT.
+"""
+
+from __future__ import annotations
+
+import math
+from html import escape
+
+from services.spec.decomposition import Decomposition, replay
+from services.spec.model import SystemSpec, interface
+from shared.fipa_codec.languages import LANGUAGES
+
+
+def _row(cells: list[str]) -> str:
+    return "| " + " | ".join(c.replace("|", "\\|") for c in cells) + " |"
+
+
+def steps_markdown(d: Decomposition) -> str:
+    """One Markdown table per decomposition step, then the fringe after it."""
+    texts = {r.id: r.text for r in d.requirements}
+    parts = [f"# Decomposition of g_{d.system}", ""]
+    for state in replay(d):
+        s = state.step
+        rows: list[list[str]] = [
+            ["Requirements", "; ".join(f"{r}: {texts.get(r, '?')}" for r in s.requirements)]
+        ]
+        if s.split and s.into:
+            rows.append(["Decomposition", f"g_{s.split} := ⟨g_{s.into[0]}, g_{s.into[1]}⟩"])
+            rows += [[f"g_{g} tasks", s.tasks.get(g, "")] for g in s.into]
+        moved = [f"C{r.number}: {r.from_} ↦ {r.to}" for r in s.reallocated]
+        rows.append(["Channel reallocation", ", ".join(moved) or "—"])
+        rows.append(
+            [
+                "New channels",
+                ", ".join(f"C{c.number} ({c.ends[0]}, {c.ends[1]})" for c in s.new_channels) or "—",
+            ]
+        )
+        if s.supplemented:
+            rows.append(["Supplemented", ", ".join(f"C{x.number}: {x.transmits}" for x in s.supplemented)])
+        for ch in sorted(state.channels.values(), key=lambda c: c.number):
+            rows.append([f"C{ch.number} ({ch.ends[0]}, {ch.ends[1]}) transmits", "; ".join(ch.transmits)])
+        rows.append(["Fringe", ", ".join(f"g_{g}" for g in state.fringe)])
+        parts += [f"## Step {s.number}", "", "| | |", "|---|---|", *(_row(r) for r in rows), ""]
+    return "\n".join(parts)
+
+
+def interfaces_markdown(spec: SystemSpec) -> str:
+    """Per agent: the performatives, languages and ontologies it sends and receives (paper §4
+    step 4), derived from the channels."""
+    lines = [
+        "# Agent interfaces",
+        "",
+        "| agent | sends (performatives) | receives (performatives) | languages out / in | ontologies |",
+        "|---|---|---|---|---|",
+    ]
+    for a in spec.agents:
+        iface = interface(spec, a.name)
+        out_p = sorted({k.performative for k in iface.sends})
+        in_p = sorted({k.performative for k in iface.receives})
+        out_l = sorted({lang for k in iface.sends for lang in k.languages})
+        in_l = sorted({lang for k in iface.receives for lang in k.languages})
+        onto = sorted({LANGUAGES[x].ontology for x in (*out_l, *in_l) if x in LANGUAGES})
+        lines.append(
+            _row(
+                [
+                    a.name,
+                    ", ".join(out_p),
+                    ", ".join(in_p),
+                    f"{', '.join(out_l)} / {', '.join(in_l)}",
+                    ", ".join(onto),
+                ]
+            )
+        )
+    return "\n".join(lines)
+
+
+def graph_dot(spec: SystemSpec) -> str:
+    """Graphviz source of the agents (nodes) and channels (edges labelled with the channel
+    and its protocols)."""
+    lines = [
+        f'graph "{spec.system}" {{',
+        "  layout=circo;",
+        '  node [shape=box, style=rounded, fontname="Helvetica"];',
+    ]
+    for a in spec.agents:
+        lines.append(f'  {a.name} [label="{a.name}\\n(g_{a.group})"];')
+    for ch in spec.channels:
+        protos = ", ".join(p.protocol for p in ch.protocols)
+        lines.append(f'  {ch.ends[0]} -- {ch.ends[1]} [label="{ch.name}: {protos}", fontsize=10];')
+    lines.append("}")
+    return "\n".join(lines)
+
+
+def graph_svg(spec: SystemSpec, size: int = 640) -> str:
+    """A self-contained SVG of the agents on a circle and the channels between them, each
+    labelled with its name and protocols (no Graphviz needed)."""
+    n = len(spec.agents)
+    cx = cy = size / 2
+    r = size * 0.36
+    pos = {
+        a.name: (
+            cx + r * math.cos(2 * math.pi * i / n - math.pi / 2),
+            cy + r * math.sin(2 * math.pi * i / n - math.pi / 2),
+        )
+        for i, a in enumerate(spec.agents)
+    }
+    out = [
+        f'<svg xmlns="http://www.w3.org/2000/svg" width="{size}" height="{size}" viewBox="0 0 {size} {size}" '
+        'font-family="Helvetica, Arial, sans-serif">',
+        f'<rect width="{size}" height="{size}" fill="white"/>',
+        f'<text x="10" y="20" font-size="14">{escape(spec.system)}: agents and channels</text>',
+    ]
+    for ch in spec.channels:
+        (x1, y1), (x2, y2) = pos[ch.ends[0]], pos[ch.ends[1]]
+        mx, my = (x1 + x2) / 2, (y1 + y2) / 2
+        protos = ", ".join(p.protocol for p in ch.protocols)
+        out.append(
+            f'<line x1="{x1:.1f}" y1="{y1:.1f}" x2="{x2:.1f}" y2="{y2:.1f}" stroke="#555" stroke-width="2"/>'
+        )
+        out.append(
+            f'<text x="{mx:.1f}" y="{my - 4:.1f}" font-size="11" text-anchor="middle" fill="#124" '
+            'stroke="white" stroke-width="3" paint-order="stroke">'
+            f"{escape(ch.name)}: {escape(protos)}</text>"
+        )
+    for a in spec.agents:
+        x, y = pos[a.name]
+        out.append(
+            f'<rect x="{x - 42:.1f}" y="{y - 18:.1f}" width="84" height="36" rx="8" '
+            'fill="#eef4ff" stroke="#124"/>'
+        )
+        out.append(
+            f'<text x="{x:.1f}" y="{y + 5:.1f}" font-size="13" text-anchor="middle">{escape(a.name)}</text>'
+        )
+    out.append("</svg>")
+    return "\n".join(out)

@@ -1,0 +1,175 @@
+"""``roco spec check`` and ``show`` (services/spec/check.py, show.py): the shipped
+specification passes; deliberately broken variants of it fail with a precise message."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from services.spec.check import check_report
+from services.spec.decomposition import load_decomposition, replay
+from services.spec.model import DEFAULT_SPEC
+from services.spec.show import graph_dot, graph_svg, steps_markdown
+
+SHIPPED = DEFAULT_SPEC.read_text()
+
+# (name, text replaced, replacement, expected message)
+BROKEN = [
+    (
+        "channel left at a split group",
+        'reallocated = [{ number = 3, from = "cp", to = "pl" }]',
+        "reallocated = []",
+        "step 4: channel C3 ends at 'cp', which this step splits into pl and km; reallocate it",
+    ),
+    (
+        "channel to a group that no longer exists",
+        'new_channels = [{ number = 4, ends = ["pl", "km"]',
+        'new_channels = [{ number = 4, ends = ["pl", "cp"]',
+        "step 4: new channel C4 ends at 'cp', which is not in the fringe (hi, co, pl, km, ec)",
+    ),
+    (
+        "a split of a group that was already split",
+        'split = "cp"',
+        'split = "da"',
+        "step 4: splits group 'da', which is not in the fringe (hi, co, cp, ec)",
+    ),
+    (
+        "a requirement no step addresses",
+        'requirements = ["R3.2"]',
+        "requirements = []",
+        "stop condition: requirement R3.2 is addressed by no step",
+    ),
+    (
+        "channels numbered out of order",
+        '{ number = 6, ends = ["ta", "km"]',
+        '{ number = 7, ends = ["ta", "km"]',
+        "step 5: new channel C7 should be numbered C6",
+    ),
+    (
+        "an agent for a group the decomposition never made",
+        'group = "pl"',
+        'group = "planner"',
+        "stop condition: group 'pl' of the final fringe is substituted by no agent",
+    ),
+    (
+        "a channel between other agents than the decomposition says",
+        'ends = ["ag_ex", "a_ta"]',
+        'ends = ["a_co", "a_ta"]',
+        "channel C5 joins a_ta and ag_ex by the decomposition, but a_co and a_ta in [[channels]]",
+    ),
+    (
+        "a performative without a language",
+        'languages = { request = "L_HFSM", agree = "L_HFSM"',
+        'languages = { agree = "L_HFSM"',
+        "C3 fipa-request: request may be sent but has no language",
+    ),
+    (
+        "a requirement under a parent that does not exist",
+        'parent = "R3"\ntext = "update the environment model"',
+        'parent = "R9"\ntext = "update the environment model"',
+        "requirement R3.2: its parent R9 does not exist",
+    ),
+]
+
+
+def test_the_shipped_specification_is_sound() -> None:
+    ok, text = check_report(DEFAULT_SPEC)
+    assert ok, text
+    assert "OK: the decomposition is sound" in text
+
+
+@pytest.mark.parametrize(("name", "old", "new", "message"), BROKEN, ids=[b[0] for b in BROKEN])
+def test_a_broken_variant_fails_with_a_precise_message(
+    tmp_path: Path, name: str, old: str, new: str, message: str
+) -> None:
+    assert SHIPPED.count(old) == 1, f"fixture {name!r} no longer matches the shipped spec"
+    path = tmp_path / "broken.toml"
+    path.write_text(SHIPPED.replace(old, new))
+    ok, text = check_report(path)
+    assert not ok
+    assert message in text, text
+
+
+def test_a_file_that_is_not_a_specification_is_one_clear_problem(tmp_path: Path) -> None:
+    path = tmp_path / "x.toml"
+    path.write_text('system = "RoCo"\n[[steps]]\nnumber = "one"\n')
+    ok, text = check_report(path)
+    assert not ok and str(path) in text and text.count("\n") == 0
+
+
+def test_replay_reaches_the_papers_six_groups_and_channels() -> None:
+    final = replay(load_decomposition())[-1]
+    assert sorted(final.fringe) == ["co", "ex", "hi", "km", "pl", "ta"]  # paper Figure 6
+    ends = {c.name: set(c.ends) for c in final.channels.values()}
+    assert ends == {
+        "C1": {"co", "ta"},
+        "C2": {"co", "hi"},
+        "C3": {"co", "pl"},
+        "C4": {"pl", "km"},
+        "C5": {"ex", "ta"},
+        "C6": {"ta", "km"},
+    }
+    assert final.channels[6].transmits == ["knowledge needed by a_ta", "updates of the environment model"]
+
+
+def test_show_renders_every_step_and_the_graph() -> None:
+    from services.spec.model import load
+
+    text = steps_markdown(load_decomposition())
+    assert text.count("## Step ") == 6 and "g_cp := ⟨g_pl, g_km⟩" in text and "C3: cp ↦ pl" in text
+    spec = load()
+    svg = graph_svg(spec)
+    assert svg.startswith("<svg") and all(f">{a.name}<" in svg for a in spec.agents)
+    assert graph_dot(spec).count(" -- ") == len(spec.channels)
+
+
+def test_roco_spec_check_exits_1_on_a_broken_spec(tmp_path: Path) -> None:
+    _name, old, new, message = BROKEN[0]
+    path = tmp_path / "broken.toml"
+    path.write_text(SHIPPED.replace(old, new))
+    bad = subprocess.run(
+        [sys.executable, "-m", "services.cli", "spec", "check", "--spec", str(path)],
+        capture_output=True,
+        text=True,
+    )
+    assert bad.returncode == 1 and message in bad.stdout
+    good = subprocess.run(
+        [sys.executable, "-m", "services.cli", "spec", "check"], capture_output=True, text=True
+    )
+    assert good.returncode == 0, good.stdout + good.stderr
+
+
+def test_verify_code_passes_on_the_shipped_agents() -> None:
+    from services.spec.code_check import verify_code_report
+
+    ok, text = verify_code_report(DEFAULT_SPEC)
+    assert ok, text
+    assert "ag_ex: 2 files; sends failure, inform" in text
+
+
+def test_verify_code_names_a_missing_handler_and_a_forbidden_send(tmp_path: Path) -> None:
+    from services.spec.code_check import verify_code_report
+
+    path = tmp_path / "spec.toml"
+    old = 'implementation = "services.planner.agent:Planner"'
+    assert SHIPPED.count(old) == 1
+    path.write_text(
+        SHIPPED.replace(old, 'implementation = "tests.spec_check.fixture_agents.planner:Planner"')
+    )
+    ok, text = verify_code_report(path)
+    assert not ok
+    assert "a_pl may receive cancel from a_co on C3 (fipa-request) but no code in" in text
+    assert "handles it (no comparison with Performative.CANCEL)" in text
+    assert "a_pl sends propose (planner.py:" in text and "but its interface allows only" in text
+
+
+def test_verify_code_reports_an_implementation_that_does_not_exist(tmp_path: Path) -> None:
+    from services.spec.code_check import verify_code_report
+
+    path = tmp_path / "spec.toml"
+    path.write_text(SHIPPED.replace("services.planner.agent:Planner", "services.nowhere.agent:Planner"))
+    ok, text = verify_code_report(path)
+    assert not ok and "no module 'services.nowhere.agent'" in text
