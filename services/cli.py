@@ -414,6 +414,23 @@ def spec_check(spec: SpecFile = None) -> None:
         raise typer.Exit(1)
 
 
+@spec_app.command("deadlock")
+def spec_deadlock(spec: SpecFile = None) -> None:
+    """Explore every channel protocol as two role automata over bounded FIFO queues, and the
+    agents' wait-for graph; report reachable deadlocks with the trace that leads there
+    (paper §4 step 3). Exit 1 when one is found."""
+    from services.spec.deadlock import deadlock_report
+    from services.spec.model import SpecError
+
+    try:
+        found, text = deadlock_report(_spec_path(spec))
+    except SpecError as exc:
+        raise fail(str(exc), code=2) from None
+    typer.echo(text)
+    if found:
+        raise typer.Exit(1)
+
+
 @spec_app.command("verify-code")
 def spec_verify_code(spec: SpecFile = None) -> None:
     """Every message an agent may receive by the specification has a handler in its code, and

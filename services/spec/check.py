@@ -94,8 +94,8 @@ def check_decomposition(d: Decomposition, spec: SystemSpec | None = None) -> lis
                         )
                     elif r.to not in step.into:
                         problems.append(f"{where}: C{r.number} must move to {a} or {b}, not {r.to!r}")
-                i = fringe.index(step.split)
-                fringe = [*fringe[:i], a, b, *fringe[i + 1 :]]
+                pos = fringe.index(step.split)
+                fringe = [*fringe[:pos], a, b, *fringe[pos + 1 :]]
                 used |= {a, b}
         elif not step.new_channels and not step.supplemented:
             problems.append(f"{where}: neither splits a group nor creates or supplements a channel")

@@ -15,8 +15,9 @@ Conventions shared by all protocols (each after the FIPA specification cited):
   it an outcome; the participant answers ``inform`` (cancelled) or ``failure`` (could not
   cancel), both ending the conversation (states ``cancelled``/``cancel-failed``). The
   tracker cannot tell an outcome that crossed the ``cancel`` on the wire from the answer to
-  the ``cancel``: an ``inform`` in state ``cancelling`` is taken as the answer, and an
-  ``agree`` there as one that crossed the ``cancel``.
+  the ``cancel``: an ``inform`` in state ``cancelling`` is taken as the answer, an
+  ``agree`` there as one that crossed the ``cancel``, and any other final answer (``refuse``,
+  ``inform-ref`` …) as one that crossed it and ended the conversation.
 * FIPA's ``inform-done``/``inform-result``/``inform-t/f`` are all the performative
   ``inform``.
 
@@ -360,6 +361,16 @@ def _build(
         if any(role == _R and perf is _P.AGREE for _, role, perf in transitions):
             # an agree sent before the cancel arrived, crossing it on the wire
             add(transitions, ("cancelling", _R, _P.AGREE), "cancelling")
+        # any other final answer the participant sent before the cancel arrived (a refuse,
+        # an inform-ref …) crosses it too and ends the conversation as it would have
+        for (source, role, perf), target in list(transitions.items()):
+            if (
+                source in cancellable
+                and role == _R
+                and target in finals
+                and ("cancelling", _R, perf) not in transitions
+            ):
+                transitions[("cancelling", _R, perf)] = target
         finals |= {"cancelled", "cancel-failed"}
     states = {initial} | finals
     for (source, _, _), target in [*transitions.items(), *terminal.items()]:
@@ -493,9 +504,12 @@ COORDINATE = _build(
     "states (L_SW), each confirmed by a_co before the next; a_co may cancel at any time "
     "while the plan runs (a_ta then goes on reporting, e.g. Terminating, Preempted); the "
     "conversation ends when a terminal state (Succeeded, Error, Preempted, Replan) is "
-    "confirmed. A cancel that crosses the terminal inform on the wire is tolerated.",
+    "confirmed. A cancel that crosses the terminal inform on the wire is tolerated. a_ta "
+    "may refuse a request it cannot run (no plan in it) or fail it at once.",
     [
         ("start", _I, _P.REQUEST, "requested"),
+        ("requested", _R, _P.REFUSE, "refused"),
+        ("requested", _R, _P.FAILURE, "failed"),
         ("requested", _R, _P.INFORM, "reported"),
         ("reported", _I, _P.CONFIRM, "running"),
         ("running", _R, _P.INFORM, "reported"),
@@ -506,7 +520,7 @@ COORDINATE = _build(
         ("running", _I, _P.CANCEL, "running"),
         ("ending", _I, _P.CANCEL, "ending"),
     ],
-    ["finished"],
+    ["finished", "refused", "failed"],
     terminal_edges=[
         ("requested", _R, _P.INFORM, "ending"),
         ("running", _R, _P.INFORM, "ending"),

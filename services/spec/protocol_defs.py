@@ -1,0 +1,349 @@
+"""Interaction protocols declared as data in a specification file (paper §4 step 3: "the
+interaction protocol specifies the pattern of communication between the agents").
+
+Besides the performatives each role may send, a ``[protocols.NAME]`` table may carry the
+protocol's state machine, with the meaning of :func:`shared.fipa_codec.protocols._build`
+(the builder of the FIPA SC00025 library in :mod:`shared.fipa_codec.protocols`)::
+
+    [protocols.ask]
+    initiator = ["request", "cancel"]            # what each role may send (services.spec.model)
+    participant = ["agree", "refuse", "failure", "inform"]
+    initial = "start"                            # optional, default "start"
+    final = ["refused", "failed", "done"]
+    transitions = [                              # [state, sender's role, performative, next state]
+      ["start", "initiator", "request", "requested"],
+      ["requested", "participant", "refuse", "refused"],
+      ["requested", "participant", "agree", "agreed"],
+      ["agreed", "participant", "inform", "done"],
+      ["agreed", "participant", "failure", "failed"],
+    ]
+    cancellable = ["requested", "agreed"]        # optional: the cancel meta-protocol (SC00026 §2)
+    terminal = [["agreed", "participant", "inform", "done"]]   # optional: taken by an inform
+                                                 # flagged terminal (as in coordinate, paper §5.4)
+    description = "..."                          # optional
+    spec = "FIPA SC00026"                        # optional: where the protocol comes from
+
+``cancellable`` adds, from each state listed, ``cancel`` by the initiator to ``cancelling``,
+answered by the participant's ``inform`` (``cancelled``) or ``failure`` (``cancel-failed``),
+and an ``agree`` crossing the ``cancel`` (when the participant may agree at all); further
+transitions out of ``cancelling`` may be listed, e.g. a ``refuse`` that crossed the cancel:
+``["cancelling", "participant", "refuse", "refused"]``. ``not-understood`` is implicit:
+either role may send it in every state after the first (FIPA SC00037 §3.12); a table must
+not list it.
+
+:func:`protocols_of` gives, for every protocol a specification names, its declared state
+machine or else the built-in one of :data:`shared.fipa_codec.protocols.PROTOCOLS`.
+"""
+
+from __future__ import annotations
+
+import tomllib
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+from services.spec.model import DEFAULT_SPEC, ProtocolRoles, SpecError, load
+from shared.fipa_codec.acts import Performative
+from shared.fipa_codec.protocols import INITIATOR, PARTICIPANT, PROTOCOLS, Protocol, Role, _build
+
+__all__ = [
+    "MACHINE_KEYS",
+    "TABLE_KEYS",
+    "declares_state_machine",
+    "protocol_from_table",
+    "protocols_of",
+    "read_raw",
+    "role_mismatches",
+]
+
+MACHINE_KEYS: frozenset[str] = frozenset({"initial", "final", "transitions", "cancellable", "terminal"})
+"""Keys of a ``[protocols.NAME]`` table that declare a state machine."""
+
+TABLE_KEYS: frozenset[str] = MACHINE_KEYS | {"initiator", "participant", "description", "spec"}
+"""Every key a ``[protocols.NAME]`` table may carry."""
+
+Edge = tuple[str, Role, Performative, str]
+
+
+def read_raw(path: Path) -> dict[str, Any]:
+    """The specification file as plain TOML data; SpecError naming the file when it cannot
+    be read or parsed."""
+    try:
+        with path.open("rb") as f:
+            return tomllib.load(f)
+    except FileNotFoundError:
+        raise SpecError(f"{path}: no such specification file") from None
+    except tomllib.TOMLDecodeError as exc:
+        raise SpecError(f"{path}: {exc}") from None
+
+
+def declares_state_machine(table: Mapping[str, object]) -> bool:
+    """True when a ``[protocols.NAME]`` table carries (part of) a state machine."""
+    return any(key in table for key in MACHINE_KEYS)
+
+
+def protocol_from_table(name: str, table: Mapping[str, Any], *, source: str | Path | None = None) -> Protocol:
+    """Build protocol ``name`` from its ``[protocols.NAME]`` table (see the module docstring).
+
+    Every transition is checked: four strings, a known role, a FIPA performative (FIPA
+    SC00037) that the role's ``initiator``/``participant`` list allows when the table has
+    that list, no second target for the same (state, role, performative), no transition out
+    of a final state; then the machine itself (every state reachable, a final state
+    reachable from every state; :class:`shared.fipa_codec.protocols.Protocol`). Raises
+    :class:`services.spec.model.SpecError` naming ``source`` (the file), the protocol and
+    the offending entry.
+    """
+    where = f"{source}: protocol {name}" if source is not None else f"protocol {name}"
+    if not isinstance(table, Mapping):
+        raise SpecError(f"{where}: expected a table, not {type(table).__name__}")
+    unknown = sorted(set(table) - TABLE_KEYS)
+    if unknown:
+        raise SpecError(
+            f"{where}: unknown key(s) {', '.join(unknown)}; known: {', '.join(sorted(TABLE_KEYS))}"
+        )
+    if "transitions" not in table:
+        raise SpecError(f"{where}: a state machine needs 'transitions'")
+    if "final" not in table:
+        raise SpecError(f"{where}: a state machine needs 'final' (the final states)")
+    lists = {role: _role_list(table, role, where) for role in (INITIATOR, PARTICIPANT)}
+    initial = table.get("initial", "start")
+    if not isinstance(initial, str) or not initial:
+        raise SpecError(f"{where}: 'initial' must be a state name, not {initial!r}")
+    final = _names(table["final"], "final", where)
+    if not final:
+        raise SpecError(f"{where}: 'final' names no state")
+    edges = _edges(table["transitions"], "transition", where, lists)
+    if not edges:
+        raise SpecError(f"{where}: 'transitions' is empty")
+    terminal = _edges(table.get("terminal", []), "terminal transition", where, lists)
+    cancellable = _names(table.get("cancellable", []), "cancellable", where)
+    states = {initial} | set(final)
+    for _, (source_state, _, _, target) in [*edges, *terminal]:
+        states |= {source_state, target}
+    for state in cancellable:
+        if state not in states or state in final:
+            raise SpecError(
+                f"{where}: cancellable state {state!r} is not a non-final state of the transitions"
+            )
+    if cancellable:
+        _require(lists, INITIATOR, Performative.CANCEL, where, "the cancel meta-protocol ('cancellable')")
+        for perf in (Performative.INFORM, Performative.FAILURE):
+            _require(lists, PARTICIPANT, perf, where, "the cancel meta-protocol ('cancellable')")
+    for kind, group in (("transition", edges), ("terminal transition", terminal)):
+        seen: dict[tuple[str, Role, Performative], tuple[int, str]] = {}
+        for n, (source_state, role, perf, target) in group:
+            key = (source_state, role, perf)
+            if key in seen and seen[key][1] != target:
+                first, other = seen[key]
+                raise SpecError(
+                    f"{where}: {kind} {n} {_show((source_state, role, perf, target))} conflicts with "
+                    f"{kind} {first}: the same state, role and performative lead to {other!r} and {target!r}"
+                )
+            seen.setdefault(key, (n, target))
+            if source_state in final:
+                raise SpecError(
+                    f"{where}: {kind} {n} {_show((source_state, role, perf, target))} leaves the final "
+                    f"state {source_state!r}"
+                )
+            meta = _cancel_meta(cancellable, edges).get(key) if kind == "transition" else None
+            if meta is not None and meta != target:
+                raise SpecError(
+                    f"{where}: {kind} {n} {_show((source_state, role, perf, target))} conflicts with the "
+                    f"cancel meta-protocol ('cancellable'), which leads there to {meta!r}"
+                )
+    try:
+        protocol = _build(
+            name,
+            _text(table, "spec", where),
+            _text(table, "description", where),
+            [edge for _, edge in edges],
+            final,
+            cancellable=cancellable,
+            terminal_edges=[edge for _, edge in terminal],
+            initial=initial,
+        )
+    except ValueError as exc:
+        text = str(exc).removeprefix(f"protocol {name}: ").removeprefix(f"{name}: ")
+        raise SpecError(f"{where}: invalid state machine: {text}") from None
+    stuck = _dead_ends(protocol)
+    if stuck:
+        raise SpecError(
+            f"{where}: invalid state machine: no final state can be reached from "
+            f"{', '.join(repr(x) for x in stuck)} (only not-understood would end the conversation)"
+        )
+    return protocol
+
+
+def protocols_of(path: Path = DEFAULT_SPEC) -> dict[str, Protocol]:
+    """Every protocol specification ``path`` names, by name, in the order of the file: the
+    state machine its ``[protocols.NAME]`` table declares, or else the built-in one of
+    :data:`shared.fipa_codec.protocols.PROTOCOLS` (FIPA SC00026, SC00027, SC00035, ... and
+    the paper's ``coordinate``). Raises SpecError when the file is invalid
+    (:func:`services.spec.model.load`), a declared machine is malformed, or a protocol has
+    neither."""
+    spec = load(path)
+    tables = read_raw(path).get("protocols", {})
+    out: dict[str, Protocol] = {}
+    for name in spec.protocols:
+        table = tables.get(name, {})
+        if isinstance(table, Mapping) and declares_state_machine(table):
+            out[name] = protocol_from_table(name, table, source=path)
+        elif name in PROTOCOLS:
+            if isinstance(table, Mapping):
+                unknown = sorted(set(table) - TABLE_KEYS)
+                if unknown:
+                    raise SpecError(
+                        f"{path}: protocol {name}: unknown key(s) {', '.join(unknown)}; "
+                        f"known: {', '.join(sorted(TABLE_KEYS))}"
+                    )
+            out[name] = PROTOCOLS[name]
+        else:
+            raise SpecError(
+                f"{path}: protocol {name} declares no state machine ({', '.join(sorted(MACHINE_KEYS))}) "
+                f"and is not a built-in protocol ({', '.join(PROTOCOLS)})"
+            )
+    return out
+
+
+def role_mismatches(protocol: Protocol, roles: ProtocolRoles) -> list[str]:
+    """Where a protocol's state machine and the spec's role lists disagree, as sentences:
+    performatives a role may send by its list that no transition allows (a
+    ConversationTracker would reject them), and performatives a transition lets a role send
+    that its list does not name (the runtime's check against the spec would reject them).
+    ``not-understood`` is left out: it is always allowed."""
+    out: list[str] = []
+    machine: dict[str, set[str]] = {INITIATOR: set(), PARTICIPANT: set()}
+    for (_, role, perf), _ in [*protocol.transitions.items(), *protocol.terminal_transitions.items()]:
+        if perf is not Performative.NOT_UNDERSTOOD:
+            machine[role].add(perf.value)
+    for role, listed in ((INITIATOR, roles.initiator), (PARTICIPANT, roles.participant)):
+        declared = set(listed) - {Performative.NOT_UNDERSTOOD.value}
+        only_list = sorted(declared - machine[role])
+        only_machine = sorted(machine[role] - declared)
+        if only_list:
+            out.append(
+                f"{protocol.name}: the {role} may send {_perfs(only_list)} by the spec's list, but no "
+                "transition of the state machine allows it (a ConversationTracker would reject it)"
+            )
+        if only_machine:
+            out.append(
+                f"{protocol.name}: the state machine lets the {role} send {_perfs(only_machine)}, which "
+                f"protocols.{protocol.name}.{role} does not list (the runtime would reject it)"
+            )
+    return out
+
+
+def _dead_ends(protocol: Protocol) -> list[str]:
+    """States from which no final state but ``not-understood`` can be reached without
+    ``not-understood`` (which ``_build`` adds from every state, so that Protocol's own check
+    never fails on this)."""
+    ends = set(protocol.final) - {"not-understood"}
+    predecessors: dict[str, set[str]] = {}
+    for (source, _, perf), target in [*protocol.transitions.items(), *protocol.terminal_transitions.items()]:
+        if perf is not Performative.NOT_UNDERSTOOD:
+            predecessors.setdefault(target, set()).add(source)
+    reach = set(ends)
+    todo = list(ends)
+    while todo:
+        for source in predecessors.get(todo.pop(), ()):
+            if source not in reach:
+                reach.add(source)
+                todo.append(source)
+    return sorted(protocol.states - reach - {"not-understood"})
+
+
+def _cancel_meta(
+    cancellable: Sequence[str], edges: Sequence[tuple[int, Edge]]
+) -> dict[tuple[str, Role, Performative], str]:
+    """The transitions ``_build`` adds for the cancel meta-protocol."""
+    if not cancellable:
+        return {}
+    meta: dict[tuple[str, Role, Performative], str] = {
+        (state, INITIATOR, Performative.CANCEL): "cancelling" for state in cancellable
+    }
+    meta[("cancelling", PARTICIPANT, Performative.INFORM)] = "cancelled"
+    meta[("cancelling", PARTICIPANT, Performative.FAILURE)] = "cancel-failed"
+    if any(role == PARTICIPANT and perf is Performative.AGREE for _, (_, role, perf, _) in edges):
+        meta[("cancelling", PARTICIPANT, Performative.AGREE)] = "cancelling"
+    return meta
+
+
+def _perfs(names: Sequence[str]) -> str:
+    return ", ".join(repr(n) for n in names)
+
+
+def _show(edge: tuple[str, str, Performative | str, str]) -> str:
+    source, role, perf, target = edge
+    return "[" + ", ".join(f'"{x}"' for x in (source, role, str(perf), target)) + "]"
+
+
+def _text(table: Mapping[str, Any], key: str, where: str) -> str:
+    value = table.get(key, "")
+    if not isinstance(value, str):
+        raise SpecError(f"{where}: '{key}' must be a string")
+    return value
+
+
+def _names(value: object, key: str, where: str) -> list[str]:
+    if not isinstance(value, list) or not all(isinstance(x, str) and x for x in value):
+        raise SpecError(f"{where}: '{key}' must be a list of state names, not {value!r}")
+    return list(value)
+
+
+def _role_list(table: Mapping[str, Any], role: str, where: str) -> set[str] | None:
+    if role not in table:
+        return None
+    value = table[role]
+    if not isinstance(value, list) or not all(isinstance(x, str) for x in value):
+        raise SpecError(f"{where}: '{role}' must be a list of performatives, not {value!r}")
+    return set(value)
+
+
+def _require(
+    lists: Mapping[str, set[str] | None], role: str, perf: Performative, where: str, why: str
+) -> None:
+    listed = lists[role]
+    if listed is not None and perf.value not in listed:
+        raise SpecError(f"{where}: {why} lets the {role} send {perf.value!r}, which '{role}' does not list")
+
+
+def _edges(
+    value: object, kind: str, where: str, lists: Mapping[str, set[str] | None]
+) -> list[tuple[int, Edge]]:
+    """Parse a list of [state, role, performative, state] entries, numbered from 1."""
+    plural = "terminal" if kind.startswith("terminal") else "transitions"
+    if not isinstance(value, list):
+        raise SpecError(f"{where}: '{plural}' must be a list of [state, role, performative, state]")
+    out: list[tuple[int, Edge]] = []
+    for n, entry in enumerate(value, 1):
+        if not (isinstance(entry, list) and len(entry) == 4 and all(isinstance(x, str) and x for x in entry)):
+            raise SpecError(
+                f"{where}: {kind} {n} {entry!r}: expected [state, role, performative, state], four names"
+            )
+        source, role, perf_name, target = entry
+        if role not in (INITIATOR, PARTICIPANT):
+            raise SpecError(
+                f"{where}: {kind} {n} {_show((source, role, perf_name, target))}: role {role!r} is "
+                "neither 'initiator' nor 'participant'"
+            )
+        try:
+            perf = Performative(perf_name)
+        except ValueError:
+            raise SpecError(
+                f"{where}: {kind} {n} {_show((source, role, perf_name, target))}: {perf_name!r} is not "
+                "a FIPA performative (FIPA SC00037)"
+            ) from None
+        if perf is Performative.NOT_UNDERSTOOD:
+            raise SpecError(
+                f"{where}: {kind} {n} {_show((source, role, perf_name, target))}: not-understood is "
+                "implicit (either role, in every state after the first); leave it out"
+            )
+        listed = lists[role]
+        if listed is not None and perf_name not in listed:
+            raise SpecError(
+                f"{where}: {kind} {n} {_show((source, role, perf_name, target))}: the {role} may not "
+                f"send {perf_name!r} ('{role}' lists {', '.join(sorted(listed)) or 'nothing'})"
+            )
+        checked: Role = INITIATOR if role == INITIATOR else PARTICIPANT
+        out.append((n, (source, checked, perf, target)))
+    return out
