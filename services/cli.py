@@ -431,6 +431,22 @@ def spec_deadlock(spec: SpecFile = None) -> None:
         raise typer.Exit(1)
 
 
+@spec_app.command("verify")
+def spec_verify(
+    run_dir: Annotated[Path, typer.Argument(metavar="RUN", help="a run folder")], spec: SpecFile = None
+) -> None:
+    """Check a run's recorded traffic against the specification: every communicate on a
+    channel between its sender and receiver, allowed for its role and in its language, and
+    every conversation following its protocol's state machine. Exit 1 unless fully
+    conformant."""
+    from services.spec.conformance import verify_report
+
+    ok, text = verify_report(run_dir, spec)
+    typer.echo(text)
+    if not ok:
+        raise typer.Exit(1)
+
+
 @spec_app.command("verify-code")
 def spec_verify_code(spec: SpecFile = None) -> None:
     """Every message an agent may receive by the specification has a handler in its code, and

@@ -7,9 +7,18 @@ A subclass declares its ``name`` (as in the specification), builds its FSM of be
 - the receptor input buffer ``r`` (events from the agent's own receptors: human text,
   executor results),
 - :meth:`send` / :meth:`reply`, which fill the output buffer dispatched after each step,
-- checking against the specification: a received communicate outside the agent's interface,
-  malformed, or in a language it does not accept is answered with ``not-understood`` and
-  dropped; a communicate the agent itself may not send raises :class:`SpecViolation`,
+- checking against the specification (paper §4 steps 3–4; FIPA SC00061, SC00026/27/35):
+  a received communicate outside the agent's interface, malformed, in a language it does not
+  accept or without its language's ontology (O_RoCo), with content that does not decode, or
+  not allowed in its conversation's current protocol state is answered with
+  ``not-understood`` and dropped; a communicate the agent itself may not send (outside its
+  interface, or not allowed in the conversation's state) raises :class:`SpecViolation`.
+  Every violation is counted (``counters``: ``protocol_violations`` for a received one
+  outside its conversation's state, ``rejected`` for every not-understood sent,
+  ``send_violations`` for the agent's own) and logged at WARNING with its conversation-id;
+  the traffic recorder records the communicates themselves,
+- the protocol state of every conversation (:class:`ProtocolStates`, one tracker per peer
+  and conversation-id, tolerant of communicates that cross on the wire),
 - reply-by deadlines ending in a local ``failure``.
 
 The elementary action (paper §3.2): compute the transition function, dispatch the output
@@ -25,13 +34,19 @@ import threading
 import time
 from collections import Counter, deque
 from dataclasses import dataclass
-from typing import Any, ClassVar
+from typing import Any, ClassVar, NoReturn
 
 import msgspec
 
 from services.runtime import keys
 from services.runtime.behaviour import FSM
-from services.runtime.conversations import Conversations, Pending
+from services.runtime.conversations import (
+    ConversationError,
+    Conversations,
+    Pending,
+    ProtocolStates,
+    expected_ontology,
+)
 from services.runtime.transport import Transport
 from services.spec.model import Interface, SystemSpec, channel_between, default_spec, interface
 from shared.fipa_codec import (
@@ -44,6 +59,14 @@ from shared.fipa_codec import (
 )
 from shared.fipa_codec.languages import ContentError, decode_content, encode_content, language_of
 from shared.fipa_codec.message import new_id
+from shared.fipa_codec.protocols import (
+    INITIATOR,
+    PARTICIPANT,
+    PROTOCOLS,
+    ProtocolViolation,
+    Role,
+    is_terminal_report,
+)
 
 STREAMING_PROTOCOLS = frozenset({"fipa-subscribe", "coordinate"})
 _OPENERS = frozenset({Performative.REQUEST, Performative.SUBSCRIBE})
@@ -53,7 +76,8 @@ _REASONS = frozenset({Performative.FAILURE, Performative.REFUSE, Performative.NO
 
 
 class SpecViolation(RuntimeError):
-    """The agent tried to send a communicate its specified interface does not allow."""
+    """The agent tried to send a communicate its specified interface does not allow, or one
+    its conversation's current protocol state does not allow (the agent's own bug)."""
 
 
 @dataclass(frozen=True)
@@ -96,6 +120,8 @@ class Agent:
         self.state = ""
         self.counters: Counter[str] = Counter()
         self.conversations = Conversations()
+        self.protocol_states = ProtocolStates()
+        self._roles: dict[tuple[str, str], Role] = _roles(self.spec, self.name)
         self._y: list[tuple[str, bytes]] = []
         self._queue: queue.SimpleQueue[tuple[str, Any]] = queue.SimpleQueue()
         self._stop = threading.Event()
@@ -153,6 +179,7 @@ class Agent:
             in_reply_to=in_reply_to,
             reply_by=deadline,
         )
+        self._follow_send(to, msg)
         if reply_with is not None:
             self.conversations.expect(
                 Pending(
@@ -210,15 +237,22 @@ class Agent:
             conversation_id=to.msg.conversation_id,
             in_reply_to=to.msg.reply_with,
         )
+        self._follow_send(to.sender, msg)
         self._y.append((keys.fipa_key(channel.name, self.name, to.sender), encode(msg)))
         self.counters[f"sent.{performative.value}"] += 1
 
     def not_understood(self, sender: str, channel: str, why: str, about: Communicate | None) -> None:
-        """Answer ``sender`` with not-understood; content is the reason as UTF-8 text."""
+        """Answer ``sender`` with not-understood; content is the reason as UTF-8 text.
+
+        The not-understood ends ``about``'s conversation (FIPA SC00037 §3.12): from now on the
+        runtime no longer follows its protocol state."""
         self.counters["rejected"] += 1
-        self.log.warning("not-understood to %s: %s", sender, why)
+        cid = about.conversation_id if about is not None else None
+        self.log.warning("not-understood to %s (conversation %s): %s", sender, cid, why)
         if about is not None and about.performative is Performative.NOT_UNDERSTOOD:
             return  # never answer a not-understood with one: no loops
+        if about is not None and cid is not None and self.protocol_states.get(sender, cid) is not None:
+            self._follow(sender, cid, about.protocol, Performative.NOT_UNDERSTOOD, True, None)
         msg = Communicate(
             performative=Performative.NOT_UNDERSTOOD,
             sender=self.aid,
@@ -235,12 +269,68 @@ class Agent:
         for kind in self.interface.sends:
             if kind.receiver == to and kind.performative == performative and kind.protocol == protocol:
                 if language is not None and kind.languages and language not in kind.languages:
-                    raise SpecViolation(
+                    self._violation(
+                        None,
                         f"{self.name}: {performative} to {to} in {protocol} must use "
-                        f"{'/'.join(kind.languages)}, not {language}"
+                        f"{'/'.join(kind.languages)}, not {language}",
                     )
                 return
-        raise SpecViolation(f"{self.name}: may not send {performative} to {to} in {protocol}")
+        self._violation(None, f"{self.name}: may not send {performative} to {to} in {protocol}")
+
+    def _violation(self, conversation_id: str | None, text: str) -> NoReturn:
+        """Count, log and raise a violation the agent's own code is about to commit."""
+        self.counters["send_violations"] += 1
+        self.log.warning("refused to send (conversation %s): %s", conversation_id, text)
+        raise SpecViolation(text)
+
+    def _follow_send(self, to: str, msg: Communicate) -> None:
+        """Follow a communicate about to be sent in its conversation's protocol state;
+        raises SpecViolation when the state does not allow it."""
+        why = self._follow(
+            to, msg.conversation_id, msg.protocol, msg.performative, True, is_terminal_report(msg)
+        )
+        if why is not None:
+            self._violation(
+                msg.conversation_id,
+                f"{self.name}: may not send {msg.performative.value} to {to} in conversation "
+                f"{msg.conversation_id}: {why}",
+            )
+
+    def _follow(
+        self,
+        peer: str,
+        conversation_id: str | None,
+        protocol: str | None,
+        performative: Performative,
+        sent: bool,
+        terminal: bool | None,
+    ) -> str | None:
+        """Advance the protocol state of conversation ``conversation_id`` with ``peer`` by one
+        communicate (``sent`` by this agent, else received). Returns None when the state allows
+        it (or the conversation is not followed: no conversation-id, a protocol without a state
+        machine), else the reason."""
+        if conversation_id is None or protocol is None or protocol not in PROTOCOLS:
+            return None
+        mine = self._roles.get((peer, protocol))
+        if mine is None:
+            return None
+        role: Role = mine if sent else (PARTICIPANT if mine == INITIATOR else INITIATOR)
+        known = self.protocol_states.get(peer, conversation_id) is not None
+        try:
+            outcome = self.protocol_states.observe(
+                peer, conversation_id, protocol, role, performative, local_role=mine, terminal=terminal
+            )
+        except (ProtocolViolation, ConversationError) as exc:
+            if not known:
+                return f"no such conversation of {self.name} with {peer} ({exc})"
+            return str(exc)
+        if outcome == "restart":
+            self.log.info(
+                "conversation %s with %s opened anew: %s", conversation_id, peer, performative.value
+            )
+        elif outcome == "crossing":
+            self.counters["crossings"] += 1
+        return None
 
     def emit(self, key: str, payload: bytes) -> None:
         """Put a payload for one of the agent's effectors (a non-FIPA key, e.g. a_hi's
@@ -270,6 +360,7 @@ class Agent:
                 item = self._queue.get_nowait()
             except queue.Empty:
                 item = None
+        self.protocol_states.commit()  # what arrived stays arrived; only sends are undone
         for p in self.conversations.expired(time.time()):
             self.counters["deadline_failures"] += 1
             synthetic = Communicate(
@@ -313,15 +404,35 @@ class Agent:
             return
         content: msgspec.Struct | None = None
         plain_reason = msg.language is None and msg.encoding == "utf-8" and msg.performative in _REASONS
-        if kind.languages and msg.content and not plain_reason:
-            if msg.language not in kind.languages:
-                self.not_understood(sender, channel, f"language {msg.language} not accepted here", msg)
-                return
+        checked = kind.languages and msg.content and not plain_reason
+        if checked and msg.language not in kind.languages:
+            self.not_understood(sender, channel, f"language {msg.language} not accepted here", msg)
+            return
+        if msg.language is not None and msg.ontology != expected_ontology(msg.language):
+            self.not_understood(
+                sender,
+                channel,
+                f"language {msg.language} needs ontology {expected_ontology(msg.language)}, "
+                f"not {msg.ontology}",
+                msg,
+            )
+            return
+        if checked:
             try:
                 content = decode_content(msg.language, msg.content)
             except ContentError as exc:
                 self.not_understood(sender, channel, str(exc), msg)
                 return
+        why = self._follow(
+            sender, msg.conversation_id, msg.protocol, msg.performative, False, is_terminal_report(msg)
+        )
+        if why is not None:
+            self.counters["protocol_violations"] += 1
+            self.log.warning(
+                "protocol violation by %s in conversation %s: %s", sender, msg.conversation_id, why
+            )
+            self.not_understood(sender, channel, why, msg)
+            return
         if msg.in_reply_to is not None and self.conversations.knows(msg.in_reply_to):
             self.conversations.answered(msg.in_reply_to, msg.performative.value)
         self.x.append(Received(msg, content, channel))
@@ -331,6 +442,7 @@ class Agent:
         for key, payload in self._y:
             self.transport.publish(key, payload)
         self._y.clear()
+        self.protocol_states.commit()
 
     def bind(self) -> None:
         """Subscribe the input buffer and announce liveliness."""
@@ -365,6 +477,7 @@ class Agent:
                     self.log.exception("transition function of %s raised", behaviour.name)
                     self.counters["behaviour_errors"] += 1
                     self._y.clear()
+                    self.protocol_states.rollback()  # what was dropped was never sent
                     failed = True
                     break
                 self._dispatch()
@@ -401,3 +514,15 @@ class Agent:
                         f"{item.performative.value} not expected in state {self.state}",
                         item.msg,
                     )
+
+
+def _roles(spec: SystemSpec, agent: str) -> dict[tuple[str, str], Role]:
+    """``agent``'s role per (peer, protocol), from the channels' protocols' initiators."""
+    out: dict[tuple[str, str], Role] = {}
+    for ch in spec.channels:
+        if agent not in ch.ends:
+            continue
+        peer = ch.ends[1] if ch.ends[0] == agent else ch.ends[0]
+        for cp in ch.protocols:
+            out[(peer, cp.protocol)] = INITIATOR if cp.initiator == agent else PARTICIPANT
+    return out

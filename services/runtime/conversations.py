@@ -1,14 +1,45 @@
-"""Conversation tracking: pending replies identified by reply-with, and reply-by deadlines.
+"""Conversation tracking: pending replies and reply-by deadlines, and the protocol state of
+every conversation.
 
 When an agent sends a communicate with ``reply_with`` and ``reply_by``, it waits for a reply
 whose ``in-reply-to`` matches. If the deadline passes first, the runtime places a local
 ``failure`` (reason ``reply-by deadline passed``) in the agent's input buffer, so every
-conversation ends (FIPA SC00061 §2.4: reply-by).
+conversation ends (FIPA SC00061 §2.4: reply-by). :class:`Conversations` keeps those waits.
+
+Every communicate sent or received must also be allowed in its conversation's current
+protocol state (FIPA SC00026/27/35 and the paper's coordinate protocol, §5.4; issue 5).
+:class:`CrossingTracker` follows one conversation through its protocol's state machine
+(:mod:`shared.fipa_codec.protocols`) while tolerating communicates that crossed on the wire;
+:func:`follow` adds what a conversation-id's life brings (a retry reusing it, a
+not-understood ending it); :class:`ProtocolStates` holds one tracker per peer and
+conversation-id for an agent, in bounded memory. ``services.spec.conformance`` follows
+recorded traffic with the same tracker.
 """
 
 from __future__ import annotations
 
+from collections import OrderedDict
 from dataclasses import dataclass
+from typing import Literal
+
+from shared.fipa_codec.acts import Performative
+from shared.fipa_codec.languages import (  # noqa: F401  (importing a language registers it)
+    LANGUAGES,
+    l_ex,
+    l_hc,
+    l_hfsm,
+    l_sd,
+    l_sw,
+    l_wm,
+)
+from shared.fipa_codec.protocols import (
+    INITIATOR,
+    PARTICIPANT,
+    PROTOCOLS,
+    Protocol,
+    ProtocolViolation,
+    Role,
+)
 
 FINAL_REPLIES = frozenset(
     {"inform", "inform-ref", "inform-if", "failure", "refuse", "not-understood", "disconfirm", "confirm"}
@@ -76,3 +107,449 @@ class Conversations:
 
     def __len__(self) -> int:
         return len(self._pending)
+
+
+ONTOLOGY = "O_RoCo"
+"""The ontology of every content language of the Robot Companion (paper §5.6)."""
+
+
+def expected_ontology(language: str) -> str:
+    """The ontology a communicate in content language ``language`` must name (FIPA SC00061
+    §2.3: the ``ontology`` parameter gives meaning to the content's symbols): the language's
+    own (all of roco's are O_RoCo), or O_RoCo for a language roco does not know."""
+    known = LANGUAGES.get(language)
+    return known.ontology if known is not None else ONTOLOGY
+
+
+# ---------------------------------------------------------------------------------------------
+# Protocol state per conversation (issue 5, "at run time": the performative must be allowed in
+# the conversation's current protocol state), tolerant of communicates crossing on the wire.
+
+Step = tuple[Role, Performative, bool | None]
+"""One communicate as the protocol sees it: (sender's role, performative, terminal), where
+``terminal`` says whether an ``inform`` reports a terminal L_SW state (None: not known, either
+reading is tried)."""
+
+FORGOTTEN = "unknown"
+"""The state of a conversation the tracker never saw begin, entered by a ``cancel`` for it
+(the cancel of a conversation that ended long ago, or before a restart)."""
+
+_CANCEL_ENDS = frozenset({"cancelled", "cancel-failed", "not-understood"})
+"""Final states a late cancel cannot follow: the conversation already ended by a cancel or by
+not-understood."""
+
+
+class ConversationError(ValueError):
+    """A communicate that cannot belong to the conversation it names (another protocol)."""
+
+
+@dataclass(frozen=True)
+class Position:
+    """Where a reading of a conversation stands: the protocol ``state``; ``owed`` True
+    while a late cancel waits for the participant's answer; ``resume`` the state a pending
+    ``cancel`` left, where the conversation goes on if the participant fails to cancel."""
+
+    state: str
+    owed: bool = False
+    resume: str | None = None
+
+
+@dataclass(frozen=True)
+class Reading:
+    """One order of a conversation's communicates that its protocol allows.
+
+    Communicates of the two parties may cross on the wire: a party sends before it has seen
+    what the other sent. A reading keeps the settled prefix as a :class:`Position` (``base``)
+    and the trailing ``run`` of communicates from one side (``side``) that the other side
+    may not have seen when it sent its next communicate; that next communicate may be placed
+    before any suffix of the run. The run's ``terminal`` flags are resolved."""
+
+    base: Position
+    side: Role | None = None
+    run: tuple[Step, ...] = ()
+
+
+class CrossingTracker:
+    """Follows one conversation through ``protocol`` like
+    :class:`~shared.fipa_codec.protocols.ConversationTracker`, but accepts a communicate
+    when *some* order of the communicates consistent with the wire allows it.
+
+    Two parties' communicates may cross (FIPA SC00026 §2, SC00027 §2, SC00035 §2: a
+    ``cancel`` may cross the participant's outcome, an ``agree`` or a subscription's
+    ``inform``). A communicate is accepted when the protocol allows it in arrival order, or
+    placed before a suffix of the other side's latest communicates (it was sent before
+    those arrived). Each sender's own communicates keep their order. The tracker keeps every
+    such reading (up to ``max_readings``) and rejects a communicate only when none allows it.
+
+    The cancel meta-protocol is followed a little further than the state machine does:
+
+    - a ``cancel`` that crossed the participant's outcome arrives after the conversation
+      ended (a *late cancel*), or names a conversation the tracker never saw (one that ended
+      long ago): the participant may answer it once, with ``inform`` or ``failure``, or not;
+    - a ``failure`` answering a ``cancel`` (could not cancel) leaves the conversation going
+      on from where the cancel found it, as well as ending it (both readings are kept).
+
+    ``local_role`` is the role of the agent that tracks the conversation (None for an
+    observer of the wire, e.g. the traffic recorder). Its own communicates are placed like
+    the other side's (its code may act before it reads what already arrived in its input
+    buffer), but an own ``cancel`` after the conversation ended is never taken as a late
+    cancel: the agent cannot have sent it before the end it caused or received.
+    """
+
+    def __init__(
+        self,
+        protocol: Protocol | str,
+        *,
+        local_role: Role | None = None,
+        max_run: int = 16,
+        max_readings: int = 16,
+    ) -> None:
+        if isinstance(protocol, str):
+            if protocol not in PROTOCOLS:
+                raise ValueError(f"unknown interaction protocol {protocol!r}; known: {', '.join(PROTOCOLS)}")
+            protocol = PROTOCOLS[protocol]
+        self.protocol = protocol
+        self.local_role = local_role
+        self.max_run = max_run
+        self.max_readings = max_readings
+        self.readings: tuple[Reading, ...] = (Reading(Position(protocol.initial)),)
+        self.messages = 0
+        self.crossings = 0
+        """Communicates accepted only in an order other than their arrival (or as a late
+        cancel and its answer)."""
+        self.aborted = False
+        """True once a not-understood ended the conversation (see :meth:`abort`)."""
+
+    def copy(self) -> CrossingTracker:
+        """An independent copy (readings are immutable, so this is cheap)."""
+        other = CrossingTracker.__new__(CrossingTracker)
+        other.__dict__.update(self.__dict__)
+        return other
+
+    # ---- state -------------------------------------------------------------------------
+    @property
+    def state(self) -> str:
+        """The current state of the first (most in-order) reading."""
+        return self._current(self.readings[0]).state
+
+    @property
+    def states(self) -> frozenset[str]:
+        """The current states of all readings."""
+        return frozenset(p.state for p in self._positions())
+
+    def _positions(self) -> list[Position]:
+        return [p for r in self.readings for p in self._replay(r.base, r.run)]
+
+    def _ended(self, p: Position) -> bool:
+        return (p.state in self.protocol.final or p.state == FORGOTTEN) and not p.owed
+
+    @property
+    def is_finished(self) -> bool:
+        """True when every reading has ended (a final state, no cancel waiting for its
+        answer), or a not-understood ended the conversation."""
+        return self.aborted or all(self._ended(p) for p in self._positions())
+
+    @property
+    def may_be_finished(self) -> bool:
+        """True when some reading has ended (see :attr:`is_finished`)."""
+        return self.aborted or any(self._ended(p) for p in self._positions())
+
+    def is_opener(self, role: Role | str, performative: Performative | str) -> bool:
+        """True when ``performative`` from ``role`` opens a conversation of this protocol."""
+        if role not in (INITIATOR, PARTICIPANT):
+            return False
+        first = self.protocol.next_state(self.protocol.initial, _role(role), Performative(performative))
+        return first is not None
+
+    def abort(self) -> None:
+        """A not-understood ended the conversation (FIPA SC00037 §3.12): it is no longer
+        followed; later communicates in it are not checked."""
+        self.aborted = True
+
+    def forgotten(self) -> None:
+        """Begin with a ``cancel`` of a conversation never seen: the participant may answer it
+        once (``failure``: nothing to cancel). Only for a tracker that has seen nothing."""
+        assert self.messages == 0
+        self.readings = (Reading(Position(FORGOTTEN, owed=True)),)
+        self.messages = 1
+        self.crossings = 1
+
+    # ---- advancing ---------------------------------------------------------------------
+    def step(
+        self, role: Role | str, performative: Performative | str, *, terminal: bool | None = False
+    ) -> str:
+        """Record that ``role`` sent ``performative`` (``terminal`` as in
+        :meth:`ConversationTracker.step`; None when unknown). Returns the new state of the
+        first reading. Raises ProtocolViolation (describing the arrival-order reading) when
+        no reading allows it; the tracker is then unchanged."""
+        if role not in (INITIATOR, PARTICIPANT):
+            raise ValueError(f"role must be 'initiator' or 'participant', not {role!r}")
+        s: Step = (_role(role), Performative(performative), terminal)
+        own = self.local_role is not None and s[0] == self.local_role
+        found: list[Reading] = []
+        in_order = False
+        for reading in self.readings:
+            for candidate, plain in self._extend(reading, s, own):
+                in_order = in_order or plain
+                if candidate not in found:
+                    found.append(candidate)
+        if not found:
+            state = self.state
+            raise ProtocolViolation(
+                self.protocol.name,
+                state,
+                s[0],
+                s[1],
+                self.protocol.allowed(state) if state in self.protocol.states else [],
+                finished=state in self.protocol.final or state == FORGOTTEN,
+            )
+        self.readings = tuple(found[: self.max_readings])
+        self.messages += 1
+        if not in_order:
+            self.crossings += 1
+        return self.state
+
+    def _extend(self, r: Reading, s: Step, own: bool) -> list[tuple[Reading, bool]]:
+        """The readings after ``s`` joins ``r``, each with True when ``s`` was appended in
+        arrival order under the plain protocol."""
+        out: list[tuple[Reading, bool]] = []
+        if r.side is None or r.side == s[0] or not r.run:
+            # same side as the run (or none): s follows the run, as each sender's own
+            # communicates arrive in the order they were sent
+            for cur in self._replay(r.base, r.run):
+                for _, done, plain in self._advance(cur, s, late_ok=not own):
+                    out.append((self._trim(Reading(r.base, s[0], (*r.run, done))), plain))
+            return out
+        # s is from the other side: it may have been sent before any suffix of the run arrived
+        for i in range(len(r.run), -1, -1):
+            for before in self._replay(r.base, r.run[:i]):
+                for nxt, done, plain in self._advance(before, s, late_ok=not own):
+                    if i == len(r.run):
+                        out.append((Reading(before, s[0], (done,)), plain))
+                    elif self._replay(nxt, r.run[i:]):
+                        out.append((Reading(nxt, r.side, r.run[i:]), False))
+        return out
+
+    def _advance(self, at: Position, s: Step, *, late_ok: bool) -> list[tuple[Position, Step, bool]]:
+        """The ways ``s`` may follow ``at``: each the next position, ``s`` with its
+        ``terminal`` flag resolved, and True when the plain protocol allows it (False for a
+        late cancel, its answer, or a failed cancel resuming the conversation)."""
+        role, perf, terminal = s
+        out: list[tuple[Position, Step, bool]] = []
+        for flag in (False, True) if terminal is None else (terminal,):
+            nxt = self.protocol.next_state(at.state, role, perf, flag)
+            if nxt is None or any(p.state == nxt for p, _, _ in out):
+                continue
+            resume = at.resume
+            if nxt == "cancelling" and at.state != "cancelling":
+                resume = at.state
+            elif nxt != "cancelling":
+                resume = None
+            out.append((Position(nxt, at.owed, resume), (role, perf, flag), True))
+            if nxt == "cancel-failed" and at.resume is not None:
+                # could not cancel: the conversation goes on where the cancel found it
+                out.append((Position(at.resume, at.owed), (role, perf, flag), True))
+        if out:
+            return out
+        done: Step = (role, perf, bool(terminal))
+        if at.owed and role == PARTICIPANT and perf in (Performative.INFORM, Performative.FAILURE):
+            return [(Position(at.state), done, False)]  # the answer to a late cancel
+        if (
+            late_ok
+            and not at.owed
+            and role == INITIATOR
+            and perf is Performative.CANCEL
+            and at.state in self.protocol.final
+            and at.state not in _CANCEL_ENDS
+            and "cancelling" in self.protocol.states
+        ):
+            return [(Position(at.state, owed=True), done, False)]  # a cancel that crossed the outcome
+        return []
+
+    def _replay(self, at: Position, steps: tuple[Step, ...]) -> list[Position]:
+        """The positions after ``steps`` (``terminal`` flags resolved) from ``at``; empty
+        when the protocol does not allow them."""
+        positions = [at]
+        for s in steps:
+            positions = list(
+                dict.fromkeys(p for q in positions for p, _, _ in self._advance(q, s, late_ok=True))
+            )
+            if not positions:
+                break
+        return positions
+
+    def _current(self, r: Reading) -> Position:
+        positions = self._replay(r.base, r.run)
+        return positions[0] if positions else r.base
+
+    def _trim(self, r: Reading) -> Reading:
+        """Settle the oldest communicates of a run longer than ``max_run`` (bounded memory:
+        a crossing over more than ``max_run`` communicates is not tolerated)."""
+        if len(r.run) <= self.max_run:
+            return r
+        cut = len(r.run) - self.max_run
+        settled = self._replay(r.base, r.run[:cut])
+        return Reading(settled[0], r.side, r.run[cut:]) if settled else r
+
+
+def _role(role: str) -> Role:
+    return INITIATOR if role == INITIATOR else PARTICIPANT
+
+
+Outcome = Literal["step", "crossing", "forgotten", "restart", "aborted", "unchecked"]
+"""What :func:`follow` did with a communicate."""
+
+
+def follow(
+    tracker: CrossingTracker | None,
+    protocol: Protocol | str,
+    role: Role,
+    performative: Performative,
+    *,
+    terminal: bool | None = False,
+    local_role: Role | None = None,
+) -> tuple[CrossingTracker, Outcome]:
+    """Advance a conversation by one communicate of ``protocol`` (a state machine, or a
+    name in :data:`~shared.fipa_codec.protocols.PROTOCOLS`) sent by ``role``.
+
+    Returns the conversation's tracker (a new one when ``tracker`` is None or the
+    communicate opens the conversation anew) and what happened:
+
+    - ``step``: allowed in arrival order; ``crossing``: allowed only as crossing an
+      earlier communicate on the wire;
+    - ``forgotten``: a ``cancel`` received for a conversation never seen (it ended long
+      ago, or before a restart): the participant may answer it with ``failure``;
+    - ``restart``: an opening communicate (e.g. ``subscribe``) that the current state does
+      not allow starts the conversation anew: a retry, or a peer that restarted and reuses
+      the conversation-id;
+    - ``aborted``: a ``not-understood``: the conversation ends and is no longer followed
+      (FIPA SC00037 §3.12); ``unchecked``: a communicate after that.
+
+    ``tracker`` is changed in place. Raises ProtocolViolation when the communicate is not
+    allowed in the conversation's state, ConversationError when the conversation follows
+    another protocol and the communicate does not open a new one.
+    """
+    if tracker is None:
+        tracker = CrossingTracker(protocol, local_role=local_role)
+        if performative is Performative.CANCEL and role == INITIATOR and local_role != INITIATOR:
+            tracker.forgotten()
+            return tracker, "forgotten"
+    if performative is Performative.NOT_UNDERSTOOD:
+        tracker.abort()
+        return tracker, "aborted"
+    fresh = CrossingTracker(protocol, local_role=local_role)
+    opener = fresh.is_opener(role, performative)
+    name = fresh.protocol.name
+    if tracker.protocol.name != name:
+        if not opener:
+            raise ConversationError(
+                f"the conversation follows {tracker.protocol.name}, not {name}; "
+                f"{performative.value} does not open a {name} conversation"
+            )
+        fresh.step(role, performative, terminal=terminal)
+        return fresh, "restart"
+    if tracker.aborted:
+        if opener:
+            fresh.step(role, performative, terminal=terminal)
+            return fresh, "restart"
+        return tracker, "unchecked"
+    crossings = tracker.crossings
+    try:
+        tracker.step(role, performative, terminal=terminal)
+    except ProtocolViolation:
+        if not opener:
+            raise
+        fresh.step(role, performative, terminal=terminal)
+        return fresh, "restart"
+    return tracker, "crossing" if tracker.crossings > crossings else "step"
+
+
+ConversationKey = tuple[str, str]
+"""(peer, conversation-id)."""
+
+
+class ProtocolStates:
+    """The protocol state of every conversation one agent takes part in, one
+    :class:`CrossingTracker` per (peer, conversation-id), for what it sends and receives.
+
+    Bounded memory: finished conversations (final state, or ended by not-understood) are
+    kept, the newest ``max_ended`` of them, for communicates that crossed their end on the
+    wire; open ones beyond ``max_open`` are forgotten oldest first. A forgotten
+    conversation starts again from its protocol's initial state.
+
+    Changes made during one elementary action can be undone (:meth:`rollback`) when the
+    transition function fails and its output buffer is dropped; :meth:`commit` keeps them.
+    """
+
+    def __init__(self, max_open: int = 1024, max_ended: int = 512) -> None:
+        self.max_open = max_open
+        self.max_ended = max_ended
+        self._open: OrderedDict[ConversationKey, CrossingTracker] = OrderedDict()
+        self._ended: OrderedDict[ConversationKey, CrossingTracker] = OrderedDict()
+        self._undo: dict[ConversationKey, CrossingTracker | None] = {}
+        self.forgotten_open = 0
+        """Open conversations forgotten because more than ``max_open`` were open."""
+
+    def get(self, peer: str, conversation_id: str) -> CrossingTracker | None:
+        """The tracker of a conversation, or None when unknown or forgotten."""
+        key = (peer, conversation_id)
+        return self._open.get(key) or self._ended.get(key)
+
+    def observe(
+        self,
+        peer: str,
+        conversation_id: str,
+        protocol: str,
+        role: Role,
+        performative: Performative,
+        *,
+        local_role: Role,
+        terminal: bool | None = False,
+    ) -> Outcome:
+        """Follow one communicate sent by ``role`` (the agent's own when ``role ==
+        local_role``) in conversation ``conversation_id`` with ``peer``; see :func:`follow`
+        for the outcome and the exceptions (the table is unchanged when one is raised)."""
+        key = (peer, conversation_id)
+        old = self.get(peer, conversation_id)
+        work = old.copy() if old is not None else None
+        tracker, outcome = follow(
+            work, protocol, role, performative, terminal=terminal, local_role=local_role
+        )
+        if key not in self._undo:
+            self._undo[key] = old
+        self._put(key, tracker)
+        return outcome
+
+    def _put(self, key: ConversationKey, tracker: CrossingTracker) -> None:
+        self._open.pop(key, None)
+        self._ended.pop(key, None)
+        if tracker.is_finished:
+            self._ended[key] = tracker
+            while len(self._ended) > self.max_ended:
+                self._ended.popitem(last=False)
+        else:
+            self._open[key] = tracker
+            while len(self._open) > self.max_open:
+                self._open.popitem(last=False)
+                self.forgotten_open += 1
+
+    def commit(self) -> None:
+        """Keep the changes since the last commit (the output buffer was dispatched)."""
+        self._undo.clear()
+
+    def rollback(self) -> None:
+        """Undo the changes since the last commit (the output buffer was dropped)."""
+        for key, old in self._undo.items():
+            self._open.pop(key, None)
+            self._ended.pop(key, None)
+            if old is not None:
+                self._put(key, old)
+        self._undo.clear()
+
+    def __len__(self) -> int:
+        return len(self._open) + len(self._ended)
+
+    @property
+    def open_count(self) -> int:
+        """Conversations not yet finished."""
+        return len(self._open)

@@ -417,6 +417,7 @@ def _communicate(perf: Performative, conversation_id: str, content: Any = None) 
             content=body,
             language=language,
             encoding="msgpack" if body else None,
+            ontology="O_RoCo" if body else None,
             protocol="fipa-request",
             conversation_id=conversation_id,
         )

@@ -75,3 +75,12 @@ def test_progress_was_printed_as_it_happened(pour_run: tuple) -> None:
     assert "plan #1 requested" in out and "plan #2 requested" in out
     assert "Replan" in out and "Succeeded" in out
     assert out.index("plan #1 requested") < out.index("Replan") < out.index("plan #2 requested")
+
+
+def test_roco_spec_verify_reports_full_conformance_of_the_pour(pour_run: tuple) -> None:
+    _, run_dir = pour_run
+    proc = subprocess.run(
+        [sys.executable, "-m", "services.cli", "spec", "verify", str(run_dir)], capture_output=True, text=True
+    )
+    assert proc.returncode == 0, proc.stdout[-3000:]
+    assert "violations: none" in proc.stdout and "full conformance: yes" in proc.stdout

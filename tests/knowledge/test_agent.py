@@ -40,6 +40,9 @@ class Peer:
         self.bus = bus
         self.replies: queue.SimpleQueue[Communicate] = queue.SimpleQueue()
         bus.subscribe(keys.fipa_key("C4", "a_km", "a_pl"), lambda _k, p: self.replies.put(decode(p)))
+        self.subscribes: queue.SimpleQueue[Communicate] = queue.SimpleQueue()
+        bus.subscribe(keys.fipa_key("C6", "a_km", "a_ta"), lambda _k, p: self.subscribes.put(decode(p)))
+        self.agreed = False
         self.n = 0
 
     def _send(self, channel: str, sender: str, msg: Communicate) -> None:
@@ -58,6 +61,7 @@ class Peer:
             content=body,
             language=language,
             encoding="msgpack" if body else None,
+            ontology="O_RoCo" if body else None,
             protocol="fipa-query",
             conversation_id=f"q{self.n}",
             reply_with=f"q{self.n}",
@@ -70,7 +74,14 @@ class Peer:
         return reply, reply.content.decode() or None
 
     def update(self, update: WorldUpdate) -> None:
-        """Send an observation or asserted change as a_ta (in the subscription a_km opened)."""
+        """Send an observation or asserted change as a_ta (in the subscription a_km opened,
+        agreed to first, as fipa-subscribe has it)."""
+        if not self.agreed:
+            subscribe = self.subscribes.get(timeout=TIMEOUT_S)
+            while not self.subscribes.empty():  # a_km asked again meanwhile: answer its latest
+                subscribe = self.subscribes.get_nowait()
+            self._send("C6", "a_ta", subscribe.reply(Performative.AGREE, sender=AgentIdentifier("a_ta")))
+            self.agreed = True
         language, body = encode_content(update)
         self._send(
             "C6",
@@ -82,6 +93,7 @@ class Peer:
                 content=body,
                 language=language,
                 encoding="msgpack",
+                ontology="O_RoCo",
                 protocol="fipa-subscribe",
                 conversation_id="km-environment",
             ),

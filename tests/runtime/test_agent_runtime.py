@@ -71,6 +71,7 @@ def query(reply_with: str = "q1", **overrides: object) -> Communicate:
         receiver=(AgentIdentifier("a_km"),),
         content=body,
         language=lang,
+        ontology="O_RoCo",
         protocol="fipa-query",
         conversation_id="c1",
         reply_with=reply_with,
@@ -178,6 +179,7 @@ def test_liveliness_token_is_announced() -> None:
 def test_memory_bus_messages_are_valid_msgpack_communicates() -> None:
     bus = MemoryBus()
     agent = Counter(bus.transport())
+    agent._take(KEY, encode(query(conversation_id="x")))  # a reply needs a query (fipa-query)
     agent.send("a_pl", Performative.INFORM_REF, Answer(), protocol="fipa-query", conversation_id="x")
     agent._dispatch()
     ((key, payload),) = bus.published

@@ -47,6 +47,7 @@ def test_agent_process_answers_queries_and_rejects_garbage(fleet: tuple[Fleet, z
         receiver=(AgentIdentifier("a_km"),),
         content=body,
         language=lang,
+        ontology="O_RoCo",
         protocol="fipa-query",
         conversation_id="c",
         reply_with="q1",

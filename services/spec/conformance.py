@@ -1,0 +1,518 @@
+"""``roco spec verify RUN``: the recorded traffic of a run conforms to the specification.
+
+The paper's claim (§4 steps 3–4, §5.4) is that the implementation is verified against the
+specification. At run time every agent checks what it sends and receives
+(``services.runtime.agent``); this module checks, after the fact, everything the traffic
+recorder saw (``traffic.jsonl`` and ``traffic.msgpack`` of a run folder):
+
+Every communicate (FIPA SC00061):
+
+- it is a communicate (the payload decodes) and its key ``roco/fipa/<channel>/<sender>/<receiver>``
+  names its sender and one of its receivers;
+- a channel of the specification joins sender and receiver, and it is the key's channel;
+- its protocol is one of that channel's, and the sender's role in it (initiator or
+  participant) may send its performative (``not-understood`` always);
+- its content is in a language the specification gives for that performative, with the
+  language's ontology (O_RoCo), and decodes in it; or, for ``failure``, ``refuse`` and
+  ``not-understood``, it is a reason in UTF-8 text.
+
+Every conversation (one conversation-id between two agents) follows its interaction
+protocol's state machine (FIPA SC00026 fipa-request, SC00027 fipa-query, SC00035
+fipa-subscribe, the paper's coordinate protocol), message by message in arrival order, as
+:class:`~services.runtime.conversations.CrossingTracker` follows it: communicates of the two
+agents that crossed on the wire are tolerated, as are the cancel meta-protocol's late
+cancels; an opening communicate that reuses a conversation-id begins it anew; a
+``not-understood`` ends it (the rest of it is not followed). Conversations still open when the
+record ends are listed, not counted as violations: a subscription stays open by design, and a
+run cut short leaves others.
+
+:func:`verify_run` returns a :class:`ConformanceReport`; :func:`render` writes it as text;
+:func:`verify_report` is what the CLI prints.
+"""
+
+from __future__ import annotations
+
+from collections import Counter
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from services.report.load import Message, load_run
+from services.runtime import keys
+from services.runtime.conversations import (
+    ConversationError,
+    CrossingTracker,
+    expected_ontology,
+    follow,
+)
+from services.spec.model import (
+    DEFAULT_SPEC,
+    NOT_UNDERSTOOD,
+    ChannelSpec,
+    SpecError,
+    SystemSpec,
+    channel_between,
+    interface,
+    load,
+)
+from shared.fipa_codec import Performative
+from shared.fipa_codec.languages import ContentError, decode_content
+from shared.fipa_codec.protocols import (
+    INITIATOR,
+    PARTICIPANT,
+    PROTOCOLS,
+    Protocol,
+    ProtocolViolation,
+    Role,
+    is_terminal_report,
+)
+
+__all__ = [
+    "KINDS",
+    "ConformanceReport",
+    "ConversationResult",
+    "Violation",
+    "render",
+    "verify_report",
+    "verify_run",
+]
+
+_REASONS = frozenset({"failure", "refuse", NOT_UNDERSTOOD})
+"""Performatives whose content may be a plain UTF-8 reason instead of a language term."""
+
+KINDS = {
+    "malformed": "the payload is not a communicate",
+    "key": "the key does not name the communicate's sender and receiver",
+    "channel": "no channel of the specification joins the agents, or another channel does",
+    "performative": "the protocol or performative is not allowed for the sender's role there",
+    "language": "the content language is not the one specified",
+    "ontology": "the ontology is not the content language's",
+    "content": "the content does not decode in its language",
+    "protocol-state": "the performative is not allowed in the conversation's protocol state",
+    "conversation": "the communicate cannot belong to its conversation",
+}
+"""The kinds of violation, with what each means."""
+
+
+@dataclass(frozen=True)
+class Violation:
+    """One communicate that falls outside the specification.
+
+    ``seq``: its index in the traffic record (arrival order at the recorder); ``t``: its time
+    in s since the run began; ``kind``: one of :data:`KINDS`; ``conversation``: its
+    conversation-id (None: none); ``position``: its index (0-based) within that conversation
+    (None: not in one); ``text``: what is wrong, for a person (for ``protocol-state``, the
+    state machine's own message)."""
+
+    seq: int
+    t: float
+    kind: str
+    channel: str
+    sender: str
+    receiver: str
+    performative: str
+    protocol: str | None
+    conversation: str | None
+    position: int | None
+    text: str
+
+
+@dataclass
+class ConversationResult:
+    """One conversation as followed: its ``conversation_id``, the two ``agents`` (initiator
+    first when known), ``protocol``, number of ``messages``, final ``state`` (the first
+    reading's; see :class:`~services.runtime.conversations.CrossingTracker`), whether it
+    ``ended`` (some reading reached a final state), ``violations`` in it, ``crossings``
+    tolerated, ``restarts`` (an opening communicate reused its id), ``not_understood`` True
+    when a not-understood ended it, and the times ``first_t``/``last_t`` (s since run start)."""
+
+    conversation_id: str
+    agents: tuple[str, str]
+    protocol: str
+    messages: int = 0
+    state: str = ""
+    ended: bool = False
+    violations: int = 0
+    crossings: int = 0
+    restarts: int = 0
+    not_understood: bool = False
+    first_t: float = 0.0
+    last_t: float = 0.0
+
+    @property
+    def open_by_design(self) -> bool:
+        """True for a subscription still active: it lasts as long as the system runs."""
+        return self.protocol == "fipa-subscribe" and not self.ended
+
+
+@dataclass
+class ConformanceReport:
+    """What :func:`verify_run` found in one run folder.
+
+    ``communicates``: records checked; ``conversations``: every conversation followed;
+    ``violations``: every communicate outside the specification, in arrival order;
+    ``unchecked``: communicates whose payload was missing, so only their record was checked;
+    ``not_understood``: the not-understood communicates (an agent refused something; each is
+    listed with its reason as a :class:`Violation`-shaped entry of kind ``not-understood``);
+    ``notes``: problems reading the run folder.
+    """
+
+    run_dir: Path
+    system: str
+    communicates: int = 0
+    conversations: list[ConversationResult] = field(default_factory=list)
+    violations: list[Violation] = field(default_factory=list)
+    unchecked: int = 0
+    not_understood: list[Violation] = field(default_factory=list)
+    notes: list[str] = field(default_factory=list)
+
+    @property
+    def per_protocol(self) -> dict[str, int]:
+        """Number of conversations per interaction protocol."""
+        return dict(sorted(Counter(c.protocol for c in self.conversations).items()))
+
+    @property
+    def conforming(self) -> int:
+        """Conversations none of whose communicates is a violation."""
+        return sum(1 for c in self.conversations if c.violations == 0)
+
+    @property
+    def open_conversations(self) -> list[ConversationResult]:
+        """Conversations no reading of which had ended when the record ended."""
+        return [c for c in self.conversations if not c.ended and not c.not_understood]
+
+    @property
+    def full_conformance(self) -> bool:
+        """True when communicates were recorded, every one was checked in full, and none is a
+        violation."""
+        return self.communicates > 0 and self.unchecked == 0 and not self.violations
+
+
+# ---------------------------------------------------------------------------------------------
+
+
+def verify_run(
+    run_dir: Path, spec: SystemSpec, *, protocols: Mapping[str, Protocol] | None = None
+) -> ConformanceReport:
+    """Check the recorded traffic of ``run_dir`` against ``spec`` (see the module docstring).
+
+    ``protocols`` maps protocol names to their state machines (default: the FIPA library
+    :data:`shared.fipa_codec.protocols.PROTOCOLS`); a protocol without one is checked per
+    communicate only. Raises FileNotFoundError when ``run_dir`` is not a folder; anything
+    unreadable inside it becomes a note (``services.report.load``)."""
+    machines = dict(PROTOCOLS if protocols is None else protocols)
+    data = load_run(Path(run_dir))
+    # the loader tries every content in its language, reasons in UTF-8 text too; the checks
+    # below judge content themselves, so its note on undecodable content is left out
+    notes = [n for n in data.notes if "not decodable in their language" not in n]
+    report = ConformanceReport(Path(run_dir), spec.system, notes=notes)
+    checker = _Checker(spec, machines, report)
+    for message in data.messages:
+        checker.check(message)
+    checker.finish()
+    return report
+
+
+Problem = tuple[str, str]
+"""(kind, text) of one violation."""
+
+
+class _Checker:
+    """Checks communicates one by one, in arrival order, and follows their conversations."""
+
+    def __init__(self, spec: SystemSpec, machines: dict[str, Protocol], report: ConformanceReport) -> None:
+        self.spec = spec
+        self.machines = machines
+        self.report = report
+        self.interfaces = {a.name: interface(spec, a.name) for a in spec.agents}
+        self.trackers: dict[tuple[str, frozenset[str]], CrossingTracker] = {}
+        self.results: dict[tuple[str, frozenset[str]], ConversationResult] = {}
+
+    # ---- one communicate -----------------------------------------------------------------
+    def check(self, m: Message) -> None:
+        self.report.communicates += 1
+        rec, comm = m.rec, m.comm
+        receiver = rec.receivers[0] if rec.receivers else "?"
+        problems: list[Problem] = []
+        result: ConversationResult | None = None
+        if rec.performative == "malformed":
+            problems.append(("malformed", f"the payload on {rec.key or '?'} is not a communicate"))
+        else:
+            if comm is None:
+                self.report.unchecked += 1
+            else:
+                receiver = self._key(m, problems)
+            spec_problems = self._spec_problems(m, rec.sender, receiver)
+            problems += spec_problems
+            # a communicate outside the sender's interface has no place in a protocol state
+            followed = not any(kind in ("channel", "performative") for kind, _ in spec_problems)
+            result = self._follow(m, rec.sender, receiver, problems, followed=followed)
+
+        def entry(kind: str, text: str) -> Violation:
+            return Violation(
+                seq=rec.seq,
+                t=m.t,
+                kind=kind,
+                channel=rec.channel,
+                sender=rec.sender,
+                receiver=receiver,
+                performative=rec.performative,
+                protocol=rec.protocol,
+                conversation=rec.conversation_id,
+                position=result.messages - 1 if result is not None else None,
+                text=text,
+            )
+
+        for kind, text in problems:
+            self.report.violations.append(entry(kind, text))
+            if result is not None:
+                result.violations += 1
+        if rec.performative == NOT_UNDERSTOOD:
+            reason = comm.content.decode("utf-8", "replace") if comm is not None else ""
+            self.report.not_understood.append(entry(NOT_UNDERSTOOD, reason))
+
+    def _key(self, m: Message, problems: list[Problem]) -> str:
+        """Check the key against the communicate; returns the receiver to judge it by."""
+        comm = m.comm
+        assert comm is not None
+        names = tuple(r.name for r in comm.receiver)
+        try:
+            channel, sender, receiver = keys.parse_fipa_key(m.rec.key)
+        except ValueError:
+            problems.append(("key", f"{m.rec.key!r} is not a communicate key roco/fipa/C/S/R"))
+            return names[0] if names else "?"
+        if comm.sender is None or comm.sender.name != sender:
+            who = comm.sender.name if comm.sender else "no sender"
+            problems.append(("key", f"the key names sender {sender}, the communicate {who}"))
+        if receiver not in names:
+            named = ", ".join(names) or "none"
+            problems.append(("key", f"the key names receiver {receiver}, the communicate {named}"))
+        if channel != m.rec.channel:
+            problems.append(("key", f"the key names channel {channel}, the record {m.rec.channel}"))
+        return receiver
+
+    def _spec_problems(self, m: Message, sender: str, receiver: str) -> list[Problem]:
+        """Everything about ``m`` the specification does not allow (paper §4 step 4: the
+        sender's interface yV̂, the receiver's xV̂, the languages yL̂/xL̂)."""
+        rec, comm = m.rec, m.comm
+        between = channel_between(self.spec, sender, receiver)
+        if between is None:
+            return [("channel", f"no channel of the specification joins {sender} and {receiver}")]
+        if between.name != rec.channel:
+            return [("channel", f"{sender} and {receiver} are joined by {between.name}, not {rec.channel}")]
+        perf, protocol = rec.performative, rec.protocol
+        if perf == NOT_UNDERSTOOD and protocol is None:
+            return []  # the answer to a payload that was no communicate: no protocol to name
+        if protocol not in {cp.protocol for cp in between.protocols}:
+            offered = ", ".join(cp.protocol for cp in between.protocols)
+            return [("performative", f"protocol {protocol} is not specified on {between.name} ({offered})")]
+        sends = [
+            k for k in self.interfaces[sender].sends if k.receiver == receiver and k.protocol == protocol
+        ]
+        kind = next((k for k in sends if k.performative == perf), None)
+        if kind is None:
+            role = _role_of(between, protocol, sender)
+            allowed = ", ".join(k.performative for k in sends)
+            return [
+                (
+                    "performative",
+                    f"the {role} of {protocol} on {between.name} ({sender}) may not send {perf} "
+                    f"(allowed: {allowed})",
+                )
+            ]
+        language = comm.language if comm is not None else rec.language
+        ontology = comm.ontology if comm is not None else rec.ontology
+        if comm is not None and comm.language is None and comm.encoding == "utf-8" and perf in _REASONS:
+            try:
+                comm.content.decode("utf-8")
+            except UnicodeDecodeError as exc:
+                return [("content", f"the reason is not UTF-8 text: {exc.reason}")]
+            return []
+        has_content = bool(comm.content) if comm is not None else language is not None
+        if has_content and language is None:
+            return [("language", f"{perf} carries content but names no language")]
+        if has_content and kind.languages and language not in kind.languages:
+            return [
+                (
+                    "language",
+                    f"{perf} in {protocol} on {between.name} must be in {'/'.join(kind.languages)}, "
+                    f"not {language}",
+                )
+            ]
+        problems: list[Problem] = []
+        if language is not None and ontology != expected_ontology(language):
+            needed = expected_ontology(language)
+            problems.append(("ontology", f"language {language} needs ontology {needed}, not {ontology}"))
+        if comm is not None and comm.content and language is not None:
+            try:
+                decode_content(language, comm.content)
+            except ContentError as exc:
+                problems.append(("content", str(exc)))
+        return problems
+
+    # ---- its conversation ----------------------------------------------------------------
+    def _follow(
+        self, m: Message, sender: str, receiver: str, problems: list[Problem], *, followed: bool
+    ) -> ConversationResult | None:
+        """Follow ``m`` in its conversation (``followed`` False: only count it there);
+        a state problem goes to ``problems``. Returns the conversation, None when ``m``
+        belongs to none."""
+        rec, comm = m.rec, m.comm
+        cid, protocol = rec.conversation_id, rec.protocol
+        if cid is None or protocol is None:
+            if protocol is not None and rec.performative != NOT_UNDERSTOOD:
+                problems.append(("conversation", f"a {protocol} communicate without conversation-id"))
+            return None
+        key = (cid, frozenset((sender, receiver)))
+        result = self.results.get(key)
+        if result is None:
+            initiator = self._initiator(sender, receiver, protocol)
+            other = receiver if initiator == sender else sender
+            result = ConversationResult(cid, (initiator, other), protocol, first_t=m.t)
+            self.results[key] = result
+            self.report.conversations.append(result)
+        result.messages += 1
+        result.last_t = m.t
+        machine = self.machines.get(protocol)
+        if not followed or machine is None:
+            return result
+        try:
+            performative = Performative(rec.performative)
+        except ValueError:
+            return result
+        role: Role = INITIATOR if sender == result.agents[0] else PARTICIPANT
+        terminal = is_terminal_report(comm) if comm is not None else None
+        try:
+            tracker, outcome = follow(self.trackers.get(key), machine, role, performative, terminal=terminal)
+        except ProtocolViolation as exc:
+            problems.append(("protocol-state", str(exc)))
+            return result
+        except ConversationError as exc:
+            problems.append(("conversation", str(exc)))
+            return result
+        self.trackers[key] = tracker
+        if outcome == "restart":
+            result.restarts += 1
+            result.protocol = protocol
+        elif outcome in ("crossing", "forgotten"):
+            result.crossings += 1
+        elif outcome == "aborted":
+            result.not_understood = True
+        return result
+
+    def _initiator(self, sender: str, receiver: str, protocol: str) -> str:
+        """The initiator of ``protocol`` between the agents by the specification; else the
+        sender of the conversation's first communicate."""
+        between = channel_between(self.spec, sender, receiver)
+        if between is not None:
+            for cp in between.protocols:
+                if cp.protocol == protocol:
+                    return cp.initiator
+        return sender
+
+    def finish(self) -> None:
+        """Note where every conversation stands at the end of the record."""
+        for key, result in self.results.items():
+            tracker = self.trackers.get(key)
+            if tracker is None:
+                result.state = "not followed"
+                result.ended = True  # nothing to say it is open
+                continue
+            result.state = "not-understood" if tracker.aborted else tracker.state
+            result.ended = tracker.may_be_finished
+
+
+def _role_of(channel: ChannelSpec, protocol: str | None, agent: str) -> str:
+    for cp in channel.protocols:
+        if cp.protocol == protocol:
+            return INITIATOR if cp.initiator == agent else PARTICIPANT
+    return "sender"
+
+
+# ---------------------------------------------------------------------------------------------
+
+
+def render(report: ConformanceReport, *, limit: int = 50) -> str:
+    """``report`` as text for a person: the counts, every violation (up to ``limit``), the
+    conversations left open, the not-understood answers, notes, and the verdict."""
+    lines = [f"Conformance of {report.run_dir} to the {report.system} specification"]
+    n_conv = len(report.conversations)
+    lines.append(f"communicates: {report.communicates} in {n_conv} conversations")
+    if report.per_protocol:
+        lines.append(
+            "conversations per protocol: " + ", ".join(f"{p} {n}" for p, n in report.per_protocol.items())
+        )
+    lines.append(f"conforming conversations: {report.conforming} of {n_conv}")
+    crossings = sum(c.crossings for c in report.conversations)
+    restarts = sum(c.restarts for c in report.conversations)
+    if crossings or restarts:
+        lines.append(
+            f"tolerated: {crossings} communicate(s) crossing on the wire, "
+            f"{restarts} conversation(s) begun anew under the same id"
+        )
+    if report.unchecked:
+        lines.append(f"unchecked: {report.unchecked} communicate(s) without payload (record checked only)")
+    if report.violations:
+        lines.append(f"violations: {len(report.violations)}")
+        for v in report.violations[:limit]:
+            lines.append("  " + _violation_line(v))
+        if len(report.violations) > limit:
+            lines.append(f"  … {len(report.violations) - limit} more")
+    else:
+        lines.append("violations: none")
+    still = report.open_conversations
+    if still:
+        lines.append(f"open at the end of the record: {len(still)}")
+        for c in still[:limit]:
+            why = " (a subscription stays open by design)" if c.open_by_design else ""
+            lines.append(
+                f"  {c.conversation_id} {c.agents[0]}→{c.agents[1]} {c.protocol} in state {c.state}, "
+                f"{c.messages} communicates, last at {c.last_t:.3f} s{why}"
+            )
+        if len(still) > limit:
+            lines.append(f"  … {len(still) - limit} more")
+    if report.not_understood:
+        lines.append(f"not-understood answers: {len(report.not_understood)}")
+        for v in report.not_understood[:limit]:
+            lines.append("  " + _violation_line(v))
+    for note in report.notes:
+        lines.append(f"note: {note}")
+    if report.full_conformance:
+        verdict = "yes"
+    elif report.communicates == 0:
+        verdict = "no (no communicates recorded)"
+    elif report.violations:
+        verdict = f"no ({len(report.violations)} violation(s))"
+    else:
+        verdict = f"no ({report.unchecked} communicate(s) could not be checked)"
+    lines.append(f"full conformance: {verdict}")
+    return "\n".join(lines)
+
+
+def _violation_line(v: Violation) -> str:
+    where = f"conversation {v.conversation}" if v.conversation else "no conversation"
+    if v.position is not None:
+        where += f" #{v.position}"
+    protocol = f" {v.protocol}" if v.protocol else ""
+    return (
+        f"seq {v.seq} t={v.t:.3f} s {v.channel} {v.sender}→{v.receiver} {v.performative}{protocol} "
+        f"({where}) [{v.kind}] {v.text}"
+    )
+
+
+def verify_report(run_dir: Path, spec_path: Path | None = None) -> tuple[bool, str]:
+    """``roco spec verify RUN``: (full conformance, the rendered report). ``spec_path``
+    None means the shipped specification. A run folder that does not exist or a
+    specification that does not load gives (False, the reason)."""
+    from services.spec.protocol_defs import protocols_of
+
+    try:
+        spec = load(spec_path) if spec_path is not None else load()
+        protocols = protocols_of(spec_path) if spec_path is not None else protocols_of(DEFAULT_SPEC)
+    except SpecError as exc:
+        return False, str(exc)
+    try:
+        report = verify_run(run_dir, spec, protocols=protocols)
+    except FileNotFoundError:
+        return False, f"{run_dir}: no such run folder"
+    return report.full_conformance, render(report)

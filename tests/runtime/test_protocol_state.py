@@ -1,0 +1,373 @@
+"""Every communicate is checked against its conversation's protocol state when sent and when
+received (issue 5, "at run time"; FIPA SC00026/27/35, paper §5.4): refused with
+not-understood, or not sent (SpecViolation), counted and logged. Crossings on the wire are
+tolerated. The agents are driven by hand on a MemoryBus: no threads, no sleeps."""
+
+from __future__ import annotations
+
+import logging
+from typing import Any
+
+import msgspec
+import pytest
+
+from services.runtime import keys
+from services.runtime.agent import Agent, SpecViolation
+from services.runtime.behaviour import FSM, Behaviour
+from services.runtime.conversations import CrossingTracker, ProtocolStates, follow
+from services.runtime.memory_transport import MemoryBus
+from shared.fipa_codec import AgentIdentifier, Communicate, Performative, decode, encode
+from shared.fipa_codec.languages import encode_content, language_of
+from shared.fipa_codec.languages.l_hc import CommandOutcome, HumanCommand, TaskAtom
+from shared.fipa_codec.languages.l_sw import SWState, SWStatus
+from shared.fipa_codec.languages.l_wm import Answer, ObjectQuery, Subscription, WorldUpdate
+from shared.fipa_codec.protocols import INITIATOR, PARTICIPANT, ProtocolViolation
+
+P = Performative
+INIT, PART = INITIATOR, PARTICIPANT
+
+
+# ---- the tracker ---------------------------------------------------------------------------
+
+
+def steps(protocol: str, *messages: tuple[str, Performative], local: str | None = None) -> CrossingTracker:
+    tracker = CrossingTracker(protocol, local_role=INIT if local == INIT else PART if local == PART else None)
+    for role, perf in messages:
+        tracker.step(role, perf)
+    return tracker
+
+
+def test_in_order_it_is_the_protocols_state_machine() -> None:
+    t = steps("fipa-request", (INIT, P.REQUEST), (PART, P.AGREE), (PART, P.INFORM))
+    assert t.state == "done" and t.is_finished and t.crossings == 0
+    with pytest.raises(ProtocolViolation, match="already ended in state 'done'"):
+        t.step(PART, P.INFORM)
+    with pytest.raises(ProtocolViolation, match="may not send 'inform' in state 'subscribed'"):
+        steps("fipa-subscribe", (INIT, P.SUBSCRIBE), (PART, P.INFORM))
+
+
+def test_an_outcome_crossing_a_cancel_and_the_late_answer_to_the_cancel() -> None:
+    # the participant's view: its inform went out before the cancel arrived
+    co = steps(
+        "fipa-request", (INIT, P.REQUEST), (PART, P.AGREE), (PART, P.INFORM), (INIT, P.CANCEL), local=PART
+    )
+    assert co.crossings == 1
+    co.step(PART, P.FAILURE)  # "nothing to cancel": the cancel meta-protocol's answer
+    assert co.is_finished
+    with pytest.raises(ProtocolViolation):
+        co.step(PART, P.FAILURE)  # but only once
+    # the initiator's view of the same: its cancel, then the outcome, then the late answer
+    hi = steps(
+        "fipa-request", (INIT, P.REQUEST), (PART, P.AGREE), (INIT, P.CANCEL), (PART, P.INFORM), local=INIT
+    )
+    hi.step(PART, P.FAILURE)
+    assert hi.is_finished
+
+
+def test_an_agents_own_communicates_keep_their_order() -> None:
+    # a received communicate may still wait unread in the input buffer when the agent
+    # sends, so its own may cross it; but never its own earlier ones
+    t = steps("fipa-request", (INIT, P.REQUEST), (PART, P.INFORM), local=PART)
+    with pytest.raises(ProtocolViolation, match="already ended in state 'done'"):
+        t.step(PART, P.AGREE)
+    hi = steps("fipa-request", (INIT, P.REQUEST), (PART, P.INFORM), local=INIT)
+    hi.step(INIT, P.CANCEL)  # sent before it read the inform: the inform answers it
+    assert hi.states == {"cancelled"}
+
+
+def test_an_agree_crossing_a_cancel_and_informs_crossing_a_subscription_cancel() -> None:
+    t = steps(
+        "fipa-request", (INIT, P.REQUEST), (INIT, P.CANCEL), (PART, P.AGREE), (PART, P.INFORM), local=INIT
+    )
+    assert t.state == "cancelled" and t.may_be_finished
+    s = steps(
+        "fipa-subscribe",
+        (INIT, P.SUBSCRIBE),
+        (PART, P.AGREE),
+        (INIT, P.CANCEL),
+        (PART, P.INFORM),  # a change reported before the cancel arrived
+        (PART, P.INFORM),  # another
+        (PART, P.INFORM),  # the answer to the cancel
+        local=INIT,
+    )
+    assert "cancelled" in s.states
+
+
+def test_a_failed_cancel_leaves_the_conversation_going() -> None:
+    t = steps(
+        "fipa-request", (INIT, P.REQUEST), (PART, P.AGREE), (INIT, P.CANCEL), (PART, P.FAILURE), local=PART
+    )
+    assert not t.is_finished and t.may_be_finished
+    t.step(PART, P.INFORM)  # the request was carried out after all
+    assert t.is_finished
+
+
+def test_a_cancel_of_a_conversation_never_seen_may_be_answered_once() -> None:
+    t, outcome = follow(None, "fipa-query", INIT, P.CANCEL, local_role=PART)
+    assert outcome == "forgotten" and not t.is_finished
+    follow(t, "fipa-query", PART, P.FAILURE, local_role=PART)
+    assert t.is_finished
+    with pytest.raises(ProtocolViolation):  # an inform in a conversation never opened
+        follow(None, "fipa-query", PART, P.INFORM, local_role=INIT)
+
+
+def test_an_opening_communicate_begins_a_conversation_anew_and_not_understood_ends_it() -> None:
+    t, _ = follow(None, "fipa-subscribe", INIT, P.SUBSCRIBE, local_role=INIT)
+    t, outcome = follow(t, "fipa-subscribe", INIT, P.SUBSCRIBE, local_role=INIT)  # a retry
+    assert outcome == "restart" and t.state == "subscribed"
+    t, outcome = follow(t, "fipa-subscribe", PART, P.NOT_UNDERSTOOD, local_role=INIT)
+    assert outcome == "aborted" and t.is_finished
+    assert follow(t, "fipa-subscribe", PART, P.INFORM, local_role=INIT)[1] == "unchecked"
+
+
+def test_a_long_subscription_keeps_bounded_memory() -> None:
+    t = steps("fipa-subscribe", (INIT, P.SUBSCRIBE), (PART, P.AGREE))
+    for _ in range(500):
+        t.step(PART, P.INFORM)
+    assert len(t.readings) == 1 and len(t.readings[0].run) <= t.max_run
+    t.step(INIT, P.CANCEL)
+    t.step(PART, P.INFORM)
+    assert t.may_be_finished
+
+
+def test_the_table_forgets_finished_conversations_and_bounds_open_ones() -> None:
+    table = ProtocolStates(max_open=3, max_ended=2)
+    for n in range(5):
+        table.observe("a_pl", f"q{n}", "fipa-query", INIT, P.QUERY_REF, local_role=PART)
+        table.observe("a_pl", f"q{n}", "fipa-query", PART, P.INFORM_REF, local_role=PART)
+    assert len(table) == 2 and table.open_count == 0
+    assert table.get("a_pl", "q4") is not None and table.get("a_pl", "q0") is None
+    for n in range(5):
+        table.observe("a_pl", f"o{n}", "fipa-query", INIT, P.QUERY_REF, local_role=PART)
+    assert table.open_count == 3 and table.forgotten_open == 2
+
+
+def test_the_table_rolls_back_what_a_failed_step_would_have_sent() -> None:
+    table = ProtocolStates()
+    table.observe("a_pl", "q", "fipa-query", INIT, P.QUERY_REF, local_role=PART)
+    table.commit()
+    table.observe("a_pl", "q", "fipa-query", PART, P.INFORM_REF, local_role=PART)
+    table.rollback()
+    tracker = table.get("a_pl", "q")
+    assert tracker is not None and tracker.state == "queried"
+
+
+# ---- the agent -----------------------------------------------------------------------------
+
+
+class Idle(Agent):
+    """An agent whose behaviour does nothing: the test drives acquisition and sending."""
+
+    def build_fsm(self) -> FSM:
+        return FSM(initial="idle", states={"idle": Behaviour("idle", lambda: None, terminal=lambda: False)})
+
+
+class Km(Idle):
+    name = "a_km"
+
+
+class Co(Idle):
+    name = "a_co"
+
+
+def communicate(
+    perf: Performative,
+    sender: str,
+    receiver: str,
+    protocol: str,
+    cid: str,
+    content: msgspec.Struct | None = None,
+    **overrides: Any,
+) -> Communicate:
+    language, body = encode_content(content) if content is not None else (None, b"")
+    fields: dict[str, Any] = dict(
+        performative=perf,
+        sender=AgentIdentifier(sender),
+        receiver=(AgentIdentifier(receiver),),
+        content=body,
+        language=language,
+        encoding="msgpack" if body else None,
+        ontology=language_of(content).ontology if content is not None else None,
+        protocol=protocol,
+        conversation_id=cid,
+        reply_with=f"{cid}-{perf.value}",
+    )
+    fields.update(overrides)
+    return Communicate(**fields)
+
+
+class Wire:
+    """One agent on a MemoryBus, with everything it publishes collected."""
+
+    def __init__(self, cls: type[Idle]) -> None:
+        self.bus = MemoryBus()
+        self.agent = cls(self.bus.transport())
+        self.out: list[Communicate] = []
+        self.bus.subscribe(keys.FIPA_ALL, lambda k, p: self.out.append(decode(p)))
+
+    def deliver(self, channel: str, msg: Communicate) -> None:
+        """Acquire ``msg`` as the agent's input buffer would, then dispatch the output buffer."""
+        assert msg.sender is not None
+        self.agent._take(keys.fipa_key(channel, msg.sender.name, self.agent.name), encode(msg))
+        self.agent.protocol_states.commit()
+        self.agent._dispatch()
+
+    def received(self) -> list[Communicate]:
+        return [m for m in (r.msg for r in self.agent.x)]
+
+    def answers(self) -> list[Communicate]:
+        return [m for m in self.out if m.sender is not None and m.sender.name == self.agent.name]
+
+
+def km_sends(w: Wire, perf: Performative) -> None:
+    """a_km sends ``perf`` in its environment subscription ``env`` to a_ta."""
+    w.agent.send("a_ta", perf, Subscription("environment"), protocol="fipa-subscribe", conversation_id="env")
+
+
+def test_an_inform_before_the_agree_gets_not_understood_counted_and_logged(
+    caplog: pytest.LogCaptureFixture,
+) -> None:
+    w = Wire(Km)
+    km_sends(w, P.SUBSCRIBE)
+    w.agent._dispatch()
+    update = WorldUpdate(stamp=1.0, objects=())
+    with caplog.at_level(logging.WARNING, logger="a_km"):
+        w.deliver("C6", communicate(P.INFORM, "a_ta", "a_km", "fipa-subscribe", "env", update))
+    (nu,) = [m for m in w.answers() if m.performative is P.NOT_UNDERSTOOD]
+    assert nu.conversation_id == "env" and nu.receiver[0].name == "a_ta"
+    assert nu.content.decode() == (
+        "fipa-subscribe: the participant may not send 'inform' in state 'subscribed'; allowed: "
+        "initiator cancel, initiator not-understood, participant agree, participant not-understood, "
+        "participant refuse"
+    )
+    assert w.agent.counters["protocol_violations"] == 1 and not w.agent.x
+    assert any("conversation env" in r.getMessage() and r.levelno == logging.WARNING for r in caplog.records)
+
+
+def test_a_second_agree_and_an_inform_in_a_conversation_never_opened_are_refused() -> None:
+    w = Wire(Km)
+    km_sends(w, P.SUBSCRIBE)
+    w.agent._dispatch()
+    w.deliver("C6", communicate(P.AGREE, "a_ta", "a_km", "fipa-subscribe", "env"))
+    w.deliver("C6", communicate(P.AGREE, "a_ta", "a_km", "fipa-subscribe", "env"))
+    update = WorldUpdate(stamp=1.0, objects=())
+    w.deliver("C6", communicate(P.INFORM, "a_ta", "a_km", "fipa-subscribe", "other", update))
+    refused = [m for m in w.answers() if m.performative is P.NOT_UNDERSTOOD]
+    assert [m.conversation_id for m in refused] == ["env", "other"]
+    assert "may not send 'agree' in state 'active'" in refused[0].content.decode()
+    assert refused[1].content.decode().startswith("no such conversation of a_km with a_ta")
+    assert w.agent.counters["protocol_violations"] == 2
+    assert [m.performative for m in w.received()] == [P.AGREE]
+
+
+def test_an_initiator_out_of_turn_in_coordinate_is_refused() -> None:
+    class Ta(Idle):
+        name = "a_ta"
+
+    w = Wire(Ta)
+    status = SWStatus(state=SWState.RUNNING)
+    w.deliver("C1", communicate(P.CONFIRM, "a_co", "a_ta", "coordinate", "exec1", status))
+    (nu,) = w.answers()
+    assert nu.performative is P.NOT_UNDERSTOOD
+    why = nu.content.decode()
+    assert "no such conversation" in why and "'confirm' in state 'start'" in why
+
+
+@pytest.mark.parametrize(
+    ("ontology", "why"),
+    [(None, "language L_WM needs ontology O_RoCo, not None"), ("SUMO", "not SUMO")],
+)
+def test_a_communicate_without_the_languages_ontology_gets_not_understood(
+    ontology: str | None, why: str
+) -> None:
+    w = Wire(Km)
+    query = communicate(P.QUERY_REF, "a_pl", "a_km", "fipa-query", "q", ObjectQuery("jar"), ontology=ontology)
+    w.deliver("C4", query)
+    (nu,) = w.answers()
+    assert nu.performative is P.NOT_UNDERSTOOD and why in nu.content.decode()
+    assert not w.agent.x and w.agent.counters["rejected"] == 1
+
+
+def test_sending_out_of_the_protocol_state_raises_and_is_counted() -> None:
+    w = Wire(Km)
+    with pytest.raises(SpecViolation, match="no such conversation of a_km with a_pl"):
+        w.agent.send("a_pl", P.INFORM_REF, Answer(), protocol="fipa-query", conversation_id="q")
+    w.deliver("C4", communicate(P.QUERY_REF, "a_pl", "a_km", "fipa-query", "q", ObjectQuery("jar")))
+    (item,) = list(w.agent.x)
+    w.agent.reply(item, P.INFORM_REF, Answer())
+    with pytest.raises(SpecViolation, match="already ended in state 'answered'"):
+        w.agent.reply(item, P.INFORM_REF, Answer())
+    with pytest.raises(SpecViolation, match="may not send 'agree'"):
+        w.agent.reply(item, P.AGREE)
+    assert w.agent.counters["send_violations"] == 3
+    w.agent._dispatch()
+    assert [m.performative for m in w.answers()] == [P.INFORM_REF]  # nothing refused was sent
+
+
+def test_a_cancel_that_crossed_the_outcome_reaches_the_agent_and_may_be_answered() -> None:
+    w = Wire(Co)
+    command = HumanCommand(text="pour", goal=TaskAtom("pour", ("jar", "bowl")))
+    request = communicate(P.REQUEST, "a_hi", "a_co", "fipa-request", "cmd", command)
+    w.deliver("C2", request)
+    item = w.agent.x.popleft()
+    w.agent.reply(item, P.AGREE)
+    w.agent.reply(item, P.INFORM, CommandOutcome(command_id="cmd", succeeded=True))
+    w.agent._dispatch()
+    w.deliver("C2", communicate(P.CANCEL, "a_hi", "a_co", "fipa-request", "cmd"))
+    (cancel,) = list(w.agent.x)
+    assert cancel.performative is P.CANCEL and w.agent.counters["crossings"] == 1
+    w.agent.fail(cancel, P.FAILURE, "no such command (it may have ended already)")
+    w.agent._dispatch()
+    assert [m.performative for m in w.answers()] == [P.AGREE, P.INFORM, P.FAILURE]
+    assert w.agent.counters["protocol_violations"] == 0
+
+
+def test_a_cancel_of_a_conversation_the_agent_never_saw_reaches_it() -> None:
+    w = Wire(Co)
+    w.deliver("C2", communicate(P.CANCEL, "a_hi", "a_co", "fipa-request", "gone"))
+    (cancel,) = list(w.agent.x)
+    w.agent.fail(cancel, P.FAILURE, "no such command")
+    assert w.agent.counters["protocol_violations"] == 0
+
+
+def test_after_a_not_understood_the_conversation_is_no_longer_followed() -> None:
+    w = Wire(Km)
+    km_sends(w, P.SUBSCRIBE)
+    w.agent._dispatch()
+    w.deliver("C6", communicate(P.NOT_UNDERSTOOD, "a_ta", "a_km", "fipa-subscribe", "env", encoding="utf-8"))
+    km_sends(w, P.CANCEL)
+    # and a new subscribe in the same conversation-id begins it anew (a retry)
+    km_sends(w, P.SUBSCRIBE)
+    tracker = w.agent.protocol_states.get("a_ta", "env")
+    assert tracker is not None and tracker.state == "subscribed"
+
+
+class Replier(Km):
+    """Answers each query, then raises once after answering: the answer is dropped with the
+    output buffer, and its protocol step is undone with it."""
+
+    def build_fsm(self) -> FSM:
+        self.raised = False
+        return FSM(initial="serve", states={"serve": Behaviour("serve", self._serve, terminal=lambda: False)})
+
+    def _serve(self) -> None:
+        for item in list(self.x):
+            self.reply(item, P.INFORM_REF, Answer())
+            if not self.raised:
+                self.raised = True
+                raise RuntimeError("a bug after the reply")
+            self.x.remove(item)
+            self.stop()
+
+
+def test_a_failing_transition_function_takes_back_its_protocol_steps() -> None:
+    bus = MemoryBus()
+    agent = Replier(bus.transport())
+    answers: list[Communicate] = []
+    bus.subscribe(keys.inbox_key("a_pl"), lambda k, p: answers.append(decode(p)))
+    agent.bind()
+    query = communicate(P.QUERY_REF, "a_pl", "a_km", "fipa-query", "q", ObjectQuery("jar"))
+    bus.publish(keys.fipa_key("C4", "a_pl", "a_km"), encode(query))
+    agent.run()  # first step raises after replying; the retry replies again and stops
+    assert agent.counters["behaviour_errors"] == 1 and agent.counters["send_violations"] == 0
+    assert [m.performative for m in answers] == [P.INFORM_REF]

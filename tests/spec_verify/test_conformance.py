@@ -1,0 +1,270 @@
+"""``roco spec verify RUN``: the recorded traffic of a run conforms to the specification
+(issue 5; paper §4 steps 3–4; FIPA SC00026/27/35 and the coordinate protocol, §5.4).
+
+A pour by the six agents on a MemoryBus conforms in full; traffic broken on purpose shows
+each violation, with its communicate, conversation and the state machine's own words."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import msgspec
+import pytest
+
+from services.recorder.record import TRAFFIC_RAW
+from services.recorder.recorder import TrafficWriter
+from services.runtime import keys
+from services.spec.conformance import ConformanceReport, render, verify_report, verify_run
+from services.spec.model import default_spec
+from shared.fipa_codec import AgentIdentifier, Communicate, Performative, encode
+from shared.fipa_codec.languages import encode_content, language_of
+from shared.fipa_codec.languages.l_hc import CommandOutcome, HumanCommand, ProgressSubscription, TaskAtom
+from shared.fipa_codec.languages.l_sw import SWState, SWStatus
+from shared.fipa_codec.languages.l_wm import Answer, ObjectQuery
+from tests.support.memory_fleet import MemoryFleet
+
+P = Performative
+
+
+def write_run(run_dir: Path, published: list[tuple[str, bytes]]) -> Path:
+    """Record ``published`` (key, payload) pairs as the traffic recorder would, 10 ms apart."""
+    writer = TrafficWriter(run_dir)
+    for i, (key, payload) in enumerate(published):
+        if key.startswith("roco/fipa/"):
+            writer.write(1000.0 + 0.01 * i, key, payload)
+    writer.close()
+    return run_dir
+
+
+@pytest.fixture(scope="module")
+def pour_run(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    with MemoryFleet() as fleet:
+        fleet.wait_for_initial_knowledge()
+        reports = fleet.command("pour the jar into the bowl")
+        assert reports[-1].kind.value == "succeeded"
+        published = list(fleet.bus.published)
+        violations = {a.name: a.counters["protocol_violations"] for a in fleet.agents}
+    assert set(violations.values()) == {0}  # and the runtime refused nothing either
+    return write_run(tmp_path_factory.mktemp("pour"), published)
+
+
+def test_the_traffic_of_a_pour_conforms_in_full(pour_run: Path) -> None:
+    report = verify_run(pour_run, default_spec())
+    assert report.full_conformance, render(report)
+    assert report.violations == [] and report.unchecked == 0 and report.not_understood == []
+    assert set(report.per_protocol) == {"fipa-request", "fipa-query", "fipa-subscribe", "coordinate"}
+    assert report.conforming == len(report.conversations)
+    assert report.communicates == sum(c.messages for c in report.conversations)
+    # only the subscriptions are left open, as they are by design
+    still = report.open_conversations
+    assert still and all(c.open_by_design for c in still)
+    assert {c.conversation_id for c in still} >= {"km-environment"}
+    ok, text = verify_report(pour_run, None)
+    assert ok and text.endswith("full conformance: yes")
+    assert "(a subscription stays open by design)" in text and "violations: none" in text
+
+
+# ---- traffic broken on purpose -----------------------------------------------------------------
+
+
+def comm(
+    perf: Performative,
+    sender: str,
+    receiver: str,
+    protocol: str | None,
+    cid: str | None,
+    term: msgspec.Struct | None = None,
+    **overrides: Any,
+) -> Communicate:
+    """A communicate with ``term`` as content (language and ontology from it), then
+    ``overrides`` of any field."""
+    language, body = encode_content(term) if term is not None else (None, b"")
+    fields: dict[str, Any] = dict(
+        performative=perf,
+        sender=AgentIdentifier(sender),
+        receiver=(AgentIdentifier(receiver),),
+        content=body,
+        language=language,
+        encoding="msgpack" if body else None,
+        ontology=language_of(term).ontology if term is not None else None,
+        protocol=protocol,
+        conversation_id=cid,
+    )
+    fields.update(overrides)
+    return Communicate(**fields)
+
+
+def on(channel: str, msg: Communicate) -> tuple[str, bytes]:
+    assert msg.sender is not None
+    return keys.fipa_key(channel, msg.sender.name, msg.receiver[0].name), encode(msg)
+
+
+COMMAND = HumanCommand(text="pour the jar into the bowl", goal=TaskAtom("pour", ("jar", "bowl")))
+OUTCOME = CommandOutcome(command_id="cmd-1", succeeded=True)
+
+
+def verify(tmp_path: Path, *published: tuple[str, bytes]) -> ConformanceReport:
+    return verify_run(write_run(tmp_path, list(published)), default_spec())
+
+
+def found(report: ConformanceReport) -> list[tuple[int, str, str | None, int | None]]:
+    return [(v.seq, v.kind, v.conversation, v.position) for v in report.violations]
+
+
+def test_a_conforming_request_with_its_crossings(tmp_path: Path) -> None:
+    report = verify(
+        tmp_path,
+        on("C2", comm(P.REQUEST, "a_hi", "a_co", "fipa-request", "cmd-1", COMMAND)),
+        on("C2", comm(P.AGREE, "a_co", "a_hi", "fipa-request", "cmd-1")),
+        on("C2", comm(P.INFORM, "a_co", "a_hi", "fipa-request", "cmd-1", OUTCOME)),
+        # the person's stop crossed the outcome; a_co answers it: nothing left to cancel
+        on("C2", comm(P.CANCEL, "a_hi", "a_co", "fipa-request", "cmd-1", COMMAND)),
+        on(
+            "C2",
+            comm(P.FAILURE, "a_co", "a_hi", "fipa-request", "cmd-1", content=b"no such", encoding="utf-8"),
+        ),
+    )
+    assert report.full_conformance, render(report)
+    (conversation,) = report.conversations
+    assert conversation.agents == ("a_hi", "a_co") and conversation.crossings == 2
+    assert conversation.ended and conversation.state == "done"
+
+
+def test_a_communicate_on_a_channel_that_does_not_join_its_agents(tmp_path: Path) -> None:
+    query = comm(P.QUERY_REF, "a_pl", "a_km", "fipa-query", "q1", ObjectQuery("jar"))
+    report = verify(
+        tmp_path,
+        (keys.fipa_key("C6", "a_pl", "a_km"), encode(query)),  # a_pl and a_km share C4
+        on("C2", comm(P.REQUEST, "a_hi", "a_km", "fipa-request", "r1", COMMAND)),  # no channel at all
+    )
+    assert found(report) == [(0, "channel", "q1", 0), (1, "channel", "r1", 0)]
+    assert report.violations[0].text == "a_pl and a_km are joined by C4, not C6"
+    assert report.violations[1].text == "no channel of the specification joins a_hi and a_km"
+    assert not report.full_conformance
+
+
+def test_performatives_outside_the_protocol_state(tmp_path: Path) -> None:
+    report = verify(
+        tmp_path,
+        # an inform before any request
+        on("C2", comm(P.INFORM, "a_co", "a_hi", "fipa-request", "cmd-1", OUTCOME)),
+        # an inform before the subscription is agreed
+        on("C2", comm(P.SUBSCRIBE, "a_hi", "a_co", "fipa-subscribe", "sub", ProgressSubscription())),
+        on("C2", comm(P.INFORM, "a_co", "a_hi", "fipa-subscribe", "sub", OUTCOME)),
+        # coordinate: a confirm before a_ta reported anything
+        on("C1", comm(P.REQUEST, "a_co", "a_ta", "coordinate", "exec", content=b"", language=None)),
+        on("C1", comm(P.CONFIRM, "a_co", "a_ta", "coordinate", "exec", SWStatus(state=SWState.RUNNING))),
+    )
+    assert found(report) == [
+        (0, "protocol-state", "cmd-1", 0),
+        (2, "protocol-state", "sub", 1),
+        (4, "protocol-state", "exec", 1),
+    ]
+    texts = [v.text for v in report.violations]
+    assert texts[0] == (
+        "fipa-request: the participant may not send 'inform' in state 'start'; allowed: initiator request"
+    )
+    assert texts[1].startswith("fipa-subscribe: the participant may not send 'inform' in state 'subscribed'")
+    assert texts[2].startswith("coordinate: the initiator may not send 'confirm' in state 'requested'")
+    by_id = {c.conversation_id: c for c in report.conversations}
+    assert by_id["sub"].violations == 1 and by_id["exec"].violations == 1
+    assert report.conforming == 0
+
+
+def test_content_in_the_wrong_language_or_ontology_or_not_decoding(tmp_path: Path) -> None:
+    status = SWStatus(state=SWState.IDLE)
+    lang, body = encode_content(ObjectQuery("jar"))
+    report = verify(
+        tmp_path,
+        on("C4", comm(P.QUERY_REF, "a_pl", "a_km", "fipa-query", "q1", status)),  # L_SW on C4
+        on("C4", comm(P.QUERY_REF, "a_pl", "a_km", "fipa-query", "q2", ObjectQuery("jar"), ontology=None)),
+        on(
+            "C4",
+            comm(
+                P.QUERY_REF,
+                "a_pl",
+                "a_km",
+                "fipa-query",
+                "q3",
+                content=b"\x91\x01",
+                language=lang,
+                ontology="O_RoCo",
+            ),
+        ),
+        on("C4", comm(P.QUERY_REF, "a_pl", "a_km", "fipa-query", "q4", content=body, language=None)),
+        on("C4", comm(P.INFORM_REF, "a_km", "a_pl", "fipa-query", "q2", Answer())),  # fine
+    )
+    assert found(report) == [
+        (0, "language", "q1", 0),
+        (1, "ontology", "q2", 0),
+        (2, "content", "q3", 0),
+        (3, "language", "q4", 0),
+    ]
+    texts = [v.text for v in report.violations]
+    assert texts[0] == "query-ref in fipa-query on C4 must be in L_WM, not L_SW"
+    assert texts[1] == "language L_WM needs ontology O_RoCo, not None"
+    assert texts[2].startswith("L_WM: ")
+    assert texts[3] == "query-ref carries content but names no language"
+
+
+def test_the_wrong_role_a_wrong_key_and_a_payload_that_is_no_communicate(tmp_path: Path) -> None:
+    query = comm(P.QUERY_REF, "a_pl", "a_km", "fipa-query", "q1", ObjectQuery("jar"))
+    report = verify(
+        tmp_path,
+        on("C4", comm(P.QUERY_REF, "a_km", "a_pl", "fipa-query", "q0", ObjectQuery("jar"))),
+        (keys.fipa_key("C4", "a_ta", "a_km"), encode(query)),
+        (keys.fipa_key("C4", "a_pl", "a_km"), b"\x93not a communicate"),
+    )
+    assert found(report) == [(0, "performative", "q0", 0), (1, "key", "q1", 0), (2, "malformed", None, None)]
+    assert report.violations[0].text == (
+        "the participant of fipa-query on C4 (a_km) may not send query-ref "
+        "(allowed: agree, refuse, failure, inform, inform-ref, not-understood)"
+    )
+    assert report.violations[1].text == "the key names sender a_ta, the communicate a_pl"
+
+
+def test_a_not_understood_ends_the_conversation_and_is_listed(tmp_path: Path) -> None:
+    report = verify(
+        tmp_path,
+        on("C4", comm(P.QUERY_REF, "a_pl", "a_km", "fipa-query", "q1", ObjectQuery("jar"))),
+        on(
+            "C4", comm(P.NOT_UNDERSTOOD, "a_km", "a_pl", "fipa-query", "q1", content=b"why", encoding="utf-8")
+        ),
+        on("C4", comm(P.INFORM_REF, "a_km", "a_pl", "fipa-query", "q1", Answer())),  # not followed
+    )
+    assert report.full_conformance
+    (nu,) = report.not_understood
+    assert (nu.seq, nu.sender, nu.text) == (1, "a_km", "why")
+    assert report.conversations[0].not_understood and report.open_conversations == []
+
+
+def test_the_rendered_report_names_each_violation(tmp_path: Path) -> None:
+    report = verify(
+        tmp_path,
+        on("C2", comm(P.SUBSCRIBE, "a_hi", "a_co", "fipa-subscribe", "sub", ProgressSubscription())),
+        on("C2", comm(P.INFORM, "a_co", "a_hi", "fipa-subscribe", "sub", OUTCOME)),
+    )
+    text = render(report)
+    assert (
+        "seq 1 t=0.010 s C2 a_co→a_hi inform fipa-subscribe (conversation sub #1) [protocol-state] "
+        "fipa-subscribe: the participant may not send 'inform' in state 'subscribed'"
+    ) in text
+    assert "open at the end of the record: 1" in text
+    assert text.endswith("full conformance: no (1 violation(s))")
+
+
+def test_missing_payloads_an_empty_record_and_no_folder_are_not_full_conformance(tmp_path: Path) -> None:
+    run = write_run(
+        tmp_path / "run", [on("C4", comm(P.QUERY_REF, "a_pl", "a_km", "fipa-query", "q", ObjectQuery("j")))]
+    )
+    (run / TRAFFIC_RAW).unlink()
+    report = verify_run(run, default_spec())
+    assert report.unchecked == 1 and report.violations == [] and not report.full_conformance
+    (tmp_path / "empty").mkdir()
+    ok, text = verify_report(tmp_path / "empty", None)
+    assert not ok and text.endswith("full conformance: no (no communicates recorded)")
+    ok, text = verify_report(tmp_path / "nowhere", None)
+    assert (ok, text) == (False, f"{tmp_path / 'nowhere'}: no such run folder")
+    ok, text = verify_report(run, tmp_path / "missing.toml")
+    assert not ok and "no such specification file" in text
