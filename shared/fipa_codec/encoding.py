@@ -2,16 +2,55 @@
 
 Decoding is strict: unknown performatives, wrong types or truncated bytes raise
 :class:`DecodeError`, never anything else. A maximum size guards against oversized input.
+
+The JSON encoding (for tools outside Python)
+    One JSON object per communicate, UTF-8, with the FIPA SC00061 §2 parameter names; a
+    parameter at its default is left out, and only ``performative`` is required. Fields:
+
+    ==================  ===========================================================================
+    ``performative``    string: one of the 22 acts of SC00037, lower case (``"query-ref"``)
+    ``sender``          agent identifier, or absent
+    ``receiver``        array of agent identifiers (default ``[]``)
+    ``reply-to``        array of agent identifiers (default ``[]``)
+    ``content``         string: the content **bytes in standard base64** (RFC 4648 §4, with
+                        padding); text content is its UTF-8 in base64, roco's msgpack content
+                        the msgpack bytes in base64 (default ``""``: no content)
+    ``language``        string (``"L_WM"``, ``"fipa-sl"``…), or absent
+    ``encoding``        string (roco's languages: ``"msgpack"``), or absent
+    ``ontology``        string, or absent
+    ``protocol``        string (``"fipa-request"``…), or absent
+    ``conversation-id`` string, or absent
+    ``reply-with``      string, or absent
+    ``in-reply-to``     string, or absent
+    ``reply-by``        number: POSIX time in seconds (UTC), finite, or absent
+    ``user-params``     object of string values whose keys start with ``X-`` or ``x-``
+                        (SC00061 user-defined parameters; default ``{}``)
+    ==================  ===========================================================================
+
+    An agent identifier (SC00023 §4) is an array ``[name, [address, …]]``; the address list
+    may be left out (``["a_km"]``). Names are roco agent names: a letter, then letters,
+    digits, ``_ . - @`` (at most 128 characters). Unknown object fields and trailing array
+    items are ignored, so that newer writers stay readable. Example::
+
+        {"performative":"inform","sender":["a_co",["tcp/127.0.0.1:7447"]],
+         "receiver":[["a_km",[]]],"content":"gaR0eXBl","language":"L_WM",
+         "reply-by":1795275000.123,"user-params":{"X-priority":"2"}}
+
+    :func:`json_schema` gives the same as a JSON Schema (2020-12) document.
 """
 
 from __future__ import annotations
+
+import math
+from typing import Any
 
 import msgspec
 
 from shared.fipa_codec.message import Communicate
 
 MAX_COMMUNICATE_BYTES = 8 * 1024 * 1024
-"""Largest communicate accepted by :func:`decode` (8 MiB; the paper's largest was 852 kB)."""
+"""Largest communicate accepted by :func:`decode` and :func:`decode_json` (8 MiB; the paper's
+largest was 852 kB)."""
 
 _mp_encoder = msgspec.msgpack.Encoder()
 _mp_decoder = msgspec.msgpack.Decoder(Communicate)
@@ -47,13 +86,31 @@ def decode(data: bytes | bytearray | memoryview, max_size: int = MAX_COMMUNICATE
 
 
 def encode_json(msg: Communicate) -> bytes:
-    """Encode ``msg`` as JSON with FIPA parameter names; content bytes become base64."""
+    """Encode ``msg`` as the JSON of the module docstring (UTF-8 bytes, one line).
+
+    Raises ValueError when ``reply_by`` is not finite: JSON has no NaN or infinity, and
+    writing ``null`` would read back as no ``reply-by`` at all.
+    """
+    if msg.reply_by is not None and not math.isfinite(msg.reply_by):
+        raise ValueError(f"reply-by {msg.reply_by!r} is not finite and has no JSON form")
     return _json_encoder.encode(msg)
 
 
-def decode_json(data: bytes | str) -> Communicate:
-    """Decode JSON produced by :func:`encode_json`. Raises DecodeError on bad input."""
+def decode_json(
+    data: bytes | bytearray | memoryview | str, max_size: int = MAX_COMMUNICATE_BYTES
+) -> Communicate:
+    """Decode the JSON of the module docstring (as written by :func:`encode_json` or any
+    other tool). Raises DecodeError when the input exceeds ``max_size`` (bytes or characters),
+    is not JSON, or does not match the structure (unknown performative, content not base64,
+    user parameter without ``X-``, bad agent name…)."""
+    if len(data) > max_size:
+        raise DecodeError(f"communicate of {len(data)} bytes exceeds the limit of {max_size}")
     try:
         return _json_decoder.decode(data)
     except (msgspec.DecodeError, msgspec.ValidationError, ValueError) as exc:
         raise DecodeError(str(exc).splitlines()[0]) from None
+
+
+def json_schema() -> dict[str, Any]:
+    """The JSON encoding as a JSON Schema (2020-12) document, for tools outside Python."""
+    return msgspec.json.schema(Communicate)

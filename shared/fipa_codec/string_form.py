@@ -1,6 +1,6 @@
 """The FIPA ACL string representation of a communicate (FIPA SC00070), and human one-liners.
 
-:func:`to_string` writes a :class:`Communicate` as the S-expression of FIPA SC00070 §2.1::
+:func:`to_string` writes a :class:`Communicate` as the S-expression of FIPA SC00070 §2.2::
 
     (query-ref
      :sender (agent-identifier :name a_pl :addresses (sequence tcp/127.0.0.1:7447))
@@ -10,17 +10,34 @@
      :reply-by 20261121T153000000Z :X-priority 2)
 
 and :func:`parse` reads it back; ``parse(to_string(m)) == m`` for every communicate ``m``
-whose ``reply_by`` is a whole number of milliseconds (see *Times* below).
+whose ``reply_by`` is a whole number of milliseconds (see *Times* below). :func:`parse` also
+reads what other FIPA platforms print (JADE's ``ACLMessage.toString`` layout among them),
+field for field, within the limits of roco's data model (see *Agent identifiers*).
 
-Content bytes (SC00070 §2.3, ``String = StringLiteral | ByteLengthEncodedString``)
-    * When the content is valid UTF-8 and contains no control character (Unicode category
-      ``Cc``: U+0000–U+001F, U+007F–U+009F), it is written as a ``StringLiteral``: the text
-      between double quotes, with ``"`` written ``\\"`` and ``\\`` written ``\\\\``. Parsing
-      a ``StringLiteral`` gives back its text encoded as UTF-8.
-    * Otherwise (in roco usually: msgpack content) it is written as a
-      ``ByteLengthEncodedString`` ``#<n>"<n octets>``, where ``n`` is the decimal count of
-      content bytes and the octets are the content bytes unchanged. Parsing one gives back
-      exactly those ``n`` octets, whatever they are (no escapes, no terminator).
+Grammar (SC00070 §2.2 syntax, §2.3 lexical rules and the notes on them), as read here
+    ``Message = "(" MessageType MessageParameter* ")"``; the message type is one of the 22
+    performatives of SC00037; the parameters are the 12 of SC00061 §2 plus user-defined
+    ``:X-`` parameters, each at most once (the notes: a well-formed message has at most one of
+    each), in any order. ``Expression = Word | String | Number | DateTime | "(" Expression*
+    ")"``. White space is any character U+0000–U+0020 (space, tab, CR, LF, FF…), needed only
+    between two atoms; SC00070 has no comments. Keywords (the performative, parameter names,
+    ``set``, ``sequence``, ``agent-identifier``, ``:name``, ``:addresses``, ``:resolvers``)
+    are read in any case (the notes); user parameter names keep their spelling and are told apart
+    by it (``:X-a`` and ``:x-a`` are two parameters, as they are two keys of ``user_params``).
+
+Strings (SC00070 §2.3 ``String = StringLiteral | ByteLengthEncodedString``)
+    * ``StringLiteral``: text between double quotes in which ``\\"`` stands for ``"``. That is
+      the only escape of SC00070, and the one JADE reads: any other backslash stands for
+      itself (``"C:\\dir"`` is the 6 characters ``C:\\dir``; ``\\\\`` is two backslashes).
+    * ``ByteLengthEncodedString``: ``#<n>"`` followed by exactly ``n`` octets, whatever they
+      are (no escapes, no terminator); ``n`` counts octets, not characters (the notes).
+
+    Writing: a value that is valid UTF-8, holds no control character (Unicode category ``Cc``:
+    U+0000–U+001F, U+007F–U+009F) and does not end in a backslash is written as a
+    ``StringLiteral`` (``"`` written ``\\"``, backslashes as they are); otherwise (in roco
+    usually: msgpack content) as a ``ByteLengthEncodedString`` of its octets (the UTF-8 of a
+    text value). A literal ending in a backslash cannot be written (``\\"`` would read as an
+    escaped quote), hence the byte-length form for it.
 
     Because :func:`to_string` returns ``str``, the octets of a byte-length-encoded string
     appear in it as the characters U+0000–U+00FF of the same value (ISO 8859-1), one
@@ -29,34 +46,49 @@ Content bytes (SC00070 §2.3, ``String = StringLiteral | ByteLengthEncodedString
     which are raw. :func:`parse` accepts both: a ``str`` (octets as U+0000–U+00FF) or
     ``bytes`` (raw octets, the rest UTF-8). Both forms round-trip exactly.
 
-    SC00070's ``StringLiteral`` has no escape for ``\\`` itself; roco writes ``\\\\`` and
-    reads ``\\\\`` and ``\\"`` as escapes, any other backslash as itself.
+Parameters (SC00061 §2, SC00070 §2.2)
+    ``:content`` is written as a ``String``; on parsing, a ``Word``, number or date-time is
+    accepted too (as JADE does) and gives its text as UTF-8. Text-valued parameters
+    (``:language``, ``:encoding``, ``:ontology``, ``:protocol``, ``:conversation-id``,
+    ``:reply-with``, ``:in-reply-to``, user parameters, addresses) are written as a ``Word``
+    when they are a plain ASCII identifier (``[A-Za-z_][A-Za-z0-9_.+/:@-]*``), else as a
+    ``String`` as above. SC00070 asks for a ``Word`` after ``:protocol`` and a URL in
+    ``:addresses``; a value that is not one is still written, as a ``String``, so that it
+    round-trips (JADE reads only words there). On parsing, any ``Expression`` is accepted
+    for them: a word, number or date-time gives its text, a string its value, a
+    parenthesised expression its source text (``(a (b "c"))``), which is written back as a
+    string. JADE sends byte content as base64 text flagged by ``:X-JADE-Encoding Base64``;
+    that is read as it stands (the base64 text as content, the flag as a user parameter).
 
-Other parameters (SC00070 §2.1)
-    Text-valued parameters (``:language``, ``:encoding``, ``:ontology``, ``:protocol``,
-    ``:conversation-id``, ``:reply-with``, ``:in-reply-to``, user parameters, addresses) are
-    written as a ``Word`` when they are a plain identifier (``[A-Za-z_][A-Za-z0-9_.+/:@-]*``),
-    else as a ``StringLiteral``. On parsing, any ``Expression`` is accepted for them: a word,
-    number or date-time gives its text, a string its value, a parenthesised expression its
-    source text.
-
-Times (SC00070 §2.3 ``DateTimeToken``)
+Times (SC00070 §2.3 ``DateTime`` and the notes on time tokens)
     ``:reply-by`` is written in UTC as ``YYYYMMDDThhmmssmmmZ`` (milliseconds, type designator
-    ``Z``) and is rounded to the nearest millisecond; parsing gives ``milliseconds / 1000``.
-    Relative times (leading ``+``) and local times (no ``Z``) are rejected: roco is UTC only.
+    ``Z``), rounded to the nearest millisecond; parsing gives ``milliseconds / 1000``. Also
+    read: local times (no type designator), taken in the time zone ``tz`` given to
+    :func:`parse` (default: this machine's), and relative times (a leading ``+`` or ``-``:
+    that long after or before ``now``, default: the time of the call, rounded to the
+    millisecond), where, as in JADE, a year is 365 days and a month 30 days. The type
+    designator ``Z`` (or ``z``) is UTC; any other letter is rejected, and so is a time outside
+    the years 0001–9999 (UTC), which could not be written back.
 
-Agent identifiers (FIPA SC00023 §4, SC00070 §2.1 ``AgentIdentifier``)
-    ``(agent-identifier :name <word> :addresses (sequence <url>*))``; ``:addresses`` is left
-    out when empty. ``:resolvers`` and user parameters inside an agent identifier are rejected
-    (roco's :class:`AgentIdentifier` has no place for them).
+Agent identifiers (FIPA SC00023 §4, SC00070 §2.2 ``AgentIdentifier``)
+    Written ``(agent-identifier :name <word> :addresses (sequence <url>*))``, ``:addresses``
+    left out when empty. Read in full: ``:name``, ``:addresses (sequence URL*)``,
+    ``:resolvers (sequence AgentIdentifier*)`` (recursive, up to :data:`MAX_AID_DEPTH` deep)
+    and user-defined ``:X-`` parameters, in any order. roco's :class:`AgentIdentifier` holds
+    a name and addresses only, so a parsed agent identifier with resolvers or user parameters
+    is rejected (``aid_extras="reject"``, the default: nothing is dropped silently) or kept
+    without them (``aid_extras="drop"``). Its name must also be a roco agent name (letters,
+    digits, ``_ . - @``: names appear in Zenoh key expressions), so JADE's default names
+    ``agent@host:1099/JADE`` are rejected.
 
-User-defined parameters (SC00061 §2.1, SC00070 §2.1)
+User-defined parameters (SC00061 §2, SC00070 §2.2)
     ``:X-name value`` for every entry of ``user_params``; the key is written as is and must
-    therefore contain no white space (U+0000–U+0020) and no parenthesis.
+    therefore have a name after ``X-`` and contain no white space (U+0000–U+0020) and no
+    parenthesis.
 
-Keywords (performative, parameter names, ``set``, ``sequence``, ``agent-identifier``) are
-read case-insensitively; user parameter names keep their spelling and are told apart by it
-(``:X-a`` and ``:x-a`` are two parameters, as they are two keys of ``user_params``).
+Errors
+    :func:`parse` raises :class:`StringFormError` only, naming what was expected and where:
+    the offset, line and column of the problem.
 """
 
 from __future__ import annotations
@@ -64,10 +96,11 @@ from __future__ import annotations
 import base64
 import math
 import re
+import time
 from collections.abc import Callable
-from dataclasses import dataclass
-from datetime import UTC, datetime, timedelta
-from typing import TypeVar
+from dataclasses import dataclass, field
+from datetime import UTC, datetime, timedelta, tzinfo
+from typing import Literal, TypeVar
 
 import msgspec
 
@@ -77,7 +110,9 @@ from shared.fipa_codec.languages import ContentError, decode_content
 from shared.fipa_codec.message import Communicate
 
 __all__ = [
+    "MAX_AID_DEPTH",
     "MAX_STRING_FORM_SIZE",
+    "AidExtras",
     "StringFormError",
     "content_as_json",
     "format_datetime",
@@ -91,18 +126,33 @@ __all__ = [
 MAX_STRING_FORM_SIZE = 32 * 1024 * 1024
 """Largest input :func:`parse` accepts by default (characters or bytes)."""
 
+MAX_AID_DEPTH = 32
+"""Deepest nesting of agent identifiers (through ``:resolvers``) that :func:`parse` reads."""
+
+AidExtras = Literal["reject", "drop"]
+"""What :func:`parse` does with ``:resolvers`` and user parameters of an agent identifier."""
+
 
 class StringFormError(ValueError):
     """Text that is not a FIPA SC00070 string-form communicate roco can read.
 
-    ``reason`` says what is wrong in one line; ``position`` is the offset of the problem in
-    the input (a character offset for ``str`` input, a byte offset for ``bytes`` input).
+    ``reason`` says what is wrong in one line, usually ``expected …, found …``;
+    ``position`` is the offset of the problem in the input (a character offset for ``str``
+    input, a byte offset for ``bytes`` input); ``line`` and ``column`` (from 1; the column
+    counts characters or bytes like ``position``) are set by :func:`parse`, else None.
     """
 
-    def __init__(self, reason: str, position: int) -> None:
-        super().__init__(f"{reason} (at position {position})")
+    def __init__(
+        self, reason: str, position: int, line: int | None = None, column: int | None = None
+    ) -> None:
+        where = f"at position {position}"
+        if line is not None and column is not None:
+            where += f", line {line} column {column}"
+        super().__init__(f"{reason} ({where})")
         self.reason = reason
         self.position = position
+        self.line = line
+        self.column = column
 
 
 # ---------------------------------------------------------------------------------------------
@@ -119,12 +169,9 @@ _Piece = str | bytes
 
 
 def _literal(text: str) -> str:
-    """A SC00070 ``StringLiteral`` for ``text`` (``\\`` and ``"`` escaped)."""
-    return '"' + text.replace("\\", "\\\\").replace('"', '\\"') + '"'
-
-
-def _word_or_literal(text: str) -> str:
-    return text if _WORD.match(text) else _literal(text)
+    """A SC00070 ``StringLiteral`` for ``text``: ``"`` escaped, nothing else. ``text`` must
+    not end in a backslash (see :func:`_string_pieces`)."""
+    return '"' + text.replace('"', '\\"') + '"'
 
 
 def _is_plain_text(data: bytes) -> str | None:
@@ -136,15 +183,22 @@ def _is_plain_text(data: bytes) -> str | None:
     return None if _CONTROL.search(text) else text
 
 
-def _content_pieces(data: bytes) -> list[_Piece]:
+def _string_pieces(data: bytes) -> list[_Piece]:
+    """``data`` as a SC00070 ``String``: a literal when it is plain text not ending in a
+    backslash, else byte-length encoded."""
     text = _is_plain_text(data)
-    if text is not None:
+    if text is not None and not text.endswith("\\"):
         return [_literal(text)]
     return [f'#{len(data)}"', bytes(data)]
 
 
+def _text_pieces(text: str) -> list[_Piece]:
+    """A text value as a ``Word`` when it is a plain identifier, else as a ``String``."""
+    return [text] if _WORD.match(text) else _string_pieces(text.encode("utf-8"))
+
+
 def format_datetime(t: float) -> str:
-    """POSIX time ``t`` (s, UTC) as a SC00070 §2.3 ``DateTimeToken``: ``YYYYMMDDThhmmssmmmZ``.
+    """POSIX time ``t`` (s, UTC) as a SC00070 §2.3 ``DateTime`` in UTC: ``YYYYMMDDThhmmssmmmZ``.
 
     Rounds to the nearest millisecond. Raises ValueError when ``t`` is not finite or falls
     outside the years 0001–9999.
@@ -161,26 +215,40 @@ def format_datetime(t: float) -> str:
     )
 
 
-def _aid_pieces(agent: AgentIdentifier) -> str:
-    out = f"(agent-identifier :name {_word_or_literal(agent.name)}"
+def _aid_pieces(agent: AgentIdentifier) -> list[_Piece]:
+    out: list[_Piece] = ["(agent-identifier :name ", *_text_pieces(agent.name)]
     if agent.addresses:
-        urls = " ".join(_word_or_literal(a) for a in agent.addresses)
-        out += f" :addresses (sequence {urls})"
-    return out + ")"
+        out.append(" :addresses (sequence")
+        for address in agent.addresses:
+            out.extend([" ", *_text_pieces(address)])
+        out.append(")")
+    out.append(")")
+    return out
 
 
-def _aid_set(agents: tuple[AgentIdentifier, ...]) -> str:
-    return "(set " + " ".join(_aid_pieces(a) for a in agents) + ")"
+def _aid_set(agents: tuple[AgentIdentifier, ...]) -> list[_Piece]:
+    out: list[_Piece] = ["(set"]
+    for agent in agents:
+        out.extend([" ", *_aid_pieces(agent)])
+    out.append(")")
+    return out
 
 
-def _human_content(msg: Communicate) -> str:
+def _human_content(msg: Communicate) -> list[_Piece]:
     rendered = content_as_json(msg)
     if rendered is not None:
-        return _literal(rendered)
-    text = _is_plain_text(msg.content)
-    if text is not None:
-        return _literal(text)
-    return _literal(f"<{len(msg.content)} bytes, base64 {base64.b64encode(msg.content).decode()}>")
+        return _string_pieces(rendered.encode("utf-8"))
+    if _is_plain_text(msg.content) is not None:
+        return _string_pieces(msg.content)
+    return [_literal(f"<{len(msg.content)} bytes, base64 {base64.b64encode(msg.content).decode()}>")]
+
+
+def _check_user_key(key: str) -> None:
+    if len(key) < 3 or key[:2] not in ("X-", "x-") or _KEY_FORBIDDEN.search(key):
+        raise ValueError(
+            f"user parameter name {key!r} cannot be written in the string form: "
+            "it needs a name after 'X-' and must contain no white space and no parenthesis"
+        )
 
 
 def _pieces(msg: Communicate, human: bool) -> list[list[_Piece]]:
@@ -189,17 +257,15 @@ def _pieces(msg: Communicate, human: bool) -> list[list[_Piece]]:
 
     def text(name: str, value: str | None) -> None:
         if value is not None:
-            params.append([f":{name} {_word_or_literal(value)}"])
+            params.append([f":{name} ", *_text_pieces(value)])
 
     if msg.sender is not None:
-        params.append([":sender " + _aid_pieces(msg.sender)])
+        params.append([":sender ", *_aid_pieces(msg.sender)])
     if msg.receiver:
-        params.append([":receiver " + _aid_set(msg.receiver)])
+        params.append([":receiver ", *_aid_set(msg.receiver)])
     if msg.content:
-        if human:
-            params.append([":content " + _human_content(msg)])
-        else:
-            params.append([":content ", *_content_pieces(msg.content)])
+        body = _human_content(msg) if human else _string_pieces(msg.content)
+        params.append([":content ", *body])
     text("language", msg.language)
     text("encoding", msg.encoding)
     text("ontology", msg.ontology)
@@ -210,14 +276,10 @@ def _pieces(msg: Communicate, human: bool) -> list[list[_Piece]]:
     if msg.reply_by is not None:
         params.append([f":reply-by {format_datetime(msg.reply_by)}"])
     if msg.reply_to:
-        params.append([":reply-to " + _aid_set(msg.reply_to)])
+        params.append([":reply-to ", *_aid_set(msg.reply_to)])
     for key, value in msg.user_params.items():
-        if not key or _KEY_FORBIDDEN.search(key):
-            raise ValueError(
-                f"user parameter name {key!r} cannot be written in the string form: "
-                "it must contain no white space and no parenthesis"
-            )
-        params.append([f":{key} {_word_or_literal(value)}"])
+        _check_user_key(key)
+        params.append([f":{key} ", *_text_pieces(value)])
     return params
 
 
@@ -235,15 +297,15 @@ def _join(params: list[list[_Piece]], pretty: bool) -> list[_Piece]:
 def to_string(msg: Communicate, *, pretty: bool = False, human: bool = False) -> str:
     """``msg`` in the FIPA ACL string representation (FIPA SC00070 §2), as text.
 
-    Byte-length-encoded content appears as characters U+0000–U+00FF, one per octet (see the
+    Byte-length-encoded strings appear as characters U+0000–U+00FF, one per octet (see the
     module docstring); ``parse(to_string(msg)) == msg`` (``reply_by`` rounded to the ms).
     ``pretty`` puts each parameter on its own line. ``human`` is a display-only form: content
-    that decodes in its language is written as a string literal holding its JSON
+    that decodes in its language is written as a string holding its JSON
     (:func:`content_as_json`), other binary content as ``"<n bytes, base64 …>"``; it is
     valid SC00070 but does not parse back to ``msg``.
 
     Raises ValueError when ``reply_by`` is not finite or outside the years 0001–9999, or a
-    user parameter name contains white space or a parenthesis.
+    user parameter name is ``X-`` alone or contains white space or a parenthesis.
     """
     out = []
     for piece in _join(_pieces(msg, human), pretty):
@@ -271,6 +333,14 @@ _DATETIME = re.compile(
     r"([+-])?([0-9]{4})([0-9]{2})([0-9]{2})[Tt]"  # sign, date
     r"([0-9]{2})([0-9]{2})([0-9]{2})([0-9]{3})([A-Za-z])?\Z"  # time, type designator
 )
+# a relative time, as JADE reads it: a year of 365 days, a month of 30 days
+_REL_UNITS_MS = (365 * 86_400_000, 30 * 86_400_000, 86_400_000, 3_600_000, 60_000, 1000, 1)
+_MIN_MS = (datetime(1, 1, 1, tzinfo=UTC) - _EPOCH) // _ONE_MS  # the times format_datetime writes
+_MAX_MS = (datetime(9999, 12, 31, 23, 59, 59, 999000, tzinfo=UTC) - _EPOCH) // _ONE_MS
+_MESSAGE_PARAMS = (
+    ":sender :receiver :content :language :encoding :ontology :protocol :conversation-id "
+    ":reply-with :in-reply-to :reply-by :reply-to"
+)
 
 
 @dataclass(frozen=True, slots=True)
@@ -280,6 +350,18 @@ class _Token:
     end: int
     text: str = ""  # _STRING: the value; _ATOM: the text
     octets: bytes = b""  # _BYTES: the value
+
+
+@dataclass(slots=True)
+class _ParsedAid:
+    """An agent identifier as SC00070 writes it, before it becomes an AgentIdentifier."""
+
+    start: int
+    name: str | None = None
+    addresses: tuple[str, ...] = ()
+    resolvers: tuple[_ParsedAid, ...] = ()
+    user_params: dict[str, str] = field(default_factory=dict)
+    extra_at: int | None = None  # where the first :resolvers or user parameter stands
 
 
 def _fix_text(raw: str, octets: bool, position: int) -> str:
@@ -292,6 +374,44 @@ def _fix_text(raw: str, octets: bool, position: int) -> str:
         raise StringFormError("invalid UTF-8", position + exc.start) from None
 
 
+def _string_literal(src: str, i: int, octets: bool) -> _Token:
+    """The ``StringLiteral`` opening at ``src[i]``: ``\\"`` is a quote, all else as it stands."""
+    chars: list[str] = []
+    j = i + 1
+    while True:
+        k = src.find('"', j)
+        if k < 0:
+            raise StringFormError("unterminated string literal: expected a closing '\"'", i)
+        if k > i + 1 and src[k - 1] == "\\":  # an escaped quote
+            chars.append(src[j : k - 1])
+            chars.append('"')
+            j = k + 1
+            continue
+        chars.append(src[j:k])
+        return _Token(_STRING, i, k + 1, text=_fix_text("".join(chars), octets, i + 1))
+
+
+def _byte_length_string(src: str, i: int) -> _Token:
+    m = _BLE_HEAD.match(src, i)
+    if m is None:
+        raise StringFormError("'#' must start a byte-length-encoded string: expected #<digits>\"<octets>", i)
+    length = int(m.group(1))
+    begin = m.end()
+    payload = src[begin : begin + length]
+    if len(payload) < length:
+        raise StringFormError(
+            f"byte-length-encoded string announces {length} octets but only {len(payload)} remain", i
+        )
+    try:
+        value = payload.encode("latin-1")
+    except UnicodeEncodeError as exc:
+        raise StringFormError(
+            "a byte-length-encoded string in text holds one character U+0000-U+00FF per octet",
+            begin + exc.start,
+        ) from None
+    return _Token(_BYTES, i, begin + length, octets=value)
+
+
 def _tokenize(src: str, octets: bool) -> list[_Token]:
     tokens: list[_Token] = []
     n = len(src)
@@ -300,88 +420,79 @@ def _tokenize(src: str, octets: bool) -> list[_Token]:
         c = src[i]
         if c <= " ":
             i += 1
-        elif c == "(" or c == ")":
-            tokens.append(_Token(c, i, i + 1))
-            i += 1
+            continue
+        if c == "(" or c == ")":
+            tok = _Token(c, i, i + 1)
         elif c == '"':
-            chars: list[str] = []
-            j = i + 1
-            while True:
-                k = j
-                while k < n and src[k] != '"' and src[k] != "\\":
-                    k += 1
-                chars.append(src[j:k])
-                if k >= n:
-                    raise StringFormError("unterminated string literal", i)
-                if src[k] == '"':
-                    j = k + 1
-                    break
-                # a backslash: \" and \\ are escapes, any other backslash stands for itself
-                if k + 1 < n and src[k + 1] in '"\\':
-                    chars.append(src[k + 1])
-                    j = k + 2
-                else:
-                    chars.append("\\")
-                    j = k + 1
-            tokens.append(_Token(_STRING, i, j, text=_fix_text("".join(chars), octets, i + 1)))
-            i = j
+            tok = _string_literal(src, i, octets)
         elif c == "#":
-            m = _BLE_HEAD.match(src, i)
-            if m is None:
-                raise StringFormError("'#' must start a byte-length-encoded string #<digits>\"<octets>", i)
-            length = int(m.group(1))
-            begin = m.end()
-            payload = src[begin : begin + length]
-            if len(payload) < length:
-                raise StringFormError(
-                    f"byte-length-encoded string announces {length} octets but only {len(payload)} remain",
-                    i,
-                )
-            try:
-                value = payload.encode("latin-1")
-            except UnicodeEncodeError as exc:
-                raise StringFormError(
-                    "a byte-length-encoded string in text holds one character U+0000-U+00FF per octet",
-                    begin + exc.start,
-                ) from None
-            tokens.append(_Token(_BYTES, i, begin + length, octets=value))
-            i = begin + length
+            tok = _byte_length_string(src, i)
         else:
             j = i + 1
             while j < n and src[j] > " " and src[j] != "(" and src[j] != ")":
                 j += 1
-            tokens.append(_Token(_ATOM, i, j, text=_fix_text(src[i:j], octets, i)))
-            i = j
+            tok = _Token(_ATOM, i, j, text=_fix_text(src[i:j], octets, i))
+        tokens.append(tok)
+        i = tok.end
     return tokens
 
 
-def parse_datetime(token: str, position: int = 0) -> float:
-    """A SC00070 §2.3 ``DateTimeToken`` in UTC (``YYYYMMDDThhmmssmmmZ``) as POSIX seconds.
+def parse_datetime(
+    token: str, position: int = 0, *, now: float | None = None, tz: tzinfo | None = None
+) -> float:
+    """A SC00070 §2.3 ``DateTime`` token as POSIX seconds (see *Times* in the module docstring).
 
-    Raises StringFormError (at ``position``) for anything else, including relative times
-    (leading ``+``/``-``) and local times (no ``Z``).
+    ``YYYYMMDDThhmmssmmmZ`` is UTC; without the ``Z`` the time is local to ``tz`` (default:
+    this machine's time zone); with a leading ``+``/``-`` it is a duration after/before
+    ``now`` (POSIX seconds, default: the current time), with years of 365 days and months
+    of 30 days, rounded to the millisecond. Raises StringFormError (at ``position``) for
+    anything else: a malformed token, an impossible date, a type designator other than
+    ``Z``, a time outside the years 0001–9999 (UTC), which :func:`format_datetime` could not
+    write back.
     """
     m = _DATETIME.match(token)
     if m is None:
-        raise StringFormError(f"{token!r} is not a date-time YYYYMMDDThhmmssmmmZ", position)
-    sign, year, month, day, hour, minute, second, milli, designator = m.groups()
+        raise StringFormError(
+            f"expected a date-time [+|-]YYYYMMDDThhmmssmmm[Z], found {token[:40]!r}", position
+        )
+    sign, *digits, designator = m.groups()
+    if designator is not None and designator not in "Zz":
+        raise StringFormError(
+            f"time zone designator {designator!r} in {token!r} is not supported: expected Z (UTC) or none",
+            position,
+        )
+    fields = [int(d) for d in digits]
     if sign is not None:
-        raise StringFormError(f"relative time {token!r} is not supported (UTC only)", position)
-    if designator is None:
-        raise StringFormError(f"local time {token!r} is not supported: end it in Z", position)
-    if designator not in "Zz":
-        raise StringFormError(f"time zone {designator!r} is not supported: use Z", position)
-    try:
-        dt = datetime(int(year), int(month), int(day), int(hour), int(minute), int(second), tzinfo=UTC)
-    except ValueError as exc:
-        raise StringFormError(f"invalid date-time {token!r}: {exc}", position) from None
-    return ((dt - _EPOCH) // _ONE_MS + int(milli)) / 1000
+        duration_ms = sum(f * unit for f, unit in zip(fields, _REL_UNITS_MS, strict=True))
+        base = time.time() if now is None else now
+        ms = round(base * 1000 + (duration_ms if sign == "+" else -duration_ms))
+    else:
+        year, month, day, hour, minute, second, milli = fields
+        try:
+            dt = datetime(year, month, day, hour, minute, second)
+            if designator is not None:
+                aware = dt.replace(tzinfo=UTC)
+            elif tz is not None:
+                aware = dt.replace(tzinfo=tz)
+            else:
+                aware = dt.astimezone()  # a naive time is this machine's local time
+            ms = (aware - _EPOCH) // _ONE_MS + milli
+        except (ValueError, OverflowError, OSError) as exc:
+            raise StringFormError(f"invalid date-time {token!r}: {exc}", position) from None
+    if not _MIN_MS <= ms <= _MAX_MS:
+        raise StringFormError(f"invalid date-time {token!r}: outside the years 0001-9999 (UTC)", position)
+    return ms / 1000
 
 
 class _Parser:
-    def __init__(self, src: str, octets: bool) -> None:
+    def __init__(
+        self, src: str, octets: bool, now: float | None, tz: tzinfo | None, aid_extras: AidExtras
+    ) -> None:
         self.src = src
         self.octets = octets
+        self.now = time.time() if now is None else now
+        self.tz = tz
+        self.aid_extras = aid_extras
         self.tokens = _tokenize(src, octets)
         self.i = 0
 
@@ -402,7 +513,8 @@ class _Parser:
             raise StringFormError(f"expected {what}, found {self.describe(tok)}", tok.start)
         return tok
 
-    def describe(self, tok: _Token) -> str:
+    @staticmethod
+    def describe(tok: _Token) -> str:
         if tok.kind in (_LPAREN, _RPAREN):
             return f"'{tok.kind}'"
         if tok.kind == _ATOM:
@@ -412,6 +524,15 @@ class _Parser:
     def keyword(self, what: str) -> tuple[str, _Token]:
         tok = self.expect(_ATOM, what)
         return tok.text.lower(), tok
+
+    def parameter_name(self, what: str) -> _Token | None:
+        """The next ``:name`` token, or None (consumed) at the closing parenthesis."""
+        tok = self.next(f"')' or {what}")
+        if tok.kind == _RPAREN:
+            return None
+        if tok.kind != _ATOM or not tok.text.startswith(":"):
+            raise StringFormError(f"expected ')' or {what}, found {self.describe(tok)}", tok.start)
+        return tok
 
     # -- values
     def expression_text(self, what: str) -> str:
@@ -427,7 +548,7 @@ class _Parser:
             try:
                 return tok.octets.decode("utf-8")
             except UnicodeDecodeError:
-                raise StringFormError(f"{what} is not valid UTF-8", tok.start) from None
+                raise StringFormError(f"expected {what} in UTF-8, found invalid UTF-8", tok.start) from None
         if tok.kind == _RPAREN:
             raise StringFormError(f"expected {what}, found ')'", tok.start)
         depth = 1  # a parenthesised expression: its source text
@@ -445,44 +566,67 @@ class _Parser:
             return tok.text.encode("utf-8")
         if tok.kind == _BYTES:
             return tok.octets
-        raise StringFormError(f":content must be a string, found {self.describe(tok)}", tok.start)
+        if tok.kind == _ATOM and not tok.text.startswith(":"):
+            return tok.text.encode("utf-8")  # a Word, as JADE accepts
+        raise StringFormError(f"expected a string after :content, found {self.describe(tok)}", tok.start)
 
-    def agent_identifier(self) -> AgentIdentifier:
+    def user_parameter(self, tok: _Token) -> str:
+        if len(tok.text) < 4:
+            raise StringFormError(
+                f"expected a name after {tok.text!r} in a user-defined parameter", tok.start
+            )
+        return self.expression_text(f"a value for {tok.text}")
+
+    def parsed_aid(self, depth: int) -> _ParsedAid:
         open_ = self.expect(_LPAREN, "'(agent-identifier'")
+        if depth > MAX_AID_DEPTH:
+            raise StringFormError(f"agent identifiers nested deeper than {MAX_AID_DEPTH}", open_.start)
         head, tok = self.keyword("'agent-identifier'")
         if head != "agent-identifier":
-            raise StringFormError(f"expected 'agent-identifier', found {tok.text!r}", tok.start)
-        name: str | None = None
-        addresses: tuple[str, ...] = ()
+            raise StringFormError(f"expected 'agent-identifier', found {tok.text[:40]!r}", tok.start)
+        aid = _ParsedAid(open_.start)
         seen: set[str] = set()
-        while True:
-            tok = self.next("')' or an agent-identifier parameter")
-            if tok.kind == _RPAREN:
-                break
-            if tok.kind != _ATOM or not tok.text.startswith(":"):
-                raise StringFormError(
-                    f"expected an agent-identifier parameter, found {self.describe(tok)}",
-                    tok.start,
-                )
-            param = tok.text.lower()
-            if param in seen:
-                raise StringFormError(f"agent-identifier parameter {tok.text} repeated", tok.start)
-            seen.add(param)
+        while (tok_ := self.parameter_name("an agent-identifier parameter")) is not None:
+            param = tok_.text.lower()
+            ident = tok_.text if param.startswith(":x-") else param
+            if ident in seen:
+                raise StringFormError(f"agent-identifier parameter {tok_.text} repeated", tok_.start)
+            seen.add(ident)
             if param == ":name":
-                name = self.expression_text("an agent name")
+                aid.name = self.expression_text("an agent name")
             elif param == ":addresses":
-                addresses = tuple(self.sequence("sequence", self.url))
+                aid.addresses = tuple(self.sequence("sequence", self.url))
+            elif param == ":resolvers":
+                aid.resolvers = tuple(self.sequence("sequence", lambda: self.parsed_aid(depth + 1)))
+                if aid.resolvers and aid.extra_at is None:
+                    aid.extra_at = tok_.start
+            elif param.startswith(":x-"):
+                aid.user_params[tok_.text[1:]] = self.user_parameter(tok_)
+                if aid.extra_at is None:
+                    aid.extra_at = tok_.start
             else:
                 raise StringFormError(
-                    f"agent-identifier parameter {tok.text} is not supported (only :name and :addresses)",
-                    tok.start,
+                    f"unknown agent-identifier parameter {tok_.text}: expected :name, :addresses, "
+                    ":resolvers or a user-defined :X-name",
+                    tok_.start,
                 )
-        if name is None:
-            raise StringFormError("agent-identifier without :name", open_.start)
+        if aid.name is None:
+            raise StringFormError("agent-identifier without :name: expected ':name <word>'", open_.start)
+        return aid
+
+    def agent_identifier(self) -> AgentIdentifier:
+        parsed = self.parsed_aid(1)
+        if parsed.extra_at is not None and self.aid_extras == "reject":
+            raise StringFormError(
+                "agent-identifier with :resolvers or user-defined parameters, which roco's "
+                "AgentIdentifier cannot hold (parse with aid_extras='drop' to leave them out)",
+                parsed.extra_at,
+            )
+        assert parsed.name is not None
         try:
-            return AgentIdentifier(name, addresses)
+            return AgentIdentifier(parsed.name, parsed.addresses)
         except ValueError as exc:
-            raise StringFormError(str(exc), open_.start) from None
+            raise StringFormError(str(exc), parsed.start) from None
 
     def url(self) -> str:
         return self.expression_text("an address")
@@ -491,12 +635,12 @@ class _Parser:
         self.expect(_LPAREN, f"'({head_word}'")
         head, tok = self.keyword(f"'{head_word}'")
         if head != head_word:
-            raise StringFormError(f"expected '{head_word}', found {tok.text!r}", tok.start)
+            raise StringFormError(f"expected '{head_word}', found {tok.text[:40]!r}", tok.start)
         items: list[_T] = []
         while True:
             tok_ = self.peek()
             if tok_ is None:
-                raise StringFormError(f"unterminated ({head_word} …)", tok.start)
+                raise StringFormError(f"unterminated ({head_word} …): expected ')'", tok.start)
             if tok_.kind == _RPAREN:
                 self.i += 1
                 return items
@@ -512,7 +656,11 @@ class _Parser:
         try:
             performative = Performative(perf_text)
         except ValueError:
-            raise StringFormError(f"unknown performative {tok.text!r}", tok.start) from None
+            raise StringFormError(
+                f"unknown performative {tok.text[:40]!r}: expected one of the 22 of FIPA SC00037 "
+                "(accept-proposal, agree, … subscribe)",
+                tok.start,
+            ) from None
         sender: AgentIdentifier | None = None
         agents: dict[str, tuple[AgentIdentifier, ...]] = {}
         content = b""
@@ -520,24 +668,16 @@ class _Parser:
         texts: dict[str, str] = {}
         user: dict[str, str] = {}
         seen: set[str] = set()
-        while True:
-            tok = self.next("')' closing the message or a message parameter")
-            if tok.kind == _RPAREN:
-                break
-            if tok.kind != _ATOM or not tok.text.startswith(":"):
-                raise StringFormError(
-                    f"expected a message parameter ':name', found {self.describe(tok)}",
-                    tok.start,
-                )
-            name = tok.text[1:]
+        while (tok_ := self.parameter_name("a message parameter ':name'")) is not None:
+            name = tok_.text[1:]
             lname = name.lower()
             # FIPA names are case-insensitive; user parameter names are kept as written
             ident = name if lname.startswith("x-") else lname
             if ident in seen:
-                raise StringFormError(f"message parameter {tok.text} repeated", tok.start)
+                raise StringFormError(f"message parameter {tok_.text} repeated", tok_.start)
             seen.add(ident)
             if lname.startswith("x-"):
-                user[name] = self.expression_text(f"a value for {tok.text}")
+                user[name] = self.user_parameter(tok_)
             elif lname == "sender":
                 sender = self.agent_identifier()
             elif lname in ("receiver", "reply-to"):
@@ -548,14 +688,18 @@ class _Parser:
                 value = self.next("a date-time")
                 if value.kind != _ATOM:
                     raise StringFormError(f"expected a date-time, found {self.describe(value)}", value.start)
-                reply_by = parse_datetime(value.text, value.start)
+                reply_by = parse_datetime(value.text, value.start, now=self.now, tz=self.tz)
             elif lname in _TEXT_PARAMS:
-                texts[lname] = self.expression_text(f"a value for {tok.text}")
+                texts[lname] = self.expression_text(f"a value for {tok_.text}")
             else:
-                raise StringFormError(f"unknown message parameter {tok.text}", tok.start)
+                raise StringFormError(
+                    f"unknown message parameter {tok_.text}: expected one of {_MESSAGE_PARAMS} "
+                    "or a user-defined :X-name",
+                    tok_.start,
+                )
         rest = self.peek()
         if rest is not None:
-            raise StringFormError("text after the end of the message", rest.start)
+            raise StringFormError("text after the end of the message: expected nothing", rest.start)
         return Communicate(
             performative=performative,
             sender=sender,
@@ -587,14 +731,36 @@ _TEXT_PARAMS = frozenset(
 )
 
 
-def parse(text: str | bytes | bytearray | memoryview, *, max_size: int = MAX_STRING_FORM_SIZE) -> Communicate:
+def _located(exc: StringFormError, src: str) -> StringFormError:
+    """``exc`` with the line and column of its position in ``src``."""
+    pos = min(max(exc.position, 0), len(src))
+    line = src.count("\n", 0, pos) + 1
+    column = pos - (src.rfind("\n", 0, pos) + 1) + 1
+    return StringFormError(exc.reason, exc.position, line, column)
+
+
+def parse(
+    text: str | bytes | bytearray | memoryview,
+    *,
+    max_size: int = MAX_STRING_FORM_SIZE,
+    now: float | None = None,
+    tz: tzinfo | None = None,
+    aid_extras: AidExtras = "reject",
+) -> Communicate:
     """Read a communicate in the FIPA ACL string representation (FIPA SC00070 §2).
 
     ``text`` is either the ``str`` of :func:`to_string` (octets of byte-length-encoded
-    strings as U+0000–U+00FF) or the octets of :func:`to_bytes` (UTF-8 elsewhere).
-    Raises StringFormError, with the offset of the problem, for anything that is not one
-    well-formed message: unknown performative or parameter, repeated parameter, bad
-    agent name, malformed string or date-time, trailing text, input over ``max_size``.
+    strings as U+0000–U+00FF) or the octets of :func:`to_bytes` (UTF-8 elsewhere); any
+    SC00070 message is read, keywords in any case. ``now`` (POSIX seconds, default: the
+    time of the call) anchors a relative ``:reply-by``; ``tz`` (default: this machine's
+    zone) places a local one. ``aid_extras`` says what happens to ``:resolvers`` and user
+    parameters of an agent identifier, which roco's :class:`AgentIdentifier` cannot hold:
+    ``"reject"`` (StringFormError) or ``"drop"``.
+
+    Raises StringFormError, with the offset, line and column of the problem and what was
+    expected there, for anything that is not one well-formed message: unknown performative
+    or parameter, repeated parameter, bad agent name, malformed string or date-time,
+    trailing text, input over ``max_size``.
     """
     if len(text) > max_size:
         raise StringFormError(f"input of {len(text)} exceeds the limit of {max_size}", max_size)
@@ -602,9 +768,14 @@ def parse(text: str | bytes | bytearray | memoryview, *, max_size: int = MAX_STR
         try:
             text.encode("utf-8")
         except UnicodeEncodeError as exc:
-            raise StringFormError("lone surrogate character", exc.start) from None
-        return _Parser(text, octets=False).message()
-    return _Parser(bytes(text).decode("latin-1"), octets=True).message()
+            raise _located(StringFormError("lone surrogate character", exc.start), text) from None
+        src, octets = text, False
+    else:
+        src, octets = bytes(text).decode("latin-1"), True
+    try:
+        return _Parser(src, octets, now, tz, aid_extras).message()
+    except StringFormError as exc:
+        raise _located(exc, src) from None
 
 
 # ---------------------------------------------------------------------------------------------

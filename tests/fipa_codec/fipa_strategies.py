@@ -189,11 +189,12 @@ SAMPLE_TERMS: list[msgspec.Struct] = [
 agent_names = st.from_regex(r"[A-Za-z][A-Za-z0-9_.\-@]{0,15}", fullmatch=True)
 any_text = st.text(max_size=30)
 agents = st.builds(AgentIdentifier, agent_names, st.lists(any_text, max_size=3).map(tuple))
-# keys: X- plus anything without white space or parentheses (writable in the string form)
+# keys: X- plus a name without white space or parentheses (writable in the string form)
 user_keys = st.tuples(
     st.sampled_from(["X-", "x-"]),
     st.text(
         st.characters(exclude_characters="()", exclude_categories=("Cs",), min_codepoint=0x21),
+        min_size=1,
         max_size=12,
     ),
 ).map("".join)

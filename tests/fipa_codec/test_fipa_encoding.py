@@ -1,9 +1,13 @@
-"""msgpack and JSON encodings of a communicate (FIPA SC00061 parameters): round trips and
-strict rejection of bad bytes as DecodeError."""
+"""msgpack and JSON encodings of a communicate (FIPA SC00061 parameters): round trips, strict
+rejection of bad bytes as DecodeError, and the JSON form as documented for tools outside
+Python (field list, base64 content, agent identifiers as arrays, JSON Schema)."""
 
 from __future__ import annotations
 
+import base64
 import contextlib
+import json
+import math
 
 import msgspec
 import pytest
@@ -11,9 +15,9 @@ from fipa_strategies import communicates, full_communicate
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from shared.fipa_codec import Communicate, DecodeError, Performative, decode, encode
+from shared.fipa_codec import Communicate, DecodeError, Performative, decode, encode, encoding
 from shared.fipa_codec.aid import AgentIdentifier
-from shared.fipa_codec.encoding import decode_json, encode_json
+from shared.fipa_codec.encoding import MAX_COMMUNICATE_BYTES, decode_json, encode_json, json_schema
 
 
 @pytest.mark.parametrize("performative", list(Performative))
@@ -144,3 +148,78 @@ def test_reply_carries_the_conversation() -> None:
     assert reply.in_reply_to == msg.reply_with
     assert (reply.protocol, reply.conversation_id) == (msg.protocol, msg.conversation_id)
     assert reply.encoding == "msgpack"
+
+
+# -- the JSON form for tools outside Python -------------------------------------------------------
+
+
+def test_json_docstring_example_is_the_encoding() -> None:
+    doc = encoding.__doc__ or ""
+    example = doc[doc.index('{"performative"') : doc.index("}}") + 2]
+    one_line = "".join(line.strip() for line in example.splitlines())
+    msg = decode_json(one_line)
+    assert msg == Communicate(
+        performative=Performative.INFORM,
+        sender=AgentIdentifier("a_co", ("tcp/127.0.0.1:7447",)),
+        receiver=(AgentIdentifier("a_km"),),
+        content=b"\x81\xa4type",
+        language="L_WM",
+        reply_by=1795275000.123,
+        user_params={"X-priority": "2"},
+    )
+    assert encode_json(msg).decode() == one_line
+
+
+def test_json_written_by_another_tool() -> None:
+    text = json.dumps(
+        {
+            "performative": "request",
+            "sender": ["a_hi"],  # the address list may be left out
+            "receiver": [["a_co", ["tcp/127.0.0.1:7447"]], ["a_ta", [], "from the future"]],
+            "content": base64.b64encode("pour the jar → bowl".encode()).decode(),
+            "language": "L_HC",
+            "conversation-id": "c-1",
+            "reply-by": 1795275000,
+            "user-params": {"X-priority": "1", "x-note": "lower-case prefix"},
+            "x-unknown-field": [1, 2],
+        }
+    )
+    msg = decode_json(text)
+    assert msg.sender == AgentIdentifier("a_hi")
+    assert msg.receiver == (AgentIdentifier("a_co", ("tcp/127.0.0.1:7447",)), AgentIdentifier("a_ta"))
+    assert msg.content.decode() == "pour the jar → bowl"
+    assert msg.reply_by == 1795275000.0
+    assert msg.user_params == {"X-priority": "1", "x-note": "lower-case prefix"}
+    assert decode_json(encode_json(msg)) == msg
+
+
+def test_json_leaves_defaults_out() -> None:
+    assert encode_json(Communicate(performative=Performative.CFP)) == b'{"performative":"cfp"}'
+
+
+def test_json_schema_lists_the_fields() -> None:
+    schema = json_schema()
+    props = schema["$defs"]["Communicate"]["properties"]
+    assert set(props) == set(msgspec.json.decode(encode_json(full_communicate())))
+    assert schema["$defs"]["Communicate"]["required"] == ["performative"]
+    assert props["content"]["contentEncoding"] == "base64"
+    assert schema["$defs"]["Performative"]["enum"] == [p.value for p in Performative]
+    assert schema["$defs"]["AgentIdentifier"]["type"] == "array"
+    json.dumps(schema)  # a plain JSON document
+
+
+@pytest.mark.parametrize("t", [math.nan, math.inf, -math.inf])
+def test_json_refuses_non_finite_reply_by(t: float) -> None:
+    with pytest.raises(ValueError, match="not finite"):
+        encode_json(Communicate(performative=Performative.INFORM, reply_by=t))
+    assert (
+        decode(encode(Communicate(performative=Performative.INFORM, reply_by=math.inf))).reply_by == math.inf
+    )
+
+
+def test_oversized_json_is_decode_error() -> None:
+    wire = encode_json(Communicate(performative=Performative.INFORM, content=b"x" * 2000))
+    with pytest.raises(DecodeError, match="exceeds"):
+        decode_json(wire, max_size=1000)
+    assert decode_json(wire, max_size=MAX_COMMUNICATE_BYTES).content == b"x" * 2000
+    assert decode_json(bytearray(wire)).content == b"x" * 2000

@@ -1,10 +1,14 @@
-"""FIPA SC00070 string representation: exact round trips, the content-bytes scheme, dates,
-rejection of bad text as StringFormError, and the human forms."""
+"""FIPA SC00070 string representation: exact round trips, the string forms (literal and
+byte-length encoded), agent identifiers in full, dates (UTC, local, relative), rejection of
+bad text as StringFormError naming what was expected and where, and the human forms.
+
+Interoperability with other platforms' forms is in test_fipa_string_form_interop.py."""
 
 from __future__ import annotations
 
 import math
 import re
+from datetime import timedelta, timezone
 
 import pytest
 from fipa_strategies import SAMPLE_TERMS, communicates, full_communicate
@@ -15,6 +19,7 @@ from shared.fipa_codec import AgentIdentifier, Communicate, Performative
 from shared.fipa_codec.languages import encode_content
 from shared.fipa_codec.languages.l_wm import ObjectQuery
 from shared.fipa_codec.string_form import (
+    MAX_AID_DEPTH,
     StringFormError,
     content_as_json,
     format_datetime,
@@ -80,7 +85,7 @@ def test_example_form() -> None:
     assert to_string(msg) == (
         "(request :sender (agent-identifier :name a_co :addresses (sequence tcp/127.0.0.1:7447))"
         " :receiver (set (agent-identifier :name a_ta) (agent-identifier :name ag_ex))"
-        ' :content "say \\"hi\\" \\\\ now" :language L_HC :conversation-id c1'
+        ' :content "say \\"hi\\" \\ now" :language L_HC :conversation-id c1'
         " :reply-by 20261121T153000000Z :X-priority high)"
     )
 
@@ -93,7 +98,10 @@ def test_example_form() -> None:
     [
         (b"hello world", '"hello world"'),
         ("żółw → ∑".encode(), '"żółw → ∑"'),
-        (b'a"b\\c', '"a\\"b\\\\c"'),
+        (b'a"b\\c', '"a\\"b\\c"'),  # \" is the only escape; a backslash is itself
+        (b"a\\\\b", '"a\\\\b"'),  # two backslashes stay two
+        (b'\\"', '"\\\\""'),  # a backslash, then an escaped quote
+        (b"ends\\", '#5"ends\\'),  # a literal cannot end in a backslash: byte-length encoded
         (b"line\nbreak", '#10"line\nbreak'),  # control character: byte-length encoded
         (b"\x00\xff", '#2"\x00\xff'),
         (b"\xc3\x28", '#2"\xc3('),  # invalid UTF-8
@@ -186,21 +194,75 @@ def test_unwritable_times(t: float) -> None:
         to_string(_msg(reply_by=t))
 
 
+PLUS_1 = timezone(timedelta(hours=1))
+MINUS_0530 = timezone(-timedelta(hours=5, minutes=30))
+
+
+@pytest.mark.parametrize(
+    ("token", "tz", "t"),
+    [
+        ("20261121T153000000z", None, 1795275000.0),  # lower-case designator
+        ("20261121t153000000Z", None, 1795275000.0),  # lower-case T
+        ("20261121T163000000", PLUS_1, 1795275000.0),  # local time in tz
+        ("20261121T100000250", MINUS_0530, 1795275000.25),
+        ("20261121T153000000Z", PLUS_1, 1795275000.0),  # Z wins over tz
+        ("00010101T000000000Z", PLUS_1, -62135596800.0),
+    ],
+)
+def test_absolute_datetime_forms(token: str, tz: timezone | None, t: float) -> None:
+    assert parse_datetime(token, tz=tz) == t
+    assert parse(f"(inform :reply-by {token})", tz=tz).reply_by == t
+
+
+def test_local_time_defaults_to_this_machines_zone() -> None:
+    from datetime import datetime
+
+    expected = datetime(2026, 11, 21, 15, 30).astimezone().timestamp()
+    assert parse_datetime("20261121T153000000") == expected
+
+
+NOW = 1795275000.0
+
+
+@pytest.mark.parametrize(
+    ("token", "t"),
+    [
+        ("+00000000T011500035", NOW + 4500.035),  # SC00070's example: 1 h 15 min 35 ms from now
+        ("-00000000T000000500", NOW - 0.5),
+        ("+00000001T000000000", NOW + 86400),
+        ("+00000100T000000000z", NOW + 30 * 86400),  # a month is 30 days
+        ("+00010000T000000000", NOW + 365 * 86400),  # a year is 365 days
+        ("+00000000T990000000", NOW + 99 * 3600),  # fields of a duration may overflow
+    ],
+)
+def test_relative_datetime(token: str, t: float) -> None:
+    assert parse_datetime(token, now=NOW) == pytest.approx(t, abs=1e-6)
+    assert parse(f"(inform :reply-by {token})", now=NOW).reply_by == pytest.approx(t, abs=1e-6)
+
+
+def test_relative_datetime_defaults_to_now() -> None:
+    import time
+
+    before = time.time()
+    t = parse_datetime("+00000000T000100000")
+    assert before + 59 <= t <= time.time() + 61
+
+
 @pytest.mark.parametrize(
     ("token", "reason"),
     [
-        ("20261121T153000000", "local time"),
-        ("+20261121T153000000Z", "relative"),
-        ("20261121T153000000B", "time zone"),
+        ("20261121T153000000B", "time zone designator 'B'"),
         ("20261321T153000000Z", "invalid date-time"),
         ("20261121T253000000Z", "invalid date-time"),
-        ("2026-11-21T15:30:00Z", "not a date-time"),
-        ("tomorrow", "not a date-time"),
+        ("00010101T000000000", "invalid date-time"),  # local time before the year 1 in tz
+        ("2026-11-21T15:30:00Z", "expected a date-time"),
+        ("20261121T1530", "expected a date-time"),
+        ("tomorrow", "expected a date-time"),
     ],
 )
 def test_bad_datetime(token: str, reason: str) -> None:
-    with pytest.raises(StringFormError, match=reason):
-        parse(f"(inform :reply-by {token})")
+    with pytest.raises(StringFormError, match=re.escape(reason)):
+        parse(f"(inform :reply-by {token})", tz=PLUS_1)
 
 
 # -- rejection -----------------------------------------------------------------------------
@@ -218,29 +280,38 @@ def test_bad_datetime(token: str, reason: str) -> None:
         ("(inform :language a :language b)", "repeated", 20),
         ("(inform :language)", "expected a value", 17),
         ("(inform :language :ontology x)", "found parameter", 18),
-        ("(inform language x)", "expected a message parameter", 8),
+        ("(inform language x)", "expected ')' or a message parameter", 8),
         ('(inform :content "abc)', "unterminated string", 17),
         ('(inform :content #5"abc)', "announces 5 octets", 17),
         ('(inform :content #"abc")', "byte-length-encoded", 17),
         ('(inform :content #2"\u0100x)', "U+0000-U+00FF", 20),
-        ("(inform :content abc)", ":content must be a string", 17),
-        ("(inform :content (a b))", ":content must be a string", 17),
+        ("(inform :content (a b))", "expected a string after :content, found '('", 17),
+        ("(inform :content :language x)", "expected a string after :content", 17),
         ("(inform :sender a_co)", "expected '(agent-identifier'", 16),
         ("(inform :sender (agent a_co))", "expected 'agent-identifier'", 17),
         ("(inform :sender (agent-identifier))", "without :name", 16),
         ("(inform :sender (agent-identifier :name 9x))", "invalid agent name", 16),
         ("(inform :sender (agent-identifier :name a :name b))", "repeated", 42),
+        ("(inform :sender (agent-identifier :NAME a :Name b))", "repeated", 42),
+        ("(inform :sender (agent-identifier :name a :colour red))", "expected :name, :addresses", 42),
+        ("(inform :sender (agent-identifier :name a :addresses x))", "expected '(sequence'", 53),
+        ("(inform :sender (agent-identifier :name a :addresses (set x)))", "expected 'sequence'", 54),
         (
-            "(inform :sender (agent-identifier :name a :resolvers (sequence)))",
-            "not supported",
+            "(inform :sender (agent-identifier :name a :resolvers (sequence (agent-identifier :name r))))",
+            "AgentIdentifier cannot hold",
             42,
         ),
+        ("(inform :sender (agent-identifier :name a :X-k v))", "AgentIdentifier cannot hold", 42),
+        ("(inform :sender (agent-identifier :name a :X-k v :x-k w :X-k u))", "repeated", 56),
+        ("(inform :sender (agent-identifier :name a :resolvers (sequence a)))", "'(agent-identifier'", 63),
+        ("(inform :X- v)", "expected a name after ':X-'", 8),
+        ("(inform :sender (agent-identifier :name a :x- v))", "expected a name after ':x-'", 42),
         ("(inform :receiver (agent-identifier :name a))", "expected 'set'", 19),
         ("(inform :receiver (set (agent-identifier :name a)", "unterminated", 19),
         ("(inform :receiver (set a))", "expected '(agent-identifier'", 23),
         ('(inform :reply-by "20261121T153000000Z")', "expected a date-time", 18),
         ("(inform :in-reply-to (a (b)", "closing the expression", 27),
-        ('(inform :ontology #1"\xff)', "not valid UTF-8", 18),
+        ('(inform :ontology #1"\xff)', "invalid UTF-8", 18),
         ("(inform :ontology \ud800)", "lone surrogate", 18),
         (")", "expected '('", 0),
     ],
@@ -264,11 +335,6 @@ def test_bytes_input_positions_are_byte_offsets() -> None:
 def test_oversized_input() -> None:
     with pytest.raises(StringFormError, match="exceeds"):
         parse("(inform)", max_size=4)
-
-
-def test_unwritable_user_parameter_name() -> None:
-    with pytest.raises(ValueError, match="user parameter name"):
-        to_string(_msg(user_params={"X-a b": "1"}))
 
 
 def _parses_or_string_form_error(data: str | bytes) -> None:
@@ -415,3 +481,94 @@ def test_user_parameter_names_keep_their_case() -> None:
         parse("(inform :X-a 1 :X-a 2)")
     with pytest.raises(StringFormError, match="repeated"):
         parse("(inform :language a :LANGUAGE b)")
+
+
+# -- text values, agent identifiers, error locations --------------------------------------------
+
+
+@pytest.mark.parametrize("value", ["C:\\dir\\", "\\", 'a "quoted" \\', "żółw\\"])
+def test_text_values_ending_in_a_backslash_are_byte_length_encoded(value: str) -> None:
+    msg = _msg(
+        sender=AgentIdentifier("a", (value,)),
+        language=value,
+        protocol=value,
+        conversation_id=value,
+        in_reply_to=value,
+        user_params={"X-v": value},
+    )
+    text = to_string(msg)
+    n = len(value.encode())
+    assert f':language #{n}"' in text and f':X-v #{n}"' in text
+    assert parse(text) == msg
+    assert parse(to_bytes(msg)) == msg
+
+
+def test_agent_identifier_is_read_in_full() -> None:
+    text = (
+        '(inform :sender (Agent-Identifier :ADDRESSES (Sequence tcp/a:1 "udp/b c") :Name a_co'
+        ' :resolvers (sequence)) :receiver (set (agent-identifier :name "b" :addresses (sequence))))'
+    )
+    msg = parse(text)
+    assert msg.sender == AgentIdentifier("a_co", ("tcp/a:1", "udp/b c"))
+    assert msg.receiver == (AgentIdentifier("b"),)  # empty :resolvers and :addresses carry nothing
+
+
+def test_resolvers_and_agent_user_parameters_can_be_dropped() -> None:
+    text = (
+        "(inform :sender (agent-identifier :name a :X-k v :resolvers (sequence"
+        " (agent-identifier :name r :addresses (sequence tcp/r:1) :resolvers (sequence"
+        " (agent-identifier :name rr :x-deep (1 2)))))) :reply-to (set (agent-identifier :name b :X-c d)))"
+    )
+    with pytest.raises(StringFormError, match="aid_extras='drop'") as info:
+        parse(text)
+    assert info.value.position == text.index(":X-k")
+    msg = parse(text, aid_extras="drop")
+    assert msg.sender == AgentIdentifier("a")
+    assert msg.reply_to == (AgentIdentifier("b"),)
+
+
+def test_resolver_nesting_is_bounded() -> None:
+    def nested(depth: int) -> str:
+        aid = "(agent-identifier :name r)"
+        for _ in range(depth - 1):
+            aid = f"(agent-identifier :name r :resolvers (sequence {aid}))"
+        return f"(inform :sender {aid})"
+
+    assert parse(nested(MAX_AID_DEPTH), aid_extras="drop").sender == AgentIdentifier("r")
+    with pytest.raises(StringFormError, match="nested deeper"):
+        parse(nested(MAX_AID_DEPTH + 1), aid_extras="drop")
+    deep = "(inform :sender " + "(agent-identifier :name r :resolvers (sequence " * 10_000
+    with pytest.raises(StringFormError, match="nested deeper"):
+        parse(deep, aid_extras="drop")
+
+
+def test_errors_name_line_column_and_what_was_expected() -> None:
+    text = "(inform\n :sender (agent-identifier :name a_co)\n :receiver (set a_km))"
+    with pytest.raises(StringFormError) as info:
+        parse(text)
+    err = info.value
+    assert err.reason == "expected '(agent-identifier', found 'a_km'"
+    assert (err.position, err.line, err.column) == (text.index("a_km"), 3, 17)
+    assert str(err) == "expected '(agent-identifier', found 'a_km' (at position 63, line 3 column 17)"
+    with pytest.raises(StringFormError) as info:
+        parse("(inform :reply-by 20261121T153000000Q)")
+    assert "expected Z (UTC) or none" in info.value.reason
+    with pytest.raises(StringFormError, match="expected one of the 22"):
+        parse("(shout)")
+    with pytest.raises(StringFormError, match=r"expected one of :sender .* or a user-defined :X-name"):
+        parse("(inform :colour red)")
+    with pytest.raises(StringFormError) as info:
+        parse_datetime("never", 7)
+    assert (info.value.position, info.value.line, info.value.column) == (7, None, None)
+
+
+def test_bytes_input_line_and_column_count_bytes() -> None:
+    with pytest.raises(StringFormError) as info:
+        parse('(inform\n :ontology "ż" :x)'.encode())
+    assert (info.value.line, info.value.column) == (2, 17)
+
+
+@pytest.mark.parametrize("key", ["X-", "x-", "X-a b", "X-(", "X-a\tb"])
+def test_unwritable_user_parameter_names(key: str) -> None:
+    with pytest.raises(ValueError, match="user parameter name"):
+        to_string(_msg(user_params={key: "1"}))
