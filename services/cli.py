@@ -384,7 +384,13 @@ def spec_show(
     agents' interfaces; the agent/channel graph as SVG or DOT."""
     from services.spec.decomposition import load_decomposition
     from services.spec.model import SpecError, load
-    from services.spec.show import graph_dot, graph_svg, interfaces_markdown, steps_markdown
+    from services.spec.show import (
+        channels_markdown,
+        graph_dot,
+        graph_svg,
+        interfaces_markdown,
+        steps_markdown,
+    )
 
     path = _spec_path(spec)
     try:
@@ -392,6 +398,7 @@ def spec_show(
     except SpecError as exc:
         raise fail(str(exc), code=2) from None
     typer.echo(steps_markdown(d))
+    typer.echo(channels_markdown(system))
     typer.echo(interfaces_markdown(system))
     if svg is not None:
         svg.write_text(graph_svg(system))

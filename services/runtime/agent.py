@@ -161,7 +161,13 @@ class Agent:
             raise SpecViolation(f"{self.name}: no channel to {to}")
         language, body = encode_content(content) if content is not None else (None, b"")
         ontology = language_of(content).ontology if content is not None else None
-        self._check_send(to, performative.value, protocol, language)
+        self._check_send(
+            to,
+            performative.value,
+            protocol,
+            language,
+            type(content).__name__ if content is not None else None,
+        )
         if (expect_reply or reply_by_s is not None) and reply_with is None:
             reply_with = new_id(f"{self.name}-")
         deadline = time.time() + reply_by_s if reply_by_s is not None else None
@@ -265,7 +271,9 @@ class Agent:
         )
         self._y.append((keys.fipa_key(channel, self.name, sender), encode(msg)))
 
-    def _check_send(self, to: str, performative: str, protocol: str, language: str | None) -> None:
+    def _check_send(
+        self, to: str, performative: str, protocol: str, language: str | None, term: str | None = None
+    ) -> None:
         for kind in self.interface.sends:
             if kind.receiver == to and kind.performative == performative and kind.protocol == protocol:
                 if language is not None and kind.languages and language not in kind.languages:
@@ -273,6 +281,12 @@ class Agent:
                         None,
                         f"{self.name}: {performative} to {to} in {protocol} must use "
                         f"{'/'.join(kind.languages)}, not {language}",
+                    )
+                if term is not None and kind.contents and term not in kind.contents:
+                    self._violation(
+                        None,
+                        f"{self.name}: {performative} to {to} in {protocol} may carry "
+                        f"{', '.join(kind.contents)}, not {term}",
                     )
                 return
         self._violation(None, f"{self.name}: may not send {performative} to {to} in {protocol}")
@@ -422,6 +436,16 @@ class Agent:
                 content = decode_content(msg.language, msg.content)
             except ContentError as exc:
                 self.not_understood(sender, channel, str(exc), msg)
+                return
+            if kind.contents and type(content).__name__ not in kind.contents:
+                self.counters["content_violations"] += 1
+                self.not_understood(
+                    sender,
+                    channel,
+                    f"{msg.performative.value} in {msg.protocol} may carry {', '.join(kind.contents)}, "
+                    f"not {type(content).__name__}",
+                    msg,
+                )
                 return
         why = self._follow(
             sender, msg.conversation_id, msg.protocol, msg.performative, False, is_terminal_report(msg)

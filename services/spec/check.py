@@ -11,7 +11,9 @@ channels exactly the specification's channels C1..Cn between those agents.
 
 Interface rules (paper §4 steps 3–4): every channel protocol exists and is initiated by one of
 the channel's ends; every performative a role may send has a language (not-understood and
-cancel excepted), every language exists; every agent ends at least one channel.
+cancel excepted), every language exists; the content schemas named for a performative are
+terms of its language and the size estimates are sound intervals; every agent ends at
+least one channel.
 """
 
 from __future__ import annotations
@@ -190,6 +192,27 @@ def check_interfaces(spec: SystemSpec) -> list[str]:
                         problems.append(f"{where}: {perf} in unknown language {lang!r}")
             for perf in sorted(allowed - _NO_LANGUAGE - set(cp.languages)):
                 problems.append(f"{where}: {perf} may be sent but has no language")
+            for perf, names in cp.contents.items():
+                given: str | tuple[str, ...] | None = cp.languages.get(perf)
+                if perf not in allowed or given is None:
+                    problems.append(f"{where}: contents are given for {perf}, which has no language here")
+                    continue
+                in_langs = (given,) if isinstance(given, str) else given
+                terms = {t.__name__ for lang in in_langs if lang in LANGUAGES for t in LANGUAGES[lang].types}
+                for name in names:
+                    if name not in terms:
+                        problems.append(
+                            f"{where}: {perf} may carry {name}, which is no term of {'/'.join(in_langs)}"
+                        )
+            for perf, (low, high) in cp.sizes.items():
+                if perf not in allowed and perf != "not-understood":
+                    problems.append(
+                        f"{where}: a size estimate is given for {perf}, which neither role may send"
+                    )
+                if not 0 < low <= high:
+                    problems.append(
+                        f"{where}: the size estimate of {perf} must be 0 < min ≤ max, not [{low}, {high}]"
+                    )
     for a in spec.agents:
         if not any(a.name in ch.ends for ch in spec.channels):
             problems.append(f"agent {a.name} ends no channel")

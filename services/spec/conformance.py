@@ -165,6 +165,9 @@ class ConformanceReport:
     unchecked: int = 0
     not_understood: list[Violation] = field(default_factory=list)
     notes: list[str] = field(default_factory=list)
+    outside_estimates: list[str] = field(default_factory=list)
+    """Communicates whose size on the wire fell outside the specification's estimate (not a
+    violation: estimates, paper eq. 4)."""
 
     @property
     def per_protocol(self) -> dict[str, int]:
@@ -227,6 +230,7 @@ class _Checker:
         self.interfaces = {a.name: interface(spec, a.name) for a in spec.agents}
         self.trackers: dict[tuple[str, frozenset[str]], CrossingTracker] = {}
         self.results: dict[tuple[str, frozenset[str]], ConversationResult] = {}
+        self.outside_estimates = report.outside_estimates
 
     # ---- one communicate -----------------------------------------------------------------
     def check(self, m: Message) -> None:
@@ -345,9 +349,26 @@ class _Checker:
             problems.append(("ontology", f"language {language} needs ontology {needed}, not {ontology}"))
         if comm is not None and comm.content and language is not None:
             try:
-                decode_content(language, comm.content)
+                term = decode_content(language, comm.content)
             except ContentError as exc:
                 problems.append(("content", str(exc)))
+            else:
+                cp = next(c for c in between.protocols if c.protocol == protocol)
+                allowed_terms = cp.content_types(perf)
+                if allowed_terms and type(term).__name__ not in allowed_terms:
+                    problems.append(
+                        (
+                            "content",
+                            f"{perf} in {protocol} on {between.name} carries a {type(term).__name__}; "
+                            f"the specification allows {', '.join(allowed_terms)}",
+                        )
+                    )
+                estimate = cp.sizes.get(perf)
+                if estimate is not None and not estimate[0] <= rec.size <= estimate[1]:
+                    low, high = estimate
+                    self.outside_estimates.append(
+                        f"{between.name} {protocol} {perf}: {rec.size} B (estimate {low}–{high} B)"
+                    )
         return problems
 
     # ---- its conversation ----------------------------------------------------------------
@@ -460,6 +481,11 @@ def render(report: ConformanceReport, *, limit: int = 50) -> str:
             lines.append(f"  … {len(report.violations) - limit} more")
     else:
         lines.append("violations: none")
+    if report.outside_estimates:
+        lines.append(f"sizes outside the specification's estimates: {len(report.outside_estimates)}")
+        lines += [f"  {x}" for x in report.outside_estimates[:10]]
+    else:
+        lines.append("sizes: every communicate within the specification's estimates")
     still = report.open_conversations
     if still:
         lines.append(f"open at the end of the record: {len(still)}")

@@ -41,11 +41,20 @@ class ProtocolRoles(msgspec.Struct, frozen=True):
 
 
 class ChannelProtocol(msgspec.Struct, frozen=True):
-    """One protocol on a channel: who initiates, and the content language per performative."""
+    """One protocol on a channel: who initiates; per performative the content language, the
+    content schemas (``contents``: the names of the language's terms it may carry; absent:
+    any term, or none) and the size estimate on the wire (``sizes``: [min, max] bytes of the
+    encoded communicate; paper eq. 4 and §5.4 give them per language)."""
 
     protocol: str
     initiator: str
     languages: dict[str, str | tuple[str, ...]] = {}
+    contents: dict[str, tuple[str, ...]] = {}
+    sizes: dict[str, tuple[int, int]] = {}
+
+    def content_types(self, performative: str) -> tuple[str, ...]:
+        """The term names ``performative`` may carry (empty: not constrained)."""
+        return self.contents.get(performative, ())
 
 
 class ChannelSpec(msgspec.Struct, frozen=True):
@@ -74,6 +83,8 @@ class MessageKind:
     performative: str
     protocol: str
     languages: tuple[str, ...]
+    contents: tuple[str, ...] = ()
+    """the names of the language terms it may carry (empty: any)"""
 
 
 @dataclass(frozen=True)
@@ -140,9 +151,17 @@ def interface(spec: SystemSpec, agent: str) -> Interface:
             mine = roles.initiator if cp.initiator == agent else roles.participant
             theirs = roles.participant if cp.initiator == agent else roles.initiator
             for perf in (*mine, NOT_UNDERSTOOD):
-                sends.append(MessageKind(ch.name, agent, peer, perf, cp.protocol, _langs(cp, perf)))
+                sends.append(
+                    MessageKind(
+                        ch.name, agent, peer, perf, cp.protocol, _langs(cp, perf), cp.content_types(perf)
+                    )
+                )
             for perf in (*theirs, NOT_UNDERSTOOD):
-                receives.append(MessageKind(ch.name, peer, agent, perf, cp.protocol, _langs(cp, perf)))
+                receives.append(
+                    MessageKind(
+                        ch.name, peer, agent, perf, cp.protocol, _langs(cp, perf), cp.content_types(perf)
+                    )
+                )
     return Interface(agent, tuple(sends), tuple(receives))
 
 

@@ -77,6 +77,41 @@ def interfaces_markdown(spec: SystemSpec) -> str:
     return "\n".join(lines)
 
 
+def channels_markdown(spec: SystemSpec) -> str:
+    """Per channel and protocol, every message (paper §5.4, eq. 4, Figures 8–9): who sends it,
+    the performative, its language, content schemas and size estimate."""
+    parts = ["# Channels and their messages", ""]
+    for ch in spec.channels:
+        parts += [f"## {ch.name} ({ch.ends[0]}, {ch.ends[1]}): {ch.transmits}", ""]
+        for cp in ch.protocols:
+            other = ch.ends[1] if ch.ends[0] == cp.initiator else ch.ends[0]
+            roles = spec.protocols[cp.protocol]
+            parts += [
+                f"{cp.protocol}, initiated by {cp.initiator}:",
+                "",
+                "| sender | performative | language | content | size estimate (B) |",
+                "|---|---|---|---|---|",
+            ]
+            for sender, perfs in ((cp.initiator, roles.initiator), (other, roles.participant)):
+                for perf in perfs:
+                    langs = cp.languages.get(perf, "")
+                    lang = langs if isinstance(langs, str) else "/".join(langs)
+                    size = cp.sizes.get(perf)
+                    parts.append(
+                        _row(
+                            [
+                                sender,
+                                perf,
+                                lang or "—",
+                                ", ".join(cp.content_types(perf)) or ("any term" if lang else "—"),
+                                f"{size[0]}–{size[1]}" if size else "",
+                            ]
+                        )
+                    )
+            parts.append("")
+    return "\n".join(parts)
+
+
 def graph_dot(spec: SystemSpec) -> str:
     """Graphviz source of the agents (nodes) and channels (edges labelled with the channel
     and its protocols)."""

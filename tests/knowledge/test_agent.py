@@ -158,7 +158,7 @@ def test_unanswerable_queries_get_a_reason_and_km_keeps_running(monkeypatch: pyt
             (ObjectQuery("teapot"), Performative.FAILURE, "teapot"),
             (SparqlQuery("SELECT WHERE {"), Performative.FAILURE, "bad SPARQL"),
             (SparqlQuery("DESCRIBE roco:jar"), Performative.REFUSE, "SELECT and ASK"),
-            (Subscription("environment"), Performative.REFUSE, "not an L_WM query: Subscription"),
+            (Subscription("environment"), Performative.NOT_UNDERSTOOD, "not Subscription"),  # spec: contents
             (None, Performative.REFUSE, "no content"),
         ]
         for query, performative, reason in cases:

@@ -67,6 +67,18 @@ BROKEN = [
         "C3 fipa-request: request may be sent but has no language",
     ),
     (
+        "a content schema that is no term of the language",
+        'contents = { request = ["GroundTaskNetwork"], inform = ["HierarchicalPlan"]',
+        'contents = { request = ["GroundTaskNetwork"], inform = ["WorldUpdate"]',
+        "C3 fipa-request: inform may carry WorldUpdate, which is no term of L_HFSM",
+    ),
+    (
+        "a size estimate that is no interval",
+        "sizes = { request = [100, 1000], inform = [500, 100000]",
+        "sizes = { request = [1000, 100], inform = [500, 100000]",
+        "C3 fipa-request: the size estimate of request must be 0 < min ≤ max, not [1000, 100]",
+    ),
+    (
         "a requirement under a parent that does not exist",
         'parent = "R3"\ntext = "update the environment model"',
         'parent = "R9"\ntext = "update the environment model"',

@@ -19,7 +19,14 @@ from services.spec.conformance import ConformanceReport, render, verify_report, 
 from services.spec.model import default_spec
 from shared.fipa_codec import AgentIdentifier, Communicate, Performative, encode
 from shared.fipa_codec.languages import encode_content, language_of
-from shared.fipa_codec.languages.l_hc import CommandOutcome, HumanCommand, ProgressSubscription, TaskAtom
+from shared.fipa_codec.languages.l_hc import (
+    CommandOutcome,
+    HumanCommand,
+    Progress,
+    ProgressSubscription,
+    TaskAtom,
+    TaskState,
+)
 from shared.fipa_codec.languages.l_sw import SWState, SWStatus
 from shared.fipa_codec.languages.l_wm import Answer, ObjectQuery
 from tests.support.memory_fleet import MemoryFleet
@@ -102,6 +109,7 @@ def on(channel: str, msg: Communicate) -> tuple[str, bytes]:
 
 COMMAND = HumanCommand(text="pour the jar into the bowl", goal=TaskAtom("pour", ("jar", "bowl")))
 OUTCOME = CommandOutcome(command_id="cmd-1", succeeded=True)
+PROGRESS = Progress(command_id="c", state=TaskState.RUNNING)
 
 
 def verify(tmp_path: Path, *published: tuple[str, bytes]) -> ConformanceReport:
@@ -151,7 +159,7 @@ def test_performatives_outside_the_protocol_state(tmp_path: Path) -> None:
         on("C2", comm(P.INFORM, "a_co", "a_hi", "fipa-request", "cmd-1", OUTCOME)),
         # an inform before the subscription is agreed
         on("C2", comm(P.SUBSCRIBE, "a_hi", "a_co", "fipa-subscribe", "sub", ProgressSubscription())),
-        on("C2", comm(P.INFORM, "a_co", "a_hi", "fipa-subscribe", "sub", OUTCOME)),
+        on("C2", comm(P.INFORM, "a_co", "a_hi", "fipa-subscribe", "sub", PROGRESS)),
         # coordinate: a confirm before a_ta reported anything
         on("C1", comm(P.REQUEST, "a_co", "a_ta", "coordinate", "exec", content=b"", language=None)),
         on("C1", comm(P.CONFIRM, "a_co", "a_ta", "coordinate", "exec", SWStatus(state=SWState.RUNNING))),
@@ -243,7 +251,7 @@ def test_the_rendered_report_names_each_violation(tmp_path: Path) -> None:
     report = verify(
         tmp_path,
         on("C2", comm(P.SUBSCRIBE, "a_hi", "a_co", "fipa-subscribe", "sub", ProgressSubscription())),
-        on("C2", comm(P.INFORM, "a_co", "a_hi", "fipa-subscribe", "sub", OUTCOME)),
+        on("C2", comm(P.INFORM, "a_co", "a_hi", "fipa-subscribe", "sub", PROGRESS)),
     )
     text = render(report)
     assert (
@@ -268,3 +276,17 @@ def test_missing_payloads_an_empty_record_and_no_folder_are_not_full_conformance
     assert (ok, text) == (False, f"{tmp_path / 'nowhere'}: no such run folder")
     ok, text = verify_report(run, tmp_path / "missing.toml")
     assert not ok and "no such specification file" in text
+
+
+def test_a_term_the_specification_does_not_list_for_the_performative_is_a_violation(tmp_path: Path) -> None:
+    report = verify(
+        tmp_path,
+        on("C2", comm(P.SUBSCRIBE, "a_hi", "a_co", "fipa-subscribe", "sub", ProgressSubscription())),
+        on("C2", comm(P.AGREE, "a_co", "a_hi", "fipa-subscribe", "sub", None)),
+        on("C2", comm(P.INFORM, "a_co", "a_hi", "fipa-subscribe", "sub", OUTCOME)),
+    )
+    [v] = report.violations
+    assert v.kind == "content"
+    assert (
+        v.text == "inform in fipa-subscribe on C2 carries a CommandOutcome; the specification allows Progress"
+    )
