@@ -23,24 +23,34 @@ class SpecError(ValueError):
     """A specification file that is malformed or inconsistent; the message names file and place."""
 
 
-class AgentSpec(msgspec.Struct, frozen=True):
-    """An agent: its ``name``, the decomposition ``group`` it substitutes, its ``job``, and the
-    ``implementation`` (``module:Class``) the launcher starts for it."""
+class AgentSpec(msgspec.Struct, frozen=True, forbid_unknown_fields=True):
+    """An agent: its ``name``, the decomposition ``group`` it substitutes, its ``job``, the
+    ``implementation`` (``module:Class``) the launcher starts for it, and ``waits``: the
+    conversations it opens while serving another (validated by services/spec/deadlock.py)."""
 
     name: str
     group: str
     implementation: str
     job: str = ""
+    waits: tuple[dict[str, str | list[str]], ...] = ()
 
 
-class ProtocolRoles(msgspec.Struct, frozen=True):
-    """Performatives each role of an interaction protocol may send."""
+class ProtocolRoles(msgspec.Struct, frozen=True, forbid_unknown_fields=True):
+    """Performatives each role of an interaction protocol may send, and optionally its state
+    machine (validated and built by services/spec/protocol_defs.py)."""
 
     initiator: tuple[str, ...]
     participant: tuple[str, ...]
+    initial: str | None = None
+    final: tuple[str, ...] = ()
+    transitions: tuple[tuple[str, str, str, str], ...] = ()
+    cancellable: tuple[str, ...] = ()
+    terminal: tuple[tuple[str, str, str, str], ...] = ()
+    description: str = ""
+    spec: str = ""
 
 
-class ChannelProtocol(msgspec.Struct, frozen=True):
+class ChannelProtocol(msgspec.Struct, frozen=True, forbid_unknown_fields=True):
     """One protocol on a channel: who initiates; per performative the content language, the
     content schemas (``contents``: the names of the language's terms it may carry; absent:
     any term, or none) and the size estimate on the wire (``sizes``: [min, max] bytes of the
@@ -57,7 +67,7 @@ class ChannelProtocol(msgspec.Struct, frozen=True):
         return self.contents.get(performative, ())
 
 
-class ChannelSpec(msgspec.Struct, frozen=True):
+class ChannelSpec(msgspec.Struct, frozen=True, forbid_unknown_fields=True):
     """A communication channel C^k between two agents (paper §3.1) and its protocols."""
 
     name: str
@@ -66,11 +76,17 @@ class ChannelSpec(msgspec.Struct, frozen=True):
     protocols: tuple[ChannelProtocol, ...]
 
 
-class SystemSpec(msgspec.Struct, frozen=True):
+class SystemSpec(msgspec.Struct, frozen=True, forbid_unknown_fields=True):
+    """The whole specification file: the system's name, agents, protocols and channels; the
+    requirement tree and the decomposition steps are read (and validated field by field) by
+    services/spec/decomposition.py."""
+
     system: str
     agents: tuple[AgentSpec, ...]
     protocols: dict[str, ProtocolRoles]
     channels: tuple[ChannelSpec, ...]
+    requirements: tuple[dict[str, str], ...] = ()
+    steps: tuple[dict[str, object], ...] = ()
 
 
 @dataclass(frozen=True)

@@ -217,7 +217,6 @@ def _spec_with_waits(tmp_path: Path, agent: str, waits: str) -> Path:
 @pytest.mark.parametrize(
     ("agent", "waits", "message"),
     [
-        ("a_pl", '"C4"', "agent a_pl: waits must be a list of { serving = ..., opens = [...] } tables"),
         ("a_pl", '[{ serving = "C3:fipa-request" }]', "agent a_pl: waits entry 1: expected { serving ="),
         ("a_pl", '[{ serving = "C3:fipa-request", opens = [] }]', "opens must be a non-empty list"),
         (
@@ -265,3 +264,9 @@ def test_a_malformed_waits_entry_gives_a_precise_error(
 def test_a_malformed_protocol_table_stops_the_analysis() -> None:
     with pytest.raises(SpecError, match="'infrom' is not a FIPA performative"):
         deadlock_report(FIXTURES / "malformed_protocol.toml")
+
+
+def test_waits_of_the_wrong_type_are_refused_when_the_spec_loads(tmp_path: Path) -> None:
+    path = _spec_with_waits(tmp_path, "a_pl", '"C4"')
+    with pytest.raises(SpecError, match=r"Expected `array`, got `str` - at `\$\.agents\[2\]\.waits`"):
+        analyse(path)

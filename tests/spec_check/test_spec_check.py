@@ -185,3 +185,15 @@ def test_verify_code_reports_an_implementation_that_does_not_exist(tmp_path: Pat
     path.write_text(SHIPPED.replace("services.planner.agent:Planner", "services.nowhere.agent:Planner"))
     ok, text = verify_code_report(path)
     assert not ok and "no module 'services.nowhere.agent'" in text
+
+
+def test_a_misspelt_field_anywhere_in_the_file_is_refused(tmp_path: Path) -> None:
+    path = tmp_path / "typo.toml"
+    path.write_text(
+        SHIPPED.replace(
+            '  languages = { request = "L_HFSM", inform = "L_SW"',
+            '  langauges = { request = "L_HFSM", inform = "L_SW"',
+        )
+    )
+    ok, text = check_report(path)
+    assert not ok and "unknown field `langauges` - at `$.channels[0].protocols[0]`" in text
