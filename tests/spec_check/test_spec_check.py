@@ -197,3 +197,19 @@ def test_a_misspelt_field_anywhere_in_the_file_is_refused(tmp_path: Path) -> Non
     )
     ok, text = check_report(path)
     assert not ok and "unknown field `langauges` - at `$.channels[0].protocols[0]`" in text
+
+
+def test_roco_spec_deadlock_and_verify_exit_codes(tmp_path: Path) -> None:
+    fixtures = Path(__file__).resolve().parents[1] / "spec" / "fixtures"
+
+    def roco(*args: str) -> subprocess.CompletedProcess[str]:
+        return subprocess.run(
+            [sys.executable, "-m", "services.cli", "spec", *args], capture_output=True, text=True
+        )
+
+    shipped = roco("deadlock")
+    assert shipped.returncode == 0 and "no deadlock found" in shipped.stdout
+    broken = roco("deadlock", "--spec", str(fixtures / "deadlock_protocol.toml"))
+    assert broken.returncode == 1 and "deadlock" in broken.stdout.lower()
+    missing = roco("verify", str(tmp_path / "no-run"))
+    assert missing.returncode == 1 and "no such run folder" in missing.stdout
