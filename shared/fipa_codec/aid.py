@@ -1,28 +1,132 @@
-"""Agent identifiers (FIPA SC00023 §4: agent-identifier with name and transport addresses)."""
+"""Agent identifiers (FIPA SC00023 §4; their string form: SC00070 §2.2 ``AgentIdentifier``).
+
+An agent-identifier (AID) holds a globally unique ``name``, optionally the ``addresses`` (a
+sequence of URLs) at which the agent can be reached, the ``resolvers`` (a sequence of agent
+identifiers, typically directory facilitators or AMSs, that can resolve the name to addresses;
+recursive) and user-defined parameters, written ``:X-name value`` in the string form (SC00070
+§2.2: ``( UserDefinedParameter Expression )*`` after ``:resolvers``).
+"""
 
 from __future__ import annotations
 
 import re
+from typing import Annotated
 
 import msgspec
 
-_NAME = re.compile(r"^[A-Za-z][A-Za-z0-9_.\-@]{0,127}$")
+__all__ = ["MAX_AID_DEPTH", "AgentIdentifier", "aid"]
+
+MAX_AID_DEPTH = 32
+"""Deepest nesting of agent identifiers through ``resolvers``, counting the outer one: an
+identifier without resolvers has depth 1. The same cap as the string-form parser's."""
+
+_NAME_PATTERN = r"[A-Za-z][A-Za-z0-9_.\-@]{0,127}"
+# a SC00070 Word that starts with X- or x-: no white space (U+0000-U+0020), no parenthesis
+_USER_NAME_PATTERN = r"[Xx]-[^\x00-\x20()]+"
+_NAME = re.compile(_NAME_PATTERN)
+_USER_NAME = re.compile(_USER_NAME_PATTERN)
+
+# The field types, with their JSON Schema documentation (msgspec.json.schema). The patterns go
+# to the schema only (extra_json_schema), anchored; __post_init__ checks them, with fullmatch
+# (in Python "$" also matches before a final newline) and once per identifier (a msgspec
+# ``pattern`` constraint would double the cost of decoding an agent identifier).
+_Name = Annotated[
+    str,
+    msgspec.Meta(
+        description="name: a roco agent name (a letter, then letters, digits, _ . - @; at most 128)",
+        extra_json_schema={"pattern": f"^{_NAME_PATTERN}$"},
+    ),
+]
+_Addresses = Annotated[
+    tuple[str, ...],
+    msgspec.Meta(description="addresses: transport addresses (URLs), in order of preference"),
+]
+_Resolvers = Annotated[
+    tuple["AgentIdentifier", ...],
+    msgspec.Meta(
+        description=(
+            f"resolvers: agent identifiers of name resolution services, in order (at most "
+            f"{MAX_AID_DEPTH} identifiers deep, counting the outer one)"
+        )
+    ),
+]
+_UserParameter = Annotated[
+    tuple[
+        Annotated[
+            str,
+            msgspec.Meta(
+                description="parameter name, X- included (a SC00070 Word starting with X- or x-)",
+                extra_json_schema={"pattern": f"^{_USER_NAME_PATTERN}$"},
+            ),
+        ],
+        Annotated[str, msgspec.Meta(description="parameter value, as text")],
+    ],
+    msgspec.Meta(description="a user-defined parameter: [name, value]"),
+]
+_User = Annotated[
+    tuple[_UserParameter, ...],
+    msgspec.Meta(description="user: user-defined parameters, in order, each name at most once"),
+]
+
+
+def _depth(agent: AgentIdentifier) -> int:
+    """How many agent identifiers deep ``agent`` is through its resolvers (1 without any)."""
+    return 1 + max((_depth(r) for r in agent.resolvers), default=0)
 
 
 class AgentIdentifier(msgspec.Struct, frozen=True, array_like=True):
-    """A FIPA agent-identifier: a globally unique ``name`` and optional transport ``addresses``.
+    """A FIPA agent-identifier (SC00023 §4, SC00070 §2.2).
 
-    In roco the name is the agent's name from the specification (``a_co``, ``ag_ex``…); an
-    address is a Zenoh locator (``tcp/127.0.0.1:7447``). Encoded as a two-element array on the
-    wire to keep communicates small.
+    ``name``: the globally unique name; in roco the agent's name from the specification
+    (``a_co``, ``ag_ex``…), a letter then letters, digits, ``_ . - @`` (names appear in Zenoh
+    key expressions), at most 128 characters.
+    ``addresses``: transport addresses (URLs) in order of preference; in roco Zenoh locators
+    (``tcp/127.0.0.1:7447``).
+    ``resolvers``: agent identifiers of name resolution services (SC00023 §4), in order;
+    each may have resolvers of its own, up to :data:`MAX_AID_DEPTH` identifiers deep.
+    ``user``: user-defined parameters as ``(name, value)`` pairs in order; the name includes
+    its ``X-`` prefix (``("X-JADE-agent-classname", "examples.PingAgent")``) and is a SC00070
+    Word starting with ``X-`` or ``x-`` (no white space U+0000–U+0020, no parenthesis), at
+    most once per identifier (spelling matters: ``X-a`` and ``x-a`` are two); the value is
+    text. The string form writes them ``:X-name value``.
+
+    Equality and hashing compare all four fields, the sequences in order.
+
+    On the wire (msgpack and JSON) an array ``[name, addresses, resolvers, user]``; a reader
+    takes missing trailing items as empty, so the two-element arrays ``[name, addresses]``
+    written before resolvers and user parameters existed still decode (and ignores extra
+    trailing items, so older readers read newer identifiers without their new fields).
+    msgspec writes all four items even when empty (``omit_defaults`` has no effect on
+    ``array_like`` structs, msgspec issue #720), two bytes more than before in msgpack.
+
+    Raises ValueError on construction (and msgspec.ValidationError on decoding) for a bad
+    name, a bad or repeated user parameter name, or resolvers nested deeper than
+    :data:`MAX_AID_DEPTH`.
     """
 
-    name: str
-    addresses: tuple[str, ...] = ()
+    name: _Name
+    addresses: _Addresses = ()
+    resolvers: _Resolvers = ()
+    user: _User = ()
 
     def __post_init__(self) -> None:
-        if not _NAME.match(self.name):
+        if not isinstance(self.name, str) or not _NAME.fullmatch(self.name):
             raise ValueError(f"invalid agent name {self.name!r}: letters, digits, _ . - @ only")
+        if self.user:
+            seen: set[str] = set()
+            for key, _value in self.user:
+                if not isinstance(key, str) or not _USER_NAME.fullmatch(key):
+                    raise ValueError(
+                        f"invalid user parameter name {key!r} of agent {self.name}: 'X-' or 'x-' "
+                        "then a name without white space or parenthesis"
+                    )
+                if key in seen:
+                    raise ValueError(f"user parameter {key!r} of agent {self.name} repeated")
+                seen.add(key)
+        if self.resolvers and _depth(self) > MAX_AID_DEPTH:
+            raise ValueError(
+                f"resolvers of agent {self.name} nested deeper than {MAX_AID_DEPTH} agent identifiers"
+            )
 
     def __str__(self) -> str:
         return self.name

@@ -27,16 +27,34 @@ The JSON encoding (for tools outside Python)
                         (SC00061 user-defined parameters; default ``{}``)
     ==================  ===========================================================================
 
-    An agent identifier (SC00023 §4) is an array ``[name, [address, …]]``; the address list
-    may be left out (``["a_km"]``). Names are roco agent names: a letter, then letters,
-    digits, ``_ . - @`` (at most 128 characters). Unknown object fields and trailing array
-    items are ignored, so that newer writers stay readable. Example::
+    An agent identifier (FIPA SC00023 §4, SC00070 §2.2) is an array
+    ``[name, [address, …], [resolver, …], [[X-name, value], …]]``:
 
-        {"performative":"inform","sender":["a_co",["tcp/127.0.0.1:7447"]],
-         "receiver":[["a_km",[]]],"content":"gaR0eXBl","language":"L_WM",
+    * ``name``: a roco agent name: a letter, then letters, digits, ``_ . - @`` (at most 128
+      characters);
+    * addresses: strings, transport addresses (URLs) in order of preference;
+    * resolvers: agent identifiers (the same arrays, recursively, at most 32 deep counting the
+      outer one) of the services that can resolve the name;
+    * user-defined parameters: ``[name, value]`` pairs of strings, in order; the name includes
+      its ``X-`` (or ``x-``) prefix, contains no white space (U+0000–U+0020) and no
+      parenthesis, and appears at most once per identifier.
+
+    Trailing items may be left out and count as empty (``["a_km"]``,
+    ``["a_km", ["tcp/127.0.0.1:7447"]]``, as written before resolvers and user parameters
+    were added); roco writes all four. Unknown object fields and trailing array items are
+    ignored, so that newer writers stay readable. Example::
+
+        {"performative":"inform","sender":["a_co",["tcp/127.0.0.1:7447"],[],[]],
+         "receiver":[["a_km",[],[],[]]],"content":"gaR0eXBl","language":"L_WM",
          "reply-by":1795275000.123,"user-params":{"X-priority":"2"}}
 
-    :func:`json_schema` gives the same as a JSON Schema (2020-12) document.
+    and an agent identifier with a resolver and a user-defined parameter::
+
+        ["da0@jade-platform",["http://robolab:7778/acc"],[["df@jade-platform",[],[],[]]],
+         [["X-JADE-agent-classname","examples.PingAgent"]]]
+
+    :func:`json_schema` gives the same as a JSON Schema (2020-12) document, each item of an
+    agent identifier described and the name patterns given.
 """
 
 from __future__ import annotations
@@ -83,6 +101,8 @@ def decode(data: bytes | bytearray | memoryview, max_size: int = MAX_COMMUNICATE
         return _mp_decoder.decode(data)
     except (msgspec.DecodeError, msgspec.ValidationError, ValueError) as exc:
         raise DecodeError(str(exc).splitlines()[0]) from None
+    except RecursionError:  # agent identifiers nested (through resolvers) beyond the stack
+        raise DecodeError("agent identifiers nested too deeply") from None
 
 
 def encode_json(msg: Communicate) -> bytes:
@@ -109,8 +129,17 @@ def decode_json(
         return _json_decoder.decode(data)
     except (msgspec.DecodeError, msgspec.ValidationError, ValueError) as exc:
         raise DecodeError(str(exc).splitlines()[0]) from None
+    except RecursionError:  # agent identifiers nested (through resolvers) beyond the stack
+        raise DecodeError("agent identifiers nested too deeply") from None
 
 
 def json_schema() -> dict[str, Any]:
-    """The JSON encoding as a JSON Schema (2020-12) document, for tools outside Python."""
+    """The JSON encoding as a JSON Schema (2020-12) document, for tools outside Python.
+
+    ``$defs/AgentIdentifier`` is the agent identifier array of the module docstring: its
+    ``prefixItems`` (name, addresses, resolvers, user-defined parameters) carry a
+    ``description`` each, and the name and user parameter name their ``pattern``. What the
+    schema cannot say: a user parameter name at most once per identifier, resolvers at most
+    32 identifiers deep, and the user parameter keys of ``user-params`` start with ``X-``.
+    """
     return msgspec.json.schema(Communicate)

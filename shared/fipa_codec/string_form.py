@@ -12,7 +12,7 @@
 and :func:`parse` reads it back; ``parse(to_string(m)) == m`` for every communicate ``m``
 whose ``reply_by`` is a whole number of milliseconds (see *Times* below). :func:`parse` also
 reads what other FIPA platforms print (JADE's ``ACLMessage.toString`` layout among them),
-field for field, within the limits of roco's data model (see *Agent identifiers*).
+field for field, within the limits of roco's data model (agent names, see *Agent identifiers*).
 
 Grammar (SC00070 §2.2 syntax, §2.3 lexical rules and the notes on them), as read here
     ``Message = "(" MessageType MessageParameter* ")"``; the message type is one of the 22
@@ -71,15 +71,23 @@ Times (SC00070 §2.3 ``DateTime`` and the notes on time tokens)
     the years 0001–9999 (UTC), which could not be written back.
 
 Agent identifiers (FIPA SC00023 §4, SC00070 §2.2 ``AgentIdentifier``)
-    Written ``(agent-identifier :name <word> :addresses (sequence <url>*))``, ``:addresses``
-    left out when empty. Read in full: ``:name``, ``:addresses (sequence URL*)``,
-    ``:resolvers (sequence AgentIdentifier*)`` (recursive, up to :data:`MAX_AID_DEPTH` deep)
-    and user-defined ``:X-`` parameters, in any order. roco's :class:`AgentIdentifier` holds
-    a name and addresses only, so a parsed agent identifier with resolvers or user parameters
-    is rejected (``aid_extras="reject"``, the default: nothing is dropped silently) or kept
-    without them (``aid_extras="drop"``). Its name must also be a roco agent name (letters,
-    digits, ``_ . - @``: names appear in Zenoh key expressions), so JADE's default names
-    ``agent@host:1099/JADE`` are rejected.
+    Written in the order of the grammar::
+
+        (agent-identifier :name <word> :addresses (sequence <url>*)
+         :resolvers (sequence (agent-identifier …)*) :X-<name> <value>*)
+
+    ``:addresses`` and ``:resolvers`` left out when empty, the user-defined parameters in
+    the order of :attr:`AgentIdentifier.user`, values as the text-valued parameters above.
+    Read in full, in any order: ``:name``, ``:addresses (sequence URL*)``, ``:resolvers
+    (sequence AgentIdentifier*)`` (recursive, up to :data:`MAX_AID_DEPTH` identifiers deep,
+    counting the outer one) and user-defined ``:X-`` parameters (kept in the order read, each
+    name at most once, spelling kept as for message parameters). An empty ``(sequence)``
+    reads as no addresses or resolvers. ``parse(..., aid_extras=...)`` can instead reject
+    (``"reject"``) or leave out (``"drop"``) the resolvers and user parameters of the agent
+    identifiers of the message; the default, ``"keep"``, keeps them. Names, resolvers' too,
+    must be roco agent names (letters, digits, ``_ . - @``: names appear in Zenoh key
+    expressions), so JADE's default names ``agent@host:1099/JADE`` are rejected (with
+    ``"drop"``, resolvers are not read into agent identifiers, and their names not checked).
 
 User-defined parameters (SC00061 §2, SC00070 §2.2)
     ``:X-name value`` for every entry of ``user_params``; the key is written as is and must
@@ -105,7 +113,7 @@ from typing import Literal, TypeVar
 import msgspec
 
 from shared.fipa_codec.acts import Performative
-from shared.fipa_codec.aid import AgentIdentifier
+from shared.fipa_codec.aid import MAX_AID_DEPTH, AgentIdentifier
 from shared.fipa_codec.languages import ContentError, decode_content
 from shared.fipa_codec.message import Communicate
 
@@ -126,11 +134,9 @@ __all__ = [
 MAX_STRING_FORM_SIZE = 32 * 1024 * 1024
 """Largest input :func:`parse` accepts by default (characters or bytes)."""
 
-MAX_AID_DEPTH = 32
-"""Deepest nesting of agent identifiers (through ``:resolvers``) that :func:`parse` reads."""
-
-AidExtras = Literal["reject", "drop"]
-"""What :func:`parse` does with ``:resolvers`` and user parameters of an agent identifier."""
+AidExtras = Literal["keep", "reject", "drop"]
+"""What :func:`parse` does with ``:resolvers`` and user parameters of an agent identifier:
+keep them (the default), reject them (StringFormError) or drop them."""
 
 
 class StringFormError(ValueError):
@@ -216,12 +222,21 @@ def format_datetime(t: float) -> str:
 
 
 def _aid_pieces(agent: AgentIdentifier) -> list[_Piece]:
+    """``agent`` as a SC00070 ``AgentIdentifier``: ``:name``, ``:addresses``, ``:resolvers``,
+    then the user-defined parameters (the order of the grammar); empty sequences left out."""
     out: list[_Piece] = ["(agent-identifier :name ", *_text_pieces(agent.name)]
     if agent.addresses:
         out.append(" :addresses (sequence")
         for address in agent.addresses:
             out.extend([" ", *_text_pieces(address)])
         out.append(")")
+    if agent.resolvers:
+        out.append(" :resolvers (sequence")
+        for resolver in agent.resolvers:
+            out.extend([" ", *_aid_pieces(resolver)])
+        out.append(")")
+    for key, value in agent.user:  # names checked by AgentIdentifier: X- and a Word
+        out.extend([f" :{key} ", *_text_pieces(value)])
     out.append(")")
     return out
 
@@ -361,7 +376,18 @@ class _ParsedAid:
     addresses: tuple[str, ...] = ()
     resolvers: tuple[_ParsedAid, ...] = ()
     user_params: dict[str, str] = field(default_factory=dict)
-    extra_at: int | None = None  # where the first :resolvers or user parameter stands
+    extra_at: int | None = None  # where the first non-empty :resolvers or user parameter stands
+
+    def agent_identifier(self, extras: bool) -> AgentIdentifier:
+        """The :class:`AgentIdentifier`, with resolvers and user parameters when ``extras``.
+        Raises StringFormError where this (or a resolver) stands when it is not one."""
+        assert self.name is not None
+        resolvers = tuple(r.agent_identifier(True) for r in self.resolvers) if extras else ()
+        user = tuple(self.user_params.items()) if extras else ()
+        try:
+            return AgentIdentifier(self.name, self.addresses, resolvers, user)
+        except ValueError as exc:
+            raise StringFormError(str(exc), self.start) from None
 
 
 def _fix_text(raw: str, octets: bool, position: int) -> str:
@@ -618,15 +644,11 @@ class _Parser:
         parsed = self.parsed_aid(1)
         if parsed.extra_at is not None and self.aid_extras == "reject":
             raise StringFormError(
-                "agent-identifier with :resolvers or user-defined parameters, which roco's "
-                "AgentIdentifier cannot hold (parse with aid_extras='drop' to leave them out)",
+                "agent-identifier with :resolvers or user-defined parameters, "
+                "rejected as asked (aid_extras='reject')",
                 parsed.extra_at,
             )
-        assert parsed.name is not None
-        try:
-            return AgentIdentifier(parsed.name, parsed.addresses)
-        except ValueError as exc:
-            raise StringFormError(str(exc), parsed.start) from None
+        return parsed.agent_identifier(self.aid_extras == "keep")
 
     def url(self) -> str:
         return self.expression_text("an address")
@@ -745,7 +767,7 @@ def parse(
     max_size: int = MAX_STRING_FORM_SIZE,
     now: float | None = None,
     tz: tzinfo | None = None,
-    aid_extras: AidExtras = "reject",
+    aid_extras: AidExtras = "keep",
 ) -> Communicate:
     """Read a communicate in the FIPA ACL string representation (FIPA SC00070 §2).
 
@@ -753,15 +775,20 @@ def parse(
     strings as U+0000–U+00FF) or the octets of :func:`to_bytes` (UTF-8 elsewhere); any
     SC00070 message is read, keywords in any case. ``now`` (POSIX seconds, default: the
     time of the call) anchors a relative ``:reply-by``; ``tz`` (default: this machine's
-    zone) places a local one. ``aid_extras`` says what happens to ``:resolvers`` and user
-    parameters of an agent identifier, which roco's :class:`AgentIdentifier` cannot hold:
-    ``"reject"`` (StringFormError) or ``"drop"``.
+    zone) places a local one. ``aid_extras`` says what happens to the ``:resolvers`` and
+    user-defined parameters of an agent identifier: ``"keep"`` them (the default: they are
+    read into :class:`AgentIdentifier`), ``"reject"`` the message (StringFormError where
+    the first stands) or ``"drop"`` them.
 
-    Raises StringFormError, with the offset, line and column of the problem and what was
-    expected there, for anything that is not one well-formed message: unknown performative
-    or parameter, repeated parameter, bad agent name, malformed string or date-time,
-    trailing text, input over ``max_size``.
+    Raises ValueError for an unknown ``aid_extras``, and StringFormError, with the offset,
+    line and column of the problem and what was expected there, for anything that is not
+    one well-formed message: unknown performative or parameter, repeated parameter, bad
+    agent name (resolvers' included), agent identifiers nested deeper than
+    :data:`MAX_AID_DEPTH`, malformed string or date-time, trailing text, input over
+    ``max_size``.
     """
+    if aid_extras not in ("keep", "reject", "drop"):
+        raise ValueError(f"aid_extras must be 'keep', 'reject' or 'drop', not {aid_extras!r}")
     if len(text) > max_size:
         raise StringFormError(f"input of {len(text)} exceeds the limit of {max_size}", max_size)
     if isinstance(text, str):

@@ -188,7 +188,6 @@ SAMPLE_TERMS: list[msgspec.Struct] = [
 
 agent_names = st.from_regex(r"[A-Za-z][A-Za-z0-9_.\-@]{0,15}", fullmatch=True)
 any_text = st.text(max_size=30)
-agents = st.builds(AgentIdentifier, agent_names, st.lists(any_text, max_size=3).map(tuple))
 # keys: X- plus a name without white space or parentheses (writable in the string form)
 user_keys = st.tuples(
     st.sampled_from(["X-", "x-"]),
@@ -198,6 +197,24 @@ user_keys = st.tuples(
         max_size=12,
     ),
 ).map("".join)
+# user-defined parameters of an agent identifier: (name, value) pairs, each name once
+aid_user_params = st.lists(st.tuples(user_keys, any_text), max_size=2, unique_by=lambda kv: kv[0]).map(tuple)
+
+
+def agent_identifiers(depth: int = 3) -> st.SearchStrategy[AgentIdentifier]:
+    """Agent identifiers (SC00023 §4) with addresses, user parameters and resolvers nested
+    at most ``depth`` identifiers deep (counting the outer one); mostly plain ones."""
+    addresses = st.lists(any_text, max_size=3).map(tuple)
+    plain = st.builds(AgentIdentifier, agent_names, addresses)
+    if depth <= 1:
+        resolvers: st.SearchStrategy[tuple[AgentIdentifier, ...]] = st.just(())
+    else:
+        resolvers = st.just(()) | st.lists(agent_identifiers(depth - 1), min_size=1, max_size=2).map(tuple)
+    full = st.builds(AgentIdentifier, agent_names, addresses, resolvers, aid_user_params)
+    return plain | full
+
+
+agents = agent_identifiers()
 # reply-by at millisecond resolution, years 0001-9999 (what the string form carries)
 reply_times = st.integers(-62_135_596_800_000, 253_402_300_799_999).map(lambda ms: ms / 1000)
 language_content = st.sampled_from(SAMPLE_TERMS).map(encode_content)
@@ -241,13 +258,20 @@ def communicates(draw: st.DrawFn) -> Communicate:
 
 
 def full_communicate(performative: Performative = Performative.INFORM) -> Communicate:
-    """A communicate with every one of the 13 SC00061 parameters and a user parameter set."""
+    """A communicate with every one of the 13 SC00061 parameters and a user parameter set; its
+    reply-to agent identifier has a resolver and user-defined parameters (SC00023 §4)."""
     language, content = encode_content(ObjectQuery("jar"))
     return Communicate(
         performative=performative,
         sender=AgentIdentifier("a_pl", ("tcp/127.0.0.1:7447",)),
         receiver=(AgentIdentifier("a_km"), AgentIdentifier("a_ta", ("tcp/10.0.0.2:7447",))),
-        reply_to=(AgentIdentifier("a_co"),),
+        reply_to=(
+            AgentIdentifier(
+                "a_co",
+                resolvers=(AgentIdentifier("df", ("tcp/10.0.0.9:7447",)),),
+                user=(("X-role", "coordinator"), ("X-note", "a (b) c")),
+            ),
+        ),
         content=content,
         language=language,
         encoding="msgpack",

@@ -1,6 +1,8 @@
 """msgpack and JSON encodings of a communicate (FIPA SC00061 parameters): round trips, strict
-rejection of bad bytes as DecodeError, and the JSON form as documented for tools outside
-Python (field list, base64 content, agent identifiers as arrays, JSON Schema)."""
+rejection of bad bytes as DecodeError, agent identifiers in full (SC00023 §4: resolvers and
+user-defined parameters) and the wire compatibility of their encoding, and the JSON form as
+documented for tools outside Python (field list, base64 content, agent identifiers as arrays,
+JSON Schema)."""
 
 from __future__ import annotations
 
@@ -16,7 +18,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from shared.fipa_codec import Communicate, DecodeError, Performative, decode, encode, encoding
-from shared.fipa_codec.aid import AgentIdentifier
+from shared.fipa_codec.aid import MAX_AID_DEPTH, AgentIdentifier
 from shared.fipa_codec.encoding import MAX_COMMUNICATE_BYTES, decode_json, encode_json, json_schema
 
 
@@ -141,6 +143,162 @@ def test_construction_checks() -> None:
         AgentIdentifier("1a")
 
 
+# -- agent identifiers in full (SC00023 §4): resolvers and user-defined parameters --------------
+
+FULL_AID = AgentIdentifier(
+    "da0@jade-platform",
+    ("http://robolab:7778/acc",),
+    (AgentIdentifier("df@jade-platform", resolvers=(AgentIdentifier("ams"),), user=(("X-k", "v"),)),),
+    (("X-JADE-agent-classname", "examples.PingAgent"), ("x-weight", "0.5")),
+)
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "reason"),
+    [
+        ({"name": "a_co\n"}, "agent name"),  # no trailing newline (re "$" would let it through)
+        ({"name": "a", "user": (("priority", "1"),)}, "user parameter name"),
+        ({"name": "a", "user": (("X-", "1"),)}, "user parameter name"),
+        ({"name": "a", "user": (("X-a b", "1"),)}, "user parameter name"),
+        ({"name": "a", "user": (("X-a(", "1"),)}, "user parameter name"),
+        ({"name": "a", "user": (("X-a\n", "1"),)}, "user parameter name"),
+        ({"name": "a", "user": (("X-a", "1"), ("X-a", "2"))}, "repeated"),
+    ],
+)
+def test_agent_identifier_checks(kwargs: dict[str, object], reason: str) -> None:
+    with pytest.raises(ValueError, match=reason):
+        AgentIdentifier(**kwargs)  # type: ignore[arg-type]
+
+
+def _chain(depth: int) -> AgentIdentifier:
+    agent = AgentIdentifier("r")
+    for _ in range(depth - 1):
+        agent = AgentIdentifier("r", resolvers=(agent,))
+    return agent
+
+
+def test_agent_identifier_user_names_and_depth() -> None:
+    agent = AgentIdentifier("a", user=(("X-a", "1"), ("x-a", "2"), ('X-é#"', "")))  # spelling counts
+    assert [k for k, _ in agent.user] == ["X-a", "x-a", 'X-é#"']
+    assert hash(FULL_AID) == hash(msgspec.structs.replace(FULL_AID))  # frozen and hashable
+    assert msgspec.structs.replace(FULL_AID, user=FULL_AID.user[::-1]) != FULL_AID  # in order
+    assert str(FULL_AID) == "da0@jade-platform"
+    deepest = _chain(MAX_AID_DEPTH)
+    with pytest.raises(ValueError, match="nested deeper"):
+        AgentIdentifier("r", resolvers=(deepest,))
+    wire = encode(Communicate(performative=Performative.INFORM, sender=deepest))
+    assert decode(wire).sender == deepest
+    at = wire.index(b"\x94\xa1r")  # the outer agent identifier (the sender, last), wrapped in one more
+    too_deep = wire[:at] + b"\x94\xa1r\x90\x91" + wire[at:] + b"\x90"
+    with pytest.raises(DecodeError, match="nested deeper"):
+        decode(too_deep)
+
+
+def test_agent_identifiers_nested_past_the_stack_are_decode_error() -> None:
+    # {"performative": "inform", "sender": ["r", [], [["r", [], [… ["r"] …]]]]}, 100 000 deep
+    head = b"\x82\xacperformative\xa6inform\xa6sender"
+    deep = head + b"\x93\xa1r\x90\x91" * 100_000 + b"\x91\xa1r"
+    with pytest.raises(DecodeError, match="nested too deeply"):
+        decode(deep)
+    deep_json = '{"performative":"inform","sender":' + '["r",[],[' * 100_000 + '["r"]' + "]]" * 100_000 + "}"
+    with pytest.raises(DecodeError, match="nested too deeply"):
+        decode_json(deep_json)
+
+
+def test_full_agent_identifier_round_trips() -> None:
+    msg = Communicate(performative=Performative.INFORM, sender=FULL_AID, receiver=(FULL_AID, _chain(5)))
+    assert decode(encode(msg)) == msg
+    assert decode_json(encode_json(msg)) == msg
+    raw = msgspec.json.decode(encode_json(msg))
+    assert raw["sender"] == [
+        "da0@jade-platform",
+        ["http://robolab:7778/acc"],
+        [["df@jade-platform", [], [["ams", [], [], []]], [["X-k", "v"]]]],
+        [["X-JADE-agent-classname", "examples.PingAgent"], ["x-weight", "0.5"]],
+    ]
+
+
+# -- wire compatibility: communicates encoded before resolvers and user parameters existed -------
+
+# msgpack of a communicate as roco wrote it before agent identifiers had resolvers and user
+# parameters (commit 8caaaf8): every agent identifier the two-element array [name, addresses]
+OLD_WIRE = bytes.fromhex(
+    "8bac706572666f726d6174697665a772657175657374a673656e64657292a4615f636f91b27463702f3132372e302e30"
+    "2e313a37343437a872656365697665729292a4615f74619092a561675f657892b17463702f31302e302e302e323a3734"
+    "3437b17564702f31302e302e302e323a37343438a87265706c792d746f9192a4615f686990a7636f6e74656e74c40681"
+    "a474797065a86c616e6775616765a44c5f4843a8656e636f64696e67a76d73677061636ba870726f746f636f6cac6669"
+    "70612d72657175657374af636f6e766572736174696f6e2d6964a6632d61623132a87265706c792d6279cb41dac06e3e"
+    "07df3bab757365722d706172616d7381aa582d7072696f72697479a132"
+)
+OLD_JSON = (
+    '{"performative":"request","sender":["a_co",["tcp/127.0.0.1:7447"]],"receiver":[["a_ta",[]],'
+    '["ag_ex",["tcp/10.0.0.2:7447","udp/10.0.0.2:7448"]]],"reply-to":[["a_hi",[]]],"content":"gaR0eXBl",'
+    '"language":"L_HC","encoding":"msgpack","protocol":"fipa-request","conversation-id":"c-ab12",'
+    '"reply-by":1795275000.123,"user-params":{"X-priority":"2"}}'
+)
+OLD_MSG = Communicate(
+    performative=Performative.REQUEST,
+    sender=AgentIdentifier("a_co", ("tcp/127.0.0.1:7447",)),
+    receiver=(AgentIdentifier("a_ta"), AgentIdentifier("ag_ex", ("tcp/10.0.0.2:7447", "udp/10.0.0.2:7448"))),
+    reply_to=(AgentIdentifier("a_hi"),),
+    content=b"\x81\xa4type",
+    language="L_HC",
+    encoding="msgpack",
+    protocol="fipa-request",
+    conversation_id="c-ab12",
+    reply_by=1795275000.123,
+    user_params={"X-priority": "2"},
+)
+
+
+def test_communicates_encoded_before_still_decode() -> None:
+    assert decode(OLD_WIRE) == OLD_MSG
+    assert decode_json(OLD_JSON) == OLD_MSG
+    assert msgspec.msgpack.decode(b"\x91\xa1a", type=AgentIdentifier) == AgentIdentifier("a")  # ["a"]
+
+
+def test_agent_identifier_wire_form() -> None:
+    """[name, addresses, resolvers, user]: msgspec writes the empty trailing items too
+    (omit_defaults does not apply to array_like structs), two bytes more than [name, addresses]."""
+    assert msgspec.msgpack.encode(AgentIdentifier("a_co")) == b"\x94\xa4a_co\x90\x90\x90"
+    assert len(encode(OLD_MSG)) == len(OLD_WIRE) + 2 * 4  # four agent identifiers
+    assert msgspec.json.encode(AgentIdentifier("a_co", ("tcp/h:1",))) == b'["a_co",["tcp/h:1"],[],[]]'
+
+
+class _OldAgentIdentifier(msgspec.Struct, frozen=True, array_like=True):
+    """AgentIdentifier as it was before resolvers and user parameters."""
+
+    name: str
+    addresses: tuple[str, ...] = ()
+
+
+def test_readers_from_before_read_new_agent_identifiers_without_the_new_fields() -> None:
+    old = msgspec.msgpack.decode(msgspec.msgpack.encode(FULL_AID), type=_OldAgentIdentifier)
+    assert old == _OldAgentIdentifier("da0@jade-platform", ("http://robolab:7778/acc",))
+    old = msgspec.json.decode(msgspec.json.encode(FULL_AID), type=_OldAgentIdentifier)
+    assert old.name == "da0@jade-platform"
+
+
+@pytest.mark.parametrize(
+    "sender",
+    [
+        ["a", [], [["9"]]],  # resolver with a bad name
+        ["a", [], [], [["priority", "1"]]],  # user parameter without X-
+        ["a", [], [], [["X-a b", "1"]]],
+        ["a", [], [], [["X-a", "1"], ["X-a", "2"]]],
+        ["a", [], [], [["X-a"]]],  # a pair, not a name alone
+        ["a", [], [], [["X-a", 1]]],
+        ["a", [], "r"],
+    ],
+)
+def test_bad_agent_identifier_is_decode_error(sender: object) -> None:
+    obj = {"performative": "inform", "sender": sender}
+    with pytest.raises(DecodeError):
+        decode(msgspec.msgpack.encode(obj))
+    with pytest.raises(DecodeError):
+        decode_json(msgspec.json.encode(obj))
+
+
 def test_reply_carries_the_conversation() -> None:
     msg = full_communicate(Performative.QUERY_REF)
     reply = msg.reply(Performative.INFORM, AgentIdentifier("a_km"), content=b"\x80")
@@ -168,6 +326,18 @@ def test_json_docstring_example_is_the_encoding() -> None:
         user_params={"X-priority": "2"},
     )
     assert encode_json(msg).decode() == one_line
+    # the agent identifier example
+    start = doc.index('["da0@jade-platform"')
+    end = doc.index('PingAgent"]]]', start) + len('PingAgent"]]]')
+    aid_text = "".join(line.strip() for line in doc[start:end].splitlines())
+    agent = msgspec.json.decode(aid_text, type=AgentIdentifier)
+    assert agent == AgentIdentifier(
+        "da0@jade-platform",
+        ("http://robolab:7778/acc",),
+        (AgentIdentifier("df@jade-platform"),),
+        (("X-JADE-agent-classname", "examples.PingAgent"),),
+    )
+    assert msgspec.json.encode(agent).decode() == aid_text
 
 
 def test_json_written_by_another_tool() -> None:
@@ -175,7 +345,7 @@ def test_json_written_by_another_tool() -> None:
         {
             "performative": "request",
             "sender": ["a_hi"],  # the address list may be left out
-            "receiver": [["a_co", ["tcp/127.0.0.1:7447"]], ["a_ta", [], "from the future"]],
+            "receiver": [["a_co", ["tcp/127.0.0.1:7447"]], ["a_ta", [], [], [], "from the future"]],
             "content": base64.b64encode("pour the jar → bowl".encode()).decode(),
             "language": "L_HC",
             "conversation-id": "c-1",
@@ -206,6 +376,21 @@ def test_json_schema_lists_the_fields() -> None:
     assert schema["$defs"]["Performative"]["enum"] == [p.value for p in Performative]
     assert schema["$defs"]["AgentIdentifier"]["type"] == "array"
     json.dumps(schema)  # a plain JSON document
+
+
+def test_json_schema_documents_the_agent_identifier() -> None:
+    aid_schema = json.loads(json.dumps(json_schema()))["$defs"]["AgentIdentifier"]
+    assert aid_schema["minItems"] == 1
+    name, addresses, resolvers, user = aid_schema["prefixItems"]
+    for item, word in [(name, "name"), (addresses, "addresses"), (resolvers, "resolvers"), (user, "user")]:
+        assert item["description"].startswith(word + ":")
+    assert name["pattern"] == "^[A-Za-z][A-Za-z0-9_.\\-@]{0,127}$"
+    assert addresses["items"] == {"type": "string"} and addresses["default"] == []
+    assert resolvers["items"] == {"$ref": "#/$defs/AgentIdentifier"} and resolvers["default"] == []
+    pair = user["items"]
+    assert (pair["type"], pair["minItems"], pair["maxItems"]) == ("array", 2, 2)
+    key, value = pair["prefixItems"]
+    assert key["pattern"] == "^[Xx]-[^\\x00-\\x20()]+$" and value["type"] == "string"
 
 
 @pytest.mark.parametrize("t", [math.nan, math.inf, -math.inf])

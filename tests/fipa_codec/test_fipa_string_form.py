@@ -20,6 +20,7 @@ from shared.fipa_codec.languages import encode_content
 from shared.fipa_codec.languages.l_wm import ObjectQuery
 from shared.fipa_codec.string_form import (
     MAX_AID_DEPTH,
+    AidExtras,
     StringFormError,
     content_as_json,
     format_datetime,
@@ -297,11 +298,15 @@ def test_bad_datetime(token: str, reason: str) -> None:
         ("(inform :sender (agent-identifier :name a :addresses x))", "expected '(sequence'", 53),
         ("(inform :sender (agent-identifier :name a :addresses (set x)))", "expected 'sequence'", 54),
         (
-            "(inform :sender (agent-identifier :name a :resolvers (sequence (agent-identifier :name r))))",
-            "AgentIdentifier cannot hold",
-            42,
+            "(inform :sender (agent-identifier :name a :resolvers (sequence (agent-identifier :name 9r))))",
+            "invalid agent name '9r'",
+            63,
         ),
-        ("(inform :sender (agent-identifier :name a :X-k v))", "AgentIdentifier cannot hold", 42),
+        (
+            "(inform :sender (agent-identifier :name a :resolvers (sequence) :resolvers (sequence)))",
+            "repeated",
+            64,
+        ),
         ("(inform :sender (agent-identifier :name a :X-k v :x-k w :X-k u))", "repeated", 56),
         ("(inform :sender (agent-identifier :name a :resolvers (sequence a)))", "'(agent-identifier'", 63),
         ("(inform :X- v)", "expected a name after ':X-'", 8),
@@ -505,26 +510,69 @@ def test_text_values_ending_in_a_backslash_are_byte_length_encoded(value: str) -
 
 def test_agent_identifier_is_read_in_full() -> None:
     text = (
-        '(inform :sender (Agent-Identifier :ADDRESSES (Sequence tcp/a:1 "udp/b c") :Name a_co'
-        ' :resolvers (sequence)) :receiver (set (agent-identifier :name "b" :addresses (sequence))))'
+        '(inform :sender (Agent-Identifier :X-b "2 3" :ADDRESSES (Sequence tcp/a:1 "udp/b c") :Name a_co'
+        " :RESOLVERS (SEQUENCE (agent-identifier :name df :x-a (1 2)) (agent-identifier :name ams)) :X-a 1)"
+        ' :receiver (set (agent-identifier :name "b" :addresses (sequence) :resolvers (sequence))))'
     )
     msg = parse(text)
-    assert msg.sender == AgentIdentifier("a_co", ("tcp/a:1", "udp/b c"))
+    assert msg.sender == AgentIdentifier(
+        "a_co",
+        ("tcp/a:1", "udp/b c"),
+        (AgentIdentifier("df", user=(("x-a", "(1 2)"),)), AgentIdentifier("ams")),
+        (("X-b", "2 3"), ("X-a", "1")),  # in the order read
+    )
     assert msg.receiver == (AgentIdentifier("b"),)  # empty :resolvers and :addresses carry nothing
+    assert parse(to_string(msg)) == msg
 
 
-def test_resolvers_and_agent_user_parameters_can_be_dropped() -> None:
+def test_agent_identifier_string_form() -> None:
+    """SC00070 §2.2: :name, :addresses, :resolvers (recursive), then the user parameters."""
+    agent = AgentIdentifier(
+        "a_co",
+        ("tcp/127.0.0.1:7447",),
+        (AgentIdentifier("df", ("tcp/h:1",), (AgentIdentifier("ams"),)), AgentIdentifier("df2")),
+        (("X-role", "coordinator"), ("x-note", 'say "hi" (twice)'), ("X-n", "0.5")),
+    )
+    text = to_string(_msg(sender=agent))
+    assert text == (
+        "(inform :sender (agent-identifier :name a_co :addresses (sequence tcp/127.0.0.1:7447)"
+        " :resolvers (sequence (agent-identifier :name df :addresses (sequence tcp/h:1)"
+        " :resolvers (sequence (agent-identifier :name ams))) (agent-identifier :name df2))"
+        ' :X-role coordinator :x-note "say \\"hi\\" (twice)" :X-n "0.5"))'
+    )
+    assert parse(text).sender == agent
+    assert to_string(_msg(sender=AgentIdentifier("a", user=(("X-a", "v"),)))) == (
+        "(inform :sender (agent-identifier :name a :X-a v))"
+    )
+
+
+def test_resolvers_and_agent_user_parameters_are_kept_rejected_or_dropped() -> None:
     text = (
         "(inform :sender (agent-identifier :name a :X-k v :resolvers (sequence"
         " (agent-identifier :name r :addresses (sequence tcp/r:1) :resolvers (sequence"
         " (agent-identifier :name rr :x-deep (1 2)))))) :reply-to (set (agent-identifier :name b :X-c d)))"
     )
-    with pytest.raises(StringFormError, match="aid_extras='drop'") as info:
-        parse(text)
+    msg = parse(text)
+    assert msg == parse(text, aid_extras="keep")
+    assert msg.sender == AgentIdentifier(
+        "a",
+        resolvers=(
+            AgentIdentifier("r", ("tcp/r:1",), (AgentIdentifier("rr", user=(("x-deep", "(1 2)"),)),)),
+        ),
+        user=(("X-k", "v"),),
+    )
+    assert msg.reply_to == (AgentIdentifier("b", user=(("X-c", "d"),)),)
+    with pytest.raises(StringFormError, match="aid_extras='reject'") as info:
+        parse(text, aid_extras="reject")
     assert info.value.position == text.index(":X-k")
-    msg = parse(text, aid_extras="drop")
-    assert msg.sender == AgentIdentifier("a")
-    assert msg.reply_to == (AgentIdentifier("b"),)
+    dropped = parse(text, aid_extras="drop")
+    assert dropped.sender == AgentIdentifier("a")
+    assert dropped.reply_to == (AgentIdentifier("b"),)
+    # with "drop" the resolvers are not made agent identifiers: their names are not checked
+    foreign = "(inform :sender (agent-identifier :name a :resolvers (sequence (agent-identifier :name 9))))"
+    assert parse(foreign, aid_extras="drop").sender == AgentIdentifier("a")
+    with pytest.raises(ValueError, match="aid_extras must be"):
+        parse(text, aid_extras="ignore")  # type: ignore[arg-type]
 
 
 def test_resolver_nesting_is_bounded() -> None:
@@ -534,12 +582,20 @@ def test_resolver_nesting_is_bounded() -> None:
             aid = f"(agent-identifier :name r :resolvers (sequence {aid}))"
         return f"(inform :sender {aid})"
 
-    assert parse(nested(MAX_AID_DEPTH), aid_extras="drop").sender == AgentIdentifier("r")
-    with pytest.raises(StringFormError, match="nested deeper"):
-        parse(nested(MAX_AID_DEPTH + 1), aid_extras="drop")
+    agent = parse(nested(MAX_AID_DEPTH)).sender
+    depth = 0
+    while agent is not None:
+        depth += 1
+        agent = agent.resolvers[0] if agent.resolvers else None
+    assert depth == MAX_AID_DEPTH
+    assert parse(to_string(parse(nested(MAX_AID_DEPTH)))) == parse(nested(MAX_AID_DEPTH))
+    modes: tuple[AidExtras, ...] = ("keep", "drop")
+    for extras in modes:
+        with pytest.raises(StringFormError, match="nested deeper"):
+            parse(nested(MAX_AID_DEPTH + 1), aid_extras=extras)
     deep = "(inform :sender " + "(agent-identifier :name r :resolvers (sequence " * 10_000
     with pytest.raises(StringFormError, match="nested deeper"):
-        parse(deep, aid_extras="drop")
+        parse(deep)
 
 
 def test_errors_name_line_column_and_what_was_expected() -> None:

@@ -2,9 +2,9 @@
 roco prints is grammatical beyond roco's own parser.
 
 * fixtures/foreign_messages.txt: messages laid out as other platforms print them (JADE's
-  ``ACLMessage.toString`` layout, upper-case keywords, agent identifiers with addresses and
-  resolvers, byte-length-encoded strings, ``X-`` parameters, local and relative times), each
-  checked against the values written below;
+  ``ACLMessage.toString`` layout, upper-case keywords, agent identifiers with addresses,
+  nested resolvers and ``X-`` parameters, byte-length-encoded strings, message ``X-`` parameters,
+  local and relative times), each checked against the values written below;
 * a second, independent writer (hypothesis) that varies everything SC00070 lets vary — case of
   keywords, white space, order of parameters, Word / StringLiteral / ByteLengthEncodedString,
   UTC / local / relative times — parse → print → parse holds for all of it;
@@ -22,7 +22,15 @@ from pathlib import Path
 import msgspec
 import pytest
 import sc00070_reference as ref
-from fipa_strategies import agent_names, any_text, communicates, full_communicate, reply_times, user_keys
+from fipa_strategies import (
+    agent_names,
+    aid_user_params,
+    any_text,
+    communicates,
+    full_communicate,
+    reply_times,
+    user_keys,
+)
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
@@ -99,9 +107,17 @@ EXPECTED: dict[str, Communicate] = {
         encoding="utf-8",
         ontology="O_ó",
     ),
-    "resolvers_and_aid_params": Communicate(  # read with aid_extras="drop"
+    # SC00023 §4 agent identifiers in full: resolvers (nested) and user-defined parameters
+    "resolvers_and_aid_params": Communicate(
         performative=Performative.INFORM,
-        sender=AgentIdentifier("da0@jade-platform", (JADE,)),
+        sender=AgentIdentifier(
+            "da0@jade-platform",
+            (JADE,),
+            resolvers=(
+                AgentIdentifier("df@jade-platform", (JADE,), (AgentIdentifier("ams@jade-platform"),)),
+            ),
+            user=(("X-JADE-agent-classname", "examples.PingAgent"), ("x-weight", "0.5")),
+        ),
         receiver=(AgentIdentifier("a_km"),),
         content=b"ping",
     ),
@@ -157,7 +173,7 @@ EXPECTED: dict[str, Communicate] = {
 NOT_STRICT_SC00070 = {"word_content"}  # accepted by roco (and JADE), not by the grammar
 
 
-def _parse(data: str | bytes, aid_extras: AidExtras = "reject") -> Communicate:
+def _parse(data: str | bytes, aid_extras: AidExtras = "keep") -> Communicate:
     return parse(data, now=NOW, tz=PLUS_1, aid_extras=aid_extras)
 
 
@@ -171,8 +187,7 @@ def test_every_fixture_has_expected_values() -> None:
 
 @pytest.mark.parametrize("name", sorted(EXPECTED))
 def test_foreign_message_is_read_field_for_field(name: str) -> None:
-    extras: AidExtras = "drop" if name == "resolvers_and_aid_params" else "reject"
-    msg = _parse(FIXTURES[name], aid_extras=extras)
+    msg = _parse(FIXTURES[name])
     assert _fields(msg) == _fields(EXPECTED[name])
     # parse -> print -> parse
     assert parse(to_string(msg)) == msg
@@ -192,26 +207,50 @@ def test_word_content_is_not_strict_sc00070() -> None:
         ref.read(FIXTURES["word_content"])
 
 
-def test_resolvers_are_rejected_by_default_where_they_stand() -> None:
+def test_resolvers_and_aid_params_are_read_field_for_field() -> None:
     data = FIXTURES["resolvers_and_aid_params"]
-    with pytest.raises(StringFormError, match="cannot hold") as info:
-        _parse(data)
+    sender = _parse(data).sender
+    assert sender is not None
+    assert (sender.name, sender.addresses) == ("da0@jade-platform", (JADE,))
+    assert sender.user == (("X-JADE-agent-classname", "examples.PingAgent"), ("x-weight", "0.5"))
+    (df,) = sender.resolvers
+    assert (df.name, df.addresses, df.user) == ("df@jade-platform", (JADE,), ())
+    (ams,) = df.resolvers
+    assert (ams.name, ams.addresses, ams.resolvers, ams.user) == ("ams@jade-platform", (), (), ())
+    # the reference reader finds the same in the fixture and in roco's reprint
+    assert ref.read(data)["sender"] == _ref_aid(sender)
+    reprint = to_bytes(_parse(data))
+    assert ref.read(reprint, strict_words=False)["sender"] == _ref_aid(sender)
+    assert b":resolvers (sequence (agent-identifier :name df@jade-platform" in reprint
+    assert reprint.index(b":resolvers") < reprint.index(b":X-JADE-agent-classname examples.PingAgent")
+
+
+def test_resolvers_and_aid_params_can_be_rejected_where_they_stand_or_dropped() -> None:
+    data = FIXTURES["resolvers_and_aid_params"]
+    with pytest.raises(StringFormError, match="aid_extras='reject'") as info:
+        _parse(data, aid_extras="reject")
     assert info.value.position == data.index(b":resolvers")
     line_start = data.rindex(b"\n", 0, info.value.position) + 1
     assert (info.value.line, info.value.column) == (2, info.value.position - line_start + 1)
-    aid = ref.read(data)["sender"]
-    assert [r["name"] for r in aid["resolvers"]] == ["df@jade-platform"]
-    assert aid["resolvers"][0]["resolvers"][0]["name"] == "ams@jade-platform"
-    assert aid["user"] == {"X-JADE-agent-classname": "examples.PingAgent", "x-weight": "0.5"}
+    dropped = _parse(data, aid_extras="drop")
+    assert dropped.sender == AgentIdentifier("da0@jade-platform", (JADE,))
+    assert dropped.receiver == EXPECTED["resolvers_and_aid_params"].receiver
 
 
 # -- JADE's layout for every act ------------------------------------------------------------------
+
+
+def _jade_value(value: str) -> str:
+    return value if re.fullmatch(r"[A-Za-z_][\w.-]*", value) else '"' + value.replace('"', '\\"') + '"'
 
 
 def _jade_aid(agent: AgentIdentifier) -> str:
     out = f"( agent-identifier :name {agent.name} "
     if agent.addresses:
         out += " :addresses (sequence " + "".join(f"{a} " for a in agent.addresses) + ")"
+    if agent.resolvers:
+        out += " :resolvers (sequence " + "".join(_jade_aid(r) + " " for r in agent.resolvers) + ")"
+    out += "".join(f" :{k} {_jade_value(v)} " for k, v in agent.user)
     return out + ")"
 
 
@@ -245,9 +284,11 @@ def test_every_act_in_jade_layout(performative: Performative) -> None:
     )
     text = _jade_layout(msg)
     assert parse(text) == msg
+    assert msg.reply_to[0].resolvers and msg.reply_to[0].user  # agent identifiers in full
     keywords = r"\b(agent-identifier|sequence|set)\b|(?<=\s):(?!X-)[a-z][a-z-]*"
     shouted = re.sub(keywords, lambda m: m[0].upper(), text)
     assert ":SENDER" in shouted and "AGENT-IDENTIFIER" in shouted and ":X-priority" in shouted
+    assert ":RESOLVERS" in shouted and ":X-role" in shouted
     assert parse(shouted) == msg
     assert parse(to_string(parse(text))) == msg  # parse -> print -> parse
     assert ref.read(text.encode())["performative"] == performative.value
@@ -278,14 +319,25 @@ def _string_form(draw: st.DrawFn, data: bytes, word_ok: bool = True) -> bytes:
 
 @st.composite
 def _aid_form(draw: st.DrawFn, agent: AgentIdentifier) -> bytes:
+    """``agent`` with its parameters in any order, user parameters keeping their own order."""
     case = draw(_CASES)
     params = [case(":name").encode() + draw(_SPACES).encode() + draw(_string_form(agent.name.encode()))]
-    if agent.addresses or draw(st.booleans()):
+    # an empty (sequence) where there is nothing, or not
+    empty_addresses: bool = draw(st.booleans())
+    empty_resolvers: bool = draw(st.booleans())
+    if agent.addresses or empty_addresses:
         urls = b"".join(draw(_SPACES).encode() + draw(_string_form(a.encode())) for a in agent.addresses)
         params.append(case(":addresses").encode() + b" (" + case("sequence").encode() + urls + b")")
-    if draw(st.booleans()):
-        params.append(case(":resolvers").encode() + b" (" + case("sequence").encode() + b")")
-    params = draw(st.permutations(params))
+    if agent.resolvers or empty_resolvers:
+        items = b"".join(draw(_NO_SPACE).encode() + draw(_aid_form(r)) for r in agent.resolvers)
+        params.append(case(":resolvers").encode() + b" (" + case("sequence").encode() + items + b")")
+    user = [
+        f":{key}".encode() + draw(_SPACES).encode() + draw(_string_form(value.encode()))
+        for key, value in agent.user
+    ]
+    order = draw(st.permutations([False] * len(params) + [True] * len(user)))  # True: a user slot
+    fixed, users = iter(draw(st.permutations(params))), iter(user)
+    params = [next(users) if is_user else next(fixed) for is_user in order]
     body = b"".join(draw(_SPACES).encode() + p for p in params)
     head = b"(" + draw(_NO_SPACE).encode() + case("agent-identifier").encode()
     return head + body + draw(_NO_SPACE).encode() + b")"
@@ -367,7 +419,13 @@ def test_foreign_forms_parse_print_parse(msg: Communicate, data: st.DataObject) 
 
 
 def _ref_aid(agent: AgentIdentifier) -> dict[str, object]:
-    return {"name": agent.name, "addresses": list(agent.addresses), "resolvers": [], "user": {}}
+    """What the reference reader must find for ``agent``, resolvers and user parameters included."""
+    return {
+        "name": agent.name,
+        "addresses": list(agent.addresses),
+        "resolvers": [_ref_aid(r) for r in agent.resolvers],
+        "user": dict(agent.user),
+    }
 
 
 def _ref_view(msg: Communicate) -> dict[str, object]:
@@ -401,10 +459,20 @@ _urls = st.from_regex(r"(tcp|udp|http)/[a-z0-9.]{1,12}:[0-9]{1,5}", fullmatch=Tr
 _words = st.from_regex(r"[A-Za-z_][A-Za-z0-9_.+/:@\-]{0,15}", fullmatch=True)
 
 
+def _url_agents(depth: int = 3) -> st.SearchStrategy[AgentIdentifier]:
+    """Agent identifiers whose addresses are URLs, resolvers included (``depth`` deep)."""
+    addresses = st.lists(_urls, max_size=2).map(tuple)
+    if depth <= 1:
+        return st.builds(AgentIdentifier, agent_names, addresses, st.just(()), aid_user_params)
+    resolvers = st.lists(_url_agents(depth - 1), min_size=1, max_size=2).map(tuple)
+    plain = st.builds(AgentIdentifier, agent_names, addresses)
+    return plain | st.builds(AgentIdentifier, agent_names, addresses, resolvers, aid_user_params)
+
+
 @st.composite
 def _plain_communicates(draw: st.DrawFn) -> Communicate:
     """Communicates whose addresses are URLs and protocol a Word, as SC00070 asks."""
-    agent = st.builds(AgentIdentifier, agent_names, st.lists(_urls, max_size=2).map(tuple))
+    agent = _url_agents()
     return Communicate(
         performative=draw(st.sampled_from(Performative)),
         sender=draw(st.none() | agent),
