@@ -23,15 +23,7 @@ from dataclasses import dataclass
 from typing import Literal
 
 from shared.fipa_codec.acts import Performative
-from shared.fipa_codec.languages import (  # noqa: F401  (importing a language registers it)
-    LANGUAGES,
-    l_ex,
-    l_hc,
-    l_hfsm,
-    l_sd,
-    l_sw,
-    l_wm,
-)
+from shared.fipa_codec.languages import load_all
 from shared.fipa_codec.protocols import (
     INITIATOR,
     PARTICIPANT,
@@ -117,7 +109,7 @@ def expected_ontology(language: str) -> str:
     """The ontology a communicate in content language ``language`` must name (FIPA SC00061
     §2.3: the ``ontology`` parameter gives meaning to the content's symbols): the language's
     own (all of roco's are O_RoCo), or O_RoCo for a language roco does not know."""
-    known = LANGUAGES.get(language)
+    known = load_all().get(language)
     return known.ontology if known is not None else ONTOLOGY
 
 

@@ -167,10 +167,10 @@ def _final_matches_spec(
 
 def check_interfaces(spec: SystemSpec) -> list[str]:
     """Every violation of the interface rules (see module docstring), as sentences."""
-    from shared.fipa_codec.languages import LANGUAGES
+    from shared.fipa_codec.languages import load_all
     from shared.fipa_codec.protocols import PROTOCOLS
 
-    _import_languages()
+    LANGUAGES = load_all()
     problems = []
     for ch in spec.channels:
         for cp in ch.protocols:
@@ -220,16 +220,6 @@ def check_interfaces(spec: SystemSpec) -> list[str]:
         if not iface.sends or not iface.receives:
             problems.append(f"agent {a.name} can only {'receive' if iface.receives else 'send'}")
     return problems
-
-
-def _import_languages() -> None:
-    """Register every content language (each module registers itself on import)."""
-    import shared.fipa_codec.languages.l_ex
-    import shared.fipa_codec.languages.l_hc
-    import shared.fipa_codec.languages.l_hfsm
-    import shared.fipa_codec.languages.l_sd
-    import shared.fipa_codec.languages.l_sw
-    import shared.fipa_codec.languages.l_wm  # noqa: F401
 
 
 def check_report(path: Path = DEFAULT_SPEC) -> tuple[bool, str]:

@@ -19,6 +19,15 @@ from shared.fipa_codec.languages.base import (
     decode_content,
     encode_content,
     language_of,
+    load_all,
 )
 
-__all__ = ["LANGUAGES", "ContentError", "Language", "decode_content", "encode_content", "language_of"]
+__all__ = [
+    "LANGUAGES",
+    "ContentError",
+    "Language",
+    "decode_content",
+    "encode_content",
+    "language_of",
+    "load_all",
+]

@@ -81,6 +81,13 @@ def decode_content(language: str | None, data: bytes) -> msgspec.Struct:
     return LANGUAGES[language].decode(data)
 
 
+def load_all() -> dict[str, Language]:
+    """Register every content language of roco (each module registers itself on import) and
+    return the registry ``LANGUAGES``."""
+    _load_all()
+    return LANGUAGES
+
+
 def _load_all() -> None:
     # Importing the language modules registers them.
     from shared.fipa_codec.languages import (  # noqa: F401
