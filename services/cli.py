@@ -16,6 +16,7 @@ import os
 import queue
 import signal
 import sys
+import threading
 import time
 import uuid
 from pathlib import Path
@@ -336,6 +337,51 @@ def disturb(
     finally:
         session.close()
     typer.echo(f"roco: asked ag_ex to move the {obj} by ({dx:+.3f}, {dy:+.3f}, {dz:+.3f}) m")
+
+
+@app.command()
+def sniff(
+    router: Annotated[
+        str | None, typer.Option(help="router endpoint (default: the fleet of 'roco up')")
+    ] = None,
+    runs_dir: Annotated[Path, typer.Option()] = Path("runs"),
+    agent: Annotated[list[str] | None, typer.Option(help="only communicates from or to this agent")] = None,
+    channel: Annotated[list[str] | None, typer.Option(help="only this channel (C1..C6)")] = None,
+    performative: Annotated[list[str] | None, typer.Option(help="only this performative")] = None,
+    conversation: Annotated[str | None, typer.Option(help="only this conversation-id")] = None,
+    raw: Annotated[bool, typer.Option(help="print :content exactly as on the wire (SC00070)")] = False,
+) -> None:
+    """Print live communicates as they cross Zenoh, in FIPA SC00070 string form (like JADE's
+    Sniffer), until interrupted. Content is shown as its decoded term unless --raw."""
+    from services.sniff import parse_filters
+    from services.sniff import sniff as run_sniff
+
+    try:
+        f = parse_filters(
+            agents=agent, channels=channel, performatives=performative, conversation=conversation
+        )
+    except ValueError as exc:
+        raise fail(str(exc), code=2) from None
+    endpoint = _endpoint(router, runs_dir)
+    stop = threading.Event()
+    signal.signal(signal.SIGTERM, _interrupt)
+    try:
+        count = run_sniff(
+            endpoint,
+            agents=f.agents,
+            channels=f.channels,
+            performatives=f.performatives,
+            conversation=f.conversation,
+            out=typer.echo,
+            stop=stop,
+            content=not raw,
+        )
+    except KeyboardInterrupt:
+        stop.set()
+        return
+    except Exception as exc:
+        raise fail(f"no router answers at {endpoint}: {exc}") from None
+    typer.echo(f"roco: {count} communicates")
 
 
 @app.command()

@@ -8,6 +8,7 @@ import msgspec
 
 from services.report.content import sphere_share
 from services.report.coordination import commands, coordination
+from services.report.figures import write_figures
 from services.report.load import Message, RunData, load_run
 from services.report.markdown import render
 from services.report.model import Header, Report
@@ -25,7 +26,12 @@ REPORT_MD = "report.md"
 def build_report(run_dir: Path, container: str = "bowl") -> Report:
     """The report of ``run_dir`` as data. Raises FileNotFoundError when the folder does not
     exist; missing or corrupt files inside it become ``Report.notes``."""
-    run = load_run(Path(run_dir))
+    return _assemble(load_run(Path(run_dir)), container)
+
+
+def _assemble(run: RunData, container: str = "bowl") -> Report:
+    """The report of a run folder already read."""
+    run_dir = run.run_dir
     messages = run.messages
     command = find_command(messages)
     outcome = find_outcome(messages)
@@ -64,12 +70,17 @@ def _control_timing(run_dir: Path, notes: list[str]) -> TimingStats | None:
 
 
 def write_report(run_dir: Path) -> Path:
-    """Build the report of ``run_dir`` and write it as Markdown to ``run_dir/report.md``;
-    returns that path. Raises FileNotFoundError when the folder does not exist."""
+    """Build the report of ``run_dir``, draw its figures into ``run_dir/figures/`` (PNG, see
+    :mod:`services.report.figures`) and write it as Markdown, figures linked, to
+    ``run_dir/report.md``; returns that path. A figure that cannot be drawn becomes a note of
+    the report. Raises FileNotFoundError when the folder does not exist."""
     run_dir = Path(run_dir)
-    report = build_report(run_dir)
+    run = load_run(run_dir)
+    report = _assemble(run)
+    figures, notes = write_figures(run, report, run_dir)
+    report.notes.extend(notes)
     path = run_dir / REPORT_MD
-    path.write_text(render(report), encoding="utf-8")
+    path.write_text(render(report, figures), encoding="utf-8")
     return path
 
 

@@ -1,13 +1,15 @@
 """Rendering a :class:`Report` as Markdown, with the paper's figures (§5.7, Tables 7 and 8)
-beside or below this run's."""
+beside or below this run's, and the PNG figures (:mod:`services.report.figures`) linked in the
+sections they belong to."""
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from datetime import UTC, datetime
 from pathlib import Path
 
 from services.report import paper
+from services.report.figures import FigureFile
 from services.report.model import AgentMatrix, Event, Header, PlanPhase, Report
 
 HOW_MEASURED = (
@@ -19,13 +21,16 @@ HOW_MEASURED = (
 )
 
 
-def render(report: Report) -> str:
-    """The whole report as Markdown text."""
+def render(report: Report, figures: Sequence[FigureFile] = ()) -> str:
+    """The whole report as Markdown text; each of ``figures`` (written by
+    :func:`services.report.figures.write_figures`) is linked, with its caption, in its section:
+    sizes over time, bandwidth and size histogram in 1, the matrix in 2, the timeline in 3."""
+    figs = {f.name: f for f in figures}
     parts = [
         _header(report.header),
-        _statistics(report),
-        _matrix_section(report.matrix),
-        _timeline(report.events),
+        _statistics(report, figs),
+        _matrix_section(report.matrix, figs),
+        _timeline(report.events, figs),
         _planning(report.plans),
         _content(report),
         _control(report),
@@ -33,6 +38,17 @@ def render(report: Report) -> str:
         _notes(report.notes),
     ]
     return "\n\n".join(parts) + "\n"
+
+
+def _figure(figs: Mapping[str, FigureFile], *names: str) -> list[str]:
+    """Markdown for the figures ``names`` that were drawn: the image (relative link) and a
+    one-paragraph caption saying how it was measured."""
+    out = []
+    for name in names:
+        f = figs.get(name)
+        if f is not None:
+            out += [f"![{f.title}]({f.path})", f"*{f.title}.* {f.caption}"]
+    return out
 
 
 def _cell(text: str) -> str:
@@ -101,7 +117,7 @@ def _header(h: Header) -> str:
     return "\n\n".join([title, f"Run folder: `{h.run_dir}`", _table(["", ""], rows), HOW_MEASURED])
 
 
-def _statistics(report: Report) -> str:
+def _statistics(report: Report, figs: Mapping[str, FigureFile]) -> str:
     s, h = report.sizes, report.header
     under = "—" if s.count == 0 else f"{_pct(s.share_under_500)} ({s.under_500} of {s.count})"
     paper_duration = (
@@ -151,6 +167,7 @@ def _statistics(report: Report) -> str:
                 ],
                 ch_rows,
             ),
+            *_figure(figs, "sizes_over_time", "bandwidth", "size_histogram"),
         ]
     )
 
@@ -171,7 +188,7 @@ def _matrix_table(
     return _table(["receiver \\ sender", *agents, "Received"], body)
 
 
-def _matrix_section(m: AgentMatrix) -> str:
+def _matrix_section(m: AgentMatrix, figs: Mapping[str, FigureFile]) -> str:
     ours = _matrix_table(m.agents, m.agents, m.cells, m.received, m.sent, m.total)
     theirs = _matrix_table(
         paper.AGENTS,
@@ -191,11 +208,12 @@ def _matrix_section(m: AgentMatrix) -> str:
             "**Paper, Table 8** (no a_hi row; a_km ↔ ag_ex cells have no channel in the "
             "specification; totals 1865 against 1856 in the text)",
             theirs,
+            *_figure(figs, "matrix"),
         ]
     )
 
 
-def _timeline(events: Sequence[Event]) -> str:
+def _timeline(events: Sequence[Event], figs: Mapping[str, FigureFile]) -> str:
     ours = [[_span(e.start, e.end), e.text, ", ".join(e.channels) or "—"] for e in events]
     theirs = [list(row) for row in paper.TABLE7]
     head = ["time [s]", "event", "channels used"]
@@ -206,6 +224,7 @@ def _timeline(events: Sequence[Event]) -> str:
             _table(head, ours) if ours else "No events: the traffic record is empty.",
             "**Paper, Table 7**",
             _table(head, theirs),
+            *_figure(figs, "timeline"),
         ]
     )
 

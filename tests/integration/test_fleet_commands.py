@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import select
+import signal
 import subprocess
 import sys
 from pathlib import Path
@@ -37,6 +39,24 @@ def test_up_status_send_down(tmp_path: Path) -> None:
         asked = roco("send", "what are you doing?", "--runs-dir", runs, timeout=60)
         assert asked.returncode == 0, asked.stdout + asked.stderr
         assert asked.stdout.startswith("status: ")
+        # roco sniff shows the fleet's live traffic in FIPA string form
+        sniffer = subprocess.Popen(
+            [sys.executable, "-m", "services.cli", "sniff", "--runs-dir", runs, "--channel", "C2"],
+            stdout=subprocess.PIPE,
+            text=True,
+        )
+        try:
+            seen = ""
+            for _ in range(20):  # the sniffer subscribes after it starts: ask until it has seen one
+                roco("send", "what are you doing?", "--runs-dir", runs, timeout=60)
+                ready, _, _ = select.select([sniffer.stdout], [], [], 5.0)
+                if ready:
+                    seen = sniffer.stdout.readline() + sniffer.stdout.readline()  # type: ignore[union-attr]
+                    break
+            assert "C2  a_hi → a_co" in seen and "(query-ref" in seen, seen
+        finally:
+            sniffer.send_signal(signal.SIGINT)
+            sniffer.wait(timeout=30)
         stopped = roco("send", "stop", "--runs-dir", runs, timeout=60)
         assert stopped.returncode == 0, stopped.stdout + stopped.stderr
         assert "nothing to stop" in stopped.stdout.lower()
