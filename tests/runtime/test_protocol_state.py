@@ -16,12 +16,12 @@ from services.runtime.agent import Agent, SpecViolation
 from services.runtime.behaviour import FSM, Behaviour
 from services.runtime.conversations import CrossingTracker, ProtocolStates, follow
 from services.runtime.memory_transport import MemoryBus
-from shared.fipa_codec import AgentIdentifier, Communicate, Performative, decode, encode
-from shared.fipa_codec.languages import encode_content, language_of
+from shared.fipa_codec import Communicate, Performative, decode, encode
 from shared.fipa_codec.languages.l_hc import CommandOutcome, HumanCommand, TaskAtom
 from shared.fipa_codec.languages.l_sw import SWState, SWStatus
 from shared.fipa_codec.languages.l_wm import Answer, ObjectQuery, Subscription, WorldUpdate
 from shared.fipa_codec.protocols import INITIATOR, PARTICIPANT, ProtocolViolation
+from tests.support.messages import communicate as build
 
 P = Performative
 INIT, PART = INITIATOR, PARTICIPANT
@@ -179,21 +179,9 @@ def communicate(
     content: msgspec.Struct | None = None,
     **overrides: Any,
 ) -> Communicate:
-    language, body = encode_content(content) if content is not None else (None, b"")
-    fields: dict[str, Any] = dict(
-        performative=perf,
-        sender=AgentIdentifier(sender),
-        receiver=(AgentIdentifier(receiver),),
-        content=body,
-        language=language,
-        encoding="msgpack" if body else None,
-        ontology=language_of(content).ontology if content is not None else None,
-        protocol=protocol,
-        conversation_id=cid,
-        reply_with=f"{cid}-{perf.value}",
-    )
-    fields.update(overrides)
-    return Communicate(**fields)
+    """A communicate whose reply-with names its conversation and performative."""
+    overrides.setdefault("reply_with", f"{cid}-{perf.value}")
+    return build(perf, sender, receiver, protocol, cid, content, **overrides)
 
 
 class Wire:

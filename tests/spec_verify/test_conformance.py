@@ -7,9 +7,7 @@ each violation, with its communicate, conversation and the state machine's own w
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
 
-import msgspec
 import pytest
 
 from services.recorder.record import TRAFFIC_RAW
@@ -17,8 +15,8 @@ from services.recorder.recorder import TrafficWriter
 from services.runtime import keys
 from services.spec.conformance import ConformanceReport, render, verify_report, verify_run
 from services.spec.model import default_spec
-from shared.fipa_codec import AgentIdentifier, Communicate, Performative, encode
-from shared.fipa_codec.languages import encode_content, language_of
+from shared.fipa_codec import Communicate, Performative, encode
+from shared.fipa_codec.languages import encode_content
 from shared.fipa_codec.languages.l_hc import (
     CommandOutcome,
     HumanCommand,
@@ -30,6 +28,7 @@ from shared.fipa_codec.languages.l_hc import (
 from shared.fipa_codec.languages.l_sw import SWState, SWStatus
 from shared.fipa_codec.languages.l_wm import Answer, ObjectQuery
 from tests.support.memory_fleet import MemoryFleet
+from tests.support.messages import communicate
 
 P = Performative
 
@@ -75,31 +74,7 @@ def test_the_traffic_of_a_pour_conforms_in_full(pour_run: Path) -> None:
 # ---- traffic broken on purpose -----------------------------------------------------------------
 
 
-def comm(
-    perf: Performative,
-    sender: str,
-    receiver: str,
-    protocol: str | None,
-    cid: str | None,
-    term: msgspec.Struct | None = None,
-    **overrides: Any,
-) -> Communicate:
-    """A communicate with ``term`` as content (language and ontology from it), then
-    ``overrides`` of any field."""
-    language, body = encode_content(term) if term is not None else (None, b"")
-    fields: dict[str, Any] = dict(
-        performative=perf,
-        sender=AgentIdentifier(sender),
-        receiver=(AgentIdentifier(receiver),),
-        content=body,
-        language=language,
-        encoding="msgpack" if body else None,
-        ontology=language_of(term).ontology if term is not None else None,
-        protocol=protocol,
-        conversation_id=cid,
-    )
-    fields.update(overrides)
-    return Communicate(**fields)
+comm = communicate
 
 
 def on(channel: str, msg: Communicate) -> tuple[str, bytes]:
