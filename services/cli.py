@@ -91,6 +91,10 @@ def scenario(
     realtime: Annotated[bool, typer.Option(help="pace the simulation to wall time")] = False,
     quiet: Annotated[bool, typer.Option(help="print only the outcome")] = False,
     list_: Annotated[bool, typer.Option("--list", help="list the library's scenarios")] = False,
+    record: Annotated[
+        bool, typer.Option(help="record robot, scene and traffic in RUN/recording.rrd (Rerun)")
+    ] = True,
+    view: Annotated[bool, typer.Option(help="also show the recording live in a Rerun viewer")] = False,
 ) -> None:
     """Run a scenario (several commands, interruptions, disturbances, restarts; see
     services/scenario/model.py) headless, check every command's outcome against what the
@@ -107,10 +111,31 @@ def scenario(
         sc = load_scenario(name)
     except ScenarioError as exc:
         raise fail(str(exc), code=2) from None
-    _run_scenario(sc, runs_dir, realtime=realtime, quiet=quiet)
+    _run_scenario(sc, runs_dir, realtime=realtime, quiet=quiet, record=record, view=view)
 
 
-def _run_scenario(sc: object, runs_dir: Path, *, realtime: bool, quiet: bool) -> None:
+def _viewer_env(record: bool, view: bool) -> dict[str, str]:
+    """Rerun recording on or off for every process; with ``view``, a viewer started now that
+    the fleet streams to as well (its URL printed)."""
+    if not (record or view):
+        return {"ROCO_RERUN": "0"}
+    env = {"ROCO_RERUN": "1"}
+    if view:
+        from services.viewer.view import start_viewer
+
+        try:
+            viewer = start_viewer(None)
+        except Exception as exc:  # the run goes on without the live view
+            typer.echo(f"roco: no live viewer ({exc}); the run is still recorded", err=True)
+            return env
+        env["ROCO_RERUN_CONNECT"] = viewer.grpc_url
+        typer.echo(f"roco: Rerun viewer {viewer.web_url or 'opened'} (pid {viewer.pid})")
+    return env
+
+
+def _run_scenario(
+    sc: object, runs_dir: Path, *, realtime: bool, quiet: bool, record: bool = True, view: bool = False
+) -> None:
     from services.monitor import progress_line
     from services.scenario.model import Scenario
     from services.scenario.runner import ScenarioRunner
@@ -128,7 +153,7 @@ def _run_scenario(sc: object, runs_dir: Path, *, realtime: bool, quiet: bool) ->
     runner = ScenarioRunner(
         sc,
         run_dir,
-        env=_scene_env(realtime, sc.seed, sc.pose_seed),
+        env=_scene_env(realtime, sc.seed, sc.pose_seed) | _viewer_env(record, view),
         echo=lambda line: typer.echo(line) if not quiet or "a_hi → person" in line else None,
         traffic_lines=None if quiet else progress_line,
         info=info,
@@ -178,6 +203,9 @@ def up(
     pose_seed: Annotated[
         int | None, typer.Option(min=0, help="randomise the jar and bowl poses (±2 cm, ±10°) with this seed")
     ] = None,
+    record: Annotated[
+        bool, typer.Option(help="record robot, scene and traffic in the run folder's recording.rrd (Rerun)")
+    ] = False,
 ) -> None:
     """Start router, recorder and all agents in the background; they keep running until
     ``roco down``."""
@@ -186,7 +214,7 @@ def up(
         raise fail(f"a fleet is already up ({state_file}); run 'roco down' first")
     run_dir = new_run_dir(runs_dir)
     endpoint = f"tcp/127.0.0.1:{port}"
-    fleet = Fleet(run_dir, endpoint, env=_scene_env(realtime, seed, pose_seed))
+    fleet = Fleet(run_dir, endpoint, env=_scene_env(realtime, seed, pose_seed) | _viewer_env(record, False))
     try:
         fleet.start_router()
         session = open_client(endpoint)
@@ -337,6 +365,34 @@ def disturb(
     finally:
         session.close()
     typer.echo(f"roco: asked ag_ex to move the {obj} by ({dx:+.3f}, {dy:+.3f}, {dz:+.3f}) m")
+
+
+@app.command()
+def view(
+    run_dir: Annotated[
+        Path | None,
+        typer.Argument(metavar="[RUN]", help="a run folder or .rrd (none: wait for a live fleet)"),
+    ] = None,
+    web: Annotated[
+        bool | None,
+        typer.Option(
+            "--web/--native", help="web viewer on localhost or the native one (default: by display)"
+        ),
+    ] = None,
+) -> None:
+    """Open a Rerun viewer on a past run's recording, or an empty one a live fleet streams to:
+    the native viewer where a display exists, otherwise the web viewer served on localhost
+    (its URL printed)."""
+    from services.viewer.view import start_viewer
+
+    if run_dir is not None and not run_dir.exists():
+        raise fail(f"{run_dir}: no such run folder or recording")
+    try:
+        viewer = start_viewer(run_dir, web=web)
+    except Exception as exc:
+        raise fail(f"cannot start the viewer: {exc}") from None
+    where = viewer.web_url or f"native viewer, SDKs connect to {viewer.grpc_url}"
+    typer.echo(f"roco: Rerun viewer {where} (pid {viewer.pid}; stop it with: kill {viewer.pid})")
 
 
 @app.command()

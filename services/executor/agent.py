@@ -33,6 +33,7 @@ import msgspec
 from services.runtime import keys
 from services.runtime.agent import Agent, Received
 from services.runtime.behaviour import FSM, Behaviour
+from services.viewer.hooks import robot_hook
 from shared.fipa_codec import Performative
 from shared.fipa_codec.languages.l_ex import CommandResult, ExecutorCommand
 from shared.fipa_codec.languages.l_sd import Observation
@@ -103,6 +104,7 @@ class ExecutorAgent(Agent):
         self._next_state = 0.0
         self._next_timing_file = 0.0
         self._encode = msgspec.msgpack.Encoder().encode
+        self.rerun = robot_hook(self.name)  # Rerun (services/viewer): None unless ROCO_RERUN=1
         return FSM(
             initial="serve",
             states={
@@ -153,6 +155,9 @@ class ExecutorAgent(Agent):
     def close(self) -> None:
         self._write_timing_file()
         self.executor.stop()
+        rerun = getattr(self, "rerun", None)
+        if rerun is not None:  # Rerun: close ag_ex's part of the run's recording
+            rerun.close()
 
     def _serve(self) -> None:
         while self.x:
@@ -169,6 +174,8 @@ class ExecutorAgent(Agent):
         while self.r:
             event = self.r.popleft()
             if isinstance(event, Done):
+                if self.rerun is not None and isinstance(event.result, Observation):  # Rerun
+                    self.rerun.observation(event.result)
                 ok = not isinstance(event.result, CommandResult) or event.result.ok
                 self.reply(event.request, Performative.INFORM if ok else Performative.FAILURE, event.result)
             elif isinstance(event, PeerChange):
@@ -219,6 +226,8 @@ class ExecutorAgent(Agent):
         snap = snapshot() if snapshot is not None else None
         if snap is not None:
             self.emit(keys.state_key(self.name), self._encode(snap))
+            if self.rerun is not None:  # Rerun, at the state rate (20 Hz)
+                self.rerun.snapshot(snap)
 
     def _write_timing_file(self) -> None:
         run_dir = os.environ.get("ROCO_RUN_DIR")

@@ -24,6 +24,7 @@ from services.recorder.record import TRAFFIC_JSONL, TRAFFIC_RAW, TrafficRecord
 from services.runtime import keys
 from services.runtime.main import router_endpoints, setup_logging
 from services.runtime.transport import ZenohTransport
+from services.viewer.hooks import traffic_hook
 from shared.fipa_codec import DecodeError, decode
 
 RECORDER = "recorder"
@@ -96,6 +97,7 @@ def main() -> int:
     setup_logging(RECORDER)
     run_dir = Path(os.environ.get("ROCO_RUN_DIR", "."))
     writer = TrafficWriter(run_dir)
+    rerun = traffic_hook(RECORDER, run_dir)  # Rerun (services/viewer): None unless ROCO_RERUN=1
     inbox: queue.SimpleQueue[tuple[float, str, bytes] | None] = queue.SimpleQueue()
     transport = ZenohTransport(router_endpoints())
     transport.subscribe(keys.FIPA_ALL, lambda k, p: inbox.put((time.time(), k, p)))
@@ -115,7 +117,9 @@ def main() -> int:
             continue
         if item is None:
             break
-        writer.write(*item)
+        record = writer.write(*item)
+        if rerun is not None:  # Rerun
+            rerun.communicate(record, item[2])
     # drain what is left
     while True:
         try:
@@ -123,9 +127,13 @@ def main() -> int:
         except queue.Empty:
             break
         if item is not None:
-            writer.write(*item)
+            record = writer.write(*item)
+            if rerun is not None:  # Rerun
+                rerun.communicate(record, item[2])
     writer.close()
     transport.close()
+    if rerun is not None:  # Rerun: close this part, merge all parts into <run>/recording.rrd
+        rerun.finish()
     return 0
 
 

@@ -84,3 +84,15 @@ def test_roco_spec_verify_reports_full_conformance_of_the_pour(pour_run: tuple) 
     )
     assert proc.returncode == 0, proc.stdout[-3000:]
     assert "violations: none" in proc.stdout and "full conformance: yes" in proc.stdout
+
+
+def test_the_run_leaves_one_rerun_recording_of_traffic_robot_and_scene(pour_run: tuple) -> None:
+    from services.recorder.record import read_records
+    from tests.viewer.test_recording import rows
+
+    _, run_dir = pour_run
+    recording = run_dir / "recording.rrd"
+    assert recording.exists(), sorted(p.name for p in run_dir.iterdir())
+    counts = rows(recording)
+    assert counts["/traffic/log"] == len(read_records(run_dir))  # one log line per communicate
+    assert counts["/world/robot/grip/left"] > 100 and counts["/world/objects/jar"] > 0

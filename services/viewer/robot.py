@@ -1,0 +1,223 @@
+"""The robot and the scene in Rerun: what ag_ex logs from its state snapshots and its
+observations.
+
+Entities (timelines ``wall``, POSIX s, shared with the traffic, and ``sim_time``, s):
+
+- ``world`` — view coordinates, z up (static); ``world/table``, ``world/cabinet`` — boxes
+  (static, sizes and placement from velma/model/generate.py);
+- ``world/objects/<name>`` — ``Transform3D`` of jar, bowl and cup (object frame: bottom
+  centre, z up), with a static cylinder ``world/objects/<name>/shape``; the poses come from
+  ag_ex's L_SD observations, and while a hand holds an object from its grip frame (the
+  object keeps the grip-relative pose it had at the last observation before the grasp: the
+  snapshot has no object poses, so between observations this is an estimate);
+- ``world/robot/grip/<side>`` — ``Transform3D`` and axes of each grip frame (actual, from the
+  snapshot; the commanded frame is not in the snapshot);
+- ``robot/joints`` — all joint positions (rad) as one multi-series ``Scalars`` row;
+- ``robot/held`` — text when what a hand holds changes; ``robot/holding`` — text when the
+  loop starts or stops holding position;
+- ``scene/content/<name>`` — particles inside each container (from observations);
+  ``scene/content/total``.
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+import numpy.typing as npt
+import rerun as rr
+
+from services.viewer.recording import Recording
+from shared.fipa_codec.languages.common import Pose
+from shared.fipa_codec.languages.l_sd import Observation
+from velma.executor.state import RobotSnapshot
+from velma.model import generate as g
+
+WALL = "wall"
+SIM = "sim_time"
+OBJECTS = "world/objects"
+GRIP = "world/robot/grip"
+JOINTS = "robot/joints"
+CONTENT = "scene/content"
+
+# object name -> (radius, height) of the cylinder drawn for it, and its colour
+OBJECT_SHAPES: dict[str, tuple[float, float, tuple[int, int, int]]] = {
+    "jar": (g.JAR_RADIUS, g.JAR_HEIGHT, (120, 200, 230)),
+    "bowl": (g.BOWL_WALL_RADIUS + 2 * g.BOWL_WALL_HALF[2] * np.sin(g.BOWL_FLARE), 0.061, (230, 230, 220)),
+    "cup": (g.CUP_RADIUS, g.CUP_HEIGHT, (200, 120, 90)),
+}
+NOMINAL_POSITIONS = {"jar": g.JAR_POS, "bowl": g.BOWL_POS, "cup": g.CUP_POS}
+
+Quat = npt.NDArray[np.float64]
+
+
+def _qmul(a: Quat, b: Quat) -> Quat:
+    """Hamilton product of quaternions (w, x, y, z)."""
+    w1, x1, y1, z1 = a
+    w2, x2, y2, z2 = b
+    return np.array(
+        [
+            w1 * w2 - x1 * x2 - y1 * y2 - z1 * z2,
+            w1 * x2 + x1 * w2 + y1 * z2 - z1 * y2,
+            w1 * y2 - x1 * z2 + y1 * w2 + z1 * x2,
+            w1 * z2 + x1 * y2 - y1 * x2 + z1 * w2,
+        ]
+    )
+
+
+def _qconj(q: Quat) -> Quat:
+    return np.array([q[0], -q[1], -q[2], -q[3]])
+
+
+def _rotate(q: Quat, v: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:
+    return _qmul(_qmul(q, np.array([0.0, *v])), _qconj(q))[1:]
+
+
+def relative(parent: Pose, child: Pose) -> Pose:
+    """``child`` expressed in ``parent``'s frame (both in the same frame)."""
+    qp = np.asarray(parent.orientation, dtype=float)
+    d = np.asarray(child.position, dtype=float) - np.asarray(parent.position, dtype=float)
+    p = _rotate(_qconj(qp), d)
+    q = _qmul(_qconj(qp), np.asarray(child.orientation, dtype=float))
+    return Pose(position=(float(p[0]), float(p[1]), float(p[2])), orientation=tuple(map(float, q)))  # type: ignore[arg-type]
+
+
+def compose(parent: Pose, rel: Pose) -> Pose:
+    """The world pose of ``rel`` given in the frame ``parent``."""
+    qp = np.asarray(parent.orientation, dtype=float)
+    p = np.asarray(parent.position, dtype=float) + _rotate(qp, np.asarray(rel.position, dtype=float))
+    q = _qmul(qp, np.asarray(rel.orientation, dtype=float))
+    return Pose(position=(float(p[0]), float(p[1]), float(p[2])), orientation=tuple(map(float, q)))  # type: ignore[arg-type]
+
+
+def transform(pose: Pose) -> rr.Transform3D:
+    """A Rerun transform for ``pose`` (quaternion w, x, y, z → Rerun's x, y, z, w)."""
+    w, x, y, z = pose.orientation
+    return rr.Transform3D(translation=pose.position, quaternion=rr.Quaternion(xyzw=[x, y, z, w]))
+
+
+def log_scene(stream: rr.RecordingStream) -> None:
+    """The fixed scene (static): view coordinates, table, cabinet, object shapes."""
+    stream.log("world", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
+    tx, ty, tz = g.TABLE_POS
+    top_z = g.TABLE_TOP_HEIGHT - g.TABLE_TOP_HALF_THICKNESS
+    leg_half_h = (g.TABLE_TOP_HEIGHT - 2 * g.TABLE_TOP_HALF_THICKNESS) / 2
+    leg_xy = g.TABLE_HALF - 0.04
+    centers = [(tx, ty, tz + top_z)]
+    halves = [(g.TABLE_HALF, g.TABLE_HALF, g.TABLE_TOP_HALF_THICKNESS)]
+    for sx, sy in ((1, 1), (-1, 1), (1, -1), (-1, -1)):
+        centers.append((tx + sx * leg_xy, ty + sy * leg_xy, tz + leg_half_h))
+        halves.append((g.TABLE_LEG_HALF, g.TABLE_LEG_HALF, leg_half_h))
+    stream.log(
+        "world/table",
+        rr.Boxes3D(centers=centers, half_sizes=halves, colors=[(150, 110, 70)], fill_mode="solid"),
+        static=True,
+    )
+    cx, cy, cz = g.CABINET_POS
+    dx, dy = g.CABINET_HALF
+    zc = (g.SHELF_HEIGHT + g.CABINET_HEIGHT) / 2
+    hc = (g.CABINET_HEIGHT - g.SHELF_HEIGHT) / 2
+    parts = (
+        ((0, 0, g.SHELF_HEIGHT / 2), (dx, dy, g.SHELF_HEIGHT / 2)),
+        ((dx - g.PANEL, 0, zc), (g.PANEL, dy, hc)),
+        ((0, dy - g.PANEL, zc), (dx, g.PANEL, hc)),
+        ((0, -(dy - g.PANEL), zc), (dx, g.PANEL, hc)),
+        ((0, 0, g.CABINET_HEIGHT - g.TOP_HALF), (dx, dy, g.TOP_HALF)),
+    )
+    stream.log(
+        "world/cabinet",
+        rr.Boxes3D(
+            centers=[(cx + a[0], cy + a[1], cz + a[2]) for a, _ in parts],
+            half_sizes=[h for _, h in parts],
+            colors=[(190, 190, 200)],
+            fill_mode="solid",
+        ),
+        static=True,
+    )
+    for name, (radius, height, colour) in OBJECT_SHAPES.items():
+        stream.log(
+            f"{OBJECTS}/{name}/shape",
+            rr.Cylinders3D(
+                lengths=[height],
+                radii=[radius],
+                centers=[(0.0, 0.0, height / 2)],
+                colors=[colour],
+                labels=[name],
+            ),
+            static=True,
+        )
+    for side in ("left", "right"):
+        stream.log(f"{GRIP}/{side}", rr.TransformAxes3D(0.1), static=True)
+
+
+class RobotLogger:
+    """Logs ag_ex's robot snapshots and observations to one recording part; keeps the last
+    observed object poses and the grip-relative poses of held objects."""
+
+    def __init__(self, recording: Recording) -> None:
+        self.stream = recording.stream
+        self.objects: dict[str, Pose] = {n: Pose(position=p) for n, p in NOMINAL_POSITIONS.items()}
+        self._in_hand: dict[str, tuple[str, Pose]] = {}  # side -> (object, pose in the grip frame)
+        self._held: dict[str, str | None] = {}
+        self._holding: str | None = None
+        self._joint_names: tuple[str, ...] = ()
+        self._grips: dict[str, Pose] = {}
+        log_scene(self.stream)
+
+    def _time(self, sim_time: float, wall: float | None) -> None:
+        self.stream.set_time(WALL, timestamp=time.time() if wall is None else wall)
+        self.stream.set_time(SIM, duration=sim_time)
+
+    def snapshot(self, snap: RobotSnapshot, *, wall: float | None = None) -> None:
+        """Log one robot state: grip frames, joints, held objects (moved with their grips),
+        and changes of what is held and of the loop's holding."""
+        s = self.stream
+        self._time(snap.sim_time, wall)
+        self._grips = dict(snap.grip)
+        for side, pose in snap.grip.items():
+            s.log(f"{GRIP}/{side}", transform(pose))
+        names = tuple(snap.joints)
+        if names != self._joint_names:
+            self._joint_names = names
+            s.log(JOINTS, rr.SeriesLines(names=list(names)), static=True)
+        s.log(JOINTS, rr.Scalars(np.fromiter(snap.joints.values(), dtype=float, count=len(names))))
+        for side, obj in snap.held_object.items():
+            if obj != self._held.get(side):
+                s.log("robot/held", rr.TextLog(f"{side} hand: {obj or 'empty'}"))
+                self._held[side] = obj
+                self._in_hand.pop(side, None)
+                if obj is not None and obj in self.objects and side in snap.grip:
+                    self._in_hand[side] = (obj, relative(snap.grip[side], self.objects[obj]))
+        for side, (obj, rel) in self._in_hand.items():
+            if side in snap.grip:
+                self.objects[obj] = compose(snap.grip[side], rel)
+                s.log(f"{OBJECTS}/{obj}", transform(self.objects[obj]))
+        if snap.holding != self._holding:
+            self._holding = snap.holding
+            s.log(
+                "robot/holding",
+                rr.TextLog(f"holding: {snap.holding}" if snap.holding else "serving", level="WARN"),
+            )
+
+    def initial_objects(self) -> None:
+        """Log the nominal object poses (before any observation), at simulation time 0."""
+        self._time(0.0, None)
+        for name, pose in self.objects.items():
+            self.stream.log(f"{OBJECTS}/{name}", transform(pose))
+
+    def observation(self, obs: Observation, *, wall: float | None = None) -> None:
+        """Log the observed object poses and container contents. A held object's grip-relative
+        pose is re-anchored to the observation."""
+        s = self.stream
+        self._time(obs.stamp, wall)
+        in_hand = {obj: side for side, (obj, _) in self._in_hand.items()}
+        for o in obs.objects:
+            self.objects[o.name] = o.pose
+            s.log(f"{OBJECTS}/{o.name}", transform(o.pose))
+            if o.particles_inside is not None:
+                s.log(f"{CONTENT}/{o.name}", rr.Scalars(float(o.particles_inside)))
+            side = in_hand.get(o.name)
+            grip = self._grips.get(side) if side is not None else None
+            if side is not None and grip is not None:
+                self._in_hand[side] = (o.name, relative(grip, o.pose))
+        s.log(f"{CONTENT}/total", rr.Scalars(float(obs.total_particles)))

@@ -1,0 +1,148 @@
+"""Traffic in Rerun: what the traffic recorder logs for every communicate it sees.
+
+Entities (timeline ``wall``: the recorder's arrival time, POSIX s):
+
+- ``traffic/log`` — one ``TextLog`` row per communicate, in FIPA SC00070 string form (human
+  form: content as JSON), with ``AnyValues`` sender, receiver, performative, protocol,
+  conversation_id, channel, size and seq on the same row;
+- ``traffic/size/<C>`` — the communicate's size in bytes (paper Figure 12), one row each;
+- ``traffic/bandwidth/<C>`` — kbit/s on the channel over the last ``WINDOW`` s, one row per
+  communicate (paper Figure 13);
+- ``task/sw_state`` and ``task/step`` — a_ta's L_SW state and current HFSM step (text), from
+  its L_SW communicates on C1 (``task/step`` only when the step changes);
+- ``graph/agents`` — the agents (nodes) and channels (edges) of the specification (static).
+"""
+
+from __future__ import annotations
+
+import collections
+import os
+from pathlib import Path
+
+import rerun as rr
+
+from services.recorder.record import TrafficRecord
+from services.spec.model import DEFAULT_SPEC, SystemSpec, load
+from services.viewer.recording import Recording
+from shared.fipa_codec import DecodeError, decode
+from shared.fipa_codec.languages import ContentError, decode_content
+from shared.fipa_codec.languages.l_sw import SWStatus
+from shared.fipa_codec.string_form import to_string
+
+WINDOW = 1.0  # s, the bandwidth window
+WALL = "wall"
+TRAFFIC_LOG = "traffic/log"
+SIZE = "traffic/size"
+BANDWIDTH = "traffic/bandwidth"
+SW_STATE = "task/sw_state"
+STEP = "task/step"
+GRAPH = "graph/agents"
+SW_LEVEL = {"Error": "ERROR", "Replan": "WARN", "Preempted": "WARN"}
+
+
+def spec_from_env() -> SystemSpec:
+    """The specification the processes run with (``ROCO_SPEC``, default the repo's)."""
+    return load(Path(os.environ.get("ROCO_SPEC", str(DEFAULT_SPEC))))
+
+
+def log_graph(stream: rr.RecordingStream, spec: SystemSpec) -> None:
+    """The agents and channels of ``spec`` as a graph (static)."""
+    names = [a.name for a in spec.agents]
+    for ch in spec.channels:
+        names.extend(e for e in ch.ends if e not in names)
+    stream.log(GRAPH, rr.GraphNodes(names, labels=names), static=True)
+    stream.log(
+        GRAPH,
+        rr.GraphEdges([ch.ends for ch in spec.channels], graph_type="undirected"),
+        static=True,
+    )
+
+
+class TrafficLogger:
+    """Logs communicates (payloads as they crossed Zenoh, with their traffic records) to
+    one recording part; keeps the per-channel bandwidth windows and a_ta's last step."""
+
+    def __init__(self, recording: Recording, spec: SystemSpec | None = None) -> None:
+        self.stream = recording.stream
+        self.spec = spec if spec is not None else spec_from_env()
+        self._windows: dict[str, collections.deque[tuple[float, int]]] = collections.defaultdict(
+            collections.deque
+        )
+        self._window_bytes: dict[str, int] = collections.defaultdict(int)
+        self._series: set[str] = set()
+        self._step: str | None = None
+        log_graph(self.stream, self.spec)
+
+    def _channel_series(self, channel: str) -> None:
+        if channel in self._series:
+            return
+        self._series.add(channel)
+        self.stream.log(f"{SIZE}/{channel}", rr.SeriesPoints(names=[f"{channel} size [B]"]), static=True)
+        self.stream.log(
+            f"{BANDWIDTH}/{channel}", rr.SeriesLines(names=[f"{channel} bandwidth [kbit/s]"]), static=True
+        )
+
+    def bandwidth(self, channel: str, t: float, size: int) -> float:
+        """Add ``size`` bytes at ``t`` to ``channel``'s window; kbit/s over the last WINDOW s."""
+        window = self._windows[channel]
+        window.append((t, size))
+        self._window_bytes[channel] += size
+        while window and window[0][0] <= t - WINDOW:
+            self._window_bytes[channel] -= window.popleft()[1]
+        return self._window_bytes[channel] * 8 / 1000 / WINDOW
+
+    def communicate(self, record: TrafficRecord, payload: bytes) -> None:
+        """Log one communicate: its text line, size, channel bandwidth, and a_ta's state."""
+        s = self.stream
+        s.set_time(WALL, timestamp=record.t)
+        receiver = ",".join(record.receivers)
+        try:
+            msg = decode(payload)
+        except DecodeError:
+            msg = None
+        if msg is None:
+            text = f"malformed {record.size} B on {record.key}"
+            level = "WARN"
+        else:
+            text = to_string(msg, human=True)
+            level = "INFO"
+        s.log(
+            TRAFFIC_LOG,
+            rr.TextLog(text, level=level),
+            rr.AnyValues(
+                seq=record.seq,
+                channel=record.channel,
+                sender=record.sender,
+                receiver=receiver,
+                performative=record.performative,
+                protocol=record.protocol or "",
+                conversation_id=record.conversation_id or "",
+                size=record.size,
+            ),
+        )
+        self._channel_series(record.channel)
+        s.log(f"{SIZE}/{record.channel}", rr.Scalars(float(record.size)))
+        s.log(
+            f"{BANDWIDTH}/{record.channel}",
+            rr.Scalars(self.bandwidth(record.channel, record.t, record.size)),
+        )
+        if msg is not None and msg.language == "L_SW" and msg.content:
+            try:
+                term = decode_content(msg.language, msg.content)
+            except ContentError:  # a malformed L_SW content is the conformance checker's business
+                return
+            if isinstance(term, SWStatus):
+                self.sw_status(term)
+
+    def sw_status(self, status: SWStatus) -> None:
+        """Log a_ta's L_SW state and, when it changed, its HFSM step (at the current time)."""
+        state = status.state.value
+        detail = f" plan={status.plan_id}" if status.plan_id else ""
+        if status.step:
+            detail += f" step={status.step}"
+        if status.reason:
+            detail += f" reason={status.reason}"
+        self.stream.log(SW_STATE, rr.TextLog(state + detail, level=SW_LEVEL.get(state, "INFO")))
+        if status.step and status.step != self._step:
+            self._step = status.step
+            self.stream.log(STEP, rr.TextLog(status.step))

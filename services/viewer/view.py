@@ -1,0 +1,120 @@
+"""Opening a Rerun viewer on a run's recording (``roco view``, ``roco run --view``).
+
+The viewer is the ``rerun`` CLI of the installed rerun-sdk, started as a process of its own
+(its own session: it outlives the command that opened it):
+
+- native (a display: ``DISPLAY`` or ``WAYLAND_DISPLAY`` is set): ``rerun FILES --port G``;
+- web (no display, or asked): ``rerun FILES --serve-web --bind 127.0.0.1
+  --web-viewer-port W --port G``: the web viewer is served on localhost (no browser is opened);
+  open the printed URL.
+
+Either way the viewer accepts logging SDKs on ``rerun+http://127.0.0.1:G/proxy``; giving that
+URL to the processes of a run as ``ROCO_RERUN_CONNECT`` streams the run to the viewer live
+(services/viewer/recording.py).
+"""
+
+from __future__ import annotations
+
+import os
+import socket
+import subprocess
+import time
+import urllib.parse
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+
+from services.viewer.recording import RECORDING_FILE, merge_parts, parts, rerun_cli
+
+READY_TIMEOUT = 15.0  # s, for the viewer's port to accept connections
+
+
+@dataclass(frozen=True)
+class Viewer:
+    """A started viewer: its process id, the gRPC URL SDKs connect to, and (web) the URL to open."""
+
+    pid: int
+    grpc_url: str
+    web_url: str | None
+    files: tuple[Path, ...]
+
+
+def has_display(env: Mapping[str, str] | None = None) -> bool:
+    """Whether a native viewer can open a window (``DISPLAY`` or ``WAYLAND_DISPLAY`` set)."""
+    env = os.environ if env is None else env
+    return bool(env.get("DISPLAY") or env.get("WAYLAND_DISPLAY"))
+
+
+def free_port() -> int:
+    """A free TCP port on the loopback interface."""
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+def recording_files(target: Path | None) -> tuple[Path, ...]:
+    """What to load for ``target``: a file as it is; a run folder's ``recording.rrd``
+    (merged from its parts first if it is missing), else its part files; None: nothing."""
+    if target is None:
+        return ()
+    if target.is_dir():
+        merged = target / RECORDING_FILE
+        if merged.exists() or merge_parts(target) is not None:
+            return (merged,)
+        found = tuple(parts(target))
+        if not found:
+            raise FileNotFoundError(f"no Rerun recording in {target} (was the run made with ROCO_RERUN=1?)")
+        return found
+    if not target.exists():
+        raise FileNotFoundError(f"no such recording: {target}")
+    return (target,)
+
+
+def _wait_port(port: int, proc: subprocess.Popen[bytes], timeout: float) -> None:
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        if proc.poll() is not None:
+            raise RuntimeError(f"the Rerun viewer exited with code {proc.returncode}")
+        with socket.socket() as s:
+            s.settimeout(0.2)
+            if s.connect_ex(("127.0.0.1", port)) == 0:
+                return
+        time.sleep(0.05)
+    raise TimeoutError(f"the Rerun viewer did not listen on port {port} within {timeout} s")
+
+
+def start_viewer(rrd: Path | None, *, web: bool | None = None, log_file: Path | None = None) -> Viewer:
+    """Start a viewer on ``rrd`` (a .rrd file, a run folder, or None for an empty viewer that
+    waits for SDKs); ``web`` None: web when there is no display. Returns once its ports listen."""
+    files = recording_files(rrd)
+    use_web = (not has_display()) if web is None else web
+    grpc_port = free_port()
+    cmd = [*rerun_cli(), *map(str, files), "--port", str(grpc_port)]
+    web_url = None
+    web_port = 0
+    if use_web:
+        web_port = free_port()
+        cmd += ["--serve-web", "--bind", "127.0.0.1", "--web-viewer-port", str(web_port)]
+    grpc_url = f"rerun+http://127.0.0.1:{grpc_port}/proxy"
+    out = log_file.open("ab") if log_file is not None else subprocess.DEVNULL
+    try:
+        proc = subprocess.Popen(cmd, stdin=subprocess.DEVNULL, stdout=out, stderr=out, start_new_session=True)
+    finally:
+        if log_file is not None and not isinstance(out, int):
+            out.close()
+    _wait_port(grpc_port, proc, READY_TIMEOUT)
+    if use_web:
+        _wait_port(web_port, proc, READY_TIMEOUT)
+        web_url = f"http://127.0.0.1:{web_port}/?url={urllib.parse.quote(grpc_url, safe='')}"
+    return Viewer(pid=proc.pid, grpc_url=grpc_url, web_url=web_url, files=files)
+
+
+def open_viewer(rrd: Path | None, *, web: bool | None = None) -> str:
+    """Open a viewer on ``rrd`` (see :func:`start_viewer`) and return where to look: the web
+    viewer's URL (also printed) in web mode, else the native viewer's gRPC URL (give it to a
+    run as ``ROCO_RERUN_CONNECT`` to stream to it live)."""
+    viewer = start_viewer(rrd, web=web)
+    if viewer.web_url is not None:
+        print(f"Rerun web viewer: {viewer.web_url}", flush=True)
+        return viewer.web_url
+    return viewer.grpc_url
