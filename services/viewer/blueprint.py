@@ -1,6 +1,7 @@
 """The default layout of a run's recording (``rr.send_blueprint``): the 3D view of robot and
 scene beside the agent graph and a_ta's state; below, the traffic log and the per-channel
-size and bandwidth time series (paper Figures 12 and 13) and the joints."""
+size and bandwidth time series (paper Figures 12 and 13), the joints and the wrist
+force/torque."""
 
 from __future__ import annotations
 
@@ -32,6 +33,7 @@ def blueprint() -> rrb.Blueprint:
                     rrb.TimeSeriesView(name="size [B] per channel", origin=f"/{traffic.SIZE}"),
                     rrb.TimeSeriesView(name="bandwidth [kbit/s] per channel", origin=f"/{traffic.BANDWIDTH}"),
                     rrb.TimeSeriesView(name="joints [rad]", origin=f"/{robot.JOINTS}"),
+                    rrb.TimeSeriesView(name="wrist F/T [N, N·m]", origin=f"/{robot.FT}"),
                     rrb.TimeSeriesView(name="container content", origin=f"/{robot.CONTENT}"),
                 ),
                 column_shares=[3, 2],

@@ -11,7 +11,15 @@ Entities (timelines ``wall``, POSIX s, shared with the traffic, and ``sim_time``
   object keeps the grip-relative pose it had at the last observation before the grasp: the
   snapshot has no object poses, so between observations this is an estimate);
 - ``world/robot/grip/<side>`` — ``Transform3D`` and axes of each grip frame (actual, from the
-  snapshot; the commanded frame is not in the snapshot);
+  snapshot);
+- ``world/robot/links/<body>`` — ``Transform3D`` of each of Velma's main links (the bodies of
+  ``velma.executor.state.LINK_BODIES``: torso, head, the arms' 7 links, the palms), with its
+  rough shape (static capsules, cylinders, spheres and boxes ``.../geom<i>`` in the body frame,
+  from the MJCF's collision geoms: ``LINK_SHAPES``);
+- ``world/robot/setpoint/<side>`` — ``Transform3D`` and axes of the commanded grip frame while
+  that arm is in Cartesian impedance; cleared when it leaves it;
+- ``robot/ft/<side>/{fx,fy,fz,tx,ty,tz}`` — the wrist F/T sensor's wrench (N, N·m, sensor
+  frame) as scalars;
 - ``robot/joints`` — all joint positions (rad) as one multi-series ``Scalars`` row;
 - ``robot/held`` — text when what a hand holds changes; ``robot/holding`` — text when the
   loop starts or stops holding position;
@@ -22,6 +30,7 @@ Entities (timelines ``wall``, POSIX s, shared with the traffic, and ``sim_time``
 from __future__ import annotations
 
 import time
+from typing import NamedTuple
 
 import numpy as np
 import numpy.typing as npt
@@ -30,13 +39,16 @@ import rerun as rr
 from services.viewer.recording import Recording
 from shared.fipa_codec.languages.common import Pose
 from shared.fipa_codec.languages.l_sd import Observation
-from velma.executor.state import RobotSnapshot
+from velma.executor.state import FT_AXES, RobotSnapshot
 from velma.model import generate as g
 
 WALL = "wall"
 SIM = "sim_time"
 OBJECTS = "world/objects"
 GRIP = "world/robot/grip"
+LINKS = "world/robot/links"
+SETPOINT = "world/robot/setpoint"
+FT = "robot/ft"
 JOINTS = "robot/joints"
 CONTENT = "scene/content"
 
@@ -49,6 +61,52 @@ OBJECT_SHAPES: dict[str, tuple[float, float, tuple[int, int, int]]] = {
 NOMINAL_POSITIONS = {"jar": g.JAR_POS, "bowl": g.BOWL_POS, "cup": g.CUP_POS}
 
 Quat = npt.NDArray[np.float64]
+
+Vec3 = tuple[float, float, float]
+
+
+class LinkShape(NamedTuple):
+    """A rough link shape in its body's frame (m): ``kind`` "capsule" or "cylinder" (``size``
+    = radius, half-length, 0; axis along the body's z), "sphere" (radius, 0, 0) or "box"
+    (half sizes); ``centre`` its centre."""
+
+    kind: str
+    size: Vec3
+    centre: Vec3
+
+
+# Copied from the collision geoms of velma.xml (velma/model/generate.py), so that the viewer
+# needs no MuJoCo model.
+_ARM: dict[int, list[LinkShape]] = {
+    **{k: [LinkShape("capsule", (0.06, 0.1, 0.0), (0.0, 0.0, 0.1))] for k in range(1, 5)},
+    5: [LinkShape("capsule", (0.06, 0.095, 0.0), (0.0, 0.0, 0.095))],
+    6: [
+        LinkShape("sphere", (0.055, 0.0, 0.0), (0.0, 0.0, 0.0)),
+        LinkShape("cylinder", (0.04, 0.04, 0.0), (0.0, 0.0, 0.04)),
+    ],
+    7: [LinkShape("cylinder", (0.045, 0.008, 0.0), (0.0, 0.0, -0.005))],
+}
+_PALM = [
+    LinkShape("cylinder", (0.04, 0.02, 0.0), (0.0, 0.0, -0.02)),
+    LinkShape("cylinder", (0.045, 0.03, 0.0), (0.0, 0.0, 0.03)),
+    LinkShape("box", (0.04, 0.04, 0.006), (0.0, 0.0, 0.066)),
+]
+LINK_SHAPES: dict[str, list[LinkShape]] = {
+    "torso_base": [LinkShape("cylinder", (0.3, 0.015, 0.0), (0.0, 0.0, 0.015))],
+    "torso_link0": [
+        LinkShape("cylinder", (0.11, 0.55, 0.0), (0.0, 0.0, 0.55)),
+        LinkShape("box", (0.1, 0.14, 0.09), (-0.03, 0.0, 1.16)),
+    ],
+    "head_pan_link": [],
+    "head_tilt_link": [
+        LinkShape("box", (0.06, 0.12, 0.06), (0.02, 0.0, 0.06)),
+        LinkShape("box", (0.015, 0.09, 0.02), (0.085, 0.0, 0.05)),
+    ],
+    **{f"{side}_arm_{k}_link": list(shapes) for side in ("right", "left") for k, shapes in _ARM.items()},
+    **{f"{side}_HandPalmLink": list(_PALM) for side in ("right", "left")},
+}
+LINK_COLOUR = (235, 140, 40)
+PALM_COLOUR = (90, 90, 100)
 
 
 def _qmul(a: Quat, b: Quat) -> Quat:
@@ -148,6 +206,33 @@ def log_scene(stream: rr.RecordingStream) -> None:
         )
     for side in ("left", "right"):
         stream.log(f"{GRIP}/{side}", rr.TransformAxes3D(0.1), static=True)
+    log_link_shapes(stream)
+
+
+def _shape(shape: LinkShape, colour: tuple[int, int, int]) -> rr.AsComponents:
+    """The Rerun archetype of one ``LINK_SHAPES`` entry (body frame, m)."""
+    (a, b, _), (x, y, z) = shape.size, shape.centre
+    if shape.kind == "box":
+        return rr.Boxes3D(centers=[shape.centre], half_sizes=[shape.size], colors=[colour], fill_mode="solid")
+    if shape.kind == "capsule":  # Rerun's capsule starts at its translation and runs along +z
+        return rr.Capsules3D(lengths=[2 * b], radii=[a], translations=[(x, y, z - b)], colors=[colour])
+    if shape.kind == "cylinder":
+        return rr.Cylinders3D(
+            lengths=[2 * b], radii=[a], centers=[shape.centre], colors=[colour], fill_mode="solid"
+        )
+    if shape.kind == "sphere":
+        return rr.Ellipsoids3D(
+            half_sizes=[(a, a, a)], centers=[shape.centre], colors=[colour], fill_mode="solid"
+        )
+    raise ValueError(f"unknown link shape {shape.kind!r}")
+
+
+def log_link_shapes(stream: rr.RecordingStream) -> None:
+    """The links' shapes (static), each in its body's frame ``world/robot/links/<body>``."""
+    for body, shapes in LINK_SHAPES.items():
+        colour = PALM_COLOUR if body.endswith("HandPalmLink") else LINK_COLOUR
+        for i, shape in enumerate(shapes):
+            stream.log(f"{LINKS}/{body}/geom{i}", _shape(shape, colour), static=True)
 
 
 class RobotLogger:
@@ -162,6 +247,7 @@ class RobotLogger:
         self._holding: str | None = None
         self._joint_names: tuple[str, ...] = ()
         self._grips: dict[str, Pose] = {}
+        self._setpoints: set[str] = set()  # sides whose commanded frame is shown
         log_scene(self.stream)
 
     def _time(self, sim_time: float, wall: float | None) -> None:
@@ -169,13 +255,20 @@ class RobotLogger:
         self.stream.set_time(SIM, duration=sim_time)
 
     def snapshot(self, snap: RobotSnapshot, *, wall: float | None = None) -> None:
-        """Log one robot state: grip frames, joints, held objects (moved with their grips),
-        and changes of what is held and of the loop's holding."""
+        """Log one robot state: grip frames, link poses, commanded grip frames, wrist F/T,
+        joints, held objects (moved with their grips), and changes of what is held and of the
+        loop's holding."""
         s = self.stream
         self._time(snap.sim_time, wall)
         self._grips = dict(snap.grip)
         for side, pose in snap.grip.items():
             s.log(f"{GRIP}/{side}", transform(pose))
+        for body, pose in snap.links.items():
+            s.log(f"{LINKS}/{body}", transform(pose))
+        self._log_setpoints(snap.setpoint)
+        for side, wrench in snap.ft.items():
+            for axis, value in zip(FT_AXES, wrench, strict=True):
+                s.log(f"{FT}/{side}/{axis}", rr.Scalars(value))
         names = tuple(snap.joints)
         if names != self._joint_names:
             self._joint_names = names
@@ -198,6 +291,19 @@ class RobotLogger:
                 "robot/holding",
                 rr.TextLog(f"holding: {snap.holding}" if snap.holding else "serving", level="WARN"),
             )
+
+    def _log_setpoints(self, setpoints: dict[str, Pose | None]) -> None:
+        """The commanded grip frames present in this snapshot; a frame that is no longer
+        commanded (joint or safe mode) is cleared once."""
+        s = self.stream
+        for side, pose in setpoints.items():
+            path = f"{SETPOINT}/{side}"
+            if pose is not None:
+                s.log(path, transform(pose), rr.TransformAxes3D(0.15))
+                self._setpoints.add(side)
+            elif side in self._setpoints:
+                s.log(path, rr.Clear(recursive=False))
+                self._setpoints.discard(side)
 
     def initial_objects(self) -> None:
         """Log the nominal object poses (before any observation), at simulation time 0."""

@@ -18,7 +18,7 @@ from shared.fipa_codec.languages.common import Pose
 from shared.fipa_codec.languages.l_sd import ObjectObservation, Observation
 from shared.fipa_codec.languages.l_sw import SWState, SWStatus
 from tests.support.messages import communicate
-from velma.executor.state import RobotSnapshot
+from velma.executor.state import FT_AXES, LINK_BODIES, RobotSnapshot
 
 RUN = "20261121-120000-test"
 
@@ -53,13 +53,23 @@ def synthetic_traffic() -> list[tuple[float, str, bytes]]:
     return items
 
 
-def snapshot(t: float, right: Pose, held: str | None = None) -> RobotSnapshot:
+def snapshot(t: float, right: Pose, held: str | None = None, *, cart: bool = False) -> RobotSnapshot:
+    """A synthetic state; ``cart``: the right arm has a Cartesian setpoint (0.01 m above its
+    grip frame)."""
+    links = {
+        name: Pose(position=(0.01 * i, 0.0, t), orientation=(0.0, 0.0, 0.0, 1.0))
+        for i, name in enumerate(LINK_BODIES)
+    }
+    above = Pose(position=(right.position[0], right.position[1], right.position[2] + 0.01))
     return RobotSnapshot(
         sim_time=t,
         joints={"torso_0_joint": 0.1 * t, "right_arm_0_joint": -0.2 * t},
         grip={"right": right, "left": Pose(position=(0.3, 0.4, 1.0))},
         held={"right": held is not None, "left": False},
         held_object={"right": held, "left": None},
+        links=links,
+        setpoint={"right": above if cart else None, "left": None},
+        ft={"right": (0.0, 0.0, -12.0 - t, 0.1, 0.2, 0.3), "left": (0.0, 0.0, -12.0, 0.0, 0.0, 0.0)},
     )
 
 
@@ -81,7 +91,9 @@ def values(path: Path, entity: str, column: str) -> list[Any]:
             continue
         batch = chunk.to_record_batch()
         names = batch.schema.names
-        col = next(n for n in names if n.endswith(column))
+        col = next((n for n in names if n.endswith(column)), None)
+        if col is None:  # e.g. a Clear's chunk
+            continue
         times = batch.column("wall").cast("int64").to_pylist() if "wall" in names else [None] * batch.num_rows
         out.extend(zip(times, batch.column(col).to_pylist(), strict=True))
     ordered = [v for _, v in sorted(out, key=lambda tv: (tv[0] is None, tv[0]))]
@@ -120,8 +132,11 @@ def record_run(run_dir: Path) -> Path:
             total_particles=18,
         )
     )
-    robot_side.snapshot(snapshot(0.1, grip0, held="jar"))  # grasp: the jar is 0.1 m ahead, 0.05 m down
-    robot_side.snapshot(snapshot(0.2, Pose(position=(0.6, 0.2, 1.2)), held="jar"))  # lifted 0.3 m
+    robot_side.snapshot(
+        snapshot(0.1, grip0, held="jar", cart=True)
+    )  # grasp: the jar is 0.1 m ahead, 0.05 m down
+    robot_side.snapshot(snapshot(0.2, Pose(position=(0.6, 0.2, 1.2)), held="jar", cart=True))  # lifted 0.3 m
+    robot_side.snapshot(snapshot(0.3, Pose(position=(0.6, 0.2, 1.2)), held="jar"))  # back in joint mode
     robot_side.close()
     merged = traffic_side.finish(wait=0.0)
     assert merged is not None
@@ -163,17 +178,43 @@ def test_traffic_entities(run_dir: Path) -> None:
 def test_robot_entities(run_dir: Path) -> None:
     merged = record_run(run_dir)
     counts = rows(merged)
-    assert counts[f"/{robot.GRIP}/right"] == 3
-    assert counts[f"/{robot.JOINTS}"] == 3
+    assert counts[f"/{robot.GRIP}/right"] == 4
+    assert counts[f"/{robot.JOINTS}"] == 4
     assert counts[f"/{robot.CONTENT}/jar"] == 1
     assert counts[f"/{robot.CONTENT}/total"] == 1
-    # jar: nominal pose, observed pose, then two snapshots while held
-    assert counts[f"/{robot.OBJECTS}/jar"] == 4
+    # jar: nominal pose, observed pose, then three snapshots while held
+    assert counts[f"/{robot.OBJECTS}/jar"] == 5
     assert counts[f"/{robot.OBJECTS}/bowl"] == 2
     jar = values(merged, f"/{robot.OBJECTS}/jar", "Transform3D:translation")
     assert jar[-1] == pytest.approx([0.7, 0.2, 1.15])  # moved with the grip
     joints = values(merged, f"/{robot.JOINTS}", "Scalars:scalars")
     assert len(joints[-1]) == 2
+
+
+def test_links_setpoints_ft(run_dir: Path) -> None:
+    merged = record_run(run_dir)
+    counts = rows(merged)
+    links = {e for e in counts if e.startswith(f"/{robot.LINKS}/")}
+    assert links == {f"/{robot.LINKS}/{name}" for name in LINK_BODIES}
+    assert all(counts[e] == 4 for e in links)  # one transform per snapshot
+    palm = values(merged, f"/{robot.LINKS}/right_HandPalmLink", "Transform3D:translation")
+    assert palm[-1] == pytest.approx([0.01 * LINK_BODIES.index("right_HandPalmLink"), 0.0, 0.3])
+    # the shapes are static: one geometry per MJCF geom of each body
+    static = {c.entity_path for c in RrdReader(merged).stream() if c.is_static}
+    n_geoms = sum(len(v) for v in robot.LINK_SHAPES.values())
+    assert len([e for e in static if e.startswith(f"/{robot.LINKS}/") and "/geom" in e]) == n_geoms
+    assert set(robot.LINK_SHAPES) == set(LINK_BODIES)
+    # the right setpoint: two transforms while commanded, then one clear; never the left
+    assert counts[f"/{robot.SETPOINT}/right"] == 3
+    assert f"/{robot.SETPOINT}/left" not in counts
+    sp = values(merged, f"/{robot.SETPOINT}/right", "Transform3D:translation")
+    assert sp[-1] == pytest.approx([0.6, 0.2, 1.21])
+    assert values(merged, f"/{robot.SETPOINT}/right", "Clear:is_recursive") == [False]
+    for side in ("left", "right"):
+        for axis in FT_AXES:
+            assert counts[f"/{robot.FT}/{side}/{axis}"] == 4
+    fz = values(merged, f"/{robot.FT}/right/fz", "Scalars:scalars")
+    assert fz == pytest.approx([-12.0, -12.1, -12.2, -12.3])
 
 
 def test_bandwidth_window(run_dir: Path) -> None:
@@ -211,3 +252,37 @@ def test_view_finds_the_recording(run_dir: Path) -> None:
         view.recording_files(run_dir / "nothing.rrd")
     assert view.has_display({"WAYLAND_DISPLAY": "wayland-0"})
     assert not view.has_display({})
+
+
+def test_snapshot_from_runtime() -> None:
+    """The loop's snapshot carries the link poses, the wrist F/T and the Cartesian setpoints."""
+    import math
+
+    import msgspec
+
+    from velma.executor.runtime import Runtime
+    from velma.executor.state import robot_snapshot
+
+    rt = Runtime(seed=0, n_particles=0)
+    for _ in range(20):
+        rt.cycle()
+    snap = robot_snapshot(rt)
+    assert tuple(snap.links) == LINK_BODIES
+    for pose in snap.links.values():
+        assert math.fsum(c * c for c in pose.orientation) == pytest.approx(1.0, abs=1e-9)
+    palm = snap.links["right_HandPalmLink"].position
+    assert palm[2] > 0.5 and abs(palm[1]) < 1.0  # held out in front of the robot, off the floor
+    assert snap.setpoint == {"right": None, "left": None}  # joint impedance after start
+    for side in ("left", "right"):
+        f = snap.ft[side]
+        assert len(f) == 6
+        # the sensor carries the palm and the fingers (≈ 1.2 kg): ≈ 12 N
+        assert 8.0 < math.hypot(*f[:3]) < 16.0
+        assert math.hypot(*f[3:]) < 2.0  # N·m
+    cmd = rt.ctrl.arm["right"]
+    cmd.mode, cmd.pose = "cart", rt.grip("right")
+    sp = robot_snapshot(rt).setpoint["right"]
+    assert sp is not None
+    assert sp.position == pytest.approx(tuple(rt.grip("right").translation))
+    back = msgspec.msgpack.decode(msgspec.msgpack.encode(snap), type=RobotSnapshot)
+    assert back == snap

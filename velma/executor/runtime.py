@@ -33,6 +33,7 @@ from velma.control.robot_model import (
     arm_joints,
 )
 from velma.executor.perception import Perception
+from velma.executor.state import LINK_BODIES
 from velma.model.scene import N_PARTICLES, initial_state, load_kitchen
 
 DT = 0.001  # s
@@ -63,6 +64,15 @@ class Runtime:
         self.ik_data = self.robot.model.createData()  # the IK search's own (see primitives)
         self.joint_v_index = tuple(self.robot.v_index(n) for n in self.robot.joint_names)
         self.grip_site = {s: self.model.site(f"{s}_HandGripLink").id for s in SIDES}
+        # the snapshot's link bodies and wrist F/T sensors (velma.executor.state)
+        self.link_ids = np.array([self.model.body(n).id for n in LINK_BODIES], dtype=np.intp)
+        self.ft_adr = {
+            s: (
+                int(self.model.sensor(f"{s}_ft_force").adr[0]),
+                int(self.model.sensor(f"{s}_ft_torque").adr[0]),
+            )
+            for s in SIDES
+        }
         self.jmap = JointMap.build(self.model, self.robot)
         self.ctrl = VelmaController(self.robot, DT)
         self.hands = Hands(self.model)
