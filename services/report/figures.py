@@ -206,10 +206,8 @@ class MatrixGrid:
         return sum(self.received)
 
 
-def matrix_grid(matrix: AgentMatrix) -> MatrixGrid:
-    """This run's Table 8 as a grid (rows and columns in ``matrix.agents`` order)."""
-    agents = list(matrix.agents)
-    cells = [[matrix.cells.get(r, {}).get(s, 0) for s in agents] for r in agents]
+def _grid(agents: list[str], table: dict[str, dict[str, int]]) -> MatrixGrid:
+    cells = [[table.get(r, {}).get(s, 0) for s in agents] for r in agents]
     return MatrixGrid(
         agents,
         agents,
@@ -217,19 +215,16 @@ def matrix_grid(matrix: AgentMatrix) -> MatrixGrid:
         [sum(row) for row in cells],
         [sum(cells[i][j] for i in range(len(agents))) for j in range(len(agents))],
     )
+
+
+def matrix_grid(matrix: AgentMatrix) -> MatrixGrid:
+    """This run's Table 8 as a grid (rows and columns in ``matrix.agents`` order)."""
+    return _grid(list(matrix.agents), matrix.cells)
 
 
 def paper_matrix_grid() -> MatrixGrid:
     """The paper's Table 8 as a grid on the same agents (its missing a_hi row as zeros)."""
-    agents = list(paper.AGENTS)
-    cells = [[paper.TABLE8.get(r, {}).get(s, 0) for s in agents] for r in agents]
-    return MatrixGrid(
-        agents,
-        agents,
-        cells,
-        [sum(row) for row in cells],
-        [sum(cells[i][j] for i in range(len(agents))) for j in range(len(agents))],
-    )
+    return _grid(list(paper.AGENTS), paper.TABLE8)
 
 
 @dataclass(frozen=True)
