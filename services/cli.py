@@ -392,7 +392,7 @@ def view(
     except Exception as exc:
         raise fail(f"cannot start the viewer: {exc}") from None
     where = viewer.web_url or f"native viewer, SDKs connect to {viewer.grpc_url}"
-    typer.echo(f"roco: Rerun viewer {where} (pid {viewer.pid}; stop it with: kill {viewer.pid})")
+    typer.echo(f"roco: Rerun viewer {where} (pid {viewer.pid}; stop it with: kill -- -{viewer.pid})")
 
 
 @app.command()
