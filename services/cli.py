@@ -353,6 +353,10 @@ def disturb(
     world, not a robot command): ag_ex moves the body and its content and stops them."""
     import json
 
+    from velma.executor.perception import CONTAINERS
+
+    if obj not in CONTAINERS:
+        raise fail(f"cannot move {obj!r}: the kitchen's movable objects are {', '.join(CONTAINERS)}", code=2)
     endpoint = _endpoint(router, runs_dir)
     try:
         session = open_client(endpoint)

@@ -32,6 +32,9 @@ LIBRARY = Path(__file__).parent / "library"
 """The scenarios shipped with roco (``roco scenario --list``)."""
 FINAL_KINDS = frozenset({"succeeded", "failed", "stopped", "not-understood"})
 AGENTS = frozenset({"a_hi", "a_co", "a_pl", "a_km", "a_ta", "ag_ex"})
+MOVABLE = ("jar", "bowl", "cup")
+"""The free bodies of the kitchen a ``disturb`` step can move (velma/executor/perception.py
+CONTAINERS; repeated here so that reading a scenario needs no physics engine)."""
 
 
 class ScenarioError(ValueError):
@@ -96,6 +99,11 @@ def _check(scenario: Scenario, where: str) -> Scenario:
         actions = [step.say is not None, step.disturb is not None, step.restart is not None]
         if sum(actions) != 1:
             raise ScenarioError(f"{where}: step {i} must do exactly one of say, disturb, restart")
+        if step.disturb is not None and step.disturb.object not in MOVABLE:
+            movable = ", ".join(MOVABLE)
+            raise ScenarioError(
+                f"{where}: step {i}: cannot move {step.disturb.object!r} (movable: {movable})"
+            )
         if step.restart is not None and step.restart not in AGENTS:
             raise ScenarioError(f"{where}: step {i}: no agent {step.restart!r} to restart")
         if step.expect is not None and step.expect not in FINAL_KINDS:

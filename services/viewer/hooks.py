@@ -9,8 +9,9 @@ from __future__ import annotations
 
 import logging
 import os
+from collections.abc import Callable
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, TypeVar
 
 from services.viewer import ENV_ON
 
@@ -101,39 +102,45 @@ class RobotHook(_Hook):
             self._fail("observation")
 
 
-def traffic_hook(process: str = "recorder", run_dir: Path | None = None) -> TrafficHook | None:
-    """The recorder's Rerun logging, or None when off or when it cannot start."""
+H = TypeVar("H")
+
+
+def _start(process: str, run_dir: Path | None, make: Callable[[Recording], H]) -> H | None:
+    """Start ``process``'s recording and wrap it with ``make``; None when logging is off or
+    cannot start (logged; the process goes on without it)."""
     if not _on():
         return None
     try:
-        from services.viewer import blueprint
         from services.viewer.recording import start
-        from services.viewer.traffic import TrafficLogger
 
         recording = start(process, run_dir=run_dir)
-        if recording is None:
-            return None
-        blueprint.send(recording.stream)
-        return TrafficHook(recording, TrafficLogger(recording))
+        return make(recording) if recording is not None else None
     except Exception:
         log.exception("Rerun logging for %s could not start; going on without it", process)
         return None
+
+
+def traffic_hook(process: str = "recorder", run_dir: Path | None = None) -> TrafficHook | None:
+    """The recorder's Rerun logging, or None when off or when it cannot start."""
+
+    def make(recording: Recording) -> TrafficHook:
+        from services.viewer import blueprint
+        from services.viewer.traffic import TrafficLogger
+
+        blueprint.send(recording.stream)
+        return TrafficHook(recording, TrafficLogger(recording))
+
+    return _start(process, run_dir, make)
 
 
 def robot_hook(process: str = "ag_ex", run_dir: Path | None = None) -> RobotHook | None:
     """ag_ex's Rerun logging, or None when off or when it cannot start."""
-    if not _on():
-        return None
-    try:
-        from services.viewer.recording import start
+
+    def make(recording: Recording) -> RobotHook:
         from services.viewer.robot import RobotLogger
 
-        recording = start(process, run_dir=run_dir)
-        if recording is None:
-            return None
         logger = RobotLogger(recording)
         logger.initial_objects()
         return RobotHook(recording, logger)
-    except Exception:
-        log.exception("Rerun logging for %s could not start; going on without it", process)
-        return None
+
+    return _start(process, run_dir, make)
