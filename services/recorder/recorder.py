@@ -101,6 +101,8 @@ def main() -> int:
     inbox: queue.SimpleQueue[tuple[float, str, bytes] | None] = queue.SimpleQueue()
     transport = ZenohTransport(router_endpoints())
     transport.subscribe(keys.FIPA_ALL, lambda k, p: inbox.put((time.time(), k, p)))
+    # a sync token arrives after the traffic routed before it: answer once that is written
+    transport.subscribe(keys.RECORDER_SYNC, lambda k, p: inbox.put((time.time(), k, p)))
     transport.announce(keys.alive_key(RECORDER))
 
     def on_signal(signum: int, frame: FrameType | None) -> None:
@@ -117,6 +119,10 @@ def main() -> int:
             continue
         if item is None:
             break
+        if item[1] == keys.RECORDER_SYNC:
+            writer.flush()
+            transport.publish(keys.RECORDER_SYNCED, item[2])
+            continue
         record = writer.write(*item)
         if rerun is not None:  # Rerun
             rerun.communicate(record, item[2])
@@ -126,7 +132,7 @@ def main() -> int:
             item = inbox.get_nowait()
         except queue.Empty:
             break
-        if item is not None:
+        if item is not None and item[1] != keys.RECORDER_SYNC:
             record = writer.write(*item)
             if rerun is not None:  # Rerun
                 rerun.communicate(record, item[2])

@@ -18,6 +18,10 @@ ALIVE_ALL = f"{PREFIX}/alive/*"
 HUMAN_IN = f"{PREFIX}/human/in"
 HUMAN_OUT = f"{PREFIX}/human/out"
 SIM_DISTURB = f"{PREFIX}/sim/disturb"
+RECORDER_SYNC = f"{PREFIX}/recorder/sync"
+"""A token put here reaches the traffic recorder after every communicate routed before it;
+the recorder writes them all, then puts the token on ``RECORDER_SYNCED``."""
+RECORDER_SYNCED = f"{PREFIX}/recorder/synced"
 
 
 class FipaKey(NamedTuple):

@@ -199,6 +199,22 @@ class ScenarioRunner:
             write_run_info(self.run_dir, self.info)
             self._say(f"{step.restart} restarted (pid {pid})")
 
+    def _sync_recorder(self, session: zenoh.Session, timeout: float = 10.0) -> None:
+        """Wait until the traffic recorder has written every communicate routed so far (the
+        outcome a_hi reported included), so that stopping the fleet loses none of them."""
+        token = uuid.uuid4().hex.encode()
+        synced = threading.Event()
+        sub = session.declare_subscriber(
+            keys.RECORDER_SYNCED, lambda s: synced.set() if s.payload.to_bytes() == token else None
+        )
+        session.put(keys.RECORDER_SYNC, token)
+        if not synced.wait(timeout):
+            self._say(
+                f"the traffic recorder did not confirm within {timeout:.0f} s; "
+                "its record may lack the last communicates"
+            )
+        sub.undeclare()
+
     def run(self) -> ScenarioOutcome:
         """Run to the end; never raises for a failed run (the outcome says why)."""
         session: zenoh.Session | None = None
@@ -231,6 +247,7 @@ class ScenarioRunner:
                 self._act(session, step)
             while any(c.final is None for c in self.commands):
                 self._pump(0.5, deadline)
+            self._sync_recorder(session)
         except LaunchError as exc:
             detail = str(exc)
         except KeyboardInterrupt:
