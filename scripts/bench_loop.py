@@ -7,7 +7,12 @@
    agent processes on the same machine; the figures are the ``ag_ex_timing.json`` that ag_ex
    wrote into the run folder.
 
-Usage: ``python scripts/bench_loop.py [--repeat N] [--skip-fleet] [--runs-dir DIR]``.
+``--camera`` adds ``alone + head camera`` after each ``alone`` run: the same, with the loop
+publishing its whole state for the camera (``world_state=True``) and ag_ex's head-camera
+thread (services/viewer/camera.py) rendering 320×240 frames at 1 Hz into a Rerun recording in
+a temporary folder, as ag_ex does with ``ROCO_RERUN=1``.
+
+Usage: ``python scripts/bench_loop.py [--repeat N] [--skip-fleet] [--camera] [--runs-dir DIR]``.
 Percentiles are over the last 120 000 cycles of each run (the whole pour is ≈ 56 000).
 """
 
@@ -34,25 +39,43 @@ def machine() -> str:
     return benchlib.machine(("mujoco", "pin"))
 
 
-def run_alone(seed: int, spin: float | None) -> tuple[TimingStats, str]:
-    """The scripted pour through ExecutorProcess in real time; returns timing and outcome."""
+def run_alone(seed: int, spin: float | None, camera: bool = False) -> tuple[TimingStats, str]:
+    """The scripted pour through ExecutorProcess in real time, with the head camera rendering
+    at 1 Hz if ``camera``; returns timing and outcome."""
     from shared.fipa_codec.languages.l_ex import CommandResult
     from velma.executor import ExecutorProcess
+    from velma.executor.process import DEFAULT_SPIN
     from velma.scenario import run_pour
 
-    ex = (
-        ExecutorProcess(realtime=True, seed=seed)
-        if spin is None
-        else ExecutorProcess(realtime=True, seed=seed, spin=spin)
+    ex = ExecutorProcess(
+        realtime=True, seed=seed, spin=DEFAULT_SPIN if spin is None else spin, world_state=camera
     )
     ex.start()
+    cam = None
     try:
+        if camera:
+            from services.viewer.camera import HeadCamera
+            from services.viewer.recording import Recording
+
+            rec = Recording("ag_ex", Path(tempfile.mkdtemp(prefix="roco-bench-camera-")), "bench")
+            cam = HeadCamera(rec, ex.world, seed=seed)
+            cam.start()
         _, results = run_pour(ex.submit)
         timing = ex.timing()
     finally:
+        if cam is not None:
+            cam.stop()
+            rec.close()
         ex.stop()
     failed = next((r for r in results if isinstance(r, CommandResult) and not r.ok), None)
-    return timing, "ok" if failed is None else f"{failed.command} failed: {failed.reason}"
+    outcome = "ok" if failed is None else f"{failed.command} failed: {failed.reason}"
+    if cam is not None:
+        ms = sorted(1e3 * x for x in cam.render_s)
+        median = f"{ms[len(ms) // 2]:.0f} ms" if ms else "-"
+        outcome += f"; {cam.frames} frames, {cam.skipped} skipped, render median {median}"
+        if cam.failed:
+            outcome += f"; camera failed: {cam.failed}"
+    return timing, outcome
 
 
 def run_fleet(runs_dir: Path) -> tuple[TimingStats, str]:
@@ -99,6 +122,7 @@ def main() -> int:
     ap.add_argument("--spin-us", type=float, default=None, help="alone: busy-wait before each release (µs)")
     ap.add_argument("--skip-fleet", action="store_true", help="only the loop alone")
     ap.add_argument("--skip-alone", action="store_true", help="only the fleet run")
+    ap.add_argument("--camera", action="store_true", help="alone: also run with the head camera at 1 Hz")
     ap.add_argument(
         "--runs-dir", type=Path, default=None, help="where the fleet runs go (default: a temp dir)"
     )
@@ -115,6 +139,11 @@ def main() -> int:
             t0 = time.time()
             stats, outcome = run_alone(k, None if args.spin_us is None else args.spin_us * 1e-6)
             print(row(f"alone (seed {k}, {time.time() - t0:.0f} s)", stats, outcome), flush=True)
+            if args.camera:
+                t0 = time.time()
+                stats, outcome = run_alone(k, None if args.spin_us is None else args.spin_us * 1e-6, True)
+                name = f"alone + head camera (seed {k}, {time.time() - t0:.0f} s)"
+                print(row(name, stats, outcome), flush=True)
         if not args.skip_fleet:
             t0 = time.time()
             stats, outcome = run_fleet(runs_dir)

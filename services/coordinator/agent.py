@@ -16,6 +16,17 @@ commands are dropped and made again before they run.
 Towards the person (C2, L_HC): commands by fipa-request (agree, then inform or failure with a
 CommandOutcome; a ``cancel`` stops a command and is answered once the robot is safe), progress
 by fipa-subscribe (a Progress inform at every change), status by fipa-query (Status).
+
+Restarts (issue 7; docs/recovery.md): every accepted command is kept in a_co's state file
+(services/runtime/state_store.py) after the step that agreed to it, with the plan a_ta runs and
+the progress subscription; a restarted a_co reloads them, re-enters their conversations and
+plans again what was being planned. A copy of a command it already holds (a_hi retransmits
+until it hears the agree) is not accepted twice. When a_ta's liveliness token disappears while
+it runs a plan and comes back, a restarted a_ta that kept its plan reports Replan in the same
+conversation. a_co also sends its last confirm of that conversation again: the same a_ta (the
+token only looked gone, e.g. while the router restarted) drops the copy, a restarted a_ta
+answers not-understood, and a_co then plans the command again. Plan requests to a_pl are
+retransmitted until answered, so an a_pl that restarts gets them again.
 """
 
 from __future__ import annotations
@@ -24,10 +35,15 @@ import itertools
 import time
 from dataclasses import dataclass
 
+import msgspec
+
 from services.coordinator.scheduling import Candidate, Decision, Running, decide
 from services.runtime.agent import Agent, Received
 from services.runtime.behaviour import FSM, Arc, Behaviour
-from shared.fipa_codec import Performative
+from services.runtime.state_store import StateFile
+from services.viewer.hooks import queue_hook
+from shared.fipa_codec import DecodeError, Performative, decode, encode
+from shared.fipa_codec.languages import ContentError, decode_content
 from shared.fipa_codec.languages.l_hc import (
     CommandOutcome,
     HumanCommand,
@@ -42,6 +58,8 @@ from shared.fipa_codec.languages.l_hfsm import GroundTaskNetwork, HierarchicalPl
 from shared.fipa_codec.languages.l_sw import SWState, SWStatus
 
 PLAN_REPLY_BY_S = 600.0
+PLAN_RETRY_S = 5.0
+"""Retransmission period of a plan request until a_pl answers (it may be restarting)."""
 MAX_REPLANS_PER_TASK = 6
 """Replan reports a_co accepts for one command before it gives up (replanning must converge)."""
 
@@ -71,10 +89,42 @@ class Task:
     detail: str = ""
 
 
+class KeptTask(msgspec.Struct, kw_only=True):
+    """One accepted command as a_co keeps it across a restart: the person's request and
+    cancel as encoded communicates (FIPA SC00061 msgpack), times as POSIX s."""
+
+    request: bytes
+    accepted_at: float
+    deadline: float | None
+    order: int
+    state: TaskState
+    plan: HierarchicalPlan | None
+    plan_index: int
+    replans: int
+    step: str | None
+    leaf: int
+    cancel: bytes | None
+    detail: str
+
+
+class KeptCoordinator(msgspec.Struct, kw_only=True):
+    """a_co's state file: the commands, what a_ta runs (``ta_task``, the C1 conversation, its
+    reply-with, whether it was cancelled) and a_hi's progress subscription."""
+
+    tasks: list[KeptTask]
+    ta_task: str | None
+    ta_conversation: str | None
+    ta_cancelled: bool
+    subscription: bytes | None
+
+
 class Coordinator(Agent):
     name = "a_co"
 
     def build_fsm(self) -> FSM:
+        self.kept = StateFile.for_agent(self.name, KeptCoordinator)
+        self.ta_lost = False  # a_ta's token disappeared while it ran a plan
+        self.last_confirm: tuple[str, bytes] | None = None  # key and bytes of the last C1 confirm
         self.tasks: dict[str, Task] = {}
         self.ta_task: str | None = None  # task whose plan a_ta runs (or is terminating)
         self.ta_conversation: str | None = None
@@ -84,6 +134,7 @@ class Coordinator(Agent):
         self.reschedule = False
         self.decisions: list[Decision] = []
         self._order = itertools.count()
+        self.rerun = queue_hook(self.name)  # Rerun (services/viewer): None unless ROCO_RERUN=1
         return FSM(
             initial="trigger",
             states={
@@ -181,7 +232,12 @@ class Coordinator(Agent):
             return
         now = time.time()
         task_id = item.msg.conversation_id or f"task-{len(self.tasks)}"
-        if task_id in self.tasks:
+        known = self.tasks.get(task_id)
+        if known is not None:
+            if known.request.msg.reply_with == item.msg.reply_with and item.msg.reply_with is not None:
+                self.counters["repeated_commands"] += 1
+                self.log.info("task %s: the request came again (a retransmission); already accepted", task_id)
+                return
             self.fail(item, Performative.REFUSE, f"command {task_id} is already being carried out")
             return
         deadline = now + item.content.deadline_s if item.content.deadline_s is not None else None
@@ -224,6 +280,7 @@ class Coordinator(Agent):
                 protocol="fipa-request",
                 conversation_id=f"{task.task_id}-plan{task.plan_index}",
                 reply_by_s=PLAN_REPLY_BY_S,
+                retry_s=PLAN_RETRY_S,
             )
             task.planning = msg.reply_with
             if task.state is not TaskState.PREEMPTED:
@@ -319,6 +376,120 @@ class Coordinator(Agent):
         if task is not None:
             self._progress(task, TaskState.TERMINATING, detail=why)
         self.log.info("cancel sent to a_ta: %s", why)
+
+    # ---- restarts ----
+    def setup(self) -> None:
+        kept = self.kept.load()
+        if kept is not None:
+            self._restore(kept)
+
+    def persist(self) -> None:
+        self.kept.save(self._kept())
+
+    def _kept(self) -> KeptCoordinator:
+        return KeptCoordinator(
+            tasks=[
+                KeptTask(
+                    request=encode(t.request.msg),
+                    accepted_at=t.accepted_at,
+                    deadline=t.deadline,
+                    order=t.order,
+                    state=t.state,
+                    plan=t.plan if t.task_id == self.ta_task else None,
+                    plan_index=t.plan_index,
+                    replans=t.replans,
+                    step=t.step,
+                    leaf=t.leaf,
+                    cancel=encode(t.cancel.msg) if t.cancel is not None else None,
+                    detail=t.detail,
+                )
+                for t in sorted(self.tasks.values(), key=lambda t: t.order)
+            ],
+            ta_task=self.ta_task,
+            ta_conversation=self.ta_conversation,
+            ta_cancelled=self.ta_cancelled,
+            subscription=encode(self.subscription.msg) if self.subscription is not None else None,
+        )
+
+    @staticmethod
+    def _received(data: bytes) -> Received:
+        msg = decode(data)
+        content = decode_content(msg.language, msg.content) if msg.language and msg.content else None
+        return Received(msg, content, "C2")
+
+    def _restore(self, kept: KeptCoordinator) -> None:
+        """Take back the commands of a previous a_co (see the module docstring)."""
+        for k in kept.tasks:
+            try:
+                request = self._received(k.request)
+                cancel = self._received(k.cancel) if k.cancel is not None else None
+            except (DecodeError, ContentError) as exc:
+                self.log.warning("a kept command does not decode (%s): dropped", exc)
+                continue
+            if not isinstance(request.content, HumanCommand) or request.msg.conversation_id is None:
+                continue
+            on_ta = request.msg.conversation_id == kept.ta_task and kept.ta_conversation is not None
+            task = Task(
+                request.msg.conversation_id,
+                request.content,
+                request,
+                k.accepted_at,
+                k.deadline,
+                k.order,
+                state=k.state if on_ta or k.state is TaskState.PREEMPTED else TaskState.WAITING,
+                plan=k.plan if on_ta else None,
+                plan_index=k.plan_index,
+                replans=k.replans,
+                needs_plan=not on_ta,
+                step=k.step,
+                leaf=k.leaf,
+                cancel=cancel,
+                detail=k.detail,
+            )
+            history = [(Performative.REQUEST, False), (Performative.AGREE, True)]
+            if cancel is not None:
+                history.append((Performative.CANCEL, False))
+            self.restore_conversation("a_hi", task.task_id, "fipa-request", history)
+            self.tasks[task.task_id] = task
+        self._order = itertools.count(max((t.order for t in self.tasks.values()), default=-1) + 1)
+        if kept.ta_task in self.tasks and kept.ta_conversation is not None:
+            self.ta_task, self.ta_conversation = kept.ta_task, kept.ta_conversation
+            self.ta_cancelled = kept.ta_cancelled
+            history = [
+                (Performative.REQUEST, True),
+                (Performative.INFORM, False),
+                (Performative.CONFIRM, True),
+            ]
+            if kept.ta_cancelled:
+                history.append((Performative.CANCEL, True))
+            self.restore_conversation("a_ta", kept.ta_conversation, "coordinate", history)
+        if kept.subscription is not None:
+            sub = self._received(kept.subscription)
+            if sub.msg.conversation_id is not None:
+                self.restore_conversation(
+                    "a_hi",
+                    sub.msg.conversation_id,
+                    "fipa-subscribe",
+                    [(Performative.SUBSCRIBE, False), (Performative.AGREE, True)],
+                )
+                self.subscription = sub
+        self.reschedule = True
+        self.log.info(
+            "restored %d command(s) from %s%s",
+            len(self.tasks),
+            self.kept.path,
+            f"; a_ta runs {self.ta_task}" if self.ta_task else "",
+        )
+
+    def peer_changed(self, peer: str, alive: bool) -> None:
+        if peer != "a_ta":
+            return
+        if not alive and self.ta_task is not None:
+            self.ta_lost = True
+            self.log.warning("a_ta disappeared while running %s; the robot holds position", self.ta_task)
+        elif alive and self.ta_lost and self.last_confirm is not None:
+            self.log.info("a_ta is back: the last confirm goes again (a new a_ta will not know it)")
+            self.emit(*self.last_confirm)
 
     # ---- communicates that may arrive in any state ----
     def _handle_async(self) -> None:
@@ -417,9 +588,21 @@ class Coordinator(Agent):
             self.reply(item, Performative.CONFIRM)
             if not in_conversation or task is None:
                 return
+            self.last_confirm = self._y[-1]
+            self.ta_lost = False  # a_ta speaks in the plan's conversation
             self._sw_state(task, item.content)
             return
         if item.performative in (Performative.FAILURE, Performative.REFUSE, Performative.NOT_UNDERSTOOD):
+            if (
+                in_conversation
+                and task is not None
+                and self.ta_lost
+                and item.performative is Performative.NOT_UNDERSTOOD
+            ):
+                self.log.warning("a_ta came back without its plan: task %s is planned again", task.task_id)
+                self.ta_lost = False
+                self._sw_state(task, SWStatus(state=SWState.REPLAN, plan_id="", reason="a_ta restarted"))
+                return
             if in_conversation and task is not None and not item.local:
                 reason = item.msg.content.decode("utf-8", "replace")
                 self._release_ta()
@@ -472,6 +655,7 @@ class Coordinator(Agent):
                 t.plan, t.needs_plan = None, True
 
     def _release_ta(self) -> None:
+        self.ta_lost, self.last_confirm = False, None
         if self.ta_conversation is not None:
             self.conversations.forget_conversation(self.ta_conversation)
         self.ta_task = None
@@ -482,6 +666,8 @@ class Coordinator(Agent):
         task.state = state
         if step is not None:
             task.step = step
+        if self.rerun is not None:  # Rerun: the queue, when it changed
+            self.rerun.queue(self.status())
         if self.subscription is None:
             return
         self.reply(
@@ -506,3 +692,10 @@ class Coordinator(Agent):
         if task.planning is not None:
             self.conversations.forget(task.planning)
         del self.tasks[task.task_id]
+        if self.rerun is not None:  # Rerun: the queue without it
+            self.rerun.queue(self.status())
+
+    def close(self) -> None:
+        """Close a_co's part of the run's Rerun recording (services/runtime/main.py calls it)."""
+        if self.rerun is not None:
+            self.rerun.close()

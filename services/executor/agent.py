@@ -12,10 +12,18 @@ Besides the C5 conversation, ag_ex
   (msgpack ``RobotSnapshot``, every ``STATE_PERIOD`` s), for viewers;
 - writes the latest deadline statistics to ``<ROCO_RUN_DIR>/ag_ex_timing.json`` (for the run
   report) every ``TIMING_FILE_PERIOD`` s and when it stops;
+- with Rerun logging on (``ROCO_RERUN=1``, services/viewer): logs each published state, the
+  loop's timing (about once a second) and the observations, and renders the head camera
+  about once a second in a thread of this process from the whole simulation state the loop
+  copies into shared memory (``ROCO_RERUN_CAMERA=0``: no camera);
 - watches the liveliness tokens of the agents that command it (the initiators on its
   channels in the specification: a_ta). When one disappears the executor holds position in
   joint impedance, with the hands closed as they are, so a held object is never dropped
-  because a peer died; ag_ex logs a warning and the published state says ``holding``.
+  because a peer died; ag_ex logs a warning and the published state says ``holding``;
+- keeps the simulated world across its own restarts (velma.executor.checkpoint): checkpoints
+  in ``ROCO_EX_STATE``, else ``<ROCO_RUN_DIR>/ag_ex_state/``; at start the loop restores the
+  last one and holds position there (a held jar stays held). ``ROCO_EX_FRESH=1`` starts from
+  the initial scene instead.
 """
 
 from __future__ import annotations
@@ -33,7 +41,7 @@ import msgspec
 from services.runtime import keys
 from services.runtime.agent import Agent, Received
 from services.runtime.behaviour import FSM, Behaviour
-from services.viewer.hooks import robot_hook
+from services.viewer.hooks import camera_wanted, robot_hook
 from shared.fipa_codec import Performative
 from shared.fipa_codec.languages.l_ex import CommandResult, ExecutorCommand
 from shared.fipa_codec.languages.l_sd import Observation
@@ -87,14 +95,19 @@ class ExecutorAgent(Agent):
     def make_executor(self) -> Any:
         """The hard-timing executor this agent serves: velma's loop in its own process, paced
         to wall time when ROCO_REALTIME=1; ROCO_SEED (default 0) jitters the jar's content,
-        ROCO_POSE_SEED (unset: none) randomises the jar and bowl poses."""
+        ROCO_POSE_SEED (unset: none) randomises the jar and bowl poses; the loop publishes
+        the whole simulation state only for the head camera (``camera_wanted``)."""
         from velma.executor import ExecutorProcess
+        from velma.executor.checkpoint import checkpoint_dir, fresh_start
 
         pose = os.environ.get("ROCO_POSE_SEED", "")
         return ExecutorProcess(
             realtime=os.environ.get("ROCO_REALTIME", "0") == "1",
             seed=_seed("ROCO_SEED", os.environ.get("ROCO_SEED", "0")),
             pose_seed=_seed("ROCO_POSE_SEED", pose) if pose else None,
+            world_state=camera_wanted(),
+            checkpoint_dir=checkpoint_dir(),  # the world survives a restart (module docstring)
+            fresh=fresh_start(),
         )
 
     def build_fsm(self) -> FSM:
@@ -134,6 +147,14 @@ class ExecutorAgent(Agent):
 
     def setup(self) -> None:
         self.executor.start()
+        world = getattr(self.executor, "world", None)
+        if self.rerun is not None and world is not None and getattr(self.executor, "world_state", False):
+            # Rerun: the head camera, rendered in a thread of this process (never in the loop's)
+            self.rerun.start_camera(
+                world,
+                seed=getattr(self.executor, "seed", 0),
+                pose_seed=getattr(self.executor, "pose_seed", None),
+            )
         for peer in self.commanders:
             self.transport.watch(keys.alive_key(peer), self._on_liveliness(peer))
         decoder = msgspec.json.Decoder(Disturbance)
@@ -153,9 +174,11 @@ class ExecutorAgent(Agent):
         return changed
 
     def close(self) -> None:
+        rerun = getattr(self, "rerun", None)
+        if rerun is not None:  # Rerun: the camera reads the loop's shared memory: stop it first
+            rerun.stop_camera()
         self._write_timing_file()
         self.executor.stop()
-        rerun = getattr(self, "rerun", None)
         if rerun is not None:  # Rerun: close ag_ex's part of the run's recording
             rerun.close()
 

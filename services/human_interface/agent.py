@@ -17,6 +17,11 @@ Receptor: ``roco/human/in`` (:class:`HumanInput`, sentences). Effector: ``roco/h
 
 Every request from the person (command, stop, status) gets reports under its own
 ``request_id`` and ends with one report of a kind in FINAL_REPORTS (messages.py).
+
+Restarts (issue 7; docs/recovery.md): a command's request is retransmitted until a_co agrees
+(a_co may be restarting; its runtime drops copies and answers them again). a_hi keeps its open
+commands in its state file; a restarted a_hi takes them back, so a_co's outcome still reaches
+the person who asked. Open stop requests and status queries are not kept (ask again).
 """
 
 from __future__ import annotations
@@ -40,7 +45,9 @@ from services.runtime import keys
 from services.runtime.agent import Agent, Received
 from services.runtime.behaviour import FSM, Behaviour
 from services.runtime.conversations import Pending
-from shared.fipa_codec import Performative
+from services.runtime.state_store import StateFile
+from shared.fipa_codec import DecodeError, Performative, decode
+from shared.fipa_codec.languages import ContentError, decode_content
 from shared.fipa_codec.languages.l_hc import (
     CommandOutcome,
     HumanCommand,
@@ -59,6 +66,8 @@ QUERY = "fipa-query"
 
 AGREE_BY_S = 120.0
 """How long a_co has to agree to (or refuse) a command."""
+COMMAND_RETRY_S = 5.0
+"""Retransmission period of a command's request until a_co answers it."""
 COMMAND_REPLY_BY_S = 3600.0
 """How long an agreed command may take before a_hi gives up on it."""
 CANCEL_REPLY_BY_S = 300.0
@@ -77,6 +86,23 @@ ENDED_KEPT = 256
 _CONNECTIVES = frozenset(
     {"for", "by", "because", "after", "before", "while", "since", "until", "as", "so", "with", "to"}
 )
+
+
+class KeptCommand(msgspec.Struct, kw_only=True):
+    """An open command as a_hi keeps it across a restart: the request as sent (encoded
+    communicate and its Zenoh key), the person's request id, its label, whether a_co agreed."""
+
+    request: bytes
+    key: str
+    request_id: str
+    label: str
+    agreed: bool
+
+
+class KeptHumanInterface(msgspec.Struct, kw_only=True):
+    """a_hi's state file: its open commands."""
+
+    commands: list[KeptCommand]
 
 
 @dataclass(frozen=True)
@@ -98,6 +124,7 @@ class OpenCommand:
     label: str
     reply_with: str
     agreed: bool = False
+    sent: tuple[str, bytes] = ("", b"")  # Zenoh key and bytes of the request
     cancel: str | None = None
     stoppers: list[str] = field(default_factory=list)
     last: Progress | None = None
@@ -182,6 +209,7 @@ class HumanInterface(Agent):
         self.retry_at: float | None = None
         self.retry_interval = SUBSCRIBE_RETRY_S[0]
         self.co_alive = False  # a_co's liveliness token is present
+        self.kept = StateFile.for_agent(self.name, KeptHumanInterface)
         return FSM(
             initial="interact",
             states={
@@ -205,8 +233,69 @@ class HumanInterface(Agent):
                 self.log.warning("ignored malformed human input: %s", exc)
 
         self.transport.subscribe(keys.HUMAN_IN, on_text)
+        kept = self.kept.load()
+        if kept is not None:
+            self._restore(kept)
         self._subscribe()
         self.transport.watch(keys.alive_key(CO), lambda key, alive: self.post(PeerAlive(alive)))
+
+    # ---- restarts ----------------------------------------------------------------------
+    def persist(self) -> None:
+        self.kept.save(
+            KeptHumanInterface(
+                commands=[
+                    KeptCommand(
+                        request=c.sent[1],
+                        key=c.sent[0],
+                        request_id=c.request_id,
+                        label=c.label,
+                        agreed=c.agreed,
+                    )
+                    for c in self.commands.values()
+                    if c.sent[1]
+                ]
+            )
+        )
+
+    def _restore(self, kept: KeptHumanInterface) -> None:
+        """Take back the open commands of a previous a_hi; retransmit those not yet agreed."""
+        now = time.time()
+        for k in kept.commands:
+            try:
+                msg = decode(k.request)
+            except DecodeError as exc:
+                self.log.warning("a kept command does not decode (%s): dropped", exc)
+                continue
+            cid, reply_with = msg.conversation_id, msg.reply_with
+            if cid is None or reply_with is None:
+                continue
+            try:
+                command = decode_content(msg.language or "", msg.content)
+            except ContentError as exc:
+                self.log.warning("kept command %s does not decode (%s): dropped", cid, exc)
+                continue
+            if not isinstance(command, HumanCommand):
+                continue
+            history = [(Performative.REQUEST, True)] + ([(Performative.AGREE, False)] if k.agreed else [])
+            self.restore_conversation(CO, cid, REQUEST, history)
+            self.commands[cid] = OpenCommand(
+                cid, k.request_id, command, k.label, reply_with, agreed=k.agreed, sent=(k.key, k.request)
+            )
+            self.conversations.expect(
+                Pending(
+                    reply_with,
+                    CO,
+                    REQUEST,
+                    cid,
+                    now + (COMMAND_REPLY_BY_S if k.agreed else AGREE_BY_S),
+                    retry_s=None if k.agreed else COMMAND_RETRY_S,
+                    key=k.key,
+                    payload=k.request,
+                    next_retry=None if k.agreed else now,
+                )
+            )
+        if self.commands:
+            self.log.info("restored %d open command(s) from %s", len(self.commands), self.kept.path)
 
     # ---- the behaviour -----------------------------------------------------------------
     def _interact(self) -> None:
@@ -270,14 +359,16 @@ class HumanInterface(Agent):
             protocol=REQUEST,
             conversation_id=self._conversation_id("cmd", event.request_id),
             reply_by_s=AGREE_BY_S,
+            retry_s=COMMAND_RETRY_S,
         )
         assert msg.conversation_id is not None and msg.reply_with is not None
+        sent = self._y[-1]  # the request just put into the output buffer
         if not self.co_alive:
             self.log.warning(
                 "a_co is not known to be alive; %s may wait %.0f s", msg.conversation_id, AGREE_BY_S
             )
         self.commands[msg.conversation_id] = OpenCommand(
-            msg.conversation_id, event.request_id, command, describe(intent.goal), msg.reply_with
+            msg.conversation_id, event.request_id, command, describe(intent.goal), msg.reply_with, sent=sent
         )
 
     def _stop_commands(self, request_id: str) -> None:

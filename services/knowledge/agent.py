@@ -70,6 +70,7 @@ class KnowledgeManager(Agent):
         )
         self.subscribe_reply: str | None = None
         self.subscribed = False
+        self.ta_lost = False  # a_ta's liveliness token disappeared since the last subscription
         self.current: Received | None = None
         return FSM(
             initial="idle",
@@ -110,6 +111,18 @@ class KnowledgeManager(Agent):
         """Flush and release the knowledge store (the hook ``services.runtime.main`` calls after
         :meth:`run` ends). Idempotent."""
         self.world.close()
+
+    def peer_changed(self, peer: str, alive: bool) -> None:
+        """A restarted a_ta has lost the subscription: ask again when it reappears."""
+        if peer != "a_ta":
+            return
+        if not alive:
+            self.ta_lost = True
+            self.subscribed = False
+        elif self.ta_lost:
+            self.ta_lost = False
+            self.log.info("a_ta is back: subscribing to environment updates again")
+            self._subscribe()
 
     def _subscribe(self) -> None:
         msg = self.send(

@@ -34,6 +34,8 @@ from shared.fipa_codec.languages.l_wm import (
 )
 
 QUERY_REPLY_BY_S = 30.0
+QUERY_RETRY_S = 2.0
+"""Retransmission period of an unanswered a_km query (a_km may be restarting)."""
 FURNITURE = ("table", "cabinet")
 """Where objects can be put: a_pl asks a_km for placements on each."""
 
@@ -141,6 +143,7 @@ class Planner(Agent):
             query,
             protocol="fipa-query",
             reply_by_s=QUERY_REPLY_BY_S,
+            retry_s=QUERY_RETRY_S,
         )
         assert msg.reply_with is not None
         self.pending[msg.reply_with] = (kind, key)
@@ -244,6 +247,7 @@ class Planner(Agent):
             HypotheticalQuery(changes=effects(self.result.actions), query=query),
             protocol="fipa-query",
             reply_by_s=QUERY_REPLY_BY_S,
+            retry_s=QUERY_RETRY_S,
         )
         self.check = msg.reply_with
         self.knowledge.queries += 1

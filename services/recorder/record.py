@@ -2,7 +2,9 @@
 
 A run folder holds ``traffic.jsonl`` (one :class:`TrafficRecord` per line, JSON, in arrival
 order) and ``traffic.msgpack`` (the same communicates' raw msgpack payloads, as a msgpack
-stream of ``[seq, payload]`` pairs, so that content can be decoded later).
+stream of ``[seq, payload]`` pairs, so that content can be decoded later). When faults were
+injected (docs/faults.md), ``faults.jsonl`` holds one
+:class:`~services.runtime.faults.FaultEvent` per line, in arrival order.
 """
 
 from __future__ import annotations
@@ -12,8 +14,11 @@ from pathlib import Path
 
 import msgspec
 
+from services.runtime.faults import FaultEvent
+
 TRAFFIC_JSONL = "traffic.jsonl"
 TRAFFIC_RAW = "traffic.msgpack"
+FAULTS_JSONL = "faults.jsonl"
 
 
 class TrafficRecord(msgspec.Struct, frozen=True, kw_only=True):
@@ -47,6 +52,27 @@ def read_records(run_dir: Path) -> list[TrafficRecord]:
     and msgspec.DecodeError on a corrupt line (naming nothing else: callers add the path)."""
     lines = (run_dir / TRAFFIC_JSONL).read_bytes().splitlines()
     return [_rec_decoder.decode(line) for line in lines if line.strip()]
+
+
+_fault_decoder = msgspec.json.Decoder(FaultEvent)
+
+
+def read_fault_events(run_dir: Path) -> tuple[list[FaultEvent], int]:
+    """The fault events of ``run_dir`` (none when it has no ``faults.jsonl``) and the number
+    of lines that could not be read."""
+    path = run_dir / FAULTS_JSONL
+    if not path.exists():
+        return [], 0
+    events: list[FaultEvent] = []
+    bad = 0
+    for line in path.read_bytes().splitlines():
+        if not line.strip():
+            continue
+        try:
+            events.append(_fault_decoder.decode(line))
+        except msgspec.DecodeError:
+            bad += 1
+    return events, bad
 
 
 def read_payloads(run_dir: Path) -> Iterator[tuple[int, bytes]]:

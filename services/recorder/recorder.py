@@ -4,7 +4,8 @@ folder (``traffic.jsonl`` metadata, ``traffic.msgpack`` raw payloads).
 Run as ``python -m services.recorder.recorder`` with ``ROCO_ROUTER`` and ``ROCO_RUN_DIR``.
 It announces liveliness as ``recorder`` once its subscription is declared, so a launcher can
 start agents only after the recorder listens. A payload that is not a communicate is recorded
-with performative ``malformed``.
+with performative ``malformed``. Fault events (``roco/fault/event/*``, docs/faults.md) go to
+``faults.jsonl``.
 """
 
 from __future__ import annotations
@@ -17,17 +18,20 @@ import sys
 import time
 from pathlib import Path
 from types import FrameType
+from typing import BinaryIO
 
 import msgspec
 
-from services.recorder.record import TRAFFIC_JSONL, TRAFFIC_RAW, TrafficRecord
-from services.runtime import keys
+from services.recorder.record import FAULTS_JSONL, TRAFFIC_JSONL, TRAFFIC_RAW, TrafficRecord
+from services.runtime import faults, keys
 from services.runtime.main import router_endpoints, setup_logging
 from services.runtime.transport import ZenohTransport
 from services.viewer.hooks import traffic_hook
 from shared.fipa_codec import DecodeError, decode
 
 RECORDER = "recorder"
+_fault_event = msgspec.json.Decoder(faults.FaultEvent).decode
+_FAULT_EVENTS = faults.EVENT_ALL.removesuffix("*")
 
 
 def to_record(seq: int, t: float, key: str, payload: bytes) -> TrafficRecord:
@@ -75,6 +79,20 @@ class TrafficWriter:
         self._enc = msgspec.json.Encoder()
         self._mp = msgspec.msgpack.Encoder()
         self.seq = 0
+        self._run_dir = run_dir
+        self._faults: BinaryIO | None = None  # opened at the first fault event
+
+    def fault(self, payload: bytes) -> bool:
+        """Append one fault event (JSON :class:`~services.runtime.faults.FaultEvent`) to
+        ``faults.jsonl``; False (nothing written) when it is not one."""
+        try:
+            event = _fault_event(payload)
+        except (msgspec.DecodeError, msgspec.ValidationError):
+            return False
+        if self._faults is None:
+            self._faults = (self._run_dir / FAULTS_JSONL).open("ab")
+        self._faults.write(self._enc.encode(event) + b"\n")
+        return True
 
     def write(self, t: float, key: str, payload: bytes) -> TrafficRecord:
         rec = to_record(self.seq, t, key, payload)
@@ -86,11 +104,15 @@ class TrafficWriter:
     def flush(self) -> None:
         self._jsonl.flush()
         self._raw.flush()
+        if self._faults is not None:
+            self._faults.flush()
 
     def close(self) -> None:
         self.flush()
         self._jsonl.close()
         self._raw.close()
+        if self._faults is not None:
+            self._faults.close()
 
 
 def main() -> int:
@@ -103,6 +125,7 @@ def main() -> int:
     transport.subscribe(keys.FIPA_ALL, lambda k, p: inbox.put((time.time(), k, p)))
     # a sync token arrives after the traffic routed before it: answer once that is written
     transport.subscribe(keys.RECORDER_SYNC, lambda k, p: inbox.put((time.time(), k, p)))
+    transport.subscribe(faults.EVENT_ALL, lambda k, p: inbox.put((time.time(), k, p)))
     transport.announce(keys.alive_key(RECORDER))
 
     def on_signal(signum: int, frame: FrameType | None) -> None:
@@ -123,6 +146,10 @@ def main() -> int:
             writer.flush()
             transport.publish(keys.RECORDER_SYNCED, item[2])
             continue
+        if item[1].startswith(_FAULT_EVENTS):
+            if not writer.fault(item[2]):
+                logging.getLogger(RECORDER).warning("ignored a malformed fault event on %s", item[1])
+            continue
         record = writer.write(*item)
         if rerun is not None:  # Rerun
             rerun.communicate(record, item[2])
@@ -132,7 +159,9 @@ def main() -> int:
             item = inbox.get_nowait()
         except queue.Empty:
             break
-        if item is not None and item[1] != keys.RECORDER_SYNC:
+        if item is not None and item[1].startswith(_FAULT_EVENTS):
+            writer.fault(item[2])
+        elif item is not None and item[1] != keys.RECORDER_SYNC:
             record = writer.write(*item)
             if rerun is not None:  # Rerun
                 rerun.communicate(record, item[2])

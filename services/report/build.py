@@ -6,12 +6,13 @@ from pathlib import Path
 
 import msgspec
 
+from services.recorder.record import FAULTS_JSONL, read_fault_events
 from services.report.content import sphere_share
 from services.report.coordination import commands, coordination
 from services.report.figures import write_figures
 from services.report.load import Message, RunData, load_run
 from services.report.markdown import render
-from services.report.model import Header, Report
+from services.report.model import FaultRow, Header, Report
 from services.report.planning import plan_phases
 from services.report.stats import agent_matrix, channel_stats, size_stats
 from services.report.timeline import command_text, find_command, find_outcome, timeline
@@ -54,7 +55,36 @@ def _assemble(run: RunData, container: str = "bowl") -> Report:
         control=control,
         commands=commands(messages),
         coordination=coordination(messages),
+        faults=_faults(run, notes),
     )
+
+
+def _faults(run: RunData, notes: list[str]) -> list[FaultRow]:
+    """The injected faults of ``faults.jsonl`` grouped by kind, injector and place; the same
+    settings taken by several agents make one row naming them all."""
+    events, bad = read_fault_events(Path(run.run_dir))
+    if bad:
+        notes.append(f"{FAULTS_JSONL}: {bad} unreadable line(s) skipped")
+    rows: dict[tuple[str, str, str], FaultRow] = {}
+    for ev in sorted(events, key=lambda e: e.t):
+        t = ev.t - run.t0
+        if ev.kind == "settings":
+            key, where = (ev.kind, "", ev.detail), "—"
+        else:
+            where = ev.channel or ev.target or ev.agent
+            key = (ev.kind, ev.agent, where)
+        row = rows.get(key)
+        if row is None:
+            rows[key] = FaultRow(
+                kind=ev.kind, by=ev.agent, where=where, count=1, first_t=t, last_t=t, detail=ev.detail
+            )
+            continue
+        row.count += 1
+        row.last_t = t
+        row.detail = ev.detail
+        if ev.agent not in row.by.split(", "):
+            row.by = ", ".join(sorted([*row.by.split(", "), ev.agent]))
+    return sorted(rows.values(), key=lambda r: (r.first_t, r.kind, r.by))
 
 
 def _control_timing(run_dir: Path, notes: list[str]) -> TimingStats | None:

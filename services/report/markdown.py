@@ -35,9 +35,10 @@ def render(report: Report, figures: Sequence[FigureFile] = ()) -> str:
         _content(report),
         _control(report),
         _coordination(report),
+        _faults(report),
         _notes(report.notes),
     ]
-    return "\n\n".join(parts) + "\n"
+    return "\n\n".join(p for p in parts if p) + "\n"
 
 
 def _figure(figs: Mapping[str, FigureFile], *names: str) -> list[str]:
@@ -389,6 +390,25 @@ def _coordination(report: Report) -> str:
         "urgent command's plan, then the preempted command's new plan."
     )
     return "\n\n".join([title, commands, events, how])
+
+
+def _faults(report: Report) -> str:
+    """Section 8, only when faults were injected (``faults.jsonl``, docs/faults.md)."""
+    if not report.faults:
+        return ""
+    rows = [
+        (f.kind, f.by, f.where, str(f.count), _s(f.first_t), _s(f.last_t), f.detail[:120])
+        for f in report.faults
+    ]
+    how = (
+        "**How read.** `faults.jsonl`: one event per fault applied by an agent's transport "
+        "(message faults on a channel, network faults of a service, settings changes) or by "
+        "`roco fault` (`roco`: process faults), grouped by kind, injector and channel or service; "
+        "times are when the fault was applied, in s since the run start. Dropped communicates "
+        "are not in the traffic record; corrupted ones are, as sent (often `malformed`)."
+    )
+    table = _table(("kind", "by", "where", "count", "first (s)", "last (s)", "detail (last)"), rows)
+    return f"## 8. Injected faults\n\n{table}\n\n{how}"
 
 
 def _notes(notes: Sequence[str]) -> str:

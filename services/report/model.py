@@ -157,6 +157,20 @@ class CoordinationEvent(msgspec.Struct, kw_only=True):
     conversation: str | None = None
 
 
+class FaultRow(msgspec.Struct, kw_only=True):
+    """Injected faults of one ``kind`` applied by ``by`` (an agent, or ``roco`` for process
+    faults) on ``where`` (a channel, or the service hit): how many, the first and the last
+    (s since run start), and the last event's ``detail``. From ``faults.jsonl``."""
+
+    kind: str
+    by: str
+    where: str
+    count: int
+    first_t: float
+    last_t: float
+    detail: str = ""
+
+
 class Report(msgspec.Struct, kw_only=True):
     """The experiment report of one run folder (paper §5.7). ``notes`` lists what was
     missing or could not be read."""
@@ -173,3 +187,5 @@ class Report(msgspec.Struct, kw_only=True):
     """ag_ex's control-loop deadline statistics (``ag_ex_timing.json``), if written."""
     commands: list[CommandRow] = []
     coordination: list[CoordinationEvent] = []
+    faults: list[FaultRow] = []
+    """Injected faults (docs/faults.md); empty when none was applied."""

@@ -19,7 +19,15 @@ A subclass declares its ``name`` (as in the specification), builds its FSM of be
   the traffic recorder records the communicates themselves,
 - the protocol state of every conversation (:class:`ProtocolStates`, one tracker per peer
   and conversation-id, tolerant of communicates that cross on the wire),
-- reply-by deadlines ending in a local ``failure``.
+- reply-by deadlines ending in a local ``failure``,
+- at-least-once delivery where an agent asks for it (``send(..., retry_s=…)``: retransmitted
+  until answered, at once when the peer's liveliness token reappears) and at-most-once
+  handling: byte-identical copies are dropped and the answers already sent are published
+  again (services/runtime/dedup.py); ``counters``: ``retransmitted``, ``duplicates``,
+  ``replayed``,
+- peer liveliness: :meth:`Agent.peer_changed` is called on the agent's thread whenever
+  another agent's token appears or disappears (the white pages, ``roco/alive/*``),
+- a persistence hook, :meth:`Agent.persist`, called after every dispatched step.
 
 The elementary action (paper §3.2): compute the transition function, dispatch the output
 buffer, increment i, acquire new inputs. It repeats until the behaviour's terminal or error
@@ -29,6 +37,7 @@ condition holds; then the FSM's initial conditions choose the next behaviour.
 from __future__ import annotations
 
 import logging
+import math
 import queue
 import threading
 import time
@@ -47,6 +56,7 @@ from services.runtime.conversations import (
     ProtocolStates,
     expected_ontology,
 )
+from services.runtime.dedup import Dedup
 from services.runtime.transport import Transport
 from services.spec.model import Interface, SystemSpec, channel_between, default_spec, interface
 from shared.fipa_codec import (
@@ -68,6 +78,11 @@ from shared.fipa_codec.protocols import (
     is_terminal_report,
 )
 
+RESEND_ON_RETURN = math.inf
+"""``retry_s`` that retransmits only when the peer's liveliness token reappears (a restarted
+peer lost what it was sent), never periodically."""
+_ALIVE = "\x00alive"
+"""Input-queue key of a peer liveliness event (never a Zenoh key)."""
 STREAMING_PROTOCOLS = frozenset({"fipa-subscribe", "coordinate"})
 _OPENERS = frozenset({Performative.REQUEST, Performative.SUBSCRIBE})
 """Performatives that open a streaming conversation (many replies to one message)."""
@@ -121,6 +136,9 @@ class Agent:
         self.counters: Counter[str] = Counter()
         self.conversations = Conversations()
         self.protocol_states = ProtocolStates()
+        self.dedup = Dedup()
+        self.peers: set[str] = set()
+        """Agents whose liveliness token is present (kept up to date on the agent's thread)."""
         self._roles: dict[tuple[str, str], Role] = _roles(self.spec, self.name)
         self._y: list[tuple[str, bytes]] = []
         self._queue: queue.SimpleQueue[tuple[str, Any]] = queue.SimpleQueue()
@@ -135,6 +153,17 @@ class Agent:
     def setup(self) -> None:
         """Runs once after the transport is bound, before the first behaviour."""
 
+    def peer_changed(self, peer: str, alive: bool) -> None:
+        """``peer``'s liveliness token appeared (``alive``; also for every token present at
+        start) or disappeared: its process ended or lost its session. Runs on the agent's
+        thread between steps; may send. Unanswered retransmittable communicates to a peer
+        that appears are retransmitted at once by the runtime."""
+
+    def persist(self) -> None:
+        """Runs after every step, once its output buffer is dispatched: an agent that must
+        survive a restart writes its state here (so what it has said is what it keeps).
+        Keep it cheap: write only when the state changed."""
+
     # ---- sending -------------------------------------------------------------------------
     def send(
         self,
@@ -148,14 +177,22 @@ class Agent:
         in_reply_to: str | None = None,
         reply_by_s: float | None = None,
         expect_reply: bool = False,
+        retry_s: float | None = None,
     ) -> Communicate:
         """Put a communicate for ``to`` into the output buffer (sent after this step).
 
         ``content`` is a term of a content language (its language is set from its type).
         ``expect_reply`` (or ``reply_by_s``) registers the conversation so that replies are
-        matched and, after ``reply_by_s`` seconds, a local failure ends it.
-        Raises SpecViolation when no channel joins the agents or the interface forbids it.
+        matched and, after ``reply_by_s`` seconds, a local failure ends it. ``retry_s``
+        (s, > 0) retransmits the same bytes every ``retry_s`` until the first reply arrives
+        (and at once when ``to`` reappears; :data:`RESEND_ON_RETURN`: only then); use it
+        where a repeated communicate is harmless to the receiver (its runtime drops
+        byte-identical copies).
+        Raises SpecViolation when no channel joins the agents or the interface forbids it;
+        ValueError for a ``retry_s`` that is not positive.
         """
+        if retry_s is not None and not retry_s > 0:
+            raise ValueError(f"retry_s must be positive, not {retry_s}")
         channel = channel_between(self.spec, self.name, to)
         if channel is None:
             raise SpecViolation(f"{self.name}: no channel to {to}")
@@ -168,7 +205,7 @@ class Agent:
             language,
             type(content).__name__ if content is not None else None,
         )
-        if (expect_reply or reply_by_s is not None) and reply_with is None:
+        if (expect_reply or reply_by_s is not None or retry_s is not None) and reply_with is None:
             reply_with = new_id(f"{self.name}-")
         deadline = time.time() + reply_by_s if reply_by_s is not None else None
         msg = Communicate(
@@ -186,6 +223,7 @@ class Agent:
             reply_by=deadline,
         )
         self._follow_send(to, msg)
+        key, payload = keys.fipa_key(channel.name, self.name, to), encode(msg)
         if reply_with is not None:
             self.conversations.expect(
                 Pending(
@@ -195,11 +233,22 @@ class Agent:
                     msg.conversation_id,
                     deadline,
                     streaming=protocol in STREAMING_PROTOCOLS and performative in _OPENERS,
+                    retry_s=retry_s,
+                    key=key if retry_s is not None else "",
+                    payload=payload if retry_s is not None else b"",
+                    next_retry=time.time() + retry_s if retry_s is not None else None,
                 )
             )
-        self._y.append((keys.fipa_key(channel.name, self.name, to), encode(msg)))
+        self._out(to, in_reply_to, key, payload)
         self.counters[f"sent.{performative.value}"] += 1
         return msg
+
+    def _out(self, to: str, in_reply_to: str | None, key: str, payload: bytes) -> None:
+        """Put an encoded communicate into the output buffer; remember it as an answer to
+        ``to``'s ``in_reply_to`` so that a copy of that communicate gets it again."""
+        if in_reply_to is not None:
+            self.dedup.answered(to, in_reply_to, key, payload)
+        self._y.append((key, payload))
 
     def reply(
         self,
@@ -210,9 +259,10 @@ class Agent:
         reply_with: str | None = None,
         reply_by_s: float | None = None,
         expect_reply: bool = False,
+        retry_s: float | None = None,
     ) -> Communicate:
         """Reply within ``to``'s conversation: same protocol and conversation-id,
-        in-reply-to = its reply-with."""
+        in-reply-to = its reply-with (other arguments as :meth:`send`)."""
         return self.send(
             to.sender,
             performative,
@@ -223,6 +273,7 @@ class Agent:
             reply_with=reply_with,
             reply_by_s=reply_by_s,
             expect_reply=expect_reply,
+            retry_s=retry_s,
         )
 
     def fail(self, to: Received, performative: Performative, reason: str) -> None:
@@ -244,7 +295,7 @@ class Agent:
             in_reply_to=to.msg.reply_with,
         )
         self._follow_send(to.sender, msg)
-        self._y.append((keys.fipa_key(channel.name, self.name, to.sender), encode(msg)))
+        self._out(to.sender, msg.in_reply_to, keys.fipa_key(channel.name, self.name, to.sender), encode(msg))
         self.counters[f"sent.{performative.value}"] += 1
 
     def not_understood(self, sender: str, channel: str, why: str, about: Communicate | None) -> None:
@@ -269,7 +320,7 @@ class Agent:
             conversation_id=about.conversation_id if about else None,
             in_reply_to=about.reply_with if about else None,
         )
-        self._y.append((keys.fipa_key(channel, self.name, sender), encode(msg)))
+        self._out(sender, msg.in_reply_to, keys.fipa_key(channel, self.name, sender), encode(msg))
 
     def _check_send(
         self, to: str, performative: str, protocol: str, language: str | None, term: str | None = None
@@ -359,6 +410,9 @@ class Agent:
     def _on_payload(self, key: str, payload: bytes) -> None:
         self._queue.put((key, payload))  # Zenoh thread: enqueue only
 
+    def _on_alive(self, key: str, alive: bool) -> None:
+        self._queue.put((_ALIVE, (key.rsplit("/", 1)[-1], alive)))  # Zenoh thread: enqueue only
+
     def _acquire(self, timeout: float) -> None:
         """Acquire new inputs into x and r, blocking up to ``timeout`` for the first."""
         deadline = self.conversations.next_deadline()
@@ -375,7 +429,18 @@ class Agent:
             except queue.Empty:
                 item = None
         self.protocol_states.commit()  # what arrived stays arrived; only sends are undone
-        for p in self.conversations.expired(time.time()):
+        now = time.time()
+        for p in self.conversations.due(now):
+            self.counters["retransmitted"] += 1
+            self.log.info(
+                "retransmitting %s to %s (conversation %s, #%d)",
+                p.reply_with,
+                p.peer,
+                p.conversation_id,
+                p.retransmissions,
+            )
+            self._y.append((p.key, p.payload))
+        for p in self.conversations.expired(now):
             self.counters["deadline_failures"] += 1
             synthetic = Communicate(
                 performative=Performative.FAILURE,
@@ -393,15 +458,35 @@ class Agent:
         if key == "r":
             self.r.append(payload)
             return
+        if key == _ALIVE:
+            self._peer_event(*payload)
+            return
         try:
             channel, sender, _receiver = keys.parse_fipa_key(key)
         except ValueError:
             self.counters["bad_key"] += 1
             return
+        copy = self.dedup.seen(payload)
         try:
             msg = decode(payload)
         except DecodeError as exc:
+            if copy:
+                self.counters["duplicates"] += 1
+                return
             self.not_understood(sender, channel, f"malformed communicate: {exc.reason}", None)
+            return
+        if copy:
+            self.counters["duplicates"] += 1
+            again = self.dedup.answers(sender, msg.reply_with)
+            self.log.info(
+                "copy of %s from %s (conversation %s) dropped; %d answer(s) sent again",
+                msg.performative.value,
+                sender,
+                msg.conversation_id,
+                len(again),
+            )
+            self.counters["replayed"] += len(again)
+            self._y.extend(again)
             return
         self.counters[f"received.{msg.performative.value}"] += 1
         if msg.sender is None or msg.sender.name != sender:
@@ -461,6 +546,33 @@ class Agent:
             self.conversations.answered(msg.in_reply_to, msg.performative.value)
         self.x.append(Received(msg, content, channel))
 
+    def _peer_event(self, peer: str, alive: bool) -> None:
+        if peer == self.name:
+            return
+        if alive:
+            self.peers.add(peer)
+            n = self.conversations.retry_now(peer, time.time())
+            if n:
+                self.log.info("%s appeared: %d unanswered communicate(s) to it sent again", peer, n)
+        else:
+            self.peers.discard(peer)
+            self.log.info("%s disappeared", peer)
+        self.peer_changed(peer, alive)
+
+    def restore_conversation(
+        self, peer: str, conversation_id: str, protocol: str, history: list[tuple[Performative, bool]]
+    ) -> None:
+        """Re-enter the protocol state of a conversation kept across a restart: replay its
+        ``history`` of (performative, sent by this agent) in order; an ``inform`` counts as a
+        non-terminal report. Raises SpecViolation when the history is not a path of the
+        protocol."""
+        for performative, sent in history:
+            why = self._follow(peer, conversation_id, protocol, performative, sent, False)
+            if why is not None:
+                self.protocol_states.rollback()
+                raise SpecViolation(f"cannot restore conversation {conversation_id} with {peer}: {why}")
+        self.protocol_states.commit()
+
     # ---- the loop -----------------------------------------------------------------------
     def _dispatch(self) -> None:
         for key, payload in self._y:
@@ -472,6 +584,7 @@ class Agent:
         """Subscribe the input buffer and announce liveliness."""
         self.transport.subscribe(keys.inbox_key(self.name), self._on_payload)
         self.transport.announce(keys.alive_key(self.name))
+        self.transport.watch(keys.ALIVE_ALL, self._on_alive)
 
     def stop(self) -> None:
         self._stop.set()
@@ -505,6 +618,7 @@ class Agent:
                     failed = True
                     break
                 self._dispatch()
+                self.persist()
                 self.i += 1
                 # a communication state blocks for new input only while it has nothing to end on
                 done = behaviour.error() or behaviour.terminal()

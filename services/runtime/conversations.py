@@ -18,6 +18,7 @@ recorded traffic with the same tracker.
 
 from __future__ import annotations
 
+import math
 from collections import OrderedDict
 from dataclasses import dataclass
 from typing import Literal
@@ -50,10 +51,24 @@ class Pending:
     conversation_id: str | None
     deadline: float | None
     streaming: bool = False  # subscribe/coordinate: many replies, never final by itself
+    retry_s: float | None = None
+    """Retransmission period (s) until the first reply arrives; ``math.inf``: only when the
+    peer reappears; None: sent once."""
+    key: str = ""
+    payload: bytes = b""
+    next_retry: float | None = None
+    retransmissions: int = 0
 
 
 class Conversations:
-    """Pending replies of one agent, keyed by reply-with."""
+    """Pending replies of one agent, keyed by reply-with.
+
+    An entry with ``retry_s`` is retransmitted (the same bytes on the same key) every
+    ``retry_s`` seconds, and at once when its peer's liveliness token reappears
+    (:meth:`retry_now`), until any reply to it arrives or its deadline passes: at-least-once
+    delivery over a transport that may lose communicates while a peer or the router restarts.
+    The receiver drops the byte-identical copies (services/runtime/dedup.py).
+    """
 
     def __init__(self) -> None:
         self._pending: dict[str, Pending] = {}
@@ -69,6 +84,7 @@ class Conversations:
         entry = self._pending.get(in_reply_to)
         if entry is None:
             return None
+        entry.next_retry = None  # the peer has it: no more retransmissions
         if performative in FINAL_REPLIES and not entry.streaming:
             del self._pending[in_reply_to]
         elif entry.streaming:
@@ -94,8 +110,34 @@ class Conversations:
         return out
 
     def next_deadline(self) -> float | None:
+        """The earliest reply-by deadline or retransmission time (POSIX s), None if none."""
         times = [p.deadline for p in self._pending.values() if p.deadline is not None]
+        times += [
+            p.next_retry
+            for p in self._pending.values()
+            if p.next_retry is not None and p.next_retry != math.inf
+        ]
         return min(times) if times else None
+
+    def due(self, now: float) -> list[Pending]:
+        """Entries to retransmit now; each is scheduled again ``retry_s`` later."""
+        out = []
+        for p in self._pending.values():
+            if p.next_retry is not None and p.next_retry <= now and p.retry_s is not None:
+                p.next_retry = now + p.retry_s
+                p.retransmissions += 1
+                out.append(p)
+        return out
+
+    def retry_now(self, peer: str, now: float) -> int:
+        """Make every unanswered retransmittable entry to ``peer`` due at once (its liveliness
+        token reappeared: a restarted peer has lost what it was sent). Returns how many."""
+        n = 0
+        for p in self._pending.values():
+            if p.peer == peer and p.next_retry is not None:
+                p.next_retry = now
+                n += 1
+        return n
 
     def __len__(self) -> int:
         return len(self._pending)

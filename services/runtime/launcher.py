@@ -3,11 +3,14 @@
 Processes are started with ``subprocess`` (fork + immediate exec of a fresh interpreter, i.e.
 spawn semantics: no Zenoh state is inherited, platform-notes.md). Each process gets its
 configuration through the environment (``services.runtime.main``). The launcher ends only the
-processes it started, by their PID.
+processes it started, by their PID. The environment it gives them is kept in the run folder
+(``launch_env.json``: every ``ROCO_*`` variable and the fleet's extra environment) so that a
+service can be started again the same way later (``roco fault start``, services/fault/).
 """
 
 from __future__ import annotations
 
+import json
 import os
 import signal
 import socket
@@ -25,6 +28,10 @@ from services.runtime.transport import client_config
 
 AGENT_ORDER = ("a_km", "a_pl", "a_co", "ag_ex", "a_ta", "a_hi")
 """Start order: servers before their clients, a_hi last (it accepts the human's command)."""
+
+
+LAUNCH_ENV = "launch_env.json"
+"""The run folder's record of the environment the launcher gives its processes."""
 
 
 class LaunchError(RuntimeError):
@@ -52,27 +59,16 @@ class Fleet:
     processes: dict[str, subprocess.Popen[bytes]] = field(default_factory=dict)
 
     def _environ(self) -> dict[str, str]:
-        env = dict(os.environ)
-        env.update(self.env)
-        env["ROCO_ROUTER"] = self.endpoint
-        env["ROCO_RUN_DIR"] = str(self.run_dir)
-        env.setdefault("PYTHONUNBUFFERED", "1")
-        return env
+        return process_environ(self.run_dir, self.endpoint, self.env)
 
     def _spawn(self, name: str, args: list[str]) -> None:
-        log = (self.run_dir / "logs" / f"{name}.stderr").open("ab")
-        self.processes[name] = subprocess.Popen(
-            [sys.executable, *args],
-            env=self._environ(),
-            stdout=log,
-            stderr=subprocess.STDOUT,
-            stdin=subprocess.DEVNULL,
-            start_new_session=True,
-        )
+        env = self._environ()
+        save_launch_env(self.run_dir, env, self.env)
+        self.processes[name] = spawn_process(self.run_dir, name, args, env)
 
     def start_router(self, timeout: float = 10.0) -> None:
         """Start the embedded router on ``endpoint`` and wait until it accepts connections."""
-        self._spawn("router", ["-m", "services.runtime.router", "--listen", self.endpoint])
+        self._spawn("router", service_args("router", self.endpoint))
         host, port = self.endpoint.split("/", 1)[1].rsplit(":", 1)
         deadline = time.monotonic() + timeout
         while time.monotonic() < deadline:
@@ -85,11 +81,11 @@ class Fleet:
         raise LaunchError(f"router did not listen on {self.endpoint} within {timeout:.0f} s")
 
     def start_recorder(self) -> None:
-        self._spawn("recorder", ["-m", "services.recorder.recorder"])
+        self._spawn("recorder", service_args("recorder", self.endpoint))
 
     def start_agents(self, names: Iterable[str] = AGENT_ORDER) -> None:
         for name in names:
-            self._spawn(name, ["-m", "services.runtime.main", name])
+            self._spawn(name, service_args(name, self.endpoint))
 
     def _check_alive(self, names: Iterable[str]) -> None:
         for name in names:
@@ -151,6 +147,63 @@ class Fleet:
 
     def pids(self) -> dict[str, int]:
         return {n: p.pid for n, p in self.processes.items()}
+
+
+def process_environ(run_dir: Path, endpoint: str, extra: dict[str, str]) -> dict[str, str]:
+    """The environment of a fleet's process: this one's, ``extra``, router and run folder."""
+    env = dict(os.environ)
+    env.update(extra)
+    env["ROCO_ROUTER"] = endpoint
+    env["ROCO_RUN_DIR"] = str(run_dir)
+    env.setdefault("PYTHONUNBUFFERED", "1")
+    return env
+
+
+def service_args(name: str, endpoint: str) -> list[str]:
+    """The interpreter arguments that run service ``name`` of a local fleet."""
+    if name == "router":
+        return ["-m", "services.runtime.router", "--listen", endpoint]
+    if name == "recorder":
+        return ["-m", "services.recorder.recorder"]
+    return ["-m", "services.runtime.main", name]
+
+
+def spawn_process(run_dir: Path, name: str, args: list[str], env: dict[str, str]) -> subprocess.Popen[bytes]:
+    """Start ``python args…`` as service ``name`` in a session of its own (its PID is its
+    process group), output appended to ``run_dir/logs/<name>.stderr``."""
+    log = (run_dir / "logs" / f"{name}.stderr").open("ab")
+    return subprocess.Popen(
+        [sys.executable, *args],
+        env=env,
+        stdout=log,
+        stderr=subprocess.STDOUT,
+        stdin=subprocess.DEVNULL,
+        start_new_session=True,
+    )
+
+
+def save_launch_env(run_dir: Path, env: dict[str, str], extra: dict[str, str]) -> None:
+    """Record in ``run_dir/launch_env.json`` the part of ``env`` a fleet's process depends on:
+    every ``ROCO_*`` variable, ``PYTHONUNBUFFERED`` and the fleet's ``extra`` environment."""
+    kept = {k: v for k, v in env.items() if k.startswith("ROCO_") or k in extra or k == "PYTHONUNBUFFERED"}
+    tmp = run_dir / (LAUNCH_ENV + ".tmp")
+    tmp.write_text(json.dumps(kept, indent=1, sort_keys=True))
+    tmp.replace(run_dir / LAUNCH_ENV)
+
+
+def load_launch_env(run_dir: Path) -> dict[str, str] | None:
+    """The environment a fleet's processes were started with: this process's environment
+    without its ``ROCO_*`` variables, then those of ``launch_env.json``; None when the run
+    folder has no (readable) record."""
+    try:
+        kept = json.loads((run_dir / LAUNCH_ENV).read_text())
+    except (OSError, ValueError):
+        return None
+    if not isinstance(kept, dict):
+        return None
+    env = {k: v for k, v in os.environ.items() if not k.startswith("ROCO_")}
+    env.update({str(k): str(v) for k, v in kept.items()})
+    return env
 
 
 def _wait(proc: subprocess.Popen[bytes], timeout: float) -> None:

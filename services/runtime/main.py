@@ -3,8 +3,11 @@
 Configuration comes from the environment so that the same command serves the local launcher
 and a container: ``ROCO_ROUTER`` (comma-separated Zenoh endpoints, default
 ``tcp/127.0.0.1:7447``), ``ROCO_RUN_DIR`` (run folder; logs go to stderr otherwise),
-``ROCO_SPEC`` (specification file), ``ROCO_LOG_LEVEL``. SIGTERM and SIGINT stop the agent
-cleanly. Exit code 2 on a configuration error.
+``ROCO_SPEC`` (specification file), ``ROCO_LOG_LEVEL``, ``ROCO_FAULTS`` (fault settings,
+JSON; docs/faults.md). The Zenoh transport is always wrapped in the fault layer
+(:class:`~services.runtime.faults.FaultyTransport`) so that ``roco fault`` can reach every
+agent at run time; with no fault active it costs one attribute test per publication.
+SIGTERM and SIGINT stop the agent cleanly. Exit code 2 on a configuration error.
 """
 
 from __future__ import annotations
@@ -18,6 +21,7 @@ from pathlib import Path
 from types import FrameType
 
 from services.runtime.agent import Agent
+from services.runtime.faults import FaultyTransport, settings_from_env
 from services.runtime.transport import ZenohTransport
 from services.spec.model import DEFAULT_SPEC, SpecError, SystemSpec, load
 
@@ -71,7 +75,12 @@ def main(argv: list[str] | None = None) -> int:
     except SpecError as exc:
         print(f"roco: {exc}", file=sys.stderr)
         return 2
-    transport = ZenohTransport(router_endpoints())
+    try:
+        faults = settings_from_env()
+    except ValueError as exc:
+        print(f"roco: ROCO_FAULTS: {exc}", file=sys.stderr)
+        return 2
+    transport = FaultyTransport(ZenohTransport(router_endpoints()), name, faults)
     try:
         agent = cls(transport, spec)
     except (SpecError, ValueError) as exc:  # e.g. a malformed ROCO_SEED

@@ -86,6 +86,12 @@ class MemoryTransport:
         self._tokens.append(key)
         self.bus.announce(key)
 
+    def withdraw(self, key: str) -> None:
+        """Withdraw this transport's liveliness token on ``key`` (``announce`` declares it again)."""
+        if key in self._tokens:
+            self._tokens.remove(key)
+            self.bus.withdraw(key)
+
     def watch(self, key_expr: str, callback: AliveCallback) -> None:
         self.bus.watch(key_expr, callback)
 

@@ -6,6 +6,8 @@
 | ``traffic.jsonl``, ``traffic.msgpack`` | traffic recorder | see ``services.recorder.record`` |
 | ``logs/<agent>.log`` | each agent process | its log |
 | ``km_store/`` | a_km | the knowledge base (Oxigraph on disk), kept across a_km restarts |
+| ``faults.jsonl`` | traffic recorder | injected faults, when any (docs/faults.md) |
+| ``launch_env.json`` | launcher | the environment its processes got (``roco fault start``) |
 | ``report.md`` | ``roco report`` | the experiment report |
 """
 

@@ -28,13 +28,23 @@ class Transport(Protocol):
     def close(self) -> None: ...
 
 
+CONNECT_RETRY = {"period_init_ms": 100, "period_max_ms": 1000, "period_increase_factor": 2}
+"""How often a session tries its endpoints again while it has no connection: 0.1 s, then
+doubling up to 1 s (Zenoh's default: 1 s doubling up to 4 s). A client whose router is lost
+(e.g. killed and started again on the same endpoint) reconnects by itself on this schedule and
+Zenoh declares its subscribers and liveliness tokens again: the session is back within ~1 s of
+the router listening again (docs/recovery.md, "Router restart")."""
+
+
 def client_config(endpoints: list[str], *, wait_for_router: bool = True) -> zenoh.Config:
     """A Zenoh client configuration connecting to ``endpoints`` (e.g. ``tcp/127.0.0.1:7447``)
     with multicast scouting off. ``wait_for_router`` retries forever instead of failing
-    ``zenoh.open`` after ~0.1 s when no router answers (platform-notes.md)."""
+    ``zenoh.open`` after ~0.1 s when no router answers (platform-notes.md). Either way a session
+    that loses its router reconnects on the :data:`CONNECT_RETRY` schedule, forever."""
     conf = zenoh.Config()
     conf.insert_json5("mode", '"client"')
     conf.insert_json5("connect/endpoints", json.dumps(endpoints))
+    conf.insert_json5("connect/retry", json.dumps(CONNECT_RETRY))
     conf.insert_json5("scouting/multicast/enabled", "false")
     if wait_for_router:
         conf.insert_json5("connect/timeout_ms", "-1")
@@ -43,13 +53,15 @@ def client_config(endpoints: list[str], *, wait_for_router: bool = True) -> zeno
 
 def router_config(listen: list[str], connect: list[str] | None = None) -> zenoh.Config:
     """A Zenoh router configuration listening on ``listen``, optionally meshed with other
-    routers at ``connect``; multicast scouting off."""
+    routers at ``connect`` (reconnected on the :data:`CONNECT_RETRY` schedule when one of them
+    restarts); multicast scouting off."""
     conf = zenoh.Config()
     conf.insert_json5("mode", '"router"')
     conf.insert_json5("listen/endpoints", json.dumps(listen))
     conf.insert_json5("scouting/multicast/enabled", "false")
     if connect:
         conf.insert_json5("connect/endpoints", json.dumps(connect))
+        conf.insert_json5("connect/retry", json.dumps(CONNECT_RETRY))
     return conf
 
 
@@ -59,7 +71,7 @@ class ZenohTransport:
     def __init__(self, endpoints: list[str], *, wait_for_router: bool = True) -> None:
         self.session = zenoh.open(client_config(endpoints, wait_for_router=wait_for_router))
         self._subs: list[zenoh.Subscriber] = []
-        self._tokens: list[zenoh.LivelinessToken] = []
+        self._tokens: list[tuple[str, zenoh.LivelinessToken]] = []
         self._lock = threading.Lock()
 
     def publish(self, key: str, payload: bytes) -> None:
@@ -75,7 +87,16 @@ class ZenohTransport:
     def announce(self, key: str) -> None:
         """Declare a liveliness token on ``key`` for the life of this transport."""
         with self._lock:
-            self._tokens.append(self.session.liveliness().declare_token(key))
+            self._tokens.append((key, self.session.liveliness().declare_token(key)))
+
+    def withdraw(self, key: str) -> None:
+        """Undeclare the liveliness tokens on ``key`` (``announce`` declares it again); used by
+        the fault layer to make a partitioned agent look gone."""
+        with self._lock:
+            gone = [tok for k, tok in self._tokens if k == key]
+            self._tokens = [(k, tok) for k, tok in self._tokens if k != key]
+        for tok in gone:
+            tok.undeclare()
 
     def watch(self, key_expr: str, callback: AliveCallback) -> None:
         """Call ``callback(key, alive)`` whenever a liveliness token matching ``key_expr``
@@ -89,7 +110,7 @@ class ZenohTransport:
             self._subs.append(self.session.liveliness().declare_subscriber(key_expr, on_sample, history=True))
 
     def close(self) -> None:
-        for tok in self._tokens:
+        for _, tok in self._tokens:
             tok.undeclare()
         for sub in self._subs:
             sub.undeclare()

@@ -12,11 +12,14 @@ and what each command is expected to end in.
 
 A step does exactly one of: ``say`` (a sentence to a_hi, with an optional ``priority``),
 ``disturb`` (move an object in the simulated world by ``dx, dy, dz`` metres: a person
-moving it), ``restart`` (stop an agent's process and start it again). It runs when its
-``after`` trigger holds: ``step`` (a_ta reported a plan step whose path contains the text),
-``ended`` (the n-th ``say`` command, counted from 1, has ended), ``knowledge`` (a_km has the
-initial observation: the default of the first step); with no trigger a step runs right after
-the one before. ``expect`` is the final report kind of a ``say`` command (``succeeded``,
+moving it), ``restart`` (stop an agent's process and start it again), ``fault`` (a process
+fault of one service: ``kill`` — SIGKILL, started again ``down_s`` later; ``pause`` —
+SIGSTOP, SIGCONT ``down_s`` later; ``restart`` — SIGTERM, then started again at once). It
+runs when its ``after`` trigger holds: ``step`` (a_ta reported a plan step whose path contains
+the text), ``ended`` (the n-th ``say`` command, counted from 1, has ended), ``knowledge``
+(a_km has the initial observation: the default of the first step), ``seconds`` (wall seconds
+after the step before ran); with no trigger a step runs right after the one before.
+``expect`` is the final report kind of a ``say`` command (``succeeded``,
 ``failed``, ``stopped``, ``not-understood``); ``expect_text`` a text its final report must
 contain.
 """
@@ -32,6 +35,9 @@ LIBRARY = Path(__file__).parent / "library"
 """The scenarios shipped with roco (``roco scenario --list``)."""
 FINAL_KINDS = frozenset({"succeeded", "failed", "stopped", "not-understood"})
 AGENTS = frozenset({"a_hi", "a_co", "a_pl", "a_km", "a_ta", "ag_ex"})
+SERVICES = AGENTS | {"recorder", "router"}
+"""What a ``fault`` step can hit: the agents, the traffic recorder and the Zenoh router."""
+FAULT_KINDS = frozenset({"kill", "pause", "restart"})
 MOVABLE = ("jar", "bowl", "cup")
 """The free bodies of the kitchen a ``disturb`` step can move (velma/executor/perception.py
 CONTAINERS; repeated here so that reading a scenario needs no physics engine)."""
@@ -47,6 +53,7 @@ class Trigger(msgspec.Struct, frozen=True, forbid_unknown_fields=True, kw_only=T
     step: str | None = None
     ended: int | None = None
     knowledge: bool = False
+    seconds: float | None = None
 
 
 class Disturb(msgspec.Struct, frozen=True, forbid_unknown_fields=True, kw_only=True):
@@ -58,6 +65,15 @@ class Disturb(msgspec.Struct, frozen=True, forbid_unknown_fields=True, kw_only=T
     dz: float = 0.0
 
 
+class Fault(msgspec.Struct, frozen=True, forbid_unknown_fields=True, kw_only=True):
+    """A process fault of ``service``: ``kind`` kill, pause or restart; ``down_s`` how long
+    it stays killed or paused (s)."""
+
+    service: str
+    kind: str
+    down_s: float = 2.0
+
+
 class Step(msgspec.Struct, frozen=True, forbid_unknown_fields=True, kw_only=True):
     """One thing that happens in a scenario (see module docstring)."""
 
@@ -65,13 +81,18 @@ class Step(msgspec.Struct, frozen=True, forbid_unknown_fields=True, kw_only=True
     priority: int = 0
     disturb: Disturb | None = None
     restart: str | None = None
+    fault: Fault | None = None
     after: Trigger | None = None
     expect: str | None = None
     expect_text: str | None = None
 
     @property
     def action(self) -> str:
-        return "say" if self.say is not None else "disturb" if self.disturb is not None else "restart"
+        if self.say is not None:
+            return "say"
+        if self.disturb is not None:
+            return "disturb"
+        return "fault" if self.fault is not None else "restart"
 
 
 class Scenario(msgspec.Struct, frozen=True, forbid_unknown_fields=True, kw_only=True):
@@ -96,9 +117,27 @@ def _check(scenario: Scenario, where: str) -> Scenario:
         raise ScenarioError(f"{where}: no steps")
     said = 0
     for i, step in enumerate(scenario.steps, 1):
-        actions = [step.say is not None, step.disturb is not None, step.restart is not None]
+        actions = [
+            step.say is not None,
+            step.disturb is not None,
+            step.restart is not None,
+            step.fault is not None,
+        ]
         if sum(actions) != 1:
-            raise ScenarioError(f"{where}: step {i} must do exactly one of say, disturb, restart")
+            raise ScenarioError(f"{where}: step {i} must do exactly one of say, disturb, restart, fault")
+        f = step.fault
+        if f is not None:
+            if f.service not in SERVICES:
+                raise ScenarioError(
+                    f"{where}: step {i}: no service {f.service!r} (services: {', '.join(sorted(SERVICES))})"
+                )
+            if f.kind not in FAULT_KINDS:
+                raise ScenarioError(
+                    f"{where}: step {i}: fault kind must be one of "
+                    f"{', '.join(sorted(FAULT_KINDS))}, not {f.kind!r}"
+                )
+            if not 0 <= f.down_s <= 600:
+                raise ScenarioError(f"{where}: step {i}: down_s must be within 0..600 s, not {f.down_s}")
         if step.disturb is not None and step.disturb.object not in MOVABLE:
             movable = ", ".join(MOVABLE)
             raise ScenarioError(
@@ -113,8 +152,14 @@ def _check(scenario: Scenario, where: str) -> Scenario:
             raise ScenarioError(f"{where}: step {i}: only a say step can expect an outcome")
         t = step.after
         if t is not None:
-            if sum([t.step is not None, t.ended is not None, t.knowledge]) != 1:
-                raise ScenarioError(f"{where}: step {i}: after needs exactly one of step, ended, knowledge")
+            if sum([t.step is not None, t.ended is not None, t.knowledge, t.seconds is not None]) != 1:
+                raise ScenarioError(
+                    f"{where}: step {i}: after needs exactly one of step, ended, knowledge, seconds"
+                )
+            if t.seconds is not None and not 0 <= t.seconds <= 3600:
+                raise ScenarioError(
+                    f"{where}: step {i}: after.seconds must be within 0..3600, not {t.seconds}"
+                )
             if t.ended is not None and not 1 <= t.ended <= said:
                 raise ScenarioError(
                     f"{where}: step {i}: after.ended = {t.ended}, but only {said} command(s) before it"

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import contextlib
 import json
+import math
 import queue
 import threading
 import time
@@ -23,7 +24,7 @@ from services.human_interface.messages import FINAL_REPORTS, HumanInput, HumanRe
 from services.runtime import keys
 from services.runtime.launcher import AGENT_ORDER, Fleet, LaunchError, free_port, open_client
 from services.runtime.run_folder import RunInfo, write_run_info
-from services.scenario.model import Scenario, Step
+from services.scenario.model import Fault, Scenario, Step
 from shared.fipa_codec import DecodeError, Performative, decode
 from shared.fipa_codec.languages import ContentError, decode_content
 from shared.fipa_codec.languages.l_sw import SWStatus
@@ -55,11 +56,28 @@ class CommandRecord:
 
 
 @dataclass
+class FaultRecord:
+    """A process fault the runner injected: when (s since the run started), what, the PIDs
+    before and after, how long the service took to be alive again (s; None: it was not), and
+    whether a command was still open when it hit."""
+
+    t: float
+    service: str
+    kind: str
+    down_s: float
+    pid_before: int | None
+    pid_after: int | None = None
+    back_after_s: float | None = None
+    during_command: bool = False
+
+
+@dataclass
 class ScenarioOutcome:
     """How the scenario went: the commands, and ``detail`` when it stopped early."""
 
     commands: list[CommandRecord]
     detail: str = ""
+    faults: list[FaultRecord] = field(default_factory=list)
 
     @property
     def ok(self) -> bool:
@@ -104,6 +122,9 @@ class ScenarioRunner:
         self.steps_seen: list[str] = []  # a_ta's plan steps (C1 L_SW), in order
         self.knowledge = threading.Event()
         self.commands: list[CommandRecord] = []
+        self.faults: list[FaultRecord] = []
+        self.down: set[str] = set()  # services killed on purpose, not yet started again
+        self.last_act = time.monotonic()
         self.t0 = time.time()
 
     # ---- events from Zenoh (callback threads: enqueue only) ----
@@ -143,7 +164,7 @@ class ScenarioRunner:
         process died that was not being restarted."""
         if time.monotonic() > deadline:
             raise LaunchError(f"the scenario did not end within {self.scenario.timeout_s:.0f} s")
-        dead = self.fleet.dead()
+        dead = [n for n in self.fleet.dead() if n not in self.down]
         if dead:
             raise LaunchError(f"process {dead[0]} exited during the run (see {self.run_dir}/logs)")
         try:
@@ -169,6 +190,8 @@ class ScenarioRunner:
             return True
         if t.knowledge:
             return self.knowledge.is_set()
+        if t.seconds is not None:
+            return time.monotonic() - self.last_act >= t.seconds
         if t.ended is not None:
             return self.commands[t.ended - 1].final is not None
         assert t.step is not None
@@ -192,12 +215,63 @@ class ScenarioRunner:
             d = step.disturb
             session.put(keys.SIM_DISTURB, json.dumps({"object": d.object, "delta": [d.dx, d.dy, d.dz]}))
             self._say(f"the world: {d.object} moved by ({d.dx:+.3f}, {d.dy:+.3f}, {d.dz:+.3f}) m")
+        elif step.fault is not None:
+            self._fault(session, step.fault)
         elif step.restart is not None:
             pid = self.fleet.restart(step.restart)
             self.fleet.wait_alive(session, [step.restart], timeout=120)
             self.info.processes[step.restart] = pid
             write_run_info(self.run_dir, self.info)
             self._say(f"{step.restart} restarted (pid {pid})")
+
+    def _wait_pumping(self, seconds: float) -> None:
+        until = time.monotonic() + seconds
+        while time.monotonic() < until:
+            self._pump(min(0.1, max(0.0, until - time.monotonic())), math.inf)
+
+    def _fault(self, session: zenoh.Session, fault: Fault) -> None:
+        """Inject a process fault (services/scenario/model.py) with services/fault/process.py,
+        wait until the service is alive again (the run's events are taken meanwhile) and
+        record it in the run folder's fault events (report section 8)."""
+        from services.fault import process
+
+        name = fault.service
+        proc = self.fleet.processes.get(name)
+        record = FaultRecord(
+            round(time.time() - self.t0, 1),
+            name,
+            fault.kind,
+            fault.down_s if fault.kind != "restart" else 0.0,
+            proc.pid if proc is not None else None,
+            during_command=any(c.final is None for c in self.commands),
+        )
+        self.faults.append(record)
+        lasting = f" for {fault.down_s:.1f} s" if fault.kind != "restart" else ""
+        self._say(f"fault: {fault.kind} {name}{lasting}")
+        t_fault = time.monotonic()
+        events = []
+        try:
+            if fault.kind == "pause":
+                events.append(process.pause(self.fleet, name))
+                self._wait_pumping(fault.down_s)
+                events.append(process.unpause(self.fleet, name))
+            else:
+                self.down.add(name)
+                if fault.kind == "kill":
+                    events.append(process.kill(self.fleet, name))
+                    self._wait_pumping(fault.down_s)
+                else:
+                    events.append(process.stop(self.fleet, name, timeout=20))
+                events.append(process.start(self.fleet, name, timeout=120))
+                self.down.discard(name)
+        except process.FaultError as exc:
+            raise LaunchError(f"fault on {name}: {exc}") from None
+        record.pid_after = self.fleet.processes[name].pid
+        self.info.processes[name] = record.pid_after
+        write_run_info(self.run_dir, self.info)
+        record.back_after_s = round(time.monotonic() - t_fault, 1)
+        process.record_events(session, events)
+        self._say(f"{name} is back after {record.back_after_s:.1f} s (pid {record.pid_after})")
 
     def _sync_recorder(self, session: zenoh.Session, timeout: float = 10.0) -> None:
         """Wait until the traffic recorder has written every communicate routed so far (the
@@ -245,6 +319,7 @@ class ScenarioRunner:
                 while not self._ready(step, before):
                     self._pump(0.2, deadline)
                 self._act(session, step)
+                self.last_act = time.monotonic()
             while any(c.final is None for c in self.commands):
                 self._pump(0.5, deadline)
             self._sync_recorder(session)
@@ -256,7 +331,7 @@ class ScenarioRunner:
             if session is not None:
                 session.close()
             self.fleet.stop()
-        outcome = ScenarioOutcome(self.commands, detail)
+        outcome = ScenarioOutcome(self.commands, detail, self.faults)
         self.info.ended = time.time()
         self.info.succeeded = outcome.ok
         self.info.detail = detail or "; ".join(

@@ -15,17 +15,28 @@ Preempted. It never opens a hand that holds something outside such a plan.
 When the world differs from the plan — an object is not where a Perceive step expects it,
 a grasp closes on nothing, a held object slips out — a_ta observes the scene, informs a_km of
 what it saw, and reports Replan with the difference in words.
+
+Restarts (issue 7; docs/recovery.md): each L_SW inform is retransmitted until a_co confirms it
+(a_co may be restarting); a request to ag_ex is sent again when ag_ex's liveliness token
+reappears (ag_ex restored its world from its checkpoint). a_ta keeps the plan it runs in its
+state file; a restarted a_ta does not guess where the robot got to: it reports Replan (or the
+final state it had reached) in the plan's conversation, so that a_co plans again from the world
+as it is. Meanwhile ag_ex holds position with the hands as they are.
 """
 
 from __future__ import annotations
 
 import math
+import time
 from collections import deque
 from dataclasses import dataclass
 
-from services.runtime.agent import Agent, Received
+import msgspec
+
+from services.runtime.agent import RESEND_ON_RETURN, Agent, Received
 from services.runtime.behaviour import FSM, Arc, Behaviour
-from shared.fipa_codec import Performative
+from services.runtime.state_store import StateFile
+from shared.fipa_codec import DecodeError, Performative, decode, encode
 from shared.fipa_codec.languages.l_ex import CommandResult, MoveJoints, MoveTool, Observe, Tilt, Wait
 from shared.fipa_codec.languages.l_hfsm import (
     Assert,
@@ -42,7 +53,12 @@ from shared.fipa_codec.languages.l_wm import ObjectUpdate, Subscription, WorldUp
 OBSERVE_REPLY_BY_S = 30.0
 INITIAL_OBSERVE_RETRY_S = 3.0
 COMMAND_MARGIN_S = 60.0
-CONFIRM_REPLY_BY_S = 30.0
+CONFIRM_REPLY_BY_S = 300.0
+"""How long a_ta waits for a_co to confirm an L_SW inform before it goes on without."""
+SW_RETRY_S = 5.0
+"""Retransmission period of an unconfirmed L_SW inform (a_co may be restarting)."""
+HELD = "held:"
+"""Prefix of the reason ag_ex gives a command it ended to hold position (velma/executor/loop.py)."""
 REPLAN_FAILURES = frozenset({"no contact", "contact lost"})
 """ag_ex failure reasons that mean the world differs from the plan (the grasp closed on
 nothing; a held object left the hand): a_ta reports Replan instead of Error."""
@@ -58,10 +74,23 @@ class Step:
     replan_reason: str | None = None  # set on the observation made before reporting Replan
 
 
+class KeptTaskExecutor(msgspec.Struct, kw_only=True):
+    """a_ta's state file: a_co's plan request (encoded communicate), the plan, the leaf state
+    it was in and the final state once reached."""
+
+    request: bytes
+    plan: HierarchicalPlan
+    step: str | None
+    outcome: SWState | None
+    reason: str | None
+
+
 class TaskExecutor(Agent):
     name = "a_ta"
 
     def build_fsm(self) -> FSM:
+        self.kept = StateFile.for_agent(self.name, KeptTaskExecutor)
+        self.restored = False
         self.subscription: Received | None = None
         self.initial_observe: str | None = None
         self.initial_done = False
@@ -104,7 +133,12 @@ class TaskExecutor(Agent):
                     doc="await a_co's acknowledgement of the final state",
                 ),
             },
-            arcs=[Arc("idle", "running"), Arc("running", "finished"), Arc("finished", "idle")],
+            arcs=[
+                Arc("idle", "finished", lambda: self.restored, "restarted during a plan"),
+                Arc("idle", "running"),
+                Arc("running", "finished"),
+                Arc("finished", "idle"),
+            ],
         )
 
     # ---- communicates handled in every state ----
@@ -118,12 +152,22 @@ class TaskExecutor(Agent):
                     self._observe_initial()
                 else:
                     self.reply(item, Performative.REFUSE)
-            elif (item.sender == "a_co" and item.performative is Performative.CONFIRM) or (
-                item.local and self.awaiting is not None and item.msg.in_reply_to == self.awaiting
+            elif (
+                (item.sender == "a_co" and item.performative is Performative.CONFIRM)
+                or (item.local and self.awaiting is not None and item.msg.in_reply_to == self.awaiting)
+                or (
+                    item.sender == "a_co"
+                    and item.performative is Performative.NOT_UNDERSTOOD
+                    and self.awaiting is not None
+                    and item.msg.in_reply_to == self.awaiting
+                )
             ):
                 self.x.remove(item)
                 if item.local:
                     self.log.warning("a_co did not confirm %s in time", item.msg.in_reply_to)
+                elif item.performative is Performative.NOT_UNDERSTOOD:
+                    # a restarted a_co that kept nothing does not know the plan: nobody waits for it
+                    self.log.warning("a_co does not know plan of %s: going on", item.msg.in_reply_to)
                 if item.msg.in_reply_to == self.awaiting:
                     self.awaiting = None
                 if self.final_inform is not None and item.msg.in_reply_to == self.final_inform:
@@ -206,12 +250,71 @@ class TaskExecutor(Agent):
             self.plan_request,
             Performative.INFORM,
             status,
-            reply_with=f"{status.plan_id}-{self.i}-{len(self.sw_queue)}",
+            reply_with=f"{status.plan_id}-{self.i}-{len(self.sw_queue)}-{self.incarnation}",
             reply_by_s=CONFIRM_REPLY_BY_S,
+            retry_s=SW_RETRY_S,
         )
         self.awaiting = msg.reply_with
         if status.state in TERMINAL_SW_STATES:
             self.final_inform = msg.reply_with
+
+    # ---- restarts ----
+    def setup(self) -> None:
+        self.incarnation = f"{time.time():.0f}"  # keeps reply-with unique across restarts
+        kept = self.kept.load()
+        if kept is not None:
+            self._restore(kept)
+
+    def persist(self) -> None:
+        if self.plan is None or self.plan_request is None:
+            self.kept.clear()
+            return
+        self.kept.save(
+            KeptTaskExecutor(
+                request=encode(self.plan_request.msg),
+                plan=self.plan,
+                step=self.step.path if self.step is not None else None,
+                outcome=self.outcome,
+                reason=self.reason,
+            )
+        )
+
+    def _restore(self, kept: KeptTaskExecutor) -> None:
+        """Report on the plan a previous a_ta ran (see the module docstring)."""
+        try:
+            msg = decode(kept.request)
+        except DecodeError as exc:
+            self.log.warning("kept plan request does not decode (%s): dropped", exc)
+            return
+        if msg.conversation_id is None:
+            return
+        self.restore_conversation(
+            "a_co",
+            msg.conversation_id,
+            "coordinate",
+            [(Performative.REQUEST, False), (Performative.INFORM, True), (Performative.CONFIRM, False)],
+        )
+        self.plan, self.plan_request = kept.plan, Received(msg, kept.plan, "C1")
+        if kept.outcome is not None:
+            self.outcome, self.reason = kept.outcome, kept.reason
+        else:
+            where = f" in {kept.step}" if kept.step else ""
+            self.outcome = SWState.REPLAN
+            self.reason = f"a_ta restarted{where}; the robot held position"
+        self.restored = True
+        self.log.info("restarted during plan %s: reporting %s", kept.plan.plan_id, self.outcome.value)
+
+    def peer_changed(self, peer: str, alive: bool) -> None:
+        """ag_ex came back (restarted, its world restored from its checkpoint) while a tilt it
+        was running had no answer: the tilt cannot be sent again (it is relative), so the
+        world is observed and Replan reported. Other commands are sent again by the runtime."""
+        step = self.step
+        if peer != "ag_ex" or not alive or step is None or step.waiting_for is None:
+            return
+        action = step.node.action
+        if isinstance(action, Execute) and isinstance(action.command, Tilt) and self.outcome is None:
+            self.conversations.forget(step.waiting_for)
+            self._surprise(step, f"{step.path}: ag_ex restarted during the tilt")
 
     # ---- idle ----
     def _idle(self) -> None:
@@ -305,6 +408,8 @@ class TaskExecutor(Agent):
                 cmd,
                 protocol="fipa-request",
                 reply_by_s=duration * 2 + COMMAND_MARGIN_S,
+                # a tilt is relative: done again from where the last one stopped it over-tilts
+                retry_s=None if isinstance(cmd, Tilt) else RESEND_ON_RETURN,
             )
             step.waiting_for = msg.reply_with
         elif isinstance(action, Perceive | CheckContent):
@@ -325,6 +430,7 @@ class TaskExecutor(Agent):
             Observe(objects=objects),
             protocol="fipa-request",
             reply_by_s=OBSERVE_REPLY_BY_S,
+            retry_s=RESEND_ON_RETURN,
         )
         step.waiting_for = msg.reply_with
 
@@ -348,6 +454,15 @@ class TaskExecutor(Agent):
             return
         if reply.performative is not Performative.INFORM:
             reason = getattr(reply.content, "reason", None) or reply.msg.content.decode("utf-8", "replace")
+            if (
+                isinstance(reply.content, CommandResult)
+                and (reply.content.reason or "").startswith(HELD)
+                and not self.terminating
+            ):
+                # ag_ex stopped the motion because a_ta looked gone (a restart of a_ta or of
+                # the router): where the robot got to is not known, so look and plan again
+                self._surprise(step, f"{step.path}: ag_ex held position ({reply.content.reason})")
+                return
             if (
                 isinstance(reply.content, CommandResult)
                 and reply.content.reason in REPLAN_FAILURES
@@ -423,3 +538,4 @@ class TaskExecutor(Agent):
             self.plan = None
             self.plan_request = None
             self.final_inform = None
+            self.restored = False

@@ -1,14 +1,15 @@
 """The default layout of a run's recording (``rr.send_blueprint``): the 3D view of robot and
-scene beside the agent graph and a_ta's state; below, the traffic log and the per-channel
-size and bandwidth time series (paper Figures 12 and 13), the joints and the wrist
-force/torque."""
+scene beside the head camera's image, the agent graph, a_ta's state and a_co's queue; below,
+the traffic log and the time series: per-channel size and bandwidth (paper Figures 12 and
+13), the joints, the wrist force/torque, the container content, the control loop's timing
+and a_co's queue length."""
 
 from __future__ import annotations
 
 import rerun as rr
 import rerun.blueprint as rrb
 
-from services.viewer import robot, traffic
+from services.viewer import camera, robot, tasks, traffic
 
 
 def blueprint() -> rrb.Blueprint:
@@ -18,11 +19,17 @@ def blueprint() -> rrb.Blueprint:
             rrb.Horizontal(
                 rrb.Spatial3DView(name="robot and scene", origin="/world"),
                 rrb.Vertical(
-                    rrb.GraphView(name="agents and channels", origin=f"/{traffic.GRAPH}"),
-                    rrb.TextLogView(
-                        name="a_ta: L_SW state and step",
-                        origin="/task",
-                        contents=["/task/**"],
+                    rrb.Spatial2DView(name="head camera", origin=f"/{camera.ENTITY}"),
+                    rrb.Tabs(
+                        rrb.GraphView(name="agents and channels", origin=f"/{traffic.GRAPH}"),
+                        rrb.TextDocumentView(
+                            name="a_co: command queue", origin=f"/{tasks.QUEUE}", contents="$origin"
+                        ),
+                        rrb.TextLogView(
+                            name="a_ta: L_SW state and step",
+                            origin="/task",
+                            contents=["/task/**", f"- /{tasks.QUEUE}/**"],
+                        ),
                     ),
                 ),
                 column_shares=[3, 2],
@@ -35,6 +42,13 @@ def blueprint() -> rrb.Blueprint:
                     rrb.TimeSeriesView(name="joints [rad]", origin=f"/{robot.JOINTS}"),
                     rrb.TimeSeriesView(name="wrist F/T [N, N·m]", origin=f"/{robot.FT}"),
                     rrb.TimeSeriesView(name="container content", origin=f"/{robot.CONTENT}"),
+                    rrb.TimeSeriesView(
+                        name="loop compute and lateness [µs]",
+                        origin=f"/{robot.TIMING}",
+                        contents=[f"/{robot.TIMING}/compute/**", f"/{robot.TIMING}/lateness/**"],
+                    ),
+                    rrb.TimeSeriesView(name="loop overruns", origin=f"/{robot.TIMING}/overruns"),
+                    rrb.TimeSeriesView(name="a_co queue length", origin=f"/{tasks.LENGTH}"),
                 ),
                 column_shares=[3, 2],
             ),

@@ -1,8 +1,10 @@
-"""The few calls the traffic recorder and ag_ex make to log to Rerun, guarded.
+"""The few calls the traffic recorder, ag_ex and a_co make to log to Rerun, guarded.
 
-:func:`traffic_hook` and :func:`robot_hook` return None when logging is off
-(``ROCO_RERUN`` is not ``1``), without importing rerun. A hook that raises logs the error
-once and switches itself off: a viewer is never a reason to lose traffic or to stop the robot.
+:func:`traffic_hook`, :func:`robot_hook` and :func:`queue_hook` return None when logging is
+off (``ROCO_RERUN`` is not ``1``), without importing rerun. A hook that raises logs the error
+once and switches itself off: a viewer is never a reason to lose traffic, to stop the robot
+or to stop coordinating. ag_ex's head camera (services/viewer/camera.py) runs in a thread of
+its own; ``ROCO_RERUN_CAMERA=0`` leaves it off.
 """
 
 from __future__ import annotations
@@ -17,18 +19,28 @@ from services.viewer import ENV_ON
 
 if TYPE_CHECKING:
     from services.recorder.record import TrafficRecord
+    from services.viewer.camera import HeadCamera, WorldSource
     from services.viewer.recording import Recording
     from services.viewer.robot import RobotLogger
+    from services.viewer.tasks import QueueLogger
     from services.viewer.traffic import TrafficLogger
+    from shared.fipa_codec.languages.l_hc import Status
     from shared.fipa_codec.languages.l_sd import Observation
     from velma.executor.state import RobotSnapshot
 
 log = logging.getLogger(__name__)
+ENV_CAMERA = "ROCO_RERUN_CAMERA"
 MERGE_WAIT = 8.0  # s the recorder waits for the other parts before merging (the launcher gives it 10)
 
 
 def _on() -> bool:
     return os.environ.get(ENV_ON, "0") == "1"
+
+
+def camera_wanted() -> bool:
+    """Whether ag_ex should render its head camera: Rerun logging on and
+    ``ROCO_RERUN_CAMERA`` not ``0``."""
+    return _on() and os.environ.get(ENV_CAMERA, "1") != "0"
 
 
 class _Hook:
@@ -77,11 +89,39 @@ class TrafficHook(_Hook):
 
 
 class RobotHook(_Hook):
-    """ag_ex's side: robot snapshots and observations."""
+    """ag_ex's side: robot snapshots (with the loop's timing), observations and the head
+    camera."""
 
     def __init__(self, recording: Recording, logger: RobotLogger) -> None:
         super().__init__(recording)
         self.logger = logger
+        self.camera: HeadCamera | None = None
+
+    def start_camera(self, source: WorldSource, *, seed: int = 0, pose_seed: int | None = None) -> None:
+        """Start the head camera's thread (services/viewer/camera.py) on ``source``, the
+        executor's latest whole simulation state; ``seed`` and ``pose_seed`` are the
+        executor's scene. Does nothing when the hook failed or the camera already runs."""
+        if self.failed or self.camera is not None:
+            return
+        try:
+            from services.viewer.camera import HeadCamera
+
+            self.camera = HeadCamera(self.recording, source, seed=seed, pose_seed=pose_seed)
+            self.camera.start()
+        except Exception:
+            log.exception("head camera could not start; going on without it")
+            self.camera = None
+
+    def stop_camera(self, timeout: float = 10.0) -> None:
+        """Stop the head camera's thread and wait for it (call before the executor's
+        world state goes away); idempotent."""
+        if self.camera is not None:
+            self.camera.stop(timeout)
+
+    def close(self) -> None:
+        """Stop the camera, then close ag_ex's part of the recording."""
+        self.stop_camera()
+        super().close()
 
     def snapshot(self, snap: RobotSnapshot) -> None:
         """Log one robot state (see services/viewer/robot.py)."""
@@ -100,6 +140,23 @@ class RobotHook(_Hook):
             self.logger.observation(obs)
         except Exception:
             self._fail("observation")
+
+
+class QueueHook(_Hook):
+    """a_co's side: its command queue (services/viewer/tasks.py)."""
+
+    def __init__(self, recording: Recording, logger: QueueLogger) -> None:
+        super().__init__(recording)
+        self.logger = logger
+
+    def queue(self, status: Status) -> None:
+        """Log a_co's queue (its ``Status``) if it changed since the last call."""
+        if self.failed:
+            return
+        try:
+            self.logger.queue(status)
+        except Exception:
+            self._fail("queue")
 
 
 H = TypeVar("H")
@@ -142,5 +199,16 @@ def robot_hook(process: str = "ag_ex", run_dir: Path | None = None) -> RobotHook
         logger = RobotLogger(recording)
         logger.initial_objects()
         return RobotHook(recording, logger)
+
+    return _start(process, run_dir, make)
+
+
+def queue_hook(process: str = "a_co", run_dir: Path | None = None) -> QueueHook | None:
+    """a_co's Rerun logging, or None when off or when it cannot start."""
+
+    def make(recording: Recording) -> QueueHook:
+        from services.viewer.tasks import QueueLogger
+
+        return QueueHook(recording, QueueLogger(recording))
 
     return _start(process, run_dir, make)

@@ -3,7 +3,7 @@
 Design (rerun-sdk 0.41, headless): every process that logs opens its own
 ``rr.RecordingStream`` with the same application id (``roco``) and the same recording id
 (the run folder's name), and saves it to a part file of its own,
-``<run>/rerun/<process>-<pid>.rrd`` (a file sink needs no display, no port and no other
+``<run>/rerun/<process>-<pid>-<start ms>.rrd`` (a file sink needs no display, no port and no other
 process). When the process closes its part it writes ``<part>.done`` beside it. The traffic
 recorder, the last process the launcher stops before the router, merges the parts into
 ``<run>/recording.rrd`` with ``rerun rrd merge`` once every part is done (bounded wait);
@@ -21,7 +21,8 @@ Environment:
 - ``ROCO_RUN_DIR`` the run folder: where the parts and the merged recording go; its name is
   the recording id;
 - ``ROCO_RERUN_ID`` overrides the recording id (optional);
-- ``ROCO_RERUN_CONNECT`` a viewer's gRPC URL to stream to as well (optional).
+- ``ROCO_RERUN_CONNECT`` a viewer's gRPC URL to stream to as well (optional);
+- ``ROCO_RERUN_CAMERA=0`` ag_ex renders no head camera (services/viewer/camera.py).
 """
 
 from __future__ import annotations
@@ -73,7 +74,8 @@ class Recording:
         self.recording_id = rec_id
         parts = run_dir / PARTS_DIR
         parts.mkdir(parents=True, exist_ok=True)
-        self.path = parts / f"{process}-{os.getpid()}.rrd"
+        # the start time too: PIDs repeat in containers, and a restarted process keeps its part
+        self.path = parts / f"{process}-{os.getpid()}-{time.time_ns() // 1_000_000}.rrd"
         self.stream = rr.RecordingStream(APP_ID, recording_id=rec_id)
         if connect:
             self.stream.set_sinks(rr.FileSink(str(self.path)), rr.GrpcSink(connect))

@@ -16,11 +16,23 @@ Entities (timelines ``wall``, POSIX s, shared with the traffic, and ``sim_time``
   ``velma.executor.state.LINK_BODIES``: torso, head, the arms' 7 links, the palms), with its
   rough shape (static capsules, cylinders, spheres and boxes ``.../geom<i>`` in the body frame,
   from the MJCF's collision geoms: ``LINK_SHAPES``);
+- ``world/robot/links/<side>_HandPalmLink/finger_{one,two,three}[/proximal][/distal]`` — the
+  BarrettHand's finger links, nested as in the MJCF (fingers one and two: knuckle, proximal,
+  distal; finger three: proximal, distal), each a ``Transform3D`` in its parent link's frame
+  computed from the finger joint angles of the snapshot (``FINGER_LINKS``, the constants of
+  velma/model/generate.py), logged for a hand only when one of its angles moved by more than
+  ``FINGER_EPS``, with a static shape ``.../shape``;
 - ``world/robot/setpoint/<side>`` — ``Transform3D`` and axes of the commanded grip frame while
   that arm is in Cartesian impedance; cleared when it leaves it;
 - ``robot/ft/<side>/{fx,fy,fz,tx,ty,tz}`` — the wrist F/T sensor's wrench (N, N·m, sensor
   frame) as scalars;
 - ``robot/joints`` — all joint positions (rad) as one multi-series ``Scalars`` row;
+- ``robot/timing/{compute,lateness}/{p50,p99,max}`` — the control loop's compute time per
+  cycle and lateness (µs, percentiles over the monitor's window of the last 120 000 cycles,
+  velma/executor/timing.py), ``robot/timing/overruns/{count,share_percent,max_consecutive}``
+  — overrunning cycles since start, their share of all cycles (%) and the longest run of
+  them: logged when the statistics attached to a snapshot change (ag_ex recomputes them
+  about once a second, off the loop);
 - ``robot/held`` — text when what a hand holds changes; ``robot/holding`` — text when the
   loop starts or stops holding position;
 - ``scene/content/<name>`` — particles inside each container (from observations);
@@ -29,6 +41,7 @@ Entities (timelines ``wall``, POSIX s, shared with the traffic, and ``sim_time``
 
 from __future__ import annotations
 
+import math
 import time
 from typing import NamedTuple
 
@@ -39,7 +52,8 @@ import rerun as rr
 from services.viewer.recording import Recording
 from shared.fipa_codec.languages.common import Pose
 from shared.fipa_codec.languages.l_sd import Observation
-from velma.executor.state import FT_AXES, RobotSnapshot
+from velma.executor.state import FT_AXES, SNAPSHOT_SIDES, RobotSnapshot
+from velma.executor.timing import TimingStats
 from velma.model import generate as g
 
 WALL = "wall"
@@ -50,6 +64,7 @@ LINKS = "world/robot/links"
 SETPOINT = "world/robot/setpoint"
 FT = "robot/ft"
 JOINTS = "robot/joints"
+TIMING = "robot/timing"
 CONTENT = "scene/content"
 
 # object name -> (radius, height) of the cylinder drawn for it, and its colour
@@ -67,8 +82,8 @@ Vec3 = tuple[float, float, float]
 
 class LinkShape(NamedTuple):
     """A rough link shape in its body's frame (m): ``kind`` "capsule" or "cylinder" (``size``
-    = radius, half-length, 0; axis along the body's z), "sphere" (radius, 0, 0) or "box"
-    (half sizes); ``centre`` its centre."""
+    = radius, half-length, 0; axis along the body's z), "capsule_x" (the same along the
+    body's x), "sphere" (radius, 0, 0) or "box" (half sizes); ``centre`` its centre."""
 
     kind: str
     size: Vec3
@@ -107,6 +122,76 @@ LINK_SHAPES: dict[str, list[LinkShape]] = {
 }
 LINK_COLOUR = (235, 140, 40)
 PALM_COLOUR = (90, 90, 100)
+
+
+class FingerLink(NamedTuple):
+    """A BarrettHand finger link as the viewer draws it: ``path`` its entity below the palm's,
+    ``joint`` the joint that turns it (name after ``<side>_``), ``axis`` +1 or −1 (the joint
+    turns it about its frame's +z or −z), ``position`` (m) and ``orientation`` (w, x, y, z)
+    its frame in the parent link's at joint angle 0, ``shape`` in its own frame."""
+
+    path: str
+    joint: str
+    axis: float
+    position: Vec3
+    orientation: tuple[float, float, float, float]
+    shape: LinkShape
+
+
+# From velma/model/generate.py (hand, finger): the chain MuJoCo builds, checked against its
+# body poses in tests/viewer/test_fingers.py
+_KNUCKLE = LinkShape("box", (0.022, 0.012, 0.008), (0.03, 0.0, 0.004))
+_PROXIMAL = LinkShape("capsule_x", (0.011, 0.025, 0.0), (0.037, 0.0, 0.0))  # 0.012–0.062 m
+_DISTAL = LinkShape("capsule_x", (0.01, 0.0185, 0.0), (0.0265, 0.0, 0.0))  # 0.008–0.045 m
+_DISTAL_ORIGIN = ((g.DISTAL_IN_PROXIMAL_X, 0.0, 0.0), g.rpy_to_quat((0.0, 0.0, g.DISTAL_BEND)))
+FINGER_LINKS: tuple[FingerLink, ...] = (
+    *(
+        link
+        for name, sign in (("One", 1.0), ("Two", -1.0))
+        for link in (
+            FingerLink(
+                f"finger_{name.lower()}",
+                f"HandFinger{name}KnuckleOneJoint",
+                -sign,  # the spread joints turn the two fingers in opposite senses
+                (sign * g.SPREAD_ORIGIN_X, 0.0, g.SPREAD_ORIGIN_Z),
+                g.rpy_to_quat((0.0, 0.0, g.SPREAD_YAW)),
+                _KNUCKLE,
+            ),
+            FingerLink(
+                f"finger_{name.lower()}/proximal",
+                f"HandFinger{name}KnuckleTwoJoint",
+                -1.0,
+                g.PROXIMAL_IN_KNUCKLE,
+                g.rpy_to_quat(g.PROXIMAL_RPY),
+                _PROXIMAL,
+            ),
+            FingerLink(
+                f"finger_{name.lower()}/proximal/distal",
+                f"HandFinger{name}KnuckleThreeJoint",
+                -1.0,
+                *_DISTAL_ORIGIN,
+                _DISTAL,
+            ),
+        )
+    ),
+    FingerLink(
+        "finger_three",
+        "HandFingerThreeKnuckleTwoJoint",
+        -1.0,
+        g.F3_PROXIMAL_IN_PALM[0],
+        g.rpy_to_quat(g.F3_PROXIMAL_IN_PALM[1]),
+        _PROXIMAL,
+    ),
+    FingerLink("finger_three/distal", "HandFingerThreeKnuckleThreeJoint", -1.0, *_DISTAL_ORIGIN, _DISTAL),
+)
+FINGER_EPS = 0.01  # rad: a hand's fingers are logged again when one angle moved by more
+
+
+def finger_pose(link: FingerLink, angle: float) -> Pose:
+    """``link``'s frame in its parent link's frame at joint angle ``angle`` (rad)."""
+    h = 0.5 * angle * link.axis
+    q = g.quat_mul(link.orientation, (math.cos(h), 0.0, 0.0, math.sin(h)))
+    return Pose(position=link.position, orientation=(q[0], q[1], q[2], q[3]))
 
 
 def _qmul(a: Quat, b: Quat) -> Quat:
@@ -216,6 +301,15 @@ def _shape(shape: LinkShape, colour: tuple[int, int, int]) -> rr.AsComponents:
         return rr.Boxes3D(centers=[shape.centre], half_sizes=[shape.size], colors=[colour], fill_mode="solid")
     if shape.kind == "capsule":  # Rerun's capsule starts at its translation and runs along +z
         return rr.Capsules3D(lengths=[2 * b], radii=[a], translations=[(x, y, z - b)], colors=[colour])
+    if shape.kind == "capsule_x":  # … turned by +90° about y: +z onto +x
+        s = math.sqrt(0.5)
+        return rr.Capsules3D(
+            lengths=[2 * b],
+            radii=[a],
+            translations=[(x - b, y, z)],
+            quaternions=[rr.Quaternion(xyzw=[0.0, s, 0.0, s])],
+            colors=[colour],
+        )
     if shape.kind == "cylinder":
         return rr.Cylinders3D(
             lengths=[2 * b], radii=[a], centers=[shape.centre], colors=[colour], fill_mode="solid"
@@ -228,11 +322,16 @@ def _shape(shape: LinkShape, colour: tuple[int, int, int]) -> rr.AsComponents:
 
 
 def log_link_shapes(stream: rr.RecordingStream) -> None:
-    """The links' shapes (static), each in its body's frame ``world/robot/links/<body>``."""
+    """The links' shapes (static), each in its body's frame ``world/robot/links/<body>``, and
+    the fingers' below each palm."""
     for body, shapes in LINK_SHAPES.items():
         colour = PALM_COLOUR if body.endswith("HandPalmLink") else LINK_COLOUR
         for i, shape in enumerate(shapes):
             stream.log(f"{LINKS}/{body}/geom{i}", _shape(shape, colour), static=True)
+    for side in SNAPSHOT_SIDES:
+        for link in FINGER_LINKS:
+            path = f"{LINKS}/{side}_HandPalmLink/{link.path}/shape"
+            stream.log(path, _shape(link.shape, PALM_COLOUR), static=True)
 
 
 class RobotLogger:
@@ -248,6 +347,8 @@ class RobotLogger:
         self._joint_names: tuple[str, ...] = ()
         self._grips: dict[str, Pose] = {}
         self._setpoints: set[str] = set()  # sides whose commanded frame is shown
+        self._timing_cycles = -1  # ``cycles`` of the last timing logged
+        self._fingers: dict[str, list[float]] = {}  # side -> finger angles last logged
         log_scene(self.stream)
 
     def _time(self, sim_time: float, wall: float | None) -> None:
@@ -256,8 +357,8 @@ class RobotLogger:
 
     def snapshot(self, snap: RobotSnapshot, *, wall: float | None = None) -> None:
         """Log one robot state: grip frames, link poses, commanded grip frames, wrist F/T,
-        joints, held objects (moved with their grips), and changes of what is held and of the
-        loop's holding."""
+        joints, held objects (moved with their grips), changes of what is held and of the
+        loop's holding, and the loop's timing when it changed."""
         s = self.stream
         self._time(snap.sim_time, wall)
         self._grips = dict(snap.grip)
@@ -265,6 +366,7 @@ class RobotLogger:
             s.log(f"{GRIP}/{side}", transform(pose))
         for body, pose in snap.links.items():
             s.log(f"{LINKS}/{body}", transform(pose))
+        self._log_fingers(snap.joints)
         self._log_setpoints(snap.setpoint)
         for side, wrench in snap.ft.items():
             for axis, value in zip(FT_AXES, wrench, strict=True):
@@ -291,6 +393,43 @@ class RobotLogger:
                 "robot/holding",
                 rr.TextLog(f"holding: {snap.holding}" if snap.holding else "serving", level="WARN"),
             )
+        if snap.timing is not None and snap.timing.cycles != self._timing_cycles:
+            self._timing_cycles = snap.timing.cycles
+            self.timing(snap.timing)
+
+    def timing(self, t: TimingStats) -> None:
+        """Log the loop's deadline statistics as scalars (``robot/timing/…``, see module
+        docstring) at the current times."""
+        s = self.stream
+        for name, value in (
+            ("compute/p50", t.compute_p50_us),
+            ("compute/p99", t.compute_p99_us),
+            ("compute/max", t.compute_max_us),
+            ("lateness/p50", t.lateness_p50_us),
+            ("lateness/p99", t.lateness_p99_us),
+            ("lateness/max", t.lateness_max_us),
+            ("overruns/count", float(t.overruns)),
+            ("overruns/share_percent", 100.0 * t.overrun_share),
+            ("overruns/max_consecutive", float(t.max_consecutive_overruns)),
+        ):
+            s.log(f"{TIMING}/{name}", rr.Scalars(value))
+
+    def _log_fingers(self, joints: dict[str, float]) -> None:
+        """Each hand's finger links when one of its finger angles moved by more than
+        ``FINGER_EPS`` since they were last logged (a snapshot without them: nothing)."""
+        for side in SNAPSHOT_SIDES:
+            angles = [joints.get(f"{side}_{link.joint}") for link in FINGER_LINKS]
+            if any(a is None for a in angles):
+                continue
+            now = [float(a) for a in angles if a is not None]
+            last = self._fingers.get(side)
+            if last is not None and max(abs(a - b) for a, b in zip(now, last, strict=True)) <= FINGER_EPS:
+                continue
+            self._fingers[side] = now
+            for link, angle in zip(FINGER_LINKS, now, strict=True):
+                self.stream.log(
+                    f"{LINKS}/{side}_HandPalmLink/{link.path}", transform(finger_pose(link, angle))
+                )
 
     def _log_setpoints(self, setpoints: dict[str, Pose | None]) -> None:
         """The commanded grip frames present in this snapshot; a frame that is no longer

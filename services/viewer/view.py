@@ -15,7 +15,9 @@ URL to the processes of a run as ``ROCO_RERUN_CONNECT`` streams the run to the v
 
 from __future__ import annotations
 
+import contextlib
 import os
+import signal
 import socket
 import subprocess
 import time
@@ -118,3 +120,25 @@ def open_viewer(rrd: Path | None, *, web: bool | None = None) -> str:
         print(f"Rerun web viewer: {viewer.web_url}", flush=True)
         return viewer.web_url
     return viewer.grpc_url
+
+
+def stop_viewer(viewer: Viewer, timeout: float = 5.0) -> bool:
+    """Stop a viewer :func:`start_viewer` started: SIGTERM to its process group (its own
+    session; the ``rerun`` wrapper runs the viewer as a child), SIGKILL if anything of it is
+    left after ``timeout`` s. Returns whether it had gone by then (before the SIGKILL)."""
+    with contextlib.suppress(ProcessLookupError):
+        os.killpg(viewer.pid, signal.SIGTERM)
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        with contextlib.suppress(ChildProcessError):  # reap it if it is this process's child
+            os.waitpid(viewer.pid, os.WNOHANG)
+        try:
+            os.killpg(viewer.pid, 0)
+        except ProcessLookupError:
+            return True
+        time.sleep(0.05)
+    with contextlib.suppress(ProcessLookupError):
+        os.killpg(viewer.pid, signal.SIGKILL)
+    with contextlib.suppress(ChildProcessError):
+        os.waitpid(viewer.pid, 0)
+    return False

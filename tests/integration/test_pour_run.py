@@ -87,6 +87,8 @@ def test_roco_spec_verify_reports_full_conformance_of_the_pour(pour_run: tuple) 
 
 
 def test_the_run_leaves_one_rerun_recording_of_traffic_robot_and_scene(pour_run: tuple) -> None:
+    """Traffic (recorder), robot, scene, head camera and loop timing (ag_ex), the command
+    queue (a_co): three parts merged into one recording."""
     from services.recorder.record import read_records
     from tests.viewer.test_recording import rows
 
@@ -96,3 +98,9 @@ def test_the_run_leaves_one_rerun_recording_of_traffic_robot_and_scene(pour_run:
     counts = rows(recording)
     assert counts["/traffic/log"] == len(read_records(run_dir))  # one log line per communicate
     assert counts["/world/robot/grip/left"] > 100 and counts["/world/objects/jar"] > 0
+    # the head camera at ≈ 1 Hz (ag_ex), the loop's timing at ≈ 1 Hz (ag_ex), a_co's queue
+    assert counts["/world/robot/head_camera"] >= 10, sorted(counts)
+    assert counts["/robot/timing/compute/p99"] >= 10 and counts["/robot/timing/overruns/count"] >= 10
+    assert counts["/task/queue"] >= 2 and counts["/task/queue/length"] == counts["/task/queue"]
+    parts = sorted(p.name.split("-")[0] for p in (run_dir / "rerun").glob("*.rrd"))
+    assert parts == ["a_co", "ag_ex", "recorder"]

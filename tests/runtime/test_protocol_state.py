@@ -237,7 +237,8 @@ def test_a_second_agree_and_an_inform_in_a_conversation_never_opened_are_refused
     km_sends(w, P.SUBSCRIBE)
     w.agent._dispatch()
     w.deliver("C6", communicate(P.AGREE, "a_ta", "a_km", "fipa-subscribe", "env"))
-    w.deliver("C6", communicate(P.AGREE, "a_ta", "a_km", "fipa-subscribe", "env"))
+    # a second agree (not a byte-identical copy: that is dropped as a duplicate, below)
+    w.deliver("C6", communicate(P.AGREE, "a_ta", "a_km", "fipa-subscribe", "env", reply_with="again"))
     update = WorldUpdate(stamp=1.0, objects=())
     w.deliver("C6", communicate(P.INFORM, "a_ta", "a_km", "fipa-subscribe", "other", update))
     refused = [m for m in w.answers() if m.performative is P.NOT_UNDERSTOOD]

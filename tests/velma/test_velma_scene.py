@@ -52,10 +52,10 @@ def test_no_pose_seed_keeps_todays_scene_exactly() -> None:
         assert list(model.body(name).pos) == list(pos)
         assert list(model.body(name).quat) == [1.0, 0.0, 0.0, 0.0]
     # start positions of the content as computed before pose_seed existed (commit 8a83e31)
-    pos = np.array([model.body(n).pos for n in particle_names(27)])
-    assert pos[0].tolist() == [0.7224108850619643, 0.1993093601412916, 0.867]
-    assert pos[-1].tolist() == [0.6962339921453932, 0.17722729003641546, 0.945]
-    assert np.allclose(pos.sum(axis=0), [18.89229922094422, 5.415094203861584, 24.462], rtol=0, atol=1e-12)
+    start = np.array([model.body(n).pos for n in particle_names(27)])
+    assert start[0].tolist() == [0.7224108850619643, 0.1993093601412916, 0.867]
+    assert start[-1].tolist() == [0.6962339921453932, 0.17722729003641546, 0.945]
+    assert np.allclose(start.sum(axis=0), [18.89229922094422, 5.415094203861584, 24.462], rtol=0, atol=1e-12)
     p = scene_perturbation(None)
     assert p.seed is None and p.as_dict() == {
         "jar": {"dx": 0.0, "dy": 0.0, "yaw": 0.0},

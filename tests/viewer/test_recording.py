@@ -18,6 +18,7 @@ from shared.fipa_codec.languages.common import Pose
 from shared.fipa_codec.languages.l_sd import ObjectObservation, Observation
 from shared.fipa_codec.languages.l_sw import SWState, SWStatus
 from tests.support.messages import communicate
+from tests.support.rerun_run import rerun_run_dir
 from velma.executor.state import FT_AXES, LINK_BODIES, RobotSnapshot
 
 RUN = "20261121-120000-test"
@@ -102,13 +103,7 @@ def values(path: Path, entity: str, column: str) -> list[Any]:
 
 @pytest.fixture
 def run_dir(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
-    folder = tmp_path / RUN
-    folder.mkdir()
-    monkeypatch.setenv("ROCO_RERUN", "1")
-    monkeypatch.setenv("ROCO_RUN_DIR", str(folder))
-    monkeypatch.delenv("ROCO_RERUN_ID", raising=False)
-    monkeypatch.delenv("ROCO_RERUN_CONNECT", raising=False)
-    return folder
+    return rerun_run_dir(tmp_path / RUN, monkeypatch)
 
 
 def record_run(run_dir: Path) -> Path:

@@ -5,7 +5,9 @@ in the cycle the command begins, ``step`` every cycle after that; either returns
 (``CommandResult`` or, for Observe, ``Observation``) to end the command, or None.
 
 Failure reasons: ``unreachable`` (IK finds no arm configuration, a joint target outside its
-limits, a look-at point outside the neck's range), ``timeout`` (not converged in time),
+limits, a look-at point outside the neck's range), ``timeout`` (not converged in time;
+MoveTool, Tilt and MoveJoints add in parentheses by how much and MoveJoints what the hands
+touch),
 ``no contact`` (fingers closed fully), ``contact lost`` (a held object left the hand during
 a motion), ``unknown joint: NAME``, ``unknown frame: NAME``.
 
@@ -302,7 +304,7 @@ class MoveJointsPrimitive:
         if err < JOINT_TOL:
             return _result(rt, self.name, True)
         if t >= self.duration + SETTLE_TIMEOUT:
-            return _result(rt, self.name, False, "timeout")
+            return _result(rt, self.name, False, self._timeout_reason(rt))
         return None
 
     def _error(self, rt: Runtime) -> float:
@@ -311,6 +313,33 @@ class MoveJointsPrimitive:
         for name, value in self.cmd.positions.items():
             err = max(err, abs(float(q[rt.joint_index(name)]) - value))
         return err
+
+    def _timeout_reason(self, rt: Runtime) -> str:
+        """``timeout (J E rad from its target[; SIDE hand touches A, B])``: the joint
+        furthest from its target and what each hand touches besides what it holds (a joint
+        move that stalls is usually blocked by a contact). Computed once, at the timeout."""
+        q = rt.q()
+        worst, err = max(
+            (
+                (name, abs(float(q[rt.joint_index(name)]) - value))
+                for name, value in self.cmd.positions.items()
+            ),
+            key=lambda item: item[1],
+        )
+        parts = [f"{worst} {err:.3f} rad from its target"]
+        for side in SIDES:
+            held = rt.held[side]
+            held_name = rt.model.body(held).name if held is not None else None
+            touched = sorted(
+                {
+                    name
+                    for name in (rt.model.body(b).name for b in rt.touch[side])
+                    if held_name is None or not (name == held_name or name.startswith(f"{held_name}_"))
+                }
+            )
+            if touched:
+                parts.append(f"{side} hand touches {', '.join(touched)}")
+        return f"timeout ({'; '.join(parts)})"
 
 
 class GraspPrimitive:

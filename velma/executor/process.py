@@ -14,12 +14,20 @@ Hand-offs (all non-blocking on the loop's side):
 - results: ``SpscRing`` loop → communication side (``Ready``, ``Done``, ``Fault``), plus one byte
   on a non-blocking pipe (a doorbell) so that the reader thread sleeps until there is news;
 - robot state: ``LatestValue`` (sequence lock) rewritten every ``STATE_PERIOD`` cycles;
+- world state (only when asked, ``world_state=True``: for the head camera of the Rerun
+  recording): the simulation time and MuJoCo's whole ``qpos`` (robot, objects, particles) as
+  raw float64 in a second ``LatestValue``, rewritten every ``WORLD_PERIOD`` cycles (≈ 1.4 µs
+  per write: a copy of 1.4 kB); whoever renders it does so in another process;
 - timing: the ``DeadlineMonitor``'s arrays live in shared memory; the communication side
-  computes percentiles from them, never the loop.
+  computes percentiles from them, never the loop;
+- checkpoints of the simulated world (only with a ``checkpoint_dir``; velma.executor.checkpoint):
+  a third ``LatestValue`` rewritten every ``CHECKPOINT_PERIOD`` cycles, written to disk by the
+  communication side's ``CheckpointWriter`` thread; the loop restores the last one at start and
+  writes the final one itself when it ends.
 
-The loop process ends when asked (``Shutdown``), when its parent process disappears (checked
-every second) or when it is killed; the communication side then answers every open command
-with ``failure``.
+The loop process ends when asked (``Shutdown``), on SIGTERM or SIGINT, when its parent process
+disappears (checked every second) or when it is killed; the communication side then answers
+every open command with ``failure``.
 """
 
 from __future__ import annotations
@@ -32,15 +40,29 @@ import logging
 import multiprocessing
 import multiprocessing.connection
 import os
+import signal
 import threading
 import time
 from collections.abc import Callable
 from multiprocessing import shared_memory
+from pathlib import Path
+from typing import NamedTuple
 
 import msgspec
+import numpy as np
+import numpy.typing as npt
 
 from shared.fipa_codec.languages.l_ex import CommandResult, ExecutorCommand, command_name
 from shared.fipa_codec.languages.l_sd import Observation
+from velma.executor.checkpoint import (
+    CHECKPOINT_CAPACITY,
+    CHECKPOINT_PERIOD,
+    CHECKPOINT_PHASE,
+    FILE_NAME,
+    CheckpointWriter,
+    LoopCheckpoints,
+    RestoreReport,
+)
 from velma.executor.handoff import LatestValue, SpscRing, shared_view
 from velma.executor.state import RobotSnapshot
 from velma.executor.timing import DEFAULT_WINDOW, DeadlineMonitor, Pacer, RealtimeSetup, TimingStats
@@ -57,9 +79,21 @@ INBOX_PER_CYCLE = 4  # messages taken from the command ring per cycle
 PARENT_CHECK = 1000  # cycles between checks that the parent process still exists
 DEFAULT_SPIN = 0.0003  # s before each release time that the real-time loop busy-waits instead of sleeping
 TIMING_REFRESH = 1.0  # s between recomputations of the timing attached to snapshots
+WORLD_PERIOD = 100  # cycles between world-state writes (10 Hz), when asked for
+WORLD_PHASE = 13  # … in cycles 13, 113…: neither a state publication nor a contact scan
+WORLD_CAPACITY = 65536  # B: sim time + qpos of up to 8 190 coordinates (the kitchen has 180)
 START_TIMEOUT = 120.0  # s for the loop process to build the scene and report Ready
 
 OnDone = Callable[[CommandResult | Observation], None]
+
+
+class WorldState(NamedTuple):
+    """The whole simulation state needed to draw the scene: ``sim_time`` (s) and MuJoCo's
+    ``qpos`` (shape ``(model.nq,)``, float64: the robot's joints, the free objects' and
+    particles' positions and unit quaternions)."""
+
+    sim_time: float
+    qpos: npt.NDArray[np.float64]
 
 
 # ---------------------------------------------------------------------- wire messages
@@ -95,10 +129,12 @@ class Shutdown(msgspec.Struct, frozen=True, tag="shutdown"):
 
 
 class Ready(msgspec.Struct, frozen=True, tag="ready"):
-    """The loop runs in process ``pid`` with ``setup`` (SCHED_FIFO? pinned?)."""
+    """The loop runs in process ``pid`` with ``setup`` (SCHED_FIFO? pinned?); ``checkpoint``:
+    whether it restored the world from a checkpoint (None: no checkpoint directory)."""
 
     pid: int
     setup: RealtimeSetup
+    checkpoint: RestoreReport | None = None
 
 
 class Done(msgspec.Struct, frozen=True, tag="done"):
@@ -136,6 +172,10 @@ class LoopConfig(msgspec.Struct, frozen=True, kw_only=True):
     monitor: str
     window: int
     parent_pid: int
+    world: str = ""  # the world-state block ("": not published)
+    checkpoint_dir: str = ""  # where checkpoints live ("": none)
+    checkpoint_block: str = ""  # the checkpoint block
+    fresh: bool = False  # delete the checkpoint instead of restoring it
 
 
 # ---------------------------------------------------------------------- loop process side
@@ -150,6 +190,7 @@ def loop_main(config: bytes, doorbell: multiprocessing.connection.Connection) ->
     inbox = SpscRing.attach(cfg.commands, SLOTS, SLOT_SIZE)
     outbox_ring = SpscRing.attach(cfg.results, SLOTS, SLOT_SIZE)
     state = LatestValue.attach(cfg.state, STATE_CAPACITY)
+    world = LatestValue.attach(cfg.world, WORLD_CAPACITY) if cfg.world else None
     mon_shm = shared_memory.SharedMemory(name=cfg.monitor)
     monitor = DeadlineMonitor(DT, realtime=cfg.realtime, window=cfg.window, buffer=shared_view(mon_shm))
     bell = doorbell.fileno()
@@ -159,6 +200,20 @@ def loop_main(config: bytes, doorbell: multiprocessing.connection.Connection) ->
 
     rt = Runtime(seed=cfg.seed, pose_seed=cfg.pose_seed)
     loop: ControlLoop[int] = ControlLoop(rt)
+    running = True
+
+    def on_signal(_signum: int, _frame: object) -> None:
+        nonlocal running
+        running = False  # end after this cycle, writing the final checkpoint
+
+    signal.signal(signal.SIGTERM, on_signal)
+    signal.signal(signal.SIGINT, on_signal)
+    keeper: LoopCheckpoints | None = None
+    restored: RestoreReport | None = None
+    if cfg.checkpoint_dir:  # may wait for the previous loop's final checkpoint (its lock)
+        keeper, restored = LoopCheckpoints.open(
+            Path(cfg.checkpoint_dir), rt, loop, block=cfg.checkpoint_block, fresh=cfg.fresh
+        )
     if cfg.realtime and cfg.realtime_priority:
         setup = enter_realtime(cpu=cfg.cpu, pin=cfg.pin)
     else:
@@ -178,16 +233,19 @@ def loop_main(config: bytes, doorbell: multiprocessing.connection.Connection) ->
         with contextlib.suppress(BlockingIOError, BrokenPipeError):
             os.write(bell, b"\x01")
 
-    pending.append(encode(Ready(pid=os.getpid(), setup=setup)))
-    state.write(encode(robot_snapshot(rt, None)))
+    world_buf = np.zeros(1 + rt.model.nq)  # [sim_time, qpos…], reused
+    if world is not None and world_buf.nbytes > WORLD_CAPACITY - 4:
+        pending.append(encode(Fault(command="world state", text=f"nq={rt.model.nq} does not fit")))
+        world = None
+    pending.append(encode(Ready(pid=os.getpid(), setup=setup, checkpoint=restored)))
+    state.write(encode(robot_snapshot(rt, loop.holding)))
     ring()
     # the scene and the controller are built: everything allocated so far lives for the whole
     # run; freezing it keeps the collector's passes short (gc.freeze, Python ≥ 3.7)
     gc.collect()
     gc.freeze()
 
-    running = True
-    cycle = 0
+    cycle = rt.cycles  # > 0 after a restore: the phases below stay those of the contact scans
     pacer = Pacer(DT, realtime=cfg.realtime, spin=cfg.spin)
     while running:
         start = pacer.begin()
@@ -219,6 +277,12 @@ def loop_main(config: bytes, doorbell: multiprocessing.connection.Connection) ->
             ring()
         if cycle % STATE_PERIOD == STATE_PHASE:
             state.write(encode(robot_snapshot(rt, loop.holding)))
+        if world is not None and cycle % WORLD_PERIOD == WORLD_PHASE:
+            world_buf[0] = rt.data.time
+            world_buf[1:] = rt.data.qpos
+            world.write(world_buf.tobytes())
+        if keeper is not None and cycle % CHECKPOINT_PERIOD == CHECKPOINT_PHASE:
+            keeper.publish(loop.holding)
         if cycle % PARENT_CHECK == 0 and os.getppid() != cfg.parent_pid:
             running = False  # orphaned: the communication side is gone
         cycle += 1
@@ -226,10 +290,13 @@ def loop_main(config: bytes, doorbell: multiprocessing.connection.Connection) ->
         monitor.record(pacer.release, start, end)
         pacer.wait()
     pending.extend(encode(Done(token=t, result=r)) for t, r in loop.abort("stopped"))
+    if keeper is not None and (error := keeper.close(loop.holding)) is not None:
+        pending.append(encode(Fault(command="checkpoint", text=error)))
     ring()
     del monitor
-    for block in (inbox, outbox_ring, state):
-        block.close()
+    for block in (inbox, outbox_ring, state, world):
+        if block is not None:
+            block.close()
     mon_shm.close()
 
 
@@ -245,7 +312,13 @@ class ExecutorProcess:
     is how long before each release the loop busy-waits instead of sleeping; ``pin=False``
     keeps SCHED_FIFO but lets the loop run on any CPU. ``on_done`` callbacks run on this
     side's reader thread, once per command. ``start`` raises ``RuntimeError`` if the loop process
-    does not come up within ``START_TIMEOUT`` s.
+    does not come up within ``START_TIMEOUT`` s. ``world_state`` makes the loop publish the
+    whole simulation state every ``WORLD_PERIOD`` cycles (read with ``world``).
+
+    ``checkpoint_dir`` (None: none) keeps the simulated world across restarts
+    (velma.executor.checkpoint): the loop restores ``<checkpoint_dir>/world.ckpt`` at start
+    (``restore_report`` says what happened; it is logged) unless ``fresh``, which deletes it;
+    checkpoints are written there every second of simulated time and when the loop ends.
     """
 
     def __init__(
@@ -259,8 +332,17 @@ class ExecutorProcess:
         cpu: int | None = None,
         pin: bool = True,
         window: int = DEFAULT_WINDOW,
+        world_state: bool = False,
+        checkpoint_dir: str | os.PathLike[str] | None = None,
+        fresh: bool = False,
     ) -> None:
         self.realtime = realtime
+        self.world_state = world_state
+        self.checkpoint_dir = Path(checkpoint_dir) if checkpoint_dir is not None else None
+        self.fresh = fresh
+        self.restore_report: RestoreReport | None = None
+        self._checkpoints: LatestValue | None = None
+        self._writer: CheckpointWriter | None = None
         self.seed = seed
         self.pose_seed = pose_seed
         self.realtime_priority = realtime_priority
@@ -281,6 +363,7 @@ class ExecutorProcess:
         self._commands: SpscRing | None = None
         self._results: SpscRing | None = None
         self._state: LatestValue | None = None
+        self._world: LatestValue | None = None
         self._mon_shm: shared_memory.SharedMemory | None = None
         self._monitor: DeadlineMonitor | None = None
         self._decode = msgspec.msgpack.Decoder(FromLoop).decode
@@ -294,6 +377,9 @@ class ExecutorProcess:
         self._commands = SpscRing.create(SLOTS, SLOT_SIZE)
         self._results = SpscRing.create(SLOTS, SLOT_SIZE)
         self._state = LatestValue.create(STATE_CAPACITY)
+        self._world = LatestValue.create(WORLD_CAPACITY) if self.world_state else None
+        if self.checkpoint_dir is not None:
+            self._checkpoints = LatestValue.create(CHECKPOINT_CAPACITY)
         self._mon_shm = shared_memory.SharedMemory(create=True, size=DeadlineMonitor.nbytes(self.window))
         shared_view(self._mon_shm)[:] = bytes(self._mon_shm.size)
         self._monitor = DeadlineMonitor(
@@ -313,6 +399,10 @@ class ExecutorProcess:
             monitor=self._mon_shm.name,
             window=self.window,
             parent_pid=os.getpid(),
+            world=self._world.name if self._world is not None else "",
+            checkpoint_dir=str(self.checkpoint_dir) if self.checkpoint_dir is not None else "",
+            checkpoint_block=self._checkpoints.name if self._checkpoints is not None else "",
+            fresh=self.fresh,
         )
         ctx = multiprocessing.get_context("spawn")
         reader_end, writer_end = ctx.Pipe(duplex=False)
@@ -333,6 +423,13 @@ class ExecutorProcess:
             reason = self.exit_reason
             self.stop()
             raise RuntimeError(f"executor loop process did not start: {reason}")
+        report = self.restore_report
+        if report is not None:
+            (log.warning if report.refused else log.info)("%s", report.text)
+        # no writer when the directory is unusable or in use: the loop then keeps no checkpoints
+        if self._checkpoints is not None and self.checkpoint_dir is not None and report and report.saving:
+            self._writer = CheckpointWriter(self._checkpoints, self.checkpoint_dir / FILE_NAME)
+            self._writer.start()
 
     def stop(self, timeout: float = 5.0) -> None:
         """Ask the loop process to end, wait for it (then terminate it), answer open commands
@@ -340,17 +437,23 @@ class ExecutorProcess:
         proc = self._proc
         if proc is None:
             return
+        if self._writer is not None:  # the loop writes the final checkpoint itself
+            self._writer.stop()
+            self._writer = None
         if self._commands is not None and proc.is_alive():
             self._commands.push(self._encode(Shutdown()))
         proc.join(timeout)
         if proc.is_alive():
-            proc.terminate()
+            proc.terminate()  # the loop ends at its next cycle (and writes its checkpoint)
+            proc.join(timeout)
+        if proc.is_alive():
+            proc.kill()
             proc.join(timeout)
         if self._reader is not None:
             self._reader.join(timeout)
         self._fail_open("stopped")
         self._monitor = None
-        for block in (self._commands, self._results, self._state):
+        for block in (self._commands, self._results, self._state, self._world, self._checkpoints):
             if block is not None:
                 block.close()
                 block.unlink()
@@ -359,7 +462,7 @@ class ExecutorProcess:
             self._mon_shm.unlink()
         if self._bell is not None:
             self._bell.close()
-        self._commands = self._results = self._state = None
+        self._commands = self._results = self._state = self._world = self._checkpoints = None
         self._mon_shm = None
         self._proc = None
 
@@ -415,6 +518,17 @@ class ExecutorProcess:
             self._timing_cache = (now, self.timing(snap.sim_time))
         return msgspec.structs.replace(snap, timing=self._timing_cache[1])
 
+    def world(self) -> WorldState | None:
+        """The latest whole simulation state (at most ``WORLD_PERIOD`` ms of simulation old),
+        or None when it was not asked for (``world_state=False``), before ``start``, after
+        ``stop``, or before the loop published one. Do not call it concurrently with ``stop``."""
+        block = self._world
+        raw = block.read() if block is not None else None
+        if raw is None:
+            return None
+        values = np.frombuffer(raw, dtype=np.float64)
+        return WorldState(sim_time=float(values[0]), qpos=values[1:])
+
     def timing(self, sim_time: float | None = None) -> TimingStats:
         """The loop's deadline statistics (computed here, from the shared monitor) at
         ``sim_time`` (default: that of the latest robot state). Raises ``RuntimeError``
@@ -458,6 +572,7 @@ class ExecutorProcess:
                 self._answer(msg.token, msg.result)
             elif isinstance(msg, Ready):
                 self.setup = msg.setup
+                self.restore_report = msg.checkpoint
                 self._ready.set()
             else:
                 log.error("executor command %s raised %s", msg.command, msg.text)

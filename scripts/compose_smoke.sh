@@ -1,0 +1,196 @@
+#!/usr/bin/env bash
+# The compose smoke test (CI, as root, on a Debian machine with no registry but Debian's and
+# PyPI): a real Docker engine runs the fleet of deploy/compose.yaml and the pour is sent from the
+# host through the router's published port, with a_km restarted mid-task.
+#
+#   engine   Debian's docker.io, docker-compose (1.29) and debootstrap, installed if missing;
+#            dockerd started in the background if no engine answers (and stopped at the end)
+#   build    scripts/build_image.sh: wheelhouse, local base, docker build with no network
+#   up       `compose up -d` under a project of its own, on free host ports
+#   healthy  every service healthy (health checks from Zenoh liveliness; router and viewer by TCP)
+#   pour     `roco send "pour the jar into the bowl"` from the host, in the background; once a_co
+#            has sent a_ta plan #1 (the first request on C1 in the run folder's traffic.jsonl),
+#            `compose restart a_km`; the pour must end "succeeded" and the restarted a_km must
+#            have kept its knowledge (its store is a volume)
+#   down     `compose down -v` (the project's volumes too); the run folder stays in runs/
+#
+# Prints the time of each phase and a closing line "compose_smoke: N passed, N failed".
+# Environment: ROCO_BIN (the host's roco, default .venv/bin/roco, else roco on PATH),
+#   COMPOSE (the compose command, default `docker compose` if it works, else docker-compose),
+#   ROCO_SMOKE_KEEP=1 (leave the fleet up and dockerd running on failure, to look at it).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+repo=$(pwd)
+
+SENTENCE="pour the jar into the bowl"
+PROJECT=${ROCO_SMOKE_PROJECT:-rocosmoke}
+RUN_NAME=smoke-$(date -u +%Y%m%d-%H%M%S)
+work=$(mktemp -d /var/tmp/roco-smoke.XXXXXX)
+dockerd_pid=""
+compose_up=0
+send_pid=""
+failed=1
+
+t0=$(date +%s)
+phase_start=$t0
+timings=()
+phase() {  # phase NAME: the phase that just ended, with its time
+    local now
+    now=$(date +%s)
+    timings+=("$(printf '%-8s %4d s' "$1" "$((now - phase_start))")")
+    echo "compose_smoke: phase $1 done in $((now - phase_start)) s"
+    phase_start=$now
+}
+say() { echo "compose_smoke: $*"; }
+
+free_port() {
+    python3 -c 'import socket; s = socket.socket(); s.bind(("127.0.0.1", 0)); print(s.getsockname()[1]); s.close()'
+}
+
+finish() {
+    local rc=$?
+    [ $rc -ne 0 ] && failed=1
+    if [ -n "$send_pid" ] && kill -0 "$send_pid" 2>/dev/null; then kill "$send_pid" 2>/dev/null || true; fi
+    if [ "$failed" = 1 ] && [ "$compose_up" = 1 ]; then
+        say "FAILED: the fleet as it is now"
+        $COMPOSE ps || true
+        $COMPOSE logs --tail 20 2>&1 | tail -120 || true
+        for f in "$repo/runs/$RUN_NAME"/logs/*.log; do
+            [ -f "$f" ] && { echo "--- $f (tail)"; tail -5 "$f"; }
+        done
+    fi
+    if [ "${ROCO_SMOKE_KEEP:-0}" = 1 ] && [ "$failed" = 1 ]; then
+        say "ROCO_SMOKE_KEEP=1: the fleet (project $PROJECT) and dockerd (pid ${dockerd_pid:-not started here}) are left running"
+    else
+        if [ "$compose_up" = 1 ]; then $COMPOSE down -v --timeout 20 >/dev/null 2>&1 || true; fi
+        if [ -n "$dockerd_pid" ]; then
+            kill "$dockerd_pid" 2>/dev/null || true
+            for _ in $(seq 60); do kill -0 "$dockerd_pid" 2>/dev/null || break; sleep 0.5; done
+        fi
+    fi
+    rm -rf "$work"
+    echo "compose_smoke: timings"
+    for line in "${timings[@]}"; do echo "  $line"; done
+    echo "  total    $(($(date +%s) - t0)) s"
+    if [ "$failed" = 0 ]; then
+        echo "compose_smoke: 1 passed, 0 failed"
+        exit 0
+    fi
+    echo "compose_smoke: 0 passed, 1 failed"
+    exit 1
+}
+trap finish EXIT
+
+# --- engine --------------------------------------------------------------------------------
+if [ "$(id -u)" != 0 ]; then say "must run as root (it installs and starts the Docker engine)"; exit 1; fi
+need=()
+command -v dockerd >/dev/null || [ -x /usr/sbin/dockerd ] || need+=(docker.io)
+command -v docker-compose >/dev/null || need+=(docker-compose)
+command -v debootstrap >/dev/null || need+=(debootstrap)
+if [ ${#need[@]} -gt 0 ]; then
+    say "installing ${need[*]} from Debian"
+    apt-get update -q >/dev/null
+    DEBIAN_FRONTEND=noninteractive apt-get install -y -q "${need[@]}" >"$work/apt.log" 2>&1 ||
+        { tail -20 "$work/apt.log"; exit 1; }
+fi
+if ! docker info >/dev/null 2>&1; then
+    say "starting dockerd (log /var/tmp/roco-smoke-dockerd.log)"
+    /usr/sbin/dockerd >/var/tmp/roco-smoke-dockerd.log 2>&1 &
+    dockerd_pid=$!
+    for _ in $(seq 120); do docker info >/dev/null 2>&1 && break; sleep 0.5; done
+    docker info >/dev/null 2>&1 || { tail -20 /var/tmp/roco-smoke-dockerd.log; say "dockerd did not start"; exit 1; }
+fi
+if [ -z "${COMPOSE:-}" ]; then
+    if docker compose version >/dev/null 2>&1; then COMPOSE="docker compose"; else COMPOSE=docker-compose; fi
+fi
+COMPOSE="$COMPOSE -f deploy/compose.yaml -p $PROJECT"
+say "engine $(docker version -f '{{.Server.Version}}'), compose: $COMPOSE"
+ROCO_BIN=${ROCO_BIN:-}
+if [ -z "$ROCO_BIN" ]; then
+    if [ -x .venv/bin/roco ]; then ROCO_BIN=.venv/bin/roco; else ROCO_BIN=$(command -v roco || true); fi
+fi
+[ -n "$ROCO_BIN" ] || { say "no roco on the host (python3 -m venv .venv && .venv/bin/pip install -e .)"; exit 1; }
+phase engine
+
+# --- build ---------------------------------------------------------------------------------
+PYTHON=${PYTHON:-$(dirname "$ROCO_BIN")/python}
+[ -x "$PYTHON" ] || PYTHON=python3
+PYTHON=$PYTHON bash scripts/build_image.sh
+phase build
+
+# --- up ------------------------------------------------------------------------------------
+router_port=$(free_port)
+export ROCO_RUN=$RUN_NAME ROCO_RUNS="$repo/runs" ROCO_ROUTER_PUBLISH="127.0.0.1:$router_port"
+export ROCO_VIEWER_WEB_PORT ROCO_VIEWER_GRPC_PORT
+ROCO_VIEWER_WEB_PORT=$(free_port)
+ROCO_VIEWER_GRPC_PORT=$(free_port)
+endpoint="tcp/127.0.0.1:$router_port"
+run_dir="$repo/runs/$RUN_NAME"
+$COMPOSE down -v --timeout 5 >/dev/null 2>&1 || true  # a project left over by an earlier run
+compose_up=1
+$COMPOSE up -d >"$work/up.log" 2>&1 || { cat "$work/up.log"; exit 1; }
+phase up
+
+# --- healthy -------------------------------------------------------------------------------
+services=(router recorder a_km a_pl a_co ag_ex a_ta a_hi viewer)
+declare -A cid
+for s in "${services[@]}"; do
+    cid[$s]=$($COMPOSE ps -q "$s")
+    [ -n "${cid[$s]}" ] || { say "no container for $s"; exit 1; }
+done
+health() { docker inspect -f '{{if .State.Health}}{{.State.Health.Status}}{{else}}{{.State.Status}}{{end}}' "${cid[$1]}" 2>/dev/null || echo missing; }
+deadline=$(($(date +%s) + 300))
+while :; do
+    pending=()
+    for s in "${services[@]}"; do [ "$(health "$s")" = healthy ] || pending+=("$s"); done
+    [ ${#pending[@]} -eq 0 ] && break
+    if [ "$(date +%s)" -gt "$deadline" ]; then say "not healthy after 300 s: ${pending[*]}"; exit 1; fi
+    sleep 1
+done
+say "all healthy $(( $(date +%s) - phase_start )) s after up"
+"$ROCO_BIN" status --router "$endpoint"
+phase healthy
+
+# --- pour, with a_km restarted mid-task ----------------------------------------------------
+say "sending \"$SENTENCE\" to $endpoint; run folder $run_dir"
+"$ROCO_BIN" send --router "$endpoint" --timeout 900 "$SENTENCE" >"$work/send.log" 2>&1 &
+send_pid=$!
+deadline=$(($(date +%s) + 300))
+# the task runs once a_co has sent a_ta plan #1 (the first request on C1)
+until grep '"channel":"C1"' "$run_dir/traffic.jsonl" 2>/dev/null | grep -q '"performative":"request"'; do
+    kill -0 "$send_pid" 2>/dev/null || { cat "$work/send.log"; say "roco send ended before the task started"; exit 1; }
+    [ "$(date +%s)" -le "$deadline" ] || { cat "$work/send.log"; say "the task did not start in 300 s"; exit 1; }
+    sleep 0.2
+done
+say "task started ($(grep -c '' "$run_dir/traffic.jsonl") communicates so far): restarting a_km"
+r0=$(date +%s)
+$COMPOSE restart a_km >/dev/null 2>&1
+until [ "$(health a_km)" = healthy ]; do
+    [ $(($(date +%s) - r0)) -le 120 ] || { say "a_km not healthy 120 s after its restart"; exit 1; }
+    sleep 0.5
+done
+say "a_km restarted and healthy again in $(($(date +%s) - r0)) s"
+send_rc=0
+wait "$send_pid" || send_rc=$?
+send_pid=""
+tail -3 "$work/send.log"
+if [ "$send_rc" != 0 ] || ! tail -1 "$work/send.log" | grep -q '^succeeded:'; then
+    say "the pour did not succeed (roco send exit $send_rc)"
+    exit 1
+fi
+kept=$(grep -c 'kept from before' "$run_dir/logs/a_km.log" || true)
+[ "$kept" -ge 1 ] || { say "the restarted a_km did not find its store (no 'kept from before' in its log)"; exit 1; }
+say "the pour succeeded; the restarted a_km kept its knowledge"
+phase pour
+
+# --- down ----------------------------------------------------------------------------------
+$COMPOSE down -v --timeout 30 >"$work/down.log" 2>&1 || { cat "$work/down.log"; exit 1; }
+compose_up=0
+if [ -s "$run_dir/recording.rrd" ]; then
+    say "Rerun recording $(du -h "$run_dir/recording.rrd" | cut -f1)"
+else
+    say "no merged Rerun recording in $run_dir (not a failure)"
+fi
+"$ROCO_BIN" report "$run_dir" >/dev/null && say "report $run_dir/report.md"
+phase down
+failed=0

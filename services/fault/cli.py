@@ -1,0 +1,442 @@
+"""``roco fault``: inject faults into a running fleet (docs/faults.md).
+
+    roco fault kill|stop|start|pause|unpause|restart SERVICE
+    roco fault net SERVICE [--delay S] [--loss P] [--partition|--heal]
+    roco fault msg CHANNEL [--drop P] [--duplicate P] [--delay S [--delay-p P]] [--reorder P]
+                           [--corrupt P] [--seed N]
+    roco fault clear [SERVICE|CHANNEL]
+    roco fault show
+
+Local fleet (``roco up``): process faults by PID, network and message faults through the
+agents' fault layer over Zenoh. Compose (``--compose``, or ``ROCO_COMPOSE_PROJECT`` set):
+process faults with ``docker compose``, network faults with ``docker network`` and ``tc
+netem``; message faults still over Zenoh (``--router``). Bad input: one line, exit 2.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import math
+import os
+from collections.abc import Callable, Iterator
+from pathlib import Path
+from typing import Annotated
+
+import typer
+import zenoh
+
+from services.fault import process
+from services.fault.compose import COMPOSE_SERVICES, DEFAULT_FILE, PROJECT_ENV, Compose
+from services.fault.process import ACTIONS, LOCAL_SERVICES, FaultError, UpFleet
+from services.runtime.faults import (
+    ANY_CHANNEL,
+    FaultEvent,
+    FaultReport,
+    FaultUpdate,
+    MessageFaults,
+    NetFaults,
+)
+from services.runtime.launcher import AGENT_ORDER
+
+fault_app = typer.Typer(
+    add_completion=False,
+    no_args_is_help=True,
+    help="Inject faults into a running fleet: processes, network, messages (docs/faults.md).",
+)
+
+DEFAULT_ROUTER = "tcp/127.0.0.1:7447"
+RunsDir = Annotated[Path, typer.Option(help="where 'roco up' keeps its fleet state")]
+ComposeFlag = Annotated[
+    bool | None,
+    typer.Option(
+        "--compose/--local", help=f"a Docker Compose deployment (default: local unless ${PROJECT_ENV} is set)"
+    ),
+]
+Project = Annotated[str | None, typer.Option(help=f"compose project name (default: ${PROJECT_ENV})")]
+ComposeFile = Annotated[Path, typer.Option(help="the compose file")]
+Router = Annotated[
+    str | None, typer.Option(help="router endpoint (default: the fleet of 'roco up', else $ROCO_ROUTER)")
+]
+
+
+def fail(message: str, code: int = 1) -> typer.Exit:
+    typer.echo(f"roco: {message}", err=True)
+    return typer.Exit(code)
+
+
+def _compose(flag: bool | None, project: str | None, file: Path, runs_dir: Path) -> Compose | None:
+    use = flag if flag is not None else bool(os.environ.get(PROJECT_ENV))
+    if not use:
+        return None
+    return Compose(file=file, project=project or os.environ.get(PROJECT_ENV) or None, state_dir=runs_dir)
+
+
+def _endpoint(router: str | None, runs_dir: Path) -> str:
+    if router:
+        return router
+    try:
+        return UpFleet.load(runs_dir).endpoint
+    except FaultError:
+        return os.environ.get("ROCO_ROUTER", DEFAULT_ROUTER)
+
+
+@contextlib.contextmanager
+def _session(endpoint: str) -> Iterator[zenoh.Session]:
+    """A client session with the router at ``endpoint``, closed on leaving."""
+    from services.runtime.launcher import open_client
+
+    try:
+        session = open_client(endpoint)
+    except Exception:
+        raise fail(f"no router answers at {endpoint}; is the fleet up?") from None
+    try:
+        yield session
+    finally:
+        session.close()
+
+
+def _record(endpoint: str, events: list[FaultEvent]) -> None:
+    """Hand the events to the traffic recorder; a warning (not a failure) when it cannot."""
+    from services.runtime.launcher import alive_agents, open_client
+
+    try:
+        session = open_client(endpoint)
+    except Exception:
+        typer.echo(f"roco: (fault not recorded: no router answers at {endpoint})", err=True)
+        return
+    try:
+        if "recorder" not in alive_agents(session, timeout=0.5):
+            typer.echo("roco: (fault not recorded: the traffic recorder is not alive)", err=True)
+            return
+        if not process.record_events(session, events):
+            typer.echo("roco: (the traffic recorder did not confirm the fault event)", err=True)
+    finally:
+        session.close()
+
+
+def _compose_faults(endpoint: str, apply: Callable[[list[FaultEvent]], None]) -> None:
+    """Run ``apply`` (it appends the events of the container faults it applies), tell what
+    was applied and hand the events to the traffic recorder; a :class:`FaultError`: one line,
+    exit 1."""
+    events: list[FaultEvent] = []
+    try:
+        apply(events)
+    except FaultError as exc:
+        raise fail(str(exc)) from None
+    for ev in events:
+        typer.echo(f"roco: {ev.target}: {ev.kind} {ev.detail}")
+    _record(endpoint, events)
+
+
+# ---- process faults ----------------------------------------------------------------------
+_PAST = {
+    "kill": "killed",
+    "stop": "stopped",
+    "start": "started",
+    "pause": "paused",
+    "unpause": "unpaused",
+    "restart": "restarted",
+}
+
+
+def _process_fault(action: str) -> None:
+    def command(
+        service: Annotated[str, typer.Argument(help=f"one of {', '.join(COMPOSE_SERVICES)}")],
+        runs_dir: RunsDir = Path("runs"),
+        compose: ComposeFlag = None,
+        project: Project = None,
+        compose_file: ComposeFile = DEFAULT_FILE,
+        router: Router = None,
+        timeout: Annotated[float, typer.Option(help="seconds to wait for the service")] = 60.0,
+    ) -> None:
+        dc = _compose(compose, project, compose_file, runs_dir)
+        try:
+            if dc is not None:
+                event = dc.process(action, service)
+                endpoint = _endpoint(router, runs_dir)
+            else:
+                if service not in LOCAL_SERVICES:
+                    raise fail(
+                        f"no service {service!r} in a local fleet (services: {', '.join(LOCAL_SERVICES)})",
+                        code=2,
+                    )
+                fleet = UpFleet.load(runs_dir)
+                event = process.apply(fleet, action, service, timeout)
+                endpoint = fleet.endpoint
+        except FaultError as exc:
+            raise fail(str(exc)) from None
+        typer.echo(f"roco: {_PAST[action]} {service} ({event.detail})")
+        _record(endpoint, [event])
+
+    command.__doc__ = {
+        "kill": "Kill SERVICE (SIGKILL; compose: docker compose kill).",
+        "stop": "Stop SERVICE (SIGTERM, SIGKILL after 10 s; compose: docker compose stop).",
+        "start": "Start SERVICE again as the launcher did and wait until it is alive.",
+        "pause": "Freeze SERVICE (SIGSTOP; compose: docker compose pause).",
+        "unpause": "Let a paused SERVICE run again (SIGCONT).",
+        "restart": "Stop SERVICE, then start it again.",
+    }[action]
+    fault_app.command(action)(command)
+
+
+for _action in ACTIONS:
+    _process_fault(_action)
+
+
+# ---- network faults ----------------------------------------------------------------------
+def _probability(name: str, value: float | None) -> None:
+    if value is not None and not (0.0 <= value <= 1.0):
+        raise fail(f"{name} must be a probability in [0, 1], not {value:g}", code=2)
+
+
+def _seconds(name: str, value: float | None) -> None:
+    if value is not None and not (math.isfinite(value) and 0.0 <= value <= 3600.0):
+        raise fail(f"{name} must be seconds in [0, 3600], not {value:g}", code=2)
+
+
+def _net_text(net: NetFaults) -> str:
+    parts = []
+    if net.delay_s:
+        parts.append(f"delay {net.delay_s:g} s")
+    if net.loss:
+        parts.append(f"loss {net.loss:g}")
+    if net.partition:
+        parts.append("partitioned")
+    return ", ".join(parts) or "none"
+
+
+@fault_app.command()
+def net(
+    service: Annotated[str, typer.Argument(help="the service whose network is disturbed")],
+    delay: Annotated[float | None, typer.Option(help="seconds added to everything it sends")] = None,
+    loss: Annotated[float | None, typer.Option(help="probability that something it sends is lost")] = None,
+    partition: Annotated[
+        bool | None, typer.Option("--partition/--heal", help="cut it off (in and out) / connect it again")
+    ] = None,
+    dev: Annotated[str, typer.Option(help="compose: the container's interface for tc netem")] = "eth0",
+    runs_dir: RunsDir = Path("runs"),
+    compose: ComposeFlag = None,
+    project: Project = None,
+    compose_file: ComposeFile = DEFAULT_FILE,
+    router: Router = None,
+) -> None:
+    """Network faults of one service: delay, loss, partition.
+
+    Options not given keep their current value; --delay 0 --loss 0 remove them."""
+    _seconds("--delay", delay)
+    _probability("--loss", loss)
+    if delay is None and loss is None and partition is None:
+        raise fail("nothing to change: give --delay, --loss, --partition or --heal", code=2)
+    dc = _compose(compose, project, compose_file, runs_dir)
+    endpoint = _endpoint(router, runs_dir)
+    if dc is not None:
+
+        def apply(events: list[FaultEvent]) -> None:
+            if delay is not None or loss is not None:
+                events.append(dc.netem(service, delay or 0.0, loss or 0.0, dev))
+            if partition is True:
+                events.append(dc.partition(service))
+            elif partition is False:
+                events.append(dc.heal(service))
+
+        _compose_faults(endpoint, apply)
+        return
+    if service not in AGENT_ORDER:
+        raise fail(
+            f"network faults of {service!r} need --compose (locally only the agents "
+            f"{', '.join(AGENT_ORDER)} have the fault layer)",
+            code=2,
+        )
+    from services.fault.control import send_update
+
+    with _session(endpoint) as session:
+        current, missing = send_update(session, FaultUpdate(), service)
+        if missing:
+            raise fail(f"{service} did not answer at {endpoint}; is it running?")
+        now = current[service].net
+        new = NetFaults(
+            delay_s=now.delay_s if delay is None else delay,
+            loss=now.loss if loss is None else loss,
+            partition=now.partition if partition is None else partition,
+        )
+        got, missing = send_update(session, FaultUpdate(set_services={service: new}), service)
+    if missing:
+        raise fail(f"{service} did not confirm the change")
+    typer.echo(f"roco: {service} network faults: {_net_text(got[service].net)}")
+
+
+# ---- message faults ----------------------------------------------------------------------
+def _channels() -> list[str]:
+    from services.spec.model import default_spec
+
+    return [c.name for c in default_spec().channels]
+
+
+def _msg_text(mf: MessageFaults) -> str:
+    parts = [
+        f"{name} {value:g}"
+        for name, value in (
+            ("drop", mf.drop),
+            ("duplicate", mf.duplicate),
+            ("reorder", mf.reorder),
+            ("corrupt", mf.corrupt),
+        )
+        if value
+    ]
+    if mf.delay and mf.delay_s:
+        parts.insert(1, f"delay {mf.delay_s:g} s (p {mf.delay:g})")
+    return ", ".join(parts) or "none"
+
+
+@fault_app.command()
+def msg(
+    channel: Annotated[str, typer.Argument(help="C1..C6, or '*' for every channel")],
+    drop: Annotated[float, typer.Option(help="probability a communicate is dropped")] = 0.0,
+    duplicate: Annotated[float, typer.Option(help="probability it is sent twice")] = 0.0,
+    delay: Annotated[float | None, typer.Option(help="seconds a delayed communicate is late")] = None,
+    delay_p: Annotated[
+        float | None, typer.Option(help="probability it is delayed (default 1 with --delay)")
+    ] = None,
+    reorder: Annotated[float, typer.Option(help="probability it is held and sent after the next one")] = 0.0,
+    hold: Annotated[float, typer.Option(help="the longest a reordered communicate is held (s)")] = 1.0,
+    corrupt: Annotated[float, typer.Option(help="probability 1–3 of its bytes are flipped")] = 0.0,
+    seed: Annotated[int | None, typer.Option(help="reseed every agent's fault RNG")] = None,
+    runs_dir: RunsDir = Path("runs"),
+    router: Router = None,
+) -> None:
+    """Message faults on one channel: drop, duplicate, delay, reorder, corrupt.
+
+    Applied by the sending agent's transport, replacing the channel's previous ones; works
+    on local and compose fleets alike (over Zenoh)."""
+    known = _channels()
+    if channel not in (*known, ANY_CHANNEL):
+        raise fail(f"unknown channel {channel!r} (channels: {', '.join(known)}, or '*')", code=2)
+    for name, p in (
+        ("--drop", drop),
+        ("--duplicate", duplicate),
+        ("--delay-p", delay_p),
+        ("--reorder", reorder),
+        ("--corrupt", corrupt),
+    ):
+        _probability(name, p)
+    _seconds("--delay", delay)
+    _seconds("--hold", hold)
+    if delay_p is not None and delay is None:
+        raise fail("--delay-p needs --delay S", code=2)
+    mf = MessageFaults(
+        drop=drop,
+        duplicate=duplicate,
+        delay=(1.0 if delay_p is None else delay_p) if delay else 0.0,
+        delay_s=delay or 0.0,
+        reorder=reorder,
+        hold_s=hold,
+        corrupt=corrupt,
+    )
+    if not mf.active() and seed is None:
+        raise fail(f"no fault given (use 'roco fault clear {channel}' to remove {channel}'s faults)", code=2)
+    from services.fault.control import send_update
+
+    endpoint = _endpoint(router, runs_dir)
+    update = FaultUpdate(set_channels={channel: mf} if mf.active() else {}, seed=seed)
+    with _session(endpoint) as session:
+        got, missing = send_update(session, update)
+    if not got:
+        raise fail(f"no agent answered at {endpoint}; is the fleet up?")
+    if missing:
+        typer.echo(f"roco: no answer from {', '.join(missing)}", err=True)
+    typer.echo(f"roco: {channel}: {_msg_text(mf)} on {', '.join(sorted(got))}")
+    if missing:
+        raise typer.Exit(1)
+
+
+# ---- clear and show ----------------------------------------------------------------------
+@fault_app.command()
+def clear(
+    target: Annotated[str | None, typer.Argument(help="a service or a channel (none: every fault)")] = None,
+    dev: Annotated[str, typer.Option(help="compose: the containers' interface for tc netem")] = "eth0",
+    runs_dir: RunsDir = Path("runs"),
+    compose: ComposeFlag = None,
+    project: Project = None,
+    compose_file: ComposeFile = DEFAULT_FILE,
+    router: Router = None,
+) -> None:
+    """Remove message and network faults of a channel, a service, or all.
+
+    Processes stopped or paused stay so: start or unpause them."""
+    channels = _channels()
+    if target is not None and target not in (*channels, ANY_CHANNEL, *COMPOSE_SERVICES):
+        raise fail(f"{target!r} is neither a channel ({', '.join(channels)}) nor a service", code=2)
+    dc = _compose(compose, project, compose_file, runs_dir)
+    endpoint = _endpoint(router, runs_dir)
+    if dc is not None and (target is None or target in COMPOSE_SERVICES):
+
+        def apply(events: list[FaultEvent]) -> None:
+            for service in [target] if target else COMPOSE_SERVICES:
+                if service in dc.partitioned():
+                    events.append(dc.heal(service))
+                if target is not None:
+                    events.append(dc.netem(service, 0.0, 0.0, dev))
+                else:
+                    # not running, or no tc in its image: nothing to clear there
+                    with contextlib.suppress(FaultError):
+                        events.append(dc.netem(service, 0.0, 0.0, dev))
+
+        _compose_faults(endpoint, apply)
+    from services.fault.control import send_update
+
+    if target in AGENT_ORDER:
+        update, to = FaultUpdate(clear_services=[target]), target
+    elif target is None:
+        update, to = FaultUpdate(clear_channels=["*"], clear_services=["*"]), None
+    elif target in (*channels, ANY_CHANNEL):
+        update, to = FaultUpdate(clear_channels=[target]), None
+    else:
+        if dc is None:
+            raise fail(f"{target} has no fault layer locally: nothing to clear", code=2)
+        return
+    with _session(endpoint) as session:
+        got, missing = send_update(session, update, to)
+    if not got:
+        raise fail(f"no agent answered at {endpoint}")
+    typer.echo(f"roco: faults of {target or 'every channel and service'} cleared on {', '.join(sorted(got))}")
+    if missing:
+        raise fail(f"no answer from {', '.join(missing)}")
+
+
+def _report_line(r: FaultReport) -> str:
+    chans = "; ".join(f"{c} {_msg_text(mf)}" for c, mf in sorted(r.channels.items())) or "none"
+    applied = ", ".join(f"{k} {v}" for k, v in sorted(r.applied.items())) or "none"
+    return f"{r.agent:6s} net: {_net_text(r.net)} | channels: {chans} | applied: {applied} | seed {r.seed}"
+
+
+@fault_app.command()
+def show(
+    dev: Annotated[str, typer.Option(help="compose: the containers' interface for tc netem")] = "eth0",
+    runs_dir: RunsDir = Path("runs"),
+    compose: ComposeFlag = None,
+    project: Project = None,
+    compose_file: ComposeFile = DEFAULT_FILE,
+    router: Router = None,
+) -> None:
+    """Each agent's fault settings and the faults it applied so far.
+
+    With --compose also each container's tc qdisc and the partitions."""
+    from services.fault.control import send_update
+
+    endpoint = _endpoint(router, runs_dir)
+    with _session(endpoint) as session:
+        got, missing = send_update(session, FaultUpdate())
+    for name in sorted(got, key=lambda n: AGENT_ORDER.index(n) if n in AGENT_ORDER else 99):
+        typer.echo(_report_line(got[name]))
+    for name in missing:
+        typer.echo(f"{name:6s} no answer")
+    dc = _compose(compose, project, compose_file, runs_dir)
+    if dc is not None:
+        typer.echo(f"partitioned (compose): {', '.join(dc.partitioned()) or 'none'}")
+        for service in COMPOSE_SERVICES:
+            try:
+                typer.echo(f"{service:8s} tc: {dc.tc_show(service, dev)}")
+            except FaultError as exc:
+                typer.echo(f"{service:8s} {exc}")
+    if not got and dc is None:
+        raise fail(f"no agent answered at {endpoint}")

@@ -1,0 +1,196 @@
+"""Process and network faults on a Docker Compose deployment (``deploy/compose.yaml``).
+
+- process faults: ``docker compose -f FILE [-p PROJECT] kill|stop|start|pause|unpause|restart
+  SERVICE`` (``docker-compose`` when the ``docker compose`` plugin is absent);
+- partition: ``docker network disconnect`` the service's container from each of its
+  networks (remembered, with the container's aliases, in ``runs/.fault_partitions.json``) and
+  ``docker network connect --alias …`` to heal; without a record, the project's default
+  network ``<project>_default`` with the service name as alias;
+- delay and loss: ``docker exec CONTAINER tc qdisc replace dev eth0 root netem delay …ms
+  loss …%`` (``tc qdisc del dev eth0 root`` to clear). This needs ``tc`` (Debian's
+  ``iproute2``) in the service's image and the ``NET_ADMIN`` capability (``cap_add:
+  [NET_ADMIN]`` in compose.yaml).
+
+The command runner is injectable (tests check the command lines without a Docker engine).
+"""
+
+from __future__ import annotations
+
+import json
+import shutil
+import subprocess
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from services.fault.process import INJECTOR, FaultError
+from services.runtime.faults import FaultEvent
+
+COMPOSE_SERVICES = ("router", "a_km", "a_pl", "a_co", "ag_ex", "a_ta", "a_hi", "recorder", "viewer")
+DEFAULT_FILE = Path("deploy/compose.yaml")
+PARTITIONS_FILE = ".fault_partitions.json"
+PROJECT_ENV = "ROCO_COMPOSE_PROJECT"
+
+Runner = Callable[[Sequence[str]], "subprocess.CompletedProcess[str]"]
+
+
+def run_command(args: Sequence[str]) -> subprocess.CompletedProcess[str]:
+    """Run ``args``, capturing text output; a missing program is exit code 127."""
+    try:
+        return subprocess.run(list(args), capture_output=True, text=True, timeout=120, check=False)
+    except FileNotFoundError as exc:
+        return subprocess.CompletedProcess(list(args), 127, "", str(exc))
+
+
+def _last_line(text: str) -> str:
+    lines = [line.strip() for line in text.strip().splitlines() if line.strip()]
+    return lines[-1] if lines else ""
+
+
+@dataclass
+class Compose:
+    """One compose deployment: its ``file``, ``project`` name (None: compose's default, the
+    file's folder name), where partitions are remembered (``state_dir``)."""
+
+    file: Path = DEFAULT_FILE
+    project: str | None = None
+    state_dir: Path = Path("runs")
+    run: Runner = run_command
+    _base: list[str] | None = field(default=None, init=False, repr=False)
+
+    # ---- docker ---------------------------------------------------------------------------
+    def base(self) -> list[str]:
+        """``docker compose -f FILE [-p PROJECT]`` or ``docker-compose …``; FaultError when
+        neither is installed."""
+        if self._base is None:
+            if shutil.which("docker") and self.run(["docker", "compose", "version"]).returncode == 0:
+                cmd = ["docker", "compose"]
+            elif shutil.which("docker-compose"):
+                cmd = ["docker-compose"]
+            else:
+                raise FaultError("neither 'docker compose' nor 'docker-compose' is installed")
+            cmd += ["-f", str(self.file)]
+            if self.project:
+                cmd += ["-p", self.project]
+            self._base = cmd
+        return self._base
+
+    def _check(self, args: Sequence[str], what: str) -> str:
+        out = self.run(args)
+        if out.returncode != 0:
+            why = _last_line(out.stderr) or _last_line(out.stdout) or f"exit code {out.returncode}"
+            raise FaultError(f"{what} failed: {why}")
+        return out.stdout
+
+    @property
+    def project_name(self) -> str:
+        return self.project or self.file.resolve().parent.name
+
+    def container(self, service: str) -> str:
+        """The id of ``service``'s container; FaultError when it has none."""
+        _check_service(service)
+        out = self._check([*self.base(), "ps", "-q", service], f"docker compose ps {service}")
+        ids = out.split()
+        if not ids:
+            raise FaultError(f"{service} has no container in compose project {self.project_name}")
+        return ids[0]
+
+    # ---- process faults -------------------------------------------------------------------
+    def process(self, action: str, service: str) -> FaultEvent:
+        """``docker compose ACTION SERVICE``."""
+        _check_service(service)
+        if action not in ("kill", "stop", "start", "pause", "unpause", "restart"):
+            raise FaultError(f"unknown process fault {action!r}")
+        self._check([*self.base(), action, service], f"docker compose {action} {service}")
+        return _event(action, service, f"compose project {self.project_name}")
+
+    # ---- network faults -------------------------------------------------------------------
+    def netem(self, service: str, delay_s: float, loss: float, dev: str = "eth0") -> FaultEvent:
+        """Egress delay and loss of ``service``'s container with tc netem (both 0: cleared)."""
+        cid = self.container(service)
+        if not delay_s and not loss:
+            out = self.run(["docker", "exec", cid, "tc", "qdisc", "del", "dev", dev, "root"])
+            if (
+                out.returncode != 0
+                and "No such file" not in out.stderr
+                and "handle of zero" not in out.stderr
+            ):
+                raise FaultError(f"tc in {service} failed: {_last_line(out.stderr) or out.returncode}")
+            return _event("net", service, "netem cleared")
+        netem = ["netem"]
+        if delay_s:
+            netem += ["delay", f"{delay_s * 1000:g}ms"]
+        if loss:
+            netem += ["loss", f"{loss * 100:g}%"]
+        args = ["docker", "exec", cid, "tc", "qdisc", "replace", "dev", dev, "root", *netem]
+        self._check(args, f"tc in {service} (needs iproute2 and NET_ADMIN in its container)")
+        return _event("net", service, " ".join(netem))
+
+    def _partitions(self) -> dict[str, dict[str, list[str]]]:
+        try:
+            data = json.loads((self.state_dir / PARTITIONS_FILE).read_text())
+        except (OSError, ValueError):
+            return {}
+        return data if isinstance(data, dict) else {}
+
+    def _save_partitions(self, data: dict[str, dict[str, list[str]]]) -> None:
+        self.state_dir.mkdir(parents=True, exist_ok=True)
+        path = self.state_dir / PARTITIONS_FILE
+        if data:
+            path.write_text(json.dumps(data, indent=1))
+        elif path.exists():
+            path.unlink()
+
+    def partition(self, service: str) -> FaultEvent:
+        """Disconnect ``service``'s container from all its networks."""
+        cid = self.container(service)
+        out = self._check(
+            ["docker", "inspect", "-f", "{{json .NetworkSettings.Networks}}", cid],
+            f"docker inspect {service}",
+        )
+        try:
+            networks = json.loads(out) or {}
+        except ValueError:
+            raise FaultError(f"docker inspect {service}: unexpected output") from None
+        if not networks:
+            raise FaultError(f"{service} is on no network (partitioned already?)")
+        saved = self._partitions()
+        record: dict[str, list[str]] = {}
+        for net, conf in networks.items():
+            aliases = [a for a in (conf or {}).get("Aliases") or [] if not cid.startswith(a)]
+            record[net] = sorted(set(aliases) | {service})
+            self._check(["docker", "network", "disconnect", net, cid], f"docker network disconnect {service}")
+        saved[service] = record
+        self._save_partitions(saved)
+        return _event("partition", service, "disconnected from " + ", ".join(sorted(record)))
+
+    def heal(self, service: str) -> FaultEvent:
+        """Connect ``service``'s container again to the networks it was disconnected from."""
+        cid = self.container(service)
+        saved = self._partitions()
+        record = saved.pop(service, None) or {f"{self.project_name}_default": [service]}
+        for net, aliases in record.items():
+            args = ["docker", "network", "connect"]
+            for alias in aliases:
+                args += ["--alias", alias]
+            self._check([*args, net, cid], f"docker network connect {service}")
+        self._save_partitions(saved)
+        return _event("heal", service, "connected to " + ", ".join(sorted(record)))
+
+    def partitioned(self) -> list[str]:
+        return sorted(self._partitions())
+
+    def tc_show(self, service: str, dev: str = "eth0") -> str:
+        cid = self.container(service)
+        out = self.run(["docker", "exec", cid, "tc", "qdisc", "show", "dev", dev])
+        return out.stdout.strip() if out.returncode == 0 else f"(tc: {_last_line(out.stderr)})"
+
+
+def _check_service(service: str) -> None:
+    if service not in COMPOSE_SERVICES:
+        raise FaultError(f"no service {service!r} (services: {', '.join(COMPOSE_SERVICES)})")
+
+
+def _event(kind: str, service: str, detail: str) -> FaultEvent:
+    return FaultEvent(t=time.time(), agent=INJECTOR, kind=kind, target=service, detail=detail)

@@ -1,0 +1,69 @@
+"""Duplicate suppression: no communicate is acted on twice (issue 7).
+
+A communicate can arrive more than once: its sender retransmits it until answered
+(:class:`services.runtime.conversations.Conversations`, ``retry_s``), or the network
+duplicates it (``roco fault msg --duplicate``). Retransmissions are byte-identical, so an
+agent recognises a copy by a digest of its bytes. A copy is dropped before it reaches the
+agent's input buffer; when the agent has already answered the original, its answers are
+published again, because the copy means the sender has not heard them (FIPA SC00061 §2.4:
+reply-with identifies what an answer is in reply to).
+
+Memory is bounded: the last ``capacity`` digests and the answers to the last ``capacity``
+requests are kept (least recently used dropped first). After a restart an agent remembers
+nothing: agents that must not repeat work after a restart persist what they accepted
+(a_co's queue, a_hi's open commands) and recognise a repeated request by its reply-with.
+"""
+
+from __future__ import annotations
+
+import hashlib
+from collections import OrderedDict
+
+DEFAULT_CAPACITY = 4096
+
+
+def digest(payload: bytes) -> bytes:
+    """A 16-byte BLAKE2b digest of an encoded communicate."""
+    return hashlib.blake2b(payload, digest_size=16).digest()
+
+
+class Dedup:
+    """Digests of received communicates and the answers sent to each request.
+
+    ``capacity``: how many digests and how many answered requests are remembered."""
+
+    def __init__(self, capacity: int = DEFAULT_CAPACITY) -> None:
+        if capacity < 1:
+            raise ValueError(f"capacity must be at least 1, not {capacity}")
+        self.capacity = capacity
+        self._seen: OrderedDict[bytes, None] = OrderedDict()
+        self._answers: OrderedDict[tuple[str, str], list[tuple[str, bytes]]] = OrderedDict()
+
+    def seen(self, payload: bytes) -> bool:
+        """True when ``payload`` was received before (it is a copy); else remember it."""
+        d = digest(payload)
+        if d in self._seen:
+            self._seen.move_to_end(d)
+            return True
+        self._seen[d] = None
+        if len(self._seen) > self.capacity:
+            self._seen.popitem(last=False)
+        return False
+
+    def answered(self, peer: str, in_reply_to: str, key: str, payload: bytes) -> None:
+        """Remember an answer sent to ``peer``'s communicate whose reply-with is ``in_reply_to``."""
+        k = (peer, in_reply_to)
+        answers = self._answers.get(k)
+        if answers is None:
+            answers = self._answers[k] = []
+            if len(self._answers) > self.capacity:
+                self._answers.popitem(last=False)
+        else:
+            self._answers.move_to_end(k)
+        answers.append((key, payload))
+
+    def answers(self, peer: str, reply_with: str | None) -> list[tuple[str, bytes]]:
+        """The answers already sent to ``peer``'s communicate ``reply_with``, in order."""
+        if reply_with is None:
+            return []
+        return list(self._answers.get((peer, reply_with), ()))

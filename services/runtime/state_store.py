@@ -1,0 +1,86 @@
+"""Where an agent keeps what must survive its restart (issue 7: no accepted command lost).
+
+The folder is ``ROCO_STATE_DIR`` when set (compose mounts a volume there), else
+``<ROCO_RUN_DIR>/state`` (a local fleet: a restart within the same run keeps it, a new run
+starts empty), else none (nothing is kept: tests and one-off agents). Each agent writes one
+file, ``<folder>/<agent>.json``, atomically (a temporary file renamed over the old one), and
+only when its content changed.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+from pathlib import Path
+from typing import Generic, TypeVar
+
+import msgspec
+
+ENV_STATE_DIR = "ROCO_STATE_DIR"
+T = TypeVar("T")
+log = logging.getLogger(__name__)
+
+
+def state_dir() -> Path | None:
+    """The folder for agents' kept state, or None when neither variable is set."""
+    if os.environ.get(ENV_STATE_DIR):
+        return Path(os.environ[ENV_STATE_DIR])
+    if os.environ.get("ROCO_RUN_DIR"):
+        return Path(os.environ["ROCO_RUN_DIR"]) / "state"
+    return None
+
+
+class StateFile(Generic[T]):
+    """One agent's kept state: a msgspec-encodable value of type ``kind`` in JSON.
+
+    ``path`` None makes every call a no-op (nothing is kept)."""
+
+    def __init__(self, path: Path | None, kind: type[T]) -> None:
+        self.path = path
+        self.kind = kind
+        self._last: bytes | None = None
+        self._encoder = msgspec.json.Encoder()
+
+    @classmethod
+    def for_agent(cls, agent: str, kind: type[T]) -> StateFile[T]:
+        """The state file of ``agent`` in :func:`state_dir` (no-op when there is none)."""
+        folder = state_dir()
+        return cls(folder / f"{agent}.json" if folder is not None else None, kind)
+
+    def load(self) -> T | None:
+        """The kept value, or None when there is none. A file that does not decode is moved
+        aside to ``<name>.corrupt`` with a warning (a restart must not be stopped by it)."""
+        if self.path is None or not self.path.exists():
+            return None
+        data = self.path.read_bytes()
+        try:
+            value = msgspec.json.decode(data, type=self.kind)
+        except (msgspec.DecodeError, msgspec.ValidationError) as exc:
+            aside = self.path.with_suffix(".corrupt")
+            self.path.replace(aside)
+            log.warning("kept state %s does not decode (%s); moved to %s", self.path, exc, aside)
+            return None
+        self._last = data
+        return value
+
+    def save(self, value: T) -> bool:
+        """Write ``value`` if it differs from what was last written; returns True if written.
+        Raises OSError when the folder cannot be written."""
+        if self.path is None:
+            return False
+        data = self._encoder.encode(value)
+        if data == self._last:
+            return False
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        tmp = self.path.with_name(f".{self.path.name}.{os.getpid()}.tmp")
+        tmp.write_bytes(data)
+        os.replace(tmp, self.path)
+        self._last = data
+        return True
+
+    def clear(self) -> None:
+        """Remove the kept value (nothing to keep any more)."""
+        if self.path is None or self._last == b"":
+            return
+        self.path.unlink(missing_ok=True)
+        self._last = b""

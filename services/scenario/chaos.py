@@ -1,0 +1,186 @@
+"""A chaos run (issue 7): process faults at random times while the robot carries out a
+command, and a verdict on what the system kept.
+
+:func:`chaos_scenario` makes a scenario (services/scenario/model.py): the command, then one
+``fault`` step per service (each once, in a random order, or ``count`` draws), each some
+random seconds after the one before, of a random kind (kill, pause, restart) and length. The
+scenario runner injects them. :func:`verdict` reads the run folder's traffic record and
+answers the issue's questions:
+
+- **task done** — every command ended as expected (a_hi's final report);
+- **no command lost** — every command got a final report;
+- **nothing executed twice** — no request got two different final answers from the same
+  agent (a retransmission answered from memory is byte-identical, so only a second
+  execution gives a second, different answer);
+- **no object dropped** — every movable object (jar, bowl, cup), as ag_ex last observed it,
+  stands higher than ``DROPPED_BELOW_M`` (the floor is z = 0; table top 0.75 m, cabinet
+  shelves higher); an object never observed counts as not known, and fails the check.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import random
+from collections import defaultdict
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from services.report.load import load_run
+from services.scenario.model import AGENTS, FAULT_KINDS, MOVABLE, Fault, Scenario, Step, Trigger
+from services.scenario.runner import FaultRecord, ScenarioOutcome
+from shared.fipa_codec.languages.l_sd import Observation
+
+DEFAULT_COMMAND = "pour the jar into the bowl"
+DROPPED_BELOW_M = 0.5
+"""An object whose base is below this height (m, world z) has fallen off its furniture."""
+CHAOS_FILE = "chaos.md"
+SERVICE_ORDER = ("a_hi", "a_co", "a_pl", "a_km", "a_ta", "ag_ex")
+_FINAL = frozenset({"inform", "inform-ref", "failure", "refuse"})
+_ONCE = frozenset({"fipa-request", "fipa-query"})
+"""Protocols whose request gets one final answer (subscribe and coordinate stream many)."""
+
+
+def chaos_scenario(
+    seed: int,
+    *,
+    services: tuple[str, ...] = SERVICE_ORDER,
+    count: int | None = None,
+    kinds: tuple[str, ...] = ("kill", "pause", "restart"),
+    command: str = DEFAULT_COMMAND,
+    gap_s: tuple[float, float] = (3.0, 8.0),
+    down_s: tuple[float, float] = (0.5, 4.0),
+) -> Scenario:
+    """The chaos scenario of ``seed``: ``command``, then faults of ``services`` — each once
+    in a random order when ``count`` is None, else ``count`` random draws — each ``gap_s``
+    (uniform, s) after the previous one, of one of ``kinds``, down for ``down_s`` (uniform,
+    s). Raises ValueError for an unknown service or kind or an empty choice."""
+    unknown = [s for s in services if s not in AGENTS | {"recorder", "router"}]
+    if unknown or not services:
+        raise ValueError(f"cannot fault {', '.join(unknown) or 'nothing'}")
+    bad = [k for k in kinds if k not in FAULT_KINDS]
+    if bad or not kinds:
+        raise ValueError(f"fault kinds are {', '.join(sorted(FAULT_KINDS))}, not {', '.join(bad) or 'none'}")
+    rng = random.Random(seed)
+    if count is None:
+        victims = list(services)
+        rng.shuffle(victims)
+    else:
+        victims = [rng.choice(services) for _ in range(count)]
+    steps = [Step(say=command, expect="succeeded")]
+    for victim in victims:
+        kind = rng.choice(kinds)
+        steps.append(
+            Step(
+                fault=Fault(service=victim, kind=kind, down_s=round(rng.uniform(*down_s), 1)),
+                after=Trigger(seconds=round(rng.uniform(*gap_s), 1)),
+            )
+        )
+    return Scenario(
+        name=f"chaos (seed {seed})",
+        description=f"{command!r} while {len(victims)} process faults hit {', '.join(victims)}",
+        steps=tuple(steps),
+    )
+
+
+@dataclass
+class Verdict:
+    """What a chaos run kept (see the module docstring). ``executed_twice``: requests
+    answered twice differently, as "sender: conversation"; ``dropped``: objects found below
+    ``DROPPED_BELOW_M`` as last observed, with their height (m); ``last_observation``: every
+    movable object was observed at least once."""
+
+    task_done: bool
+    commands_lost: int
+    executed_twice: list[str] = field(default_factory=list)
+    dropped: dict[str, float] = field(default_factory=dict)
+    last_observation: bool = False
+    faults_during_command: int = 0
+    faults: int = 0
+
+    @property
+    def ok(self) -> bool:
+        return (
+            self.task_done
+            and self.commands_lost == 0
+            and not self.executed_twice
+            and not self.dropped
+            and self.last_observation
+        )
+
+
+def verdict(run_dir: Path, outcome: ScenarioOutcome) -> Verdict:
+    """Judge a chaos run from its outcome and its run folder's traffic record."""
+    run = load_run(run_dir)
+    answers: dict[tuple[str, str], set[bytes]] = defaultdict(set)
+    where: dict[tuple[str, str], str] = {}
+    last: dict[str, float] = {}  # movable object -> height (m) at its last observation
+    for m in run.messages:
+        if m.comm is None:
+            continue
+        if m.performative in _FINAL and m.comm.in_reply_to is not None and m.rec.protocol in _ONCE:
+            k = (m.sender, m.comm.in_reply_to)
+            answers[k].add(hashlib.blake2b(m.comm.content, digest_size=8).digest() + m.performative.encode())
+            where[k] = m.conversation or "?"
+        if isinstance(m.content, Observation):
+            last.update({o.name: o.pose.position[2] for o in m.content.objects if o.name in MOVABLE})
+    twice = sorted(f"{s}: {where[(s, r)]}" for (s, r), v in answers.items() if len(v) > 1)
+    dropped = {name: round(z, 3) for name, z in last.items() if z < DROPPED_BELOW_M}
+    return Verdict(
+        task_done=outcome.ok,
+        commands_lost=sum(c.final is None for c in outcome.commands),
+        executed_twice=twice,
+        dropped=dropped,
+        last_observation=set(last) == set(MOVABLE),
+        faults_during_command=sum(f.during_command for f in outcome.faults),
+        faults=len(outcome.faults),
+    )
+
+
+def _mark(ok: bool) -> str:
+    return "yes" if ok else "**no**"
+
+
+def write_chaos_report(run_dir: Path, scenario: Scenario, outcome: ScenarioOutcome, v: Verdict) -> Path:
+    """Write ``<run>/chaos.md``: the faults injected and the verdict. Returns its path."""
+    lines = [
+        f"# {scenario.name}",
+        "",
+        scenario.description,
+        "",
+        "| t (s) | service | fault | down (s) | pids | alive again after (s) | during the command |",
+        "|---:|---|---|---:|---|---:|---|",
+    ]
+    for f in outcome.faults:
+        lines.append(_fault_row(f))
+    lines += [
+        "",
+        "| question | answer |",
+        "|---|---|",
+        f"| task done | {_mark(v.task_done)} |",
+        f"| no command lost | {_mark(v.commands_lost == 0)} ({v.commands_lost} lost) |",
+        f"| nothing executed twice | {_mark(not v.executed_twice)} {', '.join(v.executed_twice)} |",
+        f"| no object dropped | {_mark(not v.dropped and v.last_observation)} "
+        + (
+            ", ".join(f"{k} at z = {z} m" for k, z in v.dropped.items())
+            if v.last_observation
+            else "(not every object was observed)"
+        )
+        + " |",
+        f"| faults during the command | {v.faults_during_command} of {v.faults} |",
+        "",
+        "Commands:",
+        "",
+        *[f"- {line}" for line in outcome.summary().splitlines()],
+        "",
+    ]
+    path = run_dir / CHAOS_FILE
+    path.write_text("\n".join(lines))
+    return path
+
+
+def _fault_row(f: FaultRecord) -> str:
+    back = f"{f.back_after_s:.1f}" if f.back_after_s is not None else "never"
+    return (
+        f"| {f.t:.1f} | {f.service} | {f.kind} | {f.down_s:.1f} | {f.pid_before} → {f.pid_after} "
+        f"| {back} | {'yes' if f.during_command else 'no'} |"
+    )

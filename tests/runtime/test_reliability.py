@@ -1,0 +1,314 @@
+"""Nothing lost, nothing done twice (issue 7): retransmission until answered, copies dropped
+and answered from memory, and the agents' kept state across a restart (a_co's queue, a_ta's
+plan, a_hi's open commands). The agents are driven by hand on a MemoryBus: no threads, no
+sleeps; time is moved by setting a pending entry's retransmission time."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Generic, TypeVar
+
+import msgspec
+import pytest
+
+from services.coordinator.agent import Coordinator
+from services.human_interface.agent import HumanInterface
+from services.human_interface.messages import HumanReport, ReportKind
+from services.runtime import keys
+from services.runtime.agent import RESEND_ON_RETURN, Agent
+from services.runtime.conversations import Conversations, Pending
+from services.runtime.dedup import Dedup
+from services.runtime.memory_transport import MemoryBus
+from services.runtime.state_store import ENV_STATE_DIR, StateFile
+from services.spec.model import channel_between
+from services.task_executor.agent import KeptTaskExecutor, TaskExecutor
+from shared.fipa_codec import Communicate, Performative, decode, encode
+from shared.fipa_codec.languages.l_ex import Wait
+from shared.fipa_codec.languages.l_hc import CommandOutcome, HumanCommand, StatusQuery, TaskAtom
+from shared.fipa_codec.languages.l_hfsm import Execute, GroundTaskNetwork, HierarchicalPlan, PlanNode
+from shared.fipa_codec.languages.l_sw import SWState, SWStatus
+from tests.support.messages import communicate
+
+P = Performative
+POUR = HumanCommand(text="pour the jar into the bowl", goal=TaskAtom("pour", ("jar", "bowl")))
+PLAN = HierarchicalPlan(
+    plan_id="cmd-1-p1",
+    task_id="cmd-1",
+    root=PlanNode(name="pour", children=(PlanNode(name="wait", action=Execute(Wait(duration=1.0))),)),
+    complete=True,
+    cost=1.0,
+)
+
+
+A = TypeVar("A", bound=Agent)
+
+
+class Wire(Generic[A]):
+    """One agent on a MemoryBus, with every communicate published on the bus collected."""
+
+    def __init__(self, cls: type[A], bus: MemoryBus | None = None) -> None:
+        self.bus = bus or MemoryBus()
+        self.agent = cls(self.bus.transport())
+        self.out: list[Communicate] = []
+        self.raw: list[bytes] = []
+        self.bus.subscribe(keys.FIPA_ALL, self._collect)
+        self.agent.bind()
+
+    def _collect(self, key: str, payload: bytes) -> None:
+        self.raw.append(payload)
+        self.out.append(decode(payload))
+
+    def deliver(self, msg: Communicate | bytes) -> None:
+        """Acquire ``msg`` on the channel between its sender and the agent, then dispatch."""
+        payload = msg if isinstance(msg, bytes) else encode(msg)
+        sender = decode(payload).sender
+        assert sender is not None
+        channel = channel_between(self.agent.spec, sender.name, self.agent.name)
+        assert channel is not None
+        self.agent._take(keys.fipa_key(channel.name, sender.name, self.agent.name), payload)
+        self.agent.protocol_states.commit()
+        self.agent._dispatch()
+
+    def step(self, state: str) -> None:
+        """One elementary action of behaviour ``state``: transition, dispatch, new inputs."""
+        self.agent.fsm.states[state].transition()
+        self.agent._dispatch()
+        self.agent.persist()
+        self.agent._acquire(0.0)
+
+    def mine(self, *performatives: Performative) -> list[Communicate]:
+        return [
+            m
+            for m in self.out
+            if m.sender is not None
+            and m.sender.name == self.agent.name
+            and (not performatives or m.performative in performatives)
+        ]
+
+
+# ---- the building blocks ------------------------------------------------------------------
+
+
+def test_a_pending_entry_is_retransmitted_on_schedule_until_answered() -> None:
+    c = Conversations()
+    c.expect(
+        Pending(
+            "r1", "a_pl", "fipa-request", "c1", 100.0, retry_s=5.0, key="k", payload=b"x", next_retry=10.0
+        )
+    )
+    assert c.due(9.9) == [] and c.next_deadline() == 10.0
+    (p,) = c.due(10.0)
+    assert (p.key, p.payload, p.retransmissions, p.next_retry) == ("k", b"x", 1, 15.0)
+    assert c.retry_now("a_km", 11.0) == 0 and c.retry_now("a_pl", 11.0) == 1
+    assert [e.reply_with for e in c.due(11.0)] == ["r1"]
+    c.answered("r1", "agree")  # any answer: the peer has it
+    assert c.due(1e9) == [] and c.retry_now("a_pl", 12.0) == 0 and c.knows("r1")
+
+
+def test_resend_on_return_is_never_periodic() -> None:
+    c = Conversations()
+    c.expect(
+        Pending(
+            "r1",
+            "ag_ex",
+            "fipa-request",
+            "c1",
+            None,
+            retry_s=math.inf,
+            key="k",
+            payload=b"x",
+            next_retry=math.inf,
+        )
+    )
+    assert c.due(1e12) == [] and c.next_deadline() is None
+    assert c.retry_now("ag_ex", 5.0) == 1 and len(c.due(5.0)) == 1 and c.due(1e12) == []
+
+
+def test_dedup_remembers_a_bounded_number_of_communicates() -> None:
+    d = Dedup(capacity=2)
+    assert [d.seen(b"a"), d.seen(b"b"), d.seen(b"a")] == [False, False, True]
+    d.seen(b"c")  # evicts b, the least recently seen
+    assert d.seen(b"a") and not d.seen(b"b")
+    d.answered("a_hi", "r1", "k", b"agree")
+    d.answered("a_hi", "r1", "k", b"inform")
+    assert d.answers("a_hi", "r1") == [("k", b"agree"), ("k", b"inform")] and d.answers("a_hi", None) == []
+    with pytest.raises(ValueError):
+        Dedup(capacity=0)
+
+
+def test_a_state_file_is_written_only_on_change_and_a_corrupt_one_is_set_aside(tmp_path: Path) -> None:
+    f = StateFile(tmp_path / "a.json", dict[str, int])
+    assert f.load() is None and f.save({"n": 1}) and not f.save({"n": 1}) and f.save({"n": 2})
+    assert StateFile(tmp_path / "a.json", dict[str, int]).load() == {"n": 2}
+    (tmp_path / "a.json").write_text("{not json")
+    assert StateFile(tmp_path / "a.json", dict[str, int]).load() is None
+    assert (tmp_path / "a.corrupt").exists() and not (tmp_path / "a.json").exists()
+    assert StateFile(None, dict[str, int]).save({"n": 1}) is False
+
+
+# ---- the runtime ------------------------------------------------------------------------
+
+
+def test_a_copy_is_not_handled_again_but_its_answer_is_sent_again() -> None:
+    w = Wire(Coordinator)
+    query = communicate(P.QUERY_REF, "a_hi", "a_co", "fipa-query", "status-1", StatusQuery(), reply_with="q1")
+    w.deliver(query)
+    w.step("trigger")
+    (answer,) = w.mine(P.INFORM_REF)
+    w.deliver(query)  # the same bytes again: a_hi did not hear the answer
+    assert w.agent.counters["duplicates"] == 1 and w.agent.counters["replayed"] == 1
+    assert not w.agent.x  # not handled a second time
+    assert w.mine(P.INFORM_REF) == [answer, answer]
+
+
+def test_an_unanswered_request_is_retransmitted_and_stops_when_answered() -> None:
+    w = Wire(Coordinator)
+    gtn = GroundTaskNetwork(task_id="cmd-1", tasks=(POUR.goal,), plan_index=1)
+    msg = w.agent.send("a_pl", P.REQUEST, gtn, protocol="fipa-request", retry_s=5.0)
+    w.agent._dispatch()
+    assert msg.reply_with is not None
+    pending = w.agent.conversations._pending[msg.reply_with]
+    pending.next_retry = 0.0  # its time has come
+    w.agent._acquire(0.0)
+    w.agent._dispatch()
+    first, again = [raw for raw, m in zip(w.raw, w.out, strict=True) if m.reply_with == msg.reply_with]
+    assert first == again and w.agent.counters["retransmitted"] == 1
+    w.deliver(
+        communicate(
+            P.FAILURE, "a_pl", "a_co", "fipa-request", msg.conversation_id, in_reply_to=msg.reply_with
+        ),
+    )
+    assert pending.next_retry is None
+
+
+def test_a_request_to_a_peer_that_comes_back_is_sent_to_it_again() -> None:
+    bus = MemoryBus()
+    w = Wire(TaskExecutor, bus)
+    msg = w.agent.send(
+        "ag_ex", P.REQUEST, Wait(duration=1.0), protocol="fipa-request", retry_s=RESEND_ON_RETURN
+    )
+    w.agent._dispatch()
+    ag_ex = bus.transport()
+    ag_ex.announce(keys.alive_key("ag_ex"))
+    w.agent._acquire(0.0)
+    w.agent._dispatch()
+    assert len([m for m in w.out if m.reply_with == msg.reply_with]) == 2
+    assert "ag_ex" in w.agent.peers
+    ag_ex.close()  # it goes away: nothing is sent to nobody
+    w.agent._acquire(0.0)
+    assert "ag_ex" not in w.agent.peers and w.agent.counters["retransmitted"] == 1
+
+
+# ---- the agents' kept state -------------------------------------------------------------
+
+
+def test_a_restarted_a_co_keeps_the_accepted_command_and_does_not_take_it_twice(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setenv(ENV_STATE_DIR, str(tmp_path))
+    request = encode(communicate(P.REQUEST, "a_hi", "a_co", "fipa-request", "cmd-1", POUR, reply_with="r1"))
+    first = Wire(Coordinator)
+    first.deliver(request)
+    first.step("procReq")
+    assert [m.performative for m in first.mine()] == [P.AGREE]
+    assert (tmp_path / "a_co.json").exists()
+
+    second = Wire(Coordinator)  # a new process: nothing in memory
+    second.agent.setup()
+    assert list(second.agent.tasks) == ["cmd-1"] and second.agent.tasks["cmd-1"].command == POUR
+    second.deliver(request)  # a_hi retransmitted: a copy the new a_co has never seen
+    second.step("procReq")
+    assert second.agent.counters["repeated_commands"] == 1 and not second.mine(P.REFUSE, P.AGREE)
+    # the restored conversation goes on: the person's cancel is handled, not refused
+    second.deliver(communicate(P.CANCEL, "a_hi", "a_co", "fipa-request", "cmd-1", POUR, reply_with="x1"))
+    second.step("procReq")
+    assert second.agent.counters["rejected"] == 0
+    (stopped,) = second.mine(P.INFORM)
+    assert stopped.conversation_id == "cmd-1" and stopped.in_reply_to == "x1"
+
+
+def test_a_restarted_a_co_goes_on_with_the_plan_a_ta_runs(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setenv(ENV_STATE_DIR, str(tmp_path))
+    first = Wire(Coordinator)
+    first.deliver(communicate(P.REQUEST, "a_hi", "a_co", "fipa-request", "cmd-1", POUR, reply_with="r1"))
+    first.step("procReq")
+    task = first.agent.tasks["cmd-1"]
+    task.plan, task.needs_plan = PLAN, False
+    first.agent.reschedule = True
+    first.step("schedule")
+    first.step("switch")
+    (run,) = first.mine(P.REQUEST)
+    assert run.conversation_id == first.agent.ta_conversation
+
+    second = Wire(Coordinator)
+    second.agent.setup()
+    assert second.agent.ta_task == "cmd-1" and second.agent.tasks["cmd-1"].plan == PLAN
+    done = SWStatus(state=SWState.SUCCEEDED, plan_id=PLAN.plan_id)
+    second.deliver(
+        communicate(P.INFORM, "a_ta", "a_co", "coordinate", run.conversation_id, done, reply_with="s9")
+    )
+    second.step("trigger")
+    assert second.agent.counters["rejected"] == 0
+    assert [m.performative for m in second.mine()] == [P.CONFIRM, P.INFORM]  # confirmed; the person told
+    assert second.mine(P.INFORM)[0].conversation_id == "cmd-1" and not second.agent.tasks
+
+
+def test_a_restarted_a_ta_reports_replan_in_the_plans_conversation(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setenv(ENV_STATE_DIR, str(tmp_path))
+    request = communicate(P.REQUEST, "a_co", "a_ta", "coordinate", "cmd-1-exec1", PLAN, reply_with="p1")
+    kept = KeptTaskExecutor(request=encode(request), plan=PLAN, step="pour/wait", outcome=None, reason=None)
+    (tmp_path / "a_ta.json").write_bytes(msgspec.json.encode(kept))
+    w = Wire(TaskExecutor)
+    w.agent.setup()
+    assert w.agent.fsm.next_state("idle") == "finished"
+    w.agent.fsm.states["finished"].on_enter()
+    w.agent._dispatch()
+    (report,) = w.mine(P.INFORM)
+    status = msgspec.msgpack.decode(report.content, type=SWStatus)
+    assert report.conversation_id == "cmd-1-exec1" and report.in_reply_to == "p1"
+    assert status.state is SWState.REPLAN and "a_ta restarted in pour/wait" in (status.reason or "")
+    confirm = communicate(
+        P.CONFIRM, "a_co", "a_ta", "coordinate", "cmd-1-exec1", in_reply_to=report.reply_with
+    )
+    w.deliver(confirm)
+    w.step("finished")
+    assert w.agent.plan is None and not (tmp_path / "a_ta.json").exists()
+
+
+def test_a_restarted_a_hi_still_tells_the_person_the_outcome(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setenv(ENV_STATE_DIR, str(tmp_path))
+    bus = MemoryBus()
+    reports: list[HumanReport] = []
+    bus.subscribe(keys.HUMAN_OUT, lambda k, p: reports.append(msgspec.json.decode(p, type=HumanReport)))
+    first = Wire(HumanInterface, bus)
+    first.agent.setup()
+    from services.human_interface.messages import HumanInput
+
+    first.agent.post(HumanInput(text="pour the jar into the bowl", request_id="req-7"))
+    first.agent._acquire(0.0)
+    first.step("interact")
+    (request,) = first.mine(P.REQUEST)
+    assert request.protocol == "fipa-request" and (tmp_path / "a_hi.json").exists()
+
+    second = Wire(HumanInterface, bus)
+    second.agent.setup()
+    cid = request.conversation_id
+    assert cid in second.agent.commands
+    second.agent._acquire(0.0)
+    second.agent._dispatch()  # not yet agreed: the request goes again at once
+    assert [m.reply_with for m in second.mine(P.REQUEST)] == [request.reply_with]
+    outcome = CommandOutcome(command_id=cid or "", succeeded=True, detail="the task succeeded")
+    second.deliver(communicate(P.AGREE, "a_co", "a_hi", "fipa-request", cid, in_reply_to=request.reply_with))
+    second.deliver(
+        communicate(P.INFORM, "a_co", "a_hi", "fipa-request", cid, outcome, in_reply_to=request.reply_with),
+    )
+    second.step("interact")
+    assert [r.kind for r in reports if r.request_id == "req-7"][-1] is ReportKind.SUCCEEDED
+    assert second.agent.counters["rejected"] == 0

@@ -1,0 +1,172 @@
+"""`roco chaos` (issue 7): the faults it draws, the scenario steps that carry them, and the
+verdict it reads from a traffic record (synthetic run folders here; a real chaos run is in
+tests/integration/test_chaos.py)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from services.human_interface.messages import HumanReport, ReportKind
+from services.runtime.run_folder import RunInfo, write_run_info
+from services.scenario.chaos import SERVICE_ORDER, chaos_scenario, verdict, write_chaos_report
+from services.scenario.model import ScenarioError, parse_scenario
+from services.scenario.runner import CommandRecord, FaultRecord, ScenarioOutcome
+from shared.fipa_codec.languages.common import Pose
+from shared.fipa_codec.languages.l_ex import CommandResult
+from shared.fipa_codec.languages.l_sd import ObjectObservation, Observation
+from tests.report.conftest import STARTED, RunBuilder, write_traffic
+
+
+def test_each_service_is_faulted_once_in_a_seeded_random_order() -> None:
+    a, b, c = chaos_scenario(1), chaos_scenario(1), chaos_scenario(2)
+    assert a == b and a != c
+    faults = [s.fault for s in a.steps if s.fault is not None]
+    assert sorted(f.service for f in faults) == sorted(SERVICE_ORDER)
+    assert {f.kind for f in faults} <= {"kill", "pause", "restart"}
+    assert all(0.5 <= f.down_s <= 4.0 for f in faults)
+    assert a.steps[0].say == "pour the jar into the bowl" and a.steps[0].expect == "succeeded"
+    assert all(s.after is not None and 3.0 <= (s.after.seconds or 0) <= 8.0 for s in a.steps[1:])
+    many = chaos_scenario(5, count=12, services=("a_ta",), kinds=("kill",))
+    assert [(s.fault.service, s.fault.kind) for s in many.steps if s.fault] == [("a_ta", "kill")] * 12
+
+
+def test_unknown_services_and_kinds_are_refused() -> None:
+    with pytest.raises(ValueError, match="cannot fault a_xx"):
+        chaos_scenario(0, services=("a_xx",))
+    with pytest.raises(ValueError, match="not explode"):
+        chaos_scenario(0, kinds=("explode",))
+
+
+def test_a_scenario_file_can_carry_faults_and_bad_ones_are_named() -> None:
+    sc = parse_scenario(
+        'name = "x"\n[[steps]]\nsay = "pour the jar into the bowl"\n'
+        '[[steps]]\nfault = { service = "a_ta", kind = "kill", down_s = 1.5 }\nafter = { seconds = 4 }\n'
+    )
+    assert sc.steps[1].fault is not None and sc.steps[1].action == "fault"
+    assert sc.steps[1].after is not None and sc.steps[1].after.seconds == 4
+    with pytest.raises(ScenarioError, match="step 2: no service 'a_zz'"):
+        parse_scenario(
+            'name = "x"\n[[steps]]\nsay = "hi"\n[[steps]]\nfault = { service = "a_zz", kind = "kill" }\n'
+        )
+    with pytest.raises(ScenarioError, match="fault kind must be one of"):
+        parse_scenario('name = "x"\n[[steps]]\nfault = { service = "a_ta", kind = "melt" }\n')
+
+
+def _observation(z_jar: float) -> Observation:
+    return Observation(
+        stamp=1.0,
+        objects=(
+            ObjectObservation(name="jar", pose=Pose((0.3, -0.6, z_jar))),
+            ObjectObservation(name="bowl", pose=Pose((0.3, -0.5, 0.77))),
+            ObjectObservation(name="cup", pose=Pose((0.8, 0.1, 0.9))),
+            ObjectObservation(name="table", pose=Pose((0.3, -0.65, 0.0))),  # furniture stands on the floor
+        ),
+    )
+
+
+def _run(tmp_path: Path, builder: RunBuilder) -> Path:
+    d = tmp_path / "run"
+    (d / "logs").mkdir(parents=True)
+    write_run_info(d, RunInfo(started=STARTED))
+    write_traffic(d, builder)
+    return d
+
+
+def _done(ok: bool = True) -> ScenarioOutcome:
+    record = CommandRecord(1, "pour the jar into the bowl", "r1")
+    record.final = HumanReport(
+        request_id="r1", kind=ReportKind.SUCCEEDED if ok else ReportKind.FAILED, text=""
+    )
+    fault = FaultRecord(5.0, "a_ta", "kill", 2.0, 10, 11, 3.2, during_command=True)
+    return ScenarioOutcome([record], "", [fault])
+
+
+def test_the_verdict_of_a_run_that_kept_everything(tmp_path: Path) -> None:
+    b = RunBuilder()
+    b.add(1, "C5", "a_ta", "ag_ex", "request", protocol="fipa-request", conversation="c1", reply_with="q1")
+    b.add(
+        2,
+        "C5",
+        "ag_ex",
+        "a_ta",
+        "inform",
+        CommandResult(command="grasp", ok=True),
+        protocol="fipa-request",
+        conversation="c1",
+        in_reply_to="q1",
+    )
+    # the same answer again (sent from memory for a retransmitted request): not a second execution
+    b.add(
+        3,
+        "C5",
+        "ag_ex",
+        "a_ta",
+        "inform",
+        CommandResult(command="grasp", ok=True),
+        protocol="fipa-request",
+        conversation="c1",
+        in_reply_to="q1",
+    )
+    b.add(
+        4,
+        "C5",
+        "ag_ex",
+        "a_ta",
+        "inform",
+        _observation(0.76),
+        protocol="fipa-request",
+        conversation="c2",
+        in_reply_to="q2",
+    )
+    run = _run(tmp_path, b)
+    v = verdict(run, _done())
+    assert v.ok and v.faults == 1 and v.faults_during_command == 1
+    text = write_chaos_report(run, chaos_scenario(0), _done(), v).read_text()
+    assert "| task done | yes |" in text and "| 5.0 | a_ta | kill | 2.0 | 10 → 11 | 3.2 | yes |" in text
+
+
+def test_a_second_execution_a_dropped_object_and_a_lost_command_are_found(tmp_path: Path) -> None:
+    b = RunBuilder()
+    b.add(
+        2,
+        "C5",
+        "ag_ex",
+        "a_ta",
+        "inform",
+        CommandResult(command="tilt", ok=True),
+        protocol="fipa-request",
+        conversation="c1",
+        in_reply_to="q1",
+    )
+    b.add(
+        9,
+        "C5",
+        "ag_ex",
+        "a_ta",
+        "failure",
+        CommandResult(command="tilt", ok=False, reason="timeout"),
+        protocol="fipa-request",
+        conversation="c1",
+        in_reply_to="q1",
+    )
+    b.add(
+        10,
+        "C5",
+        "ag_ex",
+        "a_ta",
+        "inform",
+        _observation(0.04),
+        protocol="fipa-request",
+        conversation="c2",
+        in_reply_to="q2",
+    )
+    run = _run(tmp_path, b)
+    lost = _done()
+    lost.commands[0].final = None
+    v = verdict(run, lost)
+    assert not v.ok and not v.task_done and v.commands_lost == 1
+    assert v.executed_twice == ["ag_ex: c1"] and v.dropped == {"jar": 0.04}
+    text = write_chaos_report(run, chaos_scenario(0), lost, v).read_text()
+    assert "| no object dropped | **no** jar at z = 0.04 m |" in text
