@@ -123,8 +123,9 @@ class Coordinator(Agent):
 
     def build_fsm(self) -> FSM:
         self.kept = StateFile.for_agent(self.name, KeptCoordinator)
+        self._kept_as: tuple[object, ...] | None = None  # signature of what was last written
         self.ta_lost = False  # a_ta's token disappeared while it ran a plan
-        self.last_confirm: tuple[str, bytes] | None = None  # key and bytes of the last C1 confirm
+        self.last_confirmed: str | None = None  # reply-with of a_ta's last inform a_co confirmed
         self.tasks: dict[str, Task] = {}
         self.ta_task: str | None = None  # task whose plan a_ta runs (or is terminating)
         self.ta_conversation: str | None = None
@@ -384,7 +385,34 @@ class Coordinator(Agent):
             self._restore(kept)
 
     def persist(self) -> None:
-        self.kept.save(self._kept())
+        now = self._kept_signature()
+        if now != self._kept_as:  # encode and compare the whole queue only when it changed
+            self._kept_as = now
+            self.kept.save(self._kept())
+
+    def _kept_signature(self) -> tuple[object, ...]:
+        """What :meth:`_kept` depends on that can change, compared cheaply every step (a
+        task's request, acceptance time, deadline and order never change)."""
+        return (
+            tuple(
+                (
+                    t.task_id,
+                    t.state,
+                    t.step,
+                    t.leaf,
+                    t.replans,
+                    t.plan_index,
+                    t.plan.plan_id if t.plan is not None else None,
+                    t.cancel.msg.reply_with if t.cancel is not None else None,
+                    t.detail,
+                )
+                for t in self.tasks.values()
+            ),
+            self.ta_task,
+            self.ta_conversation,
+            self.ta_cancelled,
+            self.subscription.msg.conversation_id if self.subscription is not None else None,
+        )
 
     def _kept(self) -> KeptCoordinator:
         return KeptCoordinator(
@@ -487,9 +515,10 @@ class Coordinator(Agent):
         if not alive and self.ta_task is not None:
             self.ta_lost = True
             self.log.warning("a_ta disappeared while running %s; the robot holds position", self.ta_task)
-        elif alive and self.ta_lost and self.last_confirm is not None:
+        elif alive and self.ta_lost and self.last_confirmed is not None:
             self.log.info("a_ta is back: the last confirm goes again (a new a_ta will not know it)")
-            self.emit(*self.last_confirm)
+            for key, payload in self.dedup.answers("a_ta", self.last_confirmed):
+                self.emit(key, payload)
 
     # ---- communicates that may arrive in any state ----
     def _handle_async(self) -> None:
@@ -588,7 +617,7 @@ class Coordinator(Agent):
             self.reply(item, Performative.CONFIRM)
             if not in_conversation or task is None:
                 return
-            self.last_confirm = self._y[-1]
+            self.last_confirmed = item.msg.reply_with
             self.ta_lost = False  # a_ta speaks in the plan's conversation
             self._sw_state(task, item.content)
             return
@@ -655,7 +684,7 @@ class Coordinator(Agent):
                 t.plan, t.needs_plan = None, True
 
     def _release_ta(self) -> None:
-        self.ta_lost, self.last_confirm = False, None
+        self.ta_lost, self.last_confirmed = False, None
         if self.ta_conversation is not None:
             self.conversations.forget_conversation(self.ta_conversation)
         self.ta_task = None

@@ -362,13 +362,19 @@ class HumanInterface(Agent):
             retry_s=COMMAND_RETRY_S,
         )
         assert msg.conversation_id is not None and msg.reply_with is not None
-        sent = self._y[-1]  # the request just put into the output buffer
+        pending = self.conversations.get(msg.reply_with)  # it keeps the bytes to retransmit
+        assert pending is not None
         if not self.co_alive:
             self.log.warning(
                 "a_co is not known to be alive; %s may wait %.0f s", msg.conversation_id, AGREE_BY_S
             )
         self.commands[msg.conversation_id] = OpenCommand(
-            msg.conversation_id, event.request_id, command, describe(intent.goal), msg.reply_with, sent=sent
+            msg.conversation_id,
+            event.request_id,
+            command,
+            describe(intent.goal),
+            msg.reply_with,
+            sent=(pending.key, pending.payload),
         )
 
     def _stop_commands(self, request_id: str) -> None:

@@ -27,7 +27,8 @@ A subclass declares its ``name`` (as in the specification), builds its FSM of be
   ``replayed``,
 - peer liveliness: :meth:`Agent.peer_changed` is called on the agent's thread whenever
   another agent's token appears or disappears (the white pages, ``roco/alive/*``),
-- a persistence hook, :meth:`Agent.persist`, called after every dispatched step.
+- a persistence hook, :meth:`Agent.persist`, called after every step once its output
+  buffer is dispatched.
 
 The elementary action (paper §3.2): compute the transition function, dispatch the output
 buffer, increment i, acquire new inputs. It repeats until the behaviour's terminal or error
@@ -399,7 +400,8 @@ class Agent:
 
     def emit(self, key: str, payload: bytes) -> None:
         """Put a payload for one of the agent's effectors (a non-FIPA key, e.g. a_hi's
-        ``roco/human/out``) into the output buffer."""
+        ``roco/human/out``), or an already encoded communicate sent again as it was, into the
+        output buffer."""
         self._y.append((key, payload))
 
     # ---- receiving -----------------------------------------------------------------------

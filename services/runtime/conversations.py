@@ -91,6 +91,10 @@ class Conversations:
             entry.deadline = None  # a live stream has answered; its deadline no longer applies
         return entry
 
+    def get(self, reply_with: str) -> Pending | None:
+        """The entry awaiting replies to ``reply_with`` (None: not awaited)."""
+        return self._pending.get(reply_with)
+
     def knows(self, in_reply_to: str | None) -> bool:
         return in_reply_to is not None and in_reply_to in self._pending
 

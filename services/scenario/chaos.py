@@ -109,7 +109,9 @@ class Verdict:
 
 
 def verdict(run_dir: Path, outcome: ScenarioOutcome) -> Verdict:
-    """Judge a chaos run from its outcome and its run folder's traffic record."""
+    """Judge a chaos run from its outcome and its run folder's traffic record (the four
+    questions of the module docstring). Raises FileNotFoundError when ``run_dir`` is not a
+    folder; a missing or corrupt traffic record reads as no traffic (services/report/load.py)."""
     run = load_run(run_dir)
     answers: dict[tuple[str, str], set[bytes]] = defaultdict(set)
     where: dict[tuple[str, str], str] = {}

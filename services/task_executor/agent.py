@@ -37,6 +37,7 @@ from services.runtime.agent import RESEND_ON_RETURN, Agent, Received
 from services.runtime.behaviour import FSM, Arc, Behaviour
 from services.runtime.state_store import StateFile
 from shared.fipa_codec import DecodeError, Performative, decode, encode
+from shared.fipa_codec.languages import ContentError, decode_content
 from shared.fipa_codec.languages.l_ex import CommandResult, MoveJoints, MoveTool, Observe, Tilt, Wait
 from shared.fipa_codec.languages.l_hfsm import (
     Assert,
@@ -75,11 +76,11 @@ class Step:
 
 
 class KeptTaskExecutor(msgspec.Struct, kw_only=True):
-    """a_ta's state file: a_co's plan request (encoded communicate), the plan, the leaf state
-    it was in and the final state once reached."""
+    """a_ta's state file: a_co's plan request (the encoded communicate, FIPA SC00061 msgpack;
+    the plan is its L_HFSM content), the leaf state it was in and the final state once
+    reached."""
 
     request: bytes
-    plan: HierarchicalPlan
     step: str | None
     outcome: SWState | None
     reason: str | None
@@ -90,6 +91,7 @@ class TaskExecutor(Agent):
 
     def build_fsm(self) -> FSM:
         self.kept = StateFile.for_agent(self.name, KeptTaskExecutor)
+        self._kept_as: tuple[object, ...] | None = None  # what was last written, cheaply compared
         self.restored = False
         self.subscription: Received | None = None
         self.initial_observe: str | None = None
@@ -266,16 +268,18 @@ class TaskExecutor(Agent):
             self._restore(kept)
 
     def persist(self) -> None:
+        step = self.step.path if self.step is not None else None
+        request = self.plan_request.msg.reply_with if self.plan_request is not None else None
+        now = (request, step, self.outcome, self.reason)
+        if now == self._kept_as:
+            return  # nothing changed: the plan request is not encoded again every step
+        self._kept_as = now
         if self.plan is None or self.plan_request is None:
             self.kept.clear()
             return
         self.kept.save(
             KeptTaskExecutor(
-                request=encode(self.plan_request.msg),
-                plan=self.plan,
-                step=self.step.path if self.step is not None else None,
-                outcome=self.outcome,
-                reason=self.reason,
+                request=encode(self.plan_request.msg), step=step, outcome=self.outcome, reason=self.reason
             )
         )
 
@@ -283,10 +287,11 @@ class TaskExecutor(Agent):
         """Report on the plan a previous a_ta ran (see the module docstring)."""
         try:
             msg = decode(kept.request)
-        except DecodeError as exc:
+            plan = decode_content(msg.language or "", msg.content)
+        except (DecodeError, ContentError) as exc:
             self.log.warning("kept plan request does not decode (%s): dropped", exc)
             return
-        if msg.conversation_id is None:
+        if msg.conversation_id is None or not isinstance(plan, HierarchicalPlan):
             return
         self.restore_conversation(
             "a_co",
@@ -294,7 +299,7 @@ class TaskExecutor(Agent):
             "coordinate",
             [(Performative.REQUEST, False), (Performative.INFORM, True), (Performative.CONFIRM, False)],
         )
-        self.plan, self.plan_request = kept.plan, Received(msg, kept.plan, "C1")
+        self.plan, self.plan_request = plan, Received(msg, plan, "C1")
         if kept.outcome is not None:
             self.outcome, self.reason = kept.outcome, kept.reason
         else:
@@ -302,7 +307,7 @@ class TaskExecutor(Agent):
             self.outcome = SWState.REPLAN
             self.reason = f"a_ta restarted{where}; the robot held position"
         self.restored = True
-        self.log.info("restarted during plan %s: reporting %s", kept.plan.plan_id, self.outcome.value)
+        self.log.info("restarted during plan %s: reporting %s", plan.plan_id, self.outcome.value)
 
     def peer_changed(self, peer: str, alive: bool) -> None:
         """ag_ex came back (restarted, its world restored from its checkpoint) while a tilt it

@@ -25,7 +25,7 @@ from services.spec.model import channel_between
 from services.task_executor.agent import KeptTaskExecutor, TaskExecutor
 from shared.fipa_codec import Communicate, Performative, decode, encode
 from shared.fipa_codec.languages.l_ex import Wait
-from shared.fipa_codec.languages.l_hc import CommandOutcome, HumanCommand, StatusQuery, TaskAtom
+from shared.fipa_codec.languages.l_hc import CommandOutcome, HumanCommand, StatusQuery, TaskAtom, TaskState
 from shared.fipa_codec.languages.l_hfsm import Execute, GroundTaskNetwork, HierarchicalPlan, PlanNode
 from shared.fipa_codec.languages.l_sw import SWState, SWStatus
 from tests.support.messages import communicate
@@ -261,7 +261,7 @@ def test_a_restarted_a_ta_reports_replan_in_the_plans_conversation(
 ) -> None:
     monkeypatch.setenv(ENV_STATE_DIR, str(tmp_path))
     request = communicate(P.REQUEST, "a_co", "a_ta", "coordinate", "cmd-1-exec1", PLAN, reply_with="p1")
-    kept = KeptTaskExecutor(request=encode(request), plan=PLAN, step="pour/wait", outcome=None, reason=None)
+    kept = KeptTaskExecutor(request=encode(request), step="pour/wait", outcome=None, reason=None)
     (tmp_path / "a_ta.json").write_bytes(msgspec.json.encode(kept))
     w = Wire(TaskExecutor)
     w.agent.setup()
@@ -312,3 +312,36 @@ def test_a_restarted_a_hi_still_tells_the_person_the_outcome(
     second.step("interact")
     assert [r.kind for r in reports if r.request_id == "req-7"][-1] is ReportKind.SUCCEEDED
     assert second.agent.counters["rejected"] == 0
+
+
+def test_a_co_probes_an_a_ta_that_reappears_and_plans_again_when_it_lost_the_plan() -> None:
+    bus = MemoryBus()
+    co = Wire(Coordinator, bus)
+    ta = bus.transport()
+    ta.announce(keys.alive_key("a_ta"))
+    co.deliver(communicate(P.REQUEST, "a_hi", "a_co", "fipa-request", "cmd-1", POUR, reply_with="r1"))
+    co.step("procReq")
+    task = co.agent.tasks["cmd-1"]
+    task.plan, task.needs_plan = PLAN, False
+    co.agent.reschedule = True
+    co.step("schedule")
+    co.step("switch")
+    (run,) = co.mine(P.REQUEST)
+    running = SWStatus(state=SWState.RUNNING, plan_id=PLAN.plan_id, step="pour/wait")
+    co.deliver(
+        communicate(P.INFORM, "a_ta", "a_co", "coordinate", run.conversation_id, running, reply_with="s1")
+    )
+    co.step("trigger")
+    (confirm,) = co.mine(P.CONFIRM)
+    ta.close()  # a_ta's process ends ...
+    co.agent._acquire(0.0)
+    ta = bus.transport()
+    ta.announce(keys.alive_key("a_ta"))  # ... and a new one starts
+    co.agent._acquire(0.0)
+    co.agent._dispatch()
+    assert co.mine(P.CONFIRM) == [confirm, confirm]  # the probe: the same confirm again
+    # the same a_ta would drop the copy; a new one does not know the conversation
+    co.deliver(communicate(P.NOT_UNDERSTOOD, "a_ta", "a_co", "coordinate", run.conversation_id))
+    co.step("trigger")
+    assert co.agent.ta_task is None and task.state is TaskState.PLANNING and task.needs_plan
+    assert "cmd-1" in co.agent.tasks  # planned again, not failed
