@@ -18,7 +18,9 @@ Every communicate (FIPA SC00061):
 
 Every conversation (one conversation-id between two agents) follows its interaction
 protocol's state machine (FIPA SC00026 fipa-request, SC00027 fipa-query, SC00035
-fipa-subscribe, the paper's coordinate protocol), message by message in arrival order, as
+fipa-subscribe, the paper's coordinate protocol), message by message in causal order
+(arrival order, with an answer that arrived before what it answers moved after it:
+:mod:`services.spec.causal`), as
 :class:`~services.runtime.conversations.CrossingTracker` follows it: communicates of the two
 agents that crossed on the wire are tolerated, as are the cancel meta-protocol's late
 cancels; an opening communicate that reuses a conversation-id begins it anew; a
@@ -38,6 +40,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from services.report.load import Message, load_run
+from services.spec.causal import causal_order
 from services.runtime import keys
 from services.runtime.conversations import (
     ConversationError,
@@ -209,8 +212,14 @@ def verify_run(
     # below judge content themselves, so its note on undecodable content is left out
     notes = [n for n in data.notes if "not decodable in their language" not in n]
     report = ConformanceReport(Path(run_dir), spec.system, notes=notes)
+    messages, moved = causal_order(data.messages)
+    if moved:
+        notes.append(
+            f"{moved} communicate(s) reached the recorder before the one they answer "
+            "(publishers' paths through the router are not ordered); checked in causal order"
+        )
     checker = _Checker(spec, machines, report)
-    for message in data.messages:
+    for message in messages:
         checker.check(message)
     checker.finish()
     return report

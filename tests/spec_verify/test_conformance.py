@@ -265,3 +265,21 @@ def test_a_term_the_specification_does_not_list_for_the_performative_is_a_violat
     assert (
         v.text == "inform in fipa-subscribe on C2 carries a CommandOutcome; the specification allows Progress"
     )
+
+
+def test_an_answer_recorded_before_its_query_is_checked_after_it(tmp_path: Path) -> None:
+    """The recorder sees different publishers in no fixed order (seen in CI: a_km's
+    inform-ref recorded before a_pl's query-ref). An answer whose in-reply-to names a later
+    reply-with of its conversation is checked after it; one that names nothing recorded is not
+    moved and stays a violation."""
+    query = comm(P.QUERY_REF, "a_pl", "a_km", "fipa-query", "q1", ObjectQuery("jar"), reply_with="r1")
+    answer = comm(P.INFORM_REF, "a_km", "a_pl", "fipa-query", "q1", Answer(), in_reply_to="r1")
+    report = verify(tmp_path / "swapped", on("C4", answer), on("C4", query))
+    assert report.full_conformance, render(report)
+    assert report.conversations[0].ended
+    assert any("checked in causal order" in n for n in report.notes)
+    stray = comm(P.INFORM_REF, "a_km", "a_pl", "fipa-query", "q2", Answer(), in_reply_to="nothing")
+    query2 = comm(P.QUERY_REF, "a_pl", "a_km", "fipa-query", "q2", ObjectQuery("jar"), reply_with="r2")
+    report = verify(tmp_path / "stray", on("C4", stray), on("C4", query2))
+    assert found(report) == [(0, "protocol-state", "q2", 0)]
+    assert not any("causal order" in n for n in report.notes)
