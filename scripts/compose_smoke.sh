@@ -124,7 +124,12 @@ export ROCO_RUN=$RUN_NAME ROCO_RUNS="$repo/runs" ROCO_ROUTER_PUBLISH="127.0.0.1:
 export ROCO_VIEWER_WEB_PORT ROCO_VIEWER_GRPC_PORT
 ROCO_VIEWER_WEB_PORT=$(free_port)
 ROCO_VIEWER_GRPC_PORT=$(free_port)
-endpoint="tcp/127.0.0.1:$router_port"
+# access control on, as by default: the one-shot `certs` service issues the deployment's
+# credentials into ROCO_CERTS; the host's roco talks to the router as `operator` over mutual TLS
+export ROCO_CERTS="$work/certs"
+mkdir -p "$ROCO_CERTS"
+endpoint="tls/127.0.0.1:$router_port"
+roco_host() { ROCO_SECURITY="$ROCO_CERTS" "$ROCO_BIN" "$@"; }
 run_dir="$repo/runs/$RUN_NAME"
 $COMPOSE down -v --timeout 5 >/dev/null 2>&1 || true  # a project left over by an earlier run
 compose_up=1
@@ -148,12 +153,12 @@ while :; do
     sleep 1
 done
 say "all healthy $(( $(date +%s) - phase_start )) s after up"
-"$ROCO_BIN" status --router "$endpoint"
+roco_host status --router "$endpoint"
 phase healthy
 
 # --- pour, with a_km restarted mid-task ----------------------------------------------------
 say "sending \"$SENTENCE\" to $endpoint; run folder $run_dir"
-"$ROCO_BIN" send --router "$endpoint" --timeout 900 "$SENTENCE" >"$work/send.log" 2>&1 &
+roco_host send --router "$endpoint" --timeout 900 "$SENTENCE" >"$work/send.log" 2>&1 &
 send_pid=$!
 deadline=$(($(date +%s) + 300))
 # the task runs once a_co has sent a_ta plan #1 (the first request on C1)

@@ -30,11 +30,43 @@ from services.human_interface.messages import FINAL_REPORTS, HumanInput, HumanRe
 from services.runtime import keys
 from services.runtime.launcher import AGENT_ORDER, Fleet, LaunchError, alive_agents, open_client
 from services.runtime.run_folder import RunInfo, new_run_dir, write_run_info
+from services.security.cli import deploy_app
 
 app = typer.Typer(add_completion=False, no_args_is_help=True, help=__doc__)
 app.add_typer(fault_app, name="fault")
+app.add_typer(deploy_app, name="deploy")
+app.add_typer(__import__("services.bench.cli", fromlist=["bench_app"]).bench_app, name="bench")
 FLEET_FILE = ".fleet.json"
 DEFAULT_ROUTER = "tcp/127.0.0.1:7447"
+AclOption = Annotated[
+    bool | None,
+    typer.Option(
+        "--acl/--no-acl",
+        help="authenticate every process and enforce the access control generated from the "
+        "specification (docs/security.md); --no-acl for experiments [default: on, unless ROCO_ACL=0]",
+        show_default=False,
+    ),
+]
+TlsOption = Annotated[
+    bool | None,
+    typer.Option(
+        "--tls/--no-tls",
+        help="the router listens on mutual TLS (implies --acl) [default: off, unless ROCO_TLS=1]",
+        show_default=False,
+    ),
+]
+
+
+def _security(acl: bool | None, tls: bool | None) -> None:
+    """Set the switches the launcher reads (``ROCO_ACL``, ``ROCO_TLS``;
+    services/security/context.py) for this process and the processes it starts; None leaves
+    the environment's choice."""
+    if tls is not None:
+        os.environ["ROCO_TLS"] = "1" if tls else "0"
+    if acl is not None:
+        os.environ["ROCO_ACL"] = "1" if acl else "0"
+    if tls:
+        os.environ["ROCO_ACL"] = "1"
 
 
 class FleetState(msgspec.Struct):
@@ -73,11 +105,14 @@ def run(
     pose_seed: Annotated[
         int | None, typer.Option(min=0, help="randomise the jar and bowl poses (±2 cm, ±10°) with this seed")
     ] = None,
+    acl: AclOption = None,
+    tls: TlsOption = None,
 ) -> None:
     """Start router, recorder and one process per agent; give a_hi the command; wait for the
     outcome; stop everything; write the run folder's report. Exit 0 only on success."""
     from services.scenario.model import Scenario, Step
 
+    _security(acl, tls)
     scenario = Scenario(
         name="", steps=(Step(say=command),), seed=seed, pose_seed=pose_seed, timeout_s=timeout
     )
@@ -97,12 +132,15 @@ def scenario(
         bool, typer.Option(help="record robot, scene and traffic in RUN/recording.rrd (Rerun)")
     ] = True,
     view: Annotated[bool, typer.Option(help="also show the recording live in a Rerun viewer")] = False,
+    acl: AclOption = None,
+    tls: TlsOption = None,
 ) -> None:
     """Run a scenario (several commands, interruptions, disturbances, restarts; see
     services/scenario/model.py) headless, check every command's outcome against what the
     scenario expects, and write the report. Exit 0 only when everything went as expected."""
     from services.scenario.model import ScenarioError, library, load_scenario
 
+    _security(acl, tls)
     if list_:
         for stem, sc in library().items():
             typer.echo(f"{stem:24s} {sc.name}: {sc.description}")
@@ -136,6 +174,8 @@ def chaos(
     realtime: Annotated[bool, typer.Option(help="pace the simulation to wall time")] = False,
     quiet: Annotated[bool, typer.Option(help="print only the faults and the verdict")] = False,
     record: Annotated[bool, typer.Option(help="record RUN/recording.rrd (Rerun)")] = False,
+    acl: AclOption = None,
+    tls: TlsOption = None,
 ) -> None:
     """Kill, pause or restart services at random times while the robot carries out a command
     (each service once by default), then say whether the task was done, no command was lost,
@@ -143,6 +183,8 @@ def chaos(
     four hold. Local fleet only; on compose use ``roco fault`` (docs/recovery.md)."""
     from services.scenario.chaos import chaos_scenario, verdict, write_chaos_report
     from services.scenario.runner import ScenarioRunner
+
+    _security(acl, tls)
 
     try:
         low, high = (float(x) for x in gap.split(","))
@@ -272,15 +314,19 @@ def up(
     record: Annotated[
         bool, typer.Option(help="record robot, scene and traffic in the run folder's recording.rrd (Rerun)")
     ] = False,
+    acl: AclOption = None,
+    tls: TlsOption = None,
 ) -> None:
     """Start router, recorder and all agents in the background; they keep running until
     ``roco down``."""
+    _security(acl, tls)
     state_file = runs_dir / FLEET_FILE
     if state_file.exists():
         raise fail(f"a fleet is already up ({state_file}); run 'roco down' first")
     run_dir = new_run_dir(runs_dir)
     endpoint = f"tcp/127.0.0.1:{port}"
     fleet = Fleet(run_dir, endpoint, env=_scene_env(realtime, seed, pose_seed) | _viewer_env(record, False))
+    endpoint = fleet.endpoint  # tls/… when the router listens on TLS
     try:
         fleet.start_router()
         session = open_client(endpoint)
@@ -311,7 +357,11 @@ def _fleet_state(runs_dir: Path) -> FleetState | None:
     path = runs_dir / FLEET_FILE
     if not path.exists():
         return None
-    return msgspec.json.decode(path.read_bytes(), type=FleetState)
+    try:
+        return msgspec.json.decode(path.read_bytes(), type=FleetState)
+    except (msgspec.DecodeError, msgspec.ValidationError, OSError) as exc:
+        why = (str(exc).splitlines() or [type(exc).__name__])[0]
+        raise fail(f"{path}: not a fleet state file: {why}", code=2) from None
 
 
 @app.command()
@@ -514,17 +564,32 @@ def sniff(
 def status(
     router: Annotated[str | None, typer.Option(help="router endpoint")] = None,
     runs_dir: Annotated[Path, typer.Option()] = Path("runs"),
+    counters_timeout: Annotated[
+        float, typer.Option(min=0.0, help="seconds to wait for the agents' counters")
+    ] = 2.0,
 ) -> None:
-    """List the agents that hold a liveliness token; exit 1 if any agent is missing."""
+    """List the agents that hold a liveliness token, each alive agent with its counters of
+    received and rejected input (by reason; docs/security.md); exit 1 if any agent is
+    missing."""
+    from services.runtime.counters import ask_counters, summary
+
     endpoint = _endpoint(router, runs_dir)
     try:
         session = open_client(endpoint)
     except Exception:
         raise fail(f"no router answers at {endpoint}") from None
-    alive = alive_agents(session)
-    session.close()
+    try:
+        alive = alive_agents(session)
+        reports = ask_counters(session, alive & set(AGENT_ORDER), timeout=counters_timeout)
+    finally:
+        session.close()
     for name in (*AGENT_ORDER, "recorder"):
-        typer.echo(f"{name:9s} {'alive' if name in alive else 'absent'}")
+        line = f"{name:9s} {'alive' if name in alive else 'absent'}"
+        if name in reports:
+            line += f"  {summary(reports[name].counters)}"
+        elif name in alive and name != "recorder":
+            line += "  (no counters within the timeout: busy)"
+        typer.echo(line)
     if not set(AGENT_ORDER) <= alive:
         raise typer.Exit(1)
 

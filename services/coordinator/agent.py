@@ -536,6 +536,16 @@ class Coordinator(Agent):
 
     def _from_hi(self, item: Received) -> None:
         perf = item.performative
+        if perf is Performative.NOT_UNDERSTOOD:
+            # never answered (FIPA SC00037 §3.12); it ends its conversation: a_hi did not
+            # understand the progress stream, so the subscription is over
+            if (
+                self.subscription is not None
+                and item.msg.conversation_id == self.subscription.msg.conversation_id
+            ):
+                self.subscription = None
+            self.log.info("not-understood from a_hi (conversation %s) dropped", item.msg.conversation_id)
+            return
         if perf is Performative.SUBSCRIBE and isinstance(item.content, ProgressSubscription):
             self.subscription = item
             self.reply(item, Performative.AGREE)

@@ -50,6 +50,7 @@ from services.runtime.launcher import (
     spawn_process,
 )
 from services.runtime.run_folder import read_run_info, write_run_info
+from services.security.context import register
 
 ACTIONS = ("kill", "stop", "start", "pause", "unpause", "restart")
 LOCAL_SERVICES = ("router", "recorder", *AGENT_ORDER)
@@ -72,6 +73,11 @@ class UpFleet:
     endpoint: str
     run_dir: Path
     pids: dict[str, int]
+
+    def __post_init__(self) -> None:
+        # the fleet's credentials (docs/security.md): this process's sessions to it use them
+        if (self.run_dir / "security").is_dir():
+            register(self.endpoint, self.run_dir / "security")
 
     @classmethod
     def load(cls, runs_dir: Path) -> UpFleet:

@@ -582,10 +582,61 @@ def _goal(s: Any, name: str, args: list[str]) -> tuple[str, list[Any]]:
     return "move_to", [obj, furniture]
 
 
+UNFINISHED_TAKE_SHARE = 0.8
+"""A held object still within this share of its grasp's retreat distance of a place where it
+stands in the furniture it was picked from has not been withdrawn (see ``finish_takes``)."""
+
+
+def finish_takes(s: Any, root: str) -> list[tuple[Any, ...]]:
+    """Actions that finish takes an earlier plan left half done, applied to ``s``.
+
+    A take (lift, withdraw; paper §3.2: an atomic state) is interrupted when a_ta or ag_ex is
+    lost inside it: the hand then holds the object where it stood, inside a cabinet, and a
+    torso turn would drag it against the cabinet. A held object picked from a container whose
+    position (a_km's last observation) is within ``UNFINISHED_TAKE_SHARE`` × the grasp's
+    retreat distance of one of its places in that container is lifted to the grasp's lift
+    height above that place, then withdrawn along the retreat to the retreat distance from the
+    place: the same poses ``m_fetch`` ends at. Each becomes an atomic ``take`` state under
+    ``{root}/finish_take_{obj}``. Returns [] when every take was finished."""
+    out: list[tuple[Any, ...]] = []
+    for arm in ARMS:
+        obj = s.holding[arm]
+        furniture = s.picked_from.get(obj) if obj is not None else None
+        if obj is None or furniture is None or _relation(s, furniture) != "in":
+            continue
+        pose, grasp = s.pose.get(obj), _best_grasp(s, obj, arm)
+        placement = _k(s).placements.get((obj, furniture))
+        if pose is None or grasp is None or placement is None or not placement.positions:
+            continue
+        x, y, z = pose.position
+        place = min(placement.positions, key=lambda p: np.hypot(p[0] - x, p[1] - y))
+        if np.hypot(place[0] - x, place[1] - y) >= UNFINISHED_TAKE_SHARE * grasp.retreat_distance:
+            continue
+        facing = _place_facing(s, obj, furniture, place)
+        frame = _rot_z((facing if facing is not None else GRASP_FACING) - GRASP_FACING)
+        retreat = geo.rotate(grasp.retreat, frame)
+        # the hand keeps the grasp's orientation (containers are symmetric about z: their yaw
+        # is not observed reliably); height: at least the lift above the place
+        height = max(z, place[2] + grasp.lift)
+        lifted = geo.compose(Pose((x, y, height), frame.orientation), _grasp_pose(grasp))
+        done = (x - place[0]) * retreat[0] + (y - place[1]) * retreat[1]
+        withdrawn = geo.translated(lifted, _scaled(retreat, max(0.0, grasp.retreat_distance - done)))
+        take = f"{root}/finish_take_{obj}/take"
+        s.grip[obj] = _grasp_pose(grasp)
+        moves: list[tuple[Any, ...]] = [
+            ("a_move", f"{take}/lift", arm, lifted, 1.0),
+            ("a_move", f"{take}/withdraw", arm, withdrawn, SHORT_MOVE_S),
+        ]
+        for name, path, *args in moves:
+            _ACTIONS[name](s, path, *args)
+        out += moves
+    return out
+
+
 def _run(s: Any, task: list[Any]) -> list[tuple[Any, ...]] | None:
     with contextlib.redirect_stdout(io.StringIO()):
         plan = gtpyhop.find_plan(s, [tuple(task)])
-    return list(plan) if plan else None
+    return None if plan is None or plan is False else list(plan)
 
 
 def safe_stops(s0: Any, actions: list[tuple[Any, ...]]) -> tuple[list[str | None], dict[str, list[Any]]]:
@@ -625,13 +676,18 @@ def plan_task(k: Knowledge, task: tuple[str, ...], root: str, *, with_safe_stops
     """The plan for goal ``task`` from a_km's knowledge ``k``, with the safe stop of every
     step. Raises PlanningFailure with a reason a person can read."""
     declare()
-    s = initial_state(k, {})
+    s0 = initial_state(k, {})
     name, *args = task
-    domain_task, domain_args = _goal(s, name, list(args))
-    actions = _run(s, [domain_task, root, *domain_args])
+    domain_task, domain_args = _goal(s0, name, list(args))
+    s = s0.copy()
+    first = finish_takes(s, root)
+    found = _run(s, [domain_task, root, *domain_args])
+    if found is None:
+        raise PlanningFailure(f"no way to {name} {' '.join(map(str, args))} from what I know")
+    actions = [*first, *found]
     if not actions:
         raise PlanningFailure(f"no way to {name} {' '.join(map(str, args))} from what I know")
     if not with_safe_stops:
         return PlanActions(actions, [None] * len(actions), {}, domain_task, domain_args)
-    keys, stops = safe_stops(s, actions)
+    keys, stops = safe_stops(s0, actions)
     return PlanActions(actions, keys, stops, domain_task, domain_args)

@@ -121,7 +121,7 @@ def main() -> int:
     writer = TrafficWriter(run_dir)
     rerun = traffic_hook(RECORDER, run_dir)  # Rerun (services/viewer): None unless ROCO_RERUN=1
     inbox: queue.SimpleQueue[tuple[float, str, bytes] | None] = queue.SimpleQueue()
-    transport = ZenohTransport(router_endpoints())
+    transport = ZenohTransport(router_endpoints(), identity=RECORDER)
     transport.subscribe(keys.FIPA_ALL, lambda k, p: inbox.put((time.time(), k, p)))
     # a sync token arrives after the traffic routed before it: answer once that is written
     transport.subscribe(keys.RECORDER_SYNC, lambda k, p: inbox.put((time.time(), k, p)))

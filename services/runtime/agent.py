@@ -15,8 +15,16 @@ A subclass declares its ``name`` (as in the specification), builds its FSM of be
   interface, or not allowed in the conversation's state) raises :class:`SpecViolation`.
   Every violation is counted (``counters``: ``protocol_violations`` for a received one
   outside its conversation's state, ``rejected`` for every not-understood sent,
-  ``send_violations`` for the agent's own) and logged at WARNING with its conversation-id;
-  the traffic recorder records the communicates themselves,
+  ``rejected.<reason>`` for every rejected input by reason (services/runtime/limits.py
+  ``REJECT_REASONS``), ``send_violations`` for the agent's own) and logged at WARNING with its
+  conversation-id (at most ``LOG_BURST`` such warnings per ``LOG_WINDOW_S``, then one line
+  saying how many were left out: a flood of bad input does not flood the log); the traffic
+  recorder records the communicates themselves. Nothing a peer sends stops the agent: an
+  exception while taking a communicate in is counted (``rejected.internal``) and logged,
+- a bound on the conversations a peer may have open with the agent
+  (``MAX_OPEN_CONVERSATIONS_PER_PEER``): one more is refused,
+- its ``counters`` on request: a put on ``roco/counters/ask`` makes every agent publish them
+  on ``roco/counters/report/<agent>`` (JSON; ``roco status`` shows them),
 - the protocol state of every conversation (:class:`ProtocolStates`, one tracker per peer
   and conversation-id, tolerant of communicates that cross on the wire),
 - reply-by deadlines ending in a local ``failure``,
@@ -58,6 +66,7 @@ from services.runtime.conversations import (
     expected_ontology,
 )
 from services.runtime.dedup import Dedup
+from services.runtime.limits import MAX_OPEN_CONVERSATIONS_PER_PEER
 from services.runtime.transport import Transport
 from services.spec.model import Interface, SystemSpec, channel_between, default_spec, interface
 from shared.fipa_codec import (
@@ -84,6 +93,12 @@ RESEND_ON_RETURN = math.inf
 peer lost what it was sent), never periodically."""
 _ALIVE = "\x00alive"
 """Input-queue key of a peer liveliness event (never a Zenoh key)."""
+_COUNTERS = "\x00counters"
+"""Input-queue key of a request for the agent's counters (``roco/counters/ask``)."""
+LOG_BURST = 50
+"""Warnings about rejected input logged per :data:`LOG_WINDOW_S` before the rest are only
+counted (and their number logged once the window ends)."""
+LOG_WINDOW_S = 10.0
 STREAMING_PROTOCOLS = frozenset({"fipa-subscribe", "coordinate"})
 _OPENERS = frozenset({Performative.REQUEST, Performative.SUBSCRIBE})
 """Performatives that open a streaming conversation (many replies to one message)."""
@@ -140,6 +155,10 @@ class Agent:
         self.dedup = Dedup()
         self.peers: set[str] = set()
         """Agents whose liveliness token is present (kept up to date on the agent's thread)."""
+        self.max_open_per_peer = MAX_OPEN_CONVERSATIONS_PER_PEER
+        """Open conversations a peer may have with this agent before a new one is refused."""
+        self._log_window = (0.0, 0)  # (window start, monotonic s; warnings logged in it)
+        self._log_suppressed = 0
         self._roles: dict[tuple[str, str], Role] = _roles(self.spec, self.name)
         self._y: list[tuple[str, bytes]] = []
         self._queue: queue.SimpleQueue[tuple[str, Any]] = queue.SimpleQueue()
@@ -299,14 +318,19 @@ class Agent:
         self._out(to.sender, msg.in_reply_to, keys.fipa_key(channel.name, self.name, to.sender), encode(msg))
         self.counters[f"sent.{performative.value}"] += 1
 
-    def not_understood(self, sender: str, channel: str, why: str, about: Communicate | None) -> None:
+    def not_understood(
+        self, sender: str, channel: str, why: str, about: Communicate | None, reason: str = "unhandled"
+    ) -> None:
         """Answer ``sender`` with not-understood; content is the reason as UTF-8 text.
 
-        The not-understood ends ``about``'s conversation (FIPA SC00037 §3.12): from now on the
-        runtime no longer follows its protocol state."""
+        ``reason`` is the counter it is counted under (``rejected.<reason>``; the names are in
+        services/runtime/limits.py ``REJECT_REASONS``). The not-understood ends ``about``'s
+        conversation (FIPA SC00037 §3.12): from now on the runtime no longer follows its
+        protocol state. A not-understood is never answered with one (no loops)."""
         self.counters["rejected"] += 1
+        self.counters[f"rejected.{reason}"] += 1
         cid = about.conversation_id if about is not None else None
-        self.log.warning("not-understood to %s (conversation %s): %s", sender, cid, why)
+        self._warn_rejected("not-understood to %s (conversation %s): %s", sender, cid, why)
         if about is not None and about.performative is Performative.NOT_UNDERSTOOD:
             return  # never answer a not-understood with one: no loops
         if about is not None and cid is not None and self.protocol_states.get(sender, cid) is not None:
@@ -322,6 +346,31 @@ class Agent:
             in_reply_to=about.reply_with if about else None,
         )
         self._out(sender, msg.in_reply_to, keys.fipa_key(channel, self.name, sender), encode(msg))
+
+    def _warn_rejected(self, fmt: str, *args: object) -> None:
+        """Log a warning about rejected input, at most :data:`LOG_BURST` per
+        :data:`LOG_WINDOW_S`; the number left out is logged when the next window begins."""
+        now = time.monotonic()
+        start, logged = self._log_window
+        if now - start >= LOG_WINDOW_S:
+            if self._log_suppressed:
+                self.log.warning(
+                    "%d more warnings about rejected input in %.0f s not logged",
+                    self._log_suppressed,
+                    LOG_WINDOW_S,
+                )
+            start, logged, self._log_suppressed = now, 0, 0
+        if logged < LOG_BURST:
+            self.log.warning(fmt, *args)
+            logged += 1
+        else:
+            self._log_suppressed += 1
+        self._log_window = (start, logged)
+
+    def counters_report(self) -> bytes:
+        """The agent's counters as JSON: ``{"agent": name, "time": POSIX s, "counters":
+        {name: count}}`` (what ``roco/counters/report/<agent>`` carries)."""
+        return msgspec.json.encode({"agent": self.name, "time": time.time(), "counters": dict(self.counters)})
 
     def _check_send(
         self, to: str, performative: str, protocol: str, language: str | None, term: str | None = None
@@ -412,6 +461,9 @@ class Agent:
     def _on_payload(self, key: str, payload: bytes) -> None:
         self._queue.put((key, payload))  # Zenoh thread: enqueue only
 
+    def _on_counters_ask(self, key: str, payload: bytes) -> None:
+        self._queue.put((_COUNTERS, None))  # Zenoh thread: enqueue only
+
     def _on_alive(self, key: str, alive: bool) -> None:
         self._queue.put((_ALIVE, (key.rsplit("/", 1)[-1], alive)))  # Zenoh thread: enqueue only
 
@@ -463,10 +515,23 @@ class Agent:
         if key == _ALIVE:
             self._peer_event(*payload)
             return
+        if key == _COUNTERS:
+            self._y.append((keys.counters_key(self.name), self.counters_report()))
+            return
+        try:
+            self._take_communicate(key, payload)
+        except Exception:  # no input may stop the agent: count it, keep its traceback
+            self.counters["rejected.internal"] += 1
+            self.log.exception("taking in a communicate on %s raised", key)
+
+    def _take_communicate(self, key: str, payload: bytes) -> None:
+        """Check one received communicate (paper §4 steps 3–4) and put it into ``x``, or
+        answer it with not-understood (or refuse) and count why (``rejected.<reason>``)."""
         try:
             channel, sender, _receiver = keys.parse_fipa_key(key)
         except ValueError:
             self.counters["bad_key"] += 1
+            self.counters["rejected.bad_key"] += 1
             return
         copy = self.dedup.seen(payload)
         try:
@@ -475,7 +540,8 @@ class Agent:
             if copy:
                 self.counters["duplicates"] += 1
                 return
-            self.not_understood(sender, channel, f"malformed communicate: {exc.reason}", None)
+            bad = "oversized" if exc.oversized else "malformed"
+            self.not_understood(sender, channel, f"{bad} communicate: {exc.reason}", None, bad)
             return
         if copy:
             self.counters["duplicates"] += 1
@@ -492,7 +558,9 @@ class Agent:
             return
         self.counters[f"received.{msg.performative.value}"] += 1
         if msg.sender is None or msg.sender.name != sender:
-            self.not_understood(sender, channel, "sender does not match the key it came on", msg)
+            self.not_understood(
+                sender, channel, "sender does not match the key it came on", msg, "sender_mismatch"
+            )
             return
         kind = self.interface.accepts(sender, msg.performative.value, msg.protocol)
         if kind is None or kind.channel != channel:
@@ -501,13 +569,15 @@ class Agent:
                 channel,
                 f"unexpected {msg.performative.value} in protocol {msg.protocol} on {channel}",
                 msg,
+                "not_in_interface",
             )
             return
         content: msgspec.Struct | None = None
         plain_reason = msg.language is None and msg.encoding == "utf-8" and msg.performative in _REASONS
         checked = kind.languages and msg.content and not plain_reason
         if checked and msg.language not in kind.languages:
-            self.not_understood(sender, channel, f"language {msg.language} not accepted here", msg)
+            refused = f"language {msg.language} not accepted here"
+            self.not_understood(sender, channel, refused, msg, "language")
             return
         if msg.language is not None and msg.ontology != expected_ontology(msg.language):
             self.not_understood(
@@ -516,13 +586,14 @@ class Agent:
                 f"language {msg.language} needs ontology {expected_ontology(msg.language)}, "
                 f"not {msg.ontology}",
                 msg,
+                "ontology",
             )
             return
         if checked:
             try:
                 content = decode_content(msg.language, msg.content)
             except ContentError as exc:
-                self.not_understood(sender, channel, str(exc), msg)
+                self.not_understood(sender, channel, str(exc), msg, "content")
                 return
             if kind.contents and type(content).__name__ not in kind.contents:
                 self.counters["content_violations"] += 1
@@ -532,21 +603,64 @@ class Agent:
                     f"{msg.performative.value} in {msg.protocol} may carry {', '.join(kind.contents)}, "
                     f"not {type(content).__name__}",
                     msg,
+                    "content_type",
                 )
                 return
+        if (
+            msg.conversation_id is not None
+            and self.protocol_states.open_with(sender) >= self.max_open_per_peer
+            and self.protocol_states.get(sender, msg.conversation_id) is None
+        ):
+            self._refuse_new_conversation(sender, channel, msg, content)
+            return
         why = self._follow(
             sender, msg.conversation_id, msg.protocol, msg.performative, False, is_terminal_report(msg)
         )
         if why is not None:
             self.counters["protocol_violations"] += 1
-            self.log.warning(
+            self._warn_rejected(
                 "protocol violation by %s in conversation %s: %s", sender, msg.conversation_id, why
             )
-            self.not_understood(sender, channel, why, msg)
+            self.not_understood(sender, channel, why, msg, "protocol_state")
             return
         if msg.in_reply_to is not None and self.conversations.knows(msg.in_reply_to):
             self.conversations.answered(msg.in_reply_to, msg.performative.value)
         self.x.append(Received(msg, content, channel))
+
+    def _refuse_new_conversation(
+        self, sender: str, channel: str, msg: Communicate, content: msgspec.Struct | None
+    ) -> None:
+        """``sender`` opens one more conversation while it has ``max_open_per_peer`` open with
+        this agent: follow the opening communicate, then ``refuse`` it (FIPA SC00037 §3.17;
+        the reason as UTF-8 text), or answer ``not-understood`` where the protocol has no
+        refuse for this agent. A communicate that does not open a conversation is a protocol
+        violation as usual."""
+        why = self._follow(
+            sender, msg.conversation_id, msg.protocol, msg.performative, False, is_terminal_report(msg)
+        )
+        if why is not None:
+            self.counters["protocol_violations"] += 1
+            self.not_understood(sender, channel, why, msg, "protocol_state")
+            return
+        text = (
+            f"{sender} has {self.protocol_states.open_with(sender) - 1} conversations open with "
+            f"{self.name}; at most {self.max_open_per_peer}"
+        )
+        protocol = msg.protocol or ""
+        may_refuse = any(
+            k.receiver == sender and k.performative == Performative.REFUSE.value and k.protocol == protocol
+            for k in self.interface.sends
+        )
+        if may_refuse:
+            try:
+                self.fail(Received(msg, content, channel), Performative.REFUSE, text)
+            except SpecViolation:  # the protocol's state machine has no refuse here
+                may_refuse = False
+            else:
+                self.counters["rejected.too_many_conversations"] += 1
+                self._warn_rejected("refused conversation %s: %s", msg.conversation_id, text)
+        if not may_refuse:
+            self.not_understood(sender, channel, text, msg, "too_many_conversations")
 
     def _peer_event(self, peer: str, alive: bool) -> None:
         if peer == self.name:
@@ -585,6 +699,7 @@ class Agent:
     def bind(self) -> None:
         """Subscribe the input buffer and announce liveliness."""
         self.transport.subscribe(keys.inbox_key(self.name), self._on_payload)
+        self.transport.subscribe(keys.COUNTERS_ASK, self._on_counters_ask)
         self.transport.announce(keys.alive_key(self.name))
         self.transport.watch(keys.ALIVE_ALL, self._on_alive)
 

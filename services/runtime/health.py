@@ -27,12 +27,12 @@ ROUTER = "router"
 
 
 def endpoint_address(endpoint: str) -> tuple[str, int]:
-    """Host and port of a Zenoh TCP endpoint (``tcp/HOST:PORT``, ``tcp/[::1]:PORT``);
-    a bare ``HOST:PORT`` is accepted too. Raises ValueError otherwise."""
+    """Host and port of a Zenoh TCP endpoint (``tcp/HOST:PORT``, ``tcp/[::1]:PORT``; ``tls/…``
+    runs over TCP too); a bare ``HOST:PORT`` is accepted too. Raises ValueError otherwise."""
     proto, sep, rest = endpoint.partition("/")
     if not sep:
         proto, rest = "tcp", endpoint
-    if proto != "tcp":
+    if proto not in ("tcp", "tls"):
         raise ValueError(f"not a TCP endpoint: {endpoint!r}")
     rest = rest.split("#", 1)[0].split("?", 1)[0]  # Zenoh endpoint metadata / config
     host, sep, port = rest.rpartition(":")

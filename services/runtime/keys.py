@@ -6,6 +6,8 @@
 ``roco/state/<agent>``                       state snapshots (executor, for viewers)
 ``roco/sim/disturb``                         the simulated world's disturbances (a person moves an
                                              object): JSON :class:`services.executor.agent.Disturbance`
+``roco/counters/ask``                        any put here makes every agent publish its counters
+``roco/counters/report/<agent>``             an agent's counters (JSON, ``Agent.counters_report``)
 """
 
 from __future__ import annotations
@@ -22,6 +24,9 @@ RECORDER_SYNC = f"{PREFIX}/recorder/sync"
 """A token put here reaches the traffic recorder after every communicate routed before it;
 the recorder writes them all, then puts the token on ``RECORDER_SYNCED``."""
 RECORDER_SYNCED = f"{PREFIX}/recorder/synced"
+COUNTERS_ASK = f"{PREFIX}/counters/ask"
+"""A put here (any payload) asks every agent for its counters (``roco status``)."""
+COUNTERS_ALL = f"{PREFIX}/counters/report/*"
 
 
 class FipaKey(NamedTuple):
@@ -55,3 +60,8 @@ def alive_key(agent: str) -> str:
 
 def state_key(agent: str) -> str:
     return f"{PREFIX}/state/{agent}"
+
+
+def counters_key(agent: str) -> str:
+    """Where ``agent`` publishes its counters when asked on :data:`COUNTERS_ASK`."""
+    return f"{PREFIX}/counters/report/{agent}"

@@ -6,6 +6,13 @@ configuration through the environment (``services.runtime.main``). The launcher 
 processes it started, by their PID. The environment it gives them is kept in the run folder
 (``launch_env.json``: every ``ROCO_*`` variable and the fleet's extra environment) so that a
 service can be started again the same way later (``roco fault start``, services/fault/).
+
+Access control is on by default (docs/security.md): a fleet issues fresh credentials and the
+router's ACL into ``<run>/security/`` (~50 ms) before it starts anything, its processes get
+``ROCO_SECURITY`` and authenticate as themselves, and the tools of this process find the folder
+by the fleet's endpoint (services/security/context.py). ``ROCO_ACL=0`` (or ``Fleet(acl=False)``)
+turns it off; ``ROCO_TLS=1`` (or ``Fleet(tls=True)``) makes the router listen on mutual TLS
+(``tls/127.0.0.1:PORT``) instead of TCP.
 """
 
 from __future__ import annotations
@@ -25,6 +32,7 @@ import zenoh
 
 from services.runtime import keys
 from services.runtime.transport import client_config
+from services.security.context import ENV_SECURITY, acl_on, register, tls_on
 
 AGENT_ORDER = ("a_km", "a_pl", "a_co", "ag_ex", "a_ta", "a_hi")
 """Start order: servers before their clients, a_hi last (it accepts the human's command)."""
@@ -50,16 +58,40 @@ class Fleet:
     """A running set of processes: router (optional), recorder, agents.
 
     ``endpoint``: the router endpoint clients connect to; ``run_dir``: where logs and traffic
-    go; ``env``: extra environment for every process (e.g. ``ROCO_REALTIME``).
+    go; ``env``: extra environment for every process (e.g. ``ROCO_REALTIME``); ``acl``: with
+    authentication and access control (default: on unless ``ROCO_ACL=0``); ``tls``: the router
+    listens on mutual TLS (default: ``ROCO_TLS=1``; implies ``acl``; a ``tcp/`` endpoint
+    becomes ``tls/`` on the same address). ``security``: the credentials folder, or None.
     """
 
     run_dir: Path
     endpoint: str
     env: dict[str, str] = field(default_factory=dict)
     processes: dict[str, subprocess.Popen[bytes]] = field(default_factory=dict)
+    acl: bool = field(default_factory=acl_on)
+    tls: bool = field(default_factory=tls_on)
+    security: Path | None = None
+
+    def __post_init__(self) -> None:
+        if self.tls:
+            self.acl = True
+            if self.endpoint.startswith("tcp/"):
+                self.endpoint = "tls/" + self.endpoint.removeprefix("tcp/")
+        if self.acl:
+            from services.security.deploy import ensure
+            from services.spec.model import DEFAULT_SPEC, load
+
+            spec_file = self.env.get("ROCO_SPEC") or os.environ.get("ROCO_SPEC") or str(DEFAULT_SPEC)
+            self.security = ensure(self.run_dir / "security", load(Path(spec_file)), tls=self.tls)
+            register(self.endpoint, self.security)
 
     def _environ(self) -> dict[str, str]:
-        return process_environ(self.run_dir, self.endpoint, self.env)
+        env = process_environ(self.run_dir, self.endpoint, self.env)
+        if self.security is not None:
+            env[ENV_SECURITY] = str(self.security)
+        else:
+            env.pop(ENV_SECURITY, None)
+        return env
 
     def _spawn(self, name: str, args: list[str]) -> None:
         env = self._environ()
@@ -214,9 +246,13 @@ def _wait(proc: subprocess.Popen[bytes], timeout: float) -> None:
         proc.wait()
 
 
-def open_client(endpoint: str, *, wait_for_router: bool = False) -> zenoh.Session:
-    """A Zenoh client session for tools (CLI, tests). Raises zenoh.ZError when no router answers."""
-    return zenoh.open(client_config([endpoint], wait_for_router=wait_for_router))
+def open_client(
+    endpoint: str, *, wait_for_router: bool = False, identity: str | None = None
+) -> zenoh.Session:
+    """A Zenoh client session for tools (CLI, tests), authenticated as ``identity`` (default
+    ``operator``) when the fleet at ``endpoint`` has access control. Raises zenoh.ZError when
+    no router answers (or it refuses the credentials)."""
+    return zenoh.open(client_config([endpoint], wait_for_router=wait_for_router, identity=identity))
 
 
 def alive_agents(session: zenoh.Session, timeout: float = 1.0) -> set[str]:

@@ -4,7 +4,8 @@ Configuration comes from the environment so that the same command serves the loc
 and a container: ``ROCO_ROUTER`` (comma-separated Zenoh endpoints, default
 ``tcp/127.0.0.1:7447``), ``ROCO_RUN_DIR`` (run folder; logs go to stderr otherwise),
 ``ROCO_SPEC`` (specification file), ``ROCO_LOG_LEVEL``, ``ROCO_FAULTS`` (fault settings,
-JSON; docs/faults.md). The Zenoh transport is always wrapped in the fault layer
+JSON; docs/faults.md), ``ROCO_SECURITY`` (credentials folder: the agent authenticates as itself;
+docs/security.md). The Zenoh transport is always wrapped in the fault layer
 (:class:`~services.runtime.faults.FaultyTransport`) so that ``roco fault`` can reach every
 agent at run time; with no fault active it costs one attribute test per publication.
 SIGTERM and SIGINT stop the agent cleanly. Exit code 2 on a configuration error.
@@ -80,7 +81,12 @@ def main(argv: list[str] | None = None) -> int:
     except ValueError as exc:
         print(f"roco: ROCO_FAULTS: {exc}", file=sys.stderr)
         return 2
-    transport = FaultyTransport(ZenohTransport(router_endpoints()), name, faults)
+    try:  # authenticates as the agent itself when the fleet has access control (docs/security.md)
+        zenoh_transport = ZenohTransport(router_endpoints(), identity=name)
+    except ValueError as exc:  # no credentials for this agent
+        print(f"roco: agent {name}: {exc}", file=sys.stderr)
+        return 2
+    transport = FaultyTransport(zenoh_transport, name, faults)
     try:
         agent = cls(transport, spec)
     except (SpecError, ValueError) as exc:  # e.g. a malformed ROCO_SEED

@@ -3,6 +3,11 @@
 The eclipse-zenoh Python package runs a router by itself in mode "router" (no zenohd needed;
 platform-notes.md). Defaults: listen on ``ROCO_LISTEN`` or ``tcp/0.0.0.0:7447``; ``--connect``
 meshes it with other routers (a deployment over several hosts).
+
+Access control (docs/security.md): with ``ROCO_SECURITY`` naming a credentials folder
+(services/security/), the router requires user/password authentication, mutual TLS on its
+``tls/`` endpoints and applies the folder's ``acl.json`` (default deny). Exit code 2 when that
+folder is incomplete.
 """
 
 from __future__ import annotations
@@ -12,6 +17,7 @@ import os
 import signal
 import sys
 import threading
+from pathlib import Path
 from types import FrameType
 
 import zenoh
@@ -26,7 +32,13 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     listen = args.listen or [os.environ.get("ROCO_LISTEN", "tcp/0.0.0.0:7447")]
     connect = args.connect or [e for e in os.environ.get("ROCO_CONNECT", "").split(",") if e]
-    session = zenoh.open(router_config(listen, connect))
+    security = os.environ.get("ROCO_SECURITY", "").strip()
+    try:
+        conf = router_config(listen, connect, security=Path(security) if security else None)
+    except (OSError, ValueError) as exc:
+        print(f"roco router: ROCO_SECURITY: {exc}", file=sys.stderr)
+        return 2
+    session = zenoh.open(conf)
     done = threading.Event()
 
     def on_signal(signum: int, frame: FrameType | None) -> None:
@@ -34,7 +46,8 @@ def main(argv: list[str] | None = None) -> int:
 
     signal.signal(signal.SIGTERM, on_signal)
     signal.signal(signal.SIGINT, on_signal)
-    print(f"roco router {session.zid()} listening on {', '.join(listen)}", flush=True)
+    acl = f"; access control from {security}" if security else "; no access control"
+    print(f"roco router {session.zid()} listening on {', '.join(listen)}{acl}", flush=True)
     done.wait()
     session.close()
     return 0

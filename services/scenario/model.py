@@ -170,14 +170,16 @@ def _check(scenario: Scenario, where: str) -> Scenario:
 
 def parse_scenario(text: str, where: str = "<scenario>") -> Scenario:
     """A scenario from TOML text. Raises ScenarioError naming the problem."""
+    from services.spec.model import one_line
+
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
-        raise ScenarioError(f"{where}: not TOML: {exc}") from None
+        raise ScenarioError(f"{where}: not TOML: {one_line(exc)}") from None
     try:
         scenario = msgspec.convert(data, Scenario)
     except msgspec.ValidationError as exc:
-        raise ScenarioError(f"{where}: {exc}") from None
+        raise ScenarioError(f"{where}: {one_line(exc)}") from None
     return _check(scenario, where)
 
 
@@ -192,7 +194,9 @@ def load_scenario(name_or_path: str | Path) -> Scenario:
         raise ScenarioError(
             f"no scenario file {name_or_path!r} and none of that name in the library ({known})"
         )
-    return parse_scenario(path.read_text(), str(path))
+    from services.spec.model import read_text
+
+    return parse_scenario(read_text(path, "scenario file", ScenarioError), str(path))
 
 
 def library() -> dict[str, Scenario]:

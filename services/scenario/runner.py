@@ -112,8 +112,8 @@ class ScenarioRunner:
     ) -> None:
         self.scenario = scenario
         self.run_dir = run_dir
-        self.endpoint = f"tcp/127.0.0.1:{free_port()}"
-        self.fleet = Fleet(run_dir, self.endpoint, env=env or {})
+        self.fleet = Fleet(run_dir, f"tcp/127.0.0.1:{free_port()}", env=env or {})
+        self.endpoint = self.fleet.endpoint  # tls/… when the fleet runs on TLS (docs/security.md)
         self.echo = echo or (lambda line: None)
         self.traffic_lines = traffic_lines
         self.info = info or RunInfo()

@@ -40,7 +40,6 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from services.report.load import Message, load_run
-from services.spec.causal import causal_order
 from services.runtime import keys
 from services.runtime.conversations import (
     ConversationError,
@@ -48,6 +47,7 @@ from services.runtime.conversations import (
     expected_ontology,
     follow,
 )
+from services.spec.causal import causal_order
 from services.spec.model import (
     DEFAULT_SPEC,
     NOT_UNDERSTOOD,

@@ -32,7 +32,7 @@ from pathlib import Path
 
 import msgspec
 
-from services.spec.model import DEFAULT_SPEC, SpecError
+from services.spec.model import DEFAULT_SPEC, SpecError, one_line, read_text
 
 
 class Requirement(msgspec.Struct, frozen=True, forbid_unknown_fields=True, kw_only=True):
@@ -114,17 +114,15 @@ def load_decomposition(path: Path = DEFAULT_SPEC) -> Decomposition:
     """The requirement tree and steps of the specification file ``path``. Raises SpecError
     naming the file and the problem (not TOML, a field of the wrong type or unknown)."""
     try:
-        data = tomllib.loads(path.read_text())
-    except FileNotFoundError:
-        raise SpecError(f"{path}: no such specification file") from None
+        data = tomllib.loads(read_text(path))
     except tomllib.TOMLDecodeError as exc:
-        raise SpecError(f"{path}: not TOML: {exc}") from None
+        raise SpecError(f"{path}: not TOML: {one_line(exc)}") from None
     try:
         return msgspec.convert(
             {k: data[k] for k in ("system", "requirements", "steps") if k in data}, Decomposition
         )
     except msgspec.ValidationError as exc:
-        raise SpecError(f"{path}: {exc}") from None
+        raise SpecError(f"{path}: {one_line(exc)}") from None
 
 
 def replay(d: Decomposition) -> list[StepState]:

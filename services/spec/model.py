@@ -119,14 +119,43 @@ class Interface:
         return None
 
 
-def load(path: Path = DEFAULT_SPEC) -> SystemSpec:
-    """Load and cross-check a specification. Raises SpecError naming the file and the problem."""
+def read_text(path: Path, what: str = "specification file", error: type[ValueError] = SpecError) -> str:
+    """The text of an input file (UTF-8). Raises ``error`` (one line naming the file) when it
+    does not exist, is a directory, cannot be read, or is not UTF-8 (with the line and
+    column of the first bad byte)."""
     try:
-        spec = msgspec.toml.decode(path.read_bytes(), type=SystemSpec)
+        data = path.read_bytes()
     except FileNotFoundError:
-        raise SpecError(f"{path}: no such specification file") from None
+        raise error(f"{path}: no such {what}") from None
+    except IsADirectoryError:
+        raise error(f"{path}: is a directory, not a {what}") from None
+    except OSError as exc:
+        raise error(f"{path}: cannot read the {what}: {exc.strerror or exc}") from None
+    try:
+        return data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        line = data.count(b"\n", 0, exc.start) + 1
+        column = exc.start - (data.rfind(b"\n", 0, exc.start) + 1) + 1
+        bad = f"byte 0x{data[exc.start]:02x} at line {line}, column {column}"
+        raise error(f"{path}: not UTF-8 text ({bad})") from None
+
+
+def one_line(exc: Exception) -> str:
+    """The first line of an exception's message (msgspec and tomllib messages name the
+    place: ``at line L, column C`` or the key path ``$.channels[0].ends``)."""
+    text = str(exc).strip()
+    return text.splitlines()[0] if text else type(exc).__name__
+
+
+def load(path: Path = DEFAULT_SPEC) -> SystemSpec:
+    """Load and cross-check a specification. Raises SpecError, one line naming the file and
+    the place: line and column for TOML syntax, the key path (``$.channels[0].ends``) for a
+    wrong type or unknown field, the channel for an unknown agent or protocol."""
+    text = read_text(path)
+    try:
+        spec = msgspec.toml.decode(text, type=SystemSpec)
     except (msgspec.DecodeError, msgspec.ValidationError) as exc:
-        raise SpecError(f"{path}: {exc}") from None
+        raise SpecError(f"{path}: {one_line(exc)}") from None
     names = {a.name for a in spec.agents}
     for ch in spec.channels:
         for end in ch.ends:

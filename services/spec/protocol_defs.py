@@ -42,7 +42,7 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-from services.spec.model import DEFAULT_SPEC, ProtocolRoles, SpecError, load
+from services.spec.model import DEFAULT_SPEC, ProtocolRoles, SpecError, load, one_line, read_text
 from shared.fipa_codec.acts import Performative
 from shared.fipa_codec.protocols import INITIATOR, PARTICIPANT, PROTOCOLS, Protocol, Role, _build
 
@@ -69,12 +69,9 @@ def read_raw(path: Path) -> dict[str, Any]:
     """The specification file as plain TOML data; SpecError naming the file when it cannot
     be read or parsed."""
     try:
-        with path.open("rb") as f:
-            return tomllib.load(f)
-    except FileNotFoundError:
-        raise SpecError(f"{path}: no such specification file") from None
+        return tomllib.loads(read_text(path))
     except tomllib.TOMLDecodeError as exc:
-        raise SpecError(f"{path}: {exc}") from None
+        raise SpecError(f"{path}: {one_line(exc)}") from None
 
 
 def declares_state_machine(table: Mapping[str, object]) -> bool:

@@ -20,8 +20,10 @@ Restarts (issue 7; docs/recovery.md): each L_SW inform is retransmitted until a_
 (a_co may be restarting); a request to ag_ex is sent again when ag_ex's liveliness token
 reappears (ag_ex restored its world from its checkpoint). a_ta keeps the plan it runs in its
 state file; a restarted a_ta does not guess where the robot got to: it reports Replan (or the
-final state it had reached) in the plan's conversation, so that a_co plans again from the world
-as it is. Meanwhile ag_ex holds position with the hands as they are.
+final state it had reached) in the plan's conversation, once it has observed the scene and
+informed a_km, so that a_co plans again from the world as it is (a_pl then first finishes a
+take the restart interrupted: ``services.planner.domain.finish_takes``). Meanwhile ag_ex holds
+position with the hands as they are.
 """
 
 from __future__ import annotations
@@ -117,7 +119,9 @@ class TaskExecutor(Agent):
                 "idle": Behaviour(
                     "idle",
                     self._idle,
-                    terminal=lambda: self.plan is not None,
+                    # restarted during a plan: report only once the world is observed and
+                    # a_km knows it (a held object's pose decides how the next plan begins)
+                    terminal=lambda: self.plan is not None and (not self.restored or self.initial_done),
                     doc="await a plan execution request from a_co",
                 ),
                 "running": Behaviour(

@@ -5,7 +5,15 @@ Pure data and functions: this package performs no I/O and imports nothing else o
 
 from shared.fipa_codec.acts import Performative
 from shared.fipa_codec.aid import AgentIdentifier
-from shared.fipa_codec.encoding import DecodeError, decode, encode
+from shared.fipa_codec.encoding import DecodeError, EncodeError, decode, encode
 from shared.fipa_codec.message import Communicate
 
-__all__ = ["AgentIdentifier", "Communicate", "DecodeError", "Performative", "decode", "encode"]
+__all__ = [
+    "AgentIdentifier",
+    "Communicate",
+    "DecodeError",
+    "EncodeError",
+    "Performative",
+    "decode",
+    "encode",
+]

@@ -1,7 +1,9 @@
 """Wire encodings of a :class:`Communicate`: msgpack (the wire format) and JSON.
 
 Decoding is strict: unknown performatives, wrong types or truncated bytes raise
-:class:`DecodeError`, never anything else. A maximum size guards against oversized input.
+:class:`DecodeError`, never anything else. A maximum size (:data:`MAX_COMMUNICATE_BYTES`)
+guards against oversized input on decode and keeps an agent from sending it on encode
+(:class:`EncodeError`).
 
 The JSON encoding (for tools outside Python)
     One JSON object per communicate, UTF-8, with the FIPA SC00061 §2 parameter names; a
@@ -66,9 +68,12 @@ import msgspec
 
 from shared.fipa_codec.message import Communicate
 
-MAX_COMMUNICATE_BYTES = 8 * 1024 * 1024
-"""Largest communicate accepted by :func:`decode` and :func:`decode_json` (8 MiB; the paper's
-largest was 852 kB)."""
+MAX_COMMUNICATE_BYTES = 4 * 1024 * 1024
+"""Largest communicate (bytes of its encoding) that :func:`encode` writes and :func:`decode`
+and :func:`decode_json` accept: 4 MiB. The specification's largest size estimate is 1 MB (a
+world-model answer, ``sizes`` in services/spec/robot_companion.toml), the paper's largest
+communicate was 852 kB and the messaging benchmark sends 1 MB of content; 4 MiB leaves four
+times that. The Zenoh router drops larger publications too (services/runtime/limits.py)."""
 
 _mp_encoder = msgspec.msgpack.Encoder()
 _mp_decoder = msgspec.msgpack.Decoder(Communicate)
@@ -77,16 +82,30 @@ _json_decoder = msgspec.json.Decoder(Communicate)
 
 
 class DecodeError(ValueError):
-    """Bytes that are not a valid communicate. ``reason`` says why, in one line."""
+    """Bytes that are not a valid communicate. ``reason`` says why, in one line;
+    ``oversized`` is True when only the size was wrong (more than the limit)."""
 
-    def __init__(self, reason: str) -> None:
+    def __init__(self, reason: str, *, oversized: bool = False) -> None:
         super().__init__(reason)
         self.reason = reason
+        self.oversized = oversized
 
 
-def encode(msg: Communicate) -> bytes:
-    """Encode ``msg`` as msgpack bytes (the Zenoh payload). ~1 µs for 200 B content."""
-    return _mp_encoder.encode(msg)
+class EncodeError(ValueError):
+    """A communicate that may not be sent: its encoding exceeds the size limit."""
+
+
+def encode(msg: Communicate, max_size: int = MAX_COMMUNICATE_BYTES) -> bytes:
+    """Encode ``msg`` as msgpack bytes (the Zenoh payload). ~1 µs for 200 B content.
+
+    Raises EncodeError when the encoding is longer than ``max_size`` bytes (no receiver
+    would accept it)."""
+    data = _mp_encoder.encode(msg)
+    if len(data) > max_size:
+        raise EncodeError(
+            f"{msg.performative.value} of {len(data)} bytes exceeds the communicate limit of {max_size}"
+        )
+    return data
 
 
 def decode(data: bytes | bytearray | memoryview, max_size: int = MAX_COMMUNICATE_BYTES) -> Communicate:
@@ -96,7 +115,7 @@ def decode(data: bytes | bytearray | memoryview, max_size: int = MAX_COMMUNICATE
     the FIPA SC00061 structure (unknown performative, wrong field type, bad agent name…).
     """
     if len(data) > max_size:
-        raise DecodeError(f"communicate of {len(data)} bytes exceeds the limit of {max_size}")
+        raise DecodeError(f"communicate of {len(data)} bytes exceeds the limit of {max_size}", oversized=True)
     try:
         return _mp_decoder.decode(data)
     except (msgspec.DecodeError, msgspec.ValidationError, ValueError) as exc:
@@ -105,15 +124,21 @@ def decode(data: bytes | bytearray | memoryview, max_size: int = MAX_COMMUNICATE
         raise DecodeError("agent identifiers nested too deeply") from None
 
 
-def encode_json(msg: Communicate) -> bytes:
+def encode_json(msg: Communicate, max_size: int = MAX_COMMUNICATE_BYTES) -> bytes:
     """Encode ``msg`` as the JSON of the module docstring (UTF-8 bytes, one line).
 
     Raises ValueError when ``reply_by`` is not finite: JSON has no NaN or infinity, and
-    writing ``null`` would read back as no ``reply-by`` at all.
+    writing ``null`` would read back as no ``reply-by`` at all; EncodeError (a ValueError)
+    when the JSON is longer than ``max_size`` bytes.
     """
     if msg.reply_by is not None and not math.isfinite(msg.reply_by):
         raise ValueError(f"reply-by {msg.reply_by!r} is not finite and has no JSON form")
-    return _json_encoder.encode(msg)
+    data = _json_encoder.encode(msg)
+    if len(data) > max_size:
+        raise EncodeError(
+            f"{msg.performative.value} of {len(data)} JSON bytes exceeds the communicate limit of {max_size}"
+        )
+    return data
 
 
 def decode_json(
@@ -124,7 +149,7 @@ def decode_json(
     is not JSON, or does not match the structure (unknown performative, content not base64,
     user parameter without ``X-``, bad agent name…)."""
     if len(data) > max_size:
-        raise DecodeError(f"communicate of {len(data)} bytes exceeds the limit of {max_size}")
+        raise DecodeError(f"communicate of {len(data)} bytes exceeds the limit of {max_size}", oversized=True)
     try:
         return _json_decoder.decode(data)
     except (msgspec.DecodeError, msgspec.ValidationError, ValueError) as exc:

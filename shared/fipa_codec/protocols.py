@@ -504,7 +504,8 @@ COORDINATE = _build(
     "states (L_SW), each confirmed by a_co before the next; a_co may cancel at any time "
     "while the plan runs (a_ta then goes on reporting, e.g. Terminating, Preempted); the "
     "conversation ends when a terminal state (Succeeded, Error, Preempted, Replan) is "
-    "confirmed. A cancel that crosses the terminal inform on the wire is tolerated. a_ta "
+    "confirmed. A cancel that crosses the terminal inform on the wire is tolerated, as is a "
+    "confirm sent again while the plan runs. a_ta "
     "may refuse a request it cannot run (no plan in it) or fail it at once.",
     [
         ("start", _I, _P.REQUEST, "requested"),
@@ -513,6 +514,8 @@ COORDINATE = _build(
         ("requested", _R, _P.INFORM, "reported"),
         ("reported", _I, _P.CONFIRM, "running"),
         ("running", _R, _P.INFORM, "reported"),
+        # a confirm sent again (a_co probes an a_ta that reappears: issue 7) changes nothing
+        ("running", _I, _P.CONFIRM, "running"),
         ("ending", _I, _P.CONFIRM, "finished"),
         # cancel: a request to a_ta, not a state change of the conversation
         ("requested", _I, _P.CANCEL, "requested"),

@@ -111,7 +111,8 @@ def live(tmp_path: Path) -> Iterator[LiveFleet]:
     runs_dir = tmp_path / "runs"
     run_dir = runs_dir / "run"
     (run_dir / "logs").mkdir(parents=True)
-    fleet = Fleet(run_dir, f"tcp/127.0.0.1:{free_port()}", env={"ROCO_RERUN": "0"})
+    # forged traffic and tokens from the test: no access control (tested in tests/security/)
+    fleet = Fleet(run_dir, f"tcp/127.0.0.1:{free_port()}", env={"ROCO_RERUN": "0"}, acl=False)
     session: zenoh.Session | None = None
     try:
         fleet.start_router()

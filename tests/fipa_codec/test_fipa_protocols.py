@@ -88,6 +88,15 @@ HAPPY_PATHS: dict[str, list[list[Step]]] = {
         ],
         [(I_, P.REQUEST), (I_, P.CANCEL), (R_, P.INFORM, True), (I_, P.CANCEL), (I_, P.CONFIRM)],
         [(I_, P.REQUEST), (R_, P.INFORM, False), (I_, P.NOT_UNDERSTOOD)],
+        # a_co confirms again (it probes an a_ta that reappears); the plan goes on
+        [
+            (I_, P.REQUEST),
+            (R_, P.INFORM, False),
+            (I_, P.CONFIRM),
+            (I_, P.CONFIRM),
+            (R_, P.INFORM, True),
+            (I_, P.CONFIRM),
+        ],
     ],
 }
 
@@ -153,7 +162,8 @@ def test_happy_paths_reach_a_final_state(name: str, steps: list[Step]) -> None:
         ("coordinate", [(I_, P.REQUEST)], (I_, P.CONFIRM)),  # confirm without inform
         ("coordinate", [(I_, P.REQUEST)], (R_, P.CONFIRM)),
         ("coordinate", [(I_, P.REQUEST), (R_, P.INFORM)], (R_, P.INFORM)),  # unconfirmed
-        ("coordinate", [(I_, P.REQUEST), (R_, P.INFORM), (I_, P.CONFIRM)], (I_, P.CONFIRM)),
+        # the terminal state's confirm ends the conversation: nothing to confirm again
+        ("coordinate", [(I_, P.REQUEST), (R_, P.INFORM, True), (I_, P.CONFIRM)], (I_, P.CONFIRM)),
         ("coordinate", [(I_, P.REQUEST), (R_, P.INFORM)], (R_, P.FAILURE)),  # failure once running
         ("coordinate", [(I_, P.REQUEST)], (R_, P.CANCEL)),
         ("coordinate", [(I_, P.REQUEST), (R_, P.INFORM, True)], (R_, P.INFORM)),

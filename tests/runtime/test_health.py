@@ -21,7 +21,8 @@ from services.runtime.launcher import Fleet, free_port, open_client
 def router(tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[str, zenoh.Session]]:
     run_dir: Path = tmp_path_factory.mktemp("health")
     (run_dir / "logs").mkdir()
-    fleet = Fleet(run_dir, f"tcp/127.0.0.1:{free_port()}")
+    # forged traffic and tokens from the test: no access control (tested in tests/security/)
+    fleet = Fleet(run_dir, f"tcp/127.0.0.1:{free_port()}", acl=False)
     fleet.start_router()
     session = open_client(fleet.endpoint)
     try:

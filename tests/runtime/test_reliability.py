@@ -24,10 +24,13 @@ from services.runtime.state_store import ENV_STATE_DIR, StateFile
 from services.spec.model import channel_between
 from services.task_executor.agent import KeptTaskExecutor, TaskExecutor
 from shared.fipa_codec import Communicate, Performative, decode, encode
+from shared.fipa_codec.languages.common import Pose
 from shared.fipa_codec.languages.l_ex import Wait
 from shared.fipa_codec.languages.l_hc import CommandOutcome, HumanCommand, StatusQuery, TaskAtom, TaskState
 from shared.fipa_codec.languages.l_hfsm import Execute, GroundTaskNetwork, HierarchicalPlan, PlanNode
+from shared.fipa_codec.languages.l_sd import ObjectObservation, Observation
 from shared.fipa_codec.languages.l_sw import SWState, SWStatus
+from shared.fipa_codec.languages.l_wm import Subscription, WorldUpdate
 from tests.support.messages import communicate
 
 P = Performative
@@ -265,10 +268,35 @@ def test_a_restarted_a_ta_reports_replan_in_the_plans_conversation(
     (tmp_path / "a_ta.json").write_bytes(msgspec.json.encode(kept))
     w = Wire(TaskExecutor)
     w.agent.setup()
+    # it reports only once the scene is observed and a_km informed (a held object's pose
+    # decides how the next plan begins): a_km subscribes, a_ta asks ag_ex to observe
+    assert not w.agent.fsm.states["idle"].terminal()
+    w.deliver(
+        communicate(P.SUBSCRIBE, "a_km", "a_ta", "fipa-subscribe", "km-env", Subscription(), reply_with="s")
+    )
+    w.step("idle")
+    (observe,) = [m for m in w.mine(P.REQUEST) if m.receiver[0].name == "ag_ex"]
+    assert not w.agent.fsm.states["idle"].terminal()
+    seen = Observation(stamp=3.0, objects=(ObjectObservation(name="jar", pose=Pose((0.7, 0.2, 0.85))),))
+    w.deliver(
+        communicate(
+            P.INFORM,
+            "ag_ex",
+            "a_ta",
+            "fipa-request",
+            observe.conversation_id,
+            seen,
+            in_reply_to=observe.reply_with,
+        )
+    )
+    w.step("idle")
+    (update,) = [m for m in w.mine(P.INFORM) if m.receiver[0].name == "a_km"]
+    assert msgspec.msgpack.decode(update.content, type=WorldUpdate).objects[0].name == "jar"
+    assert w.agent.fsm.states["idle"].terminal()
     assert w.agent.fsm.next_state("idle") == "finished"
     w.agent.fsm.states["finished"].on_enter()
     w.agent._dispatch()
-    (report,) = w.mine(P.INFORM)
+    (report,) = [m for m in w.mine(P.INFORM) if m.receiver[0].name == "a_co"]
     status = msgspec.msgpack.decode(report.content, type=SWStatus)
     assert report.conversation_id == "cmd-1-exec1" and report.in_reply_to == "p1"
     assert status.state is SWState.REPLAN and "a_ta restarted in pour/wait" in (status.reason or "")

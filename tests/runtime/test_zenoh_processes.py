@@ -22,7 +22,8 @@ from shared.fipa_codec.languages.l_wm import Answer, ObjectQuery
 @pytest.fixture
 def fleet(tmp_path: Path) -> Iterator[tuple[Fleet, zenoh.Session]]:
     (tmp_path / "logs").mkdir()
-    f = Fleet(tmp_path, f"tcp/127.0.0.1:{free_port()}")
+    # forged traffic and tokens from the test: no access control (tested in tests/security/)
+    f = Fleet(tmp_path, f"tcp/127.0.0.1:{free_port()}", acl=False)
     f.start_router()
     session = open_client(f.endpoint)
     f.start_agents(["a_km"])

@@ -56,7 +56,8 @@ def router(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
     """An embedded router on a free loopback port (explicit endpoint, no multicast)."""
     run_dir: Path = tmp_path_factory.mktemp("sniff")
     (run_dir / "logs").mkdir()
-    fleet = Fleet(run_dir, f"tcp/127.0.0.1:{free_port()}")
+    # forged traffic and tokens from the test: no access control (tested in tests/security/)
+    fleet = Fleet(run_dir, f"tcp/127.0.0.1:{free_port()}", acl=False)
     fleet.start_router()
     try:
         yield fleet.endpoint

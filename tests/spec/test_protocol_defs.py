@@ -42,6 +42,7 @@ COORDINATE_TABLE: dict[str, Any] = {
         ["requested", "participant", "inform", "reported"],
         ["reported", "initiator", "confirm", "running"],
         ["running", "participant", "inform", "reported"],
+        ["running", "initiator", "confirm", "running"],
         ["ending", "initiator", "confirm", "finished"],
         ["requested", "initiator", "cancel", "requested"],
         ["reported", "initiator", "cancel", "reported"],

@@ -1,0 +1,151 @@
+"""CPU cost of roco's runtime per communicate, without a network: the benchmark's synthetic
+agents (services/bench/messaging.py) in one process on a transport that only collects what
+is published, so that what is timed is the agent's own send and receive path (content and
+envelope encoding, interface and protocol-state checks, dedup, decoding, validation, input
+queue, FSM step). Used to find and check the hot path of issue 9 (docs/benchmarks.md).
+
+- ``round trip``: request → inform → back, ``--n`` times: 2 sends and 2 receives each;
+- ``stream send`` / ``stream receive``: ``--n`` informs of one fipa-subscribe conversation,
+  sent by the participant, then taken in by the initiator.
+
+Prints µs per round trip / per communicate (``time.perf_counter``); ``--profile`` prints
+cProfile's 30 most expensive functions of each instead (slower: figures then include the
+profiler's own cost).
+
+Usage: ``python scripts/profile_runtime.py [--n 5000] [--profile]``
+"""
+
+from __future__ import annotations
+
+import argparse
+import cProfile
+import pstats
+import sys
+import time
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from services.bench.messaging import BenchInitiator, BenchParticipant, bench_spec
+
+
+class Collect:
+    """A transport that keeps what is published (key, payload) and delivers nothing."""
+
+    def __init__(self) -> None:
+        self.out: list[tuple[str, bytes]] = []
+
+    def publish(self, key: str, payload: bytes) -> None:
+        self.out.append((key, payload))
+
+    def subscribe(self, key_expr: str, callback: Any) -> None:
+        """Nothing arrives by itself: the script hands payloads over."""
+
+    def announce(self, key: str) -> None:
+        """No liveliness here."""
+
+    def watch(self, key_expr: str, callback: Any) -> None:
+        """No liveliness here."""
+
+    def close(self) -> None:
+        """Nothing to close."""
+
+
+class Results:
+    """Stands for the benchmark's pipe: keeps the last result."""
+
+    last: dict[str, Any] | None = None
+
+    def send(self, result: dict[str, Any]) -> None:
+        self.last = result
+
+
+def pair() -> tuple[Any, Any]:
+    spec = bench_spec(1)
+    ini = type("b_ini0", (BenchInitiator,), {"name": "b_ini0"})(Collect(), spec, Results())
+    par = type("b_par0", (BenchParticipant,), {"name": "b_par0"})(Collect(), spec, Results())
+    ini.peers.add("b_par0")
+    return ini, par
+
+
+def hand(src: Any, dst: Any) -> None:
+    """Deliver everything ``src`` published to ``dst``'s input queue and acquire it."""
+    for key, payload in src.transport.out:
+        dst._on_payload(key, payload)
+    src.transport.out.clear()
+    dst._acquire(0)
+
+
+def round_trips(n: int) -> float:
+    ini, par = pair()
+    ini.post(("pingpong", n, 200))
+    ini._acquire(0)
+    t0 = time.perf_counter()
+    ini._work()
+    ini._dispatch()
+    while ini.job is not None:
+        hand(ini, par)
+        par._serve()
+        par._dispatch()
+        hand(par, ini)
+        ini._work()
+        ini._dispatch()
+    return (time.perf_counter() - t0) / (n + 50) * 1e6
+
+
+def stream(n: int) -> tuple[float, float]:
+    ini, par = pair()
+    ini.post(("stream", n, 200))
+    ini._acquire(0)
+    ini._work()
+    ini._dispatch()
+    hand(ini, par)
+    par._serve()
+    par._dispatch()
+    agree = list(par.transport.out)
+    par.transport.out.clear()
+    t0 = time.perf_counter()
+    while par.stream is not None:
+        par._stream()
+        par._dispatch()
+    send_us = (time.perf_counter() - t0) / n * 1e6
+    informs = par.transport.out
+    par.transport.out = agree
+    hand(par, ini)
+    ini._work()
+    t0 = time.perf_counter()
+    for i in range(0, len(informs), 256):
+        for key, payload in informs[i : i + 256]:
+            ini._on_payload(key, payload)
+        ini._acquire(0)
+        ini._work()
+    return send_us, (time.perf_counter() - t0) / n * 1e6
+
+
+def profiled(fn: Callable[[], object]) -> None:
+    prof = cProfile.Profile()
+    prof.enable()
+    fn()
+    prof.disable()
+    pstats.Stats(prof).sort_stats("tottime").print_stats(30)
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--n", type=int, default=5000)
+    ap.add_argument("--profile", action="store_true")
+    args = ap.parse_args()
+    if args.profile:
+        profiled(lambda: round_trips(args.n))
+        profiled(lambda: stream(args.n))
+        return 0
+    print(f"round trip (2 sends + 2 receives): {round_trips(args.n):.1f} µs")
+    send_us, receive_us = stream(args.n)
+    print(f"stream send: {send_us:.1f} µs per communicate; stream receive: {receive_us:.1f} µs")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

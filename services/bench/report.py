@@ -1,0 +1,361 @@
+"""Markdown tables of ``roco bench`` (docs/benchmarks.md) and the machine description."""
+
+from __future__ import annotations
+
+import datetime
+import os
+import platform
+import subprocess
+from importlib.metadata import PackageNotFoundError, version
+from pathlib import Path
+
+from services.bench.messaging import PairFigures, ScaleRow, request_bytes
+from services.bench.parts import CodecRow, FleetFigures, PlanningFigures, QueryRow, TaskRun
+from services.bench.spade import SpadeFigures
+
+ROOT = Path(__file__).resolve().parents[2]
+PACKAGES = ("eclipse-zenoh", "msgspec", "mujoco", "pin", "pyoxigraph", "gtpyhop-core")
+TARGET_RT_RATIO = 1.3
+TARGET_TPUT = 50_000.0
+TARGET_SPADE_RT = 3.0
+TARGET_SPADE_TPUT = 10.0
+TARGET_PLAN_1_S = 2.0
+TARGET_UP_S = 3.0
+
+
+def cpu_model() -> str:
+    """The CPU model name from /proc/cpuinfo (else ``platform``'s guess)."""
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return platform.processor() or platform.machine()
+
+
+def mem_total_gib() -> float:
+    """MemTotal of /proc/meminfo in GiB (0.0 when unknown)."""
+    try:
+        for line in Path("/proc/meminfo").read_text().splitlines():
+            if line.startswith("MemTotal:"):
+                return int(line.split()[1]) / 1024**2
+    except OSError:
+        pass
+    return 0.0
+
+
+def load() -> str:
+    """The 1, 5 and 15 min load averages (os.getloadavg)."""
+    return " / ".join(f"{x:.2f}" for x in os.getloadavg())
+
+
+def commit() -> str:
+    """The repository's HEAD commit, short, with ``+ working tree`` when files are changed."""
+    try:
+        head = subprocess.run(
+            ["git", "rev-parse", "--short", "HEAD"], cwd=ROOT, capture_output=True, text=True, timeout=10
+        ).stdout.strip()
+        dirty = subprocess.run(
+            ["git", "status", "--porcelain", "--untracked-files=no"],
+            cwd=ROOT,
+            capture_output=True,
+            text=True,
+            timeout=10,
+        ).stdout.strip()
+    except (OSError, subprocess.SubprocessError):
+        return "unknown"
+    return f"{head}{' + working tree' if dirty else ''}" if head else "unknown"
+
+
+def machine_lines(command: str, load_start: str, load_end: str, started: float, seconds: float) -> list[str]:
+    """The header of docs/benchmarks.md: command, date, machine, versions, load."""
+    usable = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
+    libs = []
+    for p in PACKAGES:
+        try:
+            libs.append(f"{p} {version(p)}")
+        except PackageNotFoundError:
+            libs.append(f"{p} not installed")
+    date = datetime.datetime.fromtimestamp(started).astimezone().strftime("%Y-%m-%d %H:%M %Z")
+    return [
+        f"- Command: `{command}` (took {seconds:.0f} s), at commit {commit()}, {date}.",
+        f"- CPU: {cpu_model()}, {usable} of {os.cpu_count()} cores usable; memory {mem_total_gib():.1f} GiB; "
+        f"{platform.system()} {platform.release()}.",
+        f"- Python {platform.python_version()}; {', '.join(libs)}.",
+        f"- Load average (1 / 5 / 15 min) at the start: {load_start}; at the end: {load_end}. "
+        "Figures taken under load are disturbed: compare figures from one run only (the scale part's "
+        "100 agent processes raise the load themselves at the end).",
+    ]
+
+
+def _table(header: list[str], rows: list[list[str]]) -> list[str]:
+    out = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
+    out += ["| " + " | ".join(r) + " |" for r in rows]
+    return out
+
+
+def codec_table(rows: list[CodecRow]) -> list[str]:
+    return _table(
+        ["content", "encoded communicate", "encode µs", "decode µs", "calls per batch"],
+        [
+            [r.label, f"{r.encoded_bytes:,} B", f"{r.encode_us:.2f}", f"{r.decode_us:.2f}", str(r.calls)]
+            for r in rows
+        ],
+    )
+
+
+def _rate(x: float) -> str:
+    return f"{x:,.0f}"
+
+
+def messaging_table(f: PairFigures, spade: SpadeFigures | None, size: int) -> list[str]:
+    """Part 2 and 3 side by side: raw Zenoh, roco, SPADE."""
+    rows = [
+        [
+            f"raw Zenoh (put/subscriber, {request_bytes(size)} B payload)",
+            f"{f.raw_rt.p50_us:.0f}",
+            f"{f.raw_rt.p99_us:.0f}",
+            str(len(f.raw_rt.samples_s)),
+            _rate(f.raw_tput.median),
+            ", ".join(_rate(x) for x in f.raw_tput.rates),
+            str(f.raw_tput.lost),
+        ],
+        [
+            f"roco (Agent runtime, {size} B content)",
+            f"{f.roco_rt.p50_us:.0f}",
+            f"{f.roco_rt.p99_us:.0f}",
+            str(len(f.roco_rt.samples_s)),
+            _rate(f.roco_tput.median),
+            ", ".join(_rate(x) for x in f.roco_tput.rates),
+            str(f.roco_tput.lost),
+        ],
+    ]
+    if spade is not None and not spade.error:
+        s_rt = sorted(spade.samples_s)
+        p50 = s_rt[len(s_rt) // 2] * 1e6 if s_rt else 0.0
+        p99 = s_rt[min(len(s_rt) - 1, round(0.99 * (len(s_rt) - 1)))] * 1e6 if s_rt else 0.0
+        rows.append(
+            [
+                f"SPADE {spade.versions.get('spade', '?')} over its XMPP server ({size}-character body)",
+                f"{p50:.0f}",
+                f"{p99:.0f}",
+                str(len(spade.samples_s)),
+                _rate(spade.rate),
+                _rate(spade.rate),
+                str(max(0, spade.sent - spade.count)),
+            ]
+        )
+    return _table(
+        [
+            "system",
+            "round trip p50 µs",
+            "p99 µs",
+            "round trips",
+            "throughput /s (median)",
+            "each run /s",
+            "lost",
+        ],
+        rows,
+    )
+
+
+def spade_p50_us(spade: SpadeFigures) -> float:
+    s = sorted(spade.samples_s)
+    return s[len(s) // 2] * 1e6 if s else 0.0
+
+
+def verdict_lines(f: PairFigures | None, spade: SpadeFigures | None) -> list[str]:
+    """The messaging targets of issue 9, each met or missed, with the measured ratio."""
+    out = []
+    if f is not None and f.raw_rt.samples_s:
+        ratio = f.roco_rt.p50_us / f.raw_rt.p50_us if f.raw_rt.p50_us else float("inf")
+        out.append(
+            f"- roco round trip / raw Zenoh round trip (p50): **{ratio:.2f}×** (target ≤ "
+            f"{TARGET_RT_RATIO}×): "
+            f"{'met' if ratio <= TARGET_RT_RATIO else 'missed'}."
+        )
+        tput = f.roco_tput.median
+        out.append(
+            f"- roco one-way throughput, one pair, 200 B content: **{_rate(tput)} /s** (target ≥ "
+            f"{_rate(TARGET_TPUT)} /s): {'met' if tput >= TARGET_TPUT else 'missed'}; "
+            f"{f.roco_tput.median / f.raw_tput.median * 100 if f.raw_tput.median else 0:.1f} % of raw "
+            "Zenoh's."
+        )
+    if f is not None and spade is not None and not spade.error and spade.samples_s:
+        rt = spade_p50_us(spade) / f.roco_rt.p50_us if f.roco_rt.p50_us else 0.0
+        tp = f.roco_tput.median / spade.rate if spade.rate else 0.0
+        out.append(
+            f"- Against SPADE: round trip **{rt:.1f}× faster** (target ≥ {TARGET_SPADE_RT}×): "
+            f"{'met' if rt >= TARGET_SPADE_RT else 'missed'}; throughput **{tp:.1f}× higher** "
+            f"(target ≥ {TARGET_SPADE_TPUT}×): {'met' if tp >= TARGET_SPADE_TPUT else 'missed'}."
+        )
+    return out
+
+
+def knowledge_table(rows: list[QueryRow]) -> list[str]:
+    def ms(x: float | None) -> str:
+        return "—" if x is None else f"{x:.3f}"
+
+    return _table(
+        ["query", "answer B", "in a_km p50 ms", "in a_km p99 ms", "over Zenoh p50 ms", "over Zenoh p99 ms"],
+        [
+            [
+                r.label,
+                str(r.answer_bytes) if r.answer_bytes else "—",
+                ms(r.local_p50_ms),
+                ms(r.local_p99_ms),
+                ms(r.zenoh_p50_ms),
+                ms(r.zenoh_p99_ms),
+            ]
+            for r in rows
+        ],
+    )
+
+
+def planning_table(p: PlanningFigures | None, runs: list[TaskRun]) -> list[str]:
+    rows = []
+    if p is not None:
+        for i, (wall, own, queries, leaves) in enumerate(p.repeated, 1):
+            rows.append(
+                [
+                    f"plan #1, request {i} (a_km + a_pl only)",
+                    f"{wall:.3f}",
+                    f"{own:.3f}",
+                    str(queries),
+                    str(leaves),
+                ]
+            )
+    for run in runs:
+        for plan in run.plans:
+            took = (
+                f"{plan.received_t - plan.requested_t:.3f}"
+                if plan.received_t is not None and plan.requested_t is not None
+                else "—"
+            )
+            rows.append(
+                [
+                    f"plan #{plan.index} in the pour ({run.pacing})",
+                    took,
+                    "—" if plan.planning_time_s is None else f"{plan.planning_time_s:.3f}",
+                    "—"
+                    if plan.km_queries is None
+                    else f"{plan.km_queries} ({plan.c4_count} C4 communicates)",
+                    plan.outcome,
+                ]
+            )
+    return _table(
+        ["plan", "request → plan s (wall)", "a_pl planning time s", "a_km queries", "leaves / outcome"], rows
+    )
+
+
+def fleet_table(f: FleetFigures) -> list[str]:
+    lines = _table(
+        ["figure", "value"],
+        [
+            ["`roco up` wall time (start to exit)", f"{f.command_s:.2f} s"],
+            [
+                "agents started → all liveliness tokens (printed by `roco up`)",
+                "—" if f.alive_s is None else f"{f.alive_s:.2f} s",
+            ],
+            ["total resident memory", f"{sum(f.rss_mib.values()):.0f} MiB"],
+        ],
+    )
+    lines += ["", *_table(["process", "VmRSS MiB"], [[n, f"{v:.0f}"] for n, v in f.rss_mib.items()])]
+    if f.error:
+        lines += ["", f"`roco up` problem: {f.error}: {f.output[-300:]}"]
+    return lines
+
+
+def task_table(runs: list[TaskRun]) -> list[str]:
+    rows = []
+    for r in runs:
+        t = r.timing
+        rows.append(
+            [
+                r.pacing,
+                "succeeded" if r.ok else f"failed: {r.detail[:120]}",
+                f"{r.command_s:.1f}",
+                "—" if r.task_s is None else f"{r.task_s:.1f}",
+                "—" if r.sim_time_s is None else f"{r.sim_time_s:.1f}",
+                "—" if r.communicates is None else str(r.communicates),
+                "—" if t is None else str(t.cycles),
+                "—"
+                if t is None
+                else f"{t.compute_p50_us:.0f} / {t.compute_p99_us:.0f} / {t.compute_max_us:.0f}",
+                "—" if t is None else f"{t.lateness_p99_us:.0f}",
+                "—" if t is None else f"{t.overruns} ({t.overrun_share * 100:.2f} %)",
+                "—" if r.km_store_bytes is None else f"{r.km_store_bytes / 1024:.0f} KiB",
+            ]
+        )
+    return _table(
+        [
+            "pacing",
+            "outcome",
+            "`roco run` wall s",
+            "command → end s",
+            "simulated s",
+            "communicates",
+            "loop cycles",
+            "compute p50 / p99 / max µs",
+            "lateness p99 µs",
+            "overruns",
+            "a_km store after the run",
+        ],
+        rows,
+    )
+
+
+def scale_table(rows: list[ScaleRow]) -> list[str]:
+    body = []
+    for r in rows:
+        p = r.pair
+        ratio = p.roco_rt.p50_us / p.raw_rt.p50_us if p.raw_rt.p50_us else 0.0
+        body.append(
+            [
+                str(r.agents),
+                f"{r.start_s:.1f}",
+                f"{r.rss_mib_total:,.0f}",
+                f"{p.roco_rt.p50_us:.0f} / {p.roco_rt.p99_us:.0f}",
+                f"{p.raw_rt.p50_us:.0f} / {p.raw_rt.p99_us:.0f}",
+                f"{ratio:.2f}",
+                _rate(p.roco_tput.median),
+                _rate(p.raw_tput.median),
+                f"{r.concurrent.latency.p50_us:.0f} / {r.concurrent.latency.p99_us:.0f}",
+                _rate(r.concurrent.round_trips_per_s),
+            ]
+        )
+    return _table(
+        [
+            "agent processes",
+            "start s",
+            "agents' RSS MiB",
+            "one pair: roco RT p50 / p99 µs",
+            "raw RT p50 / p99 µs",
+            "roco / raw",
+            "roco /s",
+            "raw /s",
+            "all pairs at once: RT p50 / p99 µs",
+            "all pairs: round trips /s",
+        ],
+        body,
+    )
+
+
+def plan_and_fleet_verdicts(planning: PlanningFigures | None, fleet: FleetFigures | None) -> list[str]:
+    """Plan #1 ≤ 2 s of wall time; ``roco up`` to all agents alive ≤ 3 s."""
+    out = []
+    if planning is not None and planning.repeated:
+        worst = max(r[0] for r in planning.repeated)
+        out.append(
+            f"- Plan #1 wall time (request → plan, a_km and a_pl processes): at most **{worst:.3f} s** over "
+            f"{len(planning.repeated)} requests (target ≤ {TARGET_PLAN_1_S:.0f} s): "
+            f"{'met' if worst <= TARGET_PLAN_1_S else 'missed'}."
+        )
+    if fleet is not None and not fleet.error:
+        out.append(
+            f"- `roco up` to all agents alive: **{fleet.command_s:.2f} s** from the command's start to its "
+            f"exit once every agent's liveliness token is there (target ≤ {TARGET_UP_S:.0f} s): "
+            f"{'met' if fleet.command_s <= TARGET_UP_S else 'missed'}."
+        )
+    return out

@@ -1,0 +1,80 @@
+"""Reading the running agents' counters over Zenoh (``roco status``, tests, scripts).
+
+A put on :data:`~services.runtime.keys.COUNTERS_ASK` makes every agent publish
+``{"agent": name, "time": POSIX s, "counters": {name: count}}`` (JSON) on
+``roco/counters/report/<agent>`` from its own thread, between two steps: an agent busy in a
+long step (a_pl planning) answers when the step ends. Counter names: ``received.<act>``,
+``sent.<act>``, ``rejected`` (not-understood sent), ``rejected.<reason>``
+(services/runtime/limits.py ``REJECT_REASONS``), ``duplicates``, ``retransmitted``, …
+"""
+
+from __future__ import annotations
+
+import queue
+import time
+from collections.abc import Iterable
+from typing import Any
+
+import msgspec
+
+from services.runtime import keys
+
+
+class CountersReport(msgspec.Struct, frozen=True):
+    """One agent's answer: its ``agent`` name, the POSIX ``time`` it was made and its
+    ``counters``."""
+
+    agent: str
+    time: float
+    counters: dict[str, int]
+
+
+_decoder = msgspec.json.Decoder(CountersReport)
+
+
+def ask_counters(session: Any, agents: Iterable[str], timeout: float = 2.0) -> dict[str, CountersReport]:
+    """Ask every agent for its counters over ``session`` (a :class:`zenoh.Session`); wait up to
+    ``timeout`` s for each of ``agents`` to answer. Returns the answers by agent (an agent
+    that did not answer in time is absent; malformed answers are ignored)."""
+    wanted = set(agents)
+    answers: queue.SimpleQueue[bytes] = queue.SimpleQueue()
+    sub = session.declare_subscriber(keys.COUNTERS_ALL, lambda s: answers.put(s.payload.to_bytes()))
+    out: dict[str, CountersReport] = {}
+    try:
+        session.put(keys.COUNTERS_ASK, b"")
+        deadline = time.monotonic() + timeout
+        while not wanted <= out.keys():
+            left = deadline - time.monotonic()
+            if left <= 0:
+                break
+            try:
+                payload = answers.get(timeout=left)
+            except queue.Empty:
+                break
+            try:
+                report = _decoder.decode(payload)
+            except (msgspec.DecodeError, msgspec.ValidationError):
+                continue
+            out[report.agent] = report
+    finally:
+        sub.undeclare()
+    return out
+
+
+def rejects(counters: dict[str, int]) -> dict[str, int]:
+    """The ``rejected.<reason>`` counters as {reason: count}, largest first."""
+    found = {k.split(".", 1)[1]: v for k, v in counters.items() if k.startswith("rejected.") and v}
+    return dict(sorted(found.items(), key=lambda kv: (-kv[1], kv[0])))
+
+
+def summary(counters: dict[str, int]) -> str:
+    """One line: communicates received, rejected inputs by reason, duplicates
+    (``received 812, rejected 10012 (malformed 5000, protocol_state 12), duplicates 3``)."""
+    received = sum(v for k, v in counters.items() if k.startswith("received."))
+    by_reason = rejects(counters)
+    parts = [f"received {received}", f"rejected {sum(by_reason.values())}"]
+    if by_reason:
+        parts[-1] += " (" + ", ".join(f"{k} {v}" for k, v in by_reason.items()) + ")"
+    if counters.get("duplicates"):
+        parts.append(f"duplicates {counters['duplicates']}")
+    return ", ".join(parts)

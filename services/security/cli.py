@@ -1,0 +1,115 @@
+"""``roco deploy``: credentials and access control of a deployment (docs/security.md).
+
+    roco deploy certs OUT [--tls/--no-tls] [--keep]     a private CA, the router's certificate,
+                                                        one identity per agent + recorder +
+                                                        operator, passwords, the router's ACL
+    roco deploy issue OUT NAME                          (re-)issue one identity
+    roco deploy revoke OUT NAME                         take one identity out (restart the router)
+    roco deploy acl [--tls/--no-tls]                    print the ACL the specification gives
+    roco deploy table [--full]                          who may send what where (Markdown)
+
+Bad input: one line starting with ``roco:``, exit 2.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from services.spec.model import DEFAULT_SPEC, SpecError, SystemSpec, load
+
+deploy_app = typer.Typer(
+    add_completion=False,
+    no_args_is_help=True,
+    help="Credentials and access control of a deployment (docs/security.md).",
+)
+
+SpecFile = Annotated[
+    Path | None, typer.Option("--spec", help="a specification file (default: the shipped one)")
+]
+
+
+def _spec(path: Path | None) -> SystemSpec:
+    try:
+        return load(path or DEFAULT_SPEC)
+    except SpecError as exc:
+        typer.echo(f"roco: {exc}", err=True)
+        raise typer.Exit(2) from None
+
+
+@deploy_app.command()
+def certs(
+    out: Annotated[Path, typer.Argument(help="the credentials folder to create (replaced)")],
+    tls: Annotated[bool, typer.Option(help="match ACL subjects by certificate common name too")] = True,
+    days: Annotated[int, typer.Option(min=1, help="validity of the certificates")] = 365,
+    keep: Annotated[bool, typer.Option(help="leave a folder that already has an ACL as it is")] = False,
+    spec: SpecFile = None,
+) -> None:
+    """Issue a deployment's credentials: CA, router certificate, identities, passwords, ACL."""
+    from services.security.certs import ACL_FILE, identities
+    from services.security.deploy import prepare
+
+    if keep and (out / ACL_FILE).is_file():
+        typer.echo(f"roco: kept the credentials in {out} ({', '.join(identities(out))})")
+        return
+    names = prepare(out, _spec(spec), tls=tls, days=days)
+    typer.echo(f"roco: credentials for {', '.join(names)} in {out} (keep {out / 'ca.key'} off the robot)")
+
+
+@deploy_app.command()
+def issue(
+    out: Annotated[Path, typer.Argument(help="a credentials folder made by 'roco deploy certs'")],
+    name: Annotated[str, typer.Argument(help="the identity: an agent, recorder or operator")],
+    days: Annotated[int, typer.Option(min=1)] = 365,
+    spec: SpecFile = None,
+) -> None:
+    """(Re-)issue one identity: new key, certificate and password; the ACL is rewritten."""
+    from services.security.certs import CredentialError
+    from services.security.deploy import issue_identity
+
+    try:
+        ident = issue_identity(out, _spec(spec), name, days)
+    except CredentialError as exc:
+        typer.echo(f"roco: {exc}", err=True)
+        raise typer.Exit(2) from None
+    typer.echo(f"roco: issued {ident.name} ({ident.cert}); restart the router to accept the new password")
+
+
+@deploy_app.command()
+def revoke(
+    out: Annotated[Path, typer.Argument(help="a credentials folder made by 'roco deploy certs'")],
+    name: Annotated[str, typer.Argument(help="the identity to take out")],
+    spec: SpecFile = None,
+) -> None:
+    """Take an identity out: its password, credentials and ACL subject (restart the router)."""
+    from services.security.deploy import revoke_identity
+
+    if not revoke_identity(out, _spec(spec), name):
+        typer.echo(f"roco: no identity {name!r} in {out}", err=True)
+        raise typer.Exit(2)
+    typer.echo(f"roco: revoked {name}; restart the router so that it reads {out}/acl.json and passwords.txt")
+
+
+@deploy_app.command()
+def acl(
+    tls: Annotated[bool, typer.Option(help="subjects matched by certificate common name too")] = True,
+    spec: SpecFile = None,
+) -> None:
+    """Print the router's access_control section the specification gives (JSON)."""
+    from services.spec.acl import acl_config
+
+    typer.echo(json.dumps(acl_config(_spec(spec), tls=tls), indent=1))
+
+
+@deploy_app.command()
+def table(
+    full: Annotated[bool, typer.Option(help="every identity, flow and key expression")] = False,
+    spec: SpecFile = None,
+) -> None:
+    """Print who may send what where (Markdown; docs/security.md)."""
+    from services.spec.acl import channel_table, markdown_table
+
+    typer.echo((markdown_table if full else channel_table)(_spec(spec)), nl=False)

@@ -1,0 +1,77 @@
+"""Which credentials a Zenoh session of this process uses (no cryptography imported here).
+
+A credentials folder (services/security/certs.py) is found for a router endpoint by, in order:
+
+1. :func:`register` — the launcher registers each fleet's ``<run>/security`` for its endpoint,
+   so the tools and tests in the same process (``roco run``, the scenario runner) use it;
+2. ``ROCO_SECURITY`` — the folder, set for every process a fleet starts and in containers;
+3. ``runs/.fleet.json`` in the current directory (the fleet of ``roco up``) when its endpoint is
+   the one asked for and its run folder has ``security/``: ``roco send``/``status``/``fault``.
+
+None found: the session does not authenticate (a fleet without access control). The identity is
+the one the caller names (an agent's name, ``recorder``), else ``ROCO_IDENTITY``, else
+``operator``.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import threading
+from pathlib import Path
+
+ENV_SECURITY = "ROCO_SECURITY"
+ENV_IDENTITY = "ROCO_IDENTITY"
+ENV_ACL = "ROCO_ACL"
+"""``0``: fleets start without access control (experiments); anything else or unset: with."""
+ENV_TLS = "ROCO_TLS"
+"""``1``: a local fleet's router listens on TLS (mutual) instead of TCP."""
+OPERATOR = "operator"  # services/spec/acl.py: OPERATOR
+FLEET_FILE = Path("runs") / ".fleet.json"  # services/cli.py: FLEET_FILE under the default runs dir
+
+_lock = threading.Lock()
+_registry: dict[str, Path] = {}
+
+
+def acl_on() -> bool:
+    """Whether fleets start with access control (``ROCO_ACL`` is not ``0``)."""
+    return os.environ.get(ENV_ACL, "1").strip() != "0"
+
+
+def tls_on() -> bool:
+    """Whether local fleets listen on TLS (``ROCO_TLS=1``)."""
+    return os.environ.get(ENV_TLS, "0").strip() == "1"
+
+
+def register(endpoint: str, folder: Path | None) -> None:
+    """Use credentials ``folder`` for sessions to ``endpoint`` in this process (None: forget)."""
+    with _lock:
+        if folder is None:
+            _registry.pop(endpoint, None)
+        else:
+            _registry[endpoint] = folder
+
+
+def security_for(endpoints: list[str]) -> Path | None:
+    """The credentials folder for a session to ``endpoints`` (see the module docstring)."""
+    with _lock:
+        for e in endpoints:
+            if e in _registry:
+                return _registry[e]
+    env = os.environ.get(ENV_SECURITY, "").strip()
+    if env:
+        return Path(env)
+    try:
+        state = json.loads(FLEET_FILE.read_text())
+        if state.get("endpoint") in endpoints:
+            folder = Path(state["run_dir"]) / "security"
+            if folder.is_dir():
+                return folder
+    except (OSError, ValueError, TypeError, KeyError, AttributeError):
+        pass
+    return None
+
+
+def identity_name(identity: str | None) -> str:
+    """``identity``, else ``ROCO_IDENTITY``, else ``operator``."""
+    return identity or os.environ.get(ENV_IDENTITY, "").strip() or OPERATOR

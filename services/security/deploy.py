@@ -1,0 +1,69 @@
+"""A deployment's credentials and access control in one folder (docs/security.md).
+
+:func:`prepare` issues everything a fleet needs (services/security/certs.py) for the identities
+of the specification (services/spec/acl.py) and writes the router's ``acl.json``;
+:func:`revoke_identity` takes one identity out (password, credentials, ACL subject).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+
+from services.security import certs
+from services.spec.acl import acl_config, identities
+from services.spec.model import SystemSpec
+
+
+def write_acl(out: Path, spec: SystemSpec, *, tls: bool) -> None:
+    """Write ``out/acl.json`` for the identities issued in ``out``; ``tls``: subjects are
+    matched by certificate common name as well as user name."""
+    acl = acl_config(spec, tls=tls, only=set(certs.identities(out)))
+    tmp = out / (certs.ACL_FILE + ".tmp")
+    tmp.write_text(json.dumps(acl, indent=1))
+    os.replace(tmp, out / certs.ACL_FILE)
+
+
+def acl_uses_tls(out: Path) -> bool:
+    """Whether ``out/acl.json`` matches subjects by certificate common name."""
+    try:
+        acl = json.loads((out / certs.ACL_FILE).read_text())
+    except (OSError, ValueError):
+        return False
+    return any("cert_common_names" in s for s in acl.get("subjects", []))
+
+
+def prepare(out: Path, spec: SystemSpec, *, tls: bool, days: int = 365) -> list[str]:
+    """Issue a new CA, the router's certificate, every identity of ``spec`` and the ACL into
+    ``out`` (replacing what was there); returns the identities."""
+    names = identities(spec)
+    certs.issue(out, names, days)
+    write_acl(out, spec, tls=tls)
+    return names
+
+
+def ensure(out: Path, spec: SystemSpec, *, tls: bool) -> Path:
+    """``out`` prepared for ``spec``: reused when it already holds an ACL (a service of a running
+    fleet started again must keep the router's credentials), else :func:`prepare`\\ d."""
+    if not (out / certs.ACL_FILE).is_file():
+        prepare(out, spec, tls=tls)
+    return out
+
+
+def issue_identity(out: Path, spec: SystemSpec, name: str, days: int = 365) -> certs.Identity:
+    """(Re-)issue one identity of ``spec`` in ``out`` and rewrite the ACL. Raises
+    CredentialError when ``spec`` has no such identity or ``out`` no CA."""
+    if name not in identities(spec):
+        raise certs.CredentialError(f"{name!r} is not an identity of the specification")
+    ident = certs.issue_identity(out, name, days)
+    write_acl(out, spec, tls=acl_uses_tls(out))
+    return ident
+
+
+def revoke_identity(out: Path, spec: SystemSpec, name: str) -> bool:
+    """Take ``name`` out of ``out``: password, credentials and ACL subject (the router refuses it
+    once restarted with the new files). True when it was there."""
+    found = certs.revoke(out, name)
+    write_acl(out, spec, tls=acl_uses_tls(out))
+    return found

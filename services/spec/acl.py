@@ -1,0 +1,287 @@
+"""The Zenoh router's access control, derived from the specification (docs/security.md).
+
+Default deny. Each identity (an agent of the specification, the traffic ``recorder``, the
+``operator``'s tools) gets exactly the key expressions it needs, per message kind and flow as the
+router sees it: ``ingress`` is what the identity sends to the router (its puts, its subscriber and
+liveliness declarations), ``egress`` what the router delivers to it. For agent ``A``:
+
+- put (ingress) on ``roco/fipa/<C>/A/<peer>`` for every channel ``C`` of ``A`` and its other end
+  ``peer``: an agent sends only on its channels, only as itself;
+- declare_subscriber (ingress) on its inbox ``roco/fipa/*/*/A`` (how the runtime subscribes),
+  and put (egress) only on ``roco/fipa/<C>/<peer>/A``: it receives only from its channels;
+- a liveliness token on ``roco/alive/A`` only; it watches ``roco/alive/*``;
+- the fault layer every agent runs under (services/runtime/faults.py): it hears
+  ``roco/fault/control/all`` and ``…/control/A``, puts on ``roco/fault/state/A`` and
+  ``…/event/A``; it hears ``roco/counters/ask`` and answers on ``roco/counters/report/A``;
+- the receptors and effectors outside FIPA (:data:`AGENT_EXTRAS`): a_hi hears ``roco/human/in``
+  and speaks on ``roco/human/out``; ag_ex publishes ``roco/state/ag_ex`` and hears
+  ``roco/sim/disturb``.
+
+The recorder hears every communicate (``roco/fipa/**``), the sync token and fault events, and
+answers on ``roco/recorder/synced``. The operator (``roco send``/``status``/``sniff``/``fault``,
+the scenario runner, the launcher's liveliness wait) may hear everything under ``roco/**`` and
+put on the human's receptor, the simulated world's disturbances, the recorder's sync key and the
+fault keys the injector uses — but never on ``roco/fipa/**`` and never a liveliness token.
+
+Zenoh (1.10) allows a message when an allow rule's key expression *includes* the message's key
+expression (a subscriber on ``roco/fipa/**`` is not allowed by rules naming single channels).
+Subjects: one per identity, by user name (usrpwd) and, with TLS, also by certificate common
+name (both must match). Source of the schema: eclipse-zenoh DEFAULT_CONFIG.json5,
+``access_control``.
+"""
+
+from __future__ import annotations
+
+from collections import defaultdict
+from dataclasses import dataclass, field
+from typing import Any, Literal
+
+from services.runtime import keys
+from services.spec.model import SystemSpec
+
+Flow = Literal["ingress", "egress"]
+Message = Literal[
+    "put",
+    "delete",
+    "declare_subscriber",
+    "query",
+    "reply",
+    "declare_queryable",
+    "liveliness_token",
+    "liveliness_query",
+    "declare_liveliness_subscriber",
+]
+
+RECORDER = "recorder"  # services/recorder/recorder.py: RECORDER
+OPERATOR = "operator"
+"""The identity of the operator's tools (CLI, scenario runner, fault injector, tests)."""
+INJECTOR = "roco"  # services/fault/process.py: INJECTOR, the sender of process-fault events
+
+_FAULT = "roco/fault"  # services/runtime/faults.py: FAULT_PREFIX
+FAULT_CONTROL_ALL = f"{_FAULT}/control/all"
+
+
+def _fault_control(agent: str) -> str:
+    return f"{_FAULT}/control/{agent}"
+
+
+def _fault_state(agent: str) -> str:
+    return f"{_FAULT}/state/{agent}"
+
+
+def _fault_event(agent: str) -> str:
+    return f"{_FAULT}/event/{agent}"
+
+
+@dataclass(frozen=True)
+class Extras:
+    """Non-FIPA keys of one agent: ``hears`` (subscribes to) and ``says`` (puts on)."""
+
+    hears: tuple[str, ...] = ()
+    says: tuple[str, ...] = ()
+
+
+AGENT_EXTRAS: dict[str, Extras] = {
+    "a_hi": Extras(hears=(keys.HUMAN_IN,), says=(keys.HUMAN_OUT,)),
+    "ag_ex": Extras(hears=(keys.SIM_DISTURB,), says=(keys.state_key("ag_ex"),)),
+}
+"""Receptors and effectors outside the FIPA channels, by agent (services/human_interface/agent.py,
+services/executor/agent.py). An agent not named here has none."""
+
+
+@dataclass
+class Grants:
+    """What one identity may do: key expressions per (flow, message)."""
+
+    identity: str
+    allowed: dict[tuple[Flow, Message], list[str]] = field(default_factory=lambda: defaultdict(list))
+
+    def allow(self, flow: Flow, message: Message, *key_exprs: str) -> None:
+        for k in key_exprs:
+            if k not in self.allowed[(flow, message)]:
+                self.allowed[(flow, message)].append(k)
+
+    def hear(self, *key_exprs: str) -> None:
+        """Subscribe to ``key_exprs`` and be delivered what is put there."""
+        self.allow("ingress", "declare_subscriber", *key_exprs)
+        self.allow("egress", "put", *key_exprs)
+
+    def say(self, *key_exprs: str) -> None:
+        self.allow("ingress", "put", *key_exprs)
+
+    def watch_alive(self) -> None:
+        """Watch the white pages: liveliness subscriber on ``roco/alive/*`` and its tokens."""
+        self.allow("ingress", "declare_liveliness_subscriber", keys.ALIVE_ALL)
+        self.allow("egress", "liveliness_token", keys.ALIVE_ALL)
+
+    def may(self, flow: Flow, message: Message, key: str) -> bool:
+        """Whether a message on the concrete ``key`` is allowed (wildcards ``*`` and ``**`` in
+        the granted expressions; a key with wildcards must be granted literally)."""
+        return any(_includes(k, key) for k in self.allowed.get((flow, message), []))
+
+
+def _includes(pattern: str, key: str) -> bool:
+    """Whether key expression ``pattern`` includes ``key`` (chunks; ``*`` one, ``**`` any)."""
+    p, k = pattern.split("/"), key.split("/")
+
+    def rec(i: int, j: int) -> bool:
+        if i == len(p):
+            return j == len(k)
+        if p[i] == "**":
+            return any(rec(i + 1, jj) for jj in range(j, len(k) + 1))
+        if j == len(k):
+            return False
+        if p[i] == "*":
+            return k[j] != "**" and rec(i + 1, j + 1)
+        return p[i] == k[j] and rec(i + 1, j + 1)
+
+    return rec(0, 0)
+
+
+def channel_routes(spec: SystemSpec) -> list[tuple[str, str, str]]:
+    """Every (channel, sender, receiver) the specification allows: both directions of each
+    channel, in file order."""
+    routes = []
+    for ch in spec.channels:
+        a, b = ch.ends
+        routes += [(ch.name, a, b), (ch.name, b, a)]
+    return routes
+
+
+def agent_grants(spec: SystemSpec, agent: str) -> Grants:
+    """The grants of ``agent``. Raises KeyError when the specification has no such agent."""
+    if agent not in {a.name for a in spec.agents}:
+        raise KeyError(agent)
+    g = Grants(agent)
+    routes = channel_routes(spec)
+    g.say(*(keys.fipa_key(c, s, r) for c, s, r in routes if s == agent))
+    g.allow("ingress", "declare_subscriber", keys.inbox_key(agent))
+    g.allow("egress", "put", *(keys.fipa_key(c, s, r) for c, s, r in routes if r == agent))
+    g.allow("ingress", "liveliness_token", keys.alive_key(agent))
+    g.watch_alive()
+    g.hear(FAULT_CONTROL_ALL, _fault_control(agent))
+    g.say(_fault_state(agent), _fault_event(agent))
+    g.hear(keys.COUNTERS_ASK)  # roco status asks every agent for its counters
+    g.say(keys.counters_key(agent))
+    extra = AGENT_EXTRAS.get(agent, Extras())
+    g.hear(*extra.hears)
+    g.say(*extra.says)
+    return g
+
+
+def recorder_grants() -> Grants:
+    g = Grants(RECORDER)
+    g.hear(keys.FIPA_ALL, keys.RECORDER_SYNC, f"{_FAULT}/event/*")
+    g.say(keys.RECORDER_SYNCED)
+    g.allow("ingress", "liveliness_token", keys.alive_key(RECORDER))
+    return g
+
+
+def operator_grants() -> Grants:
+    g = Grants(OPERATOR)
+    g.hear(f"{keys.PREFIX}/**")
+    g.say(
+        keys.HUMAN_IN,
+        keys.SIM_DISTURB,
+        keys.RECORDER_SYNC,
+        FAULT_CONTROL_ALL,
+        f"{_FAULT}/control/*",
+        _fault_event(INJECTOR),
+        keys.COUNTERS_ASK,
+    )
+    g.watch_alive()
+    g.allow("ingress", "liveliness_query", keys.ALIVE_ALL)
+    return g
+
+
+def all_grants(spec: SystemSpec) -> list[Grants]:
+    """The grants of every identity: the agents in file order, then recorder and operator."""
+    return [*(agent_grants(spec, a.name) for a in spec.agents), recorder_grants(), operator_grants()]
+
+
+def identities(spec: SystemSpec) -> list[str]:
+    """Every identity a deployment issues credentials to."""
+    return [g.identity for g in all_grants(spec)]
+
+
+def acl_config(spec: SystemSpec, *, tls: bool, only: set[str] | None = None) -> dict[str, Any]:
+    """The router's ``access_control`` section (JSON-able): default deny, one rule per
+    (identity, flow, message), one subject per identity (``usernames``, plus
+    ``cert_common_names`` when ``tls``), one policy per identity. ``only`` restricts it to those
+    identities (a revoked one is left out: it may then do nothing)."""
+    rules: list[dict[str, Any]] = []
+    subjects: list[dict[str, Any]] = []
+    policies: list[dict[str, Any]] = []
+    for g in all_grants(spec):
+        if only is not None and g.identity not in only:
+            continue
+        ids = []
+        for (flow, message), kes in g.allowed.items():
+            if not kes:
+                continue
+            rid = f"{g.identity}/{flow}/{message}"
+            rules.append(
+                {
+                    "id": rid,
+                    "permission": "allow",
+                    "flows": [flow],
+                    "messages": [message],
+                    "key_exprs": list(kes),
+                }
+            )
+            ids.append(rid)
+        subject: dict[str, Any] = {"id": g.identity, "usernames": [g.identity]}
+        if tls:
+            subject["cert_common_names"] = [g.identity]
+        subjects.append(subject)
+        policies.append({"id": g.identity, "rules": ids, "subjects": [g.identity]})
+    return {
+        "enabled": True,
+        "default_permission": "deny",
+        "rules": rules,
+        "subjects": subjects,
+        "policies": policies,
+    }
+
+
+def markdown_table(spec: SystemSpec) -> str:
+    """Who may send what where, as a Markdown table (docs/security.md)."""
+    names = {
+        ("ingress", "put"): "puts on",
+        ("ingress", "declare_subscriber"): "subscribes to",
+        ("egress", "put"): "is delivered",
+        ("ingress", "liveliness_token"): "liveliness token",
+        ("ingress", "declare_liveliness_subscriber"): "watches liveliness",
+        ("egress", "liveliness_token"): "sees tokens",
+        ("ingress", "liveliness_query"): "queries liveliness",
+    }
+    lines = ["| identity | may | key expressions |", "|---|---|---|"]
+    for g in all_grants(spec):
+        for fm, kes in g.allowed.items():
+            if kes:
+                what = names.get(fm, f"{fm[1]} ({fm[0]})")
+                lines.append(f"| {g.identity} | {what} | {', '.join(f'`{k}`' for k in kes)} |")
+    return "\n".join(lines) + "\n"
+
+
+def channel_table(spec: SystemSpec) -> str:
+    """Per agent, the channels it may put on and be delivered on, and its other keys (Markdown;
+    the summary of docs/security.md). Every agent also holds ``roco/alive/<agent>``, watches
+    ``roco/alive/*`` and hears/answers the fault layer's keys."""
+    routes = channel_routes(spec)
+    lines = [
+        "| agent | puts on (channel → receiver) | is delivered (channel ← sender) | other keys |",
+        "|---|---|---|---|",
+    ]
+    for a in spec.agents:
+        n = a.name
+        out = ", ".join(f"{c} → {r}" for c, s, r in routes if s == n)
+        into = ", ".join(f"{c} ← {s}" for c, s, r in routes if r == n)
+        e = AGENT_EXTRAS.get(n)
+        other = "—"
+        if e is not None:
+            other = (
+                f"hears {', '.join(f'`{k}`' for k in e.hears)}; says {', '.join(f'`{k}`' for k in e.says)}"
+            )
+        lines.append(f"| {n} | {out} | {into} | {other} |")
+    return "\n".join(lines) + "\n"

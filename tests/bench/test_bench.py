@@ -1,0 +1,102 @@
+"""``roco bench`` (services/bench/): the quickest run of two parts writes the tables it should,
+with positive figures; no timing is asserted (figures depend on the machine)."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from services.bench.messaging import (
+    BenchInform,
+    BenchRequest,
+    bench_spec,
+    pair_names,
+    percentile,
+    request_bytes,
+    sized_data,
+)
+from services.spec.model import interface
+from shared.fipa_codec.languages import encode_content
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def _rows(text: str, section: str) -> list[list[str]]:
+    """The body rows of the first table after the heading ``section``."""
+    part = text.split(section, 1)[1]
+    rows = []
+    started = False
+    for line in part.splitlines():
+        if line.startswith("|"):
+            started = True
+            rows.append([c.strip() for c in line.strip("|").split("|")])
+        elif started:
+            break
+    return rows[2:]  # header and separator
+
+
+def _number(cell: str) -> float:
+    return float(cell.replace(",", "").split()[0])
+
+
+@pytest.mark.parametrize("size", [0, 50, 200, 300, 10_000])
+def test_content_has_the_size_asked_for(size: int) -> None:
+    _, body = encode_content(BenchInform(seq=0, data=sized_data(size)))
+    assert len(body) == max(size, len(encode_content(BenchInform(seq=0, data=b""))[1]))
+
+
+def test_synthetic_spec_lets_a_pair_request_and_inform() -> None:
+    spec = bench_spec(3)
+    ini, par = pair_names(2)
+    receives = {(k.sender, k.performative, k.protocol) for k in interface(spec, par).receives}
+    assert (ini, "request", "fipa-request") in receives
+    assert (ini, "subscribe", "fipa-subscribe") in receives
+    sends = {(k.receiver, k.performative, k.protocol) for k in interface(spec, par).sends}
+    assert (ini, "inform", "fipa-request") in sends
+    assert (ini, "inform", "fipa-subscribe") in sends
+    assert request_bytes(200) > len(encode_content(BenchRequest(seq=1, data=sized_data(200)))[1])
+
+
+def test_percentile_is_nearest_rank() -> None:
+    assert percentile([], 50) == 0.0
+    assert percentile([3.0, 1.0, 2.0], 50) == 2.0
+    assert percentile([float(i) for i in range(101)], 99) == 99.0
+
+
+def test_quick_bench_writes_codec_and_messaging_tables(tmp_path: Path) -> None:
+    out = tmp_path / "benchmarks.md"
+    done = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "services.cli",
+            "bench",
+            "--quick",
+            "--only",
+            "codec,messaging",
+            "--out",
+            str(out),
+        ],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=300,
+        check=False,
+    )
+    assert done.returncode == 0, done.stderr[-2000:]
+    text = out.read_text()
+    assert "Load average" in text and "roco bench --quick --only codec,messaging" in text
+    codec = _rows(text, "## 1. Codec")
+    assert [r[0] for r in codec] == ["200 B", "10 kB", "1 MB"]
+    for r in codec:
+        assert _number(r[2]) > 0 and _number(r[3]) > 0  # encode, decode µs
+    messaging = _rows(text, "## 2–3. Messaging")
+    systems = [r[0] for r in messaging]
+    assert systems[0].startswith("raw Zenoh") and systems[1].startswith("roco")
+    for r in messaging[:2]:
+        p50, p99, count, rate = _number(r[1]), _number(r[2]), _number(r[3]), _number(r[4])
+        assert 0 < p50 <= p99 and count == 300 and rate > 0
+    assert "## Messaging targets" in text

@@ -1,0 +1,91 @@
+"""A plan made while a hand holds an object it has not yet withdrawn from the cabinet (a_ta
+or ag_ex lost inside the atomic ``take``, issue 7) first finishes the take: lift, withdraw,
+both atomic, before any torso turn. An object already withdrawn is left as it is."""
+
+from __future__ import annotations
+
+import pytest
+
+from services.knowledge.world_model import WorldModel
+from services.planner.domain import plan_task
+from services.planner.hfsm import to_hfsm
+from services.planner.knowledge import ARMS, Knowledge
+from shared.fipa_codec.languages.common import Pose
+from shared.fipa_codec.languages.l_wm import ObjectUpdate, WorldUpdate
+
+JAR_PLACE = (0.70, 0.20, 0.85)  # kitchen.ttl: cabinet_jar_place
+BOWL = (0.80, -0.20, 0.90)
+
+
+def knowledge(jar: tuple[float, float, float]) -> Knowledge:
+    """a_km's answers with the jar grasped by the left hand (picked from the cabinet) at
+    ``jar``, the bowl still standing in the cabinet."""
+    world = WorldModel()
+    world.apply(
+        WorldUpdate(
+            stamp=0.0,
+            objects=(
+                ObjectUpdate(name="jar", pose=Pose(JAR_PLACE)),
+                ObjectUpdate(name="bowl", pose=Pose(BOWL)),
+            ),
+        )
+    )
+    world.apply(WorldUpdate(stamp=1.0, objects=(ObjectUpdate(name="jar", held_by="left_gripper"),)))
+    world.apply(WorldUpdate(stamp=2.0, objects=(ObjectUpdate(name="jar", pose=Pose(jar)),)))
+    k = Knowledge()
+    for name in [*world.physical_objects(), "left_gripper", "right_gripper"]:
+        k.objects[name] = world.object_info(name)
+    for obj in ("jar", "bowl"):
+        for arm in ARMS:
+            k.grasps[(obj, arm)] = world.grasps(obj, arm)
+        for furniture in ("table", "cabinet"):
+            placement = world.placement(obj, furniture)
+            if placement is not None:
+                k.placements[(obj, furniture)] = placement
+    k.pours[("jar", "bowl")] = world.pour("jar", "bowl")
+    assert k.objects["jar"].picked_from == "cabinet"
+    return k
+
+
+@pytest.mark.parametrize(
+    ("jar", "lift_z"),
+    [
+        (JAR_PLACE, JAR_PLACE[2] + 0.04),  # grasped, not lifted
+        ((0.70, 0.20, 0.89), 0.89),  # lifted, not withdrawn
+        ((0.58, 0.20, 0.89), 0.89),  # half withdrawn
+    ],
+)
+def test_an_unfinished_take_is_finished_before_anything_else(
+    jar: tuple[float, float, float], lift_z: float
+) -> None:
+    result = plan_task(knowledge(jar), ("pour", "jar", "bowl"), "pour(jar,bowl)")
+    actions = result.actions
+    assert result.on_cancel[0] is not None  # a cancel there puts the jar down on the table
+    names = [(a[0], a[1]) for a in actions[:3]]
+    assert names[:2] == [
+        ("a_move", "pour(jar,bowl)/finish_take_jar/take/lift"),
+        ("a_move", "pour(jar,bowl)/finish_take_jar/take/withdraw"),
+    ]
+    lift, withdraw = actions[0], actions[1]
+    assert lift[2] == withdraw[2] == "left"
+    grip_z = 0.06  # kitchen.ttl jar_side_grasp_left gripPosition
+    assert lift[3].position[2] == pytest.approx(lift_z + grip_z)
+    assert lift[3].position[:2] == pytest.approx(jar[:2])
+    # withdrawn to the grasp's retreat distance (0.25 m along -x) from the place
+    assert withdraw[3].position == pytest.approx((JAR_PLACE[0] - 0.25, JAR_PLACE[1], lift_z + grip_z))
+    assert withdraw[3].orientation == pytest.approx(lift[3].orientation)
+    # nothing turns the torso before the take is finished
+    first_turn = next(i for i, a in enumerate(actions) if a[0] == "a_face")
+    assert first_turn > 1
+    root, _complete, _ = to_hfsm(actions, atomic=frozenset({"take"}))
+    finish = next(c for c in root.children if c.name == "finish_take_jar")
+    assert [c.name for c in finish.children] == ["take"] and finish.children[0].atomic
+
+
+def test_a_withdrawn_object_is_not_taken_again() -> None:
+    out = (JAR_PLACE[0] - 0.25, JAR_PLACE[1], 0.89)
+    result = plan_task(knowledge(out), ("pour", "jar", "bowl"), "pour(jar,bowl)")
+    assert not any("finish_take" in a[1] for a in result.actions)
+    # the jar counts as held: no second fetch of it; the bowl is fetched
+    assert not any("fetch_jar" in a[1] for a in result.actions)
+    assert any("fetch_bowl" in a[1] for a in result.actions)

@@ -1,0 +1,135 @@
+"""The router's access control derived from the specification (services/spec/acl.py), checked
+against the specification itself: every channel, both directions, every agent."""
+
+from __future__ import annotations
+
+import itertools
+
+import pytest
+
+from services.runtime import keys
+from services.spec.acl import (
+    AGENT_EXTRAS,
+    OPERATOR,
+    RECORDER,
+    _includes,
+    acl_config,
+    agent_grants,
+    all_grants,
+    channel_routes,
+    identities,
+    markdown_table,
+    operator_grants,
+    recorder_grants,
+)
+from services.spec.model import DEFAULT_SPEC, SystemSpec, load
+
+
+@pytest.fixture(scope="module")
+def spec() -> SystemSpec:
+    return load(DEFAULT_SPEC)
+
+
+def test_includes_follows_zenoh_wildcards() -> None:
+    assert _includes("roco/fipa/**", "roco/fipa/C1/a_co/a_ta")
+    assert _includes("roco/fipa/*/*/a_ta", "roco/fipa/C1/a_co/a_ta")
+    assert not _includes("roco/fipa/*/*/a_ta", "roco/fipa/C1/a_ta/a_co")
+    assert _includes("roco/**", "roco")
+    assert not _includes("roco/fipa/C1/a_co/a_ta", "roco/fipa/*/*/a_ta")  # inclusion, not intersection
+
+
+def test_every_route_is_put_by_its_sender_only_and_delivered_to_its_receiver_only(spec: SystemSpec) -> None:
+    agents = [a.name for a in spec.agents]
+    routes = channel_routes(spec)
+    assert len(routes) == 2 * len(spec.channels)
+    grants = {a: agent_grants(spec, a) for a in agents}
+    for (channel, sender, receiver), agent in itertools.product(routes, agents):
+        key = keys.fipa_key(channel, sender, receiver)
+        assert grants[agent].may("ingress", "put", key) == (agent == sender), (key, agent)
+        assert grants[agent].may("egress", "put", key) == (agent == receiver), (key, agent)
+
+
+def test_no_agent_may_put_a_route_outside_the_spec_or_as_another(spec: SystemSpec) -> None:
+    agents = [a.name for a in spec.agents]
+    channels = [c.name for c in spec.channels]
+    allowed = set(channel_routes(spec))
+    for agent, channel, sender, receiver in itertools.product(agents, channels, agents, agents):
+        key = keys.fipa_key(channel, sender, receiver)
+        may = agent_grants(spec, agent).may("ingress", "put", key)
+        assert may == (sender == agent and (channel, sender, receiver) in allowed), key
+    # nothing but the channels: no wildcard puts, no made-up channel
+    assert not agent_grants(spec, "a_pl").may("ingress", "put", "roco/fipa/C9/a_pl/a_km")
+
+
+def test_each_agent_subscribes_to_its_inbox_and_holds_only_its_own_token(spec: SystemSpec) -> None:
+    for a in spec.agents:
+        g = agent_grants(spec, a.name)
+        assert g.allowed[("ingress", "declare_subscriber")][0] == keys.inbox_key(a.name)
+        assert not g.may("ingress", "declare_subscriber", keys.FIPA_ALL)
+        assert g.allowed[("ingress", "liveliness_token")] == [keys.alive_key(a.name)]
+        assert g.allowed[("ingress", "declare_liveliness_subscriber")] == [keys.ALIVE_ALL]
+        assert g.may("egress", "liveliness_token", keys.alive_key("a_co"))
+        # the fault layer reaches it, and it answers as itself only
+        assert g.may("egress", "put", "roco/fault/control/all")
+        assert g.may("ingress", "put", f"roco/fault/state/{a.name}")
+        assert not g.may("ingress", "put", "roco/fault/state/someone_else")
+
+
+def test_extras_are_the_receptors_and_effectors_of_a_hi_and_ag_ex(spec: SystemSpec) -> None:
+    assert set(AGENT_EXTRAS) <= {a.name for a in spec.agents}
+    hi, ex, pl = agent_grants(spec, "a_hi"), agent_grants(spec, "ag_ex"), agent_grants(spec, "a_pl")
+    assert hi.may("egress", "put", keys.HUMAN_IN) and hi.may("ingress", "put", keys.HUMAN_OUT)
+    assert ex.may("ingress", "put", keys.state_key("ag_ex")) and ex.may("egress", "put", keys.SIM_DISTURB)
+    assert not pl.may("ingress", "put", keys.HUMAN_OUT) and not pl.may("egress", "put", keys.HUMAN_IN)
+
+
+def test_recorder_hears_all_traffic_and_sends_none(spec: SystemSpec) -> None:
+    g = recorder_grants()
+    assert g.may("ingress", "declare_subscriber", keys.FIPA_ALL)
+    for c, s, r in channel_routes(spec):
+        assert g.may("egress", "put", keys.fipa_key(c, s, r))
+        assert not g.may("ingress", "put", keys.fipa_key(c, s, r))
+    assert g.allowed[("ingress", "put")] == [keys.RECORDER_SYNCED]
+
+
+def test_operator_observes_and_commands_but_never_speaks_fipa(spec: SystemSpec) -> None:
+    g = operator_grants()
+    assert g.may("ingress", "declare_subscriber", keys.FIPA_ALL)
+    assert g.may("ingress", "put", keys.HUMAN_IN) and g.may("ingress", "put", "roco/fault/control/a_pl")
+    assert g.may("ingress", "liveliness_query", keys.ALIVE_ALL)
+    for c, s, r in channel_routes(spec):
+        assert not g.may("ingress", "put", keys.fipa_key(c, s, r))
+    assert not g.allowed.get(("ingress", "liveliness_token"))
+    assert not g.may("ingress", "put", keys.HUMAN_OUT)
+
+
+def test_acl_config_is_default_deny_with_one_subject_and_policy_per_identity(spec: SystemSpec) -> None:
+    names = identities(spec)
+    assert names == [*(a.name for a in spec.agents), RECORDER, OPERATOR]
+    for tls in (False, True):
+        conf = acl_config(spec, tls=tls)
+        assert conf["enabled"] is True and conf["default_permission"] == "deny"
+        assert [s["id"] for s in conf["subjects"]] == names
+        for s in conf["subjects"]:
+            assert s["usernames"] == [s["id"]]
+            assert s.get("cert_common_names") == ([s["id"]] if tls else None)
+        rule_ids = {r["id"] for r in conf["rules"]}
+        assert len(rule_ids) == len(conf["rules"])
+        for p in conf["policies"]:
+            assert p["subjects"] == [p["id"]] and set(p["rules"]) <= rule_ids
+            assert all(r.startswith(f"{p['id']}/") for r in p["rules"])
+        for r in conf["rules"]:
+            assert r["permission"] == "allow" and len(r["flows"]) == 1 and r["key_exprs"]
+
+
+def test_only_leaves_a_revoked_identity_without_subject(spec: SystemSpec) -> None:
+    conf = acl_config(spec, tls=True, only={"a_co", "recorder"})
+    assert [s["id"] for s in conf["subjects"]] == ["a_co", "recorder"]
+    assert all(r["id"].split("/")[0] in ("a_co", "recorder") for r in conf["rules"])
+
+
+def test_table_names_every_identity(spec: SystemSpec) -> None:
+    table = markdown_table(spec)
+    for g in all_grants(spec):
+        assert f"| {g.identity} | puts on |" in table or g.identity == OPERATOR
+    assert "`roco/fipa/C4/a_pl/a_km`" in table
