@@ -73,7 +73,7 @@ from shared.fipa_codec.languages.base import register
 from shared.fipa_codec.message import new_id
 
 BENCH_LANGUAGE = "L_BENCH"
-"""The benchmark's content language (registered in every process importing this module)."""
+"""The benchmark's content language (registered by the functions that use it, not on import)."""
 STREAM_BATCH = 256
 """Informs the participant sends per FSM step while streaming (one output buffer)."""
 WARMUP = 50
@@ -108,8 +108,6 @@ def _register() -> None:
         register(Language(BENCH_LANGUAGE, ONTOLOGY, (BenchRequest, BenchInform, BenchSubscription)))
 
 
-_register()
-
 
 def sized_data(size: int) -> bytes:
     """``data`` such that ``BenchInform(seq=0, data=…)`` encodes to ``size`` bytes of content
@@ -130,6 +128,7 @@ def bench_spec(pairs: int) -> SystemSpec:
     """A specification of ``pairs`` synthetic agent pairs, one channel ``B<k>`` each, with the
     Robot Companion's own fipa-request and fipa-subscribe definitions (who may send what, and
     their state machines come from shared/fipa_codec/protocols.py)."""
+    _register()  # registered where used: importing this module changes no registry
     real = default_spec().protocols
     agents: list[AgentSpec] = []
     channels: list[ChannelSpec] = []
@@ -161,6 +160,7 @@ def bench_spec(pairs: int) -> SystemSpec:
 def request_bytes(size: int) -> int:
     """Length (B) of roco's encoded request communicate with ``size`` bytes of content, as
     :meth:`Agent.send` builds it (the raw Zenoh payload is made this long)."""
+    _register()  # registered where used: importing this module changes no registry
     language, body = encode_content(BenchRequest(seq=1, data=sized_data(size)))
     msg = Communicate(
         performative=Performative.REQUEST,
