@@ -6,18 +6,11 @@ from __future__ import annotations
 import os
 import platform
 from importlib.metadata import PackageNotFoundError, version
-from pathlib import Path
 
+from services.bench import report
 
-def cpu_model() -> str:
-    """The CPU model name from /proc/cpuinfo, else what ``platform`` knows."""
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                return line.split(":", 1)[1].strip()
-    except OSError:
-        pass
-    return platform.processor() or platform.machine() or "unknown CPU"
+cpu_model = report.cpu_model
+"""The CPU model name (services/bench/report.py: one copy for roco bench and these scripts)."""
 
 
 def machine(packages: tuple[str, ...] = ()) -> str:

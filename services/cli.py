@@ -31,6 +31,7 @@ from services.runtime import keys
 from services.runtime.launcher import AGENT_ORDER, Fleet, LaunchError, alive_agents, open_client
 from services.runtime.run_folder import RunInfo, new_run_dir, write_run_info
 from services.security.cli import deploy_app
+from services.security.context import register
 
 app = typer.Typer(add_completion=False, no_args_is_help=True, help=__doc__)
 app.add_typer(fault_app, name="fault")
@@ -393,7 +394,12 @@ def _endpoint(router: str | None, runs_dir: Path) -> str:
     if router:
         return router
     state = _fleet_state(runs_dir)
-    return state.endpoint if state else os.environ.get("ROCO_ROUTER", DEFAULT_ROUTER)
+    if state is None:
+        return os.environ.get("ROCO_ROUTER", DEFAULT_ROUTER)
+    security = Path(state.run_dir) / "security"
+    if security.is_dir():  # the fleet of `roco up --runs-dir …` runs with access control
+        register(state.endpoint, security)
+    return state.endpoint
 
 
 @app.command()

@@ -622,7 +622,6 @@ def finish_takes(s: Any, root: str) -> list[tuple[Any, ...]]:
         done = (x - place[0]) * retreat[0] + (y - place[1]) * retreat[1]
         withdrawn = geo.translated(lifted, _scaled(retreat, max(0.0, grasp.retreat_distance - done)))
         take = f"{root}/finish_take_{obj}/take"
-        s.grip[obj] = _grasp_pose(grasp)
         moves: list[tuple[Any, ...]] = [
             ("a_move", f"{take}/lift", arm, lifted, 1.0),
             ("a_move", f"{take}/withdraw", arm, withdrawn, SHORT_MOVE_S),
