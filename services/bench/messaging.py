@@ -108,7 +108,6 @@ def _register() -> None:
         register(Language(BENCH_LANGUAGE, ONTOLOGY, (BenchRequest, BenchInform, BenchSubscription)))
 
 
-
 def sized_data(size: int) -> bytes:
     """``data`` such that ``BenchInform(seq=0, data=…)`` encodes to ``size`` bytes of content
     (msgpack; a larger ``seq`` adds up to 4 bytes)."""
