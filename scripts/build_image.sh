@@ -76,7 +76,9 @@ want=$(sha256sum pyproject.toml | cut -d' ' -f1)
 if [ "$REFRESH" = 0 ] && [ -f "$stamp" ] && [ "$(cat "$stamp")" = "$want" ]; then
     echo "build_image.sh: the wheelhouse matches pyproject.toml ($(find "$WHEELHOUSE" -name '*.whl' | wc -l) wheels)"
 else
-    rm -f "$stamp"
+    # pip reuses a file of the same name already in the target folder: an old roco wheel would
+    # bring roco's old dependencies (a new one, e.g. cryptography, went missing)
+    rm -f "$stamp" "$WHEELHOUSE"/roco-*.whl
     # roco's own wheel, to resolve its dependencies (the image installs roco from the source)
     {
         "$PYTHON" -m pip wheel --no-deps --disable-pip-version-check -w "$work/roco" . &&
