@@ -47,11 +47,17 @@ def test_up_status_send_down(tmp_path: Path) -> None:
         )
         try:
             seen = ""
-            for _ in range(20):  # the sniffer subscribes after it starts: ask until it has seen one
+            # The sniffer subscribes after it starts: ask until it shows a query-ref. Other C2
+            # traffic may come first (a_hi subscribes to a_co's progress again when an earlier
+            # subscribe went unanswered), so read on past it.
+            for _ in range(20):
                 roco("send", "what are you doing?", "--runs-dir", runs, timeout=60)
-                ready, _, _ = select.select([sniffer.stdout], [], [], 5.0)
-                if ready:
-                    seen = sniffer.stdout.readline() + sniffer.stdout.readline()  # type: ignore[union-attr]
+                while "(query-ref" not in seen:
+                    ready, _, _ = select.select([sniffer.stdout], [], [], 5.0)
+                    if not ready:
+                        break
+                    seen += sniffer.stdout.readline()  # type: ignore[union-attr]
+                if "(query-ref" in seen:
                     break
             assert "C2  a_hi → a_co" in seen and "(query-ref" in seen, seen
         finally:
