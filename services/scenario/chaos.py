@@ -12,20 +12,26 @@ answers the issue's questions:
 - **nothing executed twice** — no request got two different final answers from the same
   agent (a retransmission answered from memory is byte-identical, so only a second
   execution gives a second, different answer);
-- **no object dropped** — every movable object (jar, bowl, cup), as ag_ex last observed it,
-  stands higher than ``DROPPED_BELOW_M`` (the floor is z = 0; table top 0.75 m, cabinet
-  shelves higher); an object never observed counts as not known, and fails the check.
+- **no object dropped** — every movable object (jar, bowl, cup) stands higher than
+  ``DROPPED_BELOW_M`` (the floor is z = 0; table top 0.75 m, cabinet shelves higher) in the
+  final world: the world ag_ex kept in its last checkpoint when the fleet stopped
+  (``<run>/ag_ex_state/world.ckpt``, read with ``velma.executor.checkpoint.observe_checkpoint``),
+  so an object that fell after the last observation is caught too. Without a readable final
+  checkpoint the objects as ag_ex last observed them during the run are judged instead (and
+  the report says so); an object never observed counts as not known, and fails the check.
 """
 
 from __future__ import annotations
 
 import hashlib
+import logging
 import random
 from collections import defaultdict
 from dataclasses import dataclass, field
 from pathlib import Path
 
 from services.report.load import load_run
+from services.runtime.launcher import load_launch_env
 from services.scenario.model import AGENTS, FAULT_KINDS, MOVABLE, Fault, Scenario, Step, Trigger
 from services.scenario.runner import FaultRecord, ScenarioOutcome
 from shared.fipa_codec.languages.l_sd import Observation
@@ -34,6 +40,9 @@ DEFAULT_COMMAND = "pour the jar into the bowl"
 DROPPED_BELOW_M = 0.5
 """An object whose base is below this height (m, world z) has fallen off its furniture."""
 CHAOS_FILE = "chaos.md"
+FINAL_CHECKPOINT = "ag_ex_state/world.ckpt"
+"""ag_ex's checkpoint in a run folder (velma/executor/checkpoint.py: written when its loop ends)."""
+log = logging.getLogger(__name__)
 SERVICE_ORDER = ("a_hi", "a_co", "a_pl", "a_km", "a_ta", "ag_ex")
 _FINAL = frozenset({"inform", "inform-ref", "failure", "refuse"})
 _ONCE = frozenset({"fipa-request", "fipa-query"})
@@ -86,8 +95,9 @@ def chaos_scenario(
 class Verdict:
     """What a chaos run kept (see the module docstring). ``executed_twice``: requests
     answered twice differently, as "sender: conversation"; ``dropped``: objects found below
-    ``DROPPED_BELOW_M`` as last observed, with their height (m); ``last_observation``: every
-    movable object was observed at least once."""
+    ``DROPPED_BELOW_M``, with their height (m); ``last_observation``: every movable object's
+    height is known; ``judged_on``: where the heights come from (the final checkpoint, or the
+    last observations during the run)."""
 
     task_done: bool
     commands_lost: int
@@ -96,6 +106,7 @@ class Verdict:
     last_observation: bool = False
     faults_during_command: int = 0
     faults: int = 0
+    judged_on: str = "the last observations during the run"
 
     @property
     def ok(self) -> bool:
@@ -126,6 +137,10 @@ def verdict(run_dir: Path, outcome: ScenarioOutcome) -> Verdict:
         if isinstance(m.content, Observation):
             last.update({o.name: o.pose.position[2] for o in m.content.objects if o.name in MOVABLE})
     twice = sorted(f"{s}: {where[(s, r)]}" for (s, r), v in answers.items() if len(v) > 1)
+    final = final_heights(run_dir)
+    judged_on = Verdict.judged_on
+    if final is not None:
+        last, judged_on = final, "the final world (ag_ex's last checkpoint)"
     dropped = {name: round(z, 3) for name, z in last.items() if z < DROPPED_BELOW_M}
     return Verdict(
         task_done=outcome.ok,
@@ -135,7 +150,29 @@ def verdict(run_dir: Path, outcome: ScenarioOutcome) -> Verdict:
         last_observation=set(last) == set(MOVABLE),
         faults_during_command=sum(f.during_command for f in outcome.faults),
         faults=len(outcome.faults),
+        judged_on=judged_on,
     )
+
+
+def final_heights(run_dir: Path) -> dict[str, float] | None:
+    """Height (m, world z) of each movable object in the world ag_ex kept in its final
+    checkpoint in ``run_dir``, for the scene its launch environment names (ROCO_SEED,
+    ROCO_POSE_SEED); None when there is no usable checkpoint (logged)."""
+    from velma.executor.checkpoint import observe_checkpoint
+
+    path = run_dir / FINAL_CHECKPOINT
+    if not path.is_file():
+        return None
+    env = load_launch_env(run_dir) or {}
+    try:
+        pose = env.get("ROCO_POSE_SEED", "")
+        obs = observe_checkpoint(
+            path, seed=int(env.get("ROCO_SEED", "0") or 0), pose_seed=int(pose) if pose else None
+        )
+    except (OSError, ValueError) as exc:  # CheckpointError is a ValueError
+        log.warning("final world not judged from %s: %s", path, exc)
+        return None
+    return {o.name: o.pose.position[2] for o in obs.objects if o.name in MOVABLE}
 
 
 def _mark(ok: bool) -> str:
@@ -167,7 +204,7 @@ def write_chaos_report(run_dir: Path, scenario: Scenario, outcome: ScenarioOutco
             if v.last_observation
             else "(not every object was observed)"
         )
-        + " |",
+        + f" (judged on {v.judged_on}) |",
         f"| faults during the command | {v.faults_during_command} of {v.faults} |",
         "",
         "Commands:",

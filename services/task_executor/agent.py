@@ -22,8 +22,11 @@ reappears (ag_ex restored its world from its checkpoint). a_ta keeps the plan it
 state file; a restarted a_ta does not guess where the robot got to: it reports Replan (or the
 final state it had reached) in the plan's conversation, once it has observed the scene and
 informed a_km, so that a_co plans again from the world as it is (a_pl then first finishes a
-take the restart interrupted: ``services.planner.domain.finish_takes``). Meanwhile ag_ex holds
-position with the hands as they are.
+take the restart interrupted after its grasp: ``services.planner.domain.finish_takes``).
+Meanwhile ag_ex holds position with the hands as they are. A take interrupted *before* its
+grasp closed (a_ta restarted in it, or ag_ex held position in it) is undone by a_ta itself
+before it reports: the hand is opened and moved back along the plan's way in
+(``services.task_executor.retreat``), then the scene is observed.
 """
 
 from __future__ import annotations
@@ -52,6 +55,8 @@ from shared.fipa_codec.languages.l_hfsm import (
 from shared.fipa_codec.languages.l_sd import Observation
 from shared.fipa_codec.languages.l_sw import TERMINAL_SW_STATES, SWState, SWStatus
 from shared.fipa_codec.languages.l_wm import ObjectUpdate, Subscription, WorldUpdate
+
+from .retreat import RetreatCommand, retreat
 
 OBSERVE_REPLY_BY_S = 30.0
 INITIAL_OBSERVE_RETRY_S = 3.0
@@ -113,6 +118,12 @@ class TaskExecutor(Agent):
         self.confirmed = False
         self.sw_queue: deque[SWStatus] = deque()
         self.awaiting: str | None = None  # reply-with of the L_SW inform a_co has not confirmed
+        self.interrupted = False  # the plan ended inside a leaf ag_ex did not finish
+        self.retreat: deque[RetreatCommand] = deque()
+        self.retreat_wait: str | None = None  # reply-with of the retreat request (or observe)
+        self.retreated = False  # retreat commands were sent: observe before reporting
+        self.withdrawing = False  # in finished: the retreat runs, the final state waits
+        self.retreat_note = ""  # what the final state's reason says of the withdrawal
         return FSM(
             initial="idle",
             states={
@@ -135,7 +146,7 @@ class TaskExecutor(Agent):
                     "finished",
                     self._finished,
                     terminal=lambda: self.confirmed,
-                    on_enter=self._report_final,
+                    on_enter=self._enter_finished,
                     doc="await a_co's acknowledgement of the final state",
                 ),
             },
@@ -201,6 +212,7 @@ class TaskExecutor(Agent):
                 item.sender == "ag_ex"
                 and not item.local
                 and (self.step is None or item.msg.in_reply_to != self.step.waiting_for)
+                and (self.retreat_wait is None or item.msg.in_reply_to != self.retreat_wait)
             ):
                 self.x.remove(item)  # a late reply to a request whose deadline already passed
                 self.log.info("late %s from ag_ex ignored", item.performative.value)
@@ -310,6 +322,11 @@ class TaskExecutor(Agent):
             where = f" in {kept.step}" if kept.step else ""
             self.outcome = SWState.REPLAN
             self.reason = f"a_ta restarted{where}; the robot held position"
+            self.leaves = plan.root.leaves()
+            self.atomic_spans = plan.root.atomic_spans()
+            paths = [path for path, _ in self.leaves]
+            if kept.step in paths:  # not so for a leaf of a safe-stop HFSM
+                self.index, self.interrupted = paths.index(kept.step), True
         self.restored = True
         self.log.info("restarted during plan %s: reporting %s", plan.plan_id, self.outcome.value)
 
@@ -470,6 +487,7 @@ class TaskExecutor(Agent):
             ):
                 # ag_ex stopped the motion because a_ta looked gone (a restart of a_ta or of
                 # the router): where the robot got to is not known, so look and plan again
+                self.interrupted = True
                 self._surprise(step, f"{step.path}: ag_ex held position ({reply.content.reason})")
                 return
             if (
@@ -535,6 +553,70 @@ class TaskExecutor(Agent):
         self.log.info("plan ends %s %s", state.value, reason or "")
 
     # ---- finished ----
+    def _enter_finished(self) -> None:
+        """Withdraw a hand from a take interrupted before its grasp (``retreat``), else
+        report the final state at once."""
+        commands = retreat(self.leaves, self.atomic_spans, self.index) if self.interrupted else ()
+        self.interrupted = False
+        self.retreat = deque(commands)
+        self.retreated = False
+        self.retreat_note = "the hand was opened and withdrawn along its approach"
+        self.withdrawing = bool(commands)
+        if commands:
+            self.log.info(
+                "%s was interrupted before its grasp closed: opening the hand and withdrawing it "
+                "(%d commands) before reporting",
+                self.leaves[self.index][0],
+                len(commands),
+            )
+        else:
+            self._report_final()
+
+    def _retreat_step(self) -> None:
+        """One step of the withdrawal: await ag_ex's answer, send the next command; after the
+        commands the scene is observed and a_km informed; then the final state is reported."""
+        if self.retreat_wait is not None:
+            wait = self.retreat_wait
+            reply = self.take(lambda i: i.msg.in_reply_to == wait)
+            if reply is None:
+                return
+            self.retreat_wait = None
+            if isinstance(reply.content, Observation):
+                self._update_km(reply.content)
+            elif reply.performative is not Performative.INFORM:
+                why = getattr(reply.content, "reason", None) or reply.performative.value
+                self.log.warning("withdrawal stopped: ag_ex answered %s (%s)", reply.performative.value, why)
+                self.retreat.clear()
+                self.retreat_note = f"withdrawing the hand failed ({why})"
+        if self.retreat:
+            cmd = self.retreat.popleft()
+            duration = cmd.duration if isinstance(cmd, MoveTool) else 10.0
+            msg = self.send(
+                "ag_ex",
+                Performative.REQUEST,
+                cmd,
+                protocol="fipa-request",
+                reply_by_s=duration * 2 + COMMAND_MARGIN_S,
+                retry_s=RESEND_ON_RETURN,
+            )
+            self.retreat_wait, self.retreated = msg.reply_with, True
+            return
+        if self.retreated:  # the hand moved: a_km learns the scene as it is now
+            self.retreated = False
+            self.reason = f"{self.reason}; {self.retreat_note}" if self.reason else self.retreat_note
+            msg = self.send(
+                "ag_ex",
+                Performative.REQUEST,
+                Observe(),
+                protocol="fipa-request",
+                reply_by_s=OBSERVE_REPLY_BY_S,
+                retry_s=RESEND_ON_RETURN,
+            )
+            self.retreat_wait = msg.reply_with
+            return
+        self.withdrawing = False
+        self._report_final()
+
     def _report_final(self) -> None:
         assert self.outcome is not None
         self.confirmed = False
@@ -543,6 +625,10 @@ class TaskExecutor(Agent):
 
     def _finished(self) -> None:
         self._common()
+        if self.withdrawing:
+            self._retreat_step()
+            self.reject_unhandled(lambda i: i.local or i.sender == "ag_ex")
+            return
         if self.confirmed:
             self.plan = None
             self.plan_request = None

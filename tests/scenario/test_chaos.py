@@ -169,4 +169,34 @@ def test_a_second_execution_a_dropped_object_and_a_lost_command_are_found(tmp_pa
     assert not v.ok and not v.task_done and v.commands_lost == 1
     assert v.executed_twice == ["ag_ex: c1"] and v.dropped == {"jar": 0.04}
     text = write_chaos_report(run, chaos_scenario(0), lost, v).read_text()
-    assert "| no object dropped | **no** jar at z = 0.04 m |" in text
+    judged = "(judged on the last observations during the run)"
+    assert f"| no object dropped | **no** jar at z = 0.04 m {judged} |" in text
+
+
+def test_an_object_that_fell_after_its_last_observation_is_found_in_the_final_world(tmp_path: Path) -> None:
+    import json
+
+    from velma.executor.checkpoint import Capture
+    from velma.executor.runtime import Runtime
+
+    b = RunBuilder()
+    b.add(1, "C5", "ag_ex", "a_ta", "inform", _observation(0.76), protocol="fipa-request", conversation="c")
+    run = _run(tmp_path, b)
+    assert verdict(run, _done()).ok  # as last observed, the jar stands on the table
+    # ag_ex's final checkpoint: the jar lies on the floor
+    rt = Runtime(seed=3, n_particles=None)
+    jar = rt.model.body("jar")
+    adr = rt.model.jnt_qposadr[jar.jntadr[0]]
+    rt.data.qpos[adr : adr + 3] = (1.2, 0.4, 0.05)
+    (run / "ag_ex_state").mkdir()
+    (run / "ag_ex_state" / "world.ckpt").write_bytes(Capture(rt).take(None))
+    (run / "launch_env.json").write_text(json.dumps({"ROCO_SEED": "3"}))
+    v = verdict(run, _done())
+    assert not v.ok and set(v.dropped) == {"jar"} and 0.0 < v.dropped["jar"] < 0.1
+    assert v.judged_on == "the final world (ag_ex's last checkpoint)"
+    text = write_chaos_report(run, chaos_scenario(0), _done(), v).read_text()
+    assert "**no** jar at z = 0.05 m (judged on the final world (ag_ex's last checkpoint))" in text
+    # a checkpoint of another scene is not used: the last observations are judged instead
+    (run / "launch_env.json").write_text(json.dumps({"ROCO_SEED": "4"}))
+    fallback = verdict(run, _done())
+    assert fallback.ok and fallback.judged_on == "the last observations during the run"

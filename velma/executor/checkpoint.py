@@ -65,6 +65,7 @@ from velma.executor.state import SNAPSHOT_SIDES
 if TYPE_CHECKING:
     import mujoco
 
+    from shared.fipa_codec.languages.l_sd import Observation
     from velma.executor.handoff import LatestValue
     from velma.executor.loop import ControlLoop
     from velma.executor.runtime import Runtime
@@ -633,3 +634,21 @@ class CheckpointWriter:
         self._failing = False
         self._seen = version
         self.writes += 1
+
+
+def observe_checkpoint(path: Path, *, seed: int = 0, pose_seed: int | None = None) -> Observation:
+    """What ag_ex would observe of the world kept in the checkpoint file ``path``: every known
+    object's pose (world frame, m) and containers' particle counts (``Perception.observe``),
+    for the scene of ``seed`` and ``pose_seed`` (those ag_ex ran with). Used after a run to
+    judge the final world (services/scenario/chaos.py). Raises OSError when the file cannot
+    be read and CheckpointError when it does not fit that scene."""
+    import mujoco
+
+    from velma.executor.runtime import Runtime as _Runtime
+
+    rt = _Runtime(seed=seed, pose_seed=pose_seed)
+    ckpt = decode(path.read_bytes(), fingerprint(rt.model))
+    physics = np.frombuffer(ckpt.physics, dtype=np.float64).copy()
+    mujoco.mj_setState(rt.model, rt.data, physics, ckpt.state_sig)
+    mujoco.mj_forward(rt.model, rt.data)
+    return rt.perception.observe(rt.data)

@@ -1,0 +1,70 @@
+"""Withdrawing a hand from a take that was interrupted before its grasp closed (issue 7).
+
+A take — reach, grasp, held, lift, withdraw — is an atomic state of the plan's HFSM (paper
+§3.2). When it is interrupted before the grasp completed (a_ta restarted inside it, or ag_ex
+held position because a_ta looked gone), the open or half-closed hand stands around the
+object, often inside a cabinet. a_km does not know the object is in the hand's way (nothing is
+held), so the next plan begins with a torso turn or a joint move that drags the object out and
+drops it. Before a_ta reports the plan's end it therefore opens the hand as the plan opened it
+and moves it back, pose by pose, along the way the plan brought it in (the inverse of the
+fetch's approach: reach, pregrasp, enter). A take interrupted after its grasp is finished by the
+next plan instead (``services.planner.domain.finish_takes``).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+from shared.fipa_codec.languages.l_ex import Arm, Grasp, MoveJoints, MoveTool, Release
+from shared.fipa_codec.languages.l_hfsm import Execute, PlanNode
+
+RetreatCommand = Release | MoveTool
+
+
+def _command(node: PlanNode) -> object | None:
+    action = node.action
+    return action.command if isinstance(action, Execute) else None
+
+
+def retreat(
+    leaves: Sequence[tuple[str, PlanNode]], atomic_spans: Sequence[tuple[int, int]], index: int
+) -> tuple[RetreatCommand, ...]:
+    """The L_EX commands that withdraw the hand from the take leaf ``index`` interrupted.
+
+    ``leaves``: the plan's leaf states in execution order (``PlanNode.leaves``);
+    ``atomic_spans``: their atomic ranges ``[start, end)`` (``PlanNode.atomic_spans``);
+    ``index``: the leaf that was running. Returns ``()`` unless that leaf is a tool move or a
+    grasp inside an atomic state whose grasp has not completed, preceded by the ``release``
+    that opened the hand for it. Otherwise returns that release again (same arm, same opening),
+    then a tool move back to each earlier target since the release (or since a joint move
+    after it), latest first; each takes the duration of the forward move it undoes (s)."""
+    if not 0 <= index < len(leaves):
+        return ()
+    span = next(((a, b) for a, b in atomic_spans if a <= index < b), None)
+    current = _command(leaves[index][1])
+    if span is None or not isinstance(current, MoveTool | Grasp):
+        return ()
+    arm: Arm = current.arm
+    moves: list[MoveTool] = [current] if isinstance(current, MoveTool) else []
+    opening: float | None = None
+    retracing = True  # a joint move since the release ends the way back there
+    for j in range(index - 1, -1, -1):
+        cmd = _command(leaves[j][1])
+        if isinstance(cmd, Grasp) and cmd.arm == arm:
+            return ()  # the hand closed on the object: the take is finished, not undone
+        if isinstance(cmd, MoveJoints):
+            retracing = False
+        elif isinstance(cmd, MoveTool) and cmd.arm == arm and retracing:
+            moves.append(cmd)
+        elif isinstance(cmd, Release) and cmd.arm == arm:
+            opening = cmd.opening
+            break
+    if opening is None:
+        return ()
+    # moves: latest first; moves[0] is where the hand is (or is going), so go back to the
+    # targets after it, each over the time the move away from it took
+    back = tuple(
+        MoveTool(arm=arm, target=moves[i + 1].target, duration=moves[i].duration)
+        for i in range(len(moves) - 1)
+    )
+    return (Release(arm=arm, opening=opening), *back)

@@ -1,0 +1,214 @@
+"""a_ta withdraws a hand from a take interrupted before its grasp closed (issue 7; chaos seed 8:
+a_ta restarted during ``fetch_bowl/take/grasp``, the next plan's arm posture dragged the bowl
+out of the cabinet with the half-closed hand and dropped it)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import msgspec
+import pytest
+
+from services.runtime.state_store import ENV_STATE_DIR
+from services.task_executor.agent import KeptTaskExecutor, TaskExecutor
+from services.task_executor.retreat import retreat
+from shared.fipa_codec import Communicate, Performative, encode
+from shared.fipa_codec.languages.common import Pose
+from shared.fipa_codec.languages.l_ex import (
+    Arm,
+    CommandResult,
+    Grasp,
+    MoveJoints,
+    MoveTool,
+    Observe,
+    Release,
+)
+from shared.fipa_codec.languages.l_hfsm import Assert, Execute, HierarchicalPlan, Perceive, PlanNode
+from shared.fipa_codec.languages.l_sd import ObjectObservation, Observation
+from shared.fipa_codec.languages.l_sw import SWState, SWStatus
+from shared.fipa_codec.languages.l_wm import Subscription
+from tests.runtime.test_reliability import Wire
+from tests.support.messages import communicate
+
+P = Performative
+R = Arm.RIGHT
+DOWN = (0.0, 0.0, 1.0, 0.0)
+ENTER, PRE, GRIP = (
+    Pose((0.45, -0.2, 0.955), DOWN),
+    Pose((0.7, -0.2, 0.955), DOWN),
+    Pose((0.7, -0.2, 0.895), DOWN),
+)
+LIFTED, OUT = Pose((0.7, -0.2, 0.945), DOWN), Pose((0.45, -0.2, 0.945), DOWN)
+
+
+def leaf(name: str, action: object) -> PlanNode:
+    return PlanNode(name=name, action=action)  # type: ignore[arg-type]
+
+
+def move(target: Pose, duration: float) -> Execute:
+    return Execute(MoveTool(arm=R, target=target, duration=duration))
+
+
+FETCH = PlanNode(
+    name="fetch_bowl",
+    children=(
+        leaf("arm_posture", Execute(MoveJoints(positions={"right_arm_0_joint": 1.46}, duration=1.5))),
+        leaf("open_hand", Execute(Release(arm=R, opening=0.5))),
+        leaf("enter", move(ENTER, 1.5)),
+        leaf("pregrasp", move(PRE, 1.4)),
+        leaf("see_bowl", Perceive(objects=("bowl",))),
+        PlanNode(
+            name="take",
+            atomic=True,
+            children=(
+                leaf("reach", move(GRIP, 1.0)),
+                leaf("grasp", Execute(Grasp(arm=R))),
+                leaf("held", Assert(subject="bowl", relation="heldBy", object="right_gripper")),
+                leaf("lift", move(LIFTED, 1.0)),
+                leaf("withdraw", move(OUT, 1.5)),
+            ),
+        ),
+    ),
+)
+PLAN = HierarchicalPlan(
+    plan_id="cmd-1-p1",
+    task_id="cmd-1",
+    root=PlanNode(name="pour", children=(FETCH,)),
+    complete=True,
+    cost=1.0,
+)
+LEAVES = PLAN.root.leaves()
+SPANS = PLAN.root.atomic_spans()
+INDEX = {path.rsplit("/", 1)[1]: i for i, (path, _) in enumerate(LEAVES)}
+BACK = (
+    Release(arm=R, opening=0.5),
+    MoveTool(arm=R, target=PRE, duration=1.0),
+    MoveTool(arm=R, target=ENTER, duration=1.4),
+)
+
+
+@pytest.mark.parametrize("at", ["reach", "grasp"])
+def test_a_take_interrupted_before_its_grasp_is_undone_along_the_way_in(at: str) -> None:
+    assert retreat(LEAVES, SPANS, INDEX[at]) == BACK
+
+
+@pytest.mark.parametrize("at", ["held", "lift", "withdraw", "pregrasp", "enter", "see_bowl", "open_hand"])
+def test_nothing_is_undone_after_the_grasp_or_outside_the_take(at: str) -> None:
+    assert retreat(LEAVES, SPANS, INDEX[at]) == ()
+
+
+def test_no_release_before_the_take_means_no_retreat() -> None:
+    leaves = [(p, n) for p, n in LEAVES if not p.endswith("open_hand")]
+    assert retreat(leaves, PLAN.root.atomic_spans(), INDEX["grasp"] - 1) == ()
+    assert retreat(LEAVES, SPANS, len(LEAVES)) == ()
+
+
+def ag_ex_answers(w: Wire[TaskExecutor], request: Communicate, content: msgspec.Struct) -> None:
+    w.deliver(
+        communicate(
+            P.INFORM,
+            "ag_ex",
+            "a_ta",
+            "fipa-request",
+            request.conversation_id,
+            content,
+            in_reply_to=request.reply_with,
+        )
+    )
+
+
+def test_a_restarted_a_ta_withdraws_the_hand_then_observes_then_reports_replan(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setenv(ENV_STATE_DIR, str(tmp_path))
+    request = communicate(P.REQUEST, "a_co", "a_ta", "coordinate", "cmd-1-exec1", PLAN, reply_with="p1")
+    kept = KeptTaskExecutor(
+        request=encode(request), step="pour/fetch_bowl/take/grasp", outcome=None, reason=None
+    )
+    (tmp_path / "a_ta.json").write_bytes(msgspec.json.encode(kept))
+    w = Wire(TaskExecutor)
+    w.agent.setup()
+    w.deliver(
+        communicate(P.SUBSCRIBE, "a_km", "a_ta", "fipa-subscribe", "km-env", Subscription(), reply_with="s")
+    )
+    w.step("idle")
+    scene = Observation(stamp=3.0, objects=(ObjectObservation(name="bowl", pose=Pose((0.7, -0.2, 0.85))),))
+    (initial,) = [m for m in w.mine(P.REQUEST) if m.receiver[0].name == "ag_ex"]
+    ag_ex_answers(w, initial, scene)
+    w.step("idle")
+    assert w.agent.fsm.next_state("idle") == "finished"
+    w.agent.fsm.states["finished"].on_enter()
+    w.agent._dispatch()
+
+    def to_ag_ex() -> list[Communicate]:
+        return [m for m in w.mine(P.REQUEST) if m.receiver[0].name == "ag_ex"]
+
+    def to_co() -> list[Communicate]:
+        return [m for m in w.mine(P.INFORM) if m.receiver[0].name == "a_co"]
+
+    sent: list[object] = []
+    for expected in BACK:
+        w.step("finished")
+        last = to_ag_ex()[-1]
+        command = msgspec.msgpack.decode(last.content, type=type(expected))
+        sent.append(command)
+        assert to_co() == []  # nothing reported while the hand is inside
+        ag_ex_answers(w, last, CommandResult(command=type(expected).__name__.lower(), ok=True))
+    assert tuple(sent) == BACK
+    w.step("finished")
+    observe = to_ag_ex()[-1]
+    assert msgspec.msgpack.decode(observe.content, type=Observe) == Observe()
+    updates_before = len([m for m in w.mine(P.INFORM) if m.receiver[0].name == "a_km"])
+    ag_ex_answers(w, observe, scene)
+    w.step("finished")
+    assert len([m for m in w.mine(P.INFORM) if m.receiver[0].name == "a_km"]) == updates_before + 1
+    (report,) = to_co()
+    status = msgspec.msgpack.decode(report.content, type=SWStatus)
+    assert status.state is SWState.REPLAN
+    assert "take/grasp" in (status.reason or "") and "withdrawn" in (status.reason or "")
+
+
+def test_a_withdrawal_ag_ex_refuses_stops_and_the_state_is_still_reported(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setenv(ENV_STATE_DIR, str(tmp_path))
+    request = communicate(P.REQUEST, "a_co", "a_ta", "coordinate", "cmd-1-exec1", PLAN, reply_with="p1")
+    kept = KeptTaskExecutor(
+        request=encode(request), step="pour/fetch_bowl/take/reach", outcome=None, reason=None
+    )
+    (tmp_path / "a_ta.json").write_bytes(msgspec.json.encode(kept))
+    w = Wire(TaskExecutor)
+    w.agent.setup()
+    w.deliver(
+        communicate(P.SUBSCRIBE, "a_km", "a_ta", "fipa-subscribe", "km-env", Subscription(), reply_with="s")
+    )
+    w.step("idle")
+    (initial,) = [m for m in w.mine(P.REQUEST) if m.receiver[0].name == "ag_ex"]
+    ag_ex_answers(w, initial, Observation(stamp=3.0, objects=()))
+    w.step("idle")
+    w.agent.fsm.states["finished"].on_enter()
+    w.step("finished")
+    release = [m for m in w.mine(P.REQUEST) if m.receiver[0].name == "ag_ex"][-1]
+    w.deliver(
+        communicate(
+            P.FAILURE,
+            "ag_ex",
+            "a_ta",
+            "fipa-request",
+            release.conversation_id,
+            CommandResult(command="release", ok=False, reason="unreachable"),
+            in_reply_to=release.reply_with,
+        )
+    )
+    w.step("finished")
+    # no more moves: the scene is observed (the hand may have moved), then the state reported
+    observe = [m for m in w.mine(P.REQUEST) if m.receiver[0].name == "ag_ex"][-1]
+    assert msgspec.msgpack.decode(observe.content, type=Observe) == Observe()
+    assert len([m for m in w.mine(P.REQUEST) if m.receiver[0].name == "ag_ex"]) == 3
+    assert [m for m in w.mine(P.INFORM) if m.receiver[0].name == "a_co"] == []
+    ag_ex_answers(w, observe, Observation(stamp=4.0, objects=()))
+    w.step("finished")
+    (report,) = [m for m in w.mine(P.INFORM) if m.receiver[0].name == "a_co"]
+    status = msgspec.msgpack.decode(report.content, type=SWStatus)
+    assert status.state is SWState.REPLAN
+    assert "withdrawing the hand failed (unreachable)" in (status.reason or ""), status.reason
