@@ -56,7 +56,7 @@ from shared.fipa_codec.languages.l_sd import Observation
 from shared.fipa_codec.languages.l_sw import TERMINAL_SW_STATES, SWState, SWStatus
 from shared.fipa_codec.languages.l_wm import ObjectUpdate, Subscription, WorldUpdate
 
-from .retreat import RetreatCommand, retreat
+from .retreat import RetreatStep, finish_set_down, undo_take
 
 OBSERVE_REPLY_BY_S = 30.0
 INITIAL_OBSERVE_RETRY_S = 3.0
@@ -119,7 +119,7 @@ class TaskExecutor(Agent):
         self.sw_queue: deque[SWStatus] = deque()
         self.awaiting: str | None = None  # reply-with of the L_SW inform a_co has not confirmed
         self.interrupted = False  # the plan ended inside a leaf ag_ex did not finish
-        self.retreat: deque[RetreatCommand] = deque()
+        self.retreat: deque[RetreatStep] = deque()
         self.retreat_wait: str | None = None  # reply-with of the retreat request (or observe)
         self.retreated = False  # retreat commands were sent: observe before reporting
         self.withdrawing = False  # in finished: the retreat runs, the final state waits
@@ -554,18 +554,23 @@ class TaskExecutor(Agent):
 
     # ---- finished ----
     def _enter_finished(self) -> None:
-        """Withdraw a hand from a take interrupted before its grasp (``retreat``), else
+        """Make the hands safe after an interrupted take (``undo_take``) or set-down
+        (``finish_set_down``; services/task_executor/retreat.py), else
         report the final state at once."""
-        commands = retreat(self.leaves, self.atomic_spans, self.index) if self.interrupted else ()
+        commands: tuple[RetreatStep, ...] = ()
+        if self.interrupted:
+            commands = undo_take(self.leaves, self.atomic_spans, self.index)
+            self.retreat_note = "the hand was opened and withdrawn along its approach"
+            if not commands:
+                commands = finish_set_down(self.leaves, self.atomic_spans, self.index)
+                self.retreat_note = "the set-down was finished and the hand moved clear"
         self.interrupted = False
         self.retreat = deque(commands)
         self.retreated = False
-        self.retreat_note = "the hand was opened and withdrawn along its approach"
         self.withdrawing = bool(commands)
         if commands:
             self.log.info(
-                "%s was interrupted before its grasp closed: opening the hand and withdrawing it "
-                "(%d commands) before reporting",
+                "%s was interrupted: making the hand safe (%d steps) before reporting",
                 self.leaves[self.index][0],
                 len(commands),
             )
@@ -588,6 +593,8 @@ class TaskExecutor(Agent):
                 self.log.warning("withdrawal stopped: ag_ex answered %s (%s)", reply.performative.value, why)
                 self.retreat.clear()
                 self.retreat_note = f"withdrawing the hand failed ({why})"
+        while self.retreat and isinstance(self.retreat[0], Assert):
+            self._assert(self.retreat.popleft())  # type: ignore[arg-type]
         if self.retreat:
             cmd = self.retreat.popleft()
             duration = cmd.duration if isinstance(cmd, MoveTool) else 10.0

@@ -1,6 +1,9 @@
-"""a_ta withdraws a hand from a take interrupted before its grasp closed (issue 7; chaos seed 8:
-a_ta restarted during ``fetch_bowl/take/grasp``, the next plan's arm posture dragged the bowl
-out of the cabinet with the half-closed hand and dropped it)."""
+"""a_ta makes the hands safe after a restart interrupted a take or a set-down (issue 7).
+
+Chaos seed 8: a_ta restarted during ``fetch_bowl/take/grasp``; the next plan's arm posture
+dragged the bowl out of the cabinet with the half-closed hand and dropped it. Chaos seed 12:
+a_ta restarted during ``place_bowl/set_down/clear``; the next plan lowered the jar onto the
+hand left beside the bowl and timed out."""
 
 from __future__ import annotations
 
@@ -11,7 +14,7 @@ import pytest
 
 from services.runtime.state_store import ENV_STATE_DIR
 from services.task_executor.agent import KeptTaskExecutor, TaskExecutor
-from services.task_executor.retreat import retreat
+from services.task_executor.retreat import finish_set_down, retreat, undo_take
 from shared.fipa_codec import Communicate, Performative, encode
 from shared.fipa_codec.languages.common import Pose
 from shared.fipa_codec.languages.l_ex import (
@@ -26,7 +29,7 @@ from shared.fipa_codec.languages.l_ex import (
 from shared.fipa_codec.languages.l_hfsm import Assert, Execute, HierarchicalPlan, Perceive, PlanNode
 from shared.fipa_codec.languages.l_sd import ObjectObservation, Observation
 from shared.fipa_codec.languages.l_sw import SWState, SWStatus
-from shared.fipa_codec.languages.l_wm import Subscription
+from shared.fipa_codec.languages.l_wm import Subscription, WorldUpdate
 from tests.runtime.test_reliability import Wire
 from tests.support.messages import communicate
 
@@ -70,10 +73,34 @@ FETCH = PlanNode(
         ),
     ),
 )
+ABOVE, PLACED, PARK = (
+    Pose((0.3, -0.5, 0.95), DOWN),
+    Pose((0.3, -0.5, 0.85), DOWN),
+    Pose((0.3, -0.7, 0.95), DOWN),
+)
+PUT = Assert(subject="bowl", relation="on", object="table")
+PLACE = PlanNode(
+    name="place_bowl",
+    children=(
+        leaf("carry", move(ABOVE, 3.0)),
+        PlanNode(
+            name="set_down",
+            atomic=True,
+            children=(
+                leaf("lower", move(PLACED, 1.5)),
+                leaf("release", Execute(Release(arm=R, opening=0.5))),
+                leaf("put", PUT),
+                leaf("clear", move(ABOVE, 1.0)),
+            ),
+        ),
+        leaf("park", move(PARK, 1.5)),
+        leaf("localise_bowl", Perceive(objects=("bowl",))),
+    ),
+)
 PLAN = HierarchicalPlan(
     plan_id="cmd-1-p1",
     task_id="cmd-1",
-    root=PlanNode(name="pour", children=(FETCH,)),
+    root=PlanNode(name="pour", children=(FETCH, PLACE)),
     complete=True,
     cost=1.0,
 )
@@ -87,14 +114,19 @@ BACK = (
 )
 
 
-@pytest.mark.parametrize("at", ["reach", "grasp"])
-def test_a_take_interrupted_before_its_grasp_is_undone_along_the_way_in(at: str) -> None:
-    assert retreat(LEAVES, SPANS, INDEX[at]) == BACK
-
-
-@pytest.mark.parametrize("at", ["held", "lift", "withdraw", "pregrasp", "enter", "see_bowl", "open_hand"])
-def test_nothing_is_undone_after_the_grasp_or_outside_the_take(at: str) -> None:
+@pytest.mark.parametrize(
+    "at", ["held", "lift", "withdraw", "pregrasp", "enter", "see_bowl", "open_hand", "carry", "lower", "park"]
+)
+def test_nothing_is_done_after_the_grasp_before_the_release_or_outside_atomic_states(at: str) -> None:
     assert retreat(LEAVES, SPANS, INDEX[at]) == ()
+
+
+def test_a_set_down_interrupted_after_its_release_is_finished_and_the_hand_parked() -> None:
+    clear, park = MoveTool(arm=R, target=ABOVE, duration=1.0), MoveTool(arm=R, target=PARK, duration=1.5)
+    assert retreat(LEAVES, SPANS, INDEX["clear"]) == (clear, park)
+    assert retreat(LEAVES, SPANS, INDEX["release"]) == (Release(arm=R, opening=0.5), PUT, clear, park)
+    assert undo_take(LEAVES, SPANS, INDEX["clear"]) == ()  # a set-down's moves are not a take's
+    assert finish_set_down(LEAVES, SPANS, INDEX["grasp"]) == ()
 
 
 def test_no_release_before_the_take_means_no_retreat() -> None:
@@ -212,3 +244,41 @@ def test_a_withdrawal_ag_ex_refuses_stops_and_the_state_is_still_reported(
     status = msgspec.msgpack.decode(report.content, type=SWStatus)
     assert status.state is SWState.REPLAN
     assert "withdrawing the hand failed (unreachable)" in (status.reason or ""), status.reason
+
+
+def test_a_restarted_a_ta_finishes_the_set_down_tells_a_km_and_reports(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setenv(ENV_STATE_DIR, str(tmp_path))
+    request = communicate(P.REQUEST, "a_co", "a_ta", "coordinate", "cmd-1-exec1", PLAN, reply_with="p1")
+    kept = KeptTaskExecutor(
+        request=encode(request), step="pour/place_bowl/set_down/release", outcome=None, reason=None
+    )
+    (tmp_path / "a_ta.json").write_bytes(msgspec.json.encode(kept))
+    w = Wire(TaskExecutor)
+    w.agent.setup()
+    w.deliver(
+        communicate(P.SUBSCRIBE, "a_km", "a_ta", "fipa-subscribe", "km-env", Subscription(), reply_with="s")
+    )
+    w.step("idle")
+    (initial,) = [m for m in w.mine(P.REQUEST) if m.receiver[0].name == "ag_ex"]
+    ag_ex_answers(w, initial, Observation(stamp=3.0, objects=()))
+    w.step("idle")
+    w.agent.fsm.states["finished"].on_enter()
+    commands: list[type] = []
+    for kind in (Release, MoveTool, MoveTool, Observe):
+        w.step("finished")
+        last = [m for m in w.mine(P.REQUEST) if m.receiver[0].name == "ag_ex"][-1]
+        msgspec.msgpack.decode(last.content, type=kind)
+        commands.append(kind)
+        answer = (
+            Observation(stamp=4.0, objects=()) if kind is Observe else CommandResult(command="x", ok=True)
+        )
+        ag_ex_answers(w, last, answer)
+    w.step("finished")
+    to_km = [m for m in w.mine(P.INFORM) if m.receiver[0].name == "a_km"]
+    put = msgspec.msgpack.decode(to_km[1].content, type=WorldUpdate).objects[0]
+    assert (put.name, put.location, put.relation) == ("bowl", "table", "on")
+    (report,) = [m for m in w.mine(P.INFORM) if m.receiver[0].name == "a_co"]
+    status = msgspec.msgpack.decode(report.content, type=SWStatus)
+    assert status.state is SWState.REPLAN and "the set-down was finished" in (status.reason or "")
