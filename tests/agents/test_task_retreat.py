@@ -149,14 +149,12 @@ def ag_ex_answers(w: Wire[TaskExecutor], request: Communicate, content: msgspec.
     )
 
 
-def test_a_restarted_a_ta_withdraws_the_hand_then_observes_then_reports_replan(
-    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
-) -> None:
-    monkeypatch.setenv(ENV_STATE_DIR, str(tmp_path))
+def restarted_in(step: str, tmp_path: Path, scene: Observation) -> Wire[TaskExecutor]:
+    """An a_ta restarted in leaf ``step`` of PLAN (its state file in ``tmp_path``), after a_km
+    subscribed and ag_ex answered its first observation with ``scene``: ready to enter
+    finished."""
     request = communicate(P.REQUEST, "a_co", "a_ta", "coordinate", "cmd-1-exec1", PLAN, reply_with="p1")
-    kept = KeptTaskExecutor(
-        request=encode(request), step="pour/fetch_bowl/take/grasp", outcome=None, reason=None
-    )
+    kept = KeptTaskExecutor(request=encode(request), step=step, outcome=None, reason=None)
     (tmp_path / "a_ta.json").write_bytes(msgspec.json.encode(kept))
     w = Wire(TaskExecutor)
     w.agent.setup()
@@ -164,10 +162,18 @@ def test_a_restarted_a_ta_withdraws_the_hand_then_observes_then_reports_replan(
         communicate(P.SUBSCRIBE, "a_km", "a_ta", "fipa-subscribe", "km-env", Subscription(), reply_with="s")
     )
     w.step("idle")
-    scene = Observation(stamp=3.0, objects=(ObjectObservation(name="bowl", pose=Pose((0.7, -0.2, 0.85))),))
     (initial,) = [m for m in w.mine(P.REQUEST) if m.receiver[0].name == "ag_ex"]
     ag_ex_answers(w, initial, scene)
     w.step("idle")
+    return w
+
+
+def test_a_restarted_a_ta_withdraws_the_hand_then_observes_then_reports_replan(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setenv(ENV_STATE_DIR, str(tmp_path))
+    scene = Observation(stamp=3.0, objects=(ObjectObservation(name="bowl", pose=Pose((0.7, -0.2, 0.85))),))
+    w = restarted_in("pour/fetch_bowl/take/grasp", tmp_path, scene)
     assert w.agent.fsm.next_state("idle") == "finished"
     w.agent.fsm.states["finished"].on_enter()
     w.agent._dispatch()
@@ -204,20 +210,7 @@ def test_a_withdrawal_ag_ex_refuses_stops_and_the_state_is_still_reported(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     monkeypatch.setenv(ENV_STATE_DIR, str(tmp_path))
-    request = communicate(P.REQUEST, "a_co", "a_ta", "coordinate", "cmd-1-exec1", PLAN, reply_with="p1")
-    kept = KeptTaskExecutor(
-        request=encode(request), step="pour/fetch_bowl/take/reach", outcome=None, reason=None
-    )
-    (tmp_path / "a_ta.json").write_bytes(msgspec.json.encode(kept))
-    w = Wire(TaskExecutor)
-    w.agent.setup()
-    w.deliver(
-        communicate(P.SUBSCRIBE, "a_km", "a_ta", "fipa-subscribe", "km-env", Subscription(), reply_with="s")
-    )
-    w.step("idle")
-    (initial,) = [m for m in w.mine(P.REQUEST) if m.receiver[0].name == "ag_ex"]
-    ag_ex_answers(w, initial, Observation(stamp=3.0, objects=()))
-    w.step("idle")
+    w = restarted_in("pour/fetch_bowl/take/reach", tmp_path, Observation(stamp=3.0, objects=()))
     w.agent.fsm.states["finished"].on_enter()
     w.step("finished")
     release = [m for m in w.mine(P.REQUEST) if m.receiver[0].name == "ag_ex"][-1]
@@ -250,20 +243,7 @@ def test_a_restarted_a_ta_finishes_the_set_down_tells_a_km_and_reports(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     monkeypatch.setenv(ENV_STATE_DIR, str(tmp_path))
-    request = communicate(P.REQUEST, "a_co", "a_ta", "coordinate", "cmd-1-exec1", PLAN, reply_with="p1")
-    kept = KeptTaskExecutor(
-        request=encode(request), step="pour/place_bowl/set_down/release", outcome=None, reason=None
-    )
-    (tmp_path / "a_ta.json").write_bytes(msgspec.json.encode(kept))
-    w = Wire(TaskExecutor)
-    w.agent.setup()
-    w.deliver(
-        communicate(P.SUBSCRIBE, "a_km", "a_ta", "fipa-subscribe", "km-env", Subscription(), reply_with="s")
-    )
-    w.step("idle")
-    (initial,) = [m for m in w.mine(P.REQUEST) if m.receiver[0].name == "ag_ex"]
-    ag_ex_answers(w, initial, Observation(stamp=3.0, objects=()))
-    w.step("idle")
+    w = restarted_in("pour/place_bowl/set_down/release", tmp_path, Observation(stamp=3.0, objects=()))
     w.agent.fsm.states["finished"].on_enter()
     commands: list[type] = []
     for kind in (Release, MoveTool, MoveTool, Observe):
