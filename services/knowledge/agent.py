@@ -8,6 +8,13 @@ a_km does not answer, ``failure`` with the reason for one it cannot answer), kno
 conversation with a_ta for environment updates, repeating the subscribe until a_ta agrees
 (a_ta may start later).
 
+A restarted a_km may have missed updates that were in flight when it stopped (fipa-subscribe
+informs are not acknowledged), so its kept knowledge can be a step behind. When it starts with
+kept knowledge it holds the queries it receives until the first observation a_ta sends after
+agreeing to the new subscription (a_ta answers every new subscription with its last asserted
+changes and a fresh observation), at most ``HOLD_QUERIES_S``; then it answers them in the order
+they came. A start with no kept knowledge answers at once.
+
 The knowledge persists across restarts of a_km (see :mod:`services.knowledge.world_model`):
 the store is the directory ``ROCO_KM_STORE``; when that is unset, ``<ROCO_RUN_DIR>/km_store``;
 when neither is set, the knowledge is kept in memory only. :meth:`KnowledgeManager.close`
@@ -17,6 +24,8 @@ when neither is set, the knowledge is kept in memory only. :meth:`KnowledgeManag
 from __future__ import annotations
 
 import os
+import time
+from collections import deque
 from collections.abc import Mapping
 from pathlib import Path
 
@@ -38,6 +47,8 @@ from shared.fipa_codec.languages.l_wm import (
 
 QUERY_TYPES = (SparqlQuery, ObjectQuery, SceneQuery, GraspQuery, PlacementQuery, PourQuery, HypotheticalQuery)
 SUBSCRIBE_RETRY_S = 2.0
+HOLD_QUERIES_S = 10.0
+"""Longest a restarted a_km (kept knowledge) holds queries for a_ta's first observation (s)."""
 STORE_ENV = "ROCO_KM_STORE"
 RUN_DIR_ENV = "ROCO_RUN_DIR"
 STORE_IN_RUN_DIR = "km_store"
@@ -72,6 +83,8 @@ class KnowledgeManager(Agent):
         self.subscribed = False
         self.ta_lost = False  # a_ta's liveliness token disappeared since the last subscription
         self.current: Received | None = None
+        self.held: deque[Received] = deque()  # queries waiting for the first observation
+        self.hold_until: float | None = time.monotonic() + HOLD_QUERIES_S if self.world.kept else None
         return FSM(
             initial="idle",
             states={
@@ -141,8 +154,27 @@ class KnowledgeManager(Agent):
             Performative.QUERY_IF,
         )
 
+    def _holding(self) -> bool:
+        """True while queries wait for the first observation after a restart (see the module
+        docstring); logs once when the bound ends the wait."""
+        if self.hold_until is None:
+            return False
+        if time.monotonic() < self.hold_until:
+            return True
+        self.hold_until = None
+        self.log.warning(
+            "no observation from a_ta within %.0f s of the restart: answering %d held queries "
+            "from the kept knowledge",
+            HOLD_QUERIES_S,
+            len(self.held),
+        )
+        return False
+
     def _idle(self) -> None:
         self.current = None
+        if self.held and not self._holding():
+            self.current = self.held.popleft()
+            return
         while self.x:
             item = self.x.popleft()
             if (
@@ -161,6 +193,11 @@ class KnowledgeManager(Agent):
                 self.fail(item, Performative.FAILURE, "nothing to cancel: the query was already answered")
                 continue
             if item.performative in (Performative.QUERY_REF, Performative.QUERY_IF):
+                if self._holding():
+                    if not self.held:
+                        self.log.info("restarted: holding queries until a_ta's first observation")
+                    self.held.append(item)
+                    continue
                 self.current = item
                 return
             if item.performative is Performative.INFORM and isinstance(item.content, WorldUpdate):
@@ -214,3 +251,7 @@ class KnowledgeManager(Agent):
         self.counters["unstamped_poses"] = self.world.unstamped_poses
         self.counters["rejected_changes"] = self.world.rejected_changes
         self.log.info("saved %d object updates (t=%.2f)", n, item.content.stamp)
+        if self.hold_until is not None and item.content.stamp >= 0:  # an observation
+            self.hold_until = None
+            if self.held:
+                self.log.info("observation saved: answering %d held queries", len(self.held))

@@ -18,7 +18,9 @@ SIGSTOP, SIGCONT ``down_s`` later; ``restart`` — SIGTERM, then started again a
 runs when its ``after`` trigger holds: ``step`` (a_ta reported a plan step whose path contains
 the text), ``ended`` (the n-th ``say`` command, counted from 1, has ended), ``knowledge``
 (a_km has the initial observation: the default of the first step), ``seconds`` (wall seconds
-after the step before ran); with no trigger a step runs right after the one before.
+after the step before ran); with no trigger a step runs right after the one before. A trigger
+may add ``delay_s`` (wall seconds to wait once it holds, e.g. ``after = { step = "tilt",
+delay_s = 1.3 }`` to act half-way through the tilt).
 ``expect`` is the final report kind of a ``say`` command (``succeeded``,
 ``failed``, ``stopped``, ``not-understood``); ``expect_text`` a text its final report must
 contain.
@@ -54,6 +56,8 @@ class Trigger(msgspec.Struct, frozen=True, forbid_unknown_fields=True, kw_only=T
     ended: int | None = None
     knowledge: bool = False
     seconds: float | None = None
+    delay_s: float = 0.0
+    """Wall seconds to wait once the trigger holds (0..60), e.g. to fault a step half-way."""
 
 
 class Disturb(msgspec.Struct, frozen=True, forbid_unknown_fields=True, kw_only=True):
@@ -156,6 +160,8 @@ def _check(scenario: Scenario, where: str) -> Scenario:
                 raise ScenarioError(
                     f"{where}: step {i}: after needs exactly one of step, ended, knowledge, seconds"
                 )
+            if not 0 <= t.delay_s <= 60:
+                raise ScenarioError(f"{where}: step {i}: after.delay_s must be within 0..60, not {t.delay_s}")
             if t.seconds is not None and not 0 <= t.seconds <= 3600:
                 raise ScenarioError(
                     f"{where}: step {i}: after.seconds must be within 0..3600, not {t.seconds}"

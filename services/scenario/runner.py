@@ -318,6 +318,11 @@ class ScenarioRunner:
                 before = len(self.steps_seen)
                 while not self._ready(step, before):
                     self._pump(0.2, deadline)
+                delay = step.after.delay_s if step.after is not None else 0.0
+                if delay > 0:  # e.g. half-way through the step that triggered
+                    until = time.monotonic() + delay
+                    while (left := until - time.monotonic()) > 0:
+                        self._pump(min(0.05, left), deadline)
                 self._act(session, step)
                 self.last_act = time.monotonic()
             while any(c.final is None for c in self.commands):

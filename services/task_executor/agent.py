@@ -103,6 +103,8 @@ class TaskExecutor(Agent):
         self.subscription: Received | None = None
         self.initial_observe: str | None = None
         self.initial_done = False
+        # the last asserted change per object (held by / in, on), sent again to a new subscriber
+        self.asserted: dict[str, ObjectUpdate] = {}
         self.plan: HierarchicalPlan | None = None
         self.plan_request: Received | None = None
         self.leaves: list[tuple[str, PlanNode]] = []
@@ -166,7 +168,7 @@ class TaskExecutor(Agent):
                 if isinstance(item.content, Subscription):
                     self.subscription = item
                     self.reply(item, Performative.AGREE)
-                    self._observe_initial()
+                    self._catch_up_subscriber()
                 else:
                     self.reply(item, Performative.REFUSE)
             elif (
@@ -222,6 +224,17 @@ class TaskExecutor(Agent):
                 self.x.remove(item)
 
         self._flush_sw()
+
+    def _catch_up_subscriber(self) -> None:
+        """A new subscription (a_km started, or restarted and maybe missed updates that were
+        in flight: fipa-subscribe informs are not acknowledged) gets the world anew: first the
+        last symbolic change a_ta asserted of each object in this process's life (held by a
+        hand, or in/on a place), then a fresh observation (poses and content)."""
+        if self.asserted:
+            self._inform_km(WorldUpdate(stamp=-1.0, objects=tuple(self.asserted.values())))
+        if self.initial_done:
+            self.initial_done = False  # observe again for this subscriber
+        self._observe_initial()
 
     def _observe_initial(self) -> None:
         if self.initial_done or self.initial_observe is not None:
@@ -467,6 +480,7 @@ class TaskExecutor(Agent):
             change = ObjectUpdate(
                 name=action.subject, location=action.object, relation=action.relation, held_by=""
             )
+        self.asserted[action.subject] = change  # the last one describes the object fully
         self._inform_km(WorldUpdate(stamp=-1.0, objects=(change,)))
 
     def _complete(self, reply: Received) -> None:

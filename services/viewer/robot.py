@@ -46,9 +46,9 @@ import time
 from typing import NamedTuple
 
 import numpy as np
-import numpy.typing as npt
 import rerun as rr
 
+from services.planner import geometry
 from services.viewer.recording import Recording
 from shared.fipa_codec.languages.common import Pose
 from shared.fipa_codec.languages.l_sd import Observation
@@ -75,7 +75,6 @@ OBJECT_SHAPES: dict[str, tuple[float, float, tuple[int, int, int]]] = {
 }
 NOMINAL_POSITIONS = {"jar": g.JAR_POS, "bowl": g.BOWL_POS, "cup": g.CUP_POS}
 
-Quat = npt.NDArray[np.float64]
 
 Vec3 = tuple[float, float, float]
 
@@ -194,43 +193,12 @@ def finger_pose(link: FingerLink, angle: float) -> Pose:
     return Pose(position=link.position, orientation=(q[0], q[1], q[2], q[3]))
 
 
-def _qmul(a: Quat, b: Quat) -> Quat:
-    """Hamilton product of quaternions (w, x, y, z)."""
-    w1, x1, y1, z1 = a
-    w2, x2, y2, z2 = b
-    return np.array(
-        [
-            w1 * w2 - x1 * x2 - y1 * y2 - z1 * z2,
-            w1 * x2 + x1 * w2 + y1 * z2 - z1 * y2,
-            w1 * y2 - x1 * z2 + y1 * w2 + z1 * x2,
-            w1 * z2 + x1 * y2 - y1 * x2 + z1 * w2,
-        ]
-    )
-
-
-def _qconj(q: Quat) -> Quat:
-    return np.array([q[0], -q[1], -q[2], -q[3]])
-
-
-def _rotate(q: Quat, v: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:
-    return _qmul(_qmul(q, np.array([0.0, *v])), _qconj(q))[1:]
-
-
 def relative(parent: Pose, child: Pose) -> Pose:
-    """``child`` expressed in ``parent``'s frame (both in the same frame)."""
-    qp = np.asarray(parent.orientation, dtype=float)
-    d = np.asarray(child.position, dtype=float) - np.asarray(parent.position, dtype=float)
-    p = _rotate(_qconj(qp), d)
-    q = _qmul(_qconj(qp), np.asarray(child.orientation, dtype=float))
-    return Pose(position=(float(p[0]), float(p[1]), float(p[2])), orientation=tuple(map(float, q)))  # type: ignore[arg-type]
+    """``child`` expressed in ``parent``'s frame (both given in the same frame; Pinocchio SE3)."""
+    return geometry.compose(geometry.inverse(parent), child)
 
 
-def compose(parent: Pose, rel: Pose) -> Pose:
-    """The world pose of ``rel`` given in the frame ``parent``."""
-    qp = np.asarray(parent.orientation, dtype=float)
-    p = np.asarray(parent.position, dtype=float) + _rotate(qp, np.asarray(rel.position, dtype=float))
-    q = _qmul(qp, np.asarray(rel.orientation, dtype=float))
-    return Pose(position=(float(p[0]), float(p[1]), float(p[2])), orientation=tuple(map(float, q)))  # type: ignore[arg-type]
+compose = geometry.compose  # the world pose of a pose given in the frame ``parent``
 
 
 def transform(pose: Pose) -> rr.Transform3D:

@@ -16,6 +16,7 @@ Entities (timeline ``wall``: the recorder's arrival time, POSIX s):
 from __future__ import annotations
 
 import collections
+import math
 import os
 from pathlib import Path
 
@@ -37,6 +38,7 @@ BANDWIDTH = "traffic/bandwidth"
 SW_STATE = "task/sw_state"
 STEP = "task/step"
 GRAPH = "graph/agents"
+GRAPH_RADIUS = 120.0  # graph view units (≈ px at zoom 1)
 SW_LEVEL = {"Error": "ERROR", "Replan": "WARN", "Preempted": "WARN"}
 
 
@@ -46,11 +48,17 @@ def spec_from_env() -> SystemSpec:
 
 
 def log_graph(stream: rr.RecordingStream, spec: SystemSpec) -> None:
-    """The agents and channels of ``spec`` as a graph (static)."""
+    """The agents and channels of ``spec`` as a graph (static), the agents on a circle of
+    radius ``GRAPH_RADIUS`` in the specification's order (fixed positions, so that no two
+    labels overlap, which the viewer's force layout let happen)."""
     names = [a.name for a in spec.agents]
     for ch in spec.channels:
         names.extend(e for e in ch.ends if e not in names)
-    stream.log(GRAPH, rr.GraphNodes(names, labels=names), static=True)
+    step = 2.0 * math.pi / max(1, len(names))
+    positions = [
+        (GRAPH_RADIUS * math.sin(i * step), -GRAPH_RADIUS * math.cos(i * step)) for i in range(len(names))
+    ]
+    stream.log(GRAPH, rr.GraphNodes(names, labels=names, positions=positions), static=True)
     stream.log(
         GRAPH,
         rr.GraphEdges([ch.ends for ch in spec.channels], graph_type="undirected"),

@@ -13,6 +13,7 @@ from pathlib import Path
 import msgspec
 import pytest
 
+from services.knowledge import agent as km_agent
 from services.knowledge.agent import KnowledgeManager, store_path
 from services.runtime import keys
 from services.runtime.memory_transport import MemoryBus
@@ -52,6 +53,10 @@ class Peer:
         self, content: msgspec.Struct | None, performative: Performative = Performative.QUERY_REF
     ) -> tuple[Communicate, msgspec.Struct | str | None]:
         """Send a query as a_pl; return a_km's reply and its decoded content (a reason as str)."""
+        return self.answer(self.ask(content, performative))
+
+    def ask(self, content: msgspec.Struct | None, performative: Performative = Performative.QUERY_REF) -> str:
+        """Send a query as a_pl without waiting; returns its reply-with."""
         self.n += 1
         language, body = encode_content(content) if content is not None else (None, b"")
         msg = Communicate(
@@ -67,8 +72,12 @@ class Peer:
             reply_with=f"q{self.n}",
         )
         self._send("C4", "a_pl", msg)
+        return f"q{self.n}"
+
+    def answer(self, reply_with: str) -> tuple[Communicate, msgspec.Struct | str | None]:
+        """a_km's next reply on C4, which must answer ``reply_with``, and its decoded content."""
         reply = self.replies.get(timeout=TIMEOUT_S)
-        assert reply.in_reply_to == f"q{self.n}"
+        assert reply.in_reply_to == reply_with
         if reply.language is not None:
             return reply, decode_content(reply.language, reply.content)
         return reply, reply.content.decode() or None
@@ -141,6 +150,7 @@ def test_a_restarted_km_answers_with_the_knowledge_the_first_saved(
         # a_km takes its inputs in order: the answer comes after both updates were saved
         assert peer.object("bowl").held_by == "right_gripper"
         assert km.counters["updates"] == 2
+    monkeypatch.setattr(km_agent, "HOLD_QUERIES_S", 0.0)  # answer from the kept knowledge at once
     with running_km() as (km, peer):
         assert km.world.kept
         jar = peer.object("jar")
@@ -178,3 +188,45 @@ def test_unanswerable_queries_get_a_reason_and_km_keeps_running(monkeypatch: pyt
         assert reply.performative is Performative.INFORM
         assert isinstance(content, Answer) and content.boolean is False
         assert km.counters["behaviour_errors"] == 0
+
+
+def test_a_restarted_km_holds_queries_until_a_tas_first_observation(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Kept knowledge may be a step behind (an update in flight when a_km stopped is lost):
+    a query that arrives before a_ta's first observation is answered after it, from it."""
+    monkeypatch.setenv("ROCO_KM_STORE", str(tmp_path / "km"))
+    monkeypatch.delenv("ROCO_RUN_DIR", raising=False)
+    with running_km() as (_km, peer):
+        peer.update(WorldUpdate(stamp=3.0, objects=(ObjectUpdate(name="jar", pose=Pose((0.8, 0.22, 0.9))),)))
+        assert peer.object("jar").pose_stamp == 3.0
+    with running_km() as (km, peer):
+        assert km.world.kept
+        asked = peer.ask(ObjectQuery("jar"))  # before the observation: a_km takes it first
+        peer.update(WorldUpdate(stamp=-1.0, objects=(ObjectUpdate(name="jar", held_by="right_gripper"),)))
+        peer.update(WorldUpdate(stamp=5.0, objects=(ObjectUpdate(name="jar", pose=Pose((0.6, 0.1, 1.1))),)))
+        reply, content = peer.answer(asked)
+        assert reply.performative is Performative.INFORM_REF and isinstance(content, Answer)
+        (jar,) = content.objects
+        assert jar.pose_stamp == 5.0 and jar.pose == Pose((0.6, 0.1, 1.1))
+        assert jar.held_by == "right_gripper"
+        # once the observation is in, queries are answered at once again
+        assert peer.object("jar").pose_stamp == 5.0 and not km.held
+
+
+def test_a_restarted_km_answers_held_queries_when_no_observation_comes(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The hold is bounded: with a_ta silent, the query is answered from the kept knowledge."""
+    monkeypatch.setenv("ROCO_KM_STORE", str(tmp_path / "km"))
+    monkeypatch.delenv("ROCO_RUN_DIR", raising=False)
+    with running_km() as (_km, peer):
+        peer.update(WorldUpdate(stamp=3.0, objects=(ObjectUpdate(name="jar", pose=Pose((0.8, 0.22, 0.9))),)))
+        assert peer.object("jar").pose_stamp == 3.0
+    monkeypatch.setattr(km_agent, "HOLD_QUERIES_S", 0.5)
+    with running_km() as (km, peer):
+        asked = peer.ask(ObjectQuery("jar"))
+        reply, content = peer.answer(asked)
+        assert reply.performative is Performative.INFORM_REF and isinstance(content, Answer)
+        assert content.objects[0].pose_stamp == 3.0
+        assert km.hold_until is None and not km.held

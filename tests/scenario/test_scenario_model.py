@@ -14,9 +14,18 @@ from services.scenario.runner import CommandRecord
 
 def test_every_library_scenario_parses_and_says_something() -> None:
     scenarios = library()
-    assert {"pour", "two_commands", "urgent_mid_pour", "moved_object", "impossible", "km_restart"} <= set(
-        scenarios
-    )
+    assert {
+        "pour",
+        "two_commands",
+        "urgent_mid_pour",
+        "moved_object",
+        "impossible",
+        "km_restart",
+        "tilt_interrupted",
+    } <= set(scenarios)
+    (fault_a_ta, fault_ag_ex) = scenarios["tilt_interrupted"].steps[1:]
+    assert fault_a_ta.after is not None and fault_a_ta.after.delay_s == 1.3
+    assert fault_ag_ex.fault is not None and fault_ag_ex.fault.service == "ag_ex"
     for sc in scenarios.values():
         assert sc.commands and sc.description
 
@@ -42,6 +51,8 @@ def test_a_scenario_is_found_by_name_or_path(tmp_path: Path) -> None:
         ('name = "x"\n[[steps]]\nsay = "a"\ncolour = 3', "colour"),
         ('name = "x"\n[[steps]\n', "not TOML"),
         ('name = "x"\n[[steps]]\ndisturb = { object = "jar" }\nexpect = "failed"', "only a say step"),
+        ('name = "x"\n[[steps]]\nsay = "a"\nafter = { delay_s = 1.0 }', "exactly one of step"),
+        ('name = "x"\n[[steps]]\nsay = "a"\nafter = { knowledge = true, delay_s = -1 }', "delay_s must be"),
     ],
 )
 def test_malformed_scenarios_are_refused_with_the_reason(text: str, problem: str) -> None:

@@ -4,6 +4,7 @@ parts of one recording; the merged ``recording.rrd`` is read back and its entiti
 from __future__ import annotations
 
 import collections
+import math
 from pathlib import Path
 from typing import Any
 
@@ -281,3 +282,26 @@ def test_snapshot_from_runtime() -> None:
     assert sp.position == pytest.approx(tuple(rt.grip("right").translation))
     back = msgspec.msgpack.decode(msgspec.msgpack.encode(snap), type=RobotSnapshot)
     assert back == snap
+
+
+def test_agent_graph_has_every_agent_apart(run_dir: Path) -> None:
+    """The graph lists every agent of the specification once, each at its own fixed place:
+    no two node centres closer than the chord of the circle between neighbours."""
+    merged = record_run(run_dir)
+    (chunk,) = [
+        c
+        for c in RrdReader(merged).stream()
+        if c.is_static
+        and c.entity_path == f"/{traffic.GRAPH}"
+        and "GraphNodes:node_ids" in c.to_record_batch().schema.names
+    ]
+    batch = chunk.to_record_batch()
+    ids = batch.column("GraphNodes:node_ids").to_pylist()[0]
+    positions = batch.column("GraphNodes:positions").to_pylist()[0]
+    spec = traffic.spec_from_env()
+    assert sorted(ids) == sorted({a.name for a in spec.agents} | {e for ch in spec.channels for e in ch.ends})
+    assert len(positions) == len(ids)
+    chord = 2 * traffic.GRAPH_RADIUS * math.sin(math.pi / len(ids))
+    for i, a in enumerate(positions):
+        for b in positions[i + 1 :]:
+            assert math.dist(a, b) >= chord - 1e-3
