@@ -26,6 +26,7 @@ import msgspec
 import typer
 
 from services.fault.cli import fault_app
+from services.fault.process import record_events
 from services.human_interface.messages import FINAL_REPORTS, HumanInput, HumanReport, ReportKind
 from services.runtime import keys
 from services.runtime.launcher import AGENT_ORDER, Fleet, LaunchError, alive_agents, open_client
@@ -371,23 +372,46 @@ def down(runs_dir: Annotated[Path, typer.Option()] = Path("runs")) -> None:
     state = _fleet_state(runs_dir)
     if state is None:
         raise fail(f"no fleet is up (no {runs_dir / FLEET_FILE})")
-    order = [n for n in state.pids if n not in ("recorder", "router")] + ["recorder", "router"]
-    for name in order:
-        pid = state.pids.get(name)
-        if pid is None:
-            continue
-        try:
-            os.kill(pid, signal.SIGTERM)
-        except ProcessLookupError:
-            continue
-        for _ in range(100):
-            try:
-                os.kill(pid, 0)
-            except ProcessLookupError:
-                break
-            time.sleep(0.05)
+    for name in [n for n in state.pids if n not in ("recorder", "router")]:
+        _terminate(state.pids[name])
+    # everything the agents sent before they stopped is in the traffic record before it closes
+    synced = "recorder" in state.pids and _sync_recorder(runs_dir)
+    for name in ("recorder", "router"):
+        if name in state.pids:
+            _terminate(state.pids[name])
     (runs_dir / FLEET_FILE).unlink()
-    typer.echo(f"roco: fleet stopped; run folder {state.run_dir}")
+    record = "traffic record complete" if synced else "the recorder did not confirm the traffic record"
+    typer.echo(f"roco: fleet stopped; {record}; run folder {state.run_dir}")
+
+
+def _terminate(pid: int, wait_s: float = 5.0) -> None:
+    """SIGTERM ``pid`` (a process this fleet's state file names) and wait up to ``wait_s`` for
+    it to end; a process already gone is fine."""
+    try:
+        os.kill(pid, signal.SIGTERM)
+    except ProcessLookupError:
+        return
+    until = time.monotonic() + wait_s
+    while time.monotonic() < until:
+        try:
+            os.kill(pid, 0)
+        except ProcessLookupError:
+            return
+        time.sleep(0.05)
+
+
+def _sync_recorder(runs_dir: Path) -> bool:
+    """The recorder-sync barrier (``roco/recorder/sync``): True once the traffic recorder wrote
+    everything routed before the token, False when the router or the recorder does not answer
+    within 5 s."""
+    try:
+        session = open_client(_endpoint(None, runs_dir))
+    except Exception:
+        return False
+    try:
+        return record_events(session, [])
+    finally:
+        session.close()
 
 
 def _endpoint(router: str | None, runs_dir: Path) -> str:

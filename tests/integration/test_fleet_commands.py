@@ -69,6 +69,7 @@ def test_up_status_send_down(tmp_path: Path) -> None:
     finally:
         down = roco("down", "--runs-dir", runs)
     assert down.returncode == 0, down.stderr
+    assert "traffic record complete" in down.stdout, down.stdout  # the recorder answered the sync
     assert not (tmp_path / ".fleet.json").exists()
     after = roco("down", "--runs-dir", runs)
     assert after.returncode == 1 and after.stderr.startswith("roco: no fleet is up")
