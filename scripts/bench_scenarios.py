@@ -2,11 +2,13 @@
 (``roco scenario NAME --quiet``: router, recorder, one process per agent, MuJoCo not paced),
 printed as a table: outcome as expected or not, wall time, communicates, commands' outcomes.
 
-Usage: ``python scripts/bench_scenarios.py [NAME ...]``
+Usage: ``python scripts/bench_scenarios.py [NAME ...]`` (default: every scenario of the library;
+a name the library does not have is refused, exit 2).
 """
 
 from __future__ import annotations
 
+import argparse
 import re
 import subprocess
 import sys
@@ -23,7 +25,14 @@ from services.scenario.model import library  # noqa: E402
 
 
 def main() -> int:
-    names = sys.argv[1:] or list(library())
+    known = library()
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0] if __doc__ else None)
+    parser.add_argument("names", nargs="*", metavar="NAME", help=f"scenarios to run (of: {', '.join(known)})")
+    args = parser.parse_args()
+    unknown = [n for n in args.names if n not in known]
+    if unknown:
+        parser.error(f"no scenario {unknown[0]!r} in the library (roco scenario --list)")
+    names = args.names or list(known)
     print(f"# roco scenario, each once ({time.strftime('%Y-%m-%d')}, not paced)")
     print(f"Machine: {benchlib.machine(('mujoco', 'pin', 'eclipse-zenoh'))}")
     print()

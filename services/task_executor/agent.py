@@ -239,13 +239,15 @@ class TaskExecutor(Agent):
     def _observe_initial(self) -> None:
         if self.initial_done or self.initial_observe is not None:
             return
-        # ag_ex may not listen yet at start-up: ask again soon rather than wait long
+        # ag_ex may not listen yet at start-up: sent again at once when its liveliness token
+        # appears, and asked anew after a short deadline rather than a long one
         msg = self.send(
             "ag_ex",
             Performative.REQUEST,
             Observe(),
             protocol="fipa-request",
             reply_by_s=INITIAL_OBSERVE_RETRY_S,
+            retry_s=RESEND_ON_RETURN,
         )
         self.initial_observe = msg.reply_with
 
