@@ -162,12 +162,13 @@ class KnowledgeManager(Agent):
         if time.monotonic() < self.hold_until:
             return True
         self.hold_until = None
-        self.log.warning(
-            "no observation from a_ta within %.0f s of the restart: answering %d held queries "
-            "from the kept knowledge",
-            HOLD_QUERIES_S,
-            len(self.held),
-        )
+        if self.held:
+            self.log.warning(
+                "no observation from a_ta within %.0f s of the restart: answering %d held "
+                "queries from the kept knowledge",
+                HOLD_QUERIES_S,
+                len(self.held),
+            )
         return False
 
     def _idle(self) -> None:
