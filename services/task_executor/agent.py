@@ -609,10 +609,11 @@ class TaskExecutor(Agent):
                 self.log.warning("withdrawal stopped: ag_ex answered %s (%s)", reply.performative.value, why)
                 self.retreat.clear()
                 self.retreat_note = f"withdrawing the hand failed ({why})"
-        while self.retreat and isinstance(self.retreat[0], Assert):
-            self._assert(self.retreat.popleft())  # type: ignore[arg-type]
-        if self.retreat:
+        while self.retreat:
             cmd = self.retreat.popleft()
+            if isinstance(cmd, Assert):  # a_km learns where the object was put; no motion
+                self._assert(cmd)
+                continue
             duration = cmd.duration if isinstance(cmd, MoveTool) else 10.0
             msg = self.send(
                 "ag_ex",
