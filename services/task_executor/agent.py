@@ -241,15 +241,23 @@ class TaskExecutor(Agent):
             return
         # ag_ex may not listen yet at start-up: sent again at once when its liveliness token
         # appears, and asked anew after a short deadline rather than a long one
+        self.initial_observe = self._request_observe(reply_by_s=INITIAL_OBSERVE_RETRY_S)
+
+    def _request_observe(
+        self, objects: tuple[str, ...] = (), reply_by_s: float = OBSERVE_REPLY_BY_S
+    ) -> str | None:
+        """Ask ag_ex for an L_SD observation of ``objects`` (``()``: the whole scene); the
+        request is sent again at once when ag_ex's liveliness token reappears, and fails locally
+        after ``reply_by_s`` (s). Returns its reply-with (FIPA SC00061), always set here."""
         msg = self.send(
             "ag_ex",
             Performative.REQUEST,
-            Observe(),
+            Observe(objects=objects),
             protocol="fipa-request",
-            reply_by_s=INITIAL_OBSERVE_RETRY_S,
+            reply_by_s=reply_by_s,
             retry_s=RESEND_ON_RETURN,
         )
-        self.initial_observe = msg.reply_with
+        return msg.reply_with
 
     def _update_km(self, obs: Observation) -> None:
         update = WorldUpdate(
@@ -465,15 +473,7 @@ class TaskExecutor(Agent):
             self.step = None
 
     def _observe(self, step: Step, objects: tuple[str, ...]) -> None:
-        msg = self.send(
-            "ag_ex",
-            Performative.REQUEST,
-            Observe(objects=objects),
-            protocol="fipa-request",
-            reply_by_s=OBSERVE_REPLY_BY_S,
-            retry_s=RESEND_ON_RETURN,
-        )
-        step.waiting_for = msg.reply_with
+        step.waiting_for = self._request_observe(objects)
 
     def _assert(self, action: Assert) -> None:
         if action.relation == "heldBy":
@@ -628,15 +628,7 @@ class TaskExecutor(Agent):
         if self.retreated:  # the hand moved: a_km learns the scene as it is now
             self.retreated = False
             self.reason = f"{self.reason}; {self.retreat_note}" if self.reason else self.retreat_note
-            msg = self.send(
-                "ag_ex",
-                Performative.REQUEST,
-                Observe(),
-                protocol="fipa-request",
-                reply_by_s=OBSERVE_REPLY_BY_S,
-                retry_s=RESEND_ON_RETURN,
-            )
-            self.retreat_wait = msg.reply_with
+            self.retreat_wait = self._request_observe()
             return
         self.withdrawing = False
         self._report_final()

@@ -190,16 +190,21 @@ def test_unanswerable_queries_get_a_reason_and_km_keeps_running(monkeypatch: pyt
         assert km.counters["behaviour_errors"] == 0
 
 
-def test_a_restarted_km_holds_queries_until_a_tas_first_observation(
-    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
-) -> None:
-    """Kept knowledge may be a step behind (an update in flight when a_km stopped is lost):
-    a query that arrives before a_ta's first observation is answered after it, from it."""
+def kept_jar_seen_at_3s(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """A first a_km run on the store ``tmp_path/km`` that saved the jar observed at t = 3 s."""
     monkeypatch.setenv("ROCO_KM_STORE", str(tmp_path / "km"))
     monkeypatch.delenv("ROCO_RUN_DIR", raising=False)
     with running_km() as (_km, peer):
         peer.update(WorldUpdate(stamp=3.0, objects=(ObjectUpdate(name="jar", pose=Pose((0.8, 0.22, 0.9))),)))
         assert peer.object("jar").pose_stamp == 3.0
+
+
+def test_a_restarted_km_holds_queries_until_a_tas_first_observation(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Kept knowledge may be a step behind (an update in flight when a_km stopped is lost):
+    a query that arrives before a_ta's first observation is answered after it, from it."""
+    kept_jar_seen_at_3s(tmp_path, monkeypatch)
     with running_km() as (km, peer):
         assert km.world.kept
         asked = peer.ask(ObjectQuery("jar"))  # before the observation: a_km takes it first
@@ -218,11 +223,7 @@ def test_a_restarted_km_answers_held_queries_when_no_observation_comes(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     """The hold is bounded: with a_ta silent, the query is answered from the kept knowledge."""
-    monkeypatch.setenv("ROCO_KM_STORE", str(tmp_path / "km"))
-    monkeypatch.delenv("ROCO_RUN_DIR", raising=False)
-    with running_km() as (_km, peer):
-        peer.update(WorldUpdate(stamp=3.0, objects=(ObjectUpdate(name="jar", pose=Pose((0.8, 0.22, 0.9))),)))
-        assert peer.object("jar").pose_stamp == 3.0
+    kept_jar_seen_at_3s(tmp_path, monkeypatch)
     monkeypatch.setattr(km_agent, "HOLD_QUERIES_S", 0.5)
     with running_km() as (km, peer):
         asked = peer.ask(ObjectQuery("jar"))
