@@ -165,7 +165,7 @@ def chaos(
         int | None, typer.Option(min=1, help="this many random faults instead of each service once")
     ] = None,
     services: Annotated[
-        str, typer.Option(help="comma-separated services to fault (agents, recorder, router)")
+        str, typer.Option(help="comma-separated services to fault (agents, recorder, router), or all")
     ] = "a_hi,a_co,a_pl,a_km,a_ta,ag_ex",
     kinds: Annotated[str, typer.Option(help="comma-separated fault kinds: kill, pause, restart")] = (
         "kill,pause,restart"
@@ -181,8 +181,9 @@ def chaos(
 ) -> None:
     """Kill, pause or restart services at random times while the robot carries out a command
     (each service once by default), then say whether the task was done, no command was lost,
-    nothing was executed twice and no object was dropped (RUN/chaos.md). Exit 0 only if all
-    four hold. Local fleet only; on compose use ``roco fault`` (docs/recovery.md)."""
+    nothing was executed twice, no object was dropped and the traffic record is intact
+    (RUN/chaos.md). Exit 0 only if all five hold. Local fleet only; on compose use
+    ``roco fault`` (docs/recovery.md)."""
     from services.scenario.chaos import chaos_scenario, verdict, write_chaos_report
     from services.scenario.runner import ScenarioRunner
 

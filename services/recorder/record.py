@@ -1,9 +1,19 @@
 """The traffic record: one row per communicate seen crossing Zenoh (design.md, "traffic recorder").
 
-A run folder holds ``traffic.jsonl`` (one :class:`TrafficRecord` per line, JSON, in arrival
-order) and ``traffic.msgpack`` (the same communicates' raw msgpack payloads, as a msgpack
-stream of ``[seq, payload]`` pairs, so that content can be decoded later). When faults were
-injected (docs/faults.md), ``faults.jsonl`` holds one
+A run folder holds ``traffic.jsonl`` (one :class:`TrafficRecord` per line, JSON, in the order
+written) and ``traffic.msgpack`` (the same communicates' raw msgpack payloads, so that content
+can be decoded later: a stream of msgpack ``bin`` values, each holding one self-contained
+:class:`RawEntry` — payload, key, times and source — from which its record can be made again).
+A record and its payload belong together when their :class:`RecordKey` — the recorder
+incarnation that wrote them and the index it gave — is the same: a restarted recorder appends
+to both files under a new incarnation, so no reader can pair one incarnation's metadata with
+another's bytes (issue 16). The recorder writes an entry's payload before its record, so a
+recorder killed in between leaves a payload without its record, which the next incarnation
+writes (:func:`repair`). Runs written before incarnations existed hold ``[seq, payload]``
+arrays (incarnation ``""``); they still read, and a key written twice there is ambiguous, so it
+is left unpaired (:mod:`services.recorder.integrity`), never guessed.
+
+When faults were injected (docs/faults.md), ``faults.jsonl`` holds one
 :class:`~services.runtime.faults.FaultEvent` per line, in arrival order.
 """
 
@@ -11,23 +21,45 @@ from __future__ import annotations
 
 from collections.abc import Iterator
 from pathlib import Path
+from typing import NamedTuple
 
 import msgspec
 
+from services.runtime import keys
 from services.runtime.faults import FaultEvent
+from services.runtime.transport import Arrival
+from shared.fipa_codec import DecodeError, decode
 
 TRAFFIC_JSONL = "traffic.jsonl"
 TRAFFIC_RAW = "traffic.msgpack"
 FAULTS_JSONL = "faults.jsonl"
 
 
+class RecordKey(NamedTuple):
+    """What ties a record to its payload: the recorder ``incarnation`` that wrote both and the
+    ``seq`` it gave them."""
+
+    incarnation: str
+    seq: int
+
+
 class TrafficRecord(msgspec.Struct, frozen=True, kw_only=True):
     """Metadata of one communicate.
 
-    seq: arrival index (0-based) in this record; t: wall time of arrival at the recorder
-    (POSIX s); size: payload bytes on the wire; channel: C1..C6; sender, receivers: agent
-    names; performative, protocol, conversation_id, language, ontology: as in the communicate
-    (FIPA SC00061); key: the Zenoh key expression it was published on.
+    seq: index (0-based) in this run's record, counted on across recorder restarts;
+    incarnation: the recorder process that wrote it (a random id per start; ``""`` in records
+    written before incarnations existed); t: when it crossed Zenoh (POSIX s): its arrival at the
+    recorder, or for a ``late`` record the time its publisher stamped on it; size: payload bytes
+    on the wire; channel: C1..C6; sender, receivers: agent names; performative, protocol,
+    conversation_id, language, ontology: as in the communicate (FIPA SC00061); key: the Zenoh
+    key expression it was published on.
+
+    source, sn: the Zenoh publisher (``<session id>:<entity id>``) and its sequence number
+    (0, 1, 2, … per publisher: a number missing from the record is a communicate lost to it;
+    zenoh-ext advanced publisher, docs/recovery.md); None for a put that carried none.
+    t_sent: the publisher's timestamp (its session's hybrid logical clock, POSIX s), None when
+    it carried none. late: sent before this recorder incarnation listened, and recovered from
+    the publisher's cache when it started (the recorder was down or restarting).
     """
 
     seq: int
@@ -42,9 +74,63 @@ class TrafficRecord(msgspec.Struct, frozen=True, kw_only=True):
     language: str | None = None
     ontology: str | None = None
     key: str = ""
+    incarnation: str = ""
+    source: str | None = None
+    sn: int | None = None
+    t_sent: float | None = None
+    late: bool = False
+
+    @property
+    def ref(self) -> RecordKey:
+        """The key of this record's payload in the raw stream."""
+        return RecordKey(self.incarnation, self.seq)
 
 
 _rec_decoder = msgspec.json.Decoder(TrafficRecord)
+
+
+def record_of(entry: RawEntry) -> TrafficRecord:
+    """The record of one raw entry: its communicate's parameters (FIPA SC00061) read from the
+    payload, the channel from the key (``roco/fipa/<C>/<sender>/<receiver>``, else ``?``). A
+    payload that is not a communicate is recorded with performative ``malformed`` and the key's
+    sender and receiver."""
+    a = entry.arrival
+    try:
+        channel, sender, receiver = keys.parse_fipa_key(a.key)
+    except ValueError:
+        channel, sender, receiver = "?", "?", "?"
+    receivers: tuple[str, ...] = (receiver,)
+    performative = "malformed"
+    protocol = conversation_id = language = ontology = None
+    try:
+        msg = decode(a.payload)
+    except DecodeError:
+        pass
+    else:
+        sender = msg.sender.name if msg.sender else sender
+        receivers = tuple(r.name for r in msg.receiver) or receivers
+        performative = msg.performative.value
+        protocol, conversation_id = msg.protocol, msg.conversation_id
+        language, ontology = msg.language, msg.ontology
+    return TrafficRecord(
+        seq=entry.seq,
+        t=a.t,
+        size=len(a.payload),
+        channel=channel,
+        sender=sender,
+        receivers=receivers,
+        performative=performative,
+        protocol=protocol,
+        conversation_id=conversation_id,
+        language=language,
+        ontology=ontology,
+        key=a.key,
+        incarnation=entry.incarnation,
+        source=a.source,
+        sn=a.sn,
+        t_sent=a.t_sent,
+        late=a.late,
+    )
 
 
 def read_records(run_dir: Path) -> list[TrafficRecord]:
@@ -75,52 +161,102 @@ def read_fault_events(run_dir: Path) -> tuple[list[FaultEvent], int]:
     return events, bad
 
 
-def read_payloads(run_dir: Path) -> Iterator[tuple[int, bytes]]:
-    """(seq, raw msgpack communicate) pairs from ``run_dir``'s raw stream, in order."""
+class RawEntry(msgspec.Struct, frozen=True, array_like=True):
+    """One communicate in the raw stream, self-contained: the recorder ``incarnation`` and
+    ``seq`` that wrote it and the ``arrival`` as the recorder's subscriber saw it (payload, key,
+    times, publisher and sequence number: :class:`~services.runtime.transport.Arrival`), from
+    which its :class:`TrafficRecord` is made again (:func:`record_of`)."""
+
+    incarnation: str
+    seq: int
+    arrival: Arrival
+
+    @property
+    def ref(self) -> RecordKey:
+        return RecordKey(self.incarnation, self.seq)
+
+
+_raw_encoder = msgspec.msgpack.Encoder()
+_raw_decoder = msgspec.msgpack.Decoder(RawEntry)
+_old_decoder: msgspec.msgpack.Decoder[tuple[int, bytes]] = msgspec.msgpack.Decoder(tuple[int, bytes])
+
+
+def encode_entry(entry: RawEntry) -> bytes:
+    """One element of the raw stream: ``entry`` in msgpack, wrapped in a msgpack ``bin``."""
+    inner = _raw_encoder.encode(entry)
+    n = len(inner)
+    if n < 1 << 8:
+        head = b"\xc4" + n.to_bytes(1, "big")
+    elif n < 1 << 16:
+        head = b"\xc5" + n.to_bytes(2, "big")
+    else:
+        head = b"\xc6" + n.to_bytes(4, "big")
+    return head + inner
+
+
+def read_entries(run_dir: Path) -> Iterator[tuple[RawEntry | None, RecordKey, bytes, int]]:
+    """The raw stream of ``run_dir`` in the order written, as (entry, key, payload, end offset)
+    tuples; ``entry`` is None for a ``[seq, payload]`` pair of an older run (incarnation
+    ``""``). Nothing when the file is missing. Raises ValueError (naming the byte offset) where
+    the stream is corrupt or truncated; the elements before it have been yielded."""
     path = run_dir / TRAFFIC_RAW
     if not path.exists():
         return
-    unpacker = msgspec.msgpack.Decoder(tuple[int, bytes])
     data = path.read_bytes()
-    # The file is a concatenation of msgpack arrays; decode them one by one.
     pos = 0
     while pos < len(data):
-        end = _next_end(data, pos)
-        yield unpacker.decode(data[pos:end])
+        start, end = _element(data, pos)
+        try:
+            if data[pos] == 0x92:
+                seq, payload = _old_decoder.decode(data[pos:end])
+                yield None, RecordKey("", seq), payload, end
+            else:
+                entry = _raw_decoder.decode(data[start:end])
+                yield entry, entry.ref, entry.arrival.payload, end
+        except (msgspec.DecodeError, msgspec.ValidationError) as exc:
+            raise ValueError(f"corrupt raw traffic stream at byte {pos}: {exc}") from None
         pos = end
 
 
-def _next_end(data: bytes, pos: int) -> int:
-    """End offset of the msgpack array [int, bin] starting at ``pos`` (format of our writer)."""
-    b = data[pos]
-    if b != 0x92:
-        raise ValueError(f"corrupt raw traffic stream at byte {pos}")
+def read_payloads(run_dir: Path) -> Iterator[tuple[RecordKey, bytes]]:
+    """(key, raw msgpack communicate) pairs of ``run_dir``'s raw stream, in the order written
+    (:func:`read_entries`; same errors)."""
+    for _, key, payload, _ in read_entries(run_dir):
+        yield key, payload
+
+
+def _element(data: bytes, pos: int) -> tuple[int, int]:
+    """(start of content, end) of the raw-stream element at ``pos``: a ``bin`` wrapping a
+    :class:`RawEntry`, or an older run's ``[seq, payload]`` array (content from ``pos``)."""
+    t = data[pos]
+    start = pos
+    try:
+        if t == 0x92:
+            return pos, _old_pair_end(data, pos)
+        width = {0xC4: 1, 0xC5: 2, 0xC6: 4}.get(t)
+        if width is None:
+            raise ValueError(f"corrupt raw traffic stream at byte {pos}")
+        start = pos + 1 + width
+        end = start + int.from_bytes(data[pos + 1 : start], "big")
+    except IndexError:
+        end = len(data) + 1
+    if end > len(data):
+        raise ValueError(f"truncated raw traffic stream at byte {pos}")
+    return start, end
+
+
+def _old_pair_end(data: bytes, pos: int) -> int:
+    """End of a msgpack ``[int, bin]`` array at ``pos`` (the raw format before issue 16)."""
     p = pos + 1
-    # integer
     t = data[p]
     if t <= 0x7F:
         p += 1
-    elif t == 0xCC:
-        p += 2
-    elif t == 0xCD:
-        p += 3
-    elif t == 0xCE:
-        p += 5
-    elif t == 0xCF:
-        p += 9
     else:
+        width = {0xCC: 1, 0xCD: 2, 0xCE: 4, 0xCF: 8}.get(t)
+        if width is None:
+            raise ValueError(f"corrupt raw traffic stream at byte {p}")
+        p += 1 + width
+    width = {0xC4: 1, 0xC5: 2, 0xC6: 4}.get(data[p])
+    if width is None:
         raise ValueError(f"corrupt raw traffic stream at byte {p}")
-    # bin
-    t = data[p]
-    if t == 0xC4:
-        n = data[p + 1]
-        p += 2
-    elif t == 0xC5:
-        n = int.from_bytes(data[p + 1 : p + 3], "big")
-        p += 3
-    elif t == 0xC6:
-        n = int.from_bytes(data[p + 1 : p + 5], "big")
-        p += 5
-    else:
-        raise ValueError(f"corrupt raw traffic stream at byte {p}")
-    return p + n
+    return p + 1 + width + int.from_bytes(data[p + 1 : p + 1 + width], "big")

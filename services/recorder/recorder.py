@@ -13,74 +13,125 @@ from __future__ import annotations
 import logging
 import os
 import queue
+import secrets
 import signal
 import sys
 import time
+from dataclasses import dataclass, field
 from pathlib import Path
 from types import FrameType
 from typing import BinaryIO
 
 import msgspec
 
-from services.recorder.record import FAULTS_JSONL, TRAFFIC_JSONL, TRAFFIC_RAW, TrafficRecord
+from services.recorder.record import (
+    FAULTS_JSONL,
+    TRAFFIC_JSONL,
+    TRAFFIC_RAW,
+    RawEntry,
+    RecordKey,
+    TrafficRecord,
+    encode_entry,
+    read_entries,
+    record_of,
+)
 from services.runtime import faults, keys
 from services.runtime.main import router_endpoints, setup_logging
-from services.runtime.transport import ZenohTransport
-from services.viewer.hooks import traffic_hook
-from shared.fipa_codec import DecodeError, decode
+from services.runtime.transport import Arrival, ZenohTransport
+from services.viewer.hooks import TrafficHook, traffic_hook
 
 RECORDER = "recorder"
 _fault_event = msgspec.json.Decoder(faults.FaultEvent).decode
 _FAULT_EVENTS = faults.EVENT_ALL.removesuffix("*")
+BATCH = 256
+"""Communicates written with one write per file at most (what arrived together)."""
+log = logging.getLogger(RECORDER)
 
 
-def to_record(seq: int, t: float, key: str, payload: bytes) -> TrafficRecord:
-    """Metadata of one payload seen on ``key`` at POSIX time ``t``."""
+@dataclass
+class Resume:
+    """Where a recorder starting on an existing run folder goes on: ``next_seq`` (one past the
+    highest seq written), ``last_sn`` (the highest sequence number recorded per publisher, so
+    that what its cache sends again is not written twice) and ``notes`` on what was repaired."""
+
+    next_seq: int = 0
+    last_sn: dict[str, int] = field(default_factory=dict)
+    notes: list[str] = field(default_factory=list)
+
+
+def repair(run_dir: Path, incarnation: str) -> Resume:
+    """Make ``run_dir``'s traffic record whole again before a new recorder ``incarnation``
+    appends to it: a raw entry whose record is missing (the previous recorder was killed
+    between the two writes) gets its record (:func:`~services.recorder.record.record_of`); a
+    truncated or corrupt tail of the raw stream is moved aside to
+    ``traffic.msgpack.<incarnation>.tail`` (kept, not read); a record line cut short gets its
+    end of line. Returns where to go on. Raises OSError when the files cannot be read or
+    written."""
+    resume = Resume()
+    raw_path, rec_path = run_dir / TRAFFIC_RAW, run_dir / TRAFFIC_JSONL
+    entries: list[RawEntry] = []
+    good_end = 0
     try:
-        channel, sender, receiver = keys.parse_fipa_key(key)
-    except ValueError:
-        channel, sender, receiver = "?", "?", "?"
-    try:
-        msg = decode(payload)
-    except DecodeError:
-        return TrafficRecord(
-            seq=seq,
-            t=t,
-            size=len(payload),
-            channel=channel,
-            sender=sender,
-            receivers=(receiver,),
-            performative="malformed",
-            key=key,
-        )
-    return TrafficRecord(
-        seq=seq,
-        t=t,
-        size=len(payload),
-        channel=channel,
-        sender=msg.sender.name if msg.sender else sender,
-        receivers=tuple(r.name for r in msg.receiver) or (receiver,),
-        performative=msg.performative.value,
-        protocol=msg.protocol,
-        conversation_id=msg.conversation_id,
-        language=msg.language,
-        ontology=msg.ontology,
-        key=key,
-    )
+        for entry, key, _, end in read_entries(run_dir):
+            good_end = end
+            resume.next_seq = max(resume.next_seq, key.seq + 1)
+            if entry is not None:
+                entries.append(entry)
+    except ValueError as exc:
+        data = raw_path.read_bytes()
+        tail = raw_path.with_name(f"{TRAFFIC_RAW}.{incarnation}.tail")
+        tail.write_bytes(data[good_end:])
+        with raw_path.open("r+b") as f:
+            f.truncate(good_end)
+        resume.notes.append(f"{exc}: {len(data) - good_end} byte(s) moved to {tail.name}")
+    written: set[RecordKey] = set()
+    lines = rec_path.read_bytes() if rec_path.exists() else b""
+    for line in lines.splitlines():
+        try:
+            rec = _record(line)
+        except msgspec.DecodeError:
+            continue
+        written.add(rec.ref)
+        resume.next_seq = max(resume.next_seq, rec.seq + 1)
+    missing = [e for e in entries if e.ref not in written]
+    fix = b"" if not lines or lines.endswith(b"\n") else b"\n"
+    if missing or fix:
+        with rec_path.open("ab") as f:
+            f.write(fix + b"".join(_json(record_of(e)) + b"\n" for e in missing))
+    if missing:
+        resume.notes.append(f"{len(missing)} record(s) written again from their raw entries")
+    for e in entries:
+        source, sn = e.arrival.source, e.arrival.sn
+        if source is not None and sn is not None:
+            resume.last_sn[source] = max(resume.last_sn.get(source, -1), sn)
+    return resume
+
+
+_record = msgspec.json.Decoder(TrafficRecord).decode
+_json = msgspec.json.Encoder().encode
 
 
 class TrafficWriter:
-    """Appends records and raw payloads to a run folder."""
+    """Appends communicates to a run folder's traffic record under one recorder incarnation:
+    each payload to the raw stream, then its record, each file written unbuffered with one
+    write per batch, so that a killed recorder leaves at most payloads without records, which
+    :func:`repair` (run when the writer opens) completes."""
 
-    def __init__(self, run_dir: Path) -> None:
+    def __init__(self, run_dir: Path, incarnation: str | None = None) -> None:
+        """Open (and first :func:`repair`) the traffic record of ``run_dir`` for appending as
+        ``incarnation`` (default: a new random id). Raises OSError when it cannot."""
         run_dir.mkdir(parents=True, exist_ok=True)
-        self._jsonl = (run_dir / TRAFFIC_JSONL).open("ab")
-        self._raw = (run_dir / TRAFFIC_RAW).open("ab")
-        self._enc = msgspec.json.Encoder()
-        self._mp = msgspec.msgpack.Encoder()
-        self.seq = 0
+        self.incarnation = secrets.token_hex(6) if incarnation is None else incarnation
+        resume = repair(run_dir, self.incarnation)
+        for note in resume.notes:
+            log.warning("traffic record repaired: %s", note)
+        self.seq = resume.next_seq
+        self._last_sn = resume.last_sn
+        self._raw = (run_dir / TRAFFIC_RAW).open("ab", buffering=0)
+        self._jsonl = (run_dir / TRAFFIC_JSONL).open("ab", buffering=0)
         self._run_dir = run_dir
         self._faults: BinaryIO | None = None  # opened at the first fault event
+        self.duplicates = 0
 
     def fault(self, payload: bytes) -> bool:
         """Append one fault event (JSON :class:`~services.runtime.faults.FaultEvent`) to
@@ -91,19 +142,35 @@ class TrafficWriter:
             return False
         if self._faults is None:
             self._faults = (self._run_dir / FAULTS_JSONL).open("ab")
-        self._faults.write(self._enc.encode(event) + b"\n")
+        self._faults.write(_json(event) + b"\n")
         return True
 
+    def admit(self, source: str | None, sn: int | None) -> bool:
+        """Whether a communicate from publisher ``source`` with sequence number ``sn`` is new
+        (a publisher's cache sends again what it sent before; the advanced subscriber delivers
+        each publisher's communicates in order). Counts the ones refused in ``duplicates``."""
+        if source is None or sn is None:
+            return True
+        if sn <= self._last_sn.get(source, -1):
+            self.duplicates += 1
+            return False
+        self._last_sn[source] = sn
+        return True
+
+    def write_many(self, arrivals: list[Arrival]) -> list[TrafficRecord]:
+        """Write ``arrivals`` (payloads first, then records); returns their records."""
+        entries = [RawEntry(self.incarnation, self.seq + i, a) for i, a in enumerate(arrivals)]
+        self.seq += len(entries)
+        records = [record_of(e) for e in entries]
+        self._raw.write(b"".join(encode_entry(e) for e in entries))
+        self._jsonl.write(b"".join(_json(r) + b"\n" for r in records))
+        return records
+
     def write(self, t: float, key: str, payload: bytes) -> TrafficRecord:
-        rec = to_record(self.seq, t, key, payload)
-        self._jsonl.write(self._enc.encode(rec) + b"\n")
-        self._raw.write(self._mp.encode((self.seq, payload)))
-        self.seq += 1
-        return rec
+        """Write one communicate that arrived at POSIX time ``t`` on ``key`` with no source."""
+        return self.write_many([Arrival(t, key, payload)])[0]
 
     def flush(self) -> None:
-        self._jsonl.flush()
-        self._raw.flush()
         if self._faults is not None:
             self._faults.flush()
 
@@ -115,56 +182,102 @@ class TrafficWriter:
             self._faults.close()
 
 
+class _Loop:
+    """The recorder's thread: writes what the Zenoh callbacks put in ``inbox``."""
+
+    def __init__(self, writer: TrafficWriter, transport: ZenohTransport, rerun: TrafficHook | None) -> None:
+        self.writer, self.transport, self.rerun = writer, transport, rerun
+        self.inbox: queue.SimpleQueue[Arrival | None] = queue.SimpleQueue()
+        self.listening_since = time.time()
+
+    def put(self, key: str, payload: bytes) -> None:
+        """A callback for Zenoh's threads: enqueue a non-FIPA sample (sync token, fault event)."""
+        self.inbox.put(Arrival(time.time(), key, payload))
+
+    def run(self) -> None:
+        """Write batches of what arrived until ``None`` is enqueued, then what is left."""
+        stop = False
+        while not stop:
+            try:
+                first = self.inbox.get(timeout=0.5)
+            except queue.Empty:
+                self.writer.flush()
+                continue
+            batch = [first]
+            while len(batch) < BATCH:
+                try:
+                    batch.append(self.inbox.get_nowait())
+                except queue.Empty:
+                    break
+            stop = self._handle(batch)
+        rest: list[Arrival | None] = []
+        while True:
+            try:
+                rest.append(self.inbox.get_nowait())
+            except queue.Empty:
+                break
+        self._handle(rest)
+
+    def _handle(self, batch: list[Arrival | None]) -> bool:
+        """Write ``batch`` in order; True when it held the stop mark."""
+        pending: list[Arrival] = []
+        stop = False
+        for item in batch:
+            if item is None:
+                stop = True
+            elif item.key == keys.RECORDER_SYNC:
+                self._write(pending)  # a sync token arrives after the traffic routed before it
+                self.writer.flush()
+                self.transport.publish(keys.RECORDER_SYNCED, item.payload)
+            elif item.key.startswith(_FAULT_EVENTS):
+                if not self.writer.fault(item.payload):
+                    log.warning("ignored a malformed fault event on %s", item.key)
+            elif self.writer.admit(item.source, item.sn):
+                pending.append(self._stamp(item))
+        self._write(pending)
+        return stop
+
+    def _stamp(self, a: Arrival) -> Arrival:
+        """A communicate sent before this incarnation listened came from its publisher's cache:
+        recorded as late, at the time it was sent."""
+        if a.t_sent is not None and a.t_sent < self.listening_since:
+            return a._replace(t=a.t_sent, late=True)
+        return a
+
+    def _write(self, pending: list[Arrival]) -> None:
+        if not pending:
+            return
+        records = self.writer.write_many(pending)
+        if self.rerun is not None:  # Rerun
+            for rec, a in zip(records, pending, strict=True):
+                self.rerun.communicate(rec, a.payload)
+        pending.clear()
+
+
 def main() -> int:
     setup_logging(RECORDER)
     run_dir = Path(os.environ.get("ROCO_RUN_DIR", "."))
     writer = TrafficWriter(run_dir)
     rerun = traffic_hook(RECORDER, run_dir)  # Rerun (services/viewer): None unless ROCO_RERUN=1
-    inbox: queue.SimpleQueue[tuple[float, str, bytes] | None] = queue.SimpleQueue()
     transport = ZenohTransport(router_endpoints(), identity=RECORDER)
-    transport.subscribe(keys.FIPA_ALL, lambda k, p: inbox.put((time.time(), k, p)))
-    # a sync token arrives after the traffic routed before it: answer once that is written
-    transport.subscribe(keys.RECORDER_SYNC, lambda k, p: inbox.put((time.time(), k, p)))
-    transport.subscribe(faults.EVENT_ALL, lambda k, p: inbox.put((time.time(), k, p)))
+    loop = _Loop(writer, transport, rerun)
+    # every communicate, and what publishers' caches still hold of those sent before this start
+    transport.subscribe_recovering(keys.FIPA_ALL, loop.inbox.put)
+    transport.subscribe(keys.RECORDER_SYNC, loop.put)
+    transport.subscribe(faults.EVENT_ALL, loop.put)
     transport.announce(keys.alive_key(RECORDER))
 
     def on_signal(signum: int, frame: FrameType | None) -> None:
-        inbox.put(None)
+        loop.inbox.put(None)
 
     signal.signal(signal.SIGTERM, on_signal)
     signal.signal(signal.SIGINT, on_signal)
-    logging.getLogger(RECORDER).info("recording to %s", run_dir)
-    while True:
-        try:
-            item = inbox.get(timeout=0.5)
-        except queue.Empty:
-            writer.flush()
-            continue
-        if item is None:
-            break
-        if item[1] == keys.RECORDER_SYNC:
-            writer.flush()
-            transport.publish(keys.RECORDER_SYNCED, item[2])
-            continue
-        if item[1].startswith(_FAULT_EVENTS):
-            if not writer.fault(item[2]):
-                logging.getLogger(RECORDER).warning("ignored a malformed fault event on %s", item[1])
-            continue
-        record = writer.write(*item)
-        if rerun is not None:  # Rerun
-            rerun.communicate(record, item[2])
-    # drain what is left
-    while True:
-        try:
-            item = inbox.get_nowait()
-        except queue.Empty:
-            break
-        if item is not None and item[1].startswith(_FAULT_EVENTS):
-            writer.fault(item[2])
-        elif item is not None and item[1] != keys.RECORDER_SYNC:
-            record = writer.write(*item)
-            if rerun is not None:  # Rerun
-                rerun.communicate(record, item[2])
+    log.info("recording to %s as incarnation %s", run_dir, writer.incarnation)
+    loop.run()
+    if writer.duplicates:
+        log.info(
+            "%d communicate(s) sent again by publishers' caches were recorded already", writer.duplicates
+        )
     writer.close()
     transport.close()
     if rerun is not None:  # Rerun: close this part, merge all parts into <run>/recording.rrd

@@ -43,8 +43,10 @@ def _assemble(run: RunData, container: str = "bowl") -> Report:
     if messages and outcome is None:
         notes.append("no final outcome (C2 CommandOutcome or failure) in the traffic")
     control = _control_timing(Path(run_dir), notes)
+    header = _header(run, command, outcome)
+    header.record = run.integrity.summary() if run.integrity.records else ""
     return Report(
-        header=_header(run, command, outcome),
+        header=header,
         sizes=size_stats(messages),
         channels=channel_stats(messages),
         matrix=agent_matrix(messages),

@@ -2,7 +2,8 @@
 (except a missing folder).
 
 Sources: ``run.json`` (:class:`RunInfo`), ``traffic.jsonl`` (:class:`TrafficRecord` per line)
-and ``traffic.msgpack`` (raw communicates, matched to records by ``seq``).
+and ``traffic.msgpack`` (raw communicates, paired with their records by recorder incarnation
+and seq, the record's integrity checked first: services/recorder/integrity.py).
 """
 
 from __future__ import annotations
@@ -14,9 +15,10 @@ from pathlib import Path
 
 import msgspec
 
-from services.recorder.record import TRAFFIC_JSONL, TRAFFIC_RAW, TrafficRecord, read_payloads
+from services.recorder import integrity
+from services.recorder.record import TRAFFIC_JSONL, TRAFFIC_RAW, RecordKey, TrafficRecord, read_payloads
 from services.runtime.run_folder import RUN_INFO, RunInfo, read_run_info
-from shared.fipa_codec import Communicate, DecodeError, decode
+from shared.fipa_codec import Communicate
 from shared.fipa_codec.languages import ContentError, decode_content
 
 _record_decoder = msgspec.json.Decoder(TrafficRecord)
@@ -62,13 +64,15 @@ class Message:
 @dataclass
 class RunData:
     """A run folder as read: ``info`` (None if run.json is missing or corrupt), ``t0`` the
-    run start (POSIX s), ``messages`` in arrival order, ``notes`` on what went wrong."""
+    run start (POSIX s), ``messages`` in the order they crossed Zenoh, ``integrity`` of the
+    traffic record (checked before anything else reads it), ``notes`` on what went wrong."""
 
     run_dir: Path
     info: RunInfo | None
     t0: float
     messages: list[Message]
     notes: list[str] = field(default_factory=list)
+    integrity: integrity.Integrity = field(default_factory=integrity.Integrity)
 
 
 def load_run(run_dir: Path) -> RunData:
@@ -89,9 +93,12 @@ def load_run(run_dir: Path) -> RunData:
     else:
         t0 = 0.0
     raw_present = (run_dir / TRAFFIC_RAW).exists()
-    messages = _decode_all(records, payloads, t0, notes, raw_present)
+    checked, comms = integrity.check(records, payloads if raw_present else [])
+    if raw_present and not checked.intact:
+        notes.insert(0, f"traffic record {checked.summary()}")
+    messages = _decode_all(records, comms, t0, notes)
     messages.sort(key=lambda m: (m.rec.t, m.rec.seq))
-    return RunData(run_dir, info, t0, messages, notes)
+    return RunData(run_dir, info, t0, messages, notes, checked)
 
 
 def _read_info(run_dir: Path, notes: list[str]) -> RunInfo | None:
@@ -135,66 +142,41 @@ def _read_records(run_dir: Path, notes: list[str]) -> list[TrafficRecord]:
     return records
 
 
-def _read_raw(run_dir: Path, notes: list[str], expect: bool) -> dict[int, bytes]:
+def _read_raw(run_dir: Path, notes: list[str], expect: bool) -> list[tuple[RecordKey, bytes]]:
     if not (run_dir / TRAFFIC_RAW).exists():
         if expect:
             notes.append(f"no {TRAFFIC_RAW}: contents not decoded, content-based events missing")
-        return {}
-    out: dict[int, bytes] = {}
+        return []
+    out: list[tuple[RecordKey, bytes]] = []
     try:
-        for seq, payload in read_payloads(run_dir):
-            out[seq] = payload
-    except (ValueError, IndexError) as exc:  # msgspec.DecodeError is a ValueError
+        out.extend(read_payloads(run_dir))
+    except ValueError as exc:  # msgspec.DecodeError is a ValueError
         notes.append(f"{TRAFFIC_RAW} corrupt after {len(out)} payload(s) ({_first_line(exc)}): rest ignored")
     return out
 
 
 def _decode_all(
     records: list[TrafficRecord],
-    payloads: dict[int, bytes],
+    comms: dict[RecordKey, Communicate | None],
     t0: float,
     notes: list[str],
-    raw_present: bool,
 ) -> list[Message]:
+    """One :class:`Message` per record, with the communicate it was paired with (none when it
+    was not: see the integrity) and its content decoded in its language."""
     messages: list[Message] = []
-    missing: list[int] = []
-    undecodable: list[int] = []
     bad_content: list[int] = []
-    size_mismatch: list[int] = []
     for rec in records:
-        raw = payloads.get(rec.seq)
-        comm: Communicate | None = None
+        comm = comms.get(rec.ref)
         content: msgspec.Struct | None = None
-        if raw is None:
-            missing.append(rec.seq)
-        else:
-            if len(raw) != rec.size:
-                size_mismatch.append(rec.seq)
+        if comm is not None and comm.content:
             try:
-                comm = decode(raw)
-            except DecodeError:
-                undecodable.append(rec.seq)
-            if comm is not None and comm.content:
-                try:
-                    content = decode_content(comm.language, comm.content)
-                except ContentError:
-                    bad_content.append(rec.seq)
+                content = decode_content(comm.language, comm.content)
+            except ContentError:
+                bad_content.append(rec.seq)
         messages.append(Message(rec, rec.t - t0, comm, content))
-    if missing and raw_present:
-        notes.append(f"{len(missing)} record(s) without raw payload ({_listing('seq', missing)})")
-    if undecodable:
-        notes.append(
-            f"{len(undecodable)} payload(s) not decodable as a communicate "
-            f"({_listing('seq', undecodable)}): counted by their record only"
-        )
     if bad_content:
         notes.append(
             f"{len(bad_content)} content(s) not decodable in their language ({_listing('seq', bad_content)})"
-        )
-    if size_mismatch:
-        notes.append(
-            f"{len(size_mismatch)} record size(s) differ from the raw payload length "
-            f"({_listing('seq', size_mismatch)}): the record's size is used"
         )
     return messages
 

@@ -15,7 +15,9 @@ from services.report.model import AgentMatrix, Event, Header, PlanPhase, Report
 HOW_MEASURED = (
     "**How measured.** Times are the arrival times of the communicates at the traffic "
     "recorder (wall clock), in seconds since the run start (`run.json` `started`, else the "
-    "first record). Sizes are the payload on the wire: the msgpack-encoded communicate "
+    "first record); a communicate a restarted recorder recovered late from its publisher's "
+    "cache counts at the time its publisher stamped on it. Sizes are the payload on the wire: "
+    "the msgpack-encoded communicate "
     "(`TrafficRecord.size`). The paper logged send times and sizes of its ROS 1 messages, "
     "so sizes compare in order of magnitude only."
 )
@@ -113,6 +115,7 @@ def _header(h: Header) -> str:
         ["Command sent", _wall(h.command_wall)],
         ["Run ended", _wall(h.ended_wall)],
         ["Last communicate", f"{_s(h.last_record_t)} s after the start"],
+        ["Traffic record", h.record or "—"],
     ]
     title = f"# Experiment report: {Path(h.run_dir).name}"
     return "\n\n".join([title, f"Run folder: `{h.run_dir}`", _table(["", ""], rows), HOW_MEASURED])

@@ -36,6 +36,9 @@ class Header(msgspec.Struct, kw_only=True):
     command_wall: float | None = None
     ended_wall: float | None = None
     last_record_t: float | None = None
+    record: str = ""
+    """The traffic record's integrity in one line (services/recorder/integrity.py), checked
+    before anything else in this report read it."""
 
 
 class SizeStats(msgspec.Struct, kw_only=True):

@@ -32,7 +32,8 @@ A subclass declares its ``name`` (as in the specification), builds its FSM of be
   until answered, at once when the peer's liveliness token reappears) and at-most-once
   handling: byte-identical copies are dropped and the answers already sent are published
   again (services/runtime/dedup.py); ``counters``: ``retransmitted``, ``duplicates``,
-  ``replayed``,
+  ``replayed``; ``published`` counts every communicate put on Zenoh (retransmissions and
+  replays included: what the traffic record must hold of this agent's session, issue 16),
 - peer liveliness: :meth:`Agent.peer_changed` is called on the agent's thread whenever
   another agent's token appears or disappears (the white pages, ``roco/alive/*``),
 - a persistence hook, :meth:`Agent.persist`, called after every step once its output
@@ -368,9 +369,13 @@ class Agent:
         self._log_window = (start, logged)
 
     def counters_report(self) -> bytes:
-        """The agent's counters as JSON: ``{"agent": name, "time": POSIX s, "counters":
-        {name: count}}`` (what ``roco/counters/report/<agent>`` carries)."""
-        return msgspec.json.encode({"agent": self.name, "time": time.time(), "counters": dict(self.counters)})
+        """The agent's counters as JSON: ``{"agent": name, "time": POSIX s, "session": Zenoh
+        session id or "", "counters": {name: count}}`` (what ``roco/counters/report/<agent>``
+        carries; services/runtime/counters.py)."""
+        session = getattr(self.transport, "session_id", "")
+        return msgspec.json.encode(
+            {"agent": self.name, "time": time.time(), "session": session, "counters": dict(self.counters)}
+        )
 
     def _check_send(
         self, to: str, performative: str, protocol: str, language: str | None, term: str | None = None
@@ -691,8 +696,12 @@ class Agent:
 
     # ---- the loop -----------------------------------------------------------------------
     def _dispatch(self) -> None:
+        published = 0
         for key, payload in self._y:
             self.transport.publish(key, payload)
+            published += key.startswith(keys.FIPA_PREFIX)
+        if published:
+            self.counters["published"] += published
         self._y.clear()
         self.protocol_states.commit()
 

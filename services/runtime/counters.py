@@ -13,6 +13,7 @@ from __future__ import annotations
 import queue
 import time
 from collections.abc import Iterable
+from pathlib import Path
 from typing import Any
 
 import msgspec
@@ -21,15 +22,32 @@ from services.runtime import keys
 
 
 class CountersReport(msgspec.Struct, frozen=True):
-    """One agent's answer: its ``agent`` name, the POSIX ``time`` it was made and its
-    ``counters``."""
+    """One agent's answer: its ``agent`` name, the POSIX ``time`` it was made, its
+    ``counters`` and the id of its Zenoh ``session`` (what the traffic record names as the
+    ``source`` of its communicates before the ``:``; "" on a transport without one)."""
 
     agent: str
     time: float
     counters: dict[str, int]
+    session: str = ""
 
 
 _decoder = msgspec.json.Decoder(CountersReport)
+COUNTERS_JSON = "counters.json"
+"""In a run folder: every agent's last :class:`CountersReport` when the command(s) ended, as
+``{agent: report}`` (services/scenario/runner.py)."""
+
+
+def save_counters(run_dir: Path, reports: dict[str, CountersReport]) -> None:
+    """Write ``reports`` to ``run_dir``'s :data:`COUNTERS_JSON`. Raises OSError."""
+    (run_dir / COUNTERS_JSON).write_bytes(msgspec.json.encode(reports))
+
+
+def read_counters(run_dir: Path) -> dict[str, CountersReport]:
+    """The reports :func:`save_counters` wrote in ``run_dir``. Raises FileNotFoundError when
+    there are none and msgspec.DecodeError when the file is corrupt."""
+    data = (run_dir / COUNTERS_JSON).read_bytes()
+    return msgspec.json.decode(data, type=dict[str, CountersReport])
 
 
 def ask_counters(session: Any, agents: Iterable[str], timeout: float = 2.0) -> dict[str, CountersReport]:

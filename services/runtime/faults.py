@@ -449,6 +449,11 @@ class FaultyTransport:
                 self._events.append(ev)
                 self._cond.notify()
 
+    @property
+    def session_id(self) -> str:
+        """The inner transport's session id ("" when it has none; ``Agent.counters_report``)."""
+        return str(getattr(self.inner, "session_id", ""))
+
     # ---- liveliness -----------------------------------------------------------------------
     def announce(self, key: str) -> None:
         with self._wlock:

@@ -15,7 +15,13 @@ from __future__ import annotations
 from typing import NamedTuple
 
 PREFIX = "roco"
-FIPA_ALL = f"{PREFIX}/fipa/**"
+FIPA_PREFIX = f"{PREFIX}/fipa/"
+"""What every communicate's key starts with."""
+FIPA_ALL = f"{FIPA_PREFIX}**"
+FIPA_CACHES = f"{PREFIX}/fipa/**/@adv/**"
+"""What zenoh-ext's advanced publishers of communicates declare below their key (cache
+queryable, liveliness token, heartbeat: ``<key>/@adv/pub/<zid>/<eid>/_``) and what the recorder's
+advanced subscriber asks; ``**`` never matches a ``@`` chunk, so ``FIPA_ALL`` does not cover it."""
 ALIVE_ALL = f"{PREFIX}/alive/*"
 HUMAN_IN = f"{PREFIX}/human/in"
 HUMAN_OUT = f"{PREFIX}/human/out"
@@ -38,6 +44,11 @@ class FipaKey(NamedTuple):
 def fipa_key(channel: str, sender: str, receiver: str) -> str:
     """The key one communicate from ``sender`` to ``receiver`` on ``channel`` is put on."""
     return f"{PREFIX}/fipa/{channel}/{sender}/{receiver}"
+
+
+def caches_of(key: str) -> str:
+    """The key expression of what advanced publishers on communicate ``key`` declare below it."""
+    return f"{key}/@adv/**"
 
 
 def inbox_key(agent: str) -> str:

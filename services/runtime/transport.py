@@ -3,23 +3,59 @@
 
 Subscriber callbacks run on Zenoh's threads and only enqueue (calling Zenoh from inside a
 callback has deadlocked: platform-notes.md); all publishing happens on the agent's thread.
+
+Communicates (``roco/fipa/**``) are put through zenoh-ext advanced publishers, one per key:
+each put carries its publisher's id and a sequence number (0, 1, 2, …) and a timestamp, and
+the publisher keeps its last :data:`CACHE_SAMPLES` in a cache that an advanced subscriber (the
+traffic recorder) queries when it starts, when it detects a publisher that appeared before it,
+and when a sequence number is missing — so a restarted recorder fills the gap it was down for,
+in order, and a gap that cannot be filled shows as missing sequence numbers (issue 16,
+docs/recovery.md).
 """
 
 from __future__ import annotations
 
 import json
 import threading
+import time
 from collections.abc import Callable
 from pathlib import Path
-from typing import Protocol
+from typing import NamedTuple, Protocol
 
 import zenoh
+import zenoh.ext as zext
 
+from services.runtime import keys
 from services.runtime.limits import low_pass_filter
 from services.security.context import identity_name, security_for
 
 Callback = Callable[[str, bytes], None]
 AliveCallback = Callable[[str, bool], None]
+
+
+class Arrival(NamedTuple):
+    """One sample as a recording subscriber sees it: arrival time ``t`` (POSIX s), ``key``,
+    ``payload``; its publisher ``source`` (``<session id>:<entity id>``) and sequence number
+    ``sn`` when it came from an advanced publisher; ``t_sent`` the publisher's timestamp
+    (POSIX s) when it carried one; ``late`` set by the subscriber's owner."""
+
+    t: float
+    key: str
+    payload: bytes
+    source: str | None = None
+    sn: int | None = None
+    t_sent: float | None = None
+    late: bool = False
+
+
+CACHE_SAMPLES = 512
+"""Communicates each advanced publisher keeps for a recorder that was down (per key: one sender,
+one receiver, one channel). The pour sends ≈ 280 communicates on ≈ 20 keys in ≈ 30 s, so a
+recorder may be down for minutes of such traffic before anything falls out of a cache."""
+HEARTBEAT_S = 1.0
+"""Period (s) of a publisher's sporadic heartbeat — sent only when it has put something since
+the last one — from which a subscriber learns of a communicate it missed at the end of a burst
+(zenoh-ext ``MissDetectionConfig``)."""
 
 
 class Transport(Protocol):
@@ -64,6 +100,8 @@ def client_config(
     conf.insert_json5("connect/endpoints", json.dumps(endpoints))
     conf.insert_json5("connect/retry", json.dumps(CONNECT_RETRY))
     conf.insert_json5("scouting/multicast/enabled", "false")
+    # every put carries its sender's timestamp: the record's time sent (issue 16)
+    conf.insert_json5("timestamping/enabled", "true")
     if wait_for_router:
         conf.insert_json5("connect/timeout_ms", "-1")
     folder = security if security is not None else security_for(endpoints)
@@ -129,8 +167,9 @@ def router_config(
 
 
 MAX_KEYS = 256
-"""Key expressions a :class:`ZenohTransport` keeps parsed (an agent puts on a few keys: one per
-peer and channel); further keys are parsed at each put."""
+"""Key expressions a :class:`ZenohTransport` keeps parsed, and communicate keys it keeps an
+advanced publisher for (an agent puts on a few keys: one per peer and channel); a further key is
+parsed at each put, and a communicate on it is put without cache or sequence number."""
 
 
 class ZenohTransport:
@@ -143,25 +182,75 @@ class ZenohTransport:
         self.session = zenoh.open(
             client_config(endpoints, wait_for_router=wait_for_router, identity=identity)
         )
-        self._subs: list[zenoh.Subscriber] = []
+        self._subs: list[zenoh.Subscriber | zext.AdvancedSubscriber] = []
         self._tokens: list[tuple[str, zenoh.LivelinessToken]] = []
         self._lock = threading.Lock()
         self._keys: dict[str, zenoh.KeyExpr] = {}
+        self._publishers: dict[str, zext.AdvancedPublisher] = {}
 
     def publish(self, key: str, payload: bytes) -> None:
-        """Put ``payload`` on ``key`` (its key expression parsed once and kept: a put costs
-        ≈ 1.2 µs instead of ≈ 3.5 µs with a string key) with congestion control BLOCK: when
-        the link's queue is full the agent waits instead of the communicate being dropped
-        (Zenoh's default for ``put`` drops after 1 ms: a burst of 5,000 communicates lost
-        2,000 of them; docs/benchmarks.md). No declared publisher: with access control a
-        publisher may never learn of a subscriber the ACL hides from it, and drop everything.
-        Called on the agent's thread only."""
+        """Put ``payload`` on ``key`` with congestion control BLOCK: when the link's queue is
+        full the agent waits instead of the communicate being dropped (Zenoh's default for
+        ``put`` drops after 1 ms: a burst of 5,000 communicates lost 2,000 of them;
+        docs/benchmarks.md). A communicate (``roco/fipa/**``) goes through the key's advanced
+        publisher (declared at its first put; see the module docstring); anything else is a
+        plain put, its key expression parsed once and kept (≈ 1.2 µs instead of ≈ 3.5 µs with
+        a string key). Called on the agent's thread only."""
+        pub = self._publishers.get(key)
+        if pub is not None:
+            pub.put(payload)
+            return
+        if key.startswith(keys.FIPA_PREFIX) and len(self._publishers) < MAX_KEYS:
+            pub = self._publishers[key] = zext.declare_advanced_publisher(
+                self.session,
+                key,
+                congestion_control=zenoh.CongestionControl.BLOCK,
+                cache=zext.CacheConfig(CACHE_SAMPLES),
+                sample_miss_detection=zext.MissDetectionConfig(
+                    heartbeat=None, sporadic_heartbeat=HEARTBEAT_S
+                ),
+                publisher_detection=True,
+            )
+            pub.put(payload)
+            return
         expr = self._keys.get(key)
         if expr is None:
             expr = zenoh.KeyExpr(key)
             if len(self._keys) < MAX_KEYS:
                 self._keys[key] = expr
         self.session.put(expr, payload, congestion_control=zenoh.CongestionControl.BLOCK)
+
+    @property
+    def session_id(self) -> str:
+        """This session's Zenoh id (hex), as the ``source`` of its communicates starts."""
+        return str(self.session.zid())
+
+    def subscribe_recovering(self, key_expr: str, callback: Callable[[Arrival], None]) -> None:
+        """Subscribe to ``key_expr`` with a zenoh-ext advanced subscriber: ``callback`` gets
+        every sample as an :class:`Arrival`, first what the advanced publishers matching it
+        still hold in their caches (also those of publishers detected later), then what they
+        put, each publisher's in order of sequence number, a missed one fetched again from its
+        publisher's cache (heartbeats and gaps). What a publisher sends again is not filtered
+        here (the caller keeps the sequence numbers it has). Runs on Zenoh's threads."""
+
+        def on_sample(sample: zenoh.Sample) -> None:
+            t = time.time()
+            info, stamp = sample.source_info, sample.timestamp
+            source = sn = None
+            if info is not None:
+                source, sn = f"{info.source_id.zid}:{info.source_id.eid}", info.source_sn
+            sent = stamp.get_time().timestamp() if stamp is not None else None
+            callback(Arrival(t, str(sample.key_expr), sample.payload.to_bytes(), source, sn, sent))
+
+        sub = zext.declare_advanced_subscriber(
+            self.session,
+            key_expr,
+            on_sample,
+            history=zext.HistoryConfig(detect_late_publishers=True),
+            recovery=zext.RecoveryConfig(periodic_queries=None, heartbeat=True),
+        )
+        with self._lock:
+            self._subs.append(sub)
 
     def subscribe(self, key_expr: str, callback: Callback) -> None:
         def on_sample(sample: zenoh.Sample) -> None:
@@ -196,6 +285,8 @@ class ZenohTransport:
             self._subs.append(self.session.liveliness().declare_subscriber(key_expr, on_sample, history=True))
 
     def close(self) -> None:
+        for pub in self._publishers.values():
+            pub.undeclare()
         for _, tok in self._tokens:
             tok.undeclare()
         for sub in self._subs:

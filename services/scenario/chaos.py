@@ -18,7 +18,10 @@ answers the issue's questions:
   (``<run>/ag_ex_state/world.ckpt``, read with ``velma.executor.checkpoint.observe_checkpoint``),
   so an object that fell after the last observation is caught too. Without a readable final
   checkpoint the objects as ag_ex last observed them during the run are judged instead (and
-  the report says so); an object never observed counts as not known, and fails the check.
+  the report says so); an object never observed counts as not known, and fails the check;
+- **record intact** — the traffic record lost nothing, paired every record with its own
+  payload and holds nothing twice (services/recorder/integrity.py), judged before the other
+  questions read it: a record that is not intact could make them answer wrongly.
 """
 
 from __future__ import annotations
@@ -30,6 +33,7 @@ from collections import defaultdict
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from services.recorder.integrity import Integrity
 from services.report.load import load_run
 from services.runtime.launcher import load_launch_env
 from services.scenario.model import AGENTS, FAULT_KINDS, MOVABLE, Fault, Scenario, Step, Trigger
@@ -44,6 +48,9 @@ FINAL_CHECKPOINT = "ag_ex_state/world.ckpt"
 """ag_ex's checkpoint in a run folder (velma/executor/checkpoint.py: written when its loop ends)."""
 log = logging.getLogger(__name__)
 SERVICE_ORDER = ("a_hi", "a_co", "a_pl", "a_km", "a_ta", "ag_ex")
+INFRASTRUCTURE = ("recorder", "router")
+ALL = "all"
+"""As a service list: every agent, the traffic recorder and the router."""
 _FINAL = frozenset({"inform", "inform-ref", "failure", "refuse"})
 _ONCE = frozenset({"fipa-request", "fipa-query"})
 """Protocols whose request gets one final answer (subscribe and coordinate stream many)."""
@@ -62,8 +69,11 @@ def chaos_scenario(
     """The chaos scenario of ``seed``: ``command``, then faults of ``services`` — each once
     in a random order when ``count`` is None, else ``count`` random draws — each ``gap_s``
     (uniform, s) after the previous one, of one of ``kinds``, down for ``down_s`` (uniform,
-    s). Raises ValueError for an unknown service or kind or an empty choice."""
-    unknown = [s for s in services if s not in AGENTS | {"recorder", "router"}]
+    s). ``services`` may be ``("all",)``: the agents, the recorder and the router. Raises
+    ValueError for an unknown service or kind or an empty choice."""
+    if services == (ALL,):
+        services = (*SERVICE_ORDER, *INFRASTRUCTURE)
+    unknown = [s for s in services if s not in AGENTS | set(INFRASTRUCTURE)]
     if unknown or not services:
         raise ValueError(f"cannot fault {', '.join(unknown) or 'nothing'}")
     bad = [k for k in kinds if k not in FAULT_KINDS]
@@ -97,7 +107,7 @@ class Verdict:
     answered twice differently, as "sender: conversation"; ``dropped``: objects found below
     ``DROPPED_BELOW_M``, with their height (m); ``last_observation``: every movable object's
     height is known; ``judged_on``: where the heights come from (the final checkpoint, or the
-    last observations during the run)."""
+    last observations during the run); ``record``: the traffic record's integrity."""
 
     task_done: bool
     commands_lost: int
@@ -107,11 +117,13 @@ class Verdict:
     faults_during_command: int = 0
     faults: int = 0
     judged_on: str = "the last observations during the run"
+    record: Integrity = field(default_factory=Integrity)
 
     @property
     def ok(self) -> bool:
         return (
-            self.task_done
+            self.record.intact
+            and self.task_done
             and self.commands_lost == 0
             and not self.executed_twice
             and not self.dropped
@@ -151,6 +163,7 @@ def verdict(run_dir: Path, outcome: ScenarioOutcome) -> Verdict:
         faults_during_command=sum(f.during_command for f in outcome.faults),
         faults=len(outcome.faults),
         judged_on=judged_on,
+        record=run.integrity,
     )
 
 
@@ -205,6 +218,7 @@ def write_chaos_report(run_dir: Path, scenario: Scenario, outcome: ScenarioOutco
             else "(not every object was observed)"
         )
         + f" (judged on {v.judged_on}) |",
+        f"| record intact | {_mark(v.record.intact)} ({v.record.detail()}) |",
         f"| faults during the command | {v.faults_during_command} of {v.faults} |",
         "",
         "Commands:",

@@ -22,6 +22,7 @@ import zenoh
 
 from services.human_interface.messages import FINAL_REPORTS, HumanInput, HumanReport
 from services.runtime import keys
+from services.runtime.counters import ask_counters, save_counters
 from services.runtime.launcher import AGENT_ORDER, Fleet, LaunchError, free_port, open_client
 from services.runtime.run_folder import RunInfo, write_run_info
 from services.scenario.model import Fault, Scenario, Step
@@ -327,6 +328,8 @@ class ScenarioRunner:
                 self.last_act = time.monotonic()
             while any(c.final is None for c in self.commands):
                 self._pump(0.5, deadline)
+            # what each agent says it put on Zenoh, then everything routed before is recorded
+            save_counters(self.run_dir, ask_counters(session, AGENT_ORDER, timeout=5.0))
             self._sync_recorder(session)
         except LaunchError as exc:
             detail = str(exc)

@@ -17,11 +17,20 @@ liveliness declarations), ``egress`` what the router delivers to it. For agent `
   and speaks on ``roco/human/out``; ag_ex publishes ``roco/state/ag_ex`` and hears
   ``roco/sim/disturb``.
 
+- its advanced publishers (one per key it sends on, services/runtime/transport.py): it learns of
+  the subscribers of ``roco/fipa/**`` (egress declare_subscriber: without it a declared
+  publisher believes nobody listens and drops its puts), declares a cache queryable, a
+  liveliness token and heartbeats below its own keys (``<key>/@adv/**``), hears the recorder's
+  queries of ``roco/fipa/**/@adv/**`` and replies only with communicates on its own keys.
+
 The recorder hears every communicate (``roco/fipa/**``), the sync token and fault events, and
-answers on ``roco/recorder/synced``. The operator (``roco send``/``status``/``sniff``/``fault``,
-the scenario runner, the launcher's liveliness wait) may hear everything under ``roco/**`` and
-put on the human's receptor, the simulated world's disturbances, the recorder's sync key and the
-fault keys the injector uses — but never on ``roco/fipa/**`` and never a liveliness token.
+answers on ``roco/recorder/synced``; its advanced subscriber queries the publishers' caches,
+watches their liveliness tokens and hears their heartbeats (``roco/fipa/**/@adv/**``).
+
+The operator (``roco send``/``status``/``sniff``/``fault``, the scenario runner, the launcher's
+liveliness wait) may hear everything under ``roco/**`` and put on the human's receptor, the
+simulated world's disturbances, the recorder's sync key and the fault keys the injector uses —
+but never on ``roco/fipa/**`` and never a liveliness token.
 
 Zenoh (1.10) allows a message when an allow rule's key expression *includes* the message's key
 expression (a subscriber on ``roco/fipa/**`` is not allowed by rules naming single channels).
@@ -154,7 +163,9 @@ def agent_grants(spec: SystemSpec, agent: str) -> Grants:
         raise KeyError(agent)
     g = Grants(agent)
     routes = channel_routes(spec)
-    g.say(*(keys.fipa_key(c, s, r) for c, s, r in routes if s == agent))
+    sends = [keys.fipa_key(c, s, r) for c, s, r in routes if s == agent]
+    g.say(*sends)
+    _cached_publisher(g, sends)
     g.allow("ingress", "declare_subscriber", keys.inbox_key(agent))
     g.allow("egress", "put", *(keys.fipa_key(c, s, r) for c, s, r in routes if r == agent))
     g.allow("ingress", "liveliness_token", keys.alive_key(agent))
@@ -169,10 +180,31 @@ def agent_grants(spec: SystemSpec, agent: str) -> Grants:
     return g
 
 
+def _cached_publisher(g: Grants, sends: list[str]) -> None:
+    """What an agent's advanced publishers on its keys ``sends`` need (services/runtime/transport.py):
+    to learn which subscribers match (a declared publisher that hears of none drops its puts),
+    to declare their cache queryable, liveliness token and heartbeat below each key, to hear the
+    recorder's queries and to answer them — with replies on its own keys only."""
+    g.allow("egress", "declare_subscriber", keys.FIPA_ALL)
+    caches = [keys.caches_of(k) for k in sends]
+    g.allow("ingress", "declare_queryable", *caches)
+    g.allow("ingress", "liveliness_token", *caches)
+    g.say(*caches)
+    g.allow("egress", "query", keys.FIPA_CACHES)
+    g.allow("ingress", "reply", *sends, *caches)
+
+
 def recorder_grants() -> Grants:
     g = Grants(RECORDER)
     g.hear(keys.FIPA_ALL, keys.RECORDER_SYNC, f"{_FAULT}/event/*")
     g.say(keys.RECORDER_SYNCED)
+    # its advanced subscriber: heartbeats, late publishers' tokens, queries of their caches
+    g.hear(keys.FIPA_CACHES)
+    g.allow("ingress", "query", keys.FIPA_CACHES)
+    g.allow("egress", "reply", keys.FIPA_ALL, keys.FIPA_CACHES)
+    g.allow("ingress", "declare_liveliness_subscriber", keys.FIPA_CACHES)
+    g.allow("ingress", "liveliness_query", keys.FIPA_CACHES)
+    g.allow("egress", "liveliness_token", keys.FIPA_CACHES)
     g.allow("ingress", "liveliness_token", keys.alive_key(RECORDER))
     return g
 

@@ -39,6 +39,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from services.recorder.integrity import Integrity
 from services.report.load import Message, load_run
 from services.runtime import keys
 from services.runtime.conversations import (
@@ -171,6 +172,9 @@ class ConformanceReport:
     outside_estimates: list[str] = field(default_factory=list)
     """Communicates whose size on the wire fell outside the specification's estimate (not a
     violation: estimates, paper eq. 4)."""
+    record: Integrity = field(default_factory=Integrity)
+    """The traffic record's integrity, checked first (services/recorder/integrity.py): a
+    record that lost or mispaired communicates cannot show conformance."""
 
     @property
     def per_protocol(self) -> dict[str, int]:
@@ -189,9 +193,9 @@ class ConformanceReport:
 
     @property
     def full_conformance(self) -> bool:
-        """True when communicates were recorded, every one was checked in full, and none is a
-        violation."""
-        return self.communicates > 0 and self.unchecked == 0 and not self.violations
+        """True when communicates were recorded, the record is intact, every one was checked in
+        full, and none is a violation."""
+        return self.communicates > 0 and self.record.intact and self.unchecked == 0 and not self.violations
 
 
 # ---------------------------------------------------------------------------------------------
@@ -210,8 +214,12 @@ def verify_run(
     data = load_run(Path(run_dir))
     # the loader tries every content in its language, reasons in UTF-8 text too; the checks
     # below judge content themselves, so its note on undecodable content is left out
-    notes = [n for n in data.notes if "not decodable in their language" not in n]
-    report = ConformanceReport(Path(run_dir), spec.system, notes=notes)
+    notes = [
+        n
+        for n in data.notes
+        if "not decodable in their language" not in n and not n.startswith("traffic record ")
+    ]
+    report = ConformanceReport(Path(run_dir), spec.system, notes=notes, record=data.integrity)
     messages, moved = causal_order(data.messages)
     if moved:
         notes.append(
@@ -466,6 +474,7 @@ def render(report: ConformanceReport, *, limit: int = 50) -> str:
     """``report`` as text for a person: the counts, every violation (up to ``limit``), the
     conversations left open, the not-understood answers, notes, and the verdict."""
     lines = [f"Conformance of {report.run_dir} to the {report.system} specification"]
+    lines.append(f"traffic record: {report.record.summary()}")
     n_conv = len(report.conversations)
     lines.append(f"communicates: {report.communicates} in {n_conv} conversations")
     if report.per_protocol:
@@ -518,6 +527,8 @@ def render(report: ConformanceReport, *, limit: int = 50) -> str:
         verdict = "no (no communicates recorded)"
     elif report.violations:
         verdict = f"no ({len(report.violations)} violation(s))"
+    elif not report.record.intact:
+        verdict = "no (the traffic record is not intact)"
     else:
         verdict = f"no ({report.unchecked} communicate(s) could not be checked)"
     lines.append(f"full conformance: {verdict}")

@@ -6,6 +6,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+import msgspec
 import pytest
 
 from services.recorder.record import TRAFFIC_JSONL, TRAFFIC_RAW
@@ -82,7 +83,7 @@ def test_undecodable_payload_is_noted(make_run: MakeRun, pour: Any) -> None:
     report = build_report(run)
     assert report.sizes.count == 40
     notes = "\n".join(report.notes)
-    assert f"1 payload(s) not decodable as a communicate (seq {last_obs})" in notes
+    assert f"1 payload(s) not the communicate their record describes (-/{last_obs})" in notes
     assert (report.content.inside, report.content.total) == (0, 20)
     assert report.content.t == pytest.approx(24.5)
 
@@ -97,6 +98,14 @@ def test_undecodable_content_is_noted(make_run: MakeRun, pour: Any) -> None:
         encoding="msgpack",
     )
     pour.payloads[3] = encode(bad)
+    # the record describes the communicate it is paired with (else the pairing is refused)
+    pour.records[3] = msgspec.structs.replace(
+        pour.records[3],
+        size=len(pour.payloads[3]),
+        performative="inform",
+        sender="ag_ex",
+        conversation_id=None,
+    )
     run = make_run(pour)
     assert "1 content(s) not decodable in their language (seq 3)" in _notes(run)
 
@@ -109,7 +118,7 @@ def test_truncated_raw_stream(make_run: MakeRun, pour: Any) -> None:
     assert report.sizes.count == 40  # sizes come from the records
     notes = "\n".join(report.notes)
     assert f"{TRAFFIC_RAW} corrupt after" in notes
-    assert "without raw payload" in notes
+    assert "29 record(s) without payload" in notes
 
 
 def test_missing_raw_stream_uses_metadata_and_run_json(make_run: MakeRun, pour: Any) -> None:

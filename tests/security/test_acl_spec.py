@@ -66,7 +66,9 @@ def test_each_agent_subscribes_to_its_inbox_and_holds_only_its_own_token(spec: S
         g = agent_grants(spec, a.name)
         assert g.allowed[("ingress", "declare_subscriber")][0] == keys.inbox_key(a.name)
         assert not g.may("ingress", "declare_subscriber", keys.FIPA_ALL)
-        assert g.allowed[("ingress", "liveliness_token")] == [keys.alive_key(a.name)]
+        own = [keys.fipa_key(c, s, r) for c, s, r in channel_routes(spec) if s == a.name]
+        tokens = {keys.alive_key(a.name), *(keys.caches_of(k) for k in own)}
+        assert set(g.allowed[("ingress", "liveliness_token")]) == tokens
         assert g.allowed[("ingress", "declare_liveliness_subscriber")] == [keys.ALIVE_ALL]
         assert g.may("egress", "liveliness_token", keys.alive_key("a_co"))
         # the fault layer reaches it, and it answers as itself only
@@ -133,3 +135,17 @@ def test_table_names_every_identity(spec: SystemSpec) -> None:
     for g in all_grants(spec):
         assert f"| {g.identity} | puts on |" in table or g.identity == OPERATOR
     assert "`roco/fipa/C4/a_pl/a_km`" in table
+
+
+def test_advanced_publishers_answer_cache_queries_only_with_their_own_communicates(spec: SystemSpec) -> None:
+    """Issue 16: an agent's publisher caches answer the recorder's queries, on its own keys only."""
+    pl = agent_grants(spec, "a_pl")
+    mine, other = keys.fipa_key("C4", "a_pl", "a_km"), keys.fipa_key("C4", "a_km", "a_pl")
+    assert pl.may("ingress", "reply", mine) and not pl.may("ingress", "reply", other)
+    assert pl.may("ingress", "declare_queryable", f"{mine}/@adv/pub/z/7/_")
+    assert not pl.may("ingress", "declare_queryable", f"{other}/@adv/pub/z/7/_")
+    assert not pl.may("ingress", "put", f"{other}/@adv/pub/z/7/_")
+    assert pl.may("egress", "query", keys.FIPA_CACHES)
+    rec = recorder_grants()
+    assert rec.may("ingress", "query", keys.FIPA_CACHES) and rec.may("egress", "reply", mine)
+    assert not rec.may("ingress", "put", mine)
