@@ -28,9 +28,9 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
+from services.fleet.launcher import free_port  # noqa: E402
 from services.runtime import keys  # noqa: E402
 from services.runtime.faults import FaultSettings, FaultyTransport, MessageFaults  # noqa: E402
-from services.runtime.launcher import free_port  # noqa: E402
 from services.runtime.transport import AliveCallback, Callback, ZenohTransport, router_config  # noqa: E402
 from shared.fipa_codec import Performative, encode  # noqa: E402
 from tests.support.messages import communicate  # noqa: E402

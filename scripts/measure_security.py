@@ -23,8 +23,9 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 
+from services.fleet.launcher import Fleet, free_port
 from services.runtime import keys
-from services.runtime.launcher import Fleet, free_port, open_client
+from services.runtime.session import open_client
 from services.security.context import register
 
 

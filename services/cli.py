@@ -25,13 +25,14 @@ from typing import Annotated
 import msgspec
 import typer
 
+from services.deploy.cli import deploy_app
 from services.fault.cli import fault_app
 from services.fault.process import record_events
+from services.fleet.launcher import AGENT_ORDER, Fleet, LaunchError
 from services.human_interface.messages import FINAL_REPORTS, HumanInput, HumanReport, ReportKind
 from services.runtime import keys
-from services.runtime.launcher import AGENT_ORDER, Fleet, LaunchError, alive_agents, open_client
 from services.runtime.run_folder import RunInfo, new_run_dir, write_run_info
-from services.security.cli import deploy_app
+from services.runtime.session import alive_agents, open_client
 from services.security.context import register
 
 app = typer.Typer(add_completion=False, no_args_is_help=True, help=__doc__)
@@ -694,8 +695,8 @@ def spec_deadlock(spec: SpecFile = None) -> None:
     """Explore every channel protocol as two role automata over bounded FIFO queues, and the
     agents' wait-for graph; report reachable deadlocks with the trace that leads there
     (paper §4 step 3). Exit 1 when one is found."""
-    from services.spec.deadlock import deadlock_report
     from services.spec.model import SpecError
+    from services.spec_check.deadlock import deadlock_report
 
     try:
         found, text = deadlock_report(_spec_path(spec))
@@ -714,7 +715,7 @@ def spec_verify(
     channel between its sender and receiver, allowed for its role and in its language, and
     every conversation following its protocol's state machine. Exit 1 unless fully
     conformant."""
-    from services.spec.conformance import verify_report
+    from services.spec_check.conformance import verify_report
 
     ok, text = verify_report(run_dir, spec)
     typer.echo(text)
@@ -727,7 +728,7 @@ def spec_verify_code(spec: SpecFile = None) -> None:
     """Every message an agent may receive by the specification has a handler in its code, and
     every message its code sends is allowed (the paper's ClassInterfaceInfo check). Exit 1
     with one line per problem."""
-    from services.spec.code_check import verify_code_report
+    from services.spec_check.code_check import verify_code_report
 
     ok, text = verify_code_report(_spec_path(spec))
     typer.echo(text)

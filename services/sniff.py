@@ -38,7 +38,7 @@ from datetime import datetime
 import zenoh
 
 from services.runtime import keys
-from services.runtime.launcher import open_client
+from services.runtime.session import open_client
 from services.spec.model import SystemSpec, default_spec
 from shared.fipa_codec import Communicate, DecodeError, Performative, decode
 from shared.fipa_codec.string_form import to_string
@@ -192,7 +192,7 @@ def sniff(
     """Print the communicates crossing the Zenoh router at ``endpoint`` until ``stop`` is set;
     returns the number of communicates printed.
 
-    Opens a client session (:func:`services.runtime.launcher.open_client`) and subscribes to
+    Opens a client session (:func:`services.fleet.launcher.open_client`) and subscribes to
     ``roco/fipa/**``. The filters are those of :func:`parse_filters` (checked by it here, so a
     ValueError names an unknown agent, channel or performative); None or empty: no filter.
     Each communicate that passes is given to ``out`` as one string: the header line (local wall

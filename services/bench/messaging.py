@@ -55,10 +55,10 @@ from typing import Any, ClassVar
 import msgspec
 import zenoh
 
+from services.fleet.launcher import Fleet, free_port
 from services.runtime.agent import Agent
 from services.runtime.behaviour import FSM, Arc, Behaviour
 from services.runtime.conversations import ONTOLOGY
-from services.runtime.launcher import Fleet, free_port
 from services.runtime.transport import Transport, ZenohTransport, client_config
 from services.spec.model import (
     AgentSpec,

@@ -147,8 +147,9 @@ def knowledge(quick: bool) -> tuple[list[QueryRow], str]:
 
 def _km_over_zenoh(queries: list[Any], repeats: int) -> list[list[float]]:
     bp = scripts_module("bench_planning")
+    from services.fleet.launcher import Fleet, free_port
     from services.runtime import keys
-    from services.runtime.launcher import Fleet, free_port, open_client
+    from services.runtime.session import open_client
     from shared.fipa_codec.languages.common import Pose
     from shared.fipa_codec.languages.l_wm import ObjectUpdate, WorldUpdate
 
@@ -251,7 +252,7 @@ def fleet() -> FleetFigures:
     exit, and the "fleet up in X s" it prints: from starting the agents to every liveliness
     token), then VmRSS of each process it started (pids from its ``.fleet.json``), then
     ``roco down``."""
-    from services.runtime.launcher import free_port
+    from services.fleet.launcher import free_port
 
     with tempfile.TemporaryDirectory() as tmp:
         runs = Path(tmp)

@@ -32,7 +32,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from services.runtime.launcher import free_port
+from services.fleet.launcher import free_port
 
 ROOT = Path(__file__).resolve().parents[2]
 VENV = ROOT / ".bench" / "spade-venv"

@@ -41,7 +41,6 @@ from services.coordinator.scheduling import Candidate, Decision, Running, decide
 from services.runtime.agent import Agent, Received
 from services.runtime.behaviour import FSM, Arc, Behaviour
 from services.runtime.state_store import StateFile
-from services.viewer.hooks import queue_hook
 from shared.fipa_codec import DecodeError, Performative, decode, encode
 from shared.fipa_codec.languages import ContentError, decode_content
 from shared.fipa_codec.languages.l_hc import (
@@ -135,7 +134,7 @@ class Coordinator(Agent):
         self.reschedule = False
         self.decisions: list[Decision] = []
         self._order = itertools.count()
-        self.rerun = queue_hook(self.name)  # Rerun (services/viewer): None unless ROCO_RERUN=1
+        self.rerun = self.hooks.queue(self.name) if self.hooks else None  # a viewer: runtime/hooks.py
         return FSM(
             initial="trigger",
             states={

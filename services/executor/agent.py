@@ -12,10 +12,11 @@ Besides the C5 conversation, ag_ex
   (msgpack ``RobotSnapshot``, every ``STATE_PERIOD`` s), for viewers;
 - writes the latest deadline statistics to ``<ROCO_RUN_DIR>/ag_ex_timing.json`` (for the run
   report) every ``TIMING_FILE_PERIOD`` s and when it stops;
-- with Rerun logging on (``ROCO_RERUN=1``, services/viewer): logs each published state, the
-  loop's timing (about once a second) and the observations, and renders the head camera
-  about once a second in a thread of this process from the whole simulation state the loop
-  copies into shared memory (``ROCO_RERUN_CAMERA=0``: no camera);
+- with Rerun logging on (``ROCO_RERUN=1``; the hooks come from the runtime,
+  services/runtime/hooks.py): logs each published state, the loop's timing (about once a
+  second) and the observations, and renders the head camera about once a second in a thread
+  of this process from the whole simulation state the loop copies into shared memory
+  (``ROCO_RERUN_CAMERA=0``: no camera);
 - watches the liveliness tokens of the agents that command it (the initiators on its
   channels in the specification: a_ta). When one disappears the executor holds position in
   joint impedance, with the hands closed as they are, so a held object is never dropped
@@ -41,7 +42,6 @@ import msgspec
 from services.runtime import keys
 from services.runtime.agent import Agent, Received
 from services.runtime.behaviour import FSM, Behaviour
-from services.viewer.hooks import camera_wanted, robot_hook
 from shared.fipa_codec import Performative
 from shared.fipa_codec.languages.l_ex import CommandResult, ExecutorCommand
 from shared.fipa_codec.languages.l_sd import Observation
@@ -105,7 +105,7 @@ class ExecutorAgent(Agent):
             realtime=os.environ.get("ROCO_REALTIME", "0") == "1",
             seed=_seed("ROCO_SEED", os.environ.get("ROCO_SEED", "0")),
             pose_seed=_seed("ROCO_POSE_SEED", pose) if pose else None,
-            world_state=camera_wanted(),
+            world_state=self.hooks.camera_wanted() if self.hooks else False,
             checkpoint_dir=checkpoint_dir(),  # the world survives a restart (module docstring)
             fresh=fresh_start(),
         )
@@ -117,7 +117,7 @@ class ExecutorAgent(Agent):
         self._next_state = 0.0
         self._next_timing_file = 0.0
         self._encode = msgspec.msgpack.Encoder().encode
-        self.rerun = robot_hook(self.name)  # Rerun (services/viewer): None unless ROCO_RERUN=1
+        self.rerun = self.hooks.robot(self.name) if self.hooks else None  # a viewer: runtime/hooks.py
         return FSM(
             initial="serve",
             states={

@@ -1,7 +1,7 @@
 """Fault injection (``roco fault``, docs/faults.md).
 
 ``process``: kill, stop, start, pause, unpause, restart a service of a local fleet (the
-launcher's :class:`~services.runtime.launcher.Fleet` or the fleet of ``roco up``), a Python
+launcher's :class:`~services.fleet.launcher.Fleet` or the fleet of ``roco up``), a Python
 API that ``roco chaos`` calls too. ``control``: message and network faults of running
 agents through their fault layer (``services.runtime.faults``) over Zenoh. ``compose``: the
 same faults on a Docker Compose deployment. ``cli``: the ``roco fault`` commands.

@@ -28,6 +28,7 @@ import zenoh
 from services.fault import process
 from services.fault.compose import COMPOSE_SERVICES, DEFAULT_FILE, PROJECT_ENV, Compose
 from services.fault.process import ACTIONS, LOCAL_SERVICES, FaultError, UpFleet
+from services.fleet.launcher import AGENT_ORDER
 from services.runtime.faults import (
     ANY_CHANNEL,
     FaultEvent,
@@ -36,7 +37,6 @@ from services.runtime.faults import (
     MessageFaults,
     NetFaults,
 )
-from services.runtime.launcher import AGENT_ORDER
 
 fault_app = typer.Typer(
     add_completion=False,
@@ -83,7 +83,7 @@ def _endpoint(router: str | None, runs_dir: Path) -> str:
 @contextlib.contextmanager
 def _session(endpoint: str) -> Iterator[zenoh.Session]:
     """A client session with the router at ``endpoint``, closed on leaving."""
-    from services.runtime.launcher import open_client
+    from services.runtime.session import open_client
 
     try:
         session = open_client(endpoint)
@@ -97,7 +97,7 @@ def _session(endpoint: str) -> Iterator[zenoh.Session]:
 
 def _record(endpoint: str, events: list[FaultEvent]) -> None:
     """Hand the events to the traffic recorder; a warning (not a failure) when it cannot."""
-    from services.runtime.launcher import alive_agents, open_client
+    from services.runtime.session import alive_agents, open_client
 
     try:
         session = open_client(endpoint)

@@ -13,6 +13,7 @@ import uuid
 import msgspec
 import zenoh
 
+from services.fleet.launcher import AGENT_ORDER
 from services.runtime.faults import (
     CONTROL_ALL,
     STATE_ALL,
@@ -20,7 +21,7 @@ from services.runtime.faults import (
     FaultUpdate,
     control_key,
 )
-from services.runtime.launcher import AGENT_ORDER, alive_agents
+from services.runtime.session import alive_agents
 
 
 def send_update(

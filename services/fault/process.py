@@ -1,6 +1,6 @@
 """Process faults on a local fleet: kill, stop, start, pause, unpause, restart one service.
 
-A fleet is either a :class:`~services.runtime.launcher.Fleet` this process started (``roco
+A fleet is either a :class:`~services.fleet.launcher.Fleet` this process started (``roco
 run``, ``roco scenario``, tests; its ``processes`` are updated) or the fleet of ``roco up``,
 known by its state file (:class:`UpFleet`; its PIDs are updated in ``runs/.fleet.json`` and
 ``run.json``). Every function returns the :class:`~services.runtime.faults.FaultEvent` it
@@ -36,20 +36,19 @@ from typing import Any
 import msgspec
 import zenoh
 
-from services.runtime import keys
-from services.runtime.faults import FaultEvent, event_key
-from services.runtime.launcher import (
+from services.fleet.launcher import (
     AGENT_ORDER,
     Fleet,
     LaunchError,
-    alive_agents,
     load_launch_env,
-    open_client,
     process_environ,
     service_args,
     spawn_process,
 )
+from services.runtime import keys
+from services.runtime.faults import FaultEvent, event_key
 from services.runtime.run_folder import read_run_info, write_run_info
+from services.runtime.session import alive_agents, open_client
 from services.security.context import register
 
 ACTIONS = ("kill", "stop", "start", "pause", "unpause", "restart")

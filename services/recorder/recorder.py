@@ -36,9 +36,9 @@ from services.recorder.record import (
     record_of,
 )
 from services.runtime import faults, keys
+from services.runtime.hooks import TrafficSink, load_hooks
 from services.runtime.main import router_endpoints, setup_logging
 from services.runtime.transport import Arrival, ZenohTransport
-from services.viewer.hooks import TrafficHook, traffic_hook
 
 RECORDER = "recorder"
 _fault_event = msgspec.json.Decoder(faults.FaultEvent).decode
@@ -185,7 +185,7 @@ class TrafficWriter:
 class _Loop:
     """The recorder's thread: writes what the Zenoh callbacks put in ``inbox``."""
 
-    def __init__(self, writer: TrafficWriter, transport: ZenohTransport, rerun: TrafficHook | None) -> None:
+    def __init__(self, writer: TrafficWriter, transport: ZenohTransport, rerun: TrafficSink | None) -> None:
         self.writer, self.transport, self.rerun = writer, transport, rerun
         self.inbox: queue.SimpleQueue[Arrival | None] = queue.SimpleQueue()
         self.listening_since = time.time()
@@ -248,7 +248,7 @@ class _Loop:
         if not pending:
             return
         records = self.writer.write_many(pending)
-        if self.rerun is not None:  # Rerun
+        if self.rerun is not None:  # a viewer
             for rec, a in zip(records, pending, strict=True):
                 self.rerun.communicate(rec, a.payload)
         pending.clear()
@@ -258,7 +258,8 @@ def main() -> int:
     setup_logging(RECORDER)
     run_dir = Path(os.environ.get("ROCO_RUN_DIR", "."))
     writer = TrafficWriter(run_dir)
-    rerun = traffic_hook(RECORDER, run_dir)  # Rerun (services/viewer): None unless ROCO_RERUN=1
+    hooks = load_hooks()  # a viewer's, named by string (services/runtime/hooks.py); None: none
+    rerun = hooks.traffic(RECORDER, run_dir) if hooks is not None else None
     transport = ZenohTransport(router_endpoints(), identity=RECORDER)
     loop = _Loop(writer, transport, rerun)
     # every communicate, and what publishers' caches still hold of those sent before this start
@@ -280,7 +281,7 @@ def main() -> int:
         )
     writer.close()
     transport.close()
-    if rerun is not None:  # Rerun: close this part, merge all parts into <run>/recording.rrd
+    if rerun is not None:  # a viewer: Rerun closes this part and merges all into <run>/recording.rrd
         rerun.finish()
     return 0
 

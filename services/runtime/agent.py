@@ -67,6 +67,7 @@ from services.runtime.conversations import (
     expected_ontology,
 )
 from services.runtime.dedup import Dedup
+from services.runtime.hooks import Hooks, load_hooks
 from services.runtime.limits import MAX_OPEN_CONVERSATIONS_PER_PEER
 from services.runtime.transport import Transport
 from services.spec.model import Interface, SystemSpec, channel_between, default_spec, interface
@@ -143,6 +144,8 @@ class Agent:
     def __init__(self, transport: Transport, spec: SystemSpec | None = None) -> None:
         self.spec = spec or default_spec()
         self.transport = transport
+        self.hooks: Hooks | None = load_hooks()
+        """A viewer's hooks, given to this agent (services/runtime/hooks.py); None: no viewer."""
         self.aid = AgentIdentifier(self.name)
         self.interface: Interface = interface(self.spec, self.name)
         self.log = logging.getLogger(self.name)

@@ -12,7 +12,7 @@ protocol state (FIPA SC00026/27/35 and the paper's coordinate protocol, §5.4; i
 (:mod:`shared.fipa_codec.protocols`) while tolerating communicates that crossed on the wire;
 :func:`follow` adds what a conversation-id's life brings (a retry reusing it, a
 not-understood ending it); :class:`ProtocolStates` holds one tracker per peer and
-conversation-id for an agent, in bounded memory. ``services.spec.conformance`` follows
+conversation-id for an agent, in bounded memory. ``services.spec_check.conformance`` follows
 recorded traffic with the same tracker.
 """
 

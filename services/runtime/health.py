@@ -62,7 +62,7 @@ def check_tcp(name: str, addresses: list[str], timeout: float) -> tuple[bool, st
 
 def check_alive(name: str, endpoint: str, timeout: float) -> tuple[bool, str]:
     """Whether ``name``'s liveliness token is visible through the router at ``endpoint``."""
-    from services.runtime.launcher import alive_agents, open_client
+    from services.runtime.session import alive_agents, open_client
 
     try:
         session = open_client(endpoint)

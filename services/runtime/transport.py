@@ -135,7 +135,7 @@ def router_config(
     With a credentials folder ``security`` (services/security/certs.py) the router requires
     user/password authentication (its ``passwords.txt``), serves ``tls/`` endpoints with
     ``router.pem`` and requires a client certificate from the folder's CA (mutual TLS), and
-    applies the access control of ``acl.json`` (services/spec/acl.py; default deny). Every
+    applies the access control of ``acl.json`` (services/spec_check/acl.py; default deny). Every
     router drops a message above the codec's size limit (``services.runtime.limits``). Raises
     OSError or ValueError when a file is missing or malformed."""
     conf = zenoh.Config()

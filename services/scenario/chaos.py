@@ -33,9 +33,9 @@ from collections import defaultdict
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from services.fleet.launcher import load_launch_env
 from services.recorder.integrity import Integrity
 from services.report.load import load_run
-from services.runtime.launcher import load_launch_env
 from services.scenario.model import AGENTS, FAULT_KINDS, MOVABLE, Fault, Scenario, Step, Trigger
 from services.scenario.runner import FaultRecord, ScenarioOutcome
 from shared.fipa_codec.languages.l_sd import Observation

@@ -20,11 +20,12 @@ from pathlib import Path
 import msgspec
 import zenoh
 
+from services.fleet.launcher import AGENT_ORDER, Fleet, LaunchError, free_port
 from services.human_interface.messages import FINAL_REPORTS, HumanInput, HumanReport
 from services.runtime import keys
 from services.runtime.counters import ask_counters, save_counters
-from services.runtime.launcher import AGENT_ORDER, Fleet, LaunchError, free_port, open_client
 from services.runtime.run_folder import RunInfo, write_run_info
+from services.runtime.session import open_client
 from services.scenario.model import Fault, Scenario, Step
 from shared.fipa_codec import DecodeError, Performative, decode
 from shared.fipa_codec.languages import ContentError, decode_content

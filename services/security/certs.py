@@ -7,7 +7,7 @@ Layout of a credentials folder (:func:`issue`; every key and password file mode 
     ca.pem  ca.key             the private CA (keep ca.key off the robot: it issues identities)
     router.pem  router.key     the router's TLS certificate (SAN: localhost, 127.0.0.1, router)
     passwords.txt              the router's usrpwd dictionary, ``user:password`` per line
-    acl.json                   the router's access control (services/security/deploy.py)
+    acl.json                   the router's access control (services/deploy/deploy.py)
     <id>/cert.pem <id>/key.pem <id>/password
                                what identity ``<id>`` needs to connect (and nothing else)
 
@@ -37,7 +37,7 @@ CA_KEY = "ca.key"
 ROUTER = "router"
 PASSWORDS = "passwords.txt"
 ACL_FILE = "acl.json"
-"""The router's ``access_control`` section (services/security/deploy.py writes it)."""
+"""The router's ``access_control`` section (services/deploy/deploy.py writes it)."""
 CERT = "cert.pem"
 KEY = "key.pem"
 PASSWORD = "password"

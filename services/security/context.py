@@ -26,7 +26,7 @@ ENV_ACL = "ROCO_ACL"
 """``0``: fleets start without access control (experiments); anything else or unset: with."""
 ENV_TLS = "ROCO_TLS"
 """``1``: a local fleet's router listens on TLS (mutual) instead of TCP."""
-OPERATOR = "operator"  # services/spec/acl.py: OPERATOR
+OPERATOR = "operator"  # services/spec_check/acl.py: OPERATOR
 FLEET_FILE = Path("runs") / ".fleet.json"  # services/cli.py: FLEET_FILE under the default runs dir
 
 _lock = threading.Lock()

@@ -26,7 +26,7 @@ class SpecError(ValueError):
 class AgentSpec(msgspec.Struct, frozen=True, forbid_unknown_fields=True):
     """An agent: its ``name``, the decomposition ``group`` it substitutes, its ``job``, the
     ``implementation`` (``module:Class``) the launcher starts for it, and ``waits``: the
-    conversations it opens while serving another (validated by services/spec/deadlock.py)."""
+    conversations it opens while serving another (validated by services/spec_check/deadlock.py)."""
 
     name: str
     group: str

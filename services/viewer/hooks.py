@@ -1,4 +1,6 @@
-"""The few calls the traffic recorder, ag_ex and a_co make to log to Rerun, guarded.
+"""The few calls the traffic recorder, ag_ex and a_co make to log to Rerun, guarded. They reach
+them through the runtime's hooks (services/runtime/hooks.py: :data:`HOOKS` is named by string,
+never imported by them).
 
 :func:`traffic_hook`, :func:`robot_hook` and :func:`queue_hook` return None when logging is
 off (``ROCO_RERUN`` is not ``1``), without importing rerun. A hook that raises logs the error
@@ -18,12 +20,12 @@ from typing import TYPE_CHECKING, TypeVar
 from services.viewer import ENV_ON
 
 if TYPE_CHECKING:
-    from services.recorder.record import TrafficRecord
+    from services.runtime.hooks import Hooks
     from services.viewer.camera import HeadCamera, WorldSource
     from services.viewer.recording import Recording
     from services.viewer.robot import RobotLogger
     from services.viewer.tasks import QueueLogger
-    from services.viewer.traffic import TrafficLogger
+    from services.viewer.traffic import TrafficLogger, TrafficRow
     from shared.fipa_codec.languages.l_hc import Status
     from shared.fipa_codec.languages.l_sd import Observation
     from velma.executor.state import RobotSnapshot
@@ -67,7 +69,7 @@ class TrafficHook(_Hook):
         super().__init__(recording)
         self.logger = logger
 
-    def communicate(self, record: TrafficRecord, payload: bytes) -> None:
+    def communicate(self, record: TrafficRow, payload: bytes) -> None:
         """Log one communicate (see services/viewer/traffic.py)."""
         if self.failed:
             return
@@ -212,3 +214,24 @@ def queue_hook(process: str = "a_co", run_dir: Path | None = None) -> QueueHook 
         return QueueHook(recording, QueueLogger(recording))
 
     return _start(process, run_dir, make)
+
+
+class RerunHooks:
+    """The Rerun hooks as the runtime's :class:`~services.runtime.hooks.Hooks` (named by
+    ``services.runtime.hooks.DEFAULT_HOOKS``): each sink None unless ``ROCO_RERUN=1``."""
+
+    def traffic(self, process: str, run_dir: Path | None = None) -> TrafficHook | None:
+        return traffic_hook(process, run_dir)
+
+    def robot(self, process: str) -> RobotHook | None:
+        return robot_hook(process)
+
+    def queue(self, process: str) -> QueueHook | None:
+        return queue_hook(process)
+
+    def camera_wanted(self) -> bool:
+        return camera_wanted()
+
+
+HOOKS: Hooks = RerunHooks()
+"""Named by ``services.runtime.hooks.DEFAULT_HOOKS``; typed so that mypy checks it is one."""

@@ -19,10 +19,10 @@ import collections
 import math
 import os
 from pathlib import Path
+from typing import Protocol
 
 import rerun as rr
 
-from services.recorder.record import TrafficRecord
 from services.spec.model import DEFAULT_SPEC, SystemSpec, load
 from services.viewer.recording import Recording
 from shared.fipa_codec import DecodeError, decode
@@ -66,6 +66,34 @@ def log_graph(stream: rr.RecordingStream, spec: SystemSpec) -> None:
     )
 
 
+class TrafficRow(Protocol):
+    """What the traffic log reads of one record (the fields of the recorder's
+    ``TrafficRecord``, services/recorder/record.py; the viewer does not import the recorder):
+    POSIX time ``t``, index ``seq``, payload ``size`` in bytes, ``channel``, ``key``,
+    ``sender``, ``receivers``, FIPA ``performative``, ``protocol``, ``conversation_id``."""
+
+    @property
+    def t(self) -> float: ...
+    @property
+    def seq(self) -> int: ...
+    @property
+    def size(self) -> int: ...
+    @property
+    def channel(self) -> str: ...
+    @property
+    def key(self) -> str: ...
+    @property
+    def sender(self) -> str: ...
+    @property
+    def receivers(self) -> tuple[str, ...]: ...
+    @property
+    def performative(self) -> str: ...
+    @property
+    def protocol(self) -> str | None: ...
+    @property
+    def conversation_id(self) -> str | None: ...
+
+
 class TrafficLogger:
     """Logs communicates (payloads as they crossed Zenoh, with their traffic records) to
     one recording part; keeps the per-channel bandwidth windows and a_ta's last step."""
@@ -99,7 +127,7 @@ class TrafficLogger:
             self._window_bytes[channel] -= window.popleft()[1]
         return self._window_bytes[channel] * 8 / 1000 / WINDOW
 
-    def communicate(self, record: TrafficRecord, payload: bytes) -> None:
+    def communicate(self, record: TrafficRow, payload: bytes) -> None:
         """Log one communicate: its text line, size, channel bandwidth, and a_ta's state."""
         s = self.stream
         s.set_time(WALL, timestamp=record.t)

@@ -18,9 +18,10 @@ import msgspec
 import pytest
 import zenoh
 
+from services.fleet.launcher import Fleet, free_port
 from services.runtime import keys
 from services.runtime.conversations import expected_ontology
-from services.runtime.launcher import Fleet, free_port, open_client
+from services.runtime.session import open_client
 from shared.fipa_codec import AgentIdentifier, Communicate, Performative, decode, encode
 from shared.fipa_codec.languages import decode_content, encode_content
 from shared.fipa_codec.languages.l_ex import CommandResult, Observe

@@ -18,10 +18,11 @@ import pytest
 import zenoh
 
 from services.fault.process import FLEET_FILE, UpFleet, is_service_process, proc_state
+from services.fleet.launcher import Fleet, free_port
 from services.recorder.record import read_fault_events
 from services.runtime import keys
 from services.runtime.faults import FaultEvent
-from services.runtime.launcher import Fleet, alive_agents, free_port, open_client
+from services.runtime.session import alive_agents, open_client
 from shared.fipa_codec import Communicate, Performative, decode, encode
 from shared.fipa_codec.languages.l_wm import ObjectQuery
 from tests.support.messages import communicate

@@ -9,12 +9,12 @@ from pathlib import Path
 import msgspec
 import pytest
 
+from services.fleet.launcher import LAUNCH_ENV, load_launch_env, process_environ, save_launch_env
 from services.recorder.record import FAULTS_JSONL, read_fault_events
 from services.recorder.recorder import TrafficWriter
 from services.report import build_report
 from services.report.markdown import render
 from services.runtime.faults import FaultEvent
-from services.runtime.launcher import LAUNCH_ENV, load_launch_env, process_environ, save_launch_env
 from services.runtime.run_folder import RunInfo, write_run_info
 
 

@@ -13,7 +13,7 @@ import sys
 
 import zenoh
 
-from services.runtime.launcher import open_client
+from services.runtime.session import open_client
 from tests.fuzz.strategies import AGENTS, flood
 
 

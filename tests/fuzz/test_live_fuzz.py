@@ -16,11 +16,12 @@ import msgspec
 import pytest
 import zenoh
 
+from services.fleet.launcher import AGENT_ORDER, Fleet, free_port
 from services.human_interface.messages import FINAL_REPORTS, HumanInput, HumanReport
 from services.monitor import is_world_update
 from services.runtime import keys
 from services.runtime.counters import ask_counters
-from services.runtime.launcher import AGENT_ORDER, Fleet, alive_agents, free_port, open_client
+from services.runtime.session import alive_agents, open_client
 
 pytestmark = pytest.mark.slow
 PER_AGENT = 10_000

@@ -10,7 +10,7 @@ from pathlib import Path
 
 import pytest
 
-from services.runtime.launcher import free_port
+from services.fleet.launcher import free_port
 
 pytestmark = pytest.mark.slow
 

@@ -51,7 +51,7 @@ def test_an_urgent_command_preempts_the_pour_which_resumes(tmp_path: Path) -> No
     # the cup's plan ran between the preemption and the pour's end, and the pour finished
     assert report.content.observed and report.content.share is not None and report.content.share >= 0.9
     assert "## 7. Commands and coordination" in (run_dir / "report.md").read_text()
-    from services.spec.conformance import verify_report
+    from services.spec_check.conformance import verify_report
 
     conforms, text = verify_report(run_dir)
     assert conforms, text  # cancel, Terminating, Preempted all within the coordinate protocol

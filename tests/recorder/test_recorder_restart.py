@@ -15,10 +15,11 @@ from pathlib import Path
 
 import pytest
 
+from services.fleet.launcher import Fleet, free_port
 from services.recorder.record import read_records
 from services.report.load import load_run
 from services.runtime import keys
-from services.runtime.launcher import Fleet, free_port, open_client
+from services.runtime.session import open_client
 from services.runtime.transport import ZenohTransport
 from shared.fipa_codec import Performative, encode
 from tests.runtime.test_router_restart import kill_router, wait_for

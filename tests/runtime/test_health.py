@@ -12,9 +12,10 @@ from pathlib import Path
 import pytest
 import zenoh
 
+from services.fleet.launcher import Fleet, free_port
 from services.runtime import keys
 from services.runtime.health import check, endpoint_address, main
-from services.runtime.launcher import Fleet, free_port, open_client
+from services.runtime.session import open_client
 
 
 @pytest.fixture(scope="module")

@@ -22,8 +22,9 @@ from pathlib import Path
 import pytest
 import zenoh
 
+from services.fleet.launcher import Fleet, free_port
 from services.runtime import keys
-from services.runtime.launcher import Fleet, alive_agents, free_port
+from services.runtime.session import alive_agents
 from services.runtime.transport import CONNECT_RETRY, ZenohTransport, client_config
 from shared.fipa_codec import AgentIdentifier, Communicate, Performative, decode, encode
 from shared.fipa_codec.languages import decode_content, encode_content

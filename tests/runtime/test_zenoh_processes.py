@@ -12,8 +12,9 @@ from pathlib import Path
 import pytest
 import zenoh
 
+from services.fleet.launcher import Fleet, free_port
 from services.runtime import keys
-from services.runtime.launcher import Fleet, alive_agents, free_port, open_client
+from services.runtime.session import alive_agents, open_client
 from shared.fipa_codec import AgentIdentifier, Communicate, Performative, decode, encode
 from shared.fipa_codec.languages import decode_content, encode_content
 from shared.fipa_codec.languages.l_wm import Answer, ObjectQuery

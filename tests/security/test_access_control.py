@@ -21,8 +21,9 @@ from pathlib import Path
 import pytest
 import zenoh
 
+from services.fleet.launcher import Fleet, free_port
 from services.runtime import keys
-from services.runtime.launcher import Fleet, alive_agents, free_port, open_client
+from services.runtime.session import alive_agents, open_client
 from services.security import certs
 from services.security.context import register
 
@@ -262,7 +263,7 @@ def test_operator_cannot_speak_fipa(router: Fleet) -> None:
 
 
 def test_a_revoked_identity_is_refused_after_the_router_restarts(tmp_path: Path) -> None:
-    from services.security.deploy import revoke_identity
+    from services.deploy.deploy import revoke_identity
     from services.spec.model import DEFAULT_SPEC, load
 
     (tmp_path / "logs").mkdir()

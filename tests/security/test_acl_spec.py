@@ -1,4 +1,4 @@
-"""The router's access control derived from the specification (services/spec/acl.py), checked
+"""The router's access control derived from the specification (services/spec_check/acl.py), checked
 against the specification itself: every channel, both directions, every agent."""
 
 from __future__ import annotations
@@ -8,7 +8,8 @@ import itertools
 import pytest
 
 from services.runtime import keys
-from services.spec.acl import (
+from services.spec.model import DEFAULT_SPEC, SystemSpec, load
+from services.spec_check.acl import (
     AGENT_EXTRAS,
     OPERATOR,
     RECORDER,
@@ -22,7 +23,6 @@ from services.spec.acl import (
     operator_grants,
     recorder_grants,
 )
-from services.spec.model import DEFAULT_SPEC, SystemSpec, load
 
 
 @pytest.fixture(scope="module")

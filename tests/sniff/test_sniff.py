@@ -15,8 +15,9 @@ import msgspec
 import pytest
 import zenoh
 
+from services.fleet.launcher import Fleet, free_port
 from services.runtime import keys
-from services.runtime.launcher import Fleet, free_port, open_client
+from services.runtime.session import open_client
 from services.sniff import Filters, parse_filters, render, sniff
 from shared.fipa_codec import Communicate, Performative, encode
 from shared.fipa_codec.aid import aid

@@ -1,4 +1,4 @@
-"""Deadlock analysis of a specification (paper §4 step 3; services/spec/deadlock.py)."""
+"""Deadlock analysis of a specification (paper §4 step 3; services/spec_check/deadlock.py)."""
 
 from __future__ import annotations
 
@@ -8,7 +8,9 @@ from pathlib import Path
 
 import pytest
 
-from services.spec.deadlock import (
+from services.spec.model import DEFAULT_SPEC, SpecError
+from services.spec.protocol_defs import protocols_of
+from services.spec_check.deadlock import (
     GlobalState,
     Message,
     Step,
@@ -21,8 +23,6 @@ from services.spec.deadlock import (
     wait_cycles,
     wait_edges,
 )
-from services.spec.model import DEFAULT_SPEC, SpecError
-from services.spec.protocol_defs import protocols_of
 from shared.fipa_codec.protocols import INITIATOR as I_
 from shared.fipa_codec.protocols import PARTICIPANT as P_
 from shared.fipa_codec.protocols import PROTOCOLS, ConversationTracker

@@ -155,7 +155,7 @@ def test_roco_spec_check_exits_1_on_a_broken_spec(tmp_path: Path) -> None:
 
 
 def test_verify_code_passes_on_the_shipped_agents() -> None:
-    from services.spec.code_check import verify_code_report
+    from services.spec_check.code_check import verify_code_report
 
     ok, text = verify_code_report(DEFAULT_SPEC)
     assert ok, text
@@ -163,7 +163,7 @@ def test_verify_code_passes_on_the_shipped_agents() -> None:
 
 
 def test_verify_code_names_a_missing_handler_and_a_forbidden_send(tmp_path: Path) -> None:
-    from services.spec.code_check import verify_code_report
+    from services.spec_check.code_check import verify_code_report
 
     path = tmp_path / "spec.toml"
     old = 'implementation = "services.planner.agent:Planner"'
@@ -179,7 +179,7 @@ def test_verify_code_names_a_missing_handler_and_a_forbidden_send(tmp_path: Path
 
 
 def test_verify_code_reports_an_implementation_that_does_not_exist(tmp_path: Path) -> None:
-    from services.spec.code_check import verify_code_report
+    from services.spec_check.code_check import verify_code_report
 
     path = tmp_path / "spec.toml"
     path.write_text(SHIPPED.replace("services.planner.agent:Planner", "services.nowhere.agent:Planner"))

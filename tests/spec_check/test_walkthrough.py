@@ -8,8 +8,8 @@ import re
 from pathlib import Path
 
 from services.spec.check import check_report
-from services.spec.code_check import verify_code_report
 from services.spec.model import DEFAULT_SPEC
+from services.spec_check.code_check import verify_code_report
 
 DOC = Path(__file__).resolve().parents[2] / "docs" / "spec.md"
 

@@ -13,8 +13,8 @@ import pytest
 from services.recorder.record import TRAFFIC_RAW
 from services.recorder.recorder import TrafficWriter
 from services.runtime import keys
-from services.spec.conformance import ConformanceReport, render, verify_report, verify_run
 from services.spec.model import default_spec
+from services.spec_check.conformance import ConformanceReport, render, verify_report, verify_run
 from shared.fipa_codec import Communicate, Performative, encode
 from shared.fipa_codec.languages import encode_content
 from shared.fipa_codec.languages.l_hc import (

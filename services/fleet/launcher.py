@@ -30,8 +30,7 @@ from pathlib import Path
 
 import zenoh
 
-from services.runtime import keys
-from services.runtime.transport import client_config
+from services.runtime.session import alive_agents
 from services.security.context import ENV_SECURITY, acl_on, register, tls_on
 
 AGENT_ORDER = ("a_km", "a_pl", "a_co", "ag_ex", "a_ta", "a_hi")
@@ -78,7 +77,7 @@ class Fleet:
             if self.endpoint.startswith("tcp/"):
                 self.endpoint = "tls/" + self.endpoint.removeprefix("tcp/")
         if self.acl:
-            from services.security.deploy import ensure
+            from services.deploy.deploy import ensure
             from services.spec.model import DEFAULT_SPEC, load
 
             spec_file = self.env.get("ROCO_SPEC") or os.environ.get("ROCO_SPEC") or str(DEFAULT_SPEC)
@@ -244,21 +243,3 @@ def _wait(proc: subprocess.Popen[bytes], timeout: float) -> None:
     except subprocess.TimeoutExpired:
         proc.kill()
         proc.wait()
-
-
-def open_client(
-    endpoint: str, *, wait_for_router: bool = False, identity: str | None = None
-) -> zenoh.Session:
-    """A Zenoh client session for tools (CLI, tests), authenticated as ``identity`` (default
-    ``operator``) when the fleet at ``endpoint`` has access control. Raises zenoh.ZError when
-    no router answers (or it refuses the credentials)."""
-    return zenoh.open(client_config([endpoint], wait_for_router=wait_for_router, identity=identity))
-
-
-def alive_agents(session: zenoh.Session, timeout: float = 1.0) -> set[str]:
-    """Names with a liveliness token under ``roco/alive/*`` (the white pages)."""
-    names = set()
-    for reply in session.liveliness().get(keys.ALIVE_ALL, timeout=timeout):
-        if reply.ok is not None:
-            names.add(str(reply.ok.key_expr).rsplit("/", 1)[-1])
-    return names

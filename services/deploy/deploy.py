@@ -1,7 +1,7 @@
 """A deployment's credentials and access control in one folder (docs/security.md).
 
 :func:`prepare` issues everything a fleet needs (services/security/certs.py) for the identities
-of the specification (services/spec/acl.py) and writes the router's ``acl.json``;
+of the specification (services/spec_check/acl.py) and writes the router's ``acl.json``;
 :func:`revoke_identity` takes one identity out (password, credentials, ACL subject).
 """
 
@@ -12,8 +12,8 @@ import os
 from pathlib import Path
 
 from services.security import certs
-from services.spec.acl import acl_config, identities
 from services.spec.model import SystemSpec
+from services.spec_check.acl import acl_config, identities
 
 
 def write_acl(out: Path, spec: SystemSpec, *, tls: bool) -> None:

@@ -49,8 +49,8 @@ def certs(
     spec: SpecFile = None,
 ) -> None:
     """Issue a deployment's credentials: CA, router certificate, identities, passwords, ACL."""
+    from services.deploy.deploy import prepare
     from services.security.certs import ACL_FILE, identities
-    from services.security.deploy import prepare
 
     if keep and (out / ACL_FILE).is_file():
         typer.echo(f"roco: kept the credentials in {out} ({', '.join(identities(out))})")
@@ -67,8 +67,8 @@ def issue(
     spec: SpecFile = None,
 ) -> None:
     """(Re-)issue one identity: new key, certificate and password; the ACL is rewritten."""
+    from services.deploy.deploy import issue_identity
     from services.security.certs import CredentialError
-    from services.security.deploy import issue_identity
 
     try:
         ident = issue_identity(out, _spec(spec), name, days)
@@ -85,7 +85,7 @@ def revoke(
     spec: SpecFile = None,
 ) -> None:
     """Take an identity out: its password, credentials and ACL subject (restart the router)."""
-    from services.security.deploy import revoke_identity
+    from services.deploy.deploy import revoke_identity
 
     if not revoke_identity(out, _spec(spec), name):
         typer.echo(f"roco: no identity {name!r} in {out}", err=True)
@@ -99,7 +99,7 @@ def acl(
     spec: SpecFile = None,
 ) -> None:
     """Print the router's access_control section the specification gives (JSON)."""
-    from services.spec.acl import acl_config
+    from services.spec_check.acl import acl_config
 
     typer.echo(json.dumps(acl_config(_spec(spec), tls=tls), indent=1))
 
@@ -110,6 +110,6 @@ def table(
     spec: SpecFile = None,
 ) -> None:
     """Print who may send what where (Markdown; docs/security.md)."""
-    from services.spec.acl import channel_table, markdown_table
+    from services.spec_check.acl import channel_table, markdown_table
 
     typer.echo((markdown_table if full else channel_table)(_spec(spec)), nl=False)

@@ -20,7 +20,7 @@ Every conversation (one conversation-id between two agents) follows its interact
 protocol's state machine (FIPA SC00026 fipa-request, SC00027 fipa-query, SC00035
 fipa-subscribe, the paper's coordinate protocol), message by message in causal order
 (arrival order, with an answer that arrived before what it answers moved after it:
-:mod:`services.spec.causal`), as
+:mod:`services.spec_check.causal`), as
 :class:`~services.runtime.conversations.CrossingTracker` follows it: communicates of the two
 agents that crossed on the wire are tolerated, as are the cancel meta-protocol's late
 cancels; an opening communicate that reuses a conversation-id begins it anew; a
@@ -48,7 +48,6 @@ from services.runtime.conversations import (
     expected_ontology,
     follow,
 )
-from services.spec.causal import causal_order
 from services.spec.model import (
     DEFAULT_SPEC,
     NOT_UNDERSTOOD,
@@ -59,6 +58,7 @@ from services.spec.model import (
     interface,
     load,
 )
+from services.spec_check.causal import causal_order
 from shared.fipa_codec import Performative
 from shared.fipa_codec.languages import ContentError, decode_content
 from shared.fipa_codec.protocols import (

@@ -1,0 +1,86 @@
+"""What a process may be given to report to a viewer, without importing it (design.md: an
+agent receives tool hooks by injection, never imports a tool).
+
+The runtime knows only these protocols. The implementation is a plug-in named by a string, as
+the specification names each agent's implementation: ``ROCO_HOOKS`` (``module:attribute`` of
+a :class:`Hooks`), by default :data:`DEFAULT_HOOKS` (Rerun, services/viewer/hooks.py) when
+``ROCO_RERUN`` is ``1``; with neither, a process gets no hooks and imports nothing for them.
+:class:`~services.runtime.agent.Agent` loads them once (``Agent.hooks``); the traffic recorder
+calls :func:`load_hooks` itself.
+
+Every method of a sink must return quickly and never raise: a viewer is never a reason to
+lose traffic, to stop the robot or to stop coordinating.
+"""
+
+from __future__ import annotations
+
+import importlib
+import logging
+import os
+from pathlib import Path
+from typing import Any, Protocol
+
+ENV_HOOKS = "ROCO_HOOKS"
+ENV_RERUN = "ROCO_RERUN"  # services/viewer/__init__.py ENV_ON: "1" records the run in Rerun
+DEFAULT_HOOKS = "services.viewer.hooks:HOOKS"
+log = logging.getLogger(__name__)
+
+
+class QueueSink(Protocol):
+    """a_co's side: its command queue (an L_HC ``Status``), logged when it changed."""
+
+    def queue(self, status: Any) -> None: ...
+    def close(self) -> None: ...
+
+
+class RobotSink(Protocol):
+    """ag_ex's side: robot snapshots (``velma.executor.state.RobotSnapshot``), observations
+    (L_SD ``Observation``) and the head camera, which reads the executor's whole simulation
+    state from ``source``."""
+
+    def start_camera(self, source: Any, *, seed: int = 0, pose_seed: int | None = None) -> None: ...
+    def stop_camera(self, timeout: float = 10.0) -> None: ...
+    def snapshot(self, snap: Any) -> None: ...
+    def observation(self, obs: Any) -> None: ...
+    def close(self) -> None: ...
+
+
+class TrafficSink(Protocol):
+    """The traffic recorder's side: one call per communicate written (its record, with the
+    fields of ``services.recorder.record.TrafficRecord``, and its bytes); ``finish`` closes the
+    recording when the recorder stops."""
+
+    def communicate(self, record: Any, payload: bytes) -> None: ...
+    def finish(self) -> Path | None: ...
+
+
+class Hooks(Protocol):
+    """A provider of sinks; each returns None when it has nothing to log to."""
+
+    def traffic(self, process: str, run_dir: Path | None = None) -> TrafficSink | None: ...
+    def robot(self, process: str) -> RobotSink | None: ...
+    def queue(self, process: str) -> QueueSink | None: ...
+    def camera_wanted(self) -> bool: ...
+
+
+def hooks_name() -> str | None:
+    """The ``module:attribute`` of the hooks this process is to load, or None."""
+    named = os.environ.get(ENV_HOOKS, "").strip()
+    if named:
+        return named
+    return DEFAULT_HOOKS if os.environ.get(ENV_RERUN, "0") == "1" else None
+
+
+def load_hooks() -> Hooks | None:
+    """The hooks :func:`hooks_name` names, or None when none are named or they cannot be
+    loaded (logged once: the process goes on without them)."""
+    named = hooks_name()
+    if named is None:
+        return None
+    module, _, attribute = named.partition(":")
+    try:
+        found: Hooks = getattr(importlib.import_module(module), attribute)
+    except (ImportError, AttributeError) as exc:
+        log.error("%s=%s cannot be loaded (%s); going on without a viewer", ENV_HOOKS, named, exc)
+        return None
+    return found

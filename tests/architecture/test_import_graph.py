@@ -1,0 +1,140 @@
+"""The import graph among roco's packages (issue 17, design.md "Rules": an arrow only points down;
+no package imports another package that imports it back).
+
+A package is a folder directly under ``shared/``, ``services/`` or ``velma/`` (or a module
+there: ``services/cli.py``). Every ``import`` of roco code counts, also those inside functions
+and under ``TYPE_CHECKING``.
+"""
+
+from __future__ import annotations
+
+import ast
+from collections import defaultdict
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[2]
+TOPS = ("shared", "services", "velma")
+AGENTS = ("coordinator", "human_interface", "planner", "knowledge", "task_executor", "executor")
+
+LAYERS = {
+    "shared.fipa_codec": set(),
+    "services.spec": {"shared.fipa_codec"},
+    "services.security": set(),
+    "services.runtime": {"shared.fipa_codec", "services.spec", "services.security"},
+}
+"""The bottom layers and everything each may import (design.md layers 1–3: the codec, the
+specification's data model, the credentials' format, the agent runtime)."""
+TOOLS = (
+    "services.spec_check",
+    "services.fleet",
+    "services.deploy",
+    "services.recorder",
+    "services.report",
+    "services.viewer",
+    "services.fault",
+    "services.scenario",
+    "services.bench",
+    "services.sniff",
+    "services.cli",
+)
+
+
+def package_of(module: str) -> str | None:
+    """``services.runtime.agent`` → ``services.runtime``; None outside roco."""
+    parts = module.split(".")
+    if parts[0] not in TOPS or len(parts) < 2:
+        return None
+    return ".".join(parts[:2])
+
+
+def import_graph() -> dict[str, set[str]]:
+    """Package → the other roco packages its modules import."""
+    edges: dict[str, set[str]] = defaultdict(set)
+    for top in TOPS:
+        for path in (ROOT / top).rglob("*.py"):
+            module = ".".join(path.relative_to(ROOT).with_suffix("").parts)
+            source = package_of(module.removesuffix(".__init__"))
+            if source is None:
+                continue
+            edges[source]
+            for node in ast.walk(ast.parse(path.read_text(), str(path))):
+                names = []
+                if isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
+                    names = [node.module]
+                elif isinstance(node, ast.Import):
+                    names = [a.name for a in node.names]
+                for name in names:
+                    target = package_of(name)
+                    if target is not None and target != source:
+                        edges[source].add(target)
+    return edges
+
+
+def cycles(edges: dict[str, set[str]]) -> set[frozenset[str]]:
+    """The strongly connected components of more than one package (Tarjan)."""
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    found: set[frozenset[str]] = set()
+
+    def visit(v: str) -> None:
+        index[v] = low[v] = len(index)
+        stack.append(v)
+        for w in edges.get(v, ()):
+            if w not in index:
+                visit(w)
+                low[v] = min(low[v], low[w])
+            elif w in stack:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            component = set()
+            while True:
+                w = stack.pop()
+                component.add(w)
+                if w == v:
+                    break
+            if len(component) > 1:
+                found.add(frozenset(component))
+
+    for v in list(edges):
+        if v not in index:
+            visit(v)
+    return found
+
+
+def test_the_package_graph_has_no_cycle() -> None:
+    assert cycles(import_graph()) == set()
+
+
+def test_the_bottom_layers_import_only_what_is_below_them() -> None:
+    graph = import_graph()
+    for package, allowed in LAYERS.items():
+        assert graph[package] <= allowed, (package, graph[package] - allowed)
+
+
+def test_neither_the_runtime_nor_an_agent_imports_a_tool() -> None:
+    graph = import_graph()
+    for package in ("services.runtime", *(f"services.{a}" for a in AGENTS)):
+        assert not graph[package] & set(TOOLS), (package, graph[package] & set(TOOLS))
+
+
+def test_the_cycle_finder_finds_a_cycle() -> None:
+    assert cycles({"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}) == {frozenset("abc")}
+    assert cycles({"a": {"b"}, "b": set()}) == set()
+
+
+def test_agents_receive_the_viewer_and_do_not_import_it() -> None:
+    graph = import_graph()
+    for agent in AGENTS:
+        assert "services.viewer" not in graph[f"services.{agent}"], agent
+    # the recorder and the viewer do not import each other
+    assert "services.viewer" not in graph["services.recorder"]
+    assert "services.recorder" not in graph["services.viewer"]
+
+
+def test_the_codec_and_the_robot_import_nothing_above_them() -> None:
+    graph = import_graph()
+    assert graph["shared.fipa_codec"] <= set()
+    for package, imports in graph.items():
+        if package.startswith("velma."):
+            assert all(p.startswith(("velma.", "shared.")) for p in imports), (package, imports)
