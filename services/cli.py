@@ -25,11 +25,11 @@ from typing import Annotated
 import msgspec
 import typer
 
+from services.agents.human_interface.messages import FINAL_REPORTS, HumanInput, HumanReport, ReportKind
 from services.deploy.cli import deploy_app
 from services.fault.cli import fault_app
 from services.fault.process import record_events
 from services.fleet.launcher import AGENT_ORDER, Fleet, LaunchError
-from services.human_interface.messages import FINAL_REPORTS, HumanInput, HumanReport, ReportKind
 from services.runtime import keys
 from services.runtime.run_folder import RunInfo, new_run_dir, write_run_info
 from services.runtime.session import alive_agents, open_client
@@ -280,7 +280,7 @@ def _run_scenario(
 
 
 def _scene_env(realtime: bool, seed: int, pose_seed: int | None) -> dict[str, str]:
-    """The environment that tells ag_ex its pacing and scene (services/executor/agent.py)."""
+    """The environment that tells ag_ex its pacing and scene (services/agents/executor/agent.py)."""
     env = {"ROCO_REALTIME": "1" if realtime else "0", "ROCO_SEED": str(seed)}
     if pose_seed is not None:
         env["ROCO_POSE_SEED"] = str(pose_seed)
@@ -475,7 +475,7 @@ def send(
 def _success_kind(sentence: str) -> ReportKind:
     """The final report kind that means "done as asked" for ``sentence``: ``stopped`` for a
     stop request, ``status`` for a status request, ``succeeded`` for a command."""
-    from services.human_interface.language import NotUnderstood, StatusRequest, Stop, interpret
+    from services.agents.human_interface.language import NotUnderstood, StatusRequest, Stop, interpret
 
     try:
         intent = interpret(sentence)

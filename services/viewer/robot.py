@@ -48,7 +48,7 @@ from typing import NamedTuple
 import numpy as np
 import rerun as rr
 
-from services.planner import geometry
+from services.agents.planner import geometry
 from services.viewer.recording import Recording
 from shared.fipa_codec.languages.common import Pose
 from shared.fipa_codec.languages.l_sd import Observation

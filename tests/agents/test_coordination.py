@@ -13,7 +13,7 @@ from typing import Any
 
 import msgspec
 
-from services.human_interface.messages import FINAL_REPORTS, HumanInput, HumanReport, ReportKind
+from services.agents.human_interface.messages import FINAL_REPORTS, HumanInput, HumanReport, ReportKind
 from services.runtime import keys
 from shared.fipa_codec import Performative, decode
 from shared.fipa_codec.languages import decode_content

@@ -39,8 +39,8 @@ from typing import Any
 import numpy as np
 import pinocchio as pin
 
-from services.planner import geometry as geo
-from services.planner.knowledge import ARMS, Knowledge
+from services.agents.planner import geometry as geo
+from services.agents.planner.knowledge import ARMS, Knowledge
 from shared.fipa_codec.languages.common import Pose, Vec3
 from shared.fipa_codec.languages.l_wm import GraspAffordance
 

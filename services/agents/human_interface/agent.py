@@ -32,7 +32,7 @@ from dataclasses import dataclass, field
 
 import msgspec
 
-from services.human_interface.language import (
+from services.agents.human_interface.language import (
     Command,
     NotUnderstood,
     StatusRequest,
@@ -40,7 +40,7 @@ from services.human_interface.language import (
     describe,
     interpret,
 )
-from services.human_interface.messages import HumanInput, HumanReport, ReportKind
+from services.agents.human_interface.messages import HumanInput, HumanReport, ReportKind
 from services.runtime import keys
 from services.runtime.agent import Agent, Received
 from services.runtime.behaviour import FSM, Behaviour
