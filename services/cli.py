@@ -25,12 +25,12 @@ from typing import Annotated
 import msgspec
 import typer
 
-from services.agents.human_interface.messages import FINAL_REPORTS, HumanInput, HumanReport, ReportKind
 from services.deploy.cli import deploy_app
 from services.fault.cli import fault_app
 from services.fault.process import record_events
 from services.fleet.launcher import AGENT_ORDER, Fleet, LaunchError
 from services.runtime import keys
+from services.runtime.human import FINAL_REPORTS, HumanInput, HumanReport
 from services.runtime.run_folder import RunInfo, new_run_dir, write_run_info
 from services.runtime.session import alive_agents, open_client
 from services.security.context import register
@@ -465,27 +465,11 @@ def send(
                 continue
             typer.echo(f"{report.kind.value}: {report.text}")
             if report.kind in FINAL_REPORTS:
-                if report.kind is not _success_kind(command):
+                if not report.done_as_asked:
                     raise typer.Exit(1)
                 return
     finally:
         session.close()
-
-
-def _success_kind(sentence: str) -> ReportKind:
-    """The final report kind that means "done as asked" for ``sentence``: ``stopped`` for a
-    stop request, ``status`` for a status request, ``succeeded`` for a command."""
-    from services.agents.human_interface.language import NotUnderstood, StatusRequest, Stop, interpret
-
-    try:
-        intent = interpret(sentence)
-    except NotUnderstood:
-        return ReportKind.SUCCEEDED
-    if isinstance(intent, Stop):
-        return ReportKind.STOPPED
-    if isinstance(intent, StatusRequest):
-        return ReportKind.STATUS
-    return ReportKind.SUCCEEDED
 
 
 @app.command()

@@ -20,10 +20,10 @@ from pathlib import Path
 import msgspec
 import zenoh
 
-from services.agents.human_interface.messages import FINAL_REPORTS, HumanInput, HumanReport
 from services.fleet.launcher import AGENT_ORDER, Fleet, LaunchError, free_port
 from services.runtime import keys
 from services.runtime.counters import ask_counters, save_counters
+from services.runtime.human import FINAL_REPORTS, HumanInput, HumanReport
 from services.runtime.run_folder import RunInfo, write_run_info
 from services.runtime.session import open_client
 from services.scenario.model import Fault, Scenario, Step

@@ -141,7 +141,7 @@ def test_a_co_logs_its_queue_through_a_preemption(run_dir: Path) -> None:
     """The pour is preempted by an urgent command (as in tests/agents/test_coordination.py):
     a_co's part shows both commands queued, the pour preempted while the cup runs, then
     nothing."""
-    from services.agents.human_interface.messages import ReportKind
+    from services.runtime.human import ReportKind
     from tests.agents.test_coordination import GatedExecutor, Session, interrupt_pour, is_cancel_to_ta
     from tests.agents.test_coordination import turning_to_pour as gate
 
