@@ -1,4 +1,4 @@
-"""Benchmark of a_km's knowledge base (services/knowledge/world_model.py): answer times of the
+"""Benchmark of a_km's knowledge base (services/agents/knowledge/world_model.py): answer times of the
 L_WM queries, update times, and the whole query set of a plan, on the on-disk Oxigraph store
 and in memory.
 
@@ -37,7 +37,7 @@ import benchlib  # scripts/benchlib.py, beside this file
 import msgspec
 from rdflib import Graph
 
-from services.knowledge.world_model import ROCO, Query, WorldModel
+from services.agents.knowledge.world_model import ROCO, Query, WorldModel
 from shared.fipa_codec.languages.common import Pose
 from shared.fipa_codec.languages.l_wm import (
     GraspQuery,

@@ -29,8 +29,8 @@ from services.deploy.cli import deploy_app
 from services.fault.cli import fault_app
 from services.fault.process import record_events
 from services.fleet.launcher import AGENT_ORDER, Fleet, LaunchError
-from services.human_interface.messages import FINAL_REPORTS, HumanInput, HumanReport, ReportKind
 from services.runtime import keys
+from services.runtime.human import FINAL_REPORTS, HumanInput, HumanReport
 from services.runtime.run_folder import RunInfo, new_run_dir, write_run_info
 from services.runtime.session import alive_agents, open_client
 from services.security.context import register
@@ -280,7 +280,7 @@ def _run_scenario(
 
 
 def _scene_env(realtime: bool, seed: int, pose_seed: int | None) -> dict[str, str]:
-    """The environment that tells ag_ex its pacing and scene (services/executor/agent.py)."""
+    """The environment that tells ag_ex its pacing and scene (services/agents/executor/agent.py)."""
     env = {"ROCO_REALTIME": "1" if realtime else "0", "ROCO_SEED": str(seed)}
     if pose_seed is not None:
         env["ROCO_POSE_SEED"] = str(pose_seed)
@@ -465,27 +465,11 @@ def send(
                 continue
             typer.echo(f"{report.kind.value}: {report.text}")
             if report.kind in FINAL_REPORTS:
-                if report.kind is not _success_kind(command):
+                if not report.done_as_asked:
                     raise typer.Exit(1)
                 return
     finally:
         session.close()
-
-
-def _success_kind(sentence: str) -> ReportKind:
-    """The final report kind that means "done as asked" for ``sentence``: ``stopped`` for a
-    stop request, ``status`` for a status request, ``succeeded`` for a command."""
-    from services.human_interface.language import NotUnderstood, StatusRequest, Stop, interpret
-
-    try:
-        intent = interpret(sentence)
-    except NotUnderstood:
-        return ReportKind.SUCCEEDED
-    if isinstance(intent, Stop):
-        return ReportKind.STOPPED
-    if isinstance(intent, StatusRequest):
-        return ReportKind.STATUS
-    return ReportKind.SUCCEEDED
 
 
 @app.command()

@@ -4,8 +4,8 @@ jar down upright on the table, fetches the cup from the cabinet and puts it on t
 grasps the jar again and pours; and she can put the bowl (and the jar) back in the cabinet.
 
 The commands are computed from observed object positions by the same rules as the planner
-(services/planner/domain.py ``m_fetch`` / ``m_place``), so the constants below are what the
-kitchen knowledge (services/knowledge/kitchen.ttl) must say for the planner to produce the
+(services/agents/planner/domain.py ``m_fetch`` / ``m_place``), so the constants below are what the
+kitchen knowledge (services/agents/knowledge/kitchen.ttl) must say for the planner to produce the
 same motions:
 
 - a grasp affordance (``Grasp``) gives the grip pose in the object frame (bottom centre, world

@@ -104,7 +104,7 @@ def knowledge(quick: bool) -> tuple[list[QueryRow], str]:
     L_WM) from a session playing a_pl to a real a_km process through a router, timed from the
     put to the ``inform-ref``'s arrival. Returns rows and the store description."""
     km = scripts_module("bench_km")
-    from services.knowledge.world_model import WorldModel
+    from services.agents.knowledge.world_model import WorldModel
     from shared.fipa_codec.languages.l_wm import (
         GraspQuery,
         ObjectQuery,

@@ -32,9 +32,11 @@ import zenoh
 
 from services.runtime.session import alive_agents
 from services.security.context import ENV_SECURITY, acl_on, register, tls_on
+from services.spec.model import default_spec
 
-AGENT_ORDER = ("a_km", "a_pl", "a_co", "ag_ex", "a_ta", "a_hi")
-"""Start order: servers before their clients, a_hi last (it accepts the human's command)."""
+AGENT_ORDER = default_spec().launch_order
+"""The order the agents are started in: the specification's ``start_order`` (servers before
+their clients, a_hi last: it accepts the human's command)."""
 
 
 LAUNCH_ENV = "launch_env.json"

@@ -19,7 +19,7 @@ from services.report.timeline import command_text, find_command, find_outcome, t
 from shared.fipa_codec.languages.l_hc import CommandOutcome
 from velma.executor.timing import TimingStats
 
-TIMING_JSON = "ag_ex_timing.json"  # written by services/executor/agent.py
+TIMING_JSON = "ag_ex_timing.json"  # written by services/agents/executor/agent.py
 
 REPORT_MD = "report.md"
 

@@ -5,7 +5,7 @@
 ``roco/human/in`` / ``roco/human/out``       a_hi's receptor and effector: text from/to a person
 ``roco/state/<agent>``                       state snapshots (executor, for viewers)
 ``roco/sim/disturb``                         the simulated world's disturbances (a person moves an
-                                             object): JSON :class:`services.executor.agent.Disturbance`
+                                             object): JSON :class:`services.agents.executor.agent.Disturbance`
 ``roco/counters/ask``                        any put here makes every agent publish its counters
 ``roco/counters/report/<agent>``             an agent's counters (JSON, ``Agent.counters_report``)
 """

@@ -38,6 +38,7 @@ from services.recorder.integrity import Integrity
 from services.report.load import load_run
 from services.scenario.model import AGENTS, FAULT_KINDS, MOVABLE, Fault, Scenario, Step, Trigger
 from services.scenario.runner import FaultRecord, ScenarioOutcome
+from services.spec.model import default_spec
 from shared.fipa_codec.languages.l_sd import Observation
 
 DEFAULT_COMMAND = "pour the jar into the bowl"
@@ -47,7 +48,8 @@ CHAOS_FILE = "chaos.md"
 FINAL_CHECKPOINT = "ag_ex_state/world.ckpt"
 """ag_ex's checkpoint in a run folder (velma/executor/checkpoint.py: written when its loop ends)."""
 log = logging.getLogger(__name__)
-SERVICE_ORDER = ("a_hi", "a_co", "a_pl", "a_km", "a_ta", "ag_ex")
+SERVICE_ORDER = default_spec().agent_names
+"""Every agent, in the specification's order (the order a seed shuffles)."""
 INFRASTRUCTURE = ("recorder", "router")
 ALL = "all"
 """As a service list: every agent, the traffic recorder and the router."""

@@ -33,10 +33,12 @@ from pathlib import Path
 
 import msgspec
 
+from services.spec.model import default_spec
+
 LIBRARY = Path(__file__).parent / "library"
 """The scenarios shipped with roco (``roco scenario --list``)."""
 FINAL_KINDS = frozenset({"succeeded", "failed", "stopped", "not-understood"})
-AGENTS = frozenset({"a_hi", "a_co", "a_pl", "a_km", "a_ta", "ag_ex"})
+AGENTS = frozenset(default_spec().agent_names)
 SERVICES = AGENTS | {"recorder", "router"}
 """What a ``fault`` step can hit: the agents, the traffic recorder and the Zenoh router."""
 FAULT_KINDS = frozenset({"kill", "pause", "restart"})

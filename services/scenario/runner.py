@@ -21,9 +21,9 @@ import msgspec
 import zenoh
 
 from services.fleet.launcher import AGENT_ORDER, Fleet, LaunchError, free_port
-from services.human_interface.messages import FINAL_REPORTS, HumanInput, HumanReport
 from services.runtime import keys
 from services.runtime.counters import ask_counters, save_counters
+from services.runtime.human import FINAL_REPORTS, HumanInput, HumanReport
 from services.runtime.run_folder import RunInfo, write_run_info
 from services.runtime.session import open_client
 from services.scenario.model import Fault, Scenario, Step

@@ -87,6 +87,18 @@ class SystemSpec(msgspec.Struct, frozen=True, forbid_unknown_fields=True):
     channels: tuple[ChannelSpec, ...]
     requirements: tuple[dict[str, str], ...] = ()
     steps: tuple[dict[str, object], ...] = ()
+    start_order: tuple[str, ...] = ()
+    """The order a launcher starts the agents in (every agent once); empty: file order."""
+
+    @property
+    def agent_names(self) -> tuple[str, ...]:
+        """The agents' names, in file order."""
+        return tuple(a.name for a in self.agents)
+
+    @property
+    def launch_order(self) -> tuple[str, ...]:
+        """The order a launcher starts the agents in: ``start_order``, else file order."""
+        return self.start_order or self.agent_names
 
 
 @dataclass(frozen=True)
@@ -157,6 +169,8 @@ def load(path: Path = DEFAULT_SPEC) -> SystemSpec:
     except (msgspec.DecodeError, msgspec.ValidationError) as exc:
         raise SpecError(f"{path}: {one_line(exc)}") from None
     names = {a.name for a in spec.agents}
+    if spec.start_order and sorted(spec.start_order) != sorted(names):
+        raise SpecError(f"{path}: start_order must name every agent once, not {list(spec.start_order)}")
     for ch in spec.channels:
         for end in ch.ends:
             if end not in names:

@@ -94,8 +94,8 @@ AGENT_EXTRAS: dict[str, Extras] = {
     "a_hi": Extras(hears=(keys.HUMAN_IN,), says=(keys.HUMAN_OUT,)),
     "ag_ex": Extras(hears=(keys.SIM_DISTURB,), says=(keys.state_key("ag_ex"),)),
 }
-"""Receptors and effectors outside the FIPA channels, by agent (services/human_interface/agent.py,
-services/executor/agent.py). An agent not named here has none."""
+"""Receptors and effectors outside the FIPA channels, by agent (services/agents/human_interface/agent.py,
+services/agents/executor/agent.py). An agent not named here has none."""
 
 
 @dataclass

@@ -3,7 +3,7 @@ handler in that agent's code, and every message its code sends is allowed by the
 specification (the paper's ClassInterfaceInfo check, §5.6).
 
 The check reads the code, it does not run it. An agent's code is the package of its
-``implementation`` (``services.planner.agent:Planner`` → every module of ``services/planner/``).
+``implementation`` (``services.agents.planner.agent:Planner`` → every module of ``services/agents/planner/``).
 In it:
 
 - a **send** is a call ``self.send(to, Performative.X, …)``, ``self.reply(item,

@@ -48,10 +48,10 @@ from typing import NamedTuple
 import numpy as np
 import rerun as rr
 
-from services.planner import geometry
 from services.viewer.recording import Recording
 from shared.fipa_codec.languages.common import Pose
 from shared.fipa_codec.languages.l_sd import Observation
+from velma import frames as geometry
 from velma.executor.state import FT_AXES, SNAPSHOT_SIDES, RobotSnapshot
 from velma.executor.timing import TimingStats
 from velma.model import generate as g

@@ -6,7 +6,7 @@ Entities (timeline ``wall``, POSIX s, shared with the traffic and the robot):
   not ended, the one on a_ta first, then in the order of acceptance: request (the C2
   conversation-id), command text, priority, deadline (s left when the row was logged, or
   "—"), state (``running``, ``terminating``, ``waiting``, ``planning``, ``preempted``:
-  services/coordinator/agent.py, L_HC ``TaskState``); "*empty*" when nothing is left;
+  services/agents/coordinator/agent.py, L_HC ``TaskState``); "*empty*" when nothing is left;
 - ``task/queue/length`` — ``Scalars``: the number of rows.
 
 Both are logged only when the queue changes: a command arrives, ends, or changes state (a

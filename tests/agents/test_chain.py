@@ -3,7 +3,7 @@ kinematic test double of the robot: the protocols of paper §5.4 carry a pour to
 
 from __future__ import annotations
 
-from services.human_interface.messages import ReportKind
+from services.runtime.human import ReportKind
 from shared.fipa_codec import decode
 from shared.fipa_codec.languages import decode_content
 from shared.fipa_codec.languages.l_hfsm import HierarchicalPlan

@@ -13,8 +13,8 @@ from typing import Any
 
 import msgspec
 
-from services.human_interface.messages import FINAL_REPORTS, HumanInput, HumanReport, ReportKind
 from services.runtime import keys
+from services.runtime.human import FINAL_REPORTS, HumanInput, HumanReport, ReportKind
 from shared.fipa_codec import Performative, decode
 from shared.fipa_codec.languages import decode_content
 from shared.fipa_codec.languages.common import Pose

@@ -1,5 +1,5 @@
 """ag_ex's communication side: it holds the robot when a_ta's liveliness token goes away, and
-publishes the robot state (services/executor/agent.py)."""
+publishes the robot state (services/agents/executor/agent.py)."""
 
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ from typing import Any
 
 import msgspec
 
-from services.executor.agent import ExecutorAgent
+from services.agents.executor.agent import ExecutorAgent
 from services.runtime import keys
 from services.runtime.memory_transport import MemoryBus
 from velma.executor.state import RobotSnapshot

@@ -12,9 +12,9 @@ from pathlib import Path
 import msgspec
 import pytest
 
+from services.agents.task_executor.agent import KeptTaskExecutor, TaskExecutor
+from services.agents.task_executor.retreat import finish_set_down, retreat, undo_take
 from services.runtime.state_store import ENV_STATE_DIR
-from services.task_executor.agent import KeptTaskExecutor, TaskExecutor
-from services.task_executor.retreat import finish_set_down, retreat, undo_take
 from shared.fipa_codec import Communicate, Performative, encode
 from shared.fipa_codec.languages.common import Pose
 from shared.fipa_codec.languages.l_ex import (

@@ -1,6 +1,6 @@
 """a_ta's side of a_km's fipa-subscribe (C6): every new subscription, also one from a
 restarted a_km that may have missed updates in flight, gets the last asserted change of each
-object and then a fresh observation (services/task_executor/agent.py, docs/recovery.md)."""
+object and then a fresh observation (services/agents/task_executor/agent.py, docs/recovery.md)."""
 
 from __future__ import annotations
 
@@ -9,8 +9,8 @@ from pathlib import Path
 import msgspec
 import pytest
 
+from services.agents.task_executor.agent import TaskExecutor
 from services.runtime.state_store import ENV_STATE_DIR
-from services.task_executor.agent import TaskExecutor
 from shared.fipa_codec import Communicate
 from shared.fipa_codec import Performative as P
 from shared.fipa_codec.languages.common import Pose

@@ -2,8 +2,8 @@
 no package imports another package that imports it back).
 
 A package is a folder directly under ``shared/``, ``services/`` or ``velma/`` (or a module
-there: ``services/cli.py``). Every ``import`` of roco code counts, also those inside functions
-and under ``TYPE_CHECKING``.
+there: ``services/cli.py``), and each agent's folder under ``services/agents/``. Every
+``import`` of roco code counts, also those inside functions and under ``TYPE_CHECKING``.
 """
 
 from __future__ import annotations
@@ -40,10 +40,13 @@ TOOLS = (
 
 
 def package_of(module: str) -> str | None:
-    """``services.runtime.agent`` → ``services.runtime``; None outside roco."""
+    """``services.runtime.agent`` → ``services.runtime``, ``services.agents.planner.domain`` →
+    ``services.agents.planner`` (each agent is a package of its own); None outside roco."""
     parts = module.split(".")
     if parts[0] not in TOPS or len(parts) < 2:
         return None
+    if parts[:2] == ["services", "agents"] and len(parts) > 2:
+        return ".".join(parts[:3])
     return ".".join(parts[:2])
 
 
@@ -114,7 +117,7 @@ def test_the_bottom_layers_import_only_what_is_below_them() -> None:
 
 def test_neither_the_runtime_nor_an_agent_imports_a_tool() -> None:
     graph = import_graph()
-    for package in ("services.runtime", *(f"services.{a}" for a in AGENTS)):
+    for package in ("services.runtime", *(f"services.agents.{a}" for a in AGENTS)):
         assert not graph[package] & set(TOOLS), (package, graph[package] & set(TOOLS))
 
 
@@ -126,7 +129,7 @@ def test_the_cycle_finder_finds_a_cycle() -> None:
 def test_agents_receive_the_viewer_and_do_not_import_it() -> None:
     graph = import_graph()
     for agent in AGENTS:
-        assert "services.viewer" not in graph[f"services.{agent}"], agent
+        assert "services.viewer" not in graph[f"services.agents.{agent}"], agent
     # the recorder and the viewer do not import each other
     assert "services.viewer" not in graph["services.recorder"]
     assert "services.recorder" not in graph["services.viewer"]
@@ -138,3 +141,24 @@ def test_the_codec_and_the_robot_import_nothing_above_them() -> None:
     for package, imports in graph.items():
         if package.startswith("velma."):
             assert all(p.startswith(("velma.", "shared.")) for p in imports), (package, imports)
+
+
+def test_agents_never_import_one_another() -> None:
+    """They only talk in communicates (design.md, decisions taken)."""
+    graph = import_graph()
+    agents = {f"services.agents.{a}" for a in AGENTS}
+    for agent in agents:
+        assert not graph[agent] & agents, (agent, graph[agent] & agents)
+
+
+def test_tools_speak_to_agents_and_do_not_import_them() -> None:
+    """The CLI, the scenario runner and the viewer reach agents through Zenoh only (the person's
+    side of a_hi is services/runtime/human.py); only the benchmarks time an agent's parts in
+    process (services/bench: a_km's world model)."""
+    graph = import_graph()
+    for tool in (t for t in TOOLS if t != "services.bench"):
+        imported = {p for p in graph[tool] if p.startswith("services.agents.")}
+        assert not imported, (tool, imported)
+    assert {p for p in graph["services.bench"] if p.startswith("services.agents.")} == {
+        "services.agents.knowledge"
+    }

@@ -8,7 +8,7 @@ import threading
 
 import pytest
 
-from services.knowledge.agent import KnowledgeManager
+from services.agents.knowledge.agent import KnowledgeManager
 from services.runtime import keys
 from services.runtime.faults import FaultSettings, FaultUpdate, FaultyTransport, MessageFaults
 from services.runtime.memory_transport import MemoryBus

@@ -15,17 +15,17 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from services.coordinator.agent import Coordinator
-from services.executor.agent import ExecutorAgent
-from services.human_interface.agent import HumanInterface
-from services.knowledge.agent import KnowledgeManager
-from services.planner.agent import Planner
+from services.agents.coordinator.agent import Coordinator
+from services.agents.executor.agent import ExecutorAgent
+from services.agents.human_interface.agent import HumanInterface
+from services.agents.knowledge.agent import KnowledgeManager
+from services.agents.planner.agent import Planner
+from services.agents.task_executor.agent import TaskExecutor
 from services.runtime import keys
 from services.runtime.agent import Agent
 from services.runtime.counters import CountersReport
 from services.runtime.limits import REJECT_REASONS
 from services.runtime.memory_transport import MemoryBus
-from services.task_executor.agent import TaskExecutor
 from shared.fipa_codec import Communicate, Performative, decode, encode
 from shared.fipa_codec.languages.l_wm import Answer, ObjectQuery
 from tests.fuzz.strategies import AGENTS, Fuzz, flood, malformed, oversized

@@ -17,10 +17,10 @@ import pytest
 import zenoh
 
 from services.fleet.launcher import AGENT_ORDER, Fleet, free_port
-from services.human_interface.messages import FINAL_REPORTS, HumanInput, HumanReport
 from services.monitor import is_world_update
 from services.runtime import keys
 from services.runtime.counters import ask_counters
+from services.runtime.human import FINAL_REPORTS, HumanInput, HumanReport
 from services.runtime.session import alive_agents, open_client
 
 pytestmark = pytest.mark.slow

@@ -13,7 +13,7 @@ from shared.fipa_codec.languages.l_wm import Answer, WorldUpdate
 
 
 def test_sending_a_term_the_specification_does_not_list_raises() -> None:
-    from services.knowledge.agent import KnowledgeManager
+    from services.agents.knowledge.agent import KnowledgeManager
 
     km = KnowledgeManager(MemoryBus().transport())
     with pytest.raises(
@@ -25,7 +25,7 @@ def test_sending_a_term_the_specification_does_not_list_raises() -> None:
 
 
 def test_the_listed_term_passes_the_content_check() -> None:
-    from services.knowledge.agent import KnowledgeManager
+    from services.agents.knowledge.agent import KnowledgeManager
 
     km = KnowledgeManager(MemoryBus().transport())
     kinds = [k for k in km.interface.sends if k.receiver == "a_pl" and k.performative == "inform-ref"]

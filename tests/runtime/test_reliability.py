@@ -12,17 +12,17 @@ from typing import Generic, TypeVar
 import msgspec
 import pytest
 
-from services.coordinator.agent import Coordinator
-from services.human_interface.agent import HumanInterface
-from services.human_interface.messages import HumanReport, ReportKind
+from services.agents.coordinator.agent import Coordinator
+from services.agents.human_interface.agent import HumanInterface
+from services.agents.task_executor.agent import KeptTaskExecutor, TaskExecutor
 from services.runtime import keys
 from services.runtime.agent import RESEND_ON_RETURN, Agent
 from services.runtime.conversations import Conversations, Pending
 from services.runtime.dedup import Dedup
+from services.runtime.human import HumanReport, ReportKind
 from services.runtime.memory_transport import MemoryBus
 from services.runtime.state_store import ENV_STATE_DIR, StateFile
 from services.spec.model import channel_between
-from services.task_executor.agent import KeptTaskExecutor, TaskExecutor
 from shared.fipa_codec import Communicate, Performative, decode, encode
 from shared.fipa_codec.languages.common import Pose
 from shared.fipa_codec.languages.l_ex import Wait
@@ -317,7 +317,7 @@ def test_a_restarted_a_hi_still_tells_the_person_the_outcome(
     bus.subscribe(keys.HUMAN_OUT, lambda k, p: reports.append(msgspec.json.decode(p, type=HumanReport)))
     first = Wire(HumanInterface, bus)
     first.agent.setup()
-    from services.human_interface.messages import HumanInput
+    from services.runtime.human import HumanInput
 
     first.agent.post(HumanInput(text="pour the jar into the bowl", request_id="req-7"))
     first.agent._acquire(0.0)

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from services.human_interface.messages import HumanReport, ReportKind
+from services.runtime.human import HumanReport, ReportKind
 from services.runtime.run_folder import RunInfo, write_run_info
 from services.scenario.chaos import SERVICE_ORDER, chaos_scenario, verdict, write_chaos_report
 from services.scenario.model import ScenarioError, parse_scenario

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 
-from services.human_interface.messages import HumanReport, ReportKind
+from services.runtime.human import HumanReport, ReportKind
 from services.scenario.model import ScenarioError, library, load_scenario, parse_scenario
 from services.scenario.runner import CommandRecord
 

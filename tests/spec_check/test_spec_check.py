@@ -166,7 +166,7 @@ def test_verify_code_names_a_missing_handler_and_a_forbidden_send(tmp_path: Path
     from services.spec_check.code_check import verify_code_report
 
     path = tmp_path / "spec.toml"
-    old = 'implementation = "services.planner.agent:Planner"'
+    old = 'implementation = "services.agents.planner.agent:Planner"'
     assert SHIPPED.count(old) == 1
     path.write_text(
         SHIPPED.replace(old, 'implementation = "tests.spec_check.fixture_agents.planner:Planner"')
@@ -182,7 +182,9 @@ def test_verify_code_reports_an_implementation_that_does_not_exist(tmp_path: Pat
     from services.spec_check.code_check import verify_code_report
 
     path = tmp_path / "spec.toml"
-    path.write_text(SHIPPED.replace("services.planner.agent:Planner", "services.nowhere.agent:Planner"))
+    path.write_text(
+        SHIPPED.replace("services.agents.planner.agent:Planner", "services.nowhere.agent:Planner")
+    )
     ok, text = verify_code_report(path)
     assert not ok and "no module 'services.nowhere.agent'" in text
 

@@ -8,17 +8,17 @@ from typing import Any
 
 import msgspec
 
-from services.coordinator.agent import Coordinator
-from services.executor.agent import ExecutorAgent
-from services.human_interface.agent import HumanInterface
-from services.human_interface.messages import FINAL_REPORTS, HumanInput, HumanReport
-from services.knowledge.agent import KnowledgeManager
+from services.agents.coordinator.agent import Coordinator
+from services.agents.executor.agent import ExecutorAgent
+from services.agents.human_interface.agent import HumanInterface
+from services.agents.knowledge.agent import KnowledgeManager
+from services.agents.planner.agent import Planner
+from services.agents.task_executor.agent import TaskExecutor
 from services.monitor import is_world_update
-from services.planner.agent import Planner
 from services.runtime import keys
 from services.runtime.agent import Agent
+from services.runtime.human import FINAL_REPORTS, HumanInput, HumanReport
 from services.runtime.memory_transport import MemoryBus
-from services.task_executor.agent import TaskExecutor
 from tests.support.fake_executor import FakeExecutor
 
 

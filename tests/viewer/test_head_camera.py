@@ -17,7 +17,7 @@ import pytest
 from PIL import Image as PILImage
 from rerun.chunk import RrdReader
 
-from services.executor.agent import ExecutorAgent
+from services.agents.executor.agent import ExecutorAgent
 from services.runtime.memory_transport import MemoryBus
 from services.viewer import camera, hooks, recording, robot
 from shared.fipa_codec.languages.common import Pose

@@ -127,7 +127,7 @@ def test_a_failing_queue_hook_switches_itself_off(run_dir: Path) -> None:
 
 
 def test_queue_logging_is_off_by_default(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    from services.coordinator.agent import Coordinator
+    from services.agents.coordinator.agent import Coordinator
     from services.runtime.memory_transport import MemoryBus
 
     monkeypatch.delenv("ROCO_RERUN", raising=False)
@@ -141,7 +141,7 @@ def test_a_co_logs_its_queue_through_a_preemption(run_dir: Path) -> None:
     """The pour is preempted by an urgent command (as in tests/agents/test_coordination.py):
     a_co's part shows both commands queued, the pour preempted while the cup runs, then
     nothing."""
-    from services.human_interface.messages import ReportKind
+    from services.runtime.human import ReportKind
     from tests.agents.test_coordination import GatedExecutor, Session, interrupt_pour, is_cancel_to_ta
     from tests.agents.test_coordination import turning_to_pour as gate
 

@@ -3,7 +3,7 @@ paced by a thread, for tests, scripts and benchmarks. ag_ex runs the same loop i
 of its own (velma.executor.process), where no other Python thread competes for the
 interpreter.
 
-No Zenoh and no FIPA messaging here: ``services/executor`` wraps the executors.
+No Zenoh and no FIPA messaging here: ``services/agents/executor`` wraps the executors.
 
 Timing: physics dt = 1 ms, control at 1 kHz (one control update per physics step).
 ``realtime=True`` releases cycle k at t₀ + k·1 ms of wall time; ``realtime=False`` runs as fast

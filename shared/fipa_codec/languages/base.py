@@ -2,7 +2,10 @@
 
 from __future__ import annotations
 
+import importlib
+import pkgutil
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 import msgspec
@@ -96,18 +99,19 @@ _loaded = False
 ≈ 3 µs per call, paid twice per received communicate otherwise)."""
 
 
+LANGUAGE_MODULE_PREFIX = "l_"
+"""A module of this package whose name starts so defines one content language and registers
+it on import: the modules are the one list of roco's content languages (the specification names
+them per channel, and ``roco spec check`` finds a name no module registers)."""
+
+
 def _load_all() -> None:
     # Importing the language modules registers them.
     global _loaded
     if _loaded:
         return
-    from shared.fipa_codec.languages import (  # noqa: F401
-        l_ex,
-        l_hc,
-        l_hfsm,
-        l_sd,
-        l_sw,
-        l_wm,
-    )
-
+    package = __name__.rpartition(".")[0]
+    for info in pkgutil.iter_modules([str(Path(__file__).parent)]):
+        if info.name.startswith(LANGUAGE_MODULE_PREFIX):
+            importlib.import_module(f"{package}.{info.name}")
     _loaded = True

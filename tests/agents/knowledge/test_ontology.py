@@ -1,4 +1,4 @@
-"""O_RoCo (services/knowledge/o_roco.ttl) declares every term the knowledge base uses, and the
+"""O_RoCo (services/agents/knowledge/o_roco.ttl) declares every term the knowledge base uses, and the
 kitchen's facts and a_km's updates conform to its domains and ranges."""
 
 from __future__ import annotations
@@ -11,8 +11,8 @@ from rdflib import OWL, RDF, RDFS, Graph, Literal, URIRef
 from rdflib.collection import Collection
 from rdflib.term import Node
 
-from services.knowledge import world_model
-from services.knowledge.world_model import KITCHEN_FILE, ONTOLOGY_FILE, ROCO, WorldModel
+from services.agents.knowledge import world_model
+from services.agents.knowledge.world_model import KITCHEN_FILE, ONTOLOGY_FILE, ROCO, WorldModel
 from shared.fipa_codec.languages.common import Pose
 from shared.fipa_codec.languages.l_wm import ObjectUpdate, WorldUpdate
 

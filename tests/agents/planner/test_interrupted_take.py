@@ -6,10 +6,10 @@ from __future__ import annotations
 
 import pytest
 
-from services.knowledge.world_model import WorldModel
-from services.planner.domain import plan_task
-from services.planner.hfsm import to_hfsm
-from services.planner.knowledge import ARMS, Knowledge
+from services.agents.knowledge.world_model import WorldModel
+from services.agents.planner.domain import plan_task
+from services.agents.planner.hfsm import to_hfsm
+from services.agents.planner.knowledge import ARMS, Knowledge
 from shared.fipa_codec.languages.common import Pose
 from shared.fipa_codec.languages.l_wm import ObjectUpdate, WorldUpdate
 

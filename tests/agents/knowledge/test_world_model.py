@@ -1,4 +1,4 @@
-"""a_km's knowledge base (services/knowledge/world_model.py): persistence on Oxigraph,
+"""a_km's knowledge base (services/agents/knowledge/world_model.py): persistence on Oxigraph,
 hypothetical states (paper §5.7), stale observations, answers and their sizes."""
 
 from __future__ import annotations
@@ -12,7 +12,7 @@ from pathlib import Path
 import msgspec
 import pytest
 
-from services.knowledge.world_model import (
+from services.agents.knowledge.world_model import (
     ROCO,
     KnowledgeError,
     StoreError,
@@ -29,7 +29,7 @@ from shared.fipa_codec.languages.l_wm import (
     WorldUpdate,
 )
 
-REPO = Path(__file__).resolve().parents[2]
+REPO = Path(__file__).resolve().parents[3]
 JAR = (0.80, 0.22, 0.90)
 BOWL = (0.80, -0.20, 0.90)
 
@@ -66,7 +66,10 @@ def test_knowledge_survives_a_new_world_model_on_the_same_store(
         first.apply(WorldUpdate(stamp=-1.0, objects=(ObjectUpdate(name="bowl", held_by="right_gripper"),)))
         first.apply(WorldUpdate(stamp=2.5, objects=(), total_particles=18))
         triples = len(first)
-    with caplog.at_level(logging.INFO, logger="services.knowledge.world_model"), WorldModel(store) as second:
+    with (
+        caplog.at_level(logging.INFO, logger="services.agents.knowledge.world_model"),
+        WorldModel(store) as second,
+    ):
         assert second.kept
         assert len(second) == triples  # kept, not loaded a second time
         jar = second.object_info("jar")
@@ -83,7 +86,7 @@ def test_knowledge_survives_a_new_world_model_on_the_same_store(
 KILLED = """
 import os, signal, sys
 from pathlib import Path
-from services.knowledge.world_model import WorldModel
+from services.agents.knowledge.world_model import WorldModel
 from shared.fipa_codec.languages.common import Pose
 from shared.fipa_codec.languages.l_wm import ObjectUpdate, WorldUpdate
 world = WorldModel(Path(sys.argv[1]))

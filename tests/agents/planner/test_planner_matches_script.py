@@ -8,10 +8,10 @@ import math
 
 import pytest
 
-from services.knowledge.world_model import WorldModel
-from services.planner.domain import PlanningFailure, find_plan
-from services.planner.hfsm import to_hfsm
-from services.planner.knowledge import ARMS, Knowledge
+from services.agents.knowledge.world_model import WorldModel
+from services.agents.planner.domain import PlanningFailure, find_plan
+from services.agents.planner.hfsm import to_hfsm
+from services.agents.planner.knowledge import ARMS, Knowledge
 from shared.fipa_codec.languages.common import Pose
 from shared.fipa_codec.languages.l_ex import MoveJoints, MoveTool, Tilt
 from shared.fipa_codec.languages.l_hfsm import Execute, PlanNode

@@ -1,7 +1,9 @@
 """What crosses a_hi's receptor and effector (not FIPA: the person's side of the interface).
 
 ``roco/human/in`` carries :class:`HumanInput` (JSON); ``roco/human/out`` carries
-:class:`HumanReport` (JSON). ``roco send`` and ``roco run`` speak these.
+:class:`HumanReport` (JSON). a_hi speaks them, and so do the person's tools (``roco send``,
+``roco run``, the scenario runner), which therefore need nothing of a_hi's internals: the
+runtime keeps the format, beside the keys (services/runtime/keys.py).
 """
 
 from __future__ import annotations
@@ -40,13 +42,31 @@ class ReportKind(enum.StrEnum):
     STOPPED = "stopped"
 
 
+class RequestKind(enum.StrEnum):
+    """What a_hi understood a sentence to be."""
+
+    COMMAND = "command"
+    STOP = "stop"
+    STATUS = "status"
+
+
 class HumanReport(msgspec.Struct, frozen=True, kw_only=True):
     """What a_hi tells the person about request ``request_id`` (``text``: readable
-    sentences; a status report has one line per command)."""
+    sentences; a status report has one line per command). ``request``: what a_hi understood
+    the sentence to be (None: not understood, or a command a_hi restored after its restart)."""
 
     request_id: str
     kind: ReportKind
     text: str
+    request: RequestKind | None = None
+
+    @property
+    def done_as_asked(self) -> bool:
+        """A final report that means the request was carried out: ``succeeded`` for a command
+        (also when ``request`` is None), ``stopped`` for a stop request, ``status`` for a status
+        request."""
+        wanted = {RequestKind.STOP: ReportKind.STOPPED, RequestKind.STATUS: ReportKind.STATUS}
+        return self.kind is wanted.get(self.request or RequestKind.COMMAND, ReportKind.SUCCEEDED)
 
 
 FINAL_REPORTS = frozenset(

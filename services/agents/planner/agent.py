@@ -15,10 +15,10 @@ import time
 
 import msgspec
 
-from services.planner.domain import ATOMIC_STATES, PlanActions, PlanningFailure, plan_task
-from services.planner.goals import effects, goal_query
-from services.planner.hfsm import to_hfsm
-from services.planner.knowledge import ARMS, Knowledge
+from services.agents.planner.domain import ATOMIC_STATES, PlanActions, PlanningFailure, plan_task
+from services.agents.planner.goals import effects, goal_query
+from services.agents.planner.hfsm import to_hfsm
+from services.agents.planner.knowledge import ARMS, Knowledge
 from services.runtime.agent import Agent, Received
 from services.runtime.behaviour import FSM, Arc, Behaviour
 from shared.fipa_codec import Performative

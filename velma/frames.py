@@ -1,4 +1,7 @@
-"""Rigid-body helpers on L_WM/L_EX poses, using Pinocchio's SE3 (no home-made quaternions)."""
+"""Poses and frames: rigid-body helpers on the codec's ``Pose`` (position in m, orientation as
+a unit quaternion w, x, y, z, in a named frame), using Pinocchio's SE3 (no home-made
+quaternions). Used by the planner (a_pl's domain) and the viewer; the executor's primitives and
+the MJCF generator still keep their own conversions (issue 17 names them)."""
 
 from __future__ import annotations
 

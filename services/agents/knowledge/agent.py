@@ -15,7 +15,7 @@ agreeing to the new subscription (a_ta answers every new subscription with its l
 changes and a fresh observation), at most ``HOLD_QUERIES_S``; then it answers them in the order
 they came. A start with no kept knowledge answers at once.
 
-The knowledge persists across restarts of a_km (see :mod:`services.knowledge.world_model`):
+The knowledge persists across restarts of a_km (see :mod:`services.agents.knowledge.world_model`):
 the store is the directory ``ROCO_KM_STORE``; when that is unset, ``<ROCO_RUN_DIR>/km_store``;
 when neither is set, the knowledge is kept in memory only. :meth:`KnowledgeManager.close`
 (called by ``services.runtime.main`` after the agent stops) flushes and releases the store.
@@ -29,7 +29,7 @@ from collections import deque
 from collections.abc import Mapping
 from pathlib import Path
 
-from services.knowledge.world_model import KnowledgeError, UnsupportedQuery, WorldModel
+from services.agents.knowledge.world_model import KnowledgeError, UnsupportedQuery, WorldModel
 from services.runtime.agent import Agent, Received
 from services.runtime.behaviour import FSM, Arc, Behaviour
 from shared.fipa_codec import Performative

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from services.human_interface.language import (
+from services.agents.human_interface.language import (
     SYNONYMS,
     URGENT_PRIORITY,
     Command,

@@ -1,4 +1,4 @@
-"""a_km as an agent (services/knowledge/agent.py) on a MemoryBus: its knowledge survives a
+"""a_km as an agent (services/agents/knowledge/agent.py) on a MemoryBus: its knowledge survives a
 restart on the same store, and queries it cannot answer get refuse/failure with a reason while
 it keeps running."""
 
@@ -13,8 +13,8 @@ from pathlib import Path
 import msgspec
 import pytest
 
-from services.knowledge import agent as km_agent
-from services.knowledge.agent import KnowledgeManager, store_path
+from services.agents.knowledge import agent as km_agent
+from services.agents.knowledge.agent import KnowledgeManager, store_path
 from services.runtime import keys
 from services.runtime.memory_transport import MemoryBus
 from shared.fipa_codec import AgentIdentifier, Communicate, Performative, decode, encode

@@ -1,11 +1,11 @@
-"""a_co's schedule step (services/coordinator/scheduling.py): continue or switch by the
+"""a_co's schedule step (services/agents/coordinator/scheduling.py): continue or switch by the
 TaskER-style comparison of priority-weighted waiting costs."""
 
 from __future__ import annotations
 
 import pytest
 
-from services.coordinator.scheduling import (
+from services.agents.coordinator.scheduling import (
     LATE_FACTOR,
     SWITCH_COST,
     Candidate,

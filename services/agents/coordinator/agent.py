@@ -3,7 +3,7 @@
 FSM states: trigger (idle; a_hi's commands, cancels, subscriptions and queries and a_ta's
 states arrive), procReq (store new commands with priority and deadline; stop cancelled
 ones), compSP (request plans from a_pl for every command that needs one, collect them),
-schedule (continue the running plan or switch: services/coordinator/scheduling.py, after
+schedule (continue the running plan or switch: services/agents/coordinator/scheduling.py, after
 TaskER), switch (the coordinate protocol on C1: ``cancel`` the running plan — a_ta goes
 Terminating, puts held objects down safely, reports Preempted — or ``request`` a_ta to run
 the chosen plan). Communicates from a_ta and a_pl are handled in every state; each L_SW
@@ -37,7 +37,7 @@ from dataclasses import dataclass
 
 import msgspec
 
-from services.coordinator.scheduling import Candidate, Decision, Running, decide
+from services.agents.coordinator.scheduling import Candidate, Decision, Running, decide
 from services.runtime.agent import Agent, Received
 from services.runtime.behaviour import FSM, Arc, Behaviour
 from services.runtime.state_store import StateFile

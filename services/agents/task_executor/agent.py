@@ -22,11 +22,11 @@ reappears (ag_ex restored its world from its checkpoint). a_ta keeps the plan it
 state file; a restarted a_ta does not guess where the robot got to: it reports Replan (or the
 final state it had reached) in the plan's conversation, once it has observed the scene and
 informed a_km, so that a_co plans again from the world as it is (a_pl then first finishes a
-take the restart interrupted after its grasp: ``services.planner.domain.finish_takes``).
+take the restart interrupted after its grasp: ``services.agents.planner.domain.finish_takes``).
 Meanwhile ag_ex holds position with the hands as they are. A take interrupted *before* its
 grasp closed (a_ta restarted in it, or ag_ex held position in it) is undone by a_ta itself
 before it reports: the hand is opened and moved back along the plan's way in
-(``services.task_executor.retreat``), then the scene is observed.
+(``services.agents.task_executor.retreat``), then the scene is observed.
 """
 
 from __future__ import annotations
@@ -571,7 +571,7 @@ class TaskExecutor(Agent):
     # ---- finished ----
     def _enter_finished(self) -> None:
         """Make the hands safe after an interrupted take (``undo_take``) or set-down
-        (``finish_set_down``; services/task_executor/retreat.py), else
+        (``finish_set_down``; services/agents/task_executor/retreat.py), else
         report the final state at once."""
         commands: tuple[RetreatStep, ...] = ()
         if self.interrupted:

@@ -12,12 +12,12 @@ from typing import Any
 import msgspec
 import pytest
 
-from services.human_interface import agent as hi_module
-from services.human_interface.agent import HumanInterface
-from services.human_interface.messages import FINAL_REPORTS, HumanInput, HumanReport, ReportKind
+from services.agents.human_interface import agent as hi_module
+from services.agents.human_interface.agent import HumanInterface
 from services.runtime import keys
 from services.runtime.agent import Agent, Received
 from services.runtime.behaviour import FSM, Behaviour
+from services.runtime.human import FINAL_REPORTS, HumanInput, HumanReport, ReportKind
 from services.runtime.memory_transport import MemoryBus
 from shared.fipa_codec import AgentIdentifier, Communicate, Performative, decode, encode
 from shared.fipa_codec.languages import encode_content

@@ -8,7 +8,7 @@ held), so the next plan begins with a torso turn or a joint move that drags the 
 drops it. Before a_ta reports the plan's end it therefore opens the hand as the plan opened it
 and moves it back, pose by pose, along the way the plan brought it in (the inverse of the
 fetch's approach: reach, pregrasp, enter). A take interrupted after its grasp is finished by the
-next plan instead (``services.planner.domain.finish_takes``).
+next plan instead (``services.agents.planner.domain.finish_takes``).
 
 A set-down (lower, release, put, clear; atomic) interrupted once the hand opened is finished
 instead: the release is sent again if it was the leaf running, a_km is told where the object

@@ -32,7 +32,7 @@ from dataclasses import dataclass, field
 
 import msgspec
 
-from services.human_interface.language import (
+from services.agents.human_interface.language import (
     Command,
     NotUnderstood,
     StatusRequest,
@@ -40,11 +40,11 @@ from services.human_interface.language import (
     describe,
     interpret,
 )
-from services.human_interface.messages import HumanInput, HumanReport, ReportKind
 from services.runtime import keys
 from services.runtime.agent import Agent, Received
 from services.runtime.behaviour import FSM, Behaviour
 from services.runtime.conversations import Pending
+from services.runtime.human import FINAL_REPORTS, HumanInput, HumanReport, ReportKind, RequestKind
 from services.runtime.state_store import StateFile
 from shared.fipa_codec import DecodeError, Performative, decode
 from shared.fipa_codec.languages import ContentError, decode_content
@@ -198,6 +198,7 @@ class HumanInterface(Agent):
 
     def build_fsm(self) -> FSM:
         self.commands: dict[str, OpenCommand] = {}  # conversation-id → open command
+        self.asked: dict[str, RequestKind] = {}  # person's request id → what it was, until its final report
         self.ended: OrderedDict[str, tuple[str, str]] = OrderedDict()  # conversation → (request, label)
         self.cancels: dict[str, str] = {}  # reply-with of a cancel → command conversation
         self.stops: dict[str, StopRequest] = {}  # request_id → stop request
@@ -322,9 +323,9 @@ class HumanInterface(Agent):
 
     def _report(self, request_id: str, kind: ReportKind, text: str) -> None:
         self.log.info("to person [%s] %s: %s", request_id, kind.value, text)
-        self.emit(
-            keys.HUMAN_OUT, msgspec.json.encode(HumanReport(request_id=request_id, kind=kind, text=text))
-        )
+        request = self.asked.pop(request_id, None) if kind in FINAL_REPORTS else self.asked.get(request_id)
+        report = HumanReport(request_id=request_id, kind=kind, text=text, request=request)
+        self.emit(keys.HUMAN_OUT, msgspec.json.encode(report))
 
     # ---- from the person ---------------------------------------------------------------
     def _on_input(self, event: HumanInput) -> None:
@@ -334,10 +335,13 @@ class HumanInterface(Agent):
             self._report(event.request_id, ReportKind.NOT_UNDERSTOOD, str(exc))
             return
         if isinstance(intent, Command):
+            self.asked[event.request_id] = RequestKind.COMMAND
             self._command(event, intent)
         elif isinstance(intent, Stop):
+            self.asked[event.request_id] = RequestKind.STOP
             self._stop_commands(event.request_id)
         elif isinstance(intent, StatusRequest):
+            self.asked[event.request_id] = RequestKind.STATUS
             self._ask_status(event.request_id)
 
     def _conversation_id(self, prefix: str, request_id: str) -> str:
