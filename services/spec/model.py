@@ -88,7 +88,8 @@ class SystemSpec(msgspec.Struct, frozen=True, forbid_unknown_fields=True):
     requirements: tuple[dict[str, str], ...] = ()
     steps: tuple[dict[str, object], ...] = ()
     start_order: tuple[str, ...] = ()
-    """The order a launcher starts the agents in (every agent once); empty: file order."""
+    """The order a launcher starts the agents in; agents it does not name start after those it
+    names, in file order."""
 
     @property
     def agent_names(self) -> tuple[str, ...]:
@@ -97,8 +98,9 @@ class SystemSpec(msgspec.Struct, frozen=True, forbid_unknown_fields=True):
 
     @property
     def launch_order(self) -> tuple[str, ...]:
-        """The order a launcher starts the agents in: ``start_order``, else file order."""
-        return self.start_order or self.agent_names
+        """The order a launcher starts the agents in: those ``start_order`` names, then the
+        others in file order (a new agent needs no entry there to be started)."""
+        return (*self.start_order, *(a for a in self.agent_names if a not in self.start_order))
 
 
 @dataclass(frozen=True)
@@ -169,8 +171,10 @@ def load(path: Path = DEFAULT_SPEC) -> SystemSpec:
     except (msgspec.DecodeError, msgspec.ValidationError) as exc:
         raise SpecError(f"{path}: {one_line(exc)}") from None
     names = {a.name for a in spec.agents}
-    if spec.start_order and sorted(spec.start_order) != sorted(names):
-        raise SpecError(f"{path}: start_order must name every agent once, not {list(spec.start_order)}")
+    unknown = [a for a in spec.start_order if a not in names]
+    if unknown or len(set(spec.start_order)) != len(spec.start_order):
+        what = f"unknown agent {unknown[0]!r}" if unknown else "an agent twice"
+        raise SpecError(f"{path}: start_order names {what}")
     for ch in spec.channels:
         for end in ch.ends:
             if end not in names:

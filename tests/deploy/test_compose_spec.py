@@ -39,9 +39,11 @@ def test_the_last_agent_started_waits_for_every_other_one() -> None:
     assert waited >= set(others)
 
 
-def test_a_start_order_that_misses_an_agent_is_refused(tmp_path: Path) -> None:
+def test_the_start_order_refuses_an_unknown_agent_and_starts_unnamed_ones_last(tmp_path: Path) -> None:
     text = (Path(__file__).resolve().parents[2] / "services/spec/robot_companion.toml").read_text()
     bad = tmp_path / "spec.toml"
-    bad.write_text(text.replace('"ag_ex", "a_ta", "a_hi"]', '"ag_ex", "a_hi"]', 1))
-    with pytest.raises(SpecError, match="start_order must name every agent once"):
+    bad.write_text(text.replace('"ag_ex", "a_ta", "a_hi"]', '"ag_ex", "a_tx", "a_hi"]', 1))
+    with pytest.raises(SpecError, match="start_order names unknown agent 'a_tx'"):
         load(bad)
+    bad.write_text(text.replace('"ag_ex", "a_ta", "a_hi"]', '"ag_ex", "a_hi"]', 1))
+    assert load(bad).launch_order == ("a_km", "a_pl", "a_co", "ag_ex", "a_hi", "a_ta")

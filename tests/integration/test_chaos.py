@@ -75,5 +75,8 @@ def test_each_agent_that_does_not_move_the_robot_killed_or_restarted_during_a_po
             and m.rec.t_sent is not None
             and m.rec.t_sent <= rep.time
         ]
-        assert {m.rec.sender for m in mine} == {agent}
-        assert len(mine) == rep.counters["published"] > 0, agent
+        assert {m.rec.sender for m in mine} <= {agent}
+        # a process restarted after its last conversation has published nothing: 0 == 0
+        assert len(mine) == rep.counters.get("published", 0), agent
+    for busy in ("a_ta", "ag_ex"):  # never faulted here, and they talk throughout the pour
+        assert counters[busy].counters["published"] > 0, busy
