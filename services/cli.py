@@ -34,6 +34,7 @@ from services.runtime.human import FINAL_REPORTS, HumanInput, HumanReport
 from services.runtime.run_folder import RunInfo, new_run_dir, write_run_info
 from services.runtime.session import alive_agents, open_client
 from services.security.context import register
+from services.spec.model import default_spec
 
 app = typer.Typer(add_completion=False, no_args_is_help=True, help=__doc__)
 app.add_typer(fault_app, name="fault")
@@ -167,7 +168,7 @@ def chaos(
     ] = None,
     services: Annotated[
         str, typer.Option(help="comma-separated services to fault (agents, recorder, router), or all")
-    ] = "a_hi,a_co,a_pl,a_km,a_ta,ag_ex",
+    ] = ",".join(default_spec().agent_names),
     kinds: Annotated[str, typer.Option(help="comma-separated fault kinds: kill, pause, restart")] = (
         "kill,pause,restart"
     ),
