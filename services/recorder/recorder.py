@@ -162,8 +162,8 @@ class TrafficWriter:
         entries = [RawEntry(self.incarnation, self.seq + i, a) for i, a in enumerate(arrivals)]
         self.seq += len(entries)
         records = [record_of(e) for e in entries]
-        self._raw.write(b"".join(encode_entry(e) for e in entries))
-        self._jsonl.write(b"".join(_json(r) + b"\n" for r in records))
+        _write_all(self._raw, b"".join(encode_entry(e) for e in entries))
+        _write_all(self._jsonl, b"".join(_json(r) + b"\n" for r in records))
         return records
 
     def write(self, t: float, key: str, payload: bytes) -> TrafficRecord:
@@ -180,6 +180,16 @@ class TrafficWriter:
         self._raw.close()
         if self._faults is not None:
             self._faults.close()
+
+
+def _write_all(f: BinaryIO, data: bytes) -> None:
+    """Write all of ``data`` to the unbuffered ``f`` (a raw write may write only part of it)."""
+    view = memoryview(data)
+    while view:
+        n = f.write(view)
+        if not n:
+            raise OSError(f"no progress writing {f.name}")
+        view = view[n:]
 
 
 class _Loop:
