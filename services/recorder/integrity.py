@@ -62,8 +62,6 @@ class Integrity:
     gaps: list[Gap] = field(default_factory=list)
     duplicates: list[str] = field(default_factory=list)
     late: int = 0
-    unsequenced: int = 0
-    """Records that carry no publisher sequence number (a plain put): not checked for gaps."""
 
     @property
     def lost(self) -> int:
@@ -178,8 +176,7 @@ def _sequences(records: Sequence[TrafficRecord], result: Integrity) -> None:
     seen: dict[str, Counter[int]] = defaultdict(Counter)
     key_of: dict[str, str] = {}
     for rec in records:
-        if rec.source is None or rec.sn is None:
-            result.unsequenced += 1
+        if rec.source is None or rec.sn is None:  # a plain put: nothing to check gaps by
             continue
         seen[rec.source][rec.sn] += 1
         key_of[rec.source] = rec.key

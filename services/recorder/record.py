@@ -178,20 +178,14 @@ class RawEntry(msgspec.Struct, frozen=True, array_like=True):
 
 _raw_encoder = msgspec.msgpack.Encoder()
 _raw_decoder = msgspec.msgpack.Decoder(RawEntry)
+_BIN_WIDTH = {0xC4: 1, 0xC5: 2, 0xC6: 4}
+"""Type byte of a msgpack bin → width of its length field (msgpack spec, "bin format family")."""
 _old_decoder: msgspec.msgpack.Decoder[tuple[int, bytes]] = msgspec.msgpack.Decoder(tuple[int, bytes])
 
 
 def encode_entry(entry: RawEntry) -> bytes:
     """One element of the raw stream: ``entry`` in msgpack, wrapped in a msgpack ``bin``."""
-    inner = _raw_encoder.encode(entry)
-    n = len(inner)
-    if n < 1 << 8:
-        head = b"\xc4" + n.to_bytes(1, "big")
-    elif n < 1 << 16:
-        head = b"\xc5" + n.to_bytes(2, "big")
-    else:
-        head = b"\xc6" + n.to_bytes(4, "big")
-    return head + inner
+    return _raw_encoder.encode(_raw_encoder.encode(entry))  # bytes encode as a msgpack bin
 
 
 def read_entries(run_dir: Path) -> Iterator[tuple[RawEntry | None, RecordKey, bytes, int]]:
@@ -233,7 +227,7 @@ def _element(data: bytes, pos: int) -> tuple[int, int]:
     try:
         if t == 0x92:
             return pos, _old_pair_end(data, pos)
-        width = {0xC4: 1, 0xC5: 2, 0xC6: 4}.get(t)
+        width = _BIN_WIDTH.get(t)
         if width is None:
             raise ValueError(f"corrupt raw traffic stream at byte {pos}")
         start = pos + 1 + width
@@ -256,7 +250,7 @@ def _old_pair_end(data: bytes, pos: int) -> int:
         if width is None:
             raise ValueError(f"corrupt raw traffic stream at byte {p}")
         p += 1 + width
-    width = {0xC4: 1, 0xC5: 2, 0xC6: 4}.get(data[p])
+    width = _BIN_WIDTH.get(data[p])
     if width is None:
         raise ValueError(f"corrupt raw traffic stream at byte {p}")
     return p + 1 + width + int.from_bytes(data[p + 1 : p + 1 + width], "big")

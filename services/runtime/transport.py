@@ -197,10 +197,7 @@ class ZenohTransport:
         plain put, its key expression parsed once and kept (≈ 1.2 µs instead of ≈ 3.5 µs with
         a string key). Called on the agent's thread only."""
         pub = self._publishers.get(key)
-        if pub is not None:
-            pub.put(payload)
-            return
-        if key.startswith(keys.FIPA_PREFIX) and len(self._publishers) < MAX_KEYS:
+        if pub is None and key.startswith(keys.FIPA_PREFIX) and len(self._publishers) < MAX_KEYS:
             pub = self._publishers[key] = zext.declare_advanced_publisher(
                 self.session,
                 key,
@@ -211,6 +208,7 @@ class ZenohTransport:
                 ),
                 publisher_detection=True,
             )
+        if pub is not None:
             pub.put(payload)
             return
         expr = self._keys.get(key)
