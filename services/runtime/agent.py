@@ -69,8 +69,10 @@ from services.runtime.conversations import (
 from services.runtime.dedup import Dedup
 from services.runtime.hooks import Hooks, load_hooks
 from services.runtime.limits import MAX_OPEN_CONVERSATIONS_PER_PEER
+from services.runtime.roles import RoleDecl, Roles
 from services.runtime.transport import Transport
-from services.spec.model import Interface, SystemSpec, channel_between, default_spec, interface
+from services.spec.model import Interface, SpecError, SystemSpec, channel_between, default_spec, interface
+from services.spec.protocol_defs import machine_of
 from shared.fipa_codec import (
     AgentIdentifier,
     Communicate,
@@ -84,7 +86,6 @@ from shared.fipa_codec.message import new_id
 from shared.fipa_codec.protocols import (
     INITIATOR,
     PARTICIPANT,
-    PROTOCOLS,
     ProtocolViolation,
     Role,
     is_terminal_report,
@@ -138,6 +139,11 @@ class Agent:
     paper §5.5). Subclasses set ``name`` and implement :meth:`build_fsm`."""
 
     name: ClassVar[str]
+    ROLES: ClassVar[tuple[RoleDecl, ...] | None] = None
+    """The protocol roles the agent plays (services/runtime/roles.py), compared with its
+    interface in the specification when it starts (RoleMismatch, one line, when they differ).
+    None: the agent declares none and handles its input buffer itself (checked at run time
+    only)."""
     period: ClassVar[float] = 0.1
     """Sampling period (s) of communication states: the longest a waiting behaviour blocks."""
 
@@ -164,6 +170,8 @@ class Agent:
         self._log_window = (0.0, 0)  # (window start, monotonic s; warnings logged in it)
         self._log_suppressed = 0
         self._roles: dict[tuple[str, str], Role] = _roles(self.spec, self.name)
+        self.roles = Roles(self, self.ROLES or (), check=self.ROLES is not None)
+        """The agent's protocol roles and their open conversations (services/runtime/roles.py)."""
         self._y: list[tuple[str, bytes]] = []
         self._queue: queue.SimpleQueue[tuple[str, Any]] = queue.SimpleQueue()
         self._stop = threading.Event()
@@ -432,16 +440,20 @@ class Agent:
         communicate (``sent`` by this agent, else received). Returns None when the state allows
         it (or the conversation is not followed: no conversation-id, a protocol without a state
         machine), else the reason."""
-        if conversation_id is None or protocol is None or protocol not in PROTOCOLS:
+        if conversation_id is None or protocol is None or protocol not in self.spec.protocols:
             return None
         mine = self._roles.get((peer, protocol))
         if mine is None:
+            return None
+        try:
+            machine = machine_of(self.spec, protocol)
+        except SpecError:  # a protocol with no state machine is not followed
             return None
         role: Role = mine if sent else (PARTICIPANT if mine == INITIATOR else INITIATOR)
         known = self.protocol_states.get(peer, conversation_id) is not None
         try:
             outcome = self.protocol_states.observe(
-                peer, conversation_id, protocol, role, performative, local_role=mine, terminal=terminal
+                peer, conversation_id, machine, role, performative, local_role=mine, terminal=terminal
             )
         except (ProtocolViolation, ConversationError) as exc:
             if not known:
@@ -760,6 +772,12 @@ class Agent:
         self._dispatch()
 
     # ---- helpers for behaviours ---------------------------------------------------------
+    def handle_received(self) -> None:
+        """Route every communicate in the input buffer ``x`` to its protocol role and the
+        agent's handler (services/runtime/roles.py), oldest first."""
+        while self.x:
+            self.roles.take(self.x.popleft())
+
     def take(self, predicate: Any) -> Received | None:
         """Remove and return the first received communicate satisfying ``predicate``."""
         for item in self.x:

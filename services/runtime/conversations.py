@@ -609,7 +609,7 @@ class ProtocolStates:
         self,
         peer: str,
         conversation_id: str,
-        protocol: str,
+        protocol: Protocol | str,
         role: Role,
         performative: Performative,
         *,

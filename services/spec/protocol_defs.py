@@ -42,7 +42,17 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-from services.spec.model import DEFAULT_SPEC, ProtocolRoles, SpecError, load, one_line, read_text
+import msgspec
+
+from services.spec.model import (
+    DEFAULT_SPEC,
+    ProtocolRoles,
+    SpecError,
+    SystemSpec,
+    load,
+    one_line,
+    read_text,
+)
 from shared.fipa_codec.acts import Performative
 from shared.fipa_codec.protocols import INITIATOR, PARTICIPANT, PROTOCOLS, Protocol, Role, _build
 
@@ -50,6 +60,7 @@ __all__ = [
     "MACHINE_KEYS",
     "TABLE_KEYS",
     "declares_state_machine",
+    "machine_of",
     "protocol_from_table",
     "protocols_of",
     "read_raw",
@@ -200,6 +211,45 @@ def protocols_of(path: Path = DEFAULT_SPEC) -> dict[str, Protocol]:
                 f"and is not a built-in protocol ({', '.join(PROTOCOLS)})"
             )
     return out
+
+
+_MACHINES: dict[int, tuple[SystemSpec, dict[str, Protocol]]] = {}
+"""Per loaded specification (by identity; the spec is kept in the value so that a reused id
+never matches), the state machines built so far."""
+
+
+def machine_of(spec: SystemSpec, name: str) -> Protocol:
+    """The state machine of protocol ``name`` in ``spec``: the one its ``[protocols.NAME]``
+    table declares (see the module docstring), else the built-in one of
+    :data:`shared.fipa_codec.protocols.PROTOCOLS`. Built once per specification. Raises
+    SpecError when the spec does not name the protocol, its machine is malformed, or it has
+    neither."""
+    held = _MACHINES.get(id(spec))
+    if held is None or held[0] is not spec:
+        held = (spec, {})
+        _MACHINES[id(spec)] = held
+    machines = held[1]
+    if name not in machines:
+        roles = spec.protocols.get(name)
+        if roles is None:
+            raise SpecError(f"the specification names no protocol {name!r}")
+        if roles.transitions:
+            table = {
+                key: list(value) if isinstance(value, tuple) else value
+                for key, value in msgspec.structs.asdict(roles).items()
+                if value not in (None, (), "")
+            }
+            table["transitions"] = [list(t) for t in roles.transitions]
+            table["terminal"] = [list(t) for t in roles.terminal]
+            machines[name] = protocol_from_table(name, table)
+        elif name in PROTOCOLS:
+            machines[name] = PROTOCOLS[name]
+        else:
+            raise SpecError(
+                f"protocol {name} declares no state machine and is not a built-in protocol "
+                f"({', '.join(PROTOCOLS)})"
+            )
+    return machines[name]
 
 
 def role_mismatches(protocol: Protocol, roles: ProtocolRoles) -> list[str]:

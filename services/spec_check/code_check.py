@@ -2,8 +2,18 @@
 handler in that agent's code, and every message its code sends is allowed by the
 specification (the paper's ClassInterfaceInfo check, §5.6).
 
-The check reads the code, it does not run it. An agent's code is the package of its
-``implementation`` (``services.agents.planner.agent:Planner`` → every module of ``services/agents/planner/``).
+An agent's code is the package of its ``implementation`` (``services.agents.planner.agent:Planner``
+→ every module of ``services/agents/planner/``).
+
+**An agent that declares its protocol roles** (``ROLES``; services/runtime/roles.py) is checked
+exactly, by the comparison it also runs when it starts
+(:func:`services.runtime.roles.agent_problems`): its roles against its interface in the
+specification — every channel, protocol, role and content language, none missing, none
+extra —, a handler for every performative the other role may send by the protocol's state
+machine and none for anything else, and its whole folder read for sends outside its roles
+(services/runtime/code_scan.py). The report lists, per role, what it sends and receives.
+
+**An agent that declares none** is read by the older heuristic below.
 In it:
 
 - a **send** is a call ``self.send(to, Performative.X, …)``, ``self.reply(item,
@@ -29,7 +39,11 @@ import importlib.util
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from services.runtime.main import agent_class
+from services.runtime.roles import RoleDecl, agent_problems, incoming, outgoing, spec_roles
 from services.spec.model import DEFAULT_SPEC, SpecError, SystemSpec, interface, load
+from services.spec.protocol_defs import machine_of
+from shared.fipa_codec.acts import Performative
 
 SEND_METHODS = frozenset({"send", "reply", "fail"})
 RUNTIME_HANDLED = frozenset({"not-understood"})
@@ -141,6 +155,25 @@ def verify_agent(spec: SystemSpec, agent: str, files: list[Path]) -> tuple[Agent
     return code, problems
 
 
+def role_lines(spec: SystemSpec, agent: str, roles: list[RoleDecl]) -> list[str]:
+    """Per role: channel, protocol, role, peer, languages, and the performatives it receives
+    and sends by the protocol's state machine (not-understood, always allowed, left out)."""
+    channels = {ch.name: ch for ch in spec.channels}
+    out = []
+    for decl in roles:
+        ends = channels[decl.channel].ends
+        peer = ends[1] if ends[0] == agent else ends[0]
+        machine = machine_of(spec, decl.protocol)
+        nu = {Performative.NOT_UNDERSTOOD}
+        receives = sorted(p.value for p in incoming(machine, decl.role) - nu)
+        sends = sorted(p.value for p in outgoing(machine, decl.role) - nu)
+        out.append(
+            f"  {decl.channel} {decl.protocol} {decl.role} with {peer} in {', '.join(decl.languages)}: "
+            f"receives {', '.join(receives)}; sends {', '.join(sends)}"
+        )
+    return out
+
+
 def verify_code_report(path: Path = DEFAULT_SPEC) -> tuple[bool, str]:
     """``roco spec verify-code``: (ok, the report's text)."""
     try:
@@ -149,14 +182,31 @@ def verify_code_report(path: Path = DEFAULT_SPEC) -> tuple[bool, str]:
         lines: list[str] = []
         for a in spec.agents:
             files = package_files(a.implementation)
+            cls = agent_class(spec, a.name)
+            if cls.ROLES is not None:
+                found = agent_problems(spec, a.name, cls, files)
+                problems += found
+                lines.append(
+                    f"{a.name}: {len(files)} files; {len(cls.ROLES)} protocol roles"
+                    f"{' agree with the specification' if not found else ''}:"
+                )
+                lines += role_lines(spec, a.name, spec_roles(spec, a.name))
+                continue
             code, found = verify_agent(spec, a.name, files)
             problems += found
+            sends = ", ".join(sorted(code.sends)) or "nothing"
+            handled = ", ".join(sorted(code.handles)) or "nothing"
             lines.append(
-                f"{a.name}: {len(files)} files; sends {', '.join(sorted(code.sends)) or 'nothing'}; "
-                f"handles {', '.join(sorted(code.handles)) or 'nothing'}"
+                f"{a.name}: {len(files)} files, no protocol roles declared (heuristic scan); "
+                f"sends {sends}; handles {handled}"
             )
-    except SpecError as exc:
+    except (SpecError, SyntaxError) as exc:
         return False, str(exc)
     if not problems:
-        return True, "\n".join([*lines, "OK: every receivable message has a handler; every send is allowed"])
+        return True, "\n".join(
+            [
+                *lines,
+                "OK: every receivable message has a handler; every send is allowed (not-understood always)",
+            ]
+        )
     return False, "\n".join([*lines, *(f"- {p}" for p in problems), f"{len(problems)} problem(s)"])

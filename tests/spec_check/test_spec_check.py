@@ -159,7 +159,12 @@ def test_verify_code_passes_on_the_shipped_agents() -> None:
 
     ok, text = verify_code_report(DEFAULT_SPEC)
     assert ok, text
-    assert "ag_ex: 2 files; sends failure, inform" in text
+    assert "ag_ex: 2 files; 1 protocol roles agree with the specification:" in text
+    assert (
+        "  C5 fipa-request participant with a_ta in L_EX, L_SD: receives cancel, request; "
+        "sends agree, failure, inform, refuse"
+    ) in text
+    assert "  C4 fipa-query participant with a_pl in L_WM: receives cancel, query-if, query-ref" in text
 
 
 def test_verify_code_names_a_missing_handler_and_a_forbidden_send(tmp_path: Path) -> None:

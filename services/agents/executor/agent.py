@@ -40,8 +40,9 @@ from typing import Any
 import msgspec
 
 from services.runtime import keys
-from services.runtime.agent import Agent, Received
+from services.runtime.agent import Agent
 from services.runtime.behaviour import FSM, Behaviour
+from services.runtime.roles import PARTICIPANT, Conversation, handles, participant
 from shared.fipa_codec import Performative
 from shared.fipa_codec.languages.l_ex import CommandResult, ExecutorCommand
 from shared.fipa_codec.languages.l_sd import Observation
@@ -67,7 +68,7 @@ def _seed(name: str, text: str) -> int:
 class Done:
     """A command's result from the loop, with the request it answers."""
 
-    request: Received
+    request: Conversation
     result: CommandResult | Observation
 
 
@@ -90,6 +91,7 @@ class PeerChange:
 
 class ExecutorAgent(Agent):
     name = "ag_ex"
+    ROLES = (participant("C5", "fipa-request", "L_EX", "L_SD"),)
     period = STATE_PERIOD
 
     def make_executor(self) -> Any:
@@ -182,25 +184,29 @@ class ExecutorAgent(Agent):
         if rerun is not None:  # Rerun: close ag_ex's part of the run's recording
             rerun.close()
 
+    @handles("fipa-request", PARTICIPANT, "request")
+    def _on_request(self, conv: Conversation) -> None:
+        command = conv.content
+        if not isinstance(command, COMMAND_TYPES):
+            what = type(command).__name__ if command is not None else "no content"
+            conv.refuse_with(Performative.REFUSE, f"not an L_EX command: {what}")
+            return
+        self.executor.submit(command, lambda result, req=conv: self.post(Done(req, result)))
+
+    @handles("fipa-request", PARTICIPANT, "cancel")
+    def _on_cancel(self, conv: Conversation) -> None:
+        self.log.info("cancel from %s: the running command completes, queued ones stay", conv.peer)
+        conv.refuse_with(Performative.FAILURE, "the command is with the control loop: it completes")
+
     def _serve(self) -> None:
-        while self.x:
-            item = self.x.popleft()
-            if item.performative is Performative.REQUEST and isinstance(item.content, COMMAND_TYPES):
-                command: msgspec.Struct = item.content
-                self.executor.submit(command, lambda result, req=item: self.post(Done(req, result)))
-            elif item.performative is Performative.CANCEL:
-                self.log.info("cancel from %s: the running command completes, queued ones stay", item.sender)
-            elif item.performative is not Performative.NOT_UNDERSTOOD and not item.local:
-                self.not_understood(
-                    item.sender, item.channel, f"cannot serve {item.performative.value}", item.msg
-                )
+        self.handle_received()
         while self.r:
             event = self.r.popleft()
             if isinstance(event, Done):
                 if self.rerun is not None and isinstance(event.result, Observation):  # Rerun
                     self.rerun.observation(event.result)
                 ok = not isinstance(event.result, CommandResult) or event.result.ok
-                self.reply(event.request, Performative.INFORM if ok else Performative.FAILURE, event.result)
+                event.request.reply(Performative.INFORM if ok else Performative.FAILURE, event.result)
             elif isinstance(event, PeerChange):
                 self._peer_changed(event)
             elif isinstance(event, Disturbance):

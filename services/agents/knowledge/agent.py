@@ -27,11 +27,13 @@ import os
 import time
 from collections import deque
 from collections.abc import Mapping
+from dataclasses import dataclass
 from pathlib import Path
 
 from services.agents.knowledge.world_model import KnowledgeError, UnsupportedQuery, WorldModel
-from services.runtime.agent import Agent, Received
+from services.runtime.agent import Agent
 from services.runtime.behaviour import FSM, Arc, Behaviour
+from services.runtime.roles import INITIATOR, PARTICIPANT, Conversation, handles, initiator, participant
 from shared.fipa_codec import Performative
 from shared.fipa_codec.languages.l_wm import (
     GraspQuery,
@@ -66,8 +68,22 @@ def store_path(environ: Mapping[str, str] | None = None) -> Path | None:
     return None
 
 
+@dataclass(frozen=True)
+class Query:
+    """A query to answer: its conversation and the performative that answers it (FIPA
+    SC00027: ``inform`` to query-if, ``inform-ref`` to query-ref)."""
+
+    conversation: Conversation
+    answer: Performative
+
+
 class KnowledgeManager(Agent):
     name = "a_km"
+    ROLES = (
+        participant("C4", "fipa-query", "L_WM"),
+        participant("C6", "fipa-query", "L_WM"),
+        initiator("C6", "fipa-subscribe", "L_WM", reply_by_s=SUBSCRIBE_RETRY_S),
+    )
 
     def build_fsm(self) -> FSM:
         path = store_path()
@@ -79,11 +95,12 @@ class KnowledgeManager(Agent):
             len(self.world),
             " (kept from before)" if self.world.kept else "",
         )
-        self.subscribe_reply: str | None = None
+        self.subscription: Conversation | None = None
         self.subscribed = False
         self.ta_lost = False  # a_ta's liveliness token disappeared since the last subscription
-        self.current: Received | None = None
-        self.held: deque[Received] = deque()  # queries waiting for the first observation
+        self.work: deque[Query | WorldUpdate] = deque()  # queries and observations, as they came
+        self.current: Query | WorldUpdate | None = None
+        self.held: deque[Query] = deque()  # queries waiting for the first observation
         self.hold_until: float | None = time.monotonic() + HOLD_QUERIES_S if self.world.kept else None
         return FSM(
             initial="idle",
@@ -110,8 +127,8 @@ class KnowledgeManager(Agent):
                 ),
             },
             arcs=[
-                Arc("idle", "questionAnswering", self._is_query_current, "query"),
-                Arc("idle", "knowledgeSaving", lambda: not self._is_query_current(), "observation"),
+                Arc("idle", "questionAnswering", lambda: isinstance(self.current, Query), "query"),
+                Arc("idle", "knowledgeSaving", lambda: isinstance(self.current, WorldUpdate), "observation"),
                 Arc("questionAnswering", "idle"),
                 Arc("knowledgeSaving", "idle"),
             ],
@@ -138,21 +155,55 @@ class KnowledgeManager(Agent):
             self._subscribe()
 
     def _subscribe(self) -> None:
-        msg = self.send(
-            "a_ta",
-            Performative.SUBSCRIBE,
-            Subscription("environment"),
-            protocol="fipa-subscribe",
-            conversation_id="km-environment",
-            reply_by_s=SUBSCRIBE_RETRY_S,
+        self.subscription = self.roles.open(
+            "C6", "fipa-subscribe", Subscription("environment"), conversation_id="km-environment"
         )
-        self.subscribe_reply = msg.reply_with
 
-    def _is_query_current(self) -> bool:
-        return self.current is not None and self.current.performative in (
-            Performative.QUERY_REF,
-            Performative.QUERY_IF,
-        )
+    # ---- the subscription to a_ta's environment updates (fipa-subscribe, initiator) ------
+    @handles("fipa-subscribe", INITIATOR, "agree")
+    def _on_subscribed(self, conv: Conversation) -> None:
+        self.subscribed = True
+        self.log.info("a_ta agreed to send environment updates")
+
+    @handles("fipa-subscribe", INITIATOR, "refuse", "failure")
+    def _on_subscription_lost(self, conv: Conversation) -> None:
+        """Refused, failed, not understood or unanswered by its deadline: ask again."""
+        self.subscribed = False
+        if conv is self.subscription:
+            self._subscribe()
+
+    @handles("fipa-subscribe", INITIATOR, "inform")
+    def _on_update(self, conv: Conversation) -> None:
+        if isinstance(conv.content, WorldUpdate):
+            self.work.append(conv.content)
+
+    # ---- queries from a_pl and a_ta (fipa-query, participant) -----------------------------
+    @handles("fipa-query", PARTICIPANT, "query-ref")
+    def _on_query_ref(self, conv: Conversation) -> None:
+        self._take_query(Query(conv, Performative.INFORM_REF))
+
+    @handles("fipa-query", PARTICIPANT, "query-if")
+    def _on_query_if(self, conv: Conversation) -> None:
+        self._take_query(Query(conv, Performative.INFORM))
+
+    @handles("fipa-query", PARTICIPANT, "cancel")
+    def _on_query_cancel(self, conv: Conversation) -> None:
+        """Queries are answered as they come: only a held or queued one can still be dropped."""
+        for waiting in (self.held, self.work):
+            for query in list(waiting):
+                if isinstance(query, Query) and query.conversation is conv:
+                    waiting.remove(query)
+                    conv.reply(Performative.INFORM)
+                    return
+        conv.refuse_with(Performative.FAILURE, "nothing to cancel: the query was already answered")
+
+    def _take_query(self, query: Query) -> None:
+        if self._holding():
+            if not self.held:
+                self.log.info("restarted: holding queries until a_ta's first observation")
+            self.held.append(query)
+        else:
+            self.work.append(query)
 
     def _holding(self) -> bool:
         """True while queries wait for the first observation after a restart (see the module
@@ -171,88 +222,54 @@ class KnowledgeManager(Agent):
             )
         return False
 
+    # ---- the behaviours ---------------------------------------------------------------------
     def _idle(self) -> None:
         self.current = None
         if self.held and not self._holding():
             self.current = self.held.popleft()
             return
-        while self.x:
-            item = self.x.popleft()
-            if (
-                item.msg.in_reply_to == self.subscribe_reply
-                and item.msg.conversation_id == "km-environment"
-                and item.performative is not Performative.INFORM
-            ):
-                if item.performative is Performative.AGREE:
-                    self.subscribed = True
-                    self.log.info("a_ta agreed to send environment updates")
-                elif item.local or item.performative in (Performative.REFUSE, Performative.NOT_UNDERSTOOD):
-                    self._subscribe()
-                continue
-            if item.performative is Performative.CANCEL:
-                # queries are answered at once: by the time a cancel arrives there is nothing left
-                self.fail(item, Performative.FAILURE, "nothing to cancel: the query was already answered")
-                continue
-            if item.performative in (Performative.QUERY_REF, Performative.QUERY_IF):
-                if self._holding():
-                    if not self.held:
-                        self.log.info("restarted: holding queries until a_ta's first observation")
-                    self.held.append(item)
-                    continue
-                self.current = item
-                return
-            if item.performative is Performative.INFORM and isinstance(item.content, WorldUpdate):
-                self.current = item
-                return
-            if item.performative is Performative.FAILURE and item.msg.conversation_id == "km-environment":
-                self.subscribed = False
-                self._subscribe()
-                continue
-            if not item.local and item.performative is not Performative.NOT_UNDERSTOOD:
-                self.not_understood(
-                    item.sender, item.channel, f"unexpected {item.performative.value}", item.msg
-                )
+        self.handle_received()
+        if self.work:
+            self.current = self.work.popleft()
 
     def _answer(self) -> None:
-        item = self.current
-        assert item is not None
-        query = item.content
+        current = self.current
+        assert isinstance(current, Query)
+        conv = current.conversation
+        query = conv.opening.content if conv.opening is not None else None
         self.counters["queries"] += 1
         if not isinstance(query, QUERY_TYPES):
             what = type(query).__name__ if query is not None else "no content"
-            self.log.info("refused a %s from %s: not an L_WM query", what, item.sender)
-            self.fail(item, Performative.REFUSE, f"not an L_WM query: {what}")
+            self.log.info("refused a %s from %s: not an L_WM query", what, conv.peer)
+            conv.refuse_with(Performative.REFUSE, f"not an L_WM query: {what}")
             return
         try:
             answer = self.world.answer(query)
         except UnsupportedQuery as exc:
             self.log.info("refused %s: %s", type(query).__name__, exc)
-            self.fail(item, Performative.REFUSE, str(exc))
+            conv.refuse_with(Performative.REFUSE, str(exc))
             return
         except KnowledgeError as exc:
             self.log.info("query %s failed: %s", type(query).__name__, exc)
-            self.fail(item, Performative.FAILURE, str(exc))
+            conv.refuse_with(Performative.FAILURE, str(exc))
             return
         except Exception as exc:  # a fault must not leave the querier waiting for its deadline
             self.log.exception("query %s raised", type(query).__name__)
             self.counters["query_errors"] += 1
-            self.fail(item, Performative.FAILURE, f"internal error: {type(exc).__name__}: {exc}")
+            conv.refuse_with(Performative.FAILURE, f"internal error: {type(exc).__name__}: {exc}")
             return
-        answered = (
-            Performative.INFORM if item.performative is Performative.QUERY_IF else Performative.INFORM_REF
-        )
-        self.reply(item, answered, answer)
+        conv.reply(current.answer, answer)
 
     def _save(self) -> None:
-        item = self.current
-        assert item is not None and isinstance(item.content, WorldUpdate)
-        n = self.world.apply(item.content)
+        update = self.current
+        assert isinstance(update, WorldUpdate)
+        n = self.world.apply(update)
         self.counters["updates"] += 1
         self.counters["stale_poses"] = self.world.stale_poses
         self.counters["unstamped_poses"] = self.world.unstamped_poses
         self.counters["rejected_changes"] = self.world.rejected_changes
-        self.log.info("saved %d object updates (t=%.2f)", n, item.content.stamp)
-        if self.hold_until is not None and item.content.stamp >= 0:  # an observation
+        self.log.info("saved %d object updates (t=%.2f)", n, update.stamp)
+        if self.hold_until is not None and update.stamp >= 0:  # an observation
             self.hold_until = None
             if self.held:
                 self.log.info("observation saved: answering %d held queries", len(self.held))

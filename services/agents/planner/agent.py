@@ -12,6 +12,7 @@ read).
 from __future__ import annotations
 
 import time
+from collections import deque
 
 import msgspec
 
@@ -19,8 +20,9 @@ from services.agents.planner.domain import ATOMIC_STATES, PlanActions, PlanningF
 from services.agents.planner.goals import effects, goal_query
 from services.agents.planner.hfsm import to_hfsm
 from services.agents.planner.knowledge import ARMS, Knowledge
-from services.runtime.agent import Agent, Received
+from services.runtime.agent import Agent
 from services.runtime.behaviour import FSM, Arc, Behaviour
+from services.runtime.roles import INITIATOR, PARTICIPANT, Conversation, handles, initiator, participant
 from shared.fipa_codec import Performative
 from shared.fipa_codec.languages.l_hfsm import GroundTaskNetwork, HierarchicalPlan, PlanFailure
 from shared.fipa_codec.languages.l_wm import (
@@ -42,17 +44,23 @@ FURNITURE = ("table", "cabinet")
 
 class Planner(Agent):
     name = "a_pl"
+    ROLES = (
+        participant("C3", "fipa-request", "L_HFSM"),
+        initiator("C4", "fipa-query", "L_WM", reply_by_s=QUERY_REPLY_BY_S, retry_s=QUERY_RETRY_S),
+    )
 
     def build_fsm(self) -> FSM:
-        self.request: Received | None = None
+        self.requests: deque[Conversation] = deque()  # planning requests not yet taken up
+        self.request: Conversation | None = None
         self.problem: GroundTaskNetwork | None = None
         self.knowledge = Knowledge()
-        self.pending: dict[str, tuple[str, tuple[str, ...]]] = {}  # reply-with → (kind, key)
+        self.pending: set[Conversation] = set()  # open knowledge queries; data = (kind, key)
         self.failure: str | None = None
         self.result: PlanActions | None = None
         self.cancelled = False
         self.plan: HierarchicalPlan | None = None
-        self.check: str | None = None  # reply-with of the hypothetical-state query
+        self.check: Conversation | None = None  # the hypothetical-state query
+        self.checked = True
         self.asked: set[tuple[str, tuple[str, ...]]] = set()
         self.started = 0.0
         return FSM(
@@ -66,7 +74,7 @@ class Planner(Agent):
                 ),
                 "initialize": Behaviour(
                     "initialize",
-                    self._collect,
+                    self.handle_received,
                     terminal=lambda: not self.pending or self.failure is not None,
                     on_enter=self._ask,
                     doc="query a_km for the knowledge the problem needs",
@@ -95,58 +103,90 @@ class Planner(Agent):
             ],
         )
 
-    def _cancels(self) -> None:
-        """a_co's cancel of a plan request (FIPA cancel meta-protocol): the current one is
-        dropped and the cancel answered ``inform``; any other answered ``failure``."""
-        while (
-            item := self.take(lambda i: i.sender == "a_co" and i.performative is Performative.CANCEL)
-        ) is not None:
-            current = (
-                self.request is not None and item.msg.conversation_id == self.request.msg.conversation_id
-            )
-            if not current:
-                self.fail(item, Performative.FAILURE, "no such planning request (it has been answered)")
-                continue
-            self.reply(item, Performative.INFORM)
-            self.log.info("planning cancelled by a_co")
+    # ---- planning requests from a_co (fipa-request, participant) --------------------------
+    @handles("fipa-request", PARTICIPANT, "request")
+    def _on_request(self, conv: Conversation) -> None:
+        self.requests.append(conv)
+
+    @handles("fipa-request", PARTICIPANT, "cancel")
+    def _on_cancel(self, conv: Conversation) -> None:
+        """a_co's cancel of a plan request (FIPA cancel meta-protocol): the current or a waiting
+        one is dropped and the cancel answered ``inform``."""
+        if conv is self.request:
             self.cancelled = True
             self.failure = "cancelled"
+        elif conv in self.requests:
+            self.requests.remove(conv)
+        else:
+            conv.refuse_with(Performative.FAILURE, "no such planning request (it has been answered)")
+            return
+        conv.reply(Performative.INFORM)
+        self.log.info("planning cancelled by a_co")
 
+    # ---- knowledge from a_km (fipa-query, initiator) ---------------------------------------
+    @handles("fipa-query", INITIATOR, "inform-ref", "inform")
+    def _on_answer(self, conv: Conversation) -> None:
+        if conv is self.check:
+            self._checked(conv)
+        elif conv in self.pending:
+            self.pending.discard(conv)
+            if isinstance(conv.content, Answer):
+                kind, key = conv.data
+                self._learn(kind, key, conv.content)
+            else:
+                self._unanswered(conv)
+
+    @handles("fipa-query", INITIATOR, "refuse", "failure")
+    def _on_no_answer(self, conv: Conversation) -> None:
+        """Refused, failed, not understood, or no answer by the reply-by deadline."""
+        if conv is self.check:
+            self._checked(conv)
+        elif conv in self.pending:
+            self.pending.discard(conv)
+            self._unanswered(conv)
+
+    def _unanswered(self, conv: Conversation) -> None:
+        kind, key = conv.data
+        if kind == "object" and not key[0].endswith("_gripper"):
+            self.failure = f"I know of no {key[0]} ({conv.reason})"
+
+    def _checked(self, conv: Conversation) -> None:
+        self.checked = True
+        holds = isinstance(conv.content, Answer) and conv.content.boolean is True
+        if not holds:
+            why = conv.reason if conv.content is None else "it is false"
+            self.failure = f"the plan would not reach its goal in a_km's hypothetical state ({why})"
+
+    # ---- the behaviours ---------------------------------------------------------------------
     def _idle(self) -> None:
-        self._cancels()
-        item = self.take(lambda i: i.sender == "a_co" and i.performative is Performative.REQUEST)
-        if item is None:
-            self.reject_unhandled(lambda i: i.local)
+        self.handle_received()
+        if not self.requests:
             return
-        if not isinstance(item.content, GroundTaskNetwork):
-            self.reply(item, Performative.REFUSE, PlanFailure(task_id="", reason="no ground task network"))
+        conv = self.requests.popleft()
+        problem = conv.content
+        if not isinstance(problem, GroundTaskNetwork):
+            conv.reply(Performative.REFUSE, PlanFailure(task_id="", reason="no ground task network"))
             return
-        self.request, self.problem = item, item.content
+        self.request, self.problem = conv, problem
         self.knowledge, self.failure, self.result, self.plan = Knowledge(), None, None, None
         self.cancelled = False
         self.asked = set()
         self.started = time.monotonic()
         self.log.info(
             "planning #%d for %s: %s",
-            item.content.plan_index,
-            item.content.task_id,
-            [(t.name, t.args) for t in item.content.tasks],
+            problem.plan_index,
+            problem.task_id,
+            [(t.name, t.args) for t in problem.tasks],
         )
 
     def _query(self, kind: str, key: tuple[str, ...], query: msgspec.Struct) -> None:
         if (kind, key) in self.asked:
             return
         self.asked.add((kind, key))
-        msg = self.send(
-            "a_km",
-            Performative.QUERY_REF,
-            query,
-            protocol="fipa-query",
-            reply_by_s=QUERY_REPLY_BY_S,
-            retry_s=QUERY_RETRY_S,
+        conv = self.roles.open(
+            "C4", "fipa-query", query, performative=Performative.QUERY_REF, data=(kind, key)
         )
-        assert msg.reply_with is not None
-        self.pending[msg.reply_with] = (kind, key)
+        self.pending.add(conv)
         self.knowledge.queries += 1
 
     def _ask(self) -> None:
@@ -173,22 +213,6 @@ class Planner(Agent):
             self._query("grasps", (obj, arm), GraspQuery(object=obj, arm=arm))
         for furniture in FURNITURE:
             self._query("placement", (obj, furniture), PlacementQuery(object=obj, surface=furniture))
-
-    def _collect(self) -> None:
-        self._cancels()
-        for item in list(self.x):
-            entry = self.pending.pop(item.msg.in_reply_to or "", None)
-            if entry is None:
-                continue
-            self.x.remove(item)
-            kind, key = entry
-            if item.performative is not Performative.INFORM_REF or not isinstance(item.content, Answer):
-                reason = item.msg.content.decode("utf-8", "replace") or item.performative.value
-                if kind == "object" and not key[0].endswith("_gripper"):
-                    self.failure = f"I know of no {key[0]} ({reason})"
-                continue
-            self._learn(kind, key, item.content)
-        self.reject_unhandled(lambda i: i.local or i.sender == "a_co")
 
     def _learn(self, kind: str, key: tuple[str, ...], answer: Answer) -> None:
         k = self.knowledge
@@ -235,54 +259,41 @@ class Planner(Agent):
 
     def _verify(self) -> None:
         """Ask a_km whether the goal holds after the plan's effects (hypothetical state)."""
-        self.check = None
+        self.check, self.checked = None, True
         if self.failure is not None or self.result is None or self.plan is None:
             return
         query = goal_query(self.result.task, self.result.args, self.result.actions, self.plan.complete)
         if query is None:
             return
-        msg = self.send(
-            "a_km",
-            Performative.QUERY_REF,
+        self.check = self.roles.open(
+            "C4",
+            "fipa-query",
             HypotheticalQuery(changes=effects(self.result.actions), query=query),
-            protocol="fipa-query",
-            reply_by_s=QUERY_REPLY_BY_S,
-            retry_s=QUERY_RETRY_S,
+            performative=Performative.QUERY_REF,
         )
-        self.check = msg.reply_with
+        self.checked = False
         self.knowledge.queries += 1
 
     def _finalize(self) -> None:
-        assert self.request is not None and self.problem is not None
-        self._cancels()
+        assert self.problem is not None
+        self.handle_received()
+        request = self.request
+        assert request is not None
         if self.cancelled:  # the cancel was answered: the request's conversation has ended
-            self.request = self.problem = None
-            self.pending.clear()
-            self.check = None
+            self._done()
             return
-        if self.check is not None:
-            check = self.check
-            answer = self.take(lambda i: i.msg.in_reply_to == check)
-            if answer is None:
-                self.reject_unhandled(lambda i: i.local or i.sender == "a_co")
-                return
-            self.check = None
-            holds = isinstance(answer.content, Answer) and answer.content.boolean is True
-            if not holds:
-                why = answer.msg.content.decode("utf-8", "replace") if not answer.content else "it is false"
-                self.failure = f"the plan would not reach its goal in a_km's hypothetical state ({why})"
+        if not self.checked:
+            return
         elapsed = time.monotonic() - self.started
         if self.failure is not None or self.plan is None:
             reason = self.failure or "no plan"
-            self.reply(
-                self.request, Performative.FAILURE, PlanFailure(task_id=self.problem.task_id, reason=reason)
-            )
+            request.reply(Performative.FAILURE, PlanFailure(task_id=self.problem.task_id, reason=reason))
             self.log.info("no plan: %s", reason)
         else:
             plan = msgspec.structs.replace(
                 self.plan, km_queries=self.knowledge.queries, planning_time_s=round(elapsed, 3)
             )
-            self.reply(self.request, Performative.INFORM, plan)
+            request.reply(Performative.INFORM, plan)
             self.log.info(
                 "plan %s: %d leaves, %d safe stops, %s, %.1f s expected, %d queries, %.3f s",
                 plan.plan_id,
@@ -293,5 +304,9 @@ class Planner(Agent):
                 plan.km_queries,
                 elapsed,
             )
+        self._done()
+
+    def _done(self) -> None:
         self.request = self.problem = None
         self.pending.clear()
+        self.check, self.checked = None, True
