@@ -708,6 +708,30 @@ def spec_verify(
         raise typer.Exit(1)
 
 
+@spec_app.command("new-agent")
+def spec_new_agent(
+    name: Annotated[str, typer.Argument(metavar="NAME", help="the agent, as [[agents]] names it")],
+    spec: SpecFile = None,
+    root: Annotated[
+        Path | None,
+        typer.Option(help="the folder the implementation's package path starts in (default: the project)"),
+    ] = None,
+) -> None:
+    """Write the folder of agent NAME from the specification: its protocol roles and one
+    handler per performative its peers may send, each raising NotImplementedError until
+    written (docs/spec.md, "Walk-through: adding an agent"). Exit 1 when the file exists or the
+    specification has no such agent."""
+    from services.spec.model import SpecError, load
+    from services.spec_check.new_agent import PROJECT, write_agent
+
+    try:
+        scaffold = write_agent(load(_spec_path(spec)), name, root or PROJECT)
+    except (SpecError, FileExistsError) as exc:
+        raise fail(str(exc)) from None
+    typer.echo(f"roco: wrote {scaffold.module}")
+    typer.echo(f"roco: fill in {', '.join(scaffold.handlers)}; then: roco spec verify-code")
+
+
 @spec_app.command("verify-code")
 def spec_verify_code(spec: SpecFile = None) -> None:
     """Every message an agent may receive by the specification has a handler in its code, and

@@ -237,7 +237,8 @@ class Agent:
             language,
             type(content).__name__ if content is not None else None,
         )
-        if (expect_reply or reply_by_s is not None or retry_s is not None) and reply_with is None:
+        awaits = expect_reply or reply_by_s is not None or retry_s is not None
+        if awaits and reply_with is None:
             reply_with = new_id(f"{self.name}-")
         deadline = time.time() + reply_by_s if reply_by_s is not None else None
         msg = Communicate(
@@ -256,7 +257,7 @@ class Agent:
         )
         self._follow_send(to, msg)
         key, payload = keys.fipa_key(channel.name, self.name, to), encode(msg)
-        if reply_with is not None:
+        if awaits and reply_with is not None:
             self.conversations.expect(
                 Pending(
                     reply_with,

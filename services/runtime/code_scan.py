@@ -10,10 +10,13 @@ runs nothing) for what would bypass or blur that:
   (``keys.fipa_key``): the runtime's own tools, not an agent's;
 - a **performative comparison**: ``x.performative is …``, ``… in (Performative.X, …)``, a
   ``match`` on a performative: the roles route what arrives by the state machine;
-- a **performative the agent's roles may not send**: any ``Performative.X`` in its code,
-  directly or through a variable, that no declared role may send in its protocol;
+- a **performative the agent's roles may not send**: any ``Performative.X`` in its code (or
+  under an alias of ``Performative``), directly or through a variable, that no declared role
+  may send in its protocol;
 - an **opening outside its roles**: ``self.roles.open("Ck", "protocol", …)`` naming a channel
-  and protocol (as literals) where the agent declares no initiator role.
+  and protocol (as literals) where the agent declares no initiator role;
+- a **handler not written yet**: a method marked ``@handles``/``@on_deadline`` that raises
+  NotImplementedError (as ``roco spec new-agent`` writes them).
 
 What it cannot see: a performative built from a string at run time (``Performative(name)``)
 or a channel named through a variable; the roles check those when the agent sends.
@@ -43,12 +46,24 @@ class Finding:
         return f"{self.text} ({self.where})"
 
 
-def _performative(node: ast.AST) -> Performative | None:
-    if (
-        isinstance(node, ast.Attribute)
-        and isinstance(node.value, ast.Name)
-        and node.value.id == "Performative"
-    ):
+def _aliases(tree: ast.AST) -> frozenset[str]:
+    """The names ``Performative`` goes by in a module: itself, ``import … Performative as P``,
+    ``P = Performative``."""
+    names = {"Performative"}
+    for node in ast.walk(tree):
+        if isinstance(node, ast.ImportFrom):
+            names |= {a.asname for a in node.names if a.name == "Performative" and a.asname}
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Assign) and isinstance(node.value, ast.Name) and node.value.id in names:
+            names |= {t.id for t in node.targets if isinstance(t, ast.Name)}
+    return frozenset(names)
+
+
+_NAMES: frozenset[str] = frozenset({"Performative"})
+
+
+def _performative(node: ast.AST, names: frozenset[str] = _NAMES) -> Performative | None:
+    if isinstance(node, ast.Attribute) and isinstance(node.value, ast.Name) and node.value.id in names:
         try:
             return Performative[node.attr]
         except KeyError:
@@ -65,8 +80,8 @@ def _is_self(node: ast.AST, *attrs: str) -> bool:
     return isinstance(node, ast.Name) and node.id == "self"
 
 
-def _names_performative(node: ast.AST) -> bool:
-    return _performative(node) is not None or (
+def _names_performative(node: ast.AST, names: frozenset[str] = _NAMES) -> bool:
+    return _performative(node, names) is not None or (
         isinstance(node, ast.Attribute) and node.attr == "performative"
     )
 
@@ -82,6 +97,7 @@ def scan(
     out: list[Finding] = []
     for path in files:
         tree = ast.parse(path.read_text(), str(path))
+        names = _aliases(tree)
         for node in ast.walk(tree):
             where = f"{path.name}:{getattr(node, 'lineno', 0)}"
             if isinstance(node, ast.Call):
@@ -93,14 +109,36 @@ def scan(
                     for op in operands
                     for el in (op.elts if isinstance(op, ast.Tuple | ast.Set | ast.List) else [op])
                 ]
-                if any(_names_performative(el) for el in elements):
+                if any(_names_performative(el, names) for el in elements):
                     out.append(Finding(where, "compares a performative (the roles route what arrives)"))
-            elif isinstance(node, ast.Match) and _names_performative(node.subject):
+            elif isinstance(node, ast.Match) and _names_performative(node.subject, names):
                 out.append(Finding(where, "matches on a performative (the roles route what arrives)"))
-            perf = _performative(node)
+            elif isinstance(node, ast.FunctionDef) and _is_handler(node) and _unwritten(node):
+                out.append(
+                    Finding(where, f"has a handler not written yet: {node.name} raises NotImplementedError")
+                )
+            perf = _performative(node, names)
             if perf is not None and perf not in may_send:
                 out.append(Finding(where, f"uses Performative.{perf.name}, which none of its roles may send"))
     return out
+
+
+def _is_handler(node: ast.FunctionDef) -> bool:
+    for dec in node.decorator_list:
+        func = dec.func if isinstance(dec, ast.Call) else dec
+        name = func.id if isinstance(func, ast.Name) else func.attr if isinstance(func, ast.Attribute) else ""
+        if name in ("handles", "on_deadline"):
+            return True
+    return False
+
+
+def _unwritten(node: ast.FunctionDef) -> bool:
+    for sub in ast.walk(node):
+        if isinstance(sub, ast.Raise) and sub.exc is not None:
+            exc = sub.exc.func if isinstance(sub.exc, ast.Call) else sub.exc
+            if isinstance(exc, ast.Name) and exc.id == "NotImplementedError":
+                return True
+    return False
 
 
 def _call(node: ast.Call, where: str, opens: frozenset[tuple[str, str]]) -> list[Finding]:
@@ -110,7 +148,10 @@ def _call(node: ast.Call, where: str, opens: frozenset[tuple[str, str]]) -> list
     if not isinstance(func, ast.Attribute):
         return []
     if func.attr in RAW_SENDS and _is_self(func.value):
-        return [Finding(where, f"sends with self.{func.attr} outside its roles")]
+        first = node.args[0] if node.args else None
+        peer = first.value if isinstance(first, ast.Constant) and isinstance(first.value, str) else None
+        to = f" to {peer}" if peer is not None and func.attr == "send" else ""
+        return [Finding(where, f"sends with self.{func.attr}{to} outside its roles")]
     if func.attr == "publish":
         return [Finding(where, "publishes on the transport (only its roles send; self.emit for effectors)")]
     if func.attr == "fipa_key":

@@ -89,9 +89,10 @@ def main(argv: list[str] | None = None) -> int:
     transport = FaultyTransport(zenoh_transport, name, faults)
     try:
         agent = cls(transport, spec)
-    except (SpecError, ValueError) as exc:  # e.g. a malformed ROCO_SEED
+    except (SpecError, ValueError) as exc:  # e.g. roles that differ from the spec, a malformed ROCO_SEED
         transport.close()
-        print(f"roco: agent {name}: {exc}", file=sys.stderr)
+        text = str(exc) if str(exc).startswith(f"agent {name}") else f"agent {name}: {exc}"
+        print(f"roco: {text}", file=sys.stderr)
         return 2
 
     def on_signal(signum: int, frame: FrameType | None) -> None:

@@ -36,6 +36,7 @@ spec verify-code`` runs the same comparison for every agent without starting it.
 from __future__ import annotations
 
 import inspect
+import time
 from collections import OrderedDict
 from collections.abc import Callable, Iterable, Iterator, Sequence
 from dataclasses import dataclass, field
@@ -44,20 +45,26 @@ from typing import TYPE_CHECKING, Any, TypeVar
 
 import msgspec
 
+from services.runtime import keys
 from services.runtime.code_scan import findings_text, scan
 from services.spec.model import ChannelSpec, SpecError, SystemSpec
 from services.spec.protocol_defs import machine_of
+from shared.fipa_codec import DecodeError, decode, encode
 from shared.fipa_codec.acts import Performative
+from shared.fipa_codec.languages import ContentError, decode_content
+from shared.fipa_codec.message import new_id
 from shared.fipa_codec.protocols import INITIATOR, PARTICIPANT, Protocol, Role
 
 if TYPE_CHECKING:
     from services.runtime.agent import Agent, Received
+    from shared.fipa_codec import Communicate
 
 __all__ = [
     "INITIATOR",
     "PARTICIPANT",
     "Conversation",
     "HandlerKey",
+    "RestoreError",
     "RoleDecl",
     "RoleMismatch",
     "Roles",
@@ -66,6 +73,7 @@ __all__ = [
     "handlers_of",
     "handles",
     "initiator",
+    "on_deadline",
     "participant",
     "role_problems",
     "spec_roles",
@@ -94,6 +102,10 @@ class RoleMismatch(SpecError):
     """An agent's declared roles or handlers differ from its interface in the specification."""
 
 
+class RestoreError(ValueError):
+    """A conversation kept across a restart cannot be taken back (see :meth:`Roles.restore`)."""
+
+
 @dataclass(frozen=True)
 class RoleDecl:
     """An agent plays ``role`` (initiator or participant) of interaction ``protocol`` on
@@ -108,6 +120,9 @@ class RoleDecl:
     languages: tuple[str, ...]
     reply_by_s: float | None = None
     retry_s: float | None = None
+    unused: bool = False
+    """An initiator role the specification gives the agent but in which it opens no
+    conversation: it needs no handlers, and ``self.roles.open`` refuses it."""
 
     def __str__(self) -> str:
         return f"{self.role} of {self.protocol} on {self.channel} ({', '.join(self.languages)})"
@@ -119,9 +134,11 @@ def initiator(
     *languages: str,
     reply_by_s: float | None = None,
     retry_s: float | None = None,
+    unused: bool = False,
 ) -> RoleDecl:
-    """The initiator role of ``protocol`` on ``channel``, in ``languages``."""
-    return RoleDecl(channel, protocol, INITIATOR, tuple(languages), reply_by_s, retry_s)
+    """The initiator role of ``protocol`` on ``channel``, in ``languages``; ``unused``: the
+    agent opens no conversation in it (see :attr:`RoleDecl.unused`)."""
+    return RoleDecl(channel, protocol, INITIATOR, tuple(languages), reply_by_s, retry_s, unused)
 
 
 def participant(channel: str, protocol: str, *languages: str) -> RoleDecl:
@@ -136,12 +153,14 @@ class HandlerKey:
 
     protocol: str
     role: Role
-    performative: Performative
+    performative: Performative | None
+    """None: a reply-by deadline of this agent's passed (:func:`on_deadline`)."""
     channel: str | None = None
 
     def __str__(self) -> str:
         where = f" on {self.channel}" if self.channel else ""
-        return f"{self.performative.value} received as {self.role} of {self.protocol}{where}"
+        what = self.performative.value if self.performative else "a passed reply-by deadline"
+        return f"{what} received as {self.role} of {self.protocol}{where}"
 
 
 Handler = Callable[[Any, "Conversation"], None]
@@ -161,6 +180,18 @@ def handles(protocol: str, role: Role, *performatives: str, channel: str | None 
         except ValueError:
             raise ValueError(f"{name!r} is not a FIPA performative (FIPA SC00037)") from None
 
+    return _marker(keys)
+
+
+def on_deadline(protocol: str, role: Role, *, channel: str | None = None) -> Callable[[F], F]:
+    """Mark an agent method ``method(self, conversation)`` as the handler of a reply-by
+    deadline that passed in a conversation of ``protocol`` where the agent plays ``role``
+    (:attr:`Conversation.last` is then the runtime's local ``failure``). Without one, an
+    initiator's ``failure`` handler gets it; a participant's passed deadline is logged."""
+    return _marker([HandlerKey(protocol, role, None, channel)])
+
+
+def _marker(keys: Sequence[HandlerKey]) -> Callable[[F], F]:
     def mark(fn: F) -> F:
         setattr(fn, _MARK, (*getattr(fn, _MARK, ()), *keys))
         return fn
@@ -267,10 +298,15 @@ def role_problems(
             )
     for key, role in want.items():
         if key not in seen:
-            problems.append(f"{where} declares no role for {role}: {role.role} by [[channels]] {key[0]}")
+            problems.append(
+                f"{where} declares no {role.role} role for {role.protocol} on {role.channel}, which "
+                f"[[channels]] {role.channel} gives it (in {', '.join(role.languages)})"
+            )
     handlers = list(handlers)
     valid = [d for d in declared if want.get((d.channel, d.protocol)) == _normal(d)]
     for decl in valid:
+        if decl.unused:
+            continue
         machine = machine_of(spec, decl.protocol)
         for perf in sorted(
             incoming(machine, decl.role) - optional(machine, decl.role), key=lambda p: p.value
@@ -286,7 +322,8 @@ def role_problems(
             h.protocol == d.protocol
             and h.role == d.role
             and h.channel in (None, d.channel)
-            and h.performative in incoming(machine_of(spec, d.protocol), d.role)
+            and not d.unused
+            and (h.performative is None or h.performative in incoming(machine_of(spec, d.protocol), d.role))
             for d in valid
         ):
             problems.append(f"{where} has a handler for {h}, which no role it declares receives")
@@ -303,7 +340,7 @@ def code_problems(
     for decl in declared:
         if decl.protocol in spec.protocols:
             may_send |= outgoing(machine_of(spec, decl.protocol), decl.role)
-    opens = frozenset((d.channel, d.protocol) for d in declared if d.role == INITIATOR)
+    opens = frozenset((d.channel, d.protocol) for d in declared if d.role == INITIATOR and not d.unused)
     return findings_text(scan(files, frozenset(may_send), opens), agent)
 
 
@@ -331,7 +368,9 @@ def _other(role: Role) -> Role:
     return PARTICIPANT if role == INITIATOR else INITIATOR
 
 
-def _handler_for(handlers: Sequence[HandlerKey], decl: RoleDecl, perf: Performative) -> HandlerKey | None:
+def _handler_for(
+    handlers: Sequence[HandlerKey], decl: RoleDecl, perf: Performative | None
+) -> HandlerKey | None:
     """The handler of ``perf`` for ``decl``: a channel's own before one for every channel."""
     for channel in (decl.channel, None):
         key = HandlerKey(decl.protocol, decl.role, perf, channel)
@@ -349,10 +388,12 @@ class Conversation:
     """One conversation a role of this agent takes part in.
 
     ``decl`` is the role, ``peer`` the other agent, ``conversation_id`` the FIPA
-    conversation-id; ``last`` the latest communicate received in it (None before the first);
-    ``data`` whatever the agent attaches (e.g. what a query was about). Replies and further
-    communicates go through :meth:`reply`, :meth:`refuse_with`, :meth:`send` and
-    :meth:`cancel`, which the protocol's state machine checks (SpecViolation)."""
+    conversation-id; ``last`` the latest communicate received in it (None before the first;
+    the runtime's local ``failure`` when a reply-by deadline passed); ``data`` whatever the
+    agent attaches (e.g. what a query was about). Replies and further communicates go
+    through :meth:`reply`, :meth:`refuse_with`, :meth:`send` and :meth:`cancel`, which set
+    conversation-id, in-reply-to and reply-with and which the protocol's state machine
+    checks (SpecViolation)."""
 
     roles: Roles = field(repr=False)
     decl: RoleDecl
@@ -360,7 +401,8 @@ class Conversation:
     conversation_id: str
     last: Received | None = None
     opening: Received | None = None
-    """The communicate that opened the conversation, when the peer opened it (participant)."""
+    """The communicate that opened the conversation: the peer's (participant) or this
+    agent's own (initiator)."""
     data: Any = None
     reply_with: str | None = None
     """The reply-with of this agent's latest communicate awaiting a reply (initiator)."""
@@ -368,6 +410,10 @@ class Conversation:
     """The participant agreed (fipa-request, fipa-query, fipa-subscribe)."""
     awaited: set[str] = field(default_factory=set, repr=False)
     """The reply-with of every communicate this agent sent in it expecting a reply."""
+    cancels: set[str] = field(default_factory=set, repr=False)
+    """The reply-with of every cancel this agent sent in it awaiting an answer."""
+    _cancel: Received | None = field(default=None, repr=False)
+    _cancelled: bool = field(default=False, repr=False)
 
     @property
     def content(self) -> msgspec.Struct | None:
@@ -403,20 +449,46 @@ class Conversation:
     @property
     def finished(self) -> bool:
         """The conversation has reached a final state of its protocol (or a not-understood
-        ended it)."""
+        ended it, or the peer's ``inform`` answered this agent's cancel: ``cancelled``, which
+        the protocol state alone cannot tell from an inform that crossed the cancel)."""
+        if self._cancelled:
+            return True
         tracker = self.roles.agent.protocol_states.get(self.peer, self.conversation_id)
         return tracker is not None and tracker.is_finished
 
-    def reply(self, performative: Performative, content: msgspec.Struct | None = None) -> None:
-        """Answer the latest communicate received (in-reply-to its reply-with). Raises
-        SpecViolation when the role or the conversation's state does not allow it."""
-        self._sent(self.roles._reply(self, performative, content))
+    @property
+    def answering(self) -> Received | None:
+        """The communicate this agent's next reply answers (its in-reply-to): a participant
+        answers the communicate that opened the conversation — or, while its ``cancel``
+        handler runs, the cancel (FIPA SC00026 §2: the cancel is answered by itself); an
+        initiator answers the latest communicate received (e.g. coordinate's ``confirm`` of
+        an ``inform``)."""
+        if self._cancel is not None:
+            return self._cancel
+        if self.decl.role == PARTICIPANT and self.opening is not None:
+            return self.opening
+        return self.last
 
-    def refuse_with(self, performative: Performative, reason: str) -> None:
-        """Answer the latest communicate with ``refuse`` or ``failure`` whose content is
-        ``reason`` as UTF-8 text (FIPA SC00037: a reason a person can read)."""
-        assert self.last is not None, "nothing received to answer"
-        self.roles.agent.fail(self.last, performative, reason)
+    def reply(
+        self,
+        performative: Performative,
+        content: msgspec.Struct | None = None,
+        *,
+        to: Received | None = None,
+    ) -> str | None:
+        """Answer :attr:`answering` (or ``to``, a communicate received in this conversation
+        earlier: e.g. a cancel answered once the robot is safe) with ``performative`` carrying
+        ``content``. Returns the reply-with (None: no reply awaited). Raises SpecViolation when
+        the role or the conversation's state does not allow it."""
+        return self._sent(self.roles._reply(self, performative, content, to=to))
+
+    def refuse_with(self, performative: Performative, reason: str, *, to: Received | None = None) -> None:
+        """Answer :attr:`answering` (or ``to``) with ``refuse`` or ``failure`` whose content
+        is ``reason`` as UTF-8 text (FIPA SC00037: a reason a person can read). Raises
+        SpecViolation as :meth:`reply`."""
+        answering = to or self.answering
+        assert answering is not None, "nothing received to answer"
+        self.roles.agent.fail(answering, performative, reason)
         self.roles._settle(self)
 
     def send(
@@ -426,22 +498,76 @@ class Conversation:
         *,
         reply_by_s: float | None = None,
         retry_s: float | None = None,
-    ) -> None:
-        """Send a further communicate of this conversation (e.g. coordinate's ``confirm``),
-        in reply to the latest received, expecting a reply when the protocol lets the peer
-        answer it."""
-        self._sent(self.roles._reply(self, performative, content, reply_by_s=reply_by_s, retry_s=retry_s))
+    ) -> str | None:
+        """Send a further communicate of this conversation as :meth:`reply` does, awaiting a
+        reply when ``reply_by_s`` (s: the reply-by deadline) or ``retry_s`` (s: retransmitted
+        until the first answer; ``RESEND_ON_RETURN``: only when the peer reappears) is given.
+        Returns its reply-with (None: no reply awaited)."""
+        return self._sent(
+            self.roles._reply(self, performative, content, reply_by_s=reply_by_s, retry_s=retry_s)
+        )
 
-    def cancel(self, content: msgspec.Struct | None = None) -> None:
-        """The initiator cancels the conversation (FIPA SC00026 §2 cancel meta-protocol)."""
+    @property
+    def answers_cancel(self) -> bool:
+        """:attr:`last` answers a cancel this agent sent (the cancel meta-protocol's inform
+        or failure, or the runtime's failure when the cancel's reply-by deadline passed)."""
+        return self.last is not None and self.last.msg.in_reply_to in self.cancels
+
+    def cancel(self, content: msgspec.Struct | None = None, *, reply_by_s: float | None = None) -> str | None:
+        """The initiator cancels the conversation (FIPA SC00026 §2 cancel meta-protocol, or
+        the coordinate protocol's cancel, paper §5.4), carrying ``content``; it refers to the
+        conversation, not to one communicate (no in-reply-to). With ``reply_by_s`` (s) its
+        answer is awaited (:attr:`answers_cancel`) and a local failure ends the wait. Returns
+        the cancel's reply-with (None: no answer awaited)."""
+        reply_with = self.roles._send(
+            self, Performative.CANCEL, content, reply_by_s, None, expect=False
+        ).reply_with
+        if reply_with is not None:
+            self.cancels.add(reply_with)
+            self.awaited.add(reply_with)
+        self.roles._settle(self)
+        return reply_with
+
+    def await_reply(self, reply_by_s: float) -> None:
+        """Wait for the answer to this agent's opening communicate until ``reply_by_s`` (s)
+        from now, without retransmission (e.g. the outcome after an ``agree``, which ended
+        the first wait's retransmissions but not its deadline)."""
+        if self.opening is not None and self.opening.msg.reply_with:
+            self.roles._await(self, self.opening.msg.reply_with, reply_by_s, None)
+
+    def keep(self) -> bytes:
+        """The communicate that opened this conversation, encoded (FIPA SC00061 msgpack), to
+        be kept across a restart and given back to :meth:`Roles.restore`."""
+        assert self.opening is not None, "a conversation restored by its id alone has no opening"
+        return encode(self.opening.msg)
+
+    def stop_waiting(self) -> None:
+        """Stop waiting for replies in this conversation: no reply-by deadline, no
+        retransmission. The conversation stays open: what the peer sends still arrives."""
         self.roles.agent.conversations.forget_conversation(self.conversation_id)
-        self._sent(self.roles._open_send(self, Performative.CANCEL, content, None, None, expect=True))
 
-    def _sent(self, reply_with: str | None) -> None:
+    def abandon(self) -> None:
+        """:meth:`stop_waiting`, and forget the conversation: what the peer still sends in
+        it is dropped as a late reply."""
+        self.stop_waiting()
+        self.roles._forget(self)
+
+    def answer_again(self, in_reply_to: str) -> int:
+        """Publish again, byte for byte, what this agent answered the peer's communicate
+        ``in_reply_to`` (e.g. the last ``confirm`` to a peer that may have restarted; a peer
+        that still has it drops the copy, services/runtime/dedup.py). Returns how many."""
+        agent = self.roles.agent
+        again = agent.dedup.answers(self.peer, in_reply_to)
+        for key, payload in again:
+            agent.emit(key, payload)
+        return len(again)
+
+    def _sent(self, reply_with: str | None) -> str | None:
         if reply_with is not None:
             self.reply_with = reply_with
             self.awaited.add(reply_with)
         self.roles._settle(self)
+        return reply_with
 
 
 class Roles:
@@ -493,6 +619,8 @@ class Roles:
         for a role not declared, SpecViolation for a performative that does not open the
         protocol."""
         decl = self.role(channel, protocol)
+        if decl.unused:
+            raise KeyError(f"{self.agent.name} declares its {protocol} role on {channel} unused")
         if decl.role != INITIATOR:
             raise KeyError(
                 f"{self.agent.name} is the participant of {protocol} on {channel}, not the initiator"
@@ -505,8 +633,10 @@ class Roles:
         perf = performative or (openers[0] if len(openers) == 1 else None)
         if perf is None:
             raise ValueError(f"{protocol} opens with {' or '.join(p.value for p in openers)}: name one")
+        from services.runtime.agent import Received
+
         conv = Conversation(self, decl, self._peer_of[decl], conversation_id or "", data=data)
-        conv.reply_with = self._open_send(
+        msg = self._send(
             conv,
             perf,
             content,
@@ -514,10 +644,98 @@ class Roles:
             retry_s if retry_s is not None else decl.retry_s,
             expect=True,
         )
+        conv.opening = Received(msg, content, channel)
+        conv.reply_with = msg.reply_with
         if conv.reply_with is not None:
             conv.awaited.add(conv.reply_with)
         self._keep(conv)
         return conv
+
+    def restore(
+        self,
+        channel: str,
+        protocol: str,
+        state: str,
+        *,
+        kept: bytes | None = None,
+        conversation_id: str | None = None,
+        reply_by_s: float | None = None,
+        retry_s: float | None = None,
+        data: Any = None,
+    ) -> Conversation:
+        """Re-enter a conversation kept across a restart (issue 7) in ``state`` of its
+        protocol's state machine, reached by the shortest path of communicates (an ``inform``
+        counts as non-terminal). ``kept`` is :meth:`Conversation.keep` of the conversation
+        before the restart (the communicate that opened it); without it, ``conversation_id``
+        names the conversation. When this agent sent the opening communicate and
+        ``reply_by_s`` (s) or ``retry_s`` (s) is given, the wait for its reply is re-entered:
+        retransmitted at once and every ``retry_s`` until answered, ended by a local failure
+        after ``reply_by_s``. Raises RestoreError (a ValueError) for kept bytes that do not
+        decode or name no conversation, KeyError for a role not declared, SpecViolation when
+        no path leads to ``state``."""
+        from services.runtime.agent import Received, SpecViolation
+
+        decl = self.role(channel, protocol)
+        peer = self._peer_of[decl]
+        opening: Received | None = None
+        if kept is not None:
+            try:
+                msg = decode(kept)
+                content = decode_content(msg.language, msg.content) if msg.language and msg.content else None
+            except (DecodeError, ContentError) as exc:
+                raise RestoreError(f"a kept {protocol} conversation does not decode: {exc}") from None
+            if not msg.conversation_id:
+                raise RestoreError(f"a kept {protocol} communicate names no conversation")
+            opening = Received(msg, content, channel)
+            conversation_id = msg.conversation_id
+        if not conversation_id:
+            raise RestoreError("restore needs the kept communicate or the conversation-id")
+        machine = machine_of(self.agent.spec, protocol)
+        path = _path_to(machine, state)
+        if path is None:
+            raise SpecViolation(f"{protocol} has no state {state!r} to restore a conversation in")
+        self.agent.restore_conversation(
+            peer, conversation_id, protocol, [(perf, role == decl.role) for role, perf in path]
+        )
+        mine = opening is not None and opening.sender == self.agent.name
+        conv = Conversation(
+            self, decl, peer, conversation_id, last=None if mine else opening, opening=opening, data=data
+        )
+        if mine and opening is not None and kept is not None and opening.msg.reply_with:
+            if reply_by_s is not None or retry_s is not None:
+                self._await(conv, opening.msg.reply_with, reply_by_s, retry_s, kept)
+            conv.reply_with = opening.msg.reply_with
+            conv.awaited.add(opening.msg.reply_with)
+        self._keep(conv)
+        return conv
+
+    def _await(
+        self,
+        conv: Conversation,
+        reply_with: str,
+        reply_by_s: float | None,
+        retry_s: float | None,
+        payload: bytes = b"",
+    ) -> None:
+        """Wait for the reply to ``reply_with`` (services/runtime/conversations.py): until
+        ``reply_by_s`` from now, retransmitting ``payload`` at once and every ``retry_s``."""
+        from services.runtime.conversations import Pending
+
+        now = time.time()
+        again = retry_s is not None and bool(payload)
+        self.agent.conversations.expect(
+            Pending(
+                reply_with,
+                conv.peer,
+                conv.decl.protocol,
+                conv.conversation_id,
+                now + reply_by_s if reply_by_s is not None else None,
+                retry_s=retry_s if again else None,
+                key=keys.fipa_key(conv.decl.channel, self.agent.name, conv.peer) if again else "",
+                payload=payload if again else b"",
+                next_retry=now if again else None,
+            )
+        )
 
     def conversations(self, channel: str, protocol: str) -> list[Conversation]:
         """The open conversations of the role on ``channel`` in ``protocol``, oldest first
@@ -543,10 +761,11 @@ class Roles:
         if decl.role == PARTICIPANT and _opens(machine, perf):
             conv = Conversation(self, decl, item.sender, cid, opening=item)
             self._keep(conv)
-        stale = (
+        stale = (  # (a conversation restored after a restart does not know what it awaited)
             conv is not None
             and decl.role == INITIATOR
             and item.msg.in_reply_to is not None
+            and bool(conv.awaited)
             and item.msg.in_reply_to not in conv.awaited
         )
         if conv is None or stale:  # a reply to an earlier opening of a reused conversation-id
@@ -555,22 +774,43 @@ class Roles:
         conv.last = item
         if perf is Performative.AGREE and decl.role == INITIATOR:
             conv.agreed = True
-        method = self._method(decl, perf)
-        if method is None and perf is Performative.NOT_UNDERSTOOD and decl.role == INITIATOR:
-            method = self._method(decl, Performative.FAILURE)
-        before = conv.last if perf is Performative.CANCEL and decl.role == PARTICIPANT else None
+        if perf is Performative.INFORM and conv.answers_cancel and "cancelling" in machine.states:
+            conv._cancelled = True  # the cancel meta-protocol: the conversation is cancelled
+        if item.local:
+            method = self._method(decl, None)
+            if method is None and decl.role == INITIATOR:
+                method = self._method(decl, Performative.FAILURE)
+        else:
+            method = self._method(decl, perf)
+            if method is None and perf is Performative.NOT_UNDERSTOOD and decl.role == INITIATOR:
+                method = self._method(decl, Performative.FAILURE)
+        cancel = (  # the cancel meta-protocol: the cancel is answered by itself
+            perf is Performative.CANCEL
+            and decl.role == PARTICIPANT
+            and not item.local
+            and "cancelling" in machine.states
+        )
+        if cancel:
+            conv._cancel = item
         try:
             if method is not None:
                 getattr(agent, method)(conv)
-            elif perf is Performative.CANCEL:
+            elif cancel:
                 conv.refuse_with(Performative.FAILURE, "this conversation cannot be cancelled")
+            elif item.local:
+                agent.log.info(
+                    "reply-by deadline of %s in conversation %s with %s passed",
+                    item.msg.in_reply_to,
+                    cid,
+                    item.sender,
+                )
         except Exception as exc:  # a fault in a handler must not stop the agent nor strand the peer
             agent.counters["handler_errors"] += 1
             agent.log.exception("handler of %s in conversation %s raised", perf.value, cid)
             if decl.role == PARTICIPANT and not conv.finished and not item.local:
                 self._fail_quietly(item, f"internal error: {type(exc).__name__}: {exc}")
-        if before is not None:  # the cancel is answered: what comes next answers the request
-            conv.last = before
+        finally:
+            conv._cancel = None
         self._settle(conv)
 
     def _fail_quietly(self, item: Received, reason: str) -> bool:
@@ -604,7 +844,7 @@ class Roles:
             item.msg.conversation_id,
         )
 
-    def _method(self, decl: RoleDecl, perf: Performative) -> str | None:
+    def _method(self, decl: RoleDecl, perf: Performative | None) -> str | None:
         key = _handler_for(list(self._handlers), decl, perf)
         return self._handlers[key] if key is not None else None
 
@@ -615,12 +855,20 @@ class Roles:
         while len(self._open) > MAX_OPEN:
             self._open.popitem(last=False)
 
+    def _forget(self, conv: Conversation) -> None:
+        if self._open.get((conv.peer, conv.conversation_id)) is conv:
+            del self._open[(conv.peer, conv.conversation_id)]
+
     def _settle(self, conv: Conversation) -> None:
-        """Forget a conversation that has ended."""
-        if conv.finished:
-            existing = self._open.get((conv.peer, conv.conversation_id))
-            if existing is conv:
-                del self._open[(conv.peer, conv.conversation_id)]
+        """Forget a conversation that has ended, once nothing of it waits in the input
+        buffer (the protocol state follows every communicate when it is acquired: the end
+        may already be there while earlier communicates wait for their handlers)."""
+        key = (conv.peer, conv.conversation_id)
+        if self._open.get(key) is not conv or not conv.finished:
+            return
+        if any(i.sender == conv.peer and i.msg.conversation_id == conv.conversation_id for i in self.agent.x):
+            return
+        del self._open[key]
 
     def _reply(
         self,
@@ -630,12 +878,27 @@ class Roles:
         *,
         reply_by_s: float | None = None,
         retry_s: float | None = None,
+        to: Received | None = None,
     ) -> str | None:
-        machine = machine_of(self.agent.spec, conv.decl.protocol)
-        expect = bool(incoming_after(machine, conv.decl.role, performative))
-        return self._open_send(conv, performative, content, reply_by_s, retry_s, expect=expect)
+        answering = to or conv.answering
+        if (
+            performative is Performative.INFORM
+            and answering is not None
+            and answering.performative is Performative.CANCEL
+            and "cancelling" in machine_of(self.agent.spec, conv.decl.protocol).states
+        ):
+            conv._cancelled = True  # the cancel meta-protocol: this inform says it is cancelled
+        return self._send(
+            conv,
+            performative,
+            content,
+            reply_by_s,
+            retry_s,
+            expect=False,
+            in_reply_to=answering.msg.reply_with if answering is not None and not answering.local else None,
+        ).reply_with
 
-    def _open_send(
+    def _send(
         self,
         conv: Conversation,
         performative: Performative,
@@ -644,39 +907,45 @@ class Roles:
         retry_s: float | None,
         *,
         expect: bool,
-    ) -> str | None:
-        last = conv.last
+        in_reply_to: str | None = None,
+    ) -> Communicate:
         msg = self.agent.send(
             conv.peer,
             performative,
             content,
             protocol=conv.decl.protocol,
             conversation_id=conv.conversation_id or None,
-            in_reply_to=last.msg.reply_with if last is not None and not last.local else None,
+            # every communicate of a role can be answered unambiguously, and two of them are
+            # never byte-identical (a copy is what a receiver drops: services/runtime/dedup.py)
+            reply_with=new_id(f"{self.agent.name}-"),
+            in_reply_to=in_reply_to,
             reply_by_s=reply_by_s,
             expect_reply=expect,
             retry_s=retry_s,
         )
         if not conv.conversation_id:
             conv.conversation_id = msg.conversation_id or ""
-        return msg.reply_with
+        return msg
 
     def __iter__(self) -> Iterator[Conversation]:
         return iter(list(self._open.values()))
 
 
+def _path_to(machine: Protocol, state: str) -> list[tuple[Role, Performative]] | None:
+    """The shortest sequence of (sender's role, performative) from the initial state to
+    ``state`` by non-terminal transitions, not-understood left out; None when there is none."""
+    paths: dict[str, list[tuple[Role, Performative]]] = {machine.initial: []}
+    todo = [machine.initial]
+    while todo:
+        here = todo.pop(0)
+        if here == state:
+            return paths[here]
+        for (source, role, perf), target in machine.transitions.items():
+            if source == here and target not in paths and perf is not Performative.NOT_UNDERSTOOD:
+                paths[target] = [*paths[here], (role, perf)]
+                todo.append(target)
+    return None
+
+
 def _opens(machine: Protocol, perf: Performative) -> bool:
     return machine.next_state(machine.initial, INITIATOR, perf) is not None
-
-
-def incoming_after(machine: Protocol, role: Role, performative: Performative) -> frozenset[Performative]:
-    """What the other role may send after ``role`` sent ``performative`` in some state of
-    ``machine``, cancel and not-understood left out (empty: no reply is awaited)."""
-    other = _other(role)
-    edges = [*machine.transitions.items(), *machine.terminal_transitions.items()]
-    targets = {t for (_, r, p), t in edges if r == role and p is performative}
-    return frozenset(
-        p
-        for (s, r, p), _ in edges
-        if s in targets and r == other and p not in (Performative.NOT_UNDERSTOOD, Performative.CANCEL)
-    )

@@ -5,7 +5,7 @@ specification (the paper's ClassInterfaceInfo check, §5.6).
 An agent's code is the package of its ``implementation`` (``services.agents.planner.agent:Planner``
 → every module of ``services/agents/planner/``).
 
-**An agent that declares its protocol roles** (``ROLES``; services/runtime/roles.py) is checked
+Every agent declares its protocol roles (``ROLES``; services/runtime/roles.py) and is checked
 exactly, by the comparison it also runs when it starts
 (:func:`services.runtime.roles.agent_problems`): its roles against its interface in the
 specification — every channel, protocol, role and content language, none missing, none
@@ -13,65 +13,29 @@ extra —, a handler for every performative the other role may send by the proto
 machine and none for anything else, and its whole folder read for sends outside its roles
 (services/runtime/code_scan.py). The report lists, per role, what it sends and receives.
 
-**An agent that declares none** is read by the older heuristic below.
-In it:
+An agent that declares no roles (``ROLES`` None) is one problem: nothing but its roles may
+send, so there is nothing else to read.
 
-- a **send** is a call ``self.send(to, Performative.X, …)``, ``self.reply(item,
-  Performative.X, …)`` or ``self.fail(item, Performative.X, …)``; X must be a performative the
-  agent's interface lets it send (to any peer);
-- a **handler** for performative X is a comparison naming ``Performative.X`` (``item.performative
-  is Performative.X``, ``perf in (Performative.X, …)``) outside such calls. Every performative
-  the interface lets the agent receive *as the participant* of a protocol (a request, a
-  query, a subscribe, a cancel) needs one; ``not-understood`` is answered and logged by the
-  runtime for every agent;
-- a **reply handler** is code matching replies to what the agent itself initiated (a use of
-  ``in_reply_to``): the performatives the interface lets the agent receive *as the
-  initiator* (agree, inform, failure …) need one.
-
-What it cannot see: which peer and protocol a handler is for; the runtime checks those on
-every communicate (services/runtime/agent.py).
+What it proves: each agent plays exactly the roles the specification gives it, in the
+channel's languages; it has a handler for everything its peers may send by the protocols'
+state machines and none for anything else; and its code sends only through its roles
+(which check every communicate against the state machine when it is sent). What it does
+not prove: that a handler decides well, that a conversation the agent should open is ever
+opened, or anything about a performative built from a string at run time
+(services/runtime/code_scan.py says what the reading cannot see). ``roco spec verify RUN``
+checks what a run actually sent.
 """
 
 from __future__ import annotations
 
-import ast
 import importlib.util
-from dataclasses import dataclass, field
 from pathlib import Path
 
 from services.runtime.main import agent_class
 from services.runtime.roles import RoleDecl, agent_problems, incoming, outgoing, spec_roles
-from services.spec.model import DEFAULT_SPEC, SpecError, SystemSpec, interface, load
+from services.spec.model import DEFAULT_SPEC, SpecError, SystemSpec, load
 from services.spec.protocol_defs import machine_of
 from shared.fipa_codec.acts import Performative
-
-SEND_METHODS = frozenset({"send", "reply", "fail"})
-RUNTIME_HANDLED = frozenset({"not-understood"})
-
-
-@dataclass
-class AgentCode:
-    """What the code of one agent sends and handles (FIPA performative names), with where."""
-
-    agent: str
-    files: list[Path]
-    sends: dict[str, list[str]] = field(default_factory=dict)  # performative → "file:line"
-    handles: dict[str, list[str]] = field(default_factory=dict)
-    matches_replies: list[str] = field(default_factory=list)  # "file:line" of in_reply_to uses
-
-
-def _fipa(name: str) -> str:
-    return name.lower().replace("_", "-")
-
-
-def _performative(node: ast.AST) -> str | None:
-    if (
-        isinstance(node, ast.Attribute)
-        and isinstance(node.value, ast.Name)
-        and node.value.id == "Performative"
-    ):
-        return _fipa(node.attr)
-    return None
 
 
 def package_files(implementation: str) -> list[Path]:
@@ -87,80 +51,20 @@ def package_files(implementation: str) -> list[Path]:
     return sorted(Path(spec.origin).parent.glob("*.py"))
 
 
-def read_code(agent: str, files: list[Path]) -> AgentCode:
-    """Collect the sends and handlers in ``files`` (see module docstring)."""
-    code = AgentCode(agent, files)
-    for path in files:
-        tree = ast.parse(path.read_text(), str(path))
-        in_sends: set[int] = set()
-        for node in ast.walk(tree):
-            if (
-                isinstance(node, ast.Call)
-                and isinstance(node.func, ast.Attribute)
-                and node.func.attr in SEND_METHODS
-                and len(node.args) >= 2
-            ):
-                for sub in ast.walk(node.args[1]):  # Performative.X, or a choice of them
-                    perf = _performative(sub)
-                    if perf is not None:
-                        code.sends.setdefault(perf, []).append(f"{path.name}:{node.lineno}")
-                        in_sends.add(id(sub))
-        for node in ast.walk(tree):
-            if isinstance(node, ast.Attribute) and node.attr == "in_reply_to":
-                code.matches_replies.append(f"{path.name}:{node.lineno}")
-            if not isinstance(node, ast.Compare):
-                continue
-            for operand in (node.left, *node.comparators):
-                elements = operand.elts if isinstance(operand, ast.Tuple | ast.Set | ast.List) else [operand]
-                for el in elements:
-                    perf = _performative(el)
-                    if perf is not None and id(el) not in in_sends:
-                        code.handles.setdefault(perf, []).append(f"{path.name}:{el.lineno}")
-    return code
-
-
-def verify_agent(spec: SystemSpec, agent: str, files: list[Path]) -> tuple[AgentCode, list[str]]:
-    """The agent's code and every mismatch with its specified interface, as sentences."""
-    code = read_code(agent, files)
-    iface = interface(spec, agent)
-    may_send = {k.performative for k in iface.sends}
-    problems = []
-    for perf, where in sorted(code.sends.items()):
-        if perf not in may_send:
-            problems.append(
-                f"{agent} sends {perf} ({', '.join(where)}) but its interface allows only "
-                f"{', '.join(sorted(may_send))}"
-            )
-    initiates = {
-        (ch.name, cp.protocol) for ch in spec.channels for cp in ch.protocols if cp.initiator == agent
-    }
-    folder = files[0].parent if files else "?"
-    for kind in sorted({(k.performative, k.channel, k.protocol, k.sender) for k in iface.receives}):
-        perf, channel, protocol, sender = kind
-        if perf in RUNTIME_HANDLED:
-            continue
-        if (channel, protocol) in initiates:
-            if not code.matches_replies:
-                problems.append(
-                    f"{agent} initiates {protocol} on {channel} but no code in {folder} matches the "
-                    f"replies (no use of in_reply_to), e.g. {perf} from {sender}"
-                )
-            continue
-        if perf not in code.handles:
-            name = perf.upper().replace("-", "_")
-            problems.append(
-                f"{agent} may receive {perf} from {sender} on {channel} ({protocol}) but no code in "
-                f"{folder} handles it (no comparison with Performative.{name})"
-            )
-    return code, problems
-
-
-def role_lines(spec: SystemSpec, agent: str, roles: list[RoleDecl]) -> list[str]:
+def role_lines(
+    spec: SystemSpec, agent: str, roles: list[RoleDecl], unused: set[tuple[str, str]]
+) -> list[str]:
     """Per role: channel, protocol, role, peer, languages, and the performatives it receives
-    and sends by the protocol's state machine (not-understood, always allowed, left out)."""
+    and sends by the protocol's state machine (not-understood, always allowed, left out);
+    ``unused``: the (channel, protocol) of initiator roles the agent opens no conversation in."""
     channels = {ch.name: ch for ch in spec.channels}
     out = []
     for decl in roles:
+        if (decl.channel, decl.protocol) in unused:
+            out.append(
+                f"  {decl.channel} {decl.protocol} {decl.role}: declared unused (opens no conversation)"
+            )
+            continue
         ends = channels[decl.channel].ends
         peer = ends[1] if ends[0] == agent else ends[0]
         machine = machine_of(spec, decl.protocol)
@@ -183,23 +87,15 @@ def verify_code_report(path: Path = DEFAULT_SPEC) -> tuple[bool, str]:
         for a in spec.agents:
             files = package_files(a.implementation)
             cls = agent_class(spec, a.name)
-            if cls.ROLES is not None:
-                found = agent_problems(spec, a.name, cls, files)
-                problems += found
-                lines.append(
-                    f"{a.name}: {len(files)} files; {len(cls.ROLES)} protocol roles"
-                    f"{' agree with the specification' if not found else ''}:"
-                )
-                lines += role_lines(spec, a.name, spec_roles(spec, a.name))
-                continue
-            code, found = verify_agent(spec, a.name, files)
+            found = agent_problems(spec, a.name, cls, files)
             problems += found
-            sends = ", ".join(sorted(code.sends)) or "nothing"
-            handled = ", ".join(sorted(code.handles)) or "nothing"
+            declared = cls.ROLES or ()
             lines.append(
-                f"{a.name}: {len(files)} files, no protocol roles declared (heuristic scan); "
-                f"sends {sends}; handles {handled}"
+                f"{a.name}: {len(files)} files; {len(declared)} protocol roles"
+                f"{' agree with the specification' if not found else ''}:"
             )
+            unused = {(d.channel, d.protocol) for d in declared if d.unused}
+            lines += role_lines(spec, a.name, spec_roles(spec, a.name), unused)
     except (SpecError, SyntaxError) as exc:
         return False, str(exc)
     if not problems:

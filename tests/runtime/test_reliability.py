@@ -244,7 +244,7 @@ def test_a_restarted_a_co_goes_on_with_the_plan_a_ta_runs(
     first.step("schedule")
     first.step("switch")
     (run,) = first.mine(P.REQUEST)
-    assert run.conversation_id == first.agent.ta_conversation
+    assert first.agent.ta is not None and run.conversation_id == first.agent.ta.conversation_id
 
     second = Wire(Coordinator)
     second.agent.setup()

@@ -33,13 +33,24 @@ from __future__ import annotations
 
 import itertools
 import time
+from collections import deque
 from dataclasses import dataclass
+from typing import Literal
 
 import msgspec
 
 from services.agents.coordinator.scheduling import Candidate, Decision, Running, decide
-from services.runtime.agent import Agent, Received
+from services.runtime.agent import Agent, Received, SpecViolation
 from services.runtime.behaviour import FSM, Arc, Behaviour
+from services.runtime.roles import (
+    INITIATOR,
+    PARTICIPANT,
+    Conversation,
+    RestoreError,
+    handles,
+    initiator,
+    participant,
+)
 from services.runtime.state_store import StateFile
 from shared.fipa_codec import DecodeError, Performative, decode, encode
 from shared.fipa_codec.languages import ContentError, decode_content
@@ -72,7 +83,7 @@ class Task:
 
     task_id: str
     command: HumanCommand
-    request: Received
+    request: Conversation
     accepted_at: float
     deadline: float | None
     order: int
@@ -81,7 +92,7 @@ class Task:
     plan_index: int = 0
     replans: int = 0
     needs_plan: bool = True
-    planning: str | None = None  # reply-with of the outstanding plan request
+    planning: Conversation | None = None  # the outstanding plan request to a_pl
     step: str | None = None
     leaf: int = 0  # index of the leaf a_ta runs
     cancel: Received | None = None  # the person's cancel, answered when the robot is safe
@@ -117,8 +128,19 @@ class KeptCoordinator(msgspec.Struct, kw_only=True):
     subscription: bytes | None
 
 
+PersonSaid = tuple[Literal["command", "stop"], Conversation, Received]
+"""What the person said, for procReq: a command (its request) or a stop (its cancel)."""
+
+
 class Coordinator(Agent):
     name = "a_co"
+    ROLES = (
+        participant("C2", "fipa-request", "L_HC"),
+        participant("C2", "fipa-subscribe", "L_HC"),
+        participant("C2", "fipa-query", "L_HC"),
+        initiator("C3", "fipa-request", "L_HFSM", reply_by_s=PLAN_REPLY_BY_S, retry_s=PLAN_RETRY_S),
+        initiator("C1", "coordinate", "L_HFSM", "L_SW"),
+    )
 
     def build_fsm(self) -> FSM:
         self.kept = StateFile.for_agent(self.name, KeptCoordinator)
@@ -127,9 +149,10 @@ class Coordinator(Agent):
         self.last_confirmed: str | None = None  # reply-with of a_ta's last inform a_co confirmed
         self.tasks: dict[str, Task] = {}
         self.ta_task: str | None = None  # task whose plan a_ta runs (or is terminating)
-        self.ta_conversation: str | None = None
+        self.ta: Conversation | None = None  # the C1 conversation of the plan a_ta runs
         self.ta_cancelled = False  # cancel sent in the current C1 conversation
-        self.subscription: Received | None = None  # a_hi's progress subscription
+        self.person: deque[PersonSaid] = deque()  # commands and stops for procReq
+        self.subscription: Conversation | None = None  # a_hi's progress subscription
         self.decision: Decision = Decision(None, False, "")
         self.reschedule = False
         self.decisions: list[Decision] = []
@@ -187,19 +210,7 @@ class Coordinator(Agent):
 
     # ---- conditions ----
     def _person_spoke(self) -> bool:
-        return any(self._is_command(i) or self._is_cancel(i) for i in self.x)
-
-    @staticmethod
-    def _is_command(item: Received) -> bool:
-        return item.sender == "a_hi" and item.performative is Performative.REQUEST
-
-    @staticmethod
-    def _is_cancel(item: Received) -> bool:
-        return (
-            item.sender == "a_hi"
-            and item.performative is Performative.CANCEL
-            and item.msg.protocol == "fipa-request"
-        )
+        return bool(self.person)
 
     def _plans_needed(self) -> bool:
         return any(t.needs_plan and t.planning is None and t.state not in _ON_TA for t in self.tasks.values())
@@ -215,51 +226,52 @@ class Coordinator(Agent):
 
     # ---- behaviours ----
     def _trigger(self) -> None:
-        self._handle_async()
+        self.handle_received()
 
     def _proc_req(self) -> None:
-        for item in list(self.x):
-            if self._is_command(item):
-                self.x.remove(item)
-                self._accept(item)
-            elif self._is_cancel(item):
-                self.x.remove(item)
-                self._stop_command(item)
+        self.handle_received()
+        while self.person:
+            kind, conv, item = self.person.popleft()
+            if kind == "command":
+                self._accept(conv, item)
+            else:
+                self._stop_command(conv, item)
 
-    def _accept(self, item: Received) -> None:
+    def _accept(self, conv: Conversation, item: Received) -> None:
         if not isinstance(item.content, HumanCommand):
-            self.fail(item, Performative.REFUSE, "no command in the request")
+            conv.refuse_with(Performative.REFUSE, "no command in the request")
             return
         now = time.time()
-        task_id = item.msg.conversation_id or f"task-{len(self.tasks)}"
+        task_id = conv.conversation_id or f"task-{len(self.tasks)}"
         known = self.tasks.get(task_id)
         if known is not None:
-            if known.request.msg.reply_with == item.msg.reply_with and item.msg.reply_with is not None:
+            opening = known.request.opening
+            if opening is not None and opening.msg.reply_with == item.msg.reply_with and item.msg.reply_with:
                 self.counters["repeated_commands"] += 1
                 self.log.info("task %s: the request came again (a retransmission); already accepted", task_id)
                 return
-            self.fail(item, Performative.REFUSE, f"command {task_id} is already being carried out")
+            conv.refuse_with(Performative.REFUSE, f"command {task_id} is already being carried out")
             return
         deadline = now + item.content.deadline_s if item.content.deadline_s is not None else None
-        task = Task(task_id, item.content, item, now, deadline, next(self._order))
+        task = Task(task_id, item.content, conv, now, deadline, next(self._order))
         self.tasks[task_id] = task
-        self.reply(item, Performative.AGREE)
+        conv.reply(Performative.AGREE)
         self._progress(task, TaskState.WAITING, detail="accepted")
         self.log.info("task %s: %s (priority %d)", task_id, item.content.text, item.content.priority)
 
-    def _stop_command(self, item: Received) -> None:
-        """The person cancels command ``item.conversation_id`` (FIPA cancel meta-protocol:
-        answered by inform when stopped, failure when it cannot be)."""
-        task = self.tasks.get(item.msg.conversation_id or "")
+    def _stop_command(self, conv: Conversation, cancel: Received) -> None:
+        """The person cancels command ``conv`` (FIPA cancel meta-protocol: answered by
+        inform when stopped, failure when it cannot be)."""
+        task = self.tasks.get(conv.conversation_id)
         if task is None:
-            self.fail(item, Performative.FAILURE, "no such command (it may have ended already)")
+            conv.refuse_with(Performative.FAILURE, "no such command (it may have ended already)", to=cancel)
             return
-        task.cancel = item
+        task.cancel = cancel
         if task.task_id == self.ta_task:
             self._cancel_ta(f"stopped by the person: {task.command.text}")
             return
         if task.planning is not None:
-            self.conversations.forget(task.planning)
+            task.planning.abandon()
         self._finish(task, False, "stopped; the robot was not working on it", stopped=True)
 
     def _request_plans(self) -> None:
@@ -273,25 +285,18 @@ class Coordinator(Agent):
             gtn = GroundTaskNetwork(
                 task_id=task.task_id, tasks=(task.command.goal,), plan_index=task.plan_index
             )
-            msg = self.send(
-                "a_pl",
-                Performative.REQUEST,
-                gtn,
-                protocol="fipa-request",
-                conversation_id=f"{task.task_id}-plan{task.plan_index}",
-                reply_by_s=PLAN_REPLY_BY_S,
-                retry_s=PLAN_RETRY_S,
+            task.planning = self.roles.open(
+                "C3", "fipa-request", gtn, conversation_id=f"{task.task_id}-plan{task.plan_index}"
             )
-            task.planning = msg.reply_with
             if task.state is not TaskState.PREEMPTED:
                 self._progress(task, TaskState.PLANNING, detail=f"plan #{task.plan_index} requested")
             self.log.info("task %s: requested plan #%d", task.task_id, task.plan_index)
 
     def _comp_sp_step(self) -> None:
-        self._handle_async()
+        self.handle_received()
 
     def _schedule(self) -> None:
-        self._handle_async()
+        self.handle_received()
         self.reschedule = False
         now = time.time()
         waiting = [
@@ -342,17 +347,11 @@ class Coordinator(Agent):
             return
         task = self.tasks[self.decision.switch_to or ""]
         assert task.plan is not None and self._robot_free()
-        msg = self.send(
-            "a_ta",
-            Performative.REQUEST,
-            task.plan,
-            protocol="coordinate",
-            conversation_id=f"{task.task_id}-exec{task.plan_index}",
-            expect_reply=True,
+        self.ta = self.roles.open(
+            "C1", "coordinate", task.plan, conversation_id=f"{task.task_id}-exec{task.plan_index}"
         )
         resumed = task.state is TaskState.PREEMPTED
         self.ta_task = task.task_id
-        self.ta_conversation = msg.conversation_id
         self.ta_cancelled = False
         task.leaf = 0
         self._progress(task, TaskState.RUNNING, detail="resumed" if resumed else f"plan {task.plan.plan_id}")
@@ -361,17 +360,11 @@ class Coordinator(Agent):
     def _cancel_ta(self, why: str) -> None:
         """Cancel the plan a_ta runs (coordinate protocol): a_ta reports Terminating, then
         Preempted once the robot is safe."""
-        if self.ta_cancelled or self.ta_conversation is None:
+        if self.ta_cancelled or self.ta is None:
             return
         task = self.tasks.get(self.ta_task or "")
         plan_id = task.plan.plan_id if task is not None and task.plan is not None else ""
-        self.send(
-            "a_ta",
-            Performative.CANCEL,
-            SWStatus(state=SWState.TERMINATING, plan_id=plan_id, reason=why),
-            protocol="coordinate",
-            conversation_id=self.ta_conversation,
-        )
+        self.ta.cancel(SWStatus(state=SWState.TERMINATING, plan_id=plan_id, reason=why))
         self.ta_cancelled = True
         if task is not None:
             self._progress(task, TaskState.TERMINATING, detail=why)
@@ -408,16 +401,16 @@ class Coordinator(Agent):
                 for t in self.tasks.values()
             ),
             self.ta_task,
-            self.ta_conversation,
+            self.ta.conversation_id if self.ta is not None else None,
             self.ta_cancelled,
-            self.subscription.msg.conversation_id if self.subscription is not None else None,
+            self.subscription.conversation_id if self.subscription is not None else None,
         )
 
     def _kept(self) -> KeptCoordinator:
         return KeptCoordinator(
             tasks=[
                 KeptTask(
-                    request=encode(t.request.msg),
+                    request=t.request.keep(),
                     accepted_at=t.accepted_at,
                     deadline=t.deadline,
                     order=t.order,
@@ -433,9 +426,9 @@ class Coordinator(Agent):
                 for t in sorted(self.tasks.values(), key=lambda t: t.order)
             ],
             ta_task=self.ta_task,
-            ta_conversation=self.ta_conversation,
+            ta_conversation=self.ta.conversation_id if self.ta is not None else None,
             ta_cancelled=self.ta_cancelled,
-            subscription=encode(self.subscription.msg) if self.subscription is not None else None,
+            subscription=self.subscription.keep() if self.subscription is not None else None,
         )
 
     @staticmethod
@@ -448,18 +441,21 @@ class Coordinator(Agent):
         """Take back the commands of a previous a_co (see the module docstring)."""
         for k in kept.tasks:
             try:
-                request = self._received(k.request)
                 cancel = self._received(k.cancel) if k.cancel is not None else None
-            except (DecodeError, ContentError) as exc:
-                self.log.warning("a kept command does not decode (%s): dropped", exc)
+                state = "cancelling" if cancel is not None else "agreed"
+                conv = self.roles.restore("C2", "fipa-request", state, kept=k.request)
+            except (DecodeError, ContentError, RestoreError, SpecViolation) as exc:
+                self.log.warning("a kept command cannot be taken back (%s): dropped", exc)
                 continue
-            if not isinstance(request.content, HumanCommand) or request.msg.conversation_id is None:
+            command = conv.opening.content if conv.opening is not None else None
+            if not isinstance(command, HumanCommand):
+                conv.abandon()
                 continue
-            on_ta = request.msg.conversation_id == kept.ta_task and kept.ta_conversation is not None
+            on_ta = conv.conversation_id == kept.ta_task and kept.ta_conversation is not None
             task = Task(
-                request.msg.conversation_id,
-                request.content,
-                request,
+                conv.conversation_id,
+                command,
+                conv,
                 k.accepted_at,
                 k.deadline,
                 k.order,
@@ -473,33 +469,18 @@ class Coordinator(Agent):
                 cancel=cancel,
                 detail=k.detail,
             )
-            history = [(Performative.REQUEST, False), (Performative.AGREE, True)]
-            if cancel is not None:
-                history.append((Performative.CANCEL, False))
-            self.restore_conversation("a_hi", task.task_id, "fipa-request", history)
             self.tasks[task.task_id] = task
         self._order = itertools.count(max((t.order for t in self.tasks.values()), default=-1) + 1)
         if kept.ta_task in self.tasks and kept.ta_conversation is not None:
-            self.ta_task, self.ta_conversation = kept.ta_task, kept.ta_conversation
-            self.ta_cancelled = kept.ta_cancelled
-            history = [
-                (Performative.REQUEST, True),
-                (Performative.INFORM, False),
-                (Performative.CONFIRM, True),
-            ]
-            if kept.ta_cancelled:
-                history.append((Performative.CANCEL, True))
-            self.restore_conversation("a_ta", kept.ta_conversation, "coordinate", history)
+            self.ta_task, self.ta_cancelled = kept.ta_task, kept.ta_cancelled
+            self.ta = self.roles.restore("C1", "coordinate", "running", conversation_id=kept.ta_conversation)
         if kept.subscription is not None:
-            sub = self._received(kept.subscription)
-            if sub.msg.conversation_id is not None:
-                self.restore_conversation(
-                    "a_hi",
-                    sub.msg.conversation_id,
-                    "fipa-subscribe",
-                    [(Performative.SUBSCRIBE, False), (Performative.AGREE, True)],
+            try:
+                self.subscription = self.roles.restore(
+                    "C2", "fipa-subscribe", "active", kept=kept.subscription
                 )
-                self.subscription = sub
+            except (RestoreError, SpecViolation) as exc:
+                self.log.warning("the kept progress subscription cannot be taken back (%s)", exc)
         self.reschedule = True
         self.log.info(
             "restored %d command(s) from %s%s",
@@ -514,55 +495,58 @@ class Coordinator(Agent):
         if not alive and self.ta_task is not None:
             self.ta_lost = True
             self.log.warning("a_ta disappeared while running %s; the robot holds position", self.ta_task)
-        elif alive and self.ta_lost and self.last_confirmed is not None:
+        elif alive and self.ta_lost and self.last_confirmed is not None and self.ta is not None:
             self.log.info("a_ta is back: the last confirm goes again (a new a_ta will not know it)")
-            for key, payload in self.dedup.answers("a_ta", self.last_confirmed):
-                self.emit(key, payload)
+            self.ta.answer_again(self.last_confirmed)
 
-    # ---- communicates that may arrive in any state ----
-    def _handle_async(self) -> None:
-        for item in list(self.x):
-            if item.sender == "a_ta":
-                self.x.remove(item)
-                self._from_ta(item)
-            elif item.sender == "a_pl":
-                self.x.remove(item)
-                self._from_pl(item)
-            elif item.sender == "a_hi" and item.msg.protocol in ("fipa-subscribe", "fipa-query"):
-                self.x.remove(item)
-                self._from_hi(item)
-        self.reject_unhandled(lambda i: self._is_command(i) or self._is_cancel(i))
+    # ---- the person's commands (C2, fipa-request, participant) ----
+    @handles("fipa-request", PARTICIPANT, "request")
+    def _on_command(self, conv: Conversation) -> None:
+        assert conv.last is not None
+        self.person.append(("command", conv, conv.last))
 
-    def _from_hi(self, item: Received) -> None:
-        perf = item.performative
-        if perf is Performative.NOT_UNDERSTOOD:
-            # never answered (FIPA SC00037 §3.12); it ends its conversation: a_hi did not
-            # understand the progress stream, so the subscription is over
-            if (
-                self.subscription is not None
-                and item.msg.conversation_id == self.subscription.msg.conversation_id
-            ):
-                self.subscription = None
-            self.log.info("not-understood from a_hi (conversation %s) dropped", item.msg.conversation_id)
+    @handles("fipa-request", PARTICIPANT, "cancel")
+    def _on_stop(self, conv: Conversation) -> None:
+        """Answered once the robot is safe (see :meth:`_finish`)."""
+        assert conv.last is not None
+        self.person.append(("stop", conv, conv.last))
+
+    # ---- the person's progress subscription (C2, fipa-subscribe, participant) ----
+    @handles("fipa-subscribe", PARTICIPANT, "subscribe")
+    def _on_subscribe(self, conv: Conversation) -> None:
+        if not isinstance(conv.content, ProgressSubscription):
+            conv.refuse_with(Performative.REFUSE, "I report the progress of commands only")
             return
-        if perf is Performative.SUBSCRIBE and isinstance(item.content, ProgressSubscription):
-            self.subscription = item
-            self.reply(item, Performative.AGREE)
-        elif perf is Performative.CANCEL and item.msg.protocol == "fipa-subscribe":
-            if (
-                self.subscription is not None
-                and item.msg.conversation_id == self.subscription.msg.conversation_id
-            ):
-                self.subscription = None
-            self.reply(item, Performative.INFORM)
-        elif perf is Performative.QUERY_REF and isinstance(item.content, StatusQuery):
-            self.reply(item, Performative.INFORM_REF, self.status())
-        elif perf is Performative.QUERY_IF:
-            self.fail(item, Performative.REFUSE, "I answer what I am doing (query-ref), not yes/no questions")
-        elif perf is Performative.CANCEL:
-            self.reply(item, Performative.INFORM)  # nothing lasting to cancel in a query
+        self.subscription = conv
+        conv.reply(Performative.AGREE)
+
+    @handles("fipa-subscribe", PARTICIPANT, "cancel")
+    def _on_unsubscribe(self, conv: Conversation) -> None:
+        self._unsubscribe(conv)
+        conv.reply(Performative.INFORM)
+
+    @handles("fipa-subscribe", PARTICIPANT, "not-understood")
+    def _on_progress_not_understood(self, conv: Conversation) -> None:
+        """Never answered (FIPA SC00037 §3.12); it ends the conversation: a_hi did not
+        understand the progress stream, so the subscription is over."""
+        self._unsubscribe(conv)
+        self.log.info("not-understood from a_hi (conversation %s) dropped", conv.conversation_id)
+
+    def _unsubscribe(self, conv: Conversation) -> None:
+        if self.subscription is not None and self.subscription.conversation_id == conv.conversation_id:
+            self.subscription = None
+
+    # ---- the person's questions (C2, fipa-query, participant) ----
+    @handles("fipa-query", PARTICIPANT, "query-ref")
+    def _on_status_query(self, conv: Conversation) -> None:
+        if isinstance(conv.content, StatusQuery):
+            conv.reply(Performative.INFORM_REF, self.status())
         else:
-            self.fail(item, Performative.REFUSE, f"cannot answer {perf.value} with this content")
+            conv.refuse_with(Performative.REFUSE, "I answer status queries only")
+
+    @handles("fipa-query", PARTICIPANT, "query-if")
+    def _on_yes_no_query(self, conv: Conversation) -> None:
+        conv.refuse_with(Performative.REFUSE, "I answer what I am doing (query-ref), not yes/no questions")
 
     def status(self) -> Status:
         """Every command a_co holds, the one on a_ta first, then by acceptance."""
@@ -582,71 +566,80 @@ class Coordinator(Agent):
             )
         )
 
-    def _task_by_reply(self, in_reply_to: str | None) -> Task | None:
+    # ---- plans from a_pl (C3, fipa-request, initiator) ----
+    def _planned(self, conv: Conversation) -> Task | None:
+        """The task whose outstanding plan request ``conv`` is (None: no longer wanted)."""
         for t in self.tasks.values():
-            if t.planning is not None and t.planning == in_reply_to:
+            if t.planning is conv:
+                t.planning = None
                 return t
+        if not conv.timed_out and not conv.not_understood:
+            self.log.info("reply from a_pl to a plan request no longer wanted: dropped")
         return None
 
-    def _from_pl(self, item: Received) -> None:
-        task = self._task_by_reply(item.msg.in_reply_to)
+    @handles("fipa-request", INITIATOR, "inform")
+    def _on_plan(self, conv: Conversation) -> None:
+        task = self._planned(conv)
         if task is None:
-            if item.performative is not Performative.NOT_UNDERSTOOD and not item.local:
-                self.log.info("reply from a_pl to a plan request no longer wanted: dropped")
             return
-        if item.performative is Performative.AGREE:
+        plan = conv.content
+        if not isinstance(plan, HierarchicalPlan):
+            self._finish(task, False, f"no plan: {conv.reason}")
             return
-        task.planning = None
-        if item.performative is Performative.INFORM and isinstance(item.content, HierarchicalPlan):
-            task.plan = item.content
-            task.needs_plan = False
-            self.reschedule = True
-            if task.state is TaskState.PLANNING:
-                self._progress(task, TaskState.WAITING, detail=f"plan #{task.plan_index} ready")
-            self.log.info(
-                "task %s: plan #%d received (%s, %.0f s expected, %d km queries)",
-                task.task_id,
-                task.plan_index,
-                "complete" if item.content.complete else "partial",
-                item.content.cost,
-                item.content.km_queries,
-            )
-            return
-        reason = (
-            item.content.reason
-            if isinstance(item.content, PlanFailure)
-            else item.msg.content.decode("utf-8", "replace") or item.performative.value
+        task.plan = plan
+        task.needs_plan = False
+        self.reschedule = True
+        if task.state is TaskState.PLANNING:
+            self._progress(task, TaskState.WAITING, detail=f"plan #{task.plan_index} ready")
+        self.log.info(
+            "task %s: plan #%d received (%s, %.0f s expected, %d km queries)",
+            task.task_id,
+            task.plan_index,
+            "complete" if plan.complete else "partial",
+            plan.cost,
+            plan.km_queries,
         )
-        self._finish(task, False, f"no plan: {reason}")
 
-    def _from_ta(self, item: Received) -> None:
+    @handles("fipa-request", INITIATOR, "refuse", "failure")
+    def _on_no_plan(self, conv: Conversation) -> None:
+        """Refused, failed, not understood, or unanswered by the reply-by deadline."""
+        task = self._planned(conv)
+        if task is not None:
+            failure = conv.content
+            reason = failure.reason if isinstance(failure, PlanFailure) else conv.reason
+            self._finish(task, False, f"no plan: {reason}")
+
+    # ---- a_ta's states (C1, coordinate, initiator) ----
+    @handles("coordinate", INITIATOR, "inform")
+    def _on_ta_state(self, conv: Conversation) -> None:
+        """Every L_SW inform is confirmed (paper §5.4), also one of a conversation a_co has
+        left (a_ta waits for the confirm)."""
+        conv.send(Performative.CONFIRM)
         task = self.tasks.get(self.ta_task or "")
-        in_conversation = item.msg.conversation_id == self.ta_conversation
-        if item.performative is Performative.INFORM and isinstance(item.content, SWStatus):
-            self.reply(item, Performative.CONFIRM)
-            if not in_conversation or task is None:
-                return
-            self.last_confirmed = item.msg.reply_with
-            self.ta_lost = False  # a_ta speaks in the plan's conversation
-            self._sw_state(task, item.content)
+        if conv is not self.ta or task is None or conv.last is None:
             return
-        if item.performative in (Performative.FAILURE, Performative.REFUSE, Performative.NOT_UNDERSTOOD):
-            if (
-                in_conversation
-                and task is not None
-                and self.ta_lost
-                and item.performative is Performative.NOT_UNDERSTOOD
-            ):
-                self.log.warning("a_ta came back without its plan: task %s is planned again", task.task_id)
-                self.ta_lost = False
-                self._sw_state(task, SWStatus(state=SWState.REPLAN, plan_id="", reason="a_ta restarted"))
-                return
-            if in_conversation and task is not None and not item.local:
-                reason = item.msg.content.decode("utf-8", "replace")
-                self._release_ta()
-                self._finish(task, False, f"a_ta {item.performative.value}: {reason}")
+        self.last_confirmed = conv.last.msg.reply_with
+        self.ta_lost = False  # a_ta speaks in the plan's conversation
+        if isinstance(conv.content, SWStatus):
+            self._sw_state(task, conv.content)
+
+    @handles("coordinate", INITIATOR, "refuse", "failure")
+    def _on_ta_failed(self, conv: Conversation) -> None:
+        task = self.tasks.get(self.ta_task or "")
+        if conv is not self.ta or task is None or conv.timed_out or conv.last is None:
             return
-        self.not_understood(item.sender, item.channel, f"unexpected {item.performative.value}", item.msg)
+        self._release_ta()
+        self._finish(task, False, f"a_ta {conv.last.performative.value}: {conv.reason}")
+
+    @handles("coordinate", INITIATOR, "not-understood")
+    def _on_ta_not_understood(self, conv: Conversation) -> None:
+        task = self.tasks.get(self.ta_task or "")
+        if conv is self.ta and task is not None and self.ta_lost:
+            self.log.warning("a_ta came back without its plan: task %s is planned again", task.task_id)
+            self.ta_lost = False
+            self._sw_state(task, SWStatus(state=SWState.REPLAN, plan_id="", reason="a_ta restarted"))
+            return
+        self._on_ta_failed(conv)
 
     def _sw_state(self, task: Task, status: SWStatus) -> None:
         self.log.info("a_ta %s %s", status.state.value, status.step or status.reason or "")
@@ -694,10 +687,10 @@ class Coordinator(Agent):
 
     def _release_ta(self) -> None:
         self.ta_lost, self.last_confirmed = False, None
-        if self.ta_conversation is not None:
-            self.conversations.forget_conversation(self.ta_conversation)
+        if self.ta is not None:
+            self.ta.stop_waiting()
         self.ta_task = None
-        self.ta_conversation = None
+        self.ta = None
         self.ta_cancelled = False
 
     def _progress(self, task: Task, state: TaskState, *, step: str | None = None, detail: str = "") -> None:
@@ -708,10 +701,8 @@ class Coordinator(Agent):
             self.rerun.queue(self.status())
         if self.subscription is None:
             return
-        self.reply(
-            self.subscription,
-            Performative.INFORM,
-            Progress(command_id=task.task_id, state=state, step=task.step, detail=detail),
+        self.subscription.reply(
+            Performative.INFORM, Progress(command_id=task.task_id, state=state, step=task.step, detail=detail)
         )
 
     def _finish(self, task: Task, succeeded: bool, detail: str, *, stopped: bool = False) -> None:
@@ -719,16 +710,16 @@ class Coordinator(Agent):
         if stopped and task.cancel is not None:
             # FIPA cancel meta-protocol: the answer to the cancel ends the conversation
             perf = Performative.FAILURE if succeeded else Performative.INFORM
-            self.reply(task.cancel, perf, outcome)
+            task.request.reply(perf, outcome, to=task.cancel)
             self._progress(task, TaskState.SUCCEEDED if succeeded else TaskState.STOPPED, detail=detail)
         else:
-            self.reply(task.request, Performative.INFORM if succeeded else Performative.FAILURE, outcome)
+            task.request.reply(Performative.INFORM if succeeded else Performative.FAILURE, outcome)
             self._progress(task, TaskState.SUCCEEDED if succeeded else TaskState.FAILED, detail=detail)
         self.log.info("task %s %s: %s", task.task_id, "succeeded" if succeeded else "failed", detail)
         if self.ta_task == task.task_id:
             self._release_ta()
         if task.planning is not None:
-            self.conversations.forget(task.planning)
+            task.planning.abandon()
         del self.tasks[task.task_id]
         if self.rerun is not None:  # Rerun: the queue without it
             self.rerun.queue(self.status())

@@ -41,13 +41,12 @@ from services.agents.human_interface.language import (
     interpret,
 )
 from services.runtime import keys
-from services.runtime.agent import Agent, Received
+from services.runtime.agent import Agent, SpecViolation
 from services.runtime.behaviour import FSM, Behaviour
-from services.runtime.conversations import Pending
 from services.runtime.human import FINAL_REPORTS, HumanInput, HumanReport, ReportKind, RequestKind
+from services.runtime.roles import INITIATOR, Conversation, RestoreError, handles, initiator
 from services.runtime.state_store import StateFile
-from shared.fipa_codec import DecodeError, Performative, decode
-from shared.fipa_codec.languages import ContentError, decode_content
+from shared.fipa_codec import Performative
 from shared.fipa_codec.languages.l_hc import (
     CommandOutcome,
     HumanCommand,
@@ -60,6 +59,7 @@ from shared.fipa_codec.languages.l_hc import (
 )
 
 CO = "a_co"
+C2 = "C2"
 REQUEST = "fipa-request"
 SUBSCRIBE = "fipa-subscribe"
 QUERY = "fipa-query"
@@ -89,11 +89,10 @@ _CONNECTIVES = frozenset(
 
 
 class KeptCommand(msgspec.Struct, kw_only=True):
-    """An open command as a_hi keeps it across a restart: the request as sent (encoded
-    communicate and its Zenoh key), the person's request id, its label, whether a_co agreed."""
+    """An open command as a_hi keeps it across a restart: the request as sent (the encoded
+    communicate), the person's request id, its label, whether a_co agreed."""
 
     request: bytes
-    key: str
     request_id: str
     label: str
     agreed: bool
@@ -115,16 +114,15 @@ class PeerAlive:
 @dataclass
 class OpenCommand:
     """A command sent to a_co and not yet ended. ``conversation_id`` is its C2
-    conversation (a_co's ``command_id``); ``reply_with`` that of the request; ``cancel``
-    that of an outstanding cancel; ``stoppers`` the stop requests waiting for its end."""
+    conversation (a_co's ``command_id``), ``conversation`` that conversation; ``cancel`` the
+    reply-with of an outstanding cancel; ``stoppers`` the stop requests waiting for its end."""
 
     conversation_id: str
     request_id: str
     command: HumanCommand
     label: str
-    reply_with: str
+    conversation: Conversation
     agreed: bool = False
-    sent: tuple[str, bytes] = ("", b"")  # Zenoh key and bytes of the request
     cancel: str | None = None
     stoppers: list[str] = field(default_factory=list)
     last: Progress | None = None
@@ -181,13 +179,16 @@ def status_line(label: str, task: TaskStatus) -> str:
     return f"{label}: {', '.join(parts)}"
 
 
-def _reason(item: Received) -> str:
-    """Why a_co answered ``item`` negatively, in words."""
-    if item.local:
+def _reason(conv: Conversation) -> str:
+    """Why a_co answered negatively in ``conv``, in words."""
+    if conv.timed_out:
         return "a_co did not answer in time"
-    if isinstance(item.content, CommandOutcome):
-        return item.content.detail or "no reason given"
-    text = item.msg.content.decode("utf-8", "replace").strip() if item.msg.content else ""
+    if isinstance(conv.content, CommandOutcome):
+        return conv.content.detail or "no reason given"
+    last = conv.last
+    text = (
+        last.msg.content.decode("utf-8", "replace").strip() if last is not None and last.msg.content else ""
+    )
     return text or "no reason given"
 
 
@@ -195,17 +196,22 @@ class HumanInterface(Agent):
     """a_hi: sentences in, L_HC on C2 to a_co, readable reports out."""
 
     name = "a_hi"
+    ROLES = (
+        initiator(C2, REQUEST, "L_HC", reply_by_s=AGREE_BY_S, retry_s=COMMAND_RETRY_S),
+        initiator(C2, SUBSCRIBE, "L_HC", reply_by_s=SUBSCRIBE_REPLY_BY_S),
+        initiator(C2, QUERY, "L_HC", reply_by_s=STATUS_REPLY_BY_S),
+    )
 
     def build_fsm(self) -> FSM:
         self.commands: dict[str, OpenCommand] = {}  # conversation-id → open command
         self.asked: dict[str, RequestKind] = {}  # person's request id → what it was, until its final report
         self.ended: OrderedDict[str, tuple[str, str]] = OrderedDict()  # conversation → (request, label)
-        self.cancels: dict[str, str] = {}  # reply-with of a cancel → command conversation
         self.stops: dict[str, StopRequest] = {}  # request_id → stop request
         self.queries: dict[str, str] = {}  # status query conversation → request_id
         self.subscribed = False
         self.subscription: str | None = None  # conversation of the latest attempt
-        self.sub_pending: str | None = None  # reply-with of the unanswered latest attempt
+        self.sub_conversation: Conversation | None = None  # the latest attempt
+        self.sub_pending = False  # the latest attempt is unanswered
         self.sub_attempts = 0
         self.retry_at: float | None = None
         self.retry_interval = SUBSCRIBE_RETRY_S[0]
@@ -246,55 +252,34 @@ class HumanInterface(Agent):
             KeptHumanInterface(
                 commands=[
                     KeptCommand(
-                        request=c.sent[1],
-                        key=c.sent[0],
-                        request_id=c.request_id,
-                        label=c.label,
-                        agreed=c.agreed,
+                        request=c.conversation.keep(), request_id=c.request_id, label=c.label, agreed=c.agreed
                     )
                     for c in self.commands.values()
-                    if c.sent[1]
                 ]
             )
         )
 
     def _restore(self, kept: KeptHumanInterface) -> None:
         """Take back the open commands of a previous a_hi; retransmit those not yet agreed."""
-        now = time.time()
         for k in kept.commands:
             try:
-                msg = decode(k.request)
-            except DecodeError as exc:
-                self.log.warning("a kept command does not decode (%s): dropped", exc)
-                continue
-            cid, reply_with = msg.conversation_id, msg.reply_with
-            if cid is None or reply_with is None:
-                continue
-            try:
-                command = decode_content(msg.language or "", msg.content)
-            except ContentError as exc:
-                self.log.warning("kept command %s does not decode (%s): dropped", cid, exc)
-                continue
-            if not isinstance(command, HumanCommand):
-                continue
-            history = [(Performative.REQUEST, True)] + ([(Performative.AGREE, False)] if k.agreed else [])
-            self.restore_conversation(CO, cid, REQUEST, history)
-            self.commands[cid] = OpenCommand(
-                cid, k.request_id, command, k.label, reply_with, agreed=k.agreed, sent=(k.key, k.request)
-            )
-            self.conversations.expect(
-                Pending(
-                    reply_with,
-                    CO,
+                conv = self.roles.restore(
+                    C2,
                     REQUEST,
-                    cid,
-                    now + (COMMAND_REPLY_BY_S if k.agreed else AGREE_BY_S),
+                    "agreed" if k.agreed else "requested",
+                    kept=k.request,
+                    reply_by_s=COMMAND_REPLY_BY_S if k.agreed else AGREE_BY_S,
                     retry_s=None if k.agreed else COMMAND_RETRY_S,
-                    key=k.key,
-                    payload=k.request,
-                    next_retry=None if k.agreed else now,
                 )
-            )
+            except (RestoreError, SpecViolation) as exc:
+                self.log.warning("a kept command cannot be taken back (%s): dropped", exc)
+                continue
+            command = conv.opening.content if conv.opening is not None else None
+            if not isinstance(command, HumanCommand):
+                conv.abandon()
+                continue
+            cid = conv.conversation_id
+            self.commands[cid] = OpenCommand(cid, k.request_id, command, k.label, conv, agreed=k.agreed)
         if self.commands:
             self.log.info("restored %d open command(s) from %s", len(self.commands), self.kept.path)
 
@@ -306,16 +291,10 @@ class HumanInterface(Agent):
                 self._on_input(event)
             elif isinstance(event, PeerAlive):
                 self._on_peer(event.alive)
-        while self.x:
-            item = self.x.popleft()
-            try:
-                self._on_communicate(item)
-            except Exception:  # one bad communicate must not cost the others their answers
-                self.counters["handler_errors"] += 1
-                self.log.exception("handling %s from %s failed", item.performative.value, item.sender)
+        self.handle_received()
         if (
             not self.subscribed
-            and self.sub_pending is None
+            and not self.sub_pending
             and self.retry_at is not None
             and time.time() >= self.retry_at
         ):
@@ -356,30 +335,13 @@ class HumanInterface(Agent):
         command = HumanCommand(
             text=event.text, goal=intent.goal, priority=intent.priority, deadline_s=intent.deadline_s
         )
-        msg = self.send(
-            CO,
-            Performative.REQUEST,
-            command,
-            protocol=REQUEST,
-            conversation_id=self._conversation_id("cmd", event.request_id),
-            reply_by_s=AGREE_BY_S,
-            retry_s=COMMAND_RETRY_S,
+        conv = self.roles.open(
+            C2, REQUEST, command, conversation_id=self._conversation_id("cmd", event.request_id)
         )
-        assert msg.conversation_id is not None and msg.reply_with is not None
-        pending = self.conversations.get(msg.reply_with)  # it keeps the bytes to retransmit
-        assert pending is not None
+        cid = conv.conversation_id
         if not self.co_alive:
-            self.log.warning(
-                "a_co is not known to be alive; %s may wait %.0f s", msg.conversation_id, AGREE_BY_S
-            )
-        self.commands[msg.conversation_id] = OpenCommand(
-            msg.conversation_id,
-            event.request_id,
-            command,
-            describe(intent.goal),
-            msg.reply_with,
-            sent=(pending.key, pending.payload),
-        )
+            self.log.warning("a_co is not known to be alive; %s may wait %.0f s", cid, AGREE_BY_S)
+        self.commands[cid] = OpenCommand(cid, event.request_id, command, describe(intent.goal), conv)
 
     def _stop_commands(self, request_id: str) -> None:
         if not self.commands:
@@ -391,17 +353,7 @@ class HumanInterface(Agent):
             c.stoppers.append(request_id)
             if c.cancel is not None:
                 continue  # a cancel is already on its way; wait for its answer
-            msg = self.send(
-                CO,
-                Performative.CANCEL,
-                c.command,
-                protocol=REQUEST,
-                conversation_id=c.conversation_id,
-                reply_by_s=CANCEL_REPLY_BY_S,
-            )
-            assert msg.reply_with is not None
-            c.cancel = msg.reply_with
-            self.cancels[msg.reply_with] = c.conversation_id
+            c.cancel = c.conversation.cancel(c.command, reply_by_s=CANCEL_REPLY_BY_S)
             self._report(c.request_id, ReportKind.PROGRESS, f"{c.label}: stopping, as you asked")
         n = len(stop.waiting)
         self._report(
@@ -411,111 +363,106 @@ class HumanInterface(Agent):
         )
 
     def _ask_status(self, request_id: str) -> None:
-        msg = self.send(
-            CO,
-            Performative.QUERY_REF,
+        conv = self.roles.open(
+            C2,
+            QUERY,
             StatusQuery(),
-            protocol=QUERY,
+            performative=Performative.QUERY_REF,
             conversation_id=self._conversation_id("status", request_id),
-            reply_by_s=STATUS_REPLY_BY_S,
         )
-        assert msg.conversation_id is not None
-        self.queries[msg.conversation_id] = request_id
+        self.queries[conv.conversation_id] = request_id
 
-    # ---- from a_co ---------------------------------------------------------------------
-    def _on_communicate(self, item: Received) -> None:
-        cid = item.msg.conversation_id or ""
-        if item.sender == CO and item.msg.protocol == SUBSCRIBE:
-            self._on_subscription(item)
-        elif item.msg.in_reply_to is not None and item.msg.in_reply_to in self.cancels:
-            self._on_cancel_answer(item)
-        elif cid in self.commands:
-            self._on_command_answer(self.commands[cid], item)
-        elif cid in self.ended:
-            self.log.debug("late %s in ended conversation %s", item.performative.value, cid)
-        elif cid in self.queries:
-            self._on_status_answer(item)
-        elif not item.local and item.performative is not Performative.NOT_UNDERSTOOD:
-            self.not_understood(
-                item.sender, item.channel, f"no such conversation of a_hi: {cid or '(none)'}", item.msg
+    # ---- a_co's answers to commands (fipa-request, initiator) ---------------------------
+    def _open_command(self, conv: Conversation) -> OpenCommand | None:
+        c = self.commands.get(conv.conversation_id)
+        if c is None and conv.last is not None:
+            self.log.debug(
+                "late %s in ended conversation %s", conv.last.performative.value, conv.conversation_id
             )
+        return c
 
-    def _on_command_answer(self, c: OpenCommand, item: Received) -> None:
-        perf = item.performative
-        if perf is Performative.AGREE:
-            if not c.agreed:
-                c.agreed = True
-                # the agree answers the request; the outcome may take much longer
-                self.conversations.expect(
-                    Pending(
-                        c.reply_with,
-                        CO,
-                        REQUEST,
-                        c.conversation_id,
-                        time.time() + COMMAND_REPLY_BY_S,
-                    )
-                )
-                extras = []
-                if c.command.priority:
-                    extras.append(f"priority {c.command.priority}")
-                if c.command.deadline_s is not None:
-                    extras.append(f"within {c.command.deadline_s:g} s")
-                more = f" ({', '.join(extras)})" if extras else ""
-                self._report(c.request_id, ReportKind.ACCEPTED, f"I will {c.label}{more}.")
-            return
-        stopping = c.cancel is not None or bool(c.stoppers)
-        if perf is Performative.INFORM:
-            outcome = item.content if isinstance(item.content, CommandOutcome) else None
-            if outcome is None or outcome.succeeded:
-                self._end(
-                    c, ReportKind.SUCCEEDED, sentence(c.label, "succeeded", outcome.detail if outcome else "")
-                )
-            elif stopping:
-                self._end(c, ReportKind.STOPPED, sentence(c.label, "stopped", outcome.detail))
-            else:
-                self._end(c, ReportKind.FAILED, sentence(c.label, "failed", outcome.detail))
-        elif perf is Performative.FAILURE:
-            if item.local:
-                waited = COMMAND_REPLY_BY_S if c.agreed else AGREE_BY_S
-                reason = f"a_co did not {'finish' if c.agreed else 'answer'} within {waited:.0f} s"
-                self._end(c, ReportKind.FAILED, sentence(c.label, "failed", reason))
-                return
-            reason = _reason(item)
-            if stopping and reason.lower().startswith("stopped"):
-                self._end(c, ReportKind.STOPPED, sentence(c.label, "stopped", reason))
-            else:
-                self._end(c, ReportKind.FAILED, sentence(c.label, "failed", reason))
-        elif perf is Performative.REFUSE:
-            self._end(c, ReportKind.FAILED, sentence(c.label, "refused", _reason(item)))
-        elif perf is Performative.NOT_UNDERSTOOD:
-            self._end(
-                c, ReportKind.FAILED, f"{c.label}: a_co did not understand the command; {_reason(item)}"
-            )
-        else:
-            self.not_understood(item.sender, item.channel, f"unexpected {perf.value} for a command", item.msg)
+    @handles(REQUEST, INITIATOR, "agree")
+    def _on_agreed(self, conv: Conversation) -> None:
+        c = self._open_command(conv)
+        if c is None or conv.answers_cancel or c.agreed:
+            return  # an agree crossing a cancel is not part of the cancel meta-protocol
+        c.agreed = True
+        conv.await_reply(COMMAND_REPLY_BY_S)  # the agree answers the request; the outcome may take long
+        extras = []
+        if c.command.priority:
+            extras.append(f"priority {c.command.priority}")
+        if c.command.deadline_s is not None:
+            extras.append(f"within {c.command.deadline_s:g} s")
+        more = f" ({', '.join(extras)})" if extras else ""
+        self._report(c.request_id, ReportKind.ACCEPTED, f"I will {c.label}{more}.")
 
-    def _on_cancel_answer(self, item: Received) -> None:
-        perf = item.performative
-        if perf is Performative.AGREE:
-            return  # not part of the cancel meta-protocol; keep waiting for the answer
-        assert item.msg.in_reply_to is not None
-        cid = self.cancels.pop(item.msg.in_reply_to)
-        c = self.commands.get(cid)
+    @handles(REQUEST, INITIATOR, "inform")
+    def _on_command_done(self, conv: Conversation) -> None:
+        c = self._open_command(conv)
         if c is None:
-            return  # the command ended (its outcome crossed the cancel); stops were told then
-        c.cancel = None
-        if perf is Performative.INFORM:
-            outcome = item.content if isinstance(item.content, CommandOutcome) else None
+            return
+        outcome = conv.content if isinstance(conv.content, CommandOutcome) else None
+        if conv.answers_cancel:
+            c.cancel = None
             if outcome is not None and outcome.succeeded:  # it finished before it could stop
                 self._end(c, ReportKind.SUCCEEDED, sentence(c.label, "succeeded", outcome.detail))
             else:
                 self._end(
                     c, ReportKind.STOPPED, sentence(c.label, "stopped", outcome.detail if outcome else "")
                 )
+        elif outcome is None or outcome.succeeded:
+            self._end(
+                c, ReportKind.SUCCEEDED, sentence(c.label, "succeeded", outcome.detail if outcome else "")
+            )
+        elif self._stopping(c):
+            self._end(c, ReportKind.STOPPED, sentence(c.label, "stopped", outcome.detail))
+        else:
+            self._end(c, ReportKind.FAILED, sentence(c.label, "failed", outcome.detail))
+
+    @handles(REQUEST, INITIATOR, "failure")
+    def _on_command_failed(self, conv: Conversation) -> None:
+        """A failure, or no answer by the reply-by deadline."""
+        c = self._open_command(conv)
+        if c is None:
             return
-        # failure (could not cancel), not-understood, or no answer in time: it goes on
-        reason = _reason(item)
-        if item.local:
+        if conv.answers_cancel:
+            self._not_stopped(c, conv)
+        elif conv.timed_out:
+            waited = COMMAND_REPLY_BY_S if c.agreed else AGREE_BY_S
+            reason = f"a_co did not {'finish' if c.agreed else 'answer'} within {waited:.0f} s"
+            self._end(c, ReportKind.FAILED, sentence(c.label, "failed", reason))
+        elif self._stopping(c) and _reason(conv).lower().startswith("stopped"):
+            self._end(c, ReportKind.STOPPED, sentence(c.label, "stopped", _reason(conv)))
+        else:
+            self._end(c, ReportKind.FAILED, sentence(c.label, "failed", _reason(conv)))
+
+    @handles(REQUEST, INITIATOR, "refuse")
+    def _on_command_refused(self, conv: Conversation) -> None:
+        c = self._open_command(conv)
+        if c is not None:
+            self._end(c, ReportKind.FAILED, sentence(c.label, "refused", _reason(conv)))
+
+    @handles(REQUEST, INITIATOR, "not-understood")
+    def _on_command_not_understood(self, conv: Conversation) -> None:
+        c = self._open_command(conv)
+        if c is None:
+            return
+        if conv.answers_cancel:
+            self._not_stopped(c, conv)
+        else:
+            self._end(
+                c, ReportKind.FAILED, f"{c.label}: a_co did not understand the command; {_reason(conv)}"
+            )
+
+    @staticmethod
+    def _stopping(c: OpenCommand) -> bool:
+        return c.cancel is not None or bool(c.stoppers)
+
+    def _not_stopped(self, c: OpenCommand, conv: Conversation) -> None:
+        """The cancel failed, was not understood, or had no answer in time: it goes on."""
+        c.cancel = None
+        reason = _reason(conv)
+        if conv.timed_out:
             reason = f"a_co did not confirm the stop within {CANCEL_REPLY_BY_S:.0f} s"
         line = sentence(c.label, "could not be stopped", reason)
         self._report(c.request_id, ReportKind.PROGRESS, line)
@@ -525,9 +472,7 @@ class HumanInterface(Agent):
         """Command ``c`` has ended: the final report, and every stop request waiting for it."""
         self._report(c.request_id, kind, text)
         del self.commands[c.conversation_id]
-        self.conversations.forget_conversation(c.conversation_id)
-        for reply_with in [k for k, v in self.cancels.items() if v == c.conversation_id]:
-            del self.cancels[reply_with]
+        c.conversation.abandon()
         self.ended[c.conversation_id] = (c.request_id, c.label)
         while len(self.ended) > ENDED_KEPT:
             self.ended.popitem(last=False)
@@ -549,29 +494,31 @@ class HumanInterface(Agent):
                 self._report(request_id, kind, "\n".join(stop.lines))
         c.stoppers.clear()
 
-    def _on_status_answer(self, item: Received) -> None:
-        if item.performative is Performative.AGREE:
+    # ---- a_co's answers to status queries (fipa-query, initiator) ------------------------
+    @handles(QUERY, INITIATOR, "inform-ref", "inform")
+    def _on_status(self, conv: Conversation) -> None:
+        self._status_answer(conv, True)
+
+    @handles(QUERY, INITIATOR, "refuse", "failure")
+    def _on_no_status(self, conv: Conversation) -> None:
+        """Refused, failed, not understood, or unanswered by the reply-by deadline."""
+        self._status_answer(conv, False)
+
+    def _status_answer(self, conv: Conversation, answered: bool) -> None:
+        request_id = self.queries.pop(conv.conversation_id, None)
+        if request_id is None:
             return
-        cid = item.msg.conversation_id or ""
-        request_id = self.queries.pop(cid)
-        self.conversations.forget_conversation(cid)
+        conv.abandon()
         labels = {c.conversation_id: c.label for c in self.commands.values()}
-        if item.performative in (Performative.INFORM_REF, Performative.INFORM) and isinstance(
-            item.content, Status
-        ):
-            tasks = item.content.tasks
-            if not tasks:
+        status = conv.content
+        if answered and isinstance(status, Status):
+            if not status.tasks:
                 text = "I am not doing anything: no command is running or waiting."
             else:
-                text = "\n".join(
-                    status_line(labels.get(t.command_id, repr(t.text)), t) for t in item.content.tasks
-                )
+                text = "\n".join(status_line(labels.get(t.command_id, repr(t.text)), t) for t in status.tasks)
             self._report(request_id, ReportKind.STATUS, text)
             return
-        if item.performative in (Performative.INFORM_REF, Performative.INFORM):
-            reason = "its answer held no status"
-        else:
-            reason = _reason(item)
+        reason = "its answer held no status" if answered else _reason(conv)
         mine = [
             progress_text(c.label, c.last) if c.last else f"{c.label}: {'accepted' if c.agreed else 'sent'}"
             for c in self.commands.values()
@@ -587,18 +534,11 @@ class HumanInterface(Agent):
     def _subscribe(self) -> None:
         self.sub_attempts += 1
         cid = SUBSCRIPTION if self.sub_attempts == 1 else f"{SUBSCRIPTION}-{self.sub_attempts}"
-        if self.subscription is not None:  # the previous attempt is given up (or its a_co gone)
-            self.conversations.forget_conversation(self.subscription)
-        msg = self.send(
-            CO,
-            Performative.SUBSCRIBE,
-            ProgressSubscription(),
-            protocol=SUBSCRIBE,
-            conversation_id=cid,
-            reply_by_s=SUBSCRIBE_REPLY_BY_S,
-        )
+        if self.sub_conversation is not None:  # the previous attempt is given up (or its a_co gone)
+            self.sub_conversation.stop_waiting()
+        self.sub_conversation = self.roles.open(C2, SUBSCRIBE, ProgressSubscription(), conversation_id=cid)
         self.subscription = cid
-        self.sub_pending = msg.reply_with
+        self.sub_pending = True
         self.retry_at = None
 
     def _retry_later(self) -> None:
@@ -609,7 +549,7 @@ class HumanInterface(Agent):
         self.co_alive = alive
         if alive:
             self.retry_interval = SUBSCRIBE_RETRY_S[0]
-            if not self.subscribed and self.sub_pending is None:
+            if not self.subscribed and not self.sub_pending:
                 self._subscribe()  # a_co (re)appeared: ask at once
             # an attempt still pending (perhaps lost before a_co was up) times out, then
             # the next one follows after the shortest interval
@@ -619,44 +559,41 @@ class HumanInterface(Agent):
             self.retry_interval = SUBSCRIBE_RETRY_S[0]
             self._retry_later()
 
-    def _on_subscription(self, item: Received) -> None:
-        perf = item.performative
-        cid = item.msg.conversation_id or ""
-        current = cid == self.subscription
-        if perf is Performative.INFORM:
-            if isinstance(item.content, Progress):
-                if not self.subscribed and current:
-                    self._subscribed()
-                self._on_progress(item.content)
-            elif current:
-                self.not_understood(
-                    item.sender, item.channel, "a progress inform carries a Progress", item.msg
-                )
-            return  # else: the answer to the cancel of a superfluous subscription
-        if perf is Performative.AGREE:
-            if current:
-                self._subscribed()
-            else:  # an attempt given up agreed late: the latest attempt is the one to keep
-                self.send(
-                    CO, Performative.CANCEL, ProgressSubscription(), protocol=SUBSCRIBE, conversation_id=cid
-                )
-            return
-        if not current:
-            return  # refuse/failure of an attempt already given up
+    @handles(SUBSCRIBE, INITIATOR, "inform")
+    def _on_progress_inform(self, conv: Conversation) -> None:
+        if not isinstance(conv.content, Progress):
+            return  # the answer to the cancel of a superfluous subscription
+        if not self.subscribed and conv.conversation_id == self.subscription:
+            self._subscribed()
+        self._on_progress(conv.content)
+
+    @handles(SUBSCRIBE, INITIATOR, "agree")
+    def _on_subscription_agreed(self, conv: Conversation) -> None:
+        if conv.conversation_id == self.subscription:
+            self._subscribed()
+        else:  # an attempt given up agreed late: the latest attempt is the one to keep
+            conv.cancel(ProgressSubscription())
+
+    @handles(SUBSCRIBE, INITIATOR, "refuse", "failure")
+    def _on_subscription_refused(self, conv: Conversation) -> None:
+        """Refused, failed, not understood, or unanswered by the reply-by deadline."""
+        if conv.conversation_id != self.subscription or conv.answers_cancel:
+            return  # an attempt already given up
         quiet = self.sub_attempts > 1
+        said = conv.last.performative.value if conv.last is not None else "failure"
         (self.log.debug if quiet else self.log.info)(
             "a_co did not take the progress subscription (%s: %s); retrying in %.0f s",
-            perf.value,
-            _reason(item),
+            said,
+            _reason(conv),
             self.retry_interval,
         )
         self.subscribed = False
-        self.sub_pending = None
+        self.sub_pending = False
         self._retry_later()
 
     def _subscribed(self) -> None:
         self.subscribed = True
-        self.sub_pending = None
+        self.sub_pending = False
         self.retry_at = None
         self.retry_interval = SUBSCRIBE_RETRY_S[0]
         self.log.info("a_co agreed to report progress (%s)", self.subscription)

@@ -32,17 +32,25 @@ before it reports: the hand is opened and moved back along the plan's way in
 from __future__ import annotations
 
 import math
-import time
 from collections import deque
 from dataclasses import dataclass
 
 import msgspec
 
-from services.runtime.agent import RESEND_ON_RETURN, Agent, Received
+from services.runtime.agent import RESEND_ON_RETURN, Agent, SpecViolation
 from services.runtime.behaviour import FSM, Arc, Behaviour
+from services.runtime.roles import (
+    INITIATOR,
+    PARTICIPANT,
+    Conversation,
+    RestoreError,
+    handles,
+    initiator,
+    on_deadline,
+    participant,
+)
 from services.runtime.state_store import StateFile
-from shared.fipa_codec import DecodeError, Performative, decode, encode
-from shared.fipa_codec.languages import ContentError, decode_content
+from shared.fipa_codec import Performative
 from shared.fipa_codec.languages.l_ex import CommandResult, MoveJoints, MoveTool, Observe, Tilt, Wait
 from shared.fipa_codec.languages.l_hfsm import (
     Assert,
@@ -78,7 +86,8 @@ class Step:
 
     path: str
     node: PlanNode
-    waiting_for: str | None = None
+    waiting_for: Conversation | None = None
+    reply: tuple[Conversation, bool] | None = None  # ag_ex's answer (inform: True) once it came
     replan_reason: str | None = None  # set on the observation made before reporting Replan
 
 
@@ -95,18 +104,27 @@ class KeptTaskExecutor(msgspec.Struct, kw_only=True):
 
 class TaskExecutor(Agent):
     name = "a_ta"
+    ROLES = (
+        participant("C1", "coordinate", "L_HFSM", "L_SW"),
+        initiator("C5", "fipa-request", "L_EX", "L_SD"),
+        participant("C6", "fipa-subscribe", "L_WM"),
+        # paper Table 6: a_ta may query a_km when it needs knowledge; roco's plans carry what
+        # a_ta needs (expected poses, safe stops), so it asks nothing
+        initiator("C6", "fipa-query", "L_WM", unused=True),
+    )
 
     def build_fsm(self) -> FSM:
         self.kept = StateFile.for_agent(self.name, KeptTaskExecutor)
         self._kept_as: tuple[object, ...] | None = None  # what was last written, cheaply compared
         self.restored = False
-        self.subscription: Received | None = None
-        self.initial_observe: str | None = None
+        self.subscription: Conversation | None = None
+        self.initial_observe: Conversation | None = None
         self.initial_done = False
         # the last asserted change per object (held by / in, on), sent again to a new subscriber
         self.asserted: dict[str, ObjectUpdate] = {}
         self.plan: HierarchicalPlan | None = None
-        self.plan_request: Received | None = None
+        self.plan_request: Conversation | None = None
+        self.requests: deque[Conversation] = deque()  # plan requests not yet taken up
         self.leaves: list[tuple[str, PlanNode]] = []
         self.index = 0
         self.step: Step | None = None
@@ -122,7 +140,8 @@ class TaskExecutor(Agent):
         self.awaiting: str | None = None  # reply-with of the L_SW inform a_co has not confirmed
         self.interrupted = False  # the plan ended inside a leaf ag_ex did not finish
         self.retreat: deque[RetreatStep] = deque()
-        self.retreat_wait: str | None = None  # reply-with of the retreat request (or observe)
+        self.retreat_wait: Conversation | None = None  # the retreat request (or observe)
+        self.retreat_reply: tuple[Conversation, bool] | None = None  # its answer once it came
         self.retreated = False  # retreat commands were sent: observe before reporting
         self.withdrawing = False  # in finished: the retreat runs, the final state waits
         self.retreat_note = ""  # what the final state's reason says of the withdrawal
@@ -162,68 +181,87 @@ class TaskExecutor(Agent):
 
     # ---- communicates handled in every state ----
     def _common(self) -> None:
-        for item in list(self.x):
-            if item.sender == "a_km" and item.performative is Performative.SUBSCRIBE:
-                self.x.remove(item)
-                if isinstance(item.content, Subscription):
-                    self.subscription = item
-                    self.reply(item, Performative.AGREE)
-                    self._catch_up_subscriber()
-                else:
-                    self.reply(item, Performative.REFUSE)
-            elif (
-                (item.sender == "a_co" and item.performative is Performative.CONFIRM)
-                or (item.local and self.awaiting is not None and item.msg.in_reply_to == self.awaiting)
-                or (
-                    item.sender == "a_co"
-                    and item.performative is Performative.NOT_UNDERSTOOD
-                    and self.awaiting is not None
-                    and item.msg.in_reply_to == self.awaiting
-                )
-            ):
-                self.x.remove(item)
-                if item.local:
-                    self.log.warning("a_co did not confirm %s in time", item.msg.in_reply_to)
-                elif item.performative is Performative.NOT_UNDERSTOOD:
-                    # a restarted a_co that kept nothing does not know the plan: nobody waits for it
-                    self.log.warning("a_co does not know plan of %s: going on", item.msg.in_reply_to)
-                if item.msg.in_reply_to == self.awaiting:
-                    self.awaiting = None
-                if self.final_inform is not None and item.msg.in_reply_to == self.final_inform:
-                    self.confirmed = True
-            elif item.sender == "a_co" and item.performative is Performative.CANCEL:
-                self.x.remove(item)
-                ours = (
-                    self.plan_request is not None
-                    and item.msg.conversation_id == self.plan_request.msg.conversation_id
-                )
-                if ours and self.outcome is None and not self.cancel_requested:
-                    self.cancel_requested = True
-                    self._inform_co(SWState.TERMINATING, reason="cancelled by a_co")
-                else:  # the plan has ended (the cancel crossed its final state) or is ending
-                    self.log.info("cancel from a_co for a plan that is not running: nothing to do")
-            elif item.sender == "ag_ex" and item.msg.in_reply_to == self.initial_observe:
-                self.x.remove(item)
-                self.initial_observe = None
-                if isinstance(item.content, Observation):
-                    self.initial_done = True
-                    self._update_km(item.content)
-                else:
-                    self._observe_initial()  # deadline passed or failure: ask again
-            elif (
-                item.sender == "ag_ex"
-                and not item.local
-                and (self.step is None or item.msg.in_reply_to != self.step.waiting_for)
-                and (self.retreat_wait is None or item.msg.in_reply_to != self.retreat_wait)
-            ):
-                self.x.remove(item)  # a late reply to a request whose deadline already passed
-                self.log.info("late %s from ag_ex ignored", item.performative.value)
-            elif item.local and item.msg.conversation_id == (
-                self.subscription.msg.conversation_id if self.subscription else None
-            ):
-                self.x.remove(item)
-
+        self.handle_received()
         self._flush_sw()
+
+    # a_co's plans (coordinate, participant)
+    @handles("coordinate", PARTICIPANT, "request")
+    def _on_plan(self, conv: Conversation) -> None:
+        self.requests.append(conv)
+
+    @handles("coordinate", PARTICIPANT, "confirm")
+    def _on_confirm(self, conv: Conversation) -> None:
+        self._confirmed(conv)
+
+    @handles("coordinate", PARTICIPANT, "not-understood")
+    @on_deadline("coordinate", PARTICIPANT)
+    def _on_unconfirmed(self, conv: Conversation) -> None:
+        if conv.timed_out:
+            self.log.warning("a_co did not confirm %s in time", self._answered(conv))
+        else:  # a restarted a_co that kept nothing does not know the plan: nobody waits for it
+            self.log.warning("a_co does not know plan of %s: going on", self._answered(conv))
+        self._confirmed(conv)
+
+    @staticmethod
+    def _answered(conv: Conversation) -> str | None:
+        return conv.last.msg.in_reply_to if conv.last is not None else None
+
+    def _confirmed(self, conv: Conversation) -> None:
+        """a_co confirmed (or will never confirm) the L_SW inform its reply answers."""
+        answered = self._answered(conv)
+        if answered is not None and answered == self.awaiting:
+            self.awaiting = None
+        if self.final_inform is not None and answered == self.final_inform:
+            self.confirmed = True
+
+    @handles("coordinate", PARTICIPANT, "cancel")
+    def _on_cancel(self, conv: Conversation) -> None:
+        if conv is self.plan_request and self.outcome is None and not self.cancel_requested:
+            self.cancel_requested = True
+            self._inform_co(SWState.TERMINATING, reason="cancelled by a_co")
+        else:  # the plan has ended (the cancel crossed its final state) or is ending
+            self.log.info("cancel from a_co for a plan that is not running: nothing to do")
+
+    # a_km's subscription to environment updates (fipa-subscribe, participant)
+    @handles("fipa-subscribe", PARTICIPANT, "subscribe")
+    def _on_subscribe(self, conv: Conversation) -> None:
+        if not isinstance(conv.content, Subscription):
+            conv.refuse_with(Performative.REFUSE, "not an L_WM subscription")
+            return
+        self.subscription = conv
+        conv.reply(Performative.AGREE)
+        self._catch_up_subscriber()
+
+    @handles("fipa-subscribe", PARTICIPANT, "cancel")
+    def _on_unsubscribe(self, conv: Conversation) -> None:
+        if conv is self.subscription:
+            self.subscription = None
+        conv.reply(Performative.INFORM)
+
+    # ag_ex's answers (fipa-request, initiator)
+    @handles("fipa-request", INITIATOR, "inform")
+    def _on_ex_done(self, conv: Conversation) -> None:
+        self._ex_answer(conv, True)
+
+    @handles("fipa-request", INITIATOR, "refuse", "failure")
+    def _on_ex_failed(self, conv: Conversation) -> None:
+        """Refused, failed, not understood, or no answer by the reply-by deadline."""
+        self._ex_answer(conv, False)
+
+    def _ex_answer(self, conv: Conversation, ok: bool) -> None:
+        if conv is self.initial_observe:
+            self.initial_observe = None
+            if isinstance(conv.content, Observation):
+                self.initial_done = True
+                self._update_km(conv.content)
+            else:
+                self._observe_initial()  # deadline passed or failure: ask again
+        elif self.step is not None and conv is self.step.waiting_for:
+            self.step.reply = (conv, ok)
+        elif conv is self.retreat_wait:
+            self.retreat_reply = (conv, ok)
+        elif conv.last is not None:  # a late reply to a request whose deadline already passed
+            self.log.info("late %s from ag_ex ignored", conv.last.performative.value)
 
     def _catch_up_subscriber(self) -> None:
         """A new subscription (a_km started, or restarted and maybe missed updates that were
@@ -245,19 +283,15 @@ class TaskExecutor(Agent):
 
     def _request_observe(
         self, objects: tuple[str, ...] = (), reply_by_s: float = OBSERVE_REPLY_BY_S
-    ) -> str | None:
+    ) -> Conversation:
         """Ask ag_ex for an L_SD observation of ``objects`` (``()``: the whole scene); the
         request is sent again at once when ag_ex's liveliness token reappears, and fails locally
-        after ``reply_by_s`` (s). Returns its reply-with (FIPA SC00061), always set here."""
-        msg = self.send(
-            "ag_ex",
-            Performative.REQUEST,
-            Observe(objects=objects),
-            protocol="fipa-request",
-            reply_by_s=reply_by_s,
-            retry_s=RESEND_ON_RETURN,
-        )
-        return msg.reply_with
+        after ``reply_by_s`` (s)."""
+        return self._request(Observe(objects=objects), reply_by_s, RESEND_ON_RETURN)
+
+    def _request(self, command: msgspec.Struct, reply_by_s: float, retry_s: float | None) -> Conversation:
+        """Request ``command`` of ag_ex (fipa-request on C5)."""
+        return self.roles.open("C5", "fipa-request", command, reply_by_s=reply_by_s, retry_s=retry_s)
 
     def _update_km(self, obs: Observation) -> None:
         update = WorldUpdate(
@@ -273,7 +307,7 @@ class TaskExecutor(Agent):
         if self.subscription is None:
             self.log.warning("no subscription from a_km yet; update at %.2f s not sent", update.stamp)
             return
-        self.reply(self.subscription, Performative.INFORM, update)
+        self.subscription.reply(Performative.INFORM, update)
 
     def _inform_co(self, state: SWState, step: str | None = None, reason: str | None = None) -> None:
         """Queue an L_SW inform for a_co; informs go one at a time, each after a_co confirmed
@@ -287,58 +321,50 @@ class TaskExecutor(Agent):
         if self.awaiting is not None or not self.sw_queue or self.plan_request is None:
             return
         status = self.sw_queue.popleft()
-        msg = self.reply(
-            self.plan_request,
-            Performative.INFORM,
-            status,
-            reply_with=f"{status.plan_id}-{self.i}-{len(self.sw_queue)}-{self.incarnation}",
-            reply_by_s=CONFIRM_REPLY_BY_S,
-            retry_s=SW_RETRY_S,
+        self.awaiting = self.plan_request.send(
+            Performative.INFORM, status, reply_by_s=CONFIRM_REPLY_BY_S, retry_s=SW_RETRY_S
         )
-        self.awaiting = msg.reply_with
         if status.state in TERMINAL_SW_STATES:
-            self.final_inform = msg.reply_with
+            self.final_inform = self.awaiting
 
     # ---- restarts ----
     def setup(self) -> None:
-        self.incarnation = f"{time.time():.0f}"  # keeps reply-with unique across restarts
         kept = self.kept.load()
         if kept is not None:
             self._restore(kept)
 
     def persist(self) -> None:
         step = self.step.path if self.step is not None else None
-        request = self.plan_request.msg.reply_with if self.plan_request is not None else None
+        opening = self.plan_request.opening if self.plan_request is not None else None
+        request = opening.msg.reply_with if opening is not None else None
         now = (request, step, self.outcome, self.reason)
         if now == self._kept_as:
             return  # nothing changed: the plan request is not encoded again every step
         self._kept_as = now
-        if self.plan is None or self.plan_request is None:
+        if self.plan is None or opening is None:
             self.kept.clear()
             return
         self.kept.save(
             KeptTaskExecutor(
-                request=encode(self.plan_request.msg), step=step, outcome=self.outcome, reason=self.reason
+                request=self.plan_request.keep() if self.plan_request is not None else b"",
+                step=step,
+                outcome=self.outcome,
+                reason=self.reason,
             )
         )
 
     def _restore(self, kept: KeptTaskExecutor) -> None:
         """Report on the plan a previous a_ta ran (see the module docstring)."""
         try:
-            msg = decode(kept.request)
-            plan = decode_content(msg.language or "", msg.content)
-        except (DecodeError, ContentError) as exc:
-            self.log.warning("kept plan request does not decode (%s): dropped", exc)
+            conv = self.roles.restore("C1", "coordinate", "running", kept=kept.request)
+        except (RestoreError, SpecViolation) as exc:
+            self.log.warning("kept plan request cannot be taken back (%s): dropped", exc)
             return
-        if msg.conversation_id is None or not isinstance(plan, HierarchicalPlan):
+        plan = conv.opening.content if conv.opening is not None else None
+        if not isinstance(plan, HierarchicalPlan):
+            conv.abandon()
             return
-        self.restore_conversation(
-            "a_co",
-            msg.conversation_id,
-            "coordinate",
-            [(Performative.REQUEST, False), (Performative.INFORM, True), (Performative.CONFIRM, False)],
-        )
-        self.plan, self.plan_request = plan, Received(msg, plan, "C1")
+        self.plan, self.plan_request = plan, conv
         if kept.outcome is not None:
             self.outcome, self.reason = kept.outcome, kept.reason
         else:
@@ -362,21 +388,21 @@ class TaskExecutor(Agent):
             return
         action = step.node.action
         if isinstance(action, Execute) and isinstance(action.command, Tilt) and self.outcome is None:
-            self.conversations.forget(step.waiting_for)
+            step.waiting_for.abandon()
             self._surprise(step, f"{step.path}: ag_ex restarted during the tilt")
 
     # ---- idle ----
     def _idle(self) -> None:
         self._common()
-        item = self.take(lambda i: i.sender == "a_co" and i.performative is Performative.REQUEST)
-        if item is None:
-            self.reject_unhandled(lambda i: i.local)
+        if self.plan is not None or not self.requests:
             return
-        if isinstance(item.content, HierarchicalPlan):
-            self.plan, self.plan_request = item.content, item
+        conv = self.requests.popleft()
+        plan = conv.opening.content if conv.opening is not None else None
+        if isinstance(plan, HierarchicalPlan):
+            self.plan, self.plan_request = plan, conv
             self.outcome, self.cancel_requested = None, False
         else:
-            self.reply(item, Performative.REFUSE)
+            conv.refuse_with(Performative.REFUSE, "no hierarchical plan in the request")
 
     # ---- running ----
     def _start_plan(self) -> None:
@@ -398,14 +424,17 @@ class TaskExecutor(Agent):
 
     def _running(self) -> None:
         self._common()
-        if self.step is not None and self.step.waiting_for is not None:
-            waiting_for = self.step.waiting_for
-            reply = self.take(lambda i: i.msg.in_reply_to == waiting_for)
-            if reply is None:
-                self.reject_unhandled(lambda i: i.local or i.sender == "ag_ex")
+        step = self.step
+        if step is not None and step.waiting_for is not None:
+            waiting_for = step.waiting_for
+            if step.reply is None:
                 return
-            self._complete(reply)
-            if self.outcome is not None or (self.step is not None and self.step.waiting_for != waiting_for):
+            reply, ok = step.reply
+            step.reply = None
+            self._complete(reply, ok)
+            if self.outcome is not None or (
+                self.step is not None and self.step.waiting_for is not waiting_for
+            ):
                 return  # ended, or the step asked ag_ex something more (a look after a surprise)
         if self.cancel_requested and not self.terminating and not self._in_atomic():
             self._begin_safe_stop()
@@ -451,16 +480,12 @@ class TaskExecutor(Agent):
         if isinstance(action, Execute):
             cmd = action.command
             duration = cmd.duration if isinstance(cmd, MoveTool | MoveJoints | Tilt | Wait) else 10.0
-            msg = self.send(
-                "ag_ex",
-                Performative.REQUEST,
+            step.waiting_for = self._request(
                 cmd,
-                protocol="fipa-request",
-                reply_by_s=duration * 2 + COMMAND_MARGIN_S,
+                duration * 2 + COMMAND_MARGIN_S,
                 # a tilt is relative: done again from where the last one stopped it over-tilts
-                retry_s=None if isinstance(cmd, Tilt) else RESEND_ON_RETURN,
+                None if isinstance(cmd, Tilt) else RESEND_ON_RETURN,
             )
-            step.waiting_for = msg.reply_with
         elif isinstance(action, Perceive | CheckContent):
             objects = action.objects if isinstance(action, Perceive) else (action.container,)
             self._observe(step, objects)
@@ -485,7 +510,9 @@ class TaskExecutor(Agent):
         self.asserted[action.subject] = change  # the last one describes the object fully
         self._inform_km(WorldUpdate(stamp=-1.0, objects=(change,)))
 
-    def _complete(self, reply: Received) -> None:
+    def _complete(self, reply: Conversation, ok: bool) -> None:
+        """Go on after ag_ex answered the step's request: ``ok`` for ``inform``; otherwise
+        (refuse, failure, not-understood or no answer by the deadline) a surprise or an error."""
         step = self.step
         assert step is not None
         action = step.node.action
@@ -494,8 +521,8 @@ class TaskExecutor(Agent):
                 self._update_km(reply.content)
             self._end(SWState.REPLAN, step.replan_reason)
             return
-        if reply.performative is not Performative.INFORM:
-            reason = getattr(reply.content, "reason", None) or reply.msg.content.decode("utf-8", "replace")
+        if not ok:
+            reason = getattr(reply.content, "reason", None) or reply.reason
             if (
                 isinstance(reply.content, CommandResult)
                 and (reply.content.reason or "").startswith(HELD)
@@ -518,7 +545,8 @@ class TaskExecutor(Agent):
                 )
                 self._surprise(step, f"{step.path}: {what}")
                 return
-            self._end(SWState.ERROR, f"{step.path}: {reply.performative.value}: {reason}")
+            said = reply.last.performative.value if reply.last is not None else "failure"
+            self._end(SWState.ERROR, f"{step.path}: {said}: {reason}")
             return
         if isinstance(action, Perceive | CheckContent) and isinstance(reply.content, Observation):
             self._update_km(reply.content)
@@ -597,16 +625,16 @@ class TaskExecutor(Agent):
         """One step of the withdrawal: await ag_ex's answer, send the next command; after the
         commands the scene is observed and a_km informed; then the final state is reported."""
         if self.retreat_wait is not None:
-            wait = self.retreat_wait
-            reply = self.take(lambda i: i.msg.in_reply_to == wait)
-            if reply is None:
+            if self.retreat_reply is None:
                 return
-            self.retreat_wait = None
+            reply, ok = self.retreat_reply
+            self.retreat_wait = self.retreat_reply = None
+            said = reply.last.performative.value if reply.last is not None else "failure"
             if isinstance(reply.content, Observation):
                 self._update_km(reply.content)
-            elif reply.performative is not Performative.INFORM:
-                why = getattr(reply.content, "reason", None) or reply.performative.value
-                self.log.warning("withdrawal stopped: ag_ex answered %s (%s)", reply.performative.value, why)
+            elif not ok:
+                why = getattr(reply.content, "reason", None) or said
+                self.log.warning("withdrawal stopped: ag_ex answered %s (%s)", said, why)
                 self.retreat.clear()
                 self.retreat_note = f"withdrawing the hand failed ({why})"
         while self.retreat:
@@ -615,15 +643,8 @@ class TaskExecutor(Agent):
                 self._assert(cmd)
                 continue
             duration = cmd.duration if isinstance(cmd, MoveTool) else 10.0
-            msg = self.send(
-                "ag_ex",
-                Performative.REQUEST,
-                cmd,
-                protocol="fipa-request",
-                reply_by_s=duration * 2 + COMMAND_MARGIN_S,
-                retry_s=RESEND_ON_RETURN,
-            )
-            self.retreat_wait, self.retreated = msg.reply_with, True
+            self.retreat_wait = self._request(cmd, duration * 2 + COMMAND_MARGIN_S, RESEND_ON_RETURN)
+            self.retreated = True
             return
         if self.retreated:  # the hand moved: a_km learns the scene as it is now
             self.retreated = False
@@ -643,7 +664,6 @@ class TaskExecutor(Agent):
         self._common()
         if self.withdrawing:
             self._retreat_step()
-            self.reject_unhandled(lambda i: i.local or i.sender == "ag_ex")
             return
         if self.confirmed:
             self.plan = None
