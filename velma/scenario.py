@@ -39,6 +39,7 @@ from shared.fipa_codec.languages.l_ex import (
     Wait,
 )
 from shared.fipa_codec.languages.l_sd import Observation
+from velma.frames import quat_to_rot, quat_wxyz
 
 Array = npt.NDArray[np.float64]
 
@@ -129,39 +130,8 @@ def _rot_z(angle: float) -> Array:
     return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
 
 
-def _quat_to_rot(q: Quat) -> Array:
-    w, x, y, z = np.asarray(q, dtype=float) / np.linalg.norm(q)
-    return np.array(
-        [
-            [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-            [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-            [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
-        ]
-    )
-
-
-def _rot_to_quat(r: Array) -> Quat:
-    tr = float(np.trace(r))
-    if tr > 0:
-        s = math.sqrt(tr + 1.0) * 2
-        q = (0.25 * s, (r[2, 1] - r[1, 2]) / s, (r[0, 2] - r[2, 0]) / s, (r[1, 0] - r[0, 1]) / s)
-    elif r[0, 0] > r[1, 1] and r[0, 0] > r[2, 2]:
-        s = math.sqrt(1.0 + r[0, 0] - r[1, 1] - r[2, 2]) * 2
-        q = ((r[2, 1] - r[1, 2]) / s, 0.25 * s, (r[0, 1] + r[1, 0]) / s, (r[0, 2] + r[2, 0]) / s)
-    elif r[1, 1] > r[2, 2]:
-        s = math.sqrt(1.0 + r[1, 1] - r[0, 0] - r[2, 2]) * 2
-        q = ((r[0, 2] - r[2, 0]) / s, (r[0, 1] + r[1, 0]) / s, 0.25 * s, (r[1, 2] + r[2, 1]) / s)
-    else:
-        s = math.sqrt(1.0 + r[2, 2] - r[0, 0] - r[1, 1]) * 2
-        q = ((r[1, 0] - r[0, 1]) / s, (r[0, 2] + r[2, 0]) / s, (r[1, 2] + r[2, 1]) / s, 0.25 * s)
-    w, x, y, z = (float(v) for v in q)
-    if w < 0:
-        w, x, y, z = -w, -x, -y, -z
-    return (w, x, y, z)
-
-
 def _pose(p: Array, r: Array) -> Pose:
-    return Pose(position=(float(p[0]), float(p[1]), float(p[2])), orientation=_rot_to_quat(r))
+    return Pose(position=(float(p[0]), float(p[1]), float(p[2])), orientation=quat_wxyz(r))
 
 
 def _position(obs: Observation, name: str) -> Array:
@@ -200,11 +170,11 @@ def script_poses(obs: Observation, bowl_on_table: Vec3 | None = None) -> Poses:
     jar = _position(obs, "jar")
     bowl = _position(obs, "bowl")
     up = np.array([0.0, 0.0, 1.0])
-    r_jar = _quat_to_rot(JAR_GRIP_IN_OBJECT[1])
+    r_jar = quat_to_rot(JAR_GRIP_IN_OBJECT[1])
     jar_grasp = jar + np.array(JAR_GRIP_IN_OBJECT[0])
     jar_app = np.array(JAR_APPROACH_IN_OBJECT)
     jar_lift = jar_grasp + JAR_LIFT * up
-    r_bowl = _quat_to_rot(BOWL_GRIP_IN_OBJECT[1])
+    r_bowl = quat_to_rot(BOWL_GRIP_IN_OBJECT[1])
     bowl_grasp = bowl + np.array(BOWL_GRIP_IN_OBJECT[0])
     bowl_app = np.array(BOWL_APPROACH_IN_OBJECT)
     bowl_pre = bowl_grasp - BOWL_APPROACH_DISTANCE * bowl_app
@@ -250,7 +220,7 @@ def pour_poses(bowl: Vec3) -> PourPoses:
     m), the jar held with the side grasp (JAR_GRIP_IN_OBJECT turned with the torso)."""
     up = np.array([0.0, 0.0, 1.0])
     pour_turn = _rot_z(TORSO_POUR)
-    r_jar_pour = pour_turn @ _quat_to_rot(JAR_GRIP_IN_OBJECT[1])
+    r_jar_pour = pour_turn @ quat_to_rot(JAR_GRIP_IN_OBJECT[1])
     bowl_now = np.array(bowl, dtype=float)
     jar_origin = bowl_now + pour_turn @ np.array(JAR_POUR_START_IN_BOWL)
     jar_pour_grip = jar_origin + pour_turn @ np.array(JAR_GRIP_IN_OBJECT[0])

@@ -69,6 +69,7 @@ from shared.fipa_codec.languages.l_ex import (
 )
 from shared.fipa_codec.languages.l_sd import Observation
 from velma import scenario as sc
+from velma.frames import quat_to_rot
 from velma.scenario import Array, run_script
 
 # ----------------------------------------------------------------- planner durations
@@ -228,7 +229,7 @@ def grasp_poses(grasp: GraspSpec, position: Vec3, facing: float) -> dict[str, Po
     torso angle ``facing`` (rad): ``entry`` (if any), ``pregrasp``, ``grasp``, ``lift``,
     ``withdraw``."""
     turn = sc._rot_z(facing)
-    rot = turn @ sc._quat_to_rot(grasp.grip[1])
+    rot = turn @ quat_to_rot(grasp.grip[1])
     grip = np.asarray(position, dtype=float) + turn @ np.asarray(grasp.grip[0], dtype=float)
     approach = turn @ np.asarray(grasp.approach, dtype=float)
     pre = grip - grasp.approach_distance * approach
@@ -296,7 +297,7 @@ def place_poses(grasp: GraspSpec, place: Placement, grasp_facing: float) -> dict
     turn = sc._rot_z(place.facing)
     yaw = sc._rot_z(place.facing - grasp_facing)
     held = sc._rot_z(grasp_facing)  # the grip in the object frame as grasped
-    rot = yaw @ held @ sc._quat_to_rot(grasp.grip[1])
+    rot = yaw @ held @ quat_to_rot(grasp.grip[1])
     target = np.asarray(place.position, dtype=float) + np.array([0.0, 0.0, place.clearance])
     grip = target + yaw @ held @ np.asarray(grasp.grip[0], dtype=float)
     above = grip + np.array([0.0, 0.0, place.approach])

@@ -72,7 +72,7 @@ from services.runtime.limits import MAX_OPEN_CONVERSATIONS_PER_PEER
 from services.runtime.roles import RoleDecl, Roles
 from services.runtime.transport import Transport
 from services.spec.model import Interface, SpecError, SystemSpec, channel_between, default_spec, interface
-from services.spec.protocol_defs import machine_of
+from services.spec.protocol_defs import machine_of, streams
 from shared.fipa_codec import (
     AgentIdentifier,
     Communicate,
@@ -102,9 +102,6 @@ LOG_BURST = 50
 """Warnings about rejected input logged per :data:`LOG_WINDOW_S` before the rest are only
 counted (and their number logged once the window ends)."""
 LOG_WINDOW_S = 10.0
-STREAMING_PROTOCOLS = frozenset({"fipa-subscribe", "coordinate"})
-_OPENERS = frozenset({Performative.REQUEST, Performative.SUBSCRIBE})
-"""Performatives that open a streaming conversation (many replies to one message)."""
 _REASONS = frozenset({Performative.FAILURE, Performative.REFUSE, Performative.NOT_UNDERSTOOD})
 """Performatives whose content may be a plain UTF-8 reason instead of a language term."""
 
@@ -265,7 +262,7 @@ class Agent:
                     protocol,
                     msg.conversation_id,
                     deadline,
-                    streaming=protocol in STREAMING_PROTOCOLS and performative in _OPENERS,
+                    streaming=self._streams(protocol, performative),
                     retry_s=retry_s,
                     key=key if retry_s is not None else "",
                     payload=payload if retry_s is not None else b"",
@@ -275,6 +272,14 @@ class Agent:
         self._out(to, in_reply_to, key, payload)
         self.counters[f"sent.{performative.value}"] += 1
         return msg
+
+    def _streams(self, protocol: str, performative: Performative) -> bool:
+        """``performative`` opens a conversation of ``protocol`` that streams: many replies
+        answer it (fipa-subscribe's informs, coordinate's reports; from the state machine)."""
+        if protocol not in self.spec.protocols:
+            return False
+        machine = machine_of(self.spec, protocol)
+        return streams(machine) and machine.next_state(machine.initial, INITIATOR, performative) is not None
 
     def _out(self, to: str, in_reply_to: str | None, key: str, payload: bytes) -> None:
         """Put an encoded communicate into the output buffer; remember it as an answer to
@@ -778,28 +783,6 @@ class Agent:
         agent's handler (services/runtime/roles.py), oldest first."""
         while self.x:
             self.roles.take(self.x.popleft())
-
-    def take(self, predicate: Any) -> Received | None:
-        """Remove and return the first received communicate satisfying ``predicate``."""
-        for item in self.x:
-            if predicate(item):
-                self.x.remove(item)
-                return item
-        return None
-
-    def reject_unhandled(self, keep: Any) -> None:
-        """Answer every received communicate for which ``keep`` is False with not-understood
-        (it arrived in a state where it cannot be handled) and drop it."""
-        for item in list(self.x):
-            if not keep(item):
-                self.x.remove(item)
-                if not item.local:
-                    self.not_understood(
-                        item.sender,
-                        item.channel,
-                        f"{item.performative.value} not expected in state {self.state}",
-                        item.msg,
-                    )
 
 
 def _roles(spec: SystemSpec, agent: str) -> dict[tuple[str, str], Role]:

@@ -13,19 +13,29 @@ machine of :mod:`shared.fipa_codec.protocols`) — owns what the protocol implie
 - reply-with / in-reply-to / conversation-id of every communicate a conversation sends
   (:meth:`Conversation.reply`, :meth:`Conversation.send`);
 - reply-by deadlines (a passed deadline reaches the initiator's ``failure`` handler with
-  :attr:`Conversation.timed_out`), retransmission until the first answer (``retry_s``);
-  duplicate communicates are dropped and the answers already sent published again
-  (services/runtime/dedup.py);
+  :attr:`Conversation.timed_out`, or an :func:`on_deadline` handler), retransmission until the
+  first answer (``retry_s``); duplicate communicates are dropped and the answers already sent
+  published again (services/runtime/dedup.py); every communicate a role sends carries a fresh
+  reply-with, so that answers name what they answer and no two are byte-identical;
 - ``cancel`` (FIPA SC00026 §2 cancel meta-protocol): a participant's ``cancel`` handler is
   optional; without one, or once the conversation has ended, the role answers ``failure``
-  with the reason;
+  with the reason; the cancel's answer answers the cancel (:attr:`Conversation.answering`),
+  and its ``inform`` ends the conversation (:attr:`Conversation.answers_cancel`);
 - ``not-understood``: it ends the conversation; an initiator's conversation ends through its
   ``failure`` handler (:attr:`Conversation.not_understood`) unless the agent handles
   ``not-understood`` itself;
 - ``agree`` (to an initiator) is noted on the conversation (:attr:`Conversation.agreed`);
   a handler for it is optional;
-- a reply to a conversation the role no longer has (it timed out, or the agent restarted) is
-  counted (``late_replies``) and dropped.
+- a fault in a handler is logged and counted (``handler_errors``); a participant's peer gets
+  ``failure`` with the reason instead of waiting for its deadline;
+- a reply in a conversation the role no longer has (abandoned, or from before a restart) is
+  counted (``late_replies``) and dropped;
+- the conversation's state across a restart: :meth:`Conversation.keep` gives the
+  communicate that opened it, :meth:`Roles.restore` takes it back in the state the agent
+  names (and waits again for an unanswered opening of its own).
+
+An initiator role the specification gives an agent but in which it opens no conversation is
+declared ``unused`` (:func:`initiator`); it needs no handlers.
 
 What each declaration and handler must be is derived from the specification
 (:func:`role_problems`): at start an agent whose declared roles or handlers differ from its
@@ -165,6 +175,7 @@ class HandlerKey:
 
 Handler = Callable[[Any, "Conversation"], None]
 F = TypeVar("F", bound=Callable[..., None])
+T = TypeVar("T")
 _MARK = "__roco_handles__"
 
 
@@ -409,7 +420,10 @@ class Conversation:
     agreed: bool = False
     """The participant agreed (fipa-request, fipa-query, fipa-subscribe)."""
     awaited: set[str] = field(default_factory=set, repr=False)
-    """The reply-with of every communicate this agent sent in it expecting a reply."""
+    """The reply-with of every communicate this agent sent in it (what a reply may answer)."""
+    knows_sent: bool = field(default=True, repr=False)
+    """False for a conversation restored by its id alone: it does not know what this agent
+    sent before the restart, so no reply in it is taken for a stale one."""
     cancels: set[str] = field(default_factory=set, repr=False)
     """The reply-with of every cancel this agent sent in it awaiting an answer."""
     _cancel: Received | None = field(default=None, repr=False)
@@ -478,8 +492,8 @@ class Conversation:
     ) -> str | None:
         """Answer :attr:`answering` (or ``to``, a communicate received in this conversation
         earlier: e.g. a cancel answered once the robot is safe) with ``performative`` carrying
-        ``content``. Returns the reply-with (None: no reply awaited). Raises SpecViolation when
-        the role or the conversation's state does not allow it."""
+        ``content``. Returns its reply-with (every communicate of a role has one). Raises
+        SpecViolation when the role or the conversation's state does not allow it."""
         return self._sent(self.roles._reply(self, performative, content, to=to))
 
     def refuse_with(self, performative: Performative, reason: str, *, to: Received | None = None) -> None:
@@ -502,7 +516,7 @@ class Conversation:
         """Send a further communicate of this conversation as :meth:`reply` does, awaiting a
         reply when ``reply_by_s`` (s: the reply-by deadline) or ``retry_s`` (s: retransmitted
         until the first answer; ``RESEND_ON_RETURN``: only when the peer reappears) is given.
-        Returns its reply-with (None: no reply awaited)."""
+        Returns its reply-with."""
         return self._sent(
             self.roles._reply(self, performative, content, reply_by_s=reply_by_s, retry_s=retry_s)
         )
@@ -518,7 +532,7 @@ class Conversation:
         the coordinate protocol's cancel, paper §5.4), carrying ``content``; it refers to the
         conversation, not to one communicate (no in-reply-to). With ``reply_by_s`` (s) its
         answer is awaited (:attr:`answers_cancel`) and a local failure ends the wait. Returns
-        the cancel's reply-with (None: no answer awaited)."""
+        the cancel's reply-with."""
         reply_with = self.roles._send(
             self, Performative.CANCEL, content, reply_by_s, None, expect=False
         ).reply_with
@@ -534,6 +548,14 @@ class Conversation:
         the first wait's retransmissions but not its deadline)."""
         if self.opening is not None and self.opening.msg.reply_with:
             self.roles._await(self, self.opening.msg.reply_with, reply_by_s, None)
+
+    def opening_content(self, kind: type[T]) -> T:
+        """The content of the communicate that opened the conversation, of type ``kind``
+        (e.g. after :meth:`Roles.restore` with ``expect=kind``). Raises TypeError otherwise."""
+        content = self.opening.content if self.opening is not None else None
+        if not isinstance(content, kind):
+            raise TypeError(f"conversation {self.conversation_id} opened with {type(content).__name__}")
+        return content
 
     def keep(self) -> bytes:
         """The communicate that opened this conversation, encoded (FIPA SC00061 msgpack), to
@@ -662,6 +684,7 @@ class Roles:
         reply_by_s: float | None = None,
         retry_s: float | None = None,
         data: Any = None,
+        expect: type | None = None,
     ) -> Conversation:
         """Re-enter a conversation kept across a restart (issue 7) in ``state`` of its
         protocol's state machine, reached by the shortest path of communicates (an ``inform``
@@ -670,10 +693,11 @@ class Roles:
         names the conversation. When this agent sent the opening communicate and
         ``reply_by_s`` (s) or ``retry_s`` (s) is given, the wait for its reply is re-entered:
         retransmitted at once and every ``retry_s`` until answered, ended by a local failure
-        after ``reply_by_s``. Raises RestoreError (a ValueError) for kept bytes that do not
-        decode or name no conversation, KeyError for a role not declared, SpecViolation when
-        no path leads to ``state``."""
-        from services.runtime.agent import Received, SpecViolation
+        after ``reply_by_s``. ``expect``: the type the opening's content must have. Raises
+        RestoreError (a ValueError) for kept bytes that do not decode, name no conversation or
+        carry content of another type, and when no path leads to ``state``; KeyError for a role
+        not declared."""
+        from services.runtime.agent import Received
 
         decl = self.role(channel, protocol)
         peer = self._peer_of[decl]
@@ -686,6 +710,9 @@ class Roles:
                 raise RestoreError(f"a kept {protocol} conversation does not decode: {exc}") from None
             if not msg.conversation_id:
                 raise RestoreError(f"a kept {protocol} communicate names no conversation")
+            if expect is not None and not isinstance(content, expect):
+                what = type(content).__name__ if content is not None else "no content"
+                raise RestoreError(f"a kept {protocol} conversation carries {what}, not {expect.__name__}")
             opening = Received(msg, content, channel)
             conversation_id = msg.conversation_id
         if not conversation_id:
@@ -693,13 +720,20 @@ class Roles:
         machine = machine_of(self.agent.spec, protocol)
         path = _path_to(machine, state)
         if path is None:
-            raise SpecViolation(f"{protocol} has no state {state!r} to restore a conversation in")
+            raise RestoreError(f"{protocol} has no state {state!r} to restore a conversation in")
         self.agent.restore_conversation(
             peer, conversation_id, protocol, [(perf, role == decl.role) for role, perf in path]
         )
         mine = opening is not None and opening.sender == self.agent.name
         conv = Conversation(
-            self, decl, peer, conversation_id, last=None if mine else opening, opening=opening, data=data
+            self,
+            decl,
+            peer,
+            conversation_id,
+            last=None if mine else opening,
+            opening=opening,
+            data=data,
+            knows_sent=opening is not None,
         )
         if mine and opening is not None and kept is not None and opening.msg.reply_with:
             if reply_by_s is not None or retry_s is not None:
@@ -765,7 +799,7 @@ class Roles:
             conv is not None
             and decl.role == INITIATOR
             and item.msg.in_reply_to is not None
-            and bool(conv.awaited)
+            and conv.knows_sent
             and item.msg.in_reply_to not in conv.awaited
         )
         if conv is None or stale:  # a reply to an earlier opening of a reused conversation-id

@@ -65,6 +65,7 @@ __all__ = [
     "protocols_of",
     "read_raw",
     "role_mismatches",
+    "streams",
 ]
 
 MACHINE_KEYS: frozenset[str] = frozenset({"initial", "final", "transitions", "cancellable", "terminal"})
@@ -250,6 +251,39 @@ def machine_of(spec: SystemSpec, name: str) -> Protocol:
                 f"({', '.join(PROTOCOLS)})"
             )
     return machines[name]
+
+
+def streams(machine: Protocol) -> bool:
+    """True when the participant may answer one opening many times: some transition it sends
+    lies on a cycle of the machine (fipa-subscribe's informs, coordinate's reports), the
+    cancel meta-protocol and not-understood left out."""
+    edges = [
+        (source, target, role)
+        for (source, role, perf), target in [
+            *machine.transitions.items(),
+            *machine.terminal_transitions.items(),
+        ]
+        if perf is not Performative.NOT_UNDERSTOOD and "cancelling" not in (source, target)
+    ]
+    successors: dict[str, set[str]] = {}
+    for source, target, _ in edges:
+        successors.setdefault(source, set()).add(target)
+
+    def reaches(start: str, goal: str) -> bool:
+        seen, todo = {start}, [start]
+        while todo:
+            for nxt in successors.get(todo.pop(), ()):
+                if nxt == goal:
+                    return True
+                if nxt not in seen:
+                    seen.add(nxt)
+                    todo.append(nxt)
+        return False
+
+    return any(
+        role == PARTICIPANT and (source == target or reaches(target, source))
+        for source, target, role in edges
+    )
 
 
 def role_mismatches(protocol: Protocol, roles: ProtocolRoles) -> list[str]:

@@ -54,6 +54,7 @@ from shared.fipa_codec.languages.l_sd import Observation
 from velma import frames as geometry
 from velma.executor.state import FT_AXES, SNAPSHOT_SIDES, RobotSnapshot
 from velma.executor.timing import TimingStats
+from velma.frames import quat_mul, rpy_to_quat
 from velma.model import generate as g
 
 WALL = "wall"
@@ -142,7 +143,7 @@ class FingerLink(NamedTuple):
 _KNUCKLE = LinkShape("box", (0.022, 0.012, 0.008), (0.03, 0.0, 0.004))
 _PROXIMAL = LinkShape("capsule_x", (0.011, 0.025, 0.0), (0.037, 0.0, 0.0))  # 0.012–0.062 m
 _DISTAL = LinkShape("capsule_x", (0.01, 0.0185, 0.0), (0.0265, 0.0, 0.0))  # 0.008–0.045 m
-_DISTAL_ORIGIN = ((g.DISTAL_IN_PROXIMAL_X, 0.0, 0.0), g.rpy_to_quat((0.0, 0.0, g.DISTAL_BEND)))
+_DISTAL_ORIGIN = ((g.DISTAL_IN_PROXIMAL_X, 0.0, 0.0), rpy_to_quat((0.0, 0.0, g.DISTAL_BEND)))
 FINGER_LINKS: tuple[FingerLink, ...] = (
     *(
         link
@@ -153,7 +154,7 @@ FINGER_LINKS: tuple[FingerLink, ...] = (
                 f"HandFinger{name}KnuckleOneJoint",
                 -sign,  # the spread joints turn the two fingers in opposite senses
                 (sign * g.SPREAD_ORIGIN_X, 0.0, g.SPREAD_ORIGIN_Z),
-                g.rpy_to_quat((0.0, 0.0, g.SPREAD_YAW)),
+                rpy_to_quat((0.0, 0.0, g.SPREAD_YAW)),
                 _KNUCKLE,
             ),
             FingerLink(
@@ -161,7 +162,7 @@ FINGER_LINKS: tuple[FingerLink, ...] = (
                 f"HandFinger{name}KnuckleTwoJoint",
                 -1.0,
                 g.PROXIMAL_IN_KNUCKLE,
-                g.rpy_to_quat(g.PROXIMAL_RPY),
+                rpy_to_quat(g.PROXIMAL_RPY),
                 _PROXIMAL,
             ),
             FingerLink(
@@ -178,7 +179,7 @@ FINGER_LINKS: tuple[FingerLink, ...] = (
         "HandFingerThreeKnuckleTwoJoint",
         -1.0,
         g.F3_PROXIMAL_IN_PALM[0],
-        g.rpy_to_quat(g.F3_PROXIMAL_IN_PALM[1]),
+        rpy_to_quat(g.F3_PROXIMAL_IN_PALM[1]),
         _PROXIMAL,
     ),
     FingerLink("finger_three/distal", "HandFingerThreeKnuckleThreeJoint", -1.0, *_DISTAL_ORIGIN, _DISTAL),
@@ -189,7 +190,7 @@ FINGER_EPS = 0.01  # rad: a hand's fingers are logged again when one angle moved
 def finger_pose(link: FingerLink, angle: float) -> Pose:
     """``link``'s frame in its parent link's frame at joint angle ``angle`` (rad)."""
     h = 0.5 * angle * link.axis
-    q = g.quat_mul(link.orientation, (math.cos(h), 0.0, 0.0, math.sin(h)))
+    q = quat_mul(link.orientation, (math.cos(h), 0.0, 0.0, math.sin(h)))
     return Pose(position=link.position, orientation=(q[0], q[1], q[2], q[3]))
 
 

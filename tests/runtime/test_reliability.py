@@ -249,13 +249,28 @@ def test_a_restarted_a_co_goes_on_with_the_plan_a_ta_runs(
     second = Wire(Coordinator)
     second.agent.setup()
     assert second.agent.ta_task == "cmd-1" and second.agent.tasks["cmd-1"].plan == PLAN
+    # a_ta's reports go on in the plan's conversation: each is confirmed (the restored
+    # conversation does not know what the previous a_co sent, so it takes every report)
+    running = SWStatus(state=SWState.RUNNING, plan_id=PLAN.plan_id, step="pour(jar,bowl)/grasp")
     done = SWStatus(state=SWState.SUCCEEDED, plan_id=PLAN.plan_id)
-    second.deliver(
-        communicate(P.INFORM, "a_ta", "a_co", "coordinate", run.conversation_id, done, reply_with="s9")
-    )
-    second.step("trigger")
-    assert second.agent.counters["rejected"] == 0
-    assert [m.performative for m in second.mine()] == [P.CONFIRM, P.INFORM]  # confirmed; the person told
+    for status, reply_with in ((running, "s8"), (done, "s9")):
+        second.deliver(
+            communicate(
+                P.INFORM,
+                "a_ta",
+                "a_co",
+                "coordinate",
+                run.conversation_id,
+                status,
+                reply_with=reply_with,
+                in_reply_to=run.reply_with,  # a_ta's reports answer the plan's request
+            )
+        )
+        second.step("trigger")
+    assert second.agent.counters["rejected"] == 0 and second.agent.counters["late_replies"] == 0
+    # both confirmed; the person told
+    assert [m.performative for m in second.mine()] == [P.CONFIRM, P.CONFIRM, P.INFORM]
+    assert [m.in_reply_to for m in second.mine(P.CONFIRM)] == ["s8", "s9"]
     assert second.mine(P.INFORM)[0].conversation_id == "cmd-1" and not second.agent.tasks
 
 

@@ -79,8 +79,11 @@ def test_both_roles_of_every_protocol_run_from_its_state_machine(
         # coordinate lets a_co confirm again while the plan runs (issue 7), so the last confirm
         # may be read as one that crossed the terminal inform: the conversation may have ended,
         # and both roles keep it open until they forget the oldest (roles.MAX_OPEN)
-        tracker = i.protocol_states.get("a_p", conv.conversation_id)
-        i.do(lambda a: done.put(tracker is not None and "finished" in tracker.states))
+        def ended(a: Initiator) -> None:
+            tracker = a.protocol_states.get("a_p", conv.conversation_id)
+            done.put(tracker is not None and "finished" in tracker.states)
+
+        i.do(ended)
         assert done.get(timeout=TIMEOUT)
         return
     i.do(lambda a: done.put(conv.finished))

@@ -73,41 +73,18 @@ def test_stage_2_new_agent_writes_the_agent_and_verify_code_says_what_is_missing
 ) -> None:
     path = logbook_stage(tmp_path, "walk_lb2")
     assert check_report(path)[0]
-    done = subprocess.run(
-        [
-            sys.executable,
-            "-m",
-            "services.cli",
-            "spec",
-            "new-agent",
-            "a_lb",
-            "--spec",
-            str(path),
-            "--root",
-            str(tmp_path),
-        ],
-        capture_output=True,
-        text=True,
-    )
+
+    def new_agent() -> subprocess.CompletedProcess[str]:
+        command = ["spec", "new-agent", "a_lb", "--spec", str(path), "--root", str(tmp_path)]
+        return subprocess.run(
+            [sys.executable, "-m", "services.cli", *command], capture_output=True, text=True
+        )
+
+    done = new_agent()
     assert done.returncode == 0, done.stderr
     assert f"roco: wrote {tmp_path / 'walk_lb2' / 'agent.py'}" in done.stdout
     assert "roco: fill in _on_request; then: roco spec verify-code" in done.stdout
-    again = subprocess.run(
-        [
-            sys.executable,
-            "-m",
-            "services.cli",
-            "spec",
-            "new-agent",
-            "a_lb",
-            "--spec",
-            str(path),
-            "--root",
-            str(tmp_path),
-        ],
-        capture_output=True,
-        text=True,
-    )
+    again = new_agent()
     assert again.returncode == 1 and again.stderr.startswith("roco: ") and "exists" in again.stderr
     monkeypatch.syspath_prepend(str(tmp_path))
     ok, text = verify_code_report(path)

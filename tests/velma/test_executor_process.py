@@ -15,10 +15,10 @@ import pytest
 
 from shared.fipa_codec.languages.l_ex import Arm, CommandResult, Grasp, MoveJoints, Observe, Wait
 from shared.fipa_codec.languages.l_sd import Observation
-from velma.control.trajectory import quat_wxyz
 from velma.executor import ExecutorProcess
 from velma.executor.loop import ControlLoop
 from velma.executor.runtime import Runtime
+from velma.frames import quat_wxyz
 
 Result = CommandResult | Observation
 

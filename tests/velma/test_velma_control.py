@@ -31,9 +31,9 @@ from velma.control.impedance import (
     pose_error,
 )
 from velma.control.robot_model import SIDES, RobotModel
-from velma.control.trajectory import quat_wxyz
 from velma.executor.primitives import make_primitive
 from velma.executor.runtime import Runtime
+from velma.frames import quat_wxyz
 from velma.scenario import script_poses
 
 

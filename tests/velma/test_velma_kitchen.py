@@ -16,6 +16,7 @@ from velma import scenario as sc
 from velma import scenario_kitchen as sk
 from velma.executor import Executor
 from velma.executor.perception import CONTAINERS, KNOWN_OBJECTS
+from velma.frames import quat_to_rot
 from velma.model import generate as gen
 from velma.model.scene import initial_state, load_kitchen
 
@@ -24,7 +25,7 @@ TABLE_MAX = np.array(gen.TABLE_POS[:2]) + gen.TABLE_HALF
 
 
 def _rot(pose: Pose) -> np.ndarray:
-    return sc._quat_to_rot(pose.orientation)
+    return quat_to_rot(pose.orientation)
 
 
 def _same_pose(a: Pose, b: Pose) -> bool:

@@ -90,28 +90,6 @@ class RotationPath:
         return self.sample(self.duration)[0]
 
 
-def quat_wxyz(rot: Array) -> tuple[float, float, float, float]:
-    """Unit quaternion (w, x, y, z) of a rotation matrix, with w ≥ 0."""
-    q = pin.Quaternion(rot)
-    w, x, y, z = float(q.w), float(q.x), float(q.y), float(q.z)
-    if w < 0:
-        w, x, y, z = -w, -x, -y, -z
-    return (w, x, y, z)
-
-
-def rot_from_wxyz(q: tuple[float, float, float, float]) -> Array:
-    """Rotation matrix of a (w, x, y, z) quaternion (normalised first).
-
-    Raises ``ValueError`` for a zero quaternion."""
-    arr = np.asarray(q, dtype=float)
-    n = float(np.linalg.norm(arr))
-    if n < 1e-9:
-        raise ValueError("zero quaternion")
-    w, x, y, z = arr / n
-    out: Array = pin.Quaternion(w, x, y, z).toRotationMatrix()
-    return out
-
-
 def rotation_error(a: Array, b: Array) -> float:
     """Angle (rad) of the rotation between rotation matrices ``a`` and ``b``."""
     c = (np.trace(a.T @ b) - 1.0) / 2.0

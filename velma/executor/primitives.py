@@ -45,10 +45,10 @@ from velma.control.trajectory import (
     PosePath,
     RotationPath,
     min_jerk,
-    rot_from_wxyz,
     rotation_error,
 )
 from velma.executor.runtime import Runtime, torso_frame
+from velma.frames import rot_from_wxyz
 
 Result = CommandResult | Observation
 

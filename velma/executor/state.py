@@ -61,7 +61,7 @@ class RobotSnapshot(msgspec.Struct, frozen=True, kw_only=True):
 def robot_snapshot(rt: Runtime, holding: str | None = None) -> RobotSnapshot:
     """The state of ``rt`` now (reads MuJoCo's data; call from the loop's thread)."""
     from velma.control.robot_model import SIDES
-    from velma.control.trajectory import quat_wxyz
+    from velma.frames import quat_wxyz
 
     q = rt.q()
     joints = {name: float(q[i]) for name, i in zip(rt.robot.joint_names, rt.joint_v_index, strict=True)}

@@ -61,6 +61,8 @@ from pathlib import Path
 import numpy as np
 import numpy.typing as npt
 
+from velma.frames import quat_matrix, quat_mul, quat_rotate, rpy_to_quat
+
 MODEL_DIR = Path(__file__).resolve().parent
 VELMA_XML = MODEL_DIR / "velma.xml"
 KITCHEN_XML = MODEL_DIR / "kitchen.xml"
@@ -222,50 +224,6 @@ def effort_limits() -> dict[str, float]:
 
 
 # ----------------------------------------------------------------- small math helpers
-def rpy_to_quat(rpy: Vec) -> Quat:
-    """URDF roll-pitch-yaw (fixed axes X, Y, Z; R = Rz·Ry·Rx) → MuJoCo quaternion (w, x, y, z)."""
-    r, p, y = rpy
-    cr, sr = math.cos(r / 2), math.sin(r / 2)
-    cp, sp = math.cos(p / 2), math.sin(p / 2)
-    cy, sy = math.cos(y / 2), math.sin(y / 2)
-    return (
-        cr * cp * cy + sr * sp * sy,
-        sr * cp * cy - cr * sp * sy,
-        cr * sp * cy + sr * cp * sy,
-        cr * cp * sy - sr * sp * cy,
-    )
-
-
-def quat_mul(a: tuple[float, ...], b: tuple[float, ...]) -> Quat:
-    """Hamilton product of two (w, x, y, z) quaternions."""
-    aw, ax, ay, az = a
-    bw, bx, by, bz = b
-    return (
-        aw * bw - ax * bx - ay * by - az * bz,
-        aw * bx + ax * bw + ay * bz - az * by,
-        aw * by - ax * bz + ay * bw + az * bx,
-        aw * bz + ax * by - ay * bx + az * bw,
-    )
-
-
-def quat_matrix(q: tuple[float, ...]) -> npt.NDArray[np.float64]:
-    """Rotation matrix (3, 3) of unit quaternion ``q`` (w, x, y, z)."""
-    w, x, y, z = q
-    return np.array(
-        [
-            [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-            [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-            [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
-        ]
-    )
-
-
-def quat_rotate(q: tuple[float, ...], v: Vec) -> Vec:
-    """Rotate vector ``v`` by unit quaternion ``q`` (w, x, y, z)."""
-    out = quat_matrix(q) @ np.asarray(v, dtype=float)
-    return (float(out[0]), float(out[1]), float(out[2]))
-
-
 def add(a: Vec, b: Vec) -> Vec:
     """Sum of two 3-vectors."""
     return (a[0] + b[0], a[1] + b[1], a[2] + b[2])

@@ -40,7 +40,7 @@ from typing import Literal
 import msgspec
 
 from services.agents.coordinator.scheduling import Candidate, Decision, Running, decide
-from services.runtime.agent import Agent, Received, SpecViolation
+from services.runtime.agent import Agent, Received
 from services.runtime.behaviour import FSM, Arc, Behaviour
 from services.runtime.roles import (
     INITIATOR,
@@ -443,14 +443,11 @@ class Coordinator(Agent):
             try:
                 cancel = self._received(k.cancel) if k.cancel is not None else None
                 state = "cancelling" if cancel is not None else "agreed"
-                conv = self.roles.restore("C2", "fipa-request", state, kept=k.request)
-            except (DecodeError, ContentError, RestoreError, SpecViolation) as exc:
+                conv = self.roles.restore("C2", "fipa-request", state, kept=k.request, expect=HumanCommand)
+            except (DecodeError, ContentError, RestoreError) as exc:
                 self.log.warning("a kept command cannot be taken back (%s): dropped", exc)
                 continue
-            command = conv.opening.content if conv.opening is not None else None
-            if not isinstance(command, HumanCommand):
-                conv.abandon()
-                continue
+            command = conv.opening_content(HumanCommand)
             on_ta = conv.conversation_id == kept.ta_task and kept.ta_conversation is not None
             task = Task(
                 conv.conversation_id,
@@ -479,7 +476,7 @@ class Coordinator(Agent):
                 self.subscription = self.roles.restore(
                     "C2", "fipa-subscribe", "active", kept=kept.subscription
                 )
-            except (RestoreError, SpecViolation) as exc:
+            except RestoreError as exc:
                 self.log.warning("the kept progress subscription cannot be taken back (%s)", exc)
         self.reschedule = True
         self.log.info(

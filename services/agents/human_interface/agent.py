@@ -41,7 +41,7 @@ from services.agents.human_interface.language import (
     interpret,
 )
 from services.runtime import keys
-from services.runtime.agent import Agent, SpecViolation
+from services.runtime.agent import Agent
 from services.runtime.behaviour import FSM, Behaviour
 from services.runtime.human import FINAL_REPORTS, HumanInput, HumanReport, ReportKind, RequestKind
 from services.runtime.roles import INITIATOR, Conversation, RestoreError, handles, initiator
@@ -270,14 +270,12 @@ class HumanInterface(Agent):
                     kept=k.request,
                     reply_by_s=COMMAND_REPLY_BY_S if k.agreed else AGREE_BY_S,
                     retry_s=None if k.agreed else COMMAND_RETRY_S,
+                    expect=HumanCommand,
                 )
-            except (RestoreError, SpecViolation) as exc:
+            except RestoreError as exc:
                 self.log.warning("a kept command cannot be taken back (%s): dropped", exc)
                 continue
-            command = conv.opening.content if conv.opening is not None else None
-            if not isinstance(command, HumanCommand):
-                conv.abandon()
-                continue
+            command = conv.opening_content(HumanCommand)
             cid = conv.conversation_id
             self.commands[cid] = OpenCommand(cid, k.request_id, command, k.label, conv, agreed=k.agreed)
         if self.commands:
@@ -536,7 +534,9 @@ class HumanInterface(Agent):
         cid = SUBSCRIPTION if self.sub_attempts == 1 else f"{SUBSCRIPTION}-{self.sub_attempts}"
         if self.sub_conversation is not None:  # the previous attempt is given up (or its a_co gone)
             self.sub_conversation.stop_waiting()
-        self.sub_conversation = self.roles.open(C2, SUBSCRIBE, ProgressSubscription(), conversation_id=cid)
+        self.sub_conversation = self.roles.open(
+            C2, SUBSCRIBE, ProgressSubscription(), conversation_id=cid, reply_by_s=SUBSCRIBE_REPLY_BY_S
+        )
         self.subscription = cid
         self.sub_pending = True
         self.retry_at = None

@@ -37,7 +37,7 @@ from dataclasses import dataclass
 
 import msgspec
 
-from services.runtime.agent import RESEND_ON_RETURN, Agent, SpecViolation
+from services.runtime.agent import RESEND_ON_RETURN, Agent
 from services.runtime.behaviour import FSM, Arc, Behaviour
 from services.runtime.roles import (
     INITIATOR,
@@ -356,14 +356,13 @@ class TaskExecutor(Agent):
     def _restore(self, kept: KeptTaskExecutor) -> None:
         """Report on the plan a previous a_ta ran (see the module docstring)."""
         try:
-            conv = self.roles.restore("C1", "coordinate", "running", kept=kept.request)
-        except (RestoreError, SpecViolation) as exc:
+            conv = self.roles.restore(
+                "C1", "coordinate", "running", kept=kept.request, expect=HierarchicalPlan
+            )
+        except RestoreError as exc:
             self.log.warning("kept plan request cannot be taken back (%s): dropped", exc)
             return
-        plan = conv.opening.content if conv.opening is not None else None
-        if not isinstance(plan, HierarchicalPlan):
-            conv.abandon()
-            return
+        plan = conv.opening_content(HierarchicalPlan)
         self.plan, self.plan_request = plan, conv
         if kept.outcome is not None:
             self.outcome, self.reason = kept.outcome, kept.reason

@@ -1,0 +1,87 @@
+"""The kitchen's geometry is stated once, in the robot's scene (velma/model/generate.py, built
+into the MuJoCo model by velma/model/scene.py); a_km's facts about it
+(services/agents/knowledge/kitchen.ttl) agree with it (issue 17). The planner holds no
+geometry of its own: it plans from a_km's answers, and tests/agents/planner/
+test_planner_matches_script.py checks that those plans reproduce velma/scenario.py."""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+import pytest
+
+from services.agents.knowledge.world_model import WorldModel
+from velma.model import generate as g
+from velma.model.scene import initial_state, load_kitchen
+
+SIZE_TOLERANCE_M = 0.011
+"""How far a_km's bounding size of an object may exceed the model's geoms (a 1 cm margin
+around the bowl's flared rim is stated in kitchen.ttl; none may be smaller)."""
+
+
+@pytest.fixture(scope="module")
+def world() -> WorldModel:
+    return WorldModel()
+
+
+@pytest.fixture(scope="module")
+def scene() -> tuple[mujoco.MjModel, mujoco.MjData]:
+    model = load_kitchen(n_particles=0)
+    return model, initial_state(model, settle_steps=0)
+
+
+def _extent(model: mujoco.MjModel, data: mujoco.MjData, body: str) -> np.ndarray:
+    """The axis-aligned size (x, y, z; m) of ``body``'s collision geoms in the initial state."""
+    b = model.body(body).id
+    lo, hi = np.full(3, np.inf), np.full(3, -np.inf)
+    for geom in range(model.ngeom):
+        if model.geom_bodyid[geom] != b:
+            continue
+        half = model.geom_size[geom]
+        kind = model.geom_type[geom]
+        if kind == mujoco.mjtGeom.mjGEOM_BOX:
+            corners = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)]) * half
+        elif kind == mujoco.mjtGeom.mjGEOM_CYLINDER:
+            r, h = half[0], half[1]
+            corners = np.array(
+                [[sx * r, sy * r, sz * h] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)]
+            )
+        else:
+            continue
+        points = corners @ data.geom_xmat[geom].reshape(3, 3).T + data.geom_xpos[geom]
+        lo, hi = np.minimum(lo, points.min(0)), np.maximum(hi, points.max(0))
+    assert np.isfinite(lo).all(), f"{body} has no box or cylinder geoms"
+    return hi - lo
+
+
+@pytest.mark.parametrize("obj", ["jar", "bowl", "cup"])
+def test_a_kms_sizes_of_the_objects_hold_the_models_geoms(
+    world: WorldModel, scene: tuple[mujoco.MjModel, mujoco.MjData], obj: str
+) -> None:
+    size = world.object_info(obj).size
+    assert size is not None
+    extent = _extent(*scene, obj)
+    assert np.all(np.asarray(size) >= extent - 1e-3), (obj, size, extent)
+    assert np.all(np.asarray(size) - extent <= SIZE_TOLERANCE_M), (obj, size, extent)
+
+
+def test_the_jar_and_the_cup_are_the_cylinders_the_model_builds(world: WorldModel) -> None:
+    for obj, radius, height in (("jar", g.JAR_RADIUS, g.JAR_HEIGHT), ("cup", g.CUP_RADIUS, g.CUP_HEIGHT)):
+        assert world.object_info(obj).size == pytest.approx((2 * radius, 2 * radius, height))
+
+
+def test_places_in_the_cabinet_are_where_the_model_puts_the_objects_on_its_shelf(world: WorldModel) -> None:
+    for obj, where in (("jar", g.JAR_POS), ("bowl", g.BOWL_POS)):
+        (position,) = world.placement(obj, "cabinet").positions
+        assert position == pytest.approx(where)
+        assert position[2] == pytest.approx(g.SHELF_HEIGHT)
+
+
+@pytest.mark.parametrize("obj", ["jar", "bowl", "cup"])
+def test_places_on_the_table_are_on_its_top(world: WorldModel, obj: str) -> None:
+    size = world.object_info(obj).size
+    assert size is not None
+    for x, y, z in world.placement(obj, "table").positions:
+        assert z == pytest.approx(g.TABLE_TOP_HEIGHT)
+        for centre, at, half in ((g.TABLE_POS[0], x, size[0] / 2), (g.TABLE_POS[1], y, size[1] / 2)):
+            assert abs(at - centre) + half <= g.TABLE_HALF, (obj, (x, y), "overhangs the table")
