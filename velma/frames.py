@@ -69,9 +69,23 @@ def upright(pose: Pose) -> Pose:
 
 
 def quat_wxyz(rot: npt.NDArray[np.float64]) -> tuple[float, float, float, float]:
-    """Unit quaternion (w, x, y, z) of a rotation matrix (Pinocchio's conversion), with w ≥ 0."""
-    q = pin.Quaternion(rot)
-    w, x, y, z = float(q.w), float(q.x), float(q.y), float(q.z)
+    """Unit quaternion (w, x, y, z) of a rotation matrix (3, 3), with w ≥ 0 (Shepperd's method:
+    the largest of w, x, y, z is computed from the diagonal, the others from it)."""
+    r = rot
+    tr = float(np.trace(r))
+    if tr > 0:
+        s = math.sqrt(tr + 1.0) * 2
+        q = (0.25 * s, (r[2, 1] - r[1, 2]) / s, (r[0, 2] - r[2, 0]) / s, (r[1, 0] - r[0, 1]) / s)
+    elif r[0, 0] > r[1, 1] and r[0, 0] > r[2, 2]:
+        s = math.sqrt(1.0 + r[0, 0] - r[1, 1] - r[2, 2]) * 2
+        q = ((r[2, 1] - r[1, 2]) / s, 0.25 * s, (r[0, 1] + r[1, 0]) / s, (r[0, 2] + r[2, 0]) / s)
+    elif r[1, 1] > r[2, 2]:
+        s = math.sqrt(1.0 + r[1, 1] - r[0, 0] - r[2, 2]) * 2
+        q = ((r[0, 2] - r[2, 0]) / s, (r[0, 1] + r[1, 0]) / s, 0.25 * s, (r[1, 2] + r[2, 1]) / s)
+    else:
+        s = math.sqrt(1.0 + r[2, 2] - r[0, 0] - r[1, 1]) * 2
+        q = ((r[1, 0] - r[0, 1]) / s, (r[0, 2] + r[2, 0]) / s, (r[1, 2] + r[2, 1]) / s, 0.25 * s)
+    w, x, y, z = (float(v) for v in q)
     if w < 0:
         w, x, y, z = -w, -x, -y, -z
     return (w, x, y, z)
