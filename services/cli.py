@@ -734,9 +734,10 @@ def spec_new_agent(
 
 @spec_app.command("verify-code")
 def spec_verify_code(spec: SpecFile = None) -> None:
-    """Every message an agent may receive by the specification has a handler in its code, and
-    every message its code sends is allowed (the paper's ClassInterfaceInfo check). Exit 1
-    with one line per problem."""
+    """Compare every agent with its interface in the specification without starting it (the
+    paper's ClassInterfaceInfo check): its protocol roles (channel, protocol, initiator or
+    participant, languages), a handler for everything its peers may send, and no send outside
+    its roles; list what each role sends and receives. Exit 1 with one line per problem."""
     from services.spec_check.code_check import verify_code_report
 
     ok, text = verify_code_report(_spec_path(spec))
