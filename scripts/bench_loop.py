@@ -106,6 +106,12 @@ def run_fleet(runs_dir: Path) -> tuple[TimingStats, str]:
     return stats, ("ok" if proc.returncode == 0 else f"failed ({run_dir})")
 
 
+def parts(name: str, s: TimingStats) -> str:
+    """The compute time's parts (p50 / p99 / max µs each) of one row, as one line."""
+    split = "; ".join(f"{p.name} {p.p50_us:.0f} / {p.p99_us:.0f} / {p.max_us:.0f}" for p in s.parts)
+    return f"- {name}: {split or 'parts not measured'}"
+
+
 def row(name: str, s: TimingStats, outcome: str) -> str:
     setup = s.setup
     sched = "?" if setup is None else f"{setup.policy}{' pinned' if setup.pinned else ''}"
@@ -134,20 +140,26 @@ def main() -> int:
     )
     print("|---|---|---|---|---|---|---|---|---|---|")
     runs_dir = args.runs_dir or Path(tempfile.mkdtemp(prefix="roco-bench-"))
+    split: list[str] = []
     for k in range(args.repeat):
         if not args.skip_alone:
             t0 = time.time()
             stats, outcome = run_alone(k, None if args.spin_us is None else args.spin_us * 1e-6)
             print(row(f"alone (seed {k}, {time.time() - t0:.0f} s)", stats, outcome), flush=True)
+            split.append(parts(f"alone (seed {k})", stats))
             if args.camera:
                 t0 = time.time()
                 stats, outcome = run_alone(k, None if args.spin_us is None else args.spin_us * 1e-6, True)
                 name = f"alone + head camera (seed {k}, {time.time() - t0:.0f} s)"
                 print(row(name, stats, outcome), flush=True)
+                split.append(parts(name, stats))
         if not args.skip_fleet:
             t0 = time.time()
             stats, outcome = run_fleet(runs_dir)
             print(row(f"fleet: roco run ({time.time() - t0:.0f} s)", stats, outcome), flush=True)
+            split.append(parts(f"fleet (run {k + 1})", stats))
+    print("\nThe compute time in parts, p50 / p99 / max µs (each part's own percentiles):\n")
+    print("\n".join(split))
     print(
         "\nCompute: loop work per cycle (command hand-off, primitive, control law, physics step, "
         "state publication). Lateness: cycle start after its release time. Overrun: a cycle that "

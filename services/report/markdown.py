@@ -330,6 +330,10 @@ def _control(report: Report) -> str:
             f"{c.compute_p99_us:.0f}",
             f"{c.compute_max_us:.0f}",
         ),
+        *(
+            (f"… of it {p.name} (µs)", f"{p.p50_us:.0f}", f"{p.p99_us:.0f}", f"{p.max_us:.0f}")
+            for p in c.parts
+        ),
         (
             "lateness of the cycle start (µs)",
             f"{c.lateness_p50_us:.0f}",
@@ -356,7 +360,10 @@ def _control(report: Report) -> str:
         "**How measured.** `time.perf_counter` in the loop process around each cycle (command "
         "hand-off, motion primitive, control law, physics step, state publication); lateness "
         "is the start's delay after the cycle's release time; an overrun is a cycle that "
-        "ended after the next release time (velma/executor/timing.py)."
+        "ended after the next release time (velma/executor/timing.py). The parts of the compute "
+        "time are measured in the same cycles: primitive (the motion primitive's step), control "
+        "(impedance law, hands, head), physics (`mj_step`, contact scan), hand-offs (the rest); "
+        "each part's percentiles are its own, so they do not add up to the cycle's."
     )
     return "\n\n".join([title, text, _table(head, rows), how])
 

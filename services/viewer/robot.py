@@ -380,6 +380,11 @@ class RobotLogger:
             ("overruns/count", float(t.overruns)),
             ("overruns/share_percent", 100.0 * t.overrun_share),
             ("overruns/max_consecutive", float(t.max_consecutive_overruns)),
+            *(
+                (f"parts/{p.name}/{q}", value)
+                for p in t.parts
+                for q, value in (("p50", p.p50_us), ("p99", p.p99_us), ("max", p.max_us))
+            ),
         ):
             s.log(f"{TIMING}/{name}", rr.Scalars(value))
 

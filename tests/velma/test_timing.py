@@ -4,10 +4,12 @@ from __future__ import annotations
 
 import multiprocessing
 import os
+import time
 
+import numpy as np
 import pytest
 
-from velma.executor.timing import DeadlineMonitor, RealtimeSetup, enter_realtime
+from velma.executor.timing import PARTS, DeadlineMonitor, RealtimeSetup, enter_realtime
 
 DT = 0.001
 
@@ -80,3 +82,40 @@ def test_worst_cycle_is_remembered_beyond_the_window() -> None:
     s = m.stats()
     assert s.worst_cycle == 1 and s.worst_compute_us == pytest.approx(4000.0)
     assert s.compute_max_us == pytest.approx(200.0)
+
+
+def test_the_compute_time_is_split_in_parts_and_a_reader_sees_them() -> None:
+    buf = memoryview(bytearray(DeadlineMonitor.nbytes(8)))
+    writer = DeadlineMonitor(DT, realtime=True, window=8, buffer=buf)
+    # compute 500 µs: primitive 50, control 100, physics 300 → hand-offs 50
+    for k in range(4):
+        t = k * DT
+        writer.record(t, t, t + 0.0005, np.array([0.00005, 0.0001, 0.0003]))
+    s = DeadlineMonitor(DT, realtime=True, window=8, buffer=buf).stats()
+    assert [p.name for p in s.parts] == list(PARTS)
+    split = {p.name: p for p in s.parts}
+    for name, us in (("primitive", 50.0), ("control", 100.0), ("physics", 300.0), ("hand-offs", 50.0)):
+        assert split[name].p50_us == pytest.approx(us, abs=1e-6)
+        assert split[name].max_us == pytest.approx(us, abs=1e-6)
+
+
+def test_a_loop_that_does_not_measure_parts_reports_none() -> None:
+    m = DeadlineMonitor(DT, realtime=False, window=4)
+    m.record(0.0, 0.0, 0.0004)
+    assert m.stats().parts == ()
+
+
+def test_the_threaded_executor_measures_control_and_physics_in_every_cycle() -> None:
+    from velma.executor import Executor
+
+    ex = Executor(seed=0)
+    ex.start()
+    deadline = time.monotonic() + 60.0
+    try:
+        while ex.timing().cycles < 200:  # the loop runs as fast as it can
+            assert time.monotonic() < deadline, "the loop did not run 200 cycles in 60 s"
+    finally:
+        ex.stop()
+    split = {p.name: p for p in ex.timing().parts}
+    assert split["control"].p50_us > 0 and split["physics"].p50_us > 0
+    assert split["physics"].p50_us > split["control"].p50_us / 10  # mj_step is no rounding error

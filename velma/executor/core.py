@@ -122,7 +122,7 @@ class Executor:
             start = pacer.begin()
             with self._lock:
                 done = self.loop.cycle()
-            self.monitor.record(pacer.release, start, time.perf_counter())
+            self.monitor.record(pacer.release, start, time.perf_counter(), self.rt.part_s)
             if done is not None:
                 self._notify(*done)
             while self.loop.errors:

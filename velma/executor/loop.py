@@ -16,6 +16,7 @@ does the same with Velma's safe-mode gains. The loop holds until the next comman
 from __future__ import annotations
 
 import collections
+import time
 from typing import Generic, TypeVar
 
 import numpy as np
@@ -93,6 +94,7 @@ class ControlLoop(Generic[T]):
         (token, result) of a command that ended in this cycle."""
         rt = self.rt
         finished: tuple[T, Result] | None = None
+        t0 = time.perf_counter()
         if self.current is None and self.queue:
             token, command = self.queue.popleft()
             self.holding = None
@@ -115,6 +117,7 @@ class ControlLoop(Generic[T]):
             if result is not None:
                 finished = (token, result)
                 self.current = None
+        rt.part_s[0] = time.perf_counter() - t0
         rt.cycle()
         return finished
 

@@ -287,7 +287,7 @@ def loop_main(config: bytes, doorbell: multiprocessing.connection.Connection) ->
             running = False  # orphaned: the communication side is gone
         cycle += 1
         end = time.perf_counter()
-        monitor.record(pacer.release, start, end)
+        monitor.record(pacer.release, start, end, rt.part_s)
         pacer.wait()
     pending.extend(encode(Done(token=t, result=r)) for t, r in loop.abort("stopped"))
     if keeper is not None and (error := keeper.close(loop.holding)) is not None:

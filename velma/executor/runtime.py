@@ -16,6 +16,7 @@ from their pose relative to torso_link0 at the start of the motion).
 from __future__ import annotations
 
 import math
+import time
 
 import mujoco
 import numpy as np
@@ -88,6 +89,9 @@ class Runtime:
         self.touch: dict[str, dict[int, int]] = {s: {} for s in SIDES}
         self.lost_cycles: dict[str, int] = {s: 0 for s in SIDES}
         self.cycles = 0
+        self.part_s = np.zeros(3)
+        """The last cycle's measured parts (s): primitive (set by the loop), control, physics
+        (velma.executor.timing.PARTS)."""
         self._scan_phase = {0: SIDES[0], CONTACT_PERIOD // 2: SIDES[1]}
         q = self.q()
         for s in SIDES:
@@ -133,7 +137,9 @@ class Runtime:
 
     # ------------------------------------------------------------------ cycle
     def cycle(self) -> None:
-        """One 1 ms control cycle after the setpoints were updated (see module docstring)."""
+        """One 1 ms control cycle after the setpoints were updated (see module docstring);
+        the control and physics parts of its time go to ``part_s``."""
+        t0 = time.perf_counter()
         data = self.data
         q, v = self.q(), self.v()
         taus, tau_torso = self.ctrl.update(q, v)
@@ -145,6 +151,7 @@ class Runtime:
         self.head_set = self.head_set + dh
         data.ctrl[self.head_act[0]] = self.head_set[0]
         data.ctrl[self.head_act[1]] = self.head_set[1]
+        t1 = time.perf_counter()
         mujoco.mj_step(self.model, data)
         self.cycles += 1
         # each hand is scanned every CONTACT_PERIOD cycles, the two half a period apart, so
@@ -158,6 +165,9 @@ class Runtime:
                 self.lost_cycles[s] += 1
             else:
                 self.lost_cycles[s] = 0
+        part = self.part_s
+        part[1] = t1 - t0
+        part[2] = time.perf_counter() - t1
 
     def displace(self, body: str, delta: tuple[float, float, float]) -> None:
         """Move free body ``body`` by ``delta`` (world, m) and stop it: a disturbance of the

@@ -12,6 +12,13 @@ Definitions (per cycle k, period ``dt`` = 1 ms):
 - *overrun*: end_k > r_k + dt, i.e. the cycle did not finish before the next one was due.
   In as-fast-as-possible pacing this is compute time > dt.
 
+The compute time is split in parts (issue 18: the budget in the open), each cycle's measured
+by the loop itself into a preallocated array (:data:`PARTS` but the last): *primitive* (the
+motion primitive: taking the next command, its step), *control* (the impedance law for both
+arms and the torso, the hands and the head), *physics* (``mj_step`` and the hands' contact
+scan); *hand-offs* is the rest of the cycle (the rings, the state and world publications, the
+checkpoint copy, the monitor itself).
+
 ``DeadlineMonitor.record`` is O(1) and writes into preallocated arrays (no allocation of
 containers on the loop's path); ``stats`` computes percentiles over the last ``window`` cycles
 on the caller's side.
@@ -30,6 +37,9 @@ import msgspec
 import numpy as np
 
 DEFAULT_WINDOW = 120_000  # cycles (2 min at 1 kHz) kept for percentiles
+PARTS = ("primitive", "control", "physics", "hand-offs")
+"""The parts of a cycle's compute time (module docstring); the loop measures all but the last."""
+MEASURED_PARTS = len(PARTS) - 1
 FIFO_PRIORITY = 80  # SCHED_FIFO priority of the loop (1..99), above threaded IRQ handlers (50)
 
 
@@ -44,6 +54,16 @@ class RealtimeSetup(msgspec.Struct, frozen=True, kw_only=True):
     cpus: tuple[int, ...]
     pinned: bool
     notes: tuple[str, ...] = ()
+
+
+class PartTiming(msgspec.Struct, frozen=True, kw_only=True):
+    """One part of the cycle's compute time over the window (µs): p50, p99 and max each taken
+    over that part alone (the parts' p99s do not add up to the cycle's)."""
+
+    name: str
+    p50_us: float
+    p99_us: float
+    max_us: float
 
 
 class TimingStats(msgspec.Struct, frozen=True, kw_only=True):
@@ -73,21 +93,24 @@ class TimingStats(msgspec.Struct, frozen=True, kw_only=True):
     it is also the simulation time in ms, which tells what the robot was doing."""
     worst_compute_us: float = 0.0
     """That cycle's compute time (µs), over the whole run, not only the window."""
+    parts: tuple[PartTiming, ...] = ()
+    """The compute time split in :data:`PARTS` (empty when the loop did not measure them)."""
 
 
 class DeadlineMonitor:
     """Counts every cycle's compute time, lateness and overruns (see module docstring).
 
-    ``window`` (cycles) bounds the memory used for percentiles: 2 float64 arrays of that
-    length plus 6 counters. ``buffer`` (at least ``DeadlineMonitor.nbytes(window)``
-    bytes, e.g. a shared memory block) holds them when given, so that another process can
-    read ``stats`` while the loop records; a reader may see a window torn by one cycle, the
-    counters are single aligned 8-byte stores."""
+    ``window`` (cycles) bounds the memory used for percentiles: 5 float64 arrays of that
+    length (compute time, lateness, the three measured parts) plus 6 counters. ``buffer``
+    (at least ``DeadlineMonitor.nbytes(window)`` bytes, e.g. a shared memory block) holds
+    them when given, so that another process can read ``stats`` while the loop records; a
+    reader may see a window torn by one cycle, the counters are single aligned 8-byte
+    stores."""
 
     @staticmethod
     def nbytes(window: int) -> int:
         """Size (B) of the buffer a monitor of ``window`` cycles needs."""
-        return 8 * (6 + 2 * window)
+        return 8 * (6 + (2 + MEASURED_PARTS) * window)
 
     def __init__(
         self, dt: float, *, realtime: bool, window: int = DEFAULT_WINDOW, buffer: memoryview | None = None
@@ -104,6 +127,10 @@ class DeadlineMonitor:
         self._worst = np.ndarray((1,), dtype=np.float64, buffer=buf, offset=40)
         self._compute = np.ndarray((window,), dtype=np.float64, buffer=buf, offset=48)
         self._lateness = np.ndarray((window,), dtype=np.float64, buffer=buf, offset=48 + 8 * window)
+        self._parts = np.ndarray(
+            (window, MEASURED_PARTS), dtype=np.float64, buffer=buf, offset=48 + 16 * window
+        )
+        self._measured = False
         self._cycles = int(self._counters[0])
         self._overruns = int(self._counters[1])
         self._consecutive = int(self._counters[2])
@@ -121,11 +148,15 @@ class DeadlineMonitor:
         """Overrunning cycles since start."""
         return int(self._counters[1])
 
-    def record(self, release: float, start: float, end: float) -> bool:
-        """Record one cycle (times in s, same clock). Returns True when it overran."""
+    def record(self, release: float, start: float, end: float, parts: np.ndarray | None = None) -> bool:
+        """Record one cycle (times in s, same clock) and, when given, its ``parts``: the
+        seconds of the measured :data:`PARTS` (array of 3). Returns True when it overran."""
         i = self._cycles % self.window
         compute = end - start
         self._compute[i] = compute
+        if parts is not None:
+            self._parts[i] = parts
+            self._measured = True
         if compute > self._worst_compute:
             self._worst_compute = compute
             self._counters[4] = self._cycles
@@ -155,6 +186,16 @@ class DeadlineMonitor:
         def pct(a: np.ndarray, q: float) -> float:
             return float(np.percentile(a, q)) if n else 0.0
 
+        split: tuple[PartTiming, ...] = ()
+        if n and (self._measured or bool(self._parts[:n].any())):
+            measured = self._parts[:n] * 1e6
+            columns = [measured[:, k] for k in range(MEASURED_PARTS)]
+            columns.append(np.maximum(comp - measured.sum(axis=1), 0.0))
+            split = tuple(
+                PartTiming(name=name, p50_us=pct(col, 50), p99_us=pct(col, 99), max_us=float(col.max()))
+                for name, col in zip(PARTS, columns, strict=True)
+            )
+
         return TimingStats(
             pacing="realtime" if self.realtime else "fast",
             cycles=cycles,
@@ -172,6 +213,7 @@ class DeadlineMonitor:
             setup=self.setup,
             worst_cycle=worst_cycle,
             worst_compute_us=float(self._worst[0]) * 1e6,
+            parts=split,
         )
 
 
