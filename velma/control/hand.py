@@ -57,7 +57,10 @@ class HandSetpoint:
     ``spread`` / ``spread_target``: commanded and final spread (rad); ``proximal`` (3,) rad:
     the proximal setpoints of fingers One, Two, Three; ``target`` (3,) rad: where they are
     ramping to; ``distal`` (3,) rad: the distal setpoints; ``broken`` (3,) bool: the finger's
-    clutch has broken away (proximal stopped at the object, distal closing on its own)."""
+    clutch has broken away (proximal stopped at the object, distal closing on its own);
+    ``steady``: every setpoint has reached its target and no clutch has broken away, so a
+    step would change nothing (``Hands.step`` then skips the hand: issue 18, the cycle's
+    budget)."""
 
     spread: float = 0.0
     spread_target: float = 0.0
@@ -65,6 +68,7 @@ class HandSetpoint:
     target: Array = field(default_factory=lambda: np.zeros(3))
     distal: Array = field(default_factory=lambda: np.zeros(3))
     broken: npt.NDArray[np.bool_] = field(default_factory=lambda: np.zeros(3, dtype=bool))
+    steady: bool = False
 
 
 class Hands:
@@ -114,6 +118,7 @@ class Hands:
             hs.distal = data.qpos[self.dist_q[s]].copy()
             hs.broken = np.zeros(3, dtype=bool)
             hs.spread = hs.spread_target = float(data.qpos[self.spread_q[s][0]])
+            hs.steady = False
 
     def command(self, side: str, proximal: float, spread: float | None = None) -> None:
         """Ramp ``side``'s proximal setpoints to ``proximal`` (rad, clipped to 0..PROXIMAL_MAX)
@@ -121,6 +126,7 @@ class Hands:
         target is below its current proximal setpoint is opening: its clutch re-engages.
         Raises ``KeyError`` for an unknown side."""
         hs = self.set[side]
+        hs.steady = False
         hs.target = np.full(3, float(np.clip(proximal, 0.0, PROXIMAL_MAX)))
         hs.broken = hs.broken & ~(hs.target < hs.proximal)
         if spread is not None:
@@ -129,32 +135,59 @@ class Hands:
     def step(self, data: mujoco.MjData, dt: float) -> None:
         """Advance the ramps and the clutches by ``dt`` (s) from the state in ``data``
         (measured proximal angles and servo torques), and write the servo controls into
-        ``data.ctrl`` (rad)."""
+        ``data.ctrl`` (rad). A steady hand (``HandSetpoint.steady``) is skipped: its controls
+        in ``data.ctrl`` are already the ones a step would write."""
         for s in SIDES:
             hs = self.set[s]
-            delta = hs.target - hs.proximal
-            closing = delta > 0
-            torque = data.actuator_force[self.prox_act[s]]
-            slip = closing & ~hs.broken & (torque >= BREAKAWAY_TORQUE)
-            if np.any(slip | hs.broken):
+            if hs.steady:
+                continue
+            # three fingers in plain floats: the same IEEE operations as numpy's on (3,)
+            # arrays, at a fraction of the per-call cost (issue 18, the cycle's budget)
+            proximal = hs.proximal.tolist()
+            target = hs.target.tolist()
+            distal = hs.distal.tolist()
+            broken = hs.broken.tolist()
+            torque = data.actuator_force[self.prox_act[s]].tolist()
+            delta = [t - p for t, p in zip(target, proximal, strict=True)]
+            closing = [d > 0 for d in delta]
+            slip = [
+                c and not b and f >= BREAKAWAY_TORQUE for c, b, f in zip(closing, broken, torque, strict=True)
+            ]
+            if any(slip) or any(broken):
                 # the setpoint at which the proximal servo pushes with the breakaway torque
-                press = data.qpos[self.prox_q[s]] + BREAKAWAY_TORQUE / self.prox_kp[s]
-                follow = np.minimum(np.maximum(hs.proximal, press), hs.target)  # ratchet: never back
-                hs.proximal = np.where(slip, np.minimum(hs.proximal, press), hs.proximal)
-                hs.proximal = np.where(hs.broken, follow, hs.proximal)
-                hs.broken = hs.broken | slip
-            rate = np.where(closing, CLOSE_RATE, OPEN_RATE) * dt
-            ramp = np.clip(delta, -rate, rate)
-            hs.proximal = np.where(hs.broken, hs.proximal, hs.proximal + ramp)
-            distal_goal = np.where(hs.broken, DISTAL_MAX, hs.proximal * DISTAL_RATIO)
-            distal_rate = np.where(hs.broken, CLOSE_RATE * DISTAL_RATIO, OPEN_RATE) * dt
-            hs.distal = hs.distal + np.clip(distal_goal - hs.distal, -distal_rate, distal_rate)
+                measured = data.qpos[self.prox_q[s]].tolist()
+                kp = self.prox_kp[s].tolist()
+                press = [m + BREAKAWAY_TORQUE / k for m, k in zip(measured, kp, strict=True)]
+                for i in range(3):
+                    follow = min(max(proximal[i], press[i]), target[i])  # ratchet: never back
+                    if broken[i]:
+                        proximal[i] = follow
+                    elif slip[i]:
+                        proximal[i] = min(proximal[i], press[i])
+                    broken[i] = broken[i] or slip[i]
+            goal = [0.0] * 3
+            for i in range(3):
+                if not broken[i]:
+                    rate = (CLOSE_RATE if closing[i] else OPEN_RATE) * dt
+                    proximal[i] = proximal[i] + min(max(delta[i], -rate), rate)
+                    goal[i] = proximal[i] * DISTAL_RATIO
+                    distal_rate = OPEN_RATE * dt
+                else:
+                    goal[i] = DISTAL_MAX
+                    distal_rate = CLOSE_RATE * DISTAL_RATIO * dt
+                distal[i] = distal[i] + min(max(goal[i] - distal[i], -distal_rate), distal_rate)
             ds = hs.spread_target - hs.spread
-            hs.spread += float(np.clip(ds, -SPREAD_RATE * dt, SPREAD_RATE * dt))
+            hs.spread += min(max(ds, -SPREAD_RATE * dt), SPREAD_RATE * dt)
+            hs.proximal = np.array(proximal)
+            hs.distal = np.array(distal)
+            hs.broken = np.array(broken, dtype=bool)
             for a in self.spread_act[s]:
                 data.ctrl[a] = hs.spread
             data.ctrl[self.prox_act[s]] = hs.proximal
             data.ctrl[self.dist_act[s]] = hs.distal
+            hs.steady = (
+                hs.spread == hs.spread_target and not any(broken) and proximal == target and distal == goal
+            )
 
     def proximal(self, data: mujoco.MjData, side: str) -> Array:
         """Measured proximal angles (3,) rad."""

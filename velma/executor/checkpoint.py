@@ -311,6 +311,7 @@ def _unpack(rt: Runtime, v: dict[str, np.ndarray]) -> None:
         h.target = v[f"{s}.hand.target"].copy()
         h.distal = v[f"{s}.hand.distal"].copy()
         h.broken = v[f"{s}.hand.broken"] != 0.0
+        h.steady = False  # the next step writes the restored setpoints into data.ctrl
         rt.lost_cycles[s] = int(v[f"{s}.lost_cycles"][0])
     ctrl._prev_arm = None if np.isnan(prev).any() else prev
     torso_q, torso_qd, prev_torso = (float(x) for x in v["torso"])
