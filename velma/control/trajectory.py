@@ -8,7 +8,7 @@ rad/s) in the world frame. Source: Flash & Hogan (1985) minimum-jerk profile.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import pinocchio as pin
@@ -50,16 +50,24 @@ class PosePath:
     start: pin.SE3
     goal: pin.SE3
     duration: float
+    # what every sample shares, computed once (issue 18: the cycle's budget)
+    _rotvec: Array = field(init=False, repr=False, compare=False)
+    _omega: Array = field(init=False, repr=False, compare=False)
+    _delta: Array = field(init=False, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        axis, angle = axis_angle(self.start.rotation.T @ self.goal.rotation)
+        object.__setattr__(self, "_rotvec", axis * angle)  # the relative rotation, rad
+        object.__setattr__(self, "_omega", self.start.rotation @ axis * angle)  # world ω per unit ds
+        object.__setattr__(self, "_delta", self.goal.translation - self.start.translation)
 
     def sample(self, t: float) -> tuple[pin.SE3, Array]:
         """Pose and world twist (6,) = (v, ω) at time ``t`` (s)."""
         s, ds = min_jerk(t, self.duration)
-        rel = self.start.rotation.T @ self.goal.rotation
-        axis, angle = axis_angle(rel)
-        rot = self.start.rotation @ pin.exp3(axis * angle * s)
-        delta = self.goal.translation - self.start.translation
+        rot = self.start.rotation @ pin.exp3(self._rotvec * s)
+        delta = self._delta
         pos = self.start.translation + s * delta
-        omega = self.start.rotation @ axis * angle * ds
+        omega = self._omega * ds
         return pin.SE3(rot, pos), np.concatenate([delta * ds, omega])
 
 
@@ -73,14 +81,18 @@ class RotationPath:
     axis: Array
     angle: float
     duration: float
+    _rotvec: Array = field(init=False, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        unit = self.axis / np.linalg.norm(self.axis)
+        object.__setattr__(self, "_rotvec", unit * self.angle)  # the whole rotation, rad
 
     def sample(self, t: float) -> tuple[pin.SE3, Array]:
         """Pose and world twist (6,) at time ``t`` (s)."""
         s, ds = min_jerk(t, self.duration)
-        unit = self.axis / np.linalg.norm(self.axis)
-        rot = pin.exp3(unit * self.angle * s)
+        rot = pin.exp3(self._rotvec * s)
         pos = self.pivot + rot @ (self.start.translation - self.pivot)
-        omega = unit * self.angle * ds
+        omega = self._rotvec * ds
         vel = np.cross(omega, pos - self.pivot)
         return pin.SE3(rot @ self.start.rotation, pos), np.concatenate([vel, omega])
 
