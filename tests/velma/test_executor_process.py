@@ -54,6 +54,9 @@ def test_commands_cross_and_state_is_published(ex: ExecutorProcess) -> None:
     assert len(snap.joints) == 33 and snap.holding is None
     assert snap.timing is not None and snap.timing.cycles >= 200 and snap.timing.pacing == "fast"
     assert ex.setup is not None and ex.setup.notes == ("not requested",)
+    # the timing on its own (ag_ex_timing.json) takes its simulation time from the same state
+    assert ex.timing().sim_time >= snap.sim_time
+    assert {p.name for p in snap.timing.parts} == {"primitive", "control", "physics", "hand-offs"}
 
 
 def test_bad_command_is_answered_and_loop_goes_on(ex: ExecutorProcess) -> None:

@@ -64,7 +64,7 @@ from velma.executor.checkpoint import (
     RestoreReport,
 )
 from velma.executor.handoff import LatestValue, SpscRing, shared_view
-from velma.executor.state import RobotSnapshot
+from velma.executor.state import RawState, RobotSnapshot, snapshot_of
 from velma.executor.timing import DEFAULT_WINDOW, DeadlineMonitor, Pacer, RealtimeSetup, TimingStats
 
 log = logging.getLogger(__name__)
@@ -183,7 +183,7 @@ def loop_main(config: bytes, doorbell: multiprocessing.connection.Connection) ->
     """Entry point of the loop process (started with spawn by ``ExecutorProcess``)."""
     from velma.executor.loop import ControlLoop
     from velma.executor.runtime import Runtime
-    from velma.executor.state import robot_snapshot
+    from velma.executor.state import raw_state
     from velma.executor.timing import enter_realtime
 
     cfg = msgspec.msgpack.decode(config, type=LoopConfig)
@@ -238,7 +238,7 @@ def loop_main(config: bytes, doorbell: multiprocessing.connection.Connection) ->
         pending.append(encode(Fault(command="world state", text=f"nq={rt.model.nq} does not fit")))
         world = None
     pending.append(encode(Ready(pid=os.getpid(), setup=setup, checkpoint=restored)))
-    state.write(encode(robot_snapshot(rt, loop.holding)))
+    state.write(encode(raw_state(rt, loop.holding)))
     ring()
     # the scene and the controller are built: everything allocated so far lives for the whole
     # run; freezing it keeps the collector's passes short (gc.freeze, Python ≥ 3.7)
@@ -276,7 +276,7 @@ def loop_main(config: bytes, doorbell: multiprocessing.connection.Connection) ->
         if pending:
             ring()
         if cycle % STATE_PERIOD == STATE_PHASE:
-            state.write(encode(robot_snapshot(rt, loop.holding)))
+            state.write(encode(raw_state(rt, loop.holding)))
         if world is not None and cycle % WORLD_PERIOD == WORLD_PHASE:
             world_buf[0] = rt.data.time
             world_buf[1:] = rt.data.qpos
@@ -511,7 +511,7 @@ class ExecutorProcess:
         raw = self._state.read() if self._state is not None else None
         if raw is None:
             return None
-        snap = msgspec.msgpack.decode(raw, type=RobotSnapshot)
+        snap = snapshot_of(msgspec.msgpack.decode(raw, type=RawState))
         now = time.monotonic()
         if self._timing_cache is None or now - self._timing_cache[0] >= TIMING_REFRESH:
             # percentiles over the window cost milliseconds: not at the state's 20–50 Hz
@@ -537,7 +537,7 @@ class ExecutorProcess:
             raise RuntimeError("executor loop not started")
         if sim_time is None:
             raw = self._state.read()
-            sim_time = msgspec.msgpack.decode(raw, type=RobotSnapshot).sim_time if raw is not None else 0.0
+            sim_time = msgspec.msgpack.decode(raw, type=RawState).sim_time if raw is not None else 0.0
         self._monitor.setup = self.setup
         return self._monitor.stats(sim_time)
 

@@ -64,6 +64,8 @@ class Runtime:
         self.robot = RobotModel()
         self.ik_data = self.robot.model.createData()  # the IK search's own (see primitives)
         self.joint_v_index = tuple(self.robot.v_index(n) for n in self.robot.joint_names)
+        self.snapshot_index = np.array(self.joint_v_index, dtype=np.intp)
+        """``joint_v_index`` as an index array (velma.executor.state.raw_state)."""
         self.grip_site = {s: self.model.site(f"{s}_HandGripLink").id for s in SIDES}
         # the snapshot's link bodies and wrist F/T sensors (velma.executor.state)
         self.link_ids = np.array([self.model.body(n).id for n in LINK_BODIES], dtype=np.intp)

@@ -8,6 +8,7 @@ from __future__ import annotations
 from typing import TYPE_CHECKING
 
 import msgspec
+import numpy as np
 
 from shared.fipa_codec.languages.common import Pose
 from velma.executor.timing import TimingStats
@@ -58,49 +59,118 @@ class RobotSnapshot(msgspec.Struct, frozen=True, kw_only=True):
     ft: dict[str, Wrench] = msgspec.field(default_factory=dict)
 
 
-def robot_snapshot(rt: Runtime, holding: str | None = None) -> RobotSnapshot:
-    """The state of ``rt`` now (reads MuJoCo's data; call from the loop's thread)."""
+class RawState(msgspec.Struct, frozen=True, kw_only=True, array_like=True):
+    """What the loop hands off every ``STATE_PERIOD`` cycles (issue 18: the loop copies
+    numbers, the communication side builds the :class:`RobotSnapshot`): ``values`` float64
+    (native byte order) laid out by :func:`_layout` — joint positions in ``joints`` order, per
+    side (``SNAPSHOT_SIDES``) the grip site's position (3) and rotation matrix (9, row-major),
+    per link of ``LINK_BODIES`` position (3) and quaternion (4), per side a Cartesian setpoint
+    flag (1), position (3) and rotation (9), per side the wrench (6)."""
+
+    sim_time: float
+    joints: tuple[str, ...]
+    values: bytes
+    held_object: tuple[str | None, str | None]
+    holding: str | None = None
+
+
+def _layout(n_joints: int) -> tuple[int, int, int, int, int]:
+    """Offsets of the grip, link, setpoint and wrench blocks in ``RawState.values``, and its length."""
+    grip = n_joints
+    links = grip + 2 * 12
+    setpoint = links + 7 * len(LINK_BODIES)
+    ft = setpoint + 2 * 13
+    return grip, links, setpoint, ft, ft + 12
+
+
+def raw_state(rt: Runtime, holding: str | None = None) -> RawState:
+    """The state of ``rt`` now as numbers (reads MuJoCo's data; call from the loop's thread):
+    copies, no per-value objects."""
     from velma.control.robot_model import SIDES
+
+    data = rt.data
+    grip_at, links_at, setpoint_at, ft_at, size = _layout(len(rt.joint_v_index))
+    out = np.empty(size)
+    out[:grip_at] = rt.q()[rt.snapshot_index]
+    for k, side in enumerate(SIDES):
+        site = rt.grip_site[side]
+        at = grip_at + 12 * k
+        out[at : at + 3] = data.site_xpos[site]
+        out[at + 3 : at + 12] = data.site_xmat[site]
+        cmd = rt.ctrl.arm[side]
+        at = setpoint_at + 13 * k
+        if cmd.mode == "cart":
+            out[at] = 1.0
+            out[at + 1 : at + 4] = cmd.pose.translation
+            out[at + 4 : at + 13] = cmd.pose.rotation.reshape(9)
+        else:
+            out[at : at + 13] = 0.0
+        fa, ta = rt.ft_adr[side]
+        at = ft_at + 6 * k
+        out[at : at + 3] = data.sensordata[fa : fa + 3]
+        out[at + 3 : at + 6] = data.sensordata[ta : ta + 3]
+    n_links = len(LINK_BODIES)
+    link_block = out[links_at:setpoint_at].reshape(n_links, 7)
+    link_block[:, :3] = data.xpos[rt.link_ids]
+    link_block[:, 3:] = data.xquat[rt.link_ids]
+    held = tuple(rt.model.body(b).name if (b := rt.held[s]) is not None else None for s in SIDES)
+    return RawState(
+        sim_time=rt.time,
+        joints=rt.robot.joint_names,
+        values=out.tobytes(),
+        held_object=(held[0], held[1]),
+        holding=holding,
+    )
+
+
+def snapshot_of(raw: RawState) -> RobotSnapshot:
+    """The :class:`RobotSnapshot` of a :class:`RawState` (on the communication side)."""
     from velma.frames import quat_wxyz
 
-    q = rt.q()
-    joints = {name: float(q[i]) for name, i in zip(rt.robot.joint_names, rt.joint_v_index, strict=True)}
-    grip = {}
-    for side in SIDES:
-        site = rt.grip_site[side]
-        p = rt.data.site_xpos[site]
-        rot = rt.data.site_xmat[site].reshape(3, 3)
-        grip[side] = Pose(position=(float(p[0]), float(p[1]), float(p[2])), orientation=quat_wxyz(rot))
-    held_obj = {s: (rt.model.body(b).name if (b := rt.held[s]) is not None else None) for s in SIDES}
-    xpos = rt.data.xpos[rt.link_ids].tolist()
-    xquat = rt.data.xquat[rt.link_ids].tolist()
-    links = {
-        name: Pose(position=tuple(p), orientation=tuple(o))
-        for name, p, o in zip(LINK_BODIES, xpos, xquat, strict=True)
-    }
+    v = np.frombuffer(raw.values, dtype=np.float64)
+    grip_at, links_at, setpoint_at, ft_at, size = _layout(len(raw.joints))
+    if len(v) != size:
+        raise ValueError(f"a raw state of {len(v)} values, not {size}")
+    q = v[:grip_at].tolist()
+    joints = dict(zip(raw.joints, q, strict=True))
+    grip: dict[str, Pose] = {}
     setpoint: dict[str, Pose | None] = {}
-    for side in SIDES:
-        cmd = rt.ctrl.arm[side]
-        if cmd.mode == "cart":
-            t = cmd.pose.translation
+    ft: dict[str, Wrench] = {}
+    for k, side in enumerate(SNAPSHOT_SIDES):
+        at = grip_at + 12 * k
+        p = v[at : at + 3].tolist()
+        grip[side] = Pose(
+            position=(p[0], p[1], p[2]), orientation=quat_wxyz(v[at + 3 : at + 12].reshape(3, 3))
+        )
+        at = setpoint_at + 13 * k
+        if v[at] == 1.0:
+            t = v[at + 1 : at + 4].tolist()
             setpoint[side] = Pose(
-                position=(float(t[0]), float(t[1]), float(t[2])), orientation=quat_wxyz(cmd.pose.rotation)
+                position=(t[0], t[1], t[2]), orientation=quat_wxyz(v[at + 4 : at + 13].reshape(3, 3))
             )
         else:
             setpoint[side] = None
-    sensors = rt.data.sensordata
-    ft: dict[str, Wrench] = {}
-    for side in SIDES:
-        fa, ta = rt.ft_adr[side]
-        ft[side] = (*sensors[fa : fa + 3].tolist(), *sensors[ta : ta + 3].tolist())
+        w = v[ft_at + 6 * k : ft_at + 6 * k + 6].tolist()
+        ft[side] = (w[0], w[1], w[2], w[3], w[4], w[5])
+    rows = v[links_at:setpoint_at].reshape(len(LINK_BODIES), 7).tolist()
+    links = {
+        name: Pose(position=(r[0], r[1], r[2]), orientation=(r[3], r[4], r[5], r[6]))
+        for name, r in zip(LINK_BODIES, rows, strict=True)
+    }
+    held_object = dict(zip(SNAPSHOT_SIDES, raw.held_object, strict=True))
     return RobotSnapshot(
-        sim_time=rt.time,
+        sim_time=raw.sim_time,
         joints=joints,
         grip=grip,
-        held={s: held_obj[s] is not None for s in SIDES},
-        held_object=held_obj,
-        holding=holding,
+        held={s: held_object[s] is not None for s in SNAPSHOT_SIDES},
+        held_object=held_object,
+        holding=raw.holding,
         links=links,
         setpoint=setpoint,
         ft=ft,
     )
+
+
+def robot_snapshot(rt: Runtime, holding: str | None = None) -> RobotSnapshot:
+    """The state of ``rt`` now (reads MuJoCo's data; call from the loop's thread)."""
+    return snapshot_of(raw_state(rt, holding))
