@@ -39,7 +39,7 @@ from shared.fipa_codec.languages.l_ex import (
     Wait,
 )
 from shared.fipa_codec.languages.l_sd import Observation
-from velma.frames import quat_to_rot, quat_wxyz
+from velma.rotations import quat_to_rot, quat_wxyz
 
 Array = npt.NDArray[np.float64]
 

@@ -69,7 +69,7 @@ from shared.fipa_codec.languages.l_ex import (
 )
 from shared.fipa_codec.languages.l_sd import Observation
 from velma import scenario as sc
-from velma.frames import quat_to_rot
+from velma.rotations import quat_to_rot
 from velma.scenario import Array, run_script
 
 # ----------------------------------------------------------------- planner durations

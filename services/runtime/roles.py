@@ -48,7 +48,7 @@ from __future__ import annotations
 import inspect
 import time
 from collections import OrderedDict
-from collections.abc import Callable, Iterable, Iterator, Sequence
+from collections.abc import Callable, Collection, Iterable, Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, TypeVar
@@ -380,7 +380,7 @@ def _other(role: Role) -> Role:
 
 
 def _handler_for(
-    handlers: Sequence[HandlerKey], decl: RoleDecl, perf: Performative | None
+    handlers: Collection[HandlerKey], decl: RoleDecl, perf: Performative | None
 ) -> HandlerKey | None:
     """The handler of ``perf`` for ``decl``: a channel's own before one for every channel."""
     for channel in (decl.channel, None):
@@ -415,8 +415,6 @@ class Conversation:
     """The communicate that opened the conversation: the peer's (participant) or this
     agent's own (initiator)."""
     data: Any = None
-    reply_with: str | None = None
-    """The reply-with of this agent's latest communicate awaiting a reply (initiator)."""
     agreed: bool = False
     """The participant agreed (fipa-request, fipa-query, fipa-subscribe)."""
     awaited: set[str] = field(default_factory=set, repr=False)
@@ -586,7 +584,6 @@ class Conversation:
 
     def _sent(self, reply_with: str | None) -> str | None:
         if reply_with is not None:
-            self.reply_with = reply_with
             self.awaited.add(reply_with)
         self.roles._settle(self)
         return reply_with
@@ -667,9 +664,8 @@ class Roles:
             expect=True,
         )
         conv.opening = Received(msg, content, channel)
-        conv.reply_with = msg.reply_with
-        if conv.reply_with is not None:
-            conv.awaited.add(conv.reply_with)
+        if msg.reply_with is not None:
+            conv.awaited.add(msg.reply_with)
         self._keep(conv)
         return conv
 
@@ -738,7 +734,6 @@ class Roles:
         if mine and opening is not None and kept is not None and opening.msg.reply_with:
             if reply_by_s is not None or retry_s is not None:
                 self._await(conv, opening.msg.reply_with, reply_by_s, retry_s, kept)
-            conv.reply_with = opening.msg.reply_with
             conv.awaited.add(opening.msg.reply_with)
         self._keep(conv)
         return conv
@@ -879,7 +874,7 @@ class Roles:
         )
 
     def _method(self, decl: RoleDecl, perf: Performative | None) -> str | None:
-        key = _handler_for(list(self._handlers), decl, perf)
+        key = _handler_for(self._handlers.keys(), decl, perf)
         return self._handlers[key] if key is not None else None
 
     def _keep(self, conv: Conversation) -> None:

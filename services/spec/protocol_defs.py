@@ -253,10 +253,23 @@ def machine_of(spec: SystemSpec, name: str) -> Protocol:
     return machines[name]
 
 
+_STREAMS: dict[int, tuple[Protocol, bool]] = {}
+"""Memo of :func:`streams` by machine identity (the machine is kept, so a reused id never matches)."""
+
+
 def streams(machine: Protocol) -> bool:
     """True when the participant may answer one opening many times: some transition it sends
     lies on a cycle of the machine (fipa-subscribe's informs, coordinate's reports), the
-    cancel meta-protocol and not-understood left out."""
+    cancel meta-protocol and not-understood left out. Computed once per machine (the
+    runtime asks at every send that awaits a reply)."""
+    held = _STREAMS.get(id(machine))
+    if held is None or held[0] is not machine:
+        held = (machine, _streams(machine))
+        _STREAMS[id(machine)] = held
+    return held[1]
+
+
+def _streams(machine: Protocol) -> bool:
     edges = [
         (source, target, role)
         for (source, role, perf), target in [

@@ -54,8 +54,8 @@ from shared.fipa_codec.languages.l_sd import Observation
 from velma import frames as geometry
 from velma.executor.state import FT_AXES, SNAPSHOT_SIDES, RobotSnapshot
 from velma.executor.timing import TimingStats
-from velma.frames import quat_mul, rpy_to_quat
 from velma.model import generate as g
+from velma.rotations import quat_mul, rpy_to_quat
 
 WALL = "wall"
 SIM = "sim_time"

@@ -18,7 +18,7 @@ from shared.fipa_codec.languages.l_sd import Observation
 from velma.executor import ExecutorProcess
 from velma.executor.loop import ControlLoop
 from velma.executor.runtime import Runtime
-from velma.frames import quat_wxyz
+from velma.rotations import quat_wxyz
 
 Result = CommandResult | Observation
 

@@ -33,7 +33,7 @@ from velma.control.impedance import (
 from velma.control.robot_model import SIDES, RobotModel
 from velma.executor.primitives import make_primitive
 from velma.executor.runtime import Runtime
-from velma.frames import quat_wxyz
+from velma.rotations import quat_wxyz
 from velma.scenario import script_poses
 
 

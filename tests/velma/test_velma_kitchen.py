@@ -16,9 +16,9 @@ from velma import scenario as sc
 from velma import scenario_kitchen as sk
 from velma.executor import Executor
 from velma.executor.perception import CONTAINERS, KNOWN_OBJECTS
-from velma.frames import quat_to_rot
 from velma.model import generate as gen
 from velma.model.scene import initial_state, load_kitchen
+from velma.rotations import quat_to_rot
 
 TABLE_MIN = np.array(gen.TABLE_POS[:2]) - gen.TABLE_HALF
 TABLE_MAX = np.array(gen.TABLE_POS[:2]) + gen.TABLE_HALF

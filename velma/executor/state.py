@@ -12,6 +12,7 @@ import numpy as np
 
 from shared.fipa_codec.languages.common import Pose
 from velma.executor.timing import TimingStats
+from velma.rotations import quat_wxyz
 
 if TYPE_CHECKING:
     from velma.executor.runtime import Runtime
@@ -124,9 +125,9 @@ def raw_state(rt: Runtime, holding: str | None = None) -> RawState:
 
 
 def snapshot_of(raw: RawState) -> RobotSnapshot:
-    """The :class:`RobotSnapshot` of a :class:`RawState` (on the communication side)."""
-    from velma.frames import quat_wxyz
-
+    """The :class:`RobotSnapshot` of a :class:`RawState` (on the communication side: numpy
+    only, no Pinocchio or MuJoCo). Raises ValueError when ``values`` has another length than
+    its joints give (a block from another layout)."""
     v = np.frombuffer(raw.values, dtype=np.float64)
     grip_at, links_at, setpoint_at, ft_at, size = _layout(len(raw.joints))
     if len(v) != size:

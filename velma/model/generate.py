@@ -61,7 +61,7 @@ from pathlib import Path
 import numpy as np
 import numpy.typing as npt
 
-from velma.frames import quat_matrix, quat_mul, quat_rotate, rpy_to_quat
+from velma.rotations import quat_matrix, quat_mul, quat_rotate, rpy_to_quat
 
 MODEL_DIR = Path(__file__).resolve().parent
 VELMA_XML = MODEL_DIR / "velma.xml"
