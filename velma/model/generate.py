@@ -166,20 +166,24 @@ SPREAD_SERVO = (10.0, 2.0)
 PROXIMAL_SERVO = (20.0, 1.5)
 DISTAL_SERVO = (10.0, 0.6)
 
-# Contacts of the hand pads (facts, "MuJoCo notes": elliptic cones and impratio 10 are set
-# in <option>; pads soft-but-stiff (solref ≈ 0.004), friction ≈ 0.7–1.0).
+# Contacts of the hand pads (facts, "MuJoCo notes": impratio 10 is set in <option>, cones
+# are pyramidal there; pads soft-but-stiff (solref ≈ 0.004), friction ≈ 0.7–1.0).
 PAD_FRICTION = "1.0 0.02 0.001"
 PAD_SOLREF = "0.004 1"
 PAD_SOLIMP = "0.95 0.99 0.001"  # placeholder (stiff once in contact)
 ROBOT_FRICTION = "0.8 0.02 0.001"  # placeholder (rubber/aluminium on wood or glass)
 
 # Simulation options (facts, "MuJoCo notes" and "Control on the real robot": 1 kHz loop,
-# elliptic cones, impratio ≈ 10). Solver: Newton, which converges in 1–3 iterations where CG
-# used up to 60 (issue 18; measured over the scripted pour on this 2-core VM, mujoco 4.0.0:
-# mj_step p50 292 → 231 µs, p99 630 → 468 µs, every grasp and 18/18 spheres in the bowl on
-# seeds 1–4 of scripts/bench_pour_seeds.py --mode script). The cap of 60 is kept as a bound.
+# impratio ≈ 10). Solver: Newton, which converges in 1–3 iterations where CG used up to 60
+# (issue 18; measured over the scripted pour on this 2-core VM, mujoco 4.0.0: mj_step p50
+# 292 → 231 µs, p99 630 → 468 µs, every grasp and 18/18 spheres in the bowl on seeds 1–4 of
+# scripts/bench_pour_seeds.py --mode script). The cap of 60 is kept as a bound. Friction
+# cones: pyramidal, not the elliptic cones the facts suggest for multi-finger grasps: over the
+# same pour they cut mj_step's p99 from ≈ 486 to ≈ 377 µs (p50 ≈ 229 µs either way), with
+# every grasp held and 18/18 spheres in the bowl (seeds: scripts/bench_pour_seeds.py, see
+# docs/executor.md). Capping the iterations at 3 or 4 instead lets the jar slip from the grasp.
 OPTION = (
-    '<option timestep="0.001" integrator="implicitfast" cone="elliptic" impratio="10" '
+    '<option timestep="0.001" integrator="implicitfast" cone="pyramidal" impratio="10" '
     'solver="Newton" iterations="60" tolerance="1e-8"/>'
 )
 
