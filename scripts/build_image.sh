@@ -24,7 +24,7 @@ cd "$(dirname "$0")/.."
 TAG=${ROCO_IMAGE:-roco:latest}
 BASE=${ROCO_BASE:-}
 MIRROR=${DEBIAN_MIRROR:-http://deb.debian.org/debian}
-BASE_PACKAGES=${ROCO_BASE_PACKAGES:-python3,python3-venv,libgomp1,iproute2,libegl1,libegl-mesa0,libgl1-mesa-dri,libgl1,libopengl0}
+BASE_PACKAGES=${ROCO_BASE_PACKAGES:-python3,python3-venv,python3-dev,g++,libgomp1,iproute2,libegl1,libegl-mesa0,libgl1-mesa-dri,libgl1,libopengl0}
 # the local base's tag names its package list: another list makes another base
 LOCAL_BASE=${ROCO_LOCAL_BASE:-roco-base:bookworm-$(printf '%s' "$BASE_PACKAGES" | sha256sum | cut -c1-8)}
 PORT=${ROCO_WHEEL_PORT:-7449}
@@ -81,9 +81,10 @@ else
     rm -f "$stamp" "$WHEELHOUSE"/roco-*.whl
     # roco's own wheel, to resolve its dependencies (the image installs roco from the source)
     {
-        "$PYTHON" -m pip wheel --no-deps --disable-pip-version-check -w "$work/roco" . &&
+        # (ROCO_BUILD_NATIVE=0: this wheel only names the dependencies, nothing is compiled)
+        ROCO_BUILD_NATIVE=0 "$PYTHON" -m pip wheel --no-deps --disable-pip-version-check -w "$work/roco" . &&
             "$PYTHON" -m pip download --disable-pip-version-check -d "$WHEELHOUSE" "${PIP_TARGET[@]}" \
-                "$work"/roco/roco-*.whl "setuptools>=68" wheel
+                "$work"/roco/roco-*.whl wheel $("$PYTHON" -c 'import tomllib; print(" ".join(tomllib.load(open("pyproject.toml", "rb"))["build-system"]["requires"]))')
     } > "$work/pip.log" 2>&1 || {
         grep -v '^WARNING: Location' "$work/pip.log" | tail -20 >&2
         echo "build_image.sh: making the wheelhouse failed" >&2

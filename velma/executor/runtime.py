@@ -4,8 +4,10 @@ thread; tests may drive it directly.
 
 Cycle (1 kHz, physics dt = 1 ms, paper §5.3 / velma-facts.md "Loop: 1 kHz"):
 1. the running primitive updates the setpoints;
-2. ``VelmaController`` computes arm and torso torques (Pinocchio, from MuJoCo's state mapped
-   by joint name), the hands and the head get their position-servo controls;
+2. the impedance law (``make_controller``: compiled, velma/control/compiled.py, or the
+   Python reference ``VelmaController``) computes arm and torso torques (Pinocchio, from
+   MuJoCo's state mapped by joint name), the hands and the head get their position-servo
+   controls;
 3. ``mujoco.mj_step``.
 
 Cartesian setpoints are kept in the world frame; when the torso turns (MoveJoints), the
@@ -22,8 +24,8 @@ import mujoco
 import numpy as np
 import pinocchio as pin
 
+from velma.control.compiled import make_controller
 from velma.control.hand import ContactMonitor, Hands
-from velma.control.impedance import VelmaController
 from velma.control.robot_model import (
     HEAD_JOINTS,
     SIDES,
@@ -77,7 +79,7 @@ class Runtime:
             for s in SIDES
         }
         self.jmap = JointMap.build(self.model, self.robot)
-        self.ctrl = VelmaController(self.robot, DT)
+        self.ctrl = make_controller(self.robot, DT)
         self.hands = Hands(self.model)
         self.contacts = ContactMonitor(self.model)
         self.perception = Perception(self.model)

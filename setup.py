@@ -1,0 +1,54 @@
+"""Build of roco's one compiled module, the impedance control law (velma/control/_impedance.cpp).
+
+Everything else is in pyproject.toml. The module is compiled against the headers of
+Pinocchio (the ``pin`` wheel: Pinocchio and Boost under ``cmeel.prefix/include``), Eigen
+(the ``cmeel-eigen`` wheel) and pybind11, all build requirements in pyproject.toml, so a
+C++17 compiler is all a machine needs besides them. The extension is optional: without a
+compiler the install goes on and roco runs the Python law (velma/control/compiled.py says so
+in a warning). ``ROCO_BUILD_NATIVE=0`` skips it on purpose (scripts/build_image.sh does, to
+resolve the dependencies quickly).
+"""
+
+from __future__ import annotations
+
+import os
+import sysconfig
+from pathlib import Path
+
+from pybind11.setup_helpers import Pybind11Extension
+from setuptools import setup
+
+
+def _cmeel_include() -> list[str]:
+    """Include folders of the cmeel wheels (Pinocchio, Boost, Eigen) in the build's
+    environment."""
+    roots = {Path(sysconfig.get_paths()[key]) / "cmeel.prefix" / "include" for key in ("purelib", "platlib")}
+    out = []
+    for root in sorted(roots):
+        if root.is_dir():
+            out += [str(root), str(root / "eigen3")]
+    return out
+
+
+ext_modules = []
+if os.environ.get("ROCO_BUILD_NATIVE", "1") != "0":
+    ext_modules.append(
+        Pybind11Extension(
+            "velma.control._impedance",
+            ["velma/control/_impedance.cpp"],
+            include_dirs=_cmeel_include(),
+            # Pinocchio's own interface definitions (its CMake config, pinocchioTargets.cmake):
+            # its joint variant has more alternatives than Boost.MPL's default limit of 20
+            define_macros=[
+                ("BOOST_MPL_LIMIT_LIST_SIZE", "30"),
+                ("BOOST_MPL_LIMIT_VECTOR_SIZE", "30"),
+                ("BOOST_MPL_CFG_NO_PREPROCESSED_HEADERS", None),
+                ("BOOST_FUSION_INVOKE_MAX_ARITY", "12"),
+            ],
+            extra_compile_args=["-O2", "-Wno-deprecated-declarations"],
+            cxx_std=17,
+            optional=True,
+        )
+    )
+
+setup(ext_modules=ext_modules)

@@ -1,0 +1,439 @@
+// The impedance control law of velma/control/impedance.py, compiled (issue 18).
+//
+// One call computes what VelmaController.update computes in Python, with the same
+// operations in the same order where the result depends on it: Pinocchio's crba (WORLD
+// convention) and nonLinearEffects, both arms' Cartesian or joint impedance with the double
+// diagonalisation of K and Λ (resp. M), the joint-limit and singularity bands, the velocity
+// braking, the torque rate and magnitude limits, and the torso's joint impedance. The module
+// docstring of velma/control/impedance.py states the laws and their sources; the Python class
+// stays the reference (tests/velma/test_compiled_law.py compares the two).
+//
+// Pinocchio is used header-only: the model is rebuilt here, joint by joint, from the numbers
+// of the Python pin.Model (velma/control/compiled.py), so no object crosses a library
+// boundary. Units: SI (m, rad, N, N·m, s).
+
+#include <pybind11/numpy.h>
+#include <pybind11/pybind11.h>
+#include <pybind11/stl.h>
+
+#include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
+#include <cmath>
+#include <limits>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include <pinocchio/multibody.hpp>
+#include <pinocchio/algorithm/crba.hpp>
+#include <pinocchio/algorithm/frames.hpp>
+#include <pinocchio/algorithm/jacobian.hpp>
+#include <pinocchio/algorithm/rnea.hpp>
+
+namespace py = pybind11;
+using pinocchio::SE3;
+
+namespace {
+
+using Vec6 = Eigen::Matrix<double, 6, 1>;
+using Vec7 = Eigen::Matrix<double, 7, 1>;
+using Mat6 = Eigen::Matrix<double, 6, 6>;
+using Mat7 = Eigen::Matrix<double, 7, 7>;
+using Mat67 = Eigen::Matrix<double, 6, 7>;
+using RowMat3 = Eigen::Matrix<double, 3, 3, Eigen::RowMajor>;
+using Array = py::array_t<double, py::array::c_style>;
+
+// Layout of one arm's command row (velma/control/compiled.py writes it).
+constexpr int kMode = 0, kRot = 1, kPos = 10, kTwist = 13, kStiff = 19, kPosture = 25, kQ = 32, kQd = 39,
+              kJointStiff = 46, kCmdWidth = 53;
+// Layout of one arm's output row.
+constexpr int oTau = 0, oPrev = 7, oGrip = 14, oErr = 26, oWidth = 32;
+// Modes.
+constexpr int kCart = 0, kJoint = 1, kSafe = 2;
+
+// Constants of the law, passed once from Python (each is stated once, in impedance.py and
+// limits.py).
+struct Constants {
+  double dt, damping_ratio, safe_stiffness, safe_damping_ratio, torso_stiffness, nullspace_stiffness,
+      nullspace_damping, lambda_regularisation, torque_rate_limit, torso_torque_limit;
+  Vec7 arm_torque_limit, in_full, singular;
+};
+
+// Safety limits (velma.control.impedance.SafetyLimits), passed every call.
+struct Limits {
+  double limit_band, limit_band_torque, singularity_half_width, singularity_band, singularity_band_torque,
+      band_damping_ratio, null_space_band_scale, arm_velocity, torso_velocity, velocity_time_constant;
+};
+
+double clamp(double x, double lo, double hi) { return std::min(std::max(x, lo), hi); }
+
+const double* data_of(const Array& a, py::ssize_t size, const char* name) {
+  if (a.size() != size) throw std::invalid_argument(std::string(name) + " has the wrong size");
+  return a.data();
+}
+
+// D = Q (2ξ√S) Qᵀ with Λ = L Lᵀ, L⁻¹ K L⁻ᵀ = U S Uᵀ, Q = L U (impedance.py
+// double_diagonalisation_damping).
+template <int N>
+Eigen::Matrix<double, N, N> double_diagonalisation_damping(const Eigen::Matrix<double, N, N>& stiffness,
+                                                           const Eigen::Matrix<double, N, N>& inertia,
+                                                           double xi) {
+  Eigen::LLT<Eigen::Matrix<double, N, N>> llt(inertia);
+  if (llt.info() != Eigen::Success) throw std::domain_error("inertia is not positive definite");
+  Eigen::Matrix<double, N, N> chol = llt.matrixL();
+  Eigen::Matrix<double, N, N> linv_k = chol.template triangularView<Eigen::Lower>().solve(stiffness);
+  Eigen::Matrix<double, N, N> ktilde =
+      chol.template triangularView<Eigen::Lower>().solve(Eigen::Matrix<double, N, N>(linv_k.transpose()));
+  Eigen::SelfAdjointEigenSolver<Eigen::Matrix<double, N, N>> eig(ktilde);
+  Eigen::Matrix<double, N, N> q = chol * eig.eigenvectors();
+  Eigen::Matrix<double, N, 1> g = (2.0 * xi) * eig.eigenvalues().cwiseMax(0.0).cwiseSqrt();
+  return q * g.asDiagonal() * q.transpose();
+}
+
+class Law {
+ public:
+  Law() = default;
+
+  // One revolute joint: kind 0/1/2 = about x/y/z, 3 = about ``axis``; the placement in the
+  // parent joint's frame (R row-major, p); the body's inertia (mass, centre of mass, rotational
+  // inertia about it: xx, xy, yy, xz, yz, zz), the joint's armature (kg·m², MJCF) and limits.
+  void add_joint(int parent, int kind, const std::vector<double>& axis, const std::vector<double>& rot,
+                 const std::vector<double>& pos, double mass, const std::vector<double>& com,
+                 const std::vector<double>& inertia, double armature, double lower, double upper,
+                 const std::string& name) {
+    SE3 placement(Eigen::Map<const RowMat3>(rot.data()), Eigen::Vector3d(pos[0], pos[1], pos[2]));
+    Eigen::VectorXd lo = Eigen::VectorXd::Constant(1, lower), hi = Eigen::VectorXd::Constant(1, upper);
+    Eigen::VectorXd big = Eigen::VectorXd::Constant(1, std::numeric_limits<double>::max());
+    pinocchio::JointIndex j;
+    switch (kind) {
+      case 0:
+        j = model_.addJoint(parent, pinocchio::JointModelRX(), placement, name, big, big, lo, hi);
+        break;
+      case 1:
+        j = model_.addJoint(parent, pinocchio::JointModelRY(), placement, name, big, big, lo, hi);
+        break;
+      case 2:
+        j = model_.addJoint(parent, pinocchio::JointModelRZ(), placement, name, big, big, lo, hi);
+        break;
+      default:
+        j = model_.addJoint(parent, pinocchio::JointModelRevoluteUnaligned(axis[0], axis[1], axis[2]),
+                            placement, name, big, big, lo, hi);
+    }
+    Eigen::Matrix3d rotational;
+    rotational << inertia[0], inertia[1], inertia[3], inertia[1], inertia[2], inertia[4], inertia[3], inertia[4],
+        inertia[5];
+    model_.appendBodyToJoint(j, pinocchio::Inertia(mass, Eigen::Vector3d(com[0], com[1], com[2]), rotational),
+                             SE3::Identity());
+    model_.armature[model_.joints[j].idx_v()] = armature;  // crba adds it to M's diagonal
+  }
+
+  // The two grip frames (right, left): parent joint and placement.
+  void add_grip(int joint, const std::vector<double>& rot, const std::vector<double>& pos, const std::string& name) {
+    SE3 placement(Eigen::Map<const RowMat3>(rot.data()), Eigen::Vector3d(pos[0], pos[1], pos[2]));
+    grip_.push_back(static_cast<int>(
+        model_.addFrame(pinocchio::Frame(name, joint, 0, placement, pinocchio::OP_FRAME))));
+  }
+
+  // arm_v0: the first v index of each arm (right, left); torso: its v index; constants: see
+  // Constants (10 scalars, then the arm torque limits (7), the joints whose bands act in full
+  // (7, 0/1) and the singular joints (7, 0/1)).
+  void finish(const std::vector<int>& arm_v0, int torso, const std::vector<double>& constants) {
+    if (arm_v0.size() != 2 || grip_.size() != 2 || constants.size() != 31)
+      throw std::invalid_argument("finish: two arms, two grip frames and 31 constants");
+    data_ = pinocchio::Data(model_);
+    v0_[0] = arm_v0[0];
+    v0_[1] = arm_v0[1];
+    torso_ = torso;
+    const double* c = constants.data();
+    k_ = Constants{c[0], c[1], c[2], c[3], c[4], c[5], c[6], c[7], c[8], c[9], Vec7(c + 10), Vec7(c + 17), Vec7(c + 24)};
+    for (int k = 0; k < 2; ++k) {
+      lower_[k] = model_.lowerPositionLimit.segment<7>(v0_[k]);
+      upper_[k] = model_.upperPositionLimit.segment<7>(v0_[k]);
+      abs_limit_[k] = upper_[k].cwiseMin(-lower_[k]);
+    }
+    jac_.setZero(6, model_.nv);
+    ready_ = true;
+  }
+
+  int nv() const { return model_.nv; }
+
+  // One cycle. q, v: (nv,). cmd: (2, 53) per arm (layout above). torso: (3,) setpoint
+  // q, q̇ and the previous torso torque (NaN: none). prev: (2, 7) previous arm torques (NaN:
+  // none). limits: (10,) SafetyLimits. out: (2, 32) per arm: torque (7), torque before the
+  // velocity braking (7, the next cycle's ``prev``), grip pose (R row-major 9, p 3), Cartesian
+  // error (6; untouched outside Cartesian mode). out_torso: (2,) torque and its value before
+  // braking. Raises std::domain_error if a mass matrix is not positive definite.
+  void update(const Array& q_in, const Array& v_in, const Array& cmd_in, const Array& torso_in, const Array& prev_in,
+              const Array& limits_in, Array& out_in, Array& out_torso_in) {
+    if (!ready_) throw std::logic_error("Law.finish was not called");
+    const int nv = model_.nv;
+    Eigen::Map<const Eigen::VectorXd> q(data_of(q_in, nv, "q"), nv), v(data_of(v_in, nv, "v"), nv);
+    const double* cmd = data_of(cmd_in, 2 * kCmdWidth, "cmd");
+    const double* torso = data_of(torso_in, 3, "torso");
+    const double* prev = data_of(prev_in, 14, "prev");
+    const double* l = data_of(limits_in, 10, "limits");
+    if (out_in.size() != 2 * oWidth || out_torso_in.size() != 2) throw std::invalid_argument("out has the wrong size");
+    double* out = out_in.mutable_data();
+    double* out_torso = out_torso_in.mutable_data();
+    const Limits lim{l[0], l[1], l[2], l[3], l[4], l[5], l[6], l[7], l[8], l[9]};
+
+    pinocchio::crba(model_, data_, q, pinocchio::Convention::WORLD);
+    pinocchio::nonLinearEffects(model_, data_, q, v);
+
+    Mat7 mb[2];
+    Vec7 qa[2], va[2];
+    SE3 grip[2];
+    bool cart[2];
+    for (int k = 0; k < 2; ++k) {
+      mb[k] = data_.M.block<7, 7>(v0_[k], v0_[k]).selfadjointView<Eigen::Upper>();
+      qa[k] = q.segment<7>(v0_[k]);
+      va[k] = v.segment<7>(v0_[k]);
+      grip[k] = pinocchio::updateFramePlacement(model_, data_, grip_[k]);
+      const int mode = static_cast<int>(cmd[k * kCmdWidth + kMode]);
+      if (mode != kCart && mode != kJoint && mode != kSafe) throw std::invalid_argument("unknown mode");
+      cart[k] = mode == kCart;
+      double* g = out + k * oWidth + oGrip;
+      Eigen::Map<RowMat3> grip_rotation(g);
+      grip_rotation = grip[k].rotation();
+      Eigen::Map<Eigen::Vector3d>(g + 9) = grip[k].translation();
+    }
+
+    // safety terms (impedance.py _safety)
+    bool any_bands = false, any_braking = false;
+    Vec7 bands[2], braking[2];
+    bool near_limit = false, near_singular = false;
+    Vec7 limit_edge[2], singular_edge[2], mask[2];
+    for (int k = 0; k < 2; ++k) {
+      limit_edge[k] = abs_limit_[k].array() - lim.limit_band;
+      mask[k] = cart[k] ? k_.singular : Vec7::Zero();
+      for (int i = 0; i < 7; ++i) {
+        singular_edge[k][i] = mask[k][i] > 0.0 ? lim.singularity_half_width + lim.singularity_band : -1.0;
+        const double aq = std::abs(qa[k][i]);
+        const double centre = 0.5 * (limit_edge[k][i] + singular_edge[k][i]);
+        const double half = 0.5 * (limit_edge[k][i] - singular_edge[k][i]);
+        if (std::abs(aq - centre) > half) {
+          if (aq > limit_edge[k][i]) near_limit = true;
+          if (aq < singular_edge[k][i]) near_singular = true;
+        }
+      }
+    }
+    if (near_limit || near_singular) {
+      any_bands = true;
+      const double xi = lim.band_damping_ratio;
+      for (int k = 0; k < 2; ++k) {
+        bands[k].setZero();
+        Vec7 m_diag = mb[k].diagonal();
+        if (near_limit) {
+          const double scale = lim.limit_band_torque / (lim.limit_band * lim.limit_band);
+          const double stiff = lim.limit_band_torque / lim.limit_band;
+          for (int i = 0; i < 7; ++i) {
+            const double below = std::max(lower_[k][i] + lim.limit_band - qa[k][i], 0.0);
+            const double above = std::max(qa[k][i] - upper_[k][i] + lim.limit_band, 0.0);
+            double tau = scale * (below * below - above * above);
+            const bool active = (below + above) > 0.0;
+            tau += (-2.0 * xi) * std::sqrt(stiff * m_diag[i]) * va[k][i] * (active ? 1.0 : 0.0);
+            bands[k][i] = tau;
+          }
+        }
+        if (near_singular) {
+          const double scale = lim.singularity_band_torque / (lim.singularity_band * lim.singularity_band);
+          const double stiff = lim.singularity_band_torque / lim.singularity_band;
+          Vec7 tau_s;
+          for (int i = 0; i < 7; ++i) {
+            const double depth =
+                std::max(lim.singularity_half_width + lim.singularity_band - std::abs(qa[k][i]), 0.0) * mask[k][i];
+            double tau = std::copysign(scale * depth * depth, qa[k][i]);
+            const bool active = depth > 0.0;
+            tau += (-2.0 * xi) * std::sqrt(stiff * m_diag[i]) * va[k][i] * (active ? 1.0 : 0.0);
+            tau_s[i] = tau;
+          }
+          bands[k] = near_limit ? Vec7(bands[k] + tau_s) : tau_s;
+        }
+      }
+    }
+    double vmax = 0.0;
+    for (int k = 0; k < 2; ++k) vmax = std::max(vmax, va[k].cwiseAbs().maxCoeff());
+    if (vmax > lim.arm_velocity) {
+      any_braking = true;
+      for (int k = 0; k < 2; ++k) {
+        Vec7 excess = va[k] - va[k].cwiseMax(-lim.arm_velocity).cwiseMin(lim.arm_velocity);
+        braking[k] = (mb[k] * excess) * (-1.0 / lim.velocity_time_constant);
+      }
+    }
+
+    // the laws
+    Vec7 tau[2];
+    if (cart[0] && cart[1]) {
+      cartesian(0, 2, cmd, grip, qa, va, mb, any_bands ? bands : nullptr, lim, tau, out);
+    } else if (cart[0] || cart[1]) {
+      const int c = cart[0] ? 0 : 1;
+      cartesian(c, c + 1, cmd, grip, qa, va, mb, any_bands ? bands : nullptr, lim, tau, out);
+      joint(1 - c, 2 - c, cmd, qa, va, mb, tau);
+      if (any_bands) tau[1 - c] += bands[1 - c];
+    } else {
+      joint(0, 2, cmd, qa, va, mb, tau);
+      if (any_bands) {
+        tau[0] += bands[0];
+        tau[1] += bands[1];
+      }
+    }
+    const double rate = k_.torque_rate_limit * k_.dt;
+    const bool first = std::isnan(prev[0]);
+    for (int k = 0; k < 2; ++k) {
+      tau[k] += data_.nle.segment<7>(v0_[k]);
+      for (int i = 0; i < 7; ++i) {
+        const double lim_i = k_.arm_torque_limit[i];
+        double lo = -lim_i, hi = lim_i;
+        if (!first) {
+          lo = std::max(prev[k * 7 + i] - rate, -lim_i);
+          hi = std::min(prev[k * 7 + i] + rate, lim_i);
+        }
+        tau[k][i] = std::min(std::max(tau[k][i], lo), hi);
+      }
+      double* o = out + k * oWidth;
+      Eigen::Map<Vec7>(o + oPrev) = tau[k];
+      if (any_braking) {
+        for (int i = 0; i < 7; ++i)
+          tau[k][i] = clamp(tau[k][i] + braking[k][i], -k_.arm_torque_limit[i], k_.arm_torque_limit[i]);
+      }
+      Eigen::Map<Vec7>(o + oTau) = tau[k];
+    }
+
+    // the torso (impedance.py _torso)
+    const int t = torso_;
+    const double m_tt = data_.M(t, t);
+    const double qt = q[t], vt = v[t];
+    const double d_t = 2.0 * k_.damping_ratio * std::sqrt(k_.torso_stiffness * m_tt);
+    double tt = k_.torso_stiffness * (torso[0] - qt) + d_t * (torso[1] - vt) + data_.nle[t];
+    if (!std::isnan(torso[2])) tt = std::min(std::max(tt, torso[2] - rate), torso[2] + rate);
+    tt = clamp(tt, -k_.torso_torque_limit, k_.torso_torque_limit);
+    out_torso[1] = tt;
+    if (std::abs(vt) > lim.torso_velocity) {
+      tt -= m_tt * (vt - std::copysign(lim.torso_velocity, vt)) / lim.velocity_time_constant;
+      tt = clamp(tt, -k_.torso_torque_limit, k_.torso_torque_limit);
+    }
+    out_torso[0] = tt;
+  }
+
+ private:
+  // Cartesian impedance of arms [from, to) (impedance.py _cartesian).
+  void cartesian(int from, int to, const double* cmd, const SE3* grip, const Vec7* qa, const Vec7* va,
+                 const Mat7* mb, const Vec7* bands, const Limits& lim, Vec7* out, double* out_rows) {
+    Vec6 p_err[2], kst[2], ev[2];
+    Vec7 tau_ns[2];
+    Mat67 jac[2];
+    double kmin = std::numeric_limits<double>::infinity();
+    for (int k = from; k < to; ++k) {
+      const double* c = cmd + k * kCmdWidth;
+      const SE3 target(Eigen::Map<const RowMat3>(c + kRot), Eigen::Vector3d(c[kPos], c[kPos + 1], c[kPos + 2]));
+      const SE3 rel = grip[k].actInv(target);
+      Eigen::Quaterniond quat(rel.rotation());
+      p_err[k].head<3>() = rel.translation();
+      p_err[k].tail<3>() = quat.w() < 0.0 ? Eigen::Vector3d(-quat.vec()) : Eigen::Vector3d(quat.vec());
+      kst[k] = Vec6(c + kStiff);
+      kmin = std::min(kmin, kst[k].minCoeff());
+      const Vec7 posture(c + kPosture);
+      tau_ns[k] = k_.nullspace_stiffness * (posture - qa[k]) - k_.nullspace_damping * va[k];
+      if (bands != nullptr)
+        tau_ns[k] += bands[k].cwiseProduct(lim.null_space_band_scale * (Vec7::Ones() - k_.in_full));
+      jac_.setZero();
+      pinocchio::getFrameJacobian(model_, data_, grip_[k], pinocchio::LOCAL, jac_);
+      jac[k] = jac_.middleCols<7>(v0_[k]);
+      const Eigen::Matrix3d& r = grip[k].rotation();
+      ev[k].head<3>() = r.transpose() * Eigen::Vector3d(c[kTwist], c[kTwist + 1], c[kTwist + 2]);
+      ev[k].tail<3>() = r.transpose() * Eigen::Vector3d(c[kTwist + 3], c[kTwist + 4], c[kTwist + 5]);
+      ev[k] -= jac[k] * va[k];
+    }
+    for (int k = from; k < to; ++k) {
+      if (kmin > 0.0) {
+        const Vec6 s = kst[k].cwiseSqrt();
+        const Mat67 js = s.asDiagonal() * jac[k];
+        Mat7 g;  // G = [(K^½ J)ᵀ | τ_ns]
+        g.leftCols<6>() = js.transpose();
+        g.col(6) = tau_ns[k];
+        Eigen::LLT<Mat7> llt(mb[k]);
+        if (llt.info() != Eigen::Success) throw std::domain_error("mass matrix is not positive definite");
+        const Mat7 m_inv_g = llt.solve(g);
+        Mat67 prod = js * m_inv_g;
+        for (int i = 0; i < 6; ++i) prod(i, i) += k_.lambda_regularisation * kst[k][i];
+        Eigen::SelfAdjointEigenSolver<Mat6> eig(prod.leftCols<6>());
+        const Vec6 w = eig.eigenvalues();
+        const Mat6& vb = eig.eigenvectors();
+        Vec6 z0 = vb.transpose() * s.cwiseProduct(ev[k]);
+        Vec6 z1 = vb.transpose() * prod.col(6);
+        z0.array() /= w.array().sqrt();
+        z1.array() /= w.array();
+        const Vec6 scaled = s.cwiseProduct(p_err[k]) + (vb * z0) * (2.0 * k_.damping_ratio) - vb * z1;
+        out[k] = js.transpose() * scaled + tau_ns[k];
+      } else {  // a zero stiffness: the general (Cholesky) double diagonalisation
+        const Mat7 m_inv = mb[k].inverse();
+        Mat6 lam_inv = jac[k] * m_inv * jac[k].transpose();
+        lam_inv.diagonal().array() += k_.lambda_regularisation;
+        const Mat6 lam = lam_inv.inverse();
+        const Mat6 dmat = double_diagonalisation_damping<6>(Mat6(kst[k].asDiagonal()), lam, k_.damping_ratio);
+        const Vec6 wrench = kst[k].cwiseProduct(p_err[k]) + dmat * ev[k] - lam * (jac[k] * (m_inv * tau_ns[k]));
+        out[k] = jac[k].transpose() * wrench + tau_ns[k];
+      }
+      if (bands != nullptr) out[k] += bands[k].cwiseProduct(k_.in_full);
+      Eigen::Map<Vec6>(out_rows + k * oWidth + oErr) = p_err[k];
+    }
+  }
+
+  // Joint impedance, modes "joint" and "safe", of arms [from, to) (impedance.py _joint).
+  void joint(int from, int to, const double* cmd, const Vec7* qa, const Vec7* va, const Mat7* mb, Vec7* out) {
+    Vec7 kq[2];
+    double xi[2];
+    double kmin = std::numeric_limits<double>::infinity();
+    for (int k = from; k < to; ++k) {
+      const double* c = cmd + k * kCmdWidth;
+      if (static_cast<int>(c[kMode]) == kJoint) {
+        kq[k] = Vec7(c + kJointStiff);
+        xi[k] = k_.damping_ratio;
+      } else {
+        kq[k] = Vec7::Constant(k_.safe_stiffness);
+        xi[k] = k_.safe_damping_ratio;
+      }
+      kmin = std::min(kmin, kq[k].minCoeff());
+    }
+    for (int k = from; k < to; ++k) {
+      const double* c = cmd + k * kCmdWidth;
+      const Vec7 ve = Vec7(c + kQd) - va[k];
+      Vec7 damp;
+      if (kmin > 0.0) {
+        const Vec7 s = kq[k].cwiseSqrt();
+        const Mat7 cm = mb[k].cwiseQuotient(s * s.transpose());  // C = K^-½ M K^-½
+        Eigen::SelfAdjointEigenSolver<Mat7> eig(cm);
+        Vec7 z = eig.eigenvectors().transpose() * s.cwiseProduct(ve);
+        z = z.cwiseProduct(eig.eigenvalues().cwiseSqrt());
+        damp = (2.0 * xi[k]) * s.cwiseProduct(eig.eigenvectors() * z);
+      } else {
+        damp = double_diagonalisation_damping<7>(Mat7(kq[k].asDiagonal()), mb[k], xi[k]) * ve;
+      }
+      out[k] = kq[k].cwiseProduct(Vec7(c + kQ) - qa[k]) + damp;
+    }
+  }
+
+  pinocchio::Model model_;
+  pinocchio::Data data_;
+  std::vector<int> grip_;
+  int v0_[2] = {0, 0};
+  int torso_ = 0;
+  Constants k_{};
+  Vec7 lower_[2], upper_[2], abs_limit_[2];
+  Eigen::Matrix<double, 6, Eigen::Dynamic> jac_;
+  bool ready_ = false;
+};
+
+}  // namespace
+
+PYBIND11_MODULE(_impedance, m) {
+  m.doc() = "The impedance control law of velma/control/impedance.py, compiled (velma/control/compiled.py).";
+  py::register_exception<std::domain_error>(m, "NotPositiveDefinite", PyExc_ArithmeticError);
+  py::class_<Law>(m, "Law")
+      .def(py::init<>())
+      .def("add_joint", &Law::add_joint)
+      .def("add_grip", &Law::add_grip)
+      .def("finish", &Law::finish)
+      .def_property_readonly("nv", &Law::nv)
+      .def("update", &Law::update);
+}

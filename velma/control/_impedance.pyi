@@ -1,0 +1,42 @@
+"""Types of the compiled impedance law (velma/control/_impedance.cpp; used by
+velma/control/compiled.py)."""
+
+import numpy as np
+import numpy.typing as npt
+
+_F64 = npt.NDArray[np.float64]
+
+class NotPositiveDefinite(ArithmeticError): ...
+
+class Law:
+    def __init__(self) -> None: ...
+    def add_joint(
+        self,
+        parent: int,
+        kind: int,
+        axis: list[float],
+        rot: list[float],
+        pos: list[float],
+        mass: float,
+        com: list[float],
+        inertia: list[float],
+        armature: float,
+        lower: float,
+        upper: float,
+        name: str,
+    ) -> None: ...
+    def add_grip(self, joint: int, rot: list[float], pos: list[float], name: str) -> None: ...
+    def finish(self, arm_v0: list[int], torso: int, constants: list[float]) -> None: ...
+    @property
+    def nv(self) -> int: ...
+    def update(
+        self,
+        q: _F64,
+        v: _F64,
+        cmd: _F64,
+        torso: _F64,
+        prev: _F64,
+        limits: _F64,
+        out: _F64,
+        out_torso: _F64,
+    ) -> None: ...

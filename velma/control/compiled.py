@@ -1,0 +1,210 @@
+"""The impedance control law compiled: ``CompiledController`` computes, in C++, exactly what
+``VelmaController.update`` computes in Python (velma/control/impedance.py, whose module
+docstring states the laws and their sources).
+
+The C++ code (``velma/control/_impedance.cpp``, built by ``pip install`` with pybind11 against
+Pinocchio's own headers, those of the ``pin`` wheel) rebuilds the Pinocchio model from the
+numbers of ``RobotModel.model``: every joint's kind and axis, placement, inertia, armature
+and limits, and the two grip frames. The Python class stays the reference:
+tests/velma/test_compiled_law.py compares the torques of both over random states and every
+mode, and the pour with each.
+
+``make_controller`` picks the law: the compiled one when the extension is built, else the
+Python one (with a warning); ``ROCO_CONTROL_LAW=python`` forces the Python law (for
+comparisons, e.g. ``scripts/bench_controller.py``).
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import os
+
+import numpy as np
+import pinocchio as pin
+
+from velma.control import impedance as imp
+from velma.control.limits import ARM_TORQUE_LIMIT, FULL_BAND_JOINTS, SINGULAR_JOINTS, TORQUE_RATE_LIMIT
+from velma.control.robot_model import SIDES, Array, RobotModel
+
+log = logging.getLogger(__name__)
+
+try:  # built by `pip install` (setup.py); absent when no C++ compiler was found
+    from velma.control import _impedance
+except ImportError as exc:  # pragma: no cover - depends on the build
+    _impedance = None  # type: ignore[assignment]
+    _IMPORT_ERROR: str | None = str(exc)
+else:
+    _IMPORT_ERROR = None
+
+ENV_LAW = "ROCO_CONTROL_LAW"
+"""Environment variable: ``python`` forces the Python law, ``compiled`` requires the compiled
+one (an error if it is not built); unset: the compiled one when built."""
+
+_MODE = {"cart": 0, "joint": 1, "safe": 2}
+_JOINT_KIND = {"JointModelRX": 0, "JointModelRY": 1, "JointModelRZ": 2, "JointModelRevoluteUnaligned": 3}
+# the command row of one arm (the layout of _impedance.cpp)
+_ROT, _POS, _TWIST, _STIFF, _POSTURE, _Q, _QD, _KJ, _WIDTH = 1, 10, 13, 19, 25, 32, 39, 46, 53
+
+
+def compiled_available() -> bool:
+    """Whether the compiled law was built (and imports)."""
+    return _impedance is not None
+
+
+def _build_law(robot: RobotModel, dt: float, torso_idx: int, arm_v0: list[int]) -> _impedance.Law:
+    """The C++ ``Law`` with ``robot``'s model. Raises ``ValueError`` for a joint kind other
+    than a revolute one (Velma has only revolute joints)."""
+    assert _impedance is not None
+    model = robot.model
+    law = _impedance.Law()
+    for j in range(1, model.njoints):
+        joint = model.joints[j]
+        kind = _JOINT_KIND.get(joint.shortname())
+        if kind is None:
+            raise ValueError(f"{model.names[j]}: the compiled law has no {joint.shortname()}")
+        axis = [float(a) for a in joint.extract().axis] if kind == 3 else [0.0, 0.0, 0.0]
+        placement = model.jointPlacements[j]
+        body = model.inertias[j]
+        inertia = body.inertia
+        law.add_joint(
+            int(model.parents[j]),
+            kind,
+            axis,
+            [float(x) for x in placement.rotation.flatten()],
+            [float(x) for x in placement.translation],
+            float(body.mass),
+            [float(x) for x in body.lever],
+            [float(inertia[i, j]) for i, j in ((0, 0), (0, 1), (1, 1), (0, 2), (1, 2), (2, 2))],
+            float(model.armature[joint.idx_v]),
+            float(model.lowerPositionLimit[joint.idx_q]),
+            float(model.upperPositionLimit[joint.idx_q]),
+            model.names[j],
+        )
+    for side in SIDES:
+        frame = model.frames[robot.grip_frame_id[side]]
+        law.add_grip(
+            int(frame.parentJoint),
+            [float(x) for x in frame.placement.rotation.flatten()],
+            [float(x) for x in frame.placement.translation],
+            frame.name,
+        )
+    constants = [
+        dt,
+        imp.DAMPING_RATIO,
+        imp.SAFE_STIFFNESS,
+        imp.SAFE_DAMPING_RATIO,
+        imp.TORSO_STIFFNESS,
+        imp.NULLSPACE_STIFFNESS,
+        imp.NULLSPACE_DAMPING,
+        imp.LAMBDA_REGULARISATION,
+        TORQUE_RATE_LIMIT,
+        imp.TORSO_TORQUE_LIMIT,
+        *[float(x) for x in ARM_TORQUE_LIMIT],
+        *[1.0 if i in FULL_BAND_JOINTS else 0.0 for i in range(7)],
+        *[1.0 if i in SINGULAR_JOINTS else 0.0 for i in range(7)],
+    ]
+    law.finish(arm_v0, torso_idx, constants)
+    return law
+
+
+class CompiledController(imp.VelmaController):
+    """``VelmaController`` whose ``update`` runs in C++ (module docstring); everything else
+    (commands, modes, ``hold``, ``safe``, ``limits``, ``state``, the checkpointed rate-limit
+    state) is the Python class's. Raises ``RuntimeError`` if the extension is not built."""
+
+    def __init__(self, robot: RobotModel, dt: float = 0.001) -> None:
+        if _impedance is None:
+            raise RuntimeError(f"the compiled control law is not built ({_IMPORT_ERROR})")
+        super().__init__(robot, dt)
+        self._law = _build_law(robot, dt, self.torso_idx, [int(self.arm_idx[s][0]) for s in SIDES])
+        self._cmd = np.zeros((2, _WIDTH))
+        self._torso_in = np.zeros(3)
+        self._prev_in = np.zeros((2, 7))
+        self._limits_in = np.zeros(10)
+        self._limits_of: imp.SafetyLimits | None = None
+        self._out = np.zeros((2, 32))
+        self._out_torso = np.zeros(2)
+
+    def update(self, q: Array, v: Array) -> tuple[dict[str, Array], float]:
+        """As ``VelmaController.update`` (same arguments, result, state and errors)."""
+        cmd = self._cmd
+        cart = [False, False]
+        for k, side in enumerate(SIDES):
+            a = self.arm[side]
+            mode = _MODE.get(a.mode)
+            if mode is None:
+                raise ValueError(f"{side} arm: unknown mode {a.mode!r} (expected one of {imp.MODES})")
+            row = cmd[k]
+            row[0] = mode
+            cart[k] = mode == 0
+            if cart[k]:
+                row[_ROT:_POS] = a.pose.rotation.reshape(9)
+                row[_POS:_TWIST] = a.pose.translation
+                row[_TWIST:_STIFF] = a.twist
+                row[_STIFF:_POSTURE] = a.stiffness
+                row[_POSTURE:_Q] = a.posture
+            else:
+                row[_Q:_QD] = a.q
+                row[_QD:_KJ] = a.qd
+                row[_KJ:_WIDTH] = a.joint_stiffness
+        if self.limits is not self._limits_of:
+            lim = self.limits
+            self._limits_in[:] = (
+                lim.limit_band,
+                lim.limit_band_torque,
+                lim.singularity_half_width,
+                lim.singularity_band,
+                lim.singularity_band_torque,
+                lim.band_damping_ratio,
+                lim.null_space_band_scale,
+                lim.arm_velocity,
+                lim.torso_velocity,
+                lim.velocity_time_constant,
+            )
+            self._limits_of = lim
+        prev = self._prev_arm
+        if prev is None:
+            self._prev_in[:] = math.nan
+        else:
+            self._prev_in[:] = prev
+        self._torso_in[0] = self.torso_q
+        self._torso_in[1] = self.torso_qd
+        self._torso_in[2] = math.nan if self._prev_torso is None else self._prev_torso
+        q = np.ascontiguousarray(q, dtype=float)
+        v = np.ascontiguousarray(v, dtype=float)
+        out = self._out
+        try:
+            self._law.update(q, v, cmd, self._torso_in, self._prev_in, self._limits_in, out, self._out_torso)
+        except ArithmeticError as exc:
+            raise np.linalg.LinAlgError(str(exc)) from exc
+        self._q_arm = q[self._idx]
+        self._prev_arm = out[:, 7:14].copy()
+        self._prev_torso = float(self._out_torso[1])
+        torques = {}
+        for k, side in enumerate(SIDES):
+            state = self.state[side]
+            state.grip = pin.SE3(out[k, 14:23].reshape(3, 3), out[k, 23:26])
+            if cart[k]:
+                state.error = out[k, 26:32].copy()
+            torque = out[k, 0:7].copy()
+            state.torque = torque
+            torques[side] = torque
+        return torques, float(self._out_torso[0])
+
+
+def make_controller(robot: RobotModel, dt: float = 0.001) -> imp.VelmaController:
+    """The control law to run: compiled when built (unless ``ROCO_CONTROL_LAW=python``), else
+    the Python reference with a warning. Raises ``RuntimeError`` when ``ROCO_CONTROL_LAW=compiled``
+    and the extension is not built, ``ValueError`` for another value of it."""
+    choice = os.environ.get(ENV_LAW, "")
+    if choice not in ("", "python", "compiled"):
+        raise ValueError(f"{ENV_LAW}={choice!r}: expected 'python' or 'compiled'")
+    if choice == "python":
+        return imp.VelmaController(robot, dt)
+    if _impedance is None:
+        if choice == "compiled":
+            raise RuntimeError(f"{ENV_LAW}=compiled, but the compiled law is not built ({_IMPORT_ERROR})")
+        log.warning("the compiled control law is not built (%s): running the Python law", _IMPORT_ERROR)
+        return imp.VelmaController(robot, dt)
+    return CompiledController(robot, dt)
