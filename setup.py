@@ -12,7 +12,7 @@ resolve the dependencies quickly).
 from __future__ import annotations
 
 import os
-import sysconfig
+import sys
 from pathlib import Path
 
 from pybind11.setup_helpers import Pybind11Extension
@@ -20,14 +20,14 @@ from setuptools import setup
 
 
 def _cmeel_include() -> list[str]:
-    """Include folders of the cmeel wheels (Pinocchio, Boost, Eigen) in the build's
-    environment."""
-    roots = {Path(sysconfig.get_paths()[key]) / "cmeel.prefix" / "include" for key in ("purelib", "platlib")}
-    out = []
-    for root in sorted(roots):
-        if root.is_dir():
-            out += [str(root), str(root / "eigen3")]
-    return out
+    """Include folders of the cmeel wheels (Pinocchio, Boost; Eigen in its ``eigen3``) in the
+    build's environment: the first ``cmeel.prefix/include`` on ``sys.path`` that has
+    Pinocchio's headers (pip's isolated build environment comes first there)."""
+    for entry in sys.path:
+        root = Path(entry) / "cmeel.prefix" / "include"
+        if (root / "pinocchio").is_dir():
+            return [str(root), str(root / "eigen3")]
+    return []
 
 
 ext_modules = []
