@@ -349,6 +349,8 @@ def _control(report: Report) -> str:
         policy = f"{setup.policy} priority {setup.priority}" if setup.policy == "SCHED_FIFO" else setup.policy
         why = f" ({'; '.join(setup.notes)})" if setup.notes else ""
         granted = f"Scheduling: {policy}, {pin_text}{why}."
+    if c.control_law:
+        granted += f" Impedance law: {c.control_law}."
     text = (
         f"Pacing: {c.pacing}. {c.cycles} cycles ({c.sim_time:.1f} s of simulation); "
         f"{c.overruns} overruns ({c.overrun_share * 100:.3f} %), at most "

@@ -430,6 +430,7 @@ CONTROL_TIMING = TimingStats(
     max_consecutive_overruns=2,
     sim_time=56.0,
     setup=RealtimeSetup(policy="SCHED_FIFO", priority=80, cpus=(1,), pinned=True),
+    control_law="compiled",
 )
 """What ag_ex writes to ag_ex_timing.json (velma.executor.timing.TimingStats)."""
 

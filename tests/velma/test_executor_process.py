@@ -17,6 +17,7 @@ from shared.fipa_codec.languages.l_ex import Arm, CommandResult, Grasp, MoveJoin
 from shared.fipa_codec.languages.l_sd import Observation
 from velma.executor import ExecutorProcess
 from velma.executor.loop import ControlLoop
+from velma.control.compiled import compiled_available
 from velma.executor.runtime import Runtime
 from velma.rotations import quat_wxyz
 
@@ -57,6 +58,8 @@ def test_commands_cross_and_state_is_published(ex: ExecutorProcess) -> None:
     # the timing on its own (ag_ex_timing.json) takes its simulation time from the same state
     assert ex.timing().sim_time >= snap.sim_time
     assert {p.name for p in snap.timing.parts} == {"primitive", "control", "physics", "hand-offs"}
+    # which impedance law the loop ran (velma/control/compiled.py), for the report
+    assert ex.timing().control_law == ("compiled" if compiled_available() else "python")
 
 
 def test_bad_command_is_answered_and_loop_goes_on(ex: ExecutorProcess) -> None:

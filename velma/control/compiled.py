@@ -193,6 +193,11 @@ class CompiledController(imp.VelmaController):
         return torques, float(self._out_torso[0])
 
 
+def law_name(ctrl: imp.VelmaController) -> str:
+    """``compiled`` or ``python``: which law ``ctrl`` runs (for the loop's timing report)."""
+    return "compiled" if isinstance(ctrl, CompiledController) else "python"
+
+
 def make_controller(robot: RobotModel, dt: float = 0.001) -> imp.VelmaController:
     """The control law to run: compiled when built (unless ``ROCO_CONTROL_LAW=python``), else
     the Python reference with a warning. Raises ``RuntimeError`` when ``ROCO_CONTROL_LAW=compiled``

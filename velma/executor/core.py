@@ -22,6 +22,7 @@ import msgspec
 
 from shared.fipa_codec.languages.l_ex import CommandResult, ExecutorCommand
 from shared.fipa_codec.languages.l_sd import Observation
+from velma.control.compiled import law_name
 from velma.executor.loop import ControlLoop
 from velma.executor.runtime import DT, Runtime
 from velma.executor.state import RobotSnapshot, robot_snapshot
@@ -54,6 +55,7 @@ class Executor:
         self.rt = runtime if runtime is not None else Runtime(seed=seed, pose_seed=pose_seed)
         self.loop: ControlLoop[OnDone] = ControlLoop(self.rt)
         self.monitor = DeadlineMonitor(DT, realtime=realtime)
+        self.monitor.control_law = law_name(self.rt.ctrl)
         self._lock = threading.Lock()
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None

@@ -135,6 +135,7 @@ class Ready(msgspec.Struct, frozen=True, tag="ready"):
     pid: int
     setup: RealtimeSetup
     checkpoint: RestoreReport | None = None
+    control_law: str = ""
 
 
 class Done(msgspec.Struct, frozen=True, tag="done"):
@@ -237,7 +238,11 @@ def loop_main(config: bytes, doorbell: multiprocessing.connection.Connection) ->
     if world is not None and world_buf.nbytes > WORLD_CAPACITY - 4:
         pending.append(encode(Fault(command="world state", text=f"nq={rt.model.nq} does not fit")))
         world = None
-    pending.append(encode(Ready(pid=os.getpid(), setup=setup, checkpoint=restored)))
+    from velma.control.compiled import law_name  # the loop's side only: it loads Pinocchio
+
+    pending.append(
+        encode(Ready(pid=os.getpid(), setup=setup, checkpoint=restored, control_law=law_name(rt.ctrl)))
+    )
     state.write(encode(raw_state(rt, loop.holding)))
     ring()
     # the scene and the controller are built: everything allocated so far lives for the whole
@@ -351,6 +356,8 @@ class ExecutorProcess:
         self.pin = pin
         self.window = window
         self.setup: RealtimeSetup | None = None
+        self.control_law = ""
+        """Which impedance law the loop runs (``compiled`` or ``python``), once it is ready."""
         self._timing_cache: tuple[float, TimingStats] | None = None
         self.exit_reason: str | None = None
         self._callbacks: dict[int, tuple[OnDone, str]] = {}
@@ -539,6 +546,7 @@ class ExecutorProcess:
             raw = self._state.read()
             sim_time = msgspec.msgpack.decode(raw, type=RawState).sim_time if raw is not None else 0.0
         self._monitor.setup = self.setup
+        self._monitor.control_law = self.control_law
         return self._monitor.stats(sim_time)
 
     # ------------------------------------------------------------------ reader thread
@@ -572,6 +580,7 @@ class ExecutorProcess:
                 self._answer(msg.token, msg.result)
             elif isinstance(msg, Ready):
                 self.setup = msg.setup
+                self.control_law = msg.control_law
                 self.restore_report = msg.checkpoint
                 self._ready.set()
             else:

@@ -95,6 +95,9 @@ class TimingStats(msgspec.Struct, frozen=True, kw_only=True):
     """That cycle's compute time (µs), over the whole run, not only the window."""
     parts: tuple[PartTiming, ...] = ()
     """The compute time split in :data:`PARTS` (empty when the loop did not measure them)."""
+    control_law: str = ""
+    """The impedance law the loop ran: ``compiled`` or ``python`` (velma/control/compiled.py;
+    empty when the loop did not say)."""
 
 
 class DeadlineMonitor:
@@ -137,6 +140,8 @@ class DeadlineMonitor:
         self._max_consecutive = int(self._counters[3])
         self._worst_compute = float(self._worst[0])
         self.setup: RealtimeSetup | None = None
+        self.control_law = ""
+        """Which impedance law the loop runs (``TimingStats.control_law``), set by its owner."""
 
     @property
     def cycles(self) -> int:
@@ -211,6 +216,7 @@ class DeadlineMonitor:
             max_consecutive_overruns=max_consecutive,
             sim_time=sim_time,
             setup=self.setup,
+            control_law=self.control_law,
             worst_cycle=worst_cycle,
             worst_compute_us=float(self._worst[0]) * 1e6,
             parts=split,
