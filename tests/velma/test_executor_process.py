@@ -15,9 +15,9 @@ import pytest
 
 from shared.fipa_codec.languages.l_ex import Arm, CommandResult, Grasp, MoveJoints, Observe, Wait
 from shared.fipa_codec.languages.l_sd import Observation
+from velma.control.compiled import compiled_available
 from velma.executor import ExecutorProcess
 from velma.executor.loop import ControlLoop
-from velma.control.compiled import compiled_available
 from velma.executor.runtime import Runtime
 from velma.rotations import quat_wxyz
 
