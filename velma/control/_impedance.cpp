@@ -48,7 +48,7 @@ constexpr int kMode = 0, kRot = 1, kPos = 10, kTwist = 13, kStiff = 19, kPosture
               kJointStiff = 46, kCmdWidth = 53;
 // Layout of one arm's output row.
 constexpr int oTau = 0, oPrev = 7, oGrip = 14, oErr = 26, oWidth = 32;
-// Modes.
+// Modes: their index in impedance.py MODES (compiled.py _MODE).
 constexpr int kCart = 0, kJoint = 1, kSafe = 2;
 
 // Constants of the law, passed once from Python (each is stated once, in impedance.py and
@@ -154,8 +154,6 @@ class Law {
     jac_.setZero(6, model_.nv);
     ready_ = true;
   }
-
-  int nv() const { return model_.nv; }
 
   // One cycle. q, v: (nv,). cmd: (2, 53) per arm (layout above). torso: (3,) setpoint
   // q, q̇ and the previous torso torque (NaN: none). prev: (2, 7) previous arm torques (NaN:
@@ -434,6 +432,5 @@ PYBIND11_MODULE(_impedance, m) {
       .def("add_joint", &Law::add_joint)
       .def("add_grip", &Law::add_grip)
       .def("finish", &Law::finish)
-      .def_property_readonly("nv", &Law::nv)
       .def("update", &Law::update);
 }
