@@ -104,6 +104,9 @@ def main(argv: list[str] | None = None) -> int:
     logging.getLogger(name).info("started (pid %d)", os.getpid())
     try:
         agent.run()
+    except Exception:  # the log says why the agent stopped (the launcher names the log)
+        logging.getLogger(name).exception("stopped by an error")
+        raise
     finally:
         logging.getLogger(name).info("stopping; counters %s", dict(agent.counters))
         close = getattr(agent, "close", None)

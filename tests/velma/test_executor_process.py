@@ -177,3 +177,13 @@ def test_safe_mode_is_soft_and_gravity_compensated(ex: ExecutorProcess) -> None:
     drift = max(abs(later.joints[j] - snap.joints[j]) for j in snap.joints if "_arm_" in j)
     assert drift < 0.05  # gravity compensated: the soft arms do not fall
     assert _submit(ex, Wait(duration=0.01)).get(timeout=60).ok  # type: ignore[union-attr]
+
+
+def test_a_loop_that_cannot_start_says_why(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The loop process's start-up error reaches ``start``, not only its exit code (here an
+    impedance law nobody has: ROCO_CONTROL_LAW, velma/control/compiled.py)."""
+    monkeypatch.setenv("ROCO_CONTROL_LAW", "fast")  # the spawned loop inherits it
+    e = ExecutorProcess(realtime=False)
+    with pytest.raises(RuntimeError, match=r"did not start: ValueError: ROCO_CONTROL_LAW='fast'"):
+        e.start(timeout=120)
+

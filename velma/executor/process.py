@@ -147,11 +147,15 @@ class Done(msgspec.Struct, frozen=True, tag="done"):
 
 class Fault(msgspec.Struct, frozen=True, tag="fault"):
     """A motion primitive raised (``text``) while running ``command``; it was answered with a
-    failure and the loop went on. Logged by the communication side."""
+    failure and the loop went on. Logged by the communication side. With ``command`` ``START``
+    the loop could not start (``text`` says why) and its process exits."""
 
     command: str
     text: str
 
+
+START = "start"
+"""``Fault.command`` of a loop that could not start."""
 
 ToLoop = Submit | Hold | Safe | Displace | Shutdown
 FromLoop = Ready | Done | Fault
@@ -199,7 +203,13 @@ def loop_main(config: bytes, doorbell: multiprocessing.connection.Connection) ->
     encode = msgspec.msgpack.Encoder().encode
     decode = msgspec.msgpack.Decoder(ToLoop).decode
 
-    rt = Runtime(seed=cfg.seed, pose_seed=cfg.pose_seed)
+    try:
+        rt = Runtime(seed=cfg.seed, pose_seed=cfg.pose_seed)
+    except Exception as exc:  # say why before the process exits: ExecutorProcess.start raises it
+        outbox_ring.push(encode(Fault(command=START, text=f"{type(exc).__name__}: {exc}")))
+        with contextlib.suppress(BlockingIOError, BrokenPipeError):
+            os.write(bell, b"\x01")
+        raise
     loop: ControlLoop[int] = ControlLoop(rt)
     running = True
 
@@ -583,6 +593,8 @@ class ExecutorProcess:
                 self.control_law = msg.control_law
                 self.restore_report = msg.checkpoint
                 self._ready.set()
+            elif msg.command == START:
+                self.exit_reason = msg.text
             else:
                 log.error("executor command %s raised %s", msg.command, msg.text)
 
