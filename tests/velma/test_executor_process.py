@@ -186,4 +186,3 @@ def test_a_loop_that_cannot_start_says_why(monkeypatch: pytest.MonkeyPatch) -> N
     e = ExecutorProcess(realtime=False)
     with pytest.raises(RuntimeError, match=r"did not start: ValueError: ROCO_CONTROL_LAW='fast'"):
         e.start(timeout=120)
-
