@@ -155,6 +155,24 @@ class Law {
     ready_ = true;
   }
 
+  // The wrist band (velma/control/self_collision.py): the hand-to-forearm distance table
+  // (2 sides × n5 × n6, m) over joints 5 and 6 from (lower5, lower6) in steps of ``step`` rad,
+  // the band (m), the peak torque (N·m) and the damping (N·m·s/rad).
+  void set_wrist(double lower5, double lower6, double step, int n5, int n6, const std::vector<double>& table,
+                 double band, double torque, double damping) {
+    if (static_cast<int>(table.size()) != 2 * n5 * n6 || n5 < 2 || n6 < 2 || step <= 0.0)
+      throw std::invalid_argument("set_wrist: a 2 × n5 × n6 table, n5, n6 ≥ 2, step > 0");
+    wrist_ = table;
+    wrist_lower_[0] = lower5;
+    wrist_lower_[1] = lower6;
+    wrist_step_ = step;
+    wrist_n_[0] = n5;
+    wrist_n_[1] = n6;
+    wrist_band_ = band;
+    wrist_torque_ = torque;
+    wrist_damping_ = damping;
+  }
+
   // One cycle. q, v: (nv,). cmd: (2, 53) per arm (layout above). torso: (3,) setpoint
   // q, q̇ and the previous torso torque (NaN: none). prev: (2, 7) previous arm torques (NaN:
   // none). limits: (10,) SafetyLimits. out: (2, 32) per arm: torque (7), torque before the
@@ -275,6 +293,9 @@ class Law {
         tau[1] += bands[1];
       }
     }
+    if (!wrist_.empty()) {
+      for (int k = 0; k < 2; ++k) wrist_band(k, qa[k], va[k], tau[k]);
+    }
     const double rate = k_.torque_rate_limit * k_.dt;
     const bool first = std::isnan(prev[0]);
     for (int k = 0; k < 2; ++k) {
@@ -377,6 +398,31 @@ class Law {
     }
   }
 
+  // The wrist band of side k added to tau (self_collision.py WristField.sample and
+  // wrist_band_torque: the same operations).
+  void wrist_band(int k, const Vec7& q, const Vec7& v, Vec7& tau) const {
+    const int n5 = wrist_n_[0], n6 = wrist_n_[1];
+    const double* table = wrist_.data() + static_cast<size_t>(k) * n5 * n6;
+    const double x = std::min(std::max((q[5] - wrist_lower_[0]) / wrist_step_, 0.0), n5 - 1.000001);
+    const double y = std::min(std::max((q[6] - wrist_lower_[1]) / wrist_step_, 0.0), n6 - 1.000001);
+    const int i = static_cast<int>(x), j = static_cast<int>(y);
+    const double f = x - i, g = y - j;
+    const double d00 = table[i * n6 + j], d10 = table[(i + 1) * n6 + j], d01 = table[i * n6 + j + 1],
+                 d11 = table[(i + 1) * n6 + j + 1];
+    const double d = (1.0 - f) * (1.0 - g) * d00 + f * (1.0 - g) * d10 + (1.0 - f) * g * d01 + f * g * d11;
+    if (d >= wrist_band_) return;
+    const double g5 = ((1.0 - g) * (d10 - d00) + g * (d11 - d01)) / wrist_step_;
+    const double g6 = ((1.0 - f) * (d01 - d00) + f * (d11 - d10)) / wrist_step_;
+    const double norm = std::hypot(g5, g6);
+    if (norm < 1e-9) return;
+    const double n5v = g5 / norm, n6v = g6 / norm;
+    const double s = (wrist_band_ - d) / wrist_band_;
+    const double rate = n5v * v[5] + n6v * v[6];
+    const double magnitude = wrist_torque_ * s * s - (rate < 0.0 ? wrist_damping_ * s * rate : 0.0);
+    tau[5] += magnitude * n5v;
+    tau[6] += magnitude * n6v;
+  }
+
   // Joint impedance, modes "joint" and "safe", of arms [from, to) (impedance.py _joint).
   void joint(int from, int to, const double* cmd, const Vec7* qa, const Vec7* va, const Mat7* mb, Vec7* out) {
     Vec7 kq[2];
@@ -420,6 +466,11 @@ class Law {
   Vec7 lower_[2], upper_[2], abs_limit_[2];
   Eigen::Matrix<double, 6, Eigen::Dynamic> jac_;
   bool ready_ = false;
+  std::vector<double> wrist_;
+  double wrist_lower_[2] = {0.0, 0.0};
+  double wrist_step_ = 1.0;
+  int wrist_n_[2] = {0, 0};
+  double wrist_band_ = 0.0, wrist_torque_ = 0.0, wrist_damping_ = 0.0;
 };
 
 }  // namespace
@@ -432,5 +483,6 @@ PYBIND11_MODULE(_impedance, m) {
       .def("add_joint", &Law::add_joint)
       .def("add_grip", &Law::add_grip)
       .def("finish", &Law::finish)
+      .def("set_wrist", &Law::set_wrist)
       .def("update", &Law::update);
 }

@@ -27,6 +27,18 @@ class Law:
     ) -> None: ...
     def add_grip(self, joint: int, rot: list[float], pos: list[float], name: str) -> None: ...
     def finish(self, arm_v0: list[int], torso: int, constants: list[float]) -> None: ...
+    def set_wrist(
+        self,
+        lower5: float,
+        lower6: float,
+        step: float,
+        n5: int,
+        n6: int,
+        table: list[float],
+        band: float,
+        torque: float,
+        damping: float,
+    ) -> None: ...
     def update(
         self,
         q: _F64,

@@ -26,6 +26,7 @@ import pinocchio as pin
 from velma.control import impedance as imp
 from velma.control.limits import ARM_TORQUE_LIMIT, FULL_BAND_JOINTS, SINGULAR_JOINTS, TORQUE_RATE_LIMIT
 from velma.control.robot_model import SIDES, Array, RobotModel
+from velma.control.self_collision import WRIST_BAND, WRIST_BAND_DAMPING, WRIST_BAND_TORQUE, WristField
 
 log = logging.getLogger(__name__)
 
@@ -118,6 +119,8 @@ class CompiledController(imp.VelmaController):
             raise RuntimeError(f"the compiled control law is not built ({_IMPORT_ERROR})")
         super().__init__(robot, dt)
         self._law = _build_law(robot, dt, self.torso_idx, [int(self.arm_idx[s][0]) for s in SIDES])
+        self._wrist_of: WristField | None = None
+        self._send_wrist()
         self._cmd = np.zeros((2, _WIDTH))
         self._torso_in = np.zeros(3)
         self._prev_in = np.zeros((2, 7))
@@ -126,8 +129,31 @@ class CompiledController(imp.VelmaController):
         self._out = np.zeros((2, 32))
         self._out_torso = np.zeros(2)
 
+    def _send_wrist(self) -> None:
+        """Give the C++ law the wrist band's table (``self.wrist``; None: an empty table, the
+        band off)."""
+        field = self.wrist
+        if field is None:
+            self._law.set_wrist(0.0, 0.0, 1.0, 2, 2, [1.0] * 8, 0.0, 0.0, 0.0)  # d = 1 m: never in the band
+        else:
+            _, n5, n6 = field.distance.shape
+            self._law.set_wrist(
+                field.lower[0],
+                field.lower[1],
+                field.step,
+                n5,
+                n6,
+                [float(x) for x in field.distance.reshape(-1)],
+                WRIST_BAND,
+                WRIST_BAND_TORQUE,
+                WRIST_BAND_DAMPING,
+            )
+        self._wrist_of = field
+
     def update(self, q: Array, v: Array) -> tuple[dict[str, Array], float]:
         """As ``VelmaController.update`` (same arguments, result, state and errors)."""
+        if self.wrist is not self._wrist_of:
+            self._send_wrist()
         cmd = self._cmd
         cart = [False, False]
         for k, side in enumerate(SIDES):

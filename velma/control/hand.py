@@ -244,6 +244,23 @@ class ContactMonitor:
                 if x == palm:
                     self.hand_side[g] = side_i
         self.geom_body = model.geom_bodyid.copy()
+        # a geom's part for self-collision: -1 outside the robot, the side's index for a hand
+        # geom, 2 for every other robot geom (contacts within one hand are the hand's own)
+        self.part = np.where(self.robot_body[self.geom_body], 2, -1)
+        self.part[self.hand_side >= 0] = self.hand_side[self.hand_side >= 0]
+
+    def self_contacts(self, data: mujoco.MjData) -> list[tuple[int, int]]:
+        """The robot touching itself: (geom, geom) of each contact between two robot geoms
+        that are not both in one hand (issue 18: self-collision is on in velma.xml)."""
+        n = data.ncon
+        if n == 0:
+            return []
+        geoms = data.contact.geom[:n]
+        p0, p1 = self.part[geoms[:, 0]], self.part[geoms[:, 1]]
+        hit = (p0 >= 0) & (p1 >= 0) & ((p0 != p1) | (p0 == 2))
+        if not hit.any():
+            return []
+        return [(int(a), int(b)) for a, b in geoms[hit]]
 
     def touching(self, data: mujoco.MjData, side: str) -> dict[int, int]:
         """{body id: count of distinct hand geoms of ``side`` in contact with it}."""

@@ -2,6 +2,8 @@
 
 Used by the executor to decide whether a MoveTool/Tilt target is reachable (``unreachable``)
 and to give the Cartesian impedance law a null-space posture that agrees with the target.
+Given a ``SelfCollision`` check, a posture in which the robot would touch itself is rejected
+and the search goes on from its other starts (issue 18).
 Only the seven arm joints move; torso, head and hand joints keep their values in ``q``.
 Joint limits are enforced by clamping each iterate, with a 0.05 rad margin.
 
@@ -17,6 +19,7 @@ import numpy as np
 import pinocchio as pin
 
 from velma.control.robot_model import Array, RobotModel, arm_joints
+from velma.control.self_collision import SelfCollision
 
 LIMIT_MARGIN = 0.05  # rad
 
@@ -24,12 +27,15 @@ LIMIT_MARGIN = 0.05  # rad
 @dataclass(frozen=True)
 class IkResult:
     """``q``: full Pinocchio configuration (rad, shape (33,)); ``ok``: converged within
-    tolerance; ``position_error`` (m) and ``rotation_error`` (rad) at ``q``."""
+    tolerance (and free of self-collision when checked); ``position_error`` (m) and
+    ``rotation_error`` (rad) at ``q``; ``self_collision``: the geoms that would touch, when
+    every converged posture the search found touched."""
 
     q: Array
     ok: bool
     position_error: float
     rotation_error: float
+    self_collision: tuple[str, str] | None = None
 
 
 def solve_ik_multi(
@@ -40,10 +46,12 @@ def solve_ik_multi(
     *,
     restarts: int = 12,
     seed: int = 0,
+    self_collision: SelfCollision | None = None,
 ) -> IkResult:
     """``solve_ik`` from ``q0``, then (if that fails) from up to ``restarts`` deterministic
-    random arm configurations; among converged solutions the one closest to ``q0`` wins."""
-    search = IkSearch(robot, side, target, q0, restarts=restarts, seed=seed)
+    random arm configurations; among converged solutions the one closest to ``q0`` wins.
+    With ``self_collision``, converged postures in self-collision do not count."""
+    search = IkSearch(robot, side, target, q0, restarts=restarts, seed=seed, self_collision=self_collision)
     while True:
         result = search.advance(1_000_000)
         if result is not None:
@@ -57,7 +65,8 @@ class IkSearch:
     iterations it is given.
 
     ``data`` is the Pinocchio data the search may overwrite (default: a private one, so that
-    the controller's ``robot.data`` is left alone)."""
+    the controller's ``robot.data`` is left alone). ``self_collision``: reject postures in
+    self-collision (each check is one step of the search, ≈ 45 µs)."""
 
     def __init__(
         self,
@@ -69,9 +78,12 @@ class IkSearch:
         restarts: int = 12,
         seed: int = 0,
         data: pin.Data | None = None,
+        self_collision: SelfCollision | None = None,
     ) -> None:
         self.iterations = 0
-        self._gen = _search(robot, data or robot.model.createData(), side, target, q0, restarts, seed)
+        self._gen = _search(
+            robot, data or robot.model.createData(), side, target, q0, restarts, seed, self_collision
+        )
         self._result: IkResult | None = None
 
     def advance(self, iterations: int) -> IkResult | None:
@@ -89,12 +101,33 @@ class IkSearch:
 
 
 def _search(
-    robot: RobotModel, data: pin.Data, side: str, target: pin.SE3, q0: Array, restarts: int, seed: int
+    robot: RobotModel,
+    data: pin.Data,
+    side: str,
+    target: pin.SE3,
+    q0: Array,
+    restarts: int,
+    seed: int,
+    self_collision: SelfCollision | None,
 ) -> Generator[None, None, IkResult]:
-    first = yield from _dls(robot, data, side, target, q0, posture=q0)
-    if first.ok:
-        return first
+    touching: tuple[str, str] | None = None
     idx = robot.v_indices(arm_joints(side))
+
+    def free(result: IkResult) -> Generator[None, None, bool]:
+        """Whether a converged posture is free of self-collision (one search step)."""
+        nonlocal touching
+        if self_collision is None:
+            return True
+        pin.forwardKinematics(robot.model, data, result.q)
+        hit = self_collision.colliding(data, side, result.q[idx])
+        yield None
+        if hit is not None:
+            touching = hit
+        return hit is None
+
+    first = yield from _dls(robot, data, side, target, q0, posture=q0)
+    if first.ok and (yield from free(first)):
+        return first
     lo = robot.model.lowerPositionLimit[idx]
     hi = robot.model.upperPositionLimit[idx]
     rng = np.random.default_rng(seed)
@@ -103,13 +136,19 @@ def _search(
         q = np.array(q0, dtype=float)
         q[idx] = rng.uniform(0.7 * lo, 0.7 * hi)
         r = yield from _dls(robot, data, side, target, q)
-        if r.ok and (
-            best is None or np.linalg.norm(r.q[idx] - q0[idx]) < np.linalg.norm(best.q[idx] - q0[idx])
+        if (
+            r.ok
+            and (best is None or np.linalg.norm(r.q[idx] - q0[idx]) < np.linalg.norm(best.q[idx] - q0[idx]))
+            and (yield from free(r))
         ):
             best = r
             if np.linalg.norm(r.q[idx] - q0[idx]) < 1.0:
                 break
-    return best if best is not None else first
+    if best is not None:
+        return best
+    if touching is not None:  # every converged posture touched the robot itself
+        return IkResult(first.q, False, first.position_error, first.rotation_error, touching)
+    return first
 
 
 def solve_ik(

@@ -36,7 +36,10 @@ joint; torso K = 1200 N·m/rad, ξ = 0.7.
   τ = −M (q̇ − sat(q̇)) / T_v, added after the torque rate limit (a rate-limited brake of this
   gain oscillates) and before the magnitude limit;
 - the torque rate limit (``TORQUE_RATE_LIMIT`` × dt per cycle, not on the first cycle) and
-  the torque limits (100 N·m joints 0–4, 60 N·m joints 5–6; torso 300 N·m).
+  the torque limits (100 N·m joints 0–4, 60 N·m joints 5–6; torso 300 N·m);
+- the wrist's self-collision band (velma/control/self_collision.py, all modes, in full): joints
+  5 and 6 are pushed along the gradient of the hand-to-forearm distance once the hand's rigid
+  parts come within ``WRIST_BAND`` of their own forearm.
 
 How it is computed (both arms in Cartesian mode plus the torso, on the quiet 2-core
 development machine: ≈ 64 µs per ``update`` in a tight loop; between MuJoCo steps of the
@@ -67,7 +70,9 @@ Simplifications (named):
 - The torso is not part of the Cartesian chain (the real robot stacks 15 DOF); it is held by
   joint impedance K = 1200 N·m/rad.
 - The payload (a held object) is not compensated; the impedance absorbs it as a small sag.
-- No self-collision repulsion (velma-facts.md lists it from 0.15 m).
+- Self-collision: only the hand against its own forearm is pushed apart (the wrist band);
+  the arms against each other, the torso and the head are kept apart by the IK, which
+  rejects postures in self-collision (velma-facts.md lists a repulsion from 0.15 m).
 """
 
 from __future__ import annotations
@@ -102,6 +107,7 @@ from velma.control.limits import (
     velocity_limit_torque,
 )
 from velma.control.robot_model import SIDES, TORSO_JOINT, Array, RobotModel, arm_joints
+from velma.control.self_collision import WristField, wrist_band_torque, wrist_field
 
 __all__ = [
     "ARM_JOINT_STIFFNESS",
@@ -279,6 +285,8 @@ class VelmaController:
         self.torso_qd = 0.0
         self.state = {s: ArmState() for s in SIDES}
         self.limits = SafetyLimits()
+        self.wrist: WristField | None = wrist_field()
+        """The wrist band's distance table; None switches the band off."""
         model = robot.model
         self._idx = np.stack([self.arm_idx[s] for s in SIDES])  # (2, 7)
         i = np.arange(7)
@@ -390,6 +398,12 @@ class VelmaController:
             self._joint(slice(0, 2), cmds, qa, va, mb, tau)
             if bands is not None:
                 tau += bands
+        if self.wrist is not None:
+            for k in (0, 1):
+                push = wrist_band_torque(self.wrist, k, qa[k], va[k])
+                if push is not None:
+                    tau[k, 5] += push[0]
+                    tau[k, 6] += push[1]
         tau += data.nle[idx]
         # torque rate limit, then magnitude limit; as the previous torque is within the
         # magnitude limit, both are one clip to [max(prev − rate, −L), min(prev + rate, L)]

@@ -112,7 +112,9 @@ class _CartesianMotion:
         arm keeps its current setpoint while the search runs (a few ms)."""
         self.goal = goal
         self.pending = path
-        self.search = IkSearch(rt.robot, self.side, goal, rt.q(), data=rt.ik_data)
+        self.search = IkSearch(
+            rt.robot, self.side, goal, rt.q(), data=rt.ik_data, self_collision=rt.self_collision
+        )
 
     def _solve(self, rt: Runtime) -> Result | None:
         """Advance the IK search by ``IK_ITERATIONS_PER_CYCLE``; when it has converged,
@@ -123,11 +125,12 @@ class _CartesianMotion:
             return None
         if not ik.ok:
             start = self.pending.sample(0.0)[0]
+            touching = ik.self_collision
             return _result(
                 rt,
                 self.name,
                 False,
-                "unreachable",
+                "unreachable" if touching is None else f"unreachable (self-collision: {', '.join(touching)})",
                 float(np.linalg.norm(self.goal.translation - start.translation)),
             )
         idx = rt.ctrl.arm_slice[self.side]

@@ -35,6 +35,7 @@ from velma.control.robot_model import (
     RobotModel,
     arm_joints,
 )
+from velma.control.self_collision import SelfCollision
 from velma.executor.perception import Perception
 from velma.executor.state import LINK_BODIES
 from velma.model.scene import N_PARTICLES, initial_state, load_kitchen
@@ -65,6 +66,8 @@ class Runtime:
         self.data = initial_state(self.model)
         self.robot = RobotModel()
         self.ik_data = self.robot.model.createData()  # the IK search's own (see primitives)
+        self.self_collision = SelfCollision(self.robot)
+        """The IK's self-collision check (velma/control/self_collision.py)."""
         self.joint_v_index = tuple(self.robot.v_index(n) for n in self.robot.joint_names)
         self.snapshot_index = np.array(self.joint_v_index, dtype=np.intp)
         """``joint_v_index`` as an index array (velma.executor.state.raw_state)."""
@@ -97,6 +100,11 @@ class Runtime:
         """The last cycle's measured parts (s): primitive (set by the loop), control, physics
         (velma.executor.timing.PARTS)."""
         self._scan_phase = {0: SIDES[0], CONTACT_PERIOD // 2: SIDES[1]}
+        self._self_phase = CONTACT_PERIOD // 4
+        self.self_contacts = 0
+        """Scans (every ``CONTACT_PERIOD`` cycles) that found the robot touching itself."""
+        self.self_contact_pairs: dict[tuple[str, str], int] = {}
+        """Those contacts by the geoms' (or bodies') names: how many scans saw each pair."""
         q = self.q()
         for s in SIDES:
             self.ctrl.arm[s].q = q[self.ctrl.arm_slice[s]].copy()
@@ -161,7 +169,11 @@ class Runtime:
         # each hand is scanned every CONTACT_PERIOD cycles, the two half a period apart, so
         # that no cycle carries both scans
         phase = self.cycles % CONTACT_PERIOD
-        if phase in self._scan_phase:
+        if phase == self._self_phase:
+            pairs = self.contacts.self_contacts(data)
+            if pairs:
+                self._count_self_contacts(pairs)
+        elif phase in self._scan_phase:
             s = self._scan_phase[phase]
             self.touch[s] = self.contacts.touching(data, s)
             b = self.held[s]
@@ -172,6 +184,17 @@ class Runtime:
         part = self.part_s
         part[1] = t1 - t0
         part[2] = time.perf_counter() - t1
+
+    def _count_self_contacts(self, pairs: list[tuple[int, int]]) -> None:
+        self.self_contacts += 1
+        for a, b in set(pairs):
+            names = tuple(sorted(self._geom_name(g) for g in (a, b)))
+            key = (names[0], names[1])
+            self.self_contact_pairs[key] = self.self_contact_pairs.get(key, 0) + 1
+
+    def _geom_name(self, geom: int) -> str:
+        name = self.model.geom(geom).name
+        return name or self.model.body(int(self.model.geom_bodyid[geom])).name
 
     def displace(self, body: str, delta: tuple[float, float, float]) -> None:
         """Move free body ``body`` by ``delta`` (world, m) and stop it: a disturbance of the

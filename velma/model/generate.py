@@ -173,6 +173,27 @@ PAD_SOLREF = "0.004 1"
 PAD_SOLIMP = "0.95 0.99 0.001"  # placeholder (stiff once in contact)
 ROBOT_FRICTION = "0.8 0.02 0.001"  # placeholder (rubber/aluminium on wood or glass)
 
+# Self-collision (issue 18). Contact bits: robot geoms contype 2, conaffinity 3; scene geoms
+# contype 1, conaffinity 3. MuJoCo collides two geoms when (contype₁ & conaffinity₂) or
+# (contype₂ & conaffinity₁) is non-zero, so robot–robot (2 & 3), robot–scene and scene–scene
+# pairs all collide. Pairs left out, by the rules of MoveIt's Setup Assistant (the "adjacent",
+# "default" and "always" rules of an SRDF):
+# - adjacent: a body and its parent, by MuJoCo's own parent–child filter (welded bodies count
+#   as one: the gripper mount and the palm are one body with arm_7_link), and, as MoveIt counts
+#   them, two bodies joined through a body without collision geometry: the head's base and its
+#   tilt link, joined through the pan link (their boxes meet when the head looks down at the
+#   table; the real neck's range is its joint limits);
+# - default and always: pairs that touch in the zero configuration or in ≥ 95 % of random
+#   configurations within the joint limits, i.e. that overlap by construction of the
+#   simplified geometry. Only the wrist pair below does: the gripper mount's bracket box
+#   spans the wrist's centre, where the forearm capsule ends (3000 random configurations).
+ROBOT_CONTYPE, ROBOT_CONAFFINITY = 2, 3
+SCENE_CONTYPE, SCENE_CONAFFINITY = 1, 3
+SELF_COLLISION_EXCLUDES = (
+    *((f"{side}_arm_5_link", f"{side}_gripper_mount_link") for side in ("right", "left")),
+    ("head_base", "head_tilt_link"),
+)
+
 # Simulation options (facts, "MuJoCo notes" and "Control on the real robot": 1 kHz loop,
 # impratio ≈ 10). Solver: Newton, which converges in 1–3 iterations where CG used up to 60
 # (issue 18; measured over the scripted pour on this 2-core VM, mujoco 4.0.0: mj_step p50
@@ -527,13 +548,14 @@ def build() -> str:
     w.add(OPTION)
     w.open("<default>")
     w.open('<default class="velma">')
-    w.add(f'<geom contype="2" conaffinity="1" condim="3" friction="{ROBOT_FRICTION}"/>')
+    robot_bits = f'contype="{ROBOT_CONTYPE}" conaffinity="{ROBOT_CONAFFINITY}"'
+    w.add(f'<geom {robot_bits} condim="3" friction="{ROBOT_FRICTION}"/>')
     w.open('<default class="robot">')
-    w.add('<geom contype="2" conaffinity="1"/>')
+    w.add(f"<geom {robot_bits}/>")
     w.close("default")
     w.open('<default class="pad">')
     w.add(
-        f'<geom type="capsule" contype="2" conaffinity="1" condim="4" friction="{PAD_FRICTION}" '
+        f'<geom type="capsule" {robot_bits} condim="4" friction="{PAD_FRICTION}" '
         f'solref="{PAD_SOLREF}" solimp="{PAD_SOLIMP}" rgba="0.25 0.25 0.25 1"/>'
     )
     w.close("default")
@@ -569,6 +591,10 @@ def build() -> str:
     w.close("body")
     w.close("body")
     w.close("worldbody")
+    w.open("<contact>")
+    for body1, body2 in SELF_COLLISION_EXCLUDES:
+        w.add(f'<exclude body1="{body1}" body2="{body2}"/>')
+    w.close("contact")
     w.open("<actuator>")
     for side in ("right", "left"):
         for k in range(7):
@@ -808,7 +834,10 @@ def build_kitchen() -> str:
     w.close("asset")
     w.open("<default>")
     w.open('<default class="env">')
-    w.add(f'<geom contype="1" conaffinity="3" condim="3" friction="{ENV_FRICTION}"/>')
+    w.add(
+        f'<geom contype="{SCENE_CONTYPE}" conaffinity="{SCENE_CONAFFINITY}" condim="3" '
+        f'friction="{ENV_FRICTION}"/>'
+    )
     w.open('<default class="jar_wall">')
     w.add(f'<geom type="box" material="glass" friction="{CONTAINER_FRICTION}" solref="0.004 1"/>')
     w.close("default")
