@@ -277,35 +277,24 @@ class Law {
       }
     }
 
-    // the wrist band (self_collision.py)
-    Vec7 wrist[2];
-    bool any_wrist = false;
-    for (int k = 0; k < 2; ++k) {
-      wrist[k].setZero();
-      if (!wrist_.empty()) any_wrist = wrist_band(k, qa[k], va[k], wrist[k]) || any_wrist;
-    }
-    const Vec7* wrist_in = any_wrist ? wrist : nullptr;
-
     // the laws
     Vec7 tau[2];
     if (cart[0] && cart[1]) {
-      cartesian(0, 2, cmd, grip, qa, va, mb, any_bands ? bands : nullptr, wrist_in, lim, tau, out);
+      cartesian(0, 2, cmd, grip, qa, va, mb, any_bands ? bands : nullptr, lim, tau, out);
     } else if (cart[0] || cart[1]) {
       const int c = cart[0] ? 0 : 1;
-      cartesian(c, c + 1, cmd, grip, qa, va, mb, any_bands ? bands : nullptr, wrist_in, lim, tau, out);
+      cartesian(c, c + 1, cmd, grip, qa, va, mb, any_bands ? bands : nullptr, lim, tau, out);
       joint(1 - c, 2 - c, cmd, qa, va, mb, tau);
       if (any_bands) tau[1 - c] += bands[1 - c];
-      if (any_wrist) tau[1 - c] += wrist[1 - c];
     } else {
       joint(0, 2, cmd, qa, va, mb, tau);
       if (any_bands) {
         tau[0] += bands[0];
         tau[1] += bands[1];
       }
-      if (any_wrist) {
-        tau[0] += wrist[0];
-        tau[1] += wrist[1];
-      }
+    }
+    if (!wrist_.empty()) {
+      for (int k = 0; k < 2; ++k) wrist_band(k, qa[k], va[k], tau[k]);
     }
     const double rate = k_.torque_rate_limit * k_.dt;
     const bool first = std::isnan(prev[0]);
@@ -348,8 +337,7 @@ class Law {
  private:
   // Cartesian impedance of arms [from, to) (impedance.py _cartesian).
   void cartesian(int from, int to, const double* cmd, const SE3* grip, const Vec7* qa, const Vec7* va,
-                 const Mat7* mb, const Vec7* bands, const Vec7* wrist, const Limits& lim, Vec7* out,
-                 double* out_rows) {
+                 const Mat7* mb, const Vec7* bands, const Limits& lim, Vec7* out, double* out_rows) {
     Vec6 p_err[2], kst[2], ev[2];
     Vec7 tau_ns[2];
     Mat67 jac[2];
@@ -367,7 +355,6 @@ class Law {
       tau_ns[k] = k_.nullspace_stiffness * (posture - qa[k]) - k_.nullspace_damping * va[k];
       if (bands != nullptr)
         tau_ns[k] += bands[k].cwiseProduct(lim.null_space_band_scale * (Vec7::Ones() - k_.in_full));
-      if (wrist != nullptr) tau_ns[k] += wrist[k];
       jac_.setZero();
       pinocchio::getFrameJacobian(model_, data_, grip_[k], pinocchio::LOCAL, jac_);
       jac[k] = jac_.middleCols<7>(v0_[k]);
@@ -412,8 +399,8 @@ class Law {
   }
 
   // The wrist band of side k added to tau (self_collision.py WristField.sample and
-  // wrist_band_torque: the same operations); whether it acts.
-  bool wrist_band(int k, const Vec7& q, const Vec7& v, Vec7& tau) const {
+  // wrist_band_torque: the same operations).
+  void wrist_band(int k, const Vec7& q, const Vec7& v, Vec7& tau) const {
     const int n5 = wrist_n_[0], n6 = wrist_n_[1];
     const double* table = wrist_.data() + static_cast<size_t>(k) * n5 * n6;
     const double x = std::min(std::max((q[5] - wrist_lower_[0]) / wrist_step_, 0.0), n5 - 1.000001);
@@ -423,18 +410,17 @@ class Law {
     const double d00 = table[i * n6 + j], d10 = table[(i + 1) * n6 + j], d01 = table[i * n6 + j + 1],
                  d11 = table[(i + 1) * n6 + j + 1];
     const double d = (1.0 - f) * (1.0 - g) * d00 + f * (1.0 - g) * d10 + (1.0 - f) * g * d01 + f * g * d11;
-    if (d >= wrist_band_) return false;
+    if (d >= wrist_band_) return;
     const double g5 = ((1.0 - g) * (d10 - d00) + g * (d11 - d01)) / wrist_step_;
     const double g6 = ((1.0 - f) * (d01 - d00) + f * (d11 - d10)) / wrist_step_;
     const double norm = std::hypot(g5, g6);
-    if (norm < 1e-9) return false;
+    if (norm < 1e-9) return;
     const double n5v = g5 / norm, n6v = g6 / norm;
     const double s = (wrist_band_ - d) / wrist_band_;
     const double rate = n5v * v[5] + n6v * v[6];
     const double magnitude = wrist_torque_ * s * s - (rate < 0.0 ? wrist_damping_ * s * rate : 0.0);
     tau[5] += magnitude * n5v;
     tau[6] += magnitude * n6v;
-    return true;
   }
 
   // Joint impedance, modes "joint" and "safe", of arms [from, to) (impedance.py _joint).

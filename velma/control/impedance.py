@@ -37,11 +37,9 @@ joint; torso K = 1200 N·m/rad, ξ = 0.7.
   gain oscillates) and before the magnitude limit;
 - the torque rate limit (``TORQUE_RATE_LIMIT`` × dt per cycle, not on the first cycle) and
   the torque limits (100 N·m joints 0–4, 60 N·m joints 5–6; torso 300 N·m);
-- the wrist's self-collision band (velma/control/self_collision.py): joints 5 and 6 are pushed
-  along the gradient of the hand-to-forearm distance once the hand's rigid parts come within
-  ``WRIST_BAND`` of their own forearm; in joint and safe mode in full, in Cartesian mode through
-  the null space (unscaled), so that it uses the arm's redundancy and never pulls the grip off
-  its target (the IK's postures are clear of the band).
+- the wrist's self-collision band (velma/control/self_collision.py, all modes, in full): joints
+  5 and 6 are pushed along the gradient of the hand-to-forearm distance once the hand's rigid
+  parts come within ``WRIST_BAND`` of their own forearm.
 
 How it is computed (both arms in Cartesian mode plus the torso, on the quiet 2-core
 development machine: ≈ 64 µs per ``update`` in a tight loop; between MuJoCo steps of the
@@ -387,24 +385,25 @@ class VelmaController:
             grips.append(grip)
         cart = [cmds[0].mode == "cart", cmds[1].mode == "cart"]
         bands, braking = self._safety(qa, va, mb, cart)
-        wrist = self._wrist_band(qa, va)
         tau = np.empty((2, 7))
         if cart[0] and cart[1]:
-            self._cartesian(slice(0, 2), cmds, grips, qa, va, mb, bands, tau, wrist)
+            self._cartesian(slice(0, 2), cmds, grips, qa, va, mb, bands, tau)
         elif cart[0] or cart[1]:
             c = 0 if cart[0] else 1
-            self._cartesian(slice(c, c + 1), cmds, grips, qa, va, mb, bands, tau, wrist)
+            self._cartesian(slice(c, c + 1), cmds, grips, qa, va, mb, bands, tau)
             self._joint(slice(1 - c, 2 - c), cmds, qa, va, mb, tau)
             if bands is not None:
                 tau[1 - c] += bands[1 - c]
-            if wrist is not None:
-                tau[1 - c] += wrist[1 - c]
         else:
             self._joint(slice(0, 2), cmds, qa, va, mb, tau)
             if bands is not None:
                 tau += bands
-            if wrist is not None:
-                tau += wrist
+        if self.wrist is not None:
+            for k in (0, 1):
+                push = wrist_band_torque(self.wrist, k, qa[k], va[k])
+                if push is not None:
+                    tau[k, 5] += push[0]
+                    tau[k, 6] += push[1]
         tau += data.nle[idx]
         # torque rate limit, then magnitude limit; as the previous torque is within the
         # magnitude limit, both are one clip to [max(prev − rate, −L), min(prev + rate, L)]
@@ -425,20 +424,6 @@ class VelmaController:
             self.state[side].torque = tau[k]
         return torques, self._torso(q, v, float(m_full[self.torso_idx, self.torso_idx]), rate)
 
-    def _wrist_band(self, qa: Array, va: Array) -> Array | None:
-        """The wrist band's torques (2, 7) N·m (joints 5 and 6 only), None when no wrist is in
-        its band or the band is off (``wrist`` None)."""
-        if self.wrist is None:
-            return None
-        out: Array | None = None
-        for k in (0, 1):
-            push = wrist_band_torque(self.wrist, k, qa[k], va[k])
-            if push is not None:
-                if out is None:
-                    out = np.zeros((2, 7))
-                out[k, 5], out[k, 6] = push
-        return out
-
     def _cartesian(
         self,
         sl: slice,
@@ -449,11 +434,9 @@ class VelmaController:
         mb: tuple[Array, Array],
         bands: Array | None,
         out: Array,
-        wrist: Array | None = None,
     ) -> None:
         """Cartesian impedance (module docstring) of the arms ``sl`` into ``out[sl]``; the
-        band torques ``bands`` (2, 7) and the wrist band's ``wrist`` (2, 7) join τ_ns (they act
-        in the null space)."""
+        band torques ``bands`` (2, 7) join τ_ns (they act in the null space)."""
         model, data = self.robot.model, self.robot.data
         arms = range(2)[sl]
         n = len(arms)
@@ -476,8 +459,6 @@ class VelmaController:
         tau_ns = NULLSPACE_STIFFNESS * (posture - q_s) - NULLSPACE_DAMPING * v_s
         if bands is not None:  # through the null space, scaled, but the elbow's in full (limits.py)
             tau_ns += bands[sl] * (self.limits.null_space_band_scale * self._via_null_space)
-        if wrist is not None:  # through the null space, in full: the IK's postures are clear of it
-            tau_ns += wrist[sl]
         # setpoint twist in the grip frame (rotated only), minus J q̇
         ev = (twist.reshape(n, 2, 3) @ self._rot_buf[sl]).reshape(n, 6)  # rows: Rᵀ v, Rᵀ ω
         ev -= (jac @ v_s[:, :, None])[:, :, 0]
