@@ -111,8 +111,15 @@ pose (torso 0) from which the right arm's whole path (entry, grasp, lift, retrea
 place) stays continuous and ≥ 0.2 rad inside the joint limits (found offline with
 velma.control.ik). It is also the right arm's home posture (velma/model/scene.py): the
 palm-down branch cannot be reached by a Cartesian motion from a posture near the body
-(joint 3 meets its limit), so the arm starts in it. The left arm needs no such posture:
-its Cartesian path from home stays in a good branch."""
+(joint 3 meets its limit), so the arm starts in it."""
+LEFT_PICK_POSTURE: tuple[float, ...] = (-0.1, 1.48, -0.61, -1.7, 2.7, 1.25, -0.94)
+"""left_arm_0..6_joint (rad) before the jar approach: the executor's IK solution of the jar
+pre-grasp pose (torso 0, the jar where the scene puts it). From it the left arm's whole fetch
+(pre-grasp, grasp, lift, withdraw) stays in one branch, its wrist clear of its own forearm
+(≥ WRIST_BAND, velma/control/self_collision.py) for jar poses ±2 cm and ±0.2 rad about the
+default (scripts/bench_pour_seeds.py). A Cartesian motion from home instead ends the
+pre-grasp with joint 1 at its limit (2.09 rad) and the wrist 11 mm from the forearm, and for
+some jar poses the withdraw then cannot finish (issue 18)."""
 RIGHT_PARK_OFFSET: Vec3 = (-0.05, -0.20, 0.20)
 """Where the right grip frame waits after placing the bowl, relative to its place pose, in
 the frame turned by TORSO_PLACE (x forward, y the robot's left, z up)."""
@@ -259,11 +266,13 @@ def pour_script(obs: Observation, bowl_on_table: Vec3 | None = None) -> list[Exe
     p = script_poses(obs, bowl_on_table)
     left, right = JAR_ARM, BOWL_ARM
     place = np.array(BOWL_PLACE_POSITION)
+    left_names = [f"left_arm_{k}_joint" for k in range(7)]
     right_names = [f"right_arm_{k}_joint" for k in range(7)]
     return [
         LookAt(point=HEAD_LOOK_CABINET),
         MoveJoints(positions={"torso_0_joint": TORSO_PICK}, duration=SHORT_MOVE),
         # --- jar, left hand
+        MoveJoints(positions=dict(zip(left_names, LEFT_PICK_POSTURE, strict=True)), duration=SHORT_MOVE),
         Release(arm=left, opening=PREGRASP_OPENING),
         MoveTool(arm=left, target=p.jar_pregrasp, duration=MOVE_DURATION),
         MoveTool(arm=left, target=p.jar_grasp, duration=SHORT_MOVE),

@@ -141,6 +141,7 @@ JAR_SIDE_GRASP = GraspSpec(
     spread=sc.JAR_SPREAD,
     lift=sc.JAR_LIFT,
     retreat_distance=sc.JAR_RETREAT,
+    posture=sc.LEFT_PICK_POSTURE,
 )
 """The jar's side grasp (velma/scenario.py, kitchen.ttl ``jar_side_grasp_left``)."""
 

@@ -79,7 +79,8 @@ class Event(msgspec.Struct, kw_only=True):
     instant) in s since run start, ``text``, the ``channels`` used, and a ``kind`` for
     filtering (``initial_knowledge``, ``command``, ``plan_request``, ``planning``,
     ``plan_received``, ``plan_failed``, ``execution``, ``cancel``, ``grasp``, ``release``,
-    ``tilt``, ``observation``, ``action_failed``, ``environment``, ``finished``)."""
+    ``tilt``, ``observation``, ``action_failed``, ``self_contact``, ``environment``,
+    ``finished``)."""
 
     start: float
     text: str

@@ -252,13 +252,17 @@ def _robot_actions(messages: Sequence[Message], cutoff: float) -> list[Event]:
             requests.append(m)
         elif m.is_("C5", "ag_ex", "inform", "failure") and m.t >= cutoff:
             req = _request_for(m, requests)
-            described = _describe(req.content if req is not None else None, m)
-            if described is None:
-                continue
-            kind, text = described
-            if step:
-                text += f" (step {step})"
-            out.append(Event(start=m.t, text=text, channels=["C5"], kind=kind))
+            cmd = req.content if req is not None else None
+            where = f" (step {step})" if step else ""
+            described = _describe(cmd, m)
+            if described is not None:
+                kind, text = described
+                out.append(Event(start=m.t, text=text + where, channels=["C5"], kind=kind))
+            if isinstance(m.content, CommandResult) and m.content.self_contacts:
+                name = type(cmd).__name__ if cmd is not None else m.content.command
+                pairs = ", ".join(m.content.self_contacts)
+                text = f"the robot touched itself during {name}: {pairs}{where}"
+                out.append(Event(start=m.t, text=text, channels=["C5"], kind="self_contact"))
     return out
 
 

@@ -175,6 +175,7 @@ SAMPLE_TERMS: list[msgspec.Struct] = [
     Observe(objects=("jar",)),
     Wait(duration=1.0),
     CommandResult(command="grasp", ok=False, reason="no contact", sim_time=4.2, tool_error=0.01),
+    CommandResult(command="move_tool", ok=True, sim_time=9.1, self_contacts=("left_arm_5 + left_arm_3",)),
     # L_SD
     Observation(
         stamp=2.0,

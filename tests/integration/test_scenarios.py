@@ -26,6 +26,9 @@ def scenario(name: str, runs: Path) -> tuple[subprocess.CompletedProcess[str], P
         timeout=1500,
     )
     (run_dir,) = [p for p in runs.iterdir() if p.is_dir()]
+    # self-collision is on (issue 18): in no scenario does a command make the robot touch itself
+    touched = [e.text for e in build_report(run_dir).events if e.kind == "self_contact"]
+    assert touched == [], touched
     return proc, run_dir
 
 

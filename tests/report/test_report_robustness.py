@@ -181,3 +181,15 @@ def test_failures_appear_in_timeline_and_planning(make_run: MakeRun, pour: Any) 
     assert failed[0].start == pytest.approx(51.0)
     assert report.plans[-1].outcome == "failed: jar unreachable"
     assert any(e.kind == "plan_failed" for e in report.events)
+    assert [e for e in report.events if e.kind == "self_contact"] == []
+
+
+def test_a_command_that_made_the_robot_touch_itself_is_in_the_timeline(make_run: MakeRun, pour: Any) -> None:
+    touched = ("left_arm_3_link + left_ft_geom",)
+    pour.add(50.0, "C5", "a_ta", "ag_ex", "request", Grasp(arm=Arm.LEFT), conversation="ex-9")
+    result = CommandResult(command="grasp", ok=True, self_contacts=touched)
+    pour.add(51.0, "C5", "ag_ex", "a_ta", "inform", result, conversation="ex-9")
+    report = build_report(make_run(pour))
+    events = [e for e in report.events if e.kind == "self_contact"]
+    assert [e.text for e in events] == [f"the robot touched itself during Grasp: {touched[0]}"]
+    assert events[0].start == pytest.approx(51.0)

@@ -172,3 +172,31 @@ def test_the_check_names_the_touching_pair(side: str) -> None:
     assert check.colliding(data, side, q[idx]) == (f"{side}_HandPalmLink", f"{side}_arm_5_link")
     other = SIDES[1 - SIDES.index(side)]
     assert check.colliding(data, other) is None  # a contact of one arm does not block the other
+
+
+def test_a_command_during_which_the_robot_touches_itself_names_the_pair() -> None:
+    """The loop reports robot–robot contact per command (``CommandResult.self_contacts``):
+    none for a Wait in the home posture; the touching pair for a Wait with the left wrist
+    bent into its forearm (the scene's record of it, services/report/timeline.py)."""
+    from shared.fipa_codec.languages.l_ex import CommandResult, Wait
+    from velma.executor.loop import ControlLoop
+    from velma.executor.runtime import Runtime
+
+    rt = Runtime(seed=0)
+    loop: ControlLoop[int] = ControlLoop(rt)
+
+    def wait() -> CommandResult:
+        loop.submit(0, Wait(duration=0.03))
+        while (done := loop.cycle()) is None:
+            pass
+        assert isinstance(done[1], CommandResult) and done[1].ok
+        return done[1]
+
+    assert wait().self_contacts == ()
+    for k, value in TOUCHING.items():
+        rt.data.qpos[rt.model.joint(f"left_arm_{k}_joint").qposadr[0]] = value - 0.1
+    mujoco.mj_forward(rt.model, rt.data)
+    rt.ctrl.hold("left", rt.q()[rt.ctrl.arm_slice["left"]].copy())
+    touched = wait().self_contacts
+    assert any("left_ft_geom" in pair for pair in touched), touched
+    assert all(" + " in pair for pair in touched)

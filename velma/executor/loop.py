@@ -19,6 +19,7 @@ import collections
 import time
 from typing import Generic, TypeVar
 
+import msgspec
 import numpy as np
 
 from shared.fipa_codec.languages.l_ex import CommandResult, ExecutorCommand, command_name
@@ -42,6 +43,7 @@ class ControlLoop(Generic[T]):
         self.current: tuple[T, ExecutorCommand, Primitive] | None = None
         self.holding: str | None = None
         self.errors: collections.deque[tuple[str, str]] = collections.deque(maxlen=64)
+        self._self_contacts_at_start: dict[tuple[str, str], int] = {}
 
     def submit(self, token: T, command: ExecutorCommand) -> None:
         """Queue ``command``; its result comes back from ``cycle`` with ``token``."""
@@ -98,6 +100,7 @@ class ControlLoop(Generic[T]):
         if self.current is None and self.queue:
             token, command = self.queue.popleft()
             self.holding = None
+            self._self_contacts_at_start = dict(rt.self_contact_pairs)
             try:
                 prim = make_primitive(command)
                 result = prim.start(rt)
@@ -105,7 +108,7 @@ class ControlLoop(Generic[T]):
                 result = self._error(command, exc)
                 prim = None
             if result is not None:
-                finished = (token, result)
+                finished = (token, self._with_self_contacts(result))
             elif prim is not None:
                 self.current = (token, command, prim)
         elif self.current is not None:
@@ -115,11 +118,21 @@ class ControlLoop(Generic[T]):
             except Exception as exc:
                 result = self._error(command, exc)
             if result is not None:
-                finished = (token, result)
+                finished = (token, self._with_self_contacts(result))
                 self.current = None
         rt.part_s[0] = time.perf_counter() - t0
         rt.cycle()
         return finished
+
+    def _with_self_contacts(self, result: Result) -> Result:
+        """``result`` naming the robot's own geometry pairs that touched since the command
+        started (``Runtime.self_contact_pairs`` grew); unchanged when none did."""
+        pairs = self.rt.self_contact_pairs
+        if not isinstance(result, CommandResult) or pairs == self._self_contacts_at_start:
+            return result
+        before = self._self_contacts_at_start
+        touched = tuple(sorted(f"{a} + {b}" for (a, b), n in pairs.items() if n > before.get((a, b), 0)))
+        return msgspec.structs.replace(result, self_contacts=touched)
 
     def _error(self, command: ExecutorCommand, exc: Exception) -> CommandResult:
         name = command_name(command)

@@ -96,13 +96,17 @@ def command_name(command: object) -> str:
 class CommandResult(msgspec.Struct, frozen=True, tag="result", kw_only=True):
     """The outcome of one executor command: ``ok`` and, when not, a ``reason``
     (``unreachable``, ``contact lost``, ``timeout``, ``no contact``…). ``sim_time`` is the
-    simulation time at completion (s); ``tool_error`` the final grip-frame position error (m)."""
+    simulation time at completion (s); ``tool_error`` the final grip-frame position error (m);
+    ``self_contacts`` the pairs of the robot's own geometries (``"a + b"``, sorted) that touched
+    each other while the command ran — empty when the robot did not touch itself (issue 18:
+    Velma's links collide with each other in the simulation)."""
 
     command: str
     ok: bool
     reason: str | None = None
     sim_time: float = 0.0
     tool_error: float | None = None
+    self_contacts: tuple[str, ...] = ()
 
 
 L_EX = register(
