@@ -274,7 +274,7 @@ def pour_script(obs: Observation, bowl_on_table: Vec3 | None = None) -> list[Exe
         # --- jar, left hand
         MoveJoints(positions=dict(zip(left_names, LEFT_PICK_POSTURE, strict=True)), duration=SHORT_MOVE),
         Release(arm=left, opening=PREGRASP_OPENING),
-        MoveTool(arm=left, target=p.jar_pregrasp, duration=MOVE_DURATION),
+        MoveTool(arm=left, target=p.jar_pregrasp, duration=SHORT_MOVE),
         MoveTool(arm=left, target=p.jar_grasp, duration=SHORT_MOVE),
         Grasp(arm=left, spread=JAR_SPREAD),
         MoveTool(arm=left, target=p.jar_lift, duration=1.0),

@@ -33,9 +33,9 @@ on the executor; scripts/bench_kitchen_tasks.py repeats the runs over seeds):
   the spots that satisfy both (by the edge nearest the cabinet, x ≈ 0.5 m) put the bowl in
   the way of the open fingers on the horizontal approach. It works at
   torso angle −1.5 (``JAR_TABLE_FACING``) in the table's corner nearest the robot, right of
-  the bowl (``JAR_TABLE``): set down, released, re-grasped with the horizontal approach along
-  the torso's forward direction (the open finger Three passes 2.2 cm beside the bowl), and
-  poured with the unchanged pour.
+  the bowl (``JAR_TABLE``): set down, released, re-grasped with the same grip reached from
+  above (``JAR_TABLE_GRASP``: along the torso's forward direction the forearm would meet the
+  torso), and poured with the unchanged pour.
 - The cup is taken with the right hand's top grasp (as the bowl, palm down, after
   RIGHT_PICK_POSTURE) and put on the table at the table's facing −0.95 (``CUP_TABLE``).
 - Back in the cabinet, the right hand must not rise more than ≈ 0.05 m above where it
@@ -143,7 +143,24 @@ JAR_SIDE_GRASP = GraspSpec(
     retreat_distance=sc.JAR_RETREAT,
     posture=sc.LEFT_PICK_POSTURE,
 )
-"""The jar's side grasp (velma/scenario.py, kitchen.ttl ``jar_side_grasp_left``)."""
+"""The jar's side grasp (velma/scenario.py, kitchen.ttl ``jar_side_grasp_left``), in the
+cabinet."""
+
+JAR_TABLE_GRASP = GraspSpec(
+    arm=sc.JAR_ARM,
+    grip=sc.JAR_GRIP_IN_OBJECT,
+    approach=(0.0, 0.0, -1.0),
+    approach_distance=0.12,
+    spread=sc.JAR_SPREAD,
+    lift=sc.JAR_LIFT,
+    retreat=(0.0, 0.0, 1.0),
+    retreat_distance=0.10,
+)
+"""The jar on the table (kitchen.ttl ``jar_side_grasp_left_from_above``): the side grip,
+reached from 0.12 m above — the way the open hand left the jar when it put it down — and lifted
+straight up. On the table the side grasp's horizontal approach and withdraw, along the torso's
+forward direction, bring the left forearm into the torso (issue 18: the robot's links collide
+with each other; found with the executor's IK and its self-collision check)."""
 
 BOWL_RIM_GRASP = GraspSpec(
     arm=sc.BOWL_ARM,
@@ -182,11 +199,16 @@ reaching palm down into the middle of the cabinet raises it (the bowl's grasp pa
 
 
 # ----------------------------------------------------------------- placements
-JAR_TABLE = Placement(position=(0.11, -0.46, 0.75), facing=JAR_TABLE_FACING, park=(-0.20, 0.0, 0.10))
+JAR_TABLE = Placement(
+    position=(0.11, -0.46, 0.75), facing=JAR_TABLE_FACING, approach=0.12, park=(-0.05, 0.20, 0.13)
+)
 """The jar on the table: in the table's corner nearest the robot, 0.22 m from the bowl (to its
 right, seen from the robot at the table), its wall 6.5 cm from the table's edges at x = 0
 and y = −0.35; the wrist hangs beyond the y = −0.35 edge (the edge nearest the cabinet). The
-left hand parks back and up, away from the bowl."""
+jar comes down from 0.12 m above, so that the open hand, back there after the release, clears
+the jar's rim when it parks. The left hand parks up and to the robot's left (turned frame),
+clear of the torso: straight back, its forearm would meet the torso (issue 18); and the hand
+must stay out of the right arm's way at the cabinet once the torso turns there."""
 CUP_TABLE = Placement(position=(0.25, -0.70, 0.75), facing=TABLE_FACING, park=(-0.25, 0.0, 0.20))
 """The cup on the table, right of the bowl and beyond it (seen from the robot), 0.25 m from
 the bowl and 0.28 m from the jar's table spot, ≥ 0.21 m from the table's edges. The hand
@@ -362,10 +384,10 @@ def cup_to_table(obs: Observation, torso: float = JAR_TABLE_FACING) -> list[Exec
 
 
 def regrasp_jar_and_pour(obs: Observation, torso: float = TABLE_FACING) -> list[ExecutorCommand]:
-    """Grasp the jar again where it was observed on the table (left hand, the side grasp
-    turned by JAR_TABLE_FACING), lift and withdraw it, and pour it into the bowl where the
+    """Grasp the jar again where it was observed on the table (left hand, JAR_TABLE_GRASP
+    turned by JAR_TABLE_FACING), lift it, and pour it into the bowl where the
     bowl was observed (velma/scenario.py ``pour_commands``; ends with an observation)."""
-    fetch = fetch_commands(JAR_SIDE_GRASP, position_of(obs, "jar"), JAR_TABLE_FACING, torso)
+    fetch = fetch_commands(JAR_TABLE_GRASP, position_of(obs, "jar"), JAR_TABLE_FACING, torso)
     return [*fetch, *sc.pour_commands(position_of(obs, "bowl"))]
 
 

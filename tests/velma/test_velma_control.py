@@ -432,6 +432,7 @@ def test_limit_band_pushes_a_joint_away_from_its_limit(band_torque: float) -> No
     upper = rt.robot.model.upperPositionLimit[rt.ctrl.arm_slice[side]][1]
     target = rt.arm_q(side)
     target[1] = upper - 0.02  # the joint impedance pulls joint 1 almost onto its limit
+    target[0] = 0.8  # the arm turned out: from home, its fingers would meet the torso first
     rt.ctrl.hold(side, target)
     rt.ctrl.arm[side].joint_stiffness = 20.0
     for _ in range(3000):

@@ -3,7 +3,9 @@
 Used by the executor to decide whether a MoveTool/Tilt target is reachable (``unreachable``)
 and to give the Cartesian impedance law a null-space posture that agrees with the target.
 Given a ``SelfCollision`` check, a posture in which the robot would touch itself is rejected
-and the search goes on from its other starts (issue 18).
+(issue 18): the search first swivels the elbow — steps along the Jacobian's null space, both
+ways, each re-converged onto the target — to the nearest posture that is free, and only then
+goes on from its random starts.
 Only the seven arm joints move; torso, head and hand joints keep their values in ``q``.
 Joint limits are enforced by clamping each iterate, with a 0.05 rad margin.
 
@@ -12,7 +14,7 @@ Source: standard DLS IK (Wampler 1986); kinematics from velma.xml via Pinocchio.
 
 from __future__ import annotations
 
-from collections.abc import Generator
+from collections.abc import Callable, Generator
 from dataclasses import dataclass
 
 import numpy as np
@@ -22,6 +24,10 @@ from velma.control.robot_model import Array, RobotModel, arm_joints
 from velma.control.self_collision import SelfCollision
 
 LIMIT_MARGIN = 0.05  # rad
+SWIVEL_STEP = 0.1
+"""Joint motion (rad, norm over the seven joints) per step of the elbow swivel."""
+SWIVEL_STEPS = 16
+"""Steps of the swivel each way (≈ 1.6 rad of self-motion)."""
 
 
 @dataclass(frozen=True)
@@ -128,6 +134,14 @@ def _search(
     first = yield from _dls(robot, data, side, target, q0, posture=q0)
     if first.ok and (yield from free(first)):
         return first
+    if first.ok and self_collision is not None:  # swivel the elbow off the robot itself
+        swivelled = []
+        for direction in (1.0, -1.0):
+            found = yield from _swivel(robot, data, side, target, first.q, direction, free)
+            if found is not None:
+                swivelled.append(found)
+        if swivelled:
+            return min(swivelled, key=lambda r: float(np.linalg.norm(r.q[idx] - q0[idx])))
     lo = robot.model.lowerPositionLimit[idx]
     hi = robot.model.upperPositionLimit[idx]
     rng = np.random.default_rng(seed)
@@ -149,6 +163,48 @@ def _search(
     if touching is not None:  # every converged posture touched the robot itself
         return IkResult(first.q, False, first.position_error, first.rotation_error, touching)
     return first
+
+
+def _swivel(
+    robot: RobotModel,
+    data: pin.Data,
+    side: str,
+    target: pin.SE3,
+    q_start: Array,
+    direction: float,
+    free: Callable[[IkResult], Generator[None, None, bool]],
+) -> Generator[None, None, IkResult | None]:
+    """Self-motion from ``q_start`` (a posture at ``target``): ``SWIVEL_STEPS`` steps of
+    ``SWIVEL_STEP`` along the null space of the grip Jacobian (its last right singular vector,
+    kept pointing the same way; ``direction`` ±1 picks the way), each re-converged onto
+    ``target``. The first posture ``free`` accepts, or None (none did, or the arm left the
+    target or met its limits)."""
+    model = robot.model
+    idx = robot.v_indices(arm_joints(side))
+    lo = model.lowerPositionLimit[idx] + LIMIT_MARGIN
+    hi = model.upperPositionLimit[idx] - LIMIT_MARGIN
+    fid = robot.grip_frame_id[side]
+    q = np.array(q_start, dtype=float)
+    previous: Array | None = None
+    for _ in range(SWIVEL_STEPS):
+        jac = pin.computeFrameJacobian(model, data, q, fid, pin.LOCAL)[:, idx]
+        null = np.linalg.svd(jac)[2][-1]
+        if previous is None:
+            null = direction * null
+        elif float(null @ previous) < 0.0:
+            null = -null
+        previous = null
+        stepped = q[idx] + SWIVEL_STEP * null
+        if np.any(stepped < lo) or np.any(stepped > hi):
+            return None
+        q[idx] = stepped
+        result = yield from _dls(robot, data, side, target, q, max_iter=20, posture=q)
+        if not result.ok:
+            return None
+        q = result.q
+        if (yield from free(result)):
+            return result
+    return None
 
 
 def solve_ik(

@@ -439,6 +439,7 @@ class WorldModel:
                     entry=_vec3(entry) if entry is not None else None,
                     entry_distance=self._float(name, p, ROCO.entryDistance, 0.0),
                     posture=_vec(_first(p, ROCO.posture) or ""),
+                    on=tuple(sorted(_name(f) for f in p.get(ROCO.graspOn, ()))),
                     lift=self._float(name, p, ROCO.lift, 0.04),
                     retreat=self._req_vec3(name, p, ROCO.retreat),
                     retreat_distance=self._float(name, p, ROCO.retreatDistance, 0.25),

@@ -97,8 +97,11 @@ def _grasp_pose(grasp: GraspAffordance) -> Pose:
 
 
 def _best_grasp(s: Any, obj: str, arm: str) -> GraspAffordance | None:
+    """The first of a_km's grasps of ``obj`` by ``arm`` meant for the furniture ``obj`` is on
+    or in (``GraspAffordance.on``), else the first (e.g. for an object held)."""
     found = _k(s).grasps.get((obj, arm), ())
-    return found[0] if found else None
+    where = s.where.get(obj, ("", ""))[1]
+    return next((g for g in found if where in g.on), found[0] if found else None)
 
 
 def _free_arm_for(s: Any, obj: str, exclude: str | None = None) -> str | None:

@@ -111,7 +111,8 @@ class GraspAffordance(msgspec.Struct, frozen=True, kw_only=True):
     (the unit direction it then moves in to the grasp), optionally first an entry point
     ``entry_distance`` back along ``entry`` from there; closes with finger ``spread``; lifts
     by ``lift``; and withdraws ``retreat_distance`` along ``retreat``. A non-empty
-    ``posture`` (the arm's seven joint angles, rad) is taken first, by a joint move."""
+    ``posture`` (the arm's seven joint angles, rad) is taken first, by a joint move. ``on``
+    names the furniture the object must stand on or in for this grasp (empty: anywhere)."""
 
     name: str
     grip_in_object: Pose
@@ -125,6 +126,7 @@ class GraspAffordance(msgspec.Struct, frozen=True, kw_only=True):
     retreat: Vec3 = (-1.0, 0.0, 0.0)
     retreat_distance: float = 0.25
     posture: tuple[float, ...] = ()
+    on: tuple[str, ...] = ()
 
 
 class PourAffordance(msgspec.Struct, frozen=True, kw_only=True):

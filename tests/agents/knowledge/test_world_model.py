@@ -274,7 +274,11 @@ def test_sparql_select_rows_and_the_structured_answers() -> None:
     objects = world.physical_objects()
     assert {"bowl", "cabinet", "jar", "jar_content", "table"} <= set(objects) and objects == sorted(objects)
     assert not {"left_gripper", "velma", "jar_pose"} & set(objects)
-    assert [g.name for g in world.grasps("jar", "left")] == ["jar_side_grasp_left"]
+    grasps = world.grasps("jar", "left")
+    assert [(g.name, g.on) for g in grasps] == [
+        ("jar_side_grasp_left", ("cabinet",)),
+        ("jar_side_grasp_left_from_above", ("table",)),
+    ]
     assert world.grasps("jar", "right") == ()
     assert (0.34, -0.46, 0.75) in world.placement("bowl", "table").positions
     pour = world.pour("jar", "bowl")
