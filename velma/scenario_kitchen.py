@@ -221,8 +221,10 @@ BOWL_CABINET = Placement(
 palm-down right arm's forearm rises towards the cabinet's top board as the hand rises (at
 0.08 m it meets it; at 0.04 m it passes 13 mm below). The hand withdraws horizontally (its
 open fingers pass beside the rim)."""
-JAR_CABINET = Placement(position=(0.70, 0.20, 0.85), facing=CABINET_FACING, park=(-0.30, 0.0, 0.0))
-"""The jar back in the cabinet, where it started; the hand withdraws horizontally."""
+JAR_CABINET = Placement(position=(0.70, 0.20, 0.85), facing=CABINET_FACING, park=(-0.30, 0.15, 0.0))
+"""The jar back in the cabinet, where it started; the hand withdraws horizontally and to the
+robot's left: straight back, its fingers meet the right hand's when the torso turns to the
+table and the right hand enters towards the bowl (issue 18)."""
 
 
 # ----------------------------------------------------------------- helpers
