@@ -12,7 +12,9 @@ Two modes:
   aimed at the observed poses as the agents' plan is; no agents).
 
 Success: every command succeeded (grasps by contact and friction) and ≥ ``--min-share``
-(default 90 %) of the spheres ended in the bowl.
+(default 90 %) of the spheres ended in the bowl. Beside it, the number of commands during which
+the robot touched itself (``CommandResult.self_contacts``; Velma's links collide with each
+other in the simulation, issue 18).
 
 Usage: ``python scripts/bench_pour_seeds.py [--mode fleet|script] [--seeds 20] [--first 1]``
 """
@@ -42,6 +44,8 @@ class Outcome:
     total: int | None
     detail: str
     wall: float
+    touched: int = 0
+    """Commands during which the robot touched itself (issue 18: self-collision is on)."""
 
 
 def run_fleet(seed: int, runs_dir: Path, realtime: bool) -> Outcome:
@@ -64,7 +68,8 @@ def run_fleet(seed: int, runs_dir: Path, realtime: bool) -> Outcome:
     report = build_report(new[-1])
     c = report.content
     detail = report.header.detail or ("succeeded" if proc.returncode == 0 else "failed")
-    return Outcome(proc.returncode == 0, c.inside, c.total, f"{detail} ({new[-1].name})", wall)
+    touched = sum(e.kind == "self_contact" for e in report.events)
+    return Outcome(proc.returncode == 0, c.inside, c.total, f"{detail} ({new[-1].name})", wall, touched)
 
 
 def run_script(seed: int) -> Outcome:
@@ -88,9 +93,10 @@ def run_script(seed: int) -> Outcome:
     if isinstance(final, Observation):
         bowl = next(o for o in final.objects if o.name == "bowl")
         inside, total = bowl.particles_inside, final.total_particles
+    touched = sum(isinstance(r, CommandResult) and bool(r.self_contacts) for r in results)
     if failed is not None:
-        return Outcome(False, inside, total, f"{failed.command} failed: {failed.reason}", wall)
-    return Outcome(True, inside, total, "all commands succeeded", wall)
+        return Outcome(False, inside, total, f"{failed.command} failed: {failed.reason}", wall, touched)
+    return Outcome(True, inside, total, "all commands succeeded", wall, touched)
 
 
 def main() -> int:
@@ -109,10 +115,10 @@ def main() -> int:
         print(f"Run folders: {runs_dir}")
     print(
         "\n| seed | jar dx, dy (mm), yaw (°) | bowl dx, dy (mm), yaw (°) | spheres in bowl | share "
-        "| success | wall s | detail |"
+        "| success | robot touched itself (commands) | wall s | detail |"
     )
-    print("|---|---|---|---|---|---|---|---|")
-    successes = 0
+    print("|---|---|---|---|---|---|---|---|---|")
+    successes = touched = 0
     shares: list[float] = []
     for seed in range(args.first, args.first + args.seeds):
         p = scene_perturbation(seed)
@@ -120,6 +126,7 @@ def main() -> int:
         share = out.inside / out.total if out.inside is not None and out.total else 0.0
         ok = out.ok and share >= args.min_share
         successes += ok
+        touched += out.touched > 0
         shares.append(share)
 
         def pert(o: object) -> str:
@@ -128,13 +135,14 @@ def main() -> int:
         inside = f"{out.inside}/{out.total}" if out.inside is not None else "not observed"
         print(
             f"| {seed} | {pert(p.jar)} | {pert(p.bowl)} | {inside} | {share * 100:.0f} % | "
-            f"{'yes' if ok else 'NO'} | {out.wall:.0f} | {out.detail} |",
+            f"{'yes' if ok else 'NO'} | {out.touched} | {out.wall:.0f} | {out.detail} |",
             flush=True,
         )
     n = args.seeds
     print(
         f"\nSuccess (all commands ok and ≥ {args.min_share * 100:.0f} % of the spheres in the bowl): "
-        f"{successes} of {n}; mean share {sum(shares) / n * 100:.1f} %, lowest {min(shares) * 100:.0f} %."
+        f"{successes} of {n}; mean share {sum(shares) / n * 100:.1f} %, lowest {min(shares) * 100:.0f} %; "
+        f"the robot touched itself in {touched} of {n} runs."
     )
     return 0
 
