@@ -13,7 +13,8 @@ and, for the check, not two geoms of the same hand: the fingers close onto the p
 each other by design, and their motion is the hand's, not the arm's.
 
 Used by the IK (velma/control/ik.py): a posture whose geoms come closer than ``MARGIN`` is
-rejected, and the search goes on from its other starts (issue 18).
+rejected; the search swivels the elbow to a free posture, else goes on from its other starts
+(issue 18).
 """
 
 from __future__ import annotations
