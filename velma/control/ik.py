@@ -20,7 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 
-from velma.control.robot_model import Array, RobotModel, arm_joints
+from velma.control.robot_model import Array, IntArray, RobotModel, arm_joints
 from velma.control.self_collision import SelfCollision
 
 LIMIT_MARGIN = 0.05  # rad
@@ -165,6 +165,15 @@ def _search(
     return first
 
 
+def _arm(robot: RobotModel, side: str) -> tuple[IntArray, Array, Array, int]:
+    """The arm's velocity indices, its joint bounds (limits less ``LIMIT_MARGIN``, rad) and the
+    grip frame's id."""
+    idx = robot.v_indices(arm_joints(side))
+    lo = robot.model.lowerPositionLimit[idx] + LIMIT_MARGIN
+    hi = robot.model.upperPositionLimit[idx] - LIMIT_MARGIN
+    return idx, lo, hi, robot.grip_frame_id[side]
+
+
 def _swivel(
     robot: RobotModel,
     data: pin.Data,
@@ -180,10 +189,7 @@ def _swivel(
     ``target``. The first posture ``free`` accepts, or None (none did, or the arm left the
     target or met its limits)."""
     model = robot.model
-    idx = robot.v_indices(arm_joints(side))
-    lo = model.lowerPositionLimit[idx] + LIMIT_MARGIN
-    hi = model.upperPositionLimit[idx] - LIMIT_MARGIN
-    fid = robot.grip_frame_id[side]
+    idx, lo, hi, fid = _arm(robot, side)
     q = np.array(q_start, dtype=float)
     previous: Array | None = None
     for _ in range(SWIVEL_STEPS):
@@ -260,10 +266,7 @@ def _dls(
 ) -> Generator[None, None, IkResult]:
     """The DLS iteration of ``solve_ik``; yields after each iteration."""
     model = robot.model
-    idx = robot.v_indices(arm_joints(side))
-    lo = model.lowerPositionLimit[idx] + LIMIT_MARGIN
-    hi = model.upperPositionLimit[idx] - LIMIT_MARGIN
-    fid = robot.grip_frame_id[side]
+    idx, lo, hi, fid = _arm(robot, side)
     q = np.array(q0, dtype=float)
     q[idx] = np.clip(q[idx], lo, hi)
     perr = rerr = float("inf")
