@@ -262,6 +262,7 @@ class MoveJointsPrimitive:
             elif name in HEAD_JOINTS:
                 head[HEAD_JOINTS.index(name)] = value
                 peak = max(peak, abs(value - q[i]) / HEAD_VEL)
+                rt.gaze = None  # the head's angles are given: it no longer holds a gaze
             else:
                 return _result(rt, self.name, False, f"unknown joint: {name}")
         self.duration = max(float(self.cmd.duration), MIN_JERK_PEAK_RATE * peak)
@@ -298,6 +299,8 @@ class MoveJointsPrimitive:
             for side, rel in self.carried.items():
                 rt.ctrl.arm[side].pose = frame.act(rel)
                 rt.ctrl.arm[side].twist = np.zeros(6)
+            if rt.gaze is not None:  # the head keeps looking where LookAt aimed it
+                rt.head_target = look_angles(rt, rt.gaze)[1]
         if t < self.duration:
             return None
         rt.ctrl.torso_qd = 0.0
@@ -424,8 +427,25 @@ class ReleasePrimitive:
         return None
 
 
+def look_angles(rt: Runtime, point: Array) -> tuple[Array, Array]:
+    """Pan and tilt (rad, shape (2,)) that aim the head camera at ``point`` (world, m) with the
+    torso where it is now, and the same clipped to the head joints' limits."""
+    data, model = rt.data, rt.model
+    base = data.xpos[model.body("head_pan_link").id]
+    torso = torso_frame(float(rt.q()[rt.ctrl.torso_idx]))
+    rel = torso.rotation.T @ (point - base)
+    pan = math.atan2(rel[1], rel[0])
+    horizontal = math.hypot(rel[0], rel[1])
+    tilt = math.atan2(-(rel[2] - 0.048 - CAMERA_HEIGHT), horizontal)
+    lo = model.jnt_range[[model.joint(j).id for j in HEAD_JOINTS], 0]
+    hi = model.jnt_range[[model.joint(j).id for j in HEAD_JOINTS], 1]
+    wanted = np.array([pan, tilt])
+    return wanted, np.clip(wanted, lo, hi)
+
+
 class LookAtPrimitive:
-    """Pan and tilt the head so that the camera looks at ``point`` (world)."""
+    """Pan and tilt the head so that the camera looks at ``point`` (world); the head keeps
+    looking at it while the torso turns (``Runtime.gaze``, followed by MoveJoints)."""
 
     name = "look_at"
 
@@ -435,20 +455,11 @@ class LookAtPrimitive:
         self.target = np.zeros(2)
 
     def start(self, rt: Runtime) -> Result | None:
-        data, model = rt.data, rt.model
-        base = data.xpos[model.body("head_pan_link").id]
-        torso = torso_frame(float(rt.q()[rt.ctrl.torso_idx]))
-        rel = torso.rotation.T @ (self.point - base)
-        pan = math.atan2(rel[1], rel[0])
-        horizontal = math.hypot(rel[0], rel[1])
-        tilt = math.atan2(-(rel[2] - 0.048 - CAMERA_HEIGHT), horizontal)
-        lo = model.jnt_range[[model.joint(j).id for j in HEAD_JOINTS], 0]
-        hi = model.jnt_range[[model.joint(j).id for j in HEAD_JOINTS], 1]
-        wanted = np.array([pan, tilt])
-        self.target = np.clip(wanted, lo, hi)
+        wanted, self.target = look_angles(rt, self.point)
         if np.max(np.abs(self.target - wanted)) > 0.05:
             return _result(rt, self.name, False, "unreachable")
         rt.head_target = self.target.copy()
+        rt.gaze = self.point.copy()
         self.t0 = rt.time
         return None
 

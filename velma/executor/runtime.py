@@ -92,6 +92,10 @@ class Runtime:
         self.head_qadr = np.array([self.model.joint(j).qposadr[0] for j in HEAD_JOINTS])
         self.head_target = self.data.qpos[self.head_qadr].copy()
         self.head_set = self.head_target.copy()
+        self.gaze: Array | None = None
+        """The world point (m) the head keeps looking at while the torso turns (set by LookAt;
+        a MoveJoints of the head joints ends it); None: the head holds its joint angles. Not
+        in a checkpoint: after a restore the head holds its angles until the next LookAt."""
         self.held: dict[str, int | None] = {s: None for s in SIDES}
         self.touch: dict[str, dict[int, int]] = {s: {} for s in SIDES}
         self.lost_cycles: dict[str, int] = {s: 0 for s in SIDES}

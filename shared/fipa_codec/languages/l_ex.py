@@ -54,7 +54,8 @@ class Release(msgspec.Struct, frozen=True, tag="release", kw_only=True):
 
 
 class LookAt(msgspec.Struct, frozen=True, tag="look_at", kw_only=True):
-    """Point the head (pan, tilt) at ``point`` (world, m)."""
+    """Point the head (pan, tilt) at ``point`` (world, m); it keeps looking there while the
+    torso turns, until a MoveJoints gives the head's joint angles."""
 
     point: Vec3
 
