@@ -524,15 +524,6 @@ def test_hold_and_safe_arguments() -> None:
         ctrl.update(np.zeros(33), np.zeros(33))
 
 
-def _run(rt: Runtime, command: object) -> CommandResult | Observation:
-    prim = make_primitive(command)  # type: ignore[arg-type]
-    result = prim.start(rt)
-    while result is None:
-        result = prim.step(rt)
-        rt.cycle()
-    return result
-
-
 def test_the_head_keeps_looking_at_its_point_while_the_torso_turns() -> None:
     """LookAt sets a gaze; a torso turn afterwards re-aims the head at the same world point
     (the planner looks at the furniture, then faces it). Head angles given by MoveJoints end
@@ -542,8 +533,8 @@ def test_the_head_keeps_looking_at_its_point_while_the_torso_turns() -> None:
 
     rt = Runtime(seed=0, n_particles=0)
     point = np.array([0.7, 0.0, 0.9])  # the cabinet's view point
-    assert isinstance(r := _run(rt, LookAt(point=tuple(point))), CommandResult) and r.ok
-    assert _run(rt, MoveJoints(positions={"torso_0_joint": -0.8}, duration=1.0)).ok  # type: ignore[union-attr]
+    assert isinstance(r := run(rt, LookAt(point=tuple(point))), CommandResult) and r.ok
+    assert run(rt, MoveJoints(positions={"torso_0_joint": -0.8}, duration=1.0)).ok  # type: ignore[union-attr]
     for _ in range(1500):  # the head servo catches up (≤ 1.04 rad/s)
         rt.cycle()
     wanted, _ = look_angles(rt, point)
@@ -551,7 +542,7 @@ def test_the_head_keeps_looking_at_its_point_while_the_torso_turns() -> None:
     assert abs(wanted[0]) > 0.7  # the point is now off to the side ...
     assert np.max(np.abs(head - wanted)) < 0.03  # ... and the head looks at it
     held = head.copy()
-    assert _run(rt, MoveJoints(positions={"head_pan_joint": float(held[0])}, duration=0.2)).ok  # type: ignore[union-attr]
+    assert run(rt, MoveJoints(positions={"head_pan_joint": float(held[0])}, duration=0.2)).ok  # type: ignore[union-attr]
     assert rt.gaze is None
-    assert _run(rt, MoveJoints(positions={"torso_0_joint": 0.0}, duration=1.0)).ok  # type: ignore[union-attr]
+    assert run(rt, MoveJoints(positions={"torso_0_joint": 0.0}, duration=1.0)).ok  # type: ignore[union-attr]
     assert abs(rt.data.qpos[rt.head_qadr][0] - held[0]) < 0.03
