@@ -430,17 +430,13 @@ class ReleasePrimitive:
 def look_angles(rt: Runtime, point: Array) -> tuple[Array, Array]:
     """Pan and tilt (rad, shape (2,)) that aim the head camera at ``point`` (world, m) with the
     torso where it is now, and the same clipped to the head joints' limits."""
-    data, model = rt.data, rt.model
-    base = data.xpos[model.body("head_pan_link").id]
-    torso = torso_frame(float(rt.q()[rt.ctrl.torso_idx]))
-    rel = torso.rotation.T @ (point - base)
-    pan = math.atan2(rel[1], rel[0])
-    horizontal = math.hypot(rel[0], rel[1])
-    tilt = math.atan2(-(rel[2] - 0.048 - CAMERA_HEIGHT), horizontal)
-    lo = model.jnt_range[[model.joint(j).id for j in HEAD_JOINTS], 0]
-    hi = model.jnt_range[[model.joint(j).id for j in HEAD_JOINTS], 1]
-    wanted = np.array([pan, tilt])
-    return wanted, np.clip(wanted, lo, hi)
+    base = rt.data.xpos[rt.head_pan_body]
+    angle = float(rt.data.qpos[rt.torso_qadr])
+    c, s = math.cos(angle), math.sin(angle)
+    dx, dy, dz = (float(x) for x in point - base)
+    x, y = c * dx + s * dy, -s * dx + c * dy  # in the torso frame (turned about z)
+    wanted = np.array([math.atan2(y, x), math.atan2(-(dz - 0.048 - CAMERA_HEIGHT), math.hypot(x, y))])
+    return wanted, np.clip(wanted, rt.head_range[:, 0], rt.head_range[:, 1])
 
 
 class LookAtPrimitive:

@@ -90,6 +90,10 @@ class Runtime:
         self.torso_act = self.jmap.ctrl["torso_0_motor"]
         self.head_act = (self.jmap.ctrl["head_pan_servo"], self.jmap.ctrl["head_tilt_servo"])
         self.head_qadr = np.array([self.model.joint(j).qposadr[0] for j in HEAD_JOINTS])
+        self.head_range = self.model.jnt_range[[self.model.joint(j).id for j in HEAD_JOINTS]].copy()
+        """Pan and tilt limits (rad, shape (2, 2): lower, upper per joint)."""
+        self.head_pan_body = self.model.body("head_pan_link").id
+        self.torso_qadr = int(self.model.joint(TORSO_JOINT).qposadr[0])
         self.head_target = self.data.qpos[self.head_qadr].copy()
         self.head_set = self.head_target.copy()
         self.gaze: Array | None = None
