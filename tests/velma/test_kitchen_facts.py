@@ -85,3 +85,40 @@ def test_places_on_the_table_are_on_its_top(world: WorldModel, obj: str) -> None
         assert z == pytest.approx(g.TABLE_TOP_HEIGHT)
         for centre, at, half in ((g.TABLE_POS[0], x, size[0] / 2), (g.TABLE_POS[1], y, size[1] / 2)):
             assert abs(at - centre) + half <= g.TABLE_HALF, (obj, (x, y), "overhangs the table")
+
+
+@pytest.mark.parametrize(
+    ("name", "spec"),
+    [("jar_side_grasp_left", "JAR_SIDE_GRASP"), ("jar_side_grasp_left_from_above", "JAR_TABLE_GRASP")],
+)
+def test_the_jars_grasps_are_the_scripts(world: WorldModel, name: str, spec: str) -> None:
+    """velma/scenario_kitchen.py scripts the kitchen tasks with the grasps a_km gives the
+    planner (issue 18 added the posture and the grasp from above: both places must change)."""
+    import velma.scenario_kitchen as sk
+
+    script = getattr(sk, spec)
+    (known,) = [gr for gr in world.grasps("jar", "left") if gr.name == name]
+    assert known.grip_in_object.position == script.grip[0]
+    assert known.grip_in_object.orientation == pytest.approx(script.grip[1], abs=1e-15)
+    assert (known.approach, known.distance, known.lift) == (
+        script.approach,
+        script.approach_distance,
+        script.lift,
+    )
+    assert (known.retreat, known.retreat_distance) == (script.retreat, script.retreat_distance)
+    assert known.posture == script.posture
+
+
+@pytest.mark.parametrize(("surface", "spec"), [("table", "JAR_TABLE"), ("cabinet", "JAR_CABINET")])
+def test_the_jars_places_are_the_scripts(world: WorldModel, surface: str, spec: str) -> None:
+    """The jar's places in the script are a_km's: where, the torso angle, the height it comes
+    down from and where the hand parks (issue 18 moved the parks clear of the robot itself)."""
+    import velma.scenario_kitchen as sk
+
+    script = getattr(sk, spec)
+    places = world.placement("jar", surface)
+    i = places.positions.index(script.position)
+    facing = places.facing(i)
+    assert (facing if facing is not None else world.object_info(surface).facing) == script.facing
+    assert places.approach_at(i) == script.approach
+    assert places.park_at(i) == script.park

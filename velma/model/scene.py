@@ -33,6 +33,7 @@ import numpy as np
 import numpy.typing as npt
 
 from velma.model import KITCHEN_XML
+from velma.model.generate import SCENE_CONAFFINITY, SCENE_CONTYPE
 
 N_PARTICLES = 18
 """Content spheres in the jar. The physics step's cost grows with the contacts: with 27 the
@@ -170,8 +171,8 @@ def build_spec(n_particles: int = N_PARTICLES, seed: int = 0, pose_seed: int | N
             type=mujoco.mjtGeom.mjGEOM_SPHERE,
             size=[PARTICLE_RADIUS, 0, 0],
             mass=PARTICLE_MASS,
-            contype=1,
-            conaffinity=3,
+            contype=SCENE_CONTYPE,  # the content collides as the scene does (generate.py)
+            conaffinity=SCENE_CONAFFINITY,
             condim=PARTICLE_CONDIM,
             friction=[0.6, 0.01, 0.001],
             solref=[0.004, 1.0],
