@@ -3,10 +3,16 @@ kinematic test double of the robot: the protocols of paper §5.4 carry a pour to
 
 from __future__ import annotations
 
+import math
+from collections.abc import Callable
+
 from services.runtime.human import ReportKind
 from shared.fipa_codec import decode
 from shared.fipa_codec.languages import decode_content
+from shared.fipa_codec.languages.common import Pose
+from shared.fipa_codec.languages.l_ex import CommandResult, ExecutorCommand, Release
 from shared.fipa_codec.languages.l_hfsm import HierarchicalPlan
+from shared.fipa_codec.languages.l_sd import Observation
 from shared.fipa_codec.languages.l_sw import SWState, SWStatus
 from tests.support.fake_executor import PARTICLES, FakeExecutor
 from tests.support.memory_fleet import MemoryFleet
@@ -76,3 +82,29 @@ def test_fleet_serves_a_second_command_after_the_first() -> None:
     assert first[-1].kind is ReportKind.SUCCEEDED
     # the jar is now empty and held: the second pour still runs and the check still passes
     assert second[-1].kind is ReportKind.SUCCEEDED
+
+
+class _TippingExecutor(FakeExecutor):
+    """Lets go of the bowl and it falls over (a person knocks it, or it slides off): on its
+    side, 90° about x, where it was put."""
+
+    def submit(
+        self, command: ExecutorCommand, on_done: Callable[[CommandResult | Observation], None]
+    ) -> None:
+        dropped = self.held[command.arm.value] if isinstance(command, Release) else None
+        super().submit(command, on_done)
+        if dropped == "bowl":
+            half = math.sqrt(0.5)
+            self.poses["bowl"] = Pose(self.poses["bowl"].position, (half, half, 0.0, 0.0))
+
+
+def test_a_placement_is_judged_by_the_world_it_left() -> None:
+    with MemoryFleet() as fleet:
+        fleet.wait_for_initial_knowledge()
+        upright = fleet.command("bring me the bowl")
+    assert upright[-1].kind is ReportKind.SUCCEEDED
+    with MemoryFleet(_TippingExecutor()) as fleet:
+        fleet.wait_for_initial_knowledge()
+        tipped = fleet.command("bring me the bowl")
+    assert tipped[-1].kind is ReportKind.FAILED
+    assert "the bowl is not upright: it leans 90°" in tipped[-1].text

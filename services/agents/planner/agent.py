@@ -262,7 +262,9 @@ class Planner(Agent):
         self.check, self.checked = None, True
         if self.failure is not None or self.result is None or self.plan is None:
             return
-        query = goal_query(self.result.task, self.result.args, self.result.actions, self.plan.complete)
+        query = goal_query(
+            self.result.task, self.result.args, self.result.actions, self.plan.complete, self.knowledge
+        )
         if query is None:
             return
         self.check = self.roles.open(

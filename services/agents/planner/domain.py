@@ -57,8 +57,6 @@ CONTENT_SHARE_REQUIRED = 0.9
 """Share of the content that must end in the target for a pour to count as done."""
 GRASP_FACING = 0.0
 """Torso facing (rad) for which grasp affordances are given (the cabinet's)."""
-EXPECT_TOLERANCE_M = 0.03
-"""How far an object may be from where the plan expects it before a grasp (m)."""
 FREE_RADIUS_M = 0.12
 """A placement position is free when no other object's frame is this close (horizontal, m)."""
 ATOMIC_STATES = frozenset({"take", "set_down", "tilt_pour"})
@@ -190,9 +188,11 @@ def a_look(s: Any, path: str, point: Vec3) -> Any:
     return _step(s)
 
 
-def a_perceive(s: Any, path: str, obj: str, expect: tuple[str, Vec3] | None) -> Any:
+def a_perceive(s: Any, path: str, obj: str, expect: tuple[str, Vec3] | None, placed: bool = False) -> Any:
     """Observe the objects named in ``obj`` (comma-separated; "" the whole scene);
-    ``expect`` (object, position) is checked by a_ta before the plan goes on."""
+    ``expect`` (object, position) is checked by a_ta before the plan goes on. ``placed``: the
+    object was just put at that position, and this observation judges the placement (it must
+    stand there, upright: hfsm.py's tolerances)."""
     s.observed.add(obj)
     return _step(s)
 
@@ -206,6 +206,23 @@ def a_wait(s: Any, path: str, duration: float) -> Any:
 
 
 def a_check(s: Any, path: str, container: str, share: float) -> Any:
+    """Observe ``container`` and fail unless it holds ``share`` of the content: a test of the
+    world; it changes nothing in the plan's state."""
+    return _step(s)
+
+
+def a_poured(s: Any, path: str, src: str, dst: str, amount: int | None, into: int) -> Any:
+    """The pour's effect on the knowledge (paper §5.7, the hypothetical state): the ``amount``
+    particles ``src`` held (a_km's last count; None: not known) join the ``into`` that
+    ``dst`` held, and ``src`` is empty. A knowledge-only step: a_ta does not execute it
+    (hfsm.py); the world is judged by the ``a_check`` that follows."""
+    if src not in s.holding.values():
+        return False
+    if amount is not None:
+        s.content[dst] = into + amount
+        s.content[src] = 0
+    else:
+        s.content.pop(dst, None)  # the target's count is no longer known
     return _step(s)
 
 
@@ -394,7 +411,7 @@ def m_place(s: Any, path: str, obj: str, furniture: str, arm: str) -> Any:
         ("a_put", f"{down}/put", obj, furniture, _relation(s, furniture), (x, y, z)),
         ("a_move", f"{down}/clear", arm, above, 1.0),
         ("a_move", f"{path}/park", arm, park, SHORT_MOVE_S),
-        ("localise", f"{path}/localise_{obj}", obj),
+        ("localise_placed", f"{path}/localise_{obj}", obj, (x, y, z)),
     ]
 
 
@@ -427,6 +444,13 @@ def m_localise(s: Any, path: str, obj: str) -> Any:
     return [("a_perceive", f"{path}/perceive", ",".join([obj, *held]), None)]
 
 
+def m_localise_placed(s: Any, path: str, obj: str, position: Vec3) -> Any:
+    """Observe ``obj`` just put at ``position`` (and what the hands hold): the observation
+    judges the placement, which succeeded only if the object stands there upright."""
+    held = [o for o in s.holding.values() if o is not None and o != obj]
+    return [("a_perceive", f"{path}/perceive", ",".join([obj, *held]), (obj, position), True)]
+
+
 def m_pour_into(s: Any, path: str, src: str, dst: str, arm: str) -> Any:
     """Turn to pour, bring the source upright beside the target, then (atomic) tilt it about
     the pivot, wait for the content to run out, tilt back."""
@@ -449,6 +473,7 @@ def m_pour_into(s: Any, path: str, src: str, dst: str, arm: str) -> Any:
         ("a_tilt", f"{tilt}/tilt", arm, pivot, axis, pour.angle, pour.duration),
         ("a_wait", f"{tilt}/let_run_out", pour.wait),
         ("a_tilt", f"{tilt}/tilt_back", arm, pivot, axis, -pour.angle, pour.untilt_duration),
+        ("a_poured", f"{tilt}/poured", src, dst, s.content.get(src), s.content.get(dst, 0)),
     ]
 
 
@@ -466,6 +491,7 @@ ACTIONS = (
     a_tilt,
     a_wait,
     a_check,
+    a_poured,
     a_replan,
 )
 
@@ -484,6 +510,7 @@ def declare() -> None:
         gtpyhop.declare_task_methods("place", m_place)
         gtpyhop.declare_task_methods("localise", m_localise)
         gtpyhop.declare_task_methods("pour_into", m_pour_into)
+        gtpyhop.declare_task_methods("localise_placed", m_localise_placed)
         gtpyhop.declare_task_methods("safe_stop", m_safe_stop)
         gtpyhop.set_verbose_level(0)
         gtpyhop.set_recursive_planning(True)
@@ -495,6 +522,7 @@ def initial_state(k: Knowledge, tool_poses: dict[str, Pose | None]) -> Any:
     s.k = k
     s.pose = {n: o.pose for n, o in k.objects.items()}
     s.localised = {n: o.localised for n, o in k.objects.items()}
+    s.content = {n: o.particles for n, o in k.objects.items() if o.particles is not None}
     s.where = {}
     s.holding = {arm: None for arm in ARMS}
     s.grip = {}

@@ -15,9 +15,17 @@ from shared.fipa_codec.languages.l_hfsm import (
     PlanNode,
 )
 
+KNOWLEDGE_ONLY = frozenset({"a_poured"})
+"""Planner actions that only model an effect on the knowledge (the hypothetical state of
+goals.py); they have no leaf in the plan a_ta runs."""
 OBSERVE_COST_S = 1.0
 EXPECT_TOLERANCE_M = 0.03
 """How far an object may be from where a Perceive step expects it (m)."""
+PLACED_TOLERANCE_M = 0.03
+"""How far a placed object may stand from its place for the placement to count as done (m):
+the set-down lowers it to within the place's clearance and lets go."""
+PLACED_MAX_TILT = 0.26
+"""How far (rad, ≈ 15°) a placed object's axis may lean for it to count as standing upright."""
 
 
 def leaf_action(name: str, args: tuple[Any, ...]) -> tuple[Action | None, float]:
@@ -52,13 +60,22 @@ def leaf_action(name: str, args: tuple[Any, ...]) -> tuple[Action | None, float]
         (point,) = args
         return Execute(LookAt(point=tuple(point))), 1.0
     if name == "a_perceive":
-        names, expect = args
+        names, expect, *placed = args
+        judges = bool(placed and placed[0])
         expected = (
-            (ExpectedPosition(object=expect[0], position=tuple(expect[1]), tolerance=EXPECT_TOLERANCE_M),)
+            (
+                ExpectedPosition(
+                    object=expect[0],
+                    position=tuple(expect[1]),
+                    tolerance=PLACED_TOLERANCE_M if judges else EXPECT_TOLERANCE_M,
+                    max_tilt=PLACED_MAX_TILT if judges else None,
+                ),
+            )
             if expect is not None
             else ()
         )
-        return Perceive(objects=tuple(names.split(",")) if names else (), expect=expected), OBSERVE_COST_S
+        objects = tuple(names.split(",")) if names else ()
+        return Perceive(objects=objects, expect=expected, judges=judges), OBSERVE_COST_S
     if name == "a_tilt":
         arm, pivot, axis, angle, duration = args
         return Execute(Tilt(arm=Arm(arm), pivot=pivot, axis=axis, angle=angle, duration=duration)), duration
@@ -90,6 +107,8 @@ def to_hfsm(
     root_name: str | None = None
     leaves: dict[str, PlanNode] = {}
     for i, (name, path, *args) in enumerate(actions):
+        if name in KNOWLEDGE_ONLY:
+            continue
         action, duration = leaf_action(name, tuple(args))
         cost += duration
         if action is None:

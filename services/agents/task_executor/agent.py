@@ -51,6 +51,7 @@ from services.runtime.roles import (
 )
 from services.runtime.state_store import StateFile
 from shared.fipa_codec import Performative
+from shared.fipa_codec.languages.common import Pose
 from shared.fipa_codec.languages.l_ex import CommandResult, MoveJoints, MoveTool, Observe, Tilt, Wait
 from shared.fipa_codec.languages.l_hfsm import (
     Assert,
@@ -65,6 +66,17 @@ from shared.fipa_codec.languages.l_sw import TERMINAL_SW_STATES, SWState, SWStat
 from shared.fipa_codec.languages.l_wm import ObjectUpdate, Subscription, WorldUpdate
 
 from .retreat import RetreatStep, finish_set_down, undo_take
+
+
+def tilt_of(pose: Pose) -> float:
+    """Angle (rad, 0..π) between ``pose``'s z axis and the world's z axis: how far an object
+    leans from standing upright. The quaternion (w, x, y, z) is normalised first."""
+    w, x, y, z = pose.orientation
+    n = w * w + x * x + y * y + z * z
+    if n == 0.0:
+        raise ValueError("a zero quaternion has no orientation")
+    return math.acos(max(-1.0, min(1.0, 1.0 - 2.0 * (x * x + y * y) / n)))
+
 
 OBSERVE_REPLY_BY_S = 30.0
 INITIAL_OBSERVE_RETRY_S = 3.0
@@ -551,6 +563,9 @@ class TaskExecutor(Agent):
             self._update_km(reply.content)
             if isinstance(action, Perceive) and action.expect and not self.terminating:
                 difference = self._differences(action, reply.content)
+                if difference and action.judges:  # the world does not show the task done
+                    self._end(SWState.ERROR, f"{step.path}: {difference}")
+                    return
                 if difference:
                     self._end(SWState.REPLAN, f"{step.path}: {difference}")
                     return
@@ -578,17 +593,20 @@ class TaskExecutor(Agent):
 
     @staticmethod
     def _differences(action: Perceive, obs: Observation) -> str:
-        """The expected positions the observation contradicts, in words ("" when none)."""
-        seen = {o.name: o.pose.position for o in obs.objects}
+        """The expected positions (and upright stances) the observation contradicts, in words
+        ("" when none)."""
+        seen = {o.name: o.pose for o in obs.objects}
         out = []
         for e in action.expect:
-            where = seen.get(e.object)
-            if where is None:
+            pose = seen.get(e.object)
+            if pose is None:
                 out.append(f"the {e.object} was not seen")
                 continue
-            d = math.dist(where, e.position)
+            d = math.dist(pose.position, e.position)
             if d > e.tolerance:
                 out.append(f"the {e.object} is {100 * d:.0f} cm from where the plan expects it")
+            if e.max_tilt is not None and (tilt := tilt_of(pose)) > e.max_tilt:
+                out.append(f"the {e.object} is not upright: it leans {math.degrees(tilt):.0f}°")
         return "; ".join(out)
 
     def _end(self, state: SWState, reason: str | None) -> None:

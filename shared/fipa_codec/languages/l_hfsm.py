@@ -40,20 +40,25 @@ class Execute(msgspec.Struct, frozen=True, tag="execute"):
 
 class ExpectedPosition(msgspec.Struct, frozen=True, kw_only=True):
     """What the plan assumes: ``object``'s frame is within ``tolerance`` m of ``position``
-    (world, m)."""
+    (world, m) and, when ``max_tilt`` (rad) is given, stands upright: its z axis within
+    ``max_tilt`` of the world's."""
 
     object: str
     position: Vec3
     tolerance: float = 0.03
+    max_tilt: float | None = None
 
 
 class Perceive(msgspec.Struct, frozen=True, tag="perceive"):
     """Leaf action: request an Observe from ag_ex and inform a_km of what was seen (C6).
     ``objects`` empty means the whole scene. When an object is not where ``expect`` says (or
-    not seen), the world differs from the plan: a_ta reports Replan."""
+    not seen), the world differs from the plan: a_ta reports Replan; when ``judges`` is set,
+    the observation judges the task's outcome (the object stands where it was put) and a
+    difference ends the plan in Error with the reason instead."""
 
     objects: tuple[str, ...] = ()
     expect: tuple[ExpectedPosition, ...] = ()
+    judges: bool = False
 
 
 class Assert(msgspec.Struct, frozen=True, tag="assert", kw_only=True):
