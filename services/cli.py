@@ -479,11 +479,12 @@ def disturb(
     dx: Annotated[float, typer.Option(help="metres along world x")] = 0.0,
     dy: Annotated[float, typer.Option(help="metres along world y")] = 0.0,
     dz: Annotated[float, typer.Option(help="metres along world z")] = 0.0,
+    tilt: Annotated[float, typer.Option(help="radians about world x: tips the object over")] = 0.0,
     router: Annotated[str | None, typer.Option(help="router endpoint")] = None,
     runs_dir: Annotated[Path, typer.Option()] = Path("runs"),
 ) -> None:
-    """Move an object of the simulated kitchen, as a person would (a disturbance of the
-    world, not a robot command): ag_ex moves the body and its content and stops them."""
+    """Move or knock over an object of the simulated kitchen, as a person would (a disturbance
+    of the world, not a robot command): ag_ex moves the body and its content and stops them."""
     import json
 
     from velma.executor.perception import CONTAINERS
@@ -498,10 +499,11 @@ def disturb(
     try:
         if "ag_ex" not in alive_agents(session):
             raise fail(f"ag_ex is not alive at {endpoint}")
-        session.put(keys.SIM_DISTURB, json.dumps({"object": obj, "delta": [dx, dy, dz]}))
+        session.put(keys.SIM_DISTURB, json.dumps({"object": obj, "delta": [dx, dy, dz], "tilt": tilt}))
     finally:
         session.close()
-    typer.echo(f"roco: asked ag_ex to move the {obj} by ({dx:+.3f}, {dy:+.3f}, {dz:+.3f}) m")
+    turn = f", tilted {tilt:+.2f} rad" if tilt else ""
+    typer.echo(f"roco: asked ag_ex to move the {obj} by ({dx:+.3f}, {dy:+.3f}, {dz:+.3f}) m{turn}")
 
 
 @app.command()

@@ -11,8 +11,8 @@ and what each command is expected to end in.
     expect = "succeeded"
 
 A step does exactly one of: ``say`` (a sentence to a_hi, with an optional ``priority``),
-``disturb`` (move an object in the simulated world by ``dx, dy, dz`` metres: a person
-moving it), ``restart`` (stop an agent's process and start it again), ``fault`` (a process
+``disturb`` (move an object in the simulated world by ``dx, dy, dz`` metres and tip it by
+``tilt`` radians about the world's x axis: a person moving or knocking it), ``restart`` (stop an agent's process and start it again), ``fault`` (a process
 fault of one service: ``kill`` — SIGKILL, started again ``down_s`` later; ``pause`` —
 SIGSTOP, SIGCONT ``down_s`` later; ``restart`` — SIGTERM, then started again at once). It
 runs when its ``after`` trigger holds: ``step`` (a_ta reported a plan step whose path contains
@@ -63,12 +63,14 @@ class Trigger(msgspec.Struct, frozen=True, forbid_unknown_fields=True, kw_only=T
 
 
 class Disturb(msgspec.Struct, frozen=True, forbid_unknown_fields=True, kw_only=True):
-    """Move ``object`` (a free body of the kitchen) by (dx, dy, dz) metres, world frame."""
+    """Move ``object`` (a free body of the kitchen) by (dx, dy, dz) metres, world frame, and
+    turn it by ``tilt`` radians about the world's x axis through its origin (a knock)."""
 
     object: str
     dx: float = 0.0
     dy: float = 0.0
     dz: float = 0.0
+    tilt: float = 0.0
 
 
 class Fault(msgspec.Struct, frozen=True, forbid_unknown_fields=True, kw_only=True):

@@ -215,8 +215,10 @@ class ScenarioRunner:
             self._say(f"person → a_hi (#{record.number}): “{step.say}”")
         elif step.disturb is not None:
             d = step.disturb
-            session.put(keys.SIM_DISTURB, json.dumps({"object": d.object, "delta": [d.dx, d.dy, d.dz]}))
-            self._say(f"the world: {d.object} moved by ({d.dx:+.3f}, {d.dy:+.3f}, {d.dz:+.3f}) m")
+            disturbance = {"object": d.object, "delta": [d.dx, d.dy, d.dz], "tilt": d.tilt}
+            session.put(keys.SIM_DISTURB, json.dumps(disturbance))
+            turn = f", tipped {d.tilt:+.2f} rad" if d.tilt else ""
+            self._say(f"the world: {d.object} moved by ({d.dx:+.3f}, {d.dy:+.3f}, {d.dz:+.3f}) m{turn}")
         elif step.fault is not None:
             self._fault(session, step.fault)
         elif step.restart is not None:

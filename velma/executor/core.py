@@ -93,11 +93,12 @@ class Executor:
         for on_done, result in ended:
             self._notify(on_done, result)
 
-    def displace(self, body: str, delta: tuple[float, float, float]) -> bool:
-        """Move free body ``body`` by ``delta`` (world, m): a disturbance of the simulated
-        world. Raises KeyError/ValueError as Runtime.displace."""
+    def displace(self, body: str, delta: tuple[float, float, float], tilt: float = 0.0) -> bool:
+        """Move free body ``body`` by ``delta`` (world, m) and tilt it by ``tilt`` (rad, about
+        world x): a disturbance of the simulated world. Raises KeyError/ValueError as
+        Runtime.displace."""
         with self._lock:
-            self.rt.displace(body, delta)
+            self.rt.displace(body, delta, tilt)
         return True
 
     def safe(self, why: str) -> None:

@@ -117,11 +117,12 @@ class Safe(msgspec.Struct, frozen=True, tag="safe"):
 
 
 class Displace(msgspec.Struct, frozen=True, tag="displace"):
-    """Move free body ``body`` by ``delta`` (world, m): a disturbance of the simulated world
-    (velma.executor.runtime.Runtime.displace)."""
+    """Move free body ``body`` by ``delta`` (world, m) and tilt it by ``tilt`` (rad, about
+    world x): a disturbance of the simulated world (velma.executor.runtime.Runtime.displace)."""
 
     body: str
     delta: tuple[float, float, float]
+    tilt: float = 0.0
 
 
 class Shutdown(msgspec.Struct, frozen=True, tag="shutdown"):
@@ -277,7 +278,7 @@ def loop_main(config: bytes, doorbell: multiprocessing.connection.Connection) ->
                 pending.extend(encode(Done(token=t, result=r)) for t, r in loop.safe(msg.why))
             elif isinstance(msg, Displace):
                 try:
-                    loop.rt.displace(msg.body, msg.delta)
+                    loop.rt.displace(msg.body, msg.delta, msg.tilt)
                 except (KeyError, ValueError) as exc:
                     pending.append(encode(Fault(command="displace", text=str(exc))))
             else:
@@ -512,10 +513,11 @@ class ExecutorProcess:
         """Ask the loop to hold position (velma.executor.loop); False if it could not be asked."""
         return self._commands is not None and self.alive and self._commands.push(self._encode(Hold(why=why)))
 
-    def displace(self, body: str, delta: tuple[float, float, float]) -> bool:
-        """Move free body ``body`` by ``delta`` (world, m) in the simulated world; False when
-        the loop is not running or its inbox is full."""
-        msg = Displace(body=body, delta=delta)
+    def displace(self, body: str, delta: tuple[float, float, float], tilt: float = 0.0) -> bool:
+        """Move free body ``body`` by ``delta`` (world, m) and tilt it by ``tilt`` (rad, about
+        world x) in the simulated world; False when the loop is not running or its inbox is
+        full."""
+        msg = Displace(body=body, delta=delta, tilt=tilt)
         return self._commands is not None and self.alive and self._commands.push(self._encode(msg))
 
     def safe(self, why: str) -> bool:

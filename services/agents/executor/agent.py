@@ -74,11 +74,13 @@ class Done:
 
 class Disturbance(msgspec.Struct, frozen=True, forbid_unknown_fields=True):
     """What ``roco/sim/disturb`` carries (JSON): move free body ``object`` by ``delta``
-    (world, m). A disturbance of the simulated world — a person moving an object — used by
-    scenarios and ``roco disturb``; a real robot has no such input."""
+    (world, m) and turn it by ``tilt`` (rad) about the world's x axis through its origin (a
+    knock that tips it over). A disturbance of the simulated world — a person moving an
+    object — used by scenarios and ``roco disturb``; a real robot has no such input."""
 
     object: str
     delta: tuple[float, float, float]
+    tilt: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -222,13 +224,17 @@ class ExecutorAgent(Agent):
     def _disturb(self, event: Disturbance) -> None:
         displace = getattr(self.executor, "displace", None)
         try:
-            done = bool(displace(event.object, event.delta)) if displace is not None else False
+            done = bool(displace(event.object, event.delta, event.tilt)) if displace is not None else False
         except (KeyError, ValueError) as exc:
             self.log.warning("disturbance not applied: %s", exc)
             return
         self.counters["disturbances"] += 1
         self.log.info(
-            "the world: %s moved by %s m%s", event.object, event.delta, "" if done else " (not applied)"
+            "the world: %s moved by %s m, tilted %.2f rad%s",
+            event.object,
+            event.delta,
+            event.tilt,
+            "" if done else " (not applied)",
         )
 
     def _peer_changed(self, event: PeerChange) -> None:
