@@ -118,3 +118,35 @@ def test_content_starts_and_settles_inside_the_moved_jar(seed: int | None) -> No
     # the containers stand where they were put (nothing in the way of a moved object)
     assert np.linalg.norm(data.xpos[model.body("jar").id] - jar_before) < 2e-3
     assert np.linalg.norm(data.xpos[model.body("bowl").id] - bowl_before) < 2e-3
+
+
+def test_content_is_frictionless_and_moves_on_three_slide_joints() -> None:
+    """Every contact of a content sphere is frictionless (condim 1), whatever it touches, so the
+    sphere's rotation is decoupled and it has only x, y, z slide joints (velma/model/scene.py)."""
+    model = load_kitchen(18, 0)
+    data = initial_state(model)
+    content = {model.body(n).id for n in particle_names(18)}
+    for b in content:
+        first, count = model.body_jntadr[b], model.body_jntnum[b]
+        assert count == 3
+        assert all(model.jnt_type[j] == mujoco.mjtJoint.mjJNT_SLIDE for j in range(first, first + count))
+        axes = np.array([model.jnt_axis[j] for j in range(first, first + count)])
+        assert np.allclose(axes, np.eye(3))
+    touching = [c for c in data.contact[: data.ncon] if {int(model.geom_bodyid[g]) for g in c.geom} & content]
+    walls = [c for c in touching if not {int(model.geom_bodyid[g]) for g in c.geom} <= content]
+    assert walls, "the settled content touches the jar"
+    assert all(c.dim == 1 for c in touching)
+
+
+def test_displacing_the_jar_carries_its_content() -> None:
+    from velma.executor.runtime import Runtime
+
+    rt = Runtime(seed=0)
+    ids = [rt.model.body(n).id for n in particle_names()]
+    before_jar = rt.data.body("jar").xpos.copy()
+    before = rt.data.xpos[ids].copy()
+    rt.displace("jar", (0.03, -0.02, 0.0))
+    assert np.allclose(rt.data.body("jar").xpos - before_jar, [0.03, -0.02, 0.0], atol=1e-9)
+    assert np.allclose(rt.data.xpos[ids] - before, [0.03, -0.02, 0.0], atol=1e-9)
+    dofs = [rt.model.jnt_dofadr[j] for b in ids for j in range(rt.model.body_jntadr[b], rt.model.body_jntadr[b] + 3)]
+    assert not np.any(rt.data.qvel[dofs])

@@ -22,6 +22,7 @@ import time
 
 import mujoco
 import numpy as np
+import numpy.typing as npt
 import pinocchio as pin
 
 from velma.control.compiled import make_controller
@@ -218,17 +219,21 @@ class Runtime:
         qa, va = int(self.model.jnt_qposadr[j]), int(self.model.jnt_dofadr[j])
         self.data.qpos[qa : qa + 3] += np.asarray(delta, dtype=float)
         self.data.qvel[va : va + 6] = 0.0
-        # what the body carries (the jar's content) moves with it
+        # what the body carries (the jar's content, on slide joints: velma/model/scene.py)
         for other in range(self.model.nbody):
             if other != b.id and self.model.body(other).name.startswith(f"{body}_content"):
-                jo = int(self.model.body_jntadr[other])
-                if jo >= 0 and self.model.jnt_type[jo] == mujoco.mjtJoint.mjJNT_FREE:
-                    qo, vo = int(self.model.jnt_qposadr[jo]), int(self.model.jnt_dofadr[jo])
-                    self.data.qpos[qo : qo + 3] += np.asarray(delta, dtype=float)
-                    self.data.qvel[vo : vo + 6] = 0.0
+                self._shift_slides(other, np.asarray(delta, dtype=float))
         mujoco.mj_forward(self.model, self.data)
 
     # ------------------------------------------------------------------ helpers
+    def _shift_slides(self, body_id: int, delta: npt.NDArray[np.float64]) -> None:
+        """Move a body on slide joints (world axes) by ``delta`` (m) and stop it."""
+        first, count = int(self.model.body_jntadr[body_id]), int(self.model.body_jntnum[body_id])
+        for j in range(first, first + count):
+            if self.model.jnt_type[j] == mujoco.mjtJoint.mjJNT_SLIDE:
+                self.data.qpos[self.model.jnt_qposadr[j]] += float(self.model.jnt_axis[j] @ delta)
+                self.data.qvel[self.model.jnt_dofadr[j]] = 0.0
+
     def torso_angle_cmd(self) -> float:
         """Commanded torso angle (rad)."""
         return self.ctrl.torso_q

@@ -1,7 +1,7 @@
 """Loading the kitchen scene: kitchen.xml plus the jar's content generated at load time.
 
 ``load_kitchen`` compiles kitchen.xml (which includes velma.xml) through ``mujoco.MjSpec``
-and adds ``n_particles`` free spheres named ``jar_content_0`` … ``jar_content_{n-1}`` on a
+and adds ``n_particles`` spheres named ``jar_content_0`` … ``jar_content_{n-1}`` on a
 helix inside the jar; ``seed`` jitters their start positions by up to ±1.5 mm so that
 different seeds give different (but always valid) piles. ``initial_state`` puts the robot in
 its home posture and lets the content settle.
@@ -14,13 +14,22 @@ content is placed in the moved jar's frame, so it starts inside it. ``scene_pert
 returns what a seed applies, for benchmarks to print.
 
 Simplification (named): the content is rigid spheres of ø18 mm, 3 g each (density
-≈ 1000 kg/m³, like dried peas or beans in size class). They touch each other without friction
-(``condim`` 1: a normal force only) and the jar, the bowl, the table and the hand with plain
-Coulomb friction (MuJoCo takes the larger ``condim`` of two geoms, 3 there). Issue 18: the
-sphere–sphere contacts are a third of all contacts in the pour; without their friction the
-physics step's p99 over the pour fell from ≈ 395 to ≈ 350 µs (p99.9 ≈ 520 → 430 µs), the
-median rose from ≈ 200 to ≈ 220 µs (the spheres pack closer: ≈ 70 contacts instead of 63),
-and every seed of ``scripts/bench_pour_seeds.py`` still poured 18 of 18 (docs/executor.md).
+≈ 1000 kg/m³, like dried peas or beans in size class), and every contact they make (with each
+other, the jar, the bowl, the table and the hand) is frictionless: a normal force only
+(``condim`` 1; the spheres' geom ``priority`` 1 makes their condim win over the walls' 3).
+A frictionless contact's force passes through the sphere's centre, so nothing can turn a
+sphere: its rotation is exactly decoupled from the rest of the world, and each sphere moves
+on three slide joints (x, y, z of the world) instead of a free joint, which is the same motion
+with 3 instead of 6 degrees of freedom (nv 159 → 105). The flow is the granular flow of
+frictionless hard spheres; a real granular content (peas, rice) has friction, which makes it
+pile at an angle where this content levels out.
+
+Issue 18, measured with scripts/bench_physics.py over the scripted pour on the 2-core
+development machine (docs/bench/physics.md): frictionless sphere–sphere contacts took the
+physics step's p99 from ≈ 395 to ≈ 350 µs; all content contacts frictionless with the
+rotation dropped took its median from ≈ 206 to ≈ 150 µs and its p99 from ≈ 386 to ≈ 275 µs
+(the three rotational DoF of each sphere were a third of the model's velocity vector, and
+the friction rows of the sphere–wall contacts three quarters of their constraint rows).
 """
 
 from __future__ import annotations
@@ -44,7 +53,11 @@ PARTICLE_RADIUS = 0.009  # m
 PARTICLE_MASS = 0.003  # kg
 PARTICLE_PREFIX = "jar_content_"
 PARTICLE_CONDIM = 1
-"""Contact dimension of a sphere geom: frictionless between spheres (module docstring)."""
+"""Contact dimension of a sphere geom: frictionless in every contact (module docstring)."""
+PARTICLE_PRIORITY = 1
+"""Geom priority of a sphere: above the scene's (0), so its condim decides its contacts."""
+PARTICLE_AXES = {"x": (1.0, 0.0, 0.0), "y": (0.0, 1.0, 0.0), "z": (0.0, 0.0, 1.0)}
+"""The slide joints ``{name}_{axis}`` of each sphere, world axes (module docstring)."""
 HELIX_RADIUS = 0.022  # m, in the jar frame
 HELIX_PER_TURN = 7
 HELIX_PITCH = 0.021  # m per turn
@@ -165,7 +178,8 @@ def build_spec(n_particles: int = N_PARTICLES, seed: int = 0, pose_seed: int | N
         )
         local[:2] += rng.uniform(-0.0015, 0.0015, size=2)
         body = spec.worldbody.add_body(name=name, pos=jar_pos + jar_rot @ local)  # in the jar frame
-        body.add_freejoint()
+        for axis, direction in PARTICLE_AXES.items():
+            body.add_joint(name=f"{name}_{axis}", type=mujoco.mjtJoint.mjJNT_SLIDE, axis=list(direction))
         body.add_geom(
             name=f"{name}_geom",
             type=mujoco.mjtGeom.mjGEOM_SPHERE,
@@ -174,7 +188,7 @@ def build_spec(n_particles: int = N_PARTICLES, seed: int = 0, pose_seed: int | N
             contype=SCENE_CONTYPE,  # the content collides as the scene does (generate.py)
             conaffinity=SCENE_CONAFFINITY,
             condim=PARTICLE_CONDIM,
-            friction=[0.6, 0.01, 0.001],
+            priority=PARTICLE_PRIORITY,
             solref=[0.004, 1.0],
             rgba=[0.85, 0.55, 0.1, 1.0],
         )
