@@ -12,15 +12,16 @@ and what each command is expected to end in.
 
 A step does exactly one of: ``say`` (a sentence to a_hi, with an optional ``priority``),
 ``disturb`` (move an object in the simulated world by ``dx, dy, dz`` metres and tip it by
-``tilt`` radians about the world's x axis: a person moving or knocking it), ``restart`` (stop an agent's process and start it again), ``fault`` (a process
-fault of one service: ``kill`` — SIGKILL, started again ``down_s`` later; ``pause`` —
-SIGSTOP, SIGCONT ``down_s`` later; ``restart`` — SIGTERM, then started again at once). It
-runs when its ``after`` trigger holds: ``step`` (a_ta reported a plan step whose path contains
-the text), ``ended`` (the n-th ``say`` command, counted from 1, has ended), ``knowledge``
-(a_km has the initial observation: the default of the first step), ``seconds`` (wall seconds
-after the step before ran); with no trigger a step runs right after the one before. A trigger
-may add ``delay_s`` (wall seconds to wait once it holds, e.g. ``after = { step = "tilt",
-delay_s = 1.3 }`` to act half-way through the tilt).
+``tilt`` radians about the world's x axis: a person moving or knocking it), ``restart``
+(stop an agent's process and start it again), ``fault`` (a process fault of one service:
+``kill`` — SIGKILL, started again ``down_s`` later; ``pause`` — SIGSTOP, SIGCONT ``down_s``
+later; ``restart`` — SIGTERM, then started again at once). It runs when its ``after``
+trigger holds: ``step`` (a_ta reported a plan step whose path contains the text), ``ended``
+(the n-th ``say`` command, counted from 1, has ended), ``knowledge`` (a_km has the initial
+observation: the default of the first step), ``seconds`` (wall seconds after the step before
+ran); with no trigger a step runs right after the one before. A trigger may add ``delay_s``
+(wall seconds to wait once it holds, e.g. ``after = { step = "tilt", delay_s = 1.3 }`` to
+act half-way through the tilt).
 ``expect`` is the final report kind of a ``say`` command (``succeeded``,
 ``failed``, ``stopped``, ``not-understood``); ``expect_text`` a text its final report must
 contain.

@@ -103,3 +103,12 @@ def test_after_the_pour_jar_and_bowl_go_back_in_the_cabinet(tmp_path: Path) -> N
     proc, run_dir = scenario("tidy_up", tmp_path)
     assert proc.returncode == 0, proc.stdout[-4000:] + proc.stderr[-2000:]
     assert [c.outcome for c in build_report(run_dir).commands] == ["succeeded"] * 3
+
+
+def test_a_placed_bowl_knocked_over_fails_the_task_with_the_reason(tmp_path: Path) -> None:
+    proc, run_dir = scenario("knocked_bowl", tmp_path)
+    assert proc.returncode == 0, proc.stdout[-4000:] + proc.stderr[-2000:]
+    report = build_report(run_dir)
+    assert [c.outcome for c in report.commands] == ["failed"]
+    errors = [s.reason or "" for s in sw_states(run_dir) if s.state is SWState.ERROR]
+    assert any("localise_bowl" in r and "the bowl is not upright: it leans 180°" in r for r in errors), errors

@@ -148,5 +148,24 @@ def test_displacing_the_jar_carries_its_content() -> None:
     rt.displace("jar", (0.03, -0.02, 0.0))
     assert np.allclose(rt.data.body("jar").xpos - before_jar, [0.03, -0.02, 0.0], atol=1e-9)
     assert np.allclose(rt.data.xpos[ids] - before, [0.03, -0.02, 0.0], atol=1e-9)
-    dofs = [rt.model.jnt_dofadr[j] for b in ids for j in range(rt.model.body_jntadr[b], rt.model.body_jntadr[b] + 3)]
+    dofs = [
+        rt.model.jnt_dofadr[j]
+        for b in ids
+        for j in range(rt.model.body_jntadr[b], rt.model.body_jntadr[b] + 3)
+    ]
     assert not np.any(rt.data.qvel[dofs])
+
+
+def test_knocking_the_jar_over_turns_it_and_its_content_about_world_x() -> None:
+    from velma.executor.runtime import Runtime
+
+    rt = Runtime(seed=0)
+    ids = [rt.model.body(n).id for n in particle_names()]
+    origin = rt.data.body("jar").xpos.copy()
+    before = rt.data.xpos[ids].copy()
+    rt.displace("jar", (0.0, 0.0, 0.05), tilt=math.pi / 2)
+    z_axis = rt.data.body("jar").xmat.reshape(3, 3)[:, 2]
+    assert np.allclose(z_axis, [0.0, -1.0, 0.0], atol=1e-3)  # lying on its side, mouth to −y
+    turn = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]])
+    expected = origin + (before - origin) @ turn.T + [0.0, 0.0, 0.05]
+    assert np.allclose(rt.data.xpos[ids], expected, atol=1e-9)

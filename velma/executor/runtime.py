@@ -205,10 +205,12 @@ class Runtime:
         name = self.model.geom(geom).name
         return name or self.model.body(int(self.model.geom_bodyid[geom])).name
 
-    def displace(self, body: str, delta: tuple[float, float, float]) -> None:
-        """Move free body ``body`` by ``delta`` (world, m) and stop it: a disturbance of the
-        simulated world (a person moves an object), not a robot action. Raises KeyError for a
-        body that is not in the scene, ValueError for one without a free joint."""
+    def displace(self, body: str, delta: tuple[float, float, float], tilt: float = 0.0) -> None:
+        """Move free body ``body`` by ``delta`` (world, m), turn it by ``tilt`` (rad) about the
+        world's x axis through its origin, and stop it: a disturbance of the simulated world (a
+        person moves or knocks over an object), not a robot action. What it carries (its
+        content, ``{body}_content*``) moves and turns with it. Raises KeyError for a body that
+        is not in the scene, ValueError for one without a free joint."""
         try:
             b = self.model.body(body)
         except KeyError:
@@ -216,14 +218,25 @@ class Runtime:
         j = int(self.model.body_jntadr[b.id])
         if j < 0 or self.model.jnt_type[j] != mujoco.mjtJoint.mjJNT_FREE:
             raise ValueError(f"{body} is not a free body")
+        data = self.data
+        mujoco.mj_kinematics(self.model, data)  # body positions of the current qpos
+        origin = data.xpos[b.id].copy()
+        shift = np.asarray(delta, dtype=float)
+        c, s = math.cos(tilt), math.sin(tilt)
+        turn = np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
         qa, va = int(self.model.jnt_qposadr[j]), int(self.model.jnt_dofadr[j])
-        self.data.qpos[qa : qa + 3] += np.asarray(delta, dtype=float)
-        self.data.qvel[va : va + 6] = 0.0
-        # what the body carries (the jar's content, on slide joints: velma/model/scene.py)
+        data.qpos[qa : qa + 3] += shift
+        turned = np.empty(4)
+        mujoco.mju_mulQuat(
+            turned, np.array([math.cos(tilt / 2), math.sin(tilt / 2), 0.0, 0.0]), data.qpos[qa + 3 : qa + 7]
+        )
+        data.qpos[qa + 3 : qa + 7] = turned
+        data.qvel[va : va + 6] = 0.0
         for other in range(self.model.nbody):
             if other != b.id and self.model.body(other).name.startswith(f"{body}_content"):
-                self._shift_slides(other, np.asarray(delta, dtype=float))
-        mujoco.mj_forward(self.model, self.data)
+                at = data.xpos[other]
+                self._shift_slides(other, origin + turn @ (at - origin) + shift - at)
+        mujoco.mj_forward(self.model, data)
 
     # ------------------------------------------------------------------ helpers
     def _shift_slides(self, body_id: int, delta: npt.NDArray[np.float64]) -> None:
