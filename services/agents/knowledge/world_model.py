@@ -350,7 +350,7 @@ class WorldModel:
         _node, props = self._props(name)
         cls = _first(props, RDF.type)
         pose_node = _first(props, ROCO.hasPose)
-        pose = stamp = None
+        pose = stamp = sigma = None
         localised = False
         if pose_node is not None:
             pp = self._node_props(pose_node)
@@ -364,6 +364,8 @@ class WorldModel:
                 )
                 stamp_lit = _first(pp, ROCO.stamp)
                 stamp = float(str(stamp_lit)) if stamp_lit is not None else None
+                sigma_lit = _first(pp, ROCO.positionSigma)
+                sigma = float(str(sigma_lit)) if sigma_lit is not None else None
                 localised = bool(getattr(_first(pp, ROCO.localised), "value", False))
         location = relation = None
         for rel in ("in", "on"):
@@ -381,6 +383,7 @@ class WorldModel:
             type=_name(cls) if cls is not None else "Thing",
             pose=pose,
             pose_stamp=stamp,
+            position_sigma=sigma,
             size=_vec3(size) if size is not None else None,
             location=location,
             relation=relation,
@@ -642,6 +645,8 @@ class WorldModel:
         ch.add(pose_node, ROCO.frame, Literal(change.pose.frame, datatype=XSD.string))
         if stamp is not None:
             ch.add(pose_node, ROCO.stamp, Literal(float(stamp)))
+        if change.position_sigma is not None:
+            ch.add(pose_node, ROCO.positionSigma, Literal(float(change.position_sigma)))
         ch.add(pose_node, ROCO.localised, Literal(True))
 
     @staticmethod

@@ -51,11 +51,13 @@ class PourQuery(msgspec.Struct, frozen=True, tag="pour", kw_only=True):
 
 
 class ObjectUpdate(msgspec.Struct, frozen=True, kw_only=True):
-    """A change to one individual: a new ``pose``; ``held_by`` ("" = released); a new
-    ``location``/``relation``; ``particles`` inside. Unset fields stay as they were."""
+    """A change to one individual: a new ``pose`` (with ``position_sigma``, its position's
+    one-σ uncertainty in m, when the observation gave one); ``held_by`` ("" = released); a
+    new ``location``/``relation``; ``particles`` inside. Unset fields stay as they were."""
 
     name: str
     pose: Pose | None = None
+    position_sigma: float | None = None
     held_by: str | None = None
     location: str | None = None
     relation: str | None = None
@@ -81,7 +83,8 @@ class Subscription(msgspec.Struct, frozen=True, tag="subscription"):
 
 
 class ObjectInfo(msgspec.Struct, frozen=True, kw_only=True):
-    """An individual: ``name``, its ``type`` (an O_RoCo class), ``pose`` with ``pose_stamp``,
+    """An individual: ``name``, its ``type`` (an O_RoCo class), ``pose`` with ``pose_stamp``
+    and ``position_sigma`` (m, one σ of the observed position; None: not given),
     bounding ``size`` (x, y, z extents), where it is (``location`` with ``relation`` in/on),
     who holds it (``held_by``), whether its pose was ``localised`` since it last moved, and
     for containers the count of ``particles`` inside. For furniture: ``facing``, the torso
@@ -92,6 +95,7 @@ class ObjectInfo(msgspec.Struct, frozen=True, kw_only=True):
     type: str
     pose: Pose | None = None
     pose_stamp: float | None = None
+    position_sigma: float | None = None
     size: Vec3 | None = None
     location: str | None = None
     relation: str | None = None

@@ -303,3 +303,17 @@ def test_answer_sizes_range_from_a_gripper_to_the_scene() -> None:
     scene = len(msgspec.msgpack.encode(world.answer(SceneQuery())))
     assert gripper < 500
     assert gripper < jar < scene
+
+
+def test_a_pose_keeps_its_uncertainty_until_a_newer_observation_replaces_it() -> None:
+    world = WorldModel()
+    world.apply(
+        WorldUpdate(stamp=1.0, objects=(ObjectUpdate(name="jar", pose=Pose(JAR), position_sigma=0.004),))
+    )
+    assert world.object_info("jar").position_sigma == 0.004
+    world.apply(WorldUpdate(stamp=2.0, objects=(ObjectUpdate(name="jar", pose=Pose(JAR)),)))
+    assert world.object_info("jar").position_sigma is None  # the newer observation gave none
+    world.apply(
+        WorldUpdate(stamp=3.0, objects=(ObjectUpdate(name="jar", pose=Pose(JAR), position_sigma=0.002),))
+    )
+    assert world.object_info("jar").position_sigma == 0.002
