@@ -23,6 +23,7 @@ velma/render.py ``SceneCamera``), which costs nothing to depth and speeds up sof
 
 from __future__ import annotations
 
+import math
 import os
 
 os.environ.setdefault("MUJOCO_GL", "egl")
@@ -142,3 +143,22 @@ class HeadKinect:
         if self._renderer is not None:
             self._renderer.close()
             self._renderer = None
+
+
+def aim_head(model: mujoco.MjModel, data: mujoco.MjData, point: Array, iterations: int = 3) -> None:
+    """Set the head's pan and tilt joints in ``data.qpos`` so that ``head_camera`` looks at
+    ``point`` (3,) m, world, and recompute the kinematics (``mj_forward``): for tests and
+    benchmarks that pose the robot directly (the executor aims the head with its LookAt
+    primitive). A few fixed-point passes correct for the camera's offset from the joints.
+    Raises ``KeyError`` if the model has no such joints or camera."""
+    pan = model.joint("head_pan_joint")
+    tilt = model.joint("head_tilt_joint")
+    cam = model.camera("head_camera").id
+    target = np.asarray(point, dtype=np.float64)
+    mujoco.mj_forward(model, data)
+    for _ in range(iterations):
+        view = data.cam_xmat[cam].reshape(3, 3) @ OPTICAL_FROM_MUJOCO
+        rel = view.T @ (target - data.cam_xpos[cam])  # in the optical frame
+        data.qpos[pan.qposadr[0]] += math.atan2(-rel[0], rel[2])
+        data.qpos[tilt.qposadr[0]] += math.atan2(rel[1], math.hypot(rel[0], rel[2]))
+        mujoco.mj_forward(model, data)
