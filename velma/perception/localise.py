@@ -3,17 +3,23 @@ object's model with ICP (small_gicp).
 
 For each requested object (velma/perception/objects.py ``ObjectModel``):
 
-1. the horizontal support planes of the cloud (shelf, table top, floor) and the clusters of
-   points standing on them (velma/perception/segment.py);
-2. the cluster that looks most like the object: top within the object's height (−40 %,
-   +15 mm: the top may be hidden), horizontal size within its diameter's bounding box, and at
-   least ``MIN_COLOUR_SHARE`` of its points of the object's known colour;
-3. point-to-plane ICP (``small_gicp.align``, ``PLANE_ICP``) of that cluster's colour-matched
-   points to the model's surface samples, started upright at the cluster's centroid (pushed a
-   third of the radius away from the camera, as the visible points are its near side) on the
-   support plane; a coarse pass (correspondences ≤ 20 mm) then a fine one (≤ 6 mm);
-4. the estimate is accepted when the fit's inliers hold ≥ ``MIN_INLIER_SHARE`` of the points
-   with an RMS residual ≤ ``MAX_RMSE``.
+1. the horizontal support planes of the cloud (shelf, table top, floor: peaks of the height
+   histogram, velma/perception/segment.py ``support_heights``);
+2. the points of the object's known colour (``colour_match``) standing on a support, in
+   clusters of touching 1 cm voxels, pieces that fit together within the object's footprint
+   merged (an open container's near rim and far inside wall are not connected in the image);
+3. the cluster whose top is within the object's height (−40 %, +15 mm) and whose horizontal
+   size fits its diameter, the one whose top is nearest the object's height first (each
+   cluster goes to one object: this tells the bowl from the cup, both white);
+4. point-to-plane ICP (``small_gicp.align``, ``PLANE_ICP``) of those points to the model's
+   surface samples, started upright on the support at the centre of the least-squares circle
+   through the points (and 8 mm beside it in ±x, ±y): a coarse pass (correspondences ≤ 20 mm)
+   from each start, the one with the smallest truncated mean squared distance of all points to
+   the model kept, then a fine pass (≤ 6 mm);
+5. the estimate is accepted when the fit's inliers hold ≥ ``MIN_INLIER_SHARE`` of the points
+   with an RMS residual ≤ ``MAX_RMSE`` and it tilts the object ≤ ``MAX_TILT``. Its x and y are
+   ICP's; its z is the support plane's height (the object stands on it: thousands of plane
+   points fix it better than the object's cut-off bottom does).
 
 An object with fewer than ``MIN_POINTS`` matching points (out of view, hidden) or whose fit is
 rejected is reported not seen, never guessed.
@@ -27,8 +33,9 @@ the yaw is not observable: the estimate's quaternion then carries the fitted til
 Covariance: σ̂² H⁻¹ of the fine pass, H small_gicp's Gauss–Newton Hessian (rotation, then
 translation, perturbing the observed points about the start) and σ̂² = 2·error / inliers its
 mean squared residual; the position's 3 × 3 block is the translation's marginal (Schur
-complement over the rotation, pseudo-inverse for the unobservable yaw). It assumes independent
-residuals: correlated errors (quantisation steps, a biased start) make the true error larger,
+complement over the rotation, pseudo-inverse for the unobservable yaw); its z entry is ICP's
+although z is taken from the support plane. It assumes independent residuals: correlated
+errors (quantisation steps, a biased start) make the true error larger,
 which the benchmark measures (docs/bench/perception.md).
 """
 
