@@ -15,7 +15,7 @@ from shared.fipa_codec.languages.l_sd import Observation
 from velma import scenario as sc
 from velma import scenario_kitchen as sk
 from velma.executor import Executor
-from velma.executor.perception import CONTAINERS, KNOWN_OBJECTS
+from velma.executor.ground_truth import CONTAINERS, KNOWN_OBJECTS
 from velma.model import generate as gen
 from velma.model.scene import initial_state, load_kitchen
 from velma.rotations import quat_to_rot
