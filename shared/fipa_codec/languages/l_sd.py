@@ -4,8 +4,10 @@ By default the perception is the head camera's (issue 19): ag_ex renders the hea
 Kinect (RGB-D) of the world as it was when the Observe ran and localises the requested
 objects in it (velma/perception/). What is seen carries the estimate's uncertainty
 (``position_sigma``); what is not seen (out of view, hidden, fit rejected) is named in
-``Observation.unseen``, never guessed. Fixed furniture (table, cabinet) is not measured: its
-pose is a fact of the kitchen's map and carries ``position_sigma`` None. A run with
+``Observation.unseen``, never guessed. Fields at their defaults are left out on the wire
+(``omit_defaults``), so an observation is no larger than before the new fields. Fixed
+furniture (table, cabinet) is not measured: its pose is a fact of the kitchen's map and
+carries ``position_sigma`` None. A run with
 ``ROCO_PERCEPTION=truth`` reads every pose from the physics instead (exact, ``position_sigma``
 None, nothing unseen): only for tests that are about something else and need speed.
 """
@@ -18,7 +20,7 @@ from shared.fipa_codec.languages.base import Language, register
 from shared.fipa_codec.languages.common import Pose
 
 
-class ObjectObservation(msgspec.Struct, frozen=True, kw_only=True):
+class ObjectObservation(msgspec.Struct, frozen=True, kw_only=True, omit_defaults=True):
     """One perceived object: ``name`` (as in the scene), its ``pose`` (world) and, for
     containers, ``particles_inside`` (count of content particles seen within it; None: not a
     container or no estimate).
@@ -37,7 +39,7 @@ class ObjectObservation(msgspec.Struct, frozen=True, kw_only=True):
     yaw_observable: bool = True
 
 
-class Observation(msgspec.Struct, frozen=True, tag="observation", kw_only=True):
+class Observation(msgspec.Struct, frozen=True, tag="observation", kw_only=True, omit_defaults=True):
     """A snapshot at simulation time ``stamp`` (s) of the world state the Observe captured.
 
     ``objects``: what was seen (and furniture, from the map); ``unseen``: the requested
