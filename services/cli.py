@@ -487,7 +487,7 @@ def disturb(
     of the world, not a robot command): ag_ex moves the body and its content and stops them."""
     import json
 
-    from velma.executor.perception import CONTAINERS
+    from velma.executor.ground_truth import CONTAINERS
 
     if obj not in CONTAINERS:
         raise fail(f"cannot move {obj!r}: the kitchen's movable objects are {', '.join(CONTAINERS)}", code=2)

@@ -44,7 +44,7 @@ SERVICES = AGENTS | {"recorder", "router"}
 """What a ``fault`` step can hit: the agents, the traffic recorder and the Zenoh router."""
 FAULT_KINDS = frozenset({"kill", "pause", "restart"})
 MOVABLE = ("jar", "bowl", "cup")
-"""The free bodies of the kitchen a ``disturb`` step can move (velma/executor/perception.py
+"""The free bodies of the kitchen a ``disturb`` step can move (velma/executor/ground_truth.py
 CONTAINERS; repeated here so that reading a scenario needs no physics engine)."""
 
 

@@ -66,6 +66,7 @@ def held_mid_lift() -> tuple[bytes, Pose]:
     """The world after a_ta was lost 85 ms into lifting the grasped jar (as the plan does it:
     look, open the hand, pre-grasp, reach, grasp, lift), as a checkpoint; and the grasp pose."""
     rt = Runtime()
+    rt.observe_by_camera = False  # ground-truth poses: this test is about control, not perception
     loop: ControlLoop[int] = ControlLoop(rt)
     obs = _run(loop, Observe())
     assert isinstance(obs, Observation)
@@ -90,6 +91,7 @@ def held_mid_lift() -> tuple[bytes, Pose]:
 
 def _restore(raw: bytes) -> tuple[Runtime, ControlLoop[int]]:
     rt = Runtime()
+    rt.observe_by_camera = False  # ground-truth poses: this test is about control, not perception
     ck.apply(rt, ck.decode(raw, ck.fingerprint(rt.model)))
     loop: ControlLoop[int] = ControlLoop(rt)
     loop.holding = "a_ta lost"

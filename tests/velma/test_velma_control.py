@@ -62,6 +62,7 @@ def test_double_diagonalisation_gives_damping_ratio() -> None:
 
 def test_cartesian_impedance_converges() -> None:
     rt = Runtime(seed=0, n_particles=0)
+    rt.observe_by_camera = False  # ground-truth poses: this test is about control, not perception
     start = rt.grip("left").copy()
     target = pin.SE3(
         start.rotation @ pin.exp3(np.array([0.0, 0.0, 0.3])),
@@ -85,12 +86,14 @@ def test_cartesian_impedance_converges() -> None:
 
 def test_unreachable_target_is_refused() -> None:
     rt = Runtime(seed=0, n_particles=0)
+    rt.observe_by_camera = False  # ground-truth poses: this test is about control, not perception
     result = run(rt, MoveTool(arm=Arm.RIGHT, target=Pose(position=(2.0, 0.0, 1.0)), duration=1.0))
     assert isinstance(result, CommandResult) and not result.ok and result.reason == "unreachable"
 
 
 def test_grasp_lifts_jar_by_friction() -> None:
     rt = Runtime(seed=0, n_particles=0)
+    rt.observe_by_camera = False  # ground-truth poses: this test is about control, not perception
     obs = run(rt, Observe())
     assert isinstance(obs, Observation)
     poses = script_poses(obs)
@@ -406,6 +409,7 @@ def test_torque_and_rate_limits() -> None:
 
 def _runtime_with(**limit_changes: float) -> Runtime:
     rt = Runtime(seed=0, n_particles=0)
+    rt.observe_by_camera = False  # ground-truth poses: this test is about control, not perception
     rt.ctrl.limits = dataclasses.replace(rt.ctrl.limits, **limit_changes)
     return rt
 
@@ -494,6 +498,7 @@ def test_velocity_limit_brakes_a_fast_joint(velocity_limit: float) -> None:
 
 def test_hold_keeps_position_under_gravity() -> None:
     rt = Runtime(seed=0, n_particles=0)
+    rt.observe_by_camera = False  # ground-truth poses: this test is about control, not perception
     start = rt.grip("left").copy()
     cmd = rt.ctrl.arm["left"]
     cmd.mode = "cart"
@@ -532,6 +537,8 @@ def test_the_head_keeps_looking_at_its_point_while_the_torso_turns() -> None:
     from velma.executor.primitives import look_angles
 
     rt = Runtime(seed=0, n_particles=0)
+
+    rt.observe_by_camera = False  # ground-truth poses: this test is about control, not perception
     point = np.array([0.7, 0.0, 0.9])  # the cabinet's view point
     assert isinstance(r := run(rt, LookAt(point=tuple(point))), CommandResult) and r.ok
     assert run(rt, MoveJoints(positions={"torso_0_joint": -0.8}, duration=1.0)).ok  # type: ignore[union-attr]

@@ -53,9 +53,12 @@ def test_pour_script_fills_the_bowl() -> None:
         assert not isinstance(result, CommandResult) or result.ok, (command, result)
     final = results[-1]
     assert isinstance(final, Observation)
-    bowl = next(o for o in final.objects if o.name == "bowl")
+    bowl = next(o for o in final.objects if o.name == "bowl")  # the camera sees the bowl
     assert bowl.particles_inside is not None
-    assert bowl.particles_inside >= 0.9 * final.total_particles
+    # the pour is judged by the physics (this test is about the pour): at the check the jar's
+    # hand hides half the bowl from the head, so the camera's count runs low
+    # (docs/bench/observe.md)
+    assert ex.rt.ground_truth.particles_inside(ex.rt.data, "bowl") >= 0.9 * final.total_particles
     assert final.stamp <= 90.0
     # the cup between jar and bowl in the cabinet was not touched
     cup = next(o for o in final.objects if o.name == "cup")

@@ -638,8 +638,9 @@ class CheckpointWriter:
 
 
 def observe_checkpoint(path: Path, *, seed: int = 0, pose_seed: int | None = None) -> Observation:
-    """What ag_ex would observe of the world kept in the checkpoint file ``path``: every known
-    object's pose (world frame, m) and containers' particle counts (``Perception.observe``),
+    """The ground truth of the world kept in the checkpoint file ``path``: every known
+    object's pose (world frame, m) and containers' particle counts (``GroundTruth.observe``,
+    velma/executor/ground_truth.py; for judging a run, never for the agents),
     for the scene of ``seed`` and ``pose_seed`` (those ag_ex ran with). Used after a run to
     judge the final world (services/scenario/chaos.py). Raises OSError when the file cannot
     be read and CheckpointError when it does not fit that scene."""
@@ -652,4 +653,4 @@ def observe_checkpoint(path: Path, *, seed: int = 0, pose_seed: int | None = Non
     physics = np.frombuffer(ckpt.physics, dtype=np.float64).copy()
     mujoco.mj_setState(rt.model, rt.data, physics, ckpt.state_sig)
     mujoco.mj_forward(rt.model, rt.data)
-    return rt.perception.observe(rt.data)
+    return rt.ground_truth.observe(rt.data)

@@ -5,6 +5,14 @@ interpreter.
 
 No Zenoh and no FIPA messaging here: ``services/agents/executor`` wraps the executors.
 
+Observe (issue 19): the loop hands off a ``WorldCapture``; ``ResultDelivery``
+(velma/executor/delivery.py), a worker thread of this process, renders and localises it and
+delivers every result in the loop's order. In this in-process host that thread shares the
+interpreter with the loop thread, so an Observe (≈ 0.2 s of rendering and fitting, much of it
+in C with the GIL released, not all) can stretch some loop cycles; ag_ex's
+``ExecutorProcess`` does not have that problem. MUJOCO_GL is set to ``egl`` here unless set:
+import this module before anything else imports MuJoCo, or set it yourself.
+
 Timing: physics dt = 1 ms, control at 1 kHz (one control update per physics step).
 ``realtime=True`` releases cycle k at t₀ + k·1 ms of wall time; ``realtime=False`` runs as fast
 as it can. ``DeadlineMonitor`` (velma.executor.timing) counts compute time, lateness and
@@ -12,6 +20,10 @@ overruns either way.
 """
 
 from __future__ import annotations
+
+import os
+
+os.environ.setdefault("MUJOCO_GL", "egl")  # the camera renders off-screen (velma/perception/kinect.py)
 
 import logging
 import threading
@@ -23,6 +35,8 @@ import msgspec
 from shared.fipa_codec.languages.l_ex import CommandResult, ExecutorCommand
 from shared.fipa_codec.languages.l_sd import Observation
 from velma.control.compiled import law_name
+from velma.executor.capture import WorldCapture
+from velma.executor.delivery import RecordSink, ResultDelivery
 from velma.executor.loop import ControlLoop
 from velma.executor.runtime import DT, Runtime
 from velma.executor.state import RobotSnapshot, robot_snapshot
@@ -41,6 +55,11 @@ class Executor:
     ``submit`` and ``hold`` are thread-safe; ``on_done`` is called from the loop thread
     exactly once per command (exceptions it raises are logged and swallowed).
     Commands still queued at ``stop`` are answered with ``ok=False, reason="stopped"``.
+
+    ``perception``: ``camera`` or ``truth`` (None: ``ROCO_PERCEPTION``, default camera;
+    velma/executor/observer.py ``perception_mode``); ``perception_log`` receives each camera
+    Observation's records beside the truth (velma/executor/perception_log.py). ``on_done`` runs
+    on the delivery thread (module docstring), in the order the commands ended.
     """
 
     def __init__(
@@ -50,9 +69,19 @@ class Executor:
         seed: int = 0,
         pose_seed: int | None = None,
         runtime: Runtime | None = None,
+        perception: str | None = None,
+        perception_log: RecordSink | None = None,
     ) -> None:
+        from velma.executor.observer import perception_mode
+
         self.realtime = realtime
         self.rt = runtime if runtime is not None else Runtime(seed=seed, pose_seed=pose_seed)
+        self.perception = (
+            perception_mode() if perception is None else perception_mode({"ROCO_PERCEPTION": perception})
+        )
+        self.rt.observe_by_camera = self.perception == "camera"
+        self.perception_log = perception_log
+        self.delivery: ResultDelivery[OnDone] | None = None
         self.loop: ControlLoop[OnDone] = ControlLoop(self.rt)
         self.monitor = DeadlineMonitor(DT, realtime=realtime)
         self.monitor.control_law = law_name(self.rt.ctrl)
@@ -65,12 +94,21 @@ class Executor:
         """Start the control loop thread (idempotent)."""
         if self._thread is not None and self._thread.is_alive():
             return
+        if self.delivery is None:
+            model = self.rt.model
+            self.delivery = ResultDelivery(
+                self._notify,
+                (lambda: model) if self.rt.observe_by_camera else None,
+                seed=self.rt.pose_seed or 0,
+                record=self.perception_log,
+            )
         self._stop.clear()
         self._thread = threading.Thread(target=self._run, name="velma-loop", daemon=True)
         self._thread.start()
 
     def stop(self) -> None:
-        """Stop the loop and join its thread; answer queued commands with ``stopped``."""
+        """Stop the loop and join its thread; answer queued commands with ``stopped`` (after
+        the results already ended, in order); end the delivery thread."""
         self._stop.set()
         if self._thread is not None:
             self._thread.join()
@@ -78,7 +116,10 @@ class Executor:
         with self._lock:
             ended = self.loop.abort("stopped")
         for on_done, result in ended:
-            self._notify(on_done, result)
+            self._put(on_done, result)
+        if self.delivery is not None:
+            self.delivery.close()
+            self.delivery = None
 
     def submit(self, command: ExecutorCommand, on_done: OnDone) -> None:
         """Queue ``command``; ``on_done(result)`` is called once when it ends (FIFO order)."""
@@ -91,7 +132,7 @@ class Executor:
         with self._lock:
             ended = self.loop.hold(why)
         for on_done, result in ended:
-            self._notify(on_done, result)
+            self._put(on_done, result)
 
     def displace(self, body: str, delta: tuple[float, float, float], tilt: float = 0.0) -> bool:
         """Move free body ``body`` by ``delta`` (world, m) and tilt it by ``tilt`` (rad, about
@@ -106,7 +147,7 @@ class Executor:
         with self._lock:
             ended = self.loop.safe(why)
         for on_done, result in ended:
-            self._notify(on_done, result)
+            self._put(on_done, result)
 
     def snapshot(self) -> RobotSnapshot:
         """A consistent copy of the robot's state, with the loop's timing (thread-safe)."""
@@ -127,11 +168,22 @@ class Executor:
                 done = self.loop.cycle()
             self.monitor.record(pacer.release, start, time.perf_counter(), self.rt.part_s)
             if done is not None:
-                self._notify(*done)
+                self._put(*done)
             while self.loop.errors:
                 name, text = self.loop.errors.popleft()
                 log.error("command %s raised %s", name, text)
             pacer.wait()
+
+    def _put(self, on_done: OnDone, result: CommandResult | Observation | WorldCapture) -> None:
+        """Hand ``result`` to the delivery thread (or deliver it here when there is none)."""
+        if self.delivery is not None:
+            self.delivery.put(on_done, result)
+        elif not isinstance(result, WorldCapture):
+            self._notify(on_done, result)
+        else:
+            self._notify(
+                on_done, CommandResult(command="observe", ok=False, reason="stopped", sim_time=result.stamp)
+            )
 
     @staticmethod
     def _notify(on_done: OnDone, result: CommandResult | Observation) -> None:

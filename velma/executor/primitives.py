@@ -2,7 +2,8 @@
 
 Each primitive is a small state machine driven by the loop thread: ``start`` is called once
 in the cycle the command begins, ``step`` every cycle after that; either returns the result
-(``CommandResult`` or, for Observe, ``Observation``) to end the command, or None.
+(``CommandResult``; for Observe a ``WorldCapture`` for the camera, or with
+``ROCO_PERCEPTION=truth`` the ground truth's ``Observation``) to end the command, or None.
 
 Failure reasons: ``unreachable`` (IK finds no arm configuration, a joint target outside its
 limits, a look-at point outside the neck's range), ``timeout`` (not converged in time;
@@ -47,10 +48,11 @@ from velma.control.trajectory import (
     min_jerk,
     rotation_error,
 )
+from velma.executor.capture import WorldCapture
 from velma.executor.runtime import Runtime, torso_frame
 from velma.frames import rot_from_wxyz
 
-Result = CommandResult | Observation
+Result = CommandResult | Observation | WorldCapture
 
 POS_TOL = 0.01  # m, MoveTool/Tilt convergence
 ROT_TOL = 0.1  # rad; a held payload (not gravity-compensated) sags the wrist by up to ~0.08 rad
@@ -490,7 +492,11 @@ class WaitPrimitive:
 
 
 class ObservePrimitive:
-    """Report the Observation (simulated perception, see perception.py) at once."""
+    """End at once with what an Observe needs (issue 19: the loop never renders or fits):
+    with the camera (``rt.observe_by_camera``, the default) a ``WorldCapture`` of the world
+    now (a copy of ``qpos``, ≈ 1.4 kB), which the host turns into the camera's Observation
+    outside the loop (velma/executor/delivery.py); with ``ROCO_PERCEPTION=truth`` the ground
+    truth's Observation (velma/executor/ground_truth.py; for tests, named as such)."""
 
     name = "observe"
 
@@ -498,10 +504,12 @@ class ObservePrimitive:
         self.objects = tuple(cmd.objects)
 
     def start(self, rt: Runtime) -> Result | None:
-        return rt.perception.observe(rt.data, self.objects)
+        if rt.observe_by_camera:
+            return WorldCapture.of(self.objects, rt.time, rt.data.qpos)
+        return rt.ground_truth.observe(rt.data, self.objects)
 
     def step(self, rt: Runtime) -> Result | None:  # pragma: no cover - never reached
-        return rt.perception.observe(rt.data, self.objects)
+        return self.start(rt)
 
 
 def make_primitive(command: ExecutorCommand) -> Primitive:

@@ -25,6 +25,13 @@ Hand-offs (all non-blocking on the loop's side):
   communication side's ``CheckpointWriter`` thread; the loop restores the last one at start and
   writes the final one itself when it ends.
 
+Observe (issue 19): the loop answers an Observe with a ``WorldCapture`` (velma/executor/capture.py:
+the requested names, sim time and a copy of ``qpos``); on this side ``ResultDelivery``
+(velma/executor/delivery.py), a worker thread, renders the head camera and localises, and
+delivers every result in the loop's order (an Observation is never overtaken by a later
+command's result). The loop never renders or fits. ``perception="truth"`` (ROCO_PERCEPTION)
+makes the loop answer with the ground truth instead (tests).
+
 The loop process ends when asked (``Shutdown``), on SIGTERM or SIGINT, when its parent process
 disappears (checked every second) or when it is killed; the communication side then answers
 every open command with ``failure``.
@@ -54,6 +61,7 @@ import numpy.typing as npt
 
 from shared.fipa_codec.languages.l_ex import CommandResult, ExecutorCommand, command_name
 from shared.fipa_codec.languages.l_sd import Observation
+from velma.executor.capture import PERCEPTION_MODES, WorldCapture
 from velma.executor.checkpoint import (
     CHECKPOINT_CAPACITY,
     CHECKPOINT_PERIOD,
@@ -63,6 +71,7 @@ from velma.executor.checkpoint import (
     LoopCheckpoints,
     RestoreReport,
 )
+from velma.executor.delivery import RecordSink, ResultDelivery
 from velma.executor.handoff import LatestValue, SpscRing, shared_view
 from velma.executor.state import RawState, RobotSnapshot, snapshot_of
 from velma.executor.timing import DEFAULT_WINDOW, DeadlineMonitor, Pacer, RealtimeSetup, TimingStats
@@ -143,7 +152,7 @@ class Done(msgspec.Struct, frozen=True, tag="done"):
     """The result of the command submitted with ``token``."""
 
     token: int
-    result: CommandResult | Observation
+    result: CommandResult | Observation | WorldCapture
 
 
 class Fault(msgspec.Struct, frozen=True, tag="fault"):
@@ -182,6 +191,7 @@ class LoopConfig(msgspec.Struct, frozen=True, kw_only=True):
     checkpoint_dir: str = ""  # where checkpoints live ("": none)
     checkpoint_block: str = ""  # the checkpoint block
     fresh: bool = False  # delete the checkpoint instead of restoring it
+    camera: bool = True  # Observe ends with a WorldCapture (False: ground truth, ROCO_PERCEPTION=truth)
 
 
 # ---------------------------------------------------------------------- loop process side
@@ -211,6 +221,7 @@ def loop_main(config: bytes, doorbell: multiprocessing.connection.Connection) ->
         with contextlib.suppress(BlockingIOError, BrokenPipeError):
             os.write(bell, b"\x01")
         raise
+    rt.observe_by_camera = cfg.camera
     loop: ControlLoop[int] = ControlLoop(rt)
     running = True
 
@@ -335,6 +346,11 @@ class ExecutorProcess:
     (velma.executor.checkpoint): the loop restores ``<checkpoint_dir>/world.ckpt`` at start
     (``restore_report`` says what happened; it is logged) unless ``fresh``, which deletes it;
     checkpoints are written there every second of simulated time and when the loop ends.
+
+    ``perception`` ``camera`` or ``truth`` (None: ``ROCO_PERCEPTION``, default camera); with
+    the camera this side builds the kitchen model of the same seeds in its delivery thread
+    (≈ 1 s, at ``start``, not waited for) and renders there; ``perception_log`` receives each
+    camera Observation's records beside the truth (velma/executor/perception_log.py).
     """
 
     def __init__(
@@ -351,7 +367,16 @@ class ExecutorProcess:
         world_state: bool = False,
         checkpoint_dir: str | os.PathLike[str] | None = None,
         fresh: bool = False,
+        perception: str | None = None,
+        perception_log: RecordSink | None = None,
     ) -> None:
+        if perception is None:
+            perception = os.environ.get("ROCO_PERCEPTION", "") or "camera"
+        if perception not in PERCEPTION_MODES:
+            raise ValueError(f"perception={perception!r}: expected one of {', '.join(PERCEPTION_MODES)}")
+        self.perception = perception
+        self.perception_log = perception_log
+        self._delivery: ResultDelivery[int] | None = None
         self.realtime = realtime
         self.world_state = world_state
         self.checkpoint_dir = Path(checkpoint_dir) if checkpoint_dir is not None else None
@@ -421,6 +446,13 @@ class ExecutorProcess:
             checkpoint_dir=str(self.checkpoint_dir) if self.checkpoint_dir is not None else "",
             checkpoint_block=self._checkpoints.name if self._checkpoints is not None else "",
             fresh=self.fresh,
+            camera=self.perception == "camera",
+        )
+        self._delivery = ResultDelivery(
+            self._answer,
+            self._kitchen if cfg.camera else None,
+            seed=self.pose_seed or 0,
+            record=self.perception_log,
         )
         ctx = multiprocessing.get_context("spawn")
         reader_end, writer_end = ctx.Pipe(duplex=False)
@@ -469,6 +501,9 @@ class ExecutorProcess:
             proc.join(timeout)
         if self._reader is not None:
             self._reader.join(timeout)
+        if self._delivery is not None:  # the results the loop gave, in order, then the rest fail
+            self._delivery.close()
+            self._delivery = None
         self._fail_open("stopped")
         self._monitor = None
         for block in (self._commands, self._results, self._state, self._world, self._checkpoints):
@@ -589,7 +624,10 @@ class ExecutorProcess:
         while (raw := results.pop()) is not None:
             msg = self._decode(raw)
             if isinstance(msg, Done):
-                self._answer(msg.token, msg.result)
+                if self._delivery is not None:
+                    self._delivery.put(msg.token, msg.result)
+                elif not isinstance(msg.result, WorldCapture):
+                    self._answer(msg.token, msg.result)
             elif isinstance(msg, Ready):
                 self.setup = msg.setup
                 self.control_law = msg.control_law
@@ -599,6 +637,13 @@ class ExecutorProcess:
                 self.exit_reason = msg.text
             else:
                 log.error("executor command %s raised %s", msg.command, msg.text)
+
+    def _kitchen(self) -> object:
+        """The loop's kitchen model (same seeds), for the camera (delivery thread)."""
+        import velma.executor.observer  # noqa: F401  (sets MUJOCO_GL=egl before MuJoCo loads)
+        from velma.model.scene import N_PARTICLES, load_kitchen
+
+        return load_kitchen(N_PARTICLES, self.seed, self.pose_seed)
 
     def _answer(self, token: int, result: CommandResult | Observation) -> None:
         with self._lock:

@@ -12,6 +12,12 @@ Besides the C5 conversation, ag_ex
   (msgpack ``RobotSnapshot``, every ``STATE_PERIOD`` s), for viewers;
 - writes the latest deadline statistics to ``<ROCO_RUN_DIR>/ag_ex_timing.json`` (for the run
   report) every ``TIMING_FILE_PERIOD`` s and when it stops;
+- perceives with the head camera (issue 19; ``ROCO_PERCEPTION=camera``, the default): the
+  loop captures the world at an Observe, the executor's delivery thread in this process renders
+  and localises (velma/executor/delivery.py), and each camera Observation is logged beside the
+  ground truth of the same state, one JSON line per object, to
+  ``<ROCO_RUN_DIR>/ag_ex_perception.jsonl`` (velma/executor/perception_log.py) — for the
+  report, never for the agents. ``ROCO_PERCEPTION=truth`` answers from the physics (tests);
 - with Rerun logging on (``ROCO_RERUN=1``; the hooks come from the runtime,
   services/runtime/hooks.py): logs each published state, the loop's timing (about once a
   second) and the observations, and renders the head camera about once a second in a thread
@@ -51,6 +57,7 @@ COMMAND_TYPES = tuple(t for t in ExecutorCommand.__args__)
 STATE_PERIOD = 0.05  # s between robot-state publications (20 Hz)
 TIMING_FILE_PERIOD = 5.0  # s between writes of ag_ex_timing.json
 TIMING_FILE = "ag_ex_timing.json"
+PERCEPTION_FILE = "ag_ex_perception.jsonl"
 
 
 def _seed(name: str, text: str) -> int:
@@ -112,7 +119,24 @@ class ExecutorAgent(Agent):
             world_state=self.hooks.camera_wanted() if self.hooks else False,
             checkpoint_dir=checkpoint_dir(),  # the world survives a restart (module docstring)
             fresh=fresh_start(),
+            perception=os.environ.get("ROCO_PERCEPTION", "") or "camera",
+            perception_log=self._perception_sink(),
         )
+
+    @staticmethod
+    def _perception_sink() -> Callable[[list[dict[str, Any]]], None] | None:
+        """Appends perception records as JSON lines to ``<ROCO_RUN_DIR>/ag_ex_perception.jsonl``
+        (None when ROCO_RUN_DIR is unset). Called from the executor's delivery thread only."""
+        run_dir = os.environ.get("ROCO_RUN_DIR")
+        if not run_dir:
+            return None
+        path = Path(run_dir) / PERCEPTION_FILE
+
+        def write(records: list[dict[str, Any]]) -> None:
+            with path.open("a", encoding="utf-8") as f:
+                f.writelines(json.dumps(r) + "\n" for r in records)
+
+        return write
 
     def build_fsm(self) -> FSM:
         self.executor = self.make_executor()

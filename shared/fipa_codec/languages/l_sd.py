@@ -1,8 +1,15 @@
 """L_SD: sensor data from ag_ex (C5): what the robot perceives of the scene.
 
-Perception is simulated: object poses are read from the physics with no noise, and the
-content of a container is counted from the particles inside its volume (a named
-simplification; a real robot would localise objects from the head camera).
+By default the perception is the head camera's (issue 19): ag_ex renders the head's simulated
+Kinect (RGB-D) of the world as it was when the Observe ran and localises the requested
+objects in it (velma/perception/). What is seen carries the estimate's uncertainty
+(``position_sigma``); what is not seen (out of view, hidden, fit rejected) is named in
+``Observation.unseen``, never guessed. Fields at their defaults are left out on the wire
+(``omit_defaults``), so an observation is no larger than before the new fields. Fixed
+furniture (table, cabinet) is not measured: its pose is a fact of the kitchen's map and
+carries ``position_sigma`` None. A run with
+``ROCO_PERCEPTION=truth`` reads every pose from the physics instead (exact, ``position_sigma``
+None, nothing unseen): only for tests that are about something else and need speed.
 """
 
 from __future__ import annotations
@@ -13,21 +20,39 @@ from shared.fipa_codec.languages.base import Language, register
 from shared.fipa_codec.languages.common import Pose
 
 
-class ObjectObservation(msgspec.Struct, frozen=True, kw_only=True):
+class ObjectObservation(msgspec.Struct, frozen=True, kw_only=True, omit_defaults=True):
     """One perceived object: ``name`` (as in the scene), its ``pose`` (world) and, for
-    containers, ``particles_inside`` (count of content particles within it)."""
+    containers, ``particles_inside`` (count of content particles seen within it; None: not a
+    container or no estimate).
+
+    ``position_sigma`` (m): 1-σ of the position estimate (√trace of its 3 × 3 covariance, the
+    3-D RMS error expected), never below the error scale the perception benchmark measured
+    (velma/executor/observer.py ``POSITION_SIGMA_FLOOR``); None when the pose is not a
+    measurement (a map fact, or ground truth). ``yaw_observable`` False: the object looks the
+    same turned about its vertical axis, so the pose's yaw is arbitrary (0) and means nothing.
+    """
 
     name: str
     pose: Pose
     particles_inside: int | None = None
+    position_sigma: float | None = None
+    yaw_observable: bool = True
 
 
-class Observation(msgspec.Struct, frozen=True, tag="observation", kw_only=True):
-    """A snapshot at simulation time ``stamp`` (s); ``total_particles`` in the scene."""
+class Observation(msgspec.Struct, frozen=True, tag="observation", kw_only=True, omit_defaults=True):
+    """A snapshot at simulation time ``stamp`` (s) of the world state the Observe captured.
+
+    ``objects``: what was seen (and furniture, from the map); ``unseen``: the requested
+    objects that were not seen (out of view, occluded, fit rejected, unknown), never a guess.
+    ``total_particles``: how many content spheres the task's content has in all — not a
+    measurement: the count the scene description states (the jar is filled with that many at
+    the start; a_km's kitchen knowledge may state it too), so that ``particles_inside /
+    total_particles`` is the share of the content a container was seen to hold."""
 
     stamp: float
     objects: tuple[ObjectObservation, ...]
     total_particles: int = 0
+    unseen: tuple[str, ...] = ()
 
 
 L_SD = register(Language("L_SD", "O_RoCo", (Observation,)))

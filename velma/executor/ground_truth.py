@@ -1,10 +1,17 @@
-"""Simulated perception: the L_SD ``Observation`` of the kitchen, read from the physics.
+"""Ground truth of the kitchen, read from the physics: the true object poses and content
+counts, for tests and for the perception log (ag_ex_perception.jsonl), never for the agents
+when the camera perceives (the default; velma/executor/observer.py).
 
-Simplification (named): this is not perception. Object poses are the MuJoCo body poses,
-exactly, with no noise or occlusion; a container's ``particles_inside`` is the number of
-``jar_content_*`` spheres whose centre lies inside the container's inner volume (the
-cylinder site ``{container}_inner``: radius, half height, in the container frame). A real
-robot would localise the objects from its head camera and estimate the content visually.
+Object poses are the MuJoCo body poses, exactly; a container's ``particles_inside`` is the
+number of ``jar_content_*`` spheres whose centre lies inside the container's inner volume (the
+cylinder site ``{container}_inner``: radius, half height, in the container frame).
+
+It serves the agents only with ``ROCO_PERCEPTION=truth`` (velma/executor/observer.py
+``perception_mode``): a switch for tests that are about something else and need speed, named
+as such — not perception.
+
+This is the one module of the executor that reads objects' body poses for observations
+(tests/architecture/test_perception_sources.py checks it).
 """
 
 from __future__ import annotations
@@ -22,8 +29,8 @@ CONTAINERS = ("jar", "bowl", "cup")
 spheres inside (the cup holds none at the start, but content poured into it would count)."""
 
 
-class Perception:
-    """Reads object poses and content counts from a kitchen model (see module docstring)."""
+class GroundTruth:
+    """Reads object poses and content counts from a kitchen model's state (module docstring)."""
 
     def __init__(self, model: mujoco.MjModel) -> None:
         self.model = model
@@ -34,8 +41,8 @@ class Perception:
         self.inner_site = {c: model.site(f"{c}_inner").id for c in CONTAINERS}
 
     def pose(self, data: mujoco.MjData, name: str) -> Pose:
-        """World pose of body ``name`` (position m, quaternion w, x, y, z). Raises KeyError
-        for an unknown object."""
+        """World pose of body ``name`` (position m, quaternion w, x, y, z) in ``data`` (its
+        kinematics computed). Raises KeyError for an unknown object."""
         b = self.body[name]
         p = data.xpos[b]
         q = data.xquat[b]
@@ -56,8 +63,8 @@ class Perception:
         return int(np.count_nonzero(inside))
 
     def observe(self, data: mujoco.MjData, objects: tuple[str, ...] = ()) -> Observation:
-        """The Observation of ``objects`` (all known objects when empty); unknown names are
-        skipped (a real perception would not see them either)."""
+        """The true Observation of ``objects`` (all known objects when empty); unknown names
+        are listed as ``unseen``. ``position_sigma`` is None: these are not estimates."""
         names = objects or KNOWN_OBJECTS
         out = []
         for name in names:
@@ -66,5 +73,8 @@ class Perception:
             inside = self.particles_inside(data, name) if name in CONTAINERS else None
             out.append(ObjectObservation(name=name, pose=self.pose(data, name), particles_inside=inside))
         return Observation(
-            stamp=float(data.time), objects=tuple(out), total_particles=int(self.particle_bodies.size)
+            stamp=float(data.time),
+            objects=tuple(out),
+            total_particles=int(self.particle_bodies.size),
+            unseen=tuple(n for n in names if n not in self.body),
         )

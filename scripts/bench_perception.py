@@ -1,0 +1,142 @@
+"""Perception benchmark: the head's Kinect localising the jar, the bowl and the cup on the shelf
+over pose seeds (velma/model/scene.py ``scene_perturbation``: jar and bowl moved ±2 cm in x and
+y and turned ±10° about z; the cup stays), against the simulation's ground truth.
+
+Per seed: the head is aimed at the shelf (velma/scenario.py ``HEAD_LOOK_CABINET``, as the pour
+script's first LookAt), one frame is captured with seeded noise, the three objects are
+localised and the jar's content is estimated. Printed: the position error (mm, p50/p95/max)
+per object (yaw is not observable: the objects are symmetric about z), the jar's content-count
+error, how many seeds saw each object, the time of one observation (capture = render + noise,
+then back-projection + segmentation + ICP + content; ms p50/p95, the renderer made beforehand),
+and whether any object is seen with the head facing the table instead.
+
+Usage: ``python scripts/bench_perception.py [--seeds 20] [--width 320] [--height 240] [--repeats 3]``
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+os.environ.setdefault("MUJOCO_GL", "egl")  # read when mujoco is first imported (velma/render.py)
+
+import benchlib  # noqa: E402  (scripts/benchlib.py, beside this file)
+import numpy as np  # noqa: E402
+
+from velma.model.scene import (  # noqa: E402
+    PARTICLE_PREFIX,
+    PARTICLE_RADIUS,
+    initial_state,
+    load_kitchen,
+    scene_perturbation,
+)
+from velma.perception.content import estimate_content  # noqa: E402
+from velma.perception.kinect import HeadKinect, aim_head  # noqa: E402
+from velma.perception.localise import Localiser  # noqa: E402
+from velma.perception.objects import object_model  # noqa: E402
+from velma.scenario import HEAD_LOOK_CABINET  # noqa: E402
+
+OBJECTS = ("jar", "bowl", "cup")
+TABLE_LOOK = (0.3, -0.65, 0.75)  # the table's top centre (kitchen.xml)
+
+
+def percentiles(values: list[float]) -> str:
+    """ "p50 / p95 / max" of ``values`` (or "—" when empty)."""
+    if not values:
+        return "—"
+    a = np.asarray(values)
+    return f"{np.percentile(a, 50):6.2f} / {np.percentile(a, 95):6.2f} / {a.max():6.2f}"
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run the benchmark and print its table; returns 0."""
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--seeds", type=int, default=20)
+    ap.add_argument("--first", type=int, default=0)
+    ap.add_argument("--width", type=int, default=320)
+    ap.add_argument("--height", type=int, default=240)
+    ap.add_argument("--repeats", type=int, default=3, help="timed observations per seed")
+    args = ap.parse_args(argv)
+    print(benchlib.machine(("mujoco", "small_gicp", "numpy")))
+    print(f"frame {args.width}×{args.height}, seeds {args.first}..{args.first + args.seeds - 1}")
+    errors: dict[str, list[float]] = {n: [] for n in OBJECTS}
+    sigmas: dict[str, list[float]] = {n: [] for n in OBJECTS}
+    count_errors: list[int] = []
+    capture_ms: list[float] = []
+    process_ms: list[float] = []
+    table_seen = 0
+    print(
+        f"{'seed':>4}  {'jar dx,dy mm':>14}  "
+        + "  ".join(f"{n + ' err mm':>12}" for n in OBJECTS)
+        + "  jar count"
+    )
+    for seed in range(args.first, args.first + args.seeds):
+        model = load_kitchen(pose_seed=seed)
+        data = initial_state(model)
+        aim_head(model, data, np.array(HEAD_LOOK_CABINET))
+        kinect = HeadKinect(model, args.width, args.height)
+        models = {n: object_model(model, n) for n in OBJECTS}
+        localiser = Localiser(models.values())
+        rgba = model.geom_rgba[model.geom(f"{PARTICLE_PREFIX}0_geom").id]
+        n_particles = sum(1 for b in range(model.nbody) if model.body(b).name.startswith(PARTICLE_PREFIX))
+        rng = np.random.default_rng(seed)
+        kinect.capture(data, rng)  # makes the renderer
+        for _ in range(args.repeats):
+            t0 = time.perf_counter()
+            frame = kinect.capture(data, rng)
+            t1 = time.perf_counter()
+            points, colours, _ = frame.cloud()
+            estimates = localiser.localise(points, colours, frame.position)
+            content = estimate_content(
+                estimates["jar"], models["jar"], points, colours, frame.position, rgba, PARTICLE_RADIUS
+            )
+            t2 = time.perf_counter()
+            capture_ms.append(1e3 * (t1 - t0))
+            process_ms.append(1e3 * (t2 - t1))
+        cells = []
+        for n in OBJECTS:
+            e = estimates[n]
+            if e.seen and e.position is not None:
+                err = 1e3 * float(np.linalg.norm(e.position - data.xpos[model.body(n).id]))
+                errors[n].append(err)
+                sigmas[n].append(1e3 * e.sigma_position)
+                cells.append(f"{err:12.2f}")
+            else:
+                cells.append(f"{'not seen':>12}")
+        count = "—" if content is None else f"{content.count:3d} of {n_particles}"
+        if content is not None:
+            count_errors.append(content.count - n_particles)
+        p = scene_perturbation(seed).jar
+        print(f"{seed:4d}  {1e3 * p.dx:6.1f},{1e3 * p.dy:6.1f}  " + "  ".join(cells) + f"  {count}")
+        aim_head(model, data, np.array(TABLE_LOOK))
+        frame = kinect.capture(data, rng)
+        points, colours, _ = frame.cloud()
+        table_seen += sum(e.seen for e in localiser.localise(points, colours, frame.position).values())
+        kinect.close()
+    print()
+    print("position error, mm (p50 / p95 / max); ICP's own σ (√trace, mm, p50 / p95 / max)")
+    for n in OBJECTS:
+        seen = f"seen {len(errors[n]):2d}/{args.seeds}"
+        print(f"  {n:5s} {seen}  error {percentiles(errors[n])}   σ {percentiles(sigmas[n])}")
+    print("  yaw: not observable (jar, bowl and cup are symmetric about z within 0.5 mm)")
+    ce = [abs(c) for c in count_errors]
+    print(
+        f"jar content count error: mean {np.mean(count_errors):+.2f}, |error| p50 / p95 / max "
+        f"{percentiles([float(c) for c in ce])}"
+    )
+    print(f"objects seen with the head facing the table: {table_seen} (of {3 * args.seeds})")
+    total = [a + b for a, b in zip(capture_ms, process_ms, strict=True)]
+    print(
+        f"observation time, ms (p50 / p95 / max): capture {percentiles(capture_ms)}; "
+        f"cloud + segmentation + ICP + content {percentiles(process_ms)}; total {percentiles(total)}"
+    )
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,38 @@
+"""What an Observe hands off from the 1 kHz loop: the world state to perceive, not the
+perception (issue 19: the loop never renders or fits).
+
+In camera mode (velma/executor/observer.py) ``ObservePrimitive`` ends at once with a
+``WorldCapture``: the requested object names, the simulation time and a copy of MuJoCo's whole
+``qpos`` (180 float64 in the kitchen: ≈ 1.4 kB, a copy of a few µs). The host (``Executor``'s
+or ``ExecutorProcess``'s ``ResultDelivery``, velma/executor/delivery.py) renders and localises
+it outside the loop and delivers the L_SD ``Observation`` in the command's place. Pure
+msgspec and numpy: no MuJoCo, so it crosses the loop process's result ring as it is.
+"""
+
+from __future__ import annotations
+
+import msgspec
+import numpy as np
+import numpy.typing as npt
+
+PERCEPTION_MODES = ("camera", "truth")
+"""``ROCO_PERCEPTION``'s values (velma/executor/observer.py ``perception_mode``)."""
+
+
+class WorldCapture(msgspec.Struct, frozen=True, tag="world_capture", kw_only=True):
+    """The world when an Observe ran: ``objects`` asked for (empty: all known), ``stamp``
+    (simulation time, s) and ``qpos`` (MuJoCo's ``qpos`` as raw little-endian float64 bytes,
+    ``model.nq`` values)."""
+
+    objects: tuple[str, ...]
+    stamp: float
+    qpos: bytes
+
+    @classmethod
+    def of(cls, objects: tuple[str, ...], stamp: float, qpos: npt.NDArray[np.float64]) -> WorldCapture:
+        """A capture of ``qpos`` (copied) at ``stamp``."""
+        return cls(objects=objects, stamp=stamp, qpos=np.asarray(qpos, dtype="<f8").tobytes())
+
+    def positions(self) -> npt.NDArray[np.float64]:
+        """``qpos`` as an array (shape ``(nq,)``, a read-only view)."""
+        return np.frombuffer(self.qpos, dtype="<f8")

@@ -1,0 +1,181 @@
+"""The camera's Observation (issue 19): render the head's Kinect of a captured world state
+(velma/executor/capture.py) and localise the requested objects in it (velma/perception/),
+outside the 1 kHz loop (``ResultDelivery``, velma/executor/delivery.py, runs it).
+
+What the agents get (L_SD, shared/fipa_codec/languages/l_sd.py):
+
+- a movable object (jar, bowl, cup) seen: its estimated pose (bottom centre; yaw 0 and
+  ``yaw_observable`` False for these rotationally symmetric containers), ``position_sigma``
+  = max(√trace of the localiser's 3 × 3 position covariance, ``POSITION_SIGMA_FLOOR``) and,
+  for a container, the content estimate: through the jar's glass the fill level
+  (velma/perception/content.py ``estimate_content``), in an open opaque bowl or cup the
+  spheres counted (``count_spheres``, extrapolated over a floor partly hidden);
+- a requested object not seen (out of view, occluded, fit rejected, unknown name): its name in
+  ``unseen``;
+- furniture (table, cabinet): fixed bodies of the kitchen, so their poses are the map's facts
+  (the model's body poses, not the simulation state) with ``position_sigma`` None — a named
+  simplification: a real robot would also localise against its map;
+- ``total_particles``: the number of content spheres the scene description states (its content
+  bodies, ``N_PARTICLES`` = 18 in the kitchen), a task fact, not a measurement.
+
+``POSITION_SIGMA_FLOOR``: ICP's own σ (0.1–0.4 mm) is smaller than the true error, which
+docs/bench/perception.md measured over 20 pose seeds: the RMS of the 3-D errors of the jar's
+20 fits is 0.95 mm (p50 0.71, p95 1.69); the floor is that, rounded up to 1 mm.
+
+``perception_mode`` reads ``ROCO_PERCEPTION``: ``camera`` (default) or ``truth``
+(velma/executor/ground_truth.py, in the loop: for tests that are about something else and
+need speed; named as such).
+"""
+
+from __future__ import annotations
+
+import math
+import os
+
+os.environ.setdefault("MUJOCO_GL", "egl")  # the Kinect renders off-screen (velma/perception/kinect.py)
+
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+
+from shared.fipa_codec.languages.common import Pose
+from shared.fipa_codec.languages.l_sd import ObjectObservation, Observation
+from velma.executor.capture import PERCEPTION_MODES, WorldCapture
+from velma.model.scene import PARTICLE_PREFIX, PARTICLE_RADIUS
+from velma.perception.content import ContentEstimate, SphereCount, count_spheres, estimate_content
+from velma.perception.kinect import HeadKinect
+from velma.perception.localise import Localiser, ObjectEstimate
+from velma.perception.objects import ObjectModel, object_model
+
+MOVABLE = ("jar", "bowl", "cup")
+"""The objects the camera localises (free bodies with a model, velma/perception/objects.py)."""
+FURNITURE = ("table", "cabinet")
+"""Fixed bodies: poses from the kitchen's map (module docstring)."""
+POSITION_SIGMA_FLOOR = 0.001  # m (module docstring)
+CAMERA_SIZE = (320, 240)
+"""Frame (px) rendered per Observe: 320 × 240 (≈ 0.2 s an Observe; 640 × 480 took ≈ 1 s with
+no better localisation, docs/bench/observe.md)."""
+MODES = PERCEPTION_MODES
+
+
+def perception_mode(environ: dict[str, str] | None = None) -> str:
+    """``ROCO_PERCEPTION`` of ``environ`` (default ``os.environ``): ``camera`` when unset.
+    Raises ``ValueError`` for another value."""
+    value = (os.environ if environ is None else environ).get("ROCO_PERCEPTION", "camera") or "camera"
+    if value not in MODES:
+        raise ValueError(f"ROCO_PERCEPTION={value!r}: expected one of {', '.join(MODES)}")
+    return value
+
+
+@dataclass(frozen=True)
+class Seen:
+    """What one Observe saw besides its Observation (for the perception log): per object the
+    localiser's estimate and, for containers, the content estimate."""
+
+    estimates: dict[str, ObjectEstimate]
+    content: dict[str, ContentEstimate | SphereCount]
+
+
+class CameraObserver:
+    """Observes captured world states of ``model`` (the loop's kitchen, same seeds) with the
+    head Kinect at ``size`` px; Kinect noise drawn from a generator seeded with ``seed``.
+    Builds the object models and ICP targets at construction (≈ 0.3 s). Its renderer's GL
+    context belongs to the thread that first calls ``observe``: use one thread."""
+
+    def __init__(self, model: mujoco.MjModel, size: tuple[int, int] = CAMERA_SIZE, seed: int = 0) -> None:
+        self.model = model
+        self.data = mujoco.MjData(model)
+        self.kinect = HeadKinect(model, size[0], size[1])
+        self.models: dict[str, ObjectModel] = {n: object_model(model, n) for n in MOVABLE}
+        self.localiser = Localiser(self.models.values())
+        self.rng = np.random.default_rng(seed)
+        particles = [b for b in range(model.nbody) if model.body(b).name.startswith(PARTICLE_PREFIX)]
+        self.total_particles = len(particles)
+        self.content_rgba = (
+            model.geom_rgba[model.geom(f"{PARTICLE_PREFIX}0_geom").id].copy() if particles else np.ones(4)
+        )
+        self.map = {n: self._map_pose(n) for n in FURNITURE}
+
+    def _map_pose(self, name: str) -> Pose:
+        """The pose of fixed body ``name`` as the model places it (a map fact). Raises
+        ``ValueError`` if it is not fixed to the world."""
+        b = self.model.body(name)
+        if int(self.model.body_jntnum[b.id]) != 0 or int(self.model.body_parentid[b.id]) != 0:
+            raise ValueError(f"{name} is not a fixed body of the world")
+        p, q = self.model.body_pos[b.id], self.model.body_quat[b.id]
+        return Pose(position=(float(p[0]), float(p[1]), float(p[2])), orientation=tuple(float(x) for x in q))  # type: ignore[arg-type]
+
+    def load(self, capture: WorldCapture) -> mujoco.MjData:
+        """This observer's MjData set to ``capture``'s state with its kinematics computed.
+        Raises ``ValueError`` for a ``qpos`` of another size."""
+        qpos = capture.positions()
+        if qpos.shape != (self.model.nq,):
+            raise ValueError(f"qpos has {qpos.size} values, the model needs {self.model.nq}")
+        d = self.data
+        d.qpos[:] = qpos
+        d.time = capture.stamp
+        mujoco.mj_kinematics(self.model, d)
+        mujoco.mj_comPos(self.model, d)
+        mujoco.mj_camlight(self.model, d)
+        return d
+
+    def observe(self, capture: WorldCapture) -> tuple[Observation, Seen]:
+        """The Observation of ``capture``'s objects (all movable ones and the furniture when
+        empty) as the head camera sees them (module docstring), and the details."""
+        names = capture.objects or (*MOVABLE, *FURNITURE)
+        data = self.load(capture)
+        wanted = [n for n in names if n in self.models]
+        estimates: dict[str, ObjectEstimate] = {}
+        content: dict[str, ContentEstimate | SphereCount] = {}
+        objects: list[ObjectObservation] = []
+        if wanted:
+            frame = self.kinect.capture(data, self.rng)
+            points, colours, _ = frame.cloud()
+            estimates = self.localiser.localise(points, colours, frame.position, wanted)
+            for n in wanted:
+                e = estimates[n]
+                if not e.seen or e.position is None or e.quaternion is None:
+                    continue
+                model = self.models[n]
+                guess: ContentEstimate | SphereCount | None
+                if model.transparent:
+                    guess = estimate_content(
+                        e, model, points, colours, frame.position, self.content_rgba, PARTICLE_RADIUS
+                    )
+                else:
+                    k = frame.intrinsics
+                    guess = count_spheres(
+                        e, model, points, colours, frame.depth, frame.position, frame.rotation,
+                        k.fx, k.cx, k.cy, self.content_rgba, PARTICLE_RADIUS,
+                    )  # fmt: skip
+                if guess is not None:
+                    content[n] = guess
+                p, q = e.position, e.quaternion
+                objects.append(
+                    ObjectObservation(
+                        name=n,
+                        pose=Pose(
+                            position=(float(p[0]), float(p[1]), float(p[2])),
+                            orientation=(float(q[0]), float(q[1]), float(q[2]), float(q[3])),
+                        ),
+                        particles_inside=guess.count if guess is not None else None,
+                        position_sigma=max(e.sigma_position, POSITION_SIGMA_FLOOR)
+                        if math.isfinite(e.sigma_position)
+                        else None,
+                        yaw_observable=e.yaw_observable,
+                    )
+                )
+        objects += [ObjectObservation(name=n, pose=self.map[n]) for n in names if n in self.map]
+        seen = {o.name for o in objects}
+        obs = Observation(
+            stamp=capture.stamp,
+            objects=tuple(objects),
+            total_particles=self.total_particles,
+            unseen=tuple(n for n in names if n not in seen),
+        )
+        return obs, Seen(estimates=estimates, content=content)
+
+    def close(self) -> None:
+        """Free the renderer (from the thread that observed)."""
+        self.kinect.close()

@@ -1,0 +1,298 @@
+"""Localising the known objects in the head camera's point cloud: segment, then fit the
+object's model with ICP (small_gicp).
+
+For each requested object (velma/perception/objects.py ``ObjectModel``):
+
+1. the horizontal support planes of the cloud (shelf, table top, floor: peaks of the height
+   histogram, velma/perception/segment.py ``support_heights``);
+2. the points of the object's known colour (``colour_match``) standing on a support, in
+   clusters of touching 1 cm voxels, pieces that fit together within the object's footprint
+   merged (an open container's near rim and far inside wall are not connected in the image);
+3. the cluster whose top is within the object's height (−40 %, +15 mm) and whose horizontal
+   size fits its diameter, the one whose top is nearest the object's height first (each
+   cluster goes to one object: this tells the bowl from the cup, both white);
+4. point-to-plane ICP (``small_gicp.align``, ``PLANE_ICP``) of those points to the model's
+   surface samples, started upright on the support at the centre of the least-squares circle
+   through the points (and 8 mm beside it in ±x, ±y): a coarse pass (correspondences ≤ 20 mm)
+   from each start, the one with the smallest truncated mean squared distance of all points to
+   the model kept, then a fine pass (≤ 6 mm);
+5. the estimate is accepted when the fit's inliers hold ≥ ``MIN_INLIER_SHARE`` of the points
+   with an RMS residual ≤ ``MAX_RMSE`` and it tilts the object ≤ ``MAX_TILT``. Its x and y are
+   ICP's; its z is the support plane's height (the object stands on it: thousands of plane
+   points fix it better than the object's cut-off bottom does).
+
+An object with fewer than ``MIN_POINTS`` matching points (out of view, hidden) or whose fit is
+rejected is reported not seen, never guessed.
+
+Yaw: when turning the model about its vertical axis changes its surface by less than
+``YAW_OBSERVABLE_DEVIATION`` (the model's ``symmetry_deviation``; the jar, bowl and cup are
+16- and 20-sided polygons whose facets depart < 1 mm from a circle, below the sensor's noise)
+the yaw is not observable: the estimate's quaternion then carries the fitted tilt and yaw 0,
+``yaw_observable`` is False and the yaw's σ is infinite.
+
+Covariance: σ̂² H⁻¹ of the fine pass, H small_gicp's Gauss–Newton Hessian (rotation, then
+translation, perturbing the observed points about the start) and σ̂² = 2·error / inliers its
+mean squared residual; the position's 3 × 3 block is the translation's marginal (Schur
+complement over the rotation, pseudo-inverse for the unobservable yaw); its z entry is ICP's
+although z is taken from the support plane. It assumes independent residuals: correlated
+errors (quantisation steps, a biased start) make the true error larger,
+which the benchmark measures (docs/bench/perception.md).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable
+from dataclasses import dataclass, field
+
+import numpy as np
+import numpy.typing as npt
+import small_gicp
+
+from velma.perception.cloud import Array
+from velma.perception.objects import ObjectModel
+from velma.perception.segment import Cluster, clusters, colour_match, merge_within, support_heights
+
+MIN_POINTS = 80
+"""Colour-matched points below which an object is not seen."""
+COLOUR_TOLERANCE = 0.008
+"""Chromaticity distance accepted as an opaque object's colour (neutral grey is 0.015 from
+the white ceramic's)."""
+TRANSPARENT_TOLERANCE = 0.02
+"""Chromaticity distance from a transparent object's grey-to-colour segment."""
+MIN_INLIER_SHARE = 0.8
+MAX_RMSE = 0.004  # m
+COARSE_CORRESPONDENCE = 0.02  # m
+FINE_CORRESPONDENCE = 0.006  # m
+SOURCE_VOXEL = 0.002  # m, downsampling of the observed points for ICP
+YAW_OBSERVABLE_DEVIATION = 0.002  # m
+START_OFFSETS = ((0.0, 0.0), (0.008, 0.0), (-0.008, 0.0), (0.0, 0.008), (0.0, -0.008))
+"""m: the ICP starts from the guess and from it shifted by these in x and y; the fit with the
+smallest truncated mean squared distance of all points to the model wins."""
+MAX_TILT = math.radians(10.0)
+"""A fit tilting the object more than this from upright is discarded (they stand on a support)."""
+REGISTRATION = "PLANE_ICP"
+
+
+@dataclass(frozen=True)
+class ObjectEstimate:
+    """What was seen of object ``name``.
+
+    ``seen`` False: ``position``/``quaternion``/``covariance`` are None and ``reason`` says why.
+    Else ``position`` (3,) m of the object frame's origin (bottom centre) in the world,
+    ``quaternion`` (w, x, y, z) its orientation (yaw 0 when ``yaw_observable`` is False),
+    ``covariance`` (3 × 3, m²) of the position, ``yaw_sigma`` (rad, inf when not observable),
+    ``rmse`` (m) the fit's RMS residual, ``points`` the observed points fitted, ``inliers``
+    how many of those (after downsampling) the fit used."""
+
+    name: str
+    seen: bool
+    reason: str = ""
+    position: Array | None = None
+    quaternion: Array | None = None
+    covariance: Array | None = None
+    yaw_observable: bool = False
+    yaw_sigma: float = math.inf
+    rmse: float = math.nan
+    points: int = 0
+    inliers: int = 0
+    cluster: npt.NDArray[np.int64] | None = field(default=None, repr=False)
+    """Indices into the cloud of the cluster the object was found in (for content estimates)."""
+
+    @property
+    def sigma_position(self) -> float:
+        """√trace of the position covariance (m); inf when not seen."""
+        return math.inf if self.covariance is None else float(math.sqrt(np.trace(self.covariance)))
+
+
+def _quat_from_matrix(r: Array) -> Array:
+    """Unit quaternion (w, x, y, z) of a rotation matrix."""
+    w = math.sqrt(max(0.0, 1.0 + r[0, 0] + r[1, 1] + r[2, 2])) / 2
+    x = math.copysign(math.sqrt(max(0.0, 1.0 + r[0, 0] - r[1, 1] - r[2, 2])) / 2, r[2, 1] - r[1, 2])
+    y = math.copysign(math.sqrt(max(0.0, 1.0 - r[0, 0] + r[1, 1] - r[2, 2])) / 2, r[0, 2] - r[2, 0])
+    z = math.copysign(math.sqrt(max(0.0, 1.0 - r[0, 0] - r[1, 1] + r[2, 2])) / 2, r[1, 0] - r[0, 1])
+    q = np.array([w, x, y, z])
+    out: Array = q / np.linalg.norm(q)
+    return out
+
+
+def _circle_centre(xy: Array) -> Array | None:
+    """Centre (2,) of the least-squares circle through ``xy`` (M × 2, algebraic fit: the
+    walls of an upright round object seen from any side), None when degenerate."""
+    a = np.column_stack([xy, np.ones(len(xy))])
+    b = np.sum(xy * xy, axis=1)
+    sol, _, rank, _ = np.linalg.lstsq(a, b, rcond=None)
+    if rank < 3:
+        return None
+    out: Array = sol[:2] / 2
+    return out
+
+
+def _tilt_only(r: Array) -> Array:
+    """The smallest rotation taking world z to ``r``'s z axis (``r`` with its yaw removed)."""
+    z = r[:, 2]
+    axis = np.cross([0.0, 0.0, 1.0], z)
+    s, c = float(np.linalg.norm(axis)), float(z[2])
+    if s < 1e-12:
+        return np.eye(3)
+    k = axis / s
+    kx = np.array([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
+    out: Array = np.eye(3) + s * kx + (1 - c) * kx @ kx
+    return out
+
+
+class _Target:
+    """An object model prepared for small_gicp: point cloud with normals and its KdTree."""
+
+    def __init__(self, model: ObjectModel) -> None:
+        self.model = model
+        self.cloud = small_gicp.PointCloud(model.points)
+        self.tree = small_gicp.KdTree(self.cloud)
+        small_gicp.estimate_normals(self.cloud, self.tree, num_neighbors=10)
+
+
+class Localiser:
+    """Finds ``models`` (velma/perception/objects.py) in coloured world point clouds; the
+    models' ICP targets are prepared once here (≈ 0.1 s)."""
+
+    def __init__(self, models: Iterable[ObjectModel]) -> None:
+        self.targets = {m.name: _Target(m) for m in models}
+
+    def localise(
+        self,
+        points: Array,
+        colours: npt.NDArray[np.uint8],
+        camera_position: Array,
+        names: Iterable[str] | None = None,
+    ) -> dict[str, ObjectEstimate]:
+        """Estimates of ``names`` (all known objects when None) from ``points`` (N × 3, m,
+        world, z up), their ``colours`` (N × 3, uint8) and the camera's world position (3,) m.
+        Each cluster goes to at most one object. Raises ``KeyError`` for an unknown name."""
+        wanted = list(self.targets) if names is None else list(names)
+        for n in wanted:
+            if n not in self.targets:
+                raise KeyError(n)
+        supports = support_heights(points)
+        scored: list[tuple[float, str, Cluster]] = []
+        for n in wanted:
+            model = self.targets[n].model
+            tolerance = TRANSPARENT_TOLERANCE if model.transparent else COLOUR_TOLERANCE
+            match = np.flatnonzero(colour_match(colours, model.rgba, tolerance))
+            parts = clusters(points, match, supports, model.height + 0.015, MIN_POINTS // 4)
+            for c in merge_within(parts, points, self._max_extent(model)):
+                if len(c.index) < MIN_POINTS:
+                    continue
+                score = self._score(model, c)
+                if score is not None:
+                    scored.append((score, n, c))
+        out: dict[str, ObjectEstimate] = {}
+        used: set[int] = set()
+        for _, n, c in sorted(scored, key=lambda s: -s[0]):
+            if n in out or used.intersection(c.index[:20].tolist()):
+                continue
+            estimate = self._fit(n, points[c.index], c, camera_position)
+            if estimate.seen:
+                used.update(c.index.tolist())
+                out[n] = ObjectEstimate(**{**estimate.__dict__, "cluster": c.index})
+        for n in wanted:
+            if n not in out:
+                out[n] = ObjectEstimate(name=n, seen=False, reason="no cluster of its size and colour fits")
+        return out
+
+    @staticmethod
+    def _max_extent(model: ObjectModel) -> float:
+        """Largest horizontal bounding-box diagonal (m) of the object's points, with margin."""
+        return 2 * model.radius * math.sqrt(2) + 0.01
+
+    @staticmethod
+    def _score(model: ObjectModel, c: Cluster) -> float | None:
+        """How well cluster ``c`` (of the object's colour) fits ``model``'s size (higher is
+        better), or None when it cannot be the object."""
+        if not (0.6 * model.height <= c.top <= model.height + 0.015):
+            return None
+        if c.extent > Localiser._max_extent(model):
+            return None
+        return -abs(c.top - model.height) / model.height
+
+    def _fit(self, name: str, observed: Array, c: Cluster, camera: Array) -> ObjectEstimate:
+        """ICP of ``observed`` (M × 3, world) to the model of ``name`` (module docstring)."""
+        target = self.targets[name]
+        model = target.model
+        centre = _circle_centre(observed[:, :2])
+        if centre is None or np.linalg.norm(centre - observed[:, :2].mean(axis=0)) > model.radius:
+            mean = observed[:, :2].mean(axis=0)
+            away = mean - np.asarray(camera, dtype=np.float64)[:2]
+            centre = mean + away / max(float(np.linalg.norm(away)), 1e-9) * model.radius / 3
+        start = np.array([*centre, c.support])
+        source, _ = small_gicp.preprocess_points(observed - start, downsampling_resolution=SOURCE_VOXEL)
+        if source.size() < MIN_POINTS // 2:
+            return ObjectEstimate(name=name, seen=False, reason=f"{source.size()} points after downsampling")
+        source_points = np.asarray(source.points())[:, :3]
+        best: tuple[float, Array] | None = None
+        for dx, dy in START_OFFSETS:
+            t = np.eye(4)
+            t[:2, 3] = (-dx, -dy)
+            t = self._align(target, source, t, COARSE_CORRESPONDENCE).T_target_source
+            if t[2, 2] < math.cos(MAX_TILT):
+                continue
+            moved = source_points @ t[:3, :3].T + t[:3, 3]
+            _, sq = target.tree.batch_nearest_neighbor_search(moved)
+            key = float(np.mean(np.minimum(np.asarray(sq), FINE_CORRESPONDENCE**2)))
+            if best is None or key < best[0]:
+                best = (key, t)
+        if best is None:
+            return ObjectEstimate(name=name, seen=False, reason="no upright fit")
+        result = self._align(target, source, best[1], FINE_CORRESPONDENCE)
+        t = result.T_target_source
+        inliers = int(result.num_inliers)
+        share = inliers / source.size()
+        rmse = math.sqrt(2 * result.error / max(inliers, 1))
+        if share < MIN_INLIER_SHARE or rmse > MAX_RMSE or t[2, 2] < math.cos(MAX_TILT):
+            return ObjectEstimate(
+                name=name, seen=False, reason=f"fit rejected: {share:.0%} inliers, rms {rmse * 1e3:.1f} mm"
+            )
+        inv = np.linalg.inv(t)  # object frame in the start frame
+        rotation = inv[:3, :3]
+        position = start + inv[:3, 3]
+        position[2] = c.support  # it stands on the support plane (module docstring)
+        yaw_observable = model.symmetry_deviation > YAW_OBSERVABLE_DEVIATION
+        cov6 = rmse**2 * np.linalg.pinv(np.asarray(result.H))
+        covariance = self._position_covariance(np.asarray(result.H), rmse)
+        yaw_sigma = math.sqrt(max(cov6[2, 2], 0.0)) if yaw_observable else math.inf
+        if not yaw_observable:
+            rotation = _tilt_only(rotation)
+        return ObjectEstimate(
+            name=name,
+            seen=True,
+            position=position,
+            quaternion=_quat_from_matrix(rotation),
+            covariance=covariance,
+            yaw_observable=yaw_observable,
+            yaw_sigma=yaw_sigma,
+            rmse=rmse,
+            points=len(observed),
+            inliers=inliers,
+        )
+
+    @staticmethod
+    def _align(
+        target: _Target, source: small_gicp.PointCloud, t: Array, distance: float
+    ) -> small_gicp.RegistrationResult:
+        """One ``small_gicp.align`` of ``source`` to ``target`` from ``t`` (4 × 4)."""
+        return small_gicp.align(
+            target.cloud,
+            source,
+            target.tree,
+            init_T_target_source=t,
+            registration_type=REGISTRATION,
+            max_correspondence_distance=distance,
+            max_iterations=30,
+        )
+
+    @staticmethod
+    def _position_covariance(h: Array, rmse: float) -> Array:
+        """σ̂² times the inverse of the translation block's Schur complement (m²)."""
+        hrr, hrt, htt = h[:3, :3], h[:3, 3:], h[3:, 3:]
+        schur = htt - hrt.T @ np.linalg.pinv(hrr, rcond=1e-6) @ hrt
+        out: Array = np.asarray(rmse**2 * np.linalg.pinv(schur), dtype=np.float64)
+        return out
