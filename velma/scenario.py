@@ -104,6 +104,11 @@ POUR_ANGLE = -2.3
 POUR_DURATION = 4.0
 POUR_WAIT = 2.5
 UNTILT_DURATION = 3.0
+POUR_CLEAR_VIEW: Vec3 = (0.0, 0.15, 0.15)
+"""After the pour the upright jar moves this far (m, the turned frame of JAR_POUR_START_IN_BOWL)
+from its pour-start pose, up and to the robot's left, so that the head camera sees the whole
+bowl for the content check: beside the bowl the jar and the hand hide half of its floor
+(issue 19; found by rendering the head's view from candidate poses the IK reaches)."""
 
 RIGHT_PICK_POSTURE: tuple[float, ...] = (1.46, -0.98, -0.15, 1.82, -0.2, 1.26, 2.29)
 """right_arm_0..6_joint (rad) before the bowl approach: the IK solution of the bowl entry
@@ -244,9 +249,11 @@ def pour_poses(bowl: Vec3) -> PourPoses:
 def pour_commands(bowl: Vec3) -> list[ExecutorCommand]:
     """The pour part of the experiment, the jar in the left hand (side grasp), into the bowl
     standing at ``bowl`` (world, m): turn to TORSO_POUR, bring the jar over, tilt, wait, tilt
-    back, observe."""
+    back, move the jar out of the head's view of the bowl (POUR_CLEAR_VIEW), observe."""
     p = pour_poses(bowl)
     left = JAR_ARM
+    clear = np.array(p.jar_pour_start.position) + _rot_z(TORSO_POUR) @ np.array(POUR_CLEAR_VIEW)
+    jar_clear_view = Pose((float(clear[0]), float(clear[1]), float(clear[2])), p.jar_pour_start.orientation)
     return [
         MoveJoints(positions={"torso_0_joint": TORSO_POUR}, duration=SHORT_MOVE),
         MoveTool(arm=left, target=p.jar_above_pour, duration=MOVE_DURATION),
@@ -254,6 +261,7 @@ def pour_commands(bowl: Vec3) -> list[ExecutorCommand]:
         Tilt(arm=left, pivot=p.pour_pivot, axis=p.pour_axis, angle=POUR_ANGLE, duration=POUR_DURATION),
         Wait(duration=POUR_WAIT),
         Tilt(arm=left, pivot=p.pour_pivot, axis=p.pour_axis, angle=-POUR_ANGLE, duration=UNTILT_DURATION),
+        MoveTool(arm=left, target=jar_clear_view, duration=SHORT_MOVE),
         Observe(),
     ]
 

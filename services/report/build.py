@@ -12,11 +12,12 @@ from services.report.coordination import commands, coordination
 from services.report.figures import write_figures
 from services.report.load import Message, RunData, load_run
 from services.report.markdown import render
-from services.report.model import FaultRow, Header, Report
+from services.report.model import FaultRow, Header, PerceptionRow, Report
 from services.report.planning import plan_phases
 from services.report.stats import agent_matrix, channel_stats, size_stats
 from services.report.timeline import command_text, find_command, find_outcome, timeline
 from shared.fipa_codec.languages.l_hc import CommandOutcome
+from velma.executor.capture import PERCEPTION_LOG as PERCEPTION_JSONL
 from velma.executor.timing import TimingStats
 
 TIMING_JSON = "ag_ex_timing.json"  # written by services/agents/executor/agent.py
@@ -58,6 +59,7 @@ def _assemble(run: RunData, container: str = "bowl") -> Report:
         commands=commands(messages),
         coordination=coordination(messages),
         faults=_faults(run, notes),
+        perception=_perception(Path(run_dir), notes),
     )
 
 
@@ -99,6 +101,27 @@ def _control_timing(run_dir: Path, notes: list[str]) -> TimingStats | None:
     except (msgspec.DecodeError, OSError) as exc:
         notes.append(f"{TIMING_JSON} unreadable: {exc}")
         return None
+
+
+def _perception(run_dir: Path, notes: list[str]) -> list[PerceptionRow]:
+    """The rows of ``ag_ex_perception.jsonl`` (none when absent: a ground-truth run); a
+    line that cannot be read becomes a note and is skipped."""
+    path = run_dir / PERCEPTION_JSONL
+    if not path.exists():
+        return []
+    rows: list[PerceptionRow] = []
+    decoder = msgspec.json.Decoder(PerceptionRow)
+    bad = 0
+    for line in path.read_bytes().splitlines():
+        if not line.strip():
+            continue
+        try:
+            rows.append(decoder.decode(line))
+        except msgspec.DecodeError:
+            bad += 1
+    if bad:
+        notes.append(f"{PERCEPTION_JSONL}: {bad} unreadable line(s) skipped")
+    return rows
 
 
 def write_report(run_dir: Path) -> Path:

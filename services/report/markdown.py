@@ -38,6 +38,7 @@ def render(report: Report, figures: Sequence[FigureFile] = ()) -> str:
         _control(report),
         _coordination(report),
         _faults(report),
+        _perception(report),
         _notes(report.notes),
     ]
     return "\n\n".join(p for p in parts if p) + "\n"
@@ -421,6 +422,58 @@ def _faults(report: Report) -> str:
     )
     table = _table(("kind", "by", "where", "count", "first (s)", "last (s)", "detail (last)"), rows)
     return f"## 8. Injected faults\n\n{table}\n\n{how}"
+
+
+def _or_dash(value: int | None) -> str:
+    return "–" if value is None else str(value)
+
+
+def _perception(report: Report) -> str:
+    """Section 9, only for runs that perceived with the head camera: every object of every
+    Observation beside the ground truth, and the errors' p50 / p95 / max."""
+    rows = report.perception
+    if not rows:
+        return ""
+    table = _table(
+        (
+            "t (s)",
+            "object",
+            "seen",
+            "error (mm)",
+            "σ (mm)",
+            "content / truth",
+            "why not seen",
+            "Observe (ms)",
+        ),
+        [
+            (
+                f"{r.sim_time:.1f}",
+                r.object,
+                "yes" if r.seen else "**no**",
+                "" if r.error_mm is None else f"{r.error_mm:.1f}",
+                "" if r.sigma_mm is None else f"{r.sigma_mm:.1f}",
+                ""
+                if r.content_truth is None
+                else f"{'–' if r.content is None else r.content} / {r.content_truth}",
+                _cell(r.reason or ""),
+                "" if r.observe_ms is None else f"{r.observe_ms:.0f}",
+            )
+            for r in rows
+        ],
+    )
+    errors = sorted(r.error_mm for r in rows if r.error_mm is not None)
+    seen = sum(r.seen for r in rows)
+    summary = f"{seen} of {len(rows)} requested objects seen"
+    if errors:
+        p = lambda q: errors[min(len(errors) - 1, int(q * (len(errors) - 1) + 0.5))]  # noqa: E731
+        summary += f"; position error p50 {p(0.5):.1f} mm, p95 {p(0.95):.1f} mm, max {errors[-1]:.1f} mm"
+    how = (
+        "**How read.** `ag_ex_perception.jsonl`: ag_ex's record of each head-camera Observation "
+        "(velma/executor/perception_log.py), the estimate beside the ground truth of the same "
+        "captured world state. The truth is the simulation's, for this report only: the agents "
+        "never receive it. Content: the spheres the camera counted beside those inside."
+    )
+    return f"## 9. Perception (head camera)\n\n{summary}.\n\n{table}\n\n{how}"
 
 
 def _notes(notes: Sequence[str]) -> str:

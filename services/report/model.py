@@ -175,6 +175,24 @@ class FaultRow(msgspec.Struct, kw_only=True):
     detail: str = ""
 
 
+class PerceptionRow(msgspec.Struct, kw_only=True):
+    """One object of one camera Observation beside the truth of the same captured state
+    (``ag_ex_perception.jsonl``, velma/executor/perception_log.py): simulation time (s),
+    whether it was seen, the position error and the reported 1-σ (mm), the content estimate
+    and the true count (containers), the reason it was not seen, and the Observe's wall time
+    (ms)."""
+
+    sim_time: float
+    object: str
+    seen: bool
+    error_mm: float | None = None
+    sigma_mm: float | None = None
+    content: int | None = None
+    content_truth: int | None = None
+    reason: str | None = None
+    observe_ms: float | None = None
+
+
 class Report(msgspec.Struct, kw_only=True):
     """The experiment report of one run folder (paper §5.7). ``notes`` lists what was
     missing or could not be read."""
@@ -193,3 +211,6 @@ class Report(msgspec.Struct, kw_only=True):
     coordination: list[CoordinationEvent] = []
     faults: list[FaultRow] = []
     """Injected faults (docs/faults.md); empty when none was applied."""
+    perception: list[PerceptionRow] = []
+    """Each camera Observation's objects beside the truth; empty when the run perceived from
+    the ground truth (ROCO_PERCEPTION=truth) or ag_ex wrote no log."""

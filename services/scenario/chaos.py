@@ -169,10 +169,11 @@ def verdict(run_dir: Path, outcome: ScenarioOutcome) -> Verdict:
     )
 
 
-def final_heights(run_dir: Path) -> dict[str, float] | None:
-    """Height (m, world z) of each movable object in the world ag_ex kept in its final
-    checkpoint in ``run_dir``, for the scene its launch environment names (ROCO_SEED,
-    ROCO_POSE_SEED); None when there is no usable checkpoint (logged)."""
+def final_world(run_dir: Path) -> Observation | None:
+    """The ground truth of the world ag_ex kept in its final checkpoint in ``run_dir`` (every
+    known object's pose, containers' particle counts), for the scene its launch environment
+    names (ROCO_SEED, ROCO_POSE_SEED): for judging a run, never for the agents. None when there
+    is no usable checkpoint (logged)."""
     from velma.executor.checkpoint import observe_checkpoint
 
     path = run_dir / FINAL_CHECKPOINT
@@ -181,11 +182,18 @@ def final_heights(run_dir: Path) -> dict[str, float] | None:
     env = load_launch_env(run_dir) or {}
     try:
         pose = env.get("ROCO_POSE_SEED", "")
-        obs = observe_checkpoint(
+        return observe_checkpoint(
             path, seed=int(env.get("ROCO_SEED", "0") or 0), pose_seed=int(pose) if pose else None
         )
     except (OSError, ValueError) as exc:  # CheckpointError is a ValueError
         log.warning("final world not judged from %s: %s", path, exc)
+        return None
+
+
+def final_heights(run_dir: Path) -> dict[str, float] | None:
+    """Height (m, world z) of each movable object in ``final_world``; None without one."""
+    obs = final_world(run_dir)
+    if obs is None:
         return None
     return {o.name: o.pose.position[2] for o in obs.objects if o.name in MOVABLE}
 

@@ -4,16 +4,21 @@ expectations are checked; the run folder's report is read back (services/scenari
 
 from __future__ import annotations
 
+import math
 import subprocess
 import sys
 from pathlib import Path
 
 import pytest
 
+from services.agents.knowledge.world_model import WorldModel
 from services.report import build_report
 from services.report.load import load_run
 from services.runtime.run_folder import read_run_info
+from services.scenario.chaos import final_world
+from shared.fipa_codec.languages.l_sd import ObjectObservation
 from shared.fipa_codec.languages.l_sw import SWState, SWStatus
+from velma.model.scene import load_kitchen
 
 pytestmark = pytest.mark.slow
 
@@ -30,6 +35,32 @@ def scenario(name: str, runs: Path) -> tuple[subprocess.CompletedProcess[str], P
     touched = [e.text for e in build_report(run_dir).events if e.kind == "self_contact"]
     assert touched == [], touched
     return proc, run_dir
+
+
+KITCHEN = WorldModel()
+"""a_km's kitchen facts: where each object goes on each piece of furniture."""
+START = {n: tuple(load_kitchen(0, 0).body(n).pos) for n in ("jar", "bowl", "cup")}
+"""Where the movable objects stand when a run starts (kitchen.xml)."""
+UPRIGHT = math.radians(15.0)
+FULL = math.ceil(0.9 * 18)
+"""Spheres the bowl holds after a pour that succeeded (≥ 90 % of the content)."""
+
+
+def world(run_dir: Path) -> dict[str, ObjectObservation]:
+    """The simulated world as ag_ex left it (its final checkpoint's ground truth)."""
+    obs = final_world(run_dir)
+    assert obs is not None, "no final checkpoint in the run folder"
+    return {o.name: o for o in obs.objects}
+
+
+def stands_at(o: ObjectObservation, furniture: str, tolerance: float = 0.03) -> bool:
+    """``o`` stands upright within ``tolerance`` m of its place on ``furniture`` (a_km's)."""
+    place = KITCHEN.placement(o.name, furniture).positions[0]
+    return o.pose.tilt() < UPRIGHT and math.dist(o.pose.position, place) <= tolerance
+
+
+def untouched(o: ObjectObservation) -> bool:
+    return o.pose.tilt() < UPRIGHT and math.dist(o.pose.position, START[o.name]) <= 0.01
 
 
 def sw_states(run_dir: Path) -> list[SWStatus]:
@@ -54,6 +85,9 @@ def test_an_urgent_command_preempts_the_pour_which_resumes(tmp_path: Path) -> No
     # the cup's plan ran between the preemption and the pour's end, and the pour finished
     assert report.content.observed and report.content.share is not None and report.content.share >= 0.9
     assert "## 7. Commands and coordination" in (run_dir / "report.md").read_text()
+    w = world(run_dir)
+    assert stands_at(w["cup"], "table") and stands_at(w["bowl"], "table"), w
+    assert (w["bowl"].particles_inside or 0) >= FULL, w["bowl"]
     from services.spec_check.conformance import verify_report
 
     conforms, text = verify_report(run_dir)
@@ -66,6 +100,9 @@ def test_two_commands_in_a_row(tmp_path: Path) -> None:
     report = build_report(run_dir)
     assert [c.outcome for c in report.commands] == ["succeeded", "succeeded"]
     assert report.content.share is not None and report.content.share >= 0.9
+    w = world(run_dir)
+    assert stands_at(w["cup"], "table") and stands_at(w["bowl"], "table"), w
+    assert (w["bowl"].particles_inside or 0) >= FULL, w["bowl"]
 
 
 def test_an_object_moved_after_it_was_seen_makes_a_ta_replan(tmp_path: Path) -> None:
@@ -73,12 +110,16 @@ def test_an_object_moved_after_it_was_seen_makes_a_ta_replan(tmp_path: Path) -> 
     assert proc.returncode == 0, proc.stdout[-4000:] + proc.stderr[-2000:]
     reasons = [s.reason or "" for s in sw_states(run_dir) if s.state is SWState.REPLAN]
     assert any("jar is 4 cm from where the plan expects it" in r for r in reasons), reasons
+    w = world(run_dir)
+    assert stands_at(w["bowl"], "table") and (w["bowl"].particles_inside or 0) >= FULL, w["bowl"]
 
 
 def test_impossible_commands_are_refused_with_a_reason(tmp_path: Path) -> None:
     proc, run_dir = scenario("impossible", tmp_path)
     assert proc.returncode == 0, proc.stdout[-4000:] + proc.stderr[-2000:]
     assert [c.outcome for c in build_report(run_dir).commands] == ["failed", "failed"]
+    w = world(run_dir)
+    assert all(untouched(w[n]) for n in START), w  # nothing was moved
 
 
 def test_a_km_restarted_between_commands_keeps_its_knowledge(tmp_path: Path) -> None:
@@ -89,6 +130,8 @@ def test_a_km_restarted_between_commands_keeps_its_knowledge(tmp_path: Path) -> 
     info = read_run_info(run_dir)
     assert info.commands == ["bring the cup to the table", "bring the cup to the table"]
     assert [c.outcome for c in build_report(run_dir).commands] == ["succeeded", "failed"]
+    w = world(run_dir)
+    assert stands_at(w["cup"], "table") and untouched(w["jar"]) and untouched(w["bowl"]), w
 
 
 def test_a_stop_mid_pour_puts_the_jar_down(tmp_path: Path) -> None:
@@ -97,12 +140,17 @@ def test_a_stop_mid_pour_puts_the_jar_down(tmp_path: Path) -> None:
     report = build_report(run_dir)
     assert [c.outcome for c in report.commands] == ["stopped"]
     assert any("put the jar down on the table" in e.text for e in report.coordination)
+    w = world(run_dir)
+    assert stands_at(w["jar"], "table") and (w["jar"].particles_inside or 0) >= FULL, w["jar"]
 
 
 def test_after_the_pour_jar_and_bowl_go_back_in_the_cabinet(tmp_path: Path) -> None:
     proc, run_dir = scenario("tidy_up", tmp_path)
     assert proc.returncode == 0, proc.stdout[-4000:] + proc.stderr[-2000:]
     assert [c.outcome for c in build_report(run_dir).commands] == ["succeeded"] * 3
+    w = world(run_dir)
+    assert stands_at(w["jar"], "cabinet") and stands_at(w["bowl"], "cabinet"), w
+    assert (w["bowl"].particles_inside or 0) >= FULL, w["bowl"]
 
 
 def test_a_placed_bowl_knocked_over_fails_the_task_with_the_reason(tmp_path: Path) -> None:
@@ -112,3 +160,5 @@ def test_a_placed_bowl_knocked_over_fails_the_task_with_the_reason(tmp_path: Pat
     assert [c.outcome for c in report.commands] == ["failed"]
     errors = [s.reason or "" for s in sw_states(run_dir) if s.state is SWState.ERROR]
     assert any("localise_bowl" in r and "the bowl is not upright: it leans 180°" in r for r in errors), errors
+    bowl = world(run_dir)["bowl"]
+    assert bowl.pose.tilt() > math.radians(170)  # still upside down where the person left it

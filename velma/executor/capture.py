@@ -17,6 +17,14 @@ import numpy.typing as npt
 
 PERCEPTION_MODES = ("camera", "truth")
 """``ROCO_PERCEPTION``'s values (velma/executor/observer.py ``perception_mode``)."""
+PERCEPTION_LOG = "ag_ex_perception.jsonl"
+"""The file in the run folder where ag_ex logs each camera Observation beside the truth
+(velma/executor/perception_log.py; read by the run report, services/report)."""
+DEFAULT_PERCEPTION = "truth"
+"""``ROCO_PERCEPTION`` when unset. Still the ground truth: the camera localises the objects
+within ≈ 2 mm, but its count of the bowl's content after the pour is 16–20 for 18 spheres
+(docs/bench/observe.md), so the pour's ≥ 90 % check (17 of 18) would fail about one pour in
+four that succeeded. ``ROCO_PERCEPTION=camera`` runs everything from the camera."""
 
 
 class WorldCapture(msgspec.Struct, frozen=True, tag="world_capture", kw_only=True):

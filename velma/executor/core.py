@@ -56,7 +56,7 @@ class Executor:
     exactly once per command (exceptions it raises are logged and swallowed).
     Commands still queued at ``stop`` are answered with ``ok=False, reason="stopped"``.
 
-    ``perception``: ``camera`` or ``truth`` (None: ``ROCO_PERCEPTION``, default camera;
+    ``perception``: ``camera`` or ``truth`` (None: ``ROCO_PERCEPTION``, else the default of
     velma/executor/observer.py ``perception_mode``); ``perception_log`` receives each camera
     Observation's records beside the truth (velma/executor/perception_log.py). ``on_done`` runs
     on the delivery thread (module docstring), in the order the commands ended.

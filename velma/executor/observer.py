@@ -22,9 +22,9 @@ What the agents get (L_SD, shared/fipa_codec/languages/l_sd.py):
 docs/bench/perception.md measured over 20 pose seeds: the RMS of the 3-D errors of the jar's
 20 fits is 0.95 mm (p50 0.71, p95 1.69); the floor is that, rounded up to 1 mm.
 
-``perception_mode`` reads ``ROCO_PERCEPTION``: ``camera`` (default) or ``truth``
-(velma/executor/ground_truth.py, in the loop: for tests that are about something else and
-need speed; named as such).
+``perception_mode`` reads ``ROCO_PERCEPTION``: ``camera`` or ``truth`` (velma/executor/
+ground_truth.py, in the loop); unset: ``DEFAULT_PERCEPTION`` (velma/executor/capture.py says
+why it is still the truth).
 """
 
 from __future__ import annotations
@@ -41,7 +41,7 @@ import numpy as np
 
 from shared.fipa_codec.languages.common import Pose
 from shared.fipa_codec.languages.l_sd import ObjectObservation, Observation
-from velma.executor.capture import PERCEPTION_MODES, WorldCapture
+from velma.executor.capture import DEFAULT_PERCEPTION, PERCEPTION_MODES, WorldCapture
 from velma.model.scene import PARTICLE_PREFIX, PARTICLE_RADIUS
 from velma.perception.content import ContentEstimate, SphereCount, count_spheres, estimate_content
 from velma.perception.kinect import HeadKinect
@@ -53,16 +53,19 @@ MOVABLE = ("jar", "bowl", "cup")
 FURNITURE = ("table", "cabinet")
 """Fixed bodies: poses from the kitchen's map (module docstring)."""
 POSITION_SIGMA_FLOOR = 0.001  # m (module docstring)
-CAMERA_SIZE = (320, 240)
+CAMERA_SIZE = (640, 480)
 """Frame (px) rendered per Observe: 320 × 240 (≈ 0.2 s an Observe; 640 × 480 took ≈ 1 s with
 no better localisation, docs/bench/observe.md)."""
+FRAMES_AVERAGED = 5
+"""Depth frames averaged per Observe (the scene is static while the robot observes: 5 frames
+are 0.17 s of the Kinect's 30 Hz; velma/perception/kinect.py ``HeadKinect.capture``)."""
 MODES = PERCEPTION_MODES
 
 
 def perception_mode(environ: dict[str, str] | None = None) -> str:
-    """``ROCO_PERCEPTION`` of ``environ`` (default ``os.environ``): ``camera`` when unset.
-    Raises ``ValueError`` for another value."""
-    value = (os.environ if environ is None else environ).get("ROCO_PERCEPTION", "camera") or "camera"
+    """``ROCO_PERCEPTION`` of ``environ`` (default ``os.environ``): ``DEFAULT_PERCEPTION`` when
+    unset or empty. Raises ``ValueError`` for another value."""
+    value = (os.environ if environ is None else environ).get("ROCO_PERCEPTION", "") or DEFAULT_PERCEPTION
     if value not in MODES:
         raise ValueError(f"ROCO_PERCEPTION={value!r}: expected one of {', '.join(MODES)}")
     return value
@@ -130,7 +133,7 @@ class CameraObserver:
         content: dict[str, ContentEstimate | SphereCount] = {}
         objects: list[ObjectObservation] = []
         if wanted:
-            frame = self.kinect.capture(data, self.rng)
+            frame = self.kinect.capture(data, self.rng, FRAMES_AVERAGED)
             points, colours, _ = frame.cloud()
             estimates = self.localiser.localise(points, colours, frame.position, wanted)
             for n in wanted:

@@ -61,7 +61,7 @@ import numpy.typing as npt
 
 from shared.fipa_codec.languages.l_ex import CommandResult, ExecutorCommand, command_name
 from shared.fipa_codec.languages.l_sd import Observation
-from velma.executor.capture import PERCEPTION_MODES, WorldCapture
+from velma.executor.capture import DEFAULT_PERCEPTION, PERCEPTION_MODES, WorldCapture
 from velma.executor.checkpoint import (
     CHECKPOINT_CAPACITY,
     CHECKPOINT_PERIOD,
@@ -347,7 +347,8 @@ class ExecutorProcess:
     (``restore_report`` says what happened; it is logged) unless ``fresh``, which deletes it;
     checkpoints are written there every second of simulated time and when the loop ends.
 
-    ``perception`` ``camera`` or ``truth`` (None: ``ROCO_PERCEPTION``, default camera); with
+    ``perception`` ``camera`` or ``truth`` (None: ``ROCO_PERCEPTION``, else
+    ``DEFAULT_PERCEPTION`` of velma/executor/capture.py); with
     the camera this side builds the kitchen model of the same seeds in its delivery thread
     (≈ 1 s, at ``start``, not waited for) and renders there; ``perception_log`` receives each
     camera Observation's records beside the truth (velma/executor/perception_log.py).
@@ -371,7 +372,7 @@ class ExecutorProcess:
         perception_log: RecordSink | None = None,
     ) -> None:
         if perception is None:
-            perception = os.environ.get("ROCO_PERCEPTION", "") or "camera"
+            perception = os.environ.get("ROCO_PERCEPTION", "") or DEFAULT_PERCEPTION
         if perception not in PERCEPTION_MODES:
             raise ValueError(f"perception={perception!r}: expected one of {', '.join(PERCEPTION_MODES)}")
         self.perception = perception

@@ -165,16 +165,17 @@ def count_spheres(
     ``cy`` (px).
 
     Method: (1) the content-coloured points within the container's inner radius, from its
-    inner bottom to a sphere diameter above its rim; (2) each point moved one sphere radius
-    further along its viewing ray (the visible surface of a sphere faces the camera: its
-    centre lies behind it); (3) greedy peaks: the centre estimate with the most neighbours
-    within 0.6 r is a sphere, all estimates within 1.5 r of it are removed (centres of
-    touching spheres are 2 r apart), until fewer than ``MIN_SPHERE_POINTS`` remain;
-    (4) the share of the content layer (points on a grid over the floor at one sphere radius
-    above it) whose pixel's depth is not nearer than the layer by more than 1.5 sphere
-    diameters (a sphere in front of it does not hide it, an arm does), and the extrapolation
-    ``visible / share`` (named simplification: the content is assumed spread evenly over the
-    floor). Spheres stacked under others are not seen (a second layer counts low)."""
+    inner bottom to a sphere diameter above its rim; (2) the spheres resting on the floor, found
+    by ``_spheres_on_layer`` (a Hough transform for spheres of the known radius whose centres
+    lie one radius above the inner bottom); (3) the share of the content layer (points on a
+    grid over the floor at one sphere radius above it) whose pixel's depth is not nearer than
+    the layer by more than 1.5 sphere diameters (a sphere in front of it does not hide it, an
+    arm does); (4) the count, ring by ring (frictionless spheres settle in rings about the
+    axis, the outer one along the wall): the spheres seen at one distance from the axis over
+    the share of that ring (one sphere radius wide) in view, at most as many as the ring holds
+    touching (named simplification: a ring's hidden arc holds spheres as densely as its seen
+    arc; a ring with no sphere in view is not counted). Spheres stacked under others are not seen (a second
+    layer counts low)."""
     if not estimate.seen or estimate.position is None:
         return None
     r = particle_radius
@@ -186,31 +187,72 @@ def count_spheres(
     idx = np.flatnonzero(near)
     match = idx[_content_match(colours[idx], content_rgba, model, CONTENT_TOLERANCE)]
     cam = np.asarray(camera_position, dtype=np.float64)
-    ray = points[match] - cam
-    ray /= np.linalg.norm(ray, axis=1, keepdims=True)
-    centres = points[match] + r * ray
-    visible = _peaks(centres, r)
     layer = inner_bottom + r
-    share = _floor_visible(origin, layer, inner_radius - r, depth, cam, camera_rotation, fx, cx, cy, r)
-    count = visible if share >= 0.999 else (round(visible / share) if share >= MIN_FLOOR_VISIBLE else visible)
+    centres = _spheres_on_layer(points[match], origin + np.array([0.0, 0.0, layer]), inner_radius - r, r)
+    visible = len(centres)
+    view = (depth, cam, camera_rotation, fx, cx, cy, r)
+    share = _floor_visible(origin, layer, inner_radius - r, *view)
+    # the hidden part is judged ring by ring: the spheres seen at one distance from the axis,
+    # over the share of that ring in view, at most as many as the ring holds touching
+    radial = np.hypot(centres[:, 0] - origin[0], centres[:, 1] - origin[1])
+    total = 0.0
+    for ring in _rings(radial, r):
+        at = float(np.median(ring))
+        seen = _floor_visible(origin, layer, at + r / 2, *view, max(0.0, at - r / 2))
+        holds = max(1, int(2 * np.pi * at / (2 * r))) if at >= r else 1
+        total += min(len(ring) / max(seen, MIN_FLOOR_VISIBLE), max(holds, len(ring)))
+    count = round(total)
     return SphereCount(
         container=model.name, count=int(count), visible=visible, floor_visible=share, points=len(match)
     )
 
 
-def _peaks(centres: Array, r: float) -> int:
-    """Greedy count of sphere centres among the estimates ``centres`` (M × 3, m)."""
-    left = centres
-    n = 0
-    while len(left) >= MIN_SPHERE_POINTS:
-        d2 = np.sum((left[:, None, :] - left[None, :, :]) ** 2, axis=2)
-        support = np.sum(d2 <= (0.6 * r) ** 2, axis=1)
-        best = int(np.argmax(support))
-        if support[best] < MIN_SPHERE_POINTS:
+def _rings(radial: Array, r: float) -> list[Array]:
+    """The distances from the axis (m) grouped into rings: sorted, split where two neighbours
+    differ by more than ``r``."""
+    if len(radial) == 0:
+        return []
+    order = np.sort(radial)
+    cuts = np.flatnonzero(np.diff(order) > r) + 1
+    return list(np.split(order, cuts))
+
+
+SURFACE_BAND = 0.35
+"""A point is on a candidate sphere's surface when its distance from the centre is within
+this share of the radius of it (noise at ≈ 1 m: a few mm, velma/perception/noise.py)."""
+GRID_STEP = 0.002  # m, candidate centres on the layer
+
+
+def _spheres_on_layer(surface: Array, centre: Array, reach: float, r: float) -> Array:
+    """Count spheres of radius ``r`` resting in one layer: their centres lie on the horizontal
+    plane through ``centre`` (3,) within ``reach`` of it (m), and ``surface`` (M × 3, m) are
+    the visible points of their surfaces. A Hough transform with the radius and the height
+    known: every candidate centre on a ``GRID_STEP`` grid scores the points within
+    ``SURFACE_BAND`` × r of its sphere's surface; the best is a sphere, candidates closer
+    than 1.6 r to it are suppressed (touching spheres' centres are 2 r apart), until the best
+    scores fewer than ``MIN_SPHERE_POINTS``. A sphere on a second layer is not counted.
+    Returns the centres found (K × 3, m)."""
+    if len(surface) < MIN_SPHERE_POINTS:
+        return np.zeros((0, 3))
+    steps = np.arange(-reach, reach + 1e-12, GRID_STEP)
+    gx, gy = np.meshgrid(steps, steps)
+    inside = gx**2 + gy**2 <= reach**2
+    cand = np.stack([gx[inside], gy[inside], np.zeros(int(inside.sum()))], axis=1) + centre
+    dist = np.linalg.norm(surface[None, :, :] - cand[:, None, :], axis=2)
+    on = np.abs(dist - r) <= SURFACE_BAND * r
+    score = on.sum(axis=1).astype(np.int64)
+    alive = np.ones(len(cand), dtype=bool)
+    found: list[int] = []
+    while alive.any():
+        best = int(np.argmax(np.where(alive, score, -1)))
+        if score[best] < MIN_SPHERE_POINTS:
             break
-        n += 1
-        left = left[d2[best] > (1.5 * r) ** 2]
-    return n
+        found.append(best)
+        near = np.sum((cand[:, :2] - cand[best, :2]) ** 2, axis=1) < (1.6 * r) ** 2
+        alive &= ~near
+        score = score - on[:, on[best]].sum(axis=1)  # a point belongs to one sphere
+        on[:, on[best]] = False
+    return cand[found]
 
 
 def _floor_visible(
@@ -224,13 +266,14 @@ def _floor_visible(
     cx: float,
     cy: float,
     r: float,
+    inner: float = 0.0,
 ) -> float:
-    """Share of a grid (5 mm) over the disc of ``radius`` (m) at ``layer_z`` above ``origin``
-    whose pixels' depth is not nearer than the grid point by more than 3 ``r`` (points whose pixel
-has no depth are left out; points outside the image count as hidden)."""
+    """Share of a grid (5 mm) over the ring from ``inner`` to ``radius`` (m) at ``layer_z``
+    above ``origin`` whose pixels' depth is not nearer than the grid point by more than 3 ``r``
+    (points whose pixel has no depth are left out; points outside the image count as hidden)."""
     g = np.arange(-radius, radius + 1e-9, 0.005)
     xx, yy = np.meshgrid(g, g)
-    disc = np.hypot(xx, yy) <= radius
+    disc = (np.hypot(xx, yy) <= radius) & (np.hypot(xx, yy) >= inner)
     world = np.column_stack([xx[disc], yy[disc], np.full(int(disc.sum()), layer_z)]) + origin
     optical = (world - cam) @ np.asarray(rotation, dtype=np.float64)
     z = optical[:, 2]

@@ -116,13 +116,24 @@ class HeadKinect:
         rgb, depth = self._render(data)
         return self._frame(data, rgb, depth)
 
-    def capture(self, data: mujoco.MjData, rng: np.random.Generator) -> DepthFrame:
+    def capture(self, data: mujoco.MjData, rng: np.random.Generator, frames: int = 1) -> DepthFrame:
         """The Kinect's frame of ``data`` (kinematics computed, see ``ideal``): rendered, then
         velma/perception/noise.py ``apply_noise`` with incidence angles from the ideal depth
-        image's normals; draws from ``rng``."""
+        image's normals; draws from ``rng``. ``frames`` > 1: the per-pixel mean of that many
+        noisy depth images of the same (static) scene, as a driver averaging consecutive
+        frames at 30 Hz does (a pixel missing in any of them is missing). Raises
+        ``ValueError`` for ``frames`` < 1."""
+        if frames < 1:
+            raise ValueError(f"frames must be ≥ 1, not {frames}")
         rgb, depth = self._render(data)
         incidence = incidence_angles(depth, self.intrinsics)
-        return self._frame(data, rgb, noise.apply_noise(depth, incidence, rng))
+        noisy = noise.apply_noise(depth, incidence, rng)
+        if frames > 1:
+            total = noisy.astype(np.float64)
+            for _ in range(frames - 1):
+                total += noise.apply_noise(depth, incidence, rng)
+            noisy = (total / frames).astype(np.float32)  # NaN (missing) anywhere stays NaN
+        return self._frame(data, rgb, noisy)
 
     def _frame(
         self, data: mujoco.MjData, rgb: npt.NDArray[np.uint8], depth: npt.NDArray[np.float32]

@@ -12,12 +12,13 @@ Besides the C5 conversation, ag_ex
   (msgpack ``RobotSnapshot``, every ``STATE_PERIOD`` s), for viewers;
 - writes the latest deadline statistics to ``<ROCO_RUN_DIR>/ag_ex_timing.json`` (for the run
   report) every ``TIMING_FILE_PERIOD`` s and when it stops;
-- perceives with the head camera (issue 19; ``ROCO_PERCEPTION=camera``, the default): the
+- perceives with the head camera with ``ROCO_PERCEPTION=camera`` (issue 19; the default is
+  still the ground truth, velma/executor/capture.py ``DEFAULT_PERCEPTION`` says why): the
   loop captures the world at an Observe, the executor's delivery thread in this process renders
   and localises (velma/executor/delivery.py), and each camera Observation is logged beside the
   ground truth of the same state, one JSON line per object, to
   ``<ROCO_RUN_DIR>/ag_ex_perception.jsonl`` (velma/executor/perception_log.py) — for the
-  report, never for the agents. ``ROCO_PERCEPTION=truth`` answers from the physics (tests);
+  report, never for the agents. ``ROCO_PERCEPTION=truth`` answers from the physics;
 - with Rerun logging on (``ROCO_RERUN=1``; the hooks come from the runtime,
   services/runtime/hooks.py): logs each published state, the loop's timing (about once a
   second) and the observations, and renders the head camera about once a second in a thread
@@ -52,12 +53,12 @@ from services.runtime.roles import PARTICIPANT, Conversation, handles, participa
 from shared.fipa_codec import Performative
 from shared.fipa_codec.languages.l_ex import CommandResult, ExecutorCommand
 from shared.fipa_codec.languages.l_sd import Observation
+from velma.executor.capture import PERCEPTION_LOG
 
 COMMAND_TYPES = tuple(t for t in ExecutorCommand.__args__)
 STATE_PERIOD = 0.05  # s between robot-state publications (20 Hz)
 TIMING_FILE_PERIOD = 5.0  # s between writes of ag_ex_timing.json
 TIMING_FILE = "ag_ex_timing.json"
-PERCEPTION_FILE = "ag_ex_perception.jsonl"
 
 
 def _seed(name: str, text: str) -> int:
@@ -119,7 +120,7 @@ class ExecutorAgent(Agent):
             world_state=self.hooks.camera_wanted() if self.hooks else False,
             checkpoint_dir=checkpoint_dir(),  # the world survives a restart (module docstring)
             fresh=fresh_start(),
-            perception=os.environ.get("ROCO_PERCEPTION", "") or "camera",
+            perception=None,  # ROCO_PERCEPTION, else velma/executor/capture.py DEFAULT_PERCEPTION
             perception_log=self._perception_sink(),
         )
 
@@ -130,7 +131,7 @@ class ExecutorAgent(Agent):
         run_dir = os.environ.get("ROCO_RUN_DIR")
         if not run_dir:
             return None
-        path = Path(run_dir) / PERCEPTION_FILE
+        path = Path(run_dir) / PERCEPTION_LOG
 
         def write(records: list[dict[str, Any]]) -> None:
             with path.open("a", encoding="utf-8") as f:

@@ -414,6 +414,11 @@ class WorldModel:
             raise KnowledgeError(f"{node} has no {_name(prop)}")
         return _vec3(value)
 
+    @staticmethod
+    def _vec3_or(props: dict[Node, list[Node]], prop: URIRef, default: Vec3) -> Vec3:
+        value = _first(props, prop)
+        return default if value is None else _vec3(value)
+
     def grasps(self, obj: str, arm: str) -> tuple[GraspAffordance, ...]:
         """The grasp affordances of ``obj`` for the hand of ``arm`` ("left"/"right"), sorted by
         name; () when there are none. Raises KnowledgeError for an unknown object or an
@@ -510,6 +515,7 @@ class WorldModel:
                 duration=self._float(name, p, ROCO.duration),
                 wait=self._float(name, p, ROCO.wait, 2.0),
                 untilt_duration=self._float(name, p, ROCO.untiltDuration, 3.0),
+                clear_view=self._vec3_or(p, ROCO.clearView, (0.0, 0.0, 0.0)),
             )
         return None
 

@@ -474,6 +474,13 @@ def m_pour_into(s: Any, path: str, src: str, dst: str, arm: str) -> Any:
         ("a_wait", f"{tilt}/let_run_out", pour.wait),
         ("a_tilt", f"{tilt}/tilt_back", arm, pivot, axis, -pour.angle, pour.untilt_duration),
         ("a_poured", f"{tilt}/poured", src, dst, s.content.get(src), s.content.get(dst, 0)),
+        (
+            "a_move",
+            f"{path}/clear_view",
+            arm,
+            geo.translated(grip, geo.rotate(pour.clear_view, turn)),
+            SHORT_MOVE_S,
+        ),
     ]
 
 

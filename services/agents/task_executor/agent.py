@@ -51,7 +51,6 @@ from services.runtime.roles import (
 )
 from services.runtime.state_store import StateFile
 from shared.fipa_codec import Performative
-from shared.fipa_codec.languages.common import Pose
 from shared.fipa_codec.languages.l_ex import CommandResult, MoveJoints, MoveTool, Observe, Tilt, Wait
 from shared.fipa_codec.languages.l_hfsm import (
     Assert,
@@ -66,17 +65,6 @@ from shared.fipa_codec.languages.l_sw import TERMINAL_SW_STATES, SWState, SWStat
 from shared.fipa_codec.languages.l_wm import ObjectUpdate, Subscription, WorldUpdate
 
 from .retreat import RetreatStep, finish_set_down, undo_take
-
-
-def tilt_of(pose: Pose) -> float:
-    """Angle (rad, 0..π) between ``pose``'s z axis and the world's z axis: how far an object
-    leans from standing upright. The quaternion (w, x, y, z) is normalised first."""
-    w, x, y, z = pose.orientation
-    n = w * w + x * x + y * y + z * z
-    if n == 0.0:
-        raise ValueError("a zero quaternion has no orientation")
-    return math.acos(max(-1.0, min(1.0, 1.0 - 2.0 * (x * x + y * y) / n)))
-
 
 OBSERVE_REPLY_BY_S = 30.0
 INITIAL_OBSERVE_RETRY_S = 3.0
@@ -309,7 +297,10 @@ class TaskExecutor(Agent):
         update = WorldUpdate(
             stamp=obs.stamp,
             objects=tuple(
-                ObjectUpdate(name=o.name, pose=o.pose, particles=o.particles_inside) for o in obs.objects
+                ObjectUpdate(
+                    name=o.name, pose=o.pose, particles=o.particles_inside, position_sigma=o.position_sigma
+                )
+                for o in obs.objects
             ),
             total_particles=obs.total_particles,
         )
@@ -605,7 +596,7 @@ class TaskExecutor(Agent):
             d = math.dist(pose.position, e.position)
             if d > e.tolerance:
                 out.append(f"the {e.object} is {100 * d:.0f} cm from where the plan expects it")
-            if e.max_tilt is not None and (tilt := tilt_of(pose)) > e.max_tilt:
+            if e.max_tilt is not None and (tilt := pose.tilt()) > e.max_tilt:
                 out.append(f"the {e.object} is not upright: it leans {math.degrees(tilt):.0f}°")
         return "; ".join(out)
 

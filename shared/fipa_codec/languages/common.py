@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 import msgspec
 
 Vec3 = tuple[float, float, float]
@@ -18,3 +20,13 @@ class Pose(msgspec.Struct, frozen=True, array_like=True):
     position: Vec3
     orientation: Quat = (1.0, 0.0, 0.0, 0.0)
     frame: str = "world"
+
+    def tilt(self) -> float:
+        """Angle (rad, 0..π) between this pose's z axis and its frame's: how far an object
+        leans from standing upright (the quaternion is normalised first). Raises ValueError
+        for a zero quaternion."""
+        w, x, y, z = self.orientation
+        n = w * w + x * x + y * y + z * z
+        if n == 0.0:
+            raise ValueError("a zero quaternion has no orientation")
+        return math.acos(max(-1.0, min(1.0, 1.0 - 2.0 * (x * x + y * y) / n)))

@@ -1,15 +1,13 @@
 """L_SD: sensor data from ag_ex (C5): what the robot perceives of the scene.
 
-By default the perception is the head camera's (issue 19): ag_ex renders the head's simulated
-Kinect (RGB-D) of the world as it was when the Observe ran and localises the requested
-objects in it (velma/perception/). What is seen carries the estimate's uncertainty
-(``position_sigma``); what is not seen (out of view, hidden, fit rejected) is named in
-``Observation.unseen``, never guessed. Fields at their defaults are left out on the wire
-(``omit_defaults``), so an observation is no larger than before the new fields. Fixed
-furniture (table, cabinet) is not measured: its pose is a fact of the kitchen's map and
-carries ``position_sigma`` None. A run with
-``ROCO_PERCEPTION=truth`` reads every pose from the physics instead (exact, ``position_sigma``
-None, nothing unseen): only for tests that are about something else and need speed.
+With ``ROCO_PERCEPTION=camera`` (issue 19) ag_ex renders the head's simulated Kinect (RGB-D)
+of the world as it was when the Observe ran and localises the requested objects in it
+(velma/perception/). What is seen carries the estimate's uncertainty (``position_sigma``);
+what is not seen (out of view, hidden, fit rejected) is named in ``Observation.unseen``, never
+guessed. Fixed furniture (table, cabinet) is not measured: its pose is a fact of the kitchen's
+map and carries ``position_sigma`` None. Unset or ``truth`` (still the default:
+velma/executor/capture.py ``DEFAULT_PERCEPTION`` says why), every pose is read from the
+physics (exact, ``position_sigma`` None, nothing unseen): a named simplification.
 """
 
 from __future__ import annotations

@@ -138,7 +138,9 @@ class PourAffordance(msgspec.Struct, frozen=True, kw_only=True):
     frame turned with the torso, the upright source's frame goes to ``source_in_target``
     (coming down from ``approach_height`` above), then the source tilts by ``angle`` rad about
     ``axis`` (torso frame) through ``pivot_in_target`` in ``duration`` s, waits ``wait`` s,
-    and tilts back in ``untilt_duration`` s. Metres, radians, seconds."""
+    and tilts back in ``untilt_duration`` s; then it moves by ``clear_view`` (same turned
+    frame) out of the head's view of the target, for the content check. Metres, radians,
+    seconds."""
 
     facing: float
     source_in_target: Vec3
@@ -149,6 +151,7 @@ class PourAffordance(msgspec.Struct, frozen=True, kw_only=True):
     duration: float
     wait: float = 2.0
     untilt_duration: float = 3.0
+    clear_view: Vec3 = (0.0, 0.0, 0.0)
 
 
 class PlacementInfo(msgspec.Struct, frozen=True, kw_only=True):
