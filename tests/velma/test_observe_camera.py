@@ -10,7 +10,7 @@ import pytest
 from shared.fipa_codec.languages.l_ex import CommandResult, LookAt, Observe, Wait
 from shared.fipa_codec.languages.l_sd import Observation
 from velma.executor import Executor
-from velma.executor.capture import WorldCapture
+from velma.executor.capture import DEFAULT_PERCEPTION, WorldCapture
 from velma.executor.loop import ControlLoop
 from velma.executor.observer import POSITION_SIGMA_FLOOR, perception_mode
 from velma.executor.runtime import Runtime
@@ -29,8 +29,9 @@ def test_the_loop_captures_the_world_and_renders_nothing() -> None:
     assert capture.positions().shape == (rt.model.nq,)
 
 
-def test_perception_mode_is_camera_unless_truth_is_asked() -> None:
-    assert perception_mode({}) == "camera"
+def test_perception_mode_is_the_default_unless_one_is_asked() -> None:
+    assert perception_mode({}) == DEFAULT_PERCEPTION == perception_mode({"ROCO_PERCEPTION": ""})
+    assert perception_mode({"ROCO_PERCEPTION": "camera"}) == "camera"
     assert perception_mode({"ROCO_PERCEPTION": "truth"}) == "truth"
     with pytest.raises(ValueError):
         perception_mode({"ROCO_PERCEPTION": "oracle"})

@@ -38,7 +38,7 @@ class Execute(msgspec.Struct, frozen=True, tag="execute"):
     command: ExecutorCommand
 
 
-class ExpectedPosition(msgspec.Struct, frozen=True, kw_only=True):
+class ExpectedPosition(msgspec.Struct, frozen=True, kw_only=True, omit_defaults=True):
     """What the plan assumes: ``object``'s frame is within ``tolerance`` m of ``position``
     (world, m) and, when ``max_tilt`` (rad) is given, stands upright: its z axis within
     ``max_tilt`` of the world's."""
@@ -49,7 +49,7 @@ class ExpectedPosition(msgspec.Struct, frozen=True, kw_only=True):
     max_tilt: float | None = None
 
 
-class Perceive(msgspec.Struct, frozen=True, tag="perceive"):
+class Perceive(msgspec.Struct, frozen=True, tag="perceive", omit_defaults=True):
     """Leaf action: request an Observe from ag_ex and inform a_km of what was seen (C6).
     ``objects`` empty means the whole scene. When an object is not where ``expect`` says (or
     not seen), the world differs from the plan: a_ta reports Replan; when ``judges`` is set,

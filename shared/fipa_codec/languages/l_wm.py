@@ -50,7 +50,7 @@ class PourQuery(msgspec.Struct, frozen=True, tag="pour", kw_only=True):
     target: str
 
 
-class ObjectUpdate(msgspec.Struct, frozen=True, kw_only=True):
+class ObjectUpdate(msgspec.Struct, frozen=True, kw_only=True, omit_defaults=True):
     """A change to one individual: a new ``pose`` (with ``position_sigma``, its position's
     one-σ uncertainty in m, when the observation gave one); ``held_by`` ("" = released); a
     new ``location``/``relation``; ``particles`` inside. Unset fields stay as they were."""
@@ -82,7 +82,7 @@ class Subscription(msgspec.Struct, frozen=True, tag="subscription"):
     topic: str = "environment"
 
 
-class ObjectInfo(msgspec.Struct, frozen=True, kw_only=True):
+class ObjectInfo(msgspec.Struct, frozen=True, kw_only=True, omit_defaults=True):
     """An individual: ``name``, its ``type`` (an O_RoCo class), ``pose`` with ``pose_stamp``
     and ``position_sigma`` (m, one σ of the observed position; None: not given),
     bounding ``size`` (x, y, z extents), where it is (``location`` with ``relation`` in/on),
