@@ -10,7 +10,15 @@ error, how many seeds saw each object, the time of one observation (capture = re
 then back-projection + segmentation + ICP + content; ms p50/p95, the renderer made beforehand),
 and whether any object is seen with the head facing the table instead.
 
+``--pours N`` instead runs the scripted pour (velma/scenario.py ``run_pour``) with camera
+perception (``ROCO_PERCEPTION=camera``: ag_ex's Observe from the rendered Kinect, 640 × 480,
+velma/executor/observer.py) for seeds first..first+N−1 (``Executor(seed=k, pose_seed=k)``) and
+prints, per pour, the commands that succeeded, the bowl's content as the last Observation
+counted it beside the truth of the simulation, the bowl's position error at that Observation,
+and whether a_ta's check (≥ 90 % of the content) would pass.
+
 Usage: ``python scripts/bench_perception.py [--seeds 20] [--width 320] [--height 240] [--repeats 3]``
+or ``python scripts/bench_perception.py --pours 10``
 """
 
 from __future__ import annotations
@@ -53,6 +61,44 @@ def percentiles(values: list[float]) -> str:
     return f"{np.percentile(a, 50):6.2f} / {np.percentile(a, 95):6.2f} / {a.max():6.2f}"
 
 
+def pours(first: int, n: int) -> int:
+    """The scripted pour with camera perception for seeds first..first+n−1 (module docstring)."""
+    import math
+
+    from services.agents.planner.domain import CONTENT_SHARE_REQUIRED
+    from shared.fipa_codec.languages.l_ex import CommandResult
+    from shared.fipa_codec.languages.l_sd import Observation
+    from velma.executor import Executor
+    from velma.executor.ground_truth import GroundTruth
+    from velma.scenario import run_pour
+
+    print(benchlib.machine(("mujoco", "small_gicp", "numpy")))
+    print("seed  commands  bowl count / truth  bowl error mm  check")
+    passed = 0
+    for seed in range(first, first + n):
+        ex = Executor(seed=seed, pose_seed=seed, perception="camera")
+        ex.start()
+        try:
+            commands, results = run_pour(ex.submit)
+            truth = GroundTruth(ex.rt.model)
+            inside = truth.particles_inside(ex.rt.data, "bowl")
+            true_bowl = truth.pose(ex.rt.data, "bowl").position
+        finally:
+            ex.stop()
+        ok = sum(1 for r in results if not isinstance(r, CommandResult) or r.ok)
+        last = next((r for r in reversed(results) if isinstance(r, Observation)), None)
+        bowl = next((o for o in last.objects if o.name == "bowl"), None) if last is not None else None
+        count = bowl.particles_inside if bowl is not None else None
+        error = f"{1e3 * math.dist(bowl.pose.position, true_bowl):.1f}" if bowl is not None else "not seen"
+        total = last.total_particles if last is not None else 0
+        check = count is not None and total > 0 and count / total >= CONTENT_SHARE_REQUIRED
+        passed += check
+        verdict = "passes" if check else "fails"
+        print(f"{seed:4d}  {ok:3d}/{len(commands):<3d}  {count} / {inside:<12}  {error:>13}  {verdict}")
+    print(f"the check passes in {passed} of {n} pours")
+    return 0
+
+
 def main(argv: list[str] | None = None) -> int:
     """Run the benchmark and print its table; returns 0."""
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -61,7 +107,10 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--width", type=int, default=320)
     ap.add_argument("--height", type=int, default=240)
     ap.add_argument("--repeats", type=int, default=3, help="timed observations per seed")
+    ap.add_argument("--pours", type=int, default=0, help="run this many camera-mode pours instead")
     args = ap.parse_args(argv)
+    if args.pours:
+        return pours(args.first, args.pours)
     print(benchlib.machine(("mujoco", "small_gicp", "numpy")))
     print(f"frame {args.width}×{args.height}, seeds {args.first}..{args.first + args.seeds - 1}")
     errors: dict[str, list[float]] = {n: [] for n in OBJECTS}

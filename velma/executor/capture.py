@@ -22,9 +22,9 @@ PERCEPTION_LOG = "ag_ex_perception.jsonl"
 (velma/executor/perception_log.py; read by the run report, services/report)."""
 DEFAULT_PERCEPTION = "truth"
 """``ROCO_PERCEPTION`` when unset. Still the ground truth: the camera localises the objects
-within ≈ 2 mm, but its count of the bowl's content after the pour is 16–20 for 18 spheres
-(docs/bench/observe.md), so the pour's ≥ 90 % check (17 of 18) would fail about one pour in
-four that succeeded. ``ROCO_PERCEPTION=camera`` runs everything from the camera."""
+within ≈ 2 mm, but its count of the bowl's content after the pour is 15–20 for 18 spheres
+(docs/bench/observe.md), so the pour's ≥ 90 % check (17 of 18) failed 4 to 6 of 10 pours
+that succeeded. ``ROCO_PERCEPTION=camera`` runs everything from the camera."""
 
 
 class WorldCapture(msgspec.Struct, frozen=True, tag="world_capture", kw_only=True):

@@ -54,8 +54,9 @@ FURNITURE = ("table", "cabinet")
 """Fixed bodies: poses from the kitchen's map (module docstring)."""
 POSITION_SIGMA_FLOOR = 0.001  # m (module docstring)
 CAMERA_SIZE = (640, 480)
-"""Frame (px) rendered per Observe: 320 × 240 (≈ 0.2 s an Observe; 640 × 480 took ≈ 1 s with
-no better localisation, docs/bench/observe.md)."""
+"""Frame (px) rendered per Observe: the Kinect's own. 320 × 240 localises as well and takes
+≈ 0.3 s an Observe instead of ≈ 0.3–1 s, but counted 13–14 of ≈ 16 visible spheres in the
+bowl where 640 × 480 counts 15–16 (docs/bench/observe.md)."""
 FRAMES_AVERAGED = 5
 """Depth frames averaged per Observe (the scene is static while the robot observes: 5 frames
 are 0.17 s of the Kinect's 30 Hz; velma/perception/kinect.py ``HeadKinect.capture``)."""
