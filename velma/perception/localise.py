@@ -52,6 +52,7 @@ import small_gicp
 from velma.perception.cloud import Array
 from velma.perception.objects import ObjectModel
 from velma.perception.segment import Cluster, clusters, colour_match, merge_within, support_heights
+from velma.rotations import quat_wxyz
 
 MIN_POINTS = 80
 """Colour-matched points below which an object is not seen."""
@@ -103,17 +104,6 @@ class ObjectEstimate:
     def sigma_position(self) -> float:
         """√trace of the position covariance (m); inf when not seen."""
         return math.inf if self.covariance is None else float(math.sqrt(np.trace(self.covariance)))
-
-
-def _quat_from_matrix(r: Array) -> Array:
-    """Unit quaternion (w, x, y, z) of a rotation matrix."""
-    w = math.sqrt(max(0.0, 1.0 + r[0, 0] + r[1, 1] + r[2, 2])) / 2
-    x = math.copysign(math.sqrt(max(0.0, 1.0 + r[0, 0] - r[1, 1] - r[2, 2])) / 2, r[2, 1] - r[1, 2])
-    y = math.copysign(math.sqrt(max(0.0, 1.0 - r[0, 0] + r[1, 1] - r[2, 2])) / 2, r[0, 2] - r[2, 0])
-    z = math.copysign(math.sqrt(max(0.0, 1.0 - r[0, 0] - r[1, 1] + r[2, 2])) / 2, r[1, 0] - r[0, 1])
-    q = np.array([w, x, y, z])
-    out: Array = q / np.linalg.norm(q)
-    return out
 
 
 def _circle_centre(xy: Array) -> Array | None:
@@ -265,7 +255,7 @@ class Localiser:
             name=name,
             seen=True,
             position=position,
-            quaternion=_quat_from_matrix(rotation),
+            quaternion=np.array(quat_wxyz(rotation)),
             covariance=covariance,
             yaw_observable=yaw_observable,
             yaw_sigma=yaw_sigma,

@@ -4,58 +4,26 @@ the goal is rejected; the plan's own check step is not taken as its effect."""
 
 from __future__ import annotations
 
-import math
-
 import pytest
 
 from services.agents.knowledge.world_model import WorldModel
 from services.agents.planner.domain import find_plan
 from services.agents.planner.goals import effects, goal_query
 from services.agents.planner.hfsm import to_hfsm
-from services.agents.planner.knowledge import ARMS, Knowledge
-from shared.fipa_codec.languages.common import Pose
 from shared.fipa_codec.languages.l_hfsm import CheckContent
-from shared.fipa_codec.languages.l_wm import HypotheticalQuery, ObjectUpdate, WorldUpdate
+from shared.fipa_codec.languages.l_wm import HypotheticalQuery
+from tests.agents.planner.kitchen import after_first_plan, knowledge
 
 scenario = pytest.importorskip("velma.scenario")
 
 TASK = ("pour", "jar", "bowl")
 
 
-def knowledge(world: WorldModel) -> Knowledge:
-    k = Knowledge()
-    for name in [*world.physical_objects(), "left_gripper", "right_gripper"]:
-        k.objects[name] = world.object_info(name)
-    for obj in ("jar", "bowl"):
-        for arm in ARMS:
-            k.grasps[(obj, arm)] = world.grasps(obj, arm)
-        k.placements[(obj, "table")] = world.placement(obj, "table")
-    k.pours[("jar", "bowl")] = world.pour("jar", "bowl")
-    return k
-
-
 def ready_to_pour(jar_holds: int | None) -> WorldModel:
     """a_km after the first plan: the bowl on the table (seen there, empty), the jar held
     (seen, holding ``jar_holds`` particles; None: never counted)."""
     world = WorldModel()
-    place = world.placement("bowl", "table").positions[0]
-    yaw = scenario.TORSO_PLACE
-    jar = Pose((0.5, -0.1, 1.0), (math.cos(yaw / 2), 0.0, 0.0, math.sin(yaw / 2)))
-    world.apply(WorldUpdate(stamp=1.0, objects=(ObjectUpdate(name="jar", held_by="left_gripper"),)))
-    world.apply(
-        WorldUpdate(
-            stamp=2.0, objects=(ObjectUpdate(name="bowl", location="table", relation="on", held_by=""),)
-        )
-    )
-    world.apply(
-        WorldUpdate(
-            stamp=3.0,
-            objects=(
-                ObjectUpdate(name="bowl", pose=Pose(place), particles=0),
-                ObjectUpdate(name="jar", pose=jar, particles=jar_holds),
-            ),
-        )
-    )
+    after_first_plan(world, scenario.TORSO_PLACE, jar_holds=jar_holds, bowl_holds=0)
     return world
 
 

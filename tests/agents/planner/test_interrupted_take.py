@@ -9,9 +9,10 @@ import pytest
 from services.agents.knowledge.world_model import WorldModel
 from services.agents.planner.domain import plan_task
 from services.agents.planner.hfsm import to_hfsm
-from services.agents.planner.knowledge import ARMS, Knowledge
+from services.agents.planner.knowledge import Knowledge
 from shared.fipa_codec.languages.common import Pose
 from shared.fipa_codec.languages.l_wm import ObjectUpdate, WorldUpdate
+from tests.agents.planner.kitchen import knowledge as kitchen_knowledge
 
 JAR_PLACE = (0.70, 0.20, 0.85)  # kitchen.ttl: cabinet_jar_place
 BOWL = (0.80, -0.20, 0.90)
@@ -32,17 +33,7 @@ def knowledge(jar: tuple[float, float, float]) -> Knowledge:
     )
     world.apply(WorldUpdate(stamp=1.0, objects=(ObjectUpdate(name="jar", held_by="left_gripper"),)))
     world.apply(WorldUpdate(stamp=2.0, objects=(ObjectUpdate(name="jar", pose=Pose(jar)),)))
-    k = Knowledge()
-    for name in [*world.physical_objects(), "left_gripper", "right_gripper"]:
-        k.objects[name] = world.object_info(name)
-    for obj in ("jar", "bowl"):
-        for arm in ARMS:
-            k.grasps[(obj, arm)] = world.grasps(obj, arm)
-        for furniture in ("table", "cabinet"):
-            placement = world.placement(obj, furniture)
-            if placement is not None:
-                k.placements[(obj, furniture)] = placement
-    k.pours[("jar", "bowl")] = world.pour("jar", "bowl")
+    k = kitchen_knowledge(world, ("table", "cabinet"))
     assert k.objects["jar"].picked_from == "cabinet"
     return k
 

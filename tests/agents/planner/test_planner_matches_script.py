@@ -11,29 +11,17 @@ import pytest
 from services.agents.knowledge.world_model import WorldModel
 from services.agents.planner.domain import PlanningFailure, find_plan
 from services.agents.planner.hfsm import to_hfsm
-from services.agents.planner.knowledge import ARMS, Knowledge
 from shared.fipa_codec.languages.common import Pose
 from shared.fipa_codec.languages.l_ex import MoveJoints, MoveTool, Tilt
 from shared.fipa_codec.languages.l_hfsm import Execute, PlanNode
 from shared.fipa_codec.languages.l_sd import ObjectObservation, Observation
 from shared.fipa_codec.languages.l_wm import ObjectUpdate, WorldUpdate
+from tests.agents.planner.kitchen import after_first_plan, knowledge
 
 scenario = pytest.importorskip("velma.scenario")
 
 JAR = (0.80, 0.22, 0.90)
 BOWL = (0.80, -0.20, 0.90)
-
-
-def knowledge(world: WorldModel) -> Knowledge:
-    k = Knowledge()
-    for name in [*world.physical_objects(), "left_gripper", "right_gripper"]:
-        k.objects[name] = world.object_info(name)
-    for obj in ("jar", "bowl"):
-        for arm in ARMS:
-            k.grasps[(obj, arm)] = world.grasps(obj, arm)
-        k.placements[(obj, "table")] = world.placement(obj, "table")
-    k.pours[("jar", "bowl")] = world.pour("jar", "bowl")
-    return k
 
 
 def commands(root: PlanNode) -> list[object]:
@@ -57,21 +45,7 @@ def test_plans_reproduce_the_scripted_experiment() -> None:
     assert not complete1
     # what plan #1 leaves behind: bowl on the table (localised where it was placed), jar held,
     # turned with the torso to face the table
-    place = world.placement("bowl", "table").positions[0]
-    jar_yaw = scenario.TORSO_PLACE  # the jar turned with the torso (its observed pose)
-    jar_after = Pose((0.5, -0.1, 1.0), (math.cos(jar_yaw / 2), 0.0, 0.0, math.sin(jar_yaw / 2)))
-    world.apply(WorldUpdate(stamp=1.0, objects=(ObjectUpdate(name="jar", held_by="left_gripper"),)))
-    world.apply(
-        WorldUpdate(
-            stamp=2.0, objects=(ObjectUpdate(name="bowl", location="table", relation="on", held_by=""),)
-        )
-    )
-    world.apply(
-        WorldUpdate(
-            stamp=3.0,
-            objects=(ObjectUpdate(name="bowl", pose=Pose(place)), ObjectUpdate(name="jar", pose=jar_after)),
-        )
-    )
+    after_first_plan(world, scenario.TORSO_PLACE)
     plan2, complete2, _ = to_hfsm(find_plan(knowledge(world), ("pour", "jar", "bowl"), "pour(jar,bowl)"))
     assert complete2
 
