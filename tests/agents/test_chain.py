@@ -6,11 +6,13 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 
+import msgspec
+
 from services.runtime.human import ReportKind
 from shared.fipa_codec import decode
 from shared.fipa_codec.languages import decode_content
 from shared.fipa_codec.languages.common import Pose
-from shared.fipa_codec.languages.l_ex import CommandResult, ExecutorCommand, Release
+from shared.fipa_codec.languages.l_ex import CommandResult, ExecutorCommand, LookAt, Observe, Release
 from shared.fipa_codec.languages.l_hfsm import HierarchicalPlan
 from shared.fipa_codec.languages.l_sd import Observation
 from shared.fipa_codec.languages.l_sw import SWState, SWStatus
@@ -108,3 +110,47 @@ def test_a_placement_is_judged_by_the_world_it_left() -> None:
         tipped = fleet.command("bring me the bowl")
     assert tipped[-1].kind is ReportKind.FAILED
     assert "the bowl is not upright: it leans 90°" in tipped[-1].text
+
+
+class _BlurryExecutor(FakeExecutor):
+    """A look at the jar alone is uncertain (σ 20 mm) unless the head has just turned to it
+    (LookAt); with ``stays_blurry`` it stays uncertain."""
+
+    def __init__(self, stays_blurry: bool = False) -> None:
+        super().__init__()
+        self.stays_blurry = stays_blurry
+        self.looked = False
+
+    def submit(
+        self, command: ExecutorCommand, on_done: Callable[[CommandResult | Observation], None]
+    ) -> None:
+        looked, self.looked = self.looked, isinstance(command, LookAt)  # the command just before
+        if not (isinstance(command, Observe) and command.objects == ("jar",)):
+            super().submit(command, on_done)
+            return
+        sigma = 0.02 if self.stays_blurry or not looked else 0.001
+        box: list[CommandResult | Observation] = []
+        super().submit(command, box.append)
+        (obs,) = box
+        assert isinstance(obs, Observation)
+        blurred = tuple(msgspec.structs.replace(o, position_sigma=sigma) for o in obs.objects)
+        on_done(msgspec.structs.replace(obs, objects=blurred))
+
+
+def test_an_uncertain_object_is_looked_at_again_before_the_grasp() -> None:
+    with MemoryFleet(_BlurryExecutor()) as fleet:
+        fleet.wait_for_initial_knowledge()
+        reports = fleet.command("bring me the jar")
+        sent = fleet.executor.commands
+    assert reports[-1].kind is ReportKind.SUCCEEDED
+    first = next(i for i, c in enumerate(sent) if isinstance(c, Observe) and c.objects == ("jar",))
+    assert isinstance(sent[first + 1], LookAt) and sent[first + 2] == sent[first]  # a second view
+    with MemoryFleet(_BlurryExecutor(stays_blurry=True)) as fleet:
+        fleet.wait_for_initial_knowledge()
+        fleet.command("bring me the jar")
+        reasons = [
+            c.reason or ""
+            for k, (m, c) in _traffic(fleet)
+            if isinstance(c, SWStatus) and c.state is SWState.REPLAN
+        ]
+    assert any("the jar's position is too uncertain to grasp (σ 20 mm)" in r for r in reasons), reasons

@@ -26,6 +26,10 @@ PLACED_TOLERANCE_M = 0.03
 the set-down lowers it to within the place's clearance and lets go."""
 PLACED_MAX_TILT = 0.26
 """How far (rad, ≈ 15°) a placed object's axis may lean for it to count as standing upright."""
+GRASP_MAX_SIGMA_M = 0.005
+"""How uncertain (1-σ, m) an object's observed position may be for the grasp that follows the
+observation: the hand's pre-grasp opening leaves ≈ 1 cm either way; a larger σ makes a_ta look
+again (a second view) before it reaches."""
 
 
 def leaf_action(name: str, args: tuple[Any, ...]) -> tuple[Action | None, float]:
@@ -69,6 +73,7 @@ def leaf_action(name: str, args: tuple[Any, ...]) -> tuple[Action | None, float]
                     position=tuple(expect[1]),
                     tolerance=PLACED_TOLERANCE_M if judges else EXPECT_TOLERANCE_M,
                     max_tilt=PLACED_MAX_TILT if judges else None,
+                    max_sigma=None if judges else GRASP_MAX_SIGMA_M,
                 ),
             )
             if expect is not None

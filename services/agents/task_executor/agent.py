@@ -51,7 +51,8 @@ from services.runtime.roles import (
 )
 from services.runtime.state_store import StateFile
 from shared.fipa_codec import Performative
-from shared.fipa_codec.languages.l_ex import CommandResult, MoveJoints, MoveTool, Observe, Tilt, Wait
+from shared.fipa_codec.languages.common import Vec3
+from shared.fipa_codec.languages.l_ex import CommandResult, LookAt, MoveJoints, MoveTool, Observe, Tilt, Wait
 from shared.fipa_codec.languages.l_hfsm import (
     Assert,
     CheckContent,
@@ -67,6 +68,8 @@ from shared.fipa_codec.languages.l_wm import ObjectUpdate, Subscription, WorldUp
 from .retreat import RetreatStep, finish_set_down, undo_take
 
 OBSERVE_REPLY_BY_S = 30.0
+LOOK_REPLY_BY_S = 10.0
+"""How long a second view's head turn may take before a_ta gives up on it (s)."""
 INITIAL_OBSERVE_RETRY_S = 3.0
 COMMAND_MARGIN_S = 60.0
 CONFIRM_REPLY_BY_S = 300.0
@@ -89,6 +92,7 @@ class Step:
     waiting_for: Conversation | None = None
     reply: tuple[Conversation, bool] | None = None  # ag_ex's answer (inform: True) once it came
     replan_reason: str | None = None  # set on the observation made before reporting Replan
+    second_view: int = 0  # 1: looking at an uncertain object again, 2: observed it again
 
 
 class KeptTaskExecutor(msgspec.Struct, kw_only=True):
@@ -523,6 +527,10 @@ class TaskExecutor(Agent):
                 self._update_km(reply.content)
             self._end(SWState.REPLAN, step.replan_reason)
             return
+        if ok and step.second_view == 1 and isinstance(action, Perceive):  # the head turned to it
+            step.second_view = 2
+            self._observe(step, action.objects)
+            return
         if not ok:
             reason = getattr(reply.content, "reason", None) or reply.reason
             if (
@@ -557,6 +565,16 @@ class TaskExecutor(Agent):
                 if difference and action.judges:  # the world does not show the task done
                     self._end(SWState.ERROR, f"{step.path}: {difference}")
                     return
+                uncertain = None if difference else self._too_uncertain(action, reply.content)
+                if uncertain is not None and step.second_view == 0:
+                    name, where, _ = uncertain
+                    self.log.info("%s: the %s's position is uncertain: a second view", step.path, name)
+                    step.second_view = 1
+                    step.waiting_for = self._request(LookAt(point=where), LOOK_REPLY_BY_S, RESEND_ON_RETURN)
+                    return
+                if uncertain is not None:
+                    name, _, sigma = uncertain
+                    difference = f"the {name}'s position is too uncertain to grasp (σ {1e3 * sigma:.0f} mm)"
                 if difference:
                     self._end(SWState.REPLAN, f"{step.path}: {difference}")
                     return
@@ -581,6 +599,17 @@ class TaskExecutor(Agent):
         self.log.info("surprise: %s", reason)
         step.replan_reason = reason
         self._observe(step, ())
+
+    @staticmethod
+    def _too_uncertain(action: Perceive, obs: Observation) -> tuple[str, Vec3, float] | None:
+        """The first expected object seen with a position less certain than its
+        ``max_sigma``: (name, estimated position, σ m); None when every one is certain enough."""
+        seen = {o.name: o for o in obs.objects}
+        for e in action.expect:
+            o = seen.get(e.object)
+            if o is not None and e.max_sigma is not None and (o.position_sigma or 0.0) > e.max_sigma:
+                return e.object, o.pose.position, o.position_sigma or 0.0
+        return None
 
     @staticmethod
     def _differences(action: Perceive, obs: Observation) -> str:

@@ -41,12 +41,14 @@ class Execute(msgspec.Struct, frozen=True, tag="execute"):
 class ExpectedPosition(msgspec.Struct, frozen=True, kw_only=True, omit_defaults=True):
     """What the plan assumes: ``object``'s frame is within ``tolerance`` m of ``position``
     (world, m) and, when ``max_tilt`` (rad) is given, stands upright: its z axis within
-    ``max_tilt`` of the world's."""
+    ``max_tilt`` of the world's. ``max_sigma`` (m): how well the step after it needs the
+    position known (a grasp); an estimate less certain than that is looked at again."""
 
     object: str
     position: Vec3
     tolerance: float = 0.03
     max_tilt: float | None = None
+    max_sigma: float | None = None
 
 
 class Perceive(msgspec.Struct, frozen=True, tag="perceive", omit_defaults=True):
