@@ -12,11 +12,11 @@ that is cheaper but drops the jar shows as such.
 Variants (the model as ag_ex runs it, with one change each):
 
 - ``baseline``: velma/model/generate.py's ``<option>`` (Newton, implicitfast, pyramidal cones,
-  impratio 30, 60 iterations, tolerance 1e-8), self-collision on, frictionless content
-  spheres on three slide joints each (velma/model/scene.py);
+  impratio 30, 60 iterations, tolerance 1e-8, constraint islands off), self-collision on,
+  frictionless content spheres on three slide joints each (velma/model/scene.py);
 - solver and option settings: ``CG``, ``PGS``, ``elliptic`` cones, ``iterations=3``,
-  ``tolerance=1e-6``, ``Euler``, islands off (``mjDSBL_ISLAND``), sleeping on
-  (``mjENBL_SLEEP``, MuJoCo ≥ 3.3);
+  ``tolerance=1e-6``, ``Euler``, islands on (MuJoCo's default, which ag_ex disables), sleeping
+  on (``mjENBL_SLEEP``, MuJoCo ≥ 3.3; measured with islands on, as MuJoCo defaults);
 - ``no self-collision``: the robot's geoms no longer collide with each other (what issue 18's
   self-collision costs);
 - ``content with wall friction``: the content as it was before (free joints, frictionless
@@ -66,8 +66,8 @@ OPTION_VARIANTS: dict[str, Tweak] = {
     "iterations=3": _opt(iterations=3),
     "tolerance=1e-6": _opt(tolerance=1e-6),
     "Euler": _opt(integrator=mujoco.mjtIntegrator.mjINT_EULER),
-    "islands off": _opt(disableflags=int(mujoco.mjtDisableBit.mjDSBL_ISLAND)),
-    "sleeping on": _opt(enableflags=int(mujoco.mjtEnableBit.mjENBL_SLEEP)),
+    "islands on": _opt(disableflags=0),
+    "sleeping on": _opt(disableflags=0, enableflags=int(mujoco.mjtEnableBit.mjENBL_SLEEP)),
     "no self-collision": _no_self_collision,
 }
 CONTENT_VARIANTS = ("content with wall friction",)

@@ -206,10 +206,13 @@ SELF_COLLISION_EXCLUDES = (
 # impratio 30 with the pyramidal cones: at 10 the bowl slid ≈ 15 mm in the hand over the
 # tidy-up's carries (≈ 9 mm with elliptic cones at 10, and again at 30; tests/velma/
 # test_velma_kitchen.py puts it back within 15 mm); mj_step over the pour: p50 202 → 203 µs,
-# p99 391 → 399 µs.
+# p99 391 → 399 µs. Constraint islands off (MuJoCo solves the whole system at once instead of
+# finding its independent parts every step; the same physics): over the pour, three runs each
+# of scripts/bench_physics.py, the physics step p50 145–148 → 136–137 µs, p99 264–274 →
+# 249–253 µs (docs/bench/physics.md).
 OPTION = (
     '<option timestep="0.001" integrator="implicitfast" cone="pyramidal" impratio="30" '
-    'solver="Newton" iterations="60" tolerance="1e-8"/>'
+    'solver="Newton" iterations="60" tolerance="1e-8"><flag island="disable"/></option>'
 )
 
 
