@@ -10,9 +10,9 @@ import pytest
 from shared.fipa_codec.languages.l_ex import CommandResult, LookAt, Observe, Wait
 from shared.fipa_codec.languages.l_sd import Observation
 from velma.executor import Executor
-from velma.executor.capture import DEFAULT_PERCEPTION, WorldCapture
+from velma.executor.capture import DEFAULT_PERCEPTION, WorldCapture, perception_mode
 from velma.executor.loop import ControlLoop
-from velma.executor.observer import POSITION_SIGMA_FLOOR, perception_mode
+from velma.executor.observer import POSITION_SIGMA_FLOOR
 from velma.executor.runtime import Runtime
 
 Result = CommandResult | Observation
@@ -20,6 +20,7 @@ Result = CommandResult | Observation
 
 def test_the_loop_captures_the_world_and_renders_nothing() -> None:
     rt = Runtime()
+    rt.observe_by_camera = True  # as ExecutorProcess and Executor set it for ROCO_PERCEPTION=camera
     loop: ControlLoop[int] = ControlLoop(rt)
     loop.submit(1, Observe(objects=("jar",)))
     done = loop.cycle()

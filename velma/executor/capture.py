@@ -11,12 +11,14 @@ msgspec and numpy: no MuJoCo, so it crosses the loop process's result ring as it
 
 from __future__ import annotations
 
+import os
+
 import msgspec
 import numpy as np
 import numpy.typing as npt
 
 PERCEPTION_MODES = ("camera", "truth")
-"""``ROCO_PERCEPTION``'s values (velma/executor/observer.py ``perception_mode``)."""
+"""``ROCO_PERCEPTION``'s values (``perception_mode``)."""
 PERCEPTION_LOG = "ag_ex_perception.jsonl"
 """The file in the run folder where ag_ex logs each camera Observation beside the truth
 (velma/executor/perception_log.py; read by the run report, services/report)."""
@@ -25,6 +27,15 @@ DEFAULT_PERCEPTION = "truth"
 within ≈ 2 mm, but its count of the bowl's content after the pour is 15–20 for 18 spheres
 (docs/bench/observe.md), so the pour's ≥ 90 % check (17 of 18) failed 4 to 6 of 10 pours
 that succeeded. ``ROCO_PERCEPTION=camera`` runs everything from the camera."""
+
+
+def perception_mode(environ: dict[str, str] | None = None) -> str:
+    """``ROCO_PERCEPTION`` of ``environ`` (default ``os.environ``): ``DEFAULT_PERCEPTION`` when
+    unset or empty. Raises ``ValueError`` for another value."""
+    value = (os.environ if environ is None else environ).get("ROCO_PERCEPTION", "") or DEFAULT_PERCEPTION
+    if value not in PERCEPTION_MODES:
+        raise ValueError(f"ROCO_PERCEPTION={value!r}: expected one of {', '.join(PERCEPTION_MODES)}")
+    return value
 
 
 class WorldCapture(msgspec.Struct, frozen=True, tag="world_capture", kw_only=True):

@@ -35,7 +35,7 @@ import msgspec
 from shared.fipa_codec.languages.l_ex import CommandResult, ExecutorCommand
 from shared.fipa_codec.languages.l_sd import Observation
 from velma.control.compiled import law_name
-from velma.executor.capture import WorldCapture
+from velma.executor.capture import WorldCapture, perception_mode
 from velma.executor.delivery import RecordSink, ResultDelivery
 from velma.executor.loop import ControlLoop
 from velma.executor.runtime import DT, Runtime
@@ -57,7 +57,7 @@ class Executor:
     Commands still queued at ``stop`` are answered with ``ok=False, reason="stopped"``.
 
     ``perception``: ``camera`` or ``truth`` (None: ``ROCO_PERCEPTION``, else the default of
-    velma/executor/observer.py ``perception_mode``); ``perception_log`` receives each camera
+    velma/executor/capture.py ``perception_mode``); ``perception_log`` receives each camera
     Observation's records beside the truth (velma/executor/perception_log.py). ``on_done`` runs
     on the delivery thread (module docstring), in the order the commands ended.
     """
@@ -72,8 +72,6 @@ class Executor:
         perception: str | None = None,
         perception_log: RecordSink | None = None,
     ) -> None:
-        from velma.executor.observer import perception_mode
-
         self.realtime = realtime
         self.rt = runtime if runtime is not None else Runtime(seed=seed, pose_seed=pose_seed)
         self.perception = (

@@ -124,5 +124,4 @@ class ResultDelivery(Generic[T]):
                 self._record(records(obs, seen, self._truth, self._observer.data, ms))
             except Exception:
                 log.exception("the perception log raised")
-        result: Observation = obs
-        return result
+        return obs

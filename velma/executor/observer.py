@@ -22,9 +22,9 @@ What the agents get (L_SD, shared/fipa_codec/languages/l_sd.py):
 docs/bench/perception.md measured over 20 pose seeds: the RMS of the 3-D errors of the jar's
 20 fits is 0.95 mm (p50 0.71, p95 1.69); the floor is that, rounded up to 1 mm.
 
-``perception_mode`` reads ``ROCO_PERCEPTION``: ``camera`` or ``truth`` (velma/executor/
-ground_truth.py, in the loop); unset: ``DEFAULT_PERCEPTION`` (velma/executor/capture.py says
-why it is still the truth).
+``ROCO_PERCEPTION`` (velma/executor/capture.py ``perception_mode``) chooses ``camera`` or
+``truth`` (velma/executor/ground_truth.py, in the loop); unset: ``DEFAULT_PERCEPTION`` (capture.py
+says why it is still the truth).
 """
 
 from __future__ import annotations
@@ -41,7 +41,7 @@ import numpy as np
 
 from shared.fipa_codec.languages.common import Pose
 from shared.fipa_codec.languages.l_sd import ObjectObservation, Observation
-from velma.executor.capture import DEFAULT_PERCEPTION, PERCEPTION_MODES, WorldCapture
+from velma.executor.capture import WorldCapture
 from velma.model.scene import PARTICLE_PREFIX, PARTICLE_RADIUS
 from velma.perception.content import ContentEstimate, SphereCount, count_spheres, estimate_content
 from velma.perception.kinect import HeadKinect
@@ -60,16 +60,6 @@ bowl where 640 × 480 counts 15–16 (docs/bench/observe.md)."""
 FRAMES_AVERAGED = 5
 """Depth frames averaged per Observe (the scene is static while the robot observes: 5 frames
 are 0.17 s of the Kinect's 30 Hz; velma/perception/kinect.py ``HeadKinect.capture``)."""
-MODES = PERCEPTION_MODES
-
-
-def perception_mode(environ: dict[str, str] | None = None) -> str:
-    """``ROCO_PERCEPTION`` of ``environ`` (default ``os.environ``): ``DEFAULT_PERCEPTION`` when
-    unset or empty. Raises ``ValueError`` for another value."""
-    value = (os.environ if environ is None else environ).get("ROCO_PERCEPTION", "") or DEFAULT_PERCEPTION
-    if value not in MODES:
-        raise ValueError(f"ROCO_PERCEPTION={value!r}: expected one of {', '.join(MODES)}")
-    return value
 
 
 @dataclass(frozen=True)

@@ -61,7 +61,7 @@ import numpy.typing as npt
 
 from shared.fipa_codec.languages.l_ex import CommandResult, ExecutorCommand, command_name
 from shared.fipa_codec.languages.l_sd import Observation
-from velma.executor.capture import DEFAULT_PERCEPTION, PERCEPTION_MODES, WorldCapture
+from velma.executor.capture import WorldCapture, perception_mode
 from velma.executor.checkpoint import (
     CHECKPOINT_CAPACITY,
     CHECKPOINT_PERIOD,
@@ -371,11 +371,7 @@ class ExecutorProcess:
         perception: str | None = None,
         perception_log: RecordSink | None = None,
     ) -> None:
-        if perception is None:
-            perception = os.environ.get("ROCO_PERCEPTION", "") or DEFAULT_PERCEPTION
-        if perception not in PERCEPTION_MODES:
-            raise ValueError(f"perception={perception!r}: expected one of {', '.join(PERCEPTION_MODES)}")
-        self.perception = perception
+        self.perception = perception_mode(None if perception is None else {"ROCO_PERCEPTION": perception})
         self.perception_log = perception_log
         self._delivery: ResultDelivery[int] | None = None
         self.realtime = realtime
@@ -629,6 +625,11 @@ class ExecutorProcess:
                     self._delivery.put(msg.token, msg.result)
                 elif not isinstance(msg.result, WorldCapture):
                     self._answer(msg.token, msg.result)
+                else:  # no camera any more (stopping): the Observe is answered, not lost
+                    stopped = CommandResult(
+                        command="observe", ok=False, reason="stopped", sim_time=msg.result.stamp
+                    )
+                    self._answer(msg.token, stopped)
             elif isinstance(msg, Ready):
                 self.setup = msg.setup
                 self.control_law = msg.control_law

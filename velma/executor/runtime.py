@@ -37,6 +37,7 @@ from velma.control.robot_model import (
     arm_joints,
 )
 from velma.control.self_collision import SelfCollision
+from velma.executor.capture import DEFAULT_PERCEPTION
 from velma.executor.ground_truth import GroundTruth
 from velma.executor.state import LINK_BODIES
 from velma.model.scene import N_PARTICLES, initial_state, load_kitchen
@@ -89,9 +90,9 @@ class Runtime:
         self.ground_truth = GroundTruth(self.model)
         """The physics' truth (velma/executor/ground_truth.py): the agents' Observation only
         when ``observe_by_camera`` is False (``ROCO_PERCEPTION=truth``)."""
-        self.observe_by_camera = True
-        """An Observe ends with a ``WorldCapture`` for the camera (velma/executor/capture.py);
-        the host sets it False for ``ROCO_PERCEPTION=truth``."""
+        self.observe_by_camera = DEFAULT_PERCEPTION == "camera"
+        """An Observe ends with a ``WorldCapture`` for the camera (velma/executor/capture.py),
+        else with the ground truth; the host sets it from ``ROCO_PERCEPTION``."""
         self.arm_act = {s: np.array([self.jmap.ctrl[f"{s}_arm_{k}_motor"] for k in range(7)]) for s in SIDES}
         self.torso_act = self.jmap.ctrl["torso_0_motor"]
         self.head_act = (self.jmap.ctrl["head_pan_servo"], self.jmap.ctrl["head_tilt_servo"])
