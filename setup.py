@@ -1,9 +1,11 @@
-"""Build of roco's one compiled module, the impedance control law (velma/control/_impedance.cpp).
+"""Build of roco's one compiled module, the impedance control law (velma/control/_impedance.cpp)
+and, when MuJoCo's headers are there, the MuJoCo side of ag_ex's cycle (velma/control/_plant.hpp).
 
 Everything else is in pyproject.toml. The module is compiled against the headers of
 Pinocchio (the ``pin`` wheel: Pinocchio and Boost under ``cmeel.prefix/include``), Eigen
 (the ``cmeel-eigen`` wheel) and pybind11, all build requirements in pyproject.toml, so a
-C++17 compiler is all a machine needs besides them. The extension is optional: without a
+C++17 compiler is all a machine needs besides them. MuJoCo's headers come from the ``mujoco``
+wheel (also a build requirement; only its headers: nothing is linked, see _plant.hpp). The extension is optional: without a
 compiler the install goes on and roco runs the Python law (velma/control/compiled.py says so
 in a warning). ``ROCO_BUILD_NATIVE=0`` skips it on purpose (scripts/build_image.sh does, to
 resolve the dependencies quickly).
@@ -11,6 +13,7 @@ resolve the dependencies quickly).
 
 from __future__ import annotations
 
+import importlib.util
 import os
 import sys
 from pathlib import Path
@@ -30,13 +33,25 @@ def _cmeel_include() -> list[str]:
     return []
 
 
+def _mujoco_include() -> list[str]:
+    """The ``include`` folder of the ``mujoco`` wheel in the build's environment (found
+    without importing it), or nothing: then the module has the law only."""
+    spec = importlib.util.find_spec("mujoco")
+    for folder in (spec.submodule_search_locations or []) if spec is not None else []:
+        root = Path(folder) / "include"
+        if (root / "mujoco" / "mujoco.h").is_file():
+            return [str(root)]
+    return []
+
+
 ext_modules = []
+mujoco_include = _mujoco_include()
 if os.environ.get("ROCO_BUILD_NATIVE", "1") != "0":
     ext_modules.append(
         Pybind11Extension(
             "velma.control._impedance",
             ["velma/control/_impedance.cpp"],
-            include_dirs=_cmeel_include(),
+            include_dirs=_cmeel_include() + mujoco_include,
             # Pinocchio's own interface definitions (its CMake config, pinocchioTargets.cmake):
             # its joint variant has more alternatives than Boost.MPL's default limit of 20
             define_macros=[
@@ -44,7 +59,9 @@ if os.environ.get("ROCO_BUILD_NATIVE", "1") != "0":
                 ("BOOST_MPL_LIMIT_VECTOR_SIZE", "30"),
                 ("BOOST_MPL_CFG_NO_PREPROCESSED_HEADERS", None),
                 ("BOOST_FUSION_INVOKE_MAX_ARITY", "12"),
+                *([("ROCO_WITH_MUJOCO", None)] if mujoco_include else []),
             ],
+            depends=["velma/control/_plant.hpp"],
             extra_compile_args=["-O2", "-Wno-deprecated-declarations"],
             cxx_std=17,
             optional=True,

@@ -117,6 +117,8 @@ def row(name: str, s: TimingStats, outcome: str) -> str:
     sched = "?" if setup is None else f"{setup.policy}{' pinned' if setup.pinned else ''}"
     if s.control_law:
         sched += f", {s.control_law} law"
+    if s.plant:
+        sched += f", {s.plant} plant"
     return (
         f"| {name} | {s.cycles} | {s.compute_p50_us:.0f} | {s.compute_p99_us:.0f} | {s.compute_max_us:.0f} | "
         f"{s.lateness_p99_us:.0f} | {s.overruns} ({s.overrun_share * 100:.3f} %) | "

@@ -352,6 +352,8 @@ def _control(report: Report) -> str:
         granted = f"Scheduling: {policy}, {pin_text}{why}."
     if c.control_law:
         granted += f" Impedance law: {c.control_law}."
+    if c.plant:
+        granted += f" MuJoCo side of the cycle: {c.plant}."
     text = (
         f"Pacing: {c.pacing}. {c.cycles} cycles ({c.sim_time:.1f} s of simulation); "
         f"{c.overruns} overruns ({c.overrun_share * 100:.3f} %), at most "

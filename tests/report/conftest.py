@@ -431,6 +431,7 @@ CONTROL_TIMING = TimingStats(
     sim_time=56.0,
     setup=RealtimeSetup(policy="SCHED_FIFO", priority=80, cpus=(1,), pinned=True),
     control_law="compiled",
+    plant="compiled",
 )
 """What ag_ex writes to ag_ex_timing.json (velma.executor.timing.TimingStats)."""
 

@@ -182,7 +182,7 @@ def test_control_loop_section(run_dir: Path, control_timing: Any) -> None:
     section = text.split("## 6. Control loop")[1].split("## Notes")[0]
     assert "14 overruns (0.025 %)" in section
     assert "SCHED_FIFO priority 80, pinned to CPU 1" in section
-    assert "Impedance law: compiled." in section
+    assert "Impedance law: compiled. MuJoCo side of the cycle: compiled." in section
     assert "| compute time per cycle (µs) | 410 | 720 | 1300 |" in section
 
 

@@ -60,6 +60,7 @@ def test_commands_cross_and_state_is_published(ex: ExecutorProcess) -> None:
     assert {p.name for p in snap.timing.parts} == {"primitive", "control", "physics", "hand-offs"}
     # which impedance law the loop ran (velma/control/compiled.py), for the report
     assert ex.timing().control_law == ("compiled" if compiled_available() else "python")
+    assert ex.timing().plant in ("compiled", "python")
 
 
 def test_bad_command_is_answered_and_loop_goes_on(ex: ExecutorProcess) -> None:

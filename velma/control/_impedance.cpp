@@ -11,10 +11,15 @@
 // Pinocchio is used header-only: the model is rebuilt here, joint by joint, from the numbers
 // of the Python pin.Model (velma/control/compiled.py), so no object crosses a library
 // boundary. Units: SI (m, rad, N, N·m, s).
+//
+// With MuJoCo's headers (setup.py), the module also has ``Plant``: the cycle's MuJoCo side
+// (_plant.hpp).
 
 #include <pybind11/numpy.h>
 #include <pybind11/pybind11.h>
 #include <pybind11/stl.h>
+
+#include <algorithm>
 
 #include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
@@ -181,16 +186,21 @@ class Law {
   // braking. Raises std::domain_error if a mass matrix is not positive definite.
   void update(const Array& q_in, const Array& v_in, const Array& cmd_in, const Array& torso_in, const Array& prev_in,
               const Array& limits_in, Array& out_in, Array& out_torso_in) {
+    const int nv = model_.nv;
+    if (out_in.size() != 2 * oWidth || out_torso_in.size() != 2) throw std::invalid_argument("out has the wrong size");
+    compute(data_of(q_in, nv, "q"), data_of(v_in, nv, "v"), data_of(cmd_in, 2 * kCmdWidth, "cmd"),
+            data_of(torso_in, 3, "torso"), data_of(prev_in, 14, "prev"), data_of(limits_in, 10, "limits"),
+            out_in.mutable_data(), out_torso_in.mutable_data());
+  }
+
+  int nv() const { return model_.nv; }
+
+  // ``update`` on raw buffers of the sizes it checks (the MuJoCo cycle calls it, mjcycle.hpp).
+  void compute(const double* q_ptr, const double* v_ptr, const double* cmd, const double* torso, const double* prev,
+               const double* l, double* out, double* out_torso) {
     if (!ready_) throw std::logic_error("Law.finish was not called");
     const int nv = model_.nv;
-    Eigen::Map<const Eigen::VectorXd> q(data_of(q_in, nv, "q"), nv), v(data_of(v_in, nv, "v"), nv);
-    const double* cmd = data_of(cmd_in, 2 * kCmdWidth, "cmd");
-    const double* torso = data_of(torso_in, 3, "torso");
-    const double* prev = data_of(prev_in, 14, "prev");
-    const double* l = data_of(limits_in, 10, "limits");
-    if (out_in.size() != 2 * oWidth || out_torso_in.size() != 2) throw std::invalid_argument("out has the wrong size");
-    double* out = out_in.mutable_data();
-    double* out_torso = out_torso_in.mutable_data();
+    Eigen::Map<const Eigen::VectorXd> q(q_ptr, nv), v(v_ptr, nv);
     const Limits lim{l[0], l[1], l[2], l[3], l[4], l[5], l[6], l[7], l[8], l[9]};
 
     pinocchio::crba(model_, data_, q, pinocchio::Convention::WORLD);
@@ -475,8 +485,14 @@ class Law {
 
 }  // namespace
 
+#ifdef ROCO_WITH_MUJOCO
+#include "_plant.hpp"
+#endif
+
 PYBIND11_MODULE(_impedance, m) {
-  m.doc() = "The impedance control law of velma/control/impedance.py, compiled (velma/control/compiled.py).";
+  m.doc() =
+      "The impedance control law of velma/control/impedance.py, compiled (velma/control/compiled.py), and "
+      "the MuJoCo side of the cycle around it when built with MuJoCo's headers (Plant, _plant.hpp).";
   py::register_exception<std::domain_error>(m, "NotPositiveDefinite", PyExc_ArithmeticError);
   py::class_<Law>(m, "Law")
       .def(py::init<>())
@@ -485,4 +501,19 @@ PYBIND11_MODULE(_impedance, m) {
       .def("finish", &Law::finish)
       .def("set_wrist", &Law::set_wrist)
       .def("update", &Law::update);
+#ifdef ROCO_WITH_MUJOCO
+  m.attr("MUJOCO_HEADER_VERSION") = mjVERSION_HEADER;
+  py::class_<Plant>(m, "Plant")
+      .def(py::init<py::object, py::object, std::uintptr_t, std::vector<int>, std::vector<int>, std::vector<int>, int,
+                    std::vector<int>, std::vector<int>, std::vector<int>>())
+      .def("bind", &Plant::bind, py::arg("law"), py::arg("cmd").noconvert(), py::arg("torso").noconvert(),
+           py::arg("prev").noconvert(), py::arg("limits").noconvert(), py::arg("out").noconvert(),
+           py::arg("out_torso").noconvert(), py::arg("q").noconvert(), py::arg("v").noconvert(),
+           py::arg("parts").noconvert(), py::keep_alive<1, 2>())
+      .def("cycle", &Plant::cycle)
+      .def("set_state_layout", &Plant::set_state_layout)
+      .def("touching", &Plant::touching)
+      .def("self_contacts", &Plant::self_contacts)
+      .def("gather", &Plant::gather, py::arg("out").noconvert());
+#endif
 }

@@ -50,3 +50,41 @@ class Law:
         out: _F64,
         out_torso: _F64,
     ) -> None: ...
+
+# Present only when the module was built with MuJoCo's headers (velma/control/_plant.hpp).
+MUJOCO_HEADER_VERSION: int
+
+class Plant:
+    def __init__(
+        self,
+        model: object,
+        data: object,
+        step: int,
+        qpos_adr: list[int],
+        dof_adr: list[int],
+        arm_act: list[int],
+        torso_act: int,
+        hand_side: list[int],
+        part: list[int],
+        robot_body: list[int],
+    ) -> None: ...
+    def bind(
+        self,
+        law: Law,
+        cmd: _F64,
+        torso: _F64,
+        prev: _F64,
+        limits: _F64,
+        out: _F64,
+        out_torso: _F64,
+        q: _F64,
+        v: _F64,
+        parts: _F64,
+    ) -> None: ...
+    def cycle(self) -> None: ...
+    def touching(self, side: int) -> dict[int, int]: ...
+    def self_contacts(self) -> list[tuple[int, int]]: ...
+    def set_state_layout(
+        self, joint_qpos: list[int], sites: list[int], links: list[int], ft_adr: list[int], offsets: list[int]
+    ) -> None: ...
+    def gather(self, out: _F64) -> None: ...

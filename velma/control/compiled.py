@@ -19,6 +19,7 @@ from __future__ import annotations
 import logging
 import math
 import os
+from types import ModuleType
 
 import numpy as np
 import pinocchio as pin
@@ -46,6 +47,11 @@ _MODE = {mode: k for k, mode in enumerate(imp.MODES)}  # kCart, kJoint, kSafe of
 _JOINT_KIND = {"JointModelRX": 0, "JointModelRY": 1, "JointModelRZ": 2, "JointModelRevoluteUnaligned": 3}
 # the command row of one arm (the layout of _impedance.cpp)
 _ROT, _POS, _TWIST, _STIFF, _POSTURE, _Q, _QD, _KJ, _WIDTH = 1, 10, 13, 19, 25, 32, 39, 46, 53
+
+
+def native_module() -> ModuleType | None:
+    """The compiled module (``velma.control._impedance``), or None when it is not built."""
+    return _impedance
 
 
 def compiled_available() -> bool:
@@ -122,6 +128,7 @@ class CompiledController(imp.VelmaController):
         self._wrist_of: WristField | None = None
         self._send_wrist()
         self._cmd = np.zeros((2, _WIDTH))
+        self._cmd[:, 0] = -1.0  # no mode yet: Plant.gather reports no setpoint before the first cycle
         self._torso_in = np.zeros(3)
         self._prev_in = np.zeros((2, 7))
         self._limits_in = np.zeros(10)
@@ -152,6 +159,49 @@ class CompiledController(imp.VelmaController):
 
     def update(self, q: Array, v: Array) -> tuple[dict[str, Array], float]:
         """As ``VelmaController.update`` (same arguments, result, state and errors)."""
+        cart = self._pack()
+        q = np.ascontiguousarray(q, dtype=float)
+        v = np.ascontiguousarray(v, dtype=float)
+        try:
+            self._law.update(
+                q, v, self._cmd, self._torso_in, self._prev_in, self._limits_in, self._out, self._out_torso
+            )
+        except ArithmeticError as exc:
+            raise np.linalg.LinAlgError(str(exc)) from exc
+        return self._absorb(q, cart), float(self._out_torso[0])
+
+    def bind_plant(self, plant: _impedance.Plant, q: Array, v: Array, parts: Array) -> None:
+        """Give ``plant`` (velma/control/_plant.hpp) this law and its input and output arrays,
+        once: ``q``, ``v`` (nv,) float64 receive the state the law used in each cycle,
+        ``parts`` (2,) the seconds of the law (with the gather) and of the step. Raises
+        TypeError for arrays of another dtype or layout, ValueError for other sizes."""
+        plant.bind(
+            self._law,
+            self._cmd,
+            self._torso_in,
+            self._prev_in,
+            self._limits_in,
+            self._out,
+            self._out_torso,
+            q,
+            v,
+            parts,
+        )
+
+    def step_plant(self, plant: _impedance.Plant, q: Array) -> None:
+        """One cycle of ``plant`` bound by ``bind_plant`` (``Plant.cycle``): the law on MuJoCo's
+        state, the torques into its ctrl, one mj_step; ``q`` is the array bound as q. The
+        controller's state afterwards is that of ``update``; raises as ``update``."""
+        cart = self._pack()
+        try:
+            plant.cycle()
+        except ArithmeticError as exc:
+            raise np.linalg.LinAlgError(str(exc)) from exc
+        self._absorb(q, cart)
+
+    def _pack(self) -> list[bool]:
+        """Write the arms' commands, the torso's and the limits into the law's input arrays;
+        returns which arms are in Cartesian mode. Raises ValueError for an unknown mode."""
         if self.wrist is not self._wrist_of:
             self._send_wrist()
         cmd = self._cmd
@@ -197,13 +247,12 @@ class CompiledController(imp.VelmaController):
         self._torso_in[0] = self.torso_q
         self._torso_in[1] = self.torso_qd
         self._torso_in[2] = math.nan if self._prev_torso is None else self._prev_torso
-        q = np.ascontiguousarray(q, dtype=float)
-        v = np.ascontiguousarray(v, dtype=float)
+        return cart
+
+    def _absorb(self, q: Array, cart: list[bool]) -> dict[str, Array]:
+        """Take the law's outputs into the controller's state (as the Python law leaves it);
+        returns the arm torques by side."""
         out = self._out
-        try:
-            self._law.update(q, v, cmd, self._torso_in, self._prev_in, self._limits_in, out, self._out_torso)
-        except ArithmeticError as exc:
-            raise np.linalg.LinAlgError(str(exc)) from exc
         self._q_arm = q[self._idx]
         self._prev_arm = out[:, 7:14].copy()
         self._prev_torso = float(self._out_torso[1])
@@ -216,7 +265,7 @@ class CompiledController(imp.VelmaController):
             torque = out[k, 0:7].copy()
             state.torque = torque
             torques[side] = torque
-        return torques, float(self._out_torso[0])
+        return torques
 
 
 def law_name(ctrl: imp.VelmaController) -> str:

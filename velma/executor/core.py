@@ -83,6 +83,7 @@ class Executor:
         self.loop: ControlLoop[OnDone] = ControlLoop(self.rt)
         self.monitor = DeadlineMonitor(DT, realtime=realtime)
         self.monitor.control_law = law_name(self.rt.ctrl)
+        self.monitor.plant = self.rt.plant_name
         self._lock = threading.Lock()
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None

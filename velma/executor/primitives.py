@@ -394,7 +394,7 @@ class GraspPrimitive:
             return None
         if bool(np.all(prox > CLOSED)):
             return _result(rt, self.name, False, "no contact")
-        touch = rt.contacts.touching(rt.data, self.side)
+        touch = rt.touching(self.side)
         if not touch:
             return _result(rt, self.name, False, "no contact")
         body = max(touch, key=lambda b: touch[b])

@@ -146,6 +146,7 @@ class Ready(msgspec.Struct, frozen=True, tag="ready"):
     setup: RealtimeSetup
     checkpoint: RestoreReport | None = None
     control_law: str = ""
+    plant: str = ""
 
 
 class Done(msgspec.Struct, frozen=True, tag="done"):
@@ -263,7 +264,15 @@ def loop_main(config: bytes, doorbell: multiprocessing.connection.Connection) ->
     from velma.control.compiled import law_name  # the loop's side only: it loads Pinocchio
 
     pending.append(
-        encode(Ready(pid=os.getpid(), setup=setup, checkpoint=restored, control_law=law_name(rt.ctrl)))
+        encode(
+            Ready(
+                pid=os.getpid(),
+                setup=setup,
+                checkpoint=restored,
+                control_law=law_name(rt.ctrl),
+                plant=rt.plant_name,
+            )
+        )
     )
     state.write(encode(raw_state(rt, loop.holding)))
     ring()
@@ -391,6 +400,8 @@ class ExecutorProcess:
         self.setup: RealtimeSetup | None = None
         self.control_law = ""
         """Which impedance law the loop runs (``compiled`` or ``python``), once it is ready."""
+        self.plant = ""
+        """Where the cycle's MuJoCo side runs (``compiled`` or ``python``), once it is ready."""
         self._timing_cache: tuple[float, TimingStats] | None = None
         self.exit_reason: str | None = None
         self._callbacks: dict[int, tuple[OnDone, str]] = {}
@@ -591,6 +602,7 @@ class ExecutorProcess:
             sim_time = msgspec.msgpack.decode(raw, type=RawState).sim_time if raw is not None else 0.0
         self._monitor.setup = self.setup
         self._monitor.control_law = self.control_law
+        self._monitor.plant = self.plant
         return self._monitor.stats(sim_time)
 
     # ------------------------------------------------------------------ reader thread
@@ -633,6 +645,7 @@ class ExecutorProcess:
             elif isinstance(msg, Ready):
                 self.setup = msg.setup
                 self.control_law = msg.control_law
+                self.plant = msg.plant
                 self.restore_report = msg.checkpoint
                 self._ready.set()
             elif msg.command == START:

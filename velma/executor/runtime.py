@@ -17,15 +17,17 @@ from their pose relative to torso_link0 at the start of the motion).
 
 from __future__ import annotations
 
+import logging
 import math
 import time
+from typing import cast
 
 import mujoco
 import numpy as np
 import numpy.typing as npt
 import pinocchio as pin
 
-from velma.control.compiled import make_controller
+from velma.control.compiled import CompiledController, make_controller
 from velma.control.hand import ContactMonitor, Hands
 from velma.control.robot_model import (
     HEAD_JOINTS,
@@ -39,8 +41,11 @@ from velma.control.robot_model import (
 from velma.control.self_collision import SelfCollision
 from velma.executor.capture import DEFAULT_PERCEPTION
 from velma.executor.ground_truth import GroundTruth
+from velma.executor.plant import CompiledPlant, plant_unavailable
 from velma.executor.state import LINK_BODIES
 from velma.model.scene import N_PARTICLES, initial_state, load_kitchen
+
+log = logging.getLogger(__name__)
 
 DT = 0.001  # s
 HEAD_RATE = 1.04  # rad/s (velma-facts.md: neck velocity limit)
@@ -58,10 +63,18 @@ class Runtime:
     """Simulation plus controllers. Not thread-safe: one thread calls ``cycle``."""
 
     def __init__(
-        self, *, seed: int = 0, n_particles: int | None = None, pose_seed: int | None = None
+        self,
+        *,
+        seed: int = 0,
+        n_particles: int | None = None,
+        pose_seed: int | None = None,
+        compiled_plant: bool | None = None,
     ) -> None:
         """``seed`` jitters the jar content, ``pose_seed`` randomises the jar and bowl poses
-        (velma/model/scene.py; None: the poses of kitchen.xml)."""
+        (velma/model/scene.py; None: the poses of kitchen.xml). ``compiled_plant``: run the
+        cycle's MuJoCo side in C++ (velma/executor/plant.py); None: when it can (else with a
+        warning when the law is compiled), False: the Python cycle; True: raises RuntimeError
+        when it cannot."""
         self.pose_seed = pose_seed
         self.model = load_kitchen(N_PARTICLES if n_particles is None else n_particles, seed, pose_seed)
         self.model.opt.timestep = DT
@@ -111,6 +124,28 @@ class Runtime:
         self.touch: dict[str, dict[int, int]] = {s: {} for s in SIDES}
         self.lost_cycles: dict[str, int] = {s: 0 for s in SIDES}
         self.cycles = 0
+        self.plant: CompiledPlant | None = None
+        """The compiled MuJoCo side of the cycle (velma/executor/plant.py), or None: the
+        Python cycle."""
+        why = plant_unavailable(self.ctrl) if compiled_plant is not False else "not requested"
+        if why is None:
+            self.plant = CompiledPlant(
+                self.model,
+                self.data,
+                cast(CompiledController, self.ctrl),
+                self.jmap,
+                self.contacts,
+                arm_act=self.arm_act,
+                torso_act=self.torso_act,
+                state_index=self.snapshot_index,
+                grip_site=self.grip_site,
+                link_ids=self.link_ids,
+                ft_adr=self.ft_adr,
+            )
+        elif compiled_plant:
+            raise RuntimeError(f"no compiled plant: {why}")
+        elif compiled_plant is None and isinstance(self.ctrl, CompiledController):
+            log.warning("the cycle's MuJoCo side runs in Python: %s", why)
         self.part_s = np.zeros(3)
         """The last cycle's measured parts (s): primitive (set by the loop), control, physics
         (velma.executor.timing.PARTS)."""
@@ -130,6 +165,11 @@ class Runtime:
             self.ctrl.state[s].grip = self.ctrl.grip_pose(s)
 
     # ------------------------------------------------------------------ state
+    @property
+    def plant_name(self) -> str:
+        """Where the cycle's MuJoCo side runs: ``compiled`` (``plant``) or ``python``."""
+        return "python" if self.plant is None else "compiled"
+
     @property
     def time(self) -> float:
         """Simulation time (s)."""
@@ -168,37 +208,60 @@ class Runtime:
         the control and physics parts of its time go to ``part_s``."""
         t0 = time.perf_counter()
         data = self.data
-        q, v = self.q(), self.v()
-        taus, tau_torso = self.ctrl.update(q, v)
-        for s in SIDES:
-            data.ctrl[self.arm_act[s]] = taus[s]
-        data.ctrl[self.torso_act] = tau_torso
         self.hands.step(data, DT)
-        dh = np.clip(self.head_target - self.head_set, -HEAD_RATE * DT, HEAD_RATE * DT)
-        self.head_set = self.head_set + dh
-        data.ctrl[self.head_act[0]] = self.head_set[0]
-        data.ctrl[self.head_act[1]] = self.head_set[1]
-        t1 = time.perf_counter()
-        mujoco.mj_step(self.model, data)
+        self._step_head()
+        part = self.part_s
+        if self.plant is not None:
+            self.plant.cycle()
+            t1 = time.perf_counter()
+            part[1] = t1 - t0 - self.plant.parts[1]
+        else:
+            q, v = self.q(), self.v()
+            taus, tau_torso = self.ctrl.update(q, v)
+            for s in SIDES:
+                data.ctrl[self.arm_act[s]] = taus[s]
+            data.ctrl[self.torso_act] = tau_torso
+            t_step = time.perf_counter()
+            part[1] = t_step - t0
+            mujoco.mj_step(self.model, data)
+            t1 = time.perf_counter()
         self.cycles += 1
         # each hand is scanned every CONTACT_PERIOD cycles, the two half a period apart, so
         # that no cycle carries both scans
         phase = self.cycles % CONTACT_PERIOD
         if phase == self._self_phase:
-            pairs = self.contacts.self_contacts(data)
+            pairs = self.self_contacts_now()
             if pairs:
                 self._count_self_contacts(pairs)
         elif phase in self._scan_phase:
             s = self._scan_phase[phase]
-            self.touch[s] = self.contacts.touching(data, s)
+            self.touch[s] = self.touching(s)
             b = self.held[s]
             if b is not None and self.touch[s].get(b, 0) == 0:
                 self.lost_cycles[s] += 1
             else:
                 self.lost_cycles[s] = 0
-        part = self.part_s
-        part[1] = t1 - t0
-        part[2] = time.perf_counter() - t1
+        part[2] = time.perf_counter() - t1 + (self.plant.parts[1] if self.plant is not None else t1 - t_step)
+
+    def _step_head(self) -> None:
+        """The head's servo setpoints one step (≤ HEAD_RATE·DT per joint) towards ``head_target``."""
+        target, now, rate = self.head_target, self.head_set, HEAD_RATE * DT
+        for i in (0, 1):
+            now[i] += min(max(float(target[i] - now[i]), -rate), rate)
+            self.data.ctrl[self.head_act[i]] = now[i]
+
+    def touching(self, side: str) -> dict[int, int]:
+        """{body id: count of distinct hand geoms of ``side`` touching it} now (velma/control/hand.py
+        ``ContactMonitor.touching``; compiled with the plant)."""
+        if self.plant is not None:
+            return self.plant.touching(side)
+        return self.contacts.touching(self.data, side)
+
+    def self_contacts_now(self) -> list[tuple[int, int]]:
+        """(geom, geom) of each contact of the robot with itself now (``ContactMonitor.self_contacts``)."""
+        if self.plant is not None:
+            return self.plant.self_contacts()
+        return self.contacts.self_contacts(self.data)
 
     def _count_self_contacts(self, pairs: list[tuple[int, int]]) -> None:
         self.self_contacts += 1

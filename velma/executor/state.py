@@ -9,6 +9,7 @@ from typing import TYPE_CHECKING
 
 import msgspec
 import numpy as np
+import numpy.typing as npt
 
 from shared.fipa_codec.languages.common import Pose
 from velma.executor.timing import TimingStats
@@ -63,7 +64,7 @@ class RobotSnapshot(msgspec.Struct, frozen=True, kw_only=True):
 class RawState(msgspec.Struct, frozen=True, kw_only=True, array_like=True):
     """What the loop hands off every ``STATE_PERIOD`` cycles (issue 18: the loop copies
     numbers, the communication side builds the :class:`RobotSnapshot`): ``values`` float64
-    (native byte order) laid out by :func:`_layout` — joint positions in ``joints`` order, per
+    (native byte order) laid out by :func:`raw_layout` — joint positions in ``joints`` order, per
     side (``SNAPSHOT_SIDES``) the grip site's position (3) and rotation matrix (9, row-major),
     per link of ``LINK_BODIES`` position (3) and quaternion (4), per side a Cartesian setpoint
     flag (1), position (3) and rotation (9), per side the wrench (6)."""
@@ -75,7 +76,7 @@ class RawState(msgspec.Struct, frozen=True, kw_only=True, array_like=True):
     holding: str | None = None
 
 
-def _layout(n_joints: int) -> tuple[int, int, int, int, int]:
+def raw_layout(n_joints: int) -> tuple[int, int, int, int, int]:
     """Offsets of the grip, link, setpoint and wrench blocks in ``RawState.values``, and its length."""
     grip = n_joints
     links = grip + 2 * 12
@@ -87,11 +88,30 @@ def _layout(n_joints: int) -> tuple[int, int, int, int, int]:
 def raw_state(rt: Runtime, holding: str | None = None) -> RawState:
     """The state of ``rt`` now as numbers (reads MuJoCo's data; call from the loop's thread):
     copies, no per-value objects."""
+    out = np.empty(raw_layout(len(rt.joint_v_index))[-1])
+    if rt.plant is not None:
+        rt.plant.gather(out)  # the same numbers, read in C++ (velma/executor/plant.py)
+    else:
+        python_gather(rt, out)
+    right, left = rt.held[SNAPSHOT_SIDES[0]], rt.held[SNAPSHOT_SIDES[1]]
+    return RawState(
+        sim_time=rt.time,
+        joints=rt.robot.joint_names,
+        values=out.tobytes(),
+        held_object=(
+            None if right is None else rt.model.body(right).name,
+            None if left is None else rt.model.body(left).name,
+        ),
+        holding=holding,
+    )
+
+
+def python_gather(rt: Runtime, out: npt.NDArray[np.float64]) -> None:
+    """The numbers of ``raw_state`` into ``out`` in Python (the reference of ``CompiledPlant.gather``)."""
     from velma.control.robot_model import SIDES
 
     data = rt.data
-    grip_at, links_at, setpoint_at, ft_at, size = _layout(len(rt.joint_v_index))
-    out = np.empty(size)
+    grip_at, links_at, setpoint_at, ft_at, _ = raw_layout(len(rt.joint_v_index))
     out[:grip_at] = rt.q()[rt.snapshot_index]
     for k, side in enumerate(SIDES):
         site = rt.grip_site[side]
@@ -110,18 +130,9 @@ def raw_state(rt: Runtime, holding: str | None = None) -> RawState:
         at = ft_at + 6 * k
         out[at : at + 3] = data.sensordata[fa : fa + 3]
         out[at + 3 : at + 6] = data.sensordata[ta : ta + 3]
-    n_links = len(LINK_BODIES)
-    link_block = out[links_at:setpoint_at].reshape(n_links, 7)
+    link_block = out[links_at:setpoint_at].reshape(len(LINK_BODIES), 7)
     link_block[:, :3] = data.xpos[rt.link_ids]
     link_block[:, 3:] = data.xquat[rt.link_ids]
-    held = tuple(rt.model.body(b).name if (b := rt.held[s]) is not None else None for s in SIDES)
-    return RawState(
-        sim_time=rt.time,
-        joints=rt.robot.joint_names,
-        values=out.tobytes(),
-        held_object=(held[0], held[1]),
-        holding=holding,
-    )
 
 
 def snapshot_of(raw: RawState) -> RobotSnapshot:
@@ -129,7 +140,7 @@ def snapshot_of(raw: RawState) -> RobotSnapshot:
     only, no Pinocchio or MuJoCo). Raises ValueError when ``values`` has another length than
     its joints give (a block from another layout)."""
     v = np.frombuffer(raw.values, dtype=np.float64)
-    grip_at, links_at, setpoint_at, ft_at, size = _layout(len(raw.joints))
+    grip_at, links_at, setpoint_at, ft_at, size = raw_layout(len(raw.joints))
     if len(v) != size:
         raise ValueError(f"a raw state of {len(v)} values, not {size}")
     q = v[:grip_at].tolist()

@@ -98,6 +98,9 @@ class TimingStats(msgspec.Struct, frozen=True, kw_only=True):
     control_law: str = ""
     """The impedance law the loop ran: ``compiled`` or ``python`` (velma/control/compiled.py;
     empty when the loop did not say)."""
+    plant: str = ""
+    """Where the cycle's MuJoCo side ran: ``compiled`` or ``python`` (velma/executor/plant.py;
+    empty when the loop did not say)."""
 
 
 class DeadlineMonitor:
@@ -142,6 +145,8 @@ class DeadlineMonitor:
         self.setup: RealtimeSetup | None = None
         self.control_law = ""
         """Which impedance law the loop runs (``TimingStats.control_law``), set by its owner."""
+        self.plant = ""
+        """Where the cycle's MuJoCo side runs (``TimingStats.plant``), set by its owner."""
 
     @property
     def cycles(self) -> int:
@@ -217,6 +222,7 @@ class DeadlineMonitor:
             sim_time=sim_time,
             setup=self.setup,
             control_law=self.control_law,
+            plant=self.plant,
             worst_cycle=worst_cycle,
             worst_compute_us=float(self._worst[0]) * 1e6,
             parts=split,

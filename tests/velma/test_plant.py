@@ -1,0 +1,124 @@
+"""The compiled plant (velma/executor/plant.py, velma/control/_plant.hpp) does what the Python
+cycle does: the same simulated motion bit for bit, the same contact scans, the same robot
+state numbers; and a runtime says why it runs without it."""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+import pinocchio as pin
+import pytest
+
+from velma.control.compiled import ENV_LAW, CompiledController, make_controller
+from velma.control.robot_model import SIDES, RobotModel
+from velma.executor import plant as plant_module
+from velma.executor.plant import plant_unavailable
+from velma.executor.runtime import Runtime
+from velma.executor.state import python_gather, raw_layout
+
+pytestmark = pytest.mark.skipif(
+    plant_unavailable(make_controller(RobotModel())) is not None, reason="the compiled plant is not built"
+)
+
+# the left wrist bent into its own hand (tests/velma/test_self_collision.py): robot–robot contacts
+TOUCHING = {5: -0.52, 6: 0.37}
+
+
+def _move(rt: Runtime) -> None:
+    """Both arms to a Cartesian pose 2 cm above where they are, the right hand closing."""
+    for side in SIDES:
+        cmd = rt.ctrl.arm[side]
+        grip = rt.grip(side)
+        cmd.mode = "cart"
+        cmd.pose = pin.SE3(grip.rotation, grip.translation + np.array([0.0, 0.0, 0.02]))
+        cmd.posture = rt.arm_q(side)
+        cmd.twist = np.zeros(6)
+    rt.hands.command("right", 1.0)
+
+
+def test_the_robot_moves_the_same_with_the_compiled_plant() -> None:
+    """The kitchen from the same start, the same commands, 300 cycles with and without the
+    compiled plant (both with the compiled law): qpos, qvel, the controls, the controller's
+    grip poses and the contact scans are equal bit for bit."""
+    runs = []
+    for compiled in (True, False):
+        rt = Runtime(seed=0, compiled_plant=compiled)
+        assert (rt.plant is not None) == compiled
+        start = rt.data.qpos.copy()
+        _move(rt)
+        for _ in range(300):
+            rt.cycle()
+        runs.append(rt)
+    with_plant, without = runs
+    assert np.abs(with_plant.data.qpos - start).max() > 1e-3  # the robot did move
+    np.testing.assert_array_equal(with_plant.data.qpos, without.data.qpos)
+    np.testing.assert_array_equal(with_plant.data.qvel, without.data.qvel)
+    np.testing.assert_array_equal(with_plant.data.ctrl, without.data.ctrl)
+    for side in SIDES:
+        assert with_plant.grip(side) == without.grip(side)
+        assert with_plant.touch[side] == without.touch[side]
+    assert with_plant.cycles == without.cycles == 300
+
+
+def test_the_contact_scans_are_the_python_scans() -> None:
+    """The jar moved into the right hand and the left wrist bent into its hand: the compiled
+    scans report the hand–jar and the robot–robot contacts exactly as ContactMonitor does."""
+    rt = Runtime(seed=0, compiled_plant=True)
+    assert rt.plant is not None
+    jar = rt.model.body("jar").id
+    mujoco.mj_forward(rt.model, rt.data)
+    palm = rt.data.xpos[rt.model.body("right_HandPalmLink").id]
+    delta = rt.data.site_xpos[rt.grip_site["right"]] - rt.data.xpos[jar]
+    rt.displace("jar", (float(delta[0]), float(delta[1]), float(delta[2])))
+    for k, value in TOUCHING.items():
+        rt.data.qpos[rt.model.joint(f"left_arm_{k}_joint").qposadr[0]] = value
+    mujoco.mj_forward(rt.model, rt.data)
+    assert np.linalg.norm(palm - rt.data.xpos[rt.model.body("right_HandPalmLink").id]) < 1e-9
+    for side in SIDES:
+        assert rt.plant.touching(side) == rt.contacts.touching(rt.data, side)
+    assert jar in rt.plant.touching("right")
+    pairs = rt.plant.self_contacts()
+    assert pairs and pairs == rt.contacts.self_contacts(rt.data)
+
+
+def test_the_state_numbers_are_the_python_numbers() -> None:
+    """After cycles in Cartesian mode (a setpoint to report), the compiled gather writes the
+    numbers raw_state's Python gather writes."""
+    rt = Runtime(seed=0, compiled_plant=True)
+    assert rt.plant is not None
+    _move(rt)
+    for _ in range(20):
+        rt.cycle()
+    size = raw_layout(len(rt.joint_v_index))[-1]
+    compiled, python = np.full(size, np.nan), np.full(size, np.nan)
+    rt.plant.gather(compiled)
+    python_gather(rt, python)
+    np.testing.assert_array_equal(compiled, python)
+
+
+def test_a_runtime_says_why_it_runs_the_python_cycle(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The Python law, or MuJoCo of another version than the headers the module was built
+    with: no plant, with the reason; asked for one anyway, the runtime raises."""
+    monkeypatch.setenv(ENV_LAW, "python")
+    assert plant_unavailable(make_controller(RobotModel())) == "the Python law runs"
+    with pytest.raises(RuntimeError, match="the Python law runs"):
+        Runtime(seed=0, compiled_plant=True)
+    monkeypatch.setenv(ENV_LAW, "compiled")
+    ctrl = make_controller(RobotModel())
+    assert isinstance(ctrl, CompiledController) and plant_unavailable(ctrl) is None
+    monkeypatch.setattr(plant_module.mujoco, "mj_version", lambda: 1)
+    assert "running MuJoCo 1" in (plant_unavailable(ctrl) or "")
+
+
+def test_the_plant_takes_only_arrays_it_can_write_through() -> None:
+    """An array the plant would have to convert (float32, or a strided view) is refused:
+    the cycle must write into the controller's own arrays, never into a silent copy."""
+    rt = Runtime(seed=0, compiled_plant=True)
+    assert rt.plant is not None and isinstance(rt.ctrl, CompiledController)
+    native = rt.plant._plant
+    with pytest.raises(TypeError):
+        rt.ctrl.bind_plant(native, np.zeros(33, dtype=np.float32), rt.plant.v, rt.plant.parts)
+    with pytest.raises(TypeError):
+        rt.ctrl.bind_plant(native, rt.plant.q, np.zeros(66)[::2], rt.plant.parts)
+    with pytest.raises(ValueError, match="wrong size"):
+        rt.ctrl.bind_plant(native, rt.plant.q, rt.plant.v, np.zeros(3))

@@ -1,0 +1,224 @@
+// The MuJoCo side of ag_ex's 1 kHz cycle, compiled beside the law (issue 18; included by
+// _impedance.cpp after the Law class, only when MuJoCo's headers were found at build time).
+//
+// One ``Plant.cycle`` does what velma/executor/runtime.py ``Runtime.cycle`` does in Python
+// after the hands and the head have written their servo controls: gather Pinocchio's q, v
+// from MuJoCo's qpos, qvel (velma/control/robot_model.py JointMap), compute the law
+// (``Law::compute``), write the arm and torso torques into ctrl, and call mj_step. The
+// contact scans (velma/control/hand.py ContactMonitor) and the robot state's numbers
+// (velma/executor/state.py raw_state) read mjData here too. The Python code stays the
+// reference (tests/velma/test_plant.py compares the two).
+//
+// MuJoCo is used through its headers only: the Python objects give the mjModel and mjData
+// addresses (``_address``) and the caller gives mj_step's address (the libmujoco that the
+// ``mujoco`` module loaded), so nothing is linked; the struct layout is that of the headers
+// at build time, which is why velma/control/compiled.py uses a Plant only when
+// ``MUJOCO_HEADER_VERSION`` equals the running ``mujoco.mj_version()``.
+
+#include <mujoco/mujoco.h>
+
+#include <chrono>
+#include <cstdint>
+#include <utility>
+
+namespace {
+
+using MjStep = void (*)(const mjModel*, mjData*);
+
+std::uintptr_t address_of(const py::object& obj) { return obj.attr("_address").cast<std::uintptr_t>(); }
+
+double seconds_since(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+void check_index(const std::vector<int>& idx, std::int64_t bound, const char* what) {
+  for (int i : idx)
+    if (i < 0 || i >= bound) throw std::invalid_argument(std::string(what) + ": an index out of range");
+}
+
+class Plant {
+ public:
+  // model, data: mujoco.MjModel, mujoco.MjData (kept alive here). step: the address of
+  // mj_step. qpos_adr, dof_adr: JointMap (nv each). arm_act: the arm motors (right 7, left 7);
+  // torso_act: the torso motor. hand_side: per geom, the hand it belongs to (0 right, 1 left,
+  // -1 none); part: per geom, -1 outside the robot, a hand's index, 2 elsewhere on the robot;
+  // robot_body: per body, 1 on the robot. Raises ValueError on sizes or indices that do not fit.
+  Plant(py::object model, py::object data, std::uintptr_t step, std::vector<int> qpos_adr, std::vector<int> dof_adr,
+        std::vector<int> arm_act, int torso_act, std::vector<int> hand_side, std::vector<int> part,
+        std::vector<int> robot_body)
+      : model_obj_(std::move(model)),
+        data_obj_(std::move(data)),
+        m_(reinterpret_cast<const mjModel*>(address_of(model_obj_))),
+        d_(reinterpret_cast<mjData*>(address_of(data_obj_))),
+        step_(reinterpret_cast<MjStep>(step)),
+        qpos_adr_(std::move(qpos_adr)),
+        dof_adr_(std::move(dof_adr)),
+        arm_act_(std::move(arm_act)),
+        torso_act_(torso_act),
+        hand_side_(std::move(hand_side)),
+        part_(std::move(part)),
+        robot_body_(std::move(robot_body)) {
+    if (step_ == nullptr) throw std::invalid_argument("Plant: no mj_step");
+    if (qpos_adr_.size() != dof_adr_.size()) throw std::invalid_argument("Plant: qpos_adr and dof_adr differ in size");
+    check_index(qpos_adr_, m_->nq, "qpos_adr");
+    check_index(dof_adr_, m_->nv, "dof_adr");
+    if (arm_act_.size() != 14) throw std::invalid_argument("Plant: 14 arm motors");
+    check_index(arm_act_, m_->nu, "arm_act");
+    check_index({torso_act_}, m_->nu, "torso_act");
+    if (static_cast<std::int64_t>(hand_side_.size()) != m_->ngeom ||
+        static_cast<std::int64_t>(part_.size()) != m_->ngeom ||
+        static_cast<std::int64_t>(robot_body_.size()) != m_->nbody)
+      throw std::invalid_argument("Plant: hand_side and part per geom, robot_body per body");
+  }
+
+  // Bind the cycle's arrays once (kept alive here): the law and its arguments as Law.update's,
+  // without q and v; q, v (nv,) receive the state the law used; parts (2,) the seconds spent
+  // in gathering plus the law, and in mj_step. Raises ValueError on a size that does not fit.
+  void bind(Law& law, Array cmd, Array torso, Array prev, Array limits, Array out, Array out_torso, Array q, Array v,
+            Array parts) {
+    const py::ssize_t nv = static_cast<py::ssize_t>(qpos_adr_.size());
+    if (law.nv() != nv) throw std::invalid_argument("Plant.bind: the law has another nv");
+    if (cmd.size() != 2 * kCmdWidth || torso.size() != 3 || prev.size() != 14 || limits.size() != 10 ||
+        out.size() != 2 * oWidth || out_torso.size() != 2 || q.size() != nv || v.size() != nv || parts.size() != 2)
+      throw std::invalid_argument("Plant.bind: an array has the wrong size");
+    law_ = &law;
+    arrays_ = {cmd, torso, prev, limits, out, out_torso, q, v, parts};
+  }
+
+  // One cycle (module comment) on the bound arrays. Raises RuntimeError before ``bind``,
+  // else as Law.update.
+  void cycle() {
+    if (law_ == nullptr) throw std::runtime_error("Plant.cycle before Plant.bind");
+    const auto t0 = std::chrono::steady_clock::now();
+    double* q = arrays_[6].mutable_data();
+    double* v = arrays_[7].mutable_data();
+    for (std::size_t i = 0; i < qpos_adr_.size(); ++i) {
+      q[i] = d_->qpos[qpos_adr_[i]];
+      v[i] = d_->qvel[dof_adr_[i]];
+    }
+    double* o = arrays_[4].mutable_data();
+    double* ot = arrays_[5].mutable_data();
+    law_->compute(q, v, arrays_[0].data(), arrays_[1].data(), arrays_[2].data(), arrays_[3].data(), o, ot);
+    for (int k = 0; k < 2; ++k)
+      for (int i = 0; i < 7; ++i) d_->ctrl[arm_act_[7 * k + i]] = o[k * oWidth + oTau + i];
+    d_->ctrl[torso_act_] = ot[0];
+    double* p = arrays_[8].mutable_data();
+    p[0] = seconds_since(t0);
+    const auto t1 = std::chrono::steady_clock::now();
+    {
+      py::gil_scoped_release free;  // as the mujoco module's own mj_step
+      step_(m_, d_);
+    }
+    p[1] = seconds_since(t1);
+  }
+
+  // ContactMonitor.touching: {body id: number of distinct geoms of hand ``side`` touching
+  // it}, bodies off the robot only, in the order the Python scan meets them.
+  py::dict touching(int side) const {
+    std::vector<std::pair<int, int>> seen;  // (body, hand geom), each once
+    std::vector<int> order;
+    for (int col = 0; col < 2; ++col) {
+      for (int c = 0; c < d_->ncon; ++c) {
+        const int g = d_->contact[c].geom[col], other = d_->contact[c].geom[1 - col];
+        if (g < 0 || other < 0 || hand_side_[g] != side) continue;
+        const int b = m_->geom_bodyid[other];
+        if (robot_body_[b]) continue;
+        const std::pair<int, int> key(b, g);
+        if (std::find(seen.begin(), seen.end(), key) != seen.end()) continue;
+        seen.push_back(key);
+        if (std::find(order.begin(), order.end(), b) == order.end()) order.push_back(b);
+      }
+    }
+    py::dict result;
+    for (int b : order) {
+      int n = 0;
+      for (const auto& s : seen) n += s.first == b ? 1 : 0;
+      result[py::int_(b)] = n;
+    }
+    return result;
+  }
+
+  // ContactMonitor.self_contacts: (geom, geom) of each contact between two robot geoms that
+  // are not both in one hand, in contact order.
+  std::vector<std::pair<int, int>> self_contacts() const {
+    std::vector<std::pair<int, int>> hits;
+    for (int c = 0; c < d_->ncon; ++c) {
+      const int a = d_->contact[c].geom[0], b = d_->contact[c].geom[1];
+      if (a < 0 || b < 0) continue;
+      const int pa = part_[a], pb = part_[b];
+      if (pa >= 0 && pb >= 0 && (pa != pb || pa == 2)) hits.emplace_back(a, b);
+    }
+    return hits;
+  }
+
+  // Where the numbers of velma/executor/state.py raw_state come from, and their layout (its
+  // ``raw_layout``: joints at 0, grip at offsets[0], links at offsets[1], setpoint at
+  // offsets[2], wrench at offsets[3], size offsets[4]): qpos at ``joint_qpos``, the grip sites
+  // (2), the link bodies, the force and torque sensordata addresses per side (4). Raises
+  // ValueError on indices or a layout that do not fit.
+  void set_state_layout(std::vector<int> joint_qpos, std::vector<int> sites, std::vector<int> links,
+                        std::vector<int> ft_adr, std::vector<int> offsets) {
+    if (offsets.size() != 5 || sites.size() != 2 || ft_adr.size() != 4)
+      throw std::invalid_argument("Plant.set_state_layout: 2 sites, 4 sensor addresses, 5 offsets");
+    check_index(joint_qpos, m_->nq, "joint_qpos");
+    check_index(sites, m_->nsite, "sites");
+    check_index(links, m_->nbody, "links");
+    check_index(ft_adr, m_->nsensordata - 2, "ft_adr");
+    if (static_cast<int>(joint_qpos.size()) != offsets[0] || offsets[1] - offsets[0] != 24 ||
+        static_cast<int>(links.size()) * 7 != offsets[2] - offsets[1] || offsets[3] - offsets[2] != 26 ||
+        offsets[4] - offsets[3] != 12)
+      throw std::invalid_argument("Plant.set_state_layout: the layout does not fit the indices");
+    joint_qpos_ = std::move(joint_qpos);
+    sites_ = std::move(sites);
+    links_ = std::move(links);
+    ft_adr_ = std::move(ft_adr);
+    offsets_ = std::move(offsets);
+  }
+
+  // The numbers of raw_state now into ``out`` (size offsets[4]); the setpoints are the
+  // Cartesian ones of the bound command rows (the law's last command). Raises ValueError
+  // before ``set_state_layout`` and ``bind`` or for an ``out`` of another size.
+  void gather(Array& out) const {
+    if (offsets_.empty() || law_ == nullptr || out.size() != offsets_[4])
+      throw std::invalid_argument("Plant.gather: no layout or command rows yet, or out of another size");
+    const double* c = arrays_[0].data();
+    double* o = out.mutable_data();
+    for (std::size_t i = 0; i < joint_qpos_.size(); ++i) o[i] = d_->qpos[joint_qpos_[i]];
+    for (int k = 0; k < 2; ++k) {
+      double* g = o + offsets_[0] + 12 * k;
+      std::copy_n(d_->site_xpos + 3 * sites_[k], 3, g);
+      std::copy_n(d_->site_xmat + 9 * sites_[k], 9, g + 3);
+      double* s = o + offsets_[2] + 13 * k;
+      const double* row = c + k * kCmdWidth;
+      if (static_cast<int>(row[kMode]) == kCart) {
+        s[0] = 1.0;
+        std::copy_n(row + kPos, 3, s + 1);
+        std::copy_n(row + kRot, 9, s + 4);
+      } else {
+        std::fill_n(s, 13, 0.0);
+      }
+      double* w = o + offsets_[3] + 6 * k;
+      std::copy_n(d_->sensordata + ft_adr_[2 * k], 3, w);
+      std::copy_n(d_->sensordata + ft_adr_[2 * k + 1], 3, w + 3);
+    }
+    for (std::size_t i = 0; i < links_.size(); ++i) {
+      double* l = o + offsets_[1] + 7 * i;
+      std::copy_n(d_->xpos + 3 * links_[i], 3, l);
+      std::copy_n(d_->xquat + 4 * links_[i], 4, l + 3);
+    }
+  }
+
+ private:
+  py::object model_obj_, data_obj_;
+  const mjModel* m_;
+  mjData* d_;
+  MjStep step_;
+  std::vector<int> qpos_adr_, dof_adr_, arm_act_;
+  int torso_act_;
+  std::vector<int> hand_side_, part_, robot_body_;
+  Law* law_ = nullptr;
+  std::vector<Array> arrays_;  // cmd, torso, prev, limits, out, out_torso, q, v, parts
+  std::vector<int> joint_qpos_, sites_, links_, ft_adr_, offsets_;
+};
+
+}  // namespace

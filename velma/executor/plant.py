@@ -1,0 +1,136 @@
+"""The compiled MuJoCo side of ag_ex's cycle (issue 18): ``CompiledPlant`` wraps the C++
+``Plant`` of velma/control/_plant.hpp for a ``Runtime``.
+
+With it, the part of ``Runtime.cycle`` after the hands and the head (state gather, the
+compiled law, the torques into ``data.ctrl``, ``mj_step``), the contact scans and the robot
+state's numbers run in C++ on MuJoCo's own ``mjData``, with no Python object per value. The
+Python path of ``Runtime.cycle`` stays the reference: tests/velma/test_plant.py runs both side
+by side and compares the simulated robot's motion, the scans and the state bit for bit.
+
+``plant_unavailable`` says why a runtime cannot have one: the Python law runs
+(``ROCO_CONTROL_LAW=python``), the module was built without MuJoCo's headers, or the running
+``mujoco`` is another version than the headers it was built with (the struct layout of
+``mjData`` changes between versions; setup.py takes the headers from the ``mujoco`` wheel of
+the build). Then ``Runtime`` runs the Python cycle.
+"""
+
+from __future__ import annotations
+
+import ctypes
+from pathlib import Path
+
+import mujoco
+import numpy as np
+import numpy.typing as npt
+
+from velma.control.compiled import CompiledController, native_module
+from velma.control.hand import ContactMonitor
+from velma.control.robot_model import SIDES, Array, JointMap
+from velma.executor.state import LINK_BODIES, raw_layout
+
+
+def mj_step_address() -> int | None:
+    """The address of ``mj_step`` in the libmujoco that the ``mujoco`` module loaded (the
+    same file: the dynamic loader gives back the loaded library), or None when there is no
+    such file beside the module."""
+    folder = Path(mujoco.__file__).parent
+    for pattern in ("libmujoco.so*", "libmujoco*.dylib", "mujoco.dll"):
+        for lib in sorted(folder.glob(pattern)):
+            address = ctypes.cast(ctypes.CDLL(str(lib)).mj_step, ctypes.c_void_p).value
+            if address:
+                return int(address)
+    return None
+
+
+def plant_unavailable(ctrl: object) -> str | None:
+    """Why a runtime with controller ``ctrl`` cannot run the compiled plant, or None when it
+    can (module docstring)."""
+    if not isinstance(ctrl, CompiledController):
+        return "the Python law runs"
+    native = native_module()
+    built = getattr(native, "MUJOCO_HEADER_VERSION", None)
+    if built is None:
+        return "the compiled module was built without MuJoCo's headers"
+    if int(built) != mujoco.mj_version():
+        return f"built with MuJoCo headers {built}, running MuJoCo {mujoco.mj_version()}"
+    if mj_step_address() is None:
+        return "no libmujoco beside the mujoco module"
+    return None
+
+
+class CompiledPlant:
+    """The C++ plant of one runtime (module docstring). ``arm_act`` the arm motors by side (7
+    each), ``torso_act`` the torso motor; ``state_index`` the Pinocchio v indices of the
+    snapshot's joints, ``grip_site`` the grip sites by side, ``link_ids`` the bodies of
+    ``LINK_BODIES``, ``ft_adr`` per side the sensordata addresses of force and torque.
+    Raises RuntimeError when ``plant_unavailable`` gives a reason, ValueError from the C++
+    constructor on indices that do not fit the model."""
+
+    def __init__(
+        self,
+        model: mujoco.MjModel,
+        data: mujoco.MjData,
+        ctrl: CompiledController,
+        jmap: JointMap,
+        contacts: ContactMonitor,
+        *,
+        arm_act: dict[str, npt.NDArray[np.int64]],
+        torso_act: int,
+        state_index: npt.NDArray[np.intp],
+        grip_site: dict[str, int],
+        link_ids: npt.NDArray[np.intp],
+        ft_adr: dict[str, tuple[int, int]],
+    ) -> None:
+        why = plant_unavailable(ctrl)
+        if why is not None:
+            raise RuntimeError(f"no compiled plant: {why}")
+        native = native_module()
+        step = mj_step_address()
+        assert native is not None and step is not None
+        self.ctrl = ctrl
+        self._plant = native.Plant(
+            model,
+            data,
+            step,
+            jmap.qpos_adr.tolist(),
+            jmap.dof_adr.tolist(),
+            [int(a) for s in SIDES for a in arm_act[s]],
+            int(torso_act),
+            contacts.hand_side.tolist(),
+            contacts.part.tolist(),
+            contacts.robot_body.astype(int).tolist(),
+        )
+        nv = len(jmap.qpos_adr)
+        self.q = np.zeros(nv)
+        """Pinocchio q (rad, (nv,)) that the last cycle's law used."""
+        self.v = np.zeros(nv)
+        """Pinocchio v (rad/s, (nv,)) that the last cycle's law used."""
+        self.parts = np.zeros(2)
+        """The last cycle's seconds: gather and law, mj_step."""
+        ctrl.bind_plant(self._plant, self.q, self.v, self.parts)
+        if len(link_ids) != len(LINK_BODIES):
+            raise ValueError(f"{len(link_ids)} link bodies, the raw state has {len(LINK_BODIES)}")
+        self._plant.set_state_layout(
+            jmap.qpos_adr[state_index].tolist(),
+            [grip_site[s] for s in SIDES],
+            link_ids.tolist(),
+            [a for s in SIDES for a in ft_adr[s]],
+            list(raw_layout(len(state_index))),
+        )
+
+    def cycle(self) -> None:
+        """The law, the torques into ``data.ctrl`` and one ``mj_step`` (velma/control/compiled.py
+        ``CompiledController.step_plant``); raises as the law."""
+        self.ctrl.step_plant(self._plant, self.q)
+
+    def touching(self, side: str) -> dict[int, int]:
+        """As ``ContactMonitor.touching``: {body id: distinct geoms of hand ``side`` touching it}."""
+        return self._plant.touching(SIDES.index(side))
+
+    def self_contacts(self) -> list[tuple[int, int]]:
+        """As ``ContactMonitor.self_contacts``: (geom, geom) of the robot touching itself."""
+        return self._plant.self_contacts()
+
+    def gather(self, out: Array) -> None:
+        """The numbers of velma/executor/state.py ``raw_state`` into ``out`` (its layout)."""
+        self._plant.gather(out)
