@@ -17,9 +17,13 @@
 #   ROCO_BASE_PACKAGES (Debian packages of the local base); ROCO_WHEEL_PORT (loopback port the
 #   wheelhouse is served on, default 7449); PYTHON (host Python with pip, default python3);
 #   DOCKER (default docker).
-# Making the local base needs root (debootstrap). Prints the time of each phase.
+# Making the local base needs root (debootstrap). Prints the time of each phase; on a terminal,
+# a status line shows the running phase, its seconds and its log's last line
+# (scripts/live_status.sh).
 set -euo pipefail
 cd "$(dirname "$0")/.."
+# shellcheck source=scripts/live_status.sh
+. scripts/live_status.sh
 
 TAG=${ROCO_IMAGE:-roco:latest}
 BASE=${ROCO_BASE:-}
@@ -80,12 +84,13 @@ else
     # bring roco's old dependencies (a new one, e.g. cryptography, went missing)
     rm -f "$stamp" "$WHEELHOUSE"/roco-*.whl
     # roco's own wheel, to resolve its dependencies (the image installs roco from the source)
-    {
+    make_wheelhouse() {
         # (ROCO_BUILD_NATIVE=0: this wheel only names the dependencies, nothing is compiled)
         ROCO_BUILD_NATIVE=0 "$PYTHON" -m pip wheel --no-deps --disable-pip-version-check -w "$work/roco" . &&
             "$PYTHON" -m pip download --disable-pip-version-check -d "$WHEELHOUSE" "${PIP_TARGET[@]}" \
                 "$work"/roco/roco-*.whl wheel $("$PYTHON" -c 'import tomllib; print(" ".join(tomllib.load(open("pyproject.toml", "rb"))["build-system"]["requires"]))')
-    } > "$work/pip.log" 2>&1 || {
+    }
+    live_status "build_image.sh: phase wheelhouse" "$work/pip.log" make_wheelhouse || {
         grep -v '^WARNING: Location' "$work/pip.log" | tail -20 >&2
         echo "build_image.sh: making the wheelhouse failed" >&2
         exit 1
@@ -119,7 +124,8 @@ if ! have_image "$BASE"; then
     mkdir -p "$rootfs"
     # dpkg on a tmpfs: ≈ 3× faster than on this kind of VM's disk
     mount -t tmpfs -o size=4g,mode=0755 roco-rootfs "$rootfs" 2>/dev/null || true
-    debootstrap --variant=minbase --include="$BASE_PACKAGES" bookworm "$rootfs" "$MIRROR" > "$work/debootstrap.log" 2>&1 || {
+    live_status "build_image.sh: phase base" "$work/debootstrap.log" \
+        debootstrap --variant=minbase --include="$BASE_PACKAGES" bookworm "$rootfs" "$MIRROR" || {
         tail -20 "$work/debootstrap.log" >&2
         echo "build_image.sh: debootstrap failed" >&2
         exit 1
@@ -149,11 +155,12 @@ server_pid=$!
 for _ in $(seq 50); do (exec 3<>"/dev/tcp/127.0.0.1/$PORT") 2>/dev/null && break; sleep 0.1; done
 wheelhouse_id=$(find "$WHEELHOUSE" -name '*.whl' -printf '%f %s\n' | sort | sha256sum | cut -c1-16)
 echo "build_image.sh: building $TAG on $BASE (log: $work/build.log)"
-"$DOCKER" build "${NO_CACHE[@]}" --network host \
+live_status "build_image.sh: phase build" "$work/build.log" \
+    "$DOCKER" build "${NO_CACHE[@]}" --network host \
     --build-arg BASE="$BASE" \
     --build-arg WHEELS="http://127.0.0.1:$PORT/" \
     --build-arg WHEELHOUSE_ID="$wheelhouse_id" \
-    -f deploy/Dockerfile -t "$TAG" . > "$work/build.log" 2>&1 || {
+    -f deploy/Dockerfile -t "$TAG" . || {
     tail -40 "$work/build.log" >&2
     cp "$work/build.log" /tmp/roco-build-image.log
     echo "build_image.sh: docker build failed (whole log: /tmp/roco-build-image.log)" >&2

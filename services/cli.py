@@ -1,17 +1,20 @@
-"""``roco``: run the Robot Companion, talk to a running fleet, and read run folders.
+"""Run the Robot Companion, talk to a running fleet, and read its run folders.
 
-    roco run "pour the jar into the bowl"   whole system headless, to the end of the task
-    roco scenario NAME|FILE                  several commands, interruptions, restarts; checked
-    roco up / roco down                      start / stop a fleet that keeps running
-    roco send "<command>"                    give a running fleet a command
-    roco status                              which agents are alive (Zenoh liveliness)
-    roco report RUN                          write RUN/report.md
+Examples:
 
-Every failure prints one line starting with ``roco:`` and exits non-zero.
+    roco doctor                              what this machine offers roco
+    roco run "pour the jar into the bowl"    the whole system, to the task's end
+    roco scenario urgent_mid_pour            several commands, each one checked
+    roco up; roco send "stop"; roco down     a fleet that keeps running
+    roco view runs/<timestamp>               a run's Rerun recording
+
+Each command's own --help gives its details. Every failure prints one line starting
+with "roco:" and exits non-zero. Shell completion: roco --install-completion.
 """
 
 from __future__ import annotations
 
+import contextlib
 import os
 import queue
 import signal
@@ -20,7 +23,7 @@ import threading
 import time
 import uuid
 from pathlib import Path
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated, Literal
 
 import msgspec
 import typer
@@ -36,7 +39,12 @@ from services.runtime.session import alive_agents, open_client
 from services.security.context import register
 from services.spec.model import default_spec
 
-app = typer.Typer(add_completion=False, no_args_is_help=True, help=__doc__)
+if TYPE_CHECKING:
+    from services.live.watch import LiveWatch
+
+MARKUP: Literal["markdown"] = "markdown"
+"""Help texts are Markdown (typer's ``rich_markup_mode``): `code`, lists, indented examples."""
+app = typer.Typer(no_args_is_help=True, help=__doc__, rich_markup_mode=MARKUP)
 app.add_typer(fault_app, name="fault")
 app.add_typer(deploy_app, name="deploy")
 app.add_typer(__import__("services.bench.cli", fromlist=["bench_app"]).bench_app, name="bench")
@@ -59,6 +67,30 @@ TlsOption = Annotated[
         show_default=False,
     ),
 ]
+
+
+LiveOption = Annotated[
+    bool | None,
+    typer.Option(
+        "--live/--no-live",
+        help="a live view under the event lines: plan, step, agents, time, loop overruns "
+        "[default: on a terminal, unless --quiet]",
+        show_default=False,
+    ),
+]
+
+
+def _live_watch(title: str, live: bool | None, quiet: bool) -> LiveWatch | None:
+    """The live view (services/live/) when asked, or by default when stdout is a terminal and
+    not ``quiet``; None: plain lines."""
+    from rich.console import Console
+
+    from services.live.watch import LiveWatch
+
+    console = Console(highlight=False)
+    if live is False or (live is None and (quiet or not console.is_terminal)):
+        return None
+    return LiveWatch(title, AGENT_ORDER, console=console)
 
 
 def _security(acl: bool | None, tls: bool | None) -> None:
@@ -98,7 +130,7 @@ def _send_command(session: object, text: str, request_id: str) -> None:
     session.put(keys.HUMAN_IN, msgspec.json.encode(HumanInput(text=text, request_id=request_id)))  # type: ignore[attr-defined]
 
 
-@app.command()
+@app.command(short_help="Run the whole system on one command, to the end of the task.")
 def run(
     command: Annotated[str, typer.Argument(help="what the person says, e.g. 'pour the jar into the bowl'")],
     runs_dir: Annotated[Path, typer.Option(help="where run folders are made")] = Path("runs"),
@@ -111,6 +143,7 @@ def run(
     ] = None,
     acl: AclOption = None,
     tls: TlsOption = None,
+    live: LiveOption = None,
 ) -> None:
     """Start router, recorder and one process per agent; give a_hi the command; wait for the
     outcome; stop everything; write the run folder's report. Exit 0 only on success."""
@@ -120,10 +153,12 @@ def run(
     scenario = Scenario(
         name="", steps=(Step(say=command),), seed=seed, pose_seed=pose_seed, timeout_s=timeout
     )
-    _run_scenario(scenario, runs_dir, realtime=realtime, quiet=quiet)
+    _run_scenario(
+        scenario, runs_dir, realtime=realtime, quiet=quiet, watch=_live_watch("roco run", live, quiet)
+    )
 
 
-@app.command()
+@app.command(short_help="Run a scripted session and check every command's outcome.")
 def scenario(
     name: Annotated[
         str | None, typer.Argument(help="a scenario file, or the name of one in the library")
@@ -138,6 +173,7 @@ def scenario(
     view: Annotated[bool, typer.Option(help="also show the recording live in a Rerun viewer")] = False,
     acl: AclOption = None,
     tls: TlsOption = None,
+    live: LiveOption = None,
 ) -> None:
     """Run a scenario (several commands, interruptions, disturbances, restarts; see
     services/scenario/model.py) headless, check every command's outcome against what the
@@ -155,10 +191,11 @@ def scenario(
         sc = load_scenario(name)
     except ScenarioError as exc:
         raise fail(str(exc), code=2) from None
-    _run_scenario(sc, runs_dir, realtime=realtime, quiet=quiet, record=record, view=view)
+    watch = _live_watch(f"roco scenario {sc.name}", live, quiet)
+    _run_scenario(sc, runs_dir, realtime=realtime, quiet=quiet, record=record, view=view, watch=watch)
 
 
-@app.command()
+@app.command(short_help="Fault services at random during a task; check that nothing is lost.")
 def chaos(
     seed: Annotated[
         int, typer.Option(min=0, help="draws the order, kinds, times and lengths of the faults")
@@ -167,7 +204,11 @@ def chaos(
         int | None, typer.Option(min=1, help="this many random faults instead of each service once")
     ] = None,
     services: Annotated[
-        str, typer.Option(help="comma-separated services to fault (agents, recorder, router), or all")
+        str,
+        typer.Option(
+            help="comma-separated services to fault (agents, recorder, router), or all",
+            show_default="every agent",
+        ),
     ] = ",".join(default_spec().agent_names),
     kinds: Annotated[str, typer.Option(help="comma-separated fault kinds: kill, pause, restart")] = (
         "kill,pause,restart"
@@ -180,12 +221,13 @@ def chaos(
     record: Annotated[bool, typer.Option(help="record RUN/recording.rrd (Rerun)")] = False,
     acl: AclOption = None,
     tls: TlsOption = None,
+    live: LiveOption = None,
 ) -> None:
     """Kill, pause or restart services at random times while the robot carries out a command
     (each service once by default), then say whether the task was done, no command was lost,
     nothing was executed twice, no object was dropped and the traffic record is intact
     (RUN/chaos.md). Exit 0 only if all five hold. Local fleet only; on compose use
-    ``roco fault`` (docs/recovery.md)."""
+    `roco fault` (docs/recovery.md)."""
     from services.scenario.chaos import chaos_scenario, verdict, write_chaos_report
     from services.scenario.runner import ScenarioRunner
 
@@ -211,14 +253,19 @@ def chaos(
     run_dir = new_run_dir(runs_dir)
     info = RunInfo(started=time.time(), realtime=realtime, seed=0, scenario=sc.name)
     signal.signal(signal.SIGTERM, _interrupt)
-    runner = ScenarioRunner(
-        sc,
-        run_dir,
-        env=_scene_env(realtime, 0, None) | _viewer_env(record, False),
-        echo=lambda line: typer.echo(line) if not quiet or "fault" in line or "back after" in line else None,
-        info=info,
-    )
-    outcome = runner.run()
+    env = _scene_env(realtime, 0, None) | _viewer_env(record, False)
+    watch = _live_watch(f"roco chaos --seed {seed}", live, quiet)
+    say = watch.line if watch is not None else typer.echo
+    with watch if watch is not None else contextlib.nullcontext():
+        runner = ScenarioRunner(
+            sc,
+            run_dir,
+            env=env,
+            echo=lambda line: say(line) if not quiet or "fault" in line or "back after" in line else None,
+            info=info,
+            on_session=watch.attach if watch is not None else None,
+        )
+        outcome = runner.run()
     _finish_report(run_dir, info)
     v = verdict(run_dir, outcome)
     path = write_chaos_report(run_dir, sc, outcome, v)
@@ -247,7 +294,14 @@ def _viewer_env(record: bool, view: bool) -> dict[str, str]:
 
 
 def _run_scenario(
-    sc: object, runs_dir: Path, *, realtime: bool, quiet: bool, record: bool = True, view: bool = False
+    sc: object,
+    runs_dir: Path,
+    *,
+    realtime: bool,
+    quiet: bool,
+    record: bool = True,
+    view: bool = False,
+    watch: LiveWatch | None = None,
 ) -> None:
     from services.monitor import progress_line
     from services.scenario.model import Scenario
@@ -263,15 +317,19 @@ def _run_scenario(
         scenario=sc.name,
     )
     signal.signal(signal.SIGTERM, _interrupt)
-    runner = ScenarioRunner(
-        sc,
-        run_dir,
-        env=_scene_env(realtime, sc.seed, sc.pose_seed) | _viewer_env(record, view),
-        echo=lambda line: typer.echo(line) if not quiet or "a_hi → person" in line else None,
-        traffic_lines=None if quiet else progress_line,
-        info=info,
-    )
-    outcome = runner.run()
+    env = _scene_env(realtime, sc.seed, sc.pose_seed) | _viewer_env(record, view)
+    say = watch.line if watch is not None else typer.echo
+    with watch if watch is not None else contextlib.nullcontext():
+        runner = ScenarioRunner(
+            sc,
+            run_dir,
+            env=env,
+            echo=lambda line: say(line) if not quiet or "a_hi → person" in line else None,
+            traffic_lines=None if quiet else progress_line,
+            info=info,
+            on_session=watch.attach if watch is not None else None,
+        )
+        outcome = runner.run()
     _finish_report(run_dir, info)
     if sc.name:
         typer.echo(outcome.summary())
@@ -307,7 +365,7 @@ def _finish_report(run_dir: Path, info: RunInfo) -> None:
     )
 
 
-@app.command()
+@app.command(short_help="Start a fleet that keeps running: router, recorder, agents.")
 def up(
     port: Annotated[int, typer.Option(help="router TCP port on 127.0.0.1")] = 7447,
     runs_dir: Annotated[Path, typer.Option(help="where the fleet's run folder is made")] = Path("runs"),
@@ -323,7 +381,7 @@ def up(
     tls: TlsOption = None,
 ) -> None:
     """Start router, recorder and all agents in the background; they keep running until
-    ``roco down``."""
+    `roco down`."""
     _security(acl, tls)
     state_file = runs_dir / FLEET_FILE
     if state_file.exists():
@@ -369,9 +427,9 @@ def _fleet_state(runs_dir: Path) -> FleetState | None:
         raise fail(f"{path}: not a fleet state file: {why}", code=2) from None
 
 
-@app.command()
+@app.command(short_help="Stop the fleet that roco up started.")
 def down(runs_dir: Annotated[Path, typer.Option()] = Path("runs")) -> None:
-    """Stop the fleet ``roco up`` started (only the processes it started, by PID)."""
+    """Stop the fleet `roco up` started (only the processes it started, by PID)."""
     state = _fleet_state(runs_dir)
     if state is None:
         raise fail(f"no fleet is up (no {runs_dir / FLEET_FILE})")
@@ -429,7 +487,7 @@ def _endpoint(router: str | None, runs_dir: Path) -> str:
     return state.endpoint
 
 
-@app.command()
+@app.command(short_help="Give a running fleet a command and wait for its outcome.")
 def send(
     command: Annotated[str, typer.Argument(help="what the person says")],
     router: Annotated[
@@ -473,7 +531,7 @@ def send(
         session.close()
 
 
-@app.command()
+@app.command(short_help="Move or tip over an object of the simulated kitchen.")
 def disturb(
     obj: Annotated[str, typer.Argument(metavar="OBJECT", help="a free body of the kitchen: jar, bowl, cup")],
     dx: Annotated[float, typer.Option(help="metres along world x")] = 0.0,
@@ -506,7 +564,7 @@ def disturb(
     typer.echo(f"roco: asked ag_ex to move the {obj} by ({dx:+.3f}, {dy:+.3f}, {dz:+.3f}) m{turn}")
 
 
-@app.command()
+@app.command(short_help="Open a Rerun viewer on a run's recording or on a live fleet.")
 def view(
     run_dir: Annotated[
         Path | None,
@@ -534,7 +592,7 @@ def view(
     typer.echo(f"roco: Rerun viewer {where} (pid {viewer.pid}; stop it with: kill -- -{viewer.pid})")
 
 
-@app.command()
+@app.command(short_help="Print live communicates as they cross Zenoh (FIPA SC00070).")
 def sniff(
     router: Annotated[
         str | None, typer.Option(help="router endpoint (default: the fleet of 'roco up')")
@@ -579,7 +637,7 @@ def sniff(
     typer.echo(f"roco: {count} communicates")
 
 
-@app.command()
+@app.command(short_help="Which agents are alive, with their counters of input.")
 def status(
     router: Annotated[str | None, typer.Option(help="router endpoint")] = None,
     runs_dir: Annotated[Path, typer.Option()] = Path("runs"),
@@ -616,7 +674,9 @@ def status(
 spec_app = typer.Typer(
     add_completion=False,
     no_args_is_help=True,
+    rich_markup_mode=MARKUP,
     help="The specification (services/spec/robot_companion.toml): show it, check it, verify code and runs.",
+    short_help="The specification: show it, check it, verify code and runs.",
 )
 app.add_typer(spec_app, name="spec")
 SpecFile = Annotated[
@@ -630,7 +690,7 @@ def _spec_path(path: Path | None) -> Path:
     return path if path is not None else DEFAULT_SPEC
 
 
-@spec_app.command("show")
+@spec_app.command("show", short_help="The decomposition, channels, interfaces and agent graph.")
 def spec_show(
     spec: SpecFile = None,
     svg: Annotated[Path | None, typer.Option(help="write the agent/channel graph as SVG here")] = None,
@@ -664,7 +724,7 @@ def spec_show(
         typer.echo(f"roco: graph written to {dot}")
 
 
-@spec_app.command("check")
+@spec_app.command("check", short_help="Check the decomposition and the agents' interfaces.")
 def spec_check(spec: SpecFile = None) -> None:
     """Check the decomposition (each step splits one fringe group in two, reallocated channels
     end at groups that exist, every requirement addressed, the stop condition) and that the
@@ -677,7 +737,7 @@ def spec_check(spec: SpecFile = None) -> None:
         raise typer.Exit(1)
 
 
-@spec_app.command("deadlock")
+@spec_app.command("deadlock", short_help="Search the protocols and agents for reachable deadlocks.")
 def spec_deadlock(spec: SpecFile = None) -> None:
     """Explore every channel protocol as two role automata over bounded FIFO queues, and the
     agents' wait-for graph; report reachable deadlocks with the trace that leads there
@@ -694,7 +754,7 @@ def spec_deadlock(spec: SpecFile = None) -> None:
         raise typer.Exit(1)
 
 
-@spec_app.command("verify")
+@spec_app.command("verify", short_help="Check a run's recorded traffic against the specification.")
 def spec_verify(
     run_dir: Annotated[Path, typer.Argument(metavar="RUN", help="a run folder")], spec: SpecFile = None
 ) -> None:
@@ -710,7 +770,7 @@ def spec_verify(
         raise typer.Exit(1)
 
 
-@spec_app.command("new-agent")
+@spec_app.command("new-agent", short_help="Write a new agent's folder from the specification.")
 def spec_new_agent(
     name: Annotated[str, typer.Argument(metavar="NAME", help="the agent, as [[agents]] names it")],
     spec: SpecFile = None,
@@ -734,7 +794,7 @@ def spec_new_agent(
     typer.echo(f"roco: fill in {', '.join(scaffold.handlers)}; then: roco spec verify-code")
 
 
-@spec_app.command("verify-code")
+@spec_app.command("verify-code", short_help="Compare every agent's code with its interface.")
 def spec_verify_code(spec: SpecFile = None) -> None:
     """Compare every agent with its interface in the specification without starting it (the
     paper's ClassInterfaceInfo check): its protocol roles (channel, protocol, initiator or
@@ -748,7 +808,33 @@ def spec_verify_code(spec: SpecFile = None) -> None:
         raise typer.Exit(1)
 
 
-@app.command()
+@app.command(short_help="Check what this machine offers roco, and how to get what is missing.")
+def doctor(
+    runs_dir: Annotated[Path, typer.Option(help="where 'roco up' keeps its fleet state")] = Path("runs"),
+) -> None:
+    """Check, item by item, what roco can use on this machine: Python and the libraries,
+    the compiled control law, a free loopback port, EGL or OSMesa for the head camera,
+    SCHED_FIFO and CPU pinning for `--realtime`, a Docker engine, Compose and roco's image
+    for the compose fleet, Chromium for the viewer's screenshot, and the credentials of the
+    fleet `roco up` left under `runs/`.
+
+    Each item says found or not found and how to get it. Exit 0 when everything `roco run`
+    needs is there, 1 otherwise. Takes a few seconds: MuJoCo's GL is tried in a child
+    process, Docker is asked with time limits."""
+    from rich.console import Console
+
+    from services.doctor import run_checks
+    from services.doctor.model import run_ready
+    from services.doctor.render import show, verdict
+
+    checks = run_checks(runs_dir)
+    show(checks, Console(highlight=False))
+    typer.echo(verdict(checks))
+    if not run_ready(checks):
+        raise typer.Exit(1)
+
+
+@app.command(short_help="Write RUN/report.md from a run folder.")
 def report(run_dir: Annotated[Path, typer.Argument(help="a run folder")]) -> None:
     """Write RUN/report.md from the run's traffic record."""
     from services.report import write_report

@@ -1,10 +1,10 @@
-"""``roco bench``: every benchmark of issue 9 in one command, printed as tables and written to
-``docs/benchmarks.md`` with the machine, the versions, the load and the command.
+"""`roco bench`: every benchmark of issue 9 in one command, printed as tables and written to
+`docs/benchmarks.md` with the machine, the versions, the load and the command.
 
-Parts (``--only`` takes a comma-separated subset; default all, in this order):
-``codec``, ``messaging`` (roco against raw Zenoh), ``spade`` (the same tests on SPADE, run
-right after ``messaging``), ``knowledge``, ``planning``, ``fleet``, ``task``, ``scale``.
-``--quick`` shrinks every count (a smoke test of the command, not figures to quote).
+Parts (`--only` takes a comma-separated subset; default all, in this order):
+`codec`, `messaging` (roco against raw Zenoh), `spade` (the same tests on SPADE, run
+right after `messaging`), `knowledge`, `planning`, `fleet`, `task`, `scale`.
+`--quick` shrinks every count (a smoke test of the command, not figures to quote).
 A part that fails is reported in the document with its error; the others still run.
 """
 
@@ -27,7 +27,13 @@ PARTS = ("codec", "messaging", "spade", "knowledge", "planning", "fleet", "task"
 ROOT = Path(__file__).resolve().parents[2]
 DEFAULT_OUT = ROOT / "docs" / "benchmarks.md"
 
-bench_app = typer.Typer(add_completion=False, help=__doc__, invoke_without_command=True)
+bench_app = typer.Typer(
+    add_completion=False,
+    help=__doc__,
+    short_help="Every benchmark of issue 9, printed and written to docs/benchmarks.md.",
+    invoke_without_command=True,
+    rich_markup_mode="markdown",
+)
 
 
 def _parts(only: str | None) -> list[str]:

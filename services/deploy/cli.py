@@ -24,6 +24,7 @@ from services.spec.model import DEFAULT_SPEC, SpecError, SystemSpec, load
 deploy_app = typer.Typer(
     add_completion=False,
     no_args_is_help=True,
+    rich_markup_mode="markdown",
     help="Credentials and access control of a deployment (docs/security.md).",
 )
 

@@ -41,6 +41,7 @@ from services.runtime.faults import (
 fault_app = typer.Typer(
     add_completion=False,
     no_args_is_help=True,
+    rich_markup_mode="markdown",
     help="Inject faults into a running fleet: processes, network, messages (docs/faults.md).",
 )
 

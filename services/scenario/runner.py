@@ -100,7 +100,8 @@ class ScenarioOutcome:
 class ScenarioRunner:
     """Runs ``scenario`` in ``run_dir`` (created by the caller). ``env`` is the extra
     environment of every process (ag_ex's pacing and scene); ``echo`` receives progress
-    lines (None: silent)."""
+    lines (None: silent); ``on_session`` is given the runner's Zenoh session as soon as the
+    router answers, before anything else starts (a live view subscribes on it)."""
 
     def __init__(
         self,
@@ -111,8 +112,10 @@ class ScenarioRunner:
         echo: Echo | None = None,
         traffic_lines: Callable[[str, bytes], str | None] | None = None,
         info: RunInfo | None = None,
+        on_session: Callable[[zenoh.Session], None] | None = None,
     ) -> None:
         self.scenario = scenario
+        self.on_session = on_session
         self.run_dir = run_dir
         self.fleet = Fleet(run_dir, f"tcp/127.0.0.1:{free_port()}", env=env or {})
         self.endpoint = self.fleet.endpoint  # tls/… when the fleet runs on TLS (docs/security.md)
@@ -302,6 +305,8 @@ class ScenarioRunner:
             self._say(f"run folder {self.run_dir}; router {self.endpoint}")
             self.fleet.start_router()
             session = open_client(self.endpoint)
+            if self.on_session is not None:
+                self.on_session(session)
             self.fleet.start_recorder()
             self.fleet.wait_alive(session, ["recorder"], timeout=60)
             session.declare_subscriber(keys.FIPA_ALL, self._on_traffic)

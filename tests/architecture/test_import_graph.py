@@ -35,6 +35,8 @@ TOOLS = (
     "services.scenario",
     "services.bench",
     "services.sniff",
+    "services.doctor",
+    "services.live",
     "services.cli",
 )
 

@@ -1,0 +1,91 @@
+"""Python, the libraries roco depends on, and ag_ex's compiled impedance law."""
+
+from __future__ import annotations
+
+import importlib.metadata
+import importlib.util
+import sys
+import tomllib
+from pathlib import Path
+
+from packaging.requirements import InvalidRequirement, Requirement
+from packaging.version import InvalidVersion, Version
+
+from services.doctor.model import Check, Use
+
+ROOT = Path(__file__).resolve().parents[2]
+PYPROJECT = ROOT / "pyproject.toml"
+MIN_PYTHON = (3, 11)
+INSTALL = "pip install -e . in the repository (README, 'Two commands')"
+
+
+def requirements(pyproject: Path = PYPROJECT) -> list[Requirement]:
+    """roco's runtime requirements: ``[project] dependencies`` of ``pyproject`` when it is
+    there (a source checkout), else the installed distribution's metadata. Raises nothing:
+    an unreadable list is an empty one."""
+    lines: list[str] = []
+    if pyproject.is_file():
+        try:
+            lines = list(tomllib.loads(pyproject.read_text())["project"]["dependencies"])
+        except (tomllib.TOMLDecodeError, KeyError, OSError):
+            lines = []
+    if not lines:
+        try:
+            lines = [r for r in importlib.metadata.requires("roco") or [] if "extra ==" not in r]
+        except importlib.metadata.PackageNotFoundError:
+            lines = []
+    out = []
+    for line in lines:
+        try:
+            out.append(Requirement(line))
+        except InvalidRequirement:
+            continue
+    return out
+
+
+def python_check(version: tuple[int, int, int] | None = None) -> Check:
+    """Python ≥ 3.11 (``version`` defaults to this interpreter's)."""
+    v = version or (sys.version_info.major, sys.version_info.minor, sys.version_info.micro)
+    found = v[:2] >= MIN_PYTHON
+    text = ".".join(map(str, v))
+    return Check(
+        "Python",
+        Use.RUN,
+        found,
+        f"{text} ({sys.executable})" if found else f"{text}; roco needs ≥ 3.11",
+        "" if found else "install Python ≥ 3.11 (Debian bookworm: apt-get install python3)",
+    )
+
+
+def library_check(req: Requirement) -> Check:
+    """The installed version of ``req``'s distribution against its specifier."""
+    try:
+        installed = importlib.metadata.version(req.name)
+    except importlib.metadata.PackageNotFoundError:
+        return Check(req.name, Use.RUN, False, f"not installed (needs {req})", INSTALL)
+    try:
+        ok = req.specifier.contains(Version(installed), prereleases=True)
+    except InvalidVersion:
+        ok = False
+    detail = installed if ok else f"{installed}, but roco needs {req}"
+    return Check(req.name, Use.RUN, ok, detail, "" if ok else f"pip install '{req}'")
+
+
+def compiled_law_check() -> Check:
+    """Whether ``velma.control._impedance`` was built (without it ag_ex runs the same law in
+    Python, about 4× slower; found by file, nothing is imported)."""
+    found = importlib.util.find_spec("velma.control._impedance") is not None
+    return Check(
+        "compiled impedance law",
+        Use.SPEED,
+        found,
+        "velma/control/_impedance built"
+        if found
+        else "not built: ag_ex runs the law in Python (≈ 4× slower)",
+        "" if found else "a C++ compiler (apt-get install g++), then pip install -e . again",
+    )
+
+
+def checks() -> list[Check]:
+    """Python, every library of :func:`requirements`, the compiled law."""
+    return [python_check(), *(library_check(r) for r in requirements()), compiled_law_check()]

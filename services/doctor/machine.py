@@ -1,0 +1,135 @@
+"""What the machine allows: off-screen rendering (EGL or OSMesa) for the head camera,
+SCHED_FIFO and CPU pinning for the 1 kHz loop, loopback ports for the router.
+
+The rendering and scheduling probes run in a child Python process (a failed GL context can
+abort a process; a real-time policy must not stay on this one), each with a time limit."""
+
+from __future__ import annotations
+
+import os
+import socket
+import subprocess
+import sys
+
+from services.doctor.model import Check, Use
+
+PROBE_TIMEOUT_S = 60.0
+ROUTER_PORT = 7447  # roco up's default router port (services/cli.py DEFAULT_ROUTER)
+
+GL_PROBE = "import mujoco\nctx = mujoco.GLContext(64, 64)\nctx.make_current()\nctx.free()\n"
+FIFO_PROBE = "import os\nos.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(1))\n"
+PIN_PROBE = "import os, sys\nos.sched_setaffinity(0, {int(sys.argv[1])})\n"
+
+GL_HOW = {
+    "egl": "apt-get install libegl1 libegl-mesa0 libgl1-mesa-dri (software EGL is enough)",
+    "osmesa": "apt-get install libosmesa6, then run with MUJOCO_GL=osmesa",
+}
+
+
+def probe(code: str, *args: str, env: dict[str, str] | None = None) -> tuple[bool, str]:
+    """Run ``code`` in a child interpreter; (exited 0, last line of its stderr). A child that
+    does not end within ``PROBE_TIMEOUT_S`` counts as failed."""
+    try:
+        done = subprocess.run(
+            [sys.executable, "-c", code, *args],
+            env={**os.environ, **(env or {})},
+            capture_output=True,
+            text=True,
+            timeout=PROBE_TIMEOUT_S,
+            check=False,
+        )
+    except subprocess.TimeoutExpired:
+        return False, f"no answer within {PROBE_TIMEOUT_S:.0f} s"
+    except OSError as exc:
+        return False, str(exc)
+    lines = [line for line in done.stderr.splitlines() if line.strip()]
+    return done.returncode == 0, (lines[-1] if lines else f"exit status {done.returncode}")
+
+
+def rendering_checks() -> list[Check]:
+    """MuJoCo's off-screen GL context with EGL (what velma/render.py and the head camera use)
+    and, where EGL fails, OSMesa: one check per backend tried."""
+    out = []
+    for backend in ("egl", "osmesa"):
+        ok, why = probe(GL_PROBE, env={"MUJOCO_GL": backend})
+        name = backend.upper() if backend == "egl" else "OSMesa"
+        detail = "an off-screen context opens (MuJoCo)" if ok else f"no context: {why}"
+        out.append(Check(name, Use.CAMERA, ok, detail, "" if ok else GL_HOW[backend]))
+        if ok:
+            break
+    return out
+
+
+def fifo_check() -> Check:
+    """Whether a process may take SCHED_FIFO (velma/executor/timing.py ``enter_realtime``)."""
+    if not hasattr(os, "sched_setscheduler"):
+        return Check("SCHED_FIFO", Use.REALTIME, False, "not available on this OS", "Linux")
+    ok, why = probe(FIFO_PROBE)
+    return Check(
+        "SCHED_FIFO",
+        Use.REALTIME,
+        ok,
+        "allowed" if ok else f"refused: {why}",
+        ""
+        if ok
+        else "run as root, or raise the rtprio limit (limits.conf: '<user> - rtprio 90'); "
+        "containers: --cap-add SYS_NICE",
+    )
+
+
+def pinning_check() -> Check:
+    """Whether the loop can have a CPU of its own: two CPUs or more, and affinity allowed."""
+    if not hasattr(os, "sched_getaffinity"):
+        return Check("CPU pinning", Use.REALTIME, False, "not available on this OS", "Linux")
+    cpus = sorted(os.sched_getaffinity(0))
+    if len(cpus) < 2:
+        return Check(
+            "CPU pinning", Use.REALTIME, False, f"{len(cpus)} CPU available", "a machine with 2 CPUs or more"
+        )
+    ok, why = probe(PIN_PROBE, str(cpus[-1]))
+    return Check(
+        "CPU pinning",
+        Use.REALTIME,
+        ok,
+        f"allowed ({len(cpus)} CPUs; the loop takes CPU {cpus[-1]})" if ok else f"refused: {why}",
+        "" if ok else "allow sched_setaffinity (containers: --cpuset-cpus, no seccomp block)",
+    )
+
+
+def port_free(port: int, host: str = "127.0.0.1") -> bool:
+    """Whether TCP ``port`` on ``host`` can be bound now (0: any port)."""
+    with socket.socket() as s:
+        try:
+            s.bind((host, port))
+        except OSError:
+            return False
+    return True
+
+
+def port_checks(router_port: int = ROUTER_PORT) -> list[Check]:
+    """A free loopback port (``roco run`` starts its router on one) and ``router_port``
+    (``roco up``'s default)."""
+    any_free = port_free(0)
+    fixed = port_free(router_port)
+    return [
+        Check(
+            "loopback port",
+            Use.RUN,
+            any_free,
+            "a free TCP port on 127.0.0.1 can be bound"
+            if any_free
+            else "no TCP port on 127.0.0.1 can be bound",
+            "" if any_free else "bring up the loopback interface (ip link set lo up)",
+        ),
+        Check(
+            f"port {router_port}",
+            Use.UP,
+            fixed,
+            f"127.0.0.1:{router_port} is free" if fixed else f"127.0.0.1:{router_port} is taken",
+            "" if fixed else f"roco up --port <another>, or stop what listens on {router_port}",
+        ),
+    ]
+
+
+def checks() -> list[Check]:
+    return [*port_checks(), *rendering_checks(), fifo_check(), pinning_check()]

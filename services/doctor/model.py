@@ -1,0 +1,43 @@
+"""One check of ``roco doctor``: what it looked for, whether it was found, and how to get it."""
+
+from __future__ import annotations
+
+import enum
+from collections.abc import Iterable
+from dataclasses import dataclass
+
+
+class Use(enum.Enum):
+    """What a checked item serves; ``RUN`` items are what ``roco run`` cannot do without."""
+
+    RUN = "roco run"
+    SPEED = "speed"
+    CAMERA = "head camera"
+    REALTIME = "roco run --realtime"
+    UP = "roco up"
+    COMPOSE = "compose fleet"
+    VIEWER = "viewer screenshot"
+    FLEET = "fleet credentials"
+
+
+@dataclass(frozen=True)
+class Check:
+    """``name`` (e.g. ``EGL``), ``use``, ``found``, ``detail`` (what was found, or why not) and
+    ``how`` (how to get it; empty when found). ``informative``: not an item to get, only a fact
+    (e.g. no fleet is up), never counted as missing."""
+
+    name: str
+    use: Use
+    found: bool
+    detail: str
+    how: str = ""
+    informative: bool = False
+
+    @property
+    def missing(self) -> bool:
+        return not self.found and not self.informative
+
+
+def run_ready(checks: Iterable[Check]) -> bool:
+    """Whether every item ``roco run`` needs (``Use.RUN``) was found."""
+    return not any(c.missing for c in checks if c.use is Use.RUN)

@@ -1,0 +1,73 @@
+"""``roco doctor``'s output: the checks grouped by what they serve, as plain lines (a pipe, a
+log) or a rich table (a terminal), and the verdict line."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+from rich.console import Console
+from rich.table import Table
+from rich.text import Text
+
+from services.doctor.model import Check, Use, run_ready
+
+WORD = {True: "found", False: "not found"}
+
+
+def _status(check: Check) -> str:
+    return "—" if check.informative else WORD[check.found]
+
+
+def lines(checks: Sequence[Check]) -> list[str]:
+    """One line per check (``use``, status, name, detail), and below a missing one its
+    ``how to get it:`` line."""
+    out: list[str] = []
+    width = max((len(c.name) for c in checks), default=0)
+    for use in Use:
+        group = [c for c in checks if c.use is use]
+        if not group:
+            continue
+        out.append(f"{use.value}:")
+        for c in group:
+            out.append(f"  {_status(c):9s}  {c.name:{width}s}  {c.detail}")
+            if c.missing and c.how:
+                out.append(f"  {'':9s}  {'':{width}s}  how to get it: {c.how}")
+    return out
+
+
+def table(checks: Sequence[Check]) -> Table:
+    """The same as :func:`lines`, as a rich table (colour: green found, red missing for
+    ``roco run``, yellow missing otherwise)."""
+    t = Table(show_header=True, header_style="bold", expand=False, pad_edge=False, box=None)
+    t.add_column("for", style="dim", no_wrap=True)
+    t.add_column("", no_wrap=True)
+    t.add_column("item", no_wrap=True)
+    t.add_column("found / how to get it")
+    for use in Use:
+        for i, c in enumerate(c for c in checks if c.use is use):
+            colour = "dim" if c.informative else "green" if c.found else "red" if use is Use.RUN else "yellow"
+            text = Text(c.detail)
+            if c.missing and c.how:
+                text.append(f"\nhow to get it: {c.how}", style="bold")
+            t.add_row(use.value if i == 0 else "", Text(_status(c), style=colour), c.name, text)
+    return t
+
+
+def verdict(checks: Sequence[Check]) -> str:
+    """The last line: whether ``roco run`` has what it needs, and which other uses lack
+    something."""
+    lacking = sorted({c.use.value for c in checks if c.missing and c.use is not Use.RUN})
+    others = f"; not ready: {', '.join(lacking)}" if lacking else "; everything else is here too"
+    if run_ready(checks):
+        return f"roco: roco run has everything it needs{others}"
+    needed = ", ".join(c.name for c in checks if c.missing and c.use is Use.RUN)
+    return f"roco: roco run lacks {needed}{others}"
+
+
+def show(checks: Sequence[Check], console: Console) -> None:
+    """Print the checks on ``console``: a table on a terminal, plain lines otherwise."""
+    if console.is_terminal:
+        console.print(table(checks))
+    else:
+        for line in lines(checks):
+            console.print(line, markup=False, highlight=False, soft_wrap=True)

@@ -1,0 +1,178 @@
+"""``roco doctor`` (issue 24): each check finds what is there, says how to get what is not,
+and the command exits 0 exactly when everything ``roco run`` needs is found."""
+
+from __future__ import annotations
+
+import datetime as dt
+import json
+import socket
+from collections.abc import Sequence
+from pathlib import Path
+
+import pytest
+from packaging.requirements import Requirement
+from typer.testing import CliRunner
+
+import services.doctor
+from services.cli import app
+from services.doctor import credentials, environment, machine, tools
+from services.doctor.model import Check, Use, run_ready
+from services.doctor.render import lines, verdict
+from services.security.certs import issue
+
+
+def test_python_below_3_11_is_missing_with_how_to_get_it() -> None:
+    assert environment.python_check((3, 11, 0)).found
+    old = environment.python_check((3, 10, 12))
+    assert not old.found and old.use is Use.RUN and "3.11" in old.how
+
+
+def test_libraries_are_checked_against_their_specifier() -> None:
+    assert environment.library_check(Requirement("msgspec>=0.1")).found
+    too_old = environment.library_check(Requirement("msgspec>=999"))
+    assert not too_old.found and "msgspec>=999" in too_old.how
+    absent = environment.library_check(Requirement("no-such-distribution-roco-24"))
+    assert not absent.found and "not installed" in absent.detail
+
+
+def test_requirements_come_from_pyproject(tmp_path: Path) -> None:
+    names = {r.name for r in environment.requirements()}
+    assert {"eclipse-zenoh", "mujoco", "typer", "small_gicp"} <= names
+    own = tmp_path / "pyproject.toml"
+    own.write_text('[project]\nname = "x"\ndependencies = ["msgspec>=0.19", "not a requirement !"]\n')
+    assert [str(r) for r in environment.requirements(own)] == ["msgspec>=0.19"]
+
+
+def test_a_child_probe_reports_the_last_line_of_its_error() -> None:
+    assert machine.probe("pass") == (True, "exit status 0")
+    assert machine.probe("import sys; print('x', file=sys.stderr); sys.exit('refused here')") == (
+        False,
+        "refused here",
+    )
+
+
+def test_a_taken_router_port_is_named_and_a_free_one_found() -> None:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        s.listen()
+        port = s.getsockname()[1]
+        run_port, up_port = machine.port_checks(router_port=port)
+        assert run_port.found and run_port.use is Use.RUN
+        assert not up_port.found and up_port.use is Use.UP and "--port" in up_port.how
+    assert machine.port_checks(router_port=port)[1].found
+
+
+def _runner(answers: dict[str, tuple[int, str]]) -> tools.Runner:
+    def run(args: Sequence[str]) -> tuple[int, str]:
+        return answers.get(" ".join(args[:2]), (1, "unknown"))
+
+    return run
+
+
+def test_docker_missing_engine_and_compose_fallback_and_image() -> None:
+    none = tools.docker_checks(_runner({}), which=lambda name: None)
+    assert [(c.name, c.found) for c in none] == [("Docker engine", False)]
+    assert "docker" in none[0].how
+    unreachable = tools.docker_checks(
+        _runner({"docker version": (1, "Cannot connect to the Docker daemon")}),
+        which=lambda name: f"/usr/bin/{name}",
+    )
+    assert [(c.name, c.found) for c in unreachable] == [("Docker engine", False), ("Compose", False)]
+    assert "Cannot connect" in unreachable[0].detail
+    ready = tools.docker_checks(
+        _runner(
+            {
+                "docker version": (0, "26.1.5"),
+                "docker compose": (1, "not a docker command"),
+                "docker-compose version": (0, "1.29.2"),
+                "docker image": (1, "No such image"),
+            }
+        ),
+        which=lambda name: f"/usr/bin/{name}",
+    )
+    assert [(c.name, c.found) for c in ready] == [
+        ("Docker engine", True),
+        ("Compose", True),
+        ("image roco:latest", False),
+    ]
+    assert ready[1].detail == "docker-compose 1.29.2" and "build_image.sh" in ready[2].how
+
+
+def test_chromium_is_looked_up_by_its_names() -> None:
+    assert tools.chromium_check(lambda name: None).how == "apt-get install chromium"
+    found = tools.chromium_check(
+        lambda name: "/usr/bin/chromium-browser" if name == "chromium-browser" else None
+    )
+    assert found.found and found.detail == "/usr/bin/chromium-browser"
+
+
+def _fleet(runs: Path, security: bool) -> Path:
+    run_dir = runs / "20261122-000000"
+    run_dir.mkdir(parents=True)
+    if security:
+        issue(run_dir / "security", ["operator"], days=30)
+    (runs / ".fleet.json").write_text(
+        json.dumps({"endpoint": "tcp/127.0.0.1:1", "run_dir": str(run_dir), "pids": {}})
+    )
+    return run_dir
+
+
+def test_fleet_credentials_found_expired_absent(tmp_path: Path) -> None:
+    (none,) = credentials.checks(tmp_path / "runs")
+    assert none.informative and not none.missing and "no fleet is up" in none.detail
+    _fleet(tmp_path / "runs", security=True)
+    (ok,) = credentials.checks(tmp_path / "runs")
+    assert ok.found, ok.detail
+    later = dt.datetime.now(dt.UTC) + dt.timedelta(days=31)
+    (expired,) = credentials.checks(tmp_path / "runs", now=later)
+    assert not expired.found and "expired" in expired.detail and "roco deploy issue" in expired.how
+    _fleet(tmp_path / "open", security=False)
+    (open_,) = credentials.checks(tmp_path / "open")
+    assert open_.informative and "without access control" in open_.detail
+
+
+def test_a_fleet_folder_without_the_operator_says_how_to_issue_it(tmp_path: Path) -> None:
+    run_dir = _fleet(tmp_path / "runs", security=True)
+    (run_dir / "security" / "operator" / "password").unlink()
+    (check,) = credentials.checks(tmp_path / "runs")
+    assert check.missing and check.how.startswith("roco deploy issue")
+
+
+CAMERA_MISSING = [
+    Check("Python", Use.RUN, True, "3.11.7"),
+    Check("EGL", Use.CAMERA, False, "no context", machine.GL_HOW["egl"]),
+    Check("OSMesa", Use.CAMERA, False, "no context", machine.GL_HOW["osmesa"]),
+    Check("Docker engine", Use.COMPOSE, False, "no docker on PATH", tools.DOCKER_HOW),
+    Check("fleet credentials", Use.FLEET, False, "no fleet is up", informative=True),
+]
+
+
+def test_lines_and_verdict_name_what_is_missing_and_how() -> None:
+    text = "\n".join(lines(CAMERA_MISSING))
+    assert "not found  EGL" in text and f"how to get it: {machine.GL_HOW['egl']}" in text
+    assert "how to get it" not in text.split("fleet credentials:")[1]
+    assert run_ready(CAMERA_MISSING)
+    assert verdict(CAMERA_MISSING) == (
+        "roco: roco run has everything it needs; not ready: compose fleet, head camera"
+    )
+    lacking = [Check("msgspec", Use.RUN, False, "not installed", "pip install"), *CAMERA_MISSING]
+    assert not run_ready(lacking)
+    assert verdict(lacking).startswith("roco: roco run lacks msgspec;")
+
+
+@pytest.mark.parametrize(("checks", "code"), [(CAMERA_MISSING, 0), ([Check("x", Use.RUN, False, "gone")], 1)])
+def test_doctor_exits_0_exactly_when_roco_run_has_what_it_needs(
+    checks: list[Check], code: int, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setattr(services.doctor, "run_checks", lambda runs_dir: checks)
+    result = CliRunner().invoke(app, ["doctor"])
+    assert result.exit_code == code, result.output
+    assert result.output.strip().splitlines()[-1] == verdict(checks)
+
+
+def test_doctor_on_this_machine_finds_what_roco_run_needs(tmp_path: Path) -> None:
+    """The real checks (the test suite itself runs roco, so its needs are met here)."""
+    result = CliRunner().invoke(app, ["doctor", "--runs-dir", str(tmp_path)])
+    assert result.exit_code == 0, result.output
+    for item in ("Python", "eclipse-zenoh", "mujoco", "loopback port", "SCHED_FIFO", "Chromium"):
+        assert item in result.output
