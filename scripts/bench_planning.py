@@ -28,8 +28,9 @@ sys.path.insert(0, str(ROOT))
 
 import benchlib  # noqa: E402  (scripts/benchlib.py, beside this file)
 
-from services.fleet.launcher import Fleet, free_port, open_client  # noqa: E402
+from services.fleet.launcher import Fleet, free_port  # noqa: E402
 from services.runtime import keys  # noqa: E402
+from services.runtime.session import open_client  # noqa: E402
 from shared.fipa_codec import AgentIdentifier, Communicate, Performative, decode, encode  # noqa: E402
 from shared.fipa_codec.languages import decode_content, encode_content  # noqa: E402
 from shared.fipa_codec.languages.common import Pose  # noqa: E402

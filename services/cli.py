@@ -122,6 +122,13 @@ def _interrupt(signum: int, frame: object) -> None:
     raise KeyboardInterrupt
 
 
+def _stop_on_signals() -> None:
+    """SIGTERM and SIGHUP (the terminal closed) end a run as Ctrl-C does: the fleet it started
+    is stopped, none of its processes is left behind."""
+    signal.signal(signal.SIGTERM, _interrupt)
+    signal.signal(signal.SIGHUP, _interrupt)
+
+
 def _clock(t0: float) -> str:
     return f"[{time.time() - t0:7.1f} s]"
 
@@ -252,7 +259,7 @@ def chaos(
         raise fail(str(exc), code=2) from None
     run_dir = new_run_dir(runs_dir)
     info = RunInfo(started=time.time(), realtime=realtime, seed=0, scenario=sc.name)
-    signal.signal(signal.SIGTERM, _interrupt)
+    _stop_on_signals()
     env = _scene_env(realtime, 0, None) | _viewer_env(record, False)
     watch = _live_watch(f"roco chaos --seed {seed}", live, quiet)
     say = watch.line if watch is not None else typer.echo
@@ -316,7 +323,7 @@ def _run_scenario(
         pose_seed=sc.pose_seed,
         scenario=sc.name,
     )
-    signal.signal(signal.SIGTERM, _interrupt)
+    _stop_on_signals()
     env = _scene_env(realtime, sc.seed, sc.pose_seed) | _viewer_env(record, view)
     say = watch.line if watch is not None else typer.echo
     with watch if watch is not None else contextlib.nullcontext():
@@ -617,7 +624,7 @@ def sniff(
         raise fail(str(exc), code=2) from None
     endpoint = _endpoint(router, runs_dir)
     stop = threading.Event()
-    signal.signal(signal.SIGTERM, _interrupt)
+    _stop_on_signals()
     try:
         count = run_sniff(
             endpoint,

@@ -14,7 +14,7 @@ from velma.control.robot_model import SIDES, RobotModel
 from velma.executor import plant as plant_module
 from velma.executor.plant import plant_unavailable
 from velma.executor.runtime import Runtime
-from velma.executor.state import python_gather, raw_layout
+from velma.executor.state import raw_layout, raw_state
 
 pytestmark = pytest.mark.skipif(
     plant_unavailable(make_controller(RobotModel())) is not None, reason="the compiled plant is not built"
@@ -82,18 +82,21 @@ def test_the_contact_scans_are_the_python_scans() -> None:
 
 
 def test_the_state_numbers_are_the_python_numbers() -> None:
-    """After cycles in Cartesian mode (a setpoint to report), the compiled gather writes the
-    numbers raw_state's Python gather writes."""
+    """After cycles in Cartesian mode (a setpoint to report), raw_state with the compiled
+    gather is raw_state with the Python gather, byte for byte."""
     rt = Runtime(seed=0, compiled_plant=True)
     assert rt.plant is not None
     _move(rt)
     for _ in range(20):
         rt.cycle()
-    size = raw_layout(len(rt.joint_v_index))[-1]
-    compiled, python = np.full(size, np.nan), np.full(size, np.nan)
-    rt.plant.gather(compiled)
-    python_gather(rt, python)
-    np.testing.assert_array_equal(compiled, python)
+    compiled = raw_state(rt)
+    plant, rt.plant = rt.plant, None
+    try:
+        python = raw_state(rt)
+    finally:
+        rt.plant = plant
+    assert compiled == python
+    assert np.frombuffer(compiled.values)[raw_layout(len(rt.joint_v_index))[2]] == 1.0  # a setpoint
 
 
 def test_a_runtime_says_why_it_runs_the_python_cycle(monkeypatch: pytest.MonkeyPatch) -> None:

@@ -175,28 +175,18 @@ class Plant {
     offsets_ = std::move(offsets);
   }
 
-  // The numbers of raw_state now into ``out`` (size offsets[4]); the setpoints are the
-  // Cartesian ones of the bound command rows (the law's last command). Raises ValueError
-  // before ``set_state_layout`` and ``bind`` or for an ``out`` of another size.
+  // The numbers of raw_state that MuJoCo's data holds, now, into ``out`` (size offsets[4]);
+  // the setpoint block is left as it is (the commands are the controller's, in Python).
+  // Raises ValueError before ``set_state_layout`` or for an ``out`` of another size.
   void gather(Array& out) const {
-    if (offsets_.empty() || law_ == nullptr || out.size() != offsets_[4])
-      throw std::invalid_argument("Plant.gather: no layout or command rows yet, or out of another size");
-    const double* c = arrays_[0].data();
+    if (offsets_.empty() || out.size() != offsets_[4])
+      throw std::invalid_argument("Plant.gather: no layout yet, or out of another size");
     double* o = out.mutable_data();
     for (std::size_t i = 0; i < joint_qpos_.size(); ++i) o[i] = d_->qpos[joint_qpos_[i]];
     for (int k = 0; k < 2; ++k) {
       double* g = o + offsets_[0] + 12 * k;
       std::copy_n(d_->site_xpos + 3 * sites_[k], 3, g);
       std::copy_n(d_->site_xmat + 9 * sites_[k], 9, g + 3);
-      double* s = o + offsets_[2] + 13 * k;
-      const double* row = c + k * kCmdWidth;
-      if (static_cast<int>(row[kMode]) == kCart) {
-        s[0] = 1.0;
-        std::copy_n(row + kPos, 3, s + 1);
-        std::copy_n(row + kRot, 9, s + 4);
-      } else {
-        std::fill_n(s, 13, 0.0);
-      }
       double* w = o + offsets_[3] + 6 * k;
       std::copy_n(d_->sensordata + ft_adr_[2 * k], 3, w);
       std::copy_n(d_->sensordata + ft_adr_[2 * k + 1], 3, w + 3);

@@ -128,7 +128,6 @@ class CompiledController(imp.VelmaController):
         self._wrist_of: WristField | None = None
         self._send_wrist()
         self._cmd = np.zeros((2, _WIDTH))
-        self._cmd[:, 0] = -1.0  # no mode yet: Plant.gather reports no setpoint before the first cycle
         self._torso_in = np.zeros(3)
         self._prev_in = np.zeros((2, 7))
         self._limits_in = np.zeros(10)

@@ -132,5 +132,6 @@ class CompiledPlant:
         return self._plant.self_contacts()
 
     def gather(self, out: Array) -> None:
-        """The numbers of velma/executor/state.py ``raw_state`` into ``out`` (its layout)."""
+        """The numbers of velma/executor/state.py ``raw_state`` that MuJoCo's data holds into
+        ``out`` (its layout); the setpoint block is left as it is."""
         self._plant.gather(out)

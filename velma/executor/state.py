@@ -91,6 +91,7 @@ def raw_state(rt: Runtime, holding: str | None = None) -> RawState:
     out = np.empty(raw_layout(len(rt.joint_v_index))[-1])
     if rt.plant is not None:
         rt.plant.gather(out)  # the same numbers, read in C++ (velma/executor/plant.py)
+        _setpoints(rt, out)
     else:
         python_gather(rt, out)
     right, left = rt.held[SNAPSHOT_SIDES[0]], rt.held[SNAPSHOT_SIDES[1]]
@@ -118,6 +119,21 @@ def python_gather(rt: Runtime, out: npt.NDArray[np.float64]) -> None:
         at = grip_at + 12 * k
         out[at : at + 3] = data.site_xpos[site]
         out[at + 3 : at + 12] = data.site_xmat[site]
+        fa, ta = rt.ft_adr[side]
+        at = ft_at + 6 * k
+        out[at : at + 3] = data.sensordata[fa : fa + 3]
+        out[at + 3 : at + 6] = data.sensordata[ta : ta + 3]
+    link_block = out[links_at:setpoint_at].reshape(len(LINK_BODIES), 7)
+    link_block[:, :3] = data.xpos[rt.link_ids]
+    link_block[:, 3:] = data.xquat[rt.link_ids]
+    _setpoints(rt, out)
+
+
+def _setpoints(rt: Runtime, out: npt.NDArray[np.float64]) -> None:
+    """The setpoint block of ``raw_state``: per side a Cartesian flag (1), the commanded grip
+    position (3) and rotation (9, row-major), zeros outside Cartesian mode."""
+    setpoint_at = raw_layout(len(rt.joint_v_index))[2]
+    for k, side in enumerate(SNAPSHOT_SIDES):
         cmd = rt.ctrl.arm[side]
         at = setpoint_at + 13 * k
         if cmd.mode == "cart":
@@ -126,13 +142,6 @@ def python_gather(rt: Runtime, out: npt.NDArray[np.float64]) -> None:
             out[at + 4 : at + 13] = cmd.pose.rotation.reshape(9)
         else:
             out[at : at + 13] = 0.0
-        fa, ta = rt.ft_adr[side]
-        at = ft_at + 6 * k
-        out[at : at + 3] = data.sensordata[fa : fa + 3]
-        out[at + 3 : at + 6] = data.sensordata[ta : ta + 3]
-    link_block = out[links_at:setpoint_at].reshape(len(LINK_BODIES), 7)
-    link_block[:, :3] = data.xpos[rt.link_ids]
-    link_block[:, 3:] = data.xquat[rt.link_ids]
 
 
 def snapshot_of(raw: RawState) -> RobotSnapshot:
