@@ -12,7 +12,7 @@ import pytest
 from velma.control.compiled import ENV_LAW, CompiledController, make_controller
 from velma.control.robot_model import SIDES, RobotModel
 from velma.executor import plant as plant_module
-from velma.executor.plant import plant_unavailable
+from velma.executor.plant import ENV_PLANT, plant_choice, plant_unavailable
 from velma.executor.runtime import Runtime
 from velma.executor.state import raw_layout, raw_state
 
@@ -125,3 +125,15 @@ def test_the_plant_takes_only_arrays_it_can_write_through() -> None:
         rt.ctrl.bind_plant(native, rt.plant.q, np.zeros(66)[::2], rt.plant.parts)
     with pytest.raises(ValueError, match="wrong size"):
         rt.ctrl.bind_plant(native, rt.plant.q, rt.plant.v, np.zeros(3))
+
+
+def test_roco_plant_chooses_the_cycle(monkeypatch: pytest.MonkeyPatch) -> None:
+    """ROCO_PLANT=python runs the Python cycle, compiled the compiled one; unset, the default
+    (Python); another value is an error."""
+    assert plant_choice({}) is False
+    monkeypatch.setenv(ENV_PLANT, "python")
+    assert Runtime(seed=0).plant is None
+    monkeypatch.setenv(ENV_PLANT, "compiled")
+    assert Runtime(seed=0).plant is not None
+    with pytest.raises(ValueError, match="ROCO_PLANT='fast'"):
+        plant_choice({ENV_PLANT: "fast"})

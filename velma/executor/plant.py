@@ -17,6 +17,8 @@ the build). Then ``Runtime`` runs the Python cycle.
 from __future__ import annotations
 
 import ctypes
+import os
+from collections.abc import Mapping
 from pathlib import Path
 
 import mujoco
@@ -27,6 +29,23 @@ from velma.control.compiled import CompiledController, native_module
 from velma.control.hand import ContactMonitor
 from velma.control.robot_model import SIDES, Array, JointMap
 from velma.executor.state import LINK_BODIES, raw_layout
+
+ENV_PLANT = "ROCO_PLANT"
+"""Environment variable: ``compiled`` requires the compiled plant (an error if it cannot
+run), ``python`` runs the Python cycle; unset: ``DEFAULT_PLANT``."""
+DEFAULT_PLANT = "python"
+"""The Python cycle until the compiled plant measures better on the whole: over three runs of
+the fleet each, it lowered the loop's median by ≈ 20 µs but overran more often (0.11–0.24 %
+against 0.06–0.09 %; docs/bench/loop.md)."""
+
+
+def plant_choice(environ: Mapping[str, str] = os.environ) -> bool:
+    """``ROCO_PLANT`` (else ``DEFAULT_PLANT``) as ``Runtime``'s ``compiled_plant``. Raises
+    ValueError for a value other than ``python`` and ``compiled``."""
+    choice = environ.get(ENV_PLANT, DEFAULT_PLANT)
+    if choice not in ("python", "compiled"):
+        raise ValueError(f"{ENV_PLANT}={choice!r}: expected 'python' or 'compiled'")
+    return choice == "compiled"
 
 
 def mj_step_address() -> int | None:

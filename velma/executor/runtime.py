@@ -17,7 +17,6 @@ from their pose relative to torso_link0 at the start of the motion).
 
 from __future__ import annotations
 
-import logging
 import math
 import time
 from typing import cast
@@ -41,11 +40,9 @@ from velma.control.robot_model import (
 from velma.control.self_collision import SelfCollision
 from velma.executor.capture import DEFAULT_PERCEPTION
 from velma.executor.ground_truth import GroundTruth
-from velma.executor.plant import CompiledPlant, plant_unavailable
+from velma.executor.plant import CompiledPlant, plant_choice, plant_unavailable
 from velma.executor.state import LINK_BODIES
 from velma.model.scene import N_PARTICLES, initial_state, load_kitchen
-
-log = logging.getLogger(__name__)
 
 DT = 0.001  # s
 HEAD_RATE = 1.04  # rad/s (velma-facts.md: neck velocity limit)
@@ -72,9 +69,10 @@ class Runtime:
     ) -> None:
         """``seed`` jitters the jar content, ``pose_seed`` randomises the jar and bowl poses
         (velma/model/scene.py; None: the poses of kitchen.xml). ``compiled_plant``: run the
-        cycle's MuJoCo side in C++ (velma/executor/plant.py); None: when it can (else with a
-        warning when the law is compiled), False: the Python cycle; True: raises RuntimeError
-        when it cannot."""
+        cycle's MuJoCo side in C++ (velma/executor/plant.py): True, or False for the Python
+        cycle; None: as ``ROCO_PLANT`` says (velma/executor/plant.py ``plant_choice``). Raises
+        RuntimeError when the compiled plant is asked for and cannot run, ValueError for another
+        value of ``ROCO_PLANT``."""
         self.pose_seed = pose_seed
         self.model = load_kitchen(N_PARTICLES if n_particles is None else n_particles, seed, pose_seed)
         self.model.opt.timestep = DT
@@ -127,6 +125,8 @@ class Runtime:
         self.plant: CompiledPlant | None = None
         """The compiled MuJoCo side of the cycle (velma/executor/plant.py), or None: the
         Python cycle."""
+        if compiled_plant is None:
+            compiled_plant = plant_choice()
         why = plant_unavailable(self.ctrl) if compiled_plant is not False else "not requested"
         if why is None:
             self.plant = CompiledPlant(
@@ -144,8 +144,6 @@ class Runtime:
             )
         elif compiled_plant:
             raise RuntimeError(f"no compiled plant: {why}")
-        elif compiled_plant is None and isinstance(self.ctrl, CompiledController):
-            log.warning("the cycle's MuJoCo side runs in Python: %s", why)
         self.part_s = np.zeros(3)
         """The last cycle's measured parts (s): primitive (set by the loop), control, physics
         (velma.executor.timing.PARTS)."""
