@@ -8,6 +8,7 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
+from tests.support.arms import lift_both_arms
 from velma.control import compiled
 from velma.control.compiled import ENV_LAW, CompiledController, compiled_available, make_controller
 from velma.control.impedance import DEFAULT_CART_STIFFNESS, SafetyLimits, VelmaController
@@ -105,13 +106,7 @@ def test_the_robot_moves_the_same_with_either_law(monkeypatch: pytest.MonkeyPatc
         monkeypatch.setenv(ENV_LAW, choice)
         rt = Runtime(seed=0)
         assert isinstance(rt.ctrl, CompiledController) == (choice == "compiled")
-        for side in SIDES:
-            cmd = rt.ctrl.arm[side]
-            grip = rt.grip(side)
-            cmd.mode = "cart"
-            cmd.pose = pin.SE3(grip.rotation, grip.translation + np.array([0.0, 0.0, 0.02]))
-            cmd.posture = rt.arm_q(side)
-            cmd.twist = np.zeros(6)
+        lift_both_arms(rt)
         start = rt.q().copy()
         for _ in range(300):
             rt.cycle()

@@ -6,9 +6,9 @@ from __future__ import annotations
 
 import mujoco
 import numpy as np
-import pinocchio as pin
 import pytest
 
+from tests.support.arms import lift_both_arms
 from velma.control.compiled import ENV_LAW, CompiledController, make_controller
 from velma.control.robot_model import SIDES, RobotModel
 from velma.executor import plant as plant_module
@@ -26,13 +26,7 @@ TOUCHING = {5: -0.52, 6: 0.37}
 
 def _move(rt: Runtime) -> None:
     """Both arms to a Cartesian pose 2 cm above where they are, the right hand closing."""
-    for side in SIDES:
-        cmd = rt.ctrl.arm[side]
-        grip = rt.grip(side)
-        cmd.mode = "cart"
-        cmd.pose = pin.SE3(grip.rotation, grip.translation + np.array([0.0, 0.0, 0.02]))
-        cmd.posture = rt.arm_q(side)
-        cmd.twist = np.zeros(6)
+    lift_both_arms(rt)
     rt.hands.command("right", 1.0)
 
 
