@@ -17,7 +17,7 @@ from rich.console import Console
 from typer.testing import CliRunner
 
 import services.cli as cli
-from services.fleet.launcher import AGENT_ORDER, Fleet, free_port
+from services.fleet.launcher import AGENT_ORDER
 from services.live.state import LiveState
 from services.live.view import LiveView
 from services.live.watch import LiveWatch
@@ -28,6 +28,7 @@ from shared.fipa_codec.languages.l_hc import CommandOutcome, HumanCommand, TaskA
 from shared.fipa_codec.languages.l_hfsm import GroundTaskNetwork, HierarchicalPlan, PlanNode
 from shared.fipa_codec.languages.l_sw import SWState, SWStatus
 from tests.support.messages import communicate
+from tests.support.router import embedded_router
 from velma.executor.state import RobotSnapshot
 from velma.executor.timing import TimingStats
 
@@ -166,15 +167,8 @@ def test_the_view_shows_every_row() -> None:
 
 @pytest.fixture(scope="module")
 def router(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
-    """An embedded router on a free loopback port (explicit endpoint, no multicast)."""
-    run_dir: Path = tmp_path_factory.mktemp("live")
-    (run_dir / "logs").mkdir()
-    fleet = Fleet(run_dir, f"tcp/127.0.0.1:{free_port()}", acl=False)
-    fleet.start_router()
-    try:
-        yield fleet.endpoint
-    finally:
-        fleet.stop()
+    """An embedded router on a free loopback port (tests/support/router.py)."""
+    yield from embedded_router(tmp_path_factory, "live")
 
 
 def test_the_watch_takes_traffic_state_and_tokens_from_zenoh(router: str) -> None:

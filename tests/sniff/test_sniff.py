@@ -9,13 +9,12 @@ import re
 import threading
 from collections.abc import Iterator
 from dataclasses import dataclass, field
-from pathlib import Path
 
 import msgspec
 import pytest
 import zenoh
 
-from services.fleet.launcher import Fleet, free_port
+from services.fleet.launcher import free_port
 from services.runtime import keys
 from services.runtime.session import open_client
 from services.sniff import Filters, parse_filters, render, sniff
@@ -24,6 +23,7 @@ from shared.fipa_codec.aid import aid
 from shared.fipa_codec.languages import encode_content
 from shared.fipa_codec.languages.l_wm import Answer, ObjectQuery
 from shared.fipa_codec.string_form import parse
+from tests.support.router import embedded_router
 
 HEADER = re.compile(r"^\d\d:\d\d:\d\d\.\d{3}  (C\d)  (\w+) → (\w+)  \((\d+) B\)")
 TIMEOUT = 10.0
@@ -54,16 +54,8 @@ def comm(
 
 @pytest.fixture(scope="module")
 def router(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
-    """An embedded router on a free loopback port (explicit endpoint, no multicast)."""
-    run_dir: Path = tmp_path_factory.mktemp("sniff")
-    (run_dir / "logs").mkdir()
-    # forged traffic and tokens from the test: no access control (tested in tests/security/)
-    fleet = Fleet(run_dir, f"tcp/127.0.0.1:{free_port()}", acl=False)
-    fleet.start_router()
-    try:
-        yield fleet.endpoint
-    finally:
-        fleet.stop()
+    """An embedded router on a free loopback port (tests/support/router.py)."""
+    yield from embedded_router(tmp_path_factory, "sniff")
 
 
 @pytest.fixture
