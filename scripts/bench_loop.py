@@ -31,7 +31,7 @@ sys.path.insert(0, str(ROOT))
 import benchlib  # noqa: E402  (scripts/benchlib.py, beside this file)
 import msgspec  # noqa: E402
 
-from velma.executor.timing import TimingStats  # noqa: E402
+from velma.executor.timing import STALL_OFF_CPU, TimingStats  # noqa: E402
 
 
 def machine() -> str:
@@ -114,13 +114,14 @@ def parts(name: str, s: TimingStats) -> str:
 
 def row(name: str, s: TimingStats, outcome: str) -> str:
     setup = s.setup
-    sched = "?" if setup is None else f"{setup.policy}{' pinned' if setup.pinned else ''}"
+    sched = "?" if setup is None else setup.describe()
     if s.control_law:
         sched += f", {s.control_law} law"
     if s.plant:
         sched += f", {s.plant} plant"
     return (
         f"| {name} | {s.cycles} | {s.compute_p50_us:.0f} | {s.compute_p99_us:.0f} | {s.compute_max_us:.0f} | "
+        f"{s.compute_max_outside_stalls_us:.0f} ({s.stalls}) | "
         f"{s.lateness_p99_us:.0f} | {s.overruns} ({s.overrun_share * 100:.3f} %) | "
         f"{s.max_consecutive_overruns} | {sched} | {outcome} |"
     )
@@ -139,10 +140,10 @@ def main() -> int:
     args = ap.parse_args()
     print(f"# ag_ex control loop at 1 kHz, real-time pacing\n\nMeasured on: {machine()}\n")
     print(
-        "| condition | cycles | compute p50 µs | compute p99 µs | compute max µs | lateness p99 µs "
-        "| overruns | max in a row | scheduling | pour |"
+        "| condition | cycles | compute p50 µs | compute p99 µs | compute max µs "
+        "| max outside stalls µs (stalls) | lateness p99 µs | overruns | max in a row | scheduling | pour |"
     )
-    print("|---|---|---|---|---|---|---|---|---|---|")
+    print("|---|---|---|---|---|---|---|---|---|---|---|")
     runs_dir = args.runs_dir or Path(tempfile.mkdtemp(prefix="roco-bench-"))
     split: list[str] = []
     for k in range(args.repeat):
@@ -167,7 +168,10 @@ def main() -> int:
     print(
         "\nCompute: loop work per cycle (command hand-off, primitive, control law, physics step, "
         "state publication). Lateness: cycle start after its release time. Overrun: a cycle that "
-        "ended after the next release time."
+        "ended after the next release time. Stall: a cycle during which the loop's thread was off "
+        f"its CPU (compute time minus its thread CPU time) for more than {STALL_OFF_CPU * 1e6:.0f} µs: "
+        "the machine (hypervisor, interrupts) took the CPU; max outside stalls is the longest "
+        "cycle of the others."
     )
     return 0
 

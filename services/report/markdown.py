@@ -11,6 +11,7 @@ from pathlib import Path
 from services.report import paper
 from services.report.figures import FigureFile
 from services.report.model import AgentMatrix, Event, Header, PlanPhase, Report
+from velma.executor.timing import STALL_OFF_CPU, TimingStats
 
 HOW_MEASURED = (
     "**How measured.** Times are the arrival times of the communicates at the traffic "
@@ -349,7 +350,12 @@ def _control(report: Report) -> str:
         pin_text = f"pinned to CPU {setup.cpus[0]}" if setup.pinned and setup.cpus else "not pinned"
         policy = f"{setup.policy} priority {setup.priority}" if setup.policy == "SCHED_FIFO" else setup.policy
         why = f" ({'; '.join(setup.notes)})" if setup.notes else ""
-        granted = f"Scheduling: {policy}, {pin_text}{why}."
+        qos = (
+            ""
+            if setup.cpu_latency_us is None
+            else f", CPU wake-up latency held at {setup.cpu_latency_us} µs (PM QoS)"
+        )
+        granted = f"Scheduling: {policy}, {pin_text}{qos}{why}."
     if c.control_law:
         granted += f" Impedance law: {c.control_law}."
     if c.plant:
@@ -358,7 +364,7 @@ def _control(report: Report) -> str:
         f"Pacing: {c.pacing}. {c.cycles} cycles ({c.sim_time:.1f} s of simulation); "
         f"{c.overruns} overruns ({c.overrun_share * 100:.3f} %), at most "
         f"{c.max_consecutive_overruns} in a row; the longest cycle took {c.worst_compute_us:.0f} µs "
-        f"(cycle {c.worst_cycle}, simulation time {c.worst_cycle * 0.001:.3f} s). {granted} "
+        f"(cycle {c.worst_cycle}, simulation time {c.worst_cycle * 0.001:.3f} s). {_stalls(c)}{granted} "
         f"Percentiles over the last {c.window} cycles."
     )
     how = (
@@ -476,6 +482,18 @@ def _perception(report: Report) -> str:
         "never receive it. Content: the spheres the camera counted beside those inside."
     )
     return f"## 9. Perception (head camera)\n\n{summary}.\n\n{table}\n\n{how}"
+
+
+def _stalls(c: TimingStats) -> str:
+    """The sentence on stalls of the loop's section (empty when the loop did not measure its
+    CPU time)."""
+    if not c.off_cpu_max_us:
+        return ""
+    return (
+        f"{c.stalls} cycles stalled (off their CPU for more than {STALL_OFF_CPU * 1e6:.0f} µs: the machine "
+        f"took it; at most {c.off_cpu_max_us:.0f} µs); the longest other cycle took "
+        f"{c.compute_max_outside_stalls_us:.0f} µs. "
+    )
 
 
 def _notes(notes: Sequence[str]) -> str:

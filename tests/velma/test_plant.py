@@ -122,9 +122,11 @@ def test_the_plant_takes_only_arrays_it_can_write_through() -> None:
 
 
 def test_roco_plant_chooses_the_cycle(monkeypatch: pytest.MonkeyPatch) -> None:
-    """ROCO_PLANT=python runs the Python cycle, compiled the compiled one; unset, the default
-    (Python); another value is an error."""
-    assert plant_choice({}) is False
+    """ROCO_PLANT=python runs the Python cycle, compiled the compiled one; unset, the compiled
+    one where it can run; another value is an error."""
+    assert plant_choice({}) is None
+    monkeypatch.delenv(ENV_PLANT, raising=False)
+    assert Runtime(seed=0).plant is not None
     monkeypatch.setenv(ENV_PLANT, "python")
     assert Runtime(seed=0).plant is None
     monkeypatch.setenv(ENV_PLANT, "compiled")

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import re
 from collections import Counter
+from collections.abc import Generator
 
 import mujoco
 import numpy as np
@@ -15,7 +16,13 @@ import pytest
 from velma.control.hand import ContactMonitor
 from velma.control.ik import solve_ik_multi
 from velma.control.robot_model import SIDES, RobotModel, arm_joints
-from velma.control.self_collision import WRIST_BAND, SelfCollision, wrist_band_torque, wrist_field
+from velma.control.self_collision import (
+    CHECK_STEPS,
+    WRIST_BAND,
+    SelfCollision,
+    wrist_band_torque,
+    wrist_field,
+)
 from velma.model import VELMA_XML
 from velma.model.generate import SELF_COLLISION_EXCLUDES
 
@@ -172,6 +179,39 @@ def test_the_check_names_the_touching_pair(side: str) -> None:
     assert check.colliding(data, side, q[idx]) == (f"{side}_HandPalmLink", f"{side}_arm_5_link")
     other = SIDES[1 - SIDES.index(side)]
     assert check.colliding(data, other) is None  # a contact of one arm does not block the other
+
+
+def _drain(steps: Generator[None, None, tuple[str, str] | None]) -> tuple[int, tuple[str, str] | None]:
+    """How many times a generator yields, and what it returns."""
+    yields = 0
+    while True:
+        try:
+            next(steps)
+        except StopIteration as stop:
+            return yields, stop.value
+        yields += 1
+
+
+@pytest.mark.parametrize("side", SIDES)
+def test_the_check_in_slices_finds_what_the_whole_check_finds(side: str) -> None:
+    """``colliding_steps`` (the IK's resumable form, issue 18) answers as ``colliding``: the
+    same pair at a touching posture, None at a free one after ``CHECK_STEPS`` slices; its
+    slices together hold every pair of the side once."""
+    robot = RobotModel()
+    check = SelfCollision(robot)
+    idx = robot.v_indices(arm_joints(side))
+    data = robot.model.createData()
+    q = pin.neutral(robot.model)
+    pin.forwardKinematics(robot.model, data, q)
+    assert check.colliding(data, side) is None
+    assert _drain(check.colliding_steps(data, side)) == (CHECK_STEPS - 1, None)
+    sign = -1.0 if side == "left" else 1.0
+    q[idx[5]], q[idx[6]] = sign * 0.6, TOUCHING[6]
+    pin.forwardKinematics(robot.model, data, q)
+    assert _drain(check.colliding_steps(data, side))[1] == check.colliding(data, side) is not None
+    assert _drain(check.colliding_steps(data, side, q[idx])) == (0, check.colliding(data, side, q[idx]))
+    active = np.array([list(part.activeCollisionPairs) for part in check.slices[side]])
+    assert (active.sum(axis=0) == 1).all() and active.shape == (CHECK_STEPS, check.pairs(side))
 
 
 def test_a_command_during_which_the_robot_touches_itself_names_the_pair() -> None:

@@ -4,12 +4,22 @@ from __future__ import annotations
 
 import multiprocessing
 import os
+import sys
 import time
+from pathlib import Path
 
 import numpy as np
 import pytest
 
-from velma.executor.timing import PARTS, DeadlineMonitor, RealtimeSetup, enter_realtime
+from velma.executor import timing
+from velma.executor.timing import (
+    PARTS,
+    STALL_OFF_CPU,
+    DeadlineMonitor,
+    RealtimeSetup,
+    enter_realtime,
+    hold_cpu_latency,
+)
 
 DT = 0.001
 
@@ -73,6 +83,7 @@ def test_enter_realtime_reports_what_it_got() -> None:
     assert setup.pinned == (len(cpus) == 1 and len(os.sched_getaffinity(0)) > 1)
     if setup.policy != "SCHED_FIFO":
         assert any("SCHED_FIFO" in n for n in setup.notes)
+    assert setup.cpu_latency_us == 0 or any(n.startswith("PM QoS") for n in setup.notes)
 
 
 def test_worst_cycle_is_remembered_beyond_the_window() -> None:
@@ -97,6 +108,53 @@ def test_the_compute_time_is_split_in_parts_and_a_reader_sees_them() -> None:
     for name, us in (("primitive", 50.0), ("control", 100.0), ("physics", 300.0), ("hand-offs", 50.0)):
         assert split[name].p50_us == pytest.approx(us, abs=1e-6)
         assert split[name].max_us == pytest.approx(us, abs=1e-6)
+
+
+def test_stalls_are_cycles_the_machine_took_the_cpu_from() -> None:
+    """A cycle whose compute time exceeds its thread CPU time by more than STALL_OFF_CPU is a
+    stall; the longest cycle outside the stalls is reported beside the longest of all, and a
+    reader of the shared buffer sees the same."""
+    buf = memoryview(bytearray(DeadlineMonitor.nbytes(8)))
+    writer = DeadlineMonitor(DT, realtime=True, window=8, buffer=buf)
+    cycles = [  # (compute, CPU time) s
+        (0.0003, 0.0003),
+        (0.0009, 0.00088),  # long, but the thread worked all along: not a stall
+        (0.0050, 0.0003),  # 4.7 ms off the CPU: a stall
+        (0.0004, 0.0004 - 0.9 * STALL_OFF_CPU),  # off the CPU, but less than the threshold
+    ]
+    for k, (compute, cpu) in enumerate(cycles):
+        writer.record(k * DT, k * DT, k * DT + compute, None, cpu)
+    s = DeadlineMonitor(DT, realtime=True, window=8, buffer=buf).stats()
+    assert s.stalls == 1
+    assert s.compute_max_us == pytest.approx(5000.0)
+    assert s.compute_max_outside_stalls_us == pytest.approx(900.0)
+    assert s.off_cpu_max_us == pytest.approx(4700.0)
+    unmeasured = DeadlineMonitor(DT, realtime=False, window=4)
+    unmeasured.record(0.0, 0.0, 0.005)
+    assert unmeasured.stats().stalls == 0 and unmeasured.stats().off_cpu_max_us == 0.0
+
+
+def test_the_cpu_latency_request_is_held_or_refused_with_a_reason(
+    monkeypatch: pytest.MonkeyPatch, tmp_path: Path
+) -> None:
+    """``hold_cpu_latency`` writes the 32-bit latency to the PM QoS file and keeps it open;
+    without one it says why in one line; the setup's phrase names what was granted."""
+    device = tmp_path / "cpu_dma_latency"
+    device.write_bytes(b"")
+    monkeypatch.setattr(timing, "PM_QOS_DEVICE", str(device))
+    monkeypatch.setattr(timing, "_held_qos", [])
+    assert hold_cpu_latency(0) is None
+    assert device.read_bytes() == (0).to_bytes(4, sys.byteorder)
+    assert len(timing._held_qos) == 1  # held open: the request lasts while the file is open
+    os.close(timing._held_qos.pop())
+    monkeypatch.setattr(timing, "PM_QOS_DEVICE", str(tmp_path / "missing"))
+    reason = hold_cpu_latency(0)
+    assert reason is not None and reason.startswith("PM QoS refused:") and "\n" not in reason
+    granted = RealtimeSetup(policy="SCHED_FIFO", priority=80, cpus=(1,), pinned=True, cpu_latency_us=0)
+    assert granted.describe() == "SCHED_FIFO pinned, PM QoS 0 µs"
+    assert (
+        RealtimeSetup(policy="SCHED_OTHER", priority=0, cpus=(0, 1), pinned=False).describe() == "SCHED_OTHER"
+    )
 
 
 def test_a_loop_that_does_not_measure_parts_reports_none() -> None:

@@ -23,6 +23,7 @@
 
 #include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
+#include <Eigen/LU>
 #include <cmath>
 #include <limits>
 #include <stdexcept>
@@ -34,6 +35,7 @@
 #include <pinocchio/algorithm/frames.hpp>
 #include <pinocchio/algorithm/jacobian.hpp>
 #include <pinocchio/algorithm/rnea.hpp>
+#include <pinocchio/spatial.hpp>
 
 namespace py = pybind11;
 using pinocchio::SE3;
@@ -146,6 +148,7 @@ class Law {
     if (arm_v0.size() != 2 || grip_.size() != 2 || constants.size() != 31)
       throw std::invalid_argument("finish: two arms, two grip frames and 31 constants");
     data_ = pinocchio::Data(model_);
+    ik_data_ = pinocchio::Data(model_);
     v0_[0] = arm_v0[0];
     v0_[1] = arm_v0[1];
     torso_ = torso;
@@ -194,6 +197,49 @@ class Law {
   }
 
   int nv() const { return model_.nv; }
+
+  // One damped-least-squares iteration of the IK (velma/control/ik.py ``_dls``, its reference)
+  // for arm ``k`` (0 right, 1 left) on the IK's own data: q (nq,) rad; target (12,): the grip
+  // frame's rotation (row-major 9) and position (3, m); posture (nq,) or empty: the null-space
+  // pull toward it; lo, hi (7,): the arm's bounds. Returns (position error m, rotation error
+  // rad, converged); unless converged, q's arm block is moved in place by one step.
+  py::tuple dls_step(int k, Array q_in, const Array& target_in, const Array& posture_in, const Array& lo_in,
+                     const Array& hi_in, double damping, double pos_tol, double rot_tol) {
+    if (!ready_) throw std::logic_error("Law.finish was not called");
+    if (k != 0 && k != 1) throw std::invalid_argument("dls_step: k is 0 or 1");
+    const int nv = model_.nv;
+    double* q_ptr = q_in.mutable_data();
+    if (q_in.size() != nv) throw std::invalid_argument("q has the wrong size");
+    const double* t = data_of(target_in, 12, "target");
+    const double* lo = data_of(lo_in, 7, "lo");
+    const double* hi = data_of(hi_in, 7, "hi");
+    const bool has_posture = posture_in.size() != 0;
+    const double* posture = has_posture ? data_of(posture_in, nv, "posture") : nullptr;
+    Eigen::Map<Eigen::VectorXd> q(q_ptr, nv);
+    const SE3 target(Eigen::Map<const RowMat3>(t), Eigen::Vector3d(t[9], t[10], t[11]));
+
+    pinocchio::forwardKinematics(model_, ik_data_, q);
+    const SE3 cur = pinocchio::updateFramePlacement(model_, ik_data_, grip_[k]);
+    const Vec6 err = pinocchio::log6(cur.actInv(target)).toVector();  // in the current grip frame
+    const double perr = (target.translation() - cur.translation()).norm();
+    const double rerr = err.tail<3>().norm();
+    if (perr < pos_tol && rerr < rot_tol) return py::make_tuple(perr, rerr, true);
+
+    ik_jac_.setZero(6, nv);
+    pinocchio::computeFrameJacobian(model_, ik_data_, q, grip_[k], pinocchio::LOCAL, ik_jac_);
+    const Mat67 jac = ik_jac_.middleCols<7>(v0_[k]);
+    const Mat6 jjt = jac * jac.transpose() + damping * Mat6::Identity();
+    const Eigen::PartialPivLU<Mat6> lu(jjt);
+    Vec7 dq = jac.transpose() * lu.solve(err);
+    if (has_posture) {  // (I − Jᵀ(JJᵀ + λI)⁻¹J) times the pull toward the posture
+      const Vec7 pull = 0.1 * (Eigen::Map<const Vec7>(posture + v0_[k]) - q.segment<7>(v0_[k]));
+      dq += pull - jac.transpose() * (lu.solve(jac) * pull);
+    }
+    const double step = dq.cwiseAbs().maxCoeff();
+    if (step > 0.3) dq *= 0.3 / step;
+    for (int i = 0; i < 7; ++i) q[v0_[k] + i] = std::clamp(q[v0_[k] + i] + dq[i], lo[i], hi[i]);
+    return py::make_tuple(perr, rerr, false);
+  }
 
   // ``update`` on raw buffers of the sizes it checks (the MuJoCo cycle calls it, mjcycle.hpp).
   void compute(const double* q_ptr, const double* v_ptr, const double* cmd, const double* torso, const double* prev,
@@ -469,6 +515,8 @@ class Law {
 
   pinocchio::Model model_;
   pinocchio::Data data_;
+  pinocchio::Data ik_data_;  // the IK's (dls_step), so that the law's data_ is left alone
+  Eigen::Matrix<double, 6, Eigen::Dynamic> ik_jac_;
   std::vector<int> grip_;
   int v0_[2] = {0, 0};
   int torso_ = 0;
@@ -500,7 +548,9 @@ PYBIND11_MODULE(_impedance, m) {
       .def("add_grip", &Law::add_grip)
       .def("finish", &Law::finish)
       .def("set_wrist", &Law::set_wrist)
-      .def("update", &Law::update);
+      .def("update", &Law::update)
+      .def("dls_step", &Law::dls_step, py::arg("k"), py::arg("q").noconvert(), py::arg("target"), py::arg("posture"),
+           py::arg("lo"), py::arg("hi"), py::arg("damping"), py::arg("pos_tol"), py::arg("rot_tol"));
 #ifdef ROCO_WITH_MUJOCO
   m.attr("MUJOCO_HEADER_VERSION") = mjVERSION_HEADER;
   py::class_<Plant>(m, "Plant")

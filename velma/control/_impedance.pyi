@@ -27,6 +27,18 @@ class Law:
     ) -> None: ...
     def add_grip(self, joint: int, rot: list[float], pos: list[float], name: str) -> None: ...
     def finish(self, arm_v0: list[int], torso: int, constants: list[float]) -> None: ...
+    def dls_step(
+        self,
+        k: int,
+        q: npt.NDArray[np.float64],
+        target: npt.NDArray[np.float64],
+        posture: npt.NDArray[np.float64],
+        lo: npt.NDArray[np.float64],
+        hi: npt.NDArray[np.float64],
+        damping: float,
+        pos_tol: float,
+        rot_tol: float,
+    ) -> tuple[float, float, bool]: ...
     def set_wrist(
         self,
         lower5: float,

@@ -25,6 +25,7 @@ import numpy as np
 import pinocchio as pin
 
 from velma.control import impedance as imp
+from velma.control.ik import DlsKernel
 from velma.control.limits import ARM_TORQUE_LIMIT, FULL_BAND_JOINTS, SINGULAR_JOINTS, TORQUE_RATE_LIMIT
 from velma.control.robot_model import SIDES, Array, RobotModel
 from velma.control.self_collision import WRIST_BAND, WRIST_BAND_DAMPING, WRIST_BAND_TORQUE, WristField
@@ -134,6 +135,13 @@ class CompiledController(imp.VelmaController):
         self._limits_of: imp.SafetyLimits | None = None
         self._out = np.zeros((2, 32))
         self._out_torso = np.zeros(2)
+
+    @property
+    def ik_kernel(self) -> DlsKernel:
+        """The IK's damped-least-squares iteration in C++ on this law's model (its own
+        Pinocchio data): velma/control/ik.py ``DlsKernel``."""
+        law: DlsKernel = self._law
+        return law
 
     def _send_wrist(self) -> None:
         """Give the C++ law the wrist band's table (``self.wrist``; None: an empty table, the

@@ -14,13 +14,15 @@ Source: standard DLS IK (Wampler 1986); kinematics from velma.xml via Pinocchio.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Generator
 from dataclasses import dataclass
+from typing import Protocol
 
 import numpy as np
 import pinocchio as pin
 
-from velma.control.robot_model import Array, IntArray, RobotModel, arm_joints
+from velma.control.robot_model import SIDES, Array, IntArray, RobotModel, arm_joints
 from velma.control.self_collision import SelfCollision
 
 LIMIT_MARGIN = 0.05  # rad
@@ -28,6 +30,28 @@ SWIVEL_STEP = 0.1
 """Joint motion (rad, norm over the seven joints) per step of the elbow swivel."""
 SWIVEL_STEPS = 16
 """Steps of the swivel each way (≈ 1.6 rad of self-motion)."""
+
+
+class DlsKernel(Protocol):
+    """One damped-least-squares iteration of ``_dls`` in compiled code: the compiled law's
+    ``Law.dls_step`` (velma/control/_impedance.cpp; velma/control/compiled.py
+    ``CompiledController.ik_kernel``), built from the same robot model. ``k``: the arm's index
+    in ``SIDES``; ``q`` (nq,) float64, moved in place; ``target`` (12,): rotation (row-major 9)
+    and position (3); ``posture`` (nq,) or empty; ``lo``, ``hi`` (7,). Returns (position
+    error m, rotation error rad, converged)."""
+
+    def dls_step(
+        self,
+        k: int,
+        q: Array,
+        target: Array,
+        posture: Array,
+        lo: Array,
+        hi: Array,
+        damping: float,
+        pos_tol: float,
+        rot_tol: float,
+    ) -> tuple[float, float, bool]: ...
 
 
 @dataclass(frozen=True)
@@ -53,11 +77,15 @@ def solve_ik_multi(
     restarts: int = 12,
     seed: int = 0,
     self_collision: SelfCollision | None = None,
+    kernel: DlsKernel | None = None,
 ) -> IkResult:
     """``solve_ik`` from ``q0``, then (if that fails) from up to ``restarts`` deterministic
     random arm configurations; among converged solutions the one closest to ``q0`` wins.
-    With ``self_collision``, converged postures in self-collision do not count."""
-    search = IkSearch(robot, side, target, q0, restarts=restarts, seed=seed, self_collision=self_collision)
+    With ``self_collision``, converged postures in self-collision do not count. With
+    ``kernel``, each iteration runs compiled (``DlsKernel``)."""
+    search = IkSearch(
+        robot, side, target, q0, restarts=restarts, seed=seed, self_collision=self_collision, kernel=kernel
+    )
     while True:
         result = search.advance(1_000_000)
         if result is not None:
@@ -72,7 +100,7 @@ class IkSearch:
 
     ``data`` is the Pinocchio data the search may overwrite (default: a private one, so that
     the controller's ``robot.data`` is left alone). ``self_collision``: reject postures in
-    self-collision (each check is one step of the search, ≈ 45 µs)."""
+    self-collision (each check is ``CHECK_STEPS`` steps of the search, velma/control/self_collision.py)."""
 
     def __init__(
         self,
@@ -85,10 +113,11 @@ class IkSearch:
         seed: int = 0,
         data: pin.Data | None = None,
         self_collision: SelfCollision | None = None,
+        kernel: DlsKernel | None = None,
     ) -> None:
         self.iterations = 0
         self._gen = _search(
-            robot, data or robot.model.createData(), side, target, q0, restarts, seed, self_collision
+            robot, data or robot.model.createData(), side, target, q0, restarts, seed, self_collision, kernel
         )
         self._result: IkResult | None = None
 
@@ -115,29 +144,30 @@ def _search(
     restarts: int,
     seed: int,
     self_collision: SelfCollision | None,
+    kernel: DlsKernel | None,
 ) -> Generator[None, None, IkResult]:
     touching: tuple[str, str] | None = None
     idx = robot.v_indices(arm_joints(side))
 
     def free(result: IkResult) -> Generator[None, None, bool]:
-        """Whether a converged posture is free of self-collision (one search step)."""
+        """Whether a converged posture is free of self-collision (``CHECK_STEPS`` + 1 search steps)."""
         nonlocal touching
         if self_collision is None:
             return True
         pin.forwardKinematics(robot.model, data, result.q)
-        hit = self_collision.colliding(data, side, result.q[idx])
+        hit = yield from self_collision.colliding_steps(data, side, result.q[idx])
         yield None
         if hit is not None:
             touching = hit
         return hit is None
 
-    first = yield from _dls(robot, data, side, target, q0, posture=q0)
+    first = yield from _dls(robot, data, side, target, q0, posture=q0, kernel=kernel)
     if first.ok and (yield from free(first)):
         return first
     if first.ok and self_collision is not None:  # swivel the elbow off the robot itself
         swivelled = []
         for direction in (1.0, -1.0):
-            found = yield from _swivel(robot, data, side, target, first.q, direction, free)
+            found = yield from _swivel(robot, data, side, target, first.q, direction, free, kernel)
             if found is not None:
                 swivelled.append(found)
         if swivelled:
@@ -149,7 +179,7 @@ def _search(
     for _ in range(restarts):
         q = np.array(q0, dtype=float)
         q[idx] = rng.uniform(0.7 * lo, 0.7 * hi)
-        r = yield from _dls(robot, data, side, target, q)
+        r = yield from _dls(robot, data, side, target, q, kernel=kernel)
         if (
             r.ok
             and (best is None or np.linalg.norm(r.q[idx] - q0[idx]) < np.linalg.norm(best.q[idx] - q0[idx]))
@@ -182,6 +212,7 @@ def _swivel(
     q_start: Array,
     direction: float,
     free: Callable[[IkResult], Generator[None, None, bool]],
+    kernel: DlsKernel | None,
 ) -> Generator[None, None, IkResult | None]:
     """Self-motion from ``q_start`` (a posture at ``target``): ``SWIVEL_STEPS`` steps of
     ``SWIVEL_STEP`` along the null space of the grip Jacobian (its last right singular vector,
@@ -204,7 +235,7 @@ def _swivel(
         if np.any(stepped < lo) or np.any(stepped > hi):
             return None
         q[idx] = stepped
-        result = yield from _dls(robot, data, side, target, q, max_iter=20, posture=q)
+        result = yield from _dls(robot, data, side, target, q, max_iter=20, posture=q, kernel=kernel)
         if not result.ok:
             return None
         q = result.q
@@ -263,30 +294,68 @@ def _dls(
     rot_tol: float = 1e-2,
     damping: float = 1e-3,
     posture: Array | None = None,
+    kernel: DlsKernel | None = None,
 ) -> Generator[None, None, IkResult]:
-    """The DLS iteration of ``solve_ik``; yields after each iteration."""
+    """The DLS iteration of ``solve_ik``; yields after each iteration. With ``kernel`` each
+    iteration runs compiled; this Python loop is its reference (tests/velma/test_ik.py)."""
     model = robot.model
     idx, lo, hi, fid = _arm(robot, side)
     q = np.array(q0, dtype=float)
     q[idx] = np.clip(q[idx], lo, hi)
+    if kernel is not None:
+        compiled = _dls_compiled(
+            kernel, side, target, q, lo, hi, max_iter, pos_tol, rot_tol, damping, posture
+        )
+        return (yield from compiled)
+    target_position = target.translation  # pin.SE3 copies on every read: once
+    damped = damping * np.eye(6)
+    rhs = np.empty((6, 8))  # [err | J]: one solve per iteration (issue 18: the cycle's budget)
     perr = rerr = float("inf")
     for _ in range(max_iter):
         pin.framesForwardKinematics(model, data, q)
         cur = data.oMf[fid]
         err = pin.log6(cur.actInv(target)).vector  # in the current grip frame
-        perr = float(np.linalg.norm(target.translation - cur.translation))
-        rerr = float(np.linalg.norm(err[3:]))
+        perr = math.dist(target_position, cur.translation)
+        rerr = math.hypot(*err[3:])
         if perr < pos_tol and rerr < rot_tol:
             return IkResult(q, True, perr, rerr)
         jac = pin.computeFrameJacobian(model, data, q, fid, pin.LOCAL)[:, idx]
-        jjt = jac @ jac.T + damping * np.eye(6)
-        dq = jac.T @ np.linalg.solve(jjt, err)
-        if posture is not None:
-            null = np.eye(7) - jac.T @ np.linalg.solve(jjt, jac)
-            dq += null @ (0.1 * (posture[idx] - q[idx]))
+        rhs[:, 0] = err
+        rhs[:, 1:] = jac
+        sol = np.linalg.solve(jac @ jac.T + damped, rhs)
+        dq = jac.T @ sol[:, 0]
+        if posture is not None:  # (I − Jᵀ(JJᵀ + λI)⁻¹J) times the pull toward the posture
+            pull = 0.1 * (posture[idx] - q[idx])
+            dq += pull - jac.T @ (sol[:, 1:] @ pull)
         step = float(np.max(np.abs(dq)))
         if step > 0.3:
             dq *= 0.3 / step
         q[idx] = np.clip(q[idx] + dq, lo, hi)
+        yield None
+    return IkResult(q, perr < pos_tol and rerr < rot_tol, perr, rerr)
+
+
+def _dls_compiled(
+    kernel: DlsKernel,
+    side: str,
+    target: pin.SE3,
+    q: Array,
+    lo: Array,
+    hi: Array,
+    max_iter: int,
+    pos_tol: float,
+    rot_tol: float,
+    damping: float,
+    posture: Array | None,
+) -> Generator[None, None, IkResult]:
+    """``_dls``'s loop with each iteration in ``kernel`` (q already clamped to its bounds)."""
+    k = SIDES.index(side)
+    goal = np.concatenate([target.rotation.reshape(9), target.translation])
+    pull = np.empty(0) if posture is None else np.ascontiguousarray(posture, dtype=float)
+    perr = rerr = float("inf")
+    for _ in range(max_iter):
+        perr, rerr, done = kernel.dls_step(k, q, goal, pull, lo, hi, damping, pos_tol, rot_tol)
+        if done:
+            return IkResult(q, True, perr, rerr)
         yield None
     return IkResult(q, perr < pos_tol and rerr < rot_tol, perr, rerr)

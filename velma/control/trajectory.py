@@ -54,21 +54,26 @@ class PosePath:
     _rotvec: Array = field(init=False, repr=False, compare=False)
     _omega: Array = field(init=False, repr=False, compare=False)
     _delta: Array = field(init=False, repr=False, compare=False)
+    _p0: Array = field(init=False, repr=False, compare=False)
+    _r0: Array = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
-        axis, angle = axis_angle(self.start.rotation.T @ self.goal.rotation)
+        # pin.SE3's .rotation and .translation copy on every read: read them once
+        r0, p0 = self.start.rotation, self.start.translation
+        axis, angle = axis_angle(r0.T @ self.goal.rotation)
         object.__setattr__(self, "_rotvec", axis * angle)  # the relative rotation, rad
-        object.__setattr__(self, "_omega", self.start.rotation @ axis * angle)  # world ω per unit ds
-        object.__setattr__(self, "_delta", self.goal.translation - self.start.translation)
+        object.__setattr__(self, "_omega", r0 @ axis * angle)  # world ω per unit ds
+        object.__setattr__(self, "_delta", self.goal.translation - p0)
+        object.__setattr__(self, "_p0", p0)
+        object.__setattr__(self, "_r0", r0)
 
     def sample(self, t: float) -> tuple[pin.SE3, Array]:
         """Pose and world twist (6,) = (v, ω) at time ``t`` (s)."""
         s, ds = min_jerk(t, self.duration)
-        rot = self.start.rotation @ pin.exp3(self._rotvec * s)
-        delta = self._delta
-        pos = self.start.translation + s * delta
-        omega = self._omega * ds
-        return pin.SE3(rot, pos), np.concatenate([delta * ds, omega])
+        twist = np.empty(6)
+        np.multiply(self._delta, ds, out=twist[:3])
+        np.multiply(self._omega, ds, out=twist[3:])
+        return pin.SE3(self._r0 @ pin.exp3(self._rotvec * s), self._p0 + s * self._delta), twist
 
 
 @dataclass(frozen=True)
@@ -82,19 +87,26 @@ class RotationPath:
     angle: float
     duration: float
     _rotvec: Array = field(init=False, repr=False, compare=False)
+    _arm: Array = field(init=False, repr=False, compare=False)
+    _r0: Array = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         unit = self.axis / np.linalg.norm(self.axis)
         object.__setattr__(self, "_rotvec", unit * self.angle)  # the whole rotation, rad
+        # read pin.SE3's copies once: the start's lever arm about the pivot and its rotation
+        object.__setattr__(self, "_arm", self.start.translation - self.pivot)
+        object.__setattr__(self, "_r0", self.start.rotation)
 
     def sample(self, t: float) -> tuple[pin.SE3, Array]:
         """Pose and world twist (6,) at time ``t`` (s)."""
         s, ds = min_jerk(t, self.duration)
         rot = pin.exp3(self._rotvec * s)
-        pos = self.pivot + rot @ (self.start.translation - self.pivot)
-        omega = self._rotvec * ds
-        vel = np.cross(omega, pos - self.pivot)
-        return pin.SE3(rot @ self.start.rotation, pos), np.concatenate([vel, omega])
+        lever = rot @ self._arm  # pos − pivot
+        wx, wy, wz = (float(w) * ds for w in self._rotvec)
+        lx, ly, lz = (float(x) for x in lever)
+        # (ω × lever, ω)
+        twist = np.array([wy * lz - wz * ly, wz * lx - wx * lz, wx * ly - wy * lx, wx, wy, wz])
+        return pin.SE3(rot @ self._r0, self.pivot + lever), twist
 
     @property
     def goal(self) -> pin.SE3:

@@ -32,17 +32,20 @@ from velma.executor.state import LINK_BODIES, raw_layout
 
 ENV_PLANT = "ROCO_PLANT"
 """Environment variable: ``compiled`` requires the compiled plant (an error if it cannot
-run), ``python`` runs the Python cycle; unset: ``DEFAULT_PLANT``."""
-DEFAULT_PLANT = "python"
-"""The Python cycle until the compiled plant measures better on the whole: over three runs of
-the fleet each, it lowered the loop's median by ≈ 20 µs but overran more often (0.11–0.24 %
-against 0.06–0.09 %; docs/bench/loop.md)."""
+run), ``python`` runs the Python cycle; unset: the compiled plant where it can run
+(``plant_unavailable``), else the Python cycle with a warning."""
 
 
-def plant_choice(environ: Mapping[str, str] = os.environ) -> bool:
-    """``ROCO_PLANT`` (else ``DEFAULT_PLANT``) as ``Runtime``'s ``compiled_plant``. Raises
-    ValueError for a value other than ``python`` and ``compiled``."""
-    choice = environ.get(ENV_PLANT, DEFAULT_PLANT)
+def plant_choice(environ: Mapping[str, str] = os.environ) -> bool | None:
+    """``ROCO_PLANT`` as ``Runtime``'s ``compiled_plant``: True (required), False (the Python
+    cycle) or None (unset: the compiled plant where it can run). The compiled plant is the
+    default since the loop holds the CPUs' wake-up latency (docs/bench/loop.md "CPU latency PM
+    QoS"): with the whole fleet it gave the lower cycle work at p50 and p99 and overran as
+    rarely as the Python cycle. Raises ValueError for a value other than ``python`` and
+    ``compiled``."""
+    choice = environ.get(ENV_PLANT)
+    if choice is None:
+        return None
     if choice not in ("python", "compiled"):
         raise ValueError(f"{ENV_PLANT}={choice!r}: expected 'python' or 'compiled'")
     return choice == "compiled"

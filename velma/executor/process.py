@@ -285,6 +285,7 @@ def loop_main(config: bytes, doorbell: multiprocessing.connection.Connection) ->
     pacer = Pacer(DT, realtime=cfg.realtime, spin=cfg.spin)
     while running:
         start = pacer.begin()
+        cpu = time.thread_time()
         for _ in range(INBOX_PER_CYCLE):
             raw = inbox.pop()
             if raw is None:
@@ -322,8 +323,9 @@ def loop_main(config: bytes, doorbell: multiprocessing.connection.Connection) ->
         if cycle % PARENT_CHECK == 0 and os.getppid() != cfg.parent_pid:
             running = False  # orphaned: the communication side is gone
         cycle += 1
+        cpu = time.thread_time() - cpu
         end = time.perf_counter()
-        monitor.record(pacer.release, start, end, rt.part_s)
+        monitor.record(pacer.release, start, end, rt.part_s, cpu)
         pacer.wait()
     pending.extend(encode(Done(token=t, result=r)) for t, r in loop.abort("stopped"))
     if keeper is not None and (error := keeper.close(loop.holding)) is not None:

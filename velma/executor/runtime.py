@@ -17,6 +17,7 @@ from their pose relative to torso_link0 at the start of the motion).
 
 from __future__ import annotations
 
+import logging
 import math
 import time
 from typing import cast
@@ -28,6 +29,7 @@ import pinocchio as pin
 
 from velma.control.compiled import CompiledController, make_controller
 from velma.control.hand import ContactMonitor, Hands
+from velma.control.ik import DlsKernel
 from velma.control.robot_model import (
     HEAD_JOINTS,
     SIDES,
@@ -43,6 +45,8 @@ from velma.executor.ground_truth import GroundTruth
 from velma.executor.plant import CompiledPlant, plant_choice, plant_unavailable
 from velma.executor.state import LINK_BODIES
 from velma.model.scene import N_PARTICLES, initial_state, load_kitchen
+
+log = logging.getLogger(__name__)
 
 DT = 0.001  # s
 HEAD_RATE = 1.04  # rad/s (velma-facts.md: neck velocity limit)
@@ -70,8 +74,9 @@ class Runtime:
         """``seed`` jitters the jar content, ``pose_seed`` randomises the jar and bowl poses
         (velma/model/scene.py; None: the poses of kitchen.xml). ``compiled_plant``: run the
         cycle's MuJoCo side in C++ (velma/executor/plant.py): True, or False for the Python
-        cycle; None: as ``ROCO_PLANT`` says (velma/executor/plant.py ``plant_choice``). Raises
-        RuntimeError when the compiled plant is asked for and cannot run, ValueError for another
+        cycle; None: as ``ROCO_PLANT`` says (velma/executor/plant.py ``plant_choice``), unset
+        the compiled plant where it can run, else the Python cycle with a warning. Raises
+        RuntimeError when the compiled plant is required and cannot run, ValueError for another
         value of ``ROCO_PLANT``."""
         self.pose_seed = pose_seed
         self.model = load_kitchen(N_PARTICLES if n_particles is None else n_particles, seed, pose_seed)
@@ -96,6 +101,11 @@ class Runtime:
         }
         self.jmap = JointMap.build(self.model, self.robot)
         self.ctrl = make_controller(self.robot, DT)
+        self.ik_kernel: DlsKernel | None = (
+            self.ctrl.ik_kernel if isinstance(self.ctrl, CompiledController) else None
+        )
+        """The IK's iteration in C++ with the compiled law (velma/control/ik.py ``DlsKernel``),
+        else None: the Python iteration."""
         self.hands = Hands(self.model)
         self.contacts = ContactMonitor(self.model)
         self.ground_truth = GroundTruth(self.model)
@@ -144,6 +154,8 @@ class Runtime:
             )
         elif compiled_plant:
             raise RuntimeError(f"no compiled plant: {why}")
+        elif compiled_plant is None and isinstance(self.ctrl, CompiledController):
+            log.warning("the cycle's MuJoCo side runs in Python: %s (velma/executor/plant.py)", why)
         self.part_s = np.zeros(3)
         """The last cycle's measured parts (s): primitive (set by the loop), control, physics
         (velma.executor.timing.PARTS)."""

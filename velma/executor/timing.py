@@ -11,6 +11,11 @@ Definitions (per cycle k, period ``dt`` = 1 ms):
   primitive, control law, physics step, state publication).
 - *overrun*: end_k > r_k + dt, i.e. the cycle did not finish before the next one was due.
   In as-fast-as-possible pacing this is compute time > dt.
+- *off-CPU time* = compute time − the loop thread's CPU time over the cycle
+  (``time.thread_time``): how long something else held the loop's CPU during its work. Linux
+  does not count a virtual machine's steal time (the host running something else on the
+  vCPU's core) or interrupt handling as the thread's CPU time. A *stall* is a cycle with more
+  than :data:`STALL_OFF_CPU` s of it: the machine, not the loop's work, lengthened it.
 
 The compute time is split in parts (issue 18: the budget in the open), each cycle's measured
 by the loop itself into a preallocated array (:data:`PARTS` but the last): *primitive* (the
@@ -24,13 +29,16 @@ containers on the loop's path); ``stats`` computes percentiles over the last ``w
 on the caller's side.
 
 ``enter_realtime`` asks the OS for SCHED_FIFO and a CPU of its own for the calling process,
-and reports what it got: both need privileges (CAP_SYS_NICE) that a container may not grant.
+and for a CPU wake-up latency of 0 µs (the PM QoS request that cyclictest also makes), and
+reports what it got: these need privileges (CAP_SYS_NICE, write access to
+``/dev/cpu_dma_latency``) that a container may not grant.
 """
 
 from __future__ import annotations
 
 import os
 import platform
+import struct
 import time
 
 import msgspec
@@ -40,20 +48,36 @@ DEFAULT_WINDOW = 120_000  # cycles (2 min at 1 kHz) kept for percentiles
 PARTS = ("primitive", "control", "physics", "hand-offs")
 """The parts of a cycle's compute time (module docstring); the loop measures all but the last."""
 MEASURED_PARTS = len(PARTS) - 1
+STALL_OFF_CPU = 100e-6
+"""s of off-CPU time within one cycle that make it a stall (module docstring)."""
 FIFO_PRIORITY = 80  # SCHED_FIFO priority of the loop (1..99), above threaded IRQ handlers (50)
+PM_QOS_DEVICE = "/dev/cpu_dma_latency"
+"""Linux's CPU latency PM QoS interface: while a process holds it open with a 32-bit latency
+written to it, no CPU enters an idle state slower to leave than that (Linux
+Documentation/power/pm_qos_interface.rst)."""
+_held_qos: list[int] = []  # file descriptors of granted PM QoS requests, held until the process ends
 
 
 class RealtimeSetup(msgspec.Struct, frozen=True, kw_only=True):
     """What the OS granted the control loop: ``policy`` (``SCHED_FIFO`` or ``SCHED_OTHER``),
     ``priority`` (FIFO priority, 0 for OTHER), ``cpus`` (the CPU set the loop may run on),
-    ``pinned`` (True when the set was narrowed to one CPU), ``notes`` (why something was
-    not granted)."""
+    ``pinned`` (True when the set was narrowed to one CPU), ``cpu_latency_us`` (the CPU
+    wake-up latency held through PM QoS, None when not requested or refused), ``notes`` (why
+    something was not granted)."""
 
     policy: str
     priority: int
     cpus: tuple[int, ...]
     pinned: bool
     notes: tuple[str, ...] = ()
+    cpu_latency_us: int | None = None
+
+    def describe(self) -> str:
+        """One phrase for tables: e.g. ``SCHED_FIFO pinned, PM QoS 0 µs``."""
+        text = f"{self.policy}{' pinned' if self.pinned else ''}"
+        if self.cpu_latency_us is not None:
+            text += f", PM QoS {self.cpu_latency_us} µs"
+        return text
 
 
 class PartTiming(msgspec.Struct, frozen=True, kw_only=True):
@@ -101,13 +125,21 @@ class TimingStats(msgspec.Struct, frozen=True, kw_only=True):
     plant: str = ""
     """Where the cycle's MuJoCo side ran: ``compiled`` or ``python`` (velma/executor/plant.py;
     empty when the loop did not say)."""
+    stalls: int = 0
+    """Stalls in the window: cycles that spent more than ``STALL_OFF_CPU`` off their CPU
+    (module docstring); 0 when the loop did not measure its CPU time."""
+    compute_max_outside_stalls_us: float = 0.0
+    """The longest compute time (µs) of the window's cycles that were not stalls."""
+    off_cpu_max_us: float = 0.0
+    """The longest off-CPU time (µs) of one cycle in the window."""
 
 
 class DeadlineMonitor:
     """Counts every cycle's compute time, lateness and overruns (see module docstring).
 
-    ``window`` (cycles) bounds the memory used for percentiles: 5 float64 arrays of that
-    length (compute time, lateness, the three measured parts) plus 6 counters. ``buffer``
+    ``window`` (cycles) bounds the memory used for percentiles: 6 float64 arrays of that
+    length (compute time, lateness, the three measured parts, the off-CPU time) plus 6
+    counters. ``buffer``
     (at least ``DeadlineMonitor.nbytes(window)`` bytes, e.g. a shared memory block) holds
     them when given, so that another process can read ``stats`` while the loop records; a
     reader may see a window torn by one cycle, the counters are single aligned 8-byte
@@ -116,7 +148,7 @@ class DeadlineMonitor:
     @staticmethod
     def nbytes(window: int) -> int:
         """Size (B) of the buffer a monitor of ``window`` cycles needs."""
-        return 8 * (6 + (2 + MEASURED_PARTS) * window)
+        return 8 * (6 + (3 + MEASURED_PARTS) * window)
 
     def __init__(
         self, dt: float, *, realtime: bool, window: int = DEFAULT_WINDOW, buffer: memoryview | None = None
@@ -136,6 +168,10 @@ class DeadlineMonitor:
         self._parts = np.ndarray(
             (window, MEASURED_PARTS), dtype=np.float64, buffer=buf, offset=48 + 16 * window
         )
+        self._off_cpu = np.ndarray(
+            (window,), dtype=np.float64, buffer=buf, offset=48 + (2 + MEASURED_PARTS) * 8 * window
+        )
+        self._cpu_measured = False
         self._measured = False
         self._cycles = int(self._counters[0])
         self._overruns = int(self._counters[1])
@@ -158,12 +194,23 @@ class DeadlineMonitor:
         """Overrunning cycles since start."""
         return int(self._counters[1])
 
-    def record(self, release: float, start: float, end: float, parts: np.ndarray | None = None) -> bool:
+    def record(
+        self,
+        release: float,
+        start: float,
+        end: float,
+        parts: np.ndarray | None = None,
+        cpu: float | None = None,
+    ) -> bool:
         """Record one cycle (times in s, same clock) and, when given, its ``parts``: the
-        seconds of the measured :data:`PARTS` (array of 3). Returns True when it overran."""
+        seconds of the measured :data:`PARTS` (array of 3), and ``cpu``: the loop thread's
+        CPU time over the cycle (s, ``time.thread_time``). Returns True when it overran."""
         i = self._cycles % self.window
         compute = end - start
         self._compute[i] = compute
+        if cpu is not None:
+            self._off_cpu[i] = compute - cpu if compute > cpu else 0.0
+            self._cpu_measured = True
         if parts is not None:
             self._parts[i] = parts
             self._measured = True
@@ -206,6 +253,14 @@ class DeadlineMonitor:
                 for name, col in zip(PARTS, columns, strict=True)
             )
 
+        stalls, outside, off_max = 0, float(comp.max()) if n else 0.0, 0.0
+        if n and (self._cpu_measured or bool(self._off_cpu[:n].any())):
+            off = self._off_cpu[:n]
+            stalled = off > STALL_OFF_CPU
+            stalls = int(stalled.sum())
+            outside = float(comp[~stalled].max()) if stalls < n else 0.0
+            off_max = float(off.max()) * 1e6
+
         return TimingStats(
             pacing="realtime" if self.realtime else "fast",
             cycles=cycles,
@@ -223,6 +278,9 @@ class DeadlineMonitor:
             setup=self.setup,
             control_law=self.control_law,
             plant=self.plant,
+            stalls=stalls,
+            compute_max_outside_stalls_us=outside,
+            off_cpu_max_us=off_max,
             worst_cycle=worst_cycle,
             worst_compute_us=float(self._worst[0]) * 1e6,
             parts=split,
@@ -267,12 +325,41 @@ class Pacer:
             self.release = now
 
 
+def hold_cpu_latency(latency_us: int = 0) -> str | None:
+    """Ask Linux to keep every CPU's wake-up latency ≤ ``latency_us`` (µs) until this process
+    ends, by writing it to :data:`PM_QOS_DEVICE` and keeping that file open. Returns None when
+    granted, else why not (one line). Never raises.
+
+    Why (issue 18, docs/bench/loop.md "CPU latency PM QoS"): an idle CPU otherwise halts; on a
+    virtual machine a halted vCPU hands its physical core to the host, and the loop comes back
+    to cold caches after every sleep. Held at 0 µs the idle CPU polls instead (the cpuidle POLL
+    state) at the price of that CPU's power; cyclictest makes the same request by default."""
+    if platform.system() != "Linux":
+        return "PM QoS: not available on this OS"
+    try:
+        fd = os.open(PM_QOS_DEVICE, os.O_WRONLY)
+    except OSError as exc:
+        return f"PM QoS refused: {PM_QOS_DEVICE}: {exc.strerror}"
+    try:
+        os.write(fd, struct.pack("=i", latency_us))
+    except OSError as exc:
+        os.close(fd)
+        return f"PM QoS refused: {exc.strerror}"
+    _held_qos.append(fd)  # the request lasts as long as the file stays open
+    return None
+
+
 def enter_realtime(
-    *, priority: int = FIFO_PRIORITY, cpu: int | None = None, pin: bool = True
+    *,
+    priority: int = FIFO_PRIORITY,
+    cpu: int | None = None,
+    pin: bool = True,
+    cpu_latency_us: int | None = 0,
 ) -> RealtimeSetup:
-    """Ask for SCHED_FIFO at ``priority`` and, if ``pin``, pin the calling process to ``cpu``
-    (default: the highest-numbered CPU it may use). Never raises: what was refused is in
-    ``notes``.
+    """Ask for SCHED_FIFO at ``priority``, if ``pin`` pin the calling process to ``cpu``
+    (default: the highest-numbered CPU it may use), and unless ``cpu_latency_us`` is None hold
+    the CPUs' wake-up latency at that many µs (:func:`hold_cpu_latency`). Never raises: what was
+    refused is in ``notes``.
 
     A SCHED_FIFO task that never blocks would starve its CPU; the loop sleeps until each
     release time, so it uses only its compute time. Linux ignores timer slack for real-time
@@ -305,4 +392,13 @@ def enter_realtime(
         cpus = tuple(sorted(os.sched_getaffinity(0)))
     else:
         notes.append("CPU affinity: not available on this OS")
-    return RealtimeSetup(policy=policy, priority=prio, cpus=cpus, pinned=pinned, notes=tuple(notes))
+    latency: int | None = None
+    if cpu_latency_us is not None:
+        refused = hold_cpu_latency(cpu_latency_us)
+        if refused is None:
+            latency = cpu_latency_us
+        else:
+            notes.append(refused)
+    return RealtimeSetup(
+        policy=policy, priority=prio, cpus=cpus, pinned=pinned, notes=tuple(notes), cpu_latency_us=latency
+    )
