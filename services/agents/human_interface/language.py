@@ -42,7 +42,7 @@ from services.agents.human_interface.intents import (
     describe,
     show,
 )
-from services.agents.human_interface.meaning import Context, Reader, Reply, loc_count
+from services.agents.human_interface.meaning import Context, Reader, Reply, loc_count, loc_depth
 from services.agents.human_interface.vocabulary import KNOWLEDGE_FILES, Vocabulary
 
 EXAMPLES = (
@@ -100,16 +100,16 @@ def _rank(outcome: object) -> int:
 def _read(words: tuple[Word, ...], priority: int, ctx: Context) -> Intent | Reply:
     """The best reading of tagged ``words``; raises the best failure when none is an intent."""
     readings = parse(words)
-    outcomes: list[tuple[int, int, int, Intent | Reply | NotUnderstood]] = []
+    outcomes: list[tuple[int, int, int, int, Intent | Reply | NotUnderstood]] = []
     for tree in readings:
         try:
             outcome: Intent | Reply | NotUnderstood = Reader(ctx).sentence(tree, priority)
         except NotUnderstood as exc:
             outcome = exc
         many = len(outcome.candidates) if isinstance(outcome, Ambiguous) else 0
-        outcomes.append((_rank(outcome), many, loc_count(tree), outcome))
-    outcomes.sort(key=lambda o: o[:3])
-    best = outcomes[0][3]
+        outcomes.append((_rank(outcome), many, loc_count(tree), -loc_depth(tree), outcome))
+    outcomes.sort(key=lambda o: o[:4])
+    best = outcomes[0][4]
     if isinstance(best, NotUnderstood):
         raise best
     return best
@@ -135,7 +135,7 @@ def _failure(
             break
         last = words[-1].text
         return Incomplete(
-            f"Your sentence stops after '{last}': something is missing; say e.g. {EXAMPLES[0]}.", "object"
+            f"What should I do? Your sentence stops after '{last}'; say e.g. {EXAMPLES[0]}.", "object"
         )
     at = exc.at
     if words[0].kind == "STOP":
@@ -147,7 +147,9 @@ def _failure(
     verbs = {"POUR", "BRING", "PUT", "HAND", "STOP", "STATUS"}
     if at.kind == "WORD":
         if verbs & exc.expected and not ({"NOUN", "IT"} & exc.expected and at.index > 0):
-            return NotUnderstood(f"I do not know the verb '{at.text}'; I can: {VERBS} (e.g. {EXAMPLES[0]}).")
+            return NotUnderstood(
+                f"I do not know '{at.text}' as a command; I can: {VERBS} (e.g. {EXAMPLES[0]})."
+            )
         if "NOUN" in exc.expected:
             return UnknownReference(
                 f"I do not know '{at.text}': I know {vocabulary.examples()} (e.g. {EXAMPLES[2]})."

@@ -98,6 +98,13 @@ def loc_count(tree: Node) -> int:
     return sum(1 for _ in tree.find_data("loc"))
 
 
+def loc_depth(tree: Node) -> int:
+    """The sum of the first token indexes of the located references in ``tree``: among equal
+    readings the one attaching a location to the later noun ("the bowl on the table" in "pour the
+    jar into the bowl on the table") has the larger sum, and is preferred."""
+    return sum(_first_index(loc) for loc in tree.find_data("loc"))
+
+
 def _or(items: list[str]) -> str:
     return items[0] if len(items) == 1 else ", ".join(items[:-1]) + " or " + items[-1]
 
@@ -386,4 +393,4 @@ _FRAMES: dict[str, Callable[[Reader, Node], TaskAtom]] = {
 }
 """Command rule of grammar.lark → the frame that makes its task."""
 
-__all__ = ["Context", "Reader", "Reply", "loc_count"]
+__all__ = ["Context", "Reader", "Reply", "loc_count", "loc_depth"]

@@ -265,7 +265,9 @@ def test_refuse_is_a_failed_report_with_the_reason(stage: Stage) -> None:
     co.do(lambda co: co.fail(request, Performative.REFUSE, "I do not know how to pour the cup into the bowl"))
     (report,) = person.until_final("r1")
     assert report.kind is ReportKind.FAILED
-    assert report.text == "pour the cup into the bowl: refused; I do not know how to pour the cup into the bowl"
+    assert (
+        report.text == "pour the cup into the bowl: refused; I do not know how to pour the cup into the bowl"
+    )
 
 
 def test_stop_sends_cancel_in_every_open_command_conversation(stage: Stage) -> None:
