@@ -21,7 +21,8 @@ adjectives and where they are); a_km answers ``inform-ref`` an ``Answer``. The s
 that answer, so a thing a_km learnt a moment ago can be named; when a_km is not alive (its
 liveliness token absent) or does not answer within ``VOCABULARY_REPLY_BY_S``, the sentence is
 read with the last vocabulary a_hi has (at start: O_RoCo and the kitchen's files). Sentences are
-read in the order they came; "stop" is acted on at once and drops the sentences still waiting.
+read in the order they came; "stop" is acted on at once, and the sentences still waiting are
+dropped (reported when their query ends).
 A conversation per person (``HumanInput.person``) keeps the last object named and a question
 a_hi asked back ("Which cup: …?"), which the person's next sentence may answer.
 
@@ -111,12 +112,14 @@ _CONNECTIVES = frozenset(
 @dataclass
 class HeldSentence:
     """A sentence waiting for a_km's vocabulary (``conversation``: the C7 query); ``ready`` once
-    answered or given up, with the ``vocabulary`` to read it with (None: the last one)."""
+    answered or given up, with the ``vocabulary`` to read it with (None: the last one);
+    ``stopped``: a stop came after it, so it is dropped, not read."""
 
     event: HumanInput
     conversation: str
     ready: bool = False
     vocabulary: Vocabulary | None = None
+    stopped: bool = False
 
 
 class KeptCommand(msgspec.Struct, kw_only=True):
@@ -343,16 +346,10 @@ class HumanInterface(Agent):
     # ---- from the person ---------------------------------------------------------------
     def _on_input(self, event: HumanInput) -> None:
         """A sentence: read at once when a_km is away, else after a_km's vocabulary. A stop is
-        acted on at once (it needs no words for things) and drops the sentences still waiting."""
+        acted on at once (it needs no words for things); the sentences still waiting are dropped."""
         if self._is_stop(event):
             for held in self.held:
-                self.vocab_queries.pop(held.conversation, None)
-                self._report(
-                    held.event.request_id,
-                    ReportKind.NOT_UNDERSTOOD,
-                    f"'{held.event.text}' was dropped: you said stop before I had read it.",
-                )
-            self.held.clear()
+                held.stopped = True  # reported when its query ends (the query runs its course)
             self._understand(event, self.vocabulary)
             return
         if KM not in self.peers:
@@ -382,6 +379,13 @@ class HumanInterface(Agent):
         """Read the waiting sentences, in order, as far as their vocabulary is there."""
         while self.held and self.held[0].ready:
             held = self.held.popleft()
+            if held.stopped:
+                self._report(
+                    held.event.request_id,
+                    ReportKind.NOT_UNDERSTOOD,
+                    f"'{held.event.text}' was dropped: you said stop before I had read it.",
+                )
+                continue
             self._understand(held.event, held.vocabulary or self.vocabulary)
 
     @handles(QUERY, INITIATOR, "inform-ref", "inform", channel=C7)
