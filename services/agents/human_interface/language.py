@@ -115,9 +115,7 @@ def _read(words: tuple[Word, ...], priority: int, ctx: Context) -> Intent | Repl
     return best
 
 
-def _failure(
-    exc: ParseFailure, sentence: str, vocabulary: Vocabulary, priority: int, ctx: Context
-) -> NotUnderstood:
+def _failure(exc: ParseFailure, vocabulary: Vocabulary, priority: int, ctx: Context) -> NotUnderstood:
     """One line for a sentence that does not parse: the word, or the missing part, and what to say."""
     words = exc.words
     if not words:
@@ -185,7 +183,7 @@ def interpret(
     try:
         intent = _read(words, priority, ctx)
     except ParseFailure as exc:
-        raise _failure(exc, sentence, vocab, priority, ctx) from None
+        raise _failure(exc, vocab, priority, ctx) from None
     except Ambiguous as exc:
         talk.pending = Pending(sentence, priority, exc.at, exc.candidates)
         raise

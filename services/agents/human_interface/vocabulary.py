@@ -110,12 +110,15 @@ class Vocabulary:
         return next((t for t in self.things if t.name == name), None)
 
     def examples(self, limit: int = 6) -> str:
-        """Some words for the things, for a reply: "the jar, the bowl, the cup, …"."""
-        seen: list[str] = []
-        for t in sorted(self.things, key=lambda t: (t.content, t.name)):
-            if not t.content and (t.name,) in {n[-1:] for n in t.nouns} | {tuple(t.name.split("_"))}:
-                seen.append("the " + t.name.replace("_", " "))
-        return ", ".join(seen[:limit]) if seen else "nothing yet"
+        """Some of the things, for a reply: "the bowl, the cabinet, the cup, …" (content, which
+        is named through its container, left out)."""
+        names = [
+            "the " + t.name.replace("_", " ")
+            for t in sorted(self.things, key=lambda t: t.name)
+            if not t.content
+        ]
+        more = ", …" if len(names) > limit else ""
+        return (", ".join(names[:limit]) + more) if names else "nothing yet"
 
     @classmethod
     def from_rows(cls, rows: Iterable[Sequence[str | None]]) -> Vocabulary:
