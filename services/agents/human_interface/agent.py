@@ -74,6 +74,7 @@ from shared.fipa_codec.languages.l_hc import (
     TaskStatus,
 )
 from shared.fipa_codec.languages.l_wm import Answer, SparqlQuery
+from shared.fipa_codec.message import new_id
 
 CO = "a_co"
 KM = "a_km"
@@ -363,7 +364,7 @@ class HumanInterface(Agent):
             QUERY,
             SparqlQuery(VOCABULARY_QUERY),
             performative=Performative.QUERY_REF,
-            conversation_id=self._conversation_id("words", event.request_id),
+            conversation_id=new_id(f"words-{event.request_id}-"),  # never one a_km has seen end
         )
         held = HeldSentence(event, conv.conversation_id)
         self.held.append(held)
@@ -430,7 +431,7 @@ class HumanInterface(Agent):
     def _conversation_id(self, prefix: str, request_id: str) -> str:
         base = f"{prefix}-{request_id}"
         cid, n = base, 1
-        while cid in self.commands or cid in self.ended or cid in self.queries or cid in self.vocab_queries:
+        while cid in self.commands or cid in self.ended or cid in self.queries:
             n += 1
             cid = f"{base}-{n}"
         return cid

@@ -63,7 +63,7 @@ def test_a_thing_a_km_learns_at_run_time_can_be_named_the_next_moment(stage: Sta
     ta.update(
         WorldUpdate(stamp=-1.0, objects=(ObjectUpdate(name="tea_pot", location="table", relation="on"),))
     )
-    say(stage, "could you bring me the tea pot?", "r2")
+    say(stage, "could you bring me the tea pot?", "r1")  # the same request id: a new C7 conversation
     assert goal(co) == TaskAtom("bring", ("tea_pot",))
     asked = [k for k, _ in stage.bus.published if k == keys.fipa_key("C7", "a_hi", "a_km")]
     answered = [k for k, _ in stage.bus.published if k == keys.fipa_key("C7", "a_km", "a_hi")]
