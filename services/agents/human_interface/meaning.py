@@ -88,6 +88,11 @@ def _tokens(node: Node, kind: str) -> list[Token]:
     return [c for c in node.children if isinstance(c, Token) and c.type == kind]
 
 
+def _dest(node: Node) -> Node | None:
+    """The destination of a frame (``dest_goal``, ``dest_me``, ``dest_home``), or None."""
+    return next((c for c in node.children if isinstance(c, Tree) and c.data.startswith("dest")), None)
+
+
 def _has(node: Node, kind: str) -> bool:
     return bool(_tokens(node, kind))
 
@@ -313,17 +318,17 @@ class Reader:
 
     def bring(self, node: Node) -> TaskAtom:
         x = self._theme(node, "What should I bring? Say e.g. 'bring me the jar'.")
-        dest = next((c for c in node.children if isinstance(c, Tree) and c.data.startswith("dest")), None)
+        dest = _dest(node)
         return self._moved(x, dest, back=False, default="bring")
 
     def take(self, node: Node) -> TaskAtom:
         x = self._theme(node, "What should I take? Say e.g. 'take the jar out of the cabinet'.")
-        dest = next((c for c in node.children if isinstance(c, Tree) and c.data.startswith("dest")), None)
+        dest = _dest(node)
         return self._moved(x, dest, back=False, default="bring")
 
     def take_back(self, node: Node) -> TaskAtom:
         x = self._theme(node, "What should I take back? Say e.g. 'take the jar back'.")
-        dest = next((c for c in node.children if isinstance(c, Tree) and c.data.startswith("dest")), None)
+        dest = _dest(node)
         return self._moved(x, dest, back=True, default="return")
 
     def put_away(self, node: Node) -> TaskAtom:
@@ -335,7 +340,7 @@ class Reader:
         return TaskAtom("fetch", (x,))
 
     def put(self, node: Node) -> TaskAtom:
-        dest = next((c for c in node.children if isinstance(c, Tree) and c.data.startswith("dest")), None)
+        dest = _dest(node)
         y = None
         if dest is not None and dest.data == "dest_goal":
             try:
@@ -354,12 +359,12 @@ class Reader:
 
     def put_back(self, node: Node) -> TaskAtom:
         x = self._theme(node, "What should I put back? Say e.g. 'put the jar back'.")
-        dest = next((c for c in node.children if isinstance(c, Tree) and c.data.startswith("dest")), None)
+        dest = _dest(node)
         return self._moved(x, dest, back=True, default="return")
 
     def ret(self, node: Node) -> TaskAtom:
         x = self._theme(node, "What should I put back? Say e.g. 'return the cup'.")
-        dest = next((c for c in node.children if isinstance(c, Tree) and c.data.startswith("dest")), None)
+        dest = _dest(node)
         return self._moved(x, dest, back=True, default="return")
 
     def tidy(self, node: Node) -> TaskAtom:

@@ -113,11 +113,16 @@ class SilentKm(Agent):
         self.x.clear()
 
 
-def test_stop_acts_at_once_and_drops_the_sentences_waiting_for_words(stage: Stage) -> None:
+def _with_silent_km(stage: Stage) -> ScriptedCo:
     stage.start(SilentKm(stage.bus.transport()))
     co = stage.co()
     stage.start_hi()
     assert co.subscribed.wait(TIMEOUT)
+    return co
+
+
+def test_stop_acts_at_once_and_drops_the_sentences_waiting_for_words(stage: Stage) -> None:
+    co = _with_silent_km(stage)
     say(stage, "bring me the cup", "r1")
     say(stage, "stop", "r2")
     (dropped,) = stage.person.until_final("r1")
@@ -129,9 +134,6 @@ def test_stop_acts_at_once_and_drops_the_sentences_waiting_for_words(stage: Stag
 
 
 def test_without_an_answer_from_a_km_the_last_words_are_used(stage: Stage) -> None:
-    stage.start(SilentKm(stage.bus.transport()))
-    co = stage.co()
-    stage.start_hi()
-    assert co.subscribed.wait(TIMEOUT)
+    co = _with_silent_km(stage)
     say(stage, "pour the jar into the bowl", "r1")
     assert goal(co) == TaskAtom("pour", ("jar", "bowl"))  # after the query's reply-by (2 s)

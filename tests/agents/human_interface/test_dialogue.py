@@ -4,7 +4,6 @@ reference is ambiguous, and the command going on with the answer."""
 from __future__ import annotations
 
 import pytest
-from rdflib import Graph
 
 from services.agents.human_interface.language import (
     Ambiguous,
@@ -14,18 +13,15 @@ from services.agents.human_interface.language import (
     NotUnderstood,
     interpret,
 )
-from services.agents.human_interface.vocabulary import KNOWLEDGE_FILES, Vocabulary
+from services.agents.human_interface.vocabulary import Vocabulary
 from shared.fipa_codec.languages.l_hc import TaskAtom
-from tests.agents.human_interface.corpus import SECOND_CUP
+from tests.agents.human_interface.test_corpus import two_cups
 
 
 @pytest.fixture(scope="module")
 def kitchen() -> Vocabulary:
-    graph = Graph()
-    for path in KNOWLEDGE_FILES:
-        graph.parse(path, format="turtle")
-    graph.parse(data=SECOND_CUP, format="turtle")
-    return Vocabulary.from_graph(graph)
+    """The kitchen with a second cup, on the table."""
+    return two_cups()
 
 
 def test_it_is_the_last_object_the_same_person_named(kitchen: Vocabulary) -> None:
