@@ -503,6 +503,9 @@ def send(
     runs_dir: Annotated[Path, typer.Option()] = Path("runs"),
     timeout: Annotated[float, typer.Option(help="seconds to wait for the outcome")] = 900.0,
     priority: Annotated[int, typer.Option(help="larger is more urgent")] = 0,
+    person: Annotated[
+        str, typer.Option(help="who speaks: a_hi keeps a conversation per person ('it', questions back)")
+    ] = "",
 ) -> None:
     """Give a running fleet a command and wait for a_hi's final report."""
     endpoint = _endpoint(router, runs_dir)
@@ -517,9 +520,8 @@ def send(
         session.close()
         raise fail(f"a_hi is not alive at {endpoint}")
     request_id = uuid.uuid4().hex[:8]
-    session.put(
-        keys.HUMAN_IN, msgspec.json.encode(HumanInput(text=command, request_id=request_id, priority=priority))
-    )
+    said = HumanInput(text=command, request_id=request_id, priority=priority, person=person)
+    session.put(keys.HUMAN_IN, msgspec.json.encode(said))
     deadline = time.monotonic() + timeout
     try:
         while True:

@@ -15,11 +15,14 @@ import msgspec
 
 class HumanInput(msgspec.Struct, frozen=True, kw_only=True):
     """A sentence from a person; ``request_id`` lets the sender match the reports.
-    ``priority`` > 0 overrides the priority the sentence's urgency words give."""
+    ``priority`` > 0 overrides the priority the sentence's urgency words give. ``person``
+    names who speaks (a_hi keeps a conversation per person: "it", questions and answers);
+    empty: the one anonymous person."""
 
     text: str
     request_id: str
     priority: int = 0
+    person: str = ""
 
 
 class ReportKind(enum.StrEnum):

@@ -34,7 +34,7 @@ def _traffic(fleet: MemoryFleet) -> list[tuple[str, object]]:
 def test_pour_runs_two_plans_and_succeeds() -> None:
     with MemoryFleet() as fleet:
         fleet.wait_for_initial_knowledge()
-        reports = fleet.command("pour the jar into the bowl")
+        reports = fleet.command("fill the bowl from the jar")  # issue 23: a pour in other words
         traffic = _traffic(fleet)
     kinds = [r.kind for r in reports if r.kind is not ReportKind.PROGRESS]
     assert kinds == [ReportKind.ACCEPTED, ReportKind.SUCCEEDED]
@@ -46,7 +46,7 @@ def test_pour_runs_two_plans_and_succeeds() -> None:
     states = [c.state for k, (m, c) in traffic if isinstance(c, SWStatus)]
     assert states.count(SWState.REPLAN) == 1 and states[-1] is SWState.SUCCEEDED
     channels = {k.split("/")[2] for k, _ in traffic}
-    assert channels == {"C1", "C2", "C3", "C4", "C5", "C6"}
+    assert channels == {"C1", "C2", "C3", "C4", "C5", "C6", "C7"}  # C7: a_hi asks a_km for its words
     # every L_SW inform of a_ta is confirmed by a_co (paper §5.4)
     informs = [m.reply_with for k, (m, c) in traffic if isinstance(c, SWStatus)]
     confirms = {m.in_reply_to for k, (m, c) in traffic if m.performative.value == "confirm"}
@@ -61,11 +61,12 @@ def test_unknown_sentence_is_reported_not_understood() -> None:
 
 
 def test_unknown_object_fails_with_a_readable_reason() -> None:
+    """a_hi names the word a_km's knowledge has no thing for (issue 23; a_pl refused it before)."""
     with MemoryFleet() as fleet:
         fleet.wait_for_initial_knowledge()
         reports = fleet.command("pour the teapot into the bowl")
-    assert reports[-1].kind is ReportKind.FAILED
-    assert "teapot" in reports[-1].text
+    assert reports[-1].kind is ReportKind.NOT_UNDERSTOOD
+    assert "'teapot'" in reports[-1].text
 
 
 def test_executor_failure_ends_the_task_with_error() -> None:
@@ -154,3 +155,17 @@ def test_an_uncertain_object_is_looked_at_again_before_the_grasp() -> None:
             if isinstance(c, SWStatus) and c.state is SWState.REPLAN
         ]
     assert any("the jar's position is too uncertain to grasp (σ 20 mm)" in r for r in reasons), reasons
+
+
+def test_it_names_the_object_the_person_named_last() -> None:
+    """Issue 23: "put it on the table" after a command about the cup moves the cup."""
+    with MemoryFleet() as fleet:
+        fleet.wait_for_initial_knowledge()
+        start = fleet.executor.poses["cup"].position
+        first = fleet.command("pick up the cup", request_id="r1")
+        second = fleet.command("now put it on the table", request_id="r2")
+        end = fleet.executor.poses["cup"].position
+    assert first[-1].kind is ReportKind.SUCCEEDED, first[-1].text
+    assert second[-1].kind is ReportKind.SUCCEEDED, second[-1].text
+    assert second[-1].text.startswith("put the cup on the table: succeeded")
+    assert end != start and not fleet.executor.held.get("right")

@@ -64,7 +64,7 @@ def test_traffic_shows_both_planning_phases_and_all_six_participants(pour_run: t
     records = read_records(run_dir)
     senders = {r.sender for r in records}
     assert senders >= {"a_hi", "a_co", "a_pl", "a_km", "a_ta", "ag_ex"}
-    assert {r.channel for r in records} == {"C1", "C2", "C3", "C4", "C5", "C6"}
+    assert {r.channel for r in records} == {"C1", "C2", "C3", "C4", "C5", "C6", "C7"}
     report = build_report(run_dir)
     assert [p.outcome for p in report.plans][-2:] == ["partial", "complete"]
     md = (run_dir / "report.md").read_text()

@@ -113,6 +113,7 @@ def test_a_file_that_is_not_a_specification_is_one_clear_problem(tmp_path: Path)
 
 
 def test_replay_reaches_the_papers_six_groups_and_channels() -> None:
+    """The paper's six groups and channels (Figure 6), and C7 between hi and km (issue 23)."""
     final = replay(load_decomposition())[-1]
     assert sorted(final.fringe) == ["co", "ex", "hi", "km", "pl", "ta"]  # paper Figure 6
     ends = {c.name: set(c.ends) for c in final.channels.values()}
@@ -123,6 +124,7 @@ def test_replay_reaches_the_papers_six_groups_and_channels() -> None:
         "C4": {"pl", "km"},
         "C5": {"ex", "ta"},
         "C6": {"ta", "km"},
+        "C7": {"hi", "km"},
     }
     assert final.channels[6].transmits == ["knowledge needed by a_ta", "updates of the environment model"]
 
@@ -131,7 +133,7 @@ def test_show_renders_every_step_and_the_graph() -> None:
     from services.spec.model import load
 
     text = steps_markdown(load_decomposition())
-    assert text.count("## Step ") == 6 and "g_cp := ⟨g_pl, g_km⟩" in text and "C3: cp ↦ pl" in text
+    assert text.count("## Step ") == 7 and "g_cp := ⟨g_pl, g_km⟩" in text and "C3: cp ↦ pl" in text
     spec = load()
     svg = graph_svg(spec)
     assert svg.startswith("<svg") and all(f">{a.name}<" in svg for a in spec.agents)

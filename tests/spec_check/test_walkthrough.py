@@ -62,8 +62,9 @@ def test_stage_1_a_new_step_makes_check_list_what_is_missing(tmp_path: Path) -> 
         "stop condition: group 'lb' of the final fringe is substituted by no agent",
         "agent a_hi substitutes group 'hi', which is not in the final fringe",
         "channel C2 joins <group ui> and a_co by the decomposition, but a_co and a_hi in [[channels]]",
-        "channel C7 of the decomposition is not specified in [[channels]]",
-        "5 problem(s)",
+        "channel C7 joins <group ui> and a_km by the decomposition, but a_hi and a_km in [[channels]]",
+        "channel C8 of the decomposition is not specified in [[channels]]",
+        "6 problem(s)",
     ):
         assert line in text, text
 
@@ -90,7 +91,7 @@ def test_stage_2_new_agent_writes_the_agent_and_verify_code_says_what_is_missing
     ok, text = verify_code_report(path)
     assert not ok
     assert (
-        "- agent a_hi declares no initiator role for fipa-request on C7, which [[channels]] C7 gives it "
+        "- agent a_hi declares no initiator role for fipa-request on C8, which [[channels]] C8 gives it "
         "(in L_HC)"
     ) in text
     assert (
@@ -125,9 +126,9 @@ def test_stage_3_the_finished_agent_conforms_and_a_hi_records_through_it(
     ok, text = verify_code_report(path)
     assert ok, text
     assert "a_lb: 2 files; 1 protocol roles agree with the specification:" in text
-    assert "  C7 fipa-request participant with a_hi in L_HC: receives cancel, request" in text
+    assert "  C8 fipa-request participant with a_hi in L_HC: receives cancel, request" in text
 
-    # both ends of C7 on one bus, started from the staged specification
+    # both ends of C8 on one bus, started from the staged specification
     from services.runtime.main import agent_class
 
     spec = load(path)

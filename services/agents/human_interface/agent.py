@@ -15,6 +15,17 @@ Receptor: ``roco/human/in`` (:class:`HumanInput`, sentences). Effector: ``roco/h
 - **fipa-query** per status request ("what are you doing?"): ``query-ref`` a
   :class:`StatusQuery`; a_co answers ``inform-ref`` a :class:`Status`.
 
+Towards a_km, on C7 in L_WM (issue 23), a_hi initiates **fipa-query** per sentence: ``query-ref``
+a ``SparqlQuery`` of the vocabulary (vocabulary.py: the words for the kitchen's things, their
+adjectives and where they are); a_km answers ``inform-ref`` an ``Answer``. The sentence waits for
+that answer, so a thing a_km learnt a moment ago can be named; when a_km is not alive (its
+liveliness token absent) or does not answer within ``VOCABULARY_REPLY_BY_S``, the sentence is
+read with the last vocabulary a_hi has (at start: O_RoCo and the kitchen's files). Sentences are
+read in the order they came; "stop" is acted on at once, and the sentences still waiting are
+dropped (reported when their query ends).
+A conversation per person (``HumanInput.person``) keeps the last object named and a question
+a_hi asked back ("Which cup: …?"), which the person's next sentence may answer.
+
 Every request from the person (command, stop, status) gets reports under its own
 ``request_id`` and ends with one report of a kind in FINAL_REPORTS (messages.py).
 
@@ -27,24 +38,29 @@ the person who asked. Open stop requests and status queries are not kept (ask ag
 from __future__ import annotations
 
 import time
-from collections import OrderedDict
+from collections import OrderedDict, deque
 from dataclasses import dataclass, field
+from typing import ClassVar
 
 import msgspec
 
 from services.agents.human_interface.language import (
     Command,
+    Dialogue,
+    Intent,
     NotUnderstood,
     StatusRequest,
     Stop,
+    default_vocabulary,
     describe,
     interpret,
 )
+from services.agents.human_interface.vocabulary import VOCABULARY_QUERY, Vocabulary
 from services.runtime import keys
 from services.runtime.agent import Agent
 from services.runtime.behaviour import FSM, Behaviour
 from services.runtime.human import FINAL_REPORTS, HumanInput, HumanReport, ReportKind, RequestKind
-from services.runtime.roles import INITIATOR, Conversation, RestoreError, handles, initiator
+from services.runtime.roles import INITIATOR, Conversation, RestoreError, RoleDecl, handles, initiator
 from services.runtime.state_store import StateFile
 from shared.fipa_codec import Performative
 from shared.fipa_codec.languages.l_hc import (
@@ -57,9 +73,13 @@ from shared.fipa_codec.languages.l_hc import (
     TaskState,
     TaskStatus,
 )
+from shared.fipa_codec.languages.l_wm import Answer, SparqlQuery
+from shared.fipa_codec.message import new_id
 
 CO = "a_co"
+KM = "a_km"
 C2 = "C2"
+C7 = "C7"
 REQUEST = "fipa-request"
 SUBSCRIBE = "fipa-subscribe"
 QUERY = "fipa-query"
@@ -80,12 +100,27 @@ SUBSCRIBE_RETRY_S = (1.0, 60.0)
 """First and longest interval between subscription attempts (doubling in between)."""
 SUBSCRIPTION = "hi-progress"
 """Conversation-id of the first subscription attempt; later ones add ``-2``, ``-3``, …"""
+VOCABULARY_REPLY_BY_S = 2.0
+"""How long a sentence waits for a_km's vocabulary before it is read with the last one."""
 ENDED_KEPT = 256
 """How many ended command conversations a_hi remembers (late replies, late progress)."""
 
 _CONNECTIVES = frozenset(
     {"for", "by", "because", "after", "before", "while", "since", "until", "as", "so", "with", "to"}
 )
+
+
+@dataclass
+class HeldSentence:
+    """A sentence waiting for a_km's vocabulary (``conversation``: the C7 query); ``ready`` once
+    answered or given up, with the ``vocabulary`` to read it with (None: the last one);
+    ``stopped``: a stop came after it, so it is dropped, not read."""
+
+    event: HumanInput
+    conversation: str
+    ready: bool = False
+    vocabulary: Vocabulary | None = None
+    stopped: bool = False
 
 
 class KeptCommand(msgspec.Struct, kw_only=True):
@@ -196,10 +231,11 @@ class HumanInterface(Agent):
     """a_hi: sentences in, L_HC on C2 to a_co, readable reports out."""
 
     name = "a_hi"
-    ROLES = (
+    ROLES: ClassVar[tuple[RoleDecl, ...]] = (
         initiator(C2, REQUEST, "L_HC", reply_by_s=AGREE_BY_S, retry_s=COMMAND_RETRY_S),
         initiator(C2, SUBSCRIBE, "L_HC", reply_by_s=SUBSCRIBE_REPLY_BY_S),
         initiator(C2, QUERY, "L_HC", reply_by_s=STATUS_REPLY_BY_S),
+        initiator(C7, QUERY, "L_WM", reply_by_s=VOCABULARY_REPLY_BY_S),
     )
 
     def build_fsm(self) -> FSM:
@@ -216,6 +252,10 @@ class HumanInterface(Agent):
         self.retry_at: float | None = None
         self.retry_interval = SUBSCRIBE_RETRY_S[0]
         self.co_alive = False  # a_co's liveliness token is present
+        self.vocabulary = default_vocabulary()  # the last vocabulary a_km gave (at first: the files')
+        self.dialogues: dict[str, Dialogue] = {}  # person → conversation
+        self.held: deque[HeldSentence] = deque()  # sentences waiting for the vocabulary, in order
+        self.vocab_queries: dict[str, HeldSentence] = {}  # C7 conversation → its sentence
         self.kept = StateFile.for_agent(self.name, KeptHumanInterface)
         return FSM(
             initial="interact",
@@ -306,8 +346,75 @@ class HumanInterface(Agent):
 
     # ---- from the person ---------------------------------------------------------------
     def _on_input(self, event: HumanInput) -> None:
+        """A sentence: read at once when a_km is away, else after a_km's vocabulary. A stop is
+        acted on at once (it needs no words for things); the sentences still waiting are dropped."""
+        if self._is_stop(event):
+            for held in self.held:
+                held.stopped = True  # reported when its query ends (the query runs its course)
+            self._understand(event, self.vocabulary)
+            return
+        if KM not in self.peers:
+            if not self.held:
+                self._understand(event, self.vocabulary)
+                return
+            self.held.append(HeldSentence(event, "", ready=True))  # after those still waiting
+            return
+        conv = self.roles.open(
+            C7,
+            QUERY,
+            SparqlQuery(VOCABULARY_QUERY),
+            performative=Performative.QUERY_REF,
+            conversation_id=new_id(f"words-{event.request_id}-"),  # never one a_km has seen end
+        )
+        held = HeldSentence(event, conv.conversation_id)
+        self.held.append(held)
+        self.vocab_queries[conv.conversation_id] = held
+
+    def _is_stop(self, event: HumanInput) -> bool:
         try:
-            intent = interpret(event.text, priority=event.priority)
+            return isinstance(interpret(event.text, vocabulary=self.vocabulary), Stop)
+        except NotUnderstood:
+            return False
+
+    def _read_held(self) -> None:
+        """Read the waiting sentences, in order, as far as their vocabulary is there."""
+        while self.held and self.held[0].ready:
+            held = self.held.popleft()
+            if held.stopped:
+                self._report(
+                    held.event.request_id,
+                    ReportKind.NOT_UNDERSTOOD,
+                    f"'{held.event.text}' was dropped: you said stop before I had read it.",
+                )
+                continue
+            self._understand(held.event, held.vocabulary or self.vocabulary)
+
+    @handles(QUERY, INITIATOR, "inform-ref", "inform", channel=C7)
+    def _on_vocabulary(self, conv: Conversation) -> None:
+        held = self.vocab_queries.pop(conv.conversation_id, None)
+        conv.abandon()
+        if isinstance(conv.content, Answer) and conv.content.rows:
+            self.vocabulary = Vocabulary.from_rows(conv.content.rows)
+        if held is not None:
+            held.ready, held.vocabulary = True, self.vocabulary
+            self._read_held()
+
+    @handles(QUERY, INITIATOR, "refuse", "failure", channel=C7)
+    def _on_no_vocabulary(self, conv: Conversation) -> None:
+        """Refused, failed, not understood or unanswered in time: read with the last vocabulary."""
+        held = self.vocab_queries.pop(conv.conversation_id, None)
+        conv.abandon()
+        self.log.warning("a_km gave no vocabulary (%s); reading with the last one", _reason(conv))
+        if held is not None:
+            held.ready = True
+            self._read_held()
+
+    def _understand(self, event: HumanInput, vocabulary: Vocabulary) -> None:
+        dialogue = self.dialogues.setdefault(event.person, Dialogue())
+        try:
+            intent: Intent = interpret(
+                event.text, priority=event.priority, vocabulary=vocabulary, dialogue=dialogue
+            )
         except NotUnderstood as exc:
             self._report(event.request_id, ReportKind.NOT_UNDERSTOOD, str(exc))
             return
@@ -493,11 +600,11 @@ class HumanInterface(Agent):
         c.stoppers.clear()
 
     # ---- a_co's answers to status queries (fipa-query, initiator) ------------------------
-    @handles(QUERY, INITIATOR, "inform-ref", "inform")
+    @handles(QUERY, INITIATOR, "inform-ref", "inform", channel=C2)
     def _on_status(self, conv: Conversation) -> None:
         self._status_answer(conv, True)
 
-    @handles(QUERY, INITIATOR, "refuse", "failure")
+    @handles(QUERY, INITIATOR, "refuse", "failure", channel=C2)
     def _on_no_status(self, conv: Conversation) -> None:
         """Refused, failed, not understood, or unanswered by the reply-by deadline."""
         self._status_answer(conv, False)

@@ -1,6 +1,7 @@
 """a_km — the knowledge manager (paper §5.5, Table 5, Figure 11c).
 
-FSM states: idle (wait for a query from a_pl or a_ta, or an observation), questionAnswering
+FSM states: idle (wait for a query from a_pl, a_ta or a_hi — a_hi asks on C7 for the words
+a person may use for things, issue 23 —, or an observation), questionAnswering
 (answer one query from the knowledge base, hypothetical queries of §5.7 included: inform-ref
 with an L_WM Answer to query-ref, inform to query-if; ``refuse`` with the reason for a query
 a_km does not answer, ``failure`` with the reason for one it cannot answer), knowledgeSaving
@@ -82,6 +83,7 @@ class KnowledgeManager(Agent):
     ROLES = (
         participant("C4", "fipa-query", "L_WM"),
         participant("C6", "fipa-query", "L_WM"),
+        participant("C7", "fipa-query", "L_WM"),
         initiator("C6", "fipa-subscribe", "L_WM", reply_by_s=SUBSCRIBE_RETRY_S),
     )
 

@@ -260,12 +260,14 @@ def test_preemption_and_failure_are_reported_with_their_detail(stage: Stage) -> 
 
 def test_refuse_is_a_failed_report_with_the_reason(stage: Stage) -> None:
     co, _hi, person = _ready(stage)
-    person.say("pour the teapot into the bowl", "r1")
+    person.say("pour the cup into the bowl", "r1")
     request = co.receive(Performative.REQUEST)
-    co.do(lambda co: co.fail(request, Performative.REFUSE, "I know of no teapot"))
+    co.do(lambda co: co.fail(request, Performative.REFUSE, "I do not know how to pour the cup into the bowl"))
     (report,) = person.until_final("r1")
     assert report.kind is ReportKind.FAILED
-    assert report.text == "pour the teapot into the bowl: refused; I know of no teapot"
+    assert (
+        report.text == "pour the cup into the bowl: refused; I do not know how to pour the cup into the bowl"
+    )
 
 
 def test_stop_sends_cancel_in_every_open_command_conversation(stage: Stage) -> None:

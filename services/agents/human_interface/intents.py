@@ -1,0 +1,111 @@
+"""What a person's sentence asks a_hi for (an L_HC command, a stop, a status request), and the
+ways it can fail to: not understood, incomplete, or naming an object ambiguously or not at all.
+
+These are a_hi's own terms; a :class:`Command` becomes an L_HC ``HumanCommand`` (its goal a
+``TaskAtom`` of a task a_pl knows: services/agents/planner/domain.py ``TASKS``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from shared.fipa_codec.languages.l_hc import TaskAtom
+
+URGENT_PRIORITY = 5
+"""The priority an urgency word gives a command (larger is more urgent; the default is 0)."""
+
+STORAGE = "cabinet"
+"""Where things are put back (a_pl's ``return`` puts them there: planner/domain.py STORAGE);
+"put X in the cabinet" is read as ``return(X)``."""
+
+
+@dataclass(frozen=True)
+class Command:
+    """Do ``goal``; ``priority`` larger is more urgent; ``deadline_s`` seconds from acceptance."""
+
+    goal: TaskAtom
+    priority: int = 0
+    deadline_s: float | None = None
+
+
+@dataclass(frozen=True)
+class Stop:
+    """Stop every command that is still open (the robot first puts down what it holds)."""
+
+
+@dataclass(frozen=True)
+class StatusRequest:
+    """ "What are you doing?": the state of every command a_co holds."""
+
+
+Intent = Command | Stop | StatusRequest
+"""What a sentence asks for."""
+
+
+class NotUnderstood(ValueError):
+    """The sentence is not understood; the message is one line for the person: what was not
+    understood (a word, a missing part) and what could be said instead."""
+
+
+class Incomplete(NotUnderstood):
+    """The sentence has a known form but lacks something; the message asks for it
+    (``missing`` names it: "object", "destination", "source")."""
+
+    def __init__(self, message: str, missing: str) -> None:
+        super().__init__(message)
+        self.missing = missing
+
+
+class Ambiguous(NotUnderstood):
+    """A reference names more than one thing; the message asks which ("Which cup: the one in
+    the cabinet or the one on the table?"). ``at`` is the reference's first token, ``candidates``
+    the individuals it could name (O_RoCo names)."""
+
+    def __init__(self, message: str, at: int, candidates: tuple[str, ...]) -> None:
+        super().__init__(message)
+        self.at = at
+        self.candidates = candidates
+
+
+class UnknownReference(NotUnderstood):
+    """A reference names nothing the knowledge base holds ("the small jar", "the cup on the
+    table" when the only cup is in the cabinet); the message says what there is."""
+
+
+def show(name: str) -> str:
+    """An O_RoCo name as a person reads it: ``tea_pot`` → "the tea pot"."""
+    return "the " + name.replace("_", " ")
+
+
+def describe(goal: TaskAtom) -> str:
+    """The task in words a person reads ("pour the jar into the bowl")."""
+    a = [show(x) for x in goal.args]
+    if goal.name == "pour" and len(a) == 2:
+        return f"pour {a[0]} into {a[1]}"
+    if goal.name == "place" and len(a) == 2:
+        return f"put {a[0]} on {a[1]}"
+    if goal.name == "bring" and len(a) == 1:
+        return f"bring {a[0]} to the table"
+    if goal.name == "return" and len(a) == 1:
+        return f"put {a[0]} back in the {STORAGE}"
+    if goal.name == "hand_over" and len(a) == 1:
+        return f"hand you {a[0]}"
+    if goal.name == "fetch" and len(a) == 1:
+        return f"pick up {a[0]}"
+    return f"{goal.name}({', '.join(goal.args)})"
+
+
+__all__ = [
+    "STORAGE",
+    "URGENT_PRIORITY",
+    "Ambiguous",
+    "Command",
+    "Incomplete",
+    "Intent",
+    "NotUnderstood",
+    "StatusRequest",
+    "Stop",
+    "UnknownReference",
+    "describe",
+    "show",
+]

@@ -1,0 +1,401 @@
+"""From a parse tree of grammar.lark to an intent: the frame of the verb gives the task, and
+each reference is resolved against the vocabulary (the things a_km knows, where they are).
+
+Frames (X the theme, Y the goal, Z the source; the task names and argument orders are a_pl's,
+services/agents/planner/domain.py ``TASKS``):
+
+==================================================  ===========================================
+sentence                                            task
+==================================================  ===========================================
+pour X into Y, pour from X into Y, pour the         ``pour(X, Y)``
+contents of X into Y, empty X into Y,
+fill Y from/with X
+bring/fetch/get X [to me | here], take X out of Z   ``bring(X)`` (to the table)
+bring/take X to Y, put/place/set/leave X on/in Y    ``place(X, Y)``
+put X back, put X away, return X, put X in the      ``return(X)`` (back in the cabinet)
+cabinet, take X back, tidy X away
+pick X up, hold X                                   ``fetch(X)`` (take it in a hand)
+hand me X, give X to me, hand over X                ``hand_over(X)``
+stop [everything]                                   :class:`Stop`
+what are you doing?, status                         :class:`StatusRequest`
+==================================================  ===========================================
+
+A reference ("the small cup on the table", "the contents of the jar", "the beans", "it",
+"the one in the cabinet") becomes one individual's O_RoCo name: the things its noun names,
+narrowed by its adjectives and where it is said to be (in/on/from Z). "it"/"that" is the last
+object the same person named. More than one left raises :class:`Ambiguous` (a question), none
+:class:`UnknownReference`; a missing argument :class:`Incomplete` (a question).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+from lark import Token, Tree
+
+from services.agents.human_interface.intents import (
+    STORAGE,
+    URGENT_PRIORITY,
+    Ambiguous,
+    Command,
+    Incomplete,
+    Intent,
+    NotUnderstood,
+    StatusRequest,
+    Stop,
+    UnknownReference,
+    show,
+)
+from services.agents.human_interface.vocabulary import Thing, Vocabulary
+from shared.fipa_codec.languages.l_hc import TaskAtom
+
+Node = Tree[Token]
+
+
+@dataclass
+class Context:
+    """What a reading is interpreted against: the ``vocabulary``; the ``last`` object the person
+    named (for "it"); ``chosen``: references already settled by the person's answer to a
+    question (first token index → O_RoCo name); ``among``: for a bare reply, the candidates of
+    the question it answers; ``token_seconds``: DEADLINE values by token index."""
+
+    vocabulary: Vocabulary
+    last: str | None = None
+    chosen: dict[int, str] = field(default_factory=dict)
+    among: tuple[str, ...] = ()
+    token_seconds: dict[int, float] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class Reply:
+    """A bare reference, the answer to a question: the individual it names."""
+
+    name: str
+
+
+def _first_index(node: Node | Token) -> int:
+    if isinstance(node, Token):
+        return int(node.start_pos or 0)
+    return min((int(t.start_pos or 0) for t in node.scan_values(lambda v: isinstance(v, Token))), default=0)
+
+
+def _child(node: Node, name: str) -> Node | None:
+    return next((c for c in node.children if isinstance(c, Tree) and c.data == name), None)
+
+
+def _tokens(node: Node, kind: str) -> list[Token]:
+    return [c for c in node.children if isinstance(c, Token) and c.type == kind]
+
+
+def _dest(node: Node) -> Node | None:
+    """The destination of a frame (``dest_goal``, ``dest_me``, ``dest_home``), or None."""
+    return next((c for c in node.children if isinstance(c, Tree) and c.data.startswith("dest")), None)
+
+
+def _has(node: Node, kind: str) -> bool:
+    return bool(_tokens(node, kind))
+
+
+def loc_count(tree: Node) -> int:
+    """How many references in ``tree`` carry a location ("the cup on the table"): a reading
+    with fewer is preferred (its prepositions are the verb's arguments)."""
+    return sum(1 for _ in tree.find_data("loc"))
+
+
+def loc_depth(tree: Node) -> int:
+    """The sum of the first token indexes of the located references in ``tree``: among equal
+    readings the one attaching a location to the later noun ("the bowl on the table" in "pour the
+    jar into the bowl on the table") has the larger sum, and is preferred."""
+    return sum(_first_index(loc) for loc in tree.find_data("loc"))
+
+
+def _or(items: list[str]) -> str:
+    return items[0] if len(items) == 1 else ", ".join(items[:-1]) + " or " + items[-1]
+
+
+class Reader:
+    """Interprets one reading in a :class:`Context`."""
+
+    def __init__(self, ctx: Context) -> None:
+        self.ctx = ctx
+        self.v = ctx.vocabulary
+
+    # ---- references --------------------------------------------------------------------
+    def ref(self, node: Node | None, place: str | None = None) -> str | None:
+        """The O_RoCo name ``node`` (a theme/goal/source or a ref) refers to; None when it is
+        missing ("it" with nothing named before). ``place``: it must be in/on that place."""
+        if node is None:
+            return None
+        if node.data in ("theme", "goal", "source"):
+            node = node.children[0]  # type: ignore[assignment]
+        assert isinstance(node, Tree)
+        at = _first_index(node)
+        if at in self.ctx.chosen:
+            return self.ctx.chosen[at]
+        if node.data == "ref_list":
+            raise NotUnderstood(
+                "Please give me one object at a time, e.g. 'bring me the jar', then 'bring me the cup'."
+            )
+        if node.data == "plural":
+            word = _tokens(node, "PLURAL")[0]
+            raise NotUnderstood(
+                f"I handle one object at a time, not '{word}': say e.g. 'bring me the {word.value[:-1]}'."
+            )
+        if node.data == "pronoun":
+            return self.ctx.last
+        if node.data == "contents":
+            inner = next((c for c in node.children if isinstance(c, Tree) and c.data != "det"), None)
+            if inner is not None:
+                return self.ref(inner, place)
+            contents = [t for t in self.v.things if t.content and t.place]
+            return self._choose("contents", contents, at, [], None, place)
+        adjectives = [
+            str(t) for a in node.children if isinstance(a, Tree) and a.data == "adj" for t in a.children
+        ]
+        loc = _child(node, "loc")
+        where = self._loc(loc) if loc is not None else None
+        if node.data == "one":
+            pool = [t for t in self.v.things if not t.content]
+            if self.ctx.among:
+                pool = [t for t in pool if t.name in self.ctx.among]
+            return self._choose("one", pool, at, adjectives, where, place)
+        noun = str(_tokens(node, "NOUN")[0])
+        return self._choose(noun, self.v.named(tuple(noun.split())), at, adjectives, where, place)
+
+    def _loc(self, loc: Node) -> str:
+        inner = next(c for c in loc.children if isinstance(c, Tree))
+        name = self.ref(inner)
+        if name is None:
+            raise Incomplete("Which place do you mean? Say e.g. 'the cup on the table'.", "place")
+        return name
+
+    def _choose(
+        self,
+        noun: str,
+        things: list[Thing],
+        at: int,
+        adjectives: list[str],
+        where: str | None,
+        place: str | None,
+    ) -> str:
+        said = " ".join([*adjectives, noun]) if noun not in ("one", "contents") else "one"
+        if noun == "contents":
+            said = "contents"
+        if not things:
+            raise UnknownReference(f"I know of no {said}; I know {self.v.examples()}.")
+        fitting = [t for t in things if set(adjectives) <= t.adjectives]
+        if not fitting:
+            them = "; ".join(
+                f"{show(t.name)} is {', '.join(sorted(t.adjectives)) or 'not described'}" for t in things
+            )
+            raise UnknownReference(f"I know of no {said}: {them}.")
+        for required in (where, place):
+            if required is None:
+                continue
+            located = [t for t in fitting if t.place == required]
+            if not located:
+                them = "; ".join(
+                    f"{show(t.name)} is {t.where() or 'somewhere I do not know'}" for t in fitting
+                )
+                raise UnknownReference(f"I know of no {said} in or on {show(required)}: {them}.")
+            fitting = located
+        if len(fitting) > 1:
+            raise Ambiguous(self._which(said, fitting), at, tuple(t.name for t in fitting))
+        thing = fitting[0]
+        if thing.content and thing.place:
+            return thing.place  # "the beans": the container they are in
+        return thing.name
+
+    @staticmethod
+    def _which(said: str, things: list[Thing]) -> str:
+        wheres = [t.where() for t in things]
+        if all(wheres) and len(set(wheres)) == len(wheres):
+            options = [f"the one {w}" for w in wheres]
+        elif len(set(wheres)) == 1:
+            options = [show(t.name) for t in things]
+        else:
+            options = [show(t.name) + (f" ({t.where()})" if t.where() else "") for t in things]
+        noun = "one" if said in ("one", "contents") else said
+        return f"Which {noun}: {_or(options)}?"
+
+    # ---- the sentence ------------------------------------------------------------------
+    def sentence(self, tree: Node, priority: int) -> Intent | Reply:
+        """The intent of the reading ``tree`` (a ``start``). ``priority`` > 0 (given with the
+        input) wins over urgency words. Raises NotUnderstood and its subclasses."""
+        urgent, deadline = False, None
+        request: Node | None = None
+        for c in tree.children:
+            if isinstance(c, Tree) and c.data in ("pre", "post"):
+                tok = c.children[0]
+                assert isinstance(tok, Token)
+                if tok.type == "URGENT":
+                    urgent = True
+                elif tok.type == "DEADLINE":
+                    deadline = self.ctx.token_seconds.get(int(tok.start_pos or 0))
+            elif isinstance(c, Tree):
+                request = c
+        assert request is not None
+        if request.data == "stop":
+            return Stop()
+        if request.data == "status":
+            return StatusRequest()
+        if request.data == "reply":
+            name = self.ref(request.children[0])  # type: ignore[arg-type]
+            if name is None:
+                raise Incomplete("Which object do you mean? Say e.g. 'the cup on the table'.", "object")
+            return Reply(name)
+        frame = _FRAMES.get(request.data)
+        if frame is None:  # pragma: no cover - every command rule has a frame
+            raise NotUnderstood(f"I cannot do '{request.data}' yet.")
+        goal = frame(self, request)
+        if priority <= 0:
+            priority = URGENT_PRIORITY if urgent else 0
+        return Command(goal, priority, deadline)
+
+    # ---- frames ------------------------------------------------------------------------
+    def _need(self, name: str | None, question: str, missing: str) -> str:
+        if name is None:
+            raise Incomplete(question, missing)
+        return name
+
+    def pour(self, node: Node, verb: str = "pour") -> TaskAtom:
+        source = _child(node, "source_pp")
+        goal_pp = _child(node, "goal_pp")
+        dst = self.ref(_child(goal_pp, "goal")) if goal_pp is not None else None
+        src = self.ref(_child(source, "source")) if source is not None else self.ref(_child(node, "theme"))
+        into = f" into {show(dst)}" if dst else ""
+        src = self._need(
+            src, f"Which object should I {verb}{into}? Say e.g. '{verb} the jar into the bowl'.", "object"
+        )
+        dst = self._need(
+            dst,
+            f"Into what should I {verb} {show(src)}? Say e.g. '{verb} {show(src)} into the bowl'.",
+            "destination",
+        )
+        return TaskAtom("pour", (src, dst))
+
+    def empty(self, node: Node) -> TaskAtom:
+        return self.pour(node, "empty")
+
+    def fill(self, node: Node) -> TaskAtom:
+        dst = self._need(
+            self.ref(_child(node, "goal")),
+            "What should I fill? Say e.g. 'fill the bowl from the jar'.",
+            "destination",
+        )
+        src = self._need(
+            self.ref(_child(node, "theme")),
+            f"What should I fill {show(dst)} from? Say e.g. 'fill {show(dst)} from the jar'.",
+            "source",
+        )
+        return TaskAtom("pour", (src, dst))
+
+    def _theme(self, node: Node, question: str) -> str:
+        source = _child(node, "source_pp")
+        place = self.ref(_child(source, "source")) if source is not None else None
+        return self._need(self.ref(_child(node, "theme"), place), question, "object")
+
+    def _moved(self, x: str, dest: Node | None, *, back: bool, default: str) -> TaskAtom:
+        """Where ``x`` goes by ``dest``: to the person (bring), back (return), or onto a place."""
+        if dest is None:
+            return TaskAtom(default, (x,))
+        if dest.data == "dest_home":
+            return TaskAtom("return", (x,))
+        if dest.data == "dest_me":
+            return TaskAtom("hand_over", (x,)) if default == "hand_over" else TaskAtom("bring", (x,))
+        prep = next(c for c in dest.children if isinstance(c, Token))
+        y = self._need(
+            self.ref(_child(dest, "goal")),
+            f"Where should I put {show(x)}? Say e.g. 'put {show(x)} on the table'.",
+            "destination",
+        )
+        if y == STORAGE and (back or prep.type == "IN"):
+            return TaskAtom("return", (x,))
+        if y == "table" and default == "bring":
+            return TaskAtom("bring", (x,))
+        return TaskAtom("place", (x, y))
+
+    def bring(self, node: Node) -> TaskAtom:
+        x = self._theme(node, "What should I bring? Say e.g. 'bring me the jar'.")
+        dest = _dest(node)
+        return self._moved(x, dest, back=False, default="bring")
+
+    def take(self, node: Node) -> TaskAtom:
+        x = self._theme(node, "What should I take? Say e.g. 'take the jar out of the cabinet'.")
+        dest = _dest(node)
+        return self._moved(x, dest, back=False, default="bring")
+
+    def take_back(self, node: Node) -> TaskAtom:
+        x = self._theme(node, "What should I take back? Say e.g. 'take the jar back'.")
+        dest = _dest(node)
+        return self._moved(x, dest, back=True, default="return")
+
+    def put_away(self, node: Node) -> TaskAtom:
+        x = self._theme(node, "What should I put away? Say e.g. 'put the cup away'.")
+        return TaskAtom("return", (x,))
+
+    def pick(self, node: Node) -> TaskAtom:
+        x = self._theme(node, "What should I pick up? Say e.g. 'pick up the cup'.")
+        return TaskAtom("fetch", (x,))
+
+    def put(self, node: Node) -> TaskAtom:
+        dest = _dest(node)
+        y = None
+        if dest is not None and dest.data == "dest_goal":
+            try:
+                y = self.ref(_child(dest, "goal"))
+            except NotUnderstood:
+                y = None
+        on = f" on {show(y)}" if y else ""
+        x = self._theme(node, f"Which object should I put{on}? Say e.g. 'put the cup on the table'.")
+        if dest is None:
+            raise Incomplete(
+                f"Where should I put {show(x)}? "
+                f"Say e.g. 'put {show(x)} on the table', or 'put {show(x)} back'.",
+                "destination",
+            )
+        return self._moved(x, dest, back=False, default="place")
+
+    def put_back(self, node: Node) -> TaskAtom:
+        x = self._theme(node, "What should I put back? Say e.g. 'put the jar back'.")
+        dest = _dest(node)
+        return self._moved(x, dest, back=True, default="return")
+
+    def ret(self, node: Node) -> TaskAtom:
+        x = self._theme(node, "What should I put back? Say e.g. 'return the cup'.")
+        dest = _dest(node)
+        return self._moved(x, dest, back=True, default="return")
+
+    def tidy(self, node: Node) -> TaskAtom:
+        x = self._theme(node, "What should I tidy away? Say e.g. 'tidy the cup away'.")
+        return TaskAtom("return", (x,))
+
+    def give(self, node: Node) -> TaskAtom:
+        x = self._theme(node, "What should I hand you? Say e.g. 'hand me the cup'.")
+        return TaskAtom("hand_over", (x,))
+
+    def give_other(self, node: Node) -> TaskAtom:
+        raise NotUnderstood("I can hand things only to you; say e.g. 'hand me the cup'.")
+
+
+_FRAMES: dict[str, Callable[[Reader, Node], TaskAtom]] = {
+    "pour": Reader.pour,
+    "empty": Reader.empty,
+    "fill": Reader.fill,
+    "bring": Reader.bring,
+    "take": Reader.take,
+    "take_back": Reader.take_back,
+    "take_away": Reader.put_away,
+    "pick": Reader.pick,
+    "put": Reader.put,
+    "put_back": Reader.put_back,
+    "put_away": Reader.put_away,
+    "ret": Reader.ret,
+    "tidy": Reader.tidy,
+    "give": Reader.give,
+    "give_other": Reader.give_other,
+}
+"""Command rule of grammar.lark → the frame that makes its task."""
+
+__all__ = ["Context", "Reader", "Reply", "loc_count", "loc_depth"]

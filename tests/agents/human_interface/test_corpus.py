@@ -1,0 +1,95 @@
+"""Issue 23's corpus (corpus.py): every sentence maps to its L_HC command, question or refusal."""
+
+from __future__ import annotations
+
+import functools
+
+import pytest
+from rdflib import Graph
+
+from services.agents.human_interface.language import (
+    Ambiguous,
+    Command,
+    Incomplete,
+    NotUnderstood,
+    StatusRequest,
+    Stop,
+    default_vocabulary,
+    interpret,
+)
+from services.agents.human_interface.vocabulary import KNOWLEDGE_FILES, Vocabulary
+from shared.fipa_codec.languages.l_hc import TaskAtom
+from tests.agents.human_interface.corpus import (
+    PARAPHRASES,
+    REFERENCES,
+    REFUSALS,
+    SECOND_CUP,
+    STATUS,
+    STOP,
+    Ask,
+    Do,
+    Expected,
+    Refuse,
+)
+
+
+@functools.cache
+def two_cups() -> Vocabulary:
+    """The kitchen of O_RoCo with :data:`SECOND_CUP` stated beside it."""
+    graph = Graph()
+    for path in KNOWLEDGE_FILES:
+        graph.parse(path, format="turtle")
+    graph.parse(data=SECOND_CUP, format="turtle")
+    return Vocabulary.from_graph(graph)
+
+
+def check(sentence: str, expected: Expected, vocabulary: Vocabulary) -> None:
+    if isinstance(expected, Do):
+        assert interpret(sentence, vocabulary=vocabulary) == Command(
+            TaskAtom(expected.task, expected.args), expected.priority, expected.deadline_s
+        )
+        return
+    if expected == STOP:
+        assert interpret(sentence, vocabulary=vocabulary) == Stop()
+        return
+    if expected == STATUS:
+        assert interpret(sentence, vocabulary=vocabulary) == StatusRequest()
+        return
+    with pytest.raises(NotUnderstood) as info:
+        interpret(sentence, vocabulary=vocabulary)
+    text = str(info.value)
+    assert "\n" not in text and text.strip() == text, "one line"
+    if isinstance(expected, Ask):
+        wanted = Ambiguous if expected.kind == "which" else Incomplete
+        assert isinstance(info.value, wanted), f"{type(info.value).__name__}: {text}"
+        assert text.endswith((".", "?")) and "?" in text, text
+    else:
+        assert isinstance(expected, Refuse)
+        assert not isinstance(info.value, Ambiguous | Incomplete), f"{type(info.value).__name__}: {text}"
+    assert expected.says in text, text
+
+
+@pytest.mark.parametrize(("sentence", "expected"), PARAPHRASES, ids=[s for s, _ in PARAPHRASES])
+def test_paraphrases_of_the_tasks(sentence: str, expected: Expected) -> None:
+    check(sentence, expected, default_vocabulary())
+
+
+@pytest.mark.parametrize(("sentence", "expected"), REFERENCES, ids=[s for s, _ in REFERENCES])
+def test_ambiguous_unknown_and_located_references(sentence: str, expected: Expected) -> None:
+    check(sentence, expected, two_cups())
+
+
+@pytest.mark.parametrize(("sentence", "expected"), REFUSALS, ids=[s or "(empty)" for s, _ in REFUSALS])
+def test_sentences_that_must_be_refused(sentence: str, expected: Expected) -> None:
+    check(sentence, expected, default_vocabulary())
+
+
+def test_the_corpus_is_as_large_as_issue_23_asks() -> None:
+    paraphrases = {s.lower() for s, e in PARAPHRASES if isinstance(e, Do) or e in (STOP, STATUS)}
+    unsure = [e for _, e in REFERENCES if not isinstance(e, Do)]
+    assert len(PARAPHRASES) + len(REFERENCES) + len(REFUSALS) >= 150
+    assert len(paraphrases) >= 100
+    assert len(unsure) >= 20
+    assert len(REFUSALS) >= 30
+    tasks = {e.task for _, e in PARAPHRASES if isinstance(e, Do)}
+    assert tasks == {"pour", "bring", "place", "return", "fetch", "hand_over"}
