@@ -50,11 +50,11 @@ Parameters (SC00061 §2, SC00070 §2.2)
     ``:content`` is written as a ``String``; on parsing, a ``Word``, number or date-time is
     accepted too (as JADE does) and gives its text as UTF-8. Text-valued parameters
     (``:language``, ``:encoding``, ``:ontology``, ``:protocol``, ``:conversation-id``,
-    ``:reply-with``, ``:in-reply-to``, user parameters, addresses) are written as a ``Word``
+    ``:reply-with``, ``:in-reply-to``, user parameters) are written as a ``Word``
     when they are a plain ASCII identifier (``[A-Za-z_][A-Za-z0-9_.+/:@-]*``), else as a
-    ``String`` as above. SC00070 asks for a ``Word`` after ``:protocol`` and a URL in
-    ``:addresses``; a value that is not one is still written, as a ``String``, so that it
-    round-trips (JADE reads only words there). On parsing, any ``Expression`` is accepted
+    ``String`` as above. SC00070 asks for a ``Word`` after ``:protocol``; a value that is
+    not one is still written, as a ``String``, so that it round-trips (JADE reads only words
+    there). Addresses are words (see *Agent identifiers*). On parsing, any ``Expression`` is accepted
     for them: a word, number or date-time gives its text, a string its value, a
     parenthesised expression its source text (``(a (b "c"))``), which is written back as a
     string. JADE sends byte content as base64 text flagged by ``:X-JADE-Encoding Base64``;
@@ -84,10 +84,11 @@ Agent identifiers (FIPA SC00023 §4, SC00070 §2.2 ``AgentIdentifier``)
     name at most once, spelling kept as for message parameters). An empty ``(sequence)``
     reads as no addresses or resolvers. ``parse(..., aid_extras=...)`` can instead reject
     (``"reject"``) or leave out (``"drop"``) the resolvers and user parameters of the agent
-    identifiers of the message; the default, ``"keep"``, keeps them. Names, resolvers' too,
-    must be roco agent names (letters, digits, ``_ . - @``: names appear in Zenoh key
-    expressions), so JADE's default names ``agent@host:1099/JADE`` are rejected (with
-    ``"drop"``, resolvers are not read into agent identifiers, and their names not checked).
+    identifiers of the message; the default, ``"keep"``, keeps them. ``:name`` and each
+    address must be a SC00070 ``Word`` (``shared.fipa_codec.names``), resolvers' too (with
+    ``"drop"`` as well), written as they are: roco's ``a_co`` as JADE's default
+    ``da0@host:1099/JADE``; a String or a parenthesised expression there is an error where it
+    stands (so is a name longer than 255 characters).
 
 User-defined parameters (SC00061 §2, SC00070 §2.2)
     ``:X-name value`` for every entry of ``user_params``; the key is written as is and must
@@ -116,6 +117,7 @@ from shared.fipa_codec.acts import Performative
 from shared.fipa_codec.aid import MAX_AID_DEPTH, AgentIdentifier
 from shared.fipa_codec.languages import ContentError, decode_content
 from shared.fipa_codec.message import Communicate
+from shared.fipa_codec.names import is_word
 
 __all__ = [
     "MAX_AID_DEPTH",
@@ -224,11 +226,12 @@ def format_datetime(t: float) -> str:
 def _aid_pieces(agent: AgentIdentifier) -> list[_Piece]:
     """``agent`` as a SC00070 ``AgentIdentifier``: ``:name``, ``:addresses``, ``:resolvers``,
     then the user-defined parameters (the order of the grammar); empty sequences left out."""
-    out: list[_Piece] = ["(agent-identifier :name ", *_text_pieces(agent.name)]
+    # name and addresses are SC00070 words, checked by AgentIdentifier: written as they are
+    out: list[_Piece] = ["(agent-identifier :name ", agent.name]
     if agent.addresses:
         out.append(" :addresses (sequence")
         for address in agent.addresses:
-            out.extend([" ", *_text_pieces(address)])
+            out.extend([" ", address])
         out.append(")")
     if agent.resolvers:
         out.append(" :resolvers (sequence")
@@ -547,6 +550,13 @@ class _Parser:
             return f"{tok.text[:40]!r}"
         return "a string"
 
+    def word(self, what: str) -> str:
+        """A SC00070 ``Word`` (:name, an address); anything else is an error."""
+        tok = self.next(what)
+        if tok.kind != _ATOM or not is_word(tok.text):
+            raise StringFormError(f"expected {what} (a SC00070 word), found {self.describe(tok)}", tok.start)
+        return tok.text
+
     def keyword(self, what: str) -> tuple[str, _Token]:
         tok = self.expect(_ATOM, what)
         return tok.text.lower(), tok
@@ -619,7 +629,7 @@ class _Parser:
                 raise StringFormError(f"agent-identifier parameter {tok_.text} repeated", tok_.start)
             seen.add(ident)
             if param == ":name":
-                aid.name = self.expression_text("an agent name")
+                aid.name = self.word("an agent name")
             elif param == ":addresses":
                 aid.addresses = tuple(self.sequence("sequence", self.url))
             elif param == ":resolvers":
@@ -651,7 +661,7 @@ class _Parser:
         return parsed.agent_identifier(self.aid_extras == "keep")
 
     def url(self) -> str:
-        return self.expression_text("an address")
+        return self.word("an address")
 
     def sequence(self, head_word: str, item: Callable[[], _T]) -> list[_T]:
         self.expect(_LPAREN, f"'({head_word}'")
