@@ -45,22 +45,21 @@ __all__ = [
 MAX_NAME_LENGTH = 255
 """Longest agent name, in characters."""
 
-_WORD = re.compile(r'[^\x00-\x20()#0-9\-@"][^\x00-\x20()]*')
+# a first character that is no white space, ( ) # digit - @ " or surrogate; then no white space,
+# parenthesis or surrogate
+_WORD = re.compile(r'[^\x00-\x20()#0-9\-@"\ud800-\udfff][^\x00-\x20()\ud800-\udfff]*')
 _NUMBER = re.compile(r"[+-]?([0-9]+|[0-9]+\.[0-9]*|[0-9]*\.[0-9]+)([eE][+-]?[0-9]+)?")
 _DATETIME = re.compile(r"[+-]?[0-9]{8}[Tt][0-9]{9}[A-Za-z]?")
-_SURROGATE = re.compile(r"[\ud800-\udfff]")
 _ESCAPE = re.compile(r"[^A-Za-z0-9_.\-@:]")
 _CHUNK = re.compile(r"(?:[A-Za-z0-9_.\-@:]|%[0-9A-F]{2})+")
 
 
 def is_word(text: str) -> bool:
     """Whether ``text`` is a FIPA SC00070 ``Word`` (see the module docstring)."""
-    return (
-        _WORD.fullmatch(text) is not None
-        and _NUMBER.fullmatch(text) is None
-        and _DATETIME.fullmatch(text) is None
-        and _SURROGATE.search(text) is None
-    )
+    if _WORD.fullmatch(text) is None:
+        return False
+    # a Number or DateTime that passes the first-character rule starts with + or .
+    return text[0] not in "+." or (_NUMBER.fullmatch(text) is None and _DATETIME.fullmatch(text) is None)
 
 
 def check_word(text: object, what: str) -> str:
@@ -77,6 +76,14 @@ def check_word(text: object, what: str) -> str:
 def check_agent_name(name: object) -> str:
     """``name`` when it is an agent name (a word of at most :data:`MAX_NAME_LENGTH`
     characters, FIPA SC00023 §4 / SC00070 §2.2); else ValueError saying why."""
+    # the common case in one test: run on every agent identifier decoded
+    if (
+        isinstance(name, str)
+        and len(name) <= MAX_NAME_LENGTH
+        and _WORD.fullmatch(name) is not None
+        and name[0] not in "+."
+    ):
+        return name
     check_word(name, "agent name")
     assert isinstance(name, str)
     if len(name) > MAX_NAME_LENGTH:

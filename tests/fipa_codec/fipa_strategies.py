@@ -264,7 +264,7 @@ def communicates(draw: st.DrawFn) -> Communicate:
         language=language,
         encoding=draw(st.none() | st.just("msgpack") | any_text),
         ontology=draw(opt_text),
-        protocol=draw(st.none() | st.sampled_from(["fipa-request", "coordinate"]) | any_text),
+        protocol=draw(st.none() | st.sampled_from(["fipa-request", "coordinate"]) | fipa_words),
         conversation_id=draw(opt_text),
         reply_with=draw(opt_text),
         in_reply_to=draw(opt_text),

@@ -104,10 +104,12 @@ def test_example_form() -> None:
         (b"a\\\\b", '"a\\\\b"'),  # two backslashes stay two
         (b'\\"', '"\\\\""'),  # a backslash, then an escaped quote
         (b"ends\\", '#5"ends\\'),  # a literal cannot end in a backslash: byte-length encoded
-        (b"line\nbreak", '#10"line\nbreak'),  # control character: byte-length encoded
-        (b"\x00\xff", '#2"\x00\xff'),
+        (b"line\nbreak", '"line\nbreak"'),  # text with a line break: still a literal
+        ("tab\tżółw\r\n".encode(), '"tab\tżółw\r\n"'),  # JADE counts #n" in characters: no #n" for text
+        (b"\x00\x1b", '"\x00\x1b"'),  # any UTF-8 is text, control characters too
+        (b"\x00\xff", '#2"\x00\xff'),  # not UTF-8: byte-length encoded
         (b"\xc3\x28", '#2"\xc3('),  # invalid UTF-8
-        ("\u0085".encode(), '#2"\xc2\x85'),  # C1 control
+        ("\u0085".encode(), '"\x85"'),  # C1 control, valid UTF-8
         (b")", '")"'),
     ],
 )
@@ -320,6 +322,30 @@ def test_bad_datetime(token: str, reason: str) -> None:
         ('(inform :ontology #1"\xff)', "invalid UTF-8", 18),
         ("(inform :ontology \ud800)", "lone surrogate", 18),
         (")", "expected '('", 0),
+        # SC00070 words where the grammar asks for one (issue 22): never a silent reading
+        (
+            "(inform :sender (agent-identifier :name a :addresses (sequence http://a (b) c)))",
+            "expected an address (a SC00070 word), found '('",
+            72,
+        ),
+        (
+            '(inform :sender (agent-identifier :name a :addresses (sequence "tcp/x y")))',
+            "expected an address (a SC00070 word), found a string",
+            63,
+        ),
+        ('(inform :sender (agent-identifier :name "a_co"))', "expected an agent name (a SC00070 word)", 40),
+        ("(inform :sender (agent-identifier :name (a b)))", "expected an agent name (a SC00070 word)", 40),
+        ("(inform :sender (agent-identifier :name 12))", "found number '12'", 40),
+        ('(inform :protocol "fipa request")', "expected a value for :protocol (a SC00070 word)", 18),
+        ("(inform :protocol (fipa request))", "expected a value for :protocol (a SC00070 word)", 18),
+        ("(inform :protocol 42)", "found number '42'", 18),
+        # atoms that are no Word, Number or DateTime (SC00070 §2.3)
+        ("(inform :language 9x)", "'9x', which is no SC00070 word, number or date-time", 18),
+        ("(inform :X-a @b)", "'@b', which is no SC00070 word", 13),
+        ("(inform :in-reply-to (a -b))", "'-b', which is no SC00070 word", 24),
+        ("(inform :reply-by 2026-11-21)", "expected a date-time", 18),
+        ("(inform :content 123)", "expected a string after :content, found number '123'", 17),
+        ("(inform :content 20261121T153000000Z)", "found date-time", 17),
     ],
 )
 def test_bad_text_is_string_form_error(text: str, reason: str, position: int) -> None:
@@ -492,13 +518,45 @@ def test_user_parameter_names_keep_their_case() -> None:
 # -- text values, agent identifiers, error locations --------------------------------------------
 
 
+@pytest.mark.parametrize("value", ["a\nb", "tab\there", "żółw\r\n", "x\x00y", 'say "hi"\n'])
+def test_text_with_control_characters_is_a_literal(value: str) -> None:
+    """Text is a StringLiteral whenever that is valid SC00070: line breaks, tabs included."""
+    msg = _msg(content=value.encode(), conversation_id=value, user_params={"X-v": value})
+    text = to_string(msg)
+    literal = '"' + value.replace('"', '\\"') + '"'
+    assert text.count(literal) == 3 and "#" not in text
+    assert parse(text) == msg
+    assert parse(to_bytes(msg)) == msg
+
+
+@pytest.mark.parametrize("protocol", ["fipa request", "", "(x)", "9x", "-p", "1.5", "a\tb", '"q"'])
+def test_a_protocol_that_is_no_word_is_refused_when_written(protocol: str) -> None:
+    msg = _msg(protocol=protocol)
+    for write in (to_string, to_bytes):
+        with pytest.raises(ValueError, match=r"invalid :protocol .*not a FIPA SC00070 word"):
+            write(msg)
+
+
+def test_jade_literal_ending_in_a_backslash_is_read_as_jade_means_it() -> None:
+    """JADE prints content ``C:\\dir\\`` as ``"C:\\dir\\"`` (StringACLCodec escapes only quotes)."""
+    assert parse('(inform :content "C:\\dir\\" :language x)') == _msg(content=b"C:\\dir\\", language="x")
+    assert parse('(inform :content "a \\"b\\" c\\")').content == b'a "b" c\\'  # the last \" closes
+    # a later plain quote: \" is an escape (as in JADE's lexer), the literal runs on to it,
+    # and what is left is no message (JADE fails on it too)
+    with pytest.raises(StringFormError, match=re.escape("expected ')' or a message parameter")) as info:
+        parse('(inform :content "a\\" :language "x")')
+    assert info.value.position == 33
+    with pytest.raises(StringFormError, match="unterminated string literal"):
+        parse('(inform :content "no quote at all)')
+
+
 @pytest.mark.parametrize("value", ["C:\\dir\\", "\\", 'a "quoted" \\', "żółw\\"])
 def test_text_values_ending_in_a_backslash_are_byte_length_encoded(value: str) -> None:
-    word = is_word(value)  # an address is a Word, written as it is
+    word = is_word(value)  # an address and :protocol are Words, written as they are
     msg = _msg(
         sender=AgentIdentifier("a", (value,) if word else ()),
         language=value,
-        protocol=value,
+        protocol=value if word else None,
         conversation_id=value,
         in_reply_to=value,
         user_params={"X-v": value},
