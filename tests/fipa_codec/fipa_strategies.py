@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import Literal
+
 import msgspec
 from hypothesis import strategies as st
 
@@ -188,13 +190,14 @@ SAMPLE_TERMS: list[msgspec.Struct] = [
 # ---------------------------------------------------------------------------------------------
 # Strategies
 
+_SURROGATES: tuple[Literal["Cs"], ...] = ("Cs",)
 roco_names = st.from_regex(r"[A-Za-z][A-Za-z0-9_.\-@]{0,15}", fullmatch=True)
 # FIPA SC00070 words: any first character but white space, ( ) # - @ " and digits, then any but
 # white space and parentheses; not lexically a number or date-time (shared.fipa_codec.names)
 _word_first = st.characters(
-    exclude_categories=("Cs",), exclude_characters='()#-@"0123456789', min_codepoint=0x21
+    exclude_categories=_SURROGATES, exclude_characters='()#-@"0123456789', min_codepoint=0x21
 )
-_word_rest = st.characters(exclude_categories=("Cs",), exclude_characters="()", min_codepoint=0x21)
+_word_rest = st.characters(exclude_categories=_SURROGATES, exclude_characters="()", min_codepoint=0x21)
 fipa_words = st.tuples(_word_first, st.text(_word_rest, max_size=15)).map("".join).filter(is_word)
 # JADE's default agent names: local@host:port/JADE
 _hosts = st.from_regex(r"[a-z][a-z0-9.\-]{0,10}", fullmatch=True)
@@ -208,7 +211,7 @@ any_text = st.text(max_size=30)
 user_keys = st.tuples(
     st.sampled_from(["X-", "x-"]),
     st.text(
-        st.characters(exclude_characters="()", exclude_categories=("Cs",), min_codepoint=0x21),
+        st.characters(exclude_characters="()", exclude_categories=_SURROGATES, min_codepoint=0x21),
         min_size=1,
         max_size=12,
     ),
