@@ -262,6 +262,6 @@ def _one(filters: Filters, t: float, key: str, payload: bytes, content: bool) ->
         return None
     try:
         body = render(msg, content=content)
-    except ValueError as exc:  # a reply-by or user parameter the string form cannot write
+    except ValueError as exc:  # a :protocol, reply-by or user parameter the string form cannot write
         return f"{head}  not printable in the string form: {_one_line(str(exc))}", False
     return f"{head}\n{body}", True

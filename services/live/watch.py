@@ -63,8 +63,9 @@ class LiveWatch:
         ]
 
     def _on_alive(self, sample: zenoh.Sample) -> None:
-        agent = str(sample.key_expr).rsplit("/", 1)[-1]
-        self.state.alive(agent, sample.kind == zenoh.SampleKind.PUT)
+        agent = keys.alive_agent(str(sample.key_expr))
+        if agent is not None:
+            self.state.alive(agent, sample.kind == zenoh.SampleKind.PUT)
 
     def line(self, text: str) -> None:
         """Print ``text`` above the view, as it is (no rich markup); the view below is drawn

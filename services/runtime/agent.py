@@ -491,7 +491,9 @@ class Agent:
         self._queue.put((_COUNTERS, None))  # Zenoh thread: enqueue only
 
     def _on_alive(self, key: str, alive: bool) -> None:
-        self._queue.put((_ALIVE, (key.rsplit("/", 1)[-1], alive)))  # Zenoh thread: enqueue only
+        name = keys.alive_agent(key)
+        if name is not None:  # a token that carries no agent name is none of an agent
+            self._queue.put((_ALIVE, (name, alive)))  # Zenoh thread: enqueue only
 
     def _acquire(self, timeout: float) -> None:
         """Acquire new inputs into x and r, blocking up to ``timeout`` for the first."""

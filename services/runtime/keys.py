@@ -8,11 +8,18 @@
                                              object): JSON :class:`services.agents.executor.agent.Disturbance`
 ``roco/counters/ask``                        any put here makes every agent publish its counters
 ``roco/counters/report/<agent>``             an agent's counters (JSON, ``Agent.counters_report``)
+
+``<sender>``, ``<receiver>`` and ``<agent>`` are FIPA agent names written as the key chunk
+``shared.fipa_codec.names.key_chunk`` maps them to: roco's agents (``a_co``) as themselves,
+JADE's ``da0@host:1099/JADE`` as ``da0@host:1099%2FJADE``; :func:`parse_fipa_key` maps them back.
+A name that is no FIPA word has no chunk: ValueError.
 """
 
 from __future__ import annotations
 
 from typing import NamedTuple
+
+from shared.fipa_codec.names import key_chunk, name_of_key_chunk
 
 PREFIX = "roco"
 FIPA_PREFIX = f"{PREFIX}/fipa/"
@@ -42,8 +49,9 @@ class FipaKey(NamedTuple):
 
 
 def fipa_key(channel: str, sender: str, receiver: str) -> str:
-    """The key one communicate from ``sender`` to ``receiver`` on ``channel`` is put on."""
-    return f"{PREFIX}/fipa/{channel}/{sender}/{receiver}"
+    """The key one communicate from ``sender`` to ``receiver`` (agent names) on ``channel`` is
+    put on. Raises ValueError when a name is no agent name (see the module docstring)."""
+    return f"{PREFIX}/fipa/{channel}/{key_chunk(sender)}/{key_chunk(receiver)}"
 
 
 def caches_of(key: str) -> str:
@@ -53,26 +61,39 @@ def caches_of(key: str) -> str:
 
 def inbox_key(agent: str) -> str:
     """The key expression an agent subscribes to: every channel, every sender, to it."""
-    return f"{PREFIX}/fipa/*/*/{agent}"
+    return f"{PREFIX}/fipa/*/*/{key_chunk(agent)}"
 
 
 def parse_fipa_key(key: str) -> FipaKey:
-    """Split a communicate key; raises ValueError when it is not ``roco/fipa/C/S/R``."""
+    """Split a communicate key into channel and the agent names of sender and receiver;
+    raises ValueError when it is not ``roco/fipa/C/S/R`` with S and R key chunks of names."""
     parts = key.split("/")
     if len(parts) != 5 or parts[0] != PREFIX or parts[1] != "fipa":
         raise ValueError(f"not a communicate key: {key!r}")
-    return FipaKey(parts[2], parts[3], parts[4])
+    return FipaKey(parts[2], name_of_key_chunk(parts[3]), name_of_key_chunk(parts[4]))
 
 
 def alive_key(agent: str) -> str:
     """The liveliness token key of ``agent``."""
-    return f"{PREFIX}/alive/{agent}"
+    return f"{PREFIX}/alive/{key_chunk(agent)}"
+
+
+def alive_agent(key: str) -> str | None:
+    """The agent name a liveliness token key (:func:`alive_key`) carries; None when ``key`` is
+    not ``roco/alive/<chunk>`` with the key chunk of an agent name."""
+    prefix = f"{PREFIX}/alive/"
+    if not key.startswith(prefix):
+        return None
+    try:
+        return name_of_key_chunk(key[len(prefix) :])
+    except ValueError:
+        return None
 
 
 def state_key(agent: str) -> str:
-    return f"{PREFIX}/state/{agent}"
+    return f"{PREFIX}/state/{key_chunk(agent)}"
 
 
 def counters_key(agent: str) -> str:
     """Where ``agent`` publishes its counters when asked on :data:`COUNTERS_ASK`."""
-    return f"{PREFIX}/counters/report/{agent}"
+    return f"{PREFIX}/counters/report/{key_chunk(agent)}"

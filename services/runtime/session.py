@@ -26,5 +26,7 @@ def alive_agents(session: zenoh.Session, timeout: float = 1.0) -> set[str]:
     names = set()
     for reply in session.liveliness().get(keys.ALIVE_ALL, timeout=timeout):
         if reply.ok is not None:
-            names.add(str(reply.ok.key_expr).rsplit("/", 1)[-1])
+            name = keys.alive_agent(str(reply.ok.key_expr))
+            if name is not None:
+                names.add(name)
     return names

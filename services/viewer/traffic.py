@@ -140,8 +140,12 @@ class TrafficLogger:
             text = f"malformed {record.size} B on {record.key}"
             level = "WARN"
         else:
-            text = to_string(msg, human=True)
-            level = "INFO"
+            try:
+                text = to_string(msg, human=True)
+                level = "INFO"
+            except ValueError as exc:  # a :protocol, reply-by or user parameter SC00070 cannot carry
+                text = f"not printable in the string form: {exc}"
+                level = "WARN"
         s.log(
             TRAFFIC_LOG,
             rr.TextLog(text, level=level),

@@ -14,16 +14,19 @@ from typing import Annotated
 
 import msgspec
 
+from shared.fipa_codec.names import MAX_NAME_LENGTH, check_agent_name, check_word
+
 __all__ = ["MAX_AID_DEPTH", "AgentIdentifier", "aid"]
 
 MAX_AID_DEPTH = 32
 """Deepest nesting of agent identifiers through ``resolvers``, counting the outer one: an
 identifier without resolvers has depth 1. The same cap as the string-form parser's."""
 
-_NAME_PATTERN = r"[A-Za-z][A-Za-z0-9_.\-@]{0,127}"
+# a SC00070 Word (see shared.fipa_codec.names; the schema's pattern leaves out its number and
+# date-time exclusions)
+_NAME_PATTERN = r'[^\x00-\x20()#0-9\-@"][^\x00-\x20()]{0,' + f"{MAX_NAME_LENGTH - 1}}}"
 # a SC00070 Word that starts with X- or x-: no white space (U+0000-U+0020), no parenthesis
 _USER_NAME_PATTERN = r"[Xx]-[^\x00-\x20()]+"
-_NAME = re.compile(_NAME_PATTERN)
 _USER_NAME = re.compile(_USER_NAME_PATTERN)
 
 # The field types, with their JSON Schema documentation (msgspec.json.schema). The patterns go
@@ -33,13 +36,18 @@ _USER_NAME = re.compile(_USER_NAME_PATTERN)
 _Name = Annotated[
     str,
     msgspec.Meta(
-        description="name: a roco agent name (a letter, then letters, digits, _ . - @; at most 128)",
+        description=(
+            f"name: a FIPA SC00070 word (no white space or parenthesis, not starting with # - @ or "
+            f"a digit), at most {MAX_NAME_LENGTH} characters; roco's agents: a_co, ag_ex…"
+        ),
         extra_json_schema={"pattern": f"^{_NAME_PATTERN}$"},
     ),
 ]
 _Addresses = Annotated[
     tuple[str, ...],
-    msgspec.Meta(description="addresses: transport addresses (URLs), in order of preference"),
+    msgspec.Meta(
+        description="addresses: transport addresses (URLs, each a FIPA SC00070 word), in order of preference"
+    ),
 ]
 _Resolvers = Annotated[
     tuple["AgentIdentifier", ...],
@@ -77,11 +85,13 @@ def _depth(agent: AgentIdentifier) -> int:
 class AgentIdentifier(msgspec.Struct, frozen=True, array_like=True):
     """A FIPA agent-identifier (SC00023 §4, SC00070 §2.2).
 
-    ``name``: the globally unique name; in roco the agent's name from the specification
-    (``a_co``, ``ag_ex``…), a letter then letters, digits, ``_ . - @`` (names appear in Zenoh
-    key expressions), at most 128 characters.
-    ``addresses``: transport addresses (URLs) in order of preference; in roco Zenoh locators
-    (``tcp/127.0.0.1:7447``).
+    ``name``: the globally unique name, a FIPA SC00070 word of at most
+    :data:`~shared.fipa_codec.names.MAX_NAME_LENGTH` characters (``shared.fipa_codec.names``):
+    roco's agents' names from the specification (``a_co``, ``ag_ex``…) as well as JADE's
+    ``da0@host:1099/JADE``. In Zenoh key expressions a name travels as the key chunk
+    :func:`~shared.fipa_codec.names.key_chunk` maps it to (roco's names as themselves).
+    ``addresses``: transport addresses (URLs) in order of preference, each a SC00070 word
+    (SC00070 §2.2 ``URLSequence``); in roco Zenoh locators (``tcp/127.0.0.1:7447``).
     ``resolvers``: agent identifiers of name resolution services (SC00023 §4), in order;
     each may have resolvers of its own, up to :data:`MAX_AID_DEPTH` identifiers deep.
     ``user``: user-defined parameters as ``(name, value)`` pairs in order; the name includes
@@ -99,9 +109,9 @@ class AgentIdentifier(msgspec.Struct, frozen=True, array_like=True):
     msgspec writes all four items even when empty (``omit_defaults`` has no effect on
     ``array_like`` structs, msgspec issue #720), two bytes more than before in msgpack.
 
-    Raises ValueError on construction (and msgspec.ValidationError on decoding) for a bad
-    name, a bad or repeated user parameter name, or resolvers nested deeper than
-    :data:`MAX_AID_DEPTH`.
+    Raises ValueError on construction (and msgspec.ValidationError on decoding) for a name or
+    an address that is no SC00070 word, a name that is too long, a bad or repeated user
+    parameter name, or resolvers nested deeper than :data:`MAX_AID_DEPTH`.
     """
 
     name: _Name
@@ -110,8 +120,9 @@ class AgentIdentifier(msgspec.Struct, frozen=True, array_like=True):
     user: _User = ()
 
     def __post_init__(self) -> None:
-        if not isinstance(self.name, str) or not _NAME.fullmatch(self.name):
-            raise ValueError(f"invalid agent name {self.name!r}: letters, digits, _ . - @ only")
+        check_agent_name(self.name)
+        for address in self.addresses:
+            check_word(address, f"address of agent {self.name}")
         if self.user:
             seen: set[str] = set()
             for key, _value in self.user:
@@ -133,5 +144,6 @@ class AgentIdentifier(msgspec.Struct, frozen=True, array_like=True):
 
 
 def aid(name: str) -> AgentIdentifier:
-    """Shorthand for an :class:`AgentIdentifier` without addresses. Raises ValueError on a bad name."""
+    """Shorthand for an :class:`AgentIdentifier` without addresses. Raises ValueError when
+    ``name`` is no agent name (a SC00070 word of at most 255 characters)."""
     return AgentIdentifier(name)

@@ -32,9 +32,10 @@ The JSON encoding (for tools outside Python)
     An agent identifier (FIPA SC00023 §4, SC00070 §2.2) is an array
     ``[name, [address, …], [resolver, …], [[X-name, value], …]]``:
 
-    * ``name``: a roco agent name: a letter, then letters, digits, ``_ . - @`` (at most 128
-      characters);
-    * addresses: strings, transport addresses (URLs) in order of preference;
+    * ``name``: an agent name: a FIPA SC00070 word (no white space or parenthesis, not
+      starting with ``# - @ "`` or a digit, not a number or date-time) of at most 255
+      characters: ``a_km``, ``da0@host:1099/JADE`` (``shared.fipa_codec.names``);
+    * addresses: strings, transport addresses (URLs, each a SC00070 word) in order of preference;
     * resolvers: agent identifiers (the same arrays, recursively, at most 32 deep counting the
       outer one) of the services that can resolve the name;
     * user-defined parameters: ``[name, value]`` pairs of strings, in order; the name includes

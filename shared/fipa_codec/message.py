@@ -24,7 +24,8 @@ class Communicate(msgspec.Struct, frozen=True, omit_defaults=True, kw_only=True,
       content: Z, bytes in the content language ``language`` under ``encoding``
         (roco's languages use ``encoding="msgpack"``; see ``shared.fipa_codec.languages``).
       language, encoding, ontology: L, the content encoding, O.
-      protocol: I, the interaction protocol name (``fipa-request``, ``coordinate``…).
+      protocol: I, the interaction protocol name (``fipa-request``, ``coordinate``…); a FIPA
+        SC00070 word, which the string form checks when it writes it (ValueError).
       conversation_id, reply_with, in_reply_to: m_c, m_w, m_t.
       reply_by: t_b, POSIX time in seconds by which a reply is expected.
       user_params: ``X-`` parameters; keys must start with ``X-``.

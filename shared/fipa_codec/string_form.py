@@ -12,7 +12,7 @@
 and :func:`parse` reads it back; ``parse(to_string(m)) == m`` for every communicate ``m``
 whose ``reply_by`` is a whole number of milliseconds (see *Times* below). :func:`parse` also
 reads what other FIPA platforms print (JADE's ``ACLMessage.toString`` layout among them),
-field for field, within the limits of roco's data model (agent names, see *Agent identifiers*).
+field for field, and JADE's default agent names (``da0@host:1099/JADE``) among them.
 
 Grammar (SC00070 §2.2 syntax, §2.3 lexical rules and the notes on them), as read here
     ``Message = "(" MessageType MessageParameter* ")"``; the message type is one of the 22
@@ -20,24 +20,35 @@ Grammar (SC00070 §2.2 syntax, §2.3 lexical rules and the notes on them), as re
     ``:X-`` parameters, each at most once (the notes: a well-formed message has at most one of
     each), in any order. ``Expression = Word | String | Number | DateTime | "(" Expression*
     ")"``. White space is any character U+0000–U+0020 (space, tab, CR, LF, FF…), needed only
-    between two atoms; SC00070 has no comments. Keywords (the performative, parameter names,
-    ``set``, ``sequence``, ``agent-identifier``, ``:name``, ``:addresses``, ``:resolvers``)
-    are read in any case (the notes); user parameter names keep their spelling and are told apart
-    by it (``:X-a`` and ``:x-a`` are two parameters, as they are two keys of ``user_params``).
+    between two atoms; SC00070 has no comments. Every atom must be a ``Word``, a ``Number``
+    or a ``DateTime`` (``9x``, ``-a``, ``@host``, ``2026-11-21`` are none: an error where
+    they stand); ``shared.fipa_codec.names`` states the Word rule. Keywords (the
+    performative, parameter names, ``set``, ``sequence``, ``agent-identifier``, ``:name``,
+    ``:addresses``, ``:resolvers``) are read in any case (the notes; JADE's parser ignores
+    case too); user parameter names keep their spelling and are told apart by it (``:X-a``
+    and ``:x-a`` are two parameters, as they are two keys of ``user_params``). Every
+    deviation from this grammar is a :class:`StringFormError` naming its position; the
+    only readings beyond it are JADE's leniencies listed below, each named.
 
 Strings (SC00070 §2.3 ``String = StringLiteral | ByteLengthEncodedString``)
     * ``StringLiteral``: text between double quotes in which ``\\"`` stands for ``"``. That is
-      the only escape of SC00070, and the one JADE reads: any other backslash stands for
-      itself (``"C:\\dir"`` is the 6 characters ``C:\\dir``; ``\\\\`` is two backslashes).
+      the only escape of SC00070, and the only one JADE unescapes (``ACLParser.unescape``):
+      any other backslash stands for itself (``"C:\\dir"`` is the 6 characters ``C:\\dir``;
+      ``\\\\`` is two backslashes). Any character may stand in a literal, line breaks and tabs
+      included.
     * ``ByteLengthEncodedString``: ``#<n>"`` followed by exactly ``n`` octets, whatever they
       are (no escapes, no terminator); ``n`` counts octets, not characters (the notes).
 
-    Writing: a value that is valid UTF-8, holds no control character (Unicode category ``Cc``:
-    U+0000–U+001F, U+007F–U+009F) and does not end in a backslash is written as a
-    ``StringLiteral`` (``"`` written ``\\"``, backslashes as they are); otherwise (in roco
-    usually: msgpack content) as a ``ByteLengthEncodedString`` of its octets (the UTF-8 of a
-    text value). A literal ending in a backslash cannot be written (``\\"`` would read as an
-    escaped quote), hence the byte-length form for it.
+    Writing: a value that is text — valid UTF-8 — and does not end in a backslash is written
+    as a ``StringLiteral`` (``"`` written ``\\"``, backslashes, line breaks, tabs and other
+    characters as they are). Only octets that are not UTF-8 (in roco usually: msgpack content)
+    and text ending in a backslash are written as a ``ByteLengthEncodedString`` of their
+    octets. Why: JADE never writes byte-length strings (its byte content travels as base64
+    text flagged ``:X-JADE-Encoding Base64``) and its parser counts ``n`` in *characters*
+    (``ACLParser.jj`` reads ``n`` chars of the decoded stream), so a byte-length string of
+    non-ASCII text arrives corrupted there; a literal arrives intact. A literal ending in a
+    backslash cannot be written unambiguously (``\\"`` would read as an escaped quote), hence
+    the byte-length form for it (JADE reads that right when the text is ASCII).
 
     Because :func:`to_string` returns ``str``, the octets of a byte-length-encoded string
     appear in it as the characters U+0000–U+00FF of the same value (ISO 8859-1), one
@@ -46,19 +57,36 @@ Strings (SC00070 §2.3 ``String = StringLiteral | ByteLengthEncodedString``)
     which are raw. :func:`parse` accepts both: a ``str`` (octets as U+0000–U+00FF) or
     ``bytes`` (raw octets, the rest UTF-8). Both forms round-trip exactly.
 
+Words (SC00070 §2.2: ``:protocol Word``, ``:name Word``, ``URL``, ``UserDefinedParameter``)
+    These fields are written as the word they are, and a value that is no word is refused:
+    :class:`AgentIdentifier` refuses a name or an address that is no word on construction;
+    :func:`to_string` / :func:`to_bytes` raise ValueError for a ``protocol`` that is no word
+    (``"fipa request"``) and for a user parameter name with white space or a parenthesis. On
+    parsing, only a ``Word`` is read there: a string or a parenthesised expression after
+    ``:protocol`` or ``:name`` or in ``:addresses (sequence …)`` is an error where it stands.
+
 Parameters (SC00061 §2, SC00070 §2.2)
-    ``:content`` is written as a ``String``; on parsing, a ``Word``, number or date-time is
-    accepted too (as JADE does) and gives its text as UTF-8. Text-valued parameters
-    (``:language``, ``:encoding``, ``:ontology``, ``:protocol``, ``:conversation-id``,
-    ``:reply-with``, ``:in-reply-to``, user parameters, addresses) are written as a ``Word``
-    when they are a plain ASCII identifier (``[A-Za-z_][A-Za-z0-9_.+/:@-]*``), else as a
-    ``String`` as above. SC00070 asks for a ``Word`` after ``:protocol`` and a URL in
-    ``:addresses``; a value that is not one is still written, as a ``String``, so that it
-    round-trips (JADE reads only words there). On parsing, any ``Expression`` is accepted
+    ``:content`` is written as a ``String``. The other text-valued parameters
+    (``:language``, ``:encoding``, ``:ontology``, ``:conversation-id``, ``:reply-with``,
+    ``:in-reply-to``, user parameter values) are ``Expression`` s: written as a ``Word`` when
+    they are a plain ASCII identifier (``[A-Za-z_][A-Za-z0-9_.+/:@-]*``, a word every reader
+    takes as one), else as a ``String`` as above. On parsing, any ``Expression`` is accepted
     for them: a word, number or date-time gives its text, a string its value, a
     parenthesised expression its source text (``(a (b "c"))``), which is written back as a
     string. JADE sends byte content as base64 text flagged by ``:X-JADE-Encoding Base64``;
     that is read as it stands (the base64 text as content, the flag as a user parameter).
+
+JADE's leniencies, read as JADE means them (from JADE 4.6's ``StringACLCodec`` and ``ACLParser.jj``)
+    * A value ending in a backslash: JADE escapes only quotes when it prints
+      (``StringACLCodec.escape``), so content ``C:\\dir\\`` goes out as ``"C:\\dir\\"``, whose
+      final ``\\"`` a strict reader takes for an escaped quote. JADE's lexer takes the longest
+      literal and, when no later quote closes it, ends it at that last ``\\"``, keeping the
+      backslash. So does :func:`parse`: a literal that no quote closes but that passed over
+      ``\\"`` ends at the last of them, its backslash the value's last character. (When a
+      later plain quote exists, JADE and :func:`parse` both read the ``\\"`` as an escape.)
+    * ``:content`` as a ``Word`` (``:content yes``): SC00070 asks for a String; JADE's
+      ``Content()`` takes a Word too, and so does :func:`parse`. A number or date-time there is
+      an error, as it is in JADE.
 
 Times (SC00070 §2.3 ``DateTime`` and the notes on time tokens)
     ``:reply-by`` is written in UTC as ``YYYYMMDDThhmmssmmmZ`` (milliseconds, type designator
@@ -84,10 +112,11 @@ Agent identifiers (FIPA SC00023 §4, SC00070 §2.2 ``AgentIdentifier``)
     name at most once, spelling kept as for message parameters). An empty ``(sequence)``
     reads as no addresses or resolvers. ``parse(..., aid_extras=...)`` can instead reject
     (``"reject"``) or leave out (``"drop"``) the resolvers and user parameters of the agent
-    identifiers of the message; the default, ``"keep"``, keeps them. Names, resolvers' too,
-    must be roco agent names (letters, digits, ``_ . - @``: names appear in Zenoh key
-    expressions), so JADE's default names ``agent@host:1099/JADE`` are rejected (with
-    ``"drop"``, resolvers are not read into agent identifiers, and their names not checked).
+    identifiers of the message; the default, ``"keep"``, keeps them. ``:name`` and each
+    address must be a SC00070 ``Word``, resolvers' too (with ``"drop"`` as well): roco's
+    ``a_co`` as JADE's default ``da0@host:1099/JADE``; a name longer than 255 characters is
+    an error too. In Zenoh keys a name travels as its key chunk
+    (``shared.fipa_codec.names.key_chunk``).
 
 User-defined parameters (SC00061 §2, SC00070 §2.2)
     ``:X-name value`` for every entry of ``user_params``; the key is written as is and must
@@ -116,6 +145,7 @@ from shared.fipa_codec.acts import Performative
 from shared.fipa_codec.aid import MAX_AID_DEPTH, AgentIdentifier
 from shared.fipa_codec.languages import ContentError, decode_content
 from shared.fipa_codec.message import Communicate
+from shared.fipa_codec.names import check_word, is_word
 
 __all__ = [
     "MAX_AID_DEPTH",
@@ -180,19 +210,24 @@ def _literal(text: str) -> str:
     return '"' + text.replace('"', '\\"') + '"'
 
 
-def _is_plain_text(data: bytes) -> str | None:
-    """``data`` as text when it is UTF-8 without control characters, else None."""
+def _as_text(data: bytes) -> str | None:
+    """``data`` as text when it is UTF-8, else None."""
     try:
-        text = data.decode("utf-8")
+        return data.decode("utf-8")
     except UnicodeDecodeError:
         return None
-    return None if _CONTROL.search(text) else text
+
+
+def _is_plain_text(data: bytes) -> str | None:
+    """``data`` as text when it is UTF-8 without control characters, else None (human forms)."""
+    text = _as_text(data)
+    return None if text is None or _CONTROL.search(text) else text
 
 
 def _string_pieces(data: bytes) -> list[_Piece]:
-    """``data`` as a SC00070 ``String``: a literal when it is plain text not ending in a
-    backslash, else byte-length encoded."""
-    text = _is_plain_text(data)
+    """``data`` as a SC00070 ``String``: a literal when it is text (UTF-8) not ending in a
+    backslash, else byte-length encoded (see *Strings* in the module docstring)."""
+    text = _as_text(data)
     if text is not None and not text.endswith("\\"):
         return [_literal(text)]
     return [f'#{len(data)}"', bytes(data)]
@@ -224,11 +259,12 @@ def format_datetime(t: float) -> str:
 def _aid_pieces(agent: AgentIdentifier) -> list[_Piece]:
     """``agent`` as a SC00070 ``AgentIdentifier``: ``:name``, ``:addresses``, ``:resolvers``,
     then the user-defined parameters (the order of the grammar); empty sequences left out."""
-    out: list[_Piece] = ["(agent-identifier :name ", *_text_pieces(agent.name)]
+    # name and addresses are SC00070 words, checked by AgentIdentifier: written as they are
+    out: list[_Piece] = ["(agent-identifier :name ", agent.name]
     if agent.addresses:
         out.append(" :addresses (sequence")
         for address in agent.addresses:
-            out.extend([" ", *_text_pieces(address)])
+            out.extend([" ", address])
         out.append(")")
     if agent.resolvers:
         out.append(" :resolvers (sequence")
@@ -284,7 +320,8 @@ def _pieces(msg: Communicate, human: bool) -> list[list[_Piece]]:
     text("language", msg.language)
     text("encoding", msg.encoding)
     text("ontology", msg.ontology)
-    text("protocol", msg.protocol)
+    if msg.protocol is not None:  # SC00070 §2.2: ":protocol" Word
+        params.append([":protocol ", check_word(msg.protocol, ":protocol")])
     text("conversation-id", msg.conversation_id)
     text("reply-with", msg.reply_with)
     text("in-reply-to", msg.in_reply_to)
@@ -319,8 +356,9 @@ def to_string(msg: Communicate, *, pretty: bool = False, human: bool = False) ->
     (:func:`content_as_json`), other binary content as ``"<n bytes, base64 …>"``; it is
     valid SC00070 but does not parse back to ``msg``.
 
-    Raises ValueError when ``reply_by`` is not finite or outside the years 0001–9999, or a
-    user parameter name is ``X-`` alone or contains white space or a parenthesis.
+    Raises ValueError when ``reply_by`` is not finite or outside the years 0001–9999, when
+    ``protocol`` is no SC00070 word (SC00070 §2.2 ``":protocol" Word``), or a user parameter
+    name is ``X-`` alone or contains white space or a parenthesis.
     """
     out = []
     for piece in _join(_pieces(msg, human), pretty):
@@ -343,6 +381,10 @@ def to_bytes(msg: Communicate, *, pretty: bool = False) -> bytes:
 
 _T = TypeVar("_T")
 _LPAREN, _RPAREN, _STRING, _BYTES, _ATOM = "(", ")", "string", "bytes", "atom"
+# what an atom is lexically (SC00070 §2.3): a Word, a Number or a DateTime
+_WORD_ATOM, _NUMBER_ATOM, _DATETIME_ATOM, _BAD_ATOM = "word", "number", "date-time", "bad"
+_NUMBER_TOKEN = re.compile(r"[+-]?([0-9]+|[0-9]+\.[0-9]*|[0-9]*\.[0-9]+)([eE][+-]?[0-9]+)?\Z")
+_DATETIME_TOKEN = re.compile(r"[+-]?[0-9]{8}[Tt][0-9]{9}[A-Za-z]?\Z")
 _BLE_HEAD = re.compile(r"#([0-9]{1,12})\"")
 _DATETIME = re.compile(
     r"([+-])?([0-9]{4})([0-9]{2})([0-9]{2})[Tt]"  # sign, date
@@ -365,6 +407,7 @@ class _Token:
     end: int
     text: str = ""  # _STRING: the value; _ATOM: the text
     octets: bytes = b""  # _BYTES: the value
+    lexeme: str = ""  # _ATOM: _WORD_ATOM, _NUMBER_ATOM or _DATETIME_ATOM
 
 
 @dataclass(slots=True)
@@ -401,20 +444,42 @@ def _fix_text(raw: str, octets: bool, position: int) -> str:
 
 
 def _string_literal(src: str, i: int, octets: bool) -> _Token:
-    """The ``StringLiteral`` opening at ``src[i]``: ``\\"`` is a quote, all else as it stands."""
-    chars: list[str] = []
+    """The ``StringLiteral`` opening at ``src[i]``: ``\\"`` is a quote, all else as it stands.
+
+    JADE's leniency (module docstring, *Strings*): when no quote closes the literal but it
+    passed over ``\\"``, the last of those closes it, its backslash the literal's last character.
+    """
     j = i + 1
+    last_escaped = -1
     while True:
         k = src.find('"', j)
         if k < 0:
-            raise StringFormError("unterminated string literal: expected a closing '\"'", i)
+            if last_escaped < 0:
+                raise StringFormError("unterminated string literal: expected a closing '\"'", i)
+            k = last_escaped  # JADE's printing of a value that ends in a backslash
+            break
         if k > i + 1 and src[k - 1] == "\\":  # an escaped quote
-            chars.append(src[j : k - 1])
-            chars.append('"')
+            last_escaped = k
             j = k + 1
             continue
-        chars.append(src[j:k])
-        return _Token(_STRING, i, k + 1, text=_fix_text("".join(chars), octets, i + 1))
+        break
+    text = src[i + 1 : k].replace('\\"', '"')
+    return _Token(_STRING, i, k + 1, text=_fix_text(text, octets, i + 1))
+
+
+def _atom(src: str, i: int, j: int, octets: bool) -> _Token:
+    """The atom ``src[i:j]`` (no white space, no parenthesis, not opening a string): a Word,
+    a Number or a DateTime of SC00070 §2.3, else a bad atom, which no reader accepts."""
+    text = _fix_text(src[i:j], octets, i)
+    if _DATETIME_TOKEN.match(text):
+        lexeme = _DATETIME_ATOM
+    elif _NUMBER_TOKEN.match(text):
+        lexeme = _NUMBER_ATOM
+    elif is_word(text):
+        lexeme = _WORD_ATOM
+    else:
+        lexeme = _BAD_ATOM
+    return _Token(_ATOM, i, j, text=text, lexeme=lexeme)
 
 
 def _byte_length_string(src: str, i: int) -> _Token:
@@ -457,7 +522,7 @@ def _tokenize(src: str, octets: bool) -> list[_Token]:
             j = i + 1
             while j < n and src[j] > " " and src[j] != "(" and src[j] != ")":
                 j += 1
-            tok = _Token(_ATOM, i, j, text=_fix_text(src[i:j], octets, i))
+            tok = _atom(src, i, j, octets)
         tokens.append(tok)
         i = tok.end
     return tokens
@@ -544,8 +609,20 @@ class _Parser:
         if tok.kind in (_LPAREN, _RPAREN):
             return f"'{tok.kind}'"
         if tok.kind == _ATOM:
-            return f"{tok.text[:40]!r}"
+            if tok.lexeme == _BAD_ATOM:
+                return (
+                    f"{tok.text[:40]!r}, which is no SC00070 word, number or date-time "
+                    "(a word does not start with a digit, '-' or '@')"
+                )
+            return f"{tok.lexeme} {tok.text[:40]!r}" if tok.lexeme != _WORD_ATOM else f"{tok.text[:40]!r}"
         return "a string"
+
+    def word(self, what: str) -> str:
+        """A SC00070 ``Word`` (:name, an address, :protocol); anything else is an error."""
+        tok = self.next(what)
+        if tok.kind != _ATOM or tok.lexeme != _WORD_ATOM:
+            raise StringFormError(f"expected {what} (a SC00070 word), found {self.describe(tok)}", tok.start)
+        return tok.text
 
     def keyword(self, what: str) -> tuple[str, _Token]:
         tok = self.expect(_ATOM, what)
@@ -567,6 +644,8 @@ class _Parser:
         if tok.kind == _ATOM:
             if tok.text.startswith(":"):
                 raise StringFormError(f"expected {what}, found parameter {tok.text!r}", tok.start)
+            if tok.lexeme == _BAD_ATOM:
+                raise StringFormError(f"expected {what}, found {self.describe(tok)}", tok.start)
             return tok.text
         if tok.kind == _STRING:
             return tok.text
@@ -580,6 +659,8 @@ class _Parser:
         depth = 1  # a parenthesised expression: its source text
         while depth:
             inner = self.next(f"')' closing the expression opened at {tok.start}")
+            if inner.kind == _ATOM and inner.lexeme == _BAD_ATOM:
+                raise StringFormError(f"expected an expression, found {self.describe(inner)}", inner.start)
             if inner.kind == _LPAREN:
                 depth += 1
             elif inner.kind == _RPAREN:
@@ -592,8 +673,8 @@ class _Parser:
             return tok.text.encode("utf-8")
         if tok.kind == _BYTES:
             return tok.octets
-        if tok.kind == _ATOM and not tok.text.startswith(":"):
-            return tok.text.encode("utf-8")  # a Word, as JADE accepts
+        if tok.kind == _ATOM and tok.lexeme == _WORD_ATOM and not tok.text.startswith(":"):
+            return tok.text.encode("utf-8")  # a Word, as JADE accepts (ACLParser.jj Content())
         raise StringFormError(f"expected a string after :content, found {self.describe(tok)}", tok.start)
 
     def user_parameter(self, tok: _Token) -> str:
@@ -619,7 +700,7 @@ class _Parser:
                 raise StringFormError(f"agent-identifier parameter {tok_.text} repeated", tok_.start)
             seen.add(ident)
             if param == ":name":
-                aid.name = self.expression_text("an agent name")
+                aid.name = self.word("an agent name")
             elif param == ":addresses":
                 aid.addresses = tuple(self.sequence("sequence", self.url))
             elif param == ":resolvers":
@@ -651,7 +732,7 @@ class _Parser:
         return parsed.agent_identifier(self.aid_extras == "keep")
 
     def url(self) -> str:
-        return self.expression_text("an address")
+        return self.word("an address")
 
     def sequence(self, head_word: str, item: Callable[[], _T]) -> list[_T]:
         self.expect(_LPAREN, f"'({head_word}'")
@@ -708,9 +789,11 @@ class _Parser:
                 content = self.content()
             elif lname == "reply-by":
                 value = self.next("a date-time")
-                if value.kind != _ATOM:
+                if value.kind != _ATOM or value.lexeme != _DATETIME_ATOM:
                     raise StringFormError(f"expected a date-time, found {self.describe(value)}", value.start)
                 reply_by = parse_datetime(value.text, value.start, now=self.now, tz=self.tz)
+            elif lname == "protocol":
+                texts[lname] = self.word(f"a value for {tok_.text}")
             elif lname in _TEXT_PARAMS:
                 texts[lname] = self.expression_text(f"a value for {tok_.text}")
             else:
@@ -782,10 +865,11 @@ def parse(
 
     Raises ValueError for an unknown ``aid_extras``, and StringFormError, with the offset,
     line and column of the problem and what was expected there, for anything that is not
-    one well-formed message: unknown performative or parameter, repeated parameter, bad
-    agent name (resolvers' included), agent identifiers nested deeper than
-    :data:`MAX_AID_DEPTH`, malformed string or date-time, trailing text, input over
-    ``max_size``.
+    one well-formed message: unknown performative or parameter, repeated parameter, an atom
+    that is no word, number or date-time, anything but a word after ``:name``,
+    ``:protocol`` or in ``:addresses`` (resolvers' included), agent identifiers nested
+    deeper than :data:`MAX_AID_DEPTH`, malformed string or date-time, trailing text, input
+    over ``max_size``. JADE's leniencies (module docstring) are read, not refused.
     """
     if aid_extras not in ("keep", "reject", "drop"):
         raise ValueError(f"aid_extras must be 'keep', 'reject' or 'drop', not {aid_extras!r}")

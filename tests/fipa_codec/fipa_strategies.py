@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import Literal
+
 import msgspec
 from hypothesis import strategies as st
 
@@ -61,6 +63,7 @@ from shared.fipa_codec.languages.l_wm import (
     Subscription,
     WorldUpdate,
 )
+from shared.fipa_codec.names import is_word
 
 POSE = Pose((0.6, -0.1, 1.02), (0.707, 0.0, 0.707, 0.0), "world")
 MOVE = MoveTool(arm=Arm.RIGHT, target=POSE, duration=2.5, stiffness=(800, 800, 800, 50, 50, 50))
@@ -187,13 +190,28 @@ SAMPLE_TERMS: list[msgspec.Struct] = [
 # ---------------------------------------------------------------------------------------------
 # Strategies
 
-agent_names = st.from_regex(r"[A-Za-z][A-Za-z0-9_.\-@]{0,15}", fullmatch=True)
+_SURROGATES: tuple[Literal["Cs"], ...] = ("Cs",)
+roco_names = st.from_regex(r"[A-Za-z][A-Za-z0-9_.\-@]{0,15}", fullmatch=True)
+# FIPA SC00070 words: any first character but white space, ( ) # - @ " and digits, then any but
+# white space and parentheses; not lexically a number or date-time (shared.fipa_codec.names)
+_word_first = st.characters(
+    exclude_categories=_SURROGATES, exclude_characters='()#-@"0123456789', min_codepoint=0x21
+)
+_word_rest = st.characters(exclude_categories=_SURROGATES, exclude_characters="()", min_codepoint=0x21)
+fipa_words = st.tuples(_word_first, st.text(_word_rest, max_size=15)).map("".join).filter(is_word)
+# JADE's default agent names: local@host:port/JADE
+_hosts = st.from_regex(r"[a-z][a-z0-9.\-]{0,10}", fullmatch=True)
+jade_names = st.builds("{}@{}:{}/JADE".format, roco_names, _hosts, st.integers(1, 65535))
+agent_names = roco_names | jade_names | fipa_words
+# addresses: URLs of the kinds roco and JADE use, or any SC00070 word (SC00070 §2.2 URLSequence)
+_urls = ["tcp/127.0.0.1:7447", "http://robolab:7778/acc", "http://host:7778/acc?x=1"]
+addresses_ = st.sampled_from(_urls) | fipa_words
 any_text = st.text(max_size=30)
 # keys: X- plus a name without white space or parentheses (writable in the string form)
 user_keys = st.tuples(
     st.sampled_from(["X-", "x-"]),
     st.text(
-        st.characters(exclude_characters="()", exclude_categories=("Cs",), min_codepoint=0x21),
+        st.characters(exclude_characters="()", exclude_categories=_SURROGATES, min_codepoint=0x21),
         min_size=1,
         max_size=12,
     ),
@@ -205,7 +223,7 @@ aid_user_params = st.lists(st.tuples(user_keys, any_text), max_size=2, unique_by
 def agent_identifiers(depth: int = 3) -> st.SearchStrategy[AgentIdentifier]:
     """Agent identifiers (SC00023 §4) with addresses, user parameters and resolvers nested
     at most ``depth`` identifiers deep (counting the outer one); mostly plain ones."""
-    addresses = st.lists(any_text, max_size=3).map(tuple)
+    addresses = st.lists(addresses_, max_size=3).map(tuple)
     plain = st.builds(AgentIdentifier, agent_names, addresses)
     if depth <= 1:
         resolvers: st.SearchStrategy[tuple[AgentIdentifier, ...]] = st.just(())
@@ -249,7 +267,7 @@ def communicates(draw: st.DrawFn) -> Communicate:
         language=language,
         encoding=draw(st.none() | st.just("msgpack") | any_text),
         ontology=draw(opt_text),
-        protocol=draw(st.none() | st.sampled_from(["fipa-request", "coordinate"]) | any_text),
+        protocol=draw(st.none() | st.sampled_from(["fipa-request", "coordinate"]) | fipa_words),
         conversation_id=draw(opt_text),
         reply_with=draw(opt_text),
         in_reply_to=draw(opt_text),

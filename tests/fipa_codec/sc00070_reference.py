@@ -7,7 +7,8 @@ be a String, ``:reply-by`` a DateTime, ``:name`` a Word, the agent-identifier pa
 the grammar's order (``:name``, ``:addresses``, ``:resolvers``, user parameters), user-defined
 parameter names start with ``X-``, and each message parameter appears at most once (SC00070 notes).
 With ``strict_words`` (the default) ``:protocol`` must be a Word and an address a Word (a URL);
-without it a String is let through there too (roco writes a String when a value is no Word).
+without it a String is let through there too (roco writes only Words there; the option stays for
+other writers' output).
 
 The result is plain data: ``{"performative": str, "sender": aid, "receiver": [aid, …],
 "content": bytes, "language": str, …, "reply-by": str, "user": {name: value}}`` where an

@@ -384,7 +384,7 @@ def test_json_schema_documents_the_agent_identifier() -> None:
     name, addresses, resolvers, user = aid_schema["prefixItems"]
     for item, word in [(name, "name"), (addresses, "addresses"), (resolvers, "resolvers"), (user, "user")]:
         assert item["description"].startswith(word + ":")
-    assert name["pattern"] == "^[A-Za-z][A-Za-z0-9_.\\-@]{0,127}$"
+    assert name["pattern"] == '^[^\\x00-\\x20()#0-9\\-@"][^\\x00-\\x20()]{0,254}$'  # a SC00070 Word
     assert addresses["items"] == {"type": "string"} and addresses["default"] == []
     assert resolvers["items"] == {"$ref": "#/$defs/AgentIdentifier"} and resolvers["default"] == []
     pair = user["items"]

@@ -10,6 +10,7 @@ import math
 import re
 from datetime import timedelta, timezone
 
+import msgspec
 import pytest
 from fipa_strategies import SAMPLE_TERMS, communicates, full_communicate
 from hypothesis import HealthCheck, given, settings
@@ -18,6 +19,7 @@ from hypothesis import strategies as st
 from shared.fipa_codec import AgentIdentifier, Communicate, Performative
 from shared.fipa_codec.languages import encode_content
 from shared.fipa_codec.languages.l_wm import ObjectQuery
+from shared.fipa_codec.names import is_word
 from shared.fipa_codec.string_form import (
     MAX_AID_DEPTH,
     AidExtras,
@@ -65,6 +67,23 @@ def test_bytes_round_trip(msg: Communicate) -> None:
     assert parse(bytearray(wire)) == msg
 
 
+@given(communicates(), st.none() | st.text(max_size=12), st.data())
+@settings(max_examples=300, suppress_health_check=[HealthCheck.too_slow])
+def test_every_buildable_communicate_round_trips_or_is_refused_by_its_rule(
+    msg: Communicate, protocol: str | None, data: st.DataObject
+) -> None:
+    """Every communicate that can be built, any protocol text included: to_string -> parse
+    gives it back unchanged, unless a word-typed field is no SC00070 word, which is refused
+    when written (ValueError naming the field) - never written as something else."""
+    msg = msgspec.structs.replace(msg, protocol=protocol)
+    if protocol is not None and not is_word(protocol):
+        with pytest.raises(ValueError, match=":protocol"):
+            to_string(msg)
+        return
+    assert parse(to_string(msg)) == msg
+    assert parse(to_bytes(msg, pretty=data.draw(st.booleans()))) == msg
+
+
 @given(communicates())
 @settings(max_examples=100, suppress_health_check=[HealthCheck.too_slow])
 def test_string_survives_utf8_storage(msg: Communicate) -> None:
@@ -103,10 +122,12 @@ def test_example_form() -> None:
         (b"a\\\\b", '"a\\\\b"'),  # two backslashes stay two
         (b'\\"', '"\\\\""'),  # a backslash, then an escaped quote
         (b"ends\\", '#5"ends\\'),  # a literal cannot end in a backslash: byte-length encoded
-        (b"line\nbreak", '#10"line\nbreak'),  # control character: byte-length encoded
-        (b"\x00\xff", '#2"\x00\xff'),
+        (b"line\nbreak", '"line\nbreak"'),  # text with a line break: still a literal
+        ("tab\tżółw\r\n".encode(), '"tab\tżółw\r\n"'),  # JADE counts #n" in characters: no #n" for text
+        (b"\x00\x1b", '"\x00\x1b"'),  # any UTF-8 is text, control characters too
+        (b"\x00\xff", '#2"\x00\xff'),  # not UTF-8: byte-length encoded
         (b"\xc3\x28", '#2"\xc3('),  # invalid UTF-8
-        ("\u0085".encode(), '#2"\xc2\x85'),  # C1 control
+        ("\u0085".encode(), '"\x85"'),  # C1 control, valid UTF-8
         (b")", '")"'),
     ],
 )
@@ -139,15 +160,15 @@ def test_language_content_round_trips(term: object) -> None:
 def test_foreign_forms_are_read() -> None:
     text = (
         "(INFORM\n\t:Sender (AGENT-IDENTIFIER :name a_co)\r\n"
-        ':receiver (set (agent-identifier :addresses (sequence "tcp/x y") :name b))'
-        ' :content #5"hello :language fipa-sl :protocol "fipa-request"'
+        ":receiver (set (agent-identifier :addresses (sequence tcp/x:1) :name b))"
+        ' :content #5"hello :language fipa-sl :protocol fipa-request'
         ' :reply-with 42 :in-reply-to (a (b "c)") d) :ontology #2"ok'
         ' :conversation-id "back\\slash" :x-Lower-Case ok)'
     )
     msg = parse(text)
     assert msg.performative is INFORM
     assert msg.sender == AgentIdentifier("a_co")
-    assert msg.receiver == (AgentIdentifier("b", ("tcp/x y",)),)
+    assert msg.receiver == (AgentIdentifier("b", ("tcp/x:1",)),)
     assert msg.content == b"hello"
     assert msg.language == "fipa-sl"
     assert msg.protocol == "fipa-request"
@@ -291,7 +312,7 @@ def test_bad_datetime(token: str, reason: str) -> None:
         ("(inform :sender a_co)", "expected '(agent-identifier'", 16),
         ("(inform :sender (agent a_co))", "expected 'agent-identifier'", 17),
         ("(inform :sender (agent-identifier))", "without :name", 16),
-        ("(inform :sender (agent-identifier :name 9x))", "invalid agent name", 16),
+        ("(inform :sender (agent-identifier :name 9x))", "expected an agent name (a SC00070 word)", 40),
         ("(inform :sender (agent-identifier :name a :name b))", "repeated", 42),
         ("(inform :sender (agent-identifier :NAME a :Name b))", "repeated", 42),
         ("(inform :sender (agent-identifier :name a :colour red))", "expected :name, :addresses", 42),
@@ -299,8 +320,8 @@ def test_bad_datetime(token: str, reason: str) -> None:
         ("(inform :sender (agent-identifier :name a :addresses (set x)))", "expected 'sequence'", 54),
         (
             "(inform :sender (agent-identifier :name a :resolvers (sequence (agent-identifier :name 9r))))",
-            "invalid agent name '9r'",
-            63,
+            "expected an agent name (a SC00070 word), found '9r'",
+            87,
         ),
         (
             "(inform :sender (agent-identifier :name a :resolvers (sequence) :resolvers (sequence)))",
@@ -319,6 +340,30 @@ def test_bad_datetime(token: str, reason: str) -> None:
         ('(inform :ontology #1"\xff)', "invalid UTF-8", 18),
         ("(inform :ontology \ud800)", "lone surrogate", 18),
         (")", "expected '('", 0),
+        # SC00070 words where the grammar asks for one (issue 22): never a silent reading
+        (
+            "(inform :sender (agent-identifier :name a :addresses (sequence http://a (b) c)))",
+            "expected an address (a SC00070 word), found '('",
+            72,
+        ),
+        (
+            '(inform :sender (agent-identifier :name a :addresses (sequence "tcp/x y")))',
+            "expected an address (a SC00070 word), found a string",
+            63,
+        ),
+        ('(inform :sender (agent-identifier :name "a_co"))', "expected an agent name (a SC00070 word)", 40),
+        ("(inform :sender (agent-identifier :name (a b)))", "expected an agent name (a SC00070 word)", 40),
+        ("(inform :sender (agent-identifier :name 12))", "found number '12'", 40),
+        ('(inform :protocol "fipa request")', "expected a value for :protocol (a SC00070 word)", 18),
+        ("(inform :protocol (fipa request))", "expected a value for :protocol (a SC00070 word)", 18),
+        ("(inform :protocol 42)", "found number '42'", 18),
+        # atoms that are no Word, Number or DateTime (SC00070 §2.3)
+        ("(inform :language 9x)", "'9x', which is no SC00070 word, number or date-time", 18),
+        ("(inform :X-a @b)", "'@b', which is no SC00070 word", 13),
+        ("(inform :in-reply-to (a -b))", "'-b', which is no SC00070 word", 24),
+        ("(inform :reply-by 2026-11-21)", "expected a date-time", 18),
+        ("(inform :content 123)", "expected a string after :content, found number '123'", 17),
+        ("(inform :content 20261121T153000000Z)", "found date-time", 17),
     ],
 )
 def test_bad_text_is_string_form_error(text: str, reason: str, position: int) -> None:
@@ -491,12 +536,45 @@ def test_user_parameter_names_keep_their_case() -> None:
 # -- text values, agent identifiers, error locations --------------------------------------------
 
 
+@pytest.mark.parametrize("value", ["a\nb", "tab\there", "żółw\r\n", "x\x00y", 'say "hi"\n'])
+def test_text_with_control_characters_is_a_literal(value: str) -> None:
+    """Text is a StringLiteral whenever that is valid SC00070: line breaks, tabs included."""
+    msg = _msg(content=value.encode(), conversation_id=value, user_params={"X-v": value})
+    text = to_string(msg)
+    literal = '"' + value.replace('"', '\\"') + '"'
+    assert text.count(literal) == 3 and "#" not in text
+    assert parse(text) == msg
+    assert parse(to_bytes(msg)) == msg
+
+
+@pytest.mark.parametrize("protocol", ["fipa request", "", "(x)", "9x", "-p", "1.5", "a\tb", '"q"'])
+def test_a_protocol_that_is_no_word_is_refused_when_written(protocol: str) -> None:
+    msg = _msg(protocol=protocol)
+    for write in (to_string, to_bytes):
+        with pytest.raises(ValueError, match=r"invalid :protocol .*not a FIPA SC00070 word"):
+            write(msg)
+
+
+def test_jade_literal_ending_in_a_backslash_is_read_as_jade_means_it() -> None:
+    """JADE prints content ``C:\\dir\\`` as ``"C:\\dir\\"`` (StringACLCodec escapes only quotes)."""
+    assert parse('(inform :content "C:\\dir\\" :language x)') == _msg(content=b"C:\\dir\\", language="x")
+    assert parse('(inform :content "a \\"b\\" c\\")').content == b'a "b" c\\'  # the last \" closes
+    # a later plain quote: \" is an escape (as in JADE's lexer), the literal runs on to it,
+    # and what is left is no message (JADE fails on it too)
+    with pytest.raises(StringFormError, match=re.escape("expected ')' or a message parameter")) as info:
+        parse('(inform :content "a\\" :language "x")')
+    assert info.value.position == 33
+    with pytest.raises(StringFormError, match="unterminated string literal"):
+        parse('(inform :content "no quote at all)')
+
+
 @pytest.mark.parametrize("value", ["C:\\dir\\", "\\", 'a "quoted" \\', "żółw\\"])
 def test_text_values_ending_in_a_backslash_are_byte_length_encoded(value: str) -> None:
+    word = is_word(value)  # an address and :protocol are Words, written as they are
     msg = _msg(
-        sender=AgentIdentifier("a", (value,)),
+        sender=AgentIdentifier("a", (value,) if word else ()),
         language=value,
-        protocol=value,
+        protocol=value if word else None,
         conversation_id=value,
         in_reply_to=value,
         user_params={"X-v": value},
@@ -510,14 +588,14 @@ def test_text_values_ending_in_a_backslash_are_byte_length_encoded(value: str) -
 
 def test_agent_identifier_is_read_in_full() -> None:
     text = (
-        '(inform :sender (Agent-Identifier :X-b "2 3" :ADDRESSES (Sequence tcp/a:1 "udp/b c") :Name a_co'
+        '(inform :sender (Agent-Identifier :X-b "2 3" :ADDRESSES (Sequence tcp/a:1 udp/b:2) :Name a_co'
         " :RESOLVERS (SEQUENCE (agent-identifier :name df :x-a (1 2)) (agent-identifier :name ams)) :X-a 1)"
-        ' :receiver (set (agent-identifier :name "b" :addresses (sequence) :resolvers (sequence))))'
+        " :receiver (set (agent-identifier :name b :addresses (sequence) :resolvers (sequence))))"
     )
     msg = parse(text)
     assert msg.sender == AgentIdentifier(
         "a_co",
-        ("tcp/a:1", "udp/b c"),
+        ("tcp/a:1", "udp/b:2"),
         (AgentIdentifier("df", user=(("x-a", "(1 2)"),)), AgentIdentifier("ams")),
         (("X-b", "2 3"), ("X-a", "1")),  # in the order read
     )
@@ -568,9 +646,10 @@ def test_resolvers_and_agent_user_parameters_are_kept_rejected_or_dropped() -> N
     dropped = parse(text, aid_extras="drop")
     assert dropped.sender == AgentIdentifier("a")
     assert dropped.reply_to == (AgentIdentifier("b"),)
-    # with "drop" the resolvers are not made agent identifiers: their names are not checked
+    # with "drop" the resolvers are not made agent identifiers, but must still be SC00070
     foreign = "(inform :sender (agent-identifier :name a :resolvers (sequence (agent-identifier :name 9))))"
-    assert parse(foreign, aid_extras="drop").sender == AgentIdentifier("a")
+    with pytest.raises(StringFormError, match="expected an agent name"):
+        parse(foreign, aid_extras="drop")
     with pytest.raises(ValueError, match="aid_extras must be"):
         parse(text, aid_extras="ignore")  # type: ignore[arg-type]
 

@@ -305,5 +305,5 @@ def test_render_readable_escapes_control_characters_and_raw_is_exact() -> None:
     readable = render(msg)
     assert "\x1b" not in readable and "\\x1b" in readable
     assert ':content "<4 bytes, base64 ABub/w==>"' in readable  # binary content that is no term
-    assert ':conversation-id #6"c\\x1b[31m' in readable
+    assert ':conversation-id "c\\x1b[31m"' in readable  # text is a literal, its ESC escaped
     assert parse(render(msg, content=False)) == msg
