@@ -1,5 +1,6 @@
 """What the machine allows: off-screen rendering (EGL or OSMesa) for the head camera,
-SCHED_FIFO and CPU pinning for the 1 kHz loop, loopback ports for the router.
+SCHED_FIFO, CPU pinning and the CPU latency request for the 1 kHz loop, loopback ports for
+the router.
 
 The rendering and scheduling probes run in a child Python process (a failed GL context can
 abort a process; a real-time policy must not stay on this one), each with a time limit."""
@@ -19,6 +20,7 @@ ROUTER_PORT = 7447  # roco up's default router port (services/cli.py DEFAULT_ROU
 GL_PROBE = "import mujoco\nctx = mujoco.GLContext(64, 64)\nctx.make_current()\nctx.free()\n"
 FIFO_PROBE = "import os\nos.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(1))\n"
 PIN_PROBE = "import os, sys\nos.sched_setaffinity(0, {int(sys.argv[1])})\n"
+PM_QOS_DEVICE = "/dev/cpu_dma_latency"  # velma/executor/timing.py PM_QOS_DEVICE (no MuJoCo import here)
 
 GL_HOW = {
     "egl": "apt-get install libegl1 libegl-mesa0 libgl1-mesa-dri (software EGL is enough)",
@@ -96,6 +98,22 @@ def pinning_check() -> Check:
     )
 
 
+def cpu_latency_check(device: str = PM_QOS_DEVICE) -> Check:
+    """Whether the loop may hold the CPUs' wake-up latency at 0 µs (PM QoS; velma/executor/
+    timing.py ``hold_cpu_latency``): the device exists and this user may write it. Not
+    needed, but without it the loop's cycles come back to cold caches after each sleep."""
+    if not os.path.exists(device):
+        return Check("CPU latency request", Use.REALTIME, False, f"no {device}", "Linux with PM QoS")
+    ok = os.access(device, os.W_OK)
+    return Check(
+        "CPU latency request",
+        Use.REALTIME,
+        ok,
+        f"{device} writable: idle CPUs will poll while the loop runs" if ok else f"{device} not writable",
+        "" if ok else f"run as root, or grant write access to {device} (containers: --device {device})",
+    )
+
+
 def port_free(port: int, host: str = "127.0.0.1") -> bool:
     """Whether TCP ``port`` on ``host`` can be bound now (0: any port)."""
     with socket.socket() as s:
@@ -132,4 +150,4 @@ def port_checks(router_port: int = ROUTER_PORT) -> list[Check]:
 
 
 def checks() -> list[Check]:
-    return [*port_checks(), *rendering_checks(), fifo_check(), pinning_check()]
+    return [*port_checks(), *rendering_checks(), fifo_check(), pinning_check(), cpu_latency_check()]

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import datetime as dt
 import json
+import os
 import socket
 from collections.abc import Sequence
 from pathlib import Path
@@ -176,3 +177,19 @@ def test_doctor_on_this_machine_finds_what_roco_run_needs(tmp_path: Path) -> Non
     assert result.exit_code == 0, result.output
     for item in ("Python", "eclipse-zenoh", "mujoco", "loopback port", "SCHED_FIFO", "Chromium"):
         assert item in result.output
+
+
+def test_the_cpu_latency_request_is_checked_where_the_loop_makes_it(tmp_path: Path) -> None:
+    """The loop holds /dev/cpu_dma_latency (velma/executor/timing.py): the doctor says whether
+    it exists and is writable, with how to get it when not."""
+    device = tmp_path / "cpu_dma_latency"
+    missing = machine.cpu_latency_check(str(device))
+    assert missing.missing and missing.use is Use.REALTIME and "no " in missing.detail
+    device.write_bytes(b"")
+    device.chmod(0o600)
+    found = machine.cpu_latency_check(str(device))
+    assert found.found and found.how == ""
+    device.chmod(0o400)
+    refused = machine.cpu_latency_check(str(device))
+    if os.geteuid() != 0:  # root may write anything: the refusal shows only for other users
+        assert refused.missing and "--device" in refused.how

@@ -126,6 +126,7 @@ def test_stalls_are_cycles_the_machine_took_the_cpu_from() -> None:
         writer.record(k * DT, k * DT, k * DT + compute, None, cpu)
     s = DeadlineMonitor(DT, realtime=True, window=8, buffer=buf).stats()
     assert s.stalls == 1
+    assert s.long_cycles == 1  # the 5 ms one; the 0.9 ms one stayed within the period
     assert s.compute_max_us == pytest.approx(5000.0)
     assert s.compute_max_outside_stalls_us == pytest.approx(900.0)
     assert s.off_cpu_max_us == pytest.approx(4700.0)

@@ -125,6 +125,8 @@ class TimingStats(msgspec.Struct, frozen=True, kw_only=True):
     plant: str = ""
     """Where the cycle's MuJoCo side ran: ``compiled`` or ``python`` (velma/executor/plant.py;
     empty when the loop did not say)."""
+    long_cycles: int = 0
+    """Cycles in the window whose compute time exceeded the period (1 ms)."""
     stalls: int = 0
     """Stalls in the window: cycles that spent more than ``STALL_OFF_CPU`` off their CPU
     (module docstring); 0 when the loop did not measure its CPU time."""
@@ -278,6 +280,7 @@ class DeadlineMonitor:
             setup=self.setup,
             control_law=self.control_law,
             plant=self.plant,
+            long_cycles=int((comp > self.dt * 1e6).sum()) if n else 0,
             stalls=stalls,
             compute_max_outside_stalls_us=outside,
             off_cpu_max_us=off_max,
