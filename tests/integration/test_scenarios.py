@@ -117,7 +117,9 @@ def test_an_object_moved_after_it_was_seen_makes_a_ta_replan(tmp_path: Path) -> 
 def test_impossible_commands_are_refused_with_a_reason(tmp_path: Path) -> None:
     proc, run_dir = scenario("impossible", tmp_path)
     assert proc.returncode == 0, proc.stdout[-4000:] + proc.stderr[-2000:]
-    assert [c.outcome for c in build_report(run_dir).commands] == ["failed", "failed"]
+    # the teapot never becomes a command: a_hi names the word it does not know (the scenario
+    # checks its answer), so only the pour into the cabinet reaches the report's commands
+    assert [c.outcome for c in build_report(run_dir).commands] == ["failed"]
     w = world(run_dir)
     assert all(untouched(w[n]) for n in START), w  # nothing was moved
 
