@@ -699,7 +699,11 @@ def status(
         session.close()
     for name in (*AGENT_ORDER, "recorder", *(["gateway"] if "gateway" in alive else [])):
         line = f"{name:9s} {'alive' if name in alive else 'absent'}"
-        if name in reports:
+        if name == "gateway" and name in reports:  # roco gateway: what came in, refused, went out
+            from services.gateway.bridge import summary as gateway_summary
+
+            line += f"  {gateway_summary(reports[name].counters)}"
+        elif name in reports:
             line += f"  {summary(reports[name].counters)}"
         elif name in alive and name != "recorder":  # (the gateway answers as agents do)
             line += "  (no counters within the timeout: busy)"

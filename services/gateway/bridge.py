@@ -65,7 +65,7 @@ from shared.fipa_codec import AgentIdentifier, Communicate, DecodeError, Perform
 from shared.fipa_codec.languages import LANGUAGES, ContentError, decode_content, encode_content, load_all
 from shared.fipa_codec.string_form import StringFormError, format_datetime, parse, to_bytes
 
-__all__ = ["GATEWAY", "REFUSE_REASONS", "Gateway", "Refusal"]
+__all__ = ["GATEWAY", "REFUSE_REASONS", "Gateway", "Refusal", "summary"]
 
 GATEWAY = "gateway"
 """The gateway's identity on Zenoh (services/spec_check/acl.py: GATEWAY)."""
@@ -403,3 +403,15 @@ def _kind(sends: tuple[MessageKind, ...], receiver: str, msg: Communicate) -> Me
         if k.receiver == receiver and k.performative == msg.performative.value and k.protocol == msg.protocol:
             return k
     return None
+
+
+def summary(counters: dict[str, int]) -> str:
+    """The gateway's counters in one line (``roco status``): ``received 3, forwarded 2,
+    refused 1 (receiver 1), answered 4, post_failed 0``."""
+    refused = {k.split(".", 1)[1]: v for k, v in counters.items() if k.startswith("refused.") and v}
+    line = [f"received {counters.get('received', 0)}", f"forwarded {counters.get('forwarded', 0)}"]
+    line.append(f"refused {counters.get('refused', 0)}")
+    if refused:
+        line[-1] += " (" + ", ".join(f"{k} {v}" for k, v in sorted(refused.items())) + ")"
+    line += [f"answered {counters.get('answered', 0)}", f"post_failed {counters.get('post_failed', 0)}"]
+    return ", ".join(line)

@@ -23,6 +23,9 @@ A subclass declares its ``name`` (as in the specification), builds its FSM of be
   exception while taking a communicate in is counted (``rejected.internal``) and logged,
 - a bound on the conversations a peer may have open with the agent
   (``MAX_OPEN_CONVERSATIONS_PER_PEER``): one more is refused,
+- agents of other platforms (issue 22): a sender named ``local@platform`` that is not an agent of
+  the specification is checked as the specification's external role (``SystemSpec.role_of``:
+  x_fipa, which ends C8 with a_hi), and answered under its own name,
 - its ``counters`` on request: a put on ``roco/counters/ask`` makes every agent publish them
   on ``roco/counters/report/<agent>`` (JSON; ``roco status`` shows them),
 - the protocol state of every conversation (:class:`ProtocolStates`, one tracker per peer

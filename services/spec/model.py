@@ -5,6 +5,10 @@ Loaded from TOML (``robot_companion.toml`` beside this module) into typed Struct
 validates the shape, :func:`load` the cross references. An agent's interface is the set of
 (channel, peer, performative, protocol, language) it may send or receive (paper §4 step 4:
 the sets yV̂_j, xV̂_j, yL̂_j, xL̂_j).
+
+A channel may end at an external role (``[[externals]]``, issue 22) instead of an agent: agents
+of other platforms, which no process of roco runs; :meth:`SystemSpec.role_of` says which role a
+concrete agent name plays (``da0@host:1099/JADE`` plays ``x_fipa``).
 """
 
 from __future__ import annotations
