@@ -22,7 +22,8 @@ How the gateway appears on Zenoh
     ``roco/counters/report/gateway`` as agents do (``roco status`` shows the counters).
 
 What crosses, checked against the specification (per receiver of the envelope)
-    In: the ACL payload (FIPA SC00070 string form) must name a foreign sender; the receiver must
+    In: the ACL payload (FIPA SC00070 string form, in the envelope's ``payload-encoding``) must
+    name a foreign sender; the receiver must
     be an agent the sender's role has a channel to; the performative and protocol must be ones
     the role may send there; the content must be the JSON of a term of a language the
     specification gives that performative (``{"type": "sentence", "text": "…"}``: msgspec's JSON
@@ -61,7 +62,15 @@ from services.gateway.http_mtp import MTPError, MTPMessage, post_message
 from services.runtime import keys
 from services.runtime.transport import Transport
 from services.spec.model import MessageKind, SystemSpec, channel_between, interface, is_foreign
-from shared.fipa_codec import AgentIdentifier, Communicate, DecodeError, Performative, decode, encode
+from shared.fipa_codec import (
+    AgentIdentifier,
+    Communicate,
+    DecodeError,
+    EncodeError,
+    Performative,
+    decode,
+    encode,
+)
 from shared.fipa_codec.languages import LANGUAGES, ContentError, decode_content, encode_content, load_all
 from shared.fipa_codec.string_form import StringFormError, format_datetime, parse, to_bytes
 
@@ -79,6 +88,8 @@ REFUSE_REASONS: dict[str, str] = {
     "content": "the content is not the JSON of a term the channel allows",
 }
 """Why the gateway refuses a message, each counted as ``refused.<reason>``."""
+_UTF8 = frozenset({"", "utf-8", "utf8", "us-ascii", "ascii"})
+"""Payload encodings read as UTF-8 octets (US-ASCII is a subset); others are decoded first."""
 _REFUSE_AS = {"sender": Performative.REFUSE, "receiver": Performative.REFUSE}
 """Reasons answered ``refuse``; the others ``not-understood``."""
 
@@ -138,8 +149,15 @@ class Gateway:
             raise MTPError(
                 f"acl-representation {message.envelope.acl_representation!r}: only {STRING_REPRESENTATION}"
             )
+        charset = (message.envelope.payload_encoding or "").strip().lower()
+        payload: str | bytes = message.payload
+        if charset not in _UTF8:  # another character set the envelope names (ISO-8859-1…)
+            try:
+                payload = message.payload.decode(charset)
+            except (LookupError, UnicodeDecodeError) as exc:
+                raise MTPError(f"the payload is not {charset} text: {exc}") from None
         try:
-            msg = parse(message.payload)
+            msg = parse(payload)
         except StringFormError as exc:
             raise MTPError(f"the payload is no FIPA ACL message: {exc}") from None
         self._queue.put(("in", (message.envelope, msg)))
@@ -210,7 +228,12 @@ class Gateway:
                 continue
             assert communicate.sender is not None
             key = keys.fipa_key(channel, communicate.sender.name, receiver.name)
-            self.transport.publish(key, encode(communicate))
+            try:
+                payload = encode(communicate)
+            except EncodeError as exc:  # larger than any communicate may be
+                self._refuse(msg, receiver.name, Refusal("content", str(exc)))
+                continue
+            self.transport.publish(key, payload)
             self.count("forwarded")
             log.info(
                 "%s → %s on %s: %s (conversation %s)",

@@ -175,6 +175,8 @@ reason (e.g. a payload that is no ACL message), anything else 500."""
 class _Handler(BaseHTTPRequestHandler):
     server: MTPServer
     protocol_version = "HTTP/1.1"
+    timeout = 30.0
+    """Seconds a connection may stay silent (a client that never sends its body is dropped)."""
 
     def log_message(self, format: str, *args: object) -> None:
         log.debug("%s " + format, self.client_address[0], *args)

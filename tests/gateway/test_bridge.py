@@ -6,6 +6,7 @@ with a FIPA refuse or not-understood and counted."""
 from __future__ import annotations
 
 import json
+import queue
 from collections.abc import Iterator
 from dataclasses import dataclass
 
@@ -142,3 +143,33 @@ def test_bad_bodies_get_406_and_the_gateway_keeps_going(b: Bridge) -> None:
 @pytest.fixture
 def b(bridge: Bridge) -> Bridge:
     return bridge
+
+
+def test_a_payload_in_another_character_set_is_read_in_it() -> None:
+    """The envelope's payload-encoding (ISO-8859-1 here) says how the payload's text is written."""
+    from services.gateway.envelope import Envelope
+    from services.gateway.http_mtp import MTPError, MTPMessage
+    from services.runtime.memory_transport import MemoryBus
+    from shared.fipa_codec import AgentIdentifier
+
+    posted: queue.SimpleQueue[tuple[str, MTPMessage]] = queue.SimpleQueue()
+    gateway = Gateway(
+        MemoryBus().transport(),
+        default_spec(),
+        "http://127.0.0.1:1/acc",
+        post=lambda address, message, timeout: posted.put((address, message)),
+    )
+    gateway.start()
+    try:
+        acl = (
+            f"(request :sender (agent-identifier :name {JADE} :addresses (sequence http://jade:7778/acc)) "
+            f':receiver (set (agent-identifier :name a_co)) :content "caf\u00e9" :reply-with r1)'
+        )
+        to = (AgentIdentifier("a_co"),)
+        gateway.deliver(MTPMessage(Envelope(to=to, payload_encoding="ISO-8859-1"), acl.encode("latin-1")))
+        address, message = posted.get(timeout=TIMEOUT)
+        assert address == "http://jade:7778/acc" and b"(refuse" in message.payload
+        with pytest.raises(MTPError, match="not no-such-charset text"):
+            gateway.deliver(MTPMessage(Envelope(to=to, payload_encoding="no-such-charset"), b"(x)"))
+    finally:
+        gateway.stop()

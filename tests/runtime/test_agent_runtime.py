@@ -128,7 +128,7 @@ def test_not_understood_is_never_answered_with_not_understood(running: tuple) ->
 def test_sending_outside_the_interface_raises() -> None:
     agent = Counter(MemoryBus().transport())
     with pytest.raises(SpecViolation, match="no channel"):
-        agent.send("a_hi", Performative.INFORM, protocol="fipa-request")
+        agent.send("ag_ex", Performative.INFORM, protocol="fipa-request")
     with pytest.raises(SpecViolation, match="may not send request"):
         agent.send("a_pl", Performative.REQUEST, protocol="fipa-query")
     with pytest.raises(SpecViolation, match="must use L_WM"):

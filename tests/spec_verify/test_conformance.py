@@ -22,6 +22,8 @@ from shared.fipa_codec.languages.l_hc import (
     HumanCommand,
     Progress,
     ProgressSubscription,
+    Sentence,
+    SentenceReport,
     TaskAtom,
     TaskState,
 )
@@ -114,16 +116,44 @@ def test_a_conforming_request_with_its_crossings(tmp_path: Path) -> None:
     assert conversation.ended and conversation.state == "done"
 
 
+def test_a_foreign_agents_request_on_c8_conforms_as_the_external_roles(tmp_path: Path) -> None:
+    """Issue 22: traffic that crossed roco gateway, under the JADE agent's own name, is checked
+    as x_fipa's; the same request to a_co is on no channel."""
+    jade = "da0@host:1099/JADE"
+    said = Sentence(text="bring me the cup")
+    report = verify(
+        tmp_path,
+        on("C8", comm(P.REQUEST, jade, "a_hi", "fipa-request", "C1_jade", said)),
+        on(
+            "C8",
+            comm(
+                P.AGREE, "a_hi", jade, "fipa-request", "C1_jade", SentenceReport(kind="accepted", text="ok")
+            ),
+        ),
+        on(
+            "C8",
+            comm(
+                P.INFORM, "a_hi", jade, "fipa-request", "C1_jade", SentenceReport(kind="succeeded", text="ok")
+            ),
+        ),
+    )
+    assert report.full_conformance, render(report)
+    (conversation,) = report.conversations
+    assert conversation.agents == (jade, "a_hi") and conversation.ended
+    bad = verify(tmp_path / "bad", on("C8", comm(P.REQUEST, jade, "a_co", "fipa-request", "C2_jade", said)))
+    assert found(bad) == [(0, "channel", "C2_jade", 0)]
+
+
 def test_a_communicate_on_a_channel_that_does_not_join_its_agents(tmp_path: Path) -> None:
     query = comm(P.QUERY_REF, "a_pl", "a_km", "fipa-query", "q1", ObjectQuery("jar"))
     report = verify(
         tmp_path,
         (keys.fipa_key("C6", "a_pl", "a_km"), encode(query)),  # a_pl and a_km share C4
-        on("C2", comm(P.REQUEST, "a_hi", "a_km", "fipa-request", "r1", COMMAND)),  # no channel at all
+        on("C2", comm(P.REQUEST, "a_hi", "a_pl", "fipa-request", "r1", COMMAND)),  # no channel at all
     )
     assert found(report) == [(0, "channel", "q1", 0), (1, "channel", "r1", 0)]
     assert report.violations[0].text == "a_pl and a_km are joined by C4, not C6"
-    assert report.violations[1].text == "no channel of the specification joins a_hi and a_km"
+    assert report.violations[1].text == "no channel of the specification joins a_hi and a_pl"
     assert not report.full_conformance
 
 
