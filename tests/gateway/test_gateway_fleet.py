@@ -1,7 +1,8 @@
 """The gateway on a real router with access control (issue 22, done when): a JADE-like platform's
 request (FIPA SC00084) reaches a_hi as a person's command would and its answers return; one to an
 agent it may not address is refused and counted (the gateway's counters, as ``roco status`` asks
-them); ``roco sniff`` shows the JADE-named agent's traffic. One router process (spawned by the
+them); ``roco sniff`` shows the JADE-named agent's traffic; the router drops what the gateway's
+identity may not put (C2, or posing as a_co on C8). One router process (spawned by the
 launcher, ended by its PID); a_hi, a stand-in a_co, the gateway and the sniffer are sessions of
 this process, each authenticated as itself."""
 
@@ -19,6 +20,7 @@ from services.agents.human_interface.agent import HumanInterface
 from services.fleet.launcher import Fleet, free_port
 from services.gateway.bridge import GATEWAY, Gateway, summary
 from services.gateway.http_mtp import MTPServer
+from services.runtime import keys
 from services.runtime.agent import Agent
 from services.runtime.counters import ask_counters
 from services.runtime.session import open_client
@@ -116,6 +118,23 @@ def test_a_jade_request_crosses_the_gateway_under_access_control(fleet: Fleet) -
         wanted = {f"C8  {JADE} → a_hi", f"C8  a_hi → {JADE}"}
         while not all(any(w in line for line in seen) for w in wanted):
             seen.append(lines.get(timeout=TIMEOUT))
+
+        # the router binds the gateway whatever it is told: a put on C2 (to a_co) or as a_co on
+        # C8 is dropped; a marker put after them on the same session arrives, so they would have
+        keys_seen: queue.SimpleQueue[str] = queue.SimpleQueue()
+        watcher = open_client(ep)
+        try:
+            watcher.declare_subscriber("roco/**", lambda sample: keys_seen.put(str(sample.key_expr)))
+            forbidden = {keys.fipa_key("C2", JADE, "a_co"), keys.fipa_key("C8", "a_co", "a_hi")}
+            for key in forbidden:
+                gateway_transport.session.put(key, b"x")
+            gateway_transport.session.put(keys.counters_key(GATEWAY), b"marker")
+            arrived: list[str] = []
+            while keys.counters_key(GATEWAY) not in arrived:
+                arrived.append(keys_seen.get(timeout=TIMEOUT))
+            assert not forbidden & set(arrived)
+        finally:
+            watcher.close()
     finally:
         stop.set()
         jade.close()
