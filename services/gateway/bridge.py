@@ -53,6 +53,7 @@ import queue
 import threading
 import time
 from collections import Counter, OrderedDict
+from collections.abc import Callable
 from typing import Any
 
 import msgspec
@@ -94,6 +95,9 @@ _REFUSE_AS = {"sender": Performative.REFUSE, "receiver": Performative.REFUSE}
 """Reasons answered ``refuse``; the others ``not-understood``."""
 
 log = logging.getLogger(GATEWAY)
+Post = Callable[[str, MTPMessage, float], None]
+"""How a message is posted to a foreign platform: (address, message, timeout s); raises MTPError
+or OSError when it is not taken (``services.gateway.http_mtp.post_message``)."""
 
 
 class Refusal(Exception):
@@ -118,7 +122,7 @@ class Gateway:
         spec: SystemSpec,
         address: str,
         *,
-        post: Any = post_message,
+        post: Post = post_message,
         post_timeout: float = 10.0,
     ) -> None:
         load_all()
@@ -212,7 +216,8 @@ class Gateway:
     def _report_counters(self) -> None:
         with self._lock:
             counters = dict(self.counters)
-        report = {"agent": GATEWAY, "time": time.time(), "session": "", "counters": counters}
+        session = getattr(self.transport, "session_id", "")
+        report = {"agent": GATEWAY, "time": time.time(), "session": session, "counters": counters}
         self.transport.publish(keys.counters_key(GATEWAY), msgspec.json.encode(report))
 
     # ---- in: HTTP → Zenoh ----------------------------------------------------------------
