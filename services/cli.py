@@ -646,6 +646,34 @@ def sniff(
     typer.echo(f"roco: {count} communicates")
 
 
+@app.command(short_help="Bridge the fleet to other FIPA platforms (HTTP, SC00084).")
+def gateway(
+    router: Annotated[str | None, typer.Option(help="router endpoint")] = None,
+    runs_dir: Annotated[Path, typer.Option()] = Path("runs"),
+    host: Annotated[str, typer.Option(help="interface the HTTP transport listens on")] = "127.0.0.1",
+    port: Annotated[int, typer.Option(min=1, max=65535, help="port of the HTTP transport")] = 7778,
+    address: Annotated[
+        str | None,
+        typer.Option(help="the URL other platforms post to (default http://HOST:PORT/acc)"),
+    ] = None,
+    spec: Annotated[Path | None, typer.Option("--spec", help="a specification file")] = None,
+) -> None:
+    """Serve the FIPA HTTP message transport (FIPA SC00084, SC00085 XML envelope, SC00070
+    string form) for agents of other FIPA platforms (JADE…): what they send to a roco agent
+    the specification lets them address (its external role, x_fipa: a_hi on C8) is put on
+    the fleet's Zenoh under their own names, and the answers are posted back to them; anything
+    else is refused (FIPA refuse or not-understood) and counted. Runs until Ctrl-C
+    (docs/gateway.md)."""
+    from services.gateway.cli import GatewayConfig
+    from services.gateway.cli import main as run_gateway
+    from services.spec.model import DEFAULT_SPEC
+
+    config = GatewayConfig(_endpoint(router, runs_dir), host, port, address, spec or DEFAULT_SPEC)
+    code = run_gateway(config)
+    if code:
+        raise typer.Exit(code)
+
+
 @app.command(short_help="Which agents are alive, with their counters of input.")
 def status(
     router: Annotated[str | None, typer.Option(help="router endpoint")] = None,
@@ -666,14 +694,18 @@ def status(
         raise fail(f"no router answers at {endpoint}") from None
     try:
         alive = alive_agents(session)
-        reports = ask_counters(session, alive & set(AGENT_ORDER), timeout=counters_timeout)
+        reports = ask_counters(session, alive & {*AGENT_ORDER, "gateway"}, timeout=counters_timeout)
     finally:
         session.close()
-    for name in (*AGENT_ORDER, "recorder"):
+    for name in (*AGENT_ORDER, "recorder", *(["gateway"] if "gateway" in alive else [])):
         line = f"{name:9s} {'alive' if name in alive else 'absent'}"
-        if name in reports:
+        if name == "gateway" and name in reports:  # roco gateway: what came in, refused, went out
+            from services.gateway.bridge import summary as gateway_summary
+
+            line += f"  {gateway_summary(reports[name].counters)}"
+        elif name in reports:
             line += f"  {summary(reports[name].counters)}"
-        elif name in alive and name != "recorder":
+        elif name in alive and name != "recorder":  # (the gateway answers as agents do)
             line += "  (no counters within the timeout: busy)"
         typer.echo(line)
     if not set(AGENT_ORDER) <= alive:

@@ -39,7 +39,7 @@ import zenoh
 
 from services.runtime import keys
 from services.runtime.session import open_client
-from services.spec.model import SystemSpec, default_spec
+from services.spec.model import SystemSpec, default_spec, is_foreign
 from shared.fipa_codec import Communicate, DecodeError, Performative, decode
 from shared.fipa_codec.string_form import to_string
 
@@ -100,7 +100,9 @@ def parse_filters(
 
     Performatives are read in any case (``QUERY-REF`` is ``query-ref``, as SC00070 reads
     keywords) and must be one of the 22 of FIPA SC00037; channels (``c4`` is ``C4``) and agents
-    must be named in the specification (``spec``, default: the shipped Robot Companion one).
+    must be named in the specification (``spec``, default: the shipped Robot Companion one), or
+    be agents of another platform (``local@platform``, e.g. ``da0@host:1099/JADE``) when it has
+    an external role.
     Raises ValueError naming every unknown value and listing the known ones.
     """
     spec = spec or default_spec()
@@ -130,7 +132,11 @@ def parse_filters(
             )
         return frozenset(chosen)
 
-    chosen_agents = check("agent", agents, known_agents, str)
+    # agents of other platforms (local@platform) play the specification's external role (issue 22)
+    foreign = {a.strip() for a in agents or () if spec.externals and is_foreign(a.strip())}
+    chosen_agents = check("agent", [a for a in agents or () if a.strip() not in foreign], known_agents, str)
+    if foreign:
+        chosen_agents = frozenset(foreign | (chosen_agents or set()))
     chosen_channels = check("channel", channels, known_channels, str.upper)
     chosen_performatives = check("performative", performatives, [p.value for p in Performative], str.lower)
     if conversation is not None and not conversation.strip():

@@ -23,6 +23,9 @@ A subclass declares its ``name`` (as in the specification), builds its FSM of be
   exception while taking a communicate in is counted (``rejected.internal``) and logged,
 - a bound on the conversations a peer may have open with the agent
   (``MAX_OPEN_CONVERSATIONS_PER_PEER``): one more is refused,
+- agents of other platforms (issue 22): a sender named ``local@platform`` that is not an agent of
+  the specification is checked as the specification's external role (``SystemSpec.role_of``:
+  x_fipa, which ends C8 with a_hi), and answered under its own name,
 - its ``counters`` on request: a put on ``roco/counters/ask`` makes every agent publish them
   on ``roco/counters/report/<agent>`` (JSON; ``roco status`` shows them),
 - the protocol state of every conversation (:class:`ProtocolStates`, one tracker per peer
@@ -222,7 +225,7 @@ class Agent:
         """
         if retry_s is not None and not retry_s > 0:
             raise ValueError(f"retry_s must be positive, not {retry_s}")
-        channel = channel_between(self.spec, self.name, to)
+        channel = channel_between(self.spec, self.name, self.spec.role_of(to))
         if channel is None:
             raise SpecViolation(f"{self.name}: no channel to {to}")
         language, body = encode_content(content) if content is not None else (None, b"")
@@ -320,7 +323,7 @@ class Agent:
         the interface does not allow that performative in ``to``'s protocol."""
         protocol = to.msg.protocol or ""
         self._check_send(to.sender, performative.value, protocol, None)
-        channel = channel_between(self.spec, self.name, to.sender)
+        channel = channel_between(self.spec, self.name, self.spec.role_of(to.sender))
         assert channel is not None  # _check_send found a kind, so a channel exists
         msg = Communicate(
             performative=performative,
@@ -397,8 +400,9 @@ class Agent:
     def _check_send(
         self, to: str, performative: str, protocol: str, language: str | None, term: str | None = None
     ) -> None:
+        role = self.spec.role_of(to)
         for kind in self.interface.sends:
-            if kind.receiver == to and kind.performative == performative and kind.protocol == protocol:
+            if kind.receiver == role and kind.performative == performative and kind.protocol == protocol:
                 if language is not None and kind.languages and language not in kind.languages:
                     self._violation(
                         None,
@@ -448,7 +452,7 @@ class Agent:
         machine), else the reason."""
         if conversation_id is None or protocol is None or protocol not in self.spec.protocols:
             return None
-        mine = self._roles.get((peer, protocol))
+        mine = self._roles.get((self.spec.role_of(peer), protocol))
         if mine is None:
             return None
         try:
@@ -590,7 +594,8 @@ class Agent:
                 sender, channel, "sender does not match the key it came on", msg, "sender_mismatch"
             )
             return
-        kind = self.interface.accepts(sender, msg.performative.value, msg.protocol)
+        # a foreign agent (local@platform) is checked as the external role it plays (issue 22)
+        kind = self.interface.accepts(self.spec.role_of(sender), msg.performative.value, msg.protocol)
         if kind is None or kind.channel != channel:
             self.not_understood(
                 sender,
@@ -676,7 +681,9 @@ class Agent:
         )
         protocol = msg.protocol or ""
         may_refuse = any(
-            k.receiver == sender and k.performative == Performative.REFUSE.value and k.protocol == protocol
+            k.receiver == self.spec.role_of(sender)
+            and k.performative == Performative.REFUSE.value
+            and k.protocol == protocol
             for k in self.interface.sends
         )
         if may_refuse:

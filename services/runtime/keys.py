@@ -40,6 +40,10 @@ RECORDER_SYNCED = f"{PREFIX}/recorder/synced"
 COUNTERS_ASK = f"{PREFIX}/counters/ask"
 """A put here (any payload) asks every agent for its counters (``roco status``)."""
 COUNTERS_ALL = f"{PREFIX}/counters/report/*"
+FOREIGN = "$*@$*"
+"""A key-expression chunk matching the key chunk of every agent name ``local@platform`` (an
+agent of another platform, services/spec/model.py ``is_foreign``) and of none of roco's own
+agents: ``roco/fipa/C8/$*@$*/a_hi`` is any foreign agent's communicate to a_hi on C8 (issue 22)."""
 
 
 class FipaKey(NamedTuple):

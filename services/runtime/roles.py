@@ -778,7 +778,7 @@ class Roles:
         conversation's protocol state by the agent) to its conversation and handler."""
         agent = self.agent
         protocol = item.msg.protocol or ""
-        decl = self._by_peer.get((item.sender, protocol))
+        decl = self._by_peer.get((agent.spec.role_of(item.sender), protocol))
         cid = item.msg.conversation_id or ""
         if decl is None:  # outside every role: the interface check lets nothing through here
             if not item.local:

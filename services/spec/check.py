@@ -5,9 +5,12 @@ Decomposition rules (paper §4 step 2): the requirements form one tree; every st
 group of the current fringe into two new groups (or only supplements channels); every channel
 of a split group is reallocated to one of the two new groups (a channel left at a group that no
 longer exists is an error); new channels are numbered 1, 2, 3, ... in order of creation and
-join groups of the fringe; the stop condition holds: every requirement is addressed by a
-step, and the final fringe is exactly the groups the agents substitute, with the final
-channels exactly the specification's channels C1..Cn between those agents.
+join groups of the fringe (or one group of the fringe and one group outside the system that
+a step declares ``outside``: agents of other platforms, issue 22); the stop condition holds:
+every requirement is addressed by a step, and the final fringe is exactly the groups the agents
+substitute, with the final channels exactly the specification's channels C1..Cn between those
+agents; each group outside the system is substituted by an external role (``[[externals]]``),
+never by an agent.
 
 Interface rules (paper §4 steps 3–4): every channel protocol exists and is initiated by one of
 the channel's ends; every performative a role may send has a language (not-understood and
@@ -52,6 +55,7 @@ def check_decomposition(d: Decomposition, spec: SystemSpec | None = None) -> lis
         return problems
 
     fringe = [d.system]
+    outside: list[str] = []
     used = {d.system}
     channels: dict[int, tuple[str, str]] = {}
     addressed: dict[str, int] = {}
@@ -101,6 +105,11 @@ def check_decomposition(d: Decomposition, spec: SystemSpec | None = None) -> lis
                 used |= {a, b}
         elif not step.new_channels and not step.supplemented:
             problems.append(f"{where}: neither splits a group nor creates or supplements a channel")
+        for group in step.outside:
+            if group in used:
+                problems.append(f"{where}: the group outside the system {group!r} must be a new group")
+            outside.append(group)
+            used.add(group)
         for r in step.reallocated:
             if r.number in channels and r.from_ in channels[r.number]:
                 old = channels[r.number]
@@ -109,8 +118,10 @@ def check_decomposition(d: Decomposition, spec: SystemSpec | None = None) -> lis
             expected = max(channels, default=0) + 1
             if c.number != expected:
                 problems.append(f"{where}: new channel C{c.number} should be numbered C{expected}")
+            if all(end in outside for end in c.ends):
+                problems.append(f"{where}: new channel C{c.number} joins two groups outside the system")
             for end in c.ends:
-                if end not in fringe:
+                if end not in fringe and end not in outside:
                     problems.append(
                         f"{where}: new channel C{c.number} ends at {end!r}, which is not in the fringe "
                         f"({', '.join(fringe)})"
@@ -126,21 +137,34 @@ def check_decomposition(d: Decomposition, spec: SystemSpec | None = None) -> lis
             problems.append(f"stop condition: requirement {rid} is addressed by no step")
     for k, ends in sorted(channels.items()):
         for end in ends:
-            if end not in fringe:
+            if end not in fringe and end not in outside:
                 problems.append(
                     f"channel C{k} ends at group {end!r}, which no longer exists "
                     f"(fringe: {', '.join(fringe)})"
                 )
     if spec is not None:
-        problems += _final_matches_spec(fringe, channels, spec)
+        problems += _final_matches_spec(fringe, channels, spec, outside)
     return problems
 
 
 def _final_matches_spec(
-    fringe: list[str], channels: dict[int, tuple[str, str]], spec: SystemSpec
+    fringe: list[str], channels: dict[int, tuple[str, str]], spec: SystemSpec, outside: list[str]
 ) -> list[str]:
     problems = []
     agent_of = {a.group: a.name for a in spec.agents}
+    for e in spec.externals:
+        if e.group not in outside:
+            problems.append(
+                f"external role {e.name} substitutes group {e.group!r}, which no step declares outside"
+            )
+        elif e.group in agent_of:
+            problems.append(
+                f"group {e.group!r} outside the system is substituted by agent {agent_of[e.group]}"
+            )
+        agent_of.setdefault(e.group, e.name)
+    for g in outside:
+        if g not in agent_of:
+            problems.append(f"group {g!r} outside the system is substituted by no external role")
     for g in fringe:
         if g not in agent_of:
             problems.append(f"stop condition: group {g!r} of the final fringe is substituted by no agent")
@@ -219,6 +243,9 @@ def check_interfaces(spec: SystemSpec) -> list[str]:
         iface = interface(spec, a.name)
         if not iface.sends or not iface.receives:
             problems.append(f"agent {a.name} can only {'receive' if iface.receives else 'send'}")
+    for e in spec.externals:
+        if not any(e.name in ch.ends for ch in spec.channels):
+            problems.append(f"external role {e.name} ends no channel")
     return problems
 
 
@@ -230,9 +257,10 @@ def check_report(path: Path = DEFAULT_SPEC) -> tuple[bool, str]:
     except SpecError as exc:
         return False, f"{exc}"
     problems = check_decomposition(d, spec) + check_interfaces(spec)
+    externals = f", {len(spec.externals)} external role(s)" if spec.externals else ""
     head = (
         f"{path}: {len(d.requirements)} requirements, {len(d.steps)} steps, "
-        f"{len(spec.agents)} agents, {len(spec.channels)} channels"
+        f"{len(spec.agents)} agents{externals}, {len(spec.channels)} channels"
     )
     if not problems:
         return True, f"{head}\nOK: the decomposition is sound and the interfaces match the channels"

@@ -18,6 +18,10 @@ Schema (TOML, beside the channels in the same file; every field below is validat
                                   split group to one of the new groups (paper: C^k_{q,q'} ↦ C^k_{p,q'})
     new_channels = [{ number = 2, ends = ["da", "hi"], transmits = "..." }]
     supplemented = [{ number = 6, transmits = "..." }]       more content on an existing channel
+    outside = { xp = "..." }      groups outside the system (their tasks) that this step's new
+                                  channels may join: agents of other platforms (issue 22), which
+                                  no agent of the system substitutes but an external role
+                                  (``[[externals]]``) does; a channel joins at most one of them
 
 The first step splits the system's own group (``system``). :func:`replay` computes the fringe
 and the channels after every step; :mod:`services.spec.check` checks them against the rules
@@ -77,6 +81,7 @@ class Step(msgspec.Struct, frozen=True, forbid_unknown_fields=True, kw_only=True
     reallocated: tuple[Reallocation, ...] = ()
     new_channels: tuple[NewChannel, ...] = ()
     supplemented: tuple[Supplement, ...] = ()
+    outside: dict[str, str] = {}
 
 
 class Decomposition(msgspec.Struct, frozen=True, kw_only=True):

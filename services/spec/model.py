@@ -5,6 +5,10 @@ Loaded from TOML (``robot_companion.toml`` beside this module) into typed Struct
 validates the shape, :func:`load` the cross references. An agent's interface is the set of
 (channel, peer, performative, protocol, language) it may send or receive (paper §4 step 4:
 the sets yV̂_j, xV̂_j, yL̂_j, xL̂_j).
+
+A channel may end at an external role (``[[externals]]``, issue 22) instead of an agent: agents
+of other platforms, which no process of roco runs; :meth:`SystemSpec.role_of` says which role a
+concrete agent name plays (``da0@host:1099/JADE`` plays ``x_fipa``).
 """
 
 from __future__ import annotations
@@ -33,6 +37,20 @@ class AgentSpec(msgspec.Struct, frozen=True, forbid_unknown_fields=True):
     implementation: str
     job: str = ""
     waits: tuple[dict[str, str | list[str]], ...] = ()
+
+
+class ExternalSpec(msgspec.Struct, frozen=True, forbid_unknown_fields=True):
+    """A role played by agents outside the platform (issue 22): agents of another FIPA
+    platform, reached through ``roco gateway`` (FIPA SC00084 HTTP transport, SC00085 envelope).
+    ``name`` is the role's name in the channels (``x_fipa``), ``group`` the group outside the
+    system that a decomposition step introduces (``outside``), ``job`` what such agents do here.
+    No process of roco plays it: every agent name of the form ``local@platform`` (a FIPA
+    SC00023 GUID, e.g. JADE's ``da0@host:1099/JADE``) that is not an agent of the
+    specification plays it (:meth:`SystemSpec.role_of`)."""
+
+    name: str
+    group: str
+    job: str = ""
 
 
 class ProtocolRoles(msgspec.Struct, frozen=True, forbid_unknown_fields=True):
@@ -90,6 +108,22 @@ class SystemSpec(msgspec.Struct, frozen=True, forbid_unknown_fields=True):
     start_order: tuple[str, ...] = ()
     """The order a launcher starts the agents in; agents it does not name start after those it
     names, in file order."""
+    externals: tuple[ExternalSpec, ...] = ()
+    """Roles of agents outside the platform (at most one; see :class:`ExternalSpec`)."""
+
+    @property
+    def external_names(self) -> tuple[str, ...]:
+        """The external roles' names (``x_fipa``), in file order."""
+        return tuple(e.name for e in self.externals)
+
+    def role_of(self, name: str) -> str:
+        """The name agent ``name`` has in the channels: an agent of the specification is
+        itself; a foreign agent (``local@platform``, not an agent of the specification) plays
+        the external role when the specification has one (:class:`ExternalSpec`); any other
+        name is itself (and ends no channel)."""
+        if self.externals and is_foreign(name) and name not in self.agent_names:
+            return self.externals[0].name
+        return name
 
     @property
     def agent_names(self) -> tuple[str, ...]:
@@ -133,6 +167,14 @@ class Interface:
         return None
 
 
+def is_foreign(name: str) -> bool:
+    """Whether ``name`` is the name of an agent of another platform: a FIPA SC00023 GUID
+    ``local@platform`` (an ``@`` after its first character and before its last), as JADE
+    names its agents (``da0@host:1099/JADE``). roco's own agents have short names without one."""
+    at = name.find("@", 1)
+    return 0 < at < len(name) - 1
+
+
 def read_text(path: Path, what: str = "specification file", error: type[ValueError] = SpecError) -> str:
     """The text of an input file (UTF-8). Raises ``error`` (one line naming the file) when it
     does not exist, is a directory, cannot be read, or is not UTF-8 (with the line and
@@ -171,14 +213,22 @@ def load(path: Path = DEFAULT_SPEC) -> SystemSpec:
     except (msgspec.DecodeError, msgspec.ValidationError) as exc:
         raise SpecError(f"{path}: {one_line(exc)}") from None
     names = {a.name for a in spec.agents}
+    if len(spec.externals) > 1:
+        raise SpecError(f"{path}: at most one external role, not {len(spec.externals)}")
+    for e in spec.externals:
+        if e.name in names or is_foreign(e.name):
+            raise SpecError(f"{path}: external role {e.name!r} must be no agent's name and no GUID")
     unknown = [a for a in spec.start_order if a not in names]
     if unknown or len(set(spec.start_order)) != len(spec.start_order):
         what = f"unknown agent {unknown[0]!r}" if unknown else "an agent twice"
         raise SpecError(f"{path}: start_order names {what}")
+    outside = set(spec.external_names)
     for ch in spec.channels:
         for end in ch.ends:
-            if end not in names:
+            if end not in names and end not in outside:
                 raise SpecError(f"{path}: channel {ch.name} names unknown agent {end!r}")
+        if set(ch.ends) <= outside:
+            raise SpecError(f"{path}: channel {ch.name} joins two external roles")
         for cp in ch.protocols:
             if cp.protocol not in spec.protocols:
                 raise SpecError(f"{path}: channel {ch.name} uses unknown protocol {cp.protocol!r}")

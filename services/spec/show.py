@@ -30,6 +30,7 @@ def steps_markdown(d: Decomposition) -> str:
         if s.split and s.into:
             rows.append(["Decomposition", f"g_{s.split} := ⟨g_{s.into[0]}, g_{s.into[1]}⟩"])
             rows += [[f"g_{g} tasks", s.tasks.get(g, "")] for g in s.into]
+        rows += [[f"g_{g} outside the system", task] for g, task in s.outside.items()]
         moved = [f"C{r.number}: {r.from_} ↦ {r.to}" for r in s.reallocated]
         rows.append(["Channel reallocation", ", ".join(moved) or "—"])
         rows.append(
@@ -122,6 +123,8 @@ def graph_dot(spec: SystemSpec) -> str:
     ]
     for a in spec.agents:
         lines.append(f'  {a.name} [label="{a.name}\\n(g_{a.group})"];')
+    for e in spec.externals:  # outside the system (issue 22)
+        lines.append(f'  {e.name} [label="{e.name}\\n(g_{e.group}, outside)", style="rounded,dashed"];')
     for ch in spec.channels:
         protos = ", ".join(p.protocol for p in ch.protocols)
         lines.append(f'  {ch.ends[0]} -- {ch.ends[1]} [label="{ch.name}: {protos}", fontsize=10];')
@@ -132,15 +135,16 @@ def graph_dot(spec: SystemSpec) -> str:
 def graph_svg(spec: SystemSpec, size: int = 640) -> str:
     """A self-contained SVG of the agents on a circle and the channels between them, each
     labelled with its name and protocols (no Graphviz needed)."""
-    n = len(spec.agents)
+    nodes = [*spec.agent_names, *spec.external_names]
+    n = len(nodes)
     cx = cy = size / 2
     r = size * 0.36
     pos = {
-        a.name: (
+        name: (
             cx + r * math.cos(2 * math.pi * i / n - math.pi / 2),
             cy + r * math.sin(2 * math.pi * i / n - math.pi / 2),
         )
-        for i, a in enumerate(spec.agents)
+        for i, name in enumerate(nodes)
     }
     out = [
         f'<svg xmlns="http://www.w3.org/2000/svg" width="{size}" height="{size}" viewBox="0 0 {size} {size}" '
@@ -160,14 +164,15 @@ def graph_svg(spec: SystemSpec, size: int = 640) -> str:
             'stroke="white" stroke-width="3" paint-order="stroke">'
             f"{escape(ch.name)}: {escape(protos)}</text>"
         )
-    for a in spec.agents:
-        x, y = pos[a.name]
+    for name in nodes:
+        x, y = pos[name]
+        dashed = ' stroke-dasharray="4 3"' if name in spec.external_names else ""  # outside the system
         out.append(
             f'<rect x="{x - 42:.1f}" y="{y - 18:.1f}" width="84" height="36" rx="8" '
-            'fill="#eef4ff" stroke="#124"/>'
+            f'fill="#eef4ff" stroke="#124"{dashed}/>'
         )
         out.append(
-            f'<text x="{x:.1f}" y="{y + 5:.1f}" font-size="13" text-anchor="middle">{escape(a.name)}</text>'
+            f'<text x="{x:.1f}" y="{y + 5:.1f}" font-size="13" text-anchor="middle">{escape(name)}</text>'
         )
     out.append("</svg>")
     return "\n".join(out)

@@ -23,6 +23,15 @@ liveliness declarations), ``egress`` what the router delivers to it. For agent `
   liveliness token and heartbeats below its own keys (``<key>/@adv/**``), hears the recorder's
   queries of ``roco/fipa/**/@adv/**`` and replies only with communicates on its own keys.
 
+A channel whose one end is an external role (``x_fipa``, issue 22: agents of other FIPA
+platforms) is keyed with ``$*@$*`` for that end (``keys.FOREIGN``: a chunk holding an ``@``,
+which every foreign name ``local@platform`` has, ``da0@host:1099%2FJADE``, and no name of roco's
+agents has): a_hi puts on ``roco/fipa/C8/a_hi/$*@$*`` and is delivered
+``roco/fipa/C8/$*@$*/a_hi``. Only the ``gateway`` (``roco gateway``, services/gateway/) puts
+as a foreign agent: on ``roco/fipa/C8/$*@$*/a_hi``, with its advanced publishers' caches below;
+it hears ``roco/fipa/C8/a_hi/$*@$*``, holds ``roco/alive/gateway`` and answers
+``roco/counters/ask``. So neither can use C8 to reach or pose as one of roco's agents.
+
 The recorder hears every communicate (``roco/fipa/**``), the sync token and fault events, and
 answers on ``roco/recorder/synced``; its advanced subscriber queries the publishers' caches,
 watches their liveliness tokens and hears their heartbeats (``roco/fipa/**/@adv/**``).
@@ -41,6 +50,7 @@ name (both must match). Source of the schema: eclipse-zenoh DEFAULT_CONFIG.json5
 
 from __future__ import annotations
 
+import re
 from collections import defaultdict
 from dataclasses import dataclass, field
 from typing import Any, Literal
@@ -64,6 +74,8 @@ Message = Literal[
 RECORDER = "recorder"  # services/recorder/recorder.py: RECORDER
 OPERATOR = "operator"
 """The identity of the operator's tools (CLI, scenario runner, fault injector, tests)."""
+GATEWAY = "gateway"  # services/gateway/bridge.py: GATEWAY
+"""The identity of ``roco gateway``, which speaks for agents of other platforms."""
 INJECTOR = "roco"  # services/fault/process.py: INJECTOR, the sender of process-fault events
 
 _FAULT = "roco/fault"  # services/runtime/faults.py: FAULT_PREFIX
@@ -129,8 +141,23 @@ class Grants:
         return any(_includes(k, key) for k in self.allowed.get((flow, message), []))
 
 
+def _chunk_includes(pattern: str, chunk: str) -> bool:
+    """Whether a chunk of a key expression includes a concrete ``chunk``: ``*`` any chunk, a
+    pattern with ``$*`` any characters there; wildcards never match a verbatim ``@`` chunk."""
+    if pattern == chunk:
+        return True
+    if chunk.startswith("@") or chunk in ("*", "**"):
+        return False
+    if pattern == "*":
+        return True
+    if "$*" in pattern:
+        return re.fullmatch(".*".join(re.escape(p) for p in pattern.split("$*")), chunk) is not None
+    return False
+
+
 def _includes(pattern: str, key: str) -> bool:
-    """Whether key expression ``pattern`` includes ``key`` (chunks; ``*`` one, ``**`` any)."""
+    """Whether key expression ``pattern`` includes ``key`` (chunks; ``*`` one, ``**`` any,
+    ``$*`` any characters within a chunk)."""
     p, k = pattern.split("/"), key.split("/")
 
     def rec(i: int, j: int) -> bool:
@@ -140,21 +167,30 @@ def _includes(pattern: str, key: str) -> bool:
             return any(rec(i + 1, jj) for jj in range(j, len(k) + 1))
         if j == len(k):
             return False
-        if p[i] == "*":
-            return k[j] != "**" and rec(i + 1, j + 1)
-        return p[i] == k[j] and rec(i + 1, j + 1)
+        return _chunk_includes(p[i], k[j]) and rec(i + 1, j + 1)
 
     return rec(0, 0)
 
 
 def channel_routes(spec: SystemSpec) -> list[tuple[str, str, str]]:
     """Every (channel, sender, receiver) the specification allows: both directions of each
-    channel, in file order."""
+    channel, in file order (an external role by its name, ``x_fipa``)."""
     routes = []
     for ch in spec.channels:
         a, b = ch.ends
         routes += [(ch.name, a, b), (ch.name, b, a)]
     return routes
+
+
+def route_key(spec: SystemSpec, channel: str, sender: str, receiver: str) -> str:
+    """The key expression of a route: :func:`keys.fipa_key`, with ``keys.FOREIGN`` for an
+    external role's end (any foreign name plays it)."""
+    outside = spec.external_names
+
+    def chunk(name: str) -> str:
+        return keys.FOREIGN if name in outside else keys.key_chunk(name)
+
+    return f"{keys.FIPA_PREFIX}{channel}/{chunk(sender)}/{chunk(receiver)}"
 
 
 def agent_grants(spec: SystemSpec, agent: str) -> Grants:
@@ -163,11 +199,11 @@ def agent_grants(spec: SystemSpec, agent: str) -> Grants:
         raise KeyError(agent)
     g = Grants(agent)
     routes = channel_routes(spec)
-    sends = [keys.fipa_key(c, s, r) for c, s, r in routes if s == agent]
+    sends = [route_key(spec, c, s, r) for c, s, r in routes if s == agent]
     g.say(*sends)
     _cached_publisher(g, sends)
     g.allow("ingress", "declare_subscriber", keys.inbox_key(agent))
-    g.allow("egress", "put", *(keys.fipa_key(c, s, r) for c, s, r in routes if r == agent))
+    g.allow("egress", "put", *(route_key(spec, c, s, r) for c, s, r in routes if r == agent))
     g.allow("ingress", "liveliness_token", keys.alive_key(agent))
     g.watch_alive()
     g.hear(FAULT_CONTROL_ALL, _fault_control(agent))
@@ -192,6 +228,23 @@ def _cached_publisher(g: Grants, sends: list[str]) -> None:
     g.say(*caches)
     g.allow("egress", "query", keys.FIPA_CACHES)
     g.allow("ingress", "reply", *sends, *caches)
+
+
+def gateway_grants(spec: SystemSpec) -> Grants:
+    """The grants of ``roco gateway`` (module docstring): it puts as any foreign agent to the
+    agents the external roles have channels to, and hears only what those agents say to
+    foreign agents."""
+    g = Grants(GATEWAY)
+    outside = spec.external_names
+    routes = channel_routes(spec)
+    sends = [route_key(spec, c, s, r) for c, s, r in routes if s in outside and r not in outside]
+    g.say(*sends)
+    _cached_publisher(g, sends)
+    g.hear(*(route_key(spec, c, s, r) for c, s, r in routes if r in outside and s not in outside))
+    g.allow("ingress", "liveliness_token", keys.alive_key(GATEWAY))
+    g.hear(keys.COUNTERS_ASK)
+    g.say(keys.counters_key(GATEWAY))
+    return g
 
 
 def recorder_grants() -> Grants:
@@ -227,8 +280,15 @@ def operator_grants() -> Grants:
 
 
 def all_grants(spec: SystemSpec) -> list[Grants]:
-    """The grants of every identity: the agents in file order, then recorder and operator."""
-    return [*(agent_grants(spec, a.name) for a in spec.agents), recorder_grants(), operator_grants()]
+    """The grants of every identity: the agents in file order, then recorder and operator, then
+    the gateway when the specification has an external role."""
+    gateway = [gateway_grants(spec)] if spec.externals else []
+    return [
+        *(agent_grants(spec, a.name) for a in spec.agents),
+        recorder_grants(),
+        operator_grants(),
+        *gateway,
+    ]
 
 
 def identities(spec: SystemSpec) -> list[str]:

@@ -244,7 +244,8 @@ class _Checker:
         self.spec = spec
         self.machines = machines
         self.report = report
-        self.interfaces = {a.name: interface(spec, a.name) for a in spec.agents}
+        # agents, and the external role foreign agents play (issue 22: SystemSpec.role_of)
+        self.interfaces = {n: interface(spec, n) for n in (*spec.agent_names, *spec.external_names)}
         self.trackers: dict[tuple[str, frozenset[str]], CrossingTracker] = {}
         self.results: dict[tuple[str, frozenset[str]], ConversationResult] = {}
         self.outside_estimates = report.outside_estimates
@@ -316,7 +317,8 @@ class _Checker:
         """Everything about ``m`` the specification does not allow (paper §4 step 4: the
         sender's interface yV̂, the receiver's xV̂, the languages yL̂/xL̂)."""
         rec, comm = m.rec, m.comm
-        between = channel_between(self.spec, sender, receiver)
+        s_role, r_role = self.spec.role_of(sender), self.spec.role_of(receiver)
+        between = channel_between(self.spec, s_role, r_role)
         if between is None:
             return [("channel", f"no channel of the specification joins {sender} and {receiver}")]
         if between.name != rec.channel:
@@ -327,12 +329,10 @@ class _Checker:
         if protocol not in {cp.protocol for cp in between.protocols}:
             offered = ", ".join(cp.protocol for cp in between.protocols)
             return [("performative", f"protocol {protocol} is not specified on {between.name} ({offered})")]
-        sends = [
-            k for k in self.interfaces[sender].sends if k.receiver == receiver and k.protocol == protocol
-        ]
+        sends = [k for k in self.interfaces[s_role].sends if k.receiver == r_role and k.protocol == protocol]
         kind = next((k for k in sends if k.performative == perf), None)
         if kind is None:
-            role = _role_of(between, protocol, sender)
+            role = _role_of(between, protocol, s_role)
             allowed = ", ".join(k.performative for k in sends)
             return [
                 (
@@ -441,11 +441,11 @@ class _Checker:
     def _initiator(self, sender: str, receiver: str, protocol: str) -> str:
         """The initiator of ``protocol`` between the agents by the specification; else the
         sender of the conversation's first communicate."""
-        between = channel_between(self.spec, sender, receiver)
+        between = channel_between(self.spec, self.spec.role_of(sender), self.spec.role_of(receiver))
         if between is not None:
             for cp in between.protocols:
                 if cp.protocol == protocol:
-                    return cp.initiator
+                    return sender if cp.initiator == self.spec.role_of(sender) else receiver
         return sender
 
     def finish(self) -> None:

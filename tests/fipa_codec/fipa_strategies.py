@@ -27,6 +27,8 @@ from shared.fipa_codec.languages.l_hc import (
     HumanCommand,
     Progress,
     ProgressSubscription,
+    Sentence,
+    SentenceReport,
     Status,
     StatusQuery,
     TaskAtom,
@@ -95,6 +97,8 @@ SAMPLE_TERMS: list[msgspec.Struct] = [
     ProgressSubscription(),
     Progress(command_id="cmd-1", state=TaskState.RUNNING, step="pour(jar,bowl)/fetch_jar/grasp"),
     StatusQuery(),
+    Sentence(text="bring me the cup"),
+    SentenceReport(kind="succeeded", text="bring the cup: succeeded; done"),
     Status(
         tasks=(
             TaskStatus(command_id="cmd-1", text="pour", state=TaskState.PREEMPTED, priority=1),

@@ -11,6 +11,7 @@ from services.runtime import keys
 from services.spec.model import DEFAULT_SPEC, SystemSpec, load
 from services.spec_check.acl import (
     AGENT_EXTRAS,
+    GATEWAY,
     OPERATOR,
     RECORDER,
     _includes,
@@ -18,11 +19,25 @@ from services.spec_check.acl import (
     agent_grants,
     all_grants,
     channel_routes,
+    gateway_grants,
     identities,
     markdown_table,
     operator_grants,
     recorder_grants,
+    route_key,
 )
+
+JADE = "da0@host:1099/JADE"
+"""A foreign agent's name: it plays the external role x_fipa."""
+
+
+def key_of(spec: SystemSpec, channel: str, sender: str, receiver: str) -> str:
+    """A concrete key of a route, a JADE-named agent standing for an external role."""
+
+    def name(n: str) -> str:
+        return JADE if n in spec.external_names else n
+
+    return keys.fipa_key(channel, name(sender), name(receiver))
 
 
 @pytest.fixture(scope="module")
@@ -36,6 +51,10 @@ def test_includes_follows_zenoh_wildcards() -> None:
     assert not _includes("roco/fipa/*/*/a_ta", "roco/fipa/C1/a_ta/a_co")
     assert _includes("roco/**", "roco")
     assert not _includes("roco/fipa/C1/a_co/a_ta", "roco/fipa/*/*/a_ta")  # inclusion, not intersection
+    foreign = f"roco/fipa/C8/{keys.FOREIGN}/a_hi"
+    assert _includes(foreign, keys.fipa_key("C8", JADE, "a_hi"))
+    assert not _includes(foreign, keys.fipa_key("C8", "a_co", "a_hi"))
+    assert not _includes(foreign, "roco/fipa/C8/@x/a_hi")  # a verbatim chunk: no wildcard matches it
 
 
 def test_every_route_is_put_by_its_sender_only_and_delivered_to_its_receiver_only(spec: SystemSpec) -> None:
@@ -44,7 +63,7 @@ def test_every_route_is_put_by_its_sender_only_and_delivered_to_its_receiver_onl
     assert len(routes) == 2 * len(spec.channels)
     grants = {a: agent_grants(spec, a) for a in agents}
     for (channel, sender, receiver), agent in itertools.product(routes, agents):
-        key = keys.fipa_key(channel, sender, receiver)
+        key = key_of(spec, channel, sender, receiver)
         assert grants[agent].may("ingress", "put", key) == (agent == sender), (key, agent)
         assert grants[agent].may("egress", "put", key) == (agent == receiver), (key, agent)
 
@@ -66,7 +85,7 @@ def test_each_agent_subscribes_to_its_inbox_and_holds_only_its_own_token(spec: S
         g = agent_grants(spec, a.name)
         assert g.allowed[("ingress", "declare_subscriber")][0] == keys.inbox_key(a.name)
         assert not g.may("ingress", "declare_subscriber", keys.FIPA_ALL)
-        own = [keys.fipa_key(c, s, r) for c, s, r in channel_routes(spec) if s == a.name]
+        own = [route_key(spec, c, s, r) for c, s, r in channel_routes(spec) if s == a.name]
         tokens = {keys.alive_key(a.name), *(keys.caches_of(k) for k in own)}
         assert set(g.allowed[("ingress", "liveliness_token")]) == tokens
         assert g.allowed[("ingress", "declare_liveliness_subscriber")] == [keys.ALIVE_ALL]
@@ -100,14 +119,14 @@ def test_operator_observes_and_commands_but_never_speaks_fipa(spec: SystemSpec) 
     assert g.may("ingress", "put", keys.HUMAN_IN) and g.may("ingress", "put", "roco/fault/control/a_pl")
     assert g.may("ingress", "liveliness_query", keys.ALIVE_ALL)
     for c, s, r in channel_routes(spec):
-        assert not g.may("ingress", "put", keys.fipa_key(c, s, r))
+        assert not g.may("ingress", "put", key_of(spec, c, s, r))
     assert not g.allowed.get(("ingress", "liveliness_token"))
     assert not g.may("ingress", "put", keys.HUMAN_OUT)
 
 
 def test_acl_config_is_default_deny_with_one_subject_and_policy_per_identity(spec: SystemSpec) -> None:
     names = identities(spec)
-    assert names == [*(a.name for a in spec.agents), RECORDER, OPERATOR]
+    assert names == [*(a.name for a in spec.agents), RECORDER, OPERATOR, GATEWAY]
     for tls in (False, True):
         conf = acl_config(spec, tls=tls)
         assert conf["enabled"] is True and conf["default_permission"] == "deny"
@@ -149,3 +168,24 @@ def test_advanced_publishers_answer_cache_queries_only_with_their_own_communicat
     rec = recorder_grants()
     assert rec.may("ingress", "query", keys.FIPA_CACHES) and rec.may("egress", "reply", mine)
     assert not rec.may("ingress", "put", mine)
+
+
+def test_the_gateway_speaks_only_as_foreign_agents_on_their_channels(spec: SystemSpec) -> None:
+    """Issue 22: the gateway puts as any foreign agent (local@platform) to a_hi on C8 and hears
+    a_hi's answers to them; nothing else, and it cannot pose as one of roco's agents."""
+    g = gateway_grants(spec)
+    assert g.may("ingress", "put", keys.fipa_key("C8", JADE, "a_hi"))
+    assert g.may("ingress", "put", keys.fipa_key("C8", "ams@other:1099/JADE", "a_hi"))
+    assert not g.may("ingress", "put", keys.fipa_key("C8", "a_co", "a_hi"))  # no @: a roco agent
+    assert not g.may("ingress", "put", keys.fipa_key("C2", JADE, "a_co"))
+    assert not g.may("ingress", "put", keys.fipa_key("C8", JADE, "a_co"))
+    assert g.may("egress", "put", keys.fipa_key("C8", "a_hi", JADE))
+    assert not g.may("egress", "put", keys.fipa_key("C2", "a_hi", "a_co"))
+    assert not g.may("egress", "put", keys.fipa_key("C8", "a_hi", "a_co"))
+    assert g.may("ingress", "liveliness_token", keys.alive_key(GATEWAY))
+    assert not g.may("ingress", "liveliness_token", keys.alive_key("a_hi"))
+    hi = agent_grants(spec, "a_hi")  # a_hi answers foreign agents only, on C8
+    assert hi.may("ingress", "put", keys.fipa_key("C8", "a_hi", JADE))
+    assert not hi.may("ingress", "put", keys.fipa_key("C8", "a_hi", "a_co"))
+    assert hi.may("egress", "put", keys.fipa_key("C8", JADE, "a_hi"))
+    assert not hi.may("egress", "put", keys.fipa_key("C8", "a_co", "a_hi"))

@@ -278,11 +278,13 @@ def test_parse_filters_normalises_and_names_what_is_unknown() -> None:
     with pytest.raises(ValueError) as err:
         parse_filters(channels=["C9", "C4"], performatives=["ask", "inform"], agents=["a_xx"])
     text = str(err.value)
-    assert "unknown channel 'C9' (known: C1, C2, C3, C4, C5, C6, C7)" in text
+    assert "unknown channel 'C9' (known: C1, C2, C3, C4, C5, C6, C7, C8)" in text
     assert "unknown performative 'ask' (known: accept-proposal, agree," in text
     assert "unknown agent 'a_xx' (known: a_hi, a_co, a_pl, a_km, a_ta, ag_ex)" in text
-    with pytest.raises(ValueError, match="unknown channels 'C0', 'C8'"):
-        parse_filters(channels=["C0", "C8"])
+    with pytest.raises(ValueError, match="unknown channels 'C0', 'C9'"):
+        parse_filters(channels=["C0", "C9"])
+    # an agent of another platform plays the external role (issue 22): it may be named
+    assert parse_filters(agents=["da0@host:1099/JADE"]).agents == frozenset({"da0@host:1099/JADE"})
     with pytest.raises(ValueError, match="empty conversation-id"):
         parse_filters(conversation=" ")
 

@@ -47,7 +47,7 @@ def test_shipped_spec_has_no_deadlock() -> None:
         assert result.protocol(name).ok, name
     assert result.cycles == ()
     assert len(result.waits) >= 3  # a_co, a_pl and a_ta wait on the conversations they open
-    assert {c.channel for c in result.channels} == {"C1", "C2", "C3", "C4", "C5", "C6", "C7"}
+    assert {c.channel for c in result.channels} == {"C1", "C2", "C3", "C4", "C5", "C6", "C7", "C8"}
     assert all(c.result is result.protocol(c.protocol) for c in result.channels)
 
 
@@ -227,7 +227,7 @@ def _spec_with_waits(tmp_path: Path, agent: str, waits: str) -> Path:
         (
             "a_pl",
             '[{ serving = "C9:fipa-request", opens = ["C4:fipa-query"] }]',
-            "serving 'C9:fipa-request': no channel 'C9' (channels: C1, C2, C3, C4, C5, C6, C7)",
+            "serving 'C9:fipa-request': no channel 'C9' (channels: C1, C2, C3, C4, C5, C6, C7, C8)",
         ),
         (
             "a_pl",

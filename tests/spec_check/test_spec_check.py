@@ -84,6 +84,24 @@ BROKEN = [
         'parent = "R9"\ntext = "update the environment model"',
         "requirement R3.2: its parent R9 does not exist",
     ),
+    (
+        "a channel to a group outside the system that no step declares (issue 22)",
+        'outside = { xp = "an agent of another FIPA platform that asks the robot as a person would" }\n',
+        "",
+        "step 8: new channel C8 ends at 'xp', which is not in the fringe",
+    ),
+    (
+        "a group outside the system substituted by no external role",
+        'name = "x_fipa"\ngroup = "xp"',
+        'name = "x_fipa"\ngroup = "xq"',
+        "group 'xp' outside the system is substituted by no external role",
+    ),
+    (
+        "an agent substituting a group outside the system",
+        'human_interface.agent:HumanInterface"\ngroup = "hi"',
+        'human_interface.agent:HumanInterface"\ngroup = "xp"',
+        "group 'xp' outside the system is substituted by agent a_hi",
+    ),
 ]
 
 
@@ -113,7 +131,8 @@ def test_a_file_that_is_not_a_specification_is_one_clear_problem(tmp_path: Path)
 
 
 def test_replay_reaches_the_papers_six_groups_and_channels() -> None:
-    """The paper's six groups and channels (Figure 6), and C7 between hi and km (issue 23)."""
+    """The paper's six groups and channels (Figure 6), C7 between hi and km (issue 23) and C8
+    between hi and xp, a group outside the system (issue 22)."""
     final = replay(load_decomposition())[-1]
     assert sorted(final.fringe) == ["co", "ex", "hi", "km", "pl", "ta"]  # paper Figure 6
     ends = {c.name: set(c.ends) for c in final.channels.values()}
@@ -125,6 +144,7 @@ def test_replay_reaches_the_papers_six_groups_and_channels() -> None:
         "C5": {"ex", "ta"},
         "C6": {"ta", "km"},
         "C7": {"hi", "km"},
+        "C8": {"hi", "xp"},
     }
     assert final.channels[6].transmits == ["knowledge needed by a_ta", "updates of the environment model"]
 
@@ -133,10 +153,12 @@ def test_show_renders_every_step_and_the_graph() -> None:
     from services.spec.model import load
 
     text = steps_markdown(load_decomposition())
-    assert text.count("## Step ") == 7 and "g_cp := ⟨g_pl, g_km⟩" in text and "C3: cp ↦ pl" in text
+    assert "g_xp outside the system" in text
+    assert text.count("## Step ") == 8 and "g_cp := ⟨g_pl, g_km⟩" in text and "C3: cp ↦ pl" in text
     spec = load()
     svg = graph_svg(spec)
     assert svg.startswith("<svg") and all(f">{a.name}<" in svg for a in spec.agents)
+    assert ">x_fipa<" in svg and 'stroke-dasharray="4 3"' in svg
     assert graph_dot(spec).count(" -- ") == len(spec.channels)
 
 
@@ -206,3 +228,30 @@ def test_roco_spec_deadlock_and_verify_exit_codes(tmp_path: Path) -> None:
     assert broken.returncode == 1 and "deadlock" in broken.stdout.lower()
     missing = roco("verify", str(tmp_path / "no-run"))
     assert missing.returncode == 1 and "no such run folder" in missing.stdout
+
+
+def test_a_foreign_agent_plays_the_external_role_and_roco_agents_themselves() -> None:
+    """Issue 22: every local@platform name that is not one of roco's agents plays x_fipa."""
+    from services.spec.model import default_spec, is_foreign
+
+    spec = default_spec()
+    assert spec.role_of("da0@host:1099/JADE") == "x_fipa"
+    assert spec.role_of("a_hi") == "a_hi" and spec.role_of("nobody") == "nobody"
+    assert is_foreign("a@b") and not is_foreign("@b") and not is_foreign("a@") and not is_foreign("a_co")
+
+
+def test_two_external_roles_or_one_with_an_agents_name_do_not_load(tmp_path: Path) -> None:
+    from services.spec.model import SpecError, load
+
+    for old, new, message in (
+        (
+            "\n[[channels]]\n",
+            '\n[[externals]]\nname = "x_two"\ngroup = "xq"\n\n[[channels]]\n',
+            "at most one",
+        ),
+        ('name = "x_fipa"', 'name = "a_co"', "must be no agent's name and no GUID"),
+    ):
+        path = tmp_path / "spec.toml"
+        path.write_text(SHIPPED.replace(old, new, 1))
+        with pytest.raises(SpecError, match=message):
+            load(path)

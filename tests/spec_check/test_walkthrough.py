@@ -63,8 +63,9 @@ def test_stage_1_a_new_step_makes_check_list_what_is_missing(tmp_path: Path) -> 
         "agent a_hi substitutes group 'hi', which is not in the final fringe",
         "channel C2 joins <group ui> and a_co by the decomposition, but a_co and a_hi in [[channels]]",
         "channel C7 joins <group ui> and a_km by the decomposition, but a_hi and a_km in [[channels]]",
-        "channel C8 of the decomposition is not specified in [[channels]]",
-        "6 problem(s)",
+        "channel C8 joins <group ui> and x_fipa by the decomposition, but x_fipa and a_hi in [[channels]]",
+        "channel C9 of the decomposition is not specified in [[channels]]",
+        "7 problem(s)",
     ):
         assert line in text, text
 
@@ -91,7 +92,7 @@ def test_stage_2_new_agent_writes_the_agent_and_verify_code_says_what_is_missing
     ok, text = verify_code_report(path)
     assert not ok
     assert (
-        "- agent a_hi declares no initiator role for fipa-request on C8, which [[channels]] C8 gives it "
+        "- agent a_hi declares no initiator role for fipa-request on C9, which [[channels]] C9 gives it "
         "(in L_HC)"
     ) in text
     assert (
@@ -126,9 +127,9 @@ def test_stage_3_the_finished_agent_conforms_and_a_hi_records_through_it(
     ok, text = verify_code_report(path)
     assert ok, text
     assert "a_lb: 2 files; 1 protocol roles agree with the specification:" in text
-    assert "  C8 fipa-request participant with a_hi in L_HC: receives cancel, request" in text
+    assert "  C9 fipa-request participant with a_hi in L_HC: receives cancel, request" in text
 
-    # both ends of C8 on one bus, started from the staged specification
+    # both ends of C9 on one bus, started from the staged specification
     from services.runtime.main import agent_class
 
     spec = load(path)

@@ -22,6 +22,8 @@ from shared.fipa_codec.languages.l_hc import (
     HumanCommand,
     Progress,
     ProgressSubscription,
+    Sentence,
+    SentenceReport,
     TaskAtom,
     TaskState,
 )
@@ -112,6 +114,34 @@ def test_a_conforming_request_with_its_crossings(tmp_path: Path) -> None:
     (conversation,) = report.conversations
     assert conversation.agents == ("a_hi", "a_co") and conversation.crossings == 2
     assert conversation.ended and conversation.state == "done"
+
+
+def test_a_foreign_agents_request_on_c8_conforms_as_the_external_roles(tmp_path: Path) -> None:
+    """Issue 22: traffic that crossed roco gateway, under the JADE agent's own name, is checked
+    as x_fipa's; the same request to a_co is on no channel."""
+    jade = "da0@host:1099/JADE"
+    said = Sentence(text="bring me the cup")
+    report = verify(
+        tmp_path,
+        on("C8", comm(P.REQUEST, jade, "a_hi", "fipa-request", "C1_jade", said)),
+        on(
+            "C8",
+            comm(
+                P.AGREE, "a_hi", jade, "fipa-request", "C1_jade", SentenceReport(kind="accepted", text="ok")
+            ),
+        ),
+        on(
+            "C8",
+            comm(
+                P.INFORM, "a_hi", jade, "fipa-request", "C1_jade", SentenceReport(kind="succeeded", text="ok")
+            ),
+        ),
+    )
+    assert report.full_conformance, render(report)
+    (conversation,) = report.conversations
+    assert conversation.agents == (jade, "a_hi") and conversation.ended
+    bad = verify(tmp_path / "bad", on("C8", comm(P.REQUEST, jade, "a_co", "fipa-request", "C2_jade", said)))
+    assert found(bad) == [(0, "channel", "C2_jade", 0)]
 
 
 def test_a_communicate_on_a_channel_that_does_not_join_its_agents(tmp_path: Path) -> None:

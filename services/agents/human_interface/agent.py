@@ -26,6 +26,14 @@ dropped (reported when their query ends).
 A conversation per person (``HumanInput.person``) keeps the last object named and a question
 a_hi asked back ("Which cup: …?"), which the person's next sentence may answer.
 
+From agents of other FIPA platforms, on C8 (issue 22; they reach it through ``roco gateway``),
+a_hi is the participant of **fipa-request**: the ``request`` carries a ``Sentence`` that a_hi reads
+exactly as a person's (a conversation per foreign agent, in the order sentences came), and the
+person's reports become the answers, each a ``SentenceReport``: ``accepted`` an ``agree``, a
+final report an ``inform`` when the request was done as asked, else a ``failure`` — or a
+``refuse`` when the sentence was not understood (before any agree). Progress reports are not
+sent (fipa-request has none). These conversations are not kept across a restart of a_hi.
+
 Every request from the person (command, stop, status) gets reports under its own
 ``request_id`` and ends with one report of a kind in FINAL_REPORTS (messages.py).
 
@@ -57,10 +65,19 @@ from services.agents.human_interface.language import (
 )
 from services.agents.human_interface.vocabulary import VOCABULARY_QUERY, Vocabulary
 from services.runtime import keys
-from services.runtime.agent import Agent
+from services.runtime.agent import Agent, SpecViolation
 from services.runtime.behaviour import FSM, Behaviour
 from services.runtime.human import FINAL_REPORTS, HumanInput, HumanReport, ReportKind, RequestKind
-from services.runtime.roles import INITIATOR, Conversation, RestoreError, RoleDecl, handles, initiator
+from services.runtime.roles import (
+    INITIATOR,
+    PARTICIPANT,
+    Conversation,
+    RestoreError,
+    RoleDecl,
+    handles,
+    initiator,
+    participant,
+)
 from services.runtime.state_store import StateFile
 from shared.fipa_codec import Performative
 from shared.fipa_codec.languages.l_hc import (
@@ -68,6 +85,8 @@ from shared.fipa_codec.languages.l_hc import (
     HumanCommand,
     Progress,
     ProgressSubscription,
+    Sentence,
+    SentenceReport,
     Status,
     StatusQuery,
     TaskState,
@@ -80,6 +99,7 @@ CO = "a_co"
 KM = "a_km"
 C2 = "C2"
 C7 = "C7"
+C8 = "C8"
 REQUEST = "fipa-request"
 SUBSCRIBE = "fipa-subscribe"
 QUERY = "fipa-query"
@@ -236,6 +256,7 @@ class HumanInterface(Agent):
         initiator(C2, SUBSCRIBE, "L_HC", reply_by_s=SUBSCRIBE_REPLY_BY_S),
         initiator(C2, QUERY, "L_HC", reply_by_s=STATUS_REPLY_BY_S),
         initiator(C7, QUERY, "L_WM", reply_by_s=VOCABULARY_REPLY_BY_S),
+        participant(C8, REQUEST, "L_HC"),
     )
 
     def build_fsm(self) -> FSM:
@@ -256,6 +277,8 @@ class HumanInterface(Agent):
         self.dialogues: dict[str, Dialogue] = {}  # person → conversation
         self.held: deque[HeldSentence] = deque()  # sentences waiting for the vocabulary, in order
         self.vocab_queries: dict[str, HeldSentence] = {}  # C7 conversation → its sentence
+        self.foreign: dict[str, Conversation] = {}  # request id → C8 conversation it answers
+        self.foreign_agreed: set[str] = set()  # request ids whose C8 conversation has an agree
         self.kept = StateFile.for_agent(self.name, KeptHumanInterface)
         return FSM(
             initial="interact",
@@ -343,6 +366,43 @@ class HumanInterface(Agent):
         request = self.asked.pop(request_id, None) if kind in FINAL_REPORTS else self.asked.get(request_id)
         report = HumanReport(request_id=request_id, kind=kind, text=text, request=request)
         self.emit(keys.HUMAN_OUT, msgspec.json.encode(report))
+        if request_id in self.foreign:
+            self._answer_foreign(request_id, report)
+
+    # ---- from agents of other platforms (C8) ---------------------------------------------
+    @handles(REQUEST, PARTICIPANT, "request", channel=C8)
+    def _on_foreign_request(self, conv: Conversation) -> None:
+        """A foreign agent's sentence: read as a person's, its reports answer the request."""
+        sentence = conv.content
+        assert isinstance(sentence, Sentence)  # the specification's contents, checked on arrival
+        request_id = new_id("fipa-")
+        self.foreign[request_id] = conv
+        self.log.info("sentence from %s [%s]: %s", conv.peer, request_id, sentence.text)
+        self._on_input(HumanInput(text=sentence.text, request_id=request_id, person=conv.peer))
+
+    def _answer_foreign(self, request_id: str, report: HumanReport) -> None:
+        """Answer a foreign agent's request with what the person would be told (module
+        docstring); a progress report is not sent."""
+        conv = self.foreign[request_id]
+        content = SentenceReport(kind=report.kind.value, text=report.text)
+        performative: Performative | None = None
+        if report.kind is ReportKind.ACCEPTED and request_id not in self.foreign_agreed:
+            performative = Performative.AGREE
+            self.foreign_agreed.add(request_id)
+        elif report.kind in FINAL_REPORTS:
+            agreed = request_id in self.foreign_agreed
+            del self.foreign[request_id]
+            self.foreign_agreed.discard(request_id)
+            if report.kind is ReportKind.NOT_UNDERSTOOD and not agreed:
+                performative = Performative.REFUSE
+            else:
+                performative = Performative.INFORM if report.done_as_asked else Performative.FAILURE
+        if performative is None:
+            return
+        try:
+            conv.reply(performative, content)
+        except SpecViolation as exc:  # e.g. the foreign agent cancelled it meanwhile
+            self.log.warning("cannot answer %s's request [%s]: %s", conv.peer, request_id, exc)
 
     # ---- from the person ---------------------------------------------------------------
     def _on_input(self, event: HumanInput) -> None:

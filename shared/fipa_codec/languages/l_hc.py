@@ -8,6 +8,12 @@
   :class:`Progress` at every change of a command's state.
 - fipa-query (a_hi initiates): ``query-ref`` of a :class:`StatusQuery` ("what are you
   doing?"); a_co answers ``inform-ref`` with a :class:`Status`.
+
+On C8 (issue 22), an agent of another FIPA platform asks a_hi as a person would: fipa-request
+(the foreign agent initiates) of a :class:`Sentence`; a_hi answers with
+:class:`SentenceReport` s: ``agree`` (a command was accepted), then ``inform`` (done as asked:
+succeeded, stopped for a stop request, the status for a status request) or ``failure``;
+``refuse`` when it does not understand the sentence.
 """
 
 from __future__ import annotations
@@ -97,10 +103,35 @@ class Status(msgspec.Struct, frozen=True, tag="status", kw_only=True):
     tasks: tuple[TaskStatus, ...] = ()
 
 
+class Sentence(msgspec.Struct, frozen=True, tag="sentence", kw_only=True):
+    """What a person would say to the robot (``text``), sent by an agent of another FIPA
+    platform (C8, issue 22)."""
+
+    text: str
+
+
+class SentenceReport(msgspec.Struct, frozen=True, tag="sentence_report", kw_only=True):
+    """a_hi's report on a :class:`Sentence`: ``kind`` is what a person would be told
+    (``accepted``, ``not-understood``, ``succeeded``, ``failed``, ``stopped``, ``status``:
+    services/runtime/human.py ``ReportKind``), ``text`` the readable sentences."""
+
+    kind: str
+    text: str
+
+
 L_HC = register(
     Language(
         "L_HC",
         "O_RoCo",
-        (HumanCommand, CommandOutcome, ProgressSubscription, Progress, StatusQuery, Status),
+        (
+            HumanCommand,
+            CommandOutcome,
+            ProgressSubscription,
+            Progress,
+            StatusQuery,
+            Status,
+            Sentence,
+            SentenceReport,
+        ),
     )
 )

@@ -1,4 +1,4 @@
-"""Walk-through, stage 3 (docs/spec.md): a_hi's side of the new channel C8. It plays the
+"""Walk-through, stage 3 (docs/spec.md): a_hi's side of the new channel C9. It plays the
 initiator of fipa-request there, asks the logbook to record the outcome of every command that
 ends, and counts the logbook's answers."""
 
@@ -14,7 +14,7 @@ RECORD_BY_S = 10.0
 
 
 class HumanInterface(Base):
-    ROLES = (*Base.ROLES, initiator("C8", "fipa-request", "L_HC", reply_by_s=RECORD_BY_S))
+    ROLES = (*Base.ROLES, initiator("C9", "fipa-request", "L_HC", reply_by_s=RECORD_BY_S))
 
     def _end(self, c: OpenCommand, kind: ReportKind, text: str) -> None:
         super()._end(c, kind, text)
@@ -24,13 +24,13 @@ class HumanInterface(Base):
 
     def record(self, outcome: CommandOutcome) -> Conversation:
         """Ask the logbook to record ``outcome``."""
-        return self.roles.open("C8", "fipa-request", outcome)
+        return self.roles.open("C9", "fipa-request", outcome)
 
-    @handles("fipa-request", INITIATOR, "inform", channel="C8")
+    @handles("fipa-request", INITIATOR, "inform", channel="C9")
     def _on_recorded(self, conv: Conversation) -> None:
         self.counters["logbook.recorded"] += 1
 
-    @handles("fipa-request", INITIATOR, "refuse", "failure", channel="C8")
+    @handles("fipa-request", INITIATOR, "refuse", "failure", channel="C9")
     def _on_not_recorded(self, conv: Conversation) -> None:
         self.counters["logbook.not_recorded"] += 1
         self.log.warning("the logbook did not record %s: %s", conv.conversation_id, conv.reason)

@@ -1,0 +1,104 @@
+"""``roco gateway``: run the ACL gateway (services/gateway/bridge.py) in the foreground.
+
+It opens a Zenoh session to the fleet's router as the identity ``gateway`` (with the fleet's
+credentials when it has access control: services/security/context.py), serves the FIPA HTTP
+message transport (FIPA SC00084) on ``host:port`` and tells foreign platforms to post to
+``address`` (default ``http://<host>:<port>/acc``). It prints one line when it is ready, and
+a line of counters when it stops (Ctrl-C, SIGTERM).
+"""
+
+from __future__ import annotations
+
+import logging
+import signal
+import sys
+import threading
+from dataclasses import dataclass
+from pathlib import Path
+from types import FrameType
+
+from services.gateway.bridge import GATEWAY, Gateway
+from services.gateway.http_mtp import MTPServer
+from services.runtime.transport import ZenohTransport
+from services.spec.model import DEFAULT_SPEC, SpecError, load
+
+DEFAULT_PORT = 7778
+"""JADE's default port of its HTTP message transport."""
+
+
+class GatewayError(Exception):
+    """The gateway cannot start; the message is one line."""
+
+
+@dataclass(frozen=True)
+class GatewayConfig:
+    """What ``roco gateway`` is given: the router ``endpoint``, the ``host`` and ``port`` the
+    HTTP server listens on, the ``address`` advertised to foreign platforms (None: derived from
+    host and port) and the specification file ``spec``."""
+
+    endpoint: str
+    host: str = "127.0.0.1"
+    port: int = DEFAULT_PORT
+    address: str | None = None
+    spec: Path = DEFAULT_SPEC
+
+
+def serve(
+    config: GatewayConfig, stop: threading.Event, ready: threading.Event | None = None
+) -> dict[str, int]:
+    """Run the gateway until ``stop`` is set; set ``ready`` once it serves. Returns its
+    counters. Raises GatewayError when the specification does not load or has no external
+    role, when no router answers (or it refuses the gateway's credentials), or when the port
+    cannot be bound."""
+    try:
+        spec = load(config.spec)
+    except SpecError as exc:
+        raise GatewayError(str(exc)) from None
+    if not spec.externals:
+        raise GatewayError(f"{config.spec}: no external role ([[externals]]): nobody may come in")
+    address = config.address or f"http://{config.host}:{config.port}/acc"
+    try:
+        transport = ZenohTransport([config.endpoint], wait_for_router=False, identity=GATEWAY)
+    except Exception as exc:  # zenoh.ZError, CredentialError
+        raise GatewayError(f"no router answers at {config.endpoint} for identity {GATEWAY}: {exc}") from None
+    gateway = Gateway(transport, spec, address)
+    try:
+        server = MTPServer((config.host, config.port), gateway.deliver, gateway.count)
+    except OSError as exc:
+        transport.close()
+        raise GatewayError(f"cannot listen on {config.host}:{config.port}: {exc.strerror or exc}") from None
+    gateway.bind()
+    gateway.start()
+    server.start()
+    routes = ", ".join(f"{role} → {agent} on {channel}" for channel, role, agent in gateway.routes)
+    print(f"roco gateway: {address} ↔ {config.endpoint} ({routes})", flush=True)
+    if ready is not None:
+        ready.set()
+    try:
+        stop.wait()
+    finally:
+        server.stop()
+        gateway.stop()
+        transport.close()
+    return dict(gateway.counters)
+
+
+def main(config: GatewayConfig) -> int:
+    """Run ``roco gateway`` in this process until SIGINT or SIGTERM; 0 when it ran, 1 (one line
+    on stderr) when it could not start."""
+    logging.basicConfig(level=logging.INFO, format="%(asctime)s %(name)s %(levelname)s %(message)s")
+    stop = threading.Event()
+
+    def on_signal(signum: int, frame: FrameType | None) -> None:
+        stop.set()
+
+    signal.signal(signal.SIGINT, on_signal)
+    signal.signal(signal.SIGTERM, on_signal)
+    try:
+        counters = serve(config, stop)
+    except GatewayError as exc:
+        print(f"roco: gateway: {exc}", file=sys.stderr)
+        return 1
+    shown = ", ".join(f"{k} {v}" for k, v in sorted(counters.items())) or "nothing"
+    print(f"roco gateway: stopped; {shown}", flush=True)
+    return 0

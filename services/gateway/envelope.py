@@ -1,0 +1,196 @@
+"""The message envelope of the FIPA agent message transport in XML (FIPA SC00085), as JADE's
+HTTP MTP writes and reads it.
+
+Layout (SC00085 §2; the order of JADE 4.6's ``jade.mtp.http.XMLCodec.encodeXML``)::
+
+    <?xml version="1.0"?>
+    <envelope><params index="1">
+      <to><agent-identifier><name>a_hi</name>
+          <addresses><url>http://host:7778/acc</url></addresses></agent-identifier></to>  (1..n)
+      <from><agent-identifier>…</agent-identifier></from>                            (0..1)
+      <comments>…</comments>                                                        (0..1)
+      <acl-representation>fipa.acl.rep.string.std</acl-representation>
+      <payload-length>312</payload-length>
+      <payload-encoding>US-ASCII</payload-encoding>
+      <date>20261122T201900000Z</date>
+      <intended-receiver><agent-identifier>…</agent-identifier></intended-receiver>  (0..n)
+    </params></envelope>
+
+Reading: several ``params`` elements may follow one another (SC00085: each transport hop adds
+one with a higher ``index``); a parameter of a later one replaces the earlier one's (the
+receivers: a later ``to`` list replaces the earlier list). ``received`` stamps and
+``user-defined`` properties are read over and not kept; ``resolvers`` of an agent identifier
+are not read either (roco resolves no names). Tags are compared without case, as JADE's SAX
+handler does. Writing escapes ``<``, ``&`` and ``>`` in text (JADE writes text as it is, which
+an XML reader may refuse for a name holding ``&``).
+
+Errors: :class:`EnvelopeError` (a ValueError), one line: not XML, not an ``envelope``, no
+receiver, an agent identifier without a name or with a name or address that is no FIPA
+SC00070 word, a payload length that is not a number.
+"""
+
+from __future__ import annotations
+
+import xml.etree.ElementTree as ET
+from dataclasses import dataclass, replace
+
+from shared.fipa_codec.aid import AgentIdentifier
+
+__all__ = ["STRING_REPRESENTATION", "Envelope", "EnvelopeError", "parse_xml", "to_xml"]
+
+STRING_REPRESENTATION = "fipa.acl.rep.string.std"
+"""The ``acl-representation`` of the FIPA ACL string form (FIPA SC00070), the one roco reads
+and writes."""
+
+
+class EnvelopeError(ValueError):
+    """An XML envelope (FIPA SC00085) roco cannot read; the message says why, in one line."""
+
+
+@dataclass(frozen=True)
+class Envelope:
+    """The transport parameters of one message (FIPA SC00067 §4.1, XML: SC00085).
+
+    ``to``: the agents it is for; ``from_``: who sends it (its addresses are where an answer
+    may go); ``acl_representation``: how the payload is written (:data:`STRING_REPRESENTATION`);
+    ``payload_length`` (octets) and ``payload_encoding`` (a character set, ``US-ASCII`` or
+    ``UTF-8``); ``date``: when it was sent, as written (SC00070 ``DateTime``);
+    ``intended_receiver``: the agents this copy is for when the transport changed ``to``;
+    ``comments``: free text."""
+
+    to: tuple[AgentIdentifier, ...]
+    from_: AgentIdentifier | None = None
+    acl_representation: str = STRING_REPRESENTATION
+    payload_length: int | None = None
+    payload_encoding: str | None = None
+    date: str | None = None
+    intended_receiver: tuple[AgentIdentifier, ...] = ()
+    comments: str = ""
+
+    @property
+    def receivers(self) -> tuple[AgentIdentifier, ...]:
+        """The agents this copy is delivered to: ``intended_receiver`` when given, else ``to``
+        (FIPA SC00067 §4.3)."""
+        return self.intended_receiver or self.to
+
+
+def _aid_element(parent: ET.Element, tag: str, agent: AgentIdentifier) -> None:
+    outer = ET.SubElement(parent, tag)
+    aid = ET.SubElement(outer, "agent-identifier")
+    ET.SubElement(aid, "name").text = agent.name
+    addresses = ET.SubElement(aid, "addresses")
+    for url in agent.addresses:
+        ET.SubElement(addresses, "url").text = url
+
+
+def _text(parent: ET.Element, tag: str, text: str) -> None:
+    ET.SubElement(parent, tag).text = text
+
+
+def to_xml(envelope: Envelope) -> bytes:
+    """``envelope`` as the XML of FIPA SC00085, in the order JADE writes it (module docstring);
+    UTF-8 octets beginning with ``<?xml version="1.0"?>``."""
+    root = ET.Element("envelope")
+    params = ET.SubElement(root, "params", {"index": "1"})
+    for agent in envelope.to:
+        _aid_element(params, "to", agent)
+    if envelope.from_ is not None:
+        _aid_element(params, "from", envelope.from_)
+    if envelope.comments:
+        _text(params, "comments", envelope.comments)
+    _text(params, "acl-representation", envelope.acl_representation)
+    if envelope.payload_length is not None:
+        _text(params, "payload-length", str(envelope.payload_length))
+    if envelope.payload_encoding:
+        _text(params, "payload-encoding", envelope.payload_encoding)
+    if envelope.date:
+        _text(params, "date", envelope.date)
+    for agent in envelope.intended_receiver:
+        _aid_element(params, "intended-receiver", agent)
+    return b'<?xml version="1.0"?>\n' + ET.tostring(root, encoding="unicode").encode("utf-8")
+
+
+def _local(tag: object) -> str:
+    """An element's tag without namespace, lower case (JADE compares tags ignoring case)."""
+    name = tag if isinstance(tag, str) else ""
+    return name.rpartition("}")[2].lower()
+
+
+def _child(element: ET.Element, tag: str) -> ET.Element | None:
+    return next((c for c in element if _local(c.tag) == tag), None)
+
+
+def _aid(outer: ET.Element, where: str) -> AgentIdentifier:
+    inner = _child(outer, "agent-identifier")
+    if inner is None:
+        raise EnvelopeError(f"<{where}> holds no <agent-identifier>")
+    name_el = _child(inner, "name")
+    name = (name_el.text or "").strip() if name_el is not None else ""
+    if not name:
+        raise EnvelopeError(f"an <agent-identifier> in <{where}> has no <name>")
+    urls: list[str] = []
+    addresses = _child(inner, "addresses")
+    if addresses is not None:
+        urls = [
+            (u.text or "").strip() for u in addresses if _local(u.tag) == "url" and (u.text or "").strip()
+        ]
+    try:
+        return AgentIdentifier(name, tuple(urls))
+    except ValueError as exc:
+        raise EnvelopeError(f"<{where}>: {exc}") from None
+
+
+def parse_xml(data: bytes | str) -> Envelope:
+    """Read an XML envelope (FIPA SC00085; module docstring). Raises EnvelopeError."""
+    try:
+        root = ET.fromstring(data)
+    except ET.ParseError as exc:
+        raise EnvelopeError(f"the envelope is not XML: {exc}") from None
+    if _local(root.tag) != "envelope":
+        raise EnvelopeError(f"the XML is a <{_local(root.tag)}>, not an <envelope>")
+    blocks = [p for p in root if _local(p.tag) == "params"]
+    if not blocks:
+        raise EnvelopeError("the envelope has no <params>")
+
+    def index(p: ET.Element) -> int:
+        try:
+            return int(p.get("index", "1"))
+        except ValueError:
+            raise EnvelopeError(f"<params index={p.get('index')!r}> is not a number") from None
+
+    envelope = Envelope(to=(), acl_representation="")
+    for block in sorted(blocks, key=index):
+        envelope = _apply(envelope, block)
+    if not envelope.to:
+        raise EnvelopeError("the envelope names no receiver (<to>)")
+    if not envelope.acl_representation:
+        raise EnvelopeError("the envelope gives no <acl-representation>")
+    return envelope
+
+
+def _apply(envelope: Envelope, block: ET.Element) -> Envelope:
+    """``envelope`` with the parameters of one ``params`` block replacing its own."""
+    to = [_aid(e, "to") for e in block if _local(e.tag) == "to"]
+    intended = [_aid(e, "intended-receiver") for e in block if _local(e.tag) == "intended-receiver"]
+    changes: dict[str, object] = {}
+    if to:
+        changes["to"] = tuple(to)
+    if intended:
+        changes["intended_receiver"] = tuple(intended)
+    for element in block:
+        tag, text = _local(element.tag), (element.text or "").strip()
+        if tag == "from":
+            changes["from_"] = _aid(element, "from")
+        elif tag == "acl-representation":
+            changes["acl_representation"] = text
+        elif tag == "payload-encoding":
+            changes["payload_encoding"] = text
+        elif tag == "date":
+            changes["date"] = text
+        elif tag == "comments":
+            changes["comments"] = element.text or ""
+        elif tag == "payload-length":
+            if not text.isdigit():
+                raise EnvelopeError(f"<payload-length> {text[:40]!r} is not a number of octets")
+            changes["payload_length"] = int(text)
+    return replace(envelope, **changes)  # type: ignore[arg-type]

@@ -1,0 +1,59 @@
+"""``roco gateway``'s errors: one line, non-zero exit (services/gateway/cli.py)."""
+
+from __future__ import annotations
+
+import os
+import socket
+import subprocess
+import sys
+from pathlib import Path
+
+from services.fleet.launcher import Fleet, free_port
+
+
+def gateway(tmp_path: Path, *args: str) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(
+        [sys.executable, "-m", "services.cli", "gateway", *args],
+        capture_output=True,
+        text=True,
+        timeout=60,
+        cwd=tmp_path,  # no runs/.fleet.json there
+        env={**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[2])},
+    )
+
+
+def test_no_router_is_one_line_and_exit_1(tmp_path: Path) -> None:
+    done = gateway(tmp_path, "--router", f"tcp/127.0.0.1:{free_port()}", "--port", str(free_port()))
+    assert done.returncode == 1
+    assert done.stderr.startswith("roco: gateway: no router answers at tcp/127.0.0.1:")
+    assert done.stderr.count("\n") == 1
+
+
+def test_a_spec_without_external_role_is_refused(tmp_path: Path) -> None:
+    from services.spec.model import DEFAULT_SPEC
+
+    text = DEFAULT_SPEC.read_text()
+    start = text.index("[[externals]]")
+    spec = tmp_path / "spec.toml"
+    spec.write_text(text[:start] + text[text.index("# Interaction protocols") :])
+    done = gateway(tmp_path, "--spec", str(spec), "--port", str(free_port()))
+    assert done.returncode == 1 and done.stderr.count("\n") == 1, done.stderr
+    assert "roco: gateway:" in done.stderr
+
+
+def test_a_port_in_use_is_one_line(tmp_path: Path) -> None:
+    (tmp_path / "logs").mkdir()
+    fleet = Fleet(tmp_path, f"tcp/127.0.0.1:{free_port()}", acl=False)
+    fleet.start_router()
+    busy = socket.socket()
+    try:
+        busy.bind(("127.0.0.1", 0))
+        busy.listen()
+        port = busy.getsockname()[1]
+        done = gateway(tmp_path, "--router", fleet.endpoint, "--port", str(port))
+    finally:
+        busy.close()
+        fleet.stop()
+    assert done.returncode == 1 and done.stderr.startswith(
+        f"roco: gateway: cannot listen on 127.0.0.1:{port}"
+    )
