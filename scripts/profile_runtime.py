@@ -12,7 +12,11 @@ Prints µs per round trip / per communicate (``time.perf_counter``); ``--profile
 cProfile's 30 most expensive functions of each instead (slower: figures then include the
 profiler's own cost).
 
-Usage: ``python scripts/profile_runtime.py [--n 5000] [--profile]``
+``--cpu`` prints CPU time (``time.process_time``) instead, the median and the least of
+``--repeat`` runs: steadier than wall time on a machine other jobs share (issue 20 compares
+two commits this way).
+
+Usage: ``python scripts/profile_runtime.py [--n 5000] [--profile | --cpu [--repeat 9]]``
 """
 
 from __future__ import annotations
@@ -20,6 +24,7 @@ from __future__ import annotations
 import argparse
 import cProfile
 import pstats
+import statistics
 import sys
 import time
 from collections.abc import Callable
@@ -136,7 +141,24 @@ def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--n", type=int, default=5000)
     ap.add_argument("--profile", action="store_true")
+    ap.add_argument("--cpu", action="store_true", help="CPU time, median and least of --repeat runs")
+    ap.add_argument("--repeat", type=int, default=9)
     args = ap.parse_args()
+    if args.cpu:
+        rts, streams = [], []
+        for _ in range(args.repeat):
+            c = time.process_time()
+            round_trips(args.n)
+            rts.append((time.process_time() - c) / (args.n + 50) * 1e6)
+            c = time.process_time()
+            stream(args.n)
+            streams.append((time.process_time() - c) / args.n * 1e6)
+        for label, v in (
+            ("round trip (2 sends + 2 receives)", rts),
+            ("stream, one send + one receive", streams),
+        ):
+            print(f"CPU per {label}: median {statistics.median(v):.1f} µs, least {min(v):.1f} µs")
+        return 0
     if args.profile:
         profiled(lambda: round_trips(args.n))
         profiled(lambda: stream(args.n))

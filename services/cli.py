@@ -608,7 +608,7 @@ def sniff(
     ] = None,
     runs_dir: Annotated[Path, typer.Option()] = Path("runs"),
     agent: Annotated[list[str] | None, typer.Option(help="only communicates from or to this agent")] = None,
-    channel: Annotated[list[str] | None, typer.Option(help="only this channel (C1..C7)")] = None,
+    channel: Annotated[list[str] | None, typer.Option(help="only this channel (C1..C8)")] = None,
     performative: Annotated[list[str] | None, typer.Option(help="only this performative")] = None,
     conversation: Annotated[str | None, typer.Option(help="only this conversation-id")] = None,
     raw: Annotated[bool, typer.Option(help="print :content exactly as on the wire (SC00070)")] = False,

@@ -291,7 +291,7 @@ def _msg_text(mf: MessageFaults) -> str:
 
 @fault_app.command()
 def msg(
-    channel: Annotated[str, typer.Argument(help="C1..C7, or '*' for every channel")],
+    channel: Annotated[str, typer.Argument(help="C1..C8, or '*' for every channel")],
     drop: Annotated[float, typer.Option(help="probability a communicate is dropped")] = 0.0,
     duplicate: Annotated[float, typer.Option(help="probability it is sent twice")] = 0.0,
     delay: Annotated[float | None, typer.Option(help="seconds a delayed communicate is late")] = None,

@@ -50,7 +50,7 @@ class TrafficRecord(msgspec.Struct, frozen=True, kw_only=True):
     incarnation: the recorder process that wrote it (a random id per start; ``""`` in records
     written before incarnations existed); t: when it crossed Zenoh (POSIX s): its arrival at the
     recorder, or for a ``late`` record the time its publisher stamped on it; size: payload bytes
-    on the wire; channel: C1..C7; sender, receivers: agent names; performative, protocol,
+    on the wire; channel: C1..C8; sender, receivers: agent names; performative, protocol,
     conversation_id, language, ontology: as in the communicate (FIPA SC00061); key: the Zenoh
     key expression it was published on.
 

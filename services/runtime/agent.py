@@ -72,9 +72,10 @@ from services.runtime.conversations import (
 from services.runtime.dedup import Dedup
 from services.runtime.hooks import Hooks, load_hooks
 from services.runtime.limits import MAX_OPEN_CONVERSATIONS_PER_PEER
+from services.runtime.lookups import Lookups
 from services.runtime.roles import RoleDecl, Roles
 from services.runtime.transport import Transport
-from services.spec.model import Interface, SpecError, SystemSpec, channel_between, default_spec, interface
+from services.spec.model import Interface, SpecError, SystemSpec, default_spec, interface
 from services.spec.protocol_defs import machine_of, streams
 from shared.fipa_codec import (
     AgentIdentifier,
@@ -154,6 +155,8 @@ class Agent:
         """A viewer's hooks, given to this agent (services/runtime/hooks.py); None: no viewer."""
         self.aid = AgentIdentifier(self.name)
         self.interface: Interface = interface(self.spec, self.name)
+        self.lookups = Lookups(self.spec, self.interface, self.name)
+        """The specification's answers per peer, channel and kind, kept (services/runtime/lookups.py)."""
         self.log = logging.getLogger(self.name)
         self.x: deque[Received] = deque()
         self.r: deque[Any] = deque()
@@ -225,7 +228,7 @@ class Agent:
         """
         if retry_s is not None and not retry_s > 0:
             raise ValueError(f"retry_s must be positive, not {retry_s}")
-        channel = channel_between(self.spec, self.name, self.spec.role_of(to))
+        channel = self.lookups.channel(to)
         if channel is None:
             raise SpecViolation(f"{self.name}: no channel to {to}")
         language, body = encode_content(content) if content is not None else (None, b"")
@@ -244,7 +247,7 @@ class Agent:
         msg = Communicate(
             performative=performative,
             sender=self.aid,
-            receiver=(AgentIdentifier(to),),
+            receiver=(self.lookups.aid(to),),
             content=body,
             language=language,
             encoding="msgpack" if body else None,
@@ -256,7 +259,7 @@ class Agent:
             reply_by=deadline,
         )
         self._follow_send(to, msg)
-        key, payload = keys.fipa_key(channel.name, self.name, to), encode(msg)
+        key, payload = self.lookups.key(channel.name, to), encode(msg)
         if awaits and reply_with is not None:
             self.conversations.expect(
                 Pending(
@@ -323,12 +326,12 @@ class Agent:
         the interface does not allow that performative in ``to``'s protocol."""
         protocol = to.msg.protocol or ""
         self._check_send(to.sender, performative.value, protocol, None)
-        channel = channel_between(self.spec, self.name, self.spec.role_of(to.sender))
+        channel = self.lookups.channel(to.sender)
         assert channel is not None  # _check_send found a kind, so a channel exists
         msg = Communicate(
             performative=performative,
             sender=self.aid,
-            receiver=(AgentIdentifier(to.sender),),
+            receiver=(self.lookups.aid(to.sender),),
             content=reason.encode(),
             encoding="utf-8",
             protocol=protocol,
@@ -336,7 +339,7 @@ class Agent:
             in_reply_to=to.msg.reply_with,
         )
         self._follow_send(to.sender, msg)
-        self._out(to.sender, msg.in_reply_to, keys.fipa_key(channel.name, self.name, to.sender), encode(msg))
+        self._out(to.sender, msg.in_reply_to, self.lookups.key(channel.name, to.sender), encode(msg))
         self.counters[f"sent.{performative.value}"] += 1
 
     def not_understood(
@@ -359,14 +362,14 @@ class Agent:
         msg = Communicate(
             performative=Performative.NOT_UNDERSTOOD,
             sender=self.aid,
-            receiver=(AgentIdentifier(sender),),
+            receiver=(self.lookups.aid(sender),),
             content=why.encode(),
             encoding="utf-8",
             protocol=about.protocol if about else None,
             conversation_id=about.conversation_id if about else None,
             in_reply_to=about.reply_with if about else None,
         )
-        self._out(sender, msg.in_reply_to, keys.fipa_key(channel, self.name, sender), encode(msg))
+        self._out(sender, msg.in_reply_to, self.lookups.key(channel, sender), encode(msg))
 
     def _warn_rejected(self, fmt: str, *args: object) -> None:
         """Log a warning about rejected input, at most :data:`LOG_BURST` per
@@ -400,23 +403,21 @@ class Agent:
     def _check_send(
         self, to: str, performative: str, protocol: str, language: str | None, term: str | None = None
     ) -> None:
-        role = self.spec.role_of(to)
-        for kind in self.interface.sends:
-            if kind.receiver == role and kind.performative == performative and kind.protocol == protocol:
-                if language is not None and kind.languages and language not in kind.languages:
-                    self._violation(
-                        None,
-                        f"{self.name}: {performative} to {to} in {protocol} must use "
-                        f"{'/'.join(kind.languages)}, not {language}",
-                    )
-                if term is not None and kind.contents and term not in kind.contents:
-                    self._violation(
-                        None,
-                        f"{self.name}: {performative} to {to} in {protocol} may carry "
-                        f"{', '.join(kind.contents)}, not {term}",
-                    )
-                return
-        self._violation(None, f"{self.name}: may not send {performative} to {to} in {protocol}")
+        kind = self.lookups.sends(to, performative, protocol)
+        if kind is None:
+            self._violation(None, f"{self.name}: may not send {performative} to {to} in {protocol}")
+        if language is not None and kind.languages and language not in kind.languages:
+            self._violation(
+                None,
+                f"{self.name}: {performative} to {to} in {protocol} must use "
+                f"{'/'.join(kind.languages)}, not {language}",
+            )
+        if term is not None and kind.contents and term not in kind.contents:
+            self._violation(
+                None,
+                f"{self.name}: {performative} to {to} in {protocol} may carry "
+                f"{', '.join(kind.contents)}, not {term}",
+            )
 
     def _violation(self, conversation_id: str | None, text: str) -> NoReturn:
         """Count, log and raise a violation the agent's own code is about to commit."""
@@ -460,13 +461,14 @@ class Agent:
         except SpecError:  # a protocol with no state machine is not followed
             return None
         role: Role = mine if sent else (PARTICIPANT if mine == INITIATOR else INITIATOR)
-        known = self.protocol_states.get(peer, conversation_id) is not None
         try:
             outcome = self.protocol_states.observe(
                 peer, conversation_id, machine, role, performative, local_role=mine, terminal=terminal
             )
         except (ProtocolViolation, ConversationError) as exc:
-            if not known:
+            # observe leaves the table unchanged when it raises: it tells whether the
+            # conversation was known before this communicate
+            if self.protocol_states.get(peer, conversation_id) is None:
                 return f"no such conversation of {self.name} with {peer} ({exc})"
             return str(exc)
         if outcome == "restart":
@@ -560,7 +562,7 @@ class Agent:
         """Check one received communicate (paper §4 steps 3–4) and put it into ``x``, or
         answer it with not-understood (or refuse) and count why (``rejected.<reason>``)."""
         try:
-            channel, sender, _receiver = keys.parse_fipa_key(key)
+            channel, sender, _receiver = self.lookups.parse(key)
         except ValueError:
             self.counters["bad_key"] += 1
             self.counters["rejected.bad_key"] += 1
@@ -594,8 +596,7 @@ class Agent:
                 sender, channel, "sender does not match the key it came on", msg, "sender_mismatch"
             )
             return
-        # a foreign agent (local@platform) is checked as the external role it plays (issue 22)
-        kind = self.interface.accepts(self.spec.role_of(sender), msg.performative.value, msg.protocol)
+        kind = self.lookups.accepts(sender, msg.performative.value, msg.protocol)
         if kind is None or kind.channel != channel:
             self.not_understood(
                 sender,

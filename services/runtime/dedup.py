@@ -16,15 +16,19 @@ nothing: agents that must not repeat work after a restart persist what they acce
 
 from __future__ import annotations
 
-import hashlib
 from collections import OrderedDict
+
+try:  # the BLAKE2 built into CPython; ``hashlib`` would also load OpenSSL (≈ 3.4 MiB resident)
+    from _blake2 import blake2b
+except ImportError:  # pragma: no cover - an interpreter without the built-in module
+    from hashlib import blake2b
 
 DEFAULT_CAPACITY = 4096
 
 
 def digest(payload: bytes) -> bytes:
     """A 16-byte BLAKE2b digest of an encoded communicate."""
-    return hashlib.blake2b(payload, digest_size=16).digest()
+    return blake2b(payload, digest_size=16).digest()
 
 
 class Dedup:

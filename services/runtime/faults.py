@@ -3,7 +3,7 @@
 :class:`FaultyTransport` wraps any :class:`~services.runtime.transport.Transport` of one
 agent and applies, to what the agent puts on the wire:
 
-- **message faults** per channel (C1..C7, read from the key ``roco/fipa/<channel>/…``; ``*``
+- **message faults** per channel (C1..C8, read from the key ``roco/fipa/<channel>/…``; ``*``
   for every channel without an entry of its own): drop, duplicate, delay by ``delay_s``,
   reorder (hold one communicate and send it right after the next one to the same receiver,
   or after ``hold_s`` when no next one comes), corrupt (XOR 1–3 random bytes with random

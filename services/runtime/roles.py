@@ -119,7 +119,7 @@ class RestoreError(ValueError):
 @dataclass(frozen=True)
 class RoleDecl:
     """An agent plays ``role`` (initiator or participant) of interaction ``protocol`` on
-    ``channel`` (C1..C7), speaking content ``languages`` there (every language the
+    ``channel`` (C1..C8), speaking content ``languages`` there (every language the
     specification gives that channel's protocol). ``reply_by_s`` (s) and ``retry_s`` (s) are
     the defaults of the conversations this role opens (initiators only): the reply-by deadline
     and the retransmission period until the first answer (None: none)."""

@@ -93,7 +93,7 @@ def client_config(
     ``endpoints`` (services/security/context.py); with one, the session authenticates as
     ``identity`` (else ``ROCO_IDENTITY``, else ``operator``) with its user name and password
     and, on ``tls/`` endpoints, its certificate (mutual TLS, checked against the folder's CA).
-    Raises services.security.certs.CredentialError (a ValueError) when the folder has no
+    Raises services.security.folder.CredentialError (a ValueError) when the folder has no
     credentials for that identity."""
     conf = zenoh.Config()
     conf.insert_json5("mode", '"client"')
@@ -111,7 +111,7 @@ def client_config(
 
 
 def _client_auth(conf: zenoh.Config, folder: Path, identity: str) -> None:
-    from services.security.certs import identity as load_identity
+    from services.security.folder import identity as load_identity
 
     ident = load_identity(folder, identity)
     conf.insert_json5("transport/auth/usrpwd/user", json.dumps(ident.name))
@@ -148,7 +148,7 @@ def router_config(
     # the codec's limit, enforced again where every message passes (issue 8)
     conf.insert_json5("low_pass_filter", json.dumps(low_pass_filter()))
     if security is not None:
-        from services.security.certs import ACL_FILE, CA_CERT, PASSWORDS, ROUTER
+        from services.security.folder import ACL_FILE, CA_CERT, PASSWORDS, ROUTER
 
         acl = json.loads((security / ACL_FILE).read_text())
         for name in (PASSWORDS, CA_CERT, f"{ROUTER}.key", f"{ROUTER}.pem"):

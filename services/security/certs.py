@@ -24,7 +24,6 @@ import ipaddress
 import os
 import secrets
 from collections.abc import Iterable
-from dataclasses import dataclass
 from pathlib import Path
 
 from cryptography import x509
@@ -32,34 +31,46 @@ from cryptography.hazmat.primitives import hashes, serialization
 from cryptography.hazmat.primitives.asymmetric import ec
 from cryptography.x509.oid import ExtendedKeyUsageOID, NameOID
 
-CA_CERT = "ca.pem"
-CA_KEY = "ca.key"
-ROUTER = "router"
-PASSWORDS = "passwords.txt"
-ACL_FILE = "acl.json"
-"""The router's ``access_control`` section (services/deploy/deploy.py writes it)."""
-CERT = "cert.pem"
-KEY = "key.pem"
-PASSWORD = "password"
-ROUTER_NAMES = ("localhost", "router")
-"""DNS names in the router's certificate: the local host and the compose service name."""
-ROUTER_IPS = ("127.0.0.1",)
+from services.security.folder import (
+    ACL_FILE,
+    CA_CERT,
+    CA_KEY,
+    CERT,
+    KEY,
+    PASSWORD,
+    PASSWORDS,
+    ROUTER,
+    ROUTER_IPS,
+    ROUTER_NAMES,
+    CredentialError,
+    Identity,
+    identities,
+    identity,
+    read_passwords,
+)
 
-
-class CredentialError(ValueError):
-    """A credentials folder that is missing a file, or an identity it does not hold."""
-
-
-@dataclass(frozen=True)
-class Identity:
-    """What one client needs to connect: ``name`` (user name and certificate common name),
-    ``password``, and the paths of its certificate, key and the CA certificate."""
-
-    name: str
-    password: str
-    cert: Path
-    key: Path
-    ca: Path
+__all__ = [
+    "ACL_FILE",
+    "CA_CERT",
+    "CA_KEY",
+    "CERT",
+    "KEY",
+    "PASSWORD",
+    "PASSWORDS",
+    "ROUTER",
+    "ROUTER_IPS",
+    "ROUTER_NAMES",
+    "CredentialError",
+    "Identity",
+    "identities",
+    "identity",
+    "issue",
+    "issue_identity",
+    "issue_router",
+    "make_ca",
+    "read_passwords",
+    "revoke",
+]
 
 
 def _write(path: Path, data: bytes, *, secret: bool = False) -> None:
@@ -220,20 +231,6 @@ def issue(out: Path, names: Iterable[str], days: int = 365) -> list[Identity]:
     return [issue_identity(out, n, days) for n in names]
 
 
-def read_passwords(out: Path) -> dict[str, str]:
-    """The usrpwd dictionary of ``out`` (empty when there is none)."""
-    try:
-        text = (out / PASSWORDS).read_text()
-    except FileNotFoundError:
-        return {}
-    users: dict[str, str] = {}
-    for line in text.splitlines():
-        user, sep, password = line.partition(":")
-        if sep:
-            users[user] = password
-    return users
-
-
 def _write_passwords(out: Path, users: dict[str, str]) -> None:
     _write(out / PASSWORDS, "".join(f"{u}:{p}\n" for u, p in sorted(users.items())).encode(), secret=True)
 
@@ -252,18 +249,3 @@ def revoke(out: Path, name: str) -> bool:
             f.unlink()
         folder.rmdir()
     return found
-
-
-def identity(out: Path, name: str) -> Identity:
-    """Identity ``name`` of the credentials folder ``out``. Raises CredentialError when its
-    password file is missing."""
-    try:
-        password = (out / name / PASSWORD).read_text().strip()
-    except OSError as exc:
-        raise CredentialError(f"{out}: no credentials for {name!r} ({exc})") from None
-    return Identity(name, password, out / name / CERT, out / name / KEY, out / CA_CERT)
-
-
-def identities(out: Path) -> list[str]:
-    """The identities issued in ``out`` (its sub-folders holding a password)."""
-    return sorted(p.parent.name for p in out.glob(f"*/{PASSWORD}"))

@@ -237,10 +237,10 @@ class ProtocolViolation(ValueError):
 def is_terminal_report(msg: Communicate) -> bool:
     """True when ``msg`` is an ``inform`` whose L_SW content reports a terminal
     supervised-worker state (Succeeded, Error, Preempted, Replan; paper §5.4)."""
+    if msg.performative is not Performative.INFORM or msg.language != "L_SW":
+        return False  # asked of every communicate sent and received: no import on this path
     from shared.fipa_codec.languages.l_sw import TERMINAL_SW_STATES, SWStatus
 
-    if msg.performative is not Performative.INFORM or msg.language != "L_SW":
-        return False
     try:
         status = decode_content(msg.language, msg.content)
     except ContentError:

@@ -273,7 +273,7 @@ class HumanInterface(Agent):
         self.retry_at: float | None = None
         self.retry_interval = SUBSCRIBE_RETRY_S[0]
         self.co_alive = False  # a_co's liveliness token is present
-        self.vocabulary = default_vocabulary()  # the last vocabulary a_km gave (at first: the files')
+        self._vocabulary: Vocabulary | None = None  # the last vocabulary a_km gave (None: none yet)
         self.dialogues: dict[str, Dialogue] = {}  # person → conversation
         self.held: deque[HeldSentence] = deque()  # sentences waiting for the vocabulary, in order
         self.vocab_queries: dict[str, HeldSentence] = {}  # C7 conversation → its sentence
@@ -403,6 +403,18 @@ class HumanInterface(Agent):
             conv.reply(performative, content)
         except SpecViolation as exc:  # e.g. the foreign agent cancelled it meanwhile
             self.log.warning("cannot answer %s's request [%s]: %s", conv.peer, request_id, exc)
+
+    @property
+    def vocabulary(self) -> Vocabulary:
+        """The last vocabulary a_km gave; before its first answer, the files' (O_RoCo and the
+        kitchen, read with rdflib at the first use: an idle a_hi does not load rdflib)."""
+        if self._vocabulary is None:
+            self._vocabulary = default_vocabulary()
+        return self._vocabulary
+
+    @vocabulary.setter
+    def vocabulary(self, value: Vocabulary) -> None:
+        self._vocabulary = value
 
     # ---- from the person ---------------------------------------------------------------
     def _on_input(self, event: HumanInput) -> None:

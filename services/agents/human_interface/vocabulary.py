@@ -26,8 +26,10 @@ import re
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-from rdflib import Graph
+if TYPE_CHECKING:
+    from rdflib import Graph
 
 ROCO_IRI = "https://w3id.org/roco/O_RoCo#"
 
@@ -171,7 +173,10 @@ class Vocabulary:
     @classmethod
     def from_files(cls, paths: Iterable[Path]) -> Vocabulary:
         """The vocabulary of Turtle files (O_RoCo and the kitchen as a_km first loads them).
-        Raises OSError or rdflib's parser errors for a missing or malformed file."""
+        Raises OSError or rdflib's parser errors for a missing or malformed file. rdflib is
+        imported here: a_hi's process loads it only when it needs the files' vocabulary."""
+        from rdflib import Graph
+
         graph = Graph()
         for path in paths:
             graph.parse(path, format="turtle")

@@ -33,11 +33,9 @@ from __future__ import annotations
 
 import contextlib
 import io
+import math
 from dataclasses import dataclass, field
 from typing import Any
-
-import numpy as np
-import pinocchio as pin
 
 from services.agents.planner.knowledge import ARMS, Knowledge
 from shared.fipa_codec.languages.common import Pose, Vec3
@@ -78,7 +76,7 @@ def _k(s: Any) -> Knowledge:
 
 
 def _rot_z(angle: float) -> Pose:
-    return geo.from_se3(pin.SE3(pin.rpy.rpyToMatrix(0.0, 0.0, angle), np.zeros(3)))
+    return geo.about_z(angle)
 
 
 def _turned(pose: Pose, angle: float) -> Pose:
@@ -359,7 +357,10 @@ def _place_facing(s: Any, obj: str, furniture: str, position: Vec3) -> float | N
     placement = _k(s).placements.get((obj, furniture))
     if placement is not None:
         for i, (x, y, _z) in enumerate(placement.positions):
-            if np.hypot(x - position[0], y - position[1]) < FREE_RADIUS_M and placement.facing(i) is not None:
+            if (
+                math.hypot(x - position[0], y - position[1]) < FREE_RADIUS_M
+                and placement.facing(i) is not None
+            ):
                 return placement.facing(i)
     return _facing(s, furniture)
 
@@ -379,7 +380,7 @@ def _free_place(s: Any, obj: str, furniture: str) -> tuple[int, Vec3, float] | N
     for i, (x, y, z) in enumerate(placement.positions):
         facing = placement.facing(i)
         facing = default if facing is None else facing
-        if facing is not None and all(np.hypot(x - ox, y - oy) >= FREE_RADIUS_M for ox, oy, _ in others):
+        if facing is not None and all(math.hypot(x - ox, y - oy) >= FREE_RADIUS_M for ox, oy, _ in others):
             return i, (x, y, z), facing
     return None
 
@@ -647,8 +648,8 @@ def finish_takes(s: Any, root: str) -> list[tuple[Any, ...]]:
         if pose is None or grasp is None or placement is None or not placement.positions:
             continue
         x, y, z = pose.position
-        place = min(placement.positions, key=lambda p: np.hypot(p[0] - x, p[1] - y))
-        if np.hypot(place[0] - x, place[1] - y) >= UNFINISHED_TAKE_SHARE * grasp.retreat_distance:
+        place = min(placement.positions, key=lambda p: math.hypot(p[0] - x, p[1] - y))
+        if math.hypot(place[0] - x, place[1] - y) >= UNFINISHED_TAKE_SHARE * grasp.retreat_distance:
             continue
         facing = _place_facing(s, obj, furniture, place)
         frame = _rot_z((facing if facing is not None else GRASP_FACING) - GRASP_FACING)

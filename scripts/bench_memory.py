@@ -1,0 +1,162 @@
+"""Resident memory of roco's processes once started and idle (issue 20, "lean processes").
+
+- **fleet**: ``roco up --port P --runs-dir TMP --no-realtime`` in a subprocess, exactly as an
+  operator starts it (router on a free loopback port, recorder, the six agents; access control
+  on, as ``roco up`` does by default; every process started by ``subprocess``: a fresh
+  interpreter, spawn semantics), then ``roco down``: only the processes it started end.
+- **synthetic**: an idle pair of the benchmark's synthetic agents (``b_ini0``/``b_par0``,
+  services/bench/messaging.py: a real ``Agent`` on a ``ZenohTransport``) on a router of their
+  own on a free loopback port, started as ``roco bench`` starts them (multiprocessing spawn).
+
+Memory: ``VmRSS`` of ``/proc/<pid>/status`` (MiB = 2**20 bytes). A process counts as idle once
+its VmRSS changed by less than ``--tolerance-mib`` over ``--quiet-s`` seconds (sampled every
+0.1 s, at most ``--max-wait-s``): start-up allocations are over, nothing is being sent.
+Also ``--imports``: the heavy libraries (physics, plotting, RDF, numerics) each agent's process
+has in ``sys.modules`` once its module is imported, as ``services.runtime.main`` imports it.
+
+Usage: ``python scripts/bench_memory.py [--only fleet,synthetic,imports] [--json]``
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import subprocess
+import sys
+import tempfile
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+if str(ROOT) not in sys.path:
+    sys.path.insert(0, str(ROOT))
+
+HEAVY = ("mujoco", "pinocchio", "matplotlib", "rerun", "rdflib", "pyoxigraph", "numpy", "scipy", "typer")
+"""Libraries whose presence in an agent's process is reported by ``--imports``."""
+
+
+def rss_mib(pid: int) -> float:
+    """VmRSS of process ``pid`` in MiB (0.0 when it is gone)."""
+    try:
+        for line in Path(f"/proc/{pid}/status").read_text().splitlines():
+            if line.startswith("VmRSS:"):
+                return int(line.split()[1]) / 1024
+    except OSError:
+        pass
+    return 0.0
+
+
+def settled_rss(
+    pids: dict[str, int], quiet_s: float, tolerance_mib: float, max_wait_s: float
+) -> dict[str, float]:
+    """VmRSS (MiB) of every process in ``pids`` once none changed by more than
+    ``tolerance_mib`` over the last ``quiet_s`` seconds (or after ``max_wait_s``)."""
+    history: list[tuple[float, dict[str, float]]] = []
+    t0 = time.monotonic()
+    while True:
+        now = time.monotonic()
+        sample = {name: rss_mib(pid) for name, pid in pids.items()}
+        history.append((now, sample))
+        window = [s for t, s in history if now - t <= quiet_s]
+        steady = now - t0 >= quiet_s and all(
+            max(s[n] for s in window) - min(s[n] for s in window) <= tolerance_mib for n in pids
+        )
+        if steady or now - t0 >= max_wait_s:
+            return sample
+        time.sleep(0.1)
+
+
+def fleet(settle: Callable[[dict[str, int]], dict[str, float]]) -> dict[str, float]:
+    """``roco up`` on a free port into a temporary runs folder, the settled VmRSS of every
+    process it started (pids from its ``.fleet.json``), then ``roco down``."""
+    from services.fleet.launcher import free_port
+
+    cli = [sys.executable, "-m", "services.cli"]
+    with tempfile.TemporaryDirectory(prefix="roco-mem-") as tmp:
+        up = [*cli, "up", "--port", str(free_port()), "--runs-dir", tmp, "--no-realtime"]
+        done = subprocess.run(up, cwd=ROOT, capture_output=True, text=True, timeout=240, check=False)
+        state = Path(tmp) / ".fleet.json"
+        try:
+            if done.returncode != 0 or not state.exists():
+                raise RuntimeError(f"roco up failed: {(done.stdout + done.stderr).strip()[-400:]}")
+            pids = {str(k): int(v) for k, v in json.loads(state.read_text())["pids"].items()}
+            return settle(pids)
+        finally:
+            if state.exists():
+                subprocess.run([*cli, "down", "--runs-dir", tmp], cwd=ROOT, capture_output=True, timeout=120)
+
+
+def synthetic(settle: Callable[[dict[str, int]], dict[str, float]]) -> dict[str, float]:
+    """An idle synthetic pair (``b_ini0``, ``b_par0``) on its own router, settled VmRSS."""
+    from services.bench.messaging import testbed
+
+    with testbed(1, ["b_ini0", "b_par0"], []) as bed:
+        pids = {n: c.process.pid for n, c in bed.children.items() if c.process.pid is not None}
+        assert bed.fleet is not None
+        pids["router"] = bed.fleet.processes["router"].pid
+        return settle(pids)
+
+
+def imports() -> dict[str, list[str]]:
+    """Per agent of the specification: the :data:`HEAVY` libraries in ``sys.modules`` of a
+    fresh interpreter after importing ``services.runtime.main`` and the agent's class."""
+    from services.spec.model import default_spec
+
+    out = {}
+    for a in default_spec().agents:
+        code = (
+            "import sys, services.runtime.main as m; from services.spec.model import default_spec; "
+            f"m.agent_class(default_spec(), {a.name!r}); "
+            f"print(' '.join(n for n in {HEAVY!r} if n in sys.modules))"
+        )
+        got = subprocess.run(
+            [sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, timeout=120, check=True
+        )
+        out[a.name] = got.stdout.split()
+    return out
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument(
+        "--only", default="imports,synthetic,fleet", help="comma-separated: imports, synthetic, fleet"
+    )
+    parser.add_argument("--quiet-s", type=float, default=1.0, help="RSS steady this long counts as idle (s)")
+    parser.add_argument("--tolerance-mib", type=float, default=0.25, help="largest change while steady (MiB)")
+    parser.add_argument("--max-wait-s", type=float, default=15.0, help="longest wait for steadiness (s)")
+    parser.add_argument("--json", action="store_true", help="print one JSON object instead of tables")
+    args = parser.parse_args()
+    parts = {p.strip() for p in args.only.split(",") if p.strip()}
+
+    def settle(pids: dict[str, int]) -> dict[str, float]:
+        return settled_rss(pids, args.quiet_s, args.tolerance_mib, args.max_wait_s)
+
+    result: dict[str, object] = {}
+    if "imports" in parts:
+        result["imports"] = imports()
+    if "synthetic" in parts:
+        result["synthetic"] = synthetic(settle)
+    if "fleet" in parts:
+        result["fleet"] = fleet(settle)
+    if args.json:
+        print(json.dumps(result, indent=1))
+        return
+    import benchlib  # scripts/benchlib.py, beside this file
+
+    print(f"# {benchlib.machine(('eclipse-zenoh', 'msgspec'))}")
+    if "imports" in result:
+        print("\n| agent | heavy libraries imported |\n|---|---|")
+        for name, libs in result["imports"].items():  # type: ignore[attr-defined]
+            print(f"| {name} | {', '.join(libs) or '—'} |")
+    for part in ("synthetic", "fleet"):
+        if part in result:
+            rss: dict[str, float] = result[part]  # type: ignore[assignment]
+            print(f"\n| {part}: process | VmRSS MiB |\n|---|---|")
+            for name, v in rss.items():
+                print(f"| {name} | {v:.1f} |")
+            print(f"| **total** | **{sum(rss.values()):.1f}** |")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,436 @@
+"""The processes of the messaging benchmark (services/bench/messaging.py): the synthetic agents
+(a real :class:`~services.runtime.agent.Agent` each, on a
+:class:`~services.runtime.transport.ZenohTransport`), their specification and content language,
+and the bare-Zenoh processes they are compared with.
+
+Kept apart from the orchestration so that a spawned benchmark process imports only what an
+agent imports (the runtime, the codec, the specification's model, Zenoh): its resident memory
+is an agent's, not that of the tools that started it (issue 20).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import logging
+import os
+import threading
+import time
+from collections import deque
+from multiprocessing.connection import Connection
+from typing import Any, ClassVar
+
+import msgspec
+import zenoh
+
+from services.runtime.agent import Agent
+from services.runtime.behaviour import FSM, Arc, Behaviour
+from services.runtime.conversations import ONTOLOGY
+from services.runtime.transport import Transport, ZenohTransport, client_config
+from services.spec.model import (
+    AgentSpec,
+    ChannelProtocol,
+    ChannelSpec,
+    SystemSpec,
+    default_spec,
+)
+from shared.fipa_codec import AgentIdentifier, Communicate, Performative, encode
+from shared.fipa_codec.languages import Language, encode_content, load_all
+from shared.fipa_codec.languages.base import register
+from shared.fipa_codec.message import new_id
+
+BENCH_LANGUAGE = "L_BENCH"
+"""The benchmark's content language (registered by the functions that use it, not on import)."""
+STREAM_BATCH = 256
+"""Informs the participant sends per FSM step while streaming (one output buffer)."""
+WARMUP = 50
+"""Round trips done and discarded before the measured ones."""
+STALL_S = 3.0
+"""A throughput test ends early when nothing arrived for this long (s): what is missing was lost."""
+
+
+class BenchRequest(msgspec.Struct, frozen=True, tag="bench_request"):
+    """The content of a benchmark ``request``: a sequence number and ``data`` (opaque bytes)."""
+
+    seq: int
+    data: bytes
+
+
+class BenchInform(msgspec.Struct, frozen=True, tag="bench_inform"):
+    """The content of a benchmark ``inform`` (the answer, or one communicate of a stream)."""
+
+    seq: int
+    data: bytes
+
+
+class BenchSubscription(msgspec.Struct, frozen=True, tag="bench_subscription"):
+    """The content of a benchmark ``subscribe``: send ``count`` informs of ``size`` bytes."""
+
+    count: int
+    size: int
+
+
+def _register() -> None:
+    if BENCH_LANGUAGE not in load_all():
+        register(Language(BENCH_LANGUAGE, ONTOLOGY, (BenchRequest, BenchInform, BenchSubscription)))
+
+
+def sized_data(size: int) -> bytes:
+    """``data`` such that ``BenchInform(seq=0, data=…)`` encodes to ``size`` bytes of content
+    (msgpack; a larger ``seq`` adds up to 4 bytes)."""
+    data = b""
+    for _ in range(3):  # the bin header grows with the length: converge
+        overhead = len(encode_content(BenchInform(seq=0, data=data))[1]) - len(data)
+        data = b"x" * max(0, size - overhead)
+    return data
+
+
+def pair_names(k: int) -> tuple[str, str]:
+    """The initiator and participant of synthetic pair ``k``."""
+    return f"b_ini{k}", f"b_par{k}"
+
+
+def bench_spec(pairs: int) -> SystemSpec:
+    """A specification of ``pairs`` synthetic agent pairs, one channel ``B<k>`` each, with the
+    Robot Companion's own fipa-request and fipa-subscribe definitions (who may send what, and
+    their state machines come from shared/fipa_codec/protocols.py)."""
+    _register()  # registered where used: importing this module changes no registry
+    real = default_spec().protocols
+    agents: list[AgentSpec] = []
+    channels: list[ChannelSpec] = []
+    for k in range(pairs):
+        ini, par = pair_names(k)
+        agents.append(AgentSpec(ini, ini, "services.bench.synthetic:BenchInitiator", job="benchmark"))
+        agents.append(AgentSpec(par, par, "services.bench.synthetic:BenchParticipant", job="benchmark"))
+        request = ChannelProtocol(
+            "fipa-request",
+            initiator=ini,
+            languages={"request": BENCH_LANGUAGE, "inform": BENCH_LANGUAGE},
+            contents={"request": ("BenchRequest",), "inform": ("BenchInform",)},
+        )
+        subscribe = ChannelProtocol(
+            "fipa-subscribe",
+            initiator=ini,
+            languages={"subscribe": BENCH_LANGUAGE, "inform": BENCH_LANGUAGE},
+            contents={"subscribe": ("BenchSubscription",), "inform": ("BenchInform",)},
+        )
+        channels.append(ChannelSpec(f"B{k}", (ini, par), "benchmark communicates", (request, subscribe)))
+    return SystemSpec(
+        system="bench",
+        agents=tuple(agents),
+        protocols={p: real[p] for p in ("fipa-request", "fipa-subscribe")},
+        channels=tuple(channels),
+    )
+
+
+def request_bytes(size: int) -> int:
+    """Length (B) of roco's encoded request communicate with ``size`` bytes of content, as
+    :meth:`Agent.send` builds it (the raw Zenoh payload is made this long)."""
+    _register()  # registered where used: importing this module changes no registry
+    language, body = encode_content(BenchRequest(seq=1, data=sized_data(size)))
+    msg = Communicate(
+        performative=Performative.REQUEST,
+        sender=AgentIdentifier("b_ini0"),
+        receiver=(AgentIdentifier("b_par0"),),
+        content=body,
+        language=language,
+        encoding="msgpack",
+        ontology=ONTOLOGY,
+        protocol="fipa-request",
+        conversation_id=new_id("c-"),
+        reply_with=new_id("b_ini0-"),
+    )
+    return len(encode(msg))
+
+
+# ---------------------------------------------------------------------------------- agents
+class BenchInitiator(Agent):
+    """Plays the initiator: takes commands from the benchmark (receptor events, through its
+    pipe) and reports results on it. ``("pingpong", n, size)``: ``WARMUP + n`` request/inform
+    round trips, one at a time; ``("stream", n, size)``: subscribe for ``n`` informs."""
+
+    name: ClassVar[str] = "b_ini0"
+
+    def __init__(self, transport: Transport, spec: SystemSpec, results: Connection) -> None:
+        self.results = results
+        self.peer = "b_par" + self.name.removeprefix("b_ini")
+        self.commands: deque[tuple[Any, ...]] = deque()
+        self.job: tuple[Any, ...] | None = None
+        self.samples: list[float] = []
+        self.done = 0
+        self.data = b""
+        self.conversation = ""
+        self.outstanding = False
+        self.t0 = 0.0
+        self.count = 0
+        self.t_first = 0.0
+        self.t_last = 0.0
+        super().__init__(transport, spec)
+
+    def build_fsm(self) -> FSM:
+        work = Behaviour("work", self._work, terminal=lambda: False, doc="run the benchmark's commands")
+        return FSM("work", {"work": work}, [Arc("work", "work")])
+
+    def _work(self) -> None:
+        while self.r:
+            cmd = self.r.popleft()
+            if cmd is not None:
+                self.commands.append(cmd)
+        if self.job is None and self.commands and self.peer in self.peers:
+            self._start(self.commands.popleft())
+        if self.job is None:
+            self.x.clear()
+        elif self.job[0] == "pingpong":
+            self._pingpong()
+        else:
+            self._count()
+
+    def _start(self, cmd: tuple[Any, ...]) -> None:
+        kind, n, size = cmd
+        self.job = cmd
+        self.samples = []
+        self.done = 0
+        self.count = 0
+        self.outstanding = False
+        self.data = sized_data(size)
+        self.t0 = time.perf_counter()
+        if kind == "stream":
+            msg = self.send(
+                self.peer,
+                Performative.SUBSCRIBE,
+                BenchSubscription(count=n, size=size),
+                protocol="fipa-subscribe",
+                expect_reply=True,
+            )
+            self.conversation = msg.conversation_id or ""
+
+    def _finish(self, result: dict[str, Any]) -> None:
+        self.results.send(result)
+        self.job = None
+
+    def _pingpong(self) -> None:
+        assert self.job is not None
+        n = self.job[1]
+        while self.x:
+            item = self.x.popleft()
+            if (
+                item.performative is Performative.INFORM
+                and self.outstanding
+                and item.msg.conversation_id == self.conversation
+            ):
+                self.outstanding = False
+                self.done += 1
+                if self.done > WARMUP:
+                    self.samples.append(time.perf_counter() - self.t0)
+        if self.outstanding:
+            return
+        if self.done >= WARMUP + n:
+            self._finish({"kind": "pingpong", "samples_s": self.samples})
+            return
+        self.t0 = time.perf_counter()
+        msg = self.send(
+            self.peer,
+            Performative.REQUEST,
+            BenchRequest(seq=self.done, data=self.data),
+            protocol="fipa-request",
+            expect_reply=True,
+        )
+        self.conversation = msg.conversation_id or ""
+        self.outstanding = True
+
+    def _count(self) -> None:
+        assert self.job is not None
+        n = self.job[1]
+        while self.x:
+            item = self.x.popleft()
+            if item.performative is Performative.INFORM and item.msg.conversation_id == self.conversation:
+                now = time.perf_counter()
+                if self.count == 0:
+                    self.t_first = now
+                self.count += 1
+                self.t_last = now
+        now = time.perf_counter()
+        stalled = now - (self.t_last if self.count else self.t0) > STALL_S
+        if self.count >= n or stalled:
+            self._finish(
+                {"kind": "stream", "count": self.count, "span_s": self.t_last - self.t_first, "sent": n}
+            )
+
+
+class BenchParticipant(Agent):
+    """Plays the participant: answers each request with an inform echoing its content; on a
+    subscribe, agrees and streams the informs asked for, :data:`STREAM_BATCH` per step."""
+
+    name: ClassVar[str] = "b_par0"
+
+    def __init__(self, transport: Transport, spec: SystemSpec, results: Connection) -> None:
+        self.results = results
+        self.stream: Any = None
+        self.left = 0
+        self.data = b""
+        super().__init__(transport, spec)
+
+    def build_fsm(self) -> FSM:
+        serve = Behaviour("serve", self._serve, terminal=lambda: self.stream is not None)
+        stream = Behaviour("stream", self._stream, terminal=lambda: self.stream is None, waits=False)
+        arcs = [
+            Arc("serve", "stream", lambda: self.stream is not None),
+            Arc("serve", "serve"),
+            Arc("stream", "serve"),
+        ]
+        return FSM("serve", {"serve": serve, "stream": stream}, arcs)
+
+    def _serve(self) -> None:
+        self.r.clear()
+        while self.x:
+            item = self.x.popleft()
+            content = item.content
+            if item.performative is Performative.REQUEST and isinstance(content, BenchRequest):
+                self.reply(item, Performative.INFORM, BenchInform(seq=content.seq, data=content.data))
+            elif item.performative is Performative.SUBSCRIBE and isinstance(content, BenchSubscription):
+                self.reply(item, Performative.AGREE)
+                self.stream, self.left, self.data = item, content.count, sized_data(content.size)
+
+    def _stream(self) -> None:
+        batch = min(STREAM_BATCH, self.left)
+        for i in range(batch):
+            self.reply(self.stream, Performative.INFORM, BenchInform(seq=self.left - i, data=self.data))
+        self.left -= batch
+        if self.left <= 0:
+            self.stream = None
+
+
+def agent_process(name: str, pairs: int, endpoint: str, conn: Connection) -> None:
+    """Body of one synthetic agent process (spawned): run agent ``name`` of
+    :func:`bench_spec` ``(pairs)`` on the router at ``endpoint``; commands arrive on ``conn``
+    (``("stop",)`` ends it), results leave on it."""
+    logging.basicConfig(level=logging.ERROR)
+    spec = bench_spec(pairs)
+    base: type[Agent] = BenchInitiator if name.startswith("b_ini") else BenchParticipant
+    cls = type(name, (base,), {"name": name})
+    transport = ZenohTransport([endpoint])
+    agent = cls(transport, spec, conn)
+    agent.bind()
+
+    def read() -> None:
+        while True:
+            try:
+                cmd = conn.recv()
+            except (EOFError, OSError):
+                cmd = ("stop",)
+            if cmd[0] == "stop":
+                agent.stop()
+                return
+            agent.post(cmd)
+
+    threading.Thread(target=read, name="bench-commands", daemon=True).start()
+    conn.send(("ready", os.getpid()))
+    try:
+        agent.run()
+    finally:
+        transport.close()
+
+
+# ------------------------------------------------------------------------------- raw Zenoh
+def raw_process(role: str, k: int, endpoint: str, conn: Connection) -> None:
+    """Body of one bare-Zenoh process (spawned). ``role`` "echo": puts every ping back and
+    counts throughput payloads in a subscriber callback; "pinger": does the ping-pong and
+    sends the throughput payloads. Commands on ``conn``: ``("pingpong", n, size)``,
+    ``("send", n, size)`` (pinger), ``("arm", n)`` (echo), ``("stop",)``."""
+    session = zenoh.open(client_config([endpoint]))
+    ping, pong, tput = f"bench/raw/{k}/ping", f"bench/raw/{k}/pong", f"bench/raw/{k}/tput"
+    alive = f"bench/raw/{k}/alive"
+    try:
+        if role == "echo":
+            _raw_echo(session, conn, ping, pong, tput, alive)
+        else:
+            _raw_pinger(session, conn, ping, pong, tput, alive)
+    finally:
+        session.close()
+
+
+def _raw_echo(session: zenoh.Session, conn: Connection, ping: str, pong: str, tput: str, alive: str) -> None:
+    pings = session.declare_subscriber(ping)
+    state = {"count": 0, "want": 0, "first": 0.0, "last": 0.0}
+    complete = threading.Event()
+
+    def on_tput(sample: zenoh.Sample) -> None:
+        now = time.perf_counter()
+        if state["count"] == 0:
+            state["first"] = now
+        state["count"] += 1
+        state["last"] = now
+        if state["count"] >= state["want"]:
+            complete.set()
+
+    counter = session.declare_subscriber(tput, on_tput)
+
+    ponger = session.declare_publisher(pong, congestion_control=zenoh.CongestionControl.BLOCK)
+
+    def echo() -> None:
+        with contextlib.suppress(Exception):  # ends when the subscriber is undeclared
+            while True:
+                ponger.put(pings.recv().payload.to_bytes())
+
+    threading.Thread(target=echo, name="raw-echo", daemon=True).start()
+    token = session.liveliness().declare_token(alive)
+    conn.send(("ready", os.getpid()))
+    while True:
+        cmd = conn.recv()
+        if cmd[0] == "stop":
+            break
+        complete.clear()
+        state.update(count=0, want=cmd[1], first=0.0, last=0.0)
+        conn.send(("armed",))
+        t0 = time.perf_counter()
+        while not complete.wait(0.5):
+            last = state["last"] if state["count"] else t0
+            if time.perf_counter() - last > STALL_S:
+                break
+        conn.send({"kind": "stream", "count": state["count"], "span_s": state["last"] - state["first"]})
+    token.undeclare()
+    counter.undeclare()  # the echo thread's subscriber goes with the session
+
+
+def _raw_pinger(
+    session: zenoh.Session, conn: Connection, ping: str, pong: str, tput: str, alive: str
+) -> None:
+    pongs = session.declare_subscriber(pong)
+    present = threading.Event()
+
+    def on_alive(sample: zenoh.Sample) -> None:
+        if sample.kind == zenoh.SampleKind.PUT:
+            present.set()
+
+    watch = session.liveliness().declare_subscriber(alive, on_alive, history=True)
+    # congestion control BLOCK, as roco's ZenohTransport: nothing is dropped on either side
+    block = zenoh.CongestionControl.BLOCK
+    publisher = session.declare_publisher(tput, congestion_control=block)
+    pinger = session.declare_publisher(ping, congestion_control=block)
+    conn.send(("ready", os.getpid()))
+    while True:
+        cmd = conn.recv()
+        if cmd[0] == "stop":
+            break
+        if not present.wait(30):
+            conn.send({"error": "the echo process never appeared"})
+            continue
+        kind, n, size = cmd
+        payload = b"p" * size
+        if kind == "pingpong":
+            samples = []
+            for i in range(WARMUP + n):
+                t0 = time.perf_counter()
+                pinger.put(payload)
+                pongs.recv()
+                if i >= WARMUP:
+                    samples.append(time.perf_counter() - t0)
+            conn.send({"kind": "pingpong", "samples_s": samples})
+        else:
+            t0 = time.perf_counter()
+            for _ in range(n):
+                publisher.put(payload)
+            conn.send({"kind": "sent", "seconds": time.perf_counter() - t0})
+    publisher.undeclare()
+    pinger.undeclare()
+    watch.undeclare()
+    pongs.undeclare()

@@ -1,0 +1,104 @@
+"""An agent's process imports only what the agent uses (issue 20, lean processes): no physics
+(MuJoCo, Pinocchio), plotting (matplotlib), visualisation (Rerun) or RDF (rdflib, pyoxigraph)
+library in an agent that does not need it.
+
+Each check runs in a fresh interpreter (``subprocess``: a new process, nothing inherited from
+this test process, which has imported everything) that does what ``services.runtime.main``
+does before the agent runs: load the specification, import the agent's class, build the agent
+(here on an in-memory transport), and prints ``sys.modules``' heavy libraries.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[2]
+HEAVY = ("mujoco", "pinocchio", "matplotlib", "rerun", "rdflib", "pyoxigraph")
+"""Libraries no lean agent may load."""
+NEEDS = {"a_km": {"rdflib", "pyoxigraph"}}
+"""What an agent of the Robot Companion may load because it uses it (a_km's world model is RDF)."""
+
+PROBE = """
+import json, sys
+import services.runtime.main as main
+from services.runtime.memory_transport import MemoryBus
+from services.spec.model import default_spec
+spec = default_spec()
+cls = main.agent_class(spec, {name!r})
+if {build!r}:
+    cls(MemoryBus().transport(), spec)
+print(json.dumps([n for n in {heavy!r} if n in sys.modules]))
+"""
+
+SYNTHETIC_PROBE = """
+import json, sys
+from multiprocessing import Pipe
+from services.bench.synthetic import BenchInitiator, BenchParticipant, bench_spec
+from services.runtime.memory_transport import MemoryBus
+spec = bench_spec(1)
+bus = MemoryBus()
+BenchInitiator(bus.transport(), spec, Pipe()[0])
+BenchParticipant(bus.transport(), spec, Pipe()[0])
+print(json.dumps([n for n in {heavy!r} if n in sys.modules]))
+"""
+
+
+def loaded(code: str) -> set[str]:
+    """The heavy libraries a fresh interpreter running ``code`` has imported (its last line)."""
+    done = subprocess.run(
+        [sys.executable, "-c", code],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=120,
+        check=False,
+        env={**os.environ, "PYTHONPATH": str(ROOT)},
+    )
+    assert done.returncode == 0, done.stderr[-2000:]
+    return set(json.loads(done.stdout.strip().splitlines()[-1]))
+
+
+@pytest.mark.parametrize("name", ["a_hi", "a_co", "a_pl", "a_km", "a_ta"])
+def test_a_built_agent_loads_only_the_heavy_libraries_it_uses(name: str) -> None:
+    got = loaded(PROBE.format(name=name, build=True, heavy=HEAVY))
+    assert got <= NEEDS.get(name, set()), (name, got - NEEDS.get(name, set()))
+
+
+def test_the_executor_agent_loads_its_physics_only_when_it_starts_the_robot() -> None:
+    """ag_ex's module and class import no physics: MuJoCo and Pinocchio come with the executor
+    it builds (velma/executor), not with the communication side."""
+    assert loaded(PROBE.format(name="ag_ex", build=False, heavy=HEAVY)) == set()
+
+
+def test_a_synthetic_agent_loads_no_heavy_library() -> None:
+    """The benchmark's synthetic agents (services/bench/synthetic.py) are the runtime alone."""
+    assert loaded(SYNTHETIC_PROBE.format(heavy=HEAVY)) == set()
+
+
+def test_the_probe_sees_a_heavy_library_when_one_is_imported() -> None:
+    """The check can fail: an agent module that imported rdflib would be caught."""
+    assert "rdflib" in loaded(f"import rdflib\n{SYNTHETIC_PROBE.format(heavy=HEAVY)}")
+
+
+def test_a_session_with_credentials_does_not_load_the_certificate_library(tmp_path: Path) -> None:
+    """Every process of a fleet with access control reads its identity from the credentials
+    folder (services/security/folder.py); only issuing them needs ``cryptography``."""
+    from services.security.certs import issue, issue_router, make_ca
+
+    make_ca(tmp_path)
+    issue_router(tmp_path)
+    issue(tmp_path, ["a_co"])
+    code = (
+        "import json, sys\n"
+        "from pathlib import Path\n"
+        "from services.runtime.transport import client_config\n"
+        f"client_config(['tls/127.0.0.1:7447'], identity='a_co', security=Path({str(tmp_path)!r}))\n"
+        "print(json.dumps([n for n in ('cryptography', 'rdflib') if n in sys.modules]))\n"
+    )
+    assert loaded(code) == set()
