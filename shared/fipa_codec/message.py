@@ -13,6 +13,7 @@ import msgspec
 
 from shared.fipa_codec.acts import Performative
 from shared.fipa_codec.aid import AgentIdentifier
+from shared.fipa_codec.names import check_word
 
 
 class Communicate(msgspec.Struct, frozen=True, omit_defaults=True, kw_only=True, rename="kebab"):
@@ -25,11 +26,13 @@ class Communicate(msgspec.Struct, frozen=True, omit_defaults=True, kw_only=True,
         (roco's languages use ``encoding="msgpack"``; see ``shared.fipa_codec.languages``).
       language, encoding, ontology: L, the content encoding, O.
       protocol: I, the interaction protocol name (``fipa-request``, ``coordinate``…); a FIPA
-        SC00070 word, which the string form checks when it writes it (ValueError).
+        SC00070 word (checked on construction and decoding: ValueError).
       conversation_id, reply_with, in_reply_to: m_c, m_w, m_t.
       reply_by: t_b, POSIX time in seconds by which a reply is expected.
       user_params: ``X-`` parameters; keys must start with ``X-``.
-    Raises ValueError on construction when a user parameter lacks ``X-``. Only
+    Raises ValueError on construction when a user parameter lacks ``X-`` or ``protocol`` is
+    not an SC00070 word (so every communicate that can be built can be written in the string
+    form; decoded from the wire, msgspec reports it as a ValidationError). Only
     ``performative`` is mandatory (SC00061 §2); an empty ``receiver`` is accepted.
     The FIPA string form (SC00070) is in ``shared.fipa_codec.string_form``.
     """
@@ -50,6 +53,8 @@ class Communicate(msgspec.Struct, frozen=True, omit_defaults=True, kw_only=True,
     user_params: dict[str, str] = {}
 
     def __post_init__(self) -> None:
+        if self.protocol is not None:
+            check_word(self.protocol, ":protocol")
         for key in self.user_params:
             if not key.startswith(("X-", "x-")):
                 raise ValueError(f"user-defined parameter {key!r} must start with 'X-'")

@@ -59,9 +59,10 @@ Strings (SC00070 §2.3 ``String = StringLiteral | ByteLengthEncodedString``)
 
 Words (SC00070 §2.2: ``:protocol Word``, ``:name Word``, ``URL``, ``UserDefinedParameter``)
     These fields are written as the word they are, and a value that is no word is refused:
-    :class:`AgentIdentifier` refuses a name or an address that is no word on construction;
-    :func:`to_string` / :func:`to_bytes` raise ValueError for a ``protocol`` that is no word
-    (``"fipa request"``) and for a user parameter name with white space or a parenthesis. On
+    :class:`AgentIdentifier` refuses a name or an address that is no word on construction,
+    :class:`Communicate` a ``protocol`` that is no word (``"fipa request"``);
+    :func:`to_string` / :func:`to_bytes` check the protocol again and raise ValueError for a
+    user parameter name with white space or a parenthesis. On
     parsing, only a ``Word`` is read there: a string or a parenthesised expression after
     ``:protocol`` or ``:name`` or in ``:addresses (sequence …)`` is an error where it stands.
 
