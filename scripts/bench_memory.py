@@ -32,19 +32,10 @@ ROOT = Path(__file__).resolve().parents[1]
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
+from services.bench.messaging import process_rss_mib as rss_mib  # noqa: E402  (VmRSS, MiB)
+
 HEAVY = ("mujoco", "pinocchio", "matplotlib", "rerun", "rdflib", "pyoxigraph", "numpy", "scipy", "typer")
 """Libraries whose presence in an agent's process is reported by ``--imports``."""
-
-
-def rss_mib(pid: int) -> float:
-    """VmRSS of process ``pid`` in MiB (0.0 when it is gone)."""
-    try:
-        for line in Path(f"/proc/{pid}/status").read_text().splitlines():
-            if line.startswith("VmRSS:"):
-                return int(line.split()[1]) / 1024
-    except OSError:
-        pass
-    return 0.0
 
 
 def settled_rss(
