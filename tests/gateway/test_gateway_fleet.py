@@ -11,6 +11,7 @@ from __future__ import annotations
 import json
 import queue
 import threading
+import time
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -125,6 +126,18 @@ def test_a_jade_request_crosses_the_gateway_under_access_control(fleet: Fleet) -
         watcher = open_client(ep)
         try:
             watcher.declare_subscriber("roco/**", lambda sample: keys_seen.put(str(sample.key_expr)))
+            # the router learns of the new subscriber asynchronously: put the marker until one
+            # arrives, so that what follows is routed to the watcher if the router lets it pass
+            deadline = time.monotonic() + TIMEOUT
+            while True:
+                gateway_transport.session.put(keys.counters_key(GATEWAY), b"marker")
+                try:
+                    if keys_seen.get(timeout=0.2) == keys.counters_key(GATEWAY):
+                        break
+                except queue.Empty:
+                    assert time.monotonic() < deadline, "the watcher never saw the gateway's marker"
+            while not keys_seen.empty():
+                keys_seen.get()
             forbidden = {keys.fipa_key("C2", JADE, "a_co"), keys.fipa_key("C8", "a_co", "a_hi")}
             for key in forbidden:
                 gateway_transport.session.put(key, b"x")
