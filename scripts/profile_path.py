@@ -48,7 +48,7 @@ def traced_agent(name: str, endpoint: str, conn: Connection) -> None:
     path traced; ``("trace",)`` on ``conn`` sends the events back."""
     import logging
 
-    from services.bench.synthetic import BenchInitiator, BenchParticipant, bench_spec
+    from services.bench.synthetic import BenchInitiator, BenchParticipant, bench_spec, serve
     from services.runtime.agent import Agent
     from services.runtime.transport import ZenohTransport
 
@@ -87,24 +87,14 @@ def traced_agent(name: str, endpoint: str, conn: Connection) -> None:
     agent = cls(transport, bench_spec(1), conn)
     agent.bind()
 
-    def read() -> None:
-        while True:
-            cmd = conn.recv()
-            if cmd[0] == "stop":
-                agent.stop()
-                return
-            if cmd[0] == "trace":
-                conn.send(list(events))
-                events.clear()
-                continue
-            agent.post(cmd)
+    def trace(cmd: tuple[Any, ...]) -> bool:
+        if cmd[0] != "trace":
+            return False
+        conn.send(list(events))
+        events.clear()
+        return True
 
-    threading.Thread(target=read, name="bench-commands", daemon=True).start()
-    conn.send(("ready", os.getpid()))
-    try:
-        agent.run()
-    finally:
-        transport.close()
+    serve(agent, transport, conn, trace)
 
 
 def threads(pid: int) -> dict[int, tuple[str, int, int]]:

@@ -16,6 +16,7 @@ import os
 import threading
 import time
 from collections import deque
+from collections.abc import Callable
 from multiprocessing.connection import Connection
 from typing import Any, ClassVar
 
@@ -310,6 +311,19 @@ def agent_process(name: str, pairs: int, endpoint: str, conn: Connection) -> Non
     transport = ZenohTransport([endpoint])
     agent = cls(transport, spec, conn)
     agent.bind()
+    serve(agent, transport, conn)
+
+
+def serve(
+    agent: Agent,
+    transport: ZenohTransport,
+    conn: Connection,
+    on_command: Callable[[tuple[Any, ...]], bool] | None = None,
+) -> None:
+    """Run a bound synthetic ``agent`` until told to stop: a thread reads commands from
+    ``conn`` (``("stop",)`` or a closed pipe ends the agent; ``on_command`` may take one and
+    return True, else the agent gets it with ``post``); says ``("ready", pid)`` on ``conn``
+    first and closes ``transport`` at the end."""
 
     def read() -> None:
         while True:
@@ -320,7 +334,8 @@ def agent_process(name: str, pairs: int, endpoint: str, conn: Connection) -> Non
             if cmd[0] == "stop":
                 agent.stop()
                 return
-            agent.post(cmd)
+            if on_command is None or not on_command(cmd):
+                agent.post(cmd)
 
     threading.Thread(target=read, name="bench-commands", daemon=True).start()
     conn.send(("ready", os.getpid()))

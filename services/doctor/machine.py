@@ -20,7 +20,6 @@ ROUTER_PORT = 7447  # roco up's default router port (services/cli.py DEFAULT_ROU
 GL_PROBE = "import mujoco\nctx = mujoco.GLContext(64, 64)\nctx.make_current()\nctx.free()\n"
 FIFO_PROBE = "import os\nos.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(1))\n"
 PIN_PROBE = "import os, sys\nos.sched_setaffinity(0, {int(sys.argv[1])})\n"
-PM_QOS_DEVICE = "/dev/cpu_dma_latency"  # velma/executor/timing.py PM_QOS_DEVICE (no MuJoCo import here)
 
 GL_HOW = {
     "egl": "apt-get install libegl1 libegl-mesa0 libgl1-mesa-dri (software EGL is enough)",
@@ -98,10 +97,19 @@ def pinning_check() -> Check:
     )
 
 
-def cpu_latency_check(device: str = PM_QOS_DEVICE) -> Check:
+def cpu_latency_check(device: str | None = None) -> Check:
     """Whether the loop may hold the CPUs' wake-up latency at 0 µs (PM QoS; velma/executor/
-    timing.py ``hold_cpu_latency``): the device exists and this user may write it. Not
-    needed, but without it the loop's cycles come back to cold caches after each sleep."""
+    timing.py ``hold_cpu_latency``): ``device`` (default the loop's ``PM_QOS_DEVICE``) exists
+    and this user may write it. Not needed, but without it the loop's cycles come back to
+    cold caches after each sleep. The loop's module is imported here, not with this one, so
+    that a broken install still gets the doctor's other checks."""
+    if device is None:
+        try:
+            from velma.executor.timing import PM_QOS_DEVICE
+        except ImportError as exc:
+            why = f"cannot tell: {exc}"
+            return Check("CPU latency request", Use.REALTIME, False, why, "pip install -e .")
+        device = PM_QOS_DEVICE
     if not os.path.exists(device):
         return Check("CPU latency request", Use.REALTIME, False, f"no {device}", "Linux with PM QoS")
     ok = os.access(device, os.W_OK)
