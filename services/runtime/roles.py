@@ -459,6 +459,14 @@ class Conversation:
         return self.last is not None and not self.last.local and self.last.content is not None
 
     @property
+    def state(self) -> str | None:
+        """The conversation's state in its protocol's state machine (e.g. ``requested``,
+        ``agreed`` in fipa-request; shared/fipa_codec/protocols.py), None before its first
+        communicate."""
+        tracker = self.roles.agent.protocol_states.get(self.peer, self.conversation_id)
+        return None if tracker is None else tracker.state
+
+    @property
     def finished(self) -> bool:
         """The conversation has reached a final state of its protocol (or a not-understood
         ended it, or the peer's ``inform`` answered this agent's cancel: ``cancelled``, which

@@ -278,7 +278,6 @@ class HumanInterface(Agent):
         self.held: deque[HeldSentence] = deque()  # sentences waiting for the vocabulary, in order
         self.vocab_queries: dict[str, HeldSentence] = {}  # C7 conversation → its sentence
         self.foreign: dict[str, Conversation] = {}  # request id → C8 conversation it answers
-        self.foreign_agreed: set[str] = set()  # request ids whose C8 conversation has an agree
         self.kept = StateFile.for_agent(self.name, KeptHumanInterface)
         return FSM(
             initial="interact",
@@ -386,14 +385,12 @@ class HumanInterface(Agent):
         conv = self.foreign[request_id]
         content = SentenceReport(kind=report.kind.value, text=report.text)
         performative: Performative | None = None
-        if report.kind is ReportKind.ACCEPTED and request_id not in self.foreign_agreed:
+        requested = conv.state == "requested"  # fipa-request: not agreed yet
+        if report.kind is ReportKind.ACCEPTED and requested:
             performative = Performative.AGREE
-            self.foreign_agreed.add(request_id)
         elif report.kind in FINAL_REPORTS:
-            agreed = request_id in self.foreign_agreed
             del self.foreign[request_id]
-            self.foreign_agreed.discard(request_id)
-            if report.kind is ReportKind.NOT_UNDERSTOOD and not agreed:
+            if report.kind is ReportKind.NOT_UNDERSTOOD and requested:
                 performative = Performative.REFUSE
             else:
                 performative = Performative.INFORM if report.done_as_asked else Performative.FAILURE
