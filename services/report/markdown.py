@@ -490,6 +490,7 @@ def _stalls(c: TimingStats) -> str:
     if not c.off_cpu_max_us:
         return ""
     return (
+        f"{c.long_cycles} cycles took over 1 ms; "
         f"{c.stalls} cycles stalled (off their CPU for more than {STALL_OFF_CPU * 1e6:.0f} µs: the machine "
         f"took it; at most {c.off_cpu_max_us:.0f} µs); the longest other cycle took "
         f"{c.compute_max_outside_stalls_us:.0f} µs. "

@@ -429,9 +429,13 @@ CONTROL_TIMING = TimingStats(
     overrun_share=14 / 56_000,
     max_consecutive_overruns=2,
     sim_time=56.0,
-    setup=RealtimeSetup(policy="SCHED_FIFO", priority=80, cpus=(1,), pinned=True),
+    setup=RealtimeSetup(policy="SCHED_FIFO", priority=80, cpus=(1,), pinned=True, cpu_latency_us=0),
     control_law="compiled",
     plant="compiled",
+    long_cycles=3,
+    stalls=2,
+    compute_max_outside_stalls_us=1100.0,
+    off_cpu_max_us=950.0,
 )
 """What ag_ex writes to ag_ex_timing.json (velma.executor.timing.TimingStats)."""
 

@@ -184,6 +184,9 @@ def test_control_loop_section(run_dir: Path, control_timing: Any) -> None:
     assert "SCHED_FIFO priority 80, pinned to CPU 1" in section
     assert "Impedance law: compiled. MuJoCo side of the cycle: compiled." in section
     assert "| compute time per cycle (µs) | 410 | 720 | 1300 |" in section
+    assert "CPU wake-up latency held at 0 µs (PM QoS)" in section
+    assert "3 cycles took over 1 ms; 2 cycles stalled (off their CPU for more than 100 µs" in section
+    assert "at most 950 µs); the longest other cycle took 1100 µs." in section
 
 
 def test_control_loop_missing_or_corrupt(make_run: Callable[..., Path], pour: Any) -> None:
