@@ -12,9 +12,11 @@ from tests.support.arms import lift_both_arms
 from velma.control.compiled import ENV_LAW, CompiledController, make_controller
 from velma.control.robot_model import SIDES, RobotModel
 from velma.executor import plant as plant_module
+from velma.executor.handoff import LatestValue
 from velma.executor.plant import ENV_PLANT, plant_choice, plant_unavailable
 from velma.executor.runtime import Runtime
 from velma.executor.state import raw_layout, raw_state
+from velma.executor.state_block import StateReader, StateWriter, state_values
 
 pytestmark = pytest.mark.skipif(
     plant_unavailable(make_controller(RobotModel())) is not None, reason="the compiled plant is not built"
@@ -54,6 +56,41 @@ def test_the_robot_moves_the_same_with_the_compiled_plant() -> None:
     assert with_plant.cycles == without.cycles == 300
 
 
+def _jar_in_right_hand(rt: Runtime) -> None:
+    """The jar moved so that its origin is at the right grip site (fingers open around it)."""
+    mujoco.mj_forward(rt.model, rt.data)
+    delta = rt.data.site_xpos[rt.grip_site["right"]] - rt.data.xpos[rt.model.body("jar").id]
+    rt.displace("jar", (float(delta[0]), float(delta[1]), float(delta[2])))
+
+
+def test_the_servos_step_as_the_python_servos_do() -> None:
+    """The right hand closing on the jar (its clutches break away and the proximal setpoints
+    ratchet), the left hand spreading, the head turning: 1300 cycles with and without the
+    compiled plant step the hands' setpoints, the head's and the whole simulation alike, bit
+    for bit."""
+    runs = []
+    for compiled in (True, False):
+        rt = Runtime(seed=0, compiled_plant=compiled)
+        _jar_in_right_hand(rt)
+        rt.hands.command("right", 2.0)
+        rt.hands.command("left", 0.6, spread=0.5)
+        rt.head_target = rt.head_set + np.array([0.3, -0.2])
+        broke_at = None
+        for k in range(1300):
+            rt.cycle()
+            if broke_at is None and rt.hands.broken_away("right").any():
+                broke_at = k
+        runs.append((rt, broke_at))
+    (with_plant, broke), (without, broke_py) = runs
+    assert broke is not None and broke == broke_py  # the clutch did break away, in both
+    np.testing.assert_array_equal(with_plant.hands.state, without.hands.state)
+    np.testing.assert_array_equal(with_plant.head, without.head)
+    np.testing.assert_array_equal(with_plant.data.ctrl, without.data.ctrl)
+    np.testing.assert_array_equal(with_plant.data.qpos, without.data.qpos)
+    assert with_plant.hands.set["left"].steady and without.hands.set["left"].steady
+    assert not with_plant.hands.set["right"].steady  # a broken-away hand keeps stepping
+
+
 def test_the_contact_scans_are_the_python_scans() -> None:
     """The jar moved into the right hand and the left wrist bent into its hand: the compiled
     scans report the hand–jar and the robot–robot contacts exactly as ContactMonitor does."""
@@ -62,8 +99,7 @@ def test_the_contact_scans_are_the_python_scans() -> None:
     jar = rt.model.body("jar").id
     mujoco.mj_forward(rt.model, rt.data)
     palm = rt.data.xpos[rt.model.body("right_HandPalmLink").id]
-    delta = rt.data.site_xpos[rt.grip_site["right"]] - rt.data.xpos[jar]
-    rt.displace("jar", (float(delta[0]), float(delta[1]), float(delta[2])))
+    _jar_in_right_hand(rt)
     for k, value in TOUCHING.items():
         rt.data.qpos[rt.model.joint(f"left_arm_{k}_joint").qposadr[0]] = value
     mujoco.mj_forward(rt.model, rt.data)
@@ -91,6 +127,41 @@ def test_the_state_numbers_are_the_python_numbers() -> None:
         rt.plant = plant
     assert compiled == python
     assert np.frombuffer(compiled.values)[raw_layout(len(rt.joint_v_index))[2]] == 1.0  # a setpoint
+
+
+def test_the_published_state_is_the_python_state() -> None:
+    """The robot state that the compiled plant publishes into the shared block is, byte for
+    byte, what the Python writer publishes; the reader pairs it with its names, and a new
+    grasp moves the names' version so the next read carries the new words."""
+    rt = Runtime(seed=0, compiled_plant=True)
+    assert rt.plant is not None
+    _move(rt)
+    for _ in range(20):
+        rt.cycle()
+    blocks = [LatestValue.create(4096) for _ in range(4)]
+    try:
+        compiled = StateWriter(rt, blocks[0], blocks[1])
+        python = StateWriter(rt, blocks[2], blocks[3], compiled=False)
+        assert compiled.compiled and not python.compiled
+        for writer in (compiled, python):
+            writer.publish("a test hold")
+        assert blocks[0].read() == blocks[2].read()
+        assert blocks[0].read() == state_values(rt, 1).tobytes()
+        read = StateReader(blocks[0], blocks[1]).read()
+        reference = raw_state(rt, "a test hold")
+        assert read == reference
+        rt.held["left"] = rt.model.body("jar").id
+        compiled.publish(None)
+        read = StateReader(blocks[0], blocks[1]).read()
+        assert compiled.version == 2 and read is not None
+        assert read.held_object == (None, "jar") and read.holding is None
+        compiled.publish(None)
+        assert compiled.version == 2  # the same words: not written again
+        compiled.close()
+    finally:
+        for block in blocks:
+            block.close()
+            block.unlink()
 
 
 def test_a_runtime_says_why_it_runs_the_python_cycle(monkeypatch: pytest.MonkeyPatch) -> None:

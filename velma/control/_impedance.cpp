@@ -560,10 +560,16 @@ PYBIND11_MODULE(_impedance, m) {
            py::arg("prev").noconvert(), py::arg("limits").noconvert(), py::arg("out").noconvert(),
            py::arg("out_torso").noconvert(), py::arg("q").noconvert(), py::arg("v").noconvert(),
            py::arg("parts").noconvert(), py::keep_alive<1, 2>())
+      .def("bind_servos", &Plant::bind_servos, py::arg("hands").noconvert(), py::arg("head").noconvert(),
+           py::arg("spread_act"), py::arg("prox_act"), py::arg("dist_act"), py::arg("prox_q"), py::arg("prox_kp"),
+           py::arg("head_act"), py::arg("constants"))
       .def("cycle", &Plant::cycle)
       .def("set_state_layout", &Plant::set_state_layout)
       .def("touching", &Plant::touching)
       .def("self_contacts", &Plant::self_contacts)
-      .def("gather", &Plant::gather, py::arg("out").noconvert());
+      .def("gather", &Plant::gather, py::arg("out").noconvert())
+      .def("bind_state_block", &Plant::bind_state_block, py::arg("block").noconvert(), py::arg("header"))
+      .def("release_state_block", &Plant::release_state_block)
+      .def("publish_state", &Plant::publish_state, py::arg("names_version"));
 #endif
 }

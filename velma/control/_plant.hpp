@@ -1,8 +1,9 @@
 // The MuJoCo side of ag_ex's 1 kHz cycle, compiled beside the law (issue 18; included by
 // _impedance.cpp after the Law class, only when MuJoCo's headers were found at build time).
 //
-// One ``Plant.cycle`` does what velma/executor/runtime.py ``Runtime.cycle`` does in Python
-// after the hands and the head have written their servo controls: gather Pinocchio's q, v
+// One ``Plant.cycle`` does what velma/executor/runtime.py ``Runtime.cycle`` does in Python:
+// step the hands' and the head's servo setpoints and write them into ctrl
+// (velma/control/hand.py ``Hands.step``, runtime.py ``Runtime._step_head``), gather Pinocchio's q, v
 // from MuJoCo's qpos, qvel (velma/control/robot_model.py JointMap), compute the law
 // (``Law::compute``), write the arm and torso torques into ctrl, and call mj_step. The
 // contact scans (velma/control/hand.py ContactMonitor) and the robot state's numbers
@@ -17,13 +18,19 @@
 
 #include <mujoco/mujoco.h>
 
+#include <atomic>
 #include <chrono>
 #include <cstdint>
+#include <cstring>
 #include <utility>
 
 namespace {
 
 using MjStep = void (*)(const mjModel*, mjData*);
+
+// Layout of one hand's row of setpoints (velma/control/hand.py, HAND_WIDTH and the offsets).
+constexpr int hSpread = 0, hSpreadTarget = 1, hProximal = 2, hTarget = 5, hDistal = 8, hBroken = 11, hSteady = 14,
+              kHandWidth = 15;
 
 std::uintptr_t address_of(const py::object& obj) { return obj.attr("_address").cast<std::uintptr_t>(); }
 
@@ -85,11 +92,46 @@ class Plant {
     arrays_ = {cmd, torso, prev, limits, out, out_torso, q, v, parts};
   }
 
+  // Bind the servos' setpoints once (kept alive here): ``hands`` (2, 15) float64 as
+  // velma/control/hand.py ``Hands.state``; per side (right, left) the spread motors (2 each),
+  // the proximal and the distal servos (3 each), the proximal joints' qpos addresses (3 each)
+  // and the proximal servos' gains kp (3 each, N·m/rad); ``head`` (4,) float64: the pan and
+  // tilt setpoints, then their targets (rad); ``head_act`` the pan and tilt servos;
+  // ``constants``: dt, BREAKAWAY_TORQUE, CLOSE_RATE, OPEN_RATE, SPREAD_RATE, DISTAL_RATIO,
+  // DISTAL_MAX (hand.py) and the head's step HEAD_RATE·dt (runtime.py). Raises ValueError on
+  // sizes or indices that do not fit.
+  void bind_servos(Array hands, Array head, std::vector<int> spread_act, std::vector<int> prox_act,
+                   std::vector<int> dist_act, std::vector<int> prox_q, std::vector<double> prox_kp,
+                   std::vector<int> head_act, std::vector<double> constants) {
+    if (hands.size() != 2 * kHandWidth || head.size() != 4 || spread_act.size() != 4 || prox_act.size() != 6 ||
+        dist_act.size() != 6 || prox_q.size() != 6 || prox_kp.size() != 6 || head_act.size() != 2 ||
+        constants.size() != 8)
+      throw std::invalid_argument("Plant.bind_servos: an array has the wrong size");
+    check_index(spread_act, m_->nu, "spread_act");
+    check_index(prox_act, m_->nu, "prox_act");
+    check_index(dist_act, m_->nu, "dist_act");
+    check_index(head_act, m_->nu, "head_act");
+    check_index(prox_q, m_->nq, "prox_q");
+    hands_ = hands;
+    head_ = head;
+    spread_act_ = std::move(spread_act);
+    prox_act_ = std::move(prox_act);
+    dist_act_ = std::move(dist_act);
+    prox_q_ = std::move(prox_q);
+    prox_kp_ = std::move(prox_kp);
+    head_act_ = std::move(head_act);
+    servo_ = std::move(constants);
+  }
+
   // One cycle (module comment) on the bound arrays. Raises RuntimeError before ``bind``,
   // else as Law.update.
   void cycle() {
     if (law_ == nullptr) throw std::runtime_error("Plant.cycle before Plant.bind");
     const auto t0 = std::chrono::steady_clock::now();
+    if (!servo_.empty()) {
+      step_hands();
+      step_head();
+    }
     double* q = arrays_[6].mutable_data();
     double* v = arrays_[7].mutable_data();
     for (std::size_t i = 0; i < qpos_adr_.size(); ++i) {
@@ -181,7 +223,66 @@ class Plant {
   void gather(Array& out) const {
     if (offsets_.empty() || out.size() != offsets_[4])
       throw std::invalid_argument("Plant.gather: no layout yet, or out of another size");
-    double* o = out.mutable_data();
+    gather_into(out.mutable_data());
+  }
+
+  // Publish the robot state from here (velma/executor/state.py ``StateWriter``): ``block`` is
+  // the whole shared buffer of a velma/executor/handoff.py ``LatestValue`` (uint8), whose
+  // sequence number sits at byte 0 and whose value starts at ``header`` (its length, u32,
+  // then the bytes). Raises ValueError before ``set_state_layout`` or ``bind``, or for a
+  // block too small for the value.
+  void bind_state_block(py::array_t<std::uint8_t, py::array::c_style> block, int header) {
+    if (offsets_.empty() || law_ == nullptr)
+      throw std::invalid_argument("Plant.bind_state_block: set_state_layout and bind first");
+    const std::size_t n = 8 * static_cast<std::size_t>(2 + offsets_[4]);
+    if (header < 8 || static_cast<std::size_t>(block.size()) < header + 4 + n)
+      throw std::invalid_argument("Plant.bind_state_block: the block is too small");
+    block_ = block;
+    header_ = header;
+    scratch_.assign(2 + offsets_[4], 0.0);
+  }
+
+  // Let go of the block of ``bind_state_block`` (before the block is closed).
+  void release_state_block() {
+    block_ = py::array_t<std::uint8_t, py::array::c_style>();
+    scratch_.clear();
+  }
+
+  // Write the state value now (state.py ``state_values``: sim time, ``names_version``, then
+  // raw_state's numbers with the setpoint block from the bound commands) under the block's
+  // sequence lock, as ``LatestValue.write`` does. Raises RuntimeError before
+  // ``bind_state_block``.
+  void publish_state(double names_version) {
+    if (scratch_.empty()) throw std::runtime_error("Plant.publish_state before Plant.bind_state_block");
+    double* v = scratch_.data();
+    v[0] = d_->time;
+    v[1] = names_version;
+    gather_into(v + 2);
+    const double* cmd = arrays_[0].data();
+    for (int k = 0; k < 2; ++k) {
+      const double* row = cmd + kCmdWidth * k;
+      double* sp = v + 2 + offsets_[2] + 13 * k;
+      if (row[kMode] == kCart) {
+        sp[0] = 1.0;
+        std::copy_n(row + kPos, 3, sp + 1);
+        std::copy_n(row + kRot, 9, sp + 4);
+      } else {
+        std::fill_n(sp, 13, 0.0);
+      }
+    }
+    std::uint8_t* b = block_.mutable_data();
+    auto* seq = reinterpret_cast<std::uint64_t*>(b);
+    const std::uint64_t s = __atomic_load_n(seq, __ATOMIC_RELAXED);
+    __atomic_store_n(seq, s + 1, __ATOMIC_RELAXED);
+    std::atomic_thread_fence(std::memory_order_release);
+    const std::uint32_t n = static_cast<std::uint32_t>(8 * scratch_.size());
+    std::memcpy(b + header_, &n, 4);  // little-endian u32, as handoff.py's "<I" on x86-64
+    std::memcpy(b + header_ + 4, v, n);
+    __atomic_store_n(seq, s + 2, __ATOMIC_RELEASE);
+  }
+
+ private:
+  void gather_into(double* o) const {
     for (std::size_t i = 0; i < joint_qpos_.size(); ++i) o[i] = d_->qpos[joint_qpos_[i]];
     for (int k = 0; k < 2; ++k) {
       double* g = o + offsets_[0] + 12 * k;
@@ -198,7 +299,78 @@ class Plant {
     }
   }
 
- private:
+  // velma/control/hand.py Hands.step on the bound rows: the same operations in the same order
+  // (so the same doubles), a steady hand skipped.
+  void step_hands() {
+    const double dt = servo_[0], breakaway = servo_[1], close = servo_[2], open = servo_[3], spread_rate = servo_[4],
+                 ratio = servo_[5], distal_max = servo_[6];
+    double* rows = hands_.mutable_data();
+    for (int s = 0; s < 2; ++s) {
+      double* r = rows + kHandWidth * s;
+      if (r[hSteady] != 0.0) continue;
+      double prox[3], target[3], distal[3], delta[3], goal[3];
+      bool broken[3], closing[3], slip[3], any = false;
+      for (int i = 0; i < 3; ++i) {
+        prox[i] = r[hProximal + i];
+        target[i] = r[hTarget + i];
+        distal[i] = r[hDistal + i];
+        broken[i] = r[hBroken + i] != 0.0;
+        delta[i] = target[i] - prox[i];
+        closing[i] = delta[i] > 0;
+        slip[i] = closing[i] && !broken[i] && d_->actuator_force[prox_act_[3 * s + i]] >= breakaway;
+        any = any || slip[i] || broken[i];
+      }
+      if (any) {  // the setpoint at which the proximal servo pushes with the breakaway torque
+        for (int i = 0; i < 3; ++i) {
+          const double press = d_->qpos[prox_q_[3 * s + i]] + breakaway / prox_kp_[3 * s + i];
+          const double follow = std::min(std::max(prox[i], press), target[i]);  // ratchet: never back
+          if (broken[i])
+            prox[i] = follow;
+          else if (slip[i])
+            prox[i] = std::min(prox[i], press);
+          broken[i] = broken[i] || slip[i];
+        }
+      }
+      bool steady = true;
+      for (int i = 0; i < 3; ++i) {
+        double distal_rate;
+        if (!broken[i]) {
+          const double rate = (closing[i] ? close : open) * dt;
+          prox[i] = prox[i] + std::min(std::max(delta[i], -rate), rate);
+          goal[i] = prox[i] * ratio;
+          distal_rate = open * dt;
+        } else {
+          goal[i] = distal_max;
+          distal_rate = close * ratio * dt;
+        }
+        distal[i] = distal[i] + std::min(std::max(goal[i] - distal[i], -distal_rate), distal_rate);
+        steady = steady && !broken[i] && prox[i] == target[i] && distal[i] == goal[i];
+      }
+      const double ds = r[hSpreadTarget] - r[hSpread];
+      r[hSpread] += std::min(std::max(ds, -spread_rate * dt), spread_rate * dt);
+      for (int i = 0; i < 3; ++i) {
+        r[hProximal + i] = prox[i];
+        r[hDistal + i] = distal[i];
+        r[hBroken + i] = broken[i] ? 1.0 : 0.0;
+        d_->ctrl[prox_act_[3 * s + i]] = prox[i];
+        d_->ctrl[dist_act_[3 * s + i]] = distal[i];
+      }
+      d_->ctrl[spread_act_[2 * s]] = r[hSpread];
+      d_->ctrl[spread_act_[2 * s + 1]] = r[hSpread];
+      r[hSteady] = steady && r[hSpread] == r[hSpreadTarget] ? 1.0 : 0.0;
+    }
+  }
+
+  // runtime.py Runtime._step_head: each setpoint one step (≤ HEAD_RATE·dt) towards its target.
+  void step_head() {
+    double* h = head_.mutable_data();
+    const double rate = servo_[7];
+    for (int i = 0; i < 2; ++i) {
+      h[i] += std::min(std::max(h[2 + i] - h[i], -rate), rate);
+      d_->ctrl[head_act_[i]] = h[i];
+    }
+  }
+
   py::object model_obj_, data_obj_;
   const mjModel* m_;
   mjData* d_;
@@ -209,6 +381,12 @@ class Plant {
   Law* law_ = nullptr;
   std::vector<Array> arrays_;  // cmd, torso, prev, limits, out, out_torso, q, v, parts
   std::vector<int> joint_qpos_, sites_, links_, ft_adr_, offsets_;
+  Array hands_, head_;
+  std::vector<int> spread_act_, prox_act_, dist_act_, prox_q_, head_act_;
+  std::vector<double> prox_kp_, servo_;  // servo_: bind_servos' constants (empty: not bound)
+  py::array_t<std::uint8_t, py::array::c_style> block_;
+  int header_ = 0;
+  std::vector<double> scratch_;  // the state value being written (empty: no block bound)
 };
 
 }  // namespace

@@ -116,6 +116,43 @@ def _build_law(robot: RobotModel, dt: float, torso_idx: int, arm_v0: list[int]) 
     return law
 
 
+class _PlantArmState(imp.ArmState):
+    """``ArmState`` of a controller stepped by a compiled plant: the grip pose and the torque
+    are read from the law's output row (``row``, (32,), the layout of _impedance.cpp) when
+    asked, not built every cycle (issue 18, the cycle's budget); ``refresh`` marks a new row.
+    Assigning ``grip`` or ``torque`` sets them until the next ``refresh``."""
+
+    def __init__(self, row: Array, now: imp.ArmState) -> None:
+        self._row = row
+        self._grip: pin.SE3 | None = now.grip
+        self._torque: Array | None = now.torque
+        self.error = now.error
+
+    def refresh(self) -> None:
+        self._grip = None
+        self._torque = None
+
+    @property
+    def grip(self) -> pin.SE3:
+        if self._grip is None:
+            self._grip = pin.SE3(self._row[14:23].reshape(3, 3), self._row[23:26])
+        return self._grip
+
+    @grip.setter
+    def grip(self, value: pin.SE3) -> None:
+        self._grip = value
+
+    @property
+    def torque(self) -> Array:
+        if self._torque is None:
+            self._torque = self._row[0:7].copy()
+        return self._torque
+
+    @torque.setter
+    def torque(self, value: Array) -> None:
+        self._torque = value
+
+
 class CompiledController(imp.VelmaController):
     """``VelmaController`` whose ``update`` runs in C++ (module docstring); everything else
     (commands, modes, ``hold``, ``safe``, ``limits``, ``state``, the checkpointed rate-limit
@@ -180,8 +217,10 @@ class CompiledController(imp.VelmaController):
     def bind_plant(self, plant: _impedance.Plant, q: Array, v: Array, parts: Array) -> None:
         """Give ``plant`` (velma/control/_plant.hpp) this law and its input and output arrays,
         once: ``q``, ``v`` (nv,) float64 receive the state the law used in each cycle,
-        ``parts`` (2,) the seconds of the law (with the gather) and of the step. Raises
+        ``parts`` (2,) the seconds of the law (with the gather) and of the step. From then on
+        ``state`` reads the grip poses and torques from the law's output when asked. Raises
         TypeError for arrays of another dtype or layout, ValueError for other sizes."""
+        self.state = {s: _PlantArmState(self._out[k], self.state[s]) for k, s in enumerate(SIDES)}
         plant.bind(
             self._law,
             self._cmd,
@@ -198,13 +237,23 @@ class CompiledController(imp.VelmaController):
     def step_plant(self, plant: _impedance.Plant, q: Array) -> None:
         """One cycle of ``plant`` bound by ``bind_plant`` (``Plant.cycle``): the law on MuJoCo's
         state, the torques into its ctrl, one mj_step; ``q`` is the array bound as q. The
-        controller's state afterwards is that of ``update``; raises as ``update``."""
+        controller's state afterwards is that of ``update`` (its grip poses and torques read
+        when asked); raises as ``update``."""
         cart = self._pack()
         try:
             plant.cycle()
         except ArithmeticError as exc:
             raise np.linalg.LinAlgError(str(exc)) from exc
-        self._absorb(q, cart)
+        out = self._out
+        self._q_arm = q[self._idx]
+        self._prev_arm = out[:, 7:14].copy()
+        self._prev_torso = float(self._out_torso[1])
+        for k, side in enumerate(SIDES):
+            state = self.state[side]
+            if isinstance(state, _PlantArmState):
+                state.refresh()
+            if cart[k]:
+                state.error = out[k, 26:32].copy()
 
     def _pack(self) -> list[bool]:
         """Write the arms' commands, the torso's and the limits into the law's input arrays;

@@ -24,6 +24,10 @@ link stops when it meets resistance and the distal link keeps closing (≈ 2 N /
   the clutch: the distal setpoint returns to proximal / 3 at ``OPEN_RATE`` and the finger is
   coupled again.
 
+The compiled plant steps the same setpoints in C++ (velma/control/_plant.hpp
+``Plant.bind_servos``, on ``Hands.state``); ``Hands.step`` is its reference
+(tests/velma/test_plant.py compares the two bit for bit).
+
 Simplifications (named): the clutch is decided from the simulated servo torque, per finger,
 with no hysteresis beyond "opening resets it"; grip force comes from servo torque limits, not
 from a force controller; the distal link's own breakaway (none on the real hand) is not
@@ -31,8 +35,6 @@ modelled.
 """
 
 from __future__ import annotations
-
-from dataclasses import dataclass, field
 
 import mujoco
 import numpy as np
@@ -50,9 +52,14 @@ SPREAD_RATE = 1.5  # rad/s
 STALL_SPEED = 0.03  # rad/s: below this a closing finger counts as stalled
 
 
-@dataclass
+# One hand's setpoints as a row of ``Hands.state`` (float64), the layout the compiled plant
+# shares (velma/control/_plant.hpp ``Plant.bind_servos``): spread, spread target, proximal (3),
+# target (3), distal (3), broken (3, 0 or 1), steady (0 or 1).
+SPREAD, SPREAD_TARGET, PROXIMAL, TARGET, DISTAL, BROKEN, STEADY, HAND_WIDTH = 0, 1, 2, 5, 8, 11, 14, 15
+
+
 class HandSetpoint:
-    """Setpoints of one hand.
+    """Setpoints of one hand, kept in a row of ``Hands.state`` (layout above).
 
     ``spread`` / ``spread_target``: commanded and final spread (rad); ``proximal`` (3,) rad:
     the proximal setpoints of fingers One, Two, Three; ``target`` (3,) rad: where they are
@@ -60,15 +67,69 @@ class HandSetpoint:
     clutch has broken away (proximal stopped at the object, distal closing on its own);
     ``steady``: every setpoint has reached its target and no clutch has broken away, so a
     step would change nothing (``Hands.step`` then skips the hand: issue 18, the cycle's
-    budget)."""
+    budget). The arrays read are copies; assigning one writes the row."""
 
-    spread: float = 0.0
-    spread_target: float = 0.0
-    proximal: Array = field(default_factory=lambda: np.zeros(3))
-    target: Array = field(default_factory=lambda: np.zeros(3))
-    distal: Array = field(default_factory=lambda: np.zeros(3))
-    broken: npt.NDArray[np.bool_] = field(default_factory=lambda: np.zeros(3, dtype=bool))
-    steady: bool = False
+    __slots__ = ("row",)
+
+    def __init__(self, row: Array | None = None) -> None:
+        self.row: Array = np.zeros(HAND_WIDTH) if row is None else row
+
+    @property
+    def spread(self) -> float:
+        return float(self.row[SPREAD])
+
+    @spread.setter
+    def spread(self, value: float) -> None:
+        self.row[SPREAD] = value
+
+    @property
+    def spread_target(self) -> float:
+        return float(self.row[SPREAD_TARGET])
+
+    @spread_target.setter
+    def spread_target(self, value: float) -> None:
+        self.row[SPREAD_TARGET] = value
+
+    @property
+    def proximal(self) -> Array:
+        return self.row[PROXIMAL:TARGET].copy()
+
+    @proximal.setter
+    def proximal(self, value: npt.ArrayLike) -> None:
+        self.row[PROXIMAL:TARGET] = value
+
+    @property
+    def target(self) -> Array:
+        return self.row[TARGET:DISTAL].copy()
+
+    @target.setter
+    def target(self, value: npt.ArrayLike) -> None:
+        self.row[TARGET:DISTAL] = value
+
+    @property
+    def distal(self) -> Array:
+        return self.row[DISTAL:BROKEN].copy()
+
+    @distal.setter
+    def distal(self, value: npt.ArrayLike) -> None:
+        self.row[DISTAL:BROKEN] = value
+
+    @property
+    def broken(self) -> npt.NDArray[np.bool_]:
+        out: npt.NDArray[np.bool_] = self.row[BROKEN:STEADY] != 0.0
+        return out
+
+    @broken.setter
+    def broken(self, value: npt.ArrayLike) -> None:
+        self.row[BROKEN:STEADY] = np.asarray(value, dtype=bool)
+
+    @property
+    def steady(self) -> bool:
+        return bool(self.row[STEADY])
+
+    @steady.setter
+    def steady(self, value: bool) -> None:
+        self.row[STEADY] = 1.0 if value else 0.0
 
 
 class Hands:
@@ -78,7 +139,10 @@ class Hands:
     ``…KnuckleTwoServo``, ``…KnuckleThreeServo``) or joints."""
 
     def __init__(self, model: mujoco.MjModel) -> None:
-        self.set = {s: HandSetpoint() for s in SIDES}
+        self.state = np.zeros((len(SIDES), HAND_WIDTH))
+        """Both hands' setpoints (float64, (2, HAND_WIDTH), rows in ``SIDES`` order): the
+        storage of ``set`` (and of the compiled plant's servo step, velma/executor/plant.py)."""
+        self.set = {s: HandSetpoint(self.state[k]) for k, s in enumerate(SIDES)}
 
         def act(name: str) -> int:
             i = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_ACTUATOR, name)

@@ -25,6 +25,7 @@ import struct
 from multiprocessing import shared_memory
 
 import numpy as np
+import numpy.typing as npt
 
 _HEADER = 128
 _LEN = struct.Struct("<I")
@@ -153,6 +154,12 @@ class LatestValue:
     @property
     def name(self) -> str:
         return self.shm.name
+
+    def block(self) -> tuple[npt.NDArray[np.uint8], int]:
+        """The whole shared buffer (uint8, writable) and the byte offset of the value's
+        length, for a writer outside Python that keeps this layout and protocol (the sequence
+        number, u64, at byte 0; velma/control/_plant.hpp ``Plant.publish_state``)."""
+        return np.frombuffer(self._buf, dtype=np.uint8), _HEADER
 
     @property
     def version(self) -> int:

@@ -1,7 +1,7 @@
 """The compiled MuJoCo side of ag_ex's cycle (issue 18): ``CompiledPlant`` wraps the C++
 ``Plant`` of velma/control/_plant.hpp for a ``Runtime``.
 
-With it, the part of ``Runtime.cycle`` after the hands and the head (state gather, the
+With it, ``Runtime.cycle`` (the hands' and the head's servo steps, the state gather, the
 compiled law, the torques into ``data.ctrl``, ``mj_step``), the contact scans and the robot
 state's numbers run in C++ on MuJoCo's own ``mjData``, with no Python object per value. The
 Python path of ``Runtime.cycle`` stays the reference: tests/velma/test_plant.py runs both side
@@ -25,8 +25,9 @@ import mujoco
 import numpy as np
 import numpy.typing as npt
 
+from velma.control import hand
 from velma.control.compiled import CompiledController, native_module
-from velma.control.hand import ContactMonitor
+from velma.control.hand import ContactMonitor, Hands
 from velma.control.robot_model import SIDES, Array, JointMap
 from velma.executor.state import LINK_BODIES, raw_layout
 
@@ -139,6 +140,51 @@ class CompiledPlant:
             [a for s in SIDES for a in ft_adr[s]],
             list(raw_layout(len(state_index))),
         )
+
+    def bind_servos(
+        self, hands: Hands, head: Array, head_act: tuple[int, int], *, dt: float, head_step: float
+    ) -> None:
+        """Step the hands' and the head's servo setpoints in ``cycle`` too, in C++ (as
+        velma/control/hand.py ``Hands.step`` with ``dt`` (s), and runtime.py
+        ``Runtime._step_head``): on ``hands.state`` and ``head`` (4,) float64 (pan and tilt
+        setpoints, then targets; rad), with ``head_act`` the pan and tilt servos and
+        ``head_step`` (rad) the most a setpoint moves in one cycle. Both arrays are bound, not
+        copied: assign into them, never rebind them. Raises ValueError on sizes or indices that do not fit."""
+        self._plant.bind_servos(
+            hands.state,
+            head,
+            [int(a) for s in SIDES for a in hands.spread_act[s]],
+            [int(a) for s in SIDES for a in hands.prox_act[s]],
+            [int(a) for s in SIDES for a in hands.dist_act[s]],
+            [int(a) for s in SIDES for a in hands.prox_q[s]],
+            [float(k) for s in SIDES for k in hands.prox_kp[s]],
+            [int(a) for a in head_act],
+            [
+                dt,
+                hand.BREAKAWAY_TORQUE,
+                hand.CLOSE_RATE,
+                hand.OPEN_RATE,
+                hand.SPREAD_RATE,
+                hand.DISTAL_RATIO,
+                hand.DISTAL_MAX,
+                head_step,
+            ],
+        )
+
+    def bind_state_block(self, block: npt.NDArray[np.uint8], header: int) -> None:
+        """Publish the robot state into ``block`` (a ``LatestValue``'s buffer, its value at
+        ``header``) with ``publish_state`` (velma/executor/state_block.py). Raises ValueError
+        for a block too small."""
+        self._plant.bind_state_block(block, header)
+
+    def release_state_block(self) -> None:
+        """Let go of the block of ``bind_state_block``."""
+        self._plant.release_state_block()
+
+    def publish_state(self, names_version: int) -> None:
+        """Write the values of velma/executor/state_block.py ``state_values`` into the bound
+        block under its sequence lock. Raises RuntimeError before ``bind_state_block``."""
+        self._plant.publish_state(names_version)
 
     def cycle(self) -> None:
         """The law, the torques into ``data.ctrl`` and one ``mj_step`` (velma/control/compiled.py

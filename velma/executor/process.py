@@ -13,7 +13,9 @@ Hand-offs (all non-blocking on the loop's side):
   once per cycle (up to ``INBOX_PER_CYCLE`` messages);
 - results: ``SpscRing`` loop → communication side (``Ready``, ``Done``, ``Fault``), plus one byte
   on a non-blocking pipe (a doorbell) so that the reader thread sleeps until there is news;
-- robot state: ``LatestValue`` (sequence lock) rewritten every ``STATE_PERIOD`` cycles;
+- robot state: two ``LatestValue`` blocks (sequence locks), the numbers rewritten every
+  ``STATE_PERIOD`` cycles (from C++ with the compiled plant), the names when they change
+  (velma/executor/state_block.py);
 - world state (only when asked, ``world_state=True``: for the head camera of the Rerun
   recording): the simulation time and MuJoCo's whole ``qpos`` (robot, objects, particles) as
   raw float64 in a second ``LatestValue``, rewritten every ``WORLD_PERIOD`` cycles (≈ 1.4 µs
@@ -73,7 +75,8 @@ from velma.executor.checkpoint import (
 )
 from velma.executor.delivery import RecordSink, ResultDelivery
 from velma.executor.handoff import LatestValue, SpscRing, shared_view
-from velma.executor.state import RawState, RobotSnapshot, snapshot_of
+from velma.executor.state import RobotSnapshot, snapshot_of
+from velma.executor.state_block import StateReader
 from velma.executor.timing import DEFAULT_WINDOW, DeadlineMonitor, Pacer, RealtimeSetup, TimingStats
 
 log = logging.getLogger(__name__)
@@ -185,6 +188,7 @@ class LoopConfig(msgspec.Struct, frozen=True, kw_only=True):
     commands: str
     results: str
     state: str
+    state_names: str
     monitor: str
     window: int
     parent_pid: int
@@ -200,13 +204,14 @@ def loop_main(config: bytes, doorbell: multiprocessing.connection.Connection) ->
     """Entry point of the loop process (started with spawn by ``ExecutorProcess``)."""
     from velma.executor.loop import ControlLoop
     from velma.executor.runtime import Runtime
-    from velma.executor.state import raw_state
+    from velma.executor.state_block import StateWriter
     from velma.executor.timing import enter_realtime
 
     cfg = msgspec.msgpack.decode(config, type=LoopConfig)
     inbox = SpscRing.attach(cfg.commands, SLOTS, SLOT_SIZE)
     outbox_ring = SpscRing.attach(cfg.results, SLOTS, SLOT_SIZE)
     state = LatestValue.attach(cfg.state, STATE_CAPACITY)
+    state_names = LatestValue.attach(cfg.state_names, STATE_CAPACITY)
     world = LatestValue.attach(cfg.world, WORLD_CAPACITY) if cfg.world else None
     mon_shm = shared_memory.SharedMemory(name=cfg.monitor)
     monitor = DeadlineMonitor(DT, realtime=cfg.realtime, window=cfg.window, buffer=shared_view(mon_shm))
@@ -274,7 +279,8 @@ def loop_main(config: bytes, doorbell: multiprocessing.connection.Connection) ->
             )
         )
     )
-    state.write(encode(raw_state(rt, loop.holding)))
+    publisher = StateWriter(rt, state, state_names)
+    publisher.publish(loop.holding)
     ring()
     # the scene and the controller are built: everything allocated so far lives for the whole
     # run; freezing it keeps the collector's passes short (gc.freeze, Python ≥ 3.7)
@@ -313,7 +319,7 @@ def loop_main(config: bytes, doorbell: multiprocessing.connection.Connection) ->
         if pending:
             ring()
         if cycle % STATE_PERIOD == STATE_PHASE:
-            state.write(encode(raw_state(rt, loop.holding)))
+            publisher.publish(loop.holding)
         if world is not None and cycle % WORLD_PERIOD == WORLD_PHASE:
             world_buf[0] = rt.data.time
             world_buf[1:] = rt.data.qpos
@@ -332,7 +338,8 @@ def loop_main(config: bytes, doorbell: multiprocessing.connection.Connection) ->
         pending.append(encode(Fault(command="checkpoint", text=error)))
     ring()
     del monitor
-    for block in (inbox, outbox_ring, state, world):
+    publisher.close()  # its plant holds a view of the state block
+    for block in (inbox, outbox_ring, state, state_names, world):
         if block is not None:
             block.close()
     mon_shm.close()
@@ -416,6 +423,8 @@ class ExecutorProcess:
         self._commands: SpscRing | None = None
         self._results: SpscRing | None = None
         self._state: LatestValue | None = None
+        self._state_names: LatestValue | None = None
+        self._state_reader: StateReader | None = None
         self._world: LatestValue | None = None
         self._mon_shm: shared_memory.SharedMemory | None = None
         self._monitor: DeadlineMonitor | None = None
@@ -430,6 +439,8 @@ class ExecutorProcess:
         self._commands = SpscRing.create(SLOTS, SLOT_SIZE)
         self._results = SpscRing.create(SLOTS, SLOT_SIZE)
         self._state = LatestValue.create(STATE_CAPACITY)
+        self._state_names = LatestValue.create(STATE_CAPACITY)
+        self._state_reader = StateReader(self._state, self._state_names)
         self._world = LatestValue.create(WORLD_CAPACITY) if self.world_state else None
         if self.checkpoint_dir is not None:
             self._checkpoints = LatestValue.create(CHECKPOINT_CAPACITY)
@@ -449,6 +460,7 @@ class ExecutorProcess:
             commands=self._commands.name,
             results=self._results.name,
             state=self._state.name,
+            state_names=self._state_names.name,
             monitor=self._mon_shm.name,
             window=self.window,
             parent_pid=os.getpid(),
@@ -516,7 +528,9 @@ class ExecutorProcess:
             self._delivery = None
         self._fail_open("stopped")
         self._monitor = None
-        for block in (self._commands, self._results, self._state, self._world, self._checkpoints):
+        self._state_reader = None
+        states = (self._state, self._state_names)
+        for block in (self._commands, self._results, *states, self._world, self._checkpoints):
             if block is not None:
                 block.close()
                 block.unlink()
@@ -525,7 +539,8 @@ class ExecutorProcess:
             self._mon_shm.unlink()
         if self._bell is not None:
             self._bell.close()
-        self._commands = self._results = self._state = self._world = self._checkpoints = None
+        self._commands = self._results = self._state = self._state_names = None
+        self._world = self._checkpoints = None
         self._mon_shm = None
         self._proc = None
 
@@ -572,10 +587,10 @@ class ExecutorProcess:
     def snapshot(self) -> RobotSnapshot | None:
         """The latest robot state (≤ ``STATE_PERIOD`` ms old) with the loop's timing (at most
         ``TIMING_REFRESH`` s old), or None before the loop published one."""
-        raw = self._state.read() if self._state is not None else None
+        raw = self._state_reader.read() if self._state_reader is not None else None
         if raw is None:
             return None
-        snap = snapshot_of(msgspec.msgpack.decode(raw, type=RawState))
+        snap = snapshot_of(raw)
         now = time.monotonic()
         if self._timing_cache is None or now - self._timing_cache[0] >= TIMING_REFRESH:
             # percentiles over the window cost milliseconds: not at the state's 20–50 Hz
@@ -597,11 +612,10 @@ class ExecutorProcess:
         """The loop's deadline statistics (computed here, from the shared monitor) at
         ``sim_time`` (default: that of the latest robot state). Raises ``RuntimeError``
         before ``start``."""
-        if self._monitor is None or self._state is None:
+        if self._monitor is None or self._state_reader is None:
             raise RuntimeError("executor loop not started")
         if sim_time is None:
-            raw = self._state.read()
-            sim_time = msgspec.msgpack.decode(raw, type=RawState).sim_time if raw is not None else 0.0
+            sim_time = self._state_reader.sim_time() or 0.0
         self._monitor.setup = self.setup
         self._monitor.control_law = self.control_law
         self._monitor.plant = self.plant

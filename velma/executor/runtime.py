@@ -4,11 +4,14 @@ thread; tests may drive it directly.
 
 Cycle (1 kHz, physics dt = 1 ms, paper §5.3 / velma-facts.md "Loop: 1 kHz"):
 1. the running primitive updates the setpoints;
-2. the impedance law (``make_controller``: compiled, velma/control/compiled.py, or the
-   Python reference ``VelmaController``) computes arm and torso torques (Pinocchio, from
-   MuJoCo's state mapped by joint name), the hands and the head get their position-servo
-   controls;
+2. the hands and the head get their position-servo controls, and the impedance law
+   (``make_controller``: compiled, velma/control/compiled.py, or the Python reference
+   ``VelmaController``) computes arm and torso torques (Pinocchio, from MuJoCo's state mapped
+   by joint name);
 3. ``mujoco.mj_step``.
+
+With the compiled plant (velma/executor/plant.py) steps 2–3 run in C++, the servo steps
+included; the Python ``Hands.step`` and ``_step_head`` stay their reference.
 
 Cartesian setpoints are kept in the world frame; when the torso turns (MoveJoints), the
 setpoints of arms in Cartesian mode are carried with it (they are re-expressed each cycle
@@ -122,8 +125,9 @@ class Runtime:
         """Pan and tilt limits (rad, shape (2, 2): lower, upper per joint)."""
         self.head_pan_body = self.model.body("head_pan_link").id
         self.torso_qadr = int(self.model.joint(TORSO_JOINT).qposadr[0])
-        self.head_target = self.data.qpos[self.head_qadr].copy()
-        self.head_set = self.head_target.copy()
+        self.head = np.concatenate([self.data.qpos[self.head_qadr]] * 2)
+        """The head's servo setpoints, then their targets (rad, (4,): pan, tilt, pan, tilt):
+        the storage of ``head_set`` and ``head_target`` (and of the compiled plant's servo step)."""
         self.gaze: Array | None = None
         """The world point (m) the head keeps looking at while the torso turns (set by LookAt;
         a MoveJoints of the head joints ends it); None: the head holds its joint angles. Not
@@ -152,6 +156,7 @@ class Runtime:
                 link_ids=self.link_ids,
                 ft_adr=self.ft_adr,
             )
+            self.plant.bind_servos(self.hands, self.head, self.head_act, dt=DT, head_step=HEAD_RATE * DT)
         elif compiled_plant:
             raise RuntimeError(f"no compiled plant: {why}")
         elif compiled_plant is None and isinstance(self.ctrl, CompiledController):
@@ -179,6 +184,28 @@ class Runtime:
     def plant_name(self) -> str:
         """Where the cycle's MuJoCo side runs: ``compiled`` (``plant``) or ``python``."""
         return "python" if self.plant is None else "compiled"
+
+    @property
+    def head_set(self) -> Array:
+        """The head's servo setpoints now (pan, tilt; rad, (2,), a view of ``head``);
+        assigning writes them."""
+        out: Array = self.head[:2]
+        return out
+
+    @head_set.setter
+    def head_set(self, value: npt.ArrayLike) -> None:
+        self.head[:2] = value
+
+    @property
+    def head_target(self) -> Array:
+        """Where the head's setpoints go, ≤ HEAD_RATE (pan, tilt; rad, (2,), a view of
+        ``head``); assigning writes them."""
+        out: Array = self.head[2:]
+        return out
+
+    @head_target.setter
+    def head_target(self, value: npt.ArrayLike) -> None:
+        self.head[2:] = value
 
     @property
     def time(self) -> float:
@@ -218,14 +245,14 @@ class Runtime:
         the control and physics parts of its time go to ``part_s``."""
         t0 = time.perf_counter()
         data = self.data
-        self.hands.step(data, DT)
-        self._step_head()
         part = self.part_s
         if self.plant is not None:
-            self.plant.cycle()
+            self.plant.cycle()  # the hands' and the head's servo steps too
             t1 = time.perf_counter()
             part[1] = t1 - t0 - self.plant.parts[1]
         else:
+            self.hands.step(data, DT)
+            self._step_head()
             q, v = self.q(), self.v()
             taus, tau_torso = self.ctrl.update(q, v)
             for s in SIDES:
