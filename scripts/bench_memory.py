@@ -8,7 +8,11 @@
   services/bench/messaging.py: a real ``Agent`` on a ``ZenohTransport``) on a router of their
   own on a free loopback port, started as ``roco bench`` starts them (multiprocessing spawn).
 
-Memory: ``VmRSS`` of ``/proc/<pid>/status`` (MiB = 2**20 bytes). A process counts as idle once
+Memory: ``VmRSS`` of ``/proc/<pid>/status`` (MiB = 2**20 bytes), and beside it ``Pss`` of
+``/proc/<pid>/smaps_rollup`` (each shared page — Zenoh's and Python's libraries, shared
+memory — divided among the processes that map it): the sum of VmRSS counts a library every
+process maps once per process, the sum of PSS counts it once, so PSS's total is the memory a
+fleet takes in all. A process counts as idle once
 its VmRSS changed by less than ``--tolerance-mib`` over ``--quiet-s`` seconds (sampled every
 0.1 s, at most ``--max-wait-s``): start-up allocations are over, nothing is being sent.
 Also ``--imports``: the heavy libraries (physics, plotting, RDF, numerics) each agent's process
@@ -32,6 +36,7 @@ ROOT = Path(__file__).resolve().parents[1]
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
+from services.bench.messaging import process_pss_mib as pss_mib  # noqa: E402  (PSS, MiB)
 from services.bench.messaging import process_rss_mib as rss_mib  # noqa: E402  (VmRSS, MiB)
 
 HEAVY = ("mujoco", "pinocchio", "matplotlib", "rerun", "rdflib", "pyoxigraph", "numpy", "scipy", "typer")
@@ -58,7 +63,32 @@ def settled_rss(
         time.sleep(0.1)
 
 
-def fleet(settle: Callable[[dict[str, int]], dict[str, float]]) -> dict[str, float]:
+def children(pid: int) -> list[int]:
+    """The child processes of ``pid`` (from ``/proc/<pid>/task/*/children``), in pid order,
+    not counting the resource tracker that multiprocessing's spawn starts beside a child."""
+    found: set[int] = set()
+    for task in Path(f"/proc/{pid}/task").glob("*"):
+        try:
+            found.update(int(c) for c in (task / "children").read_text().split())
+        except OSError:
+            continue
+    out = []
+    for child in sorted(found):
+        try:
+            cmdline = Path(f"/proc/{child}/cmdline").read_bytes()
+        except OSError:
+            continue
+        if b"resource_tracker" not in cmdline:
+            out.append(child)
+    return out
+
+
+def with_pss(rss: dict[str, float], pids: dict[str, int]) -> dict[str, tuple[float, float]]:
+    """(VmRSS, PSS) in MiB of every process of ``rss`` (PSS read now)."""
+    return {name: (v, pss_mib(pids[name])) for name, v in rss.items()}
+
+
+def fleet(settle: Callable[[dict[str, int]], dict[str, float]]) -> dict[str, tuple[float, float]]:
     """``roco up`` on a free port into a temporary runs folder, the settled VmRSS of every
     process it started (pids from its ``.fleet.json``), then ``roco down``."""
     from services.fleet.launcher import free_port
@@ -72,13 +102,16 @@ def fleet(settle: Callable[[dict[str, int]], dict[str, float]]) -> dict[str, flo
             if done.returncode != 0 or not state.exists():
                 raise RuntimeError(f"roco up failed: {(done.stdout + done.stderr).strip()[-400:]}")
             pids = {str(k): int(v) for k, v in json.loads(state.read_text())["pids"].items()}
-            return settle(pids)
+            for name, pid in list(pids.items()):  # ag_ex's loop process, and any other child
+                for k, child in enumerate(children(pid)):
+                    pids[f"{name} child {k + 1}" if k else f"{name} child"] = child
+            return with_pss(settle(pids), pids)
         finally:
             if state.exists():
                 subprocess.run([*cli, "down", "--runs-dir", tmp], cwd=ROOT, capture_output=True, timeout=120)
 
 
-def synthetic(settle: Callable[[dict[str, int]], dict[str, float]]) -> dict[str, float]:
+def synthetic(settle: Callable[[dict[str, int]], dict[str, float]]) -> dict[str, tuple[float, float]]:
     """An idle synthetic pair (``b_ini0``, ``b_par0``) on its own router, settled VmRSS."""
     from services.bench.messaging import testbed
 
@@ -86,7 +119,7 @@ def synthetic(settle: Callable[[dict[str, int]], dict[str, float]]) -> dict[str,
         pids = {n: c.process.pid for n, c in bed.children.items() if c.process.pid is not None}
         assert bed.fleet is not None
         pids["router"] = bed.fleet.processes["router"].pid
-        return settle(pids)
+        return with_pss(settle(pids), pids)
 
 
 def imports() -> dict[str, list[str]]:
@@ -142,11 +175,13 @@ def main() -> None:
             print(f"| {name} | {', '.join(libs) or '—'} |")
     for part in ("synthetic", "fleet"):
         if part in result:
-            rss: dict[str, float] = result[part]  # type: ignore[assignment]
-            print(f"\n| {part}: process | VmRSS MiB |\n|---|---|")
-            for name, v in rss.items():
-                print(f"| {name} | {v:.1f} |")
-            print(f"| **total** | **{sum(rss.values()):.1f}** |")
+            mem: dict[str, tuple[float, float]] = result[part]  # type: ignore[assignment]
+            print(f"\n| {part}: process | VmRSS MiB | PSS MiB |\n|---|---|---|")
+            for name, (rss, pss) in mem.items():
+                print(f"| {name} | {rss:.1f} | {pss:.1f} |")
+            total_rss = sum(v[0] for v in mem.values())
+            total_pss = sum(v[1] for v in mem.values())
+            print(f"| **total** | **{total_rss:.1f}** | **{total_pss:.1f}** |")
 
 
 if __name__ == "__main__":

@@ -232,6 +232,19 @@ def process_rss_mib(pid: int) -> float:
     return 0.0
 
 
+def process_pss_mib(pid: int) -> float:
+    """Proportional set size of process ``pid`` in MiB (``Pss`` of ``/proc/<pid>/smaps_rollup``:
+    its private pages plus each shared page divided by the processes mapping it, so that the
+    sum over a fleet is the memory the fleet takes; 0.0 when it is gone)."""
+    try:
+        for line in Path(f"/proc/{pid}/smaps_rollup").read_text().splitlines():
+            if line.startswith("Pss:"):
+                return int(line.split()[1]) / 1024
+    except OSError:
+        pass
+    return 0.0
+
+
 @dataclass
 class Latency:
     """Round-trip samples (s) and their percentiles (µs)."""

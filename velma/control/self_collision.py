@@ -71,9 +71,10 @@ class SelfCollision:
     def __init__(self, robot: RobotModel, path: Path = VELMA_XML, margin: float = MARGIN) -> None:
         model = robot.model
         self.model = model
-        self.geometry = {side: pin.buildGeomFromMJCF(model, str(path), pin.COLLISION) for side in SIDES}
+        base = pin.buildGeomFromMJCF(model, str(path), pin.COLLISION)
         excluded = {frozenset(pair) for pair in SELF_COLLISION_EXCLUDES}
-        objects = self.geometry[SIDES[0]].geometryObjects
+        objects = base.geometryObjects
+        pairs: dict[str, list[tuple[int, int]]] = {side: [] for side in SIDES}
         for i in range(len(objects)):
             for j in range(i + 1, len(objects)):
                 a, b = objects[i], objects[j]
@@ -87,22 +88,25 @@ class SelfCollision:
                 if hand is not None and hand == _hand(fb):
                     continue
                 for side in {_side(fa), _side(fb)} - {None}:
-                    self.geometry[str(side)].addCollisionPair(pin.CollisionPair(i, j))
-        self.data = {side: pin.GeometryData(self.geometry[side]) for side in SIDES}
-        self.slices: dict[str, list[pin.GeometryData]] = {}
-        for side in SIDES:  # one GeometryData per slice, with only that slice's pairs active
-            n = len(self.geometry[side].collisionPairs)
+                    pairs[str(side)].append((i, j))
+        self.geometry = {side: _with_pairs(objects, pairs[side]) for side in SIDES}
+        """Per side, the geometry with every pair of the side (no data: the check runs on
+        ``slices``)."""
+        self.slices: dict[str, list[tuple[pin.GeometryModel, pin.GeometryData]]] = {}
+        """Per side, ``CHECK_STEPS`` geometries with consecutive parts of its pairs, each with
+        its own data. A GeometryData holds ≈ 5 kB per pair of its model, so the pairs are
+        split among models, not deactivated in copies of the whole (issue 20: ≈ 6 MiB
+        instead of ≈ 65 MiB in the loop's process)."""
+        for side in SIDES:
+            n = len(pairs[side])
             bounds = [n * k // CHECK_STEPS for k in range(CHECK_STEPS + 1)]
             self.slices[side] = []
             for lo, hi in itertools.pairwise(bounds):
-                part = pin.GeometryData(self.geometry[side])
-                for k in range(n):
-                    if not lo <= k < hi:
-                        part.deactivateCollisionPair(k)
-                self.slices[side].append(part)
-        for data in (*self.data.values(), *(p for parts in self.slices.values() for p in parts)):
-            for request in data.collisionRequests:
-                request.security_margin = margin
+                part = _with_pairs(objects, pairs[side][lo:hi])
+                gdata = pin.GeometryData(part)
+                for request in gdata.collisionRequests:
+                    request.security_margin = margin
+                self.slices[side].append((part, gdata))
 
     def pairs(self, side: str) -> int:
         """How many geom pairs are checked for ``side``."""
@@ -119,7 +123,11 @@ class SelfCollision:
             d, _, _ = wrist_field().sample(SIDES.index(side), float(q_arm[5]), float(q_arm[6]))
             if d < WRIST_BAND:
                 return f"{side}_HandPalmLink", f"{side}_arm_5_link"
-        return self._first(self.geometry[side], self.data[side], data)
+        for part, gdata in self.slices[side]:
+            hit = self._first(part, gdata, data)
+            if hit is not None:
+                return hit
+        return None
 
     def colliding_steps(
         self, data: pin.Data, side: str, q_arm: npt.NDArray[np.float64] | None = None
@@ -132,8 +140,8 @@ class SelfCollision:
             if d < WRIST_BAND:
                 return f"{side}_HandPalmLink", f"{side}_arm_5_link"
         parts = self.slices[side]
-        for k, part in enumerate(parts):
-            hit = self._first(self.geometry[side], part, data)
+        for k, (part, gdata) in enumerate(parts):
+            hit = self._first(part, gdata, data)
             if hit is not None:
                 return hit
             if k + 1 < len(parts):
@@ -153,6 +161,17 @@ class SelfCollision:
                 pair = geometry.collisionPairs[k]
                 return objects[pair.first].name, objects[pair.second].name
         return None  # pragma: no cover - computeCollisions said there was one
+
+
+def _with_pairs(objects: list[pin.GeometryObject], pairs: list[tuple[int, int]]) -> pin.GeometryModel:
+    """A geometry with ``objects`` (their shapes shared, not copied) and the collision
+    ``pairs`` (indices into ``objects``), in that order."""
+    geometry = pin.GeometryModel()
+    for obj in objects:
+        geometry.addGeometryObject(obj)
+    for i, j in pairs:
+        geometry.addCollisionPair(pin.CollisionPair(i, j))
+    return geometry
 
 
 # ------------------------------------------------------------------ the wrist's own band
