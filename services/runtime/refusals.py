@@ -155,6 +155,11 @@ class RefusalLog:
         message, or a line of another target)."""
         if ACL_TARGET not in line:
             return None
+        if " is authorized " in line and ("Using cached result" in line or not self._ahead):
+            # the bulk: an allowed message (not a decision computed ahead, which is counted
+            # down below); a session's identity is learnt from the lines computed ahead, or
+            # from its refused message's own line
+            return None
         line = _ANSI.sub("", line).strip()
         thread = _THREAD.search(line)
         tid = thread.group(1) if thread else ""
