@@ -56,9 +56,15 @@ def capture_zenoh_log(on_line: Callable[[str], bool]) -> None:
     zenoh.try_init_log_from_env()
 
     def pump(out: IO[str]) -> None:
+        # must never stop: Zenoh would block on a full pipe, and the router with it
         with os.fdopen(read_fd, "r", errors="replace") as lines:
             for line in lines:
-                if not on_line(line):
+                try:
+                    taken = on_line(line)
+                except Exception as exc:  # a line the parser chokes on is passed on, noted
+                    taken = False
+                    out.write(f"roco router: reading Zenoh's log: {exc!r}\n")
+                if not taken:
                     out.write(line)
                     out.flush()
 

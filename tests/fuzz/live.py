@@ -40,7 +40,8 @@ class LiveFuzz:
     """What one live fuzz run gave: the pour's final report (None: none in time), the fuzzer's
     exit code, output and summary, every agent's counters, the router's refusals, the agents
     that died or lost their liveliness token, the traffic record's communicates whose claimed
-    sender differs from their key's sender (by key sender), and the wall time (s)."""
+    sender differs from their key's sender (by key sender), the wall time (s) and what
+    ``roco status --credentials`` printed at the end."""
 
     report: HumanReport | None
     fuzzer_code: int
@@ -51,6 +52,7 @@ class LiveFuzz:
     dead: list[str]
     spoofs_recorded: dict[str, int]
     seconds: float
+    status: str
 
 
 def run_live_fuzz(run_dir: Path, per_agent: int, forbidden: int, seed: int = 8) -> LiveFuzz:
@@ -109,6 +111,12 @@ def run_live_fuzz(run_dir: Path, per_agent: int, forbidden: int, seed: int = 8) 
         refusals: list[RefusalReport] = []
         with collect_reports(session, refusals):
             session.put(keys.COUNTERS_ASK, b"")
+        status = subprocess.run(
+            [sys.executable, "-m", "services.cli", "status", "--router", fleet.endpoint,
+             "--credentials", str(fleet.security), "--counters-timeout", "30"],
+            capture_output=True, text=True, timeout=120,
+            env={k: v for k, v in os.environ.items() if k != "ROCO_SECURITY"},
+        )  # fmt: skip
     finally:
         if fuzzer is not None and fuzzer.poll() is None:
             fuzzer.kill()
@@ -129,4 +137,5 @@ def run_live_fuzz(run_dir: Path, per_agent: int, forbidden: int, seed: int = 8) 
         dead=dead,
         spoofs_recorded=spoofs,
         seconds=time.monotonic() - t0,
+        status=status.stdout + status.stderr,
     )

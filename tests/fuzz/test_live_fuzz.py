@@ -50,5 +50,9 @@ def test_malformed_communicates_from_stolen_identities_during_a_pour(tmp_path: P
     # … and in the run folder, one line each
     written = [r for r in read_refusals(tmp_path) if r.flow == "ingress"]
     assert len(written) == s["forbidden"] and {r.identity for r in written} == set(IDENTITIES)
+    # roco status shows the agents' rejects and the router's refusals, named
+    assert "a_km      alive  received" in run.status and "malformed" in run.status, run.status
+    (router_line,) = [ln for ln in run.status.splitlines() if ln.startswith("router")]
+    assert f"refused {s['forbidden']}: a_" in router_line, router_line
     # what the router let through (their own keys) and claimed another sender is recorded so
     assert set(run.spoofs_recorded) == set(IDENTITIES), run.spoofs_recorded
