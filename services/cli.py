@@ -23,7 +23,7 @@ import threading
 import time
 import uuid
 from pathlib import Path
-from typing import TYPE_CHECKING, Annotated, Any, Literal
+from typing import TYPE_CHECKING, Annotated, Literal
 
 import msgspec
 import typer
@@ -40,6 +40,8 @@ from services.security.context import register
 from services.spec.model import default_spec
 
 if TYPE_CHECKING:
+    import zenoh
+
     from services.live.watch import LiveWatch
 
 MARKUP: Literal["markdown"] = "markdown"
@@ -492,7 +494,7 @@ def _sync_recorder(runs_dir: Path) -> bool:
         session.close()
 
 
-def _open_operator_session(endpoint: str, credentials: Path | None = None) -> object:
+def _open_operator_session(endpoint: str, credentials: Path | None = None) -> zenoh.Session:
     """The operator's session with the router at ``endpoint`` (its credentials from
     ``credentials``, ``ROCO_SECURITY`` or the fleet of ``roco up``); one line and exit 1 when
     it cannot be opened (services/runtime/session.py ``open_operator``)."""
@@ -530,7 +532,7 @@ def send(
 ) -> None:
     """Give a running fleet a command and wait for a_hi's final report."""
     endpoint = _endpoint(router, runs_dir)
-    session: Any = _open_operator_session(endpoint, credentials)
+    session = _open_operator_session(endpoint, credentials)
     reports: queue.SimpleQueue[HumanReport] = queue.SimpleQueue()
     dec = msgspec.json.Decoder(HumanReport)
     session.declare_subscriber(keys.HUMAN_OUT, lambda s: reports.put(dec.decode(s.payload.to_bytes())))
@@ -578,7 +580,7 @@ def disturb(
     if obj not in CONTAINERS:
         raise fail(f"cannot move {obj!r}: the kitchen's movable objects are {', '.join(CONTAINERS)}", code=2)
     endpoint = _endpoint(router, runs_dir)
-    session: Any = _open_operator_session(endpoint, credentials)
+    session = _open_operator_session(endpoint, credentials)
     try:
         if "ag_ex" not in alive_agents(session):
             raise fail(f"ag_ex is not alive at {endpoint}")
@@ -644,7 +646,7 @@ def sniff(
     endpoint = _endpoint(router, runs_dir)
     stop = threading.Event()
     _stop_on_signals()
-    session: Any = _open_operator_session(endpoint, credentials)
+    session = _open_operator_session(endpoint, credentials)
     try:
         count = run_sniff(
             session,
@@ -710,7 +712,7 @@ def status(
     from services.runtime.refusals import summary as refusal_summary
 
     endpoint = _endpoint(router, runs_dir)
-    session: Any = _open_operator_session(endpoint, credentials)
+    session = _open_operator_session(endpoint, credentials)
     refusals: list[RefusalReport] = []
     try:
         alive = alive_agents(session)
