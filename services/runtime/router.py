@@ -32,7 +32,14 @@ import msgspec
 import zenoh
 
 from services.runtime import keys
-from services.runtime.refusals import ACL_TARGET, LOG_FILTER, REFUSALS_JSONL, REPORT_PREFIX, RefusalLog
+from services.runtime.refusals import (
+    ACL_TARGET,
+    LOG_FILTER,
+    REFUSALS_JSONL,
+    REPORT_PREFIX,
+    UNKNOWN,
+    RefusalLog,
+)
 from services.runtime.transport import router_config
 
 ANNOUNCED = 100
@@ -84,7 +91,8 @@ def watch_refusals(run_dir: Path | None) -> RefusalLog:
         n = log.counters["refused"]
         if n <= ANNOUNCED or n % 1000 == 0:
             what = f"{refusal.message} ({refusal.flow}) {refusal.key}".rstrip()
-            print(f"roco router: refused #{n}: {refusal.identity} {what}", flush=True)
+            who = refusal.identity if refusal.identity != UNKNOWN else f"unnamed session {refusal.session}"
+            print(f"roco router: refused #{n}: {who} {what}", flush=True)
         return True
 
     capture_zenoh_log(on_line)

@@ -211,3 +211,39 @@ def test_operator_tools_without_credentials_say_the_router_refused_them(
     # nothing listening: as before
     out = cli(["status", "--router", f"tcp/127.0.0.1:{free_port()}"], tmp_path)
     assert out.returncode == 1 and "no router answers at" in out.stderr
+
+
+def test_a_session_matching_no_acl_subject_is_counted_as_refused(tmp_path: Path) -> None:
+    """Credentials the router accepts but the ACL does not name (passwords.txt and acl.json
+    disagree): the session may do nothing, and the router counts it once, by session id."""
+    (tmp_path / "logs").mkdir()
+    fleet = Fleet(tmp_path, f"tcp/127.0.0.1:{free_port()}", acl=True, tls=False)
+    assert fleet.security is not None
+    with (fleet.security / certs.PASSWORDS).open("a") as f:
+        f.write("ghost:secret\n")
+    fleet.start_router()
+    try:
+        conf = zenoh.Config()
+        conf.insert_json5("mode", '"client"')
+        conf.insert_json5("connect/endpoints", f'["{fleet.endpoint}"]')
+        conf.insert_json5("scouting/multicast/enabled", "false")
+        conf.insert_json5("transport/auth/usrpwd/user", '"ghost"')
+        conf.insert_json5("transport/auth/usrpwd/password", '"secret"')
+        ghost = zenoh.open(conf)
+        ghost_id = str(ghost.info.zid())
+        operator = open_client(fleet.endpoint)
+        try:
+            report = router_report(operator, 1)
+        finally:
+            operator.close()
+            ghost.close()
+    finally:
+        fleet.stop()
+        register(fleet.endpoint, None)
+    assert report.counters.get("refused.session") == 1
+    (named,) = [n for n in report.named if n.message == "session"]
+    assert named.identity == UNKNOWN
+    (written,) = [r for r in read_refusals(tmp_path) if r.message == "session"]
+    assert written.session == ghost_id
+    log = (tmp_path / "logs" / "router.stderr").read_text()
+    assert f"refused #1: unnamed session {written.session} session (ingress)" in log
