@@ -1,7 +1,9 @@
 """A tool's Zenoh session on a fleet, and the fleet's white pages (liveliness tokens).
 
 Used by the operator's tools (CLI, scenario runner, tests) and by the containers' health check
-(services/runtime/health.py).
+(services/runtime/health.py). :func:`open_operator` is the CLI's: it takes the operator's
+credentials folder and says in one line why a session could not be opened (no router, refused
+for want of credentials, refused credentials; docs/security.md).
 """
 
 from __future__ import annotations
