@@ -42,8 +42,14 @@ import msgspec
 
 ACL_TARGET = "zenoh::net::routing::interceptor::access_control"
 """The tracing target of Zenoh's ACL interceptor (zenoh/src/net/routing/interceptor/)."""
-LOG_FILTER = f"{ACL_TARGET}=trace"
-"""The directive (tracing EnvFilter syntax) that makes Zenoh log every ACL decision."""
+LINK_TARGETS = ("zenoh_link_tcp::unicast", "zenoh_link_tls::unicast")
+"""Where Zenoh logs each connection it accepts (DEBUG, with the peer's address and, over TLS,
+its certificate's common name) and a TLS handshake it refused (WARN)."""
+ACCEPT_TARGET = "zenoh_transport::unicast::establishment::accept"
+"""Where Zenoh logs a session it refused while authenticating it (DEBUG, user/password)."""
+LOG_FILTER = ",".join([f"{ACL_TARGET}=trace", *(f"{t}=debug" for t in (*LINK_TARGETS, ACCEPT_TARGET))])
+"""The directives (tracing EnvFilter syntax) that make Zenoh log every ACL decision, every
+accepted connection and every session it refused to authenticate."""
 REFUSALS_JSONL = "refusals.jsonl"
 """In a run folder: one :class:`Refusal` per line (JSON), in the order the router refused them."""
 MAX_LINES = 100_000
@@ -76,6 +82,20 @@ _THREAD = re.compile(r"ThreadId\((\d+)\)")
 CACHED_KINDS = 9
 """Decisions Zenoh computes ahead for a declared key expression (query, reply, put, delete,
 subscriber, queryable, liveliness token, liveliness query, liveliness subscriber)."""
+_ACCEPTED = re.compile(
+    r"Accepted (?P<proto>TCP|TLS) connection on \S+: (?P<peer>\S+?)\.?"
+    r"(?: Common Name: (?P<cn>[^.]*)\.)?\s*$"
+)
+_AUTH_FAILED = re.compile(
+    r"UsrPwd extension - Recv \w+\. (?P<why>Invalid password|Invalid user|Expected extension)"
+)
+_BAD_CERT = re.compile(r"invalid peer certificate: (?P<why>[^.]+)")
+AUTH_REASONS = {
+    "Invalid password": "wrong password",
+    "Invalid user": "unknown user",
+    "Expected extension": "no credentials",
+}
+"""Zenoh's words for a refused authentication (zenoh-transport usrpwd.rs) → roco's."""
 _USER = re.compile(r"Username\(([^)]*)\)")
 _COMMON_NAME = re.compile(r"CertCommonName\(([^)]*)\)")
 
@@ -87,8 +107,12 @@ class Refusal(msgspec.Struct, frozen=True, kw_only=True):
     (:data:`UNKNOWN` when the log has not named it); message: what was refused, lower case with
     ``_`` (``put``, ``delete``, ``query``, ``reply``, ``declare_subscriber``,
     ``declare_liveliness_token``, …; ``session`` for a session that matches no ACL subject and
-    may therefore do nothing); flow: ``ingress`` (what the client sent) or ``egress`` (what the
-    router would have delivered to it); key: the key expression; session: the Zenoh id (hex)."""
+    may therefore do nothing; ``authenticate`` for a session refused at the handshake, ``key``
+    then saying why: ``no credentials``, ``wrong password``, ``unknown user``, or ``bad
+    certificate: <TLS error>``); flow: ``ingress`` (what the client sent) or ``egress`` (what the
+    router would have delivered to it); key: the key expression; session: the Zenoh id (hex; ""
+    before a session exists); peer: the client's address, where Zenoh logged it (a refused
+    authentication; a refused TLS handshake is logged without it)."""
 
     t: float
     identity: str
@@ -96,6 +120,7 @@ class Refusal(msgspec.Struct, frozen=True, kw_only=True):
     flow: str
     key: str
     session: str
+    peer: str = ""
 
 
 class NamedCount(msgspec.Struct, frozen=True, kw_only=True):
@@ -144,6 +169,7 @@ class RefusalLog:
         self._lock = threading.Lock()
         self._identity: dict[str, str] = {}
         self._ahead: dict[str, tuple[str, int]] = {}  # thread → (key being cached, decisions left)
+        self._peers: dict[str, tuple[str, str]] = {}  # accepting thread → (peer, TLS common name)
         self.counters: Counter[str] = Counter()
         self._named: dict[tuple[str, str, str, str], list[float]] = {}
         self._counts: Counter[tuple[str, str, str, str]] = Counter()
@@ -154,6 +180,8 @@ class RefusalLog:
         """Take one line of Zenoh's log; returns the refusal it reports, else None (an allowed
         message, or a line of another target)."""
         if ACL_TARGET not in line:
+            if ACCEPT_TARGET in line or any(t in line for t in LINK_TARGETS):
+                return self._feed_link(_ANSI.sub("", line).strip())
             return None
         if " is authorized " in line and ("Using cached result" in line or not self._ahead):
             # the bulk: an allowed message (not a decision computed ahead, which is counted
@@ -207,6 +235,43 @@ class RefusalLog:
             session=zid,
         )
         return self._add(refusal)
+
+    def _feed_link(self, line: str) -> Refusal | None:
+        """A connection accepted (remembered per accepting thread: the refusal that follows on
+        it names the peer), a session refused at authentication, or a TLS handshake refused."""
+        thread = _THREAD.search(line)
+        tid = thread.group(1) if thread else ""
+        stamp = line.split(" ", 1)[0]
+        accepted = _ACCEPTED.search(line)
+        if accepted is not None:
+            self._peers[tid] = (f"{accepted['proto'].lower()}/{accepted['peer']}", accepted["cn"] or "")
+            return None
+        failed = _AUTH_FAILED.search(line)
+        if failed is not None and ACCEPT_TARGET in line:
+            peer, cn = self._peers.pop(tid, ("", ""))
+            why = AUTH_REASONS[failed["why"]]
+            refused = Refusal(
+                t=_time(stamp),
+                identity=cn or UNKNOWN,
+                message="authenticate",
+                flow="ingress",
+                key=why,
+                session="",
+                peer=peer,
+            )
+            return self._add(refused)
+        bad = _BAD_CERT.search(line)
+        if bad is not None:
+            refused = Refusal(
+                t=_time(stamp),
+                identity=UNKNOWN,
+                message="authenticate",
+                flow="ingress",
+                key=f"bad certificate: {bad['why']}",
+                session="",
+            )
+            return self._add(refused)
+        return None
 
     def _add(self, r: Refusal) -> Refusal:
         what = (r.identity, r.message, r.flow, r.key)
@@ -302,6 +367,10 @@ def summary(report: RefusalReport, limit: int = 4) -> str:
     named = [n for n in report.named if n.flow == "ingress"]
     for n in named[:limit]:
         when = datetime.fromtimestamp(n.last).astimezone().strftime("%H:%M:%S")
+        if n.message == "authenticate":
+            who = n.identity if n.identity != UNKNOWN else "a client"
+            parts.append(f"{who} at authentication, {n.key} ×{n.count} (last {when})")
+            continue
         key = f" {n.key}" if n.key else ""
         parts.append(f"{n.identity} {n.message}{key} ×{n.count} (last {when})")
     if len(named) > limit:

@@ -87,11 +87,16 @@ def watch_refusals(run_dir: Path | None) -> RefusalLog:
     def on_line(line: str) -> bool:
         refusal = log.feed(line)
         if refusal is None:
-            return ACL_TARGET in line and "TRACE" in line  # its decisions: not for the log
+            # the ACL's decisions and the accepted connections: not for the log
+            return (ACL_TARGET in line and "TRACE" in line) or ("DEBUG" in line and "Accepted T" in line)
         n = log.counters["refused"]
         if n <= ANNOUNCED or n % 1000 == 0:
             what = f"{refusal.message} ({refusal.flow}) {refusal.key}".rstrip()
-            who = refusal.identity if refusal.identity != UNKNOWN else f"unnamed session {refusal.session}"
+            who = refusal.identity
+            if who == UNKNOWN:
+                who = f"unnamed session {refusal.session}" if refusal.session else "a client"
+            if refusal.peer:
+                who += f" from {refusal.peer}"
             print(f"roco router: refused #{n}: {who} {what}", flush=True)
         return True
 

@@ -10,6 +10,7 @@ want of credentials. Waits are on queues or on a condition polled with a deadlin
 
 from __future__ import annotations
 
+import json
 import os
 import subprocess
 import sys
@@ -82,6 +83,13 @@ def test_the_log_of_zenohs_acl_gives_each_refusal_named() -> None:
         ),
         line("10.300000", "Using cached result: 99 is unauthorized to Put (ingress) on roco/x", thread=9),
         "2026-11-22T22:01:11Z  INFO zenoh::net::routing::interceptor::low_pass: unrelated\n",
+        # a session refused at authentication, its peer from the accepting thread's last line
+        "2026-11-22T22:32:23.565313Z DEBUG acc-0 ThreadId(05) zenoh_link_tls::unicast: Accepted TLS "
+        "connection on 127.0.0.1:34301: 127.0.0.1:59584. Common Name: a_pl.\n",
+        "2026-11-22T22:32:23.566030Z DEBUG acc-0 ThreadId(05) zenoh_transport::unicast::establishment::"
+        "accept: UsrPwd extension - Recv OpenSyn. Invalid password. at /root/.cargo/…/usrpwd.rs:424.\n",
+        "2026-11-22T22:32:23.262709Z  WARN acc-0 ThreadId(05) zenoh_link_tls::unicast: invalid peer "
+        "certificate: BadSignature. Hint: increase the system open file limit.\n",
     ]
     refused = [r for r in map(log.feed, lines) if r is not None]
     assert [(r.identity, r.message, r.flow, r.key) for r in refused] == [
@@ -89,15 +97,18 @@ def test_the_log_of_zenohs_acl_gives_each_refusal_named() -> None:
         ("a_pl", "put", "ingress", "roco/fipa/C6/a_pl/a_km"),
         ("a_pl", "put", "ingress", "roco/fipa/C6/a_pl/a_km"),
         (UNKNOWN, "put", "ingress", "roco/x"),
+        ("a_pl", "authenticate", "ingress", "wrong password"),
+        (UNKNOWN, "authenticate", "ingress", "bad certificate: BadSignature"),
     ]
+    assert refused[4].peer == "tls/127.0.0.1:59584" and refused[5].peer == ""
     assert refused[0].t == pytest.approx(1795384869.924796)  # 2026-11-22T22:01:09.924796Z
     report = log.report("router-zid", 0.0)
-    assert report.counters["refused"] == 4 and report.counters["refused.put"] == 4
+    assert report.counters["refused"] == 6 and report.counters["refused.put"] == 4
     first = report.named[0]
     assert (first.identity, first.key, first.count) == ("a_pl", "roco/fipa/C6/a_pl/a_km", 2)
     assert first.last - first.first == pytest.approx(0.1, abs=1e-5)
     text = summary(report)
-    assert text.startswith("refused 4: a_pl put roco/fipa/C6/a_pl/a_km ×2 (last ")
+    assert text.startswith("refused 6: a_pl put roco/fipa/C6/a_pl/a_km ×2 (last ")
     assert text.endswith("; withheld 0")
 
 
@@ -211,6 +222,57 @@ def test_operator_tools_without_credentials_say_the_router_refused_them(
     # nothing listening: as before
     out = cli(["status", "--router", f"tcp/127.0.0.1:{free_port()}"], tmp_path)
     assert out.returncode == 1 and "no router answers at" in out.stderr
+    # the router counted each refused session, with the client's address
+    operator = open_client(ep)
+    try:
+        report = router_report(operator, 0)
+    finally:
+        operator.close()
+    named = {n.key: n.count for n in report.named if n.message == "authenticate"}
+    assert named.get("no credentials", 0) >= len(commands), report.named
+    assert named.get("wrong password", 0) >= 1, report.named  # the other deployment's operator
+    written = [r for r in read_refusals(router.run_dir) if r.message == "authenticate"]
+    assert written and all(r.peer.startswith("tcp/127.0.0.1:") for r in written), written
+
+
+def test_a_certificate_of_another_ca_is_refused_and_counted(tmp_path: Path) -> None:
+    """Mutual TLS: a client (or a router trying to mesh) with a certificate the deployment's CA
+    did not sign fails the TLS handshake; the router counts it (Zenoh logs no address for it)."""
+    (tmp_path / "logs").mkdir()
+    fleet = Fleet(tmp_path, f"tcp/127.0.0.1:{free_port()}", acl=True, tls=True)
+    folder = fleet.security
+    assert folder is not None
+    fleet.start_router()
+    try:
+        other = tmp_path / "other"
+        certs.issue(other, ["a_pl"])
+        conf = zenoh.Config()
+        conf.insert_json5("mode", '"client"')
+        conf.insert_json5("connect/endpoints", f'["{fleet.endpoint}"]')
+        conf.insert_json5("scouting/multicast/enabled", "false")
+        password = (folder / "a_pl" / certs.PASSWORD).read_text().strip()
+        conf.insert_json5("transport/auth/usrpwd/user", '"a_pl"')
+        conf.insert_json5("transport/auth/usrpwd/password", f'"{password}"')
+        tls = {
+            "root_ca_certificate": str(folder / certs.CA_CERT),
+            "connect_private_key": str(other / "a_pl" / certs.KEY),
+            "connect_certificate": str(other / "a_pl" / certs.CERT),
+            "enable_mtls": True,
+        }
+        conf.insert_json5("transport/link/tls", json.dumps(tls))
+        with pytest.raises(zenoh.ZError):
+            zenoh.open(conf)
+        operator = open_client(fleet.endpoint)
+        try:
+            report = router_report(operator, 1)
+        finally:
+            operator.close()
+    finally:
+        fleet.stop()
+        register(fleet.endpoint, None)
+    (named,) = [n for n in report.named if n.message == "authenticate"]
+    assert named.key.startswith("bad certificate: ") and named.count == 1, named
+    assert "a client at authentication, bad certificate: " in summary(report)
 
 
 def test_a_session_matching_no_acl_subject_is_counted_as_refused(tmp_path: Path) -> None:
