@@ -16,7 +16,7 @@ interceptor logs "ACL (ingress): caching permissions for `KEY` ..." and then, on
 thread, its decision for each of the :data:`CACHED_KINDS` kinds of message on that key: those
 lines decide nothing that was sent and are not refusals (they do name the session's identity).
 
-The router process (services/runtime/router.py) turns that target on and hands every line of
+The router process (services/runtime/refusal_watch.py) turns that target on and hands every line of
 Zenoh's log to a :class:`RefusalLog`, which keeps the session → identity pairs, writes each
 refusal to ``<run>/refusals.jsonl`` and counts them; the router answers ``roco/counters/ask``
 with a :class:`RefusalReport` on ``roco/refusals/report/<router>`` (``roco status``).
