@@ -11,9 +11,11 @@
 #   3. docker build --network host --build-arg BASE=<base> -f deploy/Dockerfile, with the
 #      wheelhouse served on 127.0.0.1 for the build's `pip install --no-index --find-links`.
 #
-# Usage: scripts/build_image.sh [--tag IMAGE] [--base IMAGE] [--refresh-wheelhouse] [--no-cache]
+# Usage: scripts/build_image.sh [--tag IMAGE] [--base IMAGE] [--mirror URI] [--refresh-wheelhouse]
+#                               [--no-cache]
 # Environment: ROCO_IMAGE (tag, default roco:latest); ROCO_BASE (base image, default as in 2);
-#   ROCO_LOCAL_BASE (default roco-base:bookworm-<hash>); DEBIAN_MIRROR (default deb.debian.org);
+#   ROCO_LOCAL_BASE (default roco-base:bookworm-<hash>); DEBIAN_MIRROR (the Debian mirror for
+#   debootstrap, as --mirror; default: the one this host's apt uses, scripts/apt_mirror.py);
 #   ROCO_BASE_PACKAGES (Debian packages of the local base); ROCO_WHEEL_PORT (loopback port the
 #   wheelhouse is served on, default 7449); PYTHON (host Python with pip, default python3);
 #   DOCKER (default docker).
@@ -27,7 +29,7 @@ cd "$(dirname "$0")/.."
 
 TAG=${ROCO_IMAGE:-roco:latest}
 BASE=${ROCO_BASE:-}
-MIRROR=${DEBIAN_MIRROR:-http://deb.debian.org/debian}
+MIRROR=${DEBIAN_MIRROR:-}  # none: this host's apt configuration names it (phase 2)
 BASE_PACKAGES=${ROCO_BASE_PACKAGES:-python3,python3-venv,python3-dev,g++,libgomp1,iproute2,libegl1,libegl-mesa0,libgl1-mesa-dri,libgl1,libopengl0}
 # the local base's tag names its package list: another list makes another base
 LOCAL_BASE=${ROCO_LOCAL_BASE:-roco-base:bookworm-$(printf '%s' "$BASE_PACKAGES" | sha256sum | cut -c1-8)}
@@ -41,9 +43,10 @@ while [ $# -gt 0 ]; do
     case "$1" in
         --tag) TAG=$2; shift 2 ;;
         --base) BASE=$2; shift 2 ;;
+        --mirror) MIRROR=$2; shift 2 ;;
         --refresh-wheelhouse) REFRESH=1; shift ;;
         --no-cache) NO_CACHE=(--no-cache); shift ;;
-        -h|--help) sed -n '2,22p' "$0"; exit 0 ;;
+        -h|--help) sed -n '2,24p' "$0"; exit 0 ;;
         *) echo "build_image.sh: unknown argument $1" >&2; exit 2 ;;
     esac
 done
@@ -119,6 +122,11 @@ if ! have_image "$BASE"; then
         echo "build_image.sh: making $LOCAL_BASE needs debootstrap (apt-get install debootstrap)" >&2
         exit 1
     }
+    if [ -z "$MIRROR" ]; then
+        # the mirror this host's apt uses (sources.list, sources.list.d/*.list and *.sources)
+        MIRROR=$("$PYTHON" scripts/apt_mirror.py --suite bookworm) || exit 1
+        echo "build_image.sh: Debian mirror from this host's apt configuration: $MIRROR"
+    fi
     echo "build_image.sh: making the base $LOCAL_BASE with debootstrap ($MIRROR)"
     rootfs="$work/rootfs"
     mkdir -p "$rootfs"

@@ -35,11 +35,13 @@ from services.fleet.launcher import AGENT_ORDER, Fleet, LaunchError
 from services.runtime import keys
 from services.runtime.human import FINAL_REPORTS, HumanInput, HumanReport
 from services.runtime.run_folder import RunInfo, new_run_dir, write_run_info
-from services.runtime.session import alive_agents, open_client
+from services.runtime.session import SessionRefused, alive_agents, open_client, open_operator
 from services.security.context import register
 from services.spec.model import default_spec
 
 if TYPE_CHECKING:
+    import zenoh
+
     from services.live.watch import LiveWatch
 
 MARKUP: Literal["markdown"] = "markdown"
@@ -69,6 +71,16 @@ TlsOption = Annotated[
 ]
 
 
+CredentialsOption = Annotated[
+    Path | None,
+    typer.Option(
+        "--credentials",
+        help="the deployment's credentials folder (`roco deploy certs`) for a router with access "
+        "control; the tool authenticates as `operator` (ROCO_IDENTITY) [default: ROCO_SECURITY, "
+        "else the fleet of 'roco up']",
+        show_default=False,
+    ),
+]
 LiveOption = Annotated[
     bool | None,
     typer.Option(
@@ -482,6 +494,16 @@ def _sync_recorder(runs_dir: Path) -> bool:
         session.close()
 
 
+def _open_operator_session(endpoint: str, credentials: Path | None = None) -> zenoh.Session:
+    """The operator's session with the router at ``endpoint`` (its credentials from
+    ``credentials``, ``ROCO_SECURITY`` or the fleet of ``roco up``); one line and exit 1 when
+    it cannot be opened (services/runtime/session.py ``open_operator``)."""
+    try:
+        return open_operator(endpoint, credentials=credentials)
+    except SessionRefused as exc:
+        raise fail(str(exc)) from None
+
+
 def _endpoint(router: str | None, runs_dir: Path) -> str:
     if router:
         return router
@@ -506,13 +528,11 @@ def send(
     person: Annotated[
         str, typer.Option(help="who speaks: a_hi keeps a conversation per person ('it', questions back)")
     ] = "",
+    credentials: CredentialsOption = None,
 ) -> None:
     """Give a running fleet a command and wait for a_hi's final report."""
     endpoint = _endpoint(router, runs_dir)
-    try:
-        session = open_client(endpoint)
-    except Exception:
-        raise fail(f"no router answers at {endpoint}; is the fleet up?") from None
+    session = _open_operator_session(endpoint, credentials)
     reports: queue.SimpleQueue[HumanReport] = queue.SimpleQueue()
     dec = msgspec.json.Decoder(HumanReport)
     session.declare_subscriber(keys.HUMAN_OUT, lambda s: reports.put(dec.decode(s.payload.to_bytes())))
@@ -549,6 +569,7 @@ def disturb(
     tilt: Annotated[float, typer.Option(help="radians about world x: tips the object over")] = 0.0,
     router: Annotated[str | None, typer.Option(help="router endpoint")] = None,
     runs_dir: Annotated[Path, typer.Option()] = Path("runs"),
+    credentials: CredentialsOption = None,
 ) -> None:
     """Move or knock over an object of the simulated kitchen, as a person would (a disturbance
     of the world, not a robot command): ag_ex moves the body and its content and stops them."""
@@ -559,10 +580,7 @@ def disturb(
     if obj not in CONTAINERS:
         raise fail(f"cannot move {obj!r}: the kitchen's movable objects are {', '.join(CONTAINERS)}", code=2)
     endpoint = _endpoint(router, runs_dir)
-    try:
-        session = open_client(endpoint)
-    except Exception:
-        raise fail(f"no router answers at {endpoint}; is the fleet up?") from None
+    session = _open_operator_session(endpoint, credentials)
     try:
         if "ag_ex" not in alive_agents(session):
             raise fail(f"ag_ex is not alive at {endpoint}")
@@ -612,6 +630,7 @@ def sniff(
     performative: Annotated[list[str] | None, typer.Option(help="only this performative")] = None,
     conversation: Annotated[str | None, typer.Option(help="only this conversation-id")] = None,
     raw: Annotated[bool, typer.Option(help="print :content exactly as on the wire (SC00070)")] = False,
+    credentials: CredentialsOption = None,
 ) -> None:
     """Print live communicates as they cross Zenoh, in FIPA SC00070 string form (like JADE's
     Sniffer), until interrupted. Content is shown as its decoded term unless --raw."""
@@ -627,9 +646,10 @@ def sniff(
     endpoint = _endpoint(router, runs_dir)
     stop = threading.Event()
     _stop_on_signals()
+    session = _open_operator_session(endpoint, credentials)
     try:
         count = run_sniff(
-            endpoint,
+            session,
             agents=f.agents,
             channels=f.channels,
             performatives=f.performatives,
@@ -641,8 +661,8 @@ def sniff(
     except KeyboardInterrupt:
         stop.set()
         return
-    except Exception as exc:
-        raise fail(f"no router answers at {endpoint}: {exc}") from None
+    finally:
+        session.close()
     typer.echo(f"roco: {count} communicates")
 
 
@@ -681,20 +701,23 @@ def status(
     counters_timeout: Annotated[
         float, typer.Option(min=0.0, help="seconds to wait for the agents' counters")
     ] = 2.0,
+    credentials: CredentialsOption = None,
 ) -> None:
     """List the agents that hold a liveliness token, each alive agent with its counters of
-    received and rejected input (by reason; docs/security.md); exit 1 if any agent is
+    received and rejected input (by reason; docs/security.md), and what each router with
+    access control refused, named (identity, message, key, when); exit 1 if any agent is
     missing."""
     from services.runtime.counters import ask_counters, summary
+    from services.runtime.refusals import RefusalReport, collect_reports
+    from services.runtime.refusals import summary as refusal_summary
 
     endpoint = _endpoint(router, runs_dir)
-    try:
-        session = open_client(endpoint)
-    except Exception:
-        raise fail(f"no router answers at {endpoint}") from None
+    session = _open_operator_session(endpoint, credentials)
+    refusals: list[RefusalReport] = []
     try:
         alive = alive_agents(session)
-        reports = ask_counters(session, alive & {*AGENT_ORDER, "gateway"}, timeout=counters_timeout)
+        with collect_reports(session, refusals):
+            reports = ask_counters(session, alive & {*AGENT_ORDER, "gateway"}, timeout=counters_timeout)
     finally:
         session.close()
     for name in (*AGENT_ORDER, "recorder", *(["gateway"] if "gateway" in alive else [])):
@@ -708,6 +731,8 @@ def status(
         elif name in alive and name != "recorder":  # (the gateway answers as agents do)
             line += "  (no counters within the timeout: busy)"
         typer.echo(line)
+    for r in sorted(refusals, key=lambda r: r.router):
+        typer.echo(f"{'router':9s} {r.router[:8]}  {refusal_summary(r)}")
     if not set(AGENT_ORDER) <= alive:
         raise typer.Exit(1)
 

@@ -184,7 +184,7 @@ def _one_line(text: str, limit: int = 200) -> str:
 
 
 def sniff(
-    endpoint: str,
+    endpoint: str | zenoh.Session,
     *,
     agents: AbstractSet[str] | None,
     channels: AbstractSet[str] | None,
@@ -196,7 +196,8 @@ def sniff(
     ready: threading.Event | None = None,
 ) -> int:
     """Print the communicates crossing the Zenoh router at ``endpoint`` until ``stop`` is set;
-    returns the number of communicates printed.
+    returns the number of communicates printed. ``endpoint`` may be an open session instead
+    (the operator's, ``roco sniff --credentials``), which is left open.
 
     Opens a client session (:func:`services.fleet.launcher.open_client`) and subscribes to
     ``roco/fipa/**``. The filters are those of :func:`parse_filters` (checked by it here, so a
@@ -223,7 +224,8 @@ def sniff(
     def on_sample(sample: zenoh.Sample) -> None:
         samples.put((time.time(), str(sample.key_expr), sample.payload.to_bytes()))
 
-    session = open_client(endpoint)
+    own = isinstance(endpoint, str)
+    session = open_client(endpoint) if isinstance(endpoint, str) else endpoint
     printed = 0
     try:
         session.declare_subscriber(keys.FIPA_ALL, on_sample)
@@ -242,7 +244,8 @@ def sniff(
             if is_communicate:
                 printed += 1
     finally:
-        session.close()
+        if own:
+            session.close()
     return printed
 
 

@@ -58,6 +58,15 @@ ComposeFile = Annotated[Path, typer.Option(help="the compose file")]
 Router = Annotated[
     str | None, typer.Option(help="router endpoint (default: the fleet of 'roco up', else $ROCO_ROUTER)")
 ]
+Credentials = Annotated[
+    Path | None,
+    typer.Option(
+        "--credentials",
+        help="the deployment's credentials folder for a router with access control "
+        "[default: ROCO_SECURITY, else the fleet of 'roco up']",
+        show_default=False,
+    ),
+]
 
 
 def fail(message: str, code: int = 1) -> typer.Exit:
@@ -72,24 +81,35 @@ def _compose(flag: bool | None, project: str | None, file: Path, runs_dir: Path)
     return Compose(file=file, project=project or os.environ.get(PROJECT_ENV) or None, state_dir=runs_dir)
 
 
-def _endpoint(router: str | None, runs_dir: Path) -> str:
+def _endpoint(router: str | None, runs_dir: Path, credentials: Path | None = None) -> str:
+    """The router endpoint (``router``, the fleet of ``roco up``, ``ROCO_ROUTER``), with
+    ``credentials`` registered for it when given (services/security/context.py)."""
+    from services.security.context import register
+
     if router:
-        return router
-    try:
-        return UpFleet.load(runs_dir).endpoint
-    except FaultError:
-        return os.environ.get("ROCO_ROUTER", DEFAULT_ROUTER)
+        endpoint = router
+    else:
+        try:
+            endpoint = UpFleet.load(runs_dir).endpoint
+        except FaultError:
+            endpoint = os.environ.get("ROCO_ROUTER", DEFAULT_ROUTER)
+    if credentials is not None:
+        if not credentials.is_dir():
+            raise fail(f"{credentials}: no such credentials folder", code=2)
+        register(endpoint, credentials)
+    return endpoint
 
 
 @contextlib.contextmanager
 def _session(endpoint: str) -> Iterator[zenoh.Session]:
-    """A client session with the router at ``endpoint``, closed on leaving."""
-    from services.runtime.session import open_client
+    """The operator's client session with the router at ``endpoint``, closed on leaving; one
+    line (no router, refused for want of credentials, …) and exit 1 when it cannot open."""
+    from services.runtime.session import SessionRefused, open_operator
 
     try:
-        session = open_client(endpoint)
-    except Exception:
-        raise fail(f"no router answers at {endpoint}; is the fleet up?") from None
+        session = open_operator(endpoint)
+    except SessionRefused as exc:
+        raise fail(str(exc)) from None
     try:
         yield session
     finally:
@@ -98,12 +118,12 @@ def _session(endpoint: str) -> Iterator[zenoh.Session]:
 
 def _record(endpoint: str, events: list[FaultEvent]) -> None:
     """Hand the events to the traffic recorder; a warning (not a failure) when it cannot."""
-    from services.runtime.session import alive_agents, open_client
+    from services.runtime.session import SessionRefused, alive_agents, open_operator
 
     try:
-        session = open_client(endpoint)
-    except Exception:
-        typer.echo(f"roco: (fault not recorded: no router answers at {endpoint})", err=True)
+        session = open_operator(endpoint)
+    except SessionRefused as exc:
+        typer.echo(f"roco: (fault not recorded: {exc})", err=True)
         return
     try:
         if "recorder" not in alive_agents(session, timeout=0.5):
@@ -148,13 +168,14 @@ def _process_fault(action: str) -> None:
         project: Project = None,
         compose_file: ComposeFile = DEFAULT_FILE,
         router: Router = None,
+        credentials: Credentials = None,
         timeout: Annotated[float, typer.Option(help="seconds to wait for the service")] = 60.0,
     ) -> None:
         dc = _compose(compose, project, compose_file, runs_dir)
         try:
             if dc is not None:
                 event = dc.process(action, service)
-                endpoint = _endpoint(router, runs_dir)
+                endpoint = _endpoint(router, runs_dir, credentials)
             else:
                 if service not in LOCAL_SERVICES:
                     raise fail(
@@ -220,6 +241,7 @@ def net(
     project: Project = None,
     compose_file: ComposeFile = DEFAULT_FILE,
     router: Router = None,
+    credentials: Credentials = None,
 ) -> None:
     """Network faults of one service: delay, loss, partition.
 
@@ -229,7 +251,7 @@ def net(
     if delay is None and loss is None and partition is None:
         raise fail("nothing to change: give --delay, --loss, --partition or --heal", code=2)
     dc = _compose(compose, project, compose_file, runs_dir)
-    endpoint = _endpoint(router, runs_dir)
+    endpoint = _endpoint(router, runs_dir, credentials)
     if dc is not None:
 
         def apply(events: list[FaultEvent]) -> None:
@@ -304,6 +326,7 @@ def msg(
     seed: Annotated[int | None, typer.Option(help="reseed every agent's fault RNG")] = None,
     runs_dir: RunsDir = Path("runs"),
     router: Router = None,
+    credentials: Credentials = None,
 ) -> None:
     """Message faults on one channel: drop, duplicate, delay, reorder, corrupt.
 
@@ -337,7 +360,7 @@ def msg(
         raise fail(f"no fault given (use 'roco fault clear {channel}' to remove {channel}'s faults)", code=2)
     from services.fault.control import send_update
 
-    endpoint = _endpoint(router, runs_dir)
+    endpoint = _endpoint(router, runs_dir, credentials)
     update = FaultUpdate(set_channels={channel: mf} if mf.active() else {}, seed=seed)
     with _session(endpoint) as session:
         got, missing = send_update(session, update)
@@ -360,6 +383,7 @@ def clear(
     project: Project = None,
     compose_file: ComposeFile = DEFAULT_FILE,
     router: Router = None,
+    credentials: Credentials = None,
 ) -> None:
     """Remove message and network faults of a channel, a service, or all.
 
@@ -368,7 +392,7 @@ def clear(
     if target is not None and target not in (*channels, ANY_CHANNEL, *COMPOSE_SERVICES):
         raise fail(f"{target!r} is neither a channel ({', '.join(channels)}) nor a service", code=2)
     dc = _compose(compose, project, compose_file, runs_dir)
-    endpoint = _endpoint(router, runs_dir)
+    endpoint = _endpoint(router, runs_dir, credentials)
     if dc is not None and (target is None or target in COMPOSE_SERVICES):
 
         def apply(events: list[FaultEvent]) -> None:
@@ -418,13 +442,14 @@ def show(
     project: Project = None,
     compose_file: ComposeFile = DEFAULT_FILE,
     router: Router = None,
+    credentials: Credentials = None,
 ) -> None:
     """Each agent's fault settings and the faults it applied so far.
 
     With --compose also each container's tc qdisc and the partitions."""
     from services.fault.control import send_update
 
-    endpoint = _endpoint(router, runs_dir)
+    endpoint = _endpoint(router, runs_dir, credentials)
     with _session(endpoint) as session:
         got, missing = send_update(session, FaultUpdate())
     for name in sorted(got, key=lambda n: AGENT_ORDER.index(n) if n in AGENT_ORDER else 99):

@@ -60,6 +60,15 @@ class TrafficRecord(msgspec.Struct, frozen=True, kw_only=True):
     t_sent: the publisher's timestamp (its session's hybrid logical clock, POSIX s), None when
     it carried none. late: sent before this recorder incarnation listened, and recovered from
     the publisher's cache when it started (the recorder was down or restarting).
+
+    sender is the sender the communicate claims (its ``:sender`` parameter; the key's sender
+    when it does not decode); key_sender the one its key names (``roco/fipa/C/<sender>/R``):
+    with access control on, the identity that authenticated and put it, since the router lets
+    only that identity put on such a key (docs/security.md). The two differ for a spoof the
+    router let through (an agent posing as another on its own key; its receiver answers
+    not-understood, ``rejected.sender_mismatch``); a spoof on another's key never reaches the
+    record: the router refuses it and names it in ``refusals.jsonl``. None in records written
+    before this field existed, and for a key that is not a communicate key.
     """
 
     seq: int
@@ -79,6 +88,7 @@ class TrafficRecord(msgspec.Struct, frozen=True, kw_only=True):
     sn: int | None = None
     t_sent: float | None = None
     late: bool = False
+    key_sender: str | None = None
 
     @property
     def ref(self) -> RecordKey:
@@ -95,10 +105,13 @@ def record_of(entry: RawEntry) -> TrafficRecord:
     payload that is not a communicate is recorded with performative ``malformed`` and the key's
     sender and receiver."""
     a = entry.arrival
+    key_sender: str | None
     try:
         channel, sender, receiver = keys.parse_fipa_key(a.key)
+        key_sender = sender
     except ValueError:
         channel, sender, receiver = "?", "?", "?"
+        key_sender = None
     receivers: tuple[str, ...] = (receiver,)
     performative = "malformed"
     protocol = conversation_id = language = ontology = None
@@ -130,6 +143,7 @@ def record_of(entry: RawEntry) -> TrafficRecord:
         sn=a.sn,
         t_sent=a.t_sent,
         late=a.late,
+        key_sender=key_sender,
     )
 
 

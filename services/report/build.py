@@ -16,6 +16,7 @@ from services.report.model import FaultRow, Header, PerceptionRow, Report
 from services.report.planning import plan_phases
 from services.report.stats import agent_matrix, channel_stats, size_stats
 from services.report.timeline import command_text, find_command, find_outcome, timeline
+from services.runtime.refusals import REFUSALS_JSONL, read_refusals
 from shared.fipa_codec.languages.l_hc import CommandOutcome
 from velma.executor.capture import PERCEPTION_LOG as PERCEPTION_JSONL
 from velma.executor.timing import TimingStats
@@ -46,6 +47,7 @@ def _assemble(run: RunData, container: str = "bowl") -> Report:
     control = _control_timing(Path(run_dir), notes)
     header = _header(run, command, outcome)
     header.record = run.integrity.summary() if run.integrity.records else ""
+    header.access_control = _access_control(run)
     return Report(
         header=header,
         sizes=size_stats(messages),
@@ -60,6 +62,25 @@ def _assemble(run: RunData, container: str = "bowl") -> Report:
         coordination=coordination(messages),
         faults=_faults(run, notes),
         perception=_perception(Path(run_dir), notes),
+    )
+
+
+def _access_control(run: RunData) -> str:
+    """One line: the refusals of the run's router by identity (``refusals.jsonl``,
+    services/runtime/refusals.py) and the recorded spoofs its access control let through (a
+    communicate on its sender's own key claiming another sender); "" without a refusals file."""
+    run_dir = Path(run.run_dir)
+    if not (run_dir / REFUSALS_JSONL).exists():
+        return ""
+    refused = [r for r in read_refusals(run_dir) if r.flow == "ingress"]
+    by: dict[str, int] = {}
+    for r in refused:
+        by[r.identity] = by.get(r.identity, 0) + 1
+    who = f" ({', '.join(f'{i} {n}' for i, n in sorted(by.items(), key=lambda kv: -kv[1]))})" if by else ""
+    spoofs = sum(1 for m in run.messages if m.rec.key_sender is not None and m.rec.key_sender != m.sender)
+    return (
+        f"on; {len(refused)} message(s) refused{who} (`{REFUSALS_JSONL}`); {spoofs} recorded "
+        "communicate(s) claim another sender than their key's"
     )
 
 

@@ -119,6 +119,8 @@ def _header(h: Header) -> str:
         ["Last communicate", f"{_s(h.last_record_t)} s after the start"],
         ["Traffic record", h.record or "—"],
     ]
+    if h.access_control:
+        rows.append(["Access control", h.access_control])
     title = f"# Experiment report: {Path(h.run_dir).name}"
     return "\n\n".join([title, f"Run folder: `{h.run_dir}`", _table(["", ""], rows), HOW_MEASURED])
 

@@ -39,6 +39,10 @@ class Header(msgspec.Struct, kw_only=True):
     record: str = ""
     """The traffic record's integrity in one line (services/recorder/integrity.py), checked
     before anything else in this report read it."""
+    access_control: str = ""
+    """What the router's access control refused (``refusals.jsonl``) and how many recorded
+    communicates claim another sender than their key names, in one line; "" when the run has
+    no refusals file (access control off)."""
 
 
 class SizeStats(msgspec.Struct, kw_only=True):

@@ -7,7 +7,10 @@ meshes it with other routers (a deployment over several hosts).
 Access control (docs/security.md): with ``ROCO_SECURITY`` naming a credentials folder
 (services/security/), the router requires user/password authentication, mutual TLS on its
 ``tls/`` endpoints and applies the folder's ``acl.json`` (default deny). Exit code 2 when that
-folder is incomplete.
+folder is incomplete. With access control on, every message it refuses is counted and named
+(services/runtime/refusal_watch.py): read from Zenoh's own log, written to
+``$ROCO_RUN_DIR/refusals.jsonl``, announced in the router's log and reported on
+``roco/counters/ask``.
 """
 
 from __future__ import annotations
@@ -22,6 +25,7 @@ from types import FrameType
 
 import zenoh
 
+from services.runtime.refusal_watch import answer_counters, watch_refusals
 from services.runtime.transport import router_config
 
 
@@ -38,8 +42,11 @@ def main(argv: list[str] | None = None) -> int:
     except (OSError, ValueError) as exc:
         print(f"roco router: ROCO_SECURITY: {exc}", file=sys.stderr)
         return 2
+    run_dir = os.environ.get("ROCO_RUN_DIR", "").strip()
+    refusals = watch_refusals(Path(run_dir) if run_dir else None) if security else None
     session = zenoh.open(conf)
     done = threading.Event()
+    asked = answer_counters(session, refusals, done) if refusals is not None else None
 
     def on_signal(signum: int, frame: FrameType | None) -> None:
         done.set()
@@ -49,6 +56,8 @@ def main(argv: list[str] | None = None) -> int:
     acl = f"; access control from {security}" if security else "; no access control"
     print(f"roco router {session.zid()} listening on {', '.join(listen)}{acl}", flush=True)
     done.wait()
+    if asked is not None:
+        asked.undeclare()
     session.close()
     return 0
 

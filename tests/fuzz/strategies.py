@@ -296,11 +296,23 @@ _FLOOD_KINDS = (
 )
 
 
-def flood(agent: str, rng: random.Random) -> Fuzz:
+def targets(sender: str) -> tuple[str, ...]:
+    """The agents ``sender`` may send to (its channels' other ends), in AGENTS order: what an
+    attacker holding ``sender``'s credentials can reach through a router with access control."""
+    return tuple(a for a in AGENTS if a != sender and any(k.sender == sender for k in receivable(a)))
+
+
+def flood(agent: str, rng: random.Random, sender: str | None = None) -> Fuzz:
     """One malformed communicate for ``agent`` drawn with ``rng``; never a byte-identical copy
     of an earlier one (each carries a fresh conversation-id or random bytes), so each must
-    be answered."""
+    be answered. ``sender``: only on keys of that sender (a compromised agent's identity, whose
+    keys are all the router lets it put on); None: any of ``agent``'s peers. Raises ValueError
+    when ``sender`` may not send to ``agent``."""
     kinds = receivable(agent)
+    if sender is not None:
+        kinds = tuple(k for k in kinds if k.sender == sender)
+        if not kinds:
+            raise ValueError(f"{sender} sends nothing to {agent}")
     kind = rng.choice(kinds)
     what = rng.choice(_FLOOD_KINDS)
     if what == "random":
@@ -333,6 +345,8 @@ def flood(agent: str, rng: random.Random) -> Fuzz:
             "protocol": kind.protocol,
         }
         return Fuzz(what, _key(kind), _mp.encode(bad), "malformed")
+    if what in ("bad_content", "nested") and not any(k.languages for k in kinds):
+        what = "not_in_interface"
     if what in ("bad_content", "nested"):
         with_language = [k for k in kinds if k.languages]
         kind = rng.choice(with_language)

@@ -200,3 +200,31 @@ def test_control_loop_missing_or_corrupt(make_run: Callable[..., Path], pour: An
     report = build_report(corrupt)
     assert report.control is None
     assert any("unreadable" in n for n in report.notes)
+
+
+def test_access_control_row_names_refusals_and_recorded_spoofs(
+    make_run: Callable[..., Path], pour: Any
+) -> None:
+    """The report's header says what the router refused (refusals.jsonl, issue 21) and how many
+    recorded communicates claim another sender than their key's; no row without the file."""
+    import msgspec
+
+    from services.runtime.refusals import REFUSALS_JSONL, Refusal
+
+    plain = make_run(pour, name="plain")
+    assert build_report(plain).header.access_control == ""
+    assert "| Access control |" not in write_report(plain).read_text()
+    pour.records[3] = msgspec.structs.replace(pour.records[3], key_sender="a_pl")  # claims another
+    d = make_run(pour, name="acl")
+    put = {"message": "put", "flow": "ingress", "session": "z", "identity": "a_pl"}
+    refused = [
+        Refusal(t=1.0, key="roco/fipa/C1/a_co/a_ta", **put),
+        Refusal(t=2.0, key="roco/fipa/C1/a_pl/a_ta", **put),
+        Refusal(t=3.0, identity="a_hi", message="declare_subscriber", flow="egress", key="k", session="y"),
+    ]
+    lines = b"".join(msgspec.json.encode(r) + b"\n" for r in refused)
+    (d / REFUSALS_JSONL).write_bytes(lines + b"not json\n")
+    line = build_report(d).header.access_control
+    assert line.startswith("on; 2 message(s) refused (a_pl 2)"), line
+    assert "; 1 recorded communicate(s) claim another sender" in line, line
+    assert f"| Access control | {line} |" in write_report(d).read_text()
