@@ -28,13 +28,22 @@ from services.runtime.transport import router_config
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="roco-router")
     parser.add_argument("--listen", action="append", default=None)
+    parser.add_argument("--identity", default=os.environ.get("ROCO_ROUTER_IDENTITY") or None,
+                        help="a meshed router's identity in the credentials folder (ROCO_ROUTER_IDENTITY)")
+    parser.add_argument("--lease-ms", type=int, default=None, help="Zenoh's transport lease (default 10000)")
     parser.add_argument("--connect", action="append", default=None)
     args = parser.parse_args(argv)
     listen = args.listen or [os.environ.get("ROCO_LISTEN", "tcp/0.0.0.0:7447")]
     connect = args.connect or [e for e in os.environ.get("ROCO_CONNECT", "").split(",") if e]
     security = os.environ.get("ROCO_SECURITY", "").strip()
     try:
-        conf = router_config(listen, connect, security=Path(security) if security else None)
+        conf = router_config(
+            listen,
+            connect,
+            security=Path(security) if security else None,
+            identity=args.identity if security else None,
+            lease_ms=args.lease_ms,
+        )
     except (OSError, ValueError) as exc:
         print(f"roco router: ROCO_SECURITY: {exc}", file=sys.stderr)
         return 2
