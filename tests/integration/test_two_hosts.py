@@ -1,0 +1,229 @@
+"""The fleet on two hosts (issue 21; docs/deploy.md "Two hosts on one machine"): brain and robot
+in network namespaces, the link shaped (20 ± 5 ms each way, 1 % loss), the routers meshed over
+mutual TLS with identities of their own, access control on.
+
+Needs root and iproute2 + nftables (.ci/run installs them); skipped only where namespaces cannot
+be made."""
+
+from __future__ import annotations
+
+import collections
+import json
+import os
+import queue
+import subprocess
+import sys
+import time
+import uuid
+from collections.abc import Iterator
+from pathlib import Path
+
+import msgspec
+import pytest
+import zenoh
+
+from services.deploy.deploy import issue_router, prepare
+from services.hosts import link
+from services.hosts.fleet import TwoHosts
+from services.hosts.link import Shaping
+from services.hosts.netns import HostPair, netns_exec, unavailable
+from services.runtime import keys
+from services.runtime.human import FINAL_REPORTS, HumanInput, HumanReport
+from services.runtime.run_folder import new_run_dir
+from services.runtime.session import open_client
+from services.security.context import register
+from services.spec.model import default_spec
+
+pytestmark = pytest.mark.skipif(unavailable() is not None, reason=f"two hosts: {unavailable()}")
+
+SHAPING = Shaping(delay_ms=20, jitter_ms=5, loss_pct=1)
+POUR = "pour the jar into the bowl"
+ENV = {"ROCO_REALTIME": "0", "ROCO_RERUN": "0"}
+
+
+@pytest.fixture
+def hosts(tmp_path: Path) -> Iterator[TwoHosts]:
+    h = TwoHosts(new_run_dir(tmp_path), SHAPING, env=ENV)
+    h.start()
+    try:
+        yield h
+    finally:
+        h.stop()
+        assert h.pair is not None and not h.pair.exists(), "the namespaces were not removed"
+
+
+def pour(h: TwoHosts, on_progress: dict[str, object] | None = None, timeout: float = 600.0) -> HumanReport:
+    """Say the pour to the brain's a_hi from the operator's side of the uplink; return the
+    final report. ``on_progress``: {text fragment: callable} run once at the first progress
+    report containing it."""
+    session = open_client(h.endpoint)
+    reports: queue.SimpleQueue[HumanReport] = queue.SimpleQueue()
+    dec = msgspec.json.Decoder(HumanReport)
+    session.declare_subscriber(keys.HUMAN_OUT, lambda s: reports.put(dec.decode(s.payload.to_bytes())))
+    rid = uuid.uuid4().hex[:8]
+    pending = dict(on_progress or {})
+    try:
+        session.put(keys.HUMAN_IN, msgspec.json.encode(HumanInput(text=POUR, request_id=rid)))
+        deadline = time.monotonic() + timeout
+        while True:
+            report = reports.get(timeout=max(0.1, deadline - time.monotonic()))
+            for fragment in [f for f in pending if f in report.text]:
+                pending.pop(fragment)()  # type: ignore[operator]
+            if report.request_id == rid and report.kind in FINAL_REPORTS:
+                return report
+    finally:
+        session.close()
+
+
+def c5_record(run_dir: Path) -> list[dict[str, object]]:
+    lines = (run_dir / "traffic.jsonl").read_text().splitlines()
+    return [r for r in map(json.loads, lines) if r["channel"] == "C5"]
+
+
+def test_the_pour_succeeds_across_two_hosts_over_a_shaped_link_with_mtls_and_acl(hosts: TwoHosts) -> None:
+    report = pour(hosts)
+    assert report.done_as_asked, report.text
+    events = link.read_log(hosts.run_dir)
+    assert events[0]["event"] == "shaping" and events[0]["delay_ms"] == 20 and events[0]["loss_pct"] == 1
+    # C5 (a_ta ↔ ag_ex) stayed on the robot's host and still reached the brain's recorder
+    assert any(r["sender"] == "ag_ex" for r in c5_record(hosts.run_dir))
+    # access control holds across the mesh: a robot-side process as a_ta may put on a_ta's own
+    # C1 key, not on a_pl's C4 key (nor as a_pl); the brain's operator sees only the first
+    seen: list[str] = []
+    operator = open_client(hosts.endpoint)
+    operator.declare_subscriber("roco/fipa/**", lambda s: seen.append(str(s.key_expr)))
+    try:
+        _robot_put(hosts, "a_ta", ["roco/fipa/C4/a_pl/a_km", "roco/fipa/C5/ag_ex/a_ta", "roco/fipa/C1/a_ta/a_co"])
+        deadline = time.monotonic() + 10
+        while "roco/fipa/C1/a_ta/a_co" not in seen and time.monotonic() < deadline:
+            time.sleep(0.05)
+    finally:
+        operator.close()
+    assert "roco/fipa/C1/a_ta/a_co" in seen  # the last put: everything before it was routed first
+    assert not {"roco/fipa/C4/a_pl/a_km", "roco/fipa/C5/ag_ex/a_ta"} & set(seen), seen
+
+
+def _robot_put(h: TwoHosts, identity: str, keys_: list[str]) -> None:
+    """Put one (malformed) payload on each of ``keys_`` from a process on the robot's host,
+    authenticated as ``identity`` through the robot's router."""
+    assert h.pair is not None and h.fleet is not None and h.fleet.security is not None
+    code = (
+        "import sys\nfrom services.runtime.session import open_client\n"
+        f"s = open_client('tls/127.0.0.1:7447', identity={identity!r})\n"
+        f"for k in {keys_!r}:\n    s.put(k, b'x')\ns.close()\n"
+    )
+    env = dict(os.environ, ROCO_SECURITY=str(h.fleet.security), PYTHONPATH=str(Path.cwd()))
+    subprocess.run([*netns_exec(h.pair.netns("robot")), sys.executable, "-c", code], env=env, check=True, timeout=60)
+
+
+def test_a_ten_second_partition_mid_motion_is_ridden_out(hosts: TwoHosts) -> None:
+    cut: dict[str, float] = {}
+
+    def partition() -> None:
+        cut["t"] = time.time()
+        hosts.partition(10.0)
+
+    report = pour(hosts, {"take/reach": partition})
+    assert report.done_as_asked, report.text
+    events = link.read_log(hosts.run_dir)
+    kinds = [e["event"] for e in events]
+    assert kinds == ["shaping", "down", "up"], kinds
+    down, up = float(events[1]["t"]), float(events[2]["t"])  # type: ignore[arg-type]
+    assert 9.9 <= up - down <= 12.0
+    record = [json.loads(line) for line in (hosts.run_dir / "traffic.jsonl").read_text().splitlines()]
+    c5 = [r for r in record if r["channel"] == "C5"]
+    requests = [r for r in c5 if r["performative"] == "request"]
+    # a_ta and ag_ex share the robot's host: the robot went on with the steps it held, and what
+    # its agents said during the cut reached the brain's recorder only once the link was back
+    during = [r for r in record if r["sender"] in ("a_ta", "ag_ex") and down < r["t_sent"] < up - 0.2]
+    assert during, "nothing was said on the robot's host during the cut"
+    assert min(r["t"] for r in during) > up - 0.2, "a communicate crossed the cut link"
+    # … and nothing was lost: every publisher's sequence numbers are complete
+    sns: dict[str, set[int]] = collections.defaultdict(set)
+    for r in record:
+        if r["source"] is not None:
+            sns[r["source"]].add(r["sn"])
+    assert all(s == set(range(max(s) + 1)) for s in sns.values())
+    # nothing executed twice: one request and one result per conversation
+    asked = collections.Counter(r["conversation_id"] for r in requests)
+    answered = collections.Counter(
+        r["conversation_id"] for r in c5 if r["sender"] == "ag_ex" and r["performative"] in ("inform", "failure")
+    )
+    assert asked and max(asked.values()) == 1 and max(answered.values()) == 1, (asked, answered)
+    assert set(answered) == set(asked)
+
+
+def test_a_router_with_a_certificate_from_another_ca_cannot_mesh(tmp_path: Path) -> None:
+    """The brain's router and a robot router that meshes to it; the robot's router holds a
+    certificate of the deployment's CA (control: its client's liveliness token reaches the
+    brain's operator) or of another CA (refused: it never does)."""
+    spec = default_spec()
+    ours, theirs = tmp_path / "ours", tmp_path / "theirs"
+    pair = HostPair.create()
+    try:
+        for folder in (ours, theirs):
+            prepare(folder, spec, tls=True)
+            issue_router(folder, spec, "router_brain", [], [pair.link_addr("brain"), pair.uplink_addr])
+            issue_router(folder, spec, "router_robot", [], [pair.link_addr("robot")])
+        brain = _router(pair, "brain", ours, tmp_path)
+        endpoint = f"tls/{pair.uplink_addr}:7447"
+        register(endpoint, ours)
+        try:
+            assert _robot_token_seen(pair, ours, endpoint, tmp_path)
+            assert not _robot_token_seen(pair, theirs, endpoint, tmp_path)
+        finally:
+            register(endpoint, None)
+            brain.terminate()
+            brain.wait()
+    finally:
+        pair.destroy()
+
+
+def _router(pair: HostPair, host: str, security: Path, logs: Path, connect: str | None = None) -> subprocess.Popen[bytes]:
+    args = ["-m", "services.runtime.router", "--identity", f"router_{host}", "--listen", "tls/127.0.0.1:7447"]
+    if host == "brain":
+        args += ["--listen", f"tls/{pair.link_addr('brain')}:7447", "--listen", f"tls/{pair.uplink_addr}:7447"]
+    if connect:
+        args += ["--connect", connect]
+    env = dict(os.environ, ROCO_SECURITY=str(security))
+    out = (logs / f"router_{host}-{security.name}.log").open("ab")
+    return subprocess.Popen([*netns_exec(pair.netns(host)), sys.executable, *args], env=env, stdout=out, stderr=out)
+
+
+def _robot_token_seen(pair: HostPair, security: Path, endpoint: str, logs: Path) -> bool:
+    """Start a robot router with ``security``'s identity, an ag_ex-named client on it holding
+    its liveliness token; True when the brain's operator sees the token within 10 s."""
+    robot = _router(pair, "robot", security, logs, connect=f"tls/{pair.link_addr('brain')}:7447")
+    code = (
+        "import sys, time\nfrom services.runtime.session import open_client\n"
+        "s = open_client('tls/127.0.0.1:7447', identity='ag_ex', wait_for_router=True)\n"
+        "t = s.liveliness().declare_token('roco/alive/ag_ex')\nsys.stdin.read()\n"
+    )
+    env = dict(os.environ, ROCO_SECURITY=str(security))
+    client = subprocess.Popen([*netns_exec(pair.netns("robot")), sys.executable, "-c", code], env=env,
+                              stdin=subprocess.PIPE)  # fmt: skip
+    operator = _open_when_listening(endpoint)
+    seen = queue.SimpleQueue[bool]()
+    operator.liveliness().declare_subscriber(
+        "roco/alive/ag_ex", lambda s: seen.put(s.kind == zenoh.SampleKind.PUT), history=True
+    )
+    try:
+        return seen.get(timeout=10.0)
+    except queue.Empty:
+        return False
+    finally:
+        operator.close()
+        for p in (client, robot):
+            p.terminate()
+            p.wait()
+
+
+def _open_when_listening(endpoint: str, timeout: float = 10.0) -> zenoh.Session:
+    deadline = time.monotonic() + timeout
+    while True:
+        try:
+            return open_client(endpoint)
+        except zenoh.ZError:
+            if time.monotonic() > deadline:
+                raise
+            time.sleep(0.1)
