@@ -56,6 +56,8 @@ class TwoHosts:
     pair: HostPair | None = None
     fleet: Fleet | None = None
     how: str = ""
+    services: bool = True
+    """False: the routers (and relay) only, no recorder or agents (benchmarks of the link)."""
 
     @property
     def endpoint(self) -> str:
@@ -99,6 +101,8 @@ class TwoHosts:
                                              "--connect", f"tls/{brain_link}:{PORT}"])  # fmt: skip
         session = self._operator(timeout=10.0)
         try:
+            if not self.services:
+                return 0.0
             fleet.start_recorder()
             fleet.wait_alive(session, ["recorder"], timeout=60)
             fleet.start_agents()

@@ -172,14 +172,15 @@ class HostPair:
         """End what still runs in the namespaces (SIGTERM, SIGKILL after ``grace_s``), delete
         both (their veths go with them) and the uplink's root end, and the marker. Never
         raises for what is already gone."""
-        _end(self.pids(), grace_s)
+        end_processes(self.pids(), grace_s)
         for host in HOSTS:
             run_ip("netns", "del", self.netns(host), check=False)
         run_ip("link", "del", self.uplink_dev[0], check=False)
         self._marker().unlink(missing_ok=True)
 
 
-def _end(pids: list[int], grace_s: float) -> None:
+def end_processes(pids: list[int], grace_s: float) -> None:
+    """SIGTERM ``pids``, SIGKILL those still there after ``grace_s``."""
     for pid in pids:
         with _gone():
             os.kill(pid, signal.SIGTERM)
