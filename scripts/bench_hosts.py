@@ -23,11 +23,11 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from services.hosts.fleet import TwoHosts  # noqa: E402
-from services.hosts.link import Shaping  # noqa: E402
-from services.hosts.netns import netns_exec, unavailable  # noqa: E402
-from services.runtime.run_folder import new_run_dir  # noqa: E402
-from services.runtime.session import open_client  # noqa: E402
+from services.hosts.fleet import TwoHosts
+from services.hosts.link import Shaping
+from services.hosts.netns import netns_exec, unavailable
+from services.runtime.run_folder import new_run_dir
+from services.runtime.session import open_client
 
 SHAPED = Shaping(20, 5, 1)
 PLAIN = Shaping(0, 0, 0)
@@ -82,7 +82,7 @@ def pour_wall(root: Path, shaping: Shaping, partition_s: float | None) -> float:
     try:
         t0 = time.monotonic()
         cb = {"take/reach": lambda: h.partition(partition_s)} if partition_s else None
-        report = pour(h, cb)  # type: ignore[arg-type]
+        report = pour(h, cb)
         wall = time.monotonic() - t0
         if not report.done_as_asked:
             raise SystemExit(f"bench_hosts: the pour failed: {report.text}")
@@ -107,9 +107,17 @@ def main() -> int:
             p = [t[int(q * (len(t) - 1))] * 1e3 for q in (0.5, 0.9, 0.99)]
             print(f"round trip, link {name}: p50 {p[0]:.1f} ms, p90 {p[1]:.1f} ms, p99 {p[2]:.1f} ms, "
                   f"max {t[-1] * 1e3:.1f} ms ({len(t)} round trips)")  # fmt: skip
-        for name, shaping, cut in (("unshaped", PLAIN, None), ("shaped", SHAPED, None), ("shaped, 10 s partition", SHAPED, 10.0)):
+        for name, shaping, cut in (
+            ("unshaped", PLAIN, None),
+            ("shaped", SHAPED, None),
+            ("shaped, 10 s partition", SHAPED, 10.0),
+        ):
             walls = [pour_wall(root, shaping, cut) for _ in range(args.pours)]
-            print(f"pour, link {name}: {statistics.median(walls):.1f} s wall (" + ", ".join(f"{w:.1f}" for w in walls) + ")")
+            print(
+                f"pour, link {name}: {statistics.median(walls):.1f} s wall ("
+                + ", ".join(f"{w:.1f}" for w in walls)
+                + ")"
+            )
     return 0
 
 

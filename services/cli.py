@@ -31,8 +31,8 @@ import typer
 from services.deploy.cli import deploy_app
 from services.fault.cli import fault_app
 from services.fault.process import record_events
-from services.hosts.cli import hosts_app
 from services.fleet.launcher import AGENT_ORDER, Fleet, LaunchError
+from services.hosts.cli import hosts_app
 from services.runtime import keys
 from services.runtime.human import FINAL_REPORTS, HumanInput, HumanReport
 from services.runtime.run_folder import RunInfo, new_run_dir, write_run_info

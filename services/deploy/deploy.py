@@ -20,7 +20,9 @@ def write_acl(out: Path, spec: SystemSpec, *, tls: bool) -> None:
     """Write ``out/acl.json`` for the identities issued in ``out``; ``tls``: subjects are
     matched by certificate common name as well as user name."""
     issued = certs.identities(out)
-    acl = with_routers(acl_config(spec, tls=tls, only=set(issued)), [n for n in issued if n.startswith(ROUTER_PREFIX)])
+    acl = with_routers(
+        acl_config(spec, tls=tls, only=set(issued)), [n for n in issued if n.startswith(ROUTER_PREFIX)]
+    )
     tmp = out / (certs.ACL_FILE + ".tmp")
     tmp.write_text(json.dumps(acl, indent=1))
     os.replace(tmp, out / certs.ACL_FILE)
@@ -62,7 +64,9 @@ def issue_identity(out: Path, spec: SystemSpec, name: str, days: int = 365) -> c
     return ident
 
 
-def issue_router(out: Path, spec: SystemSpec, name: str, names: list[str], ips: list[str], days: int = 365) -> certs.Identity:
+def issue_router(
+    out: Path, spec: SystemSpec, name: str, names: list[str], ips: list[str], days: int = 365
+) -> certs.Identity:
     """(Re-)issue meshed router ``name`` (``router_<host>``) reachable at ``names``/``ips`` in
     ``out`` and rewrite the ACL so that the routers trust one another (docs/deploy.md)."""
     ident = certs.issue_router_identity(out, name, names, ips, days)

@@ -77,10 +77,10 @@ def up(
 ) -> None:
     """Make the brain and robot hosts, shape the link, start the fleet across them (mutual TLS
     between the routers, access control on); it keeps running until `roco hosts down`."""
+    from services.fleet.launcher import LaunchError
     from services.hosts.fleet import TwoHosts
     from services.hosts.link import Shaping
     from services.hosts.netns import HostsError
-    from services.fleet.launcher import LaunchError
     from services.runtime.run_folder import RunInfo, new_run_dir, write_run_info
 
     if (runs_dir / HOSTS_FILE).exists() or (runs_dir / FLEET_FILE).exists():
@@ -97,14 +97,17 @@ def up(
         raise _fail(str(exc), 1) from None
     assert hosts.pair is not None and hosts.fleet is not None
     pids = hosts.fleet.pids()
-    write_run_info(run_dir, RunInfo(started=time.time(), router=hosts.endpoint, processes=pids, realtime=realtime))
+    write_run_info(
+        run_dir, RunInfo(started=time.time(), router=hosts.endpoint, processes=pids, realtime=realtime)
+    )
     p = hosts.pair
     state = HostsState(p.tag, p.subnet, p.maker, str(run_dir), hosts.endpoint, str(shaping), hosts.how)
     (runs_dir / HOSTS_FILE).write_bytes(msgspec.json.encode(state))
     fleet = {"endpoint": hosts.endpoint, "run_dir": str(run_dir), "pids": pids}
     (runs_dir / FLEET_FILE).write_text(json.dumps(fleet))
     typer.echo(
-        f"roco: two hosts up in {waited:.1f} s: brain {p.netns('brain')} (router, recorder, a_km, a_pl, a_co, a_hi), "
+        f"roco: two hosts up in {waited:.1f} s: "
+        f"brain {p.netns('brain')} (router, recorder, a_km, a_pl, a_co, a_hi), "
         f"robot {p.netns('robot')} (router, ag_ex, a_ta); link {shaping} ({hosts.how}); "
         f"operator endpoint {hosts.endpoint}; run folder {run_dir}"
     )
@@ -193,4 +196,3 @@ def clean() -> None:
         raise _fail(why)
     removed = sweep()
     typer.echo(f"roco: removed {len(removed)} host pair(s){': ' + ', '.join(removed) if removed else ''}")
-

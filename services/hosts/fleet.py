@@ -77,7 +77,10 @@ class TwoHosts:
     def _start(self, timeout: float) -> float:
         self.pair = pair = HostPair.create()
         brain, robot = pair.netns("brain"), pair.netns("robot")
-        wrap = {n: netns_exec(robot if host_of(n) == "robot" else brain) for n in (*AGENT_ORDER, "recorder", "relay")}
+        wrap = {
+            n: netns_exec(robot if host_of(n) == "robot" else brain)
+            for n in (*AGENT_ORDER, "recorder", "relay")
+        }
         wrap["router_brain"], wrap["router_robot"] = netns_exec(brain), netns_exec(robot)
         local = f"tls/127.0.0.1:{PORT}"
         self.fleet = fleet = Fleet(self.run_dir, local, env=self.env, acl=True, tls=True, wrap=wrap)
@@ -92,11 +95,20 @@ class TwoHosts:
         link.record_shaping(self.run_dir, self.shaping, self.how)
         router = ["-m", "services.runtime.router", "--lease-ms", str(self.lease_ms)]
         listen = [local, self.endpoint] + ([f"tls/{brain_link}:{PORT}"] if netem else [])
-        fleet.start_service("router_brain", [*router, "--identity", "router_brain", *_each("--listen", listen)])
+        fleet.start_service(
+            "router_brain", [*router, "--identity", "router_brain", *_each("--listen", listen)]
+        )
         if not netem:
-            fleet.start_service("relay", ["-m", "services.hosts.relay", "--listen", f"{brain_link}:{PORT}",
-                                          "--to", f"127.0.0.1:{PORT}", "--delay-ms", str(self.shaping.delay_ms),
-                                          "--jitter-ms", str(self.shaping.jitter_ms)])  # fmt: skip
+            delay = ["--delay-ms", str(self.shaping.delay_ms), "--jitter-ms", str(self.shaping.jitter_ms)]
+            relay = [
+                "-m",
+                "services.hosts.relay",
+                "--listen",
+                f"{brain_link}:{PORT}",
+                "--to",
+                f"127.0.0.1:{PORT}",
+            ]
+            fleet.start_service("relay", [*relay, *delay])
         fleet.start_service("router_robot", [*router, "--identity", "router_robot", "--listen", local,
                                              "--connect", f"tls/{brain_link}:{PORT}"])  # fmt: skip
         session = self._operator(timeout=10.0)

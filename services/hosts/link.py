@@ -70,7 +70,10 @@ def netem_available(pair: HostPair) -> bool:
     """Whether this kernel has ``sch_netem`` (tried on the robot's end of the link)."""
     dev, ns = pair.link_dev["robot"], pair.netns("robot")
     tc = ["ip", "netns", "exec", ns, "tc", "qdisc"]
-    if shutil.which("tc") is None or _run([*tc, "add", "dev", dev, "root", "netem", "delay", "0ms"], check=False).returncode:
+    if (
+        shutil.which("tc") is None
+        or _run([*tc, "add", "dev", dev, "root", "netem", "delay", "0ms"], check=False).returncode
+    ):
         return False
     _run([*tc, "del", "dev", dev, "root"], check=False)
     return True
@@ -81,19 +84,21 @@ def shape(pair: HostPair, shaping: Shaping, *, netem: bool) -> str:
     only the loss (nftables; the caller runs the relay for the delay). Returns how, in words."""
     if netem:
         for host in ("brain", "robot"):
-            _run(["ip", "netns", "exec", pair.netns(host), "tc", "qdisc", "replace", "dev", pair.link_dev[host],
-                  "root", "netem", "delay", f"{shaping.delay_ms}ms", f"{shaping.jitter_ms}ms",
+            ns, dev = pair.netns(host), pair.link_dev[host]
+            delay = ["delay", f"{shaping.delay_ms}ms", f"{shaping.jitter_ms}ms"]
+            _run(["ip", "netns", "exec", ns, "tc", "qdisc", "replace", "dev", dev, "root", "netem", *delay,
                   "loss", f"{shaping.loss_pct}%"])  # fmt: skip
         return "tc netem on both ends of the link"
     dev = pair.link_dev["robot"]
     per_mille = round(shaping.loss_pct * 10)
     _nft(pair, f"table inet {SHAPE_TABLE}\ndelete table inet {SHAPE_TABLE}\n", check=False)
     if per_mille:
+        lose = f"numgen random mod 1000 < {per_mille}"
         _nft(
             pair,
             f"table inet {SHAPE_TABLE} {{\n"
-            f" chain in {{ type filter hook input priority 0; iifname {dev} numgen random mod 1000 < {per_mille} drop; }}\n"
-            f" chain out {{ type filter hook output priority 0; oifname {dev} numgen random mod 1000 < {per_mille} drop; }}\n"
+            f" chain in {{ type filter hook input priority 0; iifname {dev} {lose} drop; }}\n"
+            f" chain out {{ type filter hook output priority 0; oifname {dev} {lose} drop; }}\n"
             "}\n",
         )
     return "loss by nftables (numgen) on the link, delay by a relay between the routers (no sch_netem here)"
@@ -117,7 +122,9 @@ def mend(pair: HostPair) -> None:
 
 
 def is_cut(pair: HostPair) -> bool:
-    done = _run(["ip", "netns", "exec", pair.netns("robot"), "nft", "list", "table", "inet", CUT_TABLE], check=False)
+    done = _run(
+        ["ip", "netns", "exec", pair.netns("robot"), "nft", "list", "table", "inet", CUT_TABLE], check=False
+    )
     return done.returncode == 0
 
 

@@ -150,8 +150,9 @@ class HostPair:
         run_ip("link", "add", up_root, "type", "veth", "peer", "name", up_brain, "netns", brain)
         run_ip("addr", "add", f"{self.operator_addr}/30", "dev", up_root)
         run_ip("addr", "add", f"{self.uplink_addr}/30", "dev", up_brain, netns=brain)
-        for dev, ns in ((lb, brain), (lr, robot), (up_brain, brain), (up_root, None)):
+        for dev, ns in ((lb, brain), (lr, robot), (up_brain, brain)):
             run_ip("link", "set", dev, "up", netns=ns)
+        run_ip("link", "set", up_root, "up")
 
     def _marker(self) -> Path:
         return STATE_DIR / f"{self.tag}.json"

@@ -49,7 +49,9 @@ async def _pump(
     try:
         while True:
             data = await reader.read(CHUNK)
-            due = max(last, time.monotonic() + max(0.0, random.uniform(delay_s - jitter_s, delay_s + jitter_s)))
+            due = max(
+                last, time.monotonic() + max(0.0, random.uniform(delay_s - jitter_s, delay_s + jitter_s))
+            )
             last = due
             await held.put((due, data))
             if not data:
@@ -76,7 +78,11 @@ async def _serve(listen: tuple[str, int], to: tuple[str, int], delay_s: float, j
     loop = asyncio.get_running_loop()
     for sig in (signal.SIGTERM, signal.SIGINT):
         loop.add_signal_handler(sig, stop.set)
-    print(f"roco relay {listen[0]}:{listen[1]} → {to[0]}:{to[1]}, delay {delay_s * 1e3:.0f} ± {jitter_s * 1e3:.0f} ms", flush=True)
+    print(
+        f"roco relay {listen[0]}:{listen[1]} → {to[0]}:{to[1]}, "
+        f"delay {delay_s * 1e3:.0f} ± {jitter_s * 1e3:.0f} ms",
+        flush=True,
+    )
     async with server:
         await stop.wait()
 

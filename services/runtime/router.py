@@ -28,8 +28,11 @@ from services.runtime.transport import router_config
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="roco-router")
     parser.add_argument("--listen", action="append", default=None)
-    parser.add_argument("--identity", default=os.environ.get("ROCO_ROUTER_IDENTITY") or None,
-                        help="a meshed router's identity in the credentials folder (ROCO_ROUTER_IDENTITY)")
+    parser.add_argument(
+        "--identity",
+        default=os.environ.get("ROCO_ROUTER_IDENTITY") or None,
+        help="a meshed router's identity in the credentials folder (ROCO_ROUTER_IDENTITY)",
+    )
     parser.add_argument("--lease-ms", type=int, default=None, help="Zenoh's transport lease (default 10000)")
     parser.add_argument("--connect", action="append", default=None)
     args = parser.parse_args(argv)

@@ -93,7 +93,9 @@ def test_the_pour_succeeds_across_two_hosts_over_a_shaped_link_with_mtls_and_acl
     operator = open_client(hosts.endpoint)
     operator.declare_subscriber("roco/fipa/**", lambda s: seen.append(str(s.key_expr)))
     try:
-        _robot_put(hosts, "a_ta", ["roco/fipa/C4/a_pl/a_km", "roco/fipa/C5/ag_ex/a_ta", "roco/fipa/C1/a_ta/a_co"])
+        _robot_put(
+            hosts, "a_ta", ["roco/fipa/C4/a_pl/a_km", "roco/fipa/C5/ag_ex/a_ta", "roco/fipa/C1/a_ta/a_co"]
+        )
         deadline = time.monotonic() + 10
         while "roco/fipa/C1/a_ta/a_co" not in seen and time.monotonic() < deadline:
             time.sleep(0.05)
@@ -113,7 +115,9 @@ def _robot_put(h: TwoHosts, identity: str, keys_: list[str]) -> None:
         f"for k in {keys_!r}:\n    s.put(k, b'x')\ns.close()\n"
     )
     env = dict(os.environ, ROCO_SECURITY=str(h.fleet.security), PYTHONPATH=str(Path.cwd()))
-    subprocess.run([*netns_exec(h.pair.netns("robot")), sys.executable, "-c", code], env=env, check=True, timeout=60)
+    subprocess.run(
+        [*netns_exec(h.pair.netns("robot")), sys.executable, "-c", code], env=env, check=True, timeout=60
+    )
 
 
 def test_a_ten_second_partition_mid_motion_is_ridden_out(hosts: TwoHosts) -> None:
@@ -147,7 +151,9 @@ def test_a_ten_second_partition_mid_motion_is_ridden_out(hosts: TwoHosts) -> Non
     # nothing executed twice: one request and one result per conversation
     asked = collections.Counter(r["conversation_id"] for r in requests)
     answered = collections.Counter(
-        r["conversation_id"] for r in c5 if r["sender"] == "ag_ex" and r["performative"] in ("inform", "failure")
+        r["conversation_id"]
+        for r in c5
+        if r["sender"] == "ag_ex" and r["performative"] in ("inform", "failure")
     )
     assert asked and max(asked.values()) == 1 and max(answered.values()) == 1, (asked, answered)
     assert set(answered) == set(asked)
@@ -179,15 +185,24 @@ def test_a_router_with_a_certificate_from_another_ca_cannot_mesh(tmp_path: Path)
         pair.destroy()
 
 
-def _router(pair: HostPair, host: str, security: Path, logs: Path, connect: str | None = None) -> subprocess.Popen[bytes]:
+def _router(
+    pair: HostPair, host: str, security: Path, logs: Path, connect: str | None = None
+) -> subprocess.Popen[bytes]:
     args = ["-m", "services.runtime.router", "--identity", f"router_{host}", "--listen", "tls/127.0.0.1:7447"]
     if host == "brain":
-        args += ["--listen", f"tls/{pair.link_addr('brain')}:7447", "--listen", f"tls/{pair.uplink_addr}:7447"]
+        args += [
+            "--listen",
+            f"tls/{pair.link_addr('brain')}:7447",
+            "--listen",
+            f"tls/{pair.uplink_addr}:7447",
+        ]
     if connect:
         args += ["--connect", connect]
     env = dict(os.environ, ROCO_SECURITY=str(security))
     out = (logs / f"router_{host}-{security.name}.log").open("ab")
-    return subprocess.Popen([*netns_exec(pair.netns(host)), sys.executable, *args], env=env, stdout=out, stderr=out)
+    return subprocess.Popen(
+        [*netns_exec(pair.netns(host)), sys.executable, *args], env=env, stdout=out, stderr=out
+    )
 
 
 def _robot_token_seen(pair: HostPair, security: Path, endpoint: str, logs: Path) -> bool:
