@@ -54,14 +54,14 @@ def hosts(tmp_path: Path) -> Iterator[TwoHosts]:
 
 def pour(h: TwoHosts, on_progress: dict[str, object] | None = None, timeout: float = 600.0) -> HumanReport:
     """Say the pour to the brain's a_hi from the operator's side of the uplink; return the
-    final report. ``on_progress``: {text fragment: callable} run once at the first progress
-    report containing it."""
+    final report. ``on_progress``: {text fragment: callable}, each run at the first progress
+    report containing its fragment and then taken out of the dict."""
     session = open_client(h.endpoint)
     reports: queue.SimpleQueue[HumanReport] = queue.SimpleQueue()
     dec = msgspec.json.Decoder(HumanReport)
     session.declare_subscriber(keys.HUMAN_OUT, lambda s: reports.put(dec.decode(s.payload.to_bytes())))
     rid = uuid.uuid4().hex[:8]
-    pending = dict(on_progress or {})
+    pending = on_progress if on_progress is not None else {}
     try:
         session.put(keys.HUMAN_IN, msgspec.json.encode(HumanInput(text=POUR, request_id=rid)))
         deadline = time.monotonic() + timeout
@@ -120,28 +120,30 @@ def _robot_put(h: TwoHosts, identity: str, keys_: list[str]) -> None:
     )
 
 
-def test_a_ten_second_partition_mid_motion_is_ridden_out(hosts: TwoHosts) -> None:
-    cut: dict[str, float] = {}
-
-    def partition() -> None:
-        cut["t"] = time.time()
-        hosts.partition(10.0)
-
-    report = pour(hosts, {"take/reach": partition})
+def test_ten_second_partitions_during_a_motion_and_during_planning_are_ridden_out(hosts: TwoHosts) -> None:
+    """The link cut for 10 s at the first motion (a_ta's reach for the jar), and again when
+    a_co asks a_pl for plan #3 (which can only happen once the first cut has healed: a_co
+    learns that plan #2 ended from a_ta, across the link)."""
+    cuts = {"take/reach": lambda: hosts.partition(10.0), "plan #3 requested": lambda: hosts.partition(10.0)}
+    report = pour(hosts, cuts)
     assert report.done_as_asked, report.text
+    assert not cuts, f"not cut at: {list(cuts)}"
     events = link.read_log(hosts.run_dir)
     kinds = [e["event"] for e in events]
-    assert kinds == ["shaping", "down", "up"], kinds
-    down, up = float(events[1]["t"]), float(events[2]["t"])  # type: ignore[arg-type]
-    assert 9.9 <= up - down <= 12.0
+    assert kinds == ["shaping", "down", "up", "down", "up"], kinds
+    times = [float(e["t"]) for e in events]  # type: ignore[arg-type]
+    windows = [(times[1], times[2]), (times[3], times[4])]
+    assert all(9.9 <= up - down <= 12.0 for down, up in windows), windows
     record = [json.loads(line) for line in (hosts.run_dir / "traffic.jsonl").read_text().splitlines()]
     c5 = [r for r in record if r["channel"] == "C5"]
     requests = [r for r in c5 if r["performative"] == "request"]
     # a_ta and ag_ex share the robot's host: the robot went on with the steps it held, and what
     # its agents said during the cut reached the brain's recorder only once the link was back
-    during = [r for r in record if r["sender"] in ("a_ta", "ag_ex") and down < r["t_sent"] < up - 0.2]
-    assert during, "nothing was said on the robot's host during the cut"
-    assert min(r["t"] for r in during) > up - 0.2, "a communicate crossed the cut link"
+    robot = [r for r in record if r["sender"] in ("a_ta", "ag_ex")]
+    for k, (down, up) in enumerate(windows):
+        during = [r for r in robot if down < r["t_sent"] < up - 0.2]
+        assert during or k, "nothing was said on the robot's host during the cut at the motion"
+        assert all(r["t"] > up - 0.2 for r in during), "a communicate crossed the cut link"
     # … and nothing was lost: every publisher's sequence numbers are complete
     sns: dict[str, set[int]] = collections.defaultdict(set)
     for r in record:
