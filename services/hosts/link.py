@@ -26,10 +26,8 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 
 from services.hosts.netns import HostPair, HostsError
+from services.recorder.record import LINK_JSONL
 
-LINK_LOG = "link.jsonl"
-"""The run folder's record of the link: one JSON object per line, ``{"t": POSIX s, "event":
-"shaping" | "down" | "up", …}``."""
 SHAPE_TABLE = "roco_shape"
 CUT_TABLE = "roco_cut"
 
@@ -130,7 +128,7 @@ def is_cut(pair: HostPair) -> bool:
 
 def record(run_dir: Path, event: str, **fields: object) -> None:
     """Append one event to ``run_dir/link.jsonl``."""
-    with (run_dir / LINK_LOG).open("a") as f:
+    with (run_dir / LINK_JSONL).open("a") as f:
         f.write(json.dumps({"t": time.time(), "event": event, **fields}) + "\n")
 
 
@@ -157,20 +155,3 @@ def heal(pair: HostPair, run_dir: Path) -> None:
     if is_cut(pair):
         mend(pair)
         record(run_dir, "up")
-
-
-def read_log(run_dir: Path) -> list[dict[str, object]]:
-    """The events of ``run_dir/link.jsonl`` (none when the run had no link)."""
-    try:
-        lines = (run_dir / LINK_LOG).read_text().splitlines()
-    except OSError:
-        return []
-    out = []
-    for line in lines:
-        try:
-            item = json.loads(line)
-        except ValueError:
-            continue
-        if isinstance(item, dict):
-            out.append(item)
-    return out

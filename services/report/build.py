@@ -6,8 +6,7 @@ from pathlib import Path
 
 import msgspec
 
-from services.hosts.link import read_log as read_link_log
-from services.recorder.record import FAULTS_JSONL, read_fault_events
+from services.recorder.record import FAULTS_JSONL, read_fault_events, read_link_events
 from services.report.content import sphere_share
 from services.report.coordination import commands, coordination
 from services.report.figures import write_figures
@@ -53,7 +52,8 @@ def _assemble(run: RunData, container: str = "bowl") -> Report:
         channels=channel_stats(messages),
         matrix=agent_matrix(messages),
         events=sorted(
-            timeline(messages, plans, command, outcome) + link_events(read_link_log(Path(run_dir)), run.t0),
+            timeline(messages, plans, command, outcome)
+            + link_events(read_link_events(Path(run_dir)), run.t0),
             key=lambda e: e.start,
         ),
         plans=plans,

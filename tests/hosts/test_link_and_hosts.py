@@ -17,6 +17,7 @@ from services.cli import app
 from services.fleet.launcher import free_port
 from services.hosts import link
 from services.hosts.netns import HostPair, run_ip, sweep, unavailable
+from services.recorder.record import read_link_events
 from services.report.timeline import link_events
 
 needs_netns = pytest.mark.skipif(unavailable() is not None, reason=f"two hosts: {unavailable()}")
@@ -109,7 +110,7 @@ def test_a_pair_left_by_a_killed_maker_is_swept_and_a_cut_is_undone(tmp_path: Pa
         assert "timed out" in subprocess.run(ping, capture_output=True, text=True).stderr.lower()
         link.heal(pair, tmp_path)
         assert not link.is_cut(pair)
-        assert [e["event"] for e in link.read_log(tmp_path)] == ["down", "up"]
+        assert [e["event"] for e in read_link_events(tmp_path)] == ["down", "up"]
     finally:
         pair.destroy()
     assert not pair.exists()

@@ -23,10 +23,10 @@ import pytest
 import zenoh
 
 from services.deploy.deploy import issue_router, prepare
-from services.hosts import link
 from services.hosts.fleet import TwoHosts
 from services.hosts.link import Shaping
 from services.hosts.netns import HostPair, netns_exec, unavailable
+from services.recorder.record import read_link_events
 from services.runtime import keys
 from services.runtime.human import FINAL_REPORTS, HumanInput, HumanReport
 from services.runtime.run_folder import new_run_dir
@@ -83,7 +83,7 @@ def c5_record(run_dir: Path) -> list[dict[str, object]]:
 def test_the_pour_succeeds_across_two_hosts_over_a_shaped_link_with_mtls_and_acl(hosts: TwoHosts) -> None:
     report = pour(hosts)
     assert report.done_as_asked, report.text
-    events = link.read_log(hosts.run_dir)
+    events = read_link_events(hosts.run_dir)
     assert events[0]["event"] == "shaping" and events[0]["delay_ms"] == 20 and events[0]["loss_pct"] == 1
     # C5 (a_ta ↔ ag_ex) stayed on the robot's host and still reached the brain's recorder
     assert any(r["sender"] == "ag_ex" for r in c5_record(hosts.run_dir))
@@ -128,7 +128,7 @@ def test_ten_second_partitions_during_a_motion_and_during_planning_are_ridden_ou
     report = pour(hosts, cuts)
     assert report.done_as_asked, report.text
     assert not cuts, f"not cut at: {list(cuts)}"
-    events = link.read_log(hosts.run_dir)
+    events = read_link_events(hosts.run_dir)
     kinds = [e["event"] for e in events]
     assert kinds == ["shaping", "down", "up", "down", "up"], kinds
     times = [float(e["t"]) for e in events]  # type: ignore[arg-type]
