@@ -8,6 +8,7 @@ be made."""
 from __future__ import annotations
 
 import collections
+import contextlib
 import json
 import os
 import queue
@@ -17,6 +18,7 @@ import time
 import uuid
 from collections.abc import Iterator
 from pathlib import Path
+from typing import Any
 
 import msgspec
 import pytest
@@ -125,7 +127,9 @@ def test_ten_second_partitions_during_a_motion_and_during_planning_are_ridden_ou
     a_co asks a_pl for plan #3 (which can only happen once the first cut has healed: a_co
     learns that plan #2 ended from a_ta, across the link)."""
     cuts = {"take/reach": lambda: hosts.partition(10.0), "plan #3 requested": lambda: hosts.partition(10.0)}
-    report = pour(hosts, cuts)
+    states = hosts.run_dir / "robot_states.jsonl"
+    with _robot_observer(hosts, states):
+        report = pour(hosts, cuts)
     assert report.done_as_asked, report.text
     assert not cuts, f"not cut at: {list(cuts)}"
     events = read_link_events(hosts.run_dir)
@@ -144,6 +148,13 @@ def test_ten_second_partitions_during_a_motion_and_during_planning_are_ridden_ou
         during = [r for r in robot if down < r["t_sent"] < up - 0.2]
         assert during or k, "nothing was said on the robot's host during the cut at the motion"
         assert all(r["t"] > up - 0.2 for r in during), "a communicate crossed the cut link"
+    # what the robot's host saw of ag_ex (its state at 20 Hz): during the cut at the motion it
+    # went on moving; during the cut while the brain planned it had nothing to do and held
+    # position (joint impedance on its last target)
+    seen = [json.loads(line) for line in states.read_text().splitlines()]
+    moved = [_joint_travel(seen, down, up) for down, up in windows]
+    assert moved[0] > 0.05, moved
+    assert moved[1] < 0.01, moved
     # … and nothing was lost: every publisher's sequence numbers are complete
     sns: dict[str, set[int]] = collections.defaultdict(set)
     for r in record:
@@ -159,6 +170,47 @@ def test_ten_second_partitions_during_a_motion_and_during_planning_are_ridden_ou
     )
     assert asked and max(asked.values()) == 1 and max(answered.values()) == 1, (asked, answered)
     assert set(answered) == set(asked)
+
+
+OBSERVER = """
+import json, sys, time
+import msgspec
+from services.runtime.session import open_client
+from velma.executor.state import RobotSnapshot
+out = open(sys.argv[1], "a", buffering=1)
+dec = msgspec.msgpack.Decoder(RobotSnapshot)
+def on(sample):
+    snap = dec.decode(sample.payload.to_bytes())
+    out.write(json.dumps({"t": time.time(), "joints": snap.joints}) + "\\n")
+s = open_client("tls/127.0.0.1:7447", identity="operator", wait_for_router=True)
+s.declare_subscriber("roco/state/ag_ex", on)
+print("ready", flush=True)
+sys.stdin.read()
+"""
+
+
+@contextlib.contextmanager
+def _robot_observer(h: TwoHosts, out: Path) -> Iterator[None]:
+    """A process on the robot's host, the operator's identity, writing each of ag_ex's state
+    publications to ``out`` (JSON lines: time, joints in rad) — what the brain cannot see
+    while the link is cut."""
+    assert h.pair is not None and h.fleet is not None and h.fleet.security is not None
+    env = dict(os.environ, ROCO_SECURITY=str(h.fleet.security))
+    cmd = [*netns_exec(h.pair.netns("robot")), sys.executable, "-c", OBSERVER, str(out)]
+    proc = subprocess.Popen(cmd, env=env, stdin=subprocess.PIPE, stdout=subprocess.PIPE)
+    try:
+        assert proc.stdout is not None and proc.stdout.readline().strip() == b"ready"
+        yield
+    finally:
+        proc.terminate()
+        proc.wait()
+
+
+def _joint_travel(seen: list[dict[str, Any]], t0: float, t1: float) -> float:
+    """The largest range (rad) any joint covered among the states seen between ``t0`` and ``t1``."""
+    inside = [s["joints"] for s in seen if t0 <= s["t"] <= t1]
+    assert len(inside) > 20, f"{len(inside)} states seen between the cut's ends"
+    return max(max(j[n] for j in inside) - min(j[n] for j in inside) for n in inside[0])
 
 
 def test_a_router_with_a_certificate_from_another_ca_cannot_mesh(tmp_path: Path) -> None:
