@@ -95,7 +95,7 @@ def revoke(
     typer.echo(f"roco: revoked {name}; restart the router so that it reads {out}/acl.json and passwords.txt")
 
 
-@deploy_app.command()
+@deploy_app.command(short_help="(Re-)issue a meshed router's identity (mutual TLS between routers).")
 def router(
     out: Annotated[Path, typer.Argument(help="a credentials folder made by 'roco deploy certs'")],
     name: Annotated[str, typer.Argument(help="the router's identity: router_<host>, e.g. router_robot")],

@@ -28,6 +28,7 @@ hosts_app = typer.Typer(
     no_args_is_help=True,
     rich_markup_mode="markdown",
     help="The fleet on two hosts made on this machine: brain and robot, a shaped link (docs/deploy.md).",
+    short_help="The fleet on two hosts of this machine, joined by a shaped link.",
 )
 HOSTS_FILE = ".hosts.json"
 FLEET_FILE = ".fleet.json"  # services/cli.py: FLEET_FILE
@@ -67,7 +68,7 @@ def _pair(state: HostsState):  # type: ignore[no-untyped-def]
     return HostPair(state.tag, state.subnet, state.maker)
 
 
-@hosts_app.command()
+@hosts_app.command(short_help="Make brain and robot, shape the link, start the fleet across them.")
 def up(
     delay_ms: Annotated[float, typer.Option(min=0, help="one-way delay of the link, each direction")] = 20.0,
     jitter_ms: Annotated[float, typer.Option(min=0, help="± this much, uniform")] = 5.0,
@@ -113,7 +114,7 @@ def up(
     )
 
 
-@hosts_app.command()
+@hosts_app.command(short_help="Cut the link (for SECONDS, else until heal).")
 def partition(
     seconds: Annotated[float | None, typer.Argument(min=0.1, help="mend the link after this long")] = None,
     runs_dir: RunsDir = Path("runs"),
@@ -139,7 +140,7 @@ def partition(
     typer.echo("roco: link up")
 
 
-@hosts_app.command()
+@hosts_app.command(short_help="Mend the link.")
 def heal(runs_dir: RunsDir = Path("runs")) -> None:
     """Mend the link."""
     from services.hosts import link
@@ -149,7 +150,7 @@ def heal(runs_dir: RunsDir = Path("runs")) -> None:
     typer.echo("roco: link up")
 
 
-@hosts_app.command()
+@hosts_app.command(short_help="The hosts, their addresses, the link's shaping and state.")
 def status(runs_dir: RunsDir = Path("runs")) -> None:
     """The hosts, their addresses, the link's shaping and whether it is cut."""
     from services.hosts import link
@@ -164,7 +165,7 @@ def status(runs_dir: RunsDir = Path("runs")) -> None:
     typer.echo(f"operator endpoint {state.endpoint}; run folder {state.run_dir}")
 
 
-@hosts_app.command()
+@hosts_app.command(short_help="Stop the fleet and remove both hosts.")
 def down(runs_dir: RunsDir = Path("runs")) -> None:
     """Stop the fleet (only its processes) and remove both namespaces and their links."""
     from services.hosts.netns import end_processes
@@ -185,7 +186,7 @@ def down(runs_dir: RunsDir = Path("runs")) -> None:
     typer.echo(f"roco: two hosts down; run folder {state.run_dir}")
 
 
-@hosts_app.command()
+@hosts_app.command(short_help="Remove the host pairs that killed runs left behind.")
 def clean() -> None:
     """Remove the host pairs that earlier runs left behind (their maker gone, nothing running
     in them)."""
