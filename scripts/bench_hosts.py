@@ -19,6 +19,7 @@ import subprocess
 import sys
 import tempfile
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
@@ -74,15 +75,14 @@ def round_trips(root: Path, shaping: Shaping, n: int) -> list[float]:
 
 
 def pour_wall(root: Path, shaping: Shaping, partition_s: float | None) -> float:
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
-    from integration.test_two_hosts import ENV, pour
-
-    h = TwoHosts(new_run_dir(root), shaping, env=ENV)
+    h = TwoHosts(new_run_dir(root), shaping, env={"ROCO_REALTIME": "0", "ROCO_RERUN": "0"})
     h.start()
     try:
         t0 = time.monotonic()
-        cb = {"take/reach": lambda: h.partition(partition_s)} if partition_s else None
-        report = pour(h, cb)
+        cut: dict[str, Callable[[], object]] | None = None
+        if partition_s:
+            cut = {"take/reach": lambda: h.partition(partition_s)}
+        report = h.say("pour the jar into the bowl", cut)
         wall = time.monotonic() - t0
         if not report.done_as_asked:
             raise SystemExit(f"bench_hosts: the pour failed: {report.text}")

@@ -15,9 +15,14 @@ the uplink at :attr:`TwoHosts.endpoint`.
 from __future__ import annotations
 
 import os
+import queue
+import time
+import uuid
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import msgspec
 import zenoh
 
 from services.deploy.deploy import issue_router
@@ -25,6 +30,8 @@ from services.fleet.launcher import AGENT_ORDER, Fleet, LaunchError
 from services.hosts import link
 from services.hosts.link import Shaping
 from services.hosts.netns import HostPair, netns_exec
+from services.runtime import keys
+from services.runtime.human import FINAL_REPORTS, HumanInput, HumanReport
 from services.runtime.session import open_client
 from services.security.context import register
 from services.spec.model import DEFAULT_SPEC, load
@@ -124,8 +131,6 @@ class TwoHosts:
 
     def _operator(self, timeout: float) -> zenoh.Session:
         """An operator session to the brain's router, retried until it listens."""
-        import time
-
         assert self.fleet is not None
         deadline = time.monotonic() + timeout
         while True:
@@ -136,6 +141,31 @@ class TwoHosts:
                 if time.monotonic() > deadline:
                     raise LaunchError(f"the brain's router did not answer at {self.endpoint}") from None
                 time.sleep(0.1)
+
+    def say(
+        self, text: str, on_progress: dict[str, Callable[[], object]] | None = None, timeout: float = 600.0
+    ) -> HumanReport:
+        """Say ``text`` to the brain's a_hi from the operator's side of the uplink (as ``roco
+        send`` does) and return a_hi's final report. ``on_progress``: {text fragment:
+        callable}, each called at the first report containing its fragment and then taken out
+        of the dict (e.g. a partition at a step). Raises queue.Empty after ``timeout`` s."""
+        session = open_client(self.endpoint)
+        reports: queue.SimpleQueue[HumanReport] = queue.SimpleQueue()
+        dec = msgspec.json.Decoder(HumanReport)
+        session.declare_subscriber(keys.HUMAN_OUT, lambda s: reports.put(dec.decode(s.payload.to_bytes())))
+        rid = uuid.uuid4().hex[:8]
+        pending = on_progress if on_progress is not None else {}
+        try:
+            session.put(keys.HUMAN_IN, msgspec.json.encode(HumanInput(text=text, request_id=rid)))
+            deadline = time.monotonic() + timeout
+            while True:
+                report = reports.get(timeout=max(0.1, deadline - time.monotonic()))
+                for fragment in [f for f in pending if f in report.text]:
+                    pending.pop(fragment)()
+                if report.request_id == rid and report.kind in FINAL_REPORTS:
+                    return report
+        finally:
+            session.close()
 
     def partition(self, seconds: float | None) -> None:
         """Cut the link (for ``seconds``, healed from a timer; None: until :meth:`heal`)."""
@@ -152,8 +182,10 @@ class TwoHosts:
             self.fleet.stop()
         if self.pair is not None:
             self.pair.destroy()
-        if self.fleet is not None and self.pair is not None:
-            register(self.endpoint, None)
+        if self.fleet is not None:
+            register(self.fleet.endpoint, None)
+            if self.pair is not None:
+                register(self.endpoint, None)
 
     def __enter__(self) -> TwoHosts:
         self.start()

@@ -86,7 +86,7 @@ def shape(pair: HostPair, shaping: Shaping, *, netem: bool) -> str:
             delay = ["delay", f"{shaping.delay_ms}ms", f"{shaping.jitter_ms}ms"]
             _run(["ip", "netns", "exec", ns, "tc", "qdisc", "replace", "dev", dev, "root", "netem", *delay,
                   "loss", f"{shaping.loss_pct}%"])  # fmt: skip
-        return "tc netem on both ends of the link"
+        return "tc netem"
     dev = pair.link_dev["robot"]
     per_mille = round(shaping.loss_pct * 10)
     _nft(pair, f"table inet {SHAPE_TABLE}\ndelete table inet {SHAPE_TABLE}\n", check=False)
@@ -99,7 +99,7 @@ def shape(pair: HostPair, shaping: Shaping, *, netem: bool) -> str:
             f" chain out {{ type filter hook output priority 0; oifname {dev} {lose} drop; }}\n"
             "}\n",
         )
-    return "loss by nftables (numgen) on the link, delay by a relay between the routers (no sch_netem here)"
+    return "no netem here: loss by nftables, delay by a relay"
 
 
 def cut(pair: HostPair) -> None:

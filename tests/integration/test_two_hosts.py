@@ -15,12 +15,10 @@ import queue
 import subprocess
 import sys
 import time
-import uuid
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
-import msgspec
 import pytest
 import zenoh
 
@@ -29,8 +27,6 @@ from services.hosts.fleet import TwoHosts
 from services.hosts.link import Shaping
 from services.hosts.netns import HostPair, netns_exec, unavailable
 from services.recorder.record import read_link_events
-from services.runtime import keys
-from services.runtime.human import FINAL_REPORTS, HumanInput, HumanReport
 from services.runtime.run_folder import new_run_dir
 from services.runtime.session import open_client
 from services.security.context import register
@@ -54,36 +50,13 @@ def hosts(tmp_path: Path) -> Iterator[TwoHosts]:
         assert h.pair is not None and not h.pair.exists(), "the namespaces were not removed"
 
 
-def pour(h: TwoHosts, on_progress: dict[str, object] | None = None, timeout: float = 600.0) -> HumanReport:
-    """Say the pour to the brain's a_hi from the operator's side of the uplink; return the
-    final report. ``on_progress``: {text fragment: callable}, each run at the first progress
-    report containing its fragment and then taken out of the dict."""
-    session = open_client(h.endpoint)
-    reports: queue.SimpleQueue[HumanReport] = queue.SimpleQueue()
-    dec = msgspec.json.Decoder(HumanReport)
-    session.declare_subscriber(keys.HUMAN_OUT, lambda s: reports.put(dec.decode(s.payload.to_bytes())))
-    rid = uuid.uuid4().hex[:8]
-    pending = on_progress if on_progress is not None else {}
-    try:
-        session.put(keys.HUMAN_IN, msgspec.json.encode(HumanInput(text=POUR, request_id=rid)))
-        deadline = time.monotonic() + timeout
-        while True:
-            report = reports.get(timeout=max(0.1, deadline - time.monotonic()))
-            for fragment in [f for f in pending if f in report.text]:
-                pending.pop(fragment)()  # type: ignore[operator]
-            if report.request_id == rid and report.kind in FINAL_REPORTS:
-                return report
-    finally:
-        session.close()
-
-
 def c5_record(run_dir: Path) -> list[dict[str, object]]:
     lines = (run_dir / "traffic.jsonl").read_text().splitlines()
     return [r for r in map(json.loads, lines) if r["channel"] == "C5"]
 
 
 def test_the_pour_succeeds_across_two_hosts_over_a_shaped_link_with_mtls_and_acl(hosts: TwoHosts) -> None:
-    report = pour(hosts)
+    report = hosts.say(POUR)
     assert report.done_as_asked, report.text
     events = read_link_events(hosts.run_dir)
     assert events[0]["event"] == "shaping" and events[0]["delay_ms"] == 20 and events[0]["loss_pct"] == 1
@@ -129,7 +102,7 @@ def test_ten_second_partitions_during_a_motion_and_during_planning_are_ridden_ou
     cuts = {"take/reach": lambda: hosts.partition(10.0), "plan #3 requested": lambda: hosts.partition(10.0)}
     states = hosts.run_dir / "robot_states.jsonl"
     with _robot_observer(hosts, states):
-        report = pour(hosts, cuts)
+        report = hosts.say(POUR, cuts)
     assert report.done_as_asked, report.text
     assert not cuts, f"not cut at: {list(cuts)}"
     events = read_link_events(hosts.run_dir)
