@@ -208,6 +208,14 @@ def issue_identity(out: Path, name: str, days: int = 365) -> Identity:
         raise CredentialError(f"not an identity name: {name!r}")
     ca_key, ca_cert = _load_ca(out)
     key, cert = _issue_cert(name, ca_key, ca_cert.subject, days, server=False)
+    return _store_identity(out, name, key, cert)
+
+
+def _store_identity(
+    out: Path, name: str, key: ec.EllipticCurvePrivateKey, cert: x509.Certificate
+) -> Identity:
+    """Write identity ``name``'s key, certificate and a fresh password into ``out/<name>/`` and
+    enter the password in ``passwords.txt``."""
     _write(out / name / KEY, _key_pem(key), secret=True)
     _write(out / name / CERT, cert.public_bytes(serialization.Encoding.PEM))
     password = secrets.token_urlsafe(24)
@@ -233,14 +241,7 @@ def issue_router_identity(
     ca_key, ca_cert = _load_ca(out)
     sans = _router_sans(dict.fromkeys(["localhost", *names]), dict.fromkeys(["127.0.0.1", *ips]))
     key, cert = _issue_cert(name, ca_key, ca_cert.subject, days, server=True, sans=sans)
-    _write(out / name / KEY, _key_pem(key), secret=True)
-    _write(out / name / CERT, cert.public_bytes(serialization.Encoding.PEM))
-    password = secrets.token_urlsafe(24)
-    _write(out / name / PASSWORD, password.encode(), secret=True)
-    users = {u: p for u, p in read_passwords(out).items() if u != name}
-    users[name] = password
-    _write_passwords(out, users)
-    return identity(out, name)
+    return _store_identity(out, name, key, cert)
 
 
 def issue_router(out: Path, days: int = 365) -> None:
