@@ -271,3 +271,40 @@ def _open_when_listening(endpoint: str, timeout: float = 10.0) -> zenoh.Session:
             if time.monotonic() > deadline:
                 raise
             time.sleep(0.1)
+
+
+def test_roco_hosts_up_status_partition_down(tmp_path: Path) -> None:
+    """What a user types (docs/deploy.md): `roco hosts up`, `roco status` through the mesh,
+    `roco hosts partition 1`, `roco hosts status`, `roco hosts down` — nothing left behind."""
+
+    def roco(*args: str) -> subprocess.CompletedProcess[str]:
+        cmd = [sys.executable, "-m", "services.cli", *args, "--runs-dir", str(tmp_path)]
+        return subprocess.run(cmd, capture_output=True, text=True, timeout=300)
+
+    up = roco("hosts", "up", "--no-realtime")
+    assert up.returncode == 0, up.stderr
+    state = json.loads((tmp_path / ".hosts.json").read_text())
+    pair = HostPair(state["tag"], state["subnet"], state["maker"])
+    try:
+        assert pair.exists() and "operator endpoint tls/169.254." in up.stdout
+        status = roco("status")
+        assert status.returncode == 0, status.stdout + status.stderr
+        assert all(
+            f"{n:9s} alive" in status.stdout for n in ("a_hi", "a_co", "a_pl", "a_km", "a_ta", "ag_ex")
+        )
+        cut = roco("hosts", "partition", "1")
+        assert cut.returncode == 0 and "link up" in cut.stdout, cut.stderr
+        shown = roco("hosts", "status")
+        assert shown.returncode == 0 and "link   up;" in shown.stdout, shown.stdout
+        events = read_link_events(Path(state["run_dir"]))
+        assert [e["event"] for e in events] == ["shaping", "down", "up"]
+        again = roco("hosts", "up")
+        assert again.returncode == 2 and again.stderr.startswith("roco: a fleet is already up")
+    finally:
+        down = roco("hosts", "down")
+    assert down.returncode == 0, down.stderr
+    assert (
+        not pair.exists()
+        and not (tmp_path / ".hosts.json").exists()
+        and not (tmp_path / ".fleet.json").exists()
+    )
