@@ -1,7 +1,7 @@
 """Figures of the fleet on two hosts (docs/deploy.md, "Two hosts on one machine"): the round trip
 across the link, the pour's wall time with and without shaping, and what a 10 s partition costs.
 
-    sudo .venv/bin/python scripts/bench_hosts.py [--round-trips 300] [--pours 1]
+    .venv/bin/python scripts/bench_hosts.py [--round-trips 300] [--pours 1]     (as root)
 
 Round trip: the operator (root namespace) puts 100 B on ``roco/sim/disturb`` at the brain's
 router; a process on the robot's host, authenticated as ag_ex, puts it back on
