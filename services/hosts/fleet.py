@@ -14,6 +14,7 @@ the uplink at :attr:`TwoHosts.endpoint`.
 
 from __future__ import annotations
 
+import json
 import os
 import queue
 import time
@@ -37,6 +38,8 @@ from services.security.context import register
 from services.spec.model import DEFAULT_SPEC, load
 
 PORT = 7447
+HOSTS_JSON = "hosts.json"
+"""The run folder's description of the two hosts (:meth:`TwoHosts._write_hosts`)."""
 ROBOT = ("ag_ex", "a_ta")
 """The robot's services (besides its router); every other agent and the recorder are the brain's."""
 LEASE_MS = 30_000
@@ -100,6 +103,7 @@ class TwoHosts:
         netem = link.netem_available(pair)
         self.how = link.shape(pair, self.shaping, netem=netem)
         link.record_shaping(self.run_dir, self.shaping, self.how)
+        self._write_hosts(brain_link)
         router = ["-m", "services.runtime.router", "--lease-ms", str(self.lease_ms)]
         listen = [local, self.endpoint] + ([f"tls/{brain_link}:{PORT}"] if netem else [])
         fleet.start_service(
@@ -128,6 +132,28 @@ class TwoHosts:
             return fleet.wait_alive(session, AGENT_ORDER, timeout=timeout)
         finally:
             session.close()
+
+    def _write_hosts(self, brain_link: str) -> None:
+        """The run folder's ``hosts.json``: each host's namespace, addresses and processes, the
+        link's devices and the routers' lease (what a reader of the run needs to place a log)."""
+        assert self.pair is not None
+        p = self.pair
+        hosts = {
+            host: {
+                "netns": p.netns(host),
+                "link_addr": p.link_addr(host),
+                "link_dev": p.link_dev[host],
+                "processes": [
+                    f"router_{host}",
+                    *([n for n in ("recorder", *AGENT_ORDER) if host_of(n) == host]),
+                ],
+            }
+            for host in ("brain", "robot")
+        }
+        hosts["brain"]["uplink_addr"] = p.uplink_addr
+        doc = {"hosts": hosts, "operator_endpoint": self.endpoint, "mesh": f"tls/{brain_link}:{PORT}",
+               "lease_ms": self.lease_ms}  # fmt: skip
+        (self.run_dir / HOSTS_JSON).write_text(json.dumps(doc, indent=1))
 
     def _operator(self, timeout: float) -> zenoh.Session:
         """An operator session to the brain's router, retried until it listens."""
