@@ -8,6 +8,11 @@ Access control (docs/security.md): with ``ROCO_SECURITY`` naming a credentials f
 (services/security/), the router requires user/password authentication, mutual TLS on its
 ``tls/`` endpoints and applies the folder's ``acl.json`` (default deny). Exit code 2 when that
 folder is incomplete.
+
+A router of a mesh (docs/deploy.md, "Two machines", "Two hosts on one machine") runs with
+``--identity router_<host>`` (or ``ROCO_ROUTER_IDENTITY``): it serves and connects with that
+identity's certificate, so the routers' link is mutual TLS; ``--lease-ms`` sets how long a
+silent link is kept (Zenoh's default 10 s).
 """
 
 from __future__ import annotations

@@ -232,14 +232,16 @@ def issue_router_identity(
     """Issue (or re-issue) the identity of one router of a mesh (``router_<host>``, e.g.
     ``router_robot``) with the CA in ``out``: like :func:`issue_identity` (folder ``<name>/``, a
     password in ``passwords.txt``: it authenticates to the routers it connects to), but its
-    certificate serves as well as connects and names the host: SANs ``localhost``, ``127.0.0.1``,
-    ``names`` and ``ips`` (the addresses the other routers reach it at; a router connecting to
-    an address its certificate does not name is refused by Zenoh's name check). Raises
+    certificate serves as well as connects and names the host: the SANs of the single router's
+    certificate (``localhost``, ``router``, ``127.0.0.1``: its own host's clients and the
+    compose service) and ``names`` and ``ips`` (the addresses the other routers reach it at; a
+    router connecting to an address its certificate does not name is refused by Zenoh's name
+    check). Raises
     CredentialError when ``out`` has no CA or ``name`` does not start with ``router_``."""
     if not name.startswith(ROUTER + "_") or not all(c.isalnum() or c in "_-" for c in name):
         raise CredentialError(f"not a router identity name (router_<host>): {name!r}")
     ca_key, ca_cert = _load_ca(out)
-    sans = _router_sans(dict.fromkeys(["localhost", *names]), dict.fromkeys(["127.0.0.1", *ips]))
+    sans = _router_sans(dict.fromkeys([*ROUTER_NAMES, *names]), dict.fromkeys([*ROUTER_IPS, *ips]))
     key, cert = _issue_cert(name, ca_key, ca_cert.subject, days, server=True, sans=sans)
     return _store_identity(out, name, key, cert)
 
