@@ -18,10 +18,13 @@ import json
 import signal
 import time
 from pathlib import Path
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated
 
 import msgspec
 import typer
+
+if TYPE_CHECKING:
+    from services.hosts.netns import HostPair
 
 hosts_app = typer.Typer(
     add_completion=False,
@@ -62,10 +65,15 @@ def _state(runs_dir: Path) -> HostsState:
         raise _fail(f"{path}: not a hosts state file: {str(exc).splitlines()[0]}") from None
 
 
-def _pair(state: HostsState):  # type: ignore[no-untyped-def]
+def _pair(state: HostsState) -> HostPair:
     from services.hosts.netns import HostPair
 
     return HostPair(state.tag, state.subnet, state.maker)
+
+
+def _interrupt(signum: int, frame: object) -> None:
+    """SIGTERM ends a timed partition as Ctrl-C does: the link is mended first."""
+    raise KeyboardInterrupt
 
 
 @hosts_app.command(short_help="Make brain and robot, shape the link, start the fleet across them.")
@@ -129,7 +137,7 @@ def partition(
     if seconds is None:
         typer.echo("roco: link down; 'roco hosts heal' mends it")
         return
-    signal.signal(signal.SIGTERM, lambda *_: (_ for _ in ()).throw(KeyboardInterrupt()))
+    signal.signal(signal.SIGTERM, _interrupt)
     typer.echo(f"roco: link down for {seconds:g} s")
     try:
         time.sleep(seconds)
