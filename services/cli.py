@@ -32,6 +32,7 @@ from services.deploy.cli import deploy_app
 from services.fault.cli import fault_app
 from services.fault.process import record_events
 from services.fleet.launcher import AGENT_ORDER, Fleet, LaunchError
+from services.hosts.cli import hosts_app
 from services.runtime import keys
 from services.runtime.human import FINAL_REPORTS, HumanInput, HumanReport
 from services.runtime.run_folder import RunInfo, new_run_dir, write_run_info
@@ -49,6 +50,7 @@ MARKUP: Literal["markdown"] = "markdown"
 app = typer.Typer(no_args_is_help=True, help=__doc__, rich_markup_mode=MARKUP)
 app.add_typer(fault_app, name="fault")
 app.add_typer(deploy_app, name="deploy")
+app.add_typer(hosts_app, name="hosts")
 app.add_typer(__import__("services.bench.cli", fromlist=["bench_app"]).bench_app, name="bench")
 FLEET_FILE = ".fleet.json"
 DEFAULT_ROUTER = "tcp/127.0.0.1:7447"

@@ -5,6 +5,7 @@
                                                         operator, passwords, the router's ACL
     roco deploy issue OUT NAME                          (re-)issue one identity
     roco deploy revoke OUT NAME                         take one identity out (restart the router)
+    roco deploy router OUT router_HOST [--ip A] [--dns N]  a meshed router's identity
     roco deploy acl [--tls/--no-tls]                    print the ACL the specification gives
     roco deploy table [--full]                          who may send what where (Markdown)
 
@@ -92,6 +93,38 @@ def revoke(
         typer.echo(f"roco: no identity {name!r} in {out}", err=True)
         raise typer.Exit(2)
     typer.echo(f"roco: revoked {name}; restart the router so that it reads {out}/acl.json and passwords.txt")
+
+
+@deploy_app.command(short_help="(Re-)issue a meshed router's identity (mutual TLS between routers).")
+def router(
+    out: Annotated[Path, typer.Argument(help="a credentials folder made by 'roco deploy certs'")],
+    name: Annotated[str, typer.Argument(help="the router's identity: router_<host>, e.g. router_robot")],
+    ip: Annotated[list[str] | None, typer.Option(help="an address the other routers reach it at")] = None,
+    dns: Annotated[list[str] | None, typer.Option(help="a host name the other routers reach it at")] = None,
+    days: Annotated[int, typer.Option(min=1)] = 365,
+    spec: SpecFile = None,
+) -> None:
+    """(Re-)issue a meshed router's identity (mutual TLS between routers) and let the routers
+    trust one another in the ACL; start that router with ROCO_ROUTER_IDENTITY=NAME."""
+    import ipaddress
+
+    from services.deploy.deploy import issue_router
+    from services.security.certs import CredentialError
+
+    try:
+        for a in ip or []:
+            ipaddress.ip_address(a)
+    except ValueError as exc:
+        typer.echo(f"roco: {exc}", err=True)
+        raise typer.Exit(2) from None
+    try:
+        ident = issue_router(out, _spec(spec), name, dns or [], ip or [], days)
+    except CredentialError as exc:
+        typer.echo(f"roco: {exc}", err=True)
+        raise typer.Exit(2) from None
+    typer.echo(
+        f"roco: issued {ident.name} ({ident.cert}); restart the routers to read the new ACL and passwords"
+    )
 
 
 @deploy_app.command()

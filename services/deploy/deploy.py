@@ -13,13 +13,16 @@ from pathlib import Path
 
 from services.security import certs
 from services.spec.model import SystemSpec
-from services.spec_check.acl import acl_config, identities
+from services.spec_check.acl import ROUTER_PREFIX, acl_config, identities, with_routers
 
 
 def write_acl(out: Path, spec: SystemSpec, *, tls: bool) -> None:
     """Write ``out/acl.json`` for the identities issued in ``out``; ``tls``: subjects are
     matched by certificate common name as well as user name."""
-    acl = acl_config(spec, tls=tls, only=set(certs.identities(out)))
+    issued = certs.identities(out)
+    acl = with_routers(
+        acl_config(spec, tls=tls, only=set(issued)), [n for n in issued if n.startswith(ROUTER_PREFIX)]
+    )
     tmp = out / (certs.ACL_FILE + ".tmp")
     tmp.write_text(json.dumps(acl, indent=1))
     os.replace(tmp, out / certs.ACL_FILE)
@@ -57,6 +60,16 @@ def issue_identity(out: Path, spec: SystemSpec, name: str, days: int = 365) -> c
     if name not in identities(spec):
         raise certs.CredentialError(f"{name!r} is not an identity of the specification")
     ident = certs.issue_identity(out, name, days)
+    write_acl(out, spec, tls=acl_uses_tls(out))
+    return ident
+
+
+def issue_router(
+    out: Path, spec: SystemSpec, name: str, names: list[str], ips: list[str], days: int = 365
+) -> certs.Identity:
+    """(Re-)issue meshed router ``name`` (``router_<host>``) reachable at ``names``/``ips`` in
+    ``out`` and rewrite the ACL so that the routers trust one another (docs/deploy.md)."""
+    ident = certs.issue_router_identity(out, name, names, ips, days)
     write_acl(out, spec, tls=acl_uses_tls(out))
     return ident
 

@@ -72,6 +72,9 @@ class Fleet:
     acl: bool = field(default_factory=acl_on)
     tls: bool = field(default_factory=tls_on)
     security: Path | None = None
+    wrap: dict[str, list[str]] = field(default_factory=dict)
+    """Command prefix per process name (e.g. ``ip netns exec NS`` for a process on another host
+    of services/hosts/); a process not named runs as it is."""
 
     def __post_init__(self) -> None:
         if self.tls:
@@ -97,7 +100,12 @@ class Fleet:
     def _spawn(self, name: str, args: list[str]) -> None:
         env = self._environ()
         save_launch_env(self.run_dir, env, self.env)
-        self.processes[name] = spawn_process(self.run_dir, name, args, env)
+        self.processes[name] = spawn_process(self.run_dir, name, args, env, prefix=self.wrap.get(name, []))
+
+    def start_service(self, name: str, args: list[str]) -> None:
+        """Start ``python args…`` as process ``name`` of this fleet (its environment, its
+        ``wrap``); used for services the fleet does not know, e.g. a second router."""
+        self._spawn(name, args)
 
     def start_router(self, timeout: float = 10.0) -> None:
         """Start the embedded router on ``endpoint`` and wait until it accepts connections."""
@@ -151,13 +159,14 @@ class Fleet:
 
     def stop(self, timeout: float = 10.0) -> None:
         """SIGTERM every started process (agents first, router last), then SIGKILL stragglers."""
-        order = [n for n in self.processes if n not in ("router", "recorder")] + ["recorder", "router"]
+        routers = [n for n in self.processes if n.startswith("router")]
+        order = [n for n in self.processes if n != "recorder" and n not in routers] + ["recorder", *routers]
         for name in order:
             proc = self.processes.get(name)
             if proc is None or proc.poll() is not None:
                 continue
             proc.send_signal(signal.SIGTERM)
-            if name in ("recorder", "router"):
+            if name == "recorder" or name in routers:
                 _wait(proc, timeout)
         deadline = time.monotonic() + timeout
         for proc in self.processes.values():
@@ -201,12 +210,15 @@ def service_args(name: str, endpoint: str) -> list[str]:
     return ["-m", "services.runtime.main", name]
 
 
-def spawn_process(run_dir: Path, name: str, args: list[str], env: dict[str, str]) -> subprocess.Popen[bytes]:
-    """Start ``python args…`` as service ``name`` in a session of its own (its PID is its
-    process group), output appended to ``run_dir/logs/<name>.stderr``."""
+def spawn_process(
+    run_dir: Path, name: str, args: list[str], env: dict[str, str], *, prefix: list[str] | None = None
+) -> subprocess.Popen[bytes]:
+    """Start ``python args…`` (after the command ``prefix``, which must exec it) as service
+    ``name`` in a session of its own (its PID is its process group), output appended to
+    ``run_dir/logs/<name>.stderr``."""
     log = (run_dir / "logs" / f"{name}.stderr").open("ab")
     return subprocess.Popen(
-        [sys.executable, *args],
+        [*(prefix or []), sys.executable, *args],
         env=env,
         stdout=log,
         stderr=subprocess.STDOUT,

@@ -33,6 +33,9 @@ from shared.fipa_codec import DecodeError, decode
 TRAFFIC_JSONL = "traffic.jsonl"
 TRAFFIC_RAW = "traffic.msgpack"
 FAULTS_JSONL = "faults.jsonl"
+LINK_JSONL = "link.jsonl"
+"""The run folder's record of the link between two hosts (services/hosts/link.py writes it): one
+JSON object per line, ``{"t": POSIX s, "event": "shaping" | "down" | "up", …}``."""
 
 
 class RecordKey(NamedTuple):
@@ -268,3 +271,21 @@ def _old_pair_end(data: bytes, pos: int) -> int:
     if width is None:
         raise ValueError(f"corrupt raw traffic stream at byte {p}")
     return p + 1 + width + int.from_bytes(data[p + 1 : p + 1 + width], "big")
+
+
+def read_link_events(run_dir: Path) -> list[dict[str, object]]:
+    """The events of ``run_dir/link.jsonl`` (none when the run had no link between hosts);
+    lines that are not JSON objects are skipped."""
+    try:
+        lines = (run_dir / LINK_JSONL).read_text().splitlines()
+    except OSError:
+        return []
+    out = []
+    for line in lines:
+        try:
+            item = msgspec.json.decode(line)
+        except msgspec.DecodeError:
+            continue
+        if isinstance(item, dict):
+            out.append(item)
+    return out

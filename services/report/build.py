@@ -6,7 +6,7 @@ from pathlib import Path
 
 import msgspec
 
-from services.recorder.record import FAULTS_JSONL, read_fault_events
+from services.recorder.record import FAULTS_JSONL, read_fault_events, read_link_events
 from services.report.content import sphere_share
 from services.report.coordination import commands, coordination
 from services.report.figures import write_figures
@@ -15,7 +15,7 @@ from services.report.markdown import render
 from services.report.model import FaultRow, Header, PerceptionRow, Report
 from services.report.planning import plan_phases
 from services.report.stats import agent_matrix, channel_stats, size_stats
-from services.report.timeline import command_text, find_command, find_outcome, timeline
+from services.report.timeline import command_text, find_command, find_outcome, link_events, timeline
 from services.runtime.refusals import REFUSALS_JSONL, read_refusals
 from shared.fipa_codec.languages.l_hc import CommandOutcome
 from velma.executor.capture import PERCEPTION_LOG as PERCEPTION_JSONL
@@ -53,7 +53,11 @@ def _assemble(run: RunData, container: str = "bowl") -> Report:
         sizes=size_stats(messages),
         channels=channel_stats(messages),
         matrix=agent_matrix(messages),
-        events=timeline(messages, plans, command, outcome),
+        events=sorted(
+            timeline(messages, plans, command, outcome)
+            + link_events(read_link_events(Path(run_dir)), run.t0),
+            key=lambda e: e.start,
+        ),
         plans=plans,
         content=sphere_share(messages, container),
         notes=notes,

@@ -7,7 +7,7 @@ are arrival times at the recorder, in s since the run start.
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 import msgspec
@@ -341,3 +341,40 @@ def _environment(messages: Sequence[Message], cutoff: float) -> list[Event]:
             )
         )
     return out
+
+
+def link_events(entries: Sequence[Mapping[str, object]], t0: float) -> list[Event]:
+    """Timeline rows of the link between two hosts (``link.jsonl``, services/hosts/link.py):
+    the shaping in force from its start, and each partition from ``down`` to ``up`` (to the
+    run's end, ``end`` None, when it was never mended). Times in s since ``t0``."""
+    events: list[Event] = []
+    down: float | None = None
+    for e in entries:
+        t = _float(e.get("t"))
+        if t is None:
+            continue
+        kind = e.get("event")
+        if kind == "shaping":
+            d, j, loss = (_float(e.get(k)) or 0.0 for k in ("delay_ms", "jitter_ms", "loss_pct"))
+            text = f"the link brain–robot: {d:g} ± {j:g} ms each way, {loss:g} % loss ({e.get('how', '')})"
+            events.append(Event(start=max(0.0, t - t0), text=text, channels=[], kind="link_shaping"))
+        elif kind == "down" and down is None:
+            down = t
+        elif kind == "up" and down is not None:
+            text = f"the link brain–robot is cut ({t - down:.1f} s)"
+            events.append(Event(start=down - t0, end=t - t0, text=text, channels=[], kind="link_down"))
+            down = None
+    if down is not None:
+        events.append(
+            Event(
+                start=down - t0,
+                text="the link brain–robot is cut (not mended)",
+                channels=[],
+                kind="link_down",
+            )
+        )
+    return events
+
+
+def _float(x: object) -> float | None:
+    return float(x) if isinstance(x, int | float) and not isinstance(x, bool) else None

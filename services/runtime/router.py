@@ -11,6 +11,11 @@ folder is incomplete. With access control on, every message it refuses is counte
 (services/runtime/refusal_watch.py): read from Zenoh's own log, written to
 ``$ROCO_RUN_DIR/refusals.jsonl``, announced in the router's log and reported on
 ``roco/counters/ask``.
+
+A router of a mesh (docs/deploy.md, "Two machines", "Two hosts on one machine") runs with
+``--identity router_<host>`` (or ``ROCO_ROUTER_IDENTITY``): it serves and connects with that
+identity's certificate, so the routers' link is mutual TLS; ``--lease-ms`` sets how long a
+silent link is kept (Zenoh's default 10 s).
 """
 
 from __future__ import annotations
@@ -32,13 +37,25 @@ from services.runtime.transport import router_config
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="roco-router")
     parser.add_argument("--listen", action="append", default=None)
+    parser.add_argument(
+        "--identity",
+        default=os.environ.get("ROCO_ROUTER_IDENTITY") or None,
+        help="a meshed router's identity in the credentials folder (ROCO_ROUTER_IDENTITY)",
+    )
+    parser.add_argument("--lease-ms", type=int, default=None, help="Zenoh's transport lease (default 10000)")
     parser.add_argument("--connect", action="append", default=None)
     args = parser.parse_args(argv)
     listen = args.listen or [os.environ.get("ROCO_LISTEN", "tcp/0.0.0.0:7447")]
     connect = args.connect or [e for e in os.environ.get("ROCO_CONNECT", "").split(",") if e]
     security = os.environ.get("ROCO_SECURITY", "").strip()
     try:
-        conf = router_config(listen, connect, security=Path(security) if security else None)
+        conf = router_config(
+            listen,
+            connect,
+            security=Path(security) if security else None,
+            identity=args.identity if security else None,
+            lease_ms=args.lease_ms,
+        )
     except (OSError, ValueError) as exc:
         print(f"roco router: ROCO_SECURITY: {exc}", file=sys.stderr)
         return 2

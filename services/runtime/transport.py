@@ -126,7 +126,12 @@ def _client_auth(conf: zenoh.Config, folder: Path, identity: str) -> None:
 
 
 def router_config(
-    listen: list[str], connect: list[str] | None = None, *, security: Path | None = None
+    listen: list[str],
+    connect: list[str] | None = None,
+    *,
+    security: Path | None = None,
+    identity: str | None = None,
+    lease_ms: int | None = None,
 ) -> zenoh.Config:
     """A Zenoh router configuration listening on ``listen``, optionally meshed with other
     routers at ``connect`` (reconnected on the :data:`CONNECT_RETRY` schedule when one of them
@@ -137,7 +142,14 @@ def router_config(
     ``router.pem`` and requires a client certificate from the folder's CA (mutual TLS), and
     applies the access control of ``acl.json`` (services/spec_check/acl.py; default deny). Every
     router drops a message above the codec's size limit (``services.runtime.limits``). Raises
-    OSError or ValueError when a file is missing or malformed."""
+    OSError or ValueError when a file is missing or malformed.
+
+    ``identity`` (a router of a mesh, e.g. ``router_robot``; services/security/certs.py
+    ``issue_router_identity``): the router serves and connects with that identity's certificate
+    (mutual TLS both ways: a meshed router that cannot show a certificate of the folder's CA is
+    refused) and authenticates to the routers it connects to with its user/password.
+    ``lease_ms``: Zenoh's transport lease (default 10 s): a link silent that long is closed; a
+    mesh over an unreliable link sets it longer than the partitions it should ride out."""
     conf = zenoh.Config()
     conf.insert_json5("mode", '"router"')
     conf.insert_json5("listen/endpoints", json.dumps(listen))
@@ -161,9 +173,29 @@ def router_config(
             "listen_certificate": str(security / f"{ROUTER}.pem"),
             "enable_mtls": True,
         }
+        if identity is not None:
+            tls |= _router_identity(conf, security, identity)
         conf.insert_json5("transport/link/tls", json.dumps(tls))
         conf.insert_json5("access_control", json.dumps(acl))
+    if lease_ms is not None:
+        conf.insert_json5("transport/link/tx/lease", str(int(lease_ms)))
     return conf
+
+
+def _router_identity(conf: zenoh.Config, folder: Path, name: str) -> dict[str, object]:
+    """The TLS settings of a meshed router's own identity (its certificate to serve and to
+    connect with), its user/password entered in ``conf``."""
+    from services.security.folder import identity as load_identity
+
+    ident = load_identity(folder, name)
+    conf.insert_json5("transport/auth/usrpwd/user", json.dumps(ident.name))
+    conf.insert_json5("transport/auth/usrpwd/password", json.dumps(ident.password))
+    return {
+        "listen_private_key": str(ident.key),
+        "listen_certificate": str(ident.cert),
+        "connect_private_key": str(ident.key),
+        "connect_certificate": str(ident.cert),
+    }
 
 
 MAX_KEYS = 256

@@ -67,6 +67,7 @@ __all__ = [
     "issue",
     "issue_identity",
     "issue_router",
+    "issue_router_identity",
     "make_ca",
     "read_passwords",
     "revoke",
@@ -104,6 +105,7 @@ def _issue_cert(
     days: int,
     *,
     server: bool,
+    sans: list[x509.GeneralName] | None = None,
 ) -> tuple[ec.EllipticCurvePrivateKey, x509.Certificate]:
     key = ec.generate_private_key(ec.SECP256R1())
     now = dt.datetime.now(dt.UTC)
@@ -139,13 +141,16 @@ def _issue_cert(
             critical=False,
         )
     )
-    sans: list[x509.GeneralName] = [x509.DNSName(common_name)]
-    if server:
-        sans = [x509.DNSName(n) for n in ROUTER_NAMES] + [
-            x509.IPAddress(ipaddress.ip_address(ip)) for ip in ROUTER_IPS
-        ]
+    if sans is None:
+        sans = [x509.DNSName(common_name)]
+        if server:
+            sans = _router_sans(ROUTER_NAMES, ROUTER_IPS)
     builder = builder.add_extension(x509.SubjectAlternativeName(sans), critical=False)
     return key, builder.sign(ca_key, hashes.SHA256())
+
+
+def _router_sans(names: Iterable[str], ips: Iterable[str]) -> list[x509.GeneralName]:
+    return [x509.DNSName(n) for n in names] + [x509.IPAddress(ipaddress.ip_address(ip)) for ip in ips]
 
 
 def _load_ca(out: Path) -> tuple[ec.EllipticCurvePrivateKey, x509.Certificate]:
@@ -203,6 +208,14 @@ def issue_identity(out: Path, name: str, days: int = 365) -> Identity:
         raise CredentialError(f"not an identity name: {name!r}")
     ca_key, ca_cert = _load_ca(out)
     key, cert = _issue_cert(name, ca_key, ca_cert.subject, days, server=False)
+    return _store_identity(out, name, key, cert)
+
+
+def _store_identity(
+    out: Path, name: str, key: ec.EllipticCurvePrivateKey, cert: x509.Certificate
+) -> Identity:
+    """Write identity ``name``'s key, certificate and a fresh password into ``out/<name>/`` and
+    enter the password in ``passwords.txt``."""
     _write(out / name / KEY, _key_pem(key), secret=True)
     _write(out / name / CERT, cert.public_bytes(serialization.Encoding.PEM))
     password = secrets.token_urlsafe(24)
@@ -211,6 +224,26 @@ def issue_identity(out: Path, name: str, days: int = 365) -> Identity:
     users[name] = password
     _write_passwords(out, users)
     return identity(out, name)
+
+
+def issue_router_identity(
+    out: Path, name: str, names: Iterable[str] = (), ips: Iterable[str] = (), days: int = 365
+) -> Identity:
+    """Issue (or re-issue) the identity of one router of a mesh (``router_<host>``, e.g.
+    ``router_robot``) with the CA in ``out``: like :func:`issue_identity` (folder ``<name>/``, a
+    password in ``passwords.txt``: it authenticates to the routers it connects to), but its
+    certificate serves as well as connects and names the host: the SANs of the single router's
+    certificate (``localhost``, ``router``, ``127.0.0.1``: its own host's clients and the
+    compose service) and ``names`` and ``ips`` (the addresses the other routers reach it at; a
+    router connecting to an address its certificate does not name is refused by Zenoh's name
+    check). Raises
+    CredentialError when ``out`` has no CA or ``name`` does not start with ``router_``."""
+    if not name.startswith(ROUTER + "_") or not all(c.isalnum() or c in "_-" for c in name):
+        raise CredentialError(f"not a router identity name (router_<host>): {name!r}")
+    ca_key, ca_cert = _load_ca(out)
+    sans = _router_sans(dict.fromkeys([*ROUTER_NAMES, *names]), dict.fromkeys([*ROUTER_IPS, *ips]))
+    key, cert = _issue_cert(name, ca_key, ca_cert.subject, days, server=True, sans=sans)
+    return _store_identity(out, name, key, cert)
 
 
 def issue_router(out: Path, days: int = 365) -> None:

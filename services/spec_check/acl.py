@@ -377,3 +377,44 @@ def channel_table(spec: SystemSpec) -> str:
             )
         lines.append(f"| {n} | {out} | {into} | {other} |")
     return "\n".join(lines) + "\n"
+
+
+ROUTER_PREFIX = "router_"
+"""Identities of meshed routers (services/security/certs.py ``issue_router_identity``)."""
+ROUTER_MESSAGES = (
+    "put",
+    "delete",
+    "declare_subscriber",
+    "query",
+    "declare_queryable",
+    "reply",
+    "liveliness_token",
+    "declare_liveliness_subscriber",
+    "liveliness_query",
+)
+
+
+def with_routers(acl: dict[str, Any], routers: list[str]) -> dict[str, Any]:
+    """``acl`` with the meshed routers ``routers`` allowed every message both ways.
+
+    A router of a mesh forwards its own clients' messages, which it has already checked against
+    the same ACL (each router applies it to the clients connected to it), so the routers trust
+    one another and nothing else: the subject matches by certificate common name only — the
+    router a connection reaches presents a certificate but no user name, so a subject that also
+    asked for one would match neither direction (measured with eclipse-zenoh 1.10: a put from
+    the robot's host then never reached the brain's). A router whose certificate is not from the
+    deployment's CA never gets a link at all (mutual TLS)."""
+    if not routers:
+        return acl
+    rule = {
+        "id": "routers",
+        "permission": "allow",
+        "flows": ["ingress", "egress"],
+        "messages": list(ROUTER_MESSAGES),
+        "key_exprs": ["**"],
+    }
+    return acl | {
+        "rules": [*acl["rules"], rule],
+        "subjects": [*acl["subjects"], {"id": "routers", "cert_common_names": sorted(routers)}],
+        "policies": [*acl["policies"], {"id": "routers", "rules": ["routers"], "subjects": ["routers"]}],
+    }

@@ -36,6 +36,7 @@ TOOLS = (
     "services.bench",
     "services.sniff",
     "services.doctor",
+    "services.hosts",
     "services.live",
     "services.cli",
 )

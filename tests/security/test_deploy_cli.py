@@ -62,3 +62,32 @@ def test_acl_and_table_print() -> None:
     assert json.loads(r.output)["default_permission"] == "deny"
     r = runner.invoke(app, ["deploy", "table"])
     assert "| a_pl | C3 → a_co, C4 → a_km |" in r.output
+
+
+def test_a_meshed_routers_identity_names_its_addresses_and_the_routers_trust_each_other(
+    tmp_path: Path,
+) -> None:
+    """``roco deploy router`` (issue 21): a certificate of the CA that serves and connects with
+    the router's addresses as SANs, a password, and one ACL subject for the routers matched by
+    certificate common name only; a bad name or address is one line, exit 2."""
+    out = tmp_path / "certs"
+    assert runner.invoke(app, ["deploy", "certs", str(out)]).exit_code == 0
+    r = runner.invoke(
+        app, ["deploy", "router", str(out), "router_robot", "--ip", "10.1.2.3", "--dns", "robot.lan"]
+    )
+    assert r.exit_code == 0, r.output
+    cert = x509.load_pem_x509_certificate((out / "router_robot" / certs.CERT).read_bytes())
+    sans = cert.extensions.get_extension_for_class(x509.SubjectAlternativeName).value
+    assert {"localhost", "robot.lan"} <= set(sans.get_values_for_type(x509.DNSName))
+    assert {str(a) for a in sans.get_values_for_type(x509.IPAddress)} == {"127.0.0.1", "10.1.2.3"}
+    usage = cert.extensions.get_extension_for_class(x509.ExtendedKeyUsage).value
+    assert {u.dotted_string for u in usage} == {"1.3.6.1.5.5.7.3.1", "1.3.6.1.5.5.7.3.2"}  # server, client
+    assert "router_robot" in certs.read_passwords(out)
+    acl = json.loads((out / certs.ACL_FILE).read_text())
+    routers = [s for s in acl["subjects"] if s["id"] == "routers"]
+    assert routers == [{"id": "routers", "cert_common_names": ["router_robot"]}]
+    rule = next(x for x in acl["rules"] if x["id"] == "routers")
+    assert rule["key_exprs"] == ["**"] and set(rule["flows"]) == {"ingress", "egress"}
+    for bad in (["robot"], ["router_x", "--ip", "not-an-address"]):
+        r = runner.invoke(app, ["deploy", "router", str(out), *bad])
+        assert r.exit_code == 2 and r.output.startswith("roco: "), r.output

@@ -1,0 +1,225 @@
+"""The fleet on two hosts (docs/deploy.md, "Two hosts on one machine"): the brain (router,
+recorder, a_km, a_pl, a_co, a_hi) and the robot (router, ag_ex, a_ta), each in its network
+namespace (services/hosts/netns.py), joined only by their routers over the shaped link.
+
+Every process talks to the router of its own host at ``tls/127.0.0.1:7447`` (its own
+loopback). The routers mesh over mutual TLS with identities of their own (``router_brain``,
+``router_robot``: certificates from the run's CA naming their link addresses), both apply the
+ACL to their own clients, and trust each other (services/spec_check/acl.py ``with_routers``).
+The robot's router connects to ``tls/<brain's link address>:7447``: the brain's router itself
+where the link is shaped by netem, else the delaying relay in front of it (services/hosts/
+relay.py). The operator (``roco send``/``status``, the tests) reaches the brain's router over
+the uplink at :attr:`TwoHosts.endpoint`.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import queue
+import time
+import uuid
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import msgspec
+import zenoh
+
+from services.deploy.deploy import issue_router
+from services.fleet.launcher import AGENT_ORDER, Fleet, LaunchError
+from services.hosts import link
+from services.hosts.link import Shaping
+from services.hosts.netns import HostPair, netns_exec
+from services.runtime import keys
+from services.runtime.human import FINAL_REPORTS, HumanInput, HumanReport
+from services.runtime.session import open_client
+from services.security.context import register
+from services.spec.model import DEFAULT_SPEC, load
+
+PORT = 7447
+HOSTS_JSON = "hosts.json"
+"""The run folder's description of the two hosts (:meth:`TwoHosts._write_hosts`)."""
+ROBOT = ("ag_ex", "a_ta")
+"""The robot's services (besides its router); every other agent and the recorder are the brain's."""
+LEASE_MS = 30_000
+"""The routers' transport lease: a link silent this long is given up (Zenoh's default: 10 s).
+Longer than the partitions the mesh should ride out without its links being closed and its
+liveliness tokens lost (docs/deploy.md)."""
+
+
+def host_of(name: str) -> str:
+    """``robot`` for ag_ex, a_ta and the robot's router, else ``brain``."""
+    return "robot" if name in ROBOT or name in ("router_robot",) else "brain"
+
+
+@dataclass
+class TwoHosts:
+    """Make the two hosts, shape the link, start the fleet on them (:meth:`start`); stop it and
+    remove the hosts (:meth:`stop`, always safe to call). ``env``: extra environment of every
+    process (ag_ex's pacing and scene)."""
+
+    run_dir: Path
+    shaping: Shaping = field(default_factory=Shaping)
+    env: dict[str, str] = field(default_factory=dict)
+    lease_ms: int = LEASE_MS
+    pair: HostPair | None = None
+    fleet: Fleet | None = None
+    how: str = ""
+    services: bool = True
+    """False: the routers (and relay) only, no recorder or agents (benchmarks of the link)."""
+
+    @property
+    def endpoint(self) -> str:
+        """Where the operator reaches the brain's router (over the uplink)."""
+        assert self.pair is not None
+        return f"tls/{self.pair.uplink_addr}:{PORT}"
+
+    def start(self, timeout: float = 120.0) -> float:
+        """Everything up; returns the seconds until every agent held its liveliness token.
+        Raises HostsError or LaunchError (having stopped and removed what it made)."""
+        try:
+            return self._start(timeout)
+        except BaseException:
+            self.stop()
+            raise
+
+    def _start(self, timeout: float) -> float:
+        self.pair = pair = HostPair.create()
+        brain, robot = pair.netns("brain"), pair.netns("robot")
+        wrap = {
+            n: netns_exec(robot if host_of(n) == "robot" else brain)
+            for n in (*AGENT_ORDER, "recorder", "relay")
+        }
+        wrap["router_brain"], wrap["router_robot"] = netns_exec(brain), netns_exec(robot)
+        local = f"tls/127.0.0.1:{PORT}"
+        self.fleet = fleet = Fleet(self.run_dir, local, env=self.env, acl=True, tls=True, wrap=wrap)
+        assert fleet.security is not None
+        spec = load(Path(self.env.get("ROCO_SPEC") or os.environ.get("ROCO_SPEC") or str(DEFAULT_SPEC)))
+        brain_link = pair.link_addr("brain")
+        issue_router(fleet.security, spec, "router_brain", [], [brain_link, pair.uplink_addr])
+        issue_router(fleet.security, spec, "router_robot", [], [pair.link_addr("robot")])
+        register(self.endpoint, fleet.security)
+        netem = link.netem_available(pair)
+        self.how = link.shape(pair, self.shaping, netem=netem)
+        link.record_shaping(self.run_dir, self.shaping, self.how)
+        self._write_hosts(brain_link)
+        router = ["-m", "services.runtime.router", "--lease-ms", str(self.lease_ms)]
+        listen = [local, self.endpoint] + ([f"tls/{brain_link}:{PORT}"] if netem else [])
+        fleet.start_service(
+            "router_brain", [*router, "--identity", "router_brain", *_each("--listen", listen)]
+        )
+        if not netem:
+            delay = ["--delay-ms", str(self.shaping.delay_ms), "--jitter-ms", str(self.shaping.jitter_ms)]
+            relay = [
+                "-m",
+                "services.hosts.relay",
+                "--listen",
+                f"{brain_link}:{PORT}",
+                "--to",
+                f"127.0.0.1:{PORT}",
+            ]
+            fleet.start_service("relay", [*relay, *delay])
+        fleet.start_service("router_robot", [*router, "--identity", "router_robot", "--listen", local,
+                                             "--connect", f"tls/{brain_link}:{PORT}"])  # fmt: skip
+        session = self._operator(timeout=10.0)
+        try:
+            if not self.services:
+                return 0.0
+            fleet.start_recorder()
+            fleet.wait_alive(session, ["recorder"], timeout=60)
+            fleet.start_agents()
+            return fleet.wait_alive(session, AGENT_ORDER, timeout=timeout)
+        finally:
+            session.close()
+
+    def _write_hosts(self, brain_link: str) -> None:
+        """The run folder's ``hosts.json``: each host's namespace, addresses and processes, the
+        link's devices and the routers' lease (what a reader of the run needs to place a log)."""
+        assert self.pair is not None
+        p = self.pair
+        hosts = {
+            host: {
+                "netns": p.netns(host),
+                "link_addr": p.link_addr(host),
+                "link_dev": p.link_dev[host],
+                "processes": [
+                    f"router_{host}",
+                    *([n for n in ("recorder", *AGENT_ORDER) if host_of(n) == host]),
+                ],
+            }
+            for host in ("brain", "robot")
+        }
+        hosts["brain"]["uplink_addr"] = p.uplink_addr
+        doc = {"hosts": hosts, "operator_endpoint": self.endpoint, "mesh": f"tls/{brain_link}:{PORT}",
+               "lease_ms": self.lease_ms}  # fmt: skip
+        (self.run_dir / HOSTS_JSON).write_text(json.dumps(doc, indent=1))
+
+    def _operator(self, timeout: float) -> zenoh.Session:
+        """An operator session to the brain's router, retried until it listens."""
+        assert self.fleet is not None
+        deadline = time.monotonic() + timeout
+        while True:
+            self.fleet._check_alive(["router_brain", "router_robot", "relay"])
+            try:
+                return open_client(self.endpoint)
+            except zenoh.ZError:
+                if time.monotonic() > deadline:
+                    raise LaunchError(f"the brain's router did not answer at {self.endpoint}") from None
+                time.sleep(0.1)
+
+    def say(
+        self, text: str, on_progress: dict[str, Callable[[], object]] | None = None, timeout: float = 600.0
+    ) -> HumanReport:
+        """Say ``text`` to the brain's a_hi from the operator's side of the uplink (as ``roco
+        send`` does) and return a_hi's final report. ``on_progress``: {text fragment:
+        callable}, each called at the first report containing its fragment and then taken out
+        of the dict (e.g. a partition at a step). Raises queue.Empty after ``timeout`` s."""
+        session = open_client(self.endpoint)
+        reports: queue.SimpleQueue[HumanReport] = queue.SimpleQueue()
+        dec = msgspec.json.Decoder(HumanReport)
+        session.declare_subscriber(keys.HUMAN_OUT, lambda s: reports.put(dec.decode(s.payload.to_bytes())))
+        rid = uuid.uuid4().hex[:8]
+        pending = on_progress if on_progress is not None else {}
+        try:
+            session.put(keys.HUMAN_IN, msgspec.json.encode(HumanInput(text=text, request_id=rid)))
+            deadline = time.monotonic() + timeout
+            while True:
+                report = reports.get(timeout=max(0.1, deadline - time.monotonic()))
+                for fragment in [f for f in pending if f in report.text]:
+                    pending.pop(fragment)()
+                if report.request_id == rid and report.kind in FINAL_REPORTS:
+                    return report
+        finally:
+            session.close()
+
+    def partition(self, seconds: float | None) -> None:
+        """Cut the link (for ``seconds``, healed from a timer; None: until :meth:`heal`)."""
+        assert self.pair is not None
+        link.partition(self.pair, self.run_dir, seconds)
+
+    def heal(self) -> None:
+        assert self.pair is not None
+        link.heal(self.pair, self.run_dir)
+
+    def stop(self) -> None:
+        """Stop every process (agents, recorder, relay, routers) and remove the hosts."""
+        if self.fleet is not None:
+            self.fleet.stop()
+        if self.pair is not None:
+            self.pair.destroy()
+        if self.fleet is not None:
+            register(self.fleet.endpoint, None)
+            if self.pair is not None:
+                register(self.endpoint, None)
+
+    def __enter__(self) -> TwoHosts:
+        self.start()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.stop()
+
+
+def _each(flag: str, values: list[str]) -> list[str]:
+    return [x for v in values for x in (flag, v)]

@@ -1,0 +1,313 @@
+"""The fleet on two hosts (issue 21; docs/deploy.md "Two hosts on one machine"): brain and robot
+in network namespaces, the link shaped (20 ± 5 ms each way, 1 % loss), the routers meshed over
+mutual TLS with identities of their own, access control on.
+
+Needs root and iproute2 + nftables (.ci/run installs them); skipped only where namespaces cannot
+be made."""
+
+from __future__ import annotations
+
+import collections
+import contextlib
+import json
+import os
+import queue
+import subprocess
+import sys
+import time
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import pytest
+import zenoh
+
+from services.deploy.deploy import issue_router, prepare
+from services.hosts.fleet import TwoHosts
+from services.hosts.link import Shaping
+from services.hosts.netns import HostPair, netns_exec, unavailable
+from services.recorder.record import read_link_events
+from services.runtime.run_folder import new_run_dir
+from services.runtime.session import open_client
+from services.security.context import register
+from services.spec.model import default_spec
+
+pytestmark = pytest.mark.skipif(unavailable() is not None, reason=f"two hosts: {unavailable()}")
+
+SHAPING = Shaping(delay_ms=20, jitter_ms=5, loss_pct=1)
+POUR = "pour the jar into the bowl"
+ENV = {"ROCO_REALTIME": "0", "ROCO_RERUN": "0"}
+
+
+@pytest.fixture
+def hosts(tmp_path: Path) -> Iterator[TwoHosts]:
+    h = TwoHosts(new_run_dir(tmp_path), SHAPING, env=ENV)
+    h.start()
+    try:
+        yield h
+    finally:
+        h.stop()
+        assert h.pair is not None and not h.pair.exists(), "the namespaces were not removed"
+
+
+def c5_record(run_dir: Path) -> list[dict[str, object]]:
+    lines = (run_dir / "traffic.jsonl").read_text().splitlines()
+    return [r for r in map(json.loads, lines) if r["channel"] == "C5"]
+
+
+def test_the_pour_succeeds_across_two_hosts_over_a_shaped_link_with_mtls_and_acl(hosts: TwoHosts) -> None:
+    report = hosts.say(POUR)
+    assert report.done_as_asked, report.text
+    placed = json.loads((hosts.run_dir / "hosts.json").read_text())["hosts"]
+    assert set(placed["robot"]["processes"]) == {"router_robot", "ag_ex", "a_ta"}
+    assert set(placed["brain"]["processes"]) == {"router_brain", "recorder", "a_hi", "a_co", "a_pl", "a_km"}
+    events = read_link_events(hosts.run_dir)
+    assert events[0]["event"] == "shaping" and events[0]["delay_ms"] == 20 and events[0]["loss_pct"] == 1
+    # C5 (a_ta ↔ ag_ex) stayed on the robot's host and still reached the brain's recorder
+    assert any(r["sender"] == "ag_ex" for r in c5_record(hosts.run_dir))
+    # access control holds across the mesh: a robot-side process as a_ta may put on a_ta's own
+    # C1 key, not on a_pl's C4 key (nor as a_pl); the brain's operator sees only the first
+    seen: list[str] = []
+    operator = open_client(hosts.endpoint)
+    operator.declare_subscriber("roco/fipa/**", lambda s: seen.append(str(s.key_expr)))
+    try:
+        _robot_put(
+            hosts, "a_ta", ["roco/fipa/C4/a_pl/a_km", "roco/fipa/C5/ag_ex/a_ta", "roco/fipa/C1/a_ta/a_co"]
+        )
+        deadline = time.monotonic() + 10
+        while "roco/fipa/C1/a_ta/a_co" not in seen and time.monotonic() < deadline:
+            time.sleep(0.05)
+    finally:
+        operator.close()
+    assert "roco/fipa/C1/a_ta/a_co" in seen  # the last put: everything before it was routed first
+    assert not {"roco/fipa/C4/a_pl/a_km", "roco/fipa/C5/ag_ex/a_ta"} & set(seen), seen
+
+
+def _robot_put(h: TwoHosts, identity: str, keys_: list[str]) -> None:
+    """Put one (malformed) payload on each of ``keys_`` from a process on the robot's host,
+    authenticated as ``identity`` through the robot's router."""
+    assert h.pair is not None and h.fleet is not None and h.fleet.security is not None
+    code = (
+        "import sys\nfrom services.runtime.session import open_client\n"
+        f"s = open_client('tls/127.0.0.1:7447', identity={identity!r})\n"
+        f"for k in {keys_!r}:\n    s.put(k, b'x')\ns.close()\n"
+    )
+    env = dict(os.environ, ROCO_SECURITY=str(h.fleet.security), PYTHONPATH=str(Path.cwd()))
+    subprocess.run(
+        [*netns_exec(h.pair.netns("robot")), sys.executable, "-c", code], env=env, check=True, timeout=60
+    )
+
+
+def test_ten_second_partitions_during_a_motion_and_during_planning_are_ridden_out(hosts: TwoHosts) -> None:
+    """The link cut for 10 s at the first motion (a_ta's reach for the jar), and again when
+    a_co asks a_pl for plan #3 (which can only happen once the first cut has healed: a_co
+    learns that plan #2 ended from a_ta, across the link)."""
+    cuts = {"take/reach": lambda: hosts.partition(10.0), "plan #3 requested": lambda: hosts.partition(10.0)}
+    states = hosts.run_dir / "robot_states.jsonl"
+    with _robot_observer(hosts, states):
+        report = hosts.say(POUR, cuts)
+    assert report.done_as_asked, report.text
+    assert not cuts, f"not cut at: {list(cuts)}"
+    events = read_link_events(hosts.run_dir)
+    kinds = [e["event"] for e in events]
+    assert kinds == ["shaping", "down", "up", "down", "up"], kinds
+    times = [float(e["t"]) for e in events]  # type: ignore[arg-type]
+    windows = [(times[1], times[2]), (times[3], times[4])]
+    assert all(9.9 <= up - down <= 12.0 for down, up in windows), windows
+    record = [json.loads(line) for line in (hosts.run_dir / "traffic.jsonl").read_text().splitlines()]
+    c5 = [r for r in record if r["channel"] == "C5"]
+    requests = [r for r in c5 if r["performative"] == "request"]
+    # a_ta and ag_ex share the robot's host: the robot went on with the steps it held, and what
+    # its agents said during the cut reached the brain's recorder only once the link was back
+    robot = [r for r in record if r["sender"] in ("a_ta", "ag_ex")]
+    for k, (down, up) in enumerate(windows):
+        during = [r for r in robot if down < r["t_sent"] < up - 0.2]
+        assert during or k, "nothing was said on the robot's host during the cut at the motion"
+        assert all(r["t"] > up - 0.2 for r in during), "a communicate crossed the cut link"
+    # what the robot's host saw of ag_ex (its state at 20 Hz): during the cut at the motion it
+    # went on moving; during the cut while the brain planned it had nothing to do and held
+    # position (joint impedance on its last target)
+    seen = [json.loads(line) for line in states.read_text().splitlines()]
+    moved = [_joint_travel(seen, down, up) for down, up in windows]
+    assert moved[0] > 0.05, moved
+    assert moved[1] < 0.01, moved
+    # … and nothing was lost: every publisher's sequence numbers are complete
+    sns: dict[str, set[int]] = collections.defaultdict(set)
+    for r in record:
+        if r["source"] is not None:
+            sns[r["source"]].add(r["sn"])
+    assert all(s == set(range(max(s) + 1)) for s in sns.values())
+    # nothing executed twice: one request and one result per conversation
+    asked = collections.Counter(r["conversation_id"] for r in requests)
+    answered = collections.Counter(
+        r["conversation_id"]
+        for r in c5
+        if r["sender"] == "ag_ex" and r["performative"] in ("inform", "failure")
+    )
+    assert asked and max(asked.values()) == 1 and max(answered.values()) == 1, (asked, answered)
+    assert set(answered) == set(asked)
+
+
+OBSERVER = """
+import json, sys, time
+import msgspec
+from services.runtime.session import open_client
+from velma.executor.state import RobotSnapshot
+out = open(sys.argv[1], "a", buffering=1)
+dec = msgspec.msgpack.Decoder(RobotSnapshot)
+def on(sample):
+    snap = dec.decode(sample.payload.to_bytes())
+    out.write(json.dumps({"t": time.time(), "joints": snap.joints}) + "\\n")
+s = open_client("tls/127.0.0.1:7447", identity="operator", wait_for_router=True)
+s.declare_subscriber("roco/state/ag_ex", on)
+print("ready", flush=True)
+sys.stdin.read()
+"""
+
+
+@contextlib.contextmanager
+def _robot_observer(h: TwoHosts, out: Path) -> Iterator[None]:
+    """A process on the robot's host, the operator's identity, writing each of ag_ex's state
+    publications to ``out`` (JSON lines: time, joints in rad) — what the brain cannot see
+    while the link is cut."""
+    assert h.pair is not None and h.fleet is not None and h.fleet.security is not None
+    env = dict(os.environ, ROCO_SECURITY=str(h.fleet.security))
+    cmd = [*netns_exec(h.pair.netns("robot")), sys.executable, "-c", OBSERVER, str(out)]
+    proc = subprocess.Popen(cmd, env=env, stdin=subprocess.PIPE, stdout=subprocess.PIPE)
+    try:
+        assert proc.stdout is not None and proc.stdout.readline().strip() == b"ready"
+        yield
+    finally:
+        proc.terminate()
+        proc.wait()
+
+
+def _joint_travel(seen: list[dict[str, Any]], t0: float, t1: float) -> float:
+    """The largest range (rad) any joint covered among the states seen between ``t0`` and ``t1``."""
+    inside = [s["joints"] for s in seen if t0 <= s["t"] <= t1]
+    assert len(inside) > 20, f"{len(inside)} states seen between the cut's ends"
+    return max(max(j[n] for j in inside) - min(j[n] for j in inside) for n in inside[0])
+
+
+def test_a_router_with_a_certificate_from_another_ca_cannot_mesh(tmp_path: Path) -> None:
+    """The brain's router and a robot router that meshes to it; the robot's router holds a
+    certificate of the deployment's CA (control: its client's liveliness token reaches the
+    brain's operator) or of another CA (refused: it never does)."""
+    spec = default_spec()
+    ours, theirs = tmp_path / "ours", tmp_path / "theirs"
+    pair = HostPair.create()
+    try:
+        for folder in (ours, theirs):
+            prepare(folder, spec, tls=True)
+            issue_router(folder, spec, "router_brain", [], [pair.link_addr("brain"), pair.uplink_addr])
+            issue_router(folder, spec, "router_robot", [], [pair.link_addr("robot")])
+        brain = _router(pair, "brain", ours, tmp_path)
+        endpoint = f"tls/{pair.uplink_addr}:7447"
+        register(endpoint, ours)
+        try:
+            assert _robot_token_seen(pair, ours, endpoint, tmp_path, 30.0), "the control: a router of our CA"
+            assert not _robot_token_seen(pair, theirs, endpoint, tmp_path, 10.0), (
+                "a router of another CA meshed"
+            )
+        finally:
+            register(endpoint, None)
+            brain.terminate()
+            brain.wait()
+    finally:
+        pair.destroy()
+
+
+def _router(
+    pair: HostPair, host: str, security: Path, logs: Path, connect: str | None = None
+) -> subprocess.Popen[bytes]:
+    args = ["-m", "services.runtime.router", "--identity", f"router_{host}", "--listen", "tls/127.0.0.1:7447"]
+    if host == "brain":
+        args += [
+            "--listen",
+            f"tls/{pair.link_addr('brain')}:7447",
+            "--listen",
+            f"tls/{pair.uplink_addr}:7447",
+        ]
+    if connect:
+        args += ["--connect", connect]
+    env = dict(os.environ, ROCO_SECURITY=str(security))
+    out = (logs / f"router_{host}-{security.name}.log").open("ab")
+    return subprocess.Popen(
+        [*netns_exec(pair.netns(host)), sys.executable, *args], env=env, stdout=out, stderr=out
+    )
+
+
+def _robot_token_seen(pair: HostPair, security: Path, endpoint: str, logs: Path, wait_s: float) -> bool:
+    """Start a robot router with ``security``'s identity, an ag_ex-named client on it holding
+    its liveliness token; True when the brain's operator sees the token within ``wait_s``."""
+    robot = _router(pair, "robot", security, logs, connect=f"tls/{pair.link_addr('brain')}:7447")
+    code = (
+        "import sys, time\nfrom services.runtime.session import open_client\n"
+        "s = open_client('tls/127.0.0.1:7447', identity='ag_ex', wait_for_router=True)\n"
+        "t = s.liveliness().declare_token('roco/alive/ag_ex')\nsys.stdin.read()\n"
+    )
+    env = dict(os.environ, ROCO_SECURITY=str(security))
+    client = subprocess.Popen([*netns_exec(pair.netns("robot")), sys.executable, "-c", code], env=env,
+                              stdin=subprocess.PIPE)  # fmt: skip
+    operator = _open_when_listening(endpoint)
+    seen = queue.SimpleQueue[bool]()
+    operator.liveliness().declare_subscriber(
+        "roco/alive/ag_ex", lambda s: seen.put(s.kind == zenoh.SampleKind.PUT), history=True
+    )
+    try:
+        return seen.get(timeout=wait_s)
+    except queue.Empty:
+        return False
+    finally:
+        operator.close()
+        for p in (client, robot):
+            p.terminate()
+            p.wait()
+
+
+def _open_when_listening(endpoint: str, timeout: float = 10.0) -> zenoh.Session:
+    deadline = time.monotonic() + timeout
+    while True:
+        try:
+            return open_client(endpoint)
+        except zenoh.ZError:
+            if time.monotonic() > deadline:
+                raise
+            time.sleep(0.1)
+
+
+def test_roco_hosts_up_status_partition_down(tmp_path: Path) -> None:
+    """What a user types (docs/deploy.md): `roco hosts up`, `roco status` through the mesh,
+    `roco hosts partition 1`, `roco hosts status`, `roco hosts down` — nothing left behind."""
+
+    def roco(*args: str) -> subprocess.CompletedProcess[str]:
+        cmd = [sys.executable, "-m", "services.cli", *args, "--runs-dir", str(tmp_path)]
+        return subprocess.run(cmd, capture_output=True, text=True, timeout=300)
+
+    up = roco("hosts", "up", "--no-realtime")
+    assert up.returncode == 0, up.stderr
+    state = json.loads((tmp_path / ".hosts.json").read_text())
+    pair = HostPair(state["tag"], state["subnet"], state["maker"])
+    try:
+        assert pair.exists() and "operator endpoint tls/169.254." in up.stdout
+        status = roco("status")
+        assert status.returncode == 0, status.stdout + status.stderr
+        assert all(
+            f"{n:9s} alive" in status.stdout for n in ("a_hi", "a_co", "a_pl", "a_km", "a_ta", "ag_ex")
+        )
+        cut = roco("hosts", "partition", "1")
+        assert cut.returncode == 0 and "link up" in cut.stdout, cut.stderr
+        shown = roco("hosts", "status")
+        assert shown.returncode == 0 and "link   up;" in shown.stdout, shown.stdout
+        events = read_link_events(Path(state["run_dir"]))
+        assert [e["event"] for e in events] == ["shaping", "down", "up"]
+        again = roco("hosts", "up")
+        assert again.returncode == 2 and again.stderr.startswith("roco: a fleet is already up")
+    finally:
+        down = roco("hosts", "down")
+    assert down.returncode == 0, down.stderr
+    assert (
+        not pair.exists()
+        and not (tmp_path / ".hosts.json").exists()
+        and not (tmp_path / ".fleet.json").exists()
+    )
