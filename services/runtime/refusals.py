@@ -90,6 +90,9 @@ _AUTH_FAILED = re.compile(
     r"UsrPwd extension - Recv \w+\. (?P<why>Invalid password|Invalid user|Expected extension)"
 )
 _BAD_CERT = re.compile(r"invalid peer certificate: (?P<why>[^.]+)")
+_ALERT = re.compile(r"received fatal alert: (?P<why>\w+)")
+"""The peer ended the TLS handshake: it did not trust this router's certificate (a router or a
+client of another CA; zenoh_link_tls logs it at WARN, with no address)."""
 AUTH_REASONS = {
     "Invalid password": "wrong password",
     "Invalid user": "unknown user",
@@ -108,8 +111,10 @@ class Refusal(msgspec.Struct, frozen=True, kw_only=True):
     ``_`` (``put``, ``delete``, ``query``, ``reply``, ``declare_subscriber``,
     ``declare_liveliness_token``, …; ``session`` for a session that matches no ACL subject and
     may therefore do nothing; ``authenticate`` for a session refused at the handshake, ``key``
-    then saying why: ``no credentials``, ``wrong password``, ``unknown user``, or ``bad
-    certificate: <TLS error>``); flow: ``ingress`` (what the client sent) or ``egress`` (what the
+    then saying why: ``no credentials``, ``wrong password``, ``unknown user``, ``bad
+    certificate: <TLS error>``, or ``handshake ended by the peer: <TLS alert> …`` when the peer
+    (a router or client of another CA) did not trust this router's certificate); flow:
+    ``ingress`` (what the client sent) or ``egress`` (what the
     router would have delivered to it); key: the key expression; session: the Zenoh id (hex; ""
     before a session exists); peer: the client's address, where Zenoh logged it (a refused
     authentication; a refused TLS handshake is logged without it)."""
@@ -268,6 +273,17 @@ class RefusalLog:
                 message="authenticate",
                 flow="ingress",
                 key=f"bad certificate: {bad['why']}",
+                session="",
+            )
+            return self._add(refused)
+        alert = _ALERT.search(line)
+        if alert is not None:
+            refused = Refusal(
+                t=_time(stamp),
+                identity=UNKNOWN,
+                message="authenticate",
+                flow="ingress",
+                key=f"handshake ended by the peer: {alert['why']} (it does not trust our certificate)",
                 session="",
             )
             return self._add(refused)

@@ -27,6 +27,7 @@ from services.hosts.fleet import TwoHosts
 from services.hosts.link import Shaping
 from services.hosts.netns import HostPair, netns_exec, unavailable
 from services.recorder.record import read_link_events
+from services.runtime.refusals import Refusal, read_refusals
 from services.runtime.run_folder import new_run_dir
 from services.runtime.session import open_client
 from services.security.context import register
@@ -192,7 +193,8 @@ def _joint_travel(seen: list[dict[str, Any]], t0: float, t1: float) -> float:
 def test_a_router_with_a_certificate_from_another_ca_cannot_mesh(tmp_path: Path) -> None:
     """The brain's router and a robot router that meshes to it; the robot's router holds a
     certificate of the deployment's CA (control: its client's liveliness token reaches the
-    brain's operator) or of another CA (refused: it never does)."""
+    brain's operator) or of another CA (refused: it never does, and the brain's router counts
+    and names the refused handshake in its run folder's refusals.jsonl)."""
     spec = default_spec()
     ours, theirs = tmp_path / "ours", tmp_path / "theirs"
     pair = HostPair.create()
@@ -201,7 +203,9 @@ def test_a_router_with_a_certificate_from_another_ca_cannot_mesh(tmp_path: Path)
             prepare(folder, spec, tls=True)
             issue_router(folder, spec, "router_brain", [], [pair.link_addr("brain"), pair.uplink_addr])
             issue_router(folder, spec, "router_robot", [], [pair.link_addr("robot")])
-        brain = _router(pair, "brain", ours, tmp_path)
+        run_dir = tmp_path / "brain-run"
+        run_dir.mkdir()
+        brain = _router(pair, "brain", ours, tmp_path, run_dir=run_dir)
         endpoint = f"tls/{pair.uplink_addr}:7447"
         register(endpoint, ours)
         try:
@@ -209,6 +213,10 @@ def test_a_router_with_a_certificate_from_another_ca_cannot_mesh(tmp_path: Path)
             assert not _robot_token_seen(pair, theirs, endpoint, tmp_path, 10.0), (
                 "a router of another CA meshed"
             )
+            deadline = time.monotonic() + 10.0
+            while not (refused := _bad_certificates(run_dir)) and time.monotonic() < deadline:
+                time.sleep(0.1)  # the router writes each refusal as its log names it
+            assert refused, f"no refused handshake named: {read_refusals(run_dir)}"
         finally:
             register(endpoint, None)
             brain.terminate()
@@ -217,8 +225,25 @@ def test_a_router_with_a_certificate_from_another_ca_cannot_mesh(tmp_path: Path)
         pair.destroy()
 
 
+def _bad_certificates(run_dir: Path) -> list[Refusal]:
+    """The TLS handshakes the router refused, or that its peer ended, for a certificate of
+    another CA (which side refuses first depends on who checks first)."""
+    refused = read_refusals(run_dir)
+    return [
+        r
+        for r in refused
+        if r.message == "authenticate"
+        and r.key.startswith(("bad certificate", "handshake ended by the peer"))
+    ]
+
+
 def _router(
-    pair: HostPair, host: str, security: Path, logs: Path, connect: str | None = None
+    pair: HostPair,
+    host: str,
+    security: Path,
+    logs: Path,
+    connect: str | None = None,
+    run_dir: Path | None = None,
 ) -> subprocess.Popen[bytes]:
     args = ["-m", "services.runtime.router", "--identity", f"router_{host}", "--listen", "tls/127.0.0.1:7447"]
     if host == "brain":
@@ -231,6 +256,8 @@ def _router(
     if connect:
         args += ["--connect", connect]
     env = dict(os.environ, ROCO_SECURITY=str(security))
+    if run_dir is not None:
+        env["ROCO_RUN_DIR"] = str(run_dir)
     out = (logs / f"router_{host}-{security.name}.log").open("ab")
     return subprocess.Popen(
         [*netns_exec(pair.netns(host)), sys.executable, *args], env=env, stdout=out, stderr=out
