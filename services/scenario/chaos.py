@@ -67,7 +67,7 @@ _ONCE = frozenset({"fipa-request", "fipa-query"})
 def chaos_scenario(
     seed: int,
     *,
-    services: tuple[str, ...] = SERVICE_ORDER,
+    services: tuple[str, ...] | None = None,
     count: int | None = None,
     kinds: tuple[str, ...] = ("kill", "pause", "restart"),
     command: str = DEFAULT_COMMAND,
@@ -79,13 +79,16 @@ def chaos_scenario(
     """The chaos scenario of ``seed``: ``command``, then faults of ``services`` — each once
     in a random order when ``count`` is None, else ``count`` random draws — each ``gap_s``
     (uniform, s) after the previous one, of one of ``kinds``, down for ``down_s`` (uniform,
-    s). ``services`` may be ``("all",)``: the agents, the recorder and the router. With
+    s). ``services``: default every agent (on two hosts :data:`HOSTS_DEFAULT`); it may be
+    ``("all",)``: the agents, the recorder and the router. With
     ``hosts`` (the fleet on two hosts, services/hosts/fleet.py) the infrastructure is
     :data:`HOSTS_INFRASTRUCTURE` instead, ``all`` is the agents and all of it, and a fault of
     ``link`` is a cut of ``cut_s`` (uniform, s; keep it under the routers' lease,
     services/hosts/fleet.py ``LEASE_MS``). Raises ValueError for an unknown service or kind
     or an empty choice."""
     infrastructure = HOSTS_INFRASTRUCTURE if hosts else INFRASTRUCTURE
+    if services is None:
+        services = HOSTS_DEFAULT if hosts else SERVICE_ORDER
     if services == (ALL,):
         services = (*SERVICE_ORDER, *infrastructure)
     unknown = [s for s in services if s not in AGENTS | set(infrastructure)]
