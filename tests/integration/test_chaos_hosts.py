@@ -44,6 +44,7 @@ def test_chaos_across_two_hosts_faults_both_hosts_and_the_link_and_keeps_everyth
     assert set(rows) >= set(SERVICES), report
     assert rows["a_ta"][2].strip() == "robot" and rows["router_brain"][2].strip() == "brain"
     assert rows["link"][2].strip() == "brain ↔ robot" and rows["link"][4].strip() == "cut"
+    assert rows["link"][8].strip() == "yes"  # the first fault, 1–3 s into a pour of ≥ 12 s
     for name in ("a_ta", "router_brain"):  # paused and let run again: the same process
         assert rows[name][4].strip() == "pause" and 0.5 <= float(rows[name][5]) <= 4.0, rows[name]
     # the cut is in the run folder's link.jsonl, and chaos.md says when, in the run's seconds
