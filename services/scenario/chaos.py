@@ -93,7 +93,8 @@ def chaos_scenario(
         services = (*SERVICE_ORDER, *infrastructure)
     unknown = [s for s in services if s not in AGENTS | set(infrastructure)]
     if unknown or not services:
-        raise ValueError(f"cannot fault {', '.join(unknown) or 'nothing'}")
+        known = ", ".join((*SERVICE_ORDER, *infrastructure))
+        raise ValueError(f"cannot fault {', '.join(unknown) or 'nothing'} (services: {known}, or all)")
     bad = [k for k in kinds if k not in FAULT_KINDS]
     if bad or not kinds:
         raise ValueError(f"fault kinds are {', '.join(sorted(FAULT_KINDS))}, not {', '.join(bad) or 'none'}")

@@ -78,7 +78,7 @@ class LocalHosting:
 
     run_dir: Path
     env: dict[str, str] = field(default_factory=dict)
-    _fleet: Fleet | None = None
+    _fleet: Fleet | None = field(default=None, init=False, repr=False)
 
     @property
     def fleet(self) -> Fleet:
