@@ -34,6 +34,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from services.fleet.launcher import load_launch_env
+from services.hosts.fleet import ROUTERS
 from services.recorder.integrity import Integrity
 from services.recorder.record import read_link_events
 from services.report.load import load_run
@@ -54,10 +55,10 @@ SERVICE_ORDER = default_spec().agent_names
 INFRASTRUCTURE = ("recorder", "router")
 ALL = "all"
 """As a service list: every agent, the traffic recorder and the router."""
-HOSTS_INFRASTRUCTURE = ("recorder", "router_brain", "router_robot", LINK)
-"""What else can be faulted on two hosts (services/hosts/fleet.py ``ROUTERS``): the recorder
-(the brain's), each host's router, and the link between them (kind ``cut``)."""
-HOSTS_DEFAULT = (*SERVICE_ORDER, "router_brain", "router_robot", LINK)
+HOSTS_INFRASTRUCTURE = ("recorder", *ROUTERS, LINK)
+"""What else can be faulted on two hosts (services/hosts/fleet.py): the recorder (the brain's),
+each host's router, and the link between them (kind ``cut``)."""
+HOSTS_DEFAULT = (*SERVICE_ORDER, *ROUTERS, LINK)
 """Faulted on two hosts unless told otherwise: every agent, both routers and the link."""
 _FINAL = frozenset({"inform", "inform-ref", "failure", "refuse"})
 _ONCE = frozenset({"fipa-request", "fipa-query"})
