@@ -256,13 +256,25 @@ def chaos(
             "their routers (router_brain, router_robot) and the link between them (link: cut 2-6 s)",
         ),
     ] = False,
+    delay_ms: Annotated[
+        float | None,
+        typer.Option(min=0, help="with --hosts: one-way delay of the link (ms)", show_default="20"),
+    ] = None,
+    jitter_ms: Annotated[
+        float | None, typer.Option(min=0, help="with --hosts: ± this much (ms)", show_default="5")
+    ] = None,
+    loss_pct: Annotated[
+        float | None,
+        typer.Option(min=0, max=99, help="with --hosts: packets lost each way (%)", show_default="1"),
+    ] = None,
 ) -> None:
     """Kill, pause or restart services at random times while the robot carries out a command
     (each service once by default), then say whether the task was done, no command was lost,
     nothing was executed twice, no object was dropped and the traffic record is intact
     (RUN/chaos.md). Exit 0 only if all five hold. With `--hosts` the fleet runs on the two
-    hosts of `roco hosts` (link 20 ± 5 ms, 1 % loss; mutual TLS between the routers, access
-    control on) and the link is cut as well. On compose use `roco fault` (docs/recovery.md)."""
+    hosts of `roco hosts` (link 20 ± 5 ms, 1 % loss unless told; mutual TLS between the
+    routers, access control on) and the link is cut as well. On compose use `roco fault`
+    (docs/recovery.md)."""
     from services.scenario.chaos import HOSTS_DEFAULT, chaos_scenario, verdict, write_chaos_report
     from services.scenario.runner import Hosting, ScenarioRunner
 
@@ -275,6 +287,8 @@ def chaos(
         if acl is False or tls is False:
             raise fail("--hosts always runs with access control and mutual TLS", code=2)
     else:
+        if (delay_ms, jitter_ms, loss_pct) != (None, None, None):
+            raise fail("--delay-ms, --jitter-ms and --loss-pct shape the link of --hosts", code=2)
         _security(acl, tls)
 
     try:
@@ -298,6 +312,17 @@ def chaos(
         )
     except ValueError as exc:
         raise fail(str(exc), code=2) from None
+    if hosts:
+        from services.hosts.link import Shaping
+
+        try:
+            shaping = Shaping(
+                20.0 if delay_ms is None else delay_ms,
+                5.0 if jitter_ms is None else jitter_ms,
+                1.0 if loss_pct is None else loss_pct,
+            )
+        except ValueError as exc:
+            raise fail(str(exc), code=2) from None
     run_dir = new_run_dir(runs_dir)
     info = RunInfo(started=time.time(), realtime=realtime, seed=0, scenario=sc.name)
     _stop_on_signals()
@@ -305,9 +330,8 @@ def chaos(
     hosting: Hosting | None = None
     if hosts:
         from services.hosts.fleet import TwoHosts, TwoHostsHosting
-        from services.hosts.link import Shaping
 
-        hosting = TwoHostsHosting(TwoHosts(run_dir, Shaping(20.0, 5.0, 1.0), env=env))
+        hosting = TwoHostsHosting(TwoHosts(run_dir, shaping, env=env))
     watch = _live_watch(f"roco chaos --seed {seed}", live, quiet)
     say = watch.line if watch is not None else typer.echo
     shown = ("fault", "back after", "up again after")

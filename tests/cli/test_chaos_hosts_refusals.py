@@ -42,3 +42,14 @@ def test_access_control_cannot_be_turned_off_and_two_hosts_have_no_single_router
     code, out = _run(["--services", "router"], tmp_path)
     assert code == 2 and "cannot fault router" in out and "router_brain, router_robot, link" in out
     assert not (tmp_path / "runs").exists()
+
+
+def test_the_link_is_shaped_only_with_hosts_and_only_as_it_can_be(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    result = CliRunner().invoke(app, ["chaos", "--delay-ms", "5", "--runs-dir", str(tmp_path / "runs")])
+    assert result.exit_code == 2 and "shape the link of --hosts" in result.output
+    monkeypatch.setattr("services.hosts.netns.unavailable", lambda: None)
+    code, out = _run(["--delay-ms", "2", "--jitter-ms", "5"], tmp_path)
+    assert code == 2 and "need 0 ≤ jitter ≤ delay" in out
+    assert not (tmp_path / "runs").exists()
