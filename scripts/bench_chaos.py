@@ -3,11 +3,14 @@ process per agent, MuJoCo not paced; each agent killed, paused or restarted once
 pour, services/scenario/chaos.py), one per seed, printed as a table: the faults drawn, the
 verdict's four answers, wall time.
 
-Usage: ``python scripts/bench_chaos.py [SEED ...]`` (default seeds 1 2 3 4 5)
+Usage: ``python scripts/bench_chaos.py [--hosts] [SEED ...]`` (default seeds 1 2 3 4 5; with
+``--hosts`` each run is ``roco chaos --hosts``: on two hosts of this machine, both routers and
+the link faulted too; root)
 """
 
 from __future__ import annotations
 
+import argparse
 import re
 import subprocess
 import sys
@@ -26,15 +29,24 @@ ANSWERS = ("task done", "no command lost", "nothing executed twice", "no object 
 
 
 def main() -> int:
-    seeds = [int(a) for a in sys.argv[1:]] or [1, 2, 3, 4, 5]
-    print(f"# roco chaos, one run per seed ({time.strftime('%Y-%m-%d')}, not paced)")
+    parser = argparse.ArgumentParser(description="roco chaos runs, one per seed, as a table")
+    parser.add_argument("seeds", nargs="*", type=int, default=[1, 2, 3, 4, 5], metavar="SEED")
+    parser.add_argument("--hosts", action="store_true", help="roco chaos --hosts (two hosts; root)")
+    args = parser.parse_args()
+    seeds, hosts = args.seeds, ["--hosts"] if args.hosts else []
+    title = "roco chaos --hosts" if args.hosts else "roco chaos"
+    print(f"# {title}, one run per seed ({time.strftime('%Y-%m-%d')}, not paced)")
     print(f"Machine: {benchlib.machine(('mujoco', 'pin', 'eclipse-zenoh'))}")
     print()
     print("| seed | faults (service kind) | " + " | ".join(ANSWERS) + " | wall (s) |")
     print("|---|---|" + "---|" * len(ANSWERS) + "---|")
     failures = 0
     for seed in seeds:
-        faults = ", ".join(f"{s.fault.service} {s.fault.kind}" for s in chaos_scenario(seed).steps if s.fault)
+        faults = ", ".join(
+            f"{s.fault.service} {s.fault.kind}"
+            for s in chaos_scenario(seed, hosts=args.hosts).steps
+            if s.fault
+        )
         with tempfile.TemporaryDirectory() as runs:
             t0 = time.monotonic()
             proc = subprocess.run(
@@ -43,6 +55,7 @@ def main() -> int:
                     "-m",
                     "services.cli",
                     "chaos",
+                    *hosts,
                     "--seed",
                     str(seed),
                     "--runs-dir",

@@ -17,6 +17,7 @@ from __future__ import annotations
 import contextlib
 import os
 import queue
+import shutil
 import signal
 import sys
 import threading
@@ -216,6 +217,9 @@ def scenario(
     _run_scenario(sc, runs_dir, realtime=realtime, quiet=quiet, record=record, view=view, watch=watch)
 
 
+_CHAOS_DEFAULT = ",".join(default_spec().agent_names)
+
+
 @app.command(short_help="Fault services at random during a task; check that nothing is lost.")
 def chaos(
     seed: Annotated[
@@ -227,10 +231,11 @@ def chaos(
     services: Annotated[
         str,
         typer.Option(
-            help="comma-separated services to fault (agents, recorder, router), or all",
-            show_default="every agent",
+            help="comma-separated services to fault (agents, recorder, router; with --hosts "
+            "router_brain, router_robot, link instead of router), or all",
+            show_default="every agent; with --hosts also both routers and the link",
         ),
-    ] = ",".join(default_spec().agent_names),
+    ] = _CHAOS_DEFAULT,
     kinds: Annotated[str, typer.Option(help="comma-separated fault kinds: kill, pause, restart")] = (
         "kill,pause,restart"
     ),
@@ -243,16 +248,48 @@ def chaos(
     acl: AclOption = None,
     tls: TlsOption = None,
     live: LiveOption = None,
+    hosts: Annotated[
+        bool,
+        typer.Option(
+            "--hosts",
+            help="on two hosts of this machine (brain, robot; root): fault both hosts' services, "
+            "their routers (router_brain, router_robot) and the link between them (link: cut 2-6 s)",
+        ),
+    ] = False,
+    delay_ms: Annotated[
+        float | None,
+        typer.Option(min=0, help="with --hosts: one-way delay of the link (ms)", show_default="20"),
+    ] = None,
+    jitter_ms: Annotated[
+        float | None, typer.Option(min=0, help="with --hosts: ± this much (ms)", show_default="5")
+    ] = None,
+    loss_pct: Annotated[
+        float | None,
+        typer.Option(min=0, max=99, help="with --hosts: packets lost each way (%)", show_default="1"),
+    ] = None,
 ) -> None:
     """Kill, pause or restart services at random times while the robot carries out a command
     (each service once by default), then say whether the task was done, no command was lost,
     nothing was executed twice, no object was dropped and the traffic record is intact
-    (RUN/chaos.md). Exit 0 only if all five hold. Local fleet only; on compose use
-    `roco fault` (docs/recovery.md)."""
-    from services.scenario.chaos import chaos_scenario, verdict, write_chaos_report
-    from services.scenario.runner import ScenarioRunner
+    (RUN/chaos.md). Exit 0 only if all five hold. With `--hosts` the fleet runs on the two
+    hosts of `roco hosts` (link 20 ± 5 ms, 1 % loss unless told; mutual TLS between the
+    routers, access control on) and the link is cut as well. On compose use `roco fault`
+    (docs/recovery.md)."""
+    from services.scenario.chaos import HOSTS_DEFAULT, chaos_scenario, verdict, write_chaos_report
+    from services.scenario.runner import Hosting, ScenarioRunner
 
-    _security(acl, tls)
+    if hosts:
+        from services.hosts.netns import unavailable
+
+        why = unavailable() or (None if shutil.which("nft") else "nftables' nft is not installed")
+        if why:
+            raise fail(f"--hosts cannot make two hosts here: {why}", code=2)
+        if acl is False or tls is False:
+            raise fail("--hosts always runs with access control and mutual TLS", code=2)
+    else:
+        if (delay_ms, jitter_ms, loss_pct) != (None, None, None):
+            raise fail("--delay-ms, --jitter-ms and --loss-pct shape the link of --hosts", code=2)
+        _security(acl, tls)
 
     try:
         low, high = (float(x) for x in gap.split(","))
@@ -261,30 +298,52 @@ def chaos(
     if not 0 <= low <= high <= 3600:
         raise fail(f"--gap needs 0 <= MIN <= MAX <= 3600, not {gap!r}", code=2)
     try:
+        victims = tuple(s.strip() for s in services.split(",") if s.strip())
+        if hosts and services == _CHAOS_DEFAULT:
+            victims = HOSTS_DEFAULT
         sc = chaos_scenario(
             seed,
             gap_s=(low, high),
-            services=tuple(s.strip() for s in services.split(",") if s.strip()),
+            services=victims,
             count=count,
             kinds=tuple(k.strip() for k in kinds.split(",") if k.strip()),
             command=command,
+            hosts=hosts,
         )
     except ValueError as exc:
         raise fail(str(exc), code=2) from None
+    if hosts:
+        from services.hosts.link import Shaping
+
+        try:
+            shaping = Shaping(
+                20.0 if delay_ms is None else delay_ms,
+                5.0 if jitter_ms is None else jitter_ms,
+                1.0 if loss_pct is None else loss_pct,
+            )
+        except ValueError as exc:
+            raise fail(str(exc), code=2) from None
     run_dir = new_run_dir(runs_dir)
     info = RunInfo(started=time.time(), realtime=realtime, seed=0, scenario=sc.name)
     _stop_on_signals()
     env = _scene_env(realtime, 0, None) | _viewer_env(record, False)
+    hosting: Hosting | None = None
+    if hosts:
+        from services.hosts.fleet import TwoHosts, TwoHostsHosting
+
+        hosting = TwoHostsHosting(TwoHosts(run_dir, shaping, env=env))
     watch = _live_watch(f"roco chaos --seed {seed}", live, quiet)
     say = watch.line if watch is not None else typer.echo
+    shown = ("fault", "back after", "up again after")
     with watch if watch is not None else contextlib.nullcontext():
         runner = ScenarioRunner(
             sc,
             run_dir,
             env=env,
-            echo=lambda line: say(line) if not quiet or "fault" in line or "back after" in line else None,
+            echo=lambda line: say(line) if not quiet or any(w in line for w in shown) else None,
             info=info,
             on_session=watch.attach if watch is not None else None,
+            hosting=hosting,
         )
         outcome = runner.run()
     _finish_report(run_dir, info)

@@ -114,6 +114,8 @@ LocalFleet = Fleet | UpFleet
 
 
 def _check_service(fleet: LocalFleet, service: str) -> None:
+    if isinstance(fleet, Fleet) and service in fleet.processes:
+        return  # e.g. the routers of the two hosts (services/hosts/fleet.py)
     if service not in LOCAL_SERVICES:
         known = ", ".join(LOCAL_SERVICES)
         raise FaultError(f"no service {service!r} in a local fleet (services: {known})")
@@ -271,8 +273,10 @@ def start(fleet: LocalFleet, service: str, timeout: float = 60.0, wait: bool = T
                 fleet.start_router(timeout)
             elif service == "recorder":
                 fleet.start_recorder()
-            else:
+            elif service in AGENT_ORDER:
                 fleet.start_agents([service])
+            else:
+                fleet.respawn(service)
         except LaunchError as exc:
             raise FaultError(str(exc)) from None
         proc = fleet.processes[service]

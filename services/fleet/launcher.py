@@ -75,6 +75,8 @@ class Fleet:
     wrap: dict[str, list[str]] = field(default_factory=dict)
     """Command prefix per process name (e.g. ``ip netns exec NS`` for a process on another host
     of services/hosts/); a process not named runs as it is."""
+    args: dict[str, list[str]] = field(default_factory=dict)
+    """The interpreter arguments each process was started with (:meth:`respawn`)."""
 
     def __post_init__(self) -> None:
         if self.tls:
@@ -100,12 +102,19 @@ class Fleet:
     def _spawn(self, name: str, args: list[str]) -> None:
         env = self._environ()
         save_launch_env(self.run_dir, env, self.env)
+        self.args[name] = args
         self.processes[name] = spawn_process(self.run_dir, name, args, env, prefix=self.wrap.get(name, []))
 
     def start_service(self, name: str, args: list[str]) -> None:
         """Start ``python args…`` as process ``name`` of this fleet (its environment, its
         ``wrap``); used for services the fleet does not know, e.g. a second router."""
         self._spawn(name, args)
+
+    def respawn(self, name: str) -> None:
+        """Start process ``name`` again with the arguments it was first started with (e.g. a
+        second router of services/hosts/ after a fault). Raises KeyError for a process this
+        fleet never started."""
+        self._spawn(name, self.args[name])
 
     def start_router(self, timeout: float = 10.0) -> None:
         """Start the embedded router on ``endpoint`` and wait until it accepts connections."""

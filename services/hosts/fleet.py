@@ -27,11 +27,13 @@ import msgspec
 import zenoh
 
 from services.deploy.deploy import issue_router
+from services.fault import process
 from services.fleet.launcher import AGENT_ORDER, Fleet, LaunchError
 from services.hosts import link
 from services.hosts.link import Shaping
-from services.hosts.netns import HostPair, netns_exec
+from services.hosts.netns import HostPair, HostsError, netns_exec
 from services.runtime import keys
+from services.runtime.faults import FaultEvent
 from services.runtime.human import FINAL_REPORTS, HumanInput, HumanReport
 from services.runtime.session import open_client
 from services.security.context import register
@@ -42,6 +44,8 @@ HOSTS_JSON = "hosts.json"
 """The run folder's description of the two hosts (:meth:`TwoHosts._write_hosts`)."""
 ROBOT = ("ag_ex", "a_ta")
 """The robot's services (besides its router); every other agent and the recorder are the brain's."""
+ROUTERS = ("router_brain", "router_robot")
+"""The process names of the two hosts' routers."""
 LEASE_MS = 30_000
 """The routers' transport lease: a link silent this long is given up (Zenoh's default: 10 s).
 Longer than the partitions the mesh should ride out without its links being closed and its
@@ -219,6 +223,64 @@ class TwoHosts:
 
     def __exit__(self, *exc: object) -> None:
         self.stop()
+
+
+@dataclass
+class TwoHostsHosting:
+    """The two hosts as where a scenario runs (services/scenario/runner.py ``Hosting``;
+    ``roco chaos --hosts``): :meth:`start_routers` makes the hosts, shapes the link and starts
+    the routers (``TwoHosts`` without its services: the runner starts the recorder and the
+    agents, each on its host by the fleet's ``wrap``); a router started again after a fault is
+    back once the agents behind it are seen alive again from the operator's side."""
+
+    hosts: TwoHosts
+
+    @property
+    def fleet(self) -> Fleet:
+        if self.hosts.fleet is None:
+            raise LaunchError("the two hosts are not up")
+        return self.hosts.fleet
+
+    @property
+    def endpoint(self) -> str:
+        return self.hosts.endpoint
+
+    def start_routers(self) -> None:
+        self.hosts.services = False
+        try:
+            self.hosts.start()
+        except HostsError as exc:
+            raise LaunchError(str(exc)) from None
+
+    def start_again(self, session: zenoh.Session, service: str, timeout: float) -> FaultEvent:
+        """Start ``service`` again on its host; wait until it (for the robot's router: ag_ex and
+        a_ta; for the brain's: every agent and the recorder) holds its liveliness token as seen
+        through the brain's router. Raises FaultError."""
+        event = process.start(self.fleet, service, timeout, wait=False)
+        behind = {
+            "router_brain": ["recorder", *AGENT_ORDER],  # the robot's through the mesh again
+            "router_robot": list(ROBOT),
+        }
+        try:
+            self.fleet.wait_alive(session, behind.get(service, [service]), timeout)
+        except LaunchError as exc:
+            raise process.FaultError(f"{service} started again, but {exc}") from None
+        return event
+
+    def host(self, service: str) -> str | None:
+        return host_of(service)
+
+    def partition(self, seconds: float | None) -> None:
+        try:
+            self.hosts.partition(seconds)
+        except HostsError as exc:
+            raise LaunchError(f"the link was not cut: {exc}") from None
+
+    def heal(self) -> None:
+        self.hosts.heal()
+
+    def stop(self) -> None:
+        self.hosts.stop()
 
 
 def _each(flag: str, values: list[str]) -> list[str]:

@@ -34,10 +34,12 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from services.fleet.launcher import load_launch_env
+from services.hosts.fleet import ROUTERS
 from services.recorder.integrity import Integrity
+from services.recorder.record import read_link_events
 from services.report.load import load_run
 from services.scenario.model import AGENTS, FAULT_KINDS, MOVABLE, Fault, Scenario, Step, Trigger
-from services.scenario.runner import FaultRecord, ScenarioOutcome
+from services.scenario.runner import LINK, FaultRecord, ScenarioOutcome
 from services.spec.model import default_spec
 from shared.fipa_codec.languages.l_sd import Observation
 
@@ -53,6 +55,11 @@ SERVICE_ORDER = default_spec().agent_names
 INFRASTRUCTURE = ("recorder", "router")
 ALL = "all"
 """As a service list: every agent, the traffic recorder and the router."""
+HOSTS_INFRASTRUCTURE = ("recorder", *ROUTERS, LINK)
+"""What else can be faulted on two hosts (services/hosts/fleet.py): the recorder (the brain's),
+each host's router, and the link between them (kind ``cut``)."""
+HOSTS_DEFAULT = (*SERVICE_ORDER, *ROUTERS, LINK)
+"""Faulted on two hosts unless told otherwise: every agent, both routers and the link."""
 _FINAL = frozenset({"inform", "inform-ref", "failure", "refuse"})
 _ONCE = frozenset({"fipa-request", "fipa-query"})
 """Protocols whose request gets one final answer (subscribe and coordinate stream many)."""
@@ -61,23 +68,34 @@ _ONCE = frozenset({"fipa-request", "fipa-query"})
 def chaos_scenario(
     seed: int,
     *,
-    services: tuple[str, ...] = SERVICE_ORDER,
+    services: tuple[str, ...] | None = None,
     count: int | None = None,
     kinds: tuple[str, ...] = ("kill", "pause", "restart"),
     command: str = DEFAULT_COMMAND,
     gap_s: tuple[float, float] = (3.0, 8.0),
     down_s: tuple[float, float] = (0.5, 4.0),
+    hosts: bool = False,
+    cut_s: tuple[float, float] = (2.0, 6.0),
 ) -> Scenario:
     """The chaos scenario of ``seed``: ``command``, then faults of ``services`` — each once
     in a random order when ``count`` is None, else ``count`` random draws — each ``gap_s``
     (uniform, s) after the previous one, of one of ``kinds``, down for ``down_s`` (uniform,
-    s). ``services`` may be ``("all",)``: the agents, the recorder and the router. Raises
-    ValueError for an unknown service or kind or an empty choice."""
+    s). ``services``: default every agent (on two hosts :data:`HOSTS_DEFAULT`); it may be
+    ``("all",)``: the agents, the recorder and the router. With
+    ``hosts`` (the fleet on two hosts, services/hosts/fleet.py) the infrastructure is
+    :data:`HOSTS_INFRASTRUCTURE` instead, ``all`` is the agents and all of it, and a fault of
+    ``link`` is a cut of ``cut_s`` (uniform, s; keep it under the routers' lease,
+    services/hosts/fleet.py ``LEASE_MS``). Raises ValueError for an unknown service or kind
+    or an empty choice."""
+    infrastructure = HOSTS_INFRASTRUCTURE if hosts else INFRASTRUCTURE
+    if services is None:
+        services = HOSTS_DEFAULT if hosts else SERVICE_ORDER
     if services == (ALL,):
-        services = (*SERVICE_ORDER, *INFRASTRUCTURE)
-    unknown = [s for s in services if s not in AGENTS | set(INFRASTRUCTURE)]
+        services = (*SERVICE_ORDER, *infrastructure)
+    unknown = [s for s in services if s not in AGENTS | set(infrastructure)]
     if unknown or not services:
-        raise ValueError(f"cannot fault {', '.join(unknown) or 'nothing'}")
+        known = ", ".join((*SERVICE_ORDER, *infrastructure))
+        raise ValueError(f"cannot fault {', '.join(unknown) or 'nothing'} (services: {known}, or all)")
     bad = [k for k in kinds if k not in FAULT_KINDS]
     if bad or not kinds:
         raise ValueError(f"fault kinds are {', '.join(sorted(FAULT_KINDS))}, not {', '.join(bad) or 'none'}")
@@ -89,16 +107,21 @@ def chaos_scenario(
         victims = [rng.choice(services) for _ in range(count)]
     steps = [Step(say=command, expect="succeeded")]
     for victim in victims:
-        kind = rng.choice(kinds)
+        if victim == LINK:
+            kind, down = "cut", round(rng.uniform(*cut_s), 1)
+        else:
+            kind, down = rng.choice(kinds), round(rng.uniform(*down_s), 1)
         steps.append(
             Step(
-                fault=Fault(service=victim, kind=kind, down_s=round(rng.uniform(*down_s), 1)),
+                fault=Fault(service=victim, kind=kind, down_s=down),
                 after=Trigger(seconds=round(rng.uniform(*gap_s), 1)),
             )
         )
     return Scenario(
         name=f"chaos (seed {seed})",
-        description=f"{command!r} while {len(victims)} process faults hit {', '.join(victims)}",
+        description=f"{command!r} while {len(victims)} {'' if hosts else 'process '}faults hit "
+        + ", ".join(victims)
+        + (" (two hosts: brain and robot)" if hosts else ""),
         steps=tuple(steps),
     )
 
@@ -203,17 +226,23 @@ def _mark(ok: bool) -> str:
 
 
 def write_chaos_report(run_dir: Path, scenario: Scenario, outcome: ScenarioOutcome, v: Verdict) -> Path:
-    """Write ``<run>/chaos.md``: the faults injected and the verdict. Returns its path."""
+    """Write ``<run>/chaos.md``: the faults injected (with the host each hit, and when the
+    link was down, on two hosts) and the verdict. Returns its path."""
+    hosts = any(f.host is not None for f in outcome.faults)
+    host = (" host |", "---|") if hosts else ("", "")
     lines = [
         f"# {scenario.name}",
         "",
         scenario.description,
         "",
-        "| t (s) | service | fault | down (s) | pids | alive again after (s) | during the command |",
-        "|---:|---|---|---:|---|---:|---|",
+        f"| t (s) |{host[0]} service | fault | down (s) | pids | alive again after (s) "
+        "| during the command |",
+        f"|---:|{host[1]}---|---|---:|---|---:|---|",
     ]
     for f in outcome.faults:
         lines.append(_fault_row(f))
+    if hosts or (run_dir / "link.jsonl").exists():
+        lines += ["", *link_down_lines(run_dir, outcome.started)]
     lines += [
         "",
         "| question | answer |",
@@ -243,7 +272,37 @@ def write_chaos_report(run_dir: Path, scenario: Scenario, outcome: ScenarioOutco
 
 def _fault_row(f: FaultRecord) -> str:
     back = f"{f.back_after_s:.1f}" if f.back_after_s is not None else "never"
+    host = f" {f.host} |" if f.host is not None else ""
+    pids = f"{f.pid_before} → {f.pid_after}" if f.pid_before is not None else "–"
     return (
-        f"| {f.t:.1f} | {f.service} | {f.kind} | {f.down_s:.1f} | {f.pid_before} → {f.pid_after} "
+        f"| {f.t:.1f} |{host} {f.service} | {f.kind} | {f.down_s:.1f} | {pids} "
         f"| {back} | {'yes' if f.during_command else 'no'} |"
     )
+
+
+def link_down_lines(run_dir: Path, started: float) -> list[str]:
+    """When the link between the hosts was down, from the run folder's ``link.jsonl``
+    (services/hosts/link.py), in s since ``started`` (POSIX time), and its shaping."""
+    events = read_link_events(run_dir)
+    lines, down = [], None
+    for e in events:
+        t = _num(e.get("t")) - started
+        if e.get("event") == "shaping":
+            lines.append(
+                f"The link: {_num(e.get('delay_ms')):g} ± {_num(e.get('jitter_ms')):g} ms each way, "
+                f"{_num(e.get('loss_pct')):g} % loss ({e.get('how', '?')}). When it was down:"
+            )
+        elif e.get("event") == "down":
+            down = t
+        elif e.get("event") == "up" and down is not None:
+            lines.append(f"- link down from t = {down:.1f} s to t = {t:.1f} s ({t - down:.1f} s)")
+            down = None
+    if down is not None:
+        lines.append(f"- link down from t = {down:.1f} s to the end of the run")
+    if not any(line.startswith("- link down") for line in lines):
+        lines.append("- the link was never down")
+    return lines
+
+
+def _num(x: object) -> float:
+    return float(x) if isinstance(x, int | float) else 0.0

@@ -16,6 +16,7 @@ import uuid
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Protocol
 
 import msgspec
 import zenoh
@@ -23,6 +24,7 @@ import zenoh
 from services.fleet.launcher import AGENT_ORDER, Fleet, LaunchError, free_port
 from services.runtime import keys
 from services.runtime.counters import ask_counters, save_counters
+from services.runtime.faults import FaultEvent
 from services.runtime.human import FINAL_REPORTS, HumanInput, HumanReport
 from services.runtime.run_folder import RunInfo, write_run_info
 from services.runtime.session import open_client
@@ -32,6 +34,81 @@ from shared.fipa_codec.languages import ContentError, decode_content
 from shared.fipa_codec.languages.l_sw import SWStatus
 
 Echo = Callable[[str], None]
+
+
+class Hosting(Protocol):
+    """Where a scenario's fleet runs: the runner starts the routers with :meth:`start`, then
+    the recorder and the agents through :attr:`fleet`, and faults the processes of ``fleet``.
+    :class:`LocalHosting` is one router on this machine's loopback; the two hosts of
+    services/hosts/fleet.py (``TwoHosts``) are another (routers on two network namespaces, a
+    link between them that :meth:`partition` cuts)."""
+
+    @property
+    def fleet(self) -> Fleet: ...
+
+    @property
+    def endpoint(self) -> str:
+        """Where the runner's session reaches the fleet."""
+        ...
+
+    def start_routers(self) -> None:
+        """Start what the runner's session connects to; raises LaunchError."""
+
+    def start_again(self, session: zenoh.Session, service: str, timeout: float) -> FaultEvent:
+        """Start ``service`` again after a kill or stop and wait until it is back; raises
+        FaultError (services/fault/process.py)."""
+        ...
+
+    def host(self, service: str) -> str | None:
+        """The host ``service`` runs on (None: one host, not named)."""
+
+    def partition(self, seconds: float | None) -> None:
+        """Cut the link between the hosts (None: until :meth:`heal`); raises LaunchError
+        where there is no link."""
+
+    def heal(self) -> None: ...
+
+    def stop(self) -> None: ...
+
+
+@dataclass
+class LocalHosting:
+    """The fleet on this machine: one router on a free loopback port (``roco run``, ``roco
+    scenario``, ``roco chaos``)."""
+
+    run_dir: Path
+    env: dict[str, str] = field(default_factory=dict)
+    _fleet: Fleet | None = field(default=None, init=False, repr=False)
+
+    @property
+    def fleet(self) -> Fleet:
+        if self._fleet is None:
+            self._fleet = Fleet(self.run_dir, f"tcp/127.0.0.1:{free_port()}", env=self.env)
+        return self._fleet
+
+    @property
+    def endpoint(self) -> str:
+        return self.fleet.endpoint  # tls/… when the fleet runs on TLS (docs/security.md)
+
+    def start_routers(self) -> None:
+        self.fleet.start_router()
+
+    def start_again(self, session: zenoh.Session, service: str, timeout: float) -> FaultEvent:
+        from services.fault import process
+
+        return process.start(self.fleet, service, timeout=timeout)
+
+    def host(self, service: str) -> str | None:
+        return None
+
+    def partition(self, seconds: float | None) -> None:
+        raise LaunchError("a fleet on one host has no link to cut (roco chaos --hosts has)")
+
+    def heal(self) -> None:
+        pass
+
+    def stop(self) -> None:
+        self.fleet.stop()
 
 
 @dataclass
@@ -59,9 +136,10 @@ class CommandRecord:
 
 @dataclass
 class FaultRecord:
-    """A process fault the runner injected: when (s since the run started), what, the PIDs
-    before and after, how long the service took to be alive again (s; None: it was not), and
-    whether a command was still open when it hit."""
+    """A fault the runner injected: when (s since the run started), what (a service's
+    process, or ``link`` cut), the PIDs before and after (None for the link), how long the
+    service took to be alive again (s; None: it was not), whether a command was still open
+    when it hit, and the host it hit (None on one host)."""
 
     t: float
     service: str
@@ -71,15 +149,22 @@ class FaultRecord:
     pid_after: int | None = None
     back_after_s: float | None = None
     during_command: bool = False
+    host: str | None = None
+
+
+LINK = "link"
+"""The service name of the link between two hosts in a ``fault`` (kind ``cut``)."""
 
 
 @dataclass
 class ScenarioOutcome:
-    """How the scenario went: the commands, and ``detail`` when it stopped early."""
+    """How the scenario went: the commands, and ``detail`` when it stopped early; ``started``:
+    POSIX time the fault times count from."""
 
     commands: list[CommandRecord]
     detail: str = ""
     faults: list[FaultRecord] = field(default_factory=list)
+    started: float = 0.0
 
     @property
     def ok(self) -> bool:
@@ -101,7 +186,8 @@ class ScenarioRunner:
     """Runs ``scenario`` in ``run_dir`` (created by the caller). ``env`` is the extra
     environment of every process (ag_ex's pacing and scene); ``echo`` receives progress
     lines (None: silent); ``on_session`` is given the runner's Zenoh session as soon as the
-    router answers, before anything else starts (a live view subscribes on it)."""
+    router answers, before anything else starts (a live view subscribes on it); ``hosting``:
+    where the fleet runs (default: :class:`LocalHosting`)."""
 
     def __init__(
         self,
@@ -113,16 +199,15 @@ class ScenarioRunner:
         traffic_lines: Callable[[str, bytes], str | None] | None = None,
         info: RunInfo | None = None,
         on_session: Callable[[zenoh.Session], None] | None = None,
+        hosting: Hosting | None = None,
     ) -> None:
         self.scenario = scenario
         self.on_session = on_session
         self.run_dir = run_dir
-        self.fleet = Fleet(run_dir, f"tcp/127.0.0.1:{free_port()}", env=env or {})
-        self.endpoint = self.fleet.endpoint  # tls/… when the fleet runs on TLS (docs/security.md)
+        self.hosting: Hosting = hosting if hosting is not None else LocalHosting(run_dir, env or {})
         self.echo = echo or (lambda line: None)
         self.traffic_lines = traffic_lines
         self.info = info or RunInfo()
-        self.info.router = self.endpoint
         self.events: queue.SimpleQueue[tuple[str, object]] = queue.SimpleQueue()
         self.steps_seen: list[str] = []  # a_ta's plan steps (C1 L_SW), in order
         self.knowledge = threading.Event()
@@ -131,6 +216,14 @@ class ScenarioRunner:
         self.down: set[str] = set()  # services killed on purpose, not yet started again
         self.last_act = time.monotonic()
         self.t0 = time.time()
+
+    @property
+    def fleet(self) -> Fleet:
+        return self.hosting.fleet
+
+    @property
+    def endpoint(self) -> str:
+        return self.hosting.endpoint
 
     # ---- events from Zenoh (callback threads: enqueue only) ----
     def _on_report(self, sample: zenoh.Sample) -> None:
@@ -238,11 +331,15 @@ class ScenarioRunner:
 
     def _fault(self, session: zenoh.Session, fault: Fault) -> None:
         """Inject a process fault (services/scenario/model.py) with services/fault/process.py,
-        wait until the service is alive again (the run's events are taken meanwhile) and
-        record it in the run folder's fault events (report section 8)."""
+        or cut the link between two hosts (service ``link``), wait until the service is alive
+        again (the run's events are taken meanwhile) and record it in the run folder's fault
+        events (report section 8)."""
         from services.fault import process
 
         name = fault.service
+        if name == LINK:
+            self._cut(session, fault)
+            return
         proc = self.fleet.processes.get(name)
         record = FaultRecord(
             round(time.time() - self.t0, 1),
@@ -251,10 +348,12 @@ class ScenarioRunner:
             fault.down_s if fault.kind != "restart" else 0.0,
             proc.pid if proc is not None else None,
             during_command=any(c.final is None for c in self.commands),
+            host=self.hosting.host(name),
         )
         self.faults.append(record)
         lasting = f" for {fault.down_s:.1f} s" if fault.kind != "restart" else ""
-        self._say(f"fault: {fault.kind} {name}{lasting}")
+        where = f" on {record.host}" if record.host else ""
+        self._say(f"fault: {fault.kind} {name}{where}{lasting}")
         t_fault = time.monotonic()
         events = []
         try:
@@ -269,7 +368,7 @@ class ScenarioRunner:
                     self._wait_pumping(fault.down_s)
                 else:
                     events.append(process.stop(self.fleet, name, timeout=20))
-                events.append(process.start(self.fleet, name, timeout=120))
+                events.append(self.hosting.start_again(session, name, 120))
                 self.down.discard(name)
         except process.FaultError as exc:
             raise LaunchError(f"fault on {name}: {exc}") from None
@@ -279,6 +378,34 @@ class ScenarioRunner:
         record.back_after_s = round(time.monotonic() - t_fault, 1)
         process.record_events(session, events)
         self._say(f"{name} is back after {record.back_after_s:.1f} s (pid {record.pid_after})")
+
+    def _cut(self, session: zenoh.Session, fault: Fault) -> None:
+        """Cut the link between the hosts for ``fault.down_s`` s (the hosting records it in
+        the run folder's link.jsonl), as fault events ``partition``/``heal`` of ``link``."""
+        from services.fault import process
+
+        record = FaultRecord(
+            round(time.time() - self.t0, 1),
+            LINK,
+            fault.kind,
+            fault.down_s,
+            None,
+            during_command=any(c.final is None for c in self.commands),
+            host="brain ↔ robot",
+        )
+        self.faults.append(record)
+        self._say(f"fault: cut the link for {fault.down_s:.1f} s")
+        t_fault = time.monotonic()
+        events = [FaultEvent(t=time.time(), agent=process.INJECTOR, kind="partition", target=LINK)]
+        self.hosting.partition(None)
+        try:
+            self._wait_pumping(fault.down_s)
+        finally:
+            self.hosting.heal()
+        events.append(FaultEvent(t=time.time(), agent=process.INJECTOR, kind="heal", target=LINK))
+        record.back_after_s = round(time.monotonic() - t_fault, 1)
+        process.record_events(session, events)
+        self._say(f"the link is up again after {record.back_after_s:.1f} s")
 
     def _sync_recorder(self, session: zenoh.Session, timeout: float = 10.0) -> None:
         """Wait until the traffic recorder has written every communicate routed so far (the
@@ -302,8 +429,9 @@ class ScenarioRunner:
         detail = ""
         deadline = time.monotonic() + self.scenario.timeout_s
         try:
+            self.hosting.start_routers()
+            self.info.router = self.endpoint
             self._say(f"run folder {self.run_dir}; router {self.endpoint}")
-            self.fleet.start_router()
             session = open_client(self.endpoint)
             if self.on_session is not None:
                 self.on_session(session)
@@ -346,8 +474,8 @@ class ScenarioRunner:
         finally:
             if session is not None:
                 session.close()
-            self.fleet.stop()
-        outcome = ScenarioOutcome(self.commands, detail, self.faults)
+            self.hosting.stop()
+        outcome = ScenarioOutcome(self.commands, detail, self.faults, self.t0)
         self.info.ended = time.time()
         self.info.succeeded = outcome.ok
         self.info.detail = detail or "; ".join(

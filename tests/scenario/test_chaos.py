@@ -4,6 +4,7 @@ tests/integration/test_chaos.py)."""
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import pytest
@@ -200,3 +201,40 @@ def test_an_object_that_fell_after_its_last_observation_is_found_in_the_final_wo
     (run / "launch_env.json").write_text(json.dumps({"ROCO_SEED": "4"}))
     fallback = verdict(run, _done())
     assert fallback.ok and fallback.judged_on == "the last observations during the run"
+
+
+def test_on_two_hosts_the_routers_and_the_link_are_faulted_too() -> None:
+    sc = chaos_scenario(3, hosts=True)
+    faults = [s.fault for s in sc.steps if s.fault is not None]
+    every = (*SERVICE_ORDER, "router_brain", "router_robot", "link")
+    assert sorted(f.service for f in faults) == sorted(every)
+    cut = next(f for f in faults if f.service == "link")
+    assert cut.kind == "cut" and 2.0 <= cut.down_s <= 6.0
+    assert all(f.kind in {"kill", "pause", "restart"} for f in faults if f.service != "link")
+    with pytest.raises(ValueError, match="cannot fault link"):
+        chaos_scenario(0, services=("link",))  # one host has no link
+    with pytest.raises(ValueError, match="cannot fault router"):
+        chaos_scenario(0, services=("router",), hosts=True)  # two hosts have two routers
+
+
+def test_the_report_of_a_run_on_two_hosts_names_the_host_of_each_fault_and_when_the_link_was_down(
+    tmp_path: Path,
+) -> None:
+    run = _run(tmp_path, RunBuilder())
+    events = [
+        {"t": STARTED, "event": "shaping", "delay_ms": 20, "jitter_ms": 5, "loss_pct": 1, "how": "relay"},
+        {"t": STARTED + 12.0, "event": "down", "seconds": None},
+        {"t": STARTED + 15.5, "event": "up"},
+    ]
+    (run / "link.jsonl").write_text("".join(json.dumps(e) + "\n" for e in events))
+    outcome = _done()
+    outcome.started = STARTED
+    outcome.faults = [
+        FaultRecord(5.0, "ag_ex", "kill", 2.0, 10, 11, 3.2, during_command=True, host="robot"),
+        FaultRecord(12.0, "link", "cut", 3.5, None, None, 3.5, during_command=True, host="brain ↔ robot"),
+    ]
+    text = write_chaos_report(run, chaos_scenario(0, hosts=True), outcome, verdict(run, outcome)).read_text()
+    assert "| 5.0 | robot | ag_ex | kill | 2.0 | 10 → 11 | 3.2 | yes |" in text
+    assert "| 12.0 | brain ↔ robot | link | cut | 3.5 | – | 3.5 | yes |" in text
+    assert "20 ± 5 ms each way, 1 % loss" in text
+    assert "- link down from t = 12.0 s to t = 15.5 s (3.5 s)" in text
