@@ -62,8 +62,15 @@ def test_up_status_send_down(tmp_path: Path) -> None:
                     break
             assert "C2  a_hi → a_co" in seen and "(query-ref" in seen, seen
         finally:
-            sniffer.send_signal(signal.SIGINT)
-            sniffer.wait(timeout=30)
+            # SIGTERM ends roco sniff as Ctrl-C does (a job started in the background of a
+            # non-interactive shell inherits SIGINT ignored, and Python keeps it so)
+            sniffer.send_signal(signal.SIGTERM)
+            try:
+                sniffer.wait(timeout=30)
+            except subprocess.TimeoutExpired:
+                sniffer.kill()
+                sniffer.wait()
+                raise
         stopped = roco("send", "stop", "--runs-dir", runs, timeout=60)
         assert stopped.returncode == 0, stopped.stdout + stopped.stderr
         assert "nothing to stop" in stopped.stdout.lower()
