@@ -142,6 +142,9 @@ class SphereCount:
 
 MIN_SPHERE_POINTS = 4
 """Centre estimates (one a pixel) that make a sphere."""
+MIN_INNER_SHARE = 0.3
+"""A sphere found off the wall ring must take at least this share of the median points the
+spheres found took (``count_spheres``)."""
 RING_STEP_DEG = 1.0
 """Angular resolution (°) of the wall ring's visibility test."""
 CAP_ANGLE = 0.8
@@ -177,17 +180,19 @@ def count_spheres(
     Method: (1) the content-coloured points within the container's inner radius, from its
     inner bottom to a sphere diameter above its rim; (2) the spheres resting on the floor,
     found by ``_spheres_on_layer`` (a Hough transform for spheres of the known radius whose
-    centres lie one radius above the inner bottom): ``visible``; (3) the ring along the wall:
-    the container's shape (its model) gives the distance ``_ring_radius`` from the axis at
-    which a sphere on the floor touches the wall, where the frictionless spheres settle
-    (velma/model/scene.py); the spheres found beyond one radius inside it are the ring's;
-    (4) the ring's positions the camera cannot see (``_ring_hidden``: the cap of a sphere
-    there, facing the camera, is behind something nearer in the depth image: the bowl's near
-    wall, an arm); (5) ``hidden``: for each gap between neighbouring ring spheres that
-    reaches into positions out of view, the spheres that fit it at the spacing of the ring's
-    neighbours in view (the median of the gaps shorter than 1.5 touching spacings; touching
-    when there are none), at most as many as its hidden positions hold touching; a gap wholly
-    in view is empty (the floor is seen there).
+    centres lie one radius above the inner bottom), less those off the wall ring (3) that took
+    fewer than ``MIN_INNER_SHARE`` of the median points (off the ring the floor is in view, so
+    a sphere there shows most of its cap), then refined by least squares: ``visible``; (3) the
+    ring along the wall: the container's shape (its model) gives the distance
+    ``_ring_radius`` from the axis at which a sphere on the floor touches the wall, where the
+    frictionless spheres settle (velma/model/scene.py); the spheres found beyond one radius
+    inside it are the ring's; (4) the ring's positions the camera cannot see
+    (``_ring_hidden``: the cap of a sphere there, facing the camera, is behind something
+    nearer in the depth image: the bowl's near wall, an arm); (5) ``hidden``: for each gap
+    between neighbouring ring spheres that reaches into positions out of view, the spheres
+    that fit it at the spacing of the ring's neighbours in view (the median of the gaps
+    shorter than 1.5 touching spacings; touching when there are none), at most as many as its
+    hidden positions hold touching; a gap wholly in view is empty (the floor is seen there).
 
     Named simplifications: the hidden arc of the ring is assumed as full as its neighbours
     make it (a vacancy that happens to lie in the hidden arc, or a sphere taken from it, is
@@ -207,11 +212,17 @@ def count_spheres(
     cam = np.asarray(camera_position, dtype=np.float64)
     layer = inner_bottom + r
     centre = origin + np.array([0.0, 0.0, layer])
-    centres = _refine_centres(points[match], _spheres_on_layer(points[match], centre, inner_radius - r, r), r)
-    share = _floor_visible(origin, layer, inner_radius - r, depth, cam, camera_rotation, fx, cx, cy, r)
+    found, took = _spheres_on_layer(points[match], centre, inner_radius - r, r)
     ring = _ring_radius(model, layer, r)
+    at_ring = np.hypot(found[:, 0] - origin[0], found[:, 1] - origin[1]) > ring - r
+    # off the ring the floor is in view: a real sphere there shows much of its cap; a weak
+    # peak there is what its neighbours' stray points left over
+    strong = took >= MIN_INNER_SHARE * (float(np.median(took)) if len(took) else 0.0)
+    keep = at_ring | strong
+    centres = _refine_centres(points[match], found[keep], r)
+    at_ring = at_ring[keep]
+    share = _floor_visible(origin, layer, inner_radius - r, depth, cam, camera_rotation, fx, cx, cy, r)
     hidden_at = _ring_hidden(centre, ring, depth, cam, camera_rotation, fx, cx, cy, r)
-    at_ring = np.hypot(centres[:, 0] - origin[0], centres[:, 1] - origin[1]) > ring - r
     angles = np.arctan2(centres[at_ring, 1] - origin[1], centres[at_ring, 0] - origin[0])
     hidden = _hidden_in_gaps(angles, hidden_at, 2 * math.asin(min(1.0, r / ring)))
     return SphereCount(
@@ -342,7 +353,9 @@ this share of the radius of it (noise at ≈ 1 m: a few mm, velma/perception/noi
 GRID_STEP = 0.002  # m, candidate centres on the layer
 
 
-def _spheres_on_layer(surface: Array, centre: Array, reach: float, r: float) -> Array:
+def _spheres_on_layer(
+    surface: Array, centre: Array, reach: float, r: float
+) -> tuple[Array, npt.NDArray[np.int64]]:
     """Count spheres of radius ``r`` resting in one layer: their centres lie on the horizontal
     plane through ``centre`` (3,) within ``reach`` of it (m), and ``surface`` (M × 3, m) are
     the visible points of their surfaces. A Hough transform with the radius and the height
@@ -350,9 +363,9 @@ def _spheres_on_layer(surface: Array, centre: Array, reach: float, r: float) -> 
     ``SURFACE_BAND`` × r of its sphere's surface; the best is a sphere, candidates closer
     than 1.6 r to it are suppressed (touching spheres' centres are 2 r apart), until the best
     scores fewer than ``MIN_SPHERE_POINTS``. A sphere on a second layer is not counted.
-    Returns the centres found (K × 3, m)."""
+    Returns the centres found (K × 3, m) and the points each took (K,)."""
     if len(surface) < MIN_SPHERE_POINTS:
-        return np.zeros((0, 3))
+        return np.zeros((0, 3)), np.zeros(0, dtype=np.int64)
     steps = np.arange(-reach, reach + 1e-12, GRID_STEP)
     gx, gy = np.meshgrid(steps, steps)
     inside = gx**2 + gy**2 <= reach**2
@@ -362,16 +375,18 @@ def _spheres_on_layer(surface: Array, centre: Array, reach: float, r: float) -> 
     score = on.sum(axis=1).astype(np.int64)
     alive = np.ones(len(cand), dtype=bool)
     found: list[int] = []
+    taken: list[int] = []
     while alive.any():
         best = int(np.argmax(np.where(alive, score, -1)))
         if score[best] < MIN_SPHERE_POINTS:
             break
         found.append(best)
+        taken.append(int(score[best]))
         near = np.sum((cand[:, :2] - cand[best, :2]) ** 2, axis=1) < (1.6 * r) ** 2
         alive &= ~near
         score = score - on[:, on[best]].sum(axis=1)  # a point belongs to one sphere
         on[:, on[best]] = False
-    return cand[found]
+    return cand[found], np.asarray(taken, dtype=np.int64)
 
 
 def _floor_visible(

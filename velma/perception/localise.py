@@ -19,7 +19,11 @@ For each requested object (velma/perception/objects.py ``ObjectModel``):
 5. the estimate is accepted when the fit's inliers hold ≥ ``MIN_INLIER_SHARE`` of the points
    with an RMS residual ≤ ``MAX_RMSE`` and it tilts the object ≤ ``MAX_TILT``. Its x and y are
    ICP's; its z is the support plane's height (the object stands on it: thousands of plane
-   points fix it better than the object's cut-off bottom does).
+   points fix it better than the object's cut-off bottom does);
+6. when no upright fit passes, the fit is tried again from the object tipped over
+   (``TIPPED_STARTS``: upside down, on its rim) and accepted by the same inlier and RMS tests:
+   the object is seen, with its tilt and ICP's z (a person knocked it over: a_ta reads its
+   tilt and reports it not upright).
 
 An object with fewer than ``MIN_POINTS`` matching points (out of view, hidden) or whose fit is
 rejected is reported not seen, never guessed.
@@ -71,7 +75,11 @@ START_OFFSETS = ((0.0, 0.0), (0.008, 0.0), (-0.008, 0.0), (0.0, 0.008), (0.0, -0
 """m: the ICP starts from the guess and from it shifted by these in x and y; the fit with the
 smallest truncated mean squared distance of all points to the model wins."""
 MAX_TILT = math.radians(10.0)
-"""A fit tilting the object more than this from upright is discarded (they stand on a support)."""
+"""An upright fit tilting the object more than this is discarded (they stand on a support)."""
+TIPPED_STARTS = (math.pi,)
+"""rad about the horizontal x axis: the starts of the fit tried when no upright fit passes
+(upside down, on its rim). Named simplification: an object lying on its side is not looked
+for (its height no longer fits step 3's cluster test): it is reported not seen."""
 REGISTRATION = "PLANE_ICP"
 
 
@@ -230,21 +238,31 @@ class Localiser:
             key = float(np.mean(np.minimum(np.asarray(sq), FINE_CORRESPONDENCE**2)))
             if best is None or key < best[0]:
                 best = (key, t)
-        if best is None:
-            return ObjectEstimate(name=name, seen=False, reason="no upright fit")
-        result = self._align(target, source, best[1], FINE_CORRESPONDENCE)
-        t = result.T_target_source
-        inliers = int(result.num_inliers)
-        share = inliers / source.size()
-        rmse = math.sqrt(2 * result.error / max(inliers, 1))
-        if share < MIN_INLIER_SHARE or rmse > MAX_RMSE or t[2, 2] < math.cos(MAX_TILT):
-            return ObjectEstimate(
-                name=name, seen=False, reason=f"fit rejected: {share:.0%} inliers, rms {rmse * 1e3:.1f} mm"
-            )
-        inv = np.linalg.inv(t)  # object frame in the start frame
+        upright = best is not None
+        if best is not None:
+            result = self._align(target, source, best[1], FINE_CORRESPONDENCE)
+            t = result.T_target_source
+            inliers = int(result.num_inliers)
+            share = inliers / source.size()
+            rmse = math.sqrt(2 * result.error / max(inliers, 1))
+            upright = share >= MIN_INLIER_SHARE and rmse <= MAX_RMSE and t[2, 2] >= math.cos(MAX_TILT)
+        if not upright:
+            tipped = self._fit_tipped(target, source)
+            if tipped is None:
+                why = (
+                    "no upright fit"
+                    if best is None
+                    else f"fit rejected: {share:.0%} inliers, rms {rmse * 1e3:.1f} mm"
+                )
+                return ObjectEstimate(name=name, seen=False, reason=why)
+            result, share, rmse = tipped
+            t = result.T_target_source
+            inliers = int(result.num_inliers)
+        inv: Array = np.asarray(np.linalg.inv(t), dtype=np.float64)  # object frame in the start frame
         rotation = inv[:3, :3]
         position = start + inv[:3, 3]
-        position[2] = c.support  # it stands on the support plane (module docstring)
+        if upright:
+            position[2] = c.support  # it stands on the support plane (module docstring)
         yaw_observable = model.symmetry_deviation > YAW_OBSERVABLE_DEVIATION
         cov6 = rmse**2 * np.linalg.pinv(np.asarray(result.H))
         covariance = self._position_covariance(np.asarray(result.H), rmse)
@@ -263,6 +281,40 @@ class Localiser:
             points=len(observed),
             inliers=inliers,
         )
+
+    def _fit_tipped(
+        self, target: _Target, source: small_gicp.PointCloud
+    ) -> tuple[small_gicp.RegistrationResult, float, float] | None:
+        """The fit of ``source`` (points less the start, module docstring) to ``target`` with
+        the object started at each of ``TIPPED_STARTS`` (a rotation about the horizontal x
+        axis, its lowest point on the support) and ``START_OFFSETS``, the best by the coarse
+        pass's truncated mean squared distance, then refined: (result, inlier share, RMS m)
+        when it passes ``MIN_INLIER_SHARE`` and ``MAX_RMSE``, else None."""
+        source_points = np.asarray(source.points())[:, :3]
+        best: tuple[float, Array] | None = None
+        for angle in TIPPED_STARTS:
+            c, s = math.cos(angle), math.sin(angle)
+            turn = np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])  # object in the start frame
+            lift = -float(np.min((target.model.points @ turn.T)[:, 2]))
+            for dx, dy in START_OFFSETS:
+                pose = np.eye(4)
+                pose[:3, :3], pose[:3, 3] = turn, (dx, dy, lift)
+                start_t: Array = np.asarray(np.linalg.inv(pose), dtype=np.float64)
+                t = self._align(target, source, start_t, COARSE_CORRESPONDENCE).T_target_source
+                moved = source_points @ t[:3, :3].T + t[:3, 3]
+                _, sq = target.tree.batch_nearest_neighbor_search(moved)
+                key = float(np.mean(np.minimum(np.asarray(sq), FINE_CORRESPONDENCE**2)))
+                if best is None or key < best[0]:
+                    best = (key, t)
+        if best is None:
+            return None
+        result = self._align(target, source, best[1], FINE_CORRESPONDENCE)
+        inliers = int(result.num_inliers)
+        share = inliers / source.size()
+        rmse = math.sqrt(2 * result.error / max(inliers, 1))
+        if share < MIN_INLIER_SHARE or rmse > MAX_RMSE:
+            return None
+        return result, share, rmse
 
     @staticmethod
     def _align(
