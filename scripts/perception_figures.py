@@ -62,9 +62,9 @@ def main(argv: list[str] | None = None) -> int:
         bowl = [r for r in records if r["object"] == "bowl" and r["seen"] and r["content"] is not None]
         if bowl:
             last = bowl[-1]
-            checks.append(
-                (last["content"], last["content_truth"], last["visible"] or 0, last.get("hidden") or 0)
-            )
+            visible = last["visible"] or 0
+            # the count is the spheres seen plus those inferred (logs before "hidden" lack it)
+            checks.append((last["content"], last["content_truth"], visible, last["content"] - visible))
     print(f"{len(logs)} runs ({', '.join(str(d) for d in args.runs)})")
     print("object  asked  seen  position error mm (p50 / p95 / max)")
     for name in sorted(asked):
@@ -81,7 +81,8 @@ def main(argv: list[str] | None = None) -> int:
             f"inferred behind the wall {min(h for *_, h in checks)}–{max(h for *_, h in checks)}"
         )
     print(
-        f"Observe wall time ms (p50 / p95 / max): first of a run {percentiles(first_ms)}; later {percentiles(later_ms)}"
+        f"Observe wall time ms (p50 / p95 / max): first of a run {percentiles(first_ms)}; "
+        f"later {percentiles(later_ms)}"
     )
     return 0
 
