@@ -85,6 +85,12 @@ TIPPED_MAX_RMSE = 0.001  # m
 """A tipped fit must fit better than an upright one: an upside-down bowl seen from the head
 fits with 100 % inliers at 0.4 mm RMS, while the cup standing upright fits an upside-down
 bowl with 82 % at 1.9 mm (measured on the tidy-up scenario's final state, 640 × 480)."""
+TIPPED_SUPPORT_RING = 0.03  # m
+TIPPED_SUPPORT_POINTS = 50
+"""A tipped fit needs this many points of its support plane in a ring ``TIPPED_SUPPORT_RING``
+wide around it: the support planes are heights found over the whole cloud, so without this a
+white part of the robot's own hand at a shelf's height fitted an upside-down bowl (measured
+on the tidy-up scenario with the camera)."""
 TIPPED_STARTS = (math.pi,)
 """rad about the horizontal x axis: the starts of the fit tried when no upright fit passes
 (upside down, on its rim). Named simplification: an object lying on its side is not looked
@@ -197,7 +203,7 @@ class Localiser:
         for _, n, c in sorted(scored, key=lambda s: -s[0]):
             if n in out or used.intersection(c.index[:20].tolist()):
                 continue
-            estimate = self._fit(n, points[c.index], c, camera_position)
+            estimate = self._fit(n, points[c.index], c, camera_position, points)
             if estimate.seen:
                 used.update(c.index.tolist())
                 out[n] = ObjectEstimate(**{**estimate.__dict__, "cluster": c.index})
@@ -221,8 +227,12 @@ class Localiser:
             return None
         return -abs(c.top - model.height) / model.height
 
-    def _fit(self, name: str, observed: Array, c: Cluster, camera: Array) -> ObjectEstimate:
-        """ICP of ``observed`` (M × 3, world) to the model of ``name`` (module docstring)."""
+    def _fit(
+        self, name: str, observed: Array, c: Cluster, camera: Array, cloud: Array | None = None
+    ) -> ObjectEstimate:
+        """ICP of ``observed`` (M × 3, world) to the model of ``name`` (module docstring);
+        ``cloud`` (N × 3, world) the whole cloud, for the tipped fit's support test (without
+        it no tipped fit is tried)."""
         target = self.targets[name]
         model = target.model
         centre = _circle_centre(observed[:, :2])
@@ -256,7 +266,7 @@ class Localiser:
             rmse = math.sqrt(2 * result.error / max(inliers, 1))
             upright = share >= MIN_INLIER_SHARE and rmse <= MAX_RMSE and t[2, 2] >= math.cos(MAX_TILT)
         if not upright:
-            tipped = self._fit_tipped(target, source)
+            tipped = self._fit_tipped(target, source, cloud - start) if cloud is not None else None
             if tipped is None:
                 why = (
                     "no upright fit"
@@ -292,7 +302,7 @@ class Localiser:
         )
 
     def _fit_tipped(
-        self, target: _Target, source: small_gicp.PointCloud
+        self, target: _Target, source: small_gicp.PointCloud, cloud: Array
     ) -> tuple[small_gicp.RegistrationResult, float, float] | None:
         """The fit of ``source`` (points less the start, module docstring) to ``target`` with
         the object started at each of ``TIPPED_STARTS`` (a rotation about the horizontal x
@@ -300,7 +310,8 @@ class Localiser:
         pass's truncated mean squared distance, then refined: (result, inlier share, RMS m)
         when it passes ``TIPPED_MIN_INLIER_SHARE`` and ``TIPPED_MAX_RMSE`` and the fitted object's lowest
         point is within ``STANDING_TOLERANCE`` of the cluster's support plane (z 0 of the start
-        frame), else None."""
+        frame) and ``cloud`` (N × 3, the whole cloud in the start frame) holds at least
+        ``TIPPED_SUPPORT_POINTS`` points of that plane around it, else None."""
         source_points = np.asarray(source.points())[:, :3]
         best: tuple[float, Array] | None = None
         for angle in TIPPED_STARTS:
@@ -328,6 +339,11 @@ class Localiser:
         pose = np.linalg.inv(result.T_target_source)  # the object in the start frame
         lowest = float(np.min(target.model.points @ pose[2, :3] + pose[2, 3]))
         if abs(lowest) > STANDING_TOLERANCE:  # a knocked-over object lies on its support (z 0 here)
+            return None
+        # … and the support is there around it: points of the plane in a ring about its place
+        ring = np.hypot(cloud[:, 0] - pose[0, 3], cloud[:, 1] - pose[1, 3])
+        around = (ring > target.model.radius + 0.005) & (ring < target.model.radius + TIPPED_SUPPORT_RING)
+        if np.count_nonzero(around & (np.abs(cloud[:, 2]) <= STANDING_TOLERANCE)) < TIPPED_SUPPORT_POINTS:
             return None
         return result, share, rmse
 
