@@ -10,7 +10,8 @@ What the agents get (L_SD, shared/fipa_codec/languages/l_sd.py):
   for a container, the content estimate: through the jar's glass the fill level
   (velma/perception/content.py ``estimate_content``), in an open opaque bowl or cup the
   spheres counted (``count_spheres``: those seen, and those the bowl's near wall hides
-  inferred from the gaps of the ring they form along the wall);
+  inferred from the gaps of the ring they form along the wall), at most the content there is
+  (``total_particles``: the camera's inference behind the wall can count more);
 - a requested object not seen (out of view, occluded, fit rejected, unknown name): its name in
   ``unseen``;
 - furniture (table, cabinet): fixed bodies of the kitchen, so their poses are the map's facts
@@ -153,7 +154,9 @@ class CameraObserver:
                             position=(float(p[0]), float(p[1]), float(p[2])),
                             orientation=(float(q[0]), float(q[1]), float(q[2]), float(q[3])),
                         ),
-                        particles_inside=guess.count if guess is not None else None,
+                        particles_inside=(
+                            min(guess.count, self.total_particles) if guess is not None else None
+                        ),
                         position_sigma=max(e.sigma_position, POSITION_SIGMA_FLOOR)
                         if math.isfinite(e.sigma_position)
                         else None,

@@ -6,8 +6,8 @@ A record: ``sim_time`` (s), ``object``, ``seen``, ``estimate`` (position, m, or 
 ``truth`` (position, m, from velma/executor/ground_truth.py), ``error_mm`` (distance, or
 None), ``sigma_mm`` (the reported 1-σ), ``content`` (estimate) and ``content_truth`` (spheres
 inside, containers only), ``visible``, ``hidden`` and ``floor_visible`` (open containers:
-spheres seen, spheres inferred behind the near wall, share of the floor in view), ``reason`` (why not seen), and ``observe_ms`` (the render and
-localisation's wall time).
+spheres seen, spheres inferred behind the near wall, share of the floor in view), ``reason``
+(why not seen), and ``observe_ms`` (the render and localisation's wall time).
 """
 
 from __future__ import annotations
