@@ -8,7 +8,7 @@ For each requested object (velma/perception/objects.py ``ObjectModel``):
 2. the points of the object's known colour (``colour_match``) standing on a support, in
    clusters of touching 1 cm voxels, pieces that fit together within the object's footprint
    merged (an open container's near rim and far inside wall are not connected in the image);
-3. the cluster whose top is within the object's height (−40 %, +``TOP_MARGIN``) and whose horizontal
+3. the cluster whose top is within the object's height (−40 %, +15 mm) and whose horizontal
    size fits its diameter, the one whose top is nearest the object's height first (each
    cluster goes to one object: this tells the bowl from the cup, both white);
 4. point-to-plane ICP (``small_gicp.align``, ``PLANE_ICP``) of those points to the model's
@@ -66,11 +66,6 @@ COLOUR_TOLERANCE = 0.008
 the white ceramic's)."""
 TRANSPARENT_TOLERANCE = 0.02
 """Chromaticity distance from a transparent object's grey-to-colour segment."""
-TOP_MARGIN = 0.01
-"""m: a cluster's top may stand this far above the object's height. Clusters are cut at 15 mm
-above it (velma/perception/segment.py ``clusters``), so a top reaching the cut is an object
-that goes on above it: one held above the support (the jar in the hand), not standing there,
-whose height the support would give wrongly (≈ 35 mm): not seen."""
 MIN_INLIER_SHARE = 0.8
 MAX_RMSE = 0.004  # m
 COARSE_CORRESPONDENCE = 0.02  # m
@@ -226,7 +221,7 @@ class Localiser:
     def _score(model: ObjectModel, c: Cluster) -> float | None:
         """How well cluster ``c`` (of the object's colour) fits ``model``'s size (higher is
         better), or None when it cannot be the object."""
-        if not (0.6 * model.height <= c.top <= model.height + TOP_MARGIN):
+        if not (0.6 * model.height <= c.top <= model.height + 0.015):
             return None
         if c.extent > Localiser._max_extent(model):
             return None
