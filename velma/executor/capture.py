@@ -24,7 +24,8 @@ PERCEPTION_LOG = "ag_ex_perception.jsonl"
 (velma/executor/perception_log.py; read by the run report, services/report)."""
 DEFAULT_PERCEPTION = "camera"
 """``ROCO_PERCEPTION`` when unset: the head camera (velma/executor/observer.py). The pour's
-fleet with it: 20 of 20 pose seeds succeed, the content check passing on the camera's count
+fleet with it: 20 of 20 pose seeds succeed, the content check passing on the camera's count;
+that count cannot tell 16 spheres from 18 when the missing ones were behind the bowl's wall
 (docs/bench/observe.md). ``ROCO_PERCEPTION=truth`` answers from the physics (tests, and to
 compare)."""
 
