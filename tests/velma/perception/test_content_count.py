@@ -114,3 +114,16 @@ def test_an_upside_down_bowl_is_seen_with_its_tilt(scene) -> None:  # type: igno
     tilt = 2 * math.acos(min(1.0, math.hypot(w, z)))
     assert tilt > math.radians(170)
     assert np.linalg.norm(e.position - data.xpos[model.body("bowl").id]) < 0.01
+
+
+def test_the_upright_cup_is_not_taken_for_an_upside_down_bowl(scene) -> None:  # type: ignore[no-untyped-def]
+    model, kinect, _, localiser = scene
+    data = initial_state(model)
+    qa = model.jnt_qposadr[model.joint("bowl_free").id]
+    data.qpos[qa : qa + 3] = (3.0, 3.0, 0.0)  # the bowl far out of view: the cup stays on the shelf
+    mujoco.mj_forward(model, data)
+    aim_head(model, data, np.array([0.7, 0.0, 0.9]))  # the shelf (velma/scenario.py HEAD_LOOK_CABINET)
+    frame = kinect.capture(data, np.random.default_rng(2), 5)
+    points, colours, _ = frame.cloud()
+    e = localiser.localise(points, colours, frame.position)["bowl"]
+    assert not e.seen, e.position
