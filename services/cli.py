@@ -946,18 +946,24 @@ def doctor(
     fleet `roco up` left under `runs/`.
 
     Each item says found or not found and how to get it. Exit 0 when everything `roco run`
-    needs is there, 1 otherwise. Takes a few seconds: MuJoCo's GL is tried in a child
+    needs is there (with the head camera perceiving, the default, an off-screen GL context:
+    EGL or OSMesa), 1 otherwise. Takes a few seconds: MuJoCo's GL is tried in a child
     process, Docker is asked with time limits."""
     from rich.console import Console
 
     from services.doctor import run_checks
     from services.doctor.model import run_ready
     from services.doctor.render import show, verdict
+    from velma.executor.capture import perception_mode
 
     checks = run_checks(runs_dir)
+    try:
+        camera = perception_mode() == "camera"
+    except ValueError:  # a bad ROCO_PERCEPTION: roco run refuses it; judge as the default
+        camera = True
     show(checks, Console(highlight=False))
-    typer.echo(verdict(checks))
-    if not run_ready(checks):
+    typer.echo(verdict(checks, camera))
+    if not run_ready(checks, camera):
         raise typer.Exit(1)
 
 

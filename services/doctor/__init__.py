@@ -3,7 +3,9 @@
 Each check (services/doctor/model.py ``Check``) says found or not found, what it found, and
 how to get it; each serves one use (``Use``): ``roco run`` itself, the head camera, the 1 kHz
 loop in real time, ``roco up``, the compose fleet, the viewer's screenshot, a running fleet's
-credentials. ``roco doctor`` exits 0 when everything ``roco run`` needs is there.
+credentials. ``roco doctor`` exits 0 when everything ``roco run`` needs is there: with the head
+camera perceiving (the default, ``ROCO_PERCEPTION`` unset or ``camera``) that includes a GL
+context for it.
 
 - services/doctor/environment.py: Python, the libraries pyproject.toml names, the compiled law;
 - services/doctor/machine.py: off-screen rendering (EGL, OSMesa), SCHED_FIFO, CPU pinning,

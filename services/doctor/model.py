@@ -38,6 +38,15 @@ class Check:
         return not self.found and not self.informative
 
 
-def run_ready(checks: Iterable[Check]) -> bool:
-    """Whether every item ``roco run`` needs (``Use.RUN``) was found."""
-    return not any(c.missing for c in checks if c.use is Use.RUN)
+def camera_ready(checks: Iterable[Check]) -> bool:
+    """Whether an off-screen GL context for the head camera opened (one ``Use.CAMERA`` check
+    found: EGL or OSMesa)."""
+    return any(c.found for c in checks if c.use is Use.CAMERA)
+
+
+def run_ready(checks: Iterable[Check], camera: bool = True) -> bool:
+    """Whether every item ``roco run`` needs (``Use.RUN``) was found and, when ``camera`` (the
+    robot perceives with its head camera: ``ROCO_PERCEPTION`` unset or ``camera``,
+    velma/executor/capture.py), a GL context for it (``camera_ready``)."""
+    checks = list(checks)
+    return not any(c.missing for c in checks if c.use is Use.RUN) and (not camera or camera_ready(checks))

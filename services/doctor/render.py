@@ -9,7 +9,7 @@ from rich.console import Console
 from rich.table import Table
 from rich.text import Text
 
-from services.doctor.model import Check, Use, run_ready
+from services.doctor.model import Check, Use, camera_ready, run_ready
 
 WORD = {True: "found", False: "not found"}
 
@@ -53,15 +53,26 @@ def table(checks: Sequence[Check]) -> Table:
     return t
 
 
-def verdict(checks: Sequence[Check]) -> str:
-    """The last line: whether ``roco run`` has what it needs, and which other uses lack
-    something."""
-    lacking = sorted({c.use.value for c in checks if c.missing and c.use is not Use.RUN})
+CAMERA_NEED = "a GL context for the head camera (EGL or OSMesa; ROCO_PERCEPTION=truth runs without)"
+
+
+def verdict(checks: Sequence[Check], camera: bool = True) -> str:
+    """The last line: whether ``roco run`` has what it needs (with ``camera``, a GL context
+    for the head camera too: ``run_ready``), and which other uses lack something."""
+    needs_camera = camera and not camera_ready(checks)
+    lacking = sorted(
+        {
+            c.use.value
+            for c in checks
+            if c.missing and c.use is not Use.RUN and not (camera and c.use is Use.CAMERA)
+        }
+    )
     others = f"; not ready: {', '.join(lacking)}" if lacking else "; everything else is here too"
-    if run_ready(checks):
+    if run_ready(checks, camera):
         return f"roco: roco run has everything it needs{others}"
-    needed = ", ".join(c.name for c in checks if c.missing and c.use is Use.RUN)
-    return f"roco: roco run lacks {needed}{others}"
+    needed = [c.name for c in checks if c.missing and c.use is Use.RUN]
+    needed += [CAMERA_NEED] if needs_camera else []
+    return f"roco: roco run lacks {', '.join(needed)}{others}"
 
 
 def show(checks: Sequence[Check], console: Console) -> None:

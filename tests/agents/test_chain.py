@@ -114,13 +114,15 @@ def test_a_placement_is_judged_by_the_world_it_left() -> None:
 
 
 class _BlurryExecutor(FakeExecutor):
-    """A look at the jar alone is uncertain (σ 20 mm) unless the head has just turned to it
-    (LookAt); with ``stays_blurry`` it stays uncertain."""
+    """The first look at the jar alone is uncertain (σ 20 mm); a later one sees it sharply
+    if the head has just turned to it again (LookAt); with ``stays_blurry`` it stays
+    uncertain."""
 
     def __init__(self, stays_blurry: bool = False) -> None:
         super().__init__()
         self.stays_blurry = stays_blurry
         self.looked = False
+        self.jar_looks = 0
 
     def submit(
         self, command: ExecutorCommand, on_done: Callable[[CommandResult | Observation], None]
@@ -129,7 +131,8 @@ class _BlurryExecutor(FakeExecutor):
         if not (isinstance(command, Observe) and command.objects == ("jar",)):
             super().submit(command, on_done)
             return
-        sigma = 0.02 if self.stays_blurry or not looked else 0.001
+        self.jar_looks += 1
+        sigma = 0.02 if self.stays_blurry or not looked or self.jar_looks == 1 else 0.001
         box: list[CommandResult | Observation] = []
         super().submit(command, box.append)
         (obs,) = box

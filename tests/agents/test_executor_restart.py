@@ -111,7 +111,9 @@ def _jar(obs: Observation) -> tuple[float, float, float]:
 def fleet(tmp_path: Path) -> Iterator[tuple[Fleet, zenoh.Session]]:
     (tmp_path / "logs").mkdir()
     # forged traffic and tokens from the test: no access control (tested in tests/security/)
-    f = Fleet(tmp_path, f"tcp/127.0.0.1:{free_port()}", acl=False)
+    # the ground truth perceives (ROCO_PERCEPTION=truth): the test follows the jar in the hand,
+    # where the head camera does not localise it (docs/bench/observe.md)
+    f = Fleet(tmp_path, f"tcp/127.0.0.1:{free_port()}", acl=False, env={"ROCO_PERCEPTION": "truth"})
     f.start_router()
     session = open_client(f.endpoint)
     try:

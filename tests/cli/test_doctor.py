@@ -18,7 +18,7 @@ import services.doctor
 from services.cli import app
 from services.doctor import credentials, environment, machine, tools
 from services.doctor.model import Check, Use, run_ready
-from services.doctor.render import lines, verdict
+from services.doctor.render import CAMERA_NEED, lines, verdict
 from services.security.certs import issue
 
 
@@ -152,23 +152,38 @@ def test_lines_and_verdict_name_what_is_missing_and_how() -> None:
     text = "\n".join(lines(CAMERA_MISSING))
     assert "not found  EGL" in text and f"how to get it: {machine.GL_HOW['egl']}" in text
     assert "how to get it" not in text.split("fleet credentials:")[1]
-    assert run_ready(CAMERA_MISSING)
-    assert verdict(CAMERA_MISSING) == (
+    # the ground truth perceiving (ROCO_PERCEPTION=truth): roco run renders nothing
+    assert run_ready(CAMERA_MISSING, camera=False)
+    assert verdict(CAMERA_MISSING, camera=False) == (
         "roco: roco run has everything it needs; not ready: compose fleet, head camera"
     )
+    # the head camera perceiving (the default): roco run needs a GL context
+    assert not run_ready(CAMERA_MISSING)
+    assert verdict(CAMERA_MISSING) == f"roco: roco run lacks {CAMERA_NEED}; not ready: compose fleet"
+    with_osmesa = [*CAMERA_MISSING[:2], Check("OSMesa", Use.CAMERA, True, "opens"), *CAMERA_MISSING[3:]]
+    assert run_ready(with_osmesa)
     lacking = [Check("msgspec", Use.RUN, False, "not installed", "pip install"), *CAMERA_MISSING]
-    assert not run_ready(lacking)
-    assert verdict(lacking).startswith("roco: roco run lacks msgspec;")
+    assert not run_ready(lacking, camera=False)
+    assert verdict(lacking, camera=False).startswith("roco: roco run lacks msgspec;")
 
 
-@pytest.mark.parametrize(("checks", "code"), [(CAMERA_MISSING, 0), ([Check("x", Use.RUN, False, "gone")], 1)])
+@pytest.mark.parametrize(
+    ("checks", "perception", "code"),
+    [
+        (CAMERA_MISSING, "truth", 0),
+        (CAMERA_MISSING, "camera", 1),
+        (CAMERA_MISSING, "", 1),  # unset: the camera, the default
+        ([Check("x", Use.RUN, False, "gone")], "truth", 1),
+    ],
+)
 def test_doctor_exits_0_exactly_when_roco_run_has_what_it_needs(
-    checks: list[Check], code: int, monkeypatch: pytest.MonkeyPatch
+    checks: list[Check], perception: str, code: int, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     monkeypatch.setattr(services.doctor, "run_checks", lambda runs_dir: checks)
+    monkeypatch.setenv("ROCO_PERCEPTION", perception)
     result = CliRunner().invoke(app, ["doctor"])
     assert result.exit_code == code, result.output
-    assert result.output.strip().splitlines()[-1] == verdict(checks)
+    assert result.output.strip().splitlines()[-1] == verdict(checks, camera=perception != "truth")
 
 
 def test_doctor_on_this_machine_finds_what_roco_run_needs(tmp_path: Path) -> None:

@@ -22,11 +22,12 @@ PERCEPTION_MODES = ("camera", "truth")
 PERCEPTION_LOG = "ag_ex_perception.jsonl"
 """The file in the run folder where ag_ex logs each camera Observation beside the truth
 (velma/executor/perception_log.py; read by the run report, services/report)."""
-DEFAULT_PERCEPTION = "truth"
-"""``ROCO_PERCEPTION`` when unset. Still the ground truth: the camera localises the objects
-within ≈ 2 mm, but its count of the bowl's content after the pour is 15–20 for 18 spheres
-(docs/bench/observe.md), so the pour's ≥ 90 % check (17 of 18) failed 4 to 6 of 10 pours
-that succeeded. ``ROCO_PERCEPTION=camera`` runs everything from the camera."""
+DEFAULT_PERCEPTION = "camera"
+"""``ROCO_PERCEPTION`` when unset: the head camera (velma/executor/observer.py). The pour's
+fleet with it: 20 of 20 pose seeds succeed, the content check passing on the camera's count;
+that count cannot tell 16 spheres from 18 when the missing ones were behind the bowl's wall
+(docs/bench/observe.md). ``ROCO_PERCEPTION=truth`` answers from the physics (tests, and to
+compare)."""
 
 
 def perception_mode(environ: dict[str, str] | None = None) -> str:

@@ -6,8 +6,8 @@ Object poses are the MuJoCo body poses, exactly; a container's ``particles_insid
 number of ``jar_content_*`` spheres whose centre lies inside the container's inner volume (the
 cylinder site ``{container}_inner``: radius, half height, in the container frame).
 
-It serves the agents with ``ROCO_PERCEPTION=truth``, still the default (velma/executor/capture.py
-``perception_mode`` and ``DEFAULT_PERCEPTION``, which says why) — not perception.
+It serves the agents only with ``ROCO_PERCEPTION=truth`` (velma/executor/capture.py
+``perception_mode``; the default is the camera) — not perception.
 
 This is the one module of the executor that reads objects' body poses for observations
 (tests/architecture/test_perception_sources.py checks it).

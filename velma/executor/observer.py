@@ -9,7 +9,9 @@ What the agents get (L_SD, shared/fipa_codec/languages/l_sd.py):
   = max(√trace of the localiser's 3 × 3 position covariance, ``POSITION_SIGMA_FLOOR``) and,
   for a container, the content estimate: through the jar's glass the fill level
   (velma/perception/content.py ``estimate_content``), in an open opaque bowl or cup the
-  spheres counted (``count_spheres``, extrapolated over a floor partly hidden);
+  spheres counted (``count_spheres``: those seen, and those the bowl's near wall hides
+  inferred from the gaps of the ring they form along the wall), at most the content there is
+  (``total_particles``: the camera's inference behind the wall can count more);
 - a requested object not seen (out of view, occluded, fit rejected, unknown name): its name in
   ``unseen``;
 - furniture (table, cabinet): fixed bodies of the kitchen, so their poses are the map's facts
@@ -23,8 +25,7 @@ docs/bench/perception.md measured over 20 pose seeds: the RMS of the 3-D errors 
 20 fits is 0.95 mm (p50 0.71, p95 1.69); the floor is that, rounded up to 1 mm.
 
 ``ROCO_PERCEPTION`` (velma/executor/capture.py ``perception_mode``) chooses ``camera`` or
-``truth`` (velma/executor/ground_truth.py, in the loop); unset: ``DEFAULT_PERCEPTION`` (capture.py
-says why it is still the truth).
+``truth`` (velma/executor/ground_truth.py, in the loop); unset: ``DEFAULT_PERCEPTION``.
 """
 
 from __future__ import annotations
@@ -153,7 +154,9 @@ class CameraObserver:
                             position=(float(p[0]), float(p[1]), float(p[2])),
                             orientation=(float(q[0]), float(q[1]), float(q[2]), float(q[3])),
                         ),
-                        particles_inside=guess.count if guess is not None else None,
+                        particles_inside=(
+                            min(guess.count, self.total_particles) if guess is not None else None
+                        ),
                         position_sigma=max(e.sigma_position, POSITION_SIGMA_FLOOR)
                         if math.isfinite(e.sigma_position)
                         else None,

@@ -5,9 +5,9 @@ one record per requested object, written by ag_ex as a JSON line to
 A record: ``sim_time`` (s), ``object``, ``seen``, ``estimate`` (position, m, or None),
 ``truth`` (position, m, from velma/executor/ground_truth.py), ``error_mm`` (distance, or
 None), ``sigma_mm`` (the reported 1-σ), ``content`` (estimate) and ``content_truth`` (spheres
-inside, containers only), ``visible`` and ``floor_visible`` (open containers: spheres seen and
-share of the floor in view), ``reason`` (why not seen), and ``observe_ms`` (the render and
-localisation's wall time).
+inside, containers only), ``visible``, ``hidden`` and ``floor_visible`` (open containers:
+spheres seen, spheres inferred behind the near wall, share of the floor in view), ``reason``
+(why not seen), and ``observe_ms`` (the render and localisation's wall time).
 """
 
 from __future__ import annotations
@@ -47,6 +47,7 @@ def records(obs: Observation, seen: Seen, truth: GroundTruth, data: mujoco.MjDat
                 "content": o.particles_inside if o is not None else None,
                 "content_truth": truth.particles_inside(data, name) if name in CONTAINERS else None,
                 "visible": c.visible if isinstance(c, SphereCount) else None,
+                "hidden": c.hidden if isinstance(c, SphereCount) else None,
                 "floor_visible": round(c.floor_visible, 3) if isinstance(c, SphereCount) else None,
                 "reason": e.reason or None,
                 "observe_ms": round(ms, 1),

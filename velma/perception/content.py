@@ -27,6 +27,7 @@ gives no estimate.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -124,23 +125,35 @@ def _inner_radius(model: ObjectModel) -> float:
 @dataclass(frozen=True)
 class SphereCount:
     """Content spheres in an open opaque ``container``: ``visible`` sphere centres found in
-    the content-coloured points over its floor, ``floor_visible`` the share (0..1) of the
-    floor's content layer the camera sees (the rest hidden by something nearer: an arm, a
-    held object), ``count`` the estimate ``round(visible / floor_visible)`` (the visible
-    spheres' density extrapolated over the hidden part; ``visible`` when the whole layer is
-    seen, 0 when none of it is), ``points`` content-coloured points used."""
+    the content-coloured points over its floor, ``hidden`` the spheres inferred in the part of
+    the ring along its wall the camera cannot see (``count_spheres``), ``count`` = ``visible``
+    + ``hidden``; ``floor_visible`` the share (0..1) of the floor's content layer in view and
+    ``ring_visible`` the share of the wall ring's sphere positions in view; ``points``
+    content-coloured points used."""
 
     container: str
     count: int
     visible: int
+    hidden: int
     floor_visible: float
+    ring_visible: float
     points: int
 
 
 MIN_SPHERE_POINTS = 4
 """Centre estimates (one a pixel) that make a sphere."""
-MIN_FLOOR_VISIBLE = 0.15
-"""Below this share of the content layer in view the extrapolation is not made (count = visible)."""
+MIN_INNER_SHARE = 0.3
+"""A sphere found off the wall ring must take at least this share of the median points the
+spheres found took (``count_spheres``)."""
+RING_STEP_DEG = 1.0
+"""Angular resolution (°) of the wall ring's visibility test."""
+CAP_ANGLE = 0.8
+"""Half-angle (rad) of the cap of a sphere facing the camera whose visibility is tested."""
+CAP_VISIBLE_SHARE = 0.34
+"""A ring position is in view when at least this share of its cap's test points is."""
+CAP_DEPTH_TOLERANCE = 0.006
+"""m: a test point is in view when its pixel's depth is not nearer than it by more than this
+(the averaged Kinect depth's noise at ≈ 1 m is ≈ 1–2 mm, velma/perception/noise.py)."""
 
 
 def count_spheres(
@@ -165,17 +178,27 @@ def count_spheres(
     ``cy`` (px).
 
     Method: (1) the content-coloured points within the container's inner radius, from its
-    inner bottom to a sphere diameter above its rim; (2) the spheres resting on the floor, found
-    by ``_spheres_on_layer`` (a Hough transform for spheres of the known radius whose centres
-    lie one radius above the inner bottom); (3) the share of the content layer (points on a
-    grid over the floor at one sphere radius above it) whose pixel's depth is not nearer than
-    the layer by more than 1.5 sphere diameters (a sphere in front of it does not hide it, an
-    arm does); (4) the count, ring by ring (frictionless spheres settle in rings about the
-    axis, the outer one along the wall): the spheres seen at one distance from the axis over
-    the share of that ring (one sphere radius wide) in view, at most as many as the ring holds
-    touching (named simplification: a ring's hidden arc holds spheres as densely as its seen
-    arc; a ring with no sphere in view is not counted). Spheres stacked under others are not seen (a second
-    layer counts low)."""
+    inner bottom to a sphere diameter above its rim; (2) the spheres resting on the floor,
+    found by ``_spheres_on_layer`` (a Hough transform for spheres of the known radius whose
+    centres lie one radius above the inner bottom), less those off the wall ring (3) that took
+    fewer than ``MIN_INNER_SHARE`` of the median points (off the ring the floor is in view, so
+    a sphere there shows most of its cap), then refined by least squares: ``visible``; (3) the
+    ring along the wall: the container's shape (its model) gives the distance
+    ``_ring_radius`` from the axis at which a sphere on the floor touches the wall, where the
+    frictionless spheres settle (velma/model/scene.py); the spheres found beyond one radius
+    inside it are the ring's; (4) the ring's positions the camera cannot see
+    (``_ring_hidden``: the cap of a sphere there, facing the camera, is behind something
+    nearer in the depth image: the bowl's near wall, an arm); (5) ``hidden``: for each gap
+    between neighbouring ring spheres that reaches into positions out of view, the spheres
+    that fit it at the spacing of the ring's neighbours in view (the median of the gaps
+    shorter than 1.5 touching spacings; touching when there are none), at most as many as its
+    hidden positions hold touching; a gap wholly in view is empty (the floor is seen there).
+
+    Named simplifications: the hidden arc of the ring is assumed as full as its neighbours
+    make it (a vacancy that happens to lie in the hidden arc, or a sphere taken from it, is
+    counted full), spheres hidden elsewhere than along the wall are not inferred, and spheres
+    stacked on others (a second layer) are not counted. Measured (scripts/bench_perception.py
+    ``--pours``, docs/bench/observe.md)."""
     if not estimate.seen or estimate.position is None:
         return None
     r = particle_radius
@@ -188,33 +211,140 @@ def count_spheres(
     match = idx[_content_match(colours[idx], content_rgba, model, CONTENT_TOLERANCE)]
     cam = np.asarray(camera_position, dtype=np.float64)
     layer = inner_bottom + r
-    centres = _spheres_on_layer(points[match], origin + np.array([0.0, 0.0, layer]), inner_radius - r, r)
-    visible = len(centres)
-    view = (depth, cam, camera_rotation, fx, cx, cy, r)
-    share = _floor_visible(origin, layer, inner_radius - r, *view)
-    # the hidden part is judged ring by ring: the spheres seen at one distance from the axis,
-    # over the share of that ring in view, at most as many as the ring holds touching
-    radial = np.hypot(centres[:, 0] - origin[0], centres[:, 1] - origin[1])
-    total = 0.0
-    for ring in _rings(radial, r):
-        at = float(np.median(ring))
-        seen = _floor_visible(origin, layer, at + r / 2, *view, max(0.0, at - r / 2))
-        holds = max(1, int(2 * np.pi * at / (2 * r))) if at >= r else 1
-        total += min(len(ring) / max(seen, MIN_FLOOR_VISIBLE), max(holds, len(ring)))
-    count = round(total)
+    centre = origin + np.array([0.0, 0.0, layer])
+    found, took = _spheres_on_layer(points[match], centre, inner_radius - r, r)
+    ring = _ring_radius(model, layer, r)
+    at_ring = np.hypot(found[:, 0] - origin[0], found[:, 1] - origin[1]) > ring - r
+    # off the ring the floor is in view: a real sphere there shows much of its cap; a weak
+    # peak there is what its neighbours' stray points left over
+    strong = took >= MIN_INNER_SHARE * (float(np.median(took)) if len(took) else 0.0)
+    keep = at_ring | strong
+    centres = _refine_centres(points[match], found[keep], r)
+    at_ring = at_ring[keep]
+    share = _floor_visible(origin, layer, inner_radius - r, depth, cam, camera_rotation, fx, cx, cy, r)
+    hidden_at = _ring_hidden(centre, ring, depth, cam, camera_rotation, fx, cx, cy, r)
+    angles = np.arctan2(centres[at_ring, 1] - origin[1], centres[at_ring, 0] - origin[0])
+    hidden = _hidden_in_gaps(angles, hidden_at, 2 * math.asin(min(1.0, r / ring)))
     return SphereCount(
-        container=model.name, count=int(count), visible=visible, floor_visible=share, points=len(match)
+        container=model.name,
+        count=len(centres) + hidden,
+        visible=len(centres),
+        hidden=hidden,
+        floor_visible=share,
+        ring_visible=1.0 - float(np.mean(hidden_at)),
+        points=len(match),
     )
 
 
-def _rings(radial: Array, r: float) -> list[Array]:
-    """The distances from the axis (m) grouped into rings: sorted, split where two neighbours
-    differ by more than ``r``."""
-    if len(radial) == 0:
-        return []
-    order = np.sort(radial)
-    cuts = np.flatnonzero(np.diff(order) > r) + 1
-    return list(np.split(order, cuts))
+def _refine_centres(surface: Array, centres: Array, r: float, iterations: int = 5) -> Array:
+    """``centres`` (K × 3, m) moved horizontally to fit, by Gauss–Newton least squares, the
+    ``surface`` points (M × 3, m) within ``SURFACE_BAND`` × r of their sphere's surface
+    (radius ``r``; the height stays the layer's): the Hough grid's 2 mm steps and its
+    neighbours' points bias a centre by a few mm."""
+    out = centres.copy()
+    for c in out:
+        d = np.linalg.norm(surface - c, axis=1)
+        near = surface[np.abs(d - r) <= SURFACE_BAND * r]
+        for _ in range(iterations):
+            if len(near) < MIN_SPHERE_POINTS:
+                break
+            v = near - c
+            n = np.maximum(np.linalg.norm(v, axis=1), 1e-9)
+            jacobian = -v[:, :2] / n[:, None]
+            delta, *_ = np.linalg.lstsq(jacobian, r - n, rcond=None)
+            c[:2] += delta
+    return out
+
+
+def _wall_radius(model: ObjectModel, z: float, band: float = 0.003) -> float:
+    """Distance (m) of the container's inner wall from its axis at height ``z`` (m, object
+    frame): the smallest horizontal distance of the model's points within ``band`` of it.
+    Raises ``ValueError`` when the model has no surface there."""
+    p = model.points
+    at = np.abs(p[:, 2] - z) < band
+    if not np.any(at):
+        raise ValueError(f"{model.name} has no surface at height {z:.3f} m")
+    return float(np.min(np.hypot(p[at, 0], p[at, 1])))
+
+
+def _ring_radius(model: ObjectModel, layer: float, r: float) -> float:
+    """Distance (m) from the axis of the centre of a sphere of radius ``r`` whose centre is at
+    height ``layer`` (object frame) and which touches the inner wall: the wall's radius there
+    less r / cos(flare), the flare from the wall's radius 5 mm below and above."""
+    dz = 0.005
+    slope = (_wall_radius(model, layer + dz) - _wall_radius(model, layer - dz)) / (2 * dz)
+    return _wall_radius(model, layer) - r * math.sqrt(1.0 + slope**2)
+
+
+def _ring_hidden(
+    centre: Array,
+    ring: float,
+    depth: npt.NDArray[np.floating],
+    cam: Array,
+    rotation: Array,
+    fx: float,
+    cx: float,
+    cy: float,
+    r: float,
+) -> npt.NDArray[np.bool_]:
+    """Per ``RING_STEP_DEG`` of angle about the vertical axis through ``centre`` (3,) m (the
+    layer's centre, world), whether a sphere of radius ``r`` centred ``ring`` m from the axis
+    there would be out of view: fewer than ``CAP_VISIBLE_SHARE`` of nine points of its cap
+    facing the camera (its nearest point and eight at ``CAP_ANGLE`` from it) have a pixel
+    whose depth is not nearer than the point by more than ``CAP_DEPTH_TOLERANCE`` (a point
+    outside the image or whose pixel has no depth is not in view)."""
+    theta = np.radians(np.arange(0.0, 360.0, RING_STEP_DEG))
+    at = centre + ring * np.stack([np.cos(theta), np.sin(theta), np.zeros_like(theta)], axis=1)
+    to_cam = cam - at
+    to_cam /= np.linalg.norm(to_cam, axis=1, keepdims=True)
+    side = np.cross(to_cam, np.array([0.0, 0.0, 1.0]))
+    side /= np.linalg.norm(side, axis=1, keepdims=True)
+    other = np.cross(to_cam, side)
+    dirs = [to_cam] + [
+        math.cos(CAP_ANGLE) * to_cam + math.sin(CAP_ANGLE) * (math.cos(phi) * side + math.sin(phi) * other)
+        for phi in np.linspace(0.0, 2 * math.pi, 8, endpoint=False)
+    ]
+    test = np.stack([at + r * d for d in dirs], axis=1).reshape(-1, 3)  # (n · 9, 3)
+    optical = (test - cam) @ np.asarray(rotation, dtype=np.float64)
+    z = optical[:, 2]
+    h, w = depth.shape
+    with np.errstate(divide="ignore", invalid="ignore"):
+        u = np.floor(fx * optical[:, 0] / z + cx)
+        v = np.floor(fx * optical[:, 1] / z + cy)
+    inside = (z > 0) & (u >= 0) & (u < w) & (v >= 0) & (v < h)
+    seen_depth = np.full(len(z), np.nan)
+    seen_depth[inside] = depth[v[inside].astype(np.int64), u[inside].astype(np.int64)]
+    with np.errstate(invalid="ignore"):
+        in_view = inside & (seen_depth >= z - CAP_DEPTH_TOLERANCE)
+    share = in_view.reshape(len(theta), len(dirs)).mean(axis=1)
+    return np.asarray(share < CAP_VISIBLE_SHARE)
+
+
+def _hidden_in_gaps(angles: Array, hidden_at: npt.NDArray[np.bool_], step: float) -> int:
+    """Spheres inferred in the ring's hidden positions (``count_spheres`` step 5): ``angles``
+    (rad) of the ring's spheres in view, ``hidden_at`` the ``_ring_hidden`` mask, ``step``
+    (rad) the angle between touching neighbours. With no sphere of the ring in view nothing
+    is inferred."""
+    if len(angles) == 0 or not np.any(hidden_at):
+        return 0
+    a = np.sort(np.mod(angles, 2 * math.pi))
+    gaps = np.diff(np.append(a, a[0] + 2 * math.pi))
+    close = gaps[gaps < 1.5 * step]
+    spacing = float(np.median(close)) if len(close) else step
+    bin_rad = math.radians(RING_STEP_DEG)
+    total = 0
+    for start, gap in zip(a, gaps, strict=True):
+        # centre positions inside the gap at least a touching spacing from both neighbours
+        inside = np.arange(start + step, start + gap - step + 1e-9, bin_rad)
+        if len(inside) == 0:
+            continue
+        hidden = hidden_at[np.floor(np.mod(inside, 2 * math.pi) / bin_rad).astype(np.int64) % len(hidden_at)]
+        if not np.any(hidden):
+            continue
+        fits = max(0, round(gap / spacing) - 1)
+        holds = int(np.count_nonzero(hidden) * bin_rad // step) + 1
+        total += min(fits, holds)
+    return total
 
 
 SURFACE_BAND = 0.35
@@ -223,7 +353,9 @@ this share of the radius of it (noise at ≈ 1 m: a few mm, velma/perception/noi
 GRID_STEP = 0.002  # m, candidate centres on the layer
 
 
-def _spheres_on_layer(surface: Array, centre: Array, reach: float, r: float) -> Array:
+def _spheres_on_layer(
+    surface: Array, centre: Array, reach: float, r: float
+) -> tuple[Array, npt.NDArray[np.int64]]:
     """Count spheres of radius ``r`` resting in one layer: their centres lie on the horizontal
     plane through ``centre`` (3,) within ``reach`` of it (m), and ``surface`` (M × 3, m) are
     the visible points of their surfaces. A Hough transform with the radius and the height
@@ -231,9 +363,9 @@ def _spheres_on_layer(surface: Array, centre: Array, reach: float, r: float) -> 
     ``SURFACE_BAND`` × r of its sphere's surface; the best is a sphere, candidates closer
     than 1.6 r to it are suppressed (touching spheres' centres are 2 r apart), until the best
     scores fewer than ``MIN_SPHERE_POINTS``. A sphere on a second layer is not counted.
-    Returns the centres found (K × 3, m)."""
+    Returns the centres found (K × 3, m) and the points each took (K,)."""
     if len(surface) < MIN_SPHERE_POINTS:
-        return np.zeros((0, 3))
+        return np.zeros((0, 3)), np.zeros(0, dtype=np.int64)
     steps = np.arange(-reach, reach + 1e-12, GRID_STEP)
     gx, gy = np.meshgrid(steps, steps)
     inside = gx**2 + gy**2 <= reach**2
@@ -243,16 +375,18 @@ def _spheres_on_layer(surface: Array, centre: Array, reach: float, r: float) -> 
     score = on.sum(axis=1).astype(np.int64)
     alive = np.ones(len(cand), dtype=bool)
     found: list[int] = []
+    taken: list[int] = []
     while alive.any():
         best = int(np.argmax(np.where(alive, score, -1)))
         if score[best] < MIN_SPHERE_POINTS:
             break
         found.append(best)
+        taken.append(int(score[best]))
         near = np.sum((cand[:, :2] - cand[best, :2]) ** 2, axis=1) < (1.6 * r) ** 2
         alive &= ~near
         score = score - on[:, on[best]].sum(axis=1)  # a point belongs to one sphere
         on[:, on[best]] = False
-    return cand[found]
+    return cand[found], np.asarray(taken, dtype=np.int64)
 
 
 def _floor_visible(

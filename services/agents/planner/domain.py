@@ -308,9 +308,9 @@ def _relation(s: Any, furniture: str) -> str:
 
 
 def m_fetch(s: Any, path: str, obj: str, arm: str) -> Any:
-    """Face the furniture ``obj`` stands on or in, (take the grasp's arm posture,) open the
-    hand, (enter,) go to the pre-grasp pose, check the object is where it should be, and
-    take it: approach, grasp, lift, withdraw (atomic)."""
+    """Face the furniture ``obj`` stands on or in, look at the object and check it is where it
+    should be, (take the grasp's arm posture,) open the hand, (enter,) go to the pre-grasp pose
+    and take it: approach, grasp, lift, withdraw (atomic)."""
     pose = s.pose.get(obj)
     grasp = _best_grasp(s, obj, arm)
     if pose is None or grasp is None or s.holding[arm] is not None:
@@ -326,6 +326,12 @@ def m_fetch(s: Any, path: str, obj: str, arm: str) -> Any:
     lifted = geo.translated(grip, (0.0, 0.0, grasp.lift))
     out = geo.translated(lifted, _scaled(geo.rotate(grasp.retreat, obj_frame), grasp.retreat_distance))
     steps: list[tuple[Any, ...]] = _face(s, path, where, facing)
+    # the head looks at the object (after returning something to the cabinet it still looks
+    # there) before the hand comes near it (issue 19: the head camera perceives)
+    steps += [
+        ("a_look", f"{path}/look_at_{obj}", pose.position),
+        ("a_perceive", f"{path}/see_{obj}", obj, (obj, pose.position)),
+    ]
     if grasp.posture and abs(turn) < 1e-9:  # a posture is given for the grasp's own facing
         steps.append(("a_posture", f"{path}/arm_posture", arm, grasp.posture, SHORT_MOVE_S))
     steps.append(("a_preshape", f"{path}/open_hand", arm, grasp.preshape))
@@ -338,7 +344,6 @@ def m_fetch(s: Any, path: str, obj: str, arm: str) -> Any:
         ]
     else:
         steps.append(("a_move", f"{path}/pregrasp", arm, pre, first_move))
-    steps.append(("a_perceive", f"{path}/see_{obj}", obj, (obj, pose.position)))
     reach_s = round(max(1.0, grasp.distance / CONTACT_SPEED_M_S), 2)
     take = f"{path}/take"
     return [

@@ -1,13 +1,14 @@
 """L_SD: sensor data from ag_ex (C5): what the robot perceives of the scene.
 
-With ``ROCO_PERCEPTION=camera`` (issue 19) ag_ex renders the head's simulated Kinect (RGB-D)
-of the world as it was when the Observe ran and localises the requested objects in it
-(velma/perception/). What is seen carries the estimate's uncertainty (``position_sigma``);
-what is not seen (out of view, hidden, fit rejected) is named in ``Observation.unseen``, never
-guessed. Fixed furniture (table, cabinet) is not measured: its pose is a fact of the kitchen's
-map and carries ``position_sigma`` None. Unset or ``truth`` (still the default:
-velma/executor/capture.py ``DEFAULT_PERCEPTION`` says why), every pose is read from the
-physics (exact, ``position_sigma`` None, nothing unseen): a named simplification.
+By default (``ROCO_PERCEPTION`` unset or ``camera``, issue 19) ag_ex renders the head's
+simulated Kinect (RGB-D) of the world as it was when the Observe ran and localises the
+requested objects in it (velma/perception/). What is seen carries the estimate's uncertainty
+(``position_sigma``); what is not seen (out of view, hidden, fit rejected) is named in
+``Observation.unseen``, never guessed. Fixed furniture (table, cabinet) is not measured: its
+pose is a fact of the kitchen's map and carries ``position_sigma`` None. With
+``ROCO_PERCEPTION=truth`` every pose is read from the physics instead (exact,
+``position_sigma`` None, nothing unseen): for tests and comparisons, not perception
+(velma/executor/capture.py ``DEFAULT_PERCEPTION``).
 """
 
 from __future__ import annotations
