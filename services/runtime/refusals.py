@@ -128,6 +128,14 @@ class Refusal(msgspec.Struct, frozen=True, kw_only=True):
     peer: str = ""
 
 
+def _handshake(stamp: str, why: str) -> Refusal:
+    """A TLS handshake refused at ``stamp`` (the log line's time), ``why`` as the key; the log
+    names no identity, session or address for it."""
+    return Refusal(
+        t=_time(stamp), identity=UNKNOWN, message="authenticate", flow="ingress", key=why, session=""
+    )
+
+
 class NamedCount(msgspec.Struct, frozen=True, kw_only=True):
     """How often one identity was refused one message on one key, first and last (POSIX s)."""
 
@@ -267,26 +275,11 @@ class RefusalLog:
             return self._add(refused)
         bad = _BAD_CERT.search(line)
         if bad is not None:
-            refused = Refusal(
-                t=_time(stamp),
-                identity=UNKNOWN,
-                message="authenticate",
-                flow="ingress",
-                key=f"bad certificate: {bad['why']}",
-                session="",
-            )
-            return self._add(refused)
+            return self._add(_handshake(stamp, f"bad certificate: {bad['why']}"))
         alert = _ALERT.search(line)
         if alert is not None:
-            refused = Refusal(
-                t=_time(stamp),
-                identity=UNKNOWN,
-                message="authenticate",
-                flow="ingress",
-                key=f"handshake ended by the peer: {alert['why']} (it does not trust our certificate)",
-                session="",
-            )
-            return self._add(refused)
+            why = f"handshake ended by the peer: {alert['why']} (it does not trust our certificate)"
+            return self._add(_handshake(stamp, why))
         return None
 
     def _add(self, r: Refusal) -> Refusal:
