@@ -75,7 +75,8 @@ def serve(
     if ready is not None:
         ready.set()
     try:
-        stop.wait()
+        while not stop.wait(0.5):  # a timeout: a signal taken by a Zenoh thread must still end it
+            pass
     finally:
         server.stop()
         gateway.stop()

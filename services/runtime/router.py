@@ -33,6 +33,9 @@ import zenoh
 from services.runtime.refusal_watch import answer_counters, watch_refusals
 from services.runtime.transport import router_config
 
+SIGNAL_POLL_S = 0.5
+"""s between the main thread's looks for SIGTERM/SIGINT's handler having run."""
+
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="roco-router")
@@ -72,7 +75,11 @@ def main(argv: list[str] | None = None) -> int:
     signal.signal(signal.SIGINT, on_signal)
     acl = f"; access control from {security}" if security else "; no access control"
     print(f"roco router {session.zid()} listening on {', '.join(listen)}{acl}", flush=True)
-    done.wait()
+    # wait with a timeout: a signal delivered to one of Zenoh's threads does not wake a main
+    # thread blocked without one, and its handler would then never run (seen: a router left
+    # running after SIGTERM)
+    while not done.wait(SIGNAL_POLL_S):
+        pass
     if asked is not None:
         asked.undeclare()
     session.close()

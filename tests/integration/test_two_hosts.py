@@ -125,13 +125,17 @@ def test_ten_second_partitions_during_a_motion_and_during_planning_are_ridden_ou
         during = [r for r in robot if down < r["t_sent"] < up - 0.2]
         assert during or k, "nothing was said on the robot's host during the cut at the motion"
         assert all(r["t"] > up - 0.2 for r in during), "a communicate crossed the cut link"
-    # what the robot's host saw of ag_ex (its state at 20 Hz): during the cut at the motion it
-    # went on moving; during the cut while the brain planned it had nothing to do and held
-    # position (joint impedance on its last target)
+    # what the robot's host saw of ag_ex (its state at 20 Hz): in one cut it went on with the
+    # motions a_ta held, in the other it had nothing to do and held position (joint impedance on
+    # its last target). Which is which depends on where the progress reports that trigger the
+    # cuts fall among the commands: with ground-truth perception the reach is under way at the
+    # first cut and the brain plans during the second; with the head camera the robot waits for
+    # a_km's update across the link after the look that precedes the reach, so it holds during
+    # the first cut and carries out plan #2's rest during the second
     seen = [json.loads(line) for line in states.read_text().splitlines()]
-    moved = [_joint_travel(seen, down, up) for down, up in windows]
-    assert moved[0] > 0.05, moved
-    assert moved[1] < 0.01, moved
+    moved = sorted(_joint_travel(seen, down, up) for down, up in windows)
+    assert moved[1] > 0.05, moved
+    assert moved[0] < 0.01, moved
     # … and nothing was lost: every publisher's sequence numbers are complete
     sns: dict[str, set[int]] = collections.defaultdict(set)
     for r in record:
