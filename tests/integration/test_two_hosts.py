@@ -128,10 +128,10 @@ def test_ten_second_partitions_during_a_motion_and_during_planning_are_ridden_ou
     # what the robot's host saw of ag_ex (its state at 20 Hz): in one cut it went on with the
     # motions a_ta held, in the other it had nothing to do and held position (joint impedance on
     # its last target). Which is which depends on where the progress reports that trigger the
-    # cuts fall among the commands: with ground-truth perception the reach is under way at the
-    # first cut and the brain plans during the second; with the head camera the robot waits for
-    # a_km's update across the link after the look that precedes the reach, so it holds during
-    # the first cut and carries out plan #2's rest during the second
+    # cuts fall among the robot's commands, and the perception moves them: with ground-truth
+    # perception the reach was under way at the first cut and the robot held during the
+    # second; with the head camera (seen once) it held during the first and moved 1.1 rad
+    # during the second
     seen = [json.loads(line) for line in states.read_text().splitlines()]
     moved = sorted(_joint_travel(seen, down, up) for down, up in windows)
     assert moved[1] > 0.05, moved
