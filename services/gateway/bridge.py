@@ -59,7 +59,7 @@ from typing import Any
 import msgspec
 
 from services.gateway.envelope import STRING_REPRESENTATION, Envelope
-from services.gateway.http_mtp import MTPError, MTPMessage, post_message
+from services.gateway.http_mtp import MTPError, MTPMessage, MTPServer, post_message
 from services.runtime import keys
 from services.runtime.transport import Transport
 from services.spec.model import MessageKind, SystemSpec, channel_between, interface, is_foreign
@@ -75,7 +75,7 @@ from shared.fipa_codec import (
 from shared.fipa_codec.languages import LANGUAGES, ContentError, decode_content, encode_content, load_all
 from shared.fipa_codec.string_form import StringFormError, format_datetime, parse, to_bytes
 
-__all__ = ["GATEWAY", "REFUSE_REASONS", "Gateway", "Refusal", "summary"]
+__all__ = ["GATEWAY", "REFUSE_REASONS", "Gateway", "Refusal", "open_gateway", "summary"]
 
 GATEWAY = "gateway"
 """The gateway's identity on Zenoh (services/spec_check/acl.py: GATEWAY)."""
@@ -431,6 +431,21 @@ def _kind(sends: tuple[MessageKind, ...], receiver: str, msg: Communicate) -> Me
         if k.receiver == receiver and k.performative == msg.performative.value and k.protocol == msg.protocol:
             return k
     return None
+
+
+def open_gateway(
+    transport: Transport, spec: SystemSpec, host: str, port: int, address: str
+) -> tuple[Gateway, MTPServer]:
+    """A :class:`Gateway` on ``transport`` for ``spec``, subscribed and forwarding, and its FIPA
+    HTTP message transport (SC00084) serving on ``host:port``, foreign platforms told to post
+    to ``address``. Stop both with ``server.stop()`` then ``gateway.stop()``. Raises OSError
+    when the port cannot be bound (then nothing was started)."""
+    gateway = Gateway(transport, spec, address)
+    server = MTPServer((host, port), gateway.deliver, gateway.count)
+    gateway.bind()
+    gateway.start()
+    server.start()
+    return gateway, server
 
 
 def summary(counters: dict[str, int]) -> str:

@@ -17,8 +17,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from types import FrameType
 
-from services.gateway.bridge import GATEWAY, Gateway
-from services.gateway.http_mtp import MTPServer
+from services.gateway.bridge import GATEWAY, open_gateway
 from services.runtime.transport import ZenohTransport
 from services.spec.model import DEFAULT_SPEC, SpecError, load
 
@@ -61,15 +60,11 @@ def serve(
         transport = ZenohTransport([config.endpoint], wait_for_router=False, identity=GATEWAY)
     except Exception as exc:  # zenoh.ZError, CredentialError
         raise GatewayError(f"no router answers at {config.endpoint} for identity {GATEWAY}: {exc}") from None
-    gateway = Gateway(transport, spec, address)
     try:
-        server = MTPServer((config.host, config.port), gateway.deliver, gateway.count)
+        gateway, server = open_gateway(transport, spec, config.host, config.port, address)
     except OSError as exc:
         transport.close()
         raise GatewayError(f"cannot listen on {config.host}:{config.port}: {exc.strerror or exc}") from None
-    gateway.bind()
-    gateway.start()
-    server.start()
     routes = ", ".join(f"{role} → {agent} on {channel}" for channel, role, agent in gateway.routes)
     print(f"roco gateway: {address} ↔ {config.endpoint} ({routes})", flush=True)
     if ready is not None:

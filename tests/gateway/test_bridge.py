@@ -14,8 +14,7 @@ import msgspec
 import pytest
 
 from services.fleet.launcher import free_port
-from services.gateway.bridge import Gateway
-from services.gateway.http_mtp import MTPServer
+from services.gateway.bridge import Gateway, open_gateway
 from services.runtime import keys
 from services.runtime.human import ReportKind
 from services.spec.model import default_spec
@@ -42,11 +41,7 @@ def bridge() -> Iterator[Bridge]:
     assert co.subscribed.wait(TIMEOUT)
     port = free_port()
     url = f"http://127.0.0.1:{port}/acc"
-    gateway = Gateway(stage.bus.transport(), default_spec(), url)
-    server = MTPServer(("127.0.0.1", port), gateway.deliver, gateway.count)
-    gateway.bind()
-    gateway.start()
-    server.start()
+    gateway, server = open_gateway(stage.bus.transport(), default_spec(), "127.0.0.1", port, url)
     jade = JadePlatform()
     try:
         yield Bridge(stage, co, gateway, url, jade)

@@ -19,8 +19,7 @@ import pytest
 
 from services.agents.human_interface.agent import HumanInterface
 from services.fleet.launcher import Fleet, free_port
-from services.gateway.bridge import GATEWAY, Gateway, summary
-from services.gateway.http_mtp import MTPServer
+from services.gateway.bridge import GATEWAY, open_gateway, summary
 from services.runtime import keys
 from services.runtime.agent import Agent
 from services.runtime.counters import ask_counters
@@ -83,11 +82,7 @@ def test_a_jade_request_crosses_the_gateway_under_access_control(fleet: Fleet) -
     port = free_port()
     url = f"http://127.0.0.1:{port}/acc"
     gateway_transport = ZenohTransport([ep], identity=GATEWAY)
-    gateway = Gateway(gateway_transport, default_spec(), url)
-    server = MTPServer(("127.0.0.1", port), gateway.deliver, gateway.count)
-    gateway.bind()
-    gateway.start()
-    server.start()
+    gateway, server = open_gateway(gateway_transport, default_spec(), "127.0.0.1", port, url)
     jade = JadePlatform()
     try:
         assert co.subscribed.wait(TIMEOUT)
