@@ -172,6 +172,7 @@ class CompiledController(imp.VelmaController):
         self._limits_of: imp.SafetyLimits | None = None
         self._out = np.zeros((2, 32))
         self._out_torso = np.zeros(2)
+        self._plant_states: list[_PlantArmState] = []  # ``state`` once bound to a plant
 
     @property
     def ik_kernel(self) -> DlsKernel:
@@ -220,7 +221,8 @@ class CompiledController(imp.VelmaController):
         ``parts`` (2,) the seconds of the law (with the gather) and of the step. From then on
         ``state`` reads the grip poses and torques from the law's output when asked. Raises
         TypeError for arrays of another dtype or layout, ValueError for other sizes."""
-        self.state = {s: _PlantArmState(self._out[k], self.state[s]) for k, s in enumerate(SIDES)}
+        self._plant_states = [_PlantArmState(self._out[k], self.state[s]) for k, s in enumerate(SIDES)]
+        self.state = dict(zip(SIDES, self._plant_states, strict=True))
         plant.bind(
             self._law,
             self._cmd,
@@ -248,10 +250,8 @@ class CompiledController(imp.VelmaController):
         self._q_arm = q[self._idx]
         self._prev_arm = out[:, 7:14].copy()
         self._prev_torso = float(self._out_torso[1])
-        for k, side in enumerate(SIDES):
-            state = self.state[side]
-            if isinstance(state, _PlantArmState):
-                state.refresh()
+        for k, state in enumerate(self._plant_states):
+            state.refresh()
             if cart[k]:
                 state.error = out[k, 26:32].copy()
 
