@@ -7,9 +7,16 @@ Two modes:
 
 - ``fleet`` (default): ``roco run "pour the jar into the bowl" --seed K --pose-seed K``, the
   whole system (router, recorder, six agent processes, the loop process) planning from what
-  ag_ex observes. Spheres are read from the run's last L_SD Observation.
+  ag_ex observes. The spheres in the bowl are the simulation's truth at the run's last camera
+  Observation of the bowl (``ag_ex_perception.jsonl``, velma/executor/perception_log.py),
+  shown beside what the camera counted there (what a_ta judged by); in a ground-truth run
+  (``ROCO_PERCEPTION=truth``) both are the last L_SD Observation's. After the table: the
+  camera's localisation error over every Observation of every run (per object and overall,
+  mm p50 / p95 / max), the observations in which a requested object was not seen, and the
+  content count's error against the truth.
 - ``script``: the robot alone (velma/scenario.py ``pour_script`` on the threaded executor,
-  aimed at the observed poses as the agents' plan is; no agents).
+  aimed at the observed poses as the agents' plan is; no agents). The spheres in the bowl are
+  the simulation's truth at the end, beside the last Observation's count.
 
 Success: every command succeeded (grasps by contact and friction) and ≥ ``--min-share``
 (default 90 %) of the spheres ended in the bowl. Beside it, the number of commands during which
@@ -26,14 +33,16 @@ import subprocess
 import sys
 import tempfile
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 import benchlib  # noqa: E402  (scripts/benchlib.py, beside this file)
+import numpy as np  # noqa: E402
 
+from services.report.model import PerceptionRow  # noqa: E402
 from velma.model.scene import scene_perturbation  # noqa: E402
 
 
@@ -41,11 +50,17 @@ from velma.model.scene import scene_perturbation  # noqa: E402
 class Outcome:
     ok: bool
     inside: int | None
+    """Spheres truly in the bowl at the end (fleet mode with the camera: the simulation's
+    count at the last Observation of the bowl)."""
     total: int | None
     detail: str
     wall: float
     touched: int = 0
     """Commands during which the robot touched itself (issue 18: self-collision is on)."""
+    counted: int | None = None
+    """Spheres the last Observation reported in the bowl (the camera's count, or the truth)."""
+    perception: list[PerceptionRow] = field(default_factory=list)
+    """The run's camera Observations beside the truth (fleet mode)."""
 
 
 def run_fleet(seed: int, runs_dir: Path, realtime: bool) -> Outcome:
@@ -69,7 +84,51 @@ def run_fleet(seed: int, runs_dir: Path, realtime: bool) -> Outcome:
     c = report.content
     detail = report.header.detail or ("succeeded" if proc.returncode == 0 else "failed")
     touched = sum(e.kind == "self_contact" for e in report.events)
-    return Outcome(proc.returncode == 0, c.inside, c.total, f"{detail} ({new[-1].name})", wall, touched)
+    truth = [
+        r.content_truth for r in report.perception if r.object == c.container and r.content_truth is not None
+    ]
+    inside = truth[-1] if truth else c.inside
+    return Outcome(
+        proc.returncode == 0,
+        inside,
+        c.total,
+        f"{detail} ({new[-1].name})",
+        wall,
+        touched,
+        counted=c.inside,
+        perception=list(report.perception),
+    )
+
+
+def perception_summary(rows: list[PerceptionRow]) -> list[str]:
+    """Lines summarising the camera's Observations of all runs (module docstring)."""
+    if not rows:
+        return ["No camera Observations (a ground-truth run)."]
+
+    def stats(values: list[float]) -> str:
+        a = np.asarray(values)
+        return f"{np.percentile(a, 50):.1f} / {np.percentile(a, 95):.1f} / {a.max():.1f}"
+
+    seen = [r for r in rows if r.seen and r.error_mm is not None]
+    lines = [
+        f"Localisation error, mm (p50 / p95 / max), over {len(seen)} objects seen in the runs' Observations:"
+    ]
+    for name in sorted({r.object for r in seen}):
+        errors = [r.error_mm for r in seen if r.object == name and r.error_mm is not None]
+        lines.append(f"- {name}: {stats(errors)} ({len(errors)} observations)")
+    lines.append(f"- all: {stats([r.error_mm for r in seen if r.error_mm is not None])}")
+    unseen = [r for r in rows if not r.seen]
+    reasons = sorted({r.reason or "?" for r in unseen})
+    lines.append(f"Requested but not seen: {len(unseen)} of {len(rows)} ({'; '.join(reasons) or 'none'}).")
+    counts = [
+        r.content - r.content_truth for r in rows if r.content is not None and r.content_truth is not None
+    ]
+    if counts:
+        lines.append(
+            f"Content count − truth over {len(counts)} container observations: "
+            f"{min(counts):+d} … {max(counts):+d}, mean {np.mean(counts):+.2f}."
+        )
+    return lines
 
 
 def run_script(seed: int) -> Outcome:
@@ -77,6 +136,7 @@ def run_script(seed: int) -> Outcome:
     from shared.fipa_codec.languages.l_ex import CommandResult
     from shared.fipa_codec.languages.l_sd import Observation
     from velma.executor import Executor
+    from velma.executor.ground_truth import GroundTruth
     from velma.scenario import run_pour
 
     t0 = time.time()
@@ -89,14 +149,14 @@ def run_script(seed: int) -> Outcome:
     wall = time.time() - t0
     failed = next((r for r in results if isinstance(r, CommandResult) and not r.ok), None)
     final = results[-1]
-    inside = total = None
+    counted = total = None
     if isinstance(final, Observation):
-        bowl = next(o for o in final.objects if o.name == "bowl")
-        inside, total = bowl.particles_inside, final.total_particles
+        bowl = next((o for o in final.objects if o.name == "bowl"), None)
+        counted, total = (bowl.particles_inside if bowl else None), final.total_particles
+    inside = GroundTruth(ex.rt.model).particles_inside(ex.rt.data, "bowl")
     touched = sum(isinstance(r, CommandResult) and bool(r.self_contacts) for r in results)
-    if failed is not None:
-        return Outcome(False, inside, total, f"{failed.command} failed: {failed.reason}", wall, touched)
-    return Outcome(True, inside, total, "all commands succeeded", wall, touched)
+    detail = "all commands succeeded" if failed is None else f"{failed.command} failed: {failed.reason}"
+    return Outcome(failed is None, inside, total, detail, wall, touched, counted=counted)
 
 
 def main() -> int:
@@ -115,9 +175,10 @@ def main() -> int:
         print(f"Run folders: {runs_dir}")
     print(
         "\n| seed | jar dx, dy (mm), yaw (°) | bowl dx, dy (mm), yaw (°) | spheres in bowl | share "
-        "| success | robot touched itself (commands) | wall s | detail |"
+        "| camera counted | success | robot touched itself (commands) | wall s | detail |"
     )
-    print("|---|---|---|---|---|---|---|---|---|")
+    print("|---|---|---|---|---|---|---|---|---|---|")
+    rows: list[PerceptionRow] = []
     successes = touched = 0
     shares: list[float] = []
     for seed in range(args.first, args.first + args.seeds):
@@ -128,6 +189,7 @@ def main() -> int:
         successes += ok
         touched += out.touched > 0
         shares.append(share)
+        rows.extend(out.perception)
 
         def pert(o: object) -> str:
             return f"{o.dx * 1000:+.0f}, {o.dy * 1000:+.0f}, {o.yaw * 57.2958:+.1f}"  # type: ignore[attr-defined]
@@ -135,7 +197,8 @@ def main() -> int:
         inside = f"{out.inside}/{out.total}" if out.inside is not None else "not observed"
         print(
             f"| {seed} | {pert(p.jar)} | {pert(p.bowl)} | {inside} | {share * 100:.0f} % | "
-            f"{'yes' if ok else 'NO'} | {out.touched} | {out.wall:.0f} | {out.detail} |",
+            f"{'—' if out.counted is None else out.counted} | {'yes' if ok else 'NO'} | {out.touched} | "
+            f"{out.wall:.0f} | {out.detail} |",
             flush=True,
         )
     n = args.seeds
@@ -144,6 +207,8 @@ def main() -> int:
         f"{successes} of {n}; mean share {sum(shares) / n * 100:.1f} %, lowest {min(shares) * 100:.0f} %; "
         f"the robot touched itself in {touched} of {n} runs."
     )
+    if args.mode == "fleet":
+        print("\n" + "\n".join(perception_summary(rows)))
     return 0
 
 

@@ -452,6 +452,7 @@ def _perception(report: Report) -> str:
             "error (mm)",
             "σ (mm)",
             "content / truth",
+            "outside / truth",
             "why not seen",
             "Observe (ms)",
         ),
@@ -462,9 +463,8 @@ def _perception(report: Report) -> str:
                 "yes" if r.seen else "**no**",
                 "" if r.error_mm is None else f"{r.error_mm:.1f}",
                 "" if r.sigma_mm is None else f"{r.sigma_mm:.1f}",
-                ""
-                if r.content_truth is None
-                else f"{'–' if r.content is None else r.content} / {r.content_truth}",
+                "" if r.content_truth is None else f"{_or_dash(r.content)} / {r.content_truth}",
+                "" if r.outside is None else f"{r.outside} / {_or_dash(r.outside_truth)}",
                 _cell(r.reason or ""),
                 "" if r.observe_ms is None else f"{r.observe_ms:.0f}",
             )
@@ -481,7 +481,8 @@ def _perception(report: Report) -> str:
         "**How read.** `ag_ex_perception.jsonl`: ag_ex's record of each head-camera Observation "
         "(velma/executor/perception_log.py), the estimate beside the ground truth of the same "
         "captured world state. The truth is the simulation's, for this report only: the agents "
-        "never receive it. Content: the spheres the camera counted beside those inside."
+        "never receive it. Content: the spheres the camera counted beside those inside; outside: "
+        "those it saw resting outside every container (spilled in view) beside those in none."
     )
     return f"## 9. Perception (head camera)\n\n{summary}.\n\n{table}\n\n{how}"
 

@@ -183,8 +183,8 @@ class PerceptionRow(msgspec.Struct, kw_only=True):
     """One object of one camera Observation beside the truth of the same captured state
     (``ag_ex_perception.jsonl``, velma/executor/perception_log.py): simulation time (s),
     whether it was seen, the position error and the reported 1-σ (mm), the content estimate
-    and the true count (containers), the reason it was not seen, and the Observe's wall time
-    (ms)."""
+    and the true count (containers), the reason it was not seen, the Observe's wall time
+    (ms), and the content seen outside every container beside the truth."""
 
     sim_time: float
     object: str
@@ -195,6 +195,10 @@ class PerceptionRow(msgspec.Struct, kw_only=True):
     content_truth: int | None = None
     reason: str | None = None
     observe_ms: float | None = None
+    outside: int | None = None
+    """Content spheres the Observation saw outside every container (spilled in view)."""
+    outside_truth: int | None = None
+    """Content spheres truly in no container at that time."""
 
 
 class Report(msgspec.Struct, kw_only=True):

@@ -71,9 +71,13 @@ class GroundTruth:
                 continue
             inside = self.particles_inside(data, name) if name in CONTAINERS else None
             out.append(ObjectObservation(name=name, pose=self.pose(data, name), particles_inside=inside))
+        outside = None
+        if any(n in CONTAINERS for n in names):
+            outside = int(self.particle_bodies.size) - sum(self.particles_inside(data, c) for c in CONTAINERS)
         return Observation(
             stamp=float(data.time),
             objects=tuple(out),
             total_particles=int(self.particle_bodies.size),
             unseen=tuple(n for n in names if n not in self.body),
+            particles_outside=outside,
         )

@@ -11,7 +11,12 @@ What the agents get (L_SD, shared/fipa_codec/languages/l_sd.py):
   (velma/perception/content.py ``estimate_content``), in an open opaque bowl or cup the
   spheres counted (``count_spheres``: those seen, and those the bowl's near wall hides
   inferred from the gaps of the ring they form along the wall), at most the content there is
-  (``total_particles``: the camera's inference behind the wall can count more);
+  (``total_particles`` less ``particles_outside``: the camera's inference behind the wall can
+  count more);
+- ``particles_outside`` when a movable object (each is a container) was asked for: the content
+  spheres seen resting on a support outside every container (velma/perception/spill.py:
+  spilled in view). To exclude every container in view, all movable objects are localised,
+  those not asked for left out of the Observation;
 - a requested object not seen (out of view, occluded, fit rejected, unknown name): its name in
   ``unseen``;
 - furniture (table, cabinet): fixed bodies of the kitchen, so their poses are the map's facts
@@ -48,6 +53,8 @@ from velma.perception.content import ContentEstimate, SphereCount, count_spheres
 from velma.perception.kinect import HeadKinect
 from velma.perception.localise import Localiser, ObjectEstimate
 from velma.perception.objects import ObjectModel, object_model
+from velma.perception.segment import support_heights
+from velma.perception.spill import Spill, count_outside
 
 MOVABLE = ("jar", "bowl", "cup")
 """The objects the camera localises (free bodies with a model, velma/perception/objects.py)."""
@@ -70,6 +77,8 @@ class Seen:
 
     estimates: dict[str, ObjectEstimate]
     content: dict[str, ContentEstimate | SphereCount]
+    outside: Spill | None = None
+    """The content seen outside every container (when a container was asked for)."""
 
 
 class CameraObserver:
@@ -124,10 +133,23 @@ class CameraObserver:
         estimates: dict[str, ObjectEstimate] = {}
         content: dict[str, ContentEstimate | SphereCount] = {}
         objects: list[ObjectObservation] = []
+        outside: Spill | None = None
         if wanted:
             frame = self.kinect.capture(data, self.rng, FRAMES_AVERAGED)
             points, colours, _ = frame.cloud()
-            estimates = self.localiser.localise(points, colours, frame.position, wanted)
+            # every movable object is a container (its content is estimated); the content seen
+            # outside needs every container in view found, asked for or not
+            found = self.localiser.localise(points, colours, frame.position, MOVABLE)
+            estimates = {n: found[n] for n in wanted}
+            outside = spill = count_outside(
+                points,
+                colours,
+                support_heights(points),
+                [(found[n], self.models[n]) for n in MOVABLE],
+                self.content_rgba,
+                PARTICLE_RADIUS,
+            )
+            conserved = self.total_particles - spill.count
             for n in wanted:
                 e = estimates[n]
                 if not e.seen or e.position is None or e.quaternion is None:
@@ -154,9 +176,7 @@ class CameraObserver:
                             position=(float(p[0]), float(p[1]), float(p[2])),
                             orientation=(float(q[0]), float(q[1]), float(q[2]), float(q[3])),
                         ),
-                        particles_inside=(
-                            min(guess.count, self.total_particles) if guess is not None else None
-                        ),
+                        particles_inside=(max(0, min(guess.count, conserved)) if guess is not None else None),
                         position_sigma=max(e.sigma_position, POSITION_SIGMA_FLOOR)
                         if math.isfinite(e.sigma_position)
                         else None,
@@ -170,8 +190,9 @@ class CameraObserver:
             objects=tuple(objects),
             total_particles=self.total_particles,
             unseen=tuple(n for n in names if n not in seen),
+            particles_outside=outside.count if outside is not None else None,
         )
-        return obs, Seen(estimates=estimates, content=content)
+        return obs, Seen(estimates=estimates, content=content, outside=outside)
 
     def close(self) -> None:
         """Free the renderer (from the thread that observed)."""

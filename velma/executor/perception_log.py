@@ -7,7 +7,9 @@ A record: ``sim_time`` (s), ``object``, ``seen``, ``estimate`` (position, m, or 
 None), ``sigma_mm`` (the reported 1-σ), ``content`` (estimate) and ``content_truth`` (spheres
 inside, containers only), ``visible``, ``hidden`` and ``floor_visible`` (open containers:
 spheres seen, spheres inferred behind the near wall, share of the floor in view), ``reason``
-(why not seen), and ``observe_ms`` (the render and localisation's wall time).
+(why not seen), ``observe_ms`` (the render and localisation's wall time), and, with the
+Observation's ``particles_outside``, ``outside`` (content seen outside every container,
+velma/perception/spill.py) beside ``outside_truth`` (spheres in no container).
 """
 
 from __future__ import annotations
@@ -51,6 +53,12 @@ def records(obs: Observation, seen: Seen, truth: GroundTruth, data: mujoco.MjDat
                 "floor_visible": round(c.floor_visible, 3) if isinstance(c, SphereCount) else None,
                 "reason": e.reason or None,
                 "observe_ms": round(ms, 1),
+                "outside": obs.particles_outside,
+                "outside_truth": (
+                    None
+                    if obs.particles_outside is None
+                    else obs.total_particles - sum(truth.particles_inside(data, c) for c in CONTAINERS)
+                ),
             }
         )
     return out

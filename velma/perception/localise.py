@@ -46,6 +46,7 @@ which the benchmark measures (docs/bench/perception.md).
 
 from __future__ import annotations
 
+import itertools
 import math
 from collections.abc import Iterable
 from dataclasses import dataclass, field
@@ -56,7 +57,15 @@ import small_gicp
 
 from velma.perception.cloud import Array
 from velma.perception.objects import ObjectModel
-from velma.perception.segment import Cluster, clusters, colour_match, merge_within, support_heights
+from velma.perception.segment import (
+    LIFT_GAP,
+    Cluster,
+    clusters,
+    colour_match,
+    lifted,
+    merge_within,
+    support_heights,
+)
 from velma.rotations import quat_wxyz
 
 MIN_POINTS = 80
@@ -195,6 +204,7 @@ class Localiser:
             for c in merge_within(parts, points, self._max_extent(model)):
                 if len(c.index) < MIN_POINTS:
                     continue
+                c = lifted(points, match, c, self._max_extent(model) / 2, model.height + 0.015)
                 score = self._score(model, c)
                 if score is not None:
                     scored.append((score, n, c))
@@ -245,10 +255,12 @@ class Localiser:
         if source.size() < MIN_POINTS // 2:
             return ObjectEstimate(name=name, seen=False, reason=f"{source.size()} points after downsampling")
         source_points = np.asarray(source.points())[:, :3]
+        # a lifted object's bottom: its lowest point seen (the start), or its top seen less its height
+        lifts = (0.0,) if c.standing else (0.0, c.top - model.height)
         best: tuple[float, Array] | None = None
-        for dx, dy in START_OFFSETS:
+        for (dx, dy), dz in itertools.product(START_OFFSETS, lifts):
             t = np.eye(4)
-            t[:2, 3] = (-dx, -dy)
+            t[:3, 3] = (-dx, -dy, -dz)
             t = self._align(target, source, t, COARSE_CORRESPONDENCE).T_target_source
             if t[2, 2] < math.cos(MAX_TILT):
                 continue
@@ -266,7 +278,9 @@ class Localiser:
             rmse = math.sqrt(2 * result.error / max(inliers, 1))
             upright = share >= MIN_INLIER_SHARE and rmse <= MAX_RMSE and t[2, 2] >= math.cos(MAX_TILT)
         if not upright:
-            tipped = self._fit_tipped(target, source, cloud - start) if cloud is not None else None
+            tipped = (
+                self._fit_tipped(target, source, cloud - start) if cloud is not None and c.standing else None
+            )
             if tipped is None:
                 why = (
                     "no upright fit"
@@ -280,7 +294,9 @@ class Localiser:
         inv: Array = np.asarray(np.linalg.inv(t), dtype=np.float64)  # object frame in the start frame
         rotation = inv[:3, :3]
         position = start + inv[:3, 3]
-        if upright:
+        if upright and c.lifted_from is not None and position[2] - c.lifted_from <= LIFT_GAP:
+            c = Cluster(c.index, c.lifted_from, c.top, c.extent)  # the fit stands it on the plane after all
+        if upright and c.standing:
             position[2] = c.support  # it stands on the support plane (module docstring)
         yaw_observable = model.symmetry_deviation > YAW_OBSERVABLE_DEVIATION
         cov6 = rmse**2 * np.linalg.pinv(np.asarray(result.H))

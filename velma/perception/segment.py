@@ -19,6 +19,9 @@ SUPPORT_SIDE = (0.02, 0.08)  # m, the bands beside: this far below and above the
 SUPPORT_BAND = 0.008  # m, points this close to a support height belong to it
 SUPPORT_CLEARANCE = 0.002  # m, an object's points start this high above its support
 CLUSTER_VOXEL = 0.01  # m, voxels touching (26-neighbourhood) are one cluster
+LIFT_GAP = 0.015
+"""m: a cluster whose lowest point is more than this above its support plane does not stand
+on it (an object held in the hand; ``lifted``)."""
 MIN_BRIGHTNESS = 60  # sum of R, G, B (0..765) below which a colour's hue is not trusted
 GREY = np.full(3, 1.0 / 3.0)
 
@@ -27,12 +30,21 @@ GREY = np.full(3, 1.0 / 3.0)
 class Cluster:
     """Points of one connected blob standing on a support plane: ``index`` (M,) into the cloud,
     ``support`` (m) the height of the plane below it, ``top`` (m) its highest point above
-    that plane, ``extent`` (m) its largest horizontal size (bounding-box diagonal)."""
+    that plane, ``extent`` (m) its largest horizontal size (bounding-box diagonal).
+    ``lifted_from`` (m): None when the blob stands on its support; else it is held above it
+    (``lifted``), ``support`` is then its own lowest point's height, ``top`` is measured from
+    there and ``lifted_from`` is the plane's height below it."""
 
     index: npt.NDArray[np.int64]
     support: float
     top: float
     extent: float
+    lifted_from: float | None = None
+
+    @property
+    def standing(self) -> bool:
+        """Whether the blob stands on its support plane (``lifted``)."""
+        return self.lifted_from is None
 
 
 def support_heights(points: Array) -> list[float]:
@@ -149,6 +161,37 @@ def clusters(
             )
         )
     return out
+
+
+def lifted(
+    points: Array, candidates: npt.NDArray[np.int64], c: Cluster, reach: float, max_height: float
+) -> Cluster:
+    """``c`` again as a blob that does not stand on its support (its lowest point more than
+    ``LIFT_GAP`` above it: an object held in the hand), or ``c`` unchanged when it stands.
+
+    ``clusters`` cut the blob at ``max_height`` above the plane below it, which for a lifted
+    object is not its bottom; here the ``candidates`` (indices into ``points``, N × 3) within
+    ``reach`` (m, horizontally) of ``c``'s bounding-box centre and at most ``max_height`` (m)
+    above ``c``'s lowest point are gathered: ``support`` that lowest point's height (m),
+    ``top`` measured from it, ``lifted_from`` the plane's height."""
+    p = points[c.index]
+    low = float(p[:, 2].min())
+    if low - c.support <= LIFT_GAP:
+        return c
+    centre = (p[:, :2].min(axis=0) + p[:, :2].max(axis=0)) / 2
+    q = points[candidates]
+    keep = (np.hypot(q[:, 0] - centre[0], q[:, 1] - centre[1]) <= reach) & (q[:, 2] >= low)
+    keep &= q[:, 2] <= low + max_height
+    index = candidates[keep]
+    r = points[index]
+    lo, hi = r[:, :2].min(axis=0), r[:, :2].max(axis=0)
+    return Cluster(
+        index=index,
+        support=low,
+        top=float(r[:, 2].max() - low),
+        extent=float(np.hypot(*(hi - lo))),
+        lifted_from=c.support,
+    )
 
 
 def chromaticity(colours: npt.NDArray[np.uint8]) -> tuple[Array, npt.NDArray[np.bool_]]:

@@ -31,7 +31,6 @@ before it reports: the hand is opened and moved back along the plan's way in
 
 from __future__ import annotations
 
-import math
 from collections import deque
 from dataclasses import dataclass
 
@@ -51,7 +50,6 @@ from services.runtime.roles import (
 )
 from services.runtime.state_store import StateFile
 from shared.fipa_codec import Performative
-from shared.fipa_codec.languages.common import Vec3
 from shared.fipa_codec.languages.l_ex import CommandResult, LookAt, MoveJoints, MoveTool, Observe, Tilt, Wait
 from shared.fipa_codec.languages.l_hfsm import (
     Assert,
@@ -65,6 +63,7 @@ from shared.fipa_codec.languages.l_sd import Observation
 from shared.fipa_codec.languages.l_sw import TERMINAL_SW_STATES, SWState, SWStatus
 from shared.fipa_codec.languages.l_wm import ObjectUpdate, Subscription, WorldUpdate
 
+from .judge import content_share, content_shortfall, differences, too_uncertain
 from .retreat import RetreatStep, finish_set_down, undo_take
 
 OBSERVE_REPLY_BY_S = 30.0
@@ -561,11 +560,11 @@ class TaskExecutor(Agent):
         if isinstance(action, Perceive | CheckContent) and isinstance(reply.content, Observation):
             self._update_km(reply.content)
             if isinstance(action, Perceive) and action.expect and not self.terminating:
-                difference = self._differences(action, reply.content)
+                difference = differences(action, reply.content)
                 if difference and action.judges:  # the world does not show the task done
                     self._end(SWState.ERROR, f"{step.path}: {difference}")
                     return
-                uncertain = None if difference else self._too_uncertain(action, reply.content)
+                uncertain = None if difference else too_uncertain(action, reply.content)
                 if uncertain is not None and step.second_view == 0:
                     name, where, _ = uncertain
                     self.log.info("%s: the %s's position is uncertain: a second view", step.path, name)
@@ -579,16 +578,11 @@ class TaskExecutor(Agent):
                     self._end(SWState.REPLAN, f"{step.path}: {difference}")
                     return
             if isinstance(action, CheckContent):
-                inside = {o.name: o.particles_inside or 0 for o in reply.content.objects}
-                total = max(1, reply.content.total_particles)
-                fraction = inside.get(action.container, 0) / total
-                self.log.info("%s holds %.0f %% of the content", action.container, 100 * fraction)
-                if fraction < action.min_fraction:
-                    self._end(
-                        SWState.ERROR,
-                        f"{action.container} holds only {100 * fraction:.0f} % of the "
-                        f"content (needs {100 * action.min_fraction:.0f} %)",
-                    )
+                share = content_share(action, reply.content)
+                self.log.info("%s holds %.0f %% of the content", action.container, 100 * share)
+                shortfall = content_shortfall(action, reply.content)
+                if shortfall:
+                    self._end(SWState.ERROR, shortfall)
                     return
         self.index += 1
         self.step = None
@@ -599,35 +593,6 @@ class TaskExecutor(Agent):
         self.log.info("surprise: %s", reason)
         step.replan_reason = reason
         self._observe(step, ())
-
-    @staticmethod
-    def _too_uncertain(action: Perceive, obs: Observation) -> tuple[str, Vec3, float] | None:
-        """The first expected object seen with a position less certain than its
-        ``max_sigma``: (name, estimated position, σ m); None when every one is certain enough."""
-        seen = {o.name: o for o in obs.objects}
-        for e in action.expect:
-            o = seen.get(e.object)
-            if o is not None and e.max_sigma is not None and (o.position_sigma or 0.0) > e.max_sigma:
-                return e.object, o.pose.position, o.position_sigma or 0.0
-        return None
-
-    @staticmethod
-    def _differences(action: Perceive, obs: Observation) -> str:
-        """The expected positions (and upright stances) the observation contradicts, in words
-        ("" when none)."""
-        seen = {o.name: o.pose for o in obs.objects}
-        out = []
-        for e in action.expect:
-            pose = seen.get(e.object)
-            if pose is None:
-                out.append(f"the {e.object} was not seen")
-                continue
-            d = math.dist(pose.position, e.position)
-            if d > e.tolerance:
-                out.append(f"the {e.object} is {100 * d:.0f} cm from where the plan expects it")
-            if e.max_tilt is not None and (tilt := pose.tilt()) > e.max_tilt:
-                out.append(f"the {e.object} is not upright: it leans {math.degrees(tilt):.0f}°")
-        return "; ".join(out)
 
     def _end(self, state: SWState, reason: str | None) -> None:
         self.outcome, self.reason = state, reason

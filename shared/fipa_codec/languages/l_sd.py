@@ -46,12 +46,17 @@ class Observation(msgspec.Struct, frozen=True, tag="observation", kw_only=True, 
     ``total_particles``: how many content spheres the task's content has in all — not a
     measurement: the count the scene description states (the jar is filled with that many at
     the start; a_km's kitchen knowledge may state it too), so that ``particles_inside /
-    total_particles`` is the share of the content a container was seen to hold."""
+    total_particles`` is the share of the content a container was seen to hold.
+    ``particles_outside``: content particles seen outside every container (spilled on the
+    table, a shelf or the floor, in view; with ground truth: all that are in no container);
+    None when no container was asked for. The content is conserved, so no container holds
+    more than ``total_particles − particles_outside``."""
 
     stamp: float
     objects: tuple[ObjectObservation, ...]
     total_particles: int = 0
     unseen: tuple[str, ...] = ()
+    particles_outside: int | None = None
 
 
 L_SD = register(Language("L_SD", "O_RoCo", (Observation,)))

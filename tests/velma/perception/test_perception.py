@@ -83,6 +83,29 @@ def test_objects_out_of_view_are_not_seen(kitchen, kinect, models) -> None:  # t
         assert estimates[name].position is None
 
 
+@pytest.mark.parametrize("name", ("jar", "cup"))
+def test_an_object_lifted_off_the_shelf_is_localised_at_its_height(kitchen, kinect, models, name) -> None:  # type: ignore[no-untyped-def]
+    """Held 40 mm above the shelf (as a grasp lifts it), the object no longer stands on the
+    plane below it: its height comes from the fit, not from the plane (segment.py ``lifted``)."""
+    model, data = kitchen
+    local = mujoco.MjData(model)
+    local.qpos[:] = data.qpos
+    local.qpos[model.jnt_qposadr[model.joint(f"{name}_free").id] + 2] += 0.04
+    for b in range(model.nbody):  # the content goes up with its container
+        if model.body(b).name.startswith(PARTICLE_PREFIX) and name == "jar":
+            local.qpos[model.jnt_qposadr[model.body_jntadr[b] + 2]] += 0.04
+    mujoco.mj_forward(model, local)
+    aim_head(model, local, SHELF_LOOK)
+    frame = kinect.capture(local, np.random.default_rng(2))
+    points, colours, _ = frame.cloud()
+    estimate = Localiser(models.values()).localise(points, colours, frame.position)[name]
+    assert estimate.seen, estimate.reason
+    assert estimate.position is not None
+    truth = local.xpos[model.body(name).id]
+    assert truth[2] - data.xpos[model.body(name).id][2] == pytest.approx(0.04)
+    assert np.linalg.norm(estimate.position - truth) < 0.005
+
+
 def test_noise_grows_quadratically_with_distance() -> None:
     rng = np.random.default_rng(7)
     flat = np.zeros((200, 200), dtype=np.float32)

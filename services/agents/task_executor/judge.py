@@ -1,0 +1,64 @@
+"""a_ta's judgements of the world it observed (issue 19: every task judged by the world it
+left): where the plan's Perceive expects the objects, how certain a position must be for a
+grasp, and the content check. Pure functions of the plan's action and ag_ex's L_SD
+``Observation`` (shared/fipa_codec/languages/l_sd.py); the reasons are the words the person
+reads."""
+
+from __future__ import annotations
+
+import math
+
+from shared.fipa_codec.languages.common import Vec3
+from shared.fipa_codec.languages.l_hfsm import CheckContent, Perceive
+from shared.fipa_codec.languages.l_sd import Observation
+
+
+def too_uncertain(action: Perceive, obs: Observation) -> tuple[str, Vec3, float] | None:
+    """The first expected object seen with a position less certain than its ``max_sigma``:
+    (name, estimated position (m, world), σ m); None when every one is certain enough."""
+    seen = {o.name: o for o in obs.objects}
+    for e in action.expect:
+        o = seen.get(e.object)
+        if o is not None and e.max_sigma is not None and (o.position_sigma or 0.0) > e.max_sigma:
+            return e.object, o.pose.position, o.position_sigma or 0.0
+    return None
+
+
+def differences(action: Perceive, obs: Observation) -> str:
+    """The expected positions (and upright stances) the observation contradicts, in words
+    ("" when none)."""
+    seen = {o.name: o.pose for o in obs.objects}
+    out = []
+    for e in action.expect:
+        pose = seen.get(e.object)
+        if pose is None:
+            out.append(f"the {e.object} was not seen")
+            continue
+        d = math.dist(pose.position, e.position)
+        if d > e.tolerance:
+            out.append(f"the {e.object} is {100 * d:.0f} cm from where the plan expects it")
+        if e.max_tilt is not None and (tilt := pose.tilt()) > e.max_tilt:
+            out.append(f"the {e.object} is not upright: it leans {math.degrees(tilt):.0f}°")
+    return "; ".join(out)
+
+
+def content_share(action: CheckContent, obs: Observation) -> float:
+    """The share (0..1) of the content (``total_particles``) ``obs`` saw in the checked
+    container (0 when it was not seen)."""
+    inside = {o.name: o.particles_inside or 0 for o in obs.objects}
+    return inside.get(action.container, 0) / max(1, obs.total_particles)
+
+
+def content_shortfall(action: CheckContent, obs: Observation) -> str:
+    """Why the container holds too little of the content, in words ("" when it holds at least
+    ``min_fraction``); names the content ag_ex saw outside every container (spilled in view),
+    if any."""
+    share = content_share(action, obs)
+    if share >= action.min_fraction:
+        return ""
+    spilled = obs.particles_outside
+    seen_outside = f"; {spilled} of {obs.total_particles} seen outside it" if spilled else ""
+    return (
+        f"{action.container} holds only {100 * share:.0f} % of the content "
+        f"(needs {100 * action.min_fraction:.0f} %){seen_outside}"
+    )
