@@ -120,13 +120,26 @@ def perception_summary(rows: list[PerceptionRow]) -> list[str]:
     unseen = [r for r in rows if not r.seen]
     reasons = sorted({r.reason or "?" for r in unseen})
     lines.append(f"Requested but not seen: {len(unseen)} of {len(rows)} ({'; '.join(reasons) or 'none'}).")
-    counts = [
-        r.content - r.content_truth for r in rows if r.content is not None and r.content_truth is not None
+    for name in sorted({r.object for r in rows if r.content_truth is not None}):
+        counts = [
+            r.content - r.content_truth
+            for r in rows
+            if r.object == name and r.content is not None and r.content_truth is not None
+        ]
+        if counts:
+            lines.append(
+                f"Content count − truth, {name}, over {len(counts)} observations: "
+                f"{min(counts):+d} … {max(counts):+d}, mean {np.mean(counts):+.2f}."
+            )
+    outside = [
+        (r.outside, r.outside_truth) for r in rows if r.outside is not None and r.outside_truth is not None
     ]
-    if counts:
+    if outside:
+        missed = sum(1 for seen, truth in outside if seen != truth)
         lines.append(
-            f"Content count − truth over {len(counts)} container observations: "
-            f"{min(counts):+d} … {max(counts):+d}, mean {np.mean(counts):+.2f}."
+            "Content seen outside every container: differs from the truth in "
+            f"{missed} of {len(outside)} object observations "
+            f"(seen {sum(o for o, _ in outside if o)}, true {sum(t for _, t in outside if t)} in all)."
         )
     return lines
 
