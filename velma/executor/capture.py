@@ -25,8 +25,8 @@ PERCEPTION_LOG = "ag_ex_perception.jsonl"
 DEFAULT_PERCEPTION = "camera"
 """``ROCO_PERCEPTION`` when unset: the head camera (velma/executor/observer.py). The pour's
 fleet with it: 20 of 20 pose seeds succeed, the content check passing on the camera's count;
-that count cannot tell 16 spheres from 18 when the missing ones were behind the bowl's wall
-(docs/bench/observe.md). ``ROCO_PERCEPTION=truth`` answers from the physics (tests, and to
+that count sees content spilled in view, not a sphere gone out of view from behind the bowl's
+wall (docs/bench/observe.md). ``ROCO_PERCEPTION=truth`` answers from the physics (tests, and to
 compare)."""
 
 

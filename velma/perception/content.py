@@ -197,8 +197,10 @@ def count_spheres(
     Named simplifications: the hidden arc of the ring is assumed as full as its neighbours
     make it (a vacancy that happens to lie in the hidden arc, or a sphere taken from it, is
     counted full), spheres hidden elsewhere than along the wall are not inferred, and spheres
-    stacked on others (a second layer) are not counted. Measured (scripts/bench_perception.py
-    ``--pours``, docs/bench/observe.md)."""
+    stacked on others (a second layer) are not counted. ag_ex's Observation caps the count at
+    what the content seen outside every container leaves (velma/perception/spill.py), so a
+    sphere spilled in view is not counted in the bowl; one gone out of view from the hidden arc
+    still is. Measured (scripts/bench_perception.py ``--pours --remove``, docs/bench/observe.md)."""
     if not estimate.seen or estimate.position is None:
         return None
     r = particle_radius

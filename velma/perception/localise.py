@@ -19,7 +19,11 @@ For each requested object (velma/perception/objects.py ``ObjectModel``):
 5. the estimate is accepted when the fit's inliers hold ≥ ``MIN_INLIER_SHARE`` of the points
    with an RMS residual ≤ ``MAX_RMSE`` and it tilts the object ≤ ``MAX_TILT``. Its x and y are
    ICP's; its z is the support plane's height (the object stands on it: thousands of plane
-   points fix it better than the object's cut-off bottom does);
+   points fix it better than the object's cut-off bottom does) — unless the cluster's lowest
+   point lies more than ``LIFT_GAP`` above the plane (segment.py ``lifted``: held in a hand),
+   when the cluster is gathered up from its own lowest point, ICP also starts from its top
+   less the object's height, and z is ICP's unless the fit stands the object on the plane
+   after all;
 6. when no upright fit passes, the fit is tried again from the object tipped over
    (``TIPPED_STARTS``: upside down, on its rim) and accepted by stricter inlier and RMS tests
    and with the object lying on its support:
