@@ -13,6 +13,7 @@ import pytest
 from services.recorder.record import read_records
 from services.report import build_report
 from services.runtime.run_folder import read_run_info
+from tests.support.world import FULL, stands_at, untouched, world
 
 pytestmark = pytest.mark.slow
 
@@ -49,6 +50,28 @@ def test_pour_succeeds_and_most_spheres_end_in_the_bowl(pour_run: tuple) -> None
     assert report.content.share >= 0.9, report.content
     # self-collision is on (issue 18): no command made the robot touch itself
     assert [e.text for e in report.events if e.kind == "self_contact"] == []
+
+
+def test_the_bowl_stands_on_the_table_holding_the_content_in_the_simulated_world(pour_run: tuple) -> None:
+    """Judged by the world the run left (ag_ex's final checkpoint, the physics' truth), not by
+    what the agents reported."""
+    _, run_dir = pour_run
+    w = world(run_dir)
+    assert stands_at(w["bowl"], "table"), w["bowl"]
+    assert (w["bowl"].particles_inside or 0) >= FULL, w["bowl"]
+    assert untouched(w["cup"]), w["cup"]
+
+
+def test_every_object_asked_for_was_seen_within_10_mm_the_held_jar_included(pour_run: tuple) -> None:
+    """The camera's observations beside the truth (ag_ex_perception.jsonl): the jar observed
+    while the left hand holds it is localised at its height (segment.py ``lifted``), and no
+    content was seen outside a container where there was none."""
+    _, run_dir = pour_run
+    rows = build_report(run_dir).perception
+    assert rows and all(r.seen for r in rows), [(r.object, r.reason) for r in rows if not r.seen]
+    assert max(r.error_mm or 0.0 for r in rows) <= 10.0, [(r.object, r.sim_time, r.error_mm) for r in rows]
+    assert any(r.object == "jar" and r.sim_time > 20.0 for r in rows)  # held, as a_ta checks the bowl
+    assert all(r.outside == r.outside_truth == 0 for r in rows if r.outside is not None)
 
 
 def test_each_agent_ran_as_its_own_process(pour_run: tuple) -> None:

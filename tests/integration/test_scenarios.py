@@ -11,14 +11,11 @@ from pathlib import Path
 
 import pytest
 
-from services.agents.knowledge.world_model import WorldModel
 from services.report import build_report
 from services.report.load import load_run
 from services.runtime.run_folder import read_run_info
-from services.scenario.chaos import final_world
-from shared.fipa_codec.languages.l_sd import ObjectObservation
 from shared.fipa_codec.languages.l_sw import SWState, SWStatus
-from velma.model.scene import load_kitchen
+from tests.support.world import FULL, START, stands_at, untouched, world
 
 pytestmark = pytest.mark.slow
 
@@ -35,32 +32,6 @@ def scenario(name: str, runs: Path) -> tuple[subprocess.CompletedProcess[str], P
     touched = [e.text for e in build_report(run_dir).events if e.kind == "self_contact"]
     assert touched == [], touched
     return proc, run_dir
-
-
-KITCHEN = WorldModel()
-"""a_km's kitchen facts: where each object goes on each piece of furniture."""
-START = {n: tuple(load_kitchen(0, 0).body(n).pos) for n in ("jar", "bowl", "cup")}
-"""Where the movable objects stand when a run starts (kitchen.xml)."""
-UPRIGHT = math.radians(15.0)
-FULL = math.ceil(0.9 * 18)
-"""Spheres the bowl holds after a pour that succeeded (≥ 90 % of the content)."""
-
-
-def world(run_dir: Path) -> dict[str, ObjectObservation]:
-    """The simulated world as ag_ex left it (its final checkpoint's ground truth)."""
-    obs = final_world(run_dir)
-    assert obs is not None, "no final checkpoint in the run folder"
-    return {o.name: o for o in obs.objects}
-
-
-def stands_at(o: ObjectObservation, furniture: str, tolerance: float = 0.03) -> bool:
-    """``o`` stands upright within ``tolerance`` m of its place on ``furniture`` (a_km's)."""
-    place = KITCHEN.placement(o.name, furniture).positions[0]
-    return o.pose.tilt() < UPRIGHT and math.dist(o.pose.position, place) <= tolerance
-
-
-def untouched(o: ObjectObservation) -> bool:
-    return o.pose.tilt() < UPRIGHT and math.dist(o.pose.position, START[o.name]) <= 0.01
 
 
 def sw_states(run_dir: Path) -> list[SWStatus]:
@@ -153,6 +124,19 @@ def test_after_the_pour_jar_and_bowl_go_back_in_the_cabinet(tmp_path: Path) -> N
     w = world(run_dir)
     assert stands_at(w["jar"], "cabinet") and stands_at(w["bowl"], "cabinet"), w
     assert (w["bowl"].particles_inside or 0) >= FULL, w["bowl"]
+
+
+def test_a_pour_interrupted_twice_in_its_tilt_still_fills_the_bowl(tmp_path: Path) -> None:
+    """a_ta, then ag_ex, killed half-way through the tilt (scenario tilt_interrupted): each
+    time a_ta reports Replan, the pour is replanned and finishes; the world shows the bowl on
+    the table with the content in it."""
+    proc, run_dir = scenario("tilt_interrupted", tmp_path)
+    assert proc.returncode == 0, proc.stdout[-4000:] + proc.stderr[-2000:]
+    assert [c.outcome for c in build_report(run_dir).commands] == ["succeeded"]
+    assert sum(s.state is SWState.REPLAN for s in sw_states(run_dir)) >= 2
+    w = world(run_dir)
+    assert stands_at(w["bowl"], "table") and (w["bowl"].particles_inside or 0) >= FULL, w["bowl"]
+    assert w["jar"].pose.position[2] > 0.5  # still in the hand or on furniture, not dropped
 
 
 def test_a_placed_bowl_knocked_over_fails_the_task_with_the_reason(tmp_path: Path) -> None:
