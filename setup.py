@@ -1,19 +1,22 @@
-"""Build of roco's one compiled module, the impedance control law (velma/control/_impedance.cpp)
-and, when MuJoCo's headers are there, the MuJoCo side of ag_ex's cycle (velma/control/_plant.hpp).
+"""Build of roco's compiled modules: the impedance control law (velma/control/_impedance.cpp)
+and, when MuJoCo's headers are there, the MuJoCo side of ag_ex's cycle (velma/control/_plant.hpp);
+and the agent runtime's hot path, compiled from its typed Python by mypyc (``RUNTIME_COMPILED``).
 
 Everything else is in pyproject.toml. The module is compiled against the headers of
 Pinocchio (the ``pin`` wheel: Pinocchio and Boost under ``cmeel.prefix/include``), Eigen
 (the ``cmeel-eigen`` wheel) and pybind11, all build requirements in pyproject.toml, so a
 C++17 compiler is all a machine needs besides them. MuJoCo's headers come from the ``mujoco``
-wheel (also a build requirement; only its headers: nothing is linked, see _plant.hpp). The extension is optional: without a
-compiler the install goes on and roco runs the Python law (velma/control/compiled.py says so
-in a warning). ``ROCO_BUILD_NATIVE=0`` skips it on purpose (scripts/build_image.sh does, to
-resolve the dependencies quickly).
+wheel (also a build requirement; only its headers: nothing is linked, see _plant.hpp). The
+extension is optional: without a compiler the install goes on and roco runs the Python law
+(velma/control/compiled.py says so in a warning). ``ROCO_BUILD_NATIVE=0`` skips it on purpose
+(scripts/build_image.sh does, to resolve the dependencies quickly).
 """
 
 from __future__ import annotations
 
+import hashlib
 import importlib.util
+import json
 import os
 import sys
 from pathlib import Path
@@ -67,5 +70,40 @@ if os.environ.get("ROCO_BUILD_NATIVE", "1") != "0":
             optional=True,
         )
     )
+
+RUNTIME_COMPILED = (
+    "services/runtime/conversations.py",
+    "services/runtime/lookups.py",
+    "services/runtime/dedup.py",
+)
+"""The agent runtime's hot path compiled by mypyc (issue 20: the protocol state, the
+specification's kept answers and the duplicate filter of every communicate sent and
+received; services/runtime/native.py). Each is compiled on its own (``separate``): its
+extension and its ``__mypyc`` library lie beside its source."""
+
+
+def _runtime_extensions() -> list:  # type: ignore[type-arg]
+    """mypyc's extensions of ``RUNTIME_COMPILED``, or none (with a warning) when mypyc is
+    missing or fails: roco then runs those modules interpreted, as they are written."""
+    try:
+        from mypyc.build import mypycify
+
+        # the build environment has the build requirements only: the types of msgspec, zenoh
+        # and the rest are taken as Any there (the code is mypy-clean against them elsewhere)
+        extensions = mypycify([*RUNTIME_COMPILED, "--ignore-missing-imports"], separate=True, opt_level="3")
+    except Exception as exc:  # any failure: the interpreted runtime still works
+        print(f"setup.py: the runtime is not compiled ({type(exc).__name__}: {exc}); it runs interpreted")
+        return []
+    for extension in extensions:
+        extension.optional = True  # a compiler error leaves that module interpreted
+    # what was compiled, by content: services/runtime/native.py runs a module whose source
+    # differs from it (edited since) from its source
+    digests = {Path(p).stem: hashlib.sha256(Path(p).read_bytes()).hexdigest() for p in RUNTIME_COMPILED}
+    Path("services/runtime/_compiled.json").write_text(json.dumps(digests, indent=1) + "\n")
+    return extensions
+
+
+if os.environ.get("ROCO_BUILD_NATIVE", "1") != "0":
+    ext_modules += _runtime_extensions()
 
 setup(ext_modules=ext_modules)

@@ -275,8 +275,13 @@ class CrossingTracker:
 
     def copy(self) -> CrossingTracker:
         """An independent copy (readings are immutable, so this is cheap)."""
-        other = CrossingTracker.__new__(CrossingTracker)
-        other.__dict__.update(self.__dict__)
+        other = CrossingTracker(
+            self.protocol, local_role=self.local_role, max_run=self.max_run, max_readings=self.max_readings
+        )  # attribute by attribute: compiled by mypyc (setup.py), the class has no __dict__
+        other.readings = self.readings
+        other.messages = self.messages
+        other.crossings = self.crossings
+        other.aborted = self.aborted
         return other
 
     # ---- state -------------------------------------------------------------------------
