@@ -119,20 +119,13 @@ def pours(first: int, n: int, remove: int) -> int:
         line = f"{seed:4d}  {ok:3d}/{len(commands):<3d}  {count} / {inside:<12}  {split:>15}  {error:>13}  "
         line += "passes" if check else "fails "
         if remove:
-            gone = _take_from_bowl(ex.rt.model, qpos, remove, seed, spill=False)
-            obs, _ = observer.observe(WorldCapture.of(("bowl",), float(ex.rt.data.time), gone))
-            b = next((o for o in obs.objects if o.name == "bowl"), None)
-            c = b.particles_inside if b is not None else None
-            check_taken = c is not None and c / obs.total_particles >= CONTENT_SHARE_REQUIRED
+            stamp = float(ex.rt.data.time)
+            c, _, check_taken = _judged(observer, ex.rt.model, qpos, stamp, remove, seed, spill=False)
             passed_taken += check_taken
             line += f"  {c} / {inside - remove:<18}  {'passes' if check_taken else 'fails '}"
-            spilled = _take_from_bowl(ex.rt.model, qpos, remove, seed, spill=True)
-            obs, _ = observer.observe(WorldCapture.of(("bowl",), float(ex.rt.data.time), spilled))
-            b = next((o for o in obs.objects if o.name == "bowl"), None)
-            c = b.particles_inside if b is not None else None
-            check_spilled = c is not None and c / obs.total_particles >= CONTENT_SHARE_REQUIRED
+            c, outside, check_spilled = _judged(observer, ex.rt.model, qpos, stamp, remove, seed, spill=True)
             passed_spilled += check_spilled
-            line += f"  {c}, {obs.particles_outside:<20}  {'passes' if check_spilled else 'fails'}"
+            line += f"  {c}, {outside!s:<20}  {'passes' if check_spilled else 'fails'}"
         observer.close()
         print(line)
     print(f"the check passes in {passed} of {n} pours")
@@ -144,6 +137,20 @@ def pours(first: int, n: int, remove: int) -> int:
             f"with {remove} spheres spilled on the table in view the check passes in {passed_spilled} of {n}"
         )
     return 0
+
+
+def _judged(observer, model, qpos, stamp: float, k: int, seed: int, spill: bool):  # type: ignore[no-untyped-def]
+    """The bowl's count, the content seen outside and whether a_ta's check passes when
+    ``observer`` (a ``CameraObserver``) observes ``qpos`` at ``stamp`` with ``k`` spheres taken
+    from the bowl (``_take_from_bowl``)."""
+    from services.agents.planner.domain import CONTENT_SHARE_REQUIRED
+    from velma.executor.capture import WorldCapture
+
+    changed = _take_from_bowl(model, qpos, k, seed, spill=spill)
+    obs, _ = observer.observe(WorldCapture.of(("bowl",), stamp, changed))
+    b = next((o for o in obs.objects if o.name == "bowl"), None)
+    c = b.particles_inside if b is not None else None
+    return c, obs.particles_outside, c is not None and c / obs.total_particles >= CONTENT_SHARE_REQUIRED
 
 
 def _take_from_bowl(model, qpos, k: int, seed: int, spill: bool):  # type: ignore[no-untyped-def]
