@@ -15,8 +15,9 @@ What the agents get (L_SD, shared/fipa_codec/languages/l_sd.py):
   count more);
 - ``particles_outside`` when a movable object (each is a container) was asked for: the content
   spheres seen resting on a support outside every container (velma/perception/spill.py:
-  spilled in view). To exclude every container in view, all movable objects are localised,
-  those not asked for left out of the Observation;
+  spilled in view). When some are seen outside the containers asked for, all movable objects
+  are localised (a content sphere in another container in view is in no spill), those not
+  asked for left out of the Observation;
 - a requested object not seen (out of view, occluded, fit rejected, unknown name): its name in
   ``unseen``;
 - furniture (table, cabinet): fixed bodies of the kitchen, so their poses are the map's facts
@@ -78,7 +79,7 @@ class Seen:
     estimates: dict[str, ObjectEstimate]
     content: dict[str, ContentEstimate | SphereCount]
     outside: Spill | None = None
-    """The content seen outside every container (when a container was asked for)."""
+    """The content seen outside every container (None when no movable object was asked for)."""
 
 
 class CameraObserver:
@@ -137,18 +138,14 @@ class CameraObserver:
         if wanted:
             frame = self.kinect.capture(data, self.rng, FRAMES_AVERAGED)
             points, colours, _ = frame.cloud()
-            # every movable object is a container (its content is estimated); the content seen
-            # outside needs every container in view found, asked for or not
-            found = self.localiser.localise(points, colours, frame.position, MOVABLE)
+            supports = support_heights(points)
+            found = self.localiser.localise(points, colours, frame.position, wanted)
+            outside = spill = self._outside(points, colours, supports, found)
+            if spill.count and len(wanted) < len(MOVABLE):
+                # content outside the containers asked for: it may lie in another one in view
+                found = self.localiser.localise(points, colours, frame.position, MOVABLE)
+                outside = spill = self._outside(points, colours, supports, found)
             estimates = {n: found[n] for n in wanted}
-            outside = spill = count_outside(
-                points,
-                colours,
-                support_heights(points),
-                [(found[n], self.models[n]) for n in MOVABLE],
-                self.content_rgba,
-                PARTICLE_RADIUS,
-            )
             conserved = self.total_particles - spill.count
             for n in wanted:
                 e = estimates[n]
@@ -193,6 +190,14 @@ class CameraObserver:
             particles_outside=outside.count if outside is not None else None,
         )
         return obs, Seen(estimates=estimates, content=content, outside=outside)
+
+    def _outside(
+        self, points: np.ndarray, colours: np.ndarray, supports: list[float], found: dict[str, ObjectEstimate]
+    ) -> Spill:
+        """The content seen outside the containers of ``found`` (velma/perception/spill.py);
+        every movable object is a container."""
+        containers = [(e, self.models[n]) for n, e in found.items()]
+        return count_outside(points, colours, supports, containers, self.content_rgba, PARTICLE_RADIUS)
 
     def close(self) -> None:
         """Free the renderer (from the thread that observed)."""
