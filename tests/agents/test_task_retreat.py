@@ -262,3 +262,21 @@ def test_a_restarted_a_ta_finishes_the_set_down_tells_a_km_and_reports(
     (report,) = [m for m in w.mine(P.INFORM) if m.receiver[0].name == "a_co"]
     status = msgspec.msgpack.decode(report.content, type=SWStatus)
     assert status.state is SWState.REPLAN and "the set-down was finished" in (status.reason or "")
+
+
+def test_a_withdrawal_after_an_earlier_plan_was_confirmed_is_not_taken_as_confirmed(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Chaos across hosts (seed 2, --realtime): a_ta's first plan ended confirmed, its second
+    was interrupted in a set-down (ag_ex held position: the robot's router was killed). The
+    earlier confirmation, still set, ended ``finished`` at once, before the withdrawal and
+    the report, and ``idle`` ran the same plan again from its first leaf: a take's lift from
+    wherever the hand stood, refused as unreachable."""
+    monkeypatch.setenv(ENV_STATE_DIR, str(tmp_path))
+    w = restarted_in("pour/place_bowl/set_down/release", tmp_path, Observation(stamp=3.0, objects=()))
+    w.agent.confirmed = True  # as the previous plan's confirmation by a_co left it
+    finished = w.agent.fsm.states["finished"]
+    finished.on_enter()
+    assert w.agent.withdrawing and not finished.terminal()
+    w.step("finished")
+    assert not finished.terminal() and w.agent.plan is not None

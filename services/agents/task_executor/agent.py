@@ -638,6 +638,10 @@ class TaskExecutor(Agent):
         """Make the hands safe after an interrupted take (``undo_take``) or set-down
         (``finish_set_down``; services/agents/task_executor/retreat.py), else
         report the final state at once."""
+        # the last plan's confirmation is not this one's: left set, it ended "finished" at once
+        # and the plan ran again from its first leaf (a withdrawal reports only at its end)
+        self.confirmed = False
+        self.final_inform = None
         commands: tuple[RetreatStep, ...] = ()
         if self.interrupted:
             commands = undo_take(self.leaves, self.atomic_spans, self.index)
