@@ -191,6 +191,12 @@ class TaskExecutor(Agent):
     # a_co's plans (coordinate, participant)
     @handles("coordinate", PARTICIPANT, "request")
     def _on_plan(self, conv: Conversation) -> None:
+        kept = _reply_with(self.plan_request) if self.plan_request is not conv else None
+        if kept is not None and kept == _reply_with(conv):
+            # a_co sends an unanswered plan again when a_ta reappears; a restarted a_ta that
+            # kept this very request reports on it instead of running it a second time
+            self.log.info("plan request %s again: it is the plan kept, not run twice", _reply_with(conv))
+            return
         self.requests.append(conv)
 
     @handles("coordinate", PARTICIPANT, "confirm")
@@ -711,3 +717,8 @@ class TaskExecutor(Agent):
             self.plan_request = None
             self.final_inform = None
             self.restored = False
+
+
+def _reply_with(conv: Conversation | None) -> str | None:
+    """The reply-with of the request that opened ``conv`` (None: no conversation, not known)."""
+    return conv.opening.msg.reply_with if conv is not None and conv.opening is not None else None
