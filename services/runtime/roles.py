@@ -58,7 +58,7 @@ import msgspec
 from services.runtime import keys
 from services.runtime.code_scan import findings_text, scan
 from services.spec.model import ChannelSpec, SpecError, SystemSpec
-from services.spec.protocol_defs import machine_of
+from services.spec.protocol_defs import machine_of, streams
 from shared.fipa_codec import DecodeError, decode, encode
 from shared.fipa_codec.acts import Performative
 from shared.fipa_codec.languages import ContentError, decode_content
@@ -674,6 +674,12 @@ class Roles:
         conv.opening = Received(msg, content, channel)
         if msg.reply_with is not None:
             conv.awaited.add(msg.reply_with)
+        before = self._open.get((conv.peer, conv.conversation_id)) if conversation_id else None
+        if before is not None and before.decl == decl and streams(machine):
+            # a stream opened anew (e.g. a_km subscribing again when a_ta's token reappears):
+            # what the peer sent in it before it saw the new opening still arrives, and is news
+            # (services/runtime/conversations.py: it crosses the opening), not a late reply
+            conv.awaited |= before.awaited
         self._keep(conv)
         return conv
 

@@ -14,6 +14,7 @@ import pytest
 
 from services.agents.coordinator.agent import Coordinator
 from services.agents.human_interface.agent import HumanInterface
+from services.agents.knowledge.agent import KnowledgeManager
 from services.agents.task_executor.agent import KeptTaskExecutor, TaskExecutor
 from services.runtime import keys
 from services.runtime.agent import RESEND_ON_RETURN, Agent
@@ -30,7 +31,7 @@ from shared.fipa_codec.languages.l_hc import CommandOutcome, HumanCommand, Statu
 from shared.fipa_codec.languages.l_hfsm import Execute, GroundTaskNetwork, HierarchicalPlan, PlanNode
 from shared.fipa_codec.languages.l_sd import ObjectObservation, Observation
 from shared.fipa_codec.languages.l_sw import SWState, SWStatus
-from shared.fipa_codec.languages.l_wm import Subscription, WorldUpdate
+from shared.fipa_codec.languages.l_wm import ObjectUpdate, Subscription, WorldUpdate
 from tests.support.messages import communicate
 
 P = Performative
@@ -447,3 +448,47 @@ def test_a_restarted_a_ta_does_not_queue_again_the_plan_request_it_kept(
     w.deliver(other)
     w.step("idle")
     assert len(w.agent.requests) == 1  # a new plan is queued as before
+
+
+def test_an_update_a_ta_sent_before_a_kms_new_subscription_is_taken_not_dropped() -> None:
+    """Chaos across hosts (seed 2, --realtime): the robot's router was killed while a_ta
+    localised the bowl; when a_ta's token reappeared a_km subscribed again (same
+    conversation-id) and a_ta's update, sent in the first subscription, arrived after that: it
+    was dropped as a late reply, a_km never learnt where the bowl stood, and a_pl found "no way
+    to pour". It is now taken as the update it is."""
+    bus = MemoryBus()
+    km = Wire(KnowledgeManager, bus)
+    ta = bus.transport()
+    ta.announce(keys.alive_key("a_ta"))
+    km.agent.setup()
+    km.agent._acquire(0.0)
+    km.agent._dispatch()
+    (first,) = km.mine(P.SUBSCRIBE)
+    km.deliver(
+        communicate(
+            P.AGREE, "a_ta", "a_km", "fipa-subscribe", first.conversation_id, in_reply_to=first.reply_with
+        )
+    )
+    km.step("idle")
+    ta.close()  # the robot's router dies ...
+    km.agent._acquire(0.0)
+    ta = bus.transport()
+    ta.announce(keys.alive_key("a_ta"))  # ... and comes back: a_km subscribes again
+    km.agent._acquire(0.0)
+    km.agent._dispatch()
+    assert len(km.mine(P.SUBSCRIBE)) == 2
+    update = WorldUpdate(stamp=5.0, objects=(ObjectUpdate(name="bowl", pose=Pose((0.3, -0.5, 0.85))),))
+    km.deliver(
+        communicate(
+            P.INFORM,
+            "a_ta",
+            "a_km",
+            "fipa-subscribe",
+            first.conversation_id,
+            update,
+            in_reply_to=first.reply_with,
+        )
+    )
+    km.step("idle")
+    assert km.agent.counters["late_replies"] == 0 and km.agent.counters["protocol_violations"] == 0
+    assert km.agent.current == update  # taken for saving
