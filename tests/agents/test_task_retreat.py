@@ -115,7 +115,19 @@ BACK = (
 
 
 @pytest.mark.parametrize(
-    "at", ["held", "lift", "withdraw", "pregrasp", "enter", "see_bowl", "open_hand", "carry", "lower", "park"]
+    "at",
+    [
+        "held",
+        "lift",
+        "withdraw",
+        "pregrasp",
+        "enter",
+        "see_bowl",
+        "open_hand",
+        "carry",
+        "lower",
+        "localise_bowl",
+    ],
 )
 def test_nothing_is_done_after_the_grasp_before_the_release_or_outside_atomic_states(at: str) -> None:
     assert retreat(LEAVES, SPANS, INDEX[at]) == ()
@@ -127,6 +139,9 @@ def test_a_set_down_interrupted_after_its_release_is_finished_and_the_hand_parke
     assert retreat(LEAVES, SPANS, INDEX["release"]) == (Release(arm=R, opening=0.5), PUT, clear, park)
     assert undo_take(LEAVES, SPANS, INDEX["clear"]) == ()  # a set-down's moves are not a take's
     assert finish_set_down(LEAVES, SPANS, INDEX["grasp"]) == ()
+    # held in the park after it (chaos across hosts: the robot's router killed there), the hand
+    # stood beside the bowl, where the next plan's pour brought the jar into it: parked first
+    assert retreat(LEAVES, SPANS, INDEX["park"]) == (park,)
 
 
 def test_no_release_before_the_take_means_no_retreat() -> None:
