@@ -295,3 +295,20 @@ def test_a_withdrawal_after_an_earlier_plan_was_confirmed_is_not_taken_as_confir
     assert w.agent.withdrawing and not finished.terminal()
     w.step("finished")
     assert not finished.terminal() and w.agent.plan is not None
+
+
+def test_between_two_leaves_the_next_one_is_kept_as_the_step(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Killed after a set-down's ``put`` (an Assert: no motion) and before its ``clear``, a_ta
+    kept no step: restarted, it did not finish the set-down, and the next plan's pour brought
+    the jar into the hand left beside the bowl (chaos across hosts, a_ta killed). The next leaf
+    is kept now, and a restart there finishes the set-down."""
+    monkeypatch.setenv(ENV_STATE_DIR, str(tmp_path))
+    w = restarted_in("pour/place_bowl/set_down/put", tmp_path, Observation(stamp=3.0, objects=()))
+    ta = w.agent
+    ta.state, ta.outcome, ta.step, ta.index = "running", None, None, INDEX["clear"]
+    ta.persist()
+    kept = msgspec.json.decode((tmp_path / "a_ta.json").read_bytes(), type=KeptTaskExecutor)
+    assert kept.step == LEAVES[INDEX["clear"]][0]
+    assert finish_set_down(LEAVES, SPANS, INDEX["clear"]) != ()

@@ -348,6 +348,13 @@ class TaskExecutor(Agent):
 
     def persist(self) -> None:
         step = self.step.path if self.step is not None else None
+        between = self.state == "running" and self.outcome is None and 0 <= self.index < len(self.leaves)
+        if step is None and between:
+            # between two leaves (e.g. after a set-down's ``put``, an Assert with no motion):
+            # the next one, so that a restart finishes the set-down (seen: killed there, the
+            # restarted a_ta knew no step, the hand stayed beside the bowl and the next plan's
+            # pour ran into it)
+            step = self.leaves[self.index][0]
         opening = self.plan_request.opening if self.plan_request is not None else None
         request = opening.msg.reply_with if opening is not None else None
         now = (request, step, self.outcome, self.reason)
