@@ -582,6 +582,7 @@ def _restart(
     fresh = CrossingTracker(_machine(protocol), local_role=local_role)
     fresh.step(role, performative, terminal=terminal)
     if before is not None and not before.is_finished:
+        before.superseded = None  # one opening back only: memory stays bounded
         fresh.superseded, fresh.reopened_by = before, role
     return fresh
 
