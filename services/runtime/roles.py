@@ -787,6 +787,23 @@ class Roles:
         return [c for c in self._open.values() if c.decl == decl]
 
     # ---- the runtime's side -------------------------------------------------------------
+    def answers_earlier_opening(self, sender: str, msg: Communicate) -> bool:
+        """Whether ``msg`` from ``sender`` replies, in a conversation this agent opened (and
+        has open), to a communicate it did not send in that opening: a reply to an earlier
+        opening of the conversation-id, e.g. an update a_ta sent in a_km's subscription just
+        before a_km restarted and subscribed again. Such a reply is late, not a violation."""
+        decl = self._by_peer.get((self.agent.spec.role_of(sender), msg.protocol or ""))
+        conv = self._open.get((sender, msg.conversation_id or ""))
+        return (
+            decl is not None
+            and decl.role == INITIATOR
+            and conv is not None
+            and conv.decl == decl
+            and conv.knows_sent
+            and msg.in_reply_to is not None
+            and msg.in_reply_to not in conv.awaited
+        )
+
     def take(self, item: Received) -> None:
         """Route one received communicate (already checked against the interface and the
         conversation's protocol state by the agent) to its conversation and handler."""

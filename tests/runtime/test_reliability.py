@@ -492,3 +492,27 @@ def test_an_update_a_ta_sent_before_a_kms_new_subscription_is_taken_not_dropped(
     km.step("idle")
     assert km.agent.counters["late_replies"] == 0 and km.agent.counters["protocol_violations"] == 0
     assert km.agent.current == update  # taken for saving
+
+
+def test_a_restarted_a_km_drops_an_update_sent_to_its_previous_process_and_keeps_its_subscription() -> None:
+    """Chaos across hosts (seed 2, not paced): a_km restarted while a_ta's update to the old
+    process was in flight; the new a_km, subscribed anew, answered it not-understood, which
+    ended its own new subscription: the fresh observation a_ta sends every new subscriber was
+    dropped, and a_pl found "no way to pour". The stale update is now dropped as a late reply."""
+    bus = MemoryBus()
+    km = Wire(KnowledgeManager, bus)
+    km.agent.setup()
+    km.agent._dispatch()
+    (sub,) = km.mine(P.SUBSCRIBE)
+    cid = sub.conversation_id
+    old = WorldUpdate(stamp=4.0, objects=(ObjectUpdate(name="bowl", pose=Pose((0.7, -0.2, 0.85))),))
+    km.deliver(communicate(P.INFORM, "a_ta", "a_km", "fipa-subscribe", cid, old, in_reply_to="a_km-previous"))
+    assert not km.mine(P.NOT_UNDERSTOOD) and km.agent.counters["late_replies"] == 1
+    km.deliver(communicate(P.AGREE, "a_ta", "a_km", "fipa-subscribe", cid, in_reply_to=sub.reply_with))
+    km.step("idle")
+    fresh = WorldUpdate(stamp=5.0, objects=(ObjectUpdate(name="bowl", pose=Pose((0.3, -0.5, 0.85))),))
+    km.deliver(
+        communicate(P.INFORM, "a_ta", "a_km", "fipa-subscribe", cid, fresh, in_reply_to=sub.reply_with)
+    )
+    km.step("idle")
+    assert km.agent.current == fresh and km.agent.subscribed  # the new subscription goes on
