@@ -1,16 +1,19 @@
 """Chaos runs as a user runs them (``roco chaos --seed S --quiet``: router, recorder, one
-process per agent, MuJoCo not paced; each agent killed, paused or restarted once during the
-pour, services/scenario/chaos.py), one per seed, printed as a table: the faults drawn, the
-verdict's four answers, wall time.
+process per agent, MuJoCo not paced unless ``--realtime``; each agent killed, paused or
+restarted once during the pour, services/scenario/chaos.py), one per seed, printed as a
+table: the faults drawn, how many fell during the command, the verdict's five answers, wall
+time.
 
-Usage: ``python scripts/bench_chaos.py [--hosts] [SEED ...]`` (default seeds 1 2 3 4 5; with
-``--hosts`` each run is ``roco chaos --hosts``: on two hosts of this machine, both routers and
-the link faulted too; root)
+Usage: ``python scripts/bench_chaos.py [--hosts] [--realtime] [--runs-dir DIR] [SEED ...]``
+(default seeds 1 2 3 4 5; with ``--hosts`` each run is ``roco chaos --hosts``: on two hosts of
+this machine, both routers and the link faulted too; root; ``--realtime`` paces the pour to wall
+time, so that more of the faults fall during it; ``--runs-dir`` keeps each run's folder there)
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import re
 import subprocess
 import sys
@@ -25,21 +28,33 @@ import benchlib  # noqa: E402  (scripts/benchlib.py, beside this file)
 
 from services.scenario.chaos import CHAOS_FILE, chaos_scenario  # noqa: E402
 
-ANSWERS = ("task done", "no command lost", "nothing executed twice", "no object dropped")
+ANSWERS = ("task done", "no command lost", "nothing executed twice", "no object dropped", "record intact")
 
 
 def main() -> int:
     parser = argparse.ArgumentParser(description="roco chaos runs, one per seed, as a table")
     parser.add_argument("seeds", nargs="*", type=int, default=[1, 2, 3, 4, 5], metavar="SEED")
     parser.add_argument("--hosts", action="store_true", help="roco chaos --hosts (two hosts; root)")
+    parser.add_argument(
+        "--realtime",
+        action="store_true",
+        help="pace the simulation to wall time (more faults fall in the pour)",
+    )
+    parser.add_argument(
+        "--runs-dir",
+        type=Path,
+        default=None,
+        help="keep the run folders here (default: removed after each run)",
+    )
     args = parser.parse_args()
     seeds, hosts = args.seeds, ["--hosts"] if args.hosts else []
     title = "roco chaos --hosts" if args.hosts else "roco chaos"
-    print(f"# {title}, one run per seed ({time.strftime('%Y-%m-%d')}, not paced)")
+    paced = "paced to wall time" if args.realtime else "not paced"
+    print(f"# {title}, one run per seed ({time.strftime('%Y-%m-%d')}, {paced})")
     print(f"Machine: {benchlib.machine(('mujoco', 'pin', 'eclipse-zenoh'))}")
     print()
-    print("| seed | faults (service kind) | " + " | ".join(ANSWERS) + " | wall (s) |")
-    print("|---|---|" + "---|" * len(ANSWERS) + "---|")
+    print("| seed | faults (service kind) | in the pour | " + " | ".join(ANSWERS) + " | wall (s) |")
+    print("|---|---|---|" + "---|" * len(ANSWERS) + "---|")
     failures = 0
     for seed in seeds:
         faults = ", ".join(
@@ -47,7 +62,7 @@ def main() -> int:
             for s in chaos_scenario(seed, hosts=args.hosts).steps
             if s.fault
         )
-        with tempfile.TemporaryDirectory() as runs:
+        with _runs_dir(args.runs_dir, seed) as runs:
             t0 = time.monotonic()
             proc = subprocess.run(
                 [
@@ -56,6 +71,7 @@ def main() -> int:
                     "services.cli",
                     "chaos",
                     *hosts,
+                    *(["--realtime"] if args.realtime else []),
                     "--seed",
                     str(seed),
                     "--runs-dir",
@@ -75,8 +91,18 @@ def main() -> int:
             m = re.search(rf"\| {question} \| (\S+)", text)
             answers.append(m.group(1).strip("*") if m else "?")
         failures += proc.returncode != 0
-        print(f"| {seed} | {faults} | " + " | ".join(answers) + f" | {wall:.0f} |")
+        during = re.search(r"\| faults during the command \| (\d+ of \d+) \|", text)
+        in_pour = during.group(1) if during else "?"
+        print(f"| {seed} | {faults} | {in_pour} | " + " | ".join(answers) + f" | {wall:.0f} |")
     return 1 if failures else 0
+
+
+def _runs_dir(keep: Path | None, seed: int) -> contextlib.AbstractContextManager[str]:
+    """Where one run's folder is made: a new folder in ``keep`` (kept), else a temporary one."""
+    if keep is None:
+        return tempfile.TemporaryDirectory()
+    keep.mkdir(parents=True, exist_ok=True)
+    return contextlib.nullcontext(tempfile.mkdtemp(dir=keep, prefix=f"seed{seed}-"))
 
 
 if __name__ == "__main__":

@@ -267,6 +267,14 @@ def chaos(
         float | None,
         typer.Option(min=0, max=99, help="with --hosts: packets lost each way (%)", show_default="1"),
     ] = None,
+    cut: Annotated[
+        str | None,
+        typer.Option(
+            help="with --hosts: MIN,MAX seconds a cut of the link lasts (uniform; over the routers' "
+            "30 s lease the mesh is closed and made again)",
+            show_default="2,6",
+        ),
+    ] = None,
 ) -> None:
     """Kill, pause or restart services at random times while the robot carries out a command
     (each service once by default), then say whether the task was done, no command was lost,
@@ -287,16 +295,13 @@ def chaos(
         if acl is False or tls is False:
             raise fail("--hosts always runs with access control and mutual TLS", code=2)
     else:
-        if (delay_ms, jitter_ms, loss_pct) != (None, None, None):
-            raise fail("--delay-ms, --jitter-ms and --loss-pct shape the link of --hosts", code=2)
+        if (delay_ms, jitter_ms, loss_pct, cut) != (None, None, None, None):
+            why = "--delay-ms, --jitter-ms, --loss-pct and --cut shape and cut the link of --hosts"
+            raise fail(why, code=2)
         _security(acl, tls)
 
-    try:
-        low, high = (float(x) for x in gap.split(","))
-    except ValueError:
-        raise fail(f"--gap takes MIN,MAX seconds, not {gap!r}", code=2) from None
-    if not 0 <= low <= high <= 3600:
-        raise fail(f"--gap needs 0 <= MIN <= MAX <= 3600, not {gap!r}", code=2)
+    low, high = _span("--gap", gap)
+    cut_s = _span("--cut", cut) if cut is not None else (2.0, 6.0)
     try:
         victims = tuple(s.strip() for s in services.split(",") if s.strip())
         if hosts and services == _CHAOS_DEFAULT:
@@ -309,6 +314,7 @@ def chaos(
             kinds=tuple(k.strip() for k in kinds.split(",") if k.strip()),
             command=command,
             hosts=hosts,
+            cut_s=cut_s,
         )
     except ValueError as exc:
         raise fail(str(exc), code=2) from None
@@ -352,6 +358,17 @@ def chaos(
     typer.echo(path.read_text())
     if not v.ok:
         raise fail(f"the chaos run did not keep everything (see {path})")
+
+
+def _span(option: str, value: str) -> tuple[float, float]:
+    """``MIN,MAX`` seconds of ``option``; a clear error (exit 2) unless 0 <= MIN <= MAX <= 3600."""
+    try:
+        low, high = (float(x) for x in value.split(","))
+    except ValueError:
+        raise fail(f"{option} takes MIN,MAX seconds, not {value!r}", code=2) from None
+    if not 0 <= low <= high <= 3600:
+        raise fail(f"{option} needs 0 <= MIN <= MAX <= 3600, not {value!r}", code=2)
+    return low, high
 
 
 def _viewer_env(record: bool, view: bool) -> dict[str, str]:

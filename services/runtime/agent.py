@@ -650,6 +650,19 @@ class Agent:
         why = self._follow(
             sender, msg.conversation_id, msg.protocol, msg.performative, False, is_terminal_report(msg)
         )
+        if why is not None and self.roles.answers_earlier_opening(sender, msg):
+            # not-understood would end (FIPA SC00037 §3.12) the conversation opened anew, and
+            # with it what the peer sends in it next (a_km restarted, subscribed again, and
+            # lost a_ta's fresh observation after answering a stale update not-understood)
+            self.counters["late_replies"] += 1
+            self.log.info(
+                "%s from %s in conversation %s dropped: it answers an earlier opening (%s)",
+                msg.performative.value,
+                sender,
+                msg.conversation_id,
+                msg.in_reply_to,
+            )
+            return
         if why is not None:
             self.counters["protocol_violations"] += 1
             self._warn_rejected(

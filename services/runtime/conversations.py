@@ -272,6 +272,11 @@ class CrossingTracker:
         cancel and its answer)."""
         self.aborted = False
         """True once a not-understood ended the conversation (see :meth:`abort`)."""
+        self.superseded: CrossingTracker | None = None
+        """The conversation before an opening communicate made it anew (:func:`follow`,
+        ``restart``), while the other party may not have seen that opening yet."""
+        self.reopened_by: Role | None = None
+        """Who sent the opening communicate that made the conversation anew."""
 
     def copy(self) -> CrossingTracker:
         """An independent copy (readings are immutable, so this is cheap)."""
@@ -533,9 +538,13 @@ def follow(
         try:
             tracker.step(role, performative, terminal=terminal)
         except ProtocolViolation:
+            if _crossed_reopening(tracker, role, performative, terminal):
+                return tracker, "crossing"
             if not _opens(protocol, role, performative):
                 raise
-            return _restart(protocol, role, performative, terminal, local_role), "restart"
+            return _restart(protocol, role, performative, terminal, local_role, tracker), "restart"
+        if role != tracker.reopened_by:  # the other party answers the new opening: it saw it
+            tracker.superseded = None
         return tracker, "crossing" if tracker.crossings > crossings else "step"
     opener = _opens(protocol, role, performative)
     if tracker.protocol.name != name:
@@ -571,11 +580,38 @@ def _restart(
     performative: Performative,
     terminal: bool | None,
     local_role: Role | None,
+    before: CrossingTracker | None = None,
 ) -> CrossingTracker:
-    """A new tracker of ``protocol`` opened by ``performative`` from ``role``."""
+    """A new tracker of ``protocol`` opened by ``performative`` from ``role``; ``before``:
+    the conversation it makes anew (still open), kept for what crosses the opening."""
     fresh = CrossingTracker(_machine(protocol), local_role=local_role)
     fresh.step(role, performative, terminal=terminal)
+    if before is not None and not before.is_finished:
+        before.superseded = None  # one opening back only: memory stays bounded
+        fresh.superseded, fresh.reopened_by = before, role
     return fresh
+
+
+def _crossed_reopening(
+    tracker: CrossingTracker, role: Role, performative: Performative, terminal: bool | None
+) -> bool:
+    """Whether a communicate from the party that did not make the conversation anew was sent
+    before that party saw the new opening: the conversation as it was allows it. E.g. a_km
+    subscribes to a_ta again when a_ta's token reappears after the robot's router came back;
+    a_ta, which kept its subscription, had sent an update in it that arrives after the new
+    subscribe (before this, a protocol violation: a_km answered not-understood, which ended
+    the conversation, and lost what a_ta had perceived). Counted as a crossing."""
+    before = tracker.superseded
+    if before is None or role == tracker.reopened_by:
+        return False
+    went_on = before.copy()
+    try:
+        went_on.step(role, performative, terminal=terminal)
+    except ProtocolViolation:
+        return False
+    tracker.superseded = went_on
+    tracker.crossings += 1
+    return True
 
 
 ConversationKey = tuple[str, str]

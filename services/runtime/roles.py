@@ -58,7 +58,7 @@ import msgspec
 from services.runtime import keys
 from services.runtime.code_scan import findings_text, scan
 from services.spec.model import ChannelSpec, SpecError, SystemSpec
-from services.spec.protocol_defs import machine_of
+from services.spec.protocol_defs import machine_of, streams
 from shared.fipa_codec import DecodeError, decode, encode
 from shared.fipa_codec.acts import Performative
 from shared.fipa_codec.languages import ContentError, decode_content
@@ -674,6 +674,12 @@ class Roles:
         conv.opening = Received(msg, content, channel)
         if msg.reply_with is not None:
             conv.awaited.add(msg.reply_with)
+        before = self._open.get((conv.peer, conv.conversation_id)) if conversation_id else None
+        if before is not None and before.decl == decl and streams(machine):
+            # a stream opened anew (e.g. a_km subscribing again when a_ta's token reappears):
+            # what the peer sent in it before it saw the new opening still arrives, and is news
+            # (services/runtime/conversations.py: it crosses the opening), not a late reply
+            conv.awaited |= before.awaited
         self._keep(conv)
         return conv
 
@@ -781,6 +787,23 @@ class Roles:
         return [c for c in self._open.values() if c.decl == decl]
 
     # ---- the runtime's side -------------------------------------------------------------
+    def answers_earlier_opening(self, sender: str, msg: Communicate) -> bool:
+        """Whether ``msg`` from ``sender`` replies, in a conversation this agent opened (and
+        has open), to a communicate it did not send in that opening: a reply to an earlier
+        opening of the conversation-id, e.g. an update a_ta sent in a_km's subscription just
+        before a_km restarted and subscribed again. Such a reply is late, not a violation."""
+        decl = self._by_peer.get((self.agent.spec.role_of(sender), msg.protocol or ""))
+        conv = self._open.get((sender, msg.conversation_id or ""))
+        return (
+            decl is not None
+            and decl.role == INITIATOR
+            and conv is not None
+            and conv.decl == decl
+            and conv.knows_sent
+            and msg.in_reply_to is not None
+            and msg.in_reply_to not in conv.awaited
+        )
+
     def take(self, item: Received) -> None:
         """Route one received communicate (already checked against the interface and the
         conversation's protocol state by the agent) to its conversation and handler."""

@@ -84,9 +84,9 @@ def chaos_scenario(
     ``("all",)``: the agents, the recorder and the router. With
     ``hosts`` (the fleet on two hosts, services/hosts/fleet.py) the infrastructure is
     :data:`HOSTS_INFRASTRUCTURE` instead, ``all`` is the agents and all of it, and a fault of
-    ``link`` is a cut of ``cut_s`` (uniform, s; keep it under the routers' lease,
-    services/hosts/fleet.py ``LEASE_MS``). Raises ValueError for an unknown service or kind
-    or an empty choice."""
+    ``link`` is a cut of ``cut_s`` (uniform, s; over the routers' lease, services/hosts/
+    fleet.py ``LEASE_MS``, the mesh link is closed and made again when the link returns).
+    Raises ValueError for an unknown service or kind or an empty choice."""
     infrastructure = HOSTS_INFRASTRUCTURE if hosts else INFRASTRUCTURE
     if services is None:
         services = HOSTS_DEFAULT if hosts else SERVICE_ORDER

@@ -393,6 +393,11 @@ ROUTER_MESSAGES = (
     "liveliness_query",
 )
 
+ROUTER_KEYS = ("**", "**/@adv/**")
+"""What meshed routers pass each other: every key, and the keys below zenoh-ext's verbatim
+``@adv`` chunk (advanced publishers' caches, liveliness tokens and heartbeats; the recorder's
+advanced subscriber), which ``**`` does not match."""
+
 
 def with_routers(acl: dict[str, Any], routers: list[str]) -> dict[str, Any]:
     """``acl`` with the meshed routers ``routers`` allowed every message both ways.
@@ -403,7 +408,13 @@ def with_routers(acl: dict[str, Any], routers: list[str]) -> dict[str, Any]:
     router a connection reaches presents a certificate but no user name, so a subject that also
     asked for one would match neither direction (measured with eclipse-zenoh 1.10: a put from
     the robot's host then never reached the brain's). A router whose certificate is not from the
-    deployment's CA never gets a link at all (mutual TLS)."""
+    deployment's CA never gets a link at all (mutual TLS).
+
+    The rule names :data:`ROUTER_KEYS`: ``**`` alone never matches zenoh-ext's verbatim
+    ``@adv`` chunk, and with it only, each router withheld the advanced publishers' cache
+    queryables and liveliness tokens from the other (seen in ``refusals.jsonl``: "withheld
+    declare_queryable roco/fipa/C5/a_ta/ag_ex/@adv/pub/…"), so the brain's recorder could not
+    fetch from a robot-side cache what a router's restart had kept from it."""
     if not routers:
         return acl
     rule = {
@@ -411,7 +422,7 @@ def with_routers(acl: dict[str, Any], routers: list[str]) -> dict[str, Any]:
         "permission": "allow",
         "flows": ["ingress", "egress"],
         "messages": list(ROUTER_MESSAGES),
-        "key_exprs": ["**"],
+        "key_exprs": list(ROUTER_KEYS),
     }
     return acl | {
         "rules": [*acl["rules"], rule],

@@ -115,7 +115,19 @@ BACK = (
 
 
 @pytest.mark.parametrize(
-    "at", ["held", "lift", "withdraw", "pregrasp", "enter", "see_bowl", "open_hand", "carry", "lower", "park"]
+    "at",
+    [
+        "held",
+        "lift",
+        "withdraw",
+        "pregrasp",
+        "enter",
+        "see_bowl",
+        "open_hand",
+        "carry",
+        "lower",
+        "localise_bowl",
+    ],
 )
 def test_nothing_is_done_after_the_grasp_before_the_release_or_outside_atomic_states(at: str) -> None:
     assert retreat(LEAVES, SPANS, INDEX[at]) == ()
@@ -127,6 +139,9 @@ def test_a_set_down_interrupted_after_its_release_is_finished_and_the_hand_parke
     assert retreat(LEAVES, SPANS, INDEX["release"]) == (Release(arm=R, opening=0.5), PUT, clear, park)
     assert undo_take(LEAVES, SPANS, INDEX["clear"]) == ()  # a set-down's moves are not a take's
     assert finish_set_down(LEAVES, SPANS, INDEX["grasp"]) == ()
+    # held in the park after it (chaos across hosts: the robot's router killed there), the hand
+    # stood beside the bowl, where the next plan's pour brought the jar into it: parked first
+    assert retreat(LEAVES, SPANS, INDEX["park"]) == (park,)
 
 
 def test_no_release_before_the_take_means_no_retreat() -> None:
@@ -262,3 +277,38 @@ def test_a_restarted_a_ta_finishes_the_set_down_tells_a_km_and_reports(
     (report,) = [m for m in w.mine(P.INFORM) if m.receiver[0].name == "a_co"]
     status = msgspec.msgpack.decode(report.content, type=SWStatus)
     assert status.state is SWState.REPLAN and "the set-down was finished" in (status.reason or "")
+
+
+def test_a_withdrawal_after_an_earlier_plan_was_confirmed_is_not_taken_as_confirmed(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Chaos across hosts (seed 2, --realtime): a_ta's first plan ended confirmed, its second
+    was interrupted in a set-down (ag_ex held position: the robot's router was killed). The
+    earlier confirmation, still set, ended ``finished`` at once, before the withdrawal and
+    the report, and ``idle`` ran the same plan again from its first leaf: a take's lift from
+    wherever the hand stood, refused as unreachable."""
+    monkeypatch.setenv(ENV_STATE_DIR, str(tmp_path))
+    w = restarted_in("pour/place_bowl/set_down/release", tmp_path, Observation(stamp=3.0, objects=()))
+    w.agent.confirmed = True  # as the previous plan's confirmation by a_co left it
+    finished = w.agent.fsm.states["finished"]
+    finished.on_enter()
+    assert w.agent.withdrawing and not finished.terminal()
+    w.step("finished")
+    assert not finished.terminal() and w.agent.plan is not None
+
+
+def test_between_two_leaves_the_next_one_is_kept_as_the_step(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Killed after a set-down's ``put`` (an Assert: no motion) and before its ``clear``, a_ta
+    kept no step: restarted, it did not finish the set-down, and the next plan's pour brought
+    the jar into the hand left beside the bowl (chaos across hosts, a_ta killed). The next leaf
+    is kept now, and a restart there finishes the set-down."""
+    monkeypatch.setenv(ENV_STATE_DIR, str(tmp_path))
+    w = restarted_in("pour/place_bowl/set_down/put", tmp_path, Observation(stamp=3.0, objects=()))
+    ta = w.agent
+    ta.state, ta.outcome, ta.step, ta.index = "running", None, None, INDEX["clear"]
+    ta.persist()
+    kept = msgspec.json.decode((tmp_path / "a_ta.json").read_bytes(), type=KeptTaskExecutor)
+    assert kept.step == LEAVES[INDEX["clear"]][0]
+    assert finish_set_down(LEAVES, SPANS, INDEX["clear"]) != ()

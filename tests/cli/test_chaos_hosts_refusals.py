@@ -47,9 +47,12 @@ def test_access_control_cannot_be_turned_off_and_two_hosts_have_no_single_router
 def test_the_link_is_shaped_only_with_hosts_and_only_as_it_can_be(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    result = CliRunner().invoke(app, ["chaos", "--delay-ms", "5", "--runs-dir", str(tmp_path / "runs")])
-    assert result.exit_code == 2 and "shape the link of --hosts" in result.output
+    for option in (["--delay-ms", "5"], ["--cut", "35,40"]):
+        result = CliRunner().invoke(app, ["chaos", *option, "--runs-dir", str(tmp_path / "runs")])
+        assert result.exit_code == 2 and "the link of --hosts" in result.output
     monkeypatch.setattr("services.hosts.netns.unavailable", lambda: None)
     code, out = _run(["--delay-ms", "2", "--jitter-ms", "5"], tmp_path)
     assert code == 2 and "need 0 ≤ jitter ≤ delay" in out
+    code, out = _run(["--cut", "40,35"], tmp_path)
+    assert code == 2 and out.strip() == "roco: --cut needs 0 <= MIN <= MAX <= 3600, not '40,35'"
     assert not (tmp_path / "runs").exists()

@@ -120,6 +120,25 @@ def test_an_opening_communicate_begins_a_conversation_anew_and_not_understood_en
     assert follow(t, "fipa-subscribe", PART, P.INFORM, local_role=INIT)[1] == "unchecked"
 
 
+def test_what_the_other_party_sent_before_it_saw_a_new_opening_crosses_it() -> None:
+    """a_km subscribes to a_ta again (a_ta's token reappeared after the robot's router came
+    back); a_ta kept its subscription and had sent an update that arrives after the new
+    subscribe: a crossing, not a violation (chaos across hosts, seed 2, --realtime)."""
+    t, _ = follow(None, "fipa-subscribe", INIT, P.SUBSCRIBE, local_role=INIT)
+    t, _ = follow(t, "fipa-subscribe", PART, P.AGREE, local_role=INIT)
+    t, _ = follow(t, "fipa-subscribe", PART, P.INFORM, local_role=INIT)
+    t, outcome = follow(t, "fipa-subscribe", INIT, P.SUBSCRIBE, local_role=INIT)  # anew
+    assert outcome == "restart" and t.state == "subscribed"
+    t, outcome = follow(t, "fipa-subscribe", PART, P.INFORM, local_role=INIT)  # sent before it saw it
+    assert outcome == "crossing" and t.state == "subscribed"
+    t, outcome = follow(t, "fipa-subscribe", PART, P.AGREE, local_role=INIT)  # it saw it now
+    assert outcome == "step" and t.state == "active" and t.superseded is None
+    # an inform in a conversation opened anew from nothing (a_km restarted) is still refused
+    fresh, _ = follow(None, "fipa-subscribe", INIT, P.SUBSCRIBE, local_role=INIT)
+    with pytest.raises(ProtocolViolation):
+        follow(fresh, "fipa-subscribe", PART, P.INFORM, local_role=INIT)
+
+
 def test_a_long_subscription_keeps_bounded_memory() -> None:
     t = steps("fipa-subscribe", (INIT, P.SUBSCRIBE), (PART, P.AGREE))
     for _ in range(500):

@@ -14,6 +14,7 @@ import pytest
 
 from services.agents.coordinator.agent import Coordinator
 from services.agents.human_interface.agent import HumanInterface
+from services.agents.knowledge.agent import KnowledgeManager
 from services.agents.task_executor.agent import KeptTaskExecutor, TaskExecutor
 from services.runtime import keys
 from services.runtime.agent import RESEND_ON_RETURN, Agent
@@ -30,7 +31,7 @@ from shared.fipa_codec.languages.l_hc import CommandOutcome, HumanCommand, Statu
 from shared.fipa_codec.languages.l_hfsm import Execute, GroundTaskNetwork, HierarchicalPlan, PlanNode
 from shared.fipa_codec.languages.l_sd import ObjectObservation, Observation
 from shared.fipa_codec.languages.l_sw import SWState, SWStatus
-from shared.fipa_codec.languages.l_wm import Subscription, WorldUpdate
+from shared.fipa_codec.languages.l_wm import ObjectUpdate, Subscription, WorldUpdate
 from tests.support.messages import communicate
 
 P = Performative
@@ -388,3 +389,130 @@ def test_a_co_probes_an_a_ta_that_reappears_and_plans_again_when_it_lost_the_pla
     co.step("trigger")
     assert co.agent.ta_task is None and task.state is TaskState.PLANNING and task.needs_plan
     assert "cmd-1" in co.agent.tasks  # planned again, not failed
+
+
+def test_a_plan_sent_while_a_ta_is_gone_goes_again_when_it_reappears_and_only_then() -> None:
+    """Chaos across hosts (seed 2, --realtime): the robot's router was killed just as a_co sent
+    a_ta its next plan; the plan reached nobody, a_ta came back with nothing to run, and the
+    command waited for ever. The coordinate request is now sent again when a_ta's token
+    reappears, until a_ta answers it — and not once it has."""
+    bus = MemoryBus()
+    co = Wire(Coordinator, bus)
+    ta = bus.transport()
+    ta.announce(keys.alive_key("a_ta"))
+    co.deliver(communicate(P.REQUEST, "a_hi", "a_co", "fipa-request", "cmd-1", POUR, reply_with="r1"))
+    co.step("procReq")
+    task = co.agent.tasks["cmd-1"]
+    task.plan, task.needs_plan = PLAN, False
+    ta.close()  # the robot's router dies: a_ta's token is gone ...
+    co.agent._acquire(0.0)
+    co.agent.reschedule = True
+    co.step("schedule")
+    co.step("switch")  # ... and the plan is sent into the void
+    (plan,) = [co.raw[i] for i, m in enumerate(co.out) if m.performative is P.REQUEST]
+    ta = bus.transport()
+    ta.announce(keys.alive_key("a_ta"))  # the router is back: a_ta's token reappears
+    co.agent._acquire(0.0)
+    co.agent._dispatch()
+    again = [co.raw[i] for i, m in enumerate(co.out) if m.performative is P.REQUEST]
+    assert again == [plan, plan]  # the same bytes: an a_ta that had it drops the copy
+    run = decode(plan)
+    running = SWStatus(state=SWState.RUNNING, plan_id=PLAN.plan_id, step="pour/wait")
+    answer = communicate(
+        P.INFORM, "a_ta", "a_co", "coordinate", run.conversation_id, running, in_reply_to=run.reply_with
+    )
+    co.deliver(answer)
+    ta.close()
+    co.agent._acquire(0.0)
+    ta = bus.transport()
+    ta.announce(keys.alive_key("a_ta"))
+    co.agent._acquire(0.0)
+    co.agent._dispatch()
+    assert len([m for m in co.out if m.performative is P.REQUEST]) == 2  # answered: not again
+
+
+def test_a_restarted_a_ta_does_not_queue_again_the_plan_request_it_kept(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setenv(ENV_STATE_DIR, str(tmp_path))
+    request = communicate(P.REQUEST, "a_co", "a_ta", "coordinate", "cmd-1-exec1", PLAN, reply_with="p1")
+    kept = KeptTaskExecutor(request=encode(request), step="pour/wait", outcome=None, reason=None)
+    (tmp_path / "a_ta.json").write_bytes(msgspec.json.encode(kept))
+    w = Wire(TaskExecutor)
+    w.agent.setup()
+    assert w.agent.plan_request is not None  # restored: it reports Replan on this plan
+    w.deliver(request)  # a_co's copy, sent again as this a_ta's token appeared
+    w.step("idle")
+    assert not w.agent.requests  # the kept plan is reported on, not run a second time
+    other = communicate(P.REQUEST, "a_co", "a_ta", "coordinate", "cmd-1-exec2", PLAN, reply_with="p2")
+    w.deliver(other)
+    w.step("idle")
+    assert len(w.agent.requests) == 1  # a new plan is queued as before
+
+
+def test_an_update_a_ta_sent_before_a_kms_new_subscription_is_taken_not_dropped() -> None:
+    """Chaos across hosts (seed 2, --realtime): the robot's router was killed while a_ta
+    localised the bowl; when a_ta's token reappeared a_km subscribed again (same
+    conversation-id) and a_ta's update, sent in the first subscription, arrived after that: it
+    was dropped as a late reply, a_km never learnt where the bowl stood, and a_pl found "no way
+    to pour". It is now taken as the update it is."""
+    bus = MemoryBus()
+    km = Wire(KnowledgeManager, bus)
+    ta = bus.transport()
+    ta.announce(keys.alive_key("a_ta"))
+    km.agent.setup()
+    km.agent._acquire(0.0)
+    km.agent._dispatch()
+    (first,) = km.mine(P.SUBSCRIBE)
+    km.deliver(
+        communicate(
+            P.AGREE, "a_ta", "a_km", "fipa-subscribe", first.conversation_id, in_reply_to=first.reply_with
+        )
+    )
+    km.step("idle")
+    ta.close()  # the robot's router dies ...
+    km.agent._acquire(0.0)
+    ta = bus.transport()
+    ta.announce(keys.alive_key("a_ta"))  # ... and comes back: a_km subscribes again
+    km.agent._acquire(0.0)
+    km.agent._dispatch()
+    assert len(km.mine(P.SUBSCRIBE)) == 2
+    update = WorldUpdate(stamp=5.0, objects=(ObjectUpdate(name="bowl", pose=Pose((0.3, -0.5, 0.85))),))
+    km.deliver(
+        communicate(
+            P.INFORM,
+            "a_ta",
+            "a_km",
+            "fipa-subscribe",
+            first.conversation_id,
+            update,
+            in_reply_to=first.reply_with,
+        )
+    )
+    km.step("idle")
+    assert km.agent.counters["late_replies"] == 0 and km.agent.counters["protocol_violations"] == 0
+    assert km.agent.current == update  # taken for saving
+
+
+def test_a_restarted_a_km_drops_an_update_sent_to_its_previous_process_and_keeps_its_subscription() -> None:
+    """Chaos across hosts (seed 2, not paced): a_km restarted while a_ta's update to the old
+    process was in flight; the new a_km, subscribed anew, answered it not-understood, which
+    ended its own new subscription: the fresh observation a_ta sends every new subscriber was
+    dropped, and a_pl found "no way to pour". The stale update is now dropped as a late reply."""
+    bus = MemoryBus()
+    km = Wire(KnowledgeManager, bus)
+    km.agent.setup()
+    km.agent._dispatch()
+    (sub,) = km.mine(P.SUBSCRIBE)
+    cid = sub.conversation_id
+    old = WorldUpdate(stamp=4.0, objects=(ObjectUpdate(name="bowl", pose=Pose((0.7, -0.2, 0.85))),))
+    km.deliver(communicate(P.INFORM, "a_ta", "a_km", "fipa-subscribe", cid, old, in_reply_to="a_km-previous"))
+    assert not km.mine(P.NOT_UNDERSTOOD) and km.agent.counters["late_replies"] == 1
+    km.deliver(communicate(P.AGREE, "a_ta", "a_km", "fipa-subscribe", cid, in_reply_to=sub.reply_with))
+    km.step("idle")
+    fresh = WorldUpdate(stamp=5.0, objects=(ObjectUpdate(name="bowl", pose=Pose((0.3, -0.5, 0.85))),))
+    km.deliver(
+        communicate(P.INFORM, "a_ta", "a_km", "fipa-subscribe", cid, fresh, in_reply_to=sub.reply_with)
+    )
+    km.step("idle")
+    assert km.agent.current == fresh and km.agent.subscribed  # the new subscription goes on

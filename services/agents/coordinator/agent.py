@@ -40,7 +40,7 @@ from typing import Literal
 import msgspec
 
 from services.agents.coordinator.scheduling import Candidate, Decision, Running, decide
-from services.runtime.agent import Agent, Received
+from services.runtime.agent import RESEND_ON_RETURN, Agent, Received
 from services.runtime.behaviour import FSM, Arc, Behaviour
 from services.runtime.roles import (
     INITIATOR,
@@ -139,7 +139,9 @@ class Coordinator(Agent):
         participant("C2", "fipa-subscribe", "L_HC"),
         participant("C2", "fipa-query", "L_HC"),
         initiator("C3", "fipa-request", "L_HFSM", reply_by_s=PLAN_REPLY_BY_S, retry_s=PLAN_RETRY_S),
-        initiator("C1", "coordinate", "L_HFSM", "L_SW"),
+        # a plan sent while a_ta (or the robot's router) is gone goes again when a_ta's token
+        # reappears, until a_ta answers (docs/recovery.md, "Across two hosts")
+        initiator("C1", "coordinate", "L_HFSM", "L_SW", retry_s=RESEND_ON_RETURN),
     )
 
     def build_fsm(self) -> FSM:

@@ -637,7 +637,9 @@ def finish_takes(s: Any, root: str) -> list[tuple[Any, ...]]:
     A take (lift, withdraw; paper §3.2: an atomic state) is interrupted when a_ta or ag_ex is
     lost inside it: the hand then holds the object where it stood, inside a cabinet, and a
     torso turn would drag it against the cabinet. A held object picked from a container whose
-    position (a_km's last observation) is within ``UNFINISHED_TAKE_SHARE`` × the grasp's
+    position (a_km's last observation, made since the grasp: a_km unlocalises a pose when the
+    object is taken, and the pose before the grasp is where the object stood, not where the
+    hand is) is within ``UNFINISHED_TAKE_SHARE`` × the grasp's
     retreat distance of one of its places in that container is lifted to the grasp's lift
     height above that place, then withdrawn along the retreat to the retreat distance from the
     place: the same poses ``m_fetch`` ends at. Each becomes an atomic ``take`` state under
@@ -651,6 +653,8 @@ def finish_takes(s: Any, root: str) -> list[tuple[Any, ...]]:
         pose, grasp = s.pose.get(obj), _best_grasp(s, obj, arm)
         placement = _k(s).placements.get((obj, furniture))
         if pose is None or grasp is None or placement is None or not placement.positions:
+            continue
+        if not s.localised.get(obj):  # not seen since it was taken (chaos across hosts, seed 6)
             continue
         x, y, z = pose.position
         place = min(placement.positions, key=lambda p: math.hypot(p[0] - x, p[1] - y))

@@ -190,6 +190,12 @@ class TaskExecutor(Agent):
     # a_co's plans (coordinate, participant)
     @handles("coordinate", PARTICIPANT, "request")
     def _on_plan(self, conv: Conversation) -> None:
+        kept = _reply_with(self.plan_request) if self.plan_request is not conv else None
+        if kept is not None and kept == _reply_with(conv):
+            # a_co sends an unanswered plan again when a_ta reappears; a restarted a_ta that
+            # kept this very request reports on it instead of running it a second time
+            self.log.info("plan request %s again: it is the plan kept, not run twice", _reply_with(conv))
+            return
         self.requests.append(conv)
 
     @handles("coordinate", PARTICIPANT, "confirm")
@@ -341,6 +347,13 @@ class TaskExecutor(Agent):
 
     def persist(self) -> None:
         step = self.step.path if self.step is not None else None
+        between = self.state == "running" and self.outcome is None and 0 <= self.index < len(self.leaves)
+        if step is None and between:
+            # between two leaves (e.g. after a set-down's ``put``, an Assert with no motion):
+            # the next one, so that a restart finishes the set-down (seen: killed there, the
+            # restarted a_ta knew no step, the hand stayed beside the bowl and the next plan's
+            # pour ran into it)
+            step = self.leaves[self.index][0]
         opening = self.plan_request.opening if self.plan_request is not None else None
         request = opening.msg.reply_with if opening is not None else None
         now = (request, step, self.outcome, self.reason)
@@ -603,6 +616,10 @@ class TaskExecutor(Agent):
         """Make the hands safe after an interrupted take (``undo_take``) or set-down
         (``finish_set_down``; services/agents/task_executor/retreat.py), else
         report the final state at once."""
+        # the last plan's confirmation is not this one's: left set, it ended "finished" at once
+        # and the plan ran again from its first leaf (a withdrawal reports only at its end)
+        self.confirmed = False
+        self.final_inform = None
         commands: tuple[RetreatStep, ...] = ()
         if self.interrupted:
             commands = undo_take(self.leaves, self.atomic_spans, self.index)
@@ -672,3 +689,8 @@ class TaskExecutor(Agent):
             self.plan_request = None
             self.final_inform = None
             self.restored = False
+
+
+def _reply_with(conv: Conversation | None) -> str | None:
+    """The reply-with of the request that opened ``conv`` (None: no conversation, not known)."""
+    return conv.opening.msg.reply_with if conv is not None and conv.opening is not None else None

@@ -47,22 +47,31 @@ def finish_set_down(
     """The rest of a set-down interrupted at leaf ``index`` once its release was reached.
 
     Returns ``()`` unless ``index`` lies in an atomic state with a ``release`` at or before
-    it (and no grasp after that release). Otherwise: that release again if it was the leaf
-    running, then from ``index`` on, each ``Assert`` (a_km learns where the object was put)
-    and each tool move of the released arm, up to the first leaf that is neither."""
+    it (and no grasp after that release), or in the moves of the released hand that follow
+    such a state (its park: held there, the hand stood beside the bowl and the next plan's
+    pour brought the jar into it — chaos across hosts, the robot's router killed). Otherwise:
+    that release again if it was the leaf running, then from ``index`` on, each ``Assert``
+    (a_km learns where the object was put) and each tool move of the released arm, up to the
+    first leaf that is neither."""
     if not 0 <= index < len(leaves):
         return ()
     span = next(((a, b) for a, b in atomic_spans if a <= index < b), None)
+    after = None if span is not None else max((s for s in atomic_spans if s[1] <= index), default=None)
+    span = span or after
     if span is None:
         return ()
     released: Release | None = None
-    for j in range(span[0], index + 1):
+    for j in range(span[0], min(index, span[1] - 1) + 1):
         cmd = _command(leaves[j][1])
         if isinstance(cmd, Release):
             released = cmd
         elif isinstance(cmd, Grasp) and released is not None and cmd.arm == released.arm:
             released = None
     if released is None:
+        return ()
+    if after is not None and not all(
+        isinstance(node.action, Assert) or _moves(node, released) for _, node in leaves[after[1] : index + 1]
+    ):
         return ()
     out: list[RetreatStep] = []
     if _command(leaves[index][1]) == released:
@@ -77,6 +86,12 @@ def finish_set_down(
         else:
             break
     return tuple(out)
+
+
+def _moves(node: PlanNode, released: Release) -> bool:
+    """``node`` is a tool move of the arm that ``released`` opened."""
+    cmd = _command(node)
+    return isinstance(cmd, MoveTool) and cmd.arm == released.arm
 
 
 def undo_take(
