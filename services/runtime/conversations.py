@@ -287,6 +287,8 @@ class CrossingTracker:
         other.messages = self.messages
         other.crossings = self.crossings
         other.aborted = self.aborted
+        other.superseded = self.superseded
+        other.reopened_by = self.reopened_by
         return other
 
     # ---- state -------------------------------------------------------------------------

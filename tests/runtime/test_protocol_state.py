@@ -379,3 +379,21 @@ def test_a_failing_transition_function_takes_back_its_protocol_steps() -> None:
     agent.run()  # first step raises after replying; the retry replies again and stops
     assert agent.counters["behaviour_errors"] == 1 and agent.counters["send_violations"] == 0
     assert [m.performative for m in answers] == [P.INFORM_REF]
+
+
+def _state_of(t: CrossingTracker) -> dict[str, object]:
+    """Every data attribute of ``t`` (compiled by mypyc or not: read through ``dir``)."""
+    return {a: getattr(t, a) for a in dir(t) if not a.startswith("_") and not callable(getattr(t, a))}
+
+
+def test_a_copy_of_a_tracker_holds_all_its_state_and_is_independent() -> None:
+    """``copy`` lists the attributes one by one (a compiled class has no ``__dict__``): a new
+    attribute it forgets makes the copy differ here."""
+    earlier = CrossingTracker("fipa-subscribe", local_role=INITIATOR)
+    t, _ = follow(None, "fipa-subscribe", INITIATOR, Performative.SUBSCRIBE, local_role=INITIATOR)
+    t.step(PARTICIPANT, Performative.AGREE)
+    t.superseded, t.reopened_by, t.crossings = earlier, PARTICIPANT, 3
+    copy = t.copy()
+    assert _state_of(copy) == _state_of(t)
+    copy.step(PARTICIPANT, Performative.INFORM)
+    assert copy.messages == t.messages + 1 and copy.readings != t.readings
