@@ -275,15 +275,24 @@ def test_a_restarted_a_co_goes_on_with_the_plan_a_ta_runs(
     assert second.mine(P.INFORM)[0].conversation_id == "cmd-1" and not second.agent.tasks
 
 
-def test_a_restarted_a_ta_reports_replan_in_the_plans_conversation(
+def restarted_a_ta_in_the_wait(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
-) -> None:
+) -> tuple[Communicate, Wire[TaskExecutor]]:
+    """a_co's plan request, and an a_ta restarted (set up) from its state file kept in
+    ``tmp_path`` while it ran that plan's ``pour/wait`` leaf."""
     monkeypatch.setenv(ENV_STATE_DIR, str(tmp_path))
     request = communicate(P.REQUEST, "a_co", "a_ta", "coordinate", "cmd-1-exec1", PLAN, reply_with="p1")
     kept = KeptTaskExecutor(request=encode(request), step="pour/wait", outcome=None, reason=None)
     (tmp_path / "a_ta.json").write_bytes(msgspec.json.encode(kept))
     w = Wire(TaskExecutor)
     w.agent.setup()
+    return request, w
+
+
+def test_a_restarted_a_ta_reports_replan_in_the_plans_conversation(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    _, w = restarted_a_ta_in_the_wait(tmp_path, monkeypatch)
     # it reports only once the scene is observed and a_km informed (a held object's pose
     # decides how the next plan begins): a_km subscribes, a_ta asks ag_ex to observe
     assert not w.agent.fsm.states["idle"].terminal()
@@ -434,12 +443,7 @@ def test_a_plan_sent_while_a_ta_is_gone_goes_again_when_it_reappears_and_only_th
 def test_a_restarted_a_ta_does_not_queue_again_the_plan_request_it_kept(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    monkeypatch.setenv(ENV_STATE_DIR, str(tmp_path))
-    request = communicate(P.REQUEST, "a_co", "a_ta", "coordinate", "cmd-1-exec1", PLAN, reply_with="p1")
-    kept = KeptTaskExecutor(request=encode(request), step="pour/wait", outcome=None, reason=None)
-    (tmp_path / "a_ta.json").write_bytes(msgspec.json.encode(kept))
-    w = Wire(TaskExecutor)
-    w.agent.setup()
+    request, w = restarted_a_ta_in_the_wait(tmp_path, monkeypatch)
     assert w.agent.plan_request is not None  # restored: it reports Replan on this plan
     w.deliver(request)  # a_co's copy, sent again as this a_ta's token appeared
     w.step("idle")

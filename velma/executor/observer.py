@@ -139,11 +139,11 @@ class CameraObserver:
             frame = self.kinect.capture(data, self.rng, FRAMES_AVERAGED)
             points, colours, _ = frame.cloud()
             supports = support_heights(points)
-            found = self.localiser.localise(points, colours, frame.position, wanted)
+            found = self.localiser.localise(points, colours, frame.position, wanted, supports)
             outside = spill = self._outside(points, colours, supports, found)
             if spill.count and len(wanted) < len(MOVABLE):
                 # content outside the containers asked for: it may lie in another one in view
-                found = self.localiser.localise(points, colours, frame.position, MOVABLE)
+                found = self.localiser.localise(points, colours, frame.position, MOVABLE, supports)
                 outside = spill = self._outside(points, colours, supports, found)
             estimates = {n: found[n] for n in wanted}
             conserved = self.total_particles - spill.count

@@ -31,6 +31,11 @@ def records(obs: Observation, seen: Seen, truth: GroundTruth, data: mujoco.MjDat
     """One record per object the localiser was asked for in ``obs`` (seen or not), the truth
     read from ``data`` (the captured state, kinematics computed)."""
     by_name = {o.name: o for o in obs.objects}
+    outside_truth = (
+        None
+        if obs.particles_outside is None
+        else obs.total_particles - sum(truth.particles_inside(data, c) for c in CONTAINERS)
+    )
     out: list[Record] = []
     for name, e in seen.estimates.items():
         o = by_name.get(name)
@@ -54,11 +59,7 @@ def records(obs: Observation, seen: Seen, truth: GroundTruth, data: mujoco.MjDat
                 "reason": e.reason or None,
                 "observe_ms": round(ms, 1),
                 "outside": obs.particles_outside,
-                "outside_truth": (
-                    None
-                    if obs.particles_outside is None
-                    else obs.total_particles - sum(truth.particles_inside(data, c) for c in CONTAINERS)
-                ),
+                "outside_truth": outside_truth,
             }
         )
     return out

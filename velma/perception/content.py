@@ -179,7 +179,7 @@ def count_spheres(
 
     Method: (1) the content-coloured points within the container's inner radius, from its
     inner bottom to a sphere diameter above its rim; (2) the spheres resting on the floor,
-    found by ``_spheres_on_layer`` (a Hough transform for spheres of the known radius whose
+    found by ``spheres_on_layer`` (a Hough transform for spheres of the known radius whose
     centres lie one radius above the inner bottom), less those off the wall ring (3) that took
     fewer than ``MIN_INNER_SHARE`` of the median points (off the ring the floor is in view, so
     a sphere there shows most of its cap), then refined by least squares: ``visible``; (3) the
@@ -214,7 +214,7 @@ def count_spheres(
     cam = np.asarray(camera_position, dtype=np.float64)
     layer = inner_bottom + r
     centre = origin + np.array([0.0, 0.0, layer])
-    found, took = _spheres_on_layer(points[match], centre, inner_radius - r, r)
+    found, took = spheres_on_layer(points[match], centre, inner_radius - r, r)
     ring = _ring_radius(model, layer, r)
     at_ring = np.hypot(found[:, 0] - origin[0], found[:, 1] - origin[1]) > ring - r
     # off the ring the floor is in view: a real sphere there shows much of its cap; a weak
@@ -355,7 +355,7 @@ this share of the radius of it (noise at ≈ 1 m: a few mm, velma/perception/noi
 GRID_STEP = 0.002  # m, candidate centres on the layer
 
 
-def _spheres_on_layer(
+def spheres_on_layer(
     surface: Array, centre: Array, reach: float, r: float
 ) -> tuple[Array, npt.NDArray[np.int64]]:
     """Count spheres of radius ``r`` resting in one layer: their centres lie on the horizontal

@@ -190,15 +190,19 @@ class Localiser:
         colours: npt.NDArray[np.uint8],
         camera_position: Array,
         names: Iterable[str] | None = None,
+        supports: list[float] | None = None,
     ) -> dict[str, ObjectEstimate]:
         """Estimates of ``names`` (all known objects when None) from ``points`` (N × 3, m,
-        world, z up), their ``colours`` (N × 3, uint8) and the camera's world position (3,) m.
-        Each cluster goes to at most one object. Raises ``KeyError`` for an unknown name."""
+        world, z up), their ``colours`` (N × 3, uint8) and the camera's world position (3,) m;
+        ``supports`` the cloud's support planes (m, segment.py ``support_heights``; found here
+        when None). Each cluster goes to at most one object. Raises ``KeyError`` for an
+        unknown name."""
         wanted = list(self.targets) if names is None else list(names)
         for n in wanted:
             if n not in self.targets:
                 raise KeyError(n)
-        supports = support_heights(points)
+        if supports is None:
+            supports = support_heights(points)
         scored: list[tuple[float, str, Cluster]] = []
         for n in wanted:
             model = self.targets[n].model
@@ -298,10 +302,10 @@ class Localiser:
         inv: Array = np.asarray(np.linalg.inv(t), dtype=np.float64)  # object frame in the start frame
         rotation = inv[:3, :3]
         position = start + inv[:3, 3]
-        if upright and c.lifted_from is not None and position[2] - c.lifted_from <= LIFT_GAP:
-            c = Cluster(c.index, c.lifted_from, c.top, c.extent)  # the fit stands it on the plane after all
         if upright and c.standing:
             position[2] = c.support  # it stands on the support plane (module docstring)
+        elif upright and c.lifted_from is not None and position[2] - c.lifted_from <= LIFT_GAP:
+            position[2] = c.lifted_from  # the fit stands it on the plane after all
         yaw_observable = model.symmetry_deviation > YAW_OBSERVABLE_DEVIATION
         cov6 = rmse**2 * np.linalg.pinv(np.asarray(result.H))
         covariance = self._position_covariance(np.asarray(result.H), rmse)

@@ -11,7 +11,7 @@ Method: the points of the content's colour (``colour_match``, opaque) that lie w
 diameter (+ ``LAYER_MARGIN``) above the support plane below them (``segment.clusters``), away
 from every container seen (``CONTAINER_MARGIN`` beyond its radius from its axis), grouped in
 touching voxels; in each group the spheres resting on that plane are found by the Hough
-transform of ``content._spheres_on_layer`` (centres one radius above the plane).
+transform of ``content.spheres_on_layer`` (centres one radius above the plane).
 
 Named simplifications: only spheres resting on a support in view are counted (one on the floor
 behind the table, or hidden by the robot's arm, is not seen); a sphere lying on another sphere
@@ -28,7 +28,7 @@ import numpy as np
 import numpy.typing as npt
 
 from velma.perception.cloud import Array
-from velma.perception.content import CONTENT_TOLERANCE, MIN_SPHERE_POINTS, _spheres_on_layer
+from velma.perception.content import CONTENT_TOLERANCE, MIN_SPHERE_POINTS, spheres_on_layer
 from velma.perception.localise import ObjectEstimate
 from velma.perception.objects import ObjectModel
 from velma.perception.segment import clusters, colour_match
@@ -75,7 +75,7 @@ def count_outside(
     for c in clusters(points, candidates, supports, 2 * r + LAYER_MARGIN, MIN_SPHERE_POINTS):
         p = points[c.index]
         mid = (p[:, :2].min(axis=0) + p[:, :2].max(axis=0)) / 2
-        centres, _ = _spheres_on_layer(p, np.array([*mid, c.support + r]), c.extent / 2 + r, r)
+        centres, _ = spheres_on_layer(p, np.array([*mid, c.support + r]), c.extent / 2 + r, r)
         found.extend(centres)
     out = np.asarray(found, dtype=np.float64).reshape(-1, 3)
     return Spill(count=len(out), centres=out, points=len(candidates))
