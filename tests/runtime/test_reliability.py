@@ -21,7 +21,7 @@ from services.runtime.agent import RESEND_ON_RETURN, Agent
 from services.runtime.conversations import Conversations, Pending
 from services.runtime.dedup import Dedup
 from services.runtime.human import HumanReport, ReportKind
-from services.runtime.memory_transport import MemoryBus
+from services.runtime.memory_transport import MemoryBus, MemoryTransport
 from services.runtime.state_store import ENV_STATE_DIR, StateFile
 from services.spec.model import channel_between
 from shared.fipa_codec import Communicate, Performative, decode, encode
@@ -367,7 +367,9 @@ def test_a_restarted_a_hi_still_tells_the_person_the_outcome(
     assert second.agent.counters["rejected"] == 0
 
 
-def test_a_co_probes_an_a_ta_that_reappears_and_plans_again_when_it_lost_the_plan() -> None:
+def a_co_with_the_pour_planned() -> tuple[MemoryBus, Wire[Coordinator], MemoryTransport]:
+    """An a_co that took a_hi's pour command (task ``cmd-1``) and holds its plan, not yet
+    sent; the bus and a_ta's transport, its token announced."""
     bus = MemoryBus()
     co = Wire(Coordinator, bus)
     ta = bus.transport()
@@ -376,6 +378,12 @@ def test_a_co_probes_an_a_ta_that_reappears_and_plans_again_when_it_lost_the_pla
     co.step("procReq")
     task = co.agent.tasks["cmd-1"]
     task.plan, task.needs_plan = PLAN, False
+    return bus, co, ta
+
+
+def test_a_co_probes_an_a_ta_that_reappears_and_plans_again_when_it_lost_the_plan() -> None:
+    bus, co, ta = a_co_with_the_pour_planned()
+    task = co.agent.tasks["cmd-1"]
     co.agent.reschedule = True
     co.step("schedule")
     co.step("switch")
@@ -405,14 +413,7 @@ def test_a_plan_sent_while_a_ta_is_gone_goes_again_when_it_reappears_and_only_th
     a_ta its next plan; the plan reached nobody, a_ta came back with nothing to run, and the
     command waited for ever. The coordinate request is now sent again when a_ta's token
     reappears, until a_ta answers it — and not once it has."""
-    bus = MemoryBus()
-    co = Wire(Coordinator, bus)
-    ta = bus.transport()
-    ta.announce(keys.alive_key("a_ta"))
-    co.deliver(communicate(P.REQUEST, "a_hi", "a_co", "fipa-request", "cmd-1", POUR, reply_with="r1"))
-    co.step("procReq")
-    task = co.agent.tasks["cmd-1"]
-    task.plan, task.needs_plan = PLAN, False
+    bus, co, ta = a_co_with_the_pour_planned()
     ta.close()  # the robot's router dies: a_ta's token is gone ...
     co.agent._acquire(0.0)
     co.agent.reschedule = True
