@@ -18,6 +18,10 @@ threads of the three processes are read from ``/proc/<pid>/task/*/`` (``comm``,
 trips: context switches per round trip per thread, i.e. how often each thread went to sleep
 and was woken up.
 
+An idle agent takes a communicate in on the thread it arrived on (services/runtime/agent.py
+``Agent._take_here``); ``ROCO_RECEIVE=agent-thread`` profiles the path that hands every
+communicate to the agent's thread instead.
+
 Usage: ``python scripts/profile_path.py [--n 2000]``
 """
 
@@ -154,7 +158,7 @@ def segments(ini: list[Event], par: list[Event], n: int) -> list[tuple[str, list
         ),
         ("b_ini0 put → b_par0 Zenoh callback (Zenoh: client → router → client)", diff(a["put"], b["cb"]), ""),
         (
-            "b_par0: Zenoh callback → _take_communicate entered (queue hand-over)",
+            "b_par0: Zenoh callback → _take_communicate entered (taken in where it arrived, or handed over)",
             diff(b["cb"], b["take0"]),
             same_thread(b["cb"], b["take0"]),
         ),
@@ -163,7 +167,7 @@ def segments(ini: list[Event], par: list[Event], n: int) -> list[tuple[str, list
         ("b_par0: send() called → put", diff(b["send"], b["put"]), ""),
         ("b_par0 put → b_ini0 Zenoh callback (Zenoh)", diff(b["put"], a["cb"]), ""),
         (
-            "b_ini0: Zenoh callback → _take_communicate entered (queue hand-over)",
+            "b_ini0: Zenoh callback → _take_communicate entered (taken in where it arrived, or handed over)",
             diff(a["cb"], a["take0"]),
             same_thread(a["cb"], a["take0"]),
         ),

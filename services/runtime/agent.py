@@ -51,10 +51,11 @@ from __future__ import annotations
 
 import logging
 import math
-import queue
+import os
 import threading
 import time
 from collections import Counter, deque
+from collections.abc import Generator
 from dataclasses import dataclass
 from typing import Any, ClassVar, NoReturn
 
@@ -106,6 +107,19 @@ LOG_BURST = 50
 """Warnings about rejected input logged per :data:`LOG_WINDOW_S` before the rest are only
 counted (and their number logged once the window ends)."""
 LOG_WINDOW_S = 10.0
+INLINE_OUTPUT_MAX = 32
+"""Communicates a step taken in on a receiving thread may put from that thread; a step that
+sends more (a stream) is dispatched by the agent's own thread (see :meth:`Agent._take_here`)."""
+INLINE_GAP_S = 200e-6
+"""A communicate that arrives within this time (s) of the one before it is handed to the agent's
+thread, which takes what has arrived together in one step (a stream), instead of being taken in
+on the receiving thread one step each (see :meth:`Agent._take_here`)."""
+INLINE_BUDGET_S = 0.05
+"""Longest a step may keep a receiving thread (s): an agent whose step took longer takes its
+input on its own thread from then on (Zenoh's receiving thread also reads the router's link)."""
+ENV_RECEIVE = "ROCO_RECEIVE"
+"""``agent-thread``: every input is handed to the agent's own thread (the path before issue 20);
+unset or ``inline``: an idle agent takes a communicate in where it arrives."""
 _REASONS = frozenset({Performative.FAILURE, Performative.REFUSE, Performative.NOT_UNDERSTOOD})
 """Performatives whose content may be a plain UTF-8 reason instead of a language term."""
 
@@ -147,6 +161,11 @@ class Agent:
     only)."""
     period: ClassVar[float] = 0.1
     """Sampling period (s) of communication states: the longest a waiting behaviour blocks."""
+    RECEIVE_INLINE: ClassVar[bool] = True
+    """While the agent is idle (its behaviour blocked for input), a communicate is taken in,
+    and the next elementary actions run, on the transport's thread it arrived on, instead of
+    being handed to the agent's thread (issue 20: one thread wake-up less per receive). False:
+    an agent whose steps must run on one thread (thread-bound resources)."""
 
     def __init__(self, transport: Transport, spec: SystemSpec | None = None) -> None:
         self.spec = spec or default_spec()
@@ -176,7 +195,22 @@ class Agent:
         self.roles = Roles(self, self.ROLES or (), check=self.ROLES is not None)
         """The agent's protocol roles and their open conversations (services/runtime/roles.py)."""
         self._y: list[tuple[str, bytes]] = []
-        self._queue: queue.SimpleQueue[tuple[str, Any]] = queue.SimpleQueue()
+        self._inbox: deque[tuple[str, Any]] = deque()
+        """Inputs waiting for a step: (key, payload) of a communicate, or a runtime event."""
+        self._arrived = threading.Condition()  # an RLock: stop() may run in a signal handler
+        self._turn = threading.Lock()
+        """Held by whichever thread runs the agent's elementary actions (:meth:`run`)."""
+        self._actions: Generator[float, None, None] | None = None
+        self._wake_at = 0.0  # time.monotonic() at which the suspended actions want to go on
+        self._ended = False
+        self._failure: BaseException | None = None
+        self._here = False  # the actions run on a receiving thread (_take_here)
+        self._last_arrival = 0.0  # time.perf_counter() of the last communicate's arrival
+        self._inline = (
+            self.RECEIVE_INLINE
+            and bool(getattr(transport, "inline_receive", False))
+            and os.environ.get(ENV_RECEIVE, "inline") != "agent-thread"
+        )
         self._stop = threading.Event()
         self.fsm = self.build_fsm()
 
@@ -488,34 +522,101 @@ class Agent:
     # ---- receiving -----------------------------------------------------------------------
     def post(self, event: Any) -> None:
         """Put a receptor event into the agent (thread-safe; wakes a waiting behaviour)."""
-        self._queue.put(("r", event))
+        self._put_input(("r", event))
 
-    def _on_payload(self, key: str, payload: bytes) -> None:
-        self._queue.put((key, payload))  # Zenoh thread: enqueue only
+    def _put_input(self, item: tuple[str, Any]) -> None:
+        """Hand an input to the agent's thread (any thread; wakes it)."""
+        with self._arrived:
+            self._inbox.append(item)
+            self._arrived.notify()
+
+    def _on_payload(self, key: str, payload: bytes) -> None:  # the transport's thread
+        now = time.perf_counter()
+        apart, self._last_arrival = now - self._last_arrival, now
+        if not (self._inline and apart > INLINE_GAP_S and self._take_here((key, payload))):
+            self._put_input((key, payload))
 
     def _on_counters_ask(self, key: str, payload: bytes) -> None:
-        self._queue.put((_COUNTERS, None))  # Zenoh thread: enqueue only
+        self._put_input((_COUNTERS, None))  # Zenoh thread: enqueue only
 
     def _on_alive(self, key: str, alive: bool) -> None:
         name = keys.alive_agent(key)
         if name is not None:  # a token that carries no agent name is none of an agent
-            self._queue.put((_ALIVE, (name, alive)))  # Zenoh thread: enqueue only
+            self._put_input((_ALIVE, (name, alive)))  # Zenoh thread: enqueue only
 
-    def _acquire(self, timeout: float) -> None:
-        """Acquire new inputs into x and r, blocking up to ``timeout`` for the first."""
+    def _take_here(self, item: tuple[str, Any]) -> bool:
+        """Take ``item`` in on the calling (receiving) thread and run the agent's elementary
+        actions on it until they block for input again, when the agent is idle: no thread runs
+        them, none is about to (the turn is free) and no input waits before this one. Returns
+        False, having done nothing, otherwise: the caller hands the item to the agent's thread.
+        (A communicate that arrives within :data:`INLINE_GAP_S` of the one before it is not
+        offered here: what arrives together is taken in together, by the agent's thread.)
+
+        What runs here is what the agent's thread would run, under the same turn, so every
+        check of the input is the same. A step whose output buffer holds more than
+        :data:`INLINE_OUTPUT_MAX` communicates, or one on a key the transport has no publisher
+        for yet, goes on on the agent's thread (a receiving thread never declares, and never
+        puts a stream); a step that took longer than :data:`INLINE_BUDGET_S` ends inline
+        receiving for this agent."""
+        if not self._turn.acquire(blocking=False):
+            return False
+        try:
+            if self._inbox or self._actions is None or self._ended:
+                return False
+            waiting_until = self._wake_at
+            self._inbox.append(item)
+            self.counters["received_inline"] += 1
+            self._here = True
+            started = time.perf_counter()
+            try:
+                self._resume()
+            finally:
+                self._here = False
+            spent = time.perf_counter() - started
+            if spent > INLINE_BUDGET_S:
+                self._inline = False
+                self.log.info(
+                    "a step took %.0f ms on a receiving thread: input goes to the agent's thread from now on",
+                    spent * 1e3,
+                )
+        finally:
+            self._turn.release()
+        if self._ended or self._wake_at < waiting_until:  # the agent's thread waits too long
+            with self._arrived:
+                self._arrived.notify()
+        return True
+
+    def _dispatch_here(self) -> bool:
+        """The output buffer may be put from a receiving thread (see :meth:`_take_here`)."""
+        if len(self._y) > INLINE_OUTPUT_MAX:
+            return False
+        declared = getattr(self.transport, "declared", None)
+        return declared is None or all(declared(key) for key, _ in self._y)
+
+    def _acquire_blocking(self, timeout: float) -> Generator[float, None, None]:
+        """Acquire new inputs into x and r, blocking up to ``timeout`` (s) for the first: the
+        elementary actions are suspended (yield the time to wait) until an input arrives or the
+        time passes, then :meth:`_acquire`."""
         deadline = self.conversations.next_deadline()
         if deadline is not None:
             timeout = max(0.0, min(timeout, deadline - time.time()))
-        try:
-            item = self._queue.get(timeout=timeout) if timeout > 0 else self._queue.get_nowait()
-        except queue.Empty:
-            item = None
-        while item is not None:
-            self._take(*item)
-            try:
-                item = self._queue.get_nowait()
-            except queue.Empty:
-                item = None
+        if timeout > 0 and not self._inbox:
+            yield timeout
+        elif self._here:  # actions that go on without waiting go on on the agent's thread
+            yield 0.0
+        self._acquire()
+
+    def _acquire(self, timeout: float = 0.0) -> None:
+        """Acquire the inputs that have arrived into x and r; retransmit what is due; end
+        conversations whose reply-by deadline passed with a local failure. ``timeout`` (s) > 0
+        first waits that long at most for an input when none is there (an agent driven by hand,
+        in tests and scripts: :meth:`run` suspends its actions instead)."""
+        if timeout > 0 and not self._inbox:
+            with self._arrived:
+                if not self._inbox:
+                    self._arrived.wait(timeout)
+        while self._inbox:
+            self._take(*self._inbox.popleft())
         self.protocol_states.commit()  # what arrived stays arrived; only sends are undone
         now = time.time()
         for p in self.conversations.due(now):
@@ -757,15 +858,60 @@ class Agent:
         self.transport.watch(keys.ALIVE_ALL, self._on_alive)
 
     def stop(self) -> None:
+        """End :meth:`run` after the current step (any thread; also a signal handler)."""
         self._stop.set()
-        self._queue.put(("r", None))
+        self._put_input(("r", None))
 
     @property
     def stopping(self) -> bool:
         return self._stop.is_set()
 
     def run(self) -> None:
-        """Run the FSM until :meth:`stop`."""
+        """Run the FSM until :meth:`stop`. The elementary actions run on the calling thread,
+        the agent's own, except while the agent is idle: then a communicate that arrives is
+        taken in, and the actions run until they block again, on the thread it arrived on
+        (:meth:`_take_here`). Either way one thread at a time runs them, holding the turn.
+        Raises what a step raised outside a transition function (on either thread)."""
+        with self._turn:
+            self._actions = self._elementary_actions()
+            self._resume()
+            while not self._ended:
+                self._turn.release()
+                try:
+                    with self._arrived:
+                        while not self._inbox and not self._ended:
+                            left = self._wake_at - time.monotonic()
+                            if left <= 0:
+                                break
+                            self._arrived.wait(left)
+                finally:
+                    self._turn.acquire()
+                # a step taken in elsewhere meanwhile may have moved the time to go on
+                if not self._ended and (self._inbox or time.monotonic() >= self._wake_at):
+                    self._resume()
+        if self._failure is not None:
+            raise self._failure
+
+    def _resume(self) -> None:
+        """Run the suspended elementary actions until they block for input (turn held)."""
+        assert self._actions is not None
+        try:
+            timeout = next(self._actions)
+        except StopIteration:
+            self._ended = True
+            return
+        except BaseException as exc:
+            self._ended = True
+            if not self._here:
+                raise
+            self._failure = exc  # raised by run() on the agent's thread
+            return
+        self._wake_at = time.monotonic() + timeout
+
+    def _elementary_actions(self) -> Generator[float, None, None]:
+        """The agent's elementary actions (paper §3.2), suspended (yielding the time, s, they
+        wait for) wherever a behaviour blocks for input, or with 0 where a step taken in on a
+        receiving thread must go on on the agent's own (:meth:`_dispatch_here`)."""
         self.setup()
         self._dispatch()
         state = self.fsm.initial
@@ -787,17 +933,21 @@ class Agent:
                     self.protocol_states.rollback()  # what was dropped was never sent
                     failed = True
                     break
+                if self._here and not self._dispatch_here():
+                    yield 0.0
                 self._dispatch()
                 self.persist()
                 self.i += 1
                 # a communication state blocks for new input only while it has nothing to end on
                 done = behaviour.error() or behaviour.terminal()
-                self._acquire(self.period if behaviour.waits and not done else 0.0)
+                yield from self._acquire_blocking(self.period if behaviour.waits and not done else 0.0)
                 if done or behaviour.error() or behaviour.terminal():
                     break
             if self._stop.is_set():
                 break
             state = self.fsm.initial if failed else self.fsm.next_state(state)
+        if self._here and not self._dispatch_here():
+            yield 0.0
         self._dispatch()
 
     # ---- helpers for behaviours ---------------------------------------------------------

@@ -24,10 +24,10 @@ the run folder's ``faults.jsonl``. An update carrying a ``request`` id is answer
 agent's :class:`FaultReport` on ``roco/fault/state/<agent>``. The fault plane itself (control,
 events, reports) is exempt from every fault.
 
-Threads: ``publish`` runs on the agent's thread and, with no fault active, only tests one
+Threads: ``publish`` runs on the agent's thread (or, for an idle agent's step, on the Zenoh
+thread a communicate arrived on: transport.py) and, with no fault active, only tests one
 attribute before calling the wrapped transport. Delayed and held communicates, fault events
-and control updates are handled by one worker thread of the transport: nothing is published
-from a Zenoh callback thread (transport.py).
+and control updates are handled by one worker thread of the transport.
 """
 
 from __future__ import annotations
@@ -427,6 +427,16 @@ class FaultyTransport:
 
     def _refresh_active(self) -> None:
         self._active = bool(self._channels) or self._net.active() or bool(self._held)
+
+    @property
+    def inline_receive(self) -> bool:
+        """As the wrapped transport's (``Agent._take_here``)."""
+        return bool(getattr(self.inner, "inline_receive", False))
+
+    def declared(self, key: str) -> bool:
+        """As the wrapped transport's: a put on ``key`` declares nothing."""
+        declared = getattr(self.inner, "declared", None)
+        return declared is None or bool(declared(key))
 
     # ---- incoming -------------------------------------------------------------------------
     def subscribe(self, key_expr: str, callback: Callback) -> None:

@@ -1,8 +1,13 @@
 """Transport: how buffers reach other agents. Zenoh in client mode against a router
 (design.md), explicit endpoints, no multicast scouting.
 
-Subscriber callbacks run on Zenoh's threads and only enqueue (calling Zenoh from inside a
-callback has deadlocked: platform-notes.md); all publishing happens on the agent's thread.
+Subscriber callbacks run on zenoh-python's callback threads (``indirect`` callbacks: a Python
+thread fed by Zenoh's network threads, never a network thread itself). A communicate may be
+taken in there by an idle agent, whose step then puts its answers from that thread
+(services/runtime/agent.py ``Agent._take_here``): a put on a key whose publisher is declared, a
+few communicates at a time. Declaring, and putting a stream, happen on the agent's own thread
+only (calling Zenoh from inside a callback has deadlocked: platform-notes.md); the liveliness
+and recording callbacks only enqueue.
 
 Communicates (``roco/fipa/**``) are put through zenoh-ext advanced publishers, one per key:
 each put carries its publisher's id and a sequence number (0, 1, 2, …) and a timestamp, and
@@ -207,6 +212,11 @@ parsed at each put, and a communicate on it is put without cache or sequence num
 class ZenohTransport:
     """A :class:`Transport` over one Zenoh session."""
 
+    inline_receive = True
+    """Subscribers are called back on zenoh-python's callback threads, never inside
+    :meth:`publish`: an idle agent may take a communicate in on the thread it arrived on
+    (``Agent._take_here``)."""
+
     def __init__(
         self, endpoints: list[str], *, wait_for_router: bool = True, identity: str | None = None
     ) -> None:
@@ -219,6 +229,7 @@ class ZenohTransport:
         self._lock = threading.Lock()
         self._keys: dict[str, zenoh.KeyExpr] = {}
         self._publishers: dict[str, zext.AdvancedPublisher] = {}
+        self._declaring = threading.Lock()
 
     def publish(self, key: str, payload: bytes) -> None:
         """Put ``payload`` on ``key`` with congestion control BLOCK: when the link's queue is
@@ -227,19 +238,11 @@ class ZenohTransport:
         docs/benchmarks.md). A communicate (``roco/fipa/**``) goes through the key's advanced
         publisher (declared at its first put; see the module docstring); anything else is a
         plain put, its key expression parsed once and kept (≈ 1.2 µs instead of ≈ 3.5 µs with
-        a string key). Called on the agent's thread only."""
+        a string key). Declares only where :meth:`declared` is False: never from a Zenoh
+        callback (see the module docstring)."""
         pub = self._publishers.get(key)
         if pub is None and key.startswith(keys.FIPA_PREFIX) and len(self._publishers) < MAX_KEYS:
-            pub = self._publishers[key] = zext.declare_advanced_publisher(
-                self.session,
-                key,
-                congestion_control=zenoh.CongestionControl.BLOCK,
-                cache=zext.CacheConfig(CACHE_SAMPLES),
-                sample_miss_detection=zext.MissDetectionConfig(
-                    heartbeat=None, sporadic_heartbeat=HEARTBEAT_S
-                ),
-                publisher_detection=True,
-            )
+            pub = self._declare(key)
         if pub is not None:
             pub.put(payload)
             return
@@ -249,6 +252,28 @@ class ZenohTransport:
             if len(self._keys) < MAX_KEYS:
                 self._keys[key] = expr
         self.session.put(expr, payload, congestion_control=zenoh.CongestionControl.BLOCK)
+
+    def _declare(self, key: str) -> zext.AdvancedPublisher:
+        with self._declaring:  # the fault layer's worker also puts
+            pub = self._publishers.get(key)
+            if pub is None:
+                pub = self._publishers[key] = zext.declare_advanced_publisher(
+                    self.session,
+                    key,
+                    congestion_control=zenoh.CongestionControl.BLOCK,
+                    cache=zext.CacheConfig(CACHE_SAMPLES),
+                    sample_miss_detection=zext.MissDetectionConfig(
+                        heartbeat=None, sporadic_heartbeat=HEARTBEAT_S
+                    ),
+                    publisher_detection=True,
+                )
+            return pub
+
+    def declared(self, key: str) -> bool:
+        """A put on ``key`` declares nothing: its publisher exists, or it needs none."""
+        if key in self._publishers or not key.startswith(keys.FIPA_PREFIX):
+            return True
+        return len(self._publishers) >= MAX_KEYS
 
     @property
     def session_id(self) -> str:

@@ -64,7 +64,7 @@ class Inbox:
     def feed(self, key: str, payload: bytes) -> list[tuple[str, Communicate]]:
         self.out.clear()
         self.bus.publish(key, payload)
-        self.agent._acquire(0.0)
+        self.agent._acquire()
         self.agent._dispatch()
         return [(k, decode(p)) for k, p in self.out]
 

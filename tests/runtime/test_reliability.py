@@ -79,7 +79,7 @@ class Wire(Generic[A]):
         self.agent.fsm.states[state].transition()
         self.agent._dispatch()
         self.agent.persist()
-        self.agent._acquire(0.0)
+        self.agent._acquire()
 
     def mine(self, *performatives: Performative) -> list[Communicate]:
         return [
@@ -174,7 +174,7 @@ def test_an_unanswered_request_is_retransmitted_and_stops_when_answered() -> Non
     assert msg.reply_with is not None
     pending = w.agent.conversations._pending[msg.reply_with]
     pending.next_retry = 0.0  # its time has come
-    w.agent._acquire(0.0)
+    w.agent._acquire()
     w.agent._dispatch()
     first, again = [raw for raw, m in zip(w.raw, w.out, strict=True) if m.reply_with == msg.reply_with]
     assert first == again and w.agent.counters["retransmitted"] == 1
@@ -195,12 +195,12 @@ def test_a_request_to_a_peer_that_comes_back_is_sent_to_it_again() -> None:
     w.agent._dispatch()
     ag_ex = bus.transport()
     ag_ex.announce(keys.alive_key("ag_ex"))
-    w.agent._acquire(0.0)
+    w.agent._acquire()
     w.agent._dispatch()
     assert len([m for m in w.out if m.reply_with == msg.reply_with]) == 2
     assert "ag_ex" in w.agent.peers
     ag_ex.close()  # it goes away: nothing is sent to nobody
-    w.agent._acquire(0.0)
+    w.agent._acquire()
     assert "ag_ex" not in w.agent.peers and w.agent.counters["retransmitted"] == 1
 
 
@@ -345,7 +345,7 @@ def test_a_restarted_a_hi_still_tells_the_person_the_outcome(
     from services.runtime.human import HumanInput
 
     first.agent.post(HumanInput(text="pour the jar into the bowl", request_id="req-7"))
-    first.agent._acquire(0.0)
+    first.agent._acquire()
     first.step("interact")
     (request,) = first.mine(P.REQUEST)
     assert request.protocol == "fipa-request" and (tmp_path / "a_hi.json").exists()
@@ -354,7 +354,7 @@ def test_a_restarted_a_hi_still_tells_the_person_the_outcome(
     second.agent.setup()
     cid = request.conversation_id
     assert cid in second.agent.commands
-    second.agent._acquire(0.0)
+    second.agent._acquire()
     second.agent._dispatch()  # not yet agreed: the request goes again at once
     assert [m.reply_with for m in second.mine(P.REQUEST)] == [request.reply_with]
     outcome = CommandOutcome(command_id=cid or "", succeeded=True, detail="the task succeeded")
@@ -395,10 +395,10 @@ def test_a_co_probes_an_a_ta_that_reappears_and_plans_again_when_it_lost_the_pla
     co.step("trigger")
     (confirm,) = co.mine(P.CONFIRM)
     ta.close()  # a_ta's process ends ...
-    co.agent._acquire(0.0)
+    co.agent._acquire()
     ta = bus.transport()
     ta.announce(keys.alive_key("a_ta"))  # ... and a new one starts
-    co.agent._acquire(0.0)
+    co.agent._acquire()
     co.agent._dispatch()
     assert co.mine(P.CONFIRM) == [confirm, confirm]  # the probe: the same confirm again
     # the same a_ta would drop the copy; a new one does not know the conversation
@@ -415,14 +415,14 @@ def test_a_plan_sent_while_a_ta_is_gone_goes_again_when_it_reappears_and_only_th
     reappears, until a_ta answers it — and not once it has."""
     bus, co, ta = a_co_with_the_pour_planned()
     ta.close()  # the robot's router dies: a_ta's token is gone ...
-    co.agent._acquire(0.0)
+    co.agent._acquire()
     co.agent.reschedule = True
     co.step("schedule")
     co.step("switch")  # ... and the plan is sent into the void
     (plan,) = [co.raw[i] for i, m in enumerate(co.out) if m.performative is P.REQUEST]
     ta = bus.transport()
     ta.announce(keys.alive_key("a_ta"))  # the router is back: a_ta's token reappears
-    co.agent._acquire(0.0)
+    co.agent._acquire()
     co.agent._dispatch()
     again = [co.raw[i] for i, m in enumerate(co.out) if m.performative is P.REQUEST]
     assert again == [plan, plan]  # the same bytes: an a_ta that had it drops the copy
@@ -433,10 +433,10 @@ def test_a_plan_sent_while_a_ta_is_gone_goes_again_when_it_reappears_and_only_th
     )
     co.deliver(answer)
     ta.close()
-    co.agent._acquire(0.0)
+    co.agent._acquire()
     ta = bus.transport()
     ta.announce(keys.alive_key("a_ta"))
-    co.agent._acquire(0.0)
+    co.agent._acquire()
     co.agent._dispatch()
     assert len([m for m in co.out if m.performative is P.REQUEST]) == 2  # answered: not again
 
@@ -466,7 +466,7 @@ def test_an_update_a_ta_sent_before_a_kms_new_subscription_is_taken_not_dropped(
     ta = bus.transport()
     ta.announce(keys.alive_key("a_ta"))
     km.agent.setup()
-    km.agent._acquire(0.0)
+    km.agent._acquire()
     km.agent._dispatch()
     (first,) = km.mine(P.SUBSCRIBE)
     km.deliver(
@@ -476,10 +476,10 @@ def test_an_update_a_ta_sent_before_a_kms_new_subscription_is_taken_not_dropped(
     )
     km.step("idle")
     ta.close()  # the robot's router dies ...
-    km.agent._acquire(0.0)
+    km.agent._acquire()
     ta = bus.transport()
     ta.announce(keys.alive_key("a_ta"))  # ... and comes back: a_km subscribes again
-    km.agent._acquire(0.0)
+    km.agent._acquire()
     km.agent._dispatch()
     assert len(km.mine(P.SUBSCRIBE)) == 2
     update = WorldUpdate(stamp=5.0, objects=(ObjectUpdate(name="bowl", pose=Pose((0.3, -0.5, 0.85))),))

@@ -1,0 +1,261 @@
+"""An idle agent takes a communicate in on the thread it arrived on (issue 20): the same checks,
+in the same order, one thread at a time; streams, undeclared keys and errors go back to the
+agent's own thread (services/runtime/agent.py ``Agent._take_here``)."""
+
+from __future__ import annotations
+
+import queue
+import threading
+from collections.abc import Iterator
+from dataclasses import dataclass, field
+from typing import ClassVar
+
+import pytest
+
+from services.runtime import agent as agent_module
+from services.runtime import keys
+from services.runtime.agent import INLINE_OUTPUT_MAX, Agent
+from services.runtime.behaviour import FSM, Behaviour
+from services.runtime.memory_transport import MemoryBus, MemoryTransport
+from services.runtime.transport import Callback
+from shared.fipa_codec import Communicate, Performative, decode, encode
+from shared.fipa_codec.languages.l_wm import Answer, ObjectQuery
+from tests.runtime.test_agent_runtime import KEY, query
+
+DELIVERY = "zenoh-callback"
+AGENT = "agent"
+
+
+class ThreadedTransport(MemoryTransport):
+    """A memory transport that calls its subscribers back on a thread of its own, as Zenoh
+    does, and records which thread put each publication."""
+
+    inline_receive = True
+
+    def __init__(self, bus: MemoryBus) -> None:
+        super().__init__(bus)
+        self._deliveries: queue.SimpleQueue[tuple[Callback, str, bytes] | threading.Event | None] = (
+            queue.SimpleQueue()
+        )
+        self.put_by: list[tuple[str, str]] = []
+        self.undeclared: set[str] = set()
+        self._thread = threading.Thread(target=self._deliver, name=DELIVERY, daemon=True)
+        self._thread.start()
+
+    def _deliver(self) -> None:
+        while (item := self._deliveries.get()) is not None:
+            if isinstance(item, threading.Event):
+                item.set()
+                continue
+            callback, key, payload = item
+            callback(key, payload)
+
+    def subscribe(self, key_expr: str, callback: Callback) -> None:
+        self.bus.subscribe(key_expr, lambda k, p: self._deliveries.put((callback, k, p)))
+
+    def publish(self, key: str, payload: bytes) -> None:
+        self.put_by.append((key, threading.current_thread().name))
+        super().publish(key, payload)
+
+    def declared(self, key: str) -> bool:
+        return key not in self.undeclared
+
+    def flush(self) -> None:
+        """Return once everything delivered before the call has been handled."""
+        done = threading.Event()
+        self._deliveries.put(done)
+        assert done.wait(5)
+
+    def close(self) -> None:
+        self._deliveries.put(None)
+        super().close()
+
+
+class Answering(Agent):
+    """a_km answering object queries; records the thread of each step that took one in."""
+
+    name = "a_km"
+    period: ClassVar[float] = 60.0  # the agent's thread wakes for input only, never for time
+    extra = 0
+    """Payloads on ``test/out`` each answer also puts (more than INLINE_OUTPUT_MAX: a stream)."""
+
+    def build_fsm(self) -> FSM:
+        self.handled_on: list[str] = []
+        self.fail_persist = False
+        self.started = threading.Event()
+        return FSM("answer", {"answer": Behaviour("answer", self._answer, terminal=lambda: False)}, [])
+
+    def _answer(self) -> None:
+        while self.x:
+            item = self.x.popleft()
+            self.handled_on.append(threading.current_thread().name)
+            if item.performative is Performative.QUERY_REF and isinstance(item.content, ObjectQuery):
+                self.reply(item, Performative.INFORM_REF, Answer())
+                for i in range(self.extra):
+                    self.emit("test/out", str(i).encode())
+
+    def setup(self) -> None:
+        self.started.set()
+
+    def persist(self) -> None:
+        if self.fail_persist and self.handled_on:
+            raise OSError("disk full")
+
+
+@dataclass
+class Running:
+    bus: MemoryBus
+    transport: ThreadedTransport
+    agent: Answering
+    to_pl: queue.SimpleQueue[Communicate]
+    thread: threading.Thread
+    raised: list[BaseException] = field(default_factory=list)
+
+    def idle(self) -> None:
+        """Return once the agent's thread has run the actions up to a wait: set-up has begun
+        under the turn, and the turn is free only while they are suspended waiting for input
+        (period 60 s: nothing else wakes them)."""
+        assert self.agent.started.wait(5)
+        with self.agent._turn:
+            pass
+
+
+def start(agent_cls: type[Answering] = Answering) -> Running:
+    bus = MemoryBus()
+    transport = ThreadedTransport(bus)
+    agent = agent_cls(transport)
+    agent.bind()
+    to_pl: queue.SimpleQueue[Communicate] = queue.SimpleQueue()
+    bus.subscribe(keys.inbox_key("a_pl"), lambda k, p: to_pl.put(decode(p)))
+    raised: list[BaseException] = []
+
+    def run() -> None:
+        try:
+            agent.run()
+        except BaseException as exc:  # what run() raised, for the test to see
+            raised.append(exc)
+
+    thread = threading.Thread(target=run, name=AGENT, daemon=True)
+    thread.start()
+    r = Running(bus, transport, agent, to_pl, thread, raised)
+    r.idle()
+    return r
+
+
+@pytest.fixture(autouse=True)
+def every_arrival_apart(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Communicates a test publishes back to back count as apart (see the gap's own test)."""
+    monkeypatch.setattr(agent_module, "INLINE_GAP_S", 0.0)
+
+
+@pytest.fixture
+def running() -> Iterator[Running]:
+    r = start()
+    yield r
+    r.agent.stop()
+    r.thread.join(timeout=5)
+    assert not r.thread.is_alive()
+    r.transport.close()
+
+
+def test_an_idle_agent_answers_on_the_thread_the_communicate_arrived_on(running: Running) -> None:
+    running.bus.publish(KEY, encode(query("q1")))
+    reply = running.to_pl.get(timeout=5)
+    assert reply.performative is Performative.INFORM_REF and reply.in_reply_to == "q1"
+    assert running.agent.handled_on == [DELIVERY]
+    assert running.transport.put_by == [(keys.fipa_key("C4", "a_km", "a_pl"), DELIVERY)]
+    assert running.agent.counters["received_inline"] == 1
+
+
+def test_bad_input_taken_in_on_the_receiving_thread_gets_not_understood(running: Running) -> None:
+    running.bus.publish(KEY, b"\x00garbage")
+    running.bus.publish(KEY, encode(query("q2", protocol="fipa-request")))
+    running.bus.publish(KEY, encode(query("q3")))
+    first, second, third = (running.to_pl.get(timeout=5) for _ in range(3))
+    assert first.performative is Performative.NOT_UNDERSTOOD and "malformed" in first.content.decode()
+    assert second.performative is Performative.NOT_UNDERSTOOD and "unexpected" in second.content.decode()
+    assert third.performative is Performative.INFORM_REF and third.in_reply_to == "q3"
+    assert running.agent.counters["rejected"] == 2
+    assert {thread for _, thread in running.transport.put_by} == {DELIVERY}
+
+
+def test_input_that_arrives_while_a_step_runs_waits_and_keeps_its_order(running: Running) -> None:
+    agent = running.agent
+    with agent._turn:  # the agent's actions are running (on some thread)
+        for n in range(5):
+            running.bus.publish(KEY, encode(query(f"q{n}", conversation_id=f"c{n}")))
+        running.transport.flush()
+        assert [decode(p).reply_with for _, p in agent._inbox] == [f"q{n}" for n in range(5)]
+        assert running.to_pl.empty()
+    answers = [running.to_pl.get(timeout=5).in_reply_to for _ in range(5)]
+    assert answers == [f"q{n}" for n in range(5)]
+    assert agent.handled_on[0] == AGENT  # the waiting input went to the agent's thread
+    assert agent.counters["received_inline"] == 0
+
+
+def test_a_step_that_puts_a_stream_goes_on_on_the_agents_thread() -> None:
+    class Streaming(Answering):
+        extra = INLINE_OUTPUT_MAX + 1
+
+    r = start(Streaming)
+    try:
+        r.bus.publish(KEY, encode(query("q1")))
+        reply = r.to_pl.get(timeout=5)
+        assert reply.in_reply_to == "q1"
+        r.idle()
+        assert r.agent.handled_on == [DELIVERY]  # taken in where it arrived ...
+        assert len(r.transport.put_by) == 1 + INLINE_OUTPUT_MAX + 1
+        assert {thread for _, thread in r.transport.put_by} == {AGENT}  # ... put by the agent's thread
+    finally:
+        r.agent.stop()
+        r.thread.join(timeout=5)
+        r.transport.close()
+
+
+def test_a_step_that_would_declare_a_publisher_goes_on_on_the_agents_thread(running: Running) -> None:
+    reply_key = keys.fipa_key("C4", "a_km", "a_pl")
+    running.transport.undeclared.add(reply_key)
+    running.bus.publish(KEY, encode(query("q1")))
+    assert running.to_pl.get(timeout=5).in_reply_to == "q1"
+    assert running.agent.handled_on == [DELIVERY]
+    assert running.transport.put_by == [(reply_key, AGENT)]
+
+
+def test_an_error_in_a_step_on_the_receiving_thread_is_raised_by_run() -> None:
+    r = start()
+    r.agent.fail_persist = True
+    r.bus.publish(KEY, encode(query("q1")))
+    r.thread.join(timeout=5)
+    assert not r.thread.is_alive()
+    assert len(r.raised) == 1 and isinstance(r.raised[0], OSError)
+    assert r.agent.handled_on == [DELIVERY]
+    r.transport.close()
+
+
+def test_agent_thread_mode_hands_every_communicate_to_the_agents_thread(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    monkeypatch.setenv("ROCO_RECEIVE", "agent-thread")
+    r = start()
+    try:
+        r.bus.publish(KEY, encode(query("q1")))
+        assert r.to_pl.get(timeout=5).in_reply_to == "q1"
+        assert r.agent.handled_on == [AGENT]
+        assert r.transport.put_by == [(keys.fipa_key("C4", "a_km", "a_pl"), AGENT)]
+    finally:
+        r.agent.stop()
+        r.thread.join(timeout=5)
+        r.transport.close()
+
+
+def test_what_arrives_together_is_taken_in_together_by_the_agents_thread(
+    running: Running, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setattr(agent_module, "INLINE_GAP_S", 10.0)
+    for n in range(3):
+        running.bus.publish(KEY, encode(query(f"q{n}", conversation_id=f"c{n}")))
+    answers = [running.to_pl.get(timeout=5).in_reply_to for _ in range(3)]
+    assert answers == ["q0", "q1", "q2"]
+    # the first arrived apart from anything before it; the next two within the gap
+    assert running.agent.counters["received_inline"] == 1
+    assert running.agent.handled_on[0] == DELIVERY and AGENT in running.agent.handled_on
