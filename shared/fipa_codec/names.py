@@ -54,12 +54,27 @@ _ESCAPE = re.compile(r"[^A-Za-z0-9_.\-@:]")
 _CHUNK = re.compile(r"(?:[A-Za-z0-9_.\-@:]|%[0-9A-F]{2})+")
 
 
+KNOWN_MAX = 4096
+"""Words, and agent names, found valid that are kept (a set each) so that the next check of the
+same string is a set lookup: every communicate decoded checks its sender's and receivers' names
+and its protocol, which are few and repeat. A process that meets more keeps checking the rest
+with the regular expressions."""
+_KNOWN_WORDS: set[str] = set()
+_KNOWN_NAMES: set[str] = set()
+
+
 def is_word(text: str) -> bool:
     """Whether ``text`` is a FIPA SC00070 ``Word`` (see the module docstring)."""
+    if text in _KNOWN_WORDS:
+        return True
     if _WORD.fullmatch(text) is None:
         return False
     # a Number or DateTime that passes the first-character rule starts with + or .
-    return text[0] not in "+." or (_NUMBER.fullmatch(text) is None and _DATETIME.fullmatch(text) is None)
+    if text[0] in "+." and (_NUMBER.fullmatch(text) is not None or _DATETIME.fullmatch(text) is not None):
+        return False
+    if len(_KNOWN_WORDS) < KNOWN_MAX:
+        _KNOWN_WORDS.add(text)
+    return True
 
 
 def check_word(text: object, what: str) -> str:
@@ -76,13 +91,17 @@ def check_word(text: object, what: str) -> str:
 def check_agent_name(name: object) -> str:
     """``name`` when it is an agent name (a word of at most :data:`MAX_NAME_LENGTH`
     characters, FIPA SC00023 §4 / SC00070 §2.2); else ValueError saying why."""
-    # the common case in one test: run on every agent identifier decoded
+    # the common case first: run on every agent identifier decoded
+    if type(name) is str and name in _KNOWN_NAMES:
+        return name
     if (
         isinstance(name, str)
         and len(name) <= MAX_NAME_LENGTH
         and _WORD.fullmatch(name) is not None
         and name[0] not in "+."
     ):
+        if type(name) is str and len(_KNOWN_NAMES) < KNOWN_MAX:
+            _KNOWN_NAMES.add(name)
         return name
     check_word(name, "agent name")
     assert isinstance(name, str)
