@@ -220,6 +220,21 @@ communicate is a dict look-up instead of replaying its readings (≈ 20 µs → 
 bench, docs/benchmarks.md)."""
 _STEPS_MAX = 8192
 """Entries of :data:`_STEPS` kept before it is emptied (bounded memory)."""
+_READINGS: dict[Reading, Reading] = {}
+"""Every reading :data:`_STEPS` holds, by value: a reading computed again is replaced by the
+one held, so that the readings of a tracker are the very objects of the memo's keys and a
+look-up compares them by identity, not field by field (emptied with :data:`_STEPS`)."""
+_INITIAL: dict[int, tuple[Protocol, tuple[Reading, ...]]] = {}
+"""Per protocol (by id, the protocol kept as in :data:`_STEPS`), the readings of a conversation
+that has not begun: built once, shared by every new tracker (readings are immutable)."""
+
+
+def _initial(protocol: Protocol) -> tuple[Reading, ...]:
+    held = _INITIAL.get(id(protocol))
+    if held is None or held[0] is not protocol:
+        held = (protocol, (_READINGS.setdefault(r := Reading(Position(protocol.initial)), r),))
+        _INITIAL[id(protocol)] = held
+    return held[1]
 
 
 class CrossingTracker:
@@ -265,7 +280,7 @@ class CrossingTracker:
         self.local_role = local_role
         self.max_run = max_run
         self.max_readings = max_readings
-        self.readings: tuple[Reading, ...] = (Reading(Position(protocol.initial)),)
+        self.readings: tuple[Reading, ...] = _initial(protocol)
         self.messages = 0
         self.crossings = 0
         """Communicates accepted only in an order other than their arrival (or as a late
@@ -359,6 +374,9 @@ class CrossingTracker:
             found, in_order = self._found(s, own)
             if len(_STEPS) >= _STEPS_MAX:
                 _STEPS.clear()
+                _READINGS.clear()
+                _INITIAL.clear()
+            found = tuple(_READINGS.setdefault(r, r) for r in found)
             _STEPS[key] = (self.protocol, found, in_order)
         if not found:
             state = self.state
