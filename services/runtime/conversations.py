@@ -211,19 +211,20 @@ class Reading:
     communicates advances from it in O(1) instead of replaying the run each time)."""
 
 
-_STEPS: dict[tuple[object, ...], tuple[Protocol, tuple[Reading, ...], bool]] = {}
+_STEPS: dict[tuple[object, ...], tuple[Protocol, tuple[Reading, ...], tuple[Reading, ...], bool]] = {}
 """Memo of :meth:`CrossingTracker._found`, keyed by (protocol id, max_run, max_readings,
-readings, step, own); the protocol is kept in the value, so an id reused after a protocol
-was freed never matches. Conversations repeat the same few readings (every fipa-request
-goes start → requested → done; a stream of informs keeps the same run), so following a
-communicate is a dict look-up instead of replaying its readings (≈ 20 µs → ≈ 2 µs; roco
-bench, docs/benchmarks.md)."""
+readings id, step, own); the protocol and the readings are kept in the value, so an id reused
+after either was freed never matches (readings are held once by value, :data:`_READINGS`: equal
+readings are one object, and the key need not hash them). Conversations repeat the same few
+readings (every fipa-request goes start → requested → done; a stream of informs keeps the same
+run), so following a communicate is a dict look-up instead of replaying its readings (≈ 20 µs
+→ ≈ 2 µs; roco bench, docs/benchmarks.md)."""
 _STEPS_MAX = 8192
 """Entries of :data:`_STEPS` kept before it is emptied (bounded memory)."""
-_READINGS: dict[Reading, Reading] = {}
-"""Every reading :data:`_STEPS` holds, by value: a reading computed again is replaced by the
-one held, so that the readings of a tracker are the very objects of the memo's keys and a
-look-up compares them by identity, not field by field (emptied with :data:`_STEPS`)."""
+_READINGS: dict[tuple[Reading, ...], tuple[Reading, ...]] = {}
+"""Every tuple of readings :data:`_STEPS` gives, by value: one computed again is replaced by
+the one held, so that equal readings are one object and the memo is keyed by its id (emptied
+with :data:`_STEPS`)."""
 _INITIAL: dict[int, tuple[Protocol, tuple[Reading, ...]]] = {}
 """Per protocol (by id, the protocol kept as in :data:`_STEPS`), the readings of a conversation
 that has not begun: built once, shared by every new tracker (readings are immutable)."""
@@ -232,7 +233,8 @@ that has not begun: built once, shared by every new tracker (readings are immuta
 def _initial(protocol: Protocol) -> tuple[Reading, ...]:
     held = _INITIAL.get(id(protocol))
     if held is None or held[0] is not protocol:
-        held = (protocol, (_READINGS.setdefault(r := Reading(Position(protocol.initial)), r),))
+        readings = (Reading(Position(protocol.initial)),)
+        held = (protocol, _READINGS.setdefault(readings, readings))
         _INITIAL[id(protocol)] = held
     return held[1]
 
@@ -366,18 +368,18 @@ class CrossingTracker:
             raise ValueError(f"role must be 'initiator' or 'participant', not {role!r}")
         s: Step = (_role(role), Performative(performative), terminal)
         own = self.local_role is not None and s[0] == self.local_role
-        key = (id(self.protocol), self.max_run, self.max_readings, self.readings, s, own)
+        key = (id(self.protocol), self.max_run, self.max_readings, id(self.readings), s, own)
         cached = _STEPS.get(key)
-        if cached is not None and cached[0] is self.protocol:
-            found, in_order = cached[1], cached[2]
+        if cached is not None and cached[0] is self.protocol and cached[1] is self.readings:
+            found, in_order = cached[2], cached[3]
         else:
             found, in_order = self._found(s, own)
             if len(_STEPS) >= _STEPS_MAX:
                 _STEPS.clear()
                 _READINGS.clear()
                 _INITIAL.clear()
-            found = tuple(_READINGS.setdefault(r, r) for r in found)
-            _STEPS[key] = (self.protocol, found, in_order)
+            found = _READINGS.setdefault(found, found)
+            _STEPS[key] = (self.protocol, self.readings, found, in_order)
         if not found:
             state = self.state
             raise ProtocolViolation(
