@@ -227,7 +227,7 @@ def bench(
     if "scale" in chosen:
         counts = [int(x) for x in scale_agents.split(",") if x.strip()]
         counts = counts[:1] if quick else counts
-        s_rt, s_tput, s_all = (200, 5000, 50) if quick else (1000, 20000, 200)
+        s_rt, s_tput, s_all = (200, 5000, 50) if quick else (1000, 20000, 500)
         rows = run("scale", lambda: messaging.scale(counts, s_rt, s_tput, s_all, size))
         if rows is not None:
             emit(
@@ -240,11 +240,14 @@ def bench(
                     f"part 2 ({s_rt} round trips, {s_tput:,} communicates, one round) while the other N − 2 "
                     "agents are connected and idle. All pairs at once: every initiator does "
                     f"{s_all} round trips (+50 warm-up) at the same time; the rate is all round trips "
-                    "over the wall time from the first command to the last result. RSS: sum of the agents' "
-                    "VmRSS.",
+                    "over the wall time from the first command to the last result, and the round trips "
+                    "that ended while every pair was doing its measured ones over that window (from the "
+                    "latest pair's first end to the earliest pair's last end: no start, no tail of the last "
+                    "pairs finishing alone). RSS: sum of the agents' VmRSS.",
                 ],
                 report.scale_table(rows),
             )
+            targets.extend(report.scale_verdicts(rows))
     targets.extend(report.plan_and_fleet_verdicts(results.get("planning"), results.get("fleet")))
     if task_runs and all(r.ok for r in task_runs):
         shutil.rmtree(task_runs[0].run_dir.parent, ignore_errors=True)  # kept when a run failed

@@ -333,6 +333,25 @@ class ConcurrentFigures:
 
     latency: Latency
     round_trips_per_s: float
+    """All round trips (warm-up included) over the wall time from the first command to the
+    last result: includes the start, and the end when the last pairs finish alone."""
+    steady_per_s: float = 0.0
+    """Round trips that ended while every pair was doing its measured ones (from the latest
+    first end to the earliest last end, CLOCK_MONOTONIC) over that window: the rate with all
+    pairs at once, without the start and the tail; 0 when the window is empty."""
+
+
+def steady_rate(ends: Sequence[Sequence[float]]) -> float:
+    """Round trips per second while every pair was running: ``ends`` holds each pair's end
+    times (s, one clock); counted from the latest of the pairs' first ends to the earliest of
+    their last ends. 0.0 when that window is empty (a pair finished before another began)."""
+    if not ends or any(not e for e in ends):
+        return 0.0
+    start, stop = max(e[0] for e in ends), min(e[-1] for e in ends)
+    if stop <= start:
+        return 0.0
+    inside = sum(1 for e in ends for t in e if start < t <= stop)
+    return inside / (stop - start)
 
 
 def measure_all_pairs(bed: Testbed, pairs: int, n_rt: int, size: int) -> ConcurrentFigures:
@@ -344,14 +363,16 @@ def measure_all_pairs(bed: Testbed, pairs: int, n_rt: int, size: int) -> Concurr
     for c in inis:
         c.conn.send(("pingpong", n_rt, size))
     samples: list[float] = []
+    ends: list[list[float]] = []
     for c in inis:
         got = c.receive(300.0)
         if not isinstance(got, dict) or "samples_s" not in got:
             raise RuntimeError(f"{c.name}: {got}")
         samples += got["samples_s"]
+        ends.append(got.get("ends_s", []))
     wall = time.perf_counter() - t0
     total = pairs * (n_rt + WARMUP)
-    return ConcurrentFigures(Latency(samples), total / wall if wall > 0 else 0.0)
+    return ConcurrentFigures(Latency(samples), total / wall if wall > 0 else 0.0, steady_rate(ends))
 
 
 def messaging(rounds: int, n_rt: int, n_tput: int, size: int = 200) -> tuple[PairFigures, dict[str, float]]:

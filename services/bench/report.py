@@ -19,6 +19,8 @@ TARGET_RT_RATIO = 1.3
 TARGET_TPUT = 50_000.0
 TARGET_SPADE_RT = 3.0
 TARGET_SPADE_TPUT = 10.0
+TARGET_SCALE_SHARE = 0.6
+"""Issue 20: the most agents' all-pairs rate over the fewest's (100 against 10)."""
 TARGET_PLAN_1_S = 2.0
 TARGET_UP_S = 3.0
 
@@ -323,6 +325,7 @@ def scale_table(rows: list[ScaleRow]) -> list[str]:
                 _rate(p.raw_tput.median),
                 f"{r.concurrent.latency.p50_us:.0f} / {r.concurrent.latency.p99_us:.0f}",
                 _rate(r.concurrent.round_trips_per_s),
+                _rate(r.concurrent.steady_per_s),
             ]
         )
     return _table(
@@ -336,10 +339,30 @@ def scale_table(rows: list[ScaleRow]) -> list[str]:
             "roco /s",
             "raw /s",
             "all pairs at once: RT p50 / p99 µs",
-            "all pairs: round trips /s",
+            "all pairs: round trips /s, first command → last result",
+            "all pairs: round trips /s while every pair runs",
         ],
         body,
     )
+
+
+def scale_verdicts(rows: list[ScaleRow]) -> list[str]:
+    """Issue 20's scale target: the all-pairs rate of the most agents against the fewest's,
+    taken while every pair runs (see ``ConcurrentFigures``), the first-command-to-last-result
+    share beside it."""
+    if len(rows) < 2:
+        return []
+    few, most = min(rows, key=lambda r: r.agents), max(rows, key=lambda r: r.agents)
+    if not few.concurrent.steady_per_s or not few.concurrent.round_trips_per_s:
+        return []
+    share = most.concurrent.steady_per_s / few.concurrent.steady_per_s
+    wall = most.concurrent.round_trips_per_s / few.concurrent.round_trips_per_s
+    return [
+        f"- {most.agents} agents, all pairs at once: **{share * 100:.0f} %** of the {few.agents}-agent "
+        f"round trips /s while every pair runs (target ≥ {TARGET_SCALE_SHARE * 100:.0f} %): "
+        f"{'met' if share >= TARGET_SCALE_SHARE else 'missed'}; from the first command to the last "
+        f"result {wall * 100:.0f} %."
+    ]
 
 
 def plan_and_fleet_verdicts(planning: PlanningFigures | None, fleet: FleetFigures | None) -> list[str]:

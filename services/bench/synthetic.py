@@ -157,6 +157,9 @@ class BenchInitiator(Agent):
         self.commands: deque[tuple[Any, ...]] = deque()
         self.job: tuple[Any, ...] | None = None
         self.samples: list[float] = []
+        self.ends: list[float] = []
+        """time.perf_counter() (CLOCK_MONOTONIC: one clock for the host's processes) at which
+        each measured round trip ended."""
         self.done = 0
         self.data = b""
         self.conversation = ""
@@ -189,6 +192,7 @@ class BenchInitiator(Agent):
         kind, n, size = cmd
         self.job = cmd
         self.samples = []
+        self.ends = []
         self.done = 0
         self.count = 0
         self.outstanding = False
@@ -221,11 +225,13 @@ class BenchInitiator(Agent):
                 self.outstanding = False
                 self.done += 1
                 if self.done > WARMUP:
-                    self.samples.append(time.perf_counter() - self.t0)
+                    now = time.perf_counter()
+                    self.samples.append(now - self.t0)
+                    self.ends.append(now)
         if self.outstanding:
             return
         if self.done >= WARMUP + n:
-            self._finish({"kind": "pingpong", "samples_s": self.samples})
+            self._finish({"kind": "pingpong", "samples_s": self.samples, "ends_s": self.ends})
             return
         self.t0 = time.perf_counter()
         msg = self.send(

@@ -17,6 +17,7 @@ from services.bench.messaging import (
     percentile,
     request_bytes,
     sized_data,
+    steady_rate,
 )
 from services.spec.model import interface
 from shared.fipa_codec.languages import encode_content
@@ -64,6 +65,17 @@ def test_percentile_is_nearest_rank() -> None:
     assert percentile([], 50) == 0.0
     assert percentile([3.0, 1.0, 2.0], 50) == 2.0
     assert percentile([float(i) for i in range(101)], 99) == 99.0
+
+
+def test_steady_rate_counts_only_while_every_pair_runs() -> None:
+    # pair 0 ends round trips at 0..10 s, one a second; pair 1 starts late (4 s) and ends early (8 s)
+    first = [float(t) for t in range(11)]
+    second = [4.0, 5.0, 6.0, 7.0, 8.0]
+    # window (4, 8]: pair 0 ends 4 (5, 6, 7, 8), pair 1 ends 4 (5, 6, 7, 8) in 4 s
+    assert steady_rate([first, second]) == 2.0
+    assert steady_rate([[1.0, 2.0], [3.0, 4.0]]) == 0.0  # never both running
+    assert steady_rate([first, []]) == 0.0
+    assert steady_rate([]) == 0.0
 
 
 def test_quick_bench_writes_codec_and_messaging_tables(tmp_path: Path) -> None:
