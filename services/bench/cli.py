@@ -228,14 +228,23 @@ def bench(
         counts = [int(x) for x in scale_agents.split(",") if x.strip()]
         counts = counts[:1] if quick else counts
         s_rt, s_tput, s_all = (200, 5000, 50) if quick else (1000, 20000, 500)
-        rows = run("scale", lambda: messaging.scale(counts, s_rt, s_tput, s_all, size))
+        rows = run(
+            "scale",
+            lambda: (
+                messaging.scale(counts, s_rt, s_tput, s_all, size)
+                + messaging.scale(counts, s_rt, s_tput, s_all, size, meshed=True)
+            ),
+        )
         if rows is not None:
             emit(
                 "8. Scale: many agent processes sharing the router",
                 [
                     "For each N: a fresh router, N synthetic agents (N/2 pairs, as in part 2) and one raw "
                     "Zenoh "
-                    "pair, each a process (spawn). `start s`: from the first spawn until every process "
+                    "pair, each a process (spawn); then the same on two routers meshed (the second "
+                    "started with `--connect` to the first; initiators and the raw pinger on the first, "
+                    "participants and the raw echo on the second: every communicate crosses both). "
+                    "`start s`: from the first spawn until every process "
                     "reported ready (connected, subscribed, token declared). One pair: pair 0 measured as in "
                     f"part 2 ({s_rt} round trips, {s_tput:,} communicates, one round) while the other N − 2 "
                     "agents are connected and idle. All pairs at once: every initiator does "

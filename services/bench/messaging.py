@@ -39,6 +39,7 @@ import contextlib
 import multiprocessing as mp
 import os
 import shutil
+import socket
 import statistics
 import sys
 import tempfile
@@ -132,11 +133,17 @@ class Child:
 
 @dataclass
 class Testbed:
-    """A router on a free loopback port and the benchmark's child processes."""
+    """A router on a free loopback port and the benchmark's child processes; ``meshed``: a
+    second router on another free port, meshed with the first (``--connect``), serving the
+    participants and the raw echo while the initiators and the raw pinger stay on the first:
+    every communicate crosses both routers and the link between them."""
 
     pairs: int
+    meshed: bool = False
     children: dict[str, Child] = field(default_factory=dict)
     endpoint: str = ""
+    endpoint2: str = ""
+    """The second router's endpoint (``meshed``), else ""."""
     fleet: Fleet | None = None
     start_s: float = 0.0
     """Wall time (s) from the first spawn until every child reported ready."""
@@ -150,17 +157,30 @@ class Testbed:
         with no_access_control():  # synthetic agents and bare sessions: no ACL knows them
             self.fleet = Fleet(run_dir, self.endpoint)
             self.fleet.start_router()
+            if self.meshed:
+                self.endpoint2 = f"tcp/127.0.0.1:{free_port()}"
+                router = ["-m", "services.runtime.router", "--listen", self.endpoint2]
+                self.fleet.start_service("router2", [*router, "--connect", self.endpoint])
+                wait_listening(self.endpoint2, timeout)
         ctx = mp.get_context("spawn")
         t0 = time.perf_counter()
         for name in agent_names:
-            self._spawn(ctx, name, agent_process, (name, self.pairs, self.endpoint))
+            self._spawn(ctx, name, agent_process, (name, self.pairs, self._endpoint_of(name)))
         for k in raw_pairs:
             for role in ("echo", "pinger"):
-                self._spawn(ctx, f"raw_{role}{k}", raw_process, (role, k, self.endpoint))
+                name = f"raw_{role}{k}"
+                self._spawn(ctx, name, raw_process, (role, k, self._endpoint_of(name)))
         deadline = time.monotonic() + timeout
         for child in self.children.values():
             child.receive(max(1.0, deadline - time.monotonic()))
         self.start_s = time.perf_counter() - t0
+
+    def _endpoint_of(self, name: str) -> str:
+        """The router a child connects to: the second one for participants and the raw echo
+        when ``meshed``."""
+        if self.meshed and (name.startswith("b_par") or name.startswith("raw_echo")):
+            return self.endpoint2
+        return self.endpoint
 
     def _spawn(self, ctx: Any, name: str, target: Any, args: tuple[Any, ...]) -> None:
         parent, child = ctx.Pipe()
@@ -210,10 +230,27 @@ def _main_not_inherited() -> Iterator[None]:
         sys.modules["__main__"] = saved
 
 
+def wait_listening(endpoint: str, timeout: float) -> None:
+    """Return once a TCP connection to ``endpoint`` (``tcp/HOST:PORT``) is accepted; raises
+    TimeoutError after ``timeout`` s."""
+    host, port = endpoint.split("/", 1)[1].rsplit(":", 1)
+    deadline = time.monotonic() + timeout
+    while True:
+        try:
+            with socket.create_connection((host, int(port)), timeout=0.2):
+                return
+        except OSError:
+            if time.monotonic() > deadline:
+                raise TimeoutError(f"nothing listens on {endpoint} after {timeout:.0f} s") from None
+            time.sleep(0.05)
+
+
 @contextlib.contextmanager
-def testbed(pairs: int, agent_names: Sequence[str], raw_pairs: Sequence[int]) -> Iterator[Testbed]:
+def testbed(
+    pairs: int, agent_names: Sequence[str], raw_pairs: Sequence[int], *, meshed: bool = False
+) -> Iterator[Testbed]:
     """A started :class:`Testbed`, stopped on exit whatever happens."""
-    bed = Testbed(pairs)
+    bed = Testbed(pairs, meshed)
     try:
         bed.start(agent_names, raw_pairs)
         yield bed
@@ -386,29 +423,38 @@ def messaging(rounds: int, n_rt: int, n_tput: int, size: int = 200) -> tuple[Pai
 
 @dataclass
 class ScaleRow:
-    """Part 8 figures for ``agents`` synthetic agent processes sharing one router."""
+    """Part 8 figures for ``agents`` synthetic agent processes sharing one router, or two
+    meshed routers (``routers`` 2; :class:`Testbed`)."""
 
     agents: int
     start_s: float
     rss_mib_total: float
     pair: PairFigures
     concurrent: ConcurrentFigures
+    routers: int = 1
 
 
 def scale(
-    agent_counts: Sequence[int], n_rt: int, n_tput: int, n_rt_all: int, size: int = 200
+    agent_counts: Sequence[int],
+    n_rt: int,
+    n_tput: int,
+    n_rt_all: int,
+    size: int = 200,
+    *,
+    meshed: bool = False,
 ) -> list[ScaleRow]:
-    """Part 8: for each N, N synthetic agents (N/2 pairs) and one raw pair on a fresh router;
-    pair 0 measured (roco and raw) while the others are connected and idle; then every pair's
-    round trips at once."""
+    """Part 8: for each N, N synthetic agents (N/2 pairs) and one raw pair on a fresh router
+    (``meshed``: two meshed routers, each pair split across them; :class:`Testbed`); pair 0
+    measured (roco and raw) while the others are connected and idle; then every pair's round
+    trips at once."""
     rows = []
     for n in agent_counts:
         pairs = max(1, n // 2)
         names = [name for k in range(pairs) for name in pair_names(k)]
-        with testbed(pairs, names, [0]) as bed:
+        with testbed(pairs, names, [0], meshed=meshed) as bed:
             pair = measure_pair(bed, 0, 1, n_rt, n_tput, size)
             concurrent = measure_all_pairs(bed, pairs, n_rt_all, size)
             rss = bed.rss_mib()
             agents_rss = sum(v for k, v in rss.items() if k.startswith("b_"))
-            rows.append(ScaleRow(len(names), bed.start_s, agents_rss, pair, concurrent))
+            rows.append(ScaleRow(len(names), bed.start_s, agents_rss, pair, concurrent, 2 if meshed else 1))
     return rows

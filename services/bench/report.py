@@ -316,6 +316,7 @@ def scale_table(rows: list[ScaleRow]) -> list[str]:
         body.append(
             [
                 str(r.agents),
+                "2, meshed" if r.routers == 2 else "1",
                 f"{r.start_s:.1f}",
                 f"{r.rss_mib_total:,.0f}",
                 f"{p.roco_rt.p50_us:.0f} / {p.roco_rt.p99_us:.0f}",
@@ -331,6 +332,7 @@ def scale_table(rows: list[ScaleRow]) -> list[str]:
     return _table(
         [
             "agent processes",
+            "routers",
             "start s",
             "agents' RSS MiB",
             "one pair: roco RT p50 / p99 µs",
@@ -350,6 +352,7 @@ def scale_verdicts(rows: list[ScaleRow]) -> list[str]:
     """Issue 20's scale target: the all-pairs rate of the most agents against the fewest's,
     taken while every pair runs (see ``ConcurrentFigures``), the first-command-to-last-result
     share beside it."""
+    rows = [r for r in rows if r.routers == 1]
     if len(rows) < 2:
         return []
     few, most = min(rows, key=lambda r: r.agents), max(rows, key=lambda r: r.agents)
