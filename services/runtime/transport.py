@@ -1,13 +1,16 @@
 """Transport: how buffers reach other agents. Zenoh in client mode against a router
 (design.md), explicit endpoints, no multicast scouting.
 
-Subscriber callbacks run on zenoh-python's callback threads (``indirect`` callbacks: a Python
-thread fed by Zenoh's network threads, never a network thread itself). A communicate may be
-taken in there by an idle agent, whose step then puts its answers from that thread
-(services/runtime/agent.py ``Agent._take_here``): a put on a key whose publisher is declared, a
-few communicates at a time. Declaring, and putting a stream, happen on the agent's own thread
-only (calling Zenoh from inside a callback has deadlocked: platform-notes.md); the liveliness
-and recording callbacks only enqueue.
+A subscription's callback runs on a receiving thread of its own, fed by Zenoh's network
+threads through a FIFO with room to spare (:data:`RECEIVE_QUEUE`; never on a network thread).
+A communicate may be taken in there by an idle agent, whose step then puts its answers from
+that thread (services/runtime/agent.py ``Agent._take_here``): a put on a key whose publisher is
+declared, a few communicates at a time. A put there may wait for room in a full link, and
+Zenoh goes on reading the links meanwhile: zenoh-python's own callback threads have a FIFO of
+256 places, and two sessions streaming to each other while answering from those threads
+deadlocked (tests/runtime/test_inline_receive.py). Declaring, and putting a stream, happen on
+the agent's own thread only (calling Zenoh from inside a callback has deadlocked:
+platform-notes.md); the liveliness and recording callbacks only enqueue.
 
 Communicates (``roco/fipa/**``) are put through zenoh-ext advanced publishers, one per key:
 each put carries its publisher's id and a sequence number (0, 1, 2, …) and a timestamp, and
@@ -21,6 +24,7 @@ docs/recovery.md).
 from __future__ import annotations
 
 import json
+import logging
 import threading
 import time
 from collections.abc import Callable
@@ -33,6 +37,8 @@ import zenoh.ext as zext
 from services.runtime import keys
 from services.runtime.limits import low_pass_filter
 from services.security.context import identity_name, security_for
+
+log = logging.getLogger(__name__)
 
 Callback = Callable[[str, bytes], None]
 AliveCallback = Callable[[str, bool], None]
@@ -203,6 +209,14 @@ def _router_identity(conf: zenoh.Config, folder: Path, name: str) -> dict[str, o
     }
 
 
+RECEIVE_QUEUE = 1 << 20
+"""Samples a subscription's FIFO holds for its receiving thread before Zenoh's network thread
+waits for room (zenoh-python's own callbacks have a FIFO of 256). With room, a receiving
+thread that waits in a put (its link's transmission queue full) never stops Zenoh reading the
+links: two agents streaming to each other while answering from their receiving threads cannot
+hold each other up (tests/runtime/test_inline_receive.py). The FIFO grows only as far as it is
+filled."""
+
 MAX_KEYS = 256
 """Key expressions a :class:`ZenohTransport` keeps parsed, and communicate keys it keeps an
 advanced publisher for (an agent puts on a few keys: one per peer and channel); a further key is
@@ -213,7 +227,7 @@ class ZenohTransport:
     """A :class:`Transport` over one Zenoh session."""
 
     inline_receive = True
-    """Subscribers are called back on zenoh-python's callback threads, never inside
+    """Subscribers are called back on receiving threads of their own, never inside
     :meth:`publish`: an idle agent may take a communicate in on the thread it arrived on
     (``Agent._take_here``)."""
 
@@ -225,6 +239,8 @@ class ZenohTransport:
             client_config(endpoints, wait_for_router=wait_for_router, identity=identity)
         )
         self._subs: list[zenoh.Subscriber | zext.AdvancedSubscriber] = []
+        self._received: list[zenoh.Subscriber] = []
+        """Subscriptions read by a receiving thread (:meth:`subscribe`)."""
         self._tokens: list[tuple[str, zenoh.LivelinessToken]] = []
         self._lock = threading.Lock()
         self._keys: dict[str, zenoh.KeyExpr] = {}
@@ -308,11 +324,26 @@ class ZenohTransport:
             self._subs.append(sub)
 
     def subscribe(self, key_expr: str, callback: Callback) -> None:
-        def on_sample(sample: zenoh.Sample) -> None:
-            callback(str(sample.key_expr), sample.payload.to_bytes())
+        """Call ``callback(key, payload)`` for every sample on ``key_expr``, in order, on a
+        receiving thread of this subscription's own (see the module docstring): Zenoh hands
+        samples to it through a FIFO of :data:`RECEIVE_QUEUE` places, so a callback that waits
+        (an idle agent's step putting into a full link) never stops Zenoh reading the link."""
+        sub = self.session.declare_subscriber(key_expr, zenoh.handlers.FifoChannel(RECEIVE_QUEUE))
+
+        def receive() -> None:
+            while True:
+                try:
+                    sample = sub.recv()
+                except Exception:  # the subscriber was undeclared: the thread ends
+                    return
+                try:
+                    callback(str(sample.key_expr), sample.payload.to_bytes())
+                except Exception:  # a callback's fault must not end the subscription
+                    log.exception("subscriber callback on %s raised", key_expr)
 
         with self._lock:
-            self._subs.append(self.session.declare_subscriber(key_expr, on_sample))
+            self._received.append(sub)  # ended by the session's close: its thread is in recv()
+        threading.Thread(target=receive, name=f"receive {key_expr}", daemon=True).start()
 
     def announce(self, key: str) -> None:
         """Declare a liveliness token on ``key`` for the life of this transport."""
@@ -346,4 +377,6 @@ class ZenohTransport:
             tok.undeclare()
         for sub in self._subs:
             sub.undeclare()
+        # a subscription read by a receiving thread is held by its recv(): closing the session
+        # undeclares it, and the thread's recv() then ends
         self.session.close()

@@ -8,16 +8,18 @@ import queue
 import threading
 from collections.abc import Iterator
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import ClassVar
 
 import pytest
 
+from services.fleet.launcher import Fleet, free_port
 from services.runtime import agent as agent_module
 from services.runtime import keys
 from services.runtime.agent import INLINE_OUTPUT_MAX, Agent
 from services.runtime.behaviour import FSM, Behaviour
 from services.runtime.memory_transport import MemoryBus, MemoryTransport
-from services.runtime.transport import Callback
+from services.runtime.transport import Callback, ZenohTransport
 from shared.fipa_codec import Communicate, Performative, decode, encode
 from shared.fipa_codec.languages.l_wm import Answer, ObjectQuery
 from tests.runtime.test_agent_runtime import KEY, query
@@ -259,3 +261,94 @@ def test_what_arrives_together_is_taken_in_together_by_the_agents_thread(
     # the first arrived apart from anything before it; the next two within the gap
     assert running.agent.counters["received_inline"] == 1
     assert running.agent.handled_on[0] == DELIVERY and AGENT in running.agent.handled_on
+
+
+# ---- over Zenoh: puts from the receiving thread while both links' queues are full ----------
+BULK = 600
+"""Communicates of 64 kB each side streams to the other (≈ 38 MB each way: far more than
+Zenoh's transmission queue holds, so both sides' puts block for room)."""
+ANSWER_EVERY = 5
+ANSWERS = 8
+"""Every ANSWER_EVERY-th bulk arrival is answered with ANSWERS puts from the receiving thread,
+as an idle agent's step taken in there puts its answers (at most INLINE_OUTPUT_MAX)."""
+
+
+@pytest.fixture
+def router_endpoint(tmp_path: Path) -> Iterator[str]:
+    (tmp_path / "logs").mkdir()
+    fleet = Fleet(tmp_path, f"tcp/127.0.0.1:{free_port()}", acl=False)
+    fleet.start_router()
+    try:
+        yield fleet.endpoint
+    finally:
+        fleet.stop()
+
+
+def test_puts_from_the_receiving_thread_go_through_while_both_links_are_full(router_endpoint: str) -> None:
+    """Two sessions as agents use them stream to each other with congestion control BLOCK
+    (their streaming threads block while the queues are full) and each answers what it receives
+    from its receiving thread at the same time, as an idle agent's step taken in there does:
+    every communicate arrives on both sides, none is lost, nothing deadlocks. The receiving
+    thread is fed through a FIFO with room (transport.py ``RECEIVE_QUEUE``), so a put that waits
+    there never stops Zenoh reading the link; with the 256 places of zenoh-python's own
+    callbacks this test deadlocked in 2 of 3 runs."""
+    assert ANSWERS <= INLINE_OUTPUT_MAX
+    names = ("a_pl", "a_km")
+    transports = {n: ZenohTransport([router_endpoint]) for n in names}
+    payload = b"x" * 65_536
+    want = BULK + BULK // ANSWER_EVERY * ANSWERS
+    got = {n: 0 for n in names}
+    bulk_in = {n: 0 for n in names}
+    done = {n: threading.Event() for n in names}
+    lock = threading.Lock()
+    hello = {n: threading.Event() for n in names}
+    try:
+        for me, peer in (names, names[::-1]):
+            # bulk on one channel's key, answers on another's: both reach the peer's inbox
+            bulk, answer = keys.fipa_key("C4", peer, me), keys.fipa_key("C5", me, peer)
+
+            def arrived(key: str, data: bytes, me: str = me, bulk: str = bulk, answer: str = answer) -> None:
+                if data == b"hello":  # the route from the peer is there
+                    hello[me].set()
+                    return
+                with lock:
+                    got[me] += 1
+                    total = got[me]
+                    bulk_in[me] += key == bulk
+                    answer_now = key == bulk and bulk_in[me] % ANSWER_EVERY == 0
+                if answer_now:
+                    for _ in range(ANSWERS):  # on the receiving thread, as _take_here puts
+                        transports[me].publish(answer, payload)
+                if total >= want:
+                    done[me].set()
+
+            transports[me].subscribe(keys.inbox_key(me), arrived)
+        # both publishers of each side declared here (never from a receiving thread), and
+        # put until the peer has one: a subscription reaches the router a moment after it is
+        # declared, and what is put before that goes nowhere
+        for _ in range(200):
+            for me, peer in (names, names[::-1]):
+                for channel in ("C4", "C5"):
+                    transports[me].publish(keys.fipa_key(channel, me, peer), b"hello")
+            if all(h.wait(0.05) for h in hello.values()):
+                break
+        assert all(h.is_set() for h in hello.values()), "no route between the two sessions"
+        for me, peer in (names, names[::-1]):
+            assert transports[me].declared(keys.fipa_key("C5", me, peer))
+
+        def stream(me: str, peer: str) -> None:
+            for _ in range(BULK):
+                transports[me].publish(keys.fipa_key("C4", me, peer), payload)
+
+        threads = [threading.Thread(target=stream, args=p, daemon=True) for p in (names, names[::-1])]
+        for t in threads:
+            t.start()
+        for n in names:
+            assert done[n].wait(30), f"{n} got {got[n]} of {want}: the links deadlocked"
+        for t in threads:
+            t.join(timeout=30)
+            assert not t.is_alive()
+        assert got == {n: want for n in names}
+    finally:
+        for t in transports.values():
+            t.close()
