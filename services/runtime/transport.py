@@ -1,8 +1,9 @@
 """Transport: how buffers reach other agents. Zenoh in client mode against a router
 (design.md), explicit endpoints, no multicast scouting.
 
-A subscription's callback runs on a receiving thread of its own, fed by Zenoh's network
-threads through a FIFO with room to spare (:data:`RECEIVE_QUEUE`; never on a network thread).
+A subscription to communicates runs its callback on a receiving thread of its own, fed by
+Zenoh's network threads through a FIFO with room to spare (:data:`RECEIVE_QUEUE`; never on a
+network thread); other subscriptions use zenoh-python's callback threads.
 A communicate may be taken in there by an idle agent, whose step then puts its answers from
 that thread (services/runtime/agent.py ``Agent._take_here``): a put on a key whose publisher is
 declared, a few communicates at a time. A put there may wait for room in a full link, and
@@ -324,10 +325,20 @@ class ZenohTransport:
             self._subs.append(sub)
 
     def subscribe(self, key_expr: str, callback: Callback) -> None:
-        """Call ``callback(key, payload)`` for every sample on ``key_expr``, in order, on a
-        receiving thread of this subscription's own (see the module docstring): Zenoh hands
-        samples to it through a FIFO of :data:`RECEIVE_QUEUE` places, so a callback that waits
-        (an idle agent's step putting into a full link) never stops Zenoh reading the link."""
+        """Call ``callback(key, payload)`` for every sample on ``key_expr``, in order. For
+        communicates (``roco/fipa/**``: an agent's inbox) on a receiving thread of this
+        subscription's own (see the module docstring): Zenoh hands samples to it through a FIFO
+        of :data:`RECEIVE_QUEUE` places, so a callback that waits (an idle agent's step putting
+        into a full link) never stops Zenoh reading the link. Anything else on zenoh-python's
+        callback thread (the callback must only enqueue)."""
+        if not key_expr.startswith(keys.FIPA_PREFIX):
+
+            def on_sample(sample: zenoh.Sample) -> None:
+                callback(str(sample.key_expr), sample.payload.to_bytes())
+
+            with self._lock:
+                self._subs.append(self.session.declare_subscriber(key_expr, on_sample))
+            return
         sub = self.session.declare_subscriber(key_expr, zenoh.handlers.FifoChannel(RECEIVE_QUEUE))
 
         def receive() -> None:
