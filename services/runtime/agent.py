@@ -41,6 +41,10 @@ A subclass declares its ``name`` (as in the specification), builds its FSM of be
   another agent's token appears or disappears (the white pages, ``roco/alive/*``),
 - a persistence hook, :meth:`Agent.persist`, called after every step once its output
   buffer is dispatched.
+- one thread at a time runs the elementary actions (it holds the agent's turn): the agent's
+  own, or, while the agent is idle, the transport's receiving thread a communicate arrived on
+  (:meth:`Agent._take_here`; issue 20: no hand-over between threads for a communicate that
+  finds the agent waiting). ``RECEIVE_INLINE = False`` keeps every step on the agent's thread.
 
 The elementary action (paper §3.2): compute the transition function, dispatch the output
 buffer, increment i, acquire new inputs. It repeats until the behaviour's terminal or error

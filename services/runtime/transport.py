@@ -240,8 +240,8 @@ class ZenohTransport:
             client_config(endpoints, wait_for_router=wait_for_router, identity=identity)
         )
         self._subs: list[zenoh.Subscriber | zext.AdvancedSubscriber] = []
-        self._received: list[zenoh.Subscriber] = []
-        """Subscriptions read by a receiving thread (:meth:`subscribe`)."""
+        self._received: list[tuple[zenoh.Subscriber, threading.Thread]] = []
+        """Subscriptions read by a receiving thread, and the thread (:meth:`subscribe`)."""
         self._tokens: list[tuple[str, zenoh.LivelinessToken]] = []
         self._lock = threading.Lock()
         self._keys: dict[str, zenoh.KeyExpr] = {}
@@ -352,9 +352,10 @@ class ZenohTransport:
                 except Exception:  # a callback's fault must not end the subscription
                     log.exception("subscriber callback on %s raised", key_expr)
 
+        thread = threading.Thread(target=receive, name=f"receive {key_expr}", daemon=True)
         with self._lock:
-            self._received.append(sub)  # ended by the session's close: its thread is in recv()
-        threading.Thread(target=receive, name=f"receive {key_expr}", daemon=True).start()
+            self._received.append((sub, thread))  # ended by the session's close: it is in recv()
+        thread.start()
 
     def announce(self, key: str) -> None:
         """Declare a liveliness token on ``key`` for the life of this transport."""
@@ -389,5 +390,9 @@ class ZenohTransport:
         for sub in self._subs:
             sub.undeclare()
         # a subscription read by a receiving thread is held by its recv(): closing the session
-        # undeclares it, and the thread's recv() then ends
+        # undeclares it, and the thread's recv() then ends; it is waited for, so that it does
+        # not wake into an interpreter that is shutting down (which aborts the process)
         self.session.close()
+        for _, thread in self._received:
+            if thread is not threading.current_thread():
+                thread.join(timeout=2.0)
