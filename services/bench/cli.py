@@ -271,7 +271,7 @@ def bench(
         "",
         *report.machine_lines(command, load_start, report.load(), started, seconds),
         "",
-        "## Targets of issue 9 in this run",
+        "## Targets of issues 9 and 20 in this run",
         "",
         *(targets or ["- (no part with a target was run)"]),
         "",
@@ -279,7 +279,7 @@ def bench(
     notes = NOTES.read_text() if NOTES.exists() else ""
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text("\n".join(head) + "\n" + "\n".join(sections) + ("\n" + notes if notes else ""))
-    typer.echo("\n".join(["## Targets of issue 9 in this run", "", *targets, ""]))
+    typer.echo("\n".join(["## Targets of issues 9 and 20 in this run", "", *targets, ""]))
     typer.echo(f"roco bench: wrote {out} in {seconds:.0f} s", err=True)
     if errors:
         raise typer.Exit(1)
