@@ -8,12 +8,10 @@ import queue
 import threading
 from collections.abc import Iterator
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import ClassVar
 
 import pytest
 
-from services.fleet.launcher import Fleet, free_port
 from services.runtime import agent as agent_module
 from services.runtime import keys
 from services.runtime.agent import INLINE_OUTPUT_MAX, Agent
@@ -23,6 +21,7 @@ from services.runtime.transport import Callback, ZenohTransport
 from shared.fipa_codec import Communicate, Performative, decode, encode
 from shared.fipa_codec.languages.l_wm import Answer, ObjectQuery
 from tests.runtime.test_agent_runtime import KEY, query
+from tests.support.router import embedded_router
 
 DELIVERY = "zenoh-callback"
 AGENT = "agent"
@@ -274,14 +273,8 @@ as an idle agent's step taken in there puts its answers (at most INLINE_OUTPUT_M
 
 
 @pytest.fixture
-def router_endpoint(tmp_path: Path) -> Iterator[str]:
-    (tmp_path / "logs").mkdir()
-    fleet = Fleet(tmp_path, f"tcp/127.0.0.1:{free_port()}", acl=False)
-    fleet.start_router()
-    try:
-        yield fleet.endpoint
-    finally:
-        fleet.stop()
+def router_endpoint(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
+    yield from embedded_router(tmp_path_factory, "inline-router")
 
 
 def test_puts_from_the_receiving_thread_go_through_while_both_links_are_full(router_endpoint: str) -> None:
