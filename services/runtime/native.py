@@ -19,7 +19,6 @@ round trip 85 → 57 µs, per streamed communicate 26 → 22 µs.
 
 from __future__ import annotations
 
-import hashlib
 import importlib.abc
 import importlib.machinery
 import importlib.util
@@ -30,6 +29,14 @@ import sys
 from collections.abc import Sequence
 from pathlib import Path
 from types import ModuleType
+
+try:  # CPython's own SHA-256; ``hashlib`` would also load OpenSSL (≈ 3.3 MiB resident in every agent)
+    from _sha256 import sha256  # Python 3.11
+except ImportError:  # pragma: no cover - 3.12 renamed it; another interpreter: hashlib's
+    try:
+        from _sha2 import sha256
+    except ImportError:
+        from hashlib import sha256
 
 COMPILED = ("conversations", "lookups", "dedup")
 """Modules of services/runtime that setup.py compiles (its ``RUNTIME_COMPILED``)."""
@@ -67,7 +74,7 @@ def compiled_path(folder: Path, name: str) -> Path | None:
 
 def source_digest(source: Path) -> str:
     """SHA-256 (hex) of a source file's bytes, as setup.py records it."""
-    return hashlib.sha256(source.read_bytes()).hexdigest()
+    return sha256(source.read_bytes()).hexdigest()
 
 
 def stale(folder: Path, names: Sequence[str], environ: dict[str, str] | None = None) -> dict[str, Path]:
