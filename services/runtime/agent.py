@@ -216,6 +216,8 @@ class Agent:
         self._failure: BaseException | None = None
         self._here = False  # the actions run on a receiving thread (_take_here)
         self._last_arrival = 0.0  # time.perf_counter() of the last communicate's arrival
+        self._declared = getattr(transport, "declared", None)
+        """The transport's ``declared(key)`` (services/runtime/transport.py ``Transport``), if any."""
         self._inline = (
             self.RECEIVE_INLINE
             and bool(getattr(transport, "inline_receive", False))
@@ -615,7 +617,7 @@ class Agent:
         """The output buffer may be put from a receiving thread (see :meth:`_take_here`)."""
         if len(self._y) > INLINE_OUTPUT_MAX:
             return False
-        declared = getattr(self.transport, "declared", None)
+        declared = self._declared
         return declared is None or all(declared(key) for key, _ in self._y)
 
     def _acquire_blocking(self, timeout: float) -> Generator[float, None, None]:

@@ -71,7 +71,12 @@ the last one — from which a subscriber learns of a communicate it missed at th
 
 
 class Transport(Protocol):
-    """What the runtime needs of a transport."""
+    """What the runtime needs of a transport. Two capabilities are optional, looked up by name
+    (services/runtime/agent.py ``Agent._take_here``): ``inline_receive`` (True: subscribers are
+    called back on threads of the transport's own, never inside ``publish``, so an idle agent
+    may run its step there; without it every input goes to the agent's own thread) and
+    ``declared(key) -> bool`` (a put on ``key`` declares nothing; without it every key counts
+    as declared)."""
 
     def publish(self, key: str, payload: bytes) -> None: ...
     def subscribe(self, key_expr: str, callback: Callback) -> None: ...
@@ -240,8 +245,8 @@ class ZenohTransport:
             client_config(endpoints, wait_for_router=wait_for_router, identity=identity)
         )
         self._subs: list[zenoh.Subscriber | zext.AdvancedSubscriber] = []
-        self._received: list[tuple[zenoh.Subscriber, threading.Thread]] = []
-        """Subscriptions read by a receiving thread, and the thread (:meth:`subscribe`)."""
+        self._receiving: list[threading.Thread] = []
+        """The receiving threads of :meth:`subscribe` (each holds its subscription)."""
         self._tokens: list[tuple[str, zenoh.LivelinessToken]] = []
         self._lock = threading.Lock()
         self._keys: dict[str, zenoh.KeyExpr] = {}
@@ -354,7 +359,7 @@ class ZenohTransport:
 
         thread = threading.Thread(target=receive, name=f"receive {key_expr}", daemon=True)
         with self._lock:
-            self._received.append((sub, thread))  # ended by the session's close: it is in recv()
+            self._receiving.append(thread)  # ended by the session's close: it is in recv()
         thread.start()
 
     def announce(self, key: str) -> None:
@@ -393,6 +398,6 @@ class ZenohTransport:
         # undeclares it, and the thread's recv() then ends; it is waited for, so that it does
         # not wake into an interpreter that is shutting down (which aborts the process)
         self.session.close()
-        for _, thread in self._received:
+        for thread in self._receiving:
             if thread is not threading.current_thread():
                 thread.join(timeout=2.0)

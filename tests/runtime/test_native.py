@@ -86,3 +86,22 @@ def test_the_installed_runtime_uses_what_it_compiled() -> None:
     for name in fresh:
         module = importlib.import_module(f"services.runtime.{name}")
         assert module.__file__ is not None and module.__file__.endswith(SUFFIX), module.__file__
+
+
+def test_setup_compiles_the_modules_the_runtime_knows_as_compiled() -> None:
+    """setup.py's ``RUNTIME_COMPILED`` (what mypyc builds) and native.py's ``COMPILED`` (what
+    is checked for staleness) name the same modules: each list is where its own code needs it
+    (setup.py cannot import the package in its build environment), so this test keeps them one
+    fact."""
+    import ast
+
+    root = Path(services.runtime.__file__).resolve().parents[2]
+    tree = ast.parse((root / "setup.py").read_text())
+    built = next(
+        ast.literal_eval(node.value)
+        for node in tree.body
+        if isinstance(node, ast.Assign)
+        and any(isinstance(t, ast.Name) and t.id == "RUNTIME_COMPILED" for t in node.targets)
+    )
+    assert tuple(Path(p).stem for p in built) == COMPILED
+    assert all(Path(p).parent == Path("services/runtime") for p in built)
