@@ -3,7 +3,11 @@
 - **fleet**: ``roco up --port P --runs-dir TMP --no-realtime`` in a subprocess, exactly as an
   operator starts it (router on a free loopback port, recorder, the six agents; access control
   on, as ``roco up`` does by default; every process started by ``subprocess``: a fresh
-  interpreter, spawn semantics), then ``roco down``: only the processes it started end.
+  interpreter, spawn semantics) and their children by name (ag_ex's ``velma-loop`` and
+  ``velma-camera``), measured twice: settled after start (the camera process running: it has
+  answered a_ta's first Observe) and again at rest, once the camera process has ended
+  (``ROCO_CAMERA_IDLE_S`` after its last Observe); then ``roco down``: only the processes it
+  started end.
 - **synthetic**: an idle pair of the benchmark's synthetic agents (``b_ini0``/``b_par0``,
   services/bench/messaging.py: a real ``Agent`` on a ``ZenohTransport``) on a router of their
   own on a free loopback port, started as ``roco bench`` starts them (multiprocessing spawn).
@@ -38,6 +42,8 @@ if str(ROOT) not in sys.path:
 
 from services.bench.messaging import process_pss_mib as pss_mib  # noqa: E402  (PSS, MiB)
 from services.bench.messaging import process_rss_mib as rss_mib  # noqa: E402  (VmRSS, MiB)
+from velma.executor.camera_process import PROCESS_NAME as CAMERA_PROCESS  # noqa: E402
+from velma.executor.camera_process import camera_idle_s  # noqa: E402
 
 HEAVY = ("mujoco", "pinocchio", "matplotlib", "rerun", "rdflib", "pyoxigraph", "numpy", "scipy", "typer")
 """Libraries whose presence in an agent's process is reported by ``--imports``."""
@@ -88,9 +94,23 @@ def with_pss(rss: dict[str, float], pids: dict[str, int]) -> dict[str, tuple[flo
     return {name: (v, pss_mib(pids[name])) for name, v in rss.items()}
 
 
-def fleet(settle: Callable[[dict[str, int]], dict[str, float]]) -> dict[str, tuple[float, float]]:
-    """``roco up`` on a free port into a temporary runs folder, the settled VmRSS of every
-    process it started (pids from its ``.fleet.json``), then ``roco down``."""
+def comm(pid: int) -> str:
+    """The process's name (``/proc/<pid>/comm``; ag_ex names its children ``velma-loop`` and
+    ``velma-camera``), or "" when it is gone."""
+    try:
+        return Path(f"/proc/{pid}/comm").read_text().strip()
+    except OSError:
+        return ""
+
+
+def fleet(
+    settle: Callable[[dict[str, int]], dict[str, float]], rest_timeout_s: float
+) -> dict[str, dict[str, tuple[float, float]]]:
+    """``roco up`` on a free port into a temporary runs folder; the settled VmRSS and PSS of
+    every process it started (pids from its ``.fleet.json``, and their children), first while
+    ag_ex's camera process runs (it observes the kitchen for a_km's world model at start), then
+    at rest, once that process has ended (after ``ROCO_CAMERA_IDLE_S`` without an Observe; at
+    most ``rest_timeout_s`` waited); then ``roco down``."""
     from services.fleet.launcher import free_port
 
     cli = [sys.executable, "-m", "services.cli"]
@@ -101,11 +121,26 @@ def fleet(settle: Callable[[dict[str, int]], dict[str, float]]) -> dict[str, tup
         try:
             if done.returncode != 0 or not state.exists():
                 raise RuntimeError(f"roco up failed: {(done.stdout + done.stderr).strip()[-400:]}")
-            pids = {str(k): int(v) for k, v in json.loads(state.read_text())["pids"].items()}
-            for name, pid in list(pids.items()):  # ag_ex's loop process, and any other child
-                for k, child in enumerate(children(pid)):
-                    pids[f"{name} child {k + 1}" if k else f"{name} child"] = child
-            return with_pss(settle(pids), pids)
+            fleet_pids = {str(k): int(v) for k, v in json.loads(state.read_text())["pids"].items()}
+            pids: dict[str, int] = {}
+            while True:  # settled, with every child started by then (ag_ex's loop and camera)
+                known = dict(pids)
+                pids = dict(fleet_pids)
+                for name, pid in fleet_pids.items():
+                    for child in children(pid):
+                        pids[f"{name}'s {comm(child) or child}"] = child
+                running = settle(pids)
+                if pids == known:
+                    break
+            camera = [n for n in pids if n.endswith(CAMERA_PROCESS)]
+            out = {"fleet, camera process running" if camera else "fleet": with_pss(running, pids)}
+            deadline = time.monotonic() + rest_timeout_s
+            while any(comm(pids[n]) for n in camera) and time.monotonic() < deadline:
+                time.sleep(0.5)
+            if camera and not any(comm(pids[n]) for n in camera):
+                rest = {n: p for n, p in pids.items() if n not in camera}
+                out["fleet at rest"] = with_pss(settle(rest), rest)
+            return out
         finally:
             if state.exists():
                 subprocess.run([*cli, "down", "--runs-dir", tmp], cwd=ROOT, capture_output=True, timeout=120)
@@ -149,6 +184,12 @@ def main() -> None:
     parser.add_argument("--quiet-s", type=float, default=1.0, help="RSS steady this long counts as idle (s)")
     parser.add_argument("--tolerance-mib", type=float, default=0.25, help="largest change while steady (MiB)")
     parser.add_argument("--max-wait-s", type=float, default=15.0, help="longest wait for steadiness (s)")
+    parser.add_argument(
+        "--rest-timeout-s",
+        type=float,
+        default=camera_idle_s() + 30.0,
+        help="longest wait for ag_ex's camera process to end (s; default ROCO_CAMERA_IDLE_S + 30)",
+    )
     parser.add_argument("--json", action="store_true", help="print one JSON object instead of tables")
     args = parser.parse_args()
     parts = {p.strip() for p in args.only.split(",") if p.strip()}
@@ -162,7 +203,7 @@ def main() -> None:
     if "synthetic" in parts:
         result["synthetic"] = synthetic(settle)
     if "fleet" in parts:
-        result["fleet"] = fleet(settle)
+        result.update(fleet(settle, args.rest_timeout_s))
     if args.json:
         print(json.dumps(result, indent=1))
         return
@@ -173,15 +214,14 @@ def main() -> None:
         print("\n| agent | heavy libraries imported |\n|---|---|")
         for name, libs in result["imports"].items():  # type: ignore[attr-defined]
             print(f"| {name} | {', '.join(libs) or '—'} |")
-    for part in ("synthetic", "fleet"):
-        if part in result:
-            mem: dict[str, tuple[float, float]] = result[part]  # type: ignore[assignment]
-            print(f"\n| {part}: process | VmRSS MiB | PSS MiB |\n|---|---|---|")
-            for name, (rss, pss) in mem.items():
-                print(f"| {name} | {rss:.1f} | {pss:.1f} |")
-            total_rss = sum(v[0] for v in mem.values())
-            total_pss = sum(v[1] for v in mem.values())
-            print(f"| **total** | **{total_rss:.1f}** | **{total_pss:.1f}** |")
+    for part in [p for p in result if p != "imports"]:
+        mem: dict[str, tuple[float, float]] = result[part]  # type: ignore[assignment]
+        print(f"\n| {part}: process | VmRSS MiB | PSS MiB |\n|---|---|---|")
+        for name, (rss, pss) in mem.items():
+            print(f"| {name} | {rss:.1f} | {pss:.1f} |")
+        total_rss = sum(v[0] for v in mem.values())
+        total_pss = sum(v[1] for v in mem.values())
+        print(f"| **total** | **{total_rss:.1f}** | **{total_pss:.1f}** |")
 
 
 if __name__ == "__main__":

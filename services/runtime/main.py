@@ -20,11 +20,15 @@ import signal
 import sys
 from pathlib import Path
 from types import FrameType
+from typing import TYPE_CHECKING
 
-from services.runtime.agent import Agent
-from services.runtime.faults import FaultyTransport, settings_from_env
-from services.runtime.transport import ZenohTransport
-from services.spec.model import DEFAULT_SPEC, SpecError, SystemSpec, load
+if TYPE_CHECKING:
+    from services.runtime.agent import Agent
+    from services.spec.model import SystemSpec
+
+# The runtime, the transport and the specification are imported where they are used, not here:
+# a process that an agent starts with multiprocessing's spawn (ag_ex's loop and camera) imports
+# this module again as its ``__mp_main__``, and should not pay ≈ 6 MiB for what it never runs.
 
 DEFAULT_ROUTER = "tcp/127.0.0.1:7447"
 
@@ -37,6 +41,9 @@ def router_endpoints() -> list[str]:
 def agent_class(spec: SystemSpec, name: str) -> type[Agent]:
     """Import the implementation the specification names for agent ``name``.
     Raises SpecError when the agent or its implementation is unknown."""
+    from services.runtime.agent import Agent
+    from services.spec.model import SpecError
+
     for a in spec.agents:
         if a.name == name:
             module, _, cls = a.implementation.partition(":")
@@ -64,6 +71,10 @@ def setup_logging(name: str) -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
+    from services.runtime.faults import FaultyTransport, settings_from_env
+    from services.runtime.transport import ZenohTransport
+    from services.spec.model import DEFAULT_SPEC, SpecError, load
+
     args = sys.argv[1:] if argv is None else argv
     if len(args) != 1:
         print("usage: python -m services.runtime.main AGENT", file=sys.stderr)

@@ -93,6 +93,15 @@ Zenoh declares its subscribers and liveliness tokens again: the session is back 
 the router listening again (docs/recovery.md, "Router restart")."""
 
 
+SHM_POOL_BYTES = 2 * 2**20
+"""Size (B) of the shared-memory pool a session fills with its large puts for peers on the same
+host (Zenoh's implicit optimisation, ``transport/shared_memory/transport_optimization``: puts of
+3,072 B and more; default pool 16 MiB). roco's large puts are ag_ex's state and world snapshots
+(kB each, at most a few in flight); a put that finds the pool full goes over the link instead.
+The default's 16 MiB were resident in ag_ex and mapped by the router: 2 MiB took ≈ 12 MiB off
+the fleet's PSS (docs/benchmarks.md, "Where issue 20 stands")."""
+
+
 def client_config(
     endpoints: list[str],
     *,
@@ -119,6 +128,7 @@ def client_config(
     conf.insert_json5("scouting/multicast/enabled", "false")
     # every put carries its sender's timestamp: the record's time sent (issue 16)
     conf.insert_json5("timestamping/enabled", "true")
+    conf.insert_json5("transport/shared_memory/transport_optimization/pool_size", str(SHM_POOL_BYTES))
     if wait_for_router:
         conf.insert_json5("connect/timeout_ms", "-1")
     folder = security if security is not None else security_for(endpoints)
@@ -171,6 +181,7 @@ def router_config(
     conf.insert_json5("mode", '"router"')
     conf.insert_json5("listen/endpoints", json.dumps(listen))
     conf.insert_json5("scouting/multicast/enabled", "false")
+    conf.insert_json5("transport/shared_memory/transport_optimization/pool_size", str(SHM_POOL_BYTES))
     if connect:
         conf.insert_json5("connect/endpoints", json.dumps(connect))
         conf.insert_json5("connect/retry", json.dumps(CONNECT_RETRY))

@@ -107,3 +107,26 @@ def test_a_session_with_credentials_does_not_load_the_certificate_library(tmp_pa
         "print(json.dumps([n for n in ('cryptography', 'rdflib') if n in sys.modules]))\n"
     )
     assert loaded(code) == set()
+
+
+def test_the_executor_observes_with_the_camera_without_loading_the_renderer() -> None:
+    """ag_ex's communication side runs the loop and the camera in child processes
+    (velma/executor/process.py, velma/executor/camera_process.py): after a camera Observe it
+    has loaded neither MuJoCo (nor its GL) nor Pinocchio, and the Observation came back."""
+    code = (
+        "import json, queue, sys\n"
+        "from shared.fipa_codec.languages.l_ex import Observe\n"
+        "from shared.fipa_codec.languages.l_sd import Observation\n"
+        "from velma.executor.process import ExecutorProcess\n"
+        "ex = ExecutorProcess(perception='camera', realtime=False, camera_idle_s=600.0)\n"
+        "ex.start()\n"
+        "box = queue.SimpleQueue()\n"
+        "try:\n"
+        "    ex.submit(Observe(objects=('jar',)), box.put)\n"
+        "    got = box.get(timeout=120)\n"
+        "finally:\n"
+        "    ex.stop()\n"
+        "assert isinstance(got, Observation) and [o.name for o in got.objects] == ['jar'], got\n"
+        f"print(json.dumps([n for n in {HEAVY!r} if n in sys.modules]))\n"
+    )
+    assert loaded(code) == set()

@@ -14,7 +14,7 @@ GROUND_TRUTH = "velma.executor.ground_truth"
 MAY_IMPORT_TRUTH = {
     "velma/executor/runtime.py",  # ROCO_PERCEPTION=truth only (ObservePrimitive)
     "velma/executor/perception_log.py",  # the log beside the camera's estimate
-    "velma/executor/delivery.py",  # builds the log's truth
+    "velma/executor/camera.py",  # builds the log's truth
     "velma/executor/checkpoint.py",  # observe_checkpoint: judging a run's final world (tools)
     "services/cli.py",  # the names of the movable objects for `roco disturb`
 }

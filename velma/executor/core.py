@@ -35,6 +35,7 @@ import msgspec
 from shared.fipa_codec.languages.l_ex import CommandResult, ExecutorCommand
 from shared.fipa_codec.languages.l_sd import Observation
 from velma.control.compiled import law_name
+from velma.executor.camera import InThreadCamera
 from velma.executor.capture import WorldCapture, perception_mode
 from velma.executor.delivery import RecordSink, ResultDelivery
 from velma.executor.loop import ControlLoop
@@ -95,12 +96,12 @@ class Executor:
             return
         if self.delivery is None:
             model = self.rt.model
-            self.delivery = ResultDelivery(
-                self._notify,
-                (lambda: model) if self.rt.observe_by_camera else None,
-                seed=self.rt.pose_seed or 0,
-                record=self.perception_log,
+            camera = (
+                InThreadCamera(lambda: model, None, self.rt.pose_seed or 0, self.perception_log is not None)
+                if self.rt.observe_by_camera
+                else None
             )
+            self.delivery = ResultDelivery(self._notify, camera, record=self.perception_log)
         self._stop.clear()
         self._thread = threading.Thread(target=self._run, name="velma-loop", daemon=True)
         self._thread.start()

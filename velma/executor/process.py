@@ -63,6 +63,8 @@ import numpy.typing as npt
 
 from shared.fipa_codec.languages.l_ex import CommandResult, ExecutorCommand, command_name
 from shared.fipa_codec.languages.l_sd import Observation
+from velma.executor.camera_process import CameraProcess, CameraSpec
+from velma.executor.camera_process import camera_idle_s as camera_idle_s_of_env
 from velma.executor.capture import WorldCapture, perception_mode
 from velma.executor.checkpoint import (
     CHECKPOINT_CAPACITY,
@@ -205,8 +207,9 @@ def loop_main(config: bytes, doorbell: multiprocessing.connection.Connection) ->
     from velma.executor.loop import ControlLoop
     from velma.executor.runtime import Runtime
     from velma.executor.state_block import StateWriter
-    from velma.executor.timing import enter_realtime
+    from velma.executor.timing import enter_realtime, name_process
 
+    name_process("velma-loop")
     cfg = msgspec.msgpack.decode(config, type=LoopConfig)
     inbox = SpscRing.attach(cfg.commands, SLOTS, SLOT_SIZE)
     outbox_ring = SpscRing.attach(cfg.results, SLOTS, SLOT_SIZE)
@@ -367,9 +370,11 @@ class ExecutorProcess:
 
     ``perception`` ``camera`` or ``truth`` (None: ``ROCO_PERCEPTION``, else
     ``DEFAULT_PERCEPTION`` of velma/executor/capture.py); with
-    the camera this side builds the kitchen model of the same seeds in its delivery thread
-    (≈ 1 s, at ``start``, not waited for) and renders there; ``perception_log`` receives each
-    camera Observation's records beside the truth (velma/executor/perception_log.py).
+    the camera renders and localises in a process of its own (velma/executor/camera_process.py:
+    started at ``start``, not waited for; ended after ``camera_idle_s`` s without a result,
+    None: ``ROCO_CAMERA_IDLE_S``, and started again when the next command ends or an Observe
+    comes); ``perception_log`` receives each camera Observation's records beside the truth
+    (velma/executor/perception_log.py).
     """
 
     def __init__(
@@ -388,8 +393,10 @@ class ExecutorProcess:
         fresh: bool = False,
         perception: str | None = None,
         perception_log: RecordSink | None = None,
+        camera_idle_s: float | None = None,
     ) -> None:
         self.perception = perception_mode(None if perception is None else {"ROCO_PERCEPTION": perception})
+        self.camera_idle_s = camera_idle_s_of_env() if camera_idle_s is None else camera_idle_s
         self.perception_log = perception_log
         self._delivery: ResultDelivery[int] | None = None
         self.realtime = realtime
@@ -470,11 +477,17 @@ class ExecutorProcess:
             fresh=self.fresh,
             camera=self.perception == "camera",
         )
+        camera = None
+        if cfg.camera:
+            spec = CameraSpec(
+                seed=self.seed,
+                pose_seed=self.pose_seed,
+                noise_seed=self.pose_seed or 0,
+                record=self.perception_log is not None,
+            )
+            camera = CameraProcess(spec)
         self._delivery = ResultDelivery(
-            self._answer,
-            self._kitchen if cfg.camera else None,
-            seed=self.pose_seed or 0,
-            record=self.perception_log,
+            self._answer, camera, rest_after_s=self.camera_idle_s, record=self.perception_log
         )
         ctx = multiprocessing.get_context("spawn")
         reader_end, writer_end = ctx.Pipe(duplex=False)
@@ -668,13 +681,6 @@ class ExecutorProcess:
                 self.exit_reason = msg.text
             else:
                 log.error("executor command %s raised %s", msg.command, msg.text)
-
-    def _kitchen(self) -> object:
-        """The loop's kitchen model (same seeds), for the camera (delivery thread)."""
-        import velma.executor.observer  # noqa: F401  (sets MUJOCO_GL=egl before MuJoCo loads)
-        from velma.model.scene import N_PARTICLES, load_kitchen
-
-        return load_kitchen(N_PARTICLES, self.seed, self.pose_seed)
 
     def _answer(self, token: int, result: CommandResult | Observation) -> None:
         with self._lock:

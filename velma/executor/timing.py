@@ -328,6 +328,27 @@ class Pacer:
             self.release = now
 
 
+PR_SET_NAME = 15
+"""prctl(2) option: the calling thread's name, which for a process's first thread is the name
+``ps``, ``top`` and ``/proc/<pid>/comm`` show."""
+
+
+def name_process(name: str) -> bool:
+    """Name the calling process ``name`` (at most 15 bytes kept) for ``ps``/``top`` and
+    ``/proc/<pid>/comm`` (e.g. ag_ex's children ``velma-loop`` and ``velma-camera``, which
+    multiprocessing's spawn leaves all called ``python3``); call it from the main thread.
+    Linux only: elsewhere, or if refused, returns False and changes nothing."""
+    if platform.system() != "Linux":
+        return False
+    import ctypes
+
+    try:
+        libc = ctypes.CDLL(None, use_errno=True)
+        return int(libc.prctl(PR_SET_NAME, name.encode()[:15], 0, 0, 0)) == 0
+    except (OSError, AttributeError):
+        return False
+
+
 def hold_cpu_latency(latency_us: int = 0) -> str | None:
     """Ask Linux to keep every CPU's wake-up latency ≤ ``latency_us`` (µs) until this process
     ends, by writing it to :data:`PM_QOS_DEVICE` and keeping that file open. Returns None when

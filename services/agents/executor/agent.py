@@ -122,6 +122,7 @@ class ExecutorAgent(Agent):
             fresh=fresh_start(),
             perception=None,  # ROCO_PERCEPTION, else velma/executor/capture.py DEFAULT_PERCEPTION
             perception_log=self._perception_sink(),
+            camera_idle_s=None,  # ROCO_CAMERA_IDLE_S, else velma/executor/camera_process.py DEFAULT_IDLE_S
         )
 
     @staticmethod

@@ -1,0 +1,162 @@
+"""ag_ex's camera in a process of its own (velma/executor/camera_process.py) and the delivery
+thread that warms and rests it (velma/executor/delivery.py)."""
+
+from __future__ import annotations
+
+import math
+import os
+import queue
+import signal
+import threading
+
+import pytest
+
+from shared.fipa_codec.languages.l_ex import CommandResult
+from shared.fipa_codec.languages.l_sd import Observation
+from velma.executor.camera import CameraWork, Perceived
+from velma.executor.camera_process import DEFAULT_IDLE_S, CameraProcess, CameraSpec, camera_idle_s
+from velma.executor.capture import WorldCapture
+from velma.executor.delivery import ResultDelivery
+from velma.model.scene import N_PARTICLES, initial_state, load_kitchen
+
+SPEC = CameraSpec(seed=0, pose_seed=None, noise_seed=0, record=True)
+
+
+@pytest.fixture(scope="module")
+def capture() -> WorldCapture:
+    model = load_kitchen(N_PARTICLES, SPEC.seed, SPEC.pose_seed)
+    return WorldCapture.of(("jar", "bowl"), 0.0, initial_state(model, settle_steps=50).qpos.copy())
+
+
+@pytest.fixture(scope="module")
+def in_thread(capture: WorldCapture) -> list[Perceived]:
+    """Draws 0 and 1 of the same kitchen observed in this process."""
+    work = CameraWork(load_kitchen(N_PARTICLES, SPEC.seed, SPEC.pose_seed), None, SPEC.noise_seed, True)
+    try:
+        return [work.perceive(capture, 0), work.perceive(capture, 1)]
+    finally:
+        work.close()
+
+
+def test_the_child_sees_what_the_same_work_sees_in_process_and_a_restart_repeats_the_draws(
+    capture: WorldCapture, in_thread: list[Perceived]
+) -> None:
+    cam = CameraProcess(SPEC)
+    try:
+        first = cam.perceive(capture, 0)
+        assert cam.starts == 1 and cam.pid is not None and cam.pid != os.getpid()
+        assert isinstance(first.observation, Observation)
+        assert first.observation == in_thread[0].observation
+        assert first.records is not None and {r["object"] for r in first.records} == {"jar", "bowl"}
+        assert first.observation != in_thread[1].observation  # another draw, other noise
+        cam.rest()
+        assert cam.pid is None
+        again = cam.perceive(capture, 1)  # a new child, draw 1
+        assert cam.starts == 2
+        assert again.observation == in_thread[1].observation
+    finally:
+        cam.close()
+    assert cam.pid is None
+
+
+def test_a_child_that_dies_fails_that_observe_and_the_next_one_starts_anew(capture: WorldCapture) -> None:
+    cam = CameraProcess(SPEC)
+    try:
+        cam.warm()
+        pid = cam.pid
+        assert pid is not None
+        os.kill(pid, signal.SIGKILL)
+        lost = cam.perceive(capture, 0)
+        assert lost.observation is None
+        assert lost.reason is not None and "the camera process ended" in lost.reason
+        assert "-9" in lost.reason
+        got = cam.perceive(capture, 0)
+        assert isinstance(got.observation, Observation) and cam.starts == 2
+    finally:
+        cam.close()
+
+
+def test_a_kitchen_that_cannot_be_built_answers_with_its_reason(capture: WorldCapture) -> None:
+    cam = CameraProcess(CameraSpec(seed=0, pose_seed=None, noise_seed=0, size=(4000, 3000)))
+    try:
+        got = cam.perceive(capture, 0)
+        assert got.observation is None
+        assert got.reason is not None
+        assert got.reason.startswith("perception error: the camera could not be built")
+        assert "off-screen buffer" in got.reason
+    finally:
+        cam.close()
+
+
+def test_camera_idle_s_reads_the_environment() -> None:
+    assert camera_idle_s({}) == DEFAULT_IDLE_S == camera_idle_s({"ROCO_CAMERA_IDLE_S": " "})
+    assert camera_idle_s({"ROCO_CAMERA_IDLE_S": "2.5"}) == 2.5
+    assert camera_idle_s({"ROCO_CAMERA_IDLE_S": "never"}) == math.inf
+    for bad in ("0", "-1", "soon", "inf", "nan"):
+        with pytest.raises(ValueError, match="ROCO_CAMERA_IDLE_S"):
+            camera_idle_s({"ROCO_CAMERA_IDLE_S": bad})
+
+
+class _Host:
+    """A camera host that records what the delivery thread asks of it."""
+
+    def __init__(self) -> None:
+        self.calls: queue.SimpleQueue[str] = queue.SimpleQueue()
+        self.draws: list[int] = []
+
+    def warm(self) -> None:
+        self.calls.put("warm")
+
+    def perceive(self, capture: WorldCapture, draw: int) -> Perceived:
+        self.draws.append(draw)
+        self.calls.put("perceive")
+        return Perceived(reason="perception error: test")
+
+    def rest(self) -> None:
+        self.calls.put("rest")
+
+    def close(self) -> None:
+        self.calls.put("close")
+
+
+def test_the_delivery_warms_at_start_rests_when_idle_and_warms_again_on_the_next_result(
+    capture: WorldCapture,
+) -> None:
+    host = _Host()
+    delivered: queue.SimpleQueue[CommandResult | Observation] = queue.SimpleQueue()
+    d: ResultDelivery[int] = ResultDelivery(lambda _t, r: delivered.put(r), host, rest_after_s=0.05)
+    try:
+        assert host.calls.get(timeout=10) == "warm"
+        assert host.calls.get(timeout=10) == "rest"  # nothing came for 0.05 s
+        done = CommandResult(command="wait", ok=True, sim_time=1.0)
+        d.put(1, done)
+        assert host.calls.get(timeout=10) == "warm"  # a command ended: a task runs
+        assert delivered.get(timeout=10) is done
+        assert host.calls.get(timeout=10) == "rest"
+        d.put(2, capture)
+        d.put(3, capture)
+        failed = delivered.get(timeout=10)
+        assert isinstance(failed, CommandResult) and not failed.ok
+        assert failed.reason == "perception error: test"
+        assert failed.command == "observe" and failed.sim_time == capture.stamp
+        assert isinstance(delivered.get(timeout=10), CommandResult)
+        assert host.draws == [0, 1]  # each Observe its own draw, in order
+    finally:
+        d.close()
+    calls = []
+    while not host.calls.empty():
+        calls.append(host.calls.get())
+    assert calls[:2] == ["perceive", "perceive"] and calls[-1] == "close"
+
+
+def test_a_delivery_without_rest_never_rests() -> None:
+    host = _Host()
+    gate = threading.Event()
+    d: ResultDelivery[int] = ResultDelivery(lambda _t, _r: gate.set(), host)
+    try:
+        assert host.calls.get(timeout=10) == "warm"
+        d.put(1, CommandResult(command="wait", ok=True, sim_time=0.0))
+        assert gate.wait(10)
+    finally:
+        d.close()
+    assert [host.calls.get(timeout=10)] == ["close"] and host.calls.empty()

@@ -1,0 +1,138 @@
+"""The camera's work for ``ResultDelivery`` (velma/executor/delivery.py): a world capture in,
+an Observation (and the perception log's records) out, and where that work runs.
+
+- ``CameraWork`` builds ``CameraObserver`` (velma/executor/observer.py) for a kitchen model
+  and, with a log, ``GroundTruth`` of the same model; ``perceive(capture, draw)`` observes.
+  Draw ``n`` takes the Kinect's noise from ``numpy.random.default_rng((seed, n))``: the n-th
+  Observe of a run sees the same noise whatever ran before it in the same host, so a camera
+  host that is restarted (``CameraProcess``) repeats a run's draws exactly.
+- ``InThreadCamera`` runs it in the delivery thread (``velma.executor.core.Executor``: tests and
+  tools with the loop in-process).
+- ``CameraProcess`` (velma/executor/camera_process.py) runs it in a process of its own
+  (ag_ex: ``ExecutorProcess``).
+
+A host's ``warm()`` prepares it without waiting, ``perceive`` waits for the answer, ``rest()``
+frees what an idle host holds, ``close()`` ends it. Every method is called from the delivery
+thread only (the renderer's GL context belongs to the thread that made it).
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from typing import Any, Protocol
+
+import msgspec
+
+from shared.fipa_codec.languages.l_sd import Observation
+from velma.executor.capture import WorldCapture
+
+Record = dict[str, Any]
+"""One perception-log record (velma/executor/perception_log.py)."""
+
+
+class Perceived(msgspec.Struct, frozen=True, kw_only=True):
+    """What one Observe gave: the ``observation``, or ``reason`` (one line) why there is none;
+    ``records`` for the perception log (None without a log); ``ms`` the render and
+    localisation's wall time (ms)."""
+
+    observation: Observation | None = None
+    reason: str | None = None
+    records: list[Record] | None = None
+    ms: float = 0.0
+
+
+class CameraHost(Protocol):
+    """Where the camera's work runs (module docstring)."""
+
+    def warm(self) -> None: ...
+
+    def perceive(self, capture: WorldCapture, draw: int) -> Perceived: ...
+
+    def rest(self) -> None: ...
+
+    def close(self) -> None: ...
+
+
+class CameraWork:
+    """The observer (and, with ``record``, the ground truth) of ``model`` (an
+    ``mujoco.MjModel``): frames of ``size`` px (w, h; None: velma/executor/observer.py
+    ``CAMERA_SIZE``), the Kinect's noise seeded by ``seed`` per
+    draw (module docstring). Building takes ≈ 0.3 s (the object models and ICP targets)."""
+
+    def __init__(self, model: Any, size: tuple[int, int] | None, seed: int, record: bool) -> None:
+        from velma.executor.observer import CAMERA_SIZE, CameraObserver
+
+        self.seed = seed
+        self.observer = CameraObserver(model, size or CAMERA_SIZE, seed)
+        self.truth: Any = None
+        if record:
+            from velma.executor.ground_truth import GroundTruth
+
+            self.truth = GroundTruth(model)
+
+    def perceive(self, capture: WorldCapture, draw: int) -> Perceived:
+        """Observe ``capture`` with draw ``draw``; an exception of the perception becomes
+        ``reason`` ("perception error: …"), one of the log a missing ``records``."""
+        import numpy as np
+
+        self.observer.rng = np.random.default_rng((self.seed, draw))
+        try:
+            t0 = time.perf_counter()
+            obs, seen = self.observer.observe(capture)
+            ms = 1e3 * (time.perf_counter() - t0)
+        except Exception as exc:
+            return Perceived(reason=f"perception error: {exc}")
+        records: list[Record] | None = None
+        if self.truth is not None:
+            try:
+                from velma.executor.perception_log import records as log_records
+
+                records = log_records(obs, seen, self.truth, self.observer.data, ms)
+            except Exception:
+                import logging
+
+                logging.getLogger(__name__).exception("the perception log raised")
+        return Perceived(observation=obs, records=records, ms=ms)
+
+    def close(self) -> None:
+        """Free the renderer (from the thread that observed)."""
+        self.observer.close()
+
+
+class InThreadCamera:
+    """``CameraWork`` in the calling (delivery) thread, built by ``warm`` from ``make_model()``
+    (a ``mujoco.MjModel``). A build that raises leaves no camera: each Observe is answered
+    "perception error: no camera" and the build is not retried."""
+
+    def __init__(
+        self, make_model: Callable[[], Any], size: tuple[int, int] | None, seed: int, record: bool
+    ) -> None:
+        self._make_model: Callable[[], Any] | None = make_model
+        self._args = (size, seed, record)
+        self._work: CameraWork | None = None
+
+    def warm(self) -> None:
+        if self._make_model is None:
+            return
+        make, self._make_model = self._make_model, None
+        try:
+            self._work = CameraWork(make(), *self._args)
+        except Exception:
+            import logging
+
+            logging.getLogger(__name__).exception("the camera perception could not be built")
+
+    def perceive(self, capture: WorldCapture, draw: int) -> Perceived:
+        self.warm()
+        if self._work is None:
+            return Perceived(reason="perception error: no camera")
+        return self._work.perceive(capture, draw)
+
+    def rest(self) -> None:
+        """Nothing: the in-thread camera keeps its renderer."""
+
+    def close(self) -> None:
+        if self._work is not None:
+            self._work.close()
+            self._work = None
