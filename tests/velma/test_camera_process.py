@@ -7,7 +7,10 @@ import math
 import os
 import queue
 import signal
+import subprocess
+import sys
 import threading
+from pathlib import Path
 
 import pytest
 
@@ -160,3 +163,35 @@ def test_a_delivery_without_rest_never_rests() -> None:
     finally:
         d.close()
     assert [host.calls.get(timeout=10)] == ["close"] and host.calls.empty()
+
+
+MAIN_IMPORTS_MUJOCO = """
+import sys
+from velma.model.scene import N_PARTICLES, initial_state, load_kitchen  # imports MuJoCo, no MUJOCO_GL
+from velma.executor.camera_process import CameraProcess, CameraSpec
+from velma.executor.capture import WorldCapture
+
+if __name__ == "__main__":
+    model = load_kitchen(N_PARTICLES, 0, None)
+    capture = WorldCapture.of(("jar",), 0.0, initial_state(model, settle_steps=0).qpos.copy())
+    cam = CameraProcess(CameraSpec(seed=0, pose_seed=None, noise_seed=0))
+    try:
+        got = cam.perceive(capture, 0)
+    finally:
+        cam.close()
+    print(got.reason or "seen: " + ",".join(o.name for o in got.observation.objects))
+"""
+
+
+def test_the_child_has_a_gl_platform_when_the_parent_main_module_imported_mujoco(tmp_path: Path) -> None:
+    """A spawned child imports the parent's main module before its target runs: one that
+    imports MuJoCo must not leave the child's renderer without MUJOCO_GL."""
+    script = tmp_path / "observe_once.py"
+    script.write_text(MAIN_IMPORTS_MUJOCO)
+    env = {k: v for k, v in os.environ.items() if k != "MUJOCO_GL"}
+    env["PYTHONPATH"] = str(Path(__file__).resolve().parents[2])
+    done = subprocess.run(
+        [sys.executable, str(script)], capture_output=True, text=True, timeout=180, env=env, check=False
+    )
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert done.stdout.strip().splitlines()[-1] == "seen: jar", done.stdout[-500:]

@@ -142,6 +142,11 @@ class CameraProcess:
         if self._proc is not None and self._proc.is_alive():
             return
         self._end()
+        # MuJoCo reads MUJOCO_GL when it is first imported, and a spawned child imports this
+        # process's __main__ module before camera_main runs: set it in the environment it inherits
+        # (velma/perception/kinect.py's choice), or a main module that imports MuJoCo leaves the
+        # child without a GL platform
+        os.environ.setdefault("MUJOCO_GL", "egl")
         ctx = multiprocessing.get_context("spawn")
         mine, theirs = ctx.Pipe(duplex=True)
         spec = msgspec.msgpack.encode(self.spec)
