@@ -204,7 +204,11 @@ def bench(
                 "access control as `roco up` does by default), timed from its start to its exit, and the "
                 "time it "
                 "prints from starting the agents to every liveliness token; then VmRSS "
-                "(/proc/PID/status) of every process it started; then `roco down`.",
+                "(/proc/PID/status) of every process it started, read once at its exit; then `roco down`. "
+                "Not the fleet's memory: ag_ex's loop and camera processes are not counted, a library "
+                "shared by all is counted once per process, and ag_ex has not yet observed; "
+                "`python scripts/bench_memory.py --only fleet` measures that (PSS, children, at rest "
+                'and while the camera runs: the notes\' "Where issue 20 stands").',
             ],
             report.fleet_table(results["fleet"]),
         )

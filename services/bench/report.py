@@ -260,7 +260,7 @@ def fleet_table(f: FleetFigures) -> list[str]:
                 "agents started → all liveliness tokens (printed by `roco up`)",
                 "—" if f.alive_s is None else f"{f.alive_s:.2f} s",
             ],
-            ["total resident memory", f"{sum(f.rss_mib.values()):.0f} MiB"],
+            ["VmRSS of these processes at `roco up`'s exit, summed", f"{sum(f.rss_mib.values()):.0f} MiB"],
         ],
     )
     lines += ["", *_table(["process", "VmRSS MiB"], [[n, f"{v:.0f}"] for n, v in f.rss_mib.items()])]
