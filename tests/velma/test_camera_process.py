@@ -195,3 +195,28 @@ def test_the_child_has_a_gl_platform_when_the_parent_main_module_imported_mujoco
     )
     assert done.returncode == 0, done.stderr[-2000:]
     assert done.stdout.strip().splitlines()[-1] == "seen: jar", done.stdout[-500:]
+
+
+class _BrokenHost(_Host):
+    """A host whose every call raises (a process that cannot be started)."""
+
+    def warm(self) -> None:
+        raise OSError("no more processes")
+
+    def perceive(self, capture: WorldCapture, draw: int) -> Perceived:
+        raise OSError("no more processes")
+
+
+def test_a_host_that_raises_fails_the_observe_and_the_delivery_goes_on(capture: WorldCapture) -> None:
+    delivered: queue.SimpleQueue[CommandResult | Observation] = queue.SimpleQueue()
+    d: ResultDelivery[int] = ResultDelivery(lambda _t, r: delivered.put(r), _BrokenHost())
+    try:
+        d.put(1, capture)
+        d.put(2, CommandResult(command="wait", ok=True, sim_time=0.0))
+        failed = delivered.get(timeout=10)
+        assert isinstance(failed, CommandResult) and not failed.ok
+        assert failed.reason == "perception error: no more processes"
+        after = delivered.get(timeout=10)
+        assert isinstance(after, CommandResult) and after.command == "wait"
+    finally:
+        d.close()

@@ -18,14 +18,18 @@ thread only (the renderer's GL context belongs to the thread that made it).
 
 from __future__ import annotations
 
+import logging
 import time
 from collections.abc import Callable
 from typing import Any, Protocol
 
 import msgspec
+import numpy as np
 
 from shared.fipa_codec.languages.l_sd import Observation
 from velma.executor.capture import WorldCapture
+
+log = logging.getLogger(__name__)
 
 Record = dict[str, Any]
 """One perception-log record (velma/executor/perception_log.py)."""
@@ -74,8 +78,6 @@ class CameraWork:
     def perceive(self, capture: WorldCapture, draw: int) -> Perceived:
         """Observe ``capture`` with draw ``draw``; an exception of the perception becomes
         ``reason`` ("perception error: …"), one of the log a missing ``records``."""
-        import numpy as np
-
         self.observer.rng = np.random.default_rng((self.seed, draw))
         try:
             t0 = time.perf_counter()
@@ -90,9 +92,7 @@ class CameraWork:
 
                 records = log_records(obs, seen, self.truth, self.observer.data, ms)
             except Exception:
-                import logging
-
-                logging.getLogger(__name__).exception("the perception log raised")
+                log.exception("the perception log raised")
         return Perceived(observation=obs, records=records, ms=ms)
 
     def close(self) -> None:
@@ -119,9 +119,7 @@ class InThreadCamera:
         try:
             self._work = CameraWork(make(), *self._args)
         except Exception:
-            import logging
-
-            logging.getLogger(__name__).exception("the camera perception could not be built")
+            log.exception("the camera perception could not be built")
 
     def perceive(self, capture: WorldCapture, draw: int) -> Perceived:
         self.warm()

@@ -30,7 +30,7 @@ from typing import Any, Generic, TypeVar
 
 from shared.fipa_codec.languages.l_ex import CommandResult
 from shared.fipa_codec.languages.l_sd import Observation
-from velma.executor.camera import CameraHost
+from velma.executor.camera import CameraHost, Perceived
 from velma.executor.capture import WorldCapture
 
 log = logging.getLogger(__name__)
@@ -79,14 +79,14 @@ class ResultDelivery(Generic[T]):
     def _run(self) -> None:
         camera = self._camera
         if camera is not None:
-            camera.warm()
+            self._safely(camera.warm)
         resting = False
         while True:
             try:
                 item = self._queue.get(timeout=self._rest_after_s)
             except queue.Empty:
                 if camera is not None and not resting:
-                    camera.rest()
+                    self._safely(camera.rest)
                 resting = True
                 continue
             if item is None:
@@ -97,20 +97,33 @@ class ResultDelivery(Generic[T]):
             else:
                 out = result
                 if resting and camera is not None:
-                    camera.warm()
+                    self._safely(camera.warm)
             resting = False
             try:
                 self._deliver(token, out)
             except Exception:
                 log.exception("delivering a result raised")
         if camera is not None:
-            camera.close()
+            self._safely(camera.close)
+
+    @staticmethod
+    def _safely(action: Callable[[], None]) -> None:
+        """Run a camera host's ``warm``/``rest``/``close``: what it raises is logged, and the
+        delivery of results goes on (an Observe then says why it has no camera)."""
+        try:
+            action()
+        except Exception:
+            log.exception("the camera host raised")
 
     def _observe(self, capture: WorldCapture) -> CommandResult | Observation:
         failed = "perception error: no camera"
         if self._camera is not None:
             draw, self._draws = self._draws, self._draws + 1
-            got = self._camera.perceive(capture, draw)
+            try:
+                got = self._camera.perceive(capture, draw)
+            except Exception as exc:
+                log.exception("the camera host raised")
+                got = Perceived(reason=f"perception error: {exc}")
             if got.observation is not None:
                 self.observe_ms.append(got.ms)
                 if self._record is not None and got.records is not None:
