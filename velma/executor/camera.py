@@ -2,10 +2,10 @@
 an Observation (and the perception log's records) out, and where that work runs.
 
 - ``CameraWork`` builds ``CameraObserver`` (velma/executor/observer.py) for a kitchen model
-  and, with a log, ``GroundTruth`` of the same model; ``perceive(capture, draw)`` observes.
-  Draw ``n`` takes the Kinect's noise from ``numpy.random.default_rng((seed, n))``: the n-th
-  Observe of a run sees the same noise whatever ran before it in the same host, so a camera
-  host that is restarted (``CameraProcess``) repeats a run's draws exactly.
+  and, with a log, ``GroundTruth`` of the same model; ``perceive(capture)`` observes. The
+  Kinect's noise comes from one generator seeded when the work is built (the observer's), so
+  a camera host that is built again (a restarted ag_ex, or ``CameraProcess`` after a rest)
+  starts the noise sequence again, as a restarted ag_ex always did.
 - ``InThreadCamera`` runs it in the delivery thread (``velma.executor.core.Executor``: tests and
   tools with the loop in-process).
 - ``CameraProcess`` (velma/executor/camera_process.py) runs it in a process of its own
@@ -24,7 +24,6 @@ from collections.abc import Callable
 from typing import Any, Protocol
 
 import msgspec
-import numpy as np
 
 from shared.fipa_codec.languages.l_sd import Observation
 from velma.executor.capture import WorldCapture
@@ -51,7 +50,7 @@ class CameraHost(Protocol):
 
     def warm(self) -> None: ...
 
-    def perceive(self, capture: WorldCapture, draw: int) -> Perceived: ...
+    def perceive(self, capture: WorldCapture) -> Perceived: ...
 
     def rest(self) -> None: ...
 
@@ -61,13 +60,12 @@ class CameraHost(Protocol):
 class CameraWork:
     """The observer (and, with ``record``, the ground truth) of ``model`` (an
     ``mujoco.MjModel``): frames of ``size`` px (w, h; None: velma/executor/observer.py
-    ``CAMERA_SIZE``), the Kinect's noise seeded by ``seed`` per
-    draw (module docstring). Building takes ≈ 0.3 s (the object models and ICP targets)."""
+    ``CAMERA_SIZE``), the Kinect's noise from a generator seeded with ``seed`` (module
+    docstring). Building takes ≈ 0.3 s (the object models and ICP targets)."""
 
     def __init__(self, model: Any, size: tuple[int, int] | None, seed: int, record: bool) -> None:
         from velma.executor.observer import CAMERA_SIZE, CameraObserver
 
-        self.seed = seed
         self.observer = CameraObserver(model, size or CAMERA_SIZE, seed)
         self.truth: Any = None
         if record:
@@ -75,10 +73,9 @@ class CameraWork:
 
             self.truth = GroundTruth(model)
 
-    def perceive(self, capture: WorldCapture, draw: int) -> Perceived:
-        """Observe ``capture`` with draw ``draw``; an exception of the perception becomes
-        ``reason`` ("perception error: …"), one of the log a missing ``records``."""
-        self.observer.rng = np.random.default_rng((self.seed, draw))
+    def perceive(self, capture: WorldCapture) -> Perceived:
+        """Observe ``capture``; an exception of the perception becomes ``reason``
+        ("perception error: …"), one of the log a missing ``records``."""
         try:
             t0 = time.perf_counter()
             obs, seen = self.observer.observe(capture)
@@ -121,11 +118,11 @@ class InThreadCamera:
         except Exception:
             log.exception("the camera perception could not be built")
 
-    def perceive(self, capture: WorldCapture, draw: int) -> Perceived:
+    def perceive(self, capture: WorldCapture) -> Perceived:
         self.warm()
         if self._work is None:
             return Perceived(reason="perception error: no camera")
-        return self._work.perceive(capture, draw)
+        return self._work.perceive(capture)
 
     def rest(self) -> None:
         """Nothing: the in-thread camera keeps its renderer."""

@@ -17,8 +17,8 @@ and the next one starts a new child.
 - The child builds the kitchen from ``CameraSpec`` (the loop's seeds, velma/model/scene.py
   ``load_kitchen``) and answers one ``WorldCapture`` at a time over a pipe (msgpack), in order;
   it ends when the pipe closes (ag_ex ended or ``rest``/``close``).
-- Each Observe carries its draw number (velma/executor/camera.py): a restarted child draws the
-  same noise for the n-th Observe as one that ran throughout.
+- The Kinect's noise comes from a generator the child seeds when it starts
+  (velma/executor/camera.py): a new child starts the noise sequence again.
 
 ``ROCO_CAMERA_IDLE_S`` (``camera_idle_s``) sets ``idle_s``: seconds (default
 ``DEFAULT_IDLE_S``), or ``never`` to keep the child for the whole run.
@@ -66,11 +66,6 @@ class CameraSpec(msgspec.Struct, frozen=True, kw_only=True):
     record: bool = False
 
 
-class _Request(msgspec.Struct, frozen=True):
-    capture: WorldCapture
-    draw: int
-
-
 def camera_idle_s(environ: dict[str, str] | None = None) -> float:
     """``ROCO_CAMERA_IDLE_S`` (s, > 0, or ``never`` → infinity; unset or empty →
     ``DEFAULT_IDLE_S``). Raises ``ValueError`` for anything else."""
@@ -104,15 +99,15 @@ def camera_main(spec: bytes, conn: multiprocessing.connection.Connection) -> Non
     except Exception as exc:
         failed = f"perception error: the camera could not be built: {exc}"
     encode = msgspec.msgpack.Encoder().encode
-    decode = msgspec.msgpack.Decoder(_Request).decode
+    decode = msgspec.msgpack.Decoder(WorldCapture).decode
     try:
         while True:
             try:
                 raw = conn.recv_bytes()
             except (EOFError, OSError):
                 break
-            req = decode(raw)
-            answer = work.perceive(req.capture, req.draw) if work is not None else Perceived(reason=failed)
+            capture = decode(raw)
+            answer = work.perceive(capture) if work is not None else Perceived(reason=failed)
             conn.send_bytes(encode(answer))
     finally:
         if work is not None:
@@ -156,12 +151,12 @@ class CameraProcess:
         self._proc, self._conn = proc, mine
         self.starts += 1
 
-    def perceive(self, capture: WorldCapture, draw: int) -> Perceived:
+    def perceive(self, capture: WorldCapture) -> Perceived:
         self.warm()
         conn = self._conn
         assert conn is not None
         try:
-            conn.send_bytes(self._encode(_Request(capture, draw)))
+            conn.send_bytes(self._encode(capture))
             if not conn.poll(self.answer_timeout_s):
                 self._end()
                 waited = f"{self.answer_timeout_s:.0f} s"

@@ -61,7 +61,6 @@ class ResultDelivery(Generic[T]):
         self._rest_after_s = None if math.isinf(rest_after_s) else rest_after_s
         self._record = record
         self._queue: queue.SimpleQueue[tuple[T, Item] | None] = queue.SimpleQueue()
-        self._draws = 0
         self.observe_ms: list[float] = []
         """Wall time (ms) of each camera Observation made (render + localisation)."""
         self._thread = threading.Thread(target=self._run, name=name, daemon=True)
@@ -118,9 +117,8 @@ class ResultDelivery(Generic[T]):
     def _observe(self, capture: WorldCapture) -> CommandResult | Observation:
         failed = "perception error: no camera"
         if self._camera is not None:
-            draw, self._draws = self._draws, self._draws + 1
             try:
-                got = self._camera.perceive(capture, draw)
+                got = self._camera.perceive(capture)
             except Exception as exc:
                 log.exception("the camera host raised")
                 got = Perceived(reason=f"perception error: {exc}")
