@@ -123,8 +123,13 @@ def test_the_run_leaves_one_rerun_recording_of_traffic_robot_and_scene(pour_run:
     counts = rows(recording)
     assert counts["/traffic/log"] == len(read_records(run_dir))  # one log line per communicate
     assert counts["/world/robot/grip/left"] > 100 and counts["/world/objects/jar"] > 0
-    # the head camera at ≈ 1 Hz (ag_ex), the loop's timing at ≈ 1 Hz (ag_ex), a_co's queue
-    assert counts["/world/robot/head_camera"] >= 10, sorted(counts)
+    # the head camera at most 1 Hz (ag_ex; at the lowest CPU priority: a tick that finds the
+    # CPUs busy is skipped, services/viewer/camera.py), the loop's timing at ≈ 1 Hz (ag_ex),
+    # a_co's queue
+    info = read_run_info(run_dir)
+    assert info.ended is not None
+    wall_s = info.ended - info.started
+    assert 3 <= counts["/world/robot/head_camera"] <= wall_s + 1, (counts["/world/robot/head_camera"], wall_s)
     assert counts["/robot/timing/compute/p99"] >= 10 and counts["/robot/timing/overruns/count"] >= 10
     assert counts["/task/queue"] >= 2 and counts["/task/queue/length"] == counts["/task/queue"]
     parts = sorted(p.name.split("-")[0] for p in (run_dir / "rerun").glob("*.rrd"))
