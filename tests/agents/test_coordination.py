@@ -335,3 +335,36 @@ def test_a_grasp_that_closes_on_nothing_makes_a_ta_look_and_replan() -> None:
     replan_at = next(i for i, (k, m, c) in enumerate(traffic) if c is replans[0] or c == replans[0])
     seen = [c for k, m, c in traffic[:replan_at] if isinstance(c, WorldUpdate) and len(c.objects) >= 4]
     assert len(seen) >= 2  # the initial observation and the one after the failed grasp
+
+
+class OnceOutOfReachExecutor(FakeExecutor):
+    """The kinematic double whose first Cartesian motion finds no arm configuration (a pose
+    planned from an object seen in the wrong place)."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.refused = False
+
+    def submit(
+        self, command: ExecutorCommand, on_done: Callable[[CommandResult | Observation], None]
+    ) -> None:
+        from shared.fipa_codec.languages.l_ex import MoveTool
+
+        if isinstance(command, MoveTool) and not self.refused:
+            self.refused = True
+            self.commands.append(command)
+            on_done(CommandResult(command="move_tool", ok=False, reason="unreachable", sim_time=self.t))
+            return
+        super().submit(command, on_done)
+
+
+def test_a_pose_no_arm_reaches_makes_a_ta_look_and_replan() -> None:
+    robot = OnceOutOfReachExecutor()
+    with Session(robot) as s:
+        s.wait_for_initial_knowledge()
+        s.say("bring the cup to the table", "r1")
+        assert s.final("r1").kind is ReportKind.SUCCEEDED
+        states = s.sw_states()
+    replans = [c for c in states if c.state is SWState.REPLAN]
+    assert robot.refused
+    assert any("no arm configuration reaches the planned pose" in (c.reason or "") for c in replans)

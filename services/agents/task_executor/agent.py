@@ -77,9 +77,16 @@ SW_RETRY_S = 5.0
 """Retransmission period of an unconfirmed L_SW inform (a_co may be restarting)."""
 HELD = "held:"
 """Prefix of the reason ag_ex gives a command it ended to hold position (velma/executor/loop.py)."""
-REPLAN_FAILURES = frozenset({"no contact", "contact lost"})
-"""ag_ex failure reasons that mean the world differs from the plan (the grasp closed on
-nothing; a held object left the hand): a_ta reports Replan instead of Error."""
+REPLAN_FAILURES = {
+    "no contact": "the grasp closed on nothing",
+    "contact lost": "the held object left the hand",
+    "unreachable": "no arm configuration reaches the planned pose",
+}
+"""ag_ex failure reasons that mean the world may differ from the plan, and how a_ta says so:
+a_ta observes the scene (a_km learns it) and reports Replan instead of Error. ``unreachable``:
+the pose was planned from the objects as last seen, and a view that misplaced one (e.g. the
+bowl under the held jar, seen right after ag_ex restarted) yields a pose no arm configuration
+reaches; looking again and planning again is bounded by a_co's ``MAX_REPLANS_PER_TASK``."""
 
 
 @dataclass
@@ -560,11 +567,7 @@ class TaskExecutor(Agent):
                 and reply.content.reason in REPLAN_FAILURES
                 and not self.terminating
             ):
-                what = (
-                    "the grasp closed on nothing"
-                    if reply.content.reason == "no contact"
-                    else ("the held object left the hand")
-                )
+                what = REPLAN_FAILURES[reply.content.reason]
                 self._surprise(step, f"{step.path}: {what}")
                 return
             said = reply.last.performative.value if reply.last is not None else "failure"
