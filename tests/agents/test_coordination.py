@@ -301,28 +301,30 @@ def test_every_conversation_of_a_preemption_and_a_stop_follows_its_protocol() ->
     assert {m.protocol for m in cancels} >= {"coordinate"}
 
 
-class SlippingExecutor(FakeExecutor):
-    """The kinematic double whose first grasp closes on nothing (the object was not there)."""
+class FailsOnceExecutor(FakeExecutor):
+    """The kinematic double whose first command of type ``kind`` fails with ``reason`` (as ag_ex
+    reports it, ``CommandResult.command`` ``name``); every other command runs as usual."""
 
-    def __init__(self) -> None:
+    def __init__(self, kind: type, name: str, reason: str) -> None:
         super().__init__()
-        self.slipped = False
+        self.kind, self.name, self.reason = kind, name, reason
+        self.failed = False
 
     def submit(
         self, command: ExecutorCommand, on_done: Callable[[CommandResult | Observation], None]
     ) -> None:
-        from shared.fipa_codec.languages.l_ex import Grasp
-
-        if isinstance(command, Grasp) and not self.slipped:
-            self.slipped = True
+        if isinstance(command, self.kind) and not self.failed:
+            self.failed = True
             self.commands.append(command)
-            on_done(CommandResult(command="grasp", ok=False, reason="no contact", sim_time=self.t))
+            on_done(CommandResult(command=self.name, ok=False, reason=self.reason, sim_time=self.t))
             return
         super().submit(command, on_done)
 
 
 def test_a_grasp_that_closes_on_nothing_makes_a_ta_look_and_replan() -> None:
-    robot = SlippingExecutor()
+    from shared.fipa_codec.languages.l_ex import Grasp
+
+    robot = FailsOnceExecutor(Grasp, "grasp", "no contact")  # the object was not there
     with Session(robot) as s:
         s.wait_for_initial_knowledge()
         s.say("bring the cup to the table", "r1")
@@ -337,34 +339,16 @@ def test_a_grasp_that_closes_on_nothing_makes_a_ta_look_and_replan() -> None:
     assert len(seen) >= 2  # the initial observation and the one after the failed grasp
 
 
-class OnceOutOfReachExecutor(FakeExecutor):
-    """The kinematic double whose first Cartesian motion finds no arm configuration (a pose
-    planned from an object seen in the wrong place)."""
-
-    def __init__(self) -> None:
-        super().__init__()
-        self.refused = False
-
-    def submit(
-        self, command: ExecutorCommand, on_done: Callable[[CommandResult | Observation], None]
-    ) -> None:
-        from shared.fipa_codec.languages.l_ex import MoveTool
-
-        if isinstance(command, MoveTool) and not self.refused:
-            self.refused = True
-            self.commands.append(command)
-            on_done(CommandResult(command="move_tool", ok=False, reason="unreachable", sim_time=self.t))
-            return
-        super().submit(command, on_done)
-
-
 def test_a_pose_no_arm_reaches_makes_a_ta_look_and_replan() -> None:
-    robot = OnceOutOfReachExecutor()
+    from shared.fipa_codec.languages.l_ex import MoveTool
+
+    # a pose planned from an object seen in the wrong place
+    robot = FailsOnceExecutor(MoveTool, "move_tool", "unreachable")
     with Session(robot) as s:
         s.wait_for_initial_knowledge()
         s.say("bring the cup to the table", "r1")
         assert s.final("r1").kind is ReportKind.SUCCEEDED
         states = s.sw_states()
     replans = [c for c in states if c.state is SWState.REPLAN]
-    assert robot.refused
+    assert robot.failed
     assert any("no arm configuration reaches the planned pose" in (c.reason or "") for c in replans)

@@ -110,6 +110,7 @@ class InThreadCamera:
         self._work: CameraWork | None = None
 
     def warm(self) -> None:
+        """Build the camera work once (≈ 0.3 s plus ``make_model``); later calls do nothing."""
         if self._make_model is None:
             return
         make, self._make_model = self._make_model, None
@@ -119,6 +120,7 @@ class InThreadCamera:
             log.exception("the camera perception could not be built")
 
     def perceive(self, capture: WorldCapture) -> Perceived:
+        """``CameraWork.perceive`` of ``capture``; without a camera, ``reason`` says so."""
         self.warm()
         if self._work is None:
             return Perceived(reason="perception error: no camera")
@@ -128,6 +130,7 @@ class InThreadCamera:
         """Nothing: the in-thread camera keeps its renderer."""
 
     def close(self) -> None:
+        """Free the renderer (from the delivery thread)."""
         if self._work is not None:
             self._work.close()
             self._work = None

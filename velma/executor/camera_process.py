@@ -134,6 +134,8 @@ class CameraProcess:
         return None if self._proc is None else int(self._proc.pid)
 
     def warm(self) -> None:
+        """Start a child unless one runs (not waited for). Raises ``OSError`` if the process
+        cannot be started (``ResultDelivery`` logs it; the Observe then fails with it)."""
         if self._proc is not None and self._proc.is_alive():
             return
         self._end()
@@ -145,13 +147,16 @@ class CameraProcess:
         ctx = multiprocessing.get_context("spawn")
         mine, theirs = ctx.Pipe(duplex=True)
         spec = msgspec.msgpack.encode(self.spec)
-        proc = ctx.Process(target=camera_main, args=(spec, theirs), name="velma-camera", daemon=True)
+        proc = ctx.Process(target=camera_main, args=(spec, theirs), name=PROCESS_NAME, daemon=True)
         proc.start()
         theirs.close()
         self._proc, self._conn = proc, mine
         self.starts += 1
 
     def perceive(self, capture: WorldCapture) -> Perceived:
+        """The child's answer for ``capture`` (a child is started first if none runs). A child
+        that ends or stays silent for ``answer_timeout_s`` s gives ``reason`` ("perception error:
+        …") and is ended; the next call starts a new one."""
         self.warm()
         conn = self._conn
         assert conn is not None
@@ -173,6 +178,7 @@ class CameraProcess:
         self._end()
 
     def close(self) -> None:
+        """End the child, if any (waits up to 10 s, then kills it)."""
         self._end()
 
     def _end(self, timeout: float = 10.0) -> int | None:

@@ -83,6 +83,9 @@ from velma.executor.timing import DEFAULT_WINDOW, DeadlineMonitor, Pacer, Realti
 
 log = logging.getLogger(__name__)
 
+LOOP_PROCESS_NAME = "velma-loop"
+"""The loop process's name in ``ps``, ``top`` and ``/proc/<pid>/comm`` (``name_process``)."""
+
 DT = 0.001  # s (velma.executor.runtime.DT; repeated so that this module imports no MuJoCo)
 SLOTS = 64  # messages per ring
 SLOT_SIZE = 65536  # B per message (an L_SD Observation of the kitchen is ≈ 3 KiB)
@@ -209,7 +212,7 @@ def loop_main(config: bytes, doorbell: multiprocessing.connection.Connection) ->
     from velma.executor.state_block import StateWriter
     from velma.executor.timing import enter_realtime, name_process
 
-    name_process("velma-loop")
+    name_process(LOOP_PROCESS_NAME)
     cfg = msgspec.msgpack.decode(config, type=LoopConfig)
     inbox = SpscRing.attach(cfg.commands, SLOTS, SLOT_SIZE)
     outbox_ring = SpscRing.attach(cfg.results, SLOTS, SLOT_SIZE)
@@ -492,9 +495,8 @@ class ExecutorProcess:
         ctx = multiprocessing.get_context("spawn")
         reader_end, writer_end = ctx.Pipe(duplex=False)
         self._bell = reader_end
-        proc = ctx.Process(
-            target=loop_main, args=(msgspec.msgpack.encode(cfg), writer_end), name="velma-loop", daemon=True
-        )
+        config = msgspec.msgpack.encode(cfg)
+        proc = ctx.Process(target=loop_main, args=(config, writer_end), name=LOOP_PROCESS_NAME, daemon=True)
         proc.start()
         writer_end.close()
         self._proc = proc
