@@ -20,7 +20,9 @@ and was woken up.
 
 An idle agent takes a communicate in on the thread it arrived on (services/runtime/agent.py
 ``Agent._take_here``); ``ROCO_RECEIVE=agent-thread`` profiles the path that hands every
-communicate to the agent's thread instead.
+communicate to the agent's thread instead. The receiving threads poll before they sleep
+(services/runtime/polling.py); ``ROCO_RECEIVE_POLL_US=0`` profiles them sleeping at once. The
+raw pair sleeps in ``recv()``. The CPU time each process used per round trip is printed last.
 
 Usage: ``python scripts/profile_path.py [--n 2000]``
 """
@@ -116,6 +118,12 @@ def threads(pid: int) -> dict[int, tuple[str, int, int]]:
         nonvol = int(fields["nonvoluntary_ctxt_switches"])
         out[int(task.name)] = (comm, vol, nonvol)
     return out
+
+
+def cpu_s(pid: int) -> float:
+    """CPU time (s, user + system) process ``pid`` has used, from ``/proc/<pid>/stat``."""
+    fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
 
 
 def switches(before: dict[int, tuple[str, int, int]], after: dict[int, tuple[str, int, int]], n: int) -> str:
@@ -229,8 +237,10 @@ def main() -> int:
             procs[c][1].recv()
         load = os.getloadavg()
         before = {k: threads(p) for k, p in pids.items()}
+        cpu_before = {k: cpu_s(p) for k, p in pids.items()}
         ini.send(("pingpong", args.n, 200))
         ini.recv()
+        cpu = {k: cpu_s(p) - cpu_before[k] for k, p in pids.items()}
         after = {k: threads(p) for k, p in pids.items()}
         traces = {}
         for c in ("b_ini0", "b_par0"):
@@ -239,8 +249,10 @@ def main() -> int:
         pinger = procs["raw_pinger0"][1]
         raw_pids = {k: procs[k][0].pid for k in ("raw_pinger0", "raw_echo0")} | {"router (raw)": router_pid}
         raw_before = {k: threads(p) for k, p in raw_pids.items()}
+        raw_cpu_before = {k: cpu_s(p) for k, p in raw_pids.items()}
         pinger.send(("pingpong", args.raw, request_bytes(200)))
         raw = pinger.recv()["samples_s"]
+        raw_cpu = {k: cpu_s(p) - raw_cpu_before[k] for k, p in raw_pids.items()}
         raw_after = {k: threads(p) for k, p in raw_pids.items()}
         n = args.n + 50
         loads = " / ".join(f"{x:.2f}" for x in load)
@@ -256,6 +268,9 @@ def main() -> int:
             print(f"| {k} | {switches(before[k], after[k], n)} |")
         for k in raw_pids:
             print(f"| {k} | {switches(raw_before[k], raw_after[k], args.raw + 50)} |")
+        per = ", ".join(f"{k} {v / n * 1e6:.0f}" for k, v in cpu.items())
+        raw_per = ", ".join(f"{k} {v / (args.raw + 50) * 1e6:.0f}" for k, v in raw_cpu.items())
+        print(f"\nCPU per round trip (µs, user + system, /proc/PID/stat): {per}; raw: {raw_per}")
         cbs = {e[2] for e in by_kind(traces["b_par0"], "cb")}
         takes = {e[2] for e in by_kind(traces["b_par0"], "take0")}
         print(f"\nb_par0: callbacks ran on {len(cbs)} Zenoh thread(s), takes on {len(takes)} agent thread(s)")

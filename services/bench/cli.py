@@ -131,8 +131,12 @@ def bench(
             "- **raw Zenoh**: two bare Python sessions (same client configuration) through the same router: "
             "ping-pong with `put` and a subscriber's FIFO handler on each side; throughput with a declared "
             "publisher's `put` in a loop and a counting subscriber callback; the payload has the length of "
-            "roco's encoded request communicate.",
-            f"- Each of {rounds} round(s): raw ping-pong, roco ping-pong, raw throughput, roco throughput, "
+            "roco's encoded request communicate. The ping-pong runs twice: each end sleeping in `recv()` "
+            "(issue 20's reference), then each end polling as roco's receiving threads do "
+            "(services/runtime/polling.py: `try_recv` with `sched_yield` for an adaptive window, then "
+            "`recv()`), the ratio on equal terms.",
+            f"- Each of {rounds} round(s): raw ping-pong (sleeping, then polling), roco ping-pong, raw "
+            "throughput, roco throughput, "
             f"{rt_n} round trips (after 50 warm-up ones) and {tput_n:,} communicates each; round trips are "
             "pooled over rounds; throughput is the median of the rounds. `lost`: sent but not delivered "
             "(both sides put with congestion control BLOCK, so nothing should be lost).",

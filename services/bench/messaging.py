@@ -71,6 +71,7 @@ from services.bench.synthetic import (
     sized_data,
 )
 from services.fleet.launcher import Fleet, free_port
+from services.runtime.polling import max_poll_us
 
 __all__ = [
     "BENCH_LANGUAGE",
@@ -331,6 +332,13 @@ class PairFigures:
 
     roco_rt: Latency = field(default_factory=lambda: Latency([]))
     raw_rt: Latency = field(default_factory=lambda: Latency([]))
+    """Raw Zenoh's round trips, each end waiting in a blocking ``recv()`` (zenoh-python's own
+    examples): the reference of issue 20's ratio."""
+    raw_poll_rt: Latency = field(default_factory=lambda: Latency([]))
+    """Raw Zenoh's round trips with each end polling as roco's receiving threads do
+    (services/runtime/polling.py, the same maximum window): the ratio on equal terms."""
+    poll_us: float = 0.0
+    """The maximum poll window (µs) of roco's receiving threads in the run (0: off)."""
     roco_tput: Throughput = field(default_factory=Throughput)
     raw_tput: Throughput = field(default_factory=Throughput)
 
@@ -344,16 +352,22 @@ def _answer(child: Child, cmd: tuple[Any, ...], timeout: float) -> dict[str, Any
 
 def measure_pair(bed: Testbed, k: int, rounds: int, n_rt: int, n_tput: int, size: int) -> PairFigures:
     """Measure pair ``k`` (roco agents ``b_ini<k>``/``b_par<k>``, raw processes ``raw_*<k>``):
-    ``rounds`` alternations of raw ping-pong, roco ping-pong, raw throughput and roco
+    ``rounds`` alternations of raw ping-pong (blocking, then polling as roco's receiving
+    threads do unless ``ROCO_RECEIVE_POLL_US`` is 0), roco ping-pong, raw throughput and roco
     throughput, ``n_rt`` round trips and ``n_tput`` communicates each, ``size`` bytes of
     content (raw: payload of roco's encoded request's length)."""
     ini = bed.children[pair_names(k)[0]]
     echo, pinger = bed.children[f"raw_echo{k}"], bed.children[f"raw_pinger{k}"]
     raw_size = request_bytes(size)
-    out = PairFigures()
+    out = PairFigures(poll_us=max_poll_us())
     timeout = 120.0
     for _ in range(rounds):
         out.raw_rt.samples_s += _answer(pinger, ("pingpong", n_rt, raw_size), timeout)["samples_s"]
+        if out.poll_us > 0:
+            echo.ask(("poll", out.poll_us), timeout)
+            got = _answer(pinger, ("pingpong", n_rt, raw_size, out.poll_us), timeout)
+            out.raw_poll_rt.samples_s += got["samples_s"]
+            echo.ask(("poll", 0.0), timeout)
         out.roco_rt.samples_s += _answer(ini, ("pingpong", n_rt, size), timeout)["samples_s"]
         echo.ask(("arm", n_tput), timeout)
         _answer(pinger, ("send", n_tput, raw_size), timeout)

@@ -26,6 +26,7 @@ import zenoh
 from services.runtime.agent import Agent
 from services.runtime.behaviour import FSM, Arc, Behaviour
 from services.runtime.conversations import ONTOLOGY
+from services.runtime.polling import AdaptivePoll
 from services.runtime.transport import Transport, ZenohTransport, client_config
 from services.spec.model import (
     AgentSpec,
@@ -355,8 +356,10 @@ def serve(
 def raw_process(role: str, k: int, endpoint: str, conn: Connection) -> None:
     """Body of one bare-Zenoh process (spawned). ``role`` "echo": puts every ping back and
     counts throughput payloads in a subscriber callback; "pinger": does the ping-pong and
-    sends the throughput payloads. Commands on ``conn``: ``("pingpong", n, size)``,
-    ``("send", n, size)`` (pinger), ``("arm", n)`` (echo), ``("stop",)``."""
+    sends the throughput payloads. Commands on ``conn``: ``("pingpong", n, size[, poll_us])``,
+    ``("send", n, size)`` (pinger), ``("arm", n)``, ``("poll", max_us)`` (echo), ``("stop",)``.
+    ``poll_us``/``max_us`` > 0: wait for each sample as roco's receiving threads do
+    (services/runtime/polling.py) instead of in a blocking ``recv()``."""
     session = zenoh.open(client_config([endpoint]))
     ping, pong, tput = f"bench/raw/{k}/ping", f"bench/raw/{k}/pong", f"bench/raw/{k}/tput"
     alive = f"bench/raw/{k}/alive"
@@ -386,11 +389,15 @@ def _raw_echo(session: zenoh.Session, conn: Connection, ping: str, pong: str, tp
     counter = session.declare_subscriber(tput, on_tput)
 
     ponger = session.declare_publisher(pong, congestion_control=zenoh.CongestionControl.BLOCK)
+    polling: list[AdaptivePoll | None] = [None]
+    """How the echo waits for a ping: None, a blocking ``recv()``; else polling as roco's
+    receiving threads do (``("poll", max_us)`` sets it)."""
 
     def echo() -> None:
         with contextlib.suppress(Exception):  # ends when the subscriber is undeclared
             while True:
-                ponger.put(pings.recv().payload.to_bytes())
+                poll = polling[0]
+                ponger.put((pings.recv() if poll is None else poll.next(pings)).payload.to_bytes())
 
     threading.Thread(target=echo, name="raw-echo", daemon=True).start()
     token = session.liveliness().declare_token(alive)
@@ -399,6 +406,10 @@ def _raw_echo(session: zenoh.Session, conn: Connection, ping: str, pong: str, tp
         cmd = conn.recv()
         if cmd[0] == "stop":
             break
+        if cmd[0] == "poll":
+            polling[0] = AdaptivePoll(cmd[1]) if cmd[1] > 0 else None
+            conn.send(("polling", cmd[1]))
+            continue
         complete.clear()
         state.update(count=0, want=cmd[1], first=0.0, last=0.0)
         conn.send(("armed",))
@@ -435,14 +446,18 @@ def _raw_pinger(
         if not present.wait(30):
             conn.send({"error": "the echo process never appeared"})
             continue
-        kind, n, size = cmd
+        kind, n, size, *rest = cmd
         payload = b"p" * size
         if kind == "pingpong":
+            poll = AdaptivePoll(rest[0]) if rest and rest[0] > 0 else None
             samples = []
             for i in range(WARMUP + n):
                 t0 = time.perf_counter()
                 pinger.put(payload)
-                pongs.recv()
+                if poll is None:
+                    pongs.recv()
+                else:
+                    poll.next(pongs)
                 if i >= WARMUP:
                     samples.append(time.perf_counter() - t0)
             conn.send({"kind": "pingpong", "samples_s": samples})

@@ -18,6 +18,7 @@ from pathlib import Path
 from types import FrameType
 
 from services.gateway.bridge import GATEWAY, open_gateway
+from services.runtime.polling import max_poll_us
 from services.runtime.transport import ZenohTransport
 from services.spec.model import DEFAULT_SPEC, SpecError, load
 
@@ -56,6 +57,10 @@ def serve(
     if not spec.externals:
         raise GatewayError(f"{config.spec}: no external role ([[externals]]): nobody may come in")
     address = config.address or f"http://{config.host}:{config.port}/acc"
+    try:
+        max_poll_us()  # a malformed ROCO_RECEIVE_POLL_US is named as such, not as a missing router
+    except ValueError as exc:
+        raise GatewayError(str(exc)) from None
     try:
         transport = ZenohTransport([config.endpoint], wait_for_router=False, identity=GATEWAY)
     except Exception as exc:  # zenoh.ZError, CredentialError

@@ -270,7 +270,11 @@ def main() -> int:
     writer = TrafficWriter(run_dir)
     hooks = load_hooks()  # a viewer's, named by string (services/runtime/hooks.py); None: none
     rerun = hooks.traffic(RECORDER, run_dir) if hooks is not None else None
-    transport = ZenohTransport(router_endpoints(), identity=RECORDER)
+    try:
+        transport = ZenohTransport(router_endpoints(), identity=RECORDER)
+    except ValueError as exc:  # no credentials for the recorder, a malformed ROCO_RECEIVE_POLL_US
+        print(f"roco: recorder: {exc}", file=sys.stderr)
+        return 2
     loop = _Loop(writer, transport, rerun)
     # every communicate, and what publishers' caches still hold of those sent before this start
     transport.subscribe_recovering(keys.FIPA_ALL, loop.inbox.put)

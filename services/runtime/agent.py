@@ -74,6 +74,7 @@ from services.runtime.conversations import (
     expected_ontology,
 )
 from services.runtime.dedup import Dedup
+from services.runtime.heap import give_back_freed_heap
 from services.runtime.hooks import Hooks, load_hooks
 from services.runtime.limits import MAX_OPEN_CONVERSATIONS_PER_PEER
 from services.runtime.lookups import Lookups
@@ -902,6 +903,7 @@ class Agent:
         with self._turn:
             self._actions = self._elementary_actions()
             self._resume()
+            give_back_freed_heap()  # what start-up freed, once the first step has blocked
             while not self._ended:
                 self._turn.release()
                 try:

@@ -340,7 +340,7 @@ class CrossingTracker:
         """True when ``performative`` from ``role`` opens a conversation of this protocol."""
         if role not in (INITIATOR, PARTICIPANT):
             return False
-        first = self.protocol.next_state(self.protocol.initial, _role(role), Performative(performative))
+        first = self.protocol.next_state(self.protocol.initial, _role(role), _performative(performative))
         return first is not None
 
     def abort(self) -> None:
@@ -366,7 +366,7 @@ class CrossingTracker:
         no reading allows it; the tracker is then unchanged."""
         if role not in (INITIATOR, PARTICIPANT):
             raise ValueError(f"role must be 'initiator' or 'participant', not {role!r}")
-        s: Step = (_role(role), Performative(performative), terminal)
+        s: Step = (_role(role), _performative(performative), terminal)
         own = self.local_role is not None and s[0] == self.local_role
         key = (id(self.protocol), self.max_run, self.max_readings, id(self.readings), s, own)
         cached = _STEPS.get(key)
@@ -513,6 +513,12 @@ def _role(role: str) -> Role:
     return INITIATOR if role == INITIATOR else PARTICIPANT
 
 
+def _performative(performative: Performative | str) -> Performative:
+    """The member itself, else the member of that value (ValueError for an unknown one): a
+    member passes without the enum's call (≈ 0.5 µs, once per communicate sent and received)."""
+    return performative if isinstance(performative, Performative) else Performative(performative)
+
+
 Outcome = Literal["step", "crossing", "forgotten", "restart", "aborted", "unchecked"]
 """What :func:`follow` did with a communicate."""
 
@@ -593,7 +599,7 @@ def _opens(protocol: Protocol | str, role: Role, performative: Performative) -> 
     machine = _machine(protocol)
     if role not in (INITIATOR, PARTICIPANT):
         return False
-    return machine.next_state(machine.initial, _role(role), Performative(performative)) is not None
+    return machine.next_state(machine.initial, _role(role), _performative(performative)) is not None
 
 
 def _restart(

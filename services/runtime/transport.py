@@ -37,6 +37,7 @@ import zenoh.ext as zext
 
 from services.runtime import keys
 from services.runtime.limits import low_pass_filter
+from services.runtime.polling import AdaptivePoll, max_poll_us
 from services.security.context import identity_name, security_for
 
 log = logging.getLogger(__name__)
@@ -251,7 +252,10 @@ class ZenohTransport:
     def __init__(
         self, endpoints: list[str], *, wait_for_router: bool = True, identity: str | None = None
     ) -> None:
-        """Open a client session to ``endpoints`` as ``identity`` (:func:`client_config`)."""
+        """Open a client session to ``endpoints`` as ``identity`` (:func:`client_config`).
+        Raises ValueError for a malformed ``ROCO_RECEIVE_POLL_US`` (services/runtime/polling.py)
+        before opening anything."""
+        self._poll_us = max_poll_us()
         self.session = zenoh.open(
             client_config(endpoints, wait_for_router=wait_for_router, identity=identity)
         )
@@ -356,11 +360,12 @@ class ZenohTransport:
                 self._subs.append(self.session.declare_subscriber(key_expr, on_sample))
             return
         sub = self.session.declare_subscriber(key_expr, zenoh.handlers.FifoChannel(RECEIVE_QUEUE))
+        waiting = AdaptivePoll(self._poll_us)
 
         def receive() -> None:
             while True:
                 try:
-                    sample = sub.recv()
+                    sample = waiting.next(sub)
                 except Exception:  # the subscriber was undeclared: the thread ends
                     return
                 try:

@@ -160,6 +160,57 @@ def test_an_uncertain_object_is_looked_at_again_before_the_grasp() -> None:
     assert any("the jar's position is too uncertain to grasp (σ 20 mm)" in r for r in reasons), reasons
 
 
+class _ShortCountExecutor(FakeExecutor):
+    """The bowl's content is counted ``short`` spheres low on every look at the bowl alone
+    except one made right after the head turned to it (LookAt), unless ``stays_short``."""
+
+    def __init__(self, short: int, stays_short: bool = False) -> None:
+        super().__init__()
+        self.short, self.stays_short = short, stays_short
+        self.looked = False
+
+    def submit(
+        self, command: ExecutorCommand, on_done: Callable[[CommandResult | Observation], None]
+    ) -> None:
+        looked, self.looked = self.looked, isinstance(command, LookAt)  # the command just before
+        counted_again = looked and not self.stays_short
+        if not (isinstance(command, Observe) and command.objects == ("bowl",)) or counted_again:
+            super().submit(command, on_done)
+            return
+        box: list[CommandResult | Observation] = []
+        super().submit(command, box.append)
+        (obs,) = box
+        assert isinstance(obs, Observation)
+        low = tuple(
+            msgspec.structs.replace(o, particles_inside=max(0, (o.particles_inside or 0) - self.short))
+            for o in obs.objects
+        )
+        on_done(msgspec.structs.replace(obs, objects=low))
+
+
+def _content_checks(sent: list[ExecutorCommand]) -> list[int]:
+    return [i for i, c in enumerate(sent) if isinstance(c, Observe) and c.objects == ("bowl",)]
+
+
+def test_a_short_content_count_is_looked_at_again_and_the_second_count_judges() -> None:
+    with MemoryFleet(_ShortCountExecutor(short=3)) as fleet:
+        fleet.wait_for_initial_knowledge()
+        reports = fleet.command("pour the jar into the bowl")
+        sent = fleet.executor.commands
+    assert reports[-1].kind is ReportKind.SUCCEEDED, reports[-1].text
+    last = _content_checks(sent)[-1]
+    assert isinstance(sent[last - 1], LookAt) and sent[last - 2] == sent[last]  # look, then count again
+    with MemoryFleet(_ShortCountExecutor(short=3, stays_short=True)) as fleet:
+        fleet.wait_for_initial_knowledge()
+        reports = fleet.command("pour the jar into the bowl")
+        sent = fleet.executor.commands
+    assert reports[-1].kind is ReportKind.FAILED
+    assert f"bowl holds only {round(100 * (PARTICLES - 3) / PARTICLES)} % of the content" in reports[-1].text
+    checks = _content_checks(sent)
+    second_views = [i for i in checks if isinstance(sent[i - 1], LookAt) and sent[i - 2] == sent[i]]
+    assert second_views == [checks[-1]]  # one second view, then the task fails
+
+
 def test_it_names_the_object_the_person_named_last() -> None:
     """Issue 23: "put it on the table" after a command about the cup moves the cup."""
     with MemoryFleet() as fleet:

@@ -17,9 +17,10 @@ import pytest
 
 from services.fleet.launcher import Fleet, free_port
 from services.recorder.record import read_records
+from services.recorder.recorder import RECORDER
 from services.report.load import load_run
 from services.runtime import keys
-from services.runtime.session import open_client
+from services.runtime.session import alive_agents, open_client
 from services.runtime.transport import ZenohTransport
 from shared.fipa_codec import Performative, encode
 from tests.runtime.test_router_restart import kill_router, wait_for
@@ -59,6 +60,9 @@ def test_a_killed_recorder_comes_back_with_everything_sent_while_it_was_down(fle
         os.kill(recorder.pid, signal.SIGKILL)
         recorder.wait(timeout=10)
         _send(sender, range(20, 50))  # nobody records these now
+        # the router drops the killed recorder's token when it sees the link close: until then a
+        # wait for "recorder" would find the old token, and c-50 would go before the new one listens
+        wait_for(lambda: RECORDER not in alive_agents(session), WAIT_S, "the killed recorder's token gone")
         fleet.start_recorder()
         fleet.wait_alive(session, ["recorder"], timeout=WAIT_S)
         _send(sender, range(50, 51))

@@ -1,14 +1,28 @@
 """The lock-free hand-offs of the executor (velma/executor/handoff.py): ring order, bounds,
-oversize messages, the sequence-locked latest value, and a crossing between two processes."""
+oversize messages, the sequence-locked latest value, a crossing between two processes, and
+the blocks of a killed creator removed by the next one."""
 
 from __future__ import annotations
 
 import multiprocessing
+import os
+import subprocess
+import sys
 from collections.abc import Iterator
+from pathlib import Path
 
 import pytest
 
-from velma.executor.handoff import HandoffError, LatestValue, SpscRing
+from tests.support.fresh import run_python
+from velma.executor.handoff import (
+    BLOCK_PREFIX,
+    SHM_DIR,
+    HandoffError,
+    LatestValue,
+    SpscRing,
+    new_block,
+    remove_orphans,
+)
 
 
 @pytest.fixture
@@ -102,3 +116,58 @@ def test_rings_cross_processes() -> None:
         for r in (commands, results):
             r.close()
             r.unlink()
+
+
+def _dead_pid() -> int:
+    """The PID of a process that has ended (and been waited for)."""
+    proc = subprocess.Popen([sys.executable, "-c", "pass"])
+    proc.wait(timeout=60)
+    return proc.pid
+
+
+def test_a_block_is_named_after_its_creator() -> None:
+    shm = new_block(256)
+    try:
+        assert shm.name.startswith(f"{BLOCK_PREFIX}{os.getpid()}_")
+        assert shm.size >= 256
+    finally:
+        shm.close()
+        shm.unlink()
+
+
+def test_only_blocks_of_creators_that_are_gone_are_removed(tmp_path: Path) -> None:
+    dead = _dead_pid()
+    names = {
+        "orphan": f"{BLOCK_PREFIX}{dead}_0123abcd",
+        "live": f"{BLOCK_PREFIX}{os.getpid()}_0123abcd",
+        "other": "psm_0123abcd",  # another program's block (multiprocessing's default names)
+        "odd": f"{BLOCK_PREFIX}notapid_0123abcd",
+    }
+    for name in names.values():
+        (tmp_path / name).write_bytes(b"x")
+    assert remove_orphans(tmp_path) == [names["orphan"]]
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(v for k, v in names.items() if k != "orphan")
+    assert remove_orphans(tmp_path / "missing") == []
+
+
+KILLED_CREATOR = """
+import os, signal
+from multiprocessing import resource_tracker
+from velma.executor.handoff import LatestValue
+value = LatestValue.create(4096)
+value.write(b"left behind")
+# as when the resource tracker dies with its process (a process group killed): nobody unlinks
+resource_tracker.unregister("/" + value.name, "shared_memory")
+print(value.name, flush=True)
+os.kill(os.getpid(), signal.SIGKILL)
+"""
+
+
+@pytest.mark.skipif(not SHM_DIR.is_dir(), reason="POSIX shared memory in /dev/shm (Linux)")
+def test_the_blocks_of_a_killed_creator_are_removed_from_dev_shm() -> None:
+    done = run_python(KILLED_CREATOR)
+    assert done.returncode == -9, done.stderr[-2000:]
+    name = done.stdout.strip()
+    assert (SHM_DIR / name).exists()  # the leak this guards against
+    assert name in remove_orphans()
+    assert not (SHM_DIR / name).exists()

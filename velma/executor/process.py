@@ -76,7 +76,7 @@ from velma.executor.checkpoint import (
     RestoreReport,
 )
 from velma.executor.delivery import RecordSink, ResultDelivery
-from velma.executor.handoff import LatestValue, SpscRing, shared_view
+from velma.executor.handoff import LatestValue, SpscRing, new_block, remove_orphans, shared_view
 from velma.executor.state import RobotSnapshot, snapshot_of
 from velma.executor.state_block import StateReader
 from velma.executor.timing import DEFAULT_WINDOW, DeadlineMonitor, Pacer, RealtimeSetup, TimingStats
@@ -446,6 +446,9 @@ class ExecutorProcess:
         """Spawn the loop process and wait until it runs (idempotent)."""
         if self._proc is not None:
             return
+        orphans = remove_orphans()  # the blocks of an ag_ex that was killed
+        if orphans:
+            log.info("removed %d shared memory block(s) of processes that are gone", len(orphans))
         self._commands = SpscRing.create(SLOTS, SLOT_SIZE)
         self._results = SpscRing.create(SLOTS, SLOT_SIZE)
         self._state = LatestValue.create(STATE_CAPACITY)
@@ -454,7 +457,7 @@ class ExecutorProcess:
         self._world = LatestValue.create(WORLD_CAPACITY) if self.world_state else None
         if self.checkpoint_dir is not None:
             self._checkpoints = LatestValue.create(CHECKPOINT_CAPACITY)
-        self._mon_shm = shared_memory.SharedMemory(create=True, size=DeadlineMonitor.nbytes(self.window))
+        self._mon_shm = new_block(DeadlineMonitor.nbytes(self.window))
         shared_view(self._mon_shm)[:] = bytes(self._mon_shm.size)
         self._monitor = DeadlineMonitor(
             DT, realtime=self.realtime, window=self.window, buffer=self._mon_shm.buf

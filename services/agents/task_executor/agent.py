@@ -98,7 +98,7 @@ class Step:
     waiting_for: Conversation | None = None
     reply: tuple[Conversation, bool] | None = None  # ag_ex's answer (inform: True) once it came
     replan_reason: str | None = None  # set on the observation made before reporting Replan
-    second_view: int = 0  # 1: looking at an uncertain object again, 2: observed it again
+    second_view: int = 0  # 1: looking at an uncertain object or a short content again, 2: observed it again
 
 
 class KeptTaskExecutor(msgspec.Struct, kw_only=True):
@@ -546,9 +546,9 @@ class TaskExecutor(Agent):
                 self._update_km(reply.content)
             self._end(SWState.REPLAN, step.replan_reason)
             return
-        if ok and step.second_view == 1 and isinstance(action, Perceive):  # the head turned to it
-            step.second_view = 2
-            self._observe(step, action.objects)
+        if ok and step.second_view == 1 and isinstance(action, Perceive | CheckContent):
+            step.second_view = 2  # the head turned to it: observe again
+            self._observe(step, action.objects if isinstance(action, Perceive) else (action.container,))
             return
         if not ok:
             reason = getattr(reply.content, "reason", None) or reply.reason
@@ -597,6 +597,16 @@ class TaskExecutor(Agent):
                 share = content_share(action, reply.content)
                 self.log.info("%s holds %.0f %% of the content", action.container, 100 * share)
                 shortfall = content_shortfall(action, reply.content)
+                seen = {o.name: o.pose.position for o in reply.content.objects}
+                if shortfall and step.second_view == 0 and action.container in seen and not self.terminating:
+                    # one glimpse does not fail a task: the count can be one low (a sphere
+                    # still settling, one hidden; docs/bench/observe.md), so the head turns to
+                    # the container and the second count judges
+                    self.log.info("%s: %s: a second view", step.path, shortfall)
+                    step.second_view = 1
+                    look = LookAt(point=seen[action.container])
+                    step.waiting_for = self._request(look, LOOK_REPLY_BY_S, RESEND_ON_RETURN)
+                    return
                 if shortfall:
                     self._end(SWState.ERROR, shortfall)
                     return
