@@ -5,7 +5,8 @@ free loopback port, as ``roco bench``'s scale part starts them; 100 round trips 
 up, then ``--n`` round trips per pair, every pair at once. The CPU time of every thread of every
 process (``/proc/<pid>/task/<tid>/stat``: user and system clock ticks) is read before and after;
 printed per round trip, summed by role (initiators, participants, router) and thread name
-(``python``: the agent's Python threads, the receiving one included; ``rx-*``, ``tx-*``,
+(``python``: the agent's Python threads, its own (the process's main thread) apart from the
+receiving one and the benchmark's command reader; ``rx-*``, ``tx-*``,
 ``app-*``, ``acc-*``, ``net-*``: Zenoh's runtime pools). Threads under 3 µs a round trip are
 left out of the table, not of the total.
 
@@ -67,6 +68,8 @@ def profile(n_agents: int, n_rt: int) -> None:
     for name in pids:
         for tid, (comm, user, system) in after[name].items():
             _, user0, system0 = before[name].get(tid, (comm, 0, 0))
+            if comm == "python" and name != "router":  # the main thread runs the agent's own loop
+                comm = "python (agent's thread)" if tid == pids[name] else "python (receiving, commands)"
             got = summed.setdefault((role(name), comm), [0, 0])
             got[0] += user - user0
             got[1] += system - system0

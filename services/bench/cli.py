@@ -260,7 +260,10 @@ def bench(
                     "over the wall time from the first command to the last result, and the round trips "
                     "that ended while every pair was doing its measured ones over that window (from the "
                     "latest pair's first end to the earliest pair's last end: no start, no tail of the last "
-                    "pairs finishing alone). RSS: sum of the agents' VmRSS.",
+                    "pairs finishing alone). Then, for the transport's own figure, N bare Zenoh processes "
+                    "(N/2 raw ping-pong pairs, each end sleeping in `recv()`, a payload of roco's encoded "
+                    "request's length) on a fresh router (or two meshed) do the same, every pair at once. "
+                    "RSS: sum of the agents' VmRSS.",
                 ],
                 report.scale_table(rows),
             )

@@ -405,14 +405,23 @@ def steady_rate(ends: Sequence[Sequence[float]]) -> float:
     return inside / (stop - start)
 
 
-def measure_all_pairs(bed: Testbed, pairs: int, n_rt: int, size: int) -> ConcurrentFigures:
+def measure_all_pairs(
+    bed: Testbed, pairs: int, n_rt: int, size: int, *, raw: bool = False
+) -> ConcurrentFigures:
     """Every pair's initiator does ``n_rt`` round trips at the same time (commands sent to all
     first, results gathered after); the aggregate rate is all round trips over the wall time
-    from the first command to the last result."""
-    inis = [bed.children[pair_names(k)[0]] for k in range(pairs)]
+    from the first command to the last result. ``raw``: the raw Zenoh pingers of the testbed's
+    raw pairs instead, each sleeping in ``recv()``, with a payload of roco's encoded request's
+    length."""
+    if raw:
+        inis = [bed.children[f"raw_pinger{k}"] for k in range(pairs)]
+        command: tuple[Any, ...] = ("pingpong", n_rt, request_bytes(size))
+    else:
+        inis = [bed.children[pair_names(k)[0]] for k in range(pairs)]
+        command = ("pingpong", n_rt, size)
     t0 = time.perf_counter()
     for c in inis:
-        c.conn.send(("pingpong", n_rt, size))
+        c.conn.send(command)
     samples: list[float] = []
     ends: list[list[float]] = []
     for c in inis:
@@ -446,6 +455,9 @@ class ScaleRow:
     pair: PairFigures
     concurrent: ConcurrentFigures
     routers: int = 1
+    raw_concurrent: ConcurrentFigures | None = None
+    """The same number of bare Zenoh processes (N/2 ping-pong pairs, no agent runtime) on a
+    fresh router (or two), every pair at once: how the transport itself scales."""
 
 
 def scale(
@@ -460,7 +472,8 @@ def scale(
     """Part 8: for each N, N synthetic agents (N/2 pairs) and one raw pair on a fresh router
     (``meshed``: two meshed routers, each pair split across them; :class:`Testbed`); pair 0
     measured (roco and raw) while the others are connected and idle; then every pair's round
-    trips at once."""
+    trips at once; then, on a fresh testbed, N bare Zenoh processes (N/2 raw pairs) doing
+    their round trips at once."""
     rows = []
     for n in agent_counts:
         pairs = max(1, n // 2)
@@ -470,5 +483,8 @@ def scale(
             concurrent = measure_all_pairs(bed, pairs, n_rt_all, size)
             rss = bed.rss_mib()
             agents_rss = sum(v for k, v in rss.items() if k.startswith("b_"))
-            rows.append(ScaleRow(len(names), bed.start_s, agents_rss, pair, concurrent, 2 if meshed else 1))
+            start_s = bed.start_s
+        with testbed(pairs, [], range(pairs), meshed=meshed) as bed:
+            raw = measure_all_pairs(bed, pairs, n_rt_all, size, raw=True)
+        rows.append(ScaleRow(len(names), start_s, agents_rss, pair, concurrent, 2 if meshed else 1, raw))
     return rows

@@ -354,6 +354,7 @@ def scale_table(rows: list[ScaleRow]) -> list[str]:
                 f"{r.concurrent.latency.p50_us:.0f} / {r.concurrent.latency.p99_us:.0f}",
                 _rate(r.concurrent.round_trips_per_s),
                 _rate(r.concurrent.steady_per_s),
+                _rate(r.raw_concurrent.steady_per_s) if r.raw_concurrent is not None else "—",
             ]
         )
     return _table(
@@ -370,6 +371,7 @@ def scale_table(rows: list[ScaleRow]) -> list[str]:
             "all pairs at once: RT p50 / p99 µs",
             "all pairs: round trips /s, first command → last result",
             "all pairs: round trips /s while every pair runs",
+            "raw Zenoh, as many processes, all pairs: round trips /s while every pair runs",
         ],
         body,
     )
@@ -387,11 +389,18 @@ def scale_verdicts(rows: list[ScaleRow]) -> list[str]:
         return []
     share = most.concurrent.steady_per_s / few.concurrent.steady_per_s
     wall = most.concurrent.round_trips_per_s / few.concurrent.round_trips_per_s
+    raw = ""
+    if most.raw_concurrent is not None and few.raw_concurrent is not None and few.raw_concurrent.steady_per_s:
+        raw_share = most.raw_concurrent.steady_per_s / few.raw_concurrent.steady_per_s
+        raw = (
+            f"; raw Zenoh's own processes, measured the same way: {raw_share * 100:.0f} % "
+            f"({_rate(most.raw_concurrent.steady_per_s)} against {_rate(few.raw_concurrent.steady_per_s)} /s)"
+        )
     return [
         f"- {most.agents} agents, all pairs at once: **{share * 100:.0f} %** of the {few.agents}-agent "
         f"round trips /s while every pair runs (target ≥ {TARGET_SCALE_SHARE * 100:.0f} %): "
         f"{'met' if share >= TARGET_SCALE_SHARE else 'missed'}; from the first command to the last "
-        f"result {wall * 100:.0f} %."
+        f"result {wall * 100:.0f} %{raw}."
     ]
 
 

@@ -450,7 +450,7 @@ def _raw_pinger(
         payload = b"p" * size
         if kind == "pingpong":
             poll = AdaptivePoll(rest[0]) if rest and rest[0] > 0 else None
-            samples = []
+            samples, ends = [], []
             for i in range(WARMUP + n):
                 t0 = time.perf_counter()
                 pinger.put(payload)
@@ -459,8 +459,10 @@ def _raw_pinger(
                 else:
                     poll.next(pongs)
                 if i >= WARMUP:
-                    samples.append(time.perf_counter() - t0)
-            conn.send({"kind": "pingpong", "samples_s": samples})
+                    end = time.perf_counter()
+                    samples.append(end - t0)
+                    ends.append(end)
+            conn.send({"kind": "pingpong", "samples_s": samples, "ends_s": ends})
         else:
             t0 = time.perf_counter()
             for _ in range(n):

@@ -122,8 +122,11 @@ INLINE_GAP_S = 200e-6
 thread, which takes what has arrived together in one step (a stream), instead of being taken in
 on the receiving thread one step each (see :meth:`Agent._take_here`)."""
 INLINE_BUDGET_S = 0.05
-"""Longest a step may keep a receiving thread (s): an agent whose step took longer takes its
-input on its own thread from then on (Zenoh's receiving thread also reads the router's link)."""
+"""Longest a step may compute on a receiving thread (s of the thread's CPU time): an agent whose
+step computed longer takes its input on its own thread from then on. CPU time, not wall time:
+with 100 agent processes on 2 cores a 100 µs step waits tens of ms for a core at times, and a
+wall-time budget turned inline receiving off for a third of them (docs/benchmarks.md, "Fewer
+wake-ups per communicate")."""
 ENV_RECEIVE = "ROCO_RECEIVE"
 """``agent-thread``: every input is handed to the agent's own thread (the path before issue 20);
 unset or ``inline``: an idle agent takes a communicate in where it arrives."""
@@ -584,7 +587,7 @@ class Agent:
         check of the input is the same. A step whose output buffer holds more than
         :data:`INLINE_OUTPUT_MAX` communicates, or one on a key the transport has no publisher
         for yet, goes on on the agent's thread (a receiving thread never declares, and never
-        puts a stream); a step that took longer than :data:`INLINE_BUDGET_S` ends inline
+        puts a stream); a step that computed longer than :data:`INLINE_BUDGET_S` ends inline
         receiving for this agent."""
         if not self._turn.acquire(blocking=False):
             return False
@@ -595,18 +598,23 @@ class Agent:
             self._inbox.append(item)
             self.counters["received_inline"] += 1
             self._here = True
-            started = time.perf_counter()
+            started, computed_from = time.perf_counter(), time.thread_time()
             try:
                 self._resume()
             finally:
                 self._here = False
-            spent = time.perf_counter() - started
-            if spent > INLINE_BUDGET_S:
-                self._inline = False
-                self.log.info(
-                    "a step took %.0f ms on a receiving thread: input goes to the agent's thread from now on",
-                    spent * 1e3,
-                )
+            # the step's own CPU time, looked at only when its wall time is over the budget:
+            # a thread that waited for a core (many processes on few cores) or for room in a
+            # link did not compute that long
+            if time.perf_counter() - started > INLINE_BUDGET_S:
+                computed = time.thread_time() - computed_from
+                if computed > INLINE_BUDGET_S:
+                    self._inline = False
+                    self.log.info(
+                        "a step computed for %.0f ms on a receiving thread: input goes to the "
+                        "agent's thread from now on",
+                        computed * 1e3,
+                    )
         finally:
             self._turn.release()
         if self._ended or self._wake_at < waiting_until:  # the agent's thread waits too long

@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import json
 import logging
+import os
 import threading
 import time
 from collections.abc import Callable
@@ -94,13 +95,50 @@ Zenoh declares its subscribers and liveliness tokens again: the session is back 
 the router listening again (docs/recovery.md, "Router restart")."""
 
 
-SHM_POOL_BYTES = 2 * 2**20
-"""Size (B) of the shared-memory pool a session fills with its large puts for peers on the same
-host (Zenoh's implicit optimisation, ``transport/shared_memory/transport_optimization``: puts of
-3,072 B and more; default pool 16 MiB). roco's large puts are ag_ex's state and world snapshots
-(kB each, at most a few in flight); a put that finds the pool full goes over the link instead.
-The default's 16 MiB were resident in ag_ex and mapped by the router: 2 MiB took ≈ 12 MiB off
-the fleet's PSS (docs/benchmarks.md, "Where issue 20 stands")."""
+RUNTIME_POOLS = (
+    "(rx: (handover: app), net: (handover: app), acc: (handover: app),"
+    " app: (worker_threads: 1), tx: (worker_threads: 1))"
+)
+"""Zenoh's runtime pools in a roco client process (``ZENOH_RUNTIME``, RON, read by zenoh-runtime
+at a process's first session): the receiving (``rx``), network (``net``) and accepting (``acc``)
+pools handed over to one application thread, and one transmitting thread, instead of Zenoh's
+default of six pools and seven threads. A communicate then wakes one Zenoh thread where it
+arrives instead of three: with 100 agent processes doing round trips at once (with
+:func:`_no_shared_memory` and the inline budget in CPU time), 20 context switches a round trip
+instead of 27 and ≈ 20 % more round trips a second (docs/benchmarks.md, "Fewer wake-ups per
+communicate"). Clients only: a router whose links all share one receiving thread
+stops reading every link while it waits for room in one full link, and two sessions streaming
+to each other through it deadlocked (tests/runtime/test_inline_receive.py); routers keep
+Zenoh's own pools (:func:`use_router_pools`)."""
+
+ENV_RUNTIME = "ZENOH_RUNTIME"
+
+
+def use_runtime_pools() -> None:
+    """Give this client process roco's Zenoh runtime pools (:data:`RUNTIME_POOLS`) unless
+    ``ZENOH_RUNTIME`` is set; effective only before the process's first Zenoh session (the
+    pools are built then), which every roco client opens through :func:`client_config`.
+    Child processes inherit the setting (a router drops it: :func:`use_router_pools`)."""
+    os.environ.setdefault(ENV_RUNTIME, RUNTIME_POOLS)
+
+
+def use_router_pools() -> None:
+    """Give this router process Zenoh's own runtime pools: drop a ``ZENOH_RUNTIME`` of
+    :data:`RUNTIME_POOLS` inherited from a roco client process that started it (a value the
+    user set otherwise is kept). Effective only before the process's first Zenoh session."""
+    if os.environ.get(ENV_RUNTIME) == RUNTIME_POOLS:
+        del os.environ[ENV_RUNTIME]
+
+
+def _no_shared_memory(conf: zenoh.Config) -> None:
+    """Turn off Zenoh's shared-memory transport (on by default since eclipse-zenoh 1.x, for
+    puts of 3,072 B and more to sessions on the same host). Its watchdog wakes a thread of
+    every process 20 times a second (zenoh-shm ``WatchdogConfirmator``, 50 ms) whether or not
+    anything is ever put through it: 2,000 wake-ups a second for 100 agents, ≈ 8 % of a core
+    while they are idle. roco's only large puts are ag_ex's state and world snapshots (kB, 20 Hz),
+    which loopback TCP carries as well; no pool is mapped and no ``/dev/shm/*.zenoh`` segment
+    is left behind by a killed process."""
+    conf.insert_json5("transport/shared_memory/enabled", "false")
 
 
 def client_config(
@@ -122,6 +160,7 @@ def client_config(
     and, on ``tls/`` endpoints, its certificate (mutual TLS, checked against the folder's CA).
     Raises services.security.folder.CredentialError (a ValueError) when the folder has no
     credentials for that identity."""
+    use_runtime_pools()
     conf = zenoh.Config()
     conf.insert_json5("mode", '"client"')
     conf.insert_json5("connect/endpoints", json.dumps(endpoints))
@@ -129,7 +168,7 @@ def client_config(
     conf.insert_json5("scouting/multicast/enabled", "false")
     # every put carries its sender's timestamp: the record's time sent (issue 16)
     conf.insert_json5("timestamping/enabled", "true")
-    conf.insert_json5("transport/shared_memory/transport_optimization/pool_size", str(SHM_POOL_BYTES))
+    _no_shared_memory(conf)
     if wait_for_router:
         conf.insert_json5("connect/timeout_ms", "-1")
     folder = security if security is not None else security_for(endpoints)
@@ -178,11 +217,12 @@ def router_config(
     refused) and authenticates to the routers it connects to with its user/password.
     ``lease_ms``: Zenoh's transport lease (default 10 s): a link silent that long is closed; a
     mesh over an unreliable link sets it longer than the partitions it should ride out."""
+    use_router_pools()
     conf = zenoh.Config()
     conf.insert_json5("mode", '"router"')
     conf.insert_json5("listen/endpoints", json.dumps(listen))
     conf.insert_json5("scouting/multicast/enabled", "false")
-    conf.insert_json5("transport/shared_memory/transport_optimization/pool_size", str(SHM_POOL_BYTES))
+    _no_shared_memory(conf)
     if connect:
         conf.insert_json5("connect/endpoints", json.dumps(connect))
         conf.insert_json5("connect/retry", json.dumps(CONNECT_RETRY))

@@ -11,6 +11,10 @@ import pytest
 
 from services.bench.messaging import (
     BenchInform,
+    ConcurrentFigures,
+    Latency,
+    PairFigures,
+    ScaleRow,
     BenchRequest,
     bench_spec,
     pair_names,
@@ -19,6 +23,7 @@ from services.bench.messaging import (
     sized_data,
     steady_rate,
 )
+from services.bench.report import scale_verdicts
 from services.spec.model import interface
 from shared.fipa_codec.languages import encode_content
 
@@ -76,6 +81,22 @@ def test_steady_rate_counts_only_while_every_pair_runs() -> None:
     assert steady_rate([[1.0, 2.0], [3.0, 4.0]]) == 0.0  # never both running
     assert steady_rate([first, []]) == 0.0
     assert steady_rate([]) == 0.0
+
+
+def _row(agents: int, roco_per_s: float, raw_per_s: float | None) -> ScaleRow:
+    def figures(rate: float) -> ConcurrentFigures:
+        return ConcurrentFigures(Latency([0.001]), rate, rate)
+
+    raw = figures(raw_per_s) if raw_per_s is not None else None
+    return ScaleRow(agents, 1.0, 100.0, PairFigures(), figures(roco_per_s), 1, raw)
+
+
+def test_the_scale_verdict_sets_roco_beside_raw_zenohs_own_share() -> None:
+    (line,) = scale_verdicts([_row(10, 2000.0, 8000.0), _row(100, 1300.0, 3600.0)])
+    assert "**65 %**" in line and ": met;" in line
+    assert "raw Zenoh's own processes, measured the same way: 45 % (3,600 against 8,000 /s)" in line
+    (line,) = scale_verdicts([_row(10, 2000.0, None), _row(100, 1000.0, None)])
+    assert "**50 %**" in line and ": missed;" in line and "raw Zenoh" not in line
 
 
 def test_quick_bench_writes_codec_and_messaging_tables(tmp_path: Path) -> None:

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import queue
 import threading
+import time
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from typing import ClassVar
@@ -260,6 +261,43 @@ def test_what_arrives_together_is_taken_in_together_by_the_agents_thread(
     # the first arrived apart from anything before it; the next two within the gap
     assert running.agent.counters["received_inline"] == 1
     assert running.agent.handled_on[0] == DELIVERY and AGENT in running.agent.handled_on
+
+
+class Computing(Answering):
+    """Each step computes (CPU time of its thread) for twice the inline budget."""
+
+    def _answer(self) -> None:
+        started = time.thread_time()
+        while time.thread_time() - started < 2 * agent_module.INLINE_BUDGET_S:
+            pass
+        super()._answer()
+
+
+class Waiting(Answering):
+    """Each step waits, without computing, for twice the inline budget (as a thread does that
+    waits for a core while many processes share few, or for room in a full link)."""
+
+    def _answer(self) -> None:
+        time.sleep(2 * agent_module.INLINE_BUDGET_S)
+        super()._answer()
+
+
+@pytest.mark.parametrize(("agent_cls", "second_on"), [(Computing, AGENT), (Waiting, DELIVERY)])
+def test_only_a_step_that_computes_past_the_budget_ends_inline_receiving(
+    monkeypatch: pytest.MonkeyPatch, agent_cls: type[Answering], second_on: str
+) -> None:
+    monkeypatch.setattr(agent_module, "INLINE_BUDGET_S", 0.02)
+    r = start(agent_cls)
+    try:
+        for n in range(2):
+            r.bus.publish(KEY, encode(query(f"q{n}", conversation_id=f"c{n}")))
+            assert r.to_pl.get(timeout=5).in_reply_to == f"q{n}"
+            r.idle()
+        assert r.agent.handled_on == [DELIVERY, second_on]
+    finally:
+        r.agent.stop()
+        r.thread.join(timeout=5)
+        r.transport.close()
 
 
 # ---- over Zenoh: puts from the receiving thread while both links' queues are full ----------

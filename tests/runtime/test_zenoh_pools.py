@@ -1,0 +1,105 @@
+"""Every roco client session runs on Zenoh's runtime pools as services/runtime/transport.py sets
+them (``RUNTIME_POOLS``: one application thread, one transmitting thread), a router on Zenoh's
+own, and none uses Zenoh's shared-memory transport, whose watchdog would wake each process 20
+times a second (docs/benchmarks.md, "Fewer wake-ups per communicate"). A ``ZENOH_RUNTIME`` the
+user set is kept.
+
+Sessions are opened in fresh interpreters (the pools are built at a process's first session)
+against a router on a free loopback port, started from this process with the clients' setting
+in its environment, as `roco up` starts one."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+
+from services.fleet.launcher import Fleet, free_port
+from services.runtime.transport import (
+    ENV_RUNTIME,
+    RUNTIME_POOLS,
+    client_config,
+    router_config,
+    use_runtime_pools,
+)
+
+ROOT = Path(__file__).resolve().parents[2]
+
+THREADS = """
+import os, sys
+from services.runtime.transport import ZenohTransport
+t = ZenohTransport([sys.argv[1]])
+t.subscribe("roco/fipa/probe/**", lambda key, payload: None)
+names = sorted(open(f"/proc/self/task/{tid}/comm").read().strip() for tid in os.listdir("/proc/self/task"))
+print(",".join(names))
+t.close()
+"""
+
+
+@pytest.fixture(scope="module")
+def fleet(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Fleet]:
+    run_dir = tmp_path_factory.mktemp("pools")
+    (run_dir / "logs").mkdir()
+    use_runtime_pools()  # as in a client process that starts a router
+    fleet = Fleet(run_dir, f"tcp/127.0.0.1:{free_port()}", acl=False)
+    fleet.start_router()
+    try:
+        yield fleet
+    finally:
+        fleet.stop()
+
+
+@pytest.fixture
+def router(fleet: Fleet) -> str:
+    return fleet.endpoint
+
+
+def _zenoh_names(names: set[str]) -> set[str]:
+    return {n for n in names if n.split("-")[0] in {"app", "tx", "rx", "net", "acc"}}
+
+
+def _zenoh_threads(endpoint: str, env: dict[str, str]) -> set[str]:
+    """Names of the Zenoh runtime's threads in a fresh process that opened a transport."""
+    done = subprocess.run(
+        [sys.executable, "-c", THREADS, endpoint],
+        cwd=ROOT,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=60,
+        check=False,
+    )
+    assert done.returncode == 0, done.stderr[-2000:]
+    return _zenoh_names(set(done.stdout.strip().splitlines()[-1].split(",")))
+
+
+def test_a_session_runs_on_one_application_and_one_transmitting_pool(router: str) -> None:
+    env = {k: v for k, v in os.environ.items() if k != ENV_RUNTIME}
+    threads = _zenoh_threads(router, env)
+    assert "tx-0" in threads and "app-0" in threads
+    assert not {n for n in threads if n.startswith(("rx-", "net-", "acc-"))}, threads
+
+
+def test_a_router_keeps_zenohs_own_pools(fleet: Fleet) -> None:
+    """Started from a client process, it does not take the clients' single receiving thread
+    (one link waiting for room would stop it reading every other)."""
+    tasks = Path(f"/proc/{fleet.pids()['router']}/task")
+    threads = _zenoh_names({(t / "comm").read_text().strip() for t in tasks.iterdir()})
+    assert {"rx-0", "rx-1", "net-0"} <= threads, threads
+
+
+def test_a_runtime_setting_of_the_user_is_kept(router: str) -> None:
+    env = {**os.environ, ENV_RUNTIME: "()"}  # Zenoh's own defaults
+    threads = _zenoh_threads(router, env)
+    assert {"rx-0", "net-0"} <= threads, threads
+
+
+def test_no_configuration_uses_shared_memory() -> None:
+    for conf in (client_config(["tcp/127.0.0.1:7447"]), router_config(["tcp/127.0.0.1:7447"])):
+        assert json.loads(conf.get_json("transport/shared_memory/enabled")) is False
+    assert "handover: app" in RUNTIME_POOLS
