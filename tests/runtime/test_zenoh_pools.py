@@ -19,7 +19,7 @@ from pathlib import Path
 
 import pytest
 
-from services.fleet.launcher import Fleet, free_port
+from services.fleet.launcher import Fleet
 from services.runtime.transport import (
     ENV_RUNTIME,
     RUNTIME_POOLS,
@@ -27,6 +27,7 @@ from services.runtime.transport import (
     router_config,
     use_runtime_pools,
 )
+from tests.support.router import router_fleet
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -43,15 +44,8 @@ t.close()
 
 @pytest.fixture(scope="module")
 def fleet(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Fleet]:
-    run_dir = tmp_path_factory.mktemp("pools")
-    (run_dir / "logs").mkdir()
     use_runtime_pools()  # as in a client process that starts a router
-    fleet = Fleet(run_dir, f"tcp/127.0.0.1:{free_port()}", acl=False)
-    fleet.start_router()
-    try:
-        yield fleet
-    finally:
-        fleet.stop()
+    yield from router_fleet(tmp_path_factory, "pools")
 
 
 @pytest.fixture
