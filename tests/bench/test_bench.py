@@ -11,11 +11,11 @@ import pytest
 
 from services.bench.messaging import (
     BenchInform,
+    BenchRequest,
     ConcurrentFigures,
     Latency,
     PairFigures,
     ScaleRow,
-    BenchRequest,
     bench_spec,
     pair_names,
     percentile,
