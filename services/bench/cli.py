@@ -236,11 +236,12 @@ def bench(
         counts = [int(x) for x in scale_agents.split(",") if x.strip()]
         counts = counts[:1] if quick else counts
         s_rt, s_tput, s_all = (200, 5000, 50) if quick else (1000, 20000, 500)
+        s_rounds = 1 if quick else 3
         rows = run(
             "scale",
             lambda: (
-                messaging.scale(counts, s_rt, s_tput, s_all, size)
-                + messaging.scale(counts, s_rt, s_tput, s_all, size, meshed=True)
+                messaging.scale(counts, s_rt, s_tput, s_all, size, all_rounds=s_rounds)
+                + messaging.scale(counts, s_rt, s_tput, s_all, size, meshed=True, all_rounds=s_rounds)
             ),
         )
         if rows is not None:
@@ -256,7 +257,9 @@ def bench(
                     "reported ready (connected, subscribed, token declared). One pair: pair 0 measured as in "
                     f"part 2 ({s_rt} round trips, {s_tput:,} communicates, one round) while the other N − 2 "
                     "agents are connected and idle. All pairs at once: every initiator does "
-                    f"{s_all} round trips (+50 warm-up) at the same time; the rate is all round trips "
+                    f"{s_all} round trips (+50 warm-up) at the same time, {s_rounds} time(s) (the "
+                    "median of the runs, each run's figure in brackets; latencies pooled); the rate is "
+                    "all round trips "
                     "over the wall time from the first command to the last result, and the round trips "
                     "that ended while every pair was doing its measured ones over that window (from the "
                     "latest pair's first end to the earliest pair's last end: no start, no tail of the last "

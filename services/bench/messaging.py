@@ -390,6 +390,22 @@ class ConcurrentFigures:
     """Round trips that ended while every pair was doing its measured ones (from the latest
     first end to the earliest last end, CLOCK_MONOTONIC) over that window: the rate with all
     pairs at once, without the start and the tail; 0 when the window is empty."""
+    steady_runs: list[float] = field(default_factory=list)
+    """``steady_per_s`` of each run when the figures are the median of several
+    (:func:`median_run`); empty for one run."""
+
+
+def median_run(runs: Sequence[ConcurrentFigures]) -> ConcurrentFigures:
+    """Several all-pairs runs as one: latency samples pooled, each rate the median of the
+    runs' (the runs' steady rates kept in ``steady_runs``). Raises ValueError for no runs."""
+    if not runs:
+        raise ValueError("no all-pairs run to take the median of")
+    return ConcurrentFigures(
+        Latency([t for r in runs for t in r.latency.samples_s]),
+        statistics.median(r.round_trips_per_s for r in runs),
+        statistics.median(r.steady_per_s for r in runs),
+        [r.steady_per_s for r in runs],
+    )
 
 
 def steady_rate(ends: Sequence[Sequence[float]]) -> float:
@@ -468,23 +484,29 @@ def scale(
     size: int = 200,
     *,
     meshed: bool = False,
+    all_rounds: int = 1,
 ) -> list[ScaleRow]:
     """Part 8: for each N, N synthetic agents (N/2 pairs) and one raw pair on a fresh router
     (``meshed``: two meshed routers, each pair split across them; :class:`Testbed`); pair 0
     measured (roco and raw) while the others are connected and idle; then every pair's round
-    trips at once; then, on a fresh testbed, N bare Zenoh processes (N/2 raw pairs) doing
-    their round trips at once."""
+    trips at once, ``all_rounds`` times (the median run: :func:`median_run`); then, on a fresh
+    testbed, N bare Zenoh processes (N/2 raw pairs) doing their round trips at once, as many
+    times."""
     rows = []
     for n in agent_counts:
         pairs = max(1, n // 2)
         names = [name for k in range(pairs) for name in pair_names(k)]
         with testbed(pairs, names, [0], meshed=meshed) as bed:
             pair = measure_pair(bed, 0, 1, n_rt, n_tput, size)
-            concurrent = measure_all_pairs(bed, pairs, n_rt_all, size)
+            concurrent = median_run(
+                [measure_all_pairs(bed, pairs, n_rt_all, size) for _ in range(all_rounds)]
+            )
             rss = bed.rss_mib()
             agents_rss = sum(v for k, v in rss.items() if k.startswith("b_"))
             start_s = bed.start_s
         with testbed(pairs, [], range(pairs), meshed=meshed) as bed:
-            raw = measure_all_pairs(bed, pairs, n_rt_all, size, raw=True)
+            raw = median_run(
+                [measure_all_pairs(bed, pairs, n_rt_all, size, raw=True) for _ in range(all_rounds)]
+            )
         rows.append(ScaleRow(len(names), start_s, agents_rss, pair, concurrent, 2 if meshed else 1, raw))
     return rows

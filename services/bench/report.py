@@ -9,7 +9,7 @@ import subprocess
 from importlib.metadata import PackageNotFoundError, version
 from pathlib import Path
 
-from services.bench.messaging import PairFigures, ScaleRow, request_bytes
+from services.bench.messaging import ConcurrentFigures, PairFigures, ScaleRow, request_bytes
 from services.bench.parts import CodecRow, FleetFigures, PlanningFigures, QueryRow, TaskRun
 from services.bench.spade import SpadeFigures
 
@@ -335,6 +335,13 @@ def task_table(runs: list[TaskRun]) -> list[str]:
     )
 
 
+def _with_runs(figures: ConcurrentFigures) -> str:
+    """The steady all-pairs rate, and each run's when it is the median of several."""
+    runs = figures.steady_runs
+    each = f" ({', '.join(_rate(x) for x in runs)})" if len(runs) > 1 else ""
+    return _rate(figures.steady_per_s) + each
+
+
 def scale_table(rows: list[ScaleRow]) -> list[str]:
     body = []
     for r in rows:
@@ -353,8 +360,8 @@ def scale_table(rows: list[ScaleRow]) -> list[str]:
                 _rate(p.raw_tput.median),
                 f"{r.concurrent.latency.p50_us:.0f} / {r.concurrent.latency.p99_us:.0f}",
                 _rate(r.concurrent.round_trips_per_s),
-                _rate(r.concurrent.steady_per_s),
-                _rate(r.raw_concurrent.steady_per_s) if r.raw_concurrent is not None else "—",
+                _with_runs(r.concurrent),
+                _with_runs(r.raw_concurrent) if r.raw_concurrent is not None else "—",
             ]
         )
     return _table(

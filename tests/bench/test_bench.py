@@ -16,6 +16,7 @@ from services.bench.messaging import (
     Latency,
     PairFigures,
     ScaleRow,
+    median_run,
     bench_spec,
     pair_names,
     percentile,
@@ -23,7 +24,7 @@ from services.bench.messaging import (
     sized_data,
     steady_rate,
 )
-from services.bench.report import scale_verdicts
+from services.bench.report import scale_table, scale_verdicts
 from services.spec.model import interface
 from shared.fipa_codec.languages import encode_content
 
@@ -97,6 +98,19 @@ def test_the_scale_verdict_sets_roco_beside_raw_zenohs_own_share() -> None:
     assert "raw Zenoh's own processes, measured the same way: 45 % (3,600 against 8,000 /s)" in line
     (line,) = scale_verdicts([_row(10, 2000.0, None), _row(100, 1000.0, None)])
     assert "**50 %**" in line and ": missed;" in line and "raw Zenoh" not in line
+
+
+def test_all_pairs_runs_are_taken_as_their_median_and_shown_each() -> None:
+    runs = [ConcurrentFigures(Latency([0.001 * k]), 10.0 * k, 100.0 * k) for k in (3, 1, 2)]
+    median = median_run(runs)
+    assert (median.round_trips_per_s, median.steady_per_s) == (20.0, 200.0)
+    assert median.steady_runs == [300.0, 100.0, 200.0]
+    assert sorted(median.latency.samples_s) == [0.001, 0.002, 0.003]
+    with pytest.raises(ValueError, match="no all-pairs run"):
+        median_run([])
+    row = ScaleRow(10, 1.0, 100.0, PairFigures(), median, 1, median_run(runs[:1]))
+    cells = scale_table([row])[-1].split("|")
+    assert cells[-3].strip() == "200 (300, 100, 200)" and cells[-2].strip() == "300"
 
 
 def test_quick_bench_writes_codec_and_messaging_tables(tmp_path: Path) -> None:
