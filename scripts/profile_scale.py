@@ -4,13 +4,15 @@ For each N given, N synthetic agents (N/2 pairs, services/bench/synthetic.py) on
 free loopback port, as ``roco bench``'s scale part starts them; 100 round trips per pair to warm
 up, then ``--n`` round trips per pair, every pair at once. The CPU time of every thread of every
 process (``/proc/<pid>/task/<tid>/stat``: user and system clock ticks) is read before and after;
-printed per round trip, summed by role (initiators, participants, router) and thread name
+printed per round trip with the threads' context switches (``/proc/<pid>/task/<tid>/status``),
+summed by role (initiators, participants, router) and thread name
 (``python``: the agent's Python threads, its own (the process's main thread) apart from the
 receiving one and the benchmark's command reader; ``rx-*``, ``tx-*``,
 ``app-*``, ``acc-*``, ``net-*``: Zenoh's runtime pools). Threads under 3 µs a round trip are
-left out of the table, not of the total.
+left out of the table, not of the total. ``--idle S``: first, before any round trip, the CPU
+and wake-ups of every thread while the agents wait for S seconds.
 
-Usage: ``python scripts/profile_scale.py [--n 500] [N ...]`` (default N: 10 100)
+Usage: ``python scripts/profile_scale.py [--n 500] [--idle 10] [N ...]`` (default N: 10 100)
 """
 
 from __future__ import annotations
@@ -18,6 +20,7 @@ from __future__ import annotations
 import argparse
 import os
 import sys
+import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -26,20 +29,25 @@ if str(ROOT) not in sys.path:
 
 TICKS_S = os.sysconf("SC_CLK_TCK")
 
-ThreadTimes = dict[int, tuple[str, int, int]]
-"""Thread id → (name, user ticks, system ticks)."""
+ThreadTimes = dict[int, tuple[str, int, int, int, int]]
+"""Thread id → (name, user ticks, system ticks, voluntary and involuntary context switches)."""
 
 
 def thread_times(pid: int) -> ThreadTimes:
-    """Every thread of process ``pid`` with its CPU time so far (clock ticks)."""
+    """Every thread of process ``pid`` with its CPU time (clock ticks) and context switches so
+    far."""
     out: ThreadTimes = {}
     for task in Path(f"/proc/{pid}/task").iterdir():
         try:
             comm = (task / "comm").read_text().strip()
             fields = (task / "stat").read_text().rsplit(")", 1)[1].split()
+            status = dict(
+                line.split(":", 1) for line in (task / "status").read_text().splitlines() if ":" in line
+            )
         except OSError:  # the thread ended meanwhile
             continue
-        out[int(task.name)] = (comm, int(fields[11]), int(fields[12]))
+        switches = int(status["voluntary_ctxt_switches"]), int(status["nonvoluntary_ctxt_switches"])
+        out[int(task.name)] = (comm, int(fields[11]), int(fields[12]), *switches)
     return out
 
 
@@ -49,54 +57,94 @@ def role(child: str) -> str:
     return "initiators" if child.startswith("b_ini") else "participants"
 
 
-def profile(n_agents: int, n_rt: int) -> None:
+Summed = dict[tuple[str, str], list[int]]
+"""(processes, thread name) → [user ticks, system ticks, voluntary, involuntary switches]."""
+
+
+def summed(pids: dict[str, int], before: dict[str, ThreadTimes], after: dict[str, ThreadTimes]) -> Summed:
+    """What every thread used between ``before`` and ``after``, summed by role and name."""
+    out: Summed = {}
+    for name, pid in pids.items():
+        for tid, (comm, *now) in after[name].items():
+            then = before[name].get(tid, (comm, 0, 0, 0, 0))[1:]
+            if comm == "python" and name != "router":  # the main thread runs the agent's own loop
+                comm = "python (agent's thread)" if tid == pid else "python (receiving, commands)"
+            got = out.setdefault((role(name), comm), [0, 0, 0, 0])
+            for i, (x, x0) in enumerate(zip(now, then, strict=True)):
+                got[i] += x - x0
+    return out
+
+
+def idle(pids: dict[str, int], seconds: float) -> None:
+    """CPU (% of one core) and wake-ups per second of every thread while nothing is asked."""
+    before = {name: thread_times(pid) for name, pid in pids.items()}
+    time.sleep(seconds)  # a measuring window, not a synchronisation
+    after = {name: thread_times(pid) for name, pid in pids.items()}
+    print(f"\nidle for {seconds:.0f} s:\n")
+    print("| processes | thread | % of one core | wake-ups /s |\n|---|---|---|---|")
+    total = 0.0
+    for (who, comm), (user, system, vol, _) in sorted(
+        summed(pids, before, after).items(), key=lambda kv: -sum(kv[1][:2])
+    ):
+        share = (user + system) / TICKS_S / seconds * 100
+        total += share
+        if share >= 0.1 or vol / seconds >= 1:
+            print(f"| {who} | {comm} | {share:.1f} | {vol / seconds:,.0f} |")
+    print(f"\nall threads: {total:.1f} % of one core")
+
+
+def profile(n_agents: int, n_rt: int, idle_s: float) -> None:
     from services.bench.messaging import measure_all_pairs, testbed
     from services.bench.synthetic import WARMUP, pair_names
 
     pairs = max(1, n_agents // 2)
     names = [name for k in range(pairs) for name in pair_names(k)]
     with testbed(pairs, names, []) as bed:
-        measure_all_pairs(bed, pairs, 100, 200)
         pids = {name: c.process.pid for name, c in bed.children.items() if c.process.pid is not None}
         assert bed.fleet is not None
         pids["router"] = bed.fleet.processes["router"].pid
+        if idle_s > 0:
+            print(f"\n## {len(names)} agents")
+            idle(pids, idle_s)
+        measure_all_pairs(bed, pairs, 100, 200)
         before = {name: thread_times(pid) for name, pid in pids.items()}
         figures = measure_all_pairs(bed, pairs, n_rt, 200)
         after = {name: thread_times(pid) for name, pid in pids.items()}
     round_trips = pairs * (n_rt + WARMUP)
-    summed: dict[tuple[str, str], list[int]] = {}
-    for name in pids:
-        for tid, (comm, user, system) in after[name].items():
-            _, user0, system0 = before[name].get(tid, (comm, 0, 0))
-            if comm == "python" and name != "router":  # the main thread runs the agent's own loop
-                comm = "python (agent's thread)" if tid == pids[name] else "python (receiving, commands)"
-            got = summed.setdefault((role(name), comm), [0, 0])
-            got[0] += user - user0
-            got[1] += system - system0
 
     def us(ticks: int) -> float:
         return ticks / TICKS_S / round_trips * 1e6
 
     rate, steady = figures.round_trips_per_s, figures.steady_per_s
     print(f"\n## {len(names)} agents: {rate:,.0f} round trips/s (steady {steady:,.0f})")
-    print("\n| processes | thread | user µs / round trip | system µs / round trip |\n|---|---|---|---|")
-    total = 0.0
-    for (who, comm), (user, system) in sorted(summed.items(), key=lambda kv: -sum(kv[1])):
+    print(
+        "\n| processes | thread | user µs / round trip | system µs / round trip "
+        "| context switches / round trip (voluntary + involuntary) |\n|---|---|---|---|---|"
+    )
+    total = switches = 0.0
+    for (who, comm), (user, system, vol, invol) in sorted(
+        summed(pids, before, after).items(), key=lambda kv: -sum(kv[1][:2])
+    ):
         total += us(user) + us(system)
-        if us(user) + us(system) >= 3:
-            print(f"| {who} | {comm} | {us(user):.0f} | {us(system):.0f} |")
-    print(f"\nall threads: {total:.0f} µs of CPU per round trip")
+        switches += (vol + invol) / round_trips
+        if us(user) + us(system) >= 3 or (vol + invol) / round_trips >= 0.1:
+            print(
+                f"| {who} | {comm} | {us(user):.0f} | {us(system):.0f} "
+                f"| {vol / round_trips:.2f} + {invol / round_trips:.2f} |"
+            )
+    print(f"\nall threads: {total:.0f} µs of CPU and {switches:.1f} context switches per round trip")
 
 
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("agents", type=int, nargs="*", default=[10, 100], help="agent process counts")
     ap.add_argument("--n", type=int, default=500, help="round trips per pair, every pair at once")
+    ap.add_argument("--idle", type=float, default=0.0, help="first measure the idle agents for this long (s)")
     args = ap.parse_args()
     load = " / ".join(f"{x:.2f}" for x in os.getloadavg())
     print(f"# load average {load}; {args.n} round trips per pair")
     for n in args.agents:
-        profile(n, args.n)
+        profile(n, args.n, args.idle)
     return 0
 
 
