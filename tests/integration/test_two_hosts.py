@@ -142,15 +142,20 @@ def test_ten_second_partitions_during_a_motion_and_during_planning_are_ridden_ou
         if r["source"] is not None:
             sns[r["source"]].add(r["sn"])
     assert all(s == set(range(max(s) + 1)) for s in sns.values())
-    # nothing executed twice: one request and one result per conversation
-    asked = collections.Counter(r["conversation_id"] for r in requests)
+    # nothing executed twice: one result per conversation. A request may be on record twice:
+    # a_ta sends what ag_ex has not answered again when ag_ex's liveliness token appears (seen
+    # at start-up: the first Observe, then ag_ex's token 60 ms later), the same bytes: ag_ex
+    # takes whichever reaches it first and its runtime drops a copy
+    asked: dict[str, set[int]] = collections.defaultdict(set)
+    for r in requests:
+        asked[r["conversation_id"]].add(r["size"])
     answered = collections.Counter(
         r["conversation_id"]
         for r in c5
         if r["sender"] == "ag_ex" and r["performative"] in ("inform", "failure")
     )
-    assert asked and max(asked.values()) == 1 and max(answered.values()) == 1, (asked, answered)
-    assert set(answered) == set(asked)
+    assert asked and all(len(sizes) == 1 for sizes in asked.values()), asked
+    assert max(answered.values()) == 1 and set(answered) == set(asked), (asked, answered)
 
 
 OBSERVER = """
