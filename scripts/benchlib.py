@@ -6,6 +6,8 @@ from __future__ import annotations
 import os
 import platform
 from importlib.metadata import PackageNotFoundError, version
+from pathlib import Path
+from typing import NamedTuple
 
 from services.bench import report
 
@@ -28,3 +30,39 @@ def machine(packages: tuple[str, ...] = ()) -> str:
         f"{cpu_model()}, {usable} of {os.cpu_count()} cores, {platform.system()} {platform.release()}, "
         f"Python {platform.python_version()}{tail}"
     )
+
+
+class ThreadUse(NamedTuple):
+    """What one thread has used so far: its name (``comm``), CPU time in clock ticks
+    (``os.sysconf("SC_CLK_TCK")`` a second) in user and system mode, and its voluntary (it
+    slept: a queue, a socket, a lock) and involuntary (its core was taken) context switches."""
+
+    name: str
+    user: int
+    system: int
+    voluntary: int
+    involuntary: int
+
+
+def thread_use(pid: int) -> dict[int, ThreadUse]:
+    """Every thread of process ``pid`` (thread id → :class:`ThreadUse`), from
+    ``/proc/<pid>/task/<tid>/stat`` and ``status`` (Linux); a thread that ends while it is read
+    is left out. Raises OSError when the process is gone."""
+    out: dict[int, ThreadUse] = {}
+    for task in Path(f"/proc/{pid}/task").iterdir():
+        try:
+            name = (task / "comm").read_text().strip()
+            stat = (task / "stat").read_text().rsplit(")", 1)[1].split()
+            status = dict(
+                line.split(":", 1) for line in (task / "status").read_text().splitlines() if ":" in line
+            )
+        except OSError:  # the thread ended meanwhile
+            continue
+        out[int(task.name)] = ThreadUse(
+            name,
+            int(stat[11]),
+            int(stat[12]),
+            int(status["voluntary_ctxt_switches"]),
+            int(status["nonvoluntary_ctxt_switches"]),
+        )
+    return out

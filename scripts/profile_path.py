@@ -105,19 +105,9 @@ def traced_agent(name: str, endpoint: str, conn: Connection) -> None:
 
 def threads(pid: int) -> dict[int, tuple[str, int, int]]:
     """Thread id → (name, voluntary, non-voluntary context switches) of process ``pid``."""
-    out = {}
-    for task in Path(f"/proc/{pid}/task").iterdir():
-        try:
-            comm = (task / "comm").read_text().strip()
-            fields = dict(
-                line.split(":", 1) for line in (task / "status").read_text().splitlines() if ":" in line
-            )
-        except OSError:
-            continue
-        vol = int(fields["voluntary_ctxt_switches"])
-        nonvol = int(fields["nonvoluntary_ctxt_switches"])
-        out[int(task.name)] = (comm, vol, nonvol)
-    return out
+    import benchlib  # scripts/benchlib.py, beside this file
+
+    return {tid: (u.name, u.voluntary, u.involuntary) for tid, u in benchlib.thread_use(pid).items()}
 
 
 def cpu_s(pid: int) -> float:

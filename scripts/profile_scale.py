@@ -22,6 +22,7 @@ import os
 import sys
 import time
 from pathlib import Path
+from typing import Any
 
 ROOT = Path(__file__).resolve().parents[1]
 if str(ROOT) not in sys.path:
@@ -29,26 +30,16 @@ if str(ROOT) not in sys.path:
 
 TICKS_S = os.sysconf("SC_CLK_TCK")
 
-ThreadTimes = dict[int, tuple[str, int, int, int, int]]
-"""Thread id → (name, user ticks, system ticks, voluntary and involuntary context switches)."""
+Use = dict[str, dict[int, Any]]
+"""Process name → thread id → scripts/benchlib.py ``ThreadUse`` (name, user and system ticks,
+voluntary and involuntary context switches)."""
 
 
-def thread_times(pid: int) -> ThreadTimes:
-    """Every thread of process ``pid`` with its CPU time (clock ticks) and context switches so
-    far."""
-    out: ThreadTimes = {}
-    for task in Path(f"/proc/{pid}/task").iterdir():
-        try:
-            comm = (task / "comm").read_text().strip()
-            fields = (task / "stat").read_text().rsplit(")", 1)[1].split()
-            status = dict(
-                line.split(":", 1) for line in (task / "status").read_text().splitlines() if ":" in line
-            )
-        except OSError:  # the thread ended meanwhile
-            continue
-        switches = int(status["voluntary_ctxt_switches"]), int(status["nonvoluntary_ctxt_switches"])
-        out[int(task.name)] = (comm, int(fields[11]), int(fields[12]), *switches)
-    return out
+def use_of(pids: dict[str, int]) -> Use:
+    """What every thread of the processes ``pids`` has used so far."""
+    import benchlib  # scripts/benchlib.py, beside this file
+
+    return {name: benchlib.thread_use(pid) for name, pid in pids.items()}
 
 
 def role(child: str) -> str:
@@ -61,12 +52,12 @@ Summed = dict[tuple[str, str], list[int]]
 """(processes, thread name) → [user ticks, system ticks, voluntary, involuntary switches]."""
 
 
-def summed(pids: dict[str, int], before: dict[str, ThreadTimes], after: dict[str, ThreadTimes]) -> Summed:
+def summed(pids: dict[str, int], before: Use, after: Use) -> Summed:
     """What every thread used between ``before`` and ``after``, summed by role and name."""
     out: Summed = {}
     for name, pid in pids.items():
         for tid, (comm, *now) in after[name].items():
-            then = before[name].get(tid, (comm, 0, 0, 0, 0))[1:]
+            then = tuple(before[name][tid][1:]) if tid in before[name] else (0, 0, 0, 0)
             if comm == "python" and name != "router":  # the main thread runs the agent's own loop
                 comm = "python (agent's thread)" if tid == pid else "python (receiving, commands)"
             got = out.setdefault((role(name), comm), [0, 0, 0, 0])
@@ -77,9 +68,9 @@ def summed(pids: dict[str, int], before: dict[str, ThreadTimes], after: dict[str
 
 def idle(pids: dict[str, int], seconds: float) -> None:
     """CPU (% of one core) and wake-ups per second of every thread while nothing is asked."""
-    before = {name: thread_times(pid) for name, pid in pids.items()}
+    before = use_of(pids)
     time.sleep(seconds)  # a measuring window, not a synchronisation
-    after = {name: thread_times(pid) for name, pid in pids.items()}
+    after = use_of(pids)
     print(f"\nidle for {seconds:.0f} s:\n")
     print("| processes | thread | % of one core | wake-ups /s |\n|---|---|---|---|")
     total = 0.0
@@ -107,9 +98,9 @@ def profile(n_agents: int, n_rt: int, idle_s: float) -> None:
             print(f"\n## {len(names)} agents")
             idle(pids, idle_s)
         measure_all_pairs(bed, pairs, 100, 200)
-        before = {name: thread_times(pid) for name, pid in pids.items()}
+        before = use_of(pids)
         figures = measure_all_pairs(bed, pairs, n_rt, 200)
-        after = {name: thread_times(pid) for name, pid in pids.items()}
+        after = use_of(pids)
     round_trips = pairs * (n_rt + WARMUP)
 
     def us(ticks: int) -> float:

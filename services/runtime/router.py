@@ -28,10 +28,8 @@ import threading
 from pathlib import Path
 from types import FrameType
 
-import zenoh
-
 from services.runtime.refusal_watch import answer_counters, watch_refusals
-from services.runtime.transport import router_config
+from services.runtime.transport import open_session, router_config
 
 SIGNAL_POLL_S = 0.5
 """s between the main thread's looks for SIGTERM/SIGINT's handler having run."""
@@ -64,7 +62,11 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     run_dir = os.environ.get("ROCO_RUN_DIR", "").strip()
     refusals = watch_refusals(Path(run_dir) if run_dir else None) if security else None
-    session = zenoh.open(conf)
+    try:
+        session = open_session(conf)
+    except ValueError as exc:  # a ZENOH_RUNTIME Zenoh cannot read
+        print(f"roco router: {exc}", file=sys.stderr)
+        return 2
     done = threading.Event()
     asked = answer_counters(session, refusals, done) if refusals is not None else None
 

@@ -130,6 +130,23 @@ def use_router_pools() -> None:
         del os.environ[ENV_RUNTIME]
 
 
+def open_session(conf: zenoh.Config) -> zenoh.Session:
+    """``zenoh.open(conf)``, with a ``ZENOH_RUNTIME`` that Zenoh cannot read (zenoh-runtime
+    panics on a malformed RON value at the process's first session) raised as ValueError naming
+    the variable, so that a process started with one says so in one line. Raises what
+    ``zenoh.open`` raises otherwise (zenoh.ZError: no router answers, credentials refused)."""
+    try:
+        return zenoh.open(conf)
+    except BaseException as exc:  # pyo3's PanicException is a BaseException
+        text = str(exc)
+        if type(exc).__name__ == "PanicException" and "RuntimeParam" in text and ENV_RUNTIME in os.environ:
+            why = text.splitlines()[0][:200] if text else type(exc).__name__
+            raise ValueError(
+                f"{ENV_RUNTIME}={os.environ[ENV_RUNTIME]!r}: Zenoh cannot read it ({why})"
+            ) from None
+        raise
+
+
 def _no_shared_memory(conf: zenoh.Config) -> None:
     """Turn off Zenoh's shared-memory transport (on by default since eclipse-zenoh 1.x, for
     puts of 3,072 B and more to sessions on the same host). Its watchdog wakes a thread of
@@ -159,7 +176,11 @@ def client_config(
     ``identity`` (else ``ROCO_IDENTITY``, else ``operator``) with its user name and password
     and, on ``tls/`` endpoints, its certificate (mutual TLS, checked against the folder's CA).
     Raises services.security.folder.CredentialError (a ValueError) when the folder has no
-    credentials for that identity."""
+    credentials for that identity.
+
+    Zenoh's shared-memory transport is off (:func:`_no_shared_memory`), and the process gets
+    roco's client runtime pools (:func:`use_runtime_pools`: sets ``ZENOH_RUNTIME`` in this
+    process's environment unless it is set), for its first session."""
     use_runtime_pools()
     conf = zenoh.Config()
     conf.insert_json5("mode", '"client"')
@@ -216,7 +237,11 @@ def router_config(
     (mutual TLS both ways: a meshed router that cannot show a certificate of the folder's CA is
     refused) and authenticates to the routers it connects to with its user/password.
     ``lease_ms``: Zenoh's transport lease (default 10 s): a link silent that long is closed; a
-    mesh over an unreliable link sets it longer than the partitions it should ride out."""
+    mesh over an unreliable link sets it longer than the partitions it should ride out.
+
+    Zenoh's shared-memory transport is off (:func:`_no_shared_memory`), and the process keeps
+    Zenoh's own runtime pools (:func:`use_router_pools`: drops a ``ZENOH_RUNTIME`` inherited
+    from a roco client) for its first session."""
     use_router_pools()
     conf = zenoh.Config()
     conf.insert_json5("mode", '"router"')
@@ -294,9 +319,10 @@ class ZenohTransport:
     ) -> None:
         """Open a client session to ``endpoints`` as ``identity`` (:func:`client_config`).
         Raises ValueError for a malformed ``ROCO_RECEIVE_POLL_US`` (services/runtime/polling.py)
-        before opening anything."""
+        before opening anything, and for a ``ZENOH_RUNTIME`` Zenoh cannot read
+        (:func:`open_session`)."""
         self._poll_us = max_poll_us()
-        self.session = zenoh.open(
+        self.session = open_session(
             client_config(endpoints, wait_for_router=wait_for_router, identity=identity)
         )
         self._subs: list[zenoh.Subscriber | zext.AdvancedSubscriber] = []

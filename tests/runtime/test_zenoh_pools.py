@@ -19,7 +19,7 @@ from pathlib import Path
 
 import pytest
 
-from services.fleet.launcher import Fleet
+from services.fleet.launcher import Fleet, free_port
 from services.runtime.transport import (
     ENV_RUNTIME,
     RUNTIME_POOLS,
@@ -97,3 +97,24 @@ def test_no_configuration_uses_shared_memory() -> None:
     for conf in (client_config(["tcp/127.0.0.1:7447"]), router_config(["tcp/127.0.0.1:7447"])):
         assert json.loads(conf.get_json("transport/shared_memory/enabled")) is False
     assert "handover: app" in RUNTIME_POOLS
+
+
+def test_a_runtime_setting_zenoh_cannot_read_stops_a_process_with_one_line_naming_it() -> None:
+    """Zenoh panics on it (and prints its own backtrace first); the process ends with exit code
+    2 and a last line that names the variable."""
+    env = {**os.environ, ENV_RUNTIME: "(rx: oops"}
+    done = subprocess.run(
+        [sys.executable, "-m", "services.runtime.router", "--listen", f"tcp/127.0.0.1:{free_port()}"],
+        cwd=ROOT,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=60,
+        check=False,
+    )
+    assert done.returncode == 2, done.stderr[-2000:]
+    assert (
+        done.stderr.strip()
+        .splitlines()[-1]
+        .startswith("roco router: ZENOH_RUNTIME='(rx: oops': Zenoh cannot read it")
+    )
