@@ -57,17 +57,16 @@ def _zenoh_names(names: set[str]) -> set[str]:
     return {n for n in names if n.split("-")[0] in {"app", "tx", "rx", "net", "acc"}}
 
 
+def _python(args: list[str], env: dict[str, str]) -> subprocess.CompletedProcess[str]:
+    """A fresh interpreter run with ``args`` in the project's folder, its output kept."""
+    return subprocess.run(
+        [sys.executable, *args], cwd=ROOT, env=env, capture_output=True, text=True, timeout=60, check=False
+    )
+
+
 def _zenoh_threads(endpoint: str, env: dict[str, str]) -> set[str]:
     """Names of the Zenoh runtime's threads in a fresh process that opened a transport."""
-    done = subprocess.run(
-        [sys.executable, "-c", THREADS, endpoint],
-        cwd=ROOT,
-        env=env,
-        capture_output=True,
-        text=True,
-        timeout=60,
-        check=False,
-    )
+    done = _python(["-c", THREADS, endpoint], env)
     assert done.returncode == 0, done.stderr[-2000:]
     return _zenoh_names(set(done.stdout.strip().splitlines()[-1].split(",")))
 
@@ -103,15 +102,7 @@ def test_a_runtime_setting_zenoh_cannot_read_stops_a_process_with_one_line_namin
     """Zenoh panics on it (and prints its own backtrace first); the process ends with exit code
     2 and a last line that names the variable."""
     env = {**os.environ, ENV_RUNTIME: "(rx: oops"}
-    done = subprocess.run(
-        [sys.executable, "-m", "services.runtime.router", "--listen", f"tcp/127.0.0.1:{free_port()}"],
-        cwd=ROOT,
-        env=env,
-        capture_output=True,
-        text=True,
-        timeout=60,
-        check=False,
-    )
+    done = _python(["-m", "services.runtime.router", "--listen", f"tcp/127.0.0.1:{free_port()}"], env)
     assert done.returncode == 2, done.stderr[-2000:]
     assert (
         done.stderr.strip()
