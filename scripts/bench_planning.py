@@ -22,6 +22,7 @@ import sys
 import tempfile
 import time
 from pathlib import Path
+from typing import Any
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
@@ -32,6 +33,7 @@ from services.fleet.launcher import Fleet, free_port  # noqa: E402
 from services.runtime import keys  # noqa: E402
 from services.runtime.session import open_client  # noqa: E402
 from shared.fipa_codec import AgentIdentifier, Communicate, Performative, decode, encode  # noqa: E402
+from shared.fipa_codec.batch import unpack  # noqa: E402
 from shared.fipa_codec.languages import decode_content, encode_content  # noqa: E402
 from shared.fipa_codec.languages.common import Pose  # noqa: E402
 from shared.fipa_codec.languages.l_hc import TaskAtom  # noqa: E402
@@ -69,9 +71,14 @@ def measure(runs: int) -> list[tuple[float, float, int, int]]:
         try:
             fleet.start_router()
             session = open_client(endpoint)
+
+            def on_answer(s: Any) -> None:  # a zenoh.Sample; a batch: each of its communicates
+                for p in unpack(s.payload.to_bytes()):
+                    answers.put((time.perf_counter(), p))
+
             session.declare_subscriber(
                 keys.fipa_key("C3", "a_pl", "a_co"),
-                lambda s: answers.put((time.perf_counter(), s.payload.to_bytes())),
+                on_answer,
             )
             session.declare_subscriber(keys.inbox_key("a_ta"), lambda s: None)  # a_km's subscribe
             fleet.start_agents(["a_km", "a_pl"])

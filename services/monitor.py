@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from services.runtime import keys
 from shared.fipa_codec import DecodeError, Performative, decode
+from shared.fipa_codec.batch import unpack
 from shared.fipa_codec.languages import ContentError, decode_content
 from shared.fipa_codec.languages.l_ex import CommandResult
 from shared.fipa_codec.languages.l_hc import CommandOutcome, HumanCommand
@@ -59,11 +60,15 @@ def progress_line(key: str, payload: bytes) -> str | None:
 
 
 def is_world_update(payload: bytes) -> bool:
-    """True when ``payload`` is an inform carrying an L_WM WorldUpdate (an observation)."""
-    try:
-        msg = decode(payload)
-        return msg.performative is Performative.INFORM and isinstance(
-            decode_content(msg.language, msg.content), WorldUpdate
-        )
-    except (DecodeError, ContentError):
-        return False
+    """True when ``payload`` is an inform carrying an L_WM WorldUpdate (an observation), or a
+    batch (shared/fipa_codec/batch.py) holding one."""
+    for part in unpack(payload):
+        try:
+            msg = decode(part)
+            if msg.performative is Performative.INFORM and isinstance(
+                decode_content(msg.language, msg.content), WorldUpdate
+            ):
+                return True
+        except (DecodeError, ContentError):
+            continue
+    return False

@@ -41,6 +41,7 @@ from services.runtime import keys
 from services.runtime.session import open_client
 from services.spec.model import SystemSpec, default_spec, is_foreign
 from shared.fipa_codec import Communicate, DecodeError, Performative, decode
+from shared.fipa_codec.batch import unpack
 from shared.fipa_codec.string_form import to_string
 
 POLL_S = 0.1
@@ -222,7 +223,9 @@ def sniff(
     samples: queue.SimpleQueue[tuple[float, str, bytes]] = queue.SimpleQueue()
 
     def on_sample(sample: zenoh.Sample) -> None:
-        samples.put((time.time(), str(sample.key_expr), sample.payload.to_bytes()))
+        t, key = time.time(), str(sample.key_expr)
+        for payload in unpack(sample.payload.to_bytes()):  # a batch: each communicate
+            samples.put((t, key, payload))
 
     own = isinstance(endpoint, str)
     session = open_client(endpoint) if isinstance(endpoint, str) else endpoint

@@ -125,9 +125,10 @@ def bench(
             "in the "
             "initiator's input buffer. Throughput: the initiator `subscribe`s; the participant `agree`s "
             "and sends "
-            "the informs 256 per FSM step; counted where they reach the initiator's input buffer after "
-            "decoding "
-            "and validation; rate = (received − 1) / (last − first arrival).",
+            "the informs 256 per FSM step (so they travel in batches: one Zenoh put for what one step sends "
+            "to one receiver, shared/fipa_codec/batch.py); counted where they reach the initiator's input "
+            "buffer after decoding "
+            "and validation, each checked on its own; rate = (received − 1) / (last − first arrival).",
             "- **raw Zenoh**: two bare Python sessions (same client configuration) through the same router: "
             "ping-pong with `put` and a subscriber's FIFO handler on each side; throughput with a declared "
             "publisher's `put` in a loop and a counting subscriber callback; the payload has the length of "

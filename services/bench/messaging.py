@@ -340,6 +340,8 @@ class PairFigures:
     poll_us: float = 0.0
     """The maximum poll window (µs) of roco's receiving threads in the run (0: off)."""
     roco_tput: Throughput = field(default_factory=Throughput)
+    roco_tput_single: Throughput = field(default_factory=Throughput)
+    """roco's stream with every communicate in a put of its own (``Agent.batch_puts`` False)."""
     raw_tput: Throughput = field(default_factory=Throughput)
 
 
@@ -354,8 +356,9 @@ def measure_pair(bed: Testbed, k: int, rounds: int, n_rt: int, n_tput: int, size
     """Measure pair ``k`` (roco agents ``b_ini<k>``/``b_par<k>``, raw processes ``raw_*<k>``):
     ``rounds`` alternations of raw ping-pong (blocking, then polling as roco's receiving
     threads do unless ``ROCO_RECEIVE_POLL_US`` is 0), roco ping-pong, raw throughput and roco
-    throughput, ``n_rt`` round trips and ``n_tput`` communicates each, ``size`` bytes of
-    content (raw: payload of roco's encoded request's length)."""
+    throughput (in batches, then one put per communicate), ``n_rt`` round trips and ``n_tput``
+    communicates each, ``size`` bytes of content (raw: payload of roco's encoded request's
+    length)."""
     ini = bed.children[pair_names(k)[0]]
     echo, pinger = bed.children[f"raw_echo{k}"], bed.children[f"raw_pinger{k}"]
     raw_size = request_bytes(size)
@@ -375,6 +378,8 @@ def measure_pair(bed: Testbed, k: int, rounds: int, n_rt: int, n_tput: int, size
         out.raw_tput.runs.append((got["count"], n_tput, got["span_s"]))
         got = _answer(ini, ("stream", n_tput, size), timeout)
         out.roco_tput.runs.append((got["count"], n_tput, got["span_s"]))
+        got = _answer(ini, ("stream", n_tput, size, False), timeout)
+        out.roco_tput_single.runs.append((got["count"], n_tput, got["span_s"]))
     return out
 
 

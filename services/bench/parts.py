@@ -23,6 +23,7 @@ import msgspec
 
 from services.bench.messaging import no_access_control, percentile, process_rss_mib
 from shared.fipa_codec import AgentIdentifier, Communicate, Performative, decode, encode
+from shared.fipa_codec.batch import unpack
 
 ROOT = Path(__file__).resolve().parents[2]
 SCRIPTS = ROOT / "scripts"
@@ -163,9 +164,14 @@ def _km_over_zenoh(queries: list[Any], repeats: int) -> list[list[float]]:
         try:
             fleet.start_router()
             session = open_client(endpoint)
+
+            def on_answer(s: Any) -> None:  # a zenoh.Sample; a batch: each of its communicates
+                for p in unpack(s.payload.to_bytes()):
+                    answers.put((time.perf_counter(), p))
+
             session.declare_subscriber(
                 keys.fipa_key("C4", "a_km", "a_pl"),
-                lambda s: answers.put((time.perf_counter(), s.payload.to_bytes())),
+                on_answer,
             )
             session.declare_subscriber(keys.inbox_key("a_ta"), lambda s: None)
             fleet.start_agents(["a_km"])

@@ -147,6 +147,18 @@ def messaging_table(f: PairFigures, spade: SpadeFigures | None, size: int) -> li
             str(f.roco_tput.lost),
         ],
     ]
+    if f.roco_tput_single.runs:
+        rows.append(
+            [
+                "roco, each communicate in a put of its own (no batches)",
+                "—",
+                "—",
+                "—",
+                _rate(f.roco_tput_single.median),
+                ", ".join(_rate(x) for x in f.roco_tput_single.rates),
+                str(f.roco_tput_single.lost),
+            ]
+        )
     if spade is not None and not spade.error:
         s_rt = sorted(spade.samples_s)
         p50 = s_rt[len(s_rt) // 2] * 1e6 if s_rt else 0.0
@@ -209,7 +221,12 @@ def verdict_lines(f: PairFigures | None, spade: SpadeFigures | None) -> list[str
             f"- roco one-way throughput, one pair, 200 B content: **{_rate(tput)} /s** (target ≥ "
             f"{_rate(TARGET_TPUT)} /s): {'met' if tput >= TARGET_TPUT else 'missed'}; "
             f"{f.roco_tput.median / f.raw_tput.median * 100 if f.raw_tput.median else 0:.1f} % of raw "
-            "Zenoh's."
+            "Zenoh's"
+            + (
+                f"; each communicate in a put of its own (no batches): {_rate(f.roco_tput_single.median)} /s."
+                if f.roco_tput_single.runs
+                else "."
+            )
         )
     if f is not None and spade is not None and not spade.error and spade.samples_s:
         rt = spade_p50_us(spade) / f.roco_rt.p50_us if f.roco_rt.p50_us else 0.0

@@ -65,10 +65,12 @@ class BenchInform(msgspec.Struct, frozen=True, tag="bench_inform"):
 
 
 class BenchSubscription(msgspec.Struct, frozen=True, tag="bench_subscription"):
-    """The content of a benchmark ``subscribe``: send ``count`` informs of ``size`` bytes."""
+    """The content of a benchmark ``subscribe``: send ``count`` informs of ``size`` bytes, in
+    batches (``Agent.batch_puts``) unless ``batched`` is False."""
 
     count: int
     size: int
+    batched: bool = True
 
 
 def _register() -> None:
@@ -190,7 +192,7 @@ class BenchInitiator(Agent):
             self._count()
 
     def _start(self, cmd: tuple[Any, ...]) -> None:
-        kind, n, size = cmd
+        kind, n, size, *rest = cmd  # ("stream", n, size, False): informs one put each
         self.job = cmd
         self.samples = []
         self.ends = []
@@ -203,7 +205,7 @@ class BenchInitiator(Agent):
             msg = self.send(
                 self.peer,
                 Performative.SUBSCRIBE,
-                BenchSubscription(count=n, size=size),
+                BenchSubscription(count=n, size=size, batched=bool(rest[0]) if rest else True),
                 protocol="fipa-subscribe",
                 expect_reply=True,
             )
@@ -297,6 +299,7 @@ class BenchParticipant(Agent):
             elif item.performative is Performative.SUBSCRIBE and isinstance(content, BenchSubscription):
                 self.reply(item, Performative.AGREE)
                 self.stream, self.left, self.data = item, content.count, sized_data(content.size)
+                self.batch_puts = content.batched
 
     def _stream(self) -> None:
         batch = min(STREAM_BATCH, self.left)

@@ -72,6 +72,7 @@ from shared.fipa_codec import (
     decode,
     encode,
 )
+from shared.fipa_codec.batch import unpack
 from shared.fipa_codec.languages import LANGUAGES, ContentError, decode_content, encode_content, load_all
 from shared.fipa_codec.string_form import StringFormError, format_datetime, parse, to_bytes
 
@@ -172,7 +173,8 @@ class Gateway:
             self.counters[name] += 1
 
     def _on_zenoh(self, key: str, payload: bytes) -> None:
-        self._queue.put((key, payload))  # Zenoh thread: enqueue only
+        for communicate in unpack(payload):  # a batch: each of its communicates, in order
+            self._queue.put((key, communicate))  # Zenoh thread: enqueue only
 
     def _on_ask(self, key: str, payload: bytes) -> None:
         self._queue.put(("ask", None))

@@ -15,6 +15,7 @@ import msgspec
 
 from services.runtime import keys
 from shared.fipa_codec import DecodeError, decode
+from shared.fipa_codec.batch import unpack
 from shared.fipa_codec.languages import ContentError, decode_content
 from shared.fipa_codec.languages.l_hc import CommandOutcome, HumanCommand
 from shared.fipa_codec.languages.l_hfsm import GroundTaskNetwork, HierarchicalPlan
@@ -92,6 +93,11 @@ class LiveState:
     _first: tuple[float, float] | None = None  # (wall, sim) of the first state seen
     _last_wall: float | None = None
     _timing: TimingStats | None = None
+
+    def communicates(self, key: str, payload: bytes) -> None:
+        """Take one sample: one communicate or a batch of them (shared/fipa_codec/batch.py)."""
+        for communicate in unpack(payload):
+            self.communicate(key, communicate)
 
     def communicate(self, key: str, payload: bytes) -> None:
         """Take one communicate; anything that is not one of the view's is ignored."""

@@ -54,7 +54,7 @@ class LiveWatch:
         """Subscribe on ``session`` (the run's own; the subscribers end with it)."""
         self._subscribers += [
             session.declare_subscriber(
-                keys.FIPA_ALL, lambda s: self.state.communicate(str(s.key_expr), s.payload.to_bytes())
+                keys.FIPA_ALL, lambda s: self.state.communicates(str(s.key_expr), s.payload.to_bytes())
             ),
             session.declare_subscriber(
                 keys.state_key("ag_ex"), lambda s: self.state.robot_state(s.payload.to_bytes(), self.clock())

@@ -174,14 +174,20 @@ def _matches(rec: TrafficRecord, raw: bytes) -> tuple[bool, Communicate | None]:
 
 def _sequences(records: Sequence[TrafficRecord], result: Integrity) -> None:
     seen: dict[str, Counter[int]] = defaultdict(Counter)
+    parts: dict[str, Counter[tuple[int, int]]] = defaultdict(Counter)  # (sn, part): batches
     key_of: dict[str, str] = {}
     for rec in records:
         if rec.source is None or rec.sn is None:  # a plain put: nothing to check gaps by
             continue
         seen[rec.source][rec.sn] += 1
+        parts[rec.source][(rec.sn, rec.part)] += 1
         key_of[rec.source] = rec.key
     for source, sns in seen.items():
-        result.duplicates += [f"{key_of[source]} sn {sn}" for sn, n in sorted(sns.items()) if n > 1]
+        result.duplicates += [
+            f"{key_of[source]} sn {sn}" + (f" part {part}" if part else "")
+            for (sn, part), n in sorted(parts[source].items())
+            if n > 1
+        ]
         start = None
         for sn in range(max(sns) + 1):
             if sn not in sns and start is None:

@@ -92,6 +92,7 @@ class TrafficRecord(msgspec.Struct, frozen=True, kw_only=True):
     t_sent: float | None = None
     late: bool = False
     key_sender: str | None = None
+    part: int = 0
 
     @property
     def ref(self) -> RecordKey:
@@ -147,6 +148,7 @@ def record_of(entry: RawEntry) -> TrafficRecord:
         t_sent=a.t_sent,
         late=a.late,
         key_sender=key_sender,
+        part=a.part,
     )
 
 

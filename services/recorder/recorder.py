@@ -127,6 +127,8 @@ class TrafficWriter:
             log.warning("traffic record repaired: %s", note)
         self.seq = resume.next_seq
         self._last_sn = resume.last_sn
+        self._batch_sn: dict[str, int] = {}
+        """Per publisher, the sn whose part 0 was admitted last (-1: refused)."""
         self._raw = (run_dir / TRAFFIC_RAW).open("ab", buffering=0)
         self._jsonl = (run_dir / TRAFFIC_JSONL).open("ab", buffering=0)
         self._run_dir = run_dir
@@ -145,13 +147,20 @@ class TrafficWriter:
         self._faults.write(_json(event) + b"\n")
         return True
 
-    def admit(self, source: str | None, sn: int | None) -> bool:
+    def admit(self, source: str | None, sn: int | None, part: int = 0) -> bool:
         """Whether a communicate from publisher ``source`` with sequence number ``sn`` is new
         (a publisher's cache sends again what it sent before; the advanced subscriber delivers
-        each publisher's communicates in order). Counts the ones refused in ``duplicates``."""
+        each publisher's communicates in order). ``part`` > 0: a further communicate of the
+        batch whose first one (part 0) carried ``sn``; new when that one was. Counts the ones
+        refused in ``duplicates``."""
         if source is None or sn is None:
             return True
-        if sn <= self._last_sn.get(source, -1):
+        if part > 0:
+            new = self._batch_sn.get(source) == sn
+        else:
+            new = sn > self._last_sn.get(source, -1)
+            self._batch_sn[source] = sn if new else -1
+        if not new:
             self.duplicates += 1
             return False
         self._last_sn[source] = sn
@@ -242,7 +251,7 @@ class _Loop:
             elif item.key.startswith(_FAULT_EVENTS):
                 if not self.writer.fault(item.payload):
                     log.warning("ignored a malformed fault event on %s", item.key)
-            elif self.writer.admit(item.source, item.sn):
+            elif self.writer.admit(item.source, item.sn, item.part):
                 pending.append(self._stamp(item))
         self._write(pending)
         return stop

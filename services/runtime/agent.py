@@ -90,6 +90,7 @@ from shared.fipa_codec import (
     decode,
     encode,
 )
+from shared.fipa_codec.batch import is_batch, runs, unpack
 from shared.fipa_codec.languages import ContentError, decode_content, encode_content, language_of
 from shared.fipa_codec.message import new_id
 from shared.fipa_codec.protocols import (
@@ -209,6 +210,9 @@ class Agent:
         self.roles = Roles(self, self.ROLES or (), check=self.ROLES is not None)
         """The agent's protocol roles and their open conversations (services/runtime/roles.py)."""
         self._y: list[tuple[str, bytes]] = []
+        self.batch_puts = True
+        """Communicates that one step sends in a row to one receiver go in one put, a batch
+        (shared/fipa_codec/batch.py); False: one put each (the benchmark compares the two)."""
         self._inbox: deque[tuple[str, Any]] = deque()
         """Inputs waiting for a step: (key, payload) of a communicate, or a runtime event."""
         self._arrived = threading.Condition()  # an RLock: stop() may run in a signal handler
@@ -561,7 +565,16 @@ class Agent:
             self._inbox.append(item)
             self._arrived.notify()
 
+    def _put_inputs(self, items: list[tuple[str, Any]]) -> None:
+        """Hand several inputs, in order, to the agent's thread at once (any thread; wakes it)."""
+        with self._arrived:
+            self._inbox.extend(items)
+            self._arrived.notify()
+
     def _on_payload(self, key: str, payload: bytes) -> None:  # the transport's thread
+        if is_batch(payload):  # several communicates put together: taken in together
+            self._put_inputs([(key, part) for part in unpack(payload)])
+            return
         now = time.perf_counter()
         apart, self._last_arrival = now - self._last_arrival, now
         if not (self._inline and apart > INLINE_GAP_S and self._take_here((key, payload))):
@@ -878,9 +891,10 @@ class Agent:
     # ---- the loop -----------------------------------------------------------------------
     def _dispatch(self) -> None:
         published = 0
-        for key, payload in self._y:
+        for key, payload, count in runs(self._y, keys.is_communicate_key if self.batch_puts else _alone):
             self.transport.publish(key, payload)
-            published += key.startswith(keys.FIPA_PREFIX)
+            if key.startswith(keys.FIPA_PREFIX):
+                published += count
         if published:
             self.counters["published"] += published
         self._y.clear()
@@ -993,6 +1007,11 @@ class Agent:
         agent's handler (services/runtime/roles.py), oldest first."""
         while self.x:
             self.roles.take(self.x.popleft())
+
+
+def _alone(key: str) -> bool:
+    """No key's communicates are batched (``Agent.batch_puts`` False)."""
+    return False
 
 
 def _roles(spec: SystemSpec, agent: str) -> dict[tuple[str, str], Role]:

@@ -24,6 +24,11 @@ except ImportError:  # pragma: no cover - an interpreter without the built-in mo
     from hashlib import blake2b
 
 DEFAULT_CAPACITY = 4096
+ANSWERS_PER_REQUEST = 16
+"""Answers kept per request, the first ones: what a copy of the request gets again (its agree
+or refuse and the first results). A subscription's stream of informs answers one request for
+as long as it lasts; keeping them all grew an agent by every inform it streamed (20,000 informs
+of the benchmark: ≈ 10 MiB), and a copy of the subscribe would have had them all sent again."""
 
 
 def digest(payload: bytes) -> bytes:
@@ -55,7 +60,8 @@ class Dedup:
         return False
 
     def answered(self, peer: str, in_reply_to: str, key: str, payload: bytes) -> None:
-        """Remember an answer sent to ``peer``'s communicate whose reply-with is ``in_reply_to``."""
+        """Remember an answer sent to ``peer``'s communicate whose reply-with is ``in_reply_to``
+        (the first :data:`ANSWERS_PER_REQUEST` of each)."""
         k = (peer, in_reply_to)
         answers = self._answers.get(k)
         if answers is None:
@@ -64,7 +70,8 @@ class Dedup:
                 self._answers.popitem(last=False)
         else:
             self._answers.move_to_end(k)
-        answers.append((key, payload))
+        if len(answers) < ANSWERS_PER_REQUEST:
+            answers.append((key, payload))
 
     def answers(self, peer: str, reply_with: str | None) -> list[tuple[str, bytes]]:
         """The answers already sent to ``peer``'s communicate ``reply_with``, in order."""

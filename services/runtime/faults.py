@@ -13,6 +13,9 @@ agent and applies, to what the agent puts on the wire:
   liveliness tokens withdrawn (it looks gone to the others) and the others' tokens reported
   gone to it; healing declares its tokens again and reports the others as they are.
 
+A batch (several communicates one step put on one key: shared/fipa_codec/batch.py) meets its
+faults one communicate at a time, each put on its own, as if it had not been batched.
+
 Faults are drawn from one ``random.Random`` seeded with ``"<seed>:<agent>"``: the same
 settings and the same sequence of publications give the same faults.
 
@@ -47,6 +50,7 @@ import msgspec
 
 from services.runtime.transport import AliveCallback, Callback, Transport
 from shared.fipa_codec import DecodeError, decode
+from shared.fipa_codec.batch import is_batch, unpack
 
 log = logging.getLogger(__name__)
 
@@ -354,6 +358,10 @@ class FaultyTransport:
         if not self._active:
             self.inner.publish(key, payload)
             return
+        if is_batch(payload) and key.startswith(_FIPA):  # faults are per communicate
+            for part in unpack(payload):
+                self._publish_faulty(key, part)
+            return
         self._publish_faulty(key, payload)
 
     def _publish_faulty(self, key: str, payload: bytes) -> None:
@@ -449,14 +457,17 @@ class FaultyTransport:
         self.inner.subscribe(key_expr, guarded)
 
     def _dropped_in(self, key: str, payload: bytes) -> None:
-        ev = None
-        if key.startswith(_FIPA):
-            channel = key.split("/", 3)[2]
-            ev = _communicate_event(self._clock(), self.agent, "partition_in", channel, key, payload, "")
+        events = []
+        if key.startswith(_FIPA):  # one event per communicate, also of a batch
+            channel, now = key.split("/", 3)[2], self._clock()
+            events = [
+                _communicate_event(now, self.agent, "partition_in", channel, key, part, "")
+                for part in unpack(payload)
+            ]
         with self._lock:
-            self.applied["partition_in"] += 1
-            if ev is not None:
-                self._events.append(ev)
+            self.applied["partition_in"] += max(1, len(events))
+            if events:
+                self._events.extend(events)
                 self._cond.notify()
 
     @property

@@ -63,6 +63,12 @@ def caches_of(key: str) -> str:
     return f"{key}/@adv/**"
 
 
+def is_communicate_key(key: str) -> bool:
+    """Whether ``key`` carries communicates (``roco/fipa/…``), one or a batch of them
+    (shared/fipa_codec/batch.py)."""
+    return key.startswith(FIPA_PREFIX)
+
+
 def inbox_key(agent: str) -> str:
     """The key expression an agent subscribes to: every channel, every sender, to it."""
     return f"{PREFIX}/fipa/*/*/{key_chunk(agent)}"

@@ -1,6 +1,8 @@
 """An in-process :class:`~services.runtime.transport.Transport`: several agents in one
 process share a :class:`MemoryBus` (unit tests of agent logic; single-process experiments).
-Key matching uses Zenoh's own key-expression semantics."""
+Key matching uses Zenoh's own key-expression semantics. Unlike Zenoh, the bus carries the
+communicates of a batch (what one step put on one key together) one by one: its subscribers,
+tests among them, read communicates only."""
 
 from __future__ import annotations
 
@@ -8,7 +10,9 @@ import threading
 
 import zenoh
 
+from services.runtime.keys import is_communicate_key
 from services.runtime.transport import AliveCallback, Callback
+from shared.fipa_codec.batch import is_batch, unpack
 
 
 class MemoryBus:
@@ -20,17 +24,22 @@ class MemoryBus:
         self._watchers: list[tuple[zenoh.KeyExpr, AliveCallback]] = []
         self._lock = threading.Lock()
         self.published: list[tuple[str, bytes]] = []
+        """Every payload put, in order; a batch of communicates as each of them."""
 
     def transport(self) -> MemoryTransport:
         return MemoryTransport(self)
 
     def publish(self, key: str, payload: bytes) -> None:
+        """Deliver ``payload`` to the subscribers of ``key``; a batch of communicates
+        (shared/fipa_codec/batch.py) one communicate at a time, in order."""
         ke = zenoh.KeyExpr(key)
+        parts = unpack(payload) if is_communicate_key(key) and is_batch(payload) else [payload]
         with self._lock:
-            self.published.append((key, payload))
+            self.published += [(key, part) for part in parts]
             targets = [cb for expr, cb in self._subs if expr.intersects(ke)]
-        for cb in targets:
-            cb(key, payload)
+        for part in parts:
+            for cb in targets:
+                cb(key, part)
 
     def subscribe(self, key_expr: str, callback: Callback) -> None:
         with self._lock:

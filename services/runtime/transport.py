@@ -40,6 +40,7 @@ from services.runtime import keys
 from services.runtime.limits import low_pass_filter
 from services.runtime.polling import AdaptivePoll, max_poll_us
 from services.security.context import identity_name, security_for
+from shared.fipa_codec.batch import unpack
 
 log = logging.getLogger(__name__)
 
@@ -51,7 +52,9 @@ class Arrival(NamedTuple):
     """One sample as a recording subscriber sees it: arrival time ``t`` (POSIX s), ``key``,
     ``payload``; its publisher ``source`` (``<session id>:<entity id>``) and sequence number
     ``sn`` when it came from an advanced publisher; ``t_sent`` the publisher's timestamp
-    (POSIX s) when it carried one; ``late`` set by the subscriber's owner."""
+    (POSIX s) when it carried one; ``late`` set by the subscriber's owner; ``part`` the
+    communicate's place (0, 1, …) in the batch its sample carried (shared/fipa_codec/batch.py;
+    0 for a sample of one communicate): the communicates of one batch share its ``sn``."""
 
     t: float
     key: str
@@ -60,6 +63,7 @@ class Arrival(NamedTuple):
     sn: int | None = None
     t_sent: float | None = None
     late: bool = False
+    part: int = 0
 
 
 CACHE_SAMPLES = 512
@@ -385,10 +389,11 @@ class ZenohTransport:
 
     def subscribe_recovering(self, key_expr: str, callback: Callable[[Arrival], None]) -> None:
         """Subscribe to ``key_expr`` with a zenoh-ext advanced subscriber: ``callback`` gets
-        every sample as an :class:`Arrival`, first what the advanced publishers matching it
-        still hold in their caches (also those of publishers detected later), then what they
-        put, each publisher's in order of sequence number, a missed one fetched again from its
-        publisher's cache (heartbeats and gaps). What a publisher sends again is not filtered
+        every sample as an :class:`Arrival` (a batch of communicates as one each, in order),
+        first what the advanced publishers matching it still hold in their caches (also those
+        of publishers detected later), then what they put, each publisher's in order of
+        sequence number, a missed one fetched again from its publisher's cache (heartbeats and
+        gaps). What a publisher sends again is not filtered
         here (the caller keeps the sequence numbers it has). Runs on Zenoh's threads."""
 
         def on_sample(sample: zenoh.Sample) -> None:
@@ -398,7 +403,10 @@ class ZenohTransport:
             if info is not None:
                 source, sn = f"{info.source_id.zid}:{info.source_id.eid}", info.source_sn
             sent = stamp.get_time().timestamp() if stamp is not None else None
-            callback(Arrival(t, str(sample.key_expr), sample.payload.to_bytes(), source, sn, sent))
+            key, payload = str(sample.key_expr), sample.payload.to_bytes()
+            parts = unpack(payload) if keys.is_communicate_key(key) else [payload]
+            for part, communicate in enumerate(parts):
+                callback(Arrival(t, key, communicate, source, sn, sent, part=part))
 
         sub = zext.declare_advanced_subscriber(
             self.session,

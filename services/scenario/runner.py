@@ -30,6 +30,7 @@ from services.runtime.run_folder import RunInfo, write_run_info
 from services.runtime.session import open_client
 from services.scenario.model import Fault, Scenario, Step
 from shared.fipa_codec import DecodeError, Performative, decode
+from shared.fipa_codec.batch import unpack
 from shared.fipa_codec.languages import ContentError, decode_content
 from shared.fipa_codec.languages.l_sw import SWStatus
 
@@ -231,7 +232,11 @@ class ScenarioRunner:
             self.events.put(("report", msgspec.json.decode(sample.payload.to_bytes(), type=HumanReport)))
 
     def _on_traffic(self, sample: zenoh.Sample) -> None:
-        key, payload = str(sample.key_expr), sample.payload.to_bytes()
+        key = str(sample.key_expr)
+        for payload in unpack(sample.payload.to_bytes()):  # a batch: each communicate
+            self._on_communicate(key, payload)
+
+    def _on_communicate(self, key: str, payload: bytes) -> None:
         if self.traffic_lines is not None:
             line = self.traffic_lines(key, payload)
             if line is not None:

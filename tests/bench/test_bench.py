@@ -148,5 +148,10 @@ def test_quick_bench_writes_codec_and_messaging_tables(tmp_path: Path) -> None:
         p50, p99, count = _number(r[1]), _number(r[2]), _number(r[3])
         assert 0 < p50 <= p99 and count == 300
     assert _number(messaging[0][4]) > 0 and _number(messaging[2][4]) > 0  # throughput /s
+    # the same stream with each communicate in a put of its own (no batches), nothing lost either
+    assert (
+        systems[3].startswith("roco, each communicate in a put of its own") and _number(messaging[3][4]) > 0
+    )
+    assert messaging[2][6] == messaging[3][6] == "0"
     assert "## Messaging targets" in text
     assert "On equal terms, raw Zenoh's ends polling the same way" in text

@@ -31,6 +31,7 @@ from services.runtime.faults import (
 )
 from services.runtime.memory_transport import MemoryBus
 from shared.fipa_codec import Performative, encode
+from shared.fipa_codec.batch import pack
 from tests.support.messages import communicate
 
 KEY = keys.fipa_key("C4", "a_km", "a_pl")
@@ -134,6 +135,21 @@ def test_duplicate_happens_with_its_probability(bus: MemoryBus, make: Callable) 
     assert extra == t.applied["duplicate"]
     assert set(sink.payloads) == set(numbered())  # nothing lost, copies back to back
     assert sink.payloads == sorted(sink.payloads)
+
+
+def test_a_batch_meets_its_faults_one_communicate_at_a_time(bus: MemoryBus, make: Callable) -> None:
+    sink, events = Sink(bus, KEY), Sink(bus, EVENT_ALL)
+    sent = [
+        encode(communicate(Performative.INFORM, "a_km", "a_pl", "fipa-subscribe", f"c-{i}")) for i in range(3)
+    ]
+    make().publish(KEY, pack(sent))
+    assert sink.payloads == sent  # no fault: the batch goes as it is (the bus delivers each)
+    t = make(channel(duplicate=1.0))
+    t.publish(KEY, pack(sent))
+    assert sink.payloads[3:] == [sent[0], sent[0], sent[1], sent[1], sent[2], sent[2]]
+    events.wait(lambda items: len(items) >= 4)  # the settings, then one per communicate
+    copies = [e for e in events_of(events) if e.kind == "duplicate"]
+    assert [e.conversation_id for e in copies] == ["c-0", "c-1", "c-2"]
 
 
 def test_corrupt_happens_with_its_probability_and_alters_bytes(bus: MemoryBus, make: Callable) -> None:

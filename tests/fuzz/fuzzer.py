@@ -33,6 +33,7 @@ from services.runtime import keys
 from services.runtime.session import open_client
 from services.spec.model import default_spec
 from shared.fipa_codec import DecodeError, Performative, decode
+from shared.fipa_codec.batch import unpack
 from tests.fuzz.strategies import AGENTS, flood, targets
 
 
@@ -87,8 +88,13 @@ def _as_identities(args: argparse.Namespace, rng: random.Random) -> int:
     sent: dict[str, int] = {}
     forbidden = 0
     try:
+
+        def on_answer(sample: zenoh.Sample) -> None:
+            for p in unpack(sample.payload.to_bytes()):  # a batch (one step's answers): each
+                answers.put(p)
+
         for name, session in sessions.items():
-            session.declare_subscriber(keys.inbox_key(name), lambda s: answers.put(s.payload.to_bytes()))
+            session.declare_subscriber(keys.inbox_key(name), on_answer)
         plan = [(name, agent) for name in sessions for agent in targets(name)]
         off_limits = {name: forbidden_keys(name) for name in sessions}
         every = max(1, (args.count * len(plan)) // args.forbidden) if args.forbidden else 0

@@ -118,3 +118,26 @@ def test_the_writer_drops_what_a_publisher_cache_sends_again(tmp_path: Path) -> 
     assert [a.sn for a in again] == [4, 5] and w.duplicates == 4
     assert w.admit(None, None)  # a plain put carries no sequence number: always new
     w.close()
+
+
+def test_the_communicates_of_a_batch_share_its_sequence_number(tmp_path: Path) -> None:
+    """A batch (shared/fipa_codec/batch.py) is one sample: its communicates arrive as parts 0, 1,
+    … of one sn; a cache's resend of the batch is refused whole, and only a part recorded twice
+    is a duplicate."""
+    w = TrafficWriter(tmp_path, "a")
+
+    def batch(sn: int, parts: int) -> list[Arrival]:
+        return [
+            Arrival(100.0 + sn, KEY, _payload(10 * sn + k), "z1:3", sn, 99.0, part=k) for k in range(parts)
+        ]
+
+    first = [a for a in [*batch(0, 3), *batch(1, 1)] if w.admit(a.source, a.sn, a.part)]
+    assert [(a.sn, a.part) for a in first] == [(0, 0), (0, 1), (0, 2), (1, 0)]
+    w.write_many(first)
+    again = [a for a in [*batch(0, 3), *batch(1, 1), *batch(2, 2)] if w.admit(a.source, a.sn, a.part)]
+    assert [(a.sn, a.part) for a in again] == [(2, 0), (2, 1)] and w.duplicates == 4
+    w.write_many([*again, batch(2, 2)[1]])  # part 1 of sn 2 written twice
+    w.close()
+    integrity, _ = check(read_records(tmp_path), read_payloads(tmp_path))
+    assert not integrity.gaps and integrity.duplicates == [f"{KEY} sn 2 part 1"]
+    assert [(r.sn, r.part) for r in read_records(tmp_path)][:3] == [(0, 0), (0, 1), (0, 2)]

@@ -20,6 +20,7 @@ from services.runtime.behaviour import FSM, Behaviour
 from services.runtime.memory_transport import MemoryBus, MemoryTransport
 from services.runtime.transport import Callback, ZenohTransport
 from shared.fipa_codec import Communicate, Performative, decode, encode
+from shared.fipa_codec.batch import unpack
 from shared.fipa_codec.languages.l_wm import Answer, ObjectQuery
 from tests.runtime.test_agent_runtime import KEY, query
 from tests.support.router import embedded_router
@@ -128,7 +129,7 @@ def start(agent_cls: type[Answering] = Answering) -> Running:
     agent = agent_cls(transport)
     agent.bind()
     to_pl: queue.SimpleQueue[Communicate] = queue.SimpleQueue()
-    bus.subscribe(keys.inbox_key("a_pl"), lambda k, p: to_pl.put(decode(p)))
+    bus.subscribe(keys.inbox_key("a_pl"), lambda k, p: [to_pl.put(decode(part)) for part in unpack(p)])
     raised: list[BaseException] = []
 
     def run() -> None:
@@ -193,6 +194,8 @@ def test_input_that_arrives_while_a_step_runs_waits_and_keeps_its_order(running:
     assert answers == [f"q{n}" for n in range(5)]
     assert agent.handled_on[0] == AGENT  # the waiting input went to the agent's thread
     assert agent.counters["received_inline"] == 0
+    # taken in by one step, the five answers to a_pl left in one put (one batch)
+    assert [key for key, _ in running.transport.put_by] == [keys.fipa_key("C4", "a_km", "a_pl")]
 
 
 def test_a_step_that_puts_a_stream_goes_on_on_the_agents_thread() -> None:

@@ -19,7 +19,7 @@ from services.agents.task_executor.agent import KeptTaskExecutor, TaskExecutor
 from services.runtime import keys
 from services.runtime.agent import RESEND_ON_RETURN, Agent
 from services.runtime.conversations import Conversations, Pending
-from services.runtime.dedup import Dedup
+from services.runtime.dedup import ANSWERS_PER_REQUEST, Dedup
 from services.runtime.human import HumanReport, ReportKind
 from services.runtime.memory_transport import MemoryBus, MemoryTransport
 from services.runtime.state_store import ENV_STATE_DIR, StateFile
@@ -137,6 +137,10 @@ def test_dedup_remembers_a_bounded_number_of_communicates() -> None:
     d.answered("a_hi", "r1", "k", b"agree")
     d.answered("a_hi", "r1", "k", b"inform")
     assert d.answers("a_hi", "r1") == [("k", b"agree"), ("k", b"inform")] and d.answers("a_hi", None) == []
+    for i in range(3 * ANSWERS_PER_REQUEST):  # a subscription's stream: the first answers are kept
+        d.answered("a_hi", "s1", "k", b"inform %d" % i)
+    kept = d.answers("a_hi", "s1")
+    assert len(kept) == ANSWERS_PER_REQUEST and kept[0] == ("k", b"inform 0")
     with pytest.raises(ValueError):
         Dedup(capacity=0)
 

@@ -20,6 +20,7 @@ from services.runtime.session import open_client
 from services.sniff import Filters, parse_filters, render, sniff
 from shared.fipa_codec import Communicate, Performative, encode
 from shared.fipa_codec.aid import aid
+from shared.fipa_codec.batch import pack
 from shared.fipa_codec.languages import encode_content
 from shared.fipa_codec.languages.l_wm import Answer, ObjectQuery
 from shared.fipa_codec.string_form import parse
@@ -203,6 +204,18 @@ def test_conversation_filter_and_raw_string_form_parses_back(router: str, publis
         head, body = line.split("\n", 1)
         assert HEADER.match(head)
         assert parse(body) == msg  # the exact SC00070 string form, content octets included
+
+
+def test_a_batch_is_printed_communicate_by_communicate(router: str, publisher: zenoh.Session) -> None:
+    sniffer = Sniffer(router)
+    sniffer.start(agents=None, channels=None, performatives=None, conversation=None, content=False)
+    probe = comm("query-ref", "a_pl", "a_km", ObjectQuery("probe"))
+    probes = sync(sniffer, publisher, probe)
+    sent = [comm("inform", "a_km", "a_pl", Answer(), conversation=f"c-{i}") for i in range(3)]
+    publisher.put(keys.fipa_key("C4", "a_km", "a_pl"), pack([encode(m) for m in sent]))  # one step's put
+    lines, more = collect(sniffer, publisher, probe)
+    assert sniffer.finish() == len(sent) + probes + more
+    assert [parse(line.split("\n", 1)[1]) for line in lines] == sent
 
 
 def test_malformed_payloads_are_one_line_and_the_sniffer_goes_on(

@@ -1,0 +1,91 @@
+"""Batches in the agent runtime (issue 20; shared/fipa_codec/batch.py): what one step sends to
+one receiver leaves in one put, and every communicate of a batch that arrives is checked as if it
+had come alone (malformed, sender binding, duplicates, the interface), in order."""
+
+from __future__ import annotations
+
+import queue
+import threading
+from collections.abc import Iterator
+
+import pytest
+
+from services.runtime import keys
+from services.runtime.memory_transport import MemoryBus, MemoryTransport
+from shared.fipa_codec import AgentIdentifier, Communicate, Performative, decode, encode
+from shared.fipa_codec.batch import is_batch, pack, unpack
+from tests.runtime.test_agent_runtime import KEY, Counter, query
+
+TO_PL = keys.fipa_key("C4", "a_km", "a_pl")
+
+
+class Recording(MemoryTransport):
+    """The in-memory transport, keeping every put as it was made (key, payload)."""
+
+    def __init__(self, bus: MemoryBus) -> None:
+        super().__init__(bus)
+        self.puts: list[tuple[str, bytes]] = []
+
+    def publish(self, key: str, payload: bytes) -> None:
+        self.puts.append((key, payload))
+        super().publish(key, payload)
+
+
+@pytest.fixture
+def running() -> Iterator[tuple[Counter, Recording, queue.SimpleQueue[Communicate]]]:
+    """a_km (answering queries) running; what it puts, and what reaches a_pl."""
+    bus = MemoryBus()
+    transport = Recording(bus)
+    agent = Counter(transport)
+    agent.bind()
+    to_pl: queue.SimpleQueue[Communicate] = queue.SimpleQueue()
+    bus.subscribe(keys.inbox_key("a_pl"), lambda k, p: to_pl.put(decode(p)))
+    t = threading.Thread(target=agent.run, daemon=True)
+    t.start()
+    yield agent, transport, to_pl
+    agent.stop()
+    t.join(timeout=5)
+    assert not t.is_alive()
+
+
+Running = tuple[Counter, Recording, queue.SimpleQueue[Communicate]]
+
+
+def test_each_communicate_of_a_batch_is_checked_alone_and_the_answers_leave_together(
+    running: Running,
+) -> None:
+    agent, transport, to_pl = running
+    q1 = encode(query("q1", conversation_id="c1"))
+    batch = [
+        q1,
+        b"\x00garbage",
+        encode(query("q2", conversation_id="c2", sender=AgentIdentifier("a_co"))),  # a spoof
+        q1,  # a copy: dropped (the original is not answered yet: nothing to send again)
+        encode(
+            query("q3", conversation_id="c3", performative=Performative.PROPOSE)
+        ),  # not in a_km's interface
+        encode(query("q4", conversation_id="c4")),
+    ]
+    agent._on_payload(KEY, pack(batch))  # as the transport's receiving thread calls it
+    got = [to_pl.get(timeout=5) for _ in range(5)]
+    assert [(m.performative, m.in_reply_to) for m in got] == [
+        (Performative.NOT_UNDERSTOOD, None),
+        (Performative.NOT_UNDERSTOOD, "q2"),
+        (Performative.NOT_UNDERSTOOD, "q3"),
+        (Performative.INFORM_REF, "q1"),
+        (Performative.INFORM_REF, "q4"),
+    ]
+    assert "malformed" in got[0].content.decode() and "sender does not match" in got[1].content.decode()
+    assert agent.counters["duplicates"] == 1 and agent.counters["rejected"] == 3
+    # taken in by one step: the five answers left in one put, counted per communicate
+    answers = [p for key, p in transport.puts if key == TO_PL]
+    assert len(answers) == 1 and is_batch(answers[0]) and len(unpack(answers[0])) == 5
+    assert agent.counters["published"] == 5
+
+
+def test_a_lone_answer_is_not_wrapped(running: Running) -> None:
+    agent, transport, to_pl = running
+    agent._on_payload(KEY, encode(query("q1")))
+    assert to_pl.get(timeout=5).in_reply_to == "q1"
+    puts = [p for key, p in transport.puts if key == TO_PL]
+    assert len(puts) == 1 and not is_batch(puts[0]) and decode(puts[0]).in_reply_to == "q1"
