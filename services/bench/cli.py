@@ -1,9 +1,10 @@
-"""`roco bench`: every benchmark of issue 9 in one command, printed as tables and written to
+"""`roco bench`: every benchmark of issues 9 and 20 in one command, printed as tables and written to
 `docs/benchmarks.md` with the machine, the versions, the load and the command.
 
 Parts (`--only` takes a comma-separated subset; default all, in this order):
 `codec`, `messaging` (roco against raw Zenoh), `spade` (the same tests on SPADE, run
-right after `messaging`), `knowledge`, `planning`, `fleet`, `task`, `scale`.
+right after `messaging`), `knowledge`, `planning`, `fleet`, `memory` (an idle agent's and the
+fleet's resident memory), `task`, `scale`.
 `--quick` shrinks every count (a smoke test of the command, not figures to quote).
 A part that fails is reported in the document with its error; the others still run.
 """
@@ -23,14 +24,14 @@ from typing import Annotated, Any
 
 import typer
 
-PARTS = ("codec", "messaging", "spade", "knowledge", "planning", "fleet", "task", "scale")
+PARTS = ("codec", "messaging", "spade", "knowledge", "planning", "fleet", "memory", "task", "scale")
 ROOT = Path(__file__).resolve().parents[2]
 DEFAULT_OUT = ROOT / "docs" / "benchmarks.md"
 
 bench_app = typer.Typer(
     add_completion=False,
     help=__doc__,
-    short_help="Every benchmark of issue 9, printed and written to docs/benchmarks.md.",
+    short_help="Every benchmark of issues 9 and 20, printed and written to docs/benchmarks.md.",
     invoke_without_command=True,
     rich_markup_mode="markdown",
 )
@@ -211,12 +212,28 @@ def bench(
                 "prints from starting the agents to every liveliness token; then VmRSS "
                 "(/proc/PID/status) of every process it started, read once at its exit; then `roco down`. "
                 "Not the fleet's memory: ag_ex's loop and camera processes are not counted, a library "
-                "shared by all is counted once per process, and ag_ex has not yet observed; "
-                "`python scripts/bench_memory.py --only fleet` measures that (PSS, children, at rest "
-                'and while the camera runs: the notes\' "Where issue 20 stands").',
+                "shared by all is counted once per process, and ag_ex has not yet observed; part 6b "
+                "measures that (PSS, children, at rest and while the camera runs).",
             ],
             report.fleet_table(results["fleet"]),
         )
+    if "memory" in chosen and run("memory", parts.memory) is not None:
+        emit(
+            "6b. Memory: an idle agent and the fleet in all",
+            [
+                "`python scripts/bench_memory.py --only synthetic,fleet`, as imported here: an idle "
+                "synthetic pair (part 2's agents, spawn) on a router of its own, and `roco up --port P "
+                "--runs-dir TMP --no-realtime` (access control on) with every process it started and "
+                "their children (ag_ex's `velma-loop` and `velma-camera`), each read once its VmRSS "
+                "changed by ≤ 0.25 MiB over 1 s: first while ag_ex's camera process runs (it observes "
+                "for a_km at start), then at rest once that process has ended (after "
+                "`ROCO_CAMERA_IDLE_S` without an Observe); then `roco down`. VmRSS from "
+                "/proc/PID/status; PSS from /proc/PID/smaps_rollup (a page shared by n processes "
+                "counted 1/n in each, so PSS's total is what the processes take in all).",
+            ],
+            report.memory_table(results["memory"]),
+        )
+        targets.extend(report.memory_verdicts(results["memory"]))
     if task_runs:
         emit(
             "7. Task: the whole pour",

@@ -295,6 +295,29 @@ def fleet() -> FleetFigures:
         )
 
 
+# ------------------------------------------------------------------------------- 6b. memory
+@dataclass
+class MemoryFigures:
+    """(VmRSS, PSS) in MiB per process: an idle synthetic pair and its router (``synthetic``),
+    and ``roco up``'s fleet with its children, by state (``fleet, camera process running``,
+    ``fleet at rest``; scripts/bench_memory.py)."""
+
+    synthetic: dict[str, tuple[float, float]]
+    fleet: dict[str, dict[str, tuple[float, float]]]
+
+
+def memory() -> MemoryFigures:
+    """scripts/bench_memory.py's ``synthetic`` and ``fleet`` with its default settling (VmRSS
+    steady within 0.25 MiB over 1 s, at most 15 s; the camera process waited for up to
+    ``ROCO_CAMERA_IDLE_S`` + 30 s). Raises RuntimeError when ``roco up`` fails."""
+    bm = scripts_module("bench_memory")
+
+    def settle(pids: dict[str, int]) -> dict[str, float]:
+        return dict(bm.settled_rss(pids, 1.0, 0.25, 15.0))
+
+    return MemoryFigures(bm.synthetic(settle), bm.fleet(settle, bm.camera_idle_s() + 30.0))
+
+
 # ---------------------------------------------------------------------------------- 7. task
 @dataclass
 class TaskRun:

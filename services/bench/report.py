@@ -10,7 +10,7 @@ from importlib.metadata import PackageNotFoundError, version
 from pathlib import Path
 
 from services.bench.messaging import ConcurrentFigures, PairFigures, ScaleRow, request_bytes
-from services.bench.parts import CodecRow, FleetFigures, PlanningFigures, QueryRow, TaskRun
+from services.bench.parts import CodecRow, FleetFigures, MemoryFigures, PlanningFigures, QueryRow, TaskRun
 from services.bench.spade import SpadeFigures
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -22,6 +22,10 @@ TARGET_SPADE_TPUT = 10.0
 TARGET_SCALE_SHARE = 0.6
 """Issue 20: the most agents' all-pairs rate over the fewest's (100 against 10)."""
 TARGET_PLAN_1_S = 2.0
+TARGET_AGENT_MIB = 35.0
+"""Issue 20: an idle synthetic agent's VmRSS."""
+TARGET_FLEET_MIB = 350.0
+"""Issue 20: ``roco up``'s fleet in all (the sum of its processes' PSS, at rest)."""
 TARGET_UP_S = 3.0
 
 
@@ -426,6 +430,44 @@ def scale_verdicts(rows: list[ScaleRow]) -> list[str]:
         f"{'met' if share >= TARGET_SCALE_SHARE else 'missed'}; from the first command to the last "
         f"result {wall * 100:.0f} %{raw}."
     ]
+
+
+def memory_table(m: MemoryFigures) -> list[str]:
+    """One row per process of each measured state, and each state's totals."""
+    rows = []
+    for state, procs in [("idle synthetic pair", m.synthetic), *m.fleet.items()]:
+        for name, (rss, pss) in procs.items():
+            rows.append([state, name, f"{rss:.1f}", f"{pss:.1f}"])
+        total_rss, total_pss = sum(v[0] for v in procs.values()), sum(v[1] for v in procs.values())
+        rows.append([state, "**total**", f"**{total_rss:.1f}**", f"**{total_pss:.1f}**"])
+    return _table(["state", "process", "VmRSS MiB", "PSS MiB"], rows)
+
+
+def memory_verdicts(m: MemoryFigures) -> list[str]:
+    """An idle synthetic agent ≤ 35 MiB VmRSS; the fleet ≤ 350 MiB PSS in all, at rest (and,
+    beside it, while ag_ex's camera process runs)."""
+    agents = {n: v for n, v in m.synthetic.items() if n != "router"}
+    out = []
+    if agents:
+        worst = max(rss for rss, _ in agents.values())
+        out.append(
+            f"- An idle synthetic agent: **{worst:.1f} MiB** VmRSS at most ({', '.join(sorted(agents))}; "
+            f"target ≤ {TARGET_AGENT_MIB:.0f} MiB): {'met' if worst <= TARGET_AGENT_MIB else 'missed'}."
+        )
+    totals = {state: sum(pss for _, pss in procs.values()) for state, procs in m.fleet.items()}
+    rest = totals.get("fleet at rest")
+    if rest is not None:
+        busy = [
+            f"with the {k.removeprefix('fleet, ')}: {v:.0f} MiB"
+            for k, v in totals.items()
+            if k != "fleet at rest"
+        ]
+        out.append(
+            f"- `roco up`'s fleet in all, at rest: **{rest:.0f} MiB** PSS (target ≤ "
+            f"{TARGET_FLEET_MIB:.0f} MiB): {'met' if rest <= TARGET_FLEET_MIB else 'missed'}"
+            + (f"; {'; '.join(busy)}." if busy else ".")
+        )
+    return out
 
 
 def plan_and_fleet_verdicts(planning: PlanningFigures | None, fleet: FleetFigures | None) -> list[str]:

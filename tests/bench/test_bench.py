@@ -24,7 +24,8 @@ from services.bench.messaging import (
     sized_data,
     steady_rate,
 )
-from services.bench.report import scale_table, scale_verdicts
+from services.bench.parts import MemoryFigures
+from services.bench.report import memory_table, memory_verdicts, scale_table, scale_verdicts
 from services.spec.model import interface
 from shared.fipa_codec.languages import encode_content
 
@@ -111,6 +112,19 @@ def test_all_pairs_runs_are_taken_as_their_median_and_shown_each() -> None:
     row = ScaleRow(10, 1.0, 100.0, PairFigures(), median, 1, median_run(runs[:1]))
     cells = scale_table([row])[-1].split("|")
     assert cells[-3].strip() == "200 (300, 100, 200)" and cells[-2].strip() == "300"
+
+
+def test_the_memory_verdicts_take_the_largest_agent_and_the_fleet_at_rest() -> None:
+    synthetic = {"b_ini0": (33.0, 19.0), "b_par0": (35.5, 19.5), "router": (40.0, 18.0)}
+    fleet = {
+        "fleet, camera process running": {"a_km": (69.0, 300.0), "ag_ex": (60.0, 100.0)},
+        "fleet at rest": {"a_km": (69.0, 250.0), "ag_ex": (60.0, 99.0)},
+    }
+    agent, whole = memory_verdicts(MemoryFigures(synthetic, fleet))
+    assert "**35.5 MiB**" in agent and agent.endswith("missed.")  # b_par0 over 35; the router not an agent
+    assert "**349 MiB** PSS" in whole and "met" in whole and "camera process running: 400 MiB" in whole
+    rows = memory_table(MemoryFigures(synthetic, fleet))
+    assert "| fleet at rest | **total** | **129.0** | **349.0** |" in rows
 
 
 def test_quick_bench_writes_codec_and_messaging_tables(tmp_path: Path) -> None:
