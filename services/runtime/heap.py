@@ -5,7 +5,7 @@ frees a great deal before the first behaviour blocks for input; glibc keeps the 
 its heaps resident for later allocations. ``malloc_trim(0)`` hands every whole free page of
 every heap back (glibc ≥ 2.8; Rust's allocations, Zenoh's, live in the same heaps). Measured on
 an idle synthetic agent: 35.7 → 34.4 MiB resident, less the 0.4 MiB that importing ``ctypes``
-costs (docs/benchmarks.md, "Where issue 20 stands").
+costs (docs/benchmarks.md, "Memory again: the start-up's freed heap given back").
 """
 
 from __future__ import annotations

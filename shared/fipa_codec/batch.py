@@ -3,9 +3,9 @@
 When one step of an agent puts more than one communicate on the same key (the same channel,
 sender and receiver: a stream of informs, a reply and a request), they travel as one Zenoh
 sample: each publication, route and delivery costs once for the batch instead of once per
-communicate (one pair's stream: ≈ 33,000 → ≈ 60,000 communicates/s on the 2-core VM of
-docs/benchmarks.md, "One put for what one step sends to one receiver"). Nothing waits to fill a
-batch: it holds what the step's output buffer already holds.
+communicate (one pair streaming informs, 256 a step: 1.4–1.9 × the rate with one put per
+communicate on the 2-core VM of docs/benchmarks.md, "One put for what one step sends to one
+receiver"). Nothing waits to fill a batch: it holds what the step's output buffer already holds.
 
 On the wire a batch is a msgpack array of ``bin`` items, each one encoded communicate exactly
 as :func:`shared.fipa_codec.encoding.encode` writes it (a msgpack map), in the order sent. The
