@@ -425,7 +425,7 @@ def scale_verdicts(rows: list[ScaleRow]) -> list[str]:
             f"({_rate(most.raw_concurrent.steady_per_s)} against {_rate(few.raw_concurrent.steady_per_s)} /s)"
         )
     return [
-        f"- {most.agents} agents, all pairs at once: **{share * 100:.0f} %** of the {few.agents}-agent "
+        f"- {most.agents} agents, all pairs at once: **{share * 100:.1f} %** of the {few.agents}-agent "
         f"round trips /s while every pair runs (target ≥ {TARGET_SCALE_SHARE * 100:.0f} %): "
         f"{'met' if share >= TARGET_SCALE_SHARE else 'missed'}; from the first command to the last "
         f"result {wall * 100:.0f} %{raw}."
