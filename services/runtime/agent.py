@@ -893,7 +893,7 @@ class Agent:
         published = 0
         for key, payload, count in runs(self._y, keys.is_communicate_key if self.batch_puts else _alone):
             self.transport.publish(key, payload)
-            if key.startswith(keys.FIPA_PREFIX):
+            if keys.is_communicate_key(key):
                 published += count
         if published:
             self.counters["published"] += published

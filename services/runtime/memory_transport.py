@@ -12,7 +12,7 @@ import zenoh
 
 from services.runtime.keys import is_communicate_key
 from services.runtime.transport import AliveCallback, Callback
-from shared.fipa_codec.batch import is_batch, unpack
+from shared.fipa_codec.batch import unpack
 
 
 class MemoryBus:
@@ -33,7 +33,7 @@ class MemoryBus:
         """Deliver ``payload`` to the subscribers of ``key``; a batch of communicates
         (shared/fipa_codec/batch.py) one communicate at a time, in order."""
         ke = zenoh.KeyExpr(key)
-        parts = unpack(payload) if is_communicate_key(key) and is_batch(payload) else [payload]
+        parts = unpack(payload) if is_communicate_key(key) else [payload]
         with self._lock:
             self.published += [(key, part) for part in parts]
             targets = [cb for expr, cb in self._subs if expr.intersects(ke)]

@@ -3,6 +3,7 @@ specification, not-understood, reply-by deadlines (paper §3.2; FIPA SC00061).""
 
 from __future__ import annotations
 
+import contextlib
 import queue
 import threading
 from collections.abc import Iterator
@@ -48,19 +49,29 @@ class Counter(Agent):
                 self.reply(item, Performative.INFORM_REF, Answer())
 
 
-@pytest.fixture
-def running() -> Iterator[tuple[MemoryBus, Counter, queue.SimpleQueue[Communicate]]]:
-    bus = MemoryBus()
-    agent = Counter(bus.transport())
+@contextlib.contextmanager
+def serving(bus: MemoryBus, agent: Agent) -> Iterator[queue.SimpleQueue[Communicate]]:
+    """``agent`` (on ``bus``) bound and running on a thread of its own; yields what reaches
+    a_pl, decoded; stops the agent and checks that its thread ended."""
     agent.bind()
     to_pl: queue.SimpleQueue[Communicate] = queue.SimpleQueue()
     bus.subscribe(keys.inbox_key("a_pl"), lambda k, p: to_pl.put(decode(p)))
     t = threading.Thread(target=agent.run, daemon=True)
     t.start()
-    yield bus, agent, to_pl
-    agent.stop()
-    t.join(timeout=5)
+    try:
+        yield to_pl
+    finally:
+        agent.stop()
+        t.join(timeout=5)
     assert not t.is_alive()
+
+
+@pytest.fixture
+def running() -> Iterator[tuple[MemoryBus, Counter, queue.SimpleQueue[Communicate]]]:
+    bus = MemoryBus()
+    agent = Counter(bus.transport())
+    with serving(bus, agent) as to_pl:
+        yield bus, agent, to_pl
 
 
 def query(reply_with: str = "q1", **overrides: object) -> Communicate:
@@ -210,17 +221,9 @@ class Faulty(Agent):
 def test_an_exception_in_a_behaviour_does_not_stop_the_agent() -> None:
     bus = MemoryBus()
     agent = Faulty(bus.transport())
-    agent.bind()
-    to_pl: queue.SimpleQueue[Communicate] = queue.SimpleQueue()
-    bus.subscribe(keys.inbox_key("a_pl"), lambda k, p: to_pl.put(decode(p)))
-    t = threading.Thread(target=agent.run, daemon=True)
-    t.start()
-    try:
+    with serving(bus, agent) as to_pl:
         bus.publish(KEY, encode(query("q1")))
         bus.publish(KEY, encode(query("q2")))
         reply = to_pl.get(timeout=5)
         assert reply.in_reply_to == "q2"
         assert agent.counters["behaviour_errors"] == 1
-    finally:
-        agent.stop()
-        t.join(timeout=5)

@@ -5,7 +5,6 @@ had come alone (malformed, sender binding, duplicates, the interface), in order.
 from __future__ import annotations
 
 import queue
-import threading
 from collections.abc import Iterator
 
 import pytest
@@ -14,7 +13,7 @@ from services.runtime import keys
 from services.runtime.memory_transport import MemoryBus, MemoryTransport
 from shared.fipa_codec import AgentIdentifier, Communicate, Performative, decode, encode
 from shared.fipa_codec.batch import is_batch, pack, unpack
-from tests.runtime.test_agent_runtime import KEY, Counter, query
+from tests.runtime.test_agent_runtime import KEY, Counter, query, serving
 
 TO_PL = keys.fipa_key("C4", "a_km", "a_pl")
 
@@ -37,15 +36,8 @@ def running() -> Iterator[tuple[Counter, Recording, queue.SimpleQueue[Communicat
     bus = MemoryBus()
     transport = Recording(bus)
     agent = Counter(transport)
-    agent.bind()
-    to_pl: queue.SimpleQueue[Communicate] = queue.SimpleQueue()
-    bus.subscribe(keys.inbox_key("a_pl"), lambda k, p: to_pl.put(decode(p)))
-    t = threading.Thread(target=agent.run, daemon=True)
-    t.start()
-    yield agent, transport, to_pl
-    agent.stop()
-    t.join(timeout=5)
-    assert not t.is_alive()
+    with serving(bus, agent) as to_pl:
+        yield agent, transport, to_pl
 
 
 Running = tuple[Counter, Recording, queue.SimpleQueue[Communicate]]
