@@ -5,10 +5,10 @@ of its own on a free loopback port, started as ``roco bench`` starts them (multi
 spawn). After one warm-up stream, ``--repeat`` alternations of two streams of ``--n`` informs
 (200 B of content, 256 per step, one fipa-subscribe conversation): first with what a step sends
 to its receiver in batches (shared/fipa_codec/batch.py), then one put per communicate
-(``Agent.batch_puts`` False). For each stream: the rate the initiator measured (received − 1
-over first to last arrival), communicates lost, and the CPU time of each process per communicate
-(``/proc/<pid>/task/<tid>/stat``: user + system ticks of every thread, scripts/benchlib.py),
-the agent's own thread (the process's main thread) apart.
+(``Agent.batch_puts`` False). For each stream: the rate the initiator measured (as
+services/bench/messaging.py's ``Throughput`` counts it), communicates lost, and the CPU time of
+each process per communicate (``/proc/<pid>/task/<tid>/stat``: user + system ticks of every
+thread, scripts/benchlib.py), the agent's own thread (the process's main thread) apart.
 
 Usage: ``python scripts/profile_stream.py [--n 20000] [--repeat 3]``
 """
@@ -48,7 +48,7 @@ def main() -> int:
 
     import benchlib  # scripts/benchlib.py, beside this file
 
-    from services.bench.messaging import _answer, testbed
+    from services.bench.messaging import Throughput, _answer, testbed
     from services.bench.synthetic import pair_names
 
     def reading(pids: dict[str, int]) -> Reading:
@@ -76,7 +76,9 @@ def main() -> int:
                 before = reading(pids)
                 got = _answer(ini, ("stream", args.n, 200, batched), 120)
                 after = reading(pids)
-                rate = (got["count"] - 1) / got["span_s"] if got["span_s"] > 0 else 0.0
+                runs = Throughput()
+                runs.add(got, args.n)
+                rate = runs.rates[0]
                 cells = [
                     f"{per_communicate(before, after, k, args.n):.1f}"
                     + (

@@ -24,6 +24,8 @@ from typing import Annotated, Any
 
 import typer
 
+from services.bench import quiet
+
 PARTS = ("codec", "messaging", "spade", "knowledge", "planning", "fleet", "memory", "task", "scale")
 ROOT = Path(__file__).resolve().parents[2]
 DEFAULT_OUT = ROOT / "docs" / "benchmarks.md"
@@ -57,6 +59,13 @@ def bench(
     scale_agents: Annotated[
         str, typer.Option(help="agent process counts of the scale part, comma-separated")
     ] = "10,50,100",
+    settle: Annotated[
+        float,
+        typer.Option(
+            help="before each timed part, wait up to this many seconds for a quiet machine "
+            "(≤ 10 % of its CPU time busy or stolen over 1 s); 0: do not wait"
+        ),
+    ] = quiet.DEFAULT_WAIT_S,
 ) -> None:
     """Run the benchmarks, print each table, write them to OUT (default docs/benchmarks.md)."""
     from services.bench import messaging, parts, report, spade
@@ -70,15 +79,29 @@ def bench(
     errors: dict[str, str] = {}
     results: dict[str, Any] = {}
 
-    def run(name: str, fn: Callable[[], Any]) -> Any:
+    conditions: list[str] = []  # how busy the machine was before and during the timed parts
+
+    def settled(label: str) -> None:
+        if settle > 0:
+            typer.echo(f"roco bench: waiting up to {settle:.0f} s for a quiet machine ({label})…", err=True)
+            conditions.append(f"{label}: {quiet.settle(settle).text()}")
+
+    def run(name: str, fn: Callable[[], Any], timed: bool = False) -> Any:
+        if timed:
+            settled(f"before {name}")
         typer.echo(f"roco bench: {name}…", err=True)
-        t = time.perf_counter()
+        t, cpu = time.perf_counter(), quiet.read()
         try:
             results[name] = fn()
         except Exception as exc:  # one part failing must not lose the others
             errors[name] = f"{type(exc).__name__}: {exc}"
             traceback.print_exc()
             results[name] = None
+        during = quiet.share(cpu, quiet.read())
+        if timed and during is not None:
+            conditions.append(
+                f"during {name}: {during.steal * 100:.1f} % of the CPU time stolen by the hypervisor"
+            )
         typer.echo(f"roco bench: {name} done in {time.perf_counter() - t:.0f} s", err=True)
         return results[name]
 
@@ -104,11 +127,13 @@ def bench(
         )
     pair = None
     if "messaging" in chosen:
-        got = run("messaging", lambda: messaging.messaging(rounds, rt_n, tput_n, size))
+        got = run("messaging", lambda: messaging.messaging(rounds, rt_n, tput_n, size), timed=True)
         pair = got[0] if got else None
     sp = None
     if "spade" in chosen:
-        sp = run("spade", lambda: spade.measure(200 if quick else 1000, 1000 if quick else 5000, size))
+        sp = run(
+            "spade", lambda: spade.measure(200 if quick else 1000, 1000 if quick else 5000, size), timed=True
+        )
     if pair is not None or sp is not None:
         how = [
             "Between two processes on this host through one router on a free loopback port "
@@ -129,7 +154,9 @@ def bench(
             "the informs 256 per FSM step (so they travel in batches: one Zenoh put for what one step sends "
             "to one receiver, shared/fipa_codec/batch.py); counted where they reach the initiator's input "
             "buffer after decoding "
-            "and validation, each checked on its own; rate = (received − 1) / (last − first arrival).",
+            "and validation, each checked on its own; each step of the initiator's behaviour that takes some "
+            "in is stamped, and rate = (received − those of the first such step) / (last stamp − first "
+            "stamp): what arrived before the first stamp is not counted in a span it did not take.",
             "- **raw Zenoh**: two bare Python sessions (same client configuration) through the same router: "
             "ping-pong with `put` and a subscriber's FIFO handler on each side; throughput with a declared "
             "publisher's `put` in a loop and a counting subscriber callback; the payload has the length of "
@@ -258,9 +285,12 @@ def bench(
         rows = run(
             "scale",
             lambda: (
-                messaging.scale(counts, s_rt, s_tput, s_all, size, all_rounds=s_rounds)
-                + messaging.scale(counts, s_rt, s_tput, s_all, size, meshed=True, all_rounds=s_rounds)
+                messaging.scale(counts, s_rt, s_tput, s_all, size, all_rounds=s_rounds, before=settled)
+                + messaging.scale(
+                    counts, s_rt, s_tput, s_all, size, meshed=True, all_rounds=s_rounds, before=settled
+                )
             ),
+            timed=True,
         )
         if rows is not None:
             emit(
@@ -302,6 +332,7 @@ def bench(
         "run on the machine described here. Profiles and what was changed: the last section.",
         "",
         *report.machine_lines(command, load_start, report.load(), started, seconds),
+        *report.condition_lines(conditions, settle),
         "",
         "## Targets of issues 9 and 20 in this run",
         "",

@@ -19,8 +19,9 @@ the content schema, the agent's input queue and FSM step.
   which the inform is in its input buffer.
 - *one-way throughput*: the initiator ``subscribe``s (fipa-subscribe) for ``n`` communicates;
   the participant ``agree``s and then sends ``n`` ``inform``s in the same conversation, 256
-  per FSM step; the initiator counts the informs that reach its input buffer and divides
-  ``count - 1`` by the time from the first to the last.
+  per FSM step; the initiator counts the informs that reach its input buffer, stamping each
+  step of its behaviour that sees some, and divides those after the first such step by the
+  time from it to the last (a step's informs all have that step's stamp).
 
 **raw Zenoh**: two more Python processes with a bare session each (same client configuration,
 same router): a ping-pong (``put`` on a key, the other process receives it from a subscriber's
@@ -45,7 +46,7 @@ import sys
 import tempfile
 import time
 import types
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
 from multiprocessing.connection import Connection
 from multiprocessing.process import BaseProcess
@@ -300,14 +301,20 @@ class Latency:
 
 @dataclass
 class Throughput:
-    """One-way throughput runs: delivered communicates, sent, time span (s) of each run."""
+    """One-way throughput runs: delivered communicates, sent, time span (s) from the first
+    stamp to the last, and the communicates counted at the first stamp, of each run."""
 
-    runs: list[tuple[int, int, float]] = field(default_factory=list)
+    runs: list[tuple[int, int, float, int]] = field(default_factory=list)
+
+    def add(self, got: dict[str, Any], sent: int) -> None:
+        """Keep one run's result (``count``, ``span_s``, ``first``) of ``sent`` communicates."""
+        self.runs.append((int(got["count"]), sent, float(got["span_s"]), int(got.get("first", 1))))
 
     @property
     def rates(self) -> list[float]:
-        """Communicates per second of each run (count - 1 over first-to-last span)."""
-        return [(c - 1) / s if s > 0 and c > 1 else 0.0 for c, _, s in self.runs]
+        """Communicates per second of each run: those counted after the first stamp over the
+        span from it to the last (0 when the first stamp counted them all)."""
+        return [(c - f) / s if s > 0 and c > f else 0.0 for c, _, s, f in self.runs]
 
     @property
     def median(self) -> float:
@@ -315,7 +322,7 @@ class Throughput:
 
     @property
     def lost(self) -> int:
-        return sum(max(0, sent - c) for c, sent, _ in self.runs)
+        return sum(max(0, sent - c) for c, sent, _, _ in self.runs)
 
 
 def percentile(values: Sequence[float], q: float) -> float:
@@ -375,11 +382,11 @@ def measure_pair(bed: Testbed, k: int, rounds: int, n_rt: int, n_tput: int, size
         echo.ask(("arm", n_tput), timeout)
         _answer(pinger, ("send", n_tput, raw_size), timeout)
         got = echo.receive(timeout)
-        out.raw_tput.runs.append((got["count"], n_tput, got["span_s"]))
+        out.raw_tput.add(got, n_tput)
         got = _answer(ini, ("stream", n_tput, size), timeout)
-        out.roco_tput.runs.append((got["count"], n_tput, got["span_s"]))
+        out.roco_tput.add(got, n_tput)
         got = _answer(ini, ("stream", n_tput, size, False), timeout)
-        out.roco_tput_single.runs.append((got["count"], n_tput, got["span_s"]))
+        out.roco_tput_single.add(got, n_tput)
     return out
 
 
@@ -490,17 +497,21 @@ def scale(
     *,
     meshed: bool = False,
     all_rounds: int = 1,
+    before: Callable[[str], None] | None = None,
 ) -> list[ScaleRow]:
     """Part 8: for each N, N synthetic agents (N/2 pairs) and one raw pair on a fresh router
     (``meshed``: two meshed routers, each pair split across them; :class:`Testbed`); pair 0
     measured (roco and raw) while the others are connected and idle; then every pair's round
     trips at once, ``all_rounds`` times (the median run: :func:`median_run`); then, on a fresh
     testbed, N bare Zenoh processes (N/2 raw pairs) doing their round trips at once, as many
-    times."""
+    times. ``before`` is called with each N's label before its testbed starts (``roco bench``
+    waits there for a quiet machine)."""
     rows = []
     for n in agent_counts:
         pairs = max(1, n // 2)
         names = [name for k in range(pairs) for name in pair_names(k)]
+        if before is not None:
+            before(f"before scale, {len(names)} agents{', two routers' if meshed else ''}")
         with testbed(pairs, names, [0], meshed=meshed) as bed:
             pair = measure_pair(bed, 0, 1, n_rt, n_tput, size)
             concurrent = median_run(

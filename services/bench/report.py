@@ -95,6 +95,23 @@ def machine_lines(command: str, load_start: str, load_end: str, started: float, 
     ]
 
 
+def condition_lines(conditions: list[str], settle_s: float) -> list[str]:
+    """The header's lines on how busy the machine was around the timed parts
+    (services/bench/quiet.py)."""
+    if not conditions:
+        return ["- The machine's quiet was not waited for (`--settle 0`)."] if settle_s <= 0 else []
+    how = (
+        f"Before each timed part `roco bench` waited up to {settle_s:.0f} s for a quiet machine "
+        "(≤ 10 % of its CPU time busy or stolen over 1 s, /proc/stat)"
+        if settle_s > 0
+        else "The machine's quiet was not waited for (`--settle 0`)"
+    )
+    return [
+        f"- {how}; CPU time stolen by the hypervisor while a part ran (its noise):",
+        *(f"  - {c}" for c in conditions),
+    ]
+
+
 def _table(header: list[str], rows: list[list[str]]) -> list[str]:
     out = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
     out += ["| " + " | ".join(r) + " |" for r in rows]

@@ -170,6 +170,7 @@ class BenchInitiator(Agent):
         self.t0 = 0.0
         self.count = 0
         self.t_first = 0.0
+        self.first = 0
         self.t_last = 0.0
         super().__init__(transport, spec)
 
@@ -250,19 +251,21 @@ class BenchInitiator(Agent):
     def _count(self) -> None:
         assert self.job is not None
         n = self.job[1]
+        now = time.perf_counter()  # every inform of this step was taken in by now
+        before = self.count
         while self.x:
             item = self.x.popleft()
             if item.performative is Performative.INFORM and item.msg.conversation_id == self.conversation:
-                now = time.perf_counter()
-                if self.count == 0:
-                    self.t_first = now
                 self.count += 1
-                self.t_last = now
-        now = time.perf_counter()
+        if self.count > before:
+            if before == 0:  # the rate counts what arrived after the first step that saw any
+                self.t_first, self.first = now, self.count
+            self.t_last = now
         stalled = now - (self.t_last if self.count else self.t0) > STALL_S
         if self.count >= n or stalled:
+            span = self.t_last - self.t_first
             self._finish(
-                {"kind": "stream", "count": self.count, "span_s": self.t_last - self.t_first, "sent": n}
+                {"kind": "stream", "count": self.count, "first": self.first, "span_s": span, "sent": n}
             )
 
 
@@ -421,7 +424,8 @@ def _raw_echo(session: zenoh.Session, conn: Connection, ping: str, pong: str, tp
             last = state["last"] if state["count"] else t0
             if time.perf_counter() - last > STALL_S:
                 break
-        conn.send({"kind": "stream", "count": state["count"], "span_s": state["last"] - state["first"]})
+        span = state["last"] - state["first"]  # a callback per sample: one at the first stamp
+        conn.send({"kind": "stream", "count": state["count"], "first": 1, "span_s": span})
     token.undeclare()
     counter.undeclare()  # the echo thread's subscriber goes with the session
 

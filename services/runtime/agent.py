@@ -656,15 +656,17 @@ class Agent:
         self._acquire()
 
     def _acquire(self, timeout: float = 0.0) -> None:
-        """Acquire the inputs that have arrived into x and r; retransmit what is due; end
-        conversations whose reply-by deadline passed with a local failure. ``timeout`` (s) > 0
-        first waits that long at most for an input when none is there (an agent driven by hand,
-        in tests and scripts: :meth:`run` suspends its actions instead)."""
+        """Acquire the inputs that had arrived when it began into x and r (what arrives
+        meanwhile waits for the next step: input arriving faster than the agent takes it in
+        cannot keep its behaviours from running); retransmit what is due; end conversations
+        whose reply-by deadline passed with a local failure. ``timeout`` (s) > 0 first waits
+        that long at most for an input when none is there (an agent driven by hand, in tests
+        and scripts: :meth:`run` suspends its actions instead)."""
         if timeout > 0 and not self._inbox:
             with self._arrived:
                 if not self._inbox:
                     self._arrived.wait(timeout)
-        while self._inbox:
+        for _ in range(len(self._inbox)):
             self._take(*self._inbox.popleft())
         self.protocol_states.commit()  # what arrived stays arrived; only sends are undone
         now = time.time()

@@ -9,6 +9,7 @@ from pathlib import Path
 
 import pytest
 
+from services.bench import quiet
 from services.bench.messaging import (
     BenchInform,
     BenchRequest,
@@ -16,6 +17,7 @@ from services.bench.messaging import (
     Latency,
     PairFigures,
     ScaleRow,
+    Throughput,
     bench_spec,
     median_run,
     pair_names,
@@ -25,7 +27,13 @@ from services.bench.messaging import (
     steady_rate,
 )
 from services.bench.parts import MemoryFigures
-from services.bench.report import memory_table, memory_verdicts, scale_table, scale_verdicts
+from services.bench.report import (
+    condition_lines,
+    memory_table,
+    memory_verdicts,
+    scale_table,
+    scale_verdicts,
+)
 from services.spec.model import interface
 from shared.fipa_codec.languages import encode_content
 
@@ -66,6 +74,15 @@ def test_synthetic_spec_lets_a_pair_request_and_inform() -> None:
     assert (ini, "inform", "fipa-request") in sends
     assert (ini, "inform", "fipa-subscribe") in sends
     assert request_bytes(200) > len(encode_content(BenchRequest(seq=1, data=sized_data(200)))[1])
+
+
+def test_a_stream_rate_leaves_out_what_its_first_stamp_counted() -> None:
+    runs = Throughput()
+    runs.add({"count": 1000, "span_s": 0.01, "first": 900}, 1000)  # 900 piled up before the first step
+    runs.add({"count": 1001, "span_s": 0.01}, 1001)  # a counter stamping each arrival: one at the first
+    runs.add({"count": 500, "span_s": 0.0, "first": 500}, 1000)  # all in one step: no rate, 500 lost
+    assert runs.rates == [pytest.approx(10_000.0), pytest.approx(100_000.0), 0.0]
+    assert runs.lost == 500
 
 
 def test_percentile_is_nearest_rank() -> None:
@@ -140,6 +157,8 @@ def test_quick_bench_writes_codec_and_messaging_tables(tmp_path: Path) -> None:
             "--quick",
             "--only",
             "codec,messaging",
+            "--settle",
+            "0",
             "--out",
             str(out),
         ],
@@ -152,6 +171,7 @@ def test_quick_bench_writes_codec_and_messaging_tables(tmp_path: Path) -> None:
     assert done.returncode == 0, done.stderr[-2000:]
     text = out.read_text()
     assert "Load average" in text and "roco bench --quick --only codec,messaging" in text
+    assert "The machine's quiet was not waited for (`--settle 0`)" in text
     codec = _rows(text, "## 1. Codec")
     assert [r[0] for r in codec] == ["200 B", "10 kB", "1 MB"]
     for r in codec:
@@ -171,3 +191,40 @@ def test_quick_bench_writes_codec_and_messaging_tables(tmp_path: Path) -> None:
     assert messaging[2][6] == messaging[3][6] == "0"
     assert "## Messaging targets" in text
     assert "On equal terms, raw Zenoh's ends polling the same way" in text
+
+
+def test_settle_waits_for_a_quiet_window_and_says_so_when_there_is_none() -> None:
+    # busy, stolen and idle ticks after each reading: a 1 s window is the difference of two
+    ticks = iter([(0, 0, 0), (60, 30, 10), (60, 30, 10), (65, 125, 10)])
+    waits: list[float] = []
+
+    def reader() -> quiet.CpuTimes:
+        busy, idle, steal = next(ticks)
+        return quiet.CpuTimes(busy, idle, steal)
+
+    got = quiet.settle(10.0, reader=reader, sleep=waits.append)
+    # the first window was 60 % busy and 10 % stolen; the second 5 % busy, none stolen: quiet
+    assert got.quiet and got.waited_s == 2.0 and waits == [1.0, 1.0]
+    assert got.last == quiet.Share(busy=0.05, steal=0.0)
+    assert "quiet" in got.text() and "waited 2 s" in got.text()
+    noisy = iter([quiet.CpuTimes(0, 0, 0), quiet.CpuTimes(50, 50, 0)] * 3)
+    got = quiet.settle(2.0, reader=lambda: next(noisy), sleep=lambda s: None)
+    assert not got.quiet and got.waited_s == 2.0 and "still not quiet (50 % busy" in got.text()
+    assert quiet.settle(5.0, reader=lambda: None, sleep=lambda s: None).last is None
+
+
+def test_cpu_times_are_read_from_proc_stat(tmp_path: Path) -> None:
+    stat = tmp_path / "stat"
+    stat.write_text("cpu  10 1 5 100 4 2 3 7 0 0\ncpu0 5 0 2 50 2 1 1 3 0 0\n")
+    assert quiet.read(stat) == quiet.CpuTimes(busy=21, idle=104, steal=7)
+    assert quiet.read(tmp_path / "missing") is None
+    assert quiet.share(quiet.CpuTimes(0, 0, 0), quiet.CpuTimes(30, 60, 10)) == quiet.Share(0.3, 0.1)
+
+
+def test_the_head_says_how_busy_the_machine_was_around_the_timed_parts() -> None:
+    lines = condition_lines(
+        ["before messaging: waited 3 s; quiet (4 % busy, 0 % stolen over the last 1 s)"], 90
+    )
+    assert lines[0].startswith("- Before each timed part `roco bench` waited up to 90 s for a quiet machine")
+    assert lines[1] == "  - before messaging: waited 3 s; quiet (4 % busy, 0 % stolen over the last 1 s)"
+    assert condition_lines([], 0) == ["- The machine's quiet was not waited for (`--settle 0`)."]

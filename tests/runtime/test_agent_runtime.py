@@ -227,3 +227,22 @@ def test_an_exception_in_a_behaviour_does_not_stop_the_agent() -> None:
         reply = to_pl.get(timeout=5)
         assert reply.in_reply_to == "q2"
         assert agent.counters["behaviour_errors"] == 1
+
+
+def test_a_step_takes_in_what_had_arrived_when_it_began_not_what_floods_in_meanwhile() -> None:
+    agent = Counter(MemoryBus().transport())
+    taken: list[object] = []
+
+    def take(key: str, payload: object) -> None:  # each take sees another input arrive
+        taken.append(payload)
+        if len(taken) < 1000:
+            agent.post(("more", len(taken)))
+
+    agent._take = take  # type: ignore[method-assign]
+    for i in range(3):
+        agent.post(("first", i))
+    agent._acquire()
+    assert len(taken) == 3  # the behaviours run before the 3 inputs that arrived meanwhile
+    assert len(agent._inbox) == 3
+    agent._acquire()
+    assert len(taken) == 6
