@@ -10,14 +10,18 @@ summed by role (initiators, participants, router) and thread name
 receiving one and the benchmark's command reader; ``rx-*``, ``tx-*``,
 ``app-*``, ``acc-*``, ``net-*``: Zenoh's runtime pools). Threads under 3 µs a round trip are
 left out of the table, not of the total. ``--idle S``: first, before any round trip, the CPU
-and wake-ups of every thread while the agents wait for S seconds.
+and wake-ups of every thread while the agents wait for S seconds. ``--pin pair``: every thread
+of pair k's two processes on core k mod 2; ``--pin ends``: the initiator on core k mod 2, the
+participant on the other (``sched_setaffinity``; the router left free).
 
-Usage: ``python scripts/profile_scale.py [--n 500] [--idle 10] [N ...]`` (default N: 10 100)
+Usage: ``python scripts/profile_scale.py [--n 500] [--idle 10] [--pin pair|ends] [N ...]``
+(default N: 10 100)
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import os
 import sys
 import time
@@ -84,7 +88,15 @@ def idle(pids: dict[str, int], seconds: float) -> None:
     print(f"\nall threads: {total:.1f} % of one core")
 
 
-def profile(n_agents: int, n_rt: int, idle_s: float) -> None:
+def pin(pid: int, core: int) -> None:
+    """Every thread of process ``pid`` on CPU ``core`` only (threads that ended meanwhile are
+    passed over)."""
+    for tid in os.listdir(f"/proc/{pid}/task"):
+        with contextlib.suppress(OSError):
+            os.sched_setaffinity(int(tid), {core})
+
+
+def profile(n_agents: int, n_rt: int, idle_s: float, pinned: str | None = None) -> None:
     from services.bench.messaging import measure_all_pairs, testbed
     from services.bench.synthetic import WARMUP, pair_names
 
@@ -94,6 +106,10 @@ def profile(n_agents: int, n_rt: int, idle_s: float) -> None:
         pids = {name: c.process.pid for name, c in bed.children.items() if c.process.pid is not None}
         assert bed.fleet is not None
         pids["router"] = bed.fleet.processes["router"].pid
+        for k in range(pairs if pinned else 0):
+            ini, par = pair_names(k)
+            pin(pids[ini], k % 2)
+            pin(pids[par], k % 2 if pinned == "pair" else 1 - k % 2)
         if idle_s > 0:
             print(f"\n## {len(names)} agents")
             idle(pids, idle_s)
@@ -131,11 +147,12 @@ def main() -> int:
     ap.add_argument("agents", type=int, nargs="*", default=[10, 100], help="agent process counts")
     ap.add_argument("--n", type=int, default=500, help="round trips per pair, every pair at once")
     ap.add_argument("--idle", type=float, default=0.0, help="first measure the idle agents for this long (s)")
+    ap.add_argument("--pin", choices=("pair", "ends"), help="pin each pair's processes to cores")
     args = ap.parse_args()
     load = " / ".join(f"{x:.2f}" for x in os.getloadavg())
     print(f"# load average {load}; {args.n} round trips per pair")
     for n in args.agents:
-        profile(n, args.n, args.idle)
+        profile(n, args.n, args.idle, args.pin)
     return 0
 
 
