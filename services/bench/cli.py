@@ -60,15 +60,22 @@ def bench(
         str, typer.Option(help="agent process counts of the scale part, comma-separated")
     ] = "10,50,100",
     settle: Annotated[
-        float,
+        float | None,
         typer.Option(
             help="before each timed part, wait up to this many seconds for a quiet machine "
-            "(≤ 10 % of its CPU time busy or stolen over 1 s); 0: do not wait"
+            "(≤ 10 % of its CPU time busy or stolen over 1 s); 0: do not wait "
+            f"[default: {quiet.DEFAULT_WAIT_S:.0f}; 0 with --quick]",
+            show_default=False,
         ),
-    ] = quiet.DEFAULT_WAIT_S,
+    ] = None,
 ) -> None:
     """Run the benchmarks, print each table, write them to OUT (default docs/benchmarks.md)."""
     from services.bench import messaging, parts, report, spade
+
+    if settle is None:
+        settle = 0.0 if quick else quiet.DEFAULT_WAIT_S
+    if settle < 0:
+        raise typer.BadParameter(f"--settle {settle:g}: expected seconds ≥ 0 (0: do not wait)")
 
     chosen = _parts(only)
     started, t0, load_start = time.time(), time.perf_counter(), report.load()
