@@ -63,7 +63,7 @@ def bench(
         float | None,
         typer.Option(
             help="before each timed part, wait up to this many seconds for a quiet machine "
-            "(≤ 10 % of its CPU time busy or stolen over 1 s); 0: do not wait "
+            f"({quiet.quiet_rule()}); 0: do not wait "
             f"[default: {quiet.DEFAULT_WAIT_S:.0f}; 0 with --quick]",
             show_default=False,
         ),
@@ -97,15 +97,15 @@ def bench(
         if timed:
             settled(f"before {name}")
         typer.echo(f"roco bench: {name}…", err=True)
-        t, cpu = time.perf_counter(), quiet.read()
+        t, cpu = time.perf_counter(), quiet.read() if timed else None
         try:
             results[name] = fn()
         except Exception as exc:  # one part failing must not lose the others
             errors[name] = f"{type(exc).__name__}: {exc}"
             traceback.print_exc()
             results[name] = None
-        during = quiet.share(cpu, quiet.read())
-        if timed and during is not None:
+        during = quiet.share(cpu, quiet.read()) if timed else None
+        if during is not None:
             conditions.append(
                 f"during {name}: {during.steal * 100:.1f} % of the CPU time stolen by the hypervisor"
             )

@@ -25,6 +25,11 @@ DEFAULT_WAIT_S = 90.0
 """How long :func:`settle` waits at most for a quiet machine (s) before it goes on anyway."""
 
 
+def quiet_rule() -> str:
+    """What :func:`settle` calls a quiet machine, in words (for help texts and reports)."""
+    return f"≤ {QUIET_BUSY * 100:.0f} % of its CPU time busy or stolen over {WINDOW_S:.0f} s"
+
+
 @dataclass(frozen=True)
 class CpuTimes:
     """The machine's CPU times (clock ticks over all CPUs) from ``/proc/stat``."""
@@ -38,6 +43,7 @@ class CpuTimes:
 
     @property
     def total(self) -> int:
+        """All ticks: busy, idle and stolen."""
         return self.busy + self.idle + self.steal
 
 
@@ -67,6 +73,7 @@ class Share:
         return self.busy + self.steal
 
     def text(self) -> str:
+        """The two shares in per cent, e.g. ``4 % busy, 0 % stolen``."""
         return f"{self.busy * 100:.0f} % busy, {self.steal * 100:.0f} % stolen"
 
 
@@ -90,6 +97,7 @@ class Settled:
     quiet: bool
 
     def text(self) -> str:
+        """One line for the report: the wait (s), whether it ended quiet, the last window."""
         if self.last is None:
             return "the machine's CPU times could not be read"
         state = "quiet" if self.quiet else "still not quiet"

@@ -11,6 +11,7 @@ from pathlib import Path
 
 from services.bench.messaging import ConcurrentFigures, PairFigures, ScaleRow, request_bytes
 from services.bench.parts import CodecRow, FleetFigures, MemoryFigures, PlanningFigures, QueryRow, TaskRun
+from services.bench.quiet import quiet_rule
 from services.bench.spade import SpadeFigures
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -102,7 +103,7 @@ def condition_lines(conditions: list[str], settle_s: float) -> list[str]:
         return ["- The machine's quiet was not waited for (`--settle 0`)."] if settle_s <= 0 else []
     how = (
         f"Before each timed part `roco bench` waited up to {settle_s:.0f} s for a quiet machine "
-        "(≤ 10 % of its CPU time busy or stolen over 1 s, /proc/stat)"
+        f"({quiet_rule()}, /proc/stat)"
         if settle_s > 0
         else "The machine's quiet was not waited for (`--settle 0`)"
     )
