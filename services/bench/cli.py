@@ -55,7 +55,13 @@ def bench(
     quick: Annotated[
         bool, typer.Option(help="small counts: checks the command, figures not to quote")
     ] = False,
-    out: Annotated[Path, typer.Option(help="the Markdown file written")] = DEFAULT_OUT,
+    out: Annotated[
+        Path,
+        typer.Option(
+            help="the Markdown file written [default: docs/benchmarks.md of this checkout]",
+            show_default=False,
+        ),
+    ] = DEFAULT_OUT,
     scale_agents: Annotated[
         str, typer.Option(help="agent process counts of the scale part, comma-separated")
     ] = "10,50,100",

@@ -9,6 +9,7 @@ be a word of the wide one (a word cut in two, or shortened with an ellipsis, is 
 from __future__ import annotations
 
 import re
+from pathlib import Path
 
 import pytest
 import typer
@@ -16,6 +17,7 @@ from typer.testing import CliRunner
 
 from services.cli import app
 
+ROOT = Path(__file__).resolve().parents[2]
 BOX = "│╭╮╰╯─┃━┏┓┗┛"
 LITERAL_MARKUP = [
     re.compile(r"``"),  # reStructuredText literal
@@ -67,6 +69,13 @@ def test_help_has_no_literal_markup_and_no_word_cut(path: tuple[str, ...]) -> No
     wide = set(words(render(path, 400)))
     cut = [w for w in words(narrow) if w not in wide]
     assert not cut, (cut, narrow)
+
+
+@pytest.mark.parametrize("path", PATHS, ids=lambda p: " ".join(p) or "roco")
+def test_help_reads_the_same_wherever_the_checkout_is(path: tuple[str, ...]) -> None:
+    """A default shown as an absolute path grows with the checkout's location and is cut in a
+    deeper one (CI checks out elsewhere than a developer)."""
+    assert str(ROOT) not in render(path, 400)
 
 
 def test_the_word_check_catches_a_cut_word() -> None:
