@@ -99,14 +99,14 @@ def machine_lines(command: str, load_start: str, load_end: str, started: float, 
 def condition_lines(conditions: list[str], settle_s: float) -> list[str]:
     """The header's lines on how busy the machine was around the timed parts
     (services/bench/quiet.py)."""
-    if not conditions:
-        return ["- The machine's quiet was not waited for (`--settle 0`)."] if settle_s <= 0 else []
     how = (
         f"Before each timed part `roco bench` waited up to {settle_s:.0f} s for a quiet machine "
         f"({quiet_rule()}, /proc/stat)"
         if settle_s > 0
         else "The machine's quiet was not waited for (`--settle 0`)"
     )
+    if not conditions:  # no timed part ran
+        return [] if settle_s > 0 else [f"- {how}."]
     return [
         f"- {how}; CPU time stolen by the hypervisor while a part ran (its noise):",
         *(f"  - {c}" for c in conditions),
