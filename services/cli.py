@@ -17,7 +17,6 @@ from __future__ import annotations
 import contextlib
 import os
 import queue
-import shutil
 import signal
 import sys
 import threading
@@ -289,7 +288,7 @@ def chaos(
     if hosts:
         from services.hosts.netns import unavailable
 
-        why = unavailable() or (None if shutil.which("nft") else "nftables' nft is not installed")
+        why = unavailable()
         if why:
             raise fail(f"--hosts cannot make two hosts here: {why}", code=2)
         if acl is False or tls is False:

@@ -2,10 +2,27 @@
 
 MuJoCo renders off-screen through EGL: ``MUJOCO_GL`` is read when ``mujoco`` is first
 imported, and any test module may be the first to import it (velma/render.py sets the same
-default for programs)."""
+default for programs).
+
+On a machine where no off-screen GL context opens (no EGL, no OSMesa), the fleets the tests
+start perceive with the physics' ground truth (``ROCO_PERCEPTION=truth``) instead of the head
+camera, and the tests of the camera itself skip with the packages to install
+(tests/support/machine.py ``needs_gl``); the session's header says so."""
 
 from __future__ import annotations
 
 import os
 
 os.environ.setdefault("MUJOCO_GL", "egl")
+
+from tests.support.machine import missing_gl  # noqa: E402  (after MUJOCO_GL is set)
+
+if missing_gl() is not None:
+    os.environ.setdefault("ROCO_PERCEPTION", "truth")
+
+
+def pytest_report_header() -> list[str]:
+    why = missing_gl()
+    if why is None:
+        return []
+    return [f"{why}: fleets perceive with the ground truth (ROCO_PERCEPTION=truth), camera tests skip"]

@@ -44,12 +44,16 @@ class HostsError(RuntimeError):
     """The namespaces cannot be made here (not root, no iproute2) or an ``ip`` command failed."""
 
 
-def unavailable() -> str | None:
-    """Why two hosts cannot be made on this machine, or None when they can."""
+def unavailable(link: bool = True) -> str | None:
+    """Why two hosts cannot be made on this machine, or None when they can: they need root and
+    iproute2's ``ip`` (the namespaces), and with ``link`` nftables' ``nft`` (the link's shaping
+    and cuts, :mod:`services.hosts.link`). The reason names the package to install."""
     if os.geteuid() != 0:
         return "network namespaces need root (ip netns add)"
     if shutil.which("ip") is None:
         return "iproute2's ip is not installed (apt-get install iproute2)"
+    if link and shutil.which("nft") is None:
+        return "nftables' nft is not installed (apt-get install nftables)"
     return None
 
 

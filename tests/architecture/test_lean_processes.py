@@ -16,6 +16,7 @@ from pathlib import Path
 import pytest
 
 from tests.support.fresh import run_python
+from tests.support.machine import needs_gl
 
 HEAVY = ("mujoco", "pinocchio", "matplotlib", "rerun", "rdflib", "pyoxigraph")
 """Libraries no lean agent may load."""
@@ -113,6 +114,7 @@ def test_a_session_with_credentials_does_not_load_the_certificate_library(tmp_pa
     assert loaded(code) == set()
 
 
+@needs_gl
 def test_the_executor_observes_with_the_camera_without_loading_the_renderer() -> None:
     """ag_ex's communication side runs the loop and the camera in child processes
     (velma/executor/process.py, velma/executor/camera_process.py): after a camera Observe it

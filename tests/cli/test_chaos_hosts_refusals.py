@@ -9,7 +9,6 @@ from pathlib import Path
 import pytest
 from typer.testing import CliRunner
 
-from services import cli
 from services.cli import app
 
 
@@ -27,10 +26,15 @@ def test_without_namespaces_it_says_why_in_one_line(tmp_path: Path, monkeypatch:
 
 
 def test_without_nftables_it_says_so(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setattr("services.hosts.netns.unavailable", lambda: None)
-    monkeypatch.setattr(cli.shutil, "which", lambda name: None)
+    from services.hosts import netns
+
+    monkeypatch.setattr(netns.os, "geteuid", lambda: 0)
+    monkeypatch.setattr(netns.shutil, "which", lambda name: None if name == "nft" else f"/usr/sbin/{name}")
     code, out = _run([], tmp_path)
-    assert code == 2 and "nftables' nft is not installed" in out
+    assert code == 2 and out.strip().splitlines() == [
+        "roco: --hosts cannot make two hosts here: nftables' nft is not installed (apt-get install nftables)"
+    ]
+    assert not (tmp_path / "runs").exists()
 
 
 def test_access_control_cannot_be_turned_off_and_two_hosts_have_no_single_router(

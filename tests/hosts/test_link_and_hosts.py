@@ -16,11 +16,10 @@ from typer.testing import CliRunner
 from services.cli import app
 from services.fleet.launcher import free_port
 from services.hosts import link
-from services.hosts.netns import HostPair, run_ip, sweep, unavailable
+from services.hosts.netns import HostPair, run_ip, sweep
 from services.recorder.record import read_link_events
 from services.report.timeline import link_events
-
-needs_netns = pytest.mark.skipif(unavailable() is not None, reason=f"two hosts: {unavailable()}")
+from tests.support.machine import needs_two_hosts
 
 
 def _echo_server() -> tuple[socket.socket, int]:
@@ -83,7 +82,7 @@ def test_link_events_become_timeline_rows() -> None:
     assert rows[2].end is None and "not mended" in rows[2].text
 
 
-@needs_netns
+@needs_two_hosts
 def test_a_pair_left_by_a_killed_maker_is_swept_and_a_cut_is_undone(tmp_path: Path) -> None:
     code = (
         "import os\nfrom services.hosts.netns import HostPair\n"

@@ -1,4 +1,4 @@
-"""The robot perceiving with its head camera (issue 19, ``ROCO_PERCEPTION=camera``), as a user
+"""The robot perceiving with its head camera (``ROCO_PERCEPTION=camera``), as a user
 runs it: ``roco run "bring the cup to the table"``. Every pose the agents got is an estimate
 from the rendered Kinect image, the report puts each beside the truth, and the task is judged
 by the world it left."""
@@ -18,8 +18,9 @@ from services.report import build_report
 from services.report.load import load_run
 from services.scenario.chaos import final_world
 from shared.fipa_codec.languages.l_sd import Observation
+from tests.support.machine import needs_gl
 
-pytestmark = pytest.mark.slow
+pytestmark = [pytest.mark.slow, needs_gl]
 
 
 @pytest.fixture(scope="module")

@@ -22,13 +22,13 @@ from pathlib import Path
 
 import pytest
 
-from services.hosts.netns import unavailable
 from services.recorder.record import read_link_events
 from services.scenario.chaos import CHAOS_FILE
+from tests.support.machine import needs_two_hosts
 
 pytestmark = [
     pytest.mark.slow,
-    pytest.mark.skipif(unavailable() is not None, reason=f"two hosts: {unavailable()}"),
+    needs_two_hosts,
 ]
 SERVICES = ("a_ta", "router_robot", "router_brain", "link")
 KINDS = {"router_robot": "kill", "a_ta": "restart", "router_brain": "pause", "link": "cut"}

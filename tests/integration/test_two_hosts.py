@@ -25,15 +25,16 @@ import zenoh
 from services.deploy.deploy import issue_router, prepare
 from services.hosts.fleet import TwoHosts
 from services.hosts.link import Shaping
-from services.hosts.netns import HostPair, netns_exec, unavailable
+from services.hosts.netns import HostPair, netns_exec
 from services.recorder.record import read_link_events
 from services.runtime.refusals import Refusal, read_refusals
 from services.runtime.run_folder import new_run_dir
 from services.runtime.session import open_client
 from services.security.context import register
 from services.spec.model import default_spec
+from tests.support.machine import needs_two_hosts
 
-pytestmark = pytest.mark.skipif(unavailable() is not None, reason=f"two hosts: {unavailable()}")
+pytestmark = needs_two_hosts
 
 SHAPING = Shaping(delay_ms=20, jitter_ms=5, loss_pct=1)
 POUR = "pour the jar into the bowl"

@@ -16,6 +16,7 @@ import pytest
 
 from shared.fipa_codec.languages.l_ex import CommandResult
 from shared.fipa_codec.languages.l_sd import Observation
+from tests.support.machine import needs_gl
 from velma.executor.camera import CameraWork, Perceived
 from velma.executor.camera_process import DEFAULT_IDLE_S, CameraProcess, CameraSpec, camera_idle_s
 from velma.executor.capture import WorldCapture
@@ -41,6 +42,7 @@ def in_thread(capture: WorldCapture) -> list[Perceived]:
         work.close()
 
 
+@needs_gl
 def test_the_child_sees_what_the_same_work_sees_in_process_and_a_new_child_starts_the_noise_again(
     capture: WorldCapture, in_thread: list[Perceived]
 ) -> None:
@@ -64,6 +66,7 @@ def test_the_child_sees_what_the_same_work_sees_in_process_and_a_new_child_start
     assert cam.pid is None
 
 
+@needs_gl
 def test_a_child_that_dies_fails_that_observe_and_the_next_one_starts_anew(capture: WorldCapture) -> None:
     cam = CameraProcess(SPEC)
     try:
@@ -182,6 +185,7 @@ if __name__ == "__main__":
 """
 
 
+@needs_gl
 def test_the_child_has_a_gl_platform_when_the_parent_main_module_imported_mujoco(tmp_path: Path) -> None:
     """A spawned child imports the parent's main module before its target runs: one that
     imports MuJoCo must not leave the child's renderer without MUJOCO_GL."""

@@ -9,6 +9,7 @@ import pytest
 
 from shared.fipa_codec.languages.l_ex import CommandResult, LookAt, Observe, Wait
 from shared.fipa_codec.languages.l_sd import Observation
+from tests.support.machine import needs_gl
 from velma.executor import Executor
 from velma.executor.capture import DEFAULT_PERCEPTION, WorldCapture, perception_mode
 from velma.executor.loop import ControlLoop
@@ -45,6 +46,7 @@ def _run(ex: Executor, *commands: object) -> list[Result]:
     return [box.get(timeout=120) for _ in commands]
 
 
+@needs_gl
 def test_camera_observation_in_order_and_unseen_out_of_view() -> None:
     records: list[dict[str, object]] = []
     ex = Executor(perception="camera", perception_log=records.extend)

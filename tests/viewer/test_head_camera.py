@@ -21,6 +21,7 @@ from services.agents.executor.agent import ExecutorAgent
 from services.runtime.memory_transport import MemoryBus
 from services.viewer import camera, hooks, recording, robot
 from shared.fipa_codec.languages.common import Pose
+from tests.support.machine import needs_gl
 from tests.support.rerun_run import rerun_run_dir
 from tests.viewer.test_recording import rows
 from velma.executor.process import WorldState
@@ -81,6 +82,7 @@ def camera_columns(path: Path) -> tuple[list[bytes], list[str], list[list[float]
     return blobs, media, where
 
 
+@needs_gl
 def test_frames_are_logged_with_pose_and_pinhole(run_dir: Path, kitchen_qpos: np.ndarray) -> None:
     hook = hooks.robot_hook("ag_ex", run_dir)
     assert hook is not None
@@ -109,6 +111,7 @@ def test_frames_are_logged_with_pose_and_pinhole(run_dir: Path, kitchen_qpos: np
     assert any(n.endswith("Pinhole:image_from_camera") for n in names)
 
 
+@needs_gl
 def test_unchanged_state_is_not_rendered_again(run_dir: Path, kitchen_qpos: np.ndarray) -> None:
     rec = recording.start("ag_ex", run_dir=run_dir)
     assert rec is not None
@@ -194,6 +197,7 @@ class CameraFake:
         )
 
 
+@needs_gl
 def test_ag_ex_starts_the_camera_and_stops_it_before_the_executor(
     run_dir: Path, kitchen_qpos: np.ndarray
 ) -> None:
@@ -241,6 +245,7 @@ def test_camera_off_when_asked_or_rerun_off(monkeypatch: pytest.MonkeyPatch) -> 
     assert not hooks.camera_wanted()
 
 
+@needs_gl
 def test_the_loop_publishes_its_whole_state_only_when_asked(tmp_path: Path, kitchen_qpos: np.ndarray) -> None:
     """ExecutorProcess(world_state=True): the camera renders what the loop process simulates."""
     from velma.executor import ExecutorProcess

@@ -15,6 +15,7 @@ from types import ModuleType
 import pytest
 from PIL import Image
 
+from tests.support.machine import needs_chromium
 from tests.support.rerun_run import rerun_run_dir
 from tests.viewer.test_recording import RUN, record_run
 
@@ -59,10 +60,10 @@ def test_newest_run(tmp_path: Path) -> None:
     assert vs.newest_run(tmp_path) == tmp_path / "20261121-090000"
 
 
+@needs_chromium
 def test_web_viewer_renders_recording(run_dir: Path) -> None:
     chromium = vs.find_chromium()
-    if chromium is None:
-        pytest.skip("Chromium is not installed (apt-get install -y chromium)")
+    assert chromium is not None
     record_run(run_dir)
     lines: list[str] = []
     shot = vs.take_screenshot(

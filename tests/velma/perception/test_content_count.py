@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 
 from services.agents.planner.domain import CONTENT_SHARE_REQUIRED
+from tests.support.machine import needs_gl
 from velma.executor.capture import WorldCapture
 from velma.executor.observer import CameraObserver
 from velma.model.scene import PARTICLE_PREFIX, PARTICLE_RADIUS, initial_state, load_kitchen
@@ -20,6 +21,8 @@ from velma.perception.kinect import HeadKinect, aim_head
 from velma.perception.localise import Localiser
 from velma.perception.objects import object_model
 from velma.scenario import BOWL_PLACE_POSITION, TORSO_POUR
+
+pytestmark = needs_gl
 
 R = PARTICLE_RADIUS
 

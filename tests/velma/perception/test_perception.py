@@ -9,6 +9,7 @@ import mujoco
 import numpy as np
 import pytest
 
+from tests.support.machine import needs_gl
 from velma.model.scene import PARTICLE_PREFIX, PARTICLE_RADIUS, initial_state, load_kitchen
 from velma.perception import noise
 from velma.perception.cloud import Intrinsics, incidence_angles
@@ -56,6 +57,7 @@ def test_head_camera_is_the_kinect(kinect: HeadKinect) -> None:
     assert h == pytest.approx(55.4, abs=0.1)  # square pixels at 4:3 (kinect.py docstring)
 
 
+@needs_gl
 @pytest.mark.parametrize("name", OBJECTS)
 def test_objects_on_the_shelf_are_localised_within_10_mm(kitchen, shelf_view, name: str) -> None:  # type: ignore[no-untyped-def]
     model, data = kitchen
@@ -70,6 +72,7 @@ def test_objects_on_the_shelf_are_localised_within_10_mm(kitchen, shelf_view, na
     assert estimate.sigma_position < 0.005
 
 
+@needs_gl
 def test_objects_out_of_view_are_not_seen(kitchen, kinect, models) -> None:  # type: ignore[no-untyped-def]
     model, data = kitchen
     local = mujoco.MjData(model)
@@ -83,6 +86,7 @@ def test_objects_out_of_view_are_not_seen(kitchen, kinect, models) -> None:  # t
         assert estimates[name].position is None
 
 
+@needs_gl
 @pytest.mark.parametrize("name", ("jar", "cup"))
 def test_an_object_lifted_off_the_shelf_is_localised_at_its_height(kitchen, kinect, models, name) -> None:  # type: ignore[no-untyped-def]
     """Held 40 mm above the shelf (as a grasp lifts it), the object no longer stands on the
@@ -151,6 +155,7 @@ def test_grazing_surfaces_return_no_depth() -> None:
     assert np.isfinite(grazing_out[inner]).mean() < 0.2
 
 
+@needs_gl
 def test_rendered_silhouettes_lose_depth(kitchen, kinect, shelf_view) -> None:  # type: ignore[no-untyped-def]
     _, data = kitchen
     ideal = kinect.ideal(data)
@@ -164,6 +169,7 @@ def test_rendered_silhouettes_lose_depth(kitchen, kinect, shelf_view) -> None:  
     assert np.all(np.isfinite(shelf_view[0].depth[in_range & ~grazing]))
 
 
+@needs_gl
 def test_content_of_the_start(kitchen, shelf_view, models) -> None:  # type: ignore[no-untyped-def]
     model, _ = kitchen
     frame, points, colours, estimates = shelf_view
