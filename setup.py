@@ -76,7 +76,7 @@ RUNTIME_COMPILED = (
     "services/runtime/lookups.py",
     "services/runtime/dedup.py",
 )
-"""The agent runtime's hot path compiled by mypyc (issue 20: the protocol state, the
+"""The agent runtime's hot path compiled by mypyc (the protocol state, the
 specification's kept answers and the duplicate filter of every communicate sent and
 received; services/runtime/native.py). Each is compiled on its own (``separate``): its
 extension and its ``__mypyc`` library lie beside its source."""

@@ -1,4 +1,4 @@
-"""The live fuzz with access control on, at full size (issue 21; docs/security.md).
+"""The live fuzz with access control on, at full size (docs/security.md).
 
     python scripts/fuzz_live.py [--per-agent 10000] [--forbidden 500] [--seed 8] [--keep DIR]
 

@@ -2,7 +2,7 @@
 # live_status LABEL LOG CMD...: run CMD with its output (stdout and stderr) in LOG and return its
 # exit status. On a terminal, a status line under the script's own lines shows LABEL, the
 # seconds CMD has run and LOG's last line, redrawn once a second and erased when CMD ends; off
-# a terminal (CI, a pipe) nothing is drawn. Sourced by scripts/build_image.sh (issue 24).
+# a terminal (CI, a pipe) nothing is drawn. Sourced by scripts/build_image.sh.
 live_status() {
     local label=$1 log=$2
     shift 2

@@ -1,4 +1,4 @@
-"""A terminal sniffer: live communicates as they cross Zenoh, in FIPA string form (issue 6).
+"""A terminal sniffer: live communicates as they cross Zenoh, in FIPA string form.
 
 ``roco sniff`` subscribes to every communicate key (``roco/fipa/**``, see
 :mod:`services.runtime.keys`) through a Zenoh client session, decodes each payload
@@ -133,7 +133,7 @@ def parse_filters(
             )
         return frozenset(chosen)
 
-    # agents of other platforms (local@platform) play the specification's external role (issue 22)
+    # agents of other platforms (local@platform) play the specification's external role
     foreign = {a.strip() for a in agents or () if spec.externals and is_foreign(a.strip())}
     chosen_agents = check("agent", [a for a in agents or () if a.strip() not in foreign], known_agents, str)
     if foreign:

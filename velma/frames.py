@@ -1,9 +1,9 @@
-"""Poses and frames, stated once (issue 17): rigid-body helpers on the codec's ``Pose``
+"""Poses and frames, stated once: rigid-body helpers on the codec's ``Pose``
 (position in m, orientation as a unit quaternion w, x, y, z, in a named frame), and the
 quaternion → rotation matrix conversion the controller uses.
 
 Pure Python (``math`` only), so that a process that only reasons about poses (a_pl) loads
-neither Pinocchio nor numpy (issue 20, lean processes). The arithmetic is Eigen's, as
+neither Pinocchio nor numpy (lean processes). The arithmetic is Eigen's, as
 Pinocchio's ``SE3`` and ``Quaternion`` did it before: a quaternion is normalised, turned into a
 rotation matrix (``Quaternion::toRotationMatrix``), matrices are multiplied, and a matrix is
 turned back into a quaternion by Shepperd's method (``Quaternion(Matrix3)``), normalised, with

@@ -108,7 +108,7 @@ POUR_CLEAR_VIEW: Vec3 = (0.0, 0.15, 0.15)
 """After the pour the upright jar moves this far (m, the turned frame of JAR_POUR_START_IN_BOWL)
 from its pour-start pose, up and to the robot's left, so that the head camera sees the whole
 bowl for the content check: beside the bowl the jar and the hand hide half of its floor
-(issue 19; found by rendering the head's view from candidate poses the IK reaches)."""
+(found by rendering the head's view from candidate poses the IK reaches)."""
 
 RIGHT_PICK_POSTURE: tuple[float, ...] = (1.46, -0.98, -0.15, 1.82, -0.2, 1.26, 2.29)
 """right_arm_0..6_joint (rad) before the bowl approach: the IK solution of the bowl entry
@@ -124,7 +124,7 @@ pre-grasp pose (torso 0, the jar where the scene puts it). From it the left arm'
 (≥ WRIST_BAND, velma/control/self_collision.py) for jar poses ±2 cm and ±0.2 rad about the
 default (scripts/bench_pour_seeds.py). A Cartesian motion from home instead ends the
 pre-grasp with joint 1 at its limit (2.09 rad) and the wrist 11 mm from the forearm, and for
-some jar poses the withdraw then cannot finish (issue 18)."""
+some jar poses the withdraw then cannot finish."""
 RIGHT_PARK_OFFSET: Vec3 = (-0.05, -0.20, 0.20)
 """Where the right grip frame waits after placing the bowl, relative to its place pose, in
 the frame turned by TORSO_PLACE (x forward, y the robot's left, z up)."""

@@ -159,7 +159,7 @@ JAR_TABLE_GRASP = GraspSpec(
 """The jar on the table (kitchen.ttl ``jar_side_grasp_left_from_above``): the side grip,
 reached from 0.12 m above — the way the open hand left the jar when it put it down — and lifted
 straight up. On the table the side grasp's horizontal approach and withdraw, along the torso's
-forward direction, bring the left forearm into the torso (issue 18: the robot's links collide
+forward direction, bring the left forearm into the torso (the robot's links collide
 with each other; found with the executor's IK and its self-collision check)."""
 
 BOWL_RIM_GRASP = GraspSpec(
@@ -207,7 +207,7 @@ right, seen from the robot at the table), its wall 6.5 cm from the table's edges
 and y = −0.35; the wrist hangs beyond the y = −0.35 edge (the edge nearest the cabinet). The
 jar comes down from 0.12 m above, so that the open hand, back there after the release, clears
 the jar's rim when it parks. The left hand parks up and to the robot's left (turned frame),
-clear of the torso: straight back, its forearm would meet the torso (issue 18); and the hand
+clear of the torso: straight back, its forearm would meet the torso; and the hand
 must stay out of the right arm's way at the cabinet once the torso turns there."""
 CUP_TABLE = Placement(position=(0.25, -0.70, 0.75), facing=TABLE_FACING, park=(-0.25, 0.0, 0.20))
 """The cup on the table, right of the bowl and beyond it (seen from the robot), 0.25 m from
@@ -224,7 +224,7 @@ open fingers pass beside the rim)."""
 JAR_CABINET = Placement(position=(0.70, 0.20, 0.85), facing=CABINET_FACING, park=(-0.30, 0.15, 0.0))
 """The jar back in the cabinet, where it started; the hand withdraws horizontally and to the
 robot's left: straight back, its fingers meet the right hand's when the torso turns to the
-table and the right hand enters towards the bowl (issue 18)."""
+table and the right hand enters towards the bowl."""
 
 
 # ----------------------------------------------------------------- helpers

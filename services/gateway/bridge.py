@@ -1,4 +1,4 @@
-"""The ACL gateway: roco's Zenoh channels ↔ the FIPA HTTP message transport (issue 22).
+"""The ACL gateway: roco's Zenoh channels ↔ the FIPA HTTP message transport.
 
 How a foreign agent fits the specification
     The specification has an external role (``[[externals]]``, ``x_fipa``) substituting a group

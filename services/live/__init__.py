@@ -1,4 +1,4 @@
-"""The live view of ``roco run``, ``roco scenario`` and ``roco chaos`` on a terminal (issue 24):
+"""The live view of ``roco run``, ``roco scenario`` and ``roco chaos`` on a terminal:
 under the event lines, the command, plan k of n, the step running and its place in the plan,
 agents alive, simulated against wall time, and the control loop's overrun share.
 

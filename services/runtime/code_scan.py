@@ -1,4 +1,4 @@
-"""Reading an agent's code for communication outside its protocol roles (issue 17).
+"""Reading an agent's code for communication outside its protocol roles.
 
 An agent that declares its roles (services/runtime/roles.py) sends only through them: a
 conversation's ``reply``/``send``/``cancel``/``refuse_with`` or ``self.roles.open``, which the

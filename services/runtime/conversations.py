@@ -7,7 +7,7 @@ whose ``in-reply-to`` matches. If the deadline passes first, the runtime places 
 conversation ends (FIPA SC00061 §2.4: reply-by). :class:`Conversations` keeps those waits.
 
 Every communicate sent or received must also be allowed in its conversation's current
-protocol state (FIPA SC00026/27/35 and the paper's coordinate protocol, §5.4; issue 5).
+protocol state (FIPA SC00026/27/35 and the paper's coordinate protocol, §5.4).
 :class:`CrossingTracker` follows one conversation through its protocol's state machine
 (:mod:`shared.fipa_codec.protocols`) while tolerating communicates that crossed on the wire;
 :func:`follow` adds what a conversation-id's life brings (a retry reusing it, a
@@ -160,7 +160,7 @@ def expected_ontology(language: str) -> str:
 
 
 # ---------------------------------------------------------------------------------------------
-# Protocol state per conversation (issue 5, "at run time": the performative must be allowed in
+# Protocol state per conversation ("at run time": the performative must be allowed in
 # the conversation's current protocol state), tolerant of communicates crossing on the wire.
 
 Step = tuple[Role, Performative, bool | None]

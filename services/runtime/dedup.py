@@ -1,4 +1,4 @@
-"""Duplicate suppression: no communicate is acted on twice (issue 7).
+"""Duplicate suppression: no communicate is acted on twice.
 
 A communicate can arrive more than once: its sender retransmits it until answered
 (:class:`services.runtime.conversations.Conversations`, ``retry_s``), or the network

@@ -1,4 +1,4 @@
-"""Fault injection in the transport (issue 7; docs/faults.md).
+"""Fault injection in the transport (docs/faults.md).
 
 :class:`FaultyTransport` wraps any :class:`~services.runtime.transport.Transport` of one
 agent and applies, to what the agent puts on the wire:

@@ -1,4 +1,4 @@
-"""An agent's start-up memory given back to the operating system once it runs (issue 20).
+"""An agent's start-up memory given back to the operating system once it runs.
 
 Loading the specification, the content languages and the agent's own modules allocates and
 frees a great deal before the first behaviour blocks for input; glibc keeps the freed pages of

@@ -43,7 +43,7 @@ COUNTERS_ALL = f"{PREFIX}/counters/report/*"
 FOREIGN = "$*@$*"
 """A key-expression chunk matching the key chunk of every agent name ``local@platform`` (an
 agent of another platform, services/spec/model.py ``is_foreign``) and of none of roco's own
-agents: ``roco/fipa/C8/$*@$*/a_hi`` is any foreign agent's communicate to a_hi on C8 (issue 22)."""
+agents: ``roco/fipa/C8/$*@$*/a_hi`` is any foreign agent's communicate to a_hi on C8."""
 
 
 class FipaKey(NamedTuple):

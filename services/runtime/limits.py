@@ -1,4 +1,4 @@
-"""Limits on what one agent accepts from the others (issue 8, "Bad input"; docs/security.md).
+"""Limits on what one agent accepts from the others ("Bad input"; docs/security.md).
 
 - The largest communicate: :data:`~shared.fipa_codec.encoding.MAX_COMMUNICATE_BYTES`
   (4 MiB of encoded msgpack), enforced by the codec on encode and decode and, with

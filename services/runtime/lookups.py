@@ -1,4 +1,4 @@
-"""Per-channel answers an agent looks up for every communicate, computed once (issue 20).
+"""Per-channel answers an agent looks up for every communicate, computed once.
 
 The specification and an agent's interface are frozen while the agent runs, so what they say
 about one peer, channel or kind of communicate is the same for every communicate: the channel
@@ -81,7 +81,7 @@ class Lookups:
 
     def accepts(self, sender: str, performative: str, protocol: str | None) -> MessageKind | None:
         """The interface's received kind matching a communicate (``Interface.accepts``; a
-        foreign sender as the external role it plays, issue 22), or None."""
+        foreign sender as the external role it plays), or None."""
         return _memo(
             self._accepts,
             (sender, performative, protocol),

@@ -1,5 +1,5 @@
 """The agent runtime's modules compiled by mypyc, and their sources when the compiled ones are
-stale (issue 20).
+stale.
 
 setup.py compiles ``COMPILED`` (the protocol state of every conversation, the specification's
 kept answers, the duplicate filter: the Python run for every communicate sent and received)

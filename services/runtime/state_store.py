@@ -1,4 +1,4 @@
-"""Where an agent keeps what must survive its restart (issue 7: no accepted command lost).
+"""Where an agent keeps what must survive its restart (no accepted command lost).
 
 The folder is ``ROCO_STATE_DIR`` when set (compose mounts a volume there), else
 ``<ROCO_RUN_DIR>/state`` (a local fleet: a restart within the same run keeps it, a new run

@@ -18,8 +18,8 @@ each put carries its publisher's id and a sequence number (0, 1, 2, …) and a t
 the publisher keeps its last :data:`CACHE_SAMPLES` in a cache that an advanced subscriber (the
 traffic recorder) queries when it starts, when it detects a publisher that appeared before it,
 and when a sequence number is missing — so a restarted recorder fills the gap it was down for,
-in order, and a gap that cannot be filled shows as missing sequence numbers (issue 16,
-docs/recovery.md).
+in order, and a gap that cannot be filled shows as missing sequence numbers
+(docs/recovery.md).
 """
 
 from __future__ import annotations
@@ -191,7 +191,7 @@ def client_config(
     conf.insert_json5("connect/endpoints", json.dumps(endpoints))
     conf.insert_json5("connect/retry", json.dumps(CONNECT_RETRY))
     conf.insert_json5("scouting/multicast/enabled", "false")
-    # every put carries its sender's timestamp: the record's time sent (issue 16)
+    # every put carries its sender's timestamp: the record's time sent
     conf.insert_json5("timestamping/enabled", "true")
     _no_shared_memory(conf)
     if wait_for_router:
@@ -255,7 +255,7 @@ def router_config(
     if connect:
         conf.insert_json5("connect/endpoints", json.dumps(connect))
         conf.insert_json5("connect/retry", json.dumps(CONNECT_RETRY))
-    # the codec's limit, enforced again where every message passes (issue 8)
+    # the codec's limit, enforced again where every message passes
     conf.insert_json5("low_pass_filter", json.dumps(low_pass_filter()))
     if security is not None:
         from services.security.folder import ACL_FILE, CA_CERT, PASSWORDS, ROUTER

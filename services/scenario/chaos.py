@@ -1,4 +1,4 @@
-"""A chaos run (issue 7): process faults at random times while the robot carries out a
+"""A chaos run: process faults at random times while the robot carries out a
 command, and a verdict on what the system kept.
 
 :func:`chaos_scenario` makes a scenario (services/scenario/model.py): the command, then one

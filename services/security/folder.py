@@ -3,7 +3,7 @@ from it to connect: its :class:`Identity` and the router's password dictionary.
 
 Kept apart from issuing (certs.py, which needs the ``cryptography`` package: ≈ 11 MiB resident
 with OpenSSL) so that every agent, the recorder and the router, which only read the folder,
-do not load it (issue 20, lean processes).
+do not load it (lean processes).
 """
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""Several encoded communicates to one receiver in one payload: a batch (issue 20).
+"""Several encoded communicates to one receiver in one payload: a batch.
 
 When one step of an agent puts more than one communicate on the same key (the same channel,
 sender and receiver: a stream of informs, a reply and a request), they travel as one Zenoh

@@ -514,7 +514,7 @@ COORDINATE = _build(
         ("requested", _R, _P.INFORM, "reported"),
         ("reported", _I, _P.CONFIRM, "running"),
         ("running", _R, _P.INFORM, "reported"),
-        # a confirm sent again (a_co probes an a_ta that reappears: issue 7) changes nothing
+        # a confirm sent again (a_co probes an a_ta that reappears) changes nothing
         ("running", _I, _P.CONFIRM, "running"),
         ("ending", _I, _P.CONFIRM, "finished"),
         # cancel: a request to a_ta, not a state change of the conversation

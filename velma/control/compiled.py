@@ -119,7 +119,7 @@ def _build_law(robot: RobotModel, dt: float, torso_idx: int, arm_v0: list[int]) 
 class _PlantArmState(imp.ArmState):
     """``ArmState`` of a controller stepped by a compiled plant: the grip pose and the torque
     are read from the law's output row (``row``, (32,), the layout of _impedance.cpp) when
-    asked, not built every cycle (issue 18, the cycle's budget); ``refresh`` marks a new row.
+    asked, not built every cycle (the cycle's budget); ``refresh`` marks a new row.
     Assigning ``grip`` or ``torque`` sets them until the next ``refresh``."""
 
     def __init__(self, row: Array, now: imp.ArmState) -> None:

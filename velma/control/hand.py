@@ -66,7 +66,7 @@ class HandSetpoint:
     ramping to; ``distal`` (3,) rad: the distal setpoints; ``broken`` (3,) bool: the finger's
     clutch has broken away (proximal stopped at the object, distal closing on its own);
     ``steady``: every setpoint has reached its target and no clutch has broken away, so a
-    step would change nothing (``Hands.step`` then skips the hand: issue 18, the cycle's
+    step would change nothing (``Hands.step`` then skips the hand: the cycle's
     budget). The arrays read are copies; assigning one writes the row."""
 
     __slots__ = ("row",)
@@ -206,7 +206,7 @@ class Hands:
             if hs.steady:
                 continue
             # three fingers in plain floats: the same IEEE operations as numpy's on (3,)
-            # arrays, at a fraction of the per-call cost (issue 18, the cycle's budget)
+            # arrays, at a fraction of the per-call cost (the cycle's budget)
             proximal = hs.proximal.tolist()
             target = hs.target.tolist()
             distal = hs.distal.tolist()
@@ -315,7 +315,7 @@ class ContactMonitor:
 
     def self_contacts(self, data: mujoco.MjData) -> list[tuple[int, int]]:
         """The robot touching itself: (geom, geom) of each contact between two robot geoms
-        that are not both in one hand (issue 18: self-collision is on in velma.xml)."""
+        that are not both in one hand (self-collision is on in velma.xml)."""
         n = data.ncon
         if n == 0:
             return []

@@ -2,8 +2,8 @@
 
 Used by the executor to decide whether a MoveTool/Tilt target is reachable (``unreachable``)
 and to give the Cartesian impedance law a null-space posture that agrees with the target.
-Given a ``SelfCollision`` check, a posture in which the robot would touch itself is rejected
-(issue 18): the search first swivels the elbow — steps along the Jacobian's null space, both
+Given a ``SelfCollision`` check, a posture in which the robot would touch itself is rejected:
+the search first swivels the elbow — steps along the Jacobian's null space, both
 ways, each re-converged onto the target — to the nearest posture that is free, and only then
 goes on from its random starts.
 Only the seven arm joints move; torso, head and hand joints keep their values in ``q``.
@@ -309,7 +309,7 @@ def _dls(
         return (yield from compiled)
     target_position = target.translation  # pin.SE3 copies on every read: once
     damped = damping * np.eye(6)
-    rhs = np.empty((6, 8))  # [err | J]: one solve per iteration (issue 18: the cycle's budget)
+    rhs = np.empty((6, 8))  # [err | J]: one solve per iteration (the cycle's budget)
     perr = rerr = float("inf")
     for _ in range(max_iter):
         pin.framesForwardKinematics(model, data, q)

@@ -13,8 +13,7 @@ and, for the check, not two geoms of the same hand: the fingers close onto the p
 each other by design, and their motion is the hand's, not the arm's.
 
 Used by the IK (velma/control/ik.py): a posture whose geoms come closer than ``MARGIN`` is
-rejected; the search swivels the elbow to a free posture, else goes on from its other starts
-(issue 18).
+rejected; the search swivels the elbow to a free posture, else goes on from its other starts.
 """
 
 from __future__ import annotations
@@ -38,7 +37,7 @@ MARGIN = 0.003
 """m: two geoms closer than this count as colliding (coal's security margin)."""
 CHECK_STEPS = 8
 """Steps of :meth:`SelfCollision.colliding_steps`: the pairs of a side in this many consecutive
-slices, so that one step costs about a damped-least-squares iteration of the IK (issue 18: the
+slices, so that one step costs about a damped-least-squares iteration of the IK (the
 whole check, ≈ 64 µs warm and ≈ 270 µs in the loop's cycle, was one step of the search)."""
 
 
@@ -95,7 +94,7 @@ class SelfCollision:
         self.slices: dict[str, list[tuple[pin.GeometryModel, pin.GeometryData]]] = {}
         """Per side, ``CHECK_STEPS`` geometries with consecutive parts of its pairs, each with
         its own data. A GeometryData holds ≈ 5 kB per pair of its model, so the pairs are
-        split among models, not deactivated in copies of the whole (issue 20: ≈ 6 MiB
+        split among models, not deactivated in copies of the whole (≈ 6 MiB
         instead of ≈ 65 MiB in the loop's process)."""
         for side in SIDES:
             n = len(pairs[side])

@@ -50,7 +50,7 @@ class PosePath:
     start: pin.SE3
     goal: pin.SE3
     duration: float
-    # what every sample shares, computed once (issue 18: the cycle's budget)
+    # what every sample shares, computed once (the cycle's budget)
     _rotvec: Array = field(init=False, repr=False, compare=False)
     _omega: Array = field(init=False, repr=False, compare=False)
     _delta: Array = field(init=False, repr=False, compare=False)

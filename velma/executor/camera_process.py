@@ -1,4 +1,4 @@
-"""ag_ex's camera in a process of its own (issue 20, lean processes; issue 19's perception).
+"""ag_ex's camera in a process of its own (lean processes).
 
 The head Kinect renders with MuJoCo's off-screen renderer on Mesa's software rasteriser
 (llvmpipe): the first frame maps LLVM and Mesa and allocates the renderer's buffers, and a

@@ -1,5 +1,5 @@
 """What an Observe hands off from the 1 kHz loop: the world state to perceive, not the
-perception (issue 19: the loop never renders or fits).
+perception (the loop never renders or fits).
 
 In camera mode (velma/executor/observer.py) ``ObservePrimitive`` ends at once with a
 ``WorldCapture``: the requested object names, the simulation time and a copy of MuJoCo's whole

@@ -1,5 +1,5 @@
 """Checkpoint and restore of the simulated world, so that restarting ag_ex does not reset the
-kitchen (issue 7: "any one service restarted at any moment of a pour run, and the task still
+kitchen ("any one service restarted at any moment of a pour run, and the task still
 completes"; a real robot's world does not go back to its initial scene either).
 
 What a checkpoint holds (``Checkpoint``, one msgpack file ``<dir>/world.ckpt``):

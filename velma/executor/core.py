@@ -5,7 +5,7 @@ interpreter.
 
 No Zenoh and no FIPA messaging here: ``services/agents/executor`` wraps the executors.
 
-Observe (issue 19): the loop hands off a ``WorldCapture``; ``ResultDelivery``
+Observe: the loop hands off a ``WorldCapture``; ``ResultDelivery``
 (velma/executor/delivery.py), a worker thread of this process, renders and localises it and
 delivers every result in the loop's order. In this in-process host that thread shares the
 interpreter with the loop thread, so an Observe (≈ 0.2 s of rendering and fitting, much of it

@@ -1,5 +1,5 @@
 """Results from the loop to the caller, in the loop's order, with an Observe's world capture
-turned into the camera's Observation on the way (issue 19: outside the 1 kHz loop).
+turned into the camera's Observation on the way (outside the 1 kHz loop).
 
 ``ResultDelivery`` is one worker thread with a FIFO: ``put(token, result)`` from the host
 (loop thread or reader thread; never blocks); the thread hands each result to ``deliver`` in

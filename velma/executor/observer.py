@@ -1,4 +1,4 @@
-"""The camera's Observation (issue 19): render the head's Kinect of a captured world state
+"""The camera's Observation: render the head's Kinect of a captured world state
 (velma/executor/capture.py) and localise the requested objects in it (velma/perception/),
 outside the 1 kHz loop (``ResultDelivery``, velma/executor/delivery.py, runs it).
 

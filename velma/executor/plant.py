@@ -1,4 +1,4 @@
-"""The compiled MuJoCo side of ag_ex's cycle (issue 18): ``CompiledPlant`` wraps the C++
+"""The compiled MuJoCo side of ag_ex's cycle: ``CompiledPlant`` wraps the C++
 ``Plant`` of velma/control/_plant.hpp for a ``Runtime``.
 
 With it, ``Runtime.cycle`` (the hands' and the head's servo steps, the state gather, the

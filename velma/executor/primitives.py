@@ -500,7 +500,7 @@ class WaitPrimitive:
 
 
 class ObservePrimitive:
-    """End at once with what an Observe needs (issue 19: the loop never renders or fits):
+    """End at once with what an Observe needs (the loop never renders or fits):
     with the camera (``rt.observe_by_camera``) a ``WorldCapture`` of the world
     now (a copy of ``qpos``, ≈ 1.4 kB), which the host turns into the camera's Observation
     outside the loop (velma/executor/delivery.py); with ``ROCO_PERCEPTION=truth`` the ground

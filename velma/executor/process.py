@@ -27,7 +27,7 @@ Hand-offs (all non-blocking on the loop's side):
   communication side's ``CheckpointWriter`` thread; the loop restores the last one at start and
   writes the final one itself when it ends.
 
-Observe (issue 19): the loop answers an Observe with a ``WorldCapture`` (velma/executor/capture.py:
+Observe: the loop answers an Observe with a ``WorldCapture`` (velma/executor/capture.py:
 the requested names, sim time and a copy of ``qpos``); on this side ``ResultDelivery``
 (velma/executor/delivery.py), a worker thread, renders the head camera and localises, and
 delivers every result in the loop's order (an Observation is never overtaken by a later

@@ -62,7 +62,7 @@ class RobotSnapshot(msgspec.Struct, frozen=True, kw_only=True):
 
 
 class RawState(msgspec.Struct, frozen=True, kw_only=True, array_like=True):
-    """What the loop hands off every ``STATE_PERIOD`` cycles (issue 18: the loop copies
+    """What the loop hands off every ``STATE_PERIOD`` cycles (the loop copies
     numbers, the communication side builds the :class:`RobotSnapshot`): ``values`` float64
     (native byte order) laid out by :func:`raw_layout` — joint positions in ``joints`` order, per
     side (``SNAPSHOT_SIDES``) the grip site's position (3) and rotation matrix (9, row-major),

@@ -1,6 +1,6 @@
-"""The robot state's hand-off from the loop process to ag_ex's communication side (issue 18:
+"""The robot state's hand-off from the loop process to ag_ex's communication side:
 the publication every ``STATE_PERIOD`` cycles costs the loop a few microseconds, not the
-≈ 70 µs of building, encoding and copying a message in Python in a cycle that sleeps).
+≈ 70 µs of building, encoding and copying a message in Python in a cycle that sleeps.
 
 Two ``LatestValue`` blocks (velma/executor/handoff.py):
 

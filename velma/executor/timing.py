@@ -17,7 +17,7 @@ Definitions (per cycle k, period ``dt`` = 1 ms):
   vCPU's core) or interrupt handling as the thread's CPU time. A *stall* is a cycle with more
   than :data:`STALL_OFF_CPU` s of it: the machine, not the loop's work, lengthened it.
 
-The compute time is split in parts (issue 18: the budget in the open), each cycle's measured
+The compute time is split in parts (the budget in the open), each cycle's measured
 by the loop itself into a preallocated array (:data:`PARTS` but the last): *primitive* (the
 motion primitive: taking the next command, its step), *control* (the impedance law for both
 arms and the torso, the hands and the head), *physics* (``mj_step`` and the hands' contact
@@ -354,7 +354,7 @@ def hold_cpu_latency(latency_us: int = 0) -> str | None:
     ends, by writing it to :data:`PM_QOS_DEVICE` and keeping that file open. Returns None when
     granted, else why not (one line). Never raises.
 
-    Why (issue 18, docs/bench/loop.md "CPU latency PM QoS"): an idle CPU otherwise halts; on a
+    Why (docs/bench/loop.md "CPU latency PM QoS"): an idle CPU otherwise halts; on a
     virtual machine a halted vCPU hands its physical core to the host, and the loop comes back
     to cold caches after every sleep. Held at 0 µs the idle CPU polls instead (the cpuidle POLL
     state) at the price of that CPU's power; cyclictest makes the same request by default."""

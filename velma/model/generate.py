@@ -173,7 +173,7 @@ PAD_SOLREF = "0.004 1"
 PAD_SOLIMP = "0.95 0.99 0.001"  # placeholder (stiff once in contact)
 ROBOT_FRICTION = "0.8 0.02 0.001"  # placeholder (rubber/aluminium on wood or glass)
 
-# Self-collision (issue 18). Contact bits: robot geoms contype 2, conaffinity 3; scene geoms
+# Self-collision. Contact bits: robot geoms contype 2, conaffinity 3; scene geoms
 # contype 1, conaffinity 3. MuJoCo collides two geoms when (contype₁ & conaffinity₂) or
 # (contype₂ & conaffinity₁) is non-zero, so robot–robot (2 & 3), robot–scene and scene–scene
 # pairs all collide. Pairs left out, by the rules of MoveIt's Setup Assistant (the "adjacent",
@@ -196,7 +196,7 @@ SELF_COLLISION_EXCLUDES = (
 
 # Simulation options (facts, "MuJoCo notes" and "Control on the real robot": 1 kHz loop,
 # impratio ≈ 10). Solver: Newton, which converges in 1–3 iterations where CG used up to 60
-# (issue 18; measured over the scripted pour on this 2-core VM, mujoco 4.0.0: mj_step p50
+# (measured over the scripted pour on this 2-core VM, mujoco 4.0.0: mj_step p50
 # 292 → 231 µs, p99 630 → 468 µs, every grasp and 18/18 spheres in the bowl on seeds 1–4 of
 # scripts/bench_pour_seeds.py --mode script). The cap of 60 is kept as a bound. Friction
 # cones: pyramidal, not the elliptic cones the facts suggest for multi-finger grasps: over the

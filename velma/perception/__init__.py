@@ -1,4 +1,4 @@
-"""Perception from the head's depth camera: what Velma sees for itself (issue 19).
+"""Perception from the head's depth camera: what Velma sees for itself.
 
 The library, bottom up (one job a module):
 

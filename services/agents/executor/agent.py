@@ -12,7 +12,7 @@ Besides the C5 conversation, ag_ex
   (msgpack ``RobotSnapshot``, every ``STATE_PERIOD`` s), for viewers;
 - writes the latest deadline statistics to ``<ROCO_RUN_DIR>/ag_ex_timing.json`` (for the run
   report) every ``TIMING_FILE_PERIOD`` s and when it stops;
-- perceives with the head camera (issue 19; the default, velma/executor/capture.py
+- perceives with the head camera (the default, velma/executor/capture.py
   ``DEFAULT_PERCEPTION``): the
   loop captures the world at an Observe, the executor's delivery thread in this process renders
   and localises (velma/executor/delivery.py), and each camera Observation is logged beside the

@@ -327,7 +327,7 @@ def m_fetch(s: Any, path: str, obj: str, arm: str) -> Any:
     out = geo.translated(lifted, _scaled(geo.rotate(grasp.retreat, obj_frame), grasp.retreat_distance))
     steps: list[tuple[Any, ...]] = _face(s, path, where, facing)
     # the head looks at the object (after returning something to the cabinet it still looks
-    # there) before the hand comes near it (issue 19: the head camera perceives)
+    # there) before the hand comes near it (the head camera perceives)
     steps += [
         ("a_look", f"{path}/look_at_{obj}", pose.position),
         ("a_perceive", f"{path}/see_{obj}", obj, (obj, pose.position)),

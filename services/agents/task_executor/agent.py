@@ -16,7 +16,7 @@ When the world differs from the plan — an object is not where a Perceive step 
 a grasp closes on nothing, a held object slips out — a_ta observes the scene, informs a_km of
 what it saw, and reports Replan with the difference in words.
 
-Restarts (issue 7; docs/recovery.md): each L_SW inform is retransmitted until a_co confirms it
+Restarts (docs/recovery.md): each L_SW inform is retransmitted until a_co confirms it
 (a_co may be restarting); a request to ag_ex is sent again when ag_ex's liveliness token
 reappears (ag_ex restored its world from its checkpoint). a_ta keeps the plan it runs in its
 state file; a restarted a_ta does not guess where the robot got to: it reports Replan (or the

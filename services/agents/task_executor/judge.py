@@ -1,4 +1,4 @@
-"""a_ta's judgements of the world it observed (issue 19: every task judged by the world it
+"""a_ta's judgements of the world it observed (every task judged by the world it
 left): where the plan's Perceive expects the objects, how certain a position must be for a
 grasp, and the content check. Pure functions of the plan's action and ag_ex's L_SD
 ``Observation`` (shared/fipa_codec/languages/l_sd.py); the reasons are the words the person

@@ -1,4 +1,4 @@
-"""Making the hands safe after a take or a set-down was interrupted (issue 7).
+"""Making the hands safe after a take or a set-down was interrupted.
 
 A take — reach, grasp, held, lift, withdraw — is an atomic state of the plan's HFSM (paper
 §3.2). When it is interrupted before the grasp completed (a_ta restarted inside it, or ag_ex

@@ -99,8 +99,8 @@ class CommandResult(msgspec.Struct, frozen=True, tag="result", kw_only=True):
     (``unreachable``, ``contact lost``, ``timeout``, ``no contact``…). ``sim_time`` is the
     simulation time at completion (s); ``tool_error`` the final grip-frame position error (m);
     ``self_contacts`` the pairs of the robot's own geometries (``"a + b"``, sorted) that touched
-    each other while the command ran — empty when the robot did not touch itself (issue 18:
-    Velma's links collide with each other in the simulation)."""
+    each other while the command ran — empty when the robot did not touch itself
+    (Velma's links collide with each other in the simulation)."""
 
     command: str
     ok: bool

@@ -9,7 +9,7 @@
 - fipa-query (a_hi initiates): ``query-ref`` of a :class:`StatusQuery` ("what are you
   doing?"); a_co answers ``inform-ref`` with a :class:`Status`.
 
-On C8 (issue 22), an agent of another FIPA platform asks a_hi as a person would: fipa-request
+On C8, an agent of another FIPA platform asks a_hi as a person would: fipa-request
 (the foreign agent initiates) of a :class:`Sentence`; a_hi answers with
 :class:`SentenceReport` s: ``agree`` (a command was accepted), then ``inform`` (done as asked:
 succeeded, stopped for a stop request, the status for a status request) or ``failure``;
@@ -105,7 +105,7 @@ class Status(msgspec.Struct, frozen=True, tag="status", kw_only=True):
 
 class Sentence(msgspec.Struct, frozen=True, tag="sentence", kw_only=True):
     """What a person would say to the robot (``text``), sent by an agent of another FIPA
-    platform (C8, issue 22)."""
+    platform (C8)."""
 
     text: str
 

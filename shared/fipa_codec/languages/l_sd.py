@@ -1,6 +1,6 @@
 """L_SD: sensor data from ag_ex (C5): what the robot perceives of the scene.
 
-By default (``ROCO_PERCEPTION`` unset or ``camera``, issue 19) ag_ex renders the head's
+By default (``ROCO_PERCEPTION`` unset or ``camera``) ag_ex renders the head's
 simulated Kinect (RGB-D) of the world as it was when the Observe ran and localises the
 requested objects in it (velma/perception/). What is seen carries the estimate's uncertainty
 (``position_sigma``); what is not seen (out of view, hidden, fit rejected) is named in
