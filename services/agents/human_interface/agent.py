@@ -15,7 +15,7 @@ Receptor: ``roco/human/in`` (:class:`HumanInput`, sentences). Effector: ``roco/h
 - **fipa-query** per status request ("what are you doing?"): ``query-ref`` a
   :class:`StatusQuery`; a_co answers ``inform-ref`` a :class:`Status`.
 
-Towards a_km, on C7 in L_WM (issue 23), a_hi initiates **fipa-query** per sentence: ``query-ref``
+Towards a_km, on C7 in L_WM, a_hi initiates **fipa-query** per sentence: ``query-ref``
 a ``SparqlQuery`` of the vocabulary (vocabulary.py: the words for the kitchen's things, their
 adjectives and where they are); a_km answers ``inform-ref`` an ``Answer``. The sentence waits for
 that answer, so a thing a_km learnt a moment ago can be named; when a_km is not alive (its
@@ -24,20 +24,23 @@ read with the last vocabulary a_hi has (at start: O_RoCo and the kitchen's files
 read in the order they came; "stop" is acted on at once, and the sentences still waiting are
 dropped (reported when their query ends).
 A conversation per person (``HumanInput.person``) keeps the last object named and a question
-a_hi asked back ("Which cup: …?"), which the person's next sentence may answer.
+a_hi asked back ("Which cup: …?"), which the person's next sentence may answer. What a person
+can say is grammar.lark and the task words of tasks.toml (language.py, task_words.py), read and
+checked when a_hi is built.
 
-From agents of other FIPA platforms, on C8 (issue 22; they reach it through ``roco gateway``),
-a_hi is the participant of **fipa-request**: the ``request`` carries a ``Sentence`` that a_hi reads
-exactly as a person's (a conversation per foreign agent, in the order sentences came), and the
-person's reports become the answers, each a ``SentenceReport``: ``accepted`` an ``agree``, a
-final report an ``inform`` when the request was done as asked, else a ``failure`` — or a
-``refuse`` when the sentence was not understood (before any agree). Progress reports are not
-sent (fipa-request has none). These conversations are not kept across a restart of a_hi.
+From agents of other FIPA platforms, on C8 (they reach it through ``roco gateway``,
+docs/gateway.md), a_hi is the participant of **fipa-request**: the ``request`` carries a
+``Sentence`` that a_hi reads exactly as a person's (a conversation per foreign agent, in the
+order sentences came), and the person's reports become the answers, each a
+``SentenceReport``: ``accepted`` an ``agree``, a final report an ``inform`` when the request
+was done as asked, else a ``failure`` — or a ``refuse`` when the sentence was not understood
+(before any agree). Progress reports are not sent (fipa-request has none). These
+conversations are not kept across a restart of a_hi.
 
 Every request from the person (command, stop, status) gets reports under its own
 ``request_id`` and ends with one report of a kind in FINAL_REPORTS (messages.py).
 
-Restarts (issue 7; docs/recovery.md): a command's request is retransmitted until a_co agrees
+Restarts (docs/recovery.md): a command's request is retransmitted until a_co agrees
 (a_co may be restarting; its runtime drops copies and answers them again). a_hi keeps its open
 commands in its state file; a restarted a_hi takes them back, so a_co's outcome still reaches
 the person who asked. Open stop requests and status queries are not kept (ask again).
@@ -48,7 +51,8 @@ from __future__ import annotations
 import time
 from collections import OrderedDict, deque
 from dataclasses import dataclass, field
-from typing import ClassVar
+from pathlib import Path
+from typing import TYPE_CHECKING, ClassVar
 
 import msgspec
 
@@ -63,6 +67,7 @@ from services.agents.human_interface.language import (
     describe,
     interpret,
 )
+from services.agents.human_interface.task_grammar import Grammar, default_grammar, load_grammar
 from services.agents.human_interface.vocabulary import VOCABULARY_QUERY, Vocabulary
 from services.runtime import keys
 from services.runtime.agent import Agent, SpecViolation
@@ -94,6 +99,10 @@ from shared.fipa_codec.languages.l_hc import (
 )
 from shared.fipa_codec.languages.l_wm import Answer, SparqlQuery
 from shared.fipa_codec.message import new_id
+
+if TYPE_CHECKING:
+    from services.runtime.transport import Transport
+    from services.spec.model import SystemSpec
 
 CO = "a_co"
 KM = "a_km"
@@ -258,6 +267,17 @@ class HumanInterface(Agent):
         initiator(C7, QUERY, "L_WM", reply_by_s=VOCABULARY_REPLY_BY_S),
         participant(C8, REQUEST, "L_HC"),
     )
+
+    def __init__(
+        self, transport: Transport, spec: SystemSpec | None = None, *, tasks: Path | None = None
+    ) -> None:
+        """``tasks``: the task words file (default: tasks.toml beside this module, task_words.py),
+        read and checked here, at start. Raises :class:`~.task_words.TaskWordsError` (a
+        ValueError: services/runtime/main.py prints it as one line) when it is missing or
+        malformed, or a frame collides."""
+        self.grammar: Grammar = default_grammar() if tasks is None else load_grammar(tasks)
+        """grammar.lark with the frames of the task words: what a person can say."""
+        super().__init__(transport, spec)
 
     def build_fsm(self) -> FSM:
         self.commands: dict[str, OpenCommand] = {}  # conversation-id → open command
@@ -441,7 +461,7 @@ class HumanInterface(Agent):
 
     def _is_stop(self, event: HumanInput) -> bool:
         try:
-            return isinstance(interpret(event.text, vocabulary=self.vocabulary), Stop)
+            return isinstance(interpret(event.text, vocabulary=self.vocabulary, grammar=self.grammar), Stop)
         except NotUnderstood:
             return False
 
@@ -482,7 +502,11 @@ class HumanInterface(Agent):
         dialogue = self.dialogues.setdefault(event.person, Dialogue())
         try:
             intent: Intent = interpret(
-                event.text, priority=event.priority, vocabulary=vocabulary, dialogue=dialogue
+                event.text,
+                priority=event.priority,
+                vocabulary=vocabulary,
+                dialogue=dialogue,
+                grammar=self.grammar,
             )
         except NotUnderstood as exc:
             self._report(event.request_id, ReportKind.NOT_UNDERSTOOD, str(exc))
@@ -515,7 +539,8 @@ class HumanInterface(Agent):
         cid = conv.conversation_id
         if not self.co_alive:
             self.log.warning("a_co is not known to be alive; %s may wait %.0f s", cid, AGREE_BY_S)
-        self.commands[cid] = OpenCommand(cid, event.request_id, command, describe(intent.goal), conv)
+        label = describe(intent.goal, self.grammar.words)
+        self.commands[cid] = OpenCommand(cid, event.request_id, command, label, conv)
 
     def _stop_commands(self, request_id: str) -> None:
         if not self.commands:

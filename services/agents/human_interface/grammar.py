@@ -2,21 +2,24 @@
 
 A sentence is normalised (lower case, punctuation and apostrophes dropped, decimal points
 kept), then **tagged**: at each position the longest phrase known wins, a closed-class phrase
-of :data:`WORDS` before a noun or adjective of the :class:`~.vocabulary.Vocabulary` of the same
-length. "within N seconds|minutes|hours" becomes one ``DEADLINE`` token (its value in
-seconds); a plural of a known noun is ``PLURAL``; any other word is ``WORD``, which no rule
-accepts, so that the parse stops at it and :class:`ParseFailure` names it.
+(:data:`PHRASES`, from :data:`WORDS`, plus the words of the task frames task_grammar.py adds)
+before a noun or adjective of the :class:`~.vocabulary.Vocabulary` of the same length.
+"within N seconds|minutes|hours" becomes one ``DEADLINE`` token (its value in seconds); a
+plural of a known noun is ``PLURAL``; any other word is ``WORD``, which no rule accepts, so
+that the parse stops at it and :class:`ParseFailure` names it.
 
 :func:`parse` returns every reading of the sentence (lark's ambiguities collapsed), for
 meaning.py to choose from. Raises :class:`ParseFailure` (the token where the parse stopped,
-or the end of the sentence, and the word classes that were expected there).
+or the end of the sentence, and the word classes that were expected there). The parser of
+grammar.lark alone is :func:`parser`; task_grammar.py builds the one a_hi uses, grammar.lark
+with the rules of the task frames (:func:`build_parser`).
 """
 
 from __future__ import annotations
 
 import functools
 import re
-from collections.abc import Iterator
+from collections.abc import Iterator, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -127,17 +130,14 @@ WORDS: dict[str, tuple[str, ...]] = {
         "tell me your status",
         "how are you getting on",
     ),
-    # verbs of the tasks a_pl knows
+    # verbs of the tasks whose frames are written in grammar.lark (the others: tasks.toml)
     "POUR": ("pour", "tip", "decant", "transfer"),
     "EMPTY": ("empty",),
     "FILL": ("fill", "refill"),
     "BRING": ("bring", "fetch", "get", "grab", "carry"),
     "TAKE": ("take", "remove"),
-    "PICK": ("pick",),
-    "HOLD": ("hold", "grasp", "lift"),
     "PUT": ("put", "place", "set", "leave", "lay", "move", "stand", "stick", "position"),
     "RETURN": ("return", "store", "stow", "replace"),
-    "TIDY": ("tidy", "clear"),
     "HAND": ("hand", "give", "pass"),
     # prepositions and particles
     "IN": ("in", "into", "inside", "in to"),
@@ -176,7 +176,8 @@ WORDS: dict[str, tuple[str, ...]] = {
     "DET": ("the", "a", "an", "my", "your", "our", "these", "those", "some"),
 }
 """Closed-class words and fixed phrases → word class (a terminal of grammar.lark). Object,
-place and adjective words are not here: they come from the vocabulary (the ontology)."""
+place and adjective words are not here: they come from the vocabulary (the ontology); the
+words of the frames in tasks.toml are added by task_grammar.py."""
 
 _NUMBERS = {
     "a": 1, "an": 1, "one": 1, "two": 2, "three": 3, "four": 4, "five": 5, "six": 6, "seven": 7,
@@ -188,9 +189,10 @@ _UNITS = {
     "min": 60.0, "mins": 60.0, "minute": 60.0, "minutes": 60.0,
     "h": 3600.0, "hour": 3600.0, "hours": 3600.0,
 }  # fmt: skip
-_PHRASES: dict[tuple[str, ...], str] = {
+PHRASES: dict[tuple[str, ...], str] = {
     tuple(p.split()): kind for kind, phrases in WORDS.items() for p in phrases
 }
+""":data:`WORDS` as the tagger looks them up: the words of a phrase → its word class."""
 
 
 @dataclass(frozen=True)
@@ -249,8 +251,11 @@ def _deadline(words: list[str], i: int) -> tuple[int, float] | None:
     return j + 1 - i, amount * _UNITS[words[j]]
 
 
-def tag(sentence: str, vocabulary: Vocabulary) -> tuple[Word, ...]:
-    """The tokens of ``sentence`` (see the module docstring)."""
+def tag(
+    sentence: str, vocabulary: Vocabulary, phrases: Mapping[tuple[str, ...], str] = PHRASES
+) -> tuple[Word, ...]:
+    """The tokens of ``sentence`` (see the module docstring); ``phrases``: the closed-class
+    phrases (default :data:`PHRASES`; a_hi's grammar adds the words of its task frames)."""
     words = normalise(sentence)
     lexicon: dict[tuple[str, ...], str] = {}
     for adj in vocabulary.adjectives:
@@ -260,7 +265,7 @@ def tag(sentence: str, vocabulary: Vocabulary) -> tuple[Word, ...]:
         if len(noun) == 1 and not noun[0].endswith("s"):
             lexicon.setdefault((noun[0] + "s",), "PLURAL")
             lexicon.setdefault((noun[0] + "es",), "PLURAL")
-    lexicon.update(_PHRASES)  # a closed-class phrase wins over a vocabulary word of the same length
+    lexicon.update(phrases)  # a closed-class phrase wins over a vocabulary word of the same length
     longest = max((len(p) for p in lexicon), default=1)
     out: list[Word] = []
     i = 0
@@ -298,11 +303,11 @@ class _Tags(Lexer):
             yield Token(w.kind, w.text, start_pos=w.index)
 
 
-@functools.cache
-def parser() -> Lark:
-    """The Earley parser of grammar.lark (built once; readings kept: ``ambiguity="explicit"``)."""
+def build_parser(text: str) -> Lark:
+    """The Earley parser of the grammar ``text`` over word classes (readings kept:
+    ``ambiguity="explicit"``). Raises lark's GrammarError for a malformed grammar."""
     return Lark(
-        GRAMMAR_FILE.read_text(),
+        text,
         parser="earley",
         lexer=_Tags,
         ambiguity="explicit",
@@ -310,11 +315,18 @@ def parser() -> Lark:
     )
 
 
-def parse(words: tuple[Word, ...]) -> list[Tree[Token]]:
-    """Every reading of the tagged sentence ``words`` (at most :data:`MAX_READINGS`). Raises
-    :class:`ParseFailure` where no rule goes on."""
+@functools.cache
+def parser() -> Lark:
+    """The Earley parser of grammar.lark alone (built once)."""
+    return build_parser(GRAMMAR_FILE.read_text())
+
+
+def parse(words: tuple[Word, ...], using: Lark | None = None) -> list[Tree[Token]]:
+    """Every reading of the tagged sentence ``words`` by the parser ``using`` (default:
+    :func:`parser`), at most :data:`MAX_READINGS`. Raises :class:`ParseFailure` where no rule
+    goes on."""
     try:
-        tree = parser().parse(words)
+        tree = (using if using is not None else parser()).parse(words)
     except UnexpectedEOF as exc:
         raise ParseFailure(None, frozenset(exc.expected), words) from None
     except UnexpectedToken as exc:
@@ -328,4 +340,15 @@ def parse(words: tuple[Word, ...]) -> list[Tree[Token]]:
     return list(readings[:MAX_READINGS])
 
 
-__all__ = ["GRAMMAR_FILE", "WORDS", "ParseFailure", "Word", "normalise", "parse", "parser", "tag"]
+__all__ = [
+    "GRAMMAR_FILE",
+    "PHRASES",
+    "WORDS",
+    "ParseFailure",
+    "Word",
+    "build_parser",
+    "normalise",
+    "parse",
+    "parser",
+    "tag",
+]

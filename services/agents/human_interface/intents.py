@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from services.agents.human_interface.task_words import TaskWords, default_task_words
 from shared.fipa_codec.languages.l_hc import TaskAtom
 
 URGENT_PRIORITY = 5
@@ -77,8 +78,10 @@ def show(name: str) -> str:
     return "the " + name.replace("_", " ")
 
 
-def describe(goal: TaskAtom) -> str:
-    """The task in words a person reads ("pour the jar into the bowl")."""
+def describe(goal: TaskAtom, words: TaskWords | None = None) -> str:
+    """The task in words a person reads ("pour the jar into the bowl"): a_hi's phrase for a task
+    of grammar.lark's frames, else the first frame of the task's entry in ``words`` (default:
+    tasks.toml's) said with its arguments ("find the jar"), else ``name(args)``."""
     a = [show(x) for x in goal.args]
     if goal.name == "pour" and len(a) == 2:
         return f"pour {a[0]} into {a[1]}"
@@ -90,8 +93,9 @@ def describe(goal: TaskAtom) -> str:
         return f"put {a[0]} back in the {STORAGE}"
     if goal.name == "hand_over" and len(a) == 1:
         return f"hand you {a[0]}"
-    if goal.name == "fetch" and len(a) == 1:
-        return f"pick up {a[0]}"
+    saying = (words if words is not None else default_task_words()).saying(goal.name)
+    if saying is not None and len(saying.args) == len(a):
+        return saying.frames[0].fill(dict(zip(saying.args, a, strict=True)))
     return f"{goal.name}({', '.join(goal.args)})"
 
 

@@ -3,11 +3,12 @@
 Named simplifications (paper §5.2 leaves the human interface open): the understanding is a
 **hand-written grammar** of English kitchen commands (grammar.lark, parsed by lark's Earley
 parser) — English only, typed text only (no speech), no statistical language model. What it
-covers: the verbs and frames of every task a_pl knows (meaning.py), prepositions and particles
-("out of", "onto", "back in"), determiners and adjectives ("the small cup"), "the contents of
-the jar", polite framing ("could you …?", "please", "thanks"), urgency ("urgently", "right
-away", … → :data:`URGENT_PRIORITY`) and deadlines ("within 2 minutes"), and "it"/"that" for
-the last object the same person named.
+covers: the verbs and frames of every task a_pl knows (those with rich particle structure in
+grammar.lark and meaning.py; the others as data, tasks.toml, made into rules by
+task_grammar.py), prepositions and particles ("out of", "onto", "back in"), determiners and
+adjectives ("the small cup"), "the contents of the jar", polite framing ("could you …?",
+"please", "thanks"), urgency ("urgently", "right away", … → :data:`URGENT_PRIORITY`) and
+deadlines ("within 2 minutes"), and "it"/"that" for the last object the same person named.
 
 The words for things are not listed here: they are the vocabulary a_km gives (vocabulary.py:
 labels and adjectives in O_RoCo and the knowledge base), so a thing a_km learns about can be
@@ -17,9 +18,10 @@ the table"), and the command goes on — a :class:`Dialogue` per person keeps th
 object named. A sentence not understood gets one line naming the word or the missing part and
 what could be said instead (:class:`NotUnderstood` and its subclasses, intents.py).
 
-Pipeline: :func:`~.grammar.tag` → :func:`~.grammar.parse` (every reading) →
-:class:`~.meaning.Reader` per reading → the best: a command over a question over a refusal,
-then the reading whose prepositions are the verb's arguments rather than an object's location.
+Pipeline: :meth:`~.task_grammar.Grammar.tag` → :meth:`~.task_grammar.Grammar.parse` (every
+reading) → :class:`~.meaning.Reader` per reading → the best: a command over a question over a
+refusal, then the reading whose prepositions are the verb's arguments rather than an object's
+location.
 """
 
 from __future__ import annotations
@@ -27,7 +29,7 @@ from __future__ import annotations
 import functools
 from dataclasses import dataclass, field
 
-from services.agents.human_interface.grammar import ParseFailure, Word, parse, tag
+from services.agents.human_interface.grammar import ParseFailure, Word
 from services.agents.human_interface.intents import (
     STORAGE,
     URGENT_PRIORITY,
@@ -43,6 +45,7 @@ from services.agents.human_interface.intents import (
     show,
 )
 from services.agents.human_interface.meaning import Context, Reader, Reply, loc_count, loc_depth
+from services.agents.human_interface.task_grammar import Grammar, default_grammar
 from services.agents.human_interface.vocabulary import KNOWLEDGE_FILES, Vocabulary
 
 EXAMPLES = (
@@ -56,9 +59,6 @@ EXAMPLES = (
     "'what are you doing?'",
 )
 """Example sentences, as the answers list them."""
-
-VERBS = "pour, empty, fill, bring, take, pick up, put, put back, hand over, stop, or ask what I am doing"
-"""The verbs the grammar knows, for a reply naming an unknown verb."""
 
 
 @dataclass(frozen=True)
@@ -97,9 +97,9 @@ def _rank(outcome: object) -> int:
     return next((r for t, r in _RANK.items() if isinstance(outcome, t)), 4)
 
 
-def _read(words: tuple[Word, ...], priority: int, ctx: Context) -> Intent | Reply:
+def _read(words: tuple[Word, ...], priority: int, ctx: Context, grammar: Grammar) -> Intent | Reply:
     """The best reading of tagged ``words``; raises the best failure when none is an intent."""
-    readings = parse(words)
+    readings = grammar.parse(words)
     outcomes: list[tuple[int, int, int, int, Intent | Reply | NotUnderstood]] = []
     for tree in readings:
         try:
@@ -115,7 +115,9 @@ def _read(words: tuple[Word, ...], priority: int, ctx: Context) -> Intent | Repl
     return best
 
 
-def _failure(exc: ParseFailure, vocabulary: Vocabulary, priority: int, ctx: Context) -> NotUnderstood:
+def _failure(
+    exc: ParseFailure, vocabulary: Vocabulary, priority: int, ctx: Context, grammar: Grammar
+) -> NotUnderstood:
     """One line for a sentence that does not parse: the word, or the missing part, and what to say."""
     words = exc.words
     if not words:
@@ -123,7 +125,7 @@ def _failure(exc: ParseFailure, vocabulary: Vocabulary, priority: int, ctx: Cont
     if exc.at is None:  # the sentence ended too early: read it without its dangling end
         for cut in range(len(words) - 1, 0, -1):
             try:
-                _read(words[:cut], priority, ctx)
+                _read(words[:cut], priority, ctx, grammar)
             except ParseFailure:
                 continue
             except Incomplete as inc:
@@ -146,7 +148,7 @@ def _failure(exc: ParseFailure, vocabulary: Vocabulary, priority: int, ctx: Cont
     if at.kind == "WORD":
         if verbs & exc.expected and not ({"NOUN", "IT"} & exc.expected and at.index > 0):
             return NotUnderstood(
-                f"I do not know '{at.text}' as a command; I can: {VERBS} (e.g. {EXAMPLES[0]})."
+                f"I do not know '{at.text}' as a command; I can: {grammar.verbs()} (e.g. {EXAMPLES[0]})."
             )
         if "NOUN" in exc.expected:
             return UnknownReference(
@@ -163,27 +165,32 @@ def interpret(
     *,
     vocabulary: Vocabulary | None = None,
     dialogue: Dialogue | None = None,
+    grammar: Grammar | None = None,
 ) -> Intent:
     """The intent of ``sentence``. ``priority`` > 0 (given with the input) overrides the
     priority urgency words give. ``vocabulary``: the things that can be named (default: O_RoCo
     and the kitchen, :func:`default_vocabulary`). ``dialogue``: the person's conversation; it is
-    updated (the last object named, a question asked or answered). Raises :class:`NotUnderstood`
-    — :class:`Incomplete`, :class:`Ambiguous` (a question: the next sentence may answer it) or
+    updated (the last object named, a question asked or answered). ``grammar``: grammar.lark with
+    the frames of the task words (default: those of tasks.toml,
+    :func:`~.task_grammar.default_grammar`). Raises :class:`NotUnderstood` — :class:`Incomplete`,
+    :class:`Ambiguous` (a question: the next sentence may answer it) or
     :class:`UnknownReference` — with one line for the person."""
     vocab = vocabulary if vocabulary is not None else default_vocabulary()
     talk = dialogue if dialogue is not None else Dialogue()
+    rules = grammar if grammar is not None else default_grammar()
     pending, talk.pending = talk.pending, None
-    words = tag(sentence, vocab)
+    words = rules.tag(sentence, vocab)
     ctx = Context(
         vocab,
         last=talk.last,
         among=pending.candidates if pending else (),
         token_seconds={w.index: w.seconds for w in words if w.seconds is not None},
+        frames=rules.frames,
     )
     try:
-        intent = _read(words, priority, ctx)
+        intent = _read(words, priority, ctx, rules)
     except ParseFailure as exc:
-        raise _failure(exc, vocab, priority, ctx) from None
+        raise _failure(exc, vocab, priority, ctx, rules) from None
     except Ambiguous as exc:
         talk.pending = Pending(sentence, priority, exc.at, exc.candidates)
         raise
@@ -200,23 +207,26 @@ def interpret(
                 f"I asked about {options}; which of them do you mean?", pending.at, pending.candidates
             )
         chosen = {**pending.chosen, pending.at: intent.name}
-        return _resume(pending, chosen, vocab, talk)
+        return _resume(pending, chosen, vocab, talk, rules)
     if isinstance(intent, Command) and intent.goal.args:
         talk.last = intent.goal.args[0]
     return intent
 
 
-def _resume(pending: Pending, chosen: dict[int, str], vocab: Vocabulary, talk: Dialogue) -> Intent:
+def _resume(
+    pending: Pending, chosen: dict[int, str], vocab: Vocabulary, talk: Dialogue, grammar: Grammar
+) -> Intent:
     """The pending sentence again, its references settled by the answers so far."""
-    words = tag(pending.sentence, vocab)
+    words = grammar.tag(pending.sentence, vocab)
     ctx = Context(
         vocab,
         last=talk.last,
         chosen=chosen,
         token_seconds={w.index: w.seconds for w in words if w.seconds is not None},
+        frames=grammar.frames,
     )
     try:
-        intent = _read(words, pending.priority, ctx)
+        intent = _read(words, pending.priority, ctx, grammar)
     except Ambiguous as exc:  # another reference of the same sentence is ambiguous too
         talk.pending = Pending(pending.sentence, pending.priority, exc.at, exc.candidates, chosen)
         raise
@@ -234,6 +244,7 @@ __all__ = [
     "Ambiguous",
     "Command",
     "Dialogue",
+    "Grammar",
     "Incomplete",
     "Intent",
     "NotUnderstood",
@@ -241,6 +252,7 @@ __all__ = [
     "StatusRequest",
     "Stop",
     "UnknownReference",
+    "default_grammar",
     "default_vocabulary",
     "describe",
     "interpret",

@@ -1,8 +1,8 @@
-"""From a parse tree of grammar.lark to an intent: the frame of the verb gives the task, and
+"""From a parse tree of a_hi's grammar to an intent: the frame of the verb gives the task, and
 each reference is resolved against the vocabulary (the things a_km knows, where they are).
 
-Frames (X the theme, Y the goal, Z the source; the task names and argument orders are a_pl's,
-services/agents/planner/domain.py ``TASKS``):
+Frames of grammar.lark (X the theme, Y the goal, Z the source; the task names and argument
+orders are a_pl's, services/agents/planner/domain.py ``TASKS``):
 
 ==================================================  ===========================================
 sentence                                            task
@@ -13,12 +13,16 @@ fill Y from/with X
 bring/fetch/get X [to me | here], take X out of Z   ``bring(X)`` (to the table)
 bring/take X to Y, put/place/set/leave X on/in Y    ``place(X, Y)``
 put X back, put X away, return X, put X in the      ``return(X)`` (back in the cabinet)
-cabinet, take X back, tidy X away
-pick X up, hold X                                   ``fetch(X)`` (take it in a hand)
+cabinet, take X back
 hand me X, give X to me, hand over X                ``hand_over(X)``
 stop [everything]                                   :class:`Stop`
 what are you doing?, status                         :class:`StatusRequest`
 ==================================================  ===========================================
+
+The frames of tasks.toml ("pick up THEME", "tidy THEME away", "find THEME", rules ``said_<n>``
+of task_grammar.py) give their entry's task, each slot's reference an argument in the entry's
+order; a slot left out or "it" with nothing named before gets the entry's question
+(:meth:`Reader.said`).
 
 A reference ("the small cup on the table", "the contents of the jar", "the beans", "it",
 "the one in the cabinet") becomes one individual's O_RoCo name: the things its noun names,
@@ -29,7 +33,7 @@ object the same person named. More than one left raises :class:`Ambiguous` (a qu
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 
 from lark import Token, Tree
@@ -47,6 +51,8 @@ from services.agents.human_interface.intents import (
     UnknownReference,
     show,
 )
+from services.agents.human_interface.task_grammar import SaidFrame, frame_node
+from services.agents.human_interface.task_words import MISSING, ROLE_RULES, Frame, TaskSaying
 from services.agents.human_interface.vocabulary import Thing, Vocabulary
 from shared.fipa_codec.languages.l_hc import TaskAtom
 
@@ -58,13 +64,15 @@ class Context:
     """What a reading is interpreted against: the ``vocabulary``; the ``last`` object the person
     named (for "it"); ``chosen``: references already settled by the person's answer to a
     question (first token index → O_RoCo name); ``among``: for a bare reply, the candidates of
-    the question it answers; ``token_seconds``: DEADLINE values by token index."""
+    the question it answers; ``token_seconds``: DEADLINE values by token index; ``frames``: the
+    frames of the task words by rule name (task_grammar.py)."""
 
     vocabulary: Vocabulary
     last: str | None = None
     chosen: dict[int, str] = field(default_factory=dict)
     among: tuple[str, ...] = ()
     token_seconds: dict[int, float] = field(default_factory=dict)
+    frames: Mapping[str, SaidFrame] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)
@@ -245,10 +253,15 @@ class Reader:
             if name is None:
                 raise Incomplete("Which object do you mean? Say e.g. 'the cup on the table'.", "object")
             return Reply(name)
+        request = frame_node(request)
+        said = self.ctx.frames.get(request.data)
         frame = _FRAMES.get(request.data)
-        if frame is None:  # pragma: no cover - every command rule has a frame
+        if said is not None:
+            goal = self.said(request, said.saying, said.frame)
+        elif frame is not None:
+            goal = frame(self, request)
+        else:  # pragma: no cover - every command rule has a frame
             raise NotUnderstood(f"I cannot do '{request.data}' yet.")
-        goal = frame(self, request)
         if priority <= 0:
             priority = URGENT_PRIORITY if urgent else 0
         return Command(goal, priority, deadline)
@@ -335,10 +348,6 @@ class Reader:
         x = self._theme(node, "What should I put away? Say e.g. 'put the cup away'.")
         return TaskAtom("return", (x,))
 
-    def pick(self, node: Node) -> TaskAtom:
-        x = self._theme(node, "What should I pick up? Say e.g. 'pick up the cup'.")
-        return TaskAtom("fetch", (x,))
-
     def put(self, node: Node) -> TaskAtom:
         dest = _dest(node)
         y = None
@@ -367,16 +376,46 @@ class Reader:
         dest = _dest(node)
         return self._moved(x, dest, back=True, default="return")
 
-    def tidy(self, node: Node) -> TaskAtom:
-        x = self._theme(node, "What should I tidy away? Say e.g. 'tidy the cup away'.")
-        return TaskAtom("return", (x,))
-
     def give(self, node: Node) -> TaskAtom:
         x = self._theme(node, "What should I hand you? Say e.g. 'hand me the cup'.")
         return TaskAtom("hand_over", (x,))
 
     def give_other(self, node: Node) -> TaskAtom:
         raise NotUnderstood("I can hand things only to you; say e.g. 'hand me the cup'.")
+
+    # ---- frames of the task words --------------------------------------------------------
+    def said(self, node: Node, saying: TaskSaying, frame: Frame) -> TaskAtom:
+        """The task of a frame of the task words: each slot's reference resolved (in the order
+        said), the arguments in the entry's order. Raises :class:`Incomplete` for a slot left
+        out or naming nothing ("it" with nothing named before), asking the entry's question."""
+        found: dict[str, str | None] = {}
+        for slot in frame.slots:
+            found[slot] = self.ref(_child(node, ROLE_RULES[slot]))
+        for slot in saying.args:
+            if found.get(slot) is None:
+                raise Incomplete(self._question(saying, frame, slot, found), MISSING[slot])
+        return TaskAtom(saying.task, tuple(str(found[s]) for s in saying.args))
+
+    def _question(self, saying: TaskSaying, frame: Frame, slot: str, found: dict[str, str | None]) -> str:
+        """The question for ``slot`` missing: the entry's ``ask`` (its other slots named), else
+        the frame said with "what" ("Find what?"); then an example: the entry's, else the frame
+        said with the things named and, for the missing slots, things the vocabulary holds."""
+        known = {s: show(n) for s, n in found.items() if n is not None}
+        asked = saying.question(slot)
+        if asked is not None:
+            question = asked.format_map({s: known.get(s, "something") for s in saying.args})
+        else:
+            words = frame.fill({s: known.get(s, "what") for s in frame.slots})
+            question = words[:1].upper() + words[1:] + "?"
+        example = saying.example
+        if example is None:
+            spare = iter(
+                show(t.name)
+                for t in sorted(self.v.things, key=lambda t: t.name)
+                if not t.content and t.name not in found.values()
+            )
+            example = frame.fill({s: known.get(s) or next(spare, "the cup") for s in frame.slots})
+        return f"{question} Say e.g. '{example}'."
 
 
 _FRAMES: dict[str, Callable[[Reader, Node], TaskAtom]] = {
@@ -387,15 +426,14 @@ _FRAMES: dict[str, Callable[[Reader, Node], TaskAtom]] = {
     "take": Reader.take,
     "take_back": Reader.take_back,
     "take_away": Reader.put_away,
-    "pick": Reader.pick,
     "put": Reader.put,
     "put_back": Reader.put_back,
     "put_away": Reader.put_away,
     "ret": Reader.ret,
-    "tidy": Reader.tidy,
     "give": Reader.give,
     "give_other": Reader.give_other,
 }
-"""Command rule of grammar.lark → the frame that makes its task."""
+"""Command rule of grammar.lark → the frame that makes its task (the rules generated from the
+task words are :attr:`Context.frames`)."""
 
 __all__ = ["Context", "Reader", "Reply", "loc_count", "loc_depth"]

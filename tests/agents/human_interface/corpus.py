@@ -1,6 +1,8 @@
-"""The corpus of issue 23: sentences a person in the kitchen says, each with what a_hi must
-make of it — an L_HC command (or stop, or status request), a question back, or a refusal that
-names the word or the missing part. test_corpus.py runs every sentence.
+"""The corpus: sentences a person in the kitchen says, each with what a_hi must make of it — an
+L_HC command (or stop, or status request), a question back, or a refusal that names the word or
+the missing part. test_corpus.py runs every sentence. It covers every task a_pl accepts, those
+whose frames are grammar.lark's and those whose frames are tasks.toml's (fetch, the tidy frames of
+return, localise).
 
 - :data:`PARAPHRASES`: different wordings of the tasks, against the kitchen as O_RoCo states it
   (one jar, bowl, cup, table, cabinet);
@@ -152,6 +154,18 @@ PARAPHRASES: tuple[tuple[str, Expected], ...] = (
     ("hand the jar over to me", Do("hand_over", "jar")),
     ("could you give me the coffee cup?", Do("hand_over", "cup")),
     ("please pass me the salad bowl, thank you", Do("hand_over", "bowl")),
+    ("find the jar", Do("localise", "jar")),
+    ("look for the cup", Do("localise", "cup")),
+    ("where is the bowl?", Do("localise", "bowl")),
+    ("locate the jar", Do("localise", "jar")),
+    ("could you find the glass jar, please?", Do("localise", "jar")),
+    ("please look for the coffee mug", Do("localise", "cup")),
+    ("robot, where is the salad bowl?", Do("localise", "bowl")),
+    ("search for the table", Do("localise", "table")),
+    ("look where the cup is", Do("localise", "cup")),
+    ("show me where the bowl is", Do("localise", "bowl")),
+    ("find the beans", Do("localise", "jar")),
+    ("where is the jar in the cabinet", Do("localise", "jar")),
     ("stop", STOP),
     ("Stop everything!", STOP),
     ("please stop now", STOP),
@@ -178,6 +192,8 @@ PARAPHRASES: tuple[tuple[str, Expected], ...] = (
     ("put the jar back within half an hour", Do("return", "jar", deadline_s=1800.0)),
     ("bring me the mug right away, within 45 seconds", Do("bring", "cup", priority=URGENT, deadline_s=45.0)),
     ("immediately put the bowl away please", Do("return", "bowl", priority=URGENT)),
+    ("quickly, where is the cup?", Do("localise", "cup", priority=URGENT)),
+    ("find the jar within 30 seconds", Do("localise", "jar", deadline_s=30.0)),
 )
 
 REFERENCES: tuple[tuple[str, Expected], ...] = (
@@ -192,6 +208,8 @@ REFERENCES: tuple[tuple[str, Expected], ...] = (
     ("bring me the container", Ask("which", "Which container:")),
     ("put the jar in the container", Ask("which", "Which container:")),
     ("bring me the white one", Ask("which", "Which one:")),
+    ("find the cup", Ask("which", "Which cup: the one in the cabinet or the one on the table?")),
+    ("where is the mug", Ask("which", "Which mug:")),
     # resolved by where the thing is, or by an adjective
     ("bring me the one on the table", Do("bring", "cup_2")),
     ("bring me the cup on the table", Do("bring", "cup_2")),
@@ -200,6 +218,8 @@ REFERENCES: tuple[tuple[str, Expected], ...] = (
     ("bring me the blue cup", Do("bring", "cup_2")),
     ("bring me the small cup", Do("bring", "cup")),
     ("fill the cup on the table from the jar", Do("pour", "jar", "cup_2")),
+    ("where is the cup on the table", Do("localise", "cup_2")),
+    ("look for the blue cup", Do("localise", "cup_2")),
     # unknown: nothing fits
     ("bring me the small jar", Refuse("I know of no small jar: the jar is big, glass, transparent.")),
     (
@@ -216,6 +236,8 @@ REFERENCES: tuple[tuple[str, Expected], ...] = (
     ("pour it into the bowl", Ask("missing", "Which object should I pour into the bowl?")),
     ("hand it over", Ask("missing", "What should I hand you?")),
     ("put that back", Ask("missing", "What should I put back?")),
+    ("where is it?", Ask("missing", "What should I look for? Say e.g. 'find the jar'.")),
+    ("locate the small jar", Refuse("I know of no small jar")),
 )
 
 REFUSALS: tuple[tuple[str, Expected], ...] = (
@@ -251,4 +273,10 @@ REFUSALS: tuple[tuple[str, Expected], ...] = (
     ("put the cup down", Ask("missing", "Where should I put the cup?")),
     ("bring me the small jar", Refuse("no small jar")),
     ("bring me", Ask("missing", "What should I bring?")),
+    ("find", Ask("missing", "What should I look for? Say e.g. 'find the jar'.")),
+    ("where is", Ask("missing", "What should I look for?")),
+    ("look for the cups", Refuse("one object at a time")),
+    ("find the jar and the cup", Refuse("one object at a time")),
+    ("where is the teapot", Refuse("'teapot'")),
+    ("look at the jar", Refuse("'at'")),
 )

@@ -205,5 +205,6 @@ def test_describe_words_every_task() -> None:
     assert describe(TaskAtom("bring", ("cup",))) == "bring the cup to the table"
     assert describe(TaskAtom("return", ("jar",))) == "put the jar back in the cabinet"
     assert describe(TaskAtom("hand_over", ("tea_pot",))) == "hand you the tea pot"
-    assert describe(TaskAtom("fetch", ("cup",))) == "pick up the cup"
-    assert describe(TaskAtom("localise", ("bowl",))) == "localise(bowl)"
+    assert describe(TaskAtom("fetch", ("cup",))) == "pick up the cup"  # tasks.toml's first frame
+    assert describe(TaskAtom("localise", ("bowl",))) == "find the bowl"
+    assert describe(TaskAtom("juggle", ("bowl",))) == "juggle(bowl)"  # a task with no words
