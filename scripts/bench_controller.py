@@ -43,7 +43,7 @@ from velma.control.compiled import ENV_LAW, compiled_available
 from velma.control.robot_model import SIDES, RobotModel
 from velma.executor.runtime import Runtime
 
-TARGET_P99_US = 150.0  # the controller alone, µs (issue requirement)
+TARGET_P99_US = 150.0  # the controller alone, µs (the loop's goal, docs/executor.md)
 
 
 def cpu_model() -> str:

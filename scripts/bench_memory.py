@@ -1,4 +1,4 @@
-"""Resident memory of roco's processes once started and idle (issue 20, "lean processes").
+"""Resident memory of roco's processes once started and idle (docs/benchmarks.md, part 6b).
 
 - **fleet**: ``roco up --port P --runs-dir TMP --no-realtime`` in a subprocess, exactly as an
   operator starts it (router on a free loopback port, recorder, the six agents; access control

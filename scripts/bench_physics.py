@@ -1,7 +1,7 @@
 """What the physics step alone costs in ag_ex's cycle, and what MuJoCo's options change.
 
-Issue 18 asks for the whole cycle's work (primitive, control law, physics step, hand-offs) at
-≤ 400 µs p99. This benchmark measures the floor under that figure: the physics step
+The loop's goal is the whole cycle's work (primitive, control law, physics step, hand-offs) at
+≤ 400 µs p99 (docs/executor.md). This benchmark measures the floor under that figure: the physics step
 (``mujoco.mj_step``, MuJoCo's own C code) as the loop times it (the *physics* part of
 velma/executor/timing.py), over the scripted pour of velma/scenario.py, paced as fast as the
 machine goes (``Executor(realtime=False)``; the real-time loop adds scheduling, not work).
@@ -17,7 +17,7 @@ Variants (the model as ag_ex runs it, with one change each):
 - solver and option settings: ``CG``, ``PGS``, ``elliptic`` cones, ``iterations=3``,
   ``tolerance=1e-6``, ``Euler``, islands on (MuJoCo's default, which ag_ex disables), sleeping
   on (``mjENBL_SLEEP``, MuJoCo ≥ 3.3; measured with islands on, as MuJoCo defaults);
-- ``no self-collision``: the robot's geoms no longer collide with each other (what issue 18's
+- ``no self-collision``: the robot's geoms no longer collide with each other (what the robot's
   self-collision costs);
 - ``content with wall friction``: the content as it was before (free joints, frictionless
   against each other only, Coulomb friction 0.6 against the jar, bowl, table and hand): the

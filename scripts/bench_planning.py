@@ -1,6 +1,6 @@
 """Planning benchmark: how long a_pl takes to produce plan #1 of the pour, including every
-knowledge query to a_km (issue 4's target: ≤ 2 s; the paper's took 55 s with ~1,600 C4
-communicates).
+knowledge query to a_km (the target: ≤ 2 s; the paper's took 55 s with ~1,600 C4
+communicates; docs/benchmarks.md).
 
 Starts a Zenoh router and the a_km and a_pl processes only (``services.runtime.main``, a
 run folder in a temporary directory, a_km on its on-disk Oxigraph store), gives a_km the
@@ -135,7 +135,7 @@ def main() -> int:
     from services.bench.messaging import no_access_control
 
     try:
-        with no_access_control():  # this session plays a_co, which the fleet's ACL would refuse
+        with no_access_control():  # this Zenoh session plays a_co, which the fleet's ACL would refuse
             rows = measure(args.runs)
     except RuntimeError as exc:
         print(exc)

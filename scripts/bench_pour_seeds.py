@@ -21,7 +21,7 @@ Two modes:
 Success: every command succeeded (grasps by contact and friction) and ≥ ``--min-share``
 (default 90 %) of the spheres ended in the bowl. Beside it, the number of commands during which
 the robot touched itself (``CommandResult.self_contacts``; Velma's links collide with each
-other in the simulation, issue 18).
+other in the simulation, docs/executor.md).
 
 Usage: ``python scripts/bench_pour_seeds.py [--mode fleet|script] [--seeds 20] [--first 1]``
 """
@@ -56,7 +56,7 @@ class Outcome:
     detail: str
     wall: float
     touched: int = 0
-    """Commands during which the robot touched itself (issue 18: self-collision is on)."""
+    """Commands during which the robot touched itself (self-collision is on: docs/executor.md)."""
     counted: int | None = None
     """Spheres the last Observation reported in the bowl (the camera's count, or the truth)."""
     perception: list[PerceptionRow] = field(default_factory=list)

@@ -1,4 +1,5 @@
-"""Where a roco round trip spends its time, at the level of threads and wake-ups (issue 20).
+"""Where a roco round trip spends its time, at the level of threads and wake-ups
+(docs/benchmarks.md, "The path of one communicate").
 
 A router on a free loopback port (no access control, no multicast scouting) and, each in its own
 process (multiprocessing spawn), the benchmark's synthetic pair ``b_ini0``/``b_par0``

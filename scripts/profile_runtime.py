@@ -2,7 +2,7 @@
 agents (services/bench/messaging.py) in one process on a transport that only collects what
 is published, so that what is timed is the agent's own send and receive path (content and
 envelope encoding, interface and protocol-state checks, dedup, decoding, validation, input
-queue, FSM step). Used to find and check the hot path of issue 9 (docs/benchmarks.md).
+queue, FSM step): the runtime's hot path (docs/benchmarks.md, "The path of one communicate").
 
 - ``round trip``: request → inform → back, ``--n`` times: 2 sends and 2 receives each;
 - ``stream send`` / ``stream receive``: ``--n`` informs of one fipa-subscribe conversation,
@@ -13,8 +13,8 @@ cProfile's 30 most expensive functions of each instead (slower: figures then inc
 profiler's own cost).
 
 ``--cpu`` prints CPU time (``time.process_time``) instead, the median and the least of
-``--repeat`` runs: steadier than wall time on a machine other jobs share (issue 20 compares
-two commits this way).
+``--repeat`` runs: steadier than wall time on a machine other jobs share (the way to compare
+two commits).
 
 Usage: ``python scripts/profile_runtime.py [--n 5000] [--profile | --cpu [--repeat 9]]``
 """

@@ -1,4 +1,5 @@
-"""Where the CPU goes when many agent processes do round trips at once (issue 20, part 8).
+"""Where the CPU goes when many agent processes do round trips at once (``roco bench`` part 8;
+docs/benchmarks.md, "Where the limit is").
 
 For each N given, N synthetic agents (N/2 pairs, services/bench/synthetic.py) on one router on a
 free loopback port, as ``roco bench``'s scale part starts them; 100 round trips per pair to warm

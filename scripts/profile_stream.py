@@ -1,4 +1,5 @@
-"""Where one pair's stream spends its CPU, in batches and with one put per communicate (issue 20).
+"""Where one pair's stream spends its CPU, in batches and with one put per communicate
+(docs/benchmarks.md, "One put for what one step sends to one receiver").
 
 The benchmark's synthetic pair (``b_ini0``/``b_par0``, services/bench/synthetic.py) on a router
 of its own on a free loopback port, started as ``roco bench`` starts them (multiprocessing

@@ -1,3 +1,3 @@
-"""``roco bench``: the benchmarks of issue 9 (codec, messaging against raw Zenoh and SPADE,
+"""``roco bench``: roco's benchmarks (codec, messaging against raw Zenoh and SPADE,
 knowledge, planning, fleet, task, scale), printed as tables and written to
 ``docs/benchmarks.md`` with the machine they were measured on (services/bench/cli.py)."""

@@ -1,4 +1,4 @@
-"""Messaging benchmark (issue 9, parts 2 and 8): roco's runtime against bare Zenoh, through one
+"""Messaging benchmark (``roco bench`` parts 2 and 8): roco's runtime against bare Zenoh, through one
 router, measured side by side in the same run.
 
 **roco**: two (or more) synthetic agents, each a real :class:`services.runtime.agent.Agent` in
@@ -340,7 +340,7 @@ class PairFigures:
     roco_rt: Latency = field(default_factory=lambda: Latency([]))
     raw_rt: Latency = field(default_factory=lambda: Latency([]))
     """Raw Zenoh's round trips, each end waiting in a blocking ``recv()`` (zenoh-python's own
-    examples): the reference of issue 20's ratio."""
+    examples): the reference of the round-trip target (docs/benchmarks.md)."""
     raw_poll_rt: Latency = field(default_factory=lambda: Latency([]))
     """Raw Zenoh's round trips with each end polling as roco's receiving threads do
     (services/runtime/polling.py, the same maximum window): the ratio on equal terms."""

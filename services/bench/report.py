@@ -1,4 +1,9 @@
-"""Markdown tables of ``roco bench`` (docs/benchmarks.md) and the machine description."""
+"""What ``roco bench`` writes to docs/benchmarks.md: the head (what the document answers, the
+run's command, commit, machine and load), the targets met or missed, and one section per part
+(what was timed, from where to where, how many times, in which processes; then its table).
+
+The functions here only render: services/bench/cli.py runs the parts and passes their figures.
+"""
 
 from __future__ import annotations
 
@@ -6,28 +11,109 @@ import datetime
 import os
 import platform
 import subprocess
+from collections.abc import Sequence
+from dataclasses import dataclass
 from importlib.metadata import PackageNotFoundError, version
 from pathlib import Path
 
 from services.bench.messaging import ConcurrentFigures, PairFigures, ScaleRow, request_bytes
-from services.bench.parts import CodecRow, FleetFigures, MemoryFigures, PlanningFigures, QueryRow, TaskRun
+from services.bench.parts import (
+    POUR,
+    CodecRow,
+    FleetFigures,
+    MemoryFigures,
+    PlanningFigures,
+    QueryRow,
+    TaskRun,
+)
 from services.bench.quiet import quiet_rule
 from services.bench.spade import SpadeFigures
 
 ROOT = Path(__file__).resolve().parents[2]
 PACKAGES = ("eclipse-zenoh", "msgspec", "mujoco", "pin", "pyoxigraph", "gtpyhop-core")
 TARGET_RT_RATIO = 1.3
+"""roco's request → inform round trip over raw Zenoh's on the same path (p50), at most."""
 TARGET_TPUT = 50_000.0
+"""One pair's one-way stream of 200 B informs, communicates per second, at least."""
 TARGET_SPADE_RT = 3.0
+"""SPADE's round trip over roco's (p50), at least."""
 TARGET_SPADE_TPUT = 10.0
+"""roco's stream over SPADE's, at least."""
 TARGET_SCALE_SHARE = 0.6
-"""Issue 20: the most agents' all-pairs rate over the fewest's (100 against 10)."""
+"""The most agents' all-pairs rate over the fewest's (100 against 10), at least."""
 TARGET_PLAN_1_S = 2.0
+"""Plan #1 of the pour, request → plan with a_km's queries (s), at most."""
 TARGET_AGENT_MIB = 35.0
-"""Issue 20: an idle synthetic agent's VmRSS."""
+"""An idle synthetic agent's VmRSS (MiB), at most."""
 TARGET_FLEET_MIB = 350.0
-"""Issue 20: ``roco up``'s fleet in all (the sum of its processes' PSS, at rest)."""
+"""``roco up``'s fleet in all, at rest (the sum of its processes' PSS, MiB), at most."""
 TARGET_UP_S = 3.0
+"""``roco up`` from its start to every agent alive (s), at most."""
+PAPER_PLAN_1_TEXT = "The paper's plan #1 took 55 s and 1,598 communicates."
+
+TITLE = "# roco benchmarks"
+INTRO = [
+    "What roco costs on one machine: encoding a communicate; a round trip and a stream between two "
+    "agents, beside raw Zenoh (its transport) and SPADE; a_km's answers; a_pl's plan; the fleet's "
+    "start-up and memory; the whole pour with ag_ex's 1 kHz loop; up to 100 agent processes.",
+    "",
+    "`roco bench` (services/bench/) wrote it from the one run described below; `--only NAME` runs "
+    "the parts named in brackets. The last section says how to reproduce the figures and what "
+    "limits them. The loop alone, physics, camera and pour over randomised scenes: "
+    "[bench/loop.md](bench/loop.md), [bench/physics.md](bench/physics.md), "
+    "[bench/observe.md](bench/observe.md), [bench/pour_seeds_fleet.md](bench/pour_seeds_fleet.md), "
+    "[executor.md](executor.md).",
+]
+RUN_TITLE = "## This run"
+TARGETS_TITLE = "Targets"
+TARGETS_INTRO = "The goals roco is measured against, each met or missed in this run:"
+NO_TARGETS = "- (no part with a target was run)"
+
+
+@dataclass(frozen=True)
+class Counts:
+    """How much each part measures: ``roco bench``'s full counts, or ``--quick``'s (:meth:`of`)."""
+
+    content_bytes: int = 200
+    """Content of every communicate of parts 2–3 and 8 (B)."""
+    rounds: int = 3
+    """Rounds of part 2 (raw and roco ping-pong and streams, in turn)."""
+    round_trips: int = 2000
+    """Timed round trips per round and system, after 50 warm-up ones."""
+    communicates: int = 50_000
+    """Communicates per stream."""
+    spade_round_trips: int = 1000
+    spade_messages: int = 5000
+    km_timed: int = 200
+    """Timed calls per a_km query, after 10 warm-up ones."""
+    scale_round_trips: int = 1000
+    """Part 8's measured pair: round trips (one round)."""
+    scale_communicates: int = 20_000
+    """Part 8's measured pair: communicates of its stream."""
+    scale_all_pairs: int = 500
+    """Part 8: round trips of every initiator when all pairs run at once, after 50 warm-up ones."""
+    scale_all_rounds: int = 3
+    """Part 8: runs of all pairs at once per agent count (the median is reported)."""
+
+    @classmethod
+    def of(cls, quick: bool) -> Counts:
+        """The full counts, or ``--quick``'s: a smoke test of the command, not figures to quote."""
+        if not quick:
+            return cls()
+        return cls(200, 1, 300, 5000, 200, 1000, 30, 200, 5000, 50, 1)
+
+
+@dataclass(frozen=True)
+class Section:
+    """One part of the document: its heading (without ``## ``), how it was measured, its table."""
+
+    title: str
+    how: list[str]
+    table: list[str]
+
+    def lines(self) -> list[str]:
+        """The Markdown lines of the section, a blank line after it."""
+        return [f"## {self.title}", "", *self.how, *([""] if self.how else []), *self.table, ""]
 
 
 def cpu_model() -> str:
@@ -134,7 +220,7 @@ def _rate(x: float) -> str:
 
 
 def messaging_table(f: PairFigures, spade: SpadeFigures | None, size: int) -> list[str]:
-    """Part 2 and 3 side by side: raw Zenoh, roco, SPADE."""
+    """Parts 2 and 3 side by side: raw Zenoh, roco, SPADE."""
     rows = [
         [
             f"raw Zenoh (put/subscriber, {request_bytes(size)} B payload)",
@@ -216,7 +302,8 @@ def spade_p50_us(spade: SpadeFigures) -> float:
 
 
 def verdict_lines(f: PairFigures | None, spade: SpadeFigures | None) -> list[str]:
-    """The messaging targets of issue 9, each met or missed, with the measured ratio."""
+    """The messaging targets (round trip against raw Zenoh, one pair's stream, SPADE), each met
+    or missed, with the measured ratio."""
     out = []
     if f is not None and f.raw_rt.samples_s:
         ratio = f.roco_rt.p50_us / f.raw_rt.p50_us if f.raw_rt.p50_us else float("inf")
@@ -424,7 +511,7 @@ def scale_table(rows: list[ScaleRow]) -> list[str]:
 
 
 def scale_verdicts(rows: list[ScaleRow]) -> list[str]:
-    """Issue 20's scale target: the all-pairs rate of the most agents against the fewest's,
+    """The scale target: the all-pairs rate of the most agents against the fewest's,
     taken while every pair runs (see ``ConcurrentFigures``), the first-command-to-last-result
     share beside it."""
     rows = [r for r in rows if r.routers == 1]
@@ -451,14 +538,32 @@ def scale_verdicts(rows: list[ScaleRow]) -> list[str]:
 
 
 def memory_table(m: MemoryFigures) -> list[str]:
-    """One row per process of each measured state, and each state's totals."""
+    """Two tables, each with its totals: the idle synthetic pair's processes; then ``roco up``'s
+    fleet, one VmRSS and one PSS column per measured state (``—`` where a process did not run)."""
+
+    def totals(procs: dict[str, tuple[float, float]]) -> tuple[str, str]:
+        return f"**{sum(v[0] for v in procs.values()):.1f}**", f"**{sum(v[1] for v in procs.values()):.1f}**"
+
+    pair = [[name, f"{rss:.1f}", f"{pss:.1f}"] for name, (rss, pss) in m.synthetic.items()]
+    out = _table(
+        ["idle synthetic pair", "VmRSS MiB", "PSS MiB"], [*pair, ["**total**", *totals(m.synthetic)]]
+    )
+    if not m.fleet:
+        return out
+    names = list(dict.fromkeys(name for procs in m.fleet.values() for name in procs))
+    header = ["`roco up`'s fleet"]
+    for state in m.fleet:
+        label = state.removeprefix("fleet").lstrip(", ").strip() or state
+        header += [f"{label}: VmRSS MiB", "PSS MiB"]
     rows = []
-    for state, procs in [("idle synthetic pair", m.synthetic), *m.fleet.items()]:
-        for name, (rss, pss) in procs.items():
-            rows.append([state, name, f"{rss:.1f}", f"{pss:.1f}"])
-        total_rss, total_pss = sum(v[0] for v in procs.values()), sum(v[1] for v in procs.values())
-        rows.append([state, "**total**", f"**{total_rss:.1f}**", f"**{total_pss:.1f}**"])
-    return _table(["state", "process", "VmRSS MiB", "PSS MiB"], rows)
+    for name in names:
+        row = [name]
+        for procs in m.fleet.values():
+            rss, pss = procs.get(name, (None, None))
+            row += ["—", "—"] if rss is None or pss is None else [f"{rss:.1f}", f"{pss:.1f}"]
+        rows.append(row)
+    rows.append(["**total**", *(cell for procs in m.fleet.values() for cell in totals(procs))])
+    return [*out, "", *_table(header, rows)]
 
 
 def memory_verdicts(m: MemoryFigures) -> list[str]:
@@ -500,8 +605,194 @@ def plan_and_fleet_verdicts(planning: PlanningFigures | None, fleet: FleetFigure
         )
     if fleet is not None and not fleet.error:
         out.append(
-            f"- `roco up` to all agents alive: **{fleet.command_s:.2f} s** from the command's start to its "
-            f"exit once every agent's liveliness token is there (target ≤ {TARGET_UP_S:.0f} s): "
-            f"{'met' if fleet.command_s <= TARGET_UP_S else 'missed'}."
+            f"- `roco up` until every agent is alive (its start to its exit): **{fleet.command_s:.2f} s** "
+            f"(target ≤ {TARGET_UP_S:.0f} s): {'met' if fleet.command_s <= TARGET_UP_S else 'missed'}."
         )
     return out
+
+
+# ------------------------------------------------------------------------- the sections
+
+
+def codec_how() -> list[str]:
+    """How part 1 measures (shared/fipa_codec, in the process of ``roco bench``)."""
+    return [
+        "`encode` and `decode` (msgpack, strict decoding) of a `request` with every envelope "
+        "parameter set and 200 B, 10 kB or 1 MB of content, in one process: a batch of calls timed "
+        "with `time.perf_counter` over its calls; the median of 5 batches after a warm-up one.",
+    ]
+
+
+def codec_section(rows: list[CodecRow]) -> Section:
+    return Section("1. Codec (`codec`)", codec_how(), codec_table(rows))
+
+
+def messaging_how(counts: Counts, spade: SpadeFigures | None) -> list[str]:
+    """How parts 2 and 3 measure: roco's synthetic pair, raw Zenoh and (when run) SPADE."""
+    how = [
+        "Two processes (spawn) through one router on a loopback port, no access control "
+        "(services/bench/messaging.py):",
+        "",
+        "- **roco**: two synthetic agents, each a real `Agent` on a `ZenohTransport` under a "
+        "specification built in code (the Robot Companion's `fipa-request` and `fipa-subscribe`), "
+        f"{counts.content_bytes} B of content. Round trip: the initiator's `send` of a `request` until "
+        "the participant's `inform` is in its input buffer. Stream: the participant answers a "
+        "`subscribe` with informs, 256 per step, one Zenoh put per step (shared/fipa_codec/batch.py), "
+        "then one put per inform; rate: informs taken in, each decoded and checked, after the "
+        "initiator's first step that took any, over the time from that step to its last.",
+        "- **raw Zenoh**: two bare Zenoh clients, configured alike, a payload as long as roco's "
+        "request; ping-pong with `put` and a subscriber's FIFO, each end sleeping in `recv()` as "
+        "zenoh-python's examples do (the target's reference), then polling as roco's receiving "
+        "threads do (equal terms); stream: a publisher's `put` in a loop, a counting callback.",
+        f"- {counts.rounds} round(s) of all of these, {counts.round_trips} round trips each (after 50 "
+        f"warm-up ones), {counts.communicates:,} communicates per stream; round trips pooled, stream "
+        "rates the median of the rounds'. `lost`: sent, not delivered (congestion control BLOCK).",
+    ]
+    if spade is not None:
+        how.append(
+            f"- **SPADE**: {spade.settings or 'see services/bench/spade.py'}"
+            + (
+                f"; versions: {', '.join(f'{k} {v}' for k, v in spade.versions.items())}"
+                if spade.versions
+                else ""
+            )
+            + ". Round trip: a request `Message` until the inform is received; stream: rate = "
+            "(received − 1) / (last − first arrival) at the responder."
+            + (f" **Not measured: {spade.error}**" if spade.error else "")
+        )
+    return how
+
+
+def messaging_section(pair: PairFigures | None, spade: SpadeFigures | None, counts: Counts) -> Section:
+    table = messaging_table(pair, spade, counts.content_bytes) if pair is not None else []
+    return Section(
+        "2–3. Messaging: roco, raw Zenoh and SPADE (`messaging`, `spade`)",
+        messaging_how(counts, spade),
+        table,
+    )
+
+
+def knowledge_how(store: str, counts: Counts) -> list[str]:
+    """How part 4 measures: a_km's world model in process, then over Zenoh."""
+    return [
+        f"In process: `WorldModel.answer` on a fresh on-disk Oxigraph store ({store}), "
+        f"{counts.km_timed} calls after 10 warm-up ones (scripts/bench_km.py). Over Zenoh: the same "
+        "queries as C4 `query-ref`s from a Zenoh client playing a_pl to an a_km process, from the put "
+        "to the `inform-ref`'s arrival.",
+    ]
+
+
+def knowledge_section(rows: list[QueryRow], store: str, counts: Counts) -> Section:
+    return Section(
+        "4. Knowledge: a_km's answers (`knowledge`)", knowledge_how(store, counts), knowledge_table(rows)
+    )
+
+
+def planning_how() -> list[str]:
+    """How part 5 measures: plan #1 alone, and the plans of part 7's pours."""
+    return [
+        "Plan #1 of pour(jar, bowl) requested repeatedly from a Zenoh client playing a_co, only a_km "
+        "(given the scene) and a_pl running (scripts/bench_planning.py), from the request's put to "
+        "the plan's arrival; then plans #1 and #2 of part 7's pours, from their run folders' "
+        f"reports. {PAPER_PLAN_1_TEXT}",
+    ]
+
+
+def planning_section(planning: PlanningFigures | None, runs: list[TaskRun]) -> Section:
+    return Section(
+        "5. Planning: plan #1 of the pour (`planning`)", planning_how(), planning_table(planning, runs)
+    )
+
+
+def fleet_how() -> list[str]:
+    """How part 6 measures ``roco up``."""
+    return [
+        "`roco up --no-realtime` in a subprocess (router, recorder, six agents, access control on), "
+        "from its start to its exit, and the time it prints from starting the agents to every "
+        "liveliness token; VmRSS of each process it started, read at its exit (ag_ex's children "
+        "left out: part 6b measures the fleet's memory); then `roco down`.",
+    ]
+
+
+def fleet_section(fleet: FleetFigures) -> Section:
+    return Section("6. Fleet: `roco up` (`fleet`)", fleet_how(), fleet_table(fleet))
+
+
+def memory_how() -> list[str]:
+    """How part 6b measures resident memory (scripts/bench_memory.py)."""
+    return [
+        "scripts/bench_memory.py: an idle synthetic pair on a router of its own, then `roco up` "
+        "with every process and child (ag_ex's `velma-loop` and `velma-camera`), each read once its "
+        "VmRSS moved ≤ 0.25 MiB in 1 s: while ag_ex's camera process runs, then at rest once it has "
+        "ended (`ROCO_CAMERA_IDLE_S`). PSS (/proc/PID/smaps_rollup) counts a page shared by n "
+        "processes 1/n in each: its total is what the processes take in all.",
+    ]
+
+
+def memory_section(memory: MemoryFigures) -> Section:
+    return Section(
+        "6b. Memory: an idle agent and the fleet in all (`memory`)", memory_how(), memory_table(memory)
+    )
+
+
+def task_how() -> list[str]:
+    """How part 7 measures the whole pour."""
+    return [
+        f'`roco run "{POUR}" --quiet`, headless, as fast as possible and (not with `--quick`) with '
+        "`--realtime`; wall time timed here, the rest from the run folder. Loop: compute time of "
+        "each 1 kHz cycle, lateness of its start, overruns (cycles ending after the next release; "
+        "meaningless unpaced). a_km store: its directory's bytes after the run.",
+    ]
+
+
+def task_section(runs: list[TaskRun]) -> Section:
+    return Section("7. Task: the whole pour (`task`)", task_how(), task_table(runs))
+
+
+def scale_how(counts: Counts) -> list[str]:
+    """How part 8 measures many agent processes on one router, then on two meshed."""
+    return [
+        "For each N: a fresh router, N synthetic agents (N/2 pairs) and a raw Zenoh pair, each a "
+        "process; then on two meshed routers, every communicate crossing both. `start s`: first "
+        f"spawn to all ready. One pair: as in part 2 ({counts.scale_round_trips} round trips, "
+        f"{counts.scale_communicates:,} communicates), the other agents idle. All pairs at once: "
+        f"{counts.scale_all_pairs} round trips per initiator after 50 warm-up ones, "
+        f"{counts.scale_all_rounds} time(s), the median run shown (each run's rate in brackets); "
+        "rates over first command → last result, and over the window where every pair runs. Last "
+        "column: N bare Zenoh processes (sleeping in `recv()`) measured the same way. RSS: the "
+        "agents' VmRSS summed.",
+    ]
+
+
+def scale_section(rows: list[ScaleRow], counts: Counts) -> Section:
+    return Section(
+        "8. Scale: many agent processes sharing the router (`scale`)", scale_how(counts), scale_table(rows)
+    )
+
+
+def failed_section(errors: dict[str, str]) -> Section:
+    """The parts that raised, with their errors (the other parts' figures stand)."""
+    return Section("Parts that failed", [], [f"- {name}: {error}" for name, error in errors.items()])
+
+
+# ------------------------------------------------------------------------- the document
+
+
+def head(run_lines: Sequence[str]) -> list[str]:
+    """The document's head: what it answers, then how the run was made (:func:`machine_lines`
+    and :func:`condition_lines`)."""
+    return [TITLE, "", *INTRO, "", RUN_TITLE, "", *run_lines, ""]
+
+
+def targets_section(targets: Sequence[str]) -> Section:
+    """The goals, each met or missed in the run (:func:`verdict_lines` and the others)."""
+    return Section(TARGETS_TITLE, [TARGETS_INTRO], list(targets) or [NO_TARGETS])
+
+
+def document(
+    run_lines: Sequence[str], targets: Sequence[str], sections: Sequence[Section], notes: str
+) -> str:
+    """docs/benchmarks.md: the head, the parts' sections in order, the targets, then ``notes``
+    (the hand-written method, services/bench/notes.md) when not empty."""
+    body = "\n".join("\n".join(s.lines()) for s in [*sections, targets_section(targets)])
+    return "\n".join(head(run_lines)) + "\n" + body + ("\n" + notes if notes else "")

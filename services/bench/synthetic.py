@@ -5,7 +5,7 @@ and the bare-Zenoh processes they are compared with.
 
 Kept apart from the orchestration so that a spawned benchmark process imports only what an
 agent imports (the runtime, the codec, the specification's model, Zenoh): its resident memory
-is an agent's, not that of the tools that started it (issue 20).
+is an agent's, not that of the tools that started it (docs/benchmarks.md, part 6b).
 """
 
 from __future__ import annotations

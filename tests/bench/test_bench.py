@@ -3,13 +3,14 @@ with positive figures; no timing is asserted (figures depend on the machine)."""
 
 from __future__ import annotations
 
+import re
 import subprocess
 import sys
 from pathlib import Path
 
 import pytest
 
-from services.bench import quiet
+from services.bench import cli, quiet, report
 from services.bench.messaging import (
     BenchInform,
     BenchRequest,
@@ -26,7 +27,14 @@ from services.bench.messaging import (
     sized_data,
     steady_rate,
 )
-from services.bench.parts import MemoryFigures
+from services.bench.parts import (
+    CodecRow,
+    FleetFigures,
+    MemoryFigures,
+    PlanningFigures,
+    QueryRow,
+    TaskRun,
+)
 from services.bench.report import (
     condition_lines,
     memory_table,
@@ -34,8 +42,11 @@ from services.bench.report import (
     scale_table,
     scale_verdicts,
 )
+from services.bench.spade import SpadeFigures
+from services.report.model import PlanPhase
 from services.spec.model import interface
 from shared.fipa_codec.languages import encode_content
+from velma.executor.timing import TimingStats
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -143,7 +154,23 @@ def test_the_memory_verdicts_take_the_largest_agent_and_the_fleet_at_rest() -> N
     assert "**35.5 MiB**" in agent and agent.endswith("missed.")  # b_par0 over 35; the router not an agent
     assert "**349 MiB** PSS" in whole and "met" in whole and "camera process running: 400 MiB" in whole
     rows = memory_table(MemoryFigures(synthetic, fleet))
-    assert "| fleet at rest | **total** | **129.0** | **349.0** |" in rows
+    assert rows[:3] == [
+        "| idle synthetic pair | VmRSS MiB | PSS MiB |",
+        "|---|---|---|",
+        "| b_ini0 | 33.0 | 19.0 |",
+    ]
+    assert "| **total** | **108.5** | **56.5** |" in rows
+    # the fleet: one VmRSS and one PSS column per state, the states' totals side by side
+    assert "| a_km | 69.0 | 300.0 | 69.0 | 250.0 |" in rows
+    assert "| **total** | **129.0** | **400.0** | **129.0** | **349.0** |" in rows
+    header = next(r for r in rows if r.startswith("| `roco up`'s fleet"))
+    assert "camera process running: VmRSS MiB" in header and "at rest: VmRSS MiB" in header
+
+
+def test_a_process_missing_from_a_state_shows_a_dash() -> None:
+    fleet = {"fleet, camera process running": {"ag_ex's velma-camera": (220.0, 195.0)}, "fleet at rest": {}}
+    rows = memory_table(MemoryFigures({}, fleet))
+    assert "| ag_ex's velma-camera | 220.0 | 195.0 | — | — |" in rows
 
 
 def test_quick_bench_writes_codec_and_messaging_tables(tmp_path: Path) -> None:
@@ -187,8 +214,9 @@ def test_quick_bench_writes_codec_and_messaging_tables(tmp_path: Path) -> None:
         systems[3].startswith("roco, each communicate in a put of its own") and _number(messaging[3][4]) > 0
     )
     assert messaging[2][6] == messaging[3][6] == "0"
-    assert "## Messaging targets" in text
-    assert "On equal terms, raw Zenoh's ends polling the same way" in text
+    targets = text.split("## Targets", 1)[1].split("\n## ", 1)[0]
+    assert "On equal terms, raw Zenoh's ends polling the same way" in targets
+    assert text.index("## This run") < text.index("## 1. Codec") < text.index("## Targets")
 
 
 def test_settle_waits_for_a_quiet_window_and_says_so_when_there_is_none() -> None:
@@ -226,3 +254,137 @@ def test_the_head_says_how_busy_the_machine_was_around_the_timed_parts() -> None
     assert lines[0].startswith("- Before each timed part `roco bench` waited up to 90 s for a quiet machine")
     assert lines[1] == "  - before messaging: waited 3 s; quiet (4 % busy, 0 % stolen over the last 1 s)"
     assert condition_lines([], 0) == ["- The machine's quiet was not waited for (`--settle 0`)."]
+
+
+def _fixed_figures_document() -> str:
+    """docs/benchmarks.md as ``roco bench`` renders it, from fixed figures of every part and
+    the hand-written notes it appends."""
+    counts = report.Counts()
+    pair = PairFigures(
+        roco_rt=Latency([346e-6] * 3),
+        raw_rt=Latency([270e-6] * 3),
+        raw_poll_rt=Latency([192e-6] * 3),
+        poll_us=500.0,
+        roco_tput=Throughput([(111_903, 50_000, 1.0, 1)]),
+        roco_tput_single=Throughput([(71_001, 50_000, 1.0, 1)]),
+        raw_tput=Throughput([(482_306, 50_000, 1.0, 1)]),
+    )
+    spade = SpadeFigures([1382e-6], 6134, 5000, 1.0, {"spade": "4.1.4"}, "", "two agents in two processes")
+    timing = TimingStats(
+        pacing="realtime",
+        cycles=54_890,
+        window=54_890,
+        compute_p50_us=231.0,
+        compute_p99_us=406.0,
+        compute_max_us=8931.0,
+        lateness_p50_us=0.0,
+        lateness_p99_us=2.0,
+        lateness_max_us=30.0,
+        overruns=59,
+        overrun_share=59 / 54_890,
+        max_consecutive_overruns=2,
+        sim_time=54.9,
+    )
+    plan = PlanPhase(
+        index=1,
+        requested_t=1.0,
+        received_t=1.109,
+        c4_count=30,
+        c4_bytes=9000,
+        c4_queries=15,
+        c4_last_t=1.1,
+        mean_kbps=None,
+        peak_kbps=None,
+        outcome="partial",
+        km_queries=15,
+        planning_time_s=0.099,
+    )
+    task = TaskRun("real time (--realtime)", 61.1, True, "", None, 54.9, 294, timing, [plan], 512_000, 55.0)
+    fleet = FleetFigures(1.53, 0.90, {"router": 34.0, "a_km": 69.0}, "")
+    memory = MemoryFigures(
+        {"b_ini0": (33.8, 18.8), "b_par0": (33.8, 18.8), "router": (31.2, 16.9)},
+        {"fleet, camera process running": {"a_km": (69.3, 41.9)}, "fleet at rest": {"a_km": (69.3, 42.1)}},
+    )
+    planning = PlanningFigures([(0.021, 0.017, 14, 1), (0.013, 0.008, 14, 1)])
+
+    def scale_row(agents: int, rate: float) -> ScaleRow:
+        return ScaleRow(agents, 1.0, 40.0 * agents, pair, ConcurrentFigures(Latency([0.001]), rate, rate), 1)
+
+    scale = [scale_row(10, 3385.0), scale_row(100, 1646.0)]
+    sections = [
+        report.codec_section([CodecRow("200 B", 200, 412, 0.40, 1.25, 20_000)]),
+        report.messaging_section(pair, spade, counts),
+        report.knowledge_section(
+            [QueryRow("ObjectQuery(jar)", 0.176, 0.286, 0.768, 0.933, 273)], "544 triples", counts
+        ),
+        report.planning_section(planning, [task]),
+        report.fleet_section(fleet),
+        report.memory_section(memory),
+        report.task_section([task]),
+        report.scale_section(scale, counts),
+    ]
+    targets = [
+        *report.verdict_lines(pair, spade),
+        *report.memory_verdicts(memory),
+        *report.scale_verdicts(scale),
+        *report.plan_and_fleet_verdicts(planning, fleet),
+    ]
+    run_lines = [
+        *report.machine_lines("roco bench", "0.10 / 0.20 / 0.30", "0.40 / 0.50 / 0.60", 1.8e9, 555.0),
+        *condition_lines(
+            ["before messaging: waited 1 s; quiet (0 % busy, 0 % stolen over the last 1 s)"], 90
+        ),
+    ]
+    return report.document(run_lines, targets, sections, cli.NOTES.read_text())
+
+
+HISTORY_HEADING = re.compile(
+    r"^#+ .*\b(before|after|tried|stands|stood|changed|fixes|first cuts|again|\d{4}-\d{2}-\d{2})\b",
+    re.IGNORECASE | re.MULTILINE,
+)
+
+
+def test_a_report_from_fixed_figures_states_the_method_and_the_present_only() -> None:
+    text = _fixed_figures_document()
+    # what it answers and how it was made come first, then the parts, the targets, the method
+    headings = [line for line in text.splitlines() if line.startswith("## ")]
+    assert headings[0] == "## This run"
+    assert [h.split(" ", 2)[1] for h in headings[1:9]] == ["1.", "2–3.", "4.", "5.", "6.", "6b.", "7.", "8."]
+    assert headings[9:] == ["## Targets", "## Method and where the time goes"]
+    assert text.startswith("# roco benchmarks\n\nWhat roco costs on one machine")
+    assert "- Command: `roco bench` (took 555 s), at commit" in text
+    assert "- Before each timed part `roco bench` waited up to 90 s for a quiet machine" in text
+    # each part says how much it measured
+    assert "2000 round trips each (after 50 warm-up ones), 50,000 communicates per stream" in text
+    assert "500 round trips per initiator after 50 warm-up ones, 3 time(s)" in text
+    # targets named by what they are, each met or missed by the figures given
+    targets = text.split("## Targets", 1)[1].split("\n## ", 1)[0]
+    assert "**1.28×** (target ≤ 1.3×): met" in targets
+    assert (
+        "**48.6 %** of the 10-agent round trips /s while every pair runs (target ≥ 60 %): missed" in targets
+    )
+    assert (
+        "`roco up` until every agent is alive (its start to its exit): **1.53 s** (target ≤ 3 s): met."
+        in targets
+    )
+    # no work history: no issue numbers, no sessions, no sections of attempts, before/after or dates
+    assert not re.search(r"\bissues?\b", text, re.IGNORECASE), re.findall(r".{40}issue.{20}", text, re.I)
+    assert not re.search(r"\bsessions?\b", text, re.IGNORECASE), re.findall(r".{40}session.{20}", text, re.I)
+    assert not HISTORY_HEADING.findall(text), HISTORY_HEADING.findall(text)
+
+
+def test_the_hand_written_method_is_short() -> None:
+    notes = cli.NOTES.read_text()
+    assert notes.startswith("## Method and where the time goes\n")
+    assert len(notes.split()) <= 1500
+
+
+def test_the_history_check_catches_what_it_is_for() -> None:
+    for heading in (
+        "### Tried and left",
+        "### Before and after (same machine)",
+        "## Where it stands",
+        "### Runs of 2026-11-23",
+    ):
+        assert HISTORY_HEADING.findall(heading + "\n"), heading
+    assert not HISTORY_HEADING.findall("### Where the limit is\n### Adaptive polling\n")
