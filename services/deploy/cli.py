@@ -1,4 +1,5 @@
-"""``roco deploy``: credentials and access control of a deployment (docs/security.md).
+"""``roco deploy``: credentials, access control and the compose file of a deployment
+(docs/security.md, docs/deploy.md).
 
     roco deploy certs OUT [--tls/--no-tls] [--keep]     a private CA, the router's certificate,
                                                         one identity per agent + recorder +
@@ -8,6 +9,7 @@
     roco deploy router OUT router_HOST [--ip A] [--dns N]  a meshed router's identity
     roco deploy acl [--tls/--no-tls]                    print the ACL the specification gives
     roco deploy table [--full]                          who may send what where (Markdown)
+    roco deploy compose [--check] [--file F]            deploy/compose.yaml from the specification
 
 Bad input: one line starting with ``roco:``, exit 2.
 """
@@ -26,7 +28,7 @@ deploy_app = typer.Typer(
     add_completion=False,
     no_args_is_help=True,
     rich_markup_mode="markdown",
-    help="Credentials and access control of a deployment (docs/security.md).",
+    help="Credentials, access control and compose file of a deployment (docs/deploy.md).",
 )
 
 SpecFile = Annotated[
@@ -147,3 +149,53 @@ def table(
     from services.spec_check.acl import channel_table, markdown_table
 
     typer.echo((markdown_table if full else channel_table)(_spec(spec)), nl=False)
+
+
+def _shown(path: Path) -> str:
+    """``path`` relative to the working folder where it is below it."""
+    try:
+        return str(path.resolve().relative_to(Path.cwd().resolve()))
+    except ValueError:
+        return str(path)
+
+
+@deploy_app.command(short_help="Write deploy/compose.yaml from the specification, or check it.")
+def compose(
+    check: Annotated[
+        bool, typer.Option("--check", help="only say whether the file is what the specification gives")
+    ] = False,
+    file: Annotated[
+        Path | None,
+        typer.Option(
+            help="the compose file [default: deploy/compose.yaml of this checkout]", show_default=False
+        ),
+    ] = None,
+    spec: SpecFile = None,
+) -> None:
+    """Write the compose file the specification gives: one service per agent (in its start
+    order, the last one waiting for every other), beside the router, the recorder, the viewer
+    and the one-shot certs service (services/deploy/compose.py). With --check, write nothing:
+    exit 0 when the file is what the specification gives, 1 (one line saying how it differs)
+    when not."""
+    from services.deploy.compose import COMPOSE_FILE, ComposeError, write
+    from services.deploy.compose import check as check_file
+
+    path = file or COMPOSE_FILE
+    system = _spec(spec)
+    try:
+        if check:
+            problem = check_file(path, system, _shown(path))
+            if problem is not None:
+                typer.echo(f"roco: {problem}", err=True)
+                raise typer.Exit(1)
+            typer.echo(f"roco: {_shown(path)} is what the specification gives")
+            return
+        changed = write(path, system)
+    except ComposeError as exc:
+        typer.echo(f"roco: {exc}", err=True)
+        raise typer.Exit(2) from None
+    agents = ", ".join(system.launch_order)
+    if changed:
+        typer.echo(f"roco: wrote {_shown(path)}: router, recorder, viewer and the agents {agents}")
+    else:
+        typer.echo(f"roco: {_shown(path)} is up to date (the agents {agents})")

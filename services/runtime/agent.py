@@ -173,7 +173,9 @@ class Agent:
     None: the agent declares none and handles its input buffer itself (checked at run time
     only)."""
     period: ClassVar[float] = 0.1
-    """Sampling period (s) of communication states: the longest a waiting behaviour blocks."""
+    """Sampling period (s) of communication states: the longest a waiting behaviour blocks (a
+    periodic behaviour blocks no longer than until its next period is due:
+    services/runtime/behaviour.py ``periodic``)."""
     RECEIVE_INLINE: ClassVar[bool] = True
     """While the agent is idle (its behaviour blocked for input), a communicate is taken in,
     and the next elementary actions run, on the transport's thread it arrived on, instead of
@@ -992,8 +994,12 @@ class Agent:
                 self.persist()
                 self.i += 1
                 # a communication state blocks for new input only while it has nothing to end on
+                # (a periodic one no longer than until its next period is due)
                 done = behaviour.error() or behaviour.terminal()
-                yield from self._acquire_blocking(self.period if behaviour.waits and not done else 0.0)
+                wait = self.period if behaviour.waits and not done else 0.0
+                if wait and behaviour.timer is not None:
+                    wait = min(wait, behaviour.timer.left())
+                yield from self._acquire_blocking(wait)
                 if done or behaviour.error() or behaviour.terminal():
                     break
             if self._stop.is_set():

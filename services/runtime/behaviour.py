@@ -5,10 +5,18 @@ f^τ or its error condition f^ε holds. An FSM's states each carry one behaviour
 initial conditions f^σ, evaluated in order when a behaviour ends; the first that holds selects
 the next state. A behaviour marked ``waits`` is a communication state: between iterations the
 agent blocks (up to its sampling period) until new input arrives.
+
+A *periodic* behaviour (:func:`periodic`) acts on a timer: its transition function takes in
+what arrived at every iteration and, once its period has elapsed (:class:`Every`), also acts
+(e.g. opens a conversation). The agent then blocks no longer than until the next period is due,
+so the action is as punctual as the agent's thread is (docs/agents.md, "An agent that acts on a
+timer").
 """
 
 from __future__ import annotations
 
+import math
+import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
@@ -27,11 +35,47 @@ def _nothing() -> None:
     return None
 
 
+class Every:
+    """A condition that holds once every ``period_s`` seconds (> 0, finite): calling it returns
+    True when a period has elapsed since it last did (at the first call too, unless
+    ``at_start`` is False: then one period after the first call), else False. Periods are kept on
+    a fixed grid of ``clock`` (s, default ``time.monotonic``) from the first call; periods missed
+    entirely (the agent was busy longer than a period) are skipped, not made up. Raises
+    ValueError for a period that is not a positive finite number."""
+
+    def __init__(
+        self, period_s: float, *, at_start: bool = True, clock: Callable[[], float] = time.monotonic
+    ) -> None:
+        if not (isinstance(period_s, int | float) and math.isfinite(period_s) and period_s > 0):
+            raise ValueError(f"a period must be a positive number of seconds, not {period_s!r}")
+        self.period_s = float(period_s)
+        self.at_start = at_start
+        self.clock = clock
+        self.due: float | None = None
+        """When (``clock`` s) the condition holds next; None before the first call."""
+
+    def __call__(self) -> bool:
+        now = self.clock()
+        if self.due is None:
+            self.due = now if self.at_start else now + self.period_s
+        if now < self.due:
+            return False
+        missed = math.floor((now - self.due) / self.period_s)
+        self.due += (missed + 1) * self.period_s
+        return True
+
+    def left(self) -> float:
+        """Seconds until the condition holds next (0 when due or before the first call)."""
+        return 0.0 if self.due is None else max(0.0, self.due - self.clock())
+
+
 @dataclass(frozen=True)
 class Behaviour:
     """A behaviour ^cB_{j,name}: ``transition`` (the transition function, computing output
     buffers and memory from input buffers and memory), ``terminal`` and ``error`` conditions,
-    ``on_enter`` run once when its state is entered, ``waits`` True for communication states."""
+    ``on_enter`` run once when its state is entered, ``waits`` True for communication states;
+    ``timer``: the period of a periodic behaviour (:func:`periodic`), which the agent does not
+    block past."""
 
     name: str
     transition: Callable[[], None]
@@ -40,6 +84,44 @@ class Behaviour:
     on_enter: Callable[[], None] = _nothing
     waits: bool = True
     doc: str = ""
+    timer: Every | None = None
+
+
+def periodic(
+    name: str,
+    period_s: float,
+    act: Callable[[], None],
+    *,
+    serve: Callable[[], None] = _nothing,
+    terminal: Predicate = _never,
+    error: Predicate = _never,
+    at_start: bool = True,
+    doc: str = "",
+    clock: Callable[[], float] = time.monotonic,
+) -> Behaviour:
+    """A periodic behaviour: a communication state whose transition function runs ``serve``
+    (e.g. ``agent.handle_received``: the answers to what ``act`` asked) at every iteration and
+    ``act`` once every ``period_s`` seconds (:class:`Every`: at once when the state is first
+    entered unless ``at_start`` is False, then on a fixed grid; a period missed while the agent
+    was busy is skipped). Between iterations the agent blocks until input arrives or the next
+    period is due. ``terminal``/``error`` end it as any behaviour's do. Raises ValueError for a
+    period that is not a positive finite number of seconds."""
+    timer = Every(period_s, at_start=at_start, clock=clock)
+
+    def transition() -> None:
+        serve()
+        if timer():
+            act()
+
+    return Behaviour(
+        name,
+        transition,
+        terminal,
+        error,
+        waits=True,
+        doc=doc or f"every {period_s:g} s",
+        timer=timer,
+    )
 
 
 @dataclass(frozen=True)

@@ -1,8 +1,12 @@
 """Protocol roles built from the specification's state machines (paper §4 step 3, §5.4;
-FIPA SC00025 interaction protocol library; issue 17).
+FIPA SC00025 interaction protocol library; docs/spec.md, "Protocol roles").
 
 An agent declares the roles it plays, one :class:`RoleDecl` per (channel, interaction
-protocol): initiator or participant, and the content languages it speaks there. It writes one
+protocol): initiator or participant, and the content languages it speaks there. A role declared
+on :data:`EVERY_CHANNEL` stands for one such role on every channel where the specification gives
+the agent that role of that protocol in exactly those languages (:func:`expand_roles`): an agent
+that answers the same queries wherever they come from serves a channel added to the
+specification later without an edit of its code. It writes one
 *handler* per performative the other role may send (:func:`handles`), and nothing else of the
 protocol. The runtime's :class:`Roles` — the same code for every protocol, driven by the
 protocol's state machine in the specification (``[protocols.NAME]``, or the built-in FIPA
@@ -35,7 +39,9 @@ machine of :mod:`shared.fipa_codec.protocols`) — owns what the protocol implie
   names (and waits again for an unanswered opening of its own).
 
 An initiator role the specification gives an agent but in which it opens no conversation is
-declared ``unused`` (:func:`initiator`); it needs no handlers.
+declared ``unused`` (:func:`initiator`); it needs no handlers. To act on a timer (open a
+conversation every few seconds), an agent uses a periodic behaviour
+(services/runtime/behaviour.py :func:`~services.runtime.behaviour.periodic`).
 
 What each declaration and handler must be is derived from the specification
 (:func:`role_problems`): at start an agent whose declared roles or handlers differ from its
@@ -49,7 +55,7 @@ import inspect
 import time
 from collections import OrderedDict
 from collections.abc import Callable, Collection, Iterable, Iterator, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, TypeVar
 
@@ -70,6 +76,7 @@ if TYPE_CHECKING:
     from shared.fipa_codec import Communicate
 
 __all__ = [
+    "EVERY_CHANNEL",
     "INITIATOR",
     "PARTICIPANT",
     "Conversation",
@@ -80,6 +87,7 @@ __all__ = [
     "Roles",
     "agent_problems",
     "code_problems",
+    "expand_roles",
     "handlers_of",
     "handles",
     "initiator",
@@ -104,6 +112,10 @@ def optional(machine: Protocol, role: Role) -> frozenset[Performative]:
     return frozenset(out)
 
 
+EVERY_CHANNEL = "*"
+"""The channel of a role declared for every channel the specification gives the agent with its
+protocol, role and languages (:func:`expand_roles`)."""
+
 MAX_OPEN = 1024
 """Open conversations a :class:`Roles` keeps before it forgets the oldest (bounded memory)."""
 
@@ -119,8 +131,8 @@ class RestoreError(ValueError):
 @dataclass(frozen=True)
 class RoleDecl:
     """An agent plays ``role`` (initiator or participant) of interaction ``protocol`` on
-    ``channel`` (C1..C8), speaking content ``languages`` there (every language the
-    specification gives that channel's protocol). ``reply_by_s`` (s) and ``retry_s`` (s) are
+    ``channel`` (C1..C8, or :data:`EVERY_CHANNEL`), speaking content ``languages`` there (every
+    language the specification gives that channel's protocol). ``reply_by_s`` (s) and ``retry_s`` (s) are
     the defaults of the conversations this role opens (initiators only): the reply-by deadline
     and the retransmission period until the first answer (None: none)."""
 
@@ -135,7 +147,8 @@ class RoleDecl:
     conversation: it needs no handlers, and ``self.roles.open`` refuses it."""
 
     def __str__(self) -> str:
-        return f"{self.role} of {self.protocol} on {self.channel} ({', '.join(self.languages)})"
+        where = "every channel" if self.channel == EVERY_CHANNEL else self.channel
+        return f"{self.role} of {self.protocol} on {where} ({', '.join(self.languages)})"
 
 
 def initiator(
@@ -146,13 +159,16 @@ def initiator(
     retry_s: float | None = None,
     unused: bool = False,
 ) -> RoleDecl:
-    """The initiator role of ``protocol`` on ``channel``, in ``languages``; ``unused``: the
-    agent opens no conversation in it (see :attr:`RoleDecl.unused`)."""
+    """The initiator role of ``protocol`` on ``channel`` (or :data:`EVERY_CHANNEL`), in
+    ``languages``; ``unused``: the agent opens no conversation in it (see
+    :attr:`RoleDecl.unused`)."""
     return RoleDecl(channel, protocol, INITIATOR, tuple(languages), reply_by_s, retry_s, unused)
 
 
 def participant(channel: str, protocol: str, *languages: str) -> RoleDecl:
-    """The participant role of ``protocol`` on ``channel``, in ``languages``."""
+    """The participant role of ``protocol`` on ``channel`` (or :data:`EVERY_CHANNEL`: every
+    channel where the specification makes the agent its participant in exactly ``languages``),
+    in ``languages``."""
     return RoleDecl(channel, protocol, PARTICIPANT, tuple(languages))
 
 
@@ -241,6 +257,65 @@ def spec_roles(spec: SystemSpec, agent: str) -> list[RoleDecl]:
     return out
 
 
+def expand_roles(spec: SystemSpec, agent: str, declared: Iterable[RoleDecl]) -> list[RoleDecl]:
+    """``declared`` with each role on :data:`EVERY_CHANNEL` replaced by the same role (its
+    reply-by, retransmission and ``unused``) on every channel where the specification gives
+    ``agent`` that role of that protocol in exactly those languages, in the specification's
+    order; a channel the agent declares that protocol on by itself is left to that declaration.
+    A role on EVERY_CHANNEL that covers no channel is dropped (:func:`role_problems` names it)."""
+    declared = list(declared)
+    own = {(d.channel, d.protocol) for d in declared if d.channel != EVERY_CHANNEL}
+    given = spec_roles(spec, agent)
+    out: list[RoleDecl] = []
+    for decl in declared:
+        if decl.channel != EVERY_CHANNEL:
+            out.append(decl)
+            continue
+        out += [
+            replace(decl, channel=r.channel)
+            for r in given
+            if _covers(decl, r) and (r.channel, r.protocol) not in own
+        ]
+    return out
+
+
+def _covers(decl: RoleDecl, given: RoleDecl) -> bool:
+    """Whether role ``decl`` on EVERY_CHANNEL stands for ``given``, a role of the specification."""
+    return (
+        given.protocol == decl.protocol
+        and given.role == decl.role
+        and given.languages == tuple(sorted(decl.languages))
+    )
+
+
+def _every_channel_problems(spec: SystemSpec, agent: str, declared: Sequence[RoleDecl]) -> list[str]:
+    """The roles on EVERY_CHANNEL in ``declared`` that are declared twice or cover no channel."""
+    problems: list[str] = []
+    seen: set[tuple[str, str, tuple[str, ...]]] = set()
+    given = spec_roles(spec, agent)
+    own = {(d.channel, d.protocol) for d in declared if d.channel != EVERY_CHANNEL}
+    for decl in declared:
+        if decl.channel != EVERY_CHANNEL:
+            continue
+        key = (decl.protocol, decl.role, tuple(sorted(decl.languages)))
+        if key in seen:
+            problems.append(f"agent {agent} declares {decl} twice")
+            continue
+        seen.add(key)
+        covered = [r for r in given if _covers(decl, r)]
+        if not covered:
+            problems.append(
+                f"agent {agent} declares itself {decl}, but no [[channels]] entry makes it the "
+                f"{decl.role} of {decl.protocol} in {', '.join(sorted(decl.languages)) or 'no language'}"
+            )
+        elif all((r.channel, r.protocol) in own for r in covered):
+            problems.append(
+                f"agent {agent} declares itself {decl}, but declares each such channel "
+                f"({', '.join(r.channel for r in covered)}) by itself: the role on every channel covers none"
+            )
+    return problems
+
+
 def _languages(ch: ChannelSpec, protocol: str) -> tuple[str, ...]:
     names: list[str] = []
     for cp in ch.protocols:
@@ -273,11 +348,14 @@ def role_problems(
     declares that the spec does not give it (no such channel, the agent does not end it, the
     protocol is not on it, or the spec gives it the other role), languages other than the
     channel's, a performative the other role may send with no handler, and a handler for
-    something no declared role receives. Empty: they agree."""
+    something no declared role receives. A role on :data:`EVERY_CHANNEL` counts as one per
+    channel it stands for (:func:`expand_roles`); one that stands for no channel is a problem.
+    Empty: they agree."""
     where = f"agent {agent}"
+    problems = _every_channel_problems(spec, agent, declared)
+    declared = expand_roles(spec, agent, declared)
     want = {(r.channel, r.protocol): r for r in spec_roles(spec, agent)}
     channels = {ch.name: ch for ch in spec.channels}
-    problems: list[str] = []
     seen: set[tuple[str, str]] = set()
     for decl in declared:
         key = (decl.channel, decl.protocol)
@@ -347,6 +425,7 @@ def code_problems(
     """What in ``files`` (an agent's code) sends outside its declared roles, compares a
     performative, names a performative none of its roles may send, or opens a conversation
     where it is not the initiator (services/runtime/code_scan.py), one line each."""
+    declared = expand_roles(spec, agent, declared)
     may_send: set[Performative] = set()
     for decl in declared:
         if decl.protocol in spec.protocols:
@@ -605,7 +684,8 @@ class Roles:
 
     def __init__(self, agent: Agent, declared: Sequence[RoleDecl], *, check: bool = True) -> None:
         self.agent = agent
-        self.declared = tuple(declared)
+        self.declared = tuple(expand_roles(agent.spec, agent.name, declared))
+        """The declared roles, each on EVERY_CHANNEL replaced by those it stands for."""
         self._handlers = handlers_of(type(agent))
         problems = agent_problems(agent.spec, agent.name, type(agent)) if check else []
         if problems:
@@ -696,7 +776,7 @@ class Roles:
         data: Any = None,
         expect: type | None = None,
     ) -> Conversation:
-        """Re-enter a conversation kept across a restart (issue 7) in ``state`` of its
+        """Re-enter a conversation kept across a restart (docs/recovery.md) in ``state`` of its
         protocol's state machine, reached by the shortest path of communicates (an ``inform``
         counts as non-terminal). ``kept`` is :meth:`Conversation.keep` of the conversation
         before the restart (the communicate that opened it); without it, ``conversation_id``

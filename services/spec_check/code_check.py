@@ -9,9 +9,11 @@ Every agent declares its protocol roles (``ROLES``; services/runtime/roles.py) a
 exactly, by the comparison it also runs when it starts
 (:func:`services.runtime.roles.agent_problems`): its roles against its interface in the
 specification — every channel, protocol, role and content language, none missing, none
-extra —, a handler for every performative the other role may send by the protocol's state
-machine and none for anything else, and its whole folder read for sends outside its roles
-(services/runtime/code_scan.py). The report lists, per role, what it sends and receives.
+extra; a role declared for every channel counts once per channel it stands for
+(:func:`services.runtime.roles.expand_roles`) —, a handler for every performative the other
+role may send by the protocol's state machine and none for anything else, and its whole
+folder read for sends outside its roles (services/runtime/code_scan.py). The report lists, per
+role, what it sends and receives.
 
 An agent that declares no roles (``ROLES`` None) is one problem: nothing but its roles may
 send, so there is nothing else to read.
@@ -32,7 +34,15 @@ import importlib.util
 from pathlib import Path
 
 from services.runtime.main import agent_class
-from services.runtime.roles import RoleDecl, agent_problems, incoming, outgoing, spec_roles
+from services.runtime.roles import (
+    EVERY_CHANNEL,
+    RoleDecl,
+    agent_problems,
+    expand_roles,
+    incoming,
+    outgoing,
+    spec_roles,
+)
 from services.spec.model import DEFAULT_SPEC, SpecError, SystemSpec, load
 from services.spec.protocol_defs import machine_of
 from shared.fipa_codec.acts import Performative
@@ -52,11 +62,16 @@ def package_files(implementation: str) -> list[Path]:
 
 
 def role_lines(
-    spec: SystemSpec, agent: str, roles: list[RoleDecl], unused: set[tuple[str, str]]
+    spec: SystemSpec,
+    agent: str,
+    roles: list[RoleDecl],
+    unused: set[tuple[str, str]],
+    every: set[tuple[str, str]] | None = None,
 ) -> list[str]:
     """Per role: channel, protocol, role, peer, languages, and the performatives it receives
     and sends by the protocol's state machine (not-understood, always allowed, left out);
-    ``unused``: the (channel, protocol) of initiator roles the agent opens no conversation in."""
+    ``unused``: the (channel, protocol) of initiator roles the agent opens no conversation in;
+    ``every``: those the agent declares by one role for every channel."""
     channels = {ch.name: ch for ch in spec.channels}
     out = []
     for decl in roles:
@@ -71,8 +86,9 @@ def role_lines(
         nu = {Performative.NOT_UNDERSTOOD}
         receives = sorted(p.value for p in incoming(machine, decl.role) - nu)
         sends = sorted(p.value for p in outgoing(machine, decl.role) - nu)
+        how = " (declared for every channel)" if (decl.channel, decl.protocol) in (every or set()) else ""
         out.append(
-            f"  {decl.channel} {decl.protocol} {decl.role} with {peer} in {', '.join(decl.languages)}: "
+            f"  {decl.channel} {decl.protocol} {decl.role} with {peer} in {', '.join(decl.languages)}{how}: "
             f"receives {', '.join(receives)}; sends {', '.join(sends)}"
         )
     return out
@@ -89,13 +105,16 @@ def verify_code_report(path: Path = DEFAULT_SPEC) -> tuple[bool, str]:
             cls = agent_class(spec, a.name)
             found = agent_problems(spec, a.name, cls, files)
             problems += found
-            declared = cls.ROLES or ()
+            written = cls.ROLES or ()
+            declared = expand_roles(spec, a.name, written)
             lines.append(
                 f"{a.name}: {len(files)} files; {len(declared)} protocol roles"
                 f"{' agree with the specification' if not found else ''}:"
             )
             unused = {(d.channel, d.protocol) for d in declared if d.unused}
-            lines += role_lines(spec, a.name, spec_roles(spec, a.name), unused)
+            own = {(d.channel, d.protocol) for d in written if d.channel != EVERY_CHANNEL}
+            every = {(d.channel, d.protocol) for d in declared} - own
+            lines += role_lines(spec, a.name, spec_roles(spec, a.name), unused, every)
     except (SpecError, SyntaxError) as exc:
         return False, str(exc)
     if not problems:

@@ -1,8 +1,8 @@
 """``roco spec new-agent NAME``: the folder of an agent a decomposition step introduced, written
-from the specification (issue 17; paper §4 step 4: an agent's interface follows from its
-channels).
+from the specification (paper §4 step 4: an agent's interface follows from its channels;
+docs/spec.md, "Walk-through: adding an agent").
 
-The agent's ``[[agents]]`` entry names its implementation (``services.agents.logbook.agent:Logbook``):
+The agent's ``[[agents]]`` entry names its implementation (``services.agents.watch.agent:WorldWatch``):
 the command writes that module, with ``__init__.py`` in every folder on the way, under a root
 folder (the project by default). The module holds
 
@@ -12,31 +12,81 @@ folder (the project by default). The module holds
 - one handler per performative the other role may send by the protocol's state machine
   (what :func:`services.runtime.roles.role_problems` requires), each raising
   NotImplementedError with a line saying what to decide, until written; ``roco spec
-  verify-code`` lists the handlers not yet written;
-- an FSM of one behaviour that routes the input buffer to the handlers.
+  verify-code`` lists the handlers not yet written. Above each, comments name what the
+  received communicate carries and every way the role may answer in the state it leads to, as
+  calls of the roles' API (``conv.reply``, ``conv.refuse_with``, ``conv.cancel``; derived
+  from the protocol's state machine and the channel's contents);
+- an FSM of one behaviour that routes the input buffer to the handlers; for an agent that
+  initiates a protocol, a periodic behaviour (services/runtime/behaviour.py ``periodic``) whose
+  ``_periodically`` runs every ``OPEN_EVERY_S`` seconds, with the ``self.roles.open(...)`` of
+  each conversation it may open written there as a comment.
 
 It refuses to overwrite an existing file (FileExistsError).
 """
 
 from __future__ import annotations
 
+import textwrap
 from dataclasses import dataclass
 from pathlib import Path
 
 from services.runtime.roles import RoleDecl, incoming, optional, spec_roles
-from services.spec.model import SpecError, SystemSpec
+from services.spec.model import ChannelProtocol, SpecError, SystemSpec
 from services.spec.protocol_defs import machine_of
+from shared.fipa_codec.acts import Performative
+from shared.fipa_codec.languages import load_all
+from shared.fipa_codec.protocols import INITIATOR, PARTICIPANT, Protocol, Role
 
 PROJECT = Path(__file__).resolve().parents[2]
 """The project's root folder (where ``services/`` is)."""
 
+OPEN_EVERY_S = 5.0
+"""The period (s) a written initiator opens its conversations with, until the user changes it."""
+
+TIMER_METHOD = "_periodically"
+"""The method of a written agent that its periodic behaviour runs every ``OPEN_EVERY_S`` s."""
+
+WIDTH = 100
+"""Longest line of a comment the stub holds (ruff's limit is 110)."""
+
+_REASONS = frozenset({Performative.REFUSE, Performative.FAILURE})
+"""Answers that carry a reason a person can read: ``conv.refuse_with(performative, reason)``."""
+
 
 @dataclass(frozen=True)
 class Scaffold:
-    """What :func:`write_agent` wrote: the module's path and the handlers to fill in."""
+    """What :func:`write_agent` wrote: the module's path, the handlers to fill in, and the
+    method its periodic behaviour runs (None when the agent initiates nothing)."""
 
     module: Path
     handlers: tuple[str, ...]
+    timer: str | None = None
+
+
+@dataclass
+class _Handler:
+    """One handler of a written agent: ``performative`` received in role ``decl``."""
+
+    decl: RoleDecl
+    performative: Performative
+    on_channel: bool
+    """The handler is for ``decl.channel`` only (the agent plays the role on several channels)."""
+    level: int = 0
+    """How much its method name says: performative, + channel, + protocol, + role."""
+
+    def parts(self) -> list[str]:
+        parts = []
+        if self.on_channel:
+            parts.append(self.decl.channel.lower())
+        if self.level >= 1:
+            parts.append(self.decl.protocol)
+        if self.level >= 2:
+            parts.append(self.decl.role)
+        return [*parts, self.performative.value]
+
+    @property
+    def name(self) -> str:
+        return "_on_" + "_".join(p.replace("-", "_") for p in self.parts())
 
 
 def _peer(spec: SystemSpec, agent: str, channel: str) -> str:
@@ -46,13 +96,160 @@ def _peer(spec: SystemSpec, agent: str, channel: str) -> str:
     raise SpecError(f"no channel {channel}")
 
 
+def _channel_protocol(spec: SystemSpec, channel: str, protocol: str) -> ChannelProtocol:
+    for ch in spec.channels:
+        if ch.name == channel:
+            for cp in ch.protocols:
+                if cp.protocol == protocol:
+                    return cp
+    raise SpecError(f"channel {channel} carries no {protocol}")
+
+
+def _literal(text: str) -> str:
+    """``text`` as a double-quoted Python string literal."""
+    return '"' + text.replace("\\", "\\\\").replace('"', '\\"') + '"'
+
+
 def _constant(name: str) -> str:
     return name.upper().replace("-", "_")
 
 
-def _method(decl: RoleDecl, performative: str, many: bool) -> str:
-    where = f"{decl.channel.lower()}_" if many else ""
-    return f"_on_{where}{performative.replace('-', '_')}"
+def _term_modules() -> dict[str, str]:
+    """Content term name → the module that defines it (shared/fipa_codec/languages)."""
+    return {t.__name__: t.__module__ for lang in load_all().values() for t in lang.types}
+
+
+def _carries(cp: ChannelProtocol, perf: Performative, modules: dict[str, str]) -> str:
+    """What ``perf`` carries on its channel: its content terms and their module, or its language."""
+    terms = cp.content_types(perf.value)
+    if terms:
+        where = sorted({modules[t] for t in terms if t in modules})
+        return " or ".join(terms) + (f" ({', '.join(where)})" if where else "")
+    if perf in _REASONS:
+        return "a reason (text: conv.reason)"
+    language = cp.languages.get(perf.value)
+    if language is None:
+        return "no content"
+    names = (language,) if isinstance(language, str) else language
+    return f"a term of {' or '.join(names)}, or none"
+
+
+def _call(perf: Performative, cp: ChannelProtocol, role: Role) -> str:
+    """The roles' call that sends ``perf`` in a conversation (services/runtime/roles.py
+    :class:`~services.runtime.roles.Conversation`)."""
+    terms = cp.content_types(perf.value)
+    term = f"{terms[0]}(…)" if len(terms) == 1 else "content" if terms else ""
+    if perf is Performative.CANCEL and role == INITIATOR:
+        return f"conv.cancel({term})"
+    if perf in _REASONS:
+        return f"conv.refuse_with(Performative.{_constant(perf.value)}, reason)"
+    return f"conv.reply(Performative.{_constant(perf.value)}{', ' + term if term else ''})"
+
+
+def _sends(machine: Protocol, role: Role, state: str) -> list[Performative]:
+    """What ``role`` may send in ``state`` (not-understood left out): answers with content
+    first, then cancel, then refuse and failure."""
+    found = {p for (r, p, _) in machine.allowed(state) if r == role and p is not Performative.NOT_UNDERSTOOD}
+    return sorted(found, key=lambda p: (p in _REASONS, p is Performative.CANCEL, p.value))
+
+
+def _hints(spec: SystemSpec, h: _Handler, modules: dict[str, str]) -> list[str]:
+    """The comment lines above a handler: what arrived, and what the role may send in the
+    states it leads to by the protocol's state machine (each as the roles' call)."""
+    decl, perf = h.decl, h.performative
+    cp = _channel_protocol(spec, decl.channel, decl.protocol)
+    machine = machine_of(spec, decl.protocol)
+    other: Role = PARTICIPANT if decl.role == INITIATOR else INITIATOR
+    lines = [f"conv.content: {_carries(cp, perf, modules)}."]
+    if perf is Performative.FAILURE and decl.role == INITIATOR:
+        lines.append(
+            "Also reached when the reply-by deadline passed (conv.timed_out) or the peer did not "
+            "understand (conv.not_understood); conv.reason says why."
+        )
+    edges = [*machine.transitions.items(), *machine.terminal_transitions.items()]
+    targets = sorted({t for (_, r, p), t in edges if r == other and p is perf})
+    sends: list[Performative] = []
+    for t in targets:
+        sends += [p for p in _sends(machine, decl.role, t) if p not in sends]
+    sends.sort(key=lambda p: (p in _REASONS, p is Performative.CANCEL, p.value))
+    if not sends:
+        lines.append("It ends the conversation: nothing more is sent in it.")
+        return lines
+    calls = "; or ".join(_call(p, cp, decl.role) for p in sends)
+    ends = any(t in machine.final for t in targets)
+    lines.append(
+        ("Answer with " if decl.role == PARTICIPANT else "May send: ")
+        + calls
+        + (", unless it ended the conversation" if ends else "")
+        + "."
+    )
+    if Performative.AGREE in sends:  # agree now, the outcome later (FIPA SC00026 §2)
+        later: list[Performative] = []
+        for t in targets:
+            after = machine.next_state(t, decl.role, Performative.AGREE)
+            if after is not None and after not in machine.final:
+                later += [q for q in _sends(machine, decl.role, after) if q not in later]
+        if later:
+            follow = "; or ".join(_call(q, cp, decl.role) for q in later)
+            lines.append(f"After {_call(Performative.AGREE, cp, decl.role)}, later (keep conv): {follow}.")
+    return lines
+
+
+def _comment(lines: list[str], indent: str) -> str:
+    """``lines`` as comment lines of at most :data:`WIDTH` characters."""
+    out: list[str] = []
+    for line in lines:
+        out += textwrap.wrap(
+            line, WIDTH - len(indent) - 2, break_long_words=False, break_on_hyphens=False
+        ) or [""]
+    return "".join(f"{indent}# {line}\n" for line in out)
+
+
+def _handlers(spec: SystemSpec, roles: list[RoleDecl]) -> list[_Handler]:
+    """One handler per performative each role must handle, named uniquely: by performative,
+    with the channel when the agent plays the role on several channels, and with the protocol
+    (then the role) while two names would still be the same."""
+    counts: dict[tuple[str, str, Performative], int] = {}
+    needed: list[tuple[RoleDecl, Performative]] = []
+    for decl in roles:
+        machine = machine_of(spec, decl.protocol)
+        for p in sorted(incoming(machine, decl.role) - optional(machine, decl.role), key=lambda p: p.value):
+            needed.append((decl, p))
+            key = (decl.role, decl.protocol, p)
+            counts[key] = counts.get(key, 0) + 1
+    out = [_Handler(d, p, counts[(d.role, d.protocol, p)] > 1) for d, p in needed]
+    while True:
+        names: dict[str, list[_Handler]] = {}
+        for h in out:
+            names.setdefault(h.name, []).append(h)
+        clashes = [h for same in names.values() if len(same) > 1 for h in same]
+        if not clashes:
+            return out
+        for h in clashes:
+            h.level += 1
+        assert all(h.level <= 2 for h in out), "a handler key is unique at level 2"
+
+
+def _opening(spec: SystemSpec, decl: RoleDecl, peer: str, modules: dict[str, str]) -> str:
+    """The commented ``self.roles.open(...)`` of an initiator role, with what it carries."""
+    machine = machine_of(spec, decl.protocol)
+    cp = _channel_protocol(spec, decl.channel, decl.protocol)
+    openers = sorted(
+        (p for (s, r, p) in machine.transitions if s == machine.initial and r == INITIATOR),
+        key=lambda p: p.value,
+    )
+    carried: dict[str, list[str]] = {}
+    for p in openers:
+        carried.setdefault(_carries(cp, p, modules), []).append(p.value)
+    said = "; ".join(f"{' or '.join(perfs)} carries {what}" for what, perfs in carried.items())
+    text = [f"{decl.channel} {decl.protocol} with {peer}: {said}."]
+    shown = next((p for p in openers if cp.content_types(p.value)), openers[0])
+    terms = cp.content_types(shown.value)
+    content = f"{terms[0]}(…)" if len(terms) == 1 else "content"
+    call = f'self.roles.open("{decl.channel}", "{decl.protocol}", {content}'
+    if len(openers) > 1:
+        call += f", performative=Performative.{_constant(shown.value)}"
+    return _comment(text, "        ") + f"        # {call})\n"
 
 
 def agent_source(spec: SystemSpec, agent: str, class_name: str, where: str) -> tuple[str, tuple[str, ...]]:
@@ -62,52 +259,59 @@ def agent_source(spec: SystemSpec, agent: str, class_name: str, where: str) -> t
     roles = spec_roles(spec, agent)
     if not roles:
         raise SpecError(f"agent {agent} ends no channel in the specification: it would have nothing to do")
-    perfs: dict[str, int] = {}
-    for decl in roles:
-        machine = machine_of(spec, decl.protocol)
-        for p in incoming(machine, decl.role) - optional(machine, decl.role):
-            key = f"{decl.role}/{decl.protocol}/{p.value}"
-            perfs[key] = perfs.get(key, 0) + 1
+    modules = _term_modules()
     declared = []
     for decl in roles:
         langs = ", ".join(f'"{lang}"' for lang in decl.languages)
         declared.append(f'        {decl.role}("{decl.channel}", "{decl.protocol}", {langs}),')
-    handlers: list[str] = []
+    handlers = _handlers(spec, roles)
     blocks: list[str] = []
-    for decl in roles:
-        machine = machine_of(spec, decl.protocol)
+    for h in handlers:
+        decl, perf = h.decl, h.performative
         peer = _peer(spec, agent, decl.channel)
-        needed = sorted(p.value for p in incoming(machine, decl.role) - optional(machine, decl.role))
-        if decl.role == "initiator":
-            opening = f'self.roles.open("{decl.channel}", "{decl.protocol}", content)'
-            blocks.append(
-                f"    # {decl.channel} {decl.protocol}, initiator towards {peer}: open a conversation with\n"
-                f"    # {opening}; {peer}'s answers come here"
-            )
-        for perf in needed:
-            name = _method(decl, perf, perfs[f"{decl.role}/{decl.protocol}/{perf}"] > 1)
-            handlers.append(name)
-            answer = (
-                "answer with conv.reply(Performative.X, content) or conv.refuse_with(Performative.X, reason)"
-                if decl.role == "participant"
-                else "act on it (conv.content holds its content; conv.timed_out, conv.reason)"
-            )
-            todo = (
-                f"{agent}: {perf} from {peer} on {decl.channel} ({decl.protocol}) is not handled yet: "
-                f"write {class_name}.{name} in {where}"
-            )
-            blocks.append(
-                f'    @handles("{decl.protocol}", {_constant(decl.role)}, "{perf}"'
-                + (f', channel="{decl.channel}"' if perfs[f"{decl.role}/{decl.protocol}/{perf}"] > 1 else "")
-                + ")\n"
-                f"    def {name}(self, conv: Conversation) -> None:\n"
-                f'        """{peer} sent {perf} ({decl.protocol} on {decl.channel}): {answer}."""\n'
-                f'        raise NotImplementedError("{todo}")\n'
-            )
+        what = f"{agent}: {perf.value} from {peer} on {decl.channel} ({decl.protocol}) is not handled yet: "
+        todo = _literal(what) + "\n            " + _literal(f"write {class_name}.{h.name} in {where}")
+        channel = f', channel="{decl.channel}"' if h.on_channel else ""
+        blocks.append(
+            f'    @handles("{decl.protocol}", {_constant(decl.role)}, "{perf.value}"{channel})\n'
+            f"    def {h.name}(self, conv: Conversation) -> None:\n"
+            f'        """{peer} sent {perf.value} ({decl.protocol} on {decl.channel}, this agent the '
+            f'{decl.role})."""\n'
+            + _comment(_hints(spec, h, modules), "        ")
+            + f"        raise NotImplementedError(\n            {todo}\n        )\n"
+        )
+    opens = [d for d in roles if d.role == INITIATOR]
     role_names = sorted({_constant(d.role) for d in roles})
     makers = sorted({d.role for d in roles})
     imports = ", ".join([*role_names, "Conversation", "handles", *makers])
     job = entry.job or f"the agent that substitutes group {entry.group}"
+    if opens:
+        behaviour_import = "FSM, periodic"
+        period = f"""
+OPEN_EVERY_S = {OPEN_EVERY_S!r}
+\"\"\"How often (s) {TIMER_METHOD} runs: the period of this agent's periodic behaviour.\"\"\"
+"""
+        serve = f"""                "serve": periodic(
+                    "serve",
+                    OPEN_EVERY_S,
+                    self.{TIMER_METHOD},
+                    serve=self.handle_received,
+                    doc=f"answer what arrives; every {{OPEN_EVERY_S:g}} s open conversations",
+                )"""
+        timer = (
+            f"    def {TIMER_METHOD}(self) -> None:\n"
+            f'        """Runs every OPEN_EVERY_S s (services/runtime/behaviour.py ``periodic``): open the\n'
+            f'        conversations this agent initiates; the answers reach the handlers below."""\n'
+            + "".join(_opening(spec, d, _peer(spec, agent, d.channel), modules) for d in opens)
+            + "\n"
+        )
+    else:
+        behaviour_import = "FSM, Behaviour"
+        period = ""
+        serve = """                "serve": Behaviour(
+                    "serve", self.handle_received, terminal=lambda: False, doc="answer what arrives"
+                )"""
+        timer = ""
     text = f'''"""{agent} — {job}.
 
 Written by ``roco spec new-agent {agent}`` from the specification: its protocol roles (one per
@@ -120,10 +324,10 @@ without a handler, and passed reply-by deadlines (services/runtime/roles.py).
 from __future__ import annotations
 
 from services.runtime.agent import Agent
-from services.runtime.behaviour import FSM, Behaviour
+from services.runtime.behaviour import {behaviour_import}
 from services.runtime.roles import {imports}
 from shared.fipa_codec import Performative  # noqa: F401  (the performatives handlers answer with)
-
+{period}
 
 class {class_name}(Agent):
     name = "{agent}"
@@ -135,14 +339,12 @@ class {class_name}(Agent):
         return FSM(
             initial="serve",
             states={{
-                "serve": Behaviour(
-                    "serve", self.handle_received, terminal=lambda: False, doc="answer what arrives"
-                )
+{serve}
             }},
         )
 
-{chr(10).join(blocks)}'''
-    return text.rstrip() + "\n", tuple(handlers)
+{timer}{chr(10).join(blocks)}'''
+    return text.rstrip() + "\n", tuple(h.name for h in handlers)
 
 
 def write_agent(spec: SystemSpec, agent: str, root: Path = PROJECT) -> Scaffold:
@@ -170,4 +372,5 @@ def write_agent(spec: SystemSpec, agent: str, root: Path = PROJECT) -> Scaffold:
         if not init.exists():
             init.write_text("")
     path.write_text(text)
-    return Scaffold(path, handlers)
+    timer = TIMER_METHOD if any(d.role == INITIATOR for d in spec_roles(spec, agent)) else None
+    return Scaffold(path, handlers, timer)

@@ -1,46 +1,185 @@
-"""deploy/compose.yaml against the specification (issue 17: the compose services are not a
-second list of the agents): one service per agent of the specification, each running that
-agent, and a_hi — the last in the specification's start order — started once every other agent
-is healthy."""
+"""deploy/compose.yaml from the specification (services/deploy/compose.py, ``roco deploy
+compose``): the committed file is the rendered one; read as ``docker compose config`` reads it
+(YAML merge keys resolved), each of the six agents' services is what the fleet needs (its
+command, environment, volumes, start order, capabilities, health check); a new agent of the
+specification gets a service and a_hi — the last agent ``start_order`` names — waits for it."""
 
 from __future__ import annotations
 
 import re
 from pathlib import Path
+from typing import Any
 
+import msgspec
 import pytest
+from typer.testing import CliRunner
 
-from services.spec.model import SpecError, default_spec, load
+from services.deploy.cli import deploy_app
+from services.deploy.compose import (
+    AGENT_EXTRAS,
+    COMPOSE_FILE,
+    MOUNTS,
+    ComposeError,
+    check,
+    difference,
+    last_started,
+    render,
+)
+from services.spec.model import DEFAULT_SPEC, AgentSpec, SpecError, default_spec, load
+from tests.spec_check.walkthrough import GROUP_EDIT, snippet, staged
 
-COMPOSE = Path(__file__).resolve().parents[2] / "deploy" / "compose.yaml"
+yaml = pytest.importorskip("yaml", reason="PyYAML reads the compose file: pip install -e '.[dev]'")
+
+ROOT = Path(__file__).resolve().parents[2]
+SPEC = default_spec()
+AGENTS = ("a_km", "a_pl", "a_co", "ag_ex", "a_ta", "a_hi")
+runner = CliRunner()
 
 
-def services(text: str) -> dict[str, str]:
-    """Service name → its block of text (the file's ``services:`` section, two-space keys)."""
-    body = text.split("\nservices:\n", 1)[1].split("\nvolumes:\n", 1)[0]
-    parts = re.split(r"^  ([A-Za-z_][\w-]*):.*$", body, flags=re.M)
-    return dict(zip(parts[1::2], parts[2::2], strict=True))
+def config(text: str) -> dict[str, Any]:
+    """The compose file as docker compose reads it: YAML 1.1 with its merge keys resolved."""
+    loaded = yaml.safe_load(text)
+    assert isinstance(loaded, dict)
+    return loaded
 
 
-def test_compose_runs_each_agent_of_the_specification_once() -> None:
-    spec = default_spec()
-    found = services(COMPOSE.read_text())
-    agents = {name for name, block in found.items() if '"services.runtime.main"' in block}
-    assert agents == set(spec.agent_names)
-    for name in agents:
-        assert f'"services.runtime.main", "{name}"]' in found[name], name
+def test_the_committed_compose_file_is_what_the_specification_gives() -> None:
+    problem = check(COMPOSE_FILE, SPEC, "deploy/compose.yaml")
+    assert problem is None, problem
+    assert COMPOSE_FILE == ROOT / "deploy" / "compose.yaml"
 
 
-def test_the_last_agent_started_waits_for_every_other_one() -> None:
-    spec = default_spec()
-    last, others = spec.launch_order[-1], spec.launch_order[:-1]
-    block = services(COMPOSE.read_text())[last]
-    waited = set(re.findall(r"^      (\w+):\n        condition: service_healthy", block, flags=re.M))
-    assert waited >= set(others)
+def test_the_six_agents_services_are_what_the_fleet_needs() -> None:
+    """The meaning of each agent's service, key by key (what `docker compose config` shows)."""
+    compose = config(COMPOSE_FILE.read_text())
+    assert "version" not in compose  # the Compose Specification format
+    assert set(compose) == {"x-roco", "x-env", "x-after-router", "services", "volumes"}
+    services = compose["services"]
+    assert list(services) == ["certs", "router", "recorder", *AGENTS, "viewer"]
+    assert compose["volumes"] == {"fleet": {}, "km_store": {}, "co_state": {}}
+    env = compose["x-env"]
+    assert env["ROCO_ROUTER"] == "${ROCO_PROTO:-tls}/router:7447" and env["ROCO_RUN_DIR"] == "/runs/{run}"
+    after_router = {
+        "certs": {"condition": "service_completed_successfully"},
+        "router": {"condition": "service_healthy"},
+        "recorder": {"condition": "service_healthy"},
+    }
+    mounts = ["${ROCO_RUNS:-../runs}:/runs", "fleet:/var/lib/roco/fleet", "${ROCO_CERTS:-./certs}:/certs:ro"]
+    for name in AGENTS:
+        service = services[name]
+        assert service["image"] == "${ROCO_IMAGE:-roco:latest}"
+        assert service["build"] == {
+            "context": "..",
+            "dockerfile": "deploy/Dockerfile",
+            "args": {"BASE": "${ROCO_BASE:-python:3.11-slim}"},
+        }
+        assert service["init"] is True and service["restart"] == "unless-stopped"
+        assert service["command"] == ["python", "-m", "services.runtime.main", name]
+        assert service["healthcheck"] == {
+            "interval": "5s",
+            "timeout": "10s",
+            "retries": 5,
+            "start_period": "120s",
+            "test": ["CMD", "python", "-m", "services.runtime.health", name],
+        }
+        extra_env = {
+            "a_km": {"ROCO_KM_STORE": "/var/lib/roco/km/{run}"},
+            "a_co": {"ROCO_CO_STATE": "/var/lib/roco/co/{run}", "ROCO_STATE_DIR": "/var/lib/roco/co/{run}"},
+        }.get(name, {})
+        assert service["environment"] == {**env, **extra_env}
+        extra_volume = {"a_km": ["km_store:/var/lib/roco/km"], "a_co": ["co_state:/var/lib/roco/co"]}
+        assert service["volumes"] == mounts + extra_volume.get(name, [])
+        assert service.get("cap_add") == (["SYS_NICE"] if name == "ag_ex" else None)
+        waits = {o: {"condition": "service_healthy"} for o in AGENTS if o != "a_hi"} if name == "a_hi" else {}
+        assert service["depends_on"] == {**after_router, **waits}
+        assert set(service) <= {
+            "image", "build", "init", "restart", "volumes", "healthcheck",
+            "command", "environment", "depends_on", "cap_add",
+        }  # fmt: skip
+
+
+def test_the_other_services_keep_their_settings() -> None:
+    services = config(COMPOSE_FILE.read_text())["services"]
+    assert services["certs"]["restart"] == "no" and services["certs"]["healthcheck"] == {"disable": True}
+    assert services["router"]["ports"] == ["${ROCO_ROUTER_PUBLISH:-127.0.0.1:7447}:7447"]
+    assert services["router"]["environment"]["ROCO_NEW_RUN"] == "1"
+    assert services["router"]["healthcheck"]["test"] == [
+        "CMD", "python", "-m", "services.runtime.health", "router", "--router", "tcp/127.0.0.1:7447",
+    ]  # fmt: skip
+    assert services["recorder"]["stop_grace_period"] == "60s"
+    assert services["viewer"]["volumes"] == ["${ROCO_RUNS:-../runs}:/runs:ro"]
+    viewer_health = services["viewer"]["healthcheck"]["test"]
+    assert viewer_health[-4:] == ["--tcp", "127.0.0.1:9876", "--tcp", "127.0.0.1:9090"]
+    assert config(COMPOSE_FILE.read_text())["x-roco"]["volumes"] == list(MOUNTS)
+
+
+def walkthrough_spec(tmp_path: Path) -> Path:
+    """The shipped specification with docs/spec.md's new agent a_wt (stages 1 and 2)."""
+    path = tmp_path / "spec.toml"
+    path.write_text(staged(DEFAULT_SPEC.read_text(), snippet(1), snippet(2), edits=GROUP_EDIT))
+    return path
+
+
+def test_a_new_agent_gets_a_service_and_the_last_agent_waits_for_it(tmp_path: Path) -> None:
+    spec = load(walkthrough_spec(tmp_path))
+    assert spec.launch_order[-1] == "a_wt" and last_started(spec) == "a_hi"
+    services = config(render(spec))["services"]
+    assert list(services) == ["certs", "router", "recorder", *AGENTS, "a_wt", "viewer"]
+    new, plain = services["a_wt"], services["a_pl"]
+    assert new["command"] == ["python", "-m", "services.runtime.main", "a_wt"]
+    assert new["healthcheck"]["test"] == ["CMD", "python", "-m", "services.runtime.health", "a_wt"]
+    for key in set(plain) - {"command", "healthcheck"}:
+        assert new[key] == plain[key], key
+    assert services["a_hi"]["depends_on"]["a_wt"] == {"condition": "service_healthy"}
+    # the committed file lacks it, and says how to bring it up to date
+    assert difference(COMPOSE_FILE.read_text(), spec) == "no service for agent a_wt"
+    assert check(COMPOSE_FILE, spec, "deploy/compose.yaml") == (
+        "deploy/compose.yaml differs from what the specification gives (no service for agent a_wt): "
+        "run `roco deploy compose`"
+    )
+
+
+def test_roco_deploy_compose_writes_and_checks_the_file(tmp_path: Path) -> None:
+    spec_file = walkthrough_spec(tmp_path)
+    target = tmp_path / "compose.yaml"
+    target.write_text(COMPOSE_FILE.read_text())
+    args = ["--file", str(target), "--spec", str(spec_file)]
+    r = runner.invoke(deploy_app, ["compose", "--check", *args])
+    assert r.exit_code == 1
+    assert r.output.strip().endswith(
+        "differs from what the specification gives (no service for agent a_wt): run `roco deploy compose`"
+    )
+    assert r.output.count("\n") == 1 and r.output.startswith("roco: ")
+    r = runner.invoke(deploy_app, ["compose", *args])
+    assert r.exit_code == 0 and r.output.startswith("roco: wrote "), r.output
+    assert target.read_text() == render(load(spec_file))
+    r = runner.invoke(deploy_app, ["compose", "--check", *args])
+    assert r.exit_code == 0 and r.output.strip().endswith("is what the specification gives"), r.output
+    r = runner.invoke(deploy_app, ["compose", *args])
+    assert r.exit_code == 0 and "is up to date" in r.output
+    r = runner.invoke(deploy_app, ["compose", "--check", "--file", str(tmp_path / "none.yaml")])
+    assert r.exit_code == 2 and r.output == f"roco: {tmp_path / 'none.yaml'}: no such compose file\n"
+
+
+def test_an_agent_that_cannot_be_a_service_is_refused() -> None:
+    for bad in ("viewer", "a km"):
+        agents = (*SPEC.agents, AgentSpec(name=bad, group="x", implementation="m:C"))
+        with pytest.raises(ComposeError, match=f"agent {bad!r} cannot be a compose service"):
+            render(msgspec.structs.replace(SPEC, agents=agents))
+
+
+def test_each_agents_extras_are_for_an_agent_and_its_run_variables_are_the_entrypoints() -> None:
+    assert set(AGENT_EXTRAS) <= set(SPEC.agent_names)
+    entrypoint = (ROOT / "deploy" / "entrypoint.sh").read_text()
+    substituted = re.search(r"for var in ([A-Z_ ]+); do", entrypoint)
+    assert substituted, "deploy/entrypoint.sh no longer says which variables it gives the run's name"
+    for extras in AGENT_EXTRAS.values():
+        if extras.state is not None:
+            assert set(extras.state.variables) <= set(substituted.group(1).split())
 
 
 def test_the_start_order_refuses_an_unknown_agent_and_starts_unnamed_ones_last(tmp_path: Path) -> None:
-    text = (Path(__file__).resolve().parents[2] / "services/spec/robot_companion.toml").read_text()
+    text = DEFAULT_SPEC.read_text()
     bad = tmp_path / "spec.toml"
     bad.write_text(text.replace('"ag_ex", "a_ta", "a_hi"]', '"ag_ex", "a_tx", "a_hi"]', 1))
     with pytest.raises(SpecError, match="start_order names unknown agent 'a_tx'"):

@@ -188,7 +188,11 @@ def test_verify_code_passes_on_the_shipped_agents() -> None:
         "  C5 fipa-request participant with a_ta in L_EX, L_SD: receives cancel, request; "
         "sends agree, failure, inform, refuse"
     ) in text
-    assert "  C4 fipa-query participant with a_pl in L_WM: receives cancel, query-if, query-ref" in text
+    assert (
+        "  C4 fipa-query participant with a_pl in L_WM (declared for every channel): receives cancel, "
+        "query-if, query-ref"
+    ) in text
+    assert "a_km: 3 files; 4 protocol roles agree with the specification:" in text
 
 
 def test_verify_code_reports_an_implementation_that_does_not_exist(tmp_path: Path) -> None:
@@ -227,7 +231,8 @@ def test_roco_spec_deadlock_and_verify_exit_codes(tmp_path: Path) -> None:
     broken = roco("deadlock", "--spec", str(fixtures / "deadlock_protocol.toml"))
     assert broken.returncode == 1 and "deadlock" in broken.stdout.lower()
     missing = roco("verify", str(tmp_path / "no-run"))
-    assert missing.returncode == 1 and "no such run folder" in missing.stdout
+    last = missing.stderr.splitlines()[-1]
+    assert missing.returncode == 2 and last.startswith("roco: ") and last.endswith("no such run folder")
 
 
 def test_a_foreign_agent_plays_the_external_role_and_roco_agents_themselves() -> None:

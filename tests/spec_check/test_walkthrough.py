@@ -1,11 +1,12 @@
 """The walk-through of docs/spec.md ("adding an agent"), stage by stage: its TOML and Python
 snippets are read from the document itself and added to a copy of the shipped specification
 and to the agent ``roco spec new-agent`` writes, and the tools say what the document says
-they say; at the end the new agent and a_hi run on one bus."""
+they say; a_km serves the new channel with no edit of its code; at the end the new agent and
+a_km run on one bus and the watcher's query is answered."""
 
 from __future__ import annotations
 
-import re
+import shutil
 import subprocess
 import sys
 import threading
@@ -13,45 +14,29 @@ from pathlib import Path
 
 import pytest
 
+from services.deploy.compose import check, read
 from services.runtime.memory_transport import MemoryBus
 from services.spec.check import check_report
 from services.spec.model import DEFAULT_SPEC, load
 from services.spec_check.code_check import verify_code_report
 from services.spec_check.new_agent import write_agent
-from shared.fipa_codec.languages.l_hc import CommandOutcome
+from shared.fipa_codec.languages.common import Pose
+from shared.fipa_codec.languages.l_wm import ObjectInfo
+from tests.spec_check.walkthrough import GROUP_EDIT, MODULE, ROOT, fill, snippet, staged
 
-DOC = Path(__file__).resolve().parents[2] / "docs" / "spec.md"
-MODULE = "services.agents.logbook.agent"
-HI = 'implementation = "services.agents.human_interface.agent:HumanInterface"'
-
-
-def snippet(n: int, kind: str = "toml") -> str:
-    m = re.search(rf"```{kind} walkthrough-{n}\n(.*?)```", DOC.read_text(), re.S)
-    assert m, f"docs/spec.md lost walk-through snippet {n}"
-    return m.group(1)
+HANDLERS = ("_on_failure", "_on_inform", "_on_inform_ref", "_on_refuse")
 
 
 def stage(tmp_path: Path, *parts: str, edits: dict[str, str] | None = None) -> Path:
-    text = DEFAULT_SPEC.read_text()
-    for old, new in (edits or {}).items():
-        assert text.count(old) == 1, old
-        text = text.replace(old, new)
     path = tmp_path / "spec.toml"
-    # requirements and steps before the agents, as in the shipped file
-    head, tail = text.split("\n[[agents]]", 1)
-    decomposition = "\n".join(p for p in parts if "[[steps]]" in p or "[[requirements]]" in p)
-    rest = "\n".join(p for p in parts if p not in decomposition)
-    path.write_text(head + "\n" + decomposition + "\n[[agents]]" + tail + "\n" + rest)
+    path.write_text(staged(DEFAULT_SPEC.read_text(), *parts, edits=edits))
     return path
 
 
-def logbook_stage(tmp_path: Path, package: str, *, hi: str | None = None) -> Path:
-    """Stages 1 and 2, with the logbook written under ``tmp_path`` as ``package.agent``
-    (a package of its own per test: a module is imported once per process)."""
-    edits = {'group = "hi"': 'group = "ui"'}
-    if hi is not None:
-        edits[HI] = f'implementation = "{hi}"'
-    return stage(tmp_path, snippet(1), snippet(2).replace(MODULE, f"{package}.agent"), edits=edits)
+def watch_stage(tmp_path: Path, package: str) -> Path:
+    """Stages 1 and 2, with the watcher written under ``tmp_path`` as ``package.agent`` (a
+    package of its own per test: a module is imported once per process)."""
+    return stage(tmp_path, snippet(1), snippet(2).replace(MODULE, f"{package}.agent"), edits=GROUP_EDIT)
 
 
 def test_stage_1_a_new_step_makes_check_list_what_is_missing(tmp_path: Path) -> None:
@@ -59,7 +44,7 @@ def test_stage_1_a_new_step_makes_check_list_what_is_missing(tmp_path: Path) -> 
     assert not ok
     for line in (
         "stop condition: group 'ui' of the final fringe is substituted by no agent",
-        "stop condition: group 'lb' of the final fringe is substituted by no agent",
+        "stop condition: group 'wt' of the final fringe is substituted by no agent",
         "agent a_hi substitutes group 'hi', which is not in the final fringe",
         "channel C2 joins <group ui> and a_co by the decomposition, but a_co and a_hi in [[channels]]",
         "channel C7 joins <group ui> and a_km by the decomposition, but a_hi and a_km in [[channels]]",
@@ -70,91 +55,109 @@ def test_stage_1_a_new_step_makes_check_list_what_is_missing(tmp_path: Path) -> 
         assert line in text, text
 
 
-def test_stage_2_new_agent_writes_the_agent_and_verify_code_says_what_is_missing(
+def test_stage_2_new_agent_writes_the_agent_and_its_service_and_verify_code_lists_its_handlers(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    path = logbook_stage(tmp_path, "walk_lb2")
+    path = watch_stage(tmp_path, "walk_wt2")
     assert check_report(path)[0]
+    compose = tmp_path / "deploy" / "compose.yaml"
+    compose.parent.mkdir()
+    shutil.copy(ROOT / "deploy" / "compose.yaml", compose)
 
     def new_agent() -> subprocess.CompletedProcess[str]:
-        command = ["spec", "new-agent", "a_lb", "--spec", str(path), "--root", str(tmp_path)]
+        command = ["spec", "new-agent", "a_wt", "--spec", str(path), "--root", str(tmp_path)]
         return subprocess.run(
-            [sys.executable, "-m", "services.cli", *command], capture_output=True, text=True
+            [sys.executable, "-m", "services.cli", *command], capture_output=True, text=True, cwd=ROOT
         )
 
     done = new_agent()
     assert done.returncode == 0, done.stderr
-    assert f"roco: wrote {tmp_path / 'walk_lb2' / 'agent.py'}" in done.stdout
-    assert "roco: fill in _on_request; then: roco spec verify-code" in done.stdout
+    assert f"roco: wrote {tmp_path / 'walk_wt2' / 'agent.py'}" in done.stdout
+    assert f"roco: wrote {compose}: one service per agent (" in done.stdout
+    assert (
+        f"roco: fill in {', '.join(HANDLERS)} and what _periodically opens; then: roco spec verify-code"
+        in done.stdout
+    )
+    # the compose file now runs the new agent too, as the specification gives it
+    assert check(compose, load(path)) is None
+    assert '    command: ["python", "-m", "services.runtime.main", "a_wt"]' in read(compose)
     again = new_agent()
-    assert again.returncode == 1 and again.stderr.startswith("roco: ") and "exists" in again.stderr
+    last = again.stderr.splitlines()[-1]
+    assert (
+        again.returncode == 1
+        and last.startswith("roco: ")
+        and last.endswith("new-agent writes only new files")
+    )
+
     monkeypatch.syspath_prepend(str(tmp_path))
     ok, text = verify_code_report(path)
     assert not ok
+    for handler in HANDLERS:
+        assert f"- agent a_wt has a handler not written yet: {handler} raises NotImplementedError" in text
+    assert "4 problem(s)" in text
+    # the other end of C9 is served by a_km's code as it is: a role for every channel
+    assert "agent a_km" not in text
     assert (
-        "- agent a_hi declares no initiator role for fipa-request on C9, which [[channels]] C9 gives it "
-        "(in L_HC)"
+        "  C9 fipa-query participant with a_wt in L_WM (declared for every channel): receives cancel, "
+        "query-if, query-ref; sends agree, failure, inform, inform-ref, refuse"
     ) in text
-    assert (
-        "- agent a_lb has a handler not written yet: _on_request raises NotImplementedError (agent.py:"
-        in text
-    )
-    assert "2 problem(s)" in text
 
 
-def finished_logbook(tmp_path: Path, package: str) -> Path:
-    path = logbook_stage(tmp_path, package, hi="tests.spec_check.walkthrough.hi_logbook:HumanInterface")
-    module = write_agent(load(path), "a_lb", tmp_path).module
-    text = module.read_text()
-    written = re.search(
-        r'    @handles\("fipa-request", PARTICIPANT, "request"\)\n.*?raise NotImplementedError\(.*?\)\n',
-        text,
-        re.S,
-    )
-    assert written, text
-    text = text.replace(written.group(0), snippet(3, "python"))
-    imports = "from shared.fipa_codec import Performative"
-    text = text.replace(imports, f"from shared.fipa_codec.languages.l_hc import CommandOutcome\n{imports}")
-    module.write_text(text)
+def finished_watch(tmp_path: Path, package: str) -> Path:
+    path = watch_stage(tmp_path, package)
+    module = write_agent(load(path), "a_wt", tmp_path).module
+    fill(module)
     return path
 
 
-def test_stage_3_the_finished_agent_conforms_and_a_hi_records_through_it(
+def test_stage_3_the_finished_agent_conforms_and_a_km_answers_it_as_it_is(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    path = finished_logbook(tmp_path, "walk_lb3")
+    path = finished_watch(tmp_path, "walk_wt3")
     monkeypatch.syspath_prepend(str(tmp_path))
     ok, text = verify_code_report(path)
     assert ok, text
-    assert "a_lb: 2 files; 1 protocol roles agree with the specification:" in text
-    assert "  C9 fipa-request participant with a_hi in L_HC: receives cancel, request" in text
+    assert "a_wt: 2 files; 1 protocol roles agree with the specification:" in text
+    assert (
+        "  C9 fipa-query initiator with a_km in L_WM: receives agree, failure, inform, inform-ref, refuse; "
+        "sends cancel, query-if, query-ref"
+    ) in text
 
-    # both ends of C9 on one bus, started from the staged specification
+    # both ends of C9 on one bus, started from the staged specification; a_km keeps its
+    # knowledge in memory
+    for name in ("ROCO_KM_STORE", "ROCO_RUN_DIR", "ROCO_STATE_DIR"):
+        monkeypatch.delenv(name, raising=False)
     from services.runtime.main import agent_class
 
     spec = load(path)
     bus = MemoryBus()
-    logbook = agent_class(spec, "a_lb")(bus.transport(), spec)
-    hi = agent_class(spec, "a_hi")(bus.transport(), spec)
-    for agent in (logbook, hi):
+    km = agent_class(spec, "a_km")(bus.transport(), spec)
+    watch = agent_class(spec, "a_wt")(bus.transport(), spec)
+    for agent in (km, watch):
         agent.bind()
-    thread = threading.Thread(target=logbook.run, daemon=True)
+    thread = threading.Thread(target=km.run, daemon=True)
     thread.start()
     try:
-        conv = hi.record(
-            CommandOutcome(command_id="cmd-1", succeeded=True, detail="the bowl holds the content")
-        )
-        hi._dispatch()
-        for _ in range(200):  # each acquire blocks until input arrives or 0.05 s pass
-            hi._acquire(0.05)
-            hi.handle_received()
-            if hi.counters["logbook.recorded"]:
+        watch.setup()
+        watch._periodically()  # type: ignore[attr-defined]  # what the periodic behaviour runs
+        watch._dispatch()
+        for _ in range(400):  # each acquire blocks until input arrives or 0.05 s pass
+            watch._acquire(0.05)
+            watch.handle_received()
+            if watch.counters["scenes"] or watch.counters["unanswered"]:
                 break
-        assert hi.counters["logbook.recorded"] == 1
-        assert conv.finished and conv.content == CommandOutcome(
-            command_id="cmd-1", succeeded=True, detail="the bowl holds the content"
-        )
-        assert logbook.counters["recorded"] == 1
+        assert watch.counters["scenes"] == 1, dict(watch.counters)
+        assert {"jar", "bowl"} <= set(watch.seen)  # type: ignore[attr-defined]
+        assert km.counters["queries"] == 1
     finally:
-        logbook.stop()
+        km.stop()
         thread.join(timeout=5)
+        km.close()  # type: ignore[attr-defined]
+
+    moved = sys.modules["walk_wt3.agent"].moved
+    here = ObjectInfo(name="jar", type="Jar", pose=Pose((0.5, 0.0, 0.9)), location="cabinet")
+    assert not moved(
+        here, ObjectInfo(name="jar", type="Jar", pose=Pose((0.505, 0.0, 0.9)), location="cabinet")
+    )
+    assert moved(here, ObjectInfo(name="jar", type="Jar", pose=Pose((0.52, 0.0, 0.9)), location="cabinet"))
+    assert moved(here, ObjectInfo(name="jar", type="Jar", pose=Pose((0.5, 0.0, 0.9)), held_by="left_hand"))

@@ -34,7 +34,15 @@ from pathlib import Path
 from services.agents.knowledge.world_model import KnowledgeError, UnsupportedQuery, WorldModel
 from services.runtime.agent import Agent
 from services.runtime.behaviour import FSM, Arc, Behaviour
-from services.runtime.roles import INITIATOR, PARTICIPANT, Conversation, handles, initiator, participant
+from services.runtime.roles import (
+    EVERY_CHANNEL,
+    INITIATOR,
+    PARTICIPANT,
+    Conversation,
+    handles,
+    initiator,
+    participant,
+)
 from shared.fipa_codec import Performative
 from shared.fipa_codec.languages.l_wm import (
     GraspQuery,
@@ -81,9 +89,8 @@ class Query:
 class KnowledgeManager(Agent):
     name = "a_km"
     ROLES = (
-        participant("C4", "fipa-query", "L_WM"),
-        participant("C6", "fipa-query", "L_WM"),
-        participant("C7", "fipa-query", "L_WM"),
+        # every channel that asks a_km L_WM queries (C4, C6, C7, and any the specification adds)
+        participant(EVERY_CHANNEL, "fipa-query", "L_WM"),
         initiator("C6", "fipa-subscribe", "L_WM", reply_by_s=SUBSCRIBE_RETRY_S),
     )
 

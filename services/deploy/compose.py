@@ -1,0 +1,407 @@
+"""``deploy/compose.yaml`` rendered from the specification (docs/deploy.md).
+
+The file runs the fleet in containers: the one-shot ``certs`` service, the Zenoh router, the
+traffic recorder, one service per agent of the specification and a Rerun web viewer, all from
+one image. The services that are not agents, the shared settings (the ``x-roco`` and ``x-env``
+anchors) and the file's comments are this module's text; the agents' services follow from the
+specification:
+
+- one service per agent, in the specification's start order (``SystemSpec.launch_order``),
+  running ``python -m services.runtime.main NAME`` after the certificates, the router and the
+  recorder, with a health check from the agent's liveliness token;
+- the agent the specification's ``start_order`` names last (a_hi: a person's command is taken
+  once the others are there) waits until every other agent is healthy;
+- what an agent's container needs beyond that is stated here, once, in :data:`AGENT_EXTRAS`:
+  a named volume for what it keeps across restarts (a_km's knowledge, a_co's accepted
+  commands) and capabilities (ag_ex's ``SYS_NICE`` for its 1 kHz loop).
+
+The file is in the Compose Specification format (no ``version:``), valid for ``docker
+compose`` v2 and Debian's ``docker-compose`` 1.29. ``roco deploy compose`` writes it,
+``roco deploy compose --check`` compares it, and ``roco spec new-agent`` brings it up to date.
+"""
+
+from __future__ import annotations
+
+import json
+import re
+from dataclasses import dataclass
+from pathlib import Path
+
+from services.spec.model import SystemSpec
+
+PROJECT = Path(__file__).resolve().parents[2]
+"""The project's root folder (where ``services/`` and ``deploy/`` are)."""
+
+COMPOSE_FILE = PROJECT / "deploy" / "compose.yaml"
+"""The project's compose file."""
+
+MAX_COMPOSE_BYTES = 1 << 20
+"""Largest compose file :func:`check` reads (1 MiB; the rendered file is ≈ 10 kB)."""
+
+MOUNTS = (
+    "${ROCO_RUNS:-../runs}:/runs",
+    "fleet:/var/lib/roco/fleet",
+    "${ROCO_CERTS:-./certs}:/certs:ro",
+)
+"""What every roco service mounts: the run folders, the fleet's run name, the credentials."""
+
+RUN_VARIABLES = ("ROCO_RUN_DIR", "ROCO_KM_STORE", "ROCO_CO_STATE", "ROCO_STATE_DIR")
+"""The variables in which deploy/entrypoint.sh replaces ``{run}`` by the run's name."""
+
+
+class ComposeError(ValueError):
+    """The specification cannot be rendered as a compose file, or the file cannot be read."""
+
+
+@dataclass(frozen=True)
+class StateVolume:
+    """A named ``volume`` mounted at ``path`` in an agent's container, and the ``variables`` (of
+    :data:`RUN_VARIABLES`) that point the agent at ``<path>/{run}``: what it keeps survives a
+    restart of its container within a run, and a new run starts empty."""
+
+    volume: str
+    path: str
+    variables: tuple[str, ...]
+
+
+@dataclass(frozen=True)
+class AgentExtras:
+    """What an agent's container needs beyond every agent's: a ``state`` volume, Linux
+    ``capabilities`` (``cap_add``) and the comment lines that say why."""
+
+    state: StateVolume | None = None
+    capabilities: tuple[str, ...] = ()
+    why: tuple[str, ...] = ()
+
+
+AGENT_EXTRAS: dict[str, AgentExtras] = {
+    "a_km": AgentExtras(state=StateVolume("km_store", "/var/lib/roco/km", ("ROCO_KM_STORE",))),
+    "a_co": AgentExtras(
+        state=StateVolume("co_state", "/var/lib/roco/co", ("ROCO_CO_STATE", "ROCO_STATE_DIR"))
+    ),
+    "ag_ex": AgentExtras(
+        capabilities=("SYS_NICE",),
+        why=(
+            "the 1 kHz loop asks for SCHED_FIFO (as root with CAP_SYS_NICE no rtprio ulimit is needed);",
+            "refused (e.g. no real-time budget in the container's cgroup v1) it runs on with normal",
+            "scheduling and says so in its log and report (velma/executor/timing.py)",
+        ),
+    ),
+}
+"""Per agent, what its container needs beyond every agent's (an agent not named needs
+nothing more: its kept state, services/runtime/state_store.py, goes to the run folder)."""
+
+_SERVICE = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.-]*")
+"""A compose service name (the Compose Specification's ``[a-zA-Z0-9._-]``)."""
+_PLAIN = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
+_YAML_WORDS = frozenset({"y", "n", "yes", "no", "on", "off", "true", "false", "null"})
+"""Plain YAML 1.1 scalars that are not strings (docker-compose 1.29 reads YAML 1.1)."""
+
+HEAD = """\
+# The roco fleet in containers: the Zenoh router, the traffic recorder, the agents of the
+# specification and a Rerun web viewer, one image for all (deploy/Dockerfile). docs/deploy.md
+# tells the whole story.
+#
+# Rendered by `roco deploy compose` from the specification (services/spec/robot_companion.toml:
+# one service per agent) and services/deploy/compose.py (the other services, the settings below,
+# each agent's volumes and capabilities): change those, not this file; `roco deploy compose
+# --check` says whether this file is what they give, and `roco spec new-agent` renders it again.
+#
+#   docker compose -f deploy/compose.yaml -p roco up -d        (or docker-compose 1.29: same flags)
+#   roco status --router tcp/127.0.0.1:7447
+#   roco send --router tcp/127.0.0.1:7447 "pour the jar into the bowl"
+#   docker compose -f deploy/compose.yaml -p roco down
+#
+# Configured by environment (shell or deploy/.env):
+#   ROCO_IMAGE            image to run/build                       roco:latest
+#   ROCO_BASE             base image of the build                  python:3.11-slim
+#   ROCO_ROUTER_PUBLISH   host address:port of the router          127.0.0.1:7447
+#                         (0.0.0.0:7447 to let another host's router mesh with this one)
+#   ROCO_PEER             other routers to mesh with, comma-separated (tcp/HOST:7447)
+#   ROCO_RUNS             host folder of the run folders           ../runs (the repository's runs/)
+#   ROCO_RUN              run folder name                          the router's creation time (UTC)
+#   ROCO_REALTIME         1: pace the simulation to wall time      1
+#   ROCO_SEED, ROCO_POSE_SEED, ROCO_LOG_LEVEL                      as for `roco run`
+#   ROCO_PERCEPTION       camera (head Kinect) or truth (physics)  camera
+#   ROCO_CAMERA_IDLE_S    s without an Observe before ag_ex's      60
+#                         camera process ends ("never": kept)
+#   ROCO_RECEIVE_POLL_US  µs an agent polls for a quick answer     500
+#                         before it sleeps (0: never; docs/agents.md)
+#   ROCO_RERUN            1: record robot and traffic with Rerun   1
+#   ROCO_RERUN_CONNECT    the viewer to stream to                  rerun+http://viewer:9876/proxy
+#   ROCO_VIEWER_BIND, ROCO_VIEWER_WEB_PORT, ROCO_VIEWER_GRPC_PORT  127.0.0.1, 9090, 9876
+#   ROCO_CERTS            host folder of the credentials           ./certs (deploy/certs)
+#   ROCO_SECURITY         credentials folder in the containers     /certs ("" = access control off)
+#   ROCO_PROTO            tls (mutual TLS) or tcp                  tls (tcp with ROCO_SECURITY="")
+#
+# Access control is on (docs/security.md): the one-shot service `certs` issues a private CA, the
+# router's certificate and one identity per agent/recorder/operator into ROCO_CERTS unless it
+# holds them already (`roco deploy certs --keep`); the router requires mutual TLS and a password
+# and applies the ACL generated from the specification. Off, for experiments:
+#   ROCO_SECURITY= ROCO_PROTO=tcp docker compose -f deploy/compose.yaml -p roco up -d
+#
+# Compose Specification format (no `version:`): valid for `docker compose` v2 and for
+# Debian's `docker-compose` 1.29 (depends_on conditions, healthchecks, init, cap_add).
+
+x-roco: &roco
+  image: ${ROCO_IMAGE:-roco:latest}
+  build:
+    context: ..
+    dockerfile: deploy/Dockerfile
+    args:
+      BASE: ${ROCO_BASE:-python:3.11-slim}
+  init: true  # tini as PID 1: signals reach the service, zombies are reaped
+  restart: unless-stopped
+  volumes:
+@MOUNTS
+  healthcheck: &health
+    interval: 5s
+    timeout: 10s
+    retries: 5
+    start_period: 120s
+
+x-env: &env
+  ROCO_ROUTER: ${ROCO_PROTO:-tls}/router:7447
+  ROCO_SECURITY: ${ROCO_SECURITY-/certs}
+  ROCO_RUN: ${ROCO_RUN:-}
+  ROCO_RUN_DIR: /runs/{run}
+  ROCO_REALTIME: ${ROCO_REALTIME:-1}
+  ROCO_SEED: ${ROCO_SEED:-0}
+  ROCO_POSE_SEED: ${ROCO_POSE_SEED:-}
+  ROCO_PERCEPTION: ${ROCO_PERCEPTION:-}
+  ROCO_CAMERA_IDLE_S: ${ROCO_CAMERA_IDLE_S:-}
+  ROCO_RECEIVE_POLL_US: ${ROCO_RECEIVE_POLL_US:-}
+  ROCO_LOG_LEVEL: ${ROCO_LOG_LEVEL:-INFO}
+  ROCO_RERUN: ${ROCO_RERUN:-1}
+  ROCO_RERUN_CONNECT: ${ROCO_RERUN_CONNECT-rerun+http://viewer:9876/proxy}
+
+x-after-router: &after-router
+  certs:
+    condition: service_completed_successfully
+  router:
+    condition: service_healthy
+  recorder:
+    condition: service_healthy
+
+services:
+  certs:  # one shot: the deployment's credentials, unless ROCO_CERTS has them (docs/security.md)
+    <<: *roco
+    restart: "no"
+    command: ["python", "-m", "services.cli", "deploy", "certs", "/certs", "--keep"]
+    volumes:
+      - ${ROCO_CERTS:-./certs}:/certs
+    healthcheck:
+      disable: true
+
+  router:
+    <<: *roco
+    command: ["sh", "-c", "exec python -m services.runtime.router --listen $${ROCO_PROTO:-tls}/0.0.0.0:7447"]
+    environment:
+      <<: *env
+      ROCO_NEW_RUN: "1"
+      ROCO_CONNECT: ${ROCO_PEER:-}
+      ROCO_PROTO: ${ROCO_PROTO:-tls}
+      ROCO_ROUTER_IDENTITY: ${ROCO_ROUTER_IDENTITY:-}  # a meshed router's identity (roco deploy router)
+    depends_on:
+      certs:
+        condition: service_completed_successfully
+    ports:
+      - ${ROCO_ROUTER_PUBLISH:-127.0.0.1:7447}:7447
+    healthcheck:
+      <<: *health
+      # a TCP connect
+      test: ["CMD", "python", "-m", "services.runtime.health", "router",
+             "--router", "tcp/127.0.0.1:7447"]
+
+  recorder:
+    <<: *roco
+    command: ["python", "-m", "services.recorder.recorder"]
+    environment: *env
+    depends_on:
+      certs:
+        condition: service_completed_successfully
+      router:
+        condition: service_healthy
+    stop_grace_period: 60s  # it merges the Rerun parts into recording.rrd when it stops
+    healthcheck:
+      <<: *health
+      test: ["CMD", "python", "-m", "services.runtime.health", "recorder"]
+
+  # The agents of the specification, in its start order (services/deploy/compose.py).
+"""
+
+VIEWER = """\
+  viewer:
+    <<: *roco
+    command:
+      - python
+      - -m
+      - rerun_cli
+      - --serve-web
+      - --bind
+      - 0.0.0.0
+      - --port
+      - "9876"
+      - --web-viewer-port
+      - "9090"
+    environment:
+      RUST_LOG: warn
+    volumes:
+      - ${ROCO_RUNS:-../runs}:/runs:ro
+    ports:
+      - ${ROCO_VIEWER_BIND:-127.0.0.1}:${ROCO_VIEWER_WEB_PORT:-9090}:9090
+      - ${ROCO_VIEWER_BIND:-127.0.0.1}:${ROCO_VIEWER_GRPC_PORT:-9876}:9876
+    healthcheck:
+      <<: *health
+      test: ["CMD", "python", "-m", "services.runtime.health", "viewer",
+             "--tcp", "127.0.0.1:9876", "--tcp", "127.0.0.1:9090"]
+"""
+
+NOT_AGENTS = ("certs", "router", "recorder", "viewer")
+"""The services of the file that are not agents (an agent may have none of these names)."""
+
+
+def last_started(spec: SystemSpec) -> str:
+    """The agent that waits until every other agent is healthy: the last one the
+    specification's ``start_order`` names (else the last in its start order)."""
+    return (spec.start_order or spec.launch_order)[-1]
+
+
+def _key(name: str) -> str:
+    """``name`` as a YAML mapping key: plain where YAML 1.1 reads it as that string."""
+    if _PLAIN.fullmatch(name) and name.lower() not in _YAML_WORDS:
+        return name
+    return json.dumps(name)
+
+
+def _agent(spec: SystemSpec, name: str) -> list[str]:
+    """The lines of agent ``name``'s service."""
+    extras = AGENT_EXTRAS.get(name, AgentExtras())
+    key = json.dumps(name)
+    lines = [
+        f"  {_key(name)}:",
+        "    <<: *roco",
+        f'    command: ["python", "-m", "services.runtime.main", {key}]',
+    ]
+    state = extras.state
+    if state is None:
+        lines.append("    environment: *env")
+    else:
+        lines += ["    environment:", "      <<: *env"]
+        lines += [f"      {var}: {state.path}/{{run}}" for var in state.variables]
+        lines += ["    volumes:", *(f"      - {m}" for m in MOUNTS), f"      - {state.volume}:{state.path}"]
+    if name == last_started(spec):
+        lines += [
+            "    depends_on:  # last in the specification's start_order: once every other agent is healthy",
+            "      <<: *after-router",
+        ]
+        for other in spec.launch_order:
+            if other != name:
+                lines += [f"      {_key(other)}:", "        condition: service_healthy"]
+    else:
+        lines.append("    depends_on: *after-router")
+    lines += [f"    # {why}" for why in extras.why]
+    if extras.capabilities:
+        lines.append(f"    cap_add: [{', '.join(extras.capabilities)}]")
+    lines += [
+        "    healthcheck:",
+        "      <<: *health",
+        f'      test: ["CMD", "python", "-m", "services.runtime.health", {key}]',
+    ]
+    return lines
+
+
+def render(spec: SystemSpec) -> str:
+    """The compose file ``spec`` gives (see the module docstring). Raises ComposeError for an
+    agent whose name cannot be a compose service's, or is one of :data:`NOT_AGENTS`."""
+    volumes = ["fleet"]
+    for name in spec.launch_order:
+        if not _SERVICE.fullmatch(name) or name in NOT_AGENTS:
+            raise ComposeError(
+                f"agent {name!r} cannot be a compose service: a service's name is letters, digits, "
+                f"'.', '_' and '-', not {', '.join(NOT_AGENTS)}"
+            )
+        state = AGENT_EXTRAS.get(name, AgentExtras()).state
+        if state is not None and state.volume not in volumes:
+            volumes.append(state.volume)
+    head = HEAD.replace("@MOUNTS\n", "".join(f"    - {m}\n" for m in MOUNTS))
+    agents = "\n".join("\n".join(_agent(spec, name)) + "\n" for name in spec.launch_order)
+    tail = "volumes:\n" + "".join(f"  {v}: {{}}\n" for v in volumes)
+    return f"{head}{agents}\n{VIEWER}\n{tail}"
+
+
+def read(path: Path) -> str:
+    """The text of compose file ``path``. Raises ComposeError (one line) when it is missing,
+    unreadable, larger than :data:`MAX_COMPOSE_BYTES` or not UTF-8."""
+    try:
+        size = path.stat().st_size
+        if size > MAX_COMPOSE_BYTES:
+            raise ComposeError(f"{path}: {size} bytes, more than a compose file holds ({MAX_COMPOSE_BYTES})")
+        return path.read_bytes().decode("utf-8")
+    except FileNotFoundError:
+        raise ComposeError(f"{path}: no such compose file") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ComposeError(f"{path}: cannot read it: {exc}") from None
+
+
+_SERVICE_LINE = re.compile(r'^  "?([A-Za-z0-9][A-Za-z0-9_.-]*)"?:', re.M)
+
+
+def difference(text: str, spec: SystemSpec) -> str | None:
+    """How compose file ``text`` differs from what ``spec`` gives (one phrase naming the agents
+    with no service, or services of no agent, where that is the difference), or None."""
+    wanted = render(spec)
+    if text == wanted:
+        return None
+    body = text.split("\nservices:\n", 1)[-1].split("\nvolumes:\n", 1)[0]
+    found = set(_SERVICE_LINE.findall(body)) - set(NOT_AGENTS)
+    agents = set(spec.launch_order)
+    if missing := sorted(agents - found):
+        return f"no service for agent {', '.join(missing)}"
+    if extra := sorted(found - agents):
+        return f"a service for {', '.join(extra)}, which the specification has no agent of"
+    ours, theirs = text.splitlines(), wanted.splitlines()
+    first = next((i for i, (a, b) in enumerate(zip(ours, theirs, strict=False)) if a != b), None)
+    if first is None:
+        shorter = min(len(ours), len(theirs))
+        return "its end differs" if len(ours) == len(theirs) else f"line {shorter + 1} differs"
+    return f"line {first + 1} differs"
+
+
+def check(path: Path, spec: SystemSpec, shown: str | None = None) -> str | None:
+    """None when compose file ``path`` is what ``spec`` gives; else one line saying how it
+    differs and how to bring it up to date, naming the file ``shown`` (default: ``path``).
+    Raises ComposeError as :func:`read`."""
+    how = difference(read(path), spec)
+    if how is None:
+        return None
+    return f"{shown or path} differs from what the specification gives ({how}): run `roco deploy compose`"
+
+
+def write(path: Path, spec: SystemSpec) -> bool:
+    """Write the compose file ``spec`` gives to ``path`` (atomically); False when it already
+    held exactly that. Raises ComposeError as :func:`render`, and when it cannot be written."""
+    text = render(spec)
+    try:
+        if read(path) == text:
+            return False
+    except ComposeError:
+        pass
+    tmp = path.with_name(path.name + ".tmp")
+    try:
+        tmp.write_text(text)
+        tmp.replace(path)
+    except OSError as exc:
+        raise ComposeError(f"{path}: cannot write it: {exc.strerror or exc}") from None
+    return True
+
+
+def bring_up_to_date(root: Path, spec: SystemSpec) -> str:
+    """Render ``root``'s ``deploy/compose.yaml`` from ``spec`` (``roco spec new-agent``); the
+    line to tell the user what was done. Raises ComposeError as :func:`write`."""
+    path = root / "deploy" / "compose.yaml"
+    if not path.is_file():
+        return f"no compose file at {path}: `roco deploy compose --file F` writes one elsewhere"
+    if write(path, spec):
+        return f"wrote {path}: one service per agent ({', '.join(spec.launch_order)})"
+    return f"{path} is up to date"

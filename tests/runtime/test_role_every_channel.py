@@ -1,0 +1,118 @@
+"""A role declared for every channel (services/runtime/roles.py ``EVERY_CHANNEL``): it stands
+for one role per channel where the specification gives the agent that role of that protocol in
+exactly those languages, so that an agent serves a channel added to the specification without
+an edit of its code; the comparison with the specification stays as strict as for roles
+declared one by one."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from services.agents.knowledge.agent import KnowledgeManager
+from services.runtime.memory_transport import MemoryBus
+from services.runtime.roles import (
+    EVERY_CHANNEL,
+    RoleMismatch,
+    expand_roles,
+    handlers_of,
+    initiator,
+    participant,
+    role_problems,
+)
+from services.spec.model import DEFAULT_SPEC, default_spec, load
+from tests.spec_check.walkthrough import GROUP_EDIT, snippet, staged
+
+SPEC = default_spec()
+SUBSCRIBE = initiator("C6", "fipa-subscribe", "L_WM", reply_by_s=2.0)
+HANDLERS = list(handlers_of(KnowledgeManager))
+
+
+def test_a_role_for_every_channel_stands_for_each_channel_the_spec_gives_it_in_order() -> None:
+    declared = [participant(EVERY_CHANNEL, "fipa-query", "L_WM"), SUBSCRIBE]
+    roles = expand_roles(SPEC, "a_km", declared)
+    assert [(r.channel, r.protocol, r.role, r.languages) for r in roles] == [
+        ("C4", "fipa-query", "participant", ("L_WM",)),
+        ("C6", "fipa-query", "participant", ("L_WM",)),
+        ("C7", "fipa-query", "participant", ("L_WM",)),
+        ("C6", "fipa-subscribe", "initiator", ("L_WM",)),
+    ]
+    assert role_problems(SPEC, "a_km", declared, HANDLERS) == []
+    # a channel declared by itself is left to that declaration (its own deadline here)
+    own = initiator("C6", "fipa-query", "L_WM", reply_by_s=5.0)
+    mixed = expand_roles(SPEC, "a_ta", [initiator(EVERY_CHANNEL, "fipa-query", "L_WM", unused=True), own])
+    assert mixed == [own]
+
+
+def test_it_is_as_strict_as_roles_declared_one_by_one() -> None:
+    # other languages: it stands for no channel, and each channel's role is missing
+    problems = role_problems(
+        SPEC, "a_km", [participant(EVERY_CHANNEL, "fipa-query", "L_HC"), SUBSCRIBE], HANDLERS
+    )
+    assert problems[0] == (
+        "agent a_km declares itself participant of fipa-query on every channel (L_HC), but no "
+        "[[channels]] entry makes it the participant of fipa-query in L_HC"
+    )
+    assert (
+        "agent a_km declares no participant role for fipa-query on C7, which [[channels]] C7 gives it "
+        "(in L_WM)" in problems
+    )
+    # the other role of the protocol
+    problems = role_problems(
+        SPEC, "a_km", [initiator(EVERY_CHANNEL, "fipa-query", "L_WM"), SUBSCRIBE], HANDLERS
+    )
+    assert any("no [[channels]] entry makes it the initiator of fipa-query in L_WM" in p for p in problems)
+    # twice, and a role for every channel whose channels are all declared by themselves
+    every = participant(EVERY_CHANNEL, "fipa-query", "L_WM")
+    assert "agent a_km declares participant of fipa-query on every channel (L_WM) twice" in role_problems(
+        SPEC, "a_km", [every, every, SUBSCRIBE], HANDLERS
+    )
+    each = [participant(c, "fipa-query", "L_WM") for c in ("C4", "C6", "C7")]
+    assert role_problems(SPEC, "a_km", [*each, SUBSCRIBE], HANDLERS) == []
+    assert role_problems(SPEC, "a_km", [every, *each, SUBSCRIBE], HANDLERS) == [
+        "agent a_km declares itself participant of fipa-query on every channel (L_WM), but declares each "
+        "such channel (C4, C6, C7) by itself: the role on every channel covers none"
+    ]
+
+
+def test_a_channel_with_other_languages_is_not_covered(tmp_path: Path) -> None:
+    text = DEFAULT_SPEC.read_text()
+    c7 = text[text.index('name = "C7"') :]
+    c7 = c7[: c7.index("[[channels]]")]
+    path = tmp_path / "spec.toml"
+    path.write_text(
+        text.replace(c7, c7.replace('"L_WM"', '"L_HC"').replace('["SparqlQuery"]', '["StatusQuery"]'))
+    )
+    spec = load(path)
+    problems = role_problems(spec, "a_km", KnowledgeManager.ROLES, HANDLERS)
+    assert problems == [
+        "agent a_km declares no participant role for fipa-query on C7, which [[channels]] C7 gives it "
+        "(in L_HC)"
+    ]
+
+
+def test_a_km_serves_a_new_channel_of_the_walkthrough_without_an_edit(tmp_path: Path) -> None:
+    """docs/spec.md's walk-through adds C9 (fipa-query from a_wt): a_km starts on that
+    specification and plays the participant there; an a_km that named its channels one by one
+    refuses to start, naming C9."""
+    path = tmp_path / "spec.toml"
+    path.write_text(staged(DEFAULT_SPEC.read_text(), snippet(1), snippet(2), edits=GROUP_EDIT))
+    spec = load(path)
+    km = KnowledgeManager(MemoryBus().transport(), spec)
+    try:
+        assert km.roles.role("C9", "fipa-query").role == "participant"
+        assert [d.channel for d in km.roles.declared if d.protocol == "fipa-query"] == [
+            "C4",
+            "C6",
+            "C7",
+            "C9",
+        ]
+    finally:
+        km.close()
+
+    class NamedChannels(KnowledgeManager):
+        ROLES = (*(participant(c, "fipa-query", "L_WM") for c in ("C4", "C6", "C7")), SUBSCRIBE)  # type: ignore[assignment]
+
+    with pytest.raises(RoleMismatch, match="declares no participant role for fipa-query on C9"):
+        NamedChannels(MemoryBus().transport(), spec)
