@@ -32,14 +32,12 @@ or ``python scripts/bench_perception.py --pours 10 [--remove 2]``
 from __future__ import annotations
 
 import argparse
-import os
 import sys
 import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
-os.environ.setdefault("MUJOCO_GL", "egl")  # read when mujoco is first imported (velma/render.py)
 
 import benchlib  # noqa: E402  (scripts/benchlib.py, beside this file)
 import numpy as np  # noqa: E402

@@ -30,13 +30,25 @@ import typer
 
 from services.deploy.cli import deploy_app
 from services.fault.cli import fault_app
-from services.fault.process import record_events
 from services.fleet.launcher import AGENT_ORDER, Fleet, LaunchError
 from services.hosts.cli import hosts_app
 from services.runtime import keys
 from services.runtime.human import FINAL_REPORTS, HumanInput, HumanReport
-from services.runtime.run_folder import RunInfo, new_run_dir, write_run_info
-from services.runtime.session import SessionRefused, alive_agents, open_client, open_operator
+from services.runtime.run_folder import (
+    RunFolderError,
+    RunInfo,
+    check_run_folder,
+    new_run_dir,
+    write_run_info,
+)
+from services.runtime.session import (
+    SessionRefused,
+    alive_agents,
+    listening,
+    open_client,
+    open_operator,
+    port_in_use,
+)
 from services.security.context import register
 from services.spec.model import default_spec
 
@@ -82,6 +94,30 @@ CredentialsOption = Annotated[
         "else the fleet of 'roco up']",
         show_default=False,
     ),
+]
+RunsDirMade = Annotated[
+    Path,
+    typer.Option("--runs-dir", help="where this run's folder is made (named by the date and time it starts)"),
+]
+RouterOption = Annotated[
+    str | None,
+    typer.Option(
+        help="the router to reach, e.g. tcp/HOST:7447 [default: the fleet of 'roco up', else ROCO_ROUTER]",
+        show_default=False,
+    ),
+]
+FleetRunsDir = Annotated[
+    Path,
+    typer.Option(
+        "--runs-dir", help="where 'roco up' keeps its fleet state: the fleet's router, unless --router"
+    ),
+]
+RecordOption = Annotated[
+    bool,
+    typer.Option("--record/--no-record", help="record robot, scene and traffic in RUN/recording.rrd (Rerun)"),
+]
+ViewOption = Annotated[
+    bool, typer.Option("--view/--no-view", help="also show the recording live in a Rerun viewer")
 ]
 LiveOption = Annotated[
     bool | None,
@@ -132,6 +168,36 @@ def fail(message: str, code: int = 1) -> typer.Exit:
     return typer.Exit(code)
 
 
+INTERRUPTED = 130
+"""The exit status of a command ended by Ctrl-C (SIGINT), SIGTERM or SIGHUP: 128 + SIGINT."""
+
+
+def _new_run_dir(runs_dir: Path) -> Path:
+    """A new run folder under ``runs_dir`` (services/runtime/run_folder.py ``new_run_dir``);
+    one line and exit 2 when none can be made there."""
+    try:
+        return new_run_dir(runs_dir)
+    except RunFolderError as exc:
+        raise fail(str(exc), code=2) from None
+
+
+def _run_folder(path: Path) -> Path:
+    """``path`` when it is a run folder (``run.json`` or ``traffic.jsonl`` in it); one line and
+    exit 2 otherwise, before anything is read or written."""
+    try:
+        check_run_folder(path)
+    except RunFolderError as exc:
+        raise fail(str(exc), code=2) from None
+    return path
+
+
+def _port_free(port: int, option: str, host: str = "127.0.0.1") -> None:
+    """One line and exit 2 when something listens on ``host:port`` already, naming ``option``
+    to choose another."""
+    if listening(f"tcp/{host}:{port}"):
+        raise fail(port_in_use(host, port, option), code=2)
+
+
 def _interrupt(signum: int, frame: object) -> None:
     raise KeyboardInterrupt
 
@@ -154,7 +220,7 @@ def _send_command(session: object, text: str, request_id: str) -> None:
 @app.command(short_help="Run the whole system on one command, to the end of the task.")
 def run(
     command: Annotated[str, typer.Argument(help="what the person says, e.g. 'pour the jar into the bowl'")],
-    runs_dir: Annotated[Path, typer.Option(help="where run folders are made")] = Path("runs"),
+    runs_dir: RunsDirMade = Path("runs"),
     realtime: Annotated[bool, typer.Option(help="pace the simulation to wall time")] = False,
     timeout: Annotated[float, typer.Option(help="give up after this many seconds")] = 900.0,
     quiet: Annotated[bool, typer.Option(help="print only the outcome")] = False,
@@ -162,21 +228,23 @@ def run(
     pose_seed: Annotated[
         int | None, typer.Option(min=0, help="randomise the jar and bowl poses (±2 cm, ±10°) with this seed")
     ] = None,
+    record: RecordOption = True,
+    view: ViewOption = False,
     acl: AclOption = None,
     tls: TlsOption = None,
     live: LiveOption = None,
 ) -> None:
     """Start router, recorder and one process per agent; give a_hi the command; wait for the
-    outcome; stop everything; write the run folder's report. Exit 0 only on success."""
+    outcome; stop everything; write the run folder's report. Exit 0 only on success, 130
+    when interrupted (Ctrl-C: the fleet is stopped, the report written)."""
     from services.scenario.model import Scenario, Step
 
     _security(acl, tls)
     scenario = Scenario(
         name="", steps=(Step(say=command),), seed=seed, pose_seed=pose_seed, timeout_s=timeout
     )
-    _run_scenario(
-        scenario, runs_dir, realtime=realtime, quiet=quiet, watch=_live_watch("roco run", live, quiet)
-    )
+    watch = _live_watch("roco run", live, quiet)
+    _run_scenario(scenario, runs_dir, realtime=realtime, quiet=quiet, record=record, view=view, watch=watch)
 
 
 @app.command(short_help="Run a scripted session and check every command's outcome.")
@@ -184,21 +252,20 @@ def scenario(
     name: Annotated[
         str | None, typer.Argument(help="a scenario file, or the name of one in the library")
     ] = None,
-    runs_dir: Annotated[Path, typer.Option(help="where run folders are made")] = Path("runs"),
+    runs_dir: RunsDirMade = Path("runs"),
     realtime: Annotated[bool, typer.Option(help="pace the simulation to wall time")] = False,
     quiet: Annotated[bool, typer.Option(help="print only the outcome")] = False,
     list_: Annotated[bool, typer.Option("--list", help="list the library's scenarios")] = False,
-    record: Annotated[
-        bool, typer.Option(help="record robot, scene and traffic in RUN/recording.rrd (Rerun)")
-    ] = True,
-    view: Annotated[bool, typer.Option(help="also show the recording live in a Rerun viewer")] = False,
+    record: RecordOption = True,
+    view: ViewOption = False,
     acl: AclOption = None,
     tls: TlsOption = None,
     live: LiveOption = None,
 ) -> None:
     """Run a scenario (several commands, interruptions, disturbances, restarts; see
     services/scenario/model.py) headless, check every command's outcome against what the
-    scenario expects, and write the report. Exit 0 only when everything went as expected."""
+    scenario expects, and write the report. Exit 0 only when everything went as expected, 130
+    when interrupted."""
     from services.scenario.model import ScenarioError, library, load_scenario
 
     _security(acl, tls)
@@ -240,10 +307,10 @@ def chaos(
     ),
     command: Annotated[str, typer.Option(help="what the person asks for")] = "pour the jar into the bowl",
     gap: Annotated[str, typer.Option(help="MIN,MAX seconds between faults (uniform)")] = "3,8",
-    runs_dir: Annotated[Path, typer.Option(help="where run folders are made")] = Path("runs"),
+    runs_dir: RunsDirMade = Path("runs"),
     realtime: Annotated[bool, typer.Option(help="pace the simulation to wall time")] = False,
     quiet: Annotated[bool, typer.Option(help="print only the faults and the verdict")] = False,
-    record: Annotated[bool, typer.Option(help="record RUN/recording.rrd (Rerun)")] = False,
+    record: RecordOption = False,
     acl: AclOption = None,
     tls: TlsOption = None,
     live: LiveOption = None,
@@ -328,10 +395,11 @@ def chaos(
             )
         except ValueError as exc:
             raise fail(str(exc), code=2) from None
-    run_dir = new_run_dir(runs_dir)
+    scene = _scene_env(realtime, 0, None)
+    run_dir = _new_run_dir(runs_dir)
+    env = scene | _viewer_env(record, False)
     info = RunInfo(started=time.time(), realtime=realtime, seed=0, scenario=sc.name)
     _stop_on_signals()
-    env = _scene_env(realtime, 0, None) | _viewer_env(record, False)
     hosting: Hosting | None = None
     if hosts:
         from services.hosts.fleet import TwoHosts, TwoHostsHosting
@@ -351,7 +419,7 @@ def chaos(
             hosting=hosting,
         )
         outcome = runner.run()
-    _finish_report(run_dir, info)
+    _finish_report(run_dir, info, interrupted=outcome.interrupted)
     v = verdict(run_dir, outcome)
     path = write_chaos_report(run_dir, sc, outcome, v)
     typer.echo(path.read_text())
@@ -404,7 +472,9 @@ def _run_scenario(
     from services.scenario.runner import ScenarioRunner
 
     assert isinstance(sc, Scenario)
-    run_dir = new_run_dir(runs_dir)
+    scene = _scene_env(realtime, sc.seed, sc.pose_seed)
+    run_dir = _new_run_dir(runs_dir)
+    env = scene | _viewer_env(record, view)
     info = RunInfo(
         started=time.time(),
         realtime=realtime,
@@ -413,7 +483,6 @@ def _run_scenario(
         scenario=sc.name,
     )
     _stop_on_signals()
-    env = _scene_env(realtime, sc.seed, sc.pose_seed) | _viewer_env(record, view)
     say = watch.line if watch is not None else typer.echo
     with watch if watch is not None else contextlib.nullcontext():
         runner = ScenarioRunner(
@@ -426,7 +495,7 @@ def _run_scenario(
             on_session=watch.attach if watch is not None else None,
         )
         outcome = runner.run()
-    _finish_report(run_dir, info)
+    _finish_report(run_dir, info, interrupted=outcome.interrupted)
     if sc.name:
         typer.echo(outcome.summary())
     if not outcome.ok:
@@ -434,23 +503,49 @@ def _run_scenario(
         raise fail(f"{what}: {info.detail} (run folder {run_dir})")
 
 
+def _check_perception() -> None:
+    """Refuse a bad ``ROCO_PERCEPTION``, or ``camera`` where the head camera cannot render, with
+    one line (exit 2); say once when the robot perceives with the ground truth because this
+    machine has no off-screen GL library (velma/executor/capture.py ``perception_mode``)."""
+    from velma.executor.capture import camera_unavailable, perception_mode
+
+    try:
+        perception_mode()
+    except ValueError as exc:
+        raise fail(str(exc), code=2) from None
+    why = camera_unavailable()
+    asked = os.environ.get("ROCO_PERCEPTION", "")
+    if why is not None and asked == "camera":
+        raise fail(f"ROCO_PERCEPTION=camera, but {why}", code=2)
+    if why is not None and not asked:
+        typer.echo(f"roco: the robot perceives with the physics' ground truth: {why}", err=True)
+
+
 def _scene_env(realtime: bool, seed: int, pose_seed: int | None) -> dict[str, str]:
-    """The environment that tells ag_ex its pacing and scene (services/agents/executor/agent.py)."""
+    """The environment that tells ag_ex its pacing and scene (services/agents/executor/agent.py).
+    Checks the perception first (``_check_perception``)."""
+    _check_perception()
     env = {"ROCO_REALTIME": "1" if realtime else "0", "ROCO_SEED": str(seed)}
     if pose_seed is not None:
         env["ROCO_POSE_SEED"] = str(pose_seed)
     return env
 
 
-def _finish_report(run_dir: Path, info: RunInfo) -> None:
+def _finish_report(run_dir: Path, info: RunInfo, *, interrupted: bool = False) -> None:
+    """Write the run's report and say in one line how the run went; when ``interrupted``
+    (Ctrl-C, SIGTERM, SIGHUP: the runner stopped the fleet), say only that, and exit 130."""
     from services.report import build_report, write_report
 
     try:
         path = write_report(run_dir)
         report = build_report(run_dir)
     except Exception as exc:  # the run's outcome stands even if its report cannot be made
+        if interrupted:
+            raise fail(f"interrupted; the fleet is stopped; run folder {run_dir}", INTERRUPTED) from None
         typer.echo(f"roco: report not written: {exc}", err=True)
         return
+    if interrupted:
+        raise fail(f"interrupted; the fleet is stopped; report {path}", INTERRUPTED)
     c = report.content
     poured = any("pour" in text for text in info.commands)
     share = f"{c.inside} of {c.total} spheres in the {c.container}" if c.observed else "content not observed"
@@ -463,8 +558,14 @@ def _finish_report(run_dir: Path, info: RunInfo) -> None:
 
 @app.command(short_help="Start a fleet that keeps running: router, recorder, agents.")
 def up(
-    port: Annotated[int, typer.Option(help="router TCP port on 127.0.0.1")] = 7447,
-    runs_dir: Annotated[Path, typer.Option(help="where the fleet's run folder is made")] = Path("runs"),
+    port: Annotated[int, typer.Option(min=1, max=65535, help="router TCP port on 127.0.0.1")] = 7447,
+    runs_dir: Annotated[
+        Path,
+        typer.Option(
+            "--runs-dir",
+            help="where the fleet's run folder is made and its state kept for 'roco down', 'send', 'status'",
+        ),
+    ] = Path("runs"),
     realtime: Annotated[bool, typer.Option(help="pace the simulation to wall time")] = True,
     seed: Annotated[int, typer.Option(min=0, help="jitter of the jar content's start positions")] = 0,
     pose_seed: Annotated[
@@ -477,15 +578,23 @@ def up(
     tls: TlsOption = None,
 ) -> None:
     """Start router, recorder and all agents in the background; they keep running until
-    `roco down`."""
+    `roco down`, which writes the run's report. A port in use, or a runs folder that cannot
+    be written, is refused before anything starts; a fleet that does not come up is stopped
+    (its report written)."""
     _security(acl, tls)
     state_file = runs_dir / FLEET_FILE
     if state_file.exists():
         raise fail(f"a fleet is already up ({state_file}); run 'roco down' first")
-    run_dir = new_run_dir(runs_dir)
-    endpoint = f"tcp/127.0.0.1:{port}"
-    fleet = Fleet(run_dir, endpoint, env=_scene_env(realtime, seed, pose_seed) | _viewer_env(record, False))
-    endpoint = fleet.endpoint  # tls/… when the router listens on TLS
+    _port_free(port, "--port")
+    scene = _scene_env(realtime, seed, pose_seed)
+    run_dir = _new_run_dir(runs_dir)
+    env = scene | _viewer_env(record, False)
+    info = RunInfo(started=time.time(), realtime=realtime, seed=seed, pose_seed=pose_seed)
+    _stop_on_signals()
+    fleet = Fleet(run_dir, f"tcp/127.0.0.1:{port}", env=env)
+    info.router = endpoint = fleet.endpoint  # tls/… when the router listens on TLS
+    write_run_info(run_dir, info)
+    session: zenoh.Session | None = None
     try:
         fleet.start_router()
         session = open_client(endpoint)
@@ -493,23 +602,29 @@ def up(
         fleet.wait_alive(session, ["recorder"], timeout=60)
         fleet.start_agents()
         waited = fleet.wait_alive(session, AGENT_ORDER, timeout=120)
-        session.close()
-    except LaunchError as exc:
+    except (LaunchError, KeyboardInterrupt) as exc:
+        if session is not None:
+            session.close()
         fleet.stop()
-        raise fail(str(exc)) from None
-    write_run_info(
-        run_dir,
-        RunInfo(
-            started=time.time(),
-            router=endpoint,
-            processes=fleet.pids(),
-            realtime=realtime,
-            seed=seed,
-            pose_seed=pose_seed,
-        ),
-    )
+        why = "interrupted" if isinstance(exc, KeyboardInterrupt) else str(exc)
+        info.processes = fleet.pids()
+        write_run_info(run_dir, info)
+        _report_fleet_end(run_dir, failure=why)
+        code = INTERRUPTED if isinstance(exc, KeyboardInterrupt) else 1
+        raise fail(f"{why}; nothing of the fleet is left running; run folder {run_dir}", code) from None
+    session.close()
+    info.processes = fleet.pids()
+    write_run_info(run_dir, info)
     state_file.write_bytes(msgspec.json.encode(FleetState(endpoint, str(run_dir), fleet.pids())))
     typer.echo(f"roco: fleet up on {endpoint} in {waited:.1f} s; run folder {run_dir}")
+
+
+def _report_fleet_end(run_dir: Path, failure: str = "") -> str:
+    """Record the commands a fleet of `roco up` was given and their outcomes in its run.json,
+    write its report (services/report/ending.py) and return the words that say so."""
+    from services.report.ending import end
+
+    return end(run_dir, ended=time.time(), failure=failure).line()
 
 
 def _fleet_state(runs_dir: Path) -> FleetState | None:
@@ -523,61 +638,97 @@ def _fleet_state(runs_dir: Path) -> FleetState | None:
         raise fail(f"{path}: not a fleet state file: {why}", code=2) from None
 
 
-@app.command(short_help="Stop the fleet that roco up started.")
-def down(runs_dir: Annotated[Path, typer.Option()] = Path("runs")) -> None:
-    """Stop the fleet `roco up` started (only the processes it started, by PID)."""
+@app.command(short_help="Stop the fleet that roco up started and write its report.")
+def down(
+    runs_dir: Annotated[
+        Path, typer.Option("--runs-dir", help="where 'roco up' keeps the state of the fleet to stop")
+    ] = Path("runs"),
+) -> None:
+    """Stop the fleet `roco up` started (only the processes it started, by PID), naming each
+    as it stops: the agents, the recorder once it confirmed the traffic record complete, the
+    router. Then record in the run's run.json the commands the fleet was given and their
+    outcomes (from its C2 traffic) and write its report. A fleet of `roco hosts up` is
+    stopped as `roco hosts down` does."""
+    from services.hosts.cli import HOSTS_FILE
+    from services.hosts.cli import down as hosts_down
+    from services.recorder.sync import sync_fleet, sync_words
+
+    if (runs_dir / HOSTS_FILE).exists():
+        hosts_down(runs_dir)
+        return
     state = _fleet_state(runs_dir)
     if state is None:
         raise fail(f"no fleet is up (no {runs_dir / FLEET_FILE})")
-    for name in [n for n in state.pids if n not in ("recorder", "router")]:
-        _terminate(state.pids[name])
+    typer.echo("roco: stopping", nl=False)
+    _stop_pids({n: p for n, p in state.pids.items() if n not in ("recorder", "router")})
     # everything the agents sent before they stopped is in the traffic record before it closes
-    synced = "recorder" in state.pids and _sync_recorder(runs_dir)
-    for name in ("recorder", "router"):
-        if name in state.pids:
-            _terminate(state.pids[name])
+    if "recorder" in state.pids:
+        synced = sync_fleet(state.endpoint, Path(state.run_dir) / "security")
+        typer.echo(f"; recorder: {sync_words(synced)}", nl=False)
+        _stop_pids({"recorder": state.pids["recorder"]}, named=False)
+    if "router" in state.pids:
+        typer.echo("; router", nl=False)
+        _stop_pids({"router": state.pids["router"]}, named=False)
+    typer.echo("")
     (runs_dir / FLEET_FILE).unlink()
-    record = "traffic record complete" if synced else "the recorder did not confirm the traffic record"
-    typer.echo(f"roco: fleet stopped; {record}; run folder {state.run_dir}")
+    typer.echo(f"roco: fleet stopped {_report_fleet_end(Path(state.run_dir))}")
 
 
-def _terminate(pid: int, wait_s: float = 5.0) -> None:
-    """SIGTERM ``pid`` (a process this fleet's state file names) and wait up to ``wait_s`` for
-    it to end; a process already gone is fine."""
+def _running(pid: int) -> bool:
+    """Whether process ``pid`` still runs (a zombie, ended but not yet reaped, does not)."""
     try:
-        os.kill(pid, signal.SIGTERM)
+        os.kill(pid, 0)
     except ProcessLookupError:
-        return
-    until = time.monotonic() + wait_s
-    while time.monotonic() < until:
-        try:
-            os.kill(pid, 0)
-        except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    try:
+        return Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0] != "Z"
+    except (OSError, IndexError):
+        return True
+
+
+def _stop_pids(pids: dict[str, int], grace_s: float = 10.0, *, named: bool = True) -> None:
+    """SIGTERM every process of ``pids`` (service name → PID, as a fleet's state file names
+    them) at once; echo each name (``named``) as its process ends, on the current line; SIGKILL
+    what is left after ``grace_s`` ("NAME (killed)"). A process already gone is fine."""
+    for pid in pids.values():
+        with contextlib.suppress(ProcessLookupError):
+            os.kill(pid, signal.SIGTERM)
+    left = dict(pids)
+    deadline = time.monotonic() + grace_s
+    while left:
+        for name in [n for n, pid in left.items() if not _running(pid)]:
+            del left[name]
+            if named:
+                typer.echo(f" {name}", nl=False)
+        if left and time.monotonic() > deadline:
+            for name, pid in left.items():
+                with contextlib.suppress(ProcessLookupError):
+                    os.kill(pid, signal.SIGKILL)
+                typer.echo(f" {name} (killed)", nl=False)
             return
         time.sleep(0.05)
 
 
-def _sync_recorder(runs_dir: Path) -> bool:
-    """The recorder-sync barrier (``roco/recorder/sync``): True once the traffic recorder wrote
-    everything routed before the token, False when the router or the recorder does not answer
-    within 5 s."""
-    try:
-        session = open_client(_endpoint(None, runs_dir))
-    except Exception:
-        return False
-    try:
-        return record_events(session, [])
-    finally:
-        session.close()
-
-
-def _open_operator_session(endpoint: str, credentials: Path | None = None) -> zenoh.Session:
+def _open_operator_session(
+    endpoint: str, credentials: Path | None = None, runs_dir: Path | None = None
+) -> zenoh.Session:
     """The operator's session with the router at ``endpoint`` (its credentials from
     ``credentials``, ``ROCO_SECURITY`` or the fleet of ``roco up``); one line and exit 1 when
-    it cannot be opened (services/runtime/session.py ``open_operator``)."""
+    it cannot be opened (services/runtime/session.py ``open_operator``). ``runs_dir``: where
+    the endpoint was found (``roco up``'s state), named when that fleet is gone."""
     try:
         return open_operator(endpoint, credentials=credentials)
     except SessionRefused as exc:
+        state = _fleet_state(runs_dir) if runs_dir is not None else None
+        gone = state is not None and state.endpoint == endpoint and not listening(endpoint)
+        if runs_dir is not None and gone:
+            where = runs_dir / FLEET_FILE
+            raise fail(
+                f"no router answers at {endpoint}: the fleet {where} names is gone; "
+                "'roco down' clears its state, then 'roco up' starts one"
+            ) from None
         raise fail(str(exc)) from None
 
 
@@ -596,10 +747,8 @@ def _endpoint(router: str | None, runs_dir: Path) -> str:
 @app.command(short_help="Give a running fleet a command and wait for its outcome.")
 def send(
     command: Annotated[str, typer.Argument(help="what the person says")],
-    router: Annotated[
-        str | None, typer.Option(help="router endpoint (default: the fleet of 'roco up')")
-    ] = None,
-    runs_dir: Annotated[Path, typer.Option()] = Path("runs"),
+    router: RouterOption = None,
+    runs_dir: FleetRunsDir = Path("runs"),
     timeout: Annotated[float, typer.Option(help="seconds to wait for the outcome")] = 900.0,
     priority: Annotated[int, typer.Option(help="larger is more urgent")] = 0,
     person: Annotated[
@@ -609,7 +758,7 @@ def send(
 ) -> None:
     """Give a running fleet a command and wait for a_hi's final report."""
     endpoint = _endpoint(router, runs_dir)
-    session = _open_operator_session(endpoint, credentials)
+    session = _open_operator_session(endpoint, credentials, None if router else runs_dir)
     reports: queue.SimpleQueue[HumanReport] = queue.SimpleQueue()
     dec = msgspec.json.Decoder(HumanReport)
     session.declare_subscriber(keys.HUMAN_OUT, lambda s: reports.put(dec.decode(s.payload.to_bytes())))
@@ -644,8 +793,8 @@ def disturb(
     dy: Annotated[float, typer.Option(help="metres along world y")] = 0.0,
     dz: Annotated[float, typer.Option(help="metres along world z")] = 0.0,
     tilt: Annotated[float, typer.Option(help="radians about world x: tips the object over")] = 0.0,
-    router: Annotated[str | None, typer.Option(help="router endpoint")] = None,
-    runs_dir: Annotated[Path, typer.Option()] = Path("runs"),
+    router: RouterOption = None,
+    runs_dir: FleetRunsDir = Path("runs"),
     credentials: CredentialsOption = None,
 ) -> None:
     """Move or knock over an object of the simulated kitchen, as a person would (a disturbance
@@ -657,7 +806,7 @@ def disturb(
     if obj not in CONTAINERS:
         raise fail(f"cannot move {obj!r}: the kitchen's movable objects are {', '.join(CONTAINERS)}", code=2)
     endpoint = _endpoint(router, runs_dir)
-    session = _open_operator_session(endpoint, credentials)
+    session = _open_operator_session(endpoint, credentials, None if router else runs_dir)
     try:
         if "ag_ex" not in alive_agents(session):
             raise fail(f"ag_ex is not alive at {endpoint}")
@@ -680,16 +829,43 @@ def view(
             "--web/--native", help="web viewer on localhost or the native one (default: by display)"
         ),
     ] = None,
+    web_port: Annotated[
+        int | None,
+        typer.Option(
+            min=1,
+            max=65535,
+            help="the web viewer's port on 127.0.0.1 (implies --web) [default: a free one]",
+            show_default=False,
+        ),
+    ] = None,
+    grpc_port: Annotated[
+        int | None,
+        typer.Option(
+            min=1,
+            max=65535,
+            help="the port logging SDKs (a live fleet) connect to [default: a free one]",
+            show_default=False,
+        ),
+    ] = None,
 ) -> None:
     """Open a Rerun viewer on a past run's recording, or an empty one a live fleet streams to:
     the native viewer where a display exists, otherwise the web viewer served on localhost
-    (its URL printed)."""
-    from services.viewer.view import start_viewer
+    (its URL printed). A port asked for that is in use is refused before anything starts."""
+    from services.viewer.view import PortInUse, start_viewer
 
+    if web_port is not None:
+        if web is False:
+            raise fail("--web-port is the web viewer's port: not with --native", code=2)
+        web = True
     if run_dir is not None and not run_dir.exists():
         raise fail(f"{run_dir}: no such run folder or recording")
+    if run_dir is not None and run_dir.is_dir():
+        _run_folder(run_dir)
     try:
-        viewer = start_viewer(run_dir, web=web)
+        viewer = start_viewer(run_dir, web=web, web_port=web_port, grpc_port=grpc_port)
+    except PortInUse as exc:
+        option = "--web-port" if exc.port == web_port else "--grpc-port"
+        raise fail(port_in_use("127.0.0.1", exc.port, option), code=2) from None
     except Exception as exc:
         raise fail(f"cannot start the viewer: {exc}") from None
     where = viewer.web_url or f"native viewer, SDKs connect to {viewer.grpc_url}"
@@ -698,10 +874,8 @@ def view(
 
 @app.command(short_help="Print live communicates as they cross Zenoh (FIPA SC00070).")
 def sniff(
-    router: Annotated[
-        str | None, typer.Option(help="router endpoint (default: the fleet of 'roco up')")
-    ] = None,
-    runs_dir: Annotated[Path, typer.Option()] = Path("runs"),
+    router: RouterOption = None,
+    runs_dir: FleetRunsDir = Path("runs"),
     agent: Annotated[list[str] | None, typer.Option(help="only communicates from or to this agent")] = None,
     channel: Annotated[list[str] | None, typer.Option(help="only this channel (C1..C8)")] = None,
     performative: Annotated[list[str] | None, typer.Option(help="only this performative")] = None,
@@ -723,7 +897,7 @@ def sniff(
     endpoint = _endpoint(router, runs_dir)
     stop = threading.Event()
     _stop_on_signals()
-    session = _open_operator_session(endpoint, credentials)
+    session = _open_operator_session(endpoint, credentials, None if router else runs_dir)
     try:
         count = run_sniff(
             session,
@@ -745,8 +919,8 @@ def sniff(
 
 @app.command(short_help="Bridge the fleet to other FIPA platforms (HTTP, SC00084).")
 def gateway(
-    router: Annotated[str | None, typer.Option(help="router endpoint")] = None,
-    runs_dir: Annotated[Path, typer.Option()] = Path("runs"),
+    router: RouterOption = None,
+    runs_dir: FleetRunsDir = Path("runs"),
     host: Annotated[str, typer.Option(help="interface the HTTP transport listens on")] = "127.0.0.1",
     port: Annotated[int, typer.Option(min=1, max=65535, help="port of the HTTP transport")] = 7778,
     address: Annotated[
@@ -773,8 +947,8 @@ def gateway(
 
 @app.command(short_help="Which agents are alive, with their counters of input.")
 def status(
-    router: Annotated[str | None, typer.Option(help="router endpoint")] = None,
-    runs_dir: Annotated[Path, typer.Option()] = Path("runs"),
+    router: RouterOption = None,
+    runs_dir: FleetRunsDir = Path("runs"),
     counters_timeout: Annotated[
         float, typer.Option(min=0.0, help="seconds to wait for the agents' counters")
     ] = 2.0,
@@ -782,21 +956,25 @@ def status(
 ) -> None:
     """List the agents that hold a liveliness token, each alive agent with its counters of
     received and rejected input (by reason; docs/security.md), and what each router with
-    access control refused, named (identity, message, key, when); exit 1 if any agent is
-    missing."""
+    access control refused, named (identity, message, key, when); each router is named by its
+    host (brain, robot: `roco hosts`) or its endpoint. Exit 1 if any agent is missing."""
     from services.runtime.counters import ask_counters, summary
     from services.runtime.refusals import RefusalReport, collect_reports
     from services.runtime.refusals import summary as refusal_summary
 
     endpoint = _endpoint(router, runs_dir)
-    session = _open_operator_session(endpoint, credentials)
+    session = _open_operator_session(endpoint, credentials, None if router else runs_dir)
     refusals: list[RefusalReport] = []
     try:
         alive = alive_agents(session)
         with collect_reports(session, refusals):
             reports = ask_counters(session, alive & {*AGENT_ORDER, "gateway"}, timeout=counters_timeout)
+        mine = {str(z) for z in session.info.routers_zid()}  # the router this session reached
     finally:
         session.close()
+    state = _fleet_state(runs_dir)
+    names = _router_names(Path(state.run_dir) if state is not None else None)
+    names.update({z: f"at {endpoint}" for z in mine if z not in names})
     for name in (*AGENT_ORDER, "recorder", *(["gateway"] if "gateway" in alive else [])):
         line = f"{name:9s} {'alive' if name in alive else 'absent'}"
         if name == "gateway" and name in reports:  # roco gateway: what came in, refused, went out
@@ -808,10 +986,39 @@ def status(
         elif name in alive and name != "recorder":  # (the gateway answers as agents do)
             line += "  (no counters within the timeout: busy)"
         typer.echo(line)
-    for r in sorted(refusals, key=lambda r: r.router):
-        typer.echo(f"{'router':9s} {r.router[:8]}  {refusal_summary(r)}")
+    for r in sorted(refusals, key=lambda r: names.get(r.router, r.router)):
+        name = names.get(r.router, f"{r.router[:8]} (Zenoh id)")
+        typer.echo(f"{'router':9s} {name}  {refusal_summary(r)}")
     if not set(AGENT_ORDER) <= alive:
         raise typer.Exit(1)
+
+
+ROUTER_LOG_LIMIT = 16 * 2**20
+"""Bytes of a router's log read for the lines that name it (its start lines come first)."""
+
+
+def _router_names(run_dir: Path | None) -> dict[str, str]:
+    """Zenoh id → a name an operator knows, for every router the run folder's logs say started
+    (``logs/router*.stderr``; services/runtime/router.py prints ``roco router ZID listening on
+    ENDPOINTS`` at each start): ``brain`` and ``robot`` for the routers of `roco hosts`
+    (router_brain, router_robot), else ``at`` its endpoints. Empty without a run folder."""
+    names: dict[str, str] = {}
+    if run_dir is None:
+        return names
+    for log in sorted((run_dir / "logs").glob("router*.stderr")):
+        process = log.name.removesuffix(".stderr")
+        try:
+            with log.open("rb") as f:
+                text = f.read(ROUTER_LOG_LIMIT).decode("utf-8", "replace")
+        except OSError:
+            continue
+        for line in text.splitlines():
+            if not line.startswith("roco router ") or " listening on " not in line:
+                continue
+            zid, _, rest = line.removeprefix("roco router ").partition(" listening on ")
+            host = process.removeprefix("router_") if process.startswith("router_") else ""
+            names[zid.strip()] = host or f"at {rest.split(';')[0].strip()}"
+    return names
 
 
 spec_app = typer.Typer(
@@ -904,10 +1111,10 @@ def spec_verify(
     """Check a run's recorded traffic against the specification: every communicate on a
     channel between its sender and receiver, allowed for its role and in its language, and
     every conversation following its protocol's state machine. Exit 1 unless fully
-    conformant."""
+    conformant; exit 2 for a folder that is not a run folder."""
     from services.spec_check.conformance import verify_report
 
-    ok, text = verify_report(run_dir, spec)
+    ok, text = verify_report(_run_folder(run_dir), spec)
     typer.echo(text)
     if not ok:
         raise typer.Exit(1)
@@ -924,17 +1131,22 @@ def spec_new_agent(
 ) -> None:
     """Write the folder of agent NAME from the specification: its protocol roles and one
     handler per performative its peers may send, each raising NotImplementedError until
-    written (docs/spec.md, "Walk-through: adding an agent"). Exit 1 when the file exists or the
-    specification has no such agent."""
+    written, and render deploy/compose.yaml again with a service for it (docs/spec.md,
+    "Walk-through: adding an agent"). Exit 1 when the file exists or the specification has no
+    such agent."""
+    from services.deploy.compose import ComposeError, bring_up_to_date
     from services.spec.model import SpecError, load
     from services.spec_check.new_agent import PROJECT, write_agent
 
     try:
-        scaffold = write_agent(load(_spec_path(spec)), name, root or PROJECT)
-    except (SpecError, FileExistsError) as exc:
+        system = load(_spec_path(spec))
+        scaffold = write_agent(system, name, root or PROJECT)
+        typer.echo(f"roco: wrote {scaffold.module}")
+        typer.echo(f"roco: {bring_up_to_date(root or PROJECT, system)}")
+    except (SpecError, FileExistsError, ComposeError) as exc:
         raise fail(str(exc)) from None
-    typer.echo(f"roco: wrote {scaffold.module}")
-    typer.echo(f"roco: fill in {', '.join(scaffold.handlers)}; then: roco spec verify-code")
+    timer = f" and what {scaffold.timer} opens" if scaffold.timer else ""
+    typer.echo(f"roco: fill in {', '.join(scaffold.handlers)}{timer}; then: roco spec verify-code")
 
 
 @spec_app.command("verify-code", short_help="Compare every agent's code with its interface.")
@@ -984,13 +1196,16 @@ def doctor(
 
 
 @app.command(short_help="Write RUN/report.md from a run folder.")
-def report(run_dir: Annotated[Path, typer.Argument(help="a run folder")]) -> None:
-    """Write RUN/report.md from the run's traffic record."""
+def report(run_dir: Annotated[Path, typer.Argument(metavar="RUN", help="a run folder")]) -> None:
+    """Write RUN/report.md from the run's traffic record and run.json. A folder that is not a
+    run folder (neither run.json nor traffic.jsonl in it) is refused, exit 2, nothing
+    written."""
     from services.report import write_report
 
-    if not run_dir.is_dir():
-        raise fail(f"{run_dir} is not a run folder")
-    typer.echo(str(write_report(run_dir)))
+    try:
+        typer.echo(str(write_report(_run_folder(run_dir))))
+    except OSError as exc:
+        raise fail(f"cannot write the report in {run_dir}: {exc.strerror or exc}") from None
 
 
 def main() -> None:

@@ -1,8 +1,7 @@
 """Settings for the whole test session.
 
-MuJoCo renders off-screen through EGL: ``MUJOCO_GL`` is read when ``mujoco`` is first
-imported, and any test module may be the first to import it (velma/render.py sets the same
-default for programs).
+MuJoCo reads ``MUJOCO_GL`` when ``mujoco`` is first imported, and any test module may be the
+first to import it: velma/gl.py chooses the off-screen platform here, before any test module.
 
 On a machine where no off-screen GL context opens (no EGL, no OSMesa), the fleets the tests
 start perceive with the physics' ground truth (``ROCO_PERCEPTION=truth``) instead of the head
@@ -13,9 +12,8 @@ from __future__ import annotations
 
 import os
 
-os.environ.setdefault("MUJOCO_GL", "egl")
-
-from tests.support.machine import missing_gl  # noqa: E402  (after MUJOCO_GL is set)
+import velma.gl  # noqa: F401  (chooses MUJOCO_GL before any test imports MuJoCo)
+from tests.support.machine import missing_gl
 
 if missing_gl() is not None:
     os.environ.setdefault("ROCO_PERCEPTION", "truth")

@@ -1,21 +1,17 @@
 """Offscreen rendering of the kitchen scene: ``python -m velma.render out.png [camera]``.
 
-Uses ``MUJOCO_GL=egl`` (software EGL works on these machines, ≈ 0.1 s per 640×480 frame,
-platform-notes.md). ``camera`` is one of the scene's cameras (``overview`` by default,
+Renders with the off-screen GL platform velma/gl.py chooses (software EGL: ≈ 0.1 s per
+640×480 frame on a 2-core VM). ``camera`` is one of the scene's cameras (``overview`` by default,
 ``pour_view``, ``head_camera``) or ``free`` for a default free camera.
 
 ``SceneCamera`` renders one camera again and again from whole simulation states (``qpos``)
-with one reused renderer, for a viewer (services/viewer/camera.py): MUJOCO_GL is read when
-``mujoco`` is first imported, so import this module before anything else imports MuJoCo.
+with one reused renderer, for a viewer (services/viewer/camera.py).
 """
 
 from __future__ import annotations
 
-import os
 import sys
 from pathlib import Path
-
-os.environ.setdefault("MUJOCO_GL", "egl")
 
 import mujoco
 import numpy as np

@@ -13,6 +13,7 @@ import subprocess
 import sys
 
 from services.doctor.model import Check, Use
+from velma.gl import HOW as EGL_HOW
 
 PROBE_TIMEOUT_S = 60.0
 ROUTER_PORT = 7447  # roco up's default router port (services/cli.py DEFAULT_ROUTER)
@@ -22,7 +23,7 @@ FIFO_PROBE = "import os\nos.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(
 PIN_PROBE = "import os, sys\nos.sched_setaffinity(0, {int(sys.argv[1])})\n"
 
 GL_HOW = {
-    "egl": "apt-get install libegl1 libegl-mesa0 libgl1-mesa-dri (software EGL is enough)",
+    "egl": f"{EGL_HOW} (software EGL is enough)",
     "osmesa": "apt-get install libosmesa6, then run with MUJOCO_GL=osmesa",
 }
 

@@ -19,7 +19,9 @@ from types import FrameType
 
 from services.gateway.bridge import GATEWAY, open_gateway
 from services.runtime.polling import max_poll_us
+from services.runtime.session import listening, port_in_use, refusal
 from services.runtime.transport import ZenohTransport
+from services.security.context import security_for
 from services.spec.model import DEFAULT_SPEC, SpecError, load
 
 DEFAULT_PORT = 7778
@@ -48,8 +50,8 @@ def serve(
 ) -> dict[str, int]:
     """Run the gateway until ``stop`` is set; set ``ready`` once it serves. Returns its
     counters. Raises GatewayError when the specification does not load or has no external
-    role, when no router answers (or it refuses the gateway's credentials), or when the port
-    cannot be bound."""
+    role, when the port is in use or cannot be bound (checked before the fleet is reached), or
+    when no router answers (or it refuses the gateway's credentials)."""
     try:
         spec = load(config.spec)
     except SpecError as exc:
@@ -61,15 +63,21 @@ def serve(
         max_poll_us()  # a malformed ROCO_RECEIVE_POLL_US is named as such, not as a missing router
     except ValueError as exc:
         raise GatewayError(str(exc)) from None
+    if listening(f"tcp/{config.host}:{config.port}"):
+        raise GatewayError(port_in_use(config.host, config.port, "--port"))
     try:
         transport = ZenohTransport([config.endpoint], wait_for_router=False, identity=GATEWAY)
-    except Exception as exc:  # zenoh.ZError, CredentialError
-        raise GatewayError(f"no router answers at {config.endpoint} for identity {GATEWAY}: {exc}") from None
+    except ValueError as exc:  # CredentialError: no credentials for the gateway in the folder
+        raise GatewayError(str(exc)) from None
+    except Exception:  # zenoh.ZError
+        why = refusal(config.endpoint, GATEWAY, security_for([config.endpoint]))
+        raise GatewayError(why) from None
     try:
         gateway, server = open_gateway(transport, spec, config.host, config.port, address)
     except OSError as exc:
         transport.close()
-        raise GatewayError(f"cannot listen on {config.host}:{config.port}: {exc.strerror or exc}") from None
+        where, why = f"{config.host}:{config.port}", exc.strerror or str(exc)
+        raise GatewayError(f"cannot listen on {where} ({why}): choose another --port") from None
     routes = ", ".join(f"{role} → {agent} on {channel}" for channel, role, agent in gateway.routes)
     print(f"roco gateway: {address} ↔ {config.endpoint} ({routes})", flush=True)
     if ready is not None:

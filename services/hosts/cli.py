@@ -5,7 +5,7 @@ one machine"; root, iproute2, nftables).
     roco hosts partition [SECONDS]     cut the link (for SECONDS, else until 'heal')
     roco hosts heal                    mend it
     roco hosts status                  hosts, addresses, shaping, link up or down
-    roco hosts down                    stop the fleet, remove the namespaces
+    roco hosts down                    stop the fleet, remove the namespaces, write the report
     roco hosts clean                   remove the host pairs that runs left behind
 
 While up, ``roco send``/``status`` reach the brain's router as for ``roco up`` (``runs/.fleet.json``).
@@ -35,7 +35,19 @@ hosts_app = typer.Typer(
 )
 HOSTS_FILE = ".hosts.json"
 FLEET_FILE = ".fleet.json"  # services/cli.py: FLEET_FILE
-RunsDir = Annotated[Path, typer.Option(help="where the run folder is made")]
+RunsDir = Annotated[
+    Path, typer.Option("--runs-dir", help="where 'roco hosts up' keeps the state of the two hosts")
+]
+UpRunsDir = Annotated[
+    Path,
+    typer.Option(
+        "--runs-dir",
+        help="where the fleet's run folder is made and the state of the two hosts kept for the "
+        "other 'roco hosts' commands and 'roco send', 'status'",
+    ),
+]
+INTERRUPTED = 130
+"""The exit status of a command ended by Ctrl-C (SIGINT) or SIGTERM: 128 + SIGINT."""
 
 
 class HostsState(msgspec.Struct):
@@ -82,15 +94,18 @@ def up(
     jitter_ms: Annotated[float, typer.Option(min=0, help="± this much, uniform")] = 5.0,
     loss_pct: Annotated[float, typer.Option(min=0, max=99, help="packets lost, each direction (%)")] = 1.0,
     realtime: Annotated[bool, typer.Option(help="pace the simulation to wall time")] = True,
-    runs_dir: RunsDir = Path("runs"),
+    runs_dir: UpRunsDir = Path("runs"),
 ) -> None:
     """Make the brain and robot hosts, shape the link, start the fleet across them (mutual TLS
-    between the routers, access control on); it keeps running until `roco hosts down`."""
+    between the routers, access control on); it keeps running until `roco hosts down`, which
+    writes the run's report. A fleet that does not come up is stopped, its hosts removed and
+    its report written."""
     from services.fleet.launcher import LaunchError
     from services.hosts.fleet import TwoHosts
     from services.hosts.link import Shaping
-    from services.hosts.netns import HostsError
-    from services.runtime.run_folder import RunInfo, new_run_dir, write_run_info
+    from services.hosts.netns import HostsError, unavailable
+    from services.report.ending import end
+    from services.runtime.run_folder import RunFolderError, RunInfo, new_run_dir, write_run_info
 
     if (runs_dir / HOSTS_FILE).exists() or (runs_dir / FLEET_FILE).exists():
         raise _fail(f"a fleet is already up in {runs_dir}; 'roco hosts down' (or 'roco down') first")
@@ -98,17 +113,32 @@ def up(
         shaping = Shaping(delay_ms, jitter_ms, loss_pct)
     except ValueError as exc:
         raise _fail(str(exc)) from None
-    run_dir = new_run_dir(runs_dir)
+    why = unavailable()
+    if why:
+        raise _fail(f"cannot make two hosts here: {why}")
+    try:
+        run_dir = new_run_dir(runs_dir)
+    except RunFolderError as exc:
+        raise _fail(str(exc)) from None
+    info = RunInfo(started=time.time(), realtime=realtime)
+    write_run_info(run_dir, info)
+    signal.signal(signal.SIGTERM, _interrupt)
     hosts = TwoHosts(run_dir, shaping, env={"ROCO_REALTIME": "1" if realtime else "0", "ROCO_RERUN": "0"})
     try:
-        waited = hosts.start()
-    except (HostsError, LaunchError) as exc:
-        raise _fail(str(exc), 1) from None
+        waited = hosts.start()  # stops what it started and removes the hosts when it fails
+    except (HostsError, LaunchError, KeyboardInterrupt) as exc:
+        interrupted = isinstance(exc, KeyboardInterrupt)
+        why = "interrupted" if interrupted else str(exc)
+        if hosts.fleet is not None:
+            info.processes = hosts.fleet.pids()
+            write_run_info(run_dir, info)
+        end(run_dir, ended=time.time(), failure=why)
+        code = INTERRUPTED if interrupted else 1
+        raise _fail(f"{why}; nothing of the fleet is left running; run folder {run_dir}", code) from None
     assert hosts.pair is not None and hosts.fleet is not None
     pids = hosts.fleet.pids()
-    write_run_info(
-        run_dir, RunInfo(started=time.time(), router=hosts.endpoint, processes=pids, realtime=realtime)
-    )
+    info.router, info.processes = hosts.endpoint, pids
+    write_run_info(run_dir, info)
     p = hosts.pair
     state = HostsState(p.tag, p.subnet, p.maker, str(run_dir), hosts.endpoint, str(shaping), hosts.how)
     (runs_dir / HOSTS_FILE).write_bytes(msgspec.json.encode(state))
@@ -173,25 +203,39 @@ def status(runs_dir: RunsDir = Path("runs")) -> None:
     typer.echo(f"operator endpoint {state.endpoint}; run folder {state.run_dir}")
 
 
-@hosts_app.command(short_help="Stop the fleet and remove both hosts.")
+@hosts_app.command(short_help="Stop the fleet, remove both hosts, write the run's report.")
 def down(runs_dir: RunsDir = Path("runs")) -> None:
-    """Stop the fleet (only its processes) and remove both namespaces and their links."""
+    """Stop the fleet (only its processes), saying what it stops as it stops it: the agents,
+    the recorder once it confirmed the traffic record (the recorder-sync barrier, as `roco
+    down`), the routers; remove both namespaces and their links; then record in the run's
+    run.json the commands the fleet was given and their outcomes (from its C2 traffic) and
+    write its report."""
     from services.hosts.netns import end_processes
+    from services.recorder.sync import sync_fleet, sync_words
+    from services.report.ending import end
 
     state = _state(runs_dir)
-    pair = _pair(state)
+    pair, run_dir = _pair(state), Path(state.run_dir)
     fleet_file = runs_dir / FLEET_FILE
     try:
-        pids = json.loads(fleet_file.read_text()).get("pids", {})
-    except (OSError, ValueError):
+        pids = {str(n): int(p) for n, p in json.loads(fleet_file.read_text()).get("pids", {}).items()}
+    except (OSError, ValueError, AttributeError):
         pids = {}
-    agents = [int(p) for n, p in pids.items() if not str(n).startswith("router") and n != "recorder"]
-    end_processes(agents, 10.0)
-    end_processes([int(pids[n]) for n in ("recorder", "relay") if n in pids], 10.0)
+    agents = {n: p for n, p in pids.items() if not n.startswith("router") and n not in ("recorder", "relay")}
+    typer.echo("roco: stopping", nl=False)
+    end_processes(list(agents.values()), 10.0)
+    typer.echo("".join(f" {n}" for n in agents), nl=False)
+    if "recorder" in pids:
+        # everything the agents sent before they stopped is in the traffic record before it closes
+        synced = sync_fleet(state.endpoint, run_dir / "security")
+        typer.echo(f"; recorder: {sync_words(synced)}", nl=False)
+    end_processes([pids[n] for n in ("recorder", "relay") if n in pids], 10.0)
+    typer.echo("; routers", nl=False)
     pair.destroy()  # ends what is left (the routers) and removes the namespaces
+    typer.echo("; both hosts removed")
     fleet_file.unlink(missing_ok=True)
     (runs_dir / HOSTS_FILE).unlink(missing_ok=True)
-    typer.echo(f"roco: two hosts down; run folder {state.run_dir}")
+    typer.echo(f"roco: two hosts down {end(run_dir, ended=time.time()).line()}")
 
 
 @hosts_app.command(short_help="Remove the host pairs that killed runs left behind.")

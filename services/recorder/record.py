@@ -27,10 +27,10 @@ import msgspec
 
 from services.runtime import keys
 from services.runtime.faults import FaultEvent
+from services.runtime.run_folder import TRAFFIC_JSONL
 from services.runtime.transport import Arrival
 from shared.fipa_codec import DecodeError, decode
 
-TRAFFIC_JSONL = "traffic.jsonl"
 TRAFFIC_RAW = "traffic.msgpack"
 FAULTS_JSONL = "faults.jsonl"
 LINK_JSONL = "link.jsonl"

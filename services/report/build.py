@@ -154,14 +154,20 @@ def write_report(run_dir: Path) -> Path:
     :mod:`services.report.figures`) and write it as Markdown, figures linked, to
     ``run_dir/report.md``; returns that path. A figure that cannot be drawn becomes a note of
     the report. Raises FileNotFoundError when the folder does not exist."""
-    run_dir = Path(run_dir)
-    run = load_run(run_dir)
+    return write_run_report(load_run(Path(run_dir)))[0]
+
+
+def write_run_report(run: RunData) -> tuple[Path, Report]:
+    """:func:`write_report` of a run folder already read: writes ``report.md`` and its figures
+    into ``run.run_dir``; returns the path and the report. Raises OSError when they cannot be
+    written."""
+    run_dir = Path(run.run_dir)
     report = _assemble(run)
     figures, notes = write_figures(run, report, run_dir)
     report.notes.extend(notes)
     path = run_dir / REPORT_MD
     path.write_text(render(report, figures), encoding="utf-8")
-    return path
+    return path, report
 
 
 def _header(run: RunData, command: Message | None, outcome: Message | None) -> Header:

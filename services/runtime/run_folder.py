@@ -8,22 +8,48 @@
 | ``km_store/`` | a_km | the knowledge base (Oxigraph on disk), kept across a_km restarts |
 | ``faults.jsonl`` | traffic recorder | injected faults, when any (docs/faults.md) |
 | ``launch_env.json`` | launcher | the environment its processes got (``roco fault start``) |
-| ``report.md`` | ``roco report`` | the experiment report |
+| ``report.md``, ``figures/`` | the run's end (``roco run``, ``down``…), ``roco report`` | the report |
+
+A folder is a run folder when it holds ``run.json`` or ``traffic.jsonl``
+(:func:`check_run_folder`).
 """
 
 from __future__ import annotations
 
+import errno
 import time
 from pathlib import Path
 
 import msgspec
 
 RUN_INFO = "run.json"
+TRAFFIC_JSONL = "traffic.jsonl"
+"""The traffic record's metadata (services/recorder/record.py writes it)."""
+
+
+class RunFolderError(ValueError):
+    """A runs folder where no run folder can be made, or a folder that is not a run folder; the
+    message is one line naming the path, the problem and, where there is one, the fix."""
+
+
+class RunCommand(msgspec.Struct, kw_only=True):
+    """One command the fleet was given and how it ended: ``text`` as the person said it;
+    ``sent`` and ``ended`` POSIX s (None: not known; ``ended`` None: it had not ended when the
+    fleet stopped); ``outcome`` a_hi's final report kind (``succeeded``, ``failed``,
+    ``stopped``, ``not-understood``; services/runtime/human.py ``ReportKind``) or a_co's C2
+    outcome, None when it had not ended; ``detail`` the outcome's sentence."""
+
+    text: str
+    sent: float | None = None
+    outcome: str | None = None
+    detail: str = ""
+    ended: float | None = None
 
 
 class RunInfo(msgspec.Struct, kw_only=True):
     """Facts about a run. Times are POSIX seconds; ``command_sent`` is when the human command
-    reached a_hi; ``succeeded`` is None while running. ``processes`` maps agent name to PID."""
+    reached a_hi; ``succeeded`` is None while running, and for a fleet that ended without
+    being given a command. ``processes`` maps agent name to PID."""
 
     command: str = ""
     started: float = 0.0
@@ -42,18 +68,59 @@ class RunInfo(msgspec.Struct, kw_only=True):
     """The scenario's name (``roco scenario``), empty for a single ``roco run`` command."""
     commands: list[str] = []
     """Every sentence said to a_hi, in order (``command`` is the first)."""
+    outcomes: list[RunCommand] = []
+    """Every command given and how it ended, in order; filled when the run ends."""
+
+
+_WHY = {
+    errno.ENOTDIR: "a file is in the way, not a folder",
+    errno.EEXIST: "a file is in the way, not a folder",
+    errno.EACCES: "no permission to write there",
+    errno.EPERM: "no permission to write there",
+    errno.EROFS: "it is on a read-only file system",
+    errno.ENOSPC: "no space is left on its device",
+    errno.EDQUOT: "the disk quota is used up",
+    errno.ENOENT: "folders cannot be made there",
+}
 
 
 def new_run_dir(root: Path) -> Path:
-    """Create and return ``root/<YYYYmmdd-HHMMSS>[-n]/`` with a ``logs/`` subfolder."""
-    stamp = time.strftime("%Y%m%d-%H%M%S")
-    path = root / stamp
-    n = 1
-    while path.exists():
-        path = root / f"{stamp}-{n}"
-        n += 1
-    (path / "logs").mkdir(parents=True)
+    """Create and return ``root/<YYYYmmdd-HHMMSS>[-n]/`` with a ``logs/`` subfolder, ``root``
+    and its parents made as needed. Raises :class:`RunFolderError` (one line: the path, why,
+    and ``--runs-dir`` as the fix) when it cannot be made or written to, having made nothing
+    a run could be started in."""
+    try:
+        root.mkdir(parents=True, exist_ok=True)
+        stamp = time.strftime("%Y%m%d-%H%M%S")
+        path = root / stamp
+        n = 1
+        while path.exists():
+            path = root / f"{stamp}-{n}"
+            n += 1
+        (path / "logs").mkdir(parents=True)
+        probe = path / (RUN_INFO + ".tmp")  # a folder made is not yet a folder written to
+        probe.write_bytes(b"")
+        probe.unlink()
+    except OSError as exc:
+        why = _WHY.get(exc.errno or 0, (exc.strerror or str(exc)).lower())
+        raise RunFolderError(
+            f"cannot make a run folder in {root}: {why}; give --runs-dir a folder you can write to"
+        ) from None
     return path
+
+
+def check_run_folder(path: Path) -> None:
+    """Raise :class:`RunFolderError` unless ``path`` is a run folder: a folder holding
+    ``run.json`` or ``traffic.jsonl`` (what ``roco run``, ``roco up`` and compose runs leave)."""
+    if not path.exists():
+        raise RunFolderError(f"{path}: no such run folder")
+    if not path.is_dir():
+        raise RunFolderError(f"{path} is not a run folder: it is a file")
+    if not ((path / RUN_INFO).is_file() or (path / TRAFFIC_JSONL).is_file()):
+        raise RunFolderError(
+            f"{path} is not a run folder: it holds neither {RUN_INFO} nor {TRAFFIC_JSONL}; "
+            "give one that roco run or roco up made (runs/<timestamp>/)"
+        )
 
 
 def write_run_info(run_dir: Path, info: RunInfo) -> None:

@@ -55,17 +55,37 @@ def open_operator(
     except CredentialError as exc:
         raise SessionRefused(str(exc)) from None
     except zenoh.ZError:
-        if not listening(endpoint):
-            raise SessionRefused(f"no router answers at {endpoint}; is the fleet up?") from None
-        if folder is None:
-            raise SessionRefused(
-                f"the router at {endpoint} refused the session for want of credentials: "
-                f"give the deployment's credentials folder with {CREDENTIALS_HINT}"
-            ) from None
-        raise SessionRefused(
-            f"the router at {endpoint} refused the credentials of {identity_name(identity)!r} from "
-            f"{folder} (another deployment's, revoked, or the router wants tls/)"
-        ) from None
+        raise SessionRefused(refusal(endpoint, identity, folder)) from None
+
+
+def no_router(endpoint: str) -> str:
+    """The line for a tool that found no router at ``endpoint``: what it could not reach and how
+    to get one (a fleet of ``roco up``, or the router of another one named with ``--router``)."""
+    return f"no router answers at {endpoint}: start a fleet with 'roco up', or name its router with --router"
+
+
+def refusal(endpoint: str, identity: str | None, folder: Path | None) -> str:
+    """Why a session as ``identity`` (None: ``operator``) with credentials from ``folder`` (None:
+    none found) could not be opened at ``endpoint``, in one line: no router listens there
+    (:func:`no_router`), it wants credentials (and how to give them), or it refused those
+    given."""
+    if not listening(endpoint):
+        return no_router(endpoint)
+    if folder is None:
+        return (
+            f"the router at {endpoint} refused the session for want of credentials: "
+            f"give the deployment's credentials folder with {CREDENTIALS_HINT}"
+        )
+    return (
+        f"the router at {endpoint} refused the credentials of {identity_name(identity)!r} from "
+        f"{folder} (another deployment's, revoked, or the router wants tls/)"
+    )
+
+
+def port_in_use(host: str, port: int, option: str) -> str:
+    """The line for a port something listens on already (``listening``): the address, and the
+    command's ``option`` that chooses another (``roco up --port``, ``roco view --web-port``)."""
+    return f"cannot listen on {host}:{port}: the port is in use; choose another with {option}"
 
 
 def listening(endpoint: str, timeout: float = 1.0) -> bool:

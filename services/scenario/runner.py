@@ -22,11 +22,12 @@ import msgspec
 import zenoh
 
 from services.fleet.launcher import AGENT_ORDER, Fleet, LaunchError, free_port
+from services.recorder.sync import sync
 from services.runtime import keys
 from services.runtime.counters import ask_counters, save_counters
 from services.runtime.faults import FaultEvent
 from services.runtime.human import FINAL_REPORTS, HumanInput, HumanReport
-from services.runtime.run_folder import RunInfo, write_run_info
+from services.runtime.run_folder import RunCommand, RunInfo, write_run_info
 from services.runtime.session import open_client
 from services.scenario.model import Fault, Scenario, Step
 from shared.fipa_codec import DecodeError, Performative, decode
@@ -115,7 +116,8 @@ class LocalHosting:
 @dataclass
 class CommandRecord:
     """One ``say`` step: its number (from 1), the sentence, a_hi's request id, every report
-    a_hi gave about it, the final one, and what was expected."""
+    a_hi gave about it, the final one, and what was expected; ``sent`` and ``ended``: when
+    it was said and when its final report came (POSIX s; None: not yet)."""
 
     number: int
     text: str
@@ -124,6 +126,19 @@ class CommandRecord:
     expect_text: str | None = None
     reports: list[HumanReport] = field(default_factory=list)
     final: HumanReport | None = None
+    sent: float | None = None
+    ended: float | None = None
+
+    def run_command(self) -> RunCommand:
+        """What run.json keeps of it (services/runtime/run_folder.py)."""
+        final = self.final
+        return RunCommand(
+            text=self.text,
+            sent=self.sent,
+            outcome=final.kind.value if final is not None else None,
+            detail=final.text if final is not None else "",
+            ended=self.ended,
+        )
 
     @property
     def as_expected(self) -> bool:
@@ -160,12 +175,14 @@ LINK = "link"
 @dataclass
 class ScenarioOutcome:
     """How the scenario went: the commands, and ``detail`` when it stopped early; ``started``:
-    POSIX time the fault times count from."""
+    POSIX time the fault times count from; ``interrupted``: ended by Ctrl-C (SIGINT), SIGTERM
+    or SIGHUP (the fleet stopped all the same)."""
 
     commands: list[CommandRecord]
     detail: str = ""
     faults: list[FaultRecord] = field(default_factory=list)
     started: float = 0.0
+    interrupted: bool = False
 
     @property
     def ok(self) -> bool:
@@ -286,6 +303,7 @@ class ScenarioRunner:
             self._say(f"a_hi → person (#{record.number}): {item.kind.value}: {item.text}")
             if item.kind in FINAL_REPORTS:
                 record.final = item
+                record.ended = time.time()
 
     def _ready(self, step: Step, steps_before: int) -> bool:
         t = step.after
@@ -307,6 +325,7 @@ class ScenarioRunner:
             )
             self.commands.append(record)
             payload = HumanInput(text=step.say, request_id=record.request_id, priority=step.priority)
+            record.sent = time.time()
             session.put(keys.HUMAN_IN, msgspec.json.encode(payload))
             if self.info.command_sent is None:
                 self.info.command_sent = time.time()
@@ -414,24 +433,19 @@ class ScenarioRunner:
 
     def _sync_recorder(self, session: zenoh.Session, timeout: float = 10.0) -> None:
         """Wait until the traffic recorder has written every communicate routed so far (the
-        outcome a_hi reported included), so that stopping the fleet loses none of them."""
-        token = uuid.uuid4().hex.encode()
-        synced = threading.Event()
-        sub = session.declare_subscriber(
-            keys.RECORDER_SYNCED, lambda s: synced.set() if s.payload.to_bytes() == token else None
-        )
-        session.put(keys.RECORDER_SYNC, token)
-        if not synced.wait(timeout):
+        outcome a_hi reported included), so that stopping the fleet loses none of them
+        (services/recorder/sync.py)."""
+        if not sync(session, timeout):
             self._say(
                 f"the traffic recorder did not confirm within {timeout:.0f} s; "
                 "its record may lack the last communicates"
             )
-        sub.undeclare()
 
     def run(self) -> ScenarioOutcome:
         """Run to the end; never raises for a failed run (the outcome says why)."""
         session: zenoh.Session | None = None
         detail = ""
+        interrupted = False
         deadline = time.monotonic() + self.scenario.timeout_s
         try:
             self.hosting.start_routers()
@@ -446,9 +460,9 @@ class ScenarioRunner:
             session.declare_subscriber(keys.HUMAN_OUT, self._on_report)
             self.fleet.start_agents()
             waited = self.fleet.wait_alive(session, AGENT_ORDER, timeout=120)
-            self._say(f"all agents alive after {waited:.1f} s: {', '.join(AGENT_ORDER)}")
             self.info.processes = self.fleet.pids()
             write_run_info(self.run_dir, self.info)
+            self._say(f"all agents alive after {waited:.1f} s: {', '.join(AGENT_ORDER)}")
             # paper Table 7: a_km receives initial knowledge about the environment first
             knowledge_by = time.monotonic() + 60
             while not self.knowledge.is_set():
@@ -475,13 +489,21 @@ class ScenarioRunner:
         except LaunchError as exc:
             detail = str(exc)
         except KeyboardInterrupt:
-            detail = "interrupted"
+            detail, interrupted = "interrupted", True
         finally:
             if session is not None:
                 session.close()
-            self.hosting.stop()
-        outcome = ScenarioOutcome(self.commands, detail, self.faults, self.t0)
+            while True:  # a Ctrl-C while the fleet stops starts its stop again: none is left
+                try:
+                    self.hosting.stop()
+                    break
+                except KeyboardInterrupt:
+                    detail, interrupted = "interrupted", True
+            with contextlib.suppress(LaunchError):  # no fleet when the two hosts were never made
+                self.info.processes = {**self.info.processes, **self.fleet.pids()}
+        outcome = ScenarioOutcome(self.commands, detail, self.faults, self.t0, interrupted)
         self.info.ended = time.time()
+        self.info.outcomes = [c.run_command() for c in self.commands]
         self.info.succeeded = outcome.ok
         self.info.detail = detail or "; ".join(
             f"#{c.number} {c.final.kind.value}: {c.final.text}" for c in self.commands if c.final

@@ -19,7 +19,7 @@ thread only) and software rendering stays in it (``LP_NUM_THREADS=0``: Mesa's ll
 starts no rasteriser threads of its own), so that it only takes CPU time nobody else wants:
 ≈ 23 ms of CPU per frame on the development VM. Frames are skipped, never queued: a tick
 comes every ``PERIOD`` s, a tick that finds no new state is skipped, and ticks missed while a
-render was slow are dropped. Rendering off-screen needs EGL (``MUJOCO_GL=egl``); when it
+render was slow are dropped. Rendering off-screen needs EGL or OSMesa (velma/gl.py); when it
 cannot start, one warning is logged and the recording goes on without images.
 """
 
@@ -125,7 +125,7 @@ class HeadCamera:
         except (OSError, AttributeError):
             log.info("head camera: could not lower the thread's priority")
         os.environ.setdefault("LP_NUM_THREADS", "0")  # llvmpipe renders in this thread
-        import velma.render  # before MuJoCo: it sets MUJOCO_GL=egl unless set
+        import velma.render
         from velma.model.scene import N_PARTICLES, load_kitchen
 
         model = load_kitchen(N_PARTICLES, self.seed, self.pose_seed)

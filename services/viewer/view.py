@@ -10,7 +10,9 @@ The viewer is the ``rerun`` CLI of the installed rerun-sdk, started as a process
 
 Either way the viewer accepts logging SDKs on ``rerun+http://127.0.0.1:G/proxy``; giving that
 URL to the processes of a run as ``ROCO_RERUN_CONNECT`` streams the run to the viewer live
-(services/viewer/recording.py).
+(services/viewer/recording.py). G and W are free ports unless given (``roco view --grpc-port
+--web-port``); a port given that something listens on already is refused before the viewer
+starts (:class:`PortInUse`).
 """
 
 from __future__ import annotations
@@ -29,6 +31,14 @@ from pathlib import Path
 from services.viewer.recording import RECORDING_FILE, merge_parts, parts, rerun_cli
 
 READY_TIMEOUT = 15.0  # s, for the viewer's port to accept connections
+
+
+class PortInUse(OSError):
+    """A port asked of the viewer is in use on 127.0.0.1 (``port``); nothing was started."""
+
+    def __init__(self, port: int) -> None:
+        super().__init__(f"cannot listen on 127.0.0.1:{port}: the port is in use")
+        self.port = port
 
 
 @dataclass(frozen=True)
@@ -52,6 +62,18 @@ def free_port() -> int:
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))
         return int(s.getsockname()[1])
+
+
+def _port(asked: int | None) -> int:
+    """``asked`` when nothing listens on it on 127.0.0.1 (else :class:`PortInUse`); None: a
+    free port."""
+    if asked is None:
+        return free_port()
+    with socket.socket() as s:
+        s.settimeout(1.0)
+        if s.connect_ex(("127.0.0.1", asked)) == 0:
+            raise PortInUse(asked)
+    return asked
 
 
 def recording_files(target: Path | None) -> tuple[Path, ...]:
@@ -85,17 +107,26 @@ def _wait_port(port: int, proc: subprocess.Popen[bytes], timeout: float) -> None
     raise TimeoutError(f"the Rerun viewer did not listen on port {port} within {timeout} s")
 
 
-def start_viewer(rrd: Path | None, *, web: bool | None = None, log_file: Path | None = None) -> Viewer:
+def start_viewer(
+    rrd: Path | None,
+    *,
+    web: bool | None = None,
+    log_file: Path | None = None,
+    web_port: int | None = None,
+    grpc_port: int | None = None,
+) -> Viewer:
     """Start a viewer on ``rrd`` (a .rrd file, a run folder, or None for an empty viewer that
-    waits for SDKs); ``web`` None: web when there is no display. Returns once its ports listen."""
+    waits for SDKs); ``web`` None: web when there is no display. ``grpc_port``, ``web_port``
+    (web only): the ports on 127.0.0.1 (None: free ones). Returns once its ports listen.
+    Raises :class:`PortInUse` for a port given that is in use, FileNotFoundError when ``rrd``
+    holds no recording, RuntimeError or TimeoutError when the viewer does not come up."""
     files = recording_files(rrd)
     use_web = (not has_display()) if web is None else web
-    grpc_port = free_port()
+    grpc_port = _port(grpc_port)
     cmd = [*rerun_cli(), *map(str, files), "--port", str(grpc_port)]
     web_url = None
-    web_port = 0
     if use_web:
-        web_port = free_port()
+        web_port = _port(web_port)
         cmd += ["--serve-web", "--bind", "127.0.0.1", "--web-viewer-port", str(web_port)]
     grpc_url = f"rerun+http://127.0.0.1:{grpc_port}/proxy"
     out = log_file.open("ab") if log_file is not None else subprocess.DEVNULL
@@ -104,9 +135,15 @@ def start_viewer(rrd: Path | None, *, web: bool | None = None, log_file: Path | 
     finally:
         if log_file is not None and not isinstance(out, int):
             out.close()
-    _wait_port(grpc_port, proc, READY_TIMEOUT)
+    try:
+        _wait_port(grpc_port, proc, READY_TIMEOUT)
+        if use_web:
+            assert web_port is not None
+            _wait_port(web_port, proc, READY_TIMEOUT)
+    except BaseException:  # nothing of a viewer that did not come up is left running
+        stop_viewer(Viewer(pid=proc.pid, grpc_url="", web_url=None, files=files), timeout=2.0)
+        raise
     if use_web:
-        _wait_port(web_port, proc, READY_TIMEOUT)
         web_url = f"http://127.0.0.1:{web_port}/?url={urllib.parse.quote(grpc_url, safe='')}"
     return Viewer(pid=proc.pid, grpc_url=grpc_url, web_url=web_url, files=files)
 

@@ -37,6 +37,7 @@ import msgspec
 
 from velma.executor.camera import CameraWork, Perceived
 from velma.executor.capture import WorldCapture
+from velma.gl import choose as choose_gl
 
 log = logging.getLogger(__name__)
 
@@ -86,7 +87,6 @@ def camera_idle_s(environ: dict[str, str] | None = None) -> float:
 def camera_main(spec: bytes, conn: multiprocessing.connection.Connection) -> None:
     """The child: build ``CameraWork`` from ``spec`` (msgpack ``CameraSpec``), then answer each
     request until the pipe closes. A build that fails answers every request with its reason."""
-    import velma.executor.observer  # noqa: F401  (sets MUJOCO_GL=egl before MuJoCo loads)
     from velma.executor.timing import name_process
     from velma.model.scene import N_PARTICLES, load_kitchen
 
@@ -140,10 +140,9 @@ class CameraProcess:
             return
         self._end()
         # MuJoCo reads MUJOCO_GL when it is first imported, and a spawned child imports this
-        # process's __main__ module before camera_main runs: set it in the environment it inherits
-        # (velma/perception/kinect.py's choice), or a main module that imports MuJoCo leaves the
-        # child without a GL platform
-        os.environ.setdefault("MUJOCO_GL", "egl")
+        # process's __main__ module before camera_main runs: the environment it inherits must
+        # hold the choice, or a main module that imports MuJoCo leaves it without a GL platform
+        choose_gl()
         ctx = multiprocessing.get_context("spawn")
         mine, theirs = ctx.Pipe(duplex=True)
         spec = msgspec.msgpack.encode(self.spec)

@@ -17,6 +17,9 @@ import msgspec
 import numpy as np
 import numpy.typing as npt
 
+from velma.gl import HOW as GL_HOW
+from velma.gl import renders
+
 PERCEPTION_MODES = ("camera", "truth")
 """``ROCO_PERCEPTION``'s values (``perception_mode``)."""
 PERCEPTION_LOG = "ag_ex_perception.jsonl"
@@ -27,16 +30,29 @@ DEFAULT_PERCEPTION = "camera"
 fleet with it: 20 of 20 pose seeds succeed, the content check passing on the camera's count;
 that count sees content spilled in view, not a sphere gone out of view from behind the bowl's
 wall (docs/bench/observe.md). ``ROCO_PERCEPTION=truth`` answers from the physics (tests, and to
-compare)."""
+compare). On a machine without an off-screen GL library (velma/gl.py) the default is
+``truth``: see :func:`perception_mode`."""
 
 
 def perception_mode(environ: dict[str, str] | None = None) -> str:
-    """``ROCO_PERCEPTION`` of ``environ`` (default ``os.environ``): ``DEFAULT_PERCEPTION`` when
-    unset or empty. Raises ``ValueError`` for another value."""
-    value = (os.environ if environ is None else environ).get("ROCO_PERCEPTION", "") or DEFAULT_PERCEPTION
+    """``ROCO_PERCEPTION`` of ``environ`` (default ``os.environ``). Unset or empty:
+    ``DEFAULT_PERCEPTION`` where MuJoCo can render off-screen, else ``truth`` (a machine
+    without libEGL or libOSMesa still runs the robot; :func:`camera_unavailable` says why).
+    Raises ``ValueError`` for a value not in ``PERCEPTION_MODES``."""
+    value = (os.environ if environ is None else environ).get("ROCO_PERCEPTION", "")
+    if not value:
+        return DEFAULT_PERCEPTION if camera_unavailable() is None else "truth"
     if value not in PERCEPTION_MODES:
         raise ValueError(f"ROCO_PERCEPTION={value!r}: expected one of {', '.join(PERCEPTION_MODES)}")
     return value
+
+
+def camera_unavailable() -> str | None:
+    """Why the head camera cannot render on this machine (no off-screen GL library for MuJoCo,
+    velma/gl.py, with the packages to install), or None."""
+    if renders():
+        return None
+    return f"no off-screen GL library (libEGL or libOSMesa) for the head camera: {GL_HOW}"
 
 
 class WorldCapture(msgspec.Struct, frozen=True, tag="world_capture", kw_only=True):

@@ -10,8 +10,7 @@ Observe: the loop hands off a ``WorldCapture``; ``ResultDelivery``
 delivers every result in the loop's order. In this in-process host that thread shares the
 interpreter with the loop thread, so an Observe (≈ 0.2 s of rendering and fitting, much of it
 in C with the GIL released, not all) can stretch some loop cycles; ag_ex's
-``ExecutorProcess`` does not have that problem. MUJOCO_GL is set to ``egl`` here unless set:
-import this module before anything else imports MuJoCo, or set it yourself.
+``ExecutorProcess`` does not have that problem.
 
 Timing: physics dt = 1 ms, control at 1 kHz (one control update per physics step).
 ``realtime=True`` releases cycle k at t₀ + k·1 ms of wall time; ``realtime=False`` runs as fast
@@ -20,10 +19,6 @@ overruns either way.
 """
 
 from __future__ import annotations
-
-import os
-
-os.environ.setdefault("MUJOCO_GL", "egl")  # the camera renders off-screen (velma/perception/kinect.py)
 
 import logging
 import threading

@@ -37,10 +37,6 @@ docs/bench/perception.md measured over 20 pose seeds: the RMS of the 3-D errors 
 from __future__ import annotations
 
 import math
-import os
-
-os.environ.setdefault("MUJOCO_GL", "egl")  # the Kinect renders off-screen (velma/perception/kinect.py)
-
 from dataclasses import dataclass
 
 import mujoco

@@ -9,8 +9,7 @@ intrinsics, f ≈ 580 px at 640 × 480, give 58° × 45°), and the model keeps 
 
 ``HeadKinect.capture`` renders RGB and metric depth (``mujoco.Renderer`` with
 ``enable_depth_rendering``: the distance along the optical axis) off-screen with
-``MUJOCO_GL=egl`` (set here if unset, as velma/render.py does: import this module before
-anything else imports MuJoCo), then applies velma/perception/noise.py. The camera pose is
+the GL platform velma/gl.py chooses, then applies velma/perception/noise.py. The camera pose is
 ``data.cam_xpos`` / ``data.cam_xmat`` of ``head_camera``: the robot's own head kinematics
 (a real robot has it from its joint encoders), not a measurement of the scene.
 
@@ -24,10 +23,6 @@ velma/render.py ``SceneCamera``), which costs nothing to depth and speeds up sof
 from __future__ import annotations
 
 import math
-import os
-
-os.environ.setdefault("MUJOCO_GL", "egl")
-
 from dataclasses import dataclass
 
 import mujoco

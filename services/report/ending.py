@@ -1,0 +1,122 @@
+"""The end of a fleet that was given its commands from outside (``roco up``, ``roco hosts up``:
+``roco send`` from this host or another, ``--router``): what it was asked and how each command
+ended, taken from what the fleet itself recorded, into ``run.json``; then its report.
+
+A fleet of ``roco up`` does not see ``roco send`` run; its traffic recorder sees every
+communicate, so the commands are those a_hi passed to a_co on C2 (an L_HC ``HumanCommand``
+request, paper §5.2) and their outcomes a_co's answers in the same conversation (a
+``CommandOutcome``, a failure or refuse; after the person's cancel, stopped): services/report/
+coordination.py ``commands``. A sentence a_hi did not understand never reaches C2 and is no
+command given to the fleet.
+"""
+
+from __future__ import annotations
+
+from collections import Counter
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+from services.report.build import write_run_report
+from services.report.coordination import commands
+from services.report.load import RunData, load_run
+from services.runtime.run_folder import RunCommand, RunInfo, write_run_info
+
+DONE = frozenset({"succeeded", "stopped"})
+"""Outcomes that are no failure of the fleet: done, or stopped because the person asked."""
+
+
+@dataclass(frozen=True)
+class Ending:
+    """What :func:`end` left in a fleet's run folder: ``run.json``'s ``info``, the report's
+    ``path`` and how many ``communicates`` it counts; ``problem``: why the report (or
+    ``run.json``) was not written, "" when it was."""
+
+    info: RunInfo
+    path: Path | None = None
+    communicates: int = 0
+    problem: str = ""
+
+    def line(self) -> str:
+        """``after 312.4 s; 2 commands: 2 succeeded; 1234 communicates; report RUN/report.md``
+        (or why there is no report); the time is the fleet's wall time from its start
+        (``run.json`` ``started``)."""
+        info = self.info
+        took = f"after {info.ended - info.started:.1f} s; " if info.ended and info.started else ""
+        took = took or "(its start unknown); "
+        given = f"{took}{commands_summary(info.outcomes)}"
+        if self.path is None:
+            return f"{given}; report not written: {self.problem}"
+        return f"{given}; {self.communicates} communicates; report {self.path}"
+
+
+def end(run_dir: Path, *, ended: float, failure: str = "") -> Ending:
+    """Complete ``run_dir/run.json`` (:func:`conclude`) and write the report (services/report/
+    build.py) of a fleet that ended at ``ended`` (POSIX s); ``failure``: why it ended before its
+    time. Never raises for a folder that cannot be read or written: :attr:`Ending.problem`
+    says why."""
+    try:
+        run = load_run(run_dir)
+        info = conclude(run, ended=ended, failure=failure)
+    except OSError as exc:
+        return Ending(RunInfo(), problem=_first_line(exc))
+    run.info = info
+    try:
+        path, report = write_run_report(run)
+    except Exception as exc:  # the fleet has ended whether or not its report can be made
+        return Ending(info, problem=_first_line(exc))
+    return Ending(info, path, report.sizes.count)
+
+
+def conclude(run: RunData, *, ended: float, failure: str = "") -> RunInfo:
+    """Complete ``run.json`` of the run folder ``run`` (as read) for a fleet that ended at
+    ``ended`` (POSIX s): the commands it was given (``commands``, ``command``,
+    ``command_sent``), each with its outcome (``outcomes``), ``ended``, ``succeeded`` (every
+    command done or stopped at the person's request; None when none was given) and
+    ``detail`` (one ``#n outcome: sentence`` per command). ``failure``: why the fleet ended
+    before its time (it did not start, it was interrupted): then ``succeeded`` is False and
+    ``detail`` starts with it. Returns what it wrote. Raises OSError when it cannot write."""
+    info = run.info if run.info is not None else RunInfo(started=run.t0)
+    info.outcomes = [
+        RunCommand(
+            text=row.text,
+            sent=run.t0 + row.requested_t,
+            outcome=row.outcome,
+            detail=row.detail,
+            ended=None if row.ended_t is None else run.t0 + row.ended_t,
+        )
+        for row in commands(run.messages)
+    ]
+    info.commands = [c.text for c in info.outcomes]
+    if info.outcomes:
+        info.command = info.outcomes[0].text
+        info.command_sent = info.outcomes[0].sent
+    info.ended = ended
+    given = "; ".join(
+        f"#{n} {c.outcome or 'not ended when the fleet stopped'}: {c.detail or c.text}"
+        for n, c in enumerate(info.outcomes, 1)
+    )
+    if failure:
+        info.succeeded = False
+        info.detail = f"{failure}; {given}" if given else failure
+    else:
+        info.succeeded = all(c.outcome in DONE for c in info.outcomes) if info.outcomes else None
+        info.detail = given or "no command was given"
+    write_run_info(Path(run.run_dir), info)
+    return info
+
+
+def commands_summary(outcomes: Sequence[RunCommand]) -> str:
+    """``no command given``, or ``3 commands: 2 succeeded, 1 not ended``."""
+    if not outcomes:
+        return "no command given"
+    counts = Counter(c.outcome or "not ended" for c in outcomes)
+    each = ", ".join(f"{n} {outcome}" for outcome, n in counts.items())
+    return f"{len(outcomes)} command{'s' if len(outcomes) > 1 else ''}: {each}"
+
+
+def _first_line(exc: BaseException) -> str:
+    if isinstance(exc, OSError) and exc.strerror and exc.filename:
+        return f"{exc.strerror}: {exc.filename}"
+    text = str(exc).strip()
+    return text.splitlines()[0] if text else type(exc).__name__
