@@ -108,8 +108,8 @@ HEAD = """\
 # --check` says whether this file is what they give, and `roco spec new-agent` renders it again.
 #
 #   docker compose -f deploy/compose.yaml -p roco up -d        (or docker-compose 1.29: same flags)
-#   roco status --router tcp/127.0.0.1:7447
-#   roco send --router tcp/127.0.0.1:7447 "pour the jar into the bowl"
+#   roco status --router tls/127.0.0.1:7447 --credentials deploy/certs
+#   roco send --router tls/127.0.0.1:7447 --credentials deploy/certs "pour the jar into the bowl"
 #   docker compose -f deploy/compose.yaml -p roco down
 #
 # Configured by environment (shell or deploy/.env):
