@@ -1,4 +1,4 @@
-"""Is a run's traffic record whole? Pairing, gaps by sequence number, duplicates (issue 16).
+"""Is a run's traffic record whole? Pairing, gaps by sequence number, duplicates (docs/recovery.md).
 
 Every reader of a run folder (the report, ``roco spec verify``, the chaos verdict) checks this
 first and says what it found, so that nobody reads an answer as the reply to the wrong request:

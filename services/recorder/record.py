@@ -7,7 +7,7 @@ can be decoded later: a stream of msgpack ``bin`` values, each holding one self-
 A record and its payload belong together when their :class:`RecordKey` — the recorder
 incarnation that wrote them and the index it gave — is the same: a restarted recorder appends
 to both files under a new incarnation, so no reader can pair one incarnation's metadata with
-another's bytes (issue 16). The recorder writes an entry's payload before its record, so a
+another's bytes. The recorder writes an entry's payload before its record, so a
 recorder killed in between leaves a payload without its record, which the next incarnation
 writes (:func:`repair`). Runs written before incarnations existed hold ``[seq, payload]``
 arrays (incarnation ``""``); they still read, and a key written twice there is ambiguous, so it
@@ -259,7 +259,7 @@ def _element(data: bytes, pos: int) -> tuple[int, int]:
 
 
 def _old_pair_end(data: bytes, pos: int) -> int:
-    """End of a msgpack ``[int, bin]`` array at ``pos`` (the raw format before issue 16)."""
+    """End of a msgpack ``[int, bin]`` array at ``pos`` (the older raw format, still read)."""
     p = pos + 1
     t = data[p]
     if t <= 0x7F:

@@ -23,7 +23,7 @@ A subclass declares its ``name`` (as in the specification), builds its FSM of be
   exception while taking a communicate in is counted (``rejected.internal``) and logged,
 - a bound on the conversations a peer may have open with the agent
   (``MAX_OPEN_CONVERSATIONS_PER_PEER``): one more is refused,
-- agents of other platforms (issue 22): a sender named ``local@platform`` that is not an agent of
+- agents of other platforms (docs/gateway.md): a sender named ``local@platform`` that is not an agent of
   the specification is checked as the specification's external role (``SystemSpec.role_of``:
   x_fipa, which ends C8 with a_hi), and answered under its own name,
 - its ``counters`` on request: a put on ``roco/counters/ask`` makes every agent publish them
@@ -36,14 +36,14 @@ A subclass declares its ``name`` (as in the specification), builds its FSM of be
   handling: byte-identical copies are dropped and the answers already sent are published
   again (services/runtime/dedup.py); ``counters``: ``retransmitted``, ``duplicates``,
   ``replayed``; ``published`` counts every communicate put on Zenoh (retransmissions and
-  replays included: what the traffic record must hold of this agent's session, issue 16),
+  replays included: what the traffic record must hold of this agent's session, docs/recovery.md),
 - peer liveliness: :meth:`Agent.peer_changed` is called on the agent's thread whenever
   another agent's token appears or disappears (the white pages, ``roco/alive/*``),
 - a persistence hook, :meth:`Agent.persist`, called after every step once its output
   buffer is dispatched.
 - one thread at a time runs the elementary actions (it holds the agent's turn): the agent's
   own, or, while the agent is idle, the transport's receiving thread a communicate arrived on
-  (:meth:`Agent._take_here`; issue 20: no hand-over between threads for a communicate that
+  (:meth:`Agent._take_here`: no hand-over between threads for a communicate that
   finds the agent waiting). ``RECEIVE_INLINE = False`` keeps every step on the agent's thread.
 
 The elementary action (paper §3.2): compute the transition function, dispatch the output
@@ -129,7 +129,7 @@ with 100 agent processes on 2 cores a 100 µs step waits tens of ms for a core a
 wall-time budget turned inline receiving off for a third of them (docs/benchmarks.md, "Fewer
 wake-ups per communicate")."""
 ENV_RECEIVE = "ROCO_RECEIVE"
-"""``agent-thread``: every input is handed to the agent's own thread (the path before issue 20);
+"""``agent-thread``: every input is handed to the agent's own thread (the slower path, kept to compare);
 unset or ``inline``: an idle agent takes a communicate in where it arrives."""
 _SENT_COUNTER = {p: f"sent.{p.value}" for p in Performative}
 _RECEIVED_COUNTER = {p: f"received.{p.value}" for p in Performative}
@@ -179,7 +179,7 @@ class Agent:
     RECEIVE_INLINE: ClassVar[bool] = True
     """While the agent is idle (its behaviour blocked for input), a communicate is taken in,
     and the next elementary actions run, on the transport's thread it arrived on, instead of
-    being handed to the agent's thread (issue 20: one thread wake-up less per receive). False:
+    being handed to the agent's thread (one thread wake-up less per receive). False:
     an agent whose steps must run on one thread (thread-bound resources)."""
 
     def __init__(self, transport: Transport, spec: SystemSpec | None = None) -> None:

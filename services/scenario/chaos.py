@@ -5,7 +5,7 @@ command, and a verdict on what the system kept.
 ``fault`` step per service (each once, in a random order, or ``count`` draws), each some
 random seconds after the one before, of a random kind (kill, pause, restart) and length. The
 scenario runner injects them. :func:`verdict` reads the run folder's traffic record and
-answers the issue's questions:
+answers what a fault-tolerant system must keep:
 
 - **task done** — every command ended as expected (a_hi's final report);
 - **no command lost** — every command got a final report;

@@ -6,7 +6,7 @@ group of the current fringe into two new groups (or only supplements channels); 
 of a split group is reallocated to one of the two new groups (a channel left at a group that no
 longer exists is an error); new channels are numbered 1, 2, 3, ... in order of creation and
 join groups of the fringe (or one group of the fringe and one group outside the system that
-a step declares ``outside``: agents of other platforms, issue 22); the stop condition holds:
+a step declares ``outside``: agents of other platforms, docs/gateway.md); the stop condition holds:
 every requirement is addressed by a step, and the final fringe is exactly the groups the agents
 substitute, with the final channels exactly the specification's channels C1..Cn between those
 agents; each group outside the system is substituted by an external role (``[[externals]]``),

@@ -19,7 +19,7 @@ Schema (TOML, beside the channels in the same file; every field below is validat
     new_channels = [{ number = 2, ends = ["da", "hi"], transmits = "..." }]
     supplemented = [{ number = 6, transmits = "..." }]       more content on an existing channel
     outside = { xp = "..." }      groups outside the system (their tasks) that this step's new
-                                  channels may join: agents of other platforms (issue 22), which
+                                  channels may join: agents of other platforms (docs/gateway.md), which
                                   no agent of the system substitutes but an external role
                                   (``[[externals]]``) does; a channel joins at most one of them
 

@@ -6,7 +6,7 @@ validates the shape, :func:`load` the cross references. An agent's interface is 
 (channel, peer, performative, protocol, language) it may send or receive (paper §4 step 4:
 the sets yV̂_j, xV̂_j, yL̂_j, xL̂_j).
 
-A channel may end at an external role (``[[externals]]``, issue 22) instead of an agent: agents
+A channel may end at an external role (``[[externals]]``, docs/gateway.md) instead of an agent: agents
 of other platforms, which no process of roco runs; :meth:`SystemSpec.role_of` says which role a
 concrete agent name plays (``da0@host:1099/JADE`` plays ``x_fipa``).
 """
@@ -40,7 +40,7 @@ class AgentSpec(msgspec.Struct, frozen=True, forbid_unknown_fields=True):
 
 
 class ExternalSpec(msgspec.Struct, frozen=True, forbid_unknown_fields=True):
-    """A role played by agents outside the platform (issue 22): agents of another FIPA
+    """A role played by agents outside the platform (docs/gateway.md): agents of another FIPA
     platform, reached through ``roco gateway`` (FIPA SC00084 HTTP transport, SC00085 envelope).
     ``name`` is the role's name in the channels (``x_fipa``), ``group`` the group outside the
     system that a decomposition step introduces (``outside``), ``job`` what such agents do here.

@@ -123,7 +123,7 @@ def graph_dot(spec: SystemSpec) -> str:
     ]
     for a in spec.agents:
         lines.append(f'  {a.name} [label="{a.name}\\n(g_{a.group})"];')
-    for e in spec.externals:  # outside the system (issue 22)
+    for e in spec.externals:  # outside the system: agents of other platforms
         lines.append(f'  {e.name} [label="{e.name}\\n(g_{e.group}, outside)", style="rounded,dashed"];')
     for ch in spec.channels:
         protos = ", ".join(p.protocol for p in ch.protocols)

@@ -23,7 +23,7 @@ liveliness declarations), ``egress`` what the router delivers to it. For agent `
   liveliness token and heartbeats below its own keys (``<key>/@adv/**``), hears the recorder's
   queries of ``roco/fipa/**/@adv/**`` and replies only with communicates on its own keys.
 
-A channel whose one end is an external role (``x_fipa``, issue 22: agents of other FIPA
+A channel whose one end is an external role (``x_fipa``: agents of other FIPA
 platforms) is keyed with ``$*@$*`` for that end (``keys.FOREIGN``: a chunk holding an ``@``,
 which every foreign name ``local@platform`` has, ``da0@host:1099%2FJADE``, and no name of roco's
 agents has): a_hi puts on ``roco/fipa/C8/a_hi/$*@$*`` and is delivered

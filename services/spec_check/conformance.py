@@ -244,7 +244,7 @@ class _Checker:
         self.spec = spec
         self.machines = machines
         self.report = report
-        # agents, and the external role foreign agents play (issue 22: SystemSpec.role_of)
+        # agents, and the external role foreign agents play (SystemSpec.role_of)
         self.interfaces = {n: interface(spec, n) for n in (*spec.agent_names, *spec.external_names)}
         self.trackers: dict[tuple[str, frozenset[str]], CrossingTracker] = {}
         self.results: dict[tuple[str, frozenset[str]], ConversationResult] = {}

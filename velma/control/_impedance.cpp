@@ -1,4 +1,4 @@
-// The impedance control law of velma/control/impedance.py, compiled (issue 18).
+// The impedance control law of velma/control/impedance.py, compiled (setup.py builds it).
 //
 // One call computes what VelmaController.update computes in Python, with the same
 // operations in the same order where the result depends on it: Pinocchio's crba (WORLD

@@ -1,4 +1,4 @@
-// The MuJoCo side of ag_ex's 1 kHz cycle, compiled beside the law (issue 18; included by
+// The MuJoCo side of ag_ex's 1 kHz cycle, compiled beside the law (included by
 // _impedance.cpp after the Law class, only when MuJoCo's headers were found at build time).
 //
 // One ``Plant.cycle`` does what velma/executor/runtime.py ``Runtime.cycle`` does in Python:

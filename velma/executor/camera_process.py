@@ -2,8 +2,8 @@
 
 The head Kinect renders with MuJoCo's off-screen renderer on Mesa's software rasteriser
 (llvmpipe): the first frame maps LLVM and Mesa and allocates the renderer's buffers, and a
-process keeps that memory (≈ 115–130 MiB PSS, measured in docs/benchmarks.md) after the
-renderer is closed. ``CameraProcess`` therefore runs ``CameraWork`` (velma/executor/camera.py)
+process keeps much of that memory (≈ 80 MiB, docs/benchmarks.md) after the renderer is
+closed. ``CameraProcess`` therefore runs ``CameraWork`` (velma/executor/camera.py)
 in a child process, started with spawn (zenoh and GL must not be inherited across fork) and
 ended when the camera has been idle for ``idle_s`` (``ResultDelivery.rest``): while the robot
 observes, the fleet holds the renderer; at rest it does not. A fault in the renderer ends the

@@ -47,8 +47,7 @@ from velma.model.generate import SCENE_CONAFFINITY, SCENE_CONTYPE
 N_PARTICLES = 18
 """Content spheres in the jar. The physics step's cost grows with the contacts: with 27 the
 1 kHz loop overran 2–4 % of its cycles on the 2-core development machine, with 18 0.3–0.7 %
-(scripts/bench_loop.py; docs/executor.md), so the count was lowered as the issue asks ("keep
-the count such that the loop holds its rate")."""
+(scripts/bench_loop.py; docs/executor.md): the count is what keeps the loop at its rate."""
 PARTICLE_RADIUS = 0.009  # m
 PARTICLE_MASS = 0.003  # kg
 PARTICLE_PREFIX = "jar_content_"

@@ -17,7 +17,7 @@ Towards the person (C2, L_HC): commands by fipa-request (agree, then inform or f
 CommandOutcome; a ``cancel`` stops a command and is answered once the robot is safe), progress
 by fipa-subscribe (a Progress inform at every change), status by fipa-query (Status).
 
-Restarts (issue 7; docs/recovery.md): every accepted command is kept in a_co's state file
+Restarts (docs/recovery.md): every accepted command is kept in a_co's state file
 (services/runtime/state_store.py) after the step that agreed to it, with the plan a_ta runs and
 the progress subscription; a restarted a_co reloads them, re-enters their conversations and
 plans again what was being planned. A copy of a command it already holds (a_hi retransmits

@@ -1,7 +1,7 @@
 """a_km — the knowledge manager (paper §5.5, Table 5, Figure 11c).
 
 FSM states: idle (wait for a query from a_pl, a_ta or a_hi — a_hi asks on C7 for the words
-a person may use for things, issue 23 —, or an observation), questionAnswering
+a person may use for things —, or an observation), questionAnswering
 (answer one query from the knowledge base, hypothetical queries of §5.7 included: inform-ref
 with an L_WM Answer to query-ref, inform to query-if; ``refuse`` with the reason for a query
 a_km does not answer, ``failure`` with the reason for one it cannot answer), knowledgeSaving
