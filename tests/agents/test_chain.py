@@ -34,7 +34,7 @@ def _traffic(fleet: MemoryFleet) -> list[tuple[str, object]]:
 def test_pour_runs_two_plans_and_succeeds() -> None:
     with MemoryFleet() as fleet:
         fleet.wait_for_initial_knowledge()
-        reports = fleet.command("fill the bowl from the jar")  # issue 23: a pour in other words
+        reports = fleet.command("fill the bowl from the jar")  # a pour in other words
         traffic = _traffic(fleet)
     kinds = [r.kind for r in reports if r.kind is not ReportKind.PROGRESS]
     assert kinds == [ReportKind.ACCEPTED, ReportKind.SUCCEEDED]
@@ -61,7 +61,7 @@ def test_unknown_sentence_is_reported_not_understood() -> None:
 
 
 def test_unknown_object_fails_with_a_readable_reason() -> None:
-    """a_hi names the word a_km's knowledge has no thing for (issue 23; a_pl refused it before)."""
+    """a_hi names the word a_km's knowledge has no thing for."""
     with MemoryFleet() as fleet:
         fleet.wait_for_initial_knowledge()
         reports = fleet.command("pour the teapot into the bowl")
@@ -212,7 +212,7 @@ def test_a_short_content_count_is_looked_at_again_and_the_second_count_judges() 
 
 
 def test_it_names_the_object_the_person_named_last() -> None:
-    """Issue 23: "put it on the table" after a command about the cup moves the cup."""
+    """Saying “put it on the table” after a command about the cup moves the cup."""
     with MemoryFleet() as fleet:
         fleet.wait_for_initial_knowledge()
         start = fleet.executor.poses["cup"].position

@@ -1,4 +1,4 @@
-"""a_ta makes the hands safe after a restart interrupted a take or a set-down (issue 7).
+"""a_ta makes the hands safe after a restart interrupted a take or a set-down.
 
 Chaos seed 8: a_ta restarted during ``fetch_bowl/take/grasp``; the next plan's arm posture
 dragged the bowl out of the cabinet with the half-closed hand and dropped it. Chaos seed 12:

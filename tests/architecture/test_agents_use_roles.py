@@ -1,4 +1,4 @@
-"""Every agent's communication follows from the specification (issue 17): each declares its
+"""Every agent's communication follows from the specification: each declares its
 protocol roles, sends only through them, and no agent module compares performatives (the
 roles route what arrives by the protocols' state machines)."""
 

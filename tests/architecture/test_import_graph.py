@@ -1,4 +1,4 @@
-"""The import graph among roco's packages (issue 17, design.md "Rules": an arrow only points down;
+"""The import graph among roco's packages (design.md "Rules": an arrow only points down;
 no package imports another package that imports it back).
 
 A package is a folder directly under ``shared/``, ``services/`` or ``velma/`` (or a module

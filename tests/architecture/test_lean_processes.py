@@ -1,4 +1,4 @@
-"""An agent's process imports only what the agent uses (issue 20, lean processes): no physics
+"""An agent's process imports only what the agent uses (lean processes): no physics
 (MuJoCo, Pinocchio), plotting (matplotlib), visualisation (Rerun) or RDF (rdflib, pyoxigraph)
 library in an agent that does not need it.
 

@@ -1,4 +1,4 @@
-"""No agent and no ag_ex path gives the agents poses from the physics (issue 19): the camera's
+"""No agent and no ag_ex path gives the agents poses from the physics: the camera's
 Observation is built from rendered pixels, the head's kinematics and the objects' models;
 the physics' truth (velma/executor/ground_truth.py) is read only for tests, the perception log
 and tools that judge a run.

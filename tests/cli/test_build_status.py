@@ -1,4 +1,4 @@
-"""scripts/live_status.sh (issue 24), the status line of scripts/build_image.sh's phases: the
+"""scripts/live_status.sh, the status line of scripts/build_image.sh's phases: the
 command's output goes to its log and its exit status comes back; a status line is drawn and
 erased on a terminal only."""
 

@@ -1,4 +1,4 @@
-"""``roco doctor`` (issue 24): each check finds what is there, says how to get what is not,
+"""``roco doctor``: each check finds what is there, says how to get what is not,
 and the command exits 0 exactly when everything ``roco run`` needs is found."""
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""Every ``--help`` of ``roco`` reads well at 80 columns (issue 24): no markup left literal
+"""Every ``--help`` of ``roco`` reads well at 80 columns: no markup left literal
 (reStructuredText ````x````, Markdown ```x``` or ``**x**``, rich ``[tag]``), no word cut at a
 line's end, the command table one short sentence per command, the overview's examples aligned.
 

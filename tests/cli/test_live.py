@@ -1,4 +1,4 @@
-"""The live view (services/live/, issue 24): its state folds the run's own observations —
+"""The live view (services/live/): its state folds the run's own observations —
 communicates, ag_ex's state, liveliness tokens — into command, plan k of n, the step's place,
 agents alive, sim against wall time and the loop's overrun share; the view draws them; the
 watch takes them from Zenoh; off a terminal ``roco run`` keeps its plain lines."""

@@ -340,7 +340,7 @@ def test_bad_datetime(token: str, reason: str) -> None:
         ('(inform :ontology #1"\xff)', "invalid UTF-8", 18),
         ("(inform :ontology \ud800)", "lone surrogate", 18),
         (")", "expected '('", 0),
-        # SC00070 words where the grammar asks for one (issue 22): never a silent reading
+        # SC00070 words where the grammar asks for one: never a silent reading
         (
             "(inform :sender (agent-identifier :name a :addresses (sequence http://a (b) c)))",
             "expected an address (a SC00070 word), found '('",

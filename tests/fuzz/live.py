@@ -1,4 +1,4 @@
-"""The live fuzz with access control on (issue 21): a pour by the whole fleet (router with
+"""The live fuzz with access control on: a pour by the whole fleet (router with
 access control, recorder, six agent processes, MuJoCo) while a fuzzer process holding stolen
 agents' credentials (tests/fuzz/fuzzer.py ``--identity``) floods every agent those identities
 may reach with malformed communicates on their own keys, and tries keys they may not use.

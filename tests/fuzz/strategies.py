@@ -1,4 +1,4 @@
-"""Malformed communicates for fuzzing an agent's inbox and the codec (issue 8, "Bad input").
+"""Malformed communicates for fuzzing an agent's inbox and the codec.
 
 Every strategy draws a :class:`Fuzz`: the Zenoh key it is put on (``roco/fipa/C/S/R`` with a
 sender S that legitimately talks to R on channel C, as an impostor or a buggy peer would),

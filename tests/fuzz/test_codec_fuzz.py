@@ -1,4 +1,4 @@
-"""The codec under bad input (issue 8): decoding anything raises DecodeError and nothing
+"""The codec under bad input: decoding anything raises DecodeError and nothing
 else; the size limit holds on encode and decode; deeply nested input is an error, not a
 crash; 1 MB of content (the benchmark's largest) still passes."""
 

@@ -1,4 +1,4 @@
-"""Every agent's inbox fuzzed (issue 8, "Bad input"): each of the six agents, built as in the
+"""Every agent's inbox fuzzed: each of the six agents, built as in the
 fleet, takes in malformed communicates through its runtime (the transport callback, then the
 elementary action's acquire and dispatch) and must answer every one it can with
 not-understood, count it under its reason, act on none, and go on serving."""

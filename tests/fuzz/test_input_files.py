@@ -1,4 +1,4 @@
-"""Malformed input files given to the CLI and the specification loader (issue 8): one clear
+"""Malformed input files given to the CLI and the specification loader: one clear
 line naming the file and the place (line and column, or the key path), and a non-zero exit."""
 
 from __future__ import annotations

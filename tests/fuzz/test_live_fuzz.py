@@ -1,4 +1,4 @@
-"""Issues 8 and 21: the live fuzz with access control on. During a pour by the whole fleet
+"""The live fuzz with access control on. During a pour by the whole fleet
 (router with access control, recorder, six agent processes, MuJoCo), a fuzzer holding the
 stolen credentials of a_co and a_ta puts malformed communicates to every agent they may reach
 (between them: all six) on their own keys — all the router lets them use — and tries keys they

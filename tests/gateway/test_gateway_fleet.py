@@ -1,4 +1,4 @@
-"""The gateway on a real router with access control (issue 22, done when): a JADE-like platform's
+"""The gateway on a real router with access control: a JADE-like platform's
 request (FIPA SC00084) reaches a_hi as a person's command would and its answers return; one to an
 agent it may not address is refused and counted (the gateway's counters, as ``roco status`` asks
 them); ``roco sniff`` shows the JADE-named agent's traffic; the router drops what the gateway's

@@ -1,4 +1,4 @@
-"""Issues 7 and 16 on the local launcher: a chaos run that kills or restarts the agents that do
+"""Faults on the local launcher: a chaos run that kills or restarts the agents that do
 not move the robot — a_hi, a_co, a_pl, a_km — and the traffic recorder, each once, at random
 times during the pour, ends with the task done, no command lost, nothing executed twice, no
 object dropped and the traffic record intact (``roco chaos``; everything real: router,

@@ -1,4 +1,4 @@
-"""Issue 21, "Chaos across hosts": ``roco chaos --hosts`` runs the chaos scenario on the two hosts
+"""Chaos across hosts: ``roco chaos --hosts`` runs the chaos scenario on the two hosts
 of ``roco hosts`` (brain and robot in network namespaces, link 20 ± 5 ms and 1 % loss, routers
 meshed over mutual TLS, access control on) and faults both hosts and the link during one pour
 (seed 136, 1–2 s apart): the robot's router killed (2.2 s: ag_ex and a_ta lose their router,

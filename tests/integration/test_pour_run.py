@@ -48,7 +48,7 @@ def test_pour_succeeds_and_most_spheres_end_in_the_bowl(pour_run: tuple) -> None
     assert report.header.succeeded is True
     assert report.content.observed and report.content.share is not None
     assert report.content.share >= 0.9, report.content
-    # self-collision is on (issue 18): no command made the robot touch itself
+    # self-collision is on: no command made the robot touch itself
     assert [e.text for e in report.events if e.kind == "self_contact"] == []
 
 

@@ -1,4 +1,4 @@
-"""Issue 4's scenarios with everything real: ``roco scenario NAME`` starts a router, the
+"""The library's scenarios with everything real: ``roco scenario NAME`` starts a router, the
 recorder and one process per agent, ag_ex simulates Velma in MuJoCo, and the scenario's
 expectations are checked; the run folder's report is read back (services/scenario/library)."""
 
@@ -28,7 +28,7 @@ def scenario(name: str, runs: Path) -> tuple[subprocess.CompletedProcess[str], P
         timeout=1500,
     )
     (run_dir,) = [p for p in runs.iterdir() if p.is_dir()]
-    # self-collision is on (issue 18): in no scenario does a command make the robot touch itself
+    # self-collision is on: in no scenario does a command make the robot touch itself
     touched = [e.text for e in build_report(run_dir).events if e.kind == "self_contact"]
     assert touched == [], touched
     return proc, run_dir

@@ -1,4 +1,4 @@
-"""The fleet on two hosts (issue 21; docs/deploy.md "Two hosts on one machine"): brain and robot
+"""The fleet on two hosts (docs/deploy.md "Two hosts on one machine"): brain and robot
 in network namespaces, the link shaped (20 ± 5 ms each way, 1 % loss), the routers meshed over
 mutual TLS with identities of their own, access control on.
 

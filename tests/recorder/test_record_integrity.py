@@ -1,4 +1,4 @@
-"""Issue 16: the traffic record pairs each record with its own payload across recorder
+"""The traffic record pairs each record with its own payload across recorder
 incarnations, a killed recorder's half-written tail is completed by the next one, and the
 integrity check finds mispairing, gaps and duplicates instead of guessing."""
 
@@ -75,7 +75,7 @@ def test_a_recorder_killed_between_its_two_writes_is_completed_by_the_next(tmp_p
 
 
 def test_keys_written_twice_by_an_old_recorder_are_left_unpaired_not_guessed(tmp_path: Path) -> None:
-    """Before issue 16 a restarted recorder began again at seq 0 in both files."""
+    """A restarted recorder does not begin again at seq 0 in both files."""
     w = TrafficWriter(tmp_path, "")
     w.write_many(_arrivals(range(2), source="z1:1"))
     w.close()

@@ -1,4 +1,4 @@
-"""Issue 16 on real processes: a traffic recorder killed while communicates flow loses none of
+"""The traffic record on real processes: a traffic recorder killed while communicates flow loses none of
 them — the next incarnation fetches what was sent while it was down from the publishers'
 caches (zenoh-ext advanced publisher/subscriber), in order, without writing twice what the
 first one wrote — and the same holds across a router restart. Router and recorder are

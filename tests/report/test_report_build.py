@@ -205,7 +205,7 @@ def test_control_loop_missing_or_corrupt(make_run: Callable[..., Path], pour: An
 def test_access_control_row_names_refusals_and_recorded_spoofs(
     make_run: Callable[..., Path], pour: Any
 ) -> None:
-    """The report's header says what the router refused (refusals.jsonl, issue 21) and how many
+    """The report's header says what the router refused (refusals.jsonl) and how many
     recorded communicates claim another sender than their key's; no row without the file."""
     import msgspec
 

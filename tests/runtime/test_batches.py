@@ -1,4 +1,4 @@
-"""Batches in the agent runtime (issue 20; shared/fipa_codec/batch.py): what one step sends to
+"""Batches in the agent runtime (shared/fipa_codec/batch.py): what one step sends to
 one receiver leaves in one put, and every communicate of a batch that arrives is checked as if it
 had come alone (malformed, sender binding, duplicates, the interface), in order."""
 

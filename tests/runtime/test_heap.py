@@ -1,5 +1,5 @@
 """An agent gives the memory its start-up freed back to the OS once it runs
-(services/runtime/heap.py, issue 20)."""
+(services/runtime/heap.py)."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""An idle agent takes a communicate in on the thread it arrived on (issue 20): the same checks,
+"""An idle agent takes a communicate in on the thread it arrived on: the same checks,
 in the same order, one thread at a time; streams, undeclared keys and errors go back to the
 agent's own thread (services/runtime/agent.py ``Agent._take_here``)."""
 

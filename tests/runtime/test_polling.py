@@ -1,4 +1,4 @@
-"""A receiving thread's adaptive polling (services/runtime/polling.py, issue 20): quick answers
+"""A receiving thread's adaptive polling (services/runtime/polling.py): quick answers
 are caught in the poll, slow ones turn the poll off, the setting is read with a clear error.
 The clock and the FIFO are simulated: no test depends on the machine's timing."""
 

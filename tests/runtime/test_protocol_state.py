@@ -1,5 +1,5 @@
 """Every communicate is checked against its conversation's protocol state when sent and when
-received (issue 5, "at run time"; FIPA SC00026/27/35, paper §5.4): refused with
+received (at run time; FIPA SC00026/27/35, paper §5.4): refused with
 not-understood, or not sent (SpecViolation), counted and logged. Crossings on the wire are
 tolerated. The agents are driven by hand on a MemoryBus: no threads, no sleeps."""
 

@@ -1,4 +1,4 @@
-"""Nothing lost, nothing done twice (issue 7): retransmission until answered, copies dropped
+"""Nothing lost, nothing done twice: retransmission until answered, copies dropped
 and answered from memory, and the agents' kept state across a restart (a_co's queue, a_ta's
 plan, a_hi's open commands). The agents are driven by hand on a MemoryBus: no threads, no
 sleeps; time is moved by setting a pending entry's retransmission time."""

@@ -1,4 +1,4 @@
-"""Protocol roles built from the state machines (services/runtime/roles.py, issue 17): the same
+"""Protocol roles built from the state machines (services/runtime/roles.py): the same
 code plays both roles of every interaction protocol roco knows — fipa-request, fipa-query,
 fipa-request-when, fipa-subscribe, fipa-contract-net, fipa-propose and the paper's coordinate —
 between two agents on one bus, and owns what the protocols imply: in-reply-to, reply-by
@@ -76,7 +76,7 @@ def test_both_roles_of_every_protocol_run_from_its_state_machine(
     # on a_i's thread, after what it sent in answer: a final state of the protocol's machine
     done: queue.SimpleQueue[bool] = queue.SimpleQueue()
     if protocol == "coordinate":
-        # coordinate lets a_co confirm again while the plan runs (issue 7), so the last confirm
+        # coordinate lets a_co confirm again while the plan runs, so the last confirm
         # may be read as one that crossed the terminal inform: the conversation may have ended,
         # and both roles keep it open until they forget the oldest (roles.MAX_OPEN)
         def ended(a: Initiator) -> None:

@@ -1,4 +1,4 @@
-"""The router's restart is survived by every agent (issue 7; docs/recovery.md, "Router restart").
+"""The router's restart is survived by every agent (docs/recovery.md, "Router restart").
 
 A router on a loopback port is SIGKILLed by its PID and a new one is started on the same
 endpoint. Client sessions configured by ``client_config`` reconnect by themselves, Zenoh

@@ -1,4 +1,4 @@
-"""`roco chaos` (issue 7): the faults it draws, the scenario steps that carry them, and the
+"""`roco chaos`: the faults it draws, the scenario steps that carry them, and the
 verdict it reads from a traffic record (synthetic run folders here; a real chaos run is in
 tests/integration/test_chaos.py)."""
 

@@ -157,7 +157,7 @@ def test_table_names_every_identity(spec: SystemSpec) -> None:
 
 
 def test_advanced_publishers_answer_cache_queries_only_with_their_own_communicates(spec: SystemSpec) -> None:
-    """Issue 16: an agent's publisher caches answer the recorder's queries, on its own keys only."""
+    """an agent's publisher caches answer the recorder's queries, on its own keys only."""
     pl = agent_grants(spec, "a_pl")
     mine, other = keys.fipa_key("C4", "a_pl", "a_km"), keys.fipa_key("C4", "a_km", "a_pl")
     assert pl.may("ingress", "reply", mine) and not pl.may("ingress", "reply", other)
@@ -171,7 +171,7 @@ def test_advanced_publishers_answer_cache_queries_only_with_their_own_communicat
 
 
 def test_the_gateway_speaks_only_as_foreign_agents_on_their_channels(spec: SystemSpec) -> None:
-    """Issue 22: the gateway puts as any foreign agent (local@platform) to a_hi on C8 and hears
+    """the gateway puts as any foreign agent (local@platform) to a_hi on C8 and hears
     a_hi's answers to them; nothing else, and it cannot pose as one of roco's agents."""
     g = gateway_grants(spec)
     assert g.may("ingress", "put", keys.fipa_key("C8", JADE, "a_hi"))

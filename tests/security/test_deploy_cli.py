@@ -67,7 +67,7 @@ def test_acl_and_table_print() -> None:
 def test_a_meshed_routers_identity_names_its_addresses_and_the_routers_trust_each_other(
     tmp_path: Path,
 ) -> None:
-    """``roco deploy router`` (issue 21): a certificate of the CA that serves and connects with
+    """``roco deploy router``: a certificate of the CA that serves and connects with
     the router's addresses as SANs, a password, and one ACL subject for the routers matched by
     certificate common name only; a bad name or address is one line, exit 2."""
     out = tmp_path / "certs"

@@ -1,4 +1,4 @@
-"""Refusals seen, and operators' credentials (issue 21).
+"""Refusals seen, and operators' credentials.
 
 A router process with access control (user/password over TCP on a free loopback port, spawned
 by the launcher, ended by PID) refuses what an agent puts outside its channels or as another;

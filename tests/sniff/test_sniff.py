@@ -296,7 +296,7 @@ def test_parse_filters_normalises_and_names_what_is_unknown() -> None:
     assert "unknown agent 'a_xx' (known: a_hi, a_co, a_pl, a_km, a_ta, ag_ex)" in text
     with pytest.raises(ValueError, match="unknown channels 'C0', 'C9'"):
         parse_filters(channels=["C0", "C9"])
-    # an agent of another platform plays the external role (issue 22): it may be named
+    # an agent of another platform plays the external role: it may be named
     assert parse_filters(agents=["da0@host:1099/JADE"]).agents == frozenset({"da0@host:1099/JADE"})
     with pytest.raises(ValueError, match="empty conversation-id"):
         parse_filters(conversation=" ")

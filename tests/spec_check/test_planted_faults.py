@@ -1,4 +1,4 @@
-"""The exact interface check (issue 17): an agent whose roles, handlers or code differ from its
+"""The exact interface check: an agent whose roles, handlers or code differ from its
 interface in the specification refuses to start with one line naming what is wrong, and
 ``roco spec verify-code`` names the same without starting it. The faults are planted in
 tests/spec_check/planted/ (one a_pl per module)."""

@@ -85,7 +85,7 @@ BROKEN = [
         "requirement R3.2: its parent R9 does not exist",
     ),
     (
-        "a channel to a group outside the system that no step declares (issue 22)",
+        "a channel to a group outside the system that no step declares",
         'outside = { xp = "an agent of another FIPA platform that asks the robot as a person would" }\n',
         "",
         "step 8: new channel C8 ends at 'xp', which is not in the fringe",
@@ -131,8 +131,8 @@ def test_a_file_that_is_not_a_specification_is_one_clear_problem(tmp_path: Path)
 
 
 def test_replay_reaches_the_papers_six_groups_and_channels() -> None:
-    """The paper's six groups and channels (Figure 6), C7 between hi and km (issue 23) and C8
-    between hi and xp, a group outside the system (issue 22)."""
+    """The paper's six groups and channels (Figure 6), C7 between hi and km and C8
+    between hi and xp, a group outside the system."""
     final = replay(load_decomposition())[-1]
     assert sorted(final.fringe) == ["co", "ex", "hi", "km", "pl", "ta"]  # paper Figure 6
     ends = {c.name: set(c.ends) for c in final.channels.values()}
@@ -236,7 +236,7 @@ def test_roco_spec_deadlock_and_verify_exit_codes(tmp_path: Path) -> None:
 
 
 def test_a_foreign_agent_plays_the_external_role_and_roco_agents_themselves() -> None:
-    """Issue 22: every local@platform name that is not one of roco's agents plays x_fipa."""
+    """every local@platform name that is not one of roco's agents plays x_fipa."""
     from services.spec.model import default_spec, is_foreign
 
     spec = default_spec()

@@ -1,5 +1,5 @@
 """``roco spec verify RUN``: the recorded traffic of a run conforms to the specification
-(issue 5; paper §4 steps 3–4; FIPA SC00026/27/35 and the coordinate protocol, §5.4).
+(paper §4 steps 3–4; FIPA SC00026/27/35 and the coordinate protocol, §5.4).
 
 A pour by the six agents on a MemoryBus conforms in full; traffic broken on purpose shows
 each violation, with its communicate, conversation and the state machine's own words."""
@@ -117,7 +117,7 @@ def test_a_conforming_request_with_its_crossings(tmp_path: Path) -> None:
 
 
 def test_a_foreign_agents_request_on_c8_conforms_as_the_external_roles(tmp_path: Path) -> None:
-    """Issue 22: traffic that crossed roco gateway, under the JADE agent's own name, is checked
+    """traffic that crossed roco gateway, under the JADE agent's own name, is checked
     as x_fipa's; the same request to a_co is on no channel."""
     jade = "da0@host:1099/JADE"
     said = Sentence(text="bring me the cup")

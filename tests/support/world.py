@@ -1,4 +1,4 @@
-"""The simulated world a run left, for judging it in tests (issue 19: every scenario is
+"""The simulated world a run left, for judging it in tests (every scenario is
 checked by where the objects ended, not only by what the agents reported): ag_ex's final
 checkpoint observed with the ground truth (services/scenario/chaos.py ``final_world``), and
 where a_km's kitchen knowledge places each object."""

@@ -1,4 +1,4 @@
-"""A hold in the middle of taking the jar out of the cabinet (issue 7, chaos runs seed 4 and
+"""A hold in the middle of taking the jar out of the cabinet (chaos runs seed 4 and
 seed 2: a_ta killed during fetch_jar/take/lift or take/withdraw).
 
 The loop held position with the jar grasped and the hand still in the cabinet. The recovery

@@ -1,6 +1,6 @@
 """The kitchen's geometry is stated once, in the robot's scene (velma/model/generate.py, built
 into the MuJoCo model by velma/model/scene.py); a_km's facts about it
-(services/agents/knowledge/kitchen.ttl) agree with it (issue 17). The planner holds no
+(services/agents/knowledge/kitchen.ttl) agree with it. The planner holds no
 geometry of its own: it plans from a_km's answers, and tests/agents/planner/
 test_planner_matches_script.py checks that those plans reproduce velma/scenario.py."""
 
@@ -93,7 +93,7 @@ def test_places_on_the_table_are_on_its_top(world: WorldModel, obj: str) -> None
 )
 def test_the_jars_grasps_are_the_scripts(world: WorldModel, name: str, spec: str) -> None:
     """velma/scenario_kitchen.py scripts the kitchen tasks with the grasps a_km gives the
-    planner (issue 18 added the posture and the grasp from above: both places must change)."""
+    planner (the posture and the grasp from above: a change must be made in both places)."""
     import velma.scenario_kitchen as sk
 
     script = getattr(sk, spec)
@@ -112,7 +112,7 @@ def test_the_jars_grasps_are_the_scripts(world: WorldModel, name: str, spec: str
 @pytest.mark.parametrize(("surface", "spec"), [("table", "JAR_TABLE"), ("cabinet", "JAR_CABINET")])
 def test_the_jars_places_are_the_scripts(world: WorldModel, surface: str, spec: str) -> None:
     """The jar's places in the script are a_km's: where, the torso angle, the height it comes
-    down from and where the hand parks (issue 18 moved the parks clear of the robot itself)."""
+    down from and where the hand parks (the parks are clear of the robot itself)."""
     import velma.scenario_kitchen as sk
 
     script = getattr(sk, spec)

@@ -1,4 +1,4 @@
-"""Observe by the head camera (issue 19): the loop hands off a world capture, the camera's
+"""Observe by the head camera: the loop hands off a world capture, the camera's
 Observation comes back in order, what is out of view is ``unseen`` while the physics has it."""
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""Self-collision (issue 18): Velma's links collide with each other in MuJoCo, the excluded
+"""Self-collision: Velma's links collide with each other in MuJoCo, the excluded
 pairs follow stated rules, the IK rejects postures in self-collision and the wrist band pushes
 a hand away from its own forearm."""
 
@@ -194,7 +194,7 @@ def _drain(steps: Generator[None, None, tuple[str, str] | None]) -> tuple[int, t
 
 @pytest.mark.parametrize("side", SIDES)
 def test_the_check_in_slices_finds_what_the_whole_check_finds(side: str) -> None:
-    """``colliding_steps`` (the IK's resumable form, issue 18) answers as ``colliding``: the
+    """``colliding_steps`` (the IK's resumable form) answers as ``colliding``: the
     same pair at a touching posture, None at a free one after ``CHECK_STEPS`` slices; its
     slices together hold every pair of the side once."""
     robot = RobotModel()

@@ -140,7 +140,7 @@ def _all_ok(commands: list[ExecutorCommand], results: list[CommandResult | Obser
     assert len(results) == len(commands)
     for command, result in zip(commands, results, strict=True):
         assert not isinstance(result, CommandResult) or result.ok, (command, result)
-        # self-collision is on (issue 18): no command made the robot touch itself
+        # self-collision is on: no command made the robot touch itself
         assert not isinstance(result, CommandResult) or result.self_contacts == (), (command, result)
 
 

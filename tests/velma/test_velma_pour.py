@@ -46,7 +46,7 @@ def test_pour_script_fills_the_bowl() -> None:
         commands, results = run_pour(ex.submit)
     finally:
         ex.stop()
-    # self-collision is on (issue 18): the robot never touched itself
+    # self-collision is on: the robot never touched itself
     assert ex.rt.self_contacts == 0, ex.rt.self_contact_pairs
     assert len(results) == len(commands)
     for command, result in zip(commands, results, strict=True):

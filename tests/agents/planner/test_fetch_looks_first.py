@@ -1,5 +1,5 @@
 """A fetch looks at the object and checks it is where a_km says before the hand comes near it
-(issue 19: with the head camera a hand over the object, or a head still turned to the cabinet,
+(with the head camera a hand over the object, or a head still turned to the cabinet,
 would hide it)."""
 
 from __future__ import annotations

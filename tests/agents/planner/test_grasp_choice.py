@@ -1,6 +1,6 @@
 """The planner takes the grasp a_km gives for the furniture the object stands on or in
 (``GraspAffordance.on``): the jar's side grasp in the cabinet, the same grip reached from above
-on the table (issue 18: a horizontal approach there brings the left forearm into the torso)."""
+on the table (a horizontal approach there brings the left forearm into the torso)."""
 
 from __future__ import annotations
 

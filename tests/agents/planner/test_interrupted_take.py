@@ -1,5 +1,5 @@
 """A plan made while a hand holds an object it has not yet withdrawn from the cabinet (a_ta
-or ag_ex lost inside the atomic ``take``, issue 7) first finishes the take: lift, withdraw,
+or ag_ex lost inside the atomic ``take``) first finishes the take: lift, withdraw,
 both atomic, before any torso turn. An object already withdrawn is left as it is."""
 
 from __future__ import annotations

@@ -1,2 +1,2 @@
-"""Planted faults for the exact interface check (issue 17): each module holds an a_pl that
+"""Planted faults for the exact interface check: each module holds an a_pl that
 differs from its interface in the specification in one way. None starts: each is refused."""
