@@ -1174,9 +1174,9 @@ def doctor(
     fleet `roco up` left under `runs/`.
 
     Each item says found or not found and how to get it. Exit 0 when everything `roco run`
-    needs is there (with the head camera perceiving, the default, an off-screen GL context:
-    EGL or OSMesa), 1 otherwise. Takes a few seconds: MuJoCo's GL is tried in a child
-    process, Docker is asked with time limits."""
+    needs is there (with the head camera perceiving, the default where libEGL or libOSMesa is
+    installed, an off-screen GL context that opens), 1 otherwise. Takes a few seconds: MuJoCo's
+    GL is tried in a child process, Docker is asked with time limits."""
     from rich.console import Console
 
     from services.doctor import run_checks
@@ -1189,8 +1189,9 @@ def doctor(
         camera = perception_mode() == "camera"
     except ValueError:  # a bad ROCO_PERCEPTION: roco run refuses it; judge as the default
         camera = True
+    fallback = not camera and not os.environ.get("ROCO_PERCEPTION")
     show(checks, Console(highlight=False))
-    typer.echo(verdict(checks, camera))
+    typer.echo(verdict(checks, camera, truth_by_default=fallback))
     if not run_ready(checks, camera):
         raise typer.Exit(1)
 

@@ -56,9 +56,11 @@ def table(checks: Sequence[Check]) -> Table:
 CAMERA_NEED = "a GL context for the head camera (EGL or OSMesa; ROCO_PERCEPTION=truth runs without)"
 
 
-def verdict(checks: Sequence[Check], camera: bool = True) -> str:
+def verdict(checks: Sequence[Check], camera: bool = True, truth_by_default: bool = False) -> str:
     """The last line: whether ``roco run`` has what it needs (with ``camera``, a GL context
-    for the head camera too: ``run_ready``), and which other uses lack something."""
+    for the head camera too: ``run_ready``), and which other uses lack something.
+    ``truth_by_default``: the robot will perceive with the ground truth because no GL library
+    is installed (velma/executor/capture.py ``perception_mode``), which the line says."""
     needs_camera = camera and not camera_ready(checks)
     lacking = sorted(
         {
@@ -69,7 +71,10 @@ def verdict(checks: Sequence[Check], camera: bool = True) -> str:
     )
     others = f"; not ready: {', '.join(lacking)}" if lacking else "; everything else is here too"
     if run_ready(checks, camera):
-        return f"roco: roco run has everything it needs{others}"
+        how = ""
+        if truth_by_default:
+            how = " (perceiving with the ground truth: no GL library for the head camera)"
+        return f"roco: roco run has everything it needs{how}{others}"
     needed = [c.name for c in checks if c.missing and c.use is Use.RUN]
     needed += [CAMERA_NEED] if needs_camera else []
     return f"roco: roco run lacks {', '.join(needed)}{others}"

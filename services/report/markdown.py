@@ -10,7 +10,7 @@ from pathlib import Path
 
 from services.report import paper
 from services.report.figures import FigureFile
-from services.report.model import AgentMatrix, Event, Header, PlanPhase, Report
+from services.report.model import AgentMatrix, Event, Header, PerceptionRow, PlanPhase, Report
 from velma.executor.timing import STALL_OFF_CPU, TimingStats
 
 HOW_MEASURED = (
@@ -30,7 +30,7 @@ def render(report: Report, figures: Sequence[FigureFile] = ()) -> str:
     sizes over time, bandwidth and size histogram in 1, the matrix in 2, the timeline in 3."""
     figs = {f.name: f for f in figures}
     parts = [
-        _header(report.header),
+        _header(report.header, report.perception),
         _statistics(report, figs),
         _matrix_section(report.matrix, figs),
         _timeline(report.events, figs),
@@ -97,7 +97,18 @@ def _wall(t: float | None) -> str:
     return datetime.fromtimestamp(t, UTC).strftime("%Y-%m-%d %H:%M:%S UTC")
 
 
-def _header(h: Header) -> str:
+def _perceived(rows: Sequence[PerceptionRow]) -> str:
+    """The header's perception row: the head camera's Observations (section 9), or none logged."""
+    if rows:
+        observations = len({r.sim_time for r in rows})
+        return f"head camera: {observations} Observation(s), beside the ground truth in section 9"
+    return (
+        "no head-camera Observation logged: the physics' ground truth answered the agents "
+        "(ROCO_PERCEPTION=truth, or no off-screen GL library), or nothing was observed"
+    )
+
+
+def _header(h: Header, perception: Sequence[PerceptionRow] = ()) -> str:
     outcome = {None: "unknown", True: "succeeded", False: "failed"}[h.succeeded]
     if h.detail:
         outcome += f" — {h.detail}"
@@ -118,6 +129,7 @@ def _header(h: Header) -> str:
         ["Run ended", _wall(h.ended_wall)],
         ["Last communicate", f"{_s(h.last_record_t)} s after the start"],
         ["Traffic record", h.record or "—"],
+        ["Perception", _perceived(perception)],
     ]
     if h.access_control:
         rows.append(["Access control", h.access_control])

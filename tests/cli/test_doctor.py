@@ -168,22 +168,38 @@ def test_lines_and_verdict_name_what_is_missing_and_how() -> None:
 
 
 @pytest.mark.parametrize(
-    ("checks", "perception", "code"),
+    ("checks", "perception", "gl", "code"),
     [
-        (CAMERA_MISSING, "truth", 0),
-        (CAMERA_MISSING, "camera", 1),
-        (CAMERA_MISSING, "", 1),  # unset: the camera, the default
-        ([Check("x", Use.RUN, False, "gone")], "truth", 1),
+        (CAMERA_MISSING, "truth", "egl", 0),
+        (CAMERA_MISSING, "camera", "egl", 1),
+        (CAMERA_MISSING, "", "egl", 1),  # unset, libEGL installed: the camera, whose context fails
+        ([Check("x", Use.RUN, False, "gone")], "truth", "egl", 1),
     ],
 )
 def test_doctor_exits_0_exactly_when_roco_run_has_what_it_needs(
-    checks: list[Check], perception: str, code: int, monkeypatch: pytest.MonkeyPatch
+    checks: list[Check], perception: str, gl: str, code: int, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     monkeypatch.setattr(services.doctor, "run_checks", lambda runs_dir: checks)
     monkeypatch.setenv("ROCO_PERCEPTION", perception)
+    monkeypatch.setenv("MUJOCO_GL", gl)
     result = CliRunner().invoke(app, ["doctor"])
     assert result.exit_code == code, result.output
     assert result.output.strip().splitlines()[-1] == verdict(checks, camera=perception != "truth")
+
+
+def test_without_a_gl_library_doctor_says_the_robot_perceives_with_the_ground_truth(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """velma/gl.py found neither libEGL nor libOSMesa: roco run perceives with the ground truth."""
+    monkeypatch.setattr(services.doctor, "run_checks", lambda runs_dir: CAMERA_MISSING)
+    monkeypatch.setenv("ROCO_PERCEPTION", "")
+    monkeypatch.setenv("MUJOCO_GL", "disable")
+    result = CliRunner().invoke(app, ["doctor"])
+    assert result.exit_code == 0, result.output
+    assert result.output.strip().splitlines()[-1] == (
+        "roco: roco run has everything it needs (perceiving with the ground truth: no GL library "
+        "for the head camera); not ready: compose fleet, head camera"
+    )
 
 
 def test_doctor_on_this_machine_finds_what_roco_run_needs(tmp_path: Path) -> None:

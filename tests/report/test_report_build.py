@@ -228,3 +228,28 @@ def test_access_control_row_names_refusals_and_recorded_spoofs(
     assert line.startswith("on; 2 message(s) refused (a_pl 2)"), line
     assert "; 1 recorded communicate(s) claim another sender" in line, line
     assert f"| Access control | {line} |" in write_report(d).read_text()
+
+
+def test_the_header_says_what_the_robot_perceived_with(make_run: Callable[..., Path], pour: Any) -> None:
+    """Without ``ag_ex_perception.jsonl`` the header says no head-camera Observation was logged
+    (the ground truth answered); with it, how many Observations section 9 compares."""
+    import msgspec
+
+    from services.report.model import PerceptionRow
+    from velma.executor.capture import PERCEPTION_LOG
+
+    truth = make_run(pour, name="truth")
+    assert "| Perception | no head-camera Observation logged: the physics' ground truth" in (
+        write_report(truth).read_text()
+    )
+    camera = make_run(pour, name="camera")
+    rows = [
+        PerceptionRow(sim_time=9.6, object="bowl", seen=True, error_mm=3.0),
+        PerceptionRow(sim_time=9.6, object="jar", seen=True, error_mm=4.0),
+        PerceptionRow(sim_time=30.1, object="bowl", seen=True, error_mm=2.0),
+    ]
+    (camera / PERCEPTION_LOG).write_bytes(b"".join(msgspec.json.encode(r) + b"\n" for r in rows))
+    assert build_report(camera).perception == rows
+    text = write_report(camera).read_text()
+    assert "| Perception | head camera: 2 Observation(s), beside the ground truth in section 9 |" in text
+    assert "## 9. Perception (head camera)" in text

@@ -31,7 +31,8 @@ def test_the_loop_captures_the_world_and_renders_nothing() -> None:
     assert capture.positions().shape == (rt.model.nq,)
 
 
-def test_perception_mode_is_the_default_unless_one_is_asked() -> None:
+def test_perception_mode_is_the_default_unless_one_is_asked(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setenv("MUJOCO_GL", "egl")  # a GL library is installed (tests/velma/test_gl.py: none)
     assert perception_mode({}) == DEFAULT_PERCEPTION == perception_mode({"ROCO_PERCEPTION": ""})
     assert perception_mode({"ROCO_PERCEPTION": "camera"}) == "camera"
     assert perception_mode({"ROCO_PERCEPTION": "truth"}) == "truth"
