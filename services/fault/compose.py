@@ -25,9 +25,12 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from services.fault.process import INJECTOR, FaultError
+from services.fleet.launcher import AGENT_ORDER
 from services.runtime.faults import FaultEvent
 
-COMPOSE_SERVICES = ("router", "a_km", "a_pl", "a_co", "ag_ex", "a_ta", "a_hi", "recorder", "viewer")
+COMPOSE_SERVICES = ("router", *AGENT_ORDER, "recorder", "viewer")
+"""The services of deploy/compose.yaml a fault can reach: one per agent of the specification
+(services/deploy/compose.py renders them) and the router, recorder and viewer."""
 DEFAULT_FILE = Path("deploy/compose.yaml")
 PARTITIONS_FILE = ".fault_partitions.json"
 PROJECT_ENV = "ROCO_COMPOSE_PROJECT"
