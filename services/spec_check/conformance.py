@@ -24,9 +24,11 @@ fipa-subscribe, the paper's coordinate protocol), message by message in causal o
 :class:`~services.runtime.conversations.CrossingTracker` follows it: communicates of the two
 agents that crossed on the wire are tolerated, as are the cancel meta-protocol's late
 cancels; an opening communicate that reuses a conversation-id begins it anew; a
-``not-understood`` ends it (the rest of it is not followed). Conversations still open when the
-record ends are listed, not counted as violations: a subscription stays open by design, and a
-run cut short leaves others.
+``not-understood`` ends it (the rest of it is not followed). A subscribe (fipa-subscribe, SC00035
+§2: the participant answers agree or refuse) that the record ends with no answer to is a
+violation (``unanswered``) once its reply-by has passed, or when it has none. Other conversations
+still open when the record ends are listed, not counted as violations: an agreed subscription
+lasts while the system runs, and a run cut short leaves others.
 
 :func:`verify_run` returns a :class:`ConformanceReport`; :func:`render` writes it as text;
 :func:`verify_report` is what the CLI prints.
@@ -94,6 +96,7 @@ KINDS = {
     "content": "the content does not decode in its language",
     "protocol-state": "the performative is not allowed in the conversation's protocol state",
     "conversation": "the communicate cannot belong to its conversation",
+    "unanswered": "a subscribe was never agreed nor refused (by its reply-by, or by the record's end)",
 }
 """The kinds of violation, with what each means."""
 
@@ -128,7 +131,9 @@ class ConversationResult:
     reading's; see :class:`~services.runtime.conversations.CrossingTracker`), whether it
     ``ended`` (some reading reached a final state), ``violations`` in it, ``crossings``
     tolerated, ``restarts`` (an opening communicate reused its id), ``not_understood`` True
-    when a not-understood ended it, and the times ``first_t``/``last_t`` (s since run start)."""
+    when a not-understood ended it, ``answered`` False when the participant sent nothing after
+    the latest opening communicate, ``unanswered`` True for a subscribe left so past its
+    reply-by (a violation), and the times ``first_t``/``last_t`` (s since run start)."""
 
     conversation_id: str
     agents: tuple[str, str]
@@ -140,13 +145,15 @@ class ConversationResult:
     crossings: int = 0
     restarts: int = 0
     not_understood: bool = False
+    answered: bool = True
+    unanswered: bool = False
     first_t: float = 0.0
     last_t: float = 0.0
 
     @property
     def open_by_design(self) -> bool:
-        """True for a subscription still active: it lasts as long as the system runs."""
-        return self.protocol == "fipa-subscribe" and not self.ended
+        """True for an agreed subscription still active: it lasts as long as the system runs."""
+        return self.protocol == "fipa-subscribe" and not self.ended and self.answered
 
 
 @dataclass
@@ -248,12 +255,17 @@ class _Checker:
         self.interfaces = {n: interface(spec, n) for n in (*spec.agent_names, *spec.external_names)}
         self.trackers: dict[tuple[str, frozenset[str]], CrossingTracker] = {}
         self.results: dict[tuple[str, frozenset[str]], ConversationResult] = {}
+        self.openings: dict[tuple[str, frozenset[str]], tuple[Message, str, int]] = {}
+        """The latest opening communicate of each conversation, its receiver and position, until
+        the participant sends anything after it."""
+        self.end = 0.0  # POSIX time of the last communicate recorded
         self.outside_estimates = report.outside_estimates
 
     # ---- one communicate -----------------------------------------------------------------
     def check(self, m: Message) -> None:
         self.report.communicates += 1
         rec, comm = m.rec, m.comm
+        self.end = max(self.end, rec.t)
         receiver = rec.receivers[0] if rec.receivers else "?"
         problems: list[Problem] = []
         result: ConversationResult | None = None
@@ -411,6 +423,8 @@ class _Checker:
             self.report.conversations.append(result)
         result.messages += 1
         result.last_t = m.t
+        if sender != result.agents[0]:
+            self.openings.pop(key, None)  # the participant answered (rightly or not: judged here)
         machine = self.machines.get(protocol)
         if not followed or machine is None:
             return result
@@ -429,6 +443,8 @@ class _Checker:
             problems.append(("conversation", str(exc)))
             return result
         self.trackers[key] = tracker
+        if role == INITIATOR and tracker.messages == 1 and outcome in ("step", "restart"):
+            self.openings[key] = (m, receiver, result.messages - 1)
         if outcome == "restart":
             result.restarts += 1
             result.protocol = protocol
@@ -458,6 +474,44 @@ class _Checker:
                 continue
             result.state = "not-understood" if tracker.aborted else tracker.state
             result.ended = tracker.may_be_finished
+            result.answered = key not in self.openings
+            if result.protocol == "fipa-subscribe" and not tracker.aborted:
+                self._unanswered(key, result)
+        self.report.violations.sort(key=lambda v: v.seq)
+
+    def _unanswered(self, key: tuple[str, frozenset[str]], result: ConversationResult) -> None:
+        """A subscribe the participant sent nothing after (FIPA SC00035 §2: it agrees or
+        refuses) is a violation once its reply-by (POSIX s) passed before the record's last
+        communicate, or when it names none."""
+        opening = self.openings.get(key)
+        if opening is None:
+            return
+        m, receiver, position = opening
+        reply_by = m.comm.reply_by if m.comm is not None else None
+        if reply_by is not None and reply_by > self.end:
+            return  # still in time when the record ended
+        result.unanswered = True
+        result.violations += 1
+        by = (
+            f"its reply-by passed {self.end - reply_by:.1f} s before the record ended"
+            if reply_by is not None
+            else "it names no reply-by"
+        )
+        self.report.violations.append(
+            Violation(
+                seq=m.rec.seq,
+                t=m.t,
+                kind="unanswered",
+                channel=m.rec.channel,
+                sender=m.rec.sender,
+                receiver=receiver,
+                performative=m.rec.performative,
+                protocol=m.rec.protocol,
+                conversation=m.rec.conversation_id,
+                position=position,
+                text=f"{receiver} never agreed to nor refused the subscribe ({by})",
+            )
+        )
 
 
 def _role_of(channel: ChannelSpec, protocol: str | None, agent: str) -> str:
@@ -508,7 +562,12 @@ def render(report: ConformanceReport, *, limit: int = 50) -> str:
     if still:
         lines.append(f"open at the end of the record: {len(still)}")
         for c in still[:limit]:
-            why = " (a subscription stays open by design)" if c.open_by_design else ""
+            if c.open_by_design:
+                why = " (an agreed subscription lasts while the system runs)"
+            elif c.unanswered:
+                why = " (never agreed nor refused: a violation)"
+            else:
+                why = ""
             lines.append(
                 f"  {c.conversation_id} {c.agents[0]}→{c.agents[1]} {c.protocol} in state {c.state}, "
                 f"{c.messages} communicates, last at {c.last_t:.3f} s{why}"

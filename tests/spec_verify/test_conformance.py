@@ -64,13 +64,13 @@ def test_the_traffic_of_a_pour_conforms_in_full(pour_run: Path) -> None:
     assert set(report.per_protocol) == {"fipa-request", "fipa-query", "fipa-subscribe", "coordinate"}
     assert report.conforming == len(report.conversations)
     assert report.communicates == sum(c.messages for c in report.conversations)
-    # only the subscriptions are left open, as they are by design
+    # only the agreed subscriptions are left open: they last while the system runs
     still = report.open_conversations
-    assert still and all(c.open_by_design for c in still)
+    assert still and all(c.open_by_design and not c.unanswered for c in still)
     assert {c.conversation_id for c in still} >= {"km-environment"}
     ok, text = verify_report(pour_run, None)
     assert ok and text.endswith("full conformance: yes")
-    assert "(a subscription stays open by design)" in text and "violations: none" in text
+    assert "(an agreed subscription lasts while the system runs)" in text and "violations: none" in text
 
 
 # ---- traffic broken on purpose -----------------------------------------------------------------
@@ -265,6 +265,105 @@ def test_the_rendered_report_names_each_violation(tmp_path: Path) -> None:
     ) in text
     assert "open at the end of the record: 1" in text
     assert text.endswith("full conformance: no (1 violation(s))")
+
+
+def subscribe(cid: str, reply_by: float | None) -> tuple[str, bytes]:
+    """a_hi's progress subscription ``cid`` (reply-with ``cid``), to be answered by ``reply_by``
+    (POSIX s; the records written by :func:`write_run` begin at 1000.0 s, 10 ms apart)."""
+    return on(
+        "C2",
+        comm(
+            P.SUBSCRIBE,
+            "a_hi",
+            "a_co",
+            "fipa-subscribe",
+            cid,
+            ProgressSubscription(),
+            reply_with=cid,
+            reply_by=reply_by,
+        ),
+    )
+
+
+def answer(performative: Performative, cid: str, term: Progress | None = None) -> tuple[str, bytes]:
+    return on("C2", comm(performative, "a_co", "a_hi", "fipa-subscribe", cid, term, in_reply_to=cid))
+
+
+def test_a_subscribe_never_agreed_nor_refused_is_a_violation(tmp_path: Path) -> None:
+    """FIPA SC00035 §2: the participant answers a subscribe with agree or refuse. One whose
+    reply-by passed with no answer (a_co let a_hi's first attempt time out, a_hi subscribed
+    again) is a violation; one without a reply-by, never answered, too. An agreed subscription
+    is listed open, as it lasts while the system runs; a refused one has ended."""
+    report = verify(
+        tmp_path,
+        subscribe("hi-progress", reply_by=1000.0),  # seq 0: never answered, reply-by passed
+        on("C2", comm(P.REQUEST, "a_hi", "a_co", "fipa-request", "cmd-1", COMMAND)),
+        on("C2", comm(P.AGREE, "a_co", "a_hi", "fipa-request", "cmd-1")),
+        subscribe("hi-progress-2", reply_by=1005.0),  # seq 3: agreed, informed
+        answer(P.AGREE, "hi-progress-2"),
+        answer(P.INFORM, "hi-progress-2", Progress(command_id="cmd-1", state=TaskState.PLANNING)),
+        subscribe("hi-progress-3", reply_by=None),  # seq 6: never answered, no reply-by at all
+        subscribe("hi-progress-4", reply_by=1005.0),  # seq 7: refused
+        on(
+            "C2",
+            comm(
+                P.REFUSE, "a_co", "a_hi", "fipa-subscribe", "hi-progress-4", content=b"no", encoding="utf-8"
+            ),
+        ),
+    )
+    assert found(report) == [(0, "unanswered", "hi-progress", 0), (6, "unanswered", "hi-progress-3", 0)]
+    first, third = report.violations
+    assert (first.sender, first.receiver, first.performative, first.channel) == (
+        "a_hi",
+        "a_co",
+        "subscribe",
+        "C2",
+    )
+    # the record ends at 1000.08 s
+    assert first.text == (
+        "a_co never agreed to nor refused the subscribe (its reply-by passed 0.1 s before the record ended)"
+    )
+    assert third.text == "a_co never agreed to nor refused the subscribe (it names no reply-by)"
+    assert not report.full_conformance
+    by_id = {c.conversation_id: c for c in report.conversations}
+    assert by_id["hi-progress"].unanswered and by_id["hi-progress"].violations == 1
+    assert by_id["hi-progress-2"].open_by_design and not by_id["hi-progress-2"].unanswered
+    assert by_id["hi-progress-4"].ended and not by_id["hi-progress-4"].unanswered
+    assert report.conforming == len(report.conversations) - 2
+    text = render(report)
+    assert "hi-progress a_hi→a_co fipa-subscribe in state subscribed" in text
+    assert text.count("(never agreed nor refused: a violation)") == 2
+    assert text.count("(an agreed subscription lasts while the system runs)") == 1
+    assert "open by design" not in text
+    assert text.endswith("full conformance: no (2 violation(s))")
+
+
+def test_a_subscribe_still_within_its_reply_by_when_the_record_ends_is_only_open(tmp_path: Path) -> None:
+    """A run cut short just after a subscribe: its answer may still come, so it is listed open."""
+    report = verify(tmp_path, subscribe("hi-progress", reply_by=1005.0))
+    assert report.full_conformance, render(report)
+    (still,) = report.open_conversations
+    assert not still.unanswered and not still.open_by_design and still.state == "subscribed"
+
+
+def test_a_late_agree_of_an_attempt_given_up_and_its_cancel_conform(tmp_path: Path) -> None:
+    """a_co answered a_hi's first attempt after its reply-by, with the progress it kept; a_hi,
+    already on its second attempt, cancels the first (cancel meta-protocol): nothing is
+    unanswered."""
+    progress = Progress(command_id="cmd-1", state=TaskState.WAITING, detail="accepted")
+    report = verify(
+        tmp_path,
+        subscribe("hi-progress", reply_by=1000.0),
+        subscribe("hi-progress-2", reply_by=1005.0),
+        answer(P.AGREE, "hi-progress"),
+        answer(P.INFORM, "hi-progress", progress),
+        answer(P.AGREE, "hi-progress-2"),
+        on("C2", comm(P.CANCEL, "a_hi", "a_co", "fipa-subscribe", "hi-progress", ProgressSubscription())),
+        on("C2", comm(P.INFORM, "a_co", "a_hi", "fipa-subscribe", "hi-progress", None)),
+    )
+    assert report.full_conformance, render(report)
+    by_id = {c.conversation_id: c for c in report.conversations}
+    assert by_id["hi-progress"].ended and by_id["hi-progress-2"].open_by_design
 
 
 def test_missing_payloads_an_empty_record_and_no_folder_are_not_full_conformance(tmp_path: Path) -> None:

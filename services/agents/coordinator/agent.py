@@ -16,17 +16,26 @@ commands are dropped and made again before they run.
 Towards the person (C2, L_HC): commands by fipa-request (agree, then inform or failure with a
 CommandOutcome; a ``cancel`` stops a command and is answered once the robot is safe), progress
 by fipa-subscribe (a Progress inform at every change), status by fipa-query (Status).
+Every subscribe is answered, however late it comes: agree (or refuse for content other than a
+ProgressSubscription); the latest agreed subscription is the one progress goes to. Progress
+made while none is agreed — before the person's interface subscribes or while its subscribe
+waits, after it cancels or did not understand — is kept, in order, and sent as informs right
+after the next agree (FIPA SC00035: informs follow the agree), so that no change is lost
+whenever the subscription comes. What is kept is bounded: ``PROGRESS_KEPT_PER_COMMAND``
+reports per command and ``PROGRESS_KEPT`` in all; past a bound the oldest report goes (counted
+as ``progress_dropped``).
 
 Restarts (docs/recovery.md): every accepted command is kept in a_co's state file
-(services/runtime/state_store.py) after the step that agreed to it, with the plan a_ta runs and
-the progress subscription; a restarted a_co reloads them, re-enters their conversations and
-plans again what was being planned. A copy of a command it already holds (a_hi retransmits
-until it hears the agree) is not accepted twice. When a_ta's liveliness token disappears while
-it runs a plan and comes back, a restarted a_ta that kept its plan reports Replan in the same
-conversation. a_co also sends its last confirm of that conversation again: the same a_ta (the
-token only looked gone, e.g. while the router restarted) drops the copy, a restarted a_ta
-answers not-understood, and a_co then plans the command again. Plan requests to a_pl are
-retransmitted until answered, so an a_pl that restarts gets them again.
+(services/runtime/state_store.py) after the step that agreed to it, with the plan a_ta runs,
+the progress subscription and the progress not yet sent; a restarted a_co reloads them,
+re-enters their conversations and plans again what was being planned. A copy of a command it
+already holds (a_hi retransmits until it hears the agree) is not accepted twice. When a_ta's
+liveliness token disappears while it runs a plan and comes back, a restarted a_ta that kept its
+plan reports Replan in the same conversation. a_co also sends its last confirm of that
+conversation again: the same a_ta (the token only looked gone, e.g. while the router restarted)
+drops the copy, a restarted a_ta answers not-understood, and a_co then plans the command again.
+Plan requests to a_pl are retransmitted until answered, so an a_pl that restarts gets them
+again.
 """
 
 from __future__ import annotations
@@ -72,6 +81,11 @@ PLAN_RETRY_S = 5.0
 """Retransmission period of a plan request until a_pl answers (it may be restarting)."""
 MAX_REPLANS_PER_TASK = 6
 """Replan reports a_co accepts for one command before it gives up (replanning must converge)."""
+PROGRESS_KEPT_PER_COMMAND = 256
+"""Progress reports a_co keeps for one command while no subscription is agreed (a pour's two
+plans make about 80)."""
+PROGRESS_KEPT = 1024
+"""Progress reports a_co keeps in all while no subscription is agreed."""
 
 _ON_TA = (TaskState.RUNNING, TaskState.TERMINATING)
 
@@ -119,13 +133,15 @@ class KeptTask(msgspec.Struct, kw_only=True):
 
 class KeptCoordinator(msgspec.Struct, kw_only=True):
     """a_co's state file: the commands, what a_ta runs (``ta_task``, the C1 conversation, its
-    reply-with, whether it was cancelled) and a_hi's progress subscription."""
+    reply-with, whether it was cancelled), a_hi's progress subscription and the progress made
+    while none was agreed, oldest first (``unsent``; absent in files of earlier versions)."""
 
     tasks: list[KeptTask]
     ta_task: str | None
     ta_conversation: str | None
     ta_cancelled: bool
     subscription: bytes | None
+    unsent: list[Progress] = msgspec.field(default_factory=list)
 
 
 PersonSaid = tuple[Literal["command", "stop"], Conversation, Received]
@@ -155,6 +171,8 @@ class Coordinator(Agent):
         self.ta_cancelled = False  # cancel sent in the current C1 conversation
         self.person: deque[PersonSaid] = deque()  # commands and stops for procReq
         self.subscription: Conversation | None = None  # a_hi's progress subscription
+        self.unsent: deque[Progress] = deque()  # progress made while no subscription was agreed
+        self.unsent_changes = 0  # counts changes of ``unsent`` (the state file's signature)
         self.decision: Decision = Decision(None, False, "")
         self.reschedule = False
         self.decisions: list[Decision] = []
@@ -406,6 +424,7 @@ class Coordinator(Agent):
             self.ta.conversation_id if self.ta is not None else None,
             self.ta_cancelled,
             self.subscription.conversation_id if self.subscription is not None else None,
+            self.unsent_changes,
         )
 
     def _kept(self) -> KeptCoordinator:
@@ -431,6 +450,7 @@ class Coordinator(Agent):
             ta_conversation=self.ta.conversation_id if self.ta is not None else None,
             ta_cancelled=self.ta_cancelled,
             subscription=self.subscription.keep() if self.subscription is not None else None,
+            unsent=list(self.unsent),
         )
 
     @staticmethod
@@ -480,6 +500,8 @@ class Coordinator(Agent):
                 )
             except RestoreError as exc:
                 self.log.warning("the kept progress subscription cannot be taken back (%s)", exc)
+        for progress in kept.unsent:
+            self._keep_unsent(progress)
         self.reschedule = True
         self.log.info(
             "restored %d command(s) from %s%s",
@@ -518,6 +540,11 @@ class Coordinator(Agent):
             return
         self.subscription = conv
         conv.reply(Performative.AGREE)
+        if self.unsent:
+            self.log.info("sending %d progress report(s) kept until a subscription", len(self.unsent))
+        while self.unsent:
+            conv.reply(Performative.INFORM, self.unsent.popleft())
+            self.unsent_changes += 1
 
     @handles("fipa-subscribe", PARTICIPANT, "cancel")
     def _on_unsubscribe(self, conv: Conversation) -> None:
@@ -698,11 +725,35 @@ class Coordinator(Agent):
             task.step = step
         if self.rerun is not None:  # Rerun: the queue, when it changed
             self.rerun.queue(self.status())
+        progress = Progress(command_id=task.task_id, state=state, step=task.step, detail=detail)
         if self.subscription is None:
-            return
-        self.subscription.reply(
-            Performative.INFORM, Progress(command_id=task.task_id, state=state, step=task.step, detail=detail)
-        )
+            self._keep_unsent(progress)
+        else:
+            self.subscription.reply(Performative.INFORM, progress)
+
+    def _keep_unsent(self, progress: Progress) -> None:
+        """Keep ``progress`` for the next agreed subscription; past a bound (per command:
+        ``PROGRESS_KEPT_PER_COMMAND``, in all: ``PROGRESS_KEPT``) the oldest report goes."""
+        cid = progress.command_id
+        if sum(p.command_id == cid for p in self.unsent) >= PROGRESS_KEPT_PER_COMMAND:
+            oldest = next(i for i, p in enumerate(self.unsent) if p.command_id == cid)
+            del self.unsent[oldest]
+            self._dropped(cid)
+        elif len(self.unsent) >= PROGRESS_KEPT:
+            self._dropped(self.unsent.popleft().command_id)
+        self.unsent.append(progress)
+        self.unsent_changes += 1
+
+    def _dropped(self, command_id: str) -> None:
+        self.counters["progress_dropped"] += 1
+        if self.counters["progress_dropped"] == 1:
+            self.log.warning(
+                "no progress subscription: the oldest kept report of %s dropped (at most %d per "
+                "command, %d in all, are kept)",
+                command_id,
+                PROGRESS_KEPT_PER_COMMAND,
+                PROGRESS_KEPT,
+            )
 
     def _finish(self, task: Task, succeeded: bool, detail: str, *, stopped: bool = False) -> None:
         outcome = CommandOutcome(command_id=task.task_id, succeeded=succeeded, detail=detail)
