@@ -12,12 +12,16 @@ import enum
 
 import msgspec
 
+MAX_LINE_CHARS = 1000
+"""The longest ``HumanInput.text`` a_hi reads, in characters (str length): a longer line is
+refused with one ``not-understood`` report, except that a stop in it is still acted on."""
+
 
 class HumanInput(msgspec.Struct, frozen=True, kw_only=True):
-    """A sentence from a person; ``request_id`` lets the sender match the reports.
-    ``priority`` > 0 overrides the priority the sentence's urgency words give. ``person``
-    names who speaks (a_hi keeps a conversation per person: "it", questions and answers);
-    empty: the one anonymous person."""
+    """A sentence from a person; ``request_id`` lets the sender match the reports. ``text``
+    is read when at most :data:`MAX_LINE_CHARS` characters long. ``priority`` > 0 overrides the
+    priority the sentence's urgency words give. ``person`` names who speaks (a_hi keeps a
+    conversation per person: "it", questions and answers); empty: the one anonymous person."""
 
     text: str
     request_id: str

@@ -20,9 +20,16 @@ a ``SparqlQuery`` of the vocabulary (vocabulary.py: the words for the kitchen's 
 adjectives and where they are); a_km answers ``inform-ref`` an ``Answer``. The sentence waits for
 that answer, so a thing a_km learnt a moment ago can be named; when a_km is not alive (its
 liveliness token absent) or does not answer within ``VOCABULARY_REPLY_BY_S``, the sentence is
-read with the last vocabulary a_hi has (at start: O_RoCo and the kitchen's files). Sentences are
-read in the order they came; "stop" is acted on at once, and the sentences still waiting are
-dropped (reported when their query ends).
+read with the last vocabulary a_hi has (at start: O_RoCo and the kitchen's files). Whenever
+a_km's token appears (a_km started or restarted), a_hi asks for the vocabulary at once, and the
+sentences still waiting for an earlier a_km wait for that answer instead.
+
+Every line is first checked for a stop by stop.py's bounded, linear-time matcher, before the
+question to a_km, the parse and any refusal (what counts as a stop: stop.py). A stop is acted
+on at once (the cancels above), whatever it names ("stop pouring": all open commands stop, and
+the report says so); the sentences still waiting are dropped (reported when their query ends).
+A line longer than ``MAX_LINE_CHARS`` (services/runtime/human.py) that is no stop is refused
+with one ``not-understood`` line; shorter ones are read in the order they came.
 A conversation per person (``HumanInput.person``) keeps the last object named and a question
 a_hi asked back ("Which cup: …?"), which the person's next sentence may answer. What a person
 can say is grammar.lark and the task words of tasks.toml (language.py, task_words.py), read and
@@ -67,12 +74,20 @@ from services.agents.human_interface.language import (
     describe,
     interpret,
 )
+from services.agents.human_interface.stop import StopWords, command_openings
 from services.agents.human_interface.task_grammar import Grammar, default_grammar, load_grammar
 from services.agents.human_interface.vocabulary import VOCABULARY_QUERY, Vocabulary
 from services.runtime import keys
 from services.runtime.agent import Agent, SpecViolation
 from services.runtime.behaviour import FSM, Behaviour
-from services.runtime.human import FINAL_REPORTS, HumanInput, HumanReport, ReportKind, RequestKind
+from services.runtime.human import (
+    FINAL_REPORTS,
+    MAX_LINE_CHARS,
+    HumanInput,
+    HumanReport,
+    ReportKind,
+    RequestKind,
+)
 from services.runtime.roles import (
     INITIATOR,
     PARTICIPANT,
@@ -141,15 +156,23 @@ _CONNECTIVES = frozenset(
 
 @dataclass
 class HeldSentence:
-    """A sentence waiting for a_km's vocabulary (``conversation``: the C7 query); ``ready`` once
-    answered or given up, with the ``vocabulary`` to read it with (None: the last one);
-    ``stopped``: a stop came after it, so it is dropped, not read."""
+    """A sentence waiting for a_km's vocabulary; ``ready`` once answered or given up, with the
+    ``vocabulary`` to read it with (None: the last one); ``stopped``: a stop came after it, so
+    it is dropped, not read."""
 
     event: HumanInput
-    conversation: str
     ready: bool = False
     vocabulary: Vocabulary | None = None
     stopped: bool = False
+
+
+@dataclass
+class WordsQuery:
+    """A question to a_km for its vocabulary (C7): its ``conversation`` and the sentences
+    ``waiting`` for the answer (none for the question asked when a_km's token appears)."""
+
+    conversation: Conversation
+    waiting: list[HeldSentence] = field(default_factory=list)
 
 
 class KeptCommand(msgspec.Struct, kw_only=True):
@@ -244,9 +267,9 @@ def status_line(label: str, task: TaskStatus) -> str:
 
 
 def _reason(conv: Conversation) -> str:
-    """Why a_co answered negatively in ``conv``, in words."""
+    """Why the peer of ``conv`` (a_co, a_km) answered negatively or not at all, in words."""
     if conv.timed_out:
-        return "a_co did not answer in time"
+        return f"{conv.peer} did not answer in time"
     if isinstance(conv.content, CommandOutcome):
         return conv.content.detail or "no reason given"
     last = conv.last
@@ -277,6 +300,8 @@ class HumanInterface(Agent):
         malformed, or a frame collides."""
         self.grammar: Grammar = default_grammar() if tasks is None else load_grammar(tasks)
         """grammar.lark with the frames of the task words: what a person can say."""
+        self.stop_words = StopWords(command_openings(self.grammar))
+        """The matcher every line goes through first (stop.py)."""
         super().__init__(transport, spec)
 
     def build_fsm(self) -> FSM:
@@ -296,7 +321,7 @@ class HumanInterface(Agent):
         self._vocabulary: Vocabulary | None = None  # the last vocabulary a_km gave (None: none yet)
         self.dialogues: dict[str, Dialogue] = {}  # person → conversation
         self.held: deque[HeldSentence] = deque()  # sentences waiting for the vocabulary, in order
-        self.vocab_queries: dict[str, HeldSentence] = {}  # C7 conversation → its sentence
+        self.vocab_queries: dict[str, WordsQuery] = {}  # C7 conversation → the question
         self.foreign: dict[str, Conversation] = {}  # request id → C8 conversation it answers
         self.kept = StateFile.for_agent(self.name, KeptHumanInterface)
         return FSM(
@@ -325,7 +350,9 @@ class HumanInterface(Agent):
         kept = self.kept.load()
         if kept is not None:
             self._restore(kept)
-        self._subscribe()
+        # the progress subscription is opened when a_co's liveliness token is seen (at once
+        # when a_co is up: the watch reports tokens that exist), so that it never waits on an
+        # a_co that is not there yet
         self.transport.watch(keys.alive_key(CO), lambda key, alive: self.post(PeerAlive(alive)))
 
     # ---- restarts ----------------------------------------------------------------------
@@ -435,35 +462,60 @@ class HumanInterface(Agent):
 
     # ---- from the person ---------------------------------------------------------------
     def _on_input(self, event: HumanInput) -> None:
-        """A sentence: read at once when a_km is away, else after a_km's vocabulary. A stop is
-        acted on at once (it needs no words for things); the sentences still waiting are dropped."""
-        if self._is_stop(event):
+        """A line: first checked for a stop (stop.py), which is acted on at once (it needs no
+        words for things; the sentences still waiting are dropped); a line over
+        ``MAX_LINE_CHARS`` is refused; any other is read at once when a_km is away, else after
+        a_km's vocabulary."""
+        stop = self.stop_words.match(event.text)
+        if stop is not None:
             for held in self.held:
                 held.stopped = True  # reported when its query ends (the query runs its course)
-            self._understand(event, self.vocabulary)
+            dialogue = self.dialogues.get(event.person)
+            if dialogue is not None:
+                dialogue.pending = None  # a question asked back is dropped, as by any sentence
+            self.asked[event.request_id] = RequestKind.STOP
+            self._stop_commands(event.request_id, stop.names)
+            return
+        if len(event.text) > MAX_LINE_CHARS:
+            self._report(
+                event.request_id,
+                ReportKind.NOT_UNDERSTOOD,
+                f"Your line has {len(event.text):,} characters; I read lines of at most "
+                f"{MAX_LINE_CHARS:,}: please say it in fewer words.",
+            )
             return
         if KM not in self.peers:
             if not self.held:
                 self._understand(event, self.vocabulary)
                 return
-            self.held.append(HeldSentence(event, "", ready=True))  # after those still waiting
+            self.held.append(HeldSentence(event, ready=True))  # after those still waiting
             return
+        held = HeldSentence(event)
+        self.held.append(held)
+        self._ask_words(f"words-{event.request_id}-", held)
+
+    def _ask_words(self, prefix: str, *waiting: HeldSentence) -> None:
+        """Ask a_km for its vocabulary (C7, ``query-ref``) for the ``waiting`` sentences."""
         conv = self.roles.open(
             C7,
             QUERY,
             SparqlQuery(VOCABULARY_QUERY),
             performative=Performative.QUERY_REF,
-            conversation_id=new_id(f"words-{event.request_id}-"),  # never one a_km has seen end
+            conversation_id=new_id(prefix),  # never one a_km has seen end
         )
-        held = HeldSentence(event, conv.conversation_id)
-        self.held.append(held)
-        self.vocab_queries[conv.conversation_id] = held
+        self.vocab_queries[conv.conversation_id] = WordsQuery(conv, list(waiting))
 
-    def _is_stop(self, event: HumanInput) -> bool:
-        try:
-            return isinstance(interpret(event.text, vocabulary=self.vocabulary, grammar=self.grammar), Stop)
-        except NotUnderstood:
-            return False
+    def peer_changed(self, peer: str, alive: bool) -> None:
+        """a_km's token appeared (a_km started or restarted): ask for its vocabulary at once, and
+        let the sentences still waiting for an earlier a_km wait for this answer instead."""
+        if peer != KM or not alive:
+            return
+        waiting: list[HeldSentence] = []
+        for query in self.vocab_queries.values():
+            query.conversation.abandon()  # asked of the a_km that went away, or before it was up
+            waiting += query.waiting
+        self.vocab_queries.clear()
+        self._ask_words("words-", *waiting)
 
     def _read_held(self) -> None:
         """Read the waiting sentences, in order, as far as their vocabulary is there."""
@@ -480,22 +532,24 @@ class HumanInterface(Agent):
 
     @handles(QUERY, INITIATOR, "inform-ref", "inform", channel=C7)
     def _on_vocabulary(self, conv: Conversation) -> None:
-        held = self.vocab_queries.pop(conv.conversation_id, None)
+        query = self.vocab_queries.pop(conv.conversation_id, None)
         conv.abandon()
         if isinstance(conv.content, Answer) and conv.content.rows:
             self.vocabulary = Vocabulary.from_rows(conv.content.rows)
-        if held is not None:
-            held.ready, held.vocabulary = True, self.vocabulary
+        if query is not None and query.waiting:
+            for held in query.waiting:
+                held.ready, held.vocabulary = True, self.vocabulary
             self._read_held()
 
     @handles(QUERY, INITIATOR, "refuse", "failure", channel=C7)
     def _on_no_vocabulary(self, conv: Conversation) -> None:
         """Refused, failed, not understood or unanswered in time: read with the last vocabulary."""
-        held = self.vocab_queries.pop(conv.conversation_id, None)
+        query = self.vocab_queries.pop(conv.conversation_id, None)
         conv.abandon()
         self.log.warning("a_km gave no vocabulary (%s); reading with the last one", _reason(conv))
-        if held is not None:
-            held.ready = True
+        if query is not None and query.waiting:
+            for held in query.waiting:
+                held.ready = True
             self._read_held()
 
     def _understand(self, event: HumanInput, vocabulary: Vocabulary) -> None:
@@ -542,7 +596,9 @@ class HumanInterface(Agent):
         label = describe(intent.goal, self.grammar.words)
         self.commands[cid] = OpenCommand(cid, event.request_id, command, label, conv)
 
-    def _stop_commands(self, request_id: str) -> None:
+    def _stop_commands(self, request_id: str, named: str = "") -> None:
+        """Cancel every open command for stop request ``request_id``; ``named``: what the
+        person's stop named ("pouring"), said back, as a_hi stops all of them."""
         if not self.commands:
             self._report(request_id, ReportKind.STOPPED, "Nothing is running, so there is nothing to stop.")
             return
@@ -555,10 +611,11 @@ class HumanInterface(Agent):
             c.cancel = c.conversation.cancel(c.command, reply_by_s=CANCEL_REPLY_BY_S)
             self._report(c.request_id, ReportKind.PROGRESS, f"{c.label}: stopping, as you asked")
         n = len(stop.waiting)
+        every = f" (I stop every open command, not only '{named}')" if named else ""
         self._report(
             request_id,
             ReportKind.PROGRESS,
-            f"Stopping {n} command{'s' if n > 1 else ''}: {'; '.join(stop.waiting.values())}.",
+            f"Stopping {n} command{'s' if n > 1 else ''}: {'; '.join(stop.waiting.values())}{every}.",
         )
 
     def _ask_status(self, request_id: str) -> None:

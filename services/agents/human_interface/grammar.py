@@ -1,12 +1,16 @@
 """Parsing a sentence with a_hi's grammar (grammar.lark, lark's Earley parser).
 
-A sentence is normalised (lower case, punctuation and apostrophes dropped, decimal points
-kept), then **tagged**: at each position the longest phrase known wins, a closed-class phrase
+A sentence is normalised (:func:`normalise`: lower case, punctuation and apostrophes dropped,
+a possessive "'s" split off, decimal points and a minus sign before a number kept), then
+**tagged**: at each position the longest phrase known wins, a closed-class phrase
 (:data:`PHRASES`, from :data:`WORDS`, plus the words of the task frames task_grammar.py adds)
 before a noun or adjective of the :class:`~.vocabulary.Vocabulary` of the same length.
-"within N seconds|minutes|hours" becomes one ``DEADLINE`` token (its value in seconds); a
-plural of a known noun is ``PLURAL``; any other word is ``WORD``, which no rule accepts, so
-that the parse stops at it and :class:`ParseFailure` names it.
+"within N seconds|minutes|hours" and "in N …" become one ``DEADLINE`` token (its value in
+seconds, N digits or a number word of :data:`NUMBERS`; a negative or zero value is kept for
+language.py to refuse), "within" not followed by one ``WITHIN``; after "would you mind" a
+gerund of a closed-class verb is read as the verb ("pouring" as "pour"); a plural of a known
+noun is ``PLURAL``; any other word is ``WORD``, which no rule accepts, so that the parse stops
+at it and :class:`ParseFailure` names it.
 
 :func:`parse` returns every reading of the sentence (lark's ambiguities collapsed), for
 meaning.py to choose from. Raises :class:`ParseFailure` (the token where the parse stopped,
@@ -35,29 +39,44 @@ MAX_READINGS = 64
 """At most this many readings of one sentence are weighed (a short command has a handful)."""
 
 WORDS: dict[str, tuple[str, ...]] = {
-    # polite framing, address, thanks
+    # polite framing (ASK also after a command, as a tag question), address, thanks
     "POLITE": (
-        "could you",
-        "can you",
-        "would you",
-        "will you",
         "could you maybe",
         "would you mind",
+        "do you mind",
         "i want you to",
         "i need you to",
         "i would like you to",
         "id like you to",
+        "id love you to",
         "i wish you would",
         "do you think you could",
         "i wonder if you could",
         "would you be so kind as to",
+        "would you be so kind and",
         "be so kind and",
         "be a dear and",
+        "do me a favour and",
+        "do me a favor and",
+        "would it be possible to",
+        "would it be possible for you to",
+        "is it possible to",
+        "is it possible for you to",
+        "are you able to",
+        "id appreciate it if you could",
+        "i would appreciate it if you could",
+        "it would be great if you could",
+        "it would be nice if you could",
+        "id love it if you could",
         "go and",
         "go",
+        "come and",
         "hey",
-        "ok",
-        "okay",
+        "hey there",
+        "hi",
+        "hi there",
+        "hello",
+        "hello there",
         "now then",
         "then",
         "lets",
@@ -66,8 +85,42 @@ WORDS: dict[str, tuple[str, ...]] = {
         "you can",
         "try to",
     ),
-    "PLEASE": ("please", "kindly", "pls", "plz"),
-    "THANKS": ("thanks", "thank you", "thank you very much", "cheers", "ta"),
+    "ASK": (
+        "could you",
+        "can you",
+        "would you",
+        "will you",
+        "wont you",
+        "if you could",
+        "if you would",
+        "if you can",
+        "if you dont mind",
+        "if possible",
+        "ok",
+        "okay",
+    ),
+    "PLEASE": ("please", "kindly", "pls", "plz", "possibly", "just"),
+    "THANKS": (
+        "thanks",
+        "thank you",
+        "thank you very much",
+        "thank you so much",
+        "thanks a lot",
+        "many thanks",
+        "cheers",
+        "ta",
+        "that would be great",
+        "that would be lovely",
+        "that would be nice",
+        "that would be helpful",
+        "thatd be great",
+        "thatd be lovely",
+        "id appreciate it",
+        "i would appreciate it",
+        "when you have a moment",
+        "when you get a chance",
+        "for me",
+    ),
     "ADDRESS": ("robot", "velma"),
     "URGENT": (
         "urgently",
@@ -139,6 +192,32 @@ WORDS: dict[str, tuple[str, ...]] = {
     "PUT": ("put", "place", "set", "leave", "lay", "move", "stand", "stick", "position"),
     "RETURN": ("return", "store", "stow", "replace"),
     "HAND": ("hand", "give", "pass"),
+    # wishes: "I would like the cup" (brought), "can I have the cup" (handed over)
+    "WANT": (
+        "i want",
+        "i would like",
+        "id like",
+        "i need",
+        "i would love",
+        "id love",
+        "i want to have",
+        "i would like to have",
+        "id like to have",
+        "i could use",
+    ),
+    "HAVE": (
+        "can i have",
+        "could i have",
+        "may i have",
+        "can i get",
+        "could i get",
+        "can we have",
+        "could we have",
+        "may we have",
+        "can i please have",
+        "could i please have",
+        "may i please have",
+    ),
     # prepositions and particles
     "IN": ("in", "into", "inside", "in to"),
     "ON": ("on", "onto", "upon", "on to", "on top of"),
@@ -163,7 +242,26 @@ WORDS: dict[str, tuple[str, ...]] = {
         "where it came from",
     ),
     "ME": ("me", "us"),
-    "HERE": ("here", "there"),
+    "HERE": ("here",),
+    # a place a_hi cannot see: asked back ("Where should I put the cup?"), not guessed
+    "VAGUE": (
+        "there",
+        "over there",
+        "in there",
+        "on there",
+        "out there",
+        "somewhere",
+        "somewhere else",
+        "some place",
+        "anywhere",
+        "elsewhere",
+        "wherever",
+        "wherever you like",
+        "wherever you want",
+        "anywhere you like",
+        "that way",
+        "over that way",
+    ),
     "FOR": ("for",),
     "OF": ("of",),
     "AND": ("and", "and then", "and also"),
@@ -172,23 +270,62 @@ WORDS: dict[str, tuple[str, ...]] = {
     "IT": ("it", "them", "this one", "that one"),
     "THAT": ("that", "this"),
     "ONE": ("one",),
-    "CONTENTS": ("contents", "content", "what is in", "whats in", "everything in"),
-    "DET": ("the", "a", "an", "my", "your", "our", "these", "those", "some"),
+    "CONTENTS": (
+        "contents",
+        "content",
+        "what is in",
+        "whats in",
+        "what is inside",
+        "whats inside",
+        "everything in",
+        "everything inside",
+        "everything from",
+    ),
+    "DET": ("the", "a", "an", "my", "your", "our", "these", "those", "some", "all the", "all of the"),
+    "POSS": ("s",),  # "the jar's": normalise() splits a possessive "'s" off its noun
 }
 """Closed-class words and fixed phrases → word class (a terminal of grammar.lark). Object,
 place and adjective words are not here: they come from the vocabulary (the ontology); the
 words of the frames in tasks.toml are added by task_grammar.py."""
 
-_NUMBERS = {
-    "a": 1, "an": 1, "one": 1, "two": 2, "three": 3, "four": 4, "five": 5, "six": 6, "seven": 7,
-    "eight": 8, "nine": 9, "ten": 10, "fifteen": 15, "twenty": 20, "thirty": 30, "forty": 40,
-    "fifty": 50, "sixty": 60, "ninety": 90, "half an": 0.5,
+VERBS = frozenset(
+    ("POUR", "EMPTY", "FILL", "BRING", "TAKE", "PUT", "RETURN", "HAND", "WANT", "HAVE", "STOP", "STATUS")
+)
+"""The word classes a request of grammar.lark begins with (its verbs, stop, status); a sentence
+with none of them is no new request (an answer to a question, if anything)."""
+
+_ONES = ("one", "two", "three", "four", "five", "six", "seven", "eight", "nine")
+_TEENS = ("ten", "eleven", "twelve", "thirteen", "fourteen", "fifteen", "sixteen", "seventeen",
+          "eighteen", "nineteen")  # fmt: skip
+_TENS = {"twenty": 20, "thirty": 30, "forty": 40, "fifty": 50}
+NUMBERS: dict[str, float] = {
+    "zero": 0, "a": 1, "an": 1, "half a": 0.5, "half an": 0.5, "a quarter of an": 0.25,
+    "a quarter of a": 0.25, "quarter of an": 0.25, "a couple of": 2, "one and a half": 1.5,
+    "sixty": 60, "ninety": 90,
+    **{w: n for n, w in enumerate(_ONES, 1)},
+    **{w: n for n, w in enumerate(_TEENS, 10)},
+    **{t: n for t, n in _TENS.items()},
+    **{f"{t} {o}": n + k for t, n in _TENS.items() for k, o in enumerate(_ONES, 1)},
 }  # fmt: skip
+"""Number words of a deadline ("within twenty five minutes", "in half an hour"): zero to sixty,
+"a"/"an" (one), halves and quarters; digits are read as numbers ("within 1.5 min")."""
+_LONGEST_NUMBER = max(len(k.split()) for k in NUMBERS)
 _UNITS = {
     "s": 1.0, "sec": 1.0, "secs": 1.0, "second": 1.0, "seconds": 1.0,
     "min": 60.0, "mins": 60.0, "minute": 60.0, "minutes": 60.0,
-    "h": 3600.0, "hour": 3600.0, "hours": 3600.0,
+    "h": 3600.0, "hr": 3600.0, "hrs": 3600.0, "hour": 3600.0, "hours": 3600.0,
 }  # fmt: skip
+_DEADLINE_WORDS = ("within", "in")
+"""A deadline begins with one of these: "within 2 minutes", "in five minutes"."""
+_DEADLINE_FILLERS = (("the", "next"), ("less", "than"), ("under",), ("no", "more", "than"), ("at", "most"))
+"""Words that may come between the first word of a deadline and its number ("within the next
+ten seconds", "in under a minute")."""
+_NUMERAL = re.compile(r"-?\d+(?:\.\d+)?")
+_CONTRACTED = frozenset(
+    ("what", "that", "it", "let", "where", "how", "here", "there", "who", "he", "she", "this", "everything")
+)
+"""Words whose "'s" is "is", "has" or "us" ("what's", "let's"): joined to them ("whats"), not
+split off as a possessive."""
 PHRASES: dict[tuple[str, ...], str] = {
     tuple(p.split()): kind for kind, phrases in WORDS.items() for p in phrases
 }
@@ -224,31 +361,52 @@ class ParseFailure(ValueError):
 
 
 def normalise(sentence: str) -> list[str]:
-    """The words of ``sentence``: lower case, apostrophes dropped ("what's" → "whats"), other
-    punctuation a space, decimal points kept ("1.5")."""
-    text = sentence.lower().replace("'", "").replace("’", "")
-    text = re.sub(r"[^a-z0-9.\s]+", " ", text)
+    """The words of ``sentence``: lower case; a possessive "'s" a word of its own, ``s`` ("the
+    jar's" → "the", "jar", "s"), other apostrophes dropped ("what's" → "whats", "don't" →
+    "dont"); other punctuation a space; decimal points kept ("1.5") and a minus sign directly
+    before a number ("-5"); hyphens between words a space ("twenty-five")."""
+    text = sentence.lower().replace("’", "'").replace("‘", "'").replace("−", "-")
+    text = re.sub(r"([a-z0-9]+)'s\b", lambda m: m[1] + ("s" if m[1] in _CONTRACTED else " s"), text)
+    text = text.replace("'", "")
+    text = re.sub(r"[^a-z0-9.\s-]+", " ", text)
     text = re.sub(r"(?<![0-9])\.|\.(?![0-9])", " ", text)
+    text = re.sub(r"(?<!\S)-+(?=[0-9])", "-", text)
+    text = re.sub(r"-(?![0-9])|(?<=\S)-", " ", text)
     return text.split()
 
 
 def _deadline(words: list[str], i: int) -> tuple[int, float] | None:
-    """At ``words[i]`` == "within": (words used, seconds) of "within [the next] N unit"."""
+    """At ``words[i]`` in :data:`_DEADLINE_WORDS`: (words used, seconds) of "within [the next]
+    N unit" (N a numeral, possibly negative, or a number word of :data:`NUMBERS`), else None."""
     j = i + 1
-    if words[j : j + 2] == ["the", "next"]:
-        j += 2
+    for filler in _DEADLINE_FILLERS:
+        if tuple(words[j : j + len(filler)]) == filler:
+            j += len(filler)
+            break
     amount: float | None = None
-    for n in (2, 1):
+    for n in range(_LONGEST_NUMBER, 0, -1):
         key = " ".join(words[j : j + n])
-        if len(words[j : j + n]) == n and key in _NUMBERS:
-            amount, j = float(_NUMBERS[key]), j + n
+        if len(words[j : j + n]) == n and key in NUMBERS:
+            amount, j = float(NUMBERS[key]), j + n
             break
     else:
-        if j < len(words) and re.fullmatch(r"\d+(?:\.\d+)?", words[j]):
+        if j < len(words) and _NUMERAL.fullmatch(words[j]):
             amount, j = float(words[j]), j + 1
     if amount is None or j >= len(words) or words[j] not in _UNITS:
         return None
     return j + 1 - i, amount * _UNITS[words[j]]
+
+
+def _base(word: str, phrases: Mapping[tuple[str, ...], str]) -> str | None:
+    """The verb of the gerund ``word`` when it is a closed-class word: "pouring" → "pour",
+    "taking" → "take", "putting" → "put", "emptying" → "empty"; else None."""
+    if not word.endswith("ing") or len(word) < 5:
+        return None
+    stem = word[:-3]
+    for base in (stem, stem + "e", stem[:-1] if stem[-1] == stem[-2] else ""):
+        if base and (base,) in phrases:
+            return base
+    return None
 
 
 def tag(
@@ -257,6 +415,7 @@ def tag(
     """The tokens of ``sentence`` (see the module docstring); ``phrases``: the closed-class
     phrases (default :data:`PHRASES`; a_hi's grammar adds the words of its task frames)."""
     words = normalise(sentence)
+    read = list(words)  # the words as looked up: a gerund after "would you mind" as its verb
     lexicon: dict[tuple[str, ...], str] = {}
     for adj in vocabulary.adjectives:
         lexicon[(adj,)] = "ADJ"
@@ -268,22 +427,27 @@ def tag(
     lexicon.update(phrases)  # a closed-class phrase wins over a vocabulary word of the same length
     longest = max((len(p) for p in lexicon), default=1)
     out: list[Word] = []
+    gerund = False  # after "would you mind": the next gerund of a closed-class verb is that verb
     i = 0
     while i < len(words):
-        if words[i] == "within":
-            found = _deadline(words, i)
+        if gerund and (base := _base(read[i], phrases)) is not None:
+            read[i], gerund = base, False
+        if read[i] in _DEADLINE_WORDS:
+            found = _deadline(read, i)
             if found is not None:
                 n, seconds = found
                 out.append(Word("DEADLINE", tuple(words[i : i + n]), len(out), seconds))
                 i += n
                 continue
-            out.append(Word("WITHIN", (words[i],), len(out)))
-            i += 1
-            continue
+            if read[i] == "within" or (i + 1 < len(read) and _NUMERAL.fullmatch(read[i + 1])):
+                out.append(Word("WITHIN", (words[i],), len(out)))  # a deadline not understood
+                i += 1
+                continue
         for n in range(min(longest, len(words) - i), 0, -1):
-            phrase = tuple(words[i : i + n])
+            phrase = tuple(read[i : i + n])
             if phrase in lexicon:
-                out.append(Word(lexicon[phrase], phrase, len(out)))
+                out.append(Word(lexicon[phrase], tuple(words[i : i + n]), len(out)))
+                gerund = gerund or (lexicon[phrase] == "POLITE" and phrase[-1] == "mind")
                 i += n
                 break
         else:
@@ -342,7 +506,9 @@ def parse(words: tuple[Word, ...], using: Lark | None = None) -> list[Tree[Token
 
 __all__ = [
     "GRAMMAR_FILE",
+    "NUMBERS",
     "PHRASES",
+    "VERBS",
     "WORDS",
     "ParseFailure",
     "Word",

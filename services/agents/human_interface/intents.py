@@ -19,6 +19,10 @@ STORAGE = "cabinet"
 """Where things are put back (a_pl's ``return`` puts them there: planner/domain.py STORAGE);
 "put X in the cabinet" is read as ``return(X)``."""
 
+SURFACE = "table"
+"""Where "put X down" sets X: the surface a_pl's safe stop puts things down on (planner/domain.py
+SAFE_SURFACE); "put the cup down" is read as ``place(cup, table)``."""
+
 
 @dataclass(frozen=True)
 class Command:
@@ -101,6 +105,7 @@ def describe(goal: TaskAtom, words: TaskWords | None = None) -> str:
 
 __all__ = [
     "STORAGE",
+    "SURFACE",
     "URGENT_PRIORITY",
     "Ambiguous",
     "Command",

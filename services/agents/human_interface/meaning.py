@@ -8,25 +8,31 @@ orders are a_pl's, services/agents/planner/domain.py ``TASKS``):
 sentence                                            task
 ==================================================  ===========================================
 pour X into Y, pour from X into Y, pour the         ``pour(X, Y)``
-contents of X into Y, empty X into Y,
-fill Y from/with X
-bring/fetch/get X [to me | here], take X out of Z   ``bring(X)`` (to the table)
+contents of X into Y, pour out X into Y, empty X
+into Y, fill [up] Y from/with X
+bring/fetch/get X [to me | here], take X out of Z,  ``bring(X)`` (to the table)
+take out X, bring over/back X, I'd like X
 bring/take X to Y, put/place/set/leave X on/in Y    ``place(X, Y)``
+put X down, put down X                              ``place(X, table)`` (:data:`~.intents.SURFACE`)
 put X back, put X away, return X, put X in the      ``return(X)`` (back in the cabinet)
-cabinet, take X back
-hand me X, give X to me, hand over X                ``hand_over(X)``
+cabinet, take X back, take away X
+hand me X, give X to me, hand over X, can I have X  ``hand_over(X)``
 stop [everything]                                   :class:`Stop`
 what are you doing?, status                         :class:`StatusRequest`
 ==================================================  ===========================================
+
+A place a_hi cannot see ("put the cup over there", "somewhere") raises :class:`Incomplete`,
+asking where; in "bring me the cup over there" it says where the cup is, and is left out.
 
 The frames of tasks.toml ("pick up THEME", "tidy THEME away", "find THEME", rules ``said_<n>``
 of task_grammar.py) give their entry's task, each slot's reference an argument in the entry's
 order; a slot left out or "it" with nothing named before gets the entry's question
 (:meth:`Reader.said`).
 
-A reference ("the small cup on the table", "the contents of the jar", "the beans", "it",
-"the one in the cabinet") becomes one individual's O_RoCo name: the things its noun names,
-narrowed by its adjectives and where it is said to be (in/on/from Z). "it"/"that" is the last
+A reference ("the small cup on the table", "the contents of the jar", "the jar's contents",
+"the beans", "the jar's beans", "it", "the one in the cabinet") becomes one individual's O_RoCo
+name: the things its noun names, narrowed by its adjectives and where it is said to be (in/on/
+from Z, or an owner: "the cabinet's cup" is the cup in the cabinet). "it"/"that" is the last
 object the same person named. More than one left raises :class:`Ambiguous` (a question), none
 :class:`UnknownReference`; a missing argument :class:`Incomplete` (a question).
 """
@@ -40,6 +46,7 @@ from lark import Token, Tree
 
 from services.agents.human_interface.intents import (
     STORAGE,
+    SURFACE,
     URGENT_PRIORITY,
     Ambiguous,
     Command,
@@ -163,13 +170,25 @@ class Reader:
         ]
         loc = _child(node, "loc")
         where = self._loc(loc) if loc is not None else None
+        owner = _child(node, "owner")
+        if owner is not None:  # "the jar's beans": the beans in the jar
+            where = self.ref(owner)
         if node.data == "one":
             pool = [t for t in self.v.things if not t.content]
             if self.ctx.among:
                 pool = [t for t in pool if t.name in self.ctx.among]
             return self._choose("one", pool, at, adjectives, where, place)
-        noun = str(_tokens(node, "NOUN")[0])
+        noun = self._noun(node)
         return self._choose(noun, self.v.named(tuple(noun.split())), at, adjectives, where, place)
+
+    def _noun(self, node: Node) -> str:
+        """The noun of an ``np``, ``owner`` or ``compound`` node; a plural owner ("the jars'")
+        as the singular the vocabulary knows."""
+        noun = next((t for t in node.children if isinstance(t, Token) and t.type == "NOUN"), None)
+        if noun is not None:
+            return str(noun)
+        plural = str(_tokens(node, "PLURAL")[0])
+        return next((plural[:-k] for k in (1, 2) if (plural[:-k],) in self.v.nouns), plural)
 
     def _loc(self, loc: Node) -> str:
         inner = next(c for c in loc.children if isinstance(c, Tree))
@@ -310,13 +329,22 @@ class Reader:
         return self._need(self.ref(_child(node, "theme"), place), question, "object")
 
     def _moved(self, x: str, dest: Node | None, *, back: bool, default: str) -> TaskAtom:
-        """Where ``x`` goes by ``dest``: to the person (bring), back (return), or onto a place."""
+        """Where ``x`` goes by ``dest``: to the person (bring), back (return), or onto a place.
+        Raises :class:`Incomplete` for a place a_hi cannot see ("over there", "somewhere")."""
         if dest is None:
             return TaskAtom(default, (x,))
         if dest.data == "dest_home":
             return TaskAtom("return", (x,))
         if dest.data == "dest_me":
             return TaskAtom("hand_over", (x,)) if default == "hand_over" else TaskAtom("bring", (x,))
+        if dest.data == "dest_vague":
+            said = next(c for c in dest.children if isinstance(c, Token))
+            verb = "bring" if default == "bring" else "put"
+            raise Incomplete(
+                f"Where should I {verb} {show(x)}? I cannot tell where '{said}' is; "
+                f"say e.g. 'put {show(x)} on the table'.",
+                "destination",
+            )
         prep = next(c for c in dest.children if isinstance(c, Token))
         y = self._need(
             self.ref(_child(dest, "goal")),
@@ -332,6 +360,8 @@ class Reader:
     def bring(self, node: Node) -> TaskAtom:
         x = self._theme(node, "What should I bring? Say e.g. 'bring me the jar'.")
         dest = _dest(node)
+        if dest is not None and dest.data == "dest_vague" and _has(node, "ME"):
+            dest = None  # "bring me the cup over there": where the cup is, not where it goes
         return self._moved(x, dest, back=False, default="bring")
 
     def take(self, node: Node) -> TaskAtom:
@@ -346,7 +376,7 @@ class Reader:
 
     def put_away(self, node: Node) -> TaskAtom:
         x = self._theme(node, "What should I put away? Say e.g. 'put the cup away'.")
-        return TaskAtom("return", (x,))
+        return self._moved(x, _dest(node), back=True, default="return")
 
     def put(self, node: Node) -> TaskAtom:
         dest = _dest(node)
@@ -358,6 +388,8 @@ class Reader:
                 y = None
         on = f" on {show(y)}" if y else ""
         x = self._theme(node, f"Which object should I put{on}? Say e.g. 'put the cup on the table'.")
+        if dest is None and _has(node, "DOWN"):  # "put the cup down": where things are set down
+            return TaskAtom("place", (x, SURFACE))
         if dest is None:
             raise Incomplete(
                 f"Where should I put {show(x)}? "
@@ -379,6 +411,11 @@ class Reader:
     def give(self, node: Node) -> TaskAtom:
         x = self._theme(node, "What should I hand you? Say e.g. 'hand me the cup'.")
         return TaskAtom("hand_over", (x,))
+
+    def want(self, node: Node) -> TaskAtom:
+        """ "I would like the cup [on the table]": brought, as "bring me the cup" is."""
+        x = self._theme(node, "What would you like? Say e.g. 'I would like the cup'.")
+        return self._moved(x, _dest(node), back=_has(node, "BACK"), default="bring")
 
     def give_other(self, node: Node) -> TaskAtom:
         raise NotUnderstood("I can hand things only to you; say e.g. 'hand me the cup'.")
@@ -432,6 +469,7 @@ _FRAMES: dict[str, Callable[[Reader, Node], TaskAtom]] = {
     "ret": Reader.ret,
     "give": Reader.give,
     "give_other": Reader.give_other,
+    "want": Reader.want,
 }
 """Command rule of grammar.lark → the frame that makes its task (the rules generated from the
 task words are :attr:`Context.frames`)."""

@@ -40,6 +40,7 @@ from lark.exceptions import GrammarError
 from services.agents.human_interface.grammar import (
     GRAMMAR_FILE,
     PHRASES,
+    VERBS,
     ParseFailure,
     Word,
     build_parser,
@@ -83,13 +84,16 @@ class SaidFrame:
 class Grammar:
     """a_hi's grammar: the ``words`` it was built from, the Earley ``parser`` of grammar.lark
     with the generated rules (their lark ``text``), the closed-class ``phrases`` the tagger
-    uses, and the frame of each generated rule (``frames``, by rule name)."""
+    uses, the frame of each generated rule (``frames``, by rule name), and the word classes a
+    request begins with (``verb_kinds``: grammar.py's :data:`~.grammar.VERBS` and each frame's
+    first word)."""
 
     words: TaskWords
     parser: Lark
     text: str
     phrases: Mapping[tuple[str, ...], str]
     frames: Mapping[str, SaidFrame]
+    verb_kinds: frozenset[str] = VERBS
 
     def tag(self, sentence: str, vocabulary: Vocabulary) -> tuple[Word, ...]:
         """The tokens of ``sentence`` (grammar.py :func:`~.grammar.tag` with this grammar's phrases)."""
@@ -210,7 +214,8 @@ def build(words: TaskWords) -> Grammar:
     except GrammarError as exc:  # pragma: no cover - task_words.py refuses what would cause one
         first_line = str(exc).strip().splitlines()[0]
         raise TaskWordsError(f"{words.source}: its frames make no grammar: {first_line}") from None
-    grammar = Grammar(words, parser, text, phrases, frames)
+    firsts = {_rule(f.frame, phrases)[0] for f in frames.values()}
+    grammar = Grammar(words, parser, text, phrases, frames, VERBS | firsts)
     for name, said in frames.items():
         _check(grammar, name, said)
     return grammar

@@ -4,6 +4,7 @@ stop is acted on at once. On a MemoryBus with the real a_km, a stand-in a_co and
 
 from __future__ import annotations
 
+import logging
 import queue
 from collections.abc import Iterator
 
@@ -67,7 +68,8 @@ def test_a_thing_a_km_learns_at_run_time_can_be_named_the_next_moment(stage: Sta
     assert goal(co) == TaskAtom("bring", ("tea_pot",))
     asked = [k for k, _ in stage.bus.published if k == keys.fipa_key("C7", "a_hi", "a_km")]
     answered = [k for k, _ in stage.bus.published if k == keys.fipa_key("C7", "a_km", "a_hi")]
-    assert len(asked) == len(answered) == 2  # one query-ref and one inform-ref per sentence
+    # a query-ref and its inform-ref when a_km's token appeared (a_hi started), and one per sentence
+    assert len(asked) == len(answered) == 3
 
 
 def test_it_is_kept_per_person(stage: Stage) -> None:
@@ -133,7 +135,12 @@ def test_stop_acts_at_once_and_drops_the_sentences_waiting_for_words(stage: Stag
         co.inbox.get(timeout=0.3)
 
 
-def test_without_an_answer_from_a_km_the_last_words_are_used(stage: Stage) -> None:
+def test_without_an_answer_from_a_km_the_last_words_are_used(
+    stage: Stage, caplog: pytest.LogCaptureFixture
+) -> None:
+    caplog.set_level(logging.WARNING, logger="a_hi")
     co = _with_silent_km(stage)
     say(stage, "pour the jar into the bowl", "r1")
     assert goal(co) == TaskAtom("pour", ("jar", "bowl"))  # after the query's reply-by (2 s)
+    warned = [r.getMessage() for r in caplog.records if "gave no vocabulary" in r.getMessage()]
+    assert warned and all(w.startswith("a_km gave no vocabulary (a_km did not answer") for w in warned)

@@ -21,12 +21,20 @@ from services.agents.human_interface.vocabulary import KNOWLEDGE_FILES, Vocabula
 from services.agents.planner.domain import TASKS
 from shared.fipa_codec.languages.l_hc import TaskAtom
 from tests.agents.human_interface.corpus import (
+    BAD_INPUT,
+    DEADLINES,
+    LOCALISE,
     PARAPHRASES,
+    PHRASAL,
+    POLITE,
+    POSSESSIVES,
     REFERENCES,
     REFUSALS,
     SECOND_CUP,
     STATUS,
     STOP,
+    TAG_QUESTIONS,
+    WISHES,
     Ask,
     Do,
     Expected,
@@ -85,12 +93,45 @@ def test_sentences_that_must_be_refused(sentence: str, expected: Expected) -> No
     check(sentence, expected, default_vocabulary())
 
 
+EVERYDAY = {
+    "phrasal": PHRASAL,
+    "possessive": POSSESSIVES,
+    "polite": POLITE,
+    "wish": WISHES,
+    "tag": TAG_QUESTIONS,
+    "deadline": DEADLINES,
+    "localise": LOCALISE,
+}
+"""The groups of everyday wordings beyond the first paraphrases (corpus.py), by name."""
+_EVERYDAY = [(f"{group}: {s}", s, e) for group, sentences in EVERYDAY.items() for s, e in sentences]
+
+
+@pytest.mark.parametrize(
+    ("sentence", "expected"), [(s, e) for _, s, e in _EVERYDAY], ids=[i for i, _, _ in _EVERYDAY]
+)
+def test_everyday_wordings(sentence: str, expected: Expected) -> None:
+    check(sentence, expected, default_vocabulary())
+
+
+@pytest.mark.parametrize(("sentence", "expected"), BAD_INPUT, ids=[ascii(s) for s, _ in BAD_INPUT])
+def test_bad_input_is_refused_and_a_vague_place_asked_back(sentence: str, expected: Expected) -> None:
+    check(sentence, expected, default_vocabulary())
+
+
 def test_the_corpus_is_large_and_covers_every_task_a_pl_accepts() -> None:
+    groups = (PARAPHRASES, REFERENCES, REFUSALS, BAD_INPUT, *EVERYDAY.values())
     paraphrases = {s.lower() for s, e in PARAPHRASES if isinstance(e, Do) or e in (STOP, STATUS)}
     unsure = [e for _, e in REFERENCES if not isinstance(e, Do)]
-    assert len(PARAPHRASES) + len(REFERENCES) + len(REFUSALS) >= 150
+    sentences = [s for group in groups for s, _ in group]
+    assert len(sentences) >= 400
     assert len(paraphrases) >= 100
     assert len(unsure) >= 20
     assert len(REFUSALS) >= 30
+    for name, group in EVERYDAY.items():  # each gap has its own sentences, most of them understood
+        understood = [e for _, e in group if isinstance(e, Do)]
+        assert len(group) >= 15 and len(understood) >= 0.8 * len(group), name
+    refused = [e for _, e in BAD_INPUT if isinstance(e, Refuse)]
+    asked = [e for _, e in BAD_INPUT if isinstance(e, Ask)]
+    assert len(refused) >= 15 and len(asked) >= 10
     tasks = {e.task: len(e.args) for _, e in PARAPHRASES if isinstance(e, Do)}
     assert tasks == {name: arity for name, (arity, _) in TASKS.items()}

@@ -86,3 +86,49 @@ def test_an_answer_that_is_no_candidate_asks_again_and_a_new_command_drops_the_q
     assert talk.pending is None
     with pytest.raises(NotUnderstood, match="What should I do with the bowl"):
         interpret("the bowl", vocabulary=kitchen, dialogue=talk)
+
+
+@pytest.mark.parametrize("non_answer", ["hmm", "I don't know", "whatever", "not sure", "it", "the cup"])
+def test_an_answer_that_names_no_candidate_asks_the_question_again(
+    kitchen: Vocabulary, non_answer: str
+) -> None:
+    talk = Dialogue()
+    with pytest.raises(Ambiguous) as asked:
+        interpret("urgently bring me the cup within 2 minutes", vocabulary=kitchen, dialogue=talk)
+    question = str(asked.value)
+    with pytest.raises(Ambiguous) as again:
+        interpret(non_answer, vocabulary=kitchen, dialogue=talk)
+    text = str(again.value)
+    assert text.endswith(question) and text != question and "\n" not in text
+    assert set(again.value.candidates) == {"cup", "cup_2"}
+    assert talk.pending is not None and talk.pending.question == question
+    answer = interpret("the blue one", vocabulary=kitchen, dialogue=talk)
+    assert answer == Command(TaskAtom("bring", ("cup_2",)), priority=5, deadline_s=120.0)
+    assert talk.pending is None
+
+
+def test_an_answer_naming_a_thing_that_does_not_fit_says_so_and_asks_again(kitchen: Vocabulary) -> None:
+    talk = Dialogue()
+    with pytest.raises(Ambiguous):
+        interpret("fill the cup from the jar", vocabulary=kitchen, dialogue=talk)
+    with pytest.raises(Ambiguous) as again:
+        interpret("the glass one", vocabulary=kitchen, dialogue=talk)
+    assert str(again.value).startswith("I know of no one:") and str(again.value).endswith("?")
+    assert interpret("the small one", vocabulary=kitchen, dialogue=talk) == Command(
+        TaskAtom("pour", ("jar", "cup"))
+    )
+
+
+def test_a_refused_line_keeps_the_question_and_a_new_request_drops_it(kitchen: Vocabulary) -> None:
+    talk = Dialogue()
+    with pytest.raises(Ambiguous):
+        interpret("hand me the cup", vocabulary=kitchen, dialogue=talk)
+    with pytest.raises(NotUnderstood, match="control character"):
+        interpret("the one\x1b on the table", vocabulary=kitchen, dialogue=talk)
+    assert talk.pending is not None
+    with pytest.raises(Ambiguous, match="does not answer"):  # no verb a_hi knows: no new request
+        interpret("sing me a song", vocabulary=kitchen, dialogue=talk)
+    assert interpret("where is the bowl?", vocabulary=kitchen, dialogue=talk) == Command(
+        TaskAtom("localise", ("bowl",))
+    )
+    assert talk.pending is None

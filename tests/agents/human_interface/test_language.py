@@ -5,7 +5,10 @@ from __future__ import annotations
 
 import pytest
 
+from services.agents.human_interface.grammar import normalise
+from services.agents.human_interface.intents import SURFACE
 from services.agents.human_interface.language import (
+    ALLOWED_CONTROLS,
     URGENT_PRIORITY,
     Command,
     Incomplete,
@@ -17,6 +20,7 @@ from services.agents.human_interface.language import (
     describe,
     interpret,
 )
+from services.agents.planner.domain import SAFE_SURFACE
 from shared.fipa_codec.languages.l_hc import TaskAtom
 
 
@@ -193,8 +197,6 @@ def test_an_incomplete_sentence_gets_a_question(sentence: str, missing: str, que
 def test_other_polite_refusals() -> None:
     with pytest.raises(NotUnderstood, match="one object at a time"):
         interpret("bring me the jar and the cup")
-    with pytest.raises(NotUnderstood, match="say 'stop'"):
-        interpret("stop the pouring")
     with pytest.raises(NotUnderstood, match="within 30 seconds"):
         interpret("pour the jar into the bowl within 3 parsecs")
 
@@ -208,3 +210,172 @@ def test_describe_words_every_task() -> None:
     assert describe(TaskAtom("fetch", ("cup",))) == "pick up the cup"  # tasks.toml's first frame
     assert describe(TaskAtom("localise", ("bowl",))) == "find the bowl"
     assert describe(TaskAtom("juggle", ("bowl",))) == "juggle(bowl)"  # a task with no words
+
+
+@pytest.mark.parametrize(
+    ("sentence", "words"),
+    [
+        ("Pour the jar's contents!", ["pour", "the", "jar", "s", "contents"]),
+        ("the jar’s beans", ["the", "jar", "s", "beans"]),
+        ("What's going on? Let's see; where's it?", ["whats", "going", "on", "lets", "see", "wheres", "it"]),
+        ("I don't know", ["i", "dont", "know"]),
+        ("within -5 seconds", ["within", "-5", "seconds"]),
+        ("within −2.5 min", ["within", "-2.5", "min"]),
+        ("twenty-five 5-10 well-known", ["twenty", "five", "5", "10", "well", "known"]),
+        ("within 1.5 min.", ["within", "1.5", "min"]),
+    ],
+)
+def test_normalise_splits_possessives_joins_contractions_and_keeps_a_minus_sign(
+    sentence: str, words: list[str]
+) -> None:
+    assert normalise(sentence) == words
+
+
+_ONES = ["", "one", "two", "three", "four", "five", "six", "seven", "eight", "nine"]
+_TEENS = ["ten", "eleven", "twelve", "thirteen", "fourteen", "fifteen", "sixteen", "seventeen", "eighteen"]
+_TENS = {2: "twenty", 3: "thirty", 4: "forty", 5: "fifty", 6: "sixty"}
+
+
+def _in_words(n: int) -> str:
+    """1..60 in English words, written here independently of grammar.py's table."""
+    if n < 10:
+        return _ONES[n]
+    if n < 19:
+        return _TEENS[n - 10]
+    if n == 19:
+        return "nineteen"
+    tens, ones = divmod(n, 10)
+    return _TENS[tens] + (f"-{_ONES[ones]}" if ones else "")
+
+
+@pytest.mark.parametrize("n", range(1, 61))
+def test_every_number_word_from_one_to_sixty_sets_a_deadline(n: int) -> None:
+    for said in (f"within {_in_words(n)} seconds", f"in {_in_words(n).replace('-', ' ')} minutes"):
+        intent = interpret(f"pour the jar into the bowl {said}")
+        assert isinstance(intent, Command), said
+        assert intent.deadline_s == n * (1 if "seconds" in said else 60), said
+
+
+@pytest.mark.parametrize(
+    ("said", "seconds"),
+    [
+        ("in a minute", 60.0),
+        ("in half a minute", 30.0),
+        ("within half an hour", 1800.0),
+        ("in a quarter of an hour", 900.0),
+        ("within a couple of minutes", 120.0),
+        ("in under an hour", 3600.0),
+        ("in less than 45 seconds", 45.0),
+        ("within the next two hours", 7200.0),
+        ("in 3 hrs", 10800.0),
+    ],
+)
+def test_deadline_phrases(said: str, seconds: float) -> None:
+    assert interpret(f"bring me the cup {said}") == Command(TaskAtom("bring", ("cup",)), deadline_s=seconds)
+
+
+@pytest.mark.parametrize(
+    ("sentence", "says"),
+    [
+        ("pour the jar into the bowl within -5 seconds", "The deadline 'within -5 seconds' is negative"),
+        ("pour the jar into the bowl in -1 minute", "The deadline 'in -1 minute' is negative"),
+        ("pour the jar into the bowl within 0 seconds", "The deadline 'within 0 seconds' leaves no time"),
+        ("within zero minutes pour the jar into the bowl", "leaves no time"),
+    ],
+)
+def test_a_negative_or_zero_deadline_is_refused_not_read_as_its_absolute_value(
+    sentence: str, says: str
+) -> None:
+    with pytest.raises(NotUnderstood) as info:
+        interpret(sentence)
+    text = str(info.value)
+    assert not isinstance(info.value, Incomplete)
+    assert text.startswith("The deadline '") and says in text
+    assert "'within 30 seconds'" in text and "\n" not in text
+
+
+@pytest.mark.parametrize("code", [*range(0x00, 0x09), 0x0B, 0x0C, *range(0x0E, 0x20), *range(0x7F, 0xA0)])
+def test_a_control_character_is_refused_and_named(code: int) -> None:
+    with pytest.raises(NotUnderstood) as info:
+        interpret(f"pour the jar{chr(code)} into the bowl")
+    text = str(info.value)
+    assert f"control character (U+{code:04X}, character 13)" in text
+    assert "\n" not in text and text.isprintable()
+
+
+@pytest.mark.parametrize("space", sorted(ALLOWED_CONTROLS))
+def test_tabs_and_line_ends_are_ordinary_whitespace(space: str) -> None:
+    assert interpret(f"pour the jar{space}into the bowl{space}") == Command(TaskAtom("pour", ("jar", "bowl")))
+
+
+@pytest.mark.parametrize(
+    ("sentence", "question"),
+    [
+        ("put the cup over there", "Where should I put the cup? I cannot tell where 'over there' is"),
+        ("put the jar somewhere", "Where should I put the jar? I cannot tell where 'somewhere' is"),
+        ("bring the bowl there", "Where should I bring the bowl? I cannot tell where 'there' is"),
+        ("put the cup back anywhere", "Where should I put the cup?"),
+        ("pour the jar over there", "Into what should I pour the jar?"),
+    ],
+)
+def test_a_vague_place_is_asked_back_not_guessed(sentence: str, question: str) -> None:
+    with pytest.raises(Incomplete) as info:
+        interpret(sentence)
+    assert info.value.missing == "destination"
+    assert str(info.value).startswith(question) and "say e.g." in str(info.value).lower()
+
+
+def test_here_is_where_the_person_is_and_a_thing_over_there_is_still_brought() -> None:
+    assert interpret("bring the cup here") == Command(TaskAtom("bring", ("cup",)))
+    assert interpret("bring me the cup over there") == Command(TaskAtom("bring", ("cup",)))
+
+
+def test_put_down_sets_a_thing_on_the_surface_the_robot_puts_things_down_on() -> None:
+    assert SURFACE == SAFE_SURFACE
+    for sentence in ("put down the bowl", "put the bowl down", "set the bowl down", "lay down the bowl"):
+        assert interpret(sentence) == Command(TaskAtom("place", ("bowl", SURFACE))), sentence
+    assert interpret("put the bowl down in the cabinet") == Command(TaskAtom("return", ("bowl",)))
+
+
+@pytest.mark.parametrize(
+    ("sentence", "name", "args"),
+    [
+        ("would you mind pouring the jar into the bowl", "pour", ("jar", "bowl")),
+        ("do you mind putting the cup away", "return", ("cup",)),
+        ("would you mind emptying the jar into the bowl", "pour", ("jar", "bowl")),
+        ("would you mind quickly getting me the jar", "bring", ("jar",)),
+        ("would you mind picking up the cup", "fetch", ("cup",)),
+        ("would you mind looking for the bowl", "localise", ("bowl",)),
+    ],
+)
+def test_a_gerund_after_would_you_mind_is_read_as_its_verb(
+    sentence: str, name: str, args: tuple[str, ...]
+) -> None:
+    intent = interpret(sentence)
+    assert isinstance(intent, Command) and intent.goal == TaskAtom(name, args)
+
+
+def test_a_gerund_without_would_you_mind_is_no_command() -> None:
+    with pytest.raises(NotUnderstood, match="'pouring'"):
+        interpret("pouring the jar into the bowl")
+
+
+@pytest.mark.parametrize(
+    ("sentence", "goal"),
+    [
+        ("I'd like the cup", TaskAtom("bring", ("cup",))),
+        ("I want the jar on the table", TaskAtom("bring", ("jar",))),
+        ("I would like the jar back", TaskAtom("bring", ("jar",))),
+        ("I'd like the jar back in the cupboard", TaskAtom("return", ("jar",))),
+        ("can I have the bowl?", TaskAtom("hand_over", ("bowl",))),
+        ("may I have the mug please", TaskAtom("hand_over", ("cup",))),
+    ],
+)
+def test_wishes_are_commands(sentence: str, goal: TaskAtom) -> None:
+    assert interpret(sentence) == Command(goal)
+
+
+def test_a_wish_without_an_object_is_asked_back() -> None:
+    with pytest.raises(Incomplete, match="What would you like\\?") as info:
+        interpret("I would like")
+    assert info.value.missing == "object"
