@@ -928,6 +928,13 @@ def gateway(
         typer.Option(help="the URL other platforms post to (default http://HOST:PORT/acc)"),
     ] = None,
     spec: Annotated[Path | None, typer.Option("--spec", help="a specification file")] = None,
+    platform: Annotated[
+        list[str] | None,
+        typer.Option(
+            help="PLATFORM=URL[,URL…]: answer every agent …@PLATFORM only at these addresses "
+            "(repeatable; default: a name is bound to the peer that first used it)"
+        ),
+    ] = None,
 ) -> None:
     """Serve the FIPA HTTP message transport (FIPA SC00084, SC00085 XML envelope, SC00070
     string form) for agents of other FIPA platforms (JADE…): what they send to a roco agent
@@ -939,7 +946,9 @@ def gateway(
     from services.gateway.cli import main as run_gateway
     from services.spec.model import DEFAULT_SPEC
 
-    config = GatewayConfig(_endpoint(router, runs_dir), host, port, address, spec or DEFAULT_SPEC)
+    config = GatewayConfig(
+        _endpoint(router, runs_dir), host, port, address, spec or DEFAULT_SPEC, tuple(platform or ())
+    )
     code = run_gateway(config)
     if code:
         raise typer.Exit(code)

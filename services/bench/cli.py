@@ -11,7 +11,8 @@ Parts (`--only` takes a comma-separated subset; default all, in this order):
 - `fleet`: `roco up` until every agent is alive, and its processes' memory;
 - `memory`: an idle agent's and the whole fleet's memory (VmRSS and PSS);
 - `task`: the whole pour with `roco run`, and its 1 kHz loop;
-- `scale`: 10 to 100 agent processes sharing one router, then two routers.
+- `scale`: 10 to 100 agent processes sharing one router, then two routers;
+- `gateway`: `roco gateway` with 100 peers at once, 500 in one burst, and under the worst requests.
 
 Each timed part first waits for a quiet machine (`--settle`). `--quick` shrinks every count (a
 smoke test of the command, not figures to quote). A part that fails is reported in the
@@ -35,7 +36,18 @@ import typer
 
 from services.bench import quiet
 
-PARTS = ("codec", "messaging", "spade", "knowledge", "planning", "fleet", "memory", "task", "scale")
+PARTS = (
+    "codec",
+    "messaging",
+    "spade",
+    "knowledge",
+    "planning",
+    "fleet",
+    "memory",
+    "task",
+    "scale",
+    "gateway",
+)
 ROOT = Path(__file__).resolve().parents[2]
 DEFAULT_OUT = ROOT / "docs" / "benchmarks.md"
 
@@ -205,6 +217,13 @@ def bench(
         if rows is not None:
             emit(report.scale_section(rows, counts))
             targets.extend(report.scale_verdicts(rows))
+    if "gateway" in chosen:
+        from services.bench import gateway
+
+        got = run("gateway", lambda: gateway.measure(quick), timed=True)
+        if got is not None:
+            emit(report.gateway_section(got))
+            targets.extend(report.gateway_verdicts(got))
     targets.extend(report.plan_and_fleet_verdicts(results.get("planning"), results.get("fleet")))
     if task_runs and all(r.ok for r in task_runs):
         shutil.rmtree(task_runs[0].run_dir.parent, ignore_errors=True)  # kept when a run failed

@@ -16,6 +16,7 @@ from dataclasses import dataclass
 from importlib.metadata import PackageNotFoundError, version
 from pathlib import Path
 
+from services.bench.gateway import GatewayFigures
 from services.bench.messaging import ConcurrentFigures, PairFigures, ScaleRow, request_bytes
 from services.bench.parts import (
     POUR,
@@ -49,13 +50,20 @@ TARGET_FLEET_MIB = 350.0
 """``roco up``'s fleet in all, at rest (the sum of its processes' PSS, MiB), at most."""
 TARGET_UP_S = 3.0
 """``roco up`` from its start to every agent alive (s), at most."""
+TARGET_GATEWAY_BURST_S = 10.0
+"""500 peers posting to ``roco gateway`` at once: the last answered within (s), at most."""
+TARGET_GATEWAY_RSS_MIB = 100.0
+"""The gateway's peak RSS over its RSS before, for any one worst request (MiB), at most."""
+TARGET_GATEWAY_CPU_S = 1.0
+"""The gateway's CPU time for any one worst request until the next message is answered (s), at most."""
 PAPER_PLAN_1_TEXT = "The paper's plan #1 took 55 s and 1,598 communicates."
 
 TITLE = "# roco benchmarks"
 INTRO = [
     "What roco costs on one machine: encoding a communicate; a round trip and a stream between two "
     "agents, beside raw Zenoh (its transport) and SPADE; a_km's answers; a_pl's plan; the fleet's "
-    "start-up and memory; the whole pour with ag_ex's 1 kHz loop; up to 100 agent processes.",
+    "start-up and memory; the whole pour with ag_ex's 1 kHz loop; up to 100 agent processes; the "
+    "ACL gateway under load and under attack.",
     "",
     "`roco bench` (services/bench/) wrote it from the one run described below; `--only NAME` runs "
     "the parts named in brackets. The last section says how to reproduce the figures and what "
@@ -767,6 +775,89 @@ def scale_how(counts: Counts) -> list[str]:
 def scale_section(rows: list[ScaleRow], counts: Counts) -> Section:
     return Section(
         "8. Scale: many agent processes sharing the router (`scale`)", scale_how(counts), scale_table(rows)
+    )
+
+
+def gateway_table(g: GatewayFigures) -> list[str]:
+    load, burst = g.load, g.burst
+    lines = _table(
+        ["figure", "value"],
+        [
+            [
+                f"{load.peers} peers at once, {load.messages} messages each: accepted /s",
+                f"{load.per_s:,.0f} ({load.accepted} of {load.peers * load.messages} answered 200)",
+            ],
+            [
+                "the same: one post, connect → status line, p50 / p99",
+                f"{load.p50_ms:.0f} / {load.p99_ms:.0f} ms",
+            ],
+            [
+                f"{burst.peers} peers posting at the same moment: answered 200",
+                f"{burst.answered} of {burst.peers}, the last after {burst.last_s:.2f} s",
+            ],
+            [
+                "the gateway's VmRSS after them; its peak under the worst requests",
+                f"{g.rss_mib:.0f} MiB; {g.peak_mib:.0f} MiB",
+            ],
+        ],
+    )
+    rows = [
+        [
+            r.name,
+            str(r.status) + ("" if r.status == r.expected else f" (expected {r.expected})"),
+            f"{r.rss_growth_mib:.1f}",
+            f"{r.cpu_s:.2f}",
+        ]
+        for r in g.worst
+    ]
+    header = ["worst request", "status", "peak RSS over RSS before, MiB", "CPU s (all of them)"]
+    return [*lines, "", *_table(header, rows)]
+
+
+def gateway_verdicts(g: GatewayFigures) -> list[str]:
+    """500 peers at once all answered within 10 s; any one worst request ≤ 100 MiB of peak RSS
+    growth and ≤ 1 s of CPU time."""
+    burst = g.burst
+    within = burst.answered == burst.peers and burst.last_s <= TARGET_GATEWAY_BURST_S
+    rss = max((r.rss_growth_mib for r in g.worst), default=0.0)
+    cpu = max((r.cpu_s / r.requests for r in g.worst), default=0.0)
+    statuses = all(r.status == r.expected for r in g.worst)
+    ok = rss <= TARGET_GATEWAY_RSS_MIB and cpu <= TARGET_GATEWAY_CPU_S and statuses
+    burst_line = (
+        f"- `roco gateway`, {burst.peers} peers posting at once: **{burst.answered} answered**, the "
+        f"last after **{burst.last_s:.2f} s** (target: all within {TARGET_GATEWAY_BURST_S:.0f} s): "
+        f"{'met' if within else 'missed'}."
+    )
+    worst_line = (
+        f"- `roco gateway`, the worst requests (one at a time, and three at once): at most "
+        f"**{rss:.0f} MiB** of peak RSS growth and **{cpu:.2f} s** of CPU a request (targets ≤ "
+        f"{TARGET_GATEWAY_RSS_MIB:.0f} MiB, ≤ {TARGET_GATEWAY_CPU_S:.0f} s, each answered as expected): "
+        f"{'met' if ok else 'missed'}."
+    )
+    return [burst_line, worst_line]
+
+
+def gateway_how() -> list[str]:
+    """How part 9 measures ``roco gateway`` (services/bench/gateway.py)."""
+    return [
+        "services/bench/gateway.py: a router with access control and `roco gateway` as a process of "
+        "that fleet (no agents: what it forwards goes nowhere); peers on asyncio streams in the "
+        "process of `roco bench` post requests as JADE 4.6 writes them, each peer a foreign agent "
+        "of its own, a new connection per message (JADE's `Connection: close`). Load: the peers at "
+        "once, each posting its messages one after the other; accepted /s = answers 200 over the "
+        "wall time from the first connection to the last answer. Burst: every peer connects and "
+        "posts at the same moment. Worst requests (what a hostile peer sends, bodies filling the "
+        "8 MiB limit where size is the attack): each alone, then the three heaviest at once, each "
+        "time followed by a valid message the gateway answers; peak RSS = VmHWM (reset through "
+        "/proc/PID/clear_refs) over VmRSS before (memory an earlier request freed and the allocator "
+        "kept is used again: a growth, not a use); CPU = user + system time of the gateway process "
+        "(/proc/PID/stat) until that answer arrived.",
+    ]
+
+
+def gateway_section(g: GatewayFigures) -> Section:
+    return Section(
+        "9. Gateway: `roco gateway` under load and attack (`gateway`)", gateway_how(), gateway_table(g)
     )
 
 

@@ -36,14 +36,29 @@ What crosses, checked against the specification (per receiver of the envelope)
     address>))`` so that the foreign platform sends its next message back through the gateway.
 
 What is refused
-    A message the checks above reject is answered at once, posted back to the sender's address
+    Before a message is taken (HTTP, on the server's reader thread): what is not a message of
+    the transport, or over the gateway's limits (services/gateway/bounds.py: size, tokens,
+    receivers, payload encodings), is answered 406; a sender that is missing or no foreign
+    name (``sender``), or a foreign name bound to another peer (``identity``,
+    services/gateway/identity.py), 403; too many messages waiting (``max_pending``) or
+    foreign names in use (``busy``), 503. After (on the gateway's thread), a message the
+    checks above reject is answered at once, posted back to the sender's address
     in its conversation (conversation-id, in-reply-to = its reply-with, protocol), from the agent
-    it addressed: ``refuse`` when the sender may not address that agent or is no foreign agent
-    (FIPA SC00037 §3.17: the action will not be done), ``not-understood`` when it may address
-    it but not with that performative, protocol, language or content (SC00037 §3.12); the
-    reason is the content, as text. Each refusal is logged (WARNING, one line naming sender,
-    receiver and reason) and counted: ``refused`` and ``refused.<reason>``
-    (:data:`REFUSE_REASONS`). Answers that cannot be posted are counted ``post_failed``.
+    it addressed: ``refuse`` when the sender may not address that agent (FIPA SC00037 §3.17:
+    the action will not be done), ``not-understood`` when it may address
+    it but not with that performative, protocol, language or content (content over
+    ``max_content`` octets or JSON nested deeper than ``max_json_depth`` included; SC00037
+    §3.12); the reason is the content, as text. A ``refuse``, ``failure`` or
+    ``not-understood`` is never answered (two gateways cannot answer each other's refusals for
+    ever). Each refusal is logged (WARNING, one line naming sender, receiver and reason) and
+    counted: ``refused`` and ``refused.<reason>`` (:data:`REFUSE_REASONS`).
+
+Where answers go
+    To the addresses bound to the foreign name (services/gateway/identity.py), at most
+    ``max_answer_addresses`` of them, never to one of roco's own (the gateway's address, its
+    port, a router's: services/gateway/addresses.py; skipped addresses are counted
+    ``post_skipped.<reason>``), posted without holding the gateway's thread
+    (services/gateway/poster.py): ``posted``, ``post_failed``, ``post_dropped``.
 """
 
 from __future__ import annotations
@@ -52,15 +67,22 @@ import logging
 import queue
 import threading
 import time
-from collections import Counter, OrderedDict
-from collections.abc import Callable
+from collections import Counter
+from collections.abc import Iterable
 from typing import Any
 
 import msgspec
 
+from services.gateway.addresses import Destinations
+from services.gateway.bounds import DEFAULT_LIMITS, BoundError, Limits, decode_payload, json_too_deep
 from services.gateway.envelope import STRING_REPRESENTATION, Envelope
-from services.gateway.http_mtp import MTPError, MTPMessage, MTPServer, post_message
+from services.gateway.http_mtp import MTPError, MTPMessage
+from services.gateway.identity import Identities, IdentityError
+from services.gateway.loop_thread import LoopThread
+from services.gateway.poster import AsyncPost, Poster, PostJob
+from services.gateway.server import MTPServer, Refused
 from services.runtime import keys
+from services.runtime.log_format import escape_controls
 from services.runtime.transport import Transport
 from services.spec.model import MessageKind, SystemSpec, channel_between, interface, is_foreign
 from shared.fipa_codec import (
@@ -80,32 +102,31 @@ __all__ = ["GATEWAY", "REFUSE_REASONS", "Gateway", "Refusal", "open_gateway", "s
 
 GATEWAY = "gateway"
 """The gateway's identity on Zenoh (services/spec_check/acl.py: GATEWAY)."""
-KNOWN_AGENTS = 1024
-"""Foreign agents whose addresses the gateway remembers (the oldest is forgotten first)."""
 REFUSE_REASONS: dict[str, str] = {
     "sender": "the sender is missing, or not an agent of another platform (local@platform)",
+    "identity": "the foreign name is bound to another peer (services/gateway/identity.py)",
+    "busy": "too many foreign names bound at once",
     "receiver": "the sender's role has no channel to the receiver in the specification",
     "not_in_interface": "performative or protocol outside the sender's role on that channel",
     "language": "no content language, or one the channel does not give that performative",
     "content": "the content is not the JSON of a term the channel allows",
 }
 """Why the gateway refuses a message, each counted as ``refused.<reason>``."""
-_UTF8 = frozenset({"", "utf-8", "utf8", "us-ascii", "ascii"})
-"""Payload encodings read as UTF-8 octets (US-ASCII is a subset); others are decoded first."""
-_REFUSE_AS = {"sender": Performative.REFUSE, "receiver": Performative.REFUSE}
+_REFUSE_AS = {"receiver": Performative.REFUSE}
 """Reasons answered ``refuse``; the others ``not-understood``."""
+_NOT_ANSWERED = frozenset({Performative.NOT_UNDERSTOOD, Performative.REFUSE, Performative.FAILURE})
+"""Performatives whose refusal is not answered: answers to answers could loop."""
 
 log = logging.getLogger(GATEWAY)
-Post = Callable[[str, MTPMessage, float], None]
-"""How a message is posted to a foreign platform: (address, message, timeout s); raises MTPError
-or OSError when it is not taken (``services.gateway.http_mtp.post_message``)."""
 
 
 class Refusal(Exception):
     """A message the gateway will not put on Zenoh: ``reason`` (a key of
-    :data:`REFUSE_REASONS`) and ``text`` for the foreign agent."""
+    :data:`REFUSE_REASONS`) and ``text`` for the foreign agent: one line (control characters
+    escaped, services/runtime/log_format.py), at most 500 characters."""
 
     def __init__(self, reason: str, text: str) -> None:
+        text = escape_controls(text[:500])
         super().__init__(text)
         self.reason = reason
         self.text = text
@@ -115,7 +136,10 @@ class Gateway:
     """The bridge between one Zenoh ``transport`` (authenticated as :data:`GATEWAY`) and the
     HTTP transport, reachable at ``address`` (the URL foreign platforms post to). Messages from
     the HTTP server and communicates from Zenoh are handled in order on the gateway's own
-    thread (:meth:`start`); ``post`` sends a message to a foreign platform (for tests)."""
+    thread (:meth:`start`); answers are posted by a :class:`~services.gateway.poster.Poster`
+    on ``loop`` (a new one of its own when None), to the addresses ``destinations`` allows
+    (default: not ``address``). ``post`` replaces the HTTP client (tests); ``platforms``
+    binds platforms to answer addresses (services/gateway/identity.py)."""
 
     def __init__(
         self,
@@ -123,18 +147,25 @@ class Gateway:
         spec: SystemSpec,
         address: str,
         *,
-        post: Post = post_message,
-        post_timeout: float = 10.0,
+        limits: Limits = DEFAULT_LIMITS,
+        destinations: Destinations | None = None,
+        platforms: dict[str, tuple[str, ...]] | None = None,
+        loop: LoopThread | None = None,
+        post: AsyncPost | None = None,
     ) -> None:
         load_all()
         self.transport = transport
         self.spec = spec
         self.address = address
+        self.limits = limits
         self.counters: Counter[str] = Counter()
-        self._post = post
-        self._post_timeout = post_timeout
-        self._known: OrderedDict[str, AgentIdentifier] = OrderedDict()
+        self.destinations = destinations or Destinations.of(address, limits=limits)
+        self.identities = Identities(limits, platforms)
+        self._own_loop = loop is None
+        self.loop = loop or LoopThread("gateway-post")
+        self.poster = Poster(self.loop, self.count, limits=limits, destinations=self.destinations, post=post)
         self._queue: queue.SimpleQueue[tuple[str, Any]] = queue.SimpleQueue()
+        self._pending = 0
         self._thread: threading.Thread | None = None
         self._lock = threading.Lock()
         self.routes = [
@@ -145,32 +176,52 @@ class Gateway:
         ]
         """(channel, external role, agent) for every channel a foreign agent may use."""
 
-    # ---- the threads' side: enqueue only ------------------------------------------------
-    def deliver(self, message: MTPMessage) -> None:
-        """Take a message the HTTP server read (any thread). Raises MTPError (answered 406)
-        when its payload is not an ACL message in the string form; everything else is decided
-        on the gateway's thread."""
-        if message.envelope.acl_representation.lower() != STRING_REPRESENTATION:
+    # ---- the threads' side ----------------------------------------------------------------
+    def deliver(self, message: MTPMessage, peer: str = "") -> None:
+        """Take a message the HTTP server read from ``peer`` (an IP address; any thread).
+        Raises MTPError (answered 406) when its payload is not an ACL message in the string
+        form within the limits, :class:`~services.gateway.server.Refused` (403) when its sender
+        is no foreign name or one bound to another peer, (503) when too many messages wait or
+        too many names are bound; everything else is decided on the gateway's thread."""
+        envelope, limits = message.envelope, self.limits
+        if envelope.acl_representation.lower() != STRING_REPRESENTATION:
             raise MTPError(
-                f"acl-representation {message.envelope.acl_representation!r}: only {STRING_REPRESENTATION}"
+                f"acl-representation {envelope.acl_representation[:60]!r}: only {STRING_REPRESENTATION}"
             )
-        charset = (message.envelope.payload_encoding or "").strip().lower()
-        payload: str | bytes = message.payload
-        if charset not in _UTF8:  # another character set the envelope names (ISO-8859-1…)
-            try:
-                payload = message.payload.decode(charset)
-            except (LookupError, UnicodeDecodeError) as exc:
-                raise MTPError(f"the payload is not {charset} text: {exc}") from None
+        if len(envelope.receivers) > limits.max_receivers:
+            raise MTPError(f"{len(envelope.receivers)} receivers (at most {limits.max_receivers})")
         try:
-            msg = parse(payload)
+            payload = decode_payload(message.payload, envelope.payload_encoding)
+            msg = parse(payload, max_size=limits.max_body, max_tokens=limits.max_tokens)
+        except BoundError as exc:
+            raise MTPError(str(exc)) from None
         except StringFormError as exc:
             raise MTPError(f"the payload is no FIPA ACL message: {exc}") from None
-        self._queue.put(("in", (message.envelope, msg)))
+        self.count("received")
+        refusal = _sender_refusal(msg, self.spec)
+        if refusal is not None:
+            self._count_refusal(msg, "?", refusal)
+            raise Refused(403, refusal.text)
+        assert msg.sender is not None
+        with self._lock:
+            if self._pending >= limits.max_pending:
+                raise Refused(503, f"{self._pending} messages waiting (at most {limits.max_pending})")
+            self._pending += 1
+        try:
+            self.identities.claim(
+                msg.sender.name, peer, _answer_addresses(msg, envelope), msg.conversation_id
+            )
+        except IdentityError as exc:
+            with self._lock:
+                self._pending -= 1
+            self._count_refusal(msg, "?", Refusal(exc.reason, exc.text))
+            raise Refused(503 if exc.reason == "busy" else 403, exc.text) from None
+        self._queue.put(("in", (envelope, msg)))
 
-    def count(self, name: str) -> None:
+    def count(self, name: str, n: int = 1) -> None:
         """Count ``name`` (any thread)."""
         with self._lock:
-            self.counters[name] += 1
+            self.counters[name] += n
 
     def _on_zenoh(self, key: str, payload: bytes) -> None:
         for communicate in unpack(payload):  # a batch: each of its communicates, in order
@@ -195,9 +246,13 @@ class Gateway:
         self._thread.start()
 
     def stop(self) -> None:
+        """Stop the gateway's thread, then the posting (answers not yet posted are dropped)."""
         self._queue.put(("stop", None))
         if self._thread is not None:
             self._thread.join(timeout=10.0)
+        self.poster.close()
+        if self._own_loop:
+            self.loop.stop()
 
     def _run(self) -> None:
         while True:
@@ -206,6 +261,8 @@ class Gateway:
                 return
             try:
                 if kind == "in":
+                    with self._lock:
+                        self._pending -= 1
                     self._inbound(*item)
                 elif kind == "ask":
                     self._report_counters()
@@ -224,9 +281,6 @@ class Gateway:
 
     # ---- in: HTTP → Zenoh ----------------------------------------------------------------
     def _inbound(self, envelope: Envelope, msg: Communicate) -> None:
-        self.count("received")
-        if msg.sender is not None:
-            self._remember(msg, envelope)
         for receiver in envelope.receivers:
             try:
                 channel, communicate = self._admit(msg, receiver.name)
@@ -252,13 +306,10 @@ class Gateway:
             )
 
     def _admit(self, msg: Communicate, receiver: str) -> tuple[str, Communicate]:
-        """The channel and the communicate to put on Zenoh for ``receiver``, or Refusal."""
-        sender = msg.sender.name if msg.sender is not None else ""
-        if not sender or not is_foreign(sender) or sender in self.spec.agent_names:
-            raise Refusal(
-                "sender",
-                f"{sender or 'no sender'}: only agents of other platforms (local@platform) come in here",
-            )
+        """The channel and the communicate to put on Zenoh for ``receiver``, or Refusal. The
+        sender is a foreign name (checked by :meth:`deliver`)."""
+        assert msg.sender is not None
+        sender = msg.sender.name
         role = self.spec.role_of(sender)
         channel = channel_between(self.spec, role, receiver) if receiver != role else None
         if channel is None:
@@ -286,7 +337,8 @@ class Gateway:
 
     def _term(self, msg: Communicate, kind: MessageKind) -> tuple[bytes, str, str]:
         """The content of ``msg`` (JSON of a term) in its language's encoding, its language
-        and ontology; Refusal when they are not what ``kind`` allows."""
+        and ontology; Refusal when they are not what ``kind`` allows, or the JSON is over
+        ``max_content`` octets or nested deeper than ``max_json_depth``."""
         if msg.language is None or (kind.languages and msg.language not in kind.languages):
             allowed = "/".join(kind.languages) or "none"
             raise Refusal("language", f"language {msg.language} is not accepted here (only {allowed})")
@@ -295,25 +347,41 @@ class Gateway:
             raise Refusal("language", f"unknown content language {msg.language}")
         if msg.ontology is not None and msg.ontology != language.ontology:
             raise Refusal("language", f"language {msg.language} needs ontology {language.ontology}")
+        limits = self.limits
+        if len(msg.content) > limits.max_content:
+            raise Refusal(
+                "content", f"the content is {len(msg.content)} octets (at most {limits.max_content})"
+            )
+        if json_too_deep(msg.content, limits.max_json_depth):
+            raise Refusal("content", f"the content nests deeper than {limits.max_json_depth} levels")
         union: Any = language.types[0]
         for t in language.types[1:]:
             union = union | t
         try:
             term = msgspec.json.decode(msg.content, type=union)
-        except (msgspec.DecodeError, msgspec.ValidationError) as exc:
+        except (msgspec.DecodeError, msgspec.ValidationError, RecursionError) as exc:
             raise Refusal("content", f"the content is not a {msg.language} term in JSON: {exc}") from None
         if kind.contents and type(term).__name__ not in kind.contents:
             raise Refusal("content", f"{msg.performative.value} here carries {', '.join(kind.contents)}")
         name, data = encode_content(term)
         return data, name, language.ontology
 
-    def _refuse(self, msg: Communicate, receiver: str, refusal: Refusal) -> None:
+    def _count_refusal(self, msg: Communicate, receiver: str, refusal: Refusal) -> None:
         self.count("refused")
         self.count(f"refused.{refusal.reason}")
         sender = msg.sender.name if msg.sender is not None else "?"
-        log.warning("refused %s from %s to %s: %s", msg.performative.value, sender, receiver, refusal.text)
-        if msg.performative is Performative.NOT_UNDERSTOOD or msg.sender is None:
-            return  # never answer a not-understood; nobody to answer
+        log.warning(
+            "refused %s from %s to %s: %s",
+            msg.performative.value,
+            sender[:300],
+            receiver[:300],
+            refusal.text[:300],
+        )
+
+    def _refuse(self, msg: Communicate, receiver: str, refusal: Refusal) -> None:
+        self._count_refusal(msg, receiver, refusal)
+        if msg.performative in _NOT_ANSWERED or msg.sender is None:
+            return  # never answer an answer (no loops); nobody to answer
         try:
             me = AgentIdentifier(receiver, (self.address,))
         except ValueError:  # the receiver's name is no agent name: answer as the gateway
@@ -372,11 +440,10 @@ class Gateway:
             encoding = None
         elif encoding == "utf-8":
             encoding = None  # a reason as text: the string form carries text as it is
-        target = self._known.get(receiver, AgentIdentifier(receiver))
         answer = msgspec.structs.replace(
             msg,
             sender=AgentIdentifier(sender, (self.address,)),
-            receiver=(target,),
+            receiver=(AgentIdentifier(receiver, self.identities.addresses(receiver)),),
             content=content,
             encoding=encoding,
         )
@@ -384,48 +451,50 @@ class Gateway:
         self._send_out(answer, receiver)
 
     def _send_out(self, msg: Communicate, foreign: str) -> None:
-        """Post ``msg`` to the foreign agent ``foreign`` at the addresses it gave, in order,
-        until one takes it."""
-        target = self._known.get(foreign)
-        addresses = target.addresses if target is not None else ()
-        if not addresses:
+        """Post ``msg`` to the foreign agent ``foreign`` at the addresses bound to its name
+        that may be posted to (module docstring), in order, until one takes it."""
+        self.identities.answered(
+            foreign, msg.conversation_id, final=msg.performative is not Performative.AGREE
+        )
+        given = self.identities.addresses(foreign)
+        usable = self.destinations.usable(given)
+        for reason, n in usable.skipped.items():
+            self.count(f"post_skipped.{reason}", n)
+        if not usable.addresses:
             self.count("post_failed")
-            log.warning("nowhere to post %s to %s: it gave no address", msg.performative.value, foreign)
+            why = "it gave no address" if not given else "none of its addresses may be posted to"
+            log.warning("nowhere to post %s to %s: %s", msg.performative.value, foreign[:300], why)
             return
         payload = to_bytes(msg)
-        ascii_only = payload.isascii()
         assert msg.sender is not None
         envelope = Envelope(
-            to=(target,) if target is not None else (),
+            to=(AgentIdentifier(foreign, given),),
             from_=msg.sender,
-            payload_encoding="US-ASCII" if ascii_only else "UTF-8",
+            payload_encoding="US-ASCII" if payload.isascii() else "UTF-8",
             date=format_datetime(time.time()),
         )
-        for address in addresses:
-            try:
-                self._post(address, MTPMessage(envelope, payload), self._post_timeout)
-            except (MTPError, OSError) as exc:
-                log.warning(
-                    "posting %s to %s at %s failed: %s", msg.performative.value, foreign, address, exc
-                )
-                continue
-            log.info("%s → %s at %s: %s", msg.sender.name, foreign, address, msg.performative.value)
-            return
-        self.count("post_failed")
+        what = f"{msg.performative.value} from {msg.sender.name} to {foreign[:300]}"
+        self.poster.submit(PostJob(foreign, usable.addresses, MTPMessage(envelope, payload), what))
 
-    def _remember(self, msg: Communicate, envelope: Envelope) -> None:
-        """Where the sender of ``msg`` wants answers: its reply-to's addresses, else its own,
-        else the envelope's ``from``."""
-        assert msg.sender is not None
-        name = msg.sender.name
-        candidates = [*msg.reply_to, msg.sender]
-        if envelope.from_ is not None:
-            candidates.append(envelope.from_)
-        found = next((a for a in candidates if a.addresses), msg.sender)
-        self._known.pop(name, None)
-        self._known[name] = AgentIdentifier(name, found.addresses)
-        while len(self._known) > KNOWN_AGENTS:
-            self._known.popitem(last=False)
+
+def _answer_addresses(msg: Communicate, envelope: Envelope) -> tuple[str, ...]:
+    """Where the sender of ``msg`` wants answers: its reply-to's addresses, else its own, else
+    the envelope's ``from``'s; () when none gives any."""
+    candidates: Iterable[AgentIdentifier] = (*msg.reply_to, *((msg.sender,) if msg.sender else ()))
+    if envelope.from_ is not None:
+        candidates = (*candidates, envelope.from_)
+    return next((a.addresses for a in candidates if a.addresses), ())
+
+
+def _sender_refusal(msg: Communicate, spec: SystemSpec) -> Refusal | None:
+    """The refusal of a message whose sender is missing or no foreign name, else None."""
+    sender = msg.sender.name if msg.sender is not None else ""
+    if sender and is_foreign(sender) and sender not in spec.agent_names:
+        return None
+    return Refusal(
+        "sender",
+        f"{sender[:300] or 'no sender'}: only agents of other platforms (local@platform) come in here",
+    )
 
 
 def _kind(sends: tuple[MessageKind, ...], receiver: str, msg: Communicate) -> MessageKind | None:
@@ -436,27 +505,70 @@ def _kind(sends: tuple[MessageKind, ...], receiver: str, msg: Communicate) -> Me
 
 
 def open_gateway(
-    transport: Transport, spec: SystemSpec, host: str, port: int, address: str
+    transport: Transport,
+    spec: SystemSpec,
+    host: str,
+    port: int,
+    address: str,
+    *,
+    routers: Iterable[str] = (),
+    limits: Limits = DEFAULT_LIMITS,
+    platforms: dict[str, tuple[str, ...]] | None = None,
 ) -> tuple[Gateway, MTPServer]:
     """A :class:`Gateway` on ``transport`` for ``spec``, subscribed and forwarding, and its FIPA
     HTTP message transport (SC00084) serving on ``host:port``, foreign platforms told to post
-    to ``address``. Stop both with ``server.stop()`` then ``gateway.stop()``. Raises OSError
-    when the port cannot be bound (then nothing was started)."""
-    gateway = Gateway(transport, spec, address)
-    server = MTPServer((host, port), gateway.deliver, gateway.count)
+    to ``address``; answers are never posted to ``address``, ``host:port`` or the fleet's
+    ``routers`` (Zenoh endpoints). Stop both with ``server.stop()`` then ``gateway.stop()``.
+    Raises OSError when the port cannot be bound (then nothing was started)."""
+    destinations = Destinations.of(address, (host, port), routers, limits)
+    gateway = Gateway(transport, spec, address, limits=limits, destinations=destinations, platforms=platforms)
+    server = MTPServer((host, port), gateway.deliver, gateway.count, limits=limits, loop=gateway.loop)
+    try:
+        server.start()
+    except OSError:
+        gateway.stop()
+        raise
     gateway.bind()
     gateway.start()
-    server.start()
     return gateway, server
 
 
 def summary(counters: dict[str, int]) -> str:
-    """The gateway's counters in one line (``roco status``): ``received 3, forwarded 2,
-    refused 1 (receiver 1), answered 4, post_failed 0``."""
-    refused = {k.split(".", 1)[1]: v for k, v in counters.items() if k.startswith("refused.") and v}
-    line = [f"received {counters.get('received', 0)}", f"forwarded {counters.get('forwarded', 0)}"]
-    line.append(f"refused {counters.get('refused', 0)}")
-    if refused:
-        line[-1] += " (" + ", ".join(f"{k} {v}" for k, v in sorted(refused.items())) + ")"
-    line += [f"answered {counters.get('answered', 0)}", f"post_failed {counters.get('post_failed', 0)}"]
+    """The gateway's counters in one line (``roco status``): what came in, what was refused
+    and why (FIPA refusals by reason, HTTP refusals by status), what went out::
+
+        received 3, forwarded 2, refused 1 (receiver 1), http refused 2 (406 1, 413 1),
+        answered 3, posted 2, post_failed 1, post_skipped 1 (roco_address 1)
+
+    A part that is 0 is left out, but for received, forwarded, refused and answered; so is
+    ``dropped N (…)`` (what a_hi said that the specification does not let out) and
+    ``internal_errors``."""
+
+    def group(prefix: str) -> dict[str, int]:
+        return {k[len(prefix) :]: v for k, v in counters.items() if k.startswith(prefix) and v}
+
+    def detail(parts: dict[str, int]) -> str:
+        return " (" + ", ".join(f"{k} {v}" for k, v in sorted(parts.items())) + ")" if parts else ""
+
+    refused = group("refused.")
+    http = {k: v for k, v in group("http.").items() if k != "200"}
+    dropped = group("dropped.")
+    skipped = group("post_skipped.")
+    line = [
+        f"received {counters.get('received', 0)}",
+        f"forwarded {counters.get('forwarded', 0)}",
+        f"refused {counters.get('refused', 0)}{detail(refused)}",
+    ]
+    if http:
+        line.append(f"http refused {sum(http.values())}{detail(http)}")
+    line.append(f"answered {counters.get('answered', 0)}")
+    for name in ("posted", "post_failed", "post_dropped"):
+        if counters.get(name):
+            line.append(f"{name} {counters[name]}")
+    if skipped:
+        line.append(f"post_skipped {sum(skipped.values())}{detail(skipped)}")
+    if dropped:
+        line.append(f"dropped {sum(dropped.values())}{detail(dropped)}")
+    if counters.get("internal_errors"):
+        line.append(f"internal_errors {counters['internal_errors']}")
     return ", ".join(line)

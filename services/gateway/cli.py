@@ -4,7 +4,8 @@ It opens a Zenoh session to the fleet's router as the identity ``gateway`` (with
 credentials when it has access control: services/security/context.py), serves the FIPA HTTP
 message transport (FIPA SC00084) on ``host:port`` and tells foreign platforms to post to
 ``address`` (default ``http://<host>:<port>/acc``). It prints one line when it is ready, and
-a line of counters when it stops (Ctrl-C, SIGTERM).
+a line of counters when it stops (Ctrl-C, SIGTERM). Its log is one line per event
+(services/runtime/log_format.py), on stderr.
 """
 
 from __future__ import annotations
@@ -18,6 +19,8 @@ from pathlib import Path
 from types import FrameType
 
 from services.gateway.bridge import GATEWAY, open_gateway
+from services.gateway.http_mtp import MTPError, check_address
+from services.runtime.log_format import OneLineFormatter
 from services.runtime.polling import max_poll_us
 from services.runtime.session import listening, port_in_use, refusal
 from services.runtime.transport import ZenohTransport
@@ -36,13 +39,34 @@ class GatewayError(Exception):
 class GatewayConfig:
     """What ``roco gateway`` is given: the router ``endpoint``, the ``host`` and ``port`` the
     HTTP server listens on, the ``address`` advertised to foreign platforms (None: derived from
-    host and port) and the specification file ``spec``."""
+    host and port), the specification file ``spec`` and ``platforms``: ``PLATFORM=URL[,URL…]``
+    each, the addresses every agent ``…@PLATFORM`` is answered at (services/gateway/identity.py)."""
 
     endpoint: str
     host: str = "127.0.0.1"
     port: int = DEFAULT_PORT
     address: str | None = None
     spec: Path = DEFAULT_SPEC
+    platforms: tuple[str, ...] = ()
+
+
+def parse_platforms(items: tuple[str, ...]) -> dict[str, tuple[str, ...]]:
+    """``PLATFORM=URL[,URL…]`` items as platform → addresses. Raises GatewayError (one line)
+    for an item without ``=``, with no platform or address, or with an address that is no
+    ``http://`` URL."""
+    platforms: dict[str, tuple[str, ...]] = {}
+    for item in items:
+        platform, sep, urls = item.partition("=")
+        addresses = tuple(u.strip() for u in urls.split(",") if u.strip())
+        if not sep or not platform.strip() or not addresses:
+            raise GatewayError(f"--platform {item!r}: expected PLATFORM=URL[,URL…] (host:1099/JADE=http://…)")
+        for address in addresses:
+            try:
+                check_address(address)
+            except MTPError as exc:
+                raise GatewayError(f"--platform {platform.strip()}: {exc}") from None
+        platforms[platform.strip()] = addresses
+    return platforms
 
 
 def serve(
@@ -59,6 +83,7 @@ def serve(
     if not spec.externals:
         raise GatewayError(f"{config.spec}: no external role ([[externals]]): nobody may come in")
     address = config.address or f"http://{config.host}:{config.port}/acc"
+    platforms = parse_platforms(config.platforms)
     try:
         max_poll_us()  # a malformed ROCO_RECEIVE_POLL_US is named as such, not as a missing router
     except ValueError as exc:
@@ -73,7 +98,9 @@ def serve(
         why = refusal(config.endpoint, GATEWAY, security_for([config.endpoint]))
         raise GatewayError(why) from None
     try:
-        gateway, server = open_gateway(transport, spec, config.host, config.port, address)
+        gateway, server = open_gateway(
+            transport, spec, config.host, config.port, address, routers=[config.endpoint], platforms=platforms
+        )
     except OSError as exc:
         transport.close()
         where, why = f"{config.host}:{config.port}", exc.strerror or str(exc)
@@ -95,7 +122,9 @@ def serve(
 def main(config: GatewayConfig) -> int:
     """Run ``roco gateway`` in this process until SIGINT or SIGTERM; 0 when it ran, 1 (one line
     on stderr) when it could not start."""
-    logging.basicConfig(level=logging.INFO, format="%(asctime)s %(name)s %(levelname)s %(message)s")
+    handler = logging.StreamHandler(sys.stderr)
+    handler.setFormatter(OneLineFormatter())
+    logging.basicConfig(level=logging.INFO, handlers=[handler], force=True)
     stop = threading.Event()
 
     def on_signal(signum: int, frame: FrameType | None) -> None:

@@ -24,9 +24,15 @@ are not read either (roco resolves no names). Tags are compared without case, as
 handler does. Writing escapes ``<``, ``&`` and ``>`` in text (JADE writes text as it is, which
 an XML reader may refuse for a name holding ``&``).
 
-Errors: :class:`EnvelopeError` (a ValueError), one line: not XML, not an ``envelope``, no
-receiver, an agent identifier without a name or with a name or address that is no FIPA
-SC00070 word, a payload length that is not a number.
+Reading is bounded: a document over ``max_size`` octets is refused before it is parsed; the
+XML reader (defusedxml over the standard library's expat) refuses a document type declaration
+(DTD) where it starts, and with it every entity definition, internal or external; numbers
+(``payload-length``, ``params index``) longer than ``max_digits`` digits are refused unread.
+
+Errors: :class:`EnvelopeError` (a ValueError), one line: over the size limit, not XML, a DTD,
+not an ``envelope``, no receiver, an agent identifier without a name or with a name or address
+that is no FIPA SC00070 word, a payload length or params index that is not a number of at
+most ``max_digits`` digits.
 """
 
 from __future__ import annotations
@@ -34,9 +40,16 @@ from __future__ import annotations
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass, replace
 
+import defusedxml
+import defusedxml.ElementTree as SafeET
+
+from services.gateway.bounds import DEFAULT_LIMITS, BoundError, read_digits
 from shared.fipa_codec.aid import AgentIdentifier
 
 __all__ = ["STRING_REPRESENTATION", "Envelope", "EnvelopeError", "parse_xml", "to_xml"]
+
+MAX_ENVELOPE = DEFAULT_LIMITS.max_envelope
+MAX_DIGITS = DEFAULT_LIMITS.max_digits
 
 STRING_REPRESENTATION = "fipa.acl.rep.string.std"
 """The ``acl-representation`` of the FIPA ACL string form (FIPA SC00070), the one roco reads
@@ -140,27 +153,29 @@ def _aid(outer: ET.Element, where: str) -> AgentIdentifier:
         raise EnvelopeError(f"<{where}>: {exc}") from None
 
 
-def parse_xml(data: bytes | str) -> Envelope:
-    """Read an XML envelope (FIPA SC00085; module docstring). Raises EnvelopeError."""
+def parse_xml(data: bytes | str, *, max_size: int = MAX_ENVELOPE, max_digits: int = MAX_DIGITS) -> Envelope:
+    """Read an XML envelope (FIPA SC00085; module docstring): at most ``max_size`` octets (or
+    characters), no DTD, numbers of at most ``max_digits`` digits. Raises EnvelopeError."""
+    if len(data) > max_size:
+        raise EnvelopeError(f"the envelope is {len(data)} long (at most {max_size})")
     try:
-        root = ET.fromstring(data)
+        root = SafeET.fromstring(data, forbid_dtd=True, forbid_entities=True, forbid_external=True)
     except ET.ParseError as exc:
         raise EnvelopeError(f"the envelope is not XML: {exc}") from None
+    except defusedxml.DefusedXmlException as exc:
+        raise EnvelopeError(f"the envelope declares a DTD or entities, which are not read ({exc})") from None
     if _local(root.tag) != "envelope":
-        raise EnvelopeError(f"the XML is a <{_local(root.tag)}>, not an <envelope>")
+        raise EnvelopeError(f"the XML is a <{_local(root.tag)[:40]}>, not an <envelope>")
     blocks = [p for p in root if _local(p.tag) == "params"]
     if not blocks:
         raise EnvelopeError("the envelope has no <params>")
 
     def index(p: ET.Element) -> int:
-        try:
-            return int(p.get("index", "1"))
-        except ValueError:
-            raise EnvelopeError(f"<params index={p.get('index')!r}> is not a number") from None
+        return _number(p.get("index", "1"), "<params index>", max_digits)
 
     envelope = Envelope(to=(), acl_representation="")
     for block in sorted(blocks, key=index):
-        envelope = _apply(envelope, block)
+        envelope = _apply(envelope, block, max_digits)
     if not envelope.to:
         raise EnvelopeError("the envelope names no receiver (<to>)")
     if not envelope.acl_representation:
@@ -168,7 +183,15 @@ def parse_xml(data: bytes | str) -> Envelope:
     return envelope
 
 
-def _apply(envelope: Envelope, block: ET.Element) -> Envelope:
+def _number(text: str, what: str, max_digits: int) -> int:
+    """``text`` as a number of at most ``max_digits`` decimal digits, else EnvelopeError."""
+    try:
+        return read_digits(text, what, max_digits)
+    except BoundError as exc:
+        raise EnvelopeError(str(exc)) from None
+
+
+def _apply(envelope: Envelope, block: ET.Element, max_digits: int) -> Envelope:
     """``envelope`` with the parameters of one ``params`` block replacing its own."""
     to = [_aid(e, "to") for e in block if _local(e.tag) == "to"]
     intended = [_aid(e, "intended-receiver") for e in block if _local(e.tag) == "intended-receiver"]
@@ -190,7 +213,5 @@ def _apply(envelope: Envelope, block: ET.Element) -> Envelope:
         elif tag == "comments":
             changes["comments"] = element.text or ""
         elif tag == "payload-length":
-            if not text.isdigit():
-                raise EnvelopeError(f"<payload-length> {text[:40]!r} is not a number of octets")
-            changes["payload_length"] = int(text)
+            changes["payload_length"] = _number(text, "<payload-length>", max_digits)
     return replace(envelope, **changes)  # type: ignore[arg-type]

@@ -1,5 +1,6 @@
 """The FIPA agent message transport over HTTP (FIPA SC00084), as JADE's HTTP MTP speaks it:
-the body, a server that takes messages, a client that posts them. Standard library only.
+the body (written and read) and a client that posts it (aiohttp). The server that takes
+messages is services/gateway/server.py.
 
 A message is one ``POST`` whose body is ``multipart/mixed`` (SC00084 §2; JADE 4.6's
 ``jade.mtp.http.HTTPIO``)::
@@ -24,12 +25,23 @@ A message is one ``POST`` whose body is ``multipart/mixed`` (SC00084 §2; JADE 4
     (request :sender …)                       the payload (FIPA SC00070 string form)
     --a36869921a26b9d812878b42b8fc2cd--
 
-(line ends CRLF; the request target is the whole address, as JADE writes it; a server also
-takes a plain path). The receiver answers ``200 OK`` when it has taken the message for
-delivery and ``406 Not Acceptable`` when it cannot read it (JADE answers these two; roco's
-server also answers ``413`` to a body over :data:`MAX_BODY`, ``411`` without a
-Content-Length and ``405`` to any method but POST). The answer to the message itself, if any,
-is another POST, to the address the message names (not this HTTP response).
+(line ends CRLF). The receiver answers ``200 OK`` when it has taken the message for delivery
+and ``406 Not Acceptable`` when it cannot read it (JADE answers these two; roco's server,
+services/gateway/server.py, also answers other HTTP statuses for what is over its limits). The
+answer to the message itself, if any, is another POST, to the address the message names (not
+this HTTP response).
+
+Reading (:func:`decode_body`) splits the body at its boundary lines with linear searches
+(RFC 2046 §5.1.1: CRLF or a bare LF before each boundary line; text before the first is the
+preamble), reads each part's header block (at most ``max_part_headers`` octets) and undoes its
+``Content-Transfer-Encoding`` (7bit, 8bit, binary, base64, quoted-printable; any other is
+refused). Only the first two parts are read; the envelope part is refused over
+``max_envelope`` octets before it is parsed.
+
+Posting (:func:`post`): an aiohttp client request with JADE's headers; the request target is
+the address's path (RFC 9112 §3.2.1 origin form; JADE writes the whole URL, and its server,
+``HTTPIO.readAll``, as roco's, reads past it); redirects are not followed; only the status
+line and headers of the answer are read.
 
 Not supported: HTTPS (JADE's ``https://`` addresses), keep-alive connections (every message
 is one connection: ``Connection: close``), chunked bodies, IIOP (FIPA SC00075).
@@ -37,37 +49,36 @@ is one connection: ``Connection: close``), chunked bodies, IIOP (FIPA SC00075).
 
 from __future__ import annotations
 
-import http.client
-import logging
+import asyncio
+import base64
+import binascii
 import os
-import threading
-from collections.abc import Callable
+import re
 from dataclasses import dataclass, replace
-from email.message import Message
-from email.parser import BytesParser
-from email.policy import compat32
-from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
 from urllib.parse import urlsplit
 
+import aiohttp
+
+from services.gateway.bounds import DEFAULT_LIMITS, Limits
 from services.gateway.envelope import Envelope, EnvelopeError, parse_xml, to_xml
 
 __all__ = [
-    "MAX_BODY",
+    "HEADERS",
     "PREAMBLE",
     "MTPError",
     "MTPMessage",
-    "MTPServer",
+    "check_address",
+    "client_session",
     "decode_body",
     "encode_body",
+    "post",
     "post_message",
 ]
 
-MAX_BODY = 8 * 1024 * 1024
-"""Largest body (octets) the server reads; a larger one is answered 413 and not read."""
 PREAMBLE = b"This is not part of the MIME multipart encoded message."
 """The line before the first boundary, as JADE writes it (MIME ignores it)."""
-
-log = logging.getLogger("gateway")
+HEADERS = {"Cache-Control": "no-cache", "Mime-Version": "1.0", "Connection": "close"}
+"""The headers JADE's ``HTTPIO`` writes besides Host, Content-Type and Content-Length."""
 
 
 class MTPError(ValueError):
@@ -108,146 +119,149 @@ def encode_body(message: MTPMessage, boundary: str | None = None) -> tuple[str, 
     return f'multipart/mixed ; boundary="{boundary}"', body
 
 
-def decode_body(content_type: str, body: bytes) -> MTPMessage:
-    """Read a POST's body (module docstring): the first part is the XML envelope, the second
-    the payload. Raises MTPError when the content type is not ``multipart/mixed`` with a
-    boundary, there are fewer than two parts, or the envelope does not read (EnvelopeError's
-    reason)."""
-    if not content_type.strip().lower().startswith("multipart/mixed"):
-        raise MTPError(f"the body is {content_type.split(';')[0].strip() or 'untyped'}, not multipart/mixed")
-    head = b"Content-Type: " + content_type.encode("latin-1", "replace") + b"\r\nMIME-Version: 1.0\r\n\r\n"
-    parsed = BytesParser(policy=compat32).parsebytes(head + body)
-    if parsed.get_boundary() is None:
-        raise MTPError("multipart/mixed without a boundary")
-    parts = parsed.get_payload() if parsed.is_multipart() else []
-    if not isinstance(parts, list) or len(parts) < 2:
-        raise MTPError(
-            f"expected 2 parts (envelope, payload), found {len(parts) if isinstance(parts, list) else 0}"
-        )
-    first, second = parts[0], parts[1]
-    if not isinstance(first, Message) or not isinstance(second, Message):
-        raise MTPError("the parts of the body do not read")
-    xml = first.get_payload(decode=True)
-    payload = second.get_payload(decode=True)
-    if not isinstance(xml, bytes) or not isinstance(payload, bytes):
-        raise MTPError("a part of the body is itself multipart")
+_BOUNDARY = re.compile(r';\s*boundary\s*=\s*(?:"([^"\r\n]{1,200})"|([^;\s"]{1,200}))', re.IGNORECASE)
+
+
+def _boundary(content_type: str) -> bytes:
+    """The boundary of a ``multipart/mixed`` content type; MTPError when it is not one."""
+    kind = content_type.split(";", 1)[0].strip()
+    if kind.lower() != "multipart/mixed":
+        raise MTPError(f"the body is {kind[:60]!r}, not multipart/mixed" if kind else "the body is untyped")
+    m = _BOUNDARY.search(content_type)
+    if m is None:
+        raise MTPError("multipart/mixed without a boundary (1 to 200 characters)")
+    return (m.group(1) or m.group(2)).encode("latin-1", "replace")
+
+
+def _parts(body: bytes, boundary: bytes, wanted: int) -> list[bytes]:
+    """The first ``wanted`` parts of a multipart ``body`` (module docstring), each its header
+    block and content as they stand; fewer when the closing boundary comes first."""
+    delimiter = b"--" + boundary
+    if body.startswith(delimiter):
+        at = 0
+    else:
+        at = body.find(b"\n" + delimiter)
+        if at < 0:
+            raise MTPError("the body holds no boundary line")
+        at += 1
+    parts: list[bytes] = []
+    while len(parts) < wanted:
+        after = at + len(delimiter)
+        if body.startswith(b"--", after):
+            break  # the closing boundary
+        line_end = body.find(b"\n", after)
+        if line_end < 0:
+            raise MTPError(f"the boundary line before part {len(parts) + 1} does not end")
+        start = line_end + 1
+        following = body.find(b"\n" + delimiter, line_end)
+        if following < 0:
+            raise MTPError(f"part {len(parts) + 1} has no boundary line after it")
+        end = following - 1 if following > start and body[following - 1] == 0x0D else following
+        parts.append(body[start : max(start, end)])
+        at = following + 1
+    return parts
+
+
+def _content(part: bytes, number: int, limits: Limits) -> bytes:
+    """The content of one MIME part, its transfer encoding undone; MTPError when its header
+    block is over the limit or does not end, or the transfer encoding is unknown or broken."""
+    if part.startswith(b"\r\n") or part.startswith(b"\n"):
+        head, content = b"", part[2 if part.startswith(b"\r\n") else 1 :]
+    else:
+        window = limits.max_part_headers + 4
+        found = [
+            (i, n)
+            for i, n in ((part.find(b"\r\n\r\n", 0, window), 4), (part.find(b"\n\n", 0, window), 2))
+            if i >= 0
+        ]
+        if not found:
+            raise MTPError(
+                f"part {number}: no blank line after its headers within {limits.max_part_headers} octets"
+            )
+        i, n = min(found)
+        head, content = part[:i], part[i + n :]
+    encoding = ""
+    for line in re.split(rb"\r?\n(?![ \t])", head):
+        name, _, value = line.partition(b":")
+        if name.strip().lower() == b"content-transfer-encoding":
+            encoding = value.decode("latin-1").strip().lower()
+    if encoding in ("", "7bit", "8bit", "binary"):
+        return content
     try:
-        envelope = parse_xml(xml)
+        if encoding == "base64":
+            return base64.b64decode(content)
+        if encoding == "quoted-printable":
+            return binascii.a2b_qp(content)
+    except (binascii.Error, ValueError) as exc:
+        raise MTPError(f"part {number}: not {encoding}: {exc}") from None
+    raise MTPError(f"part {number}: Content-Transfer-Encoding {encoding[:40]!r} is not read here")
+
+
+def decode_body(content_type: str, body: bytes, limits: Limits = DEFAULT_LIMITS) -> MTPMessage:
+    """Read a POST's body (module docstring): the first part is the XML envelope, the second
+    the payload. Linear in ``len(body)``. Raises MTPError when the content type is not
+    ``multipart/mixed`` with a boundary, there are fewer than two parts, a part is malformed
+    (its header block, its transfer encoding), the envelope is over ``limits.max_envelope``
+    octets, or it does not read (EnvelopeError's reason)."""
+    parts = _parts(body, _boundary(content_type), 2)
+    if len(parts) < 2:
+        raise MTPError(f"expected 2 parts (envelope, payload), found {len(parts)}")
+    xml = _content(parts[0], 1, limits)
+    payload = _content(parts[1], 2, limits)
+    try:
+        envelope = parse_xml(xml, max_size=limits.max_envelope, max_digits=limits.max_digits)
     except EnvelopeError as exc:
         raise MTPError(str(exc)) from None
     return MTPMessage(envelope, payload)
 
 
-def post_message(address: str, message: MTPMessage, timeout: float = 10.0) -> None:
-    """POST ``message`` to ``address`` (an ``http://host:port/path`` URL) as JADE does (module
-    docstring). Raises MTPError when the address is not an http URL or the receiver answers
-    anything but 200, OSError when it cannot be reached."""
-    url = urlsplit(address)
-    if url.scheme.lower() != "http" or not url.hostname:
-        raise MTPError(f"cannot post to {address!r}: only http://host:port/… addresses (no https)")
-    content_type, body = encode_body(message)
-    connection = http.client.HTTPConnection(url.hostname, url.port or 80, timeout=timeout)
+def check_address(address: str) -> None:
+    """Raise MTPError when ``address`` is not an ``http://host[:port]/…`` URL (no https)."""
     try:
-        connection.putrequest("POST", address, skip_host=True, skip_accept_encoding=True)
-        for name, value in (
-            ("Cache-Control", "no-cache"),
-            ("Mime-Version", "1.0"),
-            ("Host", f"{url.hostname}:{url.port or 80}"),
-            ("Content-Type", content_type),
-            ("Content-Length", str(len(body))),
-            ("Connection", "close"),
-        ):
-            connection.putheader(name, value)
-        connection.endheaders(body)
-        response = connection.getresponse()
-        response.read()
-    finally:
-        connection.close()
-    if response.status != 200:
-        raise MTPError(f"{address} answered {response.status} {response.reason}")
+        url = urlsplit(address)
+        url.port  # noqa: B018 (raises ValueError for a port that is no number or out of range)
+    except ValueError:
+        raise MTPError(f"cannot post to {address[:80]!r}: not a URL") from None
+    if url.scheme.lower() != "http" or not url.hostname:
+        raise MTPError(f"cannot post to {address[:80]!r}: only http://host:port/… addresses (no https)")
 
 
-Deliver = Callable[[MTPMessage], None]
-"""What the server calls with each message it read; raising MTPError answers 406 with its
-reason (e.g. a payload that is no ACL message), anything else 500."""
+async def post(session: aiohttp.ClientSession, address: str, message: MTPMessage) -> None:
+    """POST ``message`` to ``address`` with ``session`` (its timeouts and pool apply) as JADE
+    does (module docstring). Raises MTPError when the address is not an http URL or the
+    receiver answers anything but 200; aiohttp.ClientError, OSError or TimeoutError when it
+    cannot be reached or does not answer in time."""
+    check_address(address)
+    content_type, body = encode_body(message)
+    headers = {**HEADERS, "Content-Type": content_type}
+    async with session.post(address, data=body, headers=headers, allow_redirects=False) as response:
+        status, reason = response.status, (response.reason or "")[:80]
+    if status != 200:
+        raise MTPError(f"{address[:120]} answered {status} {reason}")
 
 
-class _Handler(BaseHTTPRequestHandler):
-    server: MTPServer
-    protocol_version = "HTTP/1.1"
-    timeout = 30.0
-    """Seconds a connection may stay silent (a client that never sends its body is dropped)."""
-
-    def log_message(self, format: str, *args: object) -> None:
-        log.debug("%s " + format, self.client_address[0], *args)
-
-    def _answer(self, code: int, reason: str) -> None:
-        """Answer as JADE does: a one-line HTML page naming the status; close the connection."""
-        text = f"{code} {reason}"
-        page = f"<html><body><h1>{text}</h1></body></html>".encode()
-        self.send_response(code, reason)
-        self.send_header("Content-Type", "text/html")
-        self.send_header("Cache-Control", "no-cache")
-        self.send_header("Content-Length", str(len(page)))
-        self.send_header("Connection", "close")
-        self.end_headers()
-        self.wfile.write(page)
-        self.close_connection = True
-
-    def _refuse(self, code: int, reason: str, why: str) -> None:
-        self.server.count(f"http.{code}")
-        log.warning("HTTP %d to %s: %s", code, self.client_address[0], why)
-        self._answer(code, reason)
-
-    def do_POST(self) -> None:
-        length = self.headers.get("Content-Length")
-        if length is None or not length.strip().isdigit():
-            self._refuse(411, "Length Required", "no Content-Length (chunked bodies are not read)")
-            return
-        size = int(length)
-        if size > MAX_BODY:
-            self._refuse(413, "Payload Too Large", f"a body of {size} octets (at most {MAX_BODY})")
-            return
-        body = self.rfile.read(size)
-        try:
-            message = decode_body(self.headers.get("Content-Type", ""), body)
-            self.server.deliver(message)
-        except MTPError as exc:
-            self._refuse(406, "Not Acceptable", str(exc))
-            return
-        except Exception as exc:  # the server keeps running whatever one message does
-            log.exception("delivering a message raised")
-            self._refuse(500, "Internal Server Error", f"{type(exc).__name__}: {exc}")
-            return
-        self.server.count("http.200")
-        self._answer(200, "OK")
-
-    def _not_post(self) -> None:
-        self._refuse(405, "Method Not Allowed", f"{self.command} instead of POST")
-
-    do_GET = do_PUT = do_DELETE = do_HEAD = _not_post
+def client_session(
+    limits: Limits = DEFAULT_LIMITS, connector: aiohttp.BaseConnector | None = None
+) -> aiohttp.ClientSession:
+    """An aiohttp client for :func:`post` (call it on the event loop that will use it): at
+    most ``limits.max_posts`` connections, none kept alive, ``limits.post_connect_s`` to
+    connect and ``limits.post_s`` for a whole post; no User-Agent or Accept headers (they would
+    name versions), no proxy from the environment."""
+    return aiohttp.ClientSession(
+        connector=connector or aiohttp.TCPConnector(limit=limits.max_posts, force_close=True),
+        timeout=aiohttp.ClientTimeout(total=limits.post_s, sock_connect=limits.post_connect_s),
+        skip_auto_headers=("User-Agent", "Accept", "Accept-Encoding"),
+        auto_decompress=False,
+        trust_env=False,
+    )
 
 
-class MTPServer(ThreadingHTTPServer):
-    """An HTTP server of the message transport (module docstring), one thread per connection:
-    each message read is given to ``deliver``; ``count`` is called with ``http.<status>`` for
-    every answer. Raises OSError when ``address`` (host, port) cannot be bound."""
+def post_message(address: str, message: MTPMessage, limits: Limits = DEFAULT_LIMITS) -> None:
+    """:func:`post` once, on an event loop of its own (tools and tests; the gateway posts with
+    services/gateway/poster.py). Raises as :func:`post`."""
 
-    daemon_threads = True
+    async def once() -> None:
+        async with client_session(limits) as session:
+            await post(session, address, message)
 
-    def __init__(self, address: tuple[str, int], deliver: Deliver, count: Callable[[str], None]) -> None:
-        super().__init__(address, _Handler)
-        self.deliver = deliver
-        self.count = count
-        self._thread: threading.Thread | None = None
-
-    def start(self) -> None:
-        """Serve on a thread of its own until :meth:`stop`."""
-        self._thread = threading.Thread(target=self.serve_forever, name="gateway-http", daemon=True)
-        self._thread.start()
-
-    def stop(self) -> None:
-        self.shutdown()
-        self.server_close()
-        if self._thread is not None:
-            self._thread.join(timeout=5.0)
+    asyncio.run(once())

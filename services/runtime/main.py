@@ -58,6 +58,10 @@ def agent_class(spec: SystemSpec, name: str) -> type[Agent]:
 
 
 def setup_logging(name: str) -> None:
+    """Log at ``ROCO_LOG_LEVEL`` (default INFO) to the run folder's ``logs/NAME.log``, else to
+    stderr; one line per record (services/runtime/log_format.py)."""
+    from services.runtime.log_format import OneLineFormatter
+
     level = os.environ.get("ROCO_LOG_LEVEL", "INFO").upper()
     run_dir = os.environ.get("ROCO_RUN_DIR")
     handler: logging.Handler
@@ -66,7 +70,7 @@ def setup_logging(name: str) -> None:
         handler = logging.FileHandler(Path(run_dir) / "logs" / f"{name}.log")
     else:
         handler = logging.StreamHandler(sys.stderr)
-    handler.setFormatter(logging.Formatter("%(asctime)s %(name)s %(levelname)s %(message)s"))
+    handler.setFormatter(OneLineFormatter())
     logging.basicConfig(level=level, handlers=[handler], force=True)
 
 

@@ -151,6 +151,7 @@ from shared.fipa_codec.names import check_word, is_word
 __all__ = [
     "MAX_AID_DEPTH",
     "MAX_STRING_FORM_SIZE",
+    "MAX_STRING_FORM_TOKENS",
     "AidExtras",
     "StringFormError",
     "content_as_json",
@@ -164,6 +165,8 @@ __all__ = [
 
 MAX_STRING_FORM_SIZE = 32 * 1024 * 1024
 """Largest input :func:`parse` accepts by default (characters or bytes)."""
+MAX_STRING_FORM_TOKENS = 1 << 20
+"""Most tokens (atoms, strings, parentheses) :func:`parse` reads by default."""
 
 AidExtras = Literal["keep", "reject", "drop"]
 """What :func:`parse` does with ``:resolvers`` and user parameters of an agent identifier:
@@ -387,6 +390,9 @@ _WORD_ATOM, _NUMBER_ATOM, _DATETIME_ATOM, _BAD_ATOM = "word", "number", "date-ti
 _NUMBER_TOKEN = re.compile(r"[+-]?([0-9]+|[0-9]+\.[0-9]*|[0-9]*\.[0-9]+)([eE][+-]?[0-9]+)?\Z")
 _DATETIME_TOKEN = re.compile(r"[+-]?[0-9]{8}[Tt][0-9]{9}[A-Za-z]?\Z")
 _BLE_HEAD = re.compile(r"#([0-9]{1,12})\"")
+_SPACE = re.compile(r"[\x00-\x20]*")
+_ATOM_REST = re.compile(r"[^\x00-\x20()]*")
+_CLOSING_QUOTE = re.compile(r'(?<!\\)"')
 _DATETIME = re.compile(
     r"([+-])?([0-9]{4})([0-9]{2})([0-9]{2})[Tt]"  # sign, date
     r"([0-9]{2})([0-9]{2})([0-9]{2})([0-9]{3})([A-Za-z])?\Z"  # time, type designator
@@ -449,21 +455,15 @@ def _string_literal(src: str, i: int, octets: bool) -> _Token:
 
     JADE's leniency (module docstring, *Strings*): when no quote closes the literal but it
     passed over ``\\"``, the last of those closes it, its backslash the literal's last character.
+    The closing quote is found by a regular expression, in time linear in the literal's length.
     """
-    j = i + 1
-    last_escaped = -1
-    while True:
-        k = src.find('"', j)
+    m = _CLOSING_QUOTE.search(src, i + 1)
+    if m is not None:
+        k = m.start()
+    else:
+        k = src.rfind('"', i + 1)  # every later quote is escaped: JADE takes the last one
         if k < 0:
-            if last_escaped < 0:
-                raise StringFormError("unterminated string literal: expected a closing '\"'", i)
-            k = last_escaped  # JADE's printing of a value that ends in a backslash
-            break
-        if k > i + 1 and src[k - 1] == "\\":  # an escaped quote
-            last_escaped = k
-            j = k + 1
-            continue
-        break
+            raise StringFormError("unterminated string literal: expected a closing '\"'", i)
     text = src[i + 1 : k].replace('\\"', '"')
     return _Token(_STRING, i, k + 1, text=_fix_text(text, octets, i + 1))
 
@@ -504,29 +504,58 @@ def _byte_length_string(src: str, i: int) -> _Token:
     return _Token(_BYTES, i, begin + length, octets=value)
 
 
-def _tokenize(src: str, octets: bool) -> list[_Token]:
-    tokens: list[_Token] = []
-    n = len(src)
-    i = 0
-    while i < n:
+class _Lexer:
+    """The tokens of ``src``, one at a time (SC00070 §2.3), so that a parser that stops at an
+    error has done work only up to it. White space and atoms are scanned with regular
+    expressions (linear, in C); more than ``max_tokens`` tokens is a StringFormError where the
+    one over the limit starts."""
+
+    __slots__ = ("_ahead", "count", "i", "max_tokens", "octets", "src")
+
+    def __init__(self, src: str, octets: bool, max_tokens: int) -> None:
+        self.src = src
+        self.octets = octets
+        self.max_tokens = max_tokens
+        self.i = 0
+        self.count = 0
+        self._ahead: _Token | None = None
+
+    def peek(self) -> _Token | None:
+        """The next token, not consumed; None at the end of the input."""
+        if self._ahead is None:
+            self._ahead = self._scan()
+        return self._ahead
+
+    def take(self) -> _Token | None:
+        """The next token, consumed; None at the end of the input."""
+        tok = self.peek()
+        self._ahead = None
+        return tok
+
+    def _scan(self) -> _Token | None:
+        src = self.src
+        space = _SPACE.match(src, self.i)
+        assert space is not None  # a star matches everywhere
+        i = space.end()
+        if i >= len(src):
+            self.i = i
+            return None
+        self.count += 1
+        if self.count > self.max_tokens:
+            raise StringFormError(f"more than {self.max_tokens} tokens", i)
         c = src[i]
-        if c <= " ":
-            i += 1
-            continue
         if c == "(" or c == ")":
             tok = _Token(c, i, i + 1)
         elif c == '"':
-            tok = _string_literal(src, i, octets)
+            tok = _string_literal(src, i, self.octets)
         elif c == "#":
             tok = _byte_length_string(src, i)
         else:
-            j = i + 1
-            while j < n and src[j] > " " and src[j] != "(" and src[j] != ")":
-                j += 1
-            tok = _atom(src, i, j, octets)
-        tokens.append(tok)
-        i = tok.end
-    return tokens
+            rest = _ATOM_REST.match(src, i + 1)
+            assert rest is not None  # a star matches everywhere
+            tok = _atom(src, i, rest.end(), self.octets)
+        self.i = tok.end
+        return tok
 
 
 def parse_datetime(
@@ -578,25 +607,29 @@ def parse_datetime(
 
 class _Parser:
     def __init__(
-        self, src: str, octets: bool, now: float | None, tz: tzinfo | None, aid_extras: AidExtras
+        self,
+        src: str,
+        octets: bool,
+        now: float | None,
+        tz: tzinfo | None,
+        aid_extras: AidExtras,
+        max_tokens: int,
     ) -> None:
         self.src = src
         self.octets = octets
         self.now = time.time() if now is None else now
         self.tz = tz
         self.aid_extras = aid_extras
-        self.tokens = _tokenize(src, octets)
-        self.i = 0
+        self.lexer = _Lexer(src, octets, max_tokens)
 
     # -- token helpers
     def peek(self) -> _Token | None:
-        return self.tokens[self.i] if self.i < len(self.tokens) else None
+        return self.lexer.peek()
 
     def next(self, what: str) -> _Token:
-        tok = self.peek()
+        tok = self.lexer.take()
         if tok is None:
             raise StringFormError(f"unexpected end of input: expected {what}", len(self.src))
-        self.i += 1
         return tok
 
     def expect(self, kind: str, what: str) -> _Token:
@@ -746,7 +779,7 @@ class _Parser:
             if tok_ is None:
                 raise StringFormError(f"unterminated ({head_word} …): expected ')'", tok.start)
             if tok_.kind == _RPAREN:
-                self.i += 1
+                self.lexer.take()
                 return items
             items.append(item())
 
@@ -849,6 +882,7 @@ def parse(
     text: str | bytes | bytearray | memoryview,
     *,
     max_size: int = MAX_STRING_FORM_SIZE,
+    max_tokens: int = MAX_STRING_FORM_TOKENS,
     now: float | None = None,
     tz: tzinfo | None = None,
     aid_extras: AidExtras = "keep",
@@ -870,7 +904,10 @@ def parse(
     that is no word, number or date-time, anything but a word after ``:name``,
     ``:protocol`` or in ``:addresses`` (resolvers' included), agent identifiers nested
     deeper than :data:`MAX_AID_DEPTH`, malformed string or date-time, trailing text, input
-    over ``max_size``. JADE's leniencies (module docstring) are read, not refused.
+    over ``max_size`` (characters or octets: refused before anything is read) or holding more
+    than ``max_tokens`` tokens (atoms, strings, parentheses: refused where the one over the
+    limit starts; the input is read token by token, so the work done is bounded by the limits,
+    not by the input). JADE's leniencies (module docstring) are read, not refused.
     """
     if aid_extras not in ("keep", "reject", "drop"):
         raise ValueError(f"aid_extras must be 'keep', 'reject' or 'drop', not {aid_extras!r}")
@@ -885,7 +922,7 @@ def parse(
     else:
         src, octets = bytes(text).decode("latin-1"), True
     try:
-        return _Parser(src, octets, now, tz, aid_extras).message()
+        return _Parser(src, octets, now, tz, aid_extras, max_tokens).message()
     except StringFormError as exc:
         raise _located(exc, src) from None
 

@@ -11,6 +11,7 @@ from pathlib import Path
 import pytest
 
 from services.bench import cli, quiet, report
+from services.bench.gateway import BurstFigures, GatewayFigures, LoadFigures, WorstRow
 from services.bench.messaging import (
     BenchInform,
     BenchRequest,
@@ -311,6 +312,13 @@ def _fixed_figures_document() -> str:
         return ScaleRow(agents, 1.0, 40.0 * agents, pair, ConcurrentFigures(Latency([0.001]), rate, rate), 1)
 
     scale = [scale_row(10, 3385.0), scale_row(100, 1646.0)]
+    gateway = GatewayFigures(
+        LoadFigures(100, 20, 2000, 819.4, 101.0, 278.0, {200: 2000}),
+        BurstFigures(500, 500, 0.72, {200: 500}),
+        [WorstRow("body: 8 MiB of newlines", 406, 406, 14.6, 0.03)],
+        79.8,
+        117.0,
+    )
     sections = [
         report.codec_section([CodecRow("200 B", 200, 412, 0.40, 1.25, 20_000)]),
         report.messaging_section(pair, spade, counts),
@@ -322,12 +330,14 @@ def _fixed_figures_document() -> str:
         report.memory_section(memory),
         report.task_section([task]),
         report.scale_section(scale, counts),
+        report.gateway_section(gateway),
     ]
     targets = [
         *report.verdict_lines(pair, spade),
         *report.memory_verdicts(memory),
         *report.scale_verdicts(scale),
         *report.plan_and_fleet_verdicts(planning, fleet),
+        *report.gateway_verdicts(gateway),
     ]
     run_lines = [
         *report.machine_lines("roco bench", "0.10 / 0.20 / 0.30", "0.40 / 0.50 / 0.60", 1.8e9, 555.0),
@@ -349,8 +359,18 @@ def test_a_report_from_fixed_figures_states_the_method_and_the_present_only() ->
     # what it answers and how it was made come first, then the parts, the targets, the method
     headings = [line for line in text.splitlines() if line.startswith("## ")]
     assert headings[0] == "## This run"
-    assert [h.split(" ", 2)[1] for h in headings[1:9]] == ["1.", "2–3.", "4.", "5.", "6.", "6b.", "7.", "8."]
-    assert headings[9:] == ["## Targets", "## Method and where the time goes"]
+    assert [h.split(" ", 2)[1] for h in headings[1:10]] == [
+        "1.",
+        "2–3.",
+        "4.",
+        "5.",
+        "6.",
+        "6b.",
+        "7.",
+        "8.",
+        "9.",
+    ]
+    assert headings[10:] == ["## Targets", "## Method and where the time goes"]
     assert text.startswith("# roco benchmarks\n\nWhat roco costs on one machine")
     assert "- Command: `roco bench` (took 555 s), at commit" in text
     assert "- Before each timed part `roco bench` waited up to 90 s for a quiet machine" in text

@@ -148,12 +148,11 @@ def test_a_payload_in_another_character_set_is_read_in_it() -> None:
     from shared.fipa_codec import AgentIdentifier
 
     posted: queue.SimpleQueue[tuple[str, MTPMessage]] = queue.SimpleQueue()
-    gateway = Gateway(
-        MemoryBus().transport(),
-        default_spec(),
-        "http://127.0.0.1:1/acc",
-        post=lambda address, message, timeout: posted.put((address, message)),
-    )
+
+    async def post(address: str, message: MTPMessage) -> None:
+        posted.put((address, message))
+
+    gateway = Gateway(MemoryBus().transport(), default_spec(), "http://127.0.0.1:1/acc", post=post)
     gateway.start()
     try:
         acl = (
@@ -161,10 +160,14 @@ def test_a_payload_in_another_character_set_is_read_in_it() -> None:
             f':receiver (set (agent-identifier :name a_co)) :content "caf\u00e9" :reply-with r1)'
         )
         to = (AgentIdentifier("a_co"),)
-        gateway.deliver(MTPMessage(Envelope(to=to, payload_encoding="ISO-8859-1"), acl.encode("latin-1")))
+        gateway.deliver(
+            MTPMessage(Envelope(to=to, payload_encoding="ISO-8859-1"), acl.encode("latin-1")), "1.2.3.4"
+        )
         address, message = posted.get(timeout=TIMEOUT)
         assert address == "http://jade:7778/acc" and b"(refuse" in message.payload
-        with pytest.raises(MTPError, match="not no-such-charset text"):
-            gateway.deliver(MTPMessage(Envelope(to=to, payload_encoding="no-such-charset"), b"(x)"))
+        with pytest.raises(MTPError, match="payload-encoding 'no-such-charset' is not read here"):
+            gateway.deliver(
+                MTPMessage(Envelope(to=to, payload_encoding="no-such-charset"), b"(x)"), "1.2.3.4"
+            )
     finally:
         gateway.stop()

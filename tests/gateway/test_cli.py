@@ -57,3 +57,11 @@ def test_a_port_in_use_is_one_line(tmp_path: Path) -> None:
     assert done.returncode == 1 and done.stderr.startswith(
         f"roco: gateway: cannot listen on 127.0.0.1:{port}"
     )
+
+
+def test_a_malformed_platform_binding_is_one_line(tmp_path: Path) -> None:
+    done = gateway(tmp_path, "--port", str(free_port()), "--platform", "host:1099/JADE")
+    assert done.returncode == 1 and done.stderr.count("\n") == 1, done.stderr
+    assert done.stderr.startswith("roco: gateway: --platform 'host:1099/JADE': expected PLATFORM=URL")
+    done = gateway(tmp_path, "--port", str(free_port()), "--platform", "host:1099/JADE=https://h:1/acc")
+    assert done.returncode == 1 and "only http://host:port/… addresses" in done.stderr, done.stderr

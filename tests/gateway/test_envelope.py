@@ -78,3 +78,24 @@ def test_a_later_params_block_replaces_the_earlier_ones_fields() -> None:
 def test_what_is_not_an_envelope_is_one_clear_error(xml: str, message: str) -> None:
     with pytest.raises(EnvelopeError, match=message):
         parse_xml(xml)
+
+
+@pytest.mark.parametrize(
+    ("xml", "message"),
+    [
+        ('<!DOCTYPE envelope [<!ENTITY a "b">]><envelope>&a;</envelope>', "declares a DTD or entities"),
+        ('<!DOCTYPE envelope SYSTEM "http://evil/e.dtd"><envelope/>', "declares a DTD or entities"),
+        (
+            "<envelope><params><to><agent-identifier><name>a</name></agent-identifier></to>"
+            f"<payload-length>{'9' * 5000}</payload-length></params></envelope>",
+            "has 5000 digits",
+        ),
+        (f'<envelope><params index="{"1" * 13}"/></envelope>', "has 13 digits"),
+        ("<envelope>" + " " * 70_000 + "</envelope>", "at most 65536"),
+    ],
+)
+def test_dtds_long_numbers_and_large_envelopes_are_refused_before_they_are_read(
+    xml: str, message: str
+) -> None:
+    with pytest.raises(EnvelopeError, match=message):
+        parse_xml(xml)

@@ -3,6 +3,7 @@ writes it, a server that answers as JADE does and keeps running after bad input.
 
 from __future__ import annotations
 
+import base64
 import queue
 from collections import Counter
 from collections.abc import Iterator
@@ -11,7 +12,8 @@ import pytest
 
 from services.fleet.launcher import free_port
 from services.gateway.envelope import Envelope
-from services.gateway.http_mtp import MTPError, MTPMessage, MTPServer, decode_body, encode_body, post_message
+from services.gateway.http_mtp import MTPError, MTPMessage, decode_body, encode_body, post_message
+from services.gateway.server import MTPServer
 from shared.fipa_codec import AgentIdentifier
 from tests.support.jade_platform import BOUNDARY, JADE, JadePlatform, envelope_xml, jade_body, post
 
@@ -59,7 +61,7 @@ def server() -> Iterator[tuple[str, queue.SimpleQueue[MTPMessage], Counter[str]]
     counts: Counter[str] = Counter()
     port = free_port()
 
-    def deliver(message: MTPMessage) -> None:
+    def deliver(message: MTPMessage, peer: str) -> None:
         if message.payload == b"refuse me":
             raise MTPError("no ACL message")
         got.put(message)
@@ -98,3 +100,40 @@ def test_post_message_reaches_a_jade_platform() -> None:
             post_message("https://h:1/acc", MTPMessage(env, payload))
     finally:
         platform.close()
+
+
+def test_the_body_reader_takes_bare_line_feeds_and_transfer_encodings() -> None:
+    xml = envelope_xml("a_hi", JADE, "http://h:1/acc", len(ACL)).encode()
+    b = BOUNDARY.encode()
+    lf = b"preamble\n--" + b + b"\n\n" + xml + b"\n--" + b + b"\n\n" + ACL + b"\n--" + b + b"--\n"
+    assert decode_body(f"multipart/mixed; boundary={BOUNDARY}", lf).payload == ACL
+    encoded = jade_body(envelope_xml("a_hi", JADE, "", 1), b"").replace(
+        b"charset=US-ASCII\r\n\r\n\r\n",
+        b"charset=US-ASCII\r\nContent-Transfer-Encoding: base64\r\n\r\n" + base64.b64encode(ACL) + b"\r\n",
+    )
+    assert decode_body(f'multipart/mixed; boundary="{BOUNDARY}"', encoded).payload == ACL
+
+
+@pytest.mark.parametrize(
+    ("body", "message"),
+    [
+        (jade_body("<envelope>" + " " * 70_000 + "</envelope>", ACL), "at most 65536"),
+        (
+            jade_body(envelope_xml("a_hi", JADE, "", 1), ACL).replace(
+                b"Content-Type: application/xml\r\n",
+                b"Content-Type: application/xml\r\nX-a: " + b"b" * 9000 + b"\r\n",
+            ),
+            "part 1: no blank line after its headers within 8192 octets",
+        ),
+        (b"--" + BOUNDARY.encode() + b"\r\n\r\n<envelope/>", "part 1 has no boundary line after it"),
+        (
+            jade_body(envelope_xml("a_hi", JADE, "", 1), ACL).replace(
+                b"charset=US-ASCII\r\n", b"charset=US-ASCII\r\nContent-Transfer-Encoding: x-uuencode\r\n"
+            ),
+            "Content-Transfer-Encoding 'x-uuencode' is not read here",
+        ),
+    ],
+)
+def test_the_body_reader_refuses_over_its_limits(body: bytes, message: str) -> None:
+    with pytest.raises(MTPError, match=message):
+        decode_body(f'multipart/mixed; boundary="{BOUNDARY}"', body)

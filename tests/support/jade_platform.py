@@ -115,7 +115,7 @@ class JadePlatform:
         self.address = f"http://127.0.0.1:{port}/acc"
         self.server = ThreadingHTTPServer(("127.0.0.1", port), Handler)
         self.server.daemon_threads = True
-        self.thread = threading.Thread(target=self.server.serve_forever, daemon=True)
+        self.thread = threading.Thread(target=self.server.serve_forever, args=(0.05,), daemon=True)
         self.thread.start()
 
     def _take(self, content_type: str, body: bytes) -> str:
