@@ -1,14 +1,18 @@
 """A kinematic test double of ``velma.executor.Executor`` for testing agent logic without
 physics: commands succeed at once; objects follow the hand that holds them; a tilt empties
-the held container into the nearest other container. Used only by tests of the agents."""
+the held container into the nearest other container. ``HaltingExecutor`` keeps chosen
+commands running until they are cancelled (halted). Used only by tests of the agents."""
 
 from __future__ import annotations
 
 import math
+import queue
+import threading
 from collections.abc import Callable
 
 from shared.fipa_codec.languages.common import Pose
 from shared.fipa_codec.languages.l_ex import (
+    HALTED,
     CommandResult,
     ExecutorCommand,
     Grasp,
@@ -16,6 +20,7 @@ from shared.fipa_codec.languages.l_ex import (
     Observe,
     Release,
     Tilt,
+    command_name,
 )
 from shared.fipa_codec.languages.l_sd import ObjectObservation, Observation
 
@@ -50,8 +55,15 @@ class FakeExecutor:
 
     def submit(
         self, command: ExecutorCommand, on_done: Callable[[CommandResult | Observation], None]
-    ) -> None:
+    ) -> object:
+        """Run ``command`` at once (``on_done`` called before this returns); returns its token."""
         self.commands.append(command)
+        self._answer(command, on_done)
+        return object()
+
+    def _answer(
+        self, command: ExecutorCommand, on_done: Callable[[CommandResult | Observation], None]
+    ) -> None:
         self.t += 1.0
         tag = type(command).__name__
         if tag in self.fail:
@@ -87,3 +99,55 @@ class FakeExecutor:
                 self.inside[dst] += self.inside[src]
                 self.inside[src] = 0
         on_done(CommandResult(command=tag, ok=True, sim_time=self.t))
+
+
+OnDone = Callable[[CommandResult | Observation], None]
+
+
+class HaltingExecutor(FakeExecutor):
+    """``FakeExecutor`` whose first command of a type named in ``hold`` (e.g. ``Tilt``) keeps
+    running — no result — until ``cancel`` halts it: its result then says ``halted``
+    (L_EX ``HALTED``) and the world is as before it. ``running`` receives each command held so,
+    when it starts (a test sends its stop then); ``cancelled`` lists the commands halted."""
+
+    def __init__(
+        self,
+        hold: set[str],
+        fail: set[str] | None = None,
+        when: Callable[[ExecutorCommand], bool] = lambda _command: True,
+    ) -> None:
+        """``when``: which commands of those types are held (the first one it accepts)."""
+        super().__init__(fail)
+        self.hold = set(hold)
+        self.when = when
+        self.running: queue.SimpleQueue[ExecutorCommand] = queue.SimpleQueue()
+        self.cancelled: list[ExecutorCommand] = []
+        self._held: dict[object, tuple[ExecutorCommand, OnDone]] = {}
+        self._lock = threading.Lock()
+
+    def submit(self, command: ExecutorCommand, on_done: OnDone) -> object:
+        token = object()
+        tag = type(command).__name__
+        if tag not in self.hold or not self.when(command):
+            self.commands.append(command)
+            self._answer(command, on_done)
+            return token
+        self.hold.discard(tag)  # the first one only
+        self.commands.append(command)
+        with self._lock:
+            self._held[token] = (command, on_done)
+        self.running.put(command)
+        return token
+
+    def cancel(self, token: object) -> bool:
+        """Halt the held command ``token``: its ``on_done`` gets ``halted``; False when it is
+        not held (it ran at once, or was halted already)."""
+        with self._lock:
+            held = self._held.pop(token, None)
+        if held is None:
+            return False
+        command, on_done = held
+        self.cancelled.append(command)
+        self.t += 1.0
+        on_done(CommandResult(command=command_name(command), ok=False, reason=HALTED, sim_time=self.t))
+        return True

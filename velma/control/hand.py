@@ -196,6 +196,17 @@ class Hands:
         if spread is not None:
             hs.spread_target = float(np.clip(spread, 0.0, np.pi))
 
+    def keep(self, side: str) -> None:
+        """Keep ``side``'s hand as it is (a halted grasp or release, velma/executor/loop.py
+        ``ControlLoop.cancel``): the proximal targets become the current proximal setpoints and
+        the spread target the current spread, so a closing hand stops closing and an opening
+        one stops opening; a finger whose clutch broke away keeps pressing on what stopped it
+        (module docstring). Raises ``KeyError`` for an unknown side."""
+        hs = self.set[side]
+        hs.target = hs.proximal.copy()
+        hs.spread_target = hs.spread
+        hs.steady = False
+
     def step(self, data: mujoco.MjData, dt: float) -> None:
         """Advance the ramps and the clutches by ``dt`` (s) from the state in ``data``
         (measured proximal angles and servo torques), and write the servo controls into

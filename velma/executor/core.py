@@ -27,7 +27,7 @@ from collections.abc import Callable
 
 import msgspec
 
-from shared.fipa_codec.languages.l_ex import CommandResult, ExecutorCommand
+from shared.fipa_codec.languages.l_ex import CommandResult, ExecutorCommand, command_name
 from shared.fipa_codec.languages.l_sd import Observation
 from velma.control.compiled import law_name
 from velma.executor.camera import InThreadCamera
@@ -48,7 +48,7 @@ class Executor:
 
     ``seed`` selects the jitter of the jar content's start positions, ``pose_seed`` a
     randomisation of the jar and bowl poses (±2 cm, ±10°; see velma/model/scene.py).
-    ``submit`` and ``hold`` are thread-safe; ``on_done`` is called from the loop thread
+    ``submit``, ``cancel`` and ``hold`` are thread-safe; ``on_done`` is called from the loop thread
     exactly once per command (exceptions it raises are logged and swallowed).
     Commands still queued at ``stop`` are answered with ``ok=False, reason="stopped"``.
 
@@ -116,10 +116,34 @@ class Executor:
             self.delivery.close()
             self.delivery = None
 
-    def submit(self, command: ExecutorCommand, on_done: OnDone) -> None:
-        """Queue ``command``; ``on_done(result)`` is called once when it ends (FIFO order)."""
+    def submit(self, command: ExecutorCommand, on_done: OnDone) -> OnDone:
+        """Queue ``command``; ``on_done(result)`` is called once when it ends (FIFO order).
+        Returns the command's token for ``cancel`` (``on_done`` itself: give each command a
+        callable of its own to cancel it)."""
         with self._lock:
             self.loop.submit(on_done, command)
+        return on_done
+
+    def cancel(self, token: OnDone) -> bool:
+        """Halt the command ``token`` (velma.executor.loop ``ControlLoop.cancel``): its
+        ``on_done`` gets a result that says ``halted``, or its own when it had ended. False
+        when the loop no longer has it. The halt begins under the loop's lock, between two
+        cycles; it is logged with the wall time."""
+        with self._lock:
+            ended = self.loop.cancel(token)
+            running = self.loop.current
+            at = (time.time(), self.rt.time)
+        if ended is None:
+            return False
+        if not ended and running is not None:
+            log.info(
+                "halt: %s halted by a cancel at wall time %.6f, sim time %.3f s",
+                command_name(running[1]),
+                *at,
+            )
+        for on_done, result in ended:
+            self._put(on_done, result)
+        return True
 
     def hold(self, why: str) -> None:
         """Hold position in joint impedance, ending every command with ``held: why``

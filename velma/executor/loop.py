@@ -11,6 +11,15 @@ Holding (``hold``): the running and queued commands end with ``failure`` (reason
 <why>``), the arms switch to joint impedance at their measured configuration, the torso to its
 measured angle; the hands keep their setpoints, so a grasped object stays grasped. ``safe``
 does the same with Velma's safe-mode gains. The loop holds until the next command arrives.
+
+Cancelling (``cancel``; a_ta's FIPA cancel of the request, SC00026 §2, paper §3.2 safe
+interruption): a command queued behind another is dropped and ends at once with ``halted``
+(L_EX ``HALTED``); the running one — or the next one when none runs — is replaced, in the
+cycle the cancel arrives, by a ``HaltPrimitive`` (velma/executor/primitives.py), which brings
+the commanded motion to rest (mid-pour it turns the jar upright; past the point where the
+content leaves the jar, after the tilt's end) and ends the command with ``halted``. A cancel
+adds no work to the cycle: the host hands it over with the other commands, and the halt is
+just the running primitive from then on.
 """
 
 from __future__ import annotations
@@ -22,9 +31,9 @@ from typing import Generic, TypeVar
 import msgspec
 import numpy as np
 
-from shared.fipa_codec.languages.l_ex import CommandResult, ExecutorCommand, command_name
+from shared.fipa_codec.languages.l_ex import HALTED, CommandResult, ExecutorCommand, command_name
 from velma.control.robot_model import SIDES
-from velma.executor.primitives import Primitive, Result, make_primitive
+from velma.executor.primitives import HaltPrimitive, Primitive, Result, make_primitive
 from velma.executor.runtime import Runtime
 
 T = TypeVar("T")
@@ -48,6 +57,44 @@ class ControlLoop(Generic[T]):
     def submit(self, token: T, command: ExecutorCommand) -> None:
         """Queue ``command``; its result comes back from ``cycle`` with ``token``."""
         self.queue.append((token, command))
+
+    def cancel(self, token: T) -> list[tuple[T, CommandResult]] | None:
+        """Halt the command submitted with ``token`` (module docstring). Returns
+        ``[(token, result)]`` when it was queued behind another (dropped; ``result`` says
+        ``halted``), ``[]`` when it runs, or was the next to run with none running (a
+        ``HaltPrimitive`` runs in its place: the robot is halted as it stands, a tilted jar
+        turned upright; its ``halted`` result comes from ``cycle`` once the robot is at rest; a
+        second cancel changes nothing), None when the loop no longer has it (it has ended).
+        When the halt cannot start (it raised) the loop holds position instead (``hold``) and
+        the commands that ended are returned."""
+        for i, (queued, command) in enumerate(self.queue):
+            if queued != token:
+                continue
+            del self.queue[i]
+            if i == 0 and self.current is None:
+                return self._halt(token, command, None)
+            name = command_name(command)
+            return [(queued, CommandResult(command=name, ok=False, reason=HALTED, sim_time=self.rt.time))]
+        if self.current is None or self.current[0] != token:
+            return None
+        _, command, running = self.current
+        if isinstance(running, HaltPrimitive):
+            return []
+        return self._halt(token, command, running)
+
+    def _halt(
+        self, token: T, command: ExecutorCommand, running: Primitive | None
+    ) -> list[tuple[T, CommandResult]]:
+        """Make a ``HaltPrimitive`` of ``command`` (``running``: its primitive, None: it never
+        started) the running command."""
+        halt = HaltPrimitive(command, running)
+        self.current = (token, command, halt)
+        try:
+            halt.start(self.rt)
+        except Exception as exc:  # a halt that cannot start must not kill the loop: hold instead
+            self.errors.append((command_name(command), f"halt: {type(exc).__name__}: {exc}"))
+            return self.hold(f"the halt failed: {exc}")
+        return []
 
     def pending(self) -> list[tuple[T, ExecutorCommand]]:
         """The running and queued commands, oldest first; removes them (no results)."""

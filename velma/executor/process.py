@@ -9,10 +9,13 @@ switch interval (5 ms). In its own process the loop competes only for a CPU, whi
 
 Hand-offs (all non-blocking on the loop's side):
 
-- commands: ``SpscRing`` communication side → loop (``Submit``, ``Hold``, ``Safe``, ``Shutdown``), polled
-  once per cycle (up to ``INBOX_PER_CYCLE`` messages);
-- results: ``SpscRing`` loop → communication side (``Ready``, ``Done``, ``Fault``), plus one byte
-  on a non-blocking pipe (a doorbell) so that the reader thread sleeps until there is news;
+- commands: ``SpscRing`` communication side → loop (``Submit``, ``Cancel``, ``Hold``, ``Safe``,
+  ``Shutdown``), polled once per cycle (up to ``INBOX_PER_CYCLE`` messages): a ``Cancel`` halts
+  its command in the cycle that takes it (velma/executor/loop.py ``ControlLoop.cancel``);
+- results: ``SpscRing`` loop → communication side (``Ready``, ``Done``, ``Halting``, ``Fault``),
+  plus one byte on a non-blocking pipe (a doorbell) so that the reader thread sleeps until
+  there is news; ``Halting`` says when (wall clock and simulation) the loop began a halt, and is
+  logged here;
 - robot state: two ``LatestValue`` blocks (sequence locks), the numbers rewritten every
   ``STATE_PERIOD`` cycles (from C++ with the compiled plant), the names when they change
   (velma/executor/state_block.py);
@@ -121,6 +124,14 @@ class Submit(msgspec.Struct, frozen=True, tag="submit"):
     command: ExecutorCommand
 
 
+class Cancel(msgspec.Struct, frozen=True, tag="cancel"):
+    """Halt the command submitted with ``token`` (velma.executor.loop ``ControlLoop.cancel``):
+    queued, it ends at once; running, it is brought to rest and ends; either way its ``Done``
+    says ``halted``. Nothing when it has ended already."""
+
+    token: int
+
+
 class Hold(msgspec.Struct, frozen=True, tag="hold"):
     """Hold position in joint impedance (velma.executor.loop), because ``why``."""
 
@@ -164,6 +175,17 @@ class Done(msgspec.Struct, frozen=True, tag="done"):
     result: CommandResult | Observation | WorldCapture
 
 
+class Halting(msgspec.Struct, frozen=True, tag="halting"):
+    """The loop began to halt the running command ``command`` submitted with ``token`` in the
+    cycle at ``wall_time`` (POSIX s, the loop's clock) and ``sim_time`` (s): from that cycle on
+    its setpoints brake to rest (the halt event; its ``Done`` follows once at rest)."""
+
+    token: int
+    command: str
+    wall_time: float
+    sim_time: float
+
+
 class Fault(msgspec.Struct, frozen=True, tag="fault"):
     """A motion primitive raised (``text``) while running ``command``; it was answered with a
     failure and the loop went on. Logged by the communication side. With ``command`` ``START``
@@ -176,8 +198,8 @@ class Fault(msgspec.Struct, frozen=True, tag="fault"):
 START = "start"
 """``Fault.command`` of a loop that could not start."""
 
-ToLoop = Submit | Hold | Safe | Displace | Shutdown
-FromLoop = Ready | Done | Fault
+ToLoop = Submit | Cancel | Hold | Safe | Displace | Shutdown
+FromLoop = Ready | Done | Halting | Fault
 
 
 class LoopConfig(msgspec.Struct, frozen=True, kw_only=True):
@@ -305,6 +327,13 @@ def loop_main(config: bytes, doorbell: multiprocessing.connection.Connection) ->
             msg = decode(raw)
             if isinstance(msg, Submit):
                 loop.submit(msg.token, msg.command)
+            elif isinstance(msg, Cancel):
+                ended = loop.cancel(msg.token)
+                if ended == [] and loop.current is not None:  # it runs: the halt begins now
+                    name = command_name(loop.current[1])
+                    halt = Halting(token=msg.token, command=name, wall_time=time.time(), sim_time=rt.time)
+                    pending.append(encode(halt))
+                pending.extend(encode(Done(token=t, result=r)) for t, r in ended or ())
             elif isinstance(msg, Hold):
                 pending.extend(encode(Done(token=t, result=r)) for t, r in loop.hold(msg.why))
             elif isinstance(msg, Safe):
@@ -354,8 +383,8 @@ def loop_main(config: bytes, doorbell: multiprocessing.connection.Connection) ->
 # ---------------------------------------------------------------------- communication side
 class ExecutorProcess:
     """The executor with its loop in a separate process; same interface as
-    ``velma.executor.Executor`` (``start``, ``stop``, ``submit``, ``hold``, ``snapshot``,
-    ``timing``).
+    ``velma.executor.Executor`` (``start``, ``stop``, ``submit``, ``cancel``, ``hold``,
+    ``snapshot``, ``timing``).
 
     ``seed`` and ``pose_seed`` select the scene (``velma.executor.runtime.Runtime``).
     ``realtime`` paces the loop to wall time; ``realtime_priority`` then asks for SCHED_FIFO
@@ -424,6 +453,8 @@ class ExecutorProcess:
         self._timing_cache: tuple[float, TimingStats] | None = None
         self.exit_reason: str | None = None
         self._callbacks: dict[int, tuple[OnDone, str]] = {}
+        self.halts: collections.deque[Halting] = collections.deque(maxlen=64)
+        """The latest halts the loop began (``Halting``, oldest first), as logged."""
         self._tokens = itertools.count(1)
         self._lock = threading.Lock()
         self._ready = threading.Event()
@@ -573,9 +604,10 @@ class ExecutorProcess:
         return self._proc is not None and self._proc.is_alive()
 
     # ------------------------------------------------------------------ API
-    def submit(self, command: ExecutorCommand, on_done: OnDone) -> None:
+    def submit(self, command: ExecutorCommand, on_done: OnDone) -> int:
         """Queue ``command``; ``on_done(result)`` is called once when it ends. A full command
-        ring or a dead loop answers at once with ``failure``."""
+        ring or a dead loop answers at once with ``failure``. Returns the command's token (for
+        ``cancel``)."""
         token = next(self._tokens)
         with self._lock:
             self._callbacks[token] = (on_done, command_name(command))
@@ -586,6 +618,21 @@ class ExecutorProcess:
             reason = "executor busy: command queue full"
         if reason is not None:
             self._answer(token, CommandResult(command=command_name(command), ok=False, reason=reason))
+        return token
+
+    def cancel(self, token: int) -> bool:
+        """Ask the loop to halt the command ``token`` (``Cancel``): its ``on_done`` then gets
+        a result that says ``halted`` (L_EX ``HALTED``) — or its own result, when it ended
+        before the loop took the cancel. False when the loop could not be asked (not running,
+        inbox full) or the command has been answered already."""
+        with self._lock:
+            open_ = token in self._callbacks
+        return (
+            open_
+            and self._commands is not None
+            and self.alive
+            and self._commands.push(self._encode(Cancel(token=token)))
+        )
 
     def hold(self, why: str) -> bool:
         """Ask the loop to hold position (velma.executor.loop); False if it could not be asked."""
@@ -676,6 +723,15 @@ class ExecutorProcess:
                         command="observe", ok=False, reason="stopped", sim_time=msg.result.stamp
                     )
                     self._answer(msg.token, stopped)
+            elif isinstance(msg, Halting):
+                self.halts.append(msg)
+                log.info(
+                    "halt: %s (token %d) halted by a cancel at wall time %.6f, sim time %.3f s",
+                    msg.command,
+                    msg.token,
+                    msg.wall_time,
+                    msg.sim_time,
+                )
             elif isinstance(msg, Ready):
                 self.setup = msg.setup
                 self.control_law = msg.control_law

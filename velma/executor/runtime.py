@@ -132,6 +132,11 @@ class Runtime:
         """The world point (m) the head keeps looking at while the torso turns (set by LookAt;
         a MoveJoints of the head joints ends it); None: the head holds its joint angles. Not
         in a checkpoint: after a restore the head holds its angles until the next LookAt."""
+        self.tilt_about: dict[str, tuple[Array, Array] | None] = {s: None for s in SIDES}
+        """Per arm, the unit axis (3,) and the pivot (3,, m; world) of the Tilt that last
+        turned what it holds, until a MoveTool of that arm or a MoveJoints of it or of the
+        torso: a halt turns a tilted held object upright about them
+        (velma/executor/primitives.py ``HaltPrimitive``). Not in a checkpoint."""
         self.held: dict[str, int | None] = {s: None for s in SIDES}
         self.touch: dict[str, dict[int, int]] = {s: {} for s in SIDES}
         self.lost_cycles: dict[str, int] = {s: 0 for s in SIDES}

@@ -6,6 +6,17 @@ an L_EX CommandResult (or an L_SD Observation for ``observe``), or ``failure`` w
 CommandResult that says why. Results come back through the agent's receptor buffer; nothing
 here blocks the loop. ``ROCO_REALTIME=1`` paces the loop to wall time.
 
+a_ta's ``cancel`` of a request (FIPA SC00026 §2 cancel meta-protocol; paper §3.2 safe
+interruption) halts its command: a queued one is dropped, the running one is brought to rest
+by the loop within the cycle the cancel reaches it (velma/executor/loop.py
+``ControlLoop.cancel``: braked; mid-pour the jar is turned upright). Once the robot is at rest
+the cancel is answered ``inform`` with the CommandResult that says ``halted`` (L_EX
+``HALTED``), which ends the conversation. When the command ended before the halt began (or the
+loop cannot be reached), the cancel is answered ``failure`` (could not cancel) carrying the
+command's own CommandResult; a cancel of a request already answered gets the runtime's
+``failure`` (nothing to cancel). Each halt is logged with wall time: here when asked and when
+answered, and by the executor when its loop began it (``Halting``).
+
 Besides the C5 conversation, ag_ex
 
 - publishes the robot state with the loop's deadline statistics on ``roco/state/ag_ex``
@@ -47,11 +58,11 @@ from typing import Any
 import msgspec
 
 from services.runtime import keys
-from services.runtime.agent import Agent
+from services.runtime.agent import Agent, Received
 from services.runtime.behaviour import FSM, Behaviour
 from services.runtime.roles import PARTICIPANT, Conversation, handles, participant
 from shared.fipa_codec import Performative
-from shared.fipa_codec.languages.l_ex import CommandResult, ExecutorCommand
+from shared.fipa_codec.languages.l_ex import HALTED, CommandResult, ExecutorCommand, command_name
 from shared.fipa_codec.languages.l_sd import Observation
 from velma.executor.capture import PERCEPTION_LOG
 
@@ -78,6 +89,17 @@ class Done:
 
     request: Conversation
     result: CommandResult | Observation
+
+
+@dataclass
+class Running:
+    """What ag_ex keeps of a request it passed to the executor (``Conversation.data``): the
+    command's name, the executor's ``token`` for it (None: the executor cannot cancel) and
+    a_ta's ``cancel`` awaiting its answer (None: none)."""
+
+    command: str
+    token: object | None = None
+    cancel: Received | None = None
 
 
 class Disturbance(msgspec.Struct, frozen=True, forbid_unknown_fields=True):
@@ -219,12 +241,59 @@ class ExecutorAgent(Agent):
             what = type(command).__name__ if command is not None else "no content"
             conv.refuse_with(Performative.REFUSE, f"not an L_EX command: {what}")
             return
-        self.executor.submit(command, lambda result, req=conv: self.post(Done(req, result)))
+        running = Running(command_name(command))
+        conv.data = running
+        running.token = self.executor.submit(command, lambda result, req=conv: self.post(Done(req, result)))
 
     @handles("fipa-request", PARTICIPANT, "cancel")
     def _on_cancel(self, conv: Conversation) -> None:
-        self.log.info("cancel from %s: the running command completes, queued ones stay", conv.peer)
-        conv.refuse_with(Performative.FAILURE, "the command is with the control loop: it completes")
+        """a_ta cancels a request it made: the executor is asked to halt its command (module
+        docstring); the cancel is answered when the command's result comes (``_answer``)."""
+        running, cancel = conv.data, conv.last
+        if not isinstance(running, Running) or cancel is None:  # no command of it is with the loop
+            conv.refuse_with(Performative.FAILURE, "nothing to cancel: no command of this request runs")
+            return
+        running.cancel = cancel
+        halt = getattr(self.executor, "cancel", None)
+        asked = halt is not None and running.token is not None and bool(halt(running.token))
+        if asked:
+            self.counters["halts"] += 1
+        self.log.info(
+            "halt: cancel of %s (conversation %s) at wall time %.6f: %s",
+            running.command,
+            conv.conversation_id,
+            time.time(),
+            "passed to the loop" if asked else "the loop cannot halt it (it has ended); its result answers",
+        )
+
+    def _answer(self, event: Done) -> None:
+        """Answer the request ``event`` ended. While a_ta's cancel of it waits, the answer is the
+        cancel's (FIPA SC00026 §2): ``inform`` with the result of a halted command (cancelled),
+        ``failure`` with the result of one that ended otherwise (could not cancel: it had ended;
+        an Observation cannot be a failure's content, so that failure says so in words). Else
+        ``inform``, or ``failure`` for a CommandResult that is not ok."""
+        conv, result = event.request, event.result
+        running = conv.data if isinstance(conv.data, Running) else None
+        cancel = running.cancel if running is not None else None
+        if running is None or cancel is None:
+            ok = not isinstance(result, CommandResult) or result.ok
+            conv.reply(Performative.INFORM if ok else Performative.FAILURE, result)
+            return
+        running.cancel = None
+        halted = isinstance(result, CommandResult) and result.reason == HALTED
+        self.log.info(
+            "halt: %s %s at sim time %.3f s (wall time %.6f): the cancel is answered",
+            running.command,
+            "at rest" if halted else "ended before the halt",
+            result.sim_time if isinstance(result, CommandResult) else result.stamp,
+            time.time(),
+        )
+        if halted:
+            conv.reply(Performative.INFORM, result, to=cancel)
+        elif isinstance(result, CommandResult):
+            conv.reply(Performative.FAILURE, result, to=cancel)
+        else:
+            conv.refuse_with(Performative.FAILURE, "could not cancel: the observation was made", to=cancel)
 
     def _serve(self) -> None:
         self.handle_received()
@@ -233,8 +302,7 @@ class ExecutorAgent(Agent):
             if isinstance(event, Done):
                 if self.rerun is not None and isinstance(event.result, Observation):  # Rerun
                     self.rerun.observation(event.result)
-                ok = not isinstance(event.result, CommandResult) or event.result.ok
-                event.request.reply(Performative.INFORM if ok else Performative.FAILURE, event.result)
+                self._answer(event)
             elif isinstance(event, PeerChange):
                 self._peer_changed(event)
             elif isinstance(event, Disturbance):

@@ -7,8 +7,10 @@ the cup to the table", "put the bowl back in the cabinet"), ``fetch(obj, arm)``,
 runs when cancelled, paper §3.2). Primitive actions are the leaf states of the HFSM a_ta runs
 (L_HFSM). Each task and action carries the path of the HFSM state it becomes, so the plan
 keeps its hierarchy (``pour(jar,bowl)/fetch_jar/take/grasp``). States named in
-``ATOMIC_STATES`` must not stop half-way (a grasp, setting an object down, the tilt of a
-pour): a cancel waits for them to end.
+``ATOMIC_STATES`` must not be left half-way (a grasp, setting an object down, the tilt of a
+pour): a cancel halts the running leaf, and a_ta then runs the rest of a take or set-down (a
+pour's halt turns the jar upright itself) before the safe stop
+(services/agents/task_executor/agent.py).
 
 Grasp affordances are defined for objects standing in the cabinet (facing ``GRASP_FACING``);
 for an object standing elsewhere the planner turns the grasp about the vertical by the

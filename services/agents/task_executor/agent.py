@@ -7,10 +7,32 @@ confirmation of the final state). a_km's fipa-subscribe to environment updates i
 in every state; the first observation of the scene is taken at start-up (paper Table 7,
 0–37 s: initial knowledge).
 
-Safe interruption (paper §3.2): a ``cancel`` from a_co makes a_ta report Terminating, finish
-the atomic state it is in (the plan marks grasps and pours atomic), run the safe-stop HFSM
-the next leaf names (put what the hands hold down in a safe place), and only then report
-Preempted. It never opens a hand that holds something outside such a plan.
+Safe interruption (paper §3.2): a ``cancel`` from a_co makes a_ta at once cancel the request
+ag_ex is running (FIPA cancel on C5, even inside an atomic state), so that ag_ex halts the
+commanded motion (velma/executor/loop.py ``ControlLoop.cancel``: braked to rest; mid-pour the
+jar turned upright), and report Terminating. Once ag_ex answers that the command was halted,
+a_ta makes the robot safe from where it stopped (``_after_halt``) and only then reports
+Preempted:
+
+- outside an atomic state, or in a pour's tilt (the halt left the jar upright), it runs the
+  safe-stop HFSM the halted leaf names (the planner computed it for what the hands hold
+  there: put it down in a safe place); its moves are absolute targets, reached from wherever
+  the halt left the arm;
+- after a torso turn halted half-way with something in hand it first turns the torso back to
+  where the plan's last turn put it (the safe stops are planned for the torso there), or, when
+  this plan turned it before none, on to the halted turn's target (then the next leaf's safe
+  stop);
+- in a take or a set-down it runs the rest of that atomic state from the halted leaf (its
+  targets are absolute: a half-closed grasp closes, a half-lifted object is lifted out, a
+  half-lowered one set down), then the safe stop the leaf after it names. (A take is finished,
+  not undone: undone, the open hand stays at the pre-grasp pose, between the head camera and
+  the object, and the next plan cannot see it.)
+
+A command that ended before ag_ex could halt it (ag_ex answers the cancel ``failure`` with the
+command's result), or a cancel that comes between two leaves, counts the leaf as done:
+outside an atomic state the safe stop the next leaf names runs; inside one the next leaf is
+sent and cancelled at once, and ag_ex halts the robot as it stands (a tilted jar turned
+upright) before the above. It never opens a hand that holds something outside such a plan.
 
 When the world differs from the plan — an object is not where a Perceive step expects it,
 a grasp closes on nothing, a held object slips out — a_ta observes the scene, informs a_km of
@@ -31,6 +53,7 @@ before it reports: the hand is opened and moved back along the plan's way in
 
 from __future__ import annotations
 
+import time
 from collections import deque
 from dataclasses import dataclass
 
@@ -50,7 +73,17 @@ from services.runtime.roles import (
 )
 from services.runtime.state_store import StateFile
 from shared.fipa_codec import Performative
-from shared.fipa_codec.languages.l_ex import CommandResult, LookAt, MoveJoints, MoveTool, Observe, Tilt, Wait
+from shared.fipa_codec.languages.l_ex import (
+    HALTED,
+    CommandResult,
+    LookAt,
+    MoveJoints,
+    MoveTool,
+    Observe,
+    Tilt,
+    Wait,
+    command_name,
+)
 from shared.fipa_codec.languages.l_hfsm import (
     Assert,
     CheckContent,
@@ -71,6 +104,10 @@ LOOK_REPLY_BY_S = 10.0
 """How long a second view's head turn may take before a_ta gives up on it (s)."""
 INITIAL_OBSERVE_RETRY_S = 3.0
 COMMAND_MARGIN_S = 60.0
+TORSO_JOINT = "torso_0_joint"
+HALT_REPLY_BY_S = 30.0
+"""How long ag_ex may take to answer a cancel of the command it runs (s): the halt brings the
+robot to rest first (mid-pour up to the tilt's end and the turn upright, ≈ 4 s)."""
 CONFIRM_REPLY_BY_S = 300.0
 """How long a_ta waits for a_co to confirm an L_SW inform before it goes on without."""
 SW_RETRY_S = 5.0
@@ -99,6 +136,7 @@ class Step:
     reply: tuple[Conversation, bool] | None = None  # ag_ex's answer (inform: True) once it came
     replan_reason: str | None = None  # set on the observation made before reporting Replan
     second_view: int = 0  # 1: looking at an uncertain object or a short content again, 2: observed it again
+    halted: bool = False  # ag_ex answered a_ta's cancel: the command was halted
 
 
 class KeptTaskExecutor(msgspec.Struct, kw_only=True):
@@ -141,6 +179,7 @@ class TaskExecutor(Agent):
         self.outcome: SWState | None = None
         self.reason: str | None = None
         self.cancel_requested = False
+        self.halted_at: str | None = None  # the leaf ag_ex halted
         self.terminating = False  # running the safe-stop HFSM
         self.safe_stop_key: str | None = None
         self.atomic_spans: list[tuple[int, int]] = []
@@ -234,9 +273,39 @@ class TaskExecutor(Agent):
     def _on_cancel(self, conv: Conversation) -> None:
         if conv is self.plan_request and self.outcome is None and not self.cancel_requested:
             self.cancel_requested = True
+            self._halt()  # first: every millisecond the motion goes on counts
             self._inform_co(SWState.TERMINATING, reason="cancelled by a_co")
         else:  # the plan has ended (the cancel crossed its final state) or is ending
             self.log.info("cancel from a_co for a plan that is not running: nothing to do")
+
+    def _halt(self) -> None:
+        """Cancel the C5 request ag_ex runs for the current leaf (FIPA cancel meta-protocol):
+        ag_ex halts its motion and answers ``inform`` once the robot is at rest. Nothing when no
+        request of the plan runs, it has been answered or cancelled already, or it is an
+        observation (nothing moves). The request is no longer sent again nor awaited by its own
+        deadline (a halted command must not run again when ag_ex reappears)."""
+        step = self.step
+        if self.terminating or step is None or step.replan_reason is not None:
+            return
+        request = step.waiting_for
+        command = request.opening.content if request is not None and request.opening is not None else None
+        if (
+            request is None
+            or request.cancels
+            or step.reply is not None
+            or request.finished
+            or isinstance(command, Observe)
+        ):
+            return
+        request.stop_waiting()
+        request.cancel(command, reply_by_s=HALT_REPLY_BY_S)
+        self.counters["halts_asked"] += 1
+        self.log.info(
+            "halting %s: cancel of its %s sent to ag_ex at wall time %.6f",
+            step.path,
+            command_name(command) if command is not None else "command",
+            time.time(),
+        )
 
     # a_km's subscription to environment updates (fipa-subscribe, participant)
     @handles("fipa-subscribe", PARTICIPANT, "subscribe")
@@ -273,6 +342,18 @@ class TaskExecutor(Agent):
             else:
                 self._observe_initial()  # deadline passed or failure: ask again
         elif self.step is not None and conv is self.step.waiting_for:
+            if conv.answers_cancel and ok:  # inform: cancelled, the command halted, the robot at rest
+                self.step.halted = True
+            elif conv.answers_cancel:
+                # failure: ag_ex could not halt it, it had ended; its own result says how (none:
+                # the cancel had no answer in time, and the command's end is not known)
+                result = conv.content
+                ok = isinstance(result, CommandResult) and result.ok
+                self.log.info(
+                    "ag_ex did not halt %s: %s",
+                    self.step.path,
+                    getattr(result, "reason", None) or conv.reason,
+                )
             self.step.reply = (conv, ok)
         elif conv is self.retreat_wait:
             self.retreat_reply = (conv, ok)
@@ -406,15 +487,19 @@ class TaskExecutor(Agent):
 
     def peer_changed(self, peer: str, alive: bool) -> None:
         """ag_ex came back (restarted, its world restored from its checkpoint) while a tilt it
-        was running had no answer: the tilt cannot be sent again (it is relative), so the
-        world is observed and Replan reported. Other commands are sent again by the runtime."""
+        was running, or a command a_ta was having it halt, had no answer: neither can be sent
+        again (a tilt is relative; a halted command must not run on), so the world is observed
+        and Replan reported. Other commands are sent again by the runtime."""
         step = self.step
-        if peer != "ag_ex" or not alive or step is None or step.waiting_for is None:
+        if peer != "ag_ex" or not alive or step is None or step.waiting_for is None or step.reply:
             return
         action = step.node.action
-        if isinstance(action, Execute) and isinstance(action.command, Tilt) and self.outcome is None:
+        tilt = isinstance(action, Execute) and isinstance(action.command, Tilt)
+        halting = bool(step.waiting_for.cancels)
+        if (tilt or halting) and self.outcome is None:
             step.waiting_for.abandon()
-            self._surprise(step, f"{step.path}: ag_ex restarted during the tilt")
+            during = "the halt" if halting else "the tilt"
+            self._surprise(step, f"{step.path}: ag_ex restarted during {during}")
 
     # ---- idle ----
     def _idle(self) -> None:
@@ -439,6 +524,7 @@ class TaskExecutor(Agent):
         self.outcome = None
         self.reason = None
         self.cancel_requested = False
+        self.halted_at = None
         self.terminating = False
         self.log.info("plan %s: %d leaf states", self.plan.plan_id, len(self.leaves))
         self._inform_co(SWState.RUNNING)
@@ -456,11 +542,14 @@ class TaskExecutor(Agent):
                 return
             reply, ok = step.reply
             step.reply = None
-            self._complete(reply, ok)
-            if self.outcome is not None or (
-                self.step is not None and self.step.waiting_for is not waiting_for
-            ):
-                return  # ended, or the step asked ag_ex something more (a look after a surprise)
+            if step.halted:
+                self._after_halt(reply)
+            else:
+                self._complete(reply, ok)
+                if self.outcome is not None or (
+                    self.step is not None and self.step.waiting_for is not waiting_for
+                ):
+                    return  # ended, or the step asked ag_ex something more (a look after a surprise)
         if self.cancel_requested and not self.terminating and not self._in_atomic():
             self._begin_safe_stop()
         if self.index >= len(self.leaves):
@@ -476,19 +565,81 @@ class TaskExecutor(Agent):
         self.step = Step(path, node)
         self._inform_co(SWState.TERMINATING if self.terminating else SWState.RUNNING, step=path)
         self._begin(self.step)
+        if self.cancel_requested:
+            # the cancel came between two leaves of an atomic state: the leaf just sent is halted
+            # at once (ag_ex halts the robot as it stands, a tilted jar turned upright)
+            self._halt()
 
-    def _begin_safe_stop(self) -> None:
-        """Switch to the safe-stop HFSM the next leaf names (paper §3.2: put what is held
-        down safely before reporting Preempted); none: stop where the robot is."""
+    def _begin_safe_stop(
+        self, key: str | None = None, first: list[tuple[str, PlanNode]] | None = None
+    ) -> None:
+        """Switch to the safe-stop HFSM named ``key`` (default: the one the next leaf names;
+        paper §3.2: put what is held down safely before reporting Preempted), after the leaves
+        ``first`` (what makes the hands safe after a halt; ``_after_halt``); no safe stop: stop
+        where the robot is."""
         assert self.plan is not None
         self.terminating = True
-        key = self.leaves[self.index][1].on_cancel if self.index < len(self.leaves) else None
+        if first is None:
+            key = self.leaves[self.index][1].on_cancel if self.index < len(self.leaves) else None
+        first = first or []
         stop = self.plan.safe_stops.get(key) if key is not None else None
         self.safe_stop_key = key if stop is not None else None
-        self.leaves = stop.leaves() if stop is not None else []
-        self.atomic_spans = stop.atomic_spans() if stop is not None else []
+        leaves = stop.leaves() if stop is not None else []
+        spans = stop.atomic_spans() if stop is not None else []
+        self.leaves = first + leaves
+        self.atomic_spans = ([(0, len(first))] if first else []) + [
+            (a + len(first), b + len(first)) for a, b in spans
+        ]
         self.index = 0
-        self.log.info("terminating: safe stop %s (%d steps)", key or "none", len(self.leaves))
+        self.log.info(
+            "terminating: %d steps to make the hands safe, safe stop %s (%d steps)",
+            len(first),
+            key or "none",
+            len(leaves),
+        )
+
+    def _after_halt(self, reply: Conversation) -> None:
+        """ag_ex halted the current leaf for a_co's cancel (its answer ``reply``): run, from
+        where the robot stopped, what makes it safe (module docstring), as the safe stop."""
+        assert self.plan is not None
+        path, node = self.leaves[self.index]
+        self.halted_at = path
+        result = reply.content
+        at = f" at {result.sim_time:.2f} s" if isinstance(result, CommandResult) and result.sim_time else ""
+        self.log.info("%s halted%s (%s)", path, at, HALTED)
+        self.step = None
+        span = next(((a, b) for a, b in self.atomic_spans if a <= self.index < b), None)
+        first: list[tuple[str, PlanNode]] = []
+        key = node.on_cancel
+        command = node.action.command if isinstance(node.action, Execute) else None
+        if span is not None and not any(
+            isinstance(n.action, Execute) and isinstance(n.action.command, Tilt)
+            for _, n in self.leaves[slice(*span)]
+        ):
+            # a take, a set-down: the rest of it, the halted leaf again (its targets are absolute)
+            first = self.leaves[self.index : span[1]]
+            key = self.leaves[span[1]][1].on_cancel if span[1] < len(self.leaves) else None
+        elif isinstance(command, MoveJoints) and TORSO_JOINT in command.positions and key is not None:
+            # a torso turn, halted half-way: the safe stops are planned for the torso where a
+            # leaf begins or ends, so it turns back where the plan last put it, else on to its
+            # target (then the next leaf's safe stop)
+            before = self._torso_before(self.index)
+            if before is not None:
+                back = MoveJoints(positions={TORSO_JOINT: before}, duration=command.duration)
+                first = [(f"{path}/turn_back", PlanNode(name="turn_back", action=Execute(command=back)))]
+            else:
+                first = self.leaves[self.index : self.index + 1]
+                key = self.leaves[self.index + 1][1].on_cancel if self.index + 1 < len(self.leaves) else None
+        self._begin_safe_stop(key, first)
+
+    def _torso_before(self, index: int) -> float | None:
+        """The torso angle (rad) the plan's last torso turn before leaf ``index`` commanded
+        (None: the plan turned it before none)."""
+        for _, node in reversed(self.leaves[:index]):
+            command = node.action.command if isinstance(node.action, Execute) else None
+            if isinstance(command, MoveJoints) and TORSO_JOINT in command.positions:
+                return command.positions[TORSO_JOINT]
+        return None
 
     def _safe_stop_summary(self) -> str:
         put = [
@@ -496,9 +647,10 @@ class TaskExecutor(Agent):
             for _, n in self.leaves
             if isinstance(n.action, Assert) and n.action.relation in ("on", "in")
         ]
+        said = "cancelled by a_co" + (f"; halted {self.halted_at}" if self.halted_at else "")
         if not put:
-            return "cancelled by a_co; nothing was held"
-        return f"cancelled by a_co; put {' and '.join(put)}"
+            return f"{said}; nothing was held"
+        return f"{said}; put {' and '.join(put)}"
 
     def _begin(self, step: Step) -> None:
         action = step.node.action

@@ -110,6 +110,13 @@ class CommandResult(msgspec.Struct, frozen=True, tag="result", kw_only=True):
     self_contacts: tuple[str, ...] = ()
 
 
+HALTED = "halted"
+"""``CommandResult.reason`` of a command ag_ex stopped because a_ta cancelled it (FIPA SC00026
+§2 cancel meta-protocol; paper §3.2 safe interruption): the commanded motion was halted
+(velma/executor/loop.py ``ControlLoop.cancel``), ``ok`` is False, ``sim_time`` is when the
+robot came to rest. It comes in ag_ex's ``inform`` that answers the ``cancel``."""
+
+
 L_EX = register(
     Language(
         "L_EX",

@@ -6,11 +6,14 @@ runs one :data:`Action` in a_ta. Any failing state fails its parents (a_ta repor
 A plan with ``complete=False`` ends in a sensing step after which the planner must be asked
 again (interleaved planning and execution, paper §5.7): a_ta then reports Replan.
 
-Safe interruption (paper §3.2, the cup of tea): a_co may cancel a running plan. a_ta first
-finishes the ``atomic`` state it is in (a grasp, a pour: states that must not stop half-way),
-then runs the plan's safe-stop HFSM named by the next leaf's ``on_cancel`` (the planner
-computed it from what the hands hold at that point: put it down in a safe place), and only
-then reports Preempted.
+Safe interruption (paper §3.2, the cup of tea): a_co may cancel a running plan. a_ta has
+ag_ex halt the running command at once (mid-pour the jar turned upright first), then makes the
+robot safe from where it stopped: inside an ``atomic`` state (a take, a set-down, a pour's
+tilt: states that must not be left half-way) it runs the rest of a take or set-down; then it
+runs the plan's safe-stop HFSM named by the halted leaf's (or, after the rest of an atomic
+state, the next leaf's) ``on_cancel`` (the planner computed it from what the hands hold at that
+point: put it down in a safe place), and only then reports Preempted
+(services/agents/task_executor/agent.py).
 """
 
 from __future__ import annotations
@@ -86,9 +89,10 @@ Action = Execute | Perceive | Assert | CheckContent
 class PlanNode(msgspec.Struct, frozen=True, kw_only=True):
     """A state of the plan HFSM: ``name``; either ``children`` (a composite state, run in
     order) or an ``action`` (a leaf state). ``task`` names the HTN task it refines.
-    ``atomic``: once entered, a cancel takes effect only after the state ends. ``on_cancel``
-    (leaves): the key in :attr:`HierarchicalPlan.safe_stops` of the HFSM to run when a cancel
-    takes effect before this leaf starts (None: nothing to put down). ``duration``: the
+    ``atomic``: once entered, the state is not left half-way: a cancel halts its leaf, and
+    a_ta then runs its rest (a pour's halt turns the jar upright itself; module docstring).
+    ``on_cancel`` (leaves): the key in :attr:`HierarchicalPlan.safe_stops` of the HFSM to run
+    when a cancel takes effect before or in this leaf (None: nothing to put down). ``duration``: the
     leaf's expected execution time (s), for a_co's schedule step."""
 
     name: str

@@ -1,0 +1,272 @@
+"""A stop's latency: from the line reaching a_hi to ag_ex's control loop beginning the halt.
+
+Starts a fleet as ``roco run`` does (a router on a free loopback port, the traffic recorder, one
+process per agent, access control on; ag_ex's loop as fast as it can, or paced with
+``--realtime``), waits for a_km's first knowledge, runs one whole pour (its time is printed),
+then ``--stops`` halts per condition, the conditions taking turns:
+
+1. says "pour the jar into the bowl" (a pour after a stop starts from wherever the safe stop
+   put the jar, a pour after a pour with the jar still in the hand: they differ in length);
+2. waits a random time, uniform in [0.3 s, ``--window``] from a_co's agreement (default 6 s,
+   the shortest pour as fast as it can; 16 s paced): a random moment of the pour (taking the jar
+   out, turning, carrying, lowering, tilting, letting it run out, tilting back);
+3. ``plain``: puts "stop" on a_hi's key (``roco/human/in``, as ``roco send`` does); ``long
+   line before``: first a 1,000-character line of ``--long-shape`` (scripts/bench_reading.py's
+   shapes; ``command``, the default: "please … pour the jar into the bowl", the slowest line a_hi
+   reads), then "stop" ``--gap-ms`` later;
+4. waits for the commands' final reports (the pour ``stopped`` once a_ta's safe stop has put
+   the jar down; a long command line read before the stop is stopped too).
+
+Measured, on this machine's one wall clock (``time.time``): from the put of "stop" (the line
+reaches a_hi one Zenoh hop later: a few hundred µs, counted in the figure) to the ``Halting``
+wall time ag_ex's loop process logs in the cycle it replaced the running command by the halt
+(velma/executor/process.py; read from ``logs/ag_ex.log``). Where the time goes, from this
+process's own subscriber to every communicate (one hop after each put): a_hi's ``cancel`` to
+a_co (C2), a_co's ``cancel`` to a_ta (C1), a_ta's ``cancel`` to ag_ex (C5). A stop that finds
+no motion to halt (the robot between two commands, observing, or the pour over) has no halt:
+it is counted apart and another pour is started, until each condition has ``--stops`` halts.
+
+Prints the machine, then p50 / p99 / max (ms) per condition, and the median of each hop.
+
+Usage: ``python scripts/bench_stop.py [--stops 20] [--realtime] [--window S] [--gap-ms 20]
+[--long-shape command|words] [--seed 1] [--keep]``
+"""
+
+from __future__ import annotations
+
+import argparse
+import queue
+import random
+import re
+import statistics
+import sys
+import tempfile
+import threading
+import time
+import uuid
+from dataclasses import dataclass, field
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(ROOT / "scripts"))
+
+import benchlib  # noqa: E402  (scripts/benchlib.py, beside this file)
+import msgspec  # noqa: E402
+import zenoh  # noqa: E402
+from bench_reading import line as reading_line  # noqa: E402
+
+from services.fleet.launcher import AGENT_ORDER, Fleet, free_port  # noqa: E402
+from services.monitor import is_world_update  # noqa: E402
+from services.runtime import keys  # noqa: E402
+from services.runtime.human import FINAL_REPORTS, MAX_LINE_CHARS, HumanInput, HumanReport, ReportKind  # noqa: E402
+from services.runtime.session import open_client  # noqa: E402
+from shared.fipa_codec import Performative, decode  # noqa: E402
+from shared.fipa_codec.batch import unpack  # noqa: E402
+
+POUR = "pour the jar into the bowl"
+HALTING = re.compile(r"halted by a cancel at wall time (\d+\.\d+)")
+CONDITIONS = ("plain", "long line before")
+HOPS = (("C2", "a_hi", "a_co"), ("C1", "a_co", "a_ta"), ("C5", "a_ta", "ag_ex"))
+"""The cancels a stop sends on its way to the loop: (channel, sender, receiver)."""
+REPORT_S = 240.0
+"""s to wait for a command's final report."""
+
+
+@dataclass
+class Stop:
+    """One stop: when its line was put, and when each hop's cancel and the halt were seen."""
+
+    condition: str
+    line_t: float
+    hops: dict[str, float] = field(default_factory=dict)
+    halt_t: float | None = None
+
+    @property
+    def latency_ms(self) -> float | None:
+        return None if self.halt_t is None else (self.halt_t - self.line_t) * 1e3
+
+
+class Watch:
+    """This process's view of the fleet: a_hi's reports, every communicate's arrival time."""
+
+    def __init__(self, session: zenoh.Session) -> None:
+        self.reports: queue.SimpleQueue[HumanReport] = queue.SimpleQueue()
+        self.cancels: list[tuple[float, str]] = []  # (arrival, "C2") of each cancel of a HOP
+        self.knowledge = threading.Event()
+        self._lock = threading.Lock()
+        decoder = msgspec.json.Decoder(HumanReport)
+        session.declare_subscriber(
+            keys.HUMAN_OUT, lambda s: self.reports.put(decoder.decode(s.payload.to_bytes()))
+        )
+        session.declare_subscriber(keys.FIPA_ALL, self._on_fipa)
+
+    def _on_fipa(self, sample: zenoh.Sample) -> None:
+        now = time.time()
+        key = str(sample.key_expr)
+        for payload in unpack(sample.payload.to_bytes()):
+            if key == keys.fipa_key("C6", "a_ta", "a_km") and is_world_update(payload):
+                self.knowledge.set()
+            for channel, sender, receiver in HOPS:
+                cancel = key == keys.fipa_key(channel, sender, receiver)
+                if cancel and decode(payload).performative is Performative.CANCEL:
+                    with self._lock:
+                        self.cancels.append((now, channel))
+
+    def first_cancels(self, after: float) -> dict[str, float]:
+        """The first cancel of each hop seen after ``after`` (POSIX s)."""
+        with self._lock:
+            seen = list(self.cancels)
+        out: dict[str, float] = {}
+        for t, channel in seen:
+            if t >= after and channel not in out:
+                out[channel] = t
+        return out
+
+    def finals(self, *request_ids: str, timeout: float = REPORT_S) -> dict[str, HumanReport]:
+        """The final report of each of ``request_ids``; first, ``accepted`` of the first."""
+        out: dict[str, HumanReport] = {}
+        deadline = time.monotonic() + timeout
+        while len(out) < len(request_ids):
+            report = self.reports.get(timeout=max(0.1, deadline - time.monotonic()))
+            if report.request_id in request_ids and report.kind in FINAL_REPORTS:
+                out[report.request_id] = report
+        return out
+
+    def accepted(self, request_id: str, timeout: float = REPORT_S) -> HumanReport:
+        """``request_id``'s first report (``accepted`` when a_co took the command)."""
+        deadline = time.monotonic() + timeout
+        while True:
+            report = self.reports.get(timeout=max(0.1, deadline - time.monotonic()))
+            if report.request_id == request_id:
+                return report
+
+
+def say(session: zenoh.Session, text: str, request_id: str) -> float:
+    """Put ``text`` on a_hi's key; returns the wall time of the put."""
+    payload = msgspec.json.encode(HumanInput(text=text, request_id=request_id))
+    t = time.time()
+    session.put(keys.HUMAN_IN, payload)
+    return t
+
+
+def halts(log: Path) -> list[float]:
+    """Every ``Halting`` wall time ag_ex's log holds, in order."""
+    if not log.exists():
+        return []
+    return [float(m.group(1)) for m in HALTING.finditer(log.read_text(errors="replace"))]
+
+
+def percentile(values: list[float], q: float) -> float:
+    ordered = sorted(values)
+    return ordered[min(len(ordered) - 1, round(q * (len(ordered) - 1)))]
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0] if __doc__ else None)
+    parser.add_argument("--stops", type=int, default=20, help="halts measured per condition")
+    parser.add_argument("--realtime", action="store_true", help="pace ag_ex's loop to wall time")
+    parser.add_argument("--window", type=float, default=None, help="s: stops at U(0.3, S) into a pour")
+    parser.add_argument("--gap-ms", type=float, default=20.0, help="ms from the long line to the stop")
+    parser.add_argument("--long-shape", choices=("command", "words"), default="command")
+    parser.add_argument("--seed", type=int, default=1, help="draws the moments of the stops")
+    parser.add_argument("--keep", action="store_true", help="keep the run folder (printed)")
+    args = parser.parse_args()
+    rng = random.Random(args.seed)
+    long_line = reading_line(args.long_shape, MAX_LINE_CHARS)
+    window = args.window if args.window is not None else (16.0 if args.realtime else 6.0)
+    print(benchlib.machine(("eclipse-zenoh", "mujoco", "pin", "lark")))
+    run_dir = Path(tempfile.mkdtemp(prefix="roco-bench-stop-"))
+    (run_dir / "logs").mkdir()
+    env = {"ROCO_REALTIME": "1" if args.realtime else "0"}
+    fleet = Fleet(run_dir, f"tcp/127.0.0.1:{free_port()}", env=env)
+    session: zenoh.Session | None = None
+    stops: list[Stop] = []
+    idle = dict.fromkeys(CONDITIONS, 0)  # stops that found no motion to halt
+    try:
+        fleet.start_router()
+        session = open_client(fleet.endpoint)
+        watch = Watch(session)
+        fleet.start_recorder()
+        fleet.wait_alive(session, ["recorder"], timeout=60)
+        fleet.start_agents()
+        fleet.wait_alive(session, AGENT_ORDER, timeout=180)
+        if not watch.knowledge.wait(120):
+            raise RuntimeError("a_km received no first knowledge within 120 s")
+        rid = f"p-{uuid.uuid4().hex[:6]}"
+        say(session, POUR, rid)
+        t0 = watch.accepted(rid).kind
+        start = time.monotonic()
+        first = watch.finals(rid)[rid]
+        pour_s = time.monotonic() - start
+        print(
+            f"ag_ex's loop {'paced to wall time' if args.realtime else 'as fast as it can'}; "
+            f"first pour: {first.kind.value} in {pour_s:.1f} s ({t0.value} first); "
+            f"stops at U(0.3, {window:.0f}) s after a_co agreed; long line: {args.long_shape}, "
+            f"{len(long_line)} characters, {args.gap_ms:.0f} ms before the stop"
+        )
+        log = run_dir / "logs" / "ag_ex.log"
+        n = 0
+        while (
+            min(sum(s.condition == c and s.halt_t is not None for s in stops) for c in CONDITIONS)
+            < args.stops
+        ):
+            condition = CONDITIONS[n % 2]
+            n += 1
+            if sum(s.condition == condition and s.halt_t is not None for s in stops) >= args.stops:
+                continue
+            pour, stop = f"p-{uuid.uuid4().hex[:6]}", f"s-{uuid.uuid4().hex[:6]}"
+            say(session, POUR, pour)
+            if watch.accepted(pour).kind is not ReportKind.ACCEPTED:
+                continue
+            time.sleep(rng.uniform(0.3, window))  # a random moment of the pour
+            before = len(halts(log))
+            if condition == "long line before":
+                say(session, long_line, f"l-{uuid.uuid4().hex[:6]}")
+                time.sleep(args.gap_ms / 1e3)
+            record = Stop(condition, say(session, "stop", stop))
+            ended = watch.finals(pour, stop)
+            time.sleep(0.5)  # the long line's command, when it was read, is stopped too
+            seen = [t for t in halts(log)[before:] if t >= record.line_t]
+            record.halt_t = seen[0] if seen else None
+            record.hops = watch.first_cancels(record.line_t)
+            if record.halt_t is None:
+                idle[condition] += 1
+            stops.append(record)
+            done = record.latency_ms
+            hops = ", ".join(
+                f"{c} {(record.hops[c] - record.line_t) * 1e3:.1f}" for c, _, _ in HOPS if c in record.hops
+            )
+            print(
+                f"  {len(stops):3d} {condition:<17} "
+                + (f"{done:8.1f} ms" if done is not None else "   no halt")
+                + f"  (pour {ended[pour].kind.value}; cancels seen at ms: {hops or 'none'})",
+                flush=True,
+            )
+        print()
+        hops = " | ".join(h[0] for h in HOPS)
+        print(f"| condition | halts | p50 ms | p99 ms | max ms | no motion to halt | {hops} |")
+        print(f"|---|---|---|---|---|---|{'---|' * len(HOPS)}")
+        for c in CONDITIONS:
+            got = [s for s in stops if s.condition == c and s.latency_ms is not None]
+            ms = [s.latency_ms for s in got if s.latency_ms is not None]
+            hop_ms = []
+            for channel, _, _ in HOPS:
+                values = [(s.hops[channel] - s.line_t) * 1e3 for s in got if channel in s.hops]
+                hop_ms.append(f"{statistics.median(values):.1f}" if values else "—")
+            print(
+                f"| {c} | {len(ms)} | {statistics.median(ms):.1f} | {percentile(ms, 0.99):.1f} | "
+                f"{max(ms):.1f} | {idle[c]} | {' | '.join(hop_ms)} |"
+            )
+        print("(hops: the median ms from the stop's put to this process seeing each cancel)")
+    finally:
+        if session is not None:
+            session.close()
+        fleet.stop()
+        if args.keep:
+            print(f"run folder: {run_dir}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
