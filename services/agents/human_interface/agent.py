@@ -29,7 +29,9 @@ question to a_km, the parse and any refusal (what counts as a stop: stop.py). A 
 on at once (the cancels above), whatever it names ("stop pouring": all open commands stop, and
 the report says so); the sentences still waiting are dropped (reported when their query ends).
 A line longer than ``MAX_LINE_CHARS`` (services/runtime/human.py) that is no stop is refused
-with one ``not-understood`` line; shorter ones are read in the order they came.
+with one ``not-understood`` line; shorter ones are read in the order they came, by a thread of
+their own (reading.py), so that a stop is never held back by the parse of the line before it;
+a line still being read when a stop comes is dropped and said so.
 A conversation per person (``HumanInput.person``) keeps the last object named and a question
 a_hi asked back ("Which cup: …?"), which the person's next sentence may answer. What a person
 can say is grammar.lark and the task words of tasks.toml (language.py, task_words.py), read and
@@ -66,14 +68,13 @@ import msgspec
 from services.agents.human_interface.language import (
     Command,
     Dialogue,
-    Intent,
     NotUnderstood,
     StatusRequest,
     Stop,
     default_vocabulary,
     describe,
-    interpret,
 )
+from services.agents.human_interface.reading import LineReader, Reading
 from services.agents.human_interface.stop import StopWords, command_openings
 from services.agents.human_interface.task_grammar import Grammar, default_grammar, load_grammar
 from services.agents.human_interface.vocabulary import VOCABULARY_QUERY, Vocabulary
@@ -164,6 +165,11 @@ class HeldSentence:
     ready: bool = False
     vocabulary: Vocabulary | None = None
     stopped: bool = False
+
+
+@dataclass(frozen=True)
+class ReadDone:
+    """The reader (reading.py) is done with a line: act on the lines read, in order."""
 
 
 @dataclass
@@ -321,6 +327,8 @@ class HumanInterface(Agent):
         self._vocabulary: Vocabulary | None = None  # the last vocabulary a_km gave (None: none yet)
         self.dialogues: dict[str, Dialogue] = {}  # person → conversation
         self.held: deque[HeldSentence] = deque()  # sentences waiting for the vocabulary, in order
+        self.reading: deque[Reading] = deque()  # sentences given to the reader, in order
+        self.reader = LineReader(self.grammar, lambda: self.post(ReadDone()))
         self.vocab_queries: dict[str, WordsQuery] = {}  # C7 conversation → the question
         self.foreign: dict[str, Conversation] = {}  # request id → C8 conversation it answers
         self.kept = StateFile.for_agent(self.name, KeptHumanInterface)
@@ -398,6 +406,8 @@ class HumanInterface(Agent):
                 self._on_input(event)
             elif isinstance(event, PeerAlive):
                 self._on_peer(event.alive)
+            elif isinstance(event, ReadDone):
+                self._act_on_read()
         self.handle_received()
         if (
             not self.subscribed
@@ -470,6 +480,8 @@ class HumanInterface(Agent):
         if stop is not None:
             for held in self.held:
                 held.stopped = True  # reported when its query ends (the query runs its course)
+            for reading in self.reading:
+                reading.stopped = True  # reported when the reader is done with it
             dialogue = self.dialogues.get(event.person)
             if dialogue is not None:
                 dialogue.pending = None  # a question asked back is dropped, as by any sentence
@@ -553,27 +565,35 @@ class HumanInterface(Agent):
             self._read_held()
 
     def _understand(self, event: HumanInput, vocabulary: Vocabulary) -> None:
-        dialogue = self.dialogues.setdefault(event.person, Dialogue())
-        try:
-            intent: Intent = interpret(
-                event.text,
-                priority=event.priority,
-                vocabulary=vocabulary,
-                dialogue=dialogue,
-                grammar=self.grammar,
-            )
-        except NotUnderstood as exc:
-            self._report(event.request_id, ReportKind.NOT_UNDERSTOOD, str(exc))
-            return
-        if isinstance(intent, Command):
-            self.asked[event.request_id] = RequestKind.COMMAND
-            self._command(event, intent)
-        elif isinstance(intent, Stop):
-            self.asked[event.request_id] = RequestKind.STOP
-            self._stop_commands(event.request_id)
-        elif isinstance(intent, StatusRequest):
-            self.asked[event.request_id] = RequestKind.STATUS
-            self._ask_status(event.request_id)
+        """Give ``event``'s line to the reader (reading.py); it is acted on, in order, once read."""
+        reading = Reading(event, self.dialogues.setdefault(event.person, Dialogue()))
+        self.reading.append(reading)
+        self.reader.read(reading, vocabulary)
+
+    def _act_on_read(self) -> None:
+        """Act on the lines the reader is done with, in the order they came; a line a stop came
+        after is dropped, with its question asked back, if any."""
+        while self.reading and self.reading[0].done:
+            reading = self.reading.popleft()
+            event, outcome = reading.event, reading.outcome
+            if reading.stopped:
+                reading.dialogue.pending = None
+                self._report(
+                    event.request_id,
+                    ReportKind.NOT_UNDERSTOOD,
+                    f"'{event.text}' was dropped: you said stop before I had read it.",
+                )
+            elif isinstance(outcome, NotUnderstood):
+                self._report(event.request_id, ReportKind.NOT_UNDERSTOOD, str(outcome))
+            elif isinstance(outcome, Command):
+                self.asked[event.request_id] = RequestKind.COMMAND
+                self._command(event, outcome)
+            elif isinstance(outcome, Stop):
+                self.asked[event.request_id] = RequestKind.STOP
+                self._stop_commands(event.request_id)
+            elif isinstance(outcome, StatusRequest):
+                self.asked[event.request_id] = RequestKind.STATUS
+                self._ask_status(event.request_id)
 
     def _conversation_id(self, prefix: str, request_id: str) -> str:
         base = f"{prefix}-{request_id}"

@@ -113,6 +113,38 @@ def test_a_line_over_the_bound_that_asks_to_stop_still_stops(stage: Stage) -> No
     assert person.next("r3").text.startswith("Stopping 2 commands")
 
 
+def test_a_stop_is_not_held_back_by_the_line_being_read_before_it(
+    stage: Stage, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The reader thread is held inside the parse of a command; the stop after it is acted on
+    meanwhile, and the command, once read, is dropped: a_co never gets it."""
+    from services.agents.human_interface import reading
+
+    parsing, release = threading.Event(), threading.Event()
+    interpret = reading.interpret
+
+    def held_interpret(text: str, *args: Any, **kwargs: Any) -> Any:
+        parsing.set()
+        assert release.wait(TIMEOUT), "the test never released the reader"
+        return interpret(text, *args, **kwargs)
+
+    monkeypatch.setattr(reading, "interpret", held_interpret)
+    co, hi, person = _ready(stage)
+    person.say("pour the jar into the bowl", "r1")
+    assert parsing.wait(TIMEOUT), "a_hi never began to read r1"
+    person.say("stop!", "r2")
+    (stopped,) = person.until_final("r2")  # while r1 is still being read
+    assert (stopped.kind, stopped.request) == (ReportKind.STOPPED, RequestKind.STOP)
+    release.set()
+    (dropped,) = person.until_final("r1")
+    assert dropped.kind is ReportKind.NOT_UNDERSTOOD
+    assert dropped.text == "'pour the jar into the bowl' was dropped: you said stop before I had read it."
+    person.say("bring me the cup", "r3")  # the next line is read and sent as before
+    request = co.receive(Performative.REQUEST)
+    assert request.msg.conversation_id == "cmd-r3"
+    assert hi.counters["behaviour_errors"] == 0
+
+
 # ---- a_km's words after a_km (re)starts ------------------------------------------------------
 TEA_POT = (
     (f"{ROCO_IRI}tea_pot", "label", "tea pot"),
