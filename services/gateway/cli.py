@@ -122,9 +122,10 @@ def serve(
 def main(config: GatewayConfig) -> int:
     """Run ``roco gateway`` in this process until SIGINT or SIGTERM; 0 when it ran, 1 (one line
     on stderr) when it could not start."""
-    handler = logging.StreamHandler(sys.stderr)
-    handler.setFormatter(OneLineFormatter())
-    logging.basicConfig(level=logging.INFO, handlers=[handler], force=True)
+    if not logging.getLogger().handlers:  # run inside another program: its logging stays as it is
+        handler = logging.StreamHandler(sys.stderr)
+        handler.setFormatter(OneLineFormatter())
+        logging.basicConfig(level=logging.INFO, handlers=[handler])
     stop = threading.Event()
 
     def on_signal(signum: int, frame: FrameType | None) -> None:

@@ -350,7 +350,12 @@ def test_a_restarted_a_hi_still_tells_the_person_the_outcome(
 
     first.agent.post(HumanInput(text="pour the jar into the bowl", request_id="req-7"))
     first.agent._acquire()
-    first.step("interact")
+    first.step("interact")  # the line goes to a_hi's reader (reading.py) …
+    for _ in range(30):  # … and once it is read (ReadDone), the command goes to a_co
+        if first.mine(P.REQUEST):
+            break
+        first.agent._acquire(timeout=1.0)
+        first.step("interact")
     (request,) = first.mine(P.REQUEST)
     assert request.protocol == "fipa-request" and (tmp_path / "a_hi.json").exists()
 
