@@ -157,6 +157,10 @@ def halts(log: Path) -> list[float]:
     return [float(m.group(1)) for m in HALTING.finditer(log.read_text(errors="replace"))]
 
 
+MAX_FAILED_IN_ROW = 3
+"""Pours that fail (or are not accepted) one after the other before the benchmark gives up."""
+
+
 def percentile(values: list[float], q: float) -> float:
     ordered = sorted(values)
     return ordered[min(len(ordered) - 1, round(q * (len(ordered) - 1)))]
@@ -207,6 +211,7 @@ def main() -> int:
         )
         log = run_dir / "logs" / "ag_ex.log"
         n = 0
+        failed_in_row = 0
         while (
             min(sum(s.condition == c and s.halt_t is not None for s in stops) for c in CONDITIONS)
             < args.stops
@@ -218,6 +223,9 @@ def main() -> int:
             pour, stop = f"p-{uuid.uuid4().hex[:6]}", f"s-{uuid.uuid4().hex[:6]}"
             say(session, POUR, pour)
             if watch.accepted(pour).kind is not ReportKind.ACCEPTED:
+                failed_in_row += 1
+                if failed_in_row >= MAX_FAILED_IN_ROW:
+                    raise SystemExit(f"bench_stop: {failed_in_row} pours in a row not accepted")
                 continue
             time.sleep(rng.uniform(0.3, window))  # a random moment of the pour
             before = len(halts(log))
@@ -233,6 +241,11 @@ def main() -> int:
             if record.halt_t is None:
                 idle[condition] += 1
             stops.append(record)
+            failed_in_row = failed_in_row + 1 if ended[pour].kind is ReportKind.FAILED else 0
+            if failed_in_row >= MAX_FAILED_IN_ROW:  # the fleet cannot pour any more: say why
+                raise SystemExit(
+                    f"bench_stop: {failed_in_row} pours in a row failed; the last: {ended[pour].text}"
+                )
             done = record.latency_ms
             hops = ", ".join(
                 f"{c} {(record.hops[c] - record.line_t) * 1e3:.1f}" for c, _, _ in HOPS if c in record.hops
