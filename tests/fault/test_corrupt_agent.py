@@ -60,8 +60,13 @@ def test_corrupted_communicates_get_not_understood_and_the_agent_keeps_running(
         assert got[-1].performative is Performative.INFORM_REF  # still serving
         assert thread.is_alive()
         not_understood = [r for r in got if r.performative is Performative.NOT_UNDERSTOOD]
-        # 1–3 flipped bytes almost always break the communicate, its content or its protocol
-        assert len(not_understood) >= 0.8 * SENT, [r.content for r in got if r not in not_understood]
+        # 1–3 flipped bytes almost always break the communicate, its content or its protocol: a
+        # not-understood, or (a query that still reads, about a name that is no more) a failure
+        # or refuse as FIPA says (SC00027); a copy of a conversation a_km had answered already
+        # (a flipped byte in its id) is answered again: which of these depends on the timing
+        refused = (Performative.NOT_UNDERSTOOD, Performative.FAILURE, Performative.REFUSE)
+        answered_no = [r for r in got if r.performative in refused]
+        assert len(answered_no) >= SENT / 2, [r.content for r in got if r not in answered_no]
         assert km.counters["rejected"] == len(not_understood)
         reasons = {r.content.decode().split(":")[0] for r in not_understood}
         assert "malformed communicate" in reasons
