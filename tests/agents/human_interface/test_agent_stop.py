@@ -18,7 +18,7 @@ from shared.fipa_codec import AgentIdentifier, Communicate, Performative, decode
 from shared.fipa_codec.languages import encode_content
 from shared.fipa_codec.languages.l_hc import HumanCommand, TaskAtom
 from shared.fipa_codec.languages.l_wm import Answer
-from tests.agents.human_interface.test_agent import TIMEOUT, Person, ScriptedCo, Stage
+from tests.agents.human_interface.test_agent import TIMEOUT, Person, ScriptedCo, Stage, _ready
 from tests.agents.human_interface.test_agent_words import _with_silent_km, goal, say
 from tests.agents.human_interface.test_stop import STOPS
 
@@ -31,13 +31,6 @@ def stage(monkeypatch: pytest.MonkeyPatch) -> Iterator[Stage]:
         yield s
     finally:
         s.stop()
-
-
-def _ready(stage: Stage) -> tuple[ScriptedCo, HumanInterface, Person]:
-    co = stage.co()
-    hi = stage.start_hi()
-    assert co.subscribed.wait(TIMEOUT), "a_hi did not subscribe to a_co's progress"
-    return co, hi, stage.person
 
 
 def _two_commands(co: ScriptedCo, person: Person) -> None:
