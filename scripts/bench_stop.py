@@ -26,7 +26,9 @@ a_co (C2), a_co's ``cancel`` to a_ta (C1), a_ta's ``cancel`` to ag_ex (C5). A st
 no motion to halt (the robot between two commands, observing, or the pour over) has no halt:
 it is counted apart and another pour is started, until each condition has ``--stops`` halts.
 
-Prints the machine, then p50 / p99 / max (ms) per condition, and the median of each hop.
+Prints the machine, a line per stop, then p50 / p99 / max (ms) per condition, and the median
+of each hop; :func:`measure` returns these figures (:class:`StopFigures`, ``roco bench``'s
+``stop`` part). The run folder is removed at the end, unless ``--keep``.
 
 Usage: ``python scripts/bench_stop.py [--stops 20] [--realtime] [--window S] [--gap-ms 20]
 [--long-shape command|words] [--seed 1] [--keep]``
@@ -35,15 +37,18 @@ Usage: ``python scripts/bench_stop.py [--stops 20] [--realtime] [--window S] [--
 from __future__ import annotations
 
 import argparse
+import functools
 import queue
 import random
 import re
+import shutil
 import statistics
 import sys
 import tempfile
 import threading
 import time
 import uuid
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -162,31 +167,73 @@ MAX_FAILED_IN_ROW = 3
 
 
 def percentile(values: list[float], q: float) -> float:
+    """The ``q`` quantile (0–1, nearest rank) of ``values``."""
     ordered = sorted(values)
     return ordered[min(len(ordered) - 1, round(q * (len(ordered) - 1)))]
 
 
-def main() -> int:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0] if __doc__ else None)
-    parser.add_argument("--stops", type=int, default=20, help="halts measured per condition")
-    parser.add_argument("--realtime", action="store_true", help="pace ag_ex's loop to wall time")
-    parser.add_argument("--window", type=float, default=None, help="s: stops at U(0.3, S) into a pour")
-    parser.add_argument("--gap-ms", type=float, default=20.0, help="ms from the long line to the stop")
-    parser.add_argument("--long-shape", choices=("command", "words"), default="command")
-    parser.add_argument("--seed", type=int, default=1, help="draws the moments of the stops")
-    parser.add_argument("--keep", action="store_true", help="keep the run folder (printed)")
-    args = parser.parse_args()
-    rng = random.Random(args.seed)
-    long_line = reading_line(args.long_shape, MAX_LINE_CHARS)
-    window = args.window if args.window is not None else (16.0 if args.realtime else 6.0)
-    print(benchlib.machine(("eclipse-zenoh", "mujoco", "pin", "lark")))
+@dataclass
+class StopFigures:
+    """What :func:`measure` found: each condition's halts, and how the run was made."""
+
+    asked: int
+    """halts asked for per condition (``--stops``)"""
+    halts_ms: dict[str, list[float]]
+    """per condition (``CONDITIONS``): ms from the put of "stop" to ag_ex's ``Halting``, in order"""
+    idle: dict[str, int]
+    """per condition: stops that found no motion to halt (not in ``halts_ms``)"""
+    hops_ms: dict[str, dict[str, float | None]]
+    """per condition, per hop (``HOPS``' channel): the median ms from the put of "stop" to this
+    process seeing that cancel, over the stops that halted (None: never seen)"""
+    first_pour_s: float
+    """wall s of the first, whole pour (from a_hi's first report to its final one)"""
+    first_pour: str
+    """its final report's kind (``succeeded``, ``failed``, …)"""
+    window_s: float
+    """stops at U(0.3, window_s) s after a_co's agreement"""
+    realtime: bool
+    """ag_ex's loop paced to wall time (else as fast as it can)"""
+    long_shape: str
+    long_chars: int
+    """the long line's shape (scripts/bench_reading.py) and length, characters"""
+    gap_ms: float
+    """ms from the long line to the stop"""
+
+    def percentile_ms(self, condition: str, q: float) -> float | None:
+        """The ``q`` quantile (0–1, nearest rank) of ``condition``'s halts (None: no halt)."""
+        ms = self.halts_ms.get(condition, [])
+        return percentile(ms, q) if ms else None
+
+
+def measure(
+    stops: int,
+    realtime: bool = False,
+    window: float | None = None,
+    gap_ms: float = 20.0,
+    long_shape: str = "command",
+    seed: int = 1,
+    keep: bool = False,
+    echo: Callable[[str], object] = print,
+) -> StopFigures:
+    """Start a fleet, run one whole pour, then pours stopped until each condition has ``stops``
+    halts (the module's docstring says how; ``window`` defaults to 16 s paced, else 6 s).
+    ``echo`` is given a line per stop as it is measured; the run folder is removed unless
+    ``keep`` (then echoed). Raises RuntimeError when the fleet does not come up or cannot pour
+    (``MAX_FAILED_IN_ROW`` pours in a row failed or not accepted)."""
+    rng = random.Random(seed)
+    long_line = reading_line(long_shape, MAX_LINE_CHARS)
+    window = window if window is not None else (16.0 if realtime else 6.0)
     run_dir = Path(tempfile.mkdtemp(prefix="roco-bench-stop-"))
     (run_dir / "logs").mkdir()
-    env = {"ROCO_REALTIME": "1" if args.realtime else "0"}
+    env = {"ROCO_REALTIME": "1" if realtime else "0"}
     fleet = Fleet(run_dir, f"tcp/127.0.0.1:{free_port()}", env=env)
     session: zenoh.Session | None = None
-    stops: list[Stop] = []
+    records: list[Stop] = []
     idle = dict.fromkeys(CONDITIONS, 0)  # stops that found no motion to halt
+
+    def halted(condition: str) -> int:
+        return sum(s.condition == condition and s.halt_t is not None for s in records)
+
     try:
         fleet.start_router()
         session = open_client(fleet.endpoint)
@@ -203,35 +250,32 @@ def main() -> int:
         start = time.monotonic()
         first = watch.finals(rid)[rid]
         pour_s = time.monotonic() - start
-        print(
-            f"ag_ex's loop {'paced to wall time' if args.realtime else 'as fast as it can'}; "
+        echo(
+            f"ag_ex's loop {'paced to wall time' if realtime else 'as fast as it can'}; "
             f"first pour: {first.kind.value} in {pour_s:.1f} s ({t0.value} first); "
-            f"stops at U(0.3, {window:.0f}) s after a_co agreed; long line: {args.long_shape}, "
-            f"{len(long_line)} characters, {args.gap_ms:.0f} ms before the stop"
+            f"stops at U(0.3, {window:.0f}) s after a_co agreed; long line: {long_shape}, "
+            f"{len(long_line)} characters, {gap_ms:.0f} ms before the stop"
         )
         log = run_dir / "logs" / "ag_ex.log"
         n = 0
         failed_in_row = 0
-        while (
-            min(sum(s.condition == c and s.halt_t is not None for s in stops) for c in CONDITIONS)
-            < args.stops
-        ):
+        while min(halted(c) for c in CONDITIONS) < stops:
             condition = CONDITIONS[n % 2]
             n += 1
-            if sum(s.condition == condition and s.halt_t is not None for s in stops) >= args.stops:
+            if halted(condition) >= stops:
                 continue
             pour, stop = f"p-{uuid.uuid4().hex[:6]}", f"s-{uuid.uuid4().hex[:6]}"
             say(session, POUR, pour)
             if watch.accepted(pour).kind is not ReportKind.ACCEPTED:
                 failed_in_row += 1
                 if failed_in_row >= MAX_FAILED_IN_ROW:
-                    raise SystemExit(f"bench_stop: {failed_in_row} pours in a row not accepted")
+                    raise RuntimeError(f"{failed_in_row} pours in a row not accepted")
                 continue
             time.sleep(rng.uniform(0.3, window))  # a random moment of the pour
             before = len(halts(log))
             if condition == "long line before":
                 say(session, long_line, f"l-{uuid.uuid4().hex[:6]}")
-                time.sleep(args.gap_ms / 1e3)
+                time.sleep(gap_ms / 1e3)
             record = Stop(condition, say(session, "stop", stop))
             ended = watch.finals(pour, stop)
             time.sleep(0.5)  # the long line's command, when it was read, is stopped too
@@ -240,44 +284,89 @@ def main() -> int:
             record.hops = watch.first_cancels(record.line_t)
             if record.halt_t is None:
                 idle[condition] += 1
-            stops.append(record)
+            records.append(record)
             failed_in_row = failed_in_row + 1 if ended[pour].kind is ReportKind.FAILED else 0
             if failed_in_row >= MAX_FAILED_IN_ROW:  # the fleet cannot pour any more: say why
-                raise SystemExit(
-                    f"bench_stop: {failed_in_row} pours in a row failed; the last: {ended[pour].text}"
-                )
+                raise RuntimeError(f"{failed_in_row} pours in a row failed; the last: {ended[pour].text}")
             done = record.latency_ms
             hops = ", ".join(
                 f"{c} {(record.hops[c] - record.line_t) * 1e3:.1f}" for c, _, _ in HOPS if c in record.hops
             )
-            print(
-                f"  {len(stops):3d} {condition:<17} "
+            echo(
+                f"  {len(records):3d} {condition:<17} "
                 + (f"{done:8.1f} ms" if done is not None else "   no halt")
-                + f"  (pour {ended[pour].kind.value}; cancels seen at ms: {hops or 'none'})",
-                flush=True,
+                + f"  (pour {ended[pour].kind.value}; cancels seen at ms: {hops or 'none'})"
             )
-        print()
-        hops = " | ".join(h[0] for h in HOPS)
-        print(f"| condition | halts | p50 ms | p99 ms | max ms | no motion to halt | {hops} |")
-        print(f"|---|---|---|---|---|---|{'---|' * len(HOPS)}")
-        for c in CONDITIONS:
-            got = [s for s in stops if s.condition == c and s.latency_ms is not None]
-            ms = [s.latency_ms for s in got if s.latency_ms is not None]
-            hop_ms = []
-            for channel, _, _ in HOPS:
-                values = [(s.hops[channel] - s.line_t) * 1e3 for s in got if channel in s.hops]
-                hop_ms.append(f"{statistics.median(values):.1f}" if values else "—")
-            print(
-                f"| {c} | {len(ms)} | {statistics.median(ms):.1f} | {percentile(ms, 0.99):.1f} | "
-                f"{max(ms):.1f} | {idle[c]} | {' | '.join(hop_ms)} |"
-            )
-        print("(hops: the median ms from the stop's put to this process seeing each cancel)")
     finally:
         if session is not None:
             session.close()
         fleet.stop()
-        if args.keep:
-            print(f"run folder: {run_dir}")
+        if keep:
+            echo(f"run folder: {run_dir}")
+        else:
+            shutil.rmtree(run_dir, ignore_errors=True)
+    halts_ms: dict[str, list[float]] = {}
+    hops_ms: dict[str, dict[str, float | None]] = {}
+    for c in CONDITIONS:
+        got = [s for s in records if s.condition == c and s.latency_ms is not None]
+        halts_ms[c] = [s.latency_ms for s in got if s.latency_ms is not None]
+        hops_ms[c] = {}
+        for channel, _, _ in HOPS:
+            values = [(s.hops[channel] - s.line_t) * 1e3 for s in got if channel in s.hops]
+            hops_ms[c][channel] = statistics.median(values) if values else None
+    return StopFigures(
+        asked=stops,
+        halts_ms=halts_ms,
+        idle=idle,
+        hops_ms=hops_ms,
+        first_pour_s=pour_s,
+        first_pour=first.kind.value,
+        window_s=window,
+        realtime=realtime,
+        long_shape=long_shape,
+        long_chars=len(long_line),
+        gap_ms=gap_ms,
+    )
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0] if __doc__ else None)
+    parser.add_argument("--stops", type=int, default=20, help="halts measured per condition")
+    parser.add_argument("--realtime", action="store_true", help="pace ag_ex's loop to wall time")
+    parser.add_argument("--window", type=float, default=None, help="s: stops at U(0.3, S) into a pour")
+    parser.add_argument("--gap-ms", type=float, default=20.0, help="ms from the long line to the stop")
+    parser.add_argument("--long-shape", choices=("command", "words"), default="command")
+    parser.add_argument("--seed", type=int, default=1, help="draws the moments of the stops")
+    parser.add_argument("--keep", action="store_true", help="keep the run folder (printed)")
+    args = parser.parse_args()
+    print(benchlib.machine(("eclipse-zenoh", "mujoco", "pin", "lark")))
+    try:
+        figures = measure(
+            args.stops,
+            realtime=args.realtime,
+            window=args.window,
+            gap_ms=args.gap_ms,
+            long_shape=args.long_shape,
+            seed=args.seed,
+            keep=args.keep,
+            echo=functools.partial(print, flush=True),
+        )
+    except RuntimeError as exc:
+        raise SystemExit(f"bench_stop: {exc}") from exc
+    print()
+    hops = " | ".join(h[0] for h in HOPS)
+    print(f"| condition | halts | p50 ms | p99 ms | max ms | no motion to halt | {hops} |")
+    print(f"|---|---|---|---|---|---|{'---|' * len(HOPS)}")
+    for c in CONDITIONS:
+        ms = figures.halts_ms[c]
+        hop_ms = [figures.hops_ms[c][channel] for channel, _, _ in HOPS]
+        cells = " | ".join("—" if h is None else f"{h:.1f}" for h in hop_ms)
+        if ms:
+            spread = f"{statistics.median(ms):.1f} | {percentile(ms, 0.99):.1f} | {max(ms):.1f}"
+        else:
+            spread = "— | — | —"
+        print(f"| {c} | {len(ms)} | {spread} | {figures.idle[c]} | {cells} |")
+    print("(hops: the median ms from the stop's put to this process seeing each cancel)")
     return 0
 
 

@@ -12,7 +12,10 @@ Parts (`--only` takes a comma-separated subset; default all, in this order):
 - `memory`: an idle agent's and the whole fleet's memory (VmRSS and PSS);
 - `task`: the whole pour with `roco run`, and its 1 kHz loop;
 - `scale`: 10 to 100 agent processes sharing one router, then two routers;
-- `gateway`: `roco gateway` with 100 peers at once, 500 in one burst, and under the worst requests.
+- `gateway`: `roco gateway` with 100 peers at once, 500 in one burst, and under the worst requests;
+- `stop`: a stop's latency, from the line "stop" reaching a_hi to ag_ex's halt, with and without
+  a long line before it;
+- `reading`: a_hi's reading time against the length of a line.
 
 Each timed part first waits for a quiet machine (`--settle`). `--quick` shrinks every count (a
 smoke test of the command, not figures to quote). A part that fails is reported in the
@@ -47,6 +50,8 @@ PARTS = (
     "task",
     "scale",
     "gateway",
+    "stop",
+    "reading",
 )
 ROOT = Path(__file__).resolve().parents[2]
 DEFAULT_OUT = ROOT / "docs" / "benchmarks.md"
@@ -224,6 +229,13 @@ def bench(
         if got is not None:
             emit(report.gateway_section(got))
             targets.extend(report.gateway_verdicts(got))
+    if "stop" in chosen:
+        got = run("stop", lambda: parts.stop(n.stops), timed=True)
+        if got is not None:
+            emit(report.stop_section(got))
+            targets.extend(report.stop_verdicts(got))
+    if "reading" in chosen and run("reading", lambda: parts.reading(n.reading_repeats)) is not None:
+        emit(report.reading_section(results["reading"], counts))
     targets.extend(report.plan_and_fleet_verdicts(results.get("planning"), results.get("fleet")))
     if task_runs and all(r.ok for r in task_runs):
         shutil.rmtree(task_runs[0].run_dir.parent, ignore_errors=True)  # kept when a run failed

@@ -1,14 +1,17 @@
-"""Parts 1, 4, 5, 6 and 7 of ``roco bench``: codec, knowledge, planning, fleet and task.
+"""Parts 1, 4, 5, 6, 6b, 7, 10 and 11 of ``roco bench``: codec, knowledge, planning, fleet,
+memory, task, stop and reading.
 
 Each function measures and returns plain figures; services/bench/report.py turns them into
 tables. Existing benchmark scripts are imported, not copied: ``scripts/bench_km.py`` (the
 planner's query set, the observation, the timer), ``scripts/bench_planning.py``
-(:func:`measure`: plan #1 through a_km and a_pl processes).
+(:func:`measure`: plan #1 through a_km and a_pl processes), ``scripts/bench_memory.py``,
+``scripts/bench_stop.py`` and ``scripts/bench_reading.py`` (their :func:`measure`).
 """
 
 from __future__ import annotations
 
 import contextlib
+import functools
 import queue
 import subprocess
 import sys
@@ -376,3 +379,20 @@ def task(realtime: bool, runs_dir: Path) -> TaskRun:
     if store.is_dir():
         out.km_store_bytes = sum(f.stat().st_size for f in store.rglob("*") if f.is_file())
     return out
+
+
+# ----------------------------------------------------------------------------------- 10. stop
+def stop(halts: int) -> Any:
+    """``scripts/bench_stop.py``'s :func:`measure`: a fleet as ``roco run`` starts it, ag_ex's
+    loop as fast as it can, pours stopped at random moments until each condition (``plain``,
+    ``long line before``) has ``halts`` halts; a line per stop on stderr as it is measured.
+    Returns its ``StopFigures``; raises RuntimeError when the fleet cannot pour."""
+    bs = scripts_module("bench_stop")
+    return bs.measure(halts, echo=functools.partial(print, file=sys.stderr, flush=True))
+
+
+# -------------------------------------------------------------------------------- 11. reading
+def reading(repeats: int) -> list[Any]:
+    """``scripts/bench_reading.py``'s :func:`measure`: a_hi on an in-memory bus, ``repeats``
+    timed lines per shape and length. Returns its ``ReadingRow``s."""
+    return list(scripts_module("bench_reading").measure(repeats))

@@ -10,11 +10,13 @@ from __future__ import annotations
 import datetime
 import os
 import platform
+import statistics
 import subprocess
 from collections.abc import Sequence
 from dataclasses import dataclass
 from importlib.metadata import PackageNotFoundError, version
 from pathlib import Path
+from typing import Any
 
 from services.bench.gateway import GatewayFigures
 from services.bench.messaging import ConcurrentFigures, PairFigures, ScaleRow, request_bytes
@@ -29,6 +31,7 @@ from services.bench.parts import (
 )
 from services.bench.quiet import quiet_rule
 from services.bench.spade import SpadeFigures
+from services.runtime.human import MAX_LINE_CHARS
 
 ROOT = Path(__file__).resolve().parents[2]
 PACKAGES = ("eclipse-zenoh", "msgspec", "mujoco", "pin", "pyoxigraph", "gtpyhop-core")
@@ -56,6 +59,9 @@ TARGET_GATEWAY_RSS_MIB = 100.0
 """The gateway's peak RSS over its RSS before, for any one worst request (MiB), at most."""
 TARGET_GATEWAY_CPU_S = 1.0
 """The gateway's CPU time for any one worst request until the next message is answered (s), at most."""
+TARGET_STOP_P99_MS = 250.0
+"""A stop, from the line reaching a_hi to ag_ex's halt of the commanded motion, p99 (ms), at most,
+whatever came before it."""
 PAPER_PLAN_1_TEXT = "The paper's plan #1 took 55 s and 1,598 communicates."
 
 TITLE = "# roco benchmarks"
@@ -63,7 +69,8 @@ INTRO = [
     "What roco costs on one machine: encoding a communicate; a round trip and a stream between two "
     "agents, beside raw Zenoh (its transport) and SPADE; a_km's answers; a_pl's plan; the fleet's "
     "start-up and memory; the whole pour with ag_ex's 1 kHz loop; up to 100 agent processes; the "
-    "ACL gateway under load and under attack.",
+    "ACL gateway under load and under attack; a stop, from the line to the halt; a_hi's reading "
+    "time against the length of a line.",
     "",
     "`roco bench` (services/bench/) wrote it from the one run described below; `--only NAME` runs "
     "the parts named in brackets. The last section says how to reproduce the figures and what "
@@ -102,13 +109,17 @@ class Counts:
     """Part 8: round trips of every initiator when all pairs run at once, after 50 warm-up ones."""
     scale_all_rounds: int = 3
     """Part 8: runs of all pairs at once per agent count (the median is reported)."""
+    stops: int = 20
+    """Part 10: halts measured per condition."""
+    reading_repeats: int = 50
+    """Part 11: timed lines per shape and length, after 3 warm-up ones."""
 
     @classmethod
     def of(cls, quick: bool) -> Counts:
         """The full counts, or ``--quick``'s: a smoke test of the command, not figures to quote."""
         if not quick:
             return cls()
-        return cls(200, 1, 300, 5000, 200, 1000, 30, 200, 5000, 50, 1)
+        return cls(200, 1, 300, 5000, 200, 1000, 30, 200, 5000, 50, 1, stops=2, reading_repeats=5)
 
 
 @dataclass(frozen=True)
@@ -858,6 +869,126 @@ def gateway_how() -> list[str]:
 def gateway_section(g: GatewayFigures) -> Section:
     return Section(
         "9. Gateway: `roco gateway` under load and attack (`gateway`)", gateway_how(), gateway_table(g)
+    )
+
+
+StopFigures = Any
+"""scripts/bench_stop.py's ``StopFigures`` (the scripts directory is not a package)."""
+ReadingRow = Any
+"""scripts/bench_reading.py's ``ReadingRow``."""
+STOP_CONDITIONS = {
+    "plain": ("nothing", "alone"),
+    "long line before": (
+        "a {chars:,}-character {shape} line, {gap:.0f} ms earlier",
+        "{gap:.0f} ms after a {chars:,}-character {shape} line",
+    ),
+}
+"""What came before the stop, by bench_stop's condition: in the table, in the verdict."""
+STOP_HOPS = {"C2": "a_hi's cancel (C2) ms", "C1": "a_co's (C1) ms", "C5": "a_ta's (C5) ms"}
+"""The cancels a stop sends on its way to ag_ex's loop, by channel."""
+
+
+def _stop_before(f: StopFigures, condition: str, in_verdict: bool = False) -> str:
+    """What came before a stop of ``condition``."""
+    labels = STOP_CONDITIONS.get(condition, (condition, condition))
+    return labels[in_verdict].format(chars=f.long_chars, shape=f"`{f.long_shape}`", gap=f.gap_ms)
+
+
+def _ms(x: float | None) -> str:
+    return "—" if x is None else f"{x:.1f}"
+
+
+def stop_table(f: StopFigures) -> list[str]:
+    """Per condition: the halts, their p50 / p99 / max, the stops that found no motion, and the
+    median of each hop."""
+    hops = list(dict.fromkeys(h for per in f.hops_ms.values() for h in per))
+    rows = []
+    for condition, ms in f.halts_ms.items():
+        rows.append(
+            [
+                _stop_before(f, condition),
+                str(len(ms)),
+                _ms(statistics.median(ms) if ms else None),
+                _ms(f.percentile_ms(condition, 0.99)),
+                _ms(max(ms) if ms else None),
+                str(f.idle.get(condition, 0)),
+                *(_ms(f.hops_ms[condition].get(h)) for h in hops),
+            ]
+        )
+    header = ["before the stop", "halts", "p50 ms", "p99 ms", "max ms", "stops with no motion to halt"]
+    return _table([*header, *(STOP_HOPS.get(h, f"{h} ms") for h in hops)], rows)
+
+
+def stop_how(f: StopFigures) -> list[str]:
+    """How part 10 measures a stop (scripts/bench_stop.py)."""
+    pacing = "paced to wall time" if f.realtime else "as fast as it can"
+    return [
+        "scripts/bench_stop.py: a fleet as `roco run` starts it (router, recorder, six agents, access "
+        f"control on), ag_ex's loop {pacing}; one whole pour first ({f.first_pour} in "
+        f"{f.first_pour_s:.1f} s), then pours each stopped at a random moment, U(0.3, "
+        f'{f.window_s:.0f}) s after a_co\'s agreement: by "stop" alone, or {f.gap_ms:.0f} ms after a '
+        f"{f.long_chars:,}-character `{f.long_shape}` line (a shape of part 11), in turn until each has "
+        f'{f.asked} halts. Timed on one wall clock from the put of "stop" on a_hi\'s key (the hop '
+        "on to a_hi counted) to the wall time ag_ex's loop logs in the cycle the halt replaced "
+        "the running command. A stop finding nothing moving has no halt: it is counted apart and "
+        "another pour started. The cancels' columns: the median ms from the put to a subscriber in "
+        "`roco bench` seeing each cancel on its way, over the stops that halted.",
+    ]
+
+
+def stop_section(f: StopFigures) -> Section:
+    return Section("10. A stop, from the line to the halt (`stop`)", stop_how(f), stop_table(f))
+
+
+def stop_verdicts(f: StopFigures) -> list[str]:
+    """A stop halts the commanded motion within 250 ms p99 of reaching a_hi, whatever came before
+    it: met when every condition's p99 is within and it has the halts asked for."""
+    said, ok = [], True
+    for condition, ms in f.halts_ms.items():
+        p99 = f.percentile_ms(condition, 0.99)
+        enough = len(ms) >= f.asked
+        ok = ok and enough and p99 is not None and p99 <= TARGET_STOP_P99_MS
+        over = f"over {len(ms)} halts" if enough else f"over only {len(ms)} of the {f.asked} halts asked"
+        figure = "no halt" if p99 is None else f"**{p99:.1f} ms** {over}"
+        said.append(f"{_stop_before(f, condition, in_verdict=True)}: {figure}")
+    if not said:
+        return []
+    return [
+        f"- A stop halts the commanded motion within {TARGET_STOP_P99_MS:.0f} ms p99 of reaching a_hi, "
+        f"whatever came before it: {'; '.join(said)} (target ≤ {TARGET_STOP_P99_MS:.0f} ms p99, "
+        f"{f.asked} halts each): {'met' if ok else 'missed'}."
+    ]
+
+
+def reading_table(rows: Sequence[ReadingRow]) -> list[str]:
+    return _table(
+        ["shape", "characters", "p50 ms", "p99 ms", "stop check's look-ups", "what a_hi did"],
+        [
+            [r.shape, f"{r.chars:,}", f"{r.p50_ms:.3f}", f"{r.p99_ms:.3f}", str(r.lookups), r.answer]
+            for r in rows
+        ],
+    )
+
+
+def reading_how(counts: Counts) -> list[str]:
+    """How part 11 measures a_hi's reading (scripts/bench_reading.py)."""
+    return [
+        "scripts/bench_reading.py, in the process of `roco bench`: a_hi on an in-memory bus (no a_co, "
+        "no a_km: lines read at once with the kitchen's words), given lines of three shapes cut at a "
+        'word to each length: `command` ("please please … pour the jar into the bowl", parsed in '
+        'full: the slowest), `words` ("the jar is on the table and the bowl …", not understood at '
+        'its second sentence), `stop` (the same words ending "oh no, stop!"). Timed with '
+        "`time.perf_counter` from the line's arrival to what a_hi does with it: the stop check; "
+        f"within the {MAX_LINE_CHARS:,}-character bound, the parse in a_hi's reader thread (lark's "
+        "Earley parser) and the request to a_co or the answer; beyond it, the refusal. "
+        f"{counts.reading_repeats} lines per shape and length after 3 warm-up ones. Look-ups: the "
+        "stop check's phrase look-ups, its work.",
+    ]
+
+
+def reading_section(rows: Sequence[ReadingRow], counts: Counts) -> Section:
+    return Section(
+        "11. a_hi's reading time against line length (`reading`)", reading_how(counts), reading_table(rows)
     )
 
 

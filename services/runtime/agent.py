@@ -485,7 +485,7 @@ class Agent:
         """Follow a communicate about to be sent in its conversation's protocol state;
         raises SpecViolation when the state does not allow it."""
         why = self._follow(
-            to, msg.conversation_id, msg.protocol, msg.performative, True, is_terminal_report(msg)
+            to, msg.conversation_id, msg.protocol, msg.performative, True, is_terminal_report(msg), msg
         )
         if why is not None:
             self._violation(
@@ -502,9 +502,11 @@ class Agent:
         performative: Performative,
         sent: bool,
         terminal: bool | None,
+        msg: Communicate | None = None,
     ) -> str | None:
         """Advance the protocol state of conversation ``conversation_id`` with ``peer`` by one
-        communicate (``sent`` by this agent, else received). Returns None when the state allows
+        communicate (``sent`` by this agent, else received; ``msg`` the communicate, whose
+        reply-with and in-reply-to tell what it answers). Returns None when the state allows
         it (or the conversation is not followed: no conversation-id, a protocol without a state
         machine), else the reason."""
         if conversation_id is None or protocol is None:
@@ -520,7 +522,15 @@ class Agent:
         role: Role = mine if sent else (PARTICIPANT if mine == INITIATOR else INITIATOR)
         try:
             outcome = self.protocol_states.observe(
-                peer, conversation_id, machine, role, performative, local_role=mine, terminal=terminal
+                peer,
+                conversation_id,
+                machine,
+                role,
+                performative,
+                local_role=mine,
+                terminal=terminal,
+                reply_with=None if msg is None else msg.reply_with,
+                in_reply_to=None if msg is None else msg.in_reply_to,
             )
         except (ProtocolViolation, ConversationError) as exc:
             # observe leaves the table unchanged when it raises: it tells whether the
@@ -802,7 +812,7 @@ class Agent:
             self._refuse_new_conversation(sender, channel, msg, content)
             return
         why = self._follow(
-            sender, msg.conversation_id, msg.protocol, msg.performative, False, is_terminal_report(msg)
+            sender, msg.conversation_id, msg.protocol, msg.performative, False, is_terminal_report(msg), msg
         )
         if why is not None and self.roles.answers_earlier_opening(sender, msg):
             # not-understood would end (FIPA SC00037 §3.12) the conversation opened anew, and
@@ -837,7 +847,7 @@ class Agent:
         refuse for this agent. A communicate that does not open a conversation is a protocol
         violation as usual."""
         why = self._follow(
-            sender, msg.conversation_id, msg.protocol, msg.performative, False, is_terminal_report(msg)
+            sender, msg.conversation_id, msg.protocol, msg.performative, False, is_terminal_report(msg), msg
         )
         if why is not None:
             self.counters["protocol_violations"] += 1

@@ -294,6 +294,10 @@ class CrossingTracker:
         ``restart``), while the other party may not have seen that opening yet."""
         self.reopened_by: Role | None = None
         """Who sent the opening communicate that made the conversation anew."""
+        self.latest_initiator: str | None = None
+        """The reply-with of the initiator's latest communicate (None when it had none)."""
+        self.latest_participant: str | None = None
+        """The reply-with of the participant's latest communicate (None when it had none)."""
 
     def copy(self) -> CrossingTracker:
         """An independent copy (readings are immutable, so this is cheap)."""
@@ -306,6 +310,8 @@ class CrossingTracker:
         other.aborted = self.aborted
         other.superseded = self.superseded
         other.reopened_by = self.reopened_by
+        other.latest_initiator = self.latest_initiator
+        other.latest_participant = self.latest_participant
         return other
 
     # ---- state -------------------------------------------------------------------------
@@ -358,22 +364,36 @@ class CrossingTracker:
 
     # ---- advancing ---------------------------------------------------------------------
     def step(
-        self, role: Role | str, performative: Performative | str, *, terminal: bool | None = False
+        self,
+        role: Role | str,
+        performative: Performative | str,
+        *,
+        terminal: bool | None = False,
+        reply_with: str | None = None,
+        in_reply_to: str | None = None,
     ) -> str:
         """Record that ``role`` sent ``performative`` (``terminal`` as in
         :meth:`ConversationTracker.step`; None when unknown). Returns the new state of the
         first reading. Raises ProtocolViolation (describing the arrival-order reading) when
-        no reading allows it; the tracker is then unchanged."""
+        no reading allows it; the tracker is then unchanged.
+
+        ``reply_with`` and ``in_reply_to`` are the communicate's parameters (FIPA SC00061
+        §2.3): a communicate whose ``in_reply_to`` names the other side's latest
+        communicate was sent after that one arrived, so it crossed nothing and is only
+        placed after it (e.g. a_co's confirm of a_ta's terminal inform ends the coordinate
+        conversation instead of also being read as a confirm sent again before it)."""
         if role not in (INITIATOR, PARTICIPANT):
             raise ValueError(f"role must be 'initiator' or 'participant', not {role!r}")
         s: Step = (_role(role), _performative(performative), terminal)
         own = self.local_role is not None and s[0] == self.local_role
-        key = (id(self.protocol), self.max_run, self.max_readings, id(self.readings), s, own)
+        other = self.latest_participant if s[0] == INITIATOR else self.latest_initiator
+        seen = in_reply_to is not None and in_reply_to == other
+        key = (id(self.protocol), self.max_run, self.max_readings, id(self.readings), s, own, seen)
         cached = _STEPS.get(key)
         if cached is not None and cached[0] is self.protocol and cached[1] is self.readings:
             found, in_order = cached[2], cached[3]
         else:
-            found, in_order = self._found(s, own)
+            found, in_order = self._found(s, own, seen)
             if len(_STEPS) >= _STEPS_MAX:
                 _STEPS.clear()
                 _READINGS.clear()
@@ -394,25 +414,30 @@ class CrossingTracker:
         self.messages += 1
         if not in_order:
             self.crossings += 1
+        if s[0] == INITIATOR:
+            self.latest_initiator = reply_with
+        else:
+            self.latest_participant = reply_with
         return self.state
 
-    def _found(self, s: Step, own: bool) -> tuple[tuple[Reading, ...], bool]:
+    def _found(self, s: Step, own: bool, seen: bool = False) -> tuple[tuple[Reading, ...], bool]:
         """The readings after ``s`` (at most ``max_readings``; empty when none allows it) and
         whether some reading took it in arrival order under the plain protocol. A pure
-        function of the protocol, ``max_run``, ``max_readings``, the readings, ``s`` and
-        ``own``: :meth:`step` keeps its results in :data:`_STEPS`."""
+        function of the protocol, ``max_run``, ``max_readings``, the readings, ``s``, ``own``
+        and ``seen``: :meth:`step` keeps its results in :data:`_STEPS`."""
         found: list[Reading] = []
         in_order = False
         for reading in self.readings:
-            for candidate, plain in self._extend(reading, s, own):
+            for candidate, plain in self._extend(reading, s, own, seen):
                 in_order = in_order or plain
                 if candidate not in found:
                     found.append(candidate)
         return tuple(found[: self.max_readings]), in_order
 
-    def _extend(self, r: Reading, s: Step, own: bool) -> list[tuple[Reading, bool]]:
+    def _extend(self, r: Reading, s: Step, own: bool, seen: bool = False) -> list[tuple[Reading, bool]]:
         """The readings after ``s`` joins ``r``, each with True when ``s`` was appended in
-        arrival order under the plain protocol."""
+        arrival order under the plain protocol; ``seen``: ``s`` answers the other side's
+        latest communicate, so it is placed after the whole run."""
         out: list[tuple[Reading, bool]] = []
         if r.side is None or r.side == s[0] or not r.run:
             # same side as the run (or none): s follows the run, as each sender's own
@@ -424,7 +449,7 @@ class CrossingTracker:
                     out.append((self._trim(Reading(r.base, s[0], (*r.run, done), after)), plain))
             return out
         # s is from the other side: it may have been sent before any suffix of the run arrived
-        for i in range(len(r.run), -1, -1):
+        for i in range(len(r.run), len(r.run) - 1 if seen else -1, -1):
             for before in self._replay(r.base, r.run[:i]):
                 for nxt, done, plain in self._advance(before, s, late_ok=not own):
                     if i == len(r.run):
@@ -531,6 +556,8 @@ def follow(
     *,
     terminal: bool | None = False,
     local_role: Role | None = None,
+    reply_with: str | None = None,
+    in_reply_to: str | None = None,
 ) -> tuple[CrossingTracker, Outcome]:
     """Advance a conversation by one communicate of ``protocol`` (a state machine, or a
     name in :data:`~shared.fipa_codec.protocols.PROTOCOLS`) sent by ``role``.
@@ -548,14 +575,16 @@ def follow(
     - ``aborted``: a ``not-understood``: the conversation ends and is no longer followed
       (FIPA SC00037 §3.12); ``unchecked``: a communicate after that.
 
-    ``tracker`` is changed in place. Raises ProtocolViolation when the communicate is not
-    allowed in the conversation's state, ConversationError when the conversation follows
-    another protocol and the communicate does not open a new one.
+    ``reply_with`` and ``in_reply_to`` are the communicate's (see
+    :meth:`CrossingTracker.step`). ``tracker`` is changed in place. Raises ProtocolViolation
+    when the communicate is not allowed in the conversation's state, ConversationError when
+    the conversation follows another protocol and the communicate does not open a new one.
     """
     if tracker is None:
         tracker = CrossingTracker(protocol, local_role=local_role)
         if performative is Performative.CANCEL and role == INITIATOR and local_role != INITIATOR:
             tracker.forgotten()
+            tracker.latest_initiator = reply_with
             return tracker, "forgotten"
     if performative is Performative.NOT_UNDERSTOOD:
         tracker.abort()
@@ -564,13 +593,16 @@ def follow(
     if tracker.protocol.name == name and not tracker.aborted:  # the usual case: one step
         crossings = tracker.crossings
         try:
-            tracker.step(role, performative, terminal=terminal)
+            tracker.step(
+                role, performative, terminal=terminal, reply_with=reply_with, in_reply_to=in_reply_to
+            )
         except ProtocolViolation:
             if _crossed_reopening(tracker, role, performative, terminal):
                 return tracker, "crossing"
             if not _opens(protocol, role, performative):
                 raise
-            return _restart(protocol, role, performative, terminal, local_role, tracker), "restart"
+            fresh = _restart(protocol, role, performative, terminal, local_role, tracker, reply_with)
+            return fresh, "restart"
         if role != tracker.reopened_by:  # the other party answers the new opening: it saw it
             tracker.superseded = None
         return tracker, "crossing" if tracker.crossings > crossings else "step"
@@ -581,9 +613,9 @@ def follow(
                 f"the conversation follows {tracker.protocol.name}, not {name}; "
                 f"{performative.value} does not open a {name} conversation"
             )
-        return _restart(protocol, role, performative, terminal, local_role), "restart"
+        return _restart(protocol, role, performative, terminal, local_role, None, reply_with), "restart"
     if opener:  # after a not-understood
-        return _restart(protocol, role, performative, terminal, local_role), "restart"
+        return _restart(protocol, role, performative, terminal, local_role, None, reply_with), "restart"
     return tracker, "unchecked"
 
 
@@ -609,11 +641,12 @@ def _restart(
     terminal: bool | None,
     local_role: Role | None,
     before: CrossingTracker | None = None,
+    reply_with: str | None = None,
 ) -> CrossingTracker:
     """A new tracker of ``protocol`` opened by ``performative`` from ``role``; ``before``:
     the conversation it makes anew (still open), kept for what crosses the opening."""
     fresh = CrossingTracker(_machine(protocol), local_role=local_role)
-    fresh.step(role, performative, terminal=terminal)
+    fresh.step(role, performative, terminal=terminal, reply_with=reply_with)
     if before is not None and not before.is_finished:
         before.superseded = None  # one opening back only: memory stays bounded
         fresh.superseded, fresh.reopened_by = before, role
@@ -684,15 +717,25 @@ class ProtocolStates:
         *,
         local_role: Role,
         terminal: bool | None = False,
+        reply_with: str | None = None,
+        in_reply_to: str | None = None,
     ) -> Outcome:
         """Follow one communicate sent by ``role`` (the agent's own when ``role ==
         local_role``) in conversation ``conversation_id`` with ``peer``; see :func:`follow`
-        for the outcome and the exceptions (the table is unchanged when one is raised)."""
+        for the outcome and the exceptions (the table is unchanged when one is raised);
+        ``reply_with`` and ``in_reply_to`` as in :meth:`CrossingTracker.step`."""
         key = (peer, conversation_id)
         old = self.get(peer, conversation_id)
         work = old.copy() if old is not None else None
         tracker, outcome = follow(
-            work, protocol, role, performative, terminal=terminal, local_role=local_role
+            work,
+            protocol,
+            role,
+            performative,
+            terminal=terminal,
+            local_role=local_role,
+            reply_with=reply_with,
+            in_reply_to=in_reply_to,
         )
         if key not in self._undo:
             self._undo[key] = old

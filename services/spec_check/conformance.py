@@ -435,7 +435,15 @@ class _Checker:
         role: Role = INITIATOR if sender == result.agents[0] else PARTICIPANT
         terminal = is_terminal_report(comm) if comm is not None else None
         try:
-            tracker, outcome = follow(self.trackers.get(key), machine, role, performative, terminal=terminal)
+            tracker, outcome = follow(
+                self.trackers.get(key),
+                machine,
+                role,
+                performative,
+                terminal=terminal,
+                reply_with=None if comm is None else comm.reply_with,
+                in_reply_to=None if comm is None else comm.in_reply_to,
+            )
         except ProtocolViolation as exc:
             problems.append(("protocol-state", str(exc)))
             return result

@@ -9,8 +9,9 @@ import sys
 from pathlib import Path
 
 import pytest
+import typer
 
-from services.bench import cli, quiet, report
+from services.bench import cli, parts, quiet, report
 from services.bench.gateway import BurstFigures, GatewayFigures, LoadFigures, WorstRow
 from services.bench.messaging import (
     BenchInform,
@@ -50,6 +51,8 @@ from shared.fipa_codec.languages import encode_content
 from velma.executor.timing import TimingStats
 
 ROOT = Path(__file__).resolve().parents[2]
+bench_stop = parts.scripts_module("bench_stop")
+bench_reading = parts.scripts_module("bench_reading")
 
 
 def _rows(text: str, section: str) -> list[list[str]]:
@@ -257,6 +260,93 @@ def test_the_head_says_how_busy_the_machine_was_around_the_timed_parts() -> None
     assert condition_lines([], 0) == ["- The machine's quiet was not waited for (`--settle 0`)."]
 
 
+def _stop_figures(
+    plain: list[float] | None = None, long: list[float] | None = None, asked: int = 20, idle: int = 1
+) -> object:
+    """bench_stop's figures: the two conditions' halts (ms), the cancels' medians, the run's
+    settings."""
+    plain = [10.7] * 19 + [18.6] if plain is None else plain
+    long = [24.4] * 19 + [55.4] if long is None else long
+    return bench_stop.StopFigures(
+        asked=asked,
+        halts_ms={"plain": plain, "long line before": long},
+        idle={"plain": idle, "long line before": 0},
+        hops_ms={
+            "plain": {"C2": 2.3, "C1": 5.3, "C5": 9.9},
+            "long line before": {"C2": 13.2, "C1": 17.4, "C5": None},
+        },
+        first_pour_s=61.2,
+        first_pour="succeeded",
+        window_s=6.0,
+        realtime=False,
+        long_shape="command",
+        long_chars=999,
+        gap_ms=20.0,
+    )
+
+
+def _reading_rows() -> list[object]:
+    row = bench_reading.ReadingRow
+    return [
+        row("command", 999, 262.357, 286.882, 142, "read: a command"),
+        row("command", 100_000, 1.724, 1.788, 285, "refused: too long"),
+        row("stop", 1000, 0.730, 0.800, 61, "stop"),
+    ]
+
+
+def test_the_stop_section_shows_each_condition_and_where_its_time_went() -> None:
+    section = report.stop_section(_stop_figures())
+    assert section.title == "10. A stop, from the line to the halt (`stop`)"
+    text = "\n".join(section.lines())
+    assert "one whole pour first (succeeded in 61.2 s)" in text and "U(0.3, 6) s" in text
+    assert 'by "stop" alone, or 20 ms after a 999-character `command` line' in text
+    assert section.table[0] == (
+        "| before the stop | halts | p50 ms | p99 ms | max ms | stops with no motion to halt | "
+        "a_hi's cancel (C2) ms | a_co's (C1) ms | a_ta's (C5) ms |"
+    )
+    assert section.table[2:] == [
+        "| nothing | 20 | 10.7 | 18.6 | 18.6 | 1 | 2.3 | 5.3 | 9.9 |",
+        "| a 999-character `command` line, 20 ms earlier | 20 | 24.4 | 55.4 | 55.4 | 0 | 13.2 | 17.4 | — |",
+    ]
+
+
+def test_the_stop_verdict_is_met_within_250_ms_with_the_halts_asked_for() -> None:
+    (line,) = report.stop_verdicts(_stop_figures())
+    assert line.startswith(
+        "- A stop halts the commanded motion within 250 ms p99 of reaching a_hi, whatever came before it: "
+        "alone: **18.6 ms** over 20 halts; 20 ms after a 999-character `command` line: **55.4 ms** over 20 "
+        "halts (target ≤ 250 ms p99, 20 halts each): met."
+    )
+    # one slow stop in 20 sets the p99 (nearest rank): missed
+    (line,) = report.stop_verdicts(_stop_figures(long=[24.4] * 19 + [251.0]))
+    assert "line: **251.0 ms** over 20 halts" in line and line.endswith(": missed.")
+    # fast, but fewer halts than asked (the fleet stopped pouring): missed, and said so
+    (line,) = report.stop_verdicts(_stop_figures(plain=[10.7], asked=2, long=[20.0, 21.0]))
+    assert "alone: **10.7 ms** over only 1 of the 2 halts asked;" in line and line.endswith(": missed.")
+    (line,) = report.stop_verdicts(_stop_figures(plain=[], asked=2, long=[20.0, 21.0]))
+    assert "alone: no halt;" in line and line.endswith(": missed.")
+    assert report.stop_table(_stop_figures(plain=[], asked=2))[2].startswith("| nothing | 0 | — | — | — |")
+
+
+def test_the_reading_section_shows_each_shape_and_length() -> None:
+    section = report.reading_section(_reading_rows(), report.Counts.of(quick=True))
+    assert section.title == "11. a_hi's reading time against line length (`reading`)"
+    assert "5 lines per shape and length after 3 warm-up ones" in section.how[0]
+    assert "within the 1,000-character bound" in section.how[0]
+    assert section.table[2:] == [
+        "| command | 999 | 262.357 | 286.882 | 142 | read: a command |",
+        "| command | 100,000 | 1.724 | 1.788 | 285 | refused: too long |",
+        "| stop | 1,000 | 0.730 | 0.800 | 61 | stop |",
+    ]
+
+
+def test_only_takes_the_stop_and_reading_parts_in_their_order() -> None:
+    assert cli._parts("reading, stop") == ["stop", "reading"]
+    assert cli._parts(None)[-3:] == ["gateway", "stop", "reading"]
+    with pytest.raises(typer.BadParameter, match="unknown part"):
+        cli._parts("stop,halt")
+
+
 def _fixed_figures_document() -> str:
     """docs/benchmarks.md as ``roco bench`` renders it, from fixed figures of every part and
     the hand-written notes it appends."""
@@ -331,6 +421,8 @@ def _fixed_figures_document() -> str:
         report.task_section([task]),
         report.scale_section(scale, counts),
         report.gateway_section(gateway),
+        report.stop_section(_stop_figures()),
+        report.reading_section(_reading_rows(), counts),
     ]
     targets = [
         *report.verdict_lines(pair, spade),
@@ -338,6 +430,7 @@ def _fixed_figures_document() -> str:
         *report.scale_verdicts(scale),
         *report.plan_and_fleet_verdicts(planning, fleet),
         *report.gateway_verdicts(gateway),
+        *report.stop_verdicts(_stop_figures()),
     ]
     run_lines = [
         *report.machine_lines("roco bench", "0.10 / 0.20 / 0.30", "0.40 / 0.50 / 0.60", 1.8e9, 555.0),
@@ -359,7 +452,7 @@ def test_a_report_from_fixed_figures_states_the_method_and_the_present_only() ->
     # what it answers and how it was made come first, then the parts, the targets, the method
     headings = [line for line in text.splitlines() if line.startswith("## ")]
     assert headings[0] == "## This run"
-    assert [h.split(" ", 2)[1] for h in headings[1:10]] == [
+    assert [h.split(" ", 2)[1] for h in headings[1:12]] == [
         "1.",
         "2–3.",
         "4.",
@@ -369,14 +462,18 @@ def test_a_report_from_fixed_figures_states_the_method_and_the_present_only() ->
         "7.",
         "8.",
         "9.",
+        "10.",
+        "11.",
     ]
-    assert headings[10:] == ["## Targets", "## Method and where the time goes"]
+    assert headings[12:] == ["## Targets", "## Method and where the time goes"]
     assert text.startswith("# roco benchmarks\n\nWhat roco costs on one machine")
     assert "- Command: `roco bench` (took 555 s), at commit" in text
     assert "- Before each timed part `roco bench` waited up to 90 s for a quiet machine" in text
     # each part says how much it measured
     assert "2000 round trips each (after 50 warm-up ones), 50,000 communicates per stream" in text
     assert "500 round trips per initiator after 50 warm-up ones, 3 time(s)" in text
+    assert "in turn until each has 20 halts" in text
+    assert "50 lines per shape and length after 3 warm-up ones" in text
     # targets named by what they are, each met or missed by the figures given
     targets = text.split("## Targets", 1)[1].split("\n## ", 1)[0]
     assert "**1.28×** (target ≤ 1.3×): met" in targets
@@ -387,6 +484,7 @@ def test_a_report_from_fixed_figures_states_the_method_and_the_present_only() ->
         "`roco up` until every agent is alive (its start to its exit): **1.53 s** (target ≤ 3 s): met."
         in targets
     )
+    assert "whatever came before it: alone: **18.6 ms** over 20 halts;" in targets
     # no work history: no issue numbers, no sessions, no sections of attempts, before/after or dates
     assert not re.search(r"\bissues?\b", text, re.IGNORECASE), re.findall(r".{40}issue.{20}", text, re.I)
     assert not re.search(r"\bsessions?\b", text, re.IGNORECASE), re.findall(r".{40}session.{20}", text, re.I)

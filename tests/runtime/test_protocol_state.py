@@ -149,6 +149,37 @@ def test_a_long_subscription_keeps_bounded_memory() -> None:
     assert t.may_be_finished
 
 
+def test_a_confirm_of_the_terminal_inform_closes_coordinate_at_both_ends() -> None:
+    """a_co's confirm names a_ta's terminal inform in in-reply-to: it was sent after that
+    inform arrived, so it cannot be a confirm sent again that crossed it. Read that way, every
+    plan's conversation ends at a_co and at a_ta; read without it, each stayed open (two
+    readings, ``finished`` and ``ending``) until a_ta refused its 129th plan."""
+    ends = {"a_ta": (ProtocolStates(), PART, "a_co"), "a_co": (ProtocolStates(), INIT, "a_ta")}
+    for plan in range(3):
+        cid = f"exec{plan}"
+        wire = [
+            (INIT, P.REQUEST, False, f"{cid}-rq", None),
+            (PART, P.INFORM, False, f"{cid}-i1", f"{cid}-rq"),
+            (INIT, P.CONFIRM, False, f"{cid}-c1", f"{cid}-i1"),
+            (PART, P.INFORM, True, f"{cid}-i2", f"{cid}-c1"),
+            (INIT, P.CONFIRM, False, f"{cid}-c2", f"{cid}-i2"),
+        ]
+        for table, local, peer in ends.values():
+            for role, perf, terminal, reply_with, in_reply_to in wire:
+                table.observe(
+                    peer, cid, "coordinate", role, perf, local_role=local, terminal=terminal,
+                    reply_with=reply_with, in_reply_to=in_reply_to,
+                )  # fmt: skip
+            tracker = table.get(peer, cid)
+            assert tracker is not None and tracker.is_finished and tracker.states == {"finished"}
+            assert table.open_with(peer) == 0
+    # without in-reply-to the confirm may have crossed the terminal inform: still open
+    t = steps("coordinate", (INIT, P.REQUEST), (PART, P.INFORM), (INIT, P.CONFIRM))
+    t.step(PART, P.INFORM, terminal=True)
+    t.step(INIT, P.CONFIRM)
+    assert t.states == {"finished", "ending"} and not t.is_finished
+
+
 def test_the_table_forgets_finished_conversations_and_bounds_open_ones() -> None:
     table = ProtocolStates(max_open=3, max_ended=2)
     for n in range(5):
@@ -393,6 +424,7 @@ def test_a_copy_of_a_tracker_holds_all_its_state_and_is_independent() -> None:
     t, _ = follow(None, "fipa-subscribe", INITIATOR, Performative.SUBSCRIBE, local_role=INITIATOR)
     t.step(PARTICIPANT, Performative.AGREE)
     t.superseded, t.reopened_by, t.crossings = earlier, PARTICIPANT, 3
+    t.latest_initiator, t.latest_participant = "s1", "a1"
     copy = t.copy()
     assert _state_of(copy) == _state_of(t)
     copy.step(PARTICIPANT, Performative.INFORM)
