@@ -20,6 +20,11 @@ The header holds the local wall time of arrival at the sniffer (ms), the channel
 receiver named by the key (``roco/fipa/<channel>/<sender>/<receiver>``) and the payload size on
 the wire (bytes of the msgpack communicate, as the traffic recorder counts them).
 
+A communicate that crosses again byte for byte on the same key (a retransmission, answers
+published again for a copy, a duplicate of the network; services/runtime/dedup.py) is shown as
+one line, its header followed by ``copy of the communicate at HH:MM:SS.mmm``, and not counted
+(the last :data:`COPIES_KEPT` communicates are remembered).
+
 Like JADE's Sniffer, it is a passive observer: it sends nothing and no agent knows it is
 there. It does not check communicates against the specification (``roco spec verify`` does
 that on a recorded run).
@@ -30,6 +35,7 @@ from __future__ import annotations
 import queue
 import threading
 import time
+from collections import OrderedDict
 from collections.abc import Callable, Iterable
 from collections.abc import Set as AbstractSet
 from dataclasses import dataclass
@@ -38,6 +44,7 @@ from datetime import datetime
 import zenoh
 
 from services.runtime import keys
+from services.runtime.dedup import digest
 from services.runtime.session import open_client
 from services.spec.model import SystemSpec, default_spec, is_foreign
 from shared.fipa_codec import Communicate, DecodeError, Performative, decode
@@ -45,6 +52,8 @@ from shared.fipa_codec.batch import unpack
 from shared.fipa_codec.string_form import to_string
 
 POLL_S = 0.1
+COPIES_KEPT = 4096
+"""Communicates remembered (their digests and times) to recognise a copy of one."""
 """How often (s) the sniffer looks at its ``stop`` event while no communicate arrives."""
 
 _CONTROL = {c: f"\\x{c:02x}" for c in [*range(0x20), *range(0x7F, 0xA0)] if c != 0x0A}
@@ -227,6 +236,7 @@ def sniff(
         for payload in unpack(sample.payload.to_bytes()):  # a batch: each communicate
             samples.put((t, key, payload))
 
+    earlier: OrderedDict[bytes, float] = OrderedDict()  # digest of key and payload → first arrival
     own = isinstance(endpoint, str)
     session = open_client(endpoint) if isinstance(endpoint, str) else endpoint
     printed = 0
@@ -239,7 +249,7 @@ def sniff(
                 t, key, payload = samples.get(timeout=POLL_S)
             except queue.Empty:
                 continue
-            line = _one(filters, t, key, payload, content)
+            line = _one(filters, t, key, payload, content, earlier)
             if line is None:
                 continue
             text, is_communicate = line
@@ -252,8 +262,17 @@ def sniff(
     return printed
 
 
-def _one(filters: Filters, t: float, key: str, payload: bytes, content: bool) -> tuple[str, bool] | None:
-    """What to print for one sample (text, whether it is a communicate), or None."""
+def _one(
+    filters: Filters,
+    t: float,
+    key: str,
+    payload: bytes,
+    content: bool,
+    earlier: OrderedDict[bytes, float] | None = None,
+) -> tuple[str, bool] | None:
+    """What to print for one sample (text, whether it is a counted communicate), or None.
+    ``earlier``: digests of the communicates seen so far with their arrival times (updated
+    here; at most :data:`COPIES_KEPT`), to show a copy as one line."""
     try:
         channel, sender, receiver = keys.parse_fipa_key(key)
     except ValueError:
@@ -272,6 +291,14 @@ def _one(filters: Filters, t: float, key: str, payload: bytes, content: bool) ->
         return f"{head}  malformed payload: {_one_line(exc.reason)}", False
     if not filters.passes(channel, sender, receiver, msg):
         return None
+    if earlier is not None:
+        d = digest(key.encode() + b"\0" + payload)
+        first = earlier.get(d)
+        if first is not None:
+            return f"{head}  copy of the communicate at {_clock(first)}", False
+        earlier[d] = t
+        if len(earlier) > COPIES_KEPT:
+            earlier.popitem(last=False)
     try:
         body = render(msg, content=content)
     except ValueError as exc:  # a :protocol, reply-by or user parameter the string form cannot write

@@ -35,11 +35,19 @@ def build_report(run_dir: Path, container: str = "bowl") -> Report:
 def _assemble(run: RunData, container: str = "bowl") -> Report:
     """The report of a run folder already read."""
     run_dir = run.run_dir
-    messages = run.messages
+    wire = run.messages
+    # a copy (the same bytes again on the same key: Message.copy_of) crossed the wire, so the
+    # channel figures count it; what happened is told once, from the originals
+    messages = [m for m in wire if m.copy_of is None]
     command = find_command(messages)
     outcome = find_outcome(messages)
     plans = plan_phases(messages)
     notes = list(run.notes)
+    if len(wire) > len(messages):
+        notes.append(
+            f"{len(wire) - len(messages)} communicate(s) recorded again byte for byte (retransmitted, "
+            "or answers sent again for a copy): counted in the channel figures, told once elsewhere"
+        )
     if messages and command is None:
         notes.append("no human command (C2 request) in the traffic")
     if messages and outcome is None:
@@ -50,9 +58,9 @@ def _assemble(run: RunData, container: str = "bowl") -> Report:
     header.access_control = _access_control(run)
     return Report(
         header=header,
-        sizes=size_stats(messages),
-        channels=channel_stats(messages),
-        matrix=agent_matrix(messages),
+        sizes=size_stats(wire),
+        channels=channel_stats(wire),
+        matrix=agent_matrix(wire),
         events=sorted(
             timeline(messages, plans, command, outcome)
             + link_events(read_link_events(Path(run_dir)), run.t0),

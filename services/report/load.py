@@ -8,6 +8,7 @@ and seq, the record's integrity checked first: services/recorder/integrity.py).
 
 from __future__ import annotations
 
+import dataclasses
 import errno
 from collections.abc import Iterable
 from dataclasses import dataclass, field
@@ -17,6 +18,7 @@ import msgspec
 
 from services.recorder import integrity
 from services.recorder.record import TRAFFIC_JSONL, TRAFFIC_RAW, RecordKey, TrafficRecord, read_payloads
+from services.runtime.dedup import digest
 from services.runtime.run_folder import RUN_INFO, RunInfo, read_run_info
 from shared.fipa_codec import Communicate
 from shared.fipa_codec.languages import ContentError, decode_content
@@ -27,13 +29,18 @@ _record_decoder = msgspec.json.Decoder(TrafficRecord)
 @dataclass(frozen=True)
 class Message:
     """One recorded communicate: its record ``rec``, arrival ``t`` in s since run start, the
-    decoded communicate ``comm`` (None: no or undecodable payload) and its decoded content
-    term ``content`` (None: no content or not decodable)."""
+    decoded communicate ``comm`` (None: no or undecodable payload), its decoded content term
+    ``content`` (None: no content or not decodable), and ``copy_of``: the ``seq`` of the
+    earlier record of the same bytes on the same key when this one is a copy of it (None when
+    it is not). A copy is the same communicate sent again: the runtime retransmits a
+    communicate byte for byte until it is answered, and publishes its answers again for a copy
+    it receives (services/runtime/dedup.py); the network may duplicate one too."""
 
     rec: TrafficRecord
     t: float
     comm: Communicate | None = None
     content: msgspec.Struct | None = None
+    copy_of: int | None = None
 
     @property
     def channel(self) -> str:
@@ -98,7 +105,23 @@ def load_run(run_dir: Path) -> RunData:
         notes.insert(0, f"traffic record {checked.summary()}")
     messages = _decode_all(records, comms, t0, notes)
     messages.sort(key=lambda m: (m.rec.t, m.rec.seq))
+    _mark_copies(messages, dict(payloads) if raw_present else {})
     return RunData(run_dir, info, t0, messages, notes, checked)
+
+
+def _mark_copies(messages: list[Message], payloads: dict[RecordKey, bytes]) -> None:
+    """Set ``copy_of`` of every message whose bytes on its key came earlier (in ``messages``'
+    order): the first of them is the communicate, the others its copies."""
+    first: dict[bytes, int] = {}
+    for i, m in enumerate(messages):
+        payload = payloads.get(m.rec.ref) if m.comm is not None else None
+        if payload is None:
+            continue
+        d = digest(m.rec.key.encode() + b"\0" + payload)
+        if d in first:
+            messages[i] = dataclasses.replace(m, copy_of=first[d])
+        else:
+            first[d] = m.rec.seq
 
 
 def _read_info(run_dir: Path, notes: list[str]) -> RunInfo | None:

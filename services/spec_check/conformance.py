@@ -163,6 +163,9 @@ class ConformanceReport:
     ``communicates``: records checked; ``conversations``: every conversation followed;
     ``violations``: every communicate outside the specification, in arrival order;
     ``unchecked``: communicates whose payload was missing, so only their record was checked;
+    ``copies``: communicates recorded again byte for byte on the same key (a retransmission,
+    answers published again for a copy, a duplicate of the network:
+    :attr:`services.report.load.Message.copy_of`), counted and not checked again;
     ``not_understood``: the not-understood communicates (an agent refused something; each is
     listed with its reason as a :class:`Violation`-shaped entry of kind ``not-understood``);
     ``notes``: problems reading the run folder.
@@ -174,6 +177,7 @@ class ConformanceReport:
     conversations: list[ConversationResult] = field(default_factory=list)
     violations: list[Violation] = field(default_factory=list)
     unchecked: int = 0
+    copies: int = 0
     not_understood: list[Violation] = field(default_factory=list)
     notes: list[str] = field(default_factory=list)
     outside_estimates: list[str] = field(default_factory=list)
@@ -266,6 +270,9 @@ class _Checker:
         self.report.communicates += 1
         rec, comm = m.rec, m.comm
         self.end = max(self.end, rec.t)
+        if m.copy_of is not None:  # the same communicate again: judged once, as the original
+            self.report.copies += 1
+            return
         receiver = rec.receivers[0] if rec.receivers else "?"
         problems: list[Problem] = []
         result: ConversationResult | None = None
@@ -550,6 +557,11 @@ def render(report: ConformanceReport, *, limit: int = 50) -> str:
         lines.append(
             f"tolerated: {crossings} communicate(s) crossing on the wire, "
             f"{restarts} conversation(s) begun anew under the same id"
+        )
+    if report.copies:
+        lines.append(
+            f"copies: {report.copies} communicate(s) recorded again byte for byte (retransmitted, "
+            "or answers sent again for a copy): each judged once, as its original"
         )
     if report.unchecked:
         lines.append(f"unchecked: {report.unchecked} communicate(s) without payload (record checked only)")

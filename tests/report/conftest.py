@@ -233,7 +233,7 @@ def pour_run() -> RunBuilder:
         SWStatus(state=SWState.RUNNING, plan_id="plan-1", step="fetch_jar/grasp"),
         **x1,
     )
-    b.add(18.1, "C1", "a_co", "a_ta", "confirm", **x1)
+    b.add(18.1, "C1", "a_co", "a_ta", "confirm", in_reply_to="sw-18.1", **x1)
     b.add(
         19.0,
         "C5",
@@ -309,7 +309,7 @@ def pour_run() -> RunBuilder:
         SWStatus(state=SWState.REPLAN, plan_id="plan-1", reason="bowl localised"),
         **x1,
     )
-    b.add(26.1, "C1", "a_co", "a_ta", "confirm", **x1)
+    b.add(26.1, "C1", "a_co", "a_ta", "confirm", in_reply_to="sw-26.1", **x1)
     # plan #2: request 27.0, 1 query + 1 answer, plan at 29.0
     p2: dict[str, Any] = dict(conversation="plan-req-2", protocol="fipa-request")
     b.add(
@@ -336,7 +336,7 @@ def pour_run() -> RunBuilder:
         SWStatus(state=SWState.RUNNING, plan_id="plan-2", step="pour/tilt"),
         **x2,
     )
-    b.add(31.1, "C1", "a_co", "a_ta", "confirm", **x2)
+    b.add(31.1, "C1", "a_co", "a_ta", "confirm", in_reply_to="sw-31.1", **x2)
     b.add(
         32.0,
         "C5",
@@ -386,7 +386,7 @@ def pour_run() -> RunBuilder:
         in_reply_to="r5",
     )
     b.add(43.0, "C1", "a_ta", "a_co", "inform", SWStatus(state=SWState.SUCCEEDED, plan_id="plan-2"), **x2)
-    b.add(43.1, "C1", "a_co", "a_ta", "confirm", **x2)
+    b.add(43.1, "C1", "a_co", "a_ta", "confirm", in_reply_to="sw-43.1", **x2)
     b.add(
         44.0,
         "C2",

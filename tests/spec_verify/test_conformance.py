@@ -6,6 +6,7 @@ each violation, with its communicate, conversation and the state machine's own w
 
 from __future__ import annotations
 
+from collections import OrderedDict
 from pathlib import Path
 
 import pytest
@@ -46,7 +47,8 @@ def write_run(run_dir: Path, published: list[tuple[str, bytes]]) -> Path:
 
 
 @pytest.fixture(scope="module")
-def pour_run(tmp_path_factory: pytest.TempPathFactory) -> Path:
+def pour_traffic() -> list[tuple[str, bytes]]:
+    """What the agents of a pour published, (key, payload) in order."""
     with MemoryFleet() as fleet:
         fleet.wait_for_initial_knowledge()
         reports = fleet.command("pour the jar into the bowl")
@@ -54,7 +56,45 @@ def pour_run(tmp_path_factory: pytest.TempPathFactory) -> Path:
         published = list(fleet.bus.published)
         violations = {a.name: a.counters["protocol_violations"] for a in fleet.agents}
     assert set(violations.values()) == {0}  # and the runtime refused nothing either
-    return write_run(tmp_path_factory.mktemp("pour"), published)
+    return published
+
+
+@pytest.fixture(scope="module")
+def pour_run(tmp_path_factory: pytest.TempPathFactory, pour_traffic: list[tuple[str, bytes]]) -> Path:
+    return write_run(tmp_path_factory.mktemp("pour"), pour_traffic)
+
+
+def test_a_retransmitted_inform_and_the_confirm_sent_again_are_copies_not_steps(
+    pour_traffic: list[tuple[str, bytes]], tmp_path: Path
+) -> None:
+    """A partition mid-pour: a_ta's L_SW inform is retransmitted byte for byte, and a_co, which
+    had it, publishes its confirm again. The record holds both twice; the verifier, the report
+    and ``roco sniff`` take each second one as a copy (once counted as a second inform in state
+    ``reported``, a violation)."""
+    from services.report import build_report
+    from services.report.load import load_run
+    from services.sniff import _clock, _one, parse_filters
+
+    c1 = keys.fipa_key("C1", "a_ta", "a_co"), keys.fipa_key("C1", "a_co", "a_ta")
+    at = next(i for i, (k, p) in enumerate(pour_traffic) if k == c1[0] and b"sw" in p)
+    confirm = next(i for i in range(at, len(pour_traffic)) if pour_traffic[i][0] == c1[1])
+    later = next(i for i in range(confirm, len(pour_traffic)) if pour_traffic[i][0] == c1[0])
+    copies = [pour_traffic[at], pour_traffic[confirm]]  # after a_ta's next inform, as 5 s later
+    report = verify(tmp_path, *pour_traffic[: later + 1], *copies, *pour_traffic[later + 1 :])
+    assert report.full_conformance and report.copies == 2, render(report)
+    assert "copies: 2 communicate(s) recorded again byte for byte" in render(report)
+    marked = [m for m in load_run(tmp_path).messages if m.copy_of is not None]
+    assert [m.rec.key for m in marked] == [c1[0], c1[1]]
+    assert any("2 communicate(s) recorded again" in n for n in build_report(tmp_path).notes)
+    # roco sniff shows a copy as one line naming the first arrival, and does not count it
+    earlier: OrderedDict[bytes, float] = OrderedDict()
+    filters = parse_filters(agents=None, channels=None, performatives=None, conversation=None)
+    key, payload = pour_traffic[at]
+    first = _one(filters, 1000.0, key, payload, True, earlier)
+    again = _one(filters, 1005.0, key, payload, True, earlier)
+    assert first is not None and first[1] is True
+    assert again is not None and again[1] is False
+    assert again[0].endswith(f"copy of the communicate at {_clock(1000.0)}") and "\n" not in again[0]
 
 
 def test_the_traffic_of_a_pour_conforms_in_full(pour_run: Path) -> None:
