@@ -25,6 +25,8 @@ process's own subscriber to every communicate (one hop after each put): a_hi's `
 a_co (C2), a_co's ``cancel`` to a_ta (C1), a_ta's ``cancel`` to ag_ex (C5). A stop that finds
 no motion to halt (the robot between two commands, observing, or the pour over) has no halt:
 it is counted apart and another pour is started, until each condition has ``--stops`` halts.
+After a failed pour, or three stops in a row finding nothing moving (the jar left where the
+robot cannot take it), a new fleet starts from a fresh kitchen.
 
 Prints the machine, a line per stop, then p50 / p99 / max (ms) per condition, and the median
 of each hop; :func:`measure` returns these figures (:class:`StopFigures`, ``roco bench``'s
@@ -162,8 +164,11 @@ def halts(log: Path) -> list[float]:
     return [float(m.group(1)) for m in HALTING.finditer(log.read_text(errors="replace"))]
 
 
-MAX_FAILED_IN_ROW = 3
-"""Pours that fail (or are not accepted) one after the other before the benchmark gives up."""
+IDLE_IN_ROW = 3
+"""Pours not accepted, or stops finding nothing moving, in a row before a fresh kitchen (a
+failed pour: at once)."""
+MAX_KITCHENS = 5
+"""Fresh kitchens (fleets) the benchmark starts at most before it gives up."""
 
 
 def percentile(values: list[float], q: float) -> float:
@@ -198,11 +203,54 @@ class StopFigures:
     """the long line's shape (scripts/bench_reading.py) and length, characters"""
     gap_ms: float
     """ms from the long line to the stop"""
+    kitchens: int = 1
+    """fleets started, each with a fresh kitchen (a new one when the robot could no longer pour)"""
 
     def percentile_ms(self, condition: str, q: float) -> float | None:
         """The ``q`` quantile (0–1, nearest rank) of ``condition``'s halts (None: no halt)."""
         ms = self.halts_ms.get(condition, [])
         return percentile(ms, q) if ms else None
+
+
+class Kitchen:
+    """One fleet as ``roco run`` starts it, with a fresh kitchen (ag_ex's world) and this
+    process's :class:`Watch` on it; :meth:`close` ends it and removes its run folder unless
+    ``keep`` (then echoed)."""
+
+    def __init__(self, realtime: bool, keep: bool, echo: Callable[[str], object]) -> None:
+        self.keep, self.echo = keep, echo
+        self.run_dir = Path(tempfile.mkdtemp(prefix="roco-bench-stop-"))
+        (self.run_dir / "logs").mkdir()
+        env = {"ROCO_REALTIME": "1" if realtime else "0"}
+        self.fleet = Fleet(self.run_dir, f"tcp/127.0.0.1:{free_port()}", env=env)
+        self.session: zenoh.Session | None = None
+        try:
+            self.fleet.start_router()
+            self.session = open_client(self.fleet.endpoint)
+            self.watch = Watch(self.session)
+            self.fleet.start_recorder()
+            self.fleet.wait_alive(self.session, ["recorder"], timeout=60)
+            self.fleet.start_agents()
+            self.fleet.wait_alive(self.session, AGENT_ORDER, timeout=180)
+            if not self.watch.knowledge.wait(120):
+                raise RuntimeError("a_km received no first knowledge within 120 s")
+        except BaseException:
+            self.close()
+            raise
+        self.log = self.run_dir / "logs" / "ag_ex.log"
+
+    def say(self, text: str, request_id: str) -> float:
+        assert self.session is not None
+        return say(self.session, text, request_id)
+
+    def close(self) -> None:
+        if self.session is not None:
+            self.session.close()
+        self.fleet.stop()
+        if self.keep:
+            self.echo(f"run folder: {self.run_dir}")
+        else:
+            shutil.rmtree(self.run_dir, ignore_errors=True)
 
 
 def measure(
@@ -217,38 +265,29 @@ def measure(
 ) -> StopFigures:
     """Start a fleet, run one whole pour, then pours stopped until each condition has ``stops``
     halts (the module's docstring says how; ``window`` defaults to 16 s paced, else 6 s).
-    ``echo`` is given a line per stop as it is measured; the run folder is removed unless
-    ``keep`` (then echoed). Raises RuntimeError when the fleet does not come up or cannot pour
-    (``MAX_FAILED_IN_ROW`` pours in a row failed or not accepted)."""
+    Stopped again and again, the robot may leave the jar where it can no longer take it (a
+    safe stop puts it down where the robot stands): when a pour fails, or
+    ``IDLE_IN_ROW`` stops in a row find nothing moving, the fleet is ended and a new one
+    starts from a fresh kitchen (counted in ``kitchens``). ``echo`` is given a line per stop
+    as it is measured; run folders are removed unless ``keep`` (then echoed). Raises
+    RuntimeError when a fleet does not come up, or ``MAX_KITCHENS`` kitchens were used."""
     rng = random.Random(seed)
     long_line = reading_line(long_shape, MAX_LINE_CHARS)
     window = window if window is not None else (16.0 if realtime else 6.0)
-    run_dir = Path(tempfile.mkdtemp(prefix="roco-bench-stop-"))
-    (run_dir / "logs").mkdir()
-    env = {"ROCO_REALTIME": "1" if realtime else "0"}
-    fleet = Fleet(run_dir, f"tcp/127.0.0.1:{free_port()}", env=env)
-    session: zenoh.Session | None = None
     records: list[Stop] = []
     idle = dict.fromkeys(CONDITIONS, 0)  # stops that found no motion to halt
 
     def halted(condition: str) -> int:
         return sum(s.condition == condition and s.halt_t is not None for s in records)
 
+    kitchen = Kitchen(realtime, keep, echo)
+    kitchens = 1
     try:
-        fleet.start_router()
-        session = open_client(fleet.endpoint)
-        watch = Watch(session)
-        fleet.start_recorder()
-        fleet.wait_alive(session, ["recorder"], timeout=60)
-        fleet.start_agents()
-        fleet.wait_alive(session, AGENT_ORDER, timeout=180)
-        if not watch.knowledge.wait(120):
-            raise RuntimeError("a_km received no first knowledge within 120 s")
         rid = f"p-{uuid.uuid4().hex[:6]}"
-        say(session, POUR, rid)
-        t0 = watch.accepted(rid).kind
+        kitchen.say(POUR, rid)
+        t0 = kitchen.watch.accepted(rid).kind
         start = time.monotonic()
-        first = watch.finals(rid)[rid]
+        first = kitchen.watch.finals(rid)[rid]
         pour_s = time.monotonic() - start
         echo(
             f"ag_ex's loop {'paced to wall time' if realtime else 'as fast as it can'}; "
@@ -256,38 +295,42 @@ def measure(
             f"stops at U(0.3, {window:.0f}) s after a_co agreed; long line: {long_shape}, "
             f"{len(long_line)} characters, {gap_ms:.0f} ms before the stop"
         )
-        log = run_dir / "logs" / "ag_ex.log"
         n = 0
-        failed_in_row = 0
+        spoiled = 0  # pours failed or not accepted, and stops finding nothing moving, in a row
         while min(halted(c) for c in CONDITIONS) < stops:
+            if spoiled >= IDLE_IN_ROW:
+                if kitchens >= MAX_KITCHENS:
+                    raise RuntimeError(f"the robot could not pour in {kitchens} fresh kitchens")
+                echo(f"  a fresh kitchen: {spoiled} pours in a row failed or found nothing to halt")
+                kitchen.close()
+                kitchen = Kitchen(realtime, keep, echo)
+                kitchens += 1
+                spoiled = 0
             condition = CONDITIONS[n % 2]
             n += 1
             if halted(condition) >= stops:
                 continue
             pour, stop = f"p-{uuid.uuid4().hex[:6]}", f"s-{uuid.uuid4().hex[:6]}"
-            say(session, POUR, pour)
-            if watch.accepted(pour).kind is not ReportKind.ACCEPTED:
-                failed_in_row += 1
-                if failed_in_row >= MAX_FAILED_IN_ROW:
-                    raise RuntimeError(f"{failed_in_row} pours in a row not accepted")
+            kitchen.say(POUR, pour)
+            if kitchen.watch.accepted(pour).kind is not ReportKind.ACCEPTED:
+                spoiled += 1
                 continue
             time.sleep(rng.uniform(0.3, window))  # a random moment of the pour
-            before = len(halts(log))
+            before = len(halts(kitchen.log))
             if condition == "long line before":
-                say(session, long_line, f"l-{uuid.uuid4().hex[:6]}")
+                kitchen.say(long_line, f"l-{uuid.uuid4().hex[:6]}")
                 time.sleep(gap_ms / 1e3)
-            record = Stop(condition, say(session, "stop", stop))
-            ended = watch.finals(pour, stop)
+            record = Stop(condition, kitchen.say("stop", stop))
+            ended = kitchen.watch.finals(pour, stop)
             time.sleep(0.5)  # the long line's command, when it was read, is stopped too
-            seen = [t for t in halts(log)[before:] if t >= record.line_t]
+            seen = [t for t in halts(kitchen.log)[before:] if t >= record.line_t]
             record.halt_t = seen[0] if seen else None
-            record.hops = watch.first_cancels(record.line_t)
+            record.hops = kitchen.watch.first_cancels(record.line_t)
             if record.halt_t is None:
                 idle[condition] += 1
             records.append(record)
-            failed_in_row = failed_in_row + 1 if ended[pour].kind is ReportKind.FAILED else 0
-            if failed_in_row >= MAX_FAILED_IN_ROW:  # the fleet cannot pour any more: say why
-                raise RuntimeError(f"{failed_in_row} pours in a row failed; the last: {ended[pour].text}")
+            failed = ended[pour].kind is ReportKind.FAILED
+            spoiled = IDLE_IN_ROW if failed else spoiled + 1 if record.halt_t is None else 0
             done = record.latency_ms
             hops = ", ".join(
                 f"{c} {(record.hops[c] - record.line_t) * 1e3:.1f}" for c, _, _ in HOPS if c in record.hops
@@ -298,13 +341,7 @@ def measure(
                 + f"  (pour {ended[pour].kind.value}; cancels seen at ms: {hops or 'none'})"
             )
     finally:
-        if session is not None:
-            session.close()
-        fleet.stop()
-        if keep:
-            echo(f"run folder: {run_dir}")
-        else:
-            shutil.rmtree(run_dir, ignore_errors=True)
+        kitchen.close()
     halts_ms: dict[str, list[float]] = {}
     hops_ms: dict[str, dict[str, float | None]] = {}
     for c in CONDITIONS:
@@ -326,6 +363,7 @@ def measure(
         long_shape=long_shape,
         long_chars=len(long_line),
         gap_ms=gap_ms,
+        kitchens=kitchens,
     )
 
 
