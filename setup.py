@@ -108,5 +108,4 @@ def _runtime_extensions() -> list:  # type: ignore[type-arg]
 if os.environ.get("ROCO_BUILD_NATIVE", "1") != "0":
     ext_modules += _runtime_extensions()
 
-# the extensions compile side by side, one per core (the impedance law alone takes minutes)
-setup(ext_modules=ext_modules, options={"build_ext": {"parallel": os.cpu_count() or 1}})
+setup(ext_modules=ext_modules)
