@@ -42,6 +42,7 @@ import benchlib  # noqa: E402  (scripts/benchlib.py, beside this file)
 from services.agents.human_interface.agent import HumanInterface  # noqa: E402
 from services.agents.human_interface.intents import Command, NotUnderstood, StatusRequest, Stop  # noqa: E402
 from services.agents.human_interface.reading import Reading  # noqa: E402
+from services.bench.messaging import percentile  # noqa: E402
 from services.runtime.human import MAX_LINE_CHARS, HumanInput  # noqa: E402
 from services.runtime.memory_transport import MemoryBus  # noqa: E402
 
@@ -123,11 +124,6 @@ def timed(hi: HumanInterface, text: str, repeats: int, read: threading.Event, wa
     return out
 
 
-def p99(ms: list[float]) -> float:
-    ordered = sorted(ms)
-    return ordered[min(len(ordered) - 1, round(0.99 * (len(ordered) - 1)))]
-
-
 def answer(text: str, stop: bool, readings: list[Reading]) -> str:
     """What a_hi did with ``text`` (see :attr:`ReadingRow.answer`)."""
     if stop:
@@ -169,7 +165,8 @@ def measure(repeats: int, on_row: Callable[[ReadingRow], None] | None = None) ->
                 did = answer(text, stop is not None, readings)
                 reset(hi)
                 ms = timed(hi, text, repeats, read)
-                rows.append(ReadingRow(shape, len(text), statistics.median(ms), p99(ms), work, did))
+                p50, p99 = statistics.median(ms), percentile(ms, 99)
+                rows.append(ReadingRow(shape, len(text), p50, p99, work, did))
                 if on_row is not None:
                     on_row(rows[-1])
         return rows

@@ -63,6 +63,7 @@ import msgspec  # noqa: E402
 import zenoh  # noqa: E402
 from bench_reading import line as reading_line  # noqa: E402
 
+from services.bench.messaging import percentile  # noqa: E402
 from services.fleet.launcher import AGENT_ORDER, Fleet, free_port  # noqa: E402
 from services.monitor import is_world_update  # noqa: E402
 from services.runtime import keys  # noqa: E402
@@ -171,12 +172,6 @@ MAX_KITCHENS = 5
 """Fresh kitchens (fleets) the benchmark starts at most before it gives up."""
 
 
-def percentile(values: list[float], q: float) -> float:
-    """The ``q`` quantile (0–1, nearest rank) of ``values``."""
-    ordered = sorted(values)
-    return ordered[min(len(ordered) - 1, round(q * (len(ordered) - 1)))]
-
-
 @dataclass
 class StopFigures:
     """What :func:`measure` found: each condition's halts, and how the run was made."""
@@ -209,7 +204,7 @@ class StopFigures:
     def percentile_ms(self, condition: str, q: float) -> float | None:
         """The ``q`` quantile (0–1, nearest rank) of ``condition``'s halts (None: no halt)."""
         ms = self.halts_ms.get(condition, [])
-        return percentile(ms, q) if ms else None
+        return percentile(ms, q * 100) if ms else None
 
 
 class Kitchen:
@@ -400,7 +395,7 @@ def main() -> int:
         hop_ms = [figures.hops_ms[c][channel] for channel, _, _ in HOPS]
         cells = " | ".join("—" if h is None else f"{h:.1f}" for h in hop_ms)
         if ms:
-            spread = f"{statistics.median(ms):.1f} | {percentile(ms, 0.99):.1f} | {max(ms):.1f}"
+            spread = f"{statistics.median(ms):.1f} | {percentile(ms, 99):.1f} | {max(ms):.1f}"
         else:
             spread = "— | — | —"
         print(f"| {c} | {len(ms)} | {spread} | {figures.idle[c]} | {cells} |")

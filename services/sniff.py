@@ -44,7 +44,7 @@ from datetime import datetime
 import zenoh
 
 from services.runtime import keys
-from services.runtime.dedup import digest
+from services.runtime.dedup import wire_digest
 from services.runtime.session import open_client
 from services.spec.model import SystemSpec, default_spec, is_foreign
 from shared.fipa_codec import Communicate, DecodeError, Performative, decode
@@ -292,7 +292,7 @@ def _one(
     if not filters.passes(channel, sender, receiver, msg):
         return None
     if earlier is not None:
-        d = digest(key.encode() + b"\0" + payload)
+        d = wire_digest(key, payload)
         first = earlier.get(d)
         if first is not None:
             return f"{head}  copy of the communicate at {_clock(first)}", False

@@ -18,7 +18,7 @@ import msgspec
 
 from services.recorder import integrity
 from services.recorder.record import TRAFFIC_JSONL, TRAFFIC_RAW, RecordKey, TrafficRecord, read_payloads
-from services.runtime.dedup import digest
+from services.runtime.dedup import wire_digest
 from services.runtime.run_folder import RUN_INFO, RunInfo, read_run_info
 from shared.fipa_codec import Communicate
 from shared.fipa_codec.languages import ContentError, decode_content
@@ -117,7 +117,7 @@ def _mark_copies(messages: list[Message], payloads: dict[RecordKey, bytes]) -> N
         payload = payloads.get(m.rec.ref) if m.comm is not None else None
         if payload is None:
             continue
-        d = digest(m.rec.key.encode() + b"\0" + payload)
+        d = wire_digest(m.rec.key, payload)
         if d in first:
             messages[i] = dataclasses.replace(m, copy_of=first[d])
         else:
