@@ -915,10 +915,11 @@ class Agent:
         self.protocol_states.commit()
 
     def bind(self) -> None:
-        """Subscribe the input buffer and announce liveliness."""
+        """Subscribe the input buffer and watch the peers' liveliness. The agent's own
+        liveliness token is declared by :meth:`run`, after :meth:`setup`: a peer (or a
+        person) that sees it finds every subscription of the agent in place."""
         self.transport.subscribe(keys.inbox_key(self.name), self._on_payload)
         self.transport.subscribe(keys.COUNTERS_ASK, self._on_counters_ask)
-        self.transport.announce(keys.alive_key(self.name))
         self.transport.watch(keys.ALIVE_ALL, self._on_alive)
 
     def stop(self) -> None:
@@ -978,6 +979,7 @@ class Agent:
         wait for) wherever a behaviour blocks for input, or with 0 where a step taken in on a
         receiving thread must go on on the agent's own (:meth:`_dispatch_here`)."""
         self.setup()
+        self.transport.announce(keys.alive_key(self.name))
         self._dispatch()
         state = self.fsm.initial
         while not self._stop.is_set():

@@ -164,6 +164,68 @@ def test_an_urgent_command_preempts_the_pour_which_resumes_and_finishes() -> Non
     assert any("preempted" in r.text.lower() for r in progress)
 
 
+def test_a_command_that_ends_as_a_ta_cancels_it_counts_as_done() -> None:
+    """The turn to pour ends (ag_ex informs a_ta, and forgets the request) while a_ta's cancel
+    of it is on the wire: ag_ex answers that cancel ``failure`` (nothing to cancel), after the
+    result. The leaf is done; the preempted pour resumes and finishes."""
+    robot = GatedExecutor(turning_to_pour)
+    s = Session(robot)
+    to_ex, from_ex = keys.fipa_key("C5", "a_ta", "ag_ex"), keys.fipa_key("C5", "ag_ex", "a_ta")
+    result_sent, cancel_answered = threading.Event(), threading.Event()
+
+    def answer(_key: str, payload: bytes) -> None:
+        perf = decode(payload).performative
+        if perf is Performative.INFORM and robot.gated.is_set():
+            result_sent.set()
+        elif perf is Performative.FAILURE and result_sent.is_set():
+            cancel_answered.set()
+
+    def cancel_on_the_wire(_key: str, payload: bytes) -> None:
+        # subscribed before the agents: runs (in a_ta's thread) before ag_ex receives the cancel
+        if decode(payload).performative is Performative.CANCEL and not result_sent.is_set():
+            robot.release()
+            assert result_sent.wait(TIMEOUT), "ag_ex never sent the turn's result"
+
+    def cancel_delivered(_key: str, payload: bytes) -> None:
+        # subscribed after the agents: a_ta reads on only when both answers wait for it
+        if decode(payload).performative is Performative.CANCEL and result_sent.is_set():
+            assert cancel_answered.wait(TIMEOUT), "ag_ex never answered the cancel"
+
+    s.bus.subscribe(from_ex, answer)
+    s.bus.subscribe(to_ex, cancel_on_the_wire)
+    with s:
+        s.bus.subscribe(to_ex, cancel_delivered)
+        interrupt_pour(s, robot, "urgently bring the cup to the table", "cup")
+        assert s.final("cup").kind is ReportKind.SUCCEEDED
+        assert s.final("pour").kind is ReportKind.SUCCEEDED, s.by_request["pour"]
+        answers = [m for k, m, _ in s.traffic() if k == from_ex and m.performative is Performative.FAILURE]
+    assert any("nothing to cancel" in str(m.content) for m in answers)
+
+
+class RolledBack(FakeExecutor):
+    """The kinematic double whose simulated time goes back once, at the turn to pour: the
+    answer comes from an older world (as from an ag_ex restored from a checkpoint)."""
+
+    def submit(
+        self, command: ExecutorCommand, on_done: Callable[[CommandResult | Observation], None]
+    ) -> object:
+        if turning_to_pour(command) and not getattr(self, "went_back", False):
+            self.went_back = True
+            self.t = 0.5
+        return super().submit(command, on_done)
+
+
+def test_an_answer_from_a_world_gone_back_in_time_makes_a_ta_look_and_replan() -> None:
+    with Session(RolledBack()) as s:
+        s.wait_for_initial_knowledge()
+        s.say("pour the jar into the bowl", "pour")
+        assert s.final("pour").kind is ReportKind.SUCCEEDED
+        replans = [c.reason or "" for c in s.sw_states() if c.state is SWState.REPLAN]
+    back = [r for r in replans if "went back" in r]
+    assert len(back) == 1, replans
+    assert "face_pour: ag_ex's world went back from" in back[0] and "to 1.50 s" in back[0]
+
+
 def test_a_stop_puts_the_held_jar_down_safely() -> None:
     robot = GatedExecutor(turning_to_pour)
     with Session(robot) as s:

@@ -181,10 +181,34 @@ def test_reply_by_deadline_ends_the_conversation_with_a_local_failure() -> None:
         t.join(timeout=5)
 
 
-def test_liveliness_token_is_announced() -> None:
-    bus = MemoryBus()
-    Counter(bus.transport()).bind()
-    assert keys.alive_key("a_km") in bus.alive()
+def test_liveliness_token_is_announced_once_the_agent_listens() -> None:
+    """The token appears after setup: whoever sees it reaches what setup subscribed to (a
+    person's line to a_hi, said as soon as a_hi is seen alive, is never lost)."""
+
+    class Listening(Counter):
+        def setup(self) -> None:
+            self.transport.subscribe("test/said", lambda key, payload: heard.append(payload))
+
+    bus, heard = MemoryBus(), list[bytes]()
+    seen = threading.Event()
+
+    def on_token(key: str, alive: bool) -> None:
+        if alive:
+            bus.publish("test/said", b"hello")  # as a person would, at once
+            seen.set()
+
+    bus.watch(keys.alive_key("a_km"), on_token)
+    agent = Listening(bus.transport())
+    agent.bind()
+    assert keys.alive_key("a_km") not in bus.alive()
+    t = threading.Thread(target=agent.run, daemon=True)
+    t.start()
+    try:
+        assert seen.wait(5)
+        assert heard == [b"hello"]
+    finally:
+        agent.stop()
+        t.join(timeout=5)
 
 
 def test_memory_bus_messages_are_valid_msgpack_communicates() -> None:

@@ -29,7 +29,8 @@ Preempted:
   the object, and the next plan cannot see it.)
 
 A command that ended before ag_ex could halt it (ag_ex answers the cancel ``failure`` with the
-command's result), or a cancel that comes between two leaves, counts the leaf as done:
+command's result; or its result crossed the cancel, and the ``failure`` that follows it tells
+nothing), or a cancel that comes between two leaves, counts the leaf as done:
 outside an atomic state the safe stop the next leaf names runs; inside one the next leaf is
 sent and cancelled at once, and ag_ex halts the robot as it stands (a tilted jar turned
 upright) before the above. It never opens a hand that holds something outside such a plan.
@@ -124,6 +125,9 @@ a_ta observes the scene (a_km learns it) and reports Replan instead of Error. ``
 the pose was planned from the objects as last seen, and a view that misplaced one (e.g. the
 bowl under the held jar, seen right after ag_ex restarted) yields a pose no arm configuration
 reaches; looking again and planning again is bounded by a_co's ``MAX_REPLANS_PER_TASK``."""
+WORLD_TIME_SLACK_S = 1e-6
+"""How far (s) an answer's simulated time may lie before the latest one seen and still be the
+same world's (the times are the world's own; equal times are the same instant)."""
 
 
 @dataclass
@@ -137,6 +141,7 @@ class Step:
     replan_reason: str | None = None  # set on the observation made before reporting Replan
     second_view: int = 0  # 1: looking at an uncertain object or a short content again, 2: observed it again
     halted: bool = False  # ag_ex answered a_ta's cancel: the command was halted
+    went_back: tuple[float, float] | None = None  # (latest, answer's) simulated time, s: the world went back
 
 
 class KeptTaskExecutor(msgspec.Struct, kw_only=True):
@@ -168,6 +173,7 @@ class TaskExecutor(Agent):
         self.subscription: Conversation | None = None
         self.initial_observe: Conversation | None = None
         self.initial_done = False
+        self.world_time: float | None = None  # the latest simulated time ag_ex answered at (s)
         # the last asserted change per object (held by / in, on), sent again to a new subscriber
         self.asserted: dict[str, ObjectUpdate] = {}
         self.plan: HierarchicalPlan | None = None
@@ -334,6 +340,7 @@ class TaskExecutor(Agent):
         self._ex_answer(conv, False)
 
     def _ex_answer(self, conv: Conversation, ok: bool) -> None:
+        went_back = self._world_time(conv.content)
         if conv is self.initial_observe:
             self.initial_observe = None
             if isinstance(conv.content, Observation):
@@ -342,6 +349,17 @@ class TaskExecutor(Agent):
             else:
                 self._observe_initial()  # deadline passed or failure: ask again
         elif self.step is not None and conv is self.step.waiting_for:
+            if self.step.reply is not None:
+                # the command's result came first and crossed a_ta's cancel: ag_ex answers
+                # that cancel too (failure: the conversation had ended), which tells nothing
+                self.log.info(
+                    "%s from ag_ex after the result of %s ignored: %s",
+                    conv.last.performative.value if conv.last is not None else "answer",
+                    self.step.path,
+                    conv.reason,
+                )
+                return
+            self.step.went_back = went_back
             if conv.answers_cancel and ok:  # inform: cancelled, the command halted, the robot at rest
                 self.step.halted = True
             elif conv.answers_cancel:
@@ -359,6 +377,25 @@ class TaskExecutor(Agent):
             self.retreat_reply = (conv, ok)
         elif conv.last is not None:  # a late reply to a request whose deadline already passed
             self.log.info("late %s from ag_ex ignored", conv.last.performative.value)
+
+    def _world_time(self, answer: object) -> tuple[float, float] | None:
+        """Keep the simulated time of ag_ex's ``answer`` (a CommandResult's ``sim_time``, an
+        Observation's ``stamp``, s); returns (the latest before, this one) when it went back
+        by more than ``WORLD_TIME_SLACK_S``: the world is not the one the steps so far were
+        done in (ag_ex restarted on an older or a new world), and what was done may be undone."""
+        if isinstance(answer, CommandResult):
+            t: float | None = answer.sim_time
+        elif isinstance(answer, Observation):
+            t = answer.stamp
+        else:
+            return None
+        if t is None:
+            return None
+        latest, self.world_time = self.world_time, t
+        if latest is not None and t < latest - WORLD_TIME_SLACK_S:
+            self.log.warning("ag_ex's simulated time went back from %.3f s to %.3f s", latest, t)
+            return latest, t
+        return None
 
     def _catch_up_subscriber(self) -> None:
         """A new subscription (a_km started, or restarted and maybe missed updates that were
@@ -697,6 +734,14 @@ class TaskExecutor(Agent):
             if isinstance(reply.content, Observation):
                 self._update_km(reply.content)
             self._end(SWState.REPLAN, step.replan_reason)
+            return
+        if step.went_back is not None and not self.terminating:
+            latest, now = step.went_back
+            self._surprise(
+                step,
+                f"{step.path}: ag_ex's world went back from {latest:.2f} s to {now:.2f} s "
+                "(what was done may be undone)",
+            )
             return
         if ok and step.second_view == 1 and isinstance(action, Perceive | CheckContent):
             step.second_view = 2  # the head turned to it: observe again
