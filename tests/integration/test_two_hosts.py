@@ -32,6 +32,7 @@ from services.runtime.run_folder import new_run_dir
 from services.runtime.session import open_client
 from services.security.context import register
 from services.spec.model import default_spec
+from services.spec_check.conformance import render, verify_run
 from tests.support.machine import needs_two_hosts
 
 pytestmark = needs_two_hosts
@@ -100,11 +101,14 @@ def _robot_put(h: TwoHosts, identity: str, keys_: list[str]) -> None:
     )
 
 
-def test_ten_second_partitions_during_a_motion_and_during_planning_are_ridden_out(hosts: TwoHosts) -> None:
-    """The link cut for 10 s at the first motion (a_ta's reach for the jar), and again when
+def test_partitions_during_a_motion_and_during_planning_are_ridden_out_in_full_conformance(
+    hosts: TwoHosts,
+) -> None:
+    """The link cut for 5 s at the first motion (a_ta's reach for the jar), and for 10 s when
     a_co asks a_pl for plan #3 (which can only happen once the first cut has healed: a_co
-    learns that plan #2 ended from a_ta, across the link)."""
-    cuts = {"take/reach": lambda: hosts.partition(10.0), "plan #3 requested": lambda: hosts.partition(10.0)}
+    learns that plan #2 ended from a_ta, across the link). What was retransmitted across the
+    cuts is on record as copies, and the run conforms to the specification in full."""
+    cuts = {"take/reach": lambda: hosts.partition(5.0), "plan #3 requested": lambda: hosts.partition(10.0)}
     states = hosts.run_dir / "robot_states.jsonl"
     with _robot_observer(hosts, states):
         report = hosts.say(POUR, cuts)
@@ -115,7 +119,8 @@ def test_ten_second_partitions_during_a_motion_and_during_planning_are_ridden_ou
     assert kinds == ["shaping", "down", "up", "down", "up"], kinds
     times = [float(e["t"]) for e in events]  # type: ignore[arg-type]
     windows = [(times[1], times[2]), (times[3], times[4])]
-    assert all(9.9 <= up - down <= 12.0 for down, up in windows), windows
+    assert 4.9 <= windows[0][1] - windows[0][0] <= 7.0, windows
+    assert 9.9 <= windows[1][1] - windows[1][0] <= 12.0, windows
     record = [json.loads(line) for line in (hosts.run_dir / "traffic.jsonl").read_text().splitlines()]
     c5 = [r for r in record if r["channel"] == "C5"]
     requests = [r for r in c5 if r["performative"] == "request"]
@@ -157,6 +162,8 @@ def test_ten_second_partitions_during_a_motion_and_during_planning_are_ridden_ou
     )
     assert asked and all(len(sizes) == 1 for sizes in asked.values()), asked
     assert max(answered.values()) == 1 and set(answered) == set(asked), (asked, answered)
+    conformance = verify_run(hosts.run_dir, default_spec())
+    assert conformance.full_conformance, render(conformance)
 
 
 OBSERVER = """
