@@ -1,0 +1,139 @@
+"""The world as a process of its own (velma/world/): a controller commands it over the robot
+link in lockstep; when the controller stops, the safety layer holds the robot and the world
+goes on; a controller that attaches again finds the world as it is now, never rolled back."""
+
+from __future__ import annotations
+
+import multiprocessing
+from collections.abc import Iterator
+
+import numpy as np
+import pytest
+
+from velma.control.compiled import make_controller
+from velma.control.robot_model import HEAD_JOINTS, SIDES, TORSO_JOINT, RobotModel, arm_joints
+from velma.world.hardware import DT, SimulatedVelma
+from velma.world.layout import COMMAND, MEASURED
+from velma.world.link import RobotLink
+from velma.world.serve import HOLD_CYCLES, world_process
+
+HELD = [RobotModel().v_index(j) for j in (*arm_joints("right"), *arm_joints("left"), TORSO_JOINT)]
+"""The arm and torso joints in the link's order: those the safety layer holds."""
+TURN = 0.3
+"""How far (rad) the controller turns the torso from where it stands."""
+
+
+class Controller:
+    """The impedance law (velma/control/) on the link: joint setpoints at the measured pose,
+    the torso's turned by ``turn``; the hands and the head keep their targets."""
+
+    def __init__(self, name: str, turn: float = 0.0) -> None:
+        self.link = RobotLink.attach(name)
+        self.measured, self.command = np.zeros(MEASURED.size), np.zeros(COMMAND.size)
+        assert self.link.wait_measured(0, 30.0, spin_s=0.0), "the world published nothing"
+        self.k = self.link.read_measured(self.measured)
+        assert self.k is not None
+        robot = RobotModel()
+        self.ctrl = make_controller(robot, DT)
+        self.head = [robot.v_index(j) for j in HEAD_JOINTS]
+        q, v = self.q(), self.measured[MEASURED.slice("v")].copy()
+        for s in SIDES:
+            self.ctrl.arm[s].q = q[self.ctrl.arm_slice[s]].copy()
+        self.ctrl.torso_q = float(q[self.ctrl.torso_idx]) + turn
+        self.ctrl.kinematics(q, v)
+        self.command[COMMAND.slice("hand")] = np.nan  # the hands' servos keep their targets
+
+    def q(self) -> np.ndarray:
+        return self.measured[MEASURED.slice("q")].copy()
+
+    @property
+    def time(self) -> float:
+        return float(self.measured[MEASURED.fields["time"][0]])
+
+    @property
+    def holding(self) -> bool:
+        return bool(self.measured[MEASURED.fields["holding"][0]])
+
+    def run(self, cycles: int) -> list[int]:
+        """Command ``cycles`` cycles in lockstep; per command, how many cycles the world was
+        ahead of it when the controller read the next state (the world steps with the
+        command of the state before: at most 2)."""
+        ahead = []
+        for _ in range(cycles):
+            taus, tau_torso = self.ctrl.update(self.q(), self.measured[MEASURED.slice("v")].copy())
+            self.command[COMMAND.slice("tau")] = np.concatenate([taus["right"], taus["left"], [tau_torso]])
+            self.command[COMMAND.slice("head")] = self.q()[self.head]
+            answered = self.k
+            self.link.command(answered, self.command)
+            assert self.link.wait_measured(answered + 1, 10.0, spin_s=0.0), "the world stopped"
+            self.k = self.link.read_measured(self.measured)
+            assert self.k is not None
+            ahead.append(self.k - answered)
+        return ahead
+
+    def close(self) -> None:
+        self.link.close()
+
+
+@pytest.fixture
+def world() -> Iterator[str]:
+    ctx = multiprocessing.get_context("spawn")
+    here, there = ctx.Pipe()
+    proc = ctx.Process(target=world_process, args=(there,), kwargs={"realtime": False})
+    proc.start()
+    try:
+        assert here.poll(120), "the world process said nothing"
+        yield here.recv()
+    finally:
+        here.send("stop")
+        proc.join(30)
+    assert proc.exitcode == 0
+
+
+def test_a_controller_that_ends_leaves_the_robot_held_and_the_next_finds_the_world_as_it_is(
+    world: str,
+) -> None:
+    first = Controller(world, turn=TURN)
+    start = first.q()
+    first.run(HOLD_CYCLES)  # attached to a world that runs on the wall clock: it leaves the hold
+    ahead = first.run(1500)  # 1.5 s of the torso's turn, in lockstep
+    assert not first.holding
+    assert max(ahead) <= 2  # the world never ran ahead of its commands: no step without one
+    torso = first.ctrl.torso_idx
+    assert first.q()[torso] - start[torso] > 0.1  # it turned
+    last_q, last_time, last_k = first.q(), first.time, first.k
+    first.close()  # the controller ends, mid-motion
+
+    second = Controller(world)
+    # the world steps once more with the last command it had, waits LOCKSTEP_WAIT_S for the
+    # next one, then steps on, held
+    assert second.link.wait_measured(last_k + 2, 10.0, spin_s=0.0)
+    second.k = second.link.read_measured(second.measured)
+    held_at = second.time
+    assert second.holding and held_at > last_time  # the world went on without a controller …
+    assert np.abs(second.q()[HELD] - last_q[HELD]).max() < 0.02  # … holding the robot where it was
+    assert second.link.wait_measured(second.k + 300, 10.0, spin_s=0.0)
+    second.link.read_measured(second.measured)
+    assert second.time >= held_at + 0.299  # on the wall clock, 1 ms a cycle
+    assert np.abs(second.q()[HELD] - last_q[HELD]).max() < 0.02  # still held: nothing fell
+    # commanded again, the hold ends: at the first command that answers the state before in
+    # time (the held world steps on the wall clock, 1 ms a cycle)
+    for _ in range(1000):
+        second.run(1)
+        if not second.holding:
+            break
+    assert not second.holding
+    second.close()
+
+
+def test_the_safety_layer_holds_the_arms_against_gravity() -> None:
+    sim = SimulatedVelma()
+    measured = np.zeros(MEASURED.size)
+    sim.measure(measured)
+    q0 = measured[MEASURED.slice("q")].copy()
+    for _ in range(500):
+        sim.apply(None)  # no controller: the brakes
+        sim.step()
+    sim.measure(measured)
+    assert sim.holding and measured[MEASURED.fields["holding"][0]] == 1.0
+    assert np.abs(measured[MEASURED.slice("q")][HELD] - q0[HELD]).max() < 1e-3  # without: 1.7 rad

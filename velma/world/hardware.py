@@ -1,0 +1,164 @@
+"""Velma's hardware side in the simulated kitchen: the MuJoCo physics, the sensors a
+controller reads (joint encoders, wrist force/torque sensors, the hands' tactile summary),
+the inputs it writes (arm and torso torques), the servos that run on the robot itself (the
+BarrettHands' finger and spread servos, the head's pan and tilt), and the safety layer that
+holds the robot when its controller stops commanding it.
+
+One ``SimulatedVelma`` is stepped by one thread: ``measure`` (the state of this cycle),
+``apply`` (the command, or None: no fresh command), ``step`` (1 ms). What crosses to the
+controller is the vectors of velma/world/layout.py.
+
+Safety hold (as a KUKA LWR4+ brakes when FRI commands stop): the arm and torso joints are held
+at the pose measured when the hold began, by a stiff joint impedance on top of the physics'
+own gravity and Coriolis torques (``BRAKE_STIFFNESS``, critically damped on each joint's
+inertia); the hands' and the head's servos keep their targets, so a grasped object stays
+grasped. The next command ends the hold.
+"""
+
+from __future__ import annotations
+
+import math
+
+import mujoco
+import numpy as np
+import numpy.typing as npt
+
+from velma.control.hand import ContactMonitor, Hands
+from velma.control.robot_model import HEAD_JOINTS, SIDES, TORSO_JOINT, JointMap, RobotModel, arm_joints
+from velma.model.scene import N_PARTICLES, initial_state, load_kitchen
+from velma.world.layout import COMMAND, MEASURED, N_JOINTS, TOUCH_SLOTS
+
+DT = 0.001
+"""The physics step and the link's cycle (s): 1 kHz (velma-facts.md "Loop: 1 kHz")."""
+HEAD_RATE = 1.04
+"""The head servos' speed limit (rad/s, velma-facts.md: neck velocity limit)."""
+BRAKE_STIFFNESS = 2000.0
+"""Joint stiffness of the safety hold (N·m/rad), ten times Velma's arm joint impedance: the
+arm sags by less than a milliradian under its own weight."""
+BRAKE_DAMPING_RATIO = 1.0
+CONTACT_PERIOD = 10
+"""Cycles between two tactile scans of a hand (10 ms); ``touch`` keeps the last one."""
+
+Array = npt.NDArray[np.float64]
+
+
+class SimulatedVelma:
+    """The kitchen with Velma in it, seen from the controller's side as hardware.
+
+    ``seed`` jitters the jar's content, ``pose_seed`` randomises the jar's and the bowl's
+    poses (velma/model/scene.py; None: those of kitchen.xml). Raises KeyError when the model
+    lacks one of Velma's joints, actuators or sensors, ValueError when Pinocchio's model has
+    another number of joints than the link carries."""
+
+    def __init__(
+        self, *, seed: int = 0, n_particles: int | None = None, pose_seed: int | None = None
+    ) -> None:
+        model = load_kitchen(N_PARTICLES if n_particles is None else n_particles, seed, pose_seed)
+        model.opt.timestep = DT
+        self.model = model
+        self.data = initial_state(model)
+        robot = RobotModel()
+        if robot.model.nv != N_JOINTS:
+            raise ValueError(f"the robot has {robot.model.nv} joints, the link carries {N_JOINTS}")
+        self.jmap = JointMap.build(model, robot)
+        held = [j for s in SIDES for j in arm_joints(s)] + [TORSO_JOINT]
+        motors = [f"{s}_arm_{k}_motor" for s in SIDES for k in range(7)] + ["torso_0_motor"]
+        self.tau_act = np.array([self.jmap.ctrl[m] for m in motors])
+        self.tau_q = np.array([model.joint(j).qposadr[0] for j in held])
+        self.tau_v = np.array([model.joint(j).dofadr[0] for j in held])
+        self.head_act = np.array([self.jmap.ctrl["head_pan_servo"], self.jmap.ctrl["head_tilt_servo"]])
+        self.head_q = np.array([model.joint(j).qposadr[0] for j in HEAD_JOINTS])
+        self.head_set = self.data.qpos[self.head_q].copy()
+        """The head servos' setpoints (rad: pan, tilt), ramping to ``head_target``."""
+        self.head_target = self.head_set.copy()
+        self.hands = Hands(model)
+        self.hands.reset_from(self.data)
+        self._hand_target = np.full(2 * len(SIDES), math.nan)
+        self.contacts = ContactMonitor(model)
+        self.ft_adr = [
+            (int(model.sensor(f"{s}_ft_force").adr[0]), int(model.sensor(f"{s}_ft_torque").adr[0]))
+            for s in SIDES
+        ]
+        self.cycles = 0
+        """Steps taken since this world was made."""
+        self.hold_q: Array | None = None
+        self._brake_damping = np.zeros(len(self.tau_v))
+        """The joint positions the safety layer holds (the ``tau`` joints' order), or None."""
+        self._q, self._v = MEASURED.slice("q"), MEASURED.slice("v")
+        self._ft, self._touch = MEASURED.fields["ft"][0], MEASURED.fields["touch"][0]
+        self._time, self._holding = MEASURED.fields["time"][0], MEASURED.fields["holding"][0]
+        self._tau, self._hand, self._head = COMMAND.slice("tau"), COMMAND.slice("hand"), COMMAND.slice("head")
+
+    @property
+    def time(self) -> float:
+        """The simulated time (s)."""
+        return float(self.data.time)
+
+    @property
+    def holding(self) -> bool:
+        """True while the safety layer holds the robot."""
+        return self.hold_q is not None
+
+    def measure(self, out: Array) -> None:
+        """Write this cycle's measured state into ``out`` (``MEASURED.size`` float64; ``touch``
+        is rewritten per hand every ``CONTACT_PERIOD`` cycles: keep ``out`` between calls)."""
+        data = self.data
+        out[self._time] = data.time
+        out[self._q] = data.qpos[self.jmap.qpos_adr]
+        out[self._v] = data.qvel[self.jmap.dof_adr]
+        for k, (force, torque) in enumerate(self.ft_adr):
+            at = self._ft + 6 * k
+            out[at : at + 3] = data.sensordata[force : force + 3]
+            out[at + 3 : at + 6] = data.sensordata[torque : torque + 3]
+        phase = self.cycles % CONTACT_PERIOD
+        for k, side in enumerate(SIDES):
+            if phase != k * CONTACT_PERIOD // 2:
+                continue  # each hand's scan once a period, the two half a period apart
+            at = self._touch + 2 * TOUCH_SLOTS * k
+            touched = sorted(self.contacts.touching(data, side).items(), key=lambda bg: -bg[1])[:TOUCH_SLOTS]
+            slots = out[at : at + 2 * TOUCH_SLOTS]
+            slots[0::2], slots[1::2] = -1.0, 0.0
+            for i, (body, geoms) in enumerate(touched):
+                slots[2 * i], slots[2 * i + 1] = body, geoms
+        out[self._holding] = 1.0 if self.holding else 0.0
+
+    def apply(self, command: Array | None) -> None:
+        """The controller's ``command`` (``COMMAND.size`` float64) for the next step, or None:
+        no fresh one came, and the safety layer holds the robot (module docstring)."""
+        data = self.data
+        if command is None:
+            if self.hold_q is None:
+                self.hold_q = data.qpos[self.tau_q].copy()
+                full = np.zeros((self.model.nv, self.model.nv))
+                mujoco.mj_fullM(self.model, data, full)
+                inertia = full[self.tau_v, self.tau_v]  # each held joint's, as the hold begins
+                self._brake_damping = 2.0 * BRAKE_DAMPING_RATIO * np.sqrt(BRAKE_STIFFNESS * inertia)
+            self._brake()
+            return
+        self.hold_q = None
+        data.ctrl[self.tau_act] = command[self._tau]
+        hand = command[self._hand]
+        if not np.array_equal(hand, self._hand_target, equal_nan=True):
+            self._hand_target = hand.copy()
+            for k, side in enumerate(SIDES):
+                spread, proximal = float(hand[2 * k]), float(hand[2 * k + 1])
+                if not math.isnan(proximal):  # NaN: the hand keeps its targets
+                    self.hands.command(side, proximal, None if math.isnan(spread) else spread)
+        self.head_target = command[self._head].copy()
+
+    def _brake(self) -> None:
+        data = self.data
+        q, v = data.qpos[self.tau_q], data.qvel[self.tau_v]
+        assert self.hold_q is not None
+        tau = data.qfrc_bias[self.tau_v] + BRAKE_STIFFNESS * (self.hold_q - q) - self._brake_damping * v
+        data.ctrl[self.tau_act] = tau
+
+    def step(self) -> None:
+        """One physics step of ``DT``, the hands' and the head's servos first."""
+        data = self.data
+        self.hands.step(data, DT)
+        rate = HEAD_RATE * DT
+        self.head_set += np.clip(self.head_target - self.head_set, -rate, rate)
+        data.ctrl[self.head_act] = self.head_set
+        mujoco.mj_step(self.model, data)
+        self.cycles += 1
