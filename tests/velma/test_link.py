@@ -11,7 +11,7 @@ from multiprocessing.shared_memory import SharedMemory
 import numpy as np
 import pytest
 
-from velma.executor.handoff import SHM_DIR
+from velma.shm import SHM_DIR
 from velma.world.link import LinkError, RobotLink
 
 CYCLES = 200

@@ -11,11 +11,7 @@ side, in POSIX shared memory (``multiprocessing.shared_memory``).
 
 Neither takes a lock or makes a system call on ``push``/``pop``/``write``/``read``.
 
-Every block is named ``roco_<creator's pid>_<random>`` (:func:`new_block`): a creator killed
-with SIGKILL (``roco fault``, a chaos scenario, an OOM kill) cannot unlink its blocks, and
-Python's resource tracker, killed with it, does not either; the next creator removes the blocks
-of creators that are gone (:func:`remove_orphans`) instead of leaving them in ``/dev/shm``
-(RAM) for good.
+Every block is named as velma/shm.py says, and swept from there when its creator is gone.
 
 Memory ordering: the producer writes a message before it advances the index (or the sequence
 number) with an aligned 8-byte store; the consumer reads the index before the message.
@@ -27,62 +23,27 @@ Layout: [head u64][pad to 64][tail u64][pad to 128][slot 0][slot 1]…; a slot i
 from __future__ import annotations
 
 import contextlib
-import os
-import secrets
 import struct
 from multiprocessing import shared_memory
-from pathlib import Path
 
 import numpy as np
 import numpy.typing as npt
 
+from velma.shm import BLOCK_PREFIX, SHM_DIR, BlockError, new_block, remove_orphans, shared_view
+
+__all__ = [
+    "BLOCK_PREFIX",
+    "SHM_DIR",
+    "HandoffError",
+    "LatestValue",
+    "SpscRing",
+    "new_block",
+    "remove_orphans",
+    "shared_view",
+]
+
 _HEADER = 128
 _LEN = struct.Struct("<I")
-
-
-BLOCK_PREFIX = "roco_"
-"""Start of the name of every block made here: ``roco_<pid>_<8 hex digits>``."""
-SHM_DIR = Path("/dev/shm")
-"""Where Linux keeps POSIX shared memory (tmpfs: a block occupies RAM until unlinked)."""
-
-
-def new_block(size: int) -> shared_memory.SharedMemory:
-    """A new block of ``size`` bytes named after this process (``roco_<pid>_<random>``).
-    Raises OSError when the system refuses it (e.g. /dev/shm full)."""
-    name = f"{BLOCK_PREFIX}{os.getpid()}_{secrets.token_hex(4)}"
-    return shared_memory.SharedMemory(name=name, create=True, size=size)
-
-
-def _alive(pid: int) -> bool:
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except PermissionError:  # another user's process: alive
-        return True
-    return True
-
-
-def remove_orphans(shm_dir: Path = SHM_DIR) -> list[str]:
-    """Unlink the blocks of :func:`new_block` whose creator process no longer exists; returns
-    their names. Blocks of live processes, and every other file, are left alone (a PID that was
-    reused keeps its blocks: they are only left over, never taken). Nothing when ``shm_dir``
-    does not exist (not Linux); a block that another process removes meanwhile is skipped."""
-    gone: list[str] = []
-    try:
-        entries = list(shm_dir.iterdir())
-    except OSError:
-        return gone
-    for entry in entries:
-        pid_text, _, rest = entry.name.removeprefix(BLOCK_PREFIX).partition("_")
-        if not entry.name.startswith(BLOCK_PREFIX) or not pid_text.isdigit() or not rest:
-            continue
-        if _alive(int(pid_text)):
-            continue
-        with contextlib.suppress(FileNotFoundError, PermissionError):
-            entry.unlink()
-            gone.append(entry.name)
-    return gone
 
 
 def _attach(name: str) -> shared_memory.SharedMemory:
@@ -92,15 +53,7 @@ def _attach(name: str) -> shared_memory.SharedMemory:
     return shared_memory.SharedMemory(name=name)
 
 
-def shared_view(shm: shared_memory.SharedMemory) -> memoryview:
-    """The block's buffer (typeshed marks it optional: it is None only after ``close``)."""
-    buf = shm.buf
-    if buf is None:
-        raise HandoffError(f"shared block {shm.name} is closed")
-    return buf
-
-
-class HandoffError(ValueError):
+class HandoffError(BlockError):
     """A message does not fit its slot, or a shared block has the wrong size."""
 
 

@@ -39,7 +39,7 @@ from multiprocessing import resource_tracker, shared_memory
 import numpy as np
 import numpy.typing as npt
 
-from velma.executor.handoff import new_block, shared_view
+from velma.shm import BlockError, new_block, shared_view
 
 MAGIC = b"ROCOLNK1"
 HEADER = 128
@@ -57,11 +57,11 @@ def _untrack(shm: shared_memory.SharedMemory) -> None:
     """Keep ``shm`` out of this process's resource tracker: the world removes its block in
     :meth:`RobotLink.close`, and an attaching controller must never remove it when it ends
     (before Python 3.13 its tracker would: CPython gh-82300). A block left by a killed world is
-    swept as any other (velma/executor/handoff.py ``remove_orphans``)."""
+    swept as any other (velma/shm.py ``remove_orphans``)."""
     resource_tracker.unregister(getattr(shm, "_name", f"/{shm.name}"), "shared_memory")
 
 
-class LinkError(ValueError):
+class LinkError(BlockError):
     """A block that is not a link, or values of the wrong size."""
 
 
