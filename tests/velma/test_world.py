@@ -5,16 +5,24 @@ goes on; a controller that attaches again finds the world as it is now, never ro
 from __future__ import annotations
 
 import multiprocessing
+import os
+import signal
+import subprocess
+import sys
+import time
 from collections.abc import Iterator
+from pathlib import Path
 
 import numpy as np
 import pytest
 
 from velma.control.compiled import make_controller
 from velma.control.robot_model import HEAD_JOINTS, SIDES, TORSO_JOINT, RobotModel, arm_joints
+from velma.shm import SHM_DIR
 from velma.world.hardware import DT, SimulatedVelma
 from velma.world.layout import COMMAND, MEASURED
 from velma.world.link import RobotLink
+from velma.world.main import link_name
 from velma.world.serve import HOLD_CYCLES, world_process
 
 HELD = [RobotModel().v_index(j) for j in (*arm_joints("right"), *arm_joints("left"), TORSO_JOINT)]
@@ -137,3 +145,38 @@ def test_the_safety_layer_holds_the_arms_against_gravity() -> None:
     sim.measure(measured)
     assert sim.holding and measured[MEASURED.fields["holding"][0]] == 1.0
     assert np.abs(measured[MEASURED.slice("q")][HELD] - q0[HELD]).max() < 1e-3  # without: 1.7 rad
+
+
+def test_python_m_velma_world_serves_the_run_folder_and_cleans_up_on_sigterm(tmp_path: Path) -> None:
+    world = subprocess.Popen(
+        [sys.executable, "-m", "velma.world", "--run-dir", str(tmp_path)],
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    try:
+        deadline = time.monotonic() + 120
+        while (name := link_name(tmp_path)) is None and world.poll() is None and time.monotonic() < deadline:
+            time.sleep(0.05)  # polls for the file the world writes once its link exists
+        assert name is not None, world.stderr.read() if world.poll() is not None and world.stderr else ""
+        controller = Controller(name)
+        controller.run(HOLD_CYCLES)
+        controller.close()
+        world.send_signal(signal.SIGTERM)
+        assert world.wait(30) == 0
+    finally:
+        if world.poll() is None:
+            world.kill()
+            world.wait()
+    assert link_name(tmp_path) is None and not (SHM_DIR / name).exists()
+
+
+def test_python_m_velma_world_without_a_run_folder_says_so_in_one_line(tmp_path: Path) -> None:
+    done = subprocess.run(
+        [sys.executable, "-m", "velma.world", "--run-dir", str(tmp_path / "missing")],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        env={k: v for k, v in os.environ.items() if not k.startswith("ROCO_")},
+    )
+    assert done.returncode == 2
+    assert done.stderr.strip().splitlines() == [f"velma.world: no run folder {tmp_path / 'missing'}"]

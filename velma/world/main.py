@@ -1,0 +1,97 @@
+"""``python -m velma.world``: Velma's hardware side in the simulated kitchen as a process of its
+own (velma/world/serve.py), the way a real robot exists beside its controller.
+
+It makes the robot link and writes the link's name to ``RUN/world.link`` (``LINK_FILE``,
+written whole: a reader sees the old name or the new one), where a controller finds it
+(:func:`link_name`); it serves until SIGTERM or SIGINT, then removes the link and the file.
+Settings come from the options, else from the fleet's environment: ``--run-dir``
+(``ROCO_RUN_DIR``), ``--realtime`` (``ROCO_REALTIME=1``), ``--seed`` (``ROCO_SEED``: the jar's
+content jitter), ``--pose-seed`` (``ROCO_POSE_SEED``: the jar's and the bowl's poses). A bad
+option or a run folder that does not exist: one line on stderr, exit code 2.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import os
+import signal
+import sys
+import threading
+from pathlib import Path
+from types import FrameType
+
+from velma.shm import remove_orphans
+from velma.world.hardware import SimulatedVelma
+from velma.world.layout import COMMAND, MEASURED
+from velma.world.link import RobotLink
+from velma.world.serve import serve
+
+LINK_FILE = "world.link"
+"""The file in the run folder that names the world's link block."""
+
+
+def link_name(run_dir: Path) -> str | None:
+    """The name of the link the world of ``run_dir`` serves, or None when no world has
+    written one (not started yet, or ended)."""
+    try:
+        return (run_dir / LINK_FILE).read_text().strip() or None
+    except FileNotFoundError:
+        return None
+
+
+def _int_env(name: str) -> int | None:
+    text = os.environ.get(name, "")
+    return int(text) if text.strip() else None
+
+
+def _parser() -> argparse.ArgumentParser:
+    ap = argparse.ArgumentParser(prog="python -m velma.world", description=__doc__.splitlines()[0])
+    ap.add_argument("--run-dir", type=Path, default=os.environ.get("ROCO_RUN_DIR"), help="the run folder")
+    ap.add_argument(
+        "--realtime",
+        action=argparse.BooleanOptionalAction,
+        default=os.environ.get("ROCO_REALTIME", "0") == "1",
+        help="step on the wall clock (default: in lockstep with the controller)",
+    )
+    ap.add_argument("--seed", type=int, default=None, help="the jar's content jitter (ROCO_SEED, 0)")
+    ap.add_argument("--pose-seed", type=int, default=None, help="random jar and bowl poses (ROCO_POSE_SEED)")
+    return ap
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run the world (module docstring); the exit code."""
+    args = _parser().parse_args(argv)
+    try:
+        seed = args.seed if args.seed is not None else (_int_env("ROCO_SEED") or 0)
+        pose_seed = args.pose_seed if args.pose_seed is not None else _int_env("ROCO_POSE_SEED")
+    except ValueError as exc:
+        print(f"velma.world: ROCO_SEED and ROCO_POSE_SEED must be integers: {exc}", file=sys.stderr)
+        return 2
+    run_dir: Path | None = args.run_dir
+    if run_dir is None or not Path(run_dir).is_dir():
+        print(f"velma.world: no run folder {run_dir or '(give --run-dir or ROCO_RUN_DIR)'}", file=sys.stderr)
+        return 2
+    run_dir = Path(run_dir)
+    stop = threading.Event()
+
+    def on_signal(signum: int, frame: FrameType | None) -> None:
+        stop.set()
+
+    signal.signal(signal.SIGTERM, on_signal)
+    signal.signal(signal.SIGINT, on_signal)
+    remove_orphans()  # the blocks of a world that was killed
+    sim = SimulatedVelma(seed=seed, pose_seed=pose_seed)
+    link = RobotLink.create(MEASURED.size, COMMAND.size)
+    named = run_dir / LINK_FILE
+    try:
+        partial = named.with_suffix(".tmp")
+        partial.write_text(link.name + "\n")
+        partial.replace(named)
+        serve(sim, link, realtime=args.realtime, should_stop=stop.is_set)
+    finally:
+        if link_name(run_dir) == link.name:
+            with contextlib.suppress(FileNotFoundError):
+                named.unlink()
+        link.close()
+    return 0
