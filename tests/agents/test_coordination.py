@@ -18,7 +18,13 @@ from services.runtime.human import FINAL_REPORTS, HumanInput, HumanReport, Repor
 from shared.fipa_codec import Performative, decode
 from shared.fipa_codec.languages import decode_content
 from shared.fipa_codec.languages.common import Pose
-from shared.fipa_codec.languages.l_ex import CommandResult, ExecutorCommand, MoveJoints
+from shared.fipa_codec.languages.l_ex import (
+    NOT_AT_GRASP_POSE,
+    CommandResult,
+    ExecutorCommand,
+    Grasp,
+    MoveJoints,
+)
 from shared.fipa_codec.languages.l_hfsm import Assert
 from shared.fipa_codec.languages.l_sd import Observation
 from shared.fipa_codec.languages.l_sw import SWState, SWStatus
@@ -224,6 +230,35 @@ def test_an_answer_from_a_world_gone_back_in_time_makes_a_ta_look_and_replan() -
     back = [r for r in replans if "went back" in r]
     assert len(back) == 1, replans
     assert "face_pour: ag_ex's world went back from" in back[0] and "to 1.50 s" in back[0]
+
+
+class HandElsewhere(FakeExecutor):
+    """The kinematic double whose first Grasp finds the hand away from its grasp pose."""
+
+    def submit(
+        self, command: ExecutorCommand, on_done: Callable[[CommandResult | Observation], None]
+    ) -> object:
+        if isinstance(command, Grasp) and not getattr(self, "refused", False):
+            self.refused = True
+            self.t += 1.0
+            on_done(
+                CommandResult(
+                    command="grasp", ok=False, reason=NOT_AT_GRASP_POSE, sim_time=self.t, tool_error=0.052
+                )
+            )
+            return object()
+        return super().submit(command, on_done)
+
+
+def test_a_grasp_away_from_its_grasp_pose_makes_a_ta_look_and_replan() -> None:
+    with Session(HandElsewhere()) as s:
+        s.wait_for_initial_knowledge()
+        s.say("pour the jar into the bowl", "pour")
+        assert s.final("pour").kind is ReportKind.SUCCEEDED
+        replans = [c.reason or "" for c in s.sw_states() if c.state is SWState.REPLAN]
+        errors = [c for c in s.sw_states() if c.state is SWState.ERROR]
+    assert any("take/grasp: the hand was not at the grasp pose" in r for r in replans), replans
+    assert not errors
 
 
 def test_a_stop_puts_the_held_jar_down_safely() -> None:

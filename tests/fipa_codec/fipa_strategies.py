@@ -174,8 +174,10 @@ SAMPLE_TERMS: list[msgspec.Struct] = [
     ),
     # L_EX
     MOVE,
+    MoveTool(arm=Arm.LEFT, target=POSE, duration=1.5, guard=5.0),
     MoveJoints(positions={"torso_0_joint": 0.3, "left_arm_3_joint": -1.2}, duration=2.0),
     Grasp(arm=Arm.LEFT),
+    Grasp(arm=Arm.RIGHT, spread=0.1, at=POSE, tolerance=0.015),
     Release(arm=Arm.LEFT, opening=0.2),
     LookAt(point=(1.0, 0.0, 1.0)),
     Tilt(arm=Arm.RIGHT, pivot=(0.5, 0, 1), axis=(1, 0, 0), angle=1.9, duration=4.0),
@@ -183,6 +185,14 @@ SAMPLE_TERMS: list[msgspec.Struct] = [
     Wait(duration=1.0),
     CommandResult(command="grasp", ok=False, reason="no contact", sim_time=4.2, tool_error=0.01),
     CommandResult(command="move_tool", ok=True, sim_time=9.1, self_contacts=("left_arm_5 + left_arm_3",)),
+    CommandResult(
+        command="move_tool",
+        ok=True,
+        reason="contact (7.9 N, 20.0 mm from the target)",
+        sim_time=8.4,
+        tool_error=0.02,
+        contact=7.9,
+    ),
     # L_SD
     Observation(
         stamp=2.0,

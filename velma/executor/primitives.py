@@ -10,7 +10,12 @@ limits, a look-at point outside the neck's range), ``timeout`` (not converged in
 MoveTool, Tilt and MoveJoints add in parentheses by how much and MoveJoints what the hands
 touch),
 ``no contact`` (fingers closed fully), ``contact lost`` (a held object left the hand during
-a motion), ``unknown joint: NAME``, ``unknown frame: NAME``.
+a motion), ``not at the grasp pose`` (L_EX ``NOT_AT_GRASP_POSE``: a Grasp given ``at`` found
+the hand farther than its tolerance from there; it did not close), ``invalid guard`` (a
+MoveTool guard ≤ 0 N), ``unknown joint: NAME``, ``unknown frame: NAME``.
+
+A guarded MoveTool (``MoveTool.guard``, ``_Guard``) that meets a contact ends ``ok``, its
+reason ``contact (F N, D mm from the target)`` and ``CommandResult.contact`` F.
 
 Grasps hold by contact and friction only (no welds, no attachment).
 
@@ -21,6 +26,7 @@ Grasps hold by contact and friction only (no welds, no attachment).
 from __future__ import annotations
 
 import math
+from collections import deque
 from typing import NamedTuple, Protocol
 
 import numpy as np
@@ -29,6 +35,7 @@ import pinocchio as pin
 from shared.fipa_codec.languages.common import Pose
 from shared.fipa_codec.languages.l_ex import (
     HALTED,
+    NOT_AT_GRASP_POSE,
     CommandResult,
     ExecutorCommand,
     Grasp,
@@ -71,6 +78,13 @@ GRASP_TIMEOUT = 5.0  # s
 RELEASE_TIMEOUT = 2.5  # s
 CLOSED = PROXIMAL_MAX - 0.1  # rad: a finger this far closed has met nothing
 HEAD_TOL = 0.02  # rad
+GUARD_WINDOW = 5
+"""Cycles (1 ms each) over which a guarded MoveTool averages its contact force: a single
+reading ends it only when it is 5 times the guard (a jolt of one cycle is no contact); a
+contact ends it ≤ 5 ms late, ≤ 0.5 mm at a set-down lower's peak speed (≈ 0.1 m/s)."""
+GUARD_MIN_TRAVEL = 0.001
+"""m: a guarded MoveTool that moves the grip frame less than this only turns it, and its
+contact force is the magnitude of the force's change, not its part along the motion."""
 HEAD_TIMEOUT = 4.0  # s
 IK_ITERATIONS_PER_CYCLE = 4
 """IK search steps per 1 ms cycle while a target is solved (warm: a compiled DLS iteration
@@ -241,24 +255,85 @@ class _CartesianMotion:
         return float(np.linalg.norm(rt.grip(self.side).translation - self.goal.translation))
 
 
+class _Guard:
+    """A guarded MoveTool's contact force (L_EX ``MoveTool.guard``): the external force (N)
+    that resists the motion, i.e. the change of the force the arm exerts on the hand
+    (``Runtime.ft_force``, world axes) since ``start``, projected on the unit direction of the
+    motion ``travel`` (m, (3,): from the start to the target; its magnitude when the motion
+    moves the grip frame less than ``GUARD_MIN_TRAVEL``), averaged over the last
+    ``GUARD_WINDOW`` cycles. The weight of the hand and of what it holds is in the force at the
+    start too, and cancels; the hand's own acceleration along the path stays in it (≈ 0.3 N in
+    a set-down's lower)."""
+
+    def __init__(self, rt: Runtime, side: str, travel: Array, limit: float) -> None:
+        self.side = side
+        self.limit = limit
+        """N: the contact force that ends the move (``MoveTool.guard``)."""
+        self.start = rt.ft_force(side).copy()
+        length = float(np.linalg.norm(travel))
+        self.direction: Array | None = travel / length if length >= GUARD_MIN_TRAVEL else None
+        self.recent: deque[float] = deque([0.0] * GUARD_WINDOW, maxlen=GUARD_WINDOW)
+        """The last readings (N); zero before the first: the change since the start."""
+
+    def force(self, rt: Runtime) -> float:
+        """Take this cycle's reading; the mean contact force (N) over the last
+        ``GUARD_WINDOW`` cycles."""
+        change = rt.ft_force(self.side) - self.start
+        along = (
+            float(change @ self.direction) if self.direction is not None else float(np.linalg.norm(change))
+        )
+        self.recent.append(along)
+        return sum(self.recent) / GUARD_WINDOW
+
+
 class MoveToolPrimitive(_CartesianMotion):
-    """Minimum-jerk straight line + slerp of the grip frame to ``target`` (world)."""
+    """Minimum-jerk straight line + slerp of the grip frame to ``target`` (world). With a
+    ``guard`` (N) it ends at once, ``ok``, when the contact force (``_Guard``) exceeds it: the
+    setpoint stops at the measured grip pose."""
 
     name = "move_tool"
 
     def __init__(self, cmd: MoveTool) -> None:
         super().__init__(cmd.arm.value, cmd.duration, cmd.stiffness)
         self.cmd = cmd
+        self.guard: _Guard | None = None
 
     def start(self, rt: Runtime) -> Result | None:
         try:
             goal = pose_to_se3(self.cmd.target)
         except ValueError as exc:
             return _result(rt, self.name, False, str(exc))
+        limit = self.cmd.guard
+        if limit is not None and not limit > 0.0:
+            return _result(rt, self.name, False, "invalid guard")
         rt.tilt_about[self.side] = None
         start = self.start_pose(rt)
+        if limit is not None:
+            self.guard = _Guard(rt, self.side, goal.translation - start.translation, limit)
         self._begin(rt, PosePath(start, goal, self.duration), goal)
         return None
+
+    def step(self, rt: Runtime) -> Result | None:
+        if self.guard is not None and self.path is not None:
+            force = self.guard.force(rt)
+            if force > self.guard.limit:
+                return self._stop_on_contact(rt, force)
+        return super().step(rt)
+
+    def _stop_on_contact(self, rt: Runtime, force: float) -> CommandResult:
+        """End the motion where the hand is: the setpoint to the measured grip pose, at rest."""
+        cmd = rt.ctrl.arm[self.side]
+        cmd.pose = rt.grip(self.side).copy()
+        cmd.twist = np.zeros(6)
+        perr = self._perr(rt)
+        return CommandResult(
+            command=self.name,
+            ok=True,
+            reason=f"contact ({force:.1f} N, {perr * 1000:.1f} mm from the target)",
+            sim_time=rt.time,
+            tool_error=perr,
+            contact=force,
+        )
 
 
 class TiltPrimitive(_CartesianMotion):
@@ -411,18 +486,29 @@ class MoveJointsPrimitive:
 
 class GraspPrimitive:
     """Set the spread, then close the three fingers (distal = proximal / 3) until every
-    finger has stalled on the object or closed fully."""
+    finger has stalled on the object or closed fully. Given ``at``, first check the measured
+    grip frame is within ``tolerance`` of it, else fail at once with ``NOT_AT_GRASP_POSE``
+    (``tool_error``: how far, m), the fingers unmoved."""
 
     name = "grasp"
 
     def __init__(self, cmd: Grasp) -> None:
         self.side = cmd.arm.value
         self.spread = float(cmd.spread)
+        self.at = cmd.at
+        self.tolerance = float(cmd.tolerance)
         self.phase = "spread"
         self.t0 = 0.0
         self.stall_since: float | None = None
 
     def start(self, rt: Runtime) -> Result | None:
+        if self.at is not None:
+            if self.at.frame != "world":
+                return _result(rt, self.name, False, f"unknown frame: {self.at.frame}")
+            expected = np.array(self.at.position, dtype=float)
+            away = float(np.linalg.norm(rt.grip(self.side).translation - expected))
+            if not away <= self.tolerance:
+                return _result(rt, self.name, False, NOT_AT_GRASP_POSE, away)
         hs = rt.hands.set[self.side]
         rt.hands.command(self.side, float(np.max(hs.proximal)), self.spread)
         self.t0 = rt.time

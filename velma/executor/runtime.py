@@ -102,6 +102,8 @@ class Runtime:
             )
             for s in SIDES
         }
+        self.ft_site = {s: self.model.site(f"{s}_ft_sensor").id for s in SIDES}
+        """The site of each wrist F/T sensor: its frame is the sensor's (``ft_force``)."""
         self.jmap = JointMap.build(self.model, self.robot)
         self.ctrl = make_controller(self.robot, DT)
         self.ik_kernel: DlsKernel | None = (
@@ -233,6 +235,18 @@ class Runtime:
     def grip(self, side: str) -> pin.SE3:
         """Measured grip-frame pose (world) as of the last control update."""
         return self.ctrl.state[side].grip
+
+    def ft_force(self, side: str) -> Array:
+        """The force (N, (3,), world axes) that ``side``'s arm exerts on its hand through the
+        wrist F/T sensor: MuJoCo's ``{side}_ft_force`` (the interaction between arm_7_link and
+        the palm's subtree: palm, fingers and what they hold; velma/model/generate.py) turned
+        from the sensor frame ``{side}_ft_sensor`` into the world's. At rest it carries the
+        hand's and the held object's weight (+z); a surface pushing the hand or what it holds
+        up lowers it. As of the last physics step, with either cycle: the compiled plant steps
+        the same ``mjData`` (velma/executor/plant.py)."""
+        fa = self.ft_adr[side][0]
+        out: Array = self.data.site_xmat[self.ft_site[side]].reshape(3, 3) @ self.data.sensordata[fa : fa + 3]
+        return out
 
     def joint_index(self, name: str) -> int:
         """Pinocchio v index of a Velma joint; raises KeyError for an unknown name."""

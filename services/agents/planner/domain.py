@@ -63,6 +63,19 @@ ATOMIC_STATES = frozenset({"take", "set_down", "tilt_pour"})
 """HFSM states a cancel does not interrupt (see module docstring)."""
 SAFE_SURFACE = "table"
 """Where the safe stop puts held objects down."""
+SET_DOWN_GUARD_N = 5.0
+"""Contact-force guard (N) of a set-down's lower (L_EX ``MoveTool.guard``): the lower ends where
+the hand is once the surface bears what it holds, also when the hand holds it lower than
+planned (unguarded, the move pushes on and times out some mm short of its target). The force
+resisting the motion (wrist F/T sensor, change since the move began) read at most 0.34 N in
+lowers that met nothing, mostly the hand's own acceleration (the scripted pour, seed 0: the
+jar with its content onto its pour-start pose 0.34 N, the bowl until it touched the table
+0.31 N; the jar towards its shelf until it met it 0.21 N), and at most 1.2 N in the scripted
+pour's other moves that neither touched nor lifted anything; a contact read 18 N (the jar
+meeting its shelf) and 35 N (the bowl meeting the table) in its first ms
+(tests/velma/test_guarded_commands.py). 5 N is 15 times the lowers' noise; a gentler contact
+reaches it within ≈ 5 mm more of the setpoint's travel at the default Cartesian stiffness
+(1000 N/m)."""
 
 DOMAIN_NAME = "roco_kitchen"
 
@@ -120,7 +133,9 @@ def _step(s: Any) -> Any:
     return s
 
 
-def a_move(s: Any, path: str, arm: str, target: Pose, duration: float) -> Any:
+def a_move(s: Any, path: str, arm: str, target: Pose, duration: float, guard: float | None = None) -> Any:
+    """Move ``arm``'s grip frame to ``target``; ``guard`` (N): end early on a contact this
+    strong (L_EX ``MoveTool.guard``; the hand then stands a few mm short of ``target``)."""
     s.tool[arm] = target
     held = s.holding[arm]
     if held is not None:
@@ -138,7 +153,9 @@ def a_preshape(s: Any, path: str, arm: str, opening: float) -> Any:
     return _step(s) if s.holding[arm] is None else False
 
 
-def a_grasp(s: Any, path: str, arm: str, obj: str, spread: float) -> Any:
+def a_grasp(s: Any, path: str, arm: str, obj: str, spread: float, at: Pose) -> Any:
+    """Close ``arm``'s hand on ``obj``; ``at``: the grasp pose the reach brought the hand to
+    (L_EX ``Grasp.at``: ag_ex does not close a hand that is not there)."""
     if s.holding[arm] is not None:
         return False
     return _step(s)
@@ -351,7 +368,7 @@ def m_fetch(s: Any, path: str, obj: str, arm: str) -> Any:
     return [
         *steps,
         ("a_move", f"{take}/reach", arm, grip, reach_s),
-        ("a_grasp", f"{take}/grasp", arm, obj, grasp.spread),
+        ("a_grasp", f"{take}/grasp", arm, obj, grasp.spread, grip),
         ("a_held", f"{take}/held", obj, arm, where),
         ("a_move", f"{take}/lift", arm, lifted, 1.0),
         ("a_move", f"{take}/withdraw", arm, out, SHORT_MOVE_S),
@@ -394,7 +411,9 @@ def _free_place(s: Any, obj: str, furniture: str) -> tuple[int, Vec3, float] | N
 
 def m_place(s: Any, path: str, obj: str, furniture: str, arm: str) -> Any:
     """Face the place, bring ``obj`` above a free place, set it down (lower, release, clear:
-    atomic), park the hand out of the way, and look at where it stands."""
+    atomic), park the hand out of the way, and look at where it stands. The lower is guarded
+    (``SET_DOWN_GUARD_N``): it ends where the surface bears the object, which the last look
+    judges by where it stands (hfsm.py ``PLACED_TOLERANCE_M``), not by where the hand got to."""
     if s.holding[arm] != obj:
         return False
     placement = _k(s).placements.get((obj, furniture))
@@ -414,7 +433,7 @@ def m_place(s: Any, path: str, obj: str, furniture: str, arm: str) -> Any:
         *_face_steps(s, path, furniture, facing),
         ("a_look", f"{path}/look_at_place", (x, y, z)),
         ("a_move", f"{path}/carry", arm, above, LONG_MOVE_S),
-        ("a_move", f"{down}/lower", arm, grip, SHORT_MOVE_S),
+        ("a_move", f"{down}/lower", arm, grip, SHORT_MOVE_S, SET_DOWN_GUARD_N),
         ("a_release", f"{down}/release", arm, obj, opening),
         ("a_put", f"{down}/put", obj, furniture, _relation(s, furniture), (x, y, z)),
         ("a_move", f"{down}/clear", arm, above, 1.0),
@@ -461,7 +480,9 @@ def m_localise_placed(s: Any, path: str, obj: str, position: Vec3) -> Any:
 
 def m_pour_into(s: Any, path: str, src: str, dst: str, arm: str) -> Any:
     """Turn to pour, bring the source upright beside the target, then (atomic) tilt it about
-    the pivot, wait for the content to run out, tilt back."""
+    the pivot, wait for the content to run out, tilt back. The lower is not guarded: it ends in
+    the air beside the target, its bottom above the target's rim, where the tilt's pivot is
+    planned; a hand stopped short by a contact would pour from elsewhere."""
     pour = _k(s).pours.get((src, dst))
     dst_pose = s.pose.get(dst)
     if pour is None or dst_pose is None or s.holding[arm] != src or src not in s.grip:

@@ -36,8 +36,9 @@ def leaf_action(name: str, args: tuple[Any, ...]) -> tuple[Action | None, float]
     """The L_HFSM leaf action of one planner action, and its expected duration (s).
     Raises ValueError for an action name the HFSM does not know."""
     if name == "a_move":
-        arm, target, duration = args
-        return Execute(MoveTool(arm=Arm(arm), target=target, duration=duration)), duration
+        arm, target, duration, *guard = args
+        move = MoveTool(arm=Arm(arm), target=target, duration=duration, guard=guard[0] if guard else None)
+        return Execute(move), duration
     if name == "a_face":
         angle, duration = args
         return Execute(MoveJoints(positions={"torso_0_joint": angle}, duration=duration)), duration
@@ -45,8 +46,8 @@ def leaf_action(name: str, args: tuple[Any, ...]) -> tuple[Action | None, float]
         arm, opening = args
         return Execute(Release(arm=Arm(arm), opening=opening)), 1.0
     if name == "a_grasp":
-        arm, _obj, spread = args
-        return Execute(Grasp(arm=Arm(arm), spread=spread)), 1.5
+        arm, _obj, spread, at = args
+        return Execute(Grasp(arm=Arm(arm), spread=spread, at=at)), 1.5
     if name == "a_posture":
         arm, positions, duration = args
         joints = {f"{arm}_arm_{i}_joint": float(q) for i, q in enumerate(positions)}

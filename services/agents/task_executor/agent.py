@@ -76,6 +76,7 @@ from services.runtime.state_store import StateFile
 from shared.fipa_codec import Performative
 from shared.fipa_codec.languages.l_ex import (
     HALTED,
+    NOT_AT_GRASP_POSE,
     CommandResult,
     LookAt,
     MoveJoints,
@@ -119,12 +120,15 @@ REPLAN_FAILURES = {
     "no contact": "the grasp closed on nothing",
     "contact lost": "the held object left the hand",
     "unreachable": "no arm configuration reaches the planned pose",
+    NOT_AT_GRASP_POSE: "the hand was not at the grasp pose",
 }
 """ag_ex failure reasons that mean the world may differ from the plan, and how a_ta says so:
 a_ta observes the scene (a_km learns it) and reports Replan instead of Error. ``unreachable``:
 the pose was planned from the objects as last seen, and a view that misplaced one (e.g. the
 bowl under the held jar, seen right after ag_ex restarted) yields a pose no arm configuration
-reaches; looking again and planning again is bounded by a_co's ``MAX_REPLANS_PER_TASK``."""
+reaches; looking again and planning again is bounded by a_co's ``MAX_REPLANS_PER_TASK``.
+``NOT_AT_GRASP_POSE``: ag_ex did not close a hand that is not where the plan put it (the
+reach's target, ``Grasp.at``)."""
 WORLD_TIME_SLACK_S = 1e-6
 """How far (s) an answer's simulated time may lie before the latest one seen and still be the
 same world's (the times are the world's own; equal times are the same instant)."""

@@ -22,12 +22,25 @@ class Arm(enum.StrEnum):
 
 class MoveTool(msgspec.Struct, frozen=True, tag="move_tool", kw_only=True):
     """Move ``arm``'s grip frame to ``target`` along a straight, minimum-jerk path of
-    ``duration`` seconds under Cartesian impedance ``stiffness`` (6 values; None: default)."""
+    ``duration`` seconds under Cartesian impedance ``stiffness`` (6 values; None: default).
+
+    ``guard`` (N, positive; None: unguarded) makes it a guarded move, e.g. lowering a held
+    object onto a surface. While the path runs, the contact force is the external force that
+    resists the motion: the change, since the command began, of the force the arm exerts on
+    the hand as the wrist F/T sensor measures it (``{arm}_ft_sensor``, velma-facts.md; so the
+    hand's and the held object's weight cancel), projected on the motion's direction, from
+    the start to ``target`` (its magnitude for a move that only turns). When its mean over
+    the last 5 ms exceeds ``guard`` the move ends at once, ``ok``: the Cartesian setpoint is
+    set to the measured grip pose (the arm does not push on) and the result says so
+    (``CommandResult.contact``; ``reason`` ``contact (F N, D mm from the target)``). Without
+    such a contact it ends as an unguarded move does; a ``guard`` ≤ 0 fails at once
+    (``invalid guard``)."""
 
     arm: Arm
     target: Pose
     duration: float
     stiffness: tuple[float, float, float, float, float, float] | None = None
+    guard: float | None = None
 
 
 class MoveJoints(msgspec.Struct, frozen=True, tag="move_joints", kw_only=True):
@@ -38,12 +51,33 @@ class MoveJoints(msgspec.Struct, frozen=True, tag="move_joints", kw_only=True):
     duration: float
 
 
+GRASP_AT_TOLERANCE_M = 0.02
+"""Default ``Grasp.tolerance`` (m): how far the measured grip frame may be from the grasp pose
+``Grasp.at``. The reach that brings the hand there ends within 1 cm of it (a MoveTool's
+convergence, velma/executor/primitives.py ``POS_TOL``), and the BarrettHand's pre-grasp
+opening leaves ≈ 1 cm either way around the object (services/agents/planner/hfsm.py
+``GRASP_MAX_SIGMA_M``); a hand further off closes beside the object, or on its rim."""
+
+NOT_AT_GRASP_POSE = "not at the grasp pose"
+"""``CommandResult.reason`` of a Grasp given ``at`` whose measured grip frame was farther than
+its ``tolerance`` from there (e.g. a hand left elsewhere by a restart): it fails at once, the
+fingers unmoved; ``tool_error`` says how far (m). The world differs from the plan."""
+
+
 class Grasp(msgspec.Struct, frozen=True, tag="grasp", kw_only=True):
     """Close ``arm``'s BarrettHand with finger spread ``spread`` (rad) until the fingers meet
-    the object; fails with ``no contact`` if they close fully."""
+    the object; fails with ``no contact`` if they close fully.
+
+    ``at`` (world; None: anywhere) is the grasp pose the hand is expected at, the target of
+    the reach before it: when the measured grip frame's position is farther than
+    ``tolerance`` (m, default ``GRASP_AT_TOLERANCE_M``) from ``at``'s position, the grasp
+    fails at once with ``NOT_AT_GRASP_POSE`` without moving the fingers (its orientation is
+    not compared)."""
 
     arm: Arm
     spread: float = 0.0
+    at: Pose | None = None
+    tolerance: float = GRASP_AT_TOLERANCE_M
 
 
 class Release(msgspec.Struct, frozen=True, tag="release", kw_only=True):
@@ -96,11 +130,15 @@ def command_name(command: object) -> str:
 
 class CommandResult(msgspec.Struct, frozen=True, tag="result", kw_only=True):
     """The outcome of one executor command: ``ok`` and, when not, a ``reason``
-    (``unreachable``, ``contact lost``, ``timeout``, ``no contact``…). ``sim_time`` is the
-    simulation time at completion (s); ``tool_error`` the final grip-frame position error (m);
-    ``self_contacts`` the pairs of the robot's own geometries (``"a + b"``, sorted) that touched
-    each other while the command ran — empty when the robot did not touch itself
-    (Velma's links collide with each other in the simulation)."""
+    (``unreachable``, ``contact lost``, ``timeout``, ``no contact``, ``NOT_AT_GRASP_POSE``…);
+    a guarded MoveTool that ended on contact is ``ok`` with the reason
+    ``contact (F N, D mm from the target)``. ``sim_time`` is the simulation time at completion
+    (s); ``tool_error`` the final grip-frame position error (m; for a Grasp that was not at its
+    grasp pose, how far it was); ``self_contacts`` the pairs of the robot's own geometries
+    (``"a + b"``, sorted) that touched each other while the command ran — empty when the robot
+    did not touch itself (Velma's links collide with each other in the simulation);
+    ``contact`` the external force along the motion (N, ``MoveTool.guard``'s measure) that
+    ended a guarded MoveTool early, None for any other ending."""
 
     command: str
     ok: bool
@@ -108,6 +146,7 @@ class CommandResult(msgspec.Struct, frozen=True, tag="result", kw_only=True):
     sim_time: float = 0.0
     tool_error: float | None = None
     self_contacts: tuple[str, ...] = ()
+    contact: float | None = None
 
 
 HALTED = "halted"
