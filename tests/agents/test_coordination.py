@@ -208,21 +208,44 @@ def test_a_command_that_ends_as_a_ta_cancels_it_counts_as_done() -> None:
     assert any("nothing to cancel" in str(m.content) for m in answers)
 
 
-class RolledBack(FakeExecutor):
-    """The kinematic double whose simulated time goes back once, at the turn to pour: the
-    answer comes from an older world (as from an ag_ex restored from a checkpoint)."""
+OnDone = Callable[[CommandResult | Observation], None]
 
-    def submit(
-        self, command: ExecutorCommand, on_done: Callable[[CommandResult | Observation], None]
-    ) -> object:
-        if turning_to_pour(command) and not getattr(self, "went_back", False):
-            self.went_back = True
-            self.t = 0.5
+
+class Surprising(FakeExecutor):
+    """The kinematic double that, the first time ``when`` matches a command, calls
+    ``surprise(double, on_done)`` first; it answers the command itself when that returns True."""
+
+    def __init__(
+        self, when: Callable[[ExecutorCommand], bool], surprise: Callable[[FakeExecutor, OnDone], bool]
+    ) -> None:
+        super().__init__()
+        self.when, self.surprise, self.surprised = when, surprise, False
+
+    def submit(self, command: ExecutorCommand, on_done: OnDone) -> object:
+        if not self.surprised and self.when(command):
+            self.surprised = True
+            if self.surprise(self, on_done):
+                return object()
         return super().submit(command, on_done)
 
 
+def goes_back(robot: FakeExecutor, _on_done: OnDone) -> bool:
+    """The answer comes from an older world (as from an ag_ex restored from a checkpoint)."""
+    robot.t = 0.5
+    return False
+
+
+def hand_elsewhere(robot: FakeExecutor, on_done: OnDone) -> bool:
+    """The grasp finds the hand 52 mm from its grasp pose."""
+    robot.t += 1.0
+    on_done(
+        CommandResult(command="grasp", ok=False, reason=NOT_AT_GRASP_POSE, sim_time=robot.t, tool_error=0.052)
+    )
+    return True
+
+
 def test_an_answer_from_a_world_gone_back_in_time_makes_a_ta_look_and_replan() -> None:
-    with Session(RolledBack()) as s:
+    with Session(Surprising(turning_to_pour, goes_back)) as s:
         s.wait_for_initial_knowledge()
         s.say("pour the jar into the bowl", "pour")
         assert s.final("pour").kind is ReportKind.SUCCEEDED
@@ -232,26 +255,8 @@ def test_an_answer_from_a_world_gone_back_in_time_makes_a_ta_look_and_replan() -
     assert "face_pour: ag_ex's world went back from" in back[0] and "to 1.50 s" in back[0]
 
 
-class HandElsewhere(FakeExecutor):
-    """The kinematic double whose first Grasp finds the hand away from its grasp pose."""
-
-    def submit(
-        self, command: ExecutorCommand, on_done: Callable[[CommandResult | Observation], None]
-    ) -> object:
-        if isinstance(command, Grasp) and not getattr(self, "refused", False):
-            self.refused = True
-            self.t += 1.0
-            on_done(
-                CommandResult(
-                    command="grasp", ok=False, reason=NOT_AT_GRASP_POSE, sim_time=self.t, tool_error=0.052
-                )
-            )
-            return object()
-        return super().submit(command, on_done)
-
-
 def test_a_grasp_away_from_its_grasp_pose_makes_a_ta_look_and_replan() -> None:
-    with Session(HandElsewhere()) as s:
+    with Session(Surprising(lambda command: isinstance(command, Grasp), hand_elsewhere)) as s:
         s.wait_for_initial_knowledge()
         s.say("pour the jar into the bowl", "pour")
         assert s.final("pour").kind is ReportKind.SUCCEEDED
