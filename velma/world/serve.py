@@ -13,9 +13,8 @@ command applies in the cycle after the state it answers) and steps.
 
 When no command answers one of the last ``HOLD_CYCLES`` states in real time, or the state
 before in lockstep (the controller ended, hangs or has not attached yet), the safety layer
-holds the robot and the world steps on
-the wall clock until a controller commands again: the kitchen goes on, and a controller that
-attaches finds it as it is now.
+holds the robot and the world steps on the wall clock until a controller commands again: the
+kitchen goes on, and a controller that attaches finds it as it is now.
 """
 
 from __future__ import annotations
