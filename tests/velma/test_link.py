@@ -103,3 +103,15 @@ def test_lockstep_across_processes_wakes_on_the_doorbells() -> None:
         proc.join(10)
         world.close()
     assert proc.exitcode == 0
+
+
+def test_a_write_left_half_done_reads_as_nothing_instead_of_hanging() -> None:
+    world = RobotLink.create(2, 1)
+    controller = RobotLink.attach(world.name)
+    try:
+        world.publish(3, np.array([1.0, 2.0]))
+        world._u64[8] += np.uint64(1)  # the measured block's lock held odd: a writer killed mid-write
+        assert controller.read_measured(np.zeros(2)) is None
+    finally:
+        controller.close()
+        world.close()

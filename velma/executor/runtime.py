@@ -48,12 +48,10 @@ from velma.executor.ground_truth import GroundTruth
 from velma.executor.plant import CompiledPlant, plant_choice, plant_unavailable
 from velma.executor.state import LINK_BODIES
 from velma.model.scene import N_PARTICLES, initial_state, load_kitchen
+from velma.world.hardware import CONTACT_PERIOD, DT, HEAD_RATE  # the robot's rates, stated once
 
 log = logging.getLogger(__name__)
 
-DT = 0.001  # s
-HEAD_RATE = 1.04  # rad/s (velma-facts.md: neck velocity limit)
-CONTACT_PERIOD = 10  # cycles between contact scans (10 ms)
 TORSO_Z = 0.03  # m, torso_0_joint above torso_base
 
 

@@ -46,6 +46,9 @@ HEADER = 128
 _COUNTS = struct.Struct("<II")
 _MEASURED_SEQ, _MEASURED_CYCLE, _COMMAND_SEQ, _COMMAND_CYCLE = 8, 9, 10, 11  # u64 word indices
 _WORLD_BELL, _CONTROLLER_BELL = 24, 25  # u32 word indices (bytes 96, 100)
+READ_RETRIES = 10_000
+"""Attempts of a read under a sequence lock held odd (a write takes < 1 µs; a writer killed
+mid-write would leave it odd for good): then the read gives None, as before any write."""
 NO_CYCLE = np.iinfo(np.uint64).max
 """The cycle counter's value before the first write."""
 
@@ -153,7 +156,7 @@ class RobotLink:
 
     def read_command(self, out: npt.NDArray[np.float64]) -> int | None:
         """Copy the latest command into ``out``; returns the world cycle it answers, or None
-        before the first command."""
+        before the first command (or while a killed writer left it half written)."""
         return self._read(self._command, _COMMAND_SEQ, _COMMAND_CYCLE, out)
 
     def wait_command(self, cycle: int, timeout_s: float, spin_s: float) -> bool:
@@ -164,7 +167,7 @@ class RobotLink:
     # ---- the controller's side -------------------------------------------------------------
     def read_measured(self, out: npt.NDArray[np.float64]) -> int | None:
         """Copy the latest measured state into ``out``; returns its world cycle, or None
-        before the world published one."""
+        before the world published one (or while a killed writer left it half written)."""
         return self._read(self._measured, _MEASURED_SEQ, _MEASURED_CYCLE, out)
 
     def wait_measured(self, cycle: int, timeout_s: float, spin_s: float) -> bool:
@@ -195,7 +198,7 @@ class RobotLink:
         self, block: npt.NDArray[np.float64], seq: int, at: int, out: npt.NDArray[np.float64]
     ) -> int | None:
         u64 = self._u64
-        while True:
+        for _ in range(READ_RETRIES):  # bounded: a writer killed mid-write leaves the lock odd
             s1 = u64[seq]
             if s1 == 0:
                 return None
@@ -205,6 +208,7 @@ class RobotLink:
             cycle = int(u64[at])
             if u64[seq] == s1:
                 return cycle
+        return None
 
     def _wait(self, at: int, cycle: int, bell: int, bell_word: int, timeout_s: float, spin_s: float) -> bool:
         u64, u32 = self._u64, self._u32
