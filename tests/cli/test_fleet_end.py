@@ -19,7 +19,7 @@ from typer.testing import CliRunner
 
 from services.fleet.launcher import AGENT_ORDER, free_port
 
-pytestmark = pytest.mark.slow
+pytestmark = [pytest.mark.slow, pytest.mark.fleet]
 ROOT = Path(__file__).resolve().parents[2]
 POUR = "pour the jar into the bowl"
 

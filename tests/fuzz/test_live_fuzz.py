@@ -21,7 +21,7 @@ from services.fleet.launcher import AGENT_ORDER
 from services.runtime.refusals import read_refusals
 from tests.fuzz.live import IDENTITIES, run_live_fuzz
 
-pytestmark = pytest.mark.slow
+pytestmark = [pytest.mark.slow, pytest.mark.fleet]
 PER_AGENT = 2_000
 FORBIDDEN = 100  # per identity
 

@@ -20,7 +20,7 @@ from services.scenario.chaos import final_world
 from shared.fipa_codec.languages.l_sd import Observation
 from tests.support.machine import needs_gl
 
-pytestmark = [pytest.mark.slow, needs_gl]
+pytestmark = [pytest.mark.slow, pytest.mark.fleet, needs_gl]
 
 
 @pytest.fixture(scope="module")

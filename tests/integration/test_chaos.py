@@ -18,7 +18,7 @@ from services.report.load import load_run
 from services.runtime.counters import read_counters
 from services.scenario.chaos import CHAOS_FILE
 
-pytestmark = pytest.mark.slow
+pytestmark = [pytest.mark.slow, pytest.mark.fleet]
 SERVICES = ("a_hi", "a_co", "a_pl", "a_km", "recorder")
 # all five while the robot works: paced to wall time, the pour lasts its ≈ 50 s of simulated
 # time however fast the machine computes it

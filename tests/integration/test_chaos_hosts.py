@@ -26,10 +26,7 @@ from services.recorder.record import read_link_events
 from services.scenario.chaos import CHAOS_FILE
 from tests.support.machine import needs_two_hosts
 
-pytestmark = [
-    pytest.mark.slow,
-    needs_two_hosts,
-]
+pytestmark = [pytest.mark.slow, pytest.mark.fleet, needs_two_hosts]
 SERVICES = ("a_ta", "router_robot", "router_brain", "link")
 KINDS = {"router_robot": "kill", "a_ta": "restart", "router_brain": "pause", "link": "cut"}
 """What seed 136 draws for ``SERVICES``, in this order."""

@@ -12,7 +12,7 @@ import pytest
 
 from services.fleet.launcher import free_port
 
-pytestmark = pytest.mark.slow
+pytestmark = [pytest.mark.slow, pytest.mark.fleet]
 
 
 def roco(*args: str, timeout: float = 180) -> subprocess.CompletedProcess[str]:

@@ -25,7 +25,7 @@ import pytest
 from services.recorder.record import read_records
 from tests.spec_check.walkthrough import AGENT, GROUP_EDIT, fill, snippet, staged
 
-pytestmark = pytest.mark.slow
+pytestmark = [pytest.mark.slow, pytest.mark.fleet]
 
 ROOT = Path(__file__).resolve().parents[2]
 SENTENCE = "pour the jar into the bowl"

@@ -16,7 +16,7 @@ from services.runtime.run_folder import read_run_info
 from tests.support.machine import needs_gl
 from tests.support.world import FULL, stands_at, untouched, world
 
-pytestmark = pytest.mark.slow
+pytestmark = [pytest.mark.slow, pytest.mark.fleet]
 
 
 @pytest.fixture(scope="module")

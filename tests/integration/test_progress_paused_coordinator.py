@@ -29,7 +29,7 @@ from shared.fipa_codec import Performative, decode
 from shared.fipa_codec.batch import unpack
 from shared.fipa_codec.languages.l_sw import SWState, SWStatus
 
-pytestmark = pytest.mark.slow
+pytestmark = [pytest.mark.slow, pytest.mark.fleet]
 
 PAUSE_S = 10.0
 """How long a_co stays paused from its start (s)."""

@@ -17,7 +17,7 @@ from services.runtime.run_folder import read_run_info
 from shared.fipa_codec.languages.l_sw import SWState, SWStatus
 from tests.support.world import FULL, START, stands_at, untouched, world
 
-pytestmark = pytest.mark.slow
+pytestmark = [pytest.mark.slow, pytest.mark.fleet]
 
 
 def scenario(name: str, runs: Path) -> tuple[subprocess.CompletedProcess[str], Path]:

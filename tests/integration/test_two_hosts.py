@@ -35,7 +35,7 @@ from services.spec.model import default_spec
 from services.spec_check.conformance import render, verify_run
 from tests.support.machine import needs_two_hosts
 
-pytestmark = needs_two_hosts
+pytestmark = [pytest.mark.fleet, needs_two_hosts]
 
 SHAPING = Shaping(delay_ms=20, jitter_ms=5, loss_pct=1)
 POUR = "pour the jar into the bowl"

@@ -81,6 +81,7 @@ def test_a_session_runs_on_one_application_and_one_transmitting_pool(router: str
 def test_a_router_keeps_zenohs_own_pools(fleet: Fleet) -> None:
     """Started from a client process, it does not take the clients' single receiving thread
     (one link waiting for room would stop it reading every other)."""
+    _zenoh_threads(fleet.endpoint, dict(os.environ))  # a client's transport: the router's pools are lazy
     tasks = Path(f"/proc/{fleet.pids()['router']}/task")
     threads = _zenoh_names({(t / "comm").read_text().strip() for t in tasks.iterdir()})
     assert {"rx-0", "rx-1", "net-0"} <= threads, threads

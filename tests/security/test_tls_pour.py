@@ -14,7 +14,7 @@ import pytest
 
 from services.report import build_report
 
-pytestmark = pytest.mark.slow
+pytestmark = [pytest.mark.slow, pytest.mark.fleet]
 
 
 def test_tls_pour_succeeds(tmp_path: Path) -> None:
