@@ -54,7 +54,7 @@ class Law:
         self.ctrl.torso_q = float(q[self.ctrl.torso_idx]) + TURN
         self.ctrl.kinematics(q, v)
         self.command = np.zeros(COMMAND.size)
-        self.command[HAND] = np.nan
+        self.command[HAND] = 0.0  # hand sequence 0: no hand command
         self.command[HEAD] = q[self.head]
 
     def __call__(self, measured: np.ndarray) -> np.ndarray:

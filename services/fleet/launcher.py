@@ -33,6 +33,7 @@ import zenoh
 from services.runtime.session import alive_agents
 from services.security.context import ENV_SECURITY, acl_on, register, tls_on
 from services.spec.model import default_spec
+from velma.world.mode import WORLD_SERVICE, world_in_process
 
 AGENT_ORDER = default_spec().launch_order
 """The order the agents are started in: the specification's ``start_order`` (servers before
@@ -134,7 +135,13 @@ class Fleet:
         self._spawn("recorder", service_args("recorder", self.endpoint))
 
     def start_agents(self, names: Iterable[str] = AGENT_ORDER) -> None:
+        """Start the agents ``names``; with ``ROCO_WORLD=process`` the world process first,
+        before ag_ex, unless it runs (velma/world/mode.py): it outlives ag_ex's restarts."""
         for name in names:
+            if name == "ag_ex" and world_in_process(self._environ()):
+                world = self.processes.get(WORLD_SERVICE)
+                if world is None or world.poll() is not None:
+                    self._spawn(WORLD_SERVICE, ["-m", "velma.world"])
             self._spawn(name, service_args(name, self.endpoint))
 
     def _check_alive(self, names: Iterable[str]) -> None:
@@ -192,6 +199,8 @@ class Fleet:
             self.start_recorder()
         elif name == "router":
             raise LaunchError("the router is not restarted by a scenario")
+        elif name == WORLD_SERVICE:
+            raise LaunchError("the world is the robot's hardware: it is not restarted")
         else:
             self.start_agents([name])
         return self.processes[name].pid

@@ -17,10 +17,11 @@ import numpy as np
 import pytest
 
 from velma.control.compiled import make_controller
+from velma.control.hand import HAND_WIDTH, TARGET
 from velma.control.robot_model import HEAD_JOINTS, SIDES, TORSO_JOINT, RobotModel, arm_joints
 from velma.shm import SHM_DIR
-from velma.world.hardware import DT, SimulatedVelma
-from velma.world.layout import COMMAND, MEASURED
+from velma.world.hardware import CONTACT_PERIOD, DT, SimulatedVelma
+from velma.world.layout import COMMAND, HAND_KEEP, HAND_MOVE, HAND_OP, MEASURED
 from velma.world.link import RobotLink
 from velma.world.main import link_name
 from velma.world.serve import HOLD_CYCLES, world_process
@@ -49,7 +50,9 @@ class Controller:
             self.ctrl.arm[s].q = q[self.ctrl.arm_slice[s]].copy()
         self.ctrl.torso_q = float(q[self.ctrl.torso_idx]) + turn
         self.ctrl.kinematics(q, v)
-        self.command[COMMAND.slice("hand")] = np.nan  # the hands' servos keep their targets
+        self.command[COMMAND.slice("hand")] = (
+            0.0  # sequence 0: no hand command, the servos keep their targets
+        )
 
     def q(self) -> np.ndarray:
         return self.measured[MEASURED.slice("q")].copy()
@@ -180,3 +183,35 @@ def test_python_m_velma_world_without_a_run_folder_says_so_in_one_line(tmp_path:
     )
     assert done.returncode == 2
     assert done.stderr.strip().splitlines() == [f"velma.world: no run folder {tmp_path / 'missing'}"]
+
+
+def test_a_hand_takes_each_operation_once_and_reports_it() -> None:
+    """``COMMAND`` ``hand``: an operation is taken when its sequence number changes, however
+    often the command repeats it; the measured state says which one the hand took, its servo
+    rows, the head's setpoints and the robot touching itself (nothing, standing)."""
+    sim = SimulatedVelma()
+    measured, command = np.zeros(MEASURED.size), np.zeros(COMMAND.size)
+    sim.measure(measured)
+    command[COMMAND.slice("tau")] = 0.0
+    command[COMMAND.slice("head")] = measured[MEASURED.slice("head")]
+    left = COMMAND.fields["hand"][0] + HAND_OP * SIDES.index("left")
+    target = HAND_WIDTH * SIDES.index("left") + TARGET
+    command[left : left + HAND_OP] = (1.0, HAND_MOVE, 1.0, np.nan)
+    for _ in range(3):
+        sim.apply(command)
+        sim.step()
+    sim.measure(measured)
+    rows = measured[MEASURED.slice("hand")]
+    assert measured[MEASURED.slice("hand_seq")][SIDES.index("left")] == 1.0
+    assert rows[target : target + 3].tolist() == [1.0, 1.0, 1.0]
+    sim.hands.keep("left")  # the hand changes its targets on its own (as a halt would) …
+    sim.apply(command)  # … and the repeated operation 1 is not taken again
+    assert sim.hands.set["left"].target.max() < 1.0
+    command[left : left + HAND_OP] = (2.0, HAND_KEEP, np.nan, np.nan)
+    sim.apply(command)
+    assert sim.hand_seq[SIDES.index("left")] == 2.0
+    for _ in range(CONTACT_PERIOD):
+        sim.step()
+        sim.measure(measured)
+    assert (measured[MEASURED.slice("self_touch")] == -1.0).all()
+    assert measured[MEASURED.slice("head")] == pytest.approx(sim.head_set)

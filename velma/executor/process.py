@@ -224,6 +224,7 @@ class LoopConfig(msgspec.Struct, frozen=True, kw_only=True):
     checkpoint_block: str = ""  # the checkpoint block
     fresh: bool = False  # delete the checkpoint instead of restoring it
     camera: bool = True  # Observe ends with a WorldCapture (False: ground truth, ROCO_PERCEPTION=truth)
+    world_link: str = ""  # the robot link of a world process to control ("": the physics runs here)
 
 
 # ---------------------------------------------------------------------- loop process side
@@ -233,6 +234,7 @@ def loop_main(config: bytes, doorbell: multiprocessing.connection.Connection) ->
     from velma.executor.runtime import Runtime
     from velma.executor.state_block import StateWriter
     from velma.executor.timing import enter_realtime, name_process
+    from velma.world.link import RobotLink
 
     name_process(LOOP_PROCESS_NAME)
     cfg = msgspec.msgpack.decode(config, type=LoopConfig)
@@ -249,7 +251,8 @@ def loop_main(config: bytes, doorbell: multiprocessing.connection.Connection) ->
     decode = msgspec.msgpack.Decoder(ToLoop).decode
 
     try:
-        rt = Runtime(seed=cfg.seed, pose_seed=cfg.pose_seed)
+        link = RobotLink.attach(cfg.world_link) if cfg.world_link else None
+        rt = Runtime(seed=cfg.seed, pose_seed=cfg.pose_seed, link=link)
     except Exception as exc:  # say why before the process exits: ExecutorProcess.start raises it
         outbox_ring.push(encode(Fault(command=START, text=f"{type(exc).__name__}: {exc}")))
         with contextlib.suppress(BlockingIOError, BrokenPipeError):
@@ -316,7 +319,7 @@ def loop_main(config: bytes, doorbell: multiprocessing.connection.Connection) ->
     gc.freeze()
 
     cycle = rt.cycles  # > 0 after a restore: the phases below stay those of the contact scans
-    pacer = Pacer(DT, realtime=cfg.realtime, spin=cfg.spin)
+    pacer = Pacer(DT, realtime=cfg.realtime and link is None, spin=cfg.spin)  # a world paces itself
     while running:
         start = pacer.begin()
         cpu = time.thread_time()
@@ -378,6 +381,8 @@ def loop_main(config: bytes, doorbell: multiprocessing.connection.Connection) ->
         if block is not None:
             block.close()
     mon_shm.close()
+    if link is not None:
+        link.close()
 
 
 # ---------------------------------------------------------------------- communication side
@@ -407,6 +412,11 @@ class ExecutorProcess:
     None: ``ROCO_CAMERA_IDLE_S``, and started again when the next command ends or an Observe
     comes); ``perception_log`` receives each camera Observation's records beside the truth
     (velma/executor/perception_log.py).
+
+    ``world_link`` names the robot link of a world process (velma/world/): the loop is then
+    the controller of that world (velma/executor/world_link.py), which keeps the kitchen when
+    the loop ends; a loop that starts again attaches to it and finds the robot as it is. No
+    checkpoints are kept then (``checkpoint_dir`` is ignored).
     """
 
     def __init__(
@@ -426,6 +436,7 @@ class ExecutorProcess:
         perception: str | None = None,
         perception_log: RecordSink | None = None,
         camera_idle_s: float | None = None,
+        world_link: str | None = None,
     ) -> None:
         self.perception = perception_mode(None if perception is None else {"ROCO_PERCEPTION": perception})
         self.camera_idle_s = camera_idle_s_of_env() if camera_idle_s is None else camera_idle_s
@@ -433,7 +444,8 @@ class ExecutorProcess:
         self._delivery: ResultDelivery[int] | None = None
         self.realtime = realtime
         self.world_state = world_state
-        self.checkpoint_dir = Path(checkpoint_dir) if checkpoint_dir is not None else None
+        self.world_link = world_link or ""
+        self.checkpoint_dir = Path(checkpoint_dir) if checkpoint_dir is not None and not world_link else None
         self.fresh = fresh
         self.restore_report: RestoreReport | None = None
         self._checkpoints: LatestValue | None = None
@@ -513,6 +525,7 @@ class ExecutorProcess:
             checkpoint_block=self._checkpoints.name if self._checkpoints is not None else "",
             fresh=self.fresh,
             camera=self.perception == "camera",
+            world_link=self.world_link,
         )
         camera = None
         if cfg.camera:

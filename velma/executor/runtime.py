@@ -13,6 +13,11 @@ Cycle (1 kHz, physics dt = 1 ms, paper §5.3 / velma-facts.md "Loop: 1 kHz"):
 With the compiled plant (velma/executor/plant.py) steps 2–3 run in C++, the servo steps
 included; the Python ``Hands.step`` and ``_step_head`` stay their reference.
 
+Attached to a world process (``link``: velma/world/, velma/executor/world_link.py) the runtime
+is the controller only: step 2 computes the torques from the world's measured state and sends
+them with the servos' targets, and step 3 waits for the world's next state instead of stepping
+physics; ``data`` is then a mirror of the world's kitchen, never stepped here.
+
 Cartesian setpoints are kept in the world frame; when the torso turns (MoveJoints), the
 setpoints of arms in Cartesian mode are carried with it (they are re-expressed each cycle
 from their pose relative to torso_link0 at the start of the motion).
@@ -47,8 +52,16 @@ from velma.executor.capture import DEFAULT_PERCEPTION
 from velma.executor.ground_truth import GroundTruth
 from velma.executor.plant import CompiledPlant, plant_choice, plant_unavailable
 from velma.executor.state import LINK_BODIES
+from velma.executor.world_link import WorldLink
 from velma.model.scene import N_PARTICLES, initial_state, load_kitchen
-from velma.world.hardware import CONTACT_PERIOD, DT, HEAD_RATE  # the robot's rates, stated once
+from velma.world.hardware import (  # the robot's rates, stated once
+    CONTACT_PERIOD,
+    DT,
+    HEAD_RATE,
+    displace,
+    is_free,
+)
+from velma.world.link import RobotLink
 
 log = logging.getLogger(__name__)
 
@@ -71,6 +84,8 @@ class Runtime:
         n_particles: int | None = None,
         pose_seed: int | None = None,
         compiled_plant: bool | None = None,
+        link: RobotLink | None = None,
+        link_spin_s: float = 0.0,
     ) -> None:
         """``seed`` jitters the jar content, ``pose_seed`` randomises the jar and bowl poses
         (velma/model/scene.py; None: the poses of kitchen.xml). ``compiled_plant``: run the
@@ -78,7 +93,14 @@ class Runtime:
         cycle; None: as ``ROCO_PLANT`` says (velma/executor/plant.py ``plant_choice``), unset
         the compiled plant where it can run, else the Python cycle with a warning. Raises
         RuntimeError when the compiled plant is required and cannot run, ValueError for another
-        value of ``ROCO_PLANT``."""
+        value of ``ROCO_PLANT``.
+
+        ``link``: the robot link of a world process to attach to (module docstring); the
+        runtime then starts from the robot and the kitchen as the world has them, holding what
+        a hand grasps (``WorldLink.grasped``), and runs no plant. ``link_spin_s``: how long a
+        cycle spins before it sleeps while it waits for the world. Raises RuntimeError when
+        the world publishes nothing (``ATTACH_TIMEOUT_S``), ValueError when its kitchen is
+        another model than this one's."""
         self.pose_seed = pose_seed
         self.model = load_kitchen(N_PARTICLES if n_particles is None else n_particles, seed, pose_seed)
         self.model.opt.timestep = DT
@@ -109,7 +131,12 @@ class Runtime:
         )
         """The IK's iteration in C++ with the compiled law (velma/control/ik.py ``DlsKernel``),
         else None: the Python iteration."""
-        self.hands = Hands(self.model)
+        self.world: WorldLink | None = None
+        """The attached world process (``link``), or None: the physics runs here."""
+        if link is not None:
+            self.world = WorldLink(link, self.model, self.data, self.jmap, spin_s=link_spin_s)
+            compiled_plant = False
+        self.hands: Hands = self.world.hands if self.world is not None else Hands(self.model)
         self.contacts = ContactMonitor(self.model)
         self.ground_truth = GroundTruth(self.model)
         """The physics' truth (velma/executor/ground_truth.py): the agents' Observation only
@@ -179,7 +206,12 @@ class Runtime:
         for s in SIDES:
             self.ctrl.arm[s].q = q[self.ctrl.arm_slice[s]].copy()
         self.ctrl.torso_q = float(q[self.ctrl.torso_idx])
-        self.hands.reset_from(self.data)
+        if self.world is None:
+            self.hands.reset_from(self.data)
+        else:
+            self.head[:] = np.concatenate([self.world.head_set] * 2)
+            self.held = {s: self.world.grasped(s) for s in SIDES}
+            self.touch = {s: self.world.touching(s) for s in SIDES}
         self.ctrl.kinematics(q, self.v())
         for s in SIDES:
             self.ctrl.state[s].grip = self.ctrl.grip_pose(s)
@@ -263,7 +295,16 @@ class Runtime:
         t0 = time.perf_counter()
         data = self.data
         part = self.part_s
-        if self.plant is not None:
+        if self.world is not None:
+            world = self.world
+            taus, tau_torso = self.ctrl.update(world.q, world.v)
+            world.send(taus, tau_torso, self.head_target)
+            t1 = time.perf_counter()
+            part[1] = t1 - t0
+            world.sense()
+            self.head[:2] = world.head_set
+            t_step = t1
+        elif self.plant is not None:
             self.plant.cycle()  # the hands' and the head's servo steps too
             t1 = time.perf_counter()
             part[1] = t1 - t0 - self.plant.parts[1]
@@ -306,13 +347,18 @@ class Runtime:
 
     def touching(self, side: str) -> dict[int, int]:
         """{body id: count of distinct hand geoms of ``side`` touching it} now (velma/control/hand.py
-        ``ContactMonitor.touching``; compiled with the plant)."""
+        ``ContactMonitor.touching``; compiled with the plant; the world's last scan when
+        attached to one)."""
+        if self.world is not None:
+            return self.world.touching(side)
         if self.plant is not None:
             return self.plant.touching(side)
         return self.contacts.touching(self.data, side)
 
     def self_contacts_now(self) -> list[tuple[int, int]]:
         """(geom, geom) of each contact of the robot with itself now (``ContactMonitor.self_contacts``)."""
+        if self.world is not None:
+            return self.world.self_contacts()
         if self.plant is not None:
             return self.plant.self_contacts()
         return self.contacts.self_contacts(self.data)
@@ -331,44 +377,20 @@ class Runtime:
     def displace(self, body: str, delta: tuple[float, float, float], tilt: float = 0.0) -> None:
         """Move free body ``body`` by ``delta`` (world, m), turn it by ``tilt`` (rad) about the
         world's x axis through its origin, and stop it: a disturbance of the simulated world (a
-        person moves or knocks over an object), not a robot action. What it carries (its
-        content, ``{body}_content*``) moves and turns with it. Raises KeyError for a body that
-        is not in the scene, ValueError for one without a free joint."""
+        person moves or knocks over an object), not a robot action (velma/world/hardware.py
+        ``displace``). Attached to a world process, the world takes it with the next command.
+        Raises KeyError for a body that is not in the scene, ValueError for one without a free
+        joint."""
         try:
-            b = self.model.body(body)
+            b = int(self.model.body(body).id)
         except KeyError:
             raise KeyError(f"no body {body!r} in the scene") from None
-        j = int(self.model.body_jntadr[b.id])
-        if j < 0 or self.model.jnt_type[j] != mujoco.mjtJoint.mjJNT_FREE:
+        if not is_free(self.model, b):
             raise ValueError(f"{body} is not a free body")
-        data = self.data
-        mujoco.mj_kinematics(self.model, data)  # body positions of the current qpos
-        origin = data.xpos[b.id].copy()
-        shift = np.asarray(delta, dtype=float)
-        c, s = math.cos(tilt), math.sin(tilt)
-        turn = np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
-        qa, va = int(self.model.jnt_qposadr[j]), int(self.model.jnt_dofadr[j])
-        data.qpos[qa : qa + 3] += shift
-        turned = np.empty(4)
-        mujoco.mju_mulQuat(
-            turned, np.array([math.cos(tilt / 2), math.sin(tilt / 2), 0.0, 0.0]), data.qpos[qa + 3 : qa + 7]
-        )
-        data.qpos[qa + 3 : qa + 7] = turned
-        data.qvel[va : va + 6] = 0.0
-        for other in range(self.model.nbody):
-            if other != b.id and self.model.body(other).name.startswith(f"{body}_content"):
-                at = data.xpos[other]
-                self._shift_slides(other, origin + turn @ (at - origin) + shift - at)
-        mujoco.mj_forward(self.model, data)
-
-    # ------------------------------------------------------------------ helpers
-    def _shift_slides(self, body_id: int, delta: npt.NDArray[np.float64]) -> None:
-        """Move a body on slide joints (world axes) by ``delta`` (m) and stop it."""
-        first, count = int(self.model.body_jntadr[body_id]), int(self.model.body_jntnum[body_id])
-        for j in range(first, first + count):
-            if self.model.jnt_type[j] == mujoco.mjtJoint.mjJNT_SLIDE:
-                self.data.qpos[self.model.jnt_qposadr[j]] += float(self.model.jnt_axis[j] @ delta)
-                self.data.qvel[self.model.jnt_dofadr[j]] = 0.0
+        if self.world is not None:
+            self.world.disturb(b, delta, tilt)
+        else:
+            displace(self.model, self.data, b, delta, tilt)
 
     def torso_angle_cmd(self) -> float:
         """Commanded torso angle (rad)."""

@@ -26,7 +26,15 @@ import numpy.typing as npt
 from velma.control.hand import ContactMonitor, Hands
 from velma.control.robot_model import HEAD_JOINTS, SIDES, TORSO_JOINT, JointMap, RobotModel, arm_joints
 from velma.model.scene import N_PARTICLES, initial_state, load_kitchen
-from velma.world.layout import COMMAND, MEASURED, N_JOINTS, TOUCH_SLOTS
+from velma.world.layout import (
+    COMMAND,
+    HAND_KEEP,
+    HAND_OP,
+    MEASURED,
+    N_JOINTS,
+    SELF_SLOTS,
+    TOUCH_SLOTS,
+)
 
 DT = 0.001
 """The physics step and the link's cycle (s): 1 kHz (velma-facts.md "Loop: 1 kHz")."""
@@ -73,7 +81,10 @@ class SimulatedVelma:
         self.head_target = self.head_set.copy()
         self.hands = Hands(model)
         self.hands.reset_from(self.data)
-        self._hand_target = np.full(2 * len(SIDES), math.nan)
+        self.hand_seq = np.zeros(len(SIDES))
+        """Per side the sequence number of the last hand command taken (0: none yet)."""
+        self.disturb_seq = 0.0
+        """The sequence number of the last disturbance taken (0: none yet)."""
         self.contacts = ContactMonitor(model)
         self.ft_adr = [
             (int(model.sensor(f"{s}_ft_force").adr[0]), int(model.sensor(f"{s}_ft_torque").adr[0]))
@@ -88,6 +99,9 @@ class SimulatedVelma:
         self._ft, self._touch = MEASURED.fields["ft"][0], MEASURED.fields["touch"][0]
         self._time, self._holding = MEASURED.fields["time"][0], MEASURED.fields["holding"][0]
         self._tau, self._hand, self._head = COMMAND.slice("tau"), COMMAND.slice("hand"), COMMAND.slice("head")
+        self._hand_state, self._hand_seq = MEASURED.slice("hand"), MEASURED.slice("hand_seq")
+        self._self_touch, self._head_set = MEASURED.slice("self_touch"), MEASURED.slice("head")
+        self._disturb, self._disturb_seq = COMMAND.slice("disturb"), MEASURED.fields["disturb_seq"][0]
 
     @property
     def time(self) -> float:
@@ -99,9 +113,20 @@ class SimulatedVelma:
         """True while the safety layer holds the robot."""
         return self.hold_q is not None
 
+    @property
+    def scene_size(self) -> int:
+        """Values of ``scene``: the time and MuJoCo's ``qpos``."""
+        return 1 + int(self.model.nq)
+
+    def scene(self, out: Array) -> None:
+        """Write the whole kitchen now into ``out`` (``scene_size`` float64: time, ``qpos``)."""
+        out[0] = self.data.time
+        out[1:] = self.data.qpos
+
     def measure(self, out: Array) -> None:
         """Write this cycle's measured state into ``out`` (``MEASURED.size`` float64; ``touch``
-        is rewritten per hand every ``CONTACT_PERIOD`` cycles: keep ``out`` between calls)."""
+        is rewritten per hand and ``self_touch`` once every ``CONTACT_PERIOD`` cycles: keep
+        ``out`` between calls)."""
         data = self.data
         out[self._time] = data.time
         out[self._q] = data.qpos[self.jmap.qpos_adr]
@@ -120,7 +145,17 @@ class SimulatedVelma:
             slots[0::2], slots[1::2] = -1.0, 0.0
             for i, (body, geoms) in enumerate(touched):
                 slots[2 * i], slots[2 * i + 1] = body, geoms
+        if phase == CONTACT_PERIOD // 4:  # between the two hands' scans
+            pairs = self.contacts.self_contacts(data)[:SELF_SLOTS]
+            slots = out[self._self_touch]
+            slots[:] = -1.0
+            for i, (a, b) in enumerate(pairs):
+                slots[2 * i], slots[2 * i + 1] = a, b
         out[self._holding] = 1.0 if self.holding else 0.0
+        out[self._hand_state] = self.hands.state.ravel()
+        out[self._hand_seq] = self.hand_seq
+        out[self._head_set] = self.head_set
+        out[self._disturb_seq] = self.disturb_seq
 
     def apply(self, command: Array | None) -> None:
         """The controller's ``command`` (``COMMAND.size`` float64) for the next step, or None:
@@ -138,13 +173,22 @@ class SimulatedVelma:
         self.hold_q = None
         data.ctrl[self.tau_act] = command[self._tau]
         hand = command[self._hand]
-        if not np.array_equal(hand, self._hand_target, equal_nan=True):
-            self._hand_target = hand.copy()
-            for k, side in enumerate(SIDES):
-                spread, proximal = float(hand[2 * k]), float(hand[2 * k + 1])
-                if not math.isnan(proximal):  # NaN: the hand keeps its targets
-                    self.hands.command(side, proximal, None if math.isnan(spread) else spread)
+        for k, side in enumerate(SIDES):
+            seq, op, proximal, spread = hand[HAND_OP * k : HAND_OP * (k + 1)].tolist()
+            if seq == self.hand_seq[k]:
+                continue  # taken already: the command repeats every cycle
+            self.hand_seq[k] = seq
+            if op == HAND_KEEP:
+                self.hands.keep(side)
+            else:
+                self.hands.command(side, proximal, None if math.isnan(spread) else spread)
         self.head_target = command[self._head].copy()
+        seq, body, dx, dy, dz, tilt = command[self._disturb].tolist()
+        if seq != self.disturb_seq:
+            self.disturb_seq = seq
+            # a body that is not free cannot be moved: the command's sender checks (``displace``)
+            if 0 <= body < self.model.nbody and is_free(self.model, int(body)):
+                displace(self.model, data, int(body), (dx, dy, dz), tilt)
 
     def _brake(self) -> None:
         data = self.data
@@ -162,3 +206,43 @@ class SimulatedVelma:
         data.ctrl[self.head_act] = self.head_set
         mujoco.mj_step(self.model, data)
         self.cycles += 1
+
+
+def is_free(model: mujoco.MjModel, body: int) -> bool:
+    """True when body id ``body`` moves on a free joint (an object a person can move)."""
+    j = int(model.body_jntadr[body])
+    return j >= 0 and model.jnt_type[j] == mujoco.mjtJoint.mjJNT_FREE
+
+
+def displace(
+    model: mujoco.MjModel, data: mujoco.MjData, body: int, delta: tuple[float, float, float], tilt: float
+) -> None:
+    """Move free body id ``body`` by ``delta`` (world, m), turn it by ``tilt`` (rad) about the
+    world's x axis through its origin, and stop it: a disturbance of the kitchen (a person moves
+    or knocks over an object), not a robot action. What it carries (its content, the bodies
+    named ``<body>_content*``, on slide joints) moves and turns with it. The caller checks that
+    ``body`` is free (``is_free``)."""
+    mujoco.mj_kinematics(model, data)  # body positions of the current qpos
+    origin = data.xpos[body].copy()
+    shift = np.asarray(delta, dtype=float)
+    c, s = math.cos(tilt), math.sin(tilt)
+    turn = np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
+    j = int(model.body_jntadr[body])
+    qa, va = int(model.jnt_qposadr[j]), int(model.jnt_dofadr[j])
+    data.qpos[qa : qa + 3] += shift
+    turned = np.empty(4)
+    half = np.array([math.cos(tilt / 2), math.sin(tilt / 2), 0.0, 0.0])
+    mujoco.mju_mulQuat(turned, half, data.qpos[qa + 3 : qa + 7])
+    data.qpos[qa + 3 : qa + 7] = turned
+    data.qvel[va : va + 6] = 0.0
+    prefix = f"{model.body(body).name}_content"
+    for other in range(model.nbody):
+        if other != body and model.body(other).name.startswith(prefix):
+            at = data.xpos[other]
+            step = origin + turn @ (at - origin) + shift - at
+            first, count = int(model.body_jntadr[other]), int(model.body_jntnum[other])
+            for k in range(first, first + count):  # the content's slide joints (world axes)
+                if model.jnt_type[k] == mujoco.mjtJoint.mjJNT_SLIDE:
+                    data.qpos[model.jnt_qposadr[k]] += float(model.jnt_axis[k] @ step)
+                    data.qvel[model.jnt_dofadr[k]] = 0.0
+    mujoco.mj_forward(model, data)

@@ -10,16 +10,20 @@ numbers and counters: what the numbers mean is the caller's layout.
 Layout (native byte order, x86-64 little-endian; offsets in bytes):
 
 ====== ======================================================================================
-0      magic ``ROCOLNK1`` (8 B), then ``n_measured``, ``n_command`` (u32 each)
+0      magic ``ROCOLNK2`` (8 B), then ``n_measured``, ``n_command``, ``n_scene`` (u32 each)
 64     measured: sequence lock (u64, odd while written), the world's cycle k (u64)
 80     command: sequence lock (u64), the world cycle the command answers (u64)
 96     doorbells (u32 each, futex words): world → controller, controller → world
+112    scene: sequence lock (u64), the world's cycle (u64)
 128    measured values, float64 × ``n_measured``
-…      command values, float64 × ``n_command`` (8-byte aligned after the measured ones)
+…      command values, float64 × ``n_command``
+…      scene values, float64 × ``n_scene`` (may be none)
 ====== ======================================================================================
 
 A value block is copied under its sequence lock (one writer each: the world writes the
-measured state, the controller the command); a reader retries while the lock is odd or moved.
+measured state and the scene, the controller the command); a reader retries while the lock is
+odd or moved. The scene is what the world shows beyond the robot's own sensors (the head
+camera's capture is made from it); the controller reads it only when it needs it.
 A waiter spins on the counter for ``spin_s``, then sleeps on the doorbell (Linux futex,
 shared between processes) until the writer rings it; so the cost of a hand-off is the
 spin's when the other side answers quickly and one wake-up otherwise (measured by
@@ -41,11 +45,12 @@ import numpy.typing as npt
 
 from velma.shm import BlockError, new_block, shared_view
 
-MAGIC = b"ROCOLNK1"
+MAGIC = b"ROCOLNK2"
 HEADER = 128
-_COUNTS = struct.Struct("<II")
+_COUNTS = struct.Struct("<III")
 _MEASURED_SEQ, _MEASURED_CYCLE, _COMMAND_SEQ, _COMMAND_CYCLE = 8, 9, 10, 11  # u64 word indices
 _WORLD_BELL, _CONTROLLER_BELL = 24, 25  # u32 word indices (bytes 96, 100)
+_SCENE_SEQ, _SCENE_CYCLE = 14, 15  # u64 word indices (bytes 112, 120)
 READ_RETRIES = 10_000
 """Attempts of a read under a sequence lock held odd (a write takes < 1 µs; a writer killed
 mid-write would leave it odd for good): then the read gives None, as before any write."""
@@ -103,8 +108,8 @@ class RobotLink:
         buf = shared_view(shm)
         if bytes(buf[:8]) != MAGIC:
             raise LinkError(f"shared block {shm.name} is not a robot link")
-        self.n_measured, self.n_command = _COUNTS.unpack_from(buf, 8)
-        need = HEADER + 8 * (self.n_measured + self.n_command)
+        self.n_measured, self.n_command, self.n_scene = _COUNTS.unpack_from(buf, 8)
+        need = HEADER + 8 * (self.n_measured + self.n_command + self.n_scene)
         if shm.size < need:
             raise LinkError(f"shared block {shm.name} is {shm.size} B, the link needs {need}")
         self.shm, self.owner = shm, owner
@@ -115,24 +120,30 @@ class RobotLink:
         self._command = np.ndarray(
             (self.n_command,), dtype=np.float64, buffer=buf, offset=HEADER + 8 * self.n_measured
         )
+        self._scene = np.ndarray(
+            (self.n_scene,),
+            dtype=np.float64,
+            buffer=buf,
+            offset=HEADER + 8 * (self.n_measured + self.n_command),
+        )
         base = self._u32.ctypes.data
         self._world_bell = base + 4 * _WORLD_BELL
         self._controller_bell = base + 4 * _CONTROLLER_BELL
         self._futex = _Futex()
 
     @classmethod
-    def create(cls, n_measured: int, n_command: int) -> RobotLink:
-        """A new link for ``n_measured`` and ``n_command`` float64 values, nothing written
-        yet. Raises OSError when the system refuses the block."""
-        shm = new_block(HEADER + 8 * (n_measured + n_command))
+    def create(cls, n_measured: int, n_command: int, n_scene: int = 0) -> RobotLink:
+        """A new link for ``n_measured``, ``n_command`` and ``n_scene`` float64 values, nothing
+        written yet. Raises OSError when the system refuses the block."""
+        shm = new_block(HEADER + 8 * (n_measured + n_command + n_scene))
         _untrack(shm)
         buf = shared_view(shm)
         buf[:HEADER] = bytes(HEADER)
         buf[:8] = MAGIC
-        _COUNTS.pack_into(buf, 8, n_measured, n_command)
+        _COUNTS.pack_into(buf, 8, n_measured, n_command, n_scene)
         link = cls(shm, owner=True)
-        link._u64[_MEASURED_CYCLE] = NO_CYCLE
-        link._u64[_COMMAND_CYCLE] = NO_CYCLE
+        for at in (_MEASURED_CYCLE, _COMMAND_CYCLE, _SCENE_CYCLE):
+            link._u64[at] = NO_CYCLE
         return link
 
     @classmethod
@@ -154,6 +165,10 @@ class RobotLink:
         self._u32[_WORLD_BELL] += np.uint32(1)
         self._futex.wake(self._world_bell)
 
+    def publish_scene(self, cycle: int, values: npt.NDArray[np.float64]) -> None:
+        """Write the scene of world cycle ``cycle`` (no bell: it is read on demand)."""
+        self._write(self._scene, _SCENE_SEQ, _SCENE_CYCLE, cycle, values)
+
     def read_command(self, out: npt.NDArray[np.float64]) -> int | None:
         """Copy the latest command into ``out``; returns the world cycle it answers, or None
         before the first command (or while a killed writer left it half written)."""
@@ -169,6 +184,11 @@ class RobotLink:
         """Copy the latest measured state into ``out``; returns its world cycle, or None
         before the world published one (or while a killed writer left it half written)."""
         return self._read(self._measured, _MEASURED_SEQ, _MEASURED_CYCLE, out)
+
+    def read_scene(self, out: npt.NDArray[np.float64]) -> int | None:
+        """Copy the latest scene into ``out``; returns its world cycle, or None before the
+        world published one."""
+        return self._read(self._scene, _SCENE_SEQ, _SCENE_CYCLE, out)
 
     def wait_measured(self, cycle: int, timeout_s: float, spin_s: float) -> bool:
         """Wait until the measured state of world cycle ``cycle`` (or a later one) is there;
@@ -235,7 +255,7 @@ class RobotLink:
 
     def close(self) -> None:
         """Let go of the block (the owner also removes it)."""
-        del self._u64, self._u32, self._measured, self._command, self._buf
+        del self._u64, self._u32, self._measured, self._command, self._scene, self._buf
         self.shm.close()
         if self.owner:
             # unlink() tells the tracker too: balance the unregister of create()

@@ -82,7 +82,7 @@ def main(argv: list[str] | None = None) -> int:
     signal.signal(signal.SIGINT, on_signal)
     remove_orphans()  # the blocks of a world that was killed
     sim = SimulatedVelma(seed=seed, pose_seed=pose_seed)
-    link = RobotLink.create(MEASURED.size, COMMAND.size)
+    link = RobotLink.create(MEASURED.size, COMMAND.size, sim.scene_size)
     named = run_dir / LINK_FILE
     try:
         partial = named.with_suffix(".tmp")

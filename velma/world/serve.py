@@ -50,14 +50,19 @@ def serve(
 ) -> int:
     """Step ``sim`` and serve it on ``link`` (module docstring) until ``should_stop()`` says so
     (asked every ``STOP_CHECK_CYCLES`` cycles) or ``max_cycles`` cycles ran; returns the
-    number of cycles. Raises what the physics raises."""
+    number of cycles. The scene goes with every measured state when the link has room for
+    it (``sim.scene_size`` values). Raises what the physics raises."""
     measured, command = np.zeros(MEASURED.size), np.zeros(COMMAND.size)
+    scene = np.zeros(link.n_scene) if link.n_scene == sim.scene_size else None
     k = 0
     due = time.perf_counter()  # wall time the next cycle is due, while paced
     while max_cycles is None or k < max_cycles:
         if k % STOP_CHECK_CYCLES == 0 and should_stop():
             break
         sim.measure(measured)
+        if scene is not None:
+            sim.scene(scene)
+            link.publish_scene(k, scene)
         link.publish(k, measured)
         fresh = False
         if k > 0:
@@ -86,7 +91,7 @@ def world_process(conn: Connection, *, realtime: bool, seed: int = 0) -> None:
     """Body of a world process (spawned): make the kitchen and its link, say the link's name
     on ``conn``, serve until ``conn`` says ``"stop"`` (or closes), remove the link."""
     sim = SimulatedVelma(seed=seed)
-    link = RobotLink.create(MEASURED.size, COMMAND.size)
+    link = RobotLink.create(MEASURED.size, COMMAND.size, sim.scene_size)
     try:
         conn.send(link.name)
 

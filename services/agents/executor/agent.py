@@ -39,10 +39,13 @@ Besides the C5 conversation, ag_ex
   channels in the specification: a_ta). When one disappears the executor holds position in
   joint impedance, with the hands closed as they are, so a held object is never dropped
   because a peer died; ag_ex logs a warning and the published state says ``holding``;
-- keeps the simulated world across its own restarts (velma.executor.checkpoint): checkpoints
-  in ``ROCO_EX_STATE``, else ``<ROCO_RUN_DIR>/ag_ex_state/``; at start the loop restores the
-  last one and holds position there (a held jar stays held). ``ROCO_EX_FRESH=1`` starts from
-  the initial scene instead.
+- keeps the simulated world across its own restarts: with ``ROCO_WORLD=process`` the kitchen
+  is a world process of its own (velma/world/, started by the launcher before ag_ex) and the
+  loop only its controller, which attaches to it again after a restart and finds the robot,
+  and what it holds, as they are; otherwise by checkpoints (velma.executor.checkpoint) in
+  ``ROCO_EX_STATE``, else ``<ROCO_RUN_DIR>/ag_ex_state/``: at start the loop restores the last
+  one and holds position there (a held jar stays held; up to a second of the world is lost).
+  ``ROCO_EX_FRESH=1`` starts from the initial scene instead.
 """
 
 from __future__ import annotations
@@ -65,11 +68,14 @@ from shared.fipa_codec import Performative
 from shared.fipa_codec.languages.l_ex import HALTED, CommandResult, ExecutorCommand, command_name
 from shared.fipa_codec.languages.l_sd import Observation
 from velma.executor.capture import PERCEPTION_LOG
+from velma.world.mode import world_in_process
 
 COMMAND_TYPES = tuple(t for t in ExecutorCommand.__args__)
 STATE_PERIOD = 0.05  # s between robot-state publications (20 Hz)
 TIMING_FILE_PERIOD = 5.0  # s between writes of ag_ex_timing.json
 TIMING_FILE = "ag_ex_timing.json"
+WORLD_WAIT_S = 120.0
+"""How long (s) ag_ex waits for the world process to name its link (``ROCO_WORLD=process``)."""
 
 
 def _seed(name: str, text: str) -> int:
@@ -135,6 +141,7 @@ class ExecutorAgent(Agent):
         from velma.executor.checkpoint import checkpoint_dir, fresh_start
 
         pose = os.environ.get("ROCO_POSE_SEED", "")
+        world = self._world_link() if world_in_process() else None
         return ExecutorProcess(
             realtime=os.environ.get("ROCO_REALTIME", "0") == "1",
             seed=_seed("ROCO_SEED", os.environ.get("ROCO_SEED", "0")),
@@ -145,7 +152,25 @@ class ExecutorAgent(Agent):
             perception=None,  # ROCO_PERCEPTION, else velma/executor/capture.py DEFAULT_PERCEPTION
             perception_log=self._perception_sink(),
             camera_idle_s=None,  # ROCO_CAMERA_IDLE_S, else velma/executor/camera_process.py DEFAULT_IDLE_S
+            world_link=world,
         )
+
+    @staticmethod
+    def _world_link() -> str:
+        """The robot link of the run's world process (``ROCO_WORLD=process``), as it writes it
+        in the run folder once it runs (velma/world/main.py ``link_name``). Raises RuntimeError
+        without a run folder, or when no world names its link within ``WORLD_WAIT_S``."""
+        from velma.world.main import link_name
+
+        run_dir = os.environ.get("ROCO_RUN_DIR")
+        if not run_dir:
+            raise RuntimeError("ROCO_WORLD=process needs ROCO_RUN_DIR: the world names its link there")
+        deadline = time.monotonic() + WORLD_WAIT_S
+        while (name := link_name(Path(run_dir))) is None:
+            if time.monotonic() > deadline:
+                raise RuntimeError(f"no world named its link in {run_dir} within {WORLD_WAIT_S:.0f} s")
+            time.sleep(0.05)
+        return name
 
     @staticmethod
     def _perception_sink() -> Callable[[list[dict[str, Any]]], None] | None:

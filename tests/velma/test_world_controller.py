@@ -1,0 +1,198 @@
+"""ag_ex's loop as the controller of a world process (velma/executor/world_link.py): it grasps
+and lifts the jar through the robot link alone; killed mid-lift, the world holds the robot and
+the jar where they are, and the loop that starts again attaches, knows the jar is in its hand,
+and finishes the lift: the world's time never goes back and the jar never jumps."""
+
+from __future__ import annotations
+
+import multiprocessing
+import os
+import queue
+import signal
+import threading
+from collections.abc import Iterator
+
+import numpy as np
+import pytest
+
+from shared.fipa_codec.languages.l_ex import CommandResult, Observe
+from shared.fipa_codec.languages.l_sd import Observation
+from tests.support.grasp import LIFT_M, left_jar_grasp, left_jar_lift
+from velma.executor import ExecutorProcess
+from velma.executor.loop import ControlLoop
+from velma.executor.runtime import Runtime
+from velma.executor.state import RobotSnapshot
+from velma.model.scene import N_PARTICLES, load_kitchen
+from velma.scenario import script_poses
+from velma.world.link import RobotLink
+from velma.world.serve import world_process
+
+Result = CommandResult | Observation
+
+
+@pytest.fixture
+def world() -> Iterator[str]:
+    """A world process in lockstep; its link's name."""
+    ctx = multiprocessing.get_context("spawn")
+    here, there = ctx.Pipe()
+    proc = ctx.Process(target=world_process, args=(there,), kwargs={"realtime": False})
+    proc.start()
+    try:
+        assert here.poll(120), "the world process said nothing"
+        yield here.recv()
+    finally:
+        here.send("stop")
+        proc.join(30)
+    assert proc.exitcode == 0
+
+
+def _run(loop: ControlLoop[int], command: object, cycles: int = 20000) -> Result:
+    loop.submit(0, command)  # type: ignore[arg-type]
+    for _ in range(cycles):
+        done = loop.cycle()
+        if done is not None:
+            return done[1]
+    raise AssertionError(f"{command} did not end in {cycles} cycles")
+
+
+def test_the_runtime_attached_to_a_world_grasps_and_a_second_one_finds_the_jar_in_hand(world: str) -> None:
+    rt = Runtime(link=RobotLink.attach(world))
+    assert rt.world is not None and rt.plant is None
+    rt.observe_by_camera = False
+    loop: ControlLoop[int] = ControlLoop(rt)
+    obs = _run(loop, Observe())
+    assert isinstance(obs, Observation)
+    poses = script_poses(obs)
+    for command in left_jar_grasp(poses):
+        result = _run(loop, command)
+        assert isinstance(result, CommandResult) and result.ok, (command, result)
+    jar = rt.model.body("jar").id
+    assert rt.held["left"] == jar
+    lifted_from = float(rt.data.xpos[jar][2])
+    loop.submit(1, left_jar_lift(poses))
+    for _ in range(700):  # mid-lift
+        assert loop.cycle() is None
+    was_at, was_time = rt.data.xpos[jar].copy(), rt.time
+    assert was_at[2] > lifted_from + 0.01  # the jar is off the shelf
+    rt.world.link.close()  # the controller ends mid-motion
+    del loop, rt
+
+    again = Runtime(link=RobotLink.attach(world))
+    assert again.world is not None
+    assert again.time > was_time  # the world went on: never rolled back
+    assert again.held["left"] == jar  # it knows from the hand's state and touch what it holds
+    assert np.linalg.norm(again.data.xpos[jar] - was_at) < 0.01  # the safety layer held it there
+    loop = ControlLoop(again)
+    result = _run(loop, left_jar_lift(poses))
+    assert isinstance(result, CommandResult) and result.ok, result
+    assert float(again.data.xpos[jar][2]) == pytest.approx(lifted_from + LIFT_M, abs=0.02)
+    again.world.link.close()
+
+
+def test_a_world_takes_a_displacement_once(world: str) -> None:
+    rt = Runtime(link=RobotLink.attach(world))
+    assert rt.world is not None
+    loop: ControlLoop[int] = ControlLoop(rt)
+    bowl = rt.model.body("bowl").id
+    before = rt.data.xpos[bowl].copy()
+    rt.displace("bowl", (0.02, 0.0, 0.0))
+    for _ in range(50):
+        loop.cycle()
+    moved = rt.data.xpos[bowl] - before
+    assert moved[0] == pytest.approx(0.02, abs=0.003)  # once: not once per cycle
+    with pytest.raises(ValueError, match="not a free body"):
+        rt.displace("table", (0.0, 0.0, 0.1))
+    rt.world.link.close()
+
+
+def test_a_controller_of_another_kitchen_is_refused(world: str) -> None:
+    link = RobotLink.attach(world)
+    with pytest.raises(ValueError, match="coordinates"):
+        Runtime(link=link, n_particles=4)  # a kitchen with fewer spheres in the jar
+    link.close()
+
+
+class SceneWatch:
+    """Reads the world's scene every few milliseconds in a thread: (time, jar position)."""
+
+    def __init__(self, name: str, jar_qpos: int) -> None:
+        self.link = RobotLink.attach(name)
+        self.samples: list[tuple[float, np.ndarray]] = []
+        self.jar_qpos = jar_qpos
+        self.stop = threading.Event()
+        self.thread = threading.Thread(target=self._watch, daemon=True)
+        self.thread.start()
+
+    def _watch(self) -> None:
+        scene = np.zeros(self.link.n_scene)
+        while not self.stop.wait(0.005):
+            if self.link.read_scene(scene) is not None:
+                at = 1 + self.jar_qpos
+                self.samples.append((float(scene[0]), scene[at : at + 3].copy()))
+
+    def close(self) -> None:
+        self.stop.set()
+        self.thread.join(5)
+        self.link.close()
+
+
+def _call(ex: ExecutorProcess, command: object) -> Result:
+    done: queue.SimpleQueue[Result] = queue.SimpleQueue()
+    ex.submit(command, done.put)  # type: ignore[arg-type]
+    return done.get(timeout=120)
+
+
+def _state_after(ex: ExecutorProcess, sim_time: float) -> RobotSnapshot:
+    """The loop's first published state 25 ms of simulated time after ``sim_time`` (it
+    publishes every 20 cycles)."""
+    for _ in range(4000):
+        snap = ex.snapshot()
+        if snap is not None and snap.sim_time >= sim_time + 0.025:
+            return snap
+        threading.Event().wait(0.005)
+    raise AssertionError(f"no state after {sim_time:.3f} s")
+
+
+def test_ag_ex_killed_mid_lift_leaves_the_jar_where_it_was_and_the_next_loop_lifts_it(world: str) -> None:
+    model = load_kitchen(N_PARTICLES, 0, None)
+    jar_qpos = int(model.jnt_qposadr[model.body_jntadr[model.body("jar").id]])
+    watch = SceneWatch(world, jar_qpos)
+    first = ExecutorProcess(realtime=False, world_link=world, perception="truth", realtime_priority=False)
+    first.start()
+    try:
+        obs = _call(first, Observe())
+        assert isinstance(obs, Observation)
+        poses = script_poses(obs)
+        for command in left_jar_grasp(poses):
+            result = _call(first, command)
+            assert isinstance(result, CommandResult) and result.ok, (command, result)
+        assert isinstance(result, CommandResult) and result.sim_time is not None
+        assert _state_after(first, result.sim_time).held_object["left"] == "jar"
+        lift: queue.SimpleQueue[Result] = queue.SimpleQueue()
+        first.submit(left_jar_lift(poses), lift.put)
+        _state_after(first, result.sim_time + 0.7)  # mid-lift
+        assert first.pid is not None
+        os.kill(first.pid, signal.SIGKILL)  # ag_ex's loop dies mid-lift, as under roco chaos
+        result = lift.get(timeout=30)
+        assert isinstance(result, CommandResult) and not result.ok
+    finally:
+        first.stop()
+    killed_at = len(watch.samples)
+
+    second = ExecutorProcess(realtime=False, world_link=world, perception="truth", realtime_priority=False)
+    second.start()
+    try:
+        snap = second.snapshot()
+        assert snap is not None and snap.held_object["left"] == "jar"  # it knows what its hand holds
+        result = _call(second, left_jar_lift(poses))
+        assert isinstance(result, CommandResult) and result.ok, result
+    finally:
+        second.stop()
+        watch.close()
+    times = np.array([t for t, _ in watch.samples])
+    jar = np.array([p for _, p in watch.samples])
+    assert 0 < killed_at < len(times)
+    assert np.all(np.diff(times) >= 0.0)  # the world's time never goes back
+    steps = np.linalg.norm(np.diff(jar, axis=0), axis=1)
+    assert steps.max() < 0.01  # the jar never jumps: no rollback, no drop
+    assert jar[-1][2] - jar[0][2] == pytest.approx(LIFT_M, abs=0.02)

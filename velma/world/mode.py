@@ -1,0 +1,23 @@
+"""Where the kitchen's physics runs, as the fleet's environment says (``ROCO_WORLD``): in a world
+process of its own beside ag_ex (``process``: velma/world/main.py, the robot link of
+velma/world/link.py), or inside ag_ex's loop (``loop``, the default). Imports nothing heavy: the
+launcher reads it."""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Mapping
+
+WORLD_ENV = "ROCO_WORLD"
+WORLD_MODES = ("loop", "process")
+WORLD_SERVICE = "world"
+"""The world process's name among a fleet's processes (its log: ``logs/world.stderr``)."""
+
+
+def world_in_process(env: Mapping[str, str] | None = None) -> bool:
+    """True when ``ROCO_WORLD=process`` in ``env`` (default ``os.environ``). Raises ValueError
+    for a value other than ``WORLD_MODES``."""
+    value = (os.environ if env is None else env).get(WORLD_ENV, "loop").strip() or "loop"
+    if value not in WORLD_MODES:
+        raise ValueError(f"{WORLD_ENV} must be one of {', '.join(WORLD_MODES)}, not {value!r}")
+    return value == "process"
