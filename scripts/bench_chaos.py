@@ -4,16 +4,20 @@ restarted once during the pour, services/scenario/chaos.py), one per seed, print
 table: the faults drawn, how many fell during the command, the verdict's five answers, wall
 time.
 
-Usage: ``python scripts/bench_chaos.py [--hosts] [--realtime] [--runs-dir DIR] [SEED ...]``
-(default seeds 1 2 3 4 5; with ``--hosts`` each run is ``roco chaos --hosts``: on two hosts of
-this machine, both routers and the link faulted too; root; ``--realtime`` paces the pour to wall
-time, so that more of the faults fall during it; ``--runs-dir`` keeps each run's folder there)
+Usage: ``python scripts/bench_chaos.py [--hosts] [--realtime] [--kinds K,…] [--count N]
+[--runs-dir DIR] [SEED ...]`` (default seeds 1 2 3 4 5; with ``--hosts`` each run is ``roco chaos
+--hosts``: on two hosts of this machine, both routers and the link faulted too; root;
+``--realtime`` paces the pour to wall time, so that more of the faults fall during it;
+``--kinds`` and ``--count`` go to ``roco chaos``; ``--runs-dir`` keeps each run's folder there).
+The fleet's environment is this one's: ``ROCO_WORLD=process`` runs the kitchen as a world
+process of its own (docs/executor.md).
 """
 
 from __future__ import annotations
 
 import argparse
 import contextlib
+import os
 import re
 import subprocess
 import sys
@@ -40,6 +44,8 @@ def main() -> int:
         action="store_true",
         help="pace the simulation to wall time (more faults fall in the pour)",
     )
+    parser.add_argument("--kinds", default="kill,pause,restart", help="fault kinds (roco chaos --kinds)")
+    parser.add_argument("--count", type=int, default=None, help="random faults (roco chaos --count)")
     parser.add_argument(
         "--runs-dir",
         type=Path,
@@ -50,7 +56,10 @@ def main() -> int:
     seeds, hosts = args.seeds, ["--hosts"] if args.hosts else []
     title = "roco chaos --hosts" if args.hosts else "roco chaos"
     paced = "paced to wall time" if args.realtime else "not paced"
-    print(f"# {title}, one run per seed ({time.strftime('%Y-%m-%d')}, {paced})")
+    kinds = tuple(args.kinds.split(","))
+    faulted = f"--kinds {args.kinds}" + (f" --count {args.count}" if args.count else "")
+    world = os.environ.get("ROCO_WORLD", "loop")
+    print(f"# {title} {faulted}, one run per seed ({time.strftime('%Y-%m-%d')}, {paced}, ROCO_WORLD={world})")
     print(f"Machine: {benchlib.machine(('mujoco', 'pin', 'eclipse-zenoh'))}")
     print()
     print("| seed | faults (service kind) | in the pour | " + " | ".join(ANSWERS) + " | wall (s) |")
@@ -59,7 +68,7 @@ def main() -> int:
     for seed in seeds:
         faults = ", ".join(
             f"{s.fault.service} {s.fault.kind}"
-            for s in chaos_scenario(seed, hosts=args.hosts).steps
+            for s in chaos_scenario(seed, hosts=args.hosts, kinds=kinds, count=args.count).steps
             if s.fault
         )
         with _runs_dir(args.runs_dir, seed) as runs:
@@ -74,6 +83,9 @@ def main() -> int:
                     *(["--realtime"] if args.realtime else []),
                     "--seed",
                     str(seed),
+                    "--kinds",
+                    args.kinds,
+                    *(["--count", str(args.count)] if args.count else []),
                     "--runs-dir",
                     runs,
                     "--quiet",

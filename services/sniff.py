@@ -52,9 +52,9 @@ from shared.fipa_codec.batch import unpack
 from shared.fipa_codec.string_form import to_string
 
 POLL_S = 0.1
+"""How often (s) the sniffer looks at its ``stop`` event while no communicate arrives."""
 COPIES_KEPT = 4096
 """Communicates remembered (their digests and times) to recognise a copy of one."""
-"""How often (s) the sniffer looks at its ``stop`` event while no communicate arrives."""
 
 _CONTROL = {c: f"\\x{c:02x}" for c in [*range(0x20), *range(0x7F, 0xA0)] if c != 0x0A}
 

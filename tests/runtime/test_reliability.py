@@ -530,3 +530,81 @@ def test_a_restarted_a_km_drops_an_update_sent_to_its_previous_process_and_keeps
     )
     km.step("idle")
     assert km.agent.current == fresh and km.agent.subscribed  # the new subscription goes on
+
+
+def test_an_l_sw_inform_retransmitted_across_a_partition_is_its_copy_and_a_co_confirms_it_as_before(
+    tmp_path: Path,
+) -> None:
+    """The partition of issue 45 at the runtime: a_ta's L_SW inform reaches a_co, whose confirm
+    the cut link holds back; a_ta retransmits the inform. The retransmission is the original's
+    bytes (its reply-with, conversation-id and content: the same communicate, FIPA SC00061
+    §2.4), a_co takes it as a copy and sends its confirm again byte for byte, a_ta drops the
+    confirm's copy, and the traffic record of it all conforms, the two copies judged once."""
+    from services.recorder.recorder import TrafficWriter
+    from services.spec.model import default_spec
+    from services.spec_check.conformance import render, verify_run
+
+    co, ta = Wire(Coordinator), Wire(TaskExecutor)  # two buses: the test carries C1 by hand
+    crossed: list[tuple[str, bytes]] = []  # what crossed the wire, in order (the record)
+
+    def carry(dst: Wire[Coordinator] | Wire[TaskExecutor], payload: bytes) -> None:
+        """``payload`` crosses C1 to ``dst``'s agent."""
+        msg = decode(payload)
+        assert msg.sender is not None
+        crossed.append((keys.fipa_key("C1", msg.sender.name, msg.receiver[0].name), payload))
+        dst.deliver(payload)
+
+    hi = communicate(P.REQUEST, "a_hi", "a_co", "fipa-request", "cmd-1", POUR, reply_with="r1")
+    crossed.append((keys.fipa_key("C2", "a_hi", "a_co"), encode(hi)))
+    co.deliver(hi)
+    co.step("procReq")
+    task = co.agent.tasks["cmd-1"]
+    task.plan, task.needs_plan = PLAN, False
+    co.agent.reschedule = True
+    co.step("schedule")
+    co.step("switch")
+    crossed += [
+        (keys.fipa_key("C2", "a_co", "a_hi"), encode(m)) for m in co.mine() if m.receiver[0].name == "a_hi"
+    ]
+    (run,) = co.mine(P.REQUEST)
+    carry(ta, encode(run))
+    ta.step("idle")
+    assert ta.agent.plan_request is not None
+    ta.agent._inform_co(SWState.RUNNING, step="pour/wait")
+    ta.agent._dispatch()
+    (inform,) = [raw for raw, m in zip(ta.raw, ta.out, strict=True) if m.receiver[0].name == "a_co"]
+    carry(co, inform)
+    co.step("trigger")
+    (confirm,) = co.mine(P.CONFIRM)
+    # the link is cut: the confirm does not reach a_ta, whose retransmission time comes
+    original = decode(inform)
+    assert original.reply_with is not None
+    pending = ta.agent.conversations.get(original.reply_with)
+    assert pending is not None and pending.retry_s is not None
+    pending.next_retry = 0.0
+    ta.agent._acquire()
+    ta.agent._dispatch()
+    informs = [raw for raw, m in zip(ta.raw, ta.out, strict=True) if m.receiver[0].name == "a_co"]
+    assert len(informs) == 2 and ta.agent.counters["retransmitted"] == 1
+    again = decode(informs[1])
+    assert informs[1] == inform  # the same communicate: byte for byte
+    assert (again.reply_with, again.conversation_id) == (original.reply_with, original.conversation_id)
+    carry(co, informs[1])  # the link is back: the retransmission reaches a_co
+    assert co.agent.counters["duplicates"] == 1 and co.agent.counters["replayed"] == 1
+    assert not co.agent.x  # not taken in a second time
+    confirms = [raw for raw, m in zip(co.raw, co.out, strict=True) if m.performative is P.CONFIRM]
+    assert len(confirms) == 2 and confirms[0] == confirms[1] == encode(confirm)
+    for raw in confirms:
+        carry(ta, raw)
+    assert ta.agent.counters["duplicates"] == 1  # the confirm's copy: dropped
+    assert ta.agent.conversations.get(original.reply_with) is None  # answered: sent no more
+    assert ta.agent.counters["protocol_violations"] == co.agent.counters["protocol_violations"] == 0
+
+    writer = TrafficWriter(tmp_path)
+    for i, (key, payload) in enumerate(crossed):
+        writer.write(1000.0 + 0.01 * i, key, payload)
+    writer.close()
+    report = verify_run(tmp_path, default_spec())
+    assert report.full_conformance and report.copies == 2, render(report)
+    (c1,) = [c for c in report.conversations if c.conversation_id == run.conversation_id]
+    assert c1.messages == 3 and c1.violations == 0  # request, inform, confirm: the copies once

@@ -14,9 +14,10 @@ import pytest
 from services.recorder.record import TRAFFIC_RAW
 from services.recorder.recorder import TrafficWriter
 from services.runtime import keys
+from services.runtime.transport import Arrival
 from services.spec.model import default_spec
 from services.spec_check.conformance import ConformanceReport, render, verify_report, verify_run
-from shared.fipa_codec import Communicate, Performative, encode
+from shared.fipa_codec import Communicate, Performative, decode, encode
 from shared.fipa_codec.languages import encode_content
 from shared.fipa_codec.languages.l_hc import (
     CommandOutcome,
@@ -452,3 +453,51 @@ def test_an_answer_recorded_before_its_query_is_checked_after_it(tmp_path: Path)
     report = verify(tmp_path / "stray", on("C4", stray), on("C4", query2))
     assert found(report) == [(0, "protocol-state", "q2", 0)]
     assert not any("causal order" in n for n in report.notes)
+
+
+def test_across_a_cut_link_the_copies_are_judged_once_whichever_order_the_recorder_got_them_in(
+    pour_traffic: list[tuple[str, bytes]], tmp_path: Path
+) -> None:
+    """Issue 45, as the brain's recorder saw it: a_ta's L_SW inform was put while the link was
+    cut and retransmitted 5 s later under the next sequence number of its publisher; a_co
+    confirmed it, and sent the confirm again for the copy. Over the two hosts' paths a_co's
+    confirm reached the recorder before the inform it answers, and the confirm's copy before
+    the inform's copy. Each copy is judged once, as its original, in causal order."""
+    from services.report import build_report
+
+    c1 = keys.fipa_key("C1", "a_ta", "a_co"), keys.fipa_key("C1", "a_co", "a_ta")
+    at = next(i for i, (k, p) in enumerate(pour_traffic) if k == c1[0] and b"sw" in p)
+    confirm = next(i for i in range(at, len(pour_traffic)) if pour_traffic[i][0] == c1[1])
+    inform, confirmed = pour_traffic[at], pour_traffic[confirm]
+    rest = [kp for i, kp in enumerate(pour_traffic) if i not in (at, confirm)]
+    before, after = rest[:at], rest[at:]
+    # arrival order at the recorder: …, confirm, inform, confirm's copy, inform's copy, …
+    run = record_from_publishers(tmp_path / "cut", [*before, confirmed, inform, confirmed, inform, *after])
+    report = verify_run(run, default_spec())
+    assert report.record.intact and report.copies == 2, render(report)
+    assert report.full_conformance, render(report)
+    (plan,) = [c for c in report.conversations if c.conversation_id == decode(inform[1]).conversation_id]
+    assert plan.protocol == "coordinate" and plan.violations == 0 and plan.ended
+    # the report tells the run as it tells the same run without the copies
+    built = build_report(run)
+    alone = build_report(record_from_publishers(tmp_path / "alone", [*before, confirmed, inform, *after]))
+    assert any("2 communicate(s) recorded again" in n for n in built.notes)
+    assert [(e.kind, e.text) for e in built.events] == [(e.kind, e.text) for e in alone.events]
+
+
+def record_from_publishers(run_dir: Path, order: list[tuple[str, bytes]]) -> Path:
+    """Record the communicates of ``order`` (key, payload) as arriving in that order, 10 ms
+    apart, each sent 5 ms before it arrived by the advanced publisher of its key (one per key:
+    source ``zid:<key>``, sequence numbers 0, 1, … in order; a copy is the next number)."""
+    sns: dict[str, int] = {}
+    arrivals: list[Arrival] = []
+    for i, (key, payload) in enumerate(order):
+        if key.startswith("roco/fipa/"):
+            sn = sns[key] = sns.get(key, -1) + 1
+            t = 1000.0 + 0.01 * i
+            arrivals.append(Arrival(t, key, payload, f"zid:{key}", sn, t - 0.005))
+    run_dir.mkdir()
+    writer = TrafficWriter(run_dir)
+    writer.write_many(arrivals)
+    writer.close()
+    return run_dir

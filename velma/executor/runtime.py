@@ -104,7 +104,7 @@ class Runtime:
         self.pose_seed = pose_seed
         self.model = load_kitchen(N_PARTICLES if n_particles is None else n_particles, seed, pose_seed)
         self.model.opt.timestep = DT
-        self.data = initial_state(self.model)
+        self._data = initial_state(self.model)
         self.robot = RobotModel()
         self.ik_data = self.robot.model.createData()  # the IK search's own (see primitives)
         self.self_collision = SelfCollision(self.robot)
@@ -134,7 +134,7 @@ class Runtime:
         self.world: WorldLink | None = None
         """The attached world process (``link``), or None: the physics runs here."""
         if link is not None:
-            self.world = WorldLink(link, self.model, self.data, self.jmap, spin_s=link_spin_s)
+            self.world = WorldLink(link, self.model, self._data, self.jmap, spin_s=link_spin_s)
             compiled_plant = False
         self.hands: Hands = self.world.hands if self.world is not None else Hands(self.model)
         self.contacts = ContactMonitor(self.model)
@@ -177,7 +177,7 @@ class Runtime:
         if why is None:
             self.plant = CompiledPlant(
                 self.model,
-                self.data,
+                self._data,
                 cast(CompiledController, self.ctrl),
                 self.jmap,
                 self.contacts,
@@ -193,6 +193,8 @@ class Runtime:
             raise RuntimeError(f"no compiled plant: {why}")
         elif compiled_plant is None and isinstance(self.ctrl, CompiledController):
             log.warning("the cycle's MuJoCo side runs in Python: %s (velma/executor/plant.py)", why)
+        self.waited_s = 0.0
+        """Attached to a world process: how long (s) the last cycle waited for its state."""
         self.part_s = np.zeros(3)
         """The last cycle's measured parts (s): primitive (set by the loop), control, physics
         (velma.executor.timing.PARTS)."""
@@ -245,17 +247,29 @@ class Runtime:
         self.head[2:] = value
 
     @property
+    def data(self) -> mujoco.MjData:
+        """MuJoCo's data of the kitchen: stepped here, or, attached to a world process, its
+        mirror, brought up to the world's latest state when read (``WorldLink.mirror``)."""
+        if self.world is not None and self.world.stale:
+            self.world.mirror()
+        return self._data
+
+    @property
     def time(self) -> float:
         """Simulation time (s)."""
-        return float(self.data.time)
+        return self.world.time if self.world is not None else float(self._data.time)
 
     def q(self) -> Array:
-        """Pinocchio q (33,) rad from MuJoCo."""
-        return self.jmap.q(self.data)
+        """Pinocchio q (33,) rad, measured."""
+        if self.world is not None:
+            return self.world.q.copy()
+        return self.jmap.q(self._data)
 
     def v(self) -> Array:
-        """Pinocchio v (33,) rad/s from MuJoCo."""
-        return self.jmap.v(self.data)
+        """Pinocchio v (33,) rad/s, measured."""
+        if self.world is not None:
+            return self.world.v.copy()
+        return self.jmap.v(self._data)
 
     def arm_q(self, side: str) -> Array:
         """Measured arm joint positions (7,) rad."""
@@ -291,9 +305,10 @@ class Runtime:
     # ------------------------------------------------------------------ cycle
     def cycle(self) -> None:
         """One 1 ms control cycle after the setpoints were updated (see module docstring);
-        the control and physics parts of its time go to ``part_s``."""
+        the control and physics parts of its time go to ``part_s``; attached to a world, the
+        time spent waiting for its next state goes to ``waited_s``, not to a part."""
         t0 = time.perf_counter()
-        data = self.data
+        data = self._data
         part = self.part_s
         if self.world is not None:
             world = self.world
@@ -303,7 +318,8 @@ class Runtime:
             part[1] = t1 - t0
             world.sense()
             self.head[:2] = world.head_set
-            t_step = t1
+            t_step = time.perf_counter()
+            self.waited_s = t_step - t1
         elif self.plant is not None:
             self.plant.cycle()  # the hands' and the head's servo steps too
             t1 = time.perf_counter()

@@ -3,11 +3,11 @@ world process, as a KUKA controller is to the arm under FRI.
 
 Each cycle the loop sends the impedance law's torques, the hands' operations, the head's
 targets and any disturbance (velma/world/layout.py ``COMMAND``), then waits for the world's
-next measured state and its scene, and copies them into a mirror of the kitchen's MuJoCo
-data: the scene's ``qpos``, the robot's measured joint velocities and wrist wrenches, then
-``mj_kinematics``. The mirror is never stepped: it only lets what reads poses (the grip
-frames, the state published to the agents, the head camera's capture) read them as they
-are in the world. The hands' and the head's servos run in the world; the loop keeps their
+next measured state. When something reads poses (the state published to the agents, a
+guarded move's wrist force, the head camera's capture) the world's scene is copied into a
+mirror of the kitchen's MuJoCo data (``mirror``: the scene's ``qpos``, the robot's measured
+joint velocities and wrist wrenches, then ``mj_kinematics``), at most once a cycle. The
+mirror is never stepped. The hands' and the head's servos run in the world; the loop keeps their
 setpoint rows as the world reports them (``LinkedHands``).
 """
 
@@ -118,18 +118,21 @@ class WorldLink:
         self._ft = self.measured[MEASURED.slice("ft")].reshape(len(SIDES), 6)
         self._touch = self.measured[MEASURED.slice("touch")].reshape(len(SIDES), TOUCH_SLOTS, 2)
         self._self_touch = self.measured[MEASURED.slice("self_touch")].reshape(-1, 2)
-        self._holding = MEASURED.fields["holding"][0]
+        self._holding, self._time = MEASURED.fields["holding"][0], MEASURED.fields["time"][0]
         self.ft_adr = [
             (int(model.sensor(f"{s}_ft_force").adr[0]), int(model.sensor(f"{s}_ft_torque").adr[0]))
             for s in SIDES
         ]
         self.cycle = -1
         """The world cycle of the measured state in hand (−1: none yet)."""
+        self.stale = True
+        """True when the mirror is older than the measured state (``mirror`` brings it up)."""
         self.silent = 0
         """Cycles in a row that found no new state (the world stopped or is gone)."""
         if not link.wait_measured(0, timeout_s, spin_s=0.0):
             raise RuntimeError(f"the world published nothing on link {link.name} within {timeout_s:.0f} s")
         self._read()
+        self.mirror()
         self.hands.continue_from(self._hand_rows, self._hand_seq)
         self.command[COMMAND.fields["disturb"][0]] = self.measured[MEASURED.fields["disturb_seq"][0]]
         data.qvel[:] = 0.0  # the scene carries positions only: the objects' velocities are not mirrored
@@ -137,7 +140,7 @@ class WorldLink:
     @property
     def time(self) -> float:
         """The world's time of the measured state (s)."""
-        return float(self.scene[0])
+        return float(self.measured[self._time])
 
     @property
     def holding(self) -> bool:
@@ -167,9 +170,17 @@ class WorldLink:
 
     def _read(self) -> None:
         cycle = self.link.read_measured(self.measured)
-        if cycle is None or self.link.read_scene(self.scene) is None:
+        if cycle is None:
             return  # a write left half done by a world that was killed: keep the last state
         self.cycle = cycle
+        self.stale = True
+        self.hands.sync(self._hand_rows, self._hand_seq)
+
+    def mirror(self) -> None:
+        """Bring the mirror up to the world's latest scene (module docstring)."""
+        self.stale = False
+        if self.link.read_scene(self.scene) is None:
+            return
         data, jmap = self.data, self.jmap
         data.time = self.scene[0]
         data.qpos[:] = self.scene[1:]
@@ -178,7 +189,6 @@ class WorldLink:
             data.sensordata[force : force + 3] = self._ft[k, :3]
             data.sensordata[torque : torque + 3] = self._ft[k, 3:]
         mujoco.mj_kinematics(self.model, data)
-        self.hands.sync(self._hand_rows, self._hand_seq)
 
     def touching(self, side: str) -> dict[int, int]:
         """{body id: number of ``side``'s hand geoms touching it} as the world's last tactile
