@@ -48,6 +48,8 @@ DROPPED_BELOW_M = 0.5
 """An object whose base is below this height (m, world z) has fallen off its furniture."""
 CHAOS_FILE = "chaos.md"
 FINAL_CHECKPOINT = "ag_ex_state/world.ckpt"
+MAX_SCENE_BYTES = 1 << 20
+"""Largest final scene read (1 MiB; the kitchen's is 1.4 kB)."""
 """ag_ex's checkpoint in a run folder (velma/executor/checkpoint.py: written when its loop ends)."""
 log = logging.getLogger(__name__)
 SERVICE_ORDER = default_spec().agent_names
@@ -177,7 +179,7 @@ def verdict(run_dir: Path, outcome: ScenarioOutcome) -> Verdict:
     final = final_heights(run_dir)
     judged_on = Verdict.judged_on
     if final is not None:
-        last, judged_on = final, "the final world (ag_ex's last checkpoint)"
+        last, judged_on = final[0], f"the final world ({final[1]})"
     dropped = {name: round(z, 3) for name, z in last.items() if z < DROPPED_BELOW_M}
     return Verdict(
         task_done=outcome.ok,
@@ -193,32 +195,49 @@ def verdict(run_dir: Path, outcome: ScenarioOutcome) -> Verdict:
 
 
 def final_world(run_dir: Path) -> Observation | None:
-    """The ground truth of the world ag_ex kept in its final checkpoint in ``run_dir`` (every
-    known object's pose, containers' particle counts), for the scene its launch environment
-    names (ROCO_SEED, ROCO_POSE_SEED): for judging a run, never for the agents. None when there
-    is no usable checkpoint (logged)."""
-    from velma.executor.checkpoint import observe_checkpoint
+    """The ground truth of the world as the run left it (``judged_world``), None without one."""
+    judged = judged_world(run_dir)
+    return None if judged is None else judged[0]
 
-    path = run_dir / FINAL_CHECKPOINT
-    if not path.is_file():
+
+def judged_world(run_dir: Path) -> tuple[Observation, str] | None:
+    """The ground truth of the world as the run left it in ``run_dir`` (every known object's
+    pose, containers' particle counts): the world process's final scene (``ROCO_WORLD=process``,
+    velma/world/main.py ``FINAL_FILE``), else ag_ex's final checkpoint, for the scene the launch
+    environment names (ROCO_SEED, ROCO_POSE_SEED): for judging a run, never for the agents;
+    with where it comes from. None when there is neither, or it does not fit (logged)."""
+    from velma.executor.checkpoint import observe_checkpoint
+    from velma.executor.ground_truth import observe_scene
+    from velma.world.main import FINAL_FILE
+
+    scene, path = run_dir / FINAL_FILE, run_dir / FINAL_CHECKPOINT
+    if not scene.is_file() and not path.is_file():
         return None
     env = load_launch_env(run_dir) or {}
     try:
         pose = env.get("ROCO_POSE_SEED", "")
-        return observe_checkpoint(
-            path, seed=int(env.get("ROCO_SEED", "0") or 0), pose_seed=int(pose) if pose else None
-        )
+        seed, pose_seed = int(env.get("ROCO_SEED", "0") or 0), int(pose) if pose else None
+        if scene.is_file():
+            path = scene
+            if scene.stat().st_size > MAX_SCENE_BYTES:
+                raise ValueError(f"{scene.stat().st_size} B: not a scene of the kitchen")
+            return observe_scene(
+                scene.read_bytes(), seed=seed, pose_seed=pose_seed
+            ), "the world's final scene"
+        return observe_checkpoint(path, seed=seed, pose_seed=pose_seed), "ag_ex's last checkpoint"
     except (OSError, ValueError) as exc:  # CheckpointError is a ValueError
         log.warning("final world not judged from %s: %s", path, exc)
         return None
 
 
-def final_heights(run_dir: Path) -> dict[str, float] | None:
-    """Height (m, world z) of each movable object in ``final_world``; None without one."""
-    obs = final_world(run_dir)
-    if obs is None:
+def final_heights(run_dir: Path) -> tuple[dict[str, float], str] | None:
+    """Height (m, world z) of each movable object in ``judged_world``, and where it comes
+    from; None without one."""
+    judged = judged_world(run_dir)
+    if judged is None:
         return None
-    return {o.name: o.pose.position[2] for o in obs.objects if o.name in MOVABLE}
+    obs, source = judged
+    return {o.name: o.pose.position[2] for o in obs.objects if o.name in MOVABLE}, source
 
 
 def _mark(ok: bool) -> str:

@@ -238,3 +238,29 @@ def test_the_report_of_a_run_on_two_hosts_names_the_host_of_each_fault_and_when_
     assert "| 12.0 | brain ↔ robot | link | cut | 3.5 | – | 3.5 | yes |" in text
     assert "20 ± 5 ms each way, 1 % loss" in text
     assert "- link down from t = 12.0 s to t = 15.5 s (3.5 s)" in text
+
+
+def test_the_world_processs_final_scene_is_the_final_world(tmp_path: Path) -> None:
+    """With ``ROCO_WORLD=process`` the world writes the kitchen as it left it
+    (velma/world/main.py ``FINAL_FILE``): it is what "no object dropped" judges, before any
+    checkpoint; one that does not fit the scene is not used."""
+    import numpy as np
+
+    from velma.world.hardware import SimulatedVelma
+    from velma.world.main import FINAL_FILE
+
+    b = RunBuilder()
+    b.add(1, "C5", "ag_ex", "a_ta", "inform", _observation(0.76), protocol="fipa-request", conversation="c")
+    run = _run(tmp_path, b)
+    sim = SimulatedVelma()
+    scene = np.zeros(sim.scene_size)
+    sim.scene(scene)
+    jar = sim.model.body("jar")
+    adr = 1 + int(sim.model.jnt_qposadr[jar.jntadr[0]])
+    scene[adr : adr + 3] = (1.2, 0.4, 0.05)  # the jar lies on the floor
+    (run / FINAL_FILE).write_bytes(scene.tobytes())
+    v = verdict(run, _done())
+    assert not v.ok and set(v.dropped) == {"jar"} and v.dropped["jar"] == pytest.approx(0.05, abs=1e-3)
+    assert v.judged_on == "the final world (the world's final scene)"
+    (run / FINAL_FILE).write_bytes(scene[:-3].tobytes())  # not this kitchen
+    assert verdict(run, _done()).judged_on == "the last observations during the run"

@@ -19,11 +19,12 @@ import pytest
 from velma.control.compiled import make_controller
 from velma.control.hand import HAND_WIDTH, TARGET
 from velma.control.robot_model import HEAD_JOINTS, SIDES, TORSO_JOINT, RobotModel, arm_joints
+from velma.executor.ground_truth import observe_scene
 from velma.shm import SHM_DIR
 from velma.world.hardware import CONTACT_PERIOD, DT, SimulatedVelma
 from velma.world.layout import COMMAND, HAND_KEEP, HAND_MOVE, HAND_OP, MEASURED
 from velma.world.link import RobotLink
-from velma.world.main import link_name
+from velma.world.main import FINAL_FILE, link_name
 from velma.world.serve import HOLD_CYCLES, world_process
 
 HELD = [RobotModel().v_index(j) for j in (*arm_joints("right"), *arm_joints("left"), TORSO_JOINT)]
@@ -171,6 +172,17 @@ def test_python_m_velma_world_serves_the_run_folder_and_cleans_up_on_sigterm(tmp
             world.kill()
             world.wait()
     assert link_name(tmp_path) is None and not (SHM_DIR / name).exists()
+    final = observe_scene((tmp_path / FINAL_FILE).read_bytes())  # the kitchen as the world left it
+    sim = SimulatedVelma()
+    first = np.zeros(sim.scene_size)
+    sim.scene(first)
+    start = observe_scene(first.tobytes())
+    assert final.stamp > start.stamp
+    assert [o.name for o in final.objects] == [o.name for o in start.objects]
+    for now, then in zip(final.objects, start.objects, strict=True):  # on the shelf, untouched
+        assert now.pose.position == pytest.approx(then.pose.position, abs=2e-3), now.name
+    with pytest.raises(ValueError, match="coordinates"):
+        observe_scene(bytes(16))
 
 
 def test_python_m_velma_world_without_a_run_folder_says_so_in_one_line(tmp_path: Path) -> None:

@@ -3,7 +3,9 @@ own (velma/world/serve.py), the way a real robot exists beside its controller.
 
 It makes the robot link and writes the link's name to ``RUN/world.link`` (``LINK_FILE``,
 written whole: a reader sees the old name or the new one), where a controller finds it
-(:func:`link_name`); it serves until SIGTERM or SIGINT, then removes the link and the file.
+(:func:`link_name`); it serves until SIGTERM or SIGINT, then writes the kitchen as it is then
+to ``RUN/world_final.f64`` (``FINAL_FILE``: the time and MuJoCo's ``qpos`` as raw float64, for
+judging the run, e.g. by ``roco chaos``) and removes the link and its file.
 Settings come from the options, else from the fleet's environment: ``--run-dir``
 (``ROCO_RUN_DIR``), ``--realtime`` (``ROCO_REALTIME=1``), ``--seed`` (``ROCO_SEED``: the jar's
 content jitter), ``--pose-seed`` (``ROCO_POSE_SEED``: the jar's and the bowl's poses). A bad
@@ -21,6 +23,8 @@ import threading
 from pathlib import Path
 from types import FrameType
 
+import numpy as np
+
 from velma.shm import remove_orphans
 from velma.world.hardware import SimulatedVelma
 from velma.world.layout import COMMAND, MEASURED
@@ -29,6 +33,8 @@ from velma.world.serve import serve
 
 LINK_FILE = "world.link"
 """The file in the run folder that names the world's link block."""
+FINAL_FILE = "world_final.f64"
+"""The file in the run folder that holds the kitchen as the world left it (module docstring)."""
 
 
 def link_name(run_dir: Path) -> str | None:
@@ -89,6 +95,11 @@ def main(argv: list[str] | None = None) -> int:
         partial.write_text(link.name + "\n")
         partial.replace(named)
         serve(sim, link, realtime=args.realtime, should_stop=stop.is_set)
+        final = np.zeros(sim.scene_size)
+        sim.scene(final)
+        partial = run_dir / (FINAL_FILE + ".tmp")
+        partial.write_bytes(final.tobytes())
+        partial.replace(run_dir / FINAL_FILE)
     finally:
         if link_name(run_dir) == link.name:
             with contextlib.suppress(FileNotFoundError):
