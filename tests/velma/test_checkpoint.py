@@ -12,25 +12,15 @@ import msgspec
 import numpy as np
 import pytest
 
-from shared.fipa_codec.languages.l_ex import CommandResult, Observe, Wait
+from shared.fipa_codec.languages.l_ex import CommandResult, Wait
 from shared.fipa_codec.languages.l_sd import Observation
-from tests.support.grasp import left_jar_grasp, left_jar_lift
+from tests.support.grasp import grasp_the_jar, left_jar_lift, run_command
 from velma.executor import checkpoint as ck
 from velma.executor.handoff import LatestValue
 from velma.executor.loop import ControlLoop
 from velma.executor.runtime import Runtime
-from velma.scenario import script_poses
 
 Result = CommandResult | Observation
-
-
-def _run(loop: ControlLoop[int], command: object) -> Result:
-    loop.submit(0, command)  # type: ignore[arg-type]
-    for _ in range(20000):
-        done = loop.cycle()
-        if done is not None:
-            return done[1]
-    raise AssertionError(f"{command} did not end in 20 s of simulated time")
 
 
 def _holding_the_jar() -> tuple[Runtime, ControlLoop[int]]:
@@ -38,12 +28,7 @@ def _holding_the_jar() -> tuple[Runtime, ControlLoop[int]]:
     rt = Runtime()
     rt.observe_by_camera = False  # the ground truth's poses: this test is about checkpoints
     loop: ControlLoop[int] = ControlLoop(rt)
-    obs = _run(loop, Observe())
-    assert isinstance(obs, Observation)
-    poses = script_poses(obs)
-    for command in left_jar_grasp(poses):
-        result = _run(loop, command)
-        assert isinstance(result, CommandResult) and result.ok, (command, result)
+    poses = grasp_the_jar(loop)
     loop.submit(1, left_jar_lift(poses))
     for _ in range(1000):  # mid-lift: the arm moves, the jar is off the shelf
         assert loop.cycle() is None
@@ -157,7 +142,7 @@ def test_the_directory_restores_refuses_and_starts_fresh(tmp_path: Path) -> None
     loop: ControlLoop[int] = ControlLoop(rt)
     keeper, report = ck.LoopCheckpoints.open(d, rt, loop, block="", fresh=False)
     assert keeper is not None and not report.restored and report.text.startswith("no checkpoint at")
-    assert _run(loop, Wait(duration=0.5)).ok  # type: ignore[union-attr]
+    assert run_command(loop, Wait(duration=0.5)).ok  # type: ignore[union-attr]
     assert keeper.close(loop.holding) is None  # the final checkpoint
     assert (d / ck.FILE_NAME).exists()
     saved_time = rt.time

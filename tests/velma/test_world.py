@@ -4,13 +4,11 @@ goes on; a controller that attaches again finds the world as it is now, never ro
 
 from __future__ import annotations
 
-import multiprocessing
 import os
 import signal
 import subprocess
 import sys
 import time
-from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
@@ -25,7 +23,7 @@ from velma.world.hardware import CONTACT_PERIOD, DT, SimulatedVelma
 from velma.world.layout import COMMAND, HAND_KEEP, HAND_MOVE, HAND_OP, MEASURED
 from velma.world.link import RobotLink
 from velma.world.main import FINAL_FILE, link_name
-from velma.world.serve import HOLD_CYCLES, world_process
+from velma.world.serve import HOLD_CYCLES
 
 HELD = [RobotModel().v_index(j) for j in (*arm_joints("right"), *arm_joints("left"), TORSO_JOINT)]
 """The arm and torso joints in the link's order: those the safety layer holds."""
@@ -85,21 +83,6 @@ class Controller:
 
     def close(self) -> None:
         self.link.close()
-
-
-@pytest.fixture
-def world() -> Iterator[str]:
-    ctx = multiprocessing.get_context("spawn")
-    here, there = ctx.Pipe()
-    proc = ctx.Process(target=world_process, args=(there,), kwargs={"realtime": False})
-    proc.start()
-    try:
-        assert here.poll(120), "the world process said nothing"
-        yield here.recv()
-    finally:
-        here.send("stop")
-        proc.join(30)
-    assert proc.exitcode == 0
 
 
 def test_a_controller_that_ends_leaves_the_robot_held_and_the_next_finds_the_world_as_it_is(

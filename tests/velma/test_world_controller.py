@@ -5,54 +5,25 @@ and finishes the lift: the world's time never goes back and the jar never jumps.
 
 from __future__ import annotations
 
-import multiprocessing
 import os
 import queue
 import signal
 import threading
-from collections.abc import Iterator
 
 import numpy as np
 import pytest
 
-from shared.fipa_codec.languages.l_ex import CommandResult, Observe
+from shared.fipa_codec.languages.l_ex import CommandResult
 from shared.fipa_codec.languages.l_sd import Observation
-from tests.support.grasp import LIFT_M, left_jar_grasp, left_jar_lift
+from tests.support.grasp import LIFT_M, grasp_the_jar, left_jar_lift, run_command
 from velma.executor import ExecutorProcess
 from velma.executor.loop import ControlLoop
 from velma.executor.runtime import Runtime
 from velma.executor.state import RobotSnapshot
 from velma.model.scene import N_PARTICLES, load_kitchen
-from velma.scenario import script_poses
 from velma.world.link import RobotLink
-from velma.world.serve import world_process
 
 Result = CommandResult | Observation
-
-
-@pytest.fixture
-def world() -> Iterator[str]:
-    """A world process in lockstep; its link's name."""
-    ctx = multiprocessing.get_context("spawn")
-    here, there = ctx.Pipe()
-    proc = ctx.Process(target=world_process, args=(there,), kwargs={"realtime": False})
-    proc.start()
-    try:
-        assert here.poll(120), "the world process said nothing"
-        yield here.recv()
-    finally:
-        here.send("stop")
-        proc.join(30)
-    assert proc.exitcode == 0
-
-
-def _run(loop: ControlLoop[int], command: object, cycles: int = 20000) -> Result:
-    loop.submit(0, command)  # type: ignore[arg-type]
-    for _ in range(cycles):
-        done = loop.cycle()
-        if done is not None:
-            return done[1]
-    raise AssertionError(f"{command} did not end in {cycles} cycles")
 
 
 def test_the_runtime_attached_to_a_world_grasps_and_a_second_one_finds_the_jar_in_hand(world: str) -> None:
@@ -60,12 +31,7 @@ def test_the_runtime_attached_to_a_world_grasps_and_a_second_one_finds_the_jar_i
     assert rt.world is not None and rt.plant is None
     rt.observe_by_camera = False
     loop: ControlLoop[int] = ControlLoop(rt)
-    obs = _run(loop, Observe())
-    assert isinstance(obs, Observation)
-    poses = script_poses(obs)
-    for command in left_jar_grasp(poses):
-        result = _run(loop, command)
-        assert isinstance(result, CommandResult) and result.ok, (command, result)
+    poses = grasp_the_jar(loop)
     jar = rt.model.body("jar").id
     assert rt.held["left"] == jar
     lifted_from = float(rt.data.xpos[jar][2])
@@ -83,7 +49,7 @@ def test_the_runtime_attached_to_a_world_grasps_and_a_second_one_finds_the_jar_i
     assert again.held["left"] == jar  # it knows from the hand's state and touch what it holds
     assert np.linalg.norm(again.data.xpos[jar] - was_at) < 0.01  # the safety layer held it there
     loop = ControlLoop(again)
-    result = _run(loop, left_jar_lift(poses))
+    result = run_command(loop, left_jar_lift(poses))
     assert isinstance(result, CommandResult) and result.ok, result
     assert float(again.data.xpos[jar][2]) == pytest.approx(lifted_from + LIFT_M, abs=0.02)
     again.world.link.close()
@@ -160,17 +126,13 @@ def test_ag_ex_killed_mid_lift_leaves_the_jar_where_it_was_and_the_next_loop_lif
     first = ExecutorProcess(realtime=False, world_link=world, perception="truth", realtime_priority=False)
     first.start()
     try:
-        obs = _call(first, Observe())
-        assert isinstance(obs, Observation)
-        poses = script_poses(obs)
-        for command in left_jar_grasp(poses):
-            result = _call(first, command)
-            assert isinstance(result, CommandResult) and result.ok, (command, result)
-        assert isinstance(result, CommandResult) and result.sim_time is not None
-        assert _state_after(first, result.sim_time).held_object["left"] == "jar"
+        poses = grasp_the_jar(lambda command: _call(first, command))
+        grasped = first.snapshot()
+        assert grasped is not None
+        assert _state_after(first, grasped.sim_time).held_object["left"] == "jar"
         lift: queue.SimpleQueue[Result] = queue.SimpleQueue()
         first.submit(left_jar_lift(poses), lift.put)
-        _state_after(first, result.sim_time + 0.7)  # mid-lift
+        _state_after(first, grasped.sim_time + 0.7)  # mid-lift
         assert first.pid is not None
         os.kill(first.pid, signal.SIGKILL)  # ag_ex's loop dies mid-lift, as under roco chaos
         result = lift.get(timeout=30)
