@@ -376,6 +376,50 @@ def test_a_restarted_a_hi_still_tells_the_person_the_outcome(
     assert second.agent.counters["rejected"] == 0
 
 
+def test_a_restarted_a_hi_asks_again_for_an_agreed_command_whose_outcome_came_while_it_was_down(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """a_co agreed, then a_hi was killed, and a_co's final inform went while it was down: the
+    restarted a_hi sends the request again (the same bytes), and a_co's answers to it, the agree
+    and the outcome as it sent them, end the command; the person is told "accepted" once."""
+    monkeypatch.setenv(ENV_STATE_DIR, str(tmp_path))
+    bus = MemoryBus()
+    reports: list[HumanReport] = []
+    bus.subscribe(keys.HUMAN_OUT, lambda k, p: reports.append(msgspec.json.decode(p, type=HumanReport)))
+    first = Wire(HumanInterface, bus)
+    first.agent.setup()
+    from services.runtime.human import HumanInput
+
+    first.agent.post(HumanInput(text="pour the jar into the bowl", request_id="req-8"))
+    for _ in range(30):  # the line is read (reading.py), then the command goes to a_co
+        first.agent._acquire(timeout=1.0)
+        first.step("interact")
+        if first.mine(P.REQUEST):
+            break
+    (request,) = first.mine(P.REQUEST)
+    cid = request.conversation_id or ""
+    agree = communicate(P.AGREE, "a_co", "a_hi", "fipa-request", cid, in_reply_to=request.reply_with)
+    first.deliver(agree)
+    first.step("interact")
+    assert first.agent.commands[cid].agreed
+    # a_hi is killed; a_co's outcome is sent meanwhile and lost
+
+    second = Wire(HumanInterface, bus)
+    second.agent.setup()
+    second.agent._acquire()
+    second.agent._dispatch()
+    assert [m.reply_with for m in second.mine(P.REQUEST)] == [request.reply_with]  # agreed, asked again
+    outcome = CommandOutcome(command_id=cid, succeeded=True, detail="the task succeeded")
+    second.deliver(agree)  # a_co answers the repeated request as it answered it
+    second.deliver(
+        communicate(P.INFORM, "a_co", "a_hi", "fipa-request", cid, outcome, in_reply_to=request.reply_with)
+    )
+    second.step("interact")
+    kinds = [r.kind for r in reports if r.request_id == "req-8"]
+    assert kinds[-1] is ReportKind.SUCCEEDED and kinds.count(ReportKind.ACCEPTED) == 1, kinds
+    assert second.agent.counters["rejected"] == 0 and cid not in second.agent.commands
+
+
 def a_co_with_the_pour_planned() -> tuple[MemoryBus, Wire[Coordinator], MemoryTransport]:
     """An a_co that took a_hi's pour command (task ``cmd-1``) and holds its plan, not yet
     sent; the bus and a_ta's transport, its token announced."""

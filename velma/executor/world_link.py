@@ -131,11 +131,11 @@ class WorldLink:
         """Cycles in a row that found no new state (the world stopped or is gone)."""
         if not link.wait_measured(0, timeout_s, spin_s=0.0):
             raise RuntimeError(f"the world published nothing on link {link.name} within {timeout_s:.0f} s")
+        data.qvel[:] = 0.0  # the scene carries positions only: the objects' velocities are not mirrored
         self._read()
         self.mirror()
         self.hands.continue_from(self._hand_rows, self._hand_seq)
         self.command[COMMAND.fields["disturb"][0]] = self.measured[MEASURED.fields["disturb_seq"][0]]
-        data.qvel[:] = 0.0  # the scene carries positions only: the objects' velocities are not mirrored
 
     @property
     def time(self) -> float:

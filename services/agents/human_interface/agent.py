@@ -377,16 +377,18 @@ class HumanInterface(Agent):
         )
 
     def _restore(self, kept: KeptHumanInterface) -> None:
-        """Take back the open commands of a previous a_hi; retransmit those not yet agreed."""
+        """Take back the open commands of a previous a_hi and send each request again, agreed or
+        not: a_co answers a repeated request as it answered it (its agree, and its outcome when
+        the command ended while this a_hi was down, which would otherwise be lost)."""
         for k in kept.commands:
             try:
                 conv = self.roles.restore(
                     C2,
                     REQUEST,
-                    "agreed" if k.agreed else "requested",
+                    "requested",
                     kept=k.request,
-                    reply_by_s=COMMAND_REPLY_BY_S if k.agreed else AGREE_BY_S,
-                    retry_s=None if k.agreed else COMMAND_RETRY_S,
+                    reply_by_s=AGREE_BY_S,
+                    retry_s=COMMAND_RETRY_S,
                     expect=HumanCommand,
                 )
             except RestoreError as exc:
@@ -660,8 +662,11 @@ class HumanInterface(Agent):
     @handles(REQUEST, INITIATOR, "agree")
     def _on_agreed(self, conv: Conversation) -> None:
         c = self._open_command(conv)
-        if c is None or conv.answers_cancel or c.agreed:
+        if c is None or conv.answers_cancel:
             return  # an agree crossing a cancel is not part of the cancel meta-protocol
+        if c.agreed:  # a_co's agree again, to the request a restarted a_hi sent again: said already
+            conv.await_reply(COMMAND_REPLY_BY_S)
+            return
         c.agreed = True
         conv.await_reply(COMMAND_REPLY_BY_S)  # the agree answers the request; the outcome may take long
         extras = []
