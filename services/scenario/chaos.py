@@ -206,8 +206,7 @@ def judged_world(run_dir: Path) -> tuple[Observation, str] | None:
     velma/world/main.py ``FINAL_FILE``), else ag_ex's final checkpoint, for the scene the launch
     environment names (ROCO_SEED, ROCO_POSE_SEED): for judging a run, never for the agents;
     with where it comes from. None when there is neither, or it does not fit (logged)."""
-    from velma.executor.checkpoint import observe_checkpoint
-    from velma.executor.ground_truth import observe_scene
+    from velma.executor.checkpoint import observe_checkpoint, observe_scene
     from velma.world.main import FINAL_FILE
 
     scene, path = run_dir / FINAL_FILE, run_dir / FINAL_CHECKPOINT

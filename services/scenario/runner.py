@@ -486,6 +486,10 @@ class ScenarioRunner:
             # what each agent says it put on Zenoh, then everything routed before is recorded
             save_counters(self.run_dir, ask_counters(session, AGENT_ORDER, timeout=5.0))
             self._sync_recorder(session)
+            # the lines of communicates that came after the final report (another subscriber's
+            # thread) are still said: the person sees every step
+            while not self.events.empty():
+                self._pump(0.0, deadline)
         except LaunchError as exc:
             detail = str(exc)
         except KeyboardInterrupt:

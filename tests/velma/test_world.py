@@ -17,7 +17,7 @@ import pytest
 from velma.control.compiled import make_controller
 from velma.control.hand import HAND_WIDTH, TARGET
 from velma.control.robot_model import HEAD_JOINTS, SIDES, TORSO_JOINT, RobotModel, arm_joints
-from velma.executor.ground_truth import observe_scene
+from velma.executor.checkpoint import observe_scene
 from velma.shm import SHM_DIR
 from velma.world.hardware import CONTACT_PERIOD, DT, SimulatedVelma
 from velma.world.layout import COMMAND, HAND_KEEP, HAND_MOVE, HAND_OP, MEASURED

@@ -654,3 +654,23 @@ def observe_checkpoint(path: Path, *, seed: int = 0, pose_seed: int | None = Non
     mujoco.mj_setState(rt.model, rt.data, physics, ckpt.state_sig)
     mujoco.mj_forward(rt.model, rt.data)
     return rt.ground_truth.observe(rt.data)
+
+
+def observe_scene(values: bytes, *, seed: int = 0, pose_seed: int | None = None) -> Observation:
+    """The ground truth of a kitchen saved as raw float64 (the time, then MuJoCo's ``qpos``: a
+    world process's final scene, velma/world/main.py ``FINAL_FILE``) for the scene of ``seed``
+    and ``pose_seed``: for judging a run, never for the agents. Raises ValueError when the
+    values do not fit that scene."""
+    import mujoco
+
+    from velma.executor.ground_truth import GroundTruth
+    from velma.model.scene import N_PARTICLES, load_kitchen
+
+    model = load_kitchen(N_PARTICLES, seed, pose_seed)
+    scene = np.frombuffer(values, dtype=np.float64)
+    if scene.size != 1 + model.nq:
+        raise ValueError(f"{scene.size - 1} coordinates for a kitchen of {model.nq}")
+    data = mujoco.MjData(model)
+    data.time, data.qpos[:] = scene[0], scene[1:]
+    mujoco.mj_kinematics(model, data)
+    return GroundTruth(model).observe(data)

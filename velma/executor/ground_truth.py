@@ -20,7 +20,7 @@ import numpy as np
 
 from shared.fipa_codec.languages.common import Pose
 from shared.fipa_codec.languages.l_sd import ObjectObservation, Observation
-from velma.model.scene import N_PARTICLES, PARTICLE_PREFIX, load_kitchen
+from velma.model.scene import PARTICLE_PREFIX
 
 KNOWN_OBJECTS = ("jar", "bowl", "cup", "table", "cabinet")
 CONTAINERS = ("jar", "bowl", "cup")
@@ -81,18 +81,3 @@ class GroundTruth:
             unseen=tuple(n for n in names if n not in self.body),
             particles_outside=outside,
         )
-
-
-def observe_scene(values: bytes, *, seed: int = 0, pose_seed: int | None = None) -> Observation:
-    """The ground truth of a kitchen saved as raw float64 (the time, then MuJoCo's ``qpos``: a
-    world process's final scene, velma/world/main.py ``FINAL_FILE``) for the scene of ``seed``
-    and ``pose_seed``: for judging a run, never for the agents. Raises ValueError when the
-    values do not fit that scene."""
-    model = load_kitchen(N_PARTICLES, seed, pose_seed)
-    scene = np.frombuffer(values, dtype=np.float64)
-    if scene.size != 1 + model.nq:
-        raise ValueError(f"{scene.size - 1} coordinates for a kitchen of {model.nq}")
-    data = mujoco.MjData(model)
-    data.time, data.qpos[:] = scene[0], scene[1:]
-    mujoco.mj_kinematics(model, data)
-    return GroundTruth(model).observe(data)
