@@ -337,18 +337,19 @@ def test_a_restarted_a_ta_reports_replan_in_the_plans_conversation(
     assert w.agent.plan is None and not (tmp_path / "a_ta.json").exists()
 
 
-def test_a_restarted_a_hi_still_tells_the_person_the_outcome(
-    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
-) -> None:
-    monkeypatch.setenv(ENV_STATE_DIR, str(tmp_path))
+def a_hi_that_sent_the_pour(
+    request_id: str,
+) -> tuple[MemoryBus, list[HumanReport], Wire[HumanInterface], Communicate]:
+    """An a_hi on a new bus that took the person's "pour the jar into the bowl" (``request_id``)
+    and sent its request to a_co: the bus, the person's reports as they come, a_hi, the request."""
+    from services.runtime.human import HumanInput
+
     bus = MemoryBus()
     reports: list[HumanReport] = []
     bus.subscribe(keys.HUMAN_OUT, lambda k, p: reports.append(msgspec.json.decode(p, type=HumanReport)))
     first = Wire(HumanInterface, bus)
     first.agent.setup()
-    from services.runtime.human import HumanInput
-
-    first.agent.post(HumanInput(text="pour the jar into the bowl", request_id="req-7"))
+    first.agent.post(HumanInput(text="pour the jar into the bowl", request_id=request_id))
     first.agent._acquire()
     first.step("interact")  # the line goes to a_hi's reader (reading.py) …
     for _ in range(30):  # … and once it is read (ReadDone), the command goes to a_co
@@ -357,6 +358,14 @@ def test_a_restarted_a_hi_still_tells_the_person_the_outcome(
         first.agent._acquire(timeout=1.0)
         first.step("interact")
     (request,) = first.mine(P.REQUEST)
+    return bus, reports, first, request
+
+
+def test_a_restarted_a_hi_still_tells_the_person_the_outcome(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setenv(ENV_STATE_DIR, str(tmp_path))
+    bus, reports, _first, request = a_hi_that_sent_the_pour("req-7")
     assert request.protocol == "fipa-request" and (tmp_path / "a_hi.json").exists()
 
     second = Wire(HumanInterface, bus)
@@ -383,20 +392,7 @@ def test_a_restarted_a_hi_asks_again_for_an_agreed_command_whose_outcome_came_wh
     restarted a_hi sends the request again (the same bytes), and a_co's answers to it, the agree
     and the outcome as it sent them, end the command; the person is told "accepted" once."""
     monkeypatch.setenv(ENV_STATE_DIR, str(tmp_path))
-    bus = MemoryBus()
-    reports: list[HumanReport] = []
-    bus.subscribe(keys.HUMAN_OUT, lambda k, p: reports.append(msgspec.json.decode(p, type=HumanReport)))
-    first = Wire(HumanInterface, bus)
-    first.agent.setup()
-    from services.runtime.human import HumanInput
-
-    first.agent.post(HumanInput(text="pour the jar into the bowl", request_id="req-8"))
-    for _ in range(30):  # the line is read (reading.py), then the command goes to a_co
-        first.agent._acquire(timeout=1.0)
-        first.step("interact")
-        if first.mine(P.REQUEST):
-            break
-    (request,) = first.mine(P.REQUEST)
+    bus, reports, first, request = a_hi_that_sent_the_pour("req-8")
     cid = request.conversation_id or ""
     agree = communicate(P.AGREE, "a_co", "a_hi", "fipa-request", cid, in_reply_to=request.reply_with)
     first.deliver(agree)
