@@ -48,9 +48,9 @@ DROPPED_BELOW_M = 0.5
 """An object whose base is below this height (m, world z) has fallen off its furniture."""
 CHAOS_FILE = "chaos.md"
 FINAL_CHECKPOINT = "ag_ex_state/world.ckpt"
+"""ag_ex's checkpoint in a run folder (velma/executor/checkpoint.py: written when its loop ends)."""
 MAX_SCENE_BYTES = 1 << 20
 """Largest final scene read (1 MiB; the kitchen's is 1.4 kB)."""
-"""ag_ex's checkpoint in a run folder (velma/executor/checkpoint.py: written when its loop ends)."""
 log = logging.getLogger(__name__)
 SERVICE_ORDER = default_spec().agent_names
 """Every agent, in the specification's order (the order a seed shuffles)."""
@@ -218,8 +218,8 @@ def judged_world(run_dir: Path) -> tuple[Observation, str] | None:
         seed, pose_seed = int(env.get("ROCO_SEED", "0") or 0), int(pose) if pose else None
         if scene.is_file():
             path = scene
-            if scene.stat().st_size > MAX_SCENE_BYTES:
-                raise ValueError(f"{scene.stat().st_size} B: not a scene of the kitchen")
+            if (size := scene.stat().st_size) > MAX_SCENE_BYTES:
+                raise ValueError(f"{size} B: not a scene of the kitchen")
             return observe_scene(
                 scene.read_bytes(), seed=seed, pose_seed=pose_seed
             ), "the world's final scene"
