@@ -212,6 +212,8 @@ class Agent:
         self.roles = Roles(self, self.ROLES or (), check=self.ROLES is not None)
         """The agent's protocol roles and their open conversations (services/runtime/roles.py)."""
         self._y: list[tuple[str, bytes]] = []
+        self._y_taken = 0
+        """How much of ``_y`` taking inputs in put there (answers a failing behaviour keeps)."""
         self.batch_puts = True
         """Communicates that one step sends in a row to one receiver go in one put, a batch
         (shared/fipa_codec/batch.py); False: one put each (the benchmark compares the two)."""
@@ -494,6 +496,20 @@ class Agent:
                 f"{msg.conversation_id}: {why}",
             )
 
+    def _following(self, peer: str, protocol: str) -> tuple[ProtocolMachine, Role] | None:
+        """:meth:`_machine_and_role` for ``peer`` and ``protocol``, asked once per pair."""
+        followed = self._followed.get((peer, protocol), _UNASKED)
+        if followed is _UNASKED:
+            followed = self._machine_and_role(peer, protocol)
+            if len(self._followed) < _FOLLOWED_MAX:
+                self._followed[(peer, protocol)] = followed
+        return followed
+
+    def _is_followed(self, peer: str, protocol: str) -> bool:
+        """Whether this agent follows the protocol state of ``protocol`` conversations with
+        ``peer`` (it has a role in it, and the protocol a state machine)."""
+        return self._following(peer, protocol) is not None
+
     def _follow(
         self,
         peer: str,
@@ -511,11 +527,7 @@ class Agent:
         machine), else the reason."""
         if conversation_id is None or protocol is None:
             return None
-        followed = self._followed.get((peer, protocol), _UNASKED)
-        if followed is _UNASKED:
-            followed = self._machine_and_role(peer, protocol)
-            if len(self._followed) < _FOLLOWED_MAX:
-                self._followed[(peer, protocol)] = followed
+        followed = self._following(peer, protocol)
         if followed is None:
             return None
         machine, mine = followed
@@ -681,6 +693,7 @@ class Agent:
         for _ in range(len(self._inbox)):
             self._take(*self._inbox.popleft())
         self.protocol_states.commit()  # what arrived stays arrived; only sends are undone
+        self._y_taken = len(self._y)  # so do the answers to it (not-understood, copies again)
         now = time.time()
         for p in self.conversations.due(now):
             self.counters["retransmitted"] += 1
@@ -804,6 +817,18 @@ class Agent:
                     "content_type",
                 )
                 return
+        in_followed_protocol = msg.protocol is not None and self._is_followed(sender, msg.protocol)
+        if msg.conversation_id is None and in_followed_protocol:
+            # its answer could not be told apart from those of other such conversations, nor
+            # followed in the protocol: FIPA SC00061 leaves conversation-id optional, roco needs it
+            self.not_understood(
+                sender,
+                channel,
+                f"{msg.performative.value} in protocol {msg.protocol} needs a conversation-id",
+                msg,
+                "no_conversation_id",
+            )
+            return
         if (
             msg.conversation_id is not None
             and self.protocol_states.open_with(sender) >= self.max_open_per_peer
@@ -912,6 +937,7 @@ class Agent:
         if published:
             self.counters["published"] += published
         self._y.clear()
+        self._y_taken = 0
         self.protocol_states.commit()
 
     def bind(self) -> None:
@@ -996,7 +1022,7 @@ class Agent:
                     # drop what it was about to send, and go back to the initial state
                     self.log.exception("transition function of %s raised", behaviour.name)
                     self.counters["behaviour_errors"] += 1
-                    self._y.clear()
+                    del self._y[self._y_taken :]  # the answers taking inputs in gave stay
                     self.protocol_states.rollback()  # what was dropped was never sent
                     failed = True
                     break

@@ -221,10 +221,24 @@ run), so following a communicate is a dict look-up instead of replaying its read
 → ≈ 2 µs; roco bench, docs/benchmarks.md)."""
 _STEPS_MAX = 8192
 """Entries of :data:`_STEPS` kept before it is emptied (bounded memory)."""
-_READINGS: dict[tuple[Reading, ...], tuple[Reading, ...]] = {}
-"""Every tuple of readings :data:`_STEPS` gives, by value: one computed again is replaced by
-the one held, so that equal readings are one object and the memo is keyed by its id (emptied
-with :data:`_STEPS`)."""
+_READINGS: dict[tuple[int, tuple[Reading, ...]], tuple[Protocol, tuple[Reading, ...]]] = {}
+"""Every tuple of readings :data:`_STEPS` gives, by protocol (id, the protocol kept in the
+value) and value: one computed again is replaced by the one held, so that equal readings are one
+object and the memo is keyed by its id (emptied with :data:`_STEPS`). Per protocol, because a
+reading caches its tip, which depends on the protocol: fipa-request and coordinate share the
+reading "requested, then the participant's inform", which ends the one and not the other."""
+
+
+def _held(protocol: Protocol, readings: tuple[Reading, ...]) -> tuple[Reading, ...]:
+    """The one object equal to ``readings`` under ``protocol`` (see :data:`_READINGS`)."""
+    key = (id(protocol), readings)
+    held = _READINGS.get(key)
+    if held is None or held[0] is not protocol:
+        held = (protocol, readings)
+        _READINGS[key] = held
+    return held[1]
+
+
 _INITIAL: dict[int, tuple[Protocol, tuple[Reading, ...]]] = {}
 """Per protocol (by id, the protocol kept as in :data:`_STEPS`), the readings of a conversation
 that has not begun: built once, shared by every new tracker (readings are immutable)."""
@@ -234,7 +248,7 @@ def _initial(protocol: Protocol) -> tuple[Reading, ...]:
     held = _INITIAL.get(id(protocol))
     if held is None or held[0] is not protocol:
         readings = (Reading(Position(protocol.initial)),)
-        held = (protocol, _READINGS.setdefault(readings, readings))
+        held = (protocol, _held(protocol, readings))
         _INITIAL[id(protocol)] = held
     return held[1]
 
@@ -398,7 +412,7 @@ class CrossingTracker:
                 _STEPS.clear()
                 _READINGS.clear()
                 _INITIAL.clear()
-            found = _READINGS.setdefault(found, found)
+            found = _held(self.protocol, found)
             _STEPS[key] = (self.protocol, self.readings, found, in_order)
         if not found:
             state = self.state

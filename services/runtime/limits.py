@@ -38,6 +38,7 @@ REJECT_REASONS: dict[str, str] = {
     "content": "the content does not decode in its language (or is nested too deeply)",
     "content_type": "a term of the language the interface does not allow for this communicate",
     "protocol_state": "not allowed in its conversation's current protocol state",
+    "no_conversation_id": "a communicate in a followed interaction protocol without a conversation-id",
     "too_many_conversations": "a new conversation beyond MAX_OPEN_CONVERSATIONS_PER_PEER (refused)",
     "unhandled": "allowed by the specification but not expected by the agent in its current state",
     "internal": "handling it raised inside the runtime (a bug; logged with its traceback)",

@@ -253,6 +253,36 @@ def test_an_exception_in_a_behaviour_does_not_stop_the_agent() -> None:
         assert agent.counters["behaviour_errors"] == 1
 
 
+def test_a_failing_behaviour_drops_only_its_own_output() -> None:
+    """A transition function that raises drops what it was about to send, never the answers
+    its step's inputs got on the way in (a not-understood to a malformed communicate)."""
+    bus = MemoryBus()
+    agent = Faulty(bus.transport())
+    actions = agent._elementary_actions()
+    next(actions)  # set up; 'serve' waits for input
+    agent._inbox.extend([(KEY, b"\xc1 not msgpack"), (KEY, encode(query("q1")))])
+    next(actions)  # takes both in; the transition raises on q1
+    assert agent.counters["behaviour_errors"] == 1
+    answers = [decode(p) for k, p in bus.published if k == keys.fipa_key("C4", "a_km", "a_pl")]
+    assert [a.performative for a in answers] == [Performative.NOT_UNDERSTOOD]
+    assert answers[0].content.startswith(b"malformed communicate")
+
+
+def test_a_followed_protocol_without_a_conversation_id_is_not_understood(
+    running: tuple[MemoryBus, Counter, queue.SimpleQueue[Communicate]],
+) -> None:
+    """Its answer could be told from no other's: not-understood, and the agent keeps serving."""
+    bus, agent, to_pl = running
+    bus.publish(KEY, encode(query("q1", conversation_id=None)))
+    reply = to_pl.get(timeout=5)
+    assert reply.performative is Performative.NOT_UNDERSTOOD
+    assert reply.in_reply_to == "q1" and reply.conversation_id is None
+    assert reply.content == b"query-ref in protocol fipa-query needs a conversation-id"
+    assert agent.counters["rejected.no_conversation_id"] == 1
+    bus.publish(KEY, encode(query("q2")))
+    assert to_pl.get(timeout=5).performative is Performative.INFORM_REF
+
+
 def test_a_step_takes_in_what_had_arrived_when_it_began_not_what_floods_in_meanwhile() -> None:
     agent = Counter(MemoryBus().transport())
     taken: list[object] = []

@@ -11,7 +11,7 @@ from typing import Any
 import msgspec
 import pytest
 
-from services.runtime import keys
+from services.runtime import conversations, keys
 from services.runtime.agent import Agent, SpecViolation
 from services.runtime.behaviour import FSM, Behaviour
 from services.runtime.conversations import CrossingTracker, ProtocolStates, follow
@@ -44,6 +44,20 @@ def test_in_order_it_is_the_protocols_state_machine() -> None:
         t.step(PART, P.INFORM)
     with pytest.raises(ProtocolViolation, match="may not send 'inform' in state 'subscribed'"):
         steps("fipa-subscribe", (INIT, P.SUBSCRIBE), (PART, P.INFORM))
+
+
+@pytest.mark.parametrize("first", ["coordinate", "fipa-request"])
+def test_a_protocol_is_followed_alike_whatever_another_followed_first(first: str) -> None:
+    """Trackers share what they computed (services/runtime/conversations.py ``_STEPS``), yet
+    the same communicates read differently under two protocols: the participant's inform
+    ends a fipa-request and reports a state in a coordinate conversation, in either order."""
+    conversations._STEPS.clear()  # what this process followed before must not decide it
+    conversations._READINGS.clear()
+    conversations._INITIAL.clear()
+    ended = {"fipa-request": True, "coordinate": False}
+    for protocol in (first, *(p for p in ended if p != first)):
+        tracker = steps(protocol, (INIT, P.REQUEST), (PART, P.INFORM))
+        assert tracker.is_finished is ended[protocol], protocol
 
 
 def test_an_outcome_crossing_a_cancel_and_the_late_answer_to_the_cancel() -> None:

@@ -32,12 +32,20 @@ from tests.support.router import router_fleet
 ROOT = Path(__file__).resolve().parents[2]
 
 THREADS = """
-import os, sys
+import os, sys, threading
 from services.runtime.transport import ZenohTransport
-t = ZenohTransport([sys.argv[1]])
-t.subscribe("roco/fipa/probe/**", lambda key, payload: None)
+t, other = ZenohTransport([sys.argv[1]]), ZenohTransport([sys.argv[1]])
+got = threading.Event()
+t.subscribe("roco/fipa/probe/**", lambda key, payload: got.set())
+other.subscribe("roco/fipa/probe/**", lambda key, payload: None)
+# from one session to the other through the router: the pools have sent and received (the
+# router may get a put before it knows the subscriber: sent again until one arrives)
+while not got.is_set():
+    other.publish("roco/fipa/probe/x", b"")
+    got.wait(0.05)
 names = sorted(open(f"/proc/self/task/{tid}/comm").read().strip() for tid in os.listdir("/proc/self/task"))
 print(",".join(names))
+other.close()
 t.close()
 """
 
