@@ -45,7 +45,9 @@ def test_the_runtime_attached_to_a_world_grasps_and_a_second_one_finds_the_jar_i
 
     again = Runtime(link=RobotLink.attach(world))
     assert again.world is not None
-    assert again.time > was_time  # the world went on: never rolled back
+    # never rolled back (it may not have stepped since: the world waits LOCKSTEP_WAIT_S for a
+    # command before its safety layer holds the robot and the kitchen goes on)
+    assert again.time >= was_time
     assert again.held["left"] == jar  # it knows from the hand's state and touch what it holds
     assert np.linalg.norm(again.data.xpos[jar] - was_at) < 0.01  # the safety layer held it there
     loop = ControlLoop(again)
