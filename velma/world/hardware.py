@@ -102,6 +102,14 @@ class SimulatedVelma:
         self._hand_state, self._hand_seq = MEASURED.slice("hand"), MEASURED.slice("hand_seq")
         self._self_touch, self._head_set = MEASURED.slice("self_touch"), MEASURED.slice("head")
         self._disturb, self._disturb_seq = COMMAND.slice("disturb"), MEASURED.fields["disturb_seq"][0]
+        # per cycle: MjData's arrays taken once (each attribute read makes a new numpy view),
+        # the force/torque sensors' addresses as one index array
+        self._qpos, self._qvel, self._ctrl = self.data.qpos, self.data.qvel, self.data.ctrl
+        self._sensordata = self.data.sensordata
+        self._ft_adr = np.array([a + i for pair in self.ft_adr for a in pair for i in range(3)])
+        self._ft_out = slice(self._ft, self._ft + len(self._ft_adr))
+        self._head_rate = HEAD_RATE * DT
+        self._ctrl[self.head_act] = self.head_set  # a step writes it again only while it moves
 
     @property
     def time(self) -> float:
@@ -129,12 +137,9 @@ class SimulatedVelma:
         ``out`` between calls)."""
         data = self.data
         out[self._time] = data.time
-        out[self._q] = data.qpos[self.jmap.qpos_adr]
-        out[self._v] = data.qvel[self.jmap.dof_adr]
-        for k, (force, torque) in enumerate(self.ft_adr):
-            at = self._ft + 6 * k
-            out[at : at + 3] = data.sensordata[force : force + 3]
-            out[at + 3 : at + 6] = data.sensordata[torque : torque + 3]
+        np.take(self._qpos, self.jmap.qpos_adr, out=out[self._q])
+        np.take(self._qvel, self.jmap.dof_adr, out=out[self._v])
+        np.take(self._sensordata, self._ft_adr, out=out[self._ft_out])
         phase = self.cycles % CONTACT_PERIOD
         for k, side in enumerate(SIDES):
             if phase != k * CONTACT_PERIOD // 2:
@@ -171,20 +176,20 @@ class SimulatedVelma:
             self._brake()
             return
         self.hold_q = None
-        data.ctrl[self.tau_act] = command[self._tau]
+        self._ctrl[self.tau_act] = command[self._tau]
         hand = command[self._hand]
         for k, side in enumerate(SIDES):
-            seq, op, proximal, spread = hand[HAND_OP * k : HAND_OP * (k + 1)].tolist()
-            if seq == self.hand_seq[k]:
+            if hand[HAND_OP * k] == self.hand_seq[k]:
                 continue  # taken already: the command repeats every cycle
+            seq, op, proximal, spread = hand[HAND_OP * k : HAND_OP * (k + 1)].tolist()
             self.hand_seq[k] = seq
             if op == HAND_KEEP:
                 self.hands.keep(side)
             else:
                 self.hands.command(side, proximal, None if math.isnan(spread) else spread)
-        self.head_target = command[self._head].copy()
-        seq, body, dx, dy, dz, tilt = command[self._disturb].tolist()
-        if seq != self.disturb_seq:
+        self.head_target[:] = command[self._head]
+        if command[self._disturb.start] != self.disturb_seq:
+            seq, body, dx, dy, dz, tilt = command[self._disturb].tolist()
             self.disturb_seq = seq
             # a body that is not free cannot be moved: the command's sender checks (``displace``)
             if 0 <= body < self.model.nbody and is_free(self.model, int(body)):
@@ -201,9 +206,12 @@ class SimulatedVelma:
         """One physics step of ``DT``, the hands' and the head's servos first."""
         data = self.data
         self.hands.step(data, DT)
-        rate = HEAD_RATE * DT
-        self.head_set += np.clip(self.head_target - self.head_set, -rate, rate)
-        data.ctrl[self.head_act] = self.head_set
+        target, now = self.head_target, self.head_set
+        if target[0] != now[0] or target[1] != now[1]:  # at rest most of the time
+            rate = self._head_rate
+            for i in (0, 1):
+                now[i] += min(max(float(target[i] - now[i]), -rate), rate)
+            self._ctrl[self.head_act] = now
         mujoco.mj_step(self.model, data)
         self.cycles += 1
 
