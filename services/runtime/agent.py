@@ -505,11 +505,6 @@ class Agent:
                 self._followed[(peer, protocol)] = followed
         return followed
 
-    def _is_followed(self, peer: str, protocol: str) -> bool:
-        """Whether this agent follows the protocol state of ``protocol`` conversations with
-        ``peer`` (it has a role in it, and the protocol a state machine)."""
-        return self._following(peer, protocol) is not None
-
     def _follow(
         self,
         peer: str,
@@ -817,8 +812,11 @@ class Agent:
                     "content_type",
                 )
                 return
-        in_followed_protocol = msg.protocol is not None and self._is_followed(sender, msg.protocol)
-        if msg.conversation_id is None and in_followed_protocol:
+        if (
+            msg.conversation_id is None
+            and msg.protocol is not None
+            and self._following(sender, msg.protocol) is not None
+        ):
             # its answer could not be told apart from those of other such conversations, nor
             # followed in the protocol: FIPA SC00061 leaves conversation-id optional, roco needs it
             self.not_understood(

@@ -60,6 +60,7 @@ from velma.world.hardware import (  # the robot's rates, stated once
     HEAD_RATE,
     displace,
     is_free,
+    ramp,
 )
 from velma.world.link import RobotLink
 
@@ -356,10 +357,8 @@ class Runtime:
 
     def _step_head(self) -> None:
         """The head's servo setpoints one step (≤ HEAD_RATE·DT per joint) towards ``head_target``."""
-        target, now, rate = self.head_target, self.head_set, HEAD_RATE * DT
-        for i in (0, 1):
-            now[i] += min(max(float(target[i] - now[i]), -rate), rate)
-            self.data.ctrl[self.head_act[i]] = now[i]
+        ramp(self.head_set, self.head_target, HEAD_RATE * DT)
+        self.data.ctrl[list(self.head_act)] = self.head_set
 
     def touching(self, side: str) -> dict[int, int]:
         """{body id: count of distinct hand geoms of ``side`` touching it} now (velma/control/hand.py

@@ -208,12 +208,18 @@ class SimulatedVelma:
         self.hands.step(data, DT)
         target, now = self.head_target, self.head_set
         if target[0] != now[0] or target[1] != now[1]:  # at rest most of the time
-            rate = self._head_rate
-            for i in (0, 1):
-                now[i] += min(max(float(target[i] - now[i]), -rate), rate)
+            ramp(now, target, self._head_rate)
             self._ctrl[self.head_act] = now
         mujoco.mj_step(self.model, data)
         self.cycles += 1
+
+
+def ramp(now: Array, target: Array, step: float) -> None:
+    """Move each servo setpoint of ``now`` (rad, shape (n,), in place) by at most ``step``
+    (rad) towards ``target`` (same shape): one cycle of the head's pan and tilt servos, whose
+    ``step`` is ``HEAD_RATE · DT`` (velma-facts.md: neck velocity limit)."""
+    for i in range(len(now)):
+        now[i] += min(max(float(target[i] - now[i]), -step), step)
 
 
 def is_free(model: mujoco.MjModel, body: int) -> bool:
