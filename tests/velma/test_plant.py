@@ -10,10 +10,11 @@ import pytest
 
 from tests.support.arms import lift_both_arms
 from velma.control.compiled import ENV_LAW, CompiledController, make_controller
+from velma.control.mujoco_side import ENV_PLANT, plant_choice
 from velma.control.robot_model import SIDES, RobotModel
 from velma.executor import plant as plant_module
 from velma.executor.handoff import LatestValue
-from velma.executor.plant import ENV_PLANT, plant_choice, plant_unavailable
+from velma.executor.plant import plant_unavailable
 from velma.executor.runtime import Runtime
 from velma.executor.state import raw_layout, raw_state
 from velma.executor.state_block import StateReader, StateWriter, state_values

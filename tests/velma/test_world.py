@@ -16,6 +16,7 @@ import pytest
 
 from velma.control.compiled import make_controller
 from velma.control.hand import HAND_WIDTH, TARGET
+from velma.control.mujoco_side import mujoco_side_unavailable
 from velma.control.robot_model import HEAD_JOINTS, SIDES, TORSO_JOINT, RobotModel, arm_joints
 from velma.executor.checkpoint import observe_scene
 from velma.shm import SHM_DIR
@@ -210,3 +211,41 @@ def test_a_hand_takes_each_operation_once_and_reports_it() -> None:
         sim.measure(measured)
     assert (measured[MEASURED.slice("self_touch")] == -1.0).all()
     assert measured[MEASURED.slice("head")] == pytest.approx(sim.head_set)
+
+
+@pytest.mark.skipif(mujoco_side_unavailable() is not None, reason="the compiled plant is not built")
+def test_the_compiled_world_cycle_is_the_python_one_bit_for_bit() -> None:
+    """``SimulatedVelma`` stepped in C++ and in Python, side by side over 2 s: the safety hold,
+    then zero torques (the arms fall onto the robot and the kitchen: tactile and self-contact
+    scans that find something), a hand operation, a head move and a disturbance. The measured
+    state and the whole scene are equal to the last bit every cycle."""
+    compiled, python = SimulatedVelma(compiled=True), SimulatedVelma(compiled=False)
+    assert compiled.plant is not None and python.plant is None
+    a, b = np.zeros(MEASURED.size), np.zeros(MEASURED.size)
+    command = np.zeros(COMMAND.size)
+    compiled.measure(a)
+    command[COMMAND.slice("head")] = a[MEASURED.slice("head")] + (0.3, -0.2)
+    left = COMMAND.fields["hand"][0] + HAND_OP * SIDES.index("left")
+    command[left : left + HAND_OP] = (1.0, HAND_MOVE, 1.0, 0.5)
+    command[COMMAND.slice("disturb")] = (1.0, compiled.model.body("jar").id, 0.01, 0.0, 0.0, 0.0)
+    found = {"touch": 0, "self_touch": 0}
+    for k in range(2000):
+        for sim, measured in ((compiled, a), (python, b)):
+            sim.measure(measured)
+            sim.apply(None if k < 50 else command)
+            sim.step()
+        assert np.array_equal(a, b, equal_nan=True), (k, np.flatnonzero(a != b))
+        assert np.array_equal(compiled.data.qpos, python.data.qpos), k
+        for field in found:
+            found[field] += int((a[MEASURED.slice(field)][0::2] >= 0).sum())
+    assert all(found.values()), found  # the scans were compared on contacts, not on empty slots
+    assert compiled.hand_seq.tolist() == python.hand_seq.tolist() == [0.0, 1.0]
+    assert compiled.disturb_seq == python.disturb_seq == 1.0
+
+
+def test_roco_plant_chooses_the_world_cycle(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setenv("ROCO_PLANT", "python")
+    assert SimulatedVelma(n_particles=0).plant is None
+    monkeypatch.setenv("ROCO_PLANT", "fast")
+    with pytest.raises(ValueError, match="ROCO_PLANT"):
+        SimulatedVelma(n_particles=0)

@@ -570,6 +570,11 @@ PYBIND11_MODULE(_impedance, m) {
       .def("gather", &Plant::gather, py::arg("out").noconvert())
       .def("bind_state_block", &Plant::bind_state_block, py::arg("block").noconvert(), py::arg("header"))
       .def("release_state_block", &Plant::release_state_block)
-      .def("publish_state", &Plant::publish_state, py::arg("names_version"));
+      .def("publish_state", &Plant::publish_state, py::arg("names_version"))
+      .def("bind_world", &Plant::bind_world, py::arg("measured"), py::arg("command"), py::arg("tau_act"),
+           py::arg("ft_adr"), py::arg("seqs").noconvert())
+      .def("measure", &Plant::measure, py::arg("out").noconvert(), py::arg("cycles"), py::arg("holding"))
+      .def("apply", &Plant::apply, py::arg("command").noconvert())
+      .def("step_world", &Plant::step_world);
 #endif
 }

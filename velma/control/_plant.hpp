@@ -157,26 +157,8 @@ class Plant {
   // ContactMonitor.touching: {body id: number of distinct geoms of hand ``side`` touching
   // it}, bodies off the robot only, in the order the Python scan meets them.
   py::dict touching(int side) const {
-    std::vector<std::pair<int, int>> seen;  // (body, hand geom), each once
-    std::vector<int> order;
-    for (int col = 0; col < 2; ++col) {
-      for (int c = 0; c < d_->ncon; ++c) {
-        const int g = d_->contact[c].geom[col], other = d_->contact[c].geom[1 - col];
-        if (g < 0 || other < 0 || hand_side_[g] != side) continue;
-        const int b = m_->geom_bodyid[other];
-        if (robot_body_[b]) continue;
-        const std::pair<int, int> key(b, g);
-        if (std::find(seen.begin(), seen.end(), key) != seen.end()) continue;
-        seen.push_back(key);
-        if (std::find(order.begin(), order.end(), b) == order.end()) order.push_back(b);
-      }
-    }
     py::dict result;
-    for (int b : order) {
-      int n = 0;
-      for (const auto& s : seen) n += s.first == b ? 1 : 0;
-      result[py::int_(b)] = n;
-    }
+    for (const auto& [body, n] : touched(side)) result[py::int_(body)] = n;
     return result;
   }
 
@@ -191,6 +173,110 @@ class Plant {
       if (pa >= 0 && pb >= 0 && (pa != pb || pa == 2)) hits.emplace_back(a, b);
     }
     return hits;
+  }
+
+  // ---- the world's side (velma/world/hardware.py SimulatedVelma) ------------------------
+  // Bind the link's layout once: ``measured`` the offsets of MEASURED's time, q, v, ft, touch,
+  // holding, hand, hand_seq, self_touch, head, disturb_seq (velma/world/layout.py), then
+  // TOUCH_SLOTS, SELF_SLOTS and CONTACT_PERIOD; ``command`` the offsets of COMMAND's tau,
+  // hand, head, disturb, then HAND_OP; ``tau_act`` the 15 motors of ``tau`` (right arm, left
+  // arm, torso); ``ft_adr`` per side the force's and the torque's sensordata addresses;
+  // ``seqs`` (3,) float64, bound: the last hand operation taken per side, then the last
+  // disturbance. Needs ``bind_servos`` first (the hands' rows and the head are measured).
+  // Raises ValueError on sizes or indices that do not fit.
+  void bind_world(std::vector<int> measured, std::vector<int> command, std::vector<int> tau_act,
+                  std::vector<int> ft_adr, Array seqs) {
+    if (servo_.empty()) throw std::invalid_argument("Plant.bind_world: bind_servos first");
+    if (measured.size() != 14 || command.size() != 5 || tau_act.size() != 15 || ft_adr.size() != 4 ||
+        seqs.size() != 3)
+      throw std::invalid_argument("Plant.bind_world: an argument has the wrong size");
+    if (measured[11] < 0 || measured[12] < 0 || measured[13] < 4)
+      throw std::invalid_argument("Plant.bind_world: slots must be >= 0 and the contact period >= 4");
+    check_index(tau_act, m_->nu, "tau_act");
+    check_index(ft_adr, m_->nsensordata - 2, "ft_adr");
+    measured_ = std::move(measured);
+    command_ = std::move(command);
+    tau_act_ = std::move(tau_act);
+    world_ft_ = std::move(ft_adr);
+    seqs_ = seqs;
+  }
+
+  // SimulatedVelma.measure: this cycle's measured state into ``out`` (the link's MEASURED
+  // vector; ``touch`` and ``self_touch`` rewritten on their phases of ``cycles``, so keep
+  // ``out`` between calls). Raises RuntimeError before ``bind_world``.
+  void measure(Array& out, std::int64_t cycles, bool holding) const {
+    if (measured_.empty()) throw std::runtime_error("Plant.measure before Plant.bind_world");
+    double* o = out.mutable_data();
+    const int* at = measured_.data();
+    o[at[0]] = d_->time;
+    for (std::size_t i = 0; i < qpos_adr_.size(); ++i) {
+      o[at[1] + i] = d_->qpos[qpos_adr_[i]];
+      o[at[2] + i] = d_->qvel[dof_adr_[i]];
+    }
+    for (int k = 0; k < 2; ++k) {
+      std::copy_n(d_->sensordata + world_ft_[2 * k], 3, o + at[3] + 6 * k);
+      std::copy_n(d_->sensordata + world_ft_[2 * k + 1], 3, o + at[3] + 6 * k + 3);
+    }
+    const int touch_slots = at[11], self_slots = at[12], period = at[13];
+    const std::int64_t phase = cycles % period;
+    for (int k = 0; k < 2; ++k) {
+      if (phase != k * period / 2) continue;  // each hand once a period, half a period apart
+      auto seen = touched(k);  // the most touched first; the scan's order among equals
+      std::stable_sort(seen.begin(), seen.end(), [](const auto& a, const auto& b) { return a.second > b.second; });
+      double* slots = o + at[4] + 2 * touch_slots * k;
+      for (int i = 0; i < touch_slots; ++i) {
+        const bool used = i < static_cast<int>(seen.size());
+        slots[2 * i] = used ? seen[i].first : -1.0;
+        slots[2 * i + 1] = used ? seen[i].second : 0.0;
+      }
+    }
+    if (phase == period / 4) {  // between the two hands' scans
+      const auto pairs = self_contacts();
+      double* slots = o + at[8];
+      for (int i = 0; i < self_slots; ++i) {
+        const bool used = i < static_cast<int>(pairs.size());
+        slots[2 * i] = used ? pairs[i].first : -1.0;
+        slots[2 * i + 1] = used ? pairs[i].second : -1.0;
+      }
+    }
+    o[at[5]] = holding ? 1.0 : 0.0;
+    std::copy_n(hands_.data(), 2 * kHandWidth, o + at[6]);
+    const double* seq = seqs_.data();
+    o[at[7]] = seq[0];
+    o[at[7] + 1] = seq[1];
+    o[at[9]] = head_.data()[0];
+    o[at[9] + 1] = head_.data()[1];
+    o[at[10]] = seq[2];
+  }
+
+  // The everyday part of SimulatedVelma.apply: the torques into ctrl and the head's targets;
+  // returns which of the rest the caller has to take (bit k: hand k's operation has a new
+  // sequence number; bit 2: the disturbance has). Raises RuntimeError before ``bind_world``.
+  int apply(const Array& command) {
+    if (command_.empty()) throw std::runtime_error("Plant.apply before Plant.bind_world");
+    const double* c = command.data();
+    const int* at = command_.data();
+    for (int i = 0; i < 15; ++i) d_->ctrl[tau_act_[i]] = c[at[0] + i];
+    double* h = head_.mutable_data();
+    h[2] = c[at[2]];
+    h[3] = c[at[2] + 1];
+    const double* seq = seqs_.data();
+    int fresh = 0;
+    for (int k = 0; k < 2; ++k)
+      if (c[at[1] + at[4] * k] != seq[k]) fresh |= 1 << k;
+    if (c[at[3]] != seq[2]) fresh |= 4;
+    return fresh;
+  }
+
+  // SimulatedVelma.step: the hands' and the head's servos, then one mj_step (without the
+  // GIL). Raises RuntimeError before ``bind_servos``.
+  void step_world() {
+    if (servo_.empty()) throw std::runtime_error("Plant.step_world before Plant.bind_servos");
+    step_hands();
+    const double* h = head_.data();
+    if (h[0] != h[2] || h[1] != h[3]) step_head();  // at rest most of the time
+    py::gil_scoped_release free;
+    step_(m_, d_);
   }
 
   // Where the numbers of velma/executor/state.py raw_state come from, and their layout (its
@@ -282,6 +368,30 @@ class Plant {
   }
 
  private:
+  // (body, number of distinct geoms of hand ``side`` touching it) per body off the robot, in
+  // the order the Python scan (ContactMonitor.touching) meets them.
+  std::vector<std::pair<int, int>> touched(int side) const {
+    std::vector<std::pair<int, int>> seen;  // (body, hand geom), each once
+    std::vector<std::pair<int, int>> order;  // (body, count)
+    for (int col = 0; col < 2; ++col) {
+      for (int c = 0; c < d_->ncon; ++c) {
+        const int g = d_->contact[c].geom[col], other = d_->contact[c].geom[1 - col];
+        if (g < 0 || other < 0 || hand_side_[g] != side) continue;
+        const int b = m_->geom_bodyid[other];
+        if (robot_body_[b]) continue;
+        const std::pair<int, int> key(b, g);
+        if (std::find(seen.begin(), seen.end(), key) != seen.end()) continue;
+        seen.push_back(key);
+        auto it = std::find_if(order.begin(), order.end(), [b](const auto& e) { return e.first == b; });
+        if (it == order.end())
+          order.emplace_back(b, 1);
+        else
+          ++it->second;
+      }
+    }
+    return order;
+  }
+
   void gather_into(double* o) const {
     for (std::size_t i = 0; i < joint_qpos_.size(); ++i) o[i] = d_->qpos[joint_qpos_[i]];
     for (int k = 0; k < 2; ++k) {
@@ -387,6 +497,8 @@ class Plant {
   py::array_t<std::uint8_t, py::array::c_style> block_;
   int header_ = 0;
   std::vector<double> scratch_;  // the state value being written (empty: no block bound)
+  std::vector<int> measured_, command_, tau_act_, world_ft_;  // bind_world's (empty: not bound)
+  Array seqs_;
 };
 
 }  // namespace

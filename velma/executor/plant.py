@@ -16,53 +16,15 @@ the build). Then ``Runtime`` runs the Python cycle.
 
 from __future__ import annotations
 
-import ctypes
-import os
-from collections.abc import Mapping
-from pathlib import Path
-
 import mujoco
 import numpy as np
 import numpy.typing as npt
 
-from velma.control import hand
-from velma.control.compiled import CompiledController, native_module
+from velma.control.compiled import CompiledController
 from velma.control.hand import ContactMonitor, Hands
+from velma.control.mujoco_side import bind_servos, make_plant, mujoco_side_unavailable
 from velma.control.robot_model import SIDES, Array, JointMap
 from velma.executor.state import LINK_BODIES, raw_layout
-
-ENV_PLANT = "ROCO_PLANT"
-"""Environment variable: ``compiled`` requires the compiled plant (an error if it cannot
-run), ``python`` runs the Python cycle; unset: the compiled plant where it can run
-(``plant_unavailable``), else the Python cycle with a warning."""
-
-
-def plant_choice(environ: Mapping[str, str] = os.environ) -> bool | None:
-    """``ROCO_PLANT`` as ``Runtime``'s ``compiled_plant``: True (required), False (the Python
-    cycle) or None (unset: the compiled plant where it can run). The compiled plant is the
-    default since the loop holds the CPUs' wake-up latency (docs/bench/loop.md "CPU latency PM
-    QoS"): with the whole fleet it gave the lower cycle work at p50 and p99 and overran as
-    rarely as the Python cycle. Raises ValueError for a value other than ``python`` and
-    ``compiled``."""
-    choice = environ.get(ENV_PLANT)
-    if choice is None:
-        return None
-    if choice not in ("python", "compiled"):
-        raise ValueError(f"{ENV_PLANT}={choice!r}: expected 'python' or 'compiled'")
-    return choice == "compiled"
-
-
-def mj_step_address() -> int | None:
-    """The address of ``mj_step`` in the libmujoco that the ``mujoco`` module loaded (the
-    same file: the dynamic loader gives back the loaded library), or None when there is no
-    such file beside the module."""
-    folder = Path(mujoco.__file__).parent
-    for pattern in ("libmujoco.so*", "libmujoco*.dylib", "mujoco.dll"):
-        for lib in sorted(folder.glob(pattern)):
-            address = ctypes.cast(ctypes.CDLL(str(lib)).mj_step, ctypes.c_void_p).value
-            if address:
-                return int(address)
-    return None
 
 
 def plant_unavailable(ctrl: object) -> str | None:
@@ -70,15 +32,7 @@ def plant_unavailable(ctrl: object) -> str | None:
     can (module docstring)."""
     if not isinstance(ctrl, CompiledController):
         return "the Python law runs"
-    native = native_module()
-    built = getattr(native, "MUJOCO_HEADER_VERSION", None)
-    if built is None:
-        return "the compiled module was built without MuJoCo's headers"
-    if int(built) != mujoco.mj_version():
-        return f"built with MuJoCo headers {built}, running MuJoCo {mujoco.mj_version()}"
-    if mj_step_address() is None:
-        return "no libmujoco beside the mujoco module"
-    return None
+    return mujoco_side_unavailable()
 
 
 class CompiledPlant:
@@ -107,21 +61,9 @@ class CompiledPlant:
         why = plant_unavailable(ctrl)
         if why is not None:
             raise RuntimeError(f"no compiled plant: {why}")
-        native = native_module()
-        step = mj_step_address()
-        assert native is not None and step is not None
         self.ctrl = ctrl
-        self._plant = native.Plant(
-            model,
-            data,
-            step,
-            jmap.qpos_adr.tolist(),
-            jmap.dof_adr.tolist(),
-            [int(a) for s in SIDES for a in arm_act[s]],
-            int(torso_act),
-            contacts.hand_side.tolist(),
-            contacts.part.tolist(),
-            contacts.robot_body.astype(int).tolist(),
+        self._plant = make_plant(
+            model, data, jmap, contacts, [int(a) for s in SIDES for a in arm_act[s]], int(torso_act)
         )
         nv = len(jmap.qpos_adr)
         self.q = np.zeros(nv)
@@ -150,26 +92,7 @@ class CompiledPlant:
         setpoints, then targets; rad), with ``head_act`` the pan and tilt servos and
         ``head_step`` (rad) the most a setpoint moves in one cycle. Both arrays are bound, not
         copied: assign into them, never rebind them. Raises ValueError on sizes or indices that do not fit."""
-        self._plant.bind_servos(
-            hands.state,
-            head,
-            [int(a) for s in SIDES for a in hands.spread_act[s]],
-            [int(a) for s in SIDES for a in hands.prox_act[s]],
-            [int(a) for s in SIDES for a in hands.dist_act[s]],
-            [int(a) for s in SIDES for a in hands.prox_q[s]],
-            [float(k) for s in SIDES for k in hands.prox_kp[s]],
-            [int(a) for a in head_act],
-            [
-                dt,
-                hand.BREAKAWAY_TORQUE,
-                hand.CLOSE_RATE,
-                hand.OPEN_RATE,
-                hand.SPREAD_RATE,
-                hand.DISTAL_RATIO,
-                hand.DISTAL_MAX,
-                head_step,
-            ],
-        )
+        bind_servos(self._plant, hands, head, head_act, dt=dt, head_step=head_step)
 
     def bind_state_block(self, block: npt.NDArray[np.uint8], header: int) -> None:
         """Publish the robot state into ``block`` (a ``LatestValue``'s buffer, its value at

@@ -38,6 +38,7 @@ import pinocchio as pin
 from velma.control.compiled import CompiledController, make_controller
 from velma.control.hand import ContactMonitor, Hands
 from velma.control.ik import DlsKernel
+from velma.control.mujoco_side import plant_choice
 from velma.control.robot_model import (
     HEAD_JOINTS,
     SIDES,
@@ -50,7 +51,7 @@ from velma.control.robot_model import (
 from velma.control.self_collision import SelfCollision
 from velma.executor.capture import DEFAULT_PERCEPTION
 from velma.executor.ground_truth import GroundTruth
-from velma.executor.plant import CompiledPlant, plant_choice, plant_unavailable
+from velma.executor.plant import CompiledPlant, plant_unavailable
 from velma.executor.state import LINK_BODIES
 from velma.executor.world_link import WorldLink
 from velma.model.scene import N_PARTICLES, initial_state, load_kitchen
@@ -91,7 +92,7 @@ class Runtime:
         """``seed`` jitters the jar content, ``pose_seed`` randomises the jar and bowl poses
         (velma/model/scene.py; None: the poses of kitchen.xml). ``compiled_plant``: run the
         cycle's MuJoCo side in C++ (velma/executor/plant.py): True, or False for the Python
-        cycle; None: as ``ROCO_PLANT`` says (velma/executor/plant.py ``plant_choice``), unset
+        cycle; None: as ``ROCO_PLANT`` says (velma/control/mujoco_side.py ``plant_choice``), unset
         the compiled plant where it can run, else the Python cycle with a warning. Raises
         RuntimeError when the compiled plant is required and cannot run, ValueError for another
         value of ``ROCO_PLANT``.

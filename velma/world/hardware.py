@@ -6,7 +6,11 @@ holds the robot when its controller stops commanding it.
 
 One ``SimulatedVelma`` is stepped by one thread: ``measure`` (the state of this cycle),
 ``apply`` (the command, or None: no fresh command), ``step`` (1 ms). What crosses to the
-controller is the vectors of velma/world/layout.py.
+controller is the vectors of velma/world/layout.py. The three run in C++ (the ``Plant`` of
+velma/control/_plant.hpp: no Python object per value) where it can run and ``ROCO_PLANT``
+does not say ``python`` (velma/control/mujoco_side.py); the Python code here stays the
+reference (tests/velma/test_world.py runs both side by side and compares them bit for bit).
+The rare parts stay in Python either way: a new hand operation, a disturbance, the hold.
 
 Safety hold (as a KUKA LWR4+ brakes when FRI commands stop): the arm and torso joints are held
 at the pose measured when the hold began, by a stiff joint impedance on top of the physics'
@@ -18,12 +22,14 @@ grasped. The next command ends the hold.
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import mujoco
 import numpy as np
 import numpy.typing as npt
 
 from velma.control.hand import ContactMonitor, Hands
+from velma.control.mujoco_side import bind_servos, make_plant, mujoco_side_unavailable, plant_choice
 from velma.control.robot_model import HEAD_JOINTS, SIDES, TORSO_JOINT, JointMap, RobotModel, arm_joints
 from velma.model.scene import N_PARTICLES, initial_state, load_kitchen
 from velma.world.layout import (
@@ -48,18 +54,40 @@ CONTACT_PERIOD = 10
 """Cycles between two tactile scans of a hand (10 ms); ``touch`` keeps the last one."""
 
 Array = npt.NDArray[np.float64]
+_MEASURED_ORDER = (
+    "time",
+    "q",
+    "v",
+    "ft",
+    "touch",
+    "holding",
+    "hand",
+    "hand_seq",
+    "self_touch",
+    "head",
+    "disturb_seq",
+)
+"""The ``MEASURED`` fields whose offsets the C++ world cycle takes, in its order (_plant.hpp)."""
 
 
 class SimulatedVelma:
     """The kitchen with Velma in it, seen from the controller's side as hardware.
 
     ``seed`` jitters the jar's content, ``pose_seed`` randomises the jar's and the bowl's
-    poses (velma/model/scene.py; None: those of kitchen.xml). Raises KeyError when the model
-    lacks one of Velma's joints, actuators or sensors, ValueError when Pinocchio's model has
-    another number of joints than the link carries."""
+    poses (velma/model/scene.py; None: those of kitchen.xml). ``compiled``: step in C++
+    (module docstring): True (required), False (Python), None (as ``ROCO_PLANT`` says; unset:
+    C++ where it can run). Raises KeyError when the model lacks one of Velma's joints,
+    actuators or sensors, ValueError when Pinocchio's model has another number of joints than
+    the link carries or ``ROCO_PLANT`` another value, RuntimeError when C++ is required and
+    cannot run."""
 
     def __init__(
-        self, *, seed: int = 0, n_particles: int | None = None, pose_seed: int | None = None
+        self,
+        *,
+        seed: int = 0,
+        n_particles: int | None = None,
+        pose_seed: int | None = None,
+        compiled: bool | None = None,
     ) -> None:
         model = load_kitchen(N_PARTICLES if n_particles is None else n_particles, seed, pose_seed)
         model.opt.timestep = DT
@@ -76,15 +104,16 @@ class SimulatedVelma:
         self.tau_v = np.array([model.joint(j).dofadr[0] for j in held])
         self.head_act = np.array([self.jmap.ctrl["head_pan_servo"], self.jmap.ctrl["head_tilt_servo"]])
         self.head_q = np.array([model.joint(j).qposadr[0] for j in HEAD_JOINTS])
-        self.head_set = self.data.qpos[self.head_q].copy()
-        """The head servos' setpoints (rad: pan, tilt), ramping to ``head_target``."""
-        self.head_target = self.head_set.copy()
+        self._head_servos = np.tile(self.data.qpos[self.head_q], 2)
+        self.head_set = self._head_servos[:2]
+        """The head servos' setpoints (rad: pan, tilt; a view), ramping to ``head_target``."""
+        self.head_target = self._head_servos[2:]
+        """The head servos' targets (rad: pan, tilt; a view)."""
         self.hands = Hands(model)
         self.hands.reset_from(self.data)
-        self.hand_seq = np.zeros(len(SIDES))
-        """Per side the sequence number of the last hand command taken (0: none yet)."""
-        self.disturb_seq = 0.0
-        """The sequence number of the last disturbance taken (0: none yet)."""
+        self._seqs = np.zeros(len(SIDES) + 1)
+        self.hand_seq = self._seqs[: len(SIDES)]
+        """Per side the sequence number of the last hand command taken (0: none yet; a view)."""
         self.contacts = ContactMonitor(model)
         self.ft_adr = [
             (int(model.sensor(f"{s}_ft_force").adr[0]), int(model.sensor(f"{s}_ft_torque").adr[0]))
@@ -110,6 +139,34 @@ class SimulatedVelma:
         self._ft_out = slice(self._ft, self._ft + len(self._ft_adr))
         self._head_rate = HEAD_RATE * DT
         self._ctrl[self.head_act] = self.head_set  # a step writes it again only while it moves
+        self.plant = self._compiled(compiled)
+        """The C++ side of the cycle (module docstring), or None: Python."""
+
+    def _compiled(self, wanted: bool | None) -> Any:
+        if wanted is None:
+            wanted = plant_choice()
+        why = mujoco_side_unavailable() if wanted is not False else "not requested"
+        if why is not None:
+            if wanted:
+                raise RuntimeError(f"no compiled world cycle: {why}")
+            return None
+        model, motors = self.model, self.tau_act.tolist()
+        plant = make_plant(model, self.data, self.jmap, self.contacts, motors[:-1], motors[-1])
+        head_act = (int(self.head_act[0]), int(self.head_act[1]))
+        bind_servos(plant, self.hands, self._head_servos, head_act, dt=DT, head_step=self._head_rate)
+        plant.bind_world(
+            [MEASURED.fields[n][0] for n in _MEASURED_ORDER] + [TOUCH_SLOTS, SELF_SLOTS, CONTACT_PERIOD],
+            [COMMAND.fields[n][0] for n in ("tau", "hand", "head", "disturb")] + [HAND_OP],
+            motors,
+            [a for pair in self.ft_adr for a in pair],
+            self._seqs,
+        )
+        return plant
+
+    @property
+    def disturb_seq(self) -> float:
+        """The sequence number of the last disturbance taken (0: none yet)."""
+        return float(self._seqs[-1])
 
     @property
     def time(self) -> float:
@@ -135,6 +192,9 @@ class SimulatedVelma:
         """Write this cycle's measured state into ``out`` (``MEASURED.size`` float64; ``touch``
         is rewritten per hand and ``self_touch`` once every ``CONTACT_PERIOD`` cycles: keep
         ``out`` between calls)."""
+        if self.plant is not None:
+            self.plant.measure(out, self.cycles, self.hold_q is not None)
+            return
         data = self.data
         out[self._time] = data.time
         np.take(self._qpos, self.jmap.qpos_adr, out=out[self._q])
@@ -176,10 +236,21 @@ class SimulatedVelma:
             self._brake()
             return
         self.hold_q = None
+        if self.plant is not None:
+            fresh = self.plant.apply(command)  # the torques and the head's targets
+            if fresh:
+                self._take(command, fresh)
+            return
         self._ctrl[self.tau_act] = command[self._tau]
+        self.head_target[:] = command[self._head]
+        self._take(command, 0b111)
+
+    def _take(self, command: Array, which: int) -> None:
+        """Take the hand operations (bit k: side k) and the disturbance (bit 2) of ``command``
+        that ``which`` names and that are new (their sequence numbers changed)."""
         hand = command[self._hand]
         for k, side in enumerate(SIDES):
-            if hand[HAND_OP * k] == self.hand_seq[k]:
+            if not which & (1 << k) or hand[HAND_OP * k] == self.hand_seq[k]:
                 continue  # taken already: the command repeats every cycle
             seq, op, proximal, spread = hand[HAND_OP * k : HAND_OP * (k + 1)].tolist()
             self.hand_seq[k] = seq
@@ -187,13 +258,12 @@ class SimulatedVelma:
                 self.hands.keep(side)
             else:
                 self.hands.command(side, proximal, None if math.isnan(spread) else spread)
-        self.head_target[:] = command[self._head]
-        if command[self._disturb.start] != self.disturb_seq:
+        if which & 0b100 and command[self._disturb.start] != self._seqs[-1]:
             seq, body, dx, dy, dz, tilt = command[self._disturb].tolist()
-            self.disturb_seq = seq
+            self._seqs[-1] = seq
             # a body that is not free cannot be moved: the command's sender checks (``displace``)
             if 0 <= body < self.model.nbody and is_free(self.model, int(body)):
-                displace(self.model, data, int(body), (dx, dy, dz), tilt)
+                displace(self.model, self.data, int(body), (dx, dy, dz), tilt)
 
     def _brake(self) -> None:
         data = self.data
@@ -204,6 +274,10 @@ class SimulatedVelma:
 
     def step(self) -> None:
         """One physics step of ``DT``, the hands' and the head's servos first."""
+        if self.plant is not None:
+            self.plant.step_world()
+            self.cycles += 1
+            return
         data = self.data
         self.hands.step(data, DT)
         target, now = self.head_target, self.head_set
