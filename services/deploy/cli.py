@@ -177,7 +177,7 @@ def compose(
     and the one-shot certs service (services/deploy/compose.py). With --check, write nothing:
     exit 0 when the file is what the specification gives, 1 (one line saying how it differs)
     when not."""
-    from services.deploy.compose import COMPOSE_FILE, ComposeError, write
+    from services.deploy.compose import COMPOSE_FILE, ComposeError, hardware, write
     from services.deploy.compose import check as check_file
 
     path = file or COMPOSE_FILE
@@ -196,6 +196,7 @@ def compose(
         raise typer.Exit(2) from None
     agents = ", ".join(system.launch_order)
     if changed:
-        typer.echo(f"roco: wrote {_shown(path)}: router, recorder, viewer and the agents {agents}")
+        others = ", ".join(["router", "recorder", "viewer", *hardware(system)])
+        typer.echo(f"roco: wrote {_shown(path)}: {others} and the agents {agents}")
     else:
         typer.echo(f"roco: {_shown(path)} is up to date (the agents {agents})")

@@ -1,10 +1,10 @@
 """``deploy/compose.yaml`` rendered from the specification (docs/deploy.md).
 
 The file runs the fleet in containers: the one-shot ``certs`` service, the Zenoh router, the
-traffic recorder, one service per agent of the specification and a Rerun web viewer, all from
-one image. The services that are not agents, the shared settings (the ``x-roco`` and ``x-env``
-anchors) and the file's comments are this module's text; the agents' services follow from the
-specification:
+traffic recorder, one service per agent of the specification, the ``world`` (the simulated
+kitchen, when an agent drives it) and a Rerun web viewer, all from one image. The services
+that are not agents, the shared settings (the ``x-roco`` and ``x-env`` anchors) and the
+file's comments are this module's text; the agents' services follow from the specification:
 
 - one service per agent, in the specification's start order (``SystemSpec.launch_order``),
   running ``python -m services.runtime.main NAME`` after the certificates, the router and the
@@ -13,7 +13,10 @@ specification:
   once the others are there) waits until every other agent is healthy;
 - what an agent's container needs beyond that is stated here, once, in :data:`AGENT_EXTRAS`:
   a named volume for what it keeps across restarts (a_km's knowledge, a_co's accepted
-  commands) and capabilities (ag_ex's ``SYS_NICE`` for its 1 kHz loop).
+  commands), capabilities (ag_ex's ``SYS_NICE`` for its 1 kHz loop) and the robot's hardware
+  it drives (ag_ex's: the ``world`` service, the simulated kitchen of velma/world/, whose
+  shared memory and processes its container shares, so that the robot link between them works
+  and neither takes the other's link for an orphan).
 
 The file is in the Compose Specification format (no ``version:``), valid for ``docker
 compose`` v2 and Debian's ``docker-compose`` 1.29. ``roco deploy compose`` writes it,
@@ -28,6 +31,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from services.spec.model import SystemSpec
+from velma.world.mode import WORLD_SERVICE
 
 PROJECT = Path(__file__).resolve().parents[2]
 """The project's root folder (where ``services/`` and ``deploy/`` are)."""
@@ -72,6 +76,9 @@ class AgentExtras:
     state: StateVolume | None = None
     capabilities: tuple[str, ...] = ()
     why: tuple[str, ...] = ()
+    hardware: str | None = None
+    """The service of the hardware the agent drives (its IPC and PID namespaces are shared,
+    and the agent starts after it), or None."""
 
 
 AGENT_EXTRAS: dict[str, AgentExtras] = {
@@ -80,6 +87,7 @@ AGENT_EXTRAS: dict[str, AgentExtras] = {
         state=StateVolume("co_state", "/var/lib/roco/co", ("ROCO_CO_STATE", "ROCO_STATE_DIR"))
     ),
     "ag_ex": AgentExtras(
+        hardware=WORLD_SERVICE,
         capabilities=("SYS_NICE",),
         why=(
             "the 1 kHz loop asks for SCHED_FIFO (as root with CAP_SYS_NICE no rtprio ulimit is needed);",
@@ -99,8 +107,8 @@ _YAML_WORDS = frozenset({"y", "n", "yes", "no", "on", "off", "true", "false", "n
 
 HEAD = """\
 # The roco fleet in containers: the Zenoh router, the traffic recorder, the agents of the
-# specification and a Rerun web viewer, one image for all (deploy/Dockerfile). docs/deploy.md
-# tells the whole story.
+# specification, the simulated world ag_ex drives and a Rerun web viewer, one image for all
+# (deploy/Dockerfile). docs/deploy.md tells the whole story.
 #
 # Rendered by `roco deploy compose` from the specification (services/spec/robot_companion.toml:
 # one service per agent) and services/deploy/compose.py (the other services, the settings below,
@@ -227,8 +235,9 @@ services:
       <<: *health
       test: ["CMD", "python", "-m", "services.runtime.health", "recorder"]
 
-  # The agents of the specification, in its start order (services/deploy/compose.py).
 """
+
+AGENTS_COMMENT = "  # The agents of the specification, in its start order (services/deploy/compose.py).\n"
 
 VIEWER = """\
   viewer:
@@ -257,7 +266,20 @@ VIEWER = """\
              "--tcp", "127.0.0.1:9876", "--tcp", "127.0.0.1:9090"]
 """
 
-NOT_AGENTS = ("certs", "router", "recorder", "viewer")
+WORLD = """\
+  world:  # Velma's hardware side: the simulated kitchen (velma/world/); not an agent, never faulted
+    <<: *roco
+    command: ["python", "-m", "velma.world"]
+    environment: *env
+    ipc: shareable  # the robot link is shared memory: ag_ex joins this IPC namespace
+    depends_on:  # the run's name (its folder) comes from the router
+      router:
+        condition: service_healthy
+    healthcheck:  # no Zenoh, no port: ag_ex waits for the link the world names in the run folder
+      disable: true
+"""
+
+NOT_AGENTS = ("certs", "router", "recorder", "viewer", WORLD_SERVICE)
 """The services of the file that are not agents (an agent may have none of these names)."""
 
 
@@ -290,16 +312,27 @@ def _agent(spec: SystemSpec, name: str) -> list[str]:
         lines += ["    environment:", "      <<: *env"]
         lines += [f"      {var}: {state.path}/{{run}}" for var in state.variables]
         lines += ["    volumes:", *(f"      - {m}" for m in MOUNTS), f"      - {state.volume}:{state.path}"]
+    needs = [f"      {extras.hardware}:", "        condition: service_started"] if extras.hardware else []
     if name == last_started(spec):
         lines += [
             "    depends_on:  # last in the specification's start_order: once every other agent is healthy",
             "      <<: *after-router",
+            *needs,
         ]
         for other in spec.launch_order:
             if other != name:
                 lines += [f"      {_key(other)}:", "        condition: service_healthy"]
+    elif needs:
+        lines += ["    depends_on:", "      <<: *after-router", *needs]
     else:
         lines.append("    depends_on: *after-router")
+    if extras.hardware is not None:
+        lines += [
+            f"    # the robot link to {extras.hardware} is shared memory with a futex; one PID namespace,",
+            "    # so that each side tells a live peer's blocks from a killed one's (velma/shm.py)",
+            f'    ipc: "service:{extras.hardware}"',
+            f'    pid: "service:{extras.hardware}"',
+        ]
     lines += [f"    # {why}" for why in extras.why]
     if extras.capabilities:
         lines.append(f"    cap_add: [{', '.join(extras.capabilities)}]")
@@ -309,6 +342,12 @@ def _agent(spec: SystemSpec, name: str) -> list[str]:
         f'      test: ["CMD", "python", "-m", "services.runtime.health", {key}]',
     ]
     return lines
+
+
+def hardware(spec: SystemSpec) -> list[str]:
+    """The hardware services the agents of ``spec`` drive (:attr:`AgentExtras.hardware`)."""
+    named = (AGENT_EXTRAS[n].hardware for n in spec.launch_order if n in AGENT_EXTRAS)
+    return sorted({h for h in named if h is not None})
 
 
 def render(spec: SystemSpec) -> str:
@@ -326,6 +365,9 @@ def render(spec: SystemSpec) -> str:
             volumes.append(state.volume)
     head = HEAD.replace("@MOUNTS\n", "".join(f"    - {m}\n" for m in MOUNTS))
     agents = "\n".join("\n".join(_agent(spec, name)) + "\n" for name in spec.launch_order)
+    agents = AGENTS_COMMENT + agents
+    if WORLD_SERVICE in hardware(spec):
+        agents = WORLD + "\n" + agents
     tail = "volumes:\n" + "".join(f"  {v}: {{}}\n" for v in volumes)
     return f"{head}{agents}\n{VIEWER}\n{tail}"
 

@@ -60,7 +60,7 @@ from services.spec.model import (
     interface,
     load,
 )
-from services.spec_check.causal import causal_order
+from services.spec_check.causal import causal_order, send_order
 from shared.fipa_codec import Performative
 from shared.fipa_codec.languages import ContentError, decode_content
 from shared.fipa_codec.protocols import (
@@ -236,6 +236,12 @@ def verify_run(
         notes.append(
             f"{moved} communicate(s) reached the recorder before the one they answer "
             "(publishers' paths through the router are not ordered); checked in causal order"
+        )
+    messages, crossed = send_order(messages)
+    if crossed:
+        notes.append(
+            f"{crossed} communicate(s) reached the recorder after one the other party sent later "
+            "in the same conversation; checked in the order they were sent"
         )
     checker = _Checker(spec, machines, report)
     for message in messages:

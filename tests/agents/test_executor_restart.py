@@ -1,8 +1,11 @@
-"""ag_ex as an OS process over a Zenoh router on a loopback port (slow): with the jar grasped
-and lifted, ag_ex holds position and keeps the jar when a_ta's liveliness token goes away;
-killed (SIGKILL) or stopped (SIGTERM) and started again in the same run folder, it comes back
-with the world as it was (the jar still in the hand, where it was), not with the initial
-scene; with ROCO_EX_FRESH=1 it starts from the initial scene (velma/executor/checkpoint.py)."""
+"""ag_ex as an OS process over a Zenoh router on a loopback port (slow), with the physics in
+its loop (``ROCO_WORLD=loop``): with the jar grasped and lifted, ag_ex holds position and
+keeps the jar when a_ta's liveliness token goes away; killed (SIGKILL) or stopped (SIGTERM) and
+started again in the same run folder, it comes back with the world restored from its
+checkpoint (the jar still in the hand, where it was), not with the initial scene; with
+ROCO_EX_FRESH=1 it starts from the initial scene (velma/executor/checkpoint.py). With the
+world in its own process (the default) a restarted loop attaches to the running world:
+tests/velma/test_world_controller.py."""
 
 from __future__ import annotations
 
@@ -113,7 +116,8 @@ def fleet(tmp_path: Path) -> Iterator[tuple[Fleet, zenoh.Session]]:
     # forged traffic and tokens from the test: no access control (tested in tests/security/)
     # the ground truth perceives (ROCO_PERCEPTION=truth): the test follows the jar in the hand,
     # where the head camera does not localise it (docs/bench/observe.md)
-    f = Fleet(tmp_path, f"tcp/127.0.0.1:{free_port()}", acl=False, env={"ROCO_PERCEPTION": "truth"})
+    env = {"ROCO_PERCEPTION": "truth", "ROCO_WORLD": "loop"}
+    f = Fleet(tmp_path, f"tcp/127.0.0.1:{free_port()}", acl=False, env=env)
     f.start_router()
     session = open_client(f.endpoint)
     try:

@@ -18,6 +18,7 @@ import pytest
 from typer.testing import CliRunner
 
 from services.fleet.launcher import AGENT_ORDER, free_port
+from velma.world.mode import WORLD_SERVICE
 
 pytestmark = [pytest.mark.slow, pytest.mark.fleet]
 ROOT = Path(__file__).resolve().parents[2]
@@ -98,7 +99,9 @@ def test_down_says_what_it_stops_and_writes_the_commands_and_the_report(
     assert stopping.startswith("roco: stopping ") and stopping.endswith(
         "; recorder: traffic record complete; router"
     )
-    assert sorted(stopping.removeprefix("roco: stopping ").split(";")[0].split()) == sorted(AGENT_ORDER)
+    assert sorted(stopping.removeprefix("roco: stopping ").split(";")[0].split()) == sorted(
+        [*AGENT_ORDER, WORLD_SERVICE]
+    )
     assert final.startswith("roco: fleet stopped after ") and "; 1 command: 1 succeeded; " in final
     assert final.endswith(f"communicates; report {run_dir / 'report.md'}")
     info = json.loads((run_dir / "run.json").read_text())
@@ -137,7 +140,9 @@ def test_hosts_down_confirms_the_traffic_record_as_roco_down_does(
     assert result.exit_code == 0, result.output
     stopping, final = said(result.output)
     assert stopping.endswith("; recorder: traffic record complete; routers; both hosts removed"), stopping
-    assert sorted(stopping.removeprefix("roco: stopping ").split(";")[0].split()) == sorted(AGENT_ORDER)
+    assert sorted(stopping.removeprefix("roco: stopping ").split(";")[0].split()) == sorted(
+        [*AGENT_ORDER, WORLD_SERVICE]
+    )
     assert final.startswith("roco: two hosts down after ") and "; no command given; " in final
     info = json.loads((run_dir / "run.json").read_text())
     assert info["ended"] is not None and info["detail"] == "no command was given"
@@ -181,7 +186,7 @@ def test_ctrl_c_during_run_says_interrupted_once_and_leaves_nothing_running(tmp_
     assert said(err) == [f"roco: interrupted; the fleet is stopped; report {run_dir / 'report.md'}"]
     assert "failed" not in out and "Traceback" not in err
     info = json.loads((run_dir / "run.json").read_text())
-    assert set(info["processes"]) == {"router", "recorder", *AGENT_ORDER}
+    assert set(info["processes"]) == {"router", "recorder", WORLD_SERVICE, *AGENT_ORDER}
     assert not [name for name, pid in info["processes"].items() if running(pid)]
     assert processes_of(run_dir) == []
     assert info["succeeded"] is False and info["detail"] == "interrupted"

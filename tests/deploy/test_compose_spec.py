@@ -55,7 +55,7 @@ def test_the_six_agents_services_are_what_the_fleet_needs() -> None:
     assert "version" not in compose  # the Compose Specification format
     assert set(compose) == {"x-roco", "x-env", "x-after-router", "services", "volumes"}
     services = compose["services"]
-    assert list(services) == ["certs", "router", "recorder", *AGENTS, "viewer"]
+    assert list(services) == ["certs", "router", "recorder", "world", *AGENTS, "viewer"]
     assert compose["volumes"] == {"fleet": {}, "km_store": {}, "co_state": {}}
     env = compose["x-env"]
     assert env["ROCO_ROUTER"] == "${ROCO_PROTO:-tls}/router:7447" and env["ROCO_RUN_DIR"] == "/runs/{run}"
@@ -91,11 +91,17 @@ def test_the_six_agents_services_are_what_the_fleet_needs() -> None:
         assert service["volumes"] == mounts + extra_volume.get(name, [])
         assert service.get("cap_add") == (["SYS_NICE"] if name == "ag_ex" else None)
         waits = {o: {"condition": "service_healthy"} for o in AGENTS if o != "a_hi"} if name == "a_hi" else {}
+        if name == "ag_ex":  # the robot it drives: the world, whose shared memory and processes it sees
+            waits = {"world": {"condition": "service_started"}}
+            assert service["ipc"] == service["pid"] == "service:world"
         assert service["depends_on"] == {**after_router, **waits}
         assert set(service) <= {
             "image", "build", "init", "restart", "volumes", "healthcheck",
-            "command", "environment", "depends_on", "cap_add",
+            "command", "environment", "depends_on", "cap_add", "ipc", "pid",
         }  # fmt: skip
+    world = services["world"]  # Velma's hardware: no Zenoh, not an agent
+    assert world["command"] == ["python", "-m", "velma.world"] and world["environment"] == env
+    assert world["ipc"] == "shareable" and world["depends_on"] == {"router": {"condition": "service_healthy"}}
 
 
 def test_the_other_services_keep_their_settings() -> None:
@@ -124,7 +130,7 @@ def test_a_new_agent_gets_a_service_and_the_last_agent_waits_for_it(tmp_path: Pa
     spec = load(walkthrough_spec(tmp_path))
     assert spec.launch_order[-1] == "a_wt" and last_started(spec) == "a_hi"
     services = config(render(spec))["services"]
-    assert list(services) == ["certs", "router", "recorder", *AGENTS, "a_wt", "viewer"]
+    assert list(services) == ["certs", "router", "recorder", "world", *AGENTS, "a_wt", "viewer"]
     new, plain = services["a_wt"], services["a_pl"]
     assert new["command"] == ["python", "-m", "services.runtime.main", "a_wt"]
     assert new["healthcheck"]["test"] == ["CMD", "python", "-m", "services.runtime.health", "a_wt"]

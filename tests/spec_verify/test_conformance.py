@@ -485,17 +485,42 @@ def test_across_a_cut_link_the_copies_are_judged_once_whichever_order_the_record
     assert [(e.kind, e.text) for e in built.events] == [(e.kind, e.text) for e in alone.events]
 
 
-def record_from_publishers(run_dir: Path, order: list[tuple[str, bytes]]) -> Path:
+def test_an_inform_recorded_before_the_confirm_it_waited_for_is_checked_after_it(
+    pour_traffic: list[tuple[str, bytes]], tmp_path: Path
+) -> None:
+    """Seen in a test run: a_ta sent its next L_SW inform once a_co's confirm of the previous
+    one had arrived, and the recorder got the inform 10 µs before that confirm. Nothing in the
+    inform names the confirm: the send times order them. Sent the other way round (a_ta did
+    not wait), the same arrival order stays a violation."""
+    c1 = keys.fipa_key("C1", "a_ta", "a_co"), keys.fipa_key("C1", "a_co", "a_ta")
+    at = next(i for i, (k, p) in enumerate(pour_traffic) if k == c1[0] and b"sw" in p)
+    confirm = next(i for i in range(at, len(pour_traffic)) if pour_traffic[i][0] == c1[1])
+    following = next(i for i in range(confirm, len(pour_traffic)) if pour_traffic[i][0] == c1[0])
+    rest = [kp for i, kp in enumerate(pour_traffic) if i not in (confirm, following)]
+    order = [*rest[: following - 1], pour_traffic[following], pour_traffic[confirm], *rest[following - 1 :]]
+    inform_at = following - 1  # where they arrive: the inform, then the confirm
+    for sent_first, conforms in (("confirm", True), ("inform", False)):
+        early = inform_at + (1 if sent_first == "confirm" else 0)
+        sent = {early: 1000.0 + 0.01 * inform_at - 0.008}  # 3 ms before the other was sent
+        report = verify_run(record_from_publishers(tmp_path / sent_first, order, sent), default_spec())
+        assert report.full_conformance is conforms, render(report)
+        assert any("in the order they were sent" in n for n in report.notes) is conforms
+
+
+def record_from_publishers(
+    run_dir: Path, order: list[tuple[str, bytes]], sent: dict[int, float] | None = None
+) -> Path:
     """Record the communicates of ``order`` (key, payload) as arriving in that order, 10 ms
-    apart, each sent 5 ms before it arrived by the advanced publisher of its key (one per key:
-    source ``zid:<key>``, sequence numbers 0, 1, … in order; a copy is the next number)."""
+    apart, each sent 5 ms before it arrived (``sent``: the send times of some, by position in
+    ``order``) by the advanced publisher of its key (one per key: source ``zid:<key>``,
+    sequence numbers 0, 1, … in order; a copy is the next number)."""
     sns: dict[str, int] = {}
     arrivals: list[Arrival] = []
     for i, (key, payload) in enumerate(order):
         if key.startswith("roco/fipa/"):
             sn = sns[key] = sns.get(key, -1) + 1
             t = 1000.0 + 0.01 * i
-            arrivals.append(Arrival(t, key, payload, f"zid:{key}", sn, t - 0.005))
+            arrivals.append(Arrival(t, key, payload, f"zid:{key}", sn, (sent or {}).get(i, t - 0.005)))
     run_dir.mkdir()
     writer = TrafficWriter(run_dir)
     writer.write_many(arrivals)

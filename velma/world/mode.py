@@ -1,6 +1,7 @@
 """Where the kitchen's physics runs, as the fleet's environment says (``ROCO_WORLD``): in a world
-process of its own beside ag_ex (``process``: velma/world/main.py, the robot link of
-velma/world/link.py), or inside ag_ex's loop (``loop``, the default). Imports nothing heavy: the
+process of its own beside ag_ex (``process``, the default: velma/world/main.py, the robot link
+of velma/world/link.py), or inside ag_ex's loop (``loop``: one process, the world checkpointed
+and restored across ag_ex's restarts, velma/executor/checkpoint.py). Imports nothing heavy: the
 launcher reads it."""
 
 from __future__ import annotations
@@ -15,9 +16,9 @@ WORLD_SERVICE = "world"
 
 
 def world_in_process(env: Mapping[str, str] | None = None) -> bool:
-    """True when ``ROCO_WORLD=process`` in ``env`` (default ``os.environ``). Raises ValueError
-    for a value other than ``WORLD_MODES``."""
-    value = (os.environ if env is None else env).get(WORLD_ENV, "loop").strip() or "loop"
+    """False when ``ROCO_WORLD=loop`` in ``env`` (default ``os.environ``), else True. Raises
+    ValueError for a value other than ``WORLD_MODES``."""
+    value = (os.environ if env is None else env).get(WORLD_ENV, "process").strip() or "process"
     if value not in WORLD_MODES:
         raise ValueError(f"{WORLD_ENV} must be one of {', '.join(WORLD_MODES)}, not {value!r}")
     return value == "process"

@@ -141,11 +141,13 @@ class ExecutorAgent(Agent):
         from velma.executor.checkpoint import checkpoint_dir, fresh_start
 
         pose = os.environ.get("ROCO_POSE_SEED", "")
+        seed = _seed("ROCO_SEED", os.environ.get("ROCO_SEED", "0"))
+        pose_seed = _seed("ROCO_POSE_SEED", pose) if pose else None
         world = self._world_link() if world_in_process() else None
         return ExecutorProcess(
             realtime=os.environ.get("ROCO_REALTIME", "0") == "1",
-            seed=_seed("ROCO_SEED", os.environ.get("ROCO_SEED", "0")),
-            pose_seed=_seed("ROCO_POSE_SEED", pose) if pose else None,
+            seed=seed,
+            pose_seed=pose_seed,
             world_state=self.hooks.camera_wanted() if self.hooks else False,
             checkpoint_dir=checkpoint_dir(),  # the world survives a restart (module docstring)
             fresh=fresh_start(),
