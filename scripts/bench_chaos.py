@@ -9,8 +9,8 @@ Usage: ``python scripts/bench_chaos.py [--hosts] [--realtime] [--kinds K,…] [-
 --hosts``: on two hosts of this machine, both routers and the link faulted too; root;
 ``--realtime`` paces the pour to wall time, so that more of the faults fall during it;
 ``--kinds`` and ``--count`` go to ``roco chaos``; ``--runs-dir`` keeps each run's folder there).
-The fleet's environment is this one's: ``ROCO_WORLD=process`` runs the kitchen as a world
-process of its own (docs/executor.md).
+The fleet's environment is this one's: ``ROCO_WORLD=loop`` runs the kitchen inside ag_ex's
+loop instead of a world process of its own (docs/executor.md).
 """
 
 from __future__ import annotations
@@ -58,7 +58,7 @@ def main() -> int:
     paced = "paced to wall time" if args.realtime else "not paced"
     kinds = tuple(args.kinds.split(","))
     faulted = f"--kinds {args.kinds}" + (f" --count {args.count}" if args.count else "")
-    world = os.environ.get("ROCO_WORLD", "loop")
+    world = os.environ.get("ROCO_WORLD", "process")
     print(f"# {title} {faulted}, one run per seed ({time.strftime('%Y-%m-%d')}, {paced}, ROCO_WORLD={world})")
     print(f"Machine: {benchlib.machine(('mujoco', 'pin', 'eclipse-zenoh'))}")
     print()

@@ -165,7 +165,9 @@ def row(name: str, s: TimingStats, outcome: str) -> str:
     sched = "?" if setup is None else setup.describe()
     if s.control_law:
         sched += f", {s.control_law} law"
-    if s.plant:
+    if s.plant == "world process":
+        sched += ", physics in the world process"
+    elif s.plant:
         sched += f", {s.plant} plant"
     return (
         f"| {name} | {s.cycles} | {s.compute_p50_us:.0f} | {s.compute_p99_us:.0f} | {s.compute_max_us:.0f} | "

@@ -135,8 +135,8 @@ class Fleet:
         self._spawn("recorder", service_args("recorder", self.endpoint))
 
     def start_agents(self, names: Iterable[str] = AGENT_ORDER) -> None:
-        """Start the agents ``names``; with ``ROCO_WORLD=process`` the world process first,
-        before ag_ex, unless it runs (velma/world/mode.py): it outlives ag_ex's restarts."""
+        """Start the agents ``names``, and before ag_ex the world process unless it runs or
+        ``ROCO_WORLD=loop`` (velma/world/mode.py): it outlives ag_ex's restarts."""
         for name in names:
             if name == "ag_ex" and world_in_process(self._environ()):
                 world = self.processes.get(WORLD_SERVICE)

@@ -202,8 +202,8 @@ def final_world(run_dir: Path) -> Observation | None:
 
 def judged_world(run_dir: Path) -> tuple[Observation, str] | None:
     """The ground truth of the world as the run left it in ``run_dir`` (every known object's
-    pose, containers' particle counts): the world process's final scene (``ROCO_WORLD=process``,
-    velma/world/main.py ``FINAL_FILE``), else ag_ex's final checkpoint, for the scene the launch
+    pose, containers' particle counts): the world process's final scene (velma/world/main.py
+    ``FINAL_FILE``), else ag_ex's final checkpoint (``ROCO_WORLD=loop``), for the scene the launch
     environment names (ROCO_SEED, ROCO_POSE_SEED): for judging a run, never for the agents;
     with where it comes from. None when there is neither, or it does not fit (logged)."""
     from velma.executor.checkpoint import observe_checkpoint, observe_scene

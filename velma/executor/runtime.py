@@ -223,7 +223,10 @@ class Runtime:
     # ------------------------------------------------------------------ state
     @property
     def plant_name(self) -> str:
-        """Where the cycle's MuJoCo side runs: ``compiled`` (``plant``) or ``python``."""
+        """Where the cycle's MuJoCo side runs: ``world process`` (attached to one: the loop steps
+        no physics), ``compiled`` (``plant``) or ``python``."""
+        if self.world is not None:
+            return "world process"
         return "python" if self.plant is None else "compiled"
 
     @property

@@ -39,13 +39,13 @@ Besides the C5 conversation, ag_ex
   channels in the specification: a_ta). When one disappears the executor holds position in
   joint impedance, with the hands closed as they are, so a held object is never dropped
   because a peer died; ag_ex logs a warning and the published state says ``holding``;
-- keeps the simulated world across its own restarts: with ``ROCO_WORLD=process`` the kitchen
-  is a world process of its own (velma/world/, started by the launcher before ag_ex) and the
-  loop only its controller, which attaches to it again after a restart and finds the robot,
-  and what it holds, as they are; otherwise by checkpoints (velma.executor.checkpoint) in
-  ``ROCO_EX_STATE``, else ``<ROCO_RUN_DIR>/ag_ex_state/``: at start the loop restores the last
-  one and holds position there (a held jar stays held; up to a second of the world is lost).
-  ``ROCO_EX_FRESH=1`` starts from the initial scene instead.
+- keeps the simulated world across its own restarts: the kitchen is a world process of its
+  own (velma/world/, started by the launcher before ag_ex) and the loop only its controller,
+  which attaches to it again after a restart and finds the robot, and what it holds, as they
+  are. With ``ROCO_WORLD=loop`` the kitchen is in the loop and kept by checkpoints
+  (velma.executor.checkpoint) in ``ROCO_EX_STATE``, else ``<ROCO_RUN_DIR>/ag_ex_state/``: at
+  start the loop restores the last one and holds position there (a held jar stays held; up to
+  a second of the world is lost); ``ROCO_EX_FRESH=1`` starts from the initial scene instead.
 """
 
 from __future__ import annotations
@@ -75,7 +75,7 @@ STATE_PERIOD = 0.05  # s between robot-state publications (20 Hz)
 TIMING_FILE_PERIOD = 5.0  # s between writes of ag_ex_timing.json
 TIMING_FILE = "ag_ex_timing.json"
 WORLD_WAIT_S = 120.0
-"""How long (s) ag_ex waits for the world process to name its link (``ROCO_WORLD=process``)."""
+"""How long (s) ag_ex waits for the world process to name its link."""
 
 
 def _seed(name: str, text: str) -> int:
@@ -159,14 +159,14 @@ class ExecutorAgent(Agent):
 
     @staticmethod
     def _world_link() -> str:
-        """The robot link of the run's world process (``ROCO_WORLD=process``), as it writes it
+        """The robot link of the run's world process, as it writes it
         in the run folder once it runs (velma/world/main.py ``link_name``). Raises RuntimeError
         without a run folder, or when no world names its link within ``WORLD_WAIT_S``."""
         from velma.world.main import link_name
 
         run_dir = os.environ.get("ROCO_RUN_DIR")
         if not run_dir:
-            raise RuntimeError("ROCO_WORLD=process needs ROCO_RUN_DIR: the world names its link there")
+            raise RuntimeError("the world process names its link in ROCO_RUN_DIR, which is not set")
         deadline = time.monotonic() + WORLD_WAIT_S
         while (name := link_name(Path(run_dir))) is None:
             if time.monotonic() > deadline:
