@@ -4,12 +4,13 @@ object and then a fresh observation (services/agents/task_executor/agent.py, doc
 
 from __future__ import annotations
 
+import time
 from pathlib import Path
 
 import msgspec
 import pytest
 
-from services.agents.task_executor.agent import TaskExecutor
+from services.agents.task_executor.agent import INITIAL_OBSERVE_RETRY_S, TaskExecutor
 from services.runtime.state_store import ENV_STATE_DIR
 from shared.fipa_codec import Communicate
 from shared.fipa_codec import Performative as P
@@ -88,3 +89,29 @@ def test_a_new_subscription_gets_the_asserted_changes_then_a_fresh_observation(
     assert fresh.stamp == 7.5 and fresh.objects[0].pose == Pose((0.55, 0.2, 0.9))
     assert fresh.objects[0].particles == 18
     assert len(updates(w, "km-1")) == 3  # nothing more into the old conversation
+
+
+def test_a_late_answer_to_an_earlier_initial_observe_is_taken(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Seen under load: each Observe took longer than the initial observe's short deadline, so
+    a restarted a_ta asked again every 3 s and ignored every answer as late, for 10 minutes. An
+    answer to any of the initial observes it asked will do."""
+    monkeypatch.setenv(ENV_STATE_DIR, str(tmp_path))
+    w = Wire(TaskExecutor)
+    w.agent.setup()
+    subscribe(w, "km-1")
+    first = observe_request(w)
+    real = time.time
+    monkeypatch.setattr(time, "time", lambda: real() + INITIAL_OBSERVE_RETRY_S + 1.0)
+    w.step("idle")  # the deadline passes: a local failure …
+    w.step("idle")  # … and a_ta asks again
+    second = observe_request(w)
+    assert second.conversation_id != first.conversation_id
+    ag_ex_answers(w, first, scene(1.0, 0.8))  # the first one's answer, late
+    w.step("idle")
+    (taken,) = updates(w, "km-1")
+    assert taken.stamp == 1.0
+    ag_ex_answers(w, second, scene(2.0, 0.8))  # the second one's, now not needed
+    w.step("idle")
+    assert len(updates(w, "km-1")) == 1
