@@ -98,9 +98,10 @@ def send_order(messages: Sequence[Message]) -> tuple[list[Message], int]:
     was sent before one of the other party's recorded up to ``SEND_ORDER_WINDOW`` places before
     it moved before that one (module docstring), and how many were moved.
 
-    Shapes: a list of the same length with the same elements. Each move takes a communicate
-    earlier past one sent after it, so the moves end: O(n · SEND_ORDER_WINDOW) for a record
-    with few crossings."""
+    Shapes: a list of the same length with the same elements. A move brings to a place a
+    communicate of the window after it sent before the one there, so each place takes at most
+    ``SEND_ORDER_WINDOW`` moves, whatever the record's send times: O(n · SEND_ORDER_WINDOW²) at
+    worst, O(n · SEND_ORDER_WINDOW) for a record with few crossings."""
     ordered = list(messages)
     moved = 0
     i = 0

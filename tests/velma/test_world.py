@@ -249,3 +249,13 @@ def test_roco_plant_chooses_the_world_cycle(monkeypatch: pytest.MonkeyPatch) -> 
     monkeypatch.setenv("ROCO_PLANT", "fast")
     with pytest.raises(ValueError, match="ROCO_PLANT"):
         SimulatedVelma(n_particles=0)
+
+
+@pytest.mark.skipif(mujoco_side_unavailable() is not None, reason="the compiled plant is not built")
+def test_the_compiled_world_cycle_refuses_a_vector_shorter_than_the_layout() -> None:
+    sim = SimulatedVelma(n_particles=0, compiled=True)
+    assert sim.plant is not None
+    with pytest.raises(ValueError, match="shorter than the layout"):
+        sim.measure(np.zeros(MEASURED.size - 1))
+    with pytest.raises(ValueError, match="shorter than the layout"):
+        sim.apply(np.zeros(COMMAND.size - 1))

@@ -183,7 +183,7 @@ class Plant {
   // arm, torso); ``ft_adr`` per side the force's and the torque's sensordata addresses;
   // ``seqs`` (3,) float64, bound: the last hand operation taken per side, then the last
   // disturbance. Needs ``bind_servos`` first (the hands' rows and the head are measured).
-  // Raises ValueError on sizes or indices that do not fit.
+  // Raises ValueError on sizes or indices that do not fit (a negative offset among them).
   void bind_world(std::vector<int> measured, std::vector<int> command, std::vector<int> tau_act,
                   std::vector<int> ft_adr, Array seqs) {
     if (servo_.empty()) throw std::invalid_argument("Plant.bind_world: bind_servos first");
@@ -194,6 +194,15 @@ class Plant {
       throw std::invalid_argument("Plant.bind_world: slots must be >= 0 and the contact period >= 4");
     check_index(tau_act, m_->nu, "tau_act");
     check_index(ft_adr, m_->nsensordata - 2, "ft_adr");
+    if (*std::min_element(measured.begin(), measured.begin() + 11) < 0 ||
+        *std::min_element(command.begin(), command.begin() + 4) < 0 || command[4] < 1)
+      throw std::invalid_argument("Plant.bind_world: a negative offset, or HAND_OP < 1");
+    // how far measure and apply write and read: a shorter vector is refused there
+    const int nv = static_cast<int>(qpos_adr_.size());
+    measured_size_ = std::max({measured[0] + 1, measured[1] + nv, measured[2] + nv, measured[3] + 12,
+                               measured[4] + 4 * measured[11], measured[5] + 1, measured[6] + 2 * kHandWidth,
+                               measured[7] + 2, measured[8] + 2 * measured[12], measured[9] + 2, measured[10] + 1});
+    command_size_ = std::max({command[0] + 15, command[1] + 2 * command[4], command[2] + 2, command[3] + 6});
     measured_ = std::move(measured);
     command_ = std::move(command);
     tau_act_ = std::move(tau_act);
@@ -203,9 +212,11 @@ class Plant {
 
   // SimulatedVelma.measure: this cycle's measured state into ``out`` (the link's MEASURED
   // vector; ``touch`` and ``self_touch`` rewritten on their phases of ``cycles``, so keep
-  // ``out`` between calls). Raises RuntimeError before ``bind_world``.
+  // ``out`` between calls). Raises RuntimeError before ``bind_world``, ValueError for an ``out``
+  // shorter than the layout.
   void measure(Array& out, std::int64_t cycles, bool holding) const {
     if (measured_.empty()) throw std::runtime_error("Plant.measure before Plant.bind_world");
+    if (out.size() < measured_size_) throw std::invalid_argument("Plant.measure: out is shorter than the layout");
     double* o = out.mutable_data();
     const int* at = measured_.data();
     o[at[0]] = d_->time;
@@ -251,9 +262,11 @@ class Plant {
 
   // The everyday part of SimulatedVelma.apply: the torques into ctrl and the head's targets;
   // returns which of the rest the caller has to take (bit k: hand k's operation has a new
-  // sequence number; bit 2: the disturbance has). Raises RuntimeError before ``bind_world``.
+  // sequence number; bit 2: the disturbance has). Raises RuntimeError before ``bind_world``,
+  // ValueError for a ``command`` shorter than the layout.
   int apply(const Array& command) {
     if (command_.empty()) throw std::runtime_error("Plant.apply before Plant.bind_world");
+    if (command.size() < command_size_) throw std::invalid_argument("Plant.apply: command is shorter than the layout");
     const double* c = command.data();
     const int* at = command_.data();
     for (int i = 0; i < 15; ++i) d_->ctrl[tau_act_[i]] = c[at[0] + i];
@@ -498,6 +511,7 @@ class Plant {
   int header_ = 0;
   std::vector<double> scratch_;  // the state value being written (empty: no block bound)
   std::vector<int> measured_, command_, tau_act_, world_ft_;  // bind_world's (empty: not bound)
+  py::ssize_t measured_size_ = 0, command_size_ = 0;            // the shortest vectors they fit
   Array seqs_;
 };
 

@@ -21,6 +21,7 @@ grasped. The next command ends the hold.
 
 from __future__ import annotations
 
+import logging
 import math
 from typing import Any
 
@@ -54,6 +55,7 @@ CONTACT_PERIOD = 10
 """Cycles between two tactile scans of a hand (10 ms); ``touch`` keeps the last one."""
 
 Array = npt.NDArray[np.float64]
+log = logging.getLogger(__name__)
 _MEASURED_ORDER = (
     "time",
     "q",
@@ -149,6 +151,8 @@ class SimulatedVelma:
         if why is not None:
             if wanted:
                 raise RuntimeError(f"no compiled world cycle: {why}")
+            if wanted is None:
+                log.warning("the world's cycle runs in Python: %s", why)
             return None
         model, motors = self.model, self.tau_act.tolist()
         plant = make_plant(model, self.data, self.jmap, self.contacts, motors[:-1], motors[-1])
