@@ -81,4 +81,20 @@ def test_only_the_observer_and_the_truth_build_observations() -> None:
     for path in (ROOT / "velma").rglob("*.py"):
         if "ObjectObservation(" in path.read_text():
             builders.add(path.relative_to(ROOT).as_posix())
-    assert builders == {"velma/executor/observer.py", "velma/executor/ground_truth.py"}
+    assert builders == {
+        "velma/executor/observer.py",
+        "velma/executor/ground_truth.py",
+        "velma/executor/proprioception.py",
+    }
+
+
+def test_proprioception_reads_only_the_grip_sites() -> None:
+    """The grips of an Observation are the hands' frames from the joint angles: the module
+    reads the sites' poses and no body's."""
+    path = ROOT / "velma" / "executor" / "proprioception.py"
+    read = {
+        node.attr
+        for node in ast.walk(ast.parse(path.read_text()))
+        if isinstance(node, ast.Attribute) and node.attr in BODY_STATE
+    }
+    assert read == {"site_xpos", "site_xmat"}

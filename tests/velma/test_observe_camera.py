@@ -3,6 +3,7 @@ Observation comes back in order, what is out of view is ``unseen`` while the phy
 
 from __future__ import annotations
 
+import math
 import queue
 
 import pytest
@@ -77,6 +78,12 @@ def test_camera_observation_in_order_and_unseen_out_of_view() -> None:
         assert hidden.objects == ()
         physics = truth.observe(ex.rt.data, ("jar", "bowl"))  # the physics still has both
         assert [o.name for o in physics.objects] == ["jar", "bowl"]
+        # the hands are known from the joints wherever the camera looks: the grip frames the
+        # controller's kinematics (Pinocchio) has, within 1 mm
+        assert [g.name for g in hidden.grips] == ["left_gripper", "right_gripper"]
+        for g in hidden.grips:
+            side = g.name.removesuffix("_gripper")
+            assert math.dist(g.pose.position, ex.rt.ctrl.grip_pose(side).translation) < 1e-3, side
     finally:
         ex.stop()
 
@@ -89,5 +96,6 @@ def test_truth_mode_is_the_physics() -> None:
         assert isinstance(obs, Observation)
         assert [o.name for o in obs.objects] == ["jar"] and obs.unseen == ("nothing",)
         assert obs.objects[0].position_sigma is None
+        assert [g.name for g in obs.grips] == ["left_gripper", "right_gripper"]
     finally:
         ex.stop()

@@ -20,6 +20,7 @@ import numpy as np
 
 from shared.fipa_codec.languages.common import Pose
 from shared.fipa_codec.languages.l_sd import ObjectObservation, Observation
+from velma.executor.proprioception import GripFrames
 from velma.model.scene import PARTICLE_PREFIX
 
 KNOWN_OBJECTS = ("jar", "bowl", "cup", "table", "cabinet")
@@ -38,6 +39,7 @@ class GroundTruth:
             [b for b in range(model.nbody) if model.body(b).name.startswith(PARTICLE_PREFIX)], dtype=np.int64
         )
         self.inner_site = {c: model.site(f"{c}_inner").id for c in CONTAINERS}
+        self.grips = GripFrames(model)
 
     def pose(self, data: mujoco.MjData, name: str) -> Pose:
         """World pose of body ``name`` (position m, quaternion w, x, y, z) in ``data`` (its
@@ -80,4 +82,5 @@ class GroundTruth:
             total_particles=int(self.particle_bodies.size),
             unseen=tuple(n for n in names if n not in self.body),
             particles_outside=outside,
+            grips=self.grips.observe(data),
         )

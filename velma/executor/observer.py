@@ -23,6 +23,7 @@ What the agents get (L_SD, shared/fipa_codec/languages/l_sd.py):
 - furniture (table, cabinet): fixed bodies of the kitchen, so their poses are the map's facts
   (the model's body poses, not the simulation state) with ``position_sigma`` None — a named
   simplification: a real robot would also localise against its map;
+- ``grips``: each hand's grip frame from the joint angles (velma/executor/proprioception.py);
 - ``total_particles``: the number of content spheres the scene description states (its content
   bodies, ``N_PARTICLES`` = 18 in the kitchen), a task fact, not a measurement.
 
@@ -45,6 +46,7 @@ import numpy as np
 from shared.fipa_codec.languages.common import Pose
 from shared.fipa_codec.languages.l_sd import ObjectObservation, Observation
 from velma.executor.capture import WorldCapture
+from velma.executor.proprioception import GripFrames
 from velma.model.scene import PARTICLE_PREFIX, PARTICLE_RADIUS
 from velma.perception.content import ContentEstimate, SphereCount, count_spheres, estimate_content
 from velma.perception.kinect import HeadKinect
@@ -97,6 +99,7 @@ class CameraObserver:
             model.geom_rgba[model.geom(f"{PARTICLE_PREFIX}0_geom").id].copy() if particles else np.ones(4)
         )
         self.map = {n: self._map_pose(n) for n in FURNITURE}
+        self.grips = GripFrames(model)
 
     def _map_pose(self, name: str) -> Pose:
         """The pose of fixed body ``name`` as the model places it (a map fact). Raises
@@ -184,6 +187,7 @@ class CameraObserver:
             total_particles=self.total_particles,
             unseen=tuple(n for n in names if n not in seen),
             particles_outside=outside.count if outside is not None else None,
+            grips=self.grips.observe(data),
         )
         return obs, Seen(estimates=estimates, content=content, outside=outside)
 

@@ -663,7 +663,8 @@ def finish_takes(s: Any, root: str) -> list[tuple[Any, ...]]:
     position (a_km's last observation, made since the grasp: a_km unlocalises a pose when the
     object is taken, and the pose before the grasp is where the object stood, not where the
     hand is) is within ``UNFINISHED_TAKE_SHARE`` × the grasp's
-    retreat distance of one of its places in that container is lifted to the grasp's lift
+    retreat distance of one of its places in that container (where it is not seen, the hand
+    hides it: where the hand's grip frame, observed since, holds it) is lifted to the grasp's lift
     height above that place, then withdrawn along the retreat to the retreat distance from the
     place: the same poses ``m_fetch`` ends at. Each becomes an atomic ``take`` state under
     ``{root}/finish_take_{obj}``. Returns [] when every take was finished."""
@@ -678,7 +679,9 @@ def finish_takes(s: Any, root: str) -> list[tuple[Any, ...]]:
         if pose is None or grasp is None or placement is None or not placement.positions:
             continue
         if not s.localised.get(obj):  # not seen since it was taken (chaos across hosts, seed 6)
-            continue
+            pose = _held_by_hand(s, obj, arm)
+            if pose is None:
+                continue
         x, y, z = pose.position
         place = min(placement.positions, key=lambda p: math.hypot(p[0] - x, p[1] - y))
         if math.hypot(place[0] - x, place[1] - y) >= UNFINISHED_TAKE_SHARE * grasp.retreat_distance:
@@ -701,6 +704,18 @@ def finish_takes(s: Any, root: str) -> list[tuple[Any, ...]]:
             _ACTIONS[name](s, path, *args)
         out += moves
     return out
+
+
+def _held_by_hand(s: Any, obj: str, arm: str) -> Pose | None:
+    """Where ``arm``'s hand holds ``obj`` (world pose of the object frame): its grip frame's
+    pose, observed no earlier than the object's pose (a_km's ``{arm}_gripper``), with the
+    grasp's grip undone; None when there is no such observation."""
+    hand, held = _k(s).objects.get(f"{arm}_gripper"), _k(s).objects.get(obj)
+    if hand is None or hand.pose is None or hand.pose_stamp is None or obj not in s.grip:
+        return None
+    if held is not None and held.pose_stamp is not None and hand.pose_stamp < held.pose_stamp:
+        return None
+    return geo.compose(hand.pose, geo.inverse(s.grip[obj]))
 
 
 def _run(s: Any, task: list[Any]) -> list[tuple[Any, ...]] | None:

@@ -442,13 +442,15 @@ class TaskExecutor(Agent):
         return self.roles.open("C5", "fipa-request", command, reply_by_s=reply_by_s, retry_s=retry_s)
 
     def _update_km(self, obs: Observation) -> None:
+        """Inform a_km of what ``obs`` saw and of where the hands' grip frames were (their
+        poses under the grippers' names: a_pl finishes a take from where the hand is)."""
         update = WorldUpdate(
             stamp=obs.stamp,
             objects=tuple(
                 ObjectUpdate(
                     name=o.name, pose=o.pose, particles=o.particles_inside, position_sigma=o.position_sigma
                 )
-                for o in obs.objects
+                for o in (*obs.objects, *obs.grips)
             ),
             total_particles=obs.total_particles,
         )

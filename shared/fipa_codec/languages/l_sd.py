@@ -50,13 +50,18 @@ class Observation(msgspec.Struct, frozen=True, tag="observation", kw_only=True, 
     ``particles_outside``: content particles seen outside every container (spilled on the
     table, a shelf or the floor, in view; with ground truth: all that are in no container);
     None when no container was asked for. The content is conserved, so no container holds
-    more than ``total_particles − particles_outside``."""
+    more than ``total_particles − particles_outside``.
+    ``grips``: each hand's grip frame (``{side}_HandGripLink``) where the forward kinematics
+    of the joint angles measured at ``stamp`` puts it, named as a_km's grippers
+    (``left_gripper``, ``right_gripper``): the robot's proprioception, not the camera's, so it
+    holds where a held object is hidden (``position_sigma`` None)."""
 
     stamp: float
     objects: tuple[ObjectObservation, ...]
     total_particles: int = 0
     unseen: tuple[str, ...] = ()
     particles_outside: int | None = None
+    grips: tuple[ObjectObservation, ...] = ()
 
 
 L_SD = register(Language("L_SD", "O_RoCo", (Observation,)))

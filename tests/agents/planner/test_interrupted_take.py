@@ -13,6 +13,7 @@ from services.agents.planner.knowledge import Knowledge
 from shared.fipa_codec.languages.common import Pose
 from shared.fipa_codec.languages.l_wm import ObjectUpdate, WorldUpdate
 from tests.agents.planner.kitchen import knowledge as kitchen_knowledge
+from velma import frames as geo
 
 JAR_PLACE = (0.70, 0.20, 0.85)  # kitchen.ttl: cabinet_jar_place
 BOWL = (0.80, -0.20, 0.90)
@@ -95,3 +96,46 @@ def test_a_held_object_not_seen_since_its_grasp_is_not_taken_again() -> None:
     assert k.objects["jar"].pose is not None and not k.objects["jar"].localised
     result = plan_task(k, ("pour", "jar", "bowl"), "pour(jar,bowl)")
     assert not any("finish_take" in a[1] for a in result.actions)
+
+
+def _unseen_in_hand(hand_stamp: float, jar: tuple[float, float, float]) -> Knowledge:
+    """The jar grasped in the cabinet and not seen since (the hand hides it); the left hand's
+    grip frame observed at ``hand_stamp`` where it holds the jar at ``jar``."""
+    world = WorldModel()
+    world.apply(WorldUpdate(stamp=1.0, objects=(ObjectUpdate(name="jar", pose=Pose(JAR_PLACE)),)))
+    world.apply(WorldUpdate(stamp=1.0, objects=(ObjectUpdate(name="bowl", pose=Pose(BOWL)),)))
+    world.apply(WorldUpdate(stamp=2.0, objects=(ObjectUpdate(name="jar", held_by="left_gripper"),)))
+    grip = world.grasps("jar", "left")[0].grip_in_object
+    hand = geo.compose(Pose(jar), Pose(grip.position, grip.orientation))
+    world.apply(WorldUpdate(stamp=hand_stamp, objects=(ObjectUpdate(name="left_gripper", pose=hand),)))
+    k = kitchen_knowledge(world, ("table", "cabinet"))
+    assert not k.objects["jar"].localised
+    return k
+
+
+def test_a_hidden_held_object_is_finished_from_where_the_hand_is() -> None:
+    """Chaos seed 311 (kill): a_ta was killed 0.2 s into the jar's lift; the restarted a_ta's
+    observation did not show the jar in the hand inside the cabinet. Its grip frame (the
+    joints' forward kinematics) says where the jar is: the take is finished from there."""
+    lifted = (JAR_PLACE[0], JAR_PLACE[1], JAR_PLACE[2] + 0.01)
+    actions = plan_task(_unseen_in_hand(3.0, lifted), ("pour", "jar", "bowl"), "pour(jar,bowl)").actions
+    assert [a[1] for a in actions[:2]] == [
+        "pour(jar,bowl)/finish_take_jar/take/lift",
+        "pour(jar,bowl)/finish_take_jar/take/withdraw",
+    ]
+    assert actions[0][3].position[:2] == pytest.approx(lifted[:2], abs=1e-6)
+    assert actions[1][3].position[0] == pytest.approx(JAR_PLACE[0] - 0.25, abs=1e-6)
+
+
+@pytest.mark.parametrize(
+    ("hand_stamp", "jar"),
+    [
+        (3.0, (JAR_PLACE[0] - 0.25, JAR_PLACE[1], 0.89)),  # withdrawn: nothing to finish
+        (0.5, JAR_PLACE),  # the hand seen before the jar was: says nothing of now
+    ],
+)
+def test_a_hidden_held_object_out_of_the_cabinet_or_an_old_hand_pose_is_left(
+    hand_stamp: float, jar: tuple[float, float, float]
+) -> None:
+    actions = plan_task(_unseen_in_hand(hand_stamp, jar), ("pour", "jar", "bowl"), "pour(jar,bowl)").actions
+    assert not any("finish_take" in a[1] for a in actions)
