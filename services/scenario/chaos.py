@@ -14,11 +14,11 @@ answers what a fault-tolerant system must keep:
   execution gives a second, different answer);
 - **no object dropped** — every movable object (jar, bowl, cup) stands higher than
   ``DROPPED_BELOW_M`` (the floor is z = 0; table top 0.75 m, cabinet shelves higher) in the
-  final world: the world ag_ex kept in its last checkpoint when the fleet stopped
-  (``<run>/ag_ex_state/world.ckpt``, read with ``velma.executor.checkpoint.observe_checkpoint``),
-  so an object that fell after the last observation is caught too. Without a readable final
-  checkpoint the objects as ag_ex last observed them during the run are judged instead (and
-  the report says so); an object never observed counts as not known, and fails the check;
+  final world: the scene the world process left when the fleet stopped (``<run>/world_final.f64``,
+  read with ``velma.executor.checkpoint.observe_scene``), so an object that fell after the last
+  observation is caught too. Without a readable final scene (``ROCO_WORLD=loop``) the objects as
+  ag_ex last observed them during the run are judged instead (and the report says so); an
+  object never observed counts as not known, and fails the check;
 - **record intact** — the traffic record lost nothing, paired every record with its own
   payload and holds nothing twice (services/recorder/integrity.py), judged before the other
   questions read it: a record that is not intact could make them answer wrongly.
@@ -47,8 +47,6 @@ DEFAULT_COMMAND = "pour the jar into the bowl"
 DROPPED_BELOW_M = 0.5
 """An object whose base is below this height (m, world z) has fallen off its furniture."""
 CHAOS_FILE = "chaos.md"
-FINAL_CHECKPOINT = "ag_ex_state/world.ckpt"
-"""ag_ex's checkpoint in a run folder (velma/executor/checkpoint.py: written when its loop ends)."""
 MAX_SCENE_BYTES = 1 << 20
 """Largest final scene read (1 MiB; the kitchen's is 1.4 kB)."""
 log = logging.getLogger(__name__)
@@ -133,7 +131,7 @@ class Verdict:
     """What a chaos run kept (see the module docstring). ``executed_twice``: requests
     answered twice differently, as "sender: conversation"; ``dropped``: objects found below
     ``DROPPED_BELOW_M``, with their height (m); ``last_observation``: every movable object's
-    height is known; ``judged_on``: where the heights come from (the final checkpoint, or the
+    height is known; ``judged_on``: where the heights come from (the world's final scene, or the
     last observations during the run); ``record``: the traffic record's integrity."""
 
     task_done: bool
@@ -203,29 +201,24 @@ def final_world(run_dir: Path) -> Observation | None:
 def judged_world(run_dir: Path) -> tuple[Observation, str] | None:
     """The ground truth of the world as the run left it in ``run_dir`` (every known object's
     pose, containers' particle counts): the world process's final scene (velma/world/main.py
-    ``FINAL_FILE``), else ag_ex's final checkpoint (``ROCO_WORLD=loop``), for the scene the launch
-    environment names (ROCO_SEED, ROCO_POSE_SEED): for judging a run, never for the agents;
-    with where it comes from. None when there is neither, or it does not fit (logged)."""
-    from velma.executor.checkpoint import observe_checkpoint, observe_scene
+    ``FINAL_FILE``) for the scene the launch environment names (ROCO_SEED, ROCO_POSE_SEED): for
+    judging a run, never for the agents; with where it comes from. None when there is none
+    (``ROCO_WORLD=loop``), or it does not fit (logged)."""
+    from velma.executor.checkpoint import observe_scene
     from velma.world.main import FINAL_FILE
 
-    scene, path = run_dir / FINAL_FILE, run_dir / FINAL_CHECKPOINT
-    if not scene.is_file() and not path.is_file():
+    scene = run_dir / FINAL_FILE
+    if not scene.is_file():
         return None
     env = load_launch_env(run_dir) or {}
     try:
         pose = env.get("ROCO_POSE_SEED", "")
         seed, pose_seed = int(env.get("ROCO_SEED", "0") or 0), int(pose) if pose else None
-        if scene.is_file():
-            path = scene
-            if (size := scene.stat().st_size) > MAX_SCENE_BYTES:
-                raise ValueError(f"{size} B: not a scene of the kitchen")
-            return observe_scene(
-                scene.read_bytes(), seed=seed, pose_seed=pose_seed
-            ), "the world's final scene"
-        return observe_checkpoint(path, seed=seed, pose_seed=pose_seed), "ag_ex's last checkpoint"
-    except (OSError, ValueError) as exc:  # CheckpointError is a ValueError
-        log.warning("final world not judged from %s: %s", path, exc)
+        if (size := scene.stat().st_size) > MAX_SCENE_BYTES:
+            raise ValueError(f"{size} B: not a scene of the kitchen")
+        return observe_scene(scene.read_bytes(), seed=seed, pose_seed=pose_seed), "the world's final scene"
+    except (OSError, ValueError) as exc:
+        log.warning("final world not judged from %s: %s", scene, exc)
         return None
 
 

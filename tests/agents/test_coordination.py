@@ -230,7 +230,7 @@ class Surprising(FakeExecutor):
 
 
 def goes_back(robot: FakeExecutor, _on_done: OnDone) -> bool:
-    """The answer comes from an older world (as from an ag_ex restored from a checkpoint)."""
+    """The answer comes from an older world (simulated time went backwards)."""
     robot.t = 0.5
     return False
 

@@ -54,7 +54,7 @@ def test_pour_succeeds_and_most_spheres_end_in_the_bowl(pour_run: tuple) -> None
 
 
 def test_the_bowl_stands_on_the_table_holding_the_content_in_the_simulated_world(pour_run: tuple) -> None:
-    """Judged by the world the run left (ag_ex's final checkpoint, the physics' truth), not by
+    """Judged by the world the run left (the world's final scene, the physics' truth), not by
     what the agents reported."""
     _, run_dir = pour_run
     w = world(run_dir)

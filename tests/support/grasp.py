@@ -1,4 +1,4 @@
-"""The left hand's grasp of the jar that tests (and scripts/bench_checkpoint.py) drive the
+"""The left hand's grasp of the jar that tests drive the
 simulated robot through, as tests/velma/test_velma_control.py first did it: open the hand,
 pre-grasp, reach, close on the jar; then lift it 10 cm; and the loop that runs them."""
 

@@ -1,6 +1,6 @@
 """The simulated world a run left, for judging it in tests (every scenario is
-checked by where the objects ended, not only by what the agents reported): ag_ex's final
-checkpoint observed with the ground truth (services/scenario/chaos.py ``final_world``), and
+checked by where the objects ended, not only by what the agents reported): the world
+process's final scene observed with the ground truth (services/scenario/chaos.py ``final_world``), and
 where a_km's kitchen knowledge places each object."""
 
 from __future__ import annotations
@@ -24,9 +24,9 @@ FULL = math.ceil(CONTENT_SHARE_REQUIRED * N_PARTICLES)
 
 
 def world(run_dir: Path) -> dict[str, ObjectObservation]:
-    """The simulated world as ag_ex left it (its final checkpoint's ground truth)."""
+    """The simulated world as the run left it (the world's final scene, its ground truth)."""
     obs = final_world(run_dir)
-    assert obs is not None, "no final checkpoint in the run folder"
+    assert obs is not None, "no final scene of the world in the run folder"
     return {o.name: o for o in obs.objects}
 
 

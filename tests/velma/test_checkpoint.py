@@ -1,22 +1,17 @@
 """Checkpoints of the simulated world (velma/executor/checkpoint.py): a restored world continues
 exactly as the original, a held jar stays held when the loop comes back up holding position,
-a checkpoint of another model or scene is refused, ROCO_EX_FRESH deletes it, one loop per
-directory, and the loop process writes its final checkpoint when it stops."""
+and a checkpoint of another model or scene is refused."""
 
 from __future__ import annotations
-
-import queue
-from pathlib import Path
 
 import msgspec
 import numpy as np
 import pytest
 
-from shared.fipa_codec.languages.l_ex import CommandResult, Wait
+from shared.fipa_codec.languages.l_ex import CommandResult
 from shared.fipa_codec.languages.l_sd import Observation
-from tests.support.grasp import grasp_the_jar, left_jar_lift, run_command
+from tests.support.grasp import grasp_the_jar, left_jar_lift
 from velma.executor import checkpoint as ck
-from velma.executor.handoff import LatestValue
 from velma.executor.loop import ControlLoop
 from velma.executor.runtime import Runtime
 
@@ -134,113 +129,3 @@ def test_a_checkpoint_of_another_model_or_scene_is_refused(
     with pytest.raises(ck.CheckpointError, match=r"non-finite controller state \(cycles\)"):
         ck.apply(here, ck.decode(msgspec.msgpack.encode(bad), ck.fingerprint(here.model)))
     assert here.time == time_before  # refused before anything was changed
-
-
-def test_the_directory_restores_refuses_and_starts_fresh(tmp_path: Path) -> None:
-    d = tmp_path / "ag_ex_state"
-    rt = Runtime(n_particles=0)
-    loop: ControlLoop[int] = ControlLoop(rt)
-    keeper, report = ck.LoopCheckpoints.open(d, rt, loop, block="", fresh=False)
-    assert keeper is not None and not report.restored and report.text.startswith("no checkpoint at")
-    assert run_command(loop, Wait(duration=0.5)).ok  # type: ignore[union-attr]
-    assert keeper.close(loop.holding) is None  # the final checkpoint
-    assert (d / ck.FILE_NAME).exists()
-    saved_time = rt.time
-
-    back = Runtime(n_particles=0)
-    again: ControlLoop[int] = ControlLoop(back)
-    keeper, report = ck.LoopCheckpoints.open(d, back, again, block="", fresh=False)
-    assert keeper is not None and report.restored and report.sim_time == saved_time
-    assert report.text.startswith(f"restored world from checkpoint {d / ck.FILE_NAME} (sim time 0.5")
-    assert back.time == saved_time and again.holding == ck.RESTART_WHY
-    keeper.close(again.holding)
-
-    other = Runtime(n_particles=1)  # another scene: refused, kept aside, initial scene
-    keeper, report = ck.LoopCheckpoints.open(d, other, ControlLoop(other), block="", fresh=False)
-    assert keeper is not None and report.refused and not report.restored and report.saving
-    assert "made for another model or scene" in report.text and other.time == 0.0
-    assert (d / (ck.FILE_NAME + ck.REFUSED_SUFFIX)).exists() and not (d / ck.FILE_NAME).exists()
-    keeper.close(None)
-
-    fresh = Runtime(n_particles=1)
-    keeper, report = ck.LoopCheckpoints.open(d, fresh, ControlLoop(fresh), block="", fresh=True)
-    assert keeper is not None and report.text.startswith("ROCO_EX_FRESH=1: checkpoint")
-    assert "deleted" in report.text and not (d / ck.FILE_NAME).exists() and fresh.time == 0.0
-    keeper.close(None)
-
-
-def test_one_loop_per_directory(tmp_path: Path) -> None:
-    first = ck.DirLock(tmp_path)
-    assert first.acquire(0.0)
-    second = ck.DirLock(tmp_path)
-    assert not second.acquire(0.1)
-    assert first.holder().isdigit()
-    first.release()
-    assert second.acquire(0.0)
-    second.release()
-
-
-def test_where_checkpoints_live() -> None:
-    assert ck.checkpoint_dir({}) is None
-    assert ck.checkpoint_dir({"ROCO_RUN_DIR": "/r"}) == Path("/r/ag_ex_state")
-    assert ck.checkpoint_dir({"ROCO_RUN_DIR": "/r", "ROCO_EX_STATE": "/s"}) == Path("/s")
-    assert ck.checkpoint_dir({"ROCO_EX_STATE": "", "ROCO_RUN_DIR": ""}) is None
-    assert ck.fresh_start({"ROCO_EX_FRESH": "1"}) and not ck.fresh_start({"ROCO_EX_FRESH": "0"})
-
-
-def test_the_writer_writes_new_checkpoints_only(tmp_path: Path) -> None:
-    block = LatestValue.create(4096)
-    try:
-        writer = ck.CheckpointWriter(block, tmp_path / ck.FILE_NAME)
-        writer.flush()
-        assert writer.writes == 0 and not (tmp_path / ck.FILE_NAME).exists()
-        block.write(b"one")
-        writer.flush()
-        writer.flush()
-        assert writer.writes == 1 and (tmp_path / ck.FILE_NAME).read_bytes() == b"one"
-        block.write(b"two")
-        writer.flush()
-        assert writer.writes == 2 and (tmp_path / ck.FILE_NAME).read_bytes() == b"two"
-        assert [p.name for p in tmp_path.iterdir()] == [ck.FILE_NAME]  # no temporary left
-    finally:
-        block.close()
-        block.unlink()
-
-
-def test_the_loop_process_restores_what_it_left(tmp_path: Path) -> None:
-    """ExecutorProcess: a stop writes the final checkpoint; the next start restores it and
-    holds; ``fresh`` starts from the initial scene."""
-    from velma.executor import ExecutorProcess
-
-    first = ExecutorProcess(realtime=False, checkpoint_dir=tmp_path)
-    first.start()
-    try:
-        assert first.restore_report is not None and not first.restore_report.restored
-        done: queue.SimpleQueue[Result] = queue.SimpleQueue()
-        first.submit(Wait(duration=1.5), done.put)
-        assert done.get(timeout=60).ok  # type: ignore[union-attr]
-    finally:
-        first.stop()
-    left = ck.decode((tmp_path / ck.FILE_NAME).read_bytes(), ck.fingerprint(Runtime().model))
-    assert left.sim_time >= 1.5
-
-    second = ExecutorProcess(realtime=False, checkpoint_dir=tmp_path)
-    second.start()
-    try:
-        report = second.restore_report
-        assert report is not None and report.restored and report.sim_time == left.sim_time
-        assert report.age is not None and 0.0 <= report.age < 60.0
-        snap = second.snapshot()
-        assert snap is not None and snap.sim_time >= left.sim_time and snap.holding == ck.RESTART_WHY
-    finally:
-        second.stop()
-
-    third = ExecutorProcess(realtime=False, checkpoint_dir=tmp_path, fresh=True)
-    third.start()
-    try:
-        report = third.restore_report
-        assert report is not None and not report.restored and "deleted" in report.text
-        snap = third.snapshot()
-        assert snap is not None and snap.sim_time < left.sim_time and snap.holding is None
-    finally:
-        third.stop()

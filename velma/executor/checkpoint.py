@@ -1,8 +1,8 @@
-"""Checkpoint and restore of the simulated world, so that restarting ag_ex does not reset the
-kitchen ("any one service restarted at any moment of a pour run, and the task still
-completes"; a real robot's world does not go back to its initial scene either).
+"""Snapshots of the simulated world held by a ``Runtime`` (the physics in this process): capture
+and restore, exactly, so that tests and tools can set a scene up where a run got to (a hand at
+the jar's grasp pose, a jar lifted, a tilt begun) and judge a world a run left.
 
-What a checkpoint holds (``Checkpoint``, one msgpack file ``<dir>/world.ckpt``):
+What a checkpoint holds (``Checkpoint``, one msgpack record):
 
 - MuJoCo's whole integration state, ``mj_getState(…, mjSTATE_INTEGRATION)``: time, qpos and
   qvel (robot, jar, bowl, cup and every content sphere), actuator activations, the solver's
@@ -15,46 +15,20 @@ What a checkpoint holds (``Checkpoint``, one msgpack file ``<dir>/world.ckpt``):
   name) and for how many contact scans it has not touched it;
 - why the loop held position (``holding``) and a ``Fingerprint`` of the model (sizes and the
   SHA-256 of the compiled model, MJB): a checkpoint of another model or scene (other seed,
-  other pose seed, other number of content spheres) is refused.
+  other pose seed, other number of content spheres) is refused (``CheckpointError``).
 
-Who does what:
-
-- the loop process (velma.executor.process) takes the lock ``<dir>/loop.lock`` (flock: one loop
-  per directory; a restarted ag_ex waits here until the previous loop process has written its
-  last checkpoint and exited), restores the checkpoint if there is a valid one and then holds
-  position (``resume``: every arm, the torso, the head and the hands at their restored
-  setpoints, frozen, so a held jar stays held where it was; safe mode stays safe mode);
-- every ``CHECKPOINT_PERIOD`` cycles (1 s of simulated time) the loop encodes the state into
-  a shared-memory ``LatestValue`` (``LoopCheckpoints.publish``: ≈ 15 µs once a second, see
-  docs/executor.md); the communication side's ``CheckpointWriter`` thread writes it to disk
-  (tmp + fsync + ``os.replace``), so the loop makes no file I/O while it runs;
-- when the loop ends (``Shutdown`` at a clean stop, SIGTERM/SIGINT of the loop process, or its
-  parent gone: ag_ex was killed) it writes the final checkpoint itself, after its last cycle.
-
-Simplification (named): when the loop process itself dies without running its exit path
-(SIGKILL of the loop process or of the whole process group, a power cut), the world goes back
-to the last checkpoint: up to 1 s of simulated time (plus ``WRITE_PERIOD`` of wall time).
-Velocities are restored with the positions. Derived quantities (contacts, actuator forces,
-sensor readings) are recomputed from the restored state by ``mj_forward``, so the first cycle
-after a restore sees them 1 ms later than the uninterrupted run would have.
-
-Where (``checkpoint_dir``): ``ROCO_EX_STATE`` if set, else ``<ROCO_RUN_DIR>/ag_ex_state`` when
-``ROCO_RUN_DIR`` is set (a new run folder starts fresh; a restart in the same run restores),
-else nowhere (no checkpoints). ``ROCO_EX_FRESH=1`` deletes the checkpoint at start.
+``Capture.take`` encodes one, ``decode`` checks and decodes it, ``apply`` sets a ``Runtime`` to
+it and ``resume`` makes its loop hold position there. A restored world continues as the
+original would (qpos within 1e-9, tests/velma/test_checkpoint.py). ag_ex's restarts need none
+of this: the kitchen lives in the world process (velma/world/), which outlives the controller.
+``observe_scene`` judges the scene a world process left when it ended.
 """
 
 from __future__ import annotations
 
-import contextlib
-import fcntl
 import hashlib
-import logging
 import math
-import os
-import threading
 import time
-from collections.abc import Mapping
-from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import msgspec
@@ -66,45 +40,13 @@ if TYPE_CHECKING:
     import mujoco
 
     from shared.fipa_codec.languages.l_sd import Observation
-    from velma.executor.handoff import LatestValue
     from velma.executor.loop import ControlLoop
     from velma.executor.runtime import Runtime
 
-log = logging.getLogger(__name__)
-
 FORMAT = "roco-ex-checkpoint/1"
-FILE_NAME = "world.ckpt"
-LOCK_NAME = "loop.lock"
-REFUSED_SUFFIX = ".refused"  # a refused checkpoint is kept next to the new one, renamed
-STATE_ENV = "ROCO_EX_STATE"
-RUN_DIR_ENV = "ROCO_RUN_DIR"
-FRESH_ENV = "ROCO_EX_FRESH"
-STATE_IN_RUN_DIR = "ag_ex_state"
-RESTART_WHY = "ag_ex restarted"  # the loop's ``holding`` after a restore
-CHECKPOINT_PERIOD = 1000  # cycles (1 s of simulated time) between checkpoints
-CHECKPOINT_PHASE = 7  # … in cycles 7, 1007…: no state publication (3 mod 20), no contact scan (0, 5 mod 10)
-CHECKPOINT_CAPACITY = 1 << 20  # B of the shared block (the kitchen's checkpoint is ≈ 11 kB)
-WRITE_PERIOD = 0.25  # s between the communication side's looks at the shared block
-LOCK_TIMEOUT = 20.0  # s a starting loop waits for the previous one to write its last checkpoint
+RESTART_WHY = "ag_ex restarted"  # the loop's ``holding`` after ``resume``
 SIDES = SNAPSHOT_SIDES  # = velma.control.robot_model.SIDES
 MODES = ("joint", "cart", "safe")  # ArmCommand.mode, as a number in the checkpoint
-
-
-def checkpoint_dir(environ: Mapping[str, str] | None = None) -> Path | None:
-    """The checkpoint directory from the environment (default ``os.environ``): ``ROCO_EX_STATE``;
-    else ``<ROCO_RUN_DIR>/ag_ex_state``; else None (no checkpoints). Empty values count as unset."""
-    env = os.environ if environ is None else environ
-    if env.get(STATE_ENV):
-        return Path(env[STATE_ENV])
-    if env.get(RUN_DIR_ENV):
-        return Path(env[RUN_DIR_ENV]) / STATE_IN_RUN_DIR
-    return None
-
-
-def fresh_start(environ: Mapping[str, str] | None = None) -> bool:
-    """True when ``ROCO_EX_FRESH=1``: start from the initial scene, deleting the checkpoint."""
-    env = os.environ if environ is None else environ
-    return env.get(FRESH_ENV, "") == "1"
 
 
 # ---------------------------------------------------------------------- the file
@@ -405,255 +347,6 @@ def resume(loop: ControlLoop[Any], ckpt: Checkpoint) -> None:
     rt.head_target = rt.head_set.copy()
     safe = ckpt.holding is not None and ckpt.holding.startswith("safe mode: ")
     loop.holding = ckpt.holding if safe else RESTART_WHY
-
-
-# ---------------------------------------------------------------------- files
-def write_atomic(path: Path, data: bytes) -> None:
-    """Write ``data`` to ``path`` so that a reader sees the old or the new file, never a part
-    (a temporary file in the same directory, fsync, ``os.replace``). Raises OSError."""
-    tmp = path.with_name(f"{path.name}.tmp{os.getpid()}")
-    try:
-        with open(tmp, "wb") as f:
-            f.write(data)
-            f.flush()
-            os.fsync(f.fileno())
-        os.replace(tmp, path)
-    except OSError:
-        with contextlib.suppress(OSError):
-            tmp.unlink()
-        raise
-
-
-class DirLock:
-    """An exclusive ``flock`` on ``<directory>/loop.lock``, held for the life of the loop
-    process (the kernel releases it when the process ends, however it ends)."""
-
-    def __init__(self, directory: Path) -> None:
-        self.path = directory / LOCK_NAME
-        self._fd: int | None = None
-
-    def acquire(self, timeout: float) -> bool:
-        """Take the lock, waiting up to ``timeout`` s for its holder to exit (startup only)."""
-        fd = os.open(self.path, os.O_RDWR | os.O_CREAT, 0o644)
-        deadline = time.monotonic() + timeout
-        while True:
-            try:
-                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-                break
-            except BlockingIOError:
-                if time.monotonic() >= deadline:
-                    os.close(fd)
-                    return False
-                time.sleep(0.05)
-        os.ftruncate(fd, 0)
-        os.write(fd, f"{os.getpid()}\n".encode())
-        self._fd = fd
-        return True
-
-    def holder(self) -> str:
-        """The pid written by the current holder ('?' if unreadable)."""
-        try:
-            return self.path.read_text().strip() or "?"
-        except OSError:
-            return "?"
-
-    def release(self) -> None:
-        if self._fd is not None:
-            os.close(self._fd)
-            self._fd = None
-
-
-class RestoreReport(msgspec.Struct, frozen=True, kw_only=True):
-    """What the loop process did with the checkpoint at start, for the communication side to
-    log: ``restored`` (and from which ``sim_time``, how old: ``age`` s of wall time), or why not.
-    ``text`` is the log line either way, a warning when ``refused`` (a checkpoint or the
-    directory was there but unusable); ``saving``: the loop keeps checkpoints in ``path``."""
-
-    path: str
-    restored: bool
-    text: str
-    refused: bool = False
-    saving: bool = True
-    sim_time: float | None = None
-    age: float | None = None
-
-
-class LoopCheckpoints:
-    """The loop process's side (velma.executor.process.loop_main): ``open`` takes the lock and
-    restores; ``publish`` puts a checkpoint into the shared block (every ``CHECKPOINT_PERIOD``
-    cycles); ``close`` writes the last one to disk and releases the lock."""
-
-    def __init__(self, directory: Path, lock: DirLock, capture: Capture, block: LatestValue | None) -> None:
-        self.directory = directory
-        self.path = directory / FILE_NAME
-        self.lock = lock
-        self.capture = capture
-        self.block = block
-        self.dropped: str | None = None  # why publishing stopped (a record too big for the block)
-
-    @classmethod
-    def open(
-        cls, directory: Path, rt: Runtime, loop: ControlLoop[Any], *, block: str, fresh: bool
-    ) -> tuple[LoopCheckpoints | None, RestoreReport]:
-        """Take the directory's lock (waiting ``LOCK_TIMEOUT`` s for a previous loop), then
-        restore its checkpoint into ``rt``/``loop`` and ``resume``, unless ``fresh`` (delete
-        it) or it is missing or refused. Returns None and a report when the directory cannot
-        be used (checkpoints off for this run of the loop)."""
-        from velma.executor.handoff import LatestValue
-
-        path = directory / FILE_NAME
-        try:
-            directory.mkdir(parents=True, exist_ok=True)
-            lock = DirLock(directory)
-            if not lock.acquire(LOCK_TIMEOUT):
-                text = (
-                    f"checkpoint directory {directory} is in use by another loop (pid {lock.holder()}): "
-                    "initial scene, no checkpoints"
-                )
-                return None, RestoreReport(
-                    path=str(path), restored=False, refused=True, saving=False, text=text
-                )
-        except OSError as exc:
-            text = f"checkpoint directory {directory} unusable ({exc}): initial scene, no checkpoints"
-            return None, RestoreReport(path=str(path), restored=False, refused=True, saving=False, text=text)
-        capture = Capture(rt)
-        report = cls._restore(path, rt, loop, capture.fp, fresh=fresh)
-        shared = LatestValue.attach(block, CHECKPOINT_CAPACITY) if block else None
-        keeper = cls(directory, lock, capture, shared)
-        keeper.publish(loop.holding)
-        return keeper, report
-
-    @staticmethod
-    def _restore(
-        path: Path, rt: Runtime, loop: ControlLoop[Any], fp: Fingerprint, *, fresh: bool
-    ) -> RestoreReport:
-        if fresh:
-            existed = path.exists()
-            with contextlib.suppress(FileNotFoundError):
-                path.unlink()
-            what = f"checkpoint {path} deleted" if existed else f"no checkpoint at {path}"
-            return RestoreReport(path=str(path), restored=False, text=f"{FRESH_ENV}=1: {what}, initial scene")
-        try:
-            raw = path.read_bytes()
-        except FileNotFoundError:
-            text = f"no checkpoint at {path}: initial scene"
-            return RestoreReport(path=str(path), restored=False, text=text)
-        except OSError as exc:
-            text = f"checkpoint {path} not readable ({exc}): initial scene"
-            return RestoreReport(path=str(path), restored=False, refused=True, text=text)
-        try:
-            ckpt = decode(raw, fp)
-            apply(rt, ckpt)
-        except CheckpointError as exc:
-            kept = path.with_name(path.name + REFUSED_SUFFIX)
-            with contextlib.suppress(OSError):
-                os.replace(path, kept)
-            text = f"refused checkpoint {path} (kept as {kept.name}): {exc}; initial scene"
-            return RestoreReport(path=str(path), restored=False, refused=True, text=text)
-        resume(loop, ckpt)
-        age = max(0.0, time.time() - ckpt.wall_time)
-        held = ", ".join(f"{s} hand holds {b}" for s, b in ckpt.held.items() if b is not None)
-        text = (
-            f"restored world from checkpoint {path} (sim time {ckpt.sim_time:.3f} s, age {age:.1f} s"
-            f"{'; ' + held if held else ''})"
-        )
-        return RestoreReport(path=str(path), restored=True, text=text, sim_time=ckpt.sim_time, age=age)
-
-    def publish(self, holding: str | None) -> None:
-        """Encode the world now into the shared block (called from the loop: no I/O)."""
-        if self.block is None:
-            return
-        record = self.capture.take(holding)
-        if len(record) > self.block.capacity - 4:
-            self.dropped = f"checkpoint of {len(record)} B does not fit {self.block.capacity} B"
-            self.block = None
-            return
-        self.block.write(record)
-
-    def close(self, holding: str | None) -> str | None:
-        """Write the final checkpoint to disk (after the loop's last cycle), release the
-        shared block and the lock; returns an error text instead of raising."""
-        error = self.dropped
-        try:
-            write_atomic(self.path, self.capture.take(holding))
-        except OSError as exc:
-            error = f"final checkpoint not written to {self.path}: {exc}"
-        if self.block is not None:
-            self.block.close()
-            self.block = None
-        self.lock.release()
-        return error
-
-
-class CheckpointWriter:
-    """The communication side's writer (ExecutorProcess): every ``period`` s of wall time,
-    if the loop published a new checkpoint into ``block``, write it to ``path`` atomically.
-    Runs in its own thread, so the loop process makes no file I/O while it runs."""
-
-    def __init__(self, block: LatestValue, path: Path, period: float = WRITE_PERIOD) -> None:
-        self.block = block
-        self.path = path
-        self.period = period
-        self.writes = 0
-        self._seen = 0
-        self._failing = False
-        self._stop = threading.Event()
-        self._thread: threading.Thread | None = None
-
-    def start(self) -> None:
-        self._thread = threading.Thread(target=self._run, name="velma-checkpoint", daemon=True)
-        self._thread.start()
-
-    def stop(self) -> None:
-        """Stop writing (before the loop writes its final checkpoint itself)."""
-        self._stop.set()
-        if self._thread is not None:
-            self._thread.join()
-            self._thread = None
-
-    def _run(self) -> None:
-        while not self._stop.wait(self.period):
-            self.flush()
-
-    def flush(self) -> None:
-        """Write the block's checkpoint if it is newer than the last one written."""
-        version = self.block.version
-        if version == self._seen:
-            return
-        raw = self.block.read()
-        if raw is None:
-            return
-        try:
-            write_atomic(self.path, raw)
-        except OSError as exc:
-            if not self._failing:
-                log.warning("checkpoint not written to %s: %s", self.path, exc)
-            self._failing = True
-            return
-        if self._failing:
-            log.info("checkpoints written to %s again", self.path)
-        self._failing = False
-        self._seen = version
-        self.writes += 1
-
-
-def observe_checkpoint(path: Path, *, seed: int = 0, pose_seed: int | None = None) -> Observation:
-    """The ground truth of the world kept in the checkpoint file ``path``: every known
-    object's pose (world frame, m) and containers' particle counts (``GroundTruth.observe``,
-    velma/executor/ground_truth.py; for judging a run, never for the agents),
-    for the scene of ``seed`` and ``pose_seed`` (those ag_ex ran with). Used after a run to
-    judge the final world (services/scenario/chaos.py). Raises OSError when the file cannot
-    be read and CheckpointError when it does not fit that scene."""
-    import mujoco
-
-    from velma.executor.runtime import Runtime as _Runtime
-
-    rt = _Runtime(seed=seed, pose_seed=pose_seed)
-    ckpt = decode(path.read_bytes(), fingerprint(rt.model))
-    physics = np.frombuffer(ckpt.physics, dtype=np.float64).copy()
-    mujoco.mj_setState(rt.model, rt.data, physics, ckpt.state_sig)
-    mujoco.mj_forward(rt.model, rt.data)
-    return rt.ground_truth.observe(rt.data)
 
 
 def observe_scene(values: bytes, *, seed: int = 0, pose_seed: int | None = None) -> Observation:

@@ -25,10 +25,6 @@ Hand-offs (all non-blocking on the loop's side):
   per write: a copy of 1.4 kB); whoever renders it does so in another process;
 - timing: the ``DeadlineMonitor``'s arrays live in shared memory; the communication side
   computes percentiles from them, never the loop;
-- checkpoints of the simulated world (only with a ``checkpoint_dir``; velma.executor.checkpoint):
-  a third ``LatestValue`` rewritten every ``CHECKPOINT_PERIOD`` cycles, written to disk by the
-  communication side's ``CheckpointWriter`` thread; the loop restores the last one at start and
-  writes the final one itself when it ends.
 
 Observe: the loop answers an Observe with a ``WorldCapture`` (velma/executor/capture.py:
 the requested names, sim time and a copy of ``qpos``); on this side ``ResultDelivery``
@@ -57,7 +53,6 @@ import threading
 import time
 from collections.abc import Callable
 from multiprocessing import shared_memory
-from pathlib import Path
 from typing import NamedTuple
 
 import msgspec
@@ -69,15 +64,6 @@ from shared.fipa_codec.languages.l_sd import Observation
 from velma.executor.camera_process import CameraProcess, CameraSpec
 from velma.executor.camera_process import camera_idle_s as camera_idle_s_of_env
 from velma.executor.capture import WorldCapture, perception_mode
-from velma.executor.checkpoint import (
-    CHECKPOINT_CAPACITY,
-    CHECKPOINT_PERIOD,
-    CHECKPOINT_PHASE,
-    FILE_NAME,
-    CheckpointWriter,
-    LoopCheckpoints,
-    RestoreReport,
-)
 from velma.executor.delivery import RecordSink, ResultDelivery
 from velma.executor.handoff import LatestValue, SpscRing, new_block, remove_orphans, shared_view
 from velma.executor.state import RobotSnapshot, snapshot_of
@@ -158,12 +144,10 @@ class Shutdown(msgspec.Struct, frozen=True, tag="shutdown"):
 
 
 class Ready(msgspec.Struct, frozen=True, tag="ready"):
-    """The loop runs in process ``pid`` with ``setup`` (SCHED_FIFO? pinned?); ``checkpoint``:
-    whether it restored the world from a checkpoint (None: no checkpoint directory)."""
+    """The loop runs in process ``pid`` with ``setup`` (SCHED_FIFO? pinned?)."""
 
     pid: int
     setup: RealtimeSetup
-    checkpoint: RestoreReport | None = None
     control_law: str = ""
     plant: str = ""
 
@@ -220,9 +204,6 @@ class LoopConfig(msgspec.Struct, frozen=True, kw_only=True):
     window: int
     parent_pid: int
     world: str = ""  # the world-state block ("": not published)
-    checkpoint_dir: str = ""  # where checkpoints live ("": none)
-    checkpoint_block: str = ""  # the checkpoint block
-    fresh: bool = False  # delete the checkpoint instead of restoring it
     camera: bool = True  # Observe ends with a WorldCapture (False: ground truth, ROCO_PERCEPTION=truth)
     world_link: str = ""  # the robot link of a world process to control ("": the physics runs here)
 
@@ -264,16 +245,10 @@ def loop_main(config: bytes, doorbell: multiprocessing.connection.Connection) ->
 
     def on_signal(_signum: int, _frame: object) -> None:
         nonlocal running
-        running = False  # end after this cycle, writing the final checkpoint
+        running = False  # end after this cycle
 
     signal.signal(signal.SIGTERM, on_signal)
     signal.signal(signal.SIGINT, on_signal)
-    keeper: LoopCheckpoints | None = None
-    restored: RestoreReport | None = None
-    if cfg.checkpoint_dir:  # may wait for the previous loop's final checkpoint (its lock)
-        keeper, restored = LoopCheckpoints.open(
-            Path(cfg.checkpoint_dir), rt, loop, block=cfg.checkpoint_block, fresh=cfg.fresh
-        )
     if cfg.realtime and cfg.realtime_priority:
         setup = enter_realtime(cpu=cfg.cpu, pin=cfg.pin)
     else:
@@ -304,7 +279,6 @@ def loop_main(config: bytes, doorbell: multiprocessing.connection.Connection) ->
             Ready(
                 pid=os.getpid(),
                 setup=setup,
-                checkpoint=restored,
                 control_law=law_name(rt.ctrl),
                 plant=rt.plant_name,
             )
@@ -318,7 +292,7 @@ def loop_main(config: bytes, doorbell: multiprocessing.connection.Connection) ->
     gc.collect()
     gc.freeze()
 
-    cycle = rt.cycles  # > 0 after a restore: the phases below stay those of the contact scans
+    cycle = rt.cycles  # > 0 attached to a running world: the phases stay those of its contact scans
     pacer = Pacer(DT, realtime=cfg.realtime and link is None, spin=cfg.spin)  # a world paces itself
     while running:
         start = pacer.begin()
@@ -362,8 +336,6 @@ def loop_main(config: bytes, doorbell: multiprocessing.connection.Connection) ->
             world_buf[0] = rt.data.time
             world_buf[1:] = rt.data.qpos
             world.write(world_buf.tobytes())
-        if keeper is not None and cycle % CHECKPOINT_PERIOD == CHECKPOINT_PHASE:
-            keeper.publish(loop.holding)
         if cycle % PARENT_CHECK == 0 and os.getppid() != cfg.parent_pid:
             running = False  # orphaned: the communication side is gone
         cycle += 1
@@ -376,8 +348,6 @@ def loop_main(config: bytes, doorbell: multiprocessing.connection.Connection) ->
             monitor.record(pacer.release, start, end, rt.part_s, cpu)
         pacer.wait()
     pending.extend(encode(Done(token=t, result=r)) for t, r in loop.abort("stopped"))
-    if keeper is not None and (error := keeper.close(loop.holding)) is not None:
-        pending.append(encode(Fault(command="checkpoint", text=error)))
     ring()
     del monitor
     publisher.close()  # its plant holds a view of the state block
@@ -404,11 +374,6 @@ class ExecutorProcess:
     does not come up within ``START_TIMEOUT`` s. ``world_state`` makes the loop publish the
     whole simulation state every ``WORLD_PERIOD`` cycles (read with ``world``).
 
-    ``checkpoint_dir`` (None: none) keeps the simulated world across restarts
-    (velma.executor.checkpoint): the loop restores ``<checkpoint_dir>/world.ckpt`` at start
-    (``restore_report`` says what happened; it is logged) unless ``fresh``, which deletes it;
-    checkpoints are written there every second of simulated time and when the loop ends.
-
     ``perception`` ``camera`` or ``truth`` (None: ``ROCO_PERCEPTION``, else
     ``DEFAULT_PERCEPTION`` of velma/executor/capture.py); with
     the camera renders and localises in a process of its own (velma/executor/camera_process.py:
@@ -419,8 +384,8 @@ class ExecutorProcess:
 
     ``world_link`` names the robot link of a world process (velma/world/): the loop is then
     the controller of that world (velma/executor/world_link.py), which keeps the kitchen when
-    the loop ends; a loop that starts again attaches to it and finds the robot as it is. No
-    checkpoints are kept then (``checkpoint_dir`` is ignored).
+    the loop ends; a loop that starts again attaches to it and finds the robot as it is.
+    Without it the physics runs in the loop and ends with it.
     """
 
     def __init__(
@@ -435,8 +400,6 @@ class ExecutorProcess:
         pin: bool = True,
         window: int = DEFAULT_WINDOW,
         world_state: bool = False,
-        checkpoint_dir: str | os.PathLike[str] | None = None,
-        fresh: bool = False,
         perception: str | None = None,
         perception_log: RecordSink | None = None,
         camera_idle_s: float | None = None,
@@ -449,11 +412,6 @@ class ExecutorProcess:
         self.realtime = realtime
         self.world_state = world_state
         self.world_link = world_link or ""
-        self.checkpoint_dir = Path(checkpoint_dir) if checkpoint_dir is not None and not world_link else None
-        self.fresh = fresh
-        self.restore_report: RestoreReport | None = None
-        self._checkpoints: LatestValue | None = None
-        self._writer: CheckpointWriter | None = None
         self.seed = seed
         self.pose_seed = pose_seed
         self.realtime_priority = realtime_priority
@@ -502,8 +460,6 @@ class ExecutorProcess:
         self._state_names = LatestValue.create(STATE_CAPACITY)
         self._state_reader = StateReader(self._state, self._state_names)
         self._world = LatestValue.create(WORLD_CAPACITY) if self.world_state else None
-        if self.checkpoint_dir is not None:
-            self._checkpoints = LatestValue.create(CHECKPOINT_CAPACITY)
         self._mon_shm = new_block(DeadlineMonitor.nbytes(self.window))
         shared_view(self._mon_shm)[:] = bytes(self._mon_shm.size)
         self._monitor = DeadlineMonitor(
@@ -525,9 +481,6 @@ class ExecutorProcess:
             window=self.window,
             parent_pid=os.getpid(),
             world=self._world.name if self._world is not None else "",
-            checkpoint_dir=str(self.checkpoint_dir) if self.checkpoint_dir is not None else "",
-            checkpoint_block=self._checkpoints.name if self._checkpoints is not None else "",
-            fresh=self.fresh,
             camera=self.perception == "camera",
             world_link=self.world_link,
         )
@@ -561,13 +514,6 @@ class ExecutorProcess:
             reason = self.exit_reason
             self.stop()
             raise RuntimeError(f"executor loop process did not start: {reason}")
-        report = self.restore_report
-        if report is not None:
-            (log.warning if report.refused else log.info)("%s", report.text)
-        # no writer when the directory is unusable or in use: the loop then keeps no checkpoints
-        if self._checkpoints is not None and self.checkpoint_dir is not None and report and report.saving:
-            self._writer = CheckpointWriter(self._checkpoints, self.checkpoint_dir / FILE_NAME)
-            self._writer.start()
 
     def stop(self, timeout: float = 5.0) -> None:
         """Ask the loop process to end, wait for it (then terminate it), answer open commands
@@ -575,14 +521,11 @@ class ExecutorProcess:
         proc = self._proc
         if proc is None:
             return
-        if self._writer is not None:  # the loop writes the final checkpoint itself
-            self._writer.stop()
-            self._writer = None
         if self._commands is not None and proc.is_alive():
             self._commands.push(self._encode(Shutdown()))
         proc.join(timeout)
         if proc.is_alive():
-            proc.terminate()  # the loop ends at its next cycle (and writes its checkpoint)
+            proc.terminate()  # the loop ends at its next cycle
             proc.join(timeout)
         if proc.is_alive():
             proc.kill()
@@ -596,7 +539,7 @@ class ExecutorProcess:
         self._monitor = None
         self._state_reader = None
         states = (self._state, self._state_names)
-        for block in (self._commands, self._results, *states, self._world, self._checkpoints):
+        for block in (self._commands, self._results, *states, self._world):
             if block is not None:
                 block.close()
                 block.unlink()
@@ -606,7 +549,7 @@ class ExecutorProcess:
         if self._bell is not None:
             self._bell.close()
         self._commands = self._results = self._state = self._state_names = None
-        self._world = self._checkpoints = None
+        self._world = None
         self._mon_shm = None
         self._proc = None
 
@@ -753,7 +696,6 @@ class ExecutorProcess:
                 self.setup = msg.setup
                 self.control_law = msg.control_law
                 self.plant = msg.plant
-                self.restore_report = msg.checkpoint
                 self._ready.set()
             elif msg.command == START:
                 self.exit_reason = msg.text

@@ -22,7 +22,7 @@ by the loop itself into a preallocated array (:data:`PARTS` but the last): *prim
 motion primitive: taking the next command, its step), *control* (the impedance law for both
 arms and the torso, the hands and the head), *physics* (``mj_step`` and the hands' contact
 scan); *hand-offs* is the rest of the cycle (the rings, the state and world publications, the
-checkpoint copy, the monitor itself).
+monitor itself).
 
 ``DeadlineMonitor.record`` is O(1) and writes into preallocated arrays (no allocation of
 containers on the loop's path); ``stats`` computes percentiles over the last ``window`` cycles

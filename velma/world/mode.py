@@ -1,8 +1,9 @@
 """Where the kitchen's physics runs, as the fleet's environment says (``ROCO_WORLD``): in a world
 process of its own beside ag_ex (``process``, the default: velma/world/main.py, the robot link
-of velma/world/link.py), or inside ag_ex's loop (``loop``: one process, the world checkpointed
-and restored across ag_ex's restarts, velma/executor/checkpoint.py). Imports nothing heavy: the
-launcher reads it."""
+of velma/world/link.py), or inside ag_ex's loop (``loop``: one process, as before the split, to
+measure it: docs/bench/loop.md; the kitchen then ends with ag_ex, and a restarted ag_ex starts
+it anew, so faults and restarts need ``process``). Imports nothing heavy: the launcher reads
+it."""
 
 from __future__ import annotations
 

@@ -42,10 +42,8 @@ Besides the C5 conversation, ag_ex
 - keeps the simulated world across its own restarts: the kitchen is a world process of its
   own (velma/world/, started by the launcher before ag_ex) and the loop only its controller,
   which attaches to it again after a restart and finds the robot, and what it holds, as they
-  are. With ``ROCO_WORLD=loop`` the kitchen is in the loop and kept by checkpoints
-  (velma.executor.checkpoint) in ``ROCO_EX_STATE``, else ``<ROCO_RUN_DIR>/ag_ex_state/``: at
-  start the loop restores the last one and holds position there (a held jar stays held; up to
-  a second of the world is lost); ``ROCO_EX_FRESH=1`` starts from the initial scene instead.
+  are. With ``ROCO_WORLD=loop`` (velma/world/mode.py: to measure the split) the kitchen is
+  in the loop instead and a restarted ag_ex starts it anew.
 """
 
 from __future__ import annotations
@@ -138,7 +136,6 @@ class ExecutorAgent(Agent):
         ROCO_POSE_SEED (unset: none) randomises the jar and bowl poses; the loop publishes
         the whole simulation state only for the head camera (``camera_wanted``)."""
         from velma.executor import ExecutorProcess
-        from velma.executor.checkpoint import checkpoint_dir, fresh_start
 
         pose = os.environ.get("ROCO_POSE_SEED", "")
         seed = _seed("ROCO_SEED", os.environ.get("ROCO_SEED", "0"))
@@ -149,8 +146,6 @@ class ExecutorAgent(Agent):
             seed=seed,
             pose_seed=pose_seed,
             world_state=self.hooks.camera_wanted() if self.hooks else False,
-            checkpoint_dir=checkpoint_dir(),  # the world survives a restart (module docstring)
-            fresh=fresh_start(),
             perception=None,  # ROCO_PERCEPTION, else velma/executor/capture.py DEFAULT_PERCEPTION
             perception_log=self._perception_sink(),
             camera_idle_s=None,  # ROCO_CAMERA_IDLE_S, else velma/executor/camera_process.py DEFAULT_IDLE_S

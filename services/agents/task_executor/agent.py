@@ -41,7 +41,7 @@ what it saw, and reports Replan with the difference in words.
 
 Restarts (docs/recovery.md): each L_SW inform is retransmitted until a_co confirms it
 (a_co may be restarting); a request to ag_ex is sent again when ag_ex's liveliness token
-reappears (ag_ex restored its world from its checkpoint). a_ta keeps the plan it runs in its
+reappears (a restarted ag_ex attached to the running world). a_ta keeps the plan it runs in its
 state file; a restarted a_ta does not guess where the robot got to: it reports Replan (or the
 final state it had reached) in the plan's conversation, once it has observed the scene and
 informed a_km, so that a_co plans again from the world as it is (a_pl then first finishes a
@@ -539,7 +539,7 @@ class TaskExecutor(Agent):
         self.log.info("restarted during plan %s: reporting %s", plan.plan_id, self.outcome.value)
 
     def peer_changed(self, peer: str, alive: bool) -> None:
-        """ag_ex came back (restarted, its world restored from its checkpoint) while a tilt it
+        """ag_ex came back (restarted, attached to the running world) while a tilt it
         was running, or a command a_ta was having it halt, had no answer: neither can be sent
         again (a tilt is relative; a halted command must not run on), so the world is observed
         and Replan reported. Other commands are sent again by the runtime."""
