@@ -384,6 +384,8 @@ def chaos(
         )
     except ValueError as exc:
         raise fail(str(exc), code=2) from None
+    if any(s.fault is not None and s.fault.service == "ag_ex" for s in sc.steps) and not _world_apart():
+        raise fail("ROCO_WORLD=loop keeps the kitchen in ag_ex, which a fault starts anew: unset it", code=2)
     if hosts:
         from services.hosts.link import Shaping
 
@@ -1170,6 +1172,17 @@ def spec_verify_code(spec: SpecFile = None) -> None:
     typer.echo(text)
     if not ok:
         raise typer.Exit(1)
+
+
+def _world_apart() -> bool:
+    """The kitchen is a world process of its own (velma/world/mode.py); a bad ROCO_WORLD is
+    refused with one line."""
+    from velma.world.mode import world_in_process
+
+    try:
+        return world_in_process()
+    except ValueError as exc:
+        raise fail(str(exc), code=2) from None
 
 
 @app.command(short_help="Check what this machine offers roco, and how to get what is missing.")

@@ -60,3 +60,18 @@ def test_the_link_is_shaped_only_with_hosts_and_only_as_it_can_be(
     code, out = _run(["--cut", "40,35"], tmp_path)
     assert code == 2 and out.strip() == "roco: --cut needs 0 <= MIN <= MAX <= 3600, not '40,35'"
     assert not (tmp_path / "runs").exists()
+
+
+def test_a_fault_of_ag_ex_is_refused_while_the_kitchen_lives_in_it(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """``ROCO_WORLD=loop`` (the physics inside ag_ex's loop, to measure the split): a fault of
+    ag_ex would start the kitchen anew, so roco chaos says so and runs nothing."""
+    monkeypatch.setenv("ROCO_WORLD", "loop")
+    runs = tmp_path / "runs"
+    result = CliRunner().invoke(app, ["chaos", "--runs-dir", str(runs)])
+    assert result.exit_code == 2 and "ROCO_WORLD=loop keeps the kitchen in ag_ex" in result.output
+    monkeypatch.setenv("ROCO_WORLD", "elsewhere")
+    result = CliRunner().invoke(app, ["chaos", "--runs-dir", str(runs)])
+    assert result.exit_code == 2 and "ROCO_WORLD must be one of loop, process" in result.output
+    assert not runs.exists()
