@@ -17,7 +17,6 @@ from __future__ import annotations
 
 import argparse
 import contextlib
-import os
 import re
 import subprocess
 import sys
@@ -31,6 +30,7 @@ sys.path.insert(0, str(ROOT))
 import benchlib  # noqa: E402  (scripts/benchlib.py, beside this file)
 
 from services.scenario.chaos import CHAOS_FILE, chaos_scenario  # noqa: E402
+from shared.settings import Settings  # noqa: E402
 
 ANSWERS = ("task done", "no command lost", "nothing executed twice", "no object dropped", "record intact")
 
@@ -58,8 +58,8 @@ def main() -> int:
     paced = "paced to wall time" if args.realtime else "not paced"
     kinds = tuple(args.kinds.split(","))
     faulted = f"--kinds {args.kinds}" + (f" --count {args.count}" if args.count else "")
-    world = os.environ.get("ROCO_WORLD", "process")
-    print(f"# {title} {faulted}, one run per seed ({time.strftime('%Y-%m-%d')}, {paced}, ROCO_WORLD={world})")
+    world = f"{Settings.env_name('world')}={Settings.from_env(only=('world',)).world}"
+    print(f"# {title} {faulted}, one run per seed ({time.strftime('%Y-%m-%d')}, {paced}, {world})")
     print(f"Machine: {benchlib.machine(('mujoco', 'pin', 'eclipse-zenoh'))}")
     print()
     print("| seed | faults (service kind) | in the pour | " + " | ".join(ANSWERS) + " | wall (s) |")

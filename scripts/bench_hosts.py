@@ -29,6 +29,7 @@ from services.hosts.link import Shaping
 from services.hosts.netns import netns_exec, unavailable
 from services.runtime.run_folder import new_run_dir
 from services.runtime.session import open_client
+from shared.settings import Settings
 
 SHAPED = Shaping(20, 5, 1)
 PLAIN = Shaping(0, 0, 0)
@@ -45,7 +46,7 @@ def round_trips(root: Path, shaping: Shaping, n: int) -> list[float]:
     h.start()
     try:
         assert h.pair is not None and h.fleet is not None and h.fleet.security is not None
-        env = dict(os.environ, ROCO_SECURITY=str(h.fleet.security))
+        env = {**os.environ, Settings.env_name("security"): str(h.fleet.security)}
         echo = subprocess.Popen([*netns_exec(h.pair.netns("robot")), sys.executable, "-c", ECHO], env=env,
                                 stdin=subprocess.PIPE)  # fmt: skip
         s = open_client(h.endpoint)
@@ -75,7 +76,9 @@ def round_trips(root: Path, shaping: Shaping, n: int) -> list[float]:
 
 
 def pour_wall(root: Path, shaping: Shaping, partition_s: float | None) -> float:
-    h = TwoHosts(new_run_dir(root), shaping, env={"ROCO_REALTIME": "0", "ROCO_RERUN": "0"})
+    h = TwoHosts(
+        new_run_dir(root), shaping, env={Settings.env_name("realtime"): "0", Settings.env_name("rerun"): "0"}
+    )
     h.start()
     try:
         t0 = time.monotonic()

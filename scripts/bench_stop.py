@@ -71,6 +71,7 @@ from services.runtime.human import FINAL_REPORTS, MAX_LINE_CHARS, HumanInput, Hu
 from services.runtime.session import open_client  # noqa: E402
 from shared.fipa_codec import Performative, decode  # noqa: E402
 from shared.fipa_codec.batch import unpack  # noqa: E402
+from shared.settings import Settings  # noqa: E402
 
 POUR = "pour the jar into the bowl"
 HALTING = re.compile(r"halted by a cancel at wall time (\d+\.\d+)")
@@ -216,7 +217,7 @@ class Kitchen:
         self.keep, self.echo = keep, echo
         self.run_dir = Path(tempfile.mkdtemp(prefix="roco-bench-stop-"))
         (self.run_dir / "logs").mkdir()
-        env = {"ROCO_REALTIME": "1" if realtime else "0"}
+        env = {Settings.env_name("realtime"): "1" if realtime else "0"}
         self.fleet = Fleet(self.run_dir, f"tcp/127.0.0.1:{free_port()}", env=env)
         self.session: zenoh.Session | None = None
         try:

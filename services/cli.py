@@ -51,6 +51,7 @@ from services.runtime.session import (
 )
 from services.security.context import register
 from services.spec.model import default_spec
+from shared.settings import Settings
 
 if TYPE_CHECKING:
     import zenoh
@@ -65,7 +66,6 @@ app.add_typer(deploy_app, name="deploy")
 app.add_typer(hosts_app, name="hosts")
 app.add_typer(__import__("services.bench.cli", fromlist=["bench_app"]).bench_app, name="bench")
 FLEET_FILE = ".fleet.json"
-DEFAULT_ROUTER = "tcp/127.0.0.1:7447"
 AclOption = Annotated[
     bool | None,
     typer.Option(
@@ -148,11 +148,11 @@ def _security(acl: bool | None, tls: bool | None) -> None:
     services/security/context.py) for this process and the processes it starts; None leaves
     the environment's choice."""
     if tls is not None:
-        os.environ["ROCO_TLS"] = "1" if tls else "0"
+        os.environ[Settings.env_name("tls")] = "1" if tls else "0"
     if acl is not None:
-        os.environ["ROCO_ACL"] = "1" if acl else "0"
+        os.environ[Settings.env_name("acl")] = "1" if acl else "0"
     if tls:
-        os.environ["ROCO_ACL"] = "1"
+        os.environ[Settings.env_name("acl")] = "1"
 
 
 class FleetState(msgspec.Struct):
@@ -443,9 +443,10 @@ def _span(option: str, value: str) -> tuple[float, float]:
 def _viewer_env(record: bool, view: bool) -> dict[str, str]:
     """Rerun recording on or off for every process; with ``view``, a viewer started now that
     the fleet streams to as well (its URL printed)."""
+    rerun = Settings.env_name("rerun")
     if not (record or view):
-        return {"ROCO_RERUN": "0"}
-    env = {"ROCO_RERUN": "1"}
+        return {rerun: "0"}
+    env = {rerun: "1"}
     if view:
         from services.viewer.view import start_viewer
 
@@ -454,7 +455,7 @@ def _viewer_env(record: bool, view: bool) -> dict[str, str]:
         except Exception as exc:  # the run goes on without the live view
             typer.echo(f"roco: no live viewer ({exc}); the run is still recorded", err=True)
             return env
-        env["ROCO_RERUN_CONNECT"] = viewer.grpc_url
+        env[Settings.env_name("rerun_connect")] = viewer.grpc_url
         typer.echo(f"roco: Rerun viewer {viewer.web_url or 'opened'} (pid {viewer.pid})")
     return env
 
@@ -516,10 +517,10 @@ def _check_perception() -> None:
     except ValueError as exc:
         raise fail(str(exc), code=2) from None
     why = camera_unavailable()
-    asked = os.environ.get("ROCO_PERCEPTION", "")
+    asked = Settings.from_env(only=("perception",)).perception
     if why is not None and asked == "camera":
-        raise fail(f"ROCO_PERCEPTION=camera, but {why}", code=2)
-    if why is not None and not asked:
+        raise fail(f"{Settings.env_name('perception')}=camera, but {why}", code=2)
+    if why is not None and asked is None:
         typer.echo(f"roco: the robot perceives with the physics' ground truth: {why}", err=True)
 
 
@@ -527,9 +528,9 @@ def _scene_env(realtime: bool, seed: int, pose_seed: int | None) -> dict[str, st
     """The environment that tells ag_ex its pacing and scene (services/agents/executor/agent.py).
     Checks the perception first (``_check_perception``)."""
     _check_perception()
-    env = {"ROCO_REALTIME": "1" if realtime else "0", "ROCO_SEED": str(seed)}
+    env = {Settings.env_name("realtime"): "1" if realtime else "0", Settings.env_name("seed"): str(seed)}
     if pose_seed is not None:
-        env["ROCO_POSE_SEED"] = str(pose_seed)
+        env[Settings.env_name("pose_seed")] = str(pose_seed)
     return env
 
 
@@ -739,7 +740,7 @@ def _endpoint(router: str | None, runs_dir: Path) -> str:
         return router
     state = _fleet_state(runs_dir)
     if state is None:
-        return os.environ.get("ROCO_ROUTER", DEFAULT_ROUTER)
+        return ",".join(Settings.from_env(only=("router",)).router)
     security = Path(state.run_dir) / "security"
     if security.is_dir():  # the fleet of `roco up --runs-dir …` runs with access control
         register(state.endpoint, security)
@@ -1193,7 +1194,8 @@ def doctor(
     the compiled control law, a free loopback port, EGL or OSMesa for the head camera,
     SCHED_FIFO and CPU pinning for `--realtime`, a Docker engine, Compose and roco's image
     for the compose fleet, Chromium for the viewer's screenshot, and the credentials of the
-    fleet `roco up` left under `runs/`.
+    fleet `roco up` left under `runs/`. Then every `ROCO_*` setting (docs/settings.md): its
+    value here, its default and what it sets; a value that does not parse is a failed item.
 
     Each item says found or not found and how to get it. Exit 0 when everything `roco run`
     needs is there (with the head camera perceiving, the default where libEGL or libOSMesa is
@@ -1204,6 +1206,7 @@ def doctor(
     from services.doctor import run_checks
     from services.doctor.model import run_ready
     from services.doctor.render import show, verdict
+    from services.doctor.settings import readings
     from velma.executor.capture import perception_mode
 
     checks = run_checks(runs_dir)
@@ -1211,8 +1214,8 @@ def doctor(
         camera = perception_mode() == "camera"
     except ValueError:  # a bad ROCO_PERCEPTION: roco run refuses it; judge as the default
         camera = True
-    fallback = not camera and not os.environ.get("ROCO_PERCEPTION")
-    show(checks, Console(highlight=False))
+    fallback = not camera and Settings.from_env(only=("perception",)).perception is None
+    show(checks, Console(highlight=False), readings())
     typer.echo(verdict(checks, camera, truth_by_default=fallback))
     if not run_ready(checks, camera):
         raise typer.Exit(1)

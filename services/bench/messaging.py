@@ -73,6 +73,7 @@ from services.bench.synthetic import (
 )
 from services.fleet.launcher import Fleet, free_port
 from services.runtime.polling import max_poll_us
+from shared.settings import Settings
 
 __all__ = [
     "BENCH_LANGUAGE",
@@ -100,9 +101,10 @@ def no_access_control() -> Iterator[None]:
     """Fleets started inside (and processes they spawn) run without authentication and access
     control (``ROCO_ACL=0``): the benchmark's own client sessions play agents (a_co, a_pl,
     a_ta) or synthetic agents the ACL does not know."""
-    saved = {k: os.environ.get(k) for k in ("ROCO_ACL", "ROCO_SECURITY")}
-    os.environ["ROCO_ACL"] = "0"
-    os.environ.pop("ROCO_SECURITY", None)
+    acl, security = Settings.env_name("acl"), Settings.env_name("security")
+    saved = {k: os.environ.get(k) for k in (acl, security)}
+    os.environ[acl] = "0"
+    os.environ.pop(security, None)
     try:
         yield
     finally:

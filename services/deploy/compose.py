@@ -31,6 +31,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from services.spec.model import SystemSpec
+from shared.settings import Settings
 from velma.world.mode import WORLD_SERVICE
 
 PROJECT = Path(__file__).resolve().parents[2]
@@ -49,7 +50,7 @@ MOUNTS = (
 )
 """What every roco service mounts: the run folders, the fleet's run name, the credentials."""
 
-RUN_VARIABLES = ("ROCO_RUN_DIR", "ROCO_KM_STORE", "ROCO_CO_STATE", "ROCO_STATE_DIR")
+RUN_VARIABLES = tuple(Settings.env_name(f) for f in ("run_dir", "km_store", "co_state", "state_dir"))
 """The variables in which deploy/entrypoint.sh replaces ``{run}`` by the run's name."""
 
 
@@ -82,9 +83,11 @@ class AgentExtras:
 
 
 AGENT_EXTRAS: dict[str, AgentExtras] = {
-    "a_km": AgentExtras(state=StateVolume("km_store", "/var/lib/roco/km", ("ROCO_KM_STORE",))),
+    "a_km": AgentExtras(state=StateVolume("km_store", "/var/lib/roco/km", (Settings.env_name("km_store"),))),
     "a_co": AgentExtras(
-        state=StateVolume("co_state", "/var/lib/roco/co", ("ROCO_CO_STATE", "ROCO_STATE_DIR"))
+        state=StateVolume(
+            "co_state", "/var/lib/roco/co", (Settings.env_name("co_state"), Settings.env_name("state_dir"))
+        )
     ),
     "ag_ex": AgentExtras(
         hardware=WORLD_SERVICE,

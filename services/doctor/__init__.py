@@ -12,7 +12,9 @@ context for it.
   loopback ports;
 - services/doctor/tools.py: Docker engine, compose, roco's image, Chromium;
 - services/doctor/credentials.py: the credentials of the fleet ``roco up`` left under ``runs/``;
-- services/doctor/render.py: the checks as lines or a table.
+- services/doctor/settings.py: the ``ROCO_*`` settings (shared/settings.py), each one's value
+  here; one that does not parse is a failed item;
+- services/doctor/render.py: the checks, and the settings, as lines or a table.
 """
 
 from __future__ import annotations
@@ -25,11 +27,12 @@ from services.doctor.model import Check
 def run_checks(runs_dir: Path = Path("runs")) -> list[Check]:
     """Every check, in the order they are shown (a few seconds: MuJoCo's GL is tried in a
     child process, Docker is asked with timeouts)."""
-    from services.doctor import credentials, environment, machine, tools
+    from services.doctor import credentials, environment, machine, settings, tools
 
     return [
         *environment.checks(),
         *machine.checks(),
         *tools.checks(),
         *credentials.checks(runs_dir),
+        *settings.checks(),
     ]

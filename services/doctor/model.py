@@ -18,6 +18,7 @@ class Use(enum.Enum):
     COMPOSE = "compose fleet"
     VIEWER = "viewer screenshot"
     FLEET = "fleet credentials"
+    SETTINGS = "settings"
 
 
 @dataclass(frozen=True)

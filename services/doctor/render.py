@@ -1,5 +1,5 @@
-"""``roco doctor``'s output: the checks grouped by what they serve, as plain lines (a pipe, a
-log) or a rich table (a terminal), and the verdict line."""
+"""``roco doctor``'s output: the checks grouped by what they serve and the settings, each as
+plain lines (a pipe, a log) or a rich table (a terminal), and the verdict line."""
 
 from __future__ import annotations
 
@@ -10,6 +10,7 @@ from rich.table import Table
 from rich.text import Text
 
 from services.doctor.model import Check, Use, camera_ready, run_ready
+from services.doctor.settings import Reading
 
 WORD = {True: "found", False: "not found"}
 
@@ -80,10 +81,50 @@ def verdict(checks: Sequence[Check], camera: bool = True, truth_by_default: bool
     return f"roco: roco run lacks {', '.join(needed)}{others}"
 
 
-def show(checks: Sequence[Check], console: Console) -> None:
-    """Print the checks on ``console``: a table on a terminal, plain lines otherwise."""
+SETTINGS_TITLE = "settings (docs/settings.md):"
+UNSET = "default"
+"""What the value column says of a setting that is unset (or empty) here."""
+
+
+def settings_lines(readings: Sequence[Reading]) -> list[str]:
+    """A title, then one line per setting: its name, its value here (:data:`UNSET` when
+    unset), its default and what it sets; below a value that does not parse, the reason."""
+    name_w = max((len(r.name) for r in readings), default=0)
+    value_w = max((len(r.value or UNSET) for r in readings), default=0)
+    default_w = max((len(r.default or "—") for r in readings), default=0)
+    out = [SETTINGS_TITLE]
+    for r in readings:
+        out.append(
+            f"  {r.name:{name_w}s}  {r.value or UNSET:{value_w}s}  {r.default or '—':{default_w}s}  {r.doc}"
+        )
+        if r.error is not None:
+            out.append(f"  {'':{name_w}s}  not valid: {r.error}")
+    return out
+
+
+def settings_table(readings: Sequence[Reading]) -> Table:
+    """The same as :func:`settings_lines`, as a rich table (a value that does not parse in red)."""
+    t = Table(title=SETTINGS_TITLE, title_justify="left", header_style="bold", box=None, pad_edge=False)
+    t.add_column("setting", no_wrap=True)
+    t.add_column("here", no_wrap=True)
+    t.add_column("default", no_wrap=True)
+    t.add_column("what it sets")
+    for r in readings:
+        here = Text(r.value or UNSET, style="red" if r.error else "" if r.value else "dim")
+        doc = Text(r.doc)
+        if r.error is not None:
+            doc.append(f"\nnot valid: {r.error}", style="bold red")
+        t.add_row(r.name, here, r.default or "—", doc)
+    return t
+
+
+def show(checks: Sequence[Check], console: Console, readings: Sequence[Reading] = ()) -> None:
+    """Print the checks, then the settings ``readings``, on ``console``: tables on a terminal,
+    plain lines otherwise."""
     if console.is_terminal:
         console.print(table(checks))
-    else:
-        for line in lines(checks):
-            console.print(line, markup=False, highlight=False, soft_wrap=True)
+        if readings:
+            console.print(settings_table(readings))
+        return
+    for line in [*lines(checks), *(settings_lines(readings) if readings else [])]:
+        console.print(line, markup=False, highlight=False, soft_wrap=True)

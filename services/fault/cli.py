@@ -17,7 +17,6 @@ from __future__ import annotations
 
 import contextlib
 import math
-import os
 from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Annotated
@@ -26,7 +25,7 @@ import typer
 import zenoh
 
 from services.fault import process
-from services.fault.compose import COMPOSE_SERVICES, DEFAULT_FILE, PROJECT_ENV, Compose
+from services.fault.compose import COMPOSE_SERVICES, DEFAULT_FILE, Compose
 from services.fault.process import ACTIONS, LOCAL_SERVICES, FaultError, UpFleet
 from services.fleet.launcher import AGENT_ORDER
 from services.runtime.faults import (
@@ -37,6 +36,7 @@ from services.runtime.faults import (
     MessageFaults,
     NetFaults,
 )
+from shared.settings import Settings
 
 fault_app = typer.Typer(
     add_completion=False,
@@ -45,7 +45,7 @@ fault_app = typer.Typer(
     help="Inject faults into a running fleet: processes, network, messages (docs/faults.md).",
 )
 
-DEFAULT_ROUTER = "tcp/127.0.0.1:7447"
+PROJECT_ENV = Settings.env_name("compose_project")
 RunsDir = Annotated[Path, typer.Option(help="where 'roco up' keeps its fleet state")]
 ComposeFlag = Annotated[
     bool | None,
@@ -75,10 +75,11 @@ def fail(message: str, code: int = 1) -> typer.Exit:
 
 
 def _compose(flag: bool | None, project: str | None, file: Path, runs_dir: Path) -> Compose | None:
-    use = flag if flag is not None else bool(os.environ.get(PROJECT_ENV))
+    named = Settings.from_env(only=("compose_project",)).compose_project
+    use = flag if flag is not None else named is not None
     if not use:
         return None
-    return Compose(file=file, project=project or os.environ.get(PROJECT_ENV) or None, state_dir=runs_dir)
+    return Compose(file=file, project=project or named, state_dir=runs_dir)
 
 
 def _endpoint(router: str | None, runs_dir: Path, credentials: Path | None = None) -> str:
@@ -92,7 +93,7 @@ def _endpoint(router: str | None, runs_dir: Path, credentials: Path | None = Non
         try:
             endpoint = UpFleet.load(runs_dir).endpoint
         except FaultError:
-            endpoint = os.environ.get("ROCO_ROUTER", DEFAULT_ROUTER)
+            endpoint = ",".join(Settings.from_env(only=("router",)).router)
     if credentials is not None:
         if not credentials.is_dir():
             raise fail(f"{credentials}: no such credentials folder", code=2)

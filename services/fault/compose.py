@@ -33,7 +33,6 @@ COMPOSE_SERVICES = ("router", *AGENT_ORDER, "recorder", "viewer")
 (services/deploy/compose.py renders them) and the router, recorder and viewer."""
 DEFAULT_FILE = Path("deploy/compose.yaml")
 PARTITIONS_FILE = ".fault_partitions.json"
-PROJECT_ENV = "ROCO_COMPOSE_PROJECT"
 
 Runner = Callable[[Sequence[str]], "subprocess.CompletedProcess[str]"]
 

@@ -33,6 +33,7 @@ import zenoh
 from services.runtime.session import alive_agents
 from services.security.context import ENV_SECURITY, acl_on, register, tls_on
 from services.spec.model import default_spec
+from shared.settings import PREFIX, Settings
 from velma.world.mode import WORLD_SERVICE, world_in_process
 
 AGENT_ORDER = default_spec().launch_order
@@ -86,10 +87,11 @@ class Fleet:
                 self.endpoint = "tls/" + self.endpoint.removeprefix("tcp/")
         if self.acl:
             from services.deploy.deploy import ensure
-            from services.spec.model import DEFAULT_SPEC, load
+            from services.spec.model import load, spec_path
 
-            spec_file = self.env.get("ROCO_SPEC") or os.environ.get("ROCO_SPEC") or str(DEFAULT_SPEC)
-            self.security = ensure(self.run_dir / "security", load(Path(spec_file)), tls=self.tls)
+            self.security = ensure(
+                self.run_dir / "security", load(spec_path(self.env, os.environ)), tls=self.tls
+            )
             register(self.endpoint, self.security)
 
     def _environ(self) -> dict[str, str]:
@@ -213,8 +215,8 @@ def process_environ(run_dir: Path, endpoint: str, extra: dict[str, str]) -> dict
     """The environment of a fleet's process: this one's, ``extra``, router and run folder."""
     env = dict(os.environ)
     env.update(extra)
-    env["ROCO_ROUTER"] = endpoint
-    env["ROCO_RUN_DIR"] = str(run_dir)
+    env[Settings.env_name("router")] = endpoint
+    env[Settings.env_name("run_dir")] = str(run_dir)
     env.setdefault("PYTHONUNBUFFERED", "1")
     return env
 
@@ -248,7 +250,7 @@ def spawn_process(
 def save_launch_env(run_dir: Path, env: dict[str, str], extra: dict[str, str]) -> None:
     """Record in ``run_dir/launch_env.json`` the part of ``env`` a fleet's process depends on:
     every ``ROCO_*`` variable, ``PYTHONUNBUFFERED`` and the fleet's ``extra`` environment."""
-    kept = {k: v for k, v in env.items() if k.startswith("ROCO_") or k in extra or k == "PYTHONUNBUFFERED"}
+    kept = {k: v for k, v in env.items() if k.startswith(PREFIX) or k in extra or k == "PYTHONUNBUFFERED"}
     tmp = run_dir / (LAUNCH_ENV + ".tmp")
     tmp.write_text(json.dumps(kept, indent=1, sort_keys=True))
     tmp.replace(run_dir / LAUNCH_ENV)
@@ -264,7 +266,7 @@ def load_launch_env(run_dir: Path) -> dict[str, str] | None:
         return None
     if not isinstance(kept, dict):
         return None
-    env = {k: v for k, v in os.environ.items() if not k.startswith("ROCO_")}
+    env = {k: v for k, v in os.environ.items() if not k.startswith(PREFIX)}
     env.update({str(k): str(v) for k, v in kept.items()})
     return env
 

@@ -23,6 +23,8 @@ from typing import TYPE_CHECKING, Annotated
 import msgspec
 import typer
 
+from shared.settings import Settings
+
 if TYPE_CHECKING:
     from services.hosts.netns import HostPair
 
@@ -123,7 +125,8 @@ def up(
     info = RunInfo(started=time.time(), realtime=realtime)
     write_run_info(run_dir, info)
     signal.signal(signal.SIGTERM, _interrupt)
-    hosts = TwoHosts(run_dir, shaping, env={"ROCO_REALTIME": "1" if realtime else "0", "ROCO_RERUN": "0"})
+    env = {Settings.env_name("realtime"): "1" if realtime else "0", Settings.env_name("rerun"): "0"}
+    hosts = TwoHosts(run_dir, shaping, env=env)
     try:
         waited = hosts.start()  # stops what it started and removes the hosts when it fails
     except (HostsError, LaunchError, KeyboardInterrupt) as exc:

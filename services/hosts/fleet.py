@@ -37,7 +37,7 @@ from services.runtime.faults import FaultEvent
 from services.runtime.human import FINAL_REPORTS, HumanInput, HumanReport
 from services.runtime.session import open_client
 from services.security.context import register
-from services.spec.model import DEFAULT_SPEC, load
+from services.spec.model import load, spec_path
 
 PORT = 7447
 HOSTS_JSON = "hosts.json"
@@ -99,7 +99,7 @@ class TwoHosts:
         local = f"tls/127.0.0.1:{PORT}"
         self.fleet = fleet = Fleet(self.run_dir, local, env=self.env, acl=True, tls=True, wrap=wrap)
         assert fleet.security is not None
-        spec = load(Path(self.env.get("ROCO_SPEC") or os.environ.get("ROCO_SPEC") or str(DEFAULT_SPEC)))
+        spec = load(spec_path(self.env, os.environ))
         brain_link = pair.link_addr("brain")
         issue_router(fleet.security, spec, "router_brain", [], [brain_link, pair.uplink_addr])
         issue_router(fleet.security, spec, "router_robot", [], [pair.link_addr("robot")])

@@ -11,7 +11,6 @@ with performative ``malformed``. Fault events (``roco/fault/event/*``, docs/faul
 from __future__ import annotations
 
 import logging
-import os
 import queue
 import secrets
 import signal
@@ -39,6 +38,7 @@ from services.runtime import faults, keys
 from services.runtime.hooks import TrafficSink, load_hooks
 from services.runtime.main import router_endpoints, setup_logging
 from services.runtime.transport import Arrival, ZenohTransport
+from shared.settings import Settings
 
 RECORDER = "recorder"
 _fault_event = msgspec.json.Decoder(faults.FaultEvent).decode
@@ -274,8 +274,12 @@ class _Loop:
 
 
 def main() -> int:
-    setup_logging(RECORDER)
-    run_dir = Path(os.environ.get("ROCO_RUN_DIR", "."))
+    try:
+        setup_logging(RECORDER)
+    except ValueError as exc:  # a bad ROCO_LOG_LEVEL
+        print(f"roco: recorder: {exc}", file=sys.stderr)
+        return 2
+    run_dir = Settings.from_env(only=("run_dir",)).run_dir or Path(".")
     writer = TrafficWriter(run_dir)
     hooks = load_hooks()  # a viewer's, named by string (services/runtime/hooks.py); None: none
     rerun = hooks.traffic(RECORDER, run_dir) if hooks is not None else None

@@ -55,7 +55,6 @@ from __future__ import annotations
 
 import logging
 import math
-import os
 import threading
 import time
 from collections import Counter, deque
@@ -101,6 +100,7 @@ from shared.fipa_codec.protocols import (
     is_terminal_report,
 )
 from shared.fipa_codec.protocols import Protocol as ProtocolMachine
+from shared.settings import Settings
 
 _UNASKED: Any = object()
 _FOLLOWED_MAX = 1024
@@ -128,9 +128,6 @@ step computed longer takes its input on its own thread from then on. CPU time, n
 with 100 agent processes on 2 cores a 100 µs step waits tens of ms for a core at times, and a
 wall-time budget turned inline receiving off for a third of them (docs/benchmarks.md, "Fewer
 wake-ups per communicate")."""
-ENV_RECEIVE = "ROCO_RECEIVE"
-"""``agent-thread``: every input is handed to the agent's own thread (the slower path, kept to compare);
-unset or ``inline``: an idle agent takes a communicate in where it arrives."""
 _SENT_COUNTER = {p: f"sent.{p.value}" for p in Performative}
 _RECEIVED_COUNTER = {p: f"received.{p.value}" for p in Performative}
 _REASONS = frozenset({Performative.FAILURE, Performative.REFUSE, Performative.NOT_UNDERSTOOD})
@@ -233,7 +230,7 @@ class Agent:
         self._inline = (
             self.RECEIVE_INLINE
             and bool(getattr(transport, "inline_receive", False))
-            and os.environ.get(ENV_RECEIVE, "inline") != "agent-thread"
+            and Settings.from_env(only=("receive",)).receive != "agent-thread"
         )
         self._stop = threading.Event()
         self.fsm = self.build_fsm()

@@ -38,7 +38,6 @@ from __future__ import annotations
 import heapq
 import itertools
 import logging
-import os
 import random
 import threading
 import time
@@ -51,10 +50,10 @@ import msgspec
 from services.runtime.transport import AliveCallback, Callback, Transport
 from shared.fipa_codec import DecodeError, decode
 from shared.fipa_codec.batch import is_batch, unpack
+from shared.settings import Settings
 
 log = logging.getLogger(__name__)
 
-ENV = "ROCO_FAULTS"
 FAULT_PREFIX = "roco/fault"
 CONTROL_ALL = f"{FAULT_PREFIX}/control/all"
 EVENT_ALL = f"{FAULT_PREFIX}/event/*"
@@ -193,9 +192,9 @@ def parse_settings(text: str | bytes) -> FaultSettings:
 
 
 def settings_from_env(environ: Mapping[str, str] | None = None) -> FaultSettings:
-    """Settings from ``ROCO_FAULTS`` (none when unset); raises ValueError when malformed."""
-    env = os.environ if environ is None else environ
-    return parse_settings(env.get(ENV, ""))
+    """Settings from ``ROCO_FAULTS`` of ``environ`` (default ``os.environ``, read now; none
+    when unset); raises ValueError when malformed."""
+    return parse_settings(Settings.from_env(environ, only=("faults",)).faults)
 
 
 def apply_update(settings: FaultSettings, update: FaultUpdate) -> FaultSettings:

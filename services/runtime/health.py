@@ -18,11 +18,9 @@ Zenoh is imported only for the liveliness check, so the TCP probes start in a fe
 from __future__ import annotations
 
 import argparse
-import os
 import socket
 import sys
 
-DEFAULT_ROUTER = "tcp/127.0.0.1:7447"
 ROUTER = "router"
 
 
@@ -81,9 +79,9 @@ def check(
     name: str, *, router: str | None = None, tcp: list[str] | None = None, timeout: float = 2.0
 ) -> tuple[bool, str]:
     """The probe itself: ``(healthy, one line)``. Raises ValueError on a malformed address."""
-    endpoint = router or next(
-        (e.strip() for e in os.environ.get("ROCO_ROUTER", "").split(",") if e.strip()), DEFAULT_ROUTER
-    )
+    from shared.settings import Settings  # not at the top: a TCP probe starts without msgspec
+
+    endpoint = router or Settings.from_env(only=("router",)).router[0]
     if tcp:
         return check_tcp(name, tcp, timeout)
     if name == ROUTER:

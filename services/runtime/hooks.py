@@ -16,12 +16,11 @@ from __future__ import annotations
 
 import importlib
 import logging
-import os
 from pathlib import Path
 from typing import Any, Protocol
 
-ENV_HOOKS = "ROCO_HOOKS"
-ENV_RERUN = "ROCO_RERUN"  # services/viewer/__init__.py ENV_ON: "1" records the run in Rerun
+from shared.settings import Settings
+
 DEFAULT_HOOKS = "services.viewer.hooks:HOOKS"
 log = logging.getLogger(__name__)
 
@@ -64,11 +63,12 @@ class Hooks(Protocol):
 
 
 def hooks_name() -> str | None:
-    """The ``module:attribute`` of the hooks this process is to load, or None."""
-    named = os.environ.get(ENV_HOOKS, "").strip()
-    if named:
-        return named
-    return DEFAULT_HOOKS if os.environ.get(ENV_RERUN, "0") == "1" else None
+    """The ``module:attribute`` of the hooks this process is to load, or None (the
+    environment read now)."""
+    read = Settings.from_env(only=("hooks", "rerun"))
+    if read.hooks is not None:
+        return read.hooks
+    return DEFAULT_HOOKS if read.rerun else None
 
 
 def load_hooks() -> Hooks | None:
@@ -81,6 +81,8 @@ def load_hooks() -> Hooks | None:
     try:
         found: Hooks = getattr(importlib.import_module(module), attribute)
     except (ImportError, AttributeError) as exc:
-        log.error("%s=%s cannot be loaded (%s); going on without a viewer", ENV_HOOKS, named, exc)
+        log.error(
+            "%s=%s cannot be loaded (%s); going on without a viewer", Settings.env_name("hooks"), named, exc
+        )
         return None
     return found

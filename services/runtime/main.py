@@ -18,7 +18,6 @@ import logging
 import os
 import signal
 import sys
-from pathlib import Path
 from types import FrameType
 from typing import TYPE_CHECKING
 
@@ -30,12 +29,12 @@ if TYPE_CHECKING:
 # a process that an agent starts with multiprocessing's spawn (ag_ex's loop and camera) imports
 # this module again as its ``__mp_main__``, and should not pay ≈ 6 MiB for what it never runs.
 
-DEFAULT_ROUTER = "tcp/127.0.0.1:7447"
-
 
 def router_endpoints() -> list[str]:
-    """Endpoints from ``ROCO_ROUTER``."""
-    return [e.strip() for e in os.environ.get("ROCO_ROUTER", DEFAULT_ROUTER).split(",") if e.strip()]
+    """Endpoints from ``ROCO_ROUTER`` (read now)."""
+    from shared.settings import Settings
+
+    return list(Settings.from_env(only=("router",)).router)
 
 
 def agent_class(spec: SystemSpec, name: str) -> type[Agent]:
@@ -59,34 +58,40 @@ def agent_class(spec: SystemSpec, name: str) -> type[Agent]:
 
 def setup_logging(name: str) -> None:
     """Log at ``ROCO_LOG_LEVEL`` (default INFO) to the run folder's ``logs/NAME.log``, else to
-    stderr; one line per record (services/runtime/log_format.py)."""
+    stderr; one line per record (services/runtime/log_format.py). Raises ValueError for a
+    ``ROCO_LOG_LEVEL`` that is not a level."""
     from services.runtime.log_format import OneLineFormatter
+    from shared.settings import Settings
 
-    level = os.environ.get("ROCO_LOG_LEVEL", "INFO").upper()
-    run_dir = os.environ.get("ROCO_RUN_DIR")
+    read = Settings.from_env(only=("log_level", "run_dir"))
     handler: logging.Handler
-    if run_dir:
-        (Path(run_dir) / "logs").mkdir(parents=True, exist_ok=True)
-        handler = logging.FileHandler(Path(run_dir) / "logs" / f"{name}.log")
+    if read.run_dir is not None:
+        (read.run_dir / "logs").mkdir(parents=True, exist_ok=True)
+        handler = logging.FileHandler(read.run_dir / "logs" / f"{name}.log")
     else:
         handler = logging.StreamHandler(sys.stderr)
     handler.setFormatter(OneLineFormatter())
-    logging.basicConfig(level=level, handlers=[handler], force=True)
+    logging.basicConfig(level=read.log_level, handlers=[handler], force=True)
 
 
 def main(argv: list[str] | None = None) -> int:
     from services.runtime.faults import FaultyTransport, settings_from_env
     from services.runtime.transport import ZenohTransport
-    from services.spec.model import DEFAULT_SPEC, SpecError, load
+    from services.spec.model import SpecError, load, spec_path
+    from shared.settings import Settings
 
     args = sys.argv[1:] if argv is None else argv
     if len(args) != 1:
         print("usage: python -m services.runtime.main AGENT", file=sys.stderr)
         return 2
     name = args[0]
-    setup_logging(name)
     try:
-        spec = load(Path(os.environ.get("ROCO_SPEC", str(DEFAULT_SPEC))))
+        setup_logging(name)
+    except ValueError as exc:  # a bad ROCO_LOG_LEVEL
+        print(f"roco: {exc}", file=sys.stderr)
+        return 2
+    try:
+        spec = load(spec_path())
         cls = agent_class(spec, name)
     except SpecError as exc:
         print(f"roco: {exc}", file=sys.stderr)
@@ -94,7 +99,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         faults = settings_from_env()
     except ValueError as exc:
-        print(f"roco: ROCO_FAULTS: {exc}", file=sys.stderr)
+        print(f"roco: {Settings.env_name('faults')}: {exc}", file=sys.stderr)
         return 2
     try:  # authenticates as the agent itself when the fleet has access control (docs/security.md)
         zenoh_transport = ZenohTransport(router_endpoints(), identity=name)

@@ -23,9 +23,8 @@ import importlib.machinery
 import importlib.util
 import json
 import logging
-import os
 import sys
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from types import ModuleType
 
@@ -39,7 +38,6 @@ except ImportError:  # pragma: no cover - 3.12 renamed it; another interpreter: 
 
 COMPILED = ("conversations", "lookups", "dedup")
 """Modules of services/runtime that setup.py compiles (its ``RUNTIME_COMPILED``)."""
-ENV_INTERPRETED = "ROCO_INTERPRETED"
 MANIFEST = "_compiled.json"
 """Beside the modules: {module name: SHA-256 of the source compiled} (setup.py writes it)."""
 
@@ -79,25 +77,31 @@ def source_digest(source: Path) -> str:
     return sha256(source.read_bytes()).hexdigest()
 
 
-def stale(folder: Path, names: Sequence[str], environ: dict[str, str] | None = None) -> dict[str, Path]:
+def stale(folder: Path, names: Sequence[str], environ: Mapping[str, str] | None = None) -> dict[str, Path]:
     """The modules of ``names`` in ``folder`` to load from their sources: those with an
     extension whose source differs from what was compiled (``MANIFEST``, written by setup.py:
     the source's SHA-256 when it was compiled; no manifest, or no entry, counts as differing),
     or all with an extension when ``ROCO_INTERPRETED=1`` in ``environ`` (default
-    ``os.environ``); name → the .py's path."""
-    everything = (os.environ if environ is None else environ).get(ENV_INTERPRETED, "") == "1"
+    ``os.environ``, read now); name → the .py's path."""
+    sources = {n: folder / f"{n}.py" for n in names if compiled_path(folder, n) is not None}
+    sources = {n: s for n, s in sources.items() if s.is_file()}
+    if not sources:  # nothing compiled (a checkout that was not built): settings not even read
+        return {}
+    if _interpreted(environ):
+        return sources
     try:
         compiled_from = json.loads((folder / MANIFEST).read_text())
     except (OSError, ValueError):
         compiled_from = {}
-    out: dict[str, Path] = {}
-    for name in names:
-        source = folder / f"{name}.py"
-        if compiled_path(folder, name) is None or not source.is_file():
-            continue
-        if everything or compiled_from.get(name) != source_digest(source):
-            out[name] = source
-    return out
+    return {n: s for n, s in sources.items() if compiled_from.get(n) != source_digest(s)}
+
+
+def _interpreted(environ: Mapping[str, str] | None = None) -> bool:
+    """``ROCO_INTERPRETED`` of ``environ`` (default ``os.environ``), read now. shared.settings
+    (with msgspec) is imported here, only where a compiled module is found."""
+    from shared.settings import Settings
+
+    return Settings.from_env(environ, only=("interpreted",)).interpreted
 
 
 def use_fresh_sources(package: str, folder: Path, names: Sequence[str] = COMPILED) -> dict[str, Path]:
@@ -108,7 +112,7 @@ def use_fresh_sources(package: str, folder: Path, names: Sequence[str] = COMPILE
     if not sources:
         return {}
     sys.meta_path.insert(0, _SourceFinder({f"{package}.{n}": p for n, p in sources.items()}))
-    if os.environ.get(ENV_INTERPRETED, "") != "1":
+    if not _interpreted():
         log.warning(
             "%s: %s changed since compiled; running from source (pip install -e . compiles again)",
             package,

@@ -22,14 +22,16 @@ from __future__ import annotations
 
 import os
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from typing import Protocol, TypeVar
+
+from shared.settings import Settings
 
 T = TypeVar("T")
 T_co = TypeVar("T_co", covariant=True)
 
-ENV_POLL = "ROCO_RECEIVE_POLL_US"
-DEFAULT_MAX_POLL_US = 500.0
+ENV_POLL = Settings.env_name("receive_poll_us")
+DEFAULT_MAX_POLL_US = Settings().receive_poll_us
 """Longest poll window (µs): above a round trip through a router on one host (≈ 250–600 µs
 measured), far below the gaps of an agent at work (ms)."""
 GROW_START_US = 50.0
@@ -46,20 +48,11 @@ class Source(Protocol[T_co]):
     def recv(self) -> T_co: ...
 
 
-def max_poll_us(env: dict[str, str] | None = None) -> float:
-    """The maximum poll window (µs) from ``ROCO_RECEIVE_POLL_US`` (default
-    :data:`DEFAULT_MAX_POLL_US`). Raises ValueError, naming the variable, for a value that is
-    not a number ≥ 0."""
-    raw = (os.environ if env is None else env).get(ENV_POLL, "").strip()
-    if not raw:
-        return DEFAULT_MAX_POLL_US
-    try:
-        value = float(raw)
-    except ValueError:
-        value = -1.0
-    if not value >= 0.0 or value == float("inf"):
-        raise ValueError(f"{ENV_POLL}={raw!r}: expected a number of microseconds ≥ 0 (0: never poll)")
-    return value
+def max_poll_us(env: Mapping[str, str] | None = None) -> float:
+    """The maximum poll window (µs) from ``ROCO_RECEIVE_POLL_US`` of ``env`` (default
+    ``os.environ``, read now; unset: :data:`DEFAULT_MAX_POLL_US`). Raises ValueError, naming
+    the variable, for a value that is not a number ≥ 0."""
+    return Settings.from_env(env, only=("receive_poll_us",)).receive_poll_us
 
 
 class AdaptivePoll:

@@ -21,47 +21,46 @@ silent link is kept (Zenoh's default 10 s).
 from __future__ import annotations
 
 import argparse
-import os
 import signal
 import sys
 import threading
-from pathlib import Path
 from types import FrameType
 
 from services.runtime.refusal_watch import answer_counters, watch_refusals
 from services.runtime.transport import open_session, router_config
+from shared.settings import Settings
 
 SIGNAL_POLL_S = 0.5
 """s between the main thread's looks for SIGTERM/SIGINT's handler having run."""
 
 
 def main(argv: list[str] | None = None) -> int:
+    read = Settings.from_env(only=("router_identity", "listen", "connect", "security", "run_dir"))
     parser = argparse.ArgumentParser(prog="roco-router")
     parser.add_argument("--listen", action="append", default=None)
     parser.add_argument(
         "--identity",
-        default=os.environ.get("ROCO_ROUTER_IDENTITY") or None,
+        default=read.router_identity,
         help="a meshed router's identity in the credentials folder (ROCO_ROUTER_IDENTITY)",
     )
     parser.add_argument("--lease-ms", type=int, default=None, help="Zenoh's transport lease (default 10000)")
     parser.add_argument("--connect", action="append", default=None)
     args = parser.parse_args(argv)
-    listen = args.listen or [os.environ.get("ROCO_LISTEN", "tcp/0.0.0.0:7447")]
-    connect = args.connect or [e for e in os.environ.get("ROCO_CONNECT", "").split(",") if e]
-    security = os.environ.get("ROCO_SECURITY", "").strip()
+    listen = args.listen or [read.listen]
+    connect = args.connect or list(read.connect)
+    security = read.security
     try:
         conf = router_config(
             listen,
             connect,
-            security=Path(security) if security else None,
+            security=security,
             identity=args.identity if security else None,
             lease_ms=args.lease_ms,
         )
     except (OSError, ValueError) as exc:
-        print(f"roco router: ROCO_SECURITY: {exc}", file=sys.stderr)
+        print(f"roco router: {Settings.env_name('security')}: {exc}", file=sys.stderr)
         return 2
-    run_dir = os.environ.get("ROCO_RUN_DIR", "").strip()
-    refusals = watch_refusals(Path(run_dir) if run_dir else None) if security else None
+    refusals = watch_refusals(read.run_dir) if security else None
     try:
         session = open_session(conf)
     except ValueError as exc:  # a ZENOH_RUNTIME Zenoh cannot read

@@ -16,18 +16,20 @@ from typing import Generic, TypeVar
 
 import msgspec
 
-ENV_STATE_DIR = "ROCO_STATE_DIR"
+from shared.settings import Settings
+
+ENV_STATE_DIR = Settings.env_name("state_dir")
 T = TypeVar("T")
 log = logging.getLogger(__name__)
 
 
 def state_dir() -> Path | None:
-    """The folder for agents' kept state, or None when neither variable is set."""
-    if os.environ.get(ENV_STATE_DIR):
-        return Path(os.environ[ENV_STATE_DIR])
-    if os.environ.get("ROCO_RUN_DIR"):
-        return Path(os.environ["ROCO_RUN_DIR"]) / "state"
-    return None
+    """The folder for agents' kept state, or None when neither variable is set (the
+    environment read now)."""
+    read = Settings.from_env(only=("state_dir", "run_dir"))
+    if read.state_dir is not None:
+        return read.state_dir
+    return read.run_dir / "state" if read.run_dir is not None else None
 
 
 class StateFile(Generic[T]):

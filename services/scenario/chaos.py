@@ -42,6 +42,7 @@ from services.scenario.model import AGENTS, FAULT_KINDS, MOVABLE, Fault, Scenari
 from services.scenario.runner import LINK, FaultRecord, ScenarioOutcome
 from services.spec.model import default_spec
 from shared.fipa_codec.languages.l_sd import Observation
+from shared.settings import Settings
 
 DEFAULT_COMMAND = "pour the jar into the bowl"
 DROPPED_BELOW_M = 0.5
@@ -212,8 +213,8 @@ def judged_world(run_dir: Path) -> tuple[Observation, str] | None:
         return None
     env = load_launch_env(run_dir) or {}
     try:
-        pose = env.get("ROCO_POSE_SEED", "")
-        seed, pose_seed = int(env.get("ROCO_SEED", "0") or 0), int(pose) if pose else None
+        read = Settings.from_env(env, only=("seed", "pose_seed"))
+        seed, pose_seed = read.seed, read.pose_seed
         if (size := scene.stat().st_size) > MAX_SCENE_BYTES:
             raise ValueError(f"{size} B: not a scene of the kitchen")
         return observe_scene(scene.read_bytes(), seed=seed, pose_seed=pose_seed), "the world's final scene"

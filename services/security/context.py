@@ -16,17 +16,12 @@ the one the caller names (an agent's name, ``recorder``), else ``ROCO_IDENTITY``
 from __future__ import annotations
 
 import json
-import os
 import threading
 from pathlib import Path
 
-ENV_SECURITY = "ROCO_SECURITY"
-ENV_IDENTITY = "ROCO_IDENTITY"
-ENV_ACL = "ROCO_ACL"
-"""``0``: fleets start without access control (experiments); anything else or unset: with."""
-ENV_TLS = "ROCO_TLS"
-"""``1``: a local fleet's router listens on TLS (mutual) instead of TCP."""
-OPERATOR = "operator"  # services/spec_check/acl.py: OPERATOR
+from shared.settings import Settings
+
+ENV_SECURITY = Settings.env_name("security")
 FLEET_FILE = Path("runs") / ".fleet.json"  # services/cli.py: FLEET_FILE under the default runs dir
 
 _lock = threading.Lock()
@@ -34,13 +29,13 @@ _registry: dict[str, Path] = {}
 
 
 def acl_on() -> bool:
-    """Whether fleets start with access control (``ROCO_ACL`` is not ``0``)."""
-    return os.environ.get(ENV_ACL, "1").strip() != "0"
+    """Whether fleets start with access control (``ROCO_ACL`` is not ``0``; read now)."""
+    return Settings.from_env(only=("acl",)).acl
 
 
 def tls_on() -> bool:
-    """Whether local fleets listen on TLS (``ROCO_TLS=1``)."""
-    return os.environ.get(ENV_TLS, "0").strip() == "1"
+    """Whether local fleets listen on TLS (``ROCO_TLS=1``; read now)."""
+    return Settings.from_env(only=("tls",)).tls
 
 
 def register(endpoint: str, folder: Path | None) -> None:
@@ -58,9 +53,9 @@ def security_for(endpoints: list[str]) -> Path | None:
         for e in endpoints:
             if e in _registry:
                 return _registry[e]
-    env = os.environ.get(ENV_SECURITY, "").strip()
-    if env:
-        return Path(env)
+    named = Settings.from_env(only=("security",)).security
+    if named is not None:
+        return named
     try:
         state = json.loads(FLEET_FILE.read_text())
         if state.get("endpoint") in endpoints:
@@ -73,5 +68,5 @@ def security_for(endpoints: list[str]) -> Path | None:
 
 
 def identity_name(identity: str | None) -> str:
-    """``identity``, else ``ROCO_IDENTITY``, else ``operator``."""
-    return identity or os.environ.get(ENV_IDENTITY, "").strip() or OPERATOR
+    """``identity``, else ``ROCO_IDENTITY`` (read now), else ``operator``."""
+    return identity or Settings.from_env(only=("identity",)).identity

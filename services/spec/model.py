@@ -13,11 +13,14 @@ concrete agent name plays (``da0@host:1099/JADE`` plays ``x_fipa``).
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
 from functools import cache
 from pathlib import Path
 
 import msgspec
+
+from shared.settings import Settings
 
 DEFAULT_SPEC = Path(__file__).with_name("robot_companion.toml")
 NOT_UNDERSTOOD = "not-understood"
@@ -235,6 +238,16 @@ def load(path: Path = DEFAULT_SPEC) -> SystemSpec:
             if cp.initiator not in ch.ends:
                 raise SpecError(f"{path}: channel {ch.name}: initiator {cp.initiator!r} is not an end")
     return spec
+
+
+def spec_path(*environs: Mapping[str, str]) -> Path:
+    """The specification file ``ROCO_SPEC`` names in the first of ``environs`` that sets it
+    (none given: ``os.environ``, read now), else :data:`DEFAULT_SPEC`."""
+    for env in environs or (None,):
+        named = Settings.from_env(env, only=("spec",)).spec
+        if named is not None:
+            return named
+    return DEFAULT_SPEC
 
 
 @cache

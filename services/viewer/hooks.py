@@ -12,12 +12,11 @@ its own; ``ROCO_RERUN_CAMERA=0`` leaves it off.
 from __future__ import annotations
 
 import logging
-import os
 from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, TypeVar
 
-from services.viewer import ENV_ON
+from shared.settings import Settings
 
 if TYPE_CHECKING:
     from services.runtime.hooks import Hooks
@@ -31,18 +30,18 @@ if TYPE_CHECKING:
     from velma.executor.state import RobotSnapshot
 
 log = logging.getLogger(__name__)
-ENV_CAMERA = "ROCO_RERUN_CAMERA"
 MERGE_WAIT = 8.0  # s the recorder waits for the other parts before merging (the launcher gives it 10)
 
 
 def _on() -> bool:
-    return os.environ.get(ENV_ON, "0") == "1"
+    return Settings.from_env(only=("rerun",)).rerun
 
 
 def camera_wanted() -> bool:
     """Whether ag_ex should render its head camera: Rerun logging on and
-    ``ROCO_RERUN_CAMERA`` not ``0``."""
-    return _on() and os.environ.get(ENV_CAMERA, "1") != "0"
+    ``ROCO_RERUN_CAMERA`` not ``0`` (read now)."""
+    read = Settings.from_env(only=("rerun", "rerun_camera"))
+    return read.rerun and read.rerun_camera
 
 
 class _Hook:

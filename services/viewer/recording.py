@@ -37,12 +37,9 @@ from pathlib import Path
 
 import rerun as rr
 
-from services.viewer import ENV_ON
+from shared.settings import Settings
 
 APP_ID = "roco"
-ENV_RUN_DIR = "ROCO_RUN_DIR"
-ENV_ID = "ROCO_RERUN_ID"
-ENV_CONNECT = "ROCO_RERUN_CONNECT"
 PARTS_DIR = "rerun"
 RECORDING_FILE = "recording.rrd"
 DONE_SUFFIX = ".done"
@@ -51,16 +48,15 @@ log = logging.getLogger(__name__)
 
 
 def enabled(env: Mapping[str, str] | None = None) -> bool:
-    """Whether Rerun logging is switched on (``ROCO_RERUN=1``)."""
-    env = os.environ if env is None else env
-    return env.get(ENV_ON, "0") == "1"
+    """Whether Rerun logging is switched on (``ROCO_RERUN=1`` in ``env``, default
+    ``os.environ``, read now)."""
+    return Settings.from_env(env, only=("rerun",)).rerun
 
 
 def recording_id(run_dir: Path, env: Mapping[str, str] | None = None) -> str:
     """The recording id of the run in ``run_dir``: ``ROCO_RERUN_ID`` if set, else the
     folder's name."""
-    env = os.environ if env is None else env
-    return env.get(ENV_ID) or run_dir.resolve().name
+    return Settings.from_env(env, only=("rerun_id",)).rerun_id or run_dir.resolve().name
 
 
 class Recording:
@@ -106,12 +102,12 @@ def start(
     """This process's part of the run's recording, or None when logging is off
     (``ROCO_RERUN`` unset or not ``1``) or Rerun cannot start (logged, never raised).
     ``run_dir`` defaults to ``ROCO_RUN_DIR`` (then the current directory)."""
-    env = os.environ if env is None else env
-    if not enabled(env):
+    read = Settings.from_env(env, only=("rerun", "run_dir", "rerun_connect"))
+    if not read.rerun:
         return None
-    folder = run_dir if run_dir is not None else Path(env.get(ENV_RUN_DIR, "."))
+    folder = run_dir if run_dir is not None else read.run_dir or Path(".")
     try:
-        return Recording(process_name, folder, recording_id(folder, env), env.get(ENV_CONNECT) or None)
+        return Recording(process_name, folder, recording_id(folder, env), read.rerun_connect)
     except Exception:  # Rerun is an add-on: the process runs on without it
         log.exception("Rerun logging for %s could not start; going on without it", process_name)
         return None

@@ -17,13 +17,11 @@ from __future__ import annotations
 
 import collections
 import math
-import os
-from pathlib import Path
 from typing import Protocol
 
 import rerun as rr
 
-from services.spec.model import DEFAULT_SPEC, SystemSpec, load
+from services.spec.model import SystemSpec, load, spec_path
 from services.viewer.recording import Recording
 from shared.fipa_codec import DecodeError, decode
 from shared.fipa_codec.languages import ContentError, decode_content
@@ -44,7 +42,7 @@ SW_LEVEL = {"Error": "ERROR", "Replan": "WARN", "Preempted": "WARN"}
 
 def spec_from_env() -> SystemSpec:
     """The specification the processes run with (``ROCO_SPEC``, default the repo's)."""
-    return load(Path(os.environ.get("ROCO_SPEC", str(DEFAULT_SPEC))))
+    return load(spec_path())
 
 
 def log_graph(stream: rr.RecordingStream, spec: SystemSpec) -> None:

@@ -18,12 +18,13 @@ AGENTS = ("coordinator", "human_interface", "planner", "knowledge", "task_execut
 
 LAYERS = {
     "shared.fipa_codec": set(),
-    "services.spec": {"shared.fipa_codec"},
-    "services.security": set(),
-    "services.runtime": {"shared.fipa_codec", "services.spec", "services.security"},
+    "shared.settings": set(),
+    "services.spec": {"shared.fipa_codec", "shared.settings"},
+    "services.security": {"shared.settings"},
+    "services.runtime": {"shared.fipa_codec", "shared.settings", "services.spec", "services.security"},
 }
-"""The bottom layers and everything each may import (design.md layers 1–3: the codec, the
-specification's data model, the credentials' format, the agent runtime)."""
+"""The bottom layers and everything each may import (design.md layers 1–3: the codec and the
+settings, the specification's data model, the credentials' format, the agent runtime)."""
 TOOLS = (
     "services.spec_check",
     "services.fleet",
@@ -141,6 +142,7 @@ def test_agents_receive_the_viewer_and_do_not_import_it() -> None:
 def test_the_codec_and_the_robot_import_nothing_above_them() -> None:
     graph = import_graph()
     assert graph["shared.fipa_codec"] <= set()
+    assert graph["shared.settings"] <= set()
     for package, imports in graph.items():
         if package.startswith("velma."):
             assert all(p.startswith(("velma.", "shared.")) for p in imports), (package, imports)

@@ -17,8 +17,9 @@ from typer.testing import CliRunner
 import services.doctor
 from services.cli import app
 from services.doctor import credentials, environment, machine, tools
+from services.doctor import settings as doctor_settings
 from services.doctor.model import Check, Use, run_ready
-from services.doctor.render import CAMERA_NEED, lines, verdict
+from services.doctor.render import CAMERA_NEED, SETTINGS_TITLE, lines, settings_lines, verdict
 from services.security.certs import issue
 
 
@@ -200,6 +201,32 @@ def test_without_a_gl_library_doctor_says_the_robot_perceives_with_the_ground_tr
         "roco: roco run has everything it needs (perceiving with the ground truth: no GL library "
         "for the head camera); not ready: compose fleet, head camera"
     )
+
+
+def test_settings_are_listed_with_their_values_and_a_bad_one_is_a_failed_item(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """Every ROCO_* setting (shared/settings.py) after the checks: its value here or
+    ``default``, its default, what it sets; a value that does not parse is a failed item."""
+    monkeypatch.setenv("ROCO_CAMERA_IDLE_S", "soon")
+    monkeypatch.setenv("ROCO_RUN_DIR", "/runs/x")
+    monkeypatch.delenv("ROCO_SEED", raising=False)
+    failed = doctor_settings.checks()
+    assert [(c.name, c.use, c.missing) for c in failed] == [("ROCO_CAMERA_IDLE_S", Use.SETTINGS, True)]
+    assert failed[0].detail.startswith("ROCO_CAMERA_IDLE_S='soon': expected a number of seconds")
+    assert "unset it" in failed[0].how
+    text = settings_lines(doctor_settings.readings())
+    assert text[0] == SETTINGS_TITLE
+    row = {line.split()[0]: line.split()[1:3] for line in text[1:] if line.startswith("  ROCO_")}
+    assert row["ROCO_RUN_DIR"] == ["/runs/x", "—"] and row["ROCO_SEED"] == ["default", "0"]
+    assert f"not valid: {failed[0].detail}" in [line.strip() for line in text]
+    monkeypatch.setattr(services.doctor, "run_checks", lambda runs_dir: [*CAMERA_MISSING, *failed])
+    monkeypatch.setenv("ROCO_PERCEPTION", "truth")
+    result = CliRunner().invoke(app, ["doctor"])
+    out = result.output.strip().splitlines()
+    assert SETTINGS_TITLE in out and "not found  ROCO_CAMERA_IDLE_S" in result.output
+    assert out[-1] == verdict([*CAMERA_MISSING, *failed], camera=False)
+    assert "not ready: compose fleet, head camera, settings" in out[-1] and result.exit_code == 0
 
 
 def test_doctor_on_this_machine_finds_what_roco_run_needs(tmp_path: Path) -> None:

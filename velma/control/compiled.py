@@ -18,12 +18,12 @@ from __future__ import annotations
 
 import logging
 import math
-import os
 from types import ModuleType
 
 import numpy as np
 import pinocchio as pin
 
+from shared.settings import Settings
 from velma.control import impedance as imp
 from velma.control.ik import DlsKernel
 from velma.control.limits import ARM_TORQUE_LIMIT, FULL_BAND_JOINTS, SINGULAR_JOINTS, TORQUE_RATE_LIMIT
@@ -40,7 +40,7 @@ except ImportError as exc:  # pragma: no cover - depends on the build
 else:
     _IMPORT_ERROR = None
 
-ENV_LAW = "ROCO_CONTROL_LAW"
+ENV_LAW = Settings.env_name("control_law")
 """Environment variable: ``python`` forces the Python law, ``compiled`` requires the compiled
 one (an error if it is not built); unset: the compiled one when built."""
 
@@ -333,9 +333,7 @@ def make_controller(robot: RobotModel, dt: float = 0.001) -> imp.VelmaController
     """The control law to run: compiled when built (unless ``ROCO_CONTROL_LAW=python``), else
     the Python reference with a warning. Raises ``RuntimeError`` when ``ROCO_CONTROL_LAW=compiled``
     and the extension is not built, ``ValueError`` for another value of it."""
-    choice = os.environ.get(ENV_LAW, "")
-    if choice not in ("", "python", "compiled"):
-        raise ValueError(f"{ENV_LAW}={choice!r}: expected 'python' or 'compiled'")
+    choice = Settings.from_env(only=("control_law",)).control_law  # ValueError: another value
     if choice == "python":
         return imp.VelmaController(robot, dt)
     if _impedance is None:

@@ -11,37 +11,33 @@ libmujoco that the ``mujoco`` module loaded.
 from __future__ import annotations
 
 import ctypes
-import os
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
 import mujoco
 
+from shared.settings import Settings
 from velma.control import hand
 from velma.control.compiled import native_module
 from velma.control.hand import ContactMonitor, Hands
 from velma.control.robot_model import SIDES, Array, JointMap
 
-ENV_PLANT = "ROCO_PLANT"
+ENV_PLANT = Settings.env_name("plant")
 """Environment variable: ``compiled`` requires the compiled plant (an error if it cannot
 run), ``python`` runs the Python cycle; unset: the compiled plant where it can run
 (``mujoco_side_unavailable``), else the Python cycle with a warning."""
 
 
-def plant_choice(environ: Mapping[str, str] = os.environ) -> bool | None:
+def plant_choice(environ: Mapping[str, str] | None = None) -> bool | None:
     """``ROCO_PLANT`` as a choice: True (the compiled plant, required), False (the Python
     cycle) or None (unset: the compiled plant where it can run). The compiled plant is the
     default since the loop holds the CPUs' wake-up latency (docs/bench/loop.md "CPU latency PM
     QoS"): with the whole fleet it gave the lower cycle work at p50 and p99 and overran as
     rarely as the Python cycle. Raises ValueError for a value other than ``python`` and
-    ``compiled``."""
-    choice = environ.get(ENV_PLANT)
-    if choice is None:
-        return None
-    if choice not in ("python", "compiled"):
-        raise ValueError(f"{ENV_PLANT}={choice!r}: expected 'python' or 'compiled'")
-    return choice == "compiled"
+    ``compiled``. ``environ``: default ``os.environ``, read now."""
+    choice = Settings.from_env(environ, only=("plant",)).plant
+    return None if choice is None else choice == "compiled"
 
 
 def mj_step_address() -> int | None:

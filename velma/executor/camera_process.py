@@ -27,21 +27,21 @@ and the next one starts a new child.
 from __future__ import annotations
 
 import logging
-import math
 import multiprocessing
 import multiprocessing.connection
-import os
+from collections.abc import Mapping
 from typing import Any
 
 import msgspec
 
+from shared.settings import Settings
 from velma.executor.camera import CameraWork, Perceived
 from velma.executor.capture import WorldCapture
 from velma.gl import choose as choose_gl
 
 log = logging.getLogger(__name__)
 
-DEFAULT_IDLE_S = 60.0
+DEFAULT_IDLE_S = Settings().camera_idle_s
 """Seconds without an Observe after which the camera process ends (module docstring): longer
 than the gaps between a task's Observes (a pour observes at its start, after grasping and after
 pouring, tens of seconds apart in real time), short enough that a fleet at rest holds no
@@ -67,21 +67,11 @@ class CameraSpec(msgspec.Struct, frozen=True, kw_only=True):
     record: bool = False
 
 
-def camera_idle_s(environ: dict[str, str] | None = None) -> float:
-    """``ROCO_CAMERA_IDLE_S`` (s, > 0, or ``never`` → infinity; unset or empty →
-    ``DEFAULT_IDLE_S``). Raises ``ValueError`` for anything else."""
-    raw = (os.environ if environ is None else environ).get("ROCO_CAMERA_IDLE_S", "").strip()
-    if not raw:
-        return DEFAULT_IDLE_S
-    if raw == "never":
-        return math.inf
-    try:
-        value = float(raw)
-    except ValueError:
-        value = math.nan
-    if not value > 0 or math.isinf(value):
-        raise ValueError(f"ROCO_CAMERA_IDLE_S must be a number of seconds > 0 or 'never', not {raw!r}")
-    return value
+def camera_idle_s(environ: Mapping[str, str] | None = None) -> float:
+    """``ROCO_CAMERA_IDLE_S`` of ``environ`` (default ``os.environ``, read now): s, > 0, or
+    ``never`` → infinity; unset or empty → ``DEFAULT_IDLE_S``. Raises ``ValueError`` for
+    anything else."""
+    return Settings.from_env(environ, only=("camera_idle_s",)).camera_idle_s
 
 
 def camera_main(spec: bytes, conn: multiprocessing.connection.Connection) -> None:

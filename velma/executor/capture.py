@@ -11,17 +11,16 @@ msgspec and numpy: no MuJoCo, so it crosses the loop process's result ring as it
 
 from __future__ import annotations
 
-import os
+from collections.abc import Mapping
 
 import msgspec
 import numpy as np
 import numpy.typing as npt
 
+from shared.settings import Settings
 from velma.gl import HOW as GL_HOW
 from velma.gl import renders
 
-PERCEPTION_MODES = ("camera", "truth")
-"""``ROCO_PERCEPTION``'s values (``perception_mode``)."""
 PERCEPTION_LOG = "ag_ex_perception.jsonl"
 """The file in the run folder where ag_ex logs each camera Observation beside the truth
 (velma/executor/perception_log.py; read by the run report, services/report)."""
@@ -34,16 +33,14 @@ compare). On a machine without an off-screen GL library (velma/gl.py) the defaul
 ``truth``: see :func:`perception_mode`."""
 
 
-def perception_mode(environ: dict[str, str] | None = None) -> str:
-    """``ROCO_PERCEPTION`` of ``environ`` (default ``os.environ``). Unset or empty:
+def perception_mode(environ: Mapping[str, str] | None = None) -> str:
+    """``ROCO_PERCEPTION`` of ``environ`` (default ``os.environ``, read now). Unset or empty:
     ``DEFAULT_PERCEPTION`` where MuJoCo can render off-screen, else ``truth`` (a machine
     without libEGL or libOSMesa still runs the robot; :func:`camera_unavailable` says why).
-    Raises ``ValueError`` for a value not in ``PERCEPTION_MODES``."""
-    value = (os.environ if environ is None else environ).get("ROCO_PERCEPTION", "")
-    if not value:
+    Raises ``ValueError`` for a value other than ``camera`` and ``truth``."""
+    value = Settings.from_env(environ, only=("perception",)).perception
+    if value is None:
         return DEFAULT_PERCEPTION if camera_unavailable() is None else "truth"
-    if value not in PERCEPTION_MODES:
-        raise ValueError(f"ROCO_PERCEPTION={value!r}: expected one of {', '.join(PERCEPTION_MODES)}")
     return value
 
 

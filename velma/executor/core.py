@@ -29,6 +29,7 @@ import msgspec
 
 from shared.fipa_codec.languages.l_ex import CommandResult, ExecutorCommand, command_name
 from shared.fipa_codec.languages.l_sd import Observation
+from shared.settings import Settings
 from velma.control.compiled import law_name
 from velma.executor.camera import InThreadCamera
 from velma.executor.capture import WorldCapture, perception_mode
@@ -70,8 +71,8 @@ class Executor:
     ) -> None:
         self.realtime = realtime
         self.rt = runtime if runtime is not None else Runtime(seed=seed, pose_seed=pose_seed)
-        self.perception = (
-            perception_mode() if perception is None else perception_mode({"ROCO_PERCEPTION": perception})
+        self.perception = perception_mode(
+            {Settings.env_name("perception"): perception} if perception is not None else None
         )
         self.rt.observe_by_camera = self.perception == "camera"
         self.perception_log = perception_log

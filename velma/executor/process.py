@@ -61,6 +61,7 @@ import numpy.typing as npt
 
 from shared.fipa_codec.languages.l_ex import CommandResult, ExecutorCommand, command_name
 from shared.fipa_codec.languages.l_sd import Observation
+from shared.settings import Settings
 from velma.executor.camera_process import CameraProcess, CameraSpec
 from velma.executor.camera_process import camera_idle_s as camera_idle_s_of_env
 from velma.executor.capture import WorldCapture, perception_mode
@@ -405,7 +406,9 @@ class ExecutorProcess:
         camera_idle_s: float | None = None,
         world_link: str | None = None,
     ) -> None:
-        self.perception = perception_mode(None if perception is None else {"ROCO_PERCEPTION": perception})
+        self.perception = perception_mode(
+            None if perception is None else {Settings.env_name("perception"): perception}
+        )
         self.camera_idle_s = camera_idle_s_of_env() if camera_idle_s is None else camera_idle_s
         self.perception_log = perception_log
         self._delivery: ResultDelivery[int] | None = None

@@ -16,7 +16,6 @@ from __future__ import annotations
 
 import argparse
 import contextlib
-import os
 import signal
 import sys
 import threading
@@ -25,6 +24,7 @@ from types import FrameType
 
 import numpy as np
 
+from shared.settings import Settings
 from velma.shm import remove_orphans
 from velma.world.hardware import SimulatedVelma
 from velma.world.layout import COMMAND, MEASURED
@@ -46,18 +46,14 @@ def link_name(run_dir: Path) -> str | None:
         return None
 
 
-def _int_env(name: str) -> int | None:
-    text = os.environ.get(name, "")
-    return int(text) if text.strip() else None
-
-
 def _parser() -> argparse.ArgumentParser:
+    read = Settings.from_env(only=("run_dir", "realtime"))
     ap = argparse.ArgumentParser(prog="python -m velma.world", description=__doc__.splitlines()[0])
-    ap.add_argument("--run-dir", type=Path, default=os.environ.get("ROCO_RUN_DIR"), help="the run folder")
+    ap.add_argument("--run-dir", type=Path, default=read.run_dir, help="the run folder")
     ap.add_argument(
         "--realtime",
         action=argparse.BooleanOptionalAction,
-        default=os.environ.get("ROCO_REALTIME", "0") == "1",
+        default=read.realtime,
         help="step on the wall clock (default: in lockstep with the controller)",
     )
     ap.add_argument("--seed", type=int, default=None, help="the jar's content jitter (ROCO_SEED, 0)")
@@ -68,12 +64,14 @@ def _parser() -> argparse.ArgumentParser:
 def main(argv: list[str] | None = None) -> int:
     """Run the world (module docstring); the exit code."""
     args = _parser().parse_args(argv)
-    try:
-        seed = args.seed if args.seed is not None else (_int_env("ROCO_SEED") or 0)
-        pose_seed = args.pose_seed if args.pose_seed is not None else _int_env("ROCO_POSE_SEED")
-    except ValueError as exc:
-        print(f"velma.world: ROCO_SEED and ROCO_POSE_SEED must be integers: {exc}", file=sys.stderr)
+    unset = [f for f, given in (("seed", args.seed), ("pose_seed", args.pose_seed)) if given is None]
+    try:  # the environment's seeds where the options give none
+        read = Settings.from_env(only=unset)
+    except ValueError as exc:  # a seed that is not an integer ≥ 0
+        print(f"velma.world: {exc}", file=sys.stderr)
         return 2
+    seed = args.seed if args.seed is not None else read.seed
+    pose_seed = args.pose_seed if args.pose_seed is not None else read.pose_seed
     run_dir: Path | None = args.run_dir
     if run_dir is None or not Path(run_dir).is_dir():
         print(f"velma.world: no run folder {run_dir or '(give --run-dir or ROCO_RUN_DIR)'}", file=sys.stderr)

@@ -7,19 +7,15 @@ it."""
 
 from __future__ import annotations
 
-import os
 from collections.abc import Mapping
 
-WORLD_ENV = "ROCO_WORLD"
-WORLD_MODES = ("loop", "process")
+from shared.settings import Settings
+
 WORLD_SERVICE = "world"
 """The world process's name among a fleet's processes (its log: ``logs/world.stderr``)."""
 
 
 def world_in_process(env: Mapping[str, str] | None = None) -> bool:
-    """False when ``ROCO_WORLD=loop`` in ``env`` (default ``os.environ``), else True. Raises
-    ValueError for a value other than ``WORLD_MODES``."""
-    value = (os.environ if env is None else env).get(WORLD_ENV, "process").strip() or "process"
-    if value not in WORLD_MODES:
-        raise ValueError(f"{WORLD_ENV} must be one of {', '.join(WORLD_MODES)}, not {value!r}")
-    return value == "process"
+    """False when ``ROCO_WORLD=loop`` in ``env`` (default ``os.environ``, read now), else True.
+    Raises ValueError for a value other than ``loop`` and ``process``."""
+    return Settings.from_env(env, only=("world",)).world == "process"

@@ -49,11 +49,9 @@ Besides the C5 conversation, ag_ex
 from __future__ import annotations
 
 import json
-import os
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Any
 
 import msgspec
@@ -65,6 +63,7 @@ from services.runtime.roles import PARTICIPANT, Conversation, handles, participa
 from shared.fipa_codec import Performative
 from shared.fipa_codec.languages.l_ex import HALTED, CommandResult, ExecutorCommand, command_name
 from shared.fipa_codec.languages.l_sd import Observation
+from shared.settings import Settings
 from velma.executor.capture import PERCEPTION_LOG
 from velma.world.mode import world_in_process
 
@@ -74,17 +73,6 @@ TIMING_FILE_PERIOD = 5.0  # s between writes of ag_ex_timing.json
 TIMING_FILE = "ag_ex_timing.json"
 WORLD_WAIT_S = 120.0
 """How long (s) ag_ex waits for the world process to name its link."""
-
-
-def _seed(name: str, text: str) -> int:
-    """A non-negative seed from an environment variable; ValueError naming it otherwise."""
-    try:
-        value = int(text)
-    except ValueError:
-        raise ValueError(f"{name}={text!r} is not an integer") from None
-    if value < 0:
-        raise ValueError(f"{name}={value} is negative")
-    return value
 
 
 @dataclass(frozen=True)
@@ -137,14 +125,12 @@ class ExecutorAgent(Agent):
         the whole simulation state only for the head camera (``camera_wanted``)."""
         from velma.executor import ExecutorProcess
 
-        pose = os.environ.get("ROCO_POSE_SEED", "")
-        seed = _seed("ROCO_SEED", os.environ.get("ROCO_SEED", "0"))
-        pose_seed = _seed("ROCO_POSE_SEED", pose) if pose else None
+        read = Settings.from_env(only=("seed", "pose_seed", "realtime"))  # ValueError: a bad seed
         world = self._world_link() if world_in_process() else None
         return ExecutorProcess(
-            realtime=os.environ.get("ROCO_REALTIME", "0") == "1",
-            seed=seed,
-            pose_seed=pose_seed,
+            realtime=read.realtime,
+            seed=read.seed,
+            pose_seed=read.pose_seed,
             world_state=self.hooks.camera_wanted() if self.hooks else False,
             perception=None,  # ROCO_PERCEPTION, else velma/executor/capture.py DEFAULT_PERCEPTION
             perception_log=self._perception_sink(),
@@ -159,11 +145,12 @@ class ExecutorAgent(Agent):
         without a run folder, or when no world names its link within ``WORLD_WAIT_S``."""
         from velma.world.main import link_name
 
-        run_dir = os.environ.get("ROCO_RUN_DIR")
-        if not run_dir:
-            raise RuntimeError("the world process names its link in ROCO_RUN_DIR, which is not set")
+        run_dir = Settings.from_env(only=("run_dir",)).run_dir
+        if run_dir is None:
+            variable = Settings.env_name("run_dir")
+            raise RuntimeError(f"the world process names its link in {variable}, which is not set")
         deadline = time.monotonic() + WORLD_WAIT_S
-        while (name := link_name(Path(run_dir))) is None:
+        while (name := link_name(run_dir)) is None:
             if time.monotonic() > deadline:
                 raise RuntimeError(f"no world named its link in {run_dir} within {WORLD_WAIT_S:.0f} s")
             time.sleep(0.05)
@@ -173,10 +160,10 @@ class ExecutorAgent(Agent):
     def _perception_sink() -> Callable[[list[dict[str, Any]]], None] | None:
         """Appends perception records as JSON lines to ``<ROCO_RUN_DIR>/ag_ex_perception.jsonl``
         (None when ROCO_RUN_DIR is unset). Called from the executor's delivery thread only."""
-        run_dir = os.environ.get("ROCO_RUN_DIR")
-        if not run_dir:
+        run_dir = Settings.from_env(only=("run_dir",)).run_dir
+        if run_dir is None:
             return None
-        path = Path(run_dir) / PERCEPTION_LOG
+        path = run_dir / PERCEPTION_LOG
 
         def write(records: list[dict[str, Any]]) -> None:
             with path.open("a", encoding="utf-8") as f:
@@ -381,15 +368,15 @@ class ExecutorAgent(Agent):
                 self.rerun.snapshot(snap)
 
     def _write_timing_file(self) -> None:
-        run_dir = os.environ.get("ROCO_RUN_DIR")
+        run_dir = Settings.from_env(only=("run_dir",)).run_dir
         timing = getattr(self.executor, "timing", None)
-        if not run_dir or timing is None:
+        if run_dir is None or timing is None:
             return
         try:
             stats = timing()
         except RuntimeError:
             return
-        path = Path(run_dir) / TIMING_FILE
+        path = run_dir / TIMING_FILE
         tmp = path.with_suffix(".tmp")
         tmp.write_text(json.dumps(msgspec.to_builtins(stats), indent=1))
         tmp.replace(path)

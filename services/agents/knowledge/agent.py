@@ -24,7 +24,6 @@ when neither is set, the knowledge is kept in memory only. :meth:`KnowledgeManag
 
 from __future__ import annotations
 
-import os
 import time
 from collections import deque
 from collections.abc import Mapping
@@ -55,13 +54,12 @@ from shared.fipa_codec.languages.l_wm import (
     Subscription,
     WorldUpdate,
 )
+from shared.settings import Settings
 
 QUERY_TYPES = (SparqlQuery, ObjectQuery, SceneQuery, GraspQuery, PlacementQuery, PourQuery, HypotheticalQuery)
 SUBSCRIBE_RETRY_S = 2.0
 HOLD_QUERIES_S = 10.0
 """Longest a restarted a_km (kept knowledge) holds queries for a_ta's first observation (s)."""
-STORE_ENV = "ROCO_KM_STORE"
-RUN_DIR_ENV = "ROCO_RUN_DIR"
 STORE_IN_RUN_DIR = "km_store"
 
 
@@ -69,12 +67,10 @@ def store_path(environ: Mapping[str, str] | None = None) -> Path | None:
     """The knowledge store's directory from the environment (default ``os.environ``):
     ``ROCO_KM_STORE``; else ``<ROCO_RUN_DIR>/km_store``; else None (in memory). Empty values
     count as unset."""
-    env = os.environ if environ is None else environ
-    if env.get(STORE_ENV):
-        return Path(env[STORE_ENV])
-    if env.get(RUN_DIR_ENV):
-        return Path(env[RUN_DIR_ENV]) / STORE_IN_RUN_DIR
-    return None
+    read = Settings.from_env(environ, only=("km_store", "run_dir"))
+    if read.km_store is not None:
+        return read.km_store
+    return read.run_dir / STORE_IN_RUN_DIR if read.run_dir is not None else None
 
 
 @dataclass(frozen=True)
