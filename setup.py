@@ -72,11 +72,12 @@ if os.environ.get("ROCO_BUILD_NATIVE", "1") != "0":
     )
 
 RUNTIME_COMPILED = (
-    "services/runtime/conversations.py",
+    "services/runtime/protocol_state.py",
+    "services/runtime/replies.py",
     "services/runtime/lookups.py",
     "services/runtime/dedup.py",
 )
-"""The agent runtime's hot path compiled by mypyc (the protocol state, the
+"""The agent runtime's hot path compiled by mypyc (the protocol state, the replies awaited, the
 specification's kept answers and the duplicate filter of every communicate sent and
 received; services/runtime/native.py). Each is compiled on its own (``separate``): its
 extension and its ``__mypyc`` library lie beside its source."""

@@ -1143,10 +1143,11 @@ def spec_new_agent(
 ) -> None:
     """Write the folder of agent NAME from the specification: its protocol roles and one
     handler per performative its peers may send, each raising NotImplementedError until
-    written, and render deploy/compose.yaml again with a service for it (docs/spec.md,
-    "Walk-through: adding an agent"). Exit 1 when the file exists or the specification has no
-    such agent."""
+    written; render services/spec/names.py again with the names of its channels (`roco spec
+    names`) and deploy/compose.yaml with a service for it (docs/spec.md, "Walk-through: adding
+    an agent"). Exit 1 when the file exists or the specification has no such agent."""
     from services.deploy.compose import ComposeError, bring_up_to_date
+    from services.spec import render_names
     from services.spec.model import SpecError, load
     from services.spec_check.new_agent import PROJECT, write_agent
 
@@ -1154,6 +1155,7 @@ def spec_new_agent(
         system = load(_spec_path(spec))
         scaffold = write_agent(system, name, root or PROJECT)
         typer.echo(f"roco: wrote {scaffold.module}")
+        typer.echo(f"roco: {render_names.bring_up_to_date(root or PROJECT, system)}")
         typer.echo(f"roco: {bring_up_to_date(root or PROJECT, system)}")
     except (SpecError, FileExistsError, ComposeError) as exc:
         raise fail(str(exc)) from None
@@ -1173,6 +1175,56 @@ def spec_verify_code(spec: SpecFile = None) -> None:
     typer.echo(text)
     if not ok:
         raise typer.Exit(1)
+
+
+@spec_app.command("names", short_help="Write services/spec/names.py from the specification, or check it.")
+def spec_names(
+    check: Annotated[
+        bool, typer.Option("--check", help="only say whether the file is what the specification gives")
+    ] = False,
+    file: Annotated[
+        Path | None,
+        typer.Option(
+            help="the names module [default: services/spec/names.py of this checkout]", show_default=False
+        ),
+    ] = None,
+    spec: SpecFile = None,
+) -> None:
+    """Write the names module the specification gives: its channels, interaction protocols and
+    content languages as string enums with an alias per name (`C5`, `FIPA_REQUEST`, `L_EX`),
+    which the agents declare their roles with (services/spec/render_names.py). With --check,
+    write nothing: exit 0 when the file is what the specification gives, 1 (one line saying
+    how it differs) when not; exit 2 for a specification or file that cannot be read."""
+    from services.spec.model import SpecError, load
+    from services.spec.render_names import NAMES_FILE, typed_names, write
+    from services.spec.render_names import check as check_file
+
+    path = file or NAMES_FILE
+    shown = _shown(path)
+    try:
+        system = load(_spec_path(spec))
+        if check:
+            problem = check_file(path, system, shown)
+            if problem is not None:
+                raise fail(problem)
+            typer.echo(f"roco: {shown} is what the specification gives")
+            return
+        changed = write(path, system)
+        typed = typed_names(system)
+    except SpecError as exc:
+        raise fail(str(exc), code=2) from None
+    counts = (
+        f"{len(typed.channels)} channels, {len(typed.protocols)} protocols, {len(typed.languages)} languages"
+    )
+    typer.echo(f"roco: wrote {shown} ({counts})" if changed else f"roco: {shown} is up to date ({counts})")
+
+
+def _shown(path: Path) -> str:
+    """``path`` relative to the working folder where it is below it."""
+    try:
+        return str(path.resolve().relative_to(Path.cwd().resolve()))
+    except ValueError:
+        return str(path)
 
 
 def _world_apart() -> bool:

@@ -25,8 +25,8 @@ import zenoh
 
 from services.runtime.agent import Agent
 from services.runtime.behaviour import FSM, Arc, Behaviour
-from services.runtime.conversations import ONTOLOGY
 from services.runtime.polling import AdaptivePoll
+from services.runtime.protocol_state import ONTOLOGY
 from services.runtime.transport import Transport, ZenohTransport, client_config
 from services.spec.model import (
     AgentSpec,
@@ -35,6 +35,7 @@ from services.spec.model import (
     SystemSpec,
     default_spec,
 )
+from services.spec.names import FIPA_REQUEST, FIPA_SUBSCRIBE
 from shared.fipa_codec import AgentIdentifier, Communicate, Performative, encode
 from shared.fipa_codec.languages import Language, encode_content, load_all
 from shared.fipa_codec.languages.base import register
@@ -106,13 +107,13 @@ def bench_spec(pairs: int) -> SystemSpec:
         agents.append(AgentSpec(ini, ini, "services.bench.synthetic:BenchInitiator", job="benchmark"))
         agents.append(AgentSpec(par, par, "services.bench.synthetic:BenchParticipant", job="benchmark"))
         request = ChannelProtocol(
-            "fipa-request",
+            FIPA_REQUEST,
             initiator=ini,
             languages={"request": BENCH_LANGUAGE, "inform": BENCH_LANGUAGE},
             contents={"request": ("BenchRequest",), "inform": ("BenchInform",)},
         )
         subscribe = ChannelProtocol(
-            "fipa-subscribe",
+            FIPA_SUBSCRIBE,
             initiator=ini,
             languages={"subscribe": BENCH_LANGUAGE, "inform": BENCH_LANGUAGE},
             contents={"subscribe": ("BenchSubscription",), "inform": ("BenchInform",)},
@@ -121,7 +122,7 @@ def bench_spec(pairs: int) -> SystemSpec:
     return SystemSpec(
         system="bench",
         agents=tuple(agents),
-        protocols={p: real[p] for p in ("fipa-request", "fipa-subscribe")},
+        protocols={p: real[p] for p in (FIPA_REQUEST, FIPA_SUBSCRIBE)},
         channels=tuple(channels),
     )
 
@@ -139,7 +140,7 @@ def request_bytes(size: int) -> int:
         language=language,
         encoding="msgpack",
         ontology=ONTOLOGY,
-        protocol="fipa-request",
+        protocol=FIPA_REQUEST,
         conversation_id=new_id("c-"),
         reply_with=new_id("b_ini0-"),
     )
@@ -176,7 +177,7 @@ class BenchInitiator(Agent):
 
     def build_fsm(self) -> FSM:
         work = Behaviour("work", self._work, terminal=lambda: False, doc="run the benchmark's commands")
-        return FSM("work", {"work": work}, [Arc("work", "work")])
+        return FSM([work], [Arc("work", "work")])
 
     def _work(self) -> None:
         while self.r:
@@ -207,7 +208,7 @@ class BenchInitiator(Agent):
                 self.peer,
                 Performative.SUBSCRIBE,
                 BenchSubscription(count=n, size=size, batched=bool(rest[0]) if rest else True),
-                protocol="fipa-subscribe",
+                protocol=FIPA_SUBSCRIBE,
                 expect_reply=True,
             )
             self.conversation = msg.conversation_id or ""
@@ -242,7 +243,7 @@ class BenchInitiator(Agent):
             self.peer,
             Performative.REQUEST,
             BenchRequest(seq=self.done, data=self.data),
-            protocol="fipa-request",
+            protocol=FIPA_REQUEST,
             expect_reply=True,
         )
         self.conversation = msg.conversation_id or ""
@@ -290,7 +291,7 @@ class BenchParticipant(Agent):
             Arc("serve", "serve"),
             Arc("stream", "serve"),
         ]
-        return FSM("serve", {"serve": serve, "stream": stream}, arcs)
+        return FSM([serve, stream], arcs)
 
     def _serve(self) -> None:
         self.r.clear()

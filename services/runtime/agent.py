@@ -29,8 +29,10 @@ A subclass declares its ``name`` (as in the specification), builds its FSM of be
 - its ``counters`` on request: a put on ``roco/counters/ask`` makes every agent publish them
   on ``roco/counters/report/<agent>`` (JSON; ``roco status`` shows them),
 - the protocol state of every conversation (:class:`ProtocolStates`, one tracker per peer
-  and conversation-id, tolerant of communicates that cross on the wire),
-- reply-by deadlines ending in a local ``failure``,
+  and conversation-id, tolerant of communicates that cross on the wire;
+  services/runtime/protocol_state.py),
+- reply-by deadlines ending in a local ``failure`` (:attr:`Agent.pending_replies`, the replies
+  the agent awaits; services/runtime/replies.py),
 - at-least-once delivery where an agent asks for it (``send(..., retry_s=…)``: retransmitted
   until answered, at once when the peer's liveliness token reappears) and at-most-once
   handling: byte-identical copies are dropped and the answers already sent are published
@@ -65,18 +67,13 @@ import msgspec
 
 from services.runtime import keys
 from services.runtime.behaviour import FSM
-from services.runtime.conversations import (
-    ConversationError,
-    Conversations,
-    Pending,
-    ProtocolStates,
-    expected_ontology,
-)
 from services.runtime.dedup import Dedup
 from services.runtime.heap import give_back_freed_heap
 from services.runtime.hooks import Hooks, load_hooks
 from services.runtime.limits import MAX_OPEN_CONVERSATIONS_PER_PEER
 from services.runtime.lookups import Lookups
+from services.runtime.protocol_state import ConversationError, ProtocolStates, expected_ontology
+from services.runtime.replies import Pending, PendingReplies
 from services.runtime.roles import RoleDecl, Roles
 from services.runtime.transport import Transport
 from services.spec.model import Interface, SpecError, SystemSpec, default_spec, interface
@@ -194,7 +191,8 @@ class Agent:
         self.i = 0
         self.state = ""
         self.counters: Counter[str] = Counter()
-        self.conversations = Conversations()
+        self.pending_replies = PendingReplies()
+        """The replies this agent awaits (reply-by deadlines, retransmissions)."""
         self.protocol_states = ProtocolStates()
         self.dedup = Dedup()
         self.peers: set[str] = set()
@@ -316,7 +314,7 @@ class Agent:
         self._follow_send(to, msg)
         key, payload = self.lookups.key(channel.name, to), encode(msg)
         if awaits and reply_with is not None:
-            self.conversations.expect(
+            self.pending_replies.expect(
                 Pending(
                     reply_with,
                     to,
@@ -662,7 +660,7 @@ class Agent:
         """Acquire new inputs into x and r, blocking up to ``timeout`` (s) for the first: the
         elementary actions are suspended (yield the time to wait) until an input arrives or the
         time passes, then :meth:`_acquire`."""
-        deadline = self.conversations.next_deadline()
+        deadline = self.pending_replies.next_deadline()
         if deadline is not None:
             timeout = max(0.0, min(timeout, deadline - time.time()))
         if timeout > 0 and not self._inbox:
@@ -687,7 +685,7 @@ class Agent:
         self.protocol_states.commit()  # what arrived stays arrived; only sends are undone
         self._y_taken = len(self._y)  # so do the answers to it (not-understood, copies again)
         now = time.time()
-        for p in self.conversations.due(now):
+        for p in self.pending_replies.due(now):
             self.counters["retransmitted"] += 1
             self.log.info(
                 "retransmitting %s to %s (conversation %s, #%d)",
@@ -697,7 +695,7 @@ class Agent:
                 p.retransmissions,
             )
             self._y.append((p.key, p.payload))
-        for p in self.conversations.expired(now):
+        for p in self.pending_replies.expired(now):
             self.counters["deadline_failures"] += 1
             synthetic = Communicate(
                 performative=Performative.FAILURE,
@@ -854,8 +852,8 @@ class Agent:
             )
             self.not_understood(sender, channel, why, msg, "protocol_state")
             return
-        if msg.in_reply_to is not None and self.conversations.knows(msg.in_reply_to):
-            self.conversations.answered(msg.in_reply_to, msg.performative)
+        if msg.in_reply_to is not None and self.pending_replies.knows(msg.in_reply_to):
+            self.pending_replies.answered(msg.in_reply_to, msg.performative)
         self.x.append(Received(msg, content, channel))
 
     def _refuse_new_conversation(
@@ -900,7 +898,7 @@ class Agent:
             return
         if alive:
             self.peers.add(peer)
-            n = self.conversations.retry_now(peer, time.time())
+            n = self.pending_replies.retry_now(peer, time.time())
             if n:
                 self.log.info("%s appeared: %d unanswered communicate(s) to it sent again", peer, n)
         else:

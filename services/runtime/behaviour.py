@@ -17,8 +17,8 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Callable
-from dataclasses import dataclass, field
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
 
 Predicate = Callable[[], bool]
 
@@ -139,21 +139,43 @@ class FsmError(RuntimeError):
     """An FSM that is malformed or has no arc to take when a behaviour ends."""
 
 
-@dataclass
 class FSM:
-    """^cF_j: states (one behaviour each), arcs, the initial state."""
+    """^cF_j: states (one behaviour each), arcs, the initial state (paper §3.2, Figure 2).
+
+    ``states`` are the behaviours, each under its own name (:attr:`Behaviour.name`, written
+    once: ``FSM([Behaviour("idle", …), Behaviour("busy", …)], arcs)``); ``initial`` names the
+    state the agent starts in, by default the first behaviour's. Raises FsmError for no
+    behaviour, two behaviours of one name, an ``initial`` that names none, or an arc whose
+    end names none."""
 
     initial: str
-    states: dict[str, Behaviour] = field(default_factory=dict)
-    arcs: list[Arc] = field(default_factory=list)
+    states: dict[str, Behaviour]
+    """The behaviours by name, in the order given."""
+    arcs: list[Arc]
 
-    def __post_init__(self) -> None:
+    def __init__(
+        self, states: Sequence[Behaviour], arcs: Sequence[Arc] = (), initial: str | None = None
+    ) -> None:
+        if isinstance(states, Mapping):
+            raise FsmError("states are a sequence of behaviours, each under its own name, not a mapping")
+        if not states:
+            raise FsmError("an FSM needs at least one behaviour")
+        self.states = {}
+        for b in states:
+            if b.name in self.states:
+                raise FsmError(f"two behaviours are named {b.name!r}")
+            self.states[b.name] = b
+        self.initial = states[0].name if initial is None else initial
+        self.arcs = list(arcs)
         if self.initial not in self.states:
             raise FsmError(f"initial state {self.initial!r} has no behaviour")
         for arc in self.arcs:
             for end in (arc.source, arc.target):
                 if end not in self.states:
                     raise FsmError(f"arc {arc.source}->{arc.target}: unknown state {end!r}")
+
+    def __repr__(self) -> str:
+        return f"FSM(initial={self.initial!r}, states={list(self.states)!r}, arcs={len(self.arcs)})"
 
     def next_state(self, current: str) -> str:
         """The target of the first arc out of ``current`` whose initial condition holds.

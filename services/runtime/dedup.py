@@ -1,7 +1,7 @@
 """Duplicate suppression: no communicate is acted on twice.
 
 A communicate can arrive more than once: its sender retransmits it until answered
-(:class:`services.runtime.conversations.Conversations`, ``retry_s``), or the network
+(:class:`services.runtime.replies.PendingReplies`, ``retry_s``), or the network
 duplicates it (``roco fault msg --duplicate``). Retransmissions are byte-identical, so an
 agent recognises a copy by a digest of its bytes. A copy is dropped before it reaches the
 agent's input buffer; when the agent has already answered the original, its answers are

@@ -1,8 +1,9 @@
 """The agent runtime's modules compiled by mypyc, and their sources when the compiled ones are
 stale.
 
-setup.py compiles ``COMPILED`` (the protocol state of every conversation, the specification's
-kept answers, the duplicate filter: the Python run for every communicate sent and received)
+setup.py compiles ``COMPILED`` (the protocol state of every conversation, the replies awaited,
+the specification's kept answers, the duplicate filter: the Python run for every communicate
+sent and received)
 into extension modules beside their sources; Python imports an extension before a source of the
 same name. An editable install keeps the extensions while their sources are edited: a module
 whose source changed since it was compiled would run old code. ``use_fresh_sources``, called by
@@ -36,7 +37,7 @@ except ImportError:  # pragma: no cover - 3.12 renamed it; another interpreter: 
     except ImportError:
         from hashlib import sha256
 
-COMPILED = ("conversations", "lookups", "dedup")
+COMPILED = ("protocol_state", "replies", "lookups", "dedup")
 """Modules of services/runtime that setup.py compiles (its ``RUNTIME_COMPILED``)."""
 MANIFEST = "_compiled.json"
 """Beside the modules: {module name: SHA-256 of the source compiled} (setup.py writes it)."""

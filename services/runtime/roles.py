@@ -2,15 +2,17 @@
 FIPA SC00025 interaction protocol library; docs/spec.md, "Protocol roles").
 
 An agent declares the roles it plays, one :class:`RoleDecl` per (channel, interaction
-protocol): initiator or participant, and the content languages it speaks there. A role declared
-on :data:`EVERY_CHANNEL` stands for one such role on every channel where the specification gives
-the agent that role of that protocol in exactly those languages (:func:`expand_roles`): an agent
-that answers the same queries wherever they come from serves a channel added to the
-specification later without an edit of its code. It writes one
-*handler* per performative the other role may send (:func:`handles`), and nothing else of the
-protocol. The runtime's :class:`Roles` — the same code for every protocol, driven by the
-protocol's state machine in the specification (``[protocols.NAME]``, or the built-in FIPA
-machine of :mod:`shared.fipa_codec.protocols`) — owns what the protocol implies:
+protocol): initiator or participant, and the content languages it speaks there, each named as
+services/spec/names.py names it (``participant(C5, FIPA_REQUEST, L_EX, L_SD)``; generated from
+the specification, services/spec/render_names.py). A role declared on :data:`EVERY_CHANNEL`
+stands for one such role on every channel where the specification gives the agent that role of
+that protocol in exactly those languages (:func:`expand_roles`): an agent that answers the same
+queries wherever they come from serves a channel added to the specification later without an
+edit of its code. It writes one *handler* per performative the other role may send
+(:func:`handles`: ``@handles(FIPA_REQUEST, PARTICIPANT, Performative.REQUEST)``), and nothing
+else of the protocol. The runtime's :class:`Roles` — the same code for every protocol, driven
+by the protocol's state machine in the specification (``[protocols.NAME]``, or the built-in
+FIPA machine of :mod:`shared.fipa_codec.protocols`) — owns what the protocol implies:
 
 - routing each received communicate to its conversation and its handler (no agent compares
   performatives: the role does, from the machine's transitions);
@@ -65,6 +67,7 @@ from services.runtime import keys
 from services.runtime.code_scan import findings_text, scan
 from services.spec.model import ChannelSpec, SpecError, SystemSpec
 from services.spec.protocol_defs import machine_of, streams
+from services.spec.render_names import spellings
 from shared.fipa_codec import DecodeError, decode, encode
 from shared.fipa_codec.acts import Performative
 from shared.fipa_codec.languages import ContentError, decode_content
@@ -160,16 +163,36 @@ def initiator(
     unused: bool = False,
 ) -> RoleDecl:
     """The initiator role of ``protocol`` on ``channel`` (or :data:`EVERY_CHANNEL`), in
-    ``languages``; ``unused``: the agent opens no conversation in it (see
-    :attr:`RoleDecl.unused`)."""
-    return RoleDecl(channel, protocol, INITIATOR, tuple(languages), reply_by_s, retry_s, unused)
+    ``languages``: ``initiator(C3, FIPA_REQUEST, L_HFSM)``, each a name of
+    services/spec/names.py (a plain string for a specification without one). ``unused``: the
+    agent opens no conversation in it (see :attr:`RoleDecl.unused`). The role keeps the
+    names' spellings as plain ``str`` (:func:`_spelling`)."""
+    return RoleDecl(
+        _spelling(channel),
+        _spelling(protocol),
+        INITIATOR,
+        tuple(_spelling(lang) for lang in languages),
+        reply_by_s,
+        retry_s,
+        unused,
+    )
 
 
 def participant(channel: str, protocol: str, *languages: str) -> RoleDecl:
     """The participant role of ``protocol`` on ``channel`` (or :data:`EVERY_CHANNEL`: every
     channel where the specification makes the agent its participant in exactly ``languages``),
-    in ``languages``."""
-    return RoleDecl(channel, protocol, PARTICIPANT, tuple(languages))
+    in ``languages``: ``participant(C5, FIPA_REQUEST, L_EX, L_SD)``, named as by
+    :func:`initiator`."""
+    return RoleDecl(
+        _spelling(channel), _spelling(protocol), PARTICIPANT, tuple(_spelling(lang) for lang in languages)
+    )
+
+
+def _spelling(name: str) -> str:
+    """``name`` as a plain ``str``: a member of services/spec/names.py is a ``str`` subclass
+    equal to the specification's spelling; a role keeps the spelling itself, so that what the
+    roles put in communicates, keys and logs is that spelling whichever way the agent named it."""
+    return str.__str__(name)
 
 
 @dataclass(frozen=True)
@@ -195,15 +218,20 @@ T = TypeVar("T")
 _MARK = "__roco_handles__"
 
 
-def handles(protocol: str, role: Role, *performatives: str, channel: str | None = None) -> Callable[[F], F]:
+def handles(
+    protocol: str, role: Role, *performatives: Performative, channel: str | None = None
+) -> Callable[[F], F]:
     """Mark an agent method ``method(self, conversation)`` as the handler of ``performatives``
     received in ``protocol`` while the agent plays ``role`` (on ``channel``, or on every
-    channel where it plays that role). Raises ValueError for a name that is not a FIPA
-    performative (FIPA SC00037)."""
+    channel where it plays that role): ``@handles(FIPA_REQUEST, PARTICIPANT,
+    Performative.REQUEST)``, the protocol and channel named as services/spec/names.py names
+    them. Raises ValueError for something that is not a FIPA performative (FIPA SC00037), such
+    as a misspelt string that slipped past the types."""
     keys = []
+    where = _spelling(channel) if channel is not None else None
     for name in performatives:
         try:
-            keys.append(HandlerKey(protocol, role, Performative(name), channel))
+            keys.append(HandlerKey(_spelling(protocol), role, Performative(name), where))
         except ValueError:
             raise ValueError(f"{name!r} is not a FIPA performative (FIPA SC00037)") from None
 
@@ -213,9 +241,12 @@ def handles(protocol: str, role: Role, *performatives: str, channel: str | None 
 def on_deadline(protocol: str, role: Role, *, channel: str | None = None) -> Callable[[F], F]:
     """Mark an agent method ``method(self, conversation)`` as the handler of a reply-by
     deadline that passed in a conversation of ``protocol`` where the agent plays ``role``
-    (:attr:`Conversation.last` is then the runtime's local ``failure``). Without one, an
-    initiator's ``failure`` handler gets it; a participant's passed deadline is logged."""
-    return _marker([HandlerKey(protocol, role, None, channel)])
+    (:attr:`Conversation.last` is then the runtime's local ``failure``): ``@on_deadline(
+    COORDINATE, PARTICIPANT)``. Without one, an initiator's ``failure`` handler gets it; a
+    participant's passed deadline is logged."""
+    return _marker(
+        [HandlerKey(_spelling(protocol), role, None, _spelling(channel) if channel is not None else None)]
+    )
 
 
 def _marker(keys: Sequence[HandlerKey]) -> Callable[[F], F]:
@@ -424,14 +455,15 @@ def code_problems(
 ) -> list[str]:
     """What in ``files`` (an agent's code) sends outside its declared roles, compares a
     performative, names a performative none of its roles may send, or opens a conversation
-    where it is not the initiator (services/runtime/code_scan.py), one line each."""
+    where it is not the initiator (services/runtime/code_scan.py, reading the names of
+    services/spec/names.py by ``spec``'s spellings), one line each."""
     declared = expand_roles(spec, agent, declared)
     may_send: set[Performative] = set()
     for decl in declared:
         if decl.protocol in spec.protocols:
             may_send |= outgoing(machine_of(spec, decl.protocol), decl.role)
     opens = frozenset((d.channel, d.protocol) for d in declared if d.role == INITIATOR and not d.unused)
-    return findings_text(scan(files, frozenset(may_send), opens), agent)
+    return findings_text(scan(files, frozenset(may_send), opens, spellings(spec)), agent)
 
 
 def agent_problems(spec: SystemSpec, agent: str, cls: type, files: Iterable[Path] | None = None) -> list[str]:
@@ -470,12 +502,14 @@ def _handler_for(
 
 
 # ---------------------------------------------------------------------------------------------
-# Conversations and the roles at run time
+# The conversations and the roles at run time
 
 
 @dataclass(eq=False)
 class Conversation:
-    """One conversation a role of this agent takes part in.
+    """One conversation a role of this agent takes part in (what roco calls a conversation;
+    its protocol state is followed by services/runtime/protocol_state.py, the replies awaited
+    in it are kept by services/runtime/replies.py).
 
     ``decl`` is the role, ``peer`` the other agent, ``conversation_id`` the FIPA
     conversation-id; ``last`` the latest communicate received in it (None before the first;
@@ -651,7 +685,7 @@ class Conversation:
     def stop_waiting(self) -> None:
         """Stop waiting for replies in this conversation: no reply-by deadline, no
         retransmission. The conversation stays open: what the peer sends still arrives."""
-        self.roles.agent.conversations.forget_conversation(self.conversation_id)
+        self.roles.agent.pending_replies.forget_conversation(self.conversation_id)
 
     def abandon(self) -> None:
         """:meth:`stop_waiting`, and forget the conversation: what the peer still sends in
@@ -751,14 +785,14 @@ class Roles:
             retry_s if retry_s is not None else decl.retry_s,
             expect=True,
         )
-        conv.opening = Received(msg, content, channel)
+        conv.opening = Received(msg, content, decl.channel)
         if msg.reply_with is not None:
             conv.awaited.add(msg.reply_with)
         before = self._open.get((conv.peer, conv.conversation_id)) if conversation_id else None
         if before is not None and before.decl == decl and streams(machine):
             # a stream opened anew (e.g. a_km subscribing again when a_ta's token reappears):
             # what the peer sent in it before it saw the new opening still arrives, and is news
-            # (services/runtime/conversations.py: it crosses the opening), not a late reply
+            # (services/runtime/protocol_state.py: it crosses the opening), not a late reply
             conv.awaited |= before.awaited
         self._keep(conv)
         return conv
@@ -803,7 +837,7 @@ class Roles:
             if expect is not None and not isinstance(content, expect):
                 what = type(content).__name__ if content is not None else "no content"
                 raise RestoreError(f"a kept {protocol} conversation carries {what}, not {expect.__name__}")
-            opening = Received(msg, content, channel)
+            opening = Received(msg, content, decl.channel)
             conversation_id = msg.conversation_id
         if not conversation_id:
             raise RestoreError("restore needs the kept communicate or the conversation-id")
@@ -840,13 +874,13 @@ class Roles:
         retry_s: float | None,
         payload: bytes = b"",
     ) -> None:
-        """Wait for the reply to ``reply_with`` (services/runtime/conversations.py): until
+        """Wait for the reply to ``reply_with`` (services/runtime/replies.py): until
         ``reply_by_s`` from now, retransmitting ``payload`` at once and every ``retry_s``."""
-        from services.runtime.conversations import Pending
+        from services.runtime.replies import Pending
 
         now = time.time()
         again = retry_s is not None and bool(payload)
-        self.agent.conversations.expect(
+        self.agent.pending_replies.expect(
             Pending(
                 reply_with,
                 conv.peer,

@@ -21,7 +21,7 @@ protocol's state machine (FIPA SC00026 fipa-request, SC00027 fipa-query, SC00035
 fipa-subscribe, the paper's coordinate protocol), message by message in causal order
 (arrival order, with an answer that arrived before what it answers moved after it:
 :mod:`services.spec_check.causal`), as
-:class:`~services.runtime.conversations.CrossingTracker` follows it: communicates of the two
+:class:`~services.runtime.protocol_state.CrossingTracker` follows it: communicates of the two
 agents that crossed on the wire are tolerated, as are the cancel meta-protocol's late
 cancels; an opening communicate that reuses a conversation-id begins it anew; a
 ``not-understood`` ends it (the rest of it is not followed). A subscribe (fipa-subscribe, SC00035
@@ -44,7 +44,7 @@ from pathlib import Path
 from services.recorder.integrity import Integrity
 from services.report.load import Message, load_run
 from services.runtime import keys
-from services.runtime.conversations import (
+from services.runtime.protocol_state import (
     ConversationError,
     CrossingTracker,
     expected_ontology,
@@ -128,7 +128,7 @@ class Violation:
 class ConversationResult:
     """One conversation as followed: its ``conversation_id``, the two ``agents`` (initiator
     first when known), ``protocol``, number of ``messages``, final ``state`` (the first
-    reading's; see :class:`~services.runtime.conversations.CrossingTracker`), whether it
+    reading's; see :class:`~services.runtime.protocol_state.CrossingTracker`), whether it
     ``ended`` (some reading reached a final state), ``violations`` in it, ``crossings``
     tolerated, ``restarts`` (an opening communicate reused its id), ``not_understood`` True
     when a not-understood ended it, ``answered`` False when the participant sent nothing after

@@ -8,9 +8,12 @@ folder (the project by default). The module holds
 
 - the agent class with its ``ROLES``: one per (channel, protocol) the specification gives it,
   initiator or participant, with the channel's content languages
-  (:func:`services.runtime.roles.spec_roles`);
+  (:func:`services.runtime.roles.spec_roles`), each named by services/spec/names.py
+  (``initiator(C9, FIPA_QUERY, L_WM)``; ``roco spec new-agent`` renders that module again
+  first, services/spec/render_names.py);
 - one handler per performative the other role may send by the protocol's state machine
-  (what :func:`services.runtime.roles.role_problems` requires), each raising
+  (what :func:`services.runtime.roles.role_problems` requires; ``@handles(FIPA_QUERY,
+  INITIATOR, Performative.INFORM_REF)``), each raising
   NotImplementedError with a line saying what to decide, until written; ``roco spec
   verify-code`` lists the handlers not yet written. Above each, comments name what the
   received communicate carries and every way the role may answer in the state it leads to, as
@@ -26,13 +29,16 @@ It refuses to overwrite an existing file (FileExistsError).
 
 from __future__ import annotations
 
+import re
 import textwrap
+from collections.abc import Iterable
 from dataclasses import dataclass
 from pathlib import Path
 
 from services.runtime.roles import RoleDecl, incoming, optional, spec_roles
 from services.spec.model import ChannelProtocol, SpecError, SystemSpec
 from services.spec.protocol_defs import machine_of
+from services.spec.render_names import python_name
 from shared.fipa_codec.acts import Performative
 from shared.fipa_codec.languages import load_all
 from shared.fipa_codec.protocols import INITIATOR, PARTICIPANT, Protocol, Role
@@ -103,6 +109,31 @@ def _channel_protocol(spec: SystemSpec, channel: str, protocol: str) -> ChannelP
                 if cp.protocol == protocol:
                     return cp
     raise SpecError(f"channel {channel} carries no {protocol}")
+
+
+def _channel(decl: RoleDecl) -> str:
+    """The name of ``decl``'s channel in services/spec/names.py (``C9``)."""
+    return python_name("channel", decl.channel)
+
+
+def _protocol(decl: RoleDecl) -> str:
+    """The name of ``decl``'s protocol in services/spec/names.py (``FIPA_QUERY``)."""
+    return python_name("protocol", decl.protocol)
+
+
+def _languages(decl: RoleDecl) -> list[str]:
+    """The names of ``decl``'s languages in services/spec/names.py (``L_WM``)."""
+    return [python_name("language", lang) for lang in decl.languages]
+
+
+def _import(module: str, names: Iterable[str]) -> str:
+    """``from module import names`` as ruff's isort writes it: the names in natural order (``C2``
+    before ``C10``), on one line when it fits in 110 characters, else one name a line."""
+    ordered = sorted(names, key=lambda n: [int(t) if t.isdigit() else t for t in re.split(r"(\d+)", n)])
+    line = f"from {module} import {', '.join(ordered)}"
+    if len(line) <= 110:
+        return line
+    return f"from {module} import (\n" + "".join(f"    {n},\n" for n in ordered) + ")"
 
 
 def _literal(text: str) -> str:
@@ -246,7 +277,7 @@ def _opening(spec: SystemSpec, decl: RoleDecl, peer: str, modules: dict[str, str
     shown = next((p for p in openers if cp.content_types(p.value)), openers[0])
     terms = cp.content_types(shown.value)
     content = f"{terms[0]}(…)" if len(terms) == 1 else "content"
-    call = f'self.roles.open("{decl.channel}", "{decl.protocol}", {content}'
+    call = f"self.roles.open({_channel(decl)}, {_protocol(decl)}, {content}"
     if len(openers) > 1:
         call += f", performative=Performative.{_constant(shown.value)}"
     return _comment(text, "        ") + f"        # {call})\n"
@@ -261,9 +292,11 @@ def agent_source(spec: SystemSpec, agent: str, class_name: str, where: str) -> t
         raise SpecError(f"agent {agent} ends no channel in the specification: it would have nothing to do")
     modules = _term_modules()
     declared = []
+    named: set[str] = set()
     for decl in roles:
-        langs = ", ".join(f'"{lang}"' for lang in decl.languages)
-        declared.append(f'        {decl.role}("{decl.channel}", "{decl.protocol}", {langs}),')
+        names = [_channel(decl), _protocol(decl), *_languages(decl)]
+        named |= set(names)
+        declared.append(f"        {decl.role}({', '.join(names)}),")
     handlers = _handlers(spec, roles)
     blocks: list[str] = []
     for h in handlers:
@@ -271,9 +304,9 @@ def agent_source(spec: SystemSpec, agent: str, class_name: str, where: str) -> t
         peer = _peer(spec, agent, decl.channel)
         what = f"{agent}: {perf.value} from {peer} on {decl.channel} ({decl.protocol}) is not handled yet: "
         todo = _literal(what) + "\n            " + _literal(f"write {class_name}.{h.name} in {where}")
-        channel = f', channel="{decl.channel}"' if h.on_channel else ""
+        channel = f", channel={_channel(decl)}" if h.on_channel else ""
         blocks.append(
-            f'    @handles("{decl.protocol}", {_constant(decl.role)}, "{perf.value}"{channel})\n'
+            f"    @handles({_protocol(decl)}, {_constant(decl.role)}, Performative.{perf.name}{channel})\n"
             f"    def {h.name}(self, conv: Conversation) -> None:\n"
             f'        """{peer} sent {perf.value} ({decl.protocol} on {decl.channel}, this agent the '
             f'{decl.role})."""\n'
@@ -285,13 +318,14 @@ def agent_source(spec: SystemSpec, agent: str, class_name: str, where: str) -> t
     makers = sorted({d.role for d in roles})
     imports = ", ".join([*role_names, "Conversation", "handles", *makers])
     job = entry.job or f"the agent that substitutes group {entry.group}"
+    unused = "" if handlers else "  # noqa: F401  (the performatives handlers answer with)"
     if opens:
         behaviour_import = "FSM, periodic"
         period = f"""
 OPEN_EVERY_S = {OPEN_EVERY_S!r}
 \"\"\"How often (s) {TIMER_METHOD} runs: the period of this agent's periodic behaviour.\"\"\"
 """
-        serve = f"""                "serve": periodic(
+        serve = f"""                periodic(
                     "serve",
                     OPEN_EVERY_S,
                     self.{TIMER_METHOD},
@@ -308,7 +342,7 @@ OPEN_EVERY_S = {OPEN_EVERY_S!r}
     else:
         behaviour_import = "FSM, Behaviour"
         period = ""
-        serve = """                "serve": Behaviour(
+        serve = """                Behaviour(
                     "serve", self.handle_received, terminal=lambda: False, doc="answer what arrives"
                 )"""
         timer = ""
@@ -326,7 +360,8 @@ from __future__ import annotations
 from services.runtime.agent import Agent
 from services.runtime.behaviour import {behaviour_import}
 from services.runtime.roles import {imports}
-from shared.fipa_codec import Performative  # noqa: F401  (the performatives handlers answer with)
+{_import("services.spec.names", named)}
+from shared.fipa_codec import Performative{unused}
 {period}
 
 class {class_name}(Agent):
@@ -337,10 +372,9 @@ class {class_name}(Agent):
 
     def build_fsm(self) -> FSM:
         return FSM(
-            initial="serve",
-            states={{
+            [
 {serve}
-            }},
+            ]
         )
 
 {timer}{chr(10).join(blocks)}'''

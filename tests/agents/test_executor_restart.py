@@ -21,7 +21,7 @@ import zenoh
 
 from services.fleet.launcher import Fleet, free_port
 from services.runtime import keys
-from services.runtime.conversations import expected_ontology
+from services.runtime.protocol_state import expected_ontology
 from services.runtime.session import open_client
 from shared.fipa_codec import AgentIdentifier, Communicate, Performative, decode, encode
 from shared.fipa_codec.languages import decode_content, encode_content

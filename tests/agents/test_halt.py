@@ -19,9 +19,9 @@ import pytest
 
 from services.agents.executor.agent import ExecutorAgent
 from services.runtime import keys
-from services.runtime.conversations import CrossingTracker
 from services.runtime.human import FINAL_REPORTS, HumanInput, HumanReport, ReportKind
 from services.runtime.memory_transport import MemoryBus
+from services.runtime.protocol_state import CrossingTracker
 from shared.fipa_codec import Communicate, Performative, decode, encode
 from shared.fipa_codec.languages import decode_content
 from shared.fipa_codec.languages.l_ex import (
@@ -120,7 +120,7 @@ def _ag_ex(executor: Running) -> tuple[MemoryBus, ExecutorAgent, threading.Threa
 
 def _follows_fipa_request(*msgs: Communicate) -> None:
     """As ``roco spec verify`` follows it (services/spec_check/conformance.py): a failed
-    cancel leaves the request going on (services/runtime/conversations.py
+    cancel leaves the request going on (services/runtime/protocol_state.py
     ``CrossingTracker``), and the conversation has ended."""
     tracker = CrossingTracker("fipa-request")
     for msg in msgs:

@@ -29,7 +29,7 @@ import msgspec
 from hypothesis import strategies as st
 
 from services.runtime import keys
-from services.runtime.conversations import CrossingTracker, expected_ontology
+from services.runtime.protocol_state import CrossingTracker, expected_ontology
 from services.spec.model import MessageKind, default_spec, interface
 from shared.fipa_codec import AgentIdentifier, Communicate, Performative, encode
 from shared.fipa_codec.encoding import MAX_COMMUNICATE_BYTES

@@ -30,11 +30,10 @@ class Counter(Agent):
         self.count = 0
         self.trace: list[str] = []
         return FSM(
-            initial="count",
-            states={
-                "count": Behaviour("count", self._count, terminal=lambda: self.count >= 5, waits=False),
-                "answer": Behaviour("answer", self._answer, terminal=lambda: False),
-            },
+            [
+                Behaviour("count", self._count, terminal=lambda: self.count >= 5, waits=False),
+                Behaviour("answer", self._answer, terminal=lambda: False),
+            ],
             arcs=[Arc("count", "answer", lambda: self.count >= 5)],
         )
 
@@ -154,7 +153,7 @@ class Asker(Agent):
 
     def build_fsm(self) -> FSM:
         self.got: queue.SimpleQueue[Received] = queue.SimpleQueue()
-        return FSM(initial="ask", states={"ask": Behaviour("ask", self._step, terminal=lambda: False)})
+        return FSM([Behaviour("ask", self._step, terminal=lambda: False)])
 
     def setup(self) -> None:
         self.send("a_km", Performative.QUERY_REF, ObjectQuery("jar"), protocol="fipa-query", reply_by_s=0.2)
@@ -175,7 +174,7 @@ def test_reply_by_deadline_ends_the_conversation_with_a_local_failure() -> None:
         assert item.local and item.performative is Performative.FAILURE
         assert item.msg.content == b"reply-by deadline passed"
         assert agent.counters["deadline_failures"] == 1
-        assert len(agent.conversations) == 0
+        assert len(agent.pending_replies) == 0
     finally:
         agent.stop()
         t.join(timeout=5)
@@ -231,7 +230,7 @@ class Faulty(Agent):
 
     def build_fsm(self) -> FSM:
         self.raised = False
-        return FSM(initial="serve", states={"serve": Behaviour("serve", self._serve, terminal=lambda: False)})
+        return FSM([Behaviour("serve", self._serve, terminal=lambda: False)])
 
     def _serve(self) -> None:
         while self.x:

@@ -86,7 +86,7 @@ class Answering(Agent):
         self.handled_on: list[str] = []
         self.fail_persist = False
         self.started = threading.Event()
-        return FSM("answer", {"answer": Behaviour("answer", self._answer, terminal=lambda: False)}, [])
+        return FSM([Behaviour("answer", self._answer, terminal=lambda: False)])
 
     def _answer(self) -> None:
         while self.x:

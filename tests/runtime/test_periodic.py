@@ -73,7 +73,7 @@ class Ticker(Agent):
         super().__init__(MemoryBus().transport(), SPEC)
 
     def build_fsm(self) -> FSM:
-        return FSM(initial="tick", states={"tick": periodic("tick", 0.03, self._act, clock=self.clock)})
+        return FSM([periodic("tick", 0.03, self._act, clock=self.clock)])
 
     def _act(self) -> None:
         self.acted += 1

@@ -11,11 +11,11 @@ from typing import Any
 import msgspec
 import pytest
 
-from services.runtime import conversations, keys
+from services.runtime import keys, protocol_state
 from services.runtime.agent import Agent, SpecViolation
 from services.runtime.behaviour import FSM, Behaviour
-from services.runtime.conversations import CrossingTracker, ProtocolStates, follow
 from services.runtime.memory_transport import MemoryBus
+from services.runtime.protocol_state import CrossingTracker, ProtocolStates, follow
 from shared.fipa_codec import Communicate, Performative, decode, encode
 from shared.fipa_codec.languages.l_hc import CommandOutcome, HumanCommand, TaskAtom
 from shared.fipa_codec.languages.l_sw import SWState, SWStatus
@@ -48,12 +48,12 @@ def test_in_order_it_is_the_protocols_state_machine() -> None:
 
 @pytest.mark.parametrize("first", ["coordinate", "fipa-request"])
 def test_a_protocol_is_followed_alike_whatever_another_followed_first(first: str) -> None:
-    """Trackers share what they computed (services/runtime/conversations.py ``_STEPS``), yet
+    """Trackers share what they computed (services/runtime/protocol_state.py ``_STEPS``), yet
     the same communicates read differently under two protocols: the participant's inform
     ends a fipa-request and reports a state in a coordinate conversation, in either order."""
-    conversations._STEPS.clear()  # what this process followed before must not decide it
-    conversations._READINGS.clear()
-    conversations._INITIAL.clear()
+    protocol_state._STEPS.clear()  # what this process followed before must not decide it
+    protocol_state._READINGS.clear()
+    protocol_state._INITIAL.clear()
     ended = {"fipa-request": True, "coordinate": False}
     for protocol in (first, *(p for p in ended if p != first)):
         tracker = steps(protocol, (INIT, P.REQUEST), (PART, P.INFORM))
@@ -223,7 +223,7 @@ class Idle(Agent):
     """An agent whose behaviour does nothing: the test drives acquisition and sending."""
 
     def build_fsm(self) -> FSM:
-        return FSM(initial="idle", states={"idle": Behaviour("idle", lambda: None, terminal=lambda: False)})
+        return FSM([Behaviour("idle", lambda: None, terminal=lambda: False)])
 
 
 class Km(Idle):
@@ -401,7 +401,7 @@ class Replier(Km):
 
     def build_fsm(self) -> FSM:
         self.raised = False
-        return FSM(initial="serve", states={"serve": Behaviour("serve", self._serve, terminal=lambda: False)})
+        return FSM([Behaviour("serve", self._serve, terminal=lambda: False)])
 
     def _serve(self) -> None:
         for item in list(self.x):

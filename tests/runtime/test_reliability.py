@@ -18,10 +18,10 @@ from services.agents.knowledge.agent import KnowledgeManager
 from services.agents.task_executor.agent import KeptTaskExecutor, TaskExecutor
 from services.runtime import keys
 from services.runtime.agent import RESEND_ON_RETURN, Agent
-from services.runtime.conversations import Conversations, Pending
 from services.runtime.dedup import ANSWERS_PER_REQUEST, Dedup
 from services.runtime.human import HumanReport, ReportKind
 from services.runtime.memory_transport import MemoryBus, MemoryTransport
+from services.runtime.replies import Pending, PendingReplies
 from services.runtime.state_store import ENV_STATE_DIR, StateFile
 from services.spec.model import channel_between
 from shared.fipa_codec import Communicate, Performative, decode, encode
@@ -95,7 +95,7 @@ class Wire(Generic[A]):
 
 
 def test_a_pending_entry_is_retransmitted_on_schedule_until_answered() -> None:
-    c = Conversations()
+    c = PendingReplies()
     c.expect(
         Pending(
             "r1", "a_pl", "fipa-request", "c1", 100.0, retry_s=5.0, key="k", payload=b"x", next_retry=10.0
@@ -111,7 +111,7 @@ def test_a_pending_entry_is_retransmitted_on_schedule_until_answered() -> None:
 
 
 def test_resend_on_return_is_never_periodic() -> None:
-    c = Conversations()
+    c = PendingReplies()
     c.expect(
         Pending(
             "r1",
@@ -176,7 +176,7 @@ def test_an_unanswered_request_is_retransmitted_and_stops_when_answered() -> Non
     msg = w.agent.send("a_pl", P.REQUEST, gtn, protocol="fipa-request", retry_s=5.0)
     w.agent._dispatch()
     assert msg.reply_with is not None
-    pending = w.agent.conversations._pending[msg.reply_with]
+    pending = w.agent.pending_replies._pending[msg.reply_with]
     pending.next_retry = 0.0  # its time has come
     w.agent._acquire()
     w.agent._dispatch()
@@ -619,7 +619,7 @@ def test_an_l_sw_inform_retransmitted_across_a_partition_is_its_copy_and_a_co_co
     # the link is cut: the confirm does not reach a_ta, whose retransmission time comes
     original = decode(inform)
     assert original.reply_with is not None
-    pending = ta.agent.conversations.get(original.reply_with)
+    pending = ta.agent.pending_replies.get(original.reply_with)
     assert pending is not None and pending.retry_s is not None
     pending.next_retry = 0.0
     ta.agent._acquire()
@@ -637,7 +637,7 @@ def test_an_l_sw_inform_retransmitted_across_a_partition_is_its_copy_and_a_co_co
     for raw in confirms:
         carry(ta, raw)
     assert ta.agent.counters["duplicates"] == 1  # the confirm's copy: dropped
-    assert ta.agent.conversations.get(original.reply_with) is None  # answered: sent no more
+    assert ta.agent.pending_replies.get(original.reply_with) is None  # answered: sent no more
     assert ta.agent.counters["protocol_violations"] == co.agent.counters["protocol_violations"] == 0
 
     writer = TrafficWriter(tmp_path)

@@ -3,7 +3,10 @@ of the shipped specification and for the two agents of tests/support/role_agents
 play both roles of every protocol roco knows on one channel: it imports; its handlers are
 distinct methods and exactly what its roles need, each not written yet; every call its comments
 hint at is a method of the roles' API, and every performative they name is one its role may
-send; with the handlers written (here: ``return``) the agent starts; ruff finds nothing in it."""
+send; with the handlers written (here: ``return``) the agent starts; ruff finds nothing in it.
+A stub names its channels, protocols and languages by services/spec/names.py; for the test
+specification, whose protocols the shipped one lacks, that module is rendered from it
+(tests/support/spec_names.py), as ``roco spec new-agent`` renders it where it writes."""
 
 from __future__ import annotations
 
@@ -30,9 +33,11 @@ from services.runtime.roles import (
 )
 from services.spec.model import SystemSpec, default_spec
 from services.spec.protocol_defs import machine_of
+from services.spec.render_names import spellings
 from services.spec_check.new_agent import TIMER_METHOD, agent_source
 from shared.fipa_codec import Performative
 from tests.support.role_agents import SPEC as EVERY_PROTOCOL
+from tests.support.spec_names import use_names
 
 ROOT = Path(__file__).resolve().parents[2]
 SHIPPED = default_spec()
@@ -50,6 +55,7 @@ def write_stub(
     text, _ = agent_source(spec, agent, "Stub", f"{package}/agent.py")
     (tmp_path / package / "agent.py").write_text(text)
     monkeypatch.syspath_prepend(str(tmp_path))
+    use_names(spec, monkeypatch)
     return text, importlib.import_module(f"{package}.agent").Stub
 
 
@@ -101,13 +107,12 @@ def test_every_hint_names_a_call_of_the_roles_api_and_a_performative_the_role_ma
             assert "Performative.CANCEL" not in hints  # the initiator cancels with conv.cancel()
         else:  # the periodic opening: each open names a role of the agent and its opening
             assert method == TIMER_METHOD
-            opens = re.findall(
-                r'self\.roles\.open\("(\w+)", "([\w-]+)", [^)]*?(?:Performative\.(\w+))?\)', hints
-            )
+            opens = re.findall(r"self\.roles\.open\((\w+), (\w+), [^)]*?(?:Performative\.(\w+))?\)", hints)
+            spelt = spellings(spec)  # the names of services/spec/names.py → the specification's
             initiators = {(d.channel, d.protocol) for d in spec_roles(spec, agent) if d.role == INITIATOR}
-            assert {(c, p) for c, p, _ in opens} == initiators
+            assert {(spelt[c], spelt[p]) for c, p, _ in opens} == initiators
             for _, protocol, perf in opens:
-                machine = machine_of(spec, protocol)
+                machine = machine_of(spec, spelt[protocol])
                 if perf:
                     assert machine.next_state(machine.initial, INITIATOR, Performative[perf]) is not None
     assert set(keys) <= set(blocks)
@@ -151,8 +156,8 @@ def test_the_hints_say_how_each_protocol_is_answered(tmp_path: Path, monkeypatch
     assert "conv.timed_out" in hints[by_key[("fipa-request", "failure")]]
     assert "It ends the conversation" in hints[by_key[("fipa-query", "inform-ref")]]
     opening = hints[TIMER_METHOD]
-    assert 'self.roles.open("C1", "fipa-query", content, performative=Performative.QUERY_IF)' in opening
-    assert 'self.roles.open("C1", "fipa-contract-net", content)' in opening
+    assert "self.roles.open(C1, FIPA_QUERY, content, performative=Performative.QUERY_IF)" in opening
+    assert "self.roles.open(C1, FIPA_CONTRACT_NET, content)" in opening
 
 
 def test_with_its_handlers_written_the_stub_starts(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
@@ -165,6 +170,7 @@ def test_with_its_handlers_written_the_stub_starts(tmp_path: Path, monkeypatch: 
         (tmp_path / package / "__init__.py").write_text("")
         (tmp_path / package / "agent.py").write_text(written)
         monkeypatch.syspath_prepend(str(tmp_path))
+        use_names(EVERY_PROTOCOL, monkeypatch)
         cls = importlib.import_module(f"{package}.agent").Stub
         assert agent_problems(EVERY_PROTOCOL, agent, cls) == []
         started = cls(MemoryBus().transport(), EVERY_PROTOCOL)

@@ -21,6 +21,8 @@ PLANTED = {
     "(variable_send.py:",
     "raw_send": "agent a_pl sends with self.send to a_hi outside its roles (raw_send.py:",
     "no_channel": "agent a_pl opens fipa-query on C2, where it declares no initiator role (no_channel.py:",
+    "named_channel": "agent a_pl opens fipa-query on C7, where it declares no initiator role "
+    "(named_channel.py:",
     "wrong_role": "agent a_pl declares itself initiator of fipa-request on C3, but [[channels]] C3 makes it "
     "the participant",
     "role_removed": "agent a_pl declares no initiator role for fipa-query on C4, which [[channels]] C4 "
@@ -60,7 +62,7 @@ def test_verify_code_names_every_planted_fault_without_starting_an_agent(tmp_pat
     path.write_text(shipped.replace(old, 'implementation = "tests.spec_check.planted.variable_send:Planner"'))
     ok, text = verify_code_report(path)
     assert not ok
-    for module in ("variable_send", "raw_send", "no_channel", "dead_comparison"):
+    for module in ("variable_send", "raw_send", "no_channel", "named_channel", "dead_comparison"):
         line = PLANTED[module] if module != "dead_comparison" else "compares a performative"
         assert line in text, (module, text)
     assert re.search(r"^a_pl: \d+ files; 2 protocol roles:$", text, re.M), text

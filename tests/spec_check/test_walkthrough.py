@@ -2,7 +2,9 @@
 snippets are read from the document itself and added to a copy of the shipped specification
 and to the agent ``roco spec new-agent`` writes, and the tools say what the document says
 they say; a_km serves the new channel with no edit of its code; at the end the new agent and
-a_km run on one bus and the watcher's query is answered."""
+a_km run on one bus and the watcher's query is answered. The agent names C9 by
+services/spec/names.py, which new-agent renders again where it writes; in this process the
+module rendered from the staged specification stands in for it (tests/support/spec_names.py)."""
 
 from __future__ import annotations
 
@@ -18,11 +20,13 @@ from services.deploy.compose import check, read
 from services.runtime.memory_transport import MemoryBus
 from services.spec.check import check_report
 from services.spec.model import DEFAULT_SPEC, load
+from services.spec.render_names import NAMES_FILE, render
 from services.spec_check.code_check import verify_code_report
 from services.spec_check.new_agent import write_agent
 from shared.fipa_codec.languages.common import Pose
 from shared.fipa_codec.languages.l_wm import ObjectInfo
 from tests.spec_check.walkthrough import GROUP_EDIT, MODULE, ROOT, fill, snippet, staged
+from tests.support.spec_names import use_names
 
 HANDLERS = ("_on_failure", "_on_inform", "_on_inform_ref", "_on_refuse")
 
@@ -63,6 +67,9 @@ def test_stage_2_new_agent_writes_the_agent_and_its_service_and_verify_code_list
     compose = tmp_path / "deploy" / "compose.yaml"
     compose.parent.mkdir()
     shutil.copy(ROOT / "deploy" / "compose.yaml", compose)
+    names = tmp_path / "services" / "spec" / "names.py"
+    names.parent.mkdir(parents=True)
+    shutil.copy(NAMES_FILE, names)
 
     def new_agent() -> subprocess.CompletedProcess[str]:
         command = ["spec", "new-agent", "a_wt", "--spec", str(path), "--root", str(tmp_path)]
@@ -73,12 +80,16 @@ def test_stage_2_new_agent_writes_the_agent_and_its_service_and_verify_code_list
     done = new_agent()
     assert done.returncode == 0, done.stderr
     assert f"roco: wrote {tmp_path / 'walk_wt2' / 'agent.py'}" in done.stdout
+    assert f"roco: wrote {names}: the names of channels C1, C2, C3, C4, C5, C6, C7, C8, C9" in done.stdout
     assert f"roco: wrote {compose}: one service per agent (" in done.stdout
     assert (
         f"roco: fill in {', '.join(HANDLERS)} and what _periodically opens; then: roco spec verify-code"
         in done.stdout
     )
-    # the compose file now runs the new agent too, as the specification gives it
+    # the names module now names C9, and the compose file runs the new agent too, as the
+    # specification gives them
+    assert names.read_text() == render(load(path)) and "\nC9 = Channel.C9\n" in names.read_text()
+    assert "initiator(C9, FIPA_QUERY, L_WM)," in (tmp_path / "walk_wt2" / "agent.py").read_text()
     assert check(compose, load(path)) is None
     assert '    command: ["python", "-m", "services.runtime.main", "a_wt"]' in read(compose)
     again = new_agent()
@@ -90,6 +101,7 @@ def test_stage_2_new_agent_writes_the_agent_and_its_service_and_verify_code_list
     )
 
     monkeypatch.syspath_prepend(str(tmp_path))
+    use_names(load(path), monkeypatch)
     ok, text = verify_code_report(path)
     assert not ok
     for handler in HANDLERS:
@@ -115,6 +127,7 @@ def test_stage_3_the_finished_agent_conforms_and_a_km_answers_it_as_it_is(
 ) -> None:
     path = finished_watch(tmp_path, "walk_wt3")
     monkeypatch.syspath_prepend(str(tmp_path))
+    use_names(load(path), monkeypatch)
     ok, text = verify_code_report(path)
     assert ok, text
     assert "a_wt: 2 files; 1 protocol roles agree with the specification:" in text

@@ -75,7 +75,7 @@ def handling_all(role: Role, fn: Callable[[Any, Conversation], None]) -> Callabl
         fn(self, conv)
 
     for name, machine in PROTOCOLS.items():
-        perfs = sorted(p.value for p in incoming(machine, role) - optional(machine, role))
+        perfs = sorted(incoming(machine, role) - optional(machine, role), key=lambda p: p.value)
         handler = handles(name, role, *perfs)(handler)
     return handler
 
@@ -91,7 +91,7 @@ class Scripted(Agent):
         self.seen: queue.SimpleQueue[tuple[str, str, Conversation]] = queue.SimpleQueue()
         self.fault: str | None = None  # a protocol whose handler raises
         self.silent: set[str] = set()  # protocols whose handler answers nothing
-        return FSM(initial="run", states={"run": Behaviour("run", self._run, terminal=lambda: False)})
+        return FSM([Behaviour("run", self._run, terminal=lambda: False)])
 
     def _run(self) -> None:
         while self.r:

@@ -5,6 +5,7 @@ from __future__ import annotations
 from typing import ClassVar
 
 from services.runtime.roles import PARTICIPANT, Conversation, handles, spec_roles
+from services.spec.names import FIPA_SUBSCRIBE
 from tests.support.role_agents import DONE, RUNNING, SPEC, P, Script, Scripted, handling_all
 
 
@@ -25,6 +26,6 @@ class Participant(Scripted):
     }
     on_request = handling_all(PARTICIPANT, Scripted.handle)
 
-    @handles("fipa-subscribe", PARTICIPANT, "cancel")
+    @handles(FIPA_SUBSCRIBE, PARTICIPANT, P.CANCEL)
     def on_unsubscribe(self, conv: Conversation) -> None:
         self.handle(conv)

@@ -61,6 +61,18 @@ from services.runtime.roles import (
     participant,
 )
 from services.runtime.state_store import StateFile
+from services.spec.names import (
+    C1,
+    C2,
+    C3,
+    COORDINATE,
+    FIPA_QUERY,
+    FIPA_REQUEST,
+    FIPA_SUBSCRIBE,
+    L_HC,
+    L_HFSM,
+    L_SW,
+)
 from shared.fipa_codec import DecodeError, Performative, decode, encode
 from shared.fipa_codec.languages import ContentError, decode_content
 from shared.fipa_codec.languages.l_hc import (
@@ -151,13 +163,13 @@ PersonSaid = tuple[Literal["command", "stop"], Conversation, Received]
 class Coordinator(Agent):
     name = "a_co"
     ROLES = (
-        participant("C2", "fipa-request", "L_HC"),
-        participant("C2", "fipa-subscribe", "L_HC"),
-        participant("C2", "fipa-query", "L_HC"),
-        initiator("C3", "fipa-request", "L_HFSM", reply_by_s=PLAN_REPLY_BY_S, retry_s=PLAN_RETRY_S),
+        participant(C2, FIPA_REQUEST, L_HC),
+        participant(C2, FIPA_SUBSCRIBE, L_HC),
+        participant(C2, FIPA_QUERY, L_HC),
+        initiator(C3, FIPA_REQUEST, L_HFSM, reply_by_s=PLAN_REPLY_BY_S, retry_s=PLAN_RETRY_S),
         # a plan sent while a_ta (or the robot's router) is gone goes again when a_ta's token
         # reappears, until a_ta answers (docs/recovery.md, "Across two hosts")
-        initiator("C1", "coordinate", "L_HFSM", "L_SW", retry_s=RESEND_ON_RETURN),
+        initiator(C1, COORDINATE, L_HFSM, L_SW, retry_s=RESEND_ON_RETURN),
     )
 
     def build_fsm(self) -> FSM:
@@ -179,43 +191,42 @@ class Coordinator(Agent):
         self._order = itertools.count()
         self.rerun = self.hooks.queue(self.name) if self.hooks else None  # a viewer: runtime/hooks.py
         return FSM(
-            initial="trigger",
-            states={
-                "trigger": Behaviour(
+            [
+                Behaviour(
                     "trigger",
                     self._trigger,
                     terminal=self._has_work,
                     doc="idle: receive commands from a_hi and a_ta's states",
                 ),
-                "procReq": Behaviour(
+                Behaviour(
                     "procReq",
                     self._proc_req,
                     terminal=lambda: True,
                     waits=False,
                     doc="store new commands (priority, deadline); stop cancelled ones",
                 ),
-                "compSP": Behaviour(
+                Behaviour(
                     "compSP",
                     self._comp_sp_step,
                     terminal=self._plans_collected,
                     on_enter=self._request_plans,
                     doc="request plans of all waiting commands from a_pl; collect them",
                 ),
-                "schedule": Behaviour(
+                Behaviour(
                     "schedule",
                     self._schedule,
                     terminal=lambda: True,
                     waits=False,
                     doc="decide from the plans' costs: continue, or switch the plan a_ta runs",
                 ),
-                "switch": Behaviour(
+                Behaviour(
                     "switch",
                     self._switch,
                     terminal=lambda: True,
                     waits=False,
                     doc="coordinate protocol on C1: cancel the running plan, or start the chosen one",
                 ),
-            },
+            ],
             arcs=[
                 Arc("trigger", "procReq", self._person_spoke, "command or cancel"),
                 Arc("trigger", "compSP", self._plans_needed, "plan needed"),
@@ -306,7 +317,7 @@ class Coordinator(Agent):
                 task_id=task.task_id, tasks=(task.command.goal,), plan_index=task.plan_index
             )
             task.planning = self.roles.open(
-                "C3", "fipa-request", gtn, conversation_id=f"{task.task_id}-plan{task.plan_index}"
+                C3, FIPA_REQUEST, gtn, conversation_id=f"{task.task_id}-plan{task.plan_index}"
             )
             if task.state is not TaskState.PREEMPTED:
                 self._progress(task, TaskState.PLANNING, detail=f"plan #{task.plan_index} requested")
@@ -368,7 +379,7 @@ class Coordinator(Agent):
         task = self.tasks[self.decision.switch_to or ""]
         assert task.plan is not None and self._robot_free()
         self.ta = self.roles.open(
-            "C1", "coordinate", task.plan, conversation_id=f"{task.task_id}-exec{task.plan_index}"
+            C1, COORDINATE, task.plan, conversation_id=f"{task.task_id}-exec{task.plan_index}"
         )
         resumed = task.state is TaskState.PREEMPTED
         self.ta_task = task.task_id
@@ -457,7 +468,7 @@ class Coordinator(Agent):
     def _received(data: bytes) -> Received:
         msg = decode(data)
         content = decode_content(msg.language, msg.content) if msg.language and msg.content else None
-        return Received(msg, content, "C2")
+        return Received(msg, content, C2)
 
     def _restore(self, kept: KeptCoordinator) -> None:
         """Take back the commands of a previous a_co (see the module docstring)."""
@@ -465,7 +476,7 @@ class Coordinator(Agent):
             try:
                 cancel = self._received(k.cancel) if k.cancel is not None else None
                 state = "cancelling" if cancel is not None else "agreed"
-                conv = self.roles.restore("C2", "fipa-request", state, kept=k.request, expect=HumanCommand)
+                conv = self.roles.restore(C2, FIPA_REQUEST, state, kept=k.request, expect=HumanCommand)
             except (DecodeError, ContentError, RestoreError) as exc:
                 self.log.warning("a kept command cannot be taken back (%s): dropped", exc)
                 continue
@@ -492,12 +503,10 @@ class Coordinator(Agent):
         self._order = itertools.count(max((t.order for t in self.tasks.values()), default=-1) + 1)
         if kept.ta_task in self.tasks and kept.ta_conversation is not None:
             self.ta_task, self.ta_cancelled = kept.ta_task, kept.ta_cancelled
-            self.ta = self.roles.restore("C1", "coordinate", "running", conversation_id=kept.ta_conversation)
+            self.ta = self.roles.restore(C1, COORDINATE, "running", conversation_id=kept.ta_conversation)
         if kept.subscription is not None:
             try:
-                self.subscription = self.roles.restore(
-                    "C2", "fipa-subscribe", "active", kept=kept.subscription
-                )
+                self.subscription = self.roles.restore(C2, FIPA_SUBSCRIBE, "active", kept=kept.subscription)
             except RestoreError as exc:
                 self.log.warning("the kept progress subscription cannot be taken back (%s)", exc)
         for progress in kept.unsent:
@@ -521,19 +530,19 @@ class Coordinator(Agent):
             self.ta.answer_again(self.last_confirmed)
 
     # ---- the person's commands (C2, fipa-request, participant) ----
-    @handles("fipa-request", PARTICIPANT, "request")
+    @handles(FIPA_REQUEST, PARTICIPANT, Performative.REQUEST)
     def _on_command(self, conv: Conversation) -> None:
         assert conv.last is not None
         self.person.append(("command", conv, conv.last))
 
-    @handles("fipa-request", PARTICIPANT, "cancel")
+    @handles(FIPA_REQUEST, PARTICIPANT, Performative.CANCEL)
     def _on_stop(self, conv: Conversation) -> None:
         """Answered once the robot is safe (see :meth:`_finish`)."""
         assert conv.last is not None
         self.person.append(("stop", conv, conv.last))
 
     # ---- the person's progress subscription (C2, fipa-subscribe, participant) ----
-    @handles("fipa-subscribe", PARTICIPANT, "subscribe")
+    @handles(FIPA_SUBSCRIBE, PARTICIPANT, Performative.SUBSCRIBE)
     def _on_subscribe(self, conv: Conversation) -> None:
         if not isinstance(conv.content, ProgressSubscription):
             conv.refuse_with(Performative.REFUSE, "I report the progress of commands only")
@@ -546,12 +555,12 @@ class Coordinator(Agent):
             conv.reply(Performative.INFORM, self.unsent.popleft())
             self.unsent_changes += 1
 
-    @handles("fipa-subscribe", PARTICIPANT, "cancel")
+    @handles(FIPA_SUBSCRIBE, PARTICIPANT, Performative.CANCEL)
     def _on_unsubscribe(self, conv: Conversation) -> None:
         self._unsubscribe(conv)
         conv.reply(Performative.INFORM)
 
-    @handles("fipa-subscribe", PARTICIPANT, "not-understood")
+    @handles(FIPA_SUBSCRIBE, PARTICIPANT, Performative.NOT_UNDERSTOOD)
     def _on_progress_not_understood(self, conv: Conversation) -> None:
         """Never answered (FIPA SC00037 §3.12); it ends the conversation: a_hi did not
         understand the progress stream, so the subscription is over."""
@@ -563,14 +572,14 @@ class Coordinator(Agent):
             self.subscription = None
 
     # ---- the person's questions (C2, fipa-query, participant) ----
-    @handles("fipa-query", PARTICIPANT, "query-ref")
+    @handles(FIPA_QUERY, PARTICIPANT, Performative.QUERY_REF)
     def _on_status_query(self, conv: Conversation) -> None:
         if isinstance(conv.content, StatusQuery):
             conv.reply(Performative.INFORM_REF, self.status())
         else:
             conv.refuse_with(Performative.REFUSE, "I answer status queries only")
 
-    @handles("fipa-query", PARTICIPANT, "query-if")
+    @handles(FIPA_QUERY, PARTICIPANT, Performative.QUERY_IF)
     def _on_yes_no_query(self, conv: Conversation) -> None:
         conv.refuse_with(Performative.REFUSE, "I answer what I am doing (query-ref), not yes/no questions")
 
@@ -603,7 +612,7 @@ class Coordinator(Agent):
             self.log.info("reply from a_pl to a plan request no longer wanted: dropped")
         return None
 
-    @handles("fipa-request", INITIATOR, "inform")
+    @handles(FIPA_REQUEST, INITIATOR, Performative.INFORM)
     def _on_plan(self, conv: Conversation) -> None:
         task = self._planned(conv)
         if task is None:
@@ -626,7 +635,7 @@ class Coordinator(Agent):
             plan.km_queries,
         )
 
-    @handles("fipa-request", INITIATOR, "refuse", "failure")
+    @handles(FIPA_REQUEST, INITIATOR, Performative.REFUSE, Performative.FAILURE)
     def _on_no_plan(self, conv: Conversation) -> None:
         """Refused, failed, not understood, or unanswered by the reply-by deadline."""
         task = self._planned(conv)
@@ -636,7 +645,7 @@ class Coordinator(Agent):
             self._finish(task, False, f"no plan: {reason}")
 
     # ---- a_ta's states (C1, coordinate, initiator) ----
-    @handles("coordinate", INITIATOR, "inform")
+    @handles(COORDINATE, INITIATOR, Performative.INFORM)
     def _on_ta_state(self, conv: Conversation) -> None:
         """Every L_SW inform is confirmed (paper §5.4), also one of a conversation a_co has
         left (a_ta waits for the confirm)."""
@@ -649,7 +658,7 @@ class Coordinator(Agent):
         if isinstance(conv.content, SWStatus):
             self._sw_state(task, conv.content)
 
-    @handles("coordinate", INITIATOR, "refuse", "failure")
+    @handles(COORDINATE, INITIATOR, Performative.REFUSE, Performative.FAILURE)
     def _on_ta_failed(self, conv: Conversation) -> None:
         task = self.tasks.get(self.ta_task or "")
         if conv is not self.ta or task is None or conv.timed_out or conv.last is None:
@@ -657,7 +666,7 @@ class Coordinator(Agent):
         self._release_ta()
         self._finish(task, False, f"a_ta {conv.last.performative.value}: {conv.reason}")
 
-    @handles("coordinate", INITIATOR, "not-understood")
+    @handles(COORDINATE, INITIATOR, Performative.NOT_UNDERSTOOD)
     def _on_ta_not_understood(self, conv: Conversation) -> None:
         task = self.tasks.get(self.ta_task or "")
         if conv is self.ta and task is not None and self.ta_lost:

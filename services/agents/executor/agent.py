@@ -60,6 +60,7 @@ from services.runtime import keys
 from services.runtime.agent import Agent, Received
 from services.runtime.behaviour import FSM, Behaviour
 from services.runtime.roles import PARTICIPANT, Conversation, handles, participant
+from services.spec.names import C5, FIPA_REQUEST, L_EX, L_SD
 from shared.fipa_codec import Performative
 from shared.fipa_codec.languages.l_ex import HALTED, CommandResult, ExecutorCommand, command_name
 from shared.fipa_codec.languages.l_sd import Observation
@@ -115,7 +116,7 @@ class PeerChange:
 
 class ExecutorAgent(Agent):
     name = "ag_ex"
-    ROLES = (participant("C5", "fipa-request", "L_EX", "L_SD"),)
+    ROLES = (participant(C5, FIPA_REQUEST, L_EX, L_SD),)
     period = STATE_PERIOD
 
     def make_executor(self) -> Any:
@@ -180,16 +181,15 @@ class ExecutorAgent(Agent):
         self._encode = msgspec.msgpack.Encoder().encode
         self.rerun = self.hooks.robot(self.name) if self.hooks else None  # a viewer: runtime/hooks.py
         return FSM(
-            initial="serve",
-            states={
-                "serve": Behaviour(
+            [
+                Behaviour(
                     "serve",
                     self._serve,
                     terminal=lambda: False,
                     doc="pass a_ta's commands to the control loop; answer with their results; "
                     "hold position when a_ta is gone",
                 )
-            },
+            ],
         )
 
     def _commanders(self) -> tuple[str, ...]:
@@ -243,7 +243,7 @@ class ExecutorAgent(Agent):
         if rerun is not None:  # Rerun: close ag_ex's part of the run's recording
             rerun.close()
 
-    @handles("fipa-request", PARTICIPANT, "request")
+    @handles(FIPA_REQUEST, PARTICIPANT, Performative.REQUEST)
     def _on_request(self, conv: Conversation) -> None:
         command = conv.content
         if not isinstance(command, COMMAND_TYPES):
@@ -254,7 +254,7 @@ class ExecutorAgent(Agent):
         conv.data = running
         running.token = self.executor.submit(command, lambda result, req=conv: self.post(Done(req, result)))
 
-    @handles("fipa-request", PARTICIPANT, "cancel")
+    @handles(FIPA_REQUEST, PARTICIPANT, Performative.CANCEL)
     def _on_cancel(self, conv: Conversation) -> None:
         """a_ta cancels a request it made: the executor is asked to halt its command (module
         docstring); the cancel is answered when the command's result comes (``_answer``)."""

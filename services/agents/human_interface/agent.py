@@ -100,6 +100,7 @@ from services.runtime.roles import (
     participant,
 )
 from services.runtime.state_store import StateFile
+from services.spec.names import C2, C7, C8, FIPA_QUERY, FIPA_REQUEST, FIPA_SUBSCRIBE, L_HC, L_WM
 from shared.fipa_codec import Performative
 from shared.fipa_codec.languages.l_hc import (
     CommandOutcome,
@@ -122,12 +123,6 @@ if TYPE_CHECKING:
 
 CO = "a_co"
 KM = "a_km"
-C2 = "C2"
-C7 = "C7"
-C8 = "C8"
-REQUEST = "fipa-request"
-SUBSCRIBE = "fipa-subscribe"
-QUERY = "fipa-query"
 
 AGREE_BY_S = 120.0
 """How long a_co has to agree to (or refuse) a command."""
@@ -290,11 +285,11 @@ class HumanInterface(Agent):
 
     name = "a_hi"
     ROLES: ClassVar[tuple[RoleDecl, ...]] = (
-        initiator(C2, REQUEST, "L_HC", reply_by_s=AGREE_BY_S, retry_s=COMMAND_RETRY_S),
-        initiator(C2, SUBSCRIBE, "L_HC", reply_by_s=SUBSCRIBE_REPLY_BY_S),
-        initiator(C2, QUERY, "L_HC", reply_by_s=STATUS_REPLY_BY_S),
-        initiator(C7, QUERY, "L_WM", reply_by_s=VOCABULARY_REPLY_BY_S),
-        participant(C8, REQUEST, "L_HC"),
+        initiator(C2, FIPA_REQUEST, L_HC, reply_by_s=AGREE_BY_S, retry_s=COMMAND_RETRY_S),
+        initiator(C2, FIPA_SUBSCRIBE, L_HC, reply_by_s=SUBSCRIBE_REPLY_BY_S),
+        initiator(C2, FIPA_QUERY, L_HC, reply_by_s=STATUS_REPLY_BY_S),
+        initiator(C7, FIPA_QUERY, L_WM, reply_by_s=VOCABULARY_REPLY_BY_S),
+        participant(C8, FIPA_REQUEST, L_HC),
     )
 
     def __init__(
@@ -333,16 +328,15 @@ class HumanInterface(Agent):
         self.foreign: dict[str, Conversation] = {}  # request id → C8 conversation it answers
         self.kept = StateFile.for_agent(self.name, KeptHumanInterface)
         return FSM(
-            initial="interact",
-            states={
-                "interact": Behaviour(
+            [
+                Behaviour(
                     "interact",
                     self._interact,
                     terminal=lambda: False,
                     doc="turn sentences into requests, cancels and queries to a_co; "
                     "report a_co's answers and progress to the person",
                 )
-            },
+            ],
         )
 
     def setup(self) -> None:
@@ -384,7 +378,7 @@ class HumanInterface(Agent):
             try:
                 conv = self.roles.restore(
                     C2,
-                    REQUEST,
+                    FIPA_REQUEST,
                     "requested",
                     kept=k.request,
                     reply_by_s=AGREE_BY_S,
@@ -428,7 +422,7 @@ class HumanInterface(Agent):
             self._answer_foreign(request_id, report)
 
     # ---- from agents of other platforms (C8) ---------------------------------------------
-    @handles(REQUEST, PARTICIPANT, "request", channel=C8)
+    @handles(FIPA_REQUEST, PARTICIPANT, Performative.REQUEST, channel=C8)
     def _on_foreign_request(self, conv: Conversation) -> None:
         """A foreign agent's sentence: read as a person's, its reports answer the request."""
         sentence = conv.content
@@ -512,7 +506,7 @@ class HumanInterface(Agent):
         """Ask a_km for its vocabulary (C7, ``query-ref``) for the ``waiting`` sentences."""
         conv = self.roles.open(
             C7,
-            QUERY,
+            FIPA_QUERY,
             SparqlQuery(VOCABULARY_QUERY),
             performative=Performative.QUERY_REF,
             conversation_id=new_id(prefix),  # never one a_km has seen end
@@ -544,7 +538,7 @@ class HumanInterface(Agent):
                 continue
             self._understand(held.event, held.vocabulary or self.vocabulary)
 
-    @handles(QUERY, INITIATOR, "inform-ref", "inform", channel=C7)
+    @handles(FIPA_QUERY, INITIATOR, Performative.INFORM_REF, Performative.INFORM, channel=C7)
     def _on_vocabulary(self, conv: Conversation) -> None:
         query = self.vocab_queries.pop(conv.conversation_id, None)
         conv.abandon()
@@ -555,7 +549,7 @@ class HumanInterface(Agent):
                 held.ready, held.vocabulary = True, self.vocabulary
             self._read_held()
 
-    @handles(QUERY, INITIATOR, "refuse", "failure", channel=C7)
+    @handles(FIPA_QUERY, INITIATOR, Performative.REFUSE, Performative.FAILURE, channel=C7)
     def _on_no_vocabulary(self, conv: Conversation) -> None:
         """Refused, failed, not understood or unanswered in time: read with the last vocabulary."""
         query = self.vocab_queries.pop(conv.conversation_id, None)
@@ -610,7 +604,7 @@ class HumanInterface(Agent):
             text=event.text, goal=intent.goal, priority=intent.priority, deadline_s=intent.deadline_s
         )
         conv = self.roles.open(
-            C2, REQUEST, command, conversation_id=self._conversation_id("cmd", event.request_id)
+            C2, FIPA_REQUEST, command, conversation_id=self._conversation_id("cmd", event.request_id)
         )
         cid = conv.conversation_id
         if not self.co_alive:
@@ -643,7 +637,7 @@ class HumanInterface(Agent):
     def _ask_status(self, request_id: str) -> None:
         conv = self.roles.open(
             C2,
-            QUERY,
+            FIPA_QUERY,
             StatusQuery(),
             performative=Performative.QUERY_REF,
             conversation_id=self._conversation_id("status", request_id),
@@ -659,7 +653,7 @@ class HumanInterface(Agent):
             )
         return c
 
-    @handles(REQUEST, INITIATOR, "agree")
+    @handles(FIPA_REQUEST, INITIATOR, Performative.AGREE)
     def _on_agreed(self, conv: Conversation) -> None:
         c = self._open_command(conv)
         if c is None or conv.answers_cancel:
@@ -677,7 +671,7 @@ class HumanInterface(Agent):
         more = f" ({', '.join(extras)})" if extras else ""
         self._report(c.request_id, ReportKind.ACCEPTED, f"I will {c.label}{more}.")
 
-    @handles(REQUEST, INITIATOR, "inform")
+    @handles(FIPA_REQUEST, INITIATOR, Performative.INFORM)
     def _on_command_done(self, conv: Conversation) -> None:
         c = self._open_command(conv)
         if c is None:
@@ -700,7 +694,7 @@ class HumanInterface(Agent):
         else:
             self._end(c, ReportKind.FAILED, sentence(c.label, "failed", outcome.detail))
 
-    @handles(REQUEST, INITIATOR, "failure")
+    @handles(FIPA_REQUEST, INITIATOR, Performative.FAILURE)
     def _on_command_failed(self, conv: Conversation) -> None:
         """A failure, or no answer by the reply-by deadline."""
         c = self._open_command(conv)
@@ -717,13 +711,13 @@ class HumanInterface(Agent):
         else:
             self._end(c, ReportKind.FAILED, sentence(c.label, "failed", _reason(conv)))
 
-    @handles(REQUEST, INITIATOR, "refuse")
+    @handles(FIPA_REQUEST, INITIATOR, Performative.REFUSE)
     def _on_command_refused(self, conv: Conversation) -> None:
         c = self._open_command(conv)
         if c is not None:
             self._end(c, ReportKind.FAILED, sentence(c.label, "refused", _reason(conv)))
 
-    @handles(REQUEST, INITIATOR, "not-understood")
+    @handles(FIPA_REQUEST, INITIATOR, Performative.NOT_UNDERSTOOD)
     def _on_command_not_understood(self, conv: Conversation) -> None:
         c = self._open_command(conv)
         if c is None:
@@ -776,11 +770,11 @@ class HumanInterface(Agent):
         c.stoppers.clear()
 
     # ---- a_co's answers to status queries (fipa-query, initiator) ------------------------
-    @handles(QUERY, INITIATOR, "inform-ref", "inform", channel=C2)
+    @handles(FIPA_QUERY, INITIATOR, Performative.INFORM_REF, Performative.INFORM, channel=C2)
     def _on_status(self, conv: Conversation) -> None:
         self._status_answer(conv, True)
 
-    @handles(QUERY, INITIATOR, "refuse", "failure", channel=C2)
+    @handles(FIPA_QUERY, INITIATOR, Performative.REFUSE, Performative.FAILURE, channel=C2)
     def _on_no_status(self, conv: Conversation) -> None:
         """Refused, failed, not understood, or unanswered by the reply-by deadline."""
         self._status_answer(conv, False)
@@ -818,7 +812,7 @@ class HumanInterface(Agent):
         if self.sub_conversation is not None:  # the previous attempt is given up (or its a_co gone)
             self.sub_conversation.stop_waiting()
         self.sub_conversation = self.roles.open(
-            C2, SUBSCRIBE, ProgressSubscription(), conversation_id=cid, reply_by_s=SUBSCRIBE_REPLY_BY_S
+            C2, FIPA_SUBSCRIBE, ProgressSubscription(), conversation_id=cid, reply_by_s=SUBSCRIBE_REPLY_BY_S
         )
         self.subscription = cid
         self.sub_pending = True
@@ -842,7 +836,7 @@ class HumanInterface(Agent):
             self.retry_interval = SUBSCRIBE_RETRY_S[0]
             self._retry_later()
 
-    @handles(SUBSCRIBE, INITIATOR, "inform")
+    @handles(FIPA_SUBSCRIBE, INITIATOR, Performative.INFORM)
     def _on_progress_inform(self, conv: Conversation) -> None:
         if not isinstance(conv.content, Progress):
             return  # the answer to the cancel of a superfluous subscription
@@ -850,14 +844,14 @@ class HumanInterface(Agent):
             self._subscribed()
         self._on_progress(conv.content)
 
-    @handles(SUBSCRIBE, INITIATOR, "agree")
+    @handles(FIPA_SUBSCRIBE, INITIATOR, Performative.AGREE)
     def _on_subscription_agreed(self, conv: Conversation) -> None:
         if conv.conversation_id == self.subscription:
             self._subscribed()
         else:  # an attempt given up agreed late: the latest attempt is the one to keep
             conv.cancel(ProgressSubscription())
 
-    @handles(SUBSCRIBE, INITIATOR, "refuse", "failure")
+    @handles(FIPA_SUBSCRIBE, INITIATOR, Performative.REFUSE, Performative.FAILURE)
     def _on_subscription_refused(self, conv: Conversation) -> None:
         """Refused, failed, not understood, or unanswered by the reply-by deadline."""
         if conv.conversation_id != self.subscription or conv.answers_cancel:

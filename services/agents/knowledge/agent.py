@@ -42,6 +42,7 @@ from services.runtime.roles import (
     initiator,
     participant,
 )
+from services.spec.names import C6, FIPA_QUERY, FIPA_SUBSCRIBE, L_WM
 from shared.fipa_codec import Performative
 from shared.fipa_codec.languages.l_wm import (
     GraspQuery,
@@ -86,8 +87,8 @@ class KnowledgeManager(Agent):
     name = "a_km"
     ROLES = (
         # every channel that asks a_km L_WM queries (C4, C6, C7, and any the specification adds)
-        participant(EVERY_CHANNEL, "fipa-query", "L_WM"),
-        initiator("C6", "fipa-subscribe", "L_WM", reply_by_s=SUBSCRIBE_RETRY_S),
+        participant(EVERY_CHANNEL, FIPA_QUERY, L_WM),
+        initiator(C6, FIPA_SUBSCRIBE, L_WM, reply_by_s=SUBSCRIBE_RETRY_S),
     )
 
     def build_fsm(self) -> FSM:
@@ -108,29 +109,28 @@ class KnowledgeManager(Agent):
         self.held: deque[Query] = deque()  # queries waiting for the first observation
         self.hold_until: float | None = time.monotonic() + HOLD_QUERIES_S if self.world.kept else None
         return FSM(
-            initial="idle",
-            states={
-                "idle": Behaviour(
+            [
+                Behaviour(
                     "idle",
                     self._idle,
                     terminal=lambda: self.current is not None,
                     doc="await a query or an observation",
                 ),
-                "questionAnswering": Behaviour(
+                Behaviour(
                     "questionAnswering",
                     self._answer,
                     terminal=lambda: True,
                     waits=False,
                     doc="reason over the knowledge base; reply to the query",
                 ),
-                "knowledgeSaving": Behaviour(
+                Behaviour(
                     "knowledgeSaving",
                     self._save,
                     terminal=lambda: True,
                     waits=False,
                     doc="update the knowledge base with an observation",
                 ),
-            },
+            ],
             arcs=[
                 Arc("idle", "questionAnswering", lambda: isinstance(self.current, Query), "query"),
                 Arc("idle", "knowledgeSaving", lambda: isinstance(self.current, WorldUpdate), "observation"),
@@ -161,37 +161,37 @@ class KnowledgeManager(Agent):
 
     def _subscribe(self) -> None:
         self.subscription = self.roles.open(
-            "C6", "fipa-subscribe", Subscription("environment"), conversation_id="km-environment"
+            C6, FIPA_SUBSCRIBE, Subscription("environment"), conversation_id="km-environment"
         )
 
     # ---- the subscription to a_ta's environment updates (fipa-subscribe, initiator) ------
-    @handles("fipa-subscribe", INITIATOR, "agree")
+    @handles(FIPA_SUBSCRIBE, INITIATOR, Performative.AGREE)
     def _on_subscribed(self, conv: Conversation) -> None:
         self.subscribed = True
         self.log.info("a_ta agreed to send environment updates")
 
-    @handles("fipa-subscribe", INITIATOR, "refuse", "failure")
+    @handles(FIPA_SUBSCRIBE, INITIATOR, Performative.REFUSE, Performative.FAILURE)
     def _on_subscription_lost(self, conv: Conversation) -> None:
         """Refused, failed, not understood or unanswered by its deadline: ask again."""
         self.subscribed = False
         if conv is self.subscription:
             self._subscribe()
 
-    @handles("fipa-subscribe", INITIATOR, "inform")
+    @handles(FIPA_SUBSCRIBE, INITIATOR, Performative.INFORM)
     def _on_update(self, conv: Conversation) -> None:
         if isinstance(conv.content, WorldUpdate):
             self.work.append(conv.content)
 
     # ---- queries from a_pl and a_ta (fipa-query, participant) -----------------------------
-    @handles("fipa-query", PARTICIPANT, "query-ref")
+    @handles(FIPA_QUERY, PARTICIPANT, Performative.QUERY_REF)
     def _on_query_ref(self, conv: Conversation) -> None:
         self._take_query(Query(conv, Performative.INFORM_REF))
 
-    @handles("fipa-query", PARTICIPANT, "query-if")
+    @handles(FIPA_QUERY, PARTICIPANT, Performative.QUERY_IF)
     def _on_query_if(self, conv: Conversation) -> None:
         self._take_query(Query(conv, Performative.INFORM))
 
-    @handles("fipa-query", PARTICIPANT, "cancel")
+    @handles(FIPA_QUERY, PARTICIPANT, Performative.CANCEL)
     def _on_query_cancel(self, conv: Conversation) -> None:
         """Queries are answered as they come: only a held or queued one can still be dropped."""
         for waiting in (self.held, self.work):

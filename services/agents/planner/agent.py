@@ -23,6 +23,7 @@ from services.agents.planner.knowledge import ARMS, Knowledge
 from services.runtime.agent import Agent
 from services.runtime.behaviour import FSM, Arc, Behaviour
 from services.runtime.roles import INITIATOR, PARTICIPANT, Conversation, handles, initiator, participant
+from services.spec.names import C3, C4, FIPA_QUERY, FIPA_REQUEST, L_HFSM, L_WM
 from shared.fipa_codec import Performative
 from shared.fipa_codec.languages.l_hfsm import GroundTaskNetwork, HierarchicalPlan, PlanFailure
 from shared.fipa_codec.languages.l_wm import (
@@ -45,8 +46,8 @@ FURNITURE = ("table", "cabinet")
 class Planner(Agent):
     name = "a_pl"
     ROLES = (
-        participant("C3", "fipa-request", "L_HFSM"),
-        initiator("C4", "fipa-query", "L_WM", reply_by_s=QUERY_REPLY_BY_S, retry_s=QUERY_RETRY_S),
+        participant(C3, FIPA_REQUEST, L_HFSM),
+        initiator(C4, FIPA_QUERY, L_WM, reply_by_s=QUERY_REPLY_BY_S, retry_s=QUERY_RETRY_S),
     )
 
     def build_fsm(self) -> FSM:
@@ -64,36 +65,35 @@ class Planner(Agent):
         self.asked: set[tuple[str, tuple[str, ...]]] = set()
         self.started = 0.0
         return FSM(
-            initial="idle",
-            states={
-                "idle": Behaviour(
+            [
+                Behaviour(
                     "idle",
                     self._idle,
                     terminal=lambda: self.request is not None,
                     doc="await a planning problem from a_co",
                 ),
-                "initialize": Behaviour(
+                Behaviour(
                     "initialize",
                     self.handle_received,
                     terminal=lambda: not self.pending or self.failure is not None,
                     on_enter=self._ask,
                     doc="query a_km for the knowledge the problem needs",
                 ),
-                "search": Behaviour(
+                Behaviour(
                     "search",
                     self._search,
                     terminal=lambda: True,
                     waits=False,
                     doc="HTN search for a plan (GTPyhop)",
                 ),
-                "finalize": Behaviour(
+                Behaviour(
                     "finalize",
                     self._finalize,
                     terminal=lambda: self.request is None,
                     on_enter=self._verify,
                     doc="check the plan's effects in a hypothetical state (a_km); reply to a_co",
                 ),
-            },
+            ],
             arcs=[
                 Arc("idle", "initialize"),
                 Arc("initialize", "search", lambda: self.failure is None, "knowledge complete"),
@@ -104,11 +104,11 @@ class Planner(Agent):
         )
 
     # ---- planning requests from a_co (fipa-request, participant) --------------------------
-    @handles("fipa-request", PARTICIPANT, "request")
+    @handles(FIPA_REQUEST, PARTICIPANT, Performative.REQUEST)
     def _on_request(self, conv: Conversation) -> None:
         self.requests.append(conv)
 
-    @handles("fipa-request", PARTICIPANT, "cancel")
+    @handles(FIPA_REQUEST, PARTICIPANT, Performative.CANCEL)
     def _on_cancel(self, conv: Conversation) -> None:
         """a_co's cancel of a plan request (FIPA cancel meta-protocol): the current or a waiting
         one is dropped and the cancel answered ``inform``."""
@@ -124,7 +124,7 @@ class Planner(Agent):
         self.log.info("planning cancelled by a_co")
 
     # ---- knowledge from a_km (fipa-query, initiator) ---------------------------------------
-    @handles("fipa-query", INITIATOR, "inform-ref", "inform")
+    @handles(FIPA_QUERY, INITIATOR, Performative.INFORM_REF, Performative.INFORM)
     def _on_answer(self, conv: Conversation) -> None:
         if conv is self.check:
             self._checked(conv)
@@ -136,7 +136,7 @@ class Planner(Agent):
             else:
                 self._unanswered(conv)
 
-    @handles("fipa-query", INITIATOR, "refuse", "failure")
+    @handles(FIPA_QUERY, INITIATOR, Performative.REFUSE, Performative.FAILURE)
     def _on_no_answer(self, conv: Conversation) -> None:
         """Refused, failed, not understood, or no answer by the reply-by deadline."""
         if conv is self.check:
@@ -183,9 +183,7 @@ class Planner(Agent):
         if (kind, key) in self.asked:
             return
         self.asked.add((kind, key))
-        conv = self.roles.open(
-            "C4", "fipa-query", query, performative=Performative.QUERY_REF, data=(kind, key)
-        )
+        conv = self.roles.open(C4, FIPA_QUERY, query, performative=Performative.QUERY_REF, data=(kind, key))
         self.pending.add(conv)
         self.knowledge.queries += 1
 
@@ -268,8 +266,8 @@ class Planner(Agent):
         if query is None:
             return
         self.check = self.roles.open(
-            "C4",
-            "fipa-query",
+            C4,
+            FIPA_QUERY,
             HypotheticalQuery(changes=effects(self.result.actions), query=query),
             performative=Performative.QUERY_REF,
         )

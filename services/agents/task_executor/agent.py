@@ -73,6 +73,20 @@ from services.runtime.roles import (
     participant,
 )
 from services.runtime.state_store import StateFile
+from services.spec.names import (
+    C1,
+    C5,
+    C6,
+    COORDINATE,
+    FIPA_QUERY,
+    FIPA_REQUEST,
+    FIPA_SUBSCRIBE,
+    L_EX,
+    L_HFSM,
+    L_SD,
+    L_SW,
+    L_WM,
+)
 from shared.fipa_codec import Performative
 from shared.fipa_codec.languages.l_ex import (
     HALTED,
@@ -164,12 +178,12 @@ class KeptTaskExecutor(msgspec.Struct, kw_only=True):
 class TaskExecutor(Agent):
     name = "a_ta"
     ROLES = (
-        participant("C1", "coordinate", "L_HFSM", "L_SW"),
-        initiator("C5", "fipa-request", "L_EX", "L_SD"),
-        participant("C6", "fipa-subscribe", "L_WM"),
+        participant(C1, COORDINATE, L_HFSM, L_SW),
+        initiator(C5, FIPA_REQUEST, L_EX, L_SD),
+        participant(C6, FIPA_SUBSCRIBE, L_WM),
         # paper Table 6: a_ta may query a_km when it needs knowledge; roco's plans carry what
         # a_ta needs (expected poses, safe stops), so it asks nothing
-        initiator("C6", "fipa-query", "L_WM", unused=True),
+        initiator(C6, FIPA_QUERY, L_WM, unused=True),
     )
 
     def build_fsm(self) -> FSM:
@@ -209,9 +223,8 @@ class TaskExecutor(Agent):
         self.withdrawing = False  # in finished: the retreat runs, the final state waits
         self.retreat_note = ""  # what the final state's reason says of the withdrawal
         return FSM(
-            initial="idle",
-            states={
-                "idle": Behaviour(
+            [
+                Behaviour(
                     "idle",
                     self._idle,
                     # restarted during a plan: report only once the world is observed and
@@ -219,21 +232,21 @@ class TaskExecutor(Agent):
                     terminal=lambda: self.plan is not None and (not self.restored or self.initial_done),
                     doc="await a plan execution request from a_co",
                 ),
-                "running": Behaviour(
+                Behaviour(
                     "running",
                     self._running,
                     terminal=lambda: self.outcome is not None,
                     on_enter=self._start_plan,
                     doc="execute the plan's HFSM",
                 ),
-                "finished": Behaviour(
+                Behaviour(
                     "finished",
                     self._finished,
                     terminal=lambda: self.confirmed,
                     on_enter=self._enter_finished,
                     doc="await a_co's acknowledgement of the final state",
                 ),
-            },
+            ],
             arcs=[
                 Arc("idle", "finished", lambda: self.restored, "restarted during a plan"),
                 Arc("idle", "running"),
@@ -248,7 +261,7 @@ class TaskExecutor(Agent):
         self._flush_sw()
 
     # a_co's plans (coordinate, participant)
-    @handles("coordinate", PARTICIPANT, "request")
+    @handles(COORDINATE, PARTICIPANT, Performative.REQUEST)
     def _on_plan(self, conv: Conversation) -> None:
         kept = _reply_with(self.plan_request) if self.plan_request is not conv else None
         if kept is not None and kept == _reply_with(conv):
@@ -258,12 +271,12 @@ class TaskExecutor(Agent):
             return
         self.requests.append(conv)
 
-    @handles("coordinate", PARTICIPANT, "confirm")
+    @handles(COORDINATE, PARTICIPANT, Performative.CONFIRM)
     def _on_confirm(self, conv: Conversation) -> None:
         self._confirmed(conv)
 
-    @handles("coordinate", PARTICIPANT, "not-understood")
-    @on_deadline("coordinate", PARTICIPANT)
+    @handles(COORDINATE, PARTICIPANT, Performative.NOT_UNDERSTOOD)
+    @on_deadline(COORDINATE, PARTICIPANT)
     def _on_unconfirmed(self, conv: Conversation) -> None:
         if conv.timed_out:
             self.log.warning("a_co did not confirm %s in time", self._answered(conv))
@@ -283,7 +296,7 @@ class TaskExecutor(Agent):
         if self.final_inform is not None and answered == self.final_inform:
             self.confirmed = True
 
-    @handles("coordinate", PARTICIPANT, "cancel")
+    @handles(COORDINATE, PARTICIPANT, Performative.CANCEL)
     def _on_cancel(self, conv: Conversation) -> None:
         if conv is self.plan_request and self.outcome is None and not self.cancel_requested:
             self.cancel_requested = True
@@ -322,7 +335,7 @@ class TaskExecutor(Agent):
         )
 
     # a_km's subscription to environment updates (fipa-subscribe, participant)
-    @handles("fipa-subscribe", PARTICIPANT, "subscribe")
+    @handles(FIPA_SUBSCRIBE, PARTICIPANT, Performative.SUBSCRIBE)
     def _on_subscribe(self, conv: Conversation) -> None:
         if not isinstance(conv.content, Subscription):
             conv.refuse_with(Performative.REFUSE, "not an L_WM subscription")
@@ -331,18 +344,18 @@ class TaskExecutor(Agent):
         conv.reply(Performative.AGREE)
         self._catch_up_subscriber()
 
-    @handles("fipa-subscribe", PARTICIPANT, "cancel")
+    @handles(FIPA_SUBSCRIBE, PARTICIPANT, Performative.CANCEL)
     def _on_unsubscribe(self, conv: Conversation) -> None:
         if conv is self.subscription:
             self.subscription = None
         conv.reply(Performative.INFORM)
 
     # ag_ex's answers (fipa-request, initiator)
-    @handles("fipa-request", INITIATOR, "inform")
+    @handles(FIPA_REQUEST, INITIATOR, Performative.INFORM)
     def _on_ex_done(self, conv: Conversation) -> None:
         self._ex_answer(conv, True)
 
-    @handles("fipa-request", INITIATOR, "refuse", "failure")
+    @handles(FIPA_REQUEST, INITIATOR, Performative.REFUSE, Performative.FAILURE)
     def _on_ex_failed(self, conv: Conversation) -> None:
         """Refused, failed, not understood, or no answer by the reply-by deadline."""
         self._ex_answer(conv, False)
@@ -439,7 +452,7 @@ class TaskExecutor(Agent):
 
     def _request(self, command: msgspec.Struct, reply_by_s: float, retry_s: float | None) -> Conversation:
         """Request ``command`` of ag_ex (fipa-request on C5)."""
-        return self.roles.open("C5", "fipa-request", command, reply_by_s=reply_by_s, retry_s=retry_s)
+        return self.roles.open(C5, FIPA_REQUEST, command, reply_by_s=reply_by_s, retry_s=retry_s)
 
     def _update_km(self, obs: Observation) -> None:
         """Inform a_km of what ``obs`` saw and of where the hands' grip frames were (their
@@ -516,9 +529,7 @@ class TaskExecutor(Agent):
     def _restore(self, kept: KeptTaskExecutor) -> None:
         """Report on the plan a previous a_ta ran (see the module docstring)."""
         try:
-            conv = self.roles.restore(
-                "C1", "coordinate", "running", kept=kept.request, expect=HierarchicalPlan
-            )
+            conv = self.roles.restore(C1, COORDINATE, "running", kept=kept.request, expect=HierarchicalPlan)
         except RestoreError as exc:
             self.log.warning("kept plan request cannot be taken back (%s): dropped", exc)
             return

@@ -55,7 +55,7 @@ class ScriptedCo(Agent):
         self.subscribed = threading.Event()
         self.subscribes: list[str] = []
         self.subscribe_seen: queue.SimpleQueue[str] = queue.SimpleQueue()
-        return FSM(initial="serve", states={"serve": Behaviour("serve", self._serve, terminal=lambda: False)})
+        return FSM([Behaviour("serve", self._serve, terminal=lambda: False)])
 
     def _serve(self) -> None:
         while self.r:
@@ -205,7 +205,7 @@ def test_command_agree_progress_inform_gives_readable_reports(stage: Stage) -> N
         (ReportKind.PROGRESS, "pour the jar into the bowl: running pour(jar,bowl)/fetch_jar/grasp"),
         (ReportKind.SUCCEEDED, "pour the jar into the bowl: succeeded; done"),
     ]
-    assert not hi.commands and len(hi.conversations) == 1  # only the subscription stays open
+    assert not hi.commands and len(hi.pending_replies) == 1  # only the subscription stays open
 
 
 def test_priority_and_deadline_reach_a_co(stage: Stage) -> None:

@@ -109,7 +109,7 @@ class SilentKm(Agent):
     period = 0.01
 
     def build_fsm(self) -> FSM:
-        return FSM(initial="idle", states={"idle": Behaviour("idle", self._idle, terminal=lambda: False)})
+        return FSM([Behaviour("idle", self._idle, terminal=lambda: False)])
 
     def _idle(self) -> None:
         self.x.clear()

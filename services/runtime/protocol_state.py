@@ -1,24 +1,23 @@
-"""Conversation tracking: pending replies and reply-by deadlines, and the protocol state of
-every conversation.
+"""The protocol state of every conversation, tolerant of communicates that cross on the wire;
+and the ontology a communicate's content language needs.
 
-When an agent sends a communicate with ``reply_with`` and ``reply_by``, it waits for a reply
-whose ``in-reply-to`` matches. If the deadline passes first, the runtime places a local
-``failure`` (reason ``reply-by deadline passed``) in the agent's input buffer, so every
-conversation ends (FIPA SC00061 §2.4: reply-by). :class:`Conversations` keeps those waits.
-
-Every communicate sent or received must also be allowed in its conversation's current
-protocol state (FIPA SC00026/27/35 and the paper's coordinate protocol, §5.4).
+Every communicate sent or received must be allowed in its conversation's current protocol
+state (FIPA SC00026/27/35 and the paper's coordinate protocol, §5.4).
 :class:`CrossingTracker` follows one conversation through its protocol's state machine
 (:mod:`shared.fipa_codec.protocols`) while tolerating communicates that crossed on the wire;
 :func:`follow` adds what a conversation-id's life brings (a retry reusing it, a
 not-understood ending it); :class:`ProtocolStates` holds one tracker per peer and
 conversation-id for an agent, in bounded memory. ``services.spec_check.conformance`` follows
-recorded traffic with the same tracker.
+recorded traffic with the same tracker. A communicate in a content language must name that
+language's ontology (:func:`expected_ontology`).
+
+The conversations themselves, as an agent's roles take part in them, are
+:class:`services.runtime.roles.Conversation`; the replies an agent awaits, with their reply-by
+deadlines and retransmissions, are services/runtime/replies.py.
 """
 
 from __future__ import annotations
 
-import math
 from collections import OrderedDict
 from dataclasses import dataclass, field
 from typing import Literal
@@ -33,119 +32,6 @@ from shared.fipa_codec.protocols import (
     ProtocolViolation,
     Role,
 )
-
-FINAL_REPLIES = frozenset(
-    {"inform", "inform-ref", "inform-if", "failure", "refuse", "not-understood", "disconfirm", "confirm"}
-)
-"""Performatives that answer a request or query for good; ``agree`` only acknowledges."""
-
-
-@dataclass
-class Pending:
-    """A communicate awaiting a reply: its ``reply_with``, peer, protocol, conversation and
-    the POSIX time ``deadline`` (None: no deadline)."""
-
-    reply_with: str
-    peer: str
-    protocol: str | None
-    conversation_id: str | None
-    deadline: float | None
-    streaming: bool = False  # subscribe/coordinate: many replies, never final by itself
-    retry_s: float | None = None
-    """Retransmission period (s) until the first reply arrives; ``math.inf``: only when the
-    peer reappears; None: sent once."""
-    key: str = ""
-    payload: bytes = b""
-    next_retry: float | None = None
-    retransmissions: int = 0
-
-
-class Conversations:
-    """Pending replies of one agent, keyed by reply-with.
-
-    An entry with ``retry_s`` is retransmitted (the same bytes on the same key) every
-    ``retry_s`` seconds, and at once when its peer's liveliness token reappears
-    (:meth:`retry_now`), until any reply to it arrives or its deadline passes: at-least-once
-    delivery over a transport that may lose communicates while a peer or the router restarts.
-    The receiver drops the byte-identical copies (services/runtime/dedup.py).
-    """
-
-    def __init__(self) -> None:
-        self._pending: dict[str, Pending] = {}
-
-    def expect(self, pending: Pending) -> None:
-        self._pending[pending.reply_with] = pending
-
-    def answered(self, in_reply_to: str | None, performative: str) -> Pending | None:
-        """Note a reply; returns the pending entry it answers (None if unknown). A final reply
-        ends the wait; ``agree`` or a streaming reply keeps it."""
-        if in_reply_to is None:
-            return None
-        entry = self._pending.get(in_reply_to)
-        if entry is None:
-            return None
-        entry.next_retry = None  # the peer has it: no more retransmissions
-        if performative in FINAL_REPLIES and not entry.streaming:
-            del self._pending[in_reply_to]
-        elif entry.streaming:
-            entry.deadline = None  # a live stream has answered; its deadline no longer applies
-        return entry
-
-    def get(self, reply_with: str) -> Pending | None:
-        """The entry awaiting replies to ``reply_with`` (None: not awaited)."""
-        return self._pending.get(reply_with)
-
-    def knows(self, in_reply_to: str | None) -> bool:
-        return in_reply_to is not None and in_reply_to in self._pending
-
-    def forget(self, reply_with: str) -> None:
-        self._pending.pop(reply_with, None)
-
-    def forget_conversation(self, conversation_id: str) -> None:
-        """Stop waiting for any reply in conversation ``conversation_id``."""
-        for key in [k for k, p in self._pending.items() if p.conversation_id == conversation_id]:
-            del self._pending[key]
-
-    def expired(self, now: float) -> list[Pending]:
-        """Remove and return the entries whose deadline has passed."""
-        out = [p for p in self._pending.values() if p.deadline is not None and p.deadline <= now]
-        for p in out:
-            del self._pending[p.reply_with]
-        return out
-
-    def next_deadline(self) -> float | None:
-        """The earliest reply-by deadline or retransmission time (POSIX s), None if none."""
-        times = [p.deadline for p in self._pending.values() if p.deadline is not None]
-        times += [
-            p.next_retry
-            for p in self._pending.values()
-            if p.next_retry is not None and p.next_retry != math.inf
-        ]
-        return min(times) if times else None
-
-    def due(self, now: float) -> list[Pending]:
-        """Entries to retransmit now; each is scheduled again ``retry_s`` later."""
-        out = []
-        for p in self._pending.values():
-            if p.next_retry is not None and p.next_retry <= now and p.retry_s is not None:
-                p.next_retry = now + p.retry_s
-                p.retransmissions += 1
-                out.append(p)
-        return out
-
-    def retry_now(self, peer: str, now: float) -> int:
-        """Make every unanswered retransmittable entry to ``peer`` due at once (its liveliness
-        token reappeared: a restarted peer has lost what it was sent). Returns how many."""
-        n = 0
-        for p in self._pending.values():
-            if p.peer == peer and p.next_retry is not None:
-                p.next_retry = now
-                n += 1
-        return n
-
-    def __len__(self) -> int:
-        return len(self._pending)
-
 
 ONTOLOGY = "O_RoCo"
 """The ontology of every content language of the Robot Companion (paper §5.6)."""

@@ -1,0 +1,61 @@
+"""``roco spec names [--check] [--file F] [--spec S]`` (services/cli.py): writes the names
+module the specification gives, or only says whether a file is it — exit 0, 1 with one line
+saying how it differs, 2 for a specification or file that cannot be read."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from typer.testing import CliRunner
+
+from services.cli import app
+from services.spec.model import DEFAULT_SPEC, load
+from services.spec.render_names import NAMES_FILE, render
+from tests.spec_check.walkthrough import GROUP_EDIT, snippet, staged
+
+runner = CliRunner()
+
+
+def test_roco_spec_names_checks_the_committed_module() -> None:
+    done = runner.invoke(app, ["spec", "names", "--check"])
+    assert done.exit_code == 0, done.output
+    assert done.output.startswith("roco: ") and done.output.rstrip().endswith(
+        "is what the specification gives"
+    )
+
+
+def test_roco_spec_names_writes_and_checks_a_file(tmp_path: Path) -> None:
+    spec = tmp_path / "spec.toml"
+    spec.write_text(staged(DEFAULT_SPEC.read_text(), snippet(1), snippet(2), edits=GROUP_EDIT))
+    target = tmp_path / "names.py"
+    target.write_text(NAMES_FILE.read_text())
+    args = ["--file", str(target), "--spec", str(spec)]
+    done = runner.invoke(app, ["spec", "names", "--check", *args])
+    assert done.exit_code == 1
+    assert done.output == (
+        f"roco: {target} differs from what the specification gives (no name C9): run `roco spec names`\n"
+    )
+    done = runner.invoke(app, ["spec", "names", *args])
+    assert (
+        done.exit_code == 0
+        and done.output == f"roco: wrote {target} (9 channels, 4 protocols, 6 languages)\n"
+    )
+    assert target.read_text() == render(load(spec))
+    done = runner.invoke(app, ["spec", "names", "--check", *args])
+    assert done.exit_code == 0 and done.output == f"roco: {target} is what the specification gives\n"
+    done = runner.invoke(app, ["spec", "names", *args])
+    assert (
+        done.exit_code == 0
+        and done.output == f"roco: {target} is up to date (9 channels, 4 protocols, 6 languages)\n"
+    )
+
+
+def test_a_file_or_specification_that_cannot_be_read_exits_2(tmp_path: Path) -> None:
+    missing = tmp_path / "none.py"
+    done = runner.invoke(app, ["spec", "names", "--check", "--file", str(missing)])
+    assert done.exit_code == 2 and done.output == f"roco: {missing}: no such names module\n"
+    bad = tmp_path / "bad.toml"
+    bad.write_text('system = "x"\n')
+    done = runner.invoke(app, ["spec", "names", "--spec", str(bad), "--file", str(missing)])
+    assert done.exit_code == 2 and done.output.startswith(f"roco: {bad}: ") and done.output.count("\n") == 1
+    assert not missing.exists()
