@@ -385,7 +385,8 @@ def chaos(
     except ValueError as exc:
         raise fail(str(exc), code=2) from None
     if any(s.fault is not None and s.fault.service == "ag_ex" for s in sc.steps) and not _world_apart():
-        raise fail("ROCO_WORLD=loop keeps the kitchen in ag_ex, which a fault starts anew: unset it", code=2)
+        world = Settings.env_name("world")
+        raise fail(f"{world}=loop keeps the kitchen in ag_ex, which a fault starts anew: unset it", code=2)
     if hosts:
         from services.hosts.link import Shaping
 

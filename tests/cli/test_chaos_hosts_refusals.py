@@ -73,5 +73,5 @@ def test_a_fault_of_ag_ex_is_refused_while_the_kitchen_lives_in_it(
     assert result.exit_code == 2 and "ROCO_WORLD=loop keeps the kitchen in ag_ex" in result.output
     monkeypatch.setenv("ROCO_WORLD", "elsewhere")
     result = CliRunner().invoke(app, ["chaos", "--runs-dir", str(runs)])
-    assert result.exit_code == 2 and "ROCO_WORLD must be one of loop, process" in result.output
+    assert result.exit_code == 2 and "ROCO_WORLD='elsewhere': expected one of process, loop" in result.output
     assert not runs.exists()
