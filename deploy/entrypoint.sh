@@ -7,7 +7,7 @@
 # (YYYYmmdd-HHMMSS, as `roco run` names run folders), and writes the name to
 # $ROCO_FLEET_DIR/run (a volume every roco service mounts); a restart of the same router
 # container keeps the name. Every other service reads it there (ROCO_RUN overrides).
-# Then "{run}" in ROCO_RUN_DIR, ROCO_KM_STORE, ROCO_CO_STATE and ROCO_STATE_DIR is replaced by
+# Then "{run}" in ROCO_RUN_DIR, ROCO_KM_STORE and ROCO_STATE_DIR is replaced by
 # the name, so a restarted agent continues in the same run folder with the same store, and a
 # new fleet (docker compose down && up) starts with a fresh one, as the simulated kitchen does.
 set -eu
@@ -19,7 +19,7 @@ case "$run" in
 esac
 
 uses_run() {
-    for value in "${ROCO_RUN_DIR:-}" "${ROCO_KM_STORE:-}" "${ROCO_CO_STATE:-}" "${ROCO_STATE_DIR:-}"; do
+    for value in "${ROCO_RUN_DIR:-}" "${ROCO_KM_STORE:-}" "${ROCO_STATE_DIR:-}"; do
         case "$value" in *"{run}"*) return 0 ;; esac
     done
     return 1
@@ -53,7 +53,7 @@ elif [ -z "$run" ] && uses_run; then
 fi
 
 if [ -n "$run" ]; then
-    for var in ROCO_RUN_DIR ROCO_KM_STORE ROCO_CO_STATE ROCO_STATE_DIR; do
+    for var in ROCO_RUN_DIR ROCO_KM_STORE ROCO_STATE_DIR; do
         eval "value=\${$var:-}"
         case "$value" in
             *"{run}"*) export "$var=$(printf '%s' "$value" | sed "s|{run}|$run|g")" ;;

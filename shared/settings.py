@@ -326,14 +326,6 @@ class Settings(msgspec.Struct, frozen=True, kw_only=True):
             "a_km's knowledge store; unset: the run folder's km_store/, else in memory",
         ),
     ] = None
-    co_state: Annotated[
-        Path | None,
-        About(
-            "ROCO_CO_STATE",
-            "a_co's state folder as deploy/compose.yaml names it beside ROCO_STATE_DIR, which is what a_co "
-            "reads; no roco code reads it",
-        ),
-    ] = None
     # --- the viewer
     rerun: Annotated[
         bool,

@@ -50,7 +50,7 @@ MOUNTS = (
 )
 """What every roco service mounts: the run folders, the fleet's run name, the credentials."""
 
-RUN_VARIABLES = tuple(Settings.env_name(f) for f in ("run_dir", "km_store", "co_state", "state_dir"))
+RUN_VARIABLES = tuple(Settings.env_name(f) for f in ("run_dir", "km_store", "state_dir"))
 """The variables in which deploy/entrypoint.sh replaces ``{run}`` by the run's name."""
 
 
@@ -84,11 +84,7 @@ class AgentExtras:
 
 AGENT_EXTRAS: dict[str, AgentExtras] = {
     "a_km": AgentExtras(state=StateVolume("km_store", "/var/lib/roco/km", (Settings.env_name("km_store"),))),
-    "a_co": AgentExtras(
-        state=StateVolume(
-            "co_state", "/var/lib/roco/co", (Settings.env_name("co_state"), Settings.env_name("state_dir"))
-        )
-    ),
+    "a_co": AgentExtras(state=StateVolume("co_state", "/var/lib/roco/co", (Settings.env_name("state_dir"),))),
     "ag_ex": AgentExtras(
         hardware=WORLD_SERVICE,
         capabilities=("SYS_NICE",),

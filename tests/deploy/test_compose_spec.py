@@ -84,7 +84,7 @@ def test_the_six_agents_services_are_what_the_fleet_needs() -> None:
         }
         extra_env = {
             "a_km": {"ROCO_KM_STORE": "/var/lib/roco/km/{run}"},
-            "a_co": {"ROCO_CO_STATE": "/var/lib/roco/co/{run}", "ROCO_STATE_DIR": "/var/lib/roco/co/{run}"},
+            "a_co": {"ROCO_STATE_DIR": "/var/lib/roco/co/{run}"},
         }.get(name, {})
         assert service["environment"] == {**env, **extra_env}
         extra_volume = {"a_km": ["km_store:/var/lib/roco/km"], "a_co": ["co_state:/var/lib/roco/co"]}
