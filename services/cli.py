@@ -28,7 +28,7 @@ from typing import TYPE_CHECKING, Annotated, Literal
 import msgspec
 import typer
 
-from services.deploy.cli import deploy_app
+from services.deploy.cli import CheckOnly, SpecFile, deploy_app, file_option, shown
 from services.fault.cli import fault_app
 from services.fleet.launcher import AGENT_ORDER, Fleet, LaunchError
 from services.hosts.cli import hosts_app
@@ -410,13 +410,13 @@ def chaos(
         hosting = TwoHostsHosting(TwoHosts(run_dir, shaping, env=env))
     watch = _live_watch(f"roco chaos --seed {seed}", live, quiet)
     say = watch.line if watch is not None else typer.echo
-    shown = ("fault", "back after", "up again after")
+    always = ("fault", "back after", "up again after")
     with watch if watch is not None else contextlib.nullcontext():
         runner = ScenarioRunner(
             sc,
             run_dir,
             env=env,
-            echo=lambda line: say(line) if not quiet or any(w in line for w in shown) else None,
+            echo=lambda line: say(line) if not quiet or any(w in line for w in always) else None,
             info=info,
             on_session=watch.attach if watch is not None else None,
             hosting=hosting,
@@ -1042,9 +1042,6 @@ spec_app = typer.Typer(
     short_help="The specification: show it, check it, verify code and runs.",
 )
 app.add_typer(spec_app, name="spec")
-SpecFile = Annotated[
-    Path | None, typer.Option("--spec", help="a specification file (default: the shipped one)")
-]
 
 
 def _spec_path(path: Path | None) -> Path:
@@ -1180,15 +1177,8 @@ def spec_verify_code(spec: SpecFile = None) -> None:
 
 @spec_app.command("names", short_help="Write services/spec/names.py from the specification, or check it.")
 def spec_names(
-    check: Annotated[
-        bool, typer.Option("--check", help="only say whether the file is what the specification gives")
-    ] = False,
-    file: Annotated[
-        Path | None,
-        typer.Option(
-            help="the names module [default: services/spec/names.py of this checkout]", show_default=False
-        ),
-    ] = None,
+    check: CheckOnly = False,
+    file: Annotated[Path | None, file_option("names module", "services/spec/names.py")] = None,
     spec: SpecFile = None,
 ) -> None:
     """Write the names module the specification gives: its channels, interaction protocols and
@@ -1201,14 +1191,14 @@ def spec_names(
     from services.spec.render_names import check as check_file
 
     path = file or NAMES_FILE
-    shown = _shown(path)
+    name = shown(path)
     try:
         system = load(_spec_path(spec))
         if check:
-            problem = check_file(path, system, shown)
+            problem = check_file(path, system, name)
             if problem is not None:
                 raise fail(problem)
-            typer.echo(f"roco: {shown} is what the specification gives")
+            typer.echo(f"roco: {name} is what the specification gives")
             return
         changed = write(path, system)
         typed = typed_names(system)
@@ -1217,15 +1207,7 @@ def spec_names(
     counts = (
         f"{len(typed.channels)} channels, {len(typed.protocols)} protocols, {len(typed.languages)} languages"
     )
-    typer.echo(f"roco: wrote {shown} ({counts})" if changed else f"roco: {shown} is up to date ({counts})")
-
-
-def _shown(path: Path) -> str:
-    """``path`` relative to the working folder where it is below it."""
-    try:
-        return str(path.resolve().relative_to(Path.cwd().resolve()))
-    except ValueError:
-        return str(path)
+    typer.echo(f"roco: wrote {name} ({counts})" if changed else f"roco: {name} is up to date ({counts})")
 
 
 def _world_apart() -> bool:

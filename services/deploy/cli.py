@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
-from typing import Annotated
+from typing import Annotated, Any
 
 import typer
 
@@ -34,6 +34,24 @@ deploy_app = typer.Typer(
 SpecFile = Annotated[
     Path | None, typer.Option("--spec", help="a specification file (default: the shipped one)")
 ]
+"""``--spec FILE`` of the commands that read the specification."""
+CheckOnly = Annotated[
+    bool, typer.Option("--check", help="only say whether the file is what the specification gives")
+]
+"""``--check`` of the commands that write a file rendered from the specification."""
+
+
+def file_option(what: str, default: str) -> Any:
+    """``--file F`` of a command that writes ``what`` (default: ``default`` in this checkout)."""
+    return typer.Option(help=f"the {what} [default: {default} of this checkout]", show_default=False)
+
+
+def shown(path: Path) -> str:
+    """``path`` relative to the working folder where it is below it."""
+    try:
+        return str(path.resolve().relative_to(Path.cwd().resolve()))
+    except ValueError:
+        return str(path)
 
 
 def _spec(path: Path | None) -> SystemSpec:
@@ -151,25 +169,10 @@ def table(
     typer.echo((markdown_table if full else channel_table)(_spec(spec)), nl=False)
 
 
-def _shown(path: Path) -> str:
-    """``path`` relative to the working folder where it is below it."""
-    try:
-        return str(path.resolve().relative_to(Path.cwd().resolve()))
-    except ValueError:
-        return str(path)
-
-
 @deploy_app.command(short_help="Write deploy/compose.yaml from the specification, or check it.")
 def compose(
-    check: Annotated[
-        bool, typer.Option("--check", help="only say whether the file is what the specification gives")
-    ] = False,
-    file: Annotated[
-        Path | None,
-        typer.Option(
-            help="the compose file [default: deploy/compose.yaml of this checkout]", show_default=False
-        ),
-    ] = None,
+    check: CheckOnly = False,
+    file: Annotated[Path | None, file_option("compose file", "deploy/compose.yaml")] = None,
     spec: SpecFile = None,
 ) -> None:
     """Write the compose file the specification gives: one service per agent (in its start
@@ -184,11 +187,11 @@ def compose(
     system = _spec(spec)
     try:
         if check:
-            problem = check_file(path, system, _shown(path))
+            problem = check_file(path, system, shown(path))
             if problem is not None:
                 typer.echo(f"roco: {problem}", err=True)
                 raise typer.Exit(1)
-            typer.echo(f"roco: {_shown(path)} is what the specification gives")
+            typer.echo(f"roco: {shown(path)} is what the specification gives")
             return
         changed = write(path, system)
     except ComposeError as exc:
@@ -197,6 +200,6 @@ def compose(
     agents = ", ".join(system.launch_order)
     if changed:
         others = ", ".join(["router", "recorder", "viewer", *hardware(system)])
-        typer.echo(f"roco: wrote {_shown(path)}: {others} and the agents {agents}")
+        typer.echo(f"roco: wrote {shown(path)}: {others} and the agents {agents}")
     else:
-        typer.echo(f"roco: {_shown(path)} is up to date (the agents {agents})")
+        typer.echo(f"roco: {shown(path)} is up to date (the agents {agents})")

@@ -30,6 +30,7 @@ import re
 from dataclasses import dataclass
 from pathlib import Path
 
+from services.spec.generated import GeneratedFile
 from services.spec.model import SystemSpec
 from shared.settings import Settings
 from velma.world.mode import WORLD_SERVICE
@@ -37,7 +38,8 @@ from velma.world.mode import WORLD_SERVICE
 PROJECT = Path(__file__).resolve().parents[2]
 """The project's root folder (where ``services/`` and ``deploy/`` are)."""
 
-COMPOSE_FILE = PROJECT / "deploy" / "compose.yaml"
+IN_CHECKOUT = Path("deploy", "compose.yaml")
+COMPOSE_FILE = PROJECT / IN_CHECKOUT
 """The project's compose file."""
 
 MAX_COMPOSE_BYTES = 1 << 20
@@ -371,29 +373,11 @@ def render(spec: SystemSpec) -> str:
     return f"{head}{agents}\n{VIEWER}\n{tail}"
 
 
-def read(path: Path) -> str:
-    """The text of compose file ``path``. Raises ComposeError (one line) when it is missing,
-    unreadable, larger than :data:`MAX_COMPOSE_BYTES` or not UTF-8."""
-    try:
-        size = path.stat().st_size
-        if size > MAX_COMPOSE_BYTES:
-            raise ComposeError(f"{path}: {size} bytes, more than a compose file holds ({MAX_COMPOSE_BYTES})")
-        return path.read_bytes().decode("utf-8")
-    except FileNotFoundError:
-        raise ComposeError(f"{path}: no such compose file") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise ComposeError(f"{path}: cannot read it: {exc}") from None
-
-
 _SERVICE_LINE = re.compile(r'^  "?([A-Za-z0-9][A-Za-z0-9_.-]*)"?:', re.M)
 
 
-def difference(text: str, spec: SystemSpec) -> str | None:
-    """How compose file ``text`` differs from what ``spec`` gives (one phrase naming the agents
-    with no service, or services of no agent, where that is the difference), or None."""
-    wanted = render(spec)
-    if text == wanted:
-        return None
+def _named_difference(text: str, spec: SystemSpec) -> str | None:
+    """The agents with no service, or services of no agent, in compose file ``text``."""
     body = text.split("\nservices:\n", 1)[-1].split("\nvolumes:\n", 1)[0]
     found = set(_SERVICE_LINE.findall(body)) - set(NOT_AGENTS)
     agents = set(spec.launch_order)
@@ -401,48 +385,23 @@ def difference(text: str, spec: SystemSpec) -> str | None:
         return f"no service for agent {', '.join(missing)}"
     if extra := sorted(found - agents):
         return f"a service for {', '.join(extra)}, which the specification has no agent of"
-    ours, theirs = text.splitlines(), wanted.splitlines()
-    first = next((i for i, (a, b) in enumerate(zip(ours, theirs, strict=False)) if a != b), None)
-    if first is None:
-        shorter = min(len(ours), len(theirs))
-        return "its end differs" if len(ours) == len(theirs) else f"line {shorter + 1} differs"
-    return f"line {first + 1} differs"
+    return None
 
 
-def check(path: Path, spec: SystemSpec, shown: str | None = None) -> str | None:
-    """None when compose file ``path`` is what ``spec`` gives; else one line saying how it
-    differs and how to bring it up to date, naming the file ``shown`` (default: ``path``).
-    Raises ComposeError as :func:`read`."""
-    how = difference(read(path), spec)
-    if how is None:
-        return None
-    return f"{shown or path} differs from what the specification gives ({how}): run `roco deploy compose`"
-
-
-def write(path: Path, spec: SystemSpec) -> bool:
-    """Write the compose file ``spec`` gives to ``path`` (atomically); False when it already
-    held exactly that. Raises ComposeError as :func:`render`, and when it cannot be written."""
-    text = render(spec)
-    try:
-        if read(path) == text:
-            return False
-    except ComposeError:
-        pass
-    tmp = path.with_name(path.name + ".tmp")
-    try:
-        tmp.write_text(text)
-        tmp.replace(path)
-    except OSError as exc:
-        raise ComposeError(f"{path}: cannot write it: {exc.strerror or exc}") from None
-    return True
-
-
-def bring_up_to_date(root: Path, spec: SystemSpec) -> str:
-    """Render ``root``'s ``deploy/compose.yaml`` from ``spec`` (``roco spec new-agent``); the
-    line to tell the user what was done. Raises ComposeError as :func:`write`."""
-    path = root / "deploy" / "compose.yaml"
-    if not path.is_file():
-        return f"no compose file at {path}: `roco deploy compose --file F` writes one elsewhere"
-    if write(path, spec):
-        return f"wrote {path}: one service per agent ({', '.join(spec.launch_order)})"
-    return f"{path} is up to date"
+COMPOSE = GeneratedFile(
+    what="compose file",
+    relative=IN_CHECKOUT,
+    command="roco deploy compose",
+    max_bytes=MAX_COMPOSE_BYTES,
+    error=ComposeError,
+    render=render,
+    named_difference=_named_difference,
+    wrote=lambda spec: f"one service per agent ({', '.join(spec.launch_order)})",
+)
+"""``deploy/compose.yaml`` (services/spec/generated.py): ``read``, ``difference``, ``check``,
+``write``, ``bring_up_to_date``."""
+read = COMPOSE.read
+difference = COMPOSE.difference
+check = COMPOSE.check
+write = COMPOSE.write
+bring_up_to_date = COMPOSE.bring_up_to_date

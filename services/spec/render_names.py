@@ -22,6 +22,7 @@ import textwrap
 from dataclasses import dataclass
 from pathlib import Path
 
+from services.spec.generated import GeneratedFile
 from services.spec.model import SpecError, SystemSpec
 from shared.fipa_codec.protocols import PROTOCOLS
 
@@ -215,26 +216,8 @@ def render(spec: SystemSpec) -> str:
     return "".join(parts).rstrip("\n") + "\n"
 
 
-def read(path: Path) -> str:
-    """The text of names module ``path``. Raises NamesError (one line) when it is missing,
-    unreadable, larger than :data:`MAX_NAMES_BYTES` or not UTF-8."""
-    try:
-        size = path.stat().st_size
-        if size > MAX_NAMES_BYTES:
-            raise NamesError(f"{path}: {size} bytes, more than a names module holds ({MAX_NAMES_BYTES})")
-        return path.read_bytes().decode("utf-8")
-    except FileNotFoundError:
-        raise NamesError(f"{path}: no such names module") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise NamesError(f"{path}: cannot read it: {exc}") from None
-
-
-def difference(text: str, spec: SystemSpec) -> str | None:
-    """How names module ``text`` differs from what ``spec`` gives (the names it lacks or has
-    beyond them, where that is the difference; else the first line that differs), or None."""
-    wanted = render(spec)
-    if text == wanted:
-        return None
+def _named_difference(text: str, spec: SystemSpec) -> str | None:
+    """The names names module ``text`` lacks, or has beyond the specification's."""
     typed = typed_names(spec)
     names = set(typed.aliases())
     found = set(re.findall(r"^([A-Z][A-Z0-9_]*) = [A-Za-z]+\.", text, re.M))
@@ -242,47 +225,23 @@ def difference(text: str, spec: SystemSpec) -> str | None:
         return f"no name {', '.join(missing)}"
     if extra := sorted(found - names):
         return f"names {', '.join(extra)}, which the specification does not have"
-    ours, theirs = text.splitlines(), wanted.splitlines()
-    first = next((i for i, (a, b) in enumerate(zip(ours, theirs, strict=False)) if a != b), None)
-    if first is None:
-        return f"line {min(len(ours), len(theirs)) + 1} differs"
-    return f"line {first + 1} differs"
+    return None
 
 
-def check(path: Path, spec: SystemSpec, shown: str | None = None) -> str | None:
-    """None when names module ``path`` is what ``spec`` gives; else one line saying how it
-    differs and how to bring it up to date, naming the file ``shown`` (default: ``path``).
-    Raises NamesError as :func:`read` and :func:`render`."""
-    how = difference(read(path), spec)
-    if how is None:
-        return None
-    return f"{shown or path} differs from what the specification gives ({how}): run `roco spec names`"
-
-
-def write(path: Path, spec: SystemSpec) -> bool:
-    """Write the names module ``spec`` gives to ``path`` (atomically); False when it already
-    held exactly that. Raises NamesError as :func:`render`, and when it cannot be written."""
-    text = render(spec)
-    try:
-        if read(path) == text:
-            return False
-    except NamesError:
-        pass
-    tmp = path.with_name(path.name + ".tmp")
-    try:
-        tmp.write_text(text)
-        tmp.replace(path)
-    except OSError as exc:
-        raise NamesError(f"{path}: cannot write it: {exc.strerror or exc}") from None
-    return True
-
-
-def bring_up_to_date(root: Path, spec: SystemSpec) -> str:
-    """Render ``root``'s ``services/spec/names.py`` from ``spec`` (``roco spec new-agent``);
-    the line to tell the user what was done. Raises NamesError as :func:`write`."""
-    path = root / "services" / "spec" / "names.py"
-    if not path.is_file():
-        return f"no names module at {path}: `roco spec names --file F` writes one elsewhere"
-    if write(path, spec):
-        return f"wrote {path}: the names of channels {', '.join(ch.name for ch in spec.channels)}"
-    return f"{path} is up to date"
+NAMES = GeneratedFile(
+    what="names module",
+    relative=Path("services", "spec", "names.py"),
+    command="roco spec names",
+    max_bytes=MAX_NAMES_BYTES,
+    error=NamesError,
+    render=render,
+    named_difference=_named_difference,
+    wrote=lambda spec: f"the names of channels {', '.join(ch.name for ch in spec.channels)}",
+)
+"""``services/spec/names.py`` (services/spec/generated.py): ``read``, ``difference``,
+``check``, ``write``, ``bring_up_to_date``."""
+read = NAMES.read
+difference = NAMES.difference
+check = NAMES.check
+write = NAMES.write
+bring_up_to_date = NAMES.bring_up_to_date
