@@ -32,12 +32,16 @@ import tempfile
 import time
 import traceback
 from collections.abc import Callable
+from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Annotated, Any
+from typing import TYPE_CHECKING, Annotated, Any
 
 import typer
 
 from services.bench import quiet
+
+if TYPE_CHECKING:
+    from services.bench import report
 
 PARTS = (
     "codec",
@@ -75,6 +79,178 @@ def _parts(only: str | None) -> list[str]:
     return [p for p in PARTS if p in chosen]
 
 
+@dataclass
+class _Bench:
+    """One `roco bench` run, part by part: each part's method runs it (``run``: waits for a
+    quiet machine first when timed, keeps its error), prints its table and keeps its section
+    (``emit``) and its verdicts (``targets``). The parts run in ``PARTS``'s order, save the
+    task's table, which follows memory's (planning's section quotes the task's runs)."""
+
+    chosen: list[str]
+    quick: bool
+    settle: float
+    counts: report.Counts
+    sections: list[report.Section] = field(default_factory=list)
+    targets: list[str] = field(default_factory=list)
+    errors: dict[str, str] = field(default_factory=dict)
+    results: dict[str, Any] = field(default_factory=dict)
+    conditions: list[str] = field(default_factory=list)
+    """How busy the machine was before and during the timed parts."""
+    task_runs: list[Any] = field(default_factory=list)
+
+    def settled(self, label: str) -> None:
+        if self.settle > 0:
+            typer.echo(
+                f"roco bench: waiting up to {self.settle:.0f} s for a quiet machine ({label})…", err=True
+            )
+            self.conditions.append(f"{label}: {quiet.settle(self.settle).text()}")
+
+    def run(self, name: str, fn: Callable[[], Any], timed: bool = False) -> Any:
+        if timed:
+            self.settled(f"before {name}")
+        typer.echo(f"roco bench: {name}…", err=True)
+        t, cpu = time.perf_counter(), quiet.read() if timed else None
+        try:
+            self.results[name] = fn()
+        except Exception as exc:  # one part failing must not lose the others
+            self.errors[name] = f"{type(exc).__name__}: {exc}"
+            traceback.print_exc()
+            self.results[name] = None
+        during = quiet.share(cpu, quiet.read()) if timed else None
+        if during is not None:
+            self.conditions.append(
+                f"during {name}: {during.steal * 100:.1f} % of the CPU time stolen by the hypervisor"
+            )
+        typer.echo(f"roco bench: {name} done in {time.perf_counter() - t:.0f} s", err=True)
+        return self.results[name]
+
+    def emit(self, section: report.Section, verdicts: list[str] | None = None) -> None:
+        typer.echo("\n".join(section.lines()))
+        self.sections.append(section)
+        self.targets.extend(verdicts or [])
+
+    def ran(self, name: str, fn: Callable[[], Any], timed: bool = False) -> Any:
+        """``run``'s result when ``name`` is chosen, else None."""
+        return self.run(name, fn, timed) if name in self.chosen else None
+
+    def codec(self) -> None:
+        from services.bench import parts, report
+
+        if self.ran("codec", lambda: parts.codec(self.quick)) is not None:
+            self.emit(report.codec_section(self.results["codec"]))
+
+    def messaging(self) -> None:
+        from services.bench import messaging, report, spade
+
+        n = self.counts
+        got = self.ran(
+            "messaging",
+            lambda: messaging.messaging(n.rounds, n.round_trips, n.communicates, n.content_bytes),
+            timed=True,
+        )
+        pair = got[0] if got else None
+        sp = self.ran(
+            "spade", lambda: spade.measure(n.spade_round_trips, n.spade_messages, n.content_bytes), timed=True
+        )
+        if pair is not None or sp is not None:
+            self.emit(report.messaging_section(pair, sp, n), report.verdict_lines(pair, sp))
+
+    def knowledge(self) -> None:
+        from services.bench import parts, report
+
+        if self.ran("knowledge", lambda: parts.knowledge(self.quick)) is not None:
+            rows, store = self.results["knowledge"]
+            self.emit(report.knowledge_section(rows, store, self.counts))
+
+    def task(self) -> None:
+        from services.bench import parts
+
+        if "task" not in self.chosen:
+            return
+        runs_dir = Path(tempfile.mkdtemp(prefix="roco-bench-runs-"))
+        for realtime in (False,) if self.quick else (False, True):
+            got = self.run(
+                f"task{' (real time)' if realtime else ''}", functools.partial(parts.task, realtime, runs_dir)
+            )
+            if got is not None:
+                self.task_runs.append(got)
+
+    def planning(self) -> None:
+        from services.bench import parts, report
+
+        if "planning" in self.chosen:
+            self.emit(
+                report.planning_section(
+                    self.run("planning", lambda: parts.planning(self.quick)), self.task_runs
+                )
+            )
+
+    def fleet_and_memory(self) -> None:
+        from services.bench import parts, report
+
+        if self.ran("fleet", parts.fleet) is not None:
+            self.emit(report.fleet_section(self.results["fleet"]))
+        if self.ran("memory", parts.memory) is not None:
+            self.emit(
+                report.memory_section(self.results["memory"]), report.memory_verdicts(self.results["memory"])
+            )
+        if self.task_runs:
+            self.emit(report.task_section(self.task_runs))
+
+    def scale(self, scale_agents: str) -> None:
+        from services.bench import messaging, report
+
+        if "scale" not in self.chosen:
+            return
+        n = self.counts
+        agent_counts = [int(x) for x in scale_agents.split(",") if x.strip()]
+        agent_counts = agent_counts[:1] if self.quick else agent_counts
+
+        def one(meshed: bool) -> list[Any]:
+            return messaging.scale(
+                agent_counts,
+                n.scale_round_trips,
+                n.scale_communicates,
+                n.scale_all_pairs,
+                n.content_bytes,
+                meshed=meshed,
+                all_rounds=n.scale_all_rounds,
+                before=self.settled,
+            )
+
+        rows = self.run("scale", lambda: one(False) + one(True), timed=True)
+        if rows is not None:
+            self.emit(report.scale_section(rows, n), report.scale_verdicts(rows))
+
+    def gateway_stop_reading(self) -> None:
+        from services.bench import parts, report
+
+        if "gateway" in self.chosen:
+            from services.bench import gateway
+
+            got = self.run("gateway", lambda: gateway.measure(self.quick), timed=True)
+            if got is not None:
+                self.emit(report.gateway_section(got), report.gateway_verdicts(got))
+        got = self.ran("stop", lambda: parts.stop(self.counts.stops), timed=True)
+        if got is not None:
+            self.emit(report.stop_section(got), report.stop_verdicts(got))
+        if self.ran("reading", lambda: parts.reading(self.counts.reading_repeats)) is not None:
+            self.emit(report.reading_section(self.results["reading"], self.counts))
+
+    def finish(self) -> None:
+        """The verdicts on planning and the fleet, the task runs' files removed when every run
+        succeeded (kept when one failed), and the failed parts' section."""
+        from services.bench import report
+
+        self.targets.extend(
+            report.plan_and_fleet_verdicts(self.results.get("planning"), self.results.get("fleet"))
+        )
+        if self.task_runs and all(r.ok for r in self.task_runs):
+            shutil.rmtree(self.task_runs[0].run_dir.parent, ignore_errors=True)
+        if self.errors:
+            self.emit(report.failed_section(self.errors))
+
+
 @bench_app.callback()
 def bench(
     only: Annotated[str | None, typer.Option(help=f"comma-separated parts of: {', '.join(PARTS)}")] = None,
@@ -102,7 +278,7 @@ def bench(
     ] = None,
 ) -> None:
     """Run the benchmarks, print each table, write them to OUT (default docs/benchmarks.md)."""
-    from services.bench import messaging, parts, report, spade
+    from services.bench import report
 
     if settle is None:
         settle = 0.0 if quick else quiet.DEFAULT_WAIT_S
@@ -110,148 +286,30 @@ def bench(
         raise typer.BadParameter(f"--settle {settle:g}: expected seconds ≥ 0 (0: do not wait)")
 
     chosen = _parts(only)
-    counts = report.Counts.of(quick)
     started, t0, load_start = time.time(), time.perf_counter(), report.load()
     args = " ".join(a for a in sys.argv[1:] if a != "bench")
     command = f"roco bench {args}".strip()
-    sections: list[report.Section] = []
-    targets: list[str] = []
-    errors: dict[str, str] = {}
-    results: dict[str, Any] = {}
-
-    conditions: list[str] = []  # how busy the machine was before and during the timed parts
-
-    def settled(label: str) -> None:
-        if settle > 0:
-            typer.echo(f"roco bench: waiting up to {settle:.0f} s for a quiet machine ({label})…", err=True)
-            conditions.append(f"{label}: {quiet.settle(settle).text()}")
-
-    def run(name: str, fn: Callable[[], Any], timed: bool = False) -> Any:
-        if timed:
-            settled(f"before {name}")
-        typer.echo(f"roco bench: {name}…", err=True)
-        t, cpu = time.perf_counter(), quiet.read() if timed else None
-        try:
-            results[name] = fn()
-        except Exception as exc:  # one part failing must not lose the others
-            errors[name] = f"{type(exc).__name__}: {exc}"
-            traceback.print_exc()
-            results[name] = None
-        during = quiet.share(cpu, quiet.read()) if timed else None
-        if during is not None:
-            conditions.append(
-                f"during {name}: {during.steal * 100:.1f} % of the CPU time stolen by the hypervisor"
-            )
-        typer.echo(f"roco bench: {name} done in {time.perf_counter() - t:.0f} s", err=True)
-        return results[name]
-
-    def emit(section: report.Section) -> None:
-        typer.echo("\n".join(section.lines()))
-        sections.append(section)
-
-    n = counts
-    if "codec" in chosen and run("codec", lambda: parts.codec(quick)) is not None:
-        emit(report.codec_section(results["codec"]))
-    pair = None
-    if "messaging" in chosen:
-        got = run(
-            "messaging",
-            lambda: messaging.messaging(n.rounds, n.round_trips, n.communicates, n.content_bytes),
-            timed=True,
-        )
-        pair = got[0] if got else None
-    sp = None
-    if "spade" in chosen:
-        sp = run(
-            "spade",
-            lambda: spade.measure(n.spade_round_trips, n.spade_messages, n.content_bytes),
-            timed=True,
-        )
-    if pair is not None or sp is not None:
-        emit(report.messaging_section(pair, sp, counts))
-        targets.extend(report.verdict_lines(pair, sp))
-    if "knowledge" in chosen and run("knowledge", lambda: parts.knowledge(quick)) is not None:
-        rows, store = results["knowledge"]
-        emit(report.knowledge_section(rows, store, counts))
-    task_runs: list[Any] = []
-    if "task" in chosen:
-        runs_dir = Path(tempfile.mkdtemp(prefix="roco-bench-runs-"))
-        for realtime in (False,) if quick else (False, True):
-            got = run(
-                f"task{' (real time)' if realtime else ''}", functools.partial(parts.task, realtime, runs_dir)
-            )
-            if got is not None:
-                task_runs.append(got)
-    if "planning" in chosen:
-        emit(report.planning_section(run("planning", lambda: parts.planning(quick)), task_runs))
-    if "fleet" in chosen and run("fleet", parts.fleet) is not None:
-        emit(report.fleet_section(results["fleet"]))
-    if "memory" in chosen and run("memory", parts.memory) is not None:
-        emit(report.memory_section(results["memory"]))
-        targets.extend(report.memory_verdicts(results["memory"]))
-    if task_runs:
-        emit(report.task_section(task_runs))
-    if "scale" in chosen:
-        agent_counts = [int(x) for x in scale_agents.split(",") if x.strip()]
-        agent_counts = agent_counts[:1] if quick else agent_counts
-        rows = run(
-            "scale",
-            lambda: (
-                messaging.scale(
-                    agent_counts,
-                    n.scale_round_trips,
-                    n.scale_communicates,
-                    n.scale_all_pairs,
-                    n.content_bytes,
-                    all_rounds=n.scale_all_rounds,
-                    before=settled,
-                )
-                + messaging.scale(
-                    agent_counts,
-                    n.scale_round_trips,
-                    n.scale_communicates,
-                    n.scale_all_pairs,
-                    n.content_bytes,
-                    meshed=True,
-                    all_rounds=n.scale_all_rounds,
-                    before=settled,
-                )
-            ),
-            timed=True,
-        )
-        if rows is not None:
-            emit(report.scale_section(rows, counts))
-            targets.extend(report.scale_verdicts(rows))
-    if "gateway" in chosen:
-        from services.bench import gateway
-
-        got = run("gateway", lambda: gateway.measure(quick), timed=True)
-        if got is not None:
-            emit(report.gateway_section(got))
-            targets.extend(report.gateway_verdicts(got))
-    if "stop" in chosen:
-        got = run("stop", lambda: parts.stop(n.stops), timed=True)
-        if got is not None:
-            emit(report.stop_section(got))
-            targets.extend(report.stop_verdicts(got))
-    if "reading" in chosen and run("reading", lambda: parts.reading(n.reading_repeats)) is not None:
-        emit(report.reading_section(results["reading"], counts))
-    targets.extend(report.plan_and_fleet_verdicts(results.get("planning"), results.get("fleet")))
-    if task_runs and all(r.ok for r in task_runs):
-        shutil.rmtree(task_runs[0].run_dir.parent, ignore_errors=True)  # kept when a run failed
-    if errors:
-        emit(report.failed_section(errors))
+    b = _Bench(chosen, quick, settle, report.Counts.of(quick))
+    b.codec()
+    b.messaging()
+    b.knowledge()
+    b.task()
+    b.planning()
+    b.fleet_and_memory()
+    b.scale(scale_agents)
+    b.gateway_stop_reading()
+    b.finish()
     seconds = time.perf_counter() - t0
     run_lines = [
         *report.machine_lines(command, load_start, report.load(), started, seconds),
-        *report.condition_lines(conditions, settle),
+        *report.condition_lines(b.conditions, settle),
     ]
     notes = NOTES.read_text() if NOTES.exists() else ""
     out.parent.mkdir(parents=True, exist_ok=True)
-    out.write_text(report.document(run_lines, targets, sections, notes))
-    typer.echo("\n".join(report.targets_section(targets).lines()))
+    out.write_text(report.document(run_lines, b.targets, b.sections, notes))
+    typer.echo("\n".join(report.targets_section(b.targets).lines()))
     typer.echo(f"roco bench: wrote {out} in {seconds:.0f} s", err=True)
-    if errors:
+    if b.errors:
         raise typer.Exit(1)
 
 

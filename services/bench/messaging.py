@@ -490,6 +490,24 @@ class ScaleRow:
     fresh router (or two), every pair at once: how the transport itself scales."""
 
 
+def _scale_row(
+    n: int, n_rt: int, n_tput: int, n_rt_all: int, size: int, meshed: bool, all_rounds: int
+) -> ScaleRow:
+    """:func:`scale`'s figures for ``n`` agents: pair 0 with the others idle, every pair at
+    once, then as many bare Zenoh processes on a fresh testbed."""
+    pairs = max(1, n // 2)
+    names = [name for k in range(pairs) for name in pair_names(k)]
+    with testbed(pairs, names, [0], meshed=meshed) as bed:
+        pair = measure_pair(bed, 0, 1, n_rt, n_tput, size)
+        concurrent = median_run([measure_all_pairs(bed, pairs, n_rt_all, size) for _ in range(all_rounds)])
+        rss = bed.rss_mib()
+        agents_rss = sum(v for k, v in rss.items() if k.startswith("b_"))
+        start_s = bed.start_s
+    with testbed(pairs, [], range(pairs), meshed=meshed) as bed:
+        raw = median_run([measure_all_pairs(bed, pairs, n_rt_all, size, raw=True) for _ in range(all_rounds)])
+    return ScaleRow(len(names), start_s, agents_rss, pair, concurrent, 2 if meshed else 1, raw)
+
+
 def scale(
     agent_counts: Sequence[int],
     n_rt: int,
@@ -510,21 +528,8 @@ def scale(
     waits there for a quiet machine)."""
     rows = []
     for n in agent_counts:
-        pairs = max(1, n // 2)
-        names = [name for k in range(pairs) for name in pair_names(k)]
         if before is not None:
-            before(f"before scale, {len(names)} agents{', two routers' if meshed else ''}")
-        with testbed(pairs, names, [0], meshed=meshed) as bed:
-            pair = measure_pair(bed, 0, 1, n_rt, n_tput, size)
-            concurrent = median_run(
-                [measure_all_pairs(bed, pairs, n_rt_all, size) for _ in range(all_rounds)]
-            )
-            rss = bed.rss_mib()
-            agents_rss = sum(v for k, v in rss.items() if k.startswith("b_"))
-            start_s = bed.start_s
-        with testbed(pairs, [], range(pairs), meshed=meshed) as bed:
-            raw = median_run(
-                [measure_all_pairs(bed, pairs, n_rt_all, size, raw=True) for _ in range(all_rounds)]
-            )
-        rows.append(ScaleRow(len(names), start_s, agents_rss, pair, concurrent, 2 if meshed else 1, raw))
+            agents = 2 * max(1, n // 2)
+            before(f"before scale, {agents} agents{', two routers' if meshed else ''}")
+        rows.append(_scale_row(n, n_rt, n_tput, n_rt_all, size, meshed, all_rounds))
     return rows

@@ -340,15 +340,8 @@ class TaskRun:
     """From the command given to a_hi to the end of the run (run.json)."""
 
 
-def task(realtime: bool, runs_dir: Path) -> TaskRun:
-    """``roco run "pour the jar into the bowl" --quiet --runs-dir DIR`` (``--realtime`` when
-    asked); then its run folder: run.json, ag_ex_timing.json, the report's plans, and the size
-    of a_km's store directory."""
-    from services.report import build_report
-    from services.runtime.run_folder import read_run_info
-
-    args = ["run", POUR, "--quiet", "--runs-dir", str(runs_dir)] + (["--realtime"] if realtime else [])
-    before = set(runs_dir.glob("*")) if runs_dir.exists() else set()
+def _roco_run(args: list[str]) -> tuple[bool, list[str], float]:
+    """``roco ARGS`` within 400 s: whether it succeeded, its last line of output, its wall time."""
     t0 = time.perf_counter()
     try:
         done = subprocess.run(
@@ -357,13 +350,14 @@ def task(realtime: bool, runs_dir: Path) -> TaskRun:
         ok, detail = done.returncode == 0, (done.stdout + done.stderr).strip().splitlines()[-1:]
     except subprocess.TimeoutExpired:
         ok, detail = False, ["roco run did not finish within 400 s"]
-    command_s = time.perf_counter() - t0
-    pacing = "real time (--realtime)" if realtime else "as fast as possible"
-    new = sorted(p for p in set(runs_dir.glob("*")) - before if p.is_dir())
-    if not new:
-        return TaskRun(pacing, command_s, False, " ".join(detail) or "no run folder", None)
-    run_dir = new[-1]
-    out = TaskRun(pacing, command_s, ok, " ".join(detail), run_dir)
+    return ok, detail, time.perf_counter() - t0
+
+
+def _read_run_folder(out: TaskRun, run_dir: Path) -> None:
+    """``out``'s figures from its run folder, each left unset when it cannot be read."""
+    from services.report import build_report
+    from services.runtime.run_folder import read_run_info
+
     with contextlib.suppress(Exception):
         info = read_run_info(run_dir)
         if info.command_sent is not None and info.ended is not None:
@@ -378,6 +372,22 @@ def task(realtime: bool, runs_dir: Path) -> TaskRun:
     store = run_dir / "km_store"
     if store.is_dir():
         out.km_store_bytes = sum(f.stat().st_size for f in store.rglob("*") if f.is_file())
+
+
+def task(realtime: bool, runs_dir: Path) -> TaskRun:
+    """``roco run "pour the jar into the bowl" --quiet --runs-dir DIR`` (``--realtime`` when
+    asked); then its run folder: run.json, ag_ex_timing.json, the report's plans, and the size
+    of a_km's store directory."""
+    args = ["run", POUR, "--quiet", "--runs-dir", str(runs_dir)] + (["--realtime"] if realtime else [])
+    before = set(runs_dir.glob("*")) if runs_dir.exists() else set()
+    ok, detail, command_s = _roco_run(args)
+    pacing = "real time (--realtime)" if realtime else "as fast as possible"
+    new = sorted(p for p in set(runs_dir.glob("*")) - before if p.is_dir())
+    if not new:
+        return TaskRun(pacing, command_s, False, " ".join(detail) or "no run folder", None)
+    run_dir = new[-1]
+    out = TaskRun(pacing, command_s, ok, " ".join(detail), run_dir)
+    _read_run_folder(out, run_dir)
     return out
 
 

@@ -320,50 +320,145 @@ def spade_p50_us(spade: SpadeFigures) -> float:
     return s[len(s) // 2] * 1e6 if s else 0.0
 
 
+def _met(ok: bool) -> str:
+    """A target's verdict word."""
+    return "met" if ok else "missed"
+
+
+def _dash(value: object, fmt: str = "{}") -> str:
+    """``value`` formatted, or ``—`` when it was not measured (None)."""
+    return "—" if value is None else fmt.format(value)
+
+
+def _round_trip_verdicts(f: PairFigures) -> list[str]:
+    """roco's round trip against raw Zenoh's, and on equal terms when raw Zenoh polled too."""
+    ratio = f.roco_rt.p50_us / f.raw_rt.p50_us if f.raw_rt.p50_us else float("inf")
+    polling = (
+        f"roco's receiving threads poll for up to {f.poll_us:.0f} µs before sleeping "
+        "(services/runtime/polling.py), raw Zenoh's ends sleep in `recv()`"
+        if f.poll_us > 0
+        else "both sleep in a blocking receive (`ROCO_RECEIVE_POLL_US=0`)"
+    )
+    out = [
+        f"- roco round trip / raw Zenoh round trip (p50): **{ratio:.2f}×** (target ≤ "
+        f"{TARGET_RT_RATIO}×): "
+        f"{_met(ratio <= TARGET_RT_RATIO)}; {polling}."
+    ]
+    if f.raw_poll_rt.samples_s and f.raw_poll_rt.p50_us:
+        equal = f.roco_rt.p50_us / f.raw_poll_rt.p50_us
+        out.append(
+            f"- On equal terms, raw Zenoh's ends polling the same way: **{equal:.2f}×** "
+            f"({f.roco_rt.p50_us:.0f} against {f.raw_poll_rt.p50_us:.0f} µs): what roco's "
+            "runtime costs over the transport, wake-ups set aside."
+        )
+    return out
+
+
+def _throughput_verdict(f: PairFigures) -> str:
+    """One pair's one-way stream against the target and raw Zenoh's."""
+    tput = f.roco_tput.median
+    single = (
+        f"; each communicate in a put of its own (no batches): {_rate(f.roco_tput_single.median)} /s."
+        if f.roco_tput_single.runs
+        else "."
+    )
+    return (
+        f"- roco one-way throughput, one pair, 200 B content: **{_rate(tput)} /s** (target ≥ "
+        f"{_rate(TARGET_TPUT)} /s): {_met(tput >= TARGET_TPUT)}; "
+        f"{f.roco_tput.median / f.raw_tput.median * 100 if f.raw_tput.median else 0:.1f} % of raw "
+        "Zenoh's" + single
+    )
+
+
+def _spade_verdict(f: PairFigures, spade: SpadeFigures) -> str:
+    """roco against SPADE: round trip and throughput."""
+    rt = spade_p50_us(spade) / f.roco_rt.p50_us if f.roco_rt.p50_us else 0.0
+    tp = f.roco_tput.median / spade.rate if spade.rate else 0.0
+    return (
+        f"- Against SPADE: round trip **{rt:.1f}× faster** (target ≥ {TARGET_SPADE_RT}×): "
+        f"{_met(rt >= TARGET_SPADE_RT)}; throughput **{tp:.1f}× higher** "
+        f"(target ≥ {TARGET_SPADE_TPUT}×): {_met(tp >= TARGET_SPADE_TPUT)}."
+    )
+
+
+def _task_row(r: TaskRun) -> list[str]:
+    """One task run's row of ``task_table``; its loop's cells ``—`` when it has no timing."""
+    t = r.timing
+    loop = (
+        ["—"] * 4
+        if t is None
+        else [
+            str(t.cycles),
+            f"{t.compute_p50_us:.0f} / {t.compute_p99_us:.0f} / {t.compute_max_us:.0f}",
+            f"{t.lateness_p99_us:.0f}",
+            f"{t.overruns} ({t.overrun_share * 100:.2f} %)",
+        ]
+    )
+    return [
+        r.pacing,
+        "succeeded" if r.ok else f"failed: {r.detail[:120]}",
+        f"{r.command_s:.1f}",
+        _dash(r.task_s, "{:.1f}"),
+        _dash(r.sim_time_s, "{:.1f}"),
+        _dash(r.communicates),
+        *loop,
+        _dash(None if r.km_store_bytes is None else r.km_store_bytes / 1024, "{:.0f} KiB"),
+    ]
+
+
+def _mib_totals(procs: dict[str, tuple[float, float]]) -> tuple[str, str]:
+    """The VmRSS and PSS totals of ``procs``, in bold."""
+    return f"**{sum(v[0] for v in procs.values()):.1f}**", f"**{sum(v[1] for v in procs.values()):.1f}**"
+
+
+def _fleet_memory_row(name: str, fleet: dict[str, dict[str, tuple[float, float]]]) -> list[str]:
+    """One process's VmRSS and PSS in each state, ``—`` where it did not run."""
+    row = [name]
+    for procs in fleet.values():
+        rss, pss = procs.get(name, (None, None))
+        row += ["—", "—"] if rss is None or pss is None else [f"{rss:.1f}", f"{pss:.1f}"]
+    return row
+
+
+def _fleet_memory_table(fleet: dict[str, dict[str, tuple[float, float]]]) -> list[str]:
+    """``roco up``'s fleet: one VmRSS and one PSS column per measured state, ``—`` where a
+    process did not run, and the totals."""
+    names = list(dict.fromkeys(name for procs in fleet.values() for name in procs))
+    header = ["`roco up`'s fleet"]
+    for state in fleet:
+        label = state.removeprefix("fleet").lstrip(", ").strip() or state
+        header += [f"{label}: VmRSS MiB", "PSS MiB"]
+    rows = [_fleet_memory_row(name, fleet) for name in names]
+    rows.append(["**total**", *(cell for procs in fleet.values() for cell in _mib_totals(procs))])
+    return _table(header, rows)
+
+
+def _fleet_memory_verdict(fleet: dict[str, dict[str, tuple[float, float]]]) -> list[str]:
+    """The fleet's PSS at rest against its target, the busy states' beside it; none unmeasured."""
+    totals = {state: sum(pss for _, pss in procs.values()) for state, procs in fleet.items()}
+    rest = totals.get("fleet at rest")
+    if rest is None:
+        return []
+    busy = [
+        f"with the {k.removeprefix('fleet, ')}: {v:.0f} MiB"
+        for k, v in totals.items()
+        if k != "fleet at rest"
+    ]
+    return [
+        f"- `roco up`'s fleet in all, at rest: **{rest:.0f} MiB** PSS (target ≤ "
+        f"{TARGET_FLEET_MIB:.0f} MiB): {_met(rest <= TARGET_FLEET_MIB)}"
+        + (f"; {'; '.join(busy)}." if busy else ".")
+    ]
+
+
 def verdict_lines(f: PairFigures | None, spade: SpadeFigures | None) -> list[str]:
     """The messaging targets (round trip against raw Zenoh, one pair's stream, SPADE), each met
     or missed, with the measured ratio."""
     out = []
     if f is not None and f.raw_rt.samples_s:
-        ratio = f.roco_rt.p50_us / f.raw_rt.p50_us if f.raw_rt.p50_us else float("inf")
-        polling = (
-            f"roco's receiving threads poll for up to {f.poll_us:.0f} µs before sleeping "
-            "(services/runtime/polling.py), raw Zenoh's ends sleep in `recv()`"
-            if f.poll_us > 0
-            else "both sleep in a blocking receive (`ROCO_RECEIVE_POLL_US=0`)"
-        )
-        out.append(
-            f"- roco round trip / raw Zenoh round trip (p50): **{ratio:.2f}×** (target ≤ "
-            f"{TARGET_RT_RATIO}×): "
-            f"{'met' if ratio <= TARGET_RT_RATIO else 'missed'}; {polling}."
-        )
-        if f.raw_poll_rt.samples_s and f.raw_poll_rt.p50_us:
-            equal = f.roco_rt.p50_us / f.raw_poll_rt.p50_us
-            out.append(
-                f"- On equal terms, raw Zenoh's ends polling the same way: **{equal:.2f}×** "
-                f"({f.roco_rt.p50_us:.0f} against {f.raw_poll_rt.p50_us:.0f} µs): what roco's "
-                "runtime costs over the transport, wake-ups set aside."
-            )
-        tput = f.roco_tput.median
-        out.append(
-            f"- roco one-way throughput, one pair, 200 B content: **{_rate(tput)} /s** (target ≥ "
-            f"{_rate(TARGET_TPUT)} /s): {'met' if tput >= TARGET_TPUT else 'missed'}; "
-            f"{f.roco_tput.median / f.raw_tput.median * 100 if f.raw_tput.median else 0:.1f} % of raw "
-            "Zenoh's"
-            + (
-                f"; each communicate in a put of its own (no batches): {_rate(f.roco_tput_single.median)} /s."
-                if f.roco_tput_single.runs
-                else "."
-            )
-        )
+        out += [*_round_trip_verdicts(f), _throughput_verdict(f)]
     if f is not None and spade is not None and not spade.error and spade.samples_s:
-        rt = spade_p50_us(spade) / f.roco_rt.p50_us if f.roco_rt.p50_us else 0.0
-        tp = f.roco_tput.median / spade.rate if spade.rate else 0.0
-        out.append(
-            f"- Against SPADE: round trip **{rt:.1f}× faster** (target ≥ {TARGET_SPADE_RT}×): "
-            f"{'met' if rt >= TARGET_SPADE_RT else 'missed'}; throughput **{tp:.1f}× higher** "
-            f"(target ≥ {TARGET_SPADE_TPUT}×): {'met' if tp >= TARGET_SPADE_TPUT else 'missed'}."
-        )
+        out.append(_spade_verdict(f, spade))
     return out
 
 
@@ -442,26 +537,6 @@ def fleet_table(f: FleetFigures) -> list[str]:
 
 
 def task_table(runs: list[TaskRun]) -> list[str]:
-    rows = []
-    for r in runs:
-        t = r.timing
-        rows.append(
-            [
-                r.pacing,
-                "succeeded" if r.ok else f"failed: {r.detail[:120]}",
-                f"{r.command_s:.1f}",
-                "—" if r.task_s is None else f"{r.task_s:.1f}",
-                "—" if r.sim_time_s is None else f"{r.sim_time_s:.1f}",
-                "—" if r.communicates is None else str(r.communicates),
-                "—" if t is None else str(t.cycles),
-                "—"
-                if t is None
-                else f"{t.compute_p50_us:.0f} / {t.compute_p99_us:.0f} / {t.compute_max_us:.0f}",
-                "—" if t is None else f"{t.lateness_p99_us:.0f}",
-                "—" if t is None else f"{t.overruns} ({t.overrun_share * 100:.2f} %)",
-                "—" if r.km_store_bytes is None else f"{r.km_store_bytes / 1024:.0f} KiB",
-            ]
-        )
     return _table(
         [
             "pacing",
@@ -476,7 +551,7 @@ def task_table(runs: list[TaskRun]) -> list[str]:
             "overruns",
             "a_km store after the run",
         ],
-        rows,
+        [_task_row(r) for r in runs],
     )
 
 
@@ -559,30 +634,13 @@ def scale_verdicts(rows: list[ScaleRow]) -> list[str]:
 def memory_table(m: MemoryFigures) -> list[str]:
     """Two tables, each with its totals: the idle synthetic pair's processes; then ``roco up``'s
     fleet, one VmRSS and one PSS column per measured state (``—`` where a process did not run)."""
-
-    def totals(procs: dict[str, tuple[float, float]]) -> tuple[str, str]:
-        return f"**{sum(v[0] for v in procs.values()):.1f}**", f"**{sum(v[1] for v in procs.values()):.1f}**"
-
     pair = [[name, f"{rss:.1f}", f"{pss:.1f}"] for name, (rss, pss) in m.synthetic.items()]
     out = _table(
-        ["idle synthetic pair", "VmRSS MiB", "PSS MiB"], [*pair, ["**total**", *totals(m.synthetic)]]
+        ["idle synthetic pair", "VmRSS MiB", "PSS MiB"], [*pair, ["**total**", *_mib_totals(m.synthetic)]]
     )
     if not m.fleet:
         return out
-    names = list(dict.fromkeys(name for procs in m.fleet.values() for name in procs))
-    header = ["`roco up`'s fleet"]
-    for state in m.fleet:
-        label = state.removeprefix("fleet").lstrip(", ").strip() or state
-        header += [f"{label}: VmRSS MiB", "PSS MiB"]
-    rows = []
-    for name in names:
-        row = [name]
-        for procs in m.fleet.values():
-            rss, pss = procs.get(name, (None, None))
-            row += ["—", "—"] if rss is None or pss is None else [f"{rss:.1f}", f"{pss:.1f}"]
-        rows.append(row)
-    rows.append(["**total**", *(cell for procs in m.fleet.values() for cell in totals(procs))])
-    return [*out, "", *_table(header, rows)]
+    return [*out, "", *_fleet_memory_table(m.fleet)]
 
 
 def memory_verdicts(m: MemoryFigures) -> list[str]:
@@ -594,22 +652,9 @@ def memory_verdicts(m: MemoryFigures) -> list[str]:
         worst = max(rss for rss, _ in agents.values())
         out.append(
             f"- An idle synthetic agent: **{worst:.1f} MiB** VmRSS at most ({', '.join(sorted(agents))}; "
-            f"target ≤ {TARGET_AGENT_MIB:.0f} MiB): {'met' if worst <= TARGET_AGENT_MIB else 'missed'}."
+            f"target ≤ {TARGET_AGENT_MIB:.0f} MiB): {_met(worst <= TARGET_AGENT_MIB)}."
         )
-    totals = {state: sum(pss for _, pss in procs.values()) for state, procs in m.fleet.items()}
-    rest = totals.get("fleet at rest")
-    if rest is not None:
-        busy = [
-            f"with the {k.removeprefix('fleet, ')}: {v:.0f} MiB"
-            for k, v in totals.items()
-            if k != "fleet at rest"
-        ]
-        out.append(
-            f"- `roco up`'s fleet in all, at rest: **{rest:.0f} MiB** PSS (target ≤ "
-            f"{TARGET_FLEET_MIB:.0f} MiB): {'met' if rest <= TARGET_FLEET_MIB else 'missed'}"
-            + (f"; {'; '.join(busy)}." if busy else ".")
-        )
-    return out
+    return out + _fleet_memory_verdict(m.fleet)
 
 
 def plan_and_fleet_verdicts(planning: PlanningFigures | None, fleet: FleetFigures | None) -> list[str]:

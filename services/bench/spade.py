@@ -106,6 +106,72 @@ def _end(proc: subprocess.Popen[Any]) -> None:
             proc.wait(5)
 
 
+def _spawn(cmd: list[str], work: Path, stdout: Any, stderr: Any) -> subprocess.Popen[Any]:
+    """One process of the measure, in ``work``, in a session of its own, no stdin."""
+    return subprocess.Popen(
+        cmd, cwd=work, stdout=stdout, stderr=stderr, stdin=subprocess.DEVNULL, start_new_session=True
+    )
+
+
+def _initiator(cmd: list[str], work: Path, timeout: float) -> dict[str, Any] | SpadeFigures:
+    """The initiator's figures (its last line, JSON), or the SpadeFigures of its failure."""
+    try:
+        initiator = subprocess.run(
+            cmd, cwd=work, capture_output=True, timeout=timeout, check=False, start_new_session=True
+        )
+    except subprocess.TimeoutExpired:
+        return SpadeFigures(error=f"the SPADE initiator did not finish within {timeout:.0f} s")
+    lines = initiator.stdout.decode(errors="replace").strip().splitlines()
+    try:
+        got: dict[str, Any] = json.loads(lines[-1])
+    except (IndexError, ValueError):
+        tail = initiator.stderr.decode(errors="replace").strip().splitlines()[-1:]
+        return SpadeFigures(error=f"the SPADE initiator printed no figures: {tail}")
+    return got
+
+
+def _ping_pong(
+    work: Path,
+    procs: list[subprocess.Popen[Any]],
+    ports: tuple[int, int],
+    size: int,
+    messages: int,
+    round_trips: int,
+    timeout: float,
+) -> dict[str, Any] | SpadeFigures:
+    """The server, then the responder (kept in ``procs``), then the initiator: its figures, or
+    the SpadeFigures of the first step that failed."""
+    python, spade = str(VENV / "bin" / "python"), str(VENV / "bin" / "spade")
+    port, server_port = ports
+    serve = ["run", "--host", "localhost", "--memory", "--client_port", str(port)]
+    server = _spawn(
+        [spade, *serve, "--server_port", str(server_port)],
+        work,
+        (work / "server.log").open("wb"),
+        subprocess.STDOUT,
+    )
+    procs.append(server)
+    if not _wait_port(port, server, 60):
+        return SpadeFigures(error=f"`spade run` did not listen on {port} (log {work}/server.log)")
+    common = ["--port", str(port), "--size", str(size), "--messages", str(messages)]
+    responder = _spawn(
+        [python, str(SCRIPT), "--role", "responder", *common],
+        work,
+        subprocess.PIPE,
+        (work / "responder.log").open("wb"),
+    )
+    procs.append(responder)
+    assert responder.stdout is not None
+    started = select.select([responder.stdout], [], [], 60)[0]
+    if not started or responder.stdout.readline().strip() != b"ready":
+        return SpadeFigures(error=f"the SPADE responder did not start (log {work}/responder.log)")
+    return _initiator(
+        [python, str(SCRIPT), "--role", "initiator", *common, "--round-trips", str(round_trips)],
+        work,
+        timeout,
+    )
+
+
 def measure(round_trips: int, messages: int, size: int = 200, timeout: float = 300.0) -> SpadeFigures:
     """Run SPADE's ping-pong (``round_trips`` after 50 warm-up ones) and throughput
     (``messages`` informs) with ``size``-character bodies; never raises for SPADE's own
@@ -120,58 +186,19 @@ def measure(round_trips: int, messages: int, size: int = 200, timeout: float = 3
     )
     if why:
         return SpadeFigures(error=why, settings=settings)
-    python, spade = str(VENV / "bin" / "python"), str(VENV / "bin" / "spade")
     port = free_port()
     server_port = free_port()
     procs: list[subprocess.Popen[Any]] = []
     measured = False
     try:
-        serve = ["run", "--host", "localhost", "--memory", "--client_port", str(port)]
-        server = subprocess.Popen(
-            [spade, *serve, "--server_port", str(server_port)],
-            cwd=work,
-            stdout=(work / "server.log").open("wb"),
-            stderr=subprocess.STDOUT,
-            stdin=subprocess.DEVNULL,
-            start_new_session=True,
-        )
-        procs.append(server)
-        if not _wait_port(port, server, 60):
-            return SpadeFigures(error=f"`spade run` did not listen on {port} (log {work}/server.log)")
-        common = ["--port", str(port), "--size", str(size), "--messages", str(messages)]
-        responder = subprocess.Popen(
-            [python, str(SCRIPT), "--role", "responder", *common],
-            cwd=work,
-            stdout=subprocess.PIPE,
-            stderr=(work / "responder.log").open("wb"),
-            stdin=subprocess.DEVNULL,
-            start_new_session=True,
-        )
-        procs.append(responder)
-        assert responder.stdout is not None
-        started = select.select([responder.stdout], [], [], 60)[0]
-        if not started or responder.stdout.readline().strip() != b"ready":
-            return SpadeFigures(error=f"the SPADE responder did not start (log {work}/responder.log)")
-        try:
-            initiator = subprocess.run(
-                [python, str(SCRIPT), "--role", "initiator", *common, "--round-trips", str(round_trips)],
-                cwd=work,
-                capture_output=True,
-                timeout=timeout,
-                check=False,
-                start_new_session=True,
-            )
-        except subprocess.TimeoutExpired:
-            return SpadeFigures(error=f"the SPADE initiator did not finish within {timeout:.0f} s")
-        lines = initiator.stdout.decode(errors="replace").strip().splitlines()
-        try:
-            got = json.loads(lines[-1])
-        except (IndexError, ValueError):
-            tail = initiator.stderr.decode(errors="replace").strip().splitlines()[-1:]
-            return SpadeFigures(error=f"the SPADE initiator printed no figures: {tail}")
+        got = _ping_pong(work, procs, (port, server_port), size, messages, round_trips, timeout)
+        if isinstance(got, SpadeFigures):
+            return got
         if "error" in got:
             return SpadeFigures(error=str(got["error"]), settings=settings)
-        versions = {k: str(got[k]) for k in ("spade", "pyjabber", "slixmpp", "python") if k in got}
+        versions: dict[str, str] = {
+            k: str(got[k]) for k in ("spade", "pyjabber", "slixmpp", "python") if k in got
+        }
         measured = True
         return SpadeFigures(
             samples_s=list(got["samples_s"]),

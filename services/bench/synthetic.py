@@ -431,6 +431,33 @@ def _raw_echo(session: zenoh.Session, conn: Connection, ping: str, pong: str, tp
     counter.undeclare()  # the echo thread's subscriber goes with the session
 
 
+def _raw_pingpong(pinger: Any, pongs: Any, payload: bytes, n: int, poll_us: list[Any]) -> dict[str, Any]:
+    """``n`` timed round trips after ``WARMUP`` ones; pongs polled (``AdaptivePoll``) when
+    ``poll_us`` holds a positive figure, else received blocking."""
+    poll = AdaptivePoll(poll_us[0]) if poll_us and poll_us[0] > 0 else None
+    samples, ends = [], []
+    for i in range(WARMUP + n):
+        t0 = time.perf_counter()
+        pinger.put(payload)
+        if poll is None:
+            pongs.recv()
+        else:
+            poll.next(pongs)
+        if i >= WARMUP:
+            end = time.perf_counter()
+            samples.append(end - t0)
+            ends.append(end)
+    return {"kind": "pingpong", "samples_s": samples, "ends_s": ends}
+
+
+def _raw_stream(publisher: Any, payload: bytes, n: int) -> dict[str, Any]:
+    """``n`` puts as fast as they go, and how long they took."""
+    t0 = time.perf_counter()
+    for _ in range(n):
+        publisher.put(payload)
+    return {"kind": "sent", "seconds": time.perf_counter() - t0}
+
+
 def _raw_pinger(
     session: zenoh.Session, conn: Connection, ping: str, pong: str, tput: str, alive: str
 ) -> None:
@@ -457,25 +484,9 @@ def _raw_pinger(
         kind, n, size, *rest = cmd
         payload = b"p" * size
         if kind == "pingpong":
-            poll = AdaptivePoll(rest[0]) if rest and rest[0] > 0 else None
-            samples, ends = [], []
-            for i in range(WARMUP + n):
-                t0 = time.perf_counter()
-                pinger.put(payload)
-                if poll is None:
-                    pongs.recv()
-                else:
-                    poll.next(pongs)
-                if i >= WARMUP:
-                    end = time.perf_counter()
-                    samples.append(end - t0)
-                    ends.append(end)
-            conn.send({"kind": "pingpong", "samples_s": samples, "ends_s": ends})
+            conn.send(_raw_pingpong(pinger, pongs, payload, n, rest))
         else:
-            t0 = time.perf_counter()
-            for _ in range(n):
-                publisher.put(payload)
-            conn.send({"kind": "sent", "seconds": time.perf_counter() - t0})
+            conn.send(_raw_stream(publisher, payload, n))
     publisher.undeclare()
     pinger.undeclare()
     watch.undeclare()
