@@ -53,7 +53,9 @@ from services.runtime.protocol_state import (
 from services.spec.model import (
     DEFAULT_SPEC,
     NOT_UNDERSTOOD,
+    ChannelProtocol,
     ChannelSpec,
+    MessageKind,
     SpecError,
     SystemSpec,
     channel_between,
@@ -61,7 +63,7 @@ from services.spec.model import (
     load,
 )
 from services.spec_check.causal import causal_order, send_order
-from shared.fipa_codec import Performative
+from shared.fipa_codec import Communicate, Performative
 from shared.fipa_codec.languages import ContentError, decode_content
 from shared.fipa_codec.protocols import (
     INITIATOR,
@@ -254,6 +256,215 @@ Problem = tuple[str, str]
 """(kind, text) of one violation."""
 
 
+@dataclass
+class _SpecRules:
+    """The specification's rules on one communicate ``m`` on channel ``between`` (paper §4
+    step 4: the sender's interface yV̂, the receiver's xV̂, the languages yL̂/xL̂), one method
+    per rule, judged in :data:`_RULES`' order: a rule returns the problems that end the
+    judgement (an empty list: nothing more to judge), or None to go on; the last rule,
+    :meth:`ontology_and_content`, gathers its problems. A size outside the estimate goes to
+    ``outside_estimates`` (not a violation)."""
+
+    m: Message
+    sender: str
+    receiver: str
+    between: ChannelSpec
+    sends: list[MessageKind]
+    """What the sender's role may send to the receiver's in the communicate's protocol."""
+    s_role: str
+    outside_estimates: list[str]
+    kind: MessageKind | None = None
+    """The sender's interface entry for the communicate, once :meth:`performative` found it."""
+
+    @property
+    def perf(self) -> str:
+        return self.m.rec.performative
+
+    @property
+    def protocol(self) -> str | None:
+        return self.m.rec.protocol
+
+    @property
+    def language(self) -> str | None:
+        return self.m.comm.language if self.m.comm is not None else self.m.rec.language
+
+    def channel(self) -> list[Problem] | None:
+        if self.between.name != self.m.rec.channel:
+            joined = f"{self.sender} and {self.receiver} are joined by {self.between.name}"
+            return [("channel", f"{joined}, not {self.m.rec.channel}")]
+        return None
+
+    def unnamed_protocol(self) -> list[Problem] | None:
+        """The answer to a payload that was no communicate: no protocol to name."""
+        return [] if self.perf == NOT_UNDERSTOOD and self.protocol is None else None
+
+    def protocol_on_channel(self) -> list[Problem] | None:
+        if self.protocol in {cp.protocol for cp in self.between.protocols}:
+            return None
+        offered = ", ".join(cp.protocol for cp in self.between.protocols)
+        return [
+            ("performative", f"protocol {self.protocol} is not specified on {self.between.name} ({offered})")
+        ]
+
+    def performative(self) -> list[Problem] | None:
+        self.kind = next((k for k in self.sends if k.performative == self.perf), None)
+        if self.kind is not None:
+            return None
+        role = _role_of(self.between, self.protocol, self.s_role)
+        allowed = ", ".join(k.performative for k in self.sends)
+        return [
+            (
+                "performative",
+                f"the {role} of {self.protocol} on {self.between.name} ({self.sender}) may not send "
+                f"{self.perf} (allowed: {allowed})",
+            )
+        ]
+
+    def reason(self) -> list[Problem] | None:
+        """``failure``, ``refuse`` and ``not-understood`` may carry a reason in UTF-8 text."""
+        comm = self.m.comm
+        if comm is None or comm.language is not None or comm.encoding != "utf-8" or self.perf not in _REASONS:
+            return None
+        try:
+            comm.content.decode("utf-8")
+        except UnicodeDecodeError as exc:
+            return [("content", f"the reason is not UTF-8 text: {exc.reason}")]
+        return []
+
+    def language_given(self) -> list[Problem] | None:
+        comm, language = self.m.comm, self.language
+        has_content = bool(comm.content) if comm is not None else language is not None
+        if not has_content:
+            return None
+        if language is None:
+            return [("language", f"{self.perf} carries content but names no language")]
+        assert self.kind is not None
+        if self.kind.languages and language not in self.kind.languages:
+            return [
+                (
+                    "language",
+                    f"{self.perf} in {self.protocol} on {self.between.name} must be in "
+                    f"{'/'.join(self.kind.languages)}, not {language}",
+                )
+            ]
+        return None
+
+    def ontology_and_content(self) -> list[Problem]:
+        language = self.language
+        if language is None:
+            return []
+        ontology = self.m.comm.ontology if self.m.comm is not None else self.m.rec.ontology
+        problems: list[Problem] = []
+        if ontology != expected_ontology(language):
+            needed = expected_ontology(language)
+            problems.append(("ontology", f"language {language} needs ontology {needed}, not {ontology}"))
+        return problems + self.content(language)
+
+    def content(self, language: str) -> list[Problem]:
+        """The content decodes in its language, as a term the channel's protocol allows; its
+        size is measured against the estimate."""
+        comm = self.m.comm
+        if comm is None or not comm.content:
+            return []
+        try:
+            term = decode_content(language, comm.content)
+        except ContentError as exc:
+            return [("content", str(exc))]
+        cp = next(c for c in self.between.protocols if c.protocol == self.protocol)
+        self.estimate(cp)
+        allowed_terms = cp.content_types(self.perf)
+        if allowed_terms and type(term).__name__ not in allowed_terms:
+            return [
+                (
+                    "content",
+                    f"{self.perf} in {self.protocol} on {self.between.name} carries a {type(term).__name__}; "
+                    f"the specification allows {', '.join(allowed_terms)}",
+                )
+            ]
+        return []
+
+    def estimate(self, cp: ChannelProtocol) -> None:
+        size, estimate = self.m.rec.size, cp.sizes.get(self.perf)
+        if estimate is not None and not estimate[0] <= size <= estimate[1]:
+            low, high = estimate
+            self.outside_estimates.append(
+                f"{self.between.name} {self.protocol} {self.perf}: {size} B (estimate {low}–{high} B)"
+            )
+
+
+_RULES = (
+    _SpecRules.channel,
+    _SpecRules.unnamed_protocol,
+    _SpecRules.protocol_on_channel,
+    _SpecRules.performative,
+    _SpecRules.reason,
+    _SpecRules.language_given,
+)
+"""The rules that may end the judgement of a communicate, in the order they are judged."""
+
+
+def _violation(
+    m: Message, receiver: str, result: ConversationResult | None, kind: str, text: str
+) -> Violation:
+    """``m``'s violation of ``kind``, judged by ``receiver``, at its place in ``result``."""
+    rec = m.rec
+    return Violation(
+        seq=rec.seq,
+        t=m.t,
+        kind=kind,
+        channel=rec.channel,
+        sender=rec.sender,
+        receiver=receiver,
+        performative=rec.performative,
+        protocol=rec.protocol,
+        conversation=rec.conversation_id,
+        position=result.messages - 1 if result is not None else None,
+        text=text,
+    )
+
+
+def _key_mismatches(comm: Communicate, record_channel: str, parsed: tuple[str, str, str]) -> list[Problem]:
+    """Where the key ``roco/fipa/C/S/R`` (``parsed``) and the communicate or its record disagree."""
+    channel, sender, receiver = parsed
+    names = tuple(r.name for r in comm.receiver)
+    problems: list[Problem] = []
+    if comm.sender is None or comm.sender.name != sender:
+        who = comm.sender.name if comm.sender else "no sender"
+        problems.append(("key", f"the key names sender {sender}, the communicate {who}"))
+    if receiver not in names:
+        named = ", ".join(names) or "none"
+        problems.append(("key", f"the key names receiver {receiver}, the communicate {named}"))
+    if channel != record_channel:
+        problems.append(("key", f"the key names channel {channel}, the record {record_channel}"))
+    return problems
+
+
+def _tracking(comm: Communicate | None) -> tuple[bool | None, str | None, str | None]:
+    """What the state machine reads of a communicate beside its performative: whether it is a
+    terminal report, its reply-with and in-reply-to (all None: only its record is known)."""
+    if comm is None:
+        return None, None, None
+    return is_terminal_report(comm), comm.reply_with, comm.in_reply_to
+
+
+def _performative(name: str) -> Performative | None:
+    try:
+        return Performative(name)
+    except ValueError:
+        return None
+
+
+def _tally(result: ConversationResult, outcome: str, protocol: str) -> None:
+    """Count the outcome of one step of the state machine in its conversation."""
+    if outcome == "restart":
+        result.restarts += 1
+        result.protocol = protocol
+    elif outcome in ("crossing", "forgotten"):
+        result.crossings += 1
+    elif outcome == "aborted":
+        result.not_understood = True
+
+
 class _Checker:
     """Checks communicates one by one, in arrival order, and follows their conversations."""
 
@@ -279,139 +490,60 @@ class _Checker:
         if m.copy_of is not None:  # the same communicate again: judged once, as the original
             self.report.copies += 1
             return
-        receiver = rec.receivers[0] if rec.receivers else "?"
-        problems: list[Problem] = []
-        result: ConversationResult | None = None
-        if rec.performative == "malformed":
-            problems.append(("malformed", f"the payload on {rec.key or '?'} is not a communicate"))
-        else:
-            if comm is None:
-                self.report.unchecked += 1
-            else:
-                receiver = self._key(m, problems)
-            spec_problems = self._spec_problems(m, rec.sender, receiver)
-            problems += spec_problems
-            # a communicate outside the sender's interface has no place in a protocol state
-            followed = not any(kind in ("channel", "performative") for kind, _ in spec_problems)
-            result = self._follow(m, rec.sender, receiver, problems, followed=followed)
-
-        def entry(kind: str, text: str) -> Violation:
-            return Violation(
-                seq=rec.seq,
-                t=m.t,
-                kind=kind,
-                channel=rec.channel,
-                sender=rec.sender,
-                receiver=receiver,
-                performative=rec.performative,
-                protocol=rec.protocol,
-                conversation=rec.conversation_id,
-                position=result.messages - 1 if result is not None else None,
-                text=text,
-            )
-
+        receiver, problems, result = self._judge(m)
         for kind, text in problems:
-            self.report.violations.append(entry(kind, text))
+            self.report.violations.append(_violation(m, receiver, result, kind, text))
             if result is not None:
                 result.violations += 1
         if rec.performative == NOT_UNDERSTOOD:
             reason = comm.content.decode("utf-8", "replace") if comm is not None else ""
-            self.report.not_understood.append(entry(NOT_UNDERSTOOD, reason))
+            self.report.not_understood.append(_violation(m, receiver, result, NOT_UNDERSTOOD, reason))
+
+    def _judge(self, m: Message) -> tuple[str, list[Problem], ConversationResult | None]:
+        """The receiver ``m`` is judged by, its problems, and its conversation (None: none)."""
+        rec = m.rec
+        receiver = rec.receivers[0] if rec.receivers else "?"
+        if rec.performative == "malformed":
+            return receiver, [("malformed", f"the payload on {rec.key or '?'} is not a communicate")], None
+        problems: list[Problem] = []
+        if m.comm is None:
+            self.report.unchecked += 1
+        else:
+            receiver = self._key(m, problems)
+        spec_problems = self._spec_problems(m, rec.sender, receiver)
+        problems += spec_problems
+        # a communicate outside the sender's interface has no place in a protocol state
+        followed = not any(kind in ("channel", "performative") for kind, _ in spec_problems)
+        return receiver, problems, self._follow(m, rec.sender, receiver, problems, followed=followed)
 
     def _key(self, m: Message, problems: list[Problem]) -> str:
         """Check the key against the communicate; returns the receiver to judge it by."""
         comm = m.comm
         assert comm is not None
-        names = tuple(r.name for r in comm.receiver)
         try:
-            channel, sender, receiver = keys.parse_fipa_key(m.rec.key)
+            parsed = keys.parse_fipa_key(m.rec.key)
         except ValueError:
             problems.append(("key", f"{m.rec.key!r} is not a communicate key roco/fipa/C/S/R"))
-            return names[0] if names else "?"
-        if comm.sender is None or comm.sender.name != sender:
-            who = comm.sender.name if comm.sender else "no sender"
-            problems.append(("key", f"the key names sender {sender}, the communicate {who}"))
-        if receiver not in names:
-            named = ", ".join(names) or "none"
-            problems.append(("key", f"the key names receiver {receiver}, the communicate {named}"))
-        if channel != m.rec.channel:
-            problems.append(("key", f"the key names channel {channel}, the record {m.rec.channel}"))
-        return receiver
+            return comm.receiver[0].name if comm.receiver else "?"
+        problems += _key_mismatches(comm, m.rec.channel, parsed)
+        return parsed[2]
 
     def _spec_problems(self, m: Message, sender: str, receiver: str) -> list[Problem]:
         """Everything about ``m`` the specification does not allow (paper §4 step 4: the
-        sender's interface yV̂, the receiver's xV̂, the languages yL̂/xL̂)."""
-        rec, comm = m.rec, m.comm
+        sender's interface yV̂, the receiver's xV̂, the languages yL̂/xL̂): the rules of
+        :class:`_SpecRules`, in :data:`_RULES`' order."""
         s_role, r_role = self.spec.role_of(sender), self.spec.role_of(receiver)
         between = channel_between(self.spec, s_role, r_role)
         if between is None:
             return [("channel", f"no channel of the specification joins {sender} and {receiver}")]
-        if between.name != rec.channel:
-            return [("channel", f"{sender} and {receiver} are joined by {between.name}, not {rec.channel}")]
-        perf, protocol = rec.performative, rec.protocol
-        if perf == NOT_UNDERSTOOD and protocol is None:
-            return []  # the answer to a payload that was no communicate: no protocol to name
-        if protocol not in {cp.protocol for cp in between.protocols}:
-            offered = ", ".join(cp.protocol for cp in between.protocols)
-            return [("performative", f"protocol {protocol} is not specified on {between.name} ({offered})")]
+        protocol = m.rec.protocol
         sends = [k for k in self.interfaces[s_role].sends if k.receiver == r_role and k.protocol == protocol]
-        kind = next((k for k in sends if k.performative == perf), None)
-        if kind is None:
-            role = _role_of(between, protocol, s_role)
-            allowed = ", ".join(k.performative for k in sends)
-            return [
-                (
-                    "performative",
-                    f"the {role} of {protocol} on {between.name} ({sender}) may not send {perf} "
-                    f"(allowed: {allowed})",
-                )
-            ]
-        language = comm.language if comm is not None else rec.language
-        ontology = comm.ontology if comm is not None else rec.ontology
-        if comm is not None and comm.language is None and comm.encoding == "utf-8" and perf in _REASONS:
-            try:
-                comm.content.decode("utf-8")
-            except UnicodeDecodeError as exc:
-                return [("content", f"the reason is not UTF-8 text: {exc.reason}")]
-            return []
-        has_content = bool(comm.content) if comm is not None else language is not None
-        if has_content and language is None:
-            return [("language", f"{perf} carries content but names no language")]
-        if has_content and kind.languages and language not in kind.languages:
-            return [
-                (
-                    "language",
-                    f"{perf} in {protocol} on {between.name} must be in {'/'.join(kind.languages)}, "
-                    f"not {language}",
-                )
-            ]
-        problems: list[Problem] = []
-        if language is not None and ontology != expected_ontology(language):
-            needed = expected_ontology(language)
-            problems.append(("ontology", f"language {language} needs ontology {needed}, not {ontology}"))
-        if comm is not None and comm.content and language is not None:
-            try:
-                term = decode_content(language, comm.content)
-            except ContentError as exc:
-                problems.append(("content", str(exc)))
-            else:
-                cp = next(c for c in between.protocols if c.protocol == protocol)
-                allowed_terms = cp.content_types(perf)
-                if allowed_terms and type(term).__name__ not in allowed_terms:
-                    problems.append(
-                        (
-                            "content",
-                            f"{perf} in {protocol} on {between.name} carries a {type(term).__name__}; "
-                            f"the specification allows {', '.join(allowed_terms)}",
-                        )
-                    )
-                estimate = cp.sizes.get(perf)
-                if estimate is not None and not estimate[0] <= rec.size <= estimate[1]:
-                    low, high = estimate
-                    self.outside_estimates.append(
-                        f"{between.name} {protocol} {perf}: {rec.size} B (estimate {low}–{high} B)"
-                    )
-        return problems
+        rules = _SpecRules(m, sender, receiver, between, sends, s_role, self.outside_estimates)
+        for rule in _RULES:
+            found = rule(rules)
+            if found is not None:
+                return found
+        return rules.ontology_and_content()
 
     # ---- its conversation ----------------------------------------------------------------
     def _follow(
@@ -420,33 +552,52 @@ class _Checker:
         """Follow ``m`` in its conversation (``followed`` False: only count it there);
         a state problem goes to ``problems``. Returns the conversation, None when ``m``
         belongs to none."""
-        rec, comm = m.rec, m.comm
+        rec = m.rec
         cid, protocol = rec.conversation_id, rec.protocol
         if cid is None or protocol is None:
             if protocol is not None and rec.performative != NOT_UNDERSTOOD:
                 problems.append(("conversation", f"a {protocol} communicate without conversation-id"))
             return None
         key = (cid, frozenset((sender, receiver)))
+        result = self._conversation(key, m, sender, receiver, protocol)
+        machine = self.machines.get(protocol)
+        performative = _performative(rec.performative)
+        if followed and machine is not None and performative is not None:
+            self._step(key, m, (sender, receiver), machine, performative, result, problems)
+        return result
+
+    def _conversation(
+        self, key: tuple[str, frozenset[str]], m: Message, sender: str, receiver: str, protocol: str
+    ) -> ConversationResult:
+        """``m``'s conversation, begun when it is the first, with ``m`` counted in it."""
         result = self.results.get(key)
         if result is None:
             initiator = self._initiator(sender, receiver, protocol)
             other = receiver if initiator == sender else sender
-            result = ConversationResult(cid, (initiator, other), protocol, first_t=m.t)
+            result = ConversationResult(key[0], (initiator, other), protocol, first_t=m.t)
             self.results[key] = result
             self.report.conversations.append(result)
         result.messages += 1
         result.last_t = m.t
         if sender != result.agents[0]:
             self.openings.pop(key, None)  # the participant answered (rightly or not: judged here)
-        machine = self.machines.get(protocol)
-        if not followed or machine is None:
-            return result
-        try:
-            performative = Performative(rec.performative)
-        except ValueError:
-            return result
+        return result
+
+    def _step(
+        self,
+        key: tuple[str, frozenset[str]],
+        m: Message,
+        agents: tuple[str, str],
+        machine: Protocol,
+        performative: Performative,
+        result: ConversationResult,
+        problems: list[Problem],
+    ) -> None:
+        """One step of the conversation's state machine (sender, receiver: ``agents``); a
+        state problem goes to ``problems``."""
+        sender, receiver = agents
         role: Role = INITIATOR if sender == result.agents[0] else PARTICIPANT
-        terminal = is_terminal_report(comm) if comm is not None else None
+        terminal, reply_with, in_reply_to = _tracking(m.comm)
         try:
             tracker, outcome = follow(
                 self.trackers.get(key),
@@ -454,26 +605,20 @@ class _Checker:
                 role,
                 performative,
                 terminal=terminal,
-                reply_with=None if comm is None else comm.reply_with,
-                in_reply_to=None if comm is None else comm.in_reply_to,
+                reply_with=reply_with,
+                in_reply_to=in_reply_to,
             )
         except ProtocolViolation as exc:
             problems.append(("protocol-state", str(exc)))
-            return result
+            return
         except ConversationError as exc:
             problems.append(("conversation", str(exc)))
-            return result
+            return
         self.trackers[key] = tracker
         if role == INITIATOR and tracker.messages == 1 and outcome in ("step", "restart"):
             self.openings[key] = (m, receiver, result.messages - 1)
-        if outcome == "restart":
-            result.restarts += 1
-            result.protocol = protocol
-        elif outcome in ("crossing", "forgotten"):
-            result.crossings += 1
-        elif outcome == "aborted":
-            result.not_understood = True
-        return result
+        assert m.rec.protocol is not None
+        _tally(result, outcome, m.rec.protocol)
 
     def _initiator(self, sender: str, receiver: str, protocol: str) -> str:
         """The initiator of ``protocol`` between the agents by the specification; else the
@@ -545,13 +690,14 @@ def _role_of(channel: ChannelSpec, protocol: str | None, agent: str) -> str:
 # ---------------------------------------------------------------------------------------------
 
 
-def render(report: ConformanceReport, *, limit: int = 50) -> str:
-    """``report`` as text for a person: the counts, every violation (up to ``limit``), the
-    conversations left open, the not-understood answers, notes, and the verdict."""
-    lines = [f"Conformance of {report.run_dir} to the {report.system} specification"]
-    lines.append(f"traffic record: {report.record.summary()}")
+def _counts_lines(report: ConformanceReport) -> list[str]:
+    """The record, the communicates and conversations counted, what was tolerated, copied or
+    left unchecked."""
     n_conv = len(report.conversations)
-    lines.append(f"communicates: {report.communicates} in {n_conv} conversations")
+    lines = [
+        f"traffic record: {report.record.summary()}",
+        f"communicates: {report.communicates} in {n_conv} conversations",
+    ]
     if report.per_protocol:
         lines.append(
             "conversations per protocol: " + ", ".join(f"{p} {n}" for p, n in report.per_protocol.items())
@@ -571,52 +717,87 @@ def render(report: ConformanceReport, *, limit: int = 50) -> str:
         )
     if report.unchecked:
         lines.append(f"unchecked: {report.unchecked} communicate(s) without payload (record checked only)")
-    if report.violations:
-        lines.append(f"violations: {len(report.violations)}")
-        for v in report.violations[:limit]:
-            lines.append("  " + _violation_line(v))
-        if len(report.violations) > limit:
-            lines.append(f"  … {len(report.violations) - limit} more")
-    else:
-        lines.append("violations: none")
-    if report.outside_estimates:
-        lines.append(f"sizes outside the specification's estimates: {len(report.outside_estimates)}")
-        lines += [f"  {x}" for x in report.outside_estimates[:10]]
-    else:
-        lines.append("sizes: every communicate within the specification's estimates")
+    return lines
+
+
+def _violations_lines(report: ConformanceReport, limit: int) -> list[str]:
+    if not report.violations:
+        return ["violations: none"]
+    lines = [f"violations: {len(report.violations)}"]
+    lines += ["  " + _violation_line(v) for v in report.violations[:limit]]
+    if len(report.violations) > limit:
+        lines.append(f"  … {len(report.violations) - limit} more")
+    return lines
+
+
+def _sizes_lines(report: ConformanceReport) -> list[str]:
+    if not report.outside_estimates:
+        return ["sizes: every communicate within the specification's estimates"]
+    return [
+        f"sizes outside the specification's estimates: {len(report.outside_estimates)}",
+        *(f"  {x}" for x in report.outside_estimates[:10]),
+    ]
+
+
+def _open_why(c: ConversationResult) -> str:
+    """Why a conversation open at the end of the record is so, when it says something."""
+    if c.open_by_design:
+        return " (an agreed subscription lasts while the system runs)"
+    if c.unanswered:
+        return " (never agreed nor refused: a violation)"
+    return ""
+
+
+def _open_lines(report: ConformanceReport, limit: int) -> list[str]:
     still = report.open_conversations
-    if still:
-        lines.append(f"open at the end of the record: {len(still)}")
-        for c in still[:limit]:
-            if c.open_by_design:
-                why = " (an agreed subscription lasts while the system runs)"
-            elif c.unanswered:
-                why = " (never agreed nor refused: a violation)"
-            else:
-                why = ""
-            lines.append(
-                f"  {c.conversation_id} {c.agents[0]}→{c.agents[1]} {c.protocol} in state {c.state}, "
-                f"{c.messages} communicates, last at {c.last_t:.3f} s{why}"
-            )
-        if len(still) > limit:
-            lines.append(f"  … {len(still) - limit} more")
-    if report.not_understood:
-        lines.append(f"not-understood answers: {len(report.not_understood)}")
-        for v in report.not_understood[:limit]:
-            lines.append("  " + _violation_line(v))
-    for note in report.notes:
-        lines.append(f"note: {note}")
+    if not still:
+        return []
+    lines = [f"open at the end of the record: {len(still)}"]
+    lines += [
+        f"  {c.conversation_id} {c.agents[0]}→{c.agents[1]} {c.protocol} in state {c.state}, "
+        f"{c.messages} communicates, last at {c.last_t:.3f} s{_open_why(c)}"
+        for c in still[:limit]
+    ]
+    if len(still) > limit:
+        lines.append(f"  … {len(still) - limit} more")
+    return lines
+
+
+def _not_understood_lines(report: ConformanceReport, limit: int) -> list[str]:
+    if not report.not_understood:
+        return []
+    return [
+        f"not-understood answers: {len(report.not_understood)}",
+        *("  " + _violation_line(v) for v in report.not_understood[:limit]),
+    ]
+
+
+def _verdict(report: ConformanceReport) -> str:
+    """Full conformance, or the first reason it is not."""
     if report.full_conformance:
-        verdict = "yes"
-    elif report.communicates == 0:
-        verdict = "no (no communicates recorded)"
-    elif report.violations:
-        verdict = f"no ({len(report.violations)} violation(s))"
-    elif not report.record.intact:
-        verdict = "no (the traffic record is not intact)"
-    else:
-        verdict = f"no ({report.unchecked} communicate(s) could not be checked)"
-    lines.append(f"full conformance: {verdict}")
+        return "yes"
+    if report.communicates == 0:
+        return "no (no communicates recorded)"
+    if report.violations:
+        return f"no ({len(report.violations)} violation(s))"
+    if not report.record.intact:
+        return "no (the traffic record is not intact)"
+    return f"no ({report.unchecked} communicate(s) could not be checked)"
+
+
+def render(report: ConformanceReport, *, limit: int = 50) -> str:
+    """``report`` as text for a person: the counts, every violation (up to ``limit``), the
+    conversations left open, the not-understood answers, notes, and the verdict."""
+    lines = [
+        f"Conformance of {report.run_dir} to the {report.system} specification",
+        *_counts_lines(report),
+        *_violations_lines(report, limit),
+        *_sizes_lines(report),
+        *_open_lines(report, limit),
+        *_not_understood_lines(report, limit),
+        *(f"note: {note}" for note in report.notes),
+        f"full conformance: {_verdict(report)}",
+    ]
     return "\n".join(lines)
 
 
