@@ -56,7 +56,7 @@ from __future__ import annotations
 import time
 from collections import deque
 from collections.abc import Iterable, Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Literal
 
@@ -330,6 +330,223 @@ def _show_msgs(msgs: Iterable[_Msg]) -> str:
     return ", ".join(str(_msg(m)) for m in msgs) or "nothing"
 
 
+_Key = tuple[Role, str, _Msg]
+"""A role, its state, and a message at the head of its queue."""
+
+
+@dataclass
+class _Exploration:
+    """The breadth-first exploration of one protocol's conversations (see :func:`explore`),
+    state by state (:meth:`visit`): the state's successors, what its queues hold that will
+    never be consumed (:meth:`unconsumed`: a late message after a role ended, an unspecified
+    reception before), whether it is a deadlock (:meth:`deadlock`), and the new states
+    queued (:meth:`enqueue`)."""
+
+    protocol: Protocol
+    roles: _Roles
+    queue_capacity: int
+    max_states: int
+    parent: dict[_State, tuple[_State, _RawStep] | None] = field(default_factory=dict)
+    todo: deque[_State] = field(default_factory=deque)
+    transitions: int = 0
+    bound_reached: bool = False
+    deadlocks: list[Finding] = field(default_factory=list)
+    stuck_heads: set[_Key] = field(default_factory=set)
+    unspecified: dict[_Key, Finding] = field(default_factory=dict)
+    late: dict[_Key, Finding] = field(default_factory=dict)
+
+    def run(self) -> None:
+        start: _State = (self.protocol.initial, self.protocol.initial, (), ())
+        self.parent[start] = None
+        self.todo.append(start)
+        while self.todo:
+            self.visit(self.todo.popleft())
+
+    def trace(self, state: _State) -> tuple[Step, ...]:
+        steps: list[Step] = []
+        link = self.parent[state]
+        while link is not None:
+            state, (role, event, (perf, terminal), after) = link
+            steps.append(Step(role, event, perf.value, after, terminal))
+            link = self.parent[state]
+        return tuple(reversed(steps))
+
+    def visit(self, state: _State) -> None:
+        local: dict[Role, str] = {INITIATOR: state[0], PARTICIPANT: state[1]}
+        queues: dict[Role, tuple[_Msg, ...]] = {PARTICIPANT: state[2], INITIATOR: state[3]}  # by receiver
+        successors, blocked = self.successors(state, local, queues)
+        self.transitions += len(successors)
+        self.bound_reached = self.bound_reached or blocked > 0
+        finished = {role: local[role] in self.roles.final for role in _ROLES}
+        for role in _ROLES:
+            self.unconsumed(state, role, local[role], queues[role], finished=finished[role])
+        if not successors and not blocked and not all(finished.values()):
+            self.deadlock(state, local, queues, finished)
+        for step, nxt in successors:
+            self.enqueue(state, step, nxt)
+
+    def successors(
+        self, state: _State, local: dict[Role, str], queues: dict[Role, tuple[_Msg, ...]]
+    ) -> tuple[list[tuple[_RawStep, _State]], int]:
+        """The steps enabled in ``state`` and the states they lead to; the sends blocked by
+        a full queue, counted."""
+        successors: list[tuple[_RawStep, _State]] = []
+        blocked = 0
+        for role in _ROLES:
+            out = queues[_other(role)]
+            for msg, target in self.roles.sends.get((role, local[role]), ()):
+                if len(out) >= self.queue_capacity:
+                    blocked += 1
+                    continue
+                successors.append(((role, "send", msg, target), _with(state, role, target, send=msg)))
+            inbox = queues[role]
+            received = self.roles.receive(role, local[role], inbox[0]) if inbox else None
+            if received is not None:
+                successors.append(((role, "receive", inbox[0], received), _with(state, role, received)))
+        return successors, blocked
+
+    def unconsumed(
+        self, state: _State, role: Role, local: str, inbox: tuple[_Msg, ...], *, finished: bool
+    ) -> None:
+        """Every message in the queue of a role that ended is late; the head of the queue of a
+        role that has not, one it can never receive, is an unspecified reception (each kept
+        once, with its first, shortest, trace)."""
+        if finished:
+            for msg in dict.fromkeys(inbox):
+                if (role, local, msg) not in self.late:
+                    self.late[(role, local, msg)] = Finding(
+                        "late-message",
+                        _public(state),
+                        self.trace(state),
+                        f"{_msg(msg)} reaches the {role} after it ended in {local!r}",
+                    )
+        elif inbox and self.roles.never_received(role, local, inbox[0]):
+            key = (role, local, inbox[0])
+            if key not in self.unspecified:
+                accepts = _show_msgs(self.roles.accepts(role, local))
+                self.unspecified[key] = Finding(
+                    "unspecified-reception",
+                    _public(state),
+                    self.trace(state),
+                    f"{_msg(inbox[0])}, first in the queue of the {role}, can never be received by it: "
+                    f"in {local!r} it accepts only {accepts}",
+                )
+
+    def deadlock(
+        self,
+        state: _State,
+        local: dict[Role, str],
+        queues: dict[Role, tuple[_Msg, ...]],
+        finished: dict[Role, bool],
+    ) -> None:
+        """``state`` enables no step and a role has not ended: what each role waits for."""
+        parts = []
+        for role in _ROLES:
+            inbox = queues[role]
+            if finished[role]:
+                parts.append(f"the {role} has ended in {local[role]!r}")
+                continue
+            waits = _show_msgs(self.roles.accepts(role, local[role]))
+            text = f"the {role} waits in {local[role]!r} for {waits}"
+            if inbox:
+                self.stuck_heads.add((role, local[role], inbox[0]))
+                text += f" but its queue holds {_show_msgs(inbox)}"
+            parts.append(text)
+        self.deadlocks.append(Finding("deadlock", _public(state), self.trace(state), "; ".join(parts)))
+
+    def enqueue(self, state: _State, step: _RawStep, nxt: _State) -> None:
+        if nxt in self.parent:
+            return
+        if len(self.parent) >= self.max_states:
+            raise SpecError(
+                f"protocol {self.protocol.name}: more than {self.max_states} product states with queues "
+                f"of {self.queue_capacity}; lower the queue capacity"
+            )
+        self.parent[nxt] = (state, step)
+        self.todo.append(nxt)
+
+
+def _wait_entry(here: str, entry: object) -> tuple[str, list[str]]:
+    """A ``waits`` entry's ``serving`` and ``opens``; SpecError at ``here`` when malformed."""
+    if not isinstance(entry, Mapping) or set(entry) != {"serving", "opens"}:
+        raise SpecError(f'{here}: expected {{ serving = "CHANNEL:PROTOCOL", opens = [...] }}, not {entry!r}')
+    serving, opens = entry["serving"], entry["opens"]
+    if not isinstance(serving, str):
+        raise SpecError(f'{here}: serving must be a string "CHANNEL:PROTOCOL", not {serving!r}')
+    if not (isinstance(opens, list) and opens and all(isinstance(x, str) for x in opens)):
+        raise SpecError(f'{here}: opens must be a non-empty list of "CHANNEL:PROTOCOL", not {opens!r}')
+    return serving, opens
+
+
+def _agent_wait_edges(spec: SystemSpec, path: Path, agent: str, waits: object) -> list[WaitEdge]:
+    """The wait-for edges of ``agent``'s ``waits`` (None: it declares none), entry by entry."""
+    if waits is None:
+        return []
+    where = f"{path}: agent {agent}: waits"
+    if not isinstance(waits, list):
+        raise SpecError(f"{where} must be a list of {{ serving = ..., opens = [...] }} tables")
+    edges = []
+    for i, entry in enumerate(waits, 1):
+        here = f"{where} entry {i}"
+        serving, opens = _wait_entry(here, entry)
+        _conversation(spec, agent, serving, initiates=False, where=f"{here}: serving")
+        for ref in opens:
+            _, peer = _conversation(spec, agent, ref, initiates=True, where=f"{here}: opens")
+            edges.append(WaitEdge(agent, serving, ref, peer))
+    return edges
+
+
+def _channel_of(spec: SystemSpec, agent: str, ref: str, channel_name: str, where: str) -> ChannelSpec:
+    """The channel ``channel_name`` of ``spec``, of which ``agent`` is an end; else SpecError."""
+    channel: ChannelSpec | None = next((c for c in spec.channels if c.name == channel_name), None)
+    if channel is None:
+        known = ", ".join(c.name for c in spec.channels)
+        raise SpecError(f"{where} {ref!r}: no channel {channel_name!r} (channels: {known})")
+    if agent not in channel.ends:
+        raise SpecError(
+            f"{where} {ref!r}: {agent} is not an end of {channel_name} ({' and '.join(channel.ends)})"
+        )
+    return channel
+
+
+def _protocol_lines(r: ProtocolResult, carried: set[str]) -> list[str]:
+    """One protocol's states explored and findings; traces in role names when no channel
+    carries it (a channel shows them in its agents' names)."""
+    source = f" ({r.source})" if r.source else ""
+    bound = f"; queue bound {r.queue_capacity} reached" if r.bound_reached else ""
+    lines = [f"  {r.protocol}{source}: {r.states} states, {r.transitions} transitions{bound}: {_summary(r)}"]
+    for f in (*r.deadlocks, *r.unspecified_receptions):
+        if r.protocol in carried:
+            lines.append(f"    {_LABEL[f.kind]}: {f.detail}")
+        else:
+            lines += _finding_lines(f, "    ")
+    lines += [f"    {_LABEL[f.kind]}: {f.detail}" for f in r.late_messages]
+    lines += [f"    note: {note}" for note in r.notes]
+    return lines
+
+
+def _channel_lines(c: ChannelResult) -> list[str]:
+    lines = [
+        f"  {c.channel} {c.protocol}: {c.initiator} initiates, {c.participant} participates: "
+        f"{c.result.states} states: {_summary(c.result)}"
+    ]
+    for f in (*c.result.deadlocks, *c.result.unspecified_receptions):
+        lines += _finding_lines(f, "    ", c.names)
+    return lines
+
+
+def _agents_lines(result: DeadlockResult) -> list[str]:
+    """The wait-for graph: its edges and cycles."""
+    lines = [] if result.waits else ["  no waits declared ([[agents]] waits = [...])"]
+    lines += [f"  {e.text()}" for e in result.waits]
+    for cycle in result.cycles:
+        lines.append(f"  CYCLE {' -> '.join((*cycle.agents, cycle.agents[0]))}:")
+        lines += [f"    {n}. {e.text()}" for n, e in enumerate(cycle.edges, 1)]
+    if result.waits and not result.cycles:
+        lines.append("  no cycle")
+    return lines
+
+
 def explore(
     protocol: Protocol,
     *,
@@ -343,109 +560,19 @@ def explore(
     SpecError beyond ``max_states`` product states."""
     if queue_capacity < 1:
         raise ValueError("queue_capacity must be at least 1")
-    roles = _Roles(protocol, not_understood)
-    start: _State = (protocol.initial, protocol.initial, (), ())
-    parent: dict[_State, tuple[_State, _RawStep] | None] = {start: None}
-    todo = deque([start])
-    transitions = 0
-    bound_reached = False
-    deadlocks: list[Finding] = []
-    stuck_heads: set[tuple[Role, str, _Msg]] = set()
-    unspecified: dict[tuple[Role, str, _Msg], Finding] = {}
-    late: dict[tuple[Role, str, _Msg], Finding] = {}
-
-    def trace(state: _State) -> tuple[Step, ...]:
-        steps: list[Step] = []
-        link = parent[state]
-        while link is not None:
-            state, (role, event, (perf, terminal), after) = link
-            steps.append(Step(role, event, perf.value, after, terminal))
-            link = parent[state]
-        return tuple(reversed(steps))
-
-    while todo:
-        state = todo.popleft()
-        local = {INITIATOR: state[0], PARTICIPANT: state[1]}
-        queues = {PARTICIPANT: state[2], INITIATOR: state[3]}  # by receiver
-        successors: list[tuple[_RawStep, _State]] = []
-        blocked = 0
-        for role in _ROLES:
-            out = queues[_other(role)]
-            for msg, target in roles.sends.get((role, local[role]), ()):
-                if len(out) >= queue_capacity:
-                    blocked += 1
-                    continue
-                successors.append(((role, "send", msg, target), _with(state, role, target, send=msg)))
-            inbox = queues[role]
-            if inbox:
-                target_or_none = roles.receive(role, local[role], inbox[0])
-                if target_or_none is not None:
-                    successors.append(
-                        ((role, "receive", inbox[0], target_or_none), _with(state, role, target_or_none))
-                    )
-        transitions += len(successors)
-        bound_reached = bound_reached or blocked > 0
-        finished = {role: local[role] in roles.final for role in _ROLES}
-
-        for role in _ROLES:
-            inbox = queues[role]
-            if finished[role]:
-                for msg in dict.fromkeys(inbox):
-                    key = (role, local[role], msg)
-                    if key not in late:
-                        late[key] = Finding(
-                            "late-message",
-                            _public(state),
-                            trace(state),
-                            f"{_msg(msg)} reaches the {role} after it ended in {local[role]!r}",
-                        )
-            elif inbox and roles.never_received(role, local[role], inbox[0]):
-                key = (role, local[role], inbox[0])
-                if key not in unspecified:
-                    accepts = _show_msgs(roles.accepts(role, local[role]))
-                    unspecified[key] = Finding(
-                        "unspecified-reception",
-                        _public(state),
-                        trace(state),
-                        f"{_msg(inbox[0])}, first in the queue of the {role}, can never be received by it: "
-                        f"in {local[role]!r} it accepts only {accepts}",
-                    )
-        if not successors and not blocked and not all(finished.values()):
-            parts = []
-            for role in _ROLES:
-                inbox = queues[role]
-                if finished[role]:
-                    parts.append(f"the {role} has ended in {local[role]!r}")
-                    continue
-                waits = _show_msgs(roles.accepts(role, local[role]))
-                text = f"the {role} waits in {local[role]!r} for {waits}"
-                if inbox:
-                    stuck_heads.add((role, local[role], inbox[0]))
-                    text += f" but its queue holds {_show_msgs(inbox)}"
-                parts.append(text)
-            deadlocks.append(Finding("deadlock", _public(state), trace(state), "; ".join(parts)))
-
-        for step, nxt in successors:
-            if nxt not in parent:
-                if len(parent) >= max_states:
-                    raise SpecError(
-                        f"protocol {protocol.name}: more than {max_states} product states with queues "
-                        f"of {queue_capacity}; lower the queue capacity"
-                    )
-                parent[nxt] = (state, step)
-                todo.append(nxt)
-
+    x = _Exploration(protocol, _Roles(protocol, not_understood), queue_capacity, max_states)
+    x.run()
     return ProtocolResult(
         protocol=protocol.name,
         source=protocol.spec,
         queue_capacity=queue_capacity,
         not_understood=not_understood,
-        states=len(parent),
-        transitions=transitions,
-        bound_reached=bound_reached,
-        deadlocks=tuple(deadlocks),
-        unspecified_receptions=tuple(f for key, f in unspecified.items() if key not in stuck_heads),
-        late_messages=tuple(late.values()),
+        states=len(x.parent),
+        transitions=x.transitions,
+        bound_reached=x.bound_reached,
+        deadlocks=tuple(x.deadlocks),
+        unspecified_receptions=tuple(f for key, f in x.unspecified.items() if key not in x.stuck_heads),
+        late_messages=tuple(x.late.values()),
         notes=tuple(notes),
     )
 
@@ -486,32 +613,26 @@ def wait_edges(
         if not isinstance(table, Mapping):
             continue
         agent = table.get("name", f"#{n}")
-        waits = table.get("waits")
-        if waits is None:
-            continue
-        where = f"{path}: agent {agent}: waits"
-        if not isinstance(waits, list):
-            raise SpecError(f"{where} must be a list of {{ serving = ..., opens = [...] }} tables")
-        for i, entry in enumerate(waits, 1):
-            here = f"{where} entry {i}"
-            if not isinstance(entry, Mapping) or set(entry) != {"serving", "opens"}:
-                raise SpecError(
-                    f'{here}: expected {{ serving = "CHANNEL:PROTOCOL", opens = [...] }}, not {entry!r}'
-                )
-            serving, opens = entry["serving"], entry["opens"]
-            if not isinstance(serving, str):
-                raise SpecError(f'{here}: serving must be a string "CHANNEL:PROTOCOL", not {serving!r}')
-            if not (isinstance(opens, list) and opens and all(isinstance(x, str) for x in opens)):
-                raise SpecError(
-                    f'{here}: opens must be a non-empty list of "CHANNEL:PROTOCOL", not {opens!r}'
-                )
-            _conversation(spec, agent, serving, initiates=False, where=f"{here}: serving")
-            for ref in opens:
-                _, peer = _conversation(spec, agent, ref, initiates=True, where=f"{here}: opens")
-                edge = WaitEdge(agent, serving, ref, peer)
-                if edge not in edges:
-                    edges.append(edge)
+        for edge in _agent_wait_edges(spec, path, agent, table.get("waits")):
+            if edge not in edges:
+                edges.append(edge)
     return tuple(edges)
+
+
+def _mine(
+    carried: list[ChannelProtocol], agent: str, ref: str, *, initiates: bool, where: str
+) -> ChannelProtocol:
+    """The channel protocol of ``carried`` ``agent`` initiates (``initiates``) or serves; else
+    SpecError."""
+    mine = [cp for cp in carried if (cp.initiator == agent) == initiates]
+    if mine:
+        return mine[0]
+    other = carried[0].initiator
+    if initiates:
+        raise SpecError(f"{where} {ref!r}: {other} initiates it, so {agent} cannot open it")
+    raise SpecError(
+        f"{where} {ref!r}: {agent} initiates it, so it cannot serve it (only its participant can)"
+    )
 
 
 def _conversation(
@@ -522,30 +643,16 @@ def _conversation(
     channel_name, sep, protocol = ref.partition(":")
     if not sep or not channel_name or not protocol:
         raise SpecError(f'{where} {ref!r}: expected "CHANNEL:PROTOCOL", e.g. "C3:fipa-request"')
-    channel: ChannelSpec | None = next((c for c in spec.channels if c.name == channel_name), None)
-    if channel is None:
-        known = ", ".join(c.name for c in spec.channels)
-        raise SpecError(f"{where} {ref!r}: no channel {channel_name!r} (channels: {known})")
-    if agent not in channel.ends:
-        raise SpecError(
-            f"{where} {ref!r}: {agent} is not an end of {channel_name} ({' and '.join(channel.ends)})"
-        )
+    channel = _channel_of(spec, agent, ref, channel_name, where)
     carried = [cp for cp in channel.protocols if cp.protocol == protocol]
     if not carried:
         known = ", ".join(cp.protocol for cp in channel.protocols)
         raise SpecError(
             f"{where} {ref!r}: {channel_name} carries no protocol {protocol!r} (it carries {known})"
         )
-    mine = [cp for cp in carried if (cp.initiator == agent) == initiates]
-    if not mine:
-        other = carried[0].initiator
-        if initiates:
-            raise SpecError(f"{where} {ref!r}: {other} initiates it, so {agent} cannot open it")
-        raise SpecError(
-            f"{where} {ref!r}: {agent} initiates it, so it cannot serve it (only its participant can)"
-        )
+    mine = _mine(carried, agent, ref, initiates=initiates, where=where)
     peer = channel.ends[1] if channel.ends[0] == agent else channel.ends[0]
-    return mine[0], peer
+    return mine, peer
 
 
 def wait_cycles(edges: Sequence[WaitEdge], *, limit: int = MAX_CYCLES) -> tuple[WaitCycle, ...]:
@@ -659,36 +766,11 @@ def render(result: DeadlockResult) -> str:
         "Protocols:",
     ]
     for r in result.protocols:
-        source = f" ({r.source})" if r.source else ""
-        bound = f"; queue bound {r.queue_capacity} reached" if r.bound_reached else ""
-        lines.append(
-            f"  {r.protocol}{source}: {r.states} states, {r.transitions} transitions{bound}: {_summary(r)}"
-        )
-        for f in (*r.deadlocks, *r.unspecified_receptions):
-            if r.protocol in carried:
-                lines.append(f"    {_LABEL[f.kind]}: {f.detail}")
-            else:
-                lines += _finding_lines(f, "    ")
-        lines += [f"    {_LABEL[f.kind]}: {f.detail}" for f in r.late_messages]
-        lines += [f"    note: {note}" for note in r.notes]
+        lines += _protocol_lines(r, carried)
     lines += ["", "Channels:"]
     for c in result.channels:
-        lines.append(
-            f"  {c.channel} {c.protocol}: {c.initiator} initiates, {c.participant} participates: "
-            f"{c.result.states} states: {_summary(c.result)}"
-        )
-        for f in (*c.result.deadlocks, *c.result.unspecified_receptions):
-            lines += _finding_lines(f, "    ", c.names)
-    lines += ["", "Agents (wait-for graph):"]
-    if not result.waits:
-        lines.append("  no waits declared ([[agents]] waits = [...])")
-    for e in result.waits:
-        lines.append(f"  {e.text()}")
-    for cycle in result.cycles:
-        lines.append(f"  CYCLE {' -> '.join((*cycle.agents, cycle.agents[0]))}:")
-        lines += [f"    {n}. {e.text()}" for n, e in enumerate(cycle.edges, 1)]
-    if result.waits and not result.cycles:
-        lines.append("  no cycle")
+        lines += _channel_lines(c)
+    lines += ["", "Agents (wait-for graph):", *_agents_lines(result)]
     verdict = "DEADLOCK FOUND" if result.deadlock_found else "no deadlock found"
     lines += ["", f"{verdict} ({result.seconds * 1000:.1f} ms)"]
     return "\n".join(lines) + "\n"
