@@ -25,49 +25,73 @@ communicates the move looks across (``SEND_ORDER_WINDOW``).
 from __future__ import annotations
 
 from collections.abc import Sequence
+from dataclasses import dataclass, field
 
+from services.recorder.record import TrafficRecord
 from services.report.load import Message
 
 _Token = tuple[str | None, str]
 """(conversation-id, reply-with) of a communicate."""
 
 
+def _offered(m: Message) -> _Token | None:
+    """The token an answer to ``m`` names (its reply-with), None when it has none."""
+    comm = m.comm
+    if comm is None or comm.reply_with is None:
+        return None
+    return comm.conversation_id, comm.reply_with
+
+
+def _answered(m: Message) -> _Token | None:
+    """The token ``m`` answers (its in-reply-to), None when it answers nothing."""
+    comm = m.comm
+    if comm is None or comm.in_reply_to is None:
+        return None
+    return comm.conversation_id, comm.in_reply_to
+
+
+@dataclass
+class _CausalReplay:
+    """The record replayed in arrival order (:meth:`take`): an answer to a communicate recorded
+    later waits for it; a communicate taken brings in the answers waiting for it
+    (:meth:`emit`)."""
+
+    recorded: set[_Token]
+    """The tokens some communicate of the record offers."""
+    seen: set[_Token] = field(default_factory=set)
+    waiting: dict[_Token, list[Message]] = field(default_factory=dict)
+    ordered: list[Message] = field(default_factory=list)
+    moved: int = 0
+
+    def take(self, m: Message) -> None:
+        token = _answered(m)
+        if token is not None and token in self.recorded and token not in self.seen:
+            self.waiting.setdefault(token, []).append(m)
+            self.moved += 1
+            return
+        self.emit(m)
+
+    def emit(self, m: Message) -> None:
+        self.ordered.append(m)
+        token = _offered(m)
+        if token is None:
+            return
+        self.seen.add(token)
+        for later in self.waiting.pop(token, []):
+            self.emit(later)
+
+
 def causal_order(messages: Sequence[Message]) -> tuple[list[Message], int]:
     """``messages`` (arrival order) in causal order, and how many were moved later.
 
     Shapes: a list of the same length with the same elements. O(n) in time and memory."""
-    recorded: set[_Token] = set()
+    replay = _CausalReplay({token for m in messages if (token := _offered(m)) is not None})
     for m in messages:
-        if m.comm is not None and m.comm.reply_with is not None:
-            recorded.add((m.comm.conversation_id, m.comm.reply_with))
-    seen: set[_Token] = set()
-    waiting: dict[_Token, list[Message]] = {}
-    ordered: list[Message] = []
-    moved = 0
-
-    def emit(m: Message) -> None:
-        ordered.append(m)
-        comm = m.comm
-        if comm is None or comm.reply_with is None:
-            return
-        token = (comm.conversation_id, comm.reply_with)
-        seen.add(token)
-        for later in waiting.pop(token, []):
-            emit(later)
-
-    for m in messages:
-        comm = m.comm
-        if comm is not None and comm.in_reply_to is not None:
-            token = (comm.conversation_id, comm.in_reply_to)
-            if token in recorded and token not in seen:
-                waiting.setdefault(token, []).append(m)
-                moved += 1
-                continue
-        emit(m)
+        replay.take(m)
     # a cycle of answers (malformed traffic) leaves messages waiting: keep them, in arrival order
-    rest = sorted((m for ms in waiting.values() for m in ms), key=lambda m: m.rec.seq)
-    ordered.extend(rest)
-    return ordered, moved
+    rest = sorted((m for ms in replay.waiting.values() for m in ms), key=lambda m: m.rec.seq)
+    replay.ordered.extend(rest)
+    return replay.ordered, replay.moved
 
 
 SEND_ORDER_WINDOW = 16
@@ -81,11 +105,21 @@ def _pair(m: Message) -> _Pair:
     return (m.rec.conversation_id, frozenset((m.rec.sender, *m.rec.receivers[:1])))
 
 
+def _sent_earlier(a: TrafficRecord, b: TrafficRecord) -> bool:
+    """True when ``b`` was sent before ``a``, in a conversation (both send times known)."""
+    return (
+        a.conversation_id is not None
+        and a.t_sent is not None
+        and b.t_sent is not None
+        and b.t_sent < a.t_sent
+    )
+
+
 def _sent_first(m: Message, n: Message) -> bool:
     """True when ``n`` (recorded after ``m``) belongs before it: the same conversation, sent by
     ``m``'s receiver to ``m``'s sender before ``m`` was sent, and not an answer to ``m``."""
     a, b = m.rec, n.rec
-    if a.conversation_id is None or a.t_sent is None or b.t_sent is None or b.t_sent >= a.t_sent:
+    if not _sent_earlier(a, b):
         return False
     if b.sender == a.sender or a.sender not in b.receivers[:1] or _pair(m) != _pair(n):
         return False

@@ -94,6 +94,25 @@ def role_lines(
     return out
 
 
+def _agent_lines(spec: SystemSpec, name: str, implementation: str) -> tuple[list[str], list[str]]:
+    """One agent's problems, and its lines of the report: its files, its protocol roles and
+    whether they agree with the specification, each role's messages."""
+    files = package_files(implementation)
+    cls = agent_class(spec, name)
+    found = agent_problems(spec, name, cls, files)
+    written = cls.ROLES or ()
+    declared = expand_roles(spec, name, written)
+    lines = [
+        f"{name}: {len(files)} files; {len(declared)} protocol roles"
+        f"{' agree with the specification' if not found else ''}:"
+    ]
+    unused = {(d.channel, d.protocol) for d in declared if d.unused}
+    own = {(d.channel, d.protocol) for d in written if d.channel != EVERY_CHANNEL}
+    every = {(d.channel, d.protocol) for d in declared} - own
+    lines += role_lines(spec, name, spec_roles(spec, name), unused, every)
+    return found, lines
+
+
 def verify_code_report(path: Path = DEFAULT_SPEC) -> tuple[bool, str]:
     """``roco spec verify-code``: (ok, the report's text)."""
     try:
@@ -101,20 +120,9 @@ def verify_code_report(path: Path = DEFAULT_SPEC) -> tuple[bool, str]:
         problems: list[str] = []
         lines: list[str] = []
         for a in spec.agents:
-            files = package_files(a.implementation)
-            cls = agent_class(spec, a.name)
-            found = agent_problems(spec, a.name, cls, files)
+            found, agent_lines = _agent_lines(spec, a.name, a.implementation)
             problems += found
-            written = cls.ROLES or ()
-            declared = expand_roles(spec, a.name, written)
-            lines.append(
-                f"{a.name}: {len(files)} files; {len(declared)} protocol roles"
-                f"{' agree with the specification' if not found else ''}:"
-            )
-            unused = {(d.channel, d.protocol) for d in declared if d.unused}
-            own = {(d.channel, d.protocol) for d in written if d.channel != EVERY_CHANNEL}
-            every = {(d.channel, d.protocol) for d in declared} - own
-            lines += role_lines(spec, a.name, spec_roles(spec, a.name), unused, every)
+            lines += agent_lines
     except (SpecError, SyntaxError) as exc:
         return False, str(exc)
     if not problems:

@@ -184,6 +184,152 @@ def _sends(machine: Protocol, role: Role, state: str) -> list[Performative]:
     return sorted(found, key=lambda p: (p in _REASONS, p is Performative.CANCEL, p.value))
 
 
+def _by_kind(p: Performative) -> tuple[bool, bool, str]:
+    """Answers with content first, then cancel, then refuse and failure."""
+    return (p in _REASONS, p is Performative.CANCEL, p.value)
+
+
+def _sends_in(machine: Protocol, role: Role, states: Iterable[str]) -> list[Performative]:
+    """What ``role`` may send in any of ``states``, each once, in the states' order."""
+    sends: list[Performative] = []
+    for t in states:
+        sends += [p for p in _sends(machine, role, t) if p not in sends]
+    return sends
+
+
+def _failure_note(perf: Performative, role: Role) -> list[str]:
+    """An initiator's failure handler is reached for more than failure."""
+    if perf is Performative.FAILURE and role == INITIATOR:
+        return [
+            "Also reached when the reply-by deadline passed (conv.timed_out) or the peer did not "
+            "understand (conv.not_understood); conv.reason says why."
+        ]
+    return []
+
+
+def _agree_line(machine: Protocol, cp: ChannelProtocol, role: Role, targets: list[str]) -> list[str]:
+    """What the role may send later, after it agreed (agree now, the outcome later: FIPA
+    SC00026 §2)."""
+    afters = [machine.next_state(t, role, Performative.AGREE) for t in targets]
+    later = _sends_in(machine, role, [a for a in afters if a is not None and a not in machine.final])
+    if not later:
+        return []
+    follow = "; or ".join(_call(q, cp, role) for q in later)
+    return [f"After {_call(Performative.AGREE, cp, role)}, later (keep conv): {follow}."]
+
+
+def _unique(out: list[_Handler]) -> list[_Handler]:
+    """``out`` with the names of handlers that clash made longer (their ``level`` raised) until
+    none clash."""
+    while True:
+        names: dict[str, list[_Handler]] = {}
+        for h in out:
+            names.setdefault(h.name, []).append(h)
+        clashes = [h for same in names.values() if len(same) > 1 for h in same]
+        if not clashes:
+            return out
+        for h in clashes:
+            h.level += 1
+        assert all(h.level <= 2 for h in out), "a handler key is unique at level 2"
+
+
+def _handler_block(
+    spec: SystemSpec, agent: str, h: _Handler, todo_where: tuple[str, str], modules: dict[str, str]
+) -> str:
+    """One handler's method: its decorator, docstring, hints, and the NotImplementedError
+    that says where to write it (``todo_where``: the class name and the module's path)."""
+    class_name, where = todo_where
+    decl, perf = h.decl, h.performative
+    peer = _peer(spec, agent, decl.channel)
+    what = f"{agent}: {perf.value} from {peer} on {decl.channel} ({decl.protocol}) is not handled yet: "
+    todo = _literal(what) + "\n            " + _literal(f"write {class_name}.{h.name} in {where}")
+    channel = f", channel={_channel(decl)}" if h.on_channel else ""
+    return (
+        f"    @handles({_protocol(decl)}, {_constant(decl.role)}, Performative.{perf.name}{channel})\n"
+        f"    def {h.name}(self, conv: Conversation) -> None:\n"
+        f'        """{peer} sent {perf.value} ({decl.protocol} on {decl.channel}, this agent the '
+        f'{decl.role})."""\n'
+        + _comment(_hints(spec, h, modules), "        ")
+        + f"        raise NotImplementedError(\n            {todo}\n        )\n"
+    )
+
+
+_SERVE_ONLY = """                Behaviour(
+                    "serve", self.handle_received, terminal=lambda: False, doc="answer what arrives"
+                )"""
+"""The behaviour of an agent that only answers."""
+
+_SERVE_AND_OPEN = """                periodic(
+                    "serve",
+                    OPEN_EVERY_S,
+                    self.{timer},
+                    serve=self.handle_received,
+                    doc=f"answer what arrives; every {{OPEN_EVERY_S:g}} s open conversations",
+                )"""
+"""The behaviour of an agent that also opens conversations (``{timer}``: :data:`TIMER_METHOD`)."""
+
+
+def _behaviour(
+    spec: SystemSpec, agent: str, opens: list[RoleDecl], modules: dict[str, str]
+) -> tuple[str, ...]:
+    """The behaviour's import, the period's constant, the behaviour, and the timer method that
+    opens conversations (empty for an agent that only answers)."""
+    if not opens:
+        return "FSM, Behaviour", "", _SERVE_ONLY, ""
+    period = f"""
+OPEN_EVERY_S = {OPEN_EVERY_S!r}
+\"\"\"How often (s) {TIMER_METHOD} runs: the period of this agent's periodic behaviour.\"\"\"
+"""
+    timer = (
+        f"    def {TIMER_METHOD}(self) -> None:\n"
+        f'        """Runs every OPEN_EVERY_S s (services/runtime/behaviour.py ``periodic``): open the\n'
+        f'        conversations this agent initiates; the answers reach the handlers below."""\n'
+        + "".join(_opening(spec, d, _peer(spec, agent, d.channel), modules) for d in opens)
+        + "\n"
+    )
+    return "FSM, periodic", period, _SERVE_AND_OPEN.format(timer=TIMER_METHOD), timer
+
+
+def _module_of(spec: SystemSpec, agent: str) -> tuple[list[str], str]:
+    """Agent ``agent``'s module path (its dotted parts) and class name; SpecError for an agent
+    the specification does not name or an implementation that is not ``package.module:Class``."""
+    entry = next((a for a in spec.agents if a.name == agent), None)
+    if entry is None:
+        names = ", ".join(a.name for a in spec.agents)
+        raise SpecError(f"the specification has no agent {agent!r} (it has {names})")
+    module, _, class_name = entry.implementation.partition(":")
+    parts = module.split(".")
+    if not class_name.isidentifier() or len(parts) < 2 or not all(p.isidentifier() for p in parts):
+        raise SpecError(f"agent {agent}: implementation {entry.implementation!r} is not package.module:Class")
+    return parts, class_name
+
+
+def _packages(root: Path, parts: list[str]) -> None:
+    """The folders of package path ``parts`` under ``root``, each with an ``__init__.py``."""
+    folder = root
+    for part in parts:
+        folder = folder / part
+        folder.mkdir(exist_ok=True)
+        init = folder / "__init__.py"
+        if not init.exists():
+            init.write_text("")
+
+
+def _answer_line(
+    machine: Protocol, cp: ChannelProtocol, role: Role, sends: list[Performative], targets: list[str]
+) -> str:
+    """The calls that answer (a participant) or may follow (an initiator), and whether the
+    communicate may have ended the conversation instead."""
+    calls = "; or ".join(_call(p, cp, role) for p in sends)
+    ends = any(t in machine.final for t in targets)
+    return (
+        ("Answer with " if role == PARTICIPANT else "May send: ")
+        + calls
+        + (", unless it ended the conversation" if ends else "")
+        + "."
+    )
+
+
 def _hints(spec: SystemSpec, h: _Handler, modules: dict[str, str]) -> list[str]:
     """The comment lines above a handler: what arrived, and what the role may send in the
     states it leads to by the protocol's state machine (each as the roles' call)."""
@@ -191,38 +337,16 @@ def _hints(spec: SystemSpec, h: _Handler, modules: dict[str, str]) -> list[str]:
     cp = _channel_protocol(spec, decl.channel, decl.protocol)
     machine = machine_of(spec, decl.protocol)
     other: Role = PARTICIPANT if decl.role == INITIATOR else INITIATOR
-    lines = [f"conv.content: {_carries(cp, perf, modules)}."]
-    if perf is Performative.FAILURE and decl.role == INITIATOR:
-        lines.append(
-            "Also reached when the reply-by deadline passed (conv.timed_out) or the peer did not "
-            "understand (conv.not_understood); conv.reason says why."
-        )
+    lines = [f"conv.content: {_carries(cp, perf, modules)}.", *_failure_note(perf, decl.role)]
     edges = [*machine.transitions.items(), *machine.terminal_transitions.items()]
     targets = sorted({t for (_, r, p), t in edges if r == other and p is perf})
-    sends: list[Performative] = []
-    for t in targets:
-        sends += [p for p in _sends(machine, decl.role, t) if p not in sends]
-    sends.sort(key=lambda p: (p in _REASONS, p is Performative.CANCEL, p.value))
+    sends = sorted(_sends_in(machine, decl.role, targets), key=_by_kind)
     if not sends:
         lines.append("It ends the conversation: nothing more is sent in it.")
         return lines
-    calls = "; or ".join(_call(p, cp, decl.role) for p in sends)
-    ends = any(t in machine.final for t in targets)
-    lines.append(
-        ("Answer with " if decl.role == PARTICIPANT else "May send: ")
-        + calls
-        + (", unless it ended the conversation" if ends else "")
-        + "."
-    )
-    if Performative.AGREE in sends:  # agree now, the outcome later (FIPA SC00026 §2)
-        later: list[Performative] = []
-        for t in targets:
-            after = machine.next_state(t, decl.role, Performative.AGREE)
-            if after is not None and after not in machine.final:
-                later += [q for q in _sends(machine, decl.role, after) if q not in later]
-        if later:
-            follow = "; or ".join(_call(q, cp, decl.role) for q in later)
-            lines.append(f"After {_call(Performative.AGREE, cp, decl.role)}, later (keep conv): {follow}.")
+    lines.append(_answer_line(machine, cp, decl.role, sends, targets))
+    if Performative.AGREE in sends:
+        lines += _agree_line(machine, cp, decl.role, targets)
     return lines
 
 
@@ -248,17 +372,7 @@ def _handlers(spec: SystemSpec, roles: list[RoleDecl]) -> list[_Handler]:
             needed.append((decl, p))
             key = (decl.role, decl.protocol, p)
             counts[key] = counts.get(key, 0) + 1
-    out = [_Handler(d, p, counts[(d.role, d.protocol, p)] > 1) for d, p in needed]
-    while True:
-        names: dict[str, list[_Handler]] = {}
-        for h in out:
-            names.setdefault(h.name, []).append(h)
-        clashes = [h for same in names.values() if len(same) > 1 for h in same]
-        if not clashes:
-            return out
-        for h in clashes:
-            h.level += 1
-        assert all(h.level <= 2 for h in out), "a handler key is unique at level 2"
+    return _unique([_Handler(d, p, counts[(d.role, d.protocol, p)] > 1) for d, p in needed])
 
 
 def _opening(spec: SystemSpec, decl: RoleDecl, peer: str, modules: dict[str, str]) -> str:
@@ -283,6 +397,24 @@ def _opening(spec: SystemSpec, decl: RoleDecl, peer: str, modules: dict[str, str
     return _comment(text, "        ") + f"        # {call})\n"
 
 
+def _declared(roles: list[RoleDecl]) -> tuple[list[str], set[str]]:
+    """The lines of the class's ``ROLES``, and the names of services.spec.names they use."""
+    declared = []
+    named: set[str] = set()
+    for decl in roles:
+        names = [_channel(decl), _protocol(decl), *_languages(decl)]
+        named |= set(names)
+        declared.append(f"        {decl.role}({', '.join(names)}),")
+    return declared, named
+
+
+def _role_imports(roles: list[RoleDecl]) -> str:
+    """What the module imports from services.runtime.roles."""
+    role_names = sorted({_constant(d.role) for d in roles})
+    makers = sorted({d.role for d in roles})
+    return ", ".join([*role_names, "Conversation", "handles", *makers])
+
+
 def agent_source(spec: SystemSpec, agent: str, class_name: str, where: str) -> tuple[str, tuple[str, ...]]:
     """The module text of agent ``agent`` (class ``class_name``, written to ``where``) and
     the names of its handlers. Raises SpecError when the spec gives the agent no channel."""
@@ -291,61 +423,14 @@ def agent_source(spec: SystemSpec, agent: str, class_name: str, where: str) -> t
     if not roles:
         raise SpecError(f"agent {agent} ends no channel in the specification: it would have nothing to do")
     modules = _term_modules()
-    declared = []
-    named: set[str] = set()
-    for decl in roles:
-        names = [_channel(decl), _protocol(decl), *_languages(decl)]
-        named |= set(names)
-        declared.append(f"        {decl.role}({', '.join(names)}),")
+    declared, named = _declared(roles)
     handlers = _handlers(spec, roles)
-    blocks: list[str] = []
-    for h in handlers:
-        decl, perf = h.decl, h.performative
-        peer = _peer(spec, agent, decl.channel)
-        what = f"{agent}: {perf.value} from {peer} on {decl.channel} ({decl.protocol}) is not handled yet: "
-        todo = _literal(what) + "\n            " + _literal(f"write {class_name}.{h.name} in {where}")
-        channel = f", channel={_channel(decl)}" if h.on_channel else ""
-        blocks.append(
-            f"    @handles({_protocol(decl)}, {_constant(decl.role)}, Performative.{perf.name}{channel})\n"
-            f"    def {h.name}(self, conv: Conversation) -> None:\n"
-            f'        """{peer} sent {perf.value} ({decl.protocol} on {decl.channel}, this agent the '
-            f'{decl.role})."""\n'
-            + _comment(_hints(spec, h, modules), "        ")
-            + f"        raise NotImplementedError(\n            {todo}\n        )\n"
-        )
+    blocks = [_handler_block(spec, agent, h, (class_name, where), modules) for h in handlers]
     opens = [d for d in roles if d.role == INITIATOR]
-    role_names = sorted({_constant(d.role) for d in roles})
-    makers = sorted({d.role for d in roles})
-    imports = ", ".join([*role_names, "Conversation", "handles", *makers])
+    imports = _role_imports(roles)
     job = entry.job or f"the agent that substitutes group {entry.group}"
     unused = "" if handlers else "  # noqa: F401  (the performatives handlers answer with)"
-    if opens:
-        behaviour_import = "FSM, periodic"
-        period = f"""
-OPEN_EVERY_S = {OPEN_EVERY_S!r}
-\"\"\"How often (s) {TIMER_METHOD} runs: the period of this agent's periodic behaviour.\"\"\"
-"""
-        serve = f"""                periodic(
-                    "serve",
-                    OPEN_EVERY_S,
-                    self.{TIMER_METHOD},
-                    serve=self.handle_received,
-                    doc=f"answer what arrives; every {{OPEN_EVERY_S:g}} s open conversations",
-                )"""
-        timer = (
-            f"    def {TIMER_METHOD}(self) -> None:\n"
-            f'        """Runs every OPEN_EVERY_S s (services/runtime/behaviour.py ``periodic``): open the\n'
-            f'        conversations this agent initiates; the answers reach the handlers below."""\n'
-            + "".join(_opening(spec, d, _peer(spec, agent, d.channel), modules) for d in opens)
-            + "\n"
-        )
-    else:
-        behaviour_import = "FSM, Behaviour"
-        period = ""
-        serve = """                Behaviour(
-                    "serve", self.handle_received, terminal=lambda: False, doc="answer what arrives"
-                )"""
-        timer = ""
+    behaviour_import, period, serve, timer = _behaviour(spec, agent, opens, modules)
     text = f'''"""{agent} — {job}.
 
 Written by ``roco spec new-agent {agent}`` from the specification: its protocol roles (one per
@@ -385,26 +470,13 @@ def write_agent(spec: SystemSpec, agent: str, root: Path = PROJECT) -> Scaffold:
     """Write agent ``agent``'s module (see the module docstring) under ``root``. Raises
     SpecError for an agent the specification does not name or an implementation that is not
     ``package.module:Class``, FileExistsError when the module exists."""
-    entry = next((a for a in spec.agents if a.name == agent), None)
-    if entry is None:
-        names = ", ".join(a.name for a in spec.agents)
-        raise SpecError(f"the specification has no agent {agent!r} (it has {names})")
-    module, _, class_name = entry.implementation.partition(":")
-    parts = module.split(".")
-    if not class_name.isidentifier() or len(parts) < 2 or not all(p.isidentifier() for p in parts):
-        raise SpecError(f"agent {agent}: implementation {entry.implementation!r} is not package.module:Class")
+    parts, class_name = _module_of(spec, agent)
     path = root.joinpath(*parts).with_suffix(".py")
     if path.exists():
         raise FileExistsError(f"{path} exists; new-agent writes only new files")
     shown = path.relative_to(root) if path.is_relative_to(root) else path
     text, handlers = agent_source(spec, agent, class_name, str(shown))
-    folder = root
-    for part in parts[:-1]:
-        folder = folder / part
-        folder.mkdir(exist_ok=True)
-        init = folder / "__init__.py"
-        if not init.exists():
-            init.write_text("")
+    _packages(root, parts[:-1])
     path.write_text(text)
     timer = TIMER_METHOD if any(d.role == INITIATOR for d in spec_roles(spec, agent)) else None
     return Scaffold(path, handlers, timer)
