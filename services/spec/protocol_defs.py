@@ -91,18 +91,8 @@ def declares_state_machine(table: Mapping[str, object]) -> bool:
     return any(key in table for key in MACHINE_KEYS)
 
 
-def protocol_from_table(name: str, table: Mapping[str, Any], *, source: str | Path | None = None) -> Protocol:
-    """Build protocol ``name`` from its ``[protocols.NAME]`` table (see the module docstring).
-
-    Every transition is checked: four strings, a known role, a FIPA performative (FIPA
-    SC00037) that the role's ``initiator``/``participant`` list allows when the table has
-    that list, no second target for the same (state, role, performative), no transition out
-    of a final state; then the machine itself (every state reachable, a final state
-    reachable from every state; :class:`shared.fipa_codec.protocols.Protocol`). Raises
-    :class:`services.spec.model.SpecError` naming ``source`` (the file), the protocol and
-    the offending entry.
-    """
-    where = f"{source}: protocol {name}" if source is not None else f"protocol {name}"
+def _check_keys(table: object, where: str) -> None:
+    """The table is a table of known keys, with the two a state machine cannot do without."""
     if not isinstance(table, Mapping):
         raise SpecError(f"{where}: expected a table, not {type(table).__name__}")
     unknown = sorted(set(table) - TABLE_KEYS)
@@ -114,21 +104,28 @@ def protocol_from_table(name: str, table: Mapping[str, Any], *, source: str | Pa
         raise SpecError(f"{where}: a state machine needs 'transitions'")
     if "final" not in table:
         raise SpecError(f"{where}: a state machine needs 'final' (the final states)")
-    lists = {role: _role_list(table, role, where) for role in (INITIATOR, PARTICIPANT)}
+
+
+def _initial_and_final(table: Mapping[str, Any], where: str) -> tuple[str, list[str]]:
+    """The initial state (``start`` by default) and the final states, at least one."""
     initial = table.get("initial", "start")
     if not isinstance(initial, str) or not initial:
         raise SpecError(f"{where}: 'initial' must be a state name, not {initial!r}")
     final = _names(table["final"], "final", where)
     if not final:
         raise SpecError(f"{where}: 'final' names no state")
-    edges = _edges(table["transitions"], "transition", where, lists)
-    if not edges:
-        raise SpecError(f"{where}: 'transitions' is empty")
-    terminal = _edges(table.get("terminal", []), "terminal transition", where, lists)
-    cancellable = _names(table.get("cancellable", []), "cancellable", where)
-    states = {initial} | set(final)
-    for _, (source_state, _, _, target) in [*edges, *terminal]:
-        states |= {source_state, target}
+    return initial, final
+
+
+def _check_cancellable(
+    cancellable: list[str],
+    states: set[str],
+    final: list[str],
+    lists: Mapping[str, set[str] | None],
+    where: str,
+) -> None:
+    """Each cancellable state is a non-final state of the machine, and the roles' lists allow
+    the cancel meta-protocol's performatives."""
     for state in cancellable:
         if state not in states or state in final:
             raise SpecError(
@@ -138,28 +135,48 @@ def protocol_from_table(name: str, table: Mapping[str, Any], *, source: str | Pa
         _require(lists, INITIATOR, Performative.CANCEL, where, "the cancel meta-protocol ('cancellable')")
         for perf in (Performative.INFORM, Performative.FAILURE):
             _require(lists, PARTICIPANT, perf, where, "the cancel meta-protocol ('cancellable')")
-    for kind, group in (("transition", edges), ("terminal transition", terminal)):
-        seen: dict[tuple[str, Role, Performative], tuple[int, str]] = {}
-        for n, (source_state, role, perf, target) in group:
-            key = (source_state, role, perf)
-            if key in seen and seen[key][1] != target:
-                first, other = seen[key]
-                raise SpecError(
-                    f"{where}: {kind} {n} {_show((source_state, role, perf, target))} conflicts with "
-                    f"{kind} {first}: the same state, role and performative lead to {other!r} and {target!r}"
-                )
-            seen.setdefault(key, (n, target))
-            if source_state in final:
-                raise SpecError(
-                    f"{where}: {kind} {n} {_show((source_state, role, perf, target))} leaves the final "
-                    f"state {source_state!r}"
-                )
-            meta = _cancel_meta(cancellable, edges).get(key) if kind == "transition" else None
-            if meta is not None and meta != target:
-                raise SpecError(
-                    f"{where}: {kind} {n} {_show((source_state, role, perf, target))} conflicts with the "
-                    f"cancel meta-protocol ('cancellable'), which leads there to {meta!r}"
-                )
+
+
+def _check_group(
+    kind: str,
+    group: list[tuple[int, Edge]],
+    final: list[str],
+    meta: Mapping[tuple[str, Role, Performative], str],
+    where: str,
+) -> None:
+    """No second target for the same (state, role, performative) in ``group``, none out of a
+    final state, none against the cancel meta-protocol's transitions ``meta``."""
+    seen: dict[tuple[str, Role, Performative], tuple[int, str]] = {}
+    for n, edge in group:
+        source_state, role, perf, target = edge
+        key = (source_state, role, perf)
+        if key in seen and seen[key][1] != target:
+            first, other = seen[key]
+            raise SpecError(
+                f"{where}: {kind} {n} {_show(edge)} conflicts with "
+                f"{kind} {first}: the same state, role and performative lead to {other!r} and {target!r}"
+            )
+        seen.setdefault(key, (n, target))
+        if source_state in final:
+            raise SpecError(f"{where}: {kind} {n} {_show(edge)} leaves the final state {source_state!r}")
+        if meta.get(key, target) != target:
+            raise SpecError(
+                f"{where}: {kind} {n} {_show(edge)} conflicts with the "
+                f"cancel meta-protocol ('cancellable'), which leads there to {meta[key]!r}"
+            )
+
+
+def _checked_build(
+    name: str,
+    table: Mapping[str, Any],
+    where: str,
+    edges: list[tuple[int, Edge]],
+    terminal: list[tuple[int, Edge]],
+    states: tuple[str, list[str], list[str]],
+) -> Protocol:
+    """The machine built (``states``: initial, final, cancellable), every state reachable and a
+    final state reachable from every state."""
+    initial, final, cancellable = states
     try:
         protocol = _build(
             name,
@@ -181,6 +198,97 @@ def protocol_from_table(name: str, table: Mapping[str, Any], *, source: str | Pa
             f"{', '.join(repr(x) for x in stuck)} (only not-understood would end the conversation)"
         )
     return protocol
+
+
+def _table_of(roles: ProtocolRoles) -> dict[str, Any]:
+    """A spec's protocol entry as the ``[protocols.NAME]`` table it was read from."""
+    table = {
+        key: list(value) if isinstance(value, tuple) else value
+        for key, value in msgspec.structs.asdict(roles).items()
+        if value not in (None, (), "")
+    }
+    table["transitions"] = [list(t) for t in roles.transitions]
+    table["terminal"] = [list(t) for t in roles.terminal]
+    return table
+
+
+def _machine(spec: SystemSpec, name: str) -> Protocol:
+    """:func:`machine_of`'s machine, built."""
+    roles = spec.protocols.get(name)
+    if roles is None:
+        raise SpecError(f"the specification names no protocol {name!r}")
+    if roles.transitions:
+        return protocol_from_table(name, _table_of(roles))
+    if name in PROTOCOLS:
+        return PROTOCOLS[name]
+    raise SpecError(
+        f"protocol {name} declares no state machine and is not a built-in protocol ({', '.join(PROTOCOLS)})"
+    )
+
+
+def _listed(listed: set[str] | None, role: str, perf_name: str, here: str) -> None:
+    """The role's ``initiator``/``participant`` list, when the table has it, allows the performative."""
+    if listed is not None and perf_name not in listed:
+        shown = ", ".join(sorted(listed)) or "nothing"
+        raise SpecError(f"{here}: the {role} may not send {perf_name!r} ('{role}' lists {shown})")
+
+
+def _edge(n: int, entry: object, kind: str, where: str, lists: Mapping[str, set[str] | None]) -> Edge:
+    """Entry ``n`` of a list of transitions: [state, role, performative, state]."""
+    if not (isinstance(entry, list) and len(entry) == 4 and all(isinstance(x, str) and x for x in entry)):
+        raise SpecError(
+            f"{where}: {kind} {n} {entry!r}: expected [state, role, performative, state], four names"
+        )
+    source, role, perf_name, target = entry
+    here = f"{where}: {kind} {n} {_show((source, role, perf_name, target))}"
+    if role not in (INITIATOR, PARTICIPANT):
+        raise SpecError(f"{here}: role {role!r} is neither 'initiator' nor 'participant'")
+    perf = _performative(perf_name, here)
+    _listed(lists[role], role, perf_name, here)
+    checked: Role = INITIATOR if role == INITIATOR else PARTICIPANT
+    return (source, checked, perf, target)
+
+
+def _performative(perf_name: str, here: str) -> Performative:
+    """A FIPA performative a transition may name (not-understood is implicit)."""
+    try:
+        perf = Performative(perf_name)
+    except ValueError:
+        raise SpecError(f"{here}: {perf_name!r} is not a FIPA performative (FIPA SC00037)") from None
+    if perf is Performative.NOT_UNDERSTOOD:
+        raise SpecError(
+            f"{here}: not-understood is implicit (either role, in every state after the first); leave it out"
+        )
+    return perf
+
+
+def protocol_from_table(name: str, table: Mapping[str, Any], *, source: str | Path | None = None) -> Protocol:
+    """Build protocol ``name`` from its ``[protocols.NAME]`` table (see the module docstring).
+
+    Every transition is checked: four strings, a known role, a FIPA performative (FIPA
+    SC00037) that the role's ``initiator``/``participant`` list allows when the table has
+    that list, no second target for the same (state, role, performative), no transition out
+    of a final state; then the machine itself (every state reachable, a final state
+    reachable from every state; :class:`shared.fipa_codec.protocols.Protocol`). Raises
+    :class:`services.spec.model.SpecError` naming ``source`` (the file), the protocol and
+    the offending entry.
+    """
+    where = f"{source}: protocol {name}" if source is not None else f"protocol {name}"
+    _check_keys(table, where)
+    lists = {role: _role_list(table, role, where) for role in (INITIATOR, PARTICIPANT)}
+    initial, final = _initial_and_final(table, where)
+    edges = _edges(table["transitions"], "transition", where, lists)
+    if not edges:
+        raise SpecError(f"{where}: 'transitions' is empty")
+    terminal = _edges(table.get("terminal", []), "terminal transition", where, lists)
+    cancellable = _names(table.get("cancellable", []), "cancellable", where)
+    states = {initial} | set(final)
+    for _, (source_state, _, _, target) in [*edges, *terminal]:
+        states |= {source_state, target}
+    _check_cancellable(cancellable, states, final, lists, where)
+    _check_group("transition", edges, final, _cancel_meta(cancellable, edges), where)
+    _check_group("terminal transition", terminal, final, {}, where)
+    return _checked_build(name, table, where, edges, terminal, (initial, final, cancellable))
 
 
 def protocols_of(path: Path = DEFAULT_SPEC) -> dict[str, Protocol]:
@@ -231,25 +339,7 @@ def machine_of(spec: SystemSpec, name: str) -> Protocol:
         _MACHINES[id(spec)] = held
     machines = held[1]
     if name not in machines:
-        roles = spec.protocols.get(name)
-        if roles is None:
-            raise SpecError(f"the specification names no protocol {name!r}")
-        if roles.transitions:
-            table = {
-                key: list(value) if isinstance(value, tuple) else value
-                for key, value in msgspec.structs.asdict(roles).items()
-                if value not in (None, (), "")
-            }
-            table["transitions"] = [list(t) for t in roles.transitions]
-            table["terminal"] = [list(t) for t in roles.terminal]
-            machines[name] = protocol_from_table(name, table)
-        elif name in PROTOCOLS:
-            machines[name] = PROTOCOLS[name]
-        else:
-            raise SpecError(
-                f"protocol {name} declares no state machine and is not a built-in protocol "
-                f"({', '.join(PROTOCOLS)})"
-            )
+        machines[name] = _machine(spec, name)
     return machines[name]
 
 
@@ -408,36 +498,4 @@ def _edges(
     plural = "terminal" if kind.startswith("terminal") else "transitions"
     if not isinstance(value, list):
         raise SpecError(f"{where}: '{plural}' must be a list of [state, role, performative, state]")
-    out: list[tuple[int, Edge]] = []
-    for n, entry in enumerate(value, 1):
-        if not (isinstance(entry, list) and len(entry) == 4 and all(isinstance(x, str) and x for x in entry)):
-            raise SpecError(
-                f"{where}: {kind} {n} {entry!r}: expected [state, role, performative, state], four names"
-            )
-        source, role, perf_name, target = entry
-        if role not in (INITIATOR, PARTICIPANT):
-            raise SpecError(
-                f"{where}: {kind} {n} {_show((source, role, perf_name, target))}: role {role!r} is "
-                "neither 'initiator' nor 'participant'"
-            )
-        try:
-            perf = Performative(perf_name)
-        except ValueError:
-            raise SpecError(
-                f"{where}: {kind} {n} {_show((source, role, perf_name, target))}: {perf_name!r} is not "
-                "a FIPA performative (FIPA SC00037)"
-            ) from None
-        if perf is Performative.NOT_UNDERSTOOD:
-            raise SpecError(
-                f"{where}: {kind} {n} {_show((source, role, perf_name, target))}: not-understood is "
-                "implicit (either role, in every state after the first); leave it out"
-            )
-        listed = lists[role]
-        if listed is not None and perf_name not in listed:
-            raise SpecError(
-                f"{where}: {kind} {n} {_show((source, role, perf_name, target))}: the {role} may not "
-                f"send {perf_name!r} ('{role}' lists {', '.join(sorted(listed)) or 'nothing'})"
-            )
-        checked: Role = INITIATOR if role == INITIATOR else PARTICIPANT
-        out.append((n, (source, checked, perf, target)))
-    return out
+    return [(n, _edge(n, entry, kind, where, lists)) for n, entry in enumerate(value, 1)]
