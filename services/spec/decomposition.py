@@ -130,6 +130,39 @@ def load_decomposition(path: Path = DEFAULT_SPEC) -> Decomposition:
         raise SpecError(f"{path}: {one_line(exc)}") from None
 
 
+def _split(fringe: list[str], step: Step) -> list[str]:
+    """The fringe with the goal the step splits replaced by its two parts, in place."""
+    if step.split is None or step.into is None or step.split not in fringe:
+        return fringe
+    i = fringe.index(step.split)
+    return [*fringe[:i], *step.into, *fringe[i + 1 :]]
+
+
+def _reallocate(channels: dict[int, ChannelState], step: Step) -> None:
+    """Each reallocated channel's end moved from the split goal to the part that takes it."""
+    for r in step.reallocated:
+        ch = channels.get(r.number)
+        if ch is not None and r.from_ in ch.ends:
+            ch.ends = (r.to, ch.ends[1]) if ch.ends[0] == r.from_ else (ch.ends[0], r.to)
+
+
+def _add(channels: dict[int, ChannelState], step: Step) -> None:
+    """The step's new channels, each with its creation text."""
+    for n in step.new_channels:
+        channels[n.number] = ChannelState(n.number, n.ends, [n.transmits])
+
+
+def _supplement(channels: dict[int, ChannelState], step: Step) -> None:
+    """What the step adds to what existing channels transmit."""
+    for sup in step.supplemented:
+        if sup.number in channels:
+            channels[sup.number].transmits.append(sup.transmits)
+
+
+_CHANNEL_RULES = (_reallocate, _add, _supplement)
+"""What a step does to the channels, in the order it is applied (after the split)."""
+
+
 def replay(d: Decomposition) -> list[StepState]:
     """The fringe and channels after each step, in order. Applies the steps as written; what
     does not make sense (an unknown group, a channel that does not exist) is left for
@@ -138,18 +171,9 @@ def replay(d: Decomposition) -> list[StepState]:
     channels: dict[int, ChannelState] = {}
     out: list[StepState] = []
     for step in d.steps:
-        if step.split is not None and step.into is not None and step.split in fringe:
-            i = fringe.index(step.split)
-            fringe = [*fringe[:i], *step.into, *fringe[i + 1 :]]
-        for r in step.reallocated:
-            ch = channels.get(r.number)
-            if ch is not None and r.from_ in ch.ends:
-                ch.ends = (r.to, ch.ends[1]) if ch.ends[0] == r.from_ else (ch.ends[0], r.to)
-        for n in step.new_channels:
-            channels[n.number] = ChannelState(n.number, n.ends, [n.transmits])
-        for sup in step.supplemented:
-            if sup.number in channels:
-                channels[sup.number].transmits.append(sup.transmits)
+        fringe = _split(fringe, step)
+        for rule in _CHANNEL_RULES:
+            rule(channels, step)
         out.append(
             StepState(
                 step,

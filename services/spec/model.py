@@ -206,6 +206,43 @@ def one_line(exc: Exception) -> str:
     return text.splitlines()[0] if text else type(exc).__name__
 
 
+def _check_externals(spec: SystemSpec, names: set[str], path: Path) -> None:
+    """At most one external role, named as no agent (``names``) and no GUID."""
+    if len(spec.externals) > 1:
+        raise SpecError(f"{path}: at most one external role, not {len(spec.externals)}")
+    for e in spec.externals:
+        if e.name in names or is_foreign(e.name):
+            raise SpecError(f"{path}: external role {e.name!r} must be no agent's name and no GUID")
+
+
+def _check_agents(spec: SystemSpec, path: Path) -> None:
+    """The external roles (:func:`_check_externals`); ``start_order`` names known agents, each
+    once."""
+    names = {a.name for a in spec.agents}
+    _check_externals(spec, names, path)
+    unknown = [a for a in spec.start_order if a not in names]
+    if unknown or len(set(spec.start_order)) != len(spec.start_order):
+        what = f"unknown agent {unknown[0]!r}" if unknown else "an agent twice"
+        raise SpecError(f"{path}: start_order names {what}")
+
+
+def _check_channel(spec: SystemSpec, ch: ChannelSpec, path: Path) -> None:
+    """The channel's ends are agents or the external role (not two external roles); its
+    protocols are the specification's, each initiated by an end."""
+    names = {a.name for a in spec.agents}
+    outside = set(spec.external_names)
+    for end in ch.ends:
+        if end not in names and end not in outside:
+            raise SpecError(f"{path}: channel {ch.name} names unknown agent {end!r}")
+    if set(ch.ends) <= outside:
+        raise SpecError(f"{path}: channel {ch.name} joins two external roles")
+    for cp in ch.protocols:
+        if cp.protocol not in spec.protocols:
+            raise SpecError(f"{path}: channel {ch.name} uses unknown protocol {cp.protocol!r}")
+        if cp.initiator not in ch.ends:
+            raise SpecError(f"{path}: channel {ch.name}: initiator {cp.initiator!r} is not an end")
+
+
 def load(path: Path = DEFAULT_SPEC) -> SystemSpec:
     """Load and cross-check a specification. Raises SpecError, one line naming the file and
     the place: line and column for TOML syntax, the key path (``$.channels[0].ends``) for a
@@ -215,28 +252,9 @@ def load(path: Path = DEFAULT_SPEC) -> SystemSpec:
         spec = msgspec.toml.decode(text, type=SystemSpec)
     except (msgspec.DecodeError, msgspec.ValidationError) as exc:
         raise SpecError(f"{path}: {one_line(exc)}") from None
-    names = {a.name for a in spec.agents}
-    if len(spec.externals) > 1:
-        raise SpecError(f"{path}: at most one external role, not {len(spec.externals)}")
-    for e in spec.externals:
-        if e.name in names or is_foreign(e.name):
-            raise SpecError(f"{path}: external role {e.name!r} must be no agent's name and no GUID")
-    unknown = [a for a in spec.start_order if a not in names]
-    if unknown or len(set(spec.start_order)) != len(spec.start_order):
-        what = f"unknown agent {unknown[0]!r}" if unknown else "an agent twice"
-        raise SpecError(f"{path}: start_order names {what}")
-    outside = set(spec.external_names)
+    _check_agents(spec, path)
     for ch in spec.channels:
-        for end in ch.ends:
-            if end not in names and end not in outside:
-                raise SpecError(f"{path}: channel {ch.name} names unknown agent {end!r}")
-        if set(ch.ends) <= outside:
-            raise SpecError(f"{path}: channel {ch.name} joins two external roles")
-        for cp in ch.protocols:
-            if cp.protocol not in spec.protocols:
-                raise SpecError(f"{path}: channel {ch.name} uses unknown protocol {cp.protocol!r}")
-            if cp.initiator not in ch.ends:
-                raise SpecError(f"{path}: channel {ch.name}: initiator {cp.initiator!r} is not an end")
+        _check_channel(spec, ch, path)
     return spec
 
 

@@ -23,7 +23,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from services.spec.generated import GeneratedFile
-from services.spec.model import SpecError, SystemSpec
+from services.spec.model import ProtocolRoles, SpecError, SystemSpec
 from shared.fipa_codec.protocols import PROTOCOLS
 
 NAMES_FILE = Path(__file__).with_name("names.py")
@@ -96,6 +96,29 @@ def _languages(spec: SystemSpec) -> dict[str, list[str]]:
     return out
 
 
+def _protocol_member(spec: SystemSpec, name: str, roles: ProtocolRoles) -> Member:
+    """Protocol ``name``'s member: its source (FIPA spec) and the channels that carry it."""
+    where = [ch.name for ch in spec.channels if any(cp.protocol == name for cp in ch.protocols)]
+    source = roles.spec or (PROTOCOLS[name].spec if name in PROTOCOLS else "")
+    said = f"{source}; " if source else ""
+    on = f"on {', '.join(where)}" if where else "on no channel"
+    return Member(python_name("protocol", name), name, f"{said}{on}.")
+
+
+def _check_unique(typed: TypedNames) -> None:
+    """NamesError for two members that would be one Python name."""
+    seen: dict[str, tuple[str, str]] = {}
+    for kind, members in zip(_KINDS, (typed.channels, typed.protocols, typed.languages), strict=True):
+        for m in members:
+            if m.name in seen:
+                other_kind, other = seen[m.name]
+                raise NamesError(
+                    f"{kind} {m.value!r} and {other_kind} {other!r} would both be {m.name} in "
+                    f"services/spec/names.py: rename one in the specification"
+                )
+            seen[m.name] = (kind, m.value)
+
+
 def typed_names(spec: SystemSpec) -> TypedNames:
     """The members of ``spec``'s names module. Raises NamesError for a name with no Python
     name (:func:`python_name`) and for two names of the module that would be one Python name
@@ -109,28 +132,13 @@ def typed_names(spec: SystemSpec) -> TypedNames:
         )
         for ch in spec.channels
     )
-    protocols = []
-    for name, roles in spec.protocols.items():
-        where = [ch.name for ch in spec.channels if any(cp.protocol == name for cp in ch.protocols)]
-        source = roles.spec or (PROTOCOLS[name].spec if name in PROTOCOLS else "")
-        said = f"{source}; " if source else ""
-        on = f"on {', '.join(where)}" if where else "on no channel"
-        protocols.append(Member(python_name("protocol", name), name, f"{said}{on}."))
+    protocols = tuple(_protocol_member(spec, name, roles) for name, roles in spec.protocols.items())
     languages = tuple(
         Member(python_name("language", name), name, f"On {', '.join(where)}.")
         for name, where in sorted(_languages(spec).items())
     )
-    typed = TypedNames(channels, tuple(protocols), languages)
-    seen: dict[str, tuple[str, str]] = {}
-    for kind, members in zip(_KINDS, (typed.channels, typed.protocols, typed.languages), strict=True):
-        for m in members:
-            if m.name in seen:
-                other_kind, other = seen[m.name]
-                raise NamesError(
-                    f"{kind} {m.value!r} and {other_kind} {other!r} would both be {m.name} in "
-                    f"services/spec/names.py: rename one in the specification"
-                )
-            seen[m.name] = (kind, m.value)
+    typed = TypedNames(channels, protocols, languages)
+    _check_unique(typed)
     return typed
 
 

@@ -9,8 +9,8 @@ from __future__ import annotations
 import math
 from html import escape
 
-from services.spec.decomposition import Decomposition, replay
-from services.spec.model import SystemSpec, interface
+from services.spec.decomposition import Decomposition, Step, StepState, replay
+from services.spec.model import ChannelProtocol, SystemSpec, interface
 from shared.fipa_codec.languages import LANGUAGES
 
 
@@ -18,33 +18,60 @@ def _row(cells: list[str]) -> str:
     return "| " + " | ".join(c.replace("|", "\\|") for c in cells) + " |"
 
 
+def _decomposition_rows(s: Step) -> list[list[str]]:
+    """The split of the step's goal and its parts' tasks, and the goals left outside."""
+    rows: list[list[str]] = []
+    if s.split and s.into:
+        rows.append(["Decomposition", f"g_{s.split} := ⟨g_{s.into[0]}, g_{s.into[1]}⟩"])
+        rows += [[f"g_{g} tasks", s.tasks.get(g, "")] for g in s.into]
+    rows += [[f"g_{g} outside the system", task] for g, task in s.outside.items()]
+    return rows
+
+
+def _channel_rows(s: Step) -> list[list[str]]:
+    """The channels the step reallocated, added and supplemented."""
+    moved = [f"C{r.number}: {r.from_} ↦ {r.to}" for r in s.reallocated]
+    new = ", ".join(f"C{c.number} ({c.ends[0]}, {c.ends[1]})" for c in s.new_channels)
+    rows = [["Channel reallocation", ", ".join(moved) or "—"], ["New channels", new or "—"]]
+    if s.supplemented:
+        rows.append(["Supplemented", ", ".join(f"C{x.number}: {x.transmits}" for x in s.supplemented)])
+    return rows
+
+
+def _step_rows(state: StepState, texts: dict[str, str]) -> list[list[str]]:
+    """The rows of one step's table (as the paper's Tables 1–2), the fringe after it last."""
+    s = state.step
+    rows: list[list[str]] = [["Requirements", "; ".join(f"{r}: {texts.get(r, '?')}" for r in s.requirements)]]
+    rows += _decomposition_rows(s) + _channel_rows(s)
+    for ch in sorted(state.channels.values(), key=lambda c: c.number):
+        rows.append([f"C{ch.number} ({ch.ends[0]}, {ch.ends[1]}) transmits", "; ".join(ch.transmits)])
+    rows.append(["Fringe", ", ".join(f"g_{g}" for g in state.fringe)])
+    return rows
+
+
+def _message_row(sender: str, perf: str, cp: ChannelProtocol) -> str:
+    """One message of a channel's protocol: sender, performative, language, content, size."""
+    langs = cp.languages.get(perf, "")
+    lang = langs if isinstance(langs, str) else "/".join(langs)
+    size = cp.sizes.get(perf)
+    return _row(
+        [
+            sender,
+            perf,
+            lang or "—",
+            ", ".join(cp.content_types(perf)) or ("any term" if lang else "—"),
+            f"{size[0]}–{size[1]}" if size else "",
+        ]
+    )
+
+
 def steps_markdown(d: Decomposition) -> str:
     """One Markdown table per decomposition step, then the fringe after it."""
     texts = {r.id: r.text for r in d.requirements}
     parts = [f"# Decomposition of g_{d.system}", ""]
     for state in replay(d):
-        s = state.step
-        rows: list[list[str]] = [
-            ["Requirements", "; ".join(f"{r}: {texts.get(r, '?')}" for r in s.requirements)]
-        ]
-        if s.split and s.into:
-            rows.append(["Decomposition", f"g_{s.split} := ⟨g_{s.into[0]}, g_{s.into[1]}⟩"])
-            rows += [[f"g_{g} tasks", s.tasks.get(g, "")] for g in s.into]
-        rows += [[f"g_{g} outside the system", task] for g, task in s.outside.items()]
-        moved = [f"C{r.number}: {r.from_} ↦ {r.to}" for r in s.reallocated]
-        rows.append(["Channel reallocation", ", ".join(moved) or "—"])
-        rows.append(
-            [
-                "New channels",
-                ", ".join(f"C{c.number} ({c.ends[0]}, {c.ends[1]})" for c in s.new_channels) or "—",
-            ]
-        )
-        if s.supplemented:
-            rows.append(["Supplemented", ", ".join(f"C{x.number}: {x.transmits}" for x in s.supplemented)])
-        for ch in sorted(state.channels.values(), key=lambda c: c.number):
-            rows.append([f"C{ch.number} ({ch.ends[0]}, {ch.ends[1]}) transmits", "; ".join(ch.transmits)])
-        rows.append(["Fringe", ", ".join(f"g_{g}" for g in state.fringe)])
-        parts += [f"## Step {s.number}", "", "| | |", "|---|---|", *(_row(r) for r in rows), ""]
+        rows = _step_rows(state, texts)
+        parts += [f"## Step {state.step.number}", "", "| | |", "|---|---|", *(_row(r) for r in rows), ""]
     return "\n".join(parts)
 
 
@@ -94,21 +121,7 @@ def channels_markdown(spec: SystemSpec) -> str:
                 "|---|---|---|---|---|",
             ]
             for sender, perfs in ((cp.initiator, roles.initiator), (other, roles.participant)):
-                for perf in perfs:
-                    langs = cp.languages.get(perf, "")
-                    lang = langs if isinstance(langs, str) else "/".join(langs)
-                    size = cp.sizes.get(perf)
-                    parts.append(
-                        _row(
-                            [
-                                sender,
-                                perf,
-                                lang or "—",
-                                ", ".join(cp.content_types(perf)) or ("any term" if lang else "—"),
-                                f"{size[0]}–{size[1]}" if size else "",
-                            ]
-                        )
-                    )
+                parts += [_message_row(sender, perf, cp) for perf in perfs]
             parts.append("")
     return "\n".join(parts)
 
