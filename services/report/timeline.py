@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import msgspec
 
@@ -179,47 +179,137 @@ class _Execution:
     last_state: str = ""
 
 
-def _executions(messages: Sequence[Message], plans: Sequence[PlanPhase]) -> list[Event]:
-    """One span per executed plan: first to last C1 ``inform`` of a_ta (L_SW states), grouped
-    by the C1 conversation a_co opened with the plan (else by ``SWStatus.plan_id``)."""
-    index_of = {p.plan_id: p.index for p in plans if p.plan_id}
-    conv_plan: dict[str, str] = {}
-    runs: dict[str, _Execution] = {}
-    out: list[Event] = []
-    for m in messages:
+@dataclass
+class _Executions:
+    """The C1 record replayed message by message (:meth:`take`): a_co's plan requests name
+    the conversations, its cancels are events, a_ta's informs extend their execution."""
+
+    conv_plan: dict[str, str] = field(default_factory=dict)
+    runs: dict[str, _Execution] = field(default_factory=dict)
+    out: list[Event] = field(default_factory=list)
+
+    def take(self, m: Message) -> None:
         if m.is_("C1", "a_co", "request") and isinstance(m.content, HierarchicalPlan):
             if m.conversation:
-                conv_plan[m.conversation] = m.content.plan_id
+                self.conv_plan[m.conversation] = m.content.plan_id
         elif m.is_("C1", "a_co", "cancel"):
-            out.append(
+            self.out.append(
                 Event(start=m.t, text="a_co cancels the plan execution", channels=["C1"], kind="cancel")
             )
         elif m.is_("C1", "a_ta", "inform"):
-            status = m.content if isinstance(m.content, SWStatus) else None
-            plan_id = conv_plan.get(m.conversation or "") or (status.plan_id if status else None)
-            key = m.conversation if m.conversation in conv_plan else (plan_id or m.conversation or "?")
-            run = runs.setdefault(key, _Execution(plan_id or None, m.t, m.t))
-            run.last = m.t
-            run.reports += 1
-            if status is not None:
-                run.last_state = status.state.value
-    for run in runs.values():
-        if run.plan_id in index_of:
-            label = f"plan #{index_of[run.plan_id]}"
-        else:
-            label = f"plan {run.plan_id}" if run.plan_id else "plan"
-        last = f", last: {run.last_state}" if run.last_state else ""
-        out.append(
-            Event(
-                start=run.first,
-                end=run.last,
-                text=f"a_ta executes the {label}, reports its state to a_co "
-                f"({run.reports} state reports{last})",
-                channels=["C1"],
-                kind="execution",
-            )
-        )
+            self.report(m)
+
+    def report(self, m: Message) -> None:
+        """a_ta's state report ``m``, counted in its execution (begun by the first)."""
+        status = m.content if isinstance(m.content, SWStatus) else None
+        plan_id = self.conv_plan.get(m.conversation or "") or (status.plan_id if status else None)
+        key = m.conversation if m.conversation in self.conv_plan else (plan_id or m.conversation or "?")
+        run = self.runs.setdefault(key, _Execution(plan_id or None, m.t, m.t))
+        run.last = m.t
+        run.reports += 1
+        if status is not None:
+            run.last_state = status.state.value
+
+
+def _execution_event(run: _Execution, index_of: Mapping[str | None, int]) -> Event:
+    """One execution's span, named by its plan's number when the plan is known."""
+    if run.plan_id in index_of:
+        label = f"plan #{index_of[run.plan_id]}"
+    else:
+        label = f"plan {run.plan_id}" if run.plan_id else "plan"
+    last = f", last: {run.last_state}" if run.last_state else ""
+    return Event(
+        start=run.first,
+        end=run.last,
+        text=f"a_ta executes the {label}, reports its state to a_co ({run.reports} state reports{last})",
+        channels=["C1"],
+        kind="execution",
+    )
+
+
+def _step_after(m: Message, step: str | None) -> str | None:
+    """The HFSM step running after ``m``: none once a new plan starts or a plan ended, the step
+    a_ta reports running."""
+    if m.is_("C1", "a_co", "request"):
+        return None  # a new plan starts
+    if m.is_("C1", "a_ta", "inform") and isinstance(m.content, SWStatus):
+        if m.content.state == SWState.RUNNING and m.content.step:
+            return m.content.step
+        if m.content.state in TERMINAL_SW_STATES:
+            return None
+    return step
+
+
+def _answer_events(m: Message, cmd: msgspec.Struct | None, where: str) -> list[Event]:
+    """ag_ex's answer ``m`` to command ``cmd``: what the robot did, and whether it touched
+    itself (``where``: the step running)."""
+    out: list[Event] = []
+    described = _describe(cmd, m)
+    if described is not None:
+        kind, text = described
+        out.append(Event(start=m.t, text=text + where, channels=["C5"], kind=kind))
+    if isinstance(m.content, CommandResult) and m.content.self_contacts:
+        name = type(cmd).__name__ if cmd is not None else m.content.command
+        pairs = ", ".join(m.content.self_contacts)
+        text = f"the robot touched itself during {name}: {pairs}{where}"
+        out.append(Event(start=m.t, text=text, channels=["C5"], kind="self_contact"))
     return out
+
+
+def _is_environment(m: Message, cutoff: float) -> bool:
+    """A C6 inform a_ta → a_km, or a C5 observation, after ``cutoff``."""
+    return m.t >= cutoff and (
+        m.is_("C6", "a_ta", "inform")
+        or (m.is_("C5", "ag_ex", "inform") and isinstance(m.content, Observation))
+    )
+
+
+def _episodes(members: Sequence[Message]) -> list[list[Message]]:
+    """``members`` in runs whose gaps are at most :data:`ENV_GAP_S`."""
+    episodes: list[list[Message]] = []
+    for m in members:
+        if episodes and m.t - episodes[-1][-1].t <= ENV_GAP_S:
+            episodes[-1].append(m)
+        else:
+            episodes.append([m])
+    return episodes
+
+
+def _episode_event(ep: list[Message]) -> Event | None:
+    """An episode's event, naming the objects its updates are about; None without a C6 inform."""
+    updates = [m for m in ep if m.channel == "C6"]
+    if not updates:
+        return None
+    names: list[str] = []
+    for m in updates:
+        if isinstance(m.content, WorldUpdate):
+            names += [o.name for o in m.content.objects if o.name not in names]
+    about = f": {', '.join(names)}" if names else ""
+    return Event(
+        start=ep[0].t,
+        end=ep[-1].t if len(ep) > 1 else None,
+        text=f"a_km receives information about the modified environment from a_ta "
+        f"({len(updates)} update(s){about})",
+        channels=_channels(ep),
+        kind="environment",
+    )
+
+
+def _shaping_event(e: Mapping[str, object], t: float, t0: float) -> Event:
+    """The shaping in force on the link from ``t``."""
+    d, j, loss = (_float(e.get(k)) or 0.0 for k in ("delay_ms", "jitter_ms", "loss_pct"))
+    text = f"the link brain–robot: {d:g} ± {j:g} ms each way, {loss:g} % loss ({e.get('how', '')})"
+    return Event(start=max(0.0, t - t0), text=text, channels=[], kind="link_shaping")
+
+
+def _executions(messages: Sequence[Message], plans: Sequence[PlanPhase]) -> list[Event]:
+    """One span per executed plan: first to last C1 ``inform`` of a_ta (L_SW states), grouped
+    by the C1 conversation a_co opened with the plan (else by ``SWStatus.plan_id``)."""
+    index_of: dict[str | None, int] = {p.plan_id: p.index for p in plans if p.plan_id}
+    replay = _Executions()
+    for m in messages:
+        replay.take(m)
+    return replay.out + [_execution_event(run, index_of) for run in replay.runs.values()]
 
 
 def _request_for(reply: Message, requests: Sequence[Message]) -> Message | None:
@@ -241,49 +331,48 @@ def _robot_actions(messages: Sequence[Message], cutoff: float) -> list[Event]:
     step: str | None = None
     out: list[Event] = []
     for m in messages:
-        if m.is_("C1", "a_co", "request"):
-            step = None  # a new plan starts
-        elif m.is_("C1", "a_ta", "inform") and isinstance(m.content, SWStatus):
-            if m.content.state == SWState.RUNNING and m.content.step:
-                step = m.content.step
-            elif m.content.state in TERMINAL_SW_STATES:
-                step = None
-        elif m.is_("C5", "a_ta", "request"):
+        step = _step_after(m, step)
+        if m.is_("C5", "a_ta", "request"):
             requests.append(m)
         elif m.is_("C5", "ag_ex", "inform", "failure") and m.t >= cutoff:
             req = _request_for(m, requests)
-            cmd = req.content if req is not None else None
-            where = f" (step {step})" if step else ""
-            described = _describe(cmd, m)
-            if described is not None:
-                kind, text = described
-                out.append(Event(start=m.t, text=text + where, channels=["C5"], kind=kind))
-            if isinstance(m.content, CommandResult) and m.content.self_contacts:
-                name = type(cmd).__name__ if cmd is not None else m.content.command
-                pairs = ", ".join(m.content.self_contacts)
-                text = f"the robot touched itself during {name}: {pairs}{where}"
-                out.append(Event(start=m.t, text=text, channels=["C5"], kind="self_contact"))
+            out += _answer_events(
+                m, req.content if req is not None else None, f" (step {step})" if step else ""
+            )
     return out
+
+
+_ARM_ACTIONS: dict[type, tuple[str, str, str]] = {
+    Grasp: ("grasp", "grasps", "grasp"),
+    Release: ("release", "releases", "release"),
+    Tilt: ("tilt", "tilts the held object (pouring)", "tilt"),
+}
+"""Per arm command: the event's kind, what the hand does, and the verb of its failure."""
+
+
+def _arm_action(cmd: Grasp | Release | Tilt, *, ok: bool, reason: str) -> tuple[str, str]:
+    """What a hand did, or failed to do and why."""
+    kind, does, verb = next(v for c, v in _ARM_ACTIONS.items() if isinstance(cmd, c))
+    if ok:
+        return kind, f"{cmd.arm} hand {does}"
+    return "action_failed", f"{cmd.arm} hand fails to {verb}: {reason}"
+
+
+def _succeeded(reply: Message) -> tuple[bool, str]:
+    """Whether ag_ex's answer says the command succeeded, and else why not."""
+    result = reply.content
+    ok = reply.performative == "inform" and not (isinstance(result, CommandResult) and not result.ok)
+    reason = (result.reason if isinstance(result, CommandResult) else None) or reply.performative
+    return ok, reason
 
 
 def _describe(cmd: msgspec.Struct | None, reply: Message) -> tuple[str, str] | None:
     result = reply.content
-    ok = reply.performative == "inform" and not (isinstance(result, CommandResult) and not result.ok)
-    reason = (result.reason if isinstance(result, CommandResult) else None) or reply.performative
+    ok, reason = _succeeded(reply)
     if isinstance(result, Observation) or (isinstance(cmd, Observe) and ok):
         return "observation", _observed(result)
-    if isinstance(cmd, Grasp):
-        if ok:
-            return "grasp", f"{cmd.arm} hand grasps"
-        return "action_failed", f"{cmd.arm} hand fails to grasp: {reason}"
-    if isinstance(cmd, Release):
-        if ok:
-            return "release", f"{cmd.arm} hand releases"
-        return "action_failed", f"{cmd.arm} hand fails to release: {reason}"
-    if isinstance(cmd, Tilt):
-        if ok:
-            return "tilt", f"{cmd.arm} hand tilts the held object (pouring)"
-        return "action_failed", f"{cmd.arm} hand fails to tilt: {reason}"
+    if isinstance(cmd, Grasp | Release | Tilt):
+        return _arm_action(cmd, ok=ok, reason=reason)
     if not ok:
         name = type(cmd).__name__ if cmd is not None else "an executor command"
         return "action_failed", f"{name} fails: {reason}"
@@ -305,42 +394,8 @@ def _environment(messages: Sequence[Message], cutoff: float) -> list[Event]:
     """Episodes in which a_km learns about the changed environment: C6 informs a_ta → a_km
     (with the C5 observations they follow) after ``cutoff``, merged when closer than
     :data:`ENV_GAP_S`; an episode without a C6 inform is not listed."""
-    members = [
-        m
-        for m in messages
-        if m.t >= cutoff
-        and (
-            m.is_("C6", "a_ta", "inform")
-            or (m.is_("C5", "ag_ex", "inform") and isinstance(m.content, Observation))
-        )
-    ]
-    episodes: list[list[Message]] = []
-    for m in members:
-        if episodes and m.t - episodes[-1][-1].t <= ENV_GAP_S:
-            episodes[-1].append(m)
-        else:
-            episodes.append([m])
-    out: list[Event] = []
-    for ep in episodes:
-        updates = [m for m in ep if m.channel == "C6"]
-        if not updates:
-            continue
-        names: list[str] = []
-        for m in updates:
-            if isinstance(m.content, WorldUpdate):
-                names += [o.name for o in m.content.objects if o.name not in names]
-        about = f": {', '.join(names)}" if names else ""
-        out.append(
-            Event(
-                start=ep[0].t,
-                end=ep[-1].t if len(ep) > 1 else None,
-                text=f"a_km receives information about the modified environment from a_ta "
-                f"({len(updates)} update(s){about})",
-                channels=_channels(ep),
-                kind="environment",
-            )
-        )
-    return out
+    episodes = _episodes([m for m in messages if _is_environment(m, cutoff)])
+    return [e for e in map(_episode_event, episodes) if e is not None]
 
 
 def link_events(entries: Sequence[Mapping[str, object]], t0: float) -> list[Event]:
@@ -351,13 +406,11 @@ def link_events(entries: Sequence[Mapping[str, object]], t0: float) -> list[Even
     down: float | None = None
     for e in entries:
         t = _float(e.get("t"))
+        kind = e.get("event")
         if t is None:
             continue
-        kind = e.get("event")
         if kind == "shaping":
-            d, j, loss = (_float(e.get(k)) or 0.0 for k in ("delay_ms", "jitter_ms", "loss_pct"))
-            text = f"the link brain–robot: {d:g} ± {j:g} ms each way, {loss:g} % loss ({e.get('how', '')})"
-            events.append(Event(start=max(0.0, t - t0), text=text, channels=[], kind="link_shaping"))
+            events.append(_shaping_event(e, t, t0))
         elif kind == "down" and down is None:
             down = t
         elif kind == "up" and down is not None:
