@@ -178,10 +178,9 @@ def write_run_report(run: RunData) -> tuple[Path, Report]:
     return path, report
 
 
-def _header(run: RunData, command: Message | None, outcome: Message | None) -> Header:
+def _outcome_of(h: Header, run: RunData, outcome: Message | None) -> None:
+    """The task's outcome: a_co's C2 answer, else what run.json says."""
     info = run.info
-    h = Header(run_dir=str(run.run_dir))
-    h.command = command_text(command) or (info.command if info else "")
     if outcome is not None:
         if isinstance(outcome.content, CommandOutcome):
             h.succeeded = outcome.content.succeeded
@@ -197,12 +196,25 @@ def _header(run: RunData, command: Message | None, outcome: Message | None) -> H
         h.outcome_source = "run.json"
         if info.ended is not None:
             h.finished_t = info.ended - run.t0
+
+
+def _command_time(run: RunData, command: Message | None) -> float | None:
+    """When the command was given (s since the run began): its C2 request, else run.json's."""
+    if command is not None:
+        return command.t
+    if run.info is not None and run.info.command_sent is not None:
+        return run.info.command_sent - run.t0
+    return None
+
+
+def _header(run: RunData, command: Message | None, outcome: Message | None) -> Header:
+    info = run.info
+    h = Header(run_dir=str(run.run_dir))
+    h.command = command_text(command) or (info.command if info else "")
+    _outcome_of(h, run, outcome)
     if not h.detail and info is not None:
         h.detail = info.detail
-    if command is not None:
-        h.command_t = command.t
-    elif info is not None and info.command_sent is not None:
-        h.command_t = info.command_sent - run.t0
+    h.command_t = _command_time(run, command)
     if h.command_t is not None and h.finished_t is not None:
         h.task_duration_s = h.finished_t - h.command_t
     if info is not None:

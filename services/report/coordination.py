@@ -4,7 +4,8 @@ cancels and ends plans (request, cancel, Terminating, Preempted, Replan, Succeed
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
 
 from services.report.load import Message
 from services.report.model import CommandRow, CoordinationEvent
@@ -15,6 +16,85 @@ from shared.fipa_codec.languages.l_sw import SWState, SWStatus
 _SHOWN_STATES = frozenset(
     {SWState.TERMINATING, SWState.PREEMPTED, SWState.REPLAN, SWState.SUCCEEDED, SWState.ERROR}
 )
+
+
+def _outcome(row: CommandRow, m: Message) -> None:
+    """a_co's CommandOutcome ``m`` ends the command: stopped (after a cancel, unsuccessful),
+    succeeded or failed."""
+    assert isinstance(m.content, CommandOutcome)
+    row.ended_t = m.t
+    stopped = row.cancelled_t is not None and not m.content.succeeded
+    row.outcome = "stopped" if stopped else "succeeded" if m.content.succeeded else "failed"
+    row.detail = m.content.detail
+
+
+def _refused(row: CommandRow, m: Message) -> None:
+    """a_co's failure or refuse ``m`` ends the command as failed, its reason the detail."""
+    row.ended_t = m.t
+    row.outcome = "failed"
+    row.detail = m.comm.content.decode("utf-8", "replace") if m.comm is not None else ""
+
+
+def _cancelled(row: CommandRow, m: Message) -> None:
+    row.cancelled_t = m.t
+
+
+def _command_rule(row: CommandRow, m: Message) -> Callable[[CommandRow, Message], None] | None:
+    """What ``m`` does to its command's row, the first rule that applies: a cancel, a_co's
+    outcome, a_co's failure or refuse (unless an outcome came first); None: nothing."""
+    if m.performative == "cancel":
+        return _cancelled
+    if m.sender != "a_co":
+        return None
+    if isinstance(m.content, CommandOutcome):
+        return _outcome
+    if m.performative in ("failure", "refuse") and row.outcome is None:
+        return _refused
+    return None
+
+
+def _plan_text(plan: HierarchicalPlan) -> str:
+    return f"run plan {plan.plan_id} ({len(plan.root.leaves())} steps)"
+
+
+def _cancel_text(m: Message) -> str:
+    reason = m.content.reason if isinstance(m.content, SWStatus) and m.content.reason else ""
+    return f"cancel: {reason}" if reason else "cancel"
+
+
+def _status_text(status: SWStatus) -> str:
+    step = f" at {status.step}" if status.step else ""
+    reason = f": {status.reason}" if status.reason else ""
+    return f"{status.state.value}{step}{reason}"
+
+
+@dataclass
+class _Coordination:
+    """The C1 record replayed message by message (:meth:`text`): what each exchange shows, or
+    None when it is not shown; a_ta's Terminating is shown once per conversation (it informs
+    Terminating at every safe-stop step)."""
+
+    terminating: set[str | None] = field(default_factory=set)
+
+    def text(self, m: Message) -> str | None:
+        if m.performative == "request" and isinstance(m.content, HierarchicalPlan):
+            return _plan_text(m.content)
+        if m.performative == "cancel":
+            return _cancel_text(m)
+        if (
+            m.performative == "inform"
+            and isinstance(m.content, SWStatus)
+            and m.content.state in _SHOWN_STATES
+        ):
+            return self.status(m.conversation, m.content)
+        return None
+
+    def status(self, conversation: str | None, status: SWStatus) -> str | None:
+        if status.state is SWState.TERMINATING:
+            if conversation in self.terminating:
+                return None
+            self.terminating.add(conversation)
+        return _status_text(status)
 
 
 def commands(messages: Sequence[Message]) -> list[CommandRow]:
@@ -28,19 +108,9 @@ def commands(messages: Sequence[Message]) -> list[CommandRow]:
                 conversation=m.conversation, text=m.content.text, priority=m.content.priority, requested_t=m.t
             )
         row = rows.get(m.conversation)
-        if row is None:
-            continue
-        if m.performative == "cancel":
-            row.cancelled_t = m.t
-        elif m.sender == "a_co" and isinstance(m.content, CommandOutcome):
-            row.ended_t = m.t
-            stopped = row.cancelled_t is not None and not m.content.succeeded
-            row.outcome = "stopped" if stopped else "succeeded" if m.content.succeeded else "failed"
-            row.detail = m.content.detail
-        elif m.sender == "a_co" and m.performative in ("failure", "refuse") and row.outcome is None:
-            row.ended_t = m.t
-            row.outcome = "failed"
-            row.detail = m.comm.content.decode("utf-8", "replace") if m.comm is not None else ""
+        rule = _command_rule(row, m) if row is not None else None
+        if row is not None and rule is not None:
+            rule(row, m)
     return list(rows.values())
 
 
@@ -49,30 +119,14 @@ def coordination(messages: Sequence[Message]) -> list[CoordinationEvent]:
     Terminating, Preempted, Replan, Succeeded and Error informs (with a_co's confirmations
     folded in)."""
     out: list[CoordinationEvent] = []
-    terminating: set[str | None] = set()  # a_ta informs Terminating at every safe-stop step
+    replay = _Coordination()
     for m in messages:
         if m.channel != "C1":
             continue
-        who = f"{m.sender} → {m.rec.receivers[0] if m.rec.receivers else '?'}"
-        if m.performative == "request" and isinstance(m.content, HierarchicalPlan):
-            text = f"run plan {m.content.plan_id} ({len(m.content.root.leaves())} steps)"
-        elif m.performative == "cancel":
-            reason = m.content.reason if isinstance(m.content, SWStatus) and m.content.reason else ""
-            text = f"cancel: {reason}" if reason else "cancel"
-        elif (
-            m.performative == "inform"
-            and isinstance(m.content, SWStatus)
-            and m.content.state in _SHOWN_STATES
-        ):
-            if m.content.state is SWState.TERMINATING:
-                if m.conversation in terminating:
-                    continue
-                terminating.add(m.conversation)
-            step = f" at {m.content.step}" if m.content.step else ""
-            reason = f": {m.content.reason}" if m.content.reason else ""
-            text = f"{m.content.state.value}{step}{reason}"
-        else:
+        text = replay.text(m)
+        if text is None:
             continue
+        who = f"{m.sender} → {m.rec.receivers[0] if m.rec.receivers else '?'}"
         out.append(
             CoordinationEvent(
                 t=m.t, who=who, performative=m.performative, text=text, conversation=m.conversation

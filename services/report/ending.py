@@ -68,16 +68,9 @@ def end(run_dir: Path, *, ended: float, failure: str = "") -> Ending:
     return Ending(info, path, report.sizes.count)
 
 
-def conclude(run: RunData, *, ended: float, failure: str = "") -> RunInfo:
-    """Complete ``run.json`` of the run folder ``run`` (as read) for a fleet that ended at
-    ``ended`` (POSIX s): the commands it was given (``commands``, ``command``,
-    ``command_sent``), each with its outcome (``outcomes``), ``ended``, ``succeeded`` (every
-    command done or stopped at the person's request; None when none was given) and
-    ``detail`` (one ``#n outcome: sentence`` per command). ``failure``: why the fleet ended
-    before its time (it did not start, it was interrupted): then ``succeeded`` is False and
-    ``detail`` starts with it. Returns what it wrote. Raises OSError when it cannot write."""
-    info = run.info if run.info is not None else RunInfo(started=run.t0)
-    info.outcomes = [
+def _run_commands(run: RunData) -> list[RunCommand]:
+    """The commands the fleet was given, each with its outcome (POSIX times)."""
+    return [
         RunCommand(
             text=row.text,
             sent=run.t0 + row.requested_t,
@@ -87,21 +80,36 @@ def conclude(run: RunData, *, ended: float, failure: str = "") -> RunInfo:
         )
         for row in commands(run.messages)
     ]
+
+
+def _verdict(outcomes: Sequence[RunCommand], failure: str) -> tuple[bool | None, str]:
+    """``succeeded`` and ``detail`` of run.json (see :func:`conclude`)."""
+    given = "; ".join(
+        f"#{n} {c.outcome or 'not ended when the fleet stopped'}: {c.detail or c.text}"
+        for n, c in enumerate(outcomes, 1)
+    )
+    if failure:
+        return False, f"{failure}; {given}" if given else failure
+    succeeded = all(c.outcome in DONE for c in outcomes) if outcomes else None
+    return succeeded, given or "no command was given"
+
+
+def conclude(run: RunData, *, ended: float, failure: str = "") -> RunInfo:
+    """Complete ``run.json`` of the run folder ``run`` (as read) for a fleet that ended at
+    ``ended`` (POSIX s): the commands it was given (``commands``, ``command``,
+    ``command_sent``), each with its outcome (``outcomes``), ``ended``, ``succeeded`` (every
+    command done or stopped at the person's request; None when none was given) and
+    ``detail`` (one ``#n outcome: sentence`` per command). ``failure``: why the fleet ended
+    before its time (it did not start, it was interrupted): then ``succeeded`` is False and
+    ``detail`` starts with it. Returns what it wrote. Raises OSError when it cannot write."""
+    info = run.info if run.info is not None else RunInfo(started=run.t0)
+    info.outcomes = _run_commands(run)
     info.commands = [c.text for c in info.outcomes]
     if info.outcomes:
         info.command = info.outcomes[0].text
         info.command_sent = info.outcomes[0].sent
     info.ended = ended
-    given = "; ".join(
-        f"#{n} {c.outcome or 'not ended when the fleet stopped'}: {c.detail or c.text}"
-        for n, c in enumerate(info.outcomes, 1)
-    )
-    if failure:
-        info.succeeded = False
-        info.detail = f"{failure}; {given}" if given else failure
-    else:
-        info.succeeded = all(c.outcome in DONE for c in info.outcomes) if info.outcomes else None
-        info.detail = given or "no command was given"
+    info.succeeded, info.detail = _verdict(info.outcomes, failure)
     write_run_info(Path(run.run_dir), info)
     return info
 

@@ -165,6 +165,17 @@ class SizeHistogram:
         return self.under / self.count if self.count else None
 
 
+def _bin(size: int, guess: int, edges: Sequence[float]) -> int:
+    """The bin of ``size``, from the ``guess`` its logarithm gives: a size equal to an edge
+    belongs to the bin it opens (the float edge guarded)."""
+    i = guess
+    while i > 0 and size < edges[i]:
+        i -= 1
+    while i < len(edges) - 2 and size >= edges[i + 1]:
+        i += 1
+    return i
+
+
 def size_histogram(messages: Sequence[Message]) -> SizeHistogram:
     """The histogram of the communicates' sizes (empty edges when there are none)."""
     sizes = [m.rec.size for m in messages]
@@ -180,13 +191,7 @@ def size_histogram(messages: Sequence[Message]) -> SizeHistogram:
     edges = [SMALL_BYTES * 10 ** (k / per) for k in range(lo, hi + 1)]
     counts = [0] * (len(edges) - 1)
     for s in sizes:
-        i = level(s) - lo
-        # guard the float edge: a size equal to an edge belongs to the bin it opens
-        while i > 0 and s < edges[i]:
-            i -= 1
-        while i < len(counts) - 1 and s >= edges[i + 1]:
-            i += 1
-        counts[i] += 1
+        counts[_bin(s, level(s) - lo, edges)] += 1
     return SizeHistogram(edges, counts, len(sizes), under)
 
 

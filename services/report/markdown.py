@@ -11,7 +11,7 @@ from pathlib import Path
 from services.report import paper
 from services.report.figures import FigureFile
 from services.report.model import AgentMatrix, Event, Header, PerceptionRow, PlanPhase, Report
-from velma.executor.timing import STALL_OFF_CPU, TimingStats
+from velma.executor.timing import STALL_OFF_CPU, RealtimeSetup, TimingStats
 
 HOW_MEASURED = (
     "**How measured.** Times are the arrival times of the communicates at the traffic "
@@ -333,6 +333,19 @@ def _content(report: Report) -> str:
     )
 
 
+def _scheduling(setup: RealtimeSetup) -> str:
+    """The sentence on the scheduling the loop was granted: policy, CPU, wake-up latency."""
+    pin_text = f"pinned to CPU {setup.cpus[0]}" if setup.pinned and setup.cpus else "not pinned"
+    policy = f"{setup.policy} priority {setup.priority}" if setup.policy == "SCHED_FIFO" else setup.policy
+    why = f" ({'; '.join(setup.notes)})" if setup.notes else ""
+    qos = (
+        ""
+        if setup.cpu_latency_us is None
+        else f", CPU wake-up latency held at {setup.cpu_latency_us} µs (PM QoS)"
+    )
+    return f"Scheduling: {policy}, {pin_text}{qos}{why}."
+
+
 def _control(report: Report) -> str:
     c = report.control
     title = "## 6. Control loop (ag_ex, 1 kHz)"
@@ -357,19 +370,7 @@ def _control(report: Report) -> str:
             f"{c.lateness_max_us:.0f}",
         ),
     ]
-    setup = c.setup
-    if setup is None:
-        granted = "The loop did not report its scheduling."
-    else:
-        pin_text = f"pinned to CPU {setup.cpus[0]}" if setup.pinned and setup.cpus else "not pinned"
-        policy = f"{setup.policy} priority {setup.priority}" if setup.policy == "SCHED_FIFO" else setup.policy
-        why = f" ({'; '.join(setup.notes)})" if setup.notes else ""
-        qos = (
-            ""
-            if setup.cpu_latency_us is None
-            else f", CPU wake-up latency held at {setup.cpu_latency_us} µs (PM QoS)"
-        )
-        granted = f"Scheduling: {policy}, {pin_text}{qos}{why}."
+    granted = "The loop did not report its scheduling." if c.setup is None else _scheduling(c.setup)
     if c.control_law:
         granted += f" Impedance law: {c.control_law}."
     if c.plant:
@@ -450,6 +451,32 @@ def _or_dash(value: int | None) -> str:
     return "–" if value is None else str(value)
 
 
+def _perception_row(r: PerceptionRow) -> tuple[str, ...]:
+    """One object of one Observation beside the ground truth (empty where not measured)."""
+    return (
+        f"{r.sim_time:.1f}",
+        r.object,
+        "yes" if r.seen else "**no**",
+        "" if r.error_mm is None else f"{r.error_mm:.1f}",
+        "" if r.sigma_mm is None else f"{r.sigma_mm:.1f}",
+        "" if r.content_truth is None else f"{_or_dash(r.content)} / {r.content_truth}",
+        "" if r.outside is None else f"{r.outside} / {_or_dash(r.outside_truth)}",
+        _cell(r.reason or ""),
+        "" if r.observe_ms is None else f"{r.observe_ms:.0f}",
+    )
+
+
+def _perception_summary(rows: Sequence[PerceptionRow]) -> str:
+    """How many requested objects were seen, and the position errors' p50 / p95 / max."""
+    errors = sorted(r.error_mm for r in rows if r.error_mm is not None)
+    seen = sum(r.seen for r in rows)
+    summary = f"{seen} of {len(rows)} requested objects seen"
+    if errors:
+        p = lambda q: errors[min(len(errors) - 1, int(q * (len(errors) - 1) + 0.5))]  # noqa: E731
+        summary += f"; position error p50 {p(0.5):.1f} mm, p95 {p(0.95):.1f} mm, max {errors[-1]:.1f} mm"
+    return summary
+
+
 def _perception(report: Report) -> str:
     """Section 9, only for runs that perceived with the head camera: every object of every
     Observation beside the ground truth, and the errors' p50 / p95 / max."""
@@ -468,27 +495,9 @@ def _perception(report: Report) -> str:
             "why not seen",
             "Observe (ms)",
         ),
-        [
-            (
-                f"{r.sim_time:.1f}",
-                r.object,
-                "yes" if r.seen else "**no**",
-                "" if r.error_mm is None else f"{r.error_mm:.1f}",
-                "" if r.sigma_mm is None else f"{r.sigma_mm:.1f}",
-                "" if r.content_truth is None else f"{_or_dash(r.content)} / {r.content_truth}",
-                "" if r.outside is None else f"{r.outside} / {_or_dash(r.outside_truth)}",
-                _cell(r.reason or ""),
-                "" if r.observe_ms is None else f"{r.observe_ms:.0f}",
-            )
-            for r in rows
-        ],
+        [_perception_row(r) for r in rows],
     )
-    errors = sorted(r.error_mm for r in rows if r.error_mm is not None)
-    seen = sum(r.seen for r in rows)
-    summary = f"{seen} of {len(rows)} requested objects seen"
-    if errors:
-        p = lambda q: errors[min(len(errors) - 1, int(q * (len(errors) - 1) + 0.5))]  # noqa: E731
-        summary += f"; position error p50 {p(0.5):.1f} mm, p95 {p(0.95):.1f} mm, max {errors[-1]:.1f} mm"
+    summary = _perception_summary(rows)
     how = (
         "**How read.** `ag_ex_perception.jsonl`: ag_ex's record of each head-camera Observation "
         "(velma/executor/perception_log.py), the estimate beside the ground truth of the same "
