@@ -161,14 +161,15 @@ def json_too_deep(data: bytes, limit: int) -> bool:
         elif c == b'"':
             in_string = True
         else:
-            depth += _NESTING[c]
-            if depth > limit:
+            step = _NESTING.get(c, 0)  # a backslash outside strings: not JSON, left to the decoder
+            depth += step
+            if step > 0 and depth > limit:
                 return True
     return False
 
 
 _NESTING = {b"[": 1, b"{": 1, b"]": -1, b"}": -1}
-"""How a bracket outside strings changes the depth."""
+"""How a bracket outside strings changes the depth (the depth is checked as it grows)."""
 
 
 def _in_string(c: bytes, after: bytes, escaped: bool) -> tuple[bool, bool]:
