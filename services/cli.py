@@ -22,6 +22,7 @@ import sys
 import threading
 import time
 import uuid
+from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, Literal
 
@@ -56,7 +57,11 @@ from shared.settings import Settings
 if TYPE_CHECKING:
     import zenoh
 
+    from services.hosts.link import Shaping
     from services.live.watch import LiveWatch
+    from services.runtime.counters import CountersReport
+    from services.scenario.model import Scenario
+    from services.scenario.runner import Hosting
 
 MARKUP: Literal["markdown"] = "markdown"
 """Help texts are Markdown (typer's ``rich_markup_mode``): `code`, lists, indented examples."""
@@ -286,6 +291,92 @@ def scenario(
 _CHAOS_DEFAULT = ",".join(default_spec().agent_names)
 
 
+def _check_chaos_hosting(hosts: bool, acl: bool | None, tls: bool | None, link: tuple[object, ...]) -> None:
+    """Exit 2 when `roco chaos --hosts` cannot make two hosts here or is asked to run without
+    access control or TLS, or when the ``link`` options (--delay-ms, --jitter-ms, --loss-pct,
+    --cut) come without --hosts; without --hosts, the security options are checked."""
+    if hosts:
+        from services.hosts.netns import unavailable
+
+        why = unavailable()
+        if why:
+            raise fail(f"--hosts cannot make two hosts here: {why}", code=2)
+        if acl is False or tls is False:
+            raise fail("--hosts always runs with access control and mutual TLS", code=2)
+        return
+    if any(v is not None for v in link):
+        raise fail("--delay-ms, --jitter-ms, --loss-pct and --cut shape and cut the link of --hosts", code=2)
+    _security(acl, tls)
+
+
+def _chaos_scenario(
+    seed: int,
+    gap_s: tuple[float, float],
+    services: str,
+    count: int | None,
+    kinds: str,
+    command: str,
+    hosts: bool,
+    cut_s: tuple[float, float],
+) -> Scenario:
+    """The chaos scenario of `roco chaos`'s options (services/scenario/chaos.py); exit 2 when
+    they are wrong, or when ag_ex is faulted while the kitchen lives in it."""
+    from services.scenario.chaos import HOSTS_DEFAULT, chaos_scenario
+
+    try:
+        sc = chaos_scenario(
+            seed,
+            gap_s=gap_s,
+            services=HOSTS_DEFAULT if hosts and services == _CHAOS_DEFAULT else _listed(services),
+            count=count,
+            kinds=_listed(kinds),
+            command=command,
+            hosts=hosts,
+            cut_s=cut_s,
+        )
+    except ValueError as exc:
+        raise fail(str(exc), code=2) from None
+    if any(s.fault is not None and s.fault.service == "ag_ex" for s in sc.steps) and not _world_apart():
+        world = Settings.env_name("world")
+        raise fail(f"{world}=loop keeps the kitchen in ag_ex, which a fault starts anew: unset it", code=2)
+    return sc
+
+
+def _listed(text: str) -> tuple[str, ...]:
+    """The non-empty items of a comma-separated option, stripped."""
+    return tuple(s.strip() for s in text.split(",") if s.strip())
+
+
+def _chaos_shaping(delay_ms: float | None, jitter_ms: float | None, loss_pct: float | None) -> Shaping:
+    """The link of `roco chaos --hosts` (20 ± 5 ms, 1 % loss unless told); exit 2 when wrong."""
+    from services.hosts.link import Shaping
+
+    try:
+        return Shaping(
+            20.0 if delay_ms is None else delay_ms,
+            5.0 if jitter_ms is None else jitter_ms,
+            1.0 if loss_pct is None else loss_pct,
+        )
+    except ValueError as exc:
+        raise fail(str(exc), code=2) from None
+
+
+def _two_hosts(run_dir: Path, shaping: Shaping, env: dict[str, str]) -> Hosting:
+    """The fleet on two hosts joined by a ``shaping`` link, for the scenario runner."""
+    from services.hosts.fleet import TwoHosts, TwoHostsHosting
+
+    return TwoHostsHosting(TwoHosts(run_dir, shaping, env=env))
+
+
+_CHAOS_ALWAYS = ("fault", "back after", "up again after")
+"""What `roco chaos --quiet` still says: the lines of the faults and of the services back."""
+
+
+def _chaos_echo(say: Callable[[str], None], quiet: bool) -> Callable[[str], None]:
+    """The runner's progress lines to ``say`` (with ``quiet``: only the faults')."""
+    return lambda line: say(line) if not quiet or any(w in line for w in _CHAOS_ALWAYS) else None
+
+
 @app.command(short_help="Fault services at random during a task; check that nothing is lost.")
 def chaos(
     seed: Annotated[
@@ -349,74 +440,27 @@ def chaos(
     hosts of `roco hosts` (link 20 ± 5 ms, 1 % loss unless told; mutual TLS between the
     routers, access control on) and the link is cut as well. On compose use `roco fault`
     (docs/recovery.md)."""
-    from services.scenario.chaos import HOSTS_DEFAULT, chaos_scenario, verdict, write_chaos_report
-    from services.scenario.runner import Hosting, ScenarioRunner
+    from services.scenario.chaos import verdict, write_chaos_report
+    from services.scenario.runner import ScenarioRunner
 
-    if hosts:
-        from services.hosts.netns import unavailable
-
-        why = unavailable()
-        if why:
-            raise fail(f"--hosts cannot make two hosts here: {why}", code=2)
-        if acl is False or tls is False:
-            raise fail("--hosts always runs with access control and mutual TLS", code=2)
-    else:
-        if (delay_ms, jitter_ms, loss_pct, cut) != (None, None, None, None):
-            why = "--delay-ms, --jitter-ms, --loss-pct and --cut shape and cut the link of --hosts"
-            raise fail(why, code=2)
-        _security(acl, tls)
-
+    _check_chaos_hosting(hosts, acl, tls, (delay_ms, jitter_ms, loss_pct, cut))
     low, high = _span("--gap", gap)
     cut_s = _span("--cut", cut) if cut is not None else (2.0, 6.0)
-    try:
-        victims = tuple(s.strip() for s in services.split(",") if s.strip())
-        if hosts and services == _CHAOS_DEFAULT:
-            victims = HOSTS_DEFAULT
-        sc = chaos_scenario(
-            seed,
-            gap_s=(low, high),
-            services=victims,
-            count=count,
-            kinds=tuple(k.strip() for k in kinds.split(",") if k.strip()),
-            command=command,
-            hosts=hosts,
-            cut_s=cut_s,
-        )
-    except ValueError as exc:
-        raise fail(str(exc), code=2) from None
-    if any(s.fault is not None and s.fault.service == "ag_ex" for s in sc.steps) and not _world_apart():
-        world = Settings.env_name("world")
-        raise fail(f"{world}=loop keeps the kitchen in ag_ex, which a fault starts anew: unset it", code=2)
-    if hosts:
-        from services.hosts.link import Shaping
-
-        try:
-            shaping = Shaping(
-                20.0 if delay_ms is None else delay_ms,
-                5.0 if jitter_ms is None else jitter_ms,
-                1.0 if loss_pct is None else loss_pct,
-            )
-        except ValueError as exc:
-            raise fail(str(exc), code=2) from None
+    sc = _chaos_scenario(seed, (low, high), services, count, kinds, command, hosts, cut_s)
+    shaping = _chaos_shaping(delay_ms, jitter_ms, loss_pct) if hosts else None
     scene = _scene_env(realtime, 0, None)
     run_dir = _new_run_dir(runs_dir)
     env = scene | _viewer_env(record, False)
     info = RunInfo(started=time.time(), realtime=realtime, seed=0, scenario=sc.name)
     _stop_on_signals()
-    hosting: Hosting | None = None
-    if hosts:
-        from services.hosts.fleet import TwoHosts, TwoHostsHosting
-
-        hosting = TwoHostsHosting(TwoHosts(run_dir, shaping, env=env))
+    hosting = _two_hosts(run_dir, shaping, env) if shaping is not None else None
     watch = _live_watch(f"roco chaos --seed {seed}", live, quiet)
-    say = watch.line if watch is not None else typer.echo
-    always = ("fault", "back after", "up again after")
     with watch if watch is not None else contextlib.nullcontext():
         runner = ScenarioRunner(
             sc,
             run_dir,
             env=env,
-            echo=lambda line: say(line) if not quiet or any(w in line for w in always) else None,
+            echo=_chaos_echo(watch.line if watch is not None else typer.echo, quiet),
             info=info,
             on_session=watch.attach if watch is not None else None,
             hosting=hosting,
@@ -461,6 +505,11 @@ def _viewer_env(record: bool, view: bool) -> dict[str, str]:
     return env
 
 
+def _run_echo(say: Callable[[str], None], quiet: bool) -> Callable[[str], None]:
+    """The runner's progress lines to ``say`` (with ``quiet``: only a_hi's to the person)."""
+    return lambda line: say(line) if not quiet or "a_hi → person" in line else None
+
+
 def _run_scenario(
     sc: object,
     runs_dir: Path,
@@ -487,13 +536,12 @@ def _run_scenario(
         scenario=sc.name,
     )
     _stop_on_signals()
-    say = watch.line if watch is not None else typer.echo
     with watch if watch is not None else contextlib.nullcontext():
         runner = ScenarioRunner(
             sc,
             run_dir,
             env=env,
-            echo=lambda line: say(line) if not quiet or "a_hi → person" in line else None,
+            echo=_run_echo(watch.line if watch is not None else typer.echo, quiet),
             traffic_lines=None if quiet else progress_line,
             info=info,
             on_session=watch.attach if watch is not None else None,
@@ -821,6 +869,24 @@ def disturb(
     typer.echo(f"roco: asked ag_ex to move the {obj} by ({dx:+.3f}, {dy:+.3f}, {dz:+.3f}) m{turn}")
 
 
+def _web_viewer(web: bool | None, web_port: int | None) -> bool | None:
+    """Whether `roco view` opens the web viewer (None: by display): --web-port implies --web,
+    and exits 2 with --native."""
+    if web_port is None:
+        return web
+    if web is False:
+        raise fail("--web-port is the web viewer's port: not with --native", code=2)
+    return True
+
+
+def _check_recording(run_dir: Path | None) -> None:
+    """Exit 1 when ``run_dir`` (a run folder or .rrd) does not exist or is not a run folder."""
+    if run_dir is not None and not run_dir.exists():
+        raise fail(f"{run_dir}: no such run folder or recording")
+    if run_dir is not None and run_dir.is_dir():
+        _run_folder(run_dir)
+
+
 @app.command(short_help="Open a Rerun viewer on a run's recording or on a live fleet.")
 def view(
     run_dir: Annotated[
@@ -857,14 +923,8 @@ def view(
     (its URL printed). A port asked for that is in use is refused before anything starts."""
     from services.viewer.view import PortInUse, start_viewer
 
-    if web_port is not None:
-        if web is False:
-            raise fail("--web-port is the web viewer's port: not with --native", code=2)
-        web = True
-    if run_dir is not None and not run_dir.exists():
-        raise fail(f"{run_dir}: no such run folder or recording")
-    if run_dir is not None and run_dir.is_dir():
-        _run_folder(run_dir)
+    web = _web_viewer(web, web_port)
+    _check_recording(run_dir)
     try:
         viewer = start_viewer(run_dir, web=web, web_port=web_port, grpc_port=grpc_port)
     except PortInUse as exc:
@@ -958,6 +1018,22 @@ def gateway(
         raise typer.Exit(code)
 
 
+def _counters_text(name: str, alive: set[str], reports: dict[str, CountersReport]) -> str:
+    """The tail of `roco status`'s line of ``name``: its counters (the gateway's: what came
+    in, was refused, went out), or that an alive agent did not send them in time."""
+    from services.runtime.counters import summary
+
+    if name == "gateway" and name in reports:
+        from services.gateway.bridge import summary as gateway_summary
+
+        return f"  {gateway_summary(reports[name].counters)}"
+    if name in reports:
+        return f"  {summary(reports[name].counters)}"
+    if name in alive and name != "recorder":  # (the gateway answers as agents do)
+        return "  (no counters within the timeout: busy)"
+    return ""
+
+
 @app.command(short_help="Which agents are alive, with their counters of input.")
 def status(
     router: RouterOption = None,
@@ -971,7 +1047,7 @@ def status(
     received and rejected input (by reason; docs/security.md), and what each router with
     access control refused, named (identity, message, key, when); each router is named by its
     host (brain, robot: `roco hosts`) or its endpoint. Exit 1 if any agent is missing."""
-    from services.runtime.counters import ask_counters, summary
+    from services.runtime.counters import ask_counters
     from services.runtime.refusals import RefusalReport, collect_reports
     from services.runtime.refusals import summary as refusal_summary
 
@@ -985,20 +1061,11 @@ def status(
         mine = {str(z) for z in session.info.routers_zid()}  # the router this session reached
     finally:
         session.close()
-    state = _fleet_state(runs_dir)
-    names = _router_names(Path(state.run_dir) if state is not None else None)
-    names.update({z: f"at {endpoint}" for z in mine if z not in names})
+    names = _routers_named(runs_dir, endpoint, mine)
     for name in (*AGENT_ORDER, "recorder", *(["gateway"] if "gateway" in alive else [])):
-        line = f"{name:9s} {'alive' if name in alive else 'absent'}"
-        if name == "gateway" and name in reports:  # roco gateway: what came in, refused, went out
-            from services.gateway.bridge import summary as gateway_summary
-
-            line += f"  {gateway_summary(reports[name].counters)}"
-        elif name in reports:
-            line += f"  {summary(reports[name].counters)}"
-        elif name in alive and name != "recorder":  # (the gateway answers as agents do)
-            line += "  (no counters within the timeout: busy)"
-        typer.echo(line)
+        typer.echo(
+            f"{name:9s} {'alive' if name in alive else 'absent'}{_counters_text(name, alive, reports)}"
+        )
     for r in sorted(refusals, key=lambda r: names.get(r.router, r.router)):
         name = names.get(r.router, f"{r.router[:8]} (Zenoh id)")
         typer.echo(f"{'router':9s} {name}  {refusal_summary(r)}")
@@ -1008,6 +1075,15 @@ def status(
 
 ROUTER_LOG_LIMIT = 16 * 2**20
 """Bytes of a router's log read for the lines that name it (its start lines come first)."""
+
+
+def _routers_named(runs_dir: Path, endpoint: str, mine: set[str]) -> dict[str, str]:
+    """Zenoh id → a name of every router of the fleet in ``runs_dir`` (:func:`_router_names`),
+    and of the routers ``mine`` this session reached (``at <endpoint>``) otherwise unnamed."""
+    state = _fleet_state(runs_dir)
+    names = _router_names(Path(state.run_dir) if state is not None else None)
+    names.update({z: f"at {endpoint}" for z in mine if z not in names})
+    return names
 
 
 def _router_names(run_dir: Path | None) -> dict[str, str]:

@@ -7,6 +7,9 @@ failures, observations sent to a_km, and the outcome.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from typing import Any
+
 from services.runtime import keys
 from shared.fipa_codec import DecodeError, Performative, decode
 from shared.fipa_codec.batch import unpack
@@ -29,34 +32,52 @@ def progress_line(key: str, payload: bytes) -> str | None:
         content = decode_content(msg.language, msg.content) if msg.content and msg.language else None
     except ContentError:
         content = None
-    perf = msg.performative
     head = f"{channel} {sender} → {receiver}"
-    if isinstance(content, HumanCommand):
-        return f"{head}: request “{content.text}”"
-    if isinstance(content, GroundTaskNetwork):
-        return f"{head}: plan #{content.plan_index} requested"
-    if isinstance(content, HierarchicalPlan):
-        kind = "complete" if content.complete else "partial, ends with sensing"
-        return (
-            f"{head}: plan {content.plan_id}: {len(content.root.leaves())} steps ({kind}), "
-            f"{content.km_queries} a_km queries, {content.planning_time_s:.2f} s"
-        )
-    if isinstance(content, PlanFailure):
-        return f"{head}: no plan: {content.reason}"
-    if isinstance(content, SWStatus):
-        extra = f" {content.step}" if content.step else ""
-        reason = f" ({content.reason})" if content.reason else ""
-        return f"{head}: {content.state.value}{extra}{reason}"
-    if isinstance(content, CommandResult) and not content.ok:
-        return f"{head}: {content.command} failed: {content.reason}"
-    if isinstance(content, WorldUpdate) and any(o.pose is not None for o in content.objects):
-        seen = ", ".join(o.name for o in content.objects if o.pose is not None)
-        return f"{head}: observation at t={content.stamp:.1f} s ({seen})"
-    if isinstance(content, CommandOutcome):
-        return f"{head}: {'succeeded' if content.succeeded else 'failed'}: {content.detail}"
-    if perf is Performative.NOT_UNDERSTOOD:
+    for kind, line in _LINES:
+        if isinstance(content, kind) and (said := line(content)) is not None:
+            return f"{head}: {said}"
+    if msg.performative is Performative.NOT_UNDERSTOOD:
         return f"{head}: not-understood: {msg.content.decode('utf-8', 'replace')}"
     return None
+
+
+def _plan(content: HierarchicalPlan) -> str:
+    kind = "complete" if content.complete else "partial, ends with sensing"
+    return (
+        f"plan {content.plan_id}: {len(content.root.leaves())} steps ({kind}), "
+        f"{content.km_queries} a_km queries, {content.planning_time_s:.2f} s"
+    )
+
+
+def _status(content: SWStatus) -> str:
+    extra = f" {content.step}" if content.step else ""
+    reason = f" ({content.reason})" if content.reason else ""
+    return f"{content.state.value}{extra}{reason}"
+
+
+def _failed(content: CommandResult) -> str | None:
+    return None if content.ok else f"{content.command} failed: {content.reason}"
+
+
+def _observation(content: WorldUpdate) -> str | None:
+    if not any(o.pose is not None for o in content.objects):
+        return None
+    seen = ", ".join(o.name for o in content.objects if o.pose is not None)
+    return f"observation at t={content.stamp:.1f} s ({seen})"
+
+
+_LINES: tuple[tuple[type, Callable[[Any], str | None]], ...] = (
+    (HumanCommand, lambda c: f"request “{c.text}”"),
+    (GroundTaskNetwork, lambda c: f"plan #{c.plan_index} requested"),
+    (HierarchicalPlan, _plan),
+    (PlanFailure, lambda c: f"no plan: {c.reason}"),
+    (SWStatus, _status),
+    (CommandResult, _failed),
+    (WorldUpdate, _observation),
+    (CommandOutcome, lambda c: f"{'succeeded' if c.succeeded else 'failed'}: {c.detail}"),
+)
+"""What a line says after its head (channel, sender → receiver) for a content of each kind, in
+this order; None: no line for it (the not-understood line may still come)."""
 
 
 def is_world_update(payload: bytes) -> bool:

@@ -97,6 +97,44 @@ class Filters:
         return self.conversation is None or msg.conversation_id == self.conversation
 
 
+def _chosen(
+    kind: str, values: Iterable[str] | None, known: list[str], norm: Callable[[str], str], problems: list[str]
+) -> frozenset[str] | None:
+    """The ``known`` names ``values`` choose (compared after ``norm``), None when there are no
+    values; the unknown ones are added to ``problems`` in one sentence."""
+    values = list(values or ())
+    if not values:
+        return None
+    by_norm = {norm(k): k for k in known}
+    matches = [(v, by_norm.get(norm(v.strip()))) for v in values]
+    unknown = [v for v, k in matches if k is None]
+    if unknown:
+        problems.append(_unknown(kind, unknown, known))
+    return frozenset(k for _, k in matches if k is not None)
+
+
+def _unknown(kind: str, unknown: list[str], known: list[str]) -> str:
+    """The sentence naming the ``unknown`` values of ``kind`` and listing the ``known`` ones."""
+    return (
+        f"unknown {kind}{'s' if len(unknown) > 1 else ''} "
+        f"{', '.join(repr(u) for u in unknown)} (known: {', '.join(known)})"
+    )
+
+
+def _chosen_agents(
+    agents: Iterable[str] | None, spec: SystemSpec, problems: list[str]
+) -> frozenset[str] | None:
+    """The agents chosen: the specification's, and agents of other platforms (local@platform),
+    which play its external role when it has one; unknown ones are added to ``problems``."""
+    agents = list(agents or ())
+    foreign = {a.strip() for a in agents if spec.externals and is_foreign(a.strip())}
+    named = [a for a in agents if a.strip() not in foreign]
+    chosen = _chosen("agent", named, [a.name for a in spec.agents], str, problems)
+    if foreign:
+        return frozenset(foreign | (chosen or set()))
+    return chosen
+
+
 def parse_filters(
     *,
     agents: Iterable[str] | None = None,
@@ -116,39 +154,12 @@ def parse_filters(
     Raises ValueError naming every unknown value and listing the known ones.
     """
     spec = spec or default_spec()
-    known_channels = [c.name for c in spec.channels]
-    known_agents = [a.name for a in spec.agents]
     problems: list[str] = []
-
-    def check(
-        kind: str, values: Iterable[str] | None, known: list[str], norm: Callable[[str], str]
-    ) -> frozenset[str] | None:
-        values = list(values or ())
-        if not values:
-            return None
-        by_norm = {norm(k): k for k in known}
-        chosen: set[str] = set()
-        unknown: list[str] = []
-        for v in values:
-            k = by_norm.get(norm(v.strip()))
-            if k is None:
-                unknown.append(v)
-            else:
-                chosen.add(k)
-        if unknown:
-            problems.append(
-                f"unknown {kind}{'s' if len(unknown) > 1 else ''} "
-                f"{', '.join(repr(u) for u in unknown)} (known: {', '.join(known)})"
-            )
-        return frozenset(chosen)
-
-    # agents of other platforms (local@platform) play the specification's external role
-    foreign = {a.strip() for a in agents or () if spec.externals and is_foreign(a.strip())}
-    chosen_agents = check("agent", [a for a in agents or () if a.strip() not in foreign], known_agents, str)
-    if foreign:
-        chosen_agents = frozenset(foreign | (chosen_agents or set()))
-    chosen_channels = check("channel", channels, known_channels, str.upper)
-    chosen_performatives = check("performative", performatives, [p.value for p in Performative], str.lower)
+    chosen_agents = _chosen_agents(agents, spec, problems)
+    chosen_channels = _chosen("channel", channels, [c.name for c in spec.channels], str.upper, problems)
+    chosen_performatives = _chosen(
+        "performative", performatives, [p.value for p in Performative], str.lower, problems
+    )
     if conversation is not None and not conversation.strip():
         problems.append("empty conversation-id")
     if problems:
@@ -262,6 +273,24 @@ def sniff(
     return printed
 
 
+def _first_seen(
+    earlier: OrderedDict[bytes, float] | None, t: float, key: str, payload: bytes
+) -> float | None:
+    """When the communicate ``key``, ``payload`` was first seen, if it is a copy (None: the
+    first, now remembered in ``earlier``, which keeps at most :data:`COPIES_KEPT`; or no
+    ``earlier``)."""
+    if earlier is None:
+        return None
+    d = wire_digest(key, payload)
+    first = earlier.get(d)
+    if first is not None:
+        return first
+    earlier[d] = t
+    if len(earlier) > COPIES_KEPT:
+        earlier.popitem(last=False)
+    return None
+
+
 def _one(
     filters: Filters,
     t: float,
@@ -291,14 +320,9 @@ def _one(
         return f"{head}  malformed payload: {_one_line(exc.reason)}", False
     if not filters.passes(channel, sender, receiver, msg):
         return None
-    if earlier is not None:
-        d = wire_digest(key, payload)
-        first = earlier.get(d)
-        if first is not None:
-            return f"{head}  copy of the communicate at {_clock(first)}", False
-        earlier[d] = t
-        if len(earlier) > COPIES_KEPT:
-            earlier.popitem(last=False)
+    first = _first_seen(earlier, t, key, payload)
+    if first is not None:
+        return f"{head}  copy of the communicate at {_clock(first)}", False
     try:
         body = render(msg, content=content)
     except ValueError as exc:  # a :protocol, reply-by or user parameter the string form cannot write

@@ -297,6 +297,54 @@ def _key(name: str) -> str:
     return json.dumps(name)
 
 
+def _environment(state: StateVolume | None) -> list[str]:
+    """An agent service's environment, and its volumes when it keeps a state."""
+    if state is None:
+        return ["    environment: *env"]
+    return [
+        "    environment:",
+        "      <<: *env",
+        *(f"      {var}: {state.path}/{{run}}" for var in state.variables),
+        "    volumes:",
+        *(f"      - {m}" for m in MOUNTS),
+        f"      - {state.volume}:{state.path}",
+    ]
+
+
+def _depends_on(spec: SystemSpec, name: str, extras: AgentExtras) -> list[str]:
+    """What agent ``name``'s service waits for: the router, its hardware, and every other agent
+    when it is the last started."""
+    needs = [f"      {extras.hardware}:", "        condition: service_started"] if extras.hardware else []
+    if name == last_started(spec):
+        return [
+            "    depends_on:  # last in the specification's start_order: once every other agent is healthy",
+            "      <<: *after-router",
+            *needs,
+            *(
+                line
+                for other in spec.launch_order
+                if other != name
+                for line in (f"      {_key(other)}:", "        condition: service_healthy")
+            ),
+        ]
+    if needs:
+        return ["    depends_on:", "      <<: *after-router", *needs]
+    return ["    depends_on: *after-router"]
+
+
+def _shared_with_hardware(hardware: str | None) -> list[str]:
+    """The IPC and PID namespaces an agent shares with the ``hardware`` it drives (none
+    without)."""
+    if hardware is None:
+        return []
+    return [
+        f"    # the robot link to {hardware} is shared memory with a futex; one PID namespace,",
+        "    # so that each side tells a live peer's blocks from a killed one's (velma/shm.py)",
+        f'    ipc: "service:{hardware}"',
+        f'    pid: "service:{hardware}"',
+    ]
+
+
 def _agent(spec: SystemSpec, name: str) -> list[str]:
     """The lines of agent ``name``'s service."""
     extras = AGENT_EXTRAS.get(name, AgentExtras())
@@ -306,34 +354,9 @@ def _agent(spec: SystemSpec, name: str) -> list[str]:
         "    <<: *roco",
         f'    command: ["python", "-m", "services.runtime.main", {key}]',
     ]
-    state = extras.state
-    if state is None:
-        lines.append("    environment: *env")
-    else:
-        lines += ["    environment:", "      <<: *env"]
-        lines += [f"      {var}: {state.path}/{{run}}" for var in state.variables]
-        lines += ["    volumes:", *(f"      - {m}" for m in MOUNTS), f"      - {state.volume}:{state.path}"]
-    needs = [f"      {extras.hardware}:", "        condition: service_started"] if extras.hardware else []
-    if name == last_started(spec):
-        lines += [
-            "    depends_on:  # last in the specification's start_order: once every other agent is healthy",
-            "      <<: *after-router",
-            *needs,
-        ]
-        for other in spec.launch_order:
-            if other != name:
-                lines += [f"      {_key(other)}:", "        condition: service_healthy"]
-    elif needs:
-        lines += ["    depends_on:", "      <<: *after-router", *needs]
-    else:
-        lines.append("    depends_on: *after-router")
-    if extras.hardware is not None:
-        lines += [
-            f"    # the robot link to {extras.hardware} is shared memory with a futex; one PID namespace,",
-            "    # so that each side tells a live peer's blocks from a killed one's (velma/shm.py)",
-            f'    ipc: "service:{extras.hardware}"',
-            f'    pid: "service:{extras.hardware}"',
-        ]
+    lines += _environment(extras.state)
+    lines += _depends_on(spec, name, extras)
+    lines += _shared_with_hardware(extras.hardware)
     lines += [f"    # {why}" for why in extras.why]
     if extras.capabilities:
         lines.append(f"    cap_add: [{', '.join(extras.capabilities)}]")

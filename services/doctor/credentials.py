@@ -46,6 +46,12 @@ def checks(runs_dir: Path, now: dt.datetime | None = None) -> list[Check]:
                 informative=True,
             )
         ]
+    return [_operator_check(folder, now)]
+
+
+def _operator_check(folder: Path, now: dt.datetime | None) -> Check:
+    """The operator identity of a fleet with access control: readable with the CA's, and its
+    certificate valid at ``now`` (default: the current time)."""
     try:
         ident = identity(folder, OPERATOR)
         missing = [p.name for p in (ident.cert, ident.key, folder / CA_CERT) if not p.is_file()]
@@ -54,16 +60,14 @@ def checks(runs_dir: Path, now: dt.datetime | None = None) -> list[Check]:
         until = min(_valid_until(ident.cert), _valid_until(folder / CA_CERT))
     except (CredentialError, OSError, ValueError) as exc:
         how = f"roco deploy issue {folder} {OPERATOR}"
-        return [Check("fleet credentials", Use.FLEET, False, str(exc), how)]
+        return Check("fleet credentials", Use.FLEET, False, str(exc), how)
     now = now or dt.datetime.now(dt.UTC)
     ok = now < until
     detail = f"{OPERATOR} of {folder}, valid until {until:%Y-%m-%d}"
-    return [
-        Check(
-            "fleet credentials",
-            Use.FLEET,
-            ok,
-            detail if ok else f"{OPERATOR} of {folder} expired on {until:%Y-%m-%d}",
-            "" if ok else f"roco deploy issue {folder} {OPERATOR} (then restart the fleet)",
-        )
-    ]
+    return Check(
+        "fleet credentials",
+        Use.FLEET,
+        ok,
+        detail if ok else f"{OPERATOR} of {folder} expired on {until:%Y-%m-%d}",
+        "" if ok else f"roco deploy issue {folder} {OPERATOR} (then restart the fleet)",
+    )

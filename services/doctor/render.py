@@ -46,15 +46,32 @@ def table(checks: Sequence[Check]) -> Table:
     t.add_column("found / how to get it")
     for use in Use:
         for i, c in enumerate(c for c in checks if c.use is use):
-            colour = "dim" if c.informative else "green" if c.found else "red" if use is Use.RUN else "yellow"
-            text = Text(c.detail)
-            if c.missing and c.how:
-                text.append(f"\nhow to get it: {c.how}", style="bold")
-            t.add_row(use.value if i == 0 else "", Text(_status(c), style=colour), c.name, text)
+            t.add_row(use.value if i == 0 else "", Text(_status(c), style=_colour(c)), c.name, _found_text(c))
     return t
 
 
+def _colour(c: Check) -> str:
+    """A row's colour: dim informative, green found, red missing for ``roco run``, yellow
+    missing otherwise."""
+    if c.informative:
+        return "dim"
+    if c.found:
+        return "green"
+    return "red" if c.use is Use.RUN else "yellow"
+
+
+def _found_text(c: Check) -> Text:
+    """A row's last cell: the detail, and how to get a missing item."""
+    text = Text(c.detail)
+    if c.missing and c.how:
+        text.append(f"\nhow to get it: {c.how}", style="bold")
+    return text
+
+
 CAMERA_NEED = "a GL context for the head camera (EGL or OSMesa; ROCO_PERCEPTION=truth runs without)"
+
+
+TRUTH_BY_DEFAULT = " (perceiving with the ground truth: no GL library for the head camera)"
 
 
 def verdict(checks: Sequence[Check], camera: bool = True, truth_by_default: bool = False) -> str:
@@ -62,23 +79,25 @@ def verdict(checks: Sequence[Check], camera: bool = True, truth_by_default: bool
     for the head camera too: ``run_ready``), and which other uses lack something.
     ``truth_by_default``: the robot will perceive with the ground truth because no GL library
     is installed (velma/executor/capture.py ``perception_mode``), which the line says."""
-    needs_camera = camera and not camera_ready(checks)
-    lacking = sorted(
-        {
-            c.use.value
-            for c in checks
-            if c.missing and c.use is not Use.RUN and not (camera and c.use is Use.CAMERA)
-        }
-    )
-    others = f"; not ready: {', '.join(lacking)}" if lacking else "; everything else is here too"
+    others = _others(checks, camera)
     if run_ready(checks, camera):
-        how = ""
-        if truth_by_default:
-            how = " (perceiving with the ground truth: no GL library for the head camera)"
+        how = TRUTH_BY_DEFAULT if truth_by_default else ""
         return f"roco: roco run has everything it needs{how}{others}"
     needed = [c.name for c in checks if c.missing and c.use is Use.RUN]
-    needed += [CAMERA_NEED] if needs_camera else []
+    needed += [CAMERA_NEED] if camera and not camera_ready(checks) else []
     return f"roco: roco run lacks {', '.join(needed)}{others}"
+
+
+def _lacking(c: Check, camera: bool) -> bool:
+    """Whether ``c`` is a missing item of a use other than ``roco run`` (and, with ``camera``,
+    other than the head camera's)."""
+    return c.missing and c.use is not Use.RUN and not (camera and c.use is Use.CAMERA)
+
+
+def _others(checks: Sequence[Check], camera: bool) -> str:
+    """The verdict's tail: the other uses that lack something, or that none does."""
+    lacking = sorted({c.use.value for c in checks if _lacking(c, camera)})
+    return f"; not ready: {', '.join(lacking)}" if lacking else "; everything else is here too"
 
 
 SETTINGS_TITLE = "settings (docs/settings.md):"

@@ -46,24 +46,7 @@ def docker_checks(runner: Runner = run, which: Callable[[str], str | None] = shu
             "" if engine else DOCKER_HOW,
         )
     ]
-    code, out = runner(["docker", "compose", "version", "--short"])
-    if code == 0:
-        found.append(Check("Compose", Use.COMPOSE, True, f"docker compose {out}"))
-    elif (
-        which("docker-compose") is not None
-        and (r := runner(["docker-compose", "version", "--short"]))[0] == 0
-    ):
-        found.append(Check("Compose", Use.COMPOSE, True, f"docker-compose {r[1]}"))
-    else:
-        found.append(
-            Check(
-                "Compose",
-                Use.COMPOSE,
-                False,
-                "neither 'docker compose' nor 'docker-compose'",
-                "apt-get install docker-compose (or the compose plugin)",
-            )
-        )
+    found.append(_compose_check(runner, which))
     if engine:
         code, out = runner(["docker", "image", "inspect", "--format", "{{.Id}}", IMAGE])
         found.append(
@@ -76,6 +59,25 @@ def docker_checks(runner: Runner = run, which: Callable[[str], str | None] = shu
             )
         )
     return found
+
+
+def _compose_check(runner: Runner, which: Callable[[str], str | None]) -> Check:
+    """Compose: ``docker compose``, else ``docker-compose``."""
+    code, out = runner(["docker", "compose", "version", "--short"])
+    if code == 0:
+        return Check("Compose", Use.COMPOSE, True, f"docker compose {out}")
+    if (
+        which("docker-compose") is not None
+        and (r := runner(["docker-compose", "version", "--short"]))[0] == 0
+    ):
+        return Check("Compose", Use.COMPOSE, True, f"docker-compose {r[1]}")
+    return Check(
+        "Compose",
+        Use.COMPOSE,
+        False,
+        "neither 'docker compose' nor 'docker-compose'",
+        "apt-get install docker-compose (or the compose plugin)",
+    )
 
 
 def chromium_check(which: Callable[[str], str | None] = shutil.which) -> Check:

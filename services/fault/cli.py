@@ -254,17 +254,33 @@ def net(
     dc = _compose(compose, project, compose_file, runs_dir)
     endpoint = _endpoint(router, runs_dir, credentials)
     if dc is not None:
-
-        def apply(events: list[FaultEvent]) -> None:
-            if delay is not None or loss is not None:
-                events.append(dc.netem(service, delay or 0.0, loss or 0.0, dev))
-            if partition is True:
-                events.append(dc.partition(service))
-            elif partition is False:
-                events.append(dc.heal(service))
-
-        _compose_faults(endpoint, apply)
+        _compose_faults(endpoint, _container_net(dc, service, delay, loss, partition, dev))
         return
+    _agent_net(endpoint, service, delay, loss, partition)
+
+
+def _container_net(
+    dc: Compose, service: str, delay: float | None, loss: float | None, partition: bool | None, dev: str
+) -> Callable[[list[FaultEvent]], None]:
+    """What `roco fault net` applies to a compose fleet's container: netem when the delay or
+    loss is given, then a partition or its healing."""
+
+    def apply(events: list[FaultEvent]) -> None:
+        if delay is not None or loss is not None:
+            events.append(dc.netem(service, delay or 0.0, loss or 0.0, dev))
+        if partition is True:
+            events.append(dc.partition(service))
+        elif partition is False:
+            events.append(dc.heal(service))
+
+    return apply
+
+
+def _agent_net(
+    endpoint: str, service: str, delay: float | None, loss: float | None, partition: bool | None
+) -> None:
+    """`roco fault net` on a local fleet: the agent's fault layer changes the options given,
+    keeping the others; one line says the agent's network faults now."""
     if service not in AGENT_ORDER:
         raise fail(
             f"network faults of {service!r} need --compose (locally only the agents "
@@ -312,6 +328,48 @@ def _msg_text(mf: MessageFaults) -> str:
     return ", ".join(parts) or "none"
 
 
+def _check_channel(channel: str) -> None:
+    """Exit 2 unless ``channel`` is one of the specification's, or '*'."""
+    known = _channels()
+    if channel not in (*known, ANY_CHANNEL):
+        raise fail(f"unknown channel {channel!r} (channels: {', '.join(known)}, or '*')", code=2)
+
+
+def _message_faults(
+    drop: float,
+    duplicate: float,
+    delay: float | None,
+    delay_p: float | None,
+    reorder: float,
+    hold: float,
+    corrupt: float,
+) -> MessageFaults:
+    """The message faults of `roco fault msg`'s options (a delay without ``delay_p``: every
+    communicate); exit 2 when a probability or a time is out of range, or ``delay_p`` comes
+    without ``delay``."""
+    for name, p in (
+        ("--drop", drop),
+        ("--duplicate", duplicate),
+        ("--delay-p", delay_p),
+        ("--reorder", reorder),
+        ("--corrupt", corrupt),
+    ):
+        _probability(name, p)
+    _seconds("--delay", delay)
+    _seconds("--hold", hold)
+    if delay_p is not None and delay is None:
+        raise fail("--delay-p needs --delay S", code=2)
+    return MessageFaults(
+        drop=drop,
+        duplicate=duplicate,
+        delay=(1.0 if delay_p is None else delay_p) if delay else 0.0,
+        delay_s=delay or 0.0,
+        reorder=reorder,
+        hold_s=hold,
+        corrupt=corrupt,
+    )
+
+
 @fault_app.command()
 def msg(
     channel: Annotated[str, typer.Argument(help="C1..C8, or '*' for every channel")],
@@ -333,30 +391,8 @@ def msg(
 
     Applied by the sending agent's transport, replacing the channel's previous ones; works
     on local and compose fleets alike (over Zenoh)."""
-    known = _channels()
-    if channel not in (*known, ANY_CHANNEL):
-        raise fail(f"unknown channel {channel!r} (channels: {', '.join(known)}, or '*')", code=2)
-    for name, p in (
-        ("--drop", drop),
-        ("--duplicate", duplicate),
-        ("--delay-p", delay_p),
-        ("--reorder", reorder),
-        ("--corrupt", corrupt),
-    ):
-        _probability(name, p)
-    _seconds("--delay", delay)
-    _seconds("--hold", hold)
-    if delay_p is not None and delay is None:
-        raise fail("--delay-p needs --delay S", code=2)
-    mf = MessageFaults(
-        drop=drop,
-        duplicate=duplicate,
-        delay=(1.0 if delay_p is None else delay_p) if delay else 0.0,
-        delay_s=delay or 0.0,
-        reorder=reorder,
-        hold_s=hold,
-        corrupt=corrupt,
-    )
+    _check_channel(channel)
+    mf = _message_faults(drop, duplicate, delay, delay_p, reorder, hold, corrupt)
     if not mf.active() and seed is None:
         raise fail(f"no fault given (use 'roco fault clear {channel}' to remove {channel}'s faults)", code=2)
     from services.fault.control import send_update
@@ -375,6 +411,42 @@ def msg(
 
 
 # ---- clear and show ----------------------------------------------------------------------
+def _container_clear(dc: Compose, target: str | None, dev: str) -> Callable[[list[FaultEvent]], None]:
+    """What `roco fault clear` applies to a compose fleet's containers (``target``, or every
+    service): a partition healed, netem removed (every service: where it can be)."""
+
+    def apply(events: list[FaultEvent]) -> None:
+        for service in [target] if target else COMPOSE_SERVICES:
+            if service in dc.partitioned():
+                events.append(dc.heal(service))
+            if target is not None:
+                events.append(dc.netem(service, 0.0, 0.0, dev))
+            else:
+                # not running, or no tc in its image: nothing to clear there
+                with contextlib.suppress(FaultError):
+                    events.append(dc.netem(service, 0.0, 0.0, dev))
+
+    return apply
+
+
+def _check_target(target: str | None, channels: list[str]) -> None:
+    """Exit 2 unless ``target`` is None, a channel, '*' or a service."""
+    if target is not None and target not in (*channels, ANY_CHANNEL, *COMPOSE_SERVICES):
+        raise fail(f"{target!r} is neither a channel ({', '.join(channels)}) nor a service", code=2)
+
+
+def _clear_update(target: str | None, channels: list[str]) -> tuple[FaultUpdate, str | None] | None:
+    """The update that clears ``target``'s faults in the agents' fault layers, and the agent
+    it goes to (None: every agent); None when ``target`` is a service without one."""
+    if target in AGENT_ORDER:
+        return FaultUpdate(clear_services=[target]), target
+    if target is None:
+        return FaultUpdate(clear_channels=["*"], clear_services=["*"]), None
+    if target in (*channels, ANY_CHANNEL):
+        return FaultUpdate(clear_channels=[target]), None
+    return None
+
+
 @fault_app.command()
 def clear(
     target: Annotated[str | None, typer.Argument(help="a service or a channel (none: every fault)")] = None,
@@ -390,36 +462,19 @@ def clear(
 
     Processes stopped or paused stay so: start or unpause them."""
     channels = _channels()
-    if target is not None and target not in (*channels, ANY_CHANNEL, *COMPOSE_SERVICES):
-        raise fail(f"{target!r} is neither a channel ({', '.join(channels)}) nor a service", code=2)
+    _check_target(target, channels)
     dc = _compose(compose, project, compose_file, runs_dir)
     endpoint = _endpoint(router, runs_dir, credentials)
     if dc is not None and (target is None or target in COMPOSE_SERVICES):
-
-        def apply(events: list[FaultEvent]) -> None:
-            for service in [target] if target else COMPOSE_SERVICES:
-                if service in dc.partitioned():
-                    events.append(dc.heal(service))
-                if target is not None:
-                    events.append(dc.netem(service, 0.0, 0.0, dev))
-                else:
-                    # not running, or no tc in its image: nothing to clear there
-                    with contextlib.suppress(FaultError):
-                        events.append(dc.netem(service, 0.0, 0.0, dev))
-
-        _compose_faults(endpoint, apply)
+        _compose_faults(endpoint, _container_clear(dc, target, dev))
     from services.fault.control import send_update
 
-    if target in AGENT_ORDER:
-        update, to = FaultUpdate(clear_services=[target]), target
-    elif target is None:
-        update, to = FaultUpdate(clear_channels=["*"], clear_services=["*"]), None
-    elif target in (*channels, ANY_CHANNEL):
-        update, to = FaultUpdate(clear_channels=[target]), None
-    else:
+    clearing = _clear_update(target, channels)
+    if clearing is None:
         if dc is None:
             raise fail(f"{target} has no fault layer locally: nothing to clear", code=2)
         return
+    update, to = clearing
     with _session(endpoint) as session:
         got, missing = send_update(session, update, to)
     if not got:

@@ -260,6 +260,36 @@ def unpause(fleet: LocalFleet, service: str) -> FaultEvent:
     return _event("unpause", service, f"pid {pid}")
 
 
+def _relaunch(fleet: Fleet, service: str, timeout: float) -> subprocess.Popen[bytes]:
+    """Start ``service`` of the fleet this process launched, as its launcher does. Raises
+    FaultError."""
+    try:
+        if service == "router":
+            fleet.start_router(timeout)
+        elif service == "recorder":
+            fleet.start_recorder()
+        elif service in AGENT_ORDER:
+            fleet.start_agents([service])
+        else:
+            fleet.respawn(service)
+    except LaunchError as exc:
+        raise FaultError(str(exc)) from None
+    return fleet.processes[service]
+
+
+def _respawn(fleet: UpFleet, service: str, timeout: float) -> subprocess.Popen[bytes]:
+    """Start ``service`` of a fleet of `roco up` with its launch environment, noting its pid;
+    the router: once it listens."""
+    env = load_launch_env(fleet.run_dir) or process_environ(fleet.run_dir, fleet.endpoint, {})
+    (fleet.run_dir / "logs").mkdir(parents=True, exist_ok=True)
+    proc = spawn_process(fleet.run_dir, service, service_args(service, fleet.endpoint), env)
+    fleet.pids[service] = proc.pid
+    fleet.save()
+    if service == "router":
+        _wait_listening(fleet.endpoint, proc, timeout)
+    return proc
+
+
 def start(fleet: LocalFleet, service: str, timeout: float = 60.0, wait: bool = True) -> FaultEvent:
     """Start ``service`` again as the launcher did; with ``wait``, return once it holds its
     liveliness token (the router: once it listens). Raises FaultError when it runs already,
@@ -267,27 +297,9 @@ def start(fleet: LocalFleet, service: str, timeout: float = 60.0, wait: bool = T
     old = running_pid(fleet, service)
     if old is not None:
         raise FaultError(f"{service} is running already (pid {old})")
-    if isinstance(fleet, Fleet):
-        try:
-            if service == "router":
-                fleet.start_router(timeout)
-            elif service == "recorder":
-                fleet.start_recorder()
-            elif service in AGENT_ORDER:
-                fleet.start_agents([service])
-            else:
-                fleet.respawn(service)
-        except LaunchError as exc:
-            raise FaultError(str(exc)) from None
-        proc = fleet.processes[service]
-    else:
-        env = load_launch_env(fleet.run_dir) or process_environ(fleet.run_dir, fleet.endpoint, {})
-        (fleet.run_dir / "logs").mkdir(parents=True, exist_ok=True)
-        proc = spawn_process(fleet.run_dir, service, service_args(service, fleet.endpoint), env)
-        fleet.pids[service] = proc.pid
-        fleet.save()
-        if service == "router":
-            _wait_listening(fleet.endpoint, proc, timeout)
+    proc = (
+        _relaunch(fleet, service, timeout) if isinstance(fleet, Fleet) else _respawn(fleet, service, timeout)
+    )
     if wait and service != "router":
         _wait_alive(fleet.endpoint, service, proc, timeout)
     return _event("start", service, f"pid {proc.pid}")

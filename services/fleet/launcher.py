@@ -175,16 +175,21 @@ class Fleet:
         """Names of processes that have exited."""
         return [n for n, p in self.processes.items() if p.poll() is not None]
 
+    def _stop_order(self) -> list[tuple[str, bool]]:
+        """The processes in the order they are stopped (agents, the recorder, the routers), each
+        with whether its end is awaited before the next (the recorder's and the routers')."""
+        routers = [n for n in self.processes if n.startswith("router")]
+        agents = [n for n in self.processes if n != "recorder" and n not in routers]
+        return [(n, False) for n in agents] + [(n, True) for n in ("recorder", *routers)]
+
     def stop(self, timeout: float = 10.0) -> None:
         """SIGTERM every started process (agents first, router last), then SIGKILL stragglers."""
-        routers = [n for n in self.processes if n.startswith("router")]
-        order = [n for n in self.processes if n != "recorder" and n not in routers] + ["recorder", *routers]
-        for name in order:
+        for name, wait in self._stop_order():
             proc = self.processes.get(name)
             if proc is None or proc.poll() is not None:
                 continue
             proc.send_signal(signal.SIGTERM)
-            if name == "recorder" or name in routers:
+            if wait:
                 _wait(proc, timeout)
         deadline = time.monotonic() + timeout
         for proc in self.processes.values():

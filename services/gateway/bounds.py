@@ -157,24 +157,29 @@ def json_too_deep(data: bytes, limit: int) -> bool:
     for m in _JSON_STRUCTURE.finditer(data):
         c = m.group()
         if in_string:
-            if escaped:
-                escaped = False
-            elif c == b"\\":
-                escaped = data[m.end() : m.end() + 1] in b'\\"'  # \\ and \" escape the next one
-                if escaped:
-                    continue
-            elif c == b'"':
-                in_string = False
-            continue
-        if c == b'"':
+            in_string, escaped = _in_string(c, data[m.end() : m.end() + 1], escaped)
+        elif c == b'"':
             in_string = True
-        elif c in b"[{":
-            depth += 1
-            if depth > limit:
+        else:
+            step = _NESTING.get(c, 0)  # a backslash outside strings: not JSON, left to the decoder
+            depth += step
+            if step > 0 and depth > limit:
                 return True
-        elif c in b"]}":
-            depth -= 1
     return False
+
+
+_NESTING = {b"[": 1, b"{": 1, b"]": -1, b"}": -1}
+"""How a bracket outside strings changes the depth (the depth is checked as it grows)."""
+
+
+def _in_string(c: bytes, after: bytes, escaped: bool) -> tuple[bool, bool]:
+    """One structural character ``c`` inside a string (``after``: the byte after it; ``escaped``:
+    ``c`` is escaped): whether the string goes on, and whether the next one is escaped."""
+    if escaped:
+        return True, False
+    if c == b"\\":
+        return True, after in b'\\"'  # \\ and \" escape the next one
+    return c != b'"', False
 
 
 def decode_payload(payload: bytes, encoding: str | None) -> str | bytes:

@@ -132,6 +132,28 @@ class Refusal(Exception):
         self.text = text
 
 
+def _language(msg: Communicate, kind: MessageKind) -> Any:
+    """The content language of ``msg`` (:data:`LANGUAGES`); Refusal when ``kind`` does not
+    allow it, it is unknown or ``msg``'s ontology is not its."""
+    if msg.language is None or (kind.languages and msg.language not in kind.languages):
+        allowed = "/".join(kind.languages) or "none"
+        raise Refusal("language", f"language {msg.language} is not accepted here (only {allowed})")
+    language = LANGUAGES.get(msg.language)
+    if language is None:
+        raise Refusal("language", f"unknown content language {msg.language}")
+    if msg.ontology is not None and msg.ontology != language.ontology:
+        raise Refusal("language", f"language {msg.language} needs ontology {language.ontology}")
+    return language
+
+
+def _outward_content(msg: Communicate) -> tuple[bytes, str | None]:
+    """The content and encoding of ``msg`` as it goes out: a term as JSON, text as it is (the
+    string form carries text as it is). Raises ContentError."""
+    if msg.language is not None and msg.content:
+        return msgspec.json.encode(decode_content(msg.language, msg.content)), None
+    return msg.content, None if msg.encoding == "utf-8" else msg.encoding
+
+
 class Gateway:
     """The bridge between one Zenoh ``transport`` (authenticated as :data:`GATEWAY`) and the
     HTTP transport, reachable at ``address`` (the URL foreign platforms post to). Messages from
@@ -335,25 +357,21 @@ class Gateway:
         )
         return channel.name, communicate
 
+    def _check_size(self, content: bytes) -> None:
+        """Refusal when the JSON ``content`` is over ``max_content`` octets or nested deeper than
+        ``max_json_depth``."""
+        limits = self.limits
+        if len(content) > limits.max_content:
+            raise Refusal("content", f"the content is {len(content)} octets (at most {limits.max_content})")
+        if json_too_deep(content, limits.max_json_depth):
+            raise Refusal("content", f"the content nests deeper than {limits.max_json_depth} levels")
+
     def _term(self, msg: Communicate, kind: MessageKind) -> tuple[bytes, str, str]:
         """The content of ``msg`` (JSON of a term) in its language's encoding, its language
         and ontology; Refusal when they are not what ``kind`` allows, or the JSON is over
         ``max_content`` octets or nested deeper than ``max_json_depth``."""
-        if msg.language is None or (kind.languages and msg.language not in kind.languages):
-            allowed = "/".join(kind.languages) or "none"
-            raise Refusal("language", f"language {msg.language} is not accepted here (only {allowed})")
-        language = LANGUAGES.get(msg.language)
-        if language is None:
-            raise Refusal("language", f"unknown content language {msg.language}")
-        if msg.ontology is not None and msg.ontology != language.ontology:
-            raise Refusal("language", f"language {msg.language} needs ontology {language.ontology}")
-        limits = self.limits
-        if len(msg.content) > limits.max_content:
-            raise Refusal(
-                "content", f"the content is {len(msg.content)} octets (at most {limits.max_content})"
-            )
-        if json_too_deep(msg.content, limits.max_json_depth):
-            raise Refusal("content", f"the content nests deeper than {limits.max_json_depth} levels")
+        language = _language(msg, kind)
+        self._check_size(msg.content)
         union: Any = language.types[0]
         for t in language.types[1:]:
             union = union | t
@@ -398,6 +416,20 @@ class Gateway:
         self._send_out(answer, msg.sender.name)
 
     # ---- out: Zenoh → HTTP ---------------------------------------------------------------
+    def _receives(self, channel: str, sender: str, receiver: str, msg: Communicate) -> bool:
+        """Whether the external role of ``receiver`` receives ``msg`` from ``sender`` on
+        ``channel`` (its interface in the specification)."""
+        role = self.spec.role_of(receiver)
+        if role not in self.spec.external_names:
+            return False
+        return any(
+            k.channel == channel
+            and k.sender == sender
+            and k.performative == msg.performative.value
+            and k.protocol == msg.protocol
+            for k in interface(self.spec, role).receives
+        )
+
     def _outbound(self, key: str, payload: bytes) -> None:
         try:
             channel, sender, receiver = keys.parse_fipa_key(key)
@@ -406,19 +438,7 @@ class Gateway:
             self.count("dropped.malformed")
             log.warning("dropped what came on %s: %s", key, exc)
             return
-        role = self.spec.role_of(receiver)
-        allowed = (
-            any(
-                k.channel == channel
-                and k.sender == sender
-                and k.performative == msg.performative.value
-                and k.protocol == msg.protocol
-                for k in interface(self.spec, role).receives
-            )
-            if role in self.spec.external_names
-            else False
-        )
-        if not allowed:
+        if not self._receives(channel, sender, receiver, msg):
             self.count("dropped.not_in_interface")
             log.warning(
                 "dropped %s from %s to %s on %s: outside the specification",
@@ -428,18 +448,12 @@ class Gateway:
                 channel,
             )
             return
-        content = msg.content
-        encoding = msg.encoding
-        if msg.language is not None and msg.content:
-            try:
-                content = msgspec.json.encode(decode_content(msg.language, msg.content))
-            except ContentError as exc:
-                self.count("dropped.content")
-                log.warning("dropped %s from %s: %s", msg.performative.value, sender, exc)
-                return
-            encoding = None
-        elif encoding == "utf-8":
-            encoding = None  # a reason as text: the string form carries text as it is
+        try:
+            content, encoding = _outward_content(msg)
+        except ContentError as exc:
+            self.count("dropped.content")
+            log.warning("dropped %s from %s: %s", msg.performative.value, sender, exc)
+            return
         answer = msgspec.structs.replace(
             msg,
             sender=AgentIdentifier(sender, (self.address,)),

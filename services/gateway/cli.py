@@ -25,7 +25,7 @@ from services.runtime.polling import max_poll_us
 from services.runtime.session import listening, port_in_use, refusal
 from services.runtime.transport import ZenohTransport
 from services.security.context import security_for
-from services.spec.model import DEFAULT_SPEC, SpecError, load
+from services.spec.model import DEFAULT_SPEC, SpecError, SystemSpec, load
 
 DEFAULT_PORT = 7778
 """JADE's default port of its HTTP message transport."""
@@ -69,6 +69,30 @@ def parse_platforms(items: tuple[str, ...]) -> dict[str, tuple[str, ...]]:
     return platforms
 
 
+def _external_spec(config: GatewayConfig) -> SystemSpec:
+    """The specification of ``config``; GatewayError when it does not load or has no external
+    role."""
+    try:
+        spec = load(config.spec)
+    except SpecError as exc:
+        raise GatewayError(str(exc)) from None
+    if not spec.externals:
+        raise GatewayError(f"{config.spec}: no external role ([[externals]]): nobody may come in")
+    return spec
+
+
+def _transport(config: GatewayConfig) -> ZenohTransport:
+    """The gateway's session with ``config``'s router; GatewayError when there are no
+    credentials for it or the router does not answer (or refuses them)."""
+    try:
+        return ZenohTransport([config.endpoint], wait_for_router=False, identity=GATEWAY)
+    except ValueError as exc:  # CredentialError: no credentials for the gateway in the folder
+        raise GatewayError(str(exc)) from None
+    except Exception:  # zenoh.ZError
+        why = refusal(config.endpoint, GATEWAY, security_for([config.endpoint]))
+        raise GatewayError(why) from None
+
+
 def serve(
     config: GatewayConfig, stop: threading.Event, ready: threading.Event | None = None
 ) -> dict[str, int]:
@@ -76,12 +100,7 @@ def serve(
     counters. Raises GatewayError when the specification does not load or has no external
     role, when the port is in use or cannot be bound (checked before the fleet is reached), or
     when no router answers (or it refuses the gateway's credentials)."""
-    try:
-        spec = load(config.spec)
-    except SpecError as exc:
-        raise GatewayError(str(exc)) from None
-    if not spec.externals:
-        raise GatewayError(f"{config.spec}: no external role ([[externals]]): nobody may come in")
+    spec = _external_spec(config)
     address = config.address or f"http://{config.host}:{config.port}/acc"
     platforms = parse_platforms(config.platforms)
     try:
@@ -90,13 +109,7 @@ def serve(
         raise GatewayError(str(exc)) from None
     if listening(f"tcp/{config.host}:{config.port}"):
         raise GatewayError(port_in_use(config.host, config.port, "--port"))
-    try:
-        transport = ZenohTransport([config.endpoint], wait_for_router=False, identity=GATEWAY)
-    except ValueError as exc:  # CredentialError: no credentials for the gateway in the folder
-        raise GatewayError(str(exc)) from None
-    except Exception:  # zenoh.ZError
-        why = refusal(config.endpoint, GATEWAY, security_for([config.endpoint]))
-        raise GatewayError(why) from None
+    transport = _transport(config)
     try:
         gateway, server = open_gateway(
             transport, spec, config.host, config.port, address, routers=[config.endpoint], platforms=platforms

@@ -38,6 +38,7 @@ most ``max_digits`` digits.
 from __future__ import annotations
 
 import xml.etree.ElementTree as ET
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 
 import defusedxml
@@ -141,31 +142,26 @@ def _aid(outer: ET.Element, where: str) -> AgentIdentifier:
     name = (name_el.text or "").strip() if name_el is not None else ""
     if not name:
         raise EnvelopeError(f"an <agent-identifier> in <{where}> has no <name>")
-    urls: list[str] = []
-    addresses = _child(inner, "addresses")
-    if addresses is not None:
-        urls = [
-            (u.text or "").strip() for u in addresses if _local(u.tag) == "url" and (u.text or "").strip()
-        ]
     try:
-        return AgentIdentifier(name, tuple(urls))
+        return AgentIdentifier(name, _urls(inner))
     except ValueError as exc:
         raise EnvelopeError(f"<{where}>: {exc}") from None
+
+
+def _urls(inner: ET.Element) -> tuple[str, ...]:
+    """The non-empty ``<url>``s of an ``<agent-identifier>``'s ``<addresses>`` (none without)."""
+    addresses = _child(inner, "addresses")
+    if addresses is None:
+        return ()
+    return tuple(
+        (u.text or "").strip() for u in addresses if _local(u.tag) == "url" and (u.text or "").strip()
+    )
 
 
 def parse_xml(data: bytes | str, *, max_size: int = MAX_ENVELOPE, max_digits: int = MAX_DIGITS) -> Envelope:
     """Read an XML envelope (FIPA SC00085; module docstring): at most ``max_size`` octets (or
     characters), no DTD, numbers of at most ``max_digits`` digits. Raises EnvelopeError."""
-    if len(data) > max_size:
-        raise EnvelopeError(f"the envelope is {len(data)} long (at most {max_size})")
-    try:
-        root = SafeET.fromstring(data, forbid_dtd=True, forbid_entities=True, forbid_external=True)
-    except ET.ParseError as exc:
-        raise EnvelopeError(f"the envelope is not XML: {exc}") from None
-    except defusedxml.DefusedXmlException as exc:
-        raise EnvelopeError(f"the envelope declares a DTD or entities, which are not read ({exc})") from None
-    if _local(root.tag) != "envelope":
-        raise EnvelopeError(f"the XML is a <{_local(root.tag)[:40]}>, not an <envelope>")
+    root = _envelope_root(data, max_size)
     blocks = [p for p in root if _local(p.tag) == "params"]
     if not blocks:
         raise EnvelopeError("the envelope has no <params>")
@@ -181,6 +177,22 @@ def parse_xml(data: bytes | str, *, max_size: int = MAX_ENVELOPE, max_digits: in
     if not envelope.acl_representation:
         raise EnvelopeError("the envelope gives no <acl-representation>")
     return envelope
+
+
+def _envelope_root(data: bytes | str, max_size: int) -> ET.Element:
+    """The ``<envelope>`` element of at most ``max_size`` octets (or characters) of XML without
+    a DTD. Raises EnvelopeError."""
+    if len(data) > max_size:
+        raise EnvelopeError(f"the envelope is {len(data)} long (at most {max_size})")
+    try:
+        root = SafeET.fromstring(data, forbid_dtd=True, forbid_entities=True, forbid_external=True)
+    except ET.ParseError as exc:
+        raise EnvelopeError(f"the envelope is not XML: {exc}") from None
+    except defusedxml.DefusedXmlException as exc:
+        raise EnvelopeError(f"the envelope declares a DTD or entities, which are not read ({exc})") from None
+    if _local(root.tag) != "envelope":
+        raise EnvelopeError(f"the XML is a <{_local(root.tag)[:40]}>, not an <envelope>")
+    return root
 
 
 def _number(text: str, what: str, max_digits: int) -> int:
@@ -201,17 +213,21 @@ def _apply(envelope: Envelope, block: ET.Element, max_digits: int) -> Envelope:
     if intended:
         changes["intended_receiver"] = tuple(intended)
     for element in block:
-        tag, text = _local(element.tag), (element.text or "").strip()
-        if tag == "from":
-            changes["from_"] = _aid(element, "from")
-        elif tag == "acl-representation":
-            changes["acl_representation"] = text
-        elif tag == "payload-encoding":
-            changes["payload_encoding"] = text
-        elif tag == "date":
-            changes["date"] = text
-        elif tag == "comments":
-            changes["comments"] = element.text or ""
-        elif tag == "payload-length":
-            changes["payload_length"] = _number(text, "<payload-length>", max_digits)
+        param = _PARAMS.get(_local(element.tag))
+        if param is not None:
+            field, read = param
+            changes[field] = read(element, (element.text or "").strip(), max_digits)
     return replace(envelope, **changes)  # type: ignore[arg-type]
+
+
+_PARAMS: dict[str, tuple[str, Callable[[ET.Element, str, int], object]]] = {
+    "from": ("from_", lambda element, _text, _digits: _aid(element, "from")),
+    "acl-representation": ("acl_representation", lambda _element, text, _digits: text),
+    "payload-encoding": ("payload_encoding", lambda _element, text, _digits: text),
+    "date": ("date", lambda _element, text, _digits: text),
+    "comments": ("comments", lambda element, _text, _digits: element.text or ""),
+    "payload-length": ("payload_length", lambda _e, text, digits: _number(text, "<payload-length>", digits)),
+}
+"""The single parameters of a ``params`` block: its tag → the Envelope field and how the field
+is read from the element, its stripped text and the digits allowed (a later one replaces an
+earlier one)."""

@@ -162,29 +162,40 @@ def _parts(body: bytes, boundary: bytes, wanted: int) -> list[bytes]:
     return parts
 
 
-def _content(part: bytes, number: int, limits: Limits) -> bytes:
-    """The content of one MIME part, its transfer encoding undone; MTPError when its header
-    block is over the limit or does not end, or the transfer encoding is unknown or broken."""
+def _split_part(part: bytes, number: int, limits: Limits) -> tuple[bytes, bytes]:
+    """One MIME part's header block and content; MTPError when the block is over the limit or
+    does not end."""
     if part.startswith(b"\r\n") or part.startswith(b"\n"):
-        head, content = b"", part[2 if part.startswith(b"\r\n") else 1 :]
-    else:
-        window = limits.max_part_headers + 4
-        found = [
-            (i, n)
-            for i, n in ((part.find(b"\r\n\r\n", 0, window), 4), (part.find(b"\n\n", 0, window), 2))
-            if i >= 0
-        ]
-        if not found:
-            raise MTPError(
-                f"part {number}: no blank line after its headers within {limits.max_part_headers} octets"
-            )
-        i, n = min(found)
-        head, content = part[:i], part[i + n :]
+        return b"", part[2 if part.startswith(b"\r\n") else 1 :]
+    window = limits.max_part_headers + 4
+    found = [
+        (i, n)
+        for i, n in ((part.find(b"\r\n\r\n", 0, window), 4), (part.find(b"\n\n", 0, window), 2))
+        if i >= 0
+    ]
+    if not found:
+        raise MTPError(
+            f"part {number}: no blank line after its headers within {limits.max_part_headers} octets"
+        )
+    i, n = min(found)
+    return part[:i], part[i + n :]
+
+
+def _transfer_encoding(head: bytes) -> str:
+    """The (last) Content-Transfer-Encoding of a part's header block, lower case ("": none)."""
     encoding = ""
     for line in re.split(rb"\r?\n(?![ \t])", head):
         name, _, value = line.partition(b":")
         if name.strip().lower() == b"content-transfer-encoding":
             encoding = value.decode("latin-1").strip().lower()
+    return encoding
+
+
+def _content(part: bytes, number: int, limits: Limits) -> bytes:
+    """The content of one MIME part, its transfer encoding undone; MTPError when its header
+    block is over the limit or does not end, or the transfer encoding is unknown or broken."""
+    head, content = _split_part(part, number, limits)
+    encoding = _transfer_encoding(head)
     if encoding in ("", "7bit", "8bit", "binary"):
         return content
     try:

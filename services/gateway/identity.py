@@ -86,20 +86,7 @@ class Identities:
             return
         now = self.clock()
         with self._lock:
-            binding = self._bound.get(name)
-            if binding is not None and self._ended(binding, now):
-                del self._bound[name]
-                binding = None
-            if binding is None:
-                if len(self._bound) >= self.limits.max_names:
-                    self._sweep(now)
-                if len(self._bound) >= self.limits.max_names:
-                    raise IdentityError("busy", f"{self.limits.max_names} foreign names in use: try later")
-                binding = self._bound[name] = _Binding(peer, addresses, now)
-            elif binding.peer != peer or (addresses and set(addresses) != set(binding.addresses)):
-                raise IdentityError(
-                    "identity", f"{name} is in use by another peer until its conversations end"
-                )
+            binding = self._binding(name, peer, addresses, now)
             binding.last = now
             key = _key(conversation)
             binding.open.pop(key, None)
@@ -131,6 +118,28 @@ class Identities:
         """How many names are bound now."""
         with self._lock:
             return len(self._bound)
+
+    def _binding(self, name: str, peer: str, addresses: tuple[str, ...], now: float) -> _Binding:
+        """``name``'s binding to ``peer`` and ``addresses``: the live one, or a new one when
+        the name is free (under the lock). Raises IdentityError as :meth:`claim` does."""
+        binding = self._bound.get(name)
+        if binding is not None and self._ended(binding, now):
+            del self._bound[name]
+            binding = None
+        if binding is None:
+            return self._bind(name, peer, addresses, now)
+        if binding.peer != peer or (addresses and set(addresses) != set(binding.addresses)):
+            raise IdentityError("identity", f"{name} is in use by another peer until its conversations end")
+        return binding
+
+    def _bind(self, name: str, peer: str, addresses: tuple[str, ...], now: float) -> _Binding:
+        """Bind the free ``name``, sweeping ended bindings when the names are all in use."""
+        if len(self._bound) >= self.limits.max_names:
+            self._sweep(now)
+        if len(self._bound) >= self.limits.max_names:
+            raise IdentityError("busy", f"{self.limits.max_names} foreign names in use: try later")
+        binding = self._bound[name] = _Binding(peer, addresses, now)
+        return binding
 
     def _ended(self, binding: _Binding, now: float) -> bool:
         """Drop ``binding``'s conversations open too long; whether the binding has ended."""

@@ -31,6 +31,7 @@ import contextlib
 import logging
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass, field
 from http import HTTPStatus
 from typing import Any
 
@@ -75,6 +76,14 @@ def _raw_answer(status: int) -> bytes:
         f"Cache-Control: no-cache\r\nContent-Length: {len(page)}\r\nConnection: close\r\n\r\n"
     )
     return head.encode("ascii") + page
+
+
+def _refusal_status(status: int, exc: BaseException | None, why: str) -> int:
+    """431 (RFC 6585) for a request line or header over the limits, or too many headers;
+    ``status`` otherwise."""
+    if isinstance(exc, LineTooLong) or (isinstance(exc, BadHttpMessage) and "Too many headers" in why):
+        return 431
+    return status
 
 
 class _Protocol(RequestHandler):
@@ -142,8 +151,7 @@ class _Protocol(RequestHandler):
         if request.writer.output_size > 0:
             raise ConnectionError("an answer was sent already")
         why = (message or (str(exc) if exc else "") or HTTPStatus(status).phrase).split("\n", 1)[0]
-        if isinstance(exc, LineTooLong) or (isinstance(exc, BadHttpMessage) and "Too many headers" in why):
-            status = 431  # RFC 6585: a request line or header over the limits, or too many headers
+        status = _refusal_status(status, exc, why)
         if status >= 500 and exc is not None:  # a fault of roco's, not of the peer: its traceback
             log.error("HTTP %d to %s: %s", status, request.remote or "?", why[:300], exc_info=exc)
         else:
@@ -161,6 +169,16 @@ class _Server(web.Server):
 
     def __call__(self) -> RequestHandler:
         return _Protocol(self, loop=asyncio.get_running_loop(), **self._kwargs_for_protocol)
+
+
+@dataclass
+class _Received:
+    """A request body as it is read: its declared size, its chunks and how many octets came
+    (buffered until the request is answered)."""
+
+    size: int
+    chunks: list[bytes] = field(default_factory=list)
+    got: int = 0
 
 
 class MTPServer:
@@ -263,6 +281,31 @@ class MTPServer:
         if isinstance(protocol, _Protocol):
             protocol.headers_read = True
         peer = request.remote or "?"
+        size = self._declared_size(request, peer)
+        if not isinstance(size, int):
+            return size
+        received = _Received(size)
+        try:
+            refused = await self._receive(request, received, peer)
+            if refused is not None:
+                return refused
+            body = b"".join(received.chunks)
+            received.chunks.clear()
+            content_type = request.headers.get("Content-Type", "")
+            loop = asyncio.get_running_loop()
+            try:
+                await loop.run_in_executor(self._readers, self._read, content_type, body, peer)
+            except MTPError as exc:
+                return self._refuse(406, peer, str(exc))
+            except Refused as exc:
+                return self._refuse(exc.status, peer, exc.why)
+        finally:
+            self._buffered -= received.got
+        return self.answer(200)
+
+    def _declared_size(self, request: web.BaseRequest, peer: str) -> int | web.StreamResponse:
+        """The body's size as ``request`` declares it, or the refusal of a request that is not a
+        POST, declares no size (or a chunked body) or a size over the limits."""
         limits = self.limits
         if request.method != "POST":
             return self._refuse(405, peer, f"{request.method[:20]} instead of POST")
@@ -275,37 +318,31 @@ class MTPServer:
             return self._refuse(400, peer, str(exc))
         if size > limits.max_body:
             return self._refuse(413, peer, f"a body of {size} octets (at most {limits.max_body})")
-        chunks: list[bytes] = []
-        got = 0
+        return size
+
+    async def _receive(
+        self, request: web.BaseRequest, received: _Received, peer: str
+    ) -> web.StreamResponse | None:
+        """Read the body into ``received``, counting it as buffered; the refusal of a body that
+        ends early, would overflow the bodies buffered at once or is too slow."""
+        limits = self.limits
+        size = received.size
         try:
-            try:
-                async with asyncio.timeout(limits.request_s):
-                    while got < size:
-                        chunk = await request.content.read(min(size - got, 1 << 16))
-                        if not chunk:
-                            return self._refuse(400, peer, f"the body ended after {got} of {size} octets")
-                        if self._buffered + len(chunk) > limits.max_buffered:
-                            return self._refuse(
-                                503, peer, f"over {limits.max_buffered} octets of bodies at once"
-                            )
-                        self._buffered += len(chunk)
-                        got += len(chunk)
-                        chunks.append(chunk)
-            except TimeoutError:
-                return self._refuse(408, peer, f"the body took longer than {limits.request_s:g} s")
-            body = b"".join(chunks)
-            chunks.clear()
-            content_type = request.headers.get("Content-Type", "")
-            loop = asyncio.get_running_loop()
-            try:
-                await loop.run_in_executor(self._readers, self._read, content_type, body, peer)
-            except MTPError as exc:
-                return self._refuse(406, peer, str(exc))
-            except Refused as exc:
-                return self._refuse(exc.status, peer, exc.why)
-        finally:
-            self._buffered -= got
-        return self.answer(200)
+            async with asyncio.timeout(limits.request_s):
+                while received.got < size:
+                    chunk = await request.content.read(min(size - received.got, 1 << 16))
+                    if not chunk:
+                        return self._refuse(
+                            400, peer, f"the body ended after {received.got} of {size} octets"
+                        )
+                    if self._buffered + len(chunk) > limits.max_buffered:
+                        return self._refuse(503, peer, f"over {limits.max_buffered} octets of bodies at once")
+                    self._buffered += len(chunk)
+                    received.got += len(chunk)
+                    received.chunks.append(chunk)
+        except TimeoutError:
+            return self._refuse(408, peer, f"the body took longer than {limits.request_s:g} s")
+        return None
 
     def _read(self, content_type: str, body: bytes, peer: str) -> None:
         """On a reader thread: the message in ``body``, given to ``deliver``."""

@@ -26,7 +26,10 @@ import typer
 from shared.settings import Settings
 
 if TYPE_CHECKING:
+    from services.hosts.fleet import TwoHosts
+    from services.hosts.link import Shaping
     from services.hosts.netns import HostPair
+    from services.runtime.run_folder import RunInfo
 
 hosts_app = typer.Typer(
     add_completion=False,
@@ -90,6 +93,40 @@ def _interrupt(signum: int, frame: object) -> None:
     raise KeyboardInterrupt
 
 
+def _up_shaping(runs_dir: Path, delay_ms: float, jitter_ms: float, loss_pct: float) -> Shaping:
+    """The link's shaping for `roco hosts up`; exits when a fleet is up in ``runs_dir`` already,
+    the shaping is wrong or two hosts cannot be made here."""
+    from services.hosts.link import Shaping
+    from services.hosts.netns import unavailable
+
+    if (runs_dir / HOSTS_FILE).exists() or (runs_dir / FLEET_FILE).exists():
+        raise _fail(f"a fleet is already up in {runs_dir}; 'roco hosts down' (or 'roco down') first")
+    try:
+        shaping = Shaping(delay_ms, jitter_ms, loss_pct)
+    except ValueError as exc:
+        raise _fail(str(exc)) from None
+    why = unavailable()
+    if why:
+        raise _fail(f"cannot make two hosts here: {why}")
+    return shaping
+
+
+def _not_up(hosts: TwoHosts, exc: BaseException, run_dir: Path, info: RunInfo) -> typer.Exit:
+    """The exit of a fleet that did not come up (``exc``; its hosts are removed already), once
+    its processes are noted and its report written."""
+    from services.report.ending import end
+    from services.runtime.run_folder import write_run_info
+
+    interrupted = isinstance(exc, KeyboardInterrupt)
+    why = "interrupted" if interrupted else str(exc)
+    if hosts.fleet is not None:
+        info.processes = hosts.fleet.pids()
+        write_run_info(run_dir, info)
+    end(run_dir, ended=time.time(), failure=why)
+    code = INTERRUPTED if interrupted else 1
+    return _fail(f"{why}; nothing of the fleet is left running; run folder {run_dir}", code)
+
+
 @hosts_app.command(short_help="Make brain and robot, shape the link, start the fleet across them.")
 def up(
     delay_ms: Annotated[float, typer.Option(min=0, help="one-way delay of the link, each direction")] = 20.0,
@@ -104,20 +141,10 @@ def up(
     its report written."""
     from services.fleet.launcher import LaunchError
     from services.hosts.fleet import TwoHosts
-    from services.hosts.link import Shaping
-    from services.hosts.netns import HostsError, unavailable
-    from services.report.ending import end
+    from services.hosts.netns import HostsError
     from services.runtime.run_folder import RunFolderError, RunInfo, new_run_dir, write_run_info
 
-    if (runs_dir / HOSTS_FILE).exists() or (runs_dir / FLEET_FILE).exists():
-        raise _fail(f"a fleet is already up in {runs_dir}; 'roco hosts down' (or 'roco down') first")
-    try:
-        shaping = Shaping(delay_ms, jitter_ms, loss_pct)
-    except ValueError as exc:
-        raise _fail(str(exc)) from None
-    why = unavailable()
-    if why:
-        raise _fail(f"cannot make two hosts here: {why}")
+    shaping = _up_shaping(runs_dir, delay_ms, jitter_ms, loss_pct)
     try:
         run_dir = new_run_dir(runs_dir)
     except RunFolderError as exc:
@@ -130,14 +157,7 @@ def up(
     try:
         waited = hosts.start()  # stops what it started and removes the hosts when it fails
     except (HostsError, LaunchError, KeyboardInterrupt) as exc:
-        interrupted = isinstance(exc, KeyboardInterrupt)
-        why = "interrupted" if interrupted else str(exc)
-        if hosts.fleet is not None:
-            info.processes = hosts.fleet.pids()
-            write_run_info(run_dir, info)
-        end(run_dir, ended=time.time(), failure=why)
-        code = INTERRUPTED if interrupted else 1
-        raise _fail(f"{why}; nothing of the fleet is left running; run folder {run_dir}", code) from None
+        raise _not_up(hosts, exc, run_dir, info) from None
     assert hosts.pair is not None and hosts.fleet is not None
     pids = hosts.fleet.pids()
     info.router, info.processes = hosts.endpoint, pids

@@ -231,16 +231,28 @@ def sweep() -> list[str]:
     """Delete the host pairs left behind: their maker has exited and nothing runs in them, or
     their marker is gone (a namespace ``roco-<tag>-…`` with nothing in it). Returns their tags."""
     removed = []
+    for tag in sorted(_tags()):
+        pair = load(tag) or HostPair(tag, 0, 0)
+        if _kept(pair):
+            continue
+        pair.destroy()
+        removed.append(tag)
+    return removed
+
+
+def _tags() -> set[str]:
+    """The tags of the host pairs there are: of the namespaces ``roco-<tag>-brain|robot``, and
+    of the markers in :data:`STATE_DIR`."""
     names = [line.split()[0] for line in run_ip("netns", "list", check=False).stdout.splitlines() if line]
     tags = {m.group(1) for n in names if (m := re.fullmatch(rf"{PREFIX}([0-9a-f]{{6}})-(?:brain|robot)", n))}
     if STATE_DIR.is_dir():
         tags |= {p.stem for p in STATE_DIR.glob("*.json")}
-    for tag in sorted(tags):
-        pair = load(tag) or HostPair(tag, 0, 0)
-        if pair.maker and _alive(pair.maker):
-            continue
-        if pair.pids() and pair.maker:
-            continue  # a fleet of `roco hosts up` whose maker exited keeps running: `roco hosts down`
-        pair.destroy()
-        removed.append(tag)
-    return removed
+    return tags
+
+
+def _kept(pair: HostPair) -> bool:
+    """Whether :func:`sweep` leaves ``pair``: its maker is alive, or it exited and something
+    runs in it (a fleet of `roco hosts up` keeps running: `roco hosts down`)."""
+    if pair.maker and _alive(pair.maker):
+        return True
+    return bool(pair.pids()) and bool(pair.maker)

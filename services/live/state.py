@@ -9,7 +9,9 @@ caller's clock (``time.monotonic``), ``sim`` on ag_ex's simulation clock."""
 from __future__ import annotations
 
 import threading
+from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import Any
 
 import msgspec
 
@@ -108,24 +110,36 @@ class LiveState:
         except (ValueError, DecodeError, ContentError):
             return
         with self._lock:
-            if isinstance(content, HumanCommand):
-                self._commands.append(content.text)
-                self._outcome = None
-            elif isinstance(content, GroundTaskNetwork):
-                self._plan_index[content.task_id] = content.plan_index
-            elif isinstance(content, HierarchicalPlan) and content.plan_id not in self._plans:
-                steps = tuple(path for path, _ in content.root.leaves())
-                index = self._plan_index.get(content.task_id, 1)
-                self._plans[content.plan_id] = PlanInfo(content.plan_id, index, content.complete, steps)
-                self._last_plan = content.plan_id
-            elif isinstance(content, SWStatus):
-                self._sw_state = content.state.value
-                if content.plan_id:
-                    self._running_plan = content.plan_id
-                if content.step:
-                    self._step = content.step
-            elif isinstance(content, CommandOutcome):
-                self._outcome = f"{'succeeded' if content.succeeded else 'failed'}: {content.detail}"
+            for kind, take in _TAKES:
+                if isinstance(content, kind):
+                    take(self, content)
+                    break
+
+    def _command(self, content: HumanCommand) -> None:
+        self._commands.append(content.text)
+        self._outcome = None
+
+    def _network(self, content: GroundTaskNetwork) -> None:
+        self._plan_index[content.task_id] = content.plan_index
+
+    def _plan(self, content: HierarchicalPlan) -> None:
+        """A plan, the first time it is seen (its index: the request it answers)."""
+        if content.plan_id in self._plans:
+            return
+        steps = tuple(path for path, _ in content.root.leaves())
+        index = self._plan_index.get(content.task_id, 1)
+        self._plans[content.plan_id] = PlanInfo(content.plan_id, index, content.complete, steps)
+        self._last_plan = content.plan_id
+
+    def _status(self, content: SWStatus) -> None:
+        self._sw_state = content.state.value
+        if content.plan_id:
+            self._running_plan = content.plan_id
+        if content.step:
+            self._step = content.step
+
+    def _command_outcome(self, content: CommandOutcome) -> None:
+        self._outcome = f"{'succeeded' if content.succeeded else 'failed'}: {content.detail}"
 
     def robot_state(self, payload: bytes, wall: float) -> None:
         """Take one ``roco/state/ag_ex`` sample received at ``wall``; undecodable: ignored."""
@@ -148,15 +162,7 @@ class LiveState:
     def progress(self, now: float) -> Progress:
         """The state at wall time ``now`` (the caller's clock)."""
         with self._lock:
-            plan_id = self._running_plan if self._running_plan in self._plans else self._last_plan
-            plan = self._plans.get(plan_id) if plan_id is not None else None
-            place = None
-            if plan is not None and self._step in plan.steps:
-                place = (plan.steps.index(self._step) + 1, len(plan.steps))
-            rate = None
-            if self._first is not None and self._last_wall is not None and self._sim is not None:
-                dt = self._last_wall - self._first[0]
-                rate = (self._sim - self._first[1]) / dt if dt > 0.5 else None
+            plan = self._shown_plan()
             t = self._timing
             return Progress(
                 command=self._commands[-1] if self._commands else None,
@@ -164,14 +170,42 @@ class LiveState:
                 outcome=self._outcome,
                 plan=plan,
                 step=self._step,
-                step_place=place,
+                step_place=self._place(plan),
                 sw_state=self._sw_state,
                 alive=frozenset(self._alive),
                 expected=self.expected,
                 wall_s=now - self.started,
                 sim_s=self._sim,
-                sim_rate=rate,
+                sim_rate=self._rate(),
                 overrun_share=t.overrun_share if t is not None else None,
                 overruns=t.overruns if t is not None else 0,
                 cycles=t.cycles if t is not None else 0,
             )
+
+    def _shown_plan(self) -> PlanInfo | None:
+        """The plan running, else the last one received (None: no plan yet)."""
+        plan_id = self._running_plan if self._running_plan in self._plans else self._last_plan
+        return self._plans.get(plan_id) if plan_id is not None else None
+
+    def _place(self, plan: PlanInfo | None) -> tuple[int, int] | None:
+        """Where the current step is in ``plan``: (i, n), or None when it is not one of its."""
+        if plan is None or self._step not in plan.steps:
+            return None
+        return (plan.steps.index(self._step) + 1, len(plan.steps))
+
+    def _rate(self) -> float | None:
+        """Simulated seconds per wall second since the first state sample (None: too early)."""
+        if self._first is None or self._last_wall is None or self._sim is None:
+            return None
+        dt = self._last_wall - self._first[0]
+        return (self._sim - self._first[1]) / dt if dt > 0.5 else None
+
+
+_TAKES: tuple[tuple[type, Callable[[LiveState, Any], None]], ...] = (
+    (HumanCommand, LiveState._command),
+    (GroundTaskNetwork, LiveState._network),
+    (HierarchicalPlan, LiveState._plan),
+    (SWStatus, LiveState._status),
+    (CommandOutcome, LiveState._command_outcome),
+)
+"""What :meth:`LiveState.communicate` takes from a content of each kind (the first that fits)."""

@@ -116,13 +116,11 @@ def _keys(ks: Sequence[RecordKey], limit: int = 3) -> str:
     return shown + (f", … {len(ks)} in all" if len(ks) > limit else "")
 
 
-def check(
-    records: Sequence[TrafficRecord], payloads: Iterable[tuple[RecordKey, bytes]]
-) -> tuple[Integrity, dict[RecordKey, Communicate | None]]:
-    """Check ``records`` against ``payloads`` (the raw stream, in order). Returns the
-    integrity and, for each record paired with its own payload, the decoded communicate (None
-    for a payload the record itself calls ``malformed``)."""
-    result = Integrity(records=len(records))
+def _by_key(
+    payloads: Iterable[tuple[RecordKey, bytes]], result: Integrity
+) -> tuple[dict[RecordKey, bytes], set[RecordKey]]:
+    """The raw payloads by record key (the last of a key), counted in ``result``, and the keys
+    that come more than once."""
     by_key: dict[RecordKey, bytes] = {}
     twice: set[RecordKey] = set()
     for key, payload in payloads:
@@ -130,27 +128,50 @@ def check(
         if key in by_key:
             twice.add(key)
         by_key[key] = payload
+    return by_key, twice
+
+
+def _pair(
+    rec: TrafficRecord,
+    by_key: dict[RecordKey, bytes],
+    twice: set[RecordKey],
+    result: Integrity,
+    paired: dict[RecordKey, Communicate | None],
+) -> None:
+    """Pair ``rec`` with its payload into ``paired``, or note in ``result`` why not: its key is
+    ambiguous (twice), it has no payload, or the payload does not match it."""
+    key = rec.ref
+    if key in twice:
+        if key not in result.ambiguous:
+            result.ambiguous.append(key)
+        return
+    raw = by_key.get(key)
+    if raw is None:
+        result.without_payload.append(key)
+        return
+    ok, comm = _matches(rec, raw)
+    if not ok:
+        result.mismatched.append(key)
+        return
+    paired[key] = comm
+
+
+def check(
+    records: Sequence[TrafficRecord], payloads: Iterable[tuple[RecordKey, bytes]]
+) -> tuple[Integrity, dict[RecordKey, Communicate | None]]:
+    """Check ``records`` against ``payloads`` (the raw stream, in order). Returns the
+    integrity and, for each record paired with its own payload, the decoded communicate (None
+    for a payload the record itself calls ``malformed``)."""
+    result = Integrity(records=len(records))
+    by_key, twice = _by_key(payloads, result)
     rec_count = Counter(r.ref for r in records)
     twice |= {k for k, n in rec_count.items() if n > 1}
     paired: dict[RecordKey, Communicate | None] = {}
     for rec in records:
-        key = rec.ref
         if rec.incarnation not in result.incarnations:
             result.incarnations.append(rec.incarnation)
         result.late += rec.late
-        if key in twice:
-            if key not in result.ambiguous:
-                result.ambiguous.append(key)
-            continue
-        raw = by_key.get(key)
-        if raw is None:
-            result.without_payload.append(key)
-            continue
-        ok, comm = _matches(rec, raw)
-        if not ok:
-            result.mismatched.append(key)
-            continue
-        paired[key] = comm
+        _pair(rec, by_key, twice, result, paired)
     result.paired = len(paired)
     result.without_record = [k for k in by_key if k not in rec_count]
     _sequences(records, result)
@@ -188,10 +209,18 @@ def _sequences(records: Sequence[TrafficRecord], result: Integrity) -> None:
             for (sn, part), n in sorted(parts[source].items())
             if n > 1
         ]
-        start = None
-        for sn in range(max(sns) + 1):
-            if sn not in sns and start is None:
-                start = sn
-            elif sn in sns and start is not None:
-                result.gaps.append(Gap(source, key_of[source], start, sn - 1))
-                start = None
+        result.gaps += _gaps(source, key_of[source], sns)
+
+
+def _gaps(source: str, key: str, sns: Counter[int]) -> list[Gap]:
+    """The runs of sequence numbers missing from ``sns`` (from 0 to the highest), of the
+    publisher ``source`` on ``key``."""
+    gaps: list[Gap] = []
+    start = None
+    for sn in range(max(sns) + 1):
+        if sn not in sns and start is None:
+            start = sn
+        elif sn in sns and start is not None:
+            gaps.append(Gap(source, key, start, sn - 1))
+            start = None
+    return gaps

@@ -68,7 +68,25 @@ def repair(run_dir: Path, incarnation: str) -> Resume:
     end of line. Returns where to go on. Raises OSError when the files cannot be read or
     written."""
     resume = Resume()
-    raw_path, rec_path = run_dir / TRAFFIC_RAW, run_dir / TRAFFIC_JSONL
+    entries = _raw_entries(run_dir, incarnation, resume)
+    rec_path = run_dir / TRAFFIC_JSONL
+    lines = rec_path.read_bytes() if rec_path.exists() else b""
+    written = _written(lines, resume)
+    missing = [e for e in entries if e.ref not in written]
+    fix = b"" if not lines or lines.endswith(b"\n") else b"\n"
+    if missing or fix:
+        with rec_path.open("ab") as f:
+            f.write(fix + b"".join(_json(record_of(e)) + b"\n" for e in missing))
+    if missing:
+        resume.notes.append(f"{len(missing)} record(s) written again from their raw entries")
+    _last_sns(entries, resume)
+    return resume
+
+
+def _raw_entries(run_dir: Path, incarnation: str, resume: Resume) -> list[RawEntry]:
+    """The whole entries of ``run_dir``'s raw stream (``resume.next_seq`` past them); a
+    truncated or corrupt tail is moved aside to ``traffic.msgpack.<incarnation>.tail``, noted."""
+    raw_path = run_dir / TRAFFIC_RAW
     entries: list[RawEntry] = []
     good_end = 0
     try:
@@ -84,8 +102,13 @@ def repair(run_dir: Path, incarnation: str) -> Resume:
         with raw_path.open("r+b") as f:
             f.truncate(good_end)
         resume.notes.append(f"{exc}: {len(data) - good_end} byte(s) moved to {tail.name}")
+    return entries
+
+
+def _written(lines: bytes, resume: Resume) -> set[RecordKey]:
+    """The records the record ``lines`` hold (``resume.next_seq`` past them); unreadable lines
+    are skipped."""
     written: set[RecordKey] = set()
-    lines = rec_path.read_bytes() if rec_path.exists() else b""
     for line in lines.splitlines():
         try:
             rec = _record(line)
@@ -93,18 +116,15 @@ def repair(run_dir: Path, incarnation: str) -> Resume:
             continue
         written.add(rec.ref)
         resume.next_seq = max(resume.next_seq, rec.seq + 1)
-    missing = [e for e in entries if e.ref not in written]
-    fix = b"" if not lines or lines.endswith(b"\n") else b"\n"
-    if missing or fix:
-        with rec_path.open("ab") as f:
-            f.write(fix + b"".join(_json(record_of(e)) + b"\n" for e in missing))
-    if missing:
-        resume.notes.append(f"{len(missing)} record(s) written again from their raw entries")
+    return written
+
+
+def _last_sns(entries: list[RawEntry], resume: Resume) -> None:
+    """The highest sequence number of ``entries`` per publisher, into ``resume.last_sn``."""
     for e in entries:
         source, sn = e.arrival.source, e.arrival.sn
         if source is not None and sn is not None:
             resume.last_sn[source] = max(resume.last_sn.get(source, -1), sn)
-    return resume
 
 
 _record = msgspec.json.Decoder(TrafficRecord).decode

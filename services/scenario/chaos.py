@@ -30,6 +30,7 @@ import hashlib
 import logging
 import random
 from collections import defaultdict
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -37,7 +38,7 @@ from services.fleet.launcher import load_launch_env
 from services.hosts.fleet import ROUTERS
 from services.recorder.integrity import Integrity
 from services.recorder.record import read_link_events
-from services.report.load import load_run
+from services.report.load import Message, load_run
 from services.scenario.model import AGENTS, FAULT_KINDS, MOVABLE, Fault, Scenario, Step, Trigger
 from services.scenario.runner import LINK, FaultRecord, ScenarioOutcome
 from services.spec.model import default_spec
@@ -66,6 +67,31 @@ _ONCE = frozenset({"fipa-request", "fipa-query"})
 """Protocols whose request gets one final answer (subscribe and coordinate stream many)."""
 
 
+def _chosen_services(services: tuple[str, ...] | None, hosts: bool) -> tuple[str, ...]:
+    """The services :func:`chaos_scenario` may fault (None: the default; ``("all",)``: the
+    agents and the infrastructure, on two hosts with ``hosts``). Raises ValueError for an
+    unknown one or none."""
+    infrastructure = HOSTS_INFRASTRUCTURE if hosts else INFRASTRUCTURE
+    if services is None:
+        services = HOSTS_DEFAULT if hosts else SERVICE_ORDER
+    if services == (ALL,):
+        services = (*SERVICE_ORDER, *infrastructure)
+    unknown = [s for s in services if s not in AGENTS | set(infrastructure)]
+    if unknown or not services:
+        known = ", ".join((*SERVICE_ORDER, *infrastructure))
+        raise ValueError(f"cannot fault {', '.join(unknown) or 'nothing'} (services: {known}, or all)")
+    return services
+
+
+def _victims(rng: random.Random, services: tuple[str, ...], count: int | None) -> list[str]:
+    """Each of ``services`` once in a random order (``count`` None), else ``count`` draws."""
+    if count is None:
+        victims = list(services)
+        rng.shuffle(victims)
+        return victims
+    return [rng.choice(services) for _ in range(count)]
+
+
 def chaos_scenario(
     seed: int,
     *,
@@ -88,24 +114,12 @@ def chaos_scenario(
     ``link`` is a cut of ``cut_s`` (uniform, s; over the routers' lease, services/hosts/
     fleet.py ``LEASE_MS``, the mesh link is closed and made again when the link returns).
     Raises ValueError for an unknown service or kind or an empty choice."""
-    infrastructure = HOSTS_INFRASTRUCTURE if hosts else INFRASTRUCTURE
-    if services is None:
-        services = HOSTS_DEFAULT if hosts else SERVICE_ORDER
-    if services == (ALL,):
-        services = (*SERVICE_ORDER, *infrastructure)
-    unknown = [s for s in services if s not in AGENTS | set(infrastructure)]
-    if unknown or not services:
-        known = ", ".join((*SERVICE_ORDER, *infrastructure))
-        raise ValueError(f"cannot fault {', '.join(unknown) or 'nothing'} (services: {known}, or all)")
+    services = _chosen_services(services, hosts)
     bad = [k for k in kinds if k not in FAULT_KINDS]
     if bad or not kinds:
         raise ValueError(f"fault kinds are {', '.join(sorted(FAULT_KINDS))}, not {', '.join(bad) or 'none'}")
     rng = random.Random(seed)
-    if count is None:
-        victims = list(services)
-        rng.shuffle(victims)
-    else:
-        victims = [rng.choice(services) for _ in range(count)]
+    victims = _victims(rng, services, count)
     steps = [Step(say=command, expect="succeeded")]
     for victim in victims:
         if victim == LINK:
@@ -157,24 +171,38 @@ class Verdict:
         )
 
 
-def verdict(run_dir: Path, outcome: ScenarioOutcome) -> Verdict:
-    """Judge a chaos run from its outcome and its run folder's traffic record (the four
-    questions of the module docstring). Raises FileNotFoundError when ``run_dir`` is not a
-    folder; a missing or corrupt traffic record reads as no traffic (services/report/load.py)."""
-    run = load_run(run_dir)
+def _executed_twice(messages: Sequence[Message]) -> list[str]:
+    """The requests answered twice, differently ("sender: conversation"): two final answers
+    of a protocol that answers once, to the same message, with other contents or
+    performatives."""
     answers: dict[tuple[str, str], set[bytes]] = defaultdict(set)
     where: dict[tuple[str, str], str] = {}
-    last: dict[str, float] = {}  # movable object -> height (m) at its last observation
-    for m in run.messages:
+    for m in messages:
         if m.comm is None:
             continue
         if m.performative in _FINAL and m.comm.in_reply_to is not None and m.rec.protocol in _ONCE:
             k = (m.sender, m.comm.in_reply_to)
             answers[k].add(hashlib.blake2b(m.comm.content, digest_size=8).digest() + m.performative.encode())
             where[k] = m.conversation or "?"
-        if isinstance(m.content, Observation):
+    return sorted(f"{s}: {where[(s, r)]}" for (s, r), v in answers.items() if len(v) > 1)
+
+
+def _last_heights(messages: Sequence[Message]) -> dict[str, float]:
+    """Each movable object's height (m) at its last observation."""
+    last: dict[str, float] = {}
+    for m in messages:
+        if m.comm is not None and isinstance(m.content, Observation):
             last.update({o.name: o.pose.position[2] for o in m.content.objects if o.name in MOVABLE})
-    twice = sorted(f"{s}: {where[(s, r)]}" for (s, r), v in answers.items() if len(v) > 1)
+    return last
+
+
+def verdict(run_dir: Path, outcome: ScenarioOutcome) -> Verdict:
+    """Judge a chaos run from its outcome and its run folder's traffic record (the four
+    questions of the module docstring). Raises FileNotFoundError when ``run_dir`` is not a
+    folder; a missing or corrupt traffic record reads as no traffic (services/report/load.py)."""
+    run = load_run(run_dir)
+    twice = _executed_twice(run.messages)
+    last = _last_heights(run.messages)
     final = final_heights(run_dir)
     judged_on = Verdict.judged_on
     if final is not None:

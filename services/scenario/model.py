@@ -30,6 +30,7 @@ contain.
 from __future__ import annotations
 
 import tomllib
+from collections.abc import Callable
 from pathlib import Path
 
 import msgspec
@@ -126,57 +127,85 @@ def _check(scenario: Scenario, where: str) -> Scenario:
         raise ScenarioError(f"{where}: no steps")
     said = 0
     for i, step in enumerate(scenario.steps, 1):
-        actions = [
-            step.say is not None,
-            step.disturb is not None,
-            step.restart is not None,
-            step.fault is not None,
-        ]
-        if sum(actions) != 1:
-            raise ScenarioError(f"{where}: step {i} must do exactly one of say, disturb, restart, fault")
-        f = step.fault
-        if f is not None:
-            if f.service not in SERVICES:
-                raise ScenarioError(
-                    f"{where}: step {i}: no service {f.service!r} (services: {', '.join(sorted(SERVICES))})"
-                )
-            if f.kind not in FAULT_KINDS:
-                raise ScenarioError(
-                    f"{where}: step {i}: fault kind must be one of "
-                    f"{', '.join(sorted(FAULT_KINDS))}, not {f.kind!r}"
-                )
-            if not 0 <= f.down_s <= 600:
-                raise ScenarioError(f"{where}: step {i}: down_s must be within 0..600 s, not {f.down_s}")
-        if step.disturb is not None and step.disturb.object not in MOVABLE:
-            movable = ", ".join(MOVABLE)
-            raise ScenarioError(
-                f"{where}: step {i}: cannot move {step.disturb.object!r} (movable: {movable})"
-            )
-        if step.restart is not None and step.restart not in AGENTS:
-            raise ScenarioError(f"{where}: step {i}: no agent {step.restart!r} to restart")
-        if step.expect is not None and step.expect not in FINAL_KINDS:
-            kinds = ", ".join(sorted(FINAL_KINDS))
-            raise ScenarioError(f"{where}: step {i}: expect must be one of {kinds}, not {step.expect!r}")
-        if (step.expect is not None or step.expect_text is not None) and step.say is None:
-            raise ScenarioError(f"{where}: step {i}: only a say step can expect an outcome")
-        t = step.after
-        if t is not None:
-            if sum([t.step is not None, t.ended is not None, t.knowledge, t.seconds is not None]) != 1:
-                raise ScenarioError(
-                    f"{where}: step {i}: after needs exactly one of step, ended, knowledge, seconds"
-                )
-            if not 0 <= t.delay_s <= 60:
-                raise ScenarioError(f"{where}: step {i}: after.delay_s must be within 0..60, not {t.delay_s}")
-            if t.seconds is not None and not 0 <= t.seconds <= 3600:
-                raise ScenarioError(
-                    f"{where}: step {i}: after.seconds must be within 0..3600, not {t.seconds}"
-                )
-            if t.ended is not None and not 1 <= t.ended <= said:
-                raise ScenarioError(
-                    f"{where}: step {i}: after.ended = {t.ended}, but only {said} command(s) before it"
-                )
+        for rule in _STEP_RULES:
+            problem = rule(step, i, said)
+            if problem is not None:
+                raise ScenarioError(f"{where}: {problem}")
         said += step.say is not None
     return scenario
+
+
+def _one_action(step: Step, i: int, said: int) -> str | None:
+    actions = [
+        step.say is not None,
+        step.disturb is not None,
+        step.restart is not None,
+        step.fault is not None,
+    ]
+    if sum(actions) != 1:
+        return f"step {i} must do exactly one of say, disturb, restart, fault"
+    return None
+
+
+def _fault_rule(step: Step, i: int, said: int) -> str | None:
+    f = step.fault
+    if f is None:
+        return None
+    if f.service not in SERVICES:
+        return f"step {i}: no service {f.service!r} (services: {', '.join(sorted(SERVICES))})"
+    if f.kind not in FAULT_KINDS:
+        return f"step {i}: fault kind must be one of {', '.join(sorted(FAULT_KINDS))}, not {f.kind!r}"
+    if not 0 <= f.down_s <= 600:
+        return f"step {i}: down_s must be within 0..600 s, not {f.down_s}"
+    return None
+
+
+def _disturb_rule(step: Step, i: int, said: int) -> str | None:
+    if step.disturb is not None and step.disturb.object not in MOVABLE:
+        return f"step {i}: cannot move {step.disturb.object!r} (movable: {', '.join(MOVABLE)})"
+    return None
+
+
+def _restart_rule(step: Step, i: int, said: int) -> str | None:
+    if step.restart is not None and step.restart not in AGENTS:
+        return f"step {i}: no agent {step.restart!r} to restart"
+    return None
+
+
+def _expect_rule(step: Step, i: int, said: int) -> str | None:
+    if step.expect is not None and step.expect not in FINAL_KINDS:
+        return f"step {i}: expect must be one of {', '.join(sorted(FINAL_KINDS))}, not {step.expect!r}"
+    if (step.expect is not None or step.expect_text is not None) and step.say is None:
+        return f"step {i}: only a say step can expect an outcome"
+    return None
+
+
+def _after_rule(step: Step, i: int, said: int) -> str | None:
+    t = step.after
+    if t is None:
+        return None
+    if sum([t.step is not None, t.ended is not None, t.knowledge, t.seconds is not None]) != 1:
+        return f"step {i}: after needs exactly one of step, ended, knowledge, seconds"
+    if not 0 <= t.delay_s <= 60:
+        return f"step {i}: after.delay_s must be within 0..60, not {t.delay_s}"
+    if t.seconds is not None and not 0 <= t.seconds <= 3600:
+        return f"step {i}: after.seconds must be within 0..3600, not {t.seconds}"
+    if t.ended is not None and not 1 <= t.ended <= said:
+        return f"step {i}: after.ended = {t.ended}, but only {said} command(s) before it"
+    return None
+
+
+_STEP_RULES: tuple[Callable[[Step, int, int], str | None], ...] = (
+    _one_action,
+    _fault_rule,
+    _disturb_rule,
+    _restart_rule,
+    _expect_rule,
+    _after_rule,
+)
+"""The rules a step of a scenario follows, in the order they are checked: each takes the step,
+its number (from 1) and how many commands were said before it, and gives what is wrong (after
+the file's name) or None."""
 
 
 def parse_scenario(text: str, where: str = "<scenario>") -> Scenario:

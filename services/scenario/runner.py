@@ -200,6 +200,14 @@ class ScenarioOutcome:
         return "\n".join(lines)
 
 
+def _watched(key: str) -> bool:
+    """Whether the runner reads communicates on ``key``: a_ta's to a_co (C1: its L_SW plan
+    steps) and to a_km (C6: knowledge)."""
+    return key.startswith(keys.fipa_key("C1", "a_ta", "a_co")) or key.startswith(
+        keys.fipa_key("C6", "a_ta", "a_km")
+    )
+
+
 class ScenarioRunner:
     """Runs ``scenario`` in ``run_dir`` (created by the caller). ``env`` is the extra
     environment of every process (ag_ex's pacing and scene); ``echo`` receives progress
@@ -253,14 +261,16 @@ class ScenarioRunner:
         for payload in unpack(sample.payload.to_bytes()):  # a batch: each communicate
             self._on_communicate(key, payload)
 
-    def _on_communicate(self, key: str, payload: bytes) -> None:
+    def _on_line(self, key: str, payload: bytes) -> None:
+        """The progress line of a communicate, when there are lines and it is worth one."""
         if self.traffic_lines is not None:
             line = self.traffic_lines(key, payload)
             if line is not None:
                 self.events.put(("line", line))
-        if not key.startswith(keys.fipa_key("C1", "a_ta", "a_co")) and not key.startswith(
-            keys.fipa_key("C6", "a_ta", "a_km")
-        ):
+
+    def _on_communicate(self, key: str, payload: bytes) -> None:
+        self._on_line(key, payload)
+        if not _watched(key):
             return
         try:
             msg = decode(payload)
@@ -296,14 +306,19 @@ class ScenarioRunner:
         elif kind == "step":
             self.steps_seen.append(str(item))
         elif kind == "report" and isinstance(item, HumanReport):
-            record = next((c for c in self.commands if c.request_id == item.request_id), None)
-            if record is None:
-                return
-            record.reports.append(item)
-            self._say(f"a_hi → person (#{record.number}): {item.kind.value}: {item.text}")
-            if item.kind in FINAL_REPORTS:
-                record.final = item
-                record.ended = time.time()
+            self._report(item)
+
+    def _report(self, item: HumanReport) -> None:
+        """a_hi's report to the person: said, and kept with its command (the final one ends
+        it); a report of no command of the run is ignored."""
+        record = next((c for c in self.commands if c.request_id == item.request_id), None)
+        if record is None:
+            return
+        record.reports.append(item)
+        self._say(f"a_hi → person (#{record.number}): {item.kind.value}: {item.text}")
+        if item.kind in FINAL_REPORTS:
+            record.final = item
+            record.ended = time.time()
 
     def _ready(self, step: Step, steps_before: int) -> bool:
         t = step.after
@@ -448,48 +463,12 @@ class ScenarioRunner:
         interrupted = False
         deadline = time.monotonic() + self.scenario.timeout_s
         try:
-            self.hosting.start_routers()
-            self.info.router = self.endpoint
-            self._say(f"run folder {self.run_dir}; router {self.endpoint}")
-            session = open_client(self.endpoint)
-            if self.on_session is not None:
-                self.on_session(session)
-            self.fleet.start_recorder()
-            self.fleet.wait_alive(session, ["recorder"], timeout=60)
-            session.declare_subscriber(keys.FIPA_ALL, self._on_traffic)
-            session.declare_subscriber(keys.HUMAN_OUT, self._on_report)
-            self.fleet.start_agents()
-            waited = self.fleet.wait_alive(session, AGENT_ORDER, timeout=120)
-            self.info.processes = self.fleet.pids()
-            write_run_info(self.run_dir, self.info)
-            self._say(f"all agents alive after {waited:.1f} s: {', '.join(AGENT_ORDER)}")
-            # paper Table 7: a_km receives initial knowledge about the environment first
-            knowledge_by = time.monotonic() + 60
-            while not self.knowledge.is_set():
-                if time.monotonic() > knowledge_by:
-                    raise LaunchError("a_km received no initial knowledge from a_ta within 60 s")
-                self._pump(0.1, deadline)
-            self._say("a_km has initial knowledge of the scene")
+            session = self._open()
+            self._start_fleet(session)
+            self._await_knowledge(deadline)
             for step in self.scenario.steps:
-                before = len(self.steps_seen)
-                while not self._ready(step, before):
-                    self._pump(0.2, deadline)
-                delay = step.after.delay_s if step.after is not None else 0.0
-                if delay > 0:  # e.g. half-way through the step that triggered
-                    until = time.monotonic() + delay
-                    while (left := until - time.monotonic()) > 0:
-                        self._pump(min(0.05, left), deadline)
-                self._act(session, step)
-                self.last_act = time.monotonic()
-            while any(c.final is None for c in self.commands):
-                self._pump(0.5, deadline)
-            # what each agent says it put on Zenoh, then everything routed before is recorded
-            save_counters(self.run_dir, ask_counters(session, AGENT_ORDER, timeout=5.0))
-            self._sync_recorder(session)
-            # the lines of communicates that came after the final report (another subscriber's
-            # thread) are still said: the person sees every step
-            while not self.events.empty():
-                self._pump(0.0, deadline)
+                self._play(session, step, deadline)
+            self._finish(session, deadline)
         except LaunchError as exc:
             detail = str(exc)
         except KeyboardInterrupt:
@@ -497,20 +476,90 @@ class ScenarioRunner:
         finally:
             if session is not None:
                 session.close()
-            while True:  # a Ctrl-C while the fleet stops starts its stop again: none is left
-                try:
-                    self.hosting.stop()
-                    break
-                except KeyboardInterrupt:
-                    detail, interrupted = "interrupted", True
+            if self._stop_hosting():
+                detail, interrupted = "interrupted", True
             with contextlib.suppress(LaunchError):  # no fleet when the two hosts were never made
                 self.info.processes = {**self.info.processes, **self.fleet.pids()}
         outcome = ScenarioOutcome(self.commands, detail, self.faults, self.t0, interrupted)
+        self._note_outcome(outcome)
+        return outcome
+
+    # ---- the phases of a run ----
+    def _open(self) -> zenoh.Session:
+        """Start the routers; the runner's session with them."""
+        self.hosting.start_routers()
+        self.info.router = self.endpoint
+        self._say(f"run folder {self.run_dir}; router {self.endpoint}")
+        return open_client(self.endpoint)
+
+    def _start_fleet(self, session: zenoh.Session) -> None:
+        """Hand ``session`` over, start the recorder, subscribe to the traffic and the reports,
+        start the agents and note them once all are alive."""
+        if self.on_session is not None:
+            self.on_session(session)
+        self.fleet.start_recorder()
+        self.fleet.wait_alive(session, ["recorder"], timeout=60)
+        session.declare_subscriber(keys.FIPA_ALL, self._on_traffic)
+        session.declare_subscriber(keys.HUMAN_OUT, self._on_report)
+        self.fleet.start_agents()
+        waited = self.fleet.wait_alive(session, AGENT_ORDER, timeout=120)
+        self.info.processes = self.fleet.pids()
+        write_run_info(self.run_dir, self.info)
+        self._say(f"all agents alive after {waited:.1f} s: {', '.join(AGENT_ORDER)}")
+
+    def _await_knowledge(self, deadline: float) -> None:
+        """Paper Table 7: a_km receives initial knowledge about the environment first (within
+        60 s, else LaunchError)."""
+        knowledge_by = time.monotonic() + 60
+        while not self.knowledge.is_set():
+            if time.monotonic() > knowledge_by:
+                raise LaunchError("a_km received no initial knowledge from a_ta within 60 s")
+            self._pump(0.1, deadline)
+        self._say("a_km has initial knowledge of the scene")
+
+    def _play(self, session: zenoh.Session, step: Step, deadline: float) -> None:
+        """One step: once its trigger holds and its delay has passed, its action."""
+        before = len(self.steps_seen)
+        while not self._ready(step, before):
+            self._pump(0.2, deadline)
+        delay = step.after.delay_s if step.after is not None else 0.0
+        if delay > 0:  # e.g. half-way through the step that triggered
+            until = time.monotonic() + delay
+            while (left := until - time.monotonic()) > 0:
+                self._pump(min(0.05, left), deadline)
+        self._act(session, step)
+        self.last_act = time.monotonic()
+
+    def _finish(self, session: zenoh.Session, deadline: float) -> None:
+        """Once every command has its outcome: the agents' counters saved, the recorder synced
+        and the remaining events taken."""
+        while any(c.final is None for c in self.commands):
+            self._pump(0.5, deadline)
+        # what each agent says it put on Zenoh, then everything routed before is recorded
+        save_counters(self.run_dir, ask_counters(session, AGENT_ORDER, timeout=5.0))
+        self._sync_recorder(session)
+        # the lines of communicates that came after the final report (another subscriber's
+        # thread) are still said: the person sees every step
+        while not self.events.empty():
+            self._pump(0.0, deadline)
+
+    def _stop_hosting(self) -> bool:
+        """Stop the fleet; whether a Ctrl-C came meanwhile (it starts the stop again: none is
+        left)."""
+        interrupted = False
+        while True:
+            try:
+                self.hosting.stop()
+                return interrupted
+            except KeyboardInterrupt:
+                interrupted = True
+
+    def _note_outcome(self, outcome: ScenarioOutcome) -> None:
+        """The run's end, its commands' outcomes and its verdict, into the run folder's info."""
         self.info.ended = time.time()
         self.info.outcomes = [c.run_command() for c in self.commands]
         self.info.succeeded = outcome.ok
-        self.info.detail = detail or "; ".join(
+        self.info.detail = outcome.detail or "; ".join(
             f"#{c.number} {c.final.kind.value}: {c.final.text}" for c in self.commands if c.final
         )
         write_run_info(self.run_dir, self.info)
-        return outcome

@@ -131,18 +131,29 @@ def merge_parts(run_dir: Path, *, wait: float = 0.0, poll: float = 0.05) -> Path
     closing); after it, the merge takes them as they are. A part that is still being written
     may end in a partial chunk: the merge then continues past the error.
     """
+    found, pending = _settled_parts(run_dir, wait, poll)
+    if not found:
+        return None
+    if pending:
+        log.warning("merging Rerun parts not marked done: %s", ", ".join(p.name for p in pending))
+    return _merge(found, run_dir / RECORDING_FILE)
+
+
+def _settled_parts(run_dir: Path, wait: float, poll: float) -> tuple[list[Path], list[Path]]:
+    """The run's parts once all are done or ``wait`` seconds have passed (looking every
+    ``poll`` seconds), and those not done then."""
     deadline = time.monotonic() + wait
     while True:
         found = parts(run_dir)
         pending = [p for p in found if not done_marker(p).exists()]
         if not pending or time.monotonic() >= deadline:
-            break
+            return found, pending
         time.sleep(poll)
-    if not found:
-        return None
-    if pending:
-        log.warning("merging Rerun parts not marked done: %s", ", ".join(p.name for p in pending))
-    out = run_dir / RECORDING_FILE
+
+
+def _merge(found: list[Path], out: Path) -> Path | None:
+    """``rerun rrd merge`` of the parts ``found`` into ``out`` (through a temporary file);
+    None when it failed (logged)."""
     tmp = out.with_name(out.name + ".tmp")
     cmd = [*rerun_cli(), "rrd", "merge", "--continue-on-error", "-o", str(tmp), *map(str, found)]
     env = dict(os.environ, RUST_LOG="warn")

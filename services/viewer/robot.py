@@ -303,6 +303,14 @@ def log_link_shapes(stream: rr.RecordingStream) -> None:
             stream.log(path, _shape(link.shape, PALM_COLOUR), static=True)
 
 
+def _finger_angles(joints: dict[str, float], side: str) -> list[float] | None:
+    """Hand ``side``'s finger angles, in :data:`FINGER_LINKS`' order (None: not all there)."""
+    angles = [joints.get(f"{side}_{link.joint}") for link in FINGER_LINKS]
+    if any(a is None for a in angles):
+        return None
+    return [float(a) for a in angles if a is not None]
+
+
 class RobotLogger:
     """Logs ag_ex's robot snapshots and observations to one recording part; keeps the last
     observed object poses and the grip-relative poses of held objects."""
@@ -328,43 +336,68 @@ class RobotLogger:
         """Log one robot state: grip frames, link poses, commanded grip frames, wrist F/T,
         joints, held objects (moved with their grips), changes of what is held and of the
         loop's holding, and the loop's timing when it changed."""
-        s = self.stream
         self._time(snap.sim_time, wall)
         self._grips = dict(snap.grip)
-        for side, pose in snap.grip.items():
-            s.log(f"{GRIP}/{side}", transform(pose))
-        for body, pose in snap.links.items():
-            s.log(f"{LINKS}/{body}", transform(pose))
+        self._log_poses(snap)
         self._log_fingers(snap.joints)
         self._log_setpoints(snap.setpoint)
-        for side, wrench in snap.ft.items():
-            for axis, value in zip(FT_AXES, wrench, strict=True):
-                s.log(f"{FT}/{side}/{axis}", rr.Scalars(value))
-        names = tuple(snap.joints)
-        if names != self._joint_names:
-            self._joint_names = names
-            s.log(JOINTS, rr.SeriesLines(names=list(names)), static=True)
-        s.log(JOINTS, rr.Scalars(np.fromiter(snap.joints.values(), dtype=float, count=len(names))))
-        for side, obj in snap.held_object.items():
-            if obj != self._held.get(side):
-                s.log("robot/held", rr.TextLog(f"{side} hand: {obj or 'empty'}"))
-                self._held[side] = obj
-                self._in_hand.pop(side, None)
-                if obj is not None and obj in self.objects and side in snap.grip:
-                    self._in_hand[side] = (obj, relative(snap.grip[side], self.objects[obj]))
-        for side, (obj, rel) in self._in_hand.items():
-            if side in snap.grip:
-                self.objects[obj] = compose(snap.grip[side], rel)
-                s.log(f"{OBJECTS}/{obj}", transform(self.objects[obj]))
-        if snap.holding != self._holding:
-            self._holding = snap.holding
-            s.log(
-                "robot/holding",
-                rr.TextLog(f"holding: {snap.holding}" if snap.holding else "serving", level="WARN"),
-            )
+        self._log_ft(snap)
+        self._log_joints(snap.joints)
+        self._log_held(snap)
+        self._move_held(snap)
+        self._log_holding(snap.holding)
         if snap.timing is not None and snap.timing.cycles != self._timing_cycles:
             self._timing_cycles = snap.timing.cycles
             self.timing(snap.timing)
+
+    def _log_poses(self, snap: RobotSnapshot) -> None:
+        """The grip frames and link poses."""
+        for side, pose in snap.grip.items():
+            self.stream.log(f"{GRIP}/{side}", transform(pose))
+        for body, pose in snap.links.items():
+            self.stream.log(f"{LINKS}/{body}", transform(pose))
+
+    def _log_ft(self, snap: RobotSnapshot) -> None:
+        """Each wrist's force/torque, one series per axis."""
+        for side, wrench in snap.ft.items():
+            for axis, value in zip(FT_AXES, wrench, strict=True):
+                self.stream.log(f"{FT}/{side}/{axis}", rr.Scalars(value))
+
+    def _log_joints(self, joints: dict[str, float]) -> None:
+        """The joint angles (their series' names, statically, when the joints changed)."""
+        names = tuple(joints)
+        if names != self._joint_names:
+            self._joint_names = names
+            self.stream.log(JOINTS, rr.SeriesLines(names=list(names)), static=True)
+        self.stream.log(JOINTS, rr.Scalars(np.fromiter(joints.values(), dtype=float, count=len(names))))
+
+    def _log_held(self, snap: RobotSnapshot) -> None:
+        """A change of what a hand holds; a known object taken in hand moves with its grip."""
+        for side, obj in snap.held_object.items():
+            if obj == self._held.get(side):
+                continue
+            self.stream.log("robot/held", rr.TextLog(f"{side} hand: {obj or 'empty'}"))
+            self._held[side] = obj
+            self._in_hand.pop(side, None)
+            if obj is not None and obj in self.objects and side in snap.grip:
+                self._in_hand[side] = (obj, relative(snap.grip[side], self.objects[obj]))
+
+    def _move_held(self, snap: RobotSnapshot) -> None:
+        """The objects in hand, where their grips are now."""
+        for side, (obj, rel) in self._in_hand.items():
+            if side in snap.grip:
+                self.objects[obj] = compose(snap.grip[side], rel)
+                self.stream.log(f"{OBJECTS}/{obj}", transform(self.objects[obj]))
+
+    def _log_holding(self, holding: str | None) -> None:
+        """A change of the loop's holding (what it holds for, or serving again)."""
+        if holding == self._holding:
+            return
+        self._holding = holding
+        self.stream.log(
+            "robot/holding",
+            rr.TextLog(f"holding: {holding}" if holding else "serving", level="WARN"),
+        )
 
     def timing(self, t: TimingStats) -> None:
         """Log the loop's deadline statistics as scalars (``robot/timing/…``, see module
@@ -388,16 +421,18 @@ class RobotLogger:
         ):
             s.log(f"{TIMING}/{name}", rr.Scalars(value))
 
+    def _fingers_moved(self, side: str, now: list[float]) -> bool:
+        """Whether a finger angle of hand ``side`` moved by more than ``FINGER_EPS`` since they
+        were last logged (or they never were)."""
+        last = self._fingers.get(side)
+        return last is None or max(abs(a - b) for a, b in zip(now, last, strict=True)) > FINGER_EPS
+
     def _log_fingers(self, joints: dict[str, float]) -> None:
         """Each hand's finger links when one of its finger angles moved by more than
         ``FINGER_EPS`` since they were last logged (a snapshot without them: nothing)."""
         for side in SNAPSHOT_SIDES:
-            angles = [joints.get(f"{side}_{link.joint}") for link in FINGER_LINKS]
-            if any(a is None for a in angles):
-                continue
-            now = [float(a) for a in angles if a is not None]
-            last = self._fingers.get(side)
-            if last is not None and max(abs(a - b) for a, b in zip(now, last, strict=True)) <= FINGER_EPS:
+            now = _finger_angles(joints, side)
+            if now is None or not self._fingers_moved(side, now):
                 continue
             self._fingers[side] = now
             for link, angle in zip(FINGER_LINKS, now, strict=True):

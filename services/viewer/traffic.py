@@ -23,7 +23,7 @@ import rerun as rr
 
 from services.spec.model import SystemSpec, load, spec_path
 from services.viewer.recording import Recording
-from shared.fipa_codec import DecodeError, decode
+from shared.fipa_codec import Communicate, DecodeError, decode
 from shared.fipa_codec.languages import ContentError, decode_content
 from shared.fipa_codec.languages.l_sw import SWStatus
 from shared.fipa_codec.string_form import to_string
@@ -92,6 +92,27 @@ class TrafficRow(Protocol):
     def conversation_id(self) -> str | None: ...
 
 
+def _line(msg: Communicate | None, record: TrafficRow) -> tuple[str, str]:
+    """The text line of a communicate (None: its payload is malformed) and its level."""
+    if msg is None:
+        return f"malformed {record.size} B on {record.key}", "WARN"
+    try:
+        return to_string(msg, human=True), "INFO"
+    except ValueError as exc:  # a :protocol, reply-by or user parameter SC00070 cannot carry
+        return f"not printable in the string form: {exc}", "WARN"
+
+
+def _sw_status(msg: Communicate | None) -> SWStatus | None:
+    """a_ta's L_SW state that ``msg`` carries, if it carries one."""
+    if msg is None or msg.language != "L_SW" or not msg.content:
+        return None
+    try:
+        term = decode_content(msg.language, msg.content)
+    except ContentError:  # a malformed L_SW content is the conformance checker's business
+        return None
+    return term if isinstance(term, SWStatus) else None
+
+
 class TrafficLogger:
     """Logs communicates (payloads as they crossed Zenoh, with their traffic records) to
     one recording part; keeps the per-channel bandwidth windows and a_ta's last step."""
@@ -131,19 +152,10 @@ class TrafficLogger:
         s.set_time(WALL, timestamp=record.t)
         receiver = ",".join(record.receivers)
         try:
-            msg = decode(payload)
+            msg: Communicate | None = decode(payload)
         except DecodeError:
             msg = None
-        if msg is None:
-            text = f"malformed {record.size} B on {record.key}"
-            level = "WARN"
-        else:
-            try:
-                text = to_string(msg, human=True)
-                level = "INFO"
-            except ValueError as exc:  # a :protocol, reply-by or user parameter SC00070 cannot carry
-                text = f"not printable in the string form: {exc}"
-                level = "WARN"
+        text, level = _line(msg, record)
         s.log(
             TRAFFIC_LOG,
             rr.TextLog(text, level=level),
@@ -164,13 +176,9 @@ class TrafficLogger:
             f"{BANDWIDTH}/{record.channel}",
             rr.Scalars(self.bandwidth(record.channel, record.t, record.size)),
         )
-        if msg is not None and msg.language == "L_SW" and msg.content:
-            try:
-                term = decode_content(msg.language, msg.content)
-            except ContentError:  # a malformed L_SW content is the conformance checker's business
-                return
-            if isinstance(term, SWStatus):
-                self.sw_status(term)
+        status = _sw_status(msg)
+        if status is not None:
+            self.sw_status(status)
 
     def sw_status(self, status: SWStatus) -> None:
         """Log a_ta's L_SW state and, when it changed, its HFSM step (at the current time)."""

@@ -54,6 +54,7 @@ import itertools
 import math
 from collections.abc import Iterable
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 import numpy as np
 import numpy.typing as npt
@@ -167,6 +168,50 @@ def _tilt_only(r: Array) -> Array:
     return out
 
 
+def _start_centre(observed: Array, camera: Array, radius: float) -> Array:
+    """The object's axis (x, y) to start the fit from: the centre of the circle through the
+    observed points, or (when there is none within ``radius`` of their mean) their mean moved
+    a third of ``radius`` away from the camera."""
+    centre = _circle_centre(observed[:, :2])
+    if centre is None or np.linalg.norm(centre - observed[:, :2].mean(axis=0)) > radius:
+        mean = observed[:, :2].mean(axis=0)
+        away = mean - np.asarray(camera, dtype=np.float64)[:2]
+        centre = mean + away / max(float(np.linalg.norm(away)), 1e-9) * radius / 3
+    return centre
+
+
+class _Fit(NamedTuple):
+    """One ICP fit: its result, transform (4 × 4, model from source), inliers, their share of
+    the source points and the RMS error (m)."""
+
+    result: small_gicp.RegistrationResult
+    t: Array
+    inliers: int
+    share: float
+    rmse: float
+
+
+def _is_upright(fit: _Fit) -> bool:
+    """Whether a fine fit passes as upright: enough inliers, a small error, little tilt."""
+    return fit.share >= MIN_INLIER_SHARE and fit.rmse <= MAX_RMSE and fit.t[2, 2] >= math.cos(MAX_TILT)
+
+
+def _rejection(fine: _Fit | None) -> str:
+    """Why an object is not seen when neither an upright nor a tipped fit passes."""
+    if fine is None:
+        return "no upright fit"
+    return f"fit rejected: {fine.share:.0%} inliers, rms {fine.rmse * 1e3:.1f} mm"
+
+
+def _stand(position: Array, c: Cluster) -> None:
+    """An upright fit's height: on its support plane when it stands (module docstring), on the
+    plane it was lifted from when the fit is within :data:`LIFT_GAP` of it."""
+    if c.standing:
+        position[2] = c.support
+    elif c.lifted_from is not None and position[2] - c.lifted_from <= LIFT_GAP:
+        position[2] = c.lifted_from  # the fit stands it on the plane after all
+
+
 class _Target:
     """An object model prepared for small_gicp: point cloud with normals and its KdTree."""
 
@@ -205,17 +250,18 @@ class Localiser:
             supports = support_heights(points)
         scored: list[tuple[float, str, Cluster]] = []
         for n in wanted:
-            model = self.targets[n].model
-            tolerance = TRANSPARENT_TOLERANCE if model.transparent else COLOUR_TOLERANCE
-            match = np.flatnonzero(colour_match(colours, model.rgba, tolerance))
-            parts = clusters(points, match, supports, model.height + 0.015, MIN_POINTS // 4)
-            for c in merge_within(parts, points, self._max_extent(model)):
-                if len(c.index) < MIN_POINTS:
-                    continue
-                c = lifted(points, match, c, self._max_extent(model) / 2, model.height + 0.015)
-                score = self._score(model, c)
-                if score is not None:
-                    scored.append((score, n, c))
+            scored += self._candidates(n, points, colours, supports)
+        out = self._assign(scored, points, camera_position)
+        for n in wanted:
+            if n not in out:
+                out[n] = ObjectEstimate(name=n, seen=False, reason="no cluster of its size and colour fits")
+        return out
+
+    def _assign(
+        self, scored: list[tuple[float, str, Cluster]], points: Array, camera_position: Array
+    ) -> dict[str, ObjectEstimate]:
+        """The objects fitted to their clusters, best score first: each object and each
+        cluster at most once."""
         out: dict[str, ObjectEstimate] = {}
         used: set[int] = set()
         for _, n, c in sorted(scored, key=lambda s: -s[0]):
@@ -225,10 +271,26 @@ class Localiser:
             if estimate.seen:
                 used.update(c.index.tolist())
                 out[n] = ObjectEstimate(**{**estimate.__dict__, "cluster": c.index})
-        for n in wanted:
-            if n not in out:
-                out[n] = ObjectEstimate(name=n, seen=False, reason="no cluster of its size and colour fits")
         return out
+
+    def _candidates(
+        self, n: str, points: Array, colours: npt.NDArray[np.uint8], supports: list[float]
+    ) -> list[tuple[float, str, Cluster]]:
+        """The clusters of object ``n``'s colour that may be it, each with its score (steps
+        2 and 3 of the module docstring)."""
+        model = self.targets[n].model
+        tolerance = TRANSPARENT_TOLERANCE if model.transparent else COLOUR_TOLERANCE
+        match = np.flatnonzero(colour_match(colours, model.rgba, tolerance))
+        parts = clusters(points, match, supports, model.height + 0.015, MIN_POINTS // 4)
+        scored: list[tuple[float, str, Cluster]] = []
+        for c in merge_within(parts, points, self._max_extent(model)):
+            if len(c.index) < MIN_POINTS:
+                continue
+            c = lifted(points, match, c, self._max_extent(model) / 2, model.height + 0.015)
+            score = self._score(model, c)
+            if score is not None:
+                scored.append((score, n, c))
+        return scored
 
     @staticmethod
     def _max_extent(model: ObjectModel) -> float:
@@ -253,18 +315,34 @@ class Localiser:
         it no tipped fit is tried)."""
         target = self.targets[name]
         model = target.model
-        centre = _circle_centre(observed[:, :2])
-        if centre is None or np.linalg.norm(centre - observed[:, :2].mean(axis=0)) > model.radius:
-            mean = observed[:, :2].mean(axis=0)
-            away = mean - np.asarray(camera, dtype=np.float64)[:2]
-            centre = mean + away / max(float(np.linalg.norm(away)), 1e-9) * model.radius / 3
-        start = np.array([*centre, c.support])
+        start = np.array([*_start_centre(observed, camera, model.radius), c.support])
         source, _ = small_gicp.preprocess_points(observed - start, downsampling_resolution=SOURCE_VOXEL)
         if source.size() < MIN_POINTS // 2:
             return ObjectEstimate(name=name, seen=False, reason=f"{source.size()} points after downsampling")
-        source_points = np.asarray(source.points())[:, :3]
         # a lifted object's bottom: its lowest point seen (the start), or its top seen less its height
         lifts = (0.0,) if c.standing else (0.0, c.top - model.height)
+        best = self._coarse(target, source, lifts)
+        fine = self._fine(target, source, best) if best is not None else None
+        upright = fine is not None and _is_upright(fine)
+        if fine is not None and upright:
+            fit = fine
+        else:
+            tipped = (
+                self._fit_tipped(target, source, cloud - start) if cloud is not None and c.standing else None
+            )
+            if tipped is None:
+                return ObjectEstimate(name=name, seen=False, reason=_rejection(fine))
+            result, share, rmse = tipped
+            fit = _Fit(result, result.T_target_source, int(result.num_inliers), share, rmse)
+        return self._estimate(name, c, start, fit, upright, len(observed))
+
+    def _coarse(
+        self, target: _Target, source: small_gicp.PointCloud, lifts: tuple[float, ...]
+    ) -> Array | None:
+        """The start of the fine fit: of the coarse fits from each of :data:`START_OFFSETS`
+        and ``lifts`` that keep the object upright, the one with the smallest truncated mean
+        squared distance of all points to the model (None: none keeps it upright)."""
+        source_points = np.asarray(source.points())[:, :3]
         best: tuple[float, Array] | None = None
         for (dx, dy), dz in itertools.product(START_OFFSETS, lifts):
             t = np.eye(4)
@@ -277,35 +355,29 @@ class Localiser:
             key = float(np.mean(np.minimum(np.asarray(sq), FINE_CORRESPONDENCE**2)))
             if best is None or key < best[0]:
                 best = (key, t)
-        upright = best is not None
-        if best is not None:
-            result = self._align(target, source, best[1], FINE_CORRESPONDENCE)
-            t = result.T_target_source
-            inliers = int(result.num_inliers)
-            share = inliers / source.size()
-            rmse = math.sqrt(2 * result.error / max(inliers, 1))
-            upright = share >= MIN_INLIER_SHARE and rmse <= MAX_RMSE and t[2, 2] >= math.cos(MAX_TILT)
-        if not upright:
-            tipped = (
-                self._fit_tipped(target, source, cloud - start) if cloud is not None and c.standing else None
-            )
-            if tipped is None:
-                why = (
-                    "no upright fit"
-                    if best is None
-                    else f"fit rejected: {share:.0%} inliers, rms {rmse * 1e3:.1f} mm"
-                )
-                return ObjectEstimate(name=name, seen=False, reason=why)
-            result, share, rmse = tipped
-            t = result.T_target_source
-            inliers = int(result.num_inliers)
-        inv: Array = np.asarray(np.linalg.inv(t), dtype=np.float64)  # object frame in the start frame
+        return best[1] if best is not None else None
+
+    def _fine(self, target: _Target, source: small_gicp.PointCloud, t: Array) -> _Fit:
+        """The fine fit from ``t``, with its inliers' share and RMS error."""
+        result = self._align(target, source, t, FINE_CORRESPONDENCE)
+        inliers = int(result.num_inliers)
+        share = inliers / source.size()
+        rmse = math.sqrt(2 * result.error / max(inliers, 1))
+        return _Fit(result, result.T_target_source, inliers, share, rmse)
+
+    def _estimate(
+        self, name: str, c: Cluster, start: Array, fit: _Fit, upright: bool, points: int
+    ) -> ObjectEstimate:
+        """The estimate of ``name`` from ``fit`` (in the frame of ``start``): an upright fit
+        stands on its support plane, the yaw of a symmetric object is not observed."""
+        model = self.targets[name].model
+        inv: Array = np.asarray(np.linalg.inv(fit.t), dtype=np.float64)  # object frame in the start frame
         rotation = inv[:3, :3]
         position = start + inv[:3, 3]
-        if upright and c.standing:
-            position[2] = c.support  # it stands on the support plane (module docstring)
-        elif upright and c.lifted_from is not None and position[2] - c.lifted_from <= LIFT_GAP:
-            position[2] = c.lifted_from  # the fit stands it on the plane after all
+        if upright:
+            _stand(position, c)
+        rmse = fit.rmse
+        result = fit.result
         yaw_observable = model.symmetry_deviation > YAW_OBSERVABLE_DEVIATION
         cov6 = rmse**2 * np.linalg.pinv(np.asarray(result.H))
         covariance = self._position_covariance(np.asarray(result.H), rmse)
@@ -321,8 +393,8 @@ class Localiser:
             yaw_observable=yaw_observable,
             yaw_sigma=yaw_sigma,
             rmse=rmse,
-            points=len(observed),
-            inliers=inliers,
+            points=points,
+            inliers=fit.inliers,
         )
 
     def _fit_tipped(

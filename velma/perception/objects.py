@@ -101,6 +101,16 @@ def _geom_frame(model: mujoco.MjModel, g: int) -> tuple[Array, Array]:
     return model.geom_pos[g].copy(), rot.reshape(3, 3)
 
 
+def _geom_surface(model: mujoco.MjModel, name: str, g: int) -> Array:
+    """Points on the surface of geom ``g`` of body ``name``, in the geom's frame; ValueError
+    unless it is a box or a cylinder."""
+    gtype = int(model.geom_type[g])
+    if gtype not in (mujoco.mjtGeom.mjGEOM_BOX, mujoco.mjtGeom.mjGEOM_CYLINDER):
+        raise ValueError(f"{name}: geom {g} is neither a box nor a cylinder")
+    size = model.geom_size[g]
+    return _box_surface(size) if gtype == mujoco.mjtGeom.mjGEOM_BOX else _cylinder_surface(size[0], size[1])
+
+
 def object_model(model: mujoco.MjModel, name: str) -> ObjectModel:
     """The model of object ``name`` from body ``name``'s geoms (module docstring). Raises
     ``KeyError`` for an unknown body and ``ValueError`` for a body with no geoms or with a geom
@@ -109,19 +119,11 @@ def object_model(model: mujoco.MjModel, name: str) -> ObjectModel:
     geoms = [g for g in range(model.ngeom) if model.geom_bodyid[g] == body]
     if not geoms:
         raise ValueError(f"body {name!r} has no geoms")
-    kinds = (mujoco.mjtGeom.mjGEOM_BOX, mujoco.mjtGeom.mjGEOM_CYLINDER)
     frames = [_geom_frame(model, g) for g in geoms]
     samples = []
     colours = []
     for g, (pos, rot) in zip(geoms, frames, strict=True):
-        gtype = int(model.geom_type[g])
-        if gtype not in kinds:
-            raise ValueError(f"{name}: geom {g} is neither a box nor a cylinder")
-        size = model.geom_size[g]
-        local = (
-            _box_surface(size) if gtype == mujoco.mjtGeom.mjGEOM_BOX else _cylinder_surface(size[0], size[1])
-        )
-        pts = local @ rot.T + pos
+        pts = _geom_surface(model, name, g) @ rot.T + pos
         keep = np.ones(len(pts), dtype=bool)
         for h, (hpos, hrot) in zip(geoms, frames, strict=True):
             if h != g:

@@ -84,9 +84,15 @@ def support_heights(points: Array) -> list[float]:
     return sorted(heights)
 
 
-def _components(keys: npt.NDArray[np.int64]) -> npt.NDArray[np.int64]:
-    """Labels of the 26-connected components of voxels ``keys`` (V × 3 integer coordinates,
-    unique): the smallest voxel index of its component, for each voxel."""
+_HALF_NEIGHBOURHOOD = tuple(
+    (dx, dy, dz) for dx in (-1, 0, 1) for dy in (-1, 0, 1) for dz in (-1, 0, 1) if (dx, dy, dz) > (0, 0, 0)
+)
+"""The offsets to half of a voxel's 26 neighbours (the other half: the same pairs reversed)."""
+
+
+def _neighbours(keys: npt.NDArray[np.int64]) -> tuple[npt.NDArray[np.int64], npt.NDArray[np.int64]]:
+    """The pairs of neighbouring voxels of ``keys`` (V × 3 integer coordinates, unique), as
+    two index arrays: each pair once."""
     v = len(keys)
     span = keys.max(axis=0) - keys.min(axis=0) + 3
     k = keys - keys.min(axis=0) + 1
@@ -94,17 +100,21 @@ def _components(keys: npt.NDArray[np.int64]) -> npt.NDArray[np.int64]:
     order = np.argsort(flat)
     sorted_flat = flat[order]
     pairs = []
-    for dx in (-1, 0, 1):
-        for dy in (-1, 0, 1):
-            for dz in (-1, 0, 1):
-                if (dx, dy, dz) <= (0, 0, 0):
-                    continue
-                target = flat + (dx * span[1] + dy) * span[2] + dz
-                pos = np.clip(np.searchsorted(sorted_flat, target), 0, v - 1)
-                hit = sorted_flat[pos] == target
-                pairs.append((np.flatnonzero(hit), order[pos[hit]]))
+    for dx, dy, dz in _HALF_NEIGHBOURHOOD:
+        target = flat + (dx * span[1] + dy) * span[2] + dz
+        pos = np.clip(np.searchsorted(sorted_flat, target), 0, v - 1)
+        hit = sorted_flat[pos] == target
+        pairs.append((np.flatnonzero(hit), order[pos[hit]]))
     a = np.concatenate([p[0] for p in pairs]) if pairs else np.zeros(0, dtype=np.int64)
     b = np.concatenate([p[1] for p in pairs]) if pairs else np.zeros(0, dtype=np.int64)
+    return a, b
+
+
+def _components(keys: npt.NDArray[np.int64]) -> npt.NDArray[np.int64]:
+    """Labels of the 26-connected components of voxels ``keys`` (V × 3 integer coordinates,
+    unique): the smallest voxel index of its component, for each voxel."""
+    v = len(keys)
+    a, b = _neighbours(keys)
     labels = np.arange(v)
     while True:
         m = np.minimum(labels[a], labels[b])
