@@ -40,7 +40,8 @@ A subclass declares its ``name`` (as in the specification), builds its FSM of be
   ``replayed``; ``published`` counts every communicate put on Zenoh (retransmissions and
   replays included: what the traffic record must hold of this agent's session, docs/recovery.md),
 - peer liveliness: :meth:`Agent.peer_changed` is called on the agent's thread whenever
-  another agent's token appears or disappears (the white pages, ``roco/alive/*``),
+  another agent's token appears or disappears (the white pages, ``roco/alive/*``), after the
+  subscriptions its roles keep with that peer acted on it (services/runtime/subscriptions.py),
 - a persistence hook, :meth:`Agent.persist`, called after every step once its output
   buffer is dispatched.
 - one thread at a time runs the elementary actions (it holds the agent's turn): the agent's
@@ -682,9 +683,10 @@ class Agent:
                     self._arrived.wait(timeout)
         for _ in range(len(self._inbox)):
             self._take(*self._inbox.popleft())
+        now = time.time()
+        self.roles.tick(now)  # subscription attempts that are due (services/runtime/subscriptions.py)
         self.protocol_states.commit()  # what arrived stays arrived; only sends are undone
         self._y_taken = len(self._y)  # so do the answers to it (not-understood, copies again)
-        now = time.time()
         for p in self.pending_replies.due(now):
             self.counters["retransmitted"] += 1
             self.log.info(
@@ -904,6 +906,7 @@ class Agent:
         else:
             self.peers.discard(peer)
             self.log.info("%s disappeared", peer)
+        self.roles.peer_changed(peer, alive)  # the subscriptions kept with it
         self.peer_changed(peer, alive)
 
     def restore_conversation(

@@ -36,6 +36,14 @@ FIPA machine of :mod:`shared.fipa_codec.protocols`) — owns what the protocol i
   ``failure`` with the reason instead of waiting for its deadline;
 - a reply in a conversation the role no longer has (abandoned, or from before a restart) is
   counted (``late_replies``) and dropped;
+- the opening of an open conversation again (the same reply-with from the same sender, FIPA
+  SC00061 §2.4: a retransmission that reached a restarted agent, or a copy that is not
+  byte-identical) is not handed to the agent: the participant role publishes again what the
+  conversation answered it and counts it (``repeated_requests``);
+- a fipa-subscribe initiator role declared ``resubscribes`` keeps its subscription open
+  (:meth:`Roles.subscribe`, services/runtime/subscriptions.py): it subscribes when the peer's
+  token appears and again after a refusal, failure or passed deadline, with a back-off, and
+  when the peer comes back; the agent handles the stream's informs only;
 - the conversation's state across a restart: :meth:`Conversation.keep` gives the
   communicate that opened it, :meth:`Roles.restore` takes it back in the state the agent
   names (and waits again for an unanswered opening of its own).
@@ -76,6 +84,7 @@ from shared.fipa_codec.protocols import INITIATOR, PARTICIPANT, Protocol, Role
 
 if TYPE_CHECKING:
     from services.runtime.agent import Agent, Received
+    from services.runtime.subscriptions import StandingSubscription
     from shared.fipa_codec import Communicate
 
 __all__ = [
@@ -148,6 +157,10 @@ class RoleDecl:
     unused: bool = False
     """An initiator role the specification gives the agent but in which it opens no
     conversation: it needs no handlers, and ``self.roles.open`` refuses it."""
+    resubscribes: bool = False
+    """A fipa-subscribe initiator role that keeps its subscription open itself
+    (:meth:`Roles.subscribe`, services/runtime/subscriptions.py): it handles ``agree``,
+    ``refuse`` and ``failure``; the agent handles the stream's ``inform``\\s only."""
 
     def __str__(self) -> str:
         where = "every channel" if self.channel == EVERY_CHANNEL else self.channel
@@ -161,12 +174,14 @@ def initiator(
     reply_by_s: float | None = None,
     retry_s: float | None = None,
     unused: bool = False,
+    resubscribes: bool = False,
 ) -> RoleDecl:
     """The initiator role of ``protocol`` on ``channel`` (or :data:`EVERY_CHANNEL`), in
     ``languages``: ``initiator(C3, FIPA_REQUEST, L_HFSM)``, each a name of
     services/spec/names.py (a plain string for a specification without one). ``unused``: the
     agent opens no conversation in it (see :attr:`RoleDecl.unused`). The role keeps the
-    names' spellings as plain ``str`` (:func:`_spelling`)."""
+    names' spellings as plain ``str`` (:func:`_spelling`). ``resubscribes``: the role keeps
+    its subscription open itself (:attr:`RoleDecl.resubscribes`)."""
     return RoleDecl(
         _spelling(channel),
         _spelling(protocol),
@@ -175,6 +190,7 @@ def initiator(
         reply_by_s,
         retry_s,
         unused,
+        resubscribes,
     )
 
 
@@ -429,7 +445,8 @@ def role_problems(
             continue
         machine = machine_of(spec, decl.protocol)
         for perf in sorted(
-            incoming(machine, decl.role) - optional(machine, decl.role), key=lambda p: p.value
+            incoming(machine, decl.role) - optional(machine, decl.role) - _kept_by_role(decl),
+            key=lambda p: p.value,
         ):
             if _handler_for(handlers, decl, perf) is None:
                 problems.append(
@@ -480,6 +497,14 @@ def agent_problems(spec: SystemSpec, agent: str, cls: type, files: Iterable[Path
         source = inspect.getsourcefile(owner)
         files = [Path(source)] if source is not None else []
     return problems + code_problems(spec, agent, declared, files)
+
+
+def _kept_by_role(decl: RoleDecl) -> frozenset[Performative]:
+    """What a role that keeps its subscription open (:attr:`RoleDecl.resubscribes`) handles
+    itself: every answer but the stream's ``inform``."""
+    if not decl.resubscribes:
+        return frozenset()
+    return frozenset({Performative.AGREE, Performative.REFUSE, Performative.FAILURE})
 
 
 def _normal(decl: RoleDecl) -> RoleDecl:
@@ -537,6 +562,9 @@ class Conversation:
     sent before the restart, so no reply in it is taken for a stale one."""
     cancels: set[str] = field(default_factory=set, repr=False)
     """The reply-with of every cancel this agent sent in it awaiting an answer."""
+    answered_last: str | None = field(default=None, repr=False)
+    """The reply-with of the peer's communicate this agent last answered in it (None: none
+    yet), what :meth:`answer_again` publishes the answers to."""
     _cancel: Received | None = field(default=None, repr=False)
     _cancelled: bool = field(default=False, repr=False)
 
@@ -559,6 +587,24 @@ class Conversation:
     def timed_out(self) -> bool:
         """The reply-by deadline passed before the peer answered (the runtime ended it)."""
         return self.last is not None and self.last.local
+
+    @property
+    def answers_to(self) -> str | None:
+        """The reply-with of this agent's communicate that :attr:`last` answers (its
+        in-reply-to; None: it answers none), to be compared with what :meth:`send` returned."""
+        return self.last.msg.in_reply_to if self.last is not None else None
+
+    def repeats(self, item: Received) -> bool:
+        """``item`` is the communicate that opened this conversation again: the same sender
+        and non-empty reply-with (FIPA SC00061 §2.4), e.g. a retransmission after a restart."""
+        opening = self.opening
+        reply_with = item.msg.reply_with
+        return (
+            opening is not None
+            and bool(reply_with)
+            and opening.msg.reply_with == reply_with
+            and opening.sender == item.sender
+        )
 
     @property
     def not_understood(self) -> bool:
@@ -693,12 +739,13 @@ class Conversation:
         self.stop_waiting()
         self.roles._forget(self)
 
-    def answer_again(self, in_reply_to: str) -> int:
+    def answer_again(self, in_reply_to: str | None = None) -> int:
         """Publish again, byte for byte, what this agent answered the peer's communicate
-        ``in_reply_to`` (e.g. the last ``confirm`` to a peer that may have restarted; a peer
-        that still has it drops the copy, services/runtime/dedup.py). Returns how many."""
+        ``in_reply_to`` (default :attr:`answered_last`: e.g. the last ``confirm`` to a peer
+        that may have restarted; a peer that still has it drops the copy,
+        services/runtime/dedup.py). Returns how many (0: nothing answered, or forgotten)."""
         agent = self.roles.agent
-        again = agent.dedup.answers(self.peer, in_reply_to)
+        again = agent.dedup.answers(self.peer, in_reply_to or self.answered_last)
         for key, payload in again:
             agent.emit(key, payload)
         return len(again)
@@ -733,6 +780,7 @@ class Roles:
             self._by_peer[(peer, decl.protocol)] = decl
         self._peer_of = {decl: peer for (peer, _), decl in self._by_peer.items()}
         self._open: OrderedDict[tuple[str, str], Conversation] = OrderedDict()
+        self._subscriptions: dict[RoleDecl, StandingSubscription] = {}
 
     # ---- the agent's side ---------------------------------------------------------------
     def role(self, channel: str, protocol: str) -> RoleDecl:
@@ -741,6 +789,74 @@ class Roles:
             if decl.channel == channel and decl.protocol == protocol:
                 return decl
         raise KeyError(f"{self.agent.name} declares no {protocol} role on {channel}")
+
+    def peer_of(self, decl: RoleDecl) -> str:
+        """The agent at the other end of ``decl``'s channel."""
+        return self._peer_of[decl]
+
+    def subscribe(
+        self,
+        channel: str,
+        protocol: str,
+        content: msgspec.Struct,
+        *,
+        conversation_id: str,
+        reply_by_s: float | None = None,
+        retry_s: tuple[float, float] = (1.0, 60.0),
+        at_start: bool = False,
+        same_id: bool = False,
+        while_away: bool = True,
+        on_subscribed: Callable[[Conversation], None] | None = None,
+        on_lost: Callable[[Conversation], None] | None = None,
+    ) -> StandingSubscription:
+        """Keep a subscription open in the initiator role on ``channel`` in ``protocol``
+        (declared ``resubscribes=True``), subscribing ``content`` (FIPA SC00035): the role
+        subscribes when the peer's token appears (``at_start``: at once), again with a doubling
+        back-off from ``retry_s[0]`` to ``retry_s[1]`` s after a refuse, failure, not-understood
+        or passed reply-by deadline (``reply_by_s`` s, the role's when None), and again when
+        the peer comes back; each attempt in conversation ``conversation_id`` (``-2``, ``-3``,
+        … added unless ``same_id``); ``while_away``: attempts go on while the peer's token is
+        away. ``on_subscribed``/``on_lost``: called with the conversation when the peer agrees,
+        and when an agreed subscription ends. Returns the handle (its ``subscribed``); the
+        agent handles the stream's ``inform``\\s. Raises KeyError for a role not declared or
+        not declared ``resubscribes``, ValueError for a back-off that is not (first ≤ longest)
+        (services/runtime/subscriptions.py)."""
+        from services.runtime.subscriptions import StandingSubscription
+
+        decl = self.role(channel, protocol)
+        if not decl.resubscribes or decl.role != INITIATOR:
+            raise KeyError(
+                f"{self.agent.name} declares no resubscribing initiator role of {protocol} on {channel}"
+            )
+        if decl in self._subscriptions:
+            raise KeyError(f"{self.agent.name} keeps a subscription of {protocol} on {channel} already")
+        sub = StandingSubscription(
+            self,
+            decl,
+            content,
+            conversation_id=conversation_id,
+            reply_by_s=reply_by_s if reply_by_s is not None else decl.reply_by_s,
+            retry_s=retry_s,
+            at_start=at_start,
+            same_id=same_id,
+            while_away=while_away,
+            on_subscribed=on_subscribed,
+            on_lost=on_lost,
+        )
+        self._subscriptions[decl] = sub
+        return sub
+
+    def peer_changed(self, peer: str, alive: bool) -> None:
+        """``peer``'s liveliness token appeared or disappeared: the subscriptions kept with it
+        act on it (services/runtime/subscriptions.py)."""
+        for sub in list(self._subscriptions.values()):
+            if sub.peer == peer:
+                sub.peer_changed(alive)
+
+    def tick(self, now: float) -> None:
+        """Make the subscription attempts due at POSIX time ``now``."""
+        for sub in self._subscriptions.values():
+            sub.tick(now)
 
     def open(
         self,
@@ -933,6 +1049,9 @@ class Roles:
         conv = self._open.get((item.sender, cid))
         machine = machine_of(agent.spec, protocol)
         if decl.role == PARTICIPANT and _opens(machine, perf):
+            if conv is not None and not item.local and conv.repeats(item):
+                self._repeated(conv, item)
+                return
             conv = Conversation(self, decl, item.sender, cid, opening=item)
             self._keep(conv)
         stale = (  # (a conversation restored after a restart does not know what it awaited)
@@ -966,8 +1085,11 @@ class Roles:
         )
         if cancel:
             conv._cancel = item
+        sub = self._subscriptions.get(decl)
         try:
-            if method is not None:
+            if sub is not None and not sub.take(conv):
+                pass  # an answer the subscription's role acts on itself
+            elif method is not None:
                 getattr(agent, method)(conv)
             elif cancel:
                 conv.refuse_with(Performative.FAILURE, "this conversation cannot be cancelled")
@@ -986,6 +1108,22 @@ class Roles:
         finally:
             conv._cancel = None
         self._settle(conv)
+
+    def _repeated(self, conv: Conversation, item: Received) -> None:
+        """The opening of ``conv`` came again (FIPA SC00061 §2.4: the same reply-with from the
+        same sender is the same communicate): e.g. a_hi's request retransmitted to an a_co that
+        restarted meanwhile, or a_co's plan sent again to an a_ta that kept it. It is not acted
+        on twice: what the conversation answered it is published again (none after a restart:
+        the peer hears the answers still to come), and it is counted (``repeated_requests``)."""
+        again = conv.answer_again(conv.opening.msg.reply_with if conv.opening is not None else None)
+        self.agent.counters["repeated_requests"] += 1
+        self.agent.log.info(
+            "%s from %s in conversation %s came again; not acted on twice (%d answer(s) sent again)",
+            item.performative.value,
+            item.sender,
+            conv.conversation_id,
+            again,
+        )
 
     def _fail_quietly(self, item: Received, reason: str) -> bool:
         """Answer ``item`` with ``failure`` and ``reason``; False when the conversation's state
@@ -1062,15 +1200,13 @@ class Roles:
             and "cancelling" in machine_of(self.agent.spec, conv.decl.protocol).states
         ):
             conv._cancelled = True  # the cancel meta-protocol: this inform says it is cancelled
-        return self._send(
-            conv,
-            performative,
-            content,
-            reply_by_s,
-            retry_s,
-            expect=False,
-            in_reply_to=answering.msg.reply_with if answering is not None and not answering.local else None,
+        in_reply_to = answering.msg.reply_with if answering is not None and not answering.local else None
+        reply_with = self._send(
+            conv, performative, content, reply_by_s, retry_s, expect=False, in_reply_to=in_reply_to
         ).reply_with
+        if in_reply_to is not None:
+            conv.answered_last = in_reply_to
+        return reply_with
 
     def _send(
         self,

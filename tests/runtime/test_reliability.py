@@ -227,7 +227,7 @@ def test_a_restarted_a_co_keeps_the_accepted_command_and_does_not_take_it_twice(
     assert list(second.agent.tasks) == ["cmd-1"] and second.agent.tasks["cmd-1"].command == POUR
     second.deliver(request)  # a_hi retransmitted: a copy the new a_co has never seen
     second.step("procReq")
-    assert second.agent.counters["repeated_commands"] == 1 and not second.mine(P.REFUSE, P.AGREE)
+    assert second.agent.counters["repeated_requests"] == 1 and not second.mine(P.REFUSE, P.AGREE)
     # the restored conversation goes on: the person's cancel is handled, not refused
     second.deliver(communicate(P.CANCEL, "a_hi", "a_co", "fipa-request", "cmd-1", POUR, reply_with="x1"))
     second.step("procReq")
@@ -569,7 +569,7 @@ def test_a_restarted_a_km_drops_an_update_sent_to_its_previous_process_and_keeps
         communicate(P.INFORM, "a_ta", "a_km", "fipa-subscribe", cid, fresh, in_reply_to=sub.reply_with)
     )
     km.step("idle")
-    assert km.agent.current == fresh and km.agent.subscribed  # the new subscription goes on
+    assert km.agent.current == fresh and km.agent.environment.subscribed  # the new subscription goes on
 
 
 def test_an_l_sw_inform_retransmitted_across_a_partition_is_its_copy_and_a_co_confirms_it_as_before(

@@ -29,7 +29,8 @@ Restarts (docs/recovery.md): every accepted command is kept in a_co's state file
 (services/runtime/state_store.py) after the step that agreed to it, with the plan a_ta runs,
 the progress subscription and the progress not yet sent; a restarted a_co reloads them,
 re-enters their conversations and plans again what was being planned. A copy of a command it
-already holds (a_hi retransmits until it hears the agree) is not accepted twice. When a_ta's
+already holds (a_hi retransmits until it hears the agree) is not accepted twice (the role
+recognises it: services/runtime/roles.py). When a_ta's
 liveliness token disappears while it runs a plan and comes back, a restarted a_ta that kept its
 plan reports Replan in the same conversation. a_co also sends its last confirm of that
 conversation again: the same a_ta (the token only looked gone, e.g. while the router restarted)
@@ -176,7 +177,6 @@ class Coordinator(Agent):
         self.kept = StateFile.for_agent(self.name, KeptCoordinator)
         self._kept_as: tuple[object, ...] | None = None  # signature of what was last written
         self.ta_lost = False  # a_ta's token disappeared while it ran a plan
-        self.last_confirmed: str | None = None  # reply-with of a_ta's last inform a_co confirmed
         self.tasks: dict[str, Task] = {}
         self.ta_task: str | None = None  # task whose plan a_ta runs (or is terminating)
         self.ta: Conversation | None = None  # the C1 conversation of the plan a_ta runs
@@ -274,13 +274,7 @@ class Coordinator(Agent):
             return
         now = time.time()
         task_id = conv.conversation_id or f"task-{len(self.tasks)}"
-        known = self.tasks.get(task_id)
-        if known is not None:
-            opening = known.request.opening
-            if opening is not None and opening.msg.reply_with == item.msg.reply_with and item.msg.reply_with:
-                self.counters["repeated_commands"] += 1
-                self.log.info("task %s: the request came again (a retransmission); already accepted", task_id)
-                return
+        if task_id in self.tasks:  # (the same request again is the role's: services/runtime/roles.py)
             conv.refuse_with(Performative.REFUSE, f"command {task_id} is already being carried out")
             return
         deadline = now + item.content.deadline_s if item.content.deadline_s is not None else None
@@ -426,7 +420,7 @@ class Coordinator(Agent):
                     t.replans,
                     t.plan_index,
                     t.plan.plan_id if t.plan is not None else None,
-                    t.cancel.msg.reply_with if t.cancel is not None else None,
+                    t.cancel,
                     t.detail,
                 )
                 for t in self.tasks.values()
@@ -525,9 +519,9 @@ class Coordinator(Agent):
         if not alive and self.ta_task is not None:
             self.ta_lost = True
             self.log.warning("a_ta disappeared while running %s; the robot holds position", self.ta_task)
-        elif alive and self.ta_lost and self.last_confirmed is not None and self.ta is not None:
+        elif alive and self.ta_lost and self.ta is not None and self.ta.answered_last is not None:
             self.log.info("a_ta is back: the last confirm goes again (a new a_ta will not know it)")
-            self.ta.answer_again(self.last_confirmed)
+            self.ta.answer_again()
 
     # ---- the person's commands (C2, fipa-request, participant) ----
     @handles(FIPA_REQUEST, PARTICIPANT, Performative.REQUEST)
@@ -653,7 +647,6 @@ class Coordinator(Agent):
         task = self.tasks.get(self.ta_task or "")
         if conv is not self.ta or task is None or conv.last is None:
             return
-        self.last_confirmed = conv.last.msg.reply_with
         self.ta_lost = False  # a_ta speaks in the plan's conversation
         if isinstance(conv.content, SWStatus):
             self._sw_state(task, conv.content)
@@ -721,7 +714,7 @@ class Coordinator(Agent):
                 t.plan, t.needs_plan = None, True
 
     def _release_ta(self) -> None:
-        self.ta_lost, self.last_confirmed = False, None
+        self.ta_lost = False
         if self.ta is not None:
             self.ta.stop_waiting()
         self.ta_task = None

@@ -7,11 +7,13 @@ Receptor: ``roco/human/in`` (:class:`HumanInput`, sentences). Effector: ``roco/h
   ``refuse``\\s) and ends with ``inform``/``failure`` :class:`CommandOutcome`. A stop
   request ("stop") sends ``cancel`` in every open command's conversation (the cancel
   meta-protocol); a_co answers the cancel with ``inform`` (stopped) or ``failure``.
-- **fipa-subscribe** once: ``subscribe`` a :class:`ProgressSubscription` at start-up; a_co
-  agrees and informs a :class:`Progress` at every change of a command's state. While a_co
-  does not agree (not up yet, or an a_co that does not serve subscriptions), a_hi retries
-  quietly, each attempt in a new conversation, with a growing interval; a_co's liveliness
-  token appearing triggers an attempt at once. Commands work without the subscription.
+- **fipa-subscribe** once: ``subscribe`` a :class:`ProgressSubscription` when a_co's
+  liveliness token appears; a_co agrees and informs a :class:`Progress` at every change of a
+  command's state. The role keeps the subscription open (services/runtime/subscriptions.py):
+  while a_co does not agree (an a_co that does not serve subscriptions) it retries quietly,
+  each attempt in a new conversation, the interval doubling from ``SUBSCRIBE_RETRY_S[0]`` to
+  ``SUBSCRIBE_RETRY_S[1]``; a_co's token appearing triggers an attempt at once. Commands work
+  without the subscription.
 - **fipa-query** per status request ("what are you doing?"): ``query-ref`` a
   :class:`StatusQuery`; a_co answers ``inform-ref`` a :class:`Status`.
 
@@ -57,7 +59,6 @@ the person who asked. Open stop requests and status queries are not kept (ask ag
 
 from __future__ import annotations
 
-import time
 from collections import OrderedDict, deque
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -100,6 +101,7 @@ from services.runtime.roles import (
     participant,
 )
 from services.runtime.state_store import StateFile
+from services.runtime.subscriptions import StandingSubscription
 from services.spec.names import C2, C7, C8, FIPA_QUERY, FIPA_REQUEST, FIPA_SUBSCRIBE, L_HC, L_WM
 from shared.fipa_codec import Performative
 from shared.fipa_codec.languages.l_hc import (
@@ -192,13 +194,6 @@ class KeptHumanInterface(msgspec.Struct, kw_only=True):
     commands: list[KeptCommand]
 
 
-@dataclass(frozen=True)
-class PeerAlive:
-    """Receptor event: a_co's liveliness token appeared (``alive``) or disappeared."""
-
-    alive: bool
-
-
 @dataclass
 class OpenCommand:
     """A command sent to a_co and not yet ended. ``conversation_id`` is its C2
@@ -284,9 +279,11 @@ class HumanInterface(Agent):
     """a_hi: sentences in, L_HC on C2 to a_co, readable reports out."""
 
     name = "a_hi"
+    progress: StandingSubscription
+    """a_co's progress stream (services/runtime/subscriptions.py), opened in :meth:`setup`."""
     ROLES: ClassVar[tuple[RoleDecl, ...]] = (
         initiator(C2, FIPA_REQUEST, L_HC, reply_by_s=AGREE_BY_S, retry_s=COMMAND_RETRY_S),
-        initiator(C2, FIPA_SUBSCRIBE, L_HC, reply_by_s=SUBSCRIBE_REPLY_BY_S),
+        initiator(C2, FIPA_SUBSCRIBE, L_HC, reply_by_s=SUBSCRIBE_REPLY_BY_S, resubscribes=True),
         initiator(C2, FIPA_QUERY, L_HC, reply_by_s=STATUS_REPLY_BY_S),
         initiator(C7, FIPA_QUERY, L_WM, reply_by_s=VOCABULARY_REPLY_BY_S),
         participant(C8, FIPA_REQUEST, L_HC),
@@ -311,14 +308,6 @@ class HumanInterface(Agent):
         self.ended: OrderedDict[str, tuple[str, str]] = OrderedDict()  # conversation → (request, label)
         self.stops: dict[str, StopRequest] = {}  # request_id → stop request
         self.queries: dict[str, str] = {}  # status query conversation → request_id
-        self.subscribed = False
-        self.subscription: str | None = None  # conversation of the latest attempt
-        self.sub_conversation: Conversation | None = None  # the latest attempt
-        self.sub_pending = False  # the latest attempt is unanswered
-        self.sub_attempts = 0
-        self.retry_at: float | None = None
-        self.retry_interval = SUBSCRIBE_RETRY_S[0]
-        self.co_alive = False  # a_co's liveliness token is present
         self._vocabulary: Vocabulary | None = None  # the last vocabulary a_km gave (None: none yet)
         self.dialogues: dict[str, Dialogue] = {}  # person → conversation
         self.held: deque[HeldSentence] = deque()  # sentences waiting for the vocabulary, in order
@@ -352,10 +341,15 @@ class HumanInterface(Agent):
         kept = self.kept.load()
         if kept is not None:
             self._restore(kept)
-        # the progress subscription is opened when a_co's liveliness token is seen (at once
-        # when a_co is up: the watch reports tokens that exist), so that it never waits on an
-        # a_co that is not there yet
-        self.transport.watch(keys.alive_key(CO), lambda key, alive: self.post(PeerAlive(alive)))
+        # opened when a_co's liveliness token is seen: it never waits on an a_co not there yet
+        self.progress = self.roles.subscribe(
+            C2,
+            FIPA_SUBSCRIBE,
+            ProgressSubscription(),
+            conversation_id=SUBSCRIPTION,
+            reply_by_s=SUBSCRIBE_REPLY_BY_S,
+            retry_s=SUBSCRIBE_RETRY_S,
+        )
 
     # ---- restarts ----------------------------------------------------------------------
     def persist(self) -> None:
@@ -400,18 +394,9 @@ class HumanInterface(Agent):
             event = self.r.popleft()
             if isinstance(event, HumanInput):
                 self._on_input(event)
-            elif isinstance(event, PeerAlive):
-                self._on_peer(event.alive)
             elif isinstance(event, ReadDone):
                 self._act_on_read()
         self.handle_received()
-        if (
-            not self.subscribed
-            and not self.sub_pending
-            and self.retry_at is not None
-            and time.time() >= self.retry_at
-        ):
-            self._subscribe()
 
     def _report(self, request_id: str, kind: ReportKind, text: str) -> None:
         self.log.info("to person [%s] %s: %s", request_id, kind.value, text)
@@ -607,7 +592,7 @@ class HumanInterface(Agent):
             C2, FIPA_REQUEST, command, conversation_id=self._conversation_id("cmd", event.request_id)
         )
         cid = conv.conversation_id
-        if not self.co_alive:
+        if CO not in self.peers:
             self.log.warning("a_co is not known to be alive; %s may wait %.0f s", cid, AGREE_BY_S)
         label = describe(intent.goal, self.grammar.words)
         self.commands[cid] = OpenCommand(cid, event.request_id, command, label, conv)
@@ -805,75 +790,11 @@ class HumanInterface(Agent):
             f"a_co did not tell me its status ({reason}); from its last reports:\n{known}",
         )
 
-    # ---- the progress subscription ---------------------------------------------------------
-    def _subscribe(self) -> None:
-        self.sub_attempts += 1
-        cid = SUBSCRIPTION if self.sub_attempts == 1 else f"{SUBSCRIPTION}-{self.sub_attempts}"
-        if self.sub_conversation is not None:  # the previous attempt is given up (or its a_co gone)
-            self.sub_conversation.stop_waiting()
-        self.sub_conversation = self.roles.open(
-            C2, FIPA_SUBSCRIBE, ProgressSubscription(), conversation_id=cid, reply_by_s=SUBSCRIBE_REPLY_BY_S
-        )
-        self.subscription = cid
-        self.sub_pending = True
-        self.retry_at = None
-
-    def _retry_later(self) -> None:
-        self.retry_at = time.time() + self.retry_interval
-        self.retry_interval = min(self.retry_interval * 2, SUBSCRIBE_RETRY_S[1])
-
-    def _on_peer(self, alive: bool) -> None:
-        self.co_alive = alive
-        if alive:
-            self.retry_interval = SUBSCRIBE_RETRY_S[0]
-            if not self.subscribed and not self.sub_pending:
-                self._subscribe()  # a_co (re)appeared: ask at once
-            # an attempt still pending (perhaps lost before a_co was up) times out, then
-            # the next one follows after the shortest interval
-        elif self.subscribed:
-            self.log.warning("a_co went away; progress reports pause until it is back")
-            self.subscribed = False
-            self.retry_interval = SUBSCRIBE_RETRY_S[0]
-            self._retry_later()
-
+    # ---- the progress subscription (fipa-subscribe, initiator; kept open by the role) ----
     @handles(FIPA_SUBSCRIBE, INITIATOR, Performative.INFORM)
     def _on_progress_inform(self, conv: Conversation) -> None:
-        if not isinstance(conv.content, Progress):
-            return  # the answer to the cancel of a superfluous subscription
-        if not self.subscribed and conv.conversation_id == self.subscription:
-            self._subscribed()
-        self._on_progress(conv.content)
-
-    @handles(FIPA_SUBSCRIBE, INITIATOR, Performative.AGREE)
-    def _on_subscription_agreed(self, conv: Conversation) -> None:
-        if conv.conversation_id == self.subscription:
-            self._subscribed()
-        else:  # an attempt given up agreed late: the latest attempt is the one to keep
-            conv.cancel(ProgressSubscription())
-
-    @handles(FIPA_SUBSCRIBE, INITIATOR, Performative.REFUSE, Performative.FAILURE)
-    def _on_subscription_refused(self, conv: Conversation) -> None:
-        """Refused, failed, not understood, or unanswered by the reply-by deadline."""
-        if conv.conversation_id != self.subscription or conv.answers_cancel:
-            return  # an attempt already given up
-        quiet = self.sub_attempts > 1
-        said = conv.last.performative.value if conv.last is not None else "failure"
-        (self.log.debug if quiet else self.log.info)(
-            "a_co did not take the progress subscription (%s: %s); retrying in %.0f s",
-            said,
-            _reason(conv),
-            self.retry_interval,
-        )
-        self.subscribed = False
-        self.sub_pending = False
-        self._retry_later()
-
-    def _subscribed(self) -> None:
-        self.subscribed = True
-        self.sub_pending = False
-        self.retry_at = None
-        self.retry_interval = SUBSCRIBE_RETRY_S[0]
-        self.log.info("a_co agreed to report progress (%s)", self.subscription)
+        if isinstance(conv.content, Progress):
+            self._on_progress(conv.content)
 
     def _on_progress(self, progress: Progress) -> None:
         cid = progress.command_id
@@ -893,7 +814,6 @@ class HumanInterface(Agent):
 __all__ = [
     "HumanInterface",
     "OpenCommand",
-    "PeerAlive",
     "StopRequest",
     "progress_text",
     "sentence",
