@@ -75,7 +75,8 @@ from services.runtime.limits import MAX_OPEN_CONVERSATIONS_PER_PEER
 from services.runtime.lookups import Lookups
 from services.runtime.protocol_state import ConversationError, ProtocolStates, expected_ontology
 from services.runtime.replies import Pending, PendingReplies
-from services.runtime.roles import RoleDecl, Roles
+from services.runtime.roles import Conversation, RoleDecl, Roles
+from services.runtime.state_store import KeptConversations, StateFile
 from services.runtime.transport import Transport
 from services.spec.model import Interface, SpecError, SystemSpec, default_spec, interface
 from services.spec.protocol_defs import machine_of, streams
@@ -233,6 +234,11 @@ class Agent:
         )
         self._stop = threading.Event()
         self.fsm = self.build_fsm()
+        self._kept_conversations: StateFile[KeptConversations] | None = (
+            StateFile.for_agent(self.name, KeptConversations) if self.roles.keeps else None
+        )
+        """The conversations the roles declared with ``keep`` keep (services/runtime/state_store.py)."""
+        self._take_back()
 
     # ---- to be provided by agents -------------------------------------------------------
     def build_fsm(self) -> FSM:
@@ -251,7 +257,42 @@ class Agent:
     def persist(self) -> None:
         """Runs after every step, once its output buffer is dispatched: an agent that must
         survive a restart writes its state here (so what it has said is what it keeps).
-        Keep it cheap: write only when the state changed."""
+        Keep it cheap: write only when the state changed. By default: the open conversations
+        of the roles declared with ``keep`` (services/runtime/roles.py :meth:`Roles.kept`),
+        written when they changed; an agent that keeps its own state file instead overrides
+        it. Raises OSError when the state folder cannot be written."""
+        if self._kept_conversations is not None:
+            self._kept_conversations.save(self.roles.kept())
+
+    def on_restored(self, conversation: Conversation) -> None:
+        """A conversation of a role declared with ``keep``, taken back after a restart (when
+        the agent is built, before :meth:`setup`): in its protocol state, with its
+        :attr:`~services.runtime.roles.Conversation.data` (docs/recovery.md). The agent
+        rebuilds what it holds of it here. Raising TypeError or ValueError (e.g. the opening
+        carries content of another type: ``conversation.opening_content(kind)``) drops it."""
+
+    def _take_back(self) -> None:
+        """Take back the conversations kept before a restart (:meth:`on_restored` each)."""
+        kept = self._kept_conversations.load() if self._kept_conversations is not None else None
+        if kept is None:
+            return
+        n = 0
+        for conv in self.roles.take_back(kept):
+            try:
+                self.on_restored(conv)
+            except (TypeError, ValueError) as exc:
+                self.log.warning(
+                    "a kept %s conversation cannot be taken back (%s): dropped", conv.decl.protocol, exc
+                )
+                conv.abandon()
+                continue
+            n += 1
+        if n:
+            self.log.info(
+                "took back %d kept conversation(s) from %s",
+                n,
+                self._kept_conversations.path if self._kept_conversations else "",
+            )
 
     # ---- sending -------------------------------------------------------------------------
     def send(

@@ -62,6 +62,7 @@ spec verify-code`` runs the same comparison for every agent without starting it.
 from __future__ import annotations
 
 import inspect
+import itertools
 import time
 from collections import OrderedDict
 from collections.abc import Callable, Collection, Iterable, Iterator, Sequence
@@ -84,6 +85,7 @@ from shared.fipa_codec.protocols import INITIATOR, PARTICIPANT, Protocol, Role
 
 if TYPE_CHECKING:
     from services.runtime.agent import Agent, Received
+    from services.runtime.state_store import KeptConversations
     from services.runtime.subscriptions import StandingSubscription
     from shared.fipa_codec import Communicate
 
@@ -157,6 +159,10 @@ class RoleDecl:
     unused: bool = False
     """An initiator role the specification gives the agent but in which it opens no
     conversation: it needs no handlers, and ``self.roles.open`` refuses it."""
+    keep: bool | type[msgspec.Struct] = False
+    """The role keeps its open conversations across a restart of the agent (docs/recovery.md,
+    :meth:`Roles.kept`, :meth:`Roles.take_back`); a msgspec Struct type: with the agent's
+    data of each (:attr:`Conversation.data`, an instance of it)."""
     resubscribes: bool = False
     """A fipa-subscribe initiator role that keeps its subscription open itself
     (:meth:`Roles.subscribe`, services/runtime/subscriptions.py): it handles ``agree``,
@@ -175,13 +181,15 @@ def initiator(
     retry_s: float | None = None,
     unused: bool = False,
     resubscribes: bool = False,
+    keep: bool | type[msgspec.Struct] = False,
 ) -> RoleDecl:
     """The initiator role of ``protocol`` on ``channel`` (or :data:`EVERY_CHANNEL`), in
     ``languages``: ``initiator(C3, FIPA_REQUEST, L_HFSM)``, each a name of
     services/spec/names.py (a plain string for a specification without one). ``unused``: the
     agent opens no conversation in it (see :attr:`RoleDecl.unused`). The role keeps the
     names' spellings as plain ``str`` (:func:`_spelling`). ``resubscribes``: the role keeps
-    its subscription open itself (:attr:`RoleDecl.resubscribes`)."""
+    its subscription open itself (:attr:`RoleDecl.resubscribes`); ``keep``: the role keeps its
+    conversations across a restart (:attr:`RoleDecl.keep`)."""
     return RoleDecl(
         _spelling(channel),
         _spelling(protocol),
@@ -190,17 +198,24 @@ def initiator(
         reply_by_s,
         retry_s,
         unused,
+        keep,
         resubscribes,
     )
 
 
-def participant(channel: str, protocol: str, *languages: str) -> RoleDecl:
+def participant(
+    channel: str, protocol: str, *languages: str, keep: bool | type[msgspec.Struct] = False
+) -> RoleDecl:
     """The participant role of ``protocol`` on ``channel`` (or :data:`EVERY_CHANNEL`: every
     channel where the specification makes the agent its participant in exactly ``languages``),
     in ``languages``: ``participant(C5, FIPA_REQUEST, L_EX, L_SD)``, named as by
-    :func:`initiator`."""
+    :func:`initiator`; ``keep`` as there."""
     return RoleDecl(
-        _spelling(channel), _spelling(protocol), PARTICIPANT, tuple(_spelling(lang) for lang in languages)
+        _spelling(channel),
+        _spelling(protocol),
+        PARTICIPANT,
+        tuple(_spelling(lang) for lang in languages),
+        keep=keep,
     )
 
 
@@ -567,6 +582,8 @@ class Conversation:
     yet), what :meth:`answer_again` publishes the answers to."""
     _cancel: Received | None = field(default=None, repr=False)
     _cancelled: bool = field(default=False, repr=False)
+    _seq: int = field(default=0, repr=False)  # the order in which the role took it up
+    _kept: bytes | None = field(default=None, repr=False)  # :meth:`keep`, once encoded
 
     @property
     def content(self) -> msgspec.Struct | None:
@@ -726,7 +743,9 @@ class Conversation:
         """The communicate that opened this conversation, encoded (FIPA SC00061 msgpack), to
         be kept across a restart and given back to :meth:`Roles.restore`."""
         assert self.opening is not None, "a conversation restored by its id alone has no opening"
-        return encode(self.opening.msg)
+        if self._kept is None:
+            self._kept = encode(self.opening.msg)
+        return self._kept
 
     def stop_waiting(self) -> None:
         """Stop waiting for replies in this conversation: no reply-by deadline, no
@@ -781,6 +800,9 @@ class Roles:
         self._peer_of = {decl: peer for (peer, _), decl in self._by_peer.items()}
         self._open: OrderedDict[tuple[str, str], Conversation] = OrderedDict()
         self._subscriptions: dict[RoleDecl, StandingSubscription] = {}
+        self._taken_up = itertools.count(1)
+        self.keeps = any(d.keep for d in self.declared)
+        """Some role keeps its conversations across a restart (:meth:`kept`)."""
 
     # ---- the agent's side ---------------------------------------------------------------
     def role(self, channel: str, protocol: str) -> RoleDecl:
@@ -982,6 +1004,85 @@ class Roles:
         self._keep(conv)
         return conv
 
+    def kept(self) -> KeptConversations:
+        """The open conversations of the roles declared with ``keep``, oldest first, as the
+        agent's state file keeps them (services/runtime/state_store.py): each with the protocol
+        state it is in, its opening and its :attr:`Conversation.data` (JSON of the Struct the
+        role declares). A conversation restored by its id alone, or one not yet begun, is left
+        out."""
+        from services.runtime.state_store import NO_DATA, KeptConversation, KeptConversations
+
+        out: list[KeptConversation] = []
+        for conv in sorted(self._open.values(), key=lambda c: c._seq):
+            keep = conv.decl.keep
+            state = conv.state if keep and conv.opening is not None and not conv.finished else None
+            if state is None:
+                continue
+            data = NO_DATA
+            if isinstance(keep, type) and conv.data is not None:
+                data = msgspec.Raw(msgspec.json.encode(conv.data))
+            out.append(
+                KeptConversation(
+                    channel=conv.decl.channel,
+                    protocol=conv.decl.protocol,
+                    state=state,
+                    opening=conv.keep(),
+                    data=data,
+                )
+            )
+        return KeptConversations(conversations=out)
+
+    def take_back(self, kept: KeptConversations) -> list[Conversation]:
+        """Re-enter the conversations ``kept`` by :meth:`kept` before a restart (docs/recovery.md):
+        a participant's in the protocol state it was in; an initiator's in the state its
+        opening leads to, the opening sent again (at once, then as the role retransmits, until
+        the reply-by deadline) — its participant answers a repeated opening as it answered it
+        (:meth:`_repeated`), so what was answered while this agent was down is not lost. Each
+        gets its :attr:`Conversation.data` back, decoded as the role declares. A conversation
+        that cannot be taken back (its role no longer keeps any, its data or opening does not
+        decode, no path leads to its state) is logged and left out. Returns those taken back,
+        oldest first."""
+        from services.runtime.agent import SpecViolation
+        from services.runtime.state_store import NO_DATA
+
+        out: list[Conversation] = []
+        for k in kept.conversations:
+            try:
+                decl = self.role(k.channel, k.protocol)
+                if not decl.keep:
+                    raise RestoreError(f"the {k.protocol} role on {k.channel} keeps no conversations")
+                data = None
+                if isinstance(decl.keep, type) and bytes(k.data) != bytes(NO_DATA):
+                    data = msgspec.json.decode(k.data, type=decl.keep)
+                state = k.state
+                if decl.role == INITIATOR:
+                    machine = machine_of(self.agent.spec, k.protocol)
+                    opened = machine.next_state(machine.initial, INITIATOR, decode(k.opening).performative)
+                    state = opened or state
+                conv = self.restore(
+                    k.channel,
+                    k.protocol,
+                    state,
+                    kept=k.opening,
+                    reply_by_s=decl.reply_by_s if decl.role == INITIATOR else None,
+                    retry_s=decl.retry_s if decl.role == INITIATOR else None,
+                    data=data,
+                )
+            except (
+                KeyError,
+                DecodeError,
+                RestoreError,
+                SpecViolation,
+                msgspec.DecodeError,
+                msgspec.ValidationError,
+            ) as exc:
+                self.agent.log.warning(
+                    "a kept %s conversation cannot be taken back (%s): dropped", k.protocol, exc
+                )
+                continue
+            out.append(conv)
+        return out
+
     def _await(
         self,
         conv: Conversation,
@@ -1161,6 +1262,8 @@ class Roles:
         return self._handlers[key] if key is not None else None
 
     def _keep(self, conv: Conversation) -> None:
+        if not conv._seq:
+            conv._seq = next(self._taken_up)
         key = (conv.peer, conv.conversation_id)
         self._open.pop(key, None)
         self._open[key] = conv

@@ -52,9 +52,10 @@ Every request from the person (command, stop, status) gets reports under its own
 ``request_id`` and ends with one report of a kind in FINAL_REPORTS (messages.py).
 
 Restarts (docs/recovery.md): a command's request is retransmitted until a_co agrees
-(a_co may be restarting; its runtime drops copies and answers them again). a_hi keeps its open
-commands in its state file; a restarted a_hi takes them back, so a_co's outcome still reaches
-the person who asked. Open stop requests and status queries are not kept (ask again).
+(a_co may be restarting; its runtime drops copies and answers them again). The fipa-request
+role keeps the open commands (``keep=CommandNote``: the runtime writes them to a_hi's state
+file); a restarted a_hi takes them back (:meth:`HumanInterface.on_restored`), so a_co's outcome
+still reaches the person who asked. Open stop requests and status queries are not kept (ask again).
 """
 
 from __future__ import annotations
@@ -94,13 +95,11 @@ from services.runtime.roles import (
     INITIATOR,
     PARTICIPANT,
     Conversation,
-    RestoreError,
     RoleDecl,
     handles,
     initiator,
     participant,
 )
-from services.runtime.state_store import StateFile
 from services.runtime.subscriptions import StandingSubscription
 from services.spec.names import C2, C7, C8, FIPA_QUERY, FIPA_REQUEST, FIPA_SUBSCRIBE, L_HC, L_WM
 from shared.fipa_codec import Performative
@@ -178,37 +177,46 @@ class WordsQuery:
     waiting: list[HeldSentence] = field(default_factory=list)
 
 
-class KeptCommand(msgspec.Struct, kw_only=True):
-    """An open command as a_hi keeps it across a restart: the request as sent (the encoded
-    communicate), the person's request id, its label, whether a_co agreed."""
+class CommandNote(msgspec.Struct, kw_only=True):
+    """What a_hi notes of a command's conversation (its :attr:`Conversation.data`, kept across
+    a restart by the role: ``keep=CommandNote``): the person's request id, the command's label,
+    whether a_co agreed."""
 
-    request: bytes
     request_id: str
     label: str
-    agreed: bool
-
-
-class KeptHumanInterface(msgspec.Struct, kw_only=True):
-    """a_hi's state file: its open commands."""
-
-    commands: list[KeptCommand]
+    agreed: bool = False
 
 
 @dataclass
 class OpenCommand:
     """A command sent to a_co and not yet ended. ``conversation_id`` is its C2
-    conversation (a_co's ``command_id``), ``conversation`` that conversation; ``cancel`` the
-    reply-with of an outstanding cancel; ``stoppers`` the stop requests waiting for its end."""
+    conversation (a_co's ``command_id``), ``conversation`` that conversation, ``note`` its
+    :class:`CommandNote` (the conversation's data); ``cancel`` the reply-with of an
+    outstanding cancel; ``stoppers`` the stop requests waiting for its end."""
 
     conversation_id: str
-    request_id: str
     command: HumanCommand
-    label: str
     conversation: Conversation
-    agreed: bool = False
+    note: CommandNote
     cancel: str | None = None
     stoppers: list[str] = field(default_factory=list)
     last: Progress | None = None
+
+    @property
+    def request_id(self) -> str:
+        return self.note.request_id
+
+    @property
+    def label(self) -> str:
+        return self.note.label
+
+    @property
+    def agreed(self) -> bool:
+        return self.note.agreed
+
+    @agreed.setter
+    def agreed(self, value: bool) -> None:
+        self.note.agreed = value
 
 
 @dataclass
@@ -282,7 +290,8 @@ class HumanInterface(Agent):
     progress: StandingSubscription
     """a_co's progress stream (services/runtime/subscriptions.py), opened in :meth:`setup`."""
     ROLES: ClassVar[tuple[RoleDecl, ...]] = (
-        initiator(C2, FIPA_REQUEST, L_HC, reply_by_s=AGREE_BY_S, retry_s=COMMAND_RETRY_S),
+        # open commands are kept across a restart, each sent again (docs/recovery.md)
+        initiator(C2, FIPA_REQUEST, L_HC, reply_by_s=AGREE_BY_S, retry_s=COMMAND_RETRY_S, keep=CommandNote),
         initiator(C2, FIPA_SUBSCRIBE, L_HC, reply_by_s=SUBSCRIBE_REPLY_BY_S, resubscribes=True),
         initiator(C2, FIPA_QUERY, L_HC, reply_by_s=STATUS_REPLY_BY_S),
         initiator(C7, FIPA_QUERY, L_WM, reply_by_s=VOCABULARY_REPLY_BY_S),
@@ -315,7 +324,6 @@ class HumanInterface(Agent):
         self.reader = LineReader(self.grammar, lambda: self.post(ReadDone()))
         self.vocab_queries: dict[str, WordsQuery] = {}  # C7 conversation → the question
         self.foreign: dict[str, Conversation] = {}  # request id → C8 conversation it answers
-        self.kept = StateFile.for_agent(self.name, KeptHumanInterface)
         return FSM(
             [
                 Behaviour(
@@ -338,9 +346,6 @@ class HumanInterface(Agent):
                 self.log.warning("ignored malformed human input: %s", exc)
 
         self.transport.subscribe(keys.HUMAN_IN, on_text)
-        kept = self.kept.load()
-        if kept is not None:
-            self._restore(kept)
         # opened when a_co's liveliness token is seen: it never waits on an a_co not there yet
         self.progress = self.roles.subscribe(
             C2,
@@ -352,41 +357,17 @@ class HumanInterface(Agent):
         )
 
     # ---- restarts ----------------------------------------------------------------------
-    def persist(self) -> None:
-        self.kept.save(
-            KeptHumanInterface(
-                commands=[
-                    KeptCommand(
-                        request=c.conversation.keep(), request_id=c.request_id, label=c.label, agreed=c.agreed
-                    )
-                    for c in self.commands.values()
-                ]
-            )
-        )
-
-    def _restore(self, kept: KeptHumanInterface) -> None:
-        """Take back the open commands of a previous a_hi and send each request again, agreed or
-        not: a_co answers a repeated request as it answered it (its agree, and its outcome when
-        the command ended while this a_hi was down, which would otherwise be lost)."""
-        for k in kept.commands:
-            try:
-                conv = self.roles.restore(
-                    C2,
-                    FIPA_REQUEST,
-                    "requested",
-                    kept=k.request,
-                    reply_by_s=AGREE_BY_S,
-                    retry_s=COMMAND_RETRY_S,
-                    expect=HumanCommand,
-                )
-            except RestoreError as exc:
-                self.log.warning("a kept command cannot be taken back (%s): dropped", exc)
-                continue
-            command = conv.opening_content(HumanCommand)
-            cid = conv.conversation_id
-            self.commands[cid] = OpenCommand(cid, k.request_id, command, k.label, conv, agreed=k.agreed)
-        if self.commands:
-            self.log.info("restored %d open command(s) from %s", len(self.commands), self.kept.path)
+    def on_restored(self, conversation: Conversation) -> None:
+        """An open command of a previous a_hi (its role keeps them): the runtime sends its
+        request again, agreed or not, and a_co answers a repeated request as it answered it
+        (its agree, and its outcome when the command ended while this a_hi was down, which
+        would otherwise be lost). Raises TypeError for a conversation that is no command."""
+        note = conversation.data
+        if not isinstance(note, CommandNote):
+            raise TypeError(f"conversation {conversation.conversation_id} has no note of a command")
+        command = conversation.opening_content(HumanCommand)
+        cid = conversation.conversation_id
+        self.commands[cid] = OpenCommand(cid, command, conversation, note)
 
     # ---- the behaviour -----------------------------------------------------------------
     def _interact(self) -> None:
@@ -588,14 +569,18 @@ class HumanInterface(Agent):
         command = HumanCommand(
             text=event.text, goal=intent.goal, priority=intent.priority, deadline_s=intent.deadline_s
         )
+        note = CommandNote(request_id=event.request_id, label=describe(intent.goal, self.grammar.words))
         conv = self.roles.open(
-            C2, FIPA_REQUEST, command, conversation_id=self._conversation_id("cmd", event.request_id)
+            C2,
+            FIPA_REQUEST,
+            command,
+            conversation_id=self._conversation_id("cmd", event.request_id),
+            data=note,
         )
         cid = conv.conversation_id
         if CO not in self.peers:
             self.log.warning("a_co is not known to be alive; %s may wait %.0f s", cid, AGREE_BY_S)
-        label = describe(intent.goal, self.grammar.words)
-        self.commands[cid] = OpenCommand(cid, event.request_id, command, label, conv)
+        self.commands[cid] = OpenCommand(cid, command, conv, note)
 
     def _stop_commands(self, request_id: str, named: str = "") -> None:
         """Cancel every open command for stop request ``request_id``; ``named``: what the
