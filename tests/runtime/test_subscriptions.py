@@ -1,21 +1,25 @@
 """The subscription a fipa-subscribe initiator role keeps open itself
-(services/runtime/subscriptions.py, FIPA SC00035), and a repeated opening recognised by the
-participant role (services/runtime/roles.py, FIPA SC00061 §2.4). The agents are driven by hand
+(services/runtime/subscriptions.py, FIPA SC00035), a repeated opening recognised by the
+participant role (services/runtime/roles.py, FIPA SC00061 §2.4), and the conversations a role
+declared with ``keep`` keeps across a restart (services/runtime/state_store.py). The agents are driven by hand
 on a MemoryBus, as in test_reliability.py; time is moved by setting the next attempt's time."""
 
 from __future__ import annotations
+
+from pathlib import Path
 
 import msgspec
 import pytest
 
 from services.agents.coordinator.agent import Coordinator
-from services.agents.human_interface.agent import HumanInterface
+from services.agents.human_interface.agent import CommandNote, HumanInterface
 from services.agents.knowledge.agent import KnowledgeManager
 from services.runtime import keys
 from services.runtime.memory_transport import MemoryBus
+from services.runtime.state_store import ENV_STATE_DIR, KeptConversations
 from shared.fipa_codec import Performative
 from shared.fipa_codec.languages.l_hc import HumanCommand, Progress, ProgressSubscription, TaskAtom, TaskState
-from tests.runtime.test_reliability import Wire
+from tests.runtime.test_reliability import Wire, a_hi_that_sent_the_pour
 from tests.support.messages import communicate
 
 P = Performative
@@ -138,3 +142,34 @@ def test_a_repeated_request_is_answered_again_by_the_role_not_handed_to_the_agen
     assert co.agent.counters["repeated_requests"] == 1 and not co.mine(P.REFUSE)
     assert [m.reply_with for m in co.mine(P.AGREE)] == [agree.reply_with] * 2  # its agree again
     assert list(co.agent.tasks) == ["cmd-1"]
+
+
+# ---- the conversations a role keeps across a restart (keep=) --------------------------------
+
+
+def test_kept_conversations_come_back_with_their_note_and_what_cannot_is_dropped(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, caplog: pytest.LogCaptureFixture
+) -> None:
+    """a_hi's fipa-request role keeps its open commands (``keep=CommandNote``): the runtime
+    writes each (opening, state, note) and takes it back when a new a_hi is built; a record
+    whose note does not decode, or of a role that keeps nothing, is dropped with a warning."""
+    monkeypatch.setenv(ENV_STATE_DIR, str(tmp_path))
+    _bus, _reports, first, request = a_hi_that_sent_the_pour("req-9")
+    kept = msgspec.json.decode((tmp_path / "a_hi.json").read_bytes(), type=KeptConversations)
+    (record,) = kept.conversations
+    assert (record.channel, record.protocol, record.state) == ("C2", "fipa-request", "requested")
+    assert msgspec.json.decode(record.data, type=CommandNote) == CommandNote(
+        request_id="req-9", label=first.agent.commands[request.conversation_id or ""].label
+    )
+    bad_note = msgspec.structs.replace(record, data=msgspec.Raw(b'{"label": 3}'))
+    no_keep = msgspec.structs.replace(record, channel="C7", protocol="fipa-query")
+    (tmp_path / "a_hi.json").write_bytes(
+        msgspec.json.encode(KeptConversations(conversations=[bad_note, no_keep, record]))
+    )
+    caplog.clear()
+    second = Wire(HumanInterface)
+    assert list(second.agent.commands) == [request.conversation_id]
+    dropped = [r.getMessage() for r in caplog.records if "cannot be taken back" in r.getMessage()]
+    assert len(dropped) == 2, dropped
+    note = second.agent.commands[request.conversation_id or ""].note
+    assert note.request_id == "req-9" and not note.agreed
