@@ -168,15 +168,6 @@ class ReadDone:
     """The reader (reading.py) is done with a line: act on the lines read, in order."""
 
 
-@dataclass
-class WordsQuery:
-    """A question to a_km for its vocabulary (C7): its ``conversation`` and the sentences
-    ``waiting`` for the answer (none for the question asked when a_km's token appears)."""
-
-    conversation: Conversation
-    waiting: list[HeldSentence] = field(default_factory=list)
-
-
 class CommandNote(msgspec.Struct, kw_only=True):
     """What a_hi notes of a command's conversation (its :attr:`Conversation.data`, kept across
     a restart by the role: ``keep=CommandNote``): the person's request id, the command's label,
@@ -316,13 +307,11 @@ class HumanInterface(Agent):
         self.asked: dict[str, RequestKind] = {}  # person's request id → what it was, until its final report
         self.ended: OrderedDict[str, tuple[str, str]] = OrderedDict()  # conversation → (request, label)
         self.stops: dict[str, StopRequest] = {}  # request_id → stop request
-        self.queries: dict[str, str] = {}  # status query conversation → request_id
         self._vocabulary: Vocabulary | None = None  # the last vocabulary a_km gave (None: none yet)
         self.dialogues: dict[str, Dialogue] = {}  # person → conversation
         self.held: deque[HeldSentence] = deque()  # sentences waiting for the vocabulary, in order
         self.reading: deque[Reading] = deque()  # sentences given to the reader, in order
         self.reader = LineReader(self.grammar, lambda: self.post(ReadDone()))
-        self.vocab_queries: dict[str, WordsQuery] = {}  # C7 conversation → the question
         self.foreign: dict[str, Conversation] = {}  # request id → C8 conversation it answers
         return FSM(
             [
@@ -469,15 +458,16 @@ class HumanInterface(Agent):
         self._ask_words(f"words-{event.request_id}-", held)
 
     def _ask_words(self, prefix: str, *waiting: HeldSentence) -> None:
-        """Ask a_km for its vocabulary (C7, ``query-ref``) for the ``waiting`` sentences."""
-        conv = self.roles.open(
+        """Ask a_km for its vocabulary (C7, ``query-ref``) for the ``waiting`` sentences (the
+        conversation's data; none for the question asked when a_km's token appears)."""
+        self.roles.open(
             C7,
             FIPA_QUERY,
             SparqlQuery(VOCABULARY_QUERY),
             performative=Performative.QUERY_REF,
             conversation_id=new_id(prefix),  # never one a_km has seen end
+            data=list(waiting),
         )
-        self.vocab_queries[conv.conversation_id] = WordsQuery(conv, list(waiting))
 
     def peer_changed(self, peer: str, alive: bool) -> None:
         """a_km's token appeared (a_km started or restarted): ask for its vocabulary at once, and
@@ -485,10 +475,9 @@ class HumanInterface(Agent):
         if peer != KM or not alive:
             return
         waiting: list[HeldSentence] = []
-        for query in self.vocab_queries.values():
-            query.conversation.abandon()  # asked of the a_km that went away, or before it was up
-            waiting += query.waiting
-        self.vocab_queries.clear()
+        for query in self.roles.conversations(C7, FIPA_QUERY):
+            query.abandon()  # asked of the a_km that went away, or before it was up
+            waiting += query.data  # the sentences it was asked for (see _ask_words)
         self._ask_words("words-", *waiting)
 
     def _read_held(self) -> None:
@@ -506,23 +495,21 @@ class HumanInterface(Agent):
 
     @handles(FIPA_QUERY, INITIATOR, Performative.INFORM_REF, Performative.INFORM, channel=C7)
     def _on_vocabulary(self, conv: Conversation) -> None:
-        query = self.vocab_queries.pop(conv.conversation_id, None)
         conv.abandon()
         if isinstance(conv.content, Answer) and conv.content.rows:
             self.vocabulary = Vocabulary.from_rows(conv.content.rows)
-        if query is not None and query.waiting:
-            for held in query.waiting:
+        if conv.data:
+            for held in conv.data:
                 held.ready, held.vocabulary = True, self.vocabulary
             self._read_held()
 
     @handles(FIPA_QUERY, INITIATOR, Performative.REFUSE, Performative.FAILURE, channel=C7)
     def _on_no_vocabulary(self, conv: Conversation) -> None:
         """Refused, failed, not understood or unanswered in time: read with the last vocabulary."""
-        query = self.vocab_queries.pop(conv.conversation_id, None)
         conv.abandon()
         self.log.warning("a_km gave no vocabulary (%s); reading with the last one", _reason(conv))
-        if query is not None and query.waiting:
-            for held in query.waiting:
+        if conv.data:
+            for held in conv.data:
                 held.ready = True
             self._read_held()
 
@@ -560,7 +547,8 @@ class HumanInterface(Agent):
     def _conversation_id(self, prefix: str, request_id: str) -> str:
         base = f"{prefix}-{request_id}"
         cid, n = base, 1
-        while cid in self.commands or cid in self.ended or cid in self.queries:
+        asking = {c.conversation_id for c in self.roles.conversations(C2, FIPA_QUERY)}
+        while cid in self.commands or cid in self.ended or cid in asking:
             n += 1
             cid = f"{base}-{n}"
         return cid
@@ -605,14 +593,14 @@ class HumanInterface(Agent):
         )
 
     def _ask_status(self, request_id: str) -> None:
-        conv = self.roles.open(
+        self.roles.open(
             C2,
             FIPA_QUERY,
             StatusQuery(),
             performative=Performative.QUERY_REF,
             conversation_id=self._conversation_id("status", request_id),
+            data=request_id,  # the person's request it answers
         )
-        self.queries[conv.conversation_id] = request_id
 
     # ---- a_co's answers to commands (fipa-request, initiator) ---------------------------
     def _open_command(self, conv: Conversation) -> OpenCommand | None:
@@ -750,10 +738,8 @@ class HumanInterface(Agent):
         self._status_answer(conv, False)
 
     def _status_answer(self, conv: Conversation, answered: bool) -> None:
-        request_id = self.queries.pop(conv.conversation_id, None)
-        if request_id is None:
-            return
-        conv.abandon()
+        request_id: str = conv.data  # (see _ask_status)
+        conv.abandon()  # (what a_co still sends in it is dropped by the role)
         labels = {c.conversation_id: c.label for c in self.commands.values()}
         status = conv.content
         if answered and isinstance(status, Status):
