@@ -76,7 +76,7 @@ from services.runtime.lookups import Lookups
 from services.runtime.protocol_state import ConversationError, ProtocolStates, expected_ontology
 from services.runtime.replies import Pending, PendingReplies
 from services.runtime.roles import Conversation, RoleDecl, Roles
-from services.runtime.state_store import KeptConversations, StateFile
+from services.runtime.state_store import NO_DATA, KeptConversations, StateFile
 from services.runtime.transport import Transport
 from services.spec.model import Interface, SpecError, SystemSpec, default_spec, interface
 from services.spec.protocol_defs import machine_of, streams
@@ -168,6 +168,11 @@ class Agent:
     interface in the specification when it starts (RoleMismatch, one line, when they differ).
     None: the agent declares none and handles its input buffer itself (checked at run time
     only)."""
+    NOTE: ClassVar[type[msgspec.Struct] | None] = None
+    """What the agent keeps across a restart besides the conversations of its roles declared
+    with ``keep`` (a msgspec Struct whose fields all have defaults): the runtime builds
+    :attr:`note` from it before :meth:`build_fsm`, writes it with those conversations after
+    every step that changed it, and gives it back before :meth:`on_restored` (docs/recovery.md)."""
     period: ClassVar[float] = 0.1
     """Sampling period (s) of communication states: the longest a waiting behaviour blocks (a
     periodic behaviour blocks no longer than until its next period is due:
@@ -233,9 +238,12 @@ class Agent:
             and Settings.from_env(only=("receive",)).receive != "agent-thread"
         )
         self._stop = threading.Event()
+        self.note: Any = self.NOTE() if self.NOTE is not None else None
+        """The agent's :attr:`NOTE`, kept across a restart by the runtime (None: none)."""
         self.fsm = self.build_fsm()
+        keeps = self.roles.keeps or self.NOTE is not None
         self._kept_conversations: StateFile[KeptConversations] | None = (
-            StateFile.for_agent(self.name, KeptConversations) if self.roles.keeps else None
+            StateFile.for_agent(self.name, KeptConversations) if keeps else None
         )
         """The conversations the roles declared with ``keep`` keep (services/runtime/state_store.py)."""
         self._take_back()
@@ -262,7 +270,10 @@ class Agent:
         written when they changed; an agent that keeps its own state file instead overrides
         it. Raises OSError when the state folder cannot be written."""
         if self._kept_conversations is not None:
-            self._kept_conversations.save(self.roles.kept())
+            kept = self.roles.kept()
+            if self.note is not None:
+                kept.note = msgspec.Raw(msgspec.json.encode(self.note))
+            self._kept_conversations.save(kept)
 
     def on_restored(self, conversation: Conversation) -> None:
         """A conversation of a role declared with ``keep``, taken back after a restart (when
@@ -276,6 +287,11 @@ class Agent:
         kept = self._kept_conversations.load() if self._kept_conversations is not None else None
         if kept is None:
             return
+        if self.NOTE is not None and bytes(kept.note) != bytes(NO_DATA):
+            try:
+                self.note = msgspec.json.decode(kept.note, type=self.NOTE)
+            except (msgspec.DecodeError, msgspec.ValidationError) as exc:
+                self.log.warning("the kept note does not decode (%s): a new one is begun", exc)
         n = 0
         for conv in self.roles.take_back(kept):
             try:

@@ -1008,14 +1008,15 @@ class Roles:
         """The open conversations of the roles declared with ``keep``, oldest first, as the
         agent's state file keeps them (services/runtime/state_store.py): each with the protocol
         state it is in, its opening and its :attr:`Conversation.data` (JSON of the Struct the
-        role declares). A conversation restored by its id alone, or one not yet begun, is left
-        out."""
+        role declares; a conversation of such a role is kept once the agent set its data). A
+        conversation restored by its id alone, or one not yet begun, is left out."""
         from services.runtime.state_store import NO_DATA, KeptConversation, KeptConversations
 
         out: list[KeptConversation] = []
         for conv in sorted(self._open.values(), key=lambda c: c._seq):
             keep = conv.decl.keep
-            state = conv.state if keep and conv.opening is not None and not conv.finished else None
+            noted = conv.data is not None or not isinstance(keep, type)  # its note once there is one
+            state = conv.state if keep and noted and conv.opening is not None and not conv.finished else None
             if state is None:
                 continue
             data = NO_DATA

@@ -47,9 +47,12 @@ class KeptConversation(msgspec.Struct, kw_only=True, frozen=True):
 
 
 class KeptConversations(msgspec.Struct, kw_only=True):
-    """The state file of an agent whose roles keep their conversations: them, oldest first."""
+    """The state file of an agent whose roles keep their conversations: them, oldest first,
+    and the agent's ``note`` (JSON of its ``NOTE`` Struct: what it keeps besides them, e.g.
+    a_co's progress made while no subscription was agreed; :data:`NO_DATA`: none)."""
 
     conversations: list[KeptConversation]
+    note: msgspec.Raw = msgspec.field(default_factory=lambda: NO_DATA)
 
 
 def state_dir() -> Path | None:

@@ -29,20 +29,6 @@ ROOT = Path(__file__).resolve().parents[2]
 
 ALLOWED: dict[tuple[str, str], str] = {
     (
-        "services/agents/coordinator/agent.py",
-        "defines KeptTask",
-    ): "a_co's commands keep scheduling state (plan index, replans, leaf, the person's cancel) "
-    "beside their C2 conversation; not yet moved to participant(C2, FIPA_REQUEST, keep=…)",
-    (
-        "services/agents/coordinator/agent.py",
-        "defines KeptCoordinator",
-    ): "a_co also keeps agent-wide state (the C1 conversation restored by id, progress not yet "
-    "sent) that no one conversation of a keep role holds",
-    (
-        "services/agents/coordinator/agent.py",
-        "builds a StateFile",
-    ): "a_co writes its own state file until KeptTask/KeptCoordinator are moved (above)",
-    (
         "services/agents/task_executor/agent.py",
         "defines KeptTaskExecutor",
     ): "a_ta's kept step is computed from its running HFSM at every persist (between two leaves: "

@@ -244,7 +244,7 @@ def test_a_restarted_a_co_goes_on_with_the_plan_a_ta_runs(
     first.deliver(communicate(P.REQUEST, "a_hi", "a_co", "fipa-request", "cmd-1", POUR, reply_with="r1"))
     first.step("procReq")
     task = first.agent.tasks["cmd-1"]
-    task.plan, task.needs_plan = PLAN, False
+    task.note.plan, task.needs_plan = PLAN, False
     first.agent.reschedule = True
     first.step("schedule")
     first.step("switch")
@@ -253,7 +253,7 @@ def test_a_restarted_a_co_goes_on_with_the_plan_a_ta_runs(
 
     second = Wire(Coordinator)
     second.agent.setup()
-    assert second.agent.ta_task == "cmd-1" and second.agent.tasks["cmd-1"].plan == PLAN
+    assert second.agent.note.ta_task == "cmd-1" and second.agent.tasks["cmd-1"].note.plan == PLAN
     # a_ta's reports go on in the plan's conversation: each is confirmed (the restored
     # conversation does not know what the previous a_co sent, so it takes every report)
     running = SWStatus(state=SWState.RUNNING, plan_id=PLAN.plan_id, step="pour(jar,bowl)/grasp")
@@ -426,7 +426,7 @@ def a_co_with_the_pour_planned() -> tuple[MemoryBus, Wire[Coordinator], MemoryTr
     co.deliver(communicate(P.REQUEST, "a_hi", "a_co", "fipa-request", "cmd-1", POUR, reply_with="r1"))
     co.step("procReq")
     task = co.agent.tasks["cmd-1"]
-    task.plan, task.needs_plan = PLAN, False
+    task.note.plan, task.needs_plan = PLAN, False
     return bus, co, ta
 
 
@@ -453,7 +453,7 @@ def test_a_co_probes_an_a_ta_that_reappears_and_plans_again_when_it_lost_the_pla
     # the same a_ta would drop the copy; a new one does not know the conversation
     co.deliver(communicate(P.NOT_UNDERSTOOD, "a_ta", "a_co", "coordinate", run.conversation_id))
     co.step("trigger")
-    assert co.agent.ta_task is None and task.state is TaskState.PLANNING and task.needs_plan
+    assert co.agent.note.ta_task is None and task.note.state is TaskState.PLANNING and task.needs_plan
     assert "cmd-1" in co.agent.tasks  # planned again, not failed
 
 
@@ -599,7 +599,7 @@ def test_an_l_sw_inform_retransmitted_across_a_partition_is_its_copy_and_a_co_co
     co.deliver(hi)
     co.step("procReq")
     task = co.agent.tasks["cmd-1"]
-    task.plan, task.needs_plan = PLAN, False
+    task.note.plan, task.needs_plan = PLAN, False
     co.agent.reschedule = True
     co.step("schedule")
     co.step("switch")
