@@ -31,8 +31,8 @@ ALLOWED: dict[tuple[str, str], str] = {
     (
         "services/agents/task_executor/agent.py",
         "defines KeptTaskExecutor",
-    ): "a_ta's kept step is computed from its running HFSM at every persist (between two leaves: "
-    "the next one), not yet noted on the C1 conversation's data",
+    ): "a_ta takes its plan back in state running whatever state it kept (it reports its outcome "
+    "again, not allowed from ending), and computes its kept step from its HFSM at every persist",
     (
         "services/agents/task_executor/agent.py",
         "builds a StateFile",
