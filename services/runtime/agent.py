@@ -43,7 +43,9 @@ A subclass declares its ``name`` (as in the specification), builds its FSM of be
   another agent's token appears or disappears (the white pages, ``roco/alive/*``), after the
   subscriptions its roles keep with that peer acted on it (services/runtime/subscriptions.py),
 - a persistence hook, :meth:`Agent.persist`, called after every step once its output
-  buffer is dispatched.
+  buffer is dispatched: by default it writes the open conversations of the roles declared
+  with ``keep`` and the agent's :attr:`Agent.NOTE` (services/runtime/state_store.py), given
+  back after a restart through :meth:`Agent.on_restored`.
 - one thread at a time runs the elementary actions (it holds the agent's turn): the agent's
   own, or, while the agent is idle, the transport's receiving thread a communicate arrived on
   (:meth:`Agent._take_here`: no hand-over between threads for a communicate that

@@ -46,7 +46,10 @@ FIPA machine of :mod:`shared.fipa_codec.protocols`) — owns what the protocol i
   when the peer comes back; the agent handles the stream's informs only;
 - the conversation's state across a restart: :meth:`Conversation.keep` gives the
   communicate that opened it, :meth:`Roles.restore` takes it back in the state the agent
-  names (and waits again for an unanswered opening of its own).
+  names (and waits again for an unanswered opening of its own); a role declared with ``keep``
+  has the runtime do it for each of its open conversations, with the agent's data of it
+  (:meth:`Roles.kept`, :meth:`Roles.take_back`; the agent gets each back in
+  ``on_restored(conversation)``, services/runtime/agent.py).
 
 An initiator role the specification gives an agent but in which it opens no conversation is
 declared ``unused`` (:func:`initiator`); it needs no handlers. To act on a timer (open a
