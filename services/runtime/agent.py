@@ -247,7 +247,8 @@ class Agent:
         self._kept_conversations: StateFile[KeptConversations] | None = (
             StateFile.for_agent(self.name, KeptConversations) if keeps else None
         )
-        """The conversations the roles declared with ``keep`` keep (services/runtime/state_store.py)."""
+        """Where the runtime keeps the conversations of the roles declared with ``keep`` and
+        :attr:`note` (services/runtime/state_store.py); None: the agent keeps neither."""
         self._take_back()
 
     # ---- to be provided by agents -------------------------------------------------------

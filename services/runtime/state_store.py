@@ -35,9 +35,10 @@ NO_DATA = msgspec.Raw(b"null")
 
 class KeptConversation(msgspec.Struct, kw_only=True, frozen=True):
     """One open conversation of a role declared with ``keep``: its role (``channel``,
-    ``protocol``), the protocol ``state`` it was in, the communicate that ``opening`` it
-    (FIPA SC00061 msgpack, :meth:`~services.runtime.roles.Conversation.keep`) and the agent's
-    ``data`` of it as JSON (an instance of the msgspec Struct the role declares; :data:`NO_DATA`: none)."""
+    ``protocol``), the protocol ``state`` it was in, ``opening``: the communicate that opened
+    it (FIPA SC00061 msgpack, :meth:`~services.runtime.roles.Conversation.keep`), and
+    ``data``: the agent's data of it as JSON (an instance of the msgspec Struct the role
+    declares; :data:`NO_DATA`: none)."""
 
     channel: str
     protocol: str
