@@ -40,9 +40,12 @@ A subclass declares its ``name`` (as in the specification), builds its FSM of be
   ``replayed``; ``published`` counts every communicate put on Zenoh (retransmissions and
   replays included: what the traffic record must hold of this agent's session, docs/recovery.md),
 - peer liveliness: :meth:`Agent.peer_changed` is called on the agent's thread whenever
-  another agent's token appears or disappears (the white pages, ``roco/alive/*``),
+  another agent's token appears or disappears (the white pages, ``roco/alive/*``), after the
+  subscriptions its roles keep with that peer acted on it (services/runtime/subscriptions.py),
 - a persistence hook, :meth:`Agent.persist`, called after every step once its output
-  buffer is dispatched.
+  buffer is dispatched: by default it writes the open conversations of the roles declared
+  with ``keep`` and the agent's :attr:`Agent.NOTE` (services/runtime/state_store.py), given
+  back after a restart through :meth:`Agent.on_restored`.
 - one thread at a time runs the elementary actions (it holds the agent's turn): the agent's
   own, or, while the agent is idle, the transport's receiving thread a communicate arrived on
   (:meth:`Agent._take_here`: no hand-over between threads for a communicate that
@@ -74,7 +77,8 @@ from services.runtime.limits import MAX_OPEN_CONVERSATIONS_PER_PEER
 from services.runtime.lookups import Lookups
 from services.runtime.protocol_state import ConversationError, ProtocolStates, expected_ontology
 from services.runtime.replies import Pending, PendingReplies
-from services.runtime.roles import RoleDecl, Roles
+from services.runtime.roles import Conversation, RoleDecl, Roles
+from services.runtime.state_store import NO_DATA, KeptConversations, StateFile
 from services.runtime.transport import Transport
 from services.spec.model import Interface, SpecError, SystemSpec, default_spec, interface
 from services.spec.protocol_defs import machine_of, streams
@@ -166,6 +170,11 @@ class Agent:
     interface in the specification when it starts (RoleMismatch, one line, when they differ).
     None: the agent declares none and handles its input buffer itself (checked at run time
     only)."""
+    NOTE: ClassVar[type[msgspec.Struct] | None] = None
+    """What the agent keeps across a restart besides the conversations of its roles declared
+    with ``keep`` (a msgspec Struct whose fields all have defaults): the runtime builds
+    :attr:`note` from it before :meth:`build_fsm`, writes it with those conversations after
+    every step that changed it, and gives it back before :meth:`on_restored` (docs/recovery.md)."""
     period: ClassVar[float] = 0.1
     """Sampling period (s) of communication states: the longest a waiting behaviour blocks (a
     periodic behaviour blocks no longer than until its next period is due:
@@ -231,7 +240,16 @@ class Agent:
             and Settings.from_env(only=("receive",)).receive != "agent-thread"
         )
         self._stop = threading.Event()
+        self.note: Any = self.NOTE() if self.NOTE is not None else None
+        """The agent's :attr:`NOTE`, kept across a restart by the runtime (None: none)."""
         self.fsm = self.build_fsm()
+        keeps = self.roles.keeps or self.NOTE is not None
+        self._kept_conversations: StateFile[KeptConversations] | None = (
+            StateFile.for_agent(self.name, KeptConversations) if keeps else None
+        )
+        """Where the runtime keeps the conversations of the roles declared with ``keep`` and
+        :attr:`note` (services/runtime/state_store.py); None: the agent keeps neither."""
+        self._take_back()
 
     # ---- to be provided by agents -------------------------------------------------------
     def build_fsm(self) -> FSM:
@@ -250,7 +268,50 @@ class Agent:
     def persist(self) -> None:
         """Runs after every step, once its output buffer is dispatched: an agent that must
         survive a restart writes its state here (so what it has said is what it keeps).
-        Keep it cheap: write only when the state changed."""
+        Keep it cheap: write only when the state changed. By default: the open conversations
+        of the roles declared with ``keep`` (services/runtime/roles.py :meth:`Roles.kept`),
+        written when they changed; an agent that keeps its own state file instead overrides
+        it. Raises OSError when the state folder cannot be written."""
+        if self._kept_conversations is not None:
+            kept = self.roles.kept()
+            if self.note is not None:
+                kept.note = msgspec.Raw(msgspec.json.encode(self.note))
+            self._kept_conversations.save(kept)
+
+    def on_restored(self, conversation: Conversation) -> None:
+        """A conversation of a role declared with ``keep``, taken back after a restart (when
+        the agent is built, before :meth:`setup`): in its protocol state, with its
+        :attr:`~services.runtime.roles.Conversation.data` (docs/recovery.md). The agent
+        rebuilds what it holds of it here. Raising TypeError or ValueError (e.g. the opening
+        carries content of another type: ``conversation.opening_content(kind)``) drops it."""
+
+    def _take_back(self) -> None:
+        """Take back the conversations kept before a restart (:meth:`on_restored` each)."""
+        kept = self._kept_conversations.load() if self._kept_conversations is not None else None
+        if kept is None:
+            return
+        if self.NOTE is not None and bytes(kept.note) != bytes(NO_DATA):
+            try:
+                self.note = msgspec.json.decode(kept.note, type=self.NOTE)
+            except (msgspec.DecodeError, msgspec.ValidationError) as exc:
+                self.log.warning("the kept note does not decode (%s): a new one is begun", exc)
+        n = 0
+        for conv in self.roles.take_back(kept):
+            try:
+                self.on_restored(conv)
+            except (TypeError, ValueError) as exc:
+                self.log.warning(
+                    "a kept %s conversation cannot be taken back (%s): dropped", conv.decl.protocol, exc
+                )
+                conv.abandon()
+                continue
+            n += 1
+        if n:
+            self.log.info(
+                "took back %d kept conversation(s) from %s",
+                n,
+                self._kept_conversations.path if self._kept_conversations else "",
+            )
 
     # ---- sending -------------------------------------------------------------------------
     def send(
@@ -682,9 +743,10 @@ class Agent:
                     self._arrived.wait(timeout)
         for _ in range(len(self._inbox)):
             self._take(*self._inbox.popleft())
+        now = time.time()
+        self.roles.tick(now)  # subscription attempts that are due (services/runtime/subscriptions.py)
         self.protocol_states.commit()  # what arrived stays arrived; only sends are undone
         self._y_taken = len(self._y)  # so do the answers to it (not-understood, copies again)
-        now = time.time()
         for p in self.pending_replies.due(now):
             self.counters["retransmitted"] += 1
             self.log.info(
@@ -904,6 +966,7 @@ class Agent:
         else:
             self.peers.discard(peer)
             self.log.info("%s disappeared", peer)
+        self.roles.peer_changed(peer, alive)  # the subscriptions kept with it
         self.peer_changed(peer, alive)
 
     def restore_conversation(

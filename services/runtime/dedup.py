@@ -11,7 +11,8 @@ reply-with identifies what an answer is in reply to).
 Memory is bounded: the last ``capacity`` digests and the answers to the last ``capacity``
 requests are kept (least recently used dropped first). After a restart an agent remembers
 nothing: agents that must not repeat work after a restart persist what they accepted
-(a_co's queue, a_hi's open commands) and recognise a repeated request by its reply-with.
+(a_co's queue, a_hi's open commands), and their participant roles recognise a repeated
+request by its reply-with (services/runtime/roles.py).
 """
 
 from __future__ import annotations

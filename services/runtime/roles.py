@@ -36,9 +36,20 @@ FIPA machine of :mod:`shared.fipa_codec.protocols`) — owns what the protocol i
   ``failure`` with the reason instead of waiting for its deadline;
 - a reply in a conversation the role no longer has (abandoned, or from before a restart) is
   counted (``late_replies``) and dropped;
+- the opening of an open conversation again (the same reply-with from the same sender, FIPA
+  SC00061 §2.4: a retransmission that reached a restarted agent, or a copy that is not
+  byte-identical) is not handed to the agent: the participant role publishes again what the
+  conversation answered it and counts it (``repeated_requests``);
+- a fipa-subscribe initiator role declared ``resubscribes`` keeps its subscription open
+  (:meth:`Roles.subscribe`, services/runtime/subscriptions.py): it subscribes when the peer's
+  token appears and again after a refusal, failure or passed deadline, with a back-off, and
+  when the peer comes back; the agent handles the stream's informs only;
 - the conversation's state across a restart: :meth:`Conversation.keep` gives the
   communicate that opened it, :meth:`Roles.restore` takes it back in the state the agent
-  names (and waits again for an unanswered opening of its own).
+  names (and waits again for an unanswered opening of its own); a role declared with ``keep``
+  has the runtime do it for each of its open conversations, with the agent's data of it
+  (:meth:`Roles.kept`, :meth:`Roles.take_back`; the agent gets each back in
+  ``on_restored(conversation)``, services/runtime/agent.py).
 
 An initiator role the specification gives an agent but in which it opens no conversation is
 declared ``unused`` (:func:`initiator`); it needs no handlers. To act on a timer (open a
@@ -54,6 +65,7 @@ spec verify-code`` runs the same comparison for every agent without starting it.
 from __future__ import annotations
 
 import inspect
+import itertools
 import time
 from collections import OrderedDict
 from collections.abc import Callable, Collection, Iterable, Iterator, Sequence
@@ -76,6 +88,8 @@ from shared.fipa_codec.protocols import INITIATOR, PARTICIPANT, Protocol, Role
 
 if TYPE_CHECKING:
     from services.runtime.agent import Agent, Received
+    from services.runtime.state_store import KeptConversations
+    from services.runtime.subscriptions import StandingSubscription
     from shared.fipa_codec import Communicate
 
 __all__ = [
@@ -148,6 +162,14 @@ class RoleDecl:
     unused: bool = False
     """An initiator role the specification gives the agent but in which it opens no
     conversation: it needs no handlers, and ``self.roles.open`` refuses it."""
+    keep: bool | type[msgspec.Struct] = False
+    """The role keeps its open conversations across a restart of the agent (docs/recovery.md,
+    :meth:`Roles.kept`, :meth:`Roles.take_back`); a msgspec Struct type: with the agent's
+    data of each (:attr:`Conversation.data`, an instance of it)."""
+    resubscribes: bool = False
+    """A fipa-subscribe initiator role that keeps its subscription open itself
+    (:meth:`Roles.subscribe`, services/runtime/subscriptions.py): it handles ``agree``,
+    ``refuse`` and ``failure``; the agent handles the stream's ``inform``\\s only."""
 
     def __str__(self) -> str:
         where = "every channel" if self.channel == EVERY_CHANNEL else self.channel
@@ -161,12 +183,16 @@ def initiator(
     reply_by_s: float | None = None,
     retry_s: float | None = None,
     unused: bool = False,
+    resubscribes: bool = False,
+    keep: bool | type[msgspec.Struct] = False,
 ) -> RoleDecl:
     """The initiator role of ``protocol`` on ``channel`` (or :data:`EVERY_CHANNEL`), in
     ``languages``: ``initiator(C3, FIPA_REQUEST, L_HFSM)``, each a name of
     services/spec/names.py (a plain string for a specification without one). ``unused``: the
     agent opens no conversation in it (see :attr:`RoleDecl.unused`). The role keeps the
-    names' spellings as plain ``str`` (:func:`_spelling`)."""
+    names' spellings as plain ``str`` (:func:`_spelling`). ``resubscribes``: the role keeps
+    its subscription open itself (:attr:`RoleDecl.resubscribes`); ``keep``: the role keeps its
+    conversations across a restart (:attr:`RoleDecl.keep`)."""
     return RoleDecl(
         _spelling(channel),
         _spelling(protocol),
@@ -175,16 +201,24 @@ def initiator(
         reply_by_s,
         retry_s,
         unused,
+        keep,
+        resubscribes,
     )
 
 
-def participant(channel: str, protocol: str, *languages: str) -> RoleDecl:
+def participant(
+    channel: str, protocol: str, *languages: str, keep: bool | type[msgspec.Struct] = False
+) -> RoleDecl:
     """The participant role of ``protocol`` on ``channel`` (or :data:`EVERY_CHANNEL`: every
     channel where the specification makes the agent its participant in exactly ``languages``),
     in ``languages``: ``participant(C5, FIPA_REQUEST, L_EX, L_SD)``, named as by
-    :func:`initiator`."""
+    :func:`initiator`; ``keep`` as there."""
     return RoleDecl(
-        _spelling(channel), _spelling(protocol), PARTICIPANT, tuple(_spelling(lang) for lang in languages)
+        _spelling(channel),
+        _spelling(protocol),
+        PARTICIPANT,
+        tuple(_spelling(lang) for lang in languages),
+        keep=keep,
     )
 
 
@@ -429,7 +463,8 @@ def role_problems(
             continue
         machine = machine_of(spec, decl.protocol)
         for perf in sorted(
-            incoming(machine, decl.role) - optional(machine, decl.role), key=lambda p: p.value
+            incoming(machine, decl.role) - optional(machine, decl.role) - _kept_by_role(decl),
+            key=lambda p: p.value,
         ):
             if _handler_for(handlers, decl, perf) is None:
                 problems.append(
@@ -480,6 +515,14 @@ def agent_problems(spec: SystemSpec, agent: str, cls: type, files: Iterable[Path
         source = inspect.getsourcefile(owner)
         files = [Path(source)] if source is not None else []
     return problems + code_problems(spec, agent, declared, files)
+
+
+def _kept_by_role(decl: RoleDecl) -> frozenset[Performative]:
+    """What a role that keeps its subscription open (:attr:`RoleDecl.resubscribes`) handles
+    itself: every answer but the stream's ``inform``."""
+    if not decl.resubscribes:
+        return frozenset()
+    return frozenset({Performative.AGREE, Performative.REFUSE, Performative.FAILURE})
 
 
 def _normal(decl: RoleDecl) -> RoleDecl:
@@ -537,8 +580,13 @@ class Conversation:
     sent before the restart, so no reply in it is taken for a stale one."""
     cancels: set[str] = field(default_factory=set, repr=False)
     """The reply-with of every cancel this agent sent in it awaiting an answer."""
+    answered_last: str | None = field(default=None, repr=False)
+    """The reply-with of the peer's communicate this agent last answered in it (None: none
+    yet), what :meth:`answer_again` publishes the answers to."""
     _cancel: Received | None = field(default=None, repr=False)
     _cancelled: bool = field(default=False, repr=False)
+    _seq: int = field(default=0, repr=False)  # the order in which the role took it up
+    _kept: bytes | None = field(default=None, repr=False)  # :meth:`keep`, once encoded
 
     @property
     def content(self) -> msgspec.Struct | None:
@@ -559,6 +607,24 @@ class Conversation:
     def timed_out(self) -> bool:
         """The reply-by deadline passed before the peer answered (the runtime ended it)."""
         return self.last is not None and self.last.local
+
+    @property
+    def answers_to(self) -> str | None:
+        """The reply-with of this agent's communicate that :attr:`last` answers (its
+        in-reply-to; None: it answers none), to be compared with what :meth:`send` returned."""
+        return self.last.msg.in_reply_to if self.last is not None else None
+
+    def repeats(self, item: Received) -> bool:
+        """``item`` is the communicate that opened this conversation again: the same sender
+        and non-empty reply-with (FIPA SC00061 §2.4), e.g. a retransmission after a restart."""
+        opening = self.opening
+        reply_with = item.msg.reply_with
+        return (
+            opening is not None
+            and bool(reply_with)
+            and opening.msg.reply_with == reply_with
+            and opening.sender == item.sender
+        )
 
     @property
     def not_understood(self) -> bool:
@@ -680,7 +746,9 @@ class Conversation:
         """The communicate that opened this conversation, encoded (FIPA SC00061 msgpack), to
         be kept across a restart and given back to :meth:`Roles.restore`."""
         assert self.opening is not None, "a conversation restored by its id alone has no opening"
-        return encode(self.opening.msg)
+        if self._kept is None:
+            self._kept = encode(self.opening.msg)
+        return self._kept
 
     def stop_waiting(self) -> None:
         """Stop waiting for replies in this conversation: no reply-by deadline, no
@@ -693,12 +761,13 @@ class Conversation:
         self.stop_waiting()
         self.roles._forget(self)
 
-    def answer_again(self, in_reply_to: str) -> int:
+    def answer_again(self, in_reply_to: str | None = None) -> int:
         """Publish again, byte for byte, what this agent answered the peer's communicate
-        ``in_reply_to`` (e.g. the last ``confirm`` to a peer that may have restarted; a peer
-        that still has it drops the copy, services/runtime/dedup.py). Returns how many."""
+        ``in_reply_to`` (default :attr:`answered_last`: e.g. the last ``confirm`` to a peer
+        that may have restarted; a peer that still has it drops the copy,
+        services/runtime/dedup.py). Returns how many (0: nothing answered, or forgotten)."""
         agent = self.roles.agent
-        again = agent.dedup.answers(self.peer, in_reply_to)
+        again = agent.dedup.answers(self.peer, in_reply_to or self.answered_last)
         for key, payload in again:
             agent.emit(key, payload)
         return len(again)
@@ -733,6 +802,10 @@ class Roles:
             self._by_peer[(peer, decl.protocol)] = decl
         self._peer_of = {decl: peer for (peer, _), decl in self._by_peer.items()}
         self._open: OrderedDict[tuple[str, str], Conversation] = OrderedDict()
+        self._subscriptions: dict[RoleDecl, StandingSubscription] = {}
+        self._taken_up = itertools.count(1)
+        self.keeps = any(d.keep for d in self.declared)
+        """Some role keeps its conversations across a restart (:meth:`kept`)."""
 
     # ---- the agent's side ---------------------------------------------------------------
     def role(self, channel: str, protocol: str) -> RoleDecl:
@@ -741,6 +814,74 @@ class Roles:
             if decl.channel == channel and decl.protocol == protocol:
                 return decl
         raise KeyError(f"{self.agent.name} declares no {protocol} role on {channel}")
+
+    def peer_of(self, decl: RoleDecl) -> str:
+        """The agent at the other end of ``decl``'s channel."""
+        return self._peer_of[decl]
+
+    def subscribe(
+        self,
+        channel: str,
+        protocol: str,
+        content: msgspec.Struct,
+        *,
+        conversation_id: str,
+        reply_by_s: float | None = None,
+        retry_s: tuple[float, float] = (1.0, 60.0),
+        at_start: bool = False,
+        same_id: bool = False,
+        while_away: bool = True,
+        on_subscribed: Callable[[Conversation], None] | None = None,
+        on_lost: Callable[[Conversation], None] | None = None,
+    ) -> StandingSubscription:
+        """Keep a subscription open in the initiator role on ``channel`` in ``protocol``
+        (declared ``resubscribes=True``), subscribing ``content`` (FIPA SC00035): the role
+        subscribes when the peer's token appears (``at_start``: at once), again with a doubling
+        back-off from ``retry_s[0]`` to ``retry_s[1]`` s after a refuse, failure, not-understood
+        or passed reply-by deadline (``reply_by_s`` s, the role's when None), and again when
+        the peer comes back; each attempt in conversation ``conversation_id`` (``-2``, ``-3``,
+        … added unless ``same_id``); ``while_away``: attempts go on while the peer's token is
+        away. ``on_subscribed``/``on_lost``: called with the conversation when the peer agrees,
+        and when an agreed subscription ends. Returns the handle (its ``subscribed``); the
+        agent handles the stream's ``inform``\\s. Raises KeyError for a role not declared or
+        not declared ``resubscribes``, ValueError for a back-off that is not (first ≤ longest)
+        (services/runtime/subscriptions.py)."""
+        from services.runtime.subscriptions import StandingSubscription
+
+        decl = self.role(channel, protocol)
+        if not decl.resubscribes or decl.role != INITIATOR:
+            raise KeyError(
+                f"{self.agent.name} declares no resubscribing initiator role of {protocol} on {channel}"
+            )
+        if decl in self._subscriptions:
+            raise KeyError(f"{self.agent.name} keeps a subscription of {protocol} on {channel} already")
+        sub = StandingSubscription(
+            self,
+            decl,
+            content,
+            conversation_id=conversation_id,
+            reply_by_s=reply_by_s if reply_by_s is not None else decl.reply_by_s,
+            retry_s=retry_s,
+            at_start=at_start,
+            same_id=same_id,
+            while_away=while_away,
+            on_subscribed=on_subscribed,
+            on_lost=on_lost,
+        )
+        self._subscriptions[decl] = sub
+        return sub
+
+    def peer_changed(self, peer: str, alive: bool) -> None:
+        """``peer``'s liveliness token appeared or disappeared: the subscriptions kept with it
+        act on it (services/runtime/subscriptions.py)."""
+        for sub in list(self._subscriptions.values()):
+            if sub.peer == peer:
+                sub.peer_changed(alive)
+
+    def tick(self, now: float) -> None:
+        """Make the subscription attempts due at POSIX time ``now``."""
+        for sub in self._subscriptions.values():
+            sub.tick(now)
 
     def open(
         self,
@@ -866,6 +1007,86 @@ class Roles:
         self._keep(conv)
         return conv
 
+    def kept(self) -> KeptConversations:
+        """The open conversations of the roles declared with ``keep``, oldest first, as the
+        agent's state file keeps them (services/runtime/state_store.py): each with the protocol
+        state it is in, its opening and its :attr:`Conversation.data` (JSON of the Struct the
+        role declares; a conversation of such a role is kept once the agent set its data). A
+        conversation restored by its id alone, or one not yet begun, is left out."""
+        from services.runtime.state_store import NO_DATA, KeptConversation, KeptConversations
+
+        out: list[KeptConversation] = []
+        for conv in sorted(self._open.values(), key=lambda c: c._seq):
+            keep = conv.decl.keep
+            noted = conv.data is not None or not isinstance(keep, type)  # its note once there is one
+            state = conv.state if keep and noted and conv.opening is not None and not conv.finished else None
+            if state is None:
+                continue
+            data = NO_DATA
+            if isinstance(keep, type) and conv.data is not None:
+                data = msgspec.Raw(msgspec.json.encode(conv.data))
+            out.append(
+                KeptConversation(
+                    channel=conv.decl.channel,
+                    protocol=conv.decl.protocol,
+                    state=state,
+                    opening=conv.keep(),
+                    data=data,
+                )
+            )
+        return KeptConversations(conversations=out)
+
+    def take_back(self, kept: KeptConversations) -> list[Conversation]:
+        """Re-enter the conversations ``kept`` by :meth:`kept` before a restart (docs/recovery.md):
+        a participant's in the protocol state it was in; an initiator's in the state its
+        opening leads to, the opening sent again (at once, then as the role retransmits, until
+        the reply-by deadline) — its participant answers a repeated opening as it answered it
+        (:meth:`_repeated`), so what was answered while this agent was down is not lost. Each
+        gets its :attr:`Conversation.data` back, decoded as the role declares. A conversation
+        that cannot be taken back (its role no longer keeps any, its data or opening does not
+        decode, no path leads to its state) is logged and left out. Returns those taken back,
+        oldest first."""
+        from services.runtime.agent import SpecViolation
+        from services.runtime.state_store import NO_DATA
+
+        out: list[Conversation] = []
+        for k in kept.conversations:
+            try:
+                decl = self.role(k.channel, k.protocol)
+                if not decl.keep:
+                    raise RestoreError(f"the {k.protocol} role on {k.channel} keeps no conversations")
+                data = None
+                if isinstance(decl.keep, type) and bytes(k.data) != bytes(NO_DATA):
+                    data = msgspec.json.decode(k.data, type=decl.keep)
+                state = k.state
+                if decl.role == INITIATOR:
+                    machine = machine_of(self.agent.spec, k.protocol)
+                    opened = machine.next_state(machine.initial, INITIATOR, decode(k.opening).performative)
+                    state = opened or state
+                conv = self.restore(
+                    k.channel,
+                    k.protocol,
+                    state,
+                    kept=k.opening,
+                    reply_by_s=decl.reply_by_s if decl.role == INITIATOR else None,
+                    retry_s=decl.retry_s if decl.role == INITIATOR else None,
+                    data=data,
+                )
+            except (
+                KeyError,
+                DecodeError,
+                RestoreError,
+                SpecViolation,
+                msgspec.DecodeError,
+                msgspec.ValidationError,
+            ) as exc:
+                self.agent.log.warning(
+                    "a kept %s conversation cannot be taken back (%s): dropped", k.protocol, exc
+                )
+                continue
+            out.append(conv)
+        return out
+
     def _await(
         self,
         conv: Conversation,
@@ -933,6 +1154,9 @@ class Roles:
         conv = self._open.get((item.sender, cid))
         machine = machine_of(agent.spec, protocol)
         if decl.role == PARTICIPANT and _opens(machine, perf):
+            if conv is not None and not item.local and conv.repeats(item):
+                self._repeated(conv, item)
+                return
             conv = Conversation(self, decl, item.sender, cid, opening=item)
             self._keep(conv)
         stale = (  # (a conversation restored after a restart does not know what it awaited)
@@ -966,8 +1190,11 @@ class Roles:
         )
         if cancel:
             conv._cancel = item
+        sub = self._subscriptions.get(decl)
         try:
-            if method is not None:
+            if sub is not None and not sub.take(conv):
+                pass  # an answer the subscription's role acts on itself
+            elif method is not None:
                 getattr(agent, method)(conv)
             elif cancel:
                 conv.refuse_with(Performative.FAILURE, "this conversation cannot be cancelled")
@@ -986,6 +1213,22 @@ class Roles:
         finally:
             conv._cancel = None
         self._settle(conv)
+
+    def _repeated(self, conv: Conversation, item: Received) -> None:
+        """The opening of ``conv`` came again (FIPA SC00061 §2.4: the same reply-with from the
+        same sender is the same communicate): e.g. a_hi's request retransmitted to an a_co that
+        restarted meanwhile, or a_co's plan sent again to an a_ta that kept it. It is not acted
+        on twice: what the conversation answered it is published again (none after a restart:
+        the peer hears the answers still to come), and it is counted (``repeated_requests``)."""
+        again = conv.answer_again(conv.opening.msg.reply_with if conv.opening is not None else None)
+        self.agent.counters["repeated_requests"] += 1
+        self.agent.log.info(
+            "%s from %s in conversation %s came again; not acted on twice (%d answer(s) sent again)",
+            item.performative.value,
+            item.sender,
+            conv.conversation_id,
+            again,
+        )
 
     def _fail_quietly(self, item: Received, reason: str) -> bool:
         """Answer ``item`` with ``failure`` and ``reason``; False when the conversation's state
@@ -1023,6 +1266,8 @@ class Roles:
         return self._handlers[key] if key is not None else None
 
     def _keep(self, conv: Conversation) -> None:
+        if not conv._seq:
+            conv._seq = next(self._taken_up)
         key = (conv.peer, conv.conversation_id)
         self._open.pop(key, None)
         self._open[key] = conv
@@ -1062,15 +1307,13 @@ class Roles:
             and "cancelling" in machine_of(self.agent.spec, conv.decl.protocol).states
         ):
             conv._cancelled = True  # the cancel meta-protocol: this inform says it is cancelled
-        return self._send(
-            conv,
-            performative,
-            content,
-            reply_by_s,
-            retry_s,
-            expect=False,
-            in_reply_to=answering.msg.reply_with if answering is not None and not answering.local else None,
+        in_reply_to = answering.msg.reply_with if answering is not None and not answering.local else None
+        reply_with = self._send(
+            conv, performative, content, reply_by_s, retry_s, expect=False, in_reply_to=in_reply_to
         ).reply_with
+        if in_reply_to is not None:
+            conv.answered_last = in_reply_to
+        return reply_with
 
     def _send(
         self,

@@ -5,6 +5,12 @@ The folder is ``ROCO_STATE_DIR`` when set (compose mounts a volume there), else
 starts empty), else none (nothing is kept: tests and one-off agents). Each agent writes one
 file, ``<folder>/<agent>.json``, atomically (a temporary file renamed over the old one), and
 only when its content changed.
+
+What an agent keeps is either its own value (:class:`StateFile`), or — for an agent whose
+roles are declared with ``keep`` (services/runtime/roles.py) — the open conversations of those
+roles, written and taken back by the runtime itself (:class:`KeptConversations`; the agent
+gets each back through :meth:`~services.runtime.agent.Agent.on_restored`). One agent uses one
+of the two: they share the file.
 """
 
 from __future__ import annotations
@@ -21,6 +27,33 @@ from shared.settings import Settings
 ENV_STATE_DIR = Settings.env_name("state_dir")
 T = TypeVar("T")
 log = logging.getLogger(__name__)
+
+
+NO_DATA = msgspec.Raw(b"null")
+"""The ``data`` of a kept conversation without any (JSON null)."""
+
+
+class KeptConversation(msgspec.Struct, kw_only=True, frozen=True):
+    """One open conversation of a role declared with ``keep``: its role (``channel``,
+    ``protocol``), the protocol ``state`` it was in, ``opening``: the communicate that opened
+    it (FIPA SC00061 msgpack, :meth:`~services.runtime.roles.Conversation.keep`), and
+    ``data``: the agent's data of it as JSON (an instance of the msgspec Struct the role
+    declares; :data:`NO_DATA`: none)."""
+
+    channel: str
+    protocol: str
+    state: str
+    opening: bytes
+    data: msgspec.Raw = msgspec.field(default_factory=lambda: NO_DATA)
+
+
+class KeptConversations(msgspec.Struct, kw_only=True):
+    """The state file of an agent whose roles keep their conversations: them, oldest first,
+    and the agent's ``note`` (JSON of its ``NOTE`` Struct: what it keeps besides them, e.g.
+    a_co's progress made while no subscription was agreed; :data:`NO_DATA`: none)."""
+
+    conversations: list[KeptConversation]
+    note: msgspec.Raw = msgspec.field(default_factory=lambda: NO_DATA)
 
 
 def state_dir() -> Path | None:

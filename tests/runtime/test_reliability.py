@@ -227,7 +227,7 @@ def test_a_restarted_a_co_keeps_the_accepted_command_and_does_not_take_it_twice(
     assert list(second.agent.tasks) == ["cmd-1"] and second.agent.tasks["cmd-1"].command == POUR
     second.deliver(request)  # a_hi retransmitted: a copy the new a_co has never seen
     second.step("procReq")
-    assert second.agent.counters["repeated_commands"] == 1 and not second.mine(P.REFUSE, P.AGREE)
+    assert second.agent.counters["repeated_requests"] == 1 and not second.mine(P.REFUSE, P.AGREE)
     # the restored conversation goes on: the person's cancel is handled, not refused
     second.deliver(communicate(P.CANCEL, "a_hi", "a_co", "fipa-request", "cmd-1", POUR, reply_with="x1"))
     second.step("procReq")
@@ -244,7 +244,7 @@ def test_a_restarted_a_co_goes_on_with_the_plan_a_ta_runs(
     first.deliver(communicate(P.REQUEST, "a_hi", "a_co", "fipa-request", "cmd-1", POUR, reply_with="r1"))
     first.step("procReq")
     task = first.agent.tasks["cmd-1"]
-    task.plan, task.needs_plan = PLAN, False
+    task.note.plan, task.needs_plan = PLAN, False
     first.agent.reschedule = True
     first.step("schedule")
     first.step("switch")
@@ -253,7 +253,7 @@ def test_a_restarted_a_co_goes_on_with_the_plan_a_ta_runs(
 
     second = Wire(Coordinator)
     second.agent.setup()
-    assert second.agent.ta_task == "cmd-1" and second.agent.tasks["cmd-1"].plan == PLAN
+    assert second.agent.note.ta_task == "cmd-1" and second.agent.tasks["cmd-1"].note.plan == PLAN
     # a_ta's reports go on in the plan's conversation: each is confirmed (the restored
     # conversation does not know what the previous a_co sent, so it takes every report)
     running = SWStatus(state=SWState.RUNNING, plan_id=PLAN.plan_id, step="pour(jar,bowl)/grasp")
@@ -426,7 +426,7 @@ def a_co_with_the_pour_planned() -> tuple[MemoryBus, Wire[Coordinator], MemoryTr
     co.deliver(communicate(P.REQUEST, "a_hi", "a_co", "fipa-request", "cmd-1", POUR, reply_with="r1"))
     co.step("procReq")
     task = co.agent.tasks["cmd-1"]
-    task.plan, task.needs_plan = PLAN, False
+    task.note.plan, task.needs_plan = PLAN, False
     return bus, co, ta
 
 
@@ -453,7 +453,7 @@ def test_a_co_probes_an_a_ta_that_reappears_and_plans_again_when_it_lost_the_pla
     # the same a_ta would drop the copy; a new one does not know the conversation
     co.deliver(communicate(P.NOT_UNDERSTOOD, "a_ta", "a_co", "coordinate", run.conversation_id))
     co.step("trigger")
-    assert co.agent.ta_task is None and task.state is TaskState.PLANNING and task.needs_plan
+    assert co.agent.note.ta_task is None and task.note.state is TaskState.PLANNING and task.needs_plan
     assert "cmd-1" in co.agent.tasks  # planned again, not failed
 
 
@@ -569,7 +569,7 @@ def test_a_restarted_a_km_drops_an_update_sent_to_its_previous_process_and_keeps
         communicate(P.INFORM, "a_ta", "a_km", "fipa-subscribe", cid, fresh, in_reply_to=sub.reply_with)
     )
     km.step("idle")
-    assert km.agent.current == fresh and km.agent.subscribed  # the new subscription goes on
+    assert km.agent.current == fresh and km.agent.environment.subscribed  # the new subscription goes on
 
 
 def test_an_l_sw_inform_retransmitted_across_a_partition_is_its_copy_and_a_co_confirms_it_as_before(
@@ -599,7 +599,7 @@ def test_an_l_sw_inform_retransmitted_across_a_partition_is_its_copy_and_a_co_co
     co.deliver(hi)
     co.step("procReq")
     task = co.agent.tasks["cmd-1"]
-    task.plan, task.needs_plan = PLAN, False
+    task.note.plan, task.needs_plan = PLAN, False
     co.agent.reschedule = True
     co.step("schedule")
     co.step("switch")

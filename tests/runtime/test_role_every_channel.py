@@ -25,7 +25,9 @@ from services.spec.model import DEFAULT_SPEC, default_spec, load
 from tests.spec_check.walkthrough import GROUP_EDIT, snippet, staged
 
 SPEC = default_spec()
-SUBSCRIBE = initiator("C6", "fipa-subscribe", "L_WM", reply_by_s=2.0)
+SUBSCRIBE = initiator(
+    "C6", "fipa-subscribe", "L_WM", reply_by_s=2.0, resubscribes=True
+)  # as a_km declares it
 HANDLERS = list(handlers_of(KnowledgeManager))
 
 

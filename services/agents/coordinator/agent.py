@@ -25,11 +25,14 @@ whenever the subscription comes. What is kept is bounded: ``PROGRESS_KEPT_PER_CO
 reports per command and ``PROGRESS_KEPT`` in all; past a bound the oldest report goes (counted
 as ``progress_dropped``).
 
-Restarts (docs/recovery.md): every accepted command is kept in a_co's state file
-(services/runtime/state_store.py) after the step that agreed to it, with the plan a_ta runs,
-the progress subscription and the progress not yet sent; a restarted a_co reloads them,
-re-enters their conversations and plans again what was being planned. A copy of a command it
-already holds (a_hi retransmits until it hears the agree) is not accepted twice. When a_ta's
+Restarts (docs/recovery.md): the roles keep every accepted command (``keep=TaskNote``: its
+conversation with what a_co notes of it) and the progress subscription, and the runtime keeps
+a_co's ``NOTE`` (the plan a_ta runs, the progress not yet sent), in a_co's state file
+(services/runtime/state_store.py) after the step that changed them; a restarted a_co gets them
+back (:meth:`Coordinator.on_restored`, then :meth:`Coordinator.setup`) and plans again what
+was being planned. A copy of a command it
+already holds (a_hi retransmits until it hears the agree) is not accepted twice (the role
+recognises it: services/runtime/roles.py). When a_ta's
 liveliness token disappears while it runs a plan and comes back, a restarted a_ta that kept its
 plan reports Replan in the same conversation. a_co also sends its last confirm of that
 conversation again: the same a_ta (the token only looked gone, e.g. while the router restarted)
@@ -55,12 +58,10 @@ from services.runtime.roles import (
     INITIATOR,
     PARTICIPANT,
     Conversation,
-    RestoreError,
     handles,
     initiator,
     participant,
 )
-from services.runtime.state_store import StateFile
 from services.spec.names import (
     C1,
     C2,
@@ -73,8 +74,8 @@ from services.spec.names import (
     L_HFSM,
     L_SW,
 )
-from shared.fipa_codec import DecodeError, Performative, decode, encode
-from shared.fipa_codec.languages import ContentError, decode_content
+from shared.fipa_codec import Performative, decode, encode
+from shared.fipa_codec.languages import decode_content
 from shared.fipa_codec.languages.l_hc import (
     CommandOutcome,
     HumanCommand,
@@ -102,14 +103,13 @@ PROGRESS_KEPT = 1024
 _ON_TA = (TaskState.RUNNING, TaskState.TERMINATING)
 
 
-@dataclass
-class Task:
-    """A command being coordinated. ``task_id`` is the C2 conversation-id; ``deadline`` a
-    POSIX time (None: none); ``order`` the order of acceptance."""
+class TaskNote(msgspec.Struct, kw_only=True):
+    """What a_co notes of a command: the data of its C2 conversation, which the role keeps
+    across a restart (``keep=TaskNote``; docs/recovery.md). Times are POSIX s (``deadline``
+    None: none); ``order`` the order of acceptance; ``leaf`` the index of the leaf a_ta runs;
+    ``cancel`` the person's cancel, answered when the robot is safe, as an encoded
+    communicate (FIPA SC00061 msgpack)."""
 
-    task_id: str
-    command: HumanCommand
-    request: Conversation
     accepted_at: float
     deadline: float | None
     order: int
@@ -117,43 +117,36 @@ class Task:
     plan: HierarchicalPlan | None = None
     plan_index: int = 0
     replans: int = 0
-    needs_plan: bool = True
-    planning: Conversation | None = None  # the outstanding plan request to a_pl
     step: str | None = None
-    leaf: int = 0  # index of the leaf a_ta runs
-    cancel: Received | None = None  # the person's cancel, answered when the robot is safe
+    leaf: int = 0
+    cancel: bytes | None = None
     detail: str = ""
 
 
-class KeptTask(msgspec.Struct, kw_only=True):
-    """One accepted command as a_co keeps it across a restart: the person's request and
-    cancel as encoded communicates (FIPA SC00061 msgpack), times as POSIX s."""
+class CoordinatorNote(msgspec.Struct, kw_only=True):
+    """What a_co keeps across a restart besides its conversations (its ``NOTE``): the task
+    whose plan a_ta runs (or is terminating), its C1 conversation, whether a cancel was sent
+    in it, and the progress made while no subscription was agreed, oldest first."""
 
-    request: bytes
-    accepted_at: float
-    deadline: float | None
-    order: int
-    state: TaskState
-    plan: HierarchicalPlan | None
-    plan_index: int
-    replans: int
-    step: str | None
-    leaf: int
-    cancel: bytes | None
-    detail: str
-
-
-class KeptCoordinator(msgspec.Struct, kw_only=True):
-    """a_co's state file: the commands, what a_ta runs (``ta_task``, the C1 conversation, its
-    reply-with, whether it was cancelled), a_hi's progress subscription and the progress made
-    while none was agreed, oldest first (``unsent``; absent in files of earlier versions)."""
-
-    tasks: list[KeptTask]
-    ta_task: str | None
-    ta_conversation: str | None
-    ta_cancelled: bool
-    subscription: bytes | None
+    ta_task: str | None = None
+    ta_conversation: str | None = None
+    ta_cancelled: bool = False
     unsent: list[Progress] = msgspec.field(default_factory=list)
+
+
+@dataclass
+class Task:
+    """A command being coordinated: ``task_id`` is the C2 conversation-id, ``request`` that
+    conversation and ``note`` its data; ``planning`` the outstanding plan request to a_pl;
+    ``cancel`` the person's cancel (noted encoded in ``note``)."""
+
+    task_id: str
+    command: HumanCommand
+    request: Conversation
+    note: TaskNote
+    needs_plan: bool = True
+    planning: Conversation | None = None
+    cancel: Received | None = None
 
 
 PersonSaid = tuple[Literal["command", "stop"], Conversation, Received]
@@ -162,9 +155,12 @@ PersonSaid = tuple[Literal["command", "stop"], Conversation, Received]
 
 class Coordinator(Agent):
     name = "a_co"
+    NOTE = CoordinatorNote
+    note: CoordinatorNote
     ROLES = (
-        participant(C2, FIPA_REQUEST, L_HC),
-        participant(C2, FIPA_SUBSCRIBE, L_HC),
+        # the commands and the progress subscription are kept across a restart (docs/recovery.md)
+        participant(C2, FIPA_REQUEST, L_HC, keep=TaskNote),
+        participant(C2, FIPA_SUBSCRIBE, L_HC, keep=True),
         participant(C2, FIPA_QUERY, L_HC),
         initiator(C3, FIPA_REQUEST, L_HFSM, reply_by_s=PLAN_REPLY_BY_S, retry_s=PLAN_RETRY_S),
         # a plan sent while a_ta (or the robot's router) is gone goes again when a_ta's token
@@ -173,18 +169,11 @@ class Coordinator(Agent):
     )
 
     def build_fsm(self) -> FSM:
-        self.kept = StateFile.for_agent(self.name, KeptCoordinator)
-        self._kept_as: tuple[object, ...] | None = None  # signature of what was last written
         self.ta_lost = False  # a_ta's token disappeared while it ran a plan
-        self.last_confirmed: str | None = None  # reply-with of a_ta's last inform a_co confirmed
         self.tasks: dict[str, Task] = {}
-        self.ta_task: str | None = None  # task whose plan a_ta runs (or is terminating)
         self.ta: Conversation | None = None  # the C1 conversation of the plan a_ta runs
-        self.ta_cancelled = False  # cancel sent in the current C1 conversation
         self.person: deque[PersonSaid] = deque()  # commands and stops for procReq
         self.subscription: Conversation | None = None  # a_hi's progress subscription
-        self.unsent: deque[Progress] = deque()  # progress made while no subscription was agreed
-        self.unsent_changes = 0  # counts changes of ``unsent`` (the state file's signature)
         self.decision: Decision = Decision(None, False, "")
         self.reschedule = False
         self.decisions: list[Decision] = []
@@ -244,10 +233,12 @@ class Coordinator(Agent):
         return bool(self.person)
 
     def _plans_needed(self) -> bool:
-        return any(t.needs_plan and t.planning is None and t.state not in _ON_TA for t in self.tasks.values())
+        return any(
+            t.needs_plan and t.planning is None and t.note.state not in _ON_TA for t in self.tasks.values()
+        )
 
     def _robot_free(self) -> bool:
-        return self.ta_task is None
+        return self.note.ta_task is None
 
     def _has_work(self) -> bool:
         return self._person_spoke() or self._plans_needed() or self.reschedule
@@ -274,17 +265,12 @@ class Coordinator(Agent):
             return
         now = time.time()
         task_id = conv.conversation_id or f"task-{len(self.tasks)}"
-        known = self.tasks.get(task_id)
-        if known is not None:
-            opening = known.request.opening
-            if opening is not None and opening.msg.reply_with == item.msg.reply_with and item.msg.reply_with:
-                self.counters["repeated_commands"] += 1
-                self.log.info("task %s: the request came again (a retransmission); already accepted", task_id)
-                return
+        if task_id in self.tasks:  # (the same request again is the role's: services/runtime/roles.py)
             conv.refuse_with(Performative.REFUSE, f"command {task_id} is already being carried out")
             return
         deadline = now + item.content.deadline_s if item.content.deadline_s is not None else None
-        task = Task(task_id, item.content, conv, now, deadline, next(self._order))
+        conv.data = TaskNote(accepted_at=now, deadline=deadline, order=next(self._order))
+        task = Task(task_id, item.content, conv, conv.data)
         self.tasks[task_id] = task
         conv.reply(Performative.AGREE)
         self._progress(task, TaskState.WAITING, detail="accepted")
@@ -297,8 +283,8 @@ class Coordinator(Agent):
         if task is None:
             conv.refuse_with(Performative.FAILURE, "no such command (it may have ended already)", to=cancel)
             return
-        task.cancel = cancel
-        if task.task_id == self.ta_task:
+        task.cancel, task.note.cancel = cancel, encode(cancel.msg)
+        if task.task_id == self.note.ta_task:
             self._cancel_ta(f"stopped by the person: {task.command.text}")
             return
         if task.planning is not None:
@@ -307,21 +293,21 @@ class Coordinator(Agent):
 
     def _request_plans(self) -> None:
         for task in list(self.tasks.values()):
-            if not (task.needs_plan and task.planning is None and task.state not in _ON_TA):
+            if not (task.needs_plan and task.planning is None and task.note.state not in _ON_TA):
                 continue
-            if task.replans > MAX_REPLANS_PER_TASK:
-                self._finish(task, False, f"no progress after {task.replans} replans")
+            if task.note.replans > MAX_REPLANS_PER_TASK:
+                self._finish(task, False, f"no progress after {task.note.replans} replans")
                 continue
-            task.plan_index += 1
+            task.note.plan_index += 1
             gtn = GroundTaskNetwork(
-                task_id=task.task_id, tasks=(task.command.goal,), plan_index=task.plan_index
+                task_id=task.task_id, tasks=(task.command.goal,), plan_index=task.note.plan_index
             )
             task.planning = self.roles.open(
-                C3, FIPA_REQUEST, gtn, conversation_id=f"{task.task_id}-plan{task.plan_index}"
+                C3, FIPA_REQUEST, gtn, conversation_id=f"{task.task_id}-plan{task.note.plan_index}"
             )
-            if task.state is not TaskState.PREEMPTED:
-                self._progress(task, TaskState.PLANNING, detail=f"plan #{task.plan_index} requested")
-            self.log.info("task %s: requested plan #%d", task.task_id, task.plan_index)
+            if task.note.state is not TaskState.PREEMPTED:
+                self._progress(task, TaskState.PLANNING, detail=f"plan #{task.note.plan_index} requested")
+            self.log.info("task %s: requested plan #%d", task.task_id, task.note.plan_index)
 
     def _comp_sp_step(self) -> None:
         self.handle_received()
@@ -331,19 +317,19 @@ class Coordinator(Agent):
         self.reschedule = False
         now = time.time()
         waiting = [
-            self._candidate(t, now, t.plan.cost)
+            self._candidate(t, now, t.note.plan.cost)
             for t in self.tasks.values()
-            if t.plan is not None and t.state not in _ON_TA
+            if t.note.plan is not None and t.note.state not in _ON_TA
         ]
         running: Running | None = None
-        if self.ta_task is not None:
-            if self.ta_cancelled:  # a_ta is on its way to a safe state: wait for Preempted
+        if self.note.ta_task is not None:
+            if self.note.ta_cancelled:  # a_ta is on its way to a safe state: wait for Preempted
                 self.decision = Decision(None, False, "a_ta is terminating")
                 return
-            r = self.tasks.get(self.ta_task)
-            if r is not None and r.plan is not None:
-                leaves = r.plan.root.leaves()
-                remaining = sum(n.duration for _, n in leaves[r.leaf :])
+            r = self.tasks.get(self.note.ta_task)
+            if r is not None and r.note.plan is not None:
+                leaves = r.note.plan.root.leaves()
+                remaining = sum(n.duration for _, n in leaves[r.note.leaf :])
                 running = Running(
                     self._candidate(r, now, remaining), remaining, self._interruption(r, leaves)
                 )
@@ -353,181 +339,101 @@ class Coordinator(Agent):
             self.log.info("schedule: %s", self.decision.reason)
 
     def _candidate(self, task: Task, now: float, duration: float) -> Candidate:
-        left = task.deadline - now if task.deadline is not None else None
-        return Candidate(task.task_id, task.command.priority, duration, left, task.order)
+        left = task.note.deadline - now if task.note.deadline is not None else None
+        return Candidate(task.task_id, task.command.priority, duration, left, task.note.order)
 
     @staticmethod
     def _interruption(task: Task, leaves: list[tuple[str, PlanNode]]) -> float:
         """Expected time (s) of the safe stop a_ta would run if cancelled now."""
-        assert task.plan is not None
-        for _, node in leaves[task.leaf :]:
+        assert task.note.plan is not None
+        for _, node in leaves[task.note.leaf :]:
             if node.on_cancel is not None:
-                stop = task.plan.safe_stops.get(node.on_cancel)
+                stop = task.note.plan.safe_stops.get(node.on_cancel)
                 return sum(n.duration for _, n in stop.leaves()) if stop is not None else 0.0
             return 0.0
         return 0.0
 
     def _switch(self) -> None:
         if self.decision.preempt:
-            running = self.tasks.get(self.ta_task or "")
+            running = self.tasks.get(self.note.ta_task or "")
             chosen = self.tasks.get(self.decision.switch_to or "")
             why = f"preempted for “{chosen.command.text}”" if chosen else "preempted"
             if running is not None:
-                running.detail = why
+                running.note.detail = why
             self._cancel_ta(why)
             return
         task = self.tasks[self.decision.switch_to or ""]
-        assert task.plan is not None and self._robot_free()
+        assert task.note.plan is not None and self._robot_free()
         self.ta = self.roles.open(
-            C1, COORDINATE, task.plan, conversation_id=f"{task.task_id}-exec{task.plan_index}"
+            C1, COORDINATE, task.note.plan, conversation_id=f"{task.task_id}-exec{task.note.plan_index}"
         )
-        resumed = task.state is TaskState.PREEMPTED
-        self.ta_task = task.task_id
-        self.ta_cancelled = False
-        task.leaf = 0
-        self._progress(task, TaskState.RUNNING, detail="resumed" if resumed else f"plan {task.plan.plan_id}")
-        self.log.info("task %s: plan %s sent to a_ta", task.task_id, task.plan.plan_id)
+        resumed = task.note.state is TaskState.PREEMPTED
+        self.note.ta_task, self.note.ta_conversation = task.task_id, self.ta.conversation_id
+        self.note.ta_cancelled = False
+        task.note.leaf = 0
+        self._progress(
+            task, TaskState.RUNNING, detail="resumed" if resumed else f"plan {task.note.plan.plan_id}"
+        )
+        self.log.info("task %s: plan %s sent to a_ta", task.task_id, task.note.plan.plan_id)
 
     def _cancel_ta(self, why: str) -> None:
         """Cancel the plan a_ta runs (coordinate protocol): a_ta reports Terminating, then
         Preempted once the robot is safe."""
-        if self.ta_cancelled or self.ta is None:
+        if self.note.ta_cancelled or self.ta is None:
             return
-        task = self.tasks.get(self.ta_task or "")
-        plan_id = task.plan.plan_id if task is not None and task.plan is not None else ""
+        task = self.tasks.get(self.note.ta_task or "")
+        plan_id = task.note.plan.plan_id if task is not None and task.note.plan is not None else ""
         self.ta.cancel(SWStatus(state=SWState.TERMINATING, plan_id=plan_id, reason=why))
-        self.ta_cancelled = True
+        self.note.ta_cancelled = True
         if task is not None:
             self._progress(task, TaskState.TERMINATING, detail=why)
         self.log.info("cancel sent to a_ta: %s", why)
 
-    # ---- restarts ----
+    # ---- restarts (the roles keep the conversations: docs/recovery.md) ----
+    def on_restored(self, conversation: Conversation) -> None:
+        """A command, or a_hi's progress subscription, of a previous a_co: a command waits for
+        a plan again unless a_ta runs its plan, and its cancel, if any, for the robot to be safe.
+        Raises ValueError (DecodeError) for a kept cancel that does not decode."""
+        note = conversation.data
+        if not isinstance(note, TaskNote):  # the progress subscription (keep=True: no data)
+            self.subscription = conversation
+            return
+        cid = conversation.conversation_id
+        on_ta = cid == self.note.ta_task and self.note.ta_conversation is not None
+        cancel = None
+        if note.cancel is not None:
+            msg = decode(note.cancel)
+            content = decode_content(msg.language, msg.content) if msg.language and msg.content else None
+            cancel = Received(msg, content, C2)
+        if not on_ta:
+            note.plan = None
+            note.state = note.state if note.state is TaskState.PREEMPTED else TaskState.WAITING
+        command = conversation.opening_content(HumanCommand)
+        self.tasks[cid] = Task(cid, command, conversation, note, needs_plan=not on_ta, cancel=cancel)
+
     def setup(self) -> None:
-        kept = self.kept.load()
-        if kept is not None:
-            self._restore(kept)
-
-    def persist(self) -> None:
-        now = self._kept_signature()
-        if now != self._kept_as:  # encode and compare the whole queue only when it changed
-            self._kept_as = now
-            self.kept.save(self._kept())
-
-    def _kept_signature(self) -> tuple[object, ...]:
-        """What :meth:`_kept` depends on that can change, compared cheaply every step (a
-        task's request, acceptance time, deadline and order never change)."""
-        return (
-            tuple(
-                (
-                    t.task_id,
-                    t.state,
-                    t.step,
-                    t.leaf,
-                    t.replans,
-                    t.plan_index,
-                    t.plan.plan_id if t.plan is not None else None,
-                    t.cancel.msg.reply_with if t.cancel is not None else None,
-                    t.detail,
-                )
-                for t in self.tasks.values()
-            ),
-            self.ta_task,
-            self.ta.conversation_id if self.ta is not None else None,
-            self.ta_cancelled,
-            self.subscription.conversation_id if self.subscription is not None else None,
-            self.unsent_changes,
-        )
-
-    def _kept(self) -> KeptCoordinator:
-        return KeptCoordinator(
-            tasks=[
-                KeptTask(
-                    request=t.request.keep(),
-                    accepted_at=t.accepted_at,
-                    deadline=t.deadline,
-                    order=t.order,
-                    state=t.state,
-                    plan=t.plan if t.task_id == self.ta_task else None,
-                    plan_index=t.plan_index,
-                    replans=t.replans,
-                    step=t.step,
-                    leaf=t.leaf,
-                    cancel=encode(t.cancel.msg) if t.cancel is not None else None,
-                    detail=t.detail,
-                )
-                for t in sorted(self.tasks.values(), key=lambda t: t.order)
-            ],
-            ta_task=self.ta_task,
-            ta_conversation=self.ta.conversation_id if self.ta is not None else None,
-            ta_cancelled=self.ta_cancelled,
-            subscription=self.subscription.keep() if self.subscription is not None else None,
-            unsent=list(self.unsent),
-        )
-
-    @staticmethod
-    def _received(data: bytes) -> Received:
-        msg = decode(data)
-        content = decode_content(msg.language, msg.content) if msg.language and msg.content else None
-        return Received(msg, content, C2)
-
-    def _restore(self, kept: KeptCoordinator) -> None:
-        """Take back the commands of a previous a_co (see the module docstring)."""
-        for k in kept.tasks:
-            try:
-                cancel = self._received(k.cancel) if k.cancel is not None else None
-                state = "cancelling" if cancel is not None else "agreed"
-                conv = self.roles.restore(C2, FIPA_REQUEST, state, kept=k.request, expect=HumanCommand)
-            except (DecodeError, ContentError, RestoreError) as exc:
-                self.log.warning("a kept command cannot be taken back (%s): dropped", exc)
-                continue
-            command = conv.opening_content(HumanCommand)
-            on_ta = conv.conversation_id == kept.ta_task and kept.ta_conversation is not None
-            task = Task(
-                conv.conversation_id,
-                command,
-                conv,
-                k.accepted_at,
-                k.deadline,
-                k.order,
-                state=k.state if on_ta or k.state is TaskState.PREEMPTED else TaskState.WAITING,
-                plan=k.plan if on_ta else None,
-                plan_index=k.plan_index,
-                replans=k.replans,
-                needs_plan=not on_ta,
-                step=k.step,
-                leaf=k.leaf,
-                cancel=cancel,
-                detail=k.detail,
-            )
-            self.tasks[task.task_id] = task
-        self._order = itertools.count(max((t.order for t in self.tasks.values()), default=-1) + 1)
-        if kept.ta_task in self.tasks and kept.ta_conversation is not None:
-            self.ta_task, self.ta_cancelled = kept.ta_task, kept.ta_cancelled
-            self.ta = self.roles.restore(C1, COORDINATE, "running", conversation_id=kept.ta_conversation)
-        if kept.subscription is not None:
-            try:
-                self.subscription = self.roles.restore(C2, FIPA_SUBSCRIBE, "active", kept=kept.subscription)
-            except RestoreError as exc:
-                self.log.warning("the kept progress subscription cannot be taken back (%s)", exc)
-        for progress in kept.unsent:
-            self._keep_unsent(progress)
-        self.reschedule = True
-        self.log.info(
-            "restored %d command(s) from %s%s",
-            len(self.tasks),
-            self.kept.path,
-            f"; a_ta runs {self.ta_task}" if self.ta_task else "",
-        )
+        """Go on from what a previous a_co kept (:meth:`on_restored` took its commands back):
+        the plan a_ta runs in its C1 conversation, and plan again what was being planned."""
+        note = self.note
+        self._order = itertools.count(max((t.note.order for t in self.tasks.values()), default=-1) + 1)
+        if note.ta_task in self.tasks and note.ta_conversation is not None:
+            self.ta = self.roles.restore(C1, COORDINATE, "running", conversation_id=note.ta_conversation)
+        else:
+            note.ta_task, note.ta_conversation, note.ta_cancelled = None, None, False
+        if self.tasks:
+            self.reschedule = True
+            running = f"; a_ta runs {note.ta_task}" if note.ta_task else ""
+            self.log.info("restored %d command(s)%s", len(self.tasks), running)
 
     def peer_changed(self, peer: str, alive: bool) -> None:
         if peer != "a_ta":
             return
-        if not alive and self.ta_task is not None:
+        if not alive and self.note.ta_task is not None:
             self.ta_lost = True
-            self.log.warning("a_ta disappeared while running %s; the robot holds position", self.ta_task)
-        elif alive and self.ta_lost and self.last_confirmed is not None and self.ta is not None:
+            self.log.warning("a_ta disappeared while running %s; the robot holds position", self.note.ta_task)
+        elif alive and self.ta_lost and self.ta is not None and self.ta.answered_last is not None:
             self.log.info("a_ta is back: the last confirm goes again (a new a_ta will not know it)")
-            self.ta.answer_again(self.last_confirmed)
+            self.ta.answer_again()
 
     # ---- the person's commands (C2, fipa-request, participant) ----
     @handles(FIPA_REQUEST, PARTICIPANT, Performative.REQUEST)
@@ -549,11 +455,10 @@ class Coordinator(Agent):
             return
         self.subscription = conv
         conv.reply(Performative.AGREE)
-        if self.unsent:
-            self.log.info("sending %d progress report(s) kept until a subscription", len(self.unsent))
-        while self.unsent:
-            conv.reply(Performative.INFORM, self.unsent.popleft())
-            self.unsent_changes += 1
+        if self.note.unsent:
+            self.log.info("sending %d progress report(s) kept until a subscription", len(self.note.unsent))
+        while self.note.unsent:
+            conv.reply(Performative.INFORM, self.note.unsent.pop(0))
 
     @handles(FIPA_SUBSCRIBE, PARTICIPANT, Performative.CANCEL)
     def _on_unsubscribe(self, conv: Conversation) -> None:
@@ -586,16 +491,16 @@ class Coordinator(Agent):
     def status(self) -> Status:
         """Every command a_co holds, the one on a_ta first, then by acceptance."""
         now = time.time()
-        tasks = sorted(self.tasks.values(), key=lambda t: (t.task_id != self.ta_task, t.order))
+        tasks = sorted(self.tasks.values(), key=lambda t: (t.task_id != self.note.ta_task, t.note.order))
         return Status(
             tasks=tuple(
                 TaskStatus(
                     command_id=t.task_id,
                     text=t.command.text,
-                    state=t.state,
-                    step=t.step,
+                    state=t.note.state,
+                    step=t.note.step,
                     priority=t.command.priority,
-                    deadline_in_s=round(t.deadline - now, 1) if t.deadline is not None else None,
+                    deadline_in_s=round(t.note.deadline - now, 1) if t.note.deadline is not None else None,
                 )
                 for t in tasks
             )
@@ -621,15 +526,15 @@ class Coordinator(Agent):
         if not isinstance(plan, HierarchicalPlan):
             self._finish(task, False, f"no plan: {conv.reason}")
             return
-        task.plan = plan
+        task.note.plan = plan
         task.needs_plan = False
         self.reschedule = True
-        if task.state is TaskState.PLANNING:
-            self._progress(task, TaskState.WAITING, detail=f"plan #{task.plan_index} ready")
+        if task.note.state is TaskState.PLANNING:
+            self._progress(task, TaskState.WAITING, detail=f"plan #{task.note.plan_index} ready")
         self.log.info(
             "task %s: plan #%d received (%s, %.0f s expected, %d km queries)",
             task.task_id,
-            task.plan_index,
+            task.note.plan_index,
             "complete" if plan.complete else "partial",
             plan.cost,
             plan.km_queries,
@@ -650,17 +555,16 @@ class Coordinator(Agent):
         """Every L_SW inform is confirmed (paper §5.4), also one of a conversation a_co has
         left (a_ta waits for the confirm)."""
         conv.send(Performative.CONFIRM)
-        task = self.tasks.get(self.ta_task or "")
+        task = self.tasks.get(self.note.ta_task or "")
         if conv is not self.ta or task is None or conv.last is None:
             return
-        self.last_confirmed = conv.last.msg.reply_with
         self.ta_lost = False  # a_ta speaks in the plan's conversation
         if isinstance(conv.content, SWStatus):
             self._sw_state(task, conv.content)
 
     @handles(COORDINATE, INITIATOR, Performative.REFUSE, Performative.FAILURE)
     def _on_ta_failed(self, conv: Conversation) -> None:
-        task = self.tasks.get(self.ta_task or "")
+        task = self.tasks.get(self.note.ta_task or "")
         if conv is not self.ta or task is None or conv.timed_out or conv.last is None:
             return
         self._release_ta()
@@ -668,7 +572,7 @@ class Coordinator(Agent):
 
     @handles(COORDINATE, INITIATOR, Performative.NOT_UNDERSTOOD)
     def _on_ta_not_understood(self, conv: Conversation) -> None:
-        task = self.tasks.get(self.ta_task or "")
+        task = self.tasks.get(self.note.ta_task or "")
         if conv is self.ta and task is not None and self.ta_lost:
             self.log.warning("a_ta came back without its plan: task %s is planned again", task.task_id)
             self.ta_lost = False
@@ -680,15 +584,17 @@ class Coordinator(Agent):
         self.log.info("a_ta %s %s", status.state.value, status.step or status.reason or "")
         state = status.state
         if state is SWState.RUNNING:
-            if status.step and task.plan is not None:
-                task.leaf = next(
-                    (i for i, (path, _) in enumerate(task.plan.root.leaves()) if path == status.step),
-                    task.leaf,
+            if status.step and task.note.plan is not None:
+                task.note.leaf = next(
+                    (i for i, (path, _) in enumerate(task.note.plan.root.leaves()) if path == status.step),
+                    task.note.leaf,
                 )
-                self._progress(task, task.state, step=status.step)
+                self._progress(task, task.note.state, step=status.step)
             return
         if state is SWState.TERMINATING:
-            self._progress(task, TaskState.TERMINATING, step=status.step, detail=status.reason or task.detail)
+            self._progress(
+                task, TaskState.TERMINATING, step=status.step, detail=status.reason or task.note.detail
+            )
             return
         if state not in (SWState.SUCCEEDED, SWState.REPLAN, SWState.PREEMPTED, SWState.ERROR):
             return
@@ -704,37 +610,37 @@ class Coordinator(Agent):
         elif state is SWState.ERROR:
             self._finish(task, False, f"execution failed: {status.reason or 'unknown error'}")
         elif state is SWState.REPLAN:
-            task.replans += 1
-            task.plan, task.needs_plan = None, True
+            task.note.replans += 1
+            task.note.plan, task.needs_plan = None, True
             self._progress(
                 task, TaskState.PLANNING, detail=status.reason or "the world differs from the plan"
             )
         else:  # PREEMPTED
-            task.plan, task.needs_plan = None, True
-            self._progress(task, TaskState.PREEMPTED, detail=task.detail or "preempted")
+            task.note.plan, task.needs_plan = None, True
+            self._progress(task, TaskState.PREEMPTED, detail=task.note.detail or "preempted")
 
     def _world_changed(self, ended: Task) -> None:
         """a_ta ended a plan: the world moved, so waiting plans were made for another world."""
         self.reschedule = True
         for t in self.tasks.values():
-            if t is not ended and t.plan is not None and t.state not in _ON_TA:
-                t.plan, t.needs_plan = None, True
+            if t is not ended and t.note.plan is not None and t.note.state not in _ON_TA:
+                t.note.plan, t.needs_plan = None, True
 
     def _release_ta(self) -> None:
-        self.ta_lost, self.last_confirmed = False, None
+        self.ta_lost = False
         if self.ta is not None:
             self.ta.stop_waiting()
-        self.ta_task = None
+        self.note.ta_task, self.note.ta_conversation = None, None
         self.ta = None
-        self.ta_cancelled = False
+        self.note.ta_cancelled = False
 
     def _progress(self, task: Task, state: TaskState, *, step: str | None = None, detail: str = "") -> None:
-        task.state = state
+        task.note.state = state
         if step is not None:
-            task.step = step
+            task.note.step = step
         if self.rerun is not None:  # Rerun: the queue, when it changed
             self.rerun.queue(self.status())
-        progress = Progress(command_id=task.task_id, state=state, step=task.step, detail=detail)
+        progress = Progress(command_id=task.task_id, state=state, step=task.note.step, detail=detail)
         if self.subscription is None:
             self._keep_unsent(progress)
         else:
@@ -744,14 +650,13 @@ class Coordinator(Agent):
         """Keep ``progress`` for the next agreed subscription; past a bound (per command:
         ``PROGRESS_KEPT_PER_COMMAND``, in all: ``PROGRESS_KEPT``) the oldest report goes."""
         cid = progress.command_id
-        if sum(p.command_id == cid for p in self.unsent) >= PROGRESS_KEPT_PER_COMMAND:
-            oldest = next(i for i, p in enumerate(self.unsent) if p.command_id == cid)
-            del self.unsent[oldest]
+        if sum(p.command_id == cid for p in self.note.unsent) >= PROGRESS_KEPT_PER_COMMAND:
+            oldest = next(i for i, p in enumerate(self.note.unsent) if p.command_id == cid)
+            del self.note.unsent[oldest]
             self._dropped(cid)
-        elif len(self.unsent) >= PROGRESS_KEPT:
-            self._dropped(self.unsent.popleft().command_id)
-        self.unsent.append(progress)
-        self.unsent_changes += 1
+        elif len(self.note.unsent) >= PROGRESS_KEPT:
+            self._dropped(self.note.unsent.pop(0).command_id)
+        self.note.unsent.append(progress)
 
     def _dropped(self, command_id: str) -> None:
         self.counters["progress_dropped"] += 1
@@ -775,7 +680,7 @@ class Coordinator(Agent):
             task.request.reply(Performative.INFORM if succeeded else Performative.FAILURE, outcome)
             self._progress(task, TaskState.SUCCEEDED if succeeded else TaskState.FAILED, detail=detail)
         self.log.info("task %s %s: %s", task.task_id, "succeeded" if succeeded else "failed", detail)
-        if self.ta_task == task.task_id:
+        if self.note.ta_task == task.task_id:
             self._release_ta()
         if task.planning is not None:
             task.planning.abandon()

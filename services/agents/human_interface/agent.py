@@ -7,11 +7,13 @@ Receptor: ``roco/human/in`` (:class:`HumanInput`, sentences). Effector: ``roco/h
   ``refuse``\\s) and ends with ``inform``/``failure`` :class:`CommandOutcome`. A stop
   request ("stop") sends ``cancel`` in every open command's conversation (the cancel
   meta-protocol); a_co answers the cancel with ``inform`` (stopped) or ``failure``.
-- **fipa-subscribe** once: ``subscribe`` a :class:`ProgressSubscription` at start-up; a_co
-  agrees and informs a :class:`Progress` at every change of a command's state. While a_co
-  does not agree (not up yet, or an a_co that does not serve subscriptions), a_hi retries
-  quietly, each attempt in a new conversation, with a growing interval; a_co's liveliness
-  token appearing triggers an attempt at once. Commands work without the subscription.
+- **fipa-subscribe** once: ``subscribe`` a :class:`ProgressSubscription` when a_co's
+  liveliness token appears; a_co agrees and informs a :class:`Progress` at every change of a
+  command's state. The role keeps the subscription open (services/runtime/subscriptions.py):
+  while a_co does not agree (an a_co that does not serve subscriptions) it retries quietly,
+  each attempt in a new conversation, the interval doubling from ``SUBSCRIBE_RETRY_S[0]`` to
+  ``SUBSCRIBE_RETRY_S[1]``; a_co's token appearing triggers an attempt at once. Commands work
+  without the subscription.
 - **fipa-query** per status request ("what are you doing?"): ``query-ref`` a
   :class:`StatusQuery`; a_co answers ``inform-ref`` a :class:`Status`.
 
@@ -50,14 +52,14 @@ Every request from the person (command, stop, status) gets reports under its own
 ``request_id`` and ends with one report of a kind in FINAL_REPORTS (messages.py).
 
 Restarts (docs/recovery.md): a command's request is retransmitted until a_co agrees
-(a_co may be restarting; its runtime drops copies and answers them again). a_hi keeps its open
-commands in its state file; a restarted a_hi takes them back, so a_co's outcome still reaches
-the person who asked. Open stop requests and status queries are not kept (ask again).
+(a_co may be restarting; its runtime drops copies and answers them again). The fipa-request
+role keeps the open commands (``keep=CommandNote``: the runtime writes them to a_hi's state
+file); a restarted a_hi takes them back (:meth:`HumanInterface.on_restored`), so a_co's outcome
+still reaches the person who asked. Open stop requests and status queries are not kept (ask again).
 """
 
 from __future__ import annotations
 
-import time
 from collections import OrderedDict, deque
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -93,13 +95,12 @@ from services.runtime.roles import (
     INITIATOR,
     PARTICIPANT,
     Conversation,
-    RestoreError,
     RoleDecl,
     handles,
     initiator,
     participant,
 )
-from services.runtime.state_store import StateFile
+from services.runtime.subscriptions import StandingSubscription
 from services.spec.names import C2, C7, C8, FIPA_QUERY, FIPA_REQUEST, FIPA_SUBSCRIBE, L_HC, L_WM
 from shared.fipa_codec import Performative
 from shared.fipa_codec.languages.l_hc import (
@@ -167,53 +168,46 @@ class ReadDone:
     """The reader (reading.py) is done with a line: act on the lines read, in order."""
 
 
-@dataclass
-class WordsQuery:
-    """A question to a_km for its vocabulary (C7): its ``conversation`` and the sentences
-    ``waiting`` for the answer (none for the question asked when a_km's token appears)."""
+class CommandNote(msgspec.Struct, kw_only=True):
+    """What a_hi notes of a command's conversation (its :attr:`Conversation.data`, kept across
+    a restart by the role: ``keep=CommandNote``): the person's request id, the command's label,
+    whether a_co agreed."""
 
-    conversation: Conversation
-    waiting: list[HeldSentence] = field(default_factory=list)
-
-
-class KeptCommand(msgspec.Struct, kw_only=True):
-    """An open command as a_hi keeps it across a restart: the request as sent (the encoded
-    communicate), the person's request id, its label, whether a_co agreed."""
-
-    request: bytes
     request_id: str
     label: str
-    agreed: bool
-
-
-class KeptHumanInterface(msgspec.Struct, kw_only=True):
-    """a_hi's state file: its open commands."""
-
-    commands: list[KeptCommand]
-
-
-@dataclass(frozen=True)
-class PeerAlive:
-    """Receptor event: a_co's liveliness token appeared (``alive``) or disappeared."""
-
-    alive: bool
+    agreed: bool = False
 
 
 @dataclass
 class OpenCommand:
     """A command sent to a_co and not yet ended. ``conversation_id`` is its C2
-    conversation (a_co's ``command_id``), ``conversation`` that conversation; ``cancel`` the
-    reply-with of an outstanding cancel; ``stoppers`` the stop requests waiting for its end."""
+    conversation (a_co's ``command_id``), ``conversation`` that conversation, ``note`` its
+    :class:`CommandNote` (the conversation's data); ``cancel`` the reply-with of an
+    outstanding cancel; ``stoppers`` the stop requests waiting for its end."""
 
     conversation_id: str
-    request_id: str
     command: HumanCommand
-    label: str
     conversation: Conversation
-    agreed: bool = False
+    note: CommandNote
     cancel: str | None = None
     stoppers: list[str] = field(default_factory=list)
     last: Progress | None = None
+
+    @property
+    def request_id(self) -> str:
+        return self.note.request_id
+
+    @property
+    def label(self) -> str:
+        return self.note.label
+
+    @property
+    def agreed(self) -> bool:
+        return self.note.agreed
+
+    @agreed.setter
+    def agreed(self, value: bool) -> None:
+        self.note.agreed = value
 
 
 @dataclass
@@ -284,9 +278,12 @@ class HumanInterface(Agent):
     """a_hi: sentences in, L_HC on C2 to a_co, readable reports out."""
 
     name = "a_hi"
+    progress: StandingSubscription
+    """a_co's progress stream (services/runtime/subscriptions.py), opened in :meth:`setup`."""
     ROLES: ClassVar[tuple[RoleDecl, ...]] = (
-        initiator(C2, FIPA_REQUEST, L_HC, reply_by_s=AGREE_BY_S, retry_s=COMMAND_RETRY_S),
-        initiator(C2, FIPA_SUBSCRIBE, L_HC, reply_by_s=SUBSCRIBE_REPLY_BY_S),
+        # open commands are kept across a restart, each sent again (docs/recovery.md)
+        initiator(C2, FIPA_REQUEST, L_HC, reply_by_s=AGREE_BY_S, retry_s=COMMAND_RETRY_S, keep=CommandNote),
+        initiator(C2, FIPA_SUBSCRIBE, L_HC, reply_by_s=SUBSCRIBE_REPLY_BY_S, resubscribes=True),
         initiator(C2, FIPA_QUERY, L_HC, reply_by_s=STATUS_REPLY_BY_S),
         initiator(C7, FIPA_QUERY, L_WM, reply_by_s=VOCABULARY_REPLY_BY_S),
         participant(C8, FIPA_REQUEST, L_HC),
@@ -310,23 +307,12 @@ class HumanInterface(Agent):
         self.asked: dict[str, RequestKind] = {}  # person's request id → what it was, until its final report
         self.ended: OrderedDict[str, tuple[str, str]] = OrderedDict()  # conversation → (request, label)
         self.stops: dict[str, StopRequest] = {}  # request_id → stop request
-        self.queries: dict[str, str] = {}  # status query conversation → request_id
-        self.subscribed = False
-        self.subscription: str | None = None  # conversation of the latest attempt
-        self.sub_conversation: Conversation | None = None  # the latest attempt
-        self.sub_pending = False  # the latest attempt is unanswered
-        self.sub_attempts = 0
-        self.retry_at: float | None = None
-        self.retry_interval = SUBSCRIBE_RETRY_S[0]
-        self.co_alive = False  # a_co's liveliness token is present
         self._vocabulary: Vocabulary | None = None  # the last vocabulary a_km gave (None: none yet)
         self.dialogues: dict[str, Dialogue] = {}  # person → conversation
         self.held: deque[HeldSentence] = deque()  # sentences waiting for the vocabulary, in order
         self.reading: deque[Reading] = deque()  # sentences given to the reader, in order
         self.reader = LineReader(self.grammar, lambda: self.post(ReadDone()))
-        self.vocab_queries: dict[str, WordsQuery] = {}  # C7 conversation → the question
         self.foreign: dict[str, Conversation] = {}  # request id → C8 conversation it answers
-        self.kept = StateFile.for_agent(self.name, KeptHumanInterface)
         return FSM(
             [
                 Behaviour(
@@ -349,50 +335,28 @@ class HumanInterface(Agent):
                 self.log.warning("ignored malformed human input: %s", exc)
 
         self.transport.subscribe(keys.HUMAN_IN, on_text)
-        kept = self.kept.load()
-        if kept is not None:
-            self._restore(kept)
-        # the progress subscription is opened when a_co's liveliness token is seen (at once
-        # when a_co is up: the watch reports tokens that exist), so that it never waits on an
-        # a_co that is not there yet
-        self.transport.watch(keys.alive_key(CO), lambda key, alive: self.post(PeerAlive(alive)))
-
-    # ---- restarts ----------------------------------------------------------------------
-    def persist(self) -> None:
-        self.kept.save(
-            KeptHumanInterface(
-                commands=[
-                    KeptCommand(
-                        request=c.conversation.keep(), request_id=c.request_id, label=c.label, agreed=c.agreed
-                    )
-                    for c in self.commands.values()
-                ]
-            )
+        # opened when a_co's liveliness token is seen: it never waits on an a_co not there yet
+        self.progress = self.roles.subscribe(
+            C2,
+            FIPA_SUBSCRIBE,
+            ProgressSubscription(),
+            conversation_id=SUBSCRIPTION,
+            reply_by_s=SUBSCRIBE_REPLY_BY_S,
+            retry_s=SUBSCRIBE_RETRY_S,
         )
 
-    def _restore(self, kept: KeptHumanInterface) -> None:
-        """Take back the open commands of a previous a_hi and send each request again, agreed or
-        not: a_co answers a repeated request as it answered it (its agree, and its outcome when
-        the command ended while this a_hi was down, which would otherwise be lost)."""
-        for k in kept.commands:
-            try:
-                conv = self.roles.restore(
-                    C2,
-                    FIPA_REQUEST,
-                    "requested",
-                    kept=k.request,
-                    reply_by_s=AGREE_BY_S,
-                    retry_s=COMMAND_RETRY_S,
-                    expect=HumanCommand,
-                )
-            except RestoreError as exc:
-                self.log.warning("a kept command cannot be taken back (%s): dropped", exc)
-                continue
-            command = conv.opening_content(HumanCommand)
-            cid = conv.conversation_id
-            self.commands[cid] = OpenCommand(cid, k.request_id, command, k.label, conv, agreed=k.agreed)
-        if self.commands:
-            self.log.info("restored %d open command(s) from %s", len(self.commands), self.kept.path)
+    # ---- restarts ----------------------------------------------------------------------
+    def on_restored(self, conversation: Conversation) -> None:
+        """An open command of a previous a_hi (its role keeps them): the runtime sends its
+        request again, agreed or not, and a_co answers a repeated request as it answered it
+        (its agree, and its outcome when the command ended while this a_hi was down, which
+        would otherwise be lost). Raises TypeError for a conversation that is no command."""
+        note = conversation.data
+        if not isinstance(note, CommandNote):
+            raise TypeError(f"conversation {conversation.conversation_id} has no note of a command")
+        command = conversation.opening_content(HumanCommand)
+        cid = conversation.conversation_id
+        self.commands[cid] = OpenCommand(cid, command, conversation, note)
 
     # ---- the behaviour -----------------------------------------------------------------
     def _interact(self) -> None:
@@ -400,18 +364,9 @@ class HumanInterface(Agent):
             event = self.r.popleft()
             if isinstance(event, HumanInput):
                 self._on_input(event)
-            elif isinstance(event, PeerAlive):
-                self._on_peer(event.alive)
             elif isinstance(event, ReadDone):
                 self._act_on_read()
         self.handle_received()
-        if (
-            not self.subscribed
-            and not self.sub_pending
-            and self.retry_at is not None
-            and time.time() >= self.retry_at
-        ):
-            self._subscribe()
 
     def _report(self, request_id: str, kind: ReportKind, text: str) -> None:
         self.log.info("to person [%s] %s: %s", request_id, kind.value, text)
@@ -503,15 +458,16 @@ class HumanInterface(Agent):
         self._ask_words(f"words-{event.request_id}-", held)
 
     def _ask_words(self, prefix: str, *waiting: HeldSentence) -> None:
-        """Ask a_km for its vocabulary (C7, ``query-ref``) for the ``waiting`` sentences."""
-        conv = self.roles.open(
+        """Ask a_km for its vocabulary (C7, ``query-ref``) for the ``waiting`` sentences (the
+        conversation's data; none for the question asked when a_km's token appears)."""
+        self.roles.open(
             C7,
             FIPA_QUERY,
             SparqlQuery(VOCABULARY_QUERY),
             performative=Performative.QUERY_REF,
             conversation_id=new_id(prefix),  # never one a_km has seen end
+            data=list(waiting),
         )
-        self.vocab_queries[conv.conversation_id] = WordsQuery(conv, list(waiting))
 
     def peer_changed(self, peer: str, alive: bool) -> None:
         """a_km's token appeared (a_km started or restarted): ask for its vocabulary at once, and
@@ -519,10 +475,9 @@ class HumanInterface(Agent):
         if peer != KM or not alive:
             return
         waiting: list[HeldSentence] = []
-        for query in self.vocab_queries.values():
-            query.conversation.abandon()  # asked of the a_km that went away, or before it was up
-            waiting += query.waiting
-        self.vocab_queries.clear()
+        for query in self.roles.conversations(C7, FIPA_QUERY):
+            query.abandon()  # asked of the a_km that went away, or before it was up
+            waiting += query.data  # the sentences it was asked for (see _ask_words)
         self._ask_words("words-", *waiting)
 
     def _read_held(self) -> None:
@@ -540,23 +495,21 @@ class HumanInterface(Agent):
 
     @handles(FIPA_QUERY, INITIATOR, Performative.INFORM_REF, Performative.INFORM, channel=C7)
     def _on_vocabulary(self, conv: Conversation) -> None:
-        query = self.vocab_queries.pop(conv.conversation_id, None)
         conv.abandon()
         if isinstance(conv.content, Answer) and conv.content.rows:
             self.vocabulary = Vocabulary.from_rows(conv.content.rows)
-        if query is not None and query.waiting:
-            for held in query.waiting:
+        if conv.data:
+            for held in conv.data:
                 held.ready, held.vocabulary = True, self.vocabulary
             self._read_held()
 
     @handles(FIPA_QUERY, INITIATOR, Performative.REFUSE, Performative.FAILURE, channel=C7)
     def _on_no_vocabulary(self, conv: Conversation) -> None:
         """Refused, failed, not understood or unanswered in time: read with the last vocabulary."""
-        query = self.vocab_queries.pop(conv.conversation_id, None)
         conv.abandon()
         self.log.warning("a_km gave no vocabulary (%s); reading with the last one", _reason(conv))
-        if query is not None and query.waiting:
-            for held in query.waiting:
+        if conv.data:
+            for held in conv.data:
                 held.ready = True
             self._read_held()
 
@@ -594,7 +547,8 @@ class HumanInterface(Agent):
     def _conversation_id(self, prefix: str, request_id: str) -> str:
         base = f"{prefix}-{request_id}"
         cid, n = base, 1
-        while cid in self.commands or cid in self.ended or cid in self.queries:
+        asking = {c.conversation_id for c in self.roles.conversations(C2, FIPA_QUERY)}
+        while cid in self.commands or cid in self.ended or cid in asking:
             n += 1
             cid = f"{base}-{n}"
         return cid
@@ -603,14 +557,18 @@ class HumanInterface(Agent):
         command = HumanCommand(
             text=event.text, goal=intent.goal, priority=intent.priority, deadline_s=intent.deadline_s
         )
+        note = CommandNote(request_id=event.request_id, label=describe(intent.goal, self.grammar.words))
         conv = self.roles.open(
-            C2, FIPA_REQUEST, command, conversation_id=self._conversation_id("cmd", event.request_id)
+            C2,
+            FIPA_REQUEST,
+            command,
+            conversation_id=self._conversation_id("cmd", event.request_id),
+            data=note,
         )
         cid = conv.conversation_id
-        if not self.co_alive:
+        if CO not in self.peers:
             self.log.warning("a_co is not known to be alive; %s may wait %.0f s", cid, AGREE_BY_S)
-        label = describe(intent.goal, self.grammar.words)
-        self.commands[cid] = OpenCommand(cid, event.request_id, command, label, conv)
+        self.commands[cid] = OpenCommand(cid, command, conv, note)
 
     def _stop_commands(self, request_id: str, named: str = "") -> None:
         """Cancel every open command for stop request ``request_id``; ``named``: what the
@@ -635,14 +593,14 @@ class HumanInterface(Agent):
         )
 
     def _ask_status(self, request_id: str) -> None:
-        conv = self.roles.open(
+        self.roles.open(
             C2,
             FIPA_QUERY,
             StatusQuery(),
             performative=Performative.QUERY_REF,
             conversation_id=self._conversation_id("status", request_id),
+            data=request_id,  # the person's request it answers
         )
-        self.queries[conv.conversation_id] = request_id
 
     # ---- a_co's answers to commands (fipa-request, initiator) ---------------------------
     def _open_command(self, conv: Conversation) -> OpenCommand | None:
@@ -780,10 +738,8 @@ class HumanInterface(Agent):
         self._status_answer(conv, False)
 
     def _status_answer(self, conv: Conversation, answered: bool) -> None:
-        request_id = self.queries.pop(conv.conversation_id, None)
-        if request_id is None:
-            return
-        conv.abandon()
+        request_id: str = conv.data  # (see _ask_status)
+        conv.abandon()  # (what a_co still sends in it is dropped by the role)
         labels = {c.conversation_id: c.label for c in self.commands.values()}
         status = conv.content
         if answered and isinstance(status, Status):
@@ -805,75 +761,11 @@ class HumanInterface(Agent):
             f"a_co did not tell me its status ({reason}); from its last reports:\n{known}",
         )
 
-    # ---- the progress subscription ---------------------------------------------------------
-    def _subscribe(self) -> None:
-        self.sub_attempts += 1
-        cid = SUBSCRIPTION if self.sub_attempts == 1 else f"{SUBSCRIPTION}-{self.sub_attempts}"
-        if self.sub_conversation is not None:  # the previous attempt is given up (or its a_co gone)
-            self.sub_conversation.stop_waiting()
-        self.sub_conversation = self.roles.open(
-            C2, FIPA_SUBSCRIBE, ProgressSubscription(), conversation_id=cid, reply_by_s=SUBSCRIBE_REPLY_BY_S
-        )
-        self.subscription = cid
-        self.sub_pending = True
-        self.retry_at = None
-
-    def _retry_later(self) -> None:
-        self.retry_at = time.time() + self.retry_interval
-        self.retry_interval = min(self.retry_interval * 2, SUBSCRIBE_RETRY_S[1])
-
-    def _on_peer(self, alive: bool) -> None:
-        self.co_alive = alive
-        if alive:
-            self.retry_interval = SUBSCRIBE_RETRY_S[0]
-            if not self.subscribed and not self.sub_pending:
-                self._subscribe()  # a_co (re)appeared: ask at once
-            # an attempt still pending (perhaps lost before a_co was up) times out, then
-            # the next one follows after the shortest interval
-        elif self.subscribed:
-            self.log.warning("a_co went away; progress reports pause until it is back")
-            self.subscribed = False
-            self.retry_interval = SUBSCRIBE_RETRY_S[0]
-            self._retry_later()
-
+    # ---- the progress subscription (fipa-subscribe, initiator; kept open by the role) ----
     @handles(FIPA_SUBSCRIBE, INITIATOR, Performative.INFORM)
     def _on_progress_inform(self, conv: Conversation) -> None:
-        if not isinstance(conv.content, Progress):
-            return  # the answer to the cancel of a superfluous subscription
-        if not self.subscribed and conv.conversation_id == self.subscription:
-            self._subscribed()
-        self._on_progress(conv.content)
-
-    @handles(FIPA_SUBSCRIBE, INITIATOR, Performative.AGREE)
-    def _on_subscription_agreed(self, conv: Conversation) -> None:
-        if conv.conversation_id == self.subscription:
-            self._subscribed()
-        else:  # an attempt given up agreed late: the latest attempt is the one to keep
-            conv.cancel(ProgressSubscription())
-
-    @handles(FIPA_SUBSCRIBE, INITIATOR, Performative.REFUSE, Performative.FAILURE)
-    def _on_subscription_refused(self, conv: Conversation) -> None:
-        """Refused, failed, not understood, or unanswered by the reply-by deadline."""
-        if conv.conversation_id != self.subscription or conv.answers_cancel:
-            return  # an attempt already given up
-        quiet = self.sub_attempts > 1
-        said = conv.last.performative.value if conv.last is not None else "failure"
-        (self.log.debug if quiet else self.log.info)(
-            "a_co did not take the progress subscription (%s: %s); retrying in %.0f s",
-            said,
-            _reason(conv),
-            self.retry_interval,
-        )
-        self.subscribed = False
-        self.sub_pending = False
-        self._retry_later()
-
-    def _subscribed(self) -> None:
-        self.subscribed = True
-        self.sub_pending = False
-        self.retry_at = None
-        self.retry_interval = SUBSCRIBE_RETRY_S[0]
-        self.log.info("a_co agreed to report progress (%s)", self.subscription)
+        if isinstance(conv.content, Progress):
+            self._on_progress(conv.content)
 
     def _on_progress(self, progress: Progress) -> None:
         cid = progress.command_id
@@ -893,7 +785,6 @@ class HumanInterface(Agent):
 __all__ = [
     "HumanInterface",
     "OpenCommand",
-    "PeerAlive",
     "StopRequest",
     "progress_text",
     "sentence",

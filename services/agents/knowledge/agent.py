@@ -6,8 +6,10 @@ a person may use for things —, or an observation), questionAnswering
 with an L_WM Answer to query-ref, inform to query-if; ``refuse`` with the reason for a query
 a_km does not answer, ``failure`` with the reason for one it cannot answer), knowledgeSaving
 (apply one observation or asserted change). At start-up it opens the fipa-subscribe
-conversation with a_ta for environment updates, repeating the subscribe until a_ta agrees
-(a_ta may start later).
+conversation with a_ta for environment updates; the role keeps it open
+(services/runtime/subscriptions.py): the subscribe is repeated, in the same conversation, at
+once after each refuse, failure or passed reply-by deadline until a_ta agrees (a_ta may start
+later), and again when a_ta's token reappears after it disappeared (a restarted a_ta has lost it).
 
 A restarted a_km may have missed updates that were in flight when it stopped (fipa-subscribe
 informs are not acknowledged), so its kept knowledge can be a step behind. When it starts with
@@ -42,6 +44,7 @@ from services.runtime.roles import (
     initiator,
     participant,
 )
+from services.runtime.subscriptions import StandingSubscription
 from services.spec.names import C6, FIPA_QUERY, FIPA_SUBSCRIBE, L_WM
 from shared.fipa_codec import Performative
 from shared.fipa_codec.languages.l_wm import (
@@ -85,10 +88,12 @@ class Query:
 
 class KnowledgeManager(Agent):
     name = "a_km"
+    environment: StandingSubscription
+    """The subscription to a_ta's environment updates, opened in :meth:`setup`."""
     ROLES = (
         # every channel that asks a_km L_WM queries (C4, C6, C7, and any the specification adds)
         participant(EVERY_CHANNEL, FIPA_QUERY, L_WM),
-        initiator(C6, FIPA_SUBSCRIBE, L_WM, reply_by_s=SUBSCRIBE_RETRY_S),
+        initiator(C6, FIPA_SUBSCRIBE, L_WM, reply_by_s=SUBSCRIBE_RETRY_S, resubscribes=True),
     )
 
     def build_fsm(self) -> FSM:
@@ -101,9 +106,6 @@ class KnowledgeManager(Agent):
             len(self.world),
             " (kept from before)" if self.world.kept else "",
         )
-        self.subscription: Conversation | None = None
-        self.subscribed = False
-        self.ta_lost = False  # a_ta's liveliness token disappeared since the last subscription
         self.work: deque[Query | WorldUpdate] = deque()  # queries and observations, as they came
         self.current: Query | WorldUpdate | None = None
         self.held: deque[Query] = deque()  # queries waiting for the first observation
@@ -140,43 +142,23 @@ class KnowledgeManager(Agent):
         )
 
     def setup(self) -> None:
-        self._subscribe()
+        self.environment = self.roles.subscribe(
+            C6,
+            FIPA_SUBSCRIBE,
+            Subscription("environment"),
+            conversation_id="km-environment",
+            retry_s=(0.0, 0.0),
+            at_start=True,
+            same_id=True,
+            while_away=False,
+        )
 
     def close(self) -> None:
         """Flush and release the knowledge store (the hook ``services.runtime.main`` calls after
         :meth:`run` ends). Idempotent."""
         self.world.close()
 
-    def peer_changed(self, peer: str, alive: bool) -> None:
-        """A restarted a_ta has lost the subscription: ask again when it reappears."""
-        if peer != "a_ta":
-            return
-        if not alive:
-            self.ta_lost = True
-            self.subscribed = False
-        elif self.ta_lost:
-            self.ta_lost = False
-            self.log.info("a_ta is back: subscribing to environment updates again")
-            self._subscribe()
-
-    def _subscribe(self) -> None:
-        self.subscription = self.roles.open(
-            C6, FIPA_SUBSCRIBE, Subscription("environment"), conversation_id="km-environment"
-        )
-
     # ---- the subscription to a_ta's environment updates (fipa-subscribe, initiator) ------
-    @handles(FIPA_SUBSCRIBE, INITIATOR, Performative.AGREE)
-    def _on_subscribed(self, conv: Conversation) -> None:
-        self.subscribed = True
-        self.log.info("a_ta agreed to send environment updates")
-
-    @handles(FIPA_SUBSCRIBE, INITIATOR, Performative.REFUSE, Performative.FAILURE)
-    def _on_subscription_lost(self, conv: Conversation) -> None:
-        """Refused, failed, not understood or unanswered by its deadline: ask again."""
-        self.subscribed = False
-        if conv is self.subscription:
-            self._subscribe()
-
     @handles(FIPA_SUBSCRIBE, INITIATOR, Performative.INFORM)
     def _on_update(self, conv: Conversation) -> None:
         if isinstance(conv.content, WorldUpdate):

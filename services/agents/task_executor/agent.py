@@ -263,12 +263,8 @@ class TaskExecutor(Agent):
     # a_co's plans (coordinate, participant)
     @handles(COORDINATE, PARTICIPANT, Performative.REQUEST)
     def _on_plan(self, conv: Conversation) -> None:
-        kept = _reply_with(self.plan_request) if self.plan_request is not conv else None
-        if kept is not None and kept == _reply_with(conv):
-            # a_co sends an unanswered plan again when a_ta reappears; a restarted a_ta that
-            # kept this very request reports on it instead of running it a second time
-            self.log.info("plan request %s again: it is the plan kept, not run twice", _reply_with(conv))
-            return
+        # (a_co sends an unanswered plan again when a_ta reappears; a restarted a_ta that kept
+        # this very request reports on it: the role does not hand the copy to this handler)
         self.requests.append(conv)
 
     @handles(COORDINATE, PARTICIPANT, Performative.CONFIRM)
@@ -279,18 +275,14 @@ class TaskExecutor(Agent):
     @on_deadline(COORDINATE, PARTICIPANT)
     def _on_unconfirmed(self, conv: Conversation) -> None:
         if conv.timed_out:
-            self.log.warning("a_co did not confirm %s in time", self._answered(conv))
+            self.log.warning("a_co did not confirm %s in time", conv.answers_to)
         else:  # a restarted a_co that kept nothing does not know the plan: nobody waits for it
-            self.log.warning("a_co does not know plan of %s: going on", self._answered(conv))
+            self.log.warning("a_co does not know plan of %s: going on", conv.answers_to)
         self._confirmed(conv)
-
-    @staticmethod
-    def _answered(conv: Conversation) -> str | None:
-        return conv.last.msg.in_reply_to if conv.last is not None else None
 
     def _confirmed(self, conv: Conversation) -> None:
         """a_co confirmed (or will never confirm) the L_SW inform its reply answers."""
-        answered = self._answered(conv)
+        answered = conv.answers_to
         if answered is not None and answered == self.awaiting:
             self.awaiting = None
         if self.final_inform is not None and answered == self.final_inform:
@@ -509,8 +501,7 @@ class TaskExecutor(Agent):
             # pour ran into it)
             step = self.leaves[self.index][0]
         opening = self.plan_request.opening if self.plan_request is not None else None
-        request = opening.msg.reply_with if opening is not None else None
-        now = (request, step, self.outcome, self.reason)
+        now = (self.plan_request, step, self.outcome, self.reason)
         if now == self._kept_as:
             return  # nothing changed: the plan request is not encoded again every step
         self._kept_as = now
@@ -926,8 +917,3 @@ class TaskExecutor(Agent):
             self.plan_request = None
             self.final_inform = None
             self.restored = False
-
-
-def _reply_with(conv: Conversation | None) -> str | None:
-    """The reply-with of the request that opened ``conv`` (None: no conversation, not known)."""
-    return conv.opening.msg.reply_with if conv is not None and conv.opening is not None else None

@@ -136,7 +136,7 @@ def test_progress_made_before_the_subscription_follows_its_agree_in_order() -> N
     command(w)
     planned(w)
     running(w, "pour/a")
-    assert w.sent("hi-progress") == [] and len(w.agent.unsent) == 5
+    assert w.sent("hi-progress") == [] and len(w.agent.note.unsent) == 5
     # a_hi's subscribe comes late (its first attempt timed out at a_hi): agree, then every
     # change so far, each an inform answering the subscribe
     subscribe(w, "hi-progress")
@@ -149,7 +149,7 @@ def test_progress_made_before_the_subscription_follows_its_agree_in_order() -> N
         "running:pour/a",
     ]
     assert {m.in_reply_to for m in w.out if m.conversation_id == "hi-progress"} == {"hi-progress"}
-    assert not w.agent.unsent
+    assert not w.agent.note.unsent
     running(w, "pour/b")  # later changes go at once
     assert words(w.sent("hi-progress"))[-1] == "running:pour/b"
     assert w.agent.counters["rejected"] == 0 and w.agent.counters["progress_dropped"] == 0
@@ -189,9 +189,9 @@ def test_what_is_kept_is_bounded_per_command_and_in_all(monkeypatch: pytest.Monk
     w = Wire()
     command(w)  # accepted, plan #1 requested
     planned(w)  # plan #1 ready, running: the oldest of cmd-1, accepted, goes
-    assert [p.detail for p in w.agent.unsent] == ["plan #1 requested", "plan #1 ready", "plan cmd-1-p1"]
+    assert [p.detail for p in w.agent.note.unsent] == ["plan #1 requested", "plan #1 ready", "plan cmd-1-p1"]
     command(w, "cmd-2")  # four in all at most: the oldest, plan #1 requested of cmd-1, goes
-    assert [(p.command_id, p.detail) for p in w.agent.unsent] == [
+    assert [(p.command_id, p.detail) for p in w.agent.note.unsent] == [
         ("cmd-1", "plan #1 ready"),
         ("cmd-1", "plan cmd-1-p1"),
         ("cmd-2", "accepted"),
@@ -199,7 +199,7 @@ def test_what_is_kept_is_bounded_per_command_and_in_all(monkeypatch: pytest.Monk
     ]
     assert w.agent.counters["progress_dropped"] == 2
     subscribe(w, "hi-progress")
-    assert len(w.sent("hi-progress")) == 5 and not w.agent.unsent
+    assert len(w.sent("hi-progress")) == 5 and not w.agent.note.unsent
 
 
 def test_progress_not_yet_sent_is_kept_across_a_restart(

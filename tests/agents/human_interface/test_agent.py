@@ -476,8 +476,8 @@ def test_a_co_that_does_not_serve_subscriptions(stage: Stage, monkeypatch: pytes
     assert kinds == [ReportKind.ACCEPTED, ReportKind.SUCCEEDED]
     attempts = [co.subscribe_seen.get(timeout=TIMEOUT) for _ in range(4)]
     assert attempts == ["hi-progress", "hi-progress-2", "hi-progress-3", "hi-progress-4"]
-    assert not hi.subscribed
-    assert hi.retry_interval == 0.2  # doubled from 0.05 up to the longest interval
+    assert not hi.progress.subscribed
+    assert hi.progress.interval == 0.2  # doubled from 0.05 up to the longest interval
     assert hi.counters["behaviour_errors"] == 0
 
 
@@ -498,4 +498,4 @@ def test_subscribes_when_a_co_comes_up_later(stage: Stage, monkeypatch: pytest.M
     co.do(run)
     reports = [person.next("r1"), person.next("r1")]
     assert reports[1].text == "put the cup back in the cabinet: waiting for the robot"
-    assert hi.subscribed and hi.subscription == co.subscribes[-1]
+    assert hi.progress.subscribed and hi.progress.conversation_id == co.subscribes[-1]
