@@ -14,6 +14,7 @@ from services.report.load import Message, RunData, load_run
 from services.report.markdown import render
 from services.report.model import FaultRow, Header, PerceptionRow, Report
 from services.report.planning import plan_phases
+from services.report.robot_clock import robot_clock
 from services.report.stats import agent_matrix, channel_stats, size_stats
 from services.report.timeline import command_text, find_command, find_outcome, link_events, timeline
 from services.runtime.refusals import REFUSALS_JSONL, read_refusals
@@ -54,6 +55,8 @@ def _assemble(run: RunData, container: str = "bowl") -> Report:
         notes.append("no final outcome (C2 CommandOutcome or failure) in the traffic")
     control = _control_timing(Path(run_dir), notes)
     header = _header(run, command, outcome)
+    clock = robot_clock(messages)
+    header.robot_duration_s = clock.between(header.command_t, header.finished_t)
     header.record = run.integrity.summary() if run.integrity.records else ""
     header.access_control = _access_control(run)
     return Report(
@@ -73,6 +76,7 @@ def _assemble(run: RunData, container: str = "bowl") -> Report:
         commands=commands(messages),
         coordination=coordination(messages),
         faults=_faults(run, notes),
+        clock=clock,
         perception=_perception(Path(run_dir), notes),
     )
 

@@ -11,21 +11,33 @@ from pathlib import Path
 from services.report import paper
 from services.report.figures import FigureFile
 from services.report.model import AgentMatrix, Event, Header, PerceptionRow, PlanPhase, Report
+from services.report.robot_clock import RobotClock
 from velma.executor.timing import STALL_OFF_CPU, RealtimeSetup, TimingStats
 
 HOW_MEASURED = (
-    "**How measured.** Times are the arrival times of the communicates at the traffic "
-    "recorder (wall clock), in seconds since the run start (`run.json` `started`, else the "
+    "**How measured.** Two clocks. *Wall* times are the arrival times of the communicates at "
+    "the traffic recorder, in seconds since the run start (`run.json` `started`, else the "
     "first record); a communicate a restarted recorder recovered late from its publisher's "
-    "cache counts at the time its publisher stamped on it. Sizes are the payload on the wire: "
+    "cache counts at the time its publisher stamped on it. *Robot* times are the simulation's "
+    "clock, read from ag_ex's answers on C5 (each carries the simulation time it ended at) and "
+    "interpolated between them: the robot's own time, which the paper's real robot shares with "
+    "the wall clock; run as fast as possible, the simulation runs faster than the wall clock, "
+    "so the comparisons with the paper use robot time. Sizes are the payload on the wire: "
     "the msgpack-encoded communicate "
     "(`TrafficRecord.size`). The paper logged send times and sizes of its ROS 1 messages, "
     "so sizes compare in order of magnitude only."
 )
 
 
+SECTION = "## § "
+"""How a section's title begins before :func:`render` numbers the sections present, in order."""
+PERCEPTION_SECTION = "§perception"
+"""Stands for the perception section's number in text written before the numbering."""
+
+
 def render(report: Report, figures: Sequence[FigureFile] = ()) -> str:
-    """The whole report as Markdown text; each of ``figures`` (written by
+    """The whole report as Markdown text, its sections numbered without gaps (a section with
+    nothing to show is left out); each of ``figures`` (written by
     :func:`services.report.figures.write_figures`) is linked, with its caption, in its section:
     sizes over time, bandwidth and size histogram in 1, the matrix in 2, the timeline in 3."""
     figs = {f.name: f for f in figures}
@@ -33,7 +45,7 @@ def render(report: Report, figures: Sequence[FigureFile] = ()) -> str:
         _header(report.header, report.perception),
         _statistics(report, figs),
         _matrix_section(report.matrix, figs),
-        _timeline(report.events, figs),
+        _timeline(report.events, report.clock, figs),
         _planning(report.plans),
         _content(report),
         _control(report),
@@ -42,7 +54,23 @@ def render(report: Report, figures: Sequence[FigureFile] = ()) -> str:
         _perception(report),
         _notes(report.notes),
     ]
-    return "\n\n".join(p for p in parts if p) + "\n"
+    return _numbered([p for p in parts if p]) + "\n"
+
+
+def _numbered(parts: list[str]) -> str:
+    """``parts`` joined, each ``SECTION`` title given the next number and each mention of the
+    perception section its number."""
+    number = 0
+    perception = "—"
+    out = []
+    for part in parts:
+        if part.startswith(SECTION):
+            number += 1
+            part = f"## {number}. {part[len(SECTION) :]}"
+            if part.startswith(f"## {number}. Perception"):
+                perception = str(number)
+        out.append(part)
+    return "\n\n".join(out).replace(PERCEPTION_SECTION, perception)
 
 
 def _figure(figs: Mapping[str, FigureFile], *names: str) -> list[str]:
@@ -98,10 +126,11 @@ def _wall(t: float | None) -> str:
 
 
 def _perceived(rows: Sequence[PerceptionRow]) -> str:
-    """The header's perception row: the head camera's Observations (section 9), or none logged."""
+    """The header's perception row: the head camera's Observations (their section), or none logged."""
     if rows:
         observations = len({r.sim_time for r in rows})
-        return f"head camera: {observations} Observation(s), beside the ground truth in section 9"
+        seen = f"head camera: {observations} Observation(s)"
+        return f"{seen}, beside the ground truth in section {PERCEPTION_SECTION}"
     return (
         "no head-camera Observation logged: the physics' ground truth answered the agents "
         "(ROCO_PERCEPTION=truth, or no off-screen GL library), or nothing was observed"
@@ -115,8 +144,8 @@ def _header(h: Header, perception: Sequence[PerceptionRow] = ()) -> str:
     outcome += f" (source: {h.outcome_source})"
     if h.task_duration_s is not None:
         duration = (
-            f"{_s(h.task_duration_s)} s (human command at {_s(h.command_t)} s → "
-            f"outcome at {_s(h.finished_t)} s)"
+            f"{_robot_time(h.robot_duration_s)}; {_s(h.task_duration_s)} s wall (human command at "
+            f"{_s(h.command_t)} s → outcome at {_s(h.finished_t)} s)"
         )
     else:
         duration = "— (command or outcome not recorded)"
@@ -156,7 +185,8 @@ def _statistics(report: Report, figs: Mapping[str, FigureFile]) -> str:
             f"{paper.MAX_SIZE_B // 1000} kB (text also: {paper.MAX_SIZE_ALT_B // 1000} kB)",
         ],
         ["share under 0.5 kB (500 B)", under, f"{paper.SHARE_UNDER_500 * 100:.0f} %"],
-        ["task duration", f"{_s(h.task_duration_s)} s", paper_duration],
+        ["task duration (robot time)", _robot_time(h.robot_duration_s), paper_duration],
+        ["task duration (wall clock)", f"{_s(h.task_duration_s)} s", "the same (a real robot)"],
     ]
     derived = paper.table8_channel_counts()
     ch_rows = []
@@ -174,7 +204,7 @@ def _statistics(report: Report, figs: Mapping[str, FigureFile]) -> str:
     ch_rows.append(["none", "a_km–ag_ex", "—", "—", str(derived.get("none", 0))])
     return "\n\n".join(
         [
-            "## 1. Communication statistics",
+            f"{SECTION}Communication statistics",
             _table(["quantity", "this run", "paper (§5.7)"], rows),
             "### Per channel",
             _table(
@@ -220,7 +250,7 @@ def _matrix_section(m: AgentMatrix, figs: Mapping[str, FigureFile]) -> str:
     )
     return "\n\n".join(
         [
-            "## 2. Communicates sent and received per agent (paper Table 8 layout)",
+            f"{SECTION}Communicates sent and received per agent (paper Table 8 layout)",
             "Rows: receivers; columns: senders. A communicate with several receivers counts "
             "once per receiver.",
             "**This run**",
@@ -233,17 +263,37 @@ def _matrix_section(m: AgentMatrix, figs: Mapping[str, FigureFile]) -> str:
     )
 
 
-def _timeline(events: Sequence[Event], figs: Mapping[str, FigureFile]) -> str:
-    ours = [[_span(e.start, e.end), e.text, ", ".join(e.channels) or "—"] for e in events]
+def _robot_time(x: float | None) -> str:
+    return "— (no answer of ag_ex in between)" if x is None else f"{x:.1f} s robot time"
+
+
+def _robot_span(clock: RobotClock, start: float, end: float | None) -> str:
+    """The robot times of a wall-clock span; — where the robot's clock is not known."""
+    a = clock.at(start)
+    if end is None:
+        return _s(a)
+    b = clock.at(end)
+    if a is None and b is None:
+        return "—"
+    return _span(a, b) if a is not None and b is not None else f"{_s(a)}–{_s(b)}"
+
+
+def _timeline(events: Sequence[Event], clock: RobotClock, figs: Mapping[str, FigureFile]) -> str:
+    ours = [
+        [_robot_span(clock, e.start, e.end), _span(e.start, e.end), e.text, ", ".join(e.channels) or "—"]
+        for e in events
+    ]
     theirs = [list(row) for row in paper.TABLE7]
-    head = ["time [s]", "event", "channels used"]
     return "\n\n".join(
         [
-            "## 3. Event timeline (paper Table 7 layout)",
-            "**This run** (s since the run start)",
-            _table(head, ours) if ours else "No events: the traffic record is empty.",
-            "**Paper, Table 7**",
-            _table(head, theirs),
+            f"{SECTION}Event timeline (paper Table 7 layout)",
+            "**This run**: robot time (the simulation's clock) and wall time (the recorder's), s "
+            "since the run start; — where ag_ex had not yet answered or answered no more",
+            _table(["robot [s]", "wall [s]", "event", "channels used"], ours)
+            if ours
+            else "No events: the traffic record is empty.",
+            "**Paper, Table 7** (the real robot: robot time is wall time)",
+            _table(["time [s]", "event", "channels used"], theirs),
             *_figure(figs, "timeline"),
         ]
     )
@@ -252,13 +302,13 @@ def _timeline(events: Sequence[Event], figs: Mapping[str, FigureFile]) -> str:
 def _planning(plans: Sequence[PlanPhase]) -> str:
     head = [
         "plan",
-        "requested [s]",
-        "answered [s]",
+        "requested [s wall]",
+        "answered [s wall]",
         "C4 communicates",
         "C4 bytes",
         "query-refs",
         "a_km queries (plan)",
-        "planning time (plan) [s]",
+        "planning time (plan) [s wall]",
         "mean kbps",
         "peak kbps (1 s)",
         "result",
@@ -293,7 +343,7 @@ def _planning(plans: Sequence[PlanPhase]) -> str:
     ]
     return "\n\n".join(
         [
-            "## 4. Planning phases",
+            f"{SECTION}Planning phases",
             "C4 traffic counted from the plan request (C3) to a_pl's answer; mean bandwidth "
             "over that span, peak over 1 s bins (paper Figure 13).",
             _table(head, rows) if rows else "No plan request (C3) in the traffic.",
@@ -321,12 +371,12 @@ def _content(report: Report) -> str:
     else:
         text = (
             f"{c.inside} of {c.total} spheres ({_pct(c.share)}) ended in the {c.container}, "
-            f"from the last observation (ag_ex → a_ta, C5) at {_s(c.t)} s "
-            f"(simulation time {_s(c.stamp)} s)."
+            f"from the last observation (ag_ex → a_ta, C5) at {_s(c.t)} s wall "
+            f"({_s(c.stamp)} s robot time)."
         )
     return "\n\n".join(
         [
-            "## 5. Content outcome",
+            f"{SECTION}Content outcome",
             text,
             "Paper: “the content of the jar is poured into the bowl” at 763 s; no count given.",
         ]
@@ -348,7 +398,7 @@ def _scheduling(setup: RealtimeSetup) -> str:
 
 def _control(report: Report) -> str:
     c = report.control
-    title = "## 6. Control loop (ag_ex, 1 kHz)"
+    title = f"{SECTION}Control loop (ag_ex, 1 kHz)"
     if c is None:
         return f"{title}\n\nNot recorded (see Notes)."
     head = ("", "p50", "p99", "max")
@@ -395,7 +445,7 @@ def _control(report: Report) -> str:
 
 
 def _coordination(report: Report) -> str:
-    title = "## 7. Commands and coordination (C2, C1)"
+    title = f"{SECTION}Commands and coordination (C2, C1)"
     if not report.commands and not report.coordination:
         return f"{title}\n\nNo command reached a_co."
     rows = [
@@ -412,10 +462,20 @@ def _coordination(report: Report) -> str:
         for i, c in enumerate(report.commands, 1)
     ]
     commands = _table(
-        ("#", "command", "priority", "requested", "stopped", "ended", "outcome", "detail"), rows
+        (
+            "#",
+            "command",
+            "priority",
+            "requested (s wall)",
+            "stopped (s wall)",
+            "ended (s wall)",
+            "outcome",
+            "detail",
+        ),
+        rows,
     )
     events = _table(
-        ("t (s)", "who", "performative", "what"),
+        ("t (s wall)", "who", "performative", "what"),
         [(_s(e.t), e.who, e.performative, e.text) for e in report.coordination],
     )
     how = (
@@ -429,7 +489,7 @@ def _coordination(report: Report) -> str:
 
 
 def _faults(report: Report) -> str:
-    """Section 8, only when faults were injected (``faults.jsonl``, docs/faults.md)."""
+    """The faults section, only when faults were injected (``faults.jsonl``, docs/faults.md)."""
     if not report.faults:
         return ""
     rows = [
@@ -443,8 +503,8 @@ def _faults(report: Report) -> str:
         "times are when the fault was applied, in s since the run start. Dropped communicates "
         "are not in the traffic record; corrupted ones are, as sent (often `malformed`)."
     )
-    table = _table(("kind", "by", "where", "count", "first (s)", "last (s)", "detail (last)"), rows)
-    return f"## 8. Injected faults\n\n{table}\n\n{how}"
+    table = _table(("kind", "by", "where", "count", "first (s wall)", "last (s wall)", "detail (last)"), rows)
+    return f"{SECTION}Injected faults\n\n{table}\n\n{how}"
 
 
 def _or_dash(value: int | None) -> str:
@@ -478,14 +538,14 @@ def _perception_summary(rows: Sequence[PerceptionRow]) -> str:
 
 
 def _perception(report: Report) -> str:
-    """Section 9, only for runs that perceived with the head camera: every object of every
+    """The perception section, only for runs that perceived with the head camera: every object of every
     Observation beside the ground truth, and the errors' p50 / p95 / max."""
     rows = report.perception
     if not rows:
         return ""
     table = _table(
         (
-            "t (s)",
+            "t (s wall)",
             "object",
             "seen",
             "error (mm)",
@@ -505,7 +565,7 @@ def _perception(report: Report) -> str:
         "never receive it. Content: the spheres the camera counted beside those inside; outside: "
         "those it saw resting outside every container (spilled in view) beside those in none."
     )
-    return f"## 9. Perception (head camera)\n\n{summary}.\n\n{table}\n\n{how}"
+    return f"{SECTION}Perception (head camera)\n\n{summary}.\n\n{table}\n\n{how}"
 
 
 def _stalls(c: TimingStats) -> str:

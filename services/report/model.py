@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import msgspec
 
+from services.report.robot_clock import RobotClock
 from velma.executor.timing import TimingStats
 
 
@@ -32,6 +33,9 @@ class Header(msgspec.Struct, kw_only=True):
     command_t: float | None = None
     finished_t: float | None = None
     task_duration_s: float | None = None
+    robot_duration_s: float | None = None
+    """The task's duration in robot time (the simulation's clock): from ag_ex's first answer
+    after the command to its last before the outcome (services/report/robot_clock.py)."""
     started_wall: float | None = None
     command_wall: float | None = None
     ended_wall: float | None = None
@@ -220,5 +224,7 @@ class Report(msgspec.Struct, kw_only=True):
     faults: list[FaultRow] = []
     """Injected faults (docs/faults.md); empty when none was applied."""
     perception: list[PerceptionRow] = []
+    clock: RobotClock = RobotClock()
+    """Recorder time → robot time (services/report/robot_clock.py)."""
     """Each camera Observation's objects beside the truth; empty when the run perceived from
     the ground truth (ROCO_PERCEPTION=truth) or ag_ex wrote no log."""
