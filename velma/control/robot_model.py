@@ -19,7 +19,7 @@ import numpy as np
 import numpy.typing as npt
 import pinocchio as pin
 
-from velma.model import VELMA_XML
+from velma.model import VELMA_XML, grip_frame
 
 Array = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]
@@ -49,11 +49,6 @@ def proximal_joints(side: str) -> tuple[str, ...]:
 def distal_joints(side: str) -> tuple[str, ...]:
     """Distal (KnuckleThree) joints of fingers One, Two, Three."""
     return tuple(f"{side}_HandFinger{n}KnuckleThreeJoint" for n in FINGERS)
-
-
-def grip_frame(side: str) -> str:
-    """Name of the grip frame (a site in MuJoCo, a frame in Pinocchio)."""
-    return f"{side}_HandGripLink"
 
 
 class RobotModel:

@@ -14,9 +14,8 @@ import numpy as np
 
 from shared.fipa_codec.languages.common import Pose
 from shared.fipa_codec.languages.l_sd import ObjectObservation
+from velma.model import grip_frame
 
-GRIP_SITE = "{side}_HandGripLink"
-"""The grip frame's site in Velma's model, per side (the frame MoveTool targets)."""
 GRIPPER = "{side}_gripper"
 """a_km's name of a side's gripper (services/agents/knowledge/o_roco.ttl)."""
 SIDES = ("left", "right")
@@ -24,10 +23,10 @@ SIDES = ("left", "right")
 
 class GripFrames:
     """The grip sites of ``model`` (an ``mujoco.MjModel`` of Velma). Raises ``KeyError``
-    when the model has no ``{side}_HandGripLink`` site."""
+    when the model has no grip-frame site (velma.model.grip_frame)."""
 
     def __init__(self, model: mujoco.MjModel) -> None:
-        self.sites = {side: model.site(GRIP_SITE.format(side=side)).id for side in SIDES}
+        self.sites = {side: model.site(grip_frame(side)).id for side in SIDES}
 
     def observe(self, data: mujoco.MjData) -> tuple[ObjectObservation, ...]:
         """Each gripper's grip frame in ``data`` (its kinematics computed): world pose,

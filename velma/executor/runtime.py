@@ -54,6 +54,7 @@ from velma.executor.ground_truth import GroundTruth
 from velma.executor.plant import CompiledPlant, plant_unavailable
 from velma.executor.state import LINK_BODIES
 from velma.executor.world_link import WorldLink
+from velma.model import grip_frame
 from velma.model.scene import N_PARTICLES, initial_state, load_kitchen
 from velma.world.hardware import (  # the robot's rates, stated once
     CONTACT_PERIOD,
@@ -114,7 +115,7 @@ class Runtime:
         self.joint_v_index = tuple(self.robot.v_index(n) for n in self.robot.joint_names)
         self.snapshot_index = np.array(self.joint_v_index, dtype=np.intp)
         """``joint_v_index`` as an index array (velma.executor.state.raw_state)."""
-        self.grip_site = {s: self.model.site(f"{s}_HandGripLink").id for s in SIDES}
+        self.grip_site = {s: self.model.site(grip_frame(s)).id for s in SIDES}
         # the snapshot's link bodies and wrist F/T sensors (velma.executor.state)
         self.link_ids = np.array([self.model.body(n).id for n in LINK_BODIES], dtype=np.intp)
         self.ft_adr = {

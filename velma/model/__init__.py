@@ -9,4 +9,11 @@ MODEL_DIR = Path(__file__).resolve().parent
 VELMA_XML = MODEL_DIR / "velma.xml"
 KITCHEN_XML = MODEL_DIR / "kitchen.xml"
 
-__all__ = ["KITCHEN_XML", "MODEL_DIR", "VELMA_XML"]
+
+def grip_frame(side: str) -> str:
+    """Name of ``side``'s ("left" or "right") grip frame: a site in MuJoCo, a frame in
+    Pinocchio, 0.12 m out of the palm (velma/model/generate.py); the pose MoveTool targets."""
+    return f"{side}_HandGripLink"
+
+
+__all__ = ["KITCHEN_XML", "MODEL_DIR", "VELMA_XML", "grip_frame"]
