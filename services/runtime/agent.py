@@ -43,9 +43,9 @@ A subclass declares its ``name`` (as in the specification), builds its FSM of be
   another agent's token appears or disappears (the white pages, ``roco/alive/*``), after the
   subscriptions its roles keep with that peer acted on it (services/runtime/subscriptions.py),
 - a persistence hook, :meth:`Agent.persist`, called after every step once its output
-  buffer is dispatched: by default it writes the open conversations of the roles declared
-  with ``keep`` and the agent's :attr:`Agent.NOTE` (services/runtime/state_store.py), given
-  back after a restart through :meth:`Agent.on_restored`.
+  buffer is dispatched: it writes the open conversations of the roles declared with ``keep``
+  and the agent's :attr:`Agent.NOTE` (services/runtime/state_store.py) when they changed,
+  given back after a restart through :meth:`Agent.on_restored`.
 - one thread at a time runs the elementary actions (it holds the agent's turn): the agent's
   own, or, while the agent is idle, the transport's receiving thread a communicate arrived on
   (:meth:`Agent._take_here`: no hand-over between threads for a communicate that
@@ -249,6 +249,7 @@ class Agent:
         )
         """Where the runtime keeps the conversations of the roles declared with ``keep`` and
         :attr:`note` (services/runtime/state_store.py); None: the agent keeps neither."""
+        self._kept_last: KeptConversations | None = None  # what persist last wrote
         self._take_back()
 
     # ---- to be provided by agents -------------------------------------------------------
@@ -266,17 +267,21 @@ class Agent:
         that appears are retransmitted at once by the runtime."""
 
     def persist(self) -> None:
-        """Runs after every step, once its output buffer is dispatched: an agent that must
-        survive a restart writes its state here (so what it has said is what it keeps).
-        Keep it cheap: write only when the state changed. By default: the open conversations
-        of the roles declared with ``keep`` (services/runtime/roles.py :meth:`Roles.kept`),
-        written when they changed; an agent that keeps its own state file instead overrides
-        it. Raises OSError when the state folder cannot be written."""
-        if self._kept_conversations is not None:
-            kept = self.roles.kept()
-            if self.note is not None:
-                kept.note = msgspec.Raw(msgspec.json.encode(self.note))
+        """Runs after every step, once its output buffer is dispatched (so what it has said is
+        what it keeps): the open conversations of the roles declared with ``keep``
+        (services/runtime/roles.py :meth:`Roles.kept`) and :attr:`note`, written when they
+        changed; the file is encoded only then (an opening kept is not encoded again every
+        step). An agent whose data of a kept conversation follows from its state sets it here
+        before calling this (a_ta: the leaf step it is in). Raises OSError when the state
+        folder cannot be written."""
+        if self._kept_conversations is None:
+            return
+        kept = self.roles.kept()
+        if self.note is not None:
+            kept.note = msgspec.Raw(msgspec.json.encode(self.note))
+        if kept != self._kept_last:  # compared field by field: the openings are the same bytes
             self._kept_conversations.save(kept)
+            self._kept_last = kept
 
     def on_restored(self, conversation: Conversation) -> None:
         """A conversation of a role declared with ``keep``, taken back after a restart (when

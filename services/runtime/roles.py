@@ -49,7 +49,9 @@ FIPA machine of :mod:`shared.fipa_codec.protocols`) — owns what the protocol i
   names (and waits again for an unanswered opening of its own); a role declared with ``keep``
   has the runtime do it for each of its open conversations, with the agent's data of it
   (:meth:`Roles.kept`, :meth:`Roles.take_back`; the agent gets each back in
-  ``on_restored(conversation)``, services/runtime/agent.py).
+  ``on_restored(conversation)``, services/runtime/agent.py); a participant role declared
+  ``resume_in`` takes each back in that protocol state, and keeps it while the agent's data of
+  it is set, even once it has ended (:attr:`RoleDecl.resume_in`).
 
 An initiator role the specification gives an agent but in which it opens no conversation is
 declared ``unused`` (:func:`initiator`); it needs no handlers. To act on a timer (open a
@@ -170,6 +172,18 @@ class RoleDecl:
     """A fipa-subscribe initiator role that keeps its subscription open itself
     (:meth:`Roles.subscribe`, services/runtime/subscriptions.py): it handles ``agree``,
     ``refuse`` and ``failure``; the agent handles the stream's ``inform``\\s only."""
+    resume_in: str | None = None
+    """A participant role declared with ``keep`` takes each kept conversation back in this
+    state of its protocol's state machine, whatever state it was kept in (e.g. a_ta's plan in
+    coordinate's ``running``: it reports its outcome again, which ``ending`` does not allow);
+    and it keeps a conversation for as long as the agent's data of it is set, even once it has
+    ended (a not-understood ended a_ta's plan conversation while a_ta still runs the plan).
+    None: taken back in the state it was kept in, and kept while open. Checked against the
+    protocol's states when the agent starts (:func:`role_problems`)."""
+
+    def __post_init__(self) -> None:
+        if self.resume_in is not None and (self.role != PARTICIPANT or not self.keep):
+            raise ValueError(f"{self}: resume_in is for a participant role declared with keep")
 
     def __str__(self) -> str:
         where = "every channel" if self.channel == EVERY_CHANNEL else self.channel
@@ -207,18 +221,25 @@ def initiator(
 
 
 def participant(
-    channel: str, protocol: str, *languages: str, keep: bool | type[msgspec.Struct] = False
+    channel: str,
+    protocol: str,
+    *languages: str,
+    keep: bool | type[msgspec.Struct] = False,
+    resume_in: str | None = None,
 ) -> RoleDecl:
     """The participant role of ``protocol`` on ``channel`` (or :data:`EVERY_CHANNEL`: every
     channel where the specification makes the agent its participant in exactly ``languages``),
     in ``languages``: ``participant(C5, FIPA_REQUEST, L_EX, L_SD)``, named as by
-    :func:`initiator`; ``keep`` as there."""
+    :func:`initiator`; ``keep`` as there; ``resume_in``: the protocol state a kept
+    conversation is taken back in (:attr:`RoleDecl.resume_in`). Raises ValueError for
+    ``resume_in`` without ``keep``."""
     return RoleDecl(
         _spelling(channel),
         _spelling(protocol),
         PARTICIPANT,
         tuple(_spelling(lang) for lang in languages),
         keep=keep,
+        resume_in=resume_in,
     )
 
 
@@ -458,6 +479,7 @@ def role_problems(
             )
     handlers = list(handlers)
     valid = [d for d in declared if want.get((d.channel, d.protocol)) == _normal(d)]
+    problems += [p for d in valid if (p := _resume_problem(spec, agent, d)) is not None]
     for decl in valid:
         if decl.unused:
             continue
@@ -515,6 +537,23 @@ def agent_problems(spec: SystemSpec, agent: str, cls: type, files: Iterable[Path
         source = inspect.getsourcefile(owner)
         files = [Path(source)] if source is not None else []
     return problems + code_problems(spec, agent, declared, files)
+
+
+def _resume_problem(spec: SystemSpec, agent: str, decl: RoleDecl) -> str | None:
+    """Why ``decl``'s ``resume_in`` (:attr:`RoleDecl.resume_in`) names no state its protocol
+    can take a conversation back in (:meth:`Roles.restore`: a state other than the initial
+    one that non-final transitions lead to from it), or None."""
+    if decl.resume_in is None:
+        return None
+    machine = machine_of(spec, decl.protocol)
+    can = sorted(s for s in machine.states - machine.final - {machine.initial} if _path_to(machine, s))
+    if decl.resume_in in can:
+        return None
+    return (
+        f"agent {agent} takes its kept {decl.protocol} conversations on {decl.channel} back in "
+        f"{decl.resume_in!r}, which is no state of [protocols.{decl.protocol}] to take one back in "
+        f"(one of: {', '.join(can)})"
+    )
 
 
 def _kept_by_role(decl: RoleDecl) -> frozenset[Performative]:
@@ -806,6 +845,9 @@ class Roles:
         self._taken_up = itertools.count(1)
         self.keeps = any(d.keep for d in self.declared)
         """Some role keeps its conversations across a restart (:meth:`kept`)."""
+        self._held: dict[int, Conversation] = {}
+        """Conversations of a role declared ``resume_in`` that ended while the agent's data of
+        them was set, by :attr:`Conversation._seq`: kept until the agent sets it to None."""
 
     # ---- the agent's side ---------------------------------------------------------------
     def role(self, channel: str, protocol: str) -> RoleDecl:
@@ -1011,17 +1053,19 @@ class Roles:
         """The open conversations of the roles declared with ``keep``, oldest first, as the
         agent's state file keeps them (services/runtime/state_store.py): each with the protocol
         state it is in, its opening and its :attr:`Conversation.data` (JSON of the Struct the
-        role declares; a conversation of such a role is kept once the agent set its data). A
-        conversation restored by its id alone, or one not yet begun, is left out."""
+        role declares; a conversation of such a role is kept once the agent set its data; of a
+        role declared ``resume_in``, for as long as it is set, ended or not). A conversation
+        restored by its id alone, or one not yet begun, is left out."""
         from services.runtime.state_store import NO_DATA, KeptConversation, KeptConversations
 
+        if self._held:
+            self._held = {seq: c for seq, c in self._held.items() if c.data is not None}
         out: list[KeptConversation] = []
-        for conv in sorted(self._open.values(), key=lambda c: c._seq):
-            keep = conv.decl.keep
-            noted = conv.data is not None or not isinstance(keep, type)  # its note once there is one
-            state = conv.state if keep and noted and conv.opening is not None and not conv.finished else None
+        for conv in sorted([*self._open.values(), *self._held.values()], key=lambda c: c._seq):
+            state = self._kept_state(conv)
             if state is None:
                 continue
+            keep = conv.decl.keep
             data = NO_DATA
             if isinstance(keep, type) and conv.data is not None:
                 data = msgspec.Raw(msgspec.json.encode(conv.data))
@@ -1036,9 +1080,20 @@ class Roles:
             )
         return KeptConversations(conversations=out)
 
+    @staticmethod
+    def _kept_state(conv: Conversation) -> str | None:
+        """The protocol state :meth:`kept` keeps ``conv`` in, or None when it keeps it not."""
+        decl = conv.decl
+        if not decl.keep or conv.opening is None or (isinstance(decl.keep, type) and conv.data is None):
+            return None  # (of a role with a note: once the agent set its data)
+        if decl.resume_in is not None and conv.data is not None:
+            return conv.state or decl.resume_in  # held while its data is set, ended or not
+        return None if conv.finished else conv.state
+
     def take_back(self, kept: KeptConversations) -> list[Conversation]:
         """Re-enter the conversations ``kept`` by :meth:`kept` before a restart (docs/recovery.md):
-        a participant's in the protocol state it was in; an initiator's in the state its
+        a participant's in the protocol state it was in (its role's ``resume_in``, if
+        declared: :attr:`RoleDecl.resume_in`); an initiator's in the state its
         opening leads to, the opening sent again (at once, then as the role retransmits, until
         the reply-by deadline) — its participant answers a repeated opening as it answered it
         (:meth:`_repeated`), so what was answered while this agent was down is not lost. Each
@@ -1058,7 +1113,7 @@ class Roles:
                 data = None
                 if isinstance(decl.keep, type) and bytes(k.data) != bytes(NO_DATA):
                     data = msgspec.json.decode(k.data, type=decl.keep)
-                state = k.state
+                state = decl.resume_in or k.state
                 if decl.role == INITIATOR:
                     machine = machine_of(self.agent.spec, k.protocol)
                     opened = machine.next_state(machine.initial, INITIATOR, decode(k.opening).performative)
@@ -1288,6 +1343,8 @@ class Roles:
         if any(i.sender == conv.peer and i.msg.conversation_id == conv.conversation_id for i in self.agent.x):
             return
         del self._open[key]
+        if conv.decl.resume_in is not None and conv.data is not None:
+            self._held[conv._seq] = conv  # the agent still holds it: kept (:meth:`kept`)
 
     def _reply(
         self,

@@ -6,11 +6,10 @@ starts empty), else none (nothing is kept: tests and one-off agents). Each agent
 file, ``<folder>/<agent>.json``, atomically (a temporary file renamed over the old one), and
 only when its content changed.
 
-What an agent keeps is either its own value (:class:`StateFile`), or — for an agent whose
-roles are declared with ``keep`` (services/runtime/roles.py) — the open conversations of those
-roles, written and taken back by the runtime itself (:class:`KeptConversations`; the agent
-gets each back through :meth:`~services.runtime.agent.Agent.on_restored`). One agent uses one
-of the two: they share the file.
+What an agent keeps is the open conversations of its roles declared with ``keep``
+(services/runtime/roles.py) and its ``NOTE``, written and taken back by the runtime itself
+(:class:`KeptConversations`, in a :class:`StateFile`; the agent gets each conversation back
+through :meth:`~services.runtime.agent.Agent.on_restored`).
 """
 
 from __future__ import annotations

@@ -12,10 +12,10 @@ from pathlib import Path
 import msgspec
 import pytest
 
-from services.agents.task_executor.agent import KeptTaskExecutor, TaskExecutor
+from services.agents.task_executor.agent import PlanNote, TaskExecutor
 from services.agents.task_executor.retreat import finish_set_down, retreat, undo_take
-from services.runtime.state_store import ENV_STATE_DIR
-from shared.fipa_codec import Communicate, Performative, encode
+from services.runtime.state_store import ENV_STATE_DIR, KeptConversations
+from shared.fipa_codec import Communicate, Performative
 from shared.fipa_codec.languages.common import Pose
 from shared.fipa_codec.languages.l_ex import (
     Arm,
@@ -30,7 +30,7 @@ from shared.fipa_codec.languages.l_hfsm import Assert, Execute, HierarchicalPlan
 from shared.fipa_codec.languages.l_sd import ObjectObservation, Observation
 from shared.fipa_codec.languages.l_sw import SWState, SWStatus
 from shared.fipa_codec.languages.l_wm import Subscription, WorldUpdate
-from tests.runtime.test_reliability import Wire
+from tests.runtime.test_reliability import Wire, keep_a_ta_plan
 from tests.support.messages import communicate
 
 P = Performative
@@ -169,8 +169,7 @@ def restarted_in(step: str, tmp_path: Path, scene: Observation) -> Wire[TaskExec
     subscribed and ag_ex answered its first observation with ``scene``: ready to enter
     finished."""
     request = communicate(P.REQUEST, "a_co", "a_ta", "coordinate", "cmd-1-exec1", PLAN, reply_with="p1")
-    kept = KeptTaskExecutor(request=encode(request), step=step, outcome=None, reason=None)
-    (tmp_path / "a_ta.json").write_bytes(msgspec.json.encode(kept))
+    keep_a_ta_plan(tmp_path, request, PlanNote(step=step))
     w = Wire(TaskExecutor)
     w.agent.setup()
     w.deliver(
@@ -309,6 +308,6 @@ def test_between_two_leaves_the_next_one_is_kept_as_the_step(
     ta = w.agent
     ta.state, ta.outcome, ta.step, ta.index = "running", None, None, INDEX["clear"]
     ta.persist()
-    kept = msgspec.json.decode((tmp_path / "a_ta.json").read_bytes(), type=KeptTaskExecutor)
-    assert kept.step == LEAVES[INDEX["clear"]][0]
+    (kept,) = msgspec.json.decode((tmp_path / "a_ta.json").read_bytes(), type=KeptConversations).conversations
+    assert msgspec.json.decode(kept.data, type=PlanNote).step == LEAVES[INDEX["clear"]][0]
     assert finish_set_down(LEAVES, SPANS, INDEX["clear"]) != ()

@@ -15,14 +15,14 @@ import pytest
 from services.agents.coordinator.agent import Coordinator
 from services.agents.human_interface.agent import HumanInterface
 from services.agents.knowledge.agent import KnowledgeManager
-from services.agents.task_executor.agent import KeptTaskExecutor, TaskExecutor
+from services.agents.task_executor.agent import PlanNote, TaskExecutor
 from services.runtime import keys
 from services.runtime.agent import RESEND_ON_RETURN, Agent
 from services.runtime.dedup import ANSWERS_PER_REQUEST, Dedup
 from services.runtime.human import HumanReport, ReportKind
 from services.runtime.memory_transport import MemoryBus, MemoryTransport
 from services.runtime.replies import Pending, PendingReplies
-from services.runtime.state_store import ENV_STATE_DIR, StateFile
+from services.runtime.state_store import ENV_STATE_DIR, KeptConversation, KeptConversations, StateFile
 from services.spec.model import channel_between
 from shared.fipa_codec import Communicate, Performative, decode, encode
 from shared.fipa_codec.languages.common import Pose
@@ -279,6 +279,16 @@ def test_a_restarted_a_co_goes_on_with_the_plan_a_ta_runs(
     assert second.mine(P.INFORM)[0].conversation_id == "cmd-1" and not second.agent.tasks
 
 
+def keep_a_ta_plan(folder: Path, request: Communicate, note: PlanNote, state: str = "running") -> None:
+    """Write in ``folder`` a_ta's state file as an a_ta that ran ``request``'s plan keeps it:
+    the coordinate role's conversation, kept in protocol ``state`` with a_ta's ``note``."""
+    data = msgspec.Raw(msgspec.json.encode(note))
+    kept = KeptConversation(
+        channel="C1", protocol="coordinate", state=state, opening=encode(request), data=data
+    )
+    (folder / "a_ta.json").write_bytes(msgspec.json.encode(KeptConversations(conversations=[kept])))
+
+
 def restarted_a_ta_in_the_wait(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> tuple[Communicate, Wire[TaskExecutor]]:
@@ -286,8 +296,7 @@ def restarted_a_ta_in_the_wait(
     ``tmp_path`` while it ran that plan's ``pour/wait`` leaf."""
     monkeypatch.setenv(ENV_STATE_DIR, str(tmp_path))
     request = communicate(P.REQUEST, "a_co", "a_ta", "coordinate", "cmd-1-exec1", PLAN, reply_with="p1")
-    kept = KeptTaskExecutor(request=encode(request), step="pour/wait", outcome=None, reason=None)
-    (tmp_path / "a_ta.json").write_bytes(msgspec.json.encode(kept))
+    keep_a_ta_plan(tmp_path, request, PlanNote(step="pour/wait"))
     w = Wire(TaskExecutor)
     w.agent.setup()
     return request, w
@@ -334,7 +343,10 @@ def test_a_restarted_a_ta_reports_replan_in_the_plans_conversation(
     )
     w.deliver(confirm)
     w.step("finished")
-    assert w.agent.plan is None and not (tmp_path / "a_ta.json").exists()
+    assert w.agent.plan is None
+    assert not msgspec.json.decode(
+        (tmp_path / "a_ta.json").read_bytes(), type=KeptConversations
+    ).conversations
 
 
 def a_hi_that_sent_the_pour(
@@ -488,6 +500,74 @@ def test_a_plan_sent_while_a_ta_is_gone_goes_again_when_it_reappears_and_only_th
     co.agent._acquire()
     co.agent._dispatch()
     assert len([m for m in co.out if m.performative is P.REQUEST]) == 2  # answered: not again
+
+
+def test_a_restarted_a_ta_reports_the_final_state_it_had_reached_again(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Killed after it informed a_co of its final state (coordinate's ``ending``, where a_ta
+    may send nothing), a_ta takes the plan's conversation back in ``running`` (the role's
+    ``resume_in``) and reports that state again."""
+    monkeypatch.setenv(ENV_STATE_DIR, str(tmp_path))
+    request = communicate(P.REQUEST, "a_co", "a_ta", "coordinate", "cmd-1-exec1", PLAN, reply_with="p1")
+    keep_a_ta_plan(tmp_path, request, PlanNote(outcome=SWState.SUCCEEDED), state="ending")
+    w = Wire(TaskExecutor)
+    assert w.agent.plan_request is not None and w.agent.plan_request.state == "running"
+    w.agent.fsm.states["finished"].on_enter()
+    w.agent._dispatch()
+    (report,) = [m for m in w.mine(P.INFORM) if m.receiver[0].name == "a_co"]
+    assert msgspec.msgpack.decode(report.content, type=SWStatus).state is SWState.SUCCEEDED
+    assert w.agent.counters["protocol_violations"] == 0
+
+
+def test_a_ta_keeps_the_plan_it_runs_after_a_not_understood_ended_its_conversation(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """a_co restarted with nothing kept answers a_ta's report not-understood, which ends the
+    plan's conversation; a_ta runs the plan on, and the role keeps the conversation for as long
+    as a_ta holds it (its note set): restarted, a_ta takes it back and reports on the plan. The
+    state file is written only when what it keeps changed."""
+    monkeypatch.setenv(ENV_STATE_DIR, str(tmp_path))
+    first = Wire(TaskExecutor)
+    first.deliver(communicate(P.REQUEST, "a_co", "a_ta", "coordinate", "cmd-1-exec1", PLAN, reply_with="p1"))
+    first.step("idle")
+    ta = first.agent
+    ta.state = "running"
+    ta.fsm.states["running"].on_enter()  # informs a_co: Running
+    first.agent._dispatch()
+    (running,) = [m for m in first.mine(P.INFORM) if m.receiver[0].name == "a_co"]
+    first.deliver(
+        communicate(
+            P.NOT_UNDERSTOOD, "a_co", "a_ta", "coordinate", "cmd-1-exec1", in_reply_to=running.reply_with
+        )
+    )
+    first.step("running")  # goes on: the plan's first leaf is sent to ag_ex
+    assert ta.plan_request is not None and ta.plan_request.finished and ta.step is not None
+    (kept,) = msgspec.json.decode((tmp_path / "a_ta.json").read_bytes(), type=KeptConversations).conversations
+    assert msgspec.json.decode(kept.data, type=PlanNote) == PlanNote(step="pour/wait")
+    saved: list[KeptConversations] = []
+    assert ta._kept_conversations is not None
+    monkeypatch.setattr(ta._kept_conversations, "save", saved.append)
+    first.step("running")  # nothing changed (ag_ex has not answered): not encoded, not written
+    ta.persist()
+    assert saved == []
+
+    second = Wire(TaskExecutor)
+    assert second.agent.plan_request is not None and second.agent.plan_request.state == "running"
+    assert second.agent.outcome is SWState.REPLAN
+    assert second.agent.reason == "a_ta restarted in pour/wait; the robot held position"
+
+
+def test_an_a_ta_state_file_of_the_earlier_format_is_set_aside(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, caplog: pytest.LogCaptureFixture
+) -> None:
+    monkeypatch.setenv(ENV_STATE_DIR, str(tmp_path))
+    request = communicate(P.REQUEST, "a_co", "a_ta", "coordinate", "cmd-1-exec1", PLAN, reply_with="p1")
+    earlier = {"request": encode(request), "step": "pour/wait", "outcome": None, "reason": None}
+    (tmp_path / "a_ta.json").write_bytes(msgspec.json.encode(earlier))
+    w = Wire(TaskExecutor)
+    assert w.agent.plan is None and (tmp_path / "a_ta.corrupt").exists()
+    assert any("does not decode" in r.getMessage() for r in caplog.records)
 
 
 def test_a_restarted_a_ta_does_not_queue_again_the_plan_request_it_kept(

@@ -173,3 +173,30 @@ def test_kept_conversations_come_back_with_their_note_and_what_cannot_is_dropped
     assert len(dropped) == 2, dropped
     note = second.agent.commands[request.conversation_id or ""].note
     assert note.request_id == "req-9" and not note.agreed
+
+
+def test_resume_in_names_a_state_the_protocol_can_take_a_conversation_back_in() -> None:
+    """``resume_in`` (a_ta's plan: coordinate's ``running``) is for a participant role that
+    keeps its conversations, and must name a state of its protocol that communicates lead to
+    and end nothing in (not the initial state, not a final one, not coordinate's ``ending``,
+    reached by a final report only): checked
+    when the role is declared, and with the roles' comparison with the specification that
+    refuses to start the agent (``roco spec verify-code``)."""
+    from services.agents.task_executor.agent import TaskExecutor
+    from services.runtime.roles import handlers_of, participant, role_problems
+    from services.spec.model import default_spec
+
+    with pytest.raises(ValueError, match="resume_in is for a participant role declared with keep"):
+        participant("C1", "coordinate", "L_HFSM", "L_SW", resume_in="running")
+    spec, handlers = default_spec(), list(handlers_of(TaskExecutor))
+    assert role_problems(spec, "a_ta", TaskExecutor.ROLES, handlers) == []
+    for state in ("runing", "finished", "ending", "start"):
+        roles = [
+            participant("C1", "coordinate", "L_HFSM", "L_SW", keep=True, resume_in=state),
+            *TaskExecutor.ROLES[1:],
+        ]
+        assert role_problems(spec, "a_ta", roles, handlers) == [
+            f"agent a_ta takes its kept coordinate conversations on C1 back in {state!r}, which is "
+            "no state of [protocols.coordinate] to take one back in (one of: reported, requested, "
+            "running)"
+        ]

@@ -41,10 +41,14 @@ what it saw, and reports Replan with the difference in words.
 
 Restarts (docs/recovery.md): each L_SW inform is retransmitted until a_co confirms it
 (a_co may be restarting); a request to ag_ex is sent again when ag_ex's liveliness token
-reappears (a restarted ag_ex attached to the running world). a_ta keeps the plan it runs in its
-state file; a restarted a_ta does not guess where the robot got to: it reports Replan (or the
-final state it had reached) in the plan's conversation, once it has observed the scene and
-informed a_km, so that a_co plans again from the world as it is (a_pl then first finishes a
+reappears (a restarted ag_ex attached to the running world). The coordinate role keeps the
+plan's conversation across a restart with a_ta's note of it (``keep=PlanNote``: the leaf step,
+noted at every :meth:`TaskExecutor.persist`, and the final state once reached) for as long as
+a_ta runs the plan (even once a not-understood from a restarted a_co ended it), and takes it
+back in ``running`` (``resume_in``) whatever state it was in. A restarted a_ta
+(:meth:`TaskExecutor.on_restored`) does not guess where the robot got to: it reports Replan
+(or the final state it had reached) in the plan's conversation, once it has observed the scene
+and informed a_km, so that a_co plans again from the world as it is (a_pl then first finishes a
 take the restart interrupted after its grasp: ``services.agents.planner.domain.finish_takes``).
 Meanwhile ag_ex holds position with the hands as they are. A take interrupted *before* its
 grasp closed (a_ta restarted in it, or ag_ex held position in it) is undone by a_ta itself
@@ -66,13 +70,11 @@ from services.runtime.roles import (
     INITIATOR,
     PARTICIPANT,
     Conversation,
-    RestoreError,
     handles,
     initiator,
     on_deadline,
     participant,
 )
-from services.runtime.state_store import StateFile
 from services.spec.names import (
     C1,
     C5,
@@ -164,21 +166,22 @@ class Step:
     went_back: tuple[float, float] | None = None  # (latest, answer's) simulated time, s: the world went back
 
 
-class KeptTaskExecutor(msgspec.Struct, kw_only=True):
-    """a_ta's state file: a_co's plan request (the encoded communicate, FIPA SC00061 msgpack;
-    the plan is its L_HFSM content), the leaf state it was in and the final state once
-    reached."""
+class PlanNote(msgspec.Struct, kw_only=True):
+    """What a_ta notes of the plan it runs: the data of its C1 conversation, which the role
+    keeps across a restart with the plan request (``keep=PlanNote``; docs/recovery.md):
+    ``step``, the path of the leaf state it is in (between two leaves: the next one), and
+    ``outcome`` and ``reason``, the final state once reached."""
 
-    request: bytes
-    step: str | None
-    outcome: SWState | None
-    reason: str | None
+    step: str | None = None
+    outcome: SWState | None = None
+    reason: str | None = None
 
 
 class TaskExecutor(Agent):
     name = "a_ta"
     ROLES = (
-        participant(C1, COORDINATE, L_HFSM, L_SW),
+        # a kept plan is taken back in running whatever state it was in: a_ta reports on it
+        participant(C1, COORDINATE, L_HFSM, L_SW, keep=PlanNote, resume_in="running"),
         initiator(C5, FIPA_REQUEST, L_EX, L_SD),
         participant(C6, FIPA_SUBSCRIBE, L_WM),
         # paper Table 6: a_ta may query a_km when it needs knowledge; roco's plans carry what
@@ -187,8 +190,6 @@ class TaskExecutor(Agent):
     )
 
     def build_fsm(self) -> FSM:
-        self.kept = StateFile.for_agent(self.name, KeptTaskExecutor)
-        self._kept_as: tuple[object, ...] | None = None  # what was last written, cheaply compared
         self.restored = False
         self.subscription: Conversation | None = None
         self.initial_observe: Conversation | None = None
@@ -485,47 +486,31 @@ class TaskExecutor(Agent):
         if status.state in TERMINAL_SW_STATES:
             self.final_inform = self.awaiting
 
-    # ---- restarts ----
-    def setup(self) -> None:
-        kept = self.kept.load()
-        if kept is not None:
-            self._restore(kept)
-
+    # ---- restarts (the role keeps the plan's conversation: docs/recovery.md) ----
     def persist(self) -> None:
-        step = self.step.path if self.step is not None else None
-        between = self.state == "running" and self.outcome is None and 0 <= self.index < len(self.leaves)
-        if step is None and between:
-            # between two leaves (e.g. after a set-down's ``put``, an Assert with no motion):
-            # the next one, so that a restart finishes the set-down (seen: killed there, the
-            # restarted a_ta knew no step, the hand stayed beside the bowl and the next plan's
-            # pour ran into it)
-            step = self.leaves[self.index][0]
-        opening = self.plan_request.opening if self.plan_request is not None else None
-        now = (self.plan_request, step, self.outcome, self.reason)
-        if now == self._kept_as:
-            return  # nothing changed: the plan request is not encoded again every step
-        self._kept_as = now
-        if self.plan is None or opening is None:
-            self.kept.clear()
-            return
-        self.kept.save(
-            KeptTaskExecutor(
-                request=self.plan_request.keep() if self.plan_request is not None else b"",
-                step=step,
-                outcome=self.outcome,
-                reason=self.reason,
-            )
-        )
+        """Note the leaf step in the plan's conversation (:class:`PlanNote`), then keep it
+        (:meth:`Agent.persist`)."""
+        conv = self.plan_request
+        if conv is not None:
+            step = self.step.path if self.step is not None else None
+            between = self.state == "running" and self.outcome is None and 0 <= self.index < len(self.leaves)
+            if step is None and between:
+                # between two leaves (e.g. after a set-down's ``put``, an Assert with no motion):
+                # the next one, so that a restart finishes the set-down (seen: killed there, the
+                # restarted a_ta knew no step, the hand stayed beside the bowl and the next plan's
+                # pour ran into it)
+                step = self.leaves[self.index][0]
+            note = PlanNote(step=step, outcome=self.outcome, reason=self.reason)
+            if note != conv.data:
+                conv.data = note
+        super().persist()
 
-    def _restore(self, kept: KeptTaskExecutor) -> None:
-        """Report on the plan a previous a_ta ran (see the module docstring)."""
-        try:
-            conv = self.roles.restore(C1, COORDINATE, "running", kept=kept.request, expect=HierarchicalPlan)
-        except RestoreError as exc:
-            self.log.warning("kept plan request cannot be taken back (%s): dropped", exc)
-            return
-        plan = conv.opening_content(HierarchicalPlan)
-        self.plan, self.plan_request = plan, conv
+    def on_restored(self, conversation: Conversation) -> None:
+        """Report on the plan a previous a_ta ran (see the module docstring). Raises TypeError
+        for a kept request without a plan (the role drops it)."""
+        plan = conversation.opening_content(HierarchicalPlan)
+        kept = conversation.data if isinstance(conversation.data, PlanNote) else PlanNote()
+        self.plan, self.plan_request = plan, conversation
         if kept.outcome is not None:
             self.outcome, self.reason = kept.outcome, kept.reason
         else:
@@ -913,6 +898,8 @@ class TaskExecutor(Agent):
             self._retreat_step()
             return
         if self.confirmed:
+            if self.plan_request is not None:
+                self.plan_request.data = None  # nothing to keep any more
             self.plan = None
             self.plan_request = None
             self.final_inform = None
