@@ -124,6 +124,13 @@ def periodic(
     )
 
 
+def once(name: str, transition: Callable[[], None], doc: str = "") -> Behaviour:
+    """A behaviour whose transition function runs once (its terminal condition holds at once)
+    and that does not wait for input: a state of computation between communication states
+    (e.g. a_co's ``schedule``)."""
+    return Behaviour(name, transition, _always, waits=False, doc=doc)
+
+
 @dataclass(frozen=True)
 class Arc:
     """A directed arc from ``source`` to ``target`` labelled with initial condition

@@ -25,8 +25,9 @@ FIPA machine of :mod:`shared.fipa_codec.protocols`) — owns what the protocol i
   reply-with, so that answers name what they answer and no two are byte-identical;
 - ``cancel`` (FIPA SC00026 §2 cancel meta-protocol): a participant's ``cancel`` handler is
   optional; without one, or once the conversation has ended, the role answers ``failure``
-  with the reason; the cancel's answer answers the cancel (:attr:`Conversation.answering`),
-  and its ``inform`` ends the conversation (:attr:`Conversation.answers_cancel`);
+  with the reason; the cancel's answer answers the cancel (:attr:`Conversation.answering`,
+  or later :meth:`Conversation.answer_cancel`), and its ``inform`` ends the conversation
+  (:attr:`Conversation.answers_cancel`);
 - ``not-understood``: it ends the conversation; an initiator's conversation ends through its
   ``failure`` handler (:attr:`Conversation.not_understood`) unless the agent handles
   ``not-understood`` itself;
@@ -44,6 +45,13 @@ FIPA machine of :mod:`shared.fipa_codec.protocols`) — owns what the protocol i
   (:meth:`Roles.subscribe`, services/runtime/subscriptions.py): it subscribes when the peer's
   token appears and again after a refusal, failure or passed deadline, with a back-off, and
   when the peer comes back; the agent handles the stream's informs only;
+- a fipa-subscribe participant role whose stream the agent has it serve (:meth:`Roles.serve`,
+  services/runtime/served.py) informs the latest agreed subscription, keeps (bounded) what is
+  informed while none is and sends it after the next agree, answers ``cancel`` and ends the
+  subscription on ``not-understood``; the agent's ``subscribe`` handler only agrees or refuses;
+- conversations the agent ended and asked it to remember (``abandon(remember=True)``): their
+  data for what is said of them later (:meth:`Roles.ended`), their conversation-ids not chosen
+  again (:meth:`Roles.free_id`);
 - the conversation's state across a restart: :meth:`Conversation.keep` gives the
   communicate that opened it, :meth:`Roles.restore` takes it back in the state the agent
   names (and waits again for an unanswered opening of its own); a role declared with ``keep``
@@ -70,7 +78,7 @@ import inspect
 import itertools
 import time
 from collections import OrderedDict
-from collections.abc import Callable, Collection, Iterable, Iterator, Sequence
+from collections.abc import Callable, Collection, Container, Iterable, Iterator, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, TypeVar
@@ -90,6 +98,7 @@ from shared.fipa_codec.protocols import INITIATOR, PARTICIPANT, Protocol, Role
 
 if TYPE_CHECKING:
     from services.runtime.agent import Agent, Received
+    from services.runtime.served import ServedSubscription
     from services.runtime.state_store import KeptConversations
     from services.runtime.subscriptions import StandingSubscription
     from shared.fipa_codec import Communicate
@@ -137,6 +146,9 @@ protocol, role and languages (:func:`expand_roles`)."""
 
 MAX_OPEN = 1024
 """Open conversations a :class:`Roles` keeps before it forgets the oldest (bounded memory)."""
+ENDED_KEPT = 256
+"""Ended conversations a :class:`Roles` remembers when asked to (:meth:`Conversation.abandon`
+with ``remember``), the oldest forgotten first."""
 
 
 class RoleMismatch(SpecError):
@@ -270,6 +282,7 @@ class HandlerKey:
 Handler = Callable[[Any, "Conversation"], None]
 F = TypeVar("F", bound=Callable[..., None])
 T = TypeVar("T")
+S = TypeVar("S", bound=msgspec.Struct)
 _MARK = "__roco_handles__"
 
 
@@ -643,6 +656,21 @@ class Conversation:
         return text or msg.performative.value
 
     @property
+    def why(self) -> str:
+        """Why the peer answered :attr:`last` negatively (refuse, failure, not-understood) or
+        not at all, in words for a person: ``<peer> did not answer in time`` when the reply-by
+        deadline passed, else the plain-text reason it gave, or ``no reason given``."""
+        if self.timed_out:
+            return f"{self.peer} did not answer in time"
+        msg = self.last.msg if self.last is not None else None
+        text = (
+            msg.content.decode("utf-8", "replace").strip()
+            if msg is not None and msg.encoding == "utf-8"
+            else ""
+        )
+        return text or "no reason given"
+
+    @property
     def timed_out(self) -> bool:
         """The reply-by deadline passed before the peer answered (the runtime ended it)."""
         return self.last is not None and self.last.local
@@ -720,6 +748,15 @@ class Conversation:
         SpecViolation when the role or the conversation's state does not allow it."""
         return self._sent(self.roles._reply(self, performative, content, to=to))
 
+    def answer_cancel(
+        self, cancelled: bool, content: msgspec.Struct | None = None, *, to: Received | None = None
+    ) -> str | None:
+        """Answer the peer's ``cancel`` (``to``, received in this conversation earlier, or the
+        one the running ``cancel`` handler takes) by the cancel meta-protocol (FIPA SC00026 §2):
+        ``inform`` when the conversation is ``cancelled`` (it ends), else ``failure``, carrying
+        ``content``. Returns its reply-with; raises SpecViolation as :meth:`reply`."""
+        return self.reply(Performative.INFORM if cancelled else Performative.FAILURE, content, to=to)
+
     def refuse_with(self, performative: Performative, reason: str, *, to: Received | None = None) -> None:
         """Answer :attr:`answering` (or ``to``) with ``refuse`` or ``failure`` whose content
         is ``reason`` as UTF-8 text (FIPA SC00037: a reason a person can read). Raises
@@ -794,11 +831,30 @@ class Conversation:
         retransmission. The conversation stays open: what the peer sends still arrives."""
         self.roles.agent.pending_replies.forget_conversation(self.conversation_id)
 
-    def abandon(self) -> None:
+    def abandon(self, *, remember: bool = False) -> None:
         """:meth:`stop_waiting`, and forget the conversation: what the peer still sends in
-        it is dropped as a late reply."""
+        it is dropped as a late reply. ``remember``: its conversation-id and :attr:`data` are
+        remembered (the last :data:`ENDED_KEPT`), for what is said of it later
+        (:meth:`Roles.ended`), and its conversation-id is not chosen again (:meth:`Roles.free_id`)."""
         self.stop_waiting()
         self.roles._forget(self)
+        if remember:
+            self.roles._remember(self)
+
+    def decode(self, kept: bytes) -> Received:
+        """A communicate of this conversation kept encoded (FIPA SC00061 msgpack, e.g. the
+        peer's ``cancel``, to be answered after a restart), as received on its channel, its
+        content decoded. Raises RestoreError (a ValueError) when it does not decode."""
+        from services.runtime.agent import Received
+
+        try:
+            msg = decode(kept)
+            content = decode_content(msg.language, msg.content) if msg.language and msg.content else None
+        except (DecodeError, ContentError) as exc:
+            raise RestoreError(
+                f"a kept communicate of {self.conversation_id} does not decode: {exc}"
+            ) from None
+        return Received(msg, content, self.decl.channel)
 
     def answer_again(self, in_reply_to: str | None = None) -> int:
         """Publish again, byte for byte, what this agent answered the peer's communicate
@@ -841,7 +897,8 @@ class Roles:
             self._by_peer[(peer, decl.protocol)] = decl
         self._peer_of = {decl: peer for (peer, _), decl in self._by_peer.items()}
         self._open: OrderedDict[tuple[str, str], Conversation] = OrderedDict()
-        self._subscriptions: dict[RoleDecl, StandingSubscription] = {}
+        self._subscriptions: dict[RoleDecl, StandingSubscription | ServedSubscription[Any]] = {}
+        self._ended: OrderedDict[str, Any] = OrderedDict()  # :meth:`Conversation.abandon`, remember
         self._taken_up = itertools.count(1)
         self.keeps = any(d.keep for d in self.declared)
         """Some role keeps its conversations across a restart (:meth:`kept`)."""
@@ -912,6 +969,66 @@ class Roles:
         )
         self._subscriptions[decl] = sub
         return sub
+
+    def serve(
+        self,
+        channel: str,
+        protocol: str,
+        *,
+        unsent: Callable[[], list[S]],
+        about: Callable[[S], str],
+        kept_each: int,
+        kept_in_all: int,
+        dropped: str,
+    ) -> ServedSubscription[S]:
+        """Serve the stream of the participant role on ``channel`` in ``protocol`` (a
+        subscription: fipa-subscribe) to its latest agreed subscription
+        (services/runtime/served.py): the agent's ``subscribe`` handler agrees with
+        :meth:`ServedSubscription.agree`, it informs with :meth:`ServedSubscription.inform`;
+        the role answers ``cancel`` and ends the subscription on ``not-understood``. Informs
+        made while none is agreed are kept in the list ``unsent()`` gives, in order, sent after
+        the next agree: at most ``kept_each`` per ``about(inform)`` and ``kept_in_all`` in all,
+        the oldest dropped first and counted under ``dropped``. Raises KeyError for a role not
+        declared, not a participant's, of a protocol that is no subscription (no stream with a
+        cancel meta-protocol) or served already; ValueError for a bound below 1."""
+        from services.runtime.served import ServedSubscription
+
+        decl = self.role(channel, protocol)
+        machine = machine_of(self.agent.spec, protocol)
+        if decl.role != PARTICIPANT or not streams(machine) or "cancelling" not in machine.states:
+            raise KeyError(
+                f"{self.agent.name} declares no participant role of a subscription {protocol} on {channel}"
+            )
+        if decl in self._subscriptions:
+            raise KeyError(f"{self.agent.name} serves the {protocol} subscription on {channel} already")
+        served = ServedSubscription(
+            self,
+            decl,
+            unsent=unsent,
+            about=about,
+            kept_each=kept_each,
+            kept_in_all=kept_in_all,
+            dropped=dropped,
+        )
+        self._subscriptions[decl] = served
+        return served
+
+    def ended(self, conversation_id: str) -> Any:
+        """The :attr:`Conversation.data` of conversation ``conversation_id``, which this agent
+        abandoned lately with ``remember`` (the last :data:`ENDED_KEPT`); None when it is not
+        remembered."""
+        return self._ended.get(conversation_id)
+
+    def free_id(self, base: str, taken: Container[str] = ()) -> str:
+        """A conversation-id for a new conversation: ``base``, else ``base-2``, ``base-3``, …,
+        the first that no conversation of this agent has open, none it remembers as ended
+        (:meth:`ended`) had, and that is not in ``taken``."""
+        open_ids = {cid for _, cid in self._open}
+        cid, n = base, 1
+        while cid in open_ids or cid in self._ended or cid in taken:
+            n += 1
+            cid = f"{base}-{n}"
+        return cid
 
     def peer_changed(self, peer: str, alive: bool) -> None:
         """``peer``'s liveliness token appeared or disappeared: the subscriptions kept with it
@@ -1139,6 +1256,7 @@ class Roles:
                     "a kept %s conversation cannot be taken back (%s): dropped", k.protocol, exc
                 )
                 continue
+            self._taken_back(conv)
             out.append(conv)
         return out
 
@@ -1332,6 +1450,19 @@ class Roles:
     def _forget(self, conv: Conversation) -> None:
         if self._open.get((conv.peer, conv.conversation_id)) is conv:
             del self._open[(conv.peer, conv.conversation_id)]
+
+    def _remember(self, conv: Conversation) -> None:
+        self._ended[conv.conversation_id] = conv.data
+        while len(self._ended) > ENDED_KEPT:
+            self._ended.popitem(last=False)
+
+    def _taken_back(self, conv: Conversation) -> None:
+        """``conv`` was taken back after a restart: a served subscription takes its stream."""
+        from services.runtime.served import ServedSubscription
+
+        served = self._subscriptions.get(conv.decl)
+        if isinstance(served, ServedSubscription):
+            served.taken_back(conv)
 
     def _settle(self, conv: Conversation) -> None:
         """Forget a conversation that has ended, once nothing of it waits in the input

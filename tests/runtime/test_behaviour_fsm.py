@@ -8,7 +8,7 @@ from typing import Any
 
 import pytest
 
-from services.runtime.behaviour import FSM, Arc, Behaviour, FsmError, periodic
+from services.runtime.behaviour import FSM, Arc, Behaviour, FsmError, once, periodic
 
 
 def _b(name: str, doc: str = "") -> Behaviour:
@@ -34,6 +34,15 @@ def test_fsm_keys_its_behaviours_by_their_names_and_starts_in_the_first_unless_t
     assert list(fsm.states) == ["a", "b", "tick"] and fsm.states["b"] is b and fsm.states["tick"] is tick
     assert FSM([a, b], initial="b").initial == "b"
     assert fsm.arcs == [Arc("a", "b")]
+
+
+def test_a_once_behaviour_ends_after_one_transition_without_waiting_for_input() -> None:
+    ran: list[str] = []
+    b = once("schedule", lambda: ran.append("schedule"), "decide")
+    b.on_enter()
+    b.transition()
+    assert ran == ["schedule"] and b.terminal() and not b.error() and not b.waits
+    assert (b.name, b.doc, b.timer) == ("schedule", "decide", None)
 
 
 def test_fsm_rejects_unknown_states_duplicates_and_dead_ends() -> None:

@@ -1,59 +1,36 @@
-"""a_co — the coordinator (paper §5.5, Table 3, Figure 11a).
+"""a_co — the coordinator (paper §5.5, Table 3, Figure 11a; docs/agents.md, "a_co").
 
-FSM states: trigger (idle; a_hi's commands, cancels, subscriptions and queries and a_ta's
-states arrive), procReq (store new commands with priority and deadline; stop cancelled
-ones), compSP (request plans from a_pl for every command that needs one, collect them),
-schedule (continue the running plan or switch: services/agents/coordinator/scheduling.py, after
-TaskER), switch (the coordinate protocol on C1: ``cancel`` the running plan — a_ta goes
-Terminating, puts held objects down safely, reports Preempted — or ``request`` a_ta to run
-the chosen plan). Communicates from a_ta and a_pl are handled in every state; each L_SW
-inform is confirmed (paper §5.4).
-
-A preempted command is planned again from the world as it then is and resumed when the
-schedule picks it. Whenever a_ta ends a plan the world has changed, so the plans of waiting
-commands are dropped and made again before they run.
+Its FSM (trigger, procReq, compSP, schedule, switch: each behaviour's ``doc`` in
+:meth:`Coordinator.build_fsm`) takes a_hi's commands, has a_pl plan them and decides, after
+TaskER (scheduling.py), which plan a_ta runs, switching by the coordinate protocol on C1 (a
+``cancel`` makes a_ta put held objects down and report Preempted). a_ta's and a_pl's
+communicates are handled in every state; each L_SW inform is confirmed (paper §5.4).
 
 Towards the person (C2, L_HC): commands by fipa-request (agree, then inform or failure with a
-CommandOutcome; a ``cancel`` stops a command and is answered once the robot is safe), progress
-by fipa-subscribe (a Progress inform at every change), status by fipa-query (Status).
-Every subscribe is answered, however late it comes: agree (or refuse for content other than a
-ProgressSubscription); the latest agreed subscription is the one progress goes to. Progress
-made while none is agreed — before the person's interface subscribes or while its subscribe
-waits, after it cancels or did not understand — is kept, in order, and sent as informs right
-after the next agree (FIPA SC00035: informs follow the agree), so that no change is lost
-whenever the subscription comes. What is kept is bounded: ``PROGRESS_KEPT_PER_COMMAND``
-reports per command and ``PROGRESS_KEPT`` in all; past a bound the oldest report goes (counted
-as ``progress_dropped``).
+CommandOutcome; a ``cancel`` is answered once the robot is safe), progress by fipa-subscribe
+(a Progress inform at every change, served by the role: services/runtime/served.py), status by
+fipa-query.
 
-Restarts (docs/recovery.md): the roles keep every accepted command (``keep=TaskNote``: its
-conversation with what a_co notes of it) and the progress subscription, and the runtime keeps
-a_co's ``NOTE`` (the plan a_ta runs, the progress not yet sent), in a_co's state file
-(services/runtime/state_store.py) after the step that changed them; a restarted a_co gets them
-back (:meth:`Coordinator.on_restored`, then :meth:`Coordinator.setup`) and plans again what
-was being planned. A copy of a command it
-already holds (a_hi retransmits until it hears the agree) is not accepted twice (the role
-recognises it: services/runtime/roles.py). When a_ta's
-liveliness token disappears while it runs a plan and comes back, a restarted a_ta that kept its
-plan reports Replan in the same conversation. a_co also sends its last confirm of that
-conversation again: the same a_ta (the token only looked gone, e.g. while the router restarted)
-drops the copy, a restarted a_ta answers not-understood, and a_co then plans the command again.
-Plan requests to a_pl are retransmitted until answered, so an a_pl that restarts gets them
-again.
+Restarts (docs/recovery.md): the roles keep the commands (``keep=TaskNote``) and the progress
+subscription, the runtime a_co's ``NOTE``; :meth:`Coordinator.on_restored`, then
+:meth:`Coordinator.setup`, go on from them. When a_ta's token comes back after it disappeared
+while a_ta ran a plan, a_co sends its last confirm again: the same a_ta drops the copy, a
+restarted one answers not-understood, and the command is planned again.
 """
 
 from __future__ import annotations
 
-import itertools
 import time
 from collections import deque
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Literal
+from functools import partial
 
 import msgspec
 
-from services.agents.coordinator.scheduling import Candidate, Decision, Running, decide
+from services.agents.coordinator.scheduling import Candidate, Decision, Running, decide, plan_left
 from services.runtime.agent import RESEND_ON_RETURN, Agent, Received
-from services.runtime.behaviour import FSM, Arc, Behaviour
+from services.runtime.behaviour import FSM, Arc, Behaviour, once
 from services.runtime.roles import (
     INITIATOR,
     PARTICIPANT,
@@ -74,8 +51,7 @@ from services.spec.names import (
     L_HFSM,
     L_SW,
 )
-from shared.fipa_codec import Performative, decode, encode
-from shared.fipa_codec.languages import decode_content
+from shared.fipa_codec import Performative, encode
 from shared.fipa_codec.languages.l_hc import (
     CommandOutcome,
     HumanCommand,
@@ -86,7 +62,7 @@ from shared.fipa_codec.languages.l_hc import (
     TaskState,
     TaskStatus,
 )
-from shared.fipa_codec.languages.l_hfsm import GroundTaskNetwork, HierarchicalPlan, PlanFailure, PlanNode
+from shared.fipa_codec.languages.l_hfsm import GroundTaskNetwork, HierarchicalPlan, PlanFailure
 from shared.fipa_codec.languages.l_sw import SWState, SWStatus
 
 PLAN_REPLY_BY_S = 600.0
@@ -137,8 +113,7 @@ class CoordinatorNote(msgspec.Struct, kw_only=True):
 @dataclass
 class Task:
     """A command being coordinated: ``task_id`` is the C2 conversation-id, ``request`` that
-    conversation and ``note`` its data; ``planning`` the outstanding plan request to a_pl;
-    ``cancel`` the person's cancel (noted encoded in ``note``)."""
+    conversation and ``note`` its data; ``planning`` the outstanding plan request to a_pl."""
 
     task_id: str
     command: HumanCommand
@@ -146,11 +121,6 @@ class Task:
     note: TaskNote
     needs_plan: bool = True
     planning: Conversation | None = None
-    cancel: Received | None = None
-
-
-PersonSaid = tuple[Literal["command", "stop"], Conversation, Received]
-"""What the person said, for procReq: a command (its request) or a stop (its cancel)."""
 
 
 class Coordinator(Agent):
@@ -172,48 +142,48 @@ class Coordinator(Agent):
         self.ta_lost = False  # a_ta's token disappeared while it ran a plan
         self.tasks: dict[str, Task] = {}
         self.ta: Conversation | None = None  # the C1 conversation of the plan a_ta runs
-        self.person: deque[PersonSaid] = deque()  # commands and stops for procReq
-        self.subscription: Conversation | None = None  # a_hi's progress subscription
+        self.person: deque[Callable[[], None]] = deque()  # the person's commands and stops, for procReq
+        # a_hi's progress subscription: what is made while none is agreed is kept in the NOTE,
+        # bounded, and sent after the next agree (services/runtime/served.py)
+        self.progress = self.roles.serve(
+            C2,
+            FIPA_SUBSCRIBE,
+            unsent=lambda: self.note.unsent,
+            about=lambda progress: progress.command_id,
+            kept_each=PROGRESS_KEPT_PER_COMMAND,
+            kept_in_all=PROGRESS_KEPT,
+            dropped="progress_dropped",
+        )
         self.decision: Decision = Decision(None, False, "")
         self.reschedule = False
-        self.decisions: list[Decision] = []
-        self._order = itertools.count()
         self.rerun = self.hooks.queue(self.name) if self.hooks else None  # a viewer: runtime/hooks.py
         return FSM(
             [
                 Behaviour(
                     "trigger",
-                    self._trigger,
+                    self.handle_received,
                     terminal=self._has_work,
                     doc="idle: receive commands from a_hi and a_ta's states",
                 ),
-                Behaviour(
-                    "procReq",
-                    self._proc_req,
-                    terminal=lambda: True,
-                    waits=False,
-                    doc="store new commands (priority, deadline); stop cancelled ones",
+                once(
+                    "procReq", self._proc_req, "store new commands (priority, deadline); stop cancelled ones"
                 ),
                 Behaviour(
                     "compSP",
-                    self._comp_sp_step,
+                    self.handle_received,
                     terminal=self._plans_collected,
                     on_enter=self._request_plans,
                     doc="request plans of all waiting commands from a_pl; collect them",
                 ),
-                Behaviour(
+                once(
                     "schedule",
                     self._schedule,
-                    terminal=lambda: True,
-                    waits=False,
-                    doc="decide from the plans' costs: continue, or switch the plan a_ta runs",
+                    "decide from the plans' costs: continue, or switch the plan a_ta runs",
                 ),
-                Behaviour(
+                once(
                     "switch",
                     self._switch,
-                    terminal=lambda: True,
-                    waits=False,
-                    doc="coordinate protocol on C1: cancel the running plan, or start the chosen one",
+                    "coordinate protocol on C1: cancel the running plan, or start the chosen one",
                 ),
             ],
             arcs=[
@@ -237,9 +207,6 @@ class Coordinator(Agent):
             t.needs_plan and t.planning is None and t.note.state not in _ON_TA for t in self.tasks.values()
         )
 
-    def _robot_free(self) -> bool:
-        return self.note.ta_task is None
-
     def _has_work(self) -> bool:
         return self._person_spoke() or self._plans_needed() or self.reschedule
 
@@ -247,17 +214,10 @@ class Coordinator(Agent):
         return all(t.planning is None for t in self.tasks.values())
 
     # ---- behaviours ----
-    def _trigger(self) -> None:
-        self.handle_received()
-
     def _proc_req(self) -> None:
         self.handle_received()
         while self.person:
-            kind, conv, item = self.person.popleft()
-            if kind == "command":
-                self._accept(conv, item)
-            else:
-                self._stop_command(conv, item)
+            self.person.popleft()()
 
     def _accept(self, conv: Conversation, item: Received) -> None:
         if not isinstance(item.content, HumanCommand):
@@ -269,7 +229,8 @@ class Coordinator(Agent):
             conv.refuse_with(Performative.REFUSE, f"command {task_id} is already being carried out")
             return
         deadline = now + item.content.deadline_s if item.content.deadline_s is not None else None
-        conv.data = TaskNote(accepted_at=now, deadline=deadline, order=next(self._order))
+        order = max((t.note.order for t in self.tasks.values()), default=-1) + 1  # after every one held
+        conv.data = TaskNote(accepted_at=now, deadline=deadline, order=order)
         task = Task(task_id, item.content, conv, conv.data)
         self.tasks[task_id] = task
         conv.reply(Performative.AGREE)
@@ -283,7 +244,7 @@ class Coordinator(Agent):
         if task is None:
             conv.refuse_with(Performative.FAILURE, "no such command (it may have ended already)", to=cancel)
             return
-        task.cancel, task.note.cancel = cancel, encode(cancel.msg)
+        task.note.cancel = encode(cancel.msg)
         if task.task_id == self.note.ta_task:
             self._cancel_ta(f"stopped by the person: {task.command.text}")
             return
@@ -309,9 +270,6 @@ class Coordinator(Agent):
                 self._progress(task, TaskState.PLANNING, detail=f"plan #{task.note.plan_index} requested")
             self.log.info("task %s: requested plan #%d", task.task_id, task.note.plan_index)
 
-    def _comp_sp_step(self) -> None:
-        self.handle_received()
-
     def _schedule(self) -> None:
         self.handle_received()
         self.reschedule = False
@@ -328,30 +286,15 @@ class Coordinator(Agent):
                 return
             r = self.tasks.get(self.note.ta_task)
             if r is not None and r.note.plan is not None:
-                leaves = r.note.plan.root.leaves()
-                remaining = sum(n.duration for _, n in leaves[r.note.leaf :])
-                running = Running(
-                    self._candidate(r, now, remaining), remaining, self._interruption(r, leaves)
-                )
+                remaining, stop = plan_left(r.note.plan, r.note.leaf)
+                running = Running(self._candidate(r, now, remaining), remaining, stop)
         self.decision = decide(running, waiting)
         if self.decision.switch_to is not None:
-            self.decisions.append(self.decision)
             self.log.info("schedule: %s", self.decision.reason)
 
     def _candidate(self, task: Task, now: float, duration: float) -> Candidate:
         left = task.note.deadline - now if task.note.deadline is not None else None
         return Candidate(task.task_id, task.command.priority, duration, left, task.note.order)
-
-    @staticmethod
-    def _interruption(task: Task, leaves: list[tuple[str, PlanNode]]) -> float:
-        """Expected time (s) of the safe stop a_ta would run if cancelled now."""
-        assert task.note.plan is not None
-        for _, node in leaves[task.note.leaf :]:
-            if node.on_cancel is not None:
-                stop = task.note.plan.safe_stops.get(node.on_cancel)
-                return sum(n.duration for _, n in stop.leaves()) if stop is not None else 0.0
-            return 0.0
-        return 0.0
 
     def _switch(self) -> None:
         if self.decision.preempt:
@@ -363,7 +306,7 @@ class Coordinator(Agent):
             self._cancel_ta(why)
             return
         task = self.tasks[self.decision.switch_to or ""]
-        assert task.note.plan is not None and self._robot_free()
+        assert task.note.plan is not None and self.note.ta_task is None  # the robot is free
         self.ta = self.roles.open(
             C1, COORDINATE, task.note.plan, conversation_id=f"{task.task_id}-exec{task.note.plan_index}"
         )
@@ -393,29 +336,22 @@ class Coordinator(Agent):
     def on_restored(self, conversation: Conversation) -> None:
         """A command, or a_hi's progress subscription, of a previous a_co: a command waits for
         a plan again unless a_ta runs its plan, and its cancel, if any, for the robot to be safe.
-        Raises ValueError (DecodeError) for a kept cancel that does not decode."""
+        Raises ValueError (RestoreError) for a kept cancel that does not decode."""
         note = conversation.data
-        if not isinstance(note, TaskNote):  # the progress subscription (keep=True: no data)
-            self.subscription = conversation
+        if not isinstance(note, TaskNote):  # the progress subscription: the role's (self.progress)
             return
         cid = conversation.conversation_id
         on_ta = cid == self.note.ta_task and self.note.ta_conversation is not None
-        cancel = None
-        if note.cancel is not None:
-            msg = decode(note.cancel)
-            content = decode_content(msg.language, msg.content) if msg.language and msg.content else None
-            cancel = Received(msg, content, C2)
         if not on_ta:
             note.plan = None
             note.state = note.state if note.state is TaskState.PREEMPTED else TaskState.WAITING
         command = conversation.opening_content(HumanCommand)
-        self.tasks[cid] = Task(cid, command, conversation, note, needs_plan=not on_ta, cancel=cancel)
+        self.tasks[cid] = Task(cid, command, conversation, note, needs_plan=not on_ta)
 
     def setup(self) -> None:
         """Go on from what a previous a_co kept (:meth:`on_restored` took its commands back):
         the plan a_ta runs in its C1 conversation, and plan again what was being planned."""
         note = self.note
-        self._order = itertools.count(max((t.note.order for t in self.tasks.values()), default=-1) + 1)
         if note.ta_task in self.tasks and note.ta_conversation is not None:
             self.ta = self.roles.restore(C1, COORDINATE, "running", conversation_id=note.ta_conversation)
         else:
@@ -439,42 +375,21 @@ class Coordinator(Agent):
     @handles(FIPA_REQUEST, PARTICIPANT, Performative.REQUEST)
     def _on_command(self, conv: Conversation) -> None:
         assert conv.last is not None
-        self.person.append(("command", conv, conv.last))
+        self.person.append(partial(self._accept, conv, conv.last))
 
     @handles(FIPA_REQUEST, PARTICIPANT, Performative.CANCEL)
     def _on_stop(self, conv: Conversation) -> None:
         """Answered once the robot is safe (see :meth:`_finish`)."""
         assert conv.last is not None
-        self.person.append(("stop", conv, conv.last))
+        self.person.append(partial(self._stop_command, conv, conv.last))
 
-    # ---- the person's progress subscription (C2, fipa-subscribe, participant) ----
+    # ---- the person's progress subscription (C2, fipa-subscribe, participant; the role serves it) ----
     @handles(FIPA_SUBSCRIBE, PARTICIPANT, Performative.SUBSCRIBE)
     def _on_subscribe(self, conv: Conversation) -> None:
-        if not isinstance(conv.content, ProgressSubscription):
+        if isinstance(conv.content, ProgressSubscription):
+            self.progress.agree(conv)
+        else:
             conv.refuse_with(Performative.REFUSE, "I report the progress of commands only")
-            return
-        self.subscription = conv
-        conv.reply(Performative.AGREE)
-        if self.note.unsent:
-            self.log.info("sending %d progress report(s) kept until a subscription", len(self.note.unsent))
-        while self.note.unsent:
-            conv.reply(Performative.INFORM, self.note.unsent.pop(0))
-
-    @handles(FIPA_SUBSCRIBE, PARTICIPANT, Performative.CANCEL)
-    def _on_unsubscribe(self, conv: Conversation) -> None:
-        self._unsubscribe(conv)
-        conv.reply(Performative.INFORM)
-
-    @handles(FIPA_SUBSCRIBE, PARTICIPANT, Performative.NOT_UNDERSTOOD)
-    def _on_progress_not_understood(self, conv: Conversation) -> None:
-        """Never answered (FIPA SC00037 §3.12); it ends the conversation: a_hi did not
-        understand the progress stream, so the subscription is over."""
-        self._unsubscribe(conv)
-        self.log.info("not-understood from a_hi (conversation %s) dropped", conv.conversation_id)
-
-    def _unsubscribe(self, conv: Conversation) -> None:
-        if self.subscription is not None and self.subscription.conversation_id == conv.conversation_id:
-            self.subscription = None
 
     # ---- the person's questions (C2, fipa-query, participant) ----
     @handles(FIPA_QUERY, PARTICIPANT, Performative.QUERY_REF)
@@ -600,7 +515,7 @@ class Coordinator(Agent):
             return
         self._release_ta()
         self._world_changed(task)
-        if task.cancel is not None:  # the person's stop: the robot is safe now
+        if task.note.cancel is not None:  # the person's stop: the robot is safe now
             if state is SWState.SUCCEEDED:
                 self._finish(task, True, "the task had already succeeded", stopped=True)
             else:
@@ -640,41 +555,14 @@ class Coordinator(Agent):
             task.note.step = step
         if self.rerun is not None:  # Rerun: the queue, when it changed
             self.rerun.queue(self.status())
-        progress = Progress(command_id=task.task_id, state=state, step=task.note.step, detail=detail)
-        if self.subscription is None:
-            self._keep_unsent(progress)
-        else:
-            self.subscription.reply(Performative.INFORM, progress)
-
-    def _keep_unsent(self, progress: Progress) -> None:
-        """Keep ``progress`` for the next agreed subscription; past a bound (per command:
-        ``PROGRESS_KEPT_PER_COMMAND``, in all: ``PROGRESS_KEPT``) the oldest report goes."""
-        cid = progress.command_id
-        if sum(p.command_id == cid for p in self.note.unsent) >= PROGRESS_KEPT_PER_COMMAND:
-            oldest = next(i for i, p in enumerate(self.note.unsent) if p.command_id == cid)
-            del self.note.unsent[oldest]
-            self._dropped(cid)
-        elif len(self.note.unsent) >= PROGRESS_KEPT:
-            self._dropped(self.note.unsent.pop(0).command_id)
-        self.note.unsent.append(progress)
-
-    def _dropped(self, command_id: str) -> None:
-        self.counters["progress_dropped"] += 1
-        if self.counters["progress_dropped"] == 1:
-            self.log.warning(
-                "no progress subscription: the oldest kept report of %s dropped (at most %d per "
-                "command, %d in all, are kept)",
-                command_id,
-                PROGRESS_KEPT_PER_COMMAND,
-                PROGRESS_KEPT,
-            )
+        self.progress.inform(
+            Progress(command_id=task.task_id, state=state, step=task.note.step, detail=detail)
+        )
 
     def _finish(self, task: Task, succeeded: bool, detail: str, *, stopped: bool = False) -> None:
         outcome = CommandOutcome(command_id=task.task_id, succeeded=succeeded, detail=detail)
-        if stopped and task.cancel is not None:
-            # FIPA cancel meta-protocol: the answer to the cancel ends the conversation
-            perf = Performative.FAILURE if succeeded else Performative.INFORM
-            task.request.reply(perf, outcome, to=task.cancel)
+        if stopped and task.note.cancel is not None:  # answer the person's cancel: it ends the conversation
+            task.request.answer_cancel(not succeeded, outcome, to=task.request.decode(task.note.cancel))
             self._progress(task, TaskState.SUCCEEDED if succeeded else TaskState.STOPPED, detail=detail)
         else:
             task.request.reply(Performative.INFORM if succeeded else Performative.FAILURE, outcome)

@@ -19,6 +19,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from shared.fipa_codec.languages.l_hfsm import HierarchicalPlan
+
 LATE_FACTOR = 10.0
 """Waiting that makes a command miss its deadline costs this many times more per second."""
 SWITCH_COST = 10.0
@@ -59,6 +61,19 @@ class Decision:
     switch_to: str | None
     preempt: bool
     reason: str
+
+
+def plan_left(plan: HierarchicalPlan, leaf: int) -> tuple[float, float]:
+    """What is left of ``plan`` while a_ta runs its leaf number ``leaf`` (0-based): the
+    expected time (s) of the leaves still to run, ``remaining(r)``, and that of the safe stop
+    a_ta would run if cancelled now (the safe-stop HFSM the leaf's ``on_cancel`` names; 0 when
+    it names none), the planner's part of ``interruption(r)``."""
+    leaves = plan.root.leaves()[leaf:]
+    remaining = sum(node.duration for _, node in leaves)
+    key = leaves[0][1].on_cancel if leaves else None
+    stop = plan.safe_stops.get(key) if key is not None else None
+    stopping = sum(node.duration for _, node in stop.leaves()) if stop is not None else 0.0
+    return remaining, stopping
 
 
 def cost_per_second(task: Candidate, waiting_s: float) -> float:

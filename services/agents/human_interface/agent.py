@@ -1,72 +1,41 @@
-"""a_hi — the human interface (paper §5.2): takes commands from a person, reports progress.
+"""a_hi — the human interface (paper §5.2; docs/agents.md, "a_hi"): takes sentences from a
+person, tells them what happens.
 
-Receptor: ``roco/human/in`` (:class:`HumanInput`, sentences). Effector: ``roco/human/out``
-(:class:`HumanReport`). Towards a_co, on C2 in L_HC, a_hi initiates three protocols:
+Receptor ``roco/human/in`` (:class:`HumanInput`), effector ``roco/human/out``
+(:class:`HumanReport`): every request of the person (command, stop, status) gets reports
+under its own ``request_id`` and ends with one of a kind in FINAL_REPORTS
+(services/runtime/human.py); their words are wording.py's. Towards a_co, on C2 in L_HC, a_hi
+initiates a fipa-request per command (a stop sends ``cancel`` in every open one: the cancel
+meta-protocol), one fipa-subscribe to the progress, which the role keeps open
+(services/runtime/subscriptions.py: while a_co does not agree, a new attempt, the interval
+doubling from ``SUBSCRIBE_RETRY_S[0]`` to ``SUBSCRIBE_RETRY_S[1]``), and a fipa-query per status
+request. Towards a_km, on C7 in L_WM, a fipa-query per sentence asks for the vocabulary
+(vocabulary.py), which the sentence waits for; when a_km is away or does not answer within
+``VOCABULARY_REPLY_BY_S``, it is read with the last one; when a_km's token appears, a_hi asks
+at once, and the sentences waiting for an earlier a_km wait for that answer instead.
 
-- **fipa-request** per command: ``request`` a :class:`HumanCommand`; a_co ``agree``\\s (or
-  ``refuse``\\s) and ends with ``inform``/``failure`` :class:`CommandOutcome`. A stop
-  request ("stop") sends ``cancel`` in every open command's conversation (the cancel
-  meta-protocol); a_co answers the cancel with ``inform`` (stopped) or ``failure``.
-- **fipa-subscribe** once: ``subscribe`` a :class:`ProgressSubscription` when a_co's
-  liveliness token appears; a_co agrees and informs a :class:`Progress` at every change of a
-  command's state. The role keeps the subscription open (services/runtime/subscriptions.py):
-  while a_co does not agree (an a_co that does not serve subscriptions) it retries quietly,
-  each attempt in a new conversation, the interval doubling from ``SUBSCRIBE_RETRY_S[0]`` to
-  ``SUBSCRIBE_RETRY_S[1]``; a_co's token appearing triggers an attempt at once. Commands work
-  without the subscription.
-- **fipa-query** per status request ("what are you doing?"): ``query-ref`` a
-  :class:`StatusQuery`; a_co answers ``inform-ref`` a :class:`Status`.
+Every line is first checked for a stop (stop.py), which is acted on at once, whatever it names;
+the sentences still waiting are dropped. A line over ``MAX_LINE_CHARS`` that is no stop is
+refused; the others are read in the order they came, by a thread of their own (reading.py), so
+that a stop never waits for the parse of the line before it; a conversation per person keeps
+what it named and a question asked back (language.py). Agents of other FIPA platforms ask on C8
+(foreign.py).
 
-Towards a_km, on C7 in L_WM, a_hi initiates **fipa-query** per sentence: ``query-ref``
-a ``SparqlQuery`` of the vocabulary (vocabulary.py: the words for the kitchen's things, their
-adjectives and where they are); a_km answers ``inform-ref`` an ``Answer``. The sentence waits for
-that answer, so a thing a_km learnt a moment ago can be named; when a_km is not alive (its
-liveliness token absent) or does not answer within ``VOCABULARY_REPLY_BY_S``, the sentence is
-read with the last vocabulary a_hi has (at start: O_RoCo and the kitchen's files). Whenever
-a_km's token appears (a_km started or restarted), a_hi asks for the vocabulary at once, and the
-sentences still waiting for an earlier a_km wait for that answer instead.
-
-Every line is first checked for a stop by stop.py's bounded, linear-time matcher, before the
-question to a_km, the parse and any refusal (what counts as a stop: stop.py). A stop is acted
-on at once (the cancels above), whatever it names ("stop pouring": all open commands stop, and
-the report says so); the sentences still waiting are dropped (reported when their query ends).
-A line longer than ``MAX_LINE_CHARS`` (services/runtime/human.py) that is no stop is refused
-with one ``not-understood`` line; shorter ones are read in the order they came, by a thread of
-their own (reading.py), so that a stop is never held back by the parse of the line before it;
-a line still being read when a stop comes is dropped and said so.
-A conversation per person (``HumanInput.person``) keeps the last object named and a question
-a_hi asked back ("Which cup: …?"), which the person's next sentence may answer. What a person
-can say is grammar.lark and the task words of tasks.toml (language.py, task_words.py), read and
-checked when a_hi is built.
-
-From agents of other FIPA platforms, on C8 (they reach it through ``roco gateway``,
-docs/gateway.md), a_hi is the participant of **fipa-request**: the ``request`` carries a
-``Sentence`` that a_hi reads exactly as a person's (a conversation per foreign agent, in the
-order sentences came), and the person's reports become the answers, each a
-``SentenceReport``: ``accepted`` an ``agree``, a final report an ``inform`` when the request
-was done as asked, else a ``failure`` — or a ``refuse`` when the sentence was not understood
-(before any agree). Progress reports are not sent (fipa-request has none). These
-conversations are not kept across a restart of a_hi.
-
-Every request from the person (command, stop, status) gets reports under its own
-``request_id`` and ends with one report of a kind in FINAL_REPORTS (messages.py).
-
-Restarts (docs/recovery.md): a command's request is retransmitted until a_co agrees
-(a_co may be restarting; its runtime drops copies and answers them again). The fipa-request
-role keeps the open commands (``keep=CommandNote``: the runtime writes them to a_hi's state
-file); a restarted a_hi takes them back (:meth:`HumanInterface.on_restored`), so a_co's outcome
-still reaches the person who asked. Open stop requests and status queries are not kept (ask again).
+Restarts (docs/recovery.md): a command's request is retransmitted until a_co agrees; the
+fipa-request role keeps the open commands (``keep=CommandNote``), which a restarted a_hi takes
+back (:meth:`HumanInterface.on_restored`); open stops and status queries are not kept.
 """
 
 from __future__ import annotations
 
-from collections import OrderedDict, deque
+from collections import deque
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, ClassVar
 
 import msgspec
 
+from services.agents.human_interface.foreign import ForeignRequests
 from services.agents.human_interface.language import (
     Command,
     Dialogue,
@@ -80,8 +49,21 @@ from services.agents.human_interface.reading import LineReader, Reading
 from services.agents.human_interface.stop import StopWords, command_openings
 from services.agents.human_interface.task_grammar import Grammar, default_grammar, load_grammar
 from services.agents.human_interface.vocabulary import VOCABULARY_QUERY, Vocabulary
+from services.agents.human_interface.wording import (
+    NOTHING_TO_STOP,
+    accepted,
+    dropped,
+    last_known,
+    no_status,
+    progress_text,
+    reason_of,
+    sentence,
+    status_text,
+    stopping,
+    too_long,
+)
 from services.runtime import keys
-from services.runtime.agent import Agent, SpecViolation
+from services.runtime.agent import Agent
 from services.runtime.behaviour import FSM, Behaviour
 from services.runtime.human import (
     FINAL_REPORTS,
@@ -108,12 +90,8 @@ from shared.fipa_codec.languages.l_hc import (
     HumanCommand,
     Progress,
     ProgressSubscription,
-    Sentence,
-    SentenceReport,
     Status,
     StatusQuery,
-    TaskState,
-    TaskStatus,
 )
 from shared.fipa_codec.languages.l_wm import Answer, SparqlQuery
 from shared.fipa_codec.message import new_id
@@ -143,12 +121,6 @@ SUBSCRIPTION = "hi-progress"
 """Conversation-id of the first subscription attempt; later ones add ``-2``, ``-3``, …"""
 VOCABULARY_REPLY_BY_S = 2.0
 """How long a sentence waits for a_km's vocabulary before it is read with the last one."""
-ENDED_KEPT = 256
-"""How many ended command conversations a_hi remembers (late replies, late progress)."""
-
-_CONNECTIVES = frozenset(
-    {"for", "by", "because", "after", "before", "while", "since", "until", "as", "so", "with", "to"}
-)
 
 
 @dataclass
@@ -221,59 +193,6 @@ class StopRequest:
     failed: bool = False
 
 
-def sentence(label: str, word: str, detail: str = "") -> str:
-    """``label: word`` followed by ``detail`` readably: "pour the jar into the bowl:
-    stopped; the jar was put down on the table", "…: preempted for 'bring the cup …'"."""
-    detail = " ".join(detail.split())
-    if not detail:
-        return f"{label}: {word}"
-    if detail.lower().startswith(word.lower()):
-        return f"{label}: {detail}"
-    if detail.split()[0].lower() in _CONNECTIVES:
-        return f"{label}: {word} {detail}"
-    return f"{label}: {word}; {detail}"
-
-
-_AT_STEP = frozenset({TaskState.RUNNING, TaskState.TERMINATING, TaskState.PREEMPTED})
-"""States in which the plan's step says where the robot is (elsewhere it is a stale one)."""
-
-
-def state_words(state: TaskState, step: str | None) -> str:
-    """ "running pour(jar,bowl)/fetch_jar/grasp", "planning", …"""
-    return f"{state.value} {step}" if step and state in _AT_STEP else state.value
-
-
-def progress_text(label: str, progress: Progress) -> str:
-    """A :class:`Progress` as a sentence ("…: running pour(jar,bowl)/fetch_jar/grasp")."""
-    return sentence(label, state_words(progress.state, progress.step), progress.detail)
-
-
-def status_line(label: str, task: TaskStatus) -> str:
-    """One line of a status report: a command, its state and step, priority, deadline."""
-    parts = [state_words(task.state, task.step)]
-    if task.priority:
-        parts.append(f"priority {task.priority}")
-    if task.deadline_in_s is not None:
-        if task.deadline_in_s >= 0:
-            parts.append(f"{task.deadline_in_s:.0f} s left to its deadline")
-        else:
-            parts.append(f"deadline missed by {-task.deadline_in_s:.0f} s")
-    return f"{label}: {', '.join(parts)}"
-
-
-def _reason(conv: Conversation) -> str:
-    """Why the peer of ``conv`` (a_co, a_km) answered negatively or not at all, in words."""
-    if conv.timed_out:
-        return f"{conv.peer} did not answer in time"
-    if isinstance(conv.content, CommandOutcome):
-        return conv.content.detail or "no reason given"
-    last = conv.last
-    text = (
-        last.msg.content.decode("utf-8", "replace").strip() if last is not None and last.msg.content else ""
-    )
-    return text or "no reason given"
-
-
 class HumanInterface(Agent):
     """a_hi: sentences in, L_HC on C2 to a_co, readable reports out."""
 
@@ -305,14 +224,13 @@ class HumanInterface(Agent):
     def build_fsm(self) -> FSM:
         self.commands: dict[str, OpenCommand] = {}  # conversation-id → open command
         self.asked: dict[str, RequestKind] = {}  # person's request id → what it was, until its final report
-        self.ended: OrderedDict[str, tuple[str, str]] = OrderedDict()  # conversation → (request, label)
         self.stops: dict[str, StopRequest] = {}  # request_id → stop request
         self._vocabulary: Vocabulary | None = None  # the last vocabulary a_km gave (None: none yet)
         self.dialogues: dict[str, Dialogue] = {}  # person → conversation
         self.held: deque[HeldSentence] = deque()  # sentences waiting for the vocabulary, in order
         self.reading: deque[Reading] = deque()  # sentences given to the reader, in order
         self.reader = LineReader(self.grammar, lambda: self.post(ReadDone()))
-        self.foreign: dict[str, Conversation] = {}  # request id → C8 conversation it answers
+        self.foreign = ForeignRequests(self.log)  # agents of other platforms (C8)
         return FSM(
             [
                 Behaviour(
@@ -373,41 +291,13 @@ class HumanInterface(Agent):
         request = self.asked.pop(request_id, None) if kind in FINAL_REPORTS else self.asked.get(request_id)
         report = HumanReport(request_id=request_id, kind=kind, text=text, request=request)
         self.emit(keys.HUMAN_OUT, msgspec.json.encode(report))
-        if request_id in self.foreign:
-            self._answer_foreign(request_id, report)
+        self.foreign.answer(report)
 
-    # ---- from agents of other platforms (C8) ---------------------------------------------
+    # ---- from agents of other platforms (C8, fipa-request, participant: foreign.py) ---------
     @handles(FIPA_REQUEST, PARTICIPANT, Performative.REQUEST, channel=C8)
     def _on_foreign_request(self, conv: Conversation) -> None:
         """A foreign agent's sentence: read as a person's, its reports answer the request."""
-        sentence = conv.content
-        assert isinstance(sentence, Sentence)  # the specification's contents, checked on arrival
-        request_id = new_id("fipa-")
-        self.foreign[request_id] = conv
-        self.log.info("sentence from %s [%s]: %s", conv.peer, request_id, sentence.text)
-        self._on_input(HumanInput(text=sentence.text, request_id=request_id, person=conv.peer))
-
-    def _answer_foreign(self, request_id: str, report: HumanReport) -> None:
-        """Answer a foreign agent's request with what the person would be told (module
-        docstring); a progress report is not sent."""
-        conv = self.foreign[request_id]
-        content = SentenceReport(kind=report.kind.value, text=report.text)
-        performative: Performative | None = None
-        requested = conv.state == "requested"  # fipa-request: not agreed yet
-        if report.kind is ReportKind.ACCEPTED and requested:
-            performative = Performative.AGREE
-        elif report.kind in FINAL_REPORTS:
-            del self.foreign[request_id]
-            if report.kind is ReportKind.NOT_UNDERSTOOD and requested:
-                performative = Performative.REFUSE
-            else:
-                performative = Performative.INFORM if report.done_as_asked else Performative.FAILURE
-        if performative is None:
-            return
-        try:
-            conv.reply(performative, content)
-        except SpecViolation as exc:  # e.g. the foreign agent cancelled it meanwhile
-            self.log.warning("cannot answer %s's request [%s]: %s", conv.peer, request_id, exc)
+        self._on_input(self.foreign.take(conv))
 
     @property
     def vocabulary(self) -> Vocabulary:
@@ -440,12 +330,7 @@ class HumanInterface(Agent):
             self._stop_commands(event.request_id, stop.names)
             return
         if len(event.text) > MAX_LINE_CHARS:
-            self._report(
-                event.request_id,
-                ReportKind.NOT_UNDERSTOOD,
-                f"Your line has {len(event.text):,} characters; I read lines of at most "
-                f"{MAX_LINE_CHARS:,}: please say it in fewer words.",
-            )
+            self._report(event.request_id, ReportKind.NOT_UNDERSTOOD, too_long(len(event.text)))
             return
         if KM not in self.peers:
             if not self.held:
@@ -485,11 +370,7 @@ class HumanInterface(Agent):
         while self.held and self.held[0].ready:
             held = self.held.popleft()
             if held.stopped:
-                self._report(
-                    held.event.request_id,
-                    ReportKind.NOT_UNDERSTOOD,
-                    f"'{held.event.text}' was dropped: you said stop before I had read it.",
-                )
+                self._report(held.event.request_id, ReportKind.NOT_UNDERSTOOD, dropped(held.event.text))
                 continue
             self._understand(held.event, held.vocabulary or self.vocabulary)
 
@@ -507,7 +388,7 @@ class HumanInterface(Agent):
     def _on_no_vocabulary(self, conv: Conversation) -> None:
         """Refused, failed, not understood or unanswered in time: read with the last vocabulary."""
         conv.abandon()
-        self.log.warning("a_km gave no vocabulary (%s); reading with the last one", _reason(conv))
+        self.log.warning("a_km gave no vocabulary (%s); reading with the last one", reason_of(conv))
         if conv.data:
             for held in conv.data:
                 held.ready = True
@@ -527,11 +408,7 @@ class HumanInterface(Agent):
             event, outcome = reading.event, reading.outcome
             if reading.stopped:
                 reading.dialogue.pending = None
-                self._report(
-                    event.request_id,
-                    ReportKind.NOT_UNDERSTOOD,
-                    f"'{event.text}' was dropped: you said stop before I had read it.",
-                )
+                self._report(event.request_id, ReportKind.NOT_UNDERSTOOD, dropped(event.text))
             elif isinstance(outcome, NotUnderstood):
                 self._report(event.request_id, ReportKind.NOT_UNDERSTOOD, str(outcome))
             elif isinstance(outcome, Command):
@@ -544,15 +421,6 @@ class HumanInterface(Agent):
                 self.asked[event.request_id] = RequestKind.STATUS
                 self._ask_status(event.request_id)
 
-    def _conversation_id(self, prefix: str, request_id: str) -> str:
-        base = f"{prefix}-{request_id}"
-        cid, n = base, 1
-        asking = {c.conversation_id for c in self.roles.conversations(C2, FIPA_QUERY)}
-        while cid in self.commands or cid in self.ended or cid in asking:
-            n += 1
-            cid = f"{base}-{n}"
-        return cid
-
     def _command(self, event: HumanInput, intent: Command) -> None:
         command = HumanCommand(
             text=event.text, goal=intent.goal, priority=intent.priority, deadline_s=intent.deadline_s
@@ -562,7 +430,7 @@ class HumanInterface(Agent):
             C2,
             FIPA_REQUEST,
             command,
-            conversation_id=self._conversation_id("cmd", event.request_id),
+            conversation_id=self.roles.free_id(f"cmd-{event.request_id}", taken=self.commands),
             data=note,
         )
         cid = conv.conversation_id
@@ -574,7 +442,7 @@ class HumanInterface(Agent):
         """Cancel every open command for stop request ``request_id``; ``named``: what the
         person's stop named ("pouring"), said back, as a_hi stops all of them."""
         if not self.commands:
-            self._report(request_id, ReportKind.STOPPED, "Nothing is running, so there is nothing to stop.")
+            self._report(request_id, ReportKind.STOPPED, NOTHING_TO_STOP)
             return
         stop = StopRequest(request_id, {c.conversation_id: c.label for c in self.commands.values()})
         self.stops[request_id] = stop
@@ -584,13 +452,7 @@ class HumanInterface(Agent):
                 continue  # a cancel is already on its way; wait for its answer
             c.cancel = c.conversation.cancel(c.command, reply_by_s=CANCEL_REPLY_BY_S)
             self._report(c.request_id, ReportKind.PROGRESS, f"{c.label}: stopping, as you asked")
-        n = len(stop.waiting)
-        every = f" (I stop every open command, not only '{named}')" if named else ""
-        self._report(
-            request_id,
-            ReportKind.PROGRESS,
-            f"Stopping {n} command{'s' if n > 1 else ''}: {'; '.join(stop.waiting.values())}{every}.",
-        )
+        self._report(request_id, ReportKind.PROGRESS, stopping(list(stop.waiting.values()), named))
 
     def _ask_status(self, request_id: str) -> None:
         self.roles.open(
@@ -598,7 +460,7 @@ class HumanInterface(Agent):
             FIPA_QUERY,
             StatusQuery(),
             performative=Performative.QUERY_REF,
-            conversation_id=self._conversation_id("status", request_id),
+            conversation_id=self.roles.free_id(f"status-{request_id}", taken=self.commands),
             data=request_id,  # the person's request it answers
         )
 
@@ -621,13 +483,7 @@ class HumanInterface(Agent):
             return
         c.agreed = True
         conv.await_reply(COMMAND_REPLY_BY_S)  # the agree answers the request; the outcome may take long
-        extras = []
-        if c.command.priority:
-            extras.append(f"priority {c.command.priority}")
-        if c.command.deadline_s is not None:
-            extras.append(f"within {c.command.deadline_s:g} s")
-        more = f" ({', '.join(extras)})" if extras else ""
-        self._report(c.request_id, ReportKind.ACCEPTED, f"I will {c.label}{more}.")
+        self._report(c.request_id, ReportKind.ACCEPTED, accepted(c.label, c.command))
 
     @handles(FIPA_REQUEST, INITIATOR, Performative.INFORM)
     def _on_command_done(self, conv: Conversation) -> None:
@@ -641,11 +497,15 @@ class HumanInterface(Agent):
                 self._end(c, ReportKind.SUCCEEDED, sentence(c.label, "succeeded", outcome.detail))
             else:
                 self._end(
-                    c, ReportKind.STOPPED, sentence(c.label, "stopped", outcome.detail if outcome else "")
+                    c,
+                    ReportKind.STOPPED,
+                    sentence(c.label, "stopped", outcome.detail if outcome else ""),
                 )
         elif outcome is None or outcome.succeeded:
             self._end(
-                c, ReportKind.SUCCEEDED, sentence(c.label, "succeeded", outcome.detail if outcome else "")
+                c,
+                ReportKind.SUCCEEDED,
+                sentence(c.label, "succeeded", outcome.detail if outcome else ""),
             )
         elif self._stopping(c):
             self._end(c, ReportKind.STOPPED, sentence(c.label, "stopped", outcome.detail))
@@ -664,16 +524,16 @@ class HumanInterface(Agent):
             waited = COMMAND_REPLY_BY_S if c.agreed else AGREE_BY_S
             reason = f"a_co did not {'finish' if c.agreed else 'answer'} within {waited:.0f} s"
             self._end(c, ReportKind.FAILED, sentence(c.label, "failed", reason))
-        elif self._stopping(c) and _reason(conv).lower().startswith("stopped"):
-            self._end(c, ReportKind.STOPPED, sentence(c.label, "stopped", _reason(conv)))
+        elif self._stopping(c) and reason_of(conv).lower().startswith("stopped"):
+            self._end(c, ReportKind.STOPPED, sentence(c.label, "stopped", reason_of(conv)))
         else:
-            self._end(c, ReportKind.FAILED, sentence(c.label, "failed", _reason(conv)))
+            self._end(c, ReportKind.FAILED, sentence(c.label, "failed", reason_of(conv)))
 
     @handles(FIPA_REQUEST, INITIATOR, Performative.REFUSE)
     def _on_command_refused(self, conv: Conversation) -> None:
         c = self._open_command(conv)
         if c is not None:
-            self._end(c, ReportKind.FAILED, sentence(c.label, "refused", _reason(conv)))
+            self._end(c, ReportKind.FAILED, sentence(c.label, "refused", reason_of(conv)))
 
     @handles(FIPA_REQUEST, INITIATOR, Performative.NOT_UNDERSTOOD)
     def _on_command_not_understood(self, conv: Conversation) -> None:
@@ -684,7 +544,9 @@ class HumanInterface(Agent):
             self._not_stopped(c, conv)
         else:
             self._end(
-                c, ReportKind.FAILED, f"{c.label}: a_co did not understand the command; {_reason(conv)}"
+                c,
+                ReportKind.FAILED,
+                f"{c.label}: a_co did not understand the command; {reason_of(conv)}",
             )
 
     @staticmethod
@@ -694,7 +556,7 @@ class HumanInterface(Agent):
     def _not_stopped(self, c: OpenCommand, conv: Conversation) -> None:
         """The cancel failed, was not understood, or had no answer in time: it goes on."""
         c.cancel = None
-        reason = _reason(conv)
+        reason = reason_of(conv)
         if conv.timed_out:
             reason = f"a_co did not confirm the stop within {CANCEL_REPLY_BY_S:.0f} s"
         line = sentence(c.label, "could not be stopped", reason)
@@ -705,10 +567,7 @@ class HumanInterface(Agent):
         """Command ``c`` has ended: the final report, and every stop request waiting for it."""
         self._report(c.request_id, kind, text)
         del self.commands[c.conversation_id]
-        c.conversation.abandon()
-        self.ended[c.conversation_id] = (c.request_id, c.label)
-        while len(self.ended) > ENDED_KEPT:
-            self.ended.popitem(last=False)
+        c.conversation.abandon(remember=True)  # its note names the person's request of late progress
         if kind is not ReportKind.STOPPED:
             text = f"{text} (it ended before it could be stopped)"
         self._tell_stoppers(c, text, ok=True)
@@ -743,23 +602,11 @@ class HumanInterface(Agent):
         labels = {c.conversation_id: c.label for c in self.commands.values()}
         status = conv.content
         if answered and isinstance(status, Status):
-            if not status.tasks:
-                text = "I am not doing anything: no command is running or waiting."
-            else:
-                text = "\n".join(status_line(labels.get(t.command_id, repr(t.text)), t) for t in status.tasks)
-            self._report(request_id, ReportKind.STATUS, text)
+            self._report(request_id, ReportKind.STATUS, status_text(status, labels))
             return
-        reason = "its answer held no status" if answered else _reason(conv)
-        mine = [
-            progress_text(c.label, c.last) if c.last else f"{c.label}: {'accepted' if c.agreed else 'sent'}"
-            for c in self.commands.values()
-        ]
-        known = "\n".join(mine) if mine else "no command of mine is open."
-        self._report(
-            request_id,
-            ReportKind.STATUS,
-            f"a_co did not tell me its status ({reason}); from its last reports:\n{known}",
-        )
+        reason = "its answer held no status" if answered else reason_of(conv)
+        known = [last_known(c.label, c.last, c.agreed) for c in self.commands.values()]
+        self._report(request_id, ReportKind.STATUS, no_status(reason, known))
 
     # ---- the progress subscription (fipa-subscribe, initiator; kept open by the role) ----
     @handles(FIPA_SUBSCRIBE, INITIATOR, Performative.INFORM)
@@ -775,18 +622,11 @@ class HumanInterface(Agent):
                 return  # the same change twice (two subscriptions for a moment)
             c.last = progress
             request_id, label = c.request_id, c.label
-        elif cid in self.ended:
-            request_id, label = self.ended[cid]
+        elif (ended := self.roles.ended(cid)) is not None:  # a command that ended (its CommandNote)
+            request_id, label = ended.request_id, ended.label
         else:  # a command a_co holds from before a_hi (re)started
             request_id, label = cid.removeprefix("cmd-"), cid
         self._report(request_id, ReportKind.PROGRESS, progress_text(label, progress))
 
 
-__all__ = [
-    "HumanInterface",
-    "OpenCommand",
-    "StopRequest",
-    "progress_text",
-    "sentence",
-    "status_line",
-]
+__all__ = ["HumanInterface", "OpenCommand", "StopRequest"]

@@ -13,7 +13,10 @@ from services.agents.coordinator.scheduling import (
     best,
     cost_per_second,
     decide,
+    plan_left,
 )
+from shared.fipa_codec.languages.l_ex import Wait
+from shared.fipa_codec.languages.l_hfsm import Execute, HierarchicalPlan, PlanNode
 
 
 def running(priority: int = 0, remaining: float = 60.0, interruption: float = 10.0) -> Running:
@@ -63,3 +66,24 @@ def test_nothing_waiting_continues() -> None:
     assert decide(running(), []).switch_to is None
     with pytest.raises(ValueError):
         best([])
+
+
+def test_what_is_left_of_a_plan_is_its_leaves_to_run_and_the_safe_stop_of_the_leaf_it_runs() -> None:
+    def leaf(name: str, duration: float, on_cancel: str | None = None) -> PlanNode:
+        return PlanNode(
+            name=name, action=Execute(Wait(duration=duration)), duration=duration, on_cancel=on_cancel
+        )
+
+    put_down = PlanNode(name="put_down", children=(leaf("lower", 4.0), leaf("open", 1.5)))
+    plan = HierarchicalPlan(
+        plan_id="p",
+        task_id="t",
+        root=PlanNode(
+            name="pour", children=(leaf("take", 10.0), leaf("tilt", 5.0, "held"), leaf("back", 3.0))
+        ),
+        safe_stops={"held": put_down},
+    )
+    assert plan_left(plan, 0) == (18.0, 0.0)  # the first leaf names no safe stop
+    assert plan_left(plan, 1) == (8.0, 5.5)  # the tilt's: put the jar down
+    assert plan_left(plan, 2) == (3.0, 0.0)
+    assert plan_left(plan, 3) == (0.0, 0.0)  # every leaf has run

@@ -1,0 +1,64 @@
+"""a_hi's answers to agents of other FIPA platforms (C8; docs/gateway.md).
+
+They reach a_hi through ``roco gateway``; a_hi is the participant of their fipa-request. The
+``request`` carries a ``Sentence``, which a_hi reads exactly as a person's line (a
+conversation per foreign agent, in the order the sentences came), and the reports the person
+would get become the answers, each a ``SentenceReport``: ``accepted`` an ``agree``, a final
+report an ``inform`` when the request was done as asked, else a ``failure`` — or a ``refuse``
+when the sentence was not understood (before any agree). Progress reports are not sent
+(fipa-request has none). These conversations are not kept across a restart of a_hi.
+"""
+
+from __future__ import annotations
+
+import logging
+
+from services.runtime.agent import SpecViolation
+from services.runtime.human import FINAL_REPORTS, HumanInput, HumanReport, ReportKind
+from services.runtime.roles import Conversation
+from shared.fipa_codec import Performative
+from shared.fipa_codec.languages.l_hc import Sentence, SentenceReport
+from shared.fipa_codec.message import new_id
+
+
+class ForeignRequests:
+    """The open fipa-requests of foreign agents, by the request id a_hi reads each sentence
+    under (module docstring); ``log``: a_hi's."""
+
+    def __init__(self, log: logging.Logger) -> None:
+        self.log = log
+        self.open: dict[str, Conversation] = {}
+
+    def take(self, conv: Conversation) -> HumanInput:
+        """A foreign agent's ``request`` (its ``Sentence``: the specification's content,
+        checked on arrival) as the line a person of the agent's name says, under a new
+        request id whose reports answer it."""
+        said = conv.content
+        assert isinstance(said, Sentence)
+        request_id = new_id("fipa-")
+        self.open[request_id] = conv
+        self.log.info("sentence from %s [%s]: %s", conv.peer, request_id, said.text)
+        return HumanInput(text=said.text, request_id=request_id, person=conv.peer)
+
+    def answer(self, report: HumanReport) -> None:
+        """Answer the foreign request ``report`` is about, if any, with what the person is told
+        (module docstring); a progress report is not sent."""
+        conv = self.open.get(report.request_id)
+        if conv is None:
+            return
+        performative: Performative | None = None
+        requested = conv.state == "requested"  # fipa-request: not agreed yet
+        if report.kind is ReportKind.ACCEPTED and requested:
+            performative = Performative.AGREE
+        elif report.kind in FINAL_REPORTS:
+            del self.open[report.request_id]
+            if report.kind is ReportKind.NOT_UNDERSTOOD and requested:
+                performative = Performative.REFUSE
+            else:
+                performative = Performative.INFORM if report.done_as_asked else Performative.FAILURE
+        if performative is None:
+            return
+        try:
+            conv.reply(performative, SentenceReport(kind=report.kind.value, text=report.text))
+        except SpecViolation as exc:  # e.g. the foreign agent cancelled it meanwhile
+            self.log.warning("cannot answer %s's request [%s]: %s", conv.peer, report.request_id, exc)
