@@ -73,9 +73,10 @@ from services.runtime.behaviour import FSM
 from services.runtime.dedup import Dedup
 from services.runtime.heap import give_back_freed_heap
 from services.runtime.hooks import Hooks, load_hooks
+from services.runtime.intake import Refusal, content_of, interface_refusal
 from services.runtime.limits import MAX_OPEN_CONVERSATIONS_PER_PEER
 from services.runtime.lookups import Lookups
-from services.runtime.protocol_state import ConversationError, ProtocolStates, expected_ontology
+from services.runtime.protocol_state import ConversationError, ProtocolStates
 from services.runtime.replies import Pending, PendingReplies
 from services.runtime.roles import Conversation, RoleDecl, Roles
 from services.runtime.state_store import NO_DATA, KeptConversations, StateFile
@@ -91,7 +92,7 @@ from shared.fipa_codec import (
     encode,
 )
 from shared.fipa_codec.batch import is_batch, runs, unpack
-from shared.fipa_codec.languages import ContentError, decode_content, encode_content, language_of
+from shared.fipa_codec.languages import encode_content, language_of
 from shared.fipa_codec.message import new_id
 from shared.fipa_codec.protocols import (
     INITIATOR,
@@ -131,8 +132,6 @@ wall-time budget turned inline receiving off for a third of them (docs/benchmark
 wake-ups per communicate")."""
 _SENT_COUNTER = {p: f"sent.{p.value}" for p in Performative}
 _RECEIVED_COUNTER = {p: f"received.{p.value}" for p in Performative}
-_REASONS = frozenset({Performative.FAILURE, Performative.REFUSE, Performative.NOT_UNDERSTOOD})
-"""Performatives whose content may be a plain UTF-8 reason instead of a language term."""
 
 
 class SpecViolation(RuntimeError):
@@ -794,86 +793,81 @@ class Agent:
 
     def _take_communicate(self, key: str, payload: bytes) -> None:
         """Check one received communicate (paper §4 steps 3–4) and put it into ``x``, or
-        answer it with not-understood (or refuse) and count why (``rejected.<reason>``)."""
+        answer it with not-understood (or refuse) and count why (``rejected.<reason>``): the
+        key, a copy or an envelope that does not decode (:meth:`_decoded`), the checks against
+        the interface (services/runtime/intake.py), then those of its conversation
+        (:meth:`_in_conversation`)."""
         try:
             channel, sender, _receiver = self.lookups.parse(key)
         except ValueError:
             self.counters["bad_key"] += 1
             self.counters["rejected.bad_key"] += 1
             return
+        msg = self._decoded(sender, channel, payload)
+        if msg is None:
+            return
+        self.counters[_RECEIVED_COUNTER[msg.performative]] += 1
+        kind = self.lookups.accepts(sender, msg.performative, msg.protocol)
+        refusal = interface_refusal(sender, channel, msg, kind)
+        content: msgspec.Struct | None = None
+        if refusal is None and kind is not None:
+            content, refusal = content_of(msg, kind)
+        if refusal is not None:
+            self._refuse(sender, channel, msg, refusal)
+        elif self._in_conversation(sender, channel, msg, content):
+            if msg.in_reply_to is not None and self.pending_replies.knows(msg.in_reply_to):
+                self.pending_replies.answered(msg.in_reply_to, msg.performative)
+            self.x.append(Received(msg, content, channel))
+
+    def _decoded(self, sender: str, channel: str, payload: bytes) -> Communicate | None:
+        """The communicate ``payload`` holds, None when it is taken care of here: a copy of one
+        taken in already is dropped (its answers published again, services/runtime/dedup.py),
+        an envelope that does not decode (malformed, oversized) answered not-understood."""
         copy = self.dedup.seen(payload)
         try:
             msg = decode(payload)
         except DecodeError as exc:
             if copy:
                 self.counters["duplicates"] += 1
-                return
+                return None
             bad = "oversized" if exc.oversized else "malformed"
             self.not_understood(sender, channel, f"{bad} communicate: {exc.reason}", None, bad)
-            return
+            return None
         if copy:
-            self.counters["duplicates"] += 1
-            again = self.dedup.answers(sender, msg.reply_with)
-            self.log.info(
-                "copy of %s from %s (conversation %s) dropped; %d answer(s) sent again",
-                msg.performative.value,
-                sender,
-                msg.conversation_id,
-                len(again),
-            )
-            self.counters["replayed"] += len(again)
-            self._y.extend(again)
-            return
-        self.counters[_RECEIVED_COUNTER[msg.performative]] += 1
-        if msg.sender is None or msg.sender.name != sender:
-            self.not_understood(
-                sender, channel, "sender does not match the key it came on", msg, "sender_mismatch"
-            )
-            return
-        kind = self.lookups.accepts(sender, msg.performative, msg.protocol)
-        if kind is None or kind.channel != channel:
-            self.not_understood(
-                sender,
-                channel,
-                f"unexpected {msg.performative.value} in protocol {msg.protocol} on {channel}",
-                msg,
-                "not_in_interface",
-            )
-            return
-        content: msgspec.Struct | None = None
-        plain_reason = msg.language is None and msg.encoding == "utf-8" and msg.performative in _REASONS
-        checked = kind.languages and msg.content and not plain_reason
-        if checked and msg.language not in kind.languages:
-            refused = f"language {msg.language} not accepted here"
-            self.not_understood(sender, channel, refused, msg, "language")
-            return
-        if msg.language is not None and msg.ontology != expected_ontology(msg.language):
-            self.not_understood(
-                sender,
-                channel,
-                f"language {msg.language} needs ontology {expected_ontology(msg.language)}, "
-                f"not {msg.ontology}",
-                msg,
-                "ontology",
-            )
-            return
-        if checked:
-            try:
-                content = decode_content(msg.language, msg.content)
-            except ContentError as exc:
-                self.not_understood(sender, channel, str(exc), msg, "content")
-                return
-            if kind.contents and type(content).__name__ not in kind.contents:
-                self.counters["content_violations"] += 1
-                self.not_understood(
-                    sender,
-                    channel,
-                    f"{msg.performative.value} in {msg.protocol} may carry {', '.join(kind.contents)}, "
-                    f"not {type(content).__name__}",
-                    msg,
-                    "content_type",
-                )
-                return
+            self._copy(sender, msg)
+            return None
+        return msg
+
+    def _copy(self, sender: str, msg: Communicate) -> None:
+        """A byte-identical copy of ``msg`` came again from ``sender``: dropped, and the
+        answers sent to it published again."""
+        self.counters["duplicates"] += 1
+        again = self.dedup.answers(sender, msg.reply_with)
+        self.log.info(
+            "copy of %s from %s (conversation %s) dropped; %d answer(s) sent again",
+            msg.performative.value,
+            sender,
+            msg.conversation_id,
+            len(again),
+        )
+        self.counters["replayed"] += len(again)
+        self._y.extend(again)
+
+    def _refuse(self, sender: str, channel: str, msg: Communicate, refusal: Refusal) -> None:
+        """Answer ``msg`` not-understood for ``refusal`` (a term its kind may not carry is
+        counted as a ``content_violations`` too)."""
+        if refusal.counter == "content_type":
+            self.counters["content_violations"] += 1
+        self.not_understood(sender, channel, refusal.reason, msg, refusal.counter)
+
+    def _in_conversation(
+        self, sender: str, channel: str, msg: Communicate, content: msgspec.Struct | None
+    ) -> bool:
+        """Whether ``msg``, accepted by the interface, may be taken in: it has a
+        conversation-id where its protocol is followed, it opens no conversation beyond
+        ``max_open_per_peer`` with ``sender`` (:meth:`_refuse_new_conversation`), and the
+        conversation's protocol state allows it (:meth:`_follow`, which advances it). False:
+        it was answered or dropped, and counted."""
         if (
             msg.conversation_id is None
             and msg.protocol is not None
@@ -881,25 +875,28 @@ class Agent:
         ):
             # its answer could not be told apart from those of other such conversations, nor
             # followed in the protocol: FIPA SC00061 leaves conversation-id optional, roco needs it
-            self.not_understood(
-                sender,
-                channel,
-                f"{msg.performative.value} in protocol {msg.protocol} needs a conversation-id",
-                msg,
-                "no_conversation_id",
-            )
-            return
+            needs = f"{msg.performative.value} in protocol {msg.protocol} needs a conversation-id"
+            self.not_understood(sender, channel, needs, msg, "no_conversation_id")
+            return False
         if (
             msg.conversation_id is not None
             and self.protocol_states.open_with(sender) >= self.max_open_per_peer
             and self.protocol_states.get(sender, msg.conversation_id) is None
         ):
             self._refuse_new_conversation(sender, channel, msg, content)
-            return
+            return False
         why = self._follow(
             sender, msg.conversation_id, msg.protocol, msg.performative, False, is_terminal_report(msg), msg
         )
-        if why is not None and self.roles.answers_earlier_opening(sender, msg):
+        if why is not None:
+            self._out_of_state(sender, channel, msg, why)
+        return why is None
+
+    def _out_of_state(self, sender: str, channel: str, msg: Communicate, why: str) -> None:
+        """The conversation's protocol state does not allow ``msg`` (``why``): a late reply to
+        an earlier opening of the conversation is dropped; anything else is a protocol
+        violation, answered not-understood."""
+        if self.roles.answers_earlier_opening(sender, msg):
             # not-understood would end (FIPA SC00037 §3.12) the conversation opened anew, and
             # with it what the peer sends in it next (a_km restarted, subscribed again, and
             # lost a_ta's fresh observation after answering a stale update not-understood)
@@ -912,16 +909,11 @@ class Agent:
                 msg.in_reply_to,
             )
             return
-        if why is not None:
-            self.counters["protocol_violations"] += 1
-            self._warn_rejected(
-                "protocol violation by %s in conversation %s: %s", sender, msg.conversation_id, why
-            )
-            self.not_understood(sender, channel, why, msg, "protocol_state")
-            return
-        if msg.in_reply_to is not None and self.pending_replies.knows(msg.in_reply_to):
-            self.pending_replies.answered(msg.in_reply_to, msg.performative)
-        self.x.append(Received(msg, content, channel))
+        self.counters["protocol_violations"] += 1
+        self._warn_rejected(
+            "protocol violation by %s in conversation %s: %s", sender, msg.conversation_id, why
+        )
+        self.not_understood(sender, channel, why, msg, "protocol_state")
 
     def _refuse_new_conversation(
         self, sender: str, channel: str, msg: Communicate, content: msgspec.Struct | None

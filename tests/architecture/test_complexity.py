@@ -11,8 +11,8 @@ from pathlib import Path
 from types import ModuleType
 
 ROOT = Path(__file__).resolve().parents[2]
-MOST = 90
-"""Functions of complexity ≥ 11 on 2026-11-25 (1.71 per thousand lines)."""
+MOST = 87
+"""Functions of complexity ≥ 11 on 2026-11-25 (1.64 per thousand lines)."""
 
 
 def _check_complexity() -> ModuleType:

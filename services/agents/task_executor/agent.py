@@ -60,7 +60,6 @@ from __future__ import annotations
 
 import time
 from collections import deque
-from dataclasses import dataclass
 
 import msgspec
 
@@ -92,7 +91,6 @@ from services.spec.names import (
 from shared.fipa_codec import Performative
 from shared.fipa_codec.languages.l_ex import (
     HALTED,
-    NOT_AT_GRASP_POSE,
     CommandResult,
     LookAt,
     MoveJoints,
@@ -114,8 +112,8 @@ from shared.fipa_codec.languages.l_sd import Observation
 from shared.fipa_codec.languages.l_sw import TERMINAL_SW_STATES, SWState, SWStatus
 from shared.fipa_codec.languages.l_wm import ObjectUpdate, Subscription, WorldUpdate
 
-from .judge import content_share, content_shortfall, differences, too_uncertain
 from .retreat import RetreatStep, finish_set_down, undo_take
+from .verdict import Answer, Do, Step, Verdict, judge
 
 OBSERVE_REPLY_BY_S = 30.0
 LOOK_REPLY_BY_S = 10.0
@@ -132,38 +130,11 @@ CONFIRM_REPLY_BY_S = 300.0
 """How long a_ta waits for a_co to confirm an L_SW inform before it goes on without."""
 SW_RETRY_S = 5.0
 """Retransmission period of an unconfirmed L_SW inform (a_co may be restarting)."""
-HELD = "held:"
-"""Prefix of the reason ag_ex gives a command it ended to hold position (velma/executor/loop.py)."""
-REPLAN_FAILURES = {
-    "no contact": "the grasp closed on nothing",
-    "contact lost": "the held object left the hand",
-    "unreachable": "no arm configuration reaches the planned pose",
-    NOT_AT_GRASP_POSE: "the hand was not at the grasp pose",
-}
-"""ag_ex failure reasons that mean the world may differ from the plan, and how a_ta says so:
-a_ta observes the scene (a_km learns it) and reports Replan instead of Error. ``unreachable``:
-the pose was planned from the objects as last seen, and a view that misplaced one (e.g. the
-bowl under the held jar, seen right after ag_ex restarted) yields a pose no arm configuration
-reaches; looking again and planning again is bounded by a_co's ``MAX_REPLANS_PER_TASK``.
-``NOT_AT_GRASP_POSE``: ag_ex did not close a hand that is not where the plan put it (the
-reach's target, ``Grasp.at``)."""
+_ENDS = {Do.REPLAN: SWState.REPLAN, Do.ERROR: SWState.ERROR}
+"""The final state of each verdict that ends the plan (services/agents/task_executor/verdict.py)."""
 WORLD_TIME_SLACK_S = 1e-6
 """How far (s) an answer's simulated time may lie before the latest one seen and still be the
 same world's (the times are the world's own; equal times are the same instant)."""
-
-
-@dataclass
-class Step:
-    """The leaf state being executed: its HFSM path, node, and the C5 request awaiting reply."""
-
-    path: str
-    node: PlanNode
-    waiting_for: Conversation | None = None
-    reply: tuple[Conversation, bool] | None = None  # ag_ex's answer (inform: True) once it came
-    replan_reason: str | None = None  # set on the observation made before reporting Replan
-    second_view: int = 0  # 1: looking at an uncertain object or a short content again, 2: observed it again
-    halted: bool = False  # ag_ex answered a_ta's cancel: the command was halted
-    went_back: tuple[float, float] | None = None  # (latest, answer's) simulated time, s: the world went back
 
 
 class PlanNote(msgspec.Struct, kw_only=True):
@@ -582,14 +553,11 @@ class TaskExecutor(Agent):
                 return
             reply, ok = step.reply
             step.reply = None
-            if step.halted:
-                self._after_halt(reply)
-            else:
-                self._complete(reply, ok)
-                if self.outcome is not None or (
-                    self.step is not None and self.step.waiting_for is not waiting_for
-                ):
-                    return  # ended, or the step asked ag_ex something more (a look after a surprise)
+            self._complete(reply, ok)
+            if self.outcome is not None or (
+                self.step is not None and self.step.waiting_for is not waiting_for
+            ):
+                return  # ended, or the step asked ag_ex something more (a look after a surprise)
         if self.cancel_requested and not self.terminating and not self._in_atomic():
             self._begin_safe_stop()
         if self.index >= len(self.leaves):
@@ -728,90 +696,42 @@ class TaskExecutor(Agent):
         self._inform_km(WorldUpdate(stamp=-1.0, objects=(change,)))
 
     def _complete(self, reply: Conversation, ok: bool) -> None:
-        """Go on after ag_ex answered the step's request: ``ok`` for ``inform``; otherwise
-        (refuse, failure, not-understood or no answer by the deadline) a surprise or an error."""
+        """Go on after ag_ex answered the step's request (``ok`` for ``inform``; otherwise
+        refuse, failure, not-understood or no answer by the deadline): apply a_ta's verdict
+        (services/agents/task_executor/verdict.py ``judge``)."""
         step = self.step
         assert step is not None
-        action = step.node.action
-        if step.replan_reason is not None:  # the observation made after a surprise
-            if isinstance(reply.content, Observation):
-                self._update_km(reply.content)
-            self._end(SWState.REPLAN, step.replan_reason)
-            return
-        if step.went_back is not None and not self.terminating:
-            latest, now = step.went_back
-            self._surprise(
-                step,
-                f"{step.path}: ag_ex's world went back from {latest:.2f} s to {now:.2f} s "
-                "(what was done may be undone)",
-            )
-            return
-        if ok and step.second_view == 1 and isinstance(action, Perceive | CheckContent):
-            step.second_view = 2  # the head turned to it: observe again
-            self._observe(step, action.objects if isinstance(action, Perceive) else (action.container,))
-            return
-        if not ok:
-            reason = getattr(reply.content, "reason", None) or reply.reason
-            if (
-                isinstance(reply.content, CommandResult)
-                and (reply.content.reason or "").startswith(HELD)
-                and not self.terminating
-            ):
-                # ag_ex stopped the motion because a_ta looked gone (a restart of a_ta or of
-                # the router): where the robot got to is not known, so look and plan again
+        said = reply.last.performative.value if reply.last is not None else "failure"
+        verdict = judge(step, Answer(ok, reply.content, said, reply.reason), self.terminating)
+        for note in verdict.notes:
+            self.log.info("%s", note)
+        if verdict.observed is not None:
+            self._update_km(verdict.observed)
+        self._apply(step, verdict, reply)
+
+    def _apply(self, step: Step, verdict: Verdict, reply: Conversation) -> None:
+        """Do what ``verdict`` says of ``step`` (:class:`~.verdict.Do`); ``reply`` is ag_ex's
+        answer."""
+        do = verdict.do
+        if do is Do.NEXT:
+            self.index += 1
+            self.step = None
+        elif do is Do.HALTED:
+            self._after_halt(reply)
+        elif do is Do.OBSERVE_AGAIN:
+            step.second_view = 2
+            self._observe(step, verdict.objects)
+        elif do is Do.LOOK:
+            assert verdict.look_at is not None
+            self.log.info("%s: %s: a second view", step.path, verdict.reason)
+            step.second_view = 1
+            step.waiting_for = self._request(LookAt(point=verdict.look_at), LOOK_REPLY_BY_S, RESEND_ON_RETURN)
+        elif do is Do.SURPRISE:
+            if verdict.interrupted:
                 self.interrupted = True
-                self._surprise(step, f"{step.path}: ag_ex held position ({reply.content.reason})")
-                return
-            if (
-                isinstance(reply.content, CommandResult)
-                and reply.content.reason in REPLAN_FAILURES
-                and not self.terminating
-            ):
-                what = REPLAN_FAILURES[reply.content.reason]
-                self._surprise(step, f"{step.path}: {what}")
-                return
-            said = reply.last.performative.value if reply.last is not None else "failure"
-            self._end(SWState.ERROR, f"{step.path}: {said}: {reason}")
-            return
-        if isinstance(action, Perceive | CheckContent) and isinstance(reply.content, Observation):
-            self._update_km(reply.content)
-            if isinstance(action, Perceive) and action.expect and not self.terminating:
-                difference = differences(action, reply.content)
-                if difference and action.judges:  # the world does not show the task done
-                    self._end(SWState.ERROR, f"{step.path}: {difference}")
-                    return
-                uncertain = None if difference else too_uncertain(action, reply.content)
-                if uncertain is not None and step.second_view == 0:
-                    name, where, _ = uncertain
-                    self.log.info("%s: the %s's position is uncertain: a second view", step.path, name)
-                    step.second_view = 1
-                    step.waiting_for = self._request(LookAt(point=where), LOOK_REPLY_BY_S, RESEND_ON_RETURN)
-                    return
-                if uncertain is not None:
-                    name, _, sigma = uncertain
-                    difference = f"the {name}'s position is too uncertain to grasp (σ {1e3 * sigma:.0f} mm)"
-                if difference:
-                    self._end(SWState.REPLAN, f"{step.path}: {difference}")
-                    return
-            if isinstance(action, CheckContent):
-                share = content_share(action, reply.content)
-                self.log.info("%s holds %.0f %% of the content", action.container, 100 * share)
-                shortfall = content_shortfall(action, reply.content)
-                seen = {o.name: o.pose.position for o in reply.content.objects}
-                if shortfall and step.second_view == 0 and action.container in seen and not self.terminating:
-                    # one glimpse does not fail a task: the count can be one low (a sphere
-                    # still settling, one hidden; docs/bench/observe.md), so the head turns to
-                    # the container and the second count judges
-                    self.log.info("%s: %s: a second view", step.path, shortfall)
-                    step.second_view = 1
-                    look = LookAt(point=seen[action.container])
-                    step.waiting_for = self._request(look, LOOK_REPLY_BY_S, RESEND_ON_RETURN)
-                    return
-                if shortfall:
-                    self._end(SWState.ERROR, shortfall)
-                    return
-        self.index += 1
-        self.step = None
+            self._surprise(step, verdict.reason or "")
+        else:
+            self._end(_ENDS[do], verdict.reason)
 
     def _surprise(self, step: Step, reason: str) -> None:
         """The world differs from the plan: observe the whole scene (a_km learns it), then
