@@ -1206,6 +1206,60 @@ def spec_verify(
         raise typer.Exit(1)
 
 
+@spec_app.command("coverage", short_help="Which parts of the specification runs and tests exercised.")
+def spec_coverage(
+    runs: Annotated[list[Path] | None, typer.Argument(metavar="RUN…", help="run folders")] = None,
+    tests: Annotated[
+        bool, typer.Option("--tests", help="also the test suite's traffic, tapped into ROCO_TAP_DIR or --tap")
+    ] = False,
+    tap: Annotated[
+        Path | None, typer.Option(help="the tap folder a test run wrote (default: ROCO_TAP_DIR)")
+    ] = None,
+    minimum: Annotated[
+        float | None,
+        typer.Option("--min", min=0.0, max=1.0, help="exit 1 when the share exercised is under this (0–1)"),
+    ] = None,
+    svg: Annotated[
+        Path | None, typer.Option(help="write the figure (agent graph, state machines) as SVG here")
+    ] = None,
+    brief: Annotated[bool, typer.Option("--brief", help="list only what was never taken")] = False,
+    spec: SpecFile = None,
+) -> None:
+    """Count which parts of the specification the runs RUN… and, with `--tests`, the test
+    suite exercised: every transition of each channel's interaction protocols (with
+    not-understood and reply-by time-outs), every state and arc of each agent's FSM, every
+    content term; list what was taken, how often, and what never was (docs/spec.md,
+    "Coverage"). The tests' traffic: run them with `ROCO_TAP_DIR=FOLDER`. Exit 1 when the
+    share exercised is under `--min`; exit 2 for a folder that is not there."""
+    from services.spec.model import SpecError
+    from services.spec_check.coverage import coverage_of
+    from services.spec_check.coverage_text import headline, render
+    from shared.settings import Settings
+
+    folders = [_run_folder(r) for r in runs or []]
+    tapped = (tap or Settings.from_env(only=("tap_dir",)).tap_dir) if tests else None
+    if tests and tapped is None:
+        raise fail(
+            f"--tests needs the folder the tests tapped: give --tap or set {Settings.env_name('tap_dir')}", 2
+        )
+    if not folders and tapped is None:
+        raise fail("nothing to count: give run folders, or --tests", 2)
+    try:
+        cov = coverage_of(folders, tapped, spec)
+    except (SpecError, ValueError) as exc:
+        raise fail(str(exc), 2) from None
+    except FileNotFoundError as exc:
+        raise fail(f"{exc.filename or exc}: no such folder", 2) from None
+    typer.echo(render(cov, detail=not brief))
+    if svg is not None:
+        from services.spec_check.coverage_figure import write_figure
+
+        write_figure(cov, svg)
+        typer.echo(f"roco: figure written to {svg}")
+    if minimum is not None and cov.share < minimum:
+        raise fail(f"{headline(cov)}: under --min {100 * minimum:.1f} %")
+
+
 @spec_app.command("new-agent", short_help="Write a new agent's folder from the specification.")
 def spec_new_agent(
     name: Annotated[str, typer.Argument(metavar="NAME", help="the agent, as [[agents]] names it")],
