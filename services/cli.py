@@ -59,6 +59,7 @@ if TYPE_CHECKING:
 
     from services.hosts.link import Shaping
     from services.live.watch import LiveWatch
+    from services.report.model import CoverageSummary
     from services.runtime.counters import CountersReport
     from services.scenario.model import Scenario
     from services.scenario.runner import Hosting
@@ -589,7 +590,7 @@ def _finish_report(run_dir: Path, info: RunInfo, *, interrupted: bool = False) -
     from services.report import build_report, write_report
 
     try:
-        path = write_report(run_dir)
+        path = write_report(run_dir, _coverage_summary(run_dir))
         report = build_report(run_dir)
     except Exception as exc:  # the run's outcome stands even if its report cannot be made
         if interrupted:
@@ -1260,6 +1261,18 @@ def spec_coverage(
         raise fail(f"{headline(cov)}: under --min {100 * minimum:.1f} %")
 
 
+def _coverage_summary(run_dir: Path) -> CoverageSummary | None:
+    """The run's specification coverage for its report (services/spec_check/coverage_figure.py);
+    None, with one line saying why, when it cannot be counted: the report is written all the same."""
+    from services.spec_check.coverage_figure import report_summary
+
+    try:
+        return report_summary(run_dir)
+    except Exception as exc:  # the report stands without it
+        typer.echo(f"roco: specification coverage not counted: {exc}", err=True)
+        return None
+
+
 @spec_app.command("new-agent", short_help="Write a new agent's folder from the specification.")
 def spec_new_agent(
     name: Annotated[str, typer.Argument(metavar="NAME", help="the agent, as [[agents]] names it")],
@@ -1394,7 +1407,7 @@ def report(run_dir: Annotated[Path, typer.Argument(metavar="RUN", help="a run fo
     from services.report import write_report
 
     try:
-        typer.echo(str(write_report(_run_folder(run_dir))))
+        typer.echo(str(write_report(_run_folder(run_dir), _coverage_summary(run_dir))))
     except OSError as exc:
         raise fail(f"cannot write the report in {run_dir}: {exc.strerror or exc}") from None
 

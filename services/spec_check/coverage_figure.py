@@ -18,6 +18,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from services.report.model import CoverageSummary
 from services.spec_check.coverage import Coverage, Item
 
 if TYPE_CHECKING:
@@ -224,3 +225,35 @@ def write_figure(cov: Coverage, path: Path) -> None:
     when it cannot be written."""
     fig = draw(cov)
     fig.savefig(path, format="png" if path.suffix.lower() == ".png" else "svg", dpi=110)
+
+
+FIGURE = "coverage.png"
+"""The figure's file in the run folder's ``figures/`` (services/report/figures.py's folder)."""
+NEVER_SHOWN = 12
+"""Items never taken that the report names."""
+
+
+def report_summary(run_dir: Path) -> CoverageSummary:
+    """The coverage of run folder ``run_dir`` alone, for its report: counted
+    (:func:`~services.spec_check.coverage.coverage_of`), its figure drawn to
+    ``figures/coverage.png``. Raises what :func:`coverage_of` and :func:`write_figure` raise."""
+    from services.report.figures import FIGURES_DIR
+    from services.spec_check.coverage import KINDS, coverage_of
+
+    cov = coverage_of([run_dir])
+    (run_dir / FIGURES_DIR).mkdir(exist_ok=True)
+    write_figure(cov, run_dir / FIGURES_DIR / FIGURE)
+    never = [i.key for i in cov.items if not cov.counts[i] and i.kind != "term"]
+    notes = [_sentence(n.removeprefix(f"{run_dir}: ")) for n in cov.evidence.notes if "FSM record" in n]
+    return CoverageSummary(
+        exercised=cov.exercised,
+        items=len(cov.items),
+        kinds=[(KINDS[k], done, n) for k, (done, n) in cov.by_kind().items()],
+        figure=f"{FIGURES_DIR}/{FIGURE}",
+        never=never[:NEVER_SHOWN],
+        notes=notes,
+    )
+
+
+def _sentence(text: str) -> str:
+    return text[:1].upper() + text[1:] + ("" if text.endswith(".") else ".")
