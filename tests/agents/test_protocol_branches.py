@@ -1,0 +1,147 @@
+"""The branches of the interaction protocols a pour never takes, taken by each real agent
+against a scripted peer on a MemoryBus (tests/support/peer.py): content that does not decode
+is answered with not-understood by either role (FIPA SC00037 §3.12), a_km answers every query
+of every channel it serves, a query cancelled before its answer ends as cancelled, and a
+subscribe nobody answers times out and is sent again. ``roco spec coverage --tests`` counts
+them (docs/spec.md, "Coverage")."""
+
+from __future__ import annotations
+
+import pytest
+
+from services.agents.coordinator.agent import Coordinator
+from services.agents.human_interface.agent import HumanInterface
+from services.agents.knowledge.agent import KnowledgeManager
+from services.agents.planner.agent import Planner
+from services.agents.task_executor.agent import TaskExecutor
+from services.runtime import keys
+from services.runtime.agent import Agent
+from services.runtime.memory_transport import MemoryBus
+from shared.fipa_codec import Performative
+from shared.fipa_codec.languages.l_wm import (
+    GraspQuery,
+    HypotheticalQuery,
+    ObjectQuery,
+    PlacementQuery,
+    PourQuery,
+    SceneQuery,
+    SparqlQuery,
+)
+from tests.support.peer import Peer, running
+
+P = Performative
+FOREIGN = "da0@host:1099/JADE"
+"""An agent of another FIPA platform (plays x_fipa on C8)."""
+
+PARTICIPANTS = [
+    (KnowledgeManager, "C7", "a_hi", P.QUERY_REF, "fipa-query", "L_WM"),
+    (KnowledgeManager, "C6", "a_ta", P.QUERY_IF, "fipa-query", "L_WM"),
+    (Coordinator, "C2", "a_hi", P.REQUEST, "fipa-request", "L_HC"),
+    (Coordinator, "C2", "a_hi", P.QUERY_REF, "fipa-query", "L_HC"),
+    (Planner, "C3", "a_co", P.REQUEST, "fipa-request", "L_HFSM"),
+    (TaskExecutor, "C1", "a_co", P.REQUEST, "coordinate", "L_HFSM"),
+    (TaskExecutor, "C6", "a_km", P.SUBSCRIBE, "fipa-subscribe", "L_WM"),
+    (HumanInterface, "C8", FOREIGN, P.REQUEST, "fipa-request", "L_HC"),
+]
+
+
+@pytest.mark.parametrize(
+    ("cls", "channel", "peer", "perf", "protocol", "language"),
+    PARTICIPANTS,
+    ids=[f"{c[0].name}-{c[1]}-{c[4]}" for c in PARTICIPANTS],
+)
+def test_a_participant_answers_content_it_cannot_read_with_not_understood(
+    cls: type[Agent], channel: str, peer: str, perf: Performative, protocol: str, language: str
+) -> None:
+    bus = MemoryBus()
+    agent = cls(bus.transport())
+    them = Peer(bus, peer, agent.name, channel)
+    with running(agent):
+        them.garbage(perf, protocol, "garbled", language)
+        answer = them.next(P.NOT_UNDERSTOOD, cid="garbled")
+    assert answer.protocol == protocol and answer.in_reply_to == f"{peer}-1"
+
+
+INITIATORS = [
+    # (agent, channel, the peer it opens a conversation with when the peer's token appears,
+    #  what it opens with, the answer sent back in content that does not decode)
+    (HumanInterface, "C7", "a_km", P.QUERY_REF, P.INFORM_REF, "L_WM"),
+    (HumanInterface, "C2", "a_co", P.SUBSCRIBE, P.AGREE, "L_HC"),
+    (KnowledgeManager, "C6", "a_ta", P.SUBSCRIBE, P.AGREE, "L_WM"),
+]
+
+
+@pytest.mark.parametrize(
+    ("cls", "channel", "peer", "opening", "answer", "language"),
+    INITIATORS,
+    ids=[f"{c[0].name}-{c[1]}-{c[3].value}" for c in INITIATORS],
+)
+def test_an_initiator_answers_an_answer_it_cannot_read_with_not_understood(
+    cls: type[Agent], channel: str, peer: str, opening: Performative, answer: Performative, language: str
+) -> None:
+    bus = MemoryBus()
+    agent = cls(bus.transport())
+    them = Peer(bus, peer, agent.name, channel)
+    with running(agent):
+        bus.announce(keys.alive_key(peer))
+        opened = them.next(opening)
+        assert opened.conversation_id is not None and opened.protocol is not None
+        them.garbage(answer, opened.protocol, opened.conversation_id, language, in_reply_to=opened.reply_with)
+        them.next(P.NOT_UNDERSTOOD, cid=opened.conversation_id)
+
+
+QUERIES = [
+    SparqlQuery(query="ASK { ?s ?p ?o }"),
+    ObjectQuery(name="jar"),
+    SceneQuery(),
+    GraspQuery(object="jar", arm="left"),
+    PlacementQuery(object="bowl", surface="table"),
+    PourQuery(source="jar", target="bowl"),
+    HypotheticalQuery(changes=(), query=ObjectQuery(name="jar")),
+]
+
+
+@pytest.mark.parametrize("perf", [P.QUERY_REF, P.QUERY_IF])
+def test_a_km_answers_every_query_a_ta_may_ask_on_c6(perf: Performative) -> None:
+    """a_ta's C6 query role is never used by a_ta (its plans carry what it needs), but the
+    specification lets it ask a_km anything a_pl may: a_km answers each kind, or says why not."""
+    bus = MemoryBus()
+    km = KnowledgeManager(bus.transport())
+    a_ta = Peer(bus, "a_ta", "a_km", "C6")
+    with running(km):
+        for i, query in enumerate(QUERIES):
+            a_ta.send(perf, "fipa-query", f"q{i}", query)
+            answer = a_ta.next(cid=f"q{i}")
+            assert answer.performative in (P.INFORM, P.INFORM_REF, P.FAILURE, P.REFUSE), answer
+
+
+def test_a_query_cancelled_before_a_km_answers_ends_as_cancelled() -> None:
+    """a_hi's query and its cancel both wait in a_km's input before a_km runs: a_km takes the
+    cancel (FIPA SC00027 §2, the cancel meta-protocol) and answers inform or failure."""
+    bus = MemoryBus()
+    km = KnowledgeManager(bus.transport())
+    a_hi = Peer(bus, "a_hi", "a_km", "C7")
+    km.bind()
+    a_hi.send(P.QUERY_IF, "fipa-query", "ask", SparqlQuery(query="ASK { ?s ?p ?o }"))
+    a_hi.send(P.CANCEL, "fipa-query", "ask")
+    with running(km):
+        first = a_hi.next(cid="ask")
+        answers = [first.performative]
+        if first.performative not in (P.INFORM, P.FAILURE) or first.in_reply_to != "a_hi-2":
+            answers.append(a_hi.next(P.INFORM, P.FAILURE, cid="ask").performative)
+    assert answers[-1] in (P.INFORM, P.FAILURE)
+
+
+def test_a_km_subscription_nobody_answers_times_out_and_is_sent_again() -> None:
+    """a_km subscribes to a_ta's observations when a_ta's token appears (C6, reply-by 2 s); a
+    silent a_ta lets the reply-by pass (a time-out, in a_km's FSM record) and a_km subscribes
+    again."""
+    bus = MemoryBus()
+    km = KnowledgeManager(bus.transport())
+    a_ta = Peer(bus, "a_ta", "a_km", "C6")
+    with running(km):
+        bus.announce(keys.alive_key("a_ta"))
+        first = a_ta.next(P.SUBSCRIBE)
+        again = a_ta.next(P.SUBSCRIBE)
+    assert km.counters["deadline_failures"] >= 1
+    assert again.reply_with != first.reply_with
