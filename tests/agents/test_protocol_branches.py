@@ -7,6 +7,7 @@ them (docs/spec.md, "Coverage")."""
 
 from __future__ import annotations
 
+import msgspec
 import pytest
 
 from services.agents.coordinator.agent import Coordinator
@@ -18,6 +19,8 @@ from services.runtime import keys
 from services.runtime.agent import Agent
 from services.runtime.memory_transport import MemoryBus
 from shared.fipa_codec import Performative
+from shared.fipa_codec.languages.l_hc import HumanCommand, ProgressSubscription, StatusQuery, TaskAtom
+from shared.fipa_codec.languages.l_hfsm import GroundTaskNetwork
 from shared.fipa_codec.languages.l_wm import (
     GraspQuery,
     HypotheticalQuery,
@@ -26,10 +29,12 @@ from shared.fipa_codec.languages.l_wm import (
     PourQuery,
     SceneQuery,
     SparqlQuery,
+    Subscription,
 )
 from tests.support.peer import Peer, running
 
 P = Performative
+BRING = TaskAtom("bring", ("cup", "table"))
 FOREIGN = "da0@host:1099/JADE"
 """An agent of another FIPA platform (plays x_fipa on C8)."""
 
@@ -145,3 +150,68 @@ def test_a_km_subscription_nobody_answers_times_out_and_is_sent_again() -> None:
         again = a_ta.next(P.SUBSCRIBE)
     assert km.counters["deadline_failures"] >= 1
     assert again.reply_with != first.reply_with
+
+
+CANCELS = [
+    (Coordinator, "C2", "a_hi", P.REQUEST, "fipa-request", HumanCommand(text="bring the cup", goal=BRING)),
+    (Coordinator, "C2", "a_hi", P.SUBSCRIBE, "fipa-subscribe", ProgressSubscription()),
+    (Coordinator, "C2", "a_hi", P.QUERY_IF, "fipa-query", StatusQuery()),
+    (Planner, "C3", "a_co", P.REQUEST, "fipa-request", GroundTaskNetwork(task_id="t1", tasks=(BRING,))),
+    (KnowledgeManager, "C4", "a_pl", P.QUERY_REF, "fipa-query", ObjectQuery(name="jar")),
+    (TaskExecutor, "C6", "a_km", P.SUBSCRIBE, "fipa-subscribe", Subscription()),
+]
+
+
+@pytest.mark.parametrize(
+    ("cls", "channel", "peer", "opening", "protocol", "term"),
+    CANCELS,
+    ids=[f"{c[0].name}-{c[1]}-{c[4]}" for c in CANCELS],
+)
+def test_a_cancel_that_waits_with_its_opening_is_answered(
+    cls: type[Agent], channel: str, peer: str, opening: Performative, protocol: str, term: msgspec.Struct
+) -> None:
+    """The opening and its cancel both wait in the participant's input before it runs: it
+    answers the cancel with inform (cancelled) or failure (FIPA SC00026/27/35 §2, the cancel
+    meta-protocol), whatever it answered the opening (an agree or an answer crossing the cancel
+    are allowed)."""
+    bus = MemoryBus()
+    agent = cls(bus.transport())
+    them = Peer(bus, peer, agent.name, channel)
+    agent.bind()
+    them.send(opening, protocol, "cancelled", term)
+    cancel = them.send(P.CANCEL, protocol, "cancelled", term if protocol == "fipa-subscribe" else None)
+    with running(agent):
+        while True:
+            answer = them.next(cid="cancelled")
+            if answer.in_reply_to == cancel.reply_with:
+                break
+    assert answer.performative in (P.INFORM, P.FAILURE), answer
+
+
+EMPTY = [
+    (TaskExecutor, "C1", "a_co", P.REQUEST, "coordinate"),
+    (TaskExecutor, "C6", "a_km", P.SUBSCRIBE, "fipa-subscribe"),
+    (Planner, "C3", "a_co", P.REQUEST, "fipa-request"),
+    (Coordinator, "C2", "a_hi", P.SUBSCRIBE, "fipa-subscribe"),
+    (Coordinator, "C2", "a_hi", P.QUERY_REF, "fipa-query"),
+    (KnowledgeManager, "C7", "a_hi", P.QUERY_REF, "fipa-query"),
+]
+
+
+@pytest.mark.parametrize(
+    ("cls", "channel", "peer", "opening", "protocol"),
+    EMPTY,
+    ids=[f"{c[0].name}-{c[1]}-{c[4]}" for c in EMPTY],
+)
+def test_a_participant_refuses_an_opening_that_carries_nothing(
+    cls: type[Agent], channel: str, peer: str, opening: Performative, protocol: str
+) -> None:
+    """An opening without the term its channel's protocol carries (a plan, a subscription, a
+    query) is refused with a reason: the participant cannot do what it does not know."""
+    bus = MemoryBus()
+    agent = cls(bus.transport())
+    them = Peer(bus, peer, agent.name, channel)
+    with running(agent):
+        them.send(opening, protocol, "empty")
+        answer = them.next(cid="empty")
+    assert answer.performative is P.REFUSE, answer
