@@ -36,6 +36,8 @@ from tests.support.peer import Peer, running
 P = Performative
 BRING = TaskAtom("bring", ("cup", "table"))
 FOREIGN = "da0@host:1099/JADE"
+WAIT_S = 60.0
+"""How long a test waits for what follows a reply-by deadline (2–5 s) on a loaded machine."""
 """An agent of another FIPA platform (plays x_fipa on C8)."""
 
 PARTICIPANTS = [
@@ -147,7 +149,7 @@ def test_a_km_subscription_nobody_answers_times_out_and_is_sent_again() -> None:
     with running(km):
         bus.announce(keys.alive_key("a_ta"))
         first = a_ta.next(P.SUBSCRIBE)
-        again = a_ta.next(P.SUBSCRIBE)
+        again = a_ta.next(P.SUBSCRIBE, timeout=WAIT_S)
     assert km.counters["deadline_failures"] >= 1
     assert again.reply_with != first.reply_with
 
@@ -215,3 +217,43 @@ def test_a_participant_refuses_an_opening_that_carries_nothing(
         them.send(opening, protocol, "empty")
         answer = them.next(cid="empty")
     assert answer.performative is P.REFUSE, answer
+
+
+SUBSCRIPTIONS = [
+    (TaskExecutor, "C6", "a_km", Subscription()),
+    (Coordinator, "C2", "a_hi", ProgressSubscription()),
+]
+
+
+@pytest.mark.parametrize(
+    ("cls", "channel", "peer", "term"), SUBSCRIPTIONS, ids=[f"{c[0].name}-{c[1]}" for c in SUBSCRIPTIONS]
+)
+def test_an_agreed_subscription_is_cancelled_with_inform(
+    cls: type[Agent], channel: str, peer: str, term: msgspec.Struct
+) -> None:
+    """The subscriber cancels a subscription the participant agreed to: the participant ends
+    it with inform (FIPA SC00035 §2)."""
+    bus = MemoryBus()
+    agent = cls(bus.transport())
+    them = Peer(bus, peer, agent.name, channel)
+    with running(agent):
+        them.send(P.SUBSCRIBE, "fipa-subscribe", "sub", term)
+        them.next(P.AGREE, cid="sub")
+        cancel = them.send(P.CANCEL, "fipa-subscribe", "sub", term)
+        while (answer := them.next(cid="sub")).in_reply_to != cancel.reply_with:
+            pass
+    assert answer.performative is P.INFORM, answer
+
+
+def test_a_hi_subscription_nobody_answers_times_out_and_is_sent_again() -> None:
+    """a_hi subscribes to a_co's progress when a_co's token appears (C2, reply-by 5 s); a
+    silent a_co lets the reply-by pass (a time-out) and a_hi subscribes again."""
+    bus = MemoryBus()
+    hi = HumanInterface(bus.transport())
+    a_co = Peer(bus, "a_co", "a_hi", "C2")
+    with running(hi):
+        bus.announce(keys.alive_key("a_co"))
+        first = a_co.next(P.SUBSCRIBE)
+        again = a_co.next(P.SUBSCRIBE, timeout=WAIT_S)
+    assert hi.counters["deadline_failures"] >= 1
+    assert again.reply_with != first.reply_with

@@ -63,11 +63,13 @@ class Peer:
             **overrides,
         )
 
-    def next(self, *performatives: Performative, cid: str | None = None) -> Communicate:
+    def next(
+        self, *performatives: Performative, cid: str | None = None, timeout: float = TIMEOUT_S
+    ) -> Communicate:
         """The next communicate from the agent (of ``performatives`` and conversation ``cid``
-        when given: others are skipped). Raises queue.Empty after :data:`TIMEOUT_S`."""
+        when given: others are skipped). Raises queue.Empty after ``timeout`` s."""
         while True:
-            msg = self.got.get(timeout=TIMEOUT_S)
+            msg = self.got.get(timeout=timeout)
             if (not performatives or msg.performative in performatives) and cid in (
                 None,
                 msg.conversation_id,
