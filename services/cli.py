@@ -63,6 +63,7 @@ if TYPE_CHECKING:
     from services.runtime.counters import CountersReport
     from services.scenario.model import Scenario
     from services.scenario.runner import Hosting
+    from services.spec_check.coverage import Coverage
 
 MARKUP: Literal["markdown"] = "markdown"
 """Help texts are Markdown (typer's ``rich_markup_mode``): `code`, lists, indented examples."""
@@ -1232,25 +1233,9 @@ def spec_coverage(
     content term; list what was taken, how often, and what never was (docs/spec.md,
     "Coverage"). The tests' traffic: run them with `ROCO_TAP_DIR=FOLDER`. Exit 1 when the
     share exercised is under `--min`; exit 2 for a folder that is not there."""
-    from services.spec.model import SpecError
-    from services.spec_check.coverage import coverage_of
     from services.spec_check.coverage_text import headline, render
-    from shared.settings import Settings
 
-    folders = [_run_folder(r) for r in runs or []]
-    tapped = (tap or Settings.from_env(only=("tap_dir",)).tap_dir) if tests else None
-    if tests and tapped is None:
-        raise fail(
-            f"--tests needs the folder the tests tapped: give --tap or set {Settings.env_name('tap_dir')}", 2
-        )
-    if not folders and tapped is None:
-        raise fail("nothing to count: give run folders, or --tests", 2)
-    try:
-        cov = coverage_of(folders, tapped, spec)
-    except (SpecError, ValueError) as exc:
-        raise fail(str(exc), 2) from None
-    except FileNotFoundError as exc:
-        raise fail(f"{exc.filename or exc}: no such folder", 2) from None
+    cov = _coverage(runs or [], tap, tests, spec)
     typer.echo(render(cov, detail=not brief))
     if svg is not None:
         from services.spec_check.coverage_figure import write_figure
@@ -1259,6 +1244,34 @@ def spec_coverage(
         typer.echo(f"roco: figure written to {svg}")
     if minimum is not None and cov.share < minimum:
         raise fail(f"{headline(cov)}: under --min {100 * minimum:.1f} %")
+
+
+def _tap_folder(tap: Path | None) -> Path:
+    """``tap``, else ``ROCO_TAP_DIR``; one line and exit 2 when neither is given."""
+    tapped = tap or Settings.from_env(only=("tap_dir",)).tap_dir
+    if tapped is None:
+        raise fail(
+            f"--tests needs the folder the tests tapped: give --tap or set {Settings.env_name('tap_dir')}", 2
+        )
+    return tapped
+
+
+def _coverage(runs: list[Path], tap: Path | None, tests: bool, spec: Path | None) -> Coverage:
+    """The coverage of the run folders ``runs`` and, with ``tests``, of the tap folder ``tap``
+    (default ``ROCO_TAP_DIR``); one line and exit 2 for what cannot be counted."""
+    from services.spec.model import SpecError
+    from services.spec_check.coverage import coverage_of
+
+    folders = [_run_folder(r) for r in runs]
+    tapped = _tap_folder(tap) if tests else None
+    if not folders and tapped is None:
+        raise fail("nothing to count: give run folders, or --tests", 2)
+    try:
+        return coverage_of(folders, tapped, spec)
+    except (SpecError, ValueError) as exc:
+        raise fail(str(exc), 2) from None
+    except FileNotFoundError as exc:
+        raise fail(f"{exc.filename or exc}: no such folder", 2) from None
 
 
 def _coverage_summary(run_dir: Path) -> CoverageSummary | None:

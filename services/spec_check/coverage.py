@@ -66,6 +66,8 @@ KINDS: dict[Kind, str] = {
 WHY_FILE = Path(__file__).with_name("unexercised.toml")
 MAX_WHY_BYTES = 1024 * 1024
 _ABBREV = {INITIATOR: "I", PARTICIPANT: "P"}
+TIME_OUT = "time-out: a reply-by passed unanswered"
+"""The name of a channel's protocol's time-out item."""
 
 
 @dataclass(frozen=True, order=True)
@@ -133,7 +135,7 @@ def protocol_items(group: str, machine: Protocol, cp: ChannelProtocol) -> list[I
     items += [
         Item(group, "not-understood", f"not-understood by the {role}") for role in (INITIATOR, PARTICIPANT)
     ]
-    items.append(Item(group, "time-out", "time-out: a reply-by passed unanswered"))
+    items.append(Item(group, "time-out", TIME_OUT))
     items += [
         Item(group, "term", f"{perf} carries {term}") for perf, terms in cp.contents.items() for term in terms
     ]
@@ -309,48 +311,62 @@ class _Follower:
     def _where(self, m: Message) -> tuple[ChannelProtocol, Role, Performative, str] | None:
         """The channel's protocol, the sender's role, the performative and the group of ``m``;
         None when ``m`` is of no channel's protocol of the specification."""
-        rec = m.rec
-        if not rec.receivers or rec.conversation_id is None or rec.protocol not in self.machines:
+        rec, protocol = m.rec, m.rec.protocol or ""
+        if not rec.receivers or rec.conversation_id is None or protocol not in self.machines:
             return None
-        sender, receiver = self.spec.role_of(rec.sender), self.spec.role_of(rec.receivers[0])
-        between = channel_between(self.spec, sender, receiver)
-        if between is None or between.name != rec.channel:
+        sender = self.spec.role_of(rec.sender)
+        found = _channel_protocol(
+            self.spec, sender, self.spec.role_of(rec.receivers[0]), rec.channel, protocol
+        )
+        if found is None or rec.performative not in _PERFORMATIVES:
             return None
-        cp = next((c for c in between.protocols if c.protocol == rec.protocol), None)
-        try:
-            perf = Performative(rec.performative)
-        except ValueError:
-            return None
-        if cp is None:
-            return None
+        channel, cp = found
         role: Role = INITIATOR if cp.initiator == sender else PARTICIPANT
-        return cp, role, perf, f"{between.name} {cp.protocol}"
+        return cp, role, Performative(rec.performative), f"{channel} {cp.protocol}"
+
+
+_PERFORMATIVES = frozenset(p.value for p in Performative)
+
+
+def _channel_protocol(
+    spec: SystemSpec, sender: str, receiver: str, channel: str, protocol: str
+) -> tuple[str, ChannelProtocol] | None:
+    """The channel joining ``sender`` and ``receiver`` when it is ``channel``, and its
+    ``protocol``; None when there is none."""
+    between = channel_between(spec, sender, receiver)
+    if between is None or between.name != channel:
+        return None
+    cp = next((c for c in between.protocols if c.protocol == protocol), None)
+    return None if cp is None else (between.name, cp)
 
 
 def _count_fsms(cov: Coverage, records: Iterable[Record], groups: Mapping[tuple[str, str], str]) -> None:
-    """Count the FSM entries and time-outs of ``records``; ``groups`` maps (agent, peer
-    protocol) to the group of a time-out: ``(agent, peer|protocol)`` → ``C2 fipa-request``."""
+    """Count the FSM entries and time-outs of ``records``; ``groups`` maps (agent,
+    ``peer|protocol``) to the group of a time-out (``C2 fipa-request``)."""
     for r in records:
-        if isinstance(r, FsmEntered):
-            declared = cov.fsm_of.get(r.agent)
-            if declared is None:
-                continue
-            if r.how == "error":
-                cov.errors[r.agent] += 1
-            else:
-                cov.counts[Item(r.agent, "state", f"state {r.state}")] += 1
-            if r.how == "arc":
-                arc = (r.source or "", r.state, r.label)
-                if arc in {tuple(a) for a in declared.arcs}:
-                    cov.counts[Item(r.agent, "arc", arc_name(*arc))] += 1
-                else:
-                    cov.stray[r.agent] += 1
+        if isinstance(r, FsmEntered) and r.agent in cov.fsm_of:
+            _count_entry(cov, r, cov.fsm_of[r.agent])
         elif isinstance(r, TimedOut):
             group = groups.get((r.agent, f"{r.peer}|{r.protocol}"))
             if group is not None:
-                item = Item(group, "time-out", "time-out: a reply-by passed unanswered")
+                item = Item(group, "time-out", TIME_OUT)
                 cov.counts[item] += 1
                 cov.where[item][r.state or "?"] += 1
+
+
+def _count_entry(cov: Coverage, r: FsmEntered, declared: FsmDeclared) -> None:
+    """Count one FSM entry of an agent whose FSM is ``declared``."""
+    if r.how == "error":
+        cov.errors[r.agent] += 1
+        return
+    cov.counts[Item(r.agent, "state", f"state {r.state}")] += 1
+    if r.how != "arc":
+        return
+    arc = (r.source or "", r.state, r.label)
+    if arc in {tuple(a) for a in declared.arcs}:
+        cov.counts[Item(r.agent, "arc", arc_name(*arc))] += 1
+    else:
+        cov.stray[r.agent] += 1
 
 
 def _time_out_groups(spec: SystemSpec) -> dict[tuple[str, str], str]:

@@ -145,44 +145,48 @@ def _colour(counts: list[int], scale: float) -> str:
     return f"#{int(r * 255):02x}{int(g * 255):02x}{int(b * 255):02x}"
 
 
-def _draw(ax: Axes, panel: Panel, scale: float) -> None:
+def _draw_edge(
+    ax: Axes, panel: Panel, ends: tuple[str, str], labels: list[tuple[str, int]], scale: float
+) -> None:
+    """One edge of ``panel`` (a self-loop as a note above its node), coloured by its counts."""
     from matplotlib.patches import FancyArrowPatch
 
-    ax.set_title(panel.title, fontsize=8, wrap=True)
-    ax.set_axis_off()
-    for (source, target), labels in panel.edges.items():
-        counts = [n for _, n in labels]
-        colour = _colour(counts, scale)
-        style = "--" if colour == NEVER else "-"
-        text = "\n".join(f"{label} ×{max(n, 0)}" if not panel.undirected else label for label, n in labels)
-        (x1, y1), (x2, y2) = panel.nodes[source], panel.nodes[target]
-        if source == target:
-            ax.annotate(
-                f"↻ {text}",
-                (x1, y1),
-                xytext=(0, 14),
-                textcoords="offset points",
-                ha="center",
-                fontsize=6,
-                color=colour,
-            )
-            continue
-        arrow = FancyArrowPatch(
+    colour = _colour([n for _, n in labels], scale)
+    text = "\n".join(label if panel.undirected else f"{label} ×{max(n, 0)}" for label, n in labels)
+    (x1, y1), (x2, y2) = panel.nodes[ends[0]], panel.nodes[ends[1]]
+    if ends[0] == ends[1]:
+        ax.annotate(
+            f"↻ {text}",
+            (x1, y1),
+            xytext=(0, 14),
+            textcoords="offset points",
+            ha="center",
+            fontsize=6,
+            color=colour,
+        )
+        return
+    ax.add_patch(
+        FancyArrowPatch(
             (x1, y1),
             (x2, y2),
             arrowstyle="-" if panel.undirected else "-|>",
             mutation_scale=8,
             connectionstyle="arc3,rad=0.0" if panel.undirected else "arc3,rad=0.15",
             color=colour,
-            linestyle=style,
+            linestyle="--" if colour == NEVER else "-",
             linewidth=1.2,
             shrinkA=14,
             shrinkB=14,
         )
-        ax.add_patch(arrow)
-        ax.text(
-            (x1 + x2) / 2, (y1 + y2) / 2 + 0.08, text, fontsize=5.5, ha="center", va="bottom", color=colour
-        )
+    )
+    ax.text((x1 + x2) / 2, (y1 + y2) / 2 + 0.08, text, fontsize=5.5, ha="center", va="bottom", color=colour)
+
+
+def _draw(ax: Axes, panel: Panel, scale: float) -> None:
+    ax.set_title(panel.title, fontsize=8, wrap=True)
+    ax.set_axis_off()
+    for ends, labels in panel.edges.items():
+        _draw_edge(ax, panel, ends, labels, scale)
     for name, (x, y) in panel.nodes.items():
         ax.text(
             x,

@@ -30,18 +30,12 @@ def _never(cov: Coverage, item: Item) -> str:
 
 
 def _group(cov: Coverage, group: str, items: list[Item], detail: bool) -> list[str]:
-    taken = [i for i in items if cov.counts[i]]
-    never = [i for i in items if not cov.counts[i]]
-    title = group
+    taken = [_taken(cov, i) for i in items if cov.counts[i]]
+    never = [_never(cov, i) for i in items if not cov.counts[i]]
     declared = cov.fsm_of.get(group)
-    if declared is not None:
-        title += f" FSM ({declared.implementation})"
-    lines = [f"{title}: {len(taken)} of {len(items)}"]
-    if detail and taken:
-        lines += ["  taken:", *(_taken(cov, i) for i in taken)]
-    if never:
-        lines += ["  never taken:", *(_never(cov, i) for i in never)]
-    return lines
+    title = f"{group} FSM ({declared.implementation})" if declared is not None else group
+    shown = (["  taken:", *taken] if detail and taken else []) + (["  never taken:", *never] if never else [])
+    return [f"{title}: {len(taken)} of {len(items)}", *shown]
 
 
 def _notes(cov: Coverage) -> list[str]:
