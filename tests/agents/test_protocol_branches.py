@@ -7,6 +7,8 @@ them (docs/spec.md, "Coverage")."""
 
 from __future__ import annotations
 
+import queue
+
 import msgspec
 import pytest
 
@@ -17,11 +19,15 @@ from services.agents.planner.agent import Planner
 from services.agents.task_executor.agent import TaskExecutor
 from services.runtime import keys
 from services.runtime.agent import Agent
+from services.runtime.human import HumanInput
 from services.runtime.memory_transport import MemoryBus
-from shared.fipa_codec import Performative
-from shared.fipa_codec.languages.l_hc import HumanCommand, ProgressSubscription, StatusQuery, TaskAtom
-from shared.fipa_codec.languages.l_hfsm import GroundTaskNetwork
+from shared.fipa_codec import Communicate, Performative
+from shared.fipa_codec.languages import decode_content
+from shared.fipa_codec.languages.l_hc import HumanCommand, ProgressSubscription, Status, StatusQuery, TaskAtom
+from shared.fipa_codec.languages.l_hfsm import GroundTaskNetwork, HierarchicalPlan, PlanNode
+from shared.fipa_codec.languages.l_sw import TERMINAL_SW_STATES, SWState, SWStatus
 from shared.fipa_codec.languages.l_wm import (
+    Answer,
     GraspQuery,
     HypotheticalQuery,
     ObjectQuery,
@@ -257,3 +263,87 @@ def test_a_hi_subscription_nobody_answers_times_out_and_is_sent_again() -> None:
         again = a_co.next(P.SUBSCRIBE, timeout=WAIT_S)
     assert hi.counters["deadline_failures"] >= 1
     assert again.reply_with != first.reply_with
+
+
+# Each way a participant may answer a query (FIPA SC00027 §2): at once, or after agree; with
+# the answer, inform, or failure. roco's participants answer at once with the answer; a
+# scripted one takes the other branches towards the real initiator, which ends each query.
+ANSWERS = [
+    (P.AGREE, P.INFORM_REF),
+    (P.AGREE, P.INFORM),
+    (P.AGREE, P.FAILURE),
+    (P.INFORM,),
+    (P.FAILURE,),
+    (P.REFUSE,),
+]
+
+
+def _answer(peer: Peer, query: Communicate, answers: tuple[Performative, ...], term: msgspec.Struct) -> None:
+    assert query.conversation_id is not None
+    for perf in answers:
+        content = term if perf in (P.INFORM, P.INFORM_REF) else None
+        peer.send(perf, "fipa-query", query.conversation_id, content, in_reply_to=query.reply_with)
+
+
+def test_a_hi_takes_every_answer_to_its_vocabulary_query() -> None:
+    """a_hi asks a_km for its vocabulary (C7) whenever a_km's token appears; each time a_km
+    answers another way, and a_hi's query ends (a_hi asks again at the next appearance)."""
+    bus = MemoryBus()
+    hi = HumanInterface(bus.transport())
+    a_km = Peer(bus, "a_km", "a_hi", "C7")
+    with running(hi):
+        for answers in ANSWERS:
+            bus.announce(keys.alive_key("a_km"))
+            _answer(a_km, a_km.next(P.QUERY_REF), answers, Answer(variables=("w",), rows=()))
+            bus.withdraw(keys.alive_key("a_km"))
+    assert hi.counters["rejected"] == 0
+
+
+def test_a_hi_takes_every_answer_to_a_status_query() -> None:
+    """A person asks what the robot is doing; a_hi asks a_co (C2 fipa-query), which answers
+    each way the protocol allows; a_hi tells the person each time."""
+    bus = MemoryBus()
+    hi = HumanInterface(bus.transport())
+    a_co = Peer(bus, "a_co", "a_hi", "C2")
+    reports: queue.SimpleQueue[bytes] = queue.SimpleQueue()
+    bus.subscribe(keys.HUMAN_OUT, lambda _k, p: reports.put(p))
+    with running(hi):
+        bus.announce(keys.alive_key("a_co"))
+        for i, answers in enumerate(ANSWERS):
+            bus.publish(
+                keys.HUMAN_IN, msgspec.json.encode(HumanInput(text="what are you doing?", request_id=f"r{i}"))
+            )
+            _answer(a_co, a_co.next(P.QUERY_REF), answers, Status(tasks=()))
+    assert hi.counters["rejected"] == 0
+
+
+def test_a_ta_follows_a_coordinate_conversation_through_its_cancels_and_repeated_confirms() -> None:
+    """a_co (scripted) sends a plan and a cancel that both wait in a_ta's input (the cancel
+    finds no plan running yet: nothing to halt); it confirms each L_SW state, the first one
+    twice (a_co probing an a_ta that reappears), and cancels again after the terminal state
+    before confirming it (paper §5.4, Figure 8: the coordinate protocol tolerates both)."""
+    bus = MemoryBus()
+    ta = TaskExecutor(bus.transport())
+    a_co = Peer(bus, "a_co", "a_ta", "C1")
+    plan = HierarchicalPlan(plan_id="p1", task_id="t1", root=PlanNode(name="nothing"))
+    halt = SWStatus(state=SWState.TERMINATING, plan_id="p1", reason="cancelled")
+    ta.bind()
+    a_co.send(P.REQUEST, "coordinate", "plan", plan)
+    a_co.send(P.CANCEL, "coordinate", "plan", halt)
+    states = []
+    with running(ta):
+        while True:
+            inform = a_co.next(P.INFORM, cid="plan")
+            status = decode_content("L_SW", inform.content)
+            assert isinstance(status, SWStatus)
+            states.append(status.state)
+            if status.state in TERMINAL_SW_STATES:
+                a_co.send(P.CANCEL, "coordinate", "plan", halt)
+            confirm = SWStatus(state=status.state, plan_id="p1")
+            a_co.send(P.CONFIRM, "coordinate", "plan", confirm, in_reply_to=inform.reply_with)
+            if len(states) == 1:
+                a_co.send(P.CONFIRM, "coordinate", "plan", confirm, in_reply_to=inform.reply_with)
+            if status.state in TERMINAL_SW_STATES:
+                break
+    assert states[0] is SWState.RUNNING and states[-1] is SWState.SUCCEEDED, states
+    assert ta.counters["rejected"] == 0
