@@ -21,9 +21,16 @@ from services.runtime import keys
 from services.runtime.agent import Agent
 from services.runtime.human import HumanInput
 from services.runtime.memory_transport import MemoryBus
-from shared.fipa_codec import Communicate, Performative
+from shared.fipa_codec import Communicate, Performative, decode
 from shared.fipa_codec.languages import decode_content
-from shared.fipa_codec.languages.l_hc import HumanCommand, ProgressSubscription, Status, StatusQuery, TaskAtom
+from shared.fipa_codec.languages.l_hc import (
+    HumanCommand,
+    ProgressSubscription,
+    Sentence,
+    Status,
+    StatusQuery,
+    TaskAtom,
+)
 from shared.fipa_codec.languages.l_hfsm import GroundTaskNetwork, HierarchicalPlan, PlanNode
 from shared.fipa_codec.languages.l_sw import TERMINAL_SW_STATES, SWState, SWStatus
 from shared.fipa_codec.languages.l_wm import (
@@ -167,6 +174,7 @@ CANCELS = [
     (Planner, "C3", "a_co", P.REQUEST, "fipa-request", GroundTaskNetwork(task_id="t1", tasks=(BRING,))),
     (KnowledgeManager, "C4", "a_pl", P.QUERY_REF, "fipa-query", ObjectQuery(name="jar")),
     (TaskExecutor, "C6", "a_km", P.SUBSCRIBE, "fipa-subscribe", Subscription()),
+    (HumanInterface, "C8", FOREIGN, P.REQUEST, "fipa-request", Sentence(text="bring the cup to the table")),
 ]
 
 
@@ -202,6 +210,7 @@ EMPTY = [
     (Planner, "C3", "a_co", P.REQUEST, "fipa-request"),
     (Coordinator, "C2", "a_hi", P.SUBSCRIBE, "fipa-subscribe"),
     (Coordinator, "C2", "a_hi", P.QUERY_REF, "fipa-query"),
+    (Coordinator, "C2", "a_hi", P.REQUEST, "fipa-request"),
     (KnowledgeManager, "C7", "a_hi", P.QUERY_REF, "fipa-query"),
 ]
 
@@ -211,18 +220,24 @@ EMPTY = [
     EMPTY,
     ids=[f"{c[0].name}-{c[1]}-{c[4]}" for c in EMPTY],
 )
+@pytest.mark.parametrize("cancelled", [False, True], ids=["alone", "with-a-cancel"])
 def test_a_participant_refuses_an_opening_that_carries_nothing(
-    cls: type[Agent], channel: str, peer: str, opening: Performative, protocol: str
+    cls: type[Agent], channel: str, peer: str, opening: Performative, protocol: str, cancelled: bool
 ) -> None:
     """An opening without the term its channel's protocol carries (a plan, a subscription, a
-    query) is refused with a reason: the participant cannot do what it does not know."""
+    query) is refused with a reason: the participant cannot do what it does not know; also
+    when a cancel of it waits behind it (the refuse crosses the cancel on the wire)."""
     bus = MemoryBus()
     agent = cls(bus.transport())
     them = Peer(bus, peer, agent.name, channel)
+    agent.bind()
+    them.send(opening, protocol, "empty")
+    if cancelled:
+        them.send(P.CANCEL, protocol, "empty")
     with running(agent):
-        them.send(opening, protocol, "empty")
         answer = them.next(cid="empty")
-    assert answer.performative is P.REFUSE, answer
+    # with a cancel behind it, the participant may take the cancel first (inform: cancelled)
+    assert answer.performative is P.REFUSE or (cancelled and answer.performative is P.INFORM), answer
 
 
 SUBSCRIPTIONS = [
@@ -347,3 +362,25 @@ def test_a_ta_follows_a_coordinate_conversation_through_its_cancels_and_repeated
                 break
     assert states[0] is SWState.RUNNING and states[-1] is SWState.SUCCEEDED, states
     assert ta.counters["rejected"] == 0
+
+
+def test_a_pl_whose_knowledge_queries_fail_goes_to_finalize_and_fails_the_request() -> None:
+    """a_km (scripted) fails every query a_pl asks for a planning problem: a_pl's FSM goes
+    from initialize to finalize without searching (Table 4, "knowledge missing") and a_pl
+    answers a_co's request with failure, saying why."""
+    bus = MemoryBus()
+    pl = Planner(bus.transport())
+    a_co = Peer(bus, "a_co", "a_pl", "C3")
+    a_km = Peer(bus, "a_km", "a_pl", "C4")
+
+    def fail(_key: str, payload: bytes) -> None:  # a_km fails each query as it is asked
+        query = decode(payload)
+        if query.performative in (P.QUERY_REF, P.QUERY_IF) and query.conversation_id is not None:
+            a_km.send(P.FAILURE, "fipa-query", query.conversation_id, in_reply_to=query.reply_with)
+
+    bus.subscribe(keys.fipa_key("C4", "a_pl", "a_km"), fail)
+    with running(pl):
+        bus.announce(keys.alive_key("a_km"))
+        a_co.send(P.REQUEST, "fipa-request", "plan", GroundTaskNetwork(task_id="t1", tasks=(BRING,)))
+        answer = a_co.next(P.FAILURE, P.REFUSE, P.INFORM, cid="plan")
+    assert answer.performative is P.FAILURE, answer

@@ -18,7 +18,7 @@ from services.runtime.memory_transport import MemoryBus
 from shared.fipa_codec import Communicate, Performative, decode, encode
 from tests.support.messages import communicate
 
-TIMEOUT_S = 10.0
+TIMEOUT_S = 60.0
 GARBAGE = b"\xc1 not msgpack"
 """Content no content language decodes (0xc1 is never used in msgpack)."""
 
