@@ -8,11 +8,13 @@ them (docs/spec.md, "Coverage")."""
 from __future__ import annotations
 
 import queue
+from typing import Any
 
 import msgspec
 import pytest
 
 from services.agents.coordinator.agent import Coordinator
+from services.agents.executor.agent import ExecutorAgent
 from services.agents.human_interface.agent import HumanInterface
 from services.agents.knowledge.agent import KnowledgeManager
 from services.agents.planner.agent import Planner
@@ -44,6 +46,7 @@ from shared.fipa_codec.languages.l_wm import (
     SparqlQuery,
     Subscription,
 )
+from tests.support.fake_executor import FakeExecutor
 from tests.support.peer import Peer, running
 
 P = Performative
@@ -118,6 +121,8 @@ QUERIES = [
     PlacementQuery(object="bowl", surface="table"),
     PourQuery(source="jar", target="bowl"),
     HypotheticalQuery(changes=(), query=ObjectQuery(name="jar")),
+    SparqlQuery(query="this is not SPARQL"),  # refused
+    ObjectQuery(name="unicorn"),  # no such thing: failure or an empty answer
 ]
 
 
@@ -204,7 +209,15 @@ def test_a_cancel_that_waits_with_its_opening_is_answered(
     assert answer.performative in (P.INFORM, P.FAILURE), answer
 
 
+class Executor(ExecutorAgent):
+    """ag_ex with the fake robot of tests/support/fake_executor.py."""
+
+    def make_executor(self) -> Any:
+        return FakeExecutor()
+
+
 EMPTY = [
+    (Executor, "C5", "a_ta", P.REQUEST, "fipa-request"),
     (TaskExecutor, "C1", "a_co", P.REQUEST, "coordinate"),
     (TaskExecutor, "C6", "a_km", P.SUBSCRIBE, "fipa-subscribe"),
     (Planner, "C3", "a_co", P.REQUEST, "fipa-request"),
