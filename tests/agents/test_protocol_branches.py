@@ -26,6 +26,7 @@ from services.runtime.memory_transport import MemoryBus
 from shared.fipa_codec import Communicate, Performative, decode
 from shared.fipa_codec.languages import decode_content
 from shared.fipa_codec.languages.l_hc import (
+    CommandOutcome,
     HumanCommand,
     ProgressSubscription,
     Sentence,
@@ -397,3 +398,31 @@ def test_a_pl_whose_knowledge_queries_fail_goes_to_finalize_and_fails_the_reques
         a_co.send(P.REQUEST, "fipa-request", "plan", GroundTaskNetwork(task_id="t1", tasks=(BRING,)))
         answer = a_co.next(P.FAILURE, P.REFUSE, P.INFORM, cid="plan")
     assert answer.performative is P.FAILURE, answer
+
+
+def test_a_foreign_agent_is_answered_each_way_a_hi_answers_a_person() -> None:
+    """A foreign agent's sentences (C8) are answered as a person's reports (services/agents/
+    human_interface/agent.py): a status question at once with inform, a command with agree and,
+    when a_co (scripted) fails it, with failure."""
+    bus = MemoryBus()
+    hi = HumanInterface(bus.transport())
+    foreign = Peer(bus, FOREIGN, "a_hi", "C8")
+    a_co = Peer(bus, "a_co", "a_hi", "C2")
+    with running(hi):
+        bus.announce(keys.alive_key("a_co"))
+        foreign.send(P.REQUEST, "fipa-request", "status", Sentence(text="what are you doing?"))
+        query = a_co.next(P.QUERY_REF)
+        assert query.conversation_id is not None
+        a_co.send(
+            P.INFORM_REF, "fipa-query", query.conversation_id, Status(tasks=()), in_reply_to=query.reply_with
+        )
+        assert foreign.next(cid="status").performative is P.INFORM
+        foreign.send(P.REQUEST, "fipa-request", "bring", Sentence(text="bring the cup to the table"))
+        request = a_co.next(P.REQUEST)
+        cid = request.conversation_id
+        assert cid is not None
+        a_co.send(P.AGREE, "fipa-request", cid, in_reply_to=request.reply_with)
+        assert foreign.next(cid="bring").performative is P.AGREE
+        failed = CommandOutcome(command_id=cid, succeeded=False, detail="the cup is out of reach")
+        a_co.send(P.FAILURE, "fipa-request", cid, failed, in_reply_to=request.reply_with)
+        assert foreign.next(P.INFORM, P.FAILURE, cid="bring").performative is P.FAILURE
