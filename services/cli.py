@@ -59,9 +59,11 @@ if TYPE_CHECKING:
 
     from services.hosts.link import Shaping
     from services.live.watch import LiveWatch
+    from services.report.model import CoverageSummary
     from services.runtime.counters import CountersReport
     from services.scenario.model import Scenario
     from services.scenario.runner import Hosting
+    from services.spec_check.coverage import Coverage
 
 MARKUP: Literal["markdown"] = "markdown"
 """Help texts are Markdown (typer's ``rich_markup_mode``): `code`, lists, indented examples."""
@@ -589,7 +591,7 @@ def _finish_report(run_dir: Path, info: RunInfo, *, interrupted: bool = False) -
     from services.report import build_report, write_report
 
     try:
-        path = write_report(run_dir)
+        path = write_report(run_dir, _coverage_summary(run_dir))
         report = build_report(run_dir)
     except Exception as exc:  # the run's outcome stands even if its report cannot be made
         if interrupted:
@@ -1206,6 +1208,84 @@ def spec_verify(
         raise typer.Exit(1)
 
 
+@spec_app.command("coverage", short_help="Which parts of the specification runs and tests exercised.")
+def spec_coverage(
+    runs: Annotated[list[Path] | None, typer.Argument(metavar="RUN…", help="run folders")] = None,
+    tests: Annotated[
+        bool, typer.Option("--tests", help="also the test suite's traffic, tapped into ROCO_TAP_DIR or --tap")
+    ] = False,
+    tap: Annotated[
+        Path | None, typer.Option(help="the tap folder a test run wrote (default: ROCO_TAP_DIR)")
+    ] = None,
+    minimum: Annotated[
+        float | None,
+        typer.Option("--min", min=0.0, max=1.0, help="exit 1 when the share exercised is under this (0–1)"),
+    ] = None,
+    svg: Annotated[
+        Path | None, typer.Option(help="write the figure (agent graph, state machines) as SVG here")
+    ] = None,
+    brief: Annotated[bool, typer.Option("--brief", help="list only what was never taken")] = False,
+    spec: SpecFile = None,
+) -> None:
+    """Count which parts of the specification the runs RUN… and, with `--tests`, the test
+    suite exercised: every transition of each channel's interaction protocols (with
+    not-understood and reply-by time-outs), every state and arc of each agent's FSM, every
+    content term; list what was taken, how often, and what never was (docs/spec.md,
+    "Coverage"). The tests' traffic: run them with `ROCO_TAP_DIR=FOLDER`. Exit 1 when the
+    share exercised is under `--min`; exit 2 for a folder that is not there."""
+    from services.spec_check.coverage_text import headline, render
+
+    cov = _coverage(runs or [], tap, tests, spec)
+    typer.echo(render(cov, detail=not brief))
+    if svg is not None:
+        from services.spec_check.coverage_figure import write_figure
+
+        write_figure(cov, svg)
+        typer.echo(f"roco: figure written to {svg}")
+    if minimum is not None and cov.share < minimum:
+        raise fail(f"{headline(cov)}: under --min {100 * minimum:.1f} %")
+
+
+def _tap_folder(tap: Path | None) -> Path:
+    """``tap``, else ``ROCO_TAP_DIR``; one line and exit 2 when neither is given."""
+    tapped = tap or Settings.from_env(only=("tap_dir",)).tap_dir
+    if tapped is None:
+        raise fail(
+            f"--tests needs the folder the tests tapped: give --tap or set {Settings.env_name('tap_dir')}", 2
+        )
+    return tapped
+
+
+def _coverage(runs: list[Path], tap: Path | None, tests: bool, spec: Path | None) -> Coverage:
+    """The coverage of the run folders ``runs`` and, with ``tests``, of the tap folder ``tap``
+    (default ``ROCO_TAP_DIR``); one line and exit 2 for what cannot be counted."""
+    from services.spec.model import SpecError
+    from services.spec_check.coverage import coverage_of
+
+    folders = [_run_folder(r) for r in runs]
+    tapped = _tap_folder(tap) if tests else None
+    if not folders and tapped is None:
+        raise fail("nothing to count: give run folders, or --tests", 2)
+    try:
+        return coverage_of(folders, tapped, spec)
+    except (SpecError, ValueError) as exc:
+        raise fail(str(exc), 2) from None
+    except FileNotFoundError as exc:
+        raise fail(f"{exc.filename or exc}: no such folder", 2) from None
+
+
+def _coverage_summary(run_dir: Path) -> CoverageSummary | None:
+    """The run's specification coverage for its report (services/spec_check/coverage_figure.py);
+    None, with one line saying why, when it cannot be counted: the report is written all the same."""
+    from services.spec_check.coverage_figure import report_summary
+
+    try:
+        return report_summary(run_dir)
+    except Exception as exc:  # the report stands without it
+        typer.echo(f"roco: specification coverage not counted: {exc}", err=True)
+        return None
+
+
 @spec_app.command("new-agent", short_help="Write a new agent's folder from the specification.")
 def spec_new_agent(
     name: Annotated[str, typer.Argument(metavar="NAME", help="the agent, as [[agents]] names it")],
@@ -1340,7 +1420,7 @@ def report(run_dir: Annotated[Path, typer.Argument(metavar="RUN", help="a run fo
     from services.report import write_report
 
     try:
-        typer.echo(str(write_report(_run_folder(run_dir))))
+        typer.echo(str(write_report(_run_folder(run_dir), _coverage_summary(run_dir))))
     except OSError as exc:
         raise fail(f"cannot write the report in {run_dir}: {exc.strerror or exc}") from None
 

@@ -326,6 +326,14 @@ class Settings(msgspec.Struct, frozen=True, kw_only=True):
             "a_km's knowledge store; unset: the run folder's km_store/, else in memory",
         ),
     ] = None
+    tap_dir: Annotated[
+        Path | None,
+        About(
+            "ROCO_TAP_DIR",
+            "a folder where every transport appends the communicates it puts and every agent its FSM "
+            "transitions (services/runtime/tap.py; `roco spec coverage --tests`); unset: nothing is tapped",
+        ),
+    ] = None
     # --- the viewer
     rerun: Annotated[
         bool,

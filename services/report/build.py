@@ -12,7 +12,7 @@ from services.report.coordination import commands, coordination
 from services.report.figures import write_figures
 from services.report.load import Message, RunData, load_run
 from services.report.markdown import render
-from services.report.model import FaultRow, Header, PerceptionRow, Report
+from services.report.model import CoverageSummary, FaultRow, Header, PerceptionRow, Report
 from services.report.planning import plan_phases
 from services.report.robot_clock import robot_clock
 from services.report.stats import agent_matrix, channel_stats, size_stats
@@ -161,20 +161,23 @@ def _perception(run_dir: Path, notes: list[str]) -> list[PerceptionRow]:
     return rows
 
 
-def write_report(run_dir: Path) -> Path:
+def write_report(run_dir: Path, coverage: CoverageSummary | None = None) -> Path:
     """Build the report of ``run_dir``, draw its figures into ``run_dir/figures/`` (PNG, see
     :mod:`services.report.figures`) and write it as Markdown, figures linked, to
-    ``run_dir/report.md``; returns that path. A figure that cannot be drawn becomes a note of
-    the report. Raises FileNotFoundError when the folder does not exist."""
-    return write_run_report(load_run(Path(run_dir)))[0]
+    ``run_dir/report.md``; returns that path. ``coverage``: the run's specification coverage,
+    counted by the caller (``roco spec coverage``; None: no such section). A figure that cannot
+    be drawn becomes a note of the report. Raises FileNotFoundError when the folder does not
+    exist."""
+    return write_run_report(load_run(Path(run_dir)), coverage)[0]
 
 
-def write_run_report(run: RunData) -> tuple[Path, Report]:
+def write_run_report(run: RunData, coverage: CoverageSummary | None = None) -> tuple[Path, Report]:
     """:func:`write_report` of a run folder already read: writes ``report.md`` and its figures
     into ``run.run_dir``; returns the path and the report. Raises OSError when they cannot be
     written."""
     run_dir = Path(run.run_dir)
     report = _assemble(run)
+    report.coverage = coverage
     figures, notes = write_figures(run, report, run_dir)
     report.notes.extend(notes)
     path = run_dir / REPORT_MD

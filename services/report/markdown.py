@@ -51,6 +51,7 @@ def render(report: Report, figures: Sequence[FigureFile] = ()) -> str:
         _control(report),
         _coordination(report),
         _faults(report),
+        _coverage(report),
         _perception(report),
         _notes(report.notes),
     ]
@@ -505,6 +506,34 @@ def _faults(report: Report) -> str:
     )
     table = _table(("kind", "by", "where", "count", "first (s wall)", "last (s wall)", "detail (last)"), rows)
     return f"{SECTION}Injected faults\n\n{table}\n\n{how}"
+
+
+def _coverage(report: Report) -> str:
+    """The specification-coverage section, when the report's writer counted it."""
+    c = report.coverage
+    if c is None:
+        return ""
+    share = f"{100 * c.exercised / c.items:.1f} %" if c.items else "–"
+    rows = [(name, f"{done} of {n}") for name, done, n in c.kinds if n]
+    parts = [
+        f"{SECTION}Specification coverage",
+        f"This run exercised **{c.exercised} of {c.items}** parts of the specification ({share}).",
+        _table(("part", "exercised"), rows),
+    ]
+    if c.figure:
+        parts.append(
+            f"![Specification coverage]({c.figure})\n*Specification coverage.* The agent graph (each "
+            "channel: its parts exercised) and each interaction protocol's state machine and agent's FSM, "
+            "each edge coloured by how often the run took it (blue, log scale; red, dashed: never)."
+        )
+    if c.never:
+        parts.append("Never taken (first of them): " + "; ".join(f"`{n}`" for n in c.never) + ".")
+    parts.append(
+        '**How counted.** `roco spec coverage RUN` (docs/spec.md, "Coverage"): the traffic record\'s '
+        "conversations followed through their protocols' state machines, the agents' FSM records "
+        "(`fsm/`) and the content terms of the specification. " + " ".join(c.notes)
+    )
+    return "\n\n".join(parts)
 
 
 def _or_dash(value: int | None) -> str:

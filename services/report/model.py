@@ -205,6 +205,22 @@ class PerceptionRow(msgspec.Struct, kw_only=True):
     """Content spheres truly in no container at that time."""
 
 
+class CoverageSummary(msgspec.Struct, kw_only=True):
+    """How much of the specification the run exercised (``roco spec coverage RUN``,
+    services/spec_check/coverage.py, which makes it: the report shows it, it does not count
+    it). ``exercised`` of ``items``; ``kinds`` per kind of item (protocol transitions,
+    not-understood, time-outs, FSM states and arcs, content terms): (name, exercised, items);
+    ``figure`` the figure's path relative to the run folder ("": none drawn); ``never`` the
+    first items never taken; ``notes`` what could not be counted."""
+
+    exercised: int
+    items: int
+    kinds: list[tuple[str, int, int]]
+    figure: str = ""
+    never: list[str] = []
+    notes: list[str] = []
+
+
 class Report(msgspec.Struct, kw_only=True):
     """The experiment report of one run folder (paper §5.7). ``notes`` lists what was
     missing or could not be read."""
@@ -228,3 +244,5 @@ class Report(msgspec.Struct, kw_only=True):
     """Recorder time → robot time (services/report/robot_clock.py)."""
     """Each camera Observation's objects beside the truth; empty when the run perceived from
     the ground truth (ROCO_PERCEPTION=truth) or ag_ex wrote no log."""
+    coverage: CoverageSummary | None = None
+    """How much of the specification the run exercised, when the report's writer counted it."""

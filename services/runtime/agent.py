@@ -68,7 +68,7 @@ from typing import Any, ClassVar, NoReturn
 
 import msgspec
 
-from services.runtime import keys
+from services.runtime import fsm_record, keys
 from services.runtime.behaviour import FSM
 from services.runtime.dedup import Dedup
 from services.runtime.heap import give_back_freed_heap
@@ -242,6 +242,9 @@ class Agent:
         self.note: Any = self.NOTE() if self.NOTE is not None else None
         """The agent's :attr:`NOTE`, kept across a restart by the runtime (None: none)."""
         self.fsm = self.build_fsm()
+        self.fsm_record = fsm_record.for_agent(self.name)
+        """Where the agent records its FSM's transitions and its time-outs
+        (services/runtime/fsm_record.py); None: neither a run folder nor a tap folder is set."""
         keeps = self.roles.keeps or self.NOTE is not None
         self._kept_conversations: StateFile[KeptConversations] | None = (
             StateFile.for_agent(self.name, KeptConversations) if keeps else None
@@ -763,6 +766,8 @@ class Agent:
             self._y.append((p.key, p.payload))
         for p in self.pending_replies.expired(now):
             self.counters["deadline_failures"] += 1
+            if self.fsm_record is not None:
+                self._record_time_out(p)
             synthetic = Communicate(
                 performative=Performative.FAILURE,
                 sender=AgentIdentifier(p.peer),
@@ -774,6 +779,13 @@ class Agent:
                 in_reply_to=p.reply_with,
             )
             self.x.append(Received(synthetic, None, "", local=True))
+
+    def _record_time_out(self, p: Pending) -> None:
+        """Record that ``p``'s reply-by deadline passed, with the conversation's protocol state."""
+        assert self.fsm_record is not None
+        tracker = self.protocol_states.get(p.peer, p.conversation_id) if p.conversation_id else None
+        state = tracker.state if tracker is not None else None
+        self.fsm_record.timed_out(p.peer, p.protocol, p.conversation_id, state)
 
     def _take(self, key: str, payload: Any) -> None:
         if key == "r":
@@ -1061,6 +1073,9 @@ class Agent:
         self.transport.announce(keys.alive_key(self.name))
         self._dispatch()
         state = self.fsm.initial
+        if self.fsm_record is not None:
+            self.fsm_record.declared(self.fsm, f"{type(self).__module__}:{type(self).__qualname__}")
+            self.fsm_record.entered(state, "start")
         while not self._stop.is_set():
             self.state = state
             behaviour = self.fsm.states[state]
@@ -1095,10 +1110,24 @@ class Agent:
                     break
             if self._stop.is_set():
                 break
-            state = self.fsm.initial if failed else self.fsm.next_state(state)
+            state = self._after_behaviour(state, failed)
         if self._here and not self._dispatch_here():
             yield 0.0
         self._dispatch()
+
+    def _after_behaviour(self, state: str, failed: bool) -> str:
+        """The state after ``state`` ended: its FSM's next (paper §3.2: the first arc whose
+        initial condition holds), or the initial one after its transition function raised
+        (``failed``); recorded (services/runtime/fsm_record.py)."""
+        record = self.fsm_record
+        if failed:
+            if record is not None:
+                record.entered(self.fsm.initial, "error")
+            return self.fsm.initial
+        arc = self.fsm.next_arc(state)
+        if record is not None:
+            record.entered(arc.target, "arc", arc.source, arc.label)
+        return arc.target
 
     # ---- helpers for behaviours ---------------------------------------------------------
     def handle_received(self) -> None:

@@ -187,9 +187,14 @@ class FSM:
     def next_state(self, current: str) -> str:
         """The target of the first arc out of ``current`` whose initial condition holds.
         Raises FsmError when none holds."""
+        return self.next_arc(current).target
+
+    def next_arc(self, current: str) -> Arc:
+        """The first arc out of ``current`` whose initial condition holds. Raises FsmError
+        when none holds."""
         for arc in self.arcs:
             if arc.source == current and arc.condition():
-                return arc.target
+                return arc
         raise FsmError(f"no initial condition holds after state {current!r}")
 
     def describe(self) -> dict[str, object]:

@@ -2,15 +2,18 @@
 process share a :class:`MemoryBus` (unit tests of agent logic; single-process experiments).
 Key matching uses Zenoh's own key-expression semantics. Unlike Zenoh, the bus carries the
 communicates of a batch (what one step put on one key together) one by one: its subscribers,
-tests among them, read communicates only."""
+tests among them, read communicates only. With ``ROCO_TAP_DIR`` set, a bus appends every
+communicate put on it to the tap (services/runtime/tap.py)."""
 
 from __future__ import annotations
 
 import threading
+import time
 
 import zenoh
 
 from services.runtime.keys import is_communicate_key
+from services.runtime.tap import Tap, bus_group
 from services.runtime.transport import AliveCallback, Callback
 from shared.fipa_codec.batch import unpack
 
@@ -25,6 +28,8 @@ class MemoryBus:
         self._lock = threading.Lock()
         self.published: list[tuple[str, bytes]] = []
         """Every payload put, in order; a batch of communicates as each of them."""
+        self.tap = Tap.from_env(bus_group())
+        """Where the communicates put are tapped (None: ``ROCO_TAP_DIR`` unset)."""
 
     def transport(self) -> MemoryTransport:
         return MemoryTransport(self)
@@ -33,6 +38,8 @@ class MemoryBus:
         """Deliver ``payload`` to the subscribers of ``key``; a batch of communicates
         (shared/fipa_codec/batch.py) one communicate at a time, in order."""
         ke = zenoh.KeyExpr(key)
+        if self.tap is not None:
+            self.tap.put(time.time(), key, payload)
         parts = unpack(payload) if is_communicate_key(key) else [payload]
         with self._lock:
             self.published += [(key, part) for part in parts]

@@ -7,6 +7,7 @@
 | ``logs/<agent>.log`` | each agent process | its log |
 | ``km_store/`` | a_km | the knowledge base (Oxigraph on disk), kept across a_km restarts |
 | ``faults.jsonl`` | traffic recorder | injected faults, when any (docs/faults.md) |
+| ``fsm/<agent>.<pid>.jsonl`` | each agent | its FSM, transitions, time-outs (runtime/fsm_record.py) |
 | ``launch_env.json`` | launcher | the environment its processes got (``roco fault start``) |
 | ``report.md``, ``figures/`` | the run's end (``roco run``, ``down``…), ``roco report`` | the report |
 

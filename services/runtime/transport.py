@@ -39,6 +39,7 @@ import zenoh.ext as zext
 from services.runtime import keys
 from services.runtime.limits import low_pass_filter
 from services.runtime.polling import AdaptivePoll, max_poll_us
+from services.runtime.tap import Tap, fleet_group
 from services.security.context import identity_name, security_for
 from shared.fipa_codec.batch import unpack
 
@@ -337,6 +338,8 @@ class ZenohTransport:
         self._keys: dict[str, zenoh.KeyExpr] = {}
         self._publishers: dict[str, zext.AdvancedPublisher] = {}
         self._declaring = threading.Lock()
+        self._tap = Tap.from_env(fleet_group(endpoints))
+        """Where the communicates put are tapped (None: ``ROCO_TAP_DIR`` unset; services/runtime/tap.py)."""
 
     def publish(self, key: str, payload: bytes) -> None:
         """Put ``payload`` on ``key`` with congestion control BLOCK: when the link's queue is
@@ -346,7 +349,10 @@ class ZenohTransport:
         publisher (declared at its first put; see the module docstring); anything else is a
         plain put, its key expression parsed once and kept (≈ 1.2 µs instead of ≈ 3.5 µs with
         a string key). Declares only where :meth:`declared` is False: never from a Zenoh
-        callback (see the module docstring)."""
+        callback (see the module docstring). With ``ROCO_TAP_DIR`` set, a communicate is
+        also appended to the tap (services/runtime/tap.py)."""
+        if self._tap is not None:
+            self._tap.put(time.time(), key, payload)
         pub = self._publishers.get(key)
         if pub is None and key.startswith(keys.FIPA_PREFIX) and len(self._publishers) < MAX_KEYS:
             pub = self._declare(key)
