@@ -1206,6 +1206,35 @@ def spec_verify(
         raise typer.Exit(1)
 
 
+@spec_app.command("trace", short_help="The requirement tree with the evidence that each requirement holds.")
+def spec_trace(
+    run_dirs: Annotated[list[Path], typer.Argument(metavar="RUN…", help="run folders")],
+    spec: SpecFile = None,
+    require_shown: Annotated[
+        bool, typer.Option("--require-shown", help="exit 1 also when a leaf requirement is not shown")
+    ] = False,
+) -> None:
+    """The requirement tree (paper Figure 5) with, for each leaf requirement, the steps and
+    channels that serve it, the tests that name it (`@pytest.mark.requirement("R1.2")` in
+    tests/, read without running them), the communicates of each RUN that exercise it (its
+    `evidence` in the specification) and a verdict: *shown*, *not shown* or *contradicted*
+    (a conformance violation on a channel serving it, or a failed command for a requirement
+    with `task = true`). Exit 1 when a leaf is contradicted, and with --require-shown also
+    when one is not shown; exit 2 for a specification, run folder or marker that cannot be
+    read (docs/spec.md, "Requirements traced to evidence")."""
+    from services.spec_check.trace import TraceError, trace_report
+
+    try:
+        code, text = trace_report(
+            [_run_folder(r) for r in run_dirs], _spec_path(spec), require_shown=require_shown
+        )
+    except TraceError as exc:
+        raise fail(str(exc), code=2) from None
+    typer.echo(text)
+    if code:
+        raise typer.Exit(code)
+
+
 @spec_app.command("new-agent", short_help="Write a new agent's folder from the specification.")
 def spec_new_agent(
     name: Annotated[str, typer.Argument(metavar="NAME", help="the agent, as [[agents]] names it")],
