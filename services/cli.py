@@ -587,9 +587,10 @@ def _finish_report(run_dir: Path, info: RunInfo, *, interrupted: bool = False) -
     """Write the run's report and say in one line how the run went; when ``interrupted``
     (Ctrl-C, SIGTERM, SIGHUP: the runner stopped the fleet), say only that, and exit 130."""
     from services.report import build_report, write_report
+    from services.spec_check.trace import report_rows
 
     try:
-        path = write_report(run_dir)
+        path = write_report(run_dir, report_rows)
         report = build_report(run_dir)
     except Exception as exc:  # the run's outcome stands even if its report cannot be made
         if interrupted:
@@ -675,8 +676,9 @@ def _report_fleet_end(run_dir: Path, failure: str = "") -> str:
     """Record the commands a fleet of `roco up` was given and their outcomes in its run.json,
     write its report (services/report/ending.py) and return the words that say so."""
     from services.report.ending import end
+    from services.spec_check.trace import report_rows
 
-    return end(run_dir, ended=time.time(), failure=failure).line()
+    return end(run_dir, ended=time.time(), failure=failure, tracer=report_rows).line()
 
 
 def _fleet_state(runs_dir: Path) -> FleetState | None:
@@ -1363,13 +1365,14 @@ def doctor(
 
 @app.command(short_help="Write RUN/report.md from a run folder.")
 def report(run_dir: Annotated[Path, typer.Argument(metavar="RUN", help="a run folder")]) -> None:
-    """Write RUN/report.md from the run's traffic record and run.json. A folder that is not a
-    run folder (neither run.json nor traffic.jsonl in it) is refused, exit 2, nothing
-    written."""
+    """Write RUN/report.md from the run's traffic record and run.json, with the requirement
+    tree traced to the run (`roco spec trace RUN`). A folder that is not a run folder
+    (neither run.json nor traffic.jsonl in it) is refused, exit 2, nothing written."""
     from services.report import write_report
+    from services.spec_check.trace import report_rows
 
     try:
-        typer.echo(str(write_report(_run_folder(run_dir))))
+        typer.echo(str(write_report(_run_folder(run_dir), report_rows)))
     except OSError as exc:
         raise fail(f"cannot write the report in {run_dir}: {exc.strerror or exc}") from None
 

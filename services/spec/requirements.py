@@ -16,7 +16,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from services.spec.decomposition import Decomposition, Evidence, Requirement
+from services.spec.decomposition import Decomposition, Evidence, Requirement, Step
 from services.spec.model import NOT_UNDERSTOOD, ChannelProtocol, ChannelSpec, SystemSpec
 
 
@@ -30,17 +30,20 @@ class Served:
     channels: tuple[str, ...]
 
 
+def _touched(step: Step) -> set[int]:
+    """The numbers of the channels ``step`` creates, reallocates or supplements."""
+    created = {c.number for c in step.new_channels}
+    return created | {c.number for c in step.reallocated} | {c.number for c in step.supplemented}
+
+
 def served(d: Decomposition) -> dict[str, Served]:
     """Every requirement of ``d`` (by id) and how the steps serve it (no step: empty)."""
     steps: dict[str, list[int]] = {r.id: [] for r in d.requirements}
     numbers: dict[str, set[int]] = {r.id: set() for r in d.requirements}
     for step in d.steps:
-        touched = {c.number for c in step.new_channels}
-        touched |= {c.number for c in step.reallocated} | {c.number for c in step.supplemented}
-        for rid in step.requirements:
-            if rid in steps:
-                steps[rid].append(step.number)
-                numbers[rid] |= touched
+        for rid in (r for r in step.requirements if r in steps):
+            steps[rid].append(step.number)
+            numbers[rid] |= _touched(step)
     return {rid: Served(tuple(steps[rid]), tuple(f"C{n}" for n in sorted(numbers[rid]))) for rid in steps}
 
 
@@ -106,17 +109,21 @@ def _term_problems(ev: Evidence, protocols: list[ChannelProtocol], spec: SystemS
             return [f"no role of {_names(protocols)} on {ev.channel} sends {ev.performative}"]
     if ev.content is None:
         return []
-    terms = {
-        term
-        for cp in protocols
-        for performative, listed in cp.contents.items()
-        if ev.performative in (None, performative)
-        for term in listed
-    }
+    terms = _terms(ev, protocols)
     if ev.content not in terms:
         listed = ", ".join(sorted(terms)) or "none"
         return [f"{ev.channel} lists no content {ev.content} for it (listed: {listed})"]
     return []
+
+
+def _terms(ev: Evidence, protocols: list[ChannelProtocol]) -> set[str]:
+    """The content terms the channel lists for ``ev``'s performative (any, when None)."""
+    terms: set[str] = set()
+    for cp in protocols:
+        for performative, listed in cp.contents.items():
+            if ev.performative in (None, performative):
+                terms.update(listed)
+    return terms
 
 
 def _names(protocols: list[ChannelProtocol]) -> str:

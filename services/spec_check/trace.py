@@ -39,13 +39,24 @@ from pathlib import Path
 
 from services.report.coordination import commands
 from services.report.load import Message, RunData, load_run
+from services.report.model import RequirementRow
 from services.spec.decomposition import Decomposition, Evidence, Requirement, load_decomposition
-from services.spec.model import SpecError, SystemSpec, load
-from services.spec.requirements import Served, children, evidence_of, evidence_problems, served
+from services.spec.model import SpecError, SystemSpec, load, spec_path
+from services.spec.requirements import Served, children, evidence_of, evidence_problems, leaves, served
 from services.spec_check.conformance import verify_run
 from services.spec_check.marks import TESTS, MarkError, by_requirement, marked_tests
 
-__all__ = ["LeafTrace", "Trace", "TraceError", "Verdict", "render", "trace", "trace_report", "trace_runs"]
+__all__ = [
+    "LeafTrace",
+    "Trace",
+    "TraceError",
+    "Verdict",
+    "render",
+    "report_rows",
+    "trace",
+    "trace_report",
+    "trace_runs",
+]
 
 
 class Verdict(enum.StrEnum):
@@ -201,6 +212,16 @@ def judge(requirement: Requirement, serving: Served, facts: RunFacts) -> RunJudg
     return RunJudgement(facts.label, matched, tuple(against))
 
 
+def _tests(tests: Path | None, known: set[str]) -> dict[str, list[str]]:
+    """Requirement id → the tests under ``tests`` that name it. Raises TraceError."""
+    if tests is None:
+        return {}
+    try:
+        return by_requirement(marked_tests(tests, known))
+    except MarkError as exc:
+        raise TraceError(str(exc)) from None
+
+
 def trace_runs(
     spec_path: Path, d: Decomposition, spec: SystemSpec, facts: Sequence[RunFacts], tests: Path | None
 ) -> Trace:
@@ -210,30 +231,28 @@ def trace_runs(
     problems = evidence_problems(d, spec)
     if problems:
         raise TraceError(f"{spec_path}: {problems[0]}")
-    known = {r.id for r in d.requirements}
-    try:
-        named = by_requirement(marked_tests(tests, known)) if tests is not None else {}
-    except MarkError as exc:
-        raise TraceError(str(exc)) from None
-    serving = served(d)
-    parents = {r.parent for r in d.requirements}
-    leaves = {
-        r.id: LeafTrace(
-            r, serving[r.id], tuple(named.get(r.id, ())), tuple(judge(r, serving[r.id], f) for f in facts)
-        )
-        for r in d.requirements
-        if r.id not in parents
-    }
+    named = _tests(tests, {r.id for r in d.requirements})
+    traced = _leaves(d, named, facts)
     return Trace(
         system=spec.system,
         path=spec_path,
         d=d,
-        leaves=leaves,
+        leaves=traced,
         ends={c.name: c.ends for c in spec.channels},
         runs=[f.label for f in facts],
-        inner_tests={rid: t for rid, t in named.items() if rid in parents},
+        inner_tests={rid: t for rid, t in named.items() if rid not in traced},
         notes=[f"{f.label}: {n}" for f in facts for n in f.notes],
     )
+
+
+def _leaves(d: Decomposition, named: dict[str, list[str]], facts: Sequence[RunFacts]) -> dict[str, LeafTrace]:
+    """Each leaf of ``d`` (by id) with its tests (``named``) and its judgement in each run."""
+    serving = served(d)
+    out = {}
+    for r in leaves(d):
+        runs = tuple(judge(r, serving[r.id], f) for f in facts)
+        out[r.id] = LeafTrace(r, serving[r.id], tuple(named.get(r.id, ())), runs)
+    return out
 
 
 def load_spec(spec_path: Path) -> tuple[Decomposition, SystemSpec]:
@@ -280,19 +299,14 @@ def _served_text(leaf: LeafTrace, ends: dict[str, tuple[str, str]]) -> str:
     return f"step{'s' if len(leaf.served.steps) > 1 else ''} {steps}; channels {channels or 'none'}"
 
 
-def _tests_text(tests: Sequence[str], limit: int) -> str:
+def _tests_lines(tests: Sequence[str], pad: str) -> list[str]:
     if not tests:
-        return "none"
-    shown = ", ".join(tests[:limit])
-    more = f", … {len(tests) - limit} more" if len(tests) > limit else ""
-    return f"{len(tests)}: {shown}{more}"
+        return [f"{pad}  tests: none"]
+    return [f"{pad}  tests ({len(tests)}):", *(f"{pad}    {node}" for node in tests)]
 
 
-def _leaf_lines(leaf: LeafTrace, t: Trace, pad: str, limit: int) -> list[str]:
-    lines = [
-        f"{pad}  served by: {_served_text(leaf, t.ends)}",
-        f"{pad}  tests {_tests_text(leaf.tests, limit)}",
-    ]
+def _leaf_lines(leaf: LeafTrace, t: Trace, pad: str) -> list[str]:
+    lines = [f"{pad}  served by: {_served_text(leaf, t.ends)}", *_tests_lines(leaf.tests, pad)]
     for j in leaf.runs:
         lines.append(f"{pad}  events in {j.run}:" + ("" if j.matched else " none"))
         lines += [f"{pad}    {_matched_text(m)}" for m in j.matched]
@@ -300,15 +314,15 @@ def _leaf_lines(leaf: LeafTrace, t: Trace, pad: str, limit: int) -> list[str]:
     return lines
 
 
-def _node_lines(t: Trace, r: Requirement, depth: int, limit: int) -> list[str]:
+def _node_lines(t: Trace, r: Requirement, depth: int) -> list[str]:
     pad = "  " * depth
     lines = [f"{pad}{r.id} [{t.verdict(r.id)}] {r.text}"]
     if r.id in t.leaves:
-        return lines + _leaf_lines(t.leaves[r.id], t, pad, limit)
+        return lines + _leaf_lines(t.leaves[r.id], t, pad)
     if r.id in t.inner_tests:
-        lines.append(f"{pad}  tests {_tests_text(t.inner_tests[r.id], limit)}")
+        lines += _tests_lines(t.inner_tests[r.id], pad)
     for child in children(t.d).get(r.id, []):
-        lines += _node_lines(t, child, depth + 1, limit)
+        lines += _node_lines(t, child, depth + 1)
     return lines
 
 
@@ -321,14 +335,13 @@ def summary(t: Trace) -> str:
     return "leaves: " + ", ".join(parts)
 
 
-def render(t: Trace, *, limit: int = 3) -> str:
+def render(t: Trace) -> str:
     """The tree as text: each requirement with its verdict, each leaf with what serves it,
-    its tests (the first ``limit`` named) and its events per run; then the notes and the
-    summary."""
+    its tests and its events per run; then the notes and the summary."""
     runs = ", ".join(t.runs) or "none"
     lines = [f"Requirements of {t.system} ({t.path}) traced to evidence; runs: {runs}"]
     for root in children(t.d).get(None, []):
-        lines += _node_lines(t, root, 0, limit)
+        lines += _node_lines(t, root, 0)
     lines += [f"note: {n}" for n in t.notes]
     lines.append(summary(t))
     return "\n".join(lines)
@@ -342,3 +355,45 @@ def trace_report(
     t = trace(spec_path, run_dirs, tests)
     failed = bool(t.count(Verdict.CONTRADICTED)) or (require_shown and bool(t.count(Verdict.NOT_SHOWN)))
     return (1 if failed else 0), render(t)
+
+
+# ---------------------------------------------------------------------------------------------
+
+
+def _row(t: Trace, r: Requirement, depth: int) -> RequirementRow:
+    """One requirement of ``t`` (traced over one run) as a row of the report."""
+    leaf = t.leaves.get(r.id)
+    serving = leaf.served if leaf is not None else served(t.d)[r.id]
+    row = RequirementRow(
+        id=r.id,
+        depth=depth,
+        text=r.text,
+        steps=list(serving.steps),
+        channels=[f"{c} ({'–'.join(t.ends[c])})" if c in t.ends else c for c in serving.channels],
+        tests=len(leaf.tests) if leaf is not None else len(t.inner_tests.get(r.id, [])),
+        verdict=str(t.verdict(r.id)),
+    )
+    if leaf is not None and leaf.runs:
+        j = leaf.runs[0]
+        row.evidence = [f"{m.evidence.describe()}: {m.count}" for m in j.matched]
+        row.against = list(j.against)
+        row.first_t, row.last_t = j.span or (None, None)
+    return row
+
+
+def _rows(t: Trace, r: Requirement, depth: int) -> list[RequirementRow]:
+    out = [_row(t, r, depth)]
+    for child in children(t.d).get(r.id, []):
+        out += _rows(t, child, depth + 1)
+    return out
+
+
+def report_rows(run: RunData) -> list[RequirementRow]:
+    """The requirement tree traced to one run already read, as the report's rows (parents
+    before their children), against the specification ``ROCO_SPEC`` names (else the
+    shipped one) and the project's tests. Raises TraceError (a ValueError) when the
+    specification or a test marker cannot be read."""
+    path = spec_path()
+    d, spec = load_spec(path)
+    t = trace_runs(path, d, spec, [run_facts(run, spec)], TESTS if TESTS.is_dir() else None)
+    return [row for root in children(d).get(None, []) for row in _rows(t, root, 0)]

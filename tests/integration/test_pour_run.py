@@ -42,6 +42,7 @@ def pour_run(tmp_path_factory: pytest.TempPathFactory) -> tuple[subprocess.Compl
     return proc, run_dir
 
 
+@pytest.mark.requirement("R3.1")
 def test_pour_succeeds_and_most_spheres_end_in_the_bowl(pour_run: tuple) -> None:
     proc, run_dir = pour_run
     assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-2000:]
@@ -53,6 +54,7 @@ def test_pour_succeeds_and_most_spheres_end_in_the_bowl(pour_run: tuple) -> None
     assert [e.text for e in report.events if e.kind == "self_contact"] == []
 
 
+@pytest.mark.requirement("R3.1")
 def test_the_bowl_stands_on_the_table_holding_the_content_in_the_simulated_world(pour_run: tuple) -> None:
     """Judged by the world the run left (the world's final scene, the physics' truth), not by
     what the agents reported."""
