@@ -112,9 +112,7 @@ def _ids(marks: list[ast.expr], where: str, known: set[str]) -> tuple[str, ...]:
     for call in _calls(marks):
         for arg in call.args:
             if not (isinstance(arg, ast.Constant) and isinstance(arg.value, str)):
-                raise MarkError(
-                    f"{where}:{call.lineno}: pytest.mark.{MARKER} takes requirement ids as strings"
-                )
+                raise MarkError(f"{where}:{call.lineno}: pytest.mark.{MARKER} takes string literals")
             if arg.value not in known:
                 raise MarkError(f"{where}:{call.lineno}: unknown requirement {arg.value!r}")
             ids.append(arg.value)
@@ -128,7 +126,13 @@ def _calls(marks: list[ast.expr]) -> Iterator[ast.Call]:
             isinstance(mark, ast.Call)
             and isinstance(mark.func, ast.Attribute)
             and mark.func.attr == MARKER
-            and isinstance(mark.func.value, ast.Attribute)
-            and mark.func.value.attr == "mark"
+            and _is_mark(mark.func.value)
         ):
             yield mark
+
+
+def _is_mark(node: ast.expr) -> bool:
+    """``pytest.mark`` (any ``….mark``) or ``mark`` imported from pytest."""
+    return (isinstance(node, ast.Attribute) and node.attr == "mark") or (
+        isinstance(node, ast.Name) and node.id == "mark"
+    )
