@@ -149,3 +149,17 @@ def test_the_recording_holds_the_head_camera_at_most_once_a_second(pour_run: tup
     info = read_run_info(run_dir)
     assert info.ended is not None
     assert 3 <= frames <= info.ended - info.started + 1, (frames, info.ended - info.started)
+
+
+def test_roco_spec_trace_shows_every_leaf_but_the_foreign_platforms_from_the_pour(pour_run: tuple) -> None:
+    """The pour exercises every leaf requirement except R1.4 (agents of other FIPA platforms:
+    no one spoke through roco gateway), contradicts none, and every leaf has its tests."""
+    _, run_dir = pour_run
+    proc = subprocess.run(
+        [sys.executable, "-m", "services.cli", "spec", "trace", str(run_dir)], capture_output=True, text=True
+    )
+    assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-2000:]
+    assert "leaves: 9 shown, 1 not shown (R1.4), 0 contradicted" in proc.stdout, proc.stdout
+    assert "tests: none" not in proc.stdout
+    md = (run_dir / "report.md").read_text()
+    assert "Requirements traced to this run" in md and "**contradicted**" not in md
