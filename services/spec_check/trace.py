@@ -33,7 +33,7 @@ from __future__ import annotations
 
 import enum
 from collections import Counter
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -42,9 +42,11 @@ from services.report.load import Message, RunData, load_run
 from services.report.model import RequirementRow
 from services.spec.decomposition import Decomposition, Evidence, Requirement, load_decomposition
 from services.spec.model import SpecError, SystemSpec, load, spec_path
+from services.spec.protocol_defs import protocols_of
 from services.spec.requirements import Served, children, evidence_of, evidence_problems, leaves, served
 from services.spec_check.conformance import verify_run
 from services.spec_check.marks import TESTS, MarkError, by_requirement, marked_tests
+from shared.fipa_codec.protocols import Protocol
 
 __all__ = [
     "LeafTrace",
@@ -168,9 +170,10 @@ class Trace:
 # ---------------------------------------------------------------------------------------------
 
 
-def run_facts(run: RunData, spec: SystemSpec) -> RunFacts:
-    """The facts of a run folder already read (its conformance checked against ``spec``)."""
-    conformance = verify_run(run.run_dir, spec)
+def run_facts(run: RunData, spec: SystemSpec, protocols: Mapping[str, Protocol] | None = None) -> RunFacts:
+    """The facts of a run folder already read: its conformance checked against ``spec`` and
+    the state machines ``protocols`` (None: FIPA's, as :func:`verify_run`)."""
+    conformance = verify_run(run.run_dir, spec, protocols=protocols)
     notes = [] if conformance.record.intact else [f"traffic record {conformance.record.summary()}"]
     return RunFacts(
         label=Path(run.run_dir).name,
@@ -255,10 +258,11 @@ def _leaves(d: Decomposition, named: dict[str, list[str]], facts: Sequence[RunFa
     return out
 
 
-def load_spec(spec_path: Path) -> tuple[Decomposition, SystemSpec]:
-    """The requirement tree and the channels of ``spec_path``. Raises TraceError."""
+def load_spec(spec_path: Path) -> tuple[Decomposition, SystemSpec, dict[str, Protocol]]:
+    """The requirement tree, the channels and the protocols' state machines of ``spec_path``
+    (as ``roco spec verify --spec`` reads them). Raises TraceError."""
     try:
-        return load_decomposition(spec_path), load(spec_path)
+        return load_decomposition(spec_path), load(spec_path), protocols_of(spec_path)
     except SpecError as exc:
         raise TraceError(str(exc)) from None
 
@@ -266,11 +270,11 @@ def load_spec(spec_path: Path) -> tuple[Decomposition, SystemSpec]:
 def trace(spec_path: Path, run_dirs: Sequence[Path], tests: Path | None = TESTS) -> Trace:
     """Read the specification, the runs and the tests, and trace the tree (see the module
     docstring). Raises TraceError for anything that cannot be read."""
-    d, spec = load_spec(spec_path)
+    d, spec, protocols = load_spec(spec_path)
     facts = []
     for run_dir in run_dirs:
         try:
-            facts.append(run_facts(load_run(Path(run_dir)), spec))
+            facts.append(run_facts(load_run(Path(run_dir)), spec, protocols))
         except FileNotFoundError:
             raise TraceError(f"{run_dir}: no such run folder") from None
     return trace_runs(spec_path, d, spec, facts, tests if tests is not None and tests.is_dir() else None)
@@ -394,6 +398,6 @@ def report_rows(run: RunData) -> list[RequirementRow]:
     shipped one) and the project's tests. Raises TraceError (a ValueError) when the
     specification or a test marker cannot be read."""
     path = spec_path()
-    d, spec = load_spec(path)
-    t = trace_runs(path, d, spec, [run_facts(run, spec)], TESTS if TESTS.is_dir() else None)
+    d, spec, protocols = load_spec(path)
+    t = trace_runs(path, d, spec, [run_facts(run, spec, protocols)], TESTS if TESTS.is_dir() else None)
     return [row for root in children(d).get(None, []) for row in _rows(t, root, 0)]
