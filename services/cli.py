@@ -589,9 +589,10 @@ def _finish_report(run_dir: Path, info: RunInfo, *, interrupted: bool = False) -
     """Write the run's report and say in one line how the run went; when ``interrupted``
     (Ctrl-C, SIGTERM, SIGHUP: the runner stopped the fleet), say only that, and exit 130."""
     from services.report import build_report, write_report
+    from services.spec_check.trace import report_rows
 
     try:
-        path = write_report(run_dir, _coverage_summary(run_dir))
+        path = write_report(run_dir, _coverage_summary(run_dir), report_rows)
         report = build_report(run_dir)
     except Exception as exc:  # the run's outcome stands even if its report cannot be made
         if interrupted:
@@ -677,8 +678,9 @@ def _report_fleet_end(run_dir: Path, failure: str = "") -> str:
     """Record the commands a fleet of `roco up` was given and their outcomes in its run.json,
     write its report (services/report/ending.py) and return the words that say so."""
     from services.report.ending import end
+    from services.spec_check.trace import report_rows
 
-    return end(run_dir, ended=time.time(), failure=failure).line()
+    return end(run_dir, ended=time.time(), failure=failure, tracer=report_rows).line()
 
 
 def _fleet_state(runs_dir: Path) -> FleetState | None:
@@ -1286,6 +1288,35 @@ def _coverage_summary(run_dir: Path) -> CoverageSummary | None:
         return None
 
 
+@spec_app.command("trace", short_help="The requirement tree with the evidence that each requirement holds.")
+def spec_trace(
+    run_dirs: Annotated[list[Path], typer.Argument(metavar="RUN…", help="run folders")],
+    spec: SpecFile = None,
+    require_shown: Annotated[
+        bool, typer.Option("--require-shown", help="exit 1 also when a leaf requirement is not shown")
+    ] = False,
+) -> None:
+    """The requirement tree (paper Figure 5) with, for each leaf requirement, the steps and
+    channels that serve it, the tests that name it (`@pytest.mark.requirement("R1.2")` in
+    tests/, read without running them), the communicates of each RUN that exercise it (its
+    `evidence` in the specification) and a verdict: *shown*, *not shown* or *contradicted*
+    (a conformance violation on a channel serving it, or a failed command for a requirement
+    with `task = true`). Exit 1 when a leaf is contradicted, and with --require-shown also
+    when one is not shown; exit 2 for a specification, run folder or marker that cannot be
+    read (docs/spec.md, "Requirements traced to evidence")."""
+    from services.spec_check.trace import TraceError, trace_report
+
+    try:
+        code, text = trace_report(
+            [_run_folder(r) for r in run_dirs], _spec_path(spec), require_shown=require_shown
+        )
+    except TraceError as exc:
+        raise fail(str(exc), code=2) from None
+    typer.echo(text)
+    if code:
+        raise typer.Exit(code)
+
+
 @spec_app.command("new-agent", short_help="Write a new agent's folder from the specification.")
 def spec_new_agent(
     name: Annotated[str, typer.Argument(metavar="NAME", help="the agent, as [[agents]] names it")],
@@ -1414,13 +1445,14 @@ def doctor(
 
 @app.command(short_help="Write RUN/report.md from a run folder.")
 def report(run_dir: Annotated[Path, typer.Argument(metavar="RUN", help="a run folder")]) -> None:
-    """Write RUN/report.md from the run's traffic record and run.json. A folder that is not a
-    run folder (neither run.json nor traffic.jsonl in it) is refused, exit 2, nothing
-    written."""
+    """Write RUN/report.md from the run's traffic record and run.json, with the requirement
+    tree traced to the run (`roco spec trace RUN`). A folder that is not a run folder
+    (neither run.json nor traffic.jsonl in it) is refused, exit 2, nothing written."""
     from services.report import write_report
+    from services.spec_check.trace import report_rows
 
     try:
-        typer.echo(str(write_report(_run_folder(run_dir), _coverage_summary(run_dir))))
+        typer.echo(str(write_report(_run_folder(run_dir), _coverage_summary(run_dir), report_rows)))
     except OSError as exc:
         raise fail(f"cannot write the report in {run_dir}: {exc.strerror or exc}") from None
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
 
 import msgspec
@@ -12,7 +13,7 @@ from services.report.coordination import commands, coordination
 from services.report.figures import write_figures
 from services.report.load import Message, RunData, load_run
 from services.report.markdown import render
-from services.report.model import CoverageSummary, FaultRow, Header, PerceptionRow, Report
+from services.report.model import CoverageSummary, FaultRow, Header, PerceptionRow, Report, RequirementRow
 from services.report.planning import plan_phases
 from services.report.robot_clock import robot_clock
 from services.report.stats import agent_matrix, channel_stats, size_stats
@@ -26,6 +27,11 @@ TIMING_JSON = "ag_ex_timing.json"  # written by services/agents/executor/agent.p
 
 REPORT_MD = "report.md"
 
+Tracer = Callable[[RunData], list[RequirementRow]]
+"""What traces the specification's requirements to a run (services/spec_check/trace.py
+``report_rows``, which the tools pass in: it checks the run's conformance, a tool above this
+package). Raises ValueError, one line, when it cannot."""
+
 
 def build_report(run_dir: Path, container: str = "bowl") -> Report:
     """The report of ``run_dir`` as data. Raises FileNotFoundError when the folder does not
@@ -33,8 +39,9 @@ def build_report(run_dir: Path, container: str = "bowl") -> Report:
     return _assemble(load_run(Path(run_dir)), container)
 
 
-def _assemble(run: RunData, container: str = "bowl") -> Report:
-    """The report of a run folder already read."""
+def _assemble(run: RunData, container: str = "bowl", tracer: Tracer | None = None) -> Report:
+    """The report of a run folder already read; its requirements traced by ``tracer`` (None:
+    not traced)."""
     run_dir = run.run_dir
     wire = run.messages
     # a copy (the same bytes again on the same key: Message.copy_of) crossed the wire, so the
@@ -78,7 +85,19 @@ def _assemble(run: RunData, container: str = "bowl") -> Report:
         faults=_faults(run, notes),
         clock=clock,
         perception=_perception(Path(run_dir), notes),
+        requirements=_requirements(run, tracer, notes),
     )
+
+
+def _requirements(run: RunData, tracer: Tracer | None, notes: list[str]) -> list[RequirementRow]:
+    """The requirement rows ``tracer`` gives (none without one); why it could not, as a note."""
+    if tracer is None:
+        return []
+    try:
+        return tracer(run)
+    except ValueError as exc:
+        notes.append(f"requirements not traced: {exc}")
+        return []
 
 
 def _access_control(run: RunData) -> str:
@@ -161,22 +180,26 @@ def _perception(run_dir: Path, notes: list[str]) -> list[PerceptionRow]:
     return rows
 
 
-def write_report(run_dir: Path, coverage: CoverageSummary | None = None) -> Path:
+def write_report(
+    run_dir: Path, coverage: CoverageSummary | None = None, tracer: Tracer | None = None
+) -> Path:
     """Build the report of ``run_dir``, draw its figures into ``run_dir/figures/`` (PNG, see
     :mod:`services.report.figures`) and write it as Markdown, figures linked, to
     ``run_dir/report.md``; returns that path. ``coverage``: the run's specification coverage,
-    counted by the caller (``roco spec coverage``; None: no such section). A figure that cannot
-    be drawn becomes a note of the report. Raises FileNotFoundError when the folder does not
-    exist."""
-    return write_run_report(load_run(Path(run_dir)), coverage)[0]
+    counted by the caller (``roco spec coverage``; None: no such section); ``tracer`` traces the
+    requirements to the run (its section; None: left out). A figure that cannot be drawn
+    becomes a note of the report. Raises FileNotFoundError when the folder does not exist."""
+    return write_run_report(load_run(Path(run_dir)), coverage, tracer)[0]
 
 
-def write_run_report(run: RunData, coverage: CoverageSummary | None = None) -> tuple[Path, Report]:
+def write_run_report(
+    run: RunData, coverage: CoverageSummary | None = None, tracer: Tracer | None = None
+) -> tuple[Path, Report]:
     """:func:`write_report` of a run folder already read: writes ``report.md`` and its figures
     into ``run.run_dir``; returns the path and the report. Raises OSError when they cannot be
     written."""
     run_dir = Path(run.run_dir)
-    report = _assemble(run)
+    report = _assemble(run, tracer=tracer)
     report.coverage = coverage
     figures, notes = write_figures(run, report, run_dir)
     report.notes.extend(notes)

@@ -17,7 +17,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-from services.report.build import write_run_report
+from services.report.build import Tracer, write_run_report
 from services.report.coordination import commands
 from services.report.load import RunData, load_run
 from services.runtime.run_folder import RunCommand, RunInfo, write_run_info
@@ -50,11 +50,11 @@ class Ending:
         return f"{given}; {self.communicates} communicates; report {self.path}"
 
 
-def end(run_dir: Path, *, ended: float, failure: str = "") -> Ending:
+def end(run_dir: Path, *, ended: float, failure: str = "", tracer: Tracer | None = None) -> Ending:
     """Complete ``run_dir/run.json`` (:func:`conclude`) and write the report (services/report/
-    build.py) of a fleet that ended at ``ended`` (POSIX s); ``failure``: why it ended before its
-    time. Never raises for a folder that cannot be read or written: :attr:`Ending.problem`
-    says why."""
+    build.py, its requirements traced by ``tracer``) of a fleet that ended at ``ended`` (POSIX
+    s); ``failure``: why it ended before its time. Never raises for a folder that cannot be
+    read or written: :attr:`Ending.problem` says why."""
     try:
         run = load_run(run_dir)
         info = conclude(run, ended=ended, failure=failure)
@@ -62,7 +62,7 @@ def end(run_dir: Path, *, ended: float, failure: str = "") -> Ending:
         return Ending(RunInfo(), problem=_first_line(exc))
     run.info = info
     try:
-        path, report = write_run_report(run)
+        path, report = write_run_report(run, tracer)
     except Exception as exc:  # the fleet has ended whether or not its report can be made
         return Ending(info, problem=_first_line(exc))
     return Ending(info, path, report.sizes.count)

@@ -10,7 +10,15 @@ from pathlib import Path
 
 from services.report import paper
 from services.report.figures import FigureFile
-from services.report.model import AgentMatrix, Event, Header, PerceptionRow, PlanPhase, Report
+from services.report.model import (
+    AgentMatrix,
+    Event,
+    Header,
+    PerceptionRow,
+    PlanPhase,
+    Report,
+    RequirementRow,
+)
 from services.report.robot_clock import RobotClock
 from velma.executor.timing import STALL_OFF_CPU, RealtimeSetup, TimingStats
 
@@ -46,6 +54,7 @@ def render(report: Report, figures: Sequence[FigureFile] = ()) -> str:
         _statistics(report, figs),
         _matrix_section(report.matrix, figs),
         _timeline(report.events, report.clock, figs),
+        _requirements(report.requirements, report.clock),
         _planning(report.plans),
         _content(report),
         _control(report),
@@ -277,6 +286,44 @@ def _robot_span(clock: RobotClock, start: float, end: float | None) -> str:
     if a is None and b is None:
         return "—"
     return _span(a, b) if a is not None and b is not None else f"{_s(a)}–{_s(b)}"
+
+
+REQUIREMENTS_NOTE = (
+    "Each requirement of the specification (paper Figure 5) with the decomposition steps and "
+    "channels that serve it, the communicates of this run that exercise it (its `evidence` in "
+    "the specification: channel, protocol, performative, content term; how many, and when "
+    "the first and the last arrived), the tests that name it "
+    "(`@pytest.mark.requirement`) and the verdict: *contradicted* when `roco spec verify` "
+    "found a violation on a channel serving it, or, for a requirement about the task, a "
+    "command failed; *shown* when every evidence statement was matched; else *not shown*. A "
+    "requirement with children is shown when all its leaves are. The same as `roco spec "
+    "trace RUN` (docs/spec.md)."
+)
+
+
+def _requirement_row(r: RequirementRow, clock: RobotClock) -> list[str]:
+    name = f"{r.id} {r.text}"
+    served = "; ".join(x for x in (", ".join(f"step {n}" for n in r.steps), ", ".join(r.channels)) if x)
+    when = "—" if r.first_t is None else _robot_span(clock, r.first_t, r.last_t)
+    wall = "—" if r.first_t is None else _span(r.first_t, r.last_t)
+    verdict = f"**{r.verdict}**" + (f" ({'; '.join(r.against)})" if r.against else "")
+    return [name, served or "—", "; ".join(r.evidence) or "—", when, wall, str(r.tests), verdict]
+
+
+def _requirements(rows: Sequence[RequirementRow], clock: RobotClock) -> str:
+    """The requirement tree traced to this run: a generalised paper Table 7 (Table 7 says
+    which channels each event used; this says which channels and communicates show each
+    requirement). Empty when the requirements were not traced."""
+    if not rows:
+        return ""
+    head = ["requirement", "served by", "communicates", "robot [s]", "wall [s]", "tests", "verdict"]
+    return "\n\n".join(
+        [
+            f"{SECTION}Requirements traced to this run (paper Table 7 generalised)",
+            REQUIREMENTS_NOTE,
+            _table(head, [_requirement_row(r, clock) for r in rows]),
+        ]
+    )
 
 
 def _timeline(events: Sequence[Event], clock: RobotClock, figs: Mapping[str, FigureFile]) -> str:

@@ -221,6 +221,30 @@ class CoverageSummary(msgspec.Struct, kw_only=True):
     notes: list[str] = []
 
 
+class RequirementRow(msgspec.Struct, kw_only=True):
+    """One requirement of the specification traced to this run (a generalised paper Table 7:
+    where Table 7 names the channels each event used, this names, per requirement, the
+    channels serving it and the communicates of the run that exercise it;
+    services/spec_check/trace.py). ``depth``: 0 for the root; ``steps`` and ``channels``
+    (``C2 (a_co–a_hi)``) serve it; ``evidence``: per evidence statement, how many
+    communicates matched (``C2 fipa-request request HumanCommand: 1``), empty for a
+    requirement with children; ``first_t``/``last_t``: the first and last of them (s since
+    the run start); ``tests``: the tests that name it; ``verdict``: shown, not shown or
+    contradicted; ``against``: why it is contradicted."""
+
+    id: str
+    depth: int
+    text: str
+    steps: list[int] = []
+    channels: list[str] = []
+    evidence: list[str] = []
+    first_t: float | None = None
+    last_t: float | None = None
+    tests: int = 0
+    verdict: str = ""
+    against: list[str] = []
+
+
 class Report(msgspec.Struct, kw_only=True):
     """The experiment report of one run folder (paper §5.7). ``notes`` lists what was
     missing or could not be read."""
@@ -246,3 +270,5 @@ class Report(msgspec.Struct, kw_only=True):
     the ground truth (ROCO_PERCEPTION=truth) or ag_ex wrote no log."""
     coverage: CoverageSummary | None = None
     """How much of the specification the run exercised, when the report's writer counted it."""
+    requirements: list[RequirementRow] = []
+    """The requirement tree traced to this run (empty: not traced; services/spec_check/trace.py)."""

@@ -10,7 +10,9 @@ a step declares ``outside``: agents of other platforms, docs/gateway.md); the st
 every requirement is addressed by a step, and the final fringe is exactly the groups the agents
 substitute, with the final channels exactly the specification's channels C1..Cn between those
 agents; each group outside the system is substituted by an external role (``[[externals]]``),
-never by an agent.
+never by an agent. A requirement's ``evidence`` (the communicates that exercise it in a run)
+names channels that serve it, with their protocols, performatives and content terms
+(services/spec/requirements.py).
 
 Interface rules (paper §4 steps 3–4): every channel protocol exists and is initiated by one of
 the channel's ends; every performative a role may send has a language (not-understood and
@@ -35,6 +37,7 @@ from services.spec.model import (
     interface,
     load,
 )
+from services.spec.requirements import evidence_problems
 from shared.fipa_codec.languages.base import Language
 
 _NO_LANGUAGE = frozenset({"not-understood", "cancel"})
@@ -51,6 +54,7 @@ def check_decomposition(d: Decomposition, spec: SystemSpec | None = None) -> lis
     problems += replay.stop_problems([r.id for r in d.requirements])
     if spec is not None:
         problems += _final_matches_spec(replay.fringe, replay.channels, spec, replay.outside)
+        problems += evidence_problems(d, spec)
     return problems
 
 

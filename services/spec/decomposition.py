@@ -7,6 +7,12 @@ Schema (TOML, beside the channels in the same file; every field below is validat
     id = "R1"                     unique
     parent = "R"                  absent for the root; must name another requirement
     text = "..."
+    evidence = [{ channel = "C2", protocol = "fipa-request", performative = "request",
+                  content = "HumanCommand", at_least = 1 }, ...]
+                                  the communicates that exercise the requirement in a run, all
+                                  of them (``roco spec trace``, services/spec/requirements.py);
+                                  absent: one communicate on every channel serving it
+    task = true                   a failed command of a run contradicts it (default false)
 
     [[steps]]                     the decomposition, in order (Tables 1–2)
     number = 1                    1, 2, 3, ...
@@ -39,12 +45,37 @@ import msgspec
 from services.spec.model import DEFAULT_SPEC, SpecError, one_line, read_text
 
 
+class Evidence(msgspec.Struct, frozen=True, forbid_unknown_fields=True, kw_only=True):
+    """Communicates that exercise a requirement: on ``channel``, in ``protocol`` (None: any of
+    the channel's), with ``performative`` (None: any), carrying the content term ``content``
+    (its type name in its language, as ``contents`` of ``[[channels]]`` names it; None: any
+    content or none); at least ``at_least`` of them (copies not counted) in one run.
+    Checked against the channels by services/spec/requirements.py ``evidence_problems``."""
+
+    channel: str
+    protocol: str | None = None
+    performative: str | None = None
+    content: str | None = None
+    at_least: int = 1
+
+    def describe(self) -> str:
+        """``C2 fipa-request request HumanCommand`` (only the fields given; ``≥2`` when more
+        than one is needed)."""
+        parts = [self.channel, self.protocol, self.performative, self.content]
+        words = " ".join(p for p in parts if p is not None)
+        return f"{words} ≥{self.at_least}" if self.at_least > 1 else words
+
+
 class Requirement(msgspec.Struct, frozen=True, forbid_unknown_fields=True, kw_only=True):
-    """A node of the requirement tree (``parent`` None for the root)."""
+    """A node of the requirement tree (``parent`` None for the root); ``evidence``: the
+    communicates that exercise it in a run (:class:`Evidence`, all of them; empty: one on each
+    channel serving it); ``task``: a failed command of a run contradicts it."""
 
     id: str
     text: str
     parent: str | None = None
+    evidence: tuple[Evidence, ...] = ()
+    task: bool = False
 
 
 class Reallocation(msgspec.Struct, frozen=True, forbid_unknown_fields=True, kw_only=True):

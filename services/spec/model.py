@@ -106,7 +106,7 @@ class SystemSpec(msgspec.Struct, frozen=True, forbid_unknown_fields=True):
     agents: tuple[AgentSpec, ...]
     protocols: dict[str, ProtocolRoles]
     channels: tuple[ChannelSpec, ...]
-    requirements: tuple[dict[str, str], ...] = ()
+    requirements: tuple[dict[str, object], ...] = ()
     steps: tuple[dict[str, object], ...] = ()
     start_order: tuple[str, ...] = ()
     """The order a launcher starts the agents in; agents it does not name start after those it

@@ -7,6 +7,7 @@ import math
 from collections.abc import Callable
 
 import msgspec
+import pytest
 
 from services.runtime.human import ReportKind
 from shared.fipa_codec import decode
@@ -31,6 +32,7 @@ def _traffic(fleet: MemoryFleet) -> list[tuple[str, object]]:
     return out
 
 
+@pytest.mark.requirement("R2.1", "R2.2")
 def test_pour_runs_two_plans_and_succeeds() -> None:
     with MemoryFleet() as fleet:
         fleet.wait_for_initial_knowledge()

@@ -12,6 +12,7 @@ from collections.abc import Callable
 from typing import Any
 
 import msgspec
+import pytest
 
 from services.runtime import keys
 from services.runtime.human import FINAL_REPORTS, HumanInput, HumanReport, ReportKind
@@ -137,6 +138,7 @@ def interrupt_pour(s: Session, robot: GatedExecutor, sentence: str, request_id: 
     s.say(sentence, request_id)
 
 
+@pytest.mark.requirement("R1.2")
 def test_two_commands_in_a_row() -> None:
     with Session() as s:
         s.wait_for_initial_knowledge()
@@ -149,6 +151,7 @@ def test_two_commands_in_a_row() -> None:
     assert math.dist(cup[:2], bowl[:2]) >= 0.12  # the bowl went to a free place
 
 
+@pytest.mark.requirement("R1.2", "R2.1")
 def test_an_urgent_command_preempts_the_pour_which_resumes_and_finishes() -> None:
     robot = GatedExecutor(turning_to_pour)
     with Session(robot) as s:
@@ -279,6 +282,7 @@ def test_a_stop_puts_the_held_jar_down_safely() -> None:
     assert robot.inside["jar"] == PARTICLES  # not poured
 
 
+@pytest.mark.requirement("R2.1", "R3.2")
 def test_an_object_moved_behind_the_robots_back_makes_it_replan() -> None:
     with Session() as s:
         s.wait_for_initial_knowledge()
@@ -332,6 +336,7 @@ def test_safe_stops_are_planned_only_where_something_is_held() -> None:
     assert all(p.km_queries > 0 and p.planning_time_s < 2.0 for p in plans)
 
 
+@pytest.mark.requirement("R2.1")
 def test_the_report_of_a_preemption_shows_cancel_terminating_preempted(tmp_path: Any) -> None:
     from services.recorder.recorder import TrafficWriter
     from services.report import build_report

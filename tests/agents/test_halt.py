@@ -132,6 +132,7 @@ def _follows_fipa_request(*msgs: Communicate) -> None:
 WAIT = Wait(duration=5.0)
 
 
+@pytest.mark.requirement("R2.1")
 def test_a_cancel_of_a_running_command_is_answered_inform_halted() -> None:
     executor = Running(halts=True)
     bus, agent, thread = _ag_ex(executor)
@@ -226,6 +227,7 @@ def _finals(fleet: MemoryFleet, *request_ids: str) -> dict[str, list[HumanReport
     return out
 
 
+@pytest.mark.requirement("R2.1")
 def test_a_stop_mid_pour_halts_the_tilt_and_puts_the_jar_down() -> None:
     executor = HaltingExecutor(hold={"Tilt"})  # the pour's tilt runs until a cancel halts it
     with MemoryFleet(executor) as fleet:

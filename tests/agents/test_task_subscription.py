@@ -59,6 +59,7 @@ def scene(stamp: float, x: float) -> Observation:
     )
 
 
+@pytest.mark.requirement("R3.2")
 def test_a_new_subscription_gets_the_asserted_changes_then_a_fresh_observation(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:

@@ -60,6 +60,7 @@ def report(content: bytes) -> SentenceReport:
     return msgspec.json.decode(content, type=SentenceReport)
 
 
+@pytest.mark.requirement("R1.4")
 def test_a_foreign_request_reaches_a_hi_as_a_persons_command_and_its_answers_return(b: Bridge) -> None:
     status = b.jade.request(b.url, "a_hi", b.jade.acl("a_hi", sentence("bring me the cup"), "C1_jade"))
     assert status == 200
@@ -90,6 +91,7 @@ def test_a_foreign_request_reaches_a_hi_as_a_persons_command_and_its_answers_ret
     assert b.gateway.counters["forwarded"] == 1 and b.gateway.counters["answered"] == 2
 
 
+@pytest.mark.requirement("R1.4")
 def test_a_sentence_a_hi_does_not_understand_is_refused_by_a_hi(b: Bridge) -> None:
     assert b.jade.request(b.url, "a_hi", b.jade.acl("a_hi", sentence("sing me a song"), "C2_jade")) == 200
     answer = b.jade.next()

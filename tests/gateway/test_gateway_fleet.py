@@ -48,6 +48,7 @@ def fleet(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Iterator[Fleet]:
         register(fleet.endpoint, None)
 
 
+@pytest.mark.requirement("R1.4")
 def test_a_jade_request_crosses_the_gateway_under_access_control(fleet: Fleet) -> None:
     ep = fleet.endpoint
     agents: list[tuple[Agent, threading.Thread]] = []

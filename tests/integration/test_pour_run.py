@@ -42,6 +42,7 @@ def pour_run(tmp_path_factory: pytest.TempPathFactory) -> tuple[subprocess.Compl
     return proc, run_dir
 
 
+@pytest.mark.requirement("R3.1")
 def test_pour_succeeds_and_most_spheres_end_in_the_bowl(pour_run: tuple) -> None:
     proc, run_dir = pour_run
     assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-2000:]
@@ -53,6 +54,7 @@ def test_pour_succeeds_and_most_spheres_end_in_the_bowl(pour_run: tuple) -> None
     assert [e.text for e in report.events if e.kind == "self_contact"] == []
 
 
+@pytest.mark.requirement("R3.1")
 def test_the_bowl_stands_on_the_table_holding_the_content_in_the_simulated_world(pour_run: tuple) -> None:
     """Judged by the world the run left (the world's final scene, the physics' truth), not by
     what the agents reported."""
@@ -147,3 +149,17 @@ def test_the_recording_holds_the_head_camera_at_most_once_a_second(pour_run: tup
     info = read_run_info(run_dir)
     assert info.ended is not None
     assert 3 <= frames <= info.ended - info.started + 1, (frames, info.ended - info.started)
+
+
+def test_roco_spec_trace_shows_every_leaf_but_the_foreign_platforms_from_the_pour(pour_run: tuple) -> None:
+    """The pour exercises every leaf requirement except R1.4 (agents of other FIPA platforms:
+    no one spoke through roco gateway), contradicts none, and every leaf has its tests."""
+    _, run_dir = pour_run
+    proc = subprocess.run(
+        [sys.executable, "-m", "services.cli", "spec", "trace", str(run_dir)], capture_output=True, text=True
+    )
+    assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-2000:]
+    assert "leaves: 9 shown, 1 not shown (R1.4), 0 contradicted" in proc.stdout, proc.stdout
+    assert "tests: none" not in proc.stdout
+    md = (run_dir / "report.md").read_text()
+    assert "Requirements traced to this run" in md and "**contradicted**" not in md

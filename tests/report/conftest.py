@@ -17,6 +17,8 @@ import msgspec
 import pytest
 
 from services.recorder.record import TRAFFIC_JSONL, TRAFFIC_RAW, TrafficRecord
+from services.runtime import keys
+from services.runtime.protocol_state import expected_ontology
 from services.runtime.run_folder import RunInfo, write_run_info
 from shared.fipa_codec import Communicate, Performative, encode
 from shared.fipa_codec.aid import aid
@@ -49,7 +51,8 @@ COMMAND_TEXT = "pour the jar into the bowl"
 
 @dataclass
 class RunBuilder:
-    """Collects (record, payload) pairs; ``add`` encodes a real communicate."""
+    """Collects (record, payload) pairs; ``add`` encodes a real communicate, with its language's
+    ontology, on its key (services/runtime/keys.py)."""
 
     records: list[TrafficRecord] = field(default_factory=list)
     payloads: list[bytes] = field(default_factory=list)
@@ -76,7 +79,7 @@ class RunBuilder:
             content=body,
             language=language,
             encoding="msgpack" if body else None,
-            ontology="O_RoCo" if body else None,
+            ontology=expected_ontology(language) if language is not None else None,
             protocol=protocol,
             conversation_id=conversation,
             reply_with=reply_with,
@@ -97,7 +100,7 @@ class RunBuilder:
                 conversation_id=conversation,
                 language=language,
                 ontology=msg.ontology,
-                key=f"roco/fipa/{channel}/{sender}/{receiver}",
+                key=keys.fipa_key(channel, sender, receiver),
             )
         )
         self.payloads.append(payload)

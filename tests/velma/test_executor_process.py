@@ -38,6 +38,7 @@ def _submit(ex: ExecutorProcess, command: object) -> queue.SimpleQueue[Result]:
     return out
 
 
+@pytest.mark.requirement("R3.1")
 def test_commands_cross_and_state_is_published(ex: ExecutorProcess) -> None:
     assert ex.pid is not None and ex.pid != os.getpid()
     r = _submit(ex, Wait(duration=0.2)).get(timeout=60)

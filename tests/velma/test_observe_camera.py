@@ -49,6 +49,7 @@ def _run(ex: Executor, *commands: object) -> list[Result]:
 
 
 @needs_gl
+@pytest.mark.requirement("R3.1")
 def test_camera_observation_in_order_and_unseen_out_of_view() -> None:
     records: list[dict[str, object]] = []
     ex = Executor(perception="camera", perception_log=records.extend)

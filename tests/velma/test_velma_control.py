@@ -91,6 +91,7 @@ def test_unreachable_target_is_refused() -> None:
     assert isinstance(result, CommandResult) and not result.ok and result.reason == "unreachable"
 
 
+@pytest.mark.requirement("R3.1")
 def test_grasp_lifts_jar_by_friction() -> None:
     rt = Runtime(seed=0, n_particles=0)
     rt.observe_by_camera = False  # ground-truth poses: this test is about control, not perception

@@ -101,6 +101,7 @@ def test_table_places_are_free_and_on_the_table() -> None:
     assert -1.57 < sk.JAR_TABLE_FACING < sk.TABLE_FACING
 
 
+@pytest.mark.requirement("R3.1")
 def test_fetch_and_place_follow_the_planner_steps() -> None:
     fetch = sk.fetch_commands(sk.CUP_TOP_GRASP, gen.CUP_POS, 0.0, sk.TABLE_FACING)
     kinds = [type(c).__name__ for c in fetch]

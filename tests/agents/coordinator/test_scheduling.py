@@ -18,6 +18,8 @@ from services.agents.coordinator.scheduling import (
 from shared.fipa_codec.languages.l_ex import Wait
 from shared.fipa_codec.languages.l_hfsm import Execute, HierarchicalPlan, PlanNode
 
+pytestmark = pytest.mark.requirement("R1.2")
+
 
 def running(priority: int = 0, remaining: float = 60.0, interruption: float = 10.0) -> Running:
     return Running(Candidate("pour", priority, remaining, order=0), remaining, interruption)
@@ -33,6 +35,7 @@ def test_equal_priority_commands_run_in_order_of_acceptance() -> None:
     assert best([Candidate("late", 0, 5.0, order=2), Candidate("early", 0, 50.0, order=1)]).task_id == "early"
 
 
+@pytest.mark.requirement("R2.1")
 def test_an_urgent_command_preempts_a_long_running_task() -> None:
     d = decide(running(priority=0, remaining=60.0), [Candidate("cup", 5, 25.0, order=1)])
     assert d.switch_to == "cup" and d.preempt

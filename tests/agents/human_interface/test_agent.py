@@ -208,6 +208,7 @@ def test_command_agree_progress_inform_gives_readable_reports(stage: Stage) -> N
     assert not hi.commands and len(hi.pending_replies) == 1  # only the subscription stays open
 
 
+@pytest.mark.requirement("R1.1", "R1.2")
 def test_priority_and_deadline_reach_a_co(stage: Stage) -> None:
     co, _hi, person = _ready(stage)
     person.say("bring me the mug within 2 minutes", "r1", priority=3)

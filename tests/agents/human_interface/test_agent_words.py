@@ -56,6 +56,7 @@ def _with_km(stage: Stage) -> tuple[ScriptedCo, HumanInterface, Peer]:
     return co, hi, ta
 
 
+@pytest.mark.requirement("R1.3")
 def test_a_thing_a_km_learns_at_run_time_can_be_named_the_next_moment(stage: Stage) -> None:
     co, _hi, ta = _with_km(stage)
     say(stage, "bring me the tea pot", "r1")

@@ -79,6 +79,7 @@ def check(sentence: str, expected: Expected, vocabulary: Vocabulary) -> None:
 
 
 @pytest.mark.parametrize(("sentence", "expected"), PARAPHRASES, ids=[s for s, _ in PARAPHRASES])
+@pytest.mark.requirement("R1.1")
 def test_paraphrases_of_the_tasks(sentence: str, expected: Expected) -> None:
     check(sentence, expected, default_vocabulary())
 
@@ -109,6 +110,7 @@ _EVERYDAY = [(f"{group}: {s}", s, e) for group, sentences in EVERYDAY.items() fo
 @pytest.mark.parametrize(
     ("sentence", "expected"), [(s, e) for _, s, e in _EVERYDAY], ids=[i for i, _, _ in _EVERYDAY]
 )
+@pytest.mark.requirement("R1.1")
 def test_everyday_wordings(sentence: str, expected: Expected) -> None:
     check(sentence, expected, default_vocabulary())
 

@@ -47,6 +47,7 @@ from shared.fipa_codec.languages.l_hc import TaskAtom
         ("give the cup to me", "hand_over", ("cup",)),
     ],
 )
+@pytest.mark.requirement("R1.1")
 def test_every_command_form_names_its_task(sentence: str, name: str, args: tuple[str, ...]) -> None:
     intent = interpret(sentence)
     assert intent == Command(TaskAtom(name, args))
@@ -88,6 +89,7 @@ def test_articles_politeness_punctuation_and_case_are_tolerated(sentence: str) -
         "bring me the cup immediately",
     ],
 )
+@pytest.mark.requirement("R1.2")
 def test_urgency_raises_the_priority(sentence: str) -> None:
     intent = interpret(sentence)
     assert isinstance(intent, Command)
@@ -141,6 +143,7 @@ def test_multi_word_names_map_to_known_names(sentence: str, args: tuple[str, ...
     assert isinstance(intent, Command) and intent.goal.args == args
 
 
+@pytest.mark.requirement("R1.3")
 def test_the_words_for_things_come_from_the_ontology() -> None:
     vocabulary = default_vocabulary()
     assert {t.name for t in vocabulary.things} >= {"jar", "bowl", "cup", "table", "cabinet"}
@@ -371,6 +374,7 @@ def test_a_gerund_without_would_you_mind_is_no_command() -> None:
         ("may I have the mug please", TaskAtom("hand_over", ("cup",))),
     ],
 )
+@pytest.mark.requirement("R1.1")
 def test_wishes_are_commands(sentence: str, goal: TaskAtom) -> None:
     assert interpret(sentence) == Command(goal)
 

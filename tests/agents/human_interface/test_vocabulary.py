@@ -17,6 +17,8 @@ from services.agents.knowledge.world_model import WorldModel
 from shared.fipa_codec.languages.l_hc import TaskAtom
 from shared.fipa_codec.languages.l_wm import ObjectUpdate, SparqlQuery, WorldUpdate
 
+pytestmark = pytest.mark.requirement("R1.3")
+
 
 def test_a_km_answers_the_vocabulary_query_with_the_files_words() -> None:
     with WorldModel() as world:

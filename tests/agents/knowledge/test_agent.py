@@ -138,6 +138,7 @@ def test_store_path_comes_from_the_environment(tmp_path: Path) -> None:
     assert store_path({}) is None
 
 
+@pytest.mark.requirement("R2.4")
 def test_a_restarted_km_answers_with_the_knowledge_the_first_saved(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
@@ -159,6 +160,7 @@ def test_a_restarted_km_answers_with_the_knowledge_the_first_saved(
         assert bowl.held_by == "right_gripper" and bowl.picked_from == "cabinet"
 
 
+@pytest.mark.requirement("R2.4")
 def test_unanswerable_queries_get_a_reason_and_km_keeps_running(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.delenv("ROCO_KM_STORE", raising=False)
     monkeypatch.delenv("ROCO_RUN_DIR", raising=False)

@@ -67,6 +67,7 @@ def test_every_predicate_and_class_used_is_declared(ontology: Graph, data: Graph
     assert not not_classes, f"not declared as owl:Class: {not_classes}"
 
 
+@pytest.mark.requirement("R2.3")
 def test_the_ontology_covers_the_kitchen_and_the_robot(ontology: Graph) -> None:
     classes = [
         "PhysicalObject",
@@ -179,6 +180,7 @@ def test_the_kitchen_conforms_to_domains_and_ranges(data: Graph) -> None:
     assert Schema(data).violations(list(data)) == []
 
 
+@pytest.mark.requirement("R2.4")
 def test_updates_keep_the_knowledge_base_conformant() -> None:
     world = WorldModel()
     world.apply(

@@ -57,6 +57,7 @@ def test_an_empty_store_is_filled_with_the_ontology_and_the_kitchen(tmp_path: Pa
         assert (tmp_path / "km").is_dir()
 
 
+@pytest.mark.requirement("R2.4")
 def test_knowledge_survives_a_new_world_model_on_the_same_store(
     tmp_path: Path, caplog: pytest.LogCaptureFixture
 ) -> None:
@@ -130,6 +131,7 @@ def test_in_memory_models_are_independent_and_a_closed_one_answers_nothing() -> 
 # ---- hypothetical states (paper §5.7) ----------------------------------------------------
 
 
+@pytest.mark.requirement("R2.3")
 def test_hypothetical_grasp_answers_held_without_touching_the_real_state() -> None:
     world = WorldModel()
     observe(world, 1.0, jar=JAR)
@@ -147,6 +149,7 @@ def test_hypothetical_grasp_answers_held_without_touching_the_real_state() -> No
     assert real.held_by is None and real.location == "cabinet"
 
 
+@pytest.mark.requirement("R2.3")
 def test_hypothetical_location_change_answers_a_sparql_ask() -> None:
     world = WorldModel()
     on_table = SparqlQuery("ASK { roco:jar roco:on roco:table }")
@@ -171,6 +174,7 @@ def test_hypothetical_pose_is_known_but_not_observed() -> None:
     assert world.object_info("bowl").pose == Pose(BOWL)
 
 
+@pytest.mark.requirement("R2.3")
 def test_a_hypothetical_scene_and_a_hypothetical_unknown_object() -> None:
     world = WorldModel()
     answer = world.answer(
@@ -187,6 +191,7 @@ def test_a_hypothetical_scene_and_a_hypothetical_unknown_object() -> None:
 # ---- stale observations ------------------------------------------------------------------
 
 
+@pytest.mark.requirement("R2.4", "R3.2")
 def test_a_newer_observation_supersedes_the_pose() -> None:
     world = WorldModel()
     observe(world, 1.0, jar=JAR)
@@ -199,6 +204,7 @@ def test_a_newer_observation_supersedes_the_pose() -> None:
     assert world.stale_poses == 0
 
 
+@pytest.mark.requirement("R2.4", "R3.2")
 def test_an_older_observation_after_a_newer_one_is_ignored_for_the_pose() -> None:
     world = WorldModel()
     observe(world, 5.0, jar=JAR)
@@ -266,6 +272,7 @@ def test_unknown_or_malformed_queries_raise_knowledge_errors() -> None:
         )
 
 
+@pytest.mark.requirement("R2.3", "R2.4")
 def test_sparql_select_rows_and_the_structured_answers() -> None:
     world = WorldModel()
     answer = world.answer(SparqlQuery("SELECT ?o ?nothing WHERE { ?o roco:in roco:cabinet } ORDER BY ?o"))

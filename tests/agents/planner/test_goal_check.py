@@ -34,6 +34,7 @@ def holds(world: WorldModel, actions: list[tuple[object, ...]], complete: bool =
     return answer.boolean is True
 
 
+@pytest.mark.requirement("R2.2", "R2.3")
 def test_the_complete_pour_plan_reaches_its_goal_in_the_hypothetical_state() -> None:
     world = ready_to_pour(18)
     actions = find_plan(knowledge(world), TASK, "pour(jar,bowl)")

@@ -33,6 +33,7 @@ def close(a: Pose, b: Pose) -> bool:
     return math.dist(a.position, b.position) < 1e-6 and dq > 1 - 1e-9
 
 
+@pytest.mark.requirement("R2.2")
 def test_plans_reproduce_the_scripted_experiment() -> None:
     world = WorldModel()
     world.apply(
@@ -74,6 +75,7 @@ def test_plans_reproduce_the_scripted_experiment() -> None:
     assert joint_moves == [c.positions for c in script if isinstance(c, MoveJoints)]
 
 
+@pytest.mark.requirement("R2.2")
 def test_impossible_goal_is_refused_with_a_reason() -> None:
     world = WorldModel()
     with pytest.raises(PlanningFailure, match="no teapot"):
