@@ -116,7 +116,6 @@ from shared.fipa_codec.languages.l_hc import (
     TaskStatus,
 )
 from shared.fipa_codec.languages.l_wm import Answer, SparqlQuery
-from shared.fipa_codec.message import new_id
 
 if TYPE_CHECKING:
     from services.runtime.transport import Transport
@@ -382,7 +381,7 @@ class HumanInterface(Agent):
         """A foreign agent's sentence: read as a person's, its reports answer the request."""
         sentence = conv.content
         assert isinstance(sentence, Sentence)  # the specification's contents, checked on arrival
-        request_id = new_id("fipa-")
+        request_id = self.sources.new_id("fipa-")
         self.foreign[request_id] = conv
         self.log.info("sentence from %s [%s]: %s", conv.peer, request_id, sentence.text)
         self._on_input(HumanInput(text=sentence.text, request_id=request_id, person=conv.peer))
@@ -465,7 +464,7 @@ class HumanInterface(Agent):
             FIPA_QUERY,
             SparqlQuery(VOCABULARY_QUERY),
             performative=Performative.QUERY_REF,
-            conversation_id=new_id(prefix),  # never one a_km has seen end
+            conversation_id=self.sources.new_id(prefix),  # never one a_km has seen end
             data=list(waiting),
         )
 
