@@ -6,7 +6,8 @@ knowledge store) in fresh folders of the replay's own: it starts as in the run, 
 kept. Every other agent's liveliness token is on the bus from the start (the record holds no
 liveliness). The driver owns the agent's time
 (:class:`~services.replay.sources.ReplaySources`) and runs its elementary actions on its own
-thread (``Agent.drive``): the clock moves to each input's recorded time, or first to whatever
+thread (``Agent.drive``): the agent starts at its first communicate's recorded time
+(``AgentRecord.start``), the clock moves to each input's recorded time, or first to whatever
 time the agent waits for before it (a period, a reply-by deadline, a retransmission), and
 stands still while the agent computes. After the last input the clock runs on to the record's
 end. Each communicate the agent sends is compared at once with the next one it sent on that key
@@ -234,7 +235,7 @@ def replay(run_dir: Path, agent: str, spec: SystemSpec | None = None) -> ReplayR
         result.notes.append(
             f"{agent} sent from {record.sessions} sessions (it was restarted): replayed as one"
         )
-    sources = ReplaySources(record.t0)
+    sources = ReplaySources(record.start)
     bus = MemoryBus()
     for a in spec.agents:
         if a.name != agent:

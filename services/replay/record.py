@@ -55,6 +55,15 @@ class AgentRecord:
     """How many sessions (publishers' Zenoh sessions) the agent sent from: more than one when
     it was restarted during the run."""
 
+    @property
+    def start(self) -> float:
+        """When the agent was last seen not yet to have said or heard anything (POSIX s): its
+        first communicate's time, the sender's timestamp for one it sent (it ran by then, and
+        what it sends as it starts, a_km's subscription, goes at once)."""
+        first = [item.t for item in self.inputs[:1]]
+        first += [items[0].sent for items in self.outputs.values() if items]
+        return min(first, default=self.t0)
+
 
 def agent_record(run_dir: Path, agent: str) -> AgentRecord:
     """The record of ``agent`` in ``run_dir``. Raises FileNotFoundError (naming the path) when

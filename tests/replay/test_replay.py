@@ -192,7 +192,7 @@ def test_what_goes_wrong_inside_the_replayed_agent_is_reported(
     assert "the replayed a_co counted handler_errors 1" in render(result)
     monkeypatch.setattr(Coordinator, "setup", broken)
     result = replay(run, "a_co")
-    assert result.failure == "a_co raised at 0.000 s: RuntimeError: planted" and not result.equal
+    assert result.failure == "a_co raised at 1.000 s: RuntimeError: planted" and not result.equal
     assert (
         render(result)
         .splitlines()[-1]
