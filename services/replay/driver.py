@@ -34,6 +34,7 @@ from services.replay.record import AgentRecord, Recorded, agent_record
 from services.replay.sources import ReplaySources
 from services.runtime import keys
 from services.runtime.agent import Agent
+from services.runtime.counters import read_counters
 from services.runtime.dedup import wire_digest
 from services.runtime.main import agent_class
 from services.runtime.memory_transport import MemoryBus, MemoryTransport
@@ -73,7 +74,8 @@ class ReplayResult:
     """A replay's outcome: ``inputs`` fed, ``compared`` communicates of the run compared,
     ``differences`` in the order found, ``copies`` (recorded, replayed) not compared,
     ``failure`` what the agent raised if it stopped with an error (the replay stops there),
-    ``counters`` of trouble the replayed agent counted, ``notes`` on the record, and the wall
+    ``counters`` of trouble the replayed agent counted (and ``run_counters``, the agent's
+    counters when the run ended, None when the run folder has none), ``notes`` on the record, and the wall
     time (s) the replay took in all and to build the agent."""
 
     agent: str
@@ -84,6 +86,7 @@ class ReplayResult:
     copies: tuple[int, int] = (0, 0)
     failure: str | None = None
     counters: dict[str, int] = field(default_factory=dict)
+    run_counters: dict[str, int] | None = None
     notes: list[str] = field(default_factory=list)
     seconds: float = 0.0
     build_seconds: float = 0.0
@@ -254,6 +257,7 @@ def replay(run_dir: Path, agent: str, spec: SystemSpec | None = None) -> ReplayR
             if callable(close):
                 close()
     result.counters = {k: instance.counters[k] for k in TROUBLE if instance.counters[k]}
+    result.run_counters = _run_counters(Path(run_dir), agent)
     result.seconds = time.perf_counter() - started
     return result
 
@@ -274,6 +278,15 @@ def _run(run: _Replay, result: ReplayResult) -> None:
     result.differences = run.differences
     recorded_copies = sum(item.copy for items in run.record.outputs.values() for item in items)
     result.copies = (recorded_copies, run.replayed_copies)
+
+
+def _run_counters(run_dir: Path, agent: str) -> dict[str, int] | None:
+    """``agent``'s counters in the run folder's counters.json (None: none there)."""
+    try:
+        report = read_counters(run_dir).get(agent)
+    except (OSError, msgspec.DecodeError, msgspec.ValidationError):
+        return None
+    return report.counters if report is not None else None
 
 
 @contextmanager
@@ -304,8 +317,12 @@ def render(result: ReplayResult, most: int = 50) -> str:
         lines.append(result.failure)
     lines += [f"note: {n}" for n in result.notes]
     if result.counters:
-        counted = ", ".join(f"{k} {v}" for k, v in result.counters.items())
-        lines.append(f"the replayed {result.agent} counted {counted} (--log shows its log)")
+        ran = result.run_counters
+        counted = ", ".join(
+            f"{k} {v}" + (f" ({ran.get(k, 0)} in the run)" if ran is not None else "")
+            for k, v in result.counters.items()
+        )
+        lines.append(f"the replayed {result.agent} counted {counted}; --log prints its log")
     lines.append(_summary(result))
     return "\n".join(lines)
 

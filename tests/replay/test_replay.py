@@ -15,6 +15,7 @@ from typer.testing import CliRunner
 
 import services.cli as cli
 from services.replay.driver import ReplayError, render, replay
+from services.runtime.counters import CountersReport, save_counters
 from shared.fipa_codec import Communicate, Performative
 from shared.fipa_codec.aid import aid
 from shared.fipa_codec.languages import encode_content
@@ -189,7 +190,9 @@ def test_what_goes_wrong_inside_the_replayed_agent_is_reported(
     assert found["performative"] == ("inform-ref", "failure")
     assert found["content"] == ("Status", "'internal error: RuntimeError: planted'")
     assert result.counters == {"handler_errors": 1}
-    assert "the replayed a_co counted handler_errors 1" in render(result)
+    assert "the replayed a_co counted handler_errors 1; --log prints its log" in render(result)
+    save_counters(run, {"a_co": CountersReport("a_co", 0.0, {"received.query-ref": 1})})
+    assert "counted handler_errors 1 (0 in the run)" in render(replay(run, "a_co"))
     monkeypatch.setattr(Coordinator, "setup", broken)
     result = replay(run, "a_co")
     assert result.failure == "a_co raised at 1.000 s: RuntimeError: planted" and not result.equal
