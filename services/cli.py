@@ -1114,6 +1114,42 @@ def _router_names(run_dir: Path | None) -> dict[str, str]:
     return names
 
 
+# ---- roco replay: one agent of a recorded run again (services/replay) ----------------------
+
+
+@app.command(short_help="Replay one agent of a recorded run and compare what it sends.")
+def replay(
+    run_dir: Annotated[Path, typer.Argument(metavar="RUN", help="a run folder")],
+    agent: Annotated[str, typer.Option("--agent", help="the agent to replay, as the specification names it")],
+    most: Annotated[int, typer.Option(min=1, help="differences printed at most")] = 50,
+    log: Annotated[bool, typer.Option("--log", help="print the replayed agent's log on stderr")] = False,
+    spec: SpecFile = None,
+) -> None:
+    """Feed a fresh instance of AGENT, in this process, the communicates it received in the run,
+    in their recorded order and at their recorded times, with every other agent a stub of the
+    record, and compare what it sends with what it sent there: equal up to conversation-ids,
+    reply-withs, times and fields read from a clock. One line per difference (the recorded
+    communicate, the field, recorded and replayed). Exit 0 when equal, 1 with the differences,
+    2 when the replay cannot be made."""
+    import logging
+
+    from services.replay.driver import ReplayError, render
+    from services.replay.driver import replay as replay_agent
+    from services.spec.model import SpecError, load
+
+    if log:
+        logging.basicConfig(
+            level=logging.INFO, stream=sys.stderr, format="%(name)s %(levelname)s %(message)s"
+        )
+    try:
+        result = replay_agent(_run_folder(run_dir), agent, load(spec) if spec is not None else None)
+    except (ReplayError, SpecError) as exc:
+        raise fail(str(exc), code=2) from None
+    typer.echo(render(result, most))
+    if not result.equal:
+        raise typer.Exit(1)
+
+
 spec_app = typer.Typer(
     add_completion=False,
     no_args_is_help=True,

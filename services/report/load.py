@@ -191,7 +191,7 @@ def _decode_all(
     for rec in records:
         comm = comms.get(rec.ref)
         content: msgspec.Struct | None = None
-        if comm is not None and comm.content:
+        if comm is not None and comm.content and comm.language is not None:  # else a reason in words
             try:
                 content = decode_content(comm.language, comm.content)
             except ContentError:

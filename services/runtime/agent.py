@@ -79,6 +79,7 @@ from services.runtime.lookups import Lookups
 from services.runtime.protocol_state import ConversationError, ProtocolStates
 from services.runtime.replies import Pending, PendingReplies
 from services.runtime.roles import Conversation, RoleDecl, Roles
+from services.runtime.sources import SYSTEM, Sources
 from services.runtime.state_store import NO_DATA, KeptConversations, StateFile
 from services.runtime.transport import Transport
 from services.spec.model import Interface, SpecError, SystemSpec, default_spec, interface
@@ -93,7 +94,6 @@ from shared.fipa_codec import (
 )
 from shared.fipa_codec.batch import is_batch, runs, unpack
 from shared.fipa_codec.languages import encode_content, language_of
-from shared.fipa_codec.message import new_id
 from shared.fipa_codec.protocols import (
     INITIATOR,
     PARTICIPANT,
@@ -187,6 +187,9 @@ class Agent:
     def __init__(self, transport: Transport, spec: SystemSpec | None = None) -> None:
         self.spec = spec or default_spec()
         self.transport = transport
+        self.sources: Sources = getattr(transport, "sources", None) or SYSTEM
+        """The agent's clocks, random bytes and fresh identifiers (services/runtime/sources.py):
+        the transport's ``sources`` if it offers them (a replay's), else the system's."""
         self.hooks: Hooks | None = load_hooks()
         """A viewer's hooks, given to this agent (services/runtime/hooks.py); None: no viewer."""
         self.aid = AgentIdentifier(self.name)
@@ -226,7 +229,7 @@ class Agent:
         self._turn = threading.Lock()
         """Held by whichever thread runs the agent's elementary actions (:meth:`run`)."""
         self._actions: Generator[float, None, None] | None = None
-        self._wake_at = 0.0  # time.monotonic() at which the suspended actions want to go on
+        self._wake_at = 0.0  # sources.monotonic() at which the suspended actions want to go on
         self._ended = False
         self._failure: BaseException | None = None
         self._here = False  # the actions run on a receiving thread (_take_here)
@@ -363,8 +366,8 @@ class Agent:
         )
         awaits = expect_reply or reply_by_s is not None or retry_s is not None
         if awaits and reply_with is None:
-            reply_with = new_id(f"{self.name}-")
-        deadline = time.time() + reply_by_s if reply_by_s is not None else None
+            reply_with = self.sources.new_id(f"{self.name}-")
+        deadline = self.sources.time() + reply_by_s if reply_by_s is not None else None
         msg = Communicate(
             performative=performative,
             sender=self.aid,
@@ -374,7 +377,7 @@ class Agent:
             encoding="msgpack" if body else None,
             ontology=ontology,
             protocol=protocol,
-            conversation_id=conversation_id or new_id("c-"),
+            conversation_id=conversation_id or self.sources.new_id("c-"),
             reply_with=reply_with,
             in_reply_to=in_reply_to,
             reply_by=deadline,
@@ -393,7 +396,7 @@ class Agent:
                     retry_s=retry_s,
                     key=key if retry_s is not None else "",
                     payload=payload if retry_s is not None else b"",
-                    next_retry=time.time() + retry_s if retry_s is not None else None,
+                    next_retry=self.sources.time() + retry_s if retry_s is not None else None,
                 )
             )
         self._out(to, in_reply_to, key, payload)
@@ -495,7 +498,7 @@ class Agent:
     def _warn_rejected(self, fmt: str, *args: object) -> None:
         """Log a warning about rejected input, at most :data:`LOG_BURST` per
         :data:`LOG_WINDOW_S`; the number left out is logged when the next window begins."""
-        now = time.monotonic()
+        now = self.sources.monotonic()
         start, logged = self._log_window
         if now - start >= LOG_WINDOW_S:
             if self._log_suppressed:
@@ -518,7 +521,12 @@ class Agent:
         carries; services/runtime/counters.py)."""
         session = getattr(self.transport, "session_id", "")
         return msgspec.json.encode(
-            {"agent": self.name, "time": time.time(), "session": session, "counters": dict(self.counters)}
+            {
+                "agent": self.name,
+                "time": self.sources.time(),
+                "session": session,
+                "counters": dict(self.counters),
+            }
         )
 
     def _check_send(
@@ -730,7 +738,7 @@ class Agent:
         time passes, then :meth:`_acquire`."""
         deadline = self.pending_replies.next_deadline()
         if deadline is not None:
-            timeout = max(0.0, min(timeout, deadline - time.time()))
+            timeout = max(0.0, min(timeout, deadline - self.sources.time()))
         if timeout > 0 and not self._inbox:
             yield timeout
         elif self._here:  # actions that go on without waiting go on on the agent's thread
@@ -750,7 +758,7 @@ class Agent:
                     self._arrived.wait(timeout)
         for _ in range(len(self._inbox)):
             self._take(*self._inbox.popleft())
-        now = time.time()
+        now = self.sources.time()
         self.roles.tick(now)  # subscription attempts that are due (services/runtime/subscriptions.py)
         self.protocol_states.commit()  # what arrived stays arrived; only sends are undone
         self._y_taken = len(self._y)  # so do the answers to it (not-understood, copies again)
@@ -969,7 +977,7 @@ class Agent:
             return
         if alive:
             self.peers.add(peer)
-            n = self.pending_replies.retry_now(peer, time.time())
+            n = self.pending_replies.retry_now(peer, self.sources.time())
             if n:
                 self.log.info("%s appeared: %d unanswered communicate(s) to it sent again", peer, n)
         else:
@@ -1037,17 +1045,32 @@ class Agent:
                 try:
                     with self._arrived:
                         while not self._inbox and not self._ended:
-                            left = self._wake_at - time.monotonic()
+                            left = self._wake_at - self.sources.monotonic()
                             if left <= 0:
                                 break
                             self._arrived.wait(left)
                 finally:
                     self._turn.acquire()
                 # a step taken in elsewhere meanwhile may have moved the time to go on
-                if not self._ended and (self._inbox or time.monotonic() >= self._wake_at):
+                if not self._ended and (self._inbox or self.sources.monotonic() >= self._wake_at):
                     self._resume()
         if self._failure is not None:
             raise self._failure
+
+    def drive(self) -> float | None:
+        """Run the elementary actions on the calling thread until they block for input: for a
+        driver that owns the agent's time and input (``roco replay``, services/replay: the
+        transport's ``sources`` and an in-memory bus), instead of :meth:`run`. The first call
+        begins them (:meth:`setup`, the liveliness token); each later one goes on with what was
+        put on the transport since, or with nothing once the time they waited for has come.
+        Returns that time (``sources.monotonic()`` s); None once they have ended (after
+        :meth:`stop`). Raises what a step raised outside a transition function."""
+        with self._turn:
+            if self._actions is None:
+                self._actions = self._elementary_actions()
+            if not self._ended:
+                self._resume()
+        return None if self._ended else self._wake_at
 
     def _resume(self) -> None:
         """Run the suspended elementary actions until they block for input (turn held)."""
@@ -1063,7 +1086,7 @@ class Agent:
                 raise
             self._failure = exc  # raised by run() on the agent's thread
             return
-        self._wake_at = time.monotonic() + timeout
+        self._wake_at = self.sources.monotonic() + timeout
 
     def _elementary_actions(self) -> Generator[float, None, None]:
         """The agent's elementary actions (paper §3.2), suspended (yielding the time, s, they

@@ -77,7 +77,6 @@ from __future__ import annotations
 import enum
 import inspect
 import itertools
-import time
 from collections import OrderedDict
 from collections.abc import Callable, Collection, Container, Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field, replace
@@ -94,7 +93,6 @@ from services.spec.render_names import spellings
 from shared.fipa_codec import DecodeError, decode, encode
 from shared.fipa_codec.acts import Performative
 from shared.fipa_codec.languages import ContentError, decode_content
-from shared.fipa_codec.message import new_id
 from shared.fipa_codec.protocols import INITIATOR, PARTICIPANT, Protocol, Role
 
 if TYPE_CHECKING:
@@ -1389,7 +1387,7 @@ class Roles:
         ``reply_by_s`` from now, retransmitting ``payload`` at once and every ``retry_s``."""
         from services.runtime.replies import Pending
 
-        now = time.time()
+        now = self.agent.sources.time()
         again = retry_s is not None and bool(payload)
         self.agent.pending_replies.expect(
             Pending(
@@ -1640,7 +1638,7 @@ class Roles:
             conversation_id=conv.conversation_id or None,
             # every communicate of a role can be answered unambiguously, and two of them are
             # never byte-identical (a copy is what a receiver drops: services/runtime/dedup.py)
-            reply_with=new_id(f"{self.agent.name}-"),
+            reply_with=self.agent.sources.new_id(f"{self.agent.name}-"),
             in_reply_to=in_reply_to,
             reply_by_s=reply_by_s,
             expect_reply=expect,

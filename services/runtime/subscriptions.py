@@ -32,7 +32,6 @@ handler of the stream's ``inform``\\s (and, if it wants them, the hooks ``on_sub
 
 from __future__ import annotations
 
-import time
 from collections.abc import Callable
 from typing import TYPE_CHECKING
 
@@ -126,7 +125,7 @@ class StandingSubscription:
         if self.interval <= 0:
             self._open()
             return
-        self.retry_at = time.time() + self.interval
+        self.retry_at = self.roles.agent.sources.time() + self.interval
         self.interval = min(self.interval * 2, self.retry_s[1])
 
     def _agreed(self, conv: Conversation) -> None:

@@ -78,12 +78,13 @@ the last one — from which a subscriber learns of a communicate it missed at th
 
 
 class Transport(Protocol):
-    """What the runtime needs of a transport. Two capabilities are optional, looked up by name
-    (services/runtime/agent.py ``Agent._take_here``): ``inline_receive`` (True: subscribers are
+    """What the runtime needs of a transport. Three capabilities are optional, looked up by
+    name (services/runtime/agent.py): ``inline_receive`` (True: subscribers are
     called back on threads of the transport's own, never inside ``publish``, so an idle agent
-    may run its step there; without it every input goes to the agent's own thread) and
+    may run its step there; without it every input goes to the agent's own thread),
     ``declared(key) -> bool`` (a put on ``key`` declares nothing; without it every key counts
-    as declared)."""
+    as declared) and ``sources`` (the agent's clocks and fresh identifiers,
+    services/runtime/sources.py; without it the system's)."""
 
     def publish(self, key: str, payload: bytes) -> None: ...
     def subscribe(self, key_expr: str, callback: Callback) -> None: ...

@@ -225,8 +225,8 @@ def verify_run(
     unreadable inside it becomes a note (``services.report.load``)."""
     machines = dict(PROTOCOLS if protocols is None else protocols)
     data = load_run(Path(run_dir))
-    # the loader tries every content in its language, reasons in UTF-8 text too; the checks
-    # below judge content themselves, so its note on undecodable content is left out
+    # the loader tries every content in its language; the checks below judge content
+    # themselves, so its note on undecodable content is left out
     notes = [
         n
         for n in data.notes

@@ -39,6 +39,7 @@ TOOLS = (
     "services.doctor",
     "services.hosts",
     "services.live",
+    "services.replay",
     "services.cli",
 )
 

@@ -12,6 +12,7 @@ import pytest
 
 from services.recorder.record import read_records
 from services.report import build_report
+from services.report.load import load_run
 from services.runtime.run_folder import read_run_info
 from tests.support.machine import needs_gl
 from tests.support.world import FULL, stands_at, untouched, world
@@ -163,3 +164,49 @@ def test_roco_spec_trace_shows_every_leaf_but_the_foreign_platforms_from_the_pou
     assert "tests: none" not in proc.stdout
     md = (run_dir / "report.md").read_text()
     assert "Requirements traced to this run" in md and "**contradicted**" not in md
+
+
+# ---- roco replay (services/replay): the pour's planner, knowledge manager and coordinator ----
+
+
+@pytest.mark.parametrize("agent", ["a_pl", "a_km", "a_co"])
+def test_roco_replay_reproduces_what_the_agent_sent_in_the_pour(pour_run: tuple, agent: str) -> None:
+    _, run_dir = pour_run
+    proc = subprocess.run(
+        [sys.executable, "-m", "services.cli", "replay", str(run_dir), "--agent", agent],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-2000:]
+    last = proc.stdout.strip().splitlines()[-1]
+    assert last.startswith(f"roco: {agent} replayed from") and "reproduced" in last
+    sent = [m for m in load_run(run_dir).messages if m.sender == agent and m.copy_of is None]
+    assert f"{len(sent)} compared" in last
+
+
+def test_roco_replay_reports_a_cost_a_pl_drew_at_random(
+    pour_run: tuple, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Nondeterminism planted in a_pl — a random amount added to every plan's cost — is a
+    difference in the content of each plan a_pl sent, and nowhere else."""
+    import random
+
+    import services.agents.planner.agent as planner
+    from services.replay.driver import render, replay
+
+    to_hfsm = planner.to_hfsm
+
+    def noisy(*args: object, **kwargs: object) -> tuple:
+        root, complete, cost = to_hfsm(*args, **kwargs)  # type: ignore[arg-type]
+        return root, complete, cost + random.uniform(0.5, 1.5)
+
+    monkeypatch.setattr(planner, "to_hfsm", noisy)
+    _, run_dir = pour_run
+    result = replay(run_dir, "a_pl")
+    plans = [r.seq for r in read_records(run_dir) if r.sender == "a_pl" and r.performative == "inform"]
+    assert len(plans) == 2
+    assert [(d.seq, d.field) for d in result.differences] == [(s, "content.cost") for s in plans], render(
+        result
+    )
+    assert all(0.5 <= float(d.replayed) - float(d.recorded) <= 1.5 for d in result.differences)

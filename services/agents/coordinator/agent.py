@@ -20,7 +20,6 @@ restarted one answers not-understood, and the command is planned again.
 
 from __future__ import annotations
 
-import time
 from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -223,7 +222,7 @@ class Coordinator(Agent):
         if not isinstance(item.content, HumanCommand):
             conv.refuse_with(Performative.REFUSE, "no command in the request")
             return
-        now = time.time()
+        now = self.sources.time()
         task_id = conv.conversation_id or f"task-{len(self.tasks)}"
         if task_id in self.tasks:  # (the same request again is the role's: services/runtime/roles.py)
             conv.refuse_with(Performative.REFUSE, f"command {task_id} is already being carried out")
@@ -273,7 +272,7 @@ class Coordinator(Agent):
     def _schedule(self) -> None:
         self.handle_received()
         self.reschedule = False
-        now = time.time()
+        now = self.sources.time()
         waiting = [
             self._candidate(t, now, t.note.plan.cost)
             for t in self.tasks.values()
@@ -405,7 +404,7 @@ class Coordinator(Agent):
 
     def status(self) -> Status:
         """Every command a_co holds, the one on a_ta first, then by acceptance."""
-        now = time.time()
+        now = self.sources.time()
         tasks = sorted(self.tasks.values(), key=lambda t: (t.task_id != self.note.ta_task, t.note.order))
         return Status(
             tasks=tuple(

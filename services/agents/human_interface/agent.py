@@ -94,7 +94,6 @@ from shared.fipa_codec.languages.l_hc import (
     StatusQuery,
 )
 from shared.fipa_codec.languages.l_wm import Answer, SparqlQuery
-from shared.fipa_codec.message import new_id
 
 if TYPE_CHECKING:
     from services.runtime.transport import Transport
@@ -230,7 +229,7 @@ class HumanInterface(Agent):
         self.held: deque[HeldSentence] = deque()  # sentences waiting for the vocabulary, in order
         self.reading: deque[Reading] = deque()  # sentences given to the reader, in order
         self.reader = LineReader(self.grammar, lambda: self.post(ReadDone()))
-        self.foreign = ForeignRequests(self.log)  # agents of other platforms (C8)
+        self.foreign = ForeignRequests(self.log, self.sources.new_id)  # agents of other platforms (C8)
         return FSM(
             [
                 Behaviour(
@@ -350,7 +349,7 @@ class HumanInterface(Agent):
             FIPA_QUERY,
             SparqlQuery(VOCABULARY_QUERY),
             performative=Performative.QUERY_REF,
-            conversation_id=new_id(prefix),  # never one a_km has seen end
+            conversation_id=self.sources.new_id(prefix),  # never one a_km has seen end
             data=list(waiting),
         )
 

@@ -12,21 +12,23 @@ when the sentence was not understood (before any agree). Progress reports are no
 from __future__ import annotations
 
 import logging
+from collections.abc import Callable
 
 from services.runtime.agent import SpecViolation
 from services.runtime.human import FINAL_REPORTS, HumanInput, HumanReport, ReportKind
 from services.runtime.roles import Conversation
 from shared.fipa_codec import Performative
 from shared.fipa_codec.languages.l_hc import Sentence, SentenceReport
-from shared.fipa_codec.message import new_id
 
 
 class ForeignRequests:
     """The open fipa-requests of foreign agents, by the request id a_hi reads each sentence
-    under (module docstring); ``log``: a_hi's."""
+    under (module docstring); ``log``: a_hi's; ``new_id``: a_hi's source of identifiers
+    (services/runtime/sources.py)."""
 
-    def __init__(self, log: logging.Logger) -> None:
+    def __init__(self, log: logging.Logger, new_id: Callable[[str], str]) -> None:
         self.log = log
+        self.new_id = new_id
         self.open: dict[str, Conversation] = {}
 
     def take(self, conv: Conversation) -> HumanInput:
@@ -35,7 +37,7 @@ class ForeignRequests:
         request id whose reports answer it."""
         said = conv.content
         assert isinstance(said, Sentence)
-        request_id = new_id("fipa-")
+        request_id = self.new_id("fipa-")
         self.open[request_id] = conv
         self.log.info("sentence from %s [%s]: %s", conv.peer, request_id, said.text)
         return HumanInput(text=said.text, request_id=request_id, person=conv.peer)

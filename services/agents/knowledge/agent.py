@@ -26,7 +26,6 @@ when neither is set, the knowledge is kept in memory only. :meth:`KnowledgeManag
 
 from __future__ import annotations
 
-import time
 from collections import deque
 from collections.abc import Mapping
 from dataclasses import dataclass
@@ -109,7 +108,7 @@ class KnowledgeManager(Agent):
         self.work: deque[Query | WorldUpdate] = deque()  # queries and observations, as they came
         self.current: Query | WorldUpdate | None = None
         self.held: deque[Query] = deque()  # queries waiting for the first observation
-        self.hold_until: float | None = time.monotonic() + HOLD_QUERIES_S if self.world.kept else None
+        self.hold_until: float | None = self.sources.monotonic() + HOLD_QUERIES_S if self.world.kept else None
         return FSM(
             [
                 Behaviour(
@@ -197,7 +196,7 @@ class KnowledgeManager(Agent):
         docstring); logs once when the bound ends the wait."""
         if self.hold_until is None:
             return False
-        if time.monotonic() < self.hold_until:
+        if self.sources.monotonic() < self.hold_until:
             return True
         self.hold_until = None
         if self.held:

@@ -11,7 +11,6 @@ read).
 
 from __future__ import annotations
 
-import time
 from collections import deque
 
 import msgspec
@@ -171,7 +170,7 @@ class Planner(Agent):
         self.knowledge, self.failure, self.result, self.plan = Knowledge(), None, None, None
         self.cancelled = False
         self.asked = set()
-        self.started = time.monotonic()
+        self.started = self.sources.monotonic()
         self.log.info(
             "planning #%d for %s: %s",
             problem.plan_index,
@@ -284,7 +283,7 @@ class Planner(Agent):
             return
         if not self.checked:
             return
-        elapsed = time.monotonic() - self.started
+        elapsed = self.sources.monotonic() - self.started
         if self.failure is not None or self.plan is None:
             reason = self.failure or "no plan"
             request.reply(Performative.FAILURE, PlanFailure(task_id=self.problem.task_id, reason=reason))

@@ -58,7 +58,6 @@ before it reports: the hand is opened and moved back along the plan's way in
 
 from __future__ import annotations
 
-import time
 from collections import deque
 
 import msgspec
@@ -295,7 +294,7 @@ class TaskExecutor(Agent):
             "halting %s: cancel of its %s sent to ag_ex at wall time %.6f",
             step.path,
             command_name(command) if command is not None else "command",
-            time.time(),
+            self.sources.time(),
         )
 
     # a_km's subscription to environment updates (fipa-subscribe, participant)

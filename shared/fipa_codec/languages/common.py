@@ -12,6 +12,11 @@ Vec3 = tuple[float, float, float]
 Quat = tuple[float, float, float, float]
 """A unit quaternion (w, x, y, z)."""
 
+CLOCK = msgspec.Meta(extra={"clock": True})
+"""Marks a field its sender reads from its clock (``Annotated[float, CLOCK]``): a duration or a
+time left, in s, that differs from run to run with the machine's speed, not a fact of the task.
+``roco replay`` (services/replay) does not compare such fields."""
+
 
 class Pose(msgspec.Struct, frozen=True, array_like=True):
     """A rigid pose: ``position`` in metres, ``orientation`` as a unit quaternion (w, x, y, z),

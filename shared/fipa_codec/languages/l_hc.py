@@ -19,10 +19,12 @@ succeeded, stopped for a stop request, the status for a status request) or ``fai
 from __future__ import annotations
 
 import enum
+from typing import Annotated
 
 import msgspec
 
 from shared.fipa_codec.languages.base import Language, register
+from shared.fipa_codec.languages.common import CLOCK
 
 
 class TaskAtom(msgspec.Struct, frozen=True, array_like=True):
@@ -94,7 +96,7 @@ class TaskStatus(msgspec.Struct, frozen=True, kw_only=True):
     state: TaskState
     step: str | None = None
     priority: int = 0
-    deadline_in_s: float | None = None
+    deadline_in_s: Annotated[float, CLOCK] | None = None
 
 
 class Status(msgspec.Struct, frozen=True, tag="status", kw_only=True):

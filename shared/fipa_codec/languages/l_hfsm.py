@@ -18,10 +18,12 @@ point: put it down in a safe place), and only then reports Preempted
 
 from __future__ import annotations
 
+from typing import Annotated
+
 import msgspec
 
 from shared.fipa_codec.languages.base import Language, register
-from shared.fipa_codec.languages.common import Vec3
+from shared.fipa_codec.languages.common import CLOCK, Vec3
 from shared.fipa_codec.languages.l_ex import ExecutorCommand
 from shared.fipa_codec.languages.l_hc import TaskAtom
 
@@ -145,7 +147,7 @@ class HierarchicalPlan(msgspec.Struct, frozen=True, tag="plan", kw_only=True):
     complete: bool = True
     cost: float = 0.0
     km_queries: int = 0
-    planning_time_s: float = 0.0
+    planning_time_s: Annotated[float, CLOCK] = 0.0
     safe_stops: dict[str, PlanNode] = msgspec.field(default_factory=dict)
 
 

@@ -1,0 +1,342 @@
+"""The replay of one agent: its recorded input fed to a fresh instance, its output compared.
+
+The agent is built as its process builds it (the implementation the specification names), on
+an in-memory bus, with neither the run folder nor a viewer, its kept state (and a_km's
+knowledge store) in fresh folders of the replay's own: it starts as in the run, with nothing
+kept. Every other agent's liveliness token is on the bus from the start (the record holds no
+liveliness). The driver owns the agent's time
+(:class:`~services.replay.sources.ReplaySources`) and runs its elementary actions on its own
+thread (``Agent.drive``): the agent starts at its first communicate's recorded time
+(``AgentRecord.start``), the clock moves to each input's recorded time, or first to whatever
+time the agent waits for before it (a period, a reply-by deadline, a retransmission), and
+stands still while the agent computes. After the last input the clock runs on to the record's
+end. Each communicate the agent sends is compared at once with the next one it sent on that key
+in the run (services/replay/compare.py), which pairs their identifiers: the inputs that
+follow carry the replayed identifiers where they answer the agent.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import tempfile
+import time
+from collections import defaultdict
+from collections.abc import Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import msgspec
+
+from services.replay.compare import Difference, IdMap, compare
+from services.replay.record import AgentRecord, Recorded, agent_record
+from services.replay.sources import ReplaySources
+from services.runtime import keys
+from services.runtime.agent import Agent
+from services.runtime.counters import read_counters
+from services.runtime.dedup import wire_digest
+from services.runtime.main import agent_class
+from services.runtime.memory_transport import MemoryBus, MemoryTransport
+from services.runtime.transport import Callback
+from services.spec.model import SpecError, SystemSpec, default_spec
+from shared.fipa_codec import Communicate, DecodeError, decode, encode
+from shared.settings import Settings
+
+UNSET = ("run_dir", "hooks", "rerun")
+"""Settings (shared/settings.py) unset while the agent is replayed: it neither reads nor writes
+the run folder, nor records for a viewer."""
+KEPT = ("state_dir", "km_store")
+"""Settings pointed at fresh folders of the replay's own while the agent is replayed: it keeps
+its state (and a_km its knowledge) on disk as in the run, starting with nothing. (On disk
+matters: the rows of a SPARQL query without ORDER BY come in the store's order, which differs
+between Oxigraph's store on disk and in memory.)"""
+TROUBLE = (
+    "behaviour_errors",
+    "handler_errors",
+    "send_violations",
+    "rejected",
+    "protocol_violations",
+    "deadline_failures",
+)
+"""The replayed agent's counters (services/runtime/agent.py) the result reports when not 0."""
+MAX_STEPS = 1_000_000
+"""Steps the agent may take without input before the replay gives up on it (it never blocks)."""
+
+
+class ReplayError(Exception):
+    """The replay cannot be made (one line): no such agent, nothing of it in the record, input
+    outside the record, or an agent that cannot be built outside its run."""
+
+
+@dataclass
+class ReplayResult:
+    """A replay's outcome: ``inputs`` fed, ``compared`` communicates of the run compared,
+    ``differences`` in the order found, ``copies`` (recorded, replayed) not compared,
+    ``failure`` what the agent raised if it stopped with an error (the replay stops there),
+    ``counters`` of trouble the replayed agent counted (and ``run_counters``, the agent's
+    counters when the run ended, None when the run folder has none), ``notes`` on the record, and the wall
+    time (s) the replay took in all and to build the agent."""
+
+    agent: str
+    run_dir: Path
+    inputs: int = 0
+    compared: int = 0
+    differences: list[Difference] = field(default_factory=list)
+    copies: tuple[int, int] = (0, 0)
+    failure: str | None = None
+    counters: dict[str, int] = field(default_factory=dict)
+    run_counters: dict[str, int] | None = None
+    notes: list[str] = field(default_factory=list)
+    seconds: float = 0.0
+    build_seconds: float = 0.0
+
+    @property
+    def equal(self) -> bool:
+        """The agent sent what it sent in the run, and did not fail."""
+        return not self.differences and self.failure is None
+
+
+class _Failed(Exception):
+    """The agent failed in the replay in a way of its own (its message says how)."""
+
+
+class _Transport(MemoryTransport):
+    """The replayed agent's handle on the bus: it offers the replay's sources and notes the
+    key expressions the agent subscribes to."""
+
+    def __init__(self, bus: MemoryBus, sources: ReplaySources) -> None:
+        super().__init__(bus)
+        self.sources = sources
+        self.subscribed: list[str] = []
+
+    def subscribe(self, key_expr: str, callback: Callback) -> None:
+        self.subscribed.append(key_expr)
+        super().subscribe(key_expr, callback)
+
+
+class _Replay:
+    """One replay under way (see the module docstring)."""
+
+    def __init__(
+        self, record: AgentRecord, agent: Agent, sources: ReplaySources, transport: _Transport
+    ) -> None:
+        self.record, self.agent, self.sources, self.transport = record, agent, sources, transport
+        self.ids = IdMap()
+        self.differences: list[Difference] = []
+        self.taken: dict[str, int] = defaultdict(int)  # per key: recorded outputs met so far
+        self.seen: set[bytes] = set()
+        self.compared = 0
+        self.replayed_copies = 0
+        transport.bus.subscribe(f"{keys.FIPA_PREFIX}*/{agent.name}/*", self._sent)
+
+    def run(self) -> None:
+        wake = self.agent.drive()
+        self._check_inputs()
+        for item in self.record.inputs:
+            wake = self._until(item.t, wake)
+            self.sources.set(item.t)
+            self.transport.bus.publish(item.key, encode(self._fed(item.comm)))
+            wake = self.agent.drive()
+        self._until(self.record.end, wake)
+        self.agent.stop()
+        self.agent.drive()
+        self._unsent()
+
+    def _until(self, t: float, wake: float | None) -> float | None:
+        """Let the agent go on at each time it waits for up to ``t`` (POSIX s)."""
+        steps = 0
+        while wake is not None and wake <= t:
+            self.sources.set(max(wake, math.nextafter(self.sources.now, math.inf)))
+            wake = self.agent.drive()
+            steps += 1
+            if steps > MAX_STEPS:
+                raise _Failed(f"{self.agent.name} took {MAX_STEPS} steps without input, never waiting")
+        return wake
+
+    def _check_inputs(self) -> None:
+        ours = {keys.inbox_key(self.agent.name), keys.COUNTERS_ASK}
+        other = [k for k in self.transport.subscribed if k not in ours]
+        if other:
+            raise ReplayError(
+                f"{self.agent.name} takes input the traffic record does not hold ({', '.join(other)}): "
+                "only an agent whose input is communicates can be replayed"
+            )
+
+    def _fed(self, comm: Communicate) -> Communicate:
+        """``comm`` with the replayed identifiers of the conversations and replies it refers to;
+        its own identifiers paired with themselves."""
+        changes = {}
+        for name in ("conversation_id", "reply_with", "in_reply_to"):
+            old = getattr(comm, name)
+            if old is None:
+                continue
+            new = self.ids.replayed(old)
+            self.ids.pair(old, new)
+            if new != old:
+                changes[name] = new
+        return msgspec.structs.replace(comm, **changes) if changes else comm
+
+    def _sent(self, key: str, payload: bytes) -> None:
+        """A communicate the agent sent (the bus's callback, on the driver's thread)."""
+        digest = wire_digest(key, payload)
+        if digest in self.seen:
+            self.replayed_copies += 1
+            return
+        self.seen.add(digest)
+        at = self.sources.now
+        recorded = self._next_recorded(key)
+        try:
+            comm = decode(payload)
+        except DecodeError as exc:
+            seq, t, what = (recorded.seq, recorded.t, recorded.line) if recorded else (None, at, key)
+            self.differences.append(
+                Difference(seq, t - self.record.t0, what, "communicate", "sent", f"does not decode: {exc}")
+            )
+            return
+        if recorded is None:
+            what = f"{self.agent.name} → {keys.parse_fipa_key(key).receiver} {comm.performative.value}"
+            protocol = f" ({comm.protocol})" if comm.protocol else ""
+            t = at - self.record.t0
+            self.differences.append(Difference(None, t, what + protocol, "communicate", "not sent", "sent"))
+            return
+        self.compared += 1
+        self.differences += compare(recorded, comm, at, self.ids, self.record.t0)
+
+    def _next_recorded(self, key: str) -> Recorded | None:
+        sent = self.record.outputs.get(key, [])
+        i = self.taken[key]
+        while i < len(sent) and sent[i].copy:
+            i += 1
+        self.taken[key] = i + 1
+        return sent[i] if i < len(sent) else None
+
+    def _unsent(self) -> None:
+        for key in self.record.outputs:
+            while (item := self._next_recorded(key)) is not None:
+                self.differences.append(
+                    Difference(
+                        item.seq, item.t - self.record.t0, item.line, "communicate", "sent", "not sent"
+                    )
+                )
+
+
+def replay(run_dir: Path, agent: str, spec: SystemSpec | None = None) -> ReplayResult:
+    """Replay ``agent`` of the run in ``run_dir`` (see the module docstring). Raises
+    FileNotFoundError for a folder that does not exist, and ReplayError (one line) when the
+    replay cannot be made: an agent the specification does not name, a record that holds
+    nothing of it, an agent that cannot be built here or takes input outside the record."""
+    started = time.perf_counter()
+    spec = spec or default_spec()
+    try:
+        cls = agent_class(spec, agent)
+        record = agent_record(Path(run_dir), agent)
+    except (SpecError, ValueError) as exc:
+        raise ReplayError(str(exc)) from None
+    result = ReplayResult(agent, Path(run_dir), inputs=len(record.inputs), notes=list(record.notes))
+    if record.sessions > 1:
+        result.notes.append(
+            f"{agent} sent from {record.sessions} sessions (it was restarted): replayed as one"
+        )
+    sources = ReplaySources(record.start)
+    bus = MemoryBus()
+    for a in spec.agents:
+        if a.name != agent:
+            bus.announce(keys.alive_key(a.name))
+    with _isolated():
+        transport = _Transport(bus, sources)
+        try:
+            instance = cls(transport, spec)
+        except Exception as exc:
+            raise ReplayError(f"{agent} cannot be built outside its run: {exc}") from None
+        result.build_seconds = time.perf_counter() - started
+        try:
+            _run(_Replay(record, instance, sources, transport), result)
+        finally:
+            close = getattr(instance, "close", None)
+            if callable(close):
+                close()
+    result.counters = {k: instance.counters[k] for k in TROUBLE if instance.counters[k]}
+    result.run_counters = _run_counters(Path(run_dir), agent)
+    result.seconds = time.perf_counter() - started
+    return result
+
+
+def _run(run: _Replay, result: ReplayResult) -> None:
+    """Make the replay, and fill ``result`` with what it found, also when the agent fails."""
+    run.agent.bind()
+    try:
+        run.run()
+    except ReplayError:
+        raise
+    except _Failed as exc:
+        result.failure = f"{exc} (at {run.sources.now - run.record.t0:.3f} s)"
+    except Exception as exc:  # the agent stopped: what it raised is the finding
+        t = run.sources.now - run.record.t0
+        result.failure = f"{run.agent.name} raised at {t:.3f} s: {type(exc).__name__}: {exc}"
+    result.compared = run.compared
+    result.differences = run.differences
+    recorded_copies = sum(item.copy for items in run.record.outputs.values() for item in items)
+    result.copies = (recorded_copies, run.replayed_copies)
+
+
+def _run_counters(run_dir: Path, agent: str) -> dict[str, int] | None:
+    """``agent``'s counters in the run folder's counters.json (None: none there)."""
+    try:
+        report = read_counters(run_dir).get(agent)
+    except (OSError, msgspec.DecodeError, msgspec.ValidationError):
+        return None
+    return report.counters if report is not None else None
+
+
+@contextmanager
+def _isolated() -> Iterator[None]:
+    """The process's environment without the :data:`UNSET` settings and with :data:`KEPT` in
+    a temporary folder (removed after), restored after."""
+    names = [Settings.env_name(f) for f in (*UNSET, *KEPT)]
+    before = {n: os.environ.pop(n) for n in names if n in os.environ}
+    try:
+        with tempfile.TemporaryDirectory(prefix="roco-replay-") as folder:
+            for f in KEPT:
+                os.environ[Settings.env_name(f)] = str(Path(folder) / f)
+            yield
+    finally:
+        for n in names:
+            os.environ.pop(n, None)
+        os.environ.update(before)
+
+
+def render(result: ReplayResult, most: int = 50) -> str:
+    """The differences one per line (at most ``most``, then how many more), what the agent
+    raised, the notes, and a last line saying what was replayed and whether it was
+    reproduced."""
+    lines = [d.line() for d in result.differences[:most]]
+    if len(result.differences) > most:
+        lines.append(f"… and {len(result.differences) - most} more")
+    if result.failure is not None:
+        lines.append(result.failure)
+    lines += [f"note: {n}" for n in result.notes]
+    if result.counters:
+        ran = result.run_counters
+        counted = ", ".join(
+            f"{k} {v}" + (f" ({ran.get(k, 0)} in the run)" if ran is not None else "")
+            for k, v in result.counters.items()
+        )
+        lines.append(f"the replayed {result.agent} counted {counted}; --log prints its log")
+    lines.append(_summary(result))
+    return "\n".join(lines)
+
+
+def _summary(result: ReplayResult) -> str:
+    recorded_copies, replayed_copies = result.copies
+    copies = ""
+    if recorded_copies or replayed_copies:
+        copies = f"; copies not compared: {recorded_copies} recorded, {replayed_copies} replayed"
+    verdict = "reproduced" if result.equal else f"{len(result.differences)} difference(s)"
+    if result.failure is not None:
+        verdict += ", then it failed"
+    return (
+        f"roco: {result.agent} replayed from {result.run_dir}: {result.inputs} communicates in, "
+        f"{result.compared} compared{copies}; {verdict} "
+        f"in {result.seconds:.2f} s ({result.build_seconds:.2f} s to build {result.agent})"
+    )

@@ -1,0 +1,118 @@
+"""What a run's traffic record holds of one agent: what it received and what it sent.
+
+Read through services/report/load.py (``traffic.jsonl`` with ``traffic.msgpack``, integrity
+checked, copies marked), as ``roco spec verify`` reads it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from services.report.load import Message, load_run
+from services.runtime import keys
+from shared.fipa_codec import Communicate
+
+
+@dataclass(frozen=True)
+class Recorded:
+    """One recorded communicate: ``seq`` its index in the traffic record, ``t`` when it crossed
+    Zenoh (POSIX s, its arrival at the recorder), ``sent`` its sender's timestamp when it carried
+    one (else ``t``), the ``key`` it was put on, the communicate ``comm``, and ``copy`` True for
+    a copy of an earlier one on the same key (retransmitted, or answered again to a copy:
+    services/runtime/dedup.py)."""
+
+    seq: int
+    t: float
+    sent: float
+    key: str
+    comm: Communicate
+    copy: bool = False
+
+    @property
+    def line(self) -> str:
+        """``a_pl → a_co inform (fipa-request)``: who sent what to whom."""
+        parsed = keys.parse_fipa_key(self.key)
+        protocol = f" ({self.comm.protocol})" if self.comm.protocol else ""
+        return f"{parsed.sender} → {parsed.receiver} {self.comm.performative.value}{protocol}"
+
+
+@dataclass
+class AgentRecord:
+    """The record of ``agent`` in one run: ``t0`` when the run began and ``end`` the last time
+    in the record (POSIX s); ``inputs``, the communicates to it, in the order they crossed
+    Zenoh; ``outputs``, those from it per key (one receiver and channel each) in the order it
+    sent them (its publisher's sequence numbers), copies included; ``notes`` on what of the
+    record could not be used."""
+
+    agent: str
+    t0: float
+    end: float
+    inputs: list[Recorded] = field(default_factory=list)
+    outputs: dict[str, list[Recorded]] = field(default_factory=dict)
+    notes: list[str] = field(default_factory=list)
+    sessions: int = 1
+    """How many sessions (publishers' Zenoh sessions) the agent sent from: more than one when
+    it was restarted during the run."""
+
+    @property
+    def start(self) -> float:
+        """When the agent was last seen not yet to have said or heard anything (POSIX s): its
+        first communicate's time, the sender's timestamp for one it sent (it ran by then, and
+        what it sends as it starts, a_km's subscription, goes at once)."""
+        first = [item.t for item in self.inputs[:1]]
+        first += [items[0].sent for items in self.outputs.values() if items]
+        return min(first, default=self.t0)
+
+
+def agent_record(run_dir: Path, agent: str) -> AgentRecord:
+    """The record of ``agent`` in ``run_dir``. Raises FileNotFoundError (naming the path) when
+    the folder does not exist and ValueError when its record holds no communicate to or from
+    ``agent``; anything else missing or corrupt becomes a note."""
+    run = load_run(run_dir)
+    out = AgentRecord(agent, run.t0, max((m.rec.t for m in run.messages), default=run.t0))
+    out.notes = list(run.notes)
+    sent: list[tuple[tuple[int, int, int], Recorded]] = []
+    sessions: dict[str, int] = {}
+    unusable = 0
+    for m in run.messages:
+        way = _way(m, agent)
+        item = _recorded(m) if way else None
+        if item is None:
+            unusable += bool(way)
+        elif way == "in":
+            out.inputs.append(item)
+        else:
+            sent.append((_sent_order(m, sessions), item))
+    if not out.inputs and not sent:
+        raise ValueError(f"the traffic record of {run_dir} holds no communicate to or from {agent}")
+    for _, item in sorted(sent, key=lambda x: x[0]):
+        out.outputs.setdefault(item.key, []).append(item)
+    out.sessions = max(1, len(sessions))
+    if unusable:
+        out.notes.append(f"{unusable} communicate(s) of {agent} without a payload that decodes: left out")
+    return out
+
+
+def _way(m: Message, agent: str) -> str:
+    """``in`` for a communicate to ``agent``, ``out`` for one from it, else empty."""
+    try:
+        parsed = keys.parse_fipa_key(m.rec.key)
+    except ValueError:
+        return ""
+    return "in" if parsed.receiver == agent else "out" if parsed.sender == agent else ""
+
+
+def _sent_order(m: Message, sessions: dict[str, int]) -> tuple[int, int, int]:
+    """Where ``m`` comes among what its sender sent on its key: its session (numbered as they
+    first appear in ``sessions``), then its publisher's sequence number and place in a batch
+    (the record's order where it has none)."""
+    session = sessions.setdefault((m.rec.source or "").partition(":")[0], len(sessions))
+    return (session, m.rec.sn, m.rec.part) if m.rec.sn is not None else (session, m.rec.seq, 0)
+
+
+def _recorded(m: Message) -> Recorded | None:
+    if m.comm is None:
+        return None
+    sent = m.rec.t_sent if m.rec.t_sent is not None else m.rec.t
+    return Recorded(m.rec.seq, m.rec.t, sent, m.rec.key, m.comm, copy=m.copy_of is not None)

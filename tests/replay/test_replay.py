@@ -1,0 +1,203 @@
+"""``roco replay`` on small records of a real agent (a_co answering "what are you doing?"):
+what it reproduces, and each kind of difference it reports — a wrong reference, an identifier
+used twice where the agent made two, a content term, a communicate sent in one and not the
+other — plus the replays it refuses. The pour's record is replayed in
+tests/integration/test_pour_run.py."""
+
+from __future__ import annotations
+
+import os
+import re
+from pathlib import Path
+
+import pytest
+from typer.testing import CliRunner
+
+import services.cli as cli
+from services.replay.driver import ReplayError, render, replay
+from services.runtime.counters import CountersReport, save_counters
+from shared.fipa_codec import Communicate, Performative
+from shared.fipa_codec.aid import aid
+from shared.fipa_codec.languages import encode_content
+from shared.fipa_codec.languages.l_hc import Status, StatusQuery, TaskState, TaskStatus
+from tests.support.recorded_run import write_recorded_run
+
+
+def _query(n: int) -> Communicate:
+    language, body = encode_content(StatusQuery())
+    return Communicate(
+        performative=Performative.QUERY_REF,
+        sender=aid("a_hi"),
+        receiver=(aid("a_co"),),
+        content=body,
+        language=language,
+        encoding="msgpack",
+        ontology="O_RoCo",
+        protocol="fipa-query",
+        conversation_id=f"status-{n}",
+        reply_with=f"a_hi-{n}",
+        reply_by=1_800_000_000.0 + 30.0,
+    )
+
+
+def _answer(
+    n: int, *, reply_with: str, in_reply_to: str | None = None, status: Status | None = None
+) -> Communicate:
+    language, body = encode_content(status or Status(tasks=()))
+    return Communicate(
+        performative=Performative.INFORM_REF,
+        sender=aid("a_co"),
+        receiver=(aid("a_hi"),),
+        content=body,
+        language=language,
+        encoding="msgpack",
+        ontology="O_RoCo",
+        protocol="fipa-query",
+        conversation_id=f"status-{n}",
+        reply_with=reply_with,
+        in_reply_to=in_reply_to or f"a_hi-{n}",
+    )
+
+
+def _run(tmp_path: Path, *traffic: Communicate) -> Path:
+    return write_recorded_run(tmp_path / "run", [(1.0 + 0.5 * i, m) for i, m in enumerate(traffic)])
+
+
+def test_a_record_of_what_the_agent_does_is_reproduced(tmp_path: Path) -> None:
+    run = _run(
+        tmp_path, _query(1), _answer(1, reply_with="a_co-aaaa"), _query(2), _answer(2, reply_with="a_co-bbbb")
+    )
+    result = replay(run, "a_co")
+    assert result.equal, render(result)
+    assert (result.inputs, result.compared) == (2, 2)
+    assert render(result).endswith(f"({result.build_seconds:.2f} s to build a_co)")
+    assert "2 compared; reproduced" in render(result)
+
+
+def test_an_answer_to_the_wrong_request_is_a_difference(tmp_path: Path) -> None:
+    """The record says a_co answered the second query in reply to the first: the replayed
+    in-reply-to is a_hi's second reply-with, which the first already stands for."""
+    wrong = _answer(2, reply_with="a_co-bbbb", in_reply_to="a_hi-1")
+    run = _run(tmp_path, _query(1), _answer(1, reply_with="a_co-aaaa"), _query(2), wrong)
+    result = replay(run, "a_co")
+    assert [(d.seq, d.field, d.recorded) for d in result.differences] == [(3, "in-reply-to", "a_hi-1")]
+    assert result.differences[0].replayed == "a_hi-2 (where a_hi-1 was replayed as a_hi-1)"
+    line = render(result).splitlines()[0]
+    assert line.startswith(
+        "#3 at   2.500 s a_co → a_hi inform-ref (fipa-query): in-reply-to: recorded a_hi-1"
+    )
+
+
+def test_one_identifier_where_the_replay_made_two_is_a_difference(tmp_path: Path) -> None:
+    """Generated identifiers are paired, not ignored: a reply-with the record shows twice
+    stands for the first replayed one only."""
+    run = _run(
+        tmp_path, _query(1), _answer(1, reply_with="a_co-aaaa"), _query(2), _answer(2, reply_with="a_co-aaaa")
+    )
+    result = replay(run, "a_co")
+    assert [(d.seq, d.field, d.recorded) for d in result.differences] == [(3, "reply-with", "a_co-aaaa")]
+    assert "where a_co-aaaa was replayed as a_co-" in result.differences[0].replayed
+
+
+def test_other_content_is_a_difference_named_by_its_path(tmp_path: Path) -> None:
+    busy = Status(tasks=(TaskStatus(command_id="c1", text="pour", state=TaskState.RUNNING),))
+    run = _run(tmp_path, _query(1), _answer(1, reply_with="a_co-aaaa", status=busy))
+    (d,) = replay(run, "a_co").differences
+    assert (d.field, d.recorded, d.replayed) == ("content.tasks length", "1", "0")
+
+
+def test_a_communicate_sent_in_one_and_not_the_other_is_a_difference(tmp_path: Path) -> None:
+    unanswered = _run(tmp_path / "a", _query(1))
+    (extra,) = replay(unanswered, "a_co").differences
+    assert (extra.seq, extra.field, extra.recorded, extra.replayed) == (
+        None,
+        "communicate",
+        "not sent",
+        "sent",
+    )
+    twice = _run(
+        tmp_path / "b", _query(1), _answer(1, reply_with="a_co-aaaa"), _answer(1, reply_with="a_co-cccc")
+    )
+    (missing,) = replay(twice, "a_co").differences
+    assert (missing.seq, missing.field, missing.recorded, missing.replayed) == (
+        2,
+        "communicate",
+        "sent",
+        "not sent",
+    )
+
+
+def test_the_cli_exits_0_when_reproduced_and_1_with_one_line_per_difference(tmp_path: Path) -> None:
+    run = _run(tmp_path / "same", _query(1), _answer(1, reply_with="a_co-aaaa"))
+    done = CliRunner().invoke(cli.app, ["replay", str(run), "--agent", "a_co"], prog_name="roco")
+    assert done.exit_code == 0, done.output
+    assert "reproduced" in done.output.splitlines()[-1]
+    other = _run(tmp_path / "other", _query(1), _answer(1, reply_with="a_co-aaaa", in_reply_to="a_hi-9"))
+    done = CliRunner().invoke(cli.app, ["replay", str(other), "--agent", "a_co"], prog_name="roco")
+    assert done.exit_code == 1
+    lines = done.output.strip().splitlines()
+    assert len(lines) == 2 and "in-reply-to: recorded a_hi-9, replayed a_hi-1" in lines[0]
+    assert lines[1].startswith("roco: a_co replayed from") and "1 difference(s)" in lines[1]
+
+
+@pytest.mark.parametrize(
+    ("agent", "says"),
+    [
+        ("a_hi", "a_hi takes input the traffic record does not hold (roco/human/in)"),
+        ("a_xx", "no agent 'a_xx' in the specification"),
+        ("a_pl", "holds no communicate to or from a_pl"),
+    ],
+)
+def test_a_replay_that_cannot_be_made_is_one_line_and_exit_2(tmp_path: Path, agent: str, says: str) -> None:
+    run = _run(tmp_path, _query(1), _answer(1, reply_with="a_co-aaaa"))
+    with pytest.raises(ReplayError, match=re.escape(says)):
+        replay(run, agent)
+    done = CliRunner().invoke(cli.app, ["replay", str(run), "--agent", agent], prog_name="roco")
+    assert done.exit_code == 2
+    (line,) = done.output.strip().splitlines()
+    assert line.startswith("roco: ") and says in line
+
+
+def test_the_replayed_agent_reads_neither_the_run_folder_nor_the_caller_s_state(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The run folder and the caller's settings stay as they were: a_co keeps its state in a
+    folder of the replay's own, removed after."""
+    state = tmp_path / "state"
+    monkeypatch.setenv("ROCO_STATE_DIR", str(state))
+    run = _run(tmp_path, _query(1), _answer(1, reply_with="a_co-aaaa"))
+    before = sorted(p.name for p in run.iterdir())
+    assert replay(run, "a_co").equal
+    assert sorted(p.name for p in run.iterdir()) == before and not state.exists()
+    assert os.environ["ROCO_STATE_DIR"] == str(state)
+
+
+def test_what_goes_wrong_inside_the_replayed_agent_is_reported(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A handler that raises (the runtime counts it, answers failure and goes on): the answer
+    differs and the agent's count says why; a step that raises outside a handler or a
+    transition function stops the replay, and what it raised is reported."""
+    from services.agents.coordinator.agent import Coordinator
+
+    def broken(self: Coordinator) -> Status:
+        raise RuntimeError("planted")
+
+    run = _run(tmp_path, _query(1), _answer(1, reply_with="a_co-aaaa"))
+    monkeypatch.setattr(Coordinator, "status", broken)
+    result = replay(run, "a_co")
+    found = {d.field: (d.recorded, d.replayed) for d in result.differences}
+    assert found["performative"] == ("inform-ref", "failure")
+    assert found["content"] == ("Status", "'internal error: RuntimeError: planted'")
+    assert result.counters == {"handler_errors": 1}
+    assert "the replayed a_co counted handler_errors 1; --log prints its log" in render(result)
+    save_counters(run, {"a_co": CountersReport("a_co", 0.0, {"received.query-ref": 1})})
+    assert "counted handler_errors 1 (0 in the run)" in render(replay(run, "a_co"))
+    monkeypatch.setattr(Coordinator, "setup", broken)
+    result = replay(run, "a_co")
+    assert result.failure == "a_co raised at 1.000 s: RuntimeError: planted" and not result.equal
+    assert (
+        render(result)
+        .splitlines()[-1]
+        .endswith(f"then it failed in {result.seconds:.2f} s ({result.build_seconds:.2f} s to build a_co)")
+    )

@@ -1,0 +1,46 @@
+"""A run folder holding a traffic record written as the recorder writes it (services/recorder/
+record.py: ``traffic.jsonl`` and ``traffic.msgpack``, one publisher per key with its sequence
+numbers), from communicates given with their times: a few conversations of a real agent, for
+tests that read a record (``roco replay``) without running a fleet."""
+
+from __future__ import annotations
+
+from collections import defaultdict
+from pathlib import Path
+
+import msgspec
+
+from services.recorder.record import TRAFFIC_RAW, RawEntry, encode_entry, record_of
+from services.runtime import keys
+from services.runtime.run_folder import TRAFFIC_JSONL, RunInfo, write_run_info
+from services.runtime.transport import Arrival
+from services.spec.model import channel_between, default_spec
+from shared.fipa_codec import Communicate, encode
+
+STARTED = 1_800_000_000.0
+"""When the written runs began (POSIX s)."""
+
+
+def write_recorded_run(run_dir: Path, traffic: list[tuple[float, Communicate]]) -> Path:
+    """``run_dir`` (made) with ``run.json`` and a traffic record of ``traffic``: (s after
+    :data:`STARTED`, communicate) in the order they crossed Zenoh, each on the key of the
+    specification's channel between its sender and its first receiver."""
+    run_dir.mkdir(parents=True, exist_ok=True)
+    write_run_info(run_dir, RunInfo(started=STARTED))
+    spec = default_spec()
+    sn: defaultdict[str, int] = defaultdict(int)
+    lines, raw = [], []
+    for seq, (t, msg) in enumerate(traffic):
+        assert msg.sender is not None and msg.receiver
+        sender, receiver = msg.sender.name, msg.receiver[0].name
+        channel = channel_between(spec, sender, receiver)
+        assert channel is not None, (sender, receiver)
+        key = keys.fipa_key(channel.name, sender, receiver)
+        arrival = Arrival(STARTED + t, key, encode(msg), f"{sender}-session:{key}", sn[key], STARTED + t)
+        sn[key] += 1
+        entry = RawEntry("test", seq, arrival)
+        lines.append(msgspec.json.encode(record_of(entry)) + b"\n")
+        raw.append(encode_entry(entry))
+    (run_dir / TRAFFIC_JSONL).write_bytes(b"".join(lines))
+    (run_dir / TRAFFIC_RAW).write_bytes(b"".join(raw))
+    return run_dir
