@@ -32,6 +32,7 @@ from services.fleet.launcher import AGENT_ORDER, Fleet, LaunchError
 from services.hosts import link
 from services.hosts.link import Shaping
 from services.hosts.netns import HostPair, HostsError, netns_exec
+from services.recorder.record import LINK_BYTES_JSONL
 from services.runtime import keys
 from services.runtime.faults import FaultEvent
 from services.runtime.human import FINAL_REPORTS, HumanInput, HumanReport
@@ -122,6 +123,8 @@ class TwoHosts:
                 f"{brain_link}:{PORT}",
                 "--to",
                 f"127.0.0.1:{PORT}",
+                "--count",
+                str(self.run_dir / LINK_BYTES_JSONL),
             ]
             fleet.start_service("relay", [*relay, *delay])
         fleet.start_service("router_robot", [*router, "--identity", "router_robot", "--listen", local,
@@ -211,6 +214,7 @@ class TwoHosts:
         if self.fleet is not None:
             self.fleet.stop()
         if self.pair is not None:
+            link.record_counters(self.pair, self.run_dir)
             self.pair.destroy()
         if self.fleet is not None:
             register(self.fleet.endpoint, None)
