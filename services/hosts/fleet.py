@@ -32,7 +32,7 @@ from services.fleet.launcher import AGENT_ORDER, Fleet, LaunchError
 from services.hosts import link
 from services.hosts.link import Shaping
 from services.hosts.netns import HostPair, HostsError, netns_exec
-from services.recorder.record import LINK_BYTES_JSONL
+from services.recorder.record import HOSTS_JSON, LINK_BYTES_JSONL
 from services.runtime import keys
 from services.runtime.faults import FaultEvent
 from services.runtime.human import FINAL_REPORTS, HumanInput, HumanReport
@@ -41,8 +41,6 @@ from services.security.context import register
 from services.spec.model import load, spec_path
 
 PORT = 7447
-HOSTS_JSON = "hosts.json"
-"""The run folder's description of the two hosts (:meth:`TwoHosts._write_hosts`)."""
 ROBOT = ("ag_ex", "a_ta")
 """The robot's services (besides its router); every other agent and the recorder are the brain's."""
 ROUTERS = ("router_brain", "router_robot")

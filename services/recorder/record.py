@@ -36,6 +36,10 @@ FAULTS_JSONL = "faults.jsonl"
 LINK_JSONL = "link.jsonl"
 """The run folder's record of the link between two hosts (services/hosts/link.py writes it): one
 JSON object per line, ``{"t": POSIX s, "event": "shaping" | "down" | "up" | "counters", …}``."""
+HOSTS_JSON = "hosts.json"
+"""A two-host run's hosts (services/hosts/fleet.py writes it): ``{"hosts": {"brain" | "robot":
+{"processes": [...], "netns", "link_addr", "link_dev"}}, "operator_endpoint", "mesh",
+"lease_ms"}``."""
 LINK_BYTES_JSONL = "link_bytes.jsonl"
 """The bytes the routers' link carried, per second and direction, as the relay between the two
 hosts forwarded them (services/hosts/relay.py ``--count``): ``{"t": POSIX s, "up": robot → brain,
