@@ -114,13 +114,25 @@ class Wait:
             return None
         return self.recorded_s + self.half_trips * rtt_s / 2
 
-    def breaks_at_s(self, budget_s: float | None = None) -> float | None:
-        """The smallest RTT (s) at which the wait exceeds ``budget_s`` (default: its own);
-        None when no RTT makes it (no answer, or nothing crosses); 0 when it exceeds already."""
+    def late(self, budget_s: float | None = None) -> bool:
+        """The recorded wait exceeds ``budget_s`` (default: its own reply-by) already."""
         budget = self.budget_s if budget_s is None else budget_s
-        if self.recorded_s is None or self.half_trips == 0:
-            return 0.0 if self.recorded_s is not None and self.recorded_s > budget else None
-        return max(0.0, (budget - self.recorded_s) * 2 / self.half_trips)
+        return self.recorded_s is not None and self.recorded_s > budget
+
+    def breaks_at_s(self, budget_s: float | None = None) -> float | None:
+        """The smallest RTT (s) at which a wait in time in the record exceeds ``budget_s``
+        (default: its own reply-by); None when no RTT does (no answer, nothing crosses, or
+        :meth:`late` already)."""
+        budget = self.budget_s if budget_s is None else budget_s
+        if self.recorded_s is None or self.half_trips == 0 or self.late(budget):
+            return None
+        return (budget - self.recorded_s) * 2 / self.half_trips
+
+    def breaks(self, rtt_s: float, budget_s: float | None = None) -> bool:
+        """Links of round-trip time ``rtt_s`` make a wait in time in the record exceed
+        ``budget_s`` (default: its own reply-by)."""
+        at = self.breaks_at_s(budget_s)
+        return at is not None and rtt_s > at
 
 
 def _leg(m: Message) -> Leg | None:

@@ -126,19 +126,16 @@ class WhatIf:
         )
 
     def broken(self) -> list[Wait]:
-        """The waits that cross a link and that the RTT makes exceed their reply-by or their
+        """The waits in time in the record that the RTT makes exceed their reply-by or their
         role's declared one (none without an RTT)."""
-        if self.rtt_s is None:
+        rtt = self.rtt_s
+        if rtt is None:
             return []
-        out = []
-        for wait in self.waits:
-            predicted = wait.predicted_s(self.rtt_s)
-            if predicted is None or not wait.half_trips:
-                continue
-            declared = self.declared(wait)
-            if predicted > wait.budget_s or (declared is not None and predicted > declared):
-                out.append(wait)
-        return out
+        return [x for x in self.waits if x.breaks(rtt) or self._breaks_declared(x, rtt)]
+
+    def _breaks_declared(self, wait: Wait, rtt_s: float) -> bool:
+        declared = self.declared(wait)
+        return declared is not None and wait.breaks(rtt_s, declared)
 
 
 # ---- the declared reply-by of the roles ------------------------------------------------------

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import statistics
 from collections import Counter, defaultdict
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from pathlib import Path
 
 from services.spec.model import DEFAULT_SPEC, load
@@ -178,27 +178,29 @@ def _path_lines(
 
 def _wait_line(what: str, ws: Sequence[Wait], budget_s: float | None, rtt_s: float | None) -> str:
     """One line on answered waits ``ws`` against their own reply-by (``budget_s`` None) or
-    ``budget_s``: the tightest, whether ``rtt_s`` breaks some, the smallest RTT that does."""
+    ``budget_s``: the tightest in time, those late in the record already, whether ``rtt_s``
+    breaks some, and the smallest RTT that does."""
 
-    def budget(x: Wait) -> float:
-        return x.budget_s if budget_s is None else budget_s
+    def slack(x: Wait) -> float:
+        return (x.budget_s if budget_s is None else budget_s) - (x.recorded_s or 0.0)
 
-    tight = min(ws, key=lambda x: budget(x) - (x.recorded_s or 0.0))
+    late = sum(1 for x in ws if x.late(budget_s))
+    in_time = [x for x in ws if not x.late(budget_s)]
+    parts = [f"{what}: {len(ws)}"]
+    if in_time:
+        tight = min(in_time, key=slack)
+        parts.append(
+            f"tightest: reply-by {_ms(slack(tight) + (tight.recorded_s or 0.0))} after sending, answered in "
+            f"{_ms(tight.recorded_s or 0.0)}, {tight.half_trips / 2:g} round trip(s) cross"
+        )
+    if late:
+        parts.append(f"{late} answered after the reply-by in the record already")
+    if rtt_s is not None:
+        broken = sum(1 for x in ws if x.breaks(rtt_s, budget_s))
+        parts.append(f"at RTT {_ms(rtt_s)}: " + (f"BREAKS {broken}" if broken else "holds"))
     breaks = [b for b in (x.breaks_at_s(budget_s) for x in ws) if b is not None]
-    first = f"; first breaks at RTT ≥ {_ms(min(breaks))}" if breaks else "; no RTT breaks it"
-    return (
-        f"{what}: {len(ws)}, tightest: reply-by {_ms(budget(tight))} after sending, answered in "
-        f"{_ms(tight.recorded_s or 0.0)}, {tight.half_trips / 2:g} round trip(s) cross"
-        f"{_at_rtt(ws, budget, rtt_s)}{first}"
-    )
-
-
-def _at_rtt(ws: Sequence[Wait], budget: Callable[[Wait], float], rtt_s: float | None) -> str:
-    """``; at RTT …: holds`` or ``BREAKS n``; "" without an RTT."""
-    if rtt_s is None:
-        return ""
-    broken = sum(1 for x in ws if (x.predicted_s(rtt_s) or 0.0) > budget(x))
-    return f"; at RTT {_ms(rtt_s)}: " + (f"BREAKS {broken}" if broken else "holds")
+    parts.append(f"first breaks at RTT ≥ {_ms(min(breaks))}" if breaks else "no RTT breaks one in time")
+    return "; ".join(parts)
 
 
 def _deadline_lines(w: WhatIf) -> list[str]:
