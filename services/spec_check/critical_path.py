@@ -192,8 +192,8 @@ class CriticalPaths:
     convs: Sequence[Conversation]
     waits: Mapping[str, Mapping[str, set[str]]]
     crossings: Crossings
-    _opened_by: dict[str, list[Conversation]] = field(default_factory=dict)
-    _memo: dict[int, int] = field(default_factory=dict)
+    _opened_by: dict[str, list[Conversation]] = field(default_factory=dict, init=False)
+    _memo: dict[int, int] = field(default_factory=dict, init=False)
 
     def __post_init__(self) -> None:
         opened: dict[str, list[Conversation]] = defaultdict(list)

@@ -7,18 +7,19 @@ agents by spaces or commas; every agent of the specification on exactly one host
 agent is on one host, as ``roco run`` places them.
 
 How roco routes (services/hosts/fleet.py, docs/deploy.md): each host runs a Zenoh router its
-agents connect to; the routers mesh over TLS, the others with the router of the host that
-carries the traffic recorder (the *hub*; a star, as ``roco hosts`` joins the robot's router to
-the brain's). The routers pass declarations of interest, so a put crosses to another host only
+agents connect to, so two agents of one host talk through that host's router, never through
+another's; the routers mesh over TLS, the others with the router of the host that carries the
+traffic recorder (the *hub*; a star, as ``roco hosts`` joins the robot's router to the
+brain's). The routers pass declarations of interest, so a put crosses to another host only
 when something there subscribes to it, and crosses each link once however many subscribe
 there. A communicate from A to B is wanted by B and by the recorder, which records every
 communicate (``roco/fipa/**``). So it crosses every link on the way from A's host to B's host
-and to the recorder's host, each once: a communicate between two agents of one host that is
-not the recorder's still crosses to the recorder (ag_ex's C5 traffic with a_ta, both on the
-robot, crosses to the brain), and two agents on the recorder's host never use a link, whichever
-host has another router. Agents merged into one process hand their communicates over in it: they
-leave Zenoh, the links and the record. A run's record is what crossed one router with every
-agent on it; the placement only moves it.
+and to the recorder's host, each once: a communicate between two agents of a host without the
+recorder still crosses once, to the recorder (ag_ex's C5 traffic with a_ta, both on the robot,
+crosses to the brain), and two agents on the recorder's host never use a link. Agents merged
+into one process hand their communicates over in it: they leave Zenoh, the links and the
+record. The record is taken as what the agents send, wherever they ran; the placement only
+decides which links it crosses.
 
 What crosses a link is counted as the routers' link carries it: one *put* per Zenoh sample (a
 batch of communicates a step sent to one receiver is one put: shared/fipa_codec/batch.py, its
@@ -71,7 +72,7 @@ class Placement:
     merged: tuple[tuple[str, ...], ...] = ()
     recorder: int | None = 0
     hub: int = 0
-    _host: dict[str, int] = field(default_factory=dict, compare=False, repr=False)
+    _host: dict[str, int] = field(default_factory=dict, init=False, compare=False, repr=False)
 
     def __post_init__(self) -> None:
         self._host.update({a: i for i, agents in enumerate(self.hosts) for a in agents})
