@@ -1230,6 +1230,44 @@ def spec_deadlock(spec: SpecFile = None) -> None:
         raise typer.Exit(1)
 
 
+@spec_app.command("what-if", short_help="Weigh a placement of the agents on hosts from a run's record.")
+def spec_what_if(
+    run_dir: Annotated[Path, typer.Argument(metavar="RUN", help="a run folder")],
+    hosts: Annotated[
+        str | None,
+        typer.Option(help='the agents per host, hosts split by |: "ag_ex | a_co a_pl a_km a_ta a_hi"'),
+    ] = None,
+    merge: Annotated[
+        list[str] | None, typer.Option(help="agents in one process, joined by +: a_pl+a_km (again for more)")
+    ] = None,
+    rtt: Annotated[str | None, typer.Option(help="the round-trip time of each link: 20ms, 0.5s")] = None,
+    recorder_with: Annotated[
+        str, typer.Option(help="the agent whose host carries the traffic recorder, or none")
+    ] = "a_hi",
+    spec: SpecFile = None,
+) -> None:
+    """From a run's record, what a placement of the agents would put on each link between
+    hosts (per channel, mean and peak kbps), the sizes against the specification's estimates,
+    the round trips each conversation's critical path would cross and the reply-by deadlines an
+    RTT would break; or what merged agents take off Zenoh (docs/spec.md). Exit 1 when a
+    deadline breaks at --rtt; exit 2 for an option that does not read or a folder that is not
+    a run folder."""
+    from services.spec.model import SpecError
+    from services.spec_check.placement import PlacementError
+    from services.spec_check.whatif_text import what_if_report
+
+    try:
+        ok, text = what_if_report(
+            _run_folder(run_dir), hosts=hosts, merges=merge or (), rtt=rtt, recorder_with=recorder_with,
+            spec_path=spec,
+        )  # fmt: skip
+    except (PlacementError, SpecError) as exc:
+        raise fail(str(exc), code=2) from None
+    typer.echo(text)
+    if not ok:
+        raise typer.Exit(1)
+
+
 @spec_app.command("verify", short_help="Check a run's recorded traffic against the specification.")
 def spec_verify(
     run_dir: Annotated[Path, typer.Argument(metavar="RUN", help="a run folder")], spec: SpecFile = None

@@ -234,6 +234,7 @@ def down(runs_dir: RunsDir = Path("runs")) -> None:
     down`), the routers; remove both namespaces and their links; then record in the run's
     run.json the commands the fleet was given and their outcomes (from its C2 traffic) and
     write its report."""
+    from services.hosts.link import record_counters
     from services.hosts.netns import end_processes
     from services.recorder.sync import sync_fleet, sync_words
     from services.report.ending import end
@@ -256,6 +257,7 @@ def down(runs_dir: RunsDir = Path("runs")) -> None:
         typer.echo(f"; recorder: {sync_words(synced)}", nl=False)
     end_processes([pids[n] for n in ("recorder", "relay") if n in pids], 10.0)
     typer.echo("; routers", nl=False)
+    record_counters(pair, run_dir)
     pair.destroy()  # ends what is left (the routers) and removes the namespaces
     typer.echo("; both hosts removed")
     fleet_file.unlink(missing_ok=True)

@@ -32,6 +32,7 @@ from services.fleet.launcher import AGENT_ORDER, Fleet, LaunchError
 from services.hosts import link
 from services.hosts.link import Shaping
 from services.hosts.netns import HostPair, HostsError, netns_exec
+from services.recorder.record import HOSTS_JSON, LINK_BYTES_JSONL
 from services.runtime import keys
 from services.runtime.faults import FaultEvent
 from services.runtime.human import FINAL_REPORTS, HumanInput, HumanReport
@@ -40,8 +41,6 @@ from services.security.context import register
 from services.spec.model import load, spec_path
 
 PORT = 7447
-HOSTS_JSON = "hosts.json"
-"""The run folder's description of the two hosts (:meth:`TwoHosts._write_hosts`)."""
 ROBOT = ("ag_ex", "a_ta")
 """The robot's services (besides its router); every other agent and the recorder are the brain's."""
 ROUTERS = ("router_brain", "router_robot")
@@ -122,6 +121,8 @@ class TwoHosts:
                 f"{brain_link}:{PORT}",
                 "--to",
                 f"127.0.0.1:{PORT}",
+                "--count",
+                str(self.run_dir / LINK_BYTES_JSONL),
             ]
             fleet.start_service("relay", [*relay, *delay])
         fleet.start_service("router_robot", [*router, "--identity", "router_robot", "--listen", local,
@@ -211,6 +212,7 @@ class TwoHosts:
         if self.fleet is not None:
             self.fleet.stop()
         if self.pair is not None:
+            link.record_counters(self.pair, self.run_dir)
             self.pair.destroy()
         if self.fleet is not None:
             register(self.fleet.endpoint, None)

@@ -132,6 +132,23 @@ def record(run_dir: Path, event: str, **fields: object) -> None:
         f.write(json.dumps({"t": time.time(), "event": event, **fields}) + "\n")
 
 
+def record_counters(pair: HostPair, run_dir: Path) -> None:
+    """Append the link device's counters to ``run_dir/link.jsonl`` (event ``counters``: bytes and
+    packets the robot's end sent, ``tx_*``: robot → brain, and received, ``rx_*``: brain →
+    robot, since the link was made: everything on the wire, TCP/IP headers and retransmissions
+    included); nothing when the device is gone or ``ip`` cannot say."""
+    dev, ns = pair.link_dev["robot"], pair.netns("robot")
+    done = _run(["ip", "-n", ns, "-s", "-j", "link", "show", "dev", dev], check=False)
+    try:
+        stats = json.loads(done.stdout)[0]["stats64"]
+        fields = {
+            f"{way}_{what}": int(stats[way][what]) for way in ("tx", "rx") for what in ("bytes", "packets")
+        }
+    except (ValueError, LookupError, TypeError):
+        return
+    record(run_dir, "counters", device=dev, **fields)
+
+
 def record_shaping(run_dir: Path, shaping: Shaping, how: str) -> None:
     record(run_dir, "shaping", **asdict(shaping), how=how)
 

@@ -35,7 +35,15 @@ TRAFFIC_RAW = "traffic.msgpack"
 FAULTS_JSONL = "faults.jsonl"
 LINK_JSONL = "link.jsonl"
 """The run folder's record of the link between two hosts (services/hosts/link.py writes it): one
-JSON object per line, ``{"t": POSIX s, "event": "shaping" | "down" | "up", …}``."""
+JSON object per line, ``{"t": POSIX s, "event": "shaping" | "down" | "up" | "counters", …}``."""
+HOSTS_JSON = "hosts.json"
+"""A two-host run's hosts (services/hosts/fleet.py writes it): ``{"hosts": {"brain" | "robot":
+{"processes": [...], "netns", "link_addr", "link_dev"}}, "operator_endpoint", "mesh",
+"lease_ms"}``."""
+LINK_BYTES_JSONL = "link_bytes.jsonl"
+"""The bytes the routers' link carried, per second and direction, as the relay between the two
+hosts forwarded them (services/hosts/relay.py ``--count``): ``{"t": POSIX s, "up": robot → brain,
+"down": brain → robot}`` per line."""
 
 
 class RecordKey(NamedTuple):
@@ -273,6 +281,34 @@ def _old_pair_end(data: bytes, pos: int) -> int:
     if width is None:
         raise ValueError(f"corrupt raw traffic stream at byte {p}")
     return p + 1 + width + int.from_bytes(data[p + 1 : p + 1 + width], "big")
+
+
+class LinkSecond(msgspec.Struct, frozen=True):
+    """One second of the link's traffic (:data:`LINK_BYTES_JSONL`): its start ``t`` (POSIX s),
+    the bytes ``up`` (robot → brain) and ``down`` (brain → robot)."""
+
+    t: float
+    up: int = 0
+    down: int = 0
+
+
+_link_second = msgspec.json.Decoder(LinkSecond)
+
+
+def read_link_bytes(run_dir: Path) -> list[LinkSecond]:
+    """The seconds of ``run_dir/link_bytes.jsonl`` in time order (none when the run had no
+    counting relay); lines that do not read are skipped."""
+    try:
+        lines = (run_dir / LINK_BYTES_JSONL).read_bytes().splitlines()
+    except OSError:
+        return []
+    out = []
+    for line in lines:
+        try:
+            out.append(_link_second.decode(line))
+        except (msgspec.DecodeError, msgspec.ValidationError):
+            continue
+    return sorted(out, key=lambda s: s.t)
 
 
 def read_link_events(run_dir: Path) -> list[dict[str, object]]:

@@ -7,7 +7,13 @@ from pathlib import Path
 
 import msgspec
 
-from services.recorder.record import FAULTS_JSONL, read_fault_events, read_link_events
+from services.recorder.record import (
+    FAULTS_JSONL,
+    LINK_BYTES_JSONL,
+    read_fault_events,
+    read_link_bytes,
+    read_link_events,
+)
 from services.report.content import sphere_share
 from services.report.coordination import commands, coordination
 from services.report.figures import write_figures
@@ -66,6 +72,7 @@ def _assemble(run: RunData, container: str = "bowl", tracer: Tracer | None = Non
     header.robot_duration_s = clock.between(header.command_t, header.finished_t)
     header.record = run.integrity.summary() if run.integrity.records else ""
     header.access_control = _access_control(run)
+    header.link = _link(Path(run_dir))
     return Report(
         header=header,
         sizes=size_stats(wire),
@@ -98,6 +105,37 @@ def _requirements(run: RunData, tracer: Tracer | None, notes: list[str]) -> list
     except ValueError as exc:
         notes.append(f"requirements not traced: {exc}")
         return []
+
+
+def _link(run_dir: Path) -> str:
+    """One line on what the link between two hosts carried: each way and its mean and busiest
+    second as the relay counted it (``link_bytes.jsonl``: Zenoh and TLS, not TCP/IP), and the
+    link device's totals (``link.jsonl`` ``counters``: everything on the wire); "" when the run
+    has neither."""
+    seconds = read_link_bytes(run_dir)
+    parts = []
+    if seconds:
+        up, down = sum(s.up for s in seconds), sum(s.down for s in seconds)
+        span = seconds[-1].t - seconds[0].t + 1
+        peak = max(s.up + s.down for s in seconds)
+        parts.append(
+            f"robot → brain {up / 1e3:.1f} kB, brain → robot {down / 1e3:.1f} kB over {span:.0f} s: mean "
+            f"{(up + down) * 8 / 1e3 / span:.1f} kbit/s, busiest second {peak * 8 / 1e3:.1f} kbit/s "
+            f"(the relay's count, `{LINK_BYTES_JSONL}`: Zenoh and TLS, not TCP/IP)"
+        )
+    counters = [e for e in read_link_events(run_dir) if e.get("event") == "counters"]
+    if counters:
+        c = counters[-1]
+        parts.append(
+            f"on the link device: robot → brain {_kb(c.get('tx_bytes'))} in {c.get('tx_packets')} packets, "
+            f"brain → robot {_kb(c.get('rx_bytes'))} in {c.get('rx_packets')} "
+            "(TCP/IP and retransmissions included)"
+        )
+    return "; ".join(parts)
+
+
+def _kb(n: object) -> str:
+    return f"{n / 1e3:.1f} kB" if isinstance(n, int) else "?"
 
 
 def _access_control(run: RunData) -> str:

@@ -172,6 +172,8 @@ def _header(h: Header, perception: Sequence[PerceptionRow] = ()) -> str:
     ]
     if h.access_control:
         rows.append(["Access control", h.access_control])
+    if h.link:
+        rows.append(["Link between the hosts", h.link])
     title = f"# Experiment report: {Path(h.run_dir).name}"
     return "\n\n".join([title, f"Run folder: `{h.run_dir}`", _table(["", ""], rows), HOW_MEASURED])
 

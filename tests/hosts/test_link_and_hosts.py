@@ -17,7 +17,7 @@ from services.cli import app
 from services.fleet.launcher import free_port
 from services.hosts import link
 from services.hosts.netns import HostPair, run_ip, sweep
-from services.recorder.record import read_link_events
+from services.recorder.record import read_link_bytes, read_link_events
 from services.report.timeline import link_events
 from tests.support.machine import needs_two_hosts
 
@@ -63,6 +63,40 @@ def test_the_relay_delays_each_direction_and_keeps_the_order() -> None:
         relay.terminate()
         relay.wait()
         srv.close()
+
+
+def test_the_relay_counts_what_it_forwards_each_way_per_second(tmp_path: Path) -> None:
+    """``--count``: the bytes forwarded client → server (``up``) and back (``down``), per second
+    of the clock, written as the relay stops (services/hosts/relay.py)."""
+    srv, port = _echo_server()
+    relay_port = free_port()
+    count = tmp_path / "link_bytes.jsonl"
+    relay = subprocess.Popen(
+        [sys.executable, "-m", "services.hosts.relay", "--listen", f"127.0.0.1:{relay_port}",
+         "--to", f"127.0.0.1:{port}", "--count", str(count)],
+        stdout=subprocess.PIPE,
+    )  # fmt: skip
+    try:
+        assert relay.stdout is not None and b"roco relay" in relay.stdout.readline()
+        client = socket.create_connection(("127.0.0.1", relay_port), timeout=5)
+        conn, _ = srv.accept()
+        client.sendall(b"u" * 3000)
+        got = b""
+        while len(got) < 3000:
+            got += conn.recv(4096)
+        conn.sendall(b"d" * 700)
+        back = b""
+        while len(back) < 700:
+            back += client.recv(4096)
+        client.close()
+        conn.close()
+    finally:
+        relay.terminate()
+        relay.wait()
+        srv.close()
+    seconds = read_link_bytes(tmp_path)
+    assert sum(s.up for s in seconds) == 3000 and sum(s.down for s in seconds) == 700
+    assert all(float(s.t).is_integer() for s in seconds)
 
 
 def test_link_events_become_timeline_rows() -> None:

@@ -210,3 +210,23 @@ def test_roco_replay_reports_a_cost_a_pl_drew_at_random(
         result
     )
     assert all(0.5 <= float(d.replayed) - float(d.recorded) <= 1.5 for d in result.differences)
+
+
+def test_what_if_ag_ex_ran_on_a_host_of_its_own(pour_run: tuple) -> None:
+    """``roco spec what-if`` on the pour (services/spec_check/whatif.py): with ag_ex alone on a
+    host, only C5 crosses, every C5 communicate once, and the command's critical path crosses as
+    often as the executions nested in it do (C3 stays on the brain)."""
+    from services.spec.model import load
+    from services.spec_check.placement import parse_placement
+    from services.spec_check.whatif import what_if
+
+    _, run_dir = pour_run
+    spec = load()
+    w = what_if(run_dir, spec, parse_placement(spec.agent_names, "ag_ex | a_co a_pl a_km a_ta a_hi"), 0.02)
+    assert {ch for flows in w.traffic.links.values() for ch in flows} == {"C5"}
+    c5 = [r for r in read_records(run_dir) if r.channel == "C5"]
+    assert sum(f.communicates for f in w.traffic.totals.values()) == len(c5)
+    commands = [c for c in w.convs if c.kind == "C2:fipa-request"]
+    executions = [c for c in w.convs if c.kind == "C1:coordinate"]
+    assert len(commands) == 1 and executions
+    assert w.paths.half_trips(commands[0]) == sum(w.paths.half_trips(c) for c in executions) > 0

@@ -3,6 +3,7 @@ matrix, the Table 7 timeline, planning phases, sphere share, and the Markdown.""
 
 from __future__ import annotations
 
+import json
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -266,3 +267,33 @@ def test_the_header_says_what_the_robot_perceived_with(make_run: Callable[..., P
     # no faults were injected: the perception section follows the seventh without a gap
     assert "| Perception | head camera: 2 Observation(s), beside the ground truth in section 8 |" in text
     assert "## 8. Perception (head camera)" in text
+
+
+def test_the_link_row_says_what_the_link_between_the_hosts_carried(
+    make_run: Callable[..., Path], pour: Any
+) -> None:
+    """A run of two hosts: the relay's count per second (link_bytes.jsonl) and the link
+    device's counters (link.jsonl) make one header row; a run on one host has none."""
+    plain = make_run(pour, name="one_host")
+    assert build_report(plain).header.link == ""
+    d = make_run(pour, name="two_hosts")
+    seconds = [
+        {"t": 100, "up": 1000, "down": 250},
+        {"t": 101, "up": 0, "down": 0},
+        {"t": 103, "up": 500, "down": 0},
+    ]
+    (d / "link_bytes.jsonl").write_text("".join(json.dumps(s) + "\n" for s in seconds) + "garbage\n")
+    counters = {
+        "t": 104.0,
+        "event": "counters",
+        "tx_bytes": 2100,
+        "tx_packets": 9,
+        "rx_bytes": 600,
+        "rx_packets": 7,
+    }
+    (d / "link.jsonl").write_text(json.dumps(counters) + "\n")
+    line = build_report(d).header.link
+    assert line.startswith("robot → brain 1.5 kB, brain → robot 0.2 kB over 4 s: mean 3.5 kbit/s"), line
+    assert "busiest second 10.0 kbit/s" in line
+    assert "on the link device: robot → brain 2.1 kB in 9 packets, brain → robot 0.6 kB in 7" in line
+    assert f"| Link between the hosts | {line} |" in write_report(d).read_text()
