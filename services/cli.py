@@ -592,7 +592,7 @@ def _finish_report(run_dir: Path, info: RunInfo, *, interrupted: bool = False) -
     from services.spec_check.trace import report_rows
 
     try:
-        path = write_report(run_dir, _coverage_summary(run_dir), report_rows)
+        path = write_report(run_dir, coverage=_coverage_summary(run_dir), tracer=report_rows)
         report = build_report(run_dir)
     except Exception as exc:  # the run's outcome stands even if its report cannot be made
         if interrupted:
@@ -1526,7 +1526,9 @@ def report(run_dir: Annotated[Path, typer.Argument(metavar="RUN", help="a run fo
     from services.spec_check.trace import report_rows
 
     try:
-        typer.echo(str(write_report(_run_folder(run_dir), _coverage_summary(run_dir), report_rows)))
+        typer.echo(
+            str(write_report(_run_folder(run_dir), coverage=_coverage_summary(run_dir), tracer=report_rows))
+        )
     except OSError as exc:
         raise fail(f"cannot write the report in {run_dir}: {exc.strerror or exc}") from None
 

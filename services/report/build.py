@@ -219,7 +219,7 @@ def _perception(run_dir: Path, notes: list[str]) -> list[PerceptionRow]:
 
 
 def write_report(
-    run_dir: Path, coverage: CoverageSummary | None = None, tracer: Tracer | None = None
+    run_dir: Path, *, coverage: CoverageSummary | None = None, tracer: Tracer | None = None
 ) -> Path:
     """Build the report of ``run_dir``, draw its figures into ``run_dir/figures/`` (PNG, see
     :mod:`services.report.figures`) and write it as Markdown, figures linked, to
@@ -227,11 +227,11 @@ def write_report(
     counted by the caller (``roco spec coverage``; None: no such section); ``tracer`` traces the
     requirements to the run (its section; None: left out). A figure that cannot be drawn
     becomes a note of the report. Raises FileNotFoundError when the folder does not exist."""
-    return write_run_report(load_run(Path(run_dir)), coverage, tracer)[0]
+    return write_run_report(load_run(Path(run_dir)), coverage=coverage, tracer=tracer)[0]
 
 
 def write_run_report(
-    run: RunData, coverage: CoverageSummary | None = None, tracer: Tracer | None = None
+    run: RunData, *, coverage: CoverageSummary | None = None, tracer: Tracer | None = None
 ) -> tuple[Path, Report]:
     """:func:`write_report` of a run folder already read: writes ``report.md`` and its figures
     into ``run.run_dir``; returns the path and the report. Raises OSError when they cannot be

@@ -62,7 +62,7 @@ def end(run_dir: Path, *, ended: float, failure: str = "", tracer: Tracer | None
         return Ending(RunInfo(), problem=_first_line(exc))
     run.info = info
     try:
-        path, report = write_run_report(run, tracer)
+        path, report = write_run_report(run, tracer=tracer)
     except Exception as exc:  # the fleet has ended whether or not its report can be made
         return Ending(info, problem=_first_line(exc))
     return Ending(info, path, report.sizes.count)

@@ -271,7 +271,7 @@ def test_the_report_lists_the_requirements_with_their_verdicts(complete: Path) -
         r14.verdict == "shown" and (r14.first_t, r14.last_t) == pytest.approx((46.0, 46.1)) and r14.tests >= 1
     )
     assert r14.channels == ["C8 (x_fipa–a_hi)"] and r14.steps == [8]
-    md = write_report(complete, report_rows).read_text()
+    md = write_report(complete, tracer=report_rows).read_text()
     assert "Requirements traced to this run (paper Table 7 generalised)" in md
     assert "| R1.4 take commands from agents of other FIPA platforms" in md and "**shown**" in md
     assert "Requirements traced" not in write_report(complete).read_text()  # no tracer: no section
@@ -283,5 +283,5 @@ def test_a_report_whose_requirements_cannot_be_traced_says_why(
     bad = tmp_path / "bad.toml"
     bad.write_text("not toml [")
     monkeypatch.setenv("ROCO_SPEC", str(bad))
-    md = write_report(complete, report_rows).read_text()
+    md = write_report(complete, tracer=report_rows).read_text()
     assert "requirements not traced: " in md and "Requirements traced" not in md
