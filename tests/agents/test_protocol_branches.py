@@ -226,6 +226,7 @@ EMPTY = [
     (Coordinator, "C2", "a_hi", P.QUERY_REF, "fipa-query"),
     (Coordinator, "C2", "a_hi", P.REQUEST, "fipa-request"),
     (KnowledgeManager, "C7", "a_hi", P.QUERY_REF, "fipa-query"),
+    (KnowledgeManager, "C6", "a_ta", P.QUERY_REF, "fipa-query"),
 ]
 
 
