@@ -285,3 +285,13 @@ def test_a_report_whose_requirements_cannot_be_traced_says_why(
     monkeypatch.setenv("ROCO_SPEC", str(bad))
     md = write_report(complete, tracer=report_rows).read_text()
     assert "requirements not traced: " in md and "Requirements traced" not in md
+
+
+def test_the_report_a_fleet_s_end_writes_traces_the_requirements(complete: Path) -> None:
+    """``roco down`` and ``roco hosts down`` pass the tracer to services/report/ending.py."""
+    from services.report.ending import end
+
+    ending = end(complete, ended=STARTED + 50.0, tracer=report_rows)
+    assert ending.problem == "" and ending.path is not None
+    md = ending.path.read_text()
+    assert "Requirements traced to this run" in md and "| R3.2 update the environment model" in md
