@@ -104,7 +104,9 @@ def test_a_late_answer_to_an_earlier_initial_observe_is_taken(
     subscribe(w, "km-1")
     first = observe_request(w)
     real = time.time
-    monkeypatch.setattr(time, "time", lambda: real() + INITIAL_OBSERVE_RETRY_S + 1.0)
+    later = lambda: real() + INITIAL_OBSERVE_RETRY_S + 1.0  # noqa: E731
+    monkeypatch.setattr(time, "time", later)
+    monkeypatch.setattr(w.agent.sources, "time", later)  # the agent's clock (services/runtime/sources.py)
     w.step("idle")  # the deadline passes: a local failure …
     w.step("idle")  # … and a_ta asks again
     second = observe_request(w)
