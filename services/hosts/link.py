@@ -138,13 +138,13 @@ def record_counters(pair: HostPair, run_dir: Path) -> None:
     robot, since the link was made: everything on the wire, TCP/IP headers and retransmissions
     included); nothing when the device is gone or ``ip`` cannot say."""
     dev, ns = pair.link_dev["robot"], pair.netns("robot")
-    done = _run(["ip", "-n", ns, "-s", "-j", "link", "show", "dev", dev], check=False)
     try:
+        done = _run(["ip", "-n", ns, "-s", "-j", "link", "show", "dev", dev], check=False)
         stats = json.loads(done.stdout)[0]["stats64"]
         fields = {
             f"{way}_{what}": int(stats[way][what]) for way in ("tx", "rx") for what in ("bytes", "packets")
         }
-    except (ValueError, LookupError, TypeError):
+    except (OSError, ValueError, LookupError, TypeError):
         return
     record(run_dir, "counters", device=dev, **fields)
 

@@ -180,27 +180,37 @@ def _wait_line(what: str, ws: Sequence[Wait], budget_s: float | None, rtt_s: flo
     """One line on answered waits ``ws`` against their own reply-by (``budget_s`` None) or
     ``budget_s``: the tightest in time, those late in the record already, whether ``rtt_s``
     breaks some, and the smallest RTT that does."""
-
-    def slack(x: Wait) -> float:
-        return (x.budget_s if budget_s is None else budget_s) - (x.recorded_s or 0.0)
-
     late = sum(1 for x in ws if x.late(budget_s))
-    in_time = [x for x in ws if not x.late(budget_s)]
-    parts = [f"{what}: {len(ws)}"]
-    if in_time:
-        tight = min(in_time, key=slack)
-        parts.append(
-            f"tightest: reply-by {_ms(slack(tight) + (tight.recorded_s or 0.0))} after sending, answered in "
-            f"{_ms(tight.recorded_s or 0.0)}, {tight.half_trips / 2:g} round trip(s) cross"
-        )
+    parts = [f"{what}: {len(ws)}", *_tightest(ws, budget_s)]
     if late:
         parts.append(f"{late} answered after the reply-by in the record already")
+    return "; ".join(parts + _rtt_parts(ws, budget_s, rtt_s))
+
+
+def _rtt_parts(ws: Sequence[Wait], budget_s: float | None, rtt_s: float | None) -> list[str]:
+    """Whether ``rtt_s`` breaks waits of ``ws`` in time (nothing without an RTT), and the
+    smallest RTT that breaks one."""
+    parts = []
     if rtt_s is not None:
         broken = sum(1 for x in ws if x.breaks(rtt_s, budget_s))
         parts.append(f"at RTT {_ms(rtt_s)}: " + (f"BREAKS {broken}" if broken else "holds"))
     breaks = [b for b in (x.breaks_at_s(budget_s) for x in ws) if b is not None]
     parts.append(f"first breaks at RTT ≥ {_ms(min(breaks))}" if breaks else "no RTT breaks one in time")
-    return "; ".join(parts)
+    return parts
+
+
+def _tightest(ws: Sequence[Wait], budget_s: float | None) -> list[str]:
+    """The wait in time in the record with the least room before ``budget_s`` (its own
+    reply-by when None), in words; none when every one is late."""
+    in_time = [x for x in ws if not x.late(budget_s) and x.recorded_s is not None]
+    if not in_time:
+        return []
+    tight = min(in_time, key=lambda x: (x.budget_s if budget_s is None else budget_s) - (x.recorded_s or 0.0))
+    budget = tight.budget_s if budget_s is None else budget_s
+    return [
+        f"tightest: reply-by {_ms(budget)} after sending, answered in {_ms(tight.recorded_s or 0.0)}, "
+        f"{tight.half_trips / 2:g} round trip(s) cross"
+    ]
 
 
 def _deadline_lines(w: WhatIf) -> list[str]:

@@ -132,6 +132,13 @@ def test_hosts_down_confirms_the_traffic_record_as_roco_down_does(
     )
 
     class Pair:
+        @property
+        def link_dev(self) -> dict[str, str]:  # no such device: no link counters to record
+            return {"robot": "rk000000r"}
+
+        def netns(self, host: str) -> str:
+            return f"roco-000000-{host}"
+
         def destroy(self) -> None:  # what the namespaces' removal ends: the router
             os.kill(router, signal.SIGTERM)
 
@@ -147,6 +154,7 @@ def test_hosts_down_confirms_the_traffic_record_as_roco_down_does(
     info = json.loads((run_dir / "run.json").read_text())
     assert info["ended"] is not None and info["detail"] == "no command was given"
     assert (run_dir / "report.md").is_file()
+    assert not (run_dir / "link.jsonl").exists()  # the stand-in's link has no counters to record
     assert not (tmp_path / ".fleet.json").exists() and not (tmp_path / hosts_cli.HOSTS_FILE).exists()
     stopped = [pid for name, pid in state["pids"].items() if name != "router"]
     assert not [pid for pid in stopped if running(pid)]
