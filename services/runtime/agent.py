@@ -814,17 +814,23 @@ class Agent:
     def _take_communicate(self, key: str, payload: bytes) -> None:
         """Check one received communicate (paper §4 steps 3–4) and put it into ``x``, or
         answer it with not-understood (or refuse) and count why (``rejected.<reason>``): the
-        key, a copy or an envelope that does not decode (:meth:`_decoded`), the checks against
-        the interface (services/runtime/intake.py), then those of its conversation
-        (:meth:`_in_conversation`)."""
+        key, an envelope that does not decode (:meth:`_undecodable`), a copy (:meth:`_copy`),
+        the checks against the interface (services/runtime/intake.py), then those of its
+        conversation (:meth:`_in_conversation`)."""
         try:
             channel, sender, _receiver = self.lookups.parse(key)
         except ValueError:
             self.counters["bad_key"] += 1
             self.counters["rejected.bad_key"] += 1
             return
-        msg = self._decoded(sender, channel, payload)
-        if msg is None:
+        copy = self.dedup.seen(payload)
+        try:
+            msg = decode(payload)
+        except DecodeError as exc:
+            self._undecodable(sender, channel, exc, copy)
+            return
+        if copy:
+            self._copy(sender, msg)
             return
         self.counters[_RECEIVED_COUNTER[msg.performative]] += 1
         kind = self.lookups.accepts(sender, msg.performative, msg.protocol)
@@ -839,24 +845,15 @@ class Agent:
                 self.pending_replies.answered(msg.in_reply_to, msg.performative)
             self.x.append(Received(msg, content, channel))
 
-    def _decoded(self, sender: str, channel: str, payload: bytes) -> Communicate | None:
-        """The communicate ``payload`` holds, None when it is taken care of here: a copy of one
-        taken in already is dropped (its answers published again, services/runtime/dedup.py),
-        an envelope that does not decode (malformed, oversized) answered not-understood."""
-        copy = self.dedup.seen(payload)
-        try:
-            msg = decode(payload)
-        except DecodeError as exc:
-            if copy:
-                self.counters["duplicates"] += 1
-                return None
-            bad = "oversized" if exc.oversized else "malformed"
-            self.not_understood(sender, channel, f"{bad} communicate: {exc.reason}", None, bad)
-            return None
+    def _undecodable(self, sender: str, channel: str, exc: DecodeError, copy: bool) -> None:
+        """A payload from ``sender`` that does not decode (``exc``): a copy of one seen already
+        is counted as a duplicate; otherwise it is answered not-understood (malformed, or
+        oversized)."""
         if copy:
-            self._copy(sender, msg)
-            return None
-        return msg
+            self.counters["duplicates"] += 1
+            return
+        bad = "oversized" if exc.oversized else "malformed"
+        self.not_understood(sender, channel, f"{bad} communicate: {exc.reason}", None, bad)
 
     def _copy(self, sender: str, msg: Communicate) -> None:
         """A byte-identical copy of ``msg`` came again from ``sender``: dropped, and the

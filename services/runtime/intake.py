@@ -52,21 +52,19 @@ def content_of(msg: Communicate, kind: MessageKind) -> tuple[msgspec.Struct | No
     refusal: a language the kind does not accept, an ontology other than the language's
     (:func:`~services.runtime.protocol_state.expected_ontology`), content that does not decode
     in its language or is a term the kind may not carry."""
-    plain_reason = msg.language is None and msg.encoding == "utf-8" and msg.performative in PLAIN_REASONS
-    checked = kind.languages and msg.content and not plain_reason
-    if checked and msg.language not in kind.languages:
-        return None, Refusal(f"language {msg.language} not accepted here", "language")
-    if msg.language is not None and msg.ontology != expected_ontology(msg.language):
-        why = f"language {msg.language} needs ontology {expected_ontology(msg.language)}, not {msg.ontology}"
+    language = msg.language
+    if language is None:
+        return None, _unlabelled(msg, kind)
+    checked = bool(kind.languages and msg.content)
+    if checked and language not in kind.languages:
+        return None, Refusal(f"language {language} not accepted here", "language")
+    if msg.ontology != expected_ontology(language):
+        why = f"language {language} needs ontology {expected_ontology(language)}, not {msg.ontology}"
         return None, Refusal(why, "ontology")
     if not checked:
         return None, None
-    return _decoded(msg, kind)
-
-
-def _decoded(msg: Communicate, kind: MessageKind) -> tuple[msgspec.Struct | None, Refusal | None]:
     try:
-        content = decode_content(msg.language, msg.content)
+        content = decode_content(language, msg.content)
     except ContentError as exc:
         return None, Refusal(str(exc), "content")
     if kind.contents and type(content).__name__ not in kind.contents:
@@ -76,3 +74,12 @@ def _decoded(msg: Communicate, kind: MessageKind) -> tuple[msgspec.Struct | None
         )
         return None, Refusal(why, "content_type")
     return content, None
+
+
+def _unlabelled(msg: Communicate, kind: MessageKind) -> Refusal | None:
+    """A communicate that names no content language: refused when it has content and ``kind``
+    has languages, unless the content is a reason in plain UTF-8 text."""
+    plain_reason = msg.encoding == "utf-8" and msg.performative in PLAIN_REASONS
+    if kind.languages and msg.content and not plain_reason:
+        return Refusal(f"language {msg.language} not accepted here", "language")
+    return None
