@@ -46,6 +46,9 @@ A subclass declares its ``name`` (as in the specification), builds its FSM of be
   buffer is dispatched: it writes the open conversations of the roles declared with ``keep``
   and the agent's :attr:`Agent.NOTE` (services/runtime/state_store.py) when they changed,
   given back after a restart through :meth:`Agent.on_restored`.
+- the agent's clocks and fresh identifiers (:attr:`Agent.sources`, services/runtime/sources.py):
+  the system's, or those its transport offers (a replay's: services/replay, run by
+  :meth:`Agent.drive` on the replay's thread),
 - one thread at a time runs the elementary actions (it holds the agent's turn): the agent's
   own, or, while the agent is idle, the transport's receiving thread a communicate arrived on
   (:meth:`Agent._take_here`: no hand-over between threads for a communicate that
