@@ -57,7 +57,7 @@ def test_chaos_across_two_hosts_faults_both_hosts_and_the_link_and_keeps_everyth
     assert before == after  # paused and let run again: the same process
     # the cut is in the run folder's link.jsonl, and chaos.md says when, in the run's seconds
     events = [e["event"] for e in read_link_events(run_dir)]
-    assert events == ["shaping", "down", "up"], events
+    assert events == ["shaping", "down", "up", "counters"], events  # counters: read at hosts down
     cut_s = float(rows["link"][5])
     assert 2.0 <= cut_s <= 6.0 and "- link down from t = " in report
     placed = json.loads((run_dir / "hosts.json").read_text())["hosts"]
