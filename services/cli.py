@@ -678,9 +678,12 @@ def _report_fleet_end(run_dir: Path, failure: str = "") -> str:
     """Record the commands a fleet of `roco up` was given and their outcomes in its run.json,
     write its report (services/report/ending.py) and return the words that say so."""
     from services.report.ending import end
+    from services.spec_check.coverage_figure import report_summary
     from services.spec_check.trace import report_rows
 
-    return end(run_dir, ended=time.time(), failure=failure, tracer=report_rows).line()
+    return end(
+        run_dir, ended=time.time(), failure=failure, tracer=report_rows, coverage=report_summary
+    ).line()
 
 
 def _fleet_state(runs_dir: Path) -> FleetState | None:

@@ -116,6 +116,7 @@ def _not_up(hosts: TwoHosts, exc: BaseException, run_dir: Path, info: RunInfo) -
     its processes are noted and its report written."""
     from services.report.ending import end
     from services.runtime.run_folder import write_run_info
+    from services.spec_check.coverage_figure import report_summary
     from services.spec_check.trace import report_rows
 
     interrupted = isinstance(exc, KeyboardInterrupt)
@@ -123,7 +124,7 @@ def _not_up(hosts: TwoHosts, exc: BaseException, run_dir: Path, info: RunInfo) -
     if hosts.fleet is not None:
         info.processes = hosts.fleet.pids()
         write_run_info(run_dir, info)
-    end(run_dir, ended=time.time(), failure=why, tracer=report_rows)
+    end(run_dir, ended=time.time(), failure=why, tracer=report_rows, coverage=report_summary)
     code = INTERRUPTED if interrupted else 1
     return _fail(f"{why}; nothing of the fleet is left running; run folder {run_dir}", code)
 
@@ -238,6 +239,7 @@ def down(runs_dir: RunsDir = Path("runs")) -> None:
     from services.hosts.netns import end_processes
     from services.recorder.sync import sync_fleet, sync_words
     from services.report.ending import end
+    from services.spec_check.coverage_figure import report_summary
     from services.spec_check.trace import report_rows
 
     state = _state(runs_dir)
@@ -262,7 +264,8 @@ def down(runs_dir: RunsDir = Path("runs")) -> None:
     typer.echo("; both hosts removed")
     fleet_file.unlink(missing_ok=True)
     (runs_dir / HOSTS_FILE).unlink(missing_ok=True)
-    typer.echo(f"roco: two hosts down {end(run_dir, ended=time.time(), tracer=report_rows).line()}")
+    ending = end(run_dir, ended=time.time(), tracer=report_rows, coverage=report_summary)
+    typer.echo(f"roco: two hosts down {ending.line()}")
 
 
 @hosts_app.command(short_help="Remove the host pairs that killed runs left behind.")

@@ -13,15 +13,19 @@ command given to the fleet.
 from __future__ import annotations
 
 from collections import Counter
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
 from services.report.build import Tracer, write_run_report
 from services.report.coordination import commands
 from services.report.load import RunData, load_run
+from services.report.model import CoverageSummary
 from services.runtime.run_folder import RunCommand, RunInfo, write_run_info
 
+CoverageCount = Callable[[Path], CoverageSummary]
+"""Counts a run folder's specification coverage for its report (services/spec_check/
+coverage_figure.py ``report_summary``: this layer does not import the checks)."""
 DONE = frozenset({"succeeded", "stopped"})
 """Outcomes that are no failure of the fleet: done, or stopped because the person asked."""
 
@@ -36,6 +40,8 @@ class Ending:
     path: Path | None = None
     communicates: int = 0
     problem: str = ""
+    uncounted: str = ""
+    """Why the report has no coverage section, "" when it has one or none was asked."""
 
     def line(self) -> str:
         """``after 312.4 s; 2 commands: 2 succeeded; 1234 communicates; report RUN/report.md``
@@ -47,25 +53,40 @@ class Ending:
         given = f"{took}{commands_summary(info.outcomes)}"
         if self.path is None:
             return f"{given}; report not written: {self.problem}"
-        return f"{given}; {self.communicates} communicates; report {self.path}"
+        left = f" (specification coverage not counted: {self.uncounted})" if self.uncounted else ""
+        return f"{given}; {self.communicates} communicates; report {self.path}{left}"
 
 
-def end(run_dir: Path, *, ended: float, failure: str = "", tracer: Tracer | None = None) -> Ending:
+def end(
+    run_dir: Path,
+    *,
+    ended: float,
+    failure: str = "",
+    tracer: Tracer | None = None,
+    coverage: CoverageCount | None = None,
+) -> Ending:
     """Complete ``run_dir/run.json`` (:func:`conclude`) and write the report (services/report/
-    build.py, its requirements traced by ``tracer``) of a fleet that ended at ``ended`` (POSIX
-    s); ``failure``: why it ended before its time. Never raises for a folder that cannot be
-    read or written: :attr:`Ending.problem` says why."""
+    build.py, its requirements traced by ``tracer``, its specification coverage counted by
+    ``coverage``) of a fleet that ended at ``ended`` (POSIX s); ``failure``: why it ended
+    before its time. Never raises for a folder that cannot be read or written:
+    :attr:`Ending.problem` says why (and :attr:`Ending.uncounted` why the coverage is left out)."""
     try:
         run = load_run(run_dir)
         info = conclude(run, ended=ended, failure=failure)
     except OSError as exc:
         return Ending(RunInfo(), problem=_first_line(exc))
     run.info = info
+    summary, uncounted = None, ""
+    if coverage is not None:
+        try:
+            summary = coverage(run_dir)
+        except Exception as exc:  # the report stands without it
+            uncounted = _first_line(exc)
     try:
-        path, report = write_run_report(run, tracer=tracer)
+        path, report = write_run_report(run, coverage=summary, tracer=tracer)
     except Exception as exc:  # the fleet has ended whether or not its report can be made
         return Ending(info, problem=_first_line(exc))
-    return Ending(info, path, report.sizes.count)
+    return Ending(info, path, report.sizes.count, uncounted=uncounted)
 
 
 def _run_commands(run: RunData) -> list[RunCommand]:

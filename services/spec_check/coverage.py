@@ -209,6 +209,25 @@ class Coverage:
             out[kind] = (sum(1 for i in mine if self.counts[i]), len(mine))
         return out
 
+    def transitions(self) -> dict[str, tuple[int, int]]:
+        """(taken, transitions) per interaction protocol, whatever the channel (a transition
+        counts as taken when any channel's conversation took it), and per agent's FSM its arcs:
+        the transitions of the protocols and of the agents' FSMs, the measure of paper §5.7's
+        verification at the level of the state machines themselves."""
+        taken: dict[str, set[str]] = defaultdict(set)
+        every: dict[str, set[str]] = defaultdict(set)
+        for i in self.items:
+            if i.kind == "transition":
+                owner = i.group.split(" ", 1)[1]
+            elif i.kind == "arc":
+                owner = f"{i.group} FSM"
+            else:
+                continue
+            every[owner].add(i.name)
+            if self.counts[i]:
+                taken[owner].add(i.name)
+        return {owner: (len(taken[owner]), len(names)) for owner, names in every.items()}
+
     def groups(self) -> dict[str, list[Item]]:
         """The items by group, in order."""
         out: dict[str, list[Item]] = defaultdict(list)

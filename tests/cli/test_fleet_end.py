@@ -108,7 +108,9 @@ def test_down_says_what_it_stops_and_writes_the_commands_and_the_report(
     assert info["commands"] == [POUR] and info["command"] == POUR
     assert [(c["text"], c["outcome"]) for c in info["outcomes"]] == [(POUR, "succeeded")]
     assert info["succeeded"] is True and info["ended"] > info["started"] > 0
-    assert POUR in (run_dir / "report.md").read_text()
+    report = (run_dir / "report.md").read_text()
+    assert POUR in report and "Specification coverage" in report  # counted for roco down too
+    assert (run_dir / "figures" / "coverage.png").is_file()
     assert not [name for name, pid in pids.items() if running(pid)]
     assert processes_of(run_dir) == []
 

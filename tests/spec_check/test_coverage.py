@@ -99,6 +99,19 @@ def test_the_coverage_of_a_known_record_is_exactly_what_it_took(tmp_path: Path) 
     assert set(cov.unknown_fsms) == set(spec.agent_names) - {"a_pl"}
 
 
+def test_transitions_are_counted_per_protocol_whatever_the_channel(tmp_path: Path) -> None:
+    """A transition taken on C7 counts as taken for fipa-query on every channel; FSM arcs
+    count per agent; not-understood, time-outs and terms are not transitions."""
+    _tapped(tmp_path)
+    cov = coverage_of([], tmp_path)
+    per = cov.transitions()
+    query = {i.name for i in cov.items if i.kind == "transition" and i.group.endswith(" fipa-query")}
+    assert per["fipa-query"] == (2, len(query)) and len(query) == 17
+    assert per["a_pl FSM"] == (1, 2)
+    assert per["fipa-request"][0] == per["coordinate"][0] == per["fipa-subscribe"][0] == 0
+    assert "transitions of the protocols (on any channel) and of the agents' FSMs: 3 of " in render(cov)
+
+
 def test_the_text_lists_what_was_never_taken(tmp_path: Path) -> None:
     _tapped(tmp_path)
     text = render(coverage_of([], tmp_path))
