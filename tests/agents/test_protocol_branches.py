@@ -53,9 +53,9 @@ from tests.support.peer import Peer, running
 P = Performative
 BRING = TaskAtom("bring", ("cup", "table"))
 FOREIGN = "da0@host:1099/JADE"
+"""An agent of another FIPA platform (plays x_fipa on C8)."""
 WAIT_S = 60.0
 """How long a test waits for what follows a reply-by deadline (2–5 s) on a loaded machine."""
-"""An agent of another FIPA platform (plays x_fipa on C8)."""
 
 PARTICIPANTS = [
     (KnowledgeManager, "C7", "a_hi", P.QUERY_REF, "fipa-query", "L_WM"),
