@@ -509,6 +509,7 @@ def test_a_ta_ends_the_plan_in_error_when_ag_ex_agrees_then_fails() -> None:
     assert s.ag_ex.got.empty()
 
 
+@pytest.mark.requirement("R2.1")
 @pytest.mark.parametrize("agreed", [True, False], ids=["agreed", "agree-crosses-the-cancel"])
 def test_a_ta_halts_the_command_ag_ex_agreed_to_when_a_co_cancels(agreed: bool) -> None:
     """a_co cancels the plan while ag_ex carries out its first command (agreed to, or its
