@@ -247,8 +247,7 @@ class Coordinator(Agent):
         if task.task_id == self.note.ta_task:
             self._cancel_ta(f"stopped by the person: {task.command.text}")
             return
-        if task.planning is not None:
-            task.planning.abandon()
+        self._drop_planning(task)
         self._finish(task, False, "stopped; the robot was not working on it", stopped=True)
 
     def _request_plans(self) -> None:
@@ -378,8 +377,13 @@ class Coordinator(Agent):
 
     @handles(FIPA_REQUEST, PARTICIPANT, Performative.CANCEL)
     def _on_stop(self, conv: Conversation) -> None:
-        """Answered once the robot is safe (see :meth:`_finish`)."""
+        """Answered once the robot is safe (see :meth:`_finish`). A plan being made for the
+        command is cancelled at once: compSP, which collects every plan requested, then does not
+        wait for it before procReq takes the stop."""
         assert conv.last is not None
+        task = self.tasks.get(conv.conversation_id)
+        if task is not None:
+            self._drop_planning(task)
         self.person.append(partial(self._stop_command, conv, conv.last))
 
     # ---- the person's progress subscription (C2, fipa-subscribe, participant; the role serves it) ----
@@ -430,6 +434,18 @@ class Coordinator(Agent):
         if not conv.timed_out and not conv.not_understood:
             self.log.info("reply from a_pl to a plan request no longer wanted: dropped")
         return None
+
+    def _drop_planning(self, task: Task) -> None:
+        """The plan requested for ``task`` is no longer wanted: the request is cancelled (FIPA
+        SC00026 §2, the cancel meta-protocol: a_pl stops planning it), neither sent again nor
+        awaited, and forgotten: what a_pl still says in it is dropped."""
+        conv, task.planning = task.planning, None
+        if conv is None:
+            return
+        conv.stop_waiting()
+        if not conv.finished:
+            conv.cancel()
+        conv.abandon()
 
     @handles(FIPA_REQUEST, INITIATOR, Performative.INFORM)
     def _on_plan(self, conv: Conversation) -> None:
@@ -569,8 +585,7 @@ class Coordinator(Agent):
         self.log.info("task %s %s: %s", task.task_id, "succeeded" if succeeded else "failed", detail)
         if self.note.ta_task == task.task_id:
             self._release_ta()
-        if task.planning is not None:
-            task.planning.abandon()
+        self._drop_planning(task)
         del self.tasks[task.task_id]
         if self.rerun is not None:  # Rerun: the queue without it
             self.rerun.queue(self.status())

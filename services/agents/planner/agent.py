@@ -110,7 +110,8 @@ class Planner(Agent):
     @handles(FIPA_REQUEST, PARTICIPANT, Performative.CANCEL)
     def _on_cancel(self, conv: Conversation) -> None:
         """a_co's cancel of a plan request (FIPA cancel meta-protocol): the current or a waiting
-        one is dropped and the cancel answered ``inform``."""
+        one is dropped and the cancel answered ``inform``; the current one's open knowledge
+        queries are cancelled in turn (:meth:`_cancel_queries`)."""
         if conv is self.request:
             self.cancelled = True
             self.failure = "cancelled"
@@ -279,6 +280,7 @@ class Planner(Agent):
         request = self.request
         assert request is not None
         if self.cancelled:  # the cancel was answered: the request's conversation has ended
+            self._cancel_queries()
             self._done()
             return
         if not self.checked:
@@ -304,6 +306,15 @@ class Planner(Agent):
                 elapsed,
             )
         self._done()
+
+    def _cancel_queries(self) -> None:
+        """a_co cancelled the planning: the knowledge queries still open are cancelled too
+        (FIPA SC00027 §2, the cancel meta-protocol), neither sent again nor awaited; a_km's
+        answer that crossed a cancel, and its answer to the cancel, are taken and ignored."""
+        for conv in [*self.pending, *([self.check] if self.check is not None else [])]:
+            if not conv.finished:
+                conv.stop_waiting()
+                conv.cancel()
 
     def _done(self) -> None:
         self.request = self.problem = None
