@@ -951,6 +951,17 @@ class Conversation:
         if remember:
             self.roles._remember(self)
 
+    def withdraw(self, *, forget: bool = True) -> None:
+        """The initiator no longer wants this conversation: :meth:`stop_waiting`, :meth:`cancel`
+        it when it is still open (FIPA SC00026 §2, the cancel meta-protocol: the participant
+        stops working on it), and, with ``forget``, :meth:`abandon` it (what the peer still
+        sends is dropped as a late reply; else it is taken as it comes)."""
+        self.stop_waiting()
+        if not self.finished:
+            self.cancel()
+        if forget:
+            self.abandon()
+
     def decode(self, kept: bytes) -> Received:
         """A communicate of this conversation kept encoded (FIPA SC00061 msgpack, e.g. the
         peer's ``cancel``, to be answered after a restart), as received on its channel, its

@@ -106,3 +106,14 @@ def test_the_check_finds_what_it_names(tmp_path: Path) -> None:
         (12, "reads .reply_with"),
         (13, "opens a fipa-subscribe by hand"),
     ]
+
+
+SHORTER = {"coordinator": 729, "human_interface": 825}
+"""Lines of a_co's and a_hi's agent.py when the runtime took their protocol machinery over;
+each stays at least a fifth shorter (what moved is not to come back)."""
+
+
+def test_a_co_and_a_hi_stay_a_fifth_shorter_than_before_the_roles_took_their_protocols() -> None:
+    for folder, before in SHORTER.items():
+        lines = len((ROOT / "services" / "agents" / folder / "agent.py").read_text().splitlines())
+        assert lines <= 0.8 * before, f"{folder}/agent.py: {lines} lines, at most {int(0.8 * before)}"

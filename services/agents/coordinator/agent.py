@@ -30,14 +30,7 @@ import msgspec
 from services.agents.coordinator.scheduling import Candidate, Decision, Running, decide, plan_left
 from services.runtime.agent import RESEND_ON_RETURN, Agent, Received
 from services.runtime.behaviour import FSM, Arc, Behaviour, once
-from services.runtime.roles import (
-    INITIATOR,
-    PARTICIPANT,
-    Conversation,
-    handles,
-    initiator,
-    participant,
-)
+from services.runtime.roles import INITIATOR, PARTICIPANT, Conversation, handles, initiator, participant
 from services.spec.names import (
     C1,
     C2,
@@ -377,9 +370,7 @@ class Coordinator(Agent):
 
     @handles(FIPA_REQUEST, PARTICIPANT, Performative.CANCEL)
     def _on_stop(self, conv: Conversation) -> None:
-        """Answered once the robot is safe (see :meth:`_finish`). A plan being made for the
-        command is cancelled at once: compSP, which collects every plan requested, then does not
-        wait for it before procReq takes the stop."""
+        """Answered once the robot is safe (:meth:`_finish`); its plan, if being made, withdrawn at once."""
         assert conv.last is not None
         task = self.tasks.get(conv.conversation_id)
         if task is not None:
@@ -436,16 +427,10 @@ class Coordinator(Agent):
         return None
 
     def _drop_planning(self, task: Task) -> None:
-        """The plan requested for ``task`` is no longer wanted: the request is cancelled (FIPA
-        SC00026 §2, the cancel meta-protocol: a_pl stops planning it), neither sent again nor
-        awaited, and forgotten: what a_pl still says in it is dropped."""
-        conv, task.planning = task.planning, None
-        if conv is None:
-            return
-        conv.stop_waiting()
-        if not conv.finished:
-            conv.cancel()
-        conv.abandon()
+        """The plan requested for ``task`` is no longer wanted: withdrawn (a_pl stops planning it)."""
+        if task.planning is not None:
+            task.planning.withdraw()
+        task.planning = None
 
     @handles(FIPA_REQUEST, INITIATOR, Performative.INFORM)
     def _on_plan(self, conv: Conversation) -> None:

@@ -312,9 +312,7 @@ class Planner(Agent):
         (FIPA SC00027 §2, the cancel meta-protocol), neither sent again nor awaited; a_km's
         answer that crossed a cancel, and its answer to the cancel, are taken and ignored."""
         for conv in [*self.pending, *([self.check] if self.check is not None else [])]:
-            if not conv.finished:
-                conv.stop_waiting()
-                conv.cancel()
+            conv.withdraw(forget=False)
 
     def _done(self) -> None:
         self.request = self.problem = None
