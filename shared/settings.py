@@ -427,6 +427,15 @@ class Settings(msgspec.Struct, frozen=True, kw_only=True):
             "unset: compiled when built",
         ),
     ] = None
+    # --- roco bench
+    jade_home: Annotated[
+        Path | None,
+        About(
+            "ROCO_JADE_HOME",
+            "a JADE source tree `roco bench`'s jade part compiles and measures without --jade-home "
+            "(services/bench/jade.py); unset: that part is skipped",
+        ),
+    ] = None
 
     @classmethod
     def from_env(

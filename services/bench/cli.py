@@ -6,6 +6,9 @@ Parts (`--only` takes a comma-separated subset; default all, in this order):
 - `codec`: encoding and decoding one communicate of 200 B, 10 kB and 1 MB;
 - `messaging`: round trip and one-way stream between two agents, and raw Zenoh's;
 - `spade`: the same round trip and stream on SPADE, over XMPP;
+- `jade`: the same round trip and stream on JADE, two containers in two JVMs, compiled from a
+  JADE source tree (`--jade-home`; skipped, with one line saying what is missing, without a
+  tree or a JDK);
 - `knowledge`: a_km's answers to the planner's queries, in process and over Zenoh;
 - `planning`: plan #1 of the pour, from the request to the plan;
 - `fleet`: `roco up` until every agent is alive, and its processes' memory;
@@ -39,14 +42,16 @@ from typing import TYPE_CHECKING, Annotated, Any
 import typer
 
 from services.bench import quiet
+from shared.settings import Settings
 
 if TYPE_CHECKING:
-    from services.bench import report
+    from services.bench import jade, report
 
 PARTS = (
     "codec",
     "messaging",
     "spade",
+    "jade",
     "knowledge",
     "planning",
     "fleet",
@@ -97,6 +102,8 @@ class _Bench:
     conditions: list[str] = field(default_factory=list)
     """How busy the machine was before and during the timed parts."""
     task_runs: list[Any] = field(default_factory=list)
+    jade_home: Path | None = None
+    """The JADE source tree of the jade part (None: the part is skipped)."""
 
     def settled(self, label: str) -> None:
         if self.settle > 0:
@@ -152,8 +159,28 @@ class _Bench:
         sp = self.ran(
             "spade", lambda: spade.measure(n.spade_round_trips, n.spade_messages, n.content_bytes), timed=True
         )
-        if pair is not None or sp is not None:
-            self.emit(report.messaging_section(pair, sp, n), report.verdict_lines(pair, sp))
+        jd = self.jade_part()
+        if pair is not None or sp is not None or jd is not None:
+            self.emit(report.messaging_section(pair, sp, jd, n), report.verdict_lines(pair, sp))
+
+    def jade_part(self) -> jade.JadeFigures | None:
+        """The jade part's figures; when a prerequisite is missing, one line saying which and
+        figures that say so (no quiet wait, nothing run); None when the part is not chosen."""
+        from services.bench import jade
+
+        if "jade" not in self.chosen:
+            return None
+        why = jade.missing(self.jade_home)
+        if why:
+            typer.echo(f"roco bench: jade: skipped: {why}", err=True)
+            return jade.JadeFigures(skipped=why)
+        home, n = self.jade_home, self.counts
+        assert home is not None  # missing() said so
+        return self.run(
+            "jade",
+            lambda: jade.measure(home, n.jade_warmup, n.jade_round_trips, n.communicates, n.content_bytes),
+            timed=True,
+        )
 
     def knowledge(self) -> None:
         from services.bench import parts, report
@@ -276,6 +303,14 @@ def bench(
             show_default=False,
         ),
     ] = None,
+    jade_home: Annotated[
+        Path | None,
+        typer.Option(
+            help="a JADE source tree, compiled and measured by the jade part "
+            f"[default: {Settings.env_name('jade_home')}; neither: the part is skipped]",
+            show_default=False,
+        ),
+    ] = None,
 ) -> None:
     """Run the benchmarks, print each table, write them to OUT (default docs/benchmarks.md)."""
     from services.bench import report
@@ -290,6 +325,7 @@ def bench(
     args = " ".join(a for a in sys.argv[1:] if a != "bench")
     command = f"roco bench {args}".strip()
     b = _Bench(chosen, quick, settle, report.Counts.of(quick))
+    b.jade_home = jade_home or Settings.from_env(only=("jade_home",)).jade_home
     b.codec()
     b.messaging()
     b.knowledge()

@@ -19,7 +19,8 @@ from pathlib import Path
 from typing import Any
 
 from services.bench.gateway import GatewayFigures
-from services.bench.messaging import ConcurrentFigures, PairFigures, ScaleRow, request_bytes
+from services.bench.jade import JadeFigures
+from services.bench.messaging import ConcurrentFigures, PairFigures, ScaleRow, percentile, request_bytes
 from services.bench.parts import (
     POUR,
     CodecRow,
@@ -67,7 +68,7 @@ PAPER_PLAN_1_TEXT = "The paper's plan #1 took 55 s and 1,598 communicates."
 TITLE = "# roco benchmarks"
 INTRO = [
     "What roco costs on one machine: encoding a communicate; a round trip and a stream between two "
-    "agents, beside raw Zenoh (its transport) and SPADE; a_km's answers; a_pl's plan; the fleet's "
+    "agents, beside raw Zenoh (its transport), SPADE and JADE; a_km's answers; a_pl's plan; the fleet's "
     "start-up and memory; the whole pour with ag_ex's 1 kHz loop; up to 100 agent processes; the "
     "ACL gateway under load and under attack; a stop, from the line to the halt; a_hi's reading "
     "time against the length of a line.",
@@ -99,6 +100,11 @@ class Counts:
     """Communicates per stream."""
     spade_round_trips: int = 1000
     spade_messages: int = 5000
+    jade_round_trips: int = 5000
+    """Part 3b: timed round trips on JADE, after ``jade_warmup`` ones; its stream has
+    ``communicates`` informs, after ``jade_warmup`` ones."""
+    jade_warmup: int = 2000
+    """Part 3b: round trips, then informs, sent before the timed ones (the JIT's warm-up)."""
     km_timed: int = 200
     """Timed calls per a_km query, after 10 warm-up ones."""
     scale_round_trips: int = 1000
@@ -119,7 +125,23 @@ class Counts:
         """The full counts, or ``--quick``'s: a smoke test of the command, not figures to quote."""
         if not quick:
             return cls()
-        return cls(200, 1, 300, 5000, 200, 1000, 30, 200, 5000, 50, 1, stops=2, reading_repeats=5)
+        return cls(
+            content_bytes=200,
+            rounds=1,
+            round_trips=300,
+            communicates=5000,
+            spade_round_trips=200,
+            spade_messages=1000,
+            jade_round_trips=300,
+            jade_warmup=200,
+            km_timed=30,
+            scale_round_trips=200,
+            scale_communicates=5000,
+            scale_all_pairs=50,
+            scale_all_rounds=1,
+            stops=2,
+            reading_repeats=5,
+        )
 
 
 @dataclass(frozen=True)
@@ -238,14 +260,17 @@ def _rate(x: float) -> str:
     return f"{x:,.0f}"
 
 
-def messaging_table(f: PairFigures, spade: SpadeFigures | None, size: int) -> list[str]:
-    """Parts 2 and 3 side by side: raw Zenoh, roco, SPADE."""
+def _latency_cells(samples_s: Sequence[float]) -> list[str]:
+    """p50, p90 and p99 (µs, nearest rank) and the count of round-trip samples (s)."""
+    return [*(f"{percentile(samples_s, q) * 1e6:.0f}" for q in (50, 90, 99)), str(len(samples_s))]
+
+
+def _pair_rows(f: PairFigures, size: int) -> list[list[str]]:
+    """Part 2's rows: raw Zenoh (sleeping, then polling) and roco (batched, then one put each)."""
     rows = [
         [
             f"raw Zenoh (put/subscriber, {request_bytes(size)} B payload)",
-            f"{f.raw_rt.p50_us:.0f}",
-            f"{f.raw_rt.p99_us:.0f}",
-            str(len(f.raw_rt.samples_s)),
+            *_latency_cells(f.raw_rt.samples_s),
             _rate(f.raw_tput.median),
             ", ".join(_rate(x) for x in f.raw_tput.rates),
             str(f.raw_tput.lost),
@@ -255,56 +280,61 @@ def messaging_table(f: PairFigures, spade: SpadeFigures | None, size: int) -> li
         rows.append(
             [
                 f"raw Zenoh, each end polling as roco's receiving threads (≤ {f.poll_us:.0f} µs)",
-                f"{f.raw_poll_rt.p50_us:.0f}",
-                f"{f.raw_poll_rt.p99_us:.0f}",
-                str(len(f.raw_poll_rt.samples_s)),
+                *_latency_cells(f.raw_poll_rt.samples_s),
                 "—",
                 "—",
                 "—",
             ]
         )
-    rows += [
+    rows.append(
         [
             f"roco (Agent runtime, {size} B content)",
-            f"{f.roco_rt.p50_us:.0f}",
-            f"{f.roco_rt.p99_us:.0f}",
-            str(len(f.roco_rt.samples_s)),
+            *_latency_cells(f.roco_rt.samples_s),
             _rate(f.roco_tput.median),
             ", ".join(_rate(x) for x in f.roco_tput.rates),
             str(f.roco_tput.lost),
-        ],
-    ]
+        ]
+    )
     if f.roco_tput_single.runs:
         rows.append(
             [
                 "roco, each communicate in a put of its own (no batches)",
-                "—",
-                "—",
-                "—",
+                *["—"] * 4,
                 _rate(f.roco_tput_single.median),
                 ", ".join(_rate(x) for x in f.roco_tput_single.rates),
                 str(f.roco_tput_single.lost),
             ]
         )
+    return rows
+
+
+def _platform_row(label: str, other: SpadeFigures | JadeFigures) -> list[str]:
+    """SPADE's or JADE's row: its round trips, its one stream's rate, what it did not deliver."""
+    lost = str(max(0, other.sent - other.count))
+    return [label, *_latency_cells(other.samples_s), _rate(other.rate), _rate(other.rate), lost]
+
+
+def messaging_table(
+    f: PairFigures | None, spade: SpadeFigures | None, jade: JadeFigures | None, size: int
+) -> list[str]:
+    """Parts 2, 3 and 3b side by side: raw Zenoh, roco, SPADE, JADE (each when measured)."""
+    rows = _pair_rows(f, size) if f is not None else []
     if spade is not None and not spade.error:
-        s_rt = sorted(spade.samples_s)
-        p50 = s_rt[len(s_rt) // 2] * 1e6 if s_rt else 0.0
-        p99 = s_rt[min(len(s_rt) - 1, round(0.99 * (len(s_rt) - 1)))] * 1e6 if s_rt else 0.0
-        rows.append(
-            [
-                f"SPADE {spade.versions.get('spade', '?')} over its XMPP server ({size}-character body)",
-                f"{p50:.0f}",
-                f"{p99:.0f}",
-                str(len(spade.samples_s)),
-                _rate(spade.rate),
-                _rate(spade.rate),
-                str(max(0, spade.sent - spade.count)),
-            ]
+        label = f"SPADE {spade.versions.get('spade', '?')} over its XMPP server ({size}-character body)"
+        rows.append(_platform_row(label, spade))
+    if jade is not None and jade.samples_s:
+        label = (
+            f"JADE {jade.versions.get('jade', '?')}, two containers in two JVMs, IMTP over TCP "
+            f"({size}-character content)"
         )
+        rows.append(_platform_row(label, jade))
+    if not rows:
+        return []
     return _table(
         [
             "system",
             "round trip p50 µs",
+            "p90 µs",
             "p99 µs",
             "round trips",
             "throughput /s (median)",
@@ -316,8 +346,7 @@ def messaging_table(f: PairFigures, spade: SpadeFigures | None, size: int) -> li
 
 
 def spade_p50_us(spade: SpadeFigures) -> float:
-    s = sorted(spade.samples_s)
-    return s[len(s) // 2] * 1e6 if s else 0.0
+    return percentile(spade.samples_s, 50) * 1e6
 
 
 def _met(ok: bool) -> str:
@@ -691,9 +720,23 @@ def codec_section(rows: list[CodecRow]) -> Section:
     return Section("1. Codec (`codec`)", codec_how(), codec_table(rows))
 
 
-def messaging_how(counts: Counts, spade: SpadeFigures | None) -> list[str]:
-    """How parts 2 and 3 measure: roco's synthetic pair, raw Zenoh and (when run) SPADE."""
-    how = [
+def _platform_how(name: str, other: SpadeFigures | JadeFigures | None, why: str, measured: str) -> list[str]:
+    """The bullet of SPADE or JADE: its settings and versions, how it was timed (``measured``),
+    and ``why`` it was not measured, if it was not; none when the part was not run."""
+    if other is None:
+        return []
+    versions = ", ".join(f"{k} {v}" for k, v in other.versions.items())
+    return [
+        f"- **{name}**: {other.settings or f'see services/bench/{name.lower()}.py'}"
+        + (f"; versions: {versions}" if versions else "")
+        + f". {measured}"
+        + (f" **Not measured: {why}**" if why else "")
+    ]
+
+
+def messaging_how(counts: Counts, spade: SpadeFigures | None, jade: JadeFigures | None = None) -> list[str]:
+    """How parts 2, 3 and 3b measure: roco's synthetic pair, raw Zenoh and (when run) SPADE and JADE."""
+    return [
         "Two processes (spawn) through one router on a loopback port, no access control "
         "(services/bench/messaging.py):",
         "",
@@ -711,28 +754,32 @@ def messaging_how(counts: Counts, spade: SpadeFigures | None) -> list[str]:
         f"- {counts.rounds} round(s) of all of these, {counts.round_trips} round trips each (after 50 "
         f"warm-up ones), {counts.communicates:,} communicates per stream; round trips pooled, stream "
         "rates the median of the rounds'. `lost`: sent, not delivered (congestion control BLOCK).",
+        *_platform_how(
+            "SPADE",
+            spade,
+            spade.error if spade is not None else "",
+            "Round trip: a request `Message` until the inform is received; stream: rate = "
+            "(received − 1) / (last − first arrival) at the responder.",
+        ),
+        *_platform_how(
+            "JADE",
+            jade,
+            (jade.error or jade.skipped) if jade is not None else "",
+            "Round trip (services/bench/java/, `System.nanoTime`): the initiator's `send` of a "
+            "`request` until `blockingReceive` returns the responder's `inform`; stream: the "
+            "initiator `send`s the informs in a loop, the responder's cyclic behaviour takes them "
+            "from its queue, rate = (received − 1) / (last − first arrival) at the responder.",
+        ),
     ]
-    if spade is not None:
-        how.append(
-            f"- **SPADE**: {spade.settings or 'see services/bench/spade.py'}"
-            + (
-                f"; versions: {', '.join(f'{k} {v}' for k, v in spade.versions.items())}"
-                if spade.versions
-                else ""
-            )
-            + ". Round trip: a request `Message` until the inform is received; stream: rate = "
-            "(received − 1) / (last − first arrival) at the responder."
-            + (f" **Not measured: {spade.error}**" if spade.error else "")
-        )
-    return how
 
 
-def messaging_section(pair: PairFigures | None, spade: SpadeFigures | None, counts: Counts) -> Section:
-    table = messaging_table(pair, spade, counts.content_bytes) if pair is not None else []
+def messaging_section(
+    pair: PairFigures | None, spade: SpadeFigures | None, jade: JadeFigures | None, counts: Counts
+) -> Section:
     return Section(
-        "2–3. Messaging: roco, raw Zenoh and SPADE (`messaging`, `spade`)",
-        messaging_how(counts, spade),
-        table,
+        "2–3. Messaging: roco, raw Zenoh, SPADE and JADE (`messaging`, `spade`, `jade`)",
+        messaging_how(counts, spade, jade),
+        messaging_table(pair, spade, jade, counts.content_bytes),
     )
 
 

@@ -13,6 +13,7 @@ import typer
 
 from services.bench import cli, parts, quiet, report
 from services.bench.gateway import BurstFigures, GatewayFigures, LoadFigures, WorstRow
+from services.bench.jade import JadeFigures
 from services.bench.messaging import (
     BenchInform,
     BenchRequest,
@@ -210,14 +211,14 @@ def test_quick_bench_writes_codec_and_messaging_tables(tmp_path: Path) -> None:
     assert systems[0].startswith("raw Zenoh (put/subscriber")
     assert systems[1].startswith("raw Zenoh, each end polling") and systems[2].startswith("roco")
     for r in messaging[:3]:
-        p50, p99, count = _number(r[1]), _number(r[2]), _number(r[3])
-        assert 0 < p50 <= p99 and count == 300
-    assert _number(messaging[0][4]) > 0 and _number(messaging[2][4]) > 0  # throughput /s
+        p50, p90, p99, count = _number(r[1]), _number(r[2]), _number(r[3]), _number(r[4])
+        assert 0 < p50 <= p90 <= p99 and count == 300
+    assert _number(messaging[0][5]) > 0 and _number(messaging[2][5]) > 0  # throughput /s
     # the same stream with each communicate in a put of its own (no batches), nothing lost either
     assert (
-        systems[3].startswith("roco, each communicate in a put of its own") and _number(messaging[3][4]) > 0
+        systems[3].startswith("roco, each communicate in a put of its own") and _number(messaging[3][5]) > 0
     )
-    assert messaging[2][6] == messaging[3][6] == "0"
+    assert messaging[2][7] == messaging[3][7] == "0"
     targets = text.split("## Targets", 1)[1].split("\n## ", 1)[0]
     assert "On equal terms, raw Zenoh's ends polling the same way" in targets
     assert text.index("## This run") < text.index("## 1. Codec") < text.index("## Targets")
@@ -361,6 +362,9 @@ def _fixed_figures_document() -> str:
         raw_tput=Throughput([(482_306, 50_000, 1.0, 1)]),
     )
     spade = SpadeFigures([1382e-6], 6134, 5000, 1.0, {"spade": "4.1.4"}, "", "two agents in two processes")
+    jade = JadeFigures(
+        [600e-6], 50_000, 50_000, 2.5, {"jade": "4.6.5"}, settings="two containers in two JVMs"
+    )
     timing = TimingStats(
         pacing="realtime",
         cycles=54_890,
@@ -411,7 +415,7 @@ def _fixed_figures_document() -> str:
     )
     sections = [
         report.codec_section([CodecRow("200 B", 200, 412, 0.40, 1.25, 20_000)]),
-        report.messaging_section(pair, spade, counts),
+        report.messaging_section(pair, spade, jade, counts),
         report.knowledge_section(
             [QueryRow("ObjectQuery(jar)", 0.176, 0.286, 0.768, 0.933, 273)], "544 triples", counts
         ),
@@ -471,6 +475,8 @@ def test_a_report_from_fixed_figures_states_the_method_and_the_present_only() ->
     assert "- Before each timed part `roco bench` waited up to 90 s for a quiet machine" in text
     # each part says how much it measured
     assert "2000 round trips each (after 50 warm-up ones), 50,000 communicates per stream" in text
+    assert "- **JADE**: two containers in two JVMs; versions: jade 4.6.5. Round trip" in text
+    assert "| JADE 4.6.5, two containers in two JVMs, IMTP over TCP (200-character content) | 600 |" in text
     assert "500 round trips per initiator after 50 warm-up ones, 3 time(s)" in text
     assert "in turn until each has 20 halts" in text
     assert "50 lines per shape and length after 3 warm-up ones" in text
