@@ -30,7 +30,8 @@ FIPA machine of :mod:`shared.fipa_codec.protocols`) — owns what the protocol i
   (:attr:`Conversation.answers_cancel`);
 - ``not-understood``: it ends the conversation; an initiator's conversation ends through its
   ``failure`` handler (:attr:`Conversation.not_understood`) unless the agent handles
-  ``not-understood`` itself;
+  ``not-understood`` itself, also when the initiator sent it (:meth:`Roles.not_understood_sent`:
+  an answer it could not read);
 - ``agree`` (to an initiator) is noted on the conversation (:attr:`Conversation.agreed`);
   a handler for it is optional;
 - a fault in a handler is logged and counted (``handler_errors``); a participant's peer gets
@@ -1424,6 +1425,23 @@ class Roles:
             and conv.decl == decl
             and conv.answers_other(msg)
         )
+
+    def not_understood_sent(self, peer: str, channel: str, sent: Communicate) -> None:
+        """This agent answered ``peer`` with the not-understood ``sent``, which ends its
+        conversation (FIPA SC00037 §3.12). A conversation this agent opened there awaits no
+        more: it stops waiting and ends through the agent's not-understood (else failure)
+        handler, its :attr:`Conversation.reason` ``sent``'s, at once instead of at its reply-by
+        deadline, or never when it has none (a_co's plan on C1)."""
+        from services.runtime.agent import Received
+
+        conv = self._open.get((peer, sent.conversation_id or ""))
+        if conv is None or conv.decl.role != INITIATOR or sent.sender is None:
+            return
+        conv.stop_waiting()
+        ended = msgspec.structs.replace(
+            sent, sender=sent.receiver[0], receiver=(sent.sender,), in_reply_to=None
+        )
+        self.agent.x.append(Received(ended, None, channel))
 
     def take(self, item: Received) -> None:
         """Route one received communicate (already checked against the interface and the
