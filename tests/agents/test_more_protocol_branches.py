@@ -10,7 +10,7 @@ not understand (SC00037 §3.12). A reply-by deadline passes by moving the real a
 from __future__ import annotations
 
 import queue
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 
 import msgspec
@@ -26,6 +26,7 @@ from services.agents.human_interface.agent import (
     HumanInterface,
 )
 from services.agents.knowledge.agent import KnowledgeManager
+from services.agents.task_executor.agent import SW_RETRY_S, TaskExecutor
 from services.runtime import keys
 from services.runtime.human import FINAL_REPORTS, HumanInput, HumanReport, ReportKind
 from services.runtime.memory_transport import MemoryBus
@@ -39,12 +40,13 @@ from shared.fipa_codec.languages.l_hc import (
     Sentence,
     SentenceReport,
     Status,
+    StatusQuery,
     TaskAtom,
     TaskState,
 )
 from shared.fipa_codec.languages.l_hfsm import HierarchicalPlan, PlanNode
-from shared.fipa_codec.languages.l_sw import SWState, SWStatus
-from shared.fipa_codec.languages.l_wm import Answer, ObjectQuery, ObjectUpdate, WorldUpdate
+from shared.fipa_codec.languages.l_sw import TERMINAL_SW_STATES, SWState, SWStatus
+from shared.fipa_codec.languages.l_wm import Answer, ObjectQuery, ObjectUpdate, SparqlQuery, WorldUpdate
 from tests.support.peer import Peer, running
 
 P = Performative
@@ -430,3 +432,191 @@ def test_a_foreign_not_understood_ends_its_request_and_a_hi_goes_on(after: Perfo
     assert [m.performative for m in seen] == [P.AGREE, P.INFORM][: len(seen)], seen
     assert len(seen) == (2 if after is P.INFORM else 1) and last.performative is P.INFORM, seen
     assert not hi.commands and not hi.foreign.open
+
+
+# ---- answers crossing a cancel on the wire -------------------------------------------------------
+
+
+def cross(
+    monkeypatch: pytest.MonkeyPatch,
+    owner: object,
+    method: str,
+    cancel: Callable[[], Communicate],
+    when: Callable[..., bool] = lambda *_: True,
+) -> list[Communicate]:
+    """The first time the real agent calls ``owner.method`` (with arguments ``when`` takes),
+    ``cancel()`` first puts the peer's cancel on the bus: the agent is in the middle of a
+    step (it holds its turn), so the cancel waits in its input while the agent answers what it
+    is answering, and the two cross on the wire, as over a network with latency (FIPA SC00026
+    §2). Returns the list the cancel is put in once sent."""
+    original = getattr(owner, method)
+    sent: list[Communicate] = []
+
+    def first_the_cancel(*args: object, **kwargs: object) -> object:
+        if not sent and when(*args, **kwargs):
+            sent.append(cancel())
+        return original(*args, **kwargs)
+
+    monkeypatch.setattr(owner, method, first_the_cancel)
+    return sent
+
+
+def late_cancel_answered(peer: Peer, cid: str, cancel: Communicate) -> Communicate:
+    """The agent's answer to ``cancel``, which came after the conversation had ended."""
+    answered = peer.next(cid=cid)
+    assert answered.in_reply_to == cancel.reply_with, answered
+    return answered
+
+
+KM_ANSWERS = [
+    ("ASK { ?s ?p ?o }", P.INFORM_REF),
+    ("SELECT ?s WHERE { SERVICE <http://example.org/sparql> { ?s ?p ?o } }", P.REFUSE),
+    ("this is not SPARQL", P.FAILURE),
+]
+
+
+@pytest.mark.parametrize(("text", "perf"), KM_ANSWERS, ids=[p.value for _, p in KM_ANSWERS])
+@pytest.mark.parametrize(("channel", "asker"), [("C7", "a_hi"), ("C6", "a_ta")])
+def test_a_km_answer_crossing_a_cancel_ends_the_query_and_the_cancel_is_answered(
+    monkeypatch: pytest.MonkeyPatch, channel: str, asker: str, text: str, perf: Performative
+) -> None:
+    """The querier cancels while a_km is answering: a_km's answer (inform-ref, refuse or
+    failure) crosses the cancel and ends the query; the cancel, which comes after that end, is
+    answered with failure (nothing to cancel), and a_km goes on answering."""
+    bus = MemoryBus()
+    km = KnowledgeManager(bus.transport())
+    them = Peer(bus, asker, "a_km", channel)
+    sent = cross(monkeypatch, km.world, "answer", lambda: them.send(P.CANCEL, "fipa-query", "q"))
+    with running(km):
+        query = them.send(P.QUERY_REF, "fipa-query", "q", SparqlQuery(query=text))
+        answered = them.next(cid="q")
+        (cancel,) = sent
+        failed = late_cancel_answered(them, "q", cancel)
+        them.send(P.QUERY_REF, "fipa-query", "q2", SparqlQuery(query="ASK { ?s ?p ?o }"))
+        assert them.next(cid="q2").performative is P.INFORM_REF
+    assert answered.performative is perf and answered.in_reply_to == query.reply_with, answered
+    assert failed.performative is P.FAILURE and b"nothing to cancel" in failed.content, failed
+    assert km.counters["handler_errors"] == 0 and km.counters["rejected"] == 0
+
+
+def test_a_co_answers_crossing_a_cancel_end_their_conversations(monkeypatch: pytest.MonkeyPatch) -> None:
+    """a_hi cancels while a_co answers: a status query (inform-ref), a yes/no question, a
+    request and a subscribe that carry nothing (each refused). Each answer crosses the cancel
+    and ends its conversation; each cancel, coming after that end, is answered with failure."""
+    bus = MemoryBus()
+    co = Coordinator(bus.transport())
+    a_hi = Peer(bus, "a_hi", "a_co", "C2")
+    cases = [
+        ("status", P.QUERY_REF, "fipa-query", StatusQuery(), P.INFORM_REF, "status"),
+        ("yes-no", P.QUERY_IF, "fipa-query", StatusQuery(), P.REFUSE, "_on_yes_no_query"),
+        ("empty-command", P.REQUEST, "fipa-request", None, P.REFUSE, "_accept"),
+        ("empty-subscribe", P.SUBSCRIBE, "fipa-subscribe", None, P.REFUSE, "_on_subscribe"),
+    ]
+    with running(co):
+        for cid, opening, protocol, term, perf, method in cases:
+            sent = cross(monkeypatch, co, method, lambda p=protocol, c=cid: a_hi.send(P.CANCEL, p, c))
+            asked = a_hi.send(opening, protocol, cid, term)
+            answered = a_hi.next(cid=cid)
+            assert answered.performative is perf and answered.in_reply_to == asked.reply_with, answered
+            (cancel,) = sent
+            assert late_cancel_answered(a_hi, cid, cancel).performative is P.FAILURE
+    assert co.counters["handler_errors"] == 0 and co.counters["rejected"] == 0 and not co.tasks
+
+
+FOREIGN_CROSSINGS = [
+    (BRING, ReportKind.ACCEPTED, P.AGREE),
+    (STATUS, ReportKind.STATUS, P.INFORM),
+    ("flibbertigibbet the quux", ReportKind.NOT_UNDERSTOOD, P.REFUSE),
+]
+
+
+@pytest.mark.parametrize(
+    ("text", "kind", "perf"), FOREIGN_CROSSINGS, ids=[p.value for _, _, p in FOREIGN_CROSSINGS]
+)
+def test_a_hi_answer_crossing_a_foreign_cancel(
+    monkeypatch: pytest.MonkeyPatch, text: str, kind: ReportKind, perf: Performative
+) -> None:
+    """A foreign agent cancels its request while a_hi answers it (an agree, the final inform,
+    or a refuse of a sentence it did not understand): the answer crosses the cancel; a_hi
+    answers the cancel with failure (after an agree the command goes on, and its outcome
+    still answers the request)."""
+    with a_hi_with_a_foreigner() as (hi, foreign, a_co):
+        sent = cross(
+            monkeypatch,
+            hi.foreign,
+            "answer",
+            lambda: foreign.send(P.CANCEL, "fipa-request", "ask"),
+            when=lambda report: report.kind is kind,
+        )
+        asked = foreign.send(P.REQUEST, "fipa-request", "ask", Sentence(text=text))
+        if kind is not ReportKind.NOT_UNDERSTOOD:
+            opened = a_co.next(P.REQUEST, P.QUERY_REF)
+            if opened.performative is P.REQUEST:
+                answer(a_co, opened, P.AGREE)
+            else:
+                answer(a_co, opened, P.INFORM_REF, Status(tasks=()))
+        answered = foreign.next(cid="ask")
+        (cancel,) = sent
+        failed = late_cancel_answered(foreign, "ask", cancel)
+        if perf is P.AGREE:
+            answer(a_co, opened, P.INFORM, CommandOutcome(command_id="x", succeeded=True))
+            assert foreign.next(cid="ask").performative is P.INFORM
+    assert answered.performative is perf and answered.in_reply_to == asked.reply_with, answered
+    assert report_of(answered).kind == kind.value and failed.performative is P.FAILURE, failed
+    assert hi.counters["handler_errors"] == 0 and not hi.foreign.open
+
+
+# ---- C1 coordinate: a_co does not confirm a_ta's state ----------------------------------------
+
+
+def test_a_ta_sends_an_unconfirmed_state_again_until_a_co_confirms_it() -> None:
+    """a_co (scripted) is silent for ten minutes after a_ta's first L_SW inform (a_ta's clock
+    is moved): a_ta, which may send its next state only after the confirm (paper §5.4), sends
+    the same inform again and waits on, with no time-out; a_co's late confirm lets the plan's
+    terminal state through, and its confirm ends the conversation: a_ta takes the next plan."""
+    bus = MemoryBus()
+    ta = TaskExecutor(bus.transport())
+    clock = MovedClock()
+    ta.sources = clock
+    a_co = Peer(bus, "a_co", "a_ta", "C1")
+    plan = HierarchicalPlan(plan_id="p1", task_id="t1", root=PlanNode(name="nothing"))
+
+    def next_state(peer: Peer, previous: Communicate) -> Communicate:
+        """a_ta's next L_SW inform after ``previous`` (copies of it, sent before the confirm
+        arrived, are skipped: a minute of them at most)."""
+        for _ in range(int(60 / SW_RETRY_S)):
+            inform = peer.next(P.INFORM, cid="plan")
+            if inform.reply_with != previous.reply_with:
+                return inform
+        raise AssertionError(f"a_ta still sends {previous.reply_with} after its confirm")
+
+    def state(inform: Communicate) -> SWState:
+        status = decode_content("L_SW", inform.content)
+        assert isinstance(status, SWStatus), status
+        return status.state
+
+    with running(ta):
+        a_co.send(P.REQUEST, "coordinate", "plan", plan)
+        first = a_co.next(P.INFORM, cid="plan")
+        clock.ahead = 600.0
+        again = a_co.next(P.INFORM, cid="plan")
+        informs = [first]
+        while state(informs[-1]) not in TERMINAL_SW_STATES:
+            confirm = SWStatus(state=state(informs[-1]), plan_id="p1")
+            a_co.send(P.CONFIRM, "coordinate", "plan", confirm, in_reply_to=informs[-1].reply_with)
+            informs.append(next_state(a_co, informs[-1]))
+        last = informs[-1]
+        a_co.send(
+            P.CONFIRM,
+            "coordinate",
+            "plan",
+            SWStatus(state=state(last), plan_id="p1"),
+            in_reply_to=last.reply_with,
+        )
+        a_co.send(
+            P.REQUEST, "coordinate", "next", HierarchicalPlan(plan_id="p2", task_id="t2", root=plan.root)
+        )
+        following = a_co.next(P.INFORM, cid="next")  # a_ta is free for the next plan
+    assert state(first) is SWState.RUNNING and again.reply_with == first.reply_with, again
+    assert state(last) is SWState.SUCCEEDED and state(following) is SWState.RUNNING, last
+    assert ta.counters["deadline_failures"] == 0 and ta.counters["rejected"] == 0
