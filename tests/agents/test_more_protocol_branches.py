@@ -157,6 +157,21 @@ def test_a_command_a_co_refuses_with_its_outcome_is_reported_refused() -> None:
     assert "switched off" in report.text and not hi.commands
 
 
+def test_an_answer_a_hi_cannot_read_ends_the_command_at_once() -> None:
+    """a_co answers a command with an agree whose content does not decode: a_hi answers
+    not-understood, which ends the command's conversation (FIPA SC00037 §3.12), and tells the
+    person at once that the command failed, and why (not after AGREE_BY_S)."""
+    with a_hi_with_a_co() as (hi, a_co, person, _):
+        person.say(BRING, "r1")
+        request = a_co.next(P.REQUEST)
+        assert request.conversation_id is not None
+        a_co.garbage(P.AGREE, "fipa-request", request.conversation_id, "L_HC", in_reply_to=request.reply_with)
+        a_co.next(P.NOT_UNDERSTOOD, cid=request.conversation_id)
+        report = person.final("r1")
+    assert report.kind is ReportKind.FAILED and "a_hi could not read a_co's answer" in report.text, report
+    assert hi.counters["deadline_failures"] == 0 and not hi.commands
+
+
 @pytest.mark.parametrize("agreed", [False, True], ids=["unanswered", "agreed-unfinished"])
 def test_a_command_whose_reply_by_passes_fails(agreed: bool) -> None:
     """a_co neither agrees within AGREE_BY_S nor, having agreed, ends the command within
@@ -322,7 +337,7 @@ def test_a_state_a_co_cannot_read_is_not_understood_and_ends_the_command() -> No
         a_ta.garbage(P.INFORM, "coordinate", cid, "L_SW", in_reply_to=request.reply_with)
         a_ta.next(P.NOT_UNDERSTOOD, cid=cid)
         perf, told = outcome(a_hi, "cmd-1")
-    assert perf is P.FAILURE and not told.succeeded, told
+    assert perf is P.FAILURE and "a_ta sent a state a_co could not read" in told.detail, told
     assert co.note.ta_task is None and not co.tasks
 
 
