@@ -2,10 +2,11 @@
 against a scripted peer on a MemoryBus (tests/support/peer.py), as in
 tests/agents/test_protocol_branches.py: a participant that answers at once without agree
 (FIPA SC00026 §2), refuses with a term, ends a subscription with failure (SC00035 §2), answers
-a cancel with failure, or lets a reply-by pass; an initiator whose answer the other side does
-not understand (SC00037 §3.12). A reply-by deadline passes by moving the real agent's clock
-(``Agent.sources``, services/runtime/sources.py), not by waiting. ``roco spec coverage
---tests`` counts them (docs/spec.md, "Coverage")."""
+a cancel with failure, or lets a reply-by pass; an answer the other side cannot read, or does
+not understand (SC00037 §3.12); an answer that crosses a cancel on the wire. A reply-by
+deadline passes by moving the real agent's clock (``Agent.sources``,
+services/runtime/sources.py), not by waiting. ``roco spec coverage --tests`` counts them
+(docs/spec.md, "Coverage")."""
 
 from __future__ import annotations
 
