@@ -144,9 +144,11 @@ class SpecViolation(RuntimeError):
 
 class Received(msgspec.Struct, frozen=True):
     """One acquired communicate: the message, its decoded ``content`` (a term of its
-    language, or None), the ``channel`` it came on, and ``local`` True for a failure the
-    runtime synthesised when a reply-by deadline passed. (A msgspec Struct: one is built
-    per communicate taken in, ≈ 10 × cheaper than a frozen dataclass.)"""
+    language, or None), the ``channel`` it came on, and ``local`` True for what the runtime
+    synthesised: a failure when a reply-by deadline passed, or the not-understood this agent
+    answered the peer with (services/runtime/roles.py ``Roles.not_understood_sent``). (A
+    msgspec Struct: one is built per communicate taken in, ≈ 10 × cheaper than a frozen
+    dataclass.)"""
 
     msg: Communicate
     content: msgspec.Struct | None
@@ -477,7 +479,9 @@ class Agent:
         ``reason`` is the counter it is counted under (``rejected.<reason>``; the names are in
         services/runtime/limits.py ``REJECT_REASONS``). The not-understood ends ``about``'s
         conversation (FIPA SC00037 §3.12): from now on the runtime no longer follows its
-        protocol state. A not-understood is never answered with one (no loops)."""
+        protocol state, and a conversation this agent opened ends through its handler
+        (:meth:`Roles.not_understood_sent`). A not-understood is never answered with one (no
+        loops)."""
         self.counters["rejected"] += 1
         self.counters[f"rejected.{reason}"] += 1
         cid = about.conversation_id if about is not None else None
@@ -497,6 +501,8 @@ class Agent:
             in_reply_to=about.reply_with if about else None,
         )
         self._out(sender, msg.in_reply_to, self.lookups.key(channel, sender), encode(msg))
+        if about is not None and cid is not None:
+            self.roles.not_understood_sent(sender, channel, about, why)
 
     def _warn_rejected(self, fmt: str, *args: object) -> None:
         """Log a warning about rejected input, at most :data:`LOG_BURST` per

@@ -30,7 +30,8 @@ FIPA machine of :mod:`shared.fipa_codec.protocols`) — owns what the protocol i
   (:attr:`Conversation.answers_cancel`);
 - ``not-understood``: it ends the conversation; an initiator's conversation ends through its
   ``failure`` handler (:attr:`Conversation.not_understood`) unless the agent handles
-  ``not-understood`` itself;
+  ``not-understood`` itself, also when the initiator sent it (:attr:`Conversation.unreadable`:
+  an answer it could not read);
 - ``agree`` (to an initiator) is noted on the conversation (:attr:`Conversation.agreed`);
   a handler for it is optional;
 - a fault in a handler is logged and counted (``handler_errors``); a participant's peer gets
@@ -90,7 +91,7 @@ from services.runtime.code_scan import findings_text, scan
 from services.spec.model import ChannelSpec, SpecError, SystemSpec
 from services.spec.protocol_defs import machine_of, streams
 from services.spec.render_names import spellings
-from shared.fipa_codec import DecodeError, decode, encode
+from shared.fipa_codec import Communicate, DecodeError, decode, encode
 from shared.fipa_codec.acts import Performative
 from shared.fipa_codec.languages import ContentError, decode_content
 from shared.fipa_codec.protocols import INITIATOR, PARTICIPANT, Protocol, Role
@@ -100,7 +101,6 @@ if TYPE_CHECKING:
     from services.runtime.served import ServedSubscription
     from services.runtime.state_store import KeptConversations
     from services.runtime.subscriptions import StandingSubscription
-    from shared.fipa_codec import Communicate
 
 __all__ = [
     "EVERY_CHANNEL",
@@ -700,6 +700,12 @@ def _note(table: RoleTable, conv: Conversation, item: Received) -> bool:
     return perf is _CANCEL and table.answers_cancels and not item.local
 
 
+def _deadline(item: Received) -> bool:
+    """``item`` is the runtime's failure for a reply-by deadline that passed (not a
+    not-understood this agent sent: :meth:`Roles.not_understood_sent`)."""
+    return item.local and item.msg.performative is Performative.FAILURE
+
+
 # ---------------------------------------------------------------------------------------------
 # The conversations and the roles at run time
 
@@ -777,7 +783,7 @@ class Conversation:
     @property
     def timed_out(self) -> bool:
         """The reply-by deadline passed before the peer answered (the runtime ended it)."""
-        return self.last is not None and self.last.local
+        return self.last is not None and _deadline(self.last)
 
     @property
     def answers_to(self) -> str | None:
@@ -805,8 +811,15 @@ class Conversation:
 
     @property
     def not_understood(self) -> bool:
-        """The peer answered ``not-understood``."""
+        """A ``not-understood`` ended the conversation: the peer's, or this agent's
+        (:attr:`unreadable`)."""
         return self.last is not None and self.last.performative is Performative.NOT_UNDERSTOOD
+
+    @property
+    def unreadable(self) -> bool:
+        """This agent could not read the peer's latest communicate and answered it
+        not-understood, which ended the conversation (:meth:`Roles.not_understood_sent`)."""
+        return self.last is not None and self.last.local and self.not_understood
 
     @property
     def answered(self) -> bool:
@@ -1436,6 +1449,30 @@ class Roles:
             and conv.answers_other(msg)
         )
 
+    def not_understood_sent(self, peer: str, channel: str, about: Communicate, why: str) -> None:
+        """This agent answered ``about`` from ``peer`` not-understood for ``why``, which ends
+        its conversation (FIPA SC00037 §3.12). A conversation this agent opened there awaits
+        no more: it stops waiting and ends through the agent's not-understood (else failure)
+        handler (:attr:`Conversation.unreadable`, its reason ``why``), at once instead of at
+        its reply-by deadline, or never when it has none (a_co's plan on C1)."""
+        from services.runtime.agent import Received
+
+        conv = self._open.get((peer, about.conversation_id or ""))
+        if conv is None or conv.decl.role != INITIATOR:
+            return
+        conv.stop_waiting()
+        ended = Communicate(
+            performative=Performative.NOT_UNDERSTOOD,
+            sender=about.sender,
+            receiver=about.receiver,
+            content=why.encode(),
+            encoding="utf-8",
+            protocol=about.protocol,
+            conversation_id=about.conversation_id,
+            in_reply_to=about.in_reply_to,  # what it answered: e.g. the answer to a cancel
+        )
+        self.agent.x.append(Received(ended, None, channel, local=True))
+
     def take(self, item: Received) -> None:
         """Route one received communicate (already checked against the interface and the
         conversation's protocol state by the agent) to its conversation and handler: its
@@ -1478,7 +1515,8 @@ class Roles:
         cancel = _note(table, conv, item)
         if cancel:
             conv._cancel = item
-        method = table.on_deadline if item.local else table.on_received.get(item.msg.performative)
+        deadline = _deadline(item)
+        method = table.on_deadline if deadline else table.on_received.get(item.msg.performative)
         sub = self._subscriptions.get(table.decl)
         try:
             if sub is not None and not sub.take(conv):
@@ -1487,7 +1525,7 @@ class Roles:
                 getattr(self.agent, method)(conv)
             elif cancel:
                 conv.refuse_with(Performative.FAILURE, "this conversation cannot be cancelled")
-            elif item.local:
+            elif deadline:
                 self.agent.log.info(
                     "reply-by deadline of %s in conversation %s with %s passed",
                     item.msg.in_reply_to,

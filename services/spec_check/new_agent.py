@@ -201,8 +201,9 @@ def _failure_note(perf: Performative, role: Role) -> list[str]:
     """An initiator's failure handler is reached for more than failure."""
     if perf is Performative.FAILURE and role == INITIATOR:
         return [
-            "Also reached when the reply-by deadline passed (conv.timed_out) or the peer did not "
-            "understand (conv.not_understood); conv.reason says why."
+            "Also reached when the reply-by deadline passed (conv.timed_out), the peer did not "
+            "understand (conv.not_understood), or this agent could not read the answer "
+            "(conv.unreadable); conv.reason says why."
         ]
     return []
 

@@ -483,7 +483,8 @@ class Coordinator(Agent):
         if conv is not self.ta or task is None or conv.timed_out or conv.last is None:
             return
         self._release_ta()
-        self._finish(task, False, f"a_ta {conv.last.performative.value}: {conv.reason}")
+        said = "sent a state a_co could not read" if conv.unreadable else conv.last.performative.value
+        self._finish(task, False, f"a_ta {said}: {conv.reason}")
 
     @handles(COORDINATE, INITIATOR, Performative.NOT_UNDERSTOOD)
     def _on_ta_not_understood(self, conv: Conversation) -> None:

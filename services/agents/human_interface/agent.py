@@ -541,12 +541,13 @@ class HumanInterface(Agent):
             return
         if conv.answers_cancel:
             self._not_stopped(c, conv)
-        else:
-            self._end(
-                c,
-                ReportKind.FAILED,
-                f"{c.label}: a_co did not understand the command; {reason_of(conv)}",
+        else:  # a_co did not understand the command, or a_hi could not read a_co's answer
+            who = (
+                "a_hi could not read a_co's answer"
+                if conv.unreadable
+                else "a_co did not understand the command"
             )
+            self._end(c, ReportKind.FAILED, f"{c.label}: {who}; {reason_of(conv)}")
 
     @staticmethod
     def _stopping(c: OpenCommand) -> bool:

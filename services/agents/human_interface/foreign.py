@@ -6,7 +6,8 @@ conversation per foreign agent, in the order the sentences came), and the report
 would get become the answers, each a ``SentenceReport``: ``accepted`` an ``agree``, a final
 report an ``inform`` when the request was done as asked, else a ``failure`` — or a ``refuse``
 when the sentence was not understood (before any agree). Progress reports are not sent
-(fipa-request has none). These conversations are not kept across a restart of a_hi.
+(fipa-request has none), nor anything in a request the foreign agent ended with
+not-understood. These conversations are not kept across a restart of a_hi.
 """
 
 from __future__ import annotations
@@ -47,6 +48,10 @@ class ForeignRequests:
         (module docstring); a progress report is not sent."""
         conv = self.open.get(report.request_id)
         if conv is None:
+            return
+        if conv.finished:  # the foreign agent ended it (not-understood, FIPA SC00037 §3.12)
+            del self.open[report.request_id]
+            self.log.info("%s's request [%s] has ended: not answered", conv.peer, report.request_id)
             return
         performative: Performative | None = None
         requested = conv.state == "requested"  # fipa-request: not agreed yet

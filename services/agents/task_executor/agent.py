@@ -70,7 +70,6 @@ from services.runtime.roles import (
     Conversation,
     handles,
     initiator,
-    on_deadline,
     participant,
 )
 from services.spec.names import (
@@ -125,10 +124,9 @@ TORSO_JOINT = "torso_0_joint"
 HALT_REPLY_BY_S = 30.0
 """How long ag_ex may take to answer a cancel of the command it runs (s): the halt brings the
 robot to rest first (mid-pour up to the tilt's end and the turn upright, ≈ 4 s)."""
-CONFIRM_REPLY_BY_S = 300.0
-"""How long a_ta waits for a_co to confirm an L_SW inform before it goes on without."""
 SW_RETRY_S = 5.0
-"""Retransmission period of an unconfirmed L_SW inform (a_co may be restarting)."""
+"""Retransmission period of an unconfirmed L_SW inform, sent until a_co confirms it (a_co may be
+restarting or away): the coordinate protocol lets a_ta send its next state only after that."""
 _ENDS = {Do.REPLAN: SWState.REPLAN, Do.ERROR: SWState.ERROR}
 """The final state of each verdict that ends the plan (services/agents/task_executor/verdict.py)."""
 WORLD_TIME_SLACK_S = 1e-6
@@ -243,12 +241,9 @@ class TaskExecutor(Agent):
         self._confirmed(conv)
 
     @handles(COORDINATE, PARTICIPANT, Performative.NOT_UNDERSTOOD)
-    @on_deadline(COORDINATE, PARTICIPANT)
     def _on_unconfirmed(self, conv: Conversation) -> None:
-        if conv.timed_out:
-            self.log.warning("a_co did not confirm %s in time", conv.answers_to)
-        else:  # a restarted a_co that kept nothing does not know the plan: nobody waits for it
-            self.log.warning("a_co does not know plan of %s: going on", conv.answers_to)
+        """A restarted a_co that kept nothing does not know the plan: nobody waits for it."""
+        self.log.warning("a_co does not know plan of %s: going on", conv.answers_to)
         self._confirmed(conv)
 
     def _confirmed(self, conv: Conversation) -> None:
@@ -450,9 +445,7 @@ class TaskExecutor(Agent):
         if self.awaiting is not None or not self.sw_queue or self.plan_request is None:
             return
         status = self.sw_queue.popleft()
-        self.awaiting = self.plan_request.send(
-            Performative.INFORM, status, reply_by_s=CONFIRM_REPLY_BY_S, retry_s=SW_RETRY_S
-        )
+        self.awaiting = self.plan_request.send(Performative.INFORM, status, retry_s=SW_RETRY_S)
         if status.state in TERMINAL_SW_STATES:
             self.final_inform = self.awaiting
 
