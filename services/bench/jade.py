@@ -31,7 +31,6 @@ import json
 import os
 import select
 import shutil
-import signal
 import subprocess
 import sys
 import tempfile
@@ -41,6 +40,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import IO, Any
 
+from services.bench.children import end_child
 from services.fleet.launcher import free_port
 from shared.settings import Settings
 
@@ -178,17 +178,6 @@ def read_line(stream: IO[bytes], accept: Callable[[bytes], bool], timeout: float
         buffered += chunk
 
 
-def _end(proc: subprocess.Popen[Any]) -> None:
-    """End ``proc`` (SIGTERM, then SIGKILL after 5 s) and reap it."""
-    if proc.poll() is None:
-        proc.send_signal(signal.SIGTERM)
-        try:
-            proc.wait(5)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-            proc.wait(5)
-
-
 def _boot(classpath: str, args: list[str], work: Path, log: str) -> subprocess.Popen[bytes]:
     """A JVM running ``jade.Boot ARGS``: stdout piped, stderr (JADE's log) to ``work/log``."""
     with (work / log).open("wb") as err:
@@ -312,7 +301,7 @@ def measure(
     finally:
         for proc in reversed(procs):
             with contextlib.suppress(OSError):
-                _end(proc)
+                end_child(proc)
         if not got.error:
             shutil.rmtree(work, ignore_errors=True)
     got.settings = settings

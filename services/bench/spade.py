@@ -22,7 +22,6 @@ import contextlib
 import json
 import select
 import shutil
-import signal
 import socket
 import subprocess
 import sys
@@ -32,6 +31,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from services.bench.children import end_child
 from services.fleet.launcher import free_port
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -94,16 +94,6 @@ def _wait_port(port: int, proc: subprocess.Popen[bytes], timeout: float) -> bool
         except OSError:
             time.sleep(0.1)  # polling a port that is not open yet: no event to wait on
     return False
-
-
-def _end(proc: subprocess.Popen[Any]) -> None:
-    if proc.poll() is None:
-        proc.send_signal(signal.SIGTERM)
-        try:
-            proc.wait(5)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-            proc.wait(5)
 
 
 def _spawn(cmd: list[str], work: Path, stdout: Any, stderr: Any) -> subprocess.Popen[Any]:
@@ -213,7 +203,7 @@ def measure(round_trips: int, messages: int, size: int = 200, timeout: float = 3
     finally:
         for proc in reversed(procs):
             with contextlib.suppress(OSError):
-                _end(proc)
+                end_child(proc)
         if measured:  # the logs are kept when something went wrong (error messages name them)
             shutil.rmtree(work, ignore_errors=True)
 
