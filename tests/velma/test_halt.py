@@ -227,6 +227,8 @@ def test_a_pour_halted_at_any_moment_spills_nothing(
     ck.apply(rt, ck.decode(saved, ck.fingerprint(rt.model)))
     loop: ControlLoop[int] = ControlLoop(rt)
     assert _spheres(rt) == (18, 0, 0)
+    arm = rt.ctrl.arm_slice["left"]
+    q_before = rt.q()[arm].copy()
     start = rt.time
     queue = list(enumerate(commands))
     token, command = queue.pop(0)
@@ -250,6 +252,14 @@ def test_a_pour_halted_at_any_moment_spills_nothing(
     assert (jar if where == "jar" else bowl) == 18, (jar, bowl)
     if where == "jar":
         assert lean_at_cancel < POUR_POINT
+    _assert_elbow_back(rt.q()[arm], q_before)
+
+
+def _assert_elbow_back(q: np.ndarray, q_before: np.ndarray) -> None:
+    """The arm is back on the posture it had before the tilt (within 0.25 rad a joint), not on
+    the tilted pose's elbow (0.8–1.2 rad away in four joints when the null-space posture stayed
+    the tilt's): the IK of the next moves, seeded there, would keep it."""
+    assert float(np.max(np.abs(q - q_before))) < 0.25, np.round(q - q_before, 2)
 
 
 @pytest.mark.slow
@@ -331,6 +341,7 @@ def test_a_pour_held_half_way_through_the_tilt_spills_nothing(
     rt, saved, commands = before_tilt
     ck.apply(rt, ck.decode(saved, ck.fingerprint(rt.model)))
     loop: ControlLoop[int] = ControlLoop(rt)
+    q_before = rt.q()[rt.ctrl.arm_slice["left"]].copy()
     start = rt.time
     loop.submit(0, commands[0])
     while rt.time - start < moment:
@@ -343,3 +354,4 @@ def test_a_pour_held_half_way_through_the_tilt_spills_nothing(
     assert (jar if where == "jar" else bowl) == 18, (jar, bowl)
     assert _lean(rt) < 0.1 and rt.held["left"] is not None
     assert rt.ctrl.arm["left"].mode == "joint" and loop.holding == "a_ta lost"
+    _assert_elbow_back(rt.q()[rt.ctrl.arm_slice["left"]], q_before)
