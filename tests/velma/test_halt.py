@@ -2,7 +2,11 @@
 velma/executor/primitives.py ``HaltPrimitive``): a queued one ends at once, a running motion
 brakes to rest within a bounded distance, a second cancel changes nothing, an ended command
 cannot be cancelled; and a pour halted at any moment spills nothing — every sphere of the
-jar's content ends in the jar or in the bowl, the jar upright in the hand.
+jar's content ends in the jar or in the bowl, the jar upright in the hand. A hold (ag_ex lost
+a_ta: ``ControlLoop.hold``) brings the motion to rest the same way before it holds in joint
+impedance: stopped dead half-way through the tilt, at the lean where the content runs out,
+the jar poured 1–3 spheres short of the bowl and off the table (scenario tilt_interrupted
+under load).
 
 Everything runs the loop in this thread, cycle by cycle (no clock, no sleeps): the simulated
 time is the loop's own."""
@@ -223,6 +227,8 @@ def test_a_pour_halted_at_any_moment_spills_nothing(
     ck.apply(rt, ck.decode(saved, ck.fingerprint(rt.model)))
     loop: ControlLoop[int] = ControlLoop(rt)
     assert _spheres(rt) == (18, 0, 0)
+    arm = rt.ctrl.arm_slice["left"]
+    q_before = rt.q()[arm].copy()
     start = rt.time
     queue = list(enumerate(commands))
     token, command = queue.pop(0)
@@ -246,6 +252,14 @@ def test_a_pour_halted_at_any_moment_spills_nothing(
     assert (jar if where == "jar" else bowl) == 18, (jar, bowl)
     if where == "jar":
         assert lean_at_cancel < POUR_POINT
+    _assert_elbow_back(rt.q()[arm], q_before)
+
+
+def _assert_elbow_back(q: np.ndarray, q_before: np.ndarray) -> None:
+    """The arm is back on the posture it had before the tilt (within 0.25 rad a joint), not on
+    the tilted pose's elbow (0.8–1.2 rad away in four joints when the null-space posture stayed
+    the tilt's): the IK of the next moves, seeded there, would keep it."""
+    assert float(np.max(np.abs(q - q_before))) < 0.25, np.round(q - q_before, 2)
 
 
 @pytest.mark.slow
@@ -270,3 +284,74 @@ def test_a_cancel_of_the_next_command_halts_the_robot_as_it_stands(
     assert _lean(rt) < 0.1 and rt.held["left"] is not None
     _cycles(loop, 2.0)
     assert _spheres(rt) == (0, 18, 0)
+
+
+def test_a_hold_brakes_the_running_move_then_holds_in_joint_impedance() -> None:
+    """ag_ex loses a_ta mid-move: the command is answered at once, but the setpoint is not
+    stopped dead (a jump of its speed to zero): it goes on and brakes along the path; the arm
+    switches to joint impedance once at rest, and a command sent meanwhile waits until then."""
+    loop = _loop()
+    rt = loop.rt
+    loop.submit(1, _left_move(rt, 0.25, 1.5))
+    for _ in range(700):
+        assert loop.cycle() is None
+    cmd = rt.ctrl.arm["left"]
+    twist = cmd.twist.copy()
+    speed = float(np.linalg.norm(twist[:3]))
+    assert speed > 0.2, speed
+    at_hold = cmd.pose.translation.copy()
+    ended = loop.hold("a_ta lost")
+    assert [(t, r.reason) for t, r in ended] == [(1, "held: a_ta lost")]
+    assert loop.holding == "a_ta lost"
+    loop.submit(2, Wait(duration=0.01))
+    assert loop.cycle() is None
+    assert cmd.mode == "cart"  # still braking
+    assert np.allclose(cmd.twist, twist, atol=HALT_LINEAR_DECEL * 0.002)  # no jump of speed
+    brake_s = MIN_JERK_PEAK_RATE * speed / HALT_LINEAR_DECEL
+    for _ in range(round(brake_s * 1000) - 2):
+        assert loop.cycle() is None
+        assert loop.holding == "a_ta lost" and loop.queue, "the next command waits for the rest"
+    _cycles_until_mode(loop, "joint", limit=10)
+    went = float(np.linalg.norm(rt.ctrl.state["left"].grip.translation - at_hold))
+    assert went == pytest.approx(0.5 * brake_s * speed, abs=0.01)  # braked along the path
+    result = _until_done(loop, 2, limit_s=1.0)
+    assert isinstance(result, CommandResult) and result.ok
+    assert loop.holding is None
+
+
+def _cycles_until_mode(loop: ControlLoop[int], mode: str, limit: int) -> None:
+    for _ in range(limit):
+        if loop.rt.ctrl.arm["left"].mode == mode:
+            return
+        assert loop.cycle() is None
+    assert loop.rt.ctrl.arm["left"].mode == mode
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(
+    ("moment", "where"),
+    [
+        (2.2, "jar"),  # short of the pour point: braked and turned back
+        (2.8, "bowl"),  # ≈ 1.6 rad, where the scenario's hold stopped it and 2 spheres fell off the table
+    ],
+)
+def test_a_pour_held_half_way_through_the_tilt_spills_nothing(
+    before_tilt: tuple[Runtime, bytes, list[ExecutorCommand]], moment: float, where: str
+) -> None:
+    rt, saved, commands = before_tilt
+    ck.apply(rt, ck.decode(saved, ck.fingerprint(rt.model)))
+    loop: ControlLoop[int] = ControlLoop(rt)
+    q_before = rt.q()[rt.ctrl.arm_slice["left"]].copy()
+    start = rt.time
+    loop.submit(0, commands[0])
+    while rt.time - start < moment:
+        assert loop.cycle() is None
+    ended = loop.hold("a_ta lost")
+    assert [(t, r.reason) for t, r in ended] == [(0, "held: a_ta lost")]
+    _cycles(loop, 6.0)  # brought to rest (the tilt finished, the jar upright), the content settled
+    jar, bowl, outside = _spheres(rt)
+    assert outside == 0, f"held {moment} s into the pour: {jar} in the jar, {bowl} in the bowl"
+    assert (jar if where == "jar" else bowl) == 18, (jar, bowl)
+    assert _lean(rt) < 0.1 and rt.held["left"] is not None
+    assert rt.ctrl.arm["left"].mode == "joint" and loop.holding == "a_ta lost"
+    _assert_elbow_back(rt.q()[rt.ctrl.arm_slice["left"]], q_before)

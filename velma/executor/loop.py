@@ -7,10 +7,15 @@ thread of the calling process (tests, scripts), ``velma.executor.process`` in a 
 own (ag_ex). Commands carry an opaque ``token`` that comes back with their result, so each
 host can map results to its callers.
 
-Holding (``hold``): the running and queued commands end with ``failure`` (reason ``held:
-<why>``), the arms switch to joint impedance at their measured configuration, the torso to its
-measured angle; the hands keep their setpoints, so a grasped object stays grasped. ``safe``
-does the same with Velma's safe-mode gains. The loop holds until the next command arrives.
+Holding (``hold``; ag_ex lost its commander): the running and queued commands end at once
+with ``failure`` (reason ``held: <why>``), but the motion that ran is not stopped dead: it is
+brought to rest as a cancel brings it (``HaltPrimitive``: setpoints braked along their path, a
+tilted jar turned upright, or a pour past its pour point finished first), and only then do the
+arms switch to joint impedance at their measured configuration and the torso to its measured
+angle; the hands keep their setpoints, so a grasped object stays grasped. Commands that arrive
+meanwhile wait for the rest. (Stopped dead half-way through a pour's tilt, at the lean where the
+content runs out, the jar poured it short of the bowl and off the table.) ``safe`` switches at
+once, with Velma's safe-mode gains. The loop holds until the next command arrives.
 
 Cancelling (``cancel``; a_ta's FIPA cancel of the request, SC00026 §2, paper §3.2 safe
 interruption): a command queued behind another is dropped and ends at once with ``halted``
@@ -52,6 +57,10 @@ class ControlLoop(Generic[T]):
         self.current: tuple[T, ExecutorCommand, Primitive] | None = None
         self.holding: str | None = None
         self.errors: collections.deque[tuple[str, str]] = collections.deque(maxlen=64)
+        self.stopping: HaltPrimitive | None = None
+        """A hold's halt: the motion that ran when ``hold`` came, being brought to rest before
+        the arms switch to joint impedance; None when none runs. Its result goes to nobody
+        (its command was answered by ``hold``)."""
         self._self_contacts_at_start: dict[tuple[str, str], int] = {}
 
     def submit(self, token: T, command: ExecutorCommand) -> None:
@@ -60,18 +69,18 @@ class ControlLoop(Generic[T]):
 
     def cancel(self, token: T) -> list[tuple[T, CommandResult]] | None:
         """Halt the command submitted with ``token`` (module docstring). Returns
-        ``[(token, result)]`` when it was queued behind another (dropped; ``result`` says
-        ``halted``), ``[]`` when it runs, or was the next to run with none running (a
-        ``HaltPrimitive`` runs in its place: the robot is halted as it stands, a tilted jar
-        turned upright; its ``halted`` result comes from ``cycle`` once the robot is at rest; a
-        second cancel changes nothing), None when the loop no longer has it (it has ended).
-        When the halt cannot start (it raised) the loop holds position instead (``hold``) and
-        the commands that ended are returned."""
+        ``[(token, result)]`` when it was queued behind another or behind a hold's halt
+        (``stopping``; dropped; ``result`` says ``halted``), ``[]`` when it runs, or was the
+        next to run with none running (a ``HaltPrimitive`` runs in its place: the robot is
+        halted as it stands, a tilted jar turned upright; its ``halted`` result comes from
+        ``cycle`` once the robot is at rest; a second cancel changes nothing), None when the
+        loop no longer has it (it has ended). When the halt cannot start (it raised) the loop
+        holds position at once instead and the commands that ended are returned."""
         for i, (queued, command) in enumerate(self.queue):
             if queued != token:
                 continue
             del self.queue[i]
-            if i == 0 and self.current is None:
+            if i == 0 and self.current is None and self.stopping is None:
                 return self._halt(token, command, None)
             name = command_name(command)
             return [(queued, CommandResult(command=name, ok=False, reason=HALTED, sim_time=self.rt.time))]
@@ -93,7 +102,8 @@ class ControlLoop(Generic[T]):
             halt.start(self.rt)
         except Exception as exc:  # a halt that cannot start must not kill the loop: hold instead
             self.errors.append((command_name(command), f"halt: {type(exc).__name__}: {exc}"))
-            return self.hold(f"the halt failed: {exc}")
+            why = f"the halt failed: {exc}"
+            return self._stop_motion(f"held: {why}", why, safe=False)
         return []
 
     def pending(self) -> list[tuple[T, ExecutorCommand]]:
@@ -112,9 +122,41 @@ class ControlLoop(Generic[T]):
         ]
 
     def hold(self, why: str) -> list[tuple[T, CommandResult]]:
-        """Hold position in joint impedance (see module docstring); returns the failures of
-        the commands it ended."""
-        return self._stop_motion(f"held: {why}", why, safe=False)
+        """Hold position in joint impedance once the running motion is at rest (see module
+        docstring); returns the failures of the commands it ended, at once. A hold while a
+        hold's halt runs keeps that halt; a halt that cannot start holds at once."""
+        running = self.current
+        ended = self.abort(f"held: {why}")
+        self.holding = why
+        if self.stopping is None and running is not None:
+            self.stopping = self._brake(running[1], running[2])
+        if self.stopping is None:
+            self._joint_hold(safe=False)
+        return ended
+
+    def _brake(self, command: ExecutorCommand, running: Primitive) -> HaltPrimitive | None:
+        """The halt that brings ``running`` (``command``'s primitive) to rest: a cancel's halt
+        already under way, else a new one, started; None when it cannot start."""
+        if isinstance(running, HaltPrimitive):
+            return running
+        halt = HaltPrimitive(command, running)
+        try:
+            halt.start(self.rt)
+        except Exception as exc:  # a halt that cannot start must not kill the loop
+            self.errors.append((command_name(command), f"halt: {type(exc).__name__}: {exc}"))
+            return None
+        return halt
+
+    def _step_stopping(self, halt: HaltPrimitive) -> None:
+        """Advance a hold's halt; at rest (or should it raise) the arms switch to the hold."""
+        try:
+            at_rest = halt.step(self.rt) is not None
+        except Exception as exc:
+            self.errors.append(("halt", f"{type(exc).__name__}: {exc}"))
+            at_rest = True
+        if at_rest:
+            self.stopping = None
+            self._joint_hold(safe=False)
 
     def safe(self, why: str) -> list[tuple[T, CommandResult]]:
         """Safe mode: like ``hold`` but with the arms in Velma's safe joint impedance (K = 5
@@ -123,7 +165,16 @@ class ControlLoop(Generic[T]):
         return self._stop_motion(f"safe mode: {why}", f"safe mode: {why}", safe=True)
 
     def _stop_motion(self, reason: str, holding: str, *, safe: bool) -> list[tuple[T, CommandResult]]:
+        """End every command with ``reason`` and hold where the robot is, at once (no halt)."""
         ended = self.abort(reason)
+        self.stopping = None
+        self._joint_hold(safe=safe)
+        self.holding = holding
+        return ended
+
+    def _joint_hold(self, *, safe: bool) -> None:
+        """Both arms in joint impedance (``safe``: Velma's safe gains) at their measured
+        configuration, at rest; the torso at its measured angle."""
         rt = self.rt
         q = rt.q()
         for side in SIDES:
@@ -135,8 +186,6 @@ class ControlLoop(Generic[T]):
             rt.ctrl.arm[side].twist = np.zeros(6)
         rt.ctrl.torso_q = float(q[rt.ctrl.torso_idx])
         rt.ctrl.torso_qd = 0.0
-        self.holding = holding
-        return ended
 
     def cycle(self) -> tuple[T, Result] | None:
         """One 1 ms cycle: start or advance the command, control, physics step. Returns the
@@ -144,7 +193,9 @@ class ControlLoop(Generic[T]):
         rt = self.rt
         finished: tuple[T, Result] | None = None
         t0 = time.perf_counter()
-        if self.current is None and self.queue:
+        if self.stopping is not None:  # a hold's halt: commands wait until the robot is at rest
+            self._step_stopping(self.stopping)
+        elif self.current is None and self.queue:
             token, command = self.queue.popleft()
             self.holding = None
             self._self_contacts_at_start = dict(rt.self_contact_pairs)

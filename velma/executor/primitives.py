@@ -122,8 +122,14 @@ it back at once. Standing still past ≈ 1.5 rad (87°) the jar loses its conten
 bowl; turned back at once from 1.6–1.8 rad, 2–8 of the 18 spheres flew out of the bowl
 (measured on velma/scenario.py's pour, seed 0). So where the brake would stop the lean at or
 past this point, the running Tilt goes on along its path to its planned end — the plan aimed
-it so that what leaves the jar falls into the target — and the turn upright follows at once
-(no wait). tests/velma/test_halt.py halts the pour on either side of it."""
+it so that what leaves the jar falls into the target — and the turn upright follows after
+``HALT_RUN_OUT``. tests/velma/test_halt.py halts the pour on either side of it."""
+HALT_RUN_OUT = 1.0
+"""s a halt that ran a Tilt on to its end past ``POUR_POINT`` keeps the jar there before it
+turns it upright, for the content still on its way out to leave, as the plan's own wait does
+(the pour's let_run_out, 2.5 s). Chosen: turned at once, the content of velma/scenario.py's
+pour had left (the last sphere ≈ 0.6 s before the tilt's end), but in one of 16 loaded runs of
+scenario tilt_interrupted a sphere still in the jar was thrown 4 m."""
 
 
 class Primitive(Protocol):
@@ -352,9 +358,20 @@ class TiltPrimitive(_CartesianMotion):
         start = self.start_pose(rt)
         pivot = np.array(self.cmd.pivot, dtype=float)
         path = RotationPath(start, pivot, axis, float(self.cmd.angle), self.duration)
+        if rt.tilt_about[self.side] is None:
+            rt.upright_posture[self.side] = None  # no earlier tilt of what it holds
         rt.tilt_about[self.side] = (axis / np.linalg.norm(axis), pivot)
         self._begin(rt, path, path.goal)
         return None
+
+    def step(self, rt: Runtime) -> Result | None:
+        solving = self.path is None
+        result = super().step(rt)
+        if solving and self.path is not None:  # the path begins: remember an upright start's posture
+            z = held_axis(rt, self.side)
+            if z is None or z[2] >= math.cos(UPRIGHT_TOL):
+                rt.upright_posture[self.side] = self.q0.copy()
+        return result
 
 
 class MoveJointsPrimitive:
@@ -686,7 +703,7 @@ class _Turn:
     kept, not raised)."""
 
     def __init__(self, start: pin.SE3, axis: Array, pivot: Array, rate: float, angle: float) -> None:
-        self.axis, self.pivot, self.rate = axis, pivot, rate
+        self.axis, self.pivot, self.rate, self.total = axis, pivot, rate, angle
         self.lever = start.translation - pivot
         self.r0 = start.rotation
         a = UPRIGHT_ACCEL
@@ -720,6 +737,13 @@ class _Turn:
             rate = self.peak - self.sense * a * t3
         return theta, rate
 
+    def share(self, t: float) -> float:
+        """How much of the turn (0 → 1) is done ``t`` s into it; 0 while a braked tilt still
+        leans further."""
+        if abs(self.total) < 1e-9:
+            return 1.0
+        return min(1.0, max(0.0, self.angle(t)[0] / self.total))
+
     def sample(self, t: float) -> tuple[pin.SE3, Array]:
         """The grip setpoint and its world twist (6,) ``t`` s into the turn."""
         theta, rate = self.angle(t)
@@ -738,6 +762,18 @@ class Upright(NamedTuple):
     angle: float
 
 
+def held_axis(rt: Runtime, side: str) -> Array | None:
+    """The axis (its body's z, unit (3,), world) of the object ``side``'s hand holds, taken
+    with the grip at its Cartesian setpoint (a payload's sag not counted); None when the hand
+    holds nothing or the arm is not in Cartesian impedance."""
+    body, cmd = rt.held[side], rt.ctrl.arm[side]
+    if body is None or cmd.mode != "cart":
+        return None
+    grip = rt.grip(side).rotation
+    z: Array = cmd.pose.rotation @ (grip.T @ rt.data.xmat[body].reshape(3, 3)[:, 2])
+    return z
+
+
 def upright_turn(rt: Runtime, side: str) -> Upright | None:
     """How to turn the object ``side``'s hand holds upright: the axis, pivot and angle that
     bring its axis (its body's z) nearest the vertical, taken with the grip at its Cartesian
@@ -746,11 +782,10 @@ def upright_turn(rt: Runtime, side: str) -> Upright | None:
     (``Runtime.tilt_about``: back the way it came, its lip over where it poured), else, when it
     leans more than ``UPRIGHT_UNKNOWN_TOL``, about the horizontal axis through the grip's
     setpoint."""
-    body, cmd = rt.held[side], rt.ctrl.arm[side]
-    if body is None or cmd.mode != "cart":
+    z = held_axis(rt, side)
+    if z is None:
         return None
-    grip = rt.grip(side).rotation
-    z = cmd.pose.rotation @ (grip.T @ rt.data.xmat[body].reshape(3, 3)[:, 2])
+    cmd = rt.ctrl.arm[side]
     about = rt.tilt_about[side]
     if z[2] >= math.cos(UPRIGHT_TOL if about is not None else UPRIGHT_UNKNOWN_TOL):
         return None
@@ -790,7 +825,10 @@ class HaltPrimitive:
       about the tilt's own axis and pivot, the tilt's rate braked as the turn begins
       (``_Turn``): the jar's mouth rises before its content reaches it. A Tilt that has leant
       the jar so far that its content may be leaving (``POUR_POINT``) first runs on to its
-      planned end, so that what leaves falls where the plan aimed it, and then turns it upright;
+      planned end, so that what leaves falls where the plan aimed it, waits ``HALT_RUN_OUT``
+      there and then turns it upright;
+      along the turn the null-space posture goes back to the one before the tilt
+      (``Runtime.upright_posture``), so the arm ends on the elbow it stood on;
     - the neck stops where its setpoint is (or keeps the gaze of a LookAt while the torso
       brakes); a halted grasp or release keeps the hand as it is (``Hands.keep``); other
       hands keep their grip.
@@ -810,6 +848,9 @@ class HaltPrimitive:
         (rad/s) velocity, braking time (s)."""
         self.turns: dict[str, tuple[_Turn, float]] = {}
         """Per arm turning what it holds upright: the turn and when it begins (s into the halt)."""
+        self.postures: dict[str, tuple[Array, Array]] = {}
+        """Per turning arm whose posture before the tilt is known (``Runtime.upright_posture``):
+        its null-space posture as the turn begins and that one, reached as the turn ends."""
         self.finishing: dict[str, TiltPrimitive] = {}
         """Per arm pouring past ``POUR_POINT``: the Tilt that runs to its end before the turn."""
         self.joints: dict[str, tuple[Array, Array, float]] = {}
@@ -838,6 +879,7 @@ class HaltPrimitive:
                     rate = float(cmd.twist[3:] @ upright.axis)
                     turn = _Turn(cmd.pose.copy(), upright.axis, upright.pivot, rate, upright.angle)
                     self.turns[side] = (turn, 0.0)
+                    self._posture_back(rt, side)
                     ends.append(turn.duration)
                     continue
                 v, w = cmd.twist[:3].copy(), cmd.twist[3:].copy()
@@ -864,6 +906,14 @@ class HaltPrimitive:
             rt.hands.keep(self.command.arm.value)
         return None
 
+    def _posture_back(self, rt: Runtime, side: str) -> None:
+        """Bring ``side``'s null-space posture back along its turn upright to the one it had
+        before the tilt, when known (``Runtime.upright_posture``): on the tilted pose's elbow
+        the arm would end elsewhere, and the IK of the next moves, seeded there, stay on it."""
+        upright = rt.upright_posture[side]
+        if upright is not None and rt.tilt_about[side] is not None:
+            self.postures[side] = (np.array(rt.ctrl.arm[side].posture, dtype=float), upright.copy())
+
     def step(self, rt: Runtime) -> Result | None:
         t = rt.time - self.t0
         ctrl = rt.ctrl
@@ -879,12 +929,16 @@ class HaltPrimitive:
             upright = upright_turn(rt, side)
             if upright is not None:
                 turn = _Turn(ctrl.arm[side].pose.copy(), upright.axis, upright.pivot, 0.0, upright.angle)
-                self.turns[side] = (turn, t)
-                self.duration = max(self.duration, t + turn.duration)
+                self.turns[side] = (turn, t + HALT_RUN_OUT)
+                self._posture_back(rt, side)
+                self.duration = max(self.duration, t + HALT_RUN_OUT + turn.duration)
         for side, (turn, begin) in self.turns.items():
             if t >= begin:
                 cmd = ctrl.arm[side]
                 cmd.pose, cmd.twist = turn.sample(t - begin)
+                if side in self.postures:
+                    p0, p1 = self.postures[side]
+                    cmd.posture = p0 + turn.share(t - begin) * (p1 - p0)
         for side, (q0, qd, duration) in self.joints.items():
             b, f = brake(t, duration)
             cmd = ctrl.arm[side]

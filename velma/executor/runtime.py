@@ -167,6 +167,12 @@ class Runtime:
         turned what it holds, until a MoveTool of that arm or a MoveJoints of it or of the
         torso: a halt turns a tilted held object upright about them
         (velma/executor/primitives.py ``HaltPrimitive``). Not in a checkpoint."""
+        self.upright_posture: dict[str, Array | None] = {s: None for s in SIDES}
+        """Per arm, the null-space posture (7,, rad: the measured joints) it had when a Tilt
+        began to lean what it holds from upright; read only while ``tilt_about`` is set (a
+        Tilt from a leant start keeps it). A halt's turn upright brings the posture back to
+        it, so that the arm ends as it stood before the tilt, not on the elbow of the tilted
+        pose. None: unknown. Not in a checkpoint."""
         self.held: dict[str, int | None] = {s: None for s in SIDES}
         self.touch: dict[str, dict[int, int]] = {s: {} for s in SIDES}
         self.lost_cycles: dict[str, int] = {s: 0 for s in SIDES}

@@ -353,7 +353,7 @@ class ExecutorAgent(Agent):
         self.log.warning(
             "%s lost (liveliness token gone): %s",
             event.agent,
-            "holding position in joint impedance, hands as they are"
+            "bringing the motion to rest, then holding position in joint impedance, hands as they are"
             if asked
             else "could not ask the loop to hold",
         )
