@@ -36,11 +36,12 @@ import sys
 import tempfile
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import IO, Any
 
 from services.bench.children import end_child
+from services.bench.platform_figures import PlatformFigures
 from services.fleet.launcher import free_port
 from shared.settings import Settings
 
@@ -60,24 +61,11 @@ LEFT_OUT = ("jade", "mtp", "iiop")
 
 
 @dataclass
-class JadeFigures:
-    """What the JADE run gave: round-trip samples (s), the stream's count, sent and span (s),
-    the versions (``jade``, ``java``); or ``error`` (the measure failed) or ``skipped`` (what
-    is missing to run it). ``settings``: how it was measured, in words."""
+class JadeFigures(PlatformFigures):
+    """What the JADE run gave (:class:`PlatformFigures`, ``versions`` of ``jade`` and
+    ``java``), or ``skipped``: what is missing to run it."""
 
-    samples_s: list[float] = field(default_factory=list)
-    count: int = 0
-    sent: int = 0
-    span_s: float = 0.0
-    versions: dict[str, str] = field(default_factory=dict)
-    error: str = ""
     skipped: str = ""
-    settings: str = ""
-
-    @property
-    def rate(self) -> float:
-        """Messages per second at the responder: (count − 1) over the first-to-last span."""
-        return (self.count - 1) / self.span_s if self.span_s > 0 and self.count > 1 else 0.0
 
 
 def missing(home: Path | None) -> str:

@@ -27,11 +27,11 @@ import subprocess
 import sys
 import tempfile
 import time
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 from services.bench.children import end_child
+from services.bench.platform_figures import PlatformFigures
 from services.fleet.launcher import free_port
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -40,23 +40,8 @@ SCRIPT = ROOT / "scripts" / "bench_spade.py"
 PACKAGES = ("spade", "greenlet")
 
 
-@dataclass
-class SpadeFigures:
-    """What the SPADE run gave: round-trip samples (s), throughput count and span (s), the
-    versions, or ``error`` (why SPADE could not be measured)."""
-
-    samples_s: list[float] = field(default_factory=list)
-    count: int = 0
-    sent: int = 0
-    span_s: float = 0.0
-    versions: dict[str, str] = field(default_factory=dict)
-    error: str = ""
-    settings: str = ""
-
-    @property
-    def rate(self) -> float:
-        """Messages per second at the responder (count - 1 over first-to-last span)."""
-        return (self.count - 1) / self.span_s if self.span_s > 0 and self.count > 1 else 0.0
+class SpadeFigures(PlatformFigures):
+    """What the SPADE run gave (:class:`PlatformFigures`)."""
 
 
 def ensure_venv(log: Path, timeout: float = 600.0) -> str:
