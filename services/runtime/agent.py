@@ -1140,6 +1140,8 @@ class Agent:
             if self._stop.is_set():
                 break
             state = self._after_behaviour(state, failed)
+        if self.roles.withdraw_queries():  # stopping: no participant answers for nobody
+            self.persist()
         if self._here and not self._dispatch_here():
             yield 0.0
         self._dispatch()

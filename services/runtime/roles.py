@@ -89,6 +89,7 @@ import msgspec
 from services.runtime import keys
 from services.runtime.code_scan import findings_text, scan
 from services.spec.model import ChannelSpec, SpecError, SystemSpec
+from services.spec.names import FIPA_QUERY
 from services.spec.protocol_defs import machine_of, streams
 from services.spec.render_names import spellings
 from shared.fipa_codec import Communicate, DecodeError, decode, encode
@@ -1157,6 +1158,19 @@ class Roles:
         abandoned lately with ``remember`` (the last :data:`ENDED_KEPT`); None when it is not
         remembered."""
         return self._ended.get(conversation_id)
+
+    def withdraw_queries(self) -> int:
+        """Withdraw every query this agent asked and still waits on (:meth:`Conversation.withdraw`:
+        a cancel, FIPA SC00027 §2): called when the agent stops, so that no participant answers
+        a question nobody will read. Requests are left alone: what they started (a plan, a
+        motion) is the other agents' to end, and a restarted agent takes them up again.
+        Returns how many were withdrawn."""
+        open_queries = [
+            c for c in self if c.decl.role == INITIATOR and c.decl.protocol == FIPA_QUERY and not c.finished
+        ]
+        for conv in open_queries:
+            conv.withdraw()
+        return len(open_queries)
 
     def free_id(self, base: str, taken: Container[str] = ()) -> str:
         """A conversation-id for a new conversation: ``base``, else ``base-2``, ``base-3``, …,
