@@ -1165,8 +1165,10 @@ class Roles:
         a question nobody will read. Requests are left alone: what they started (a plan, a
         motion) is the other agents' to end, and a restarted agent takes them up again.
         Returns how many were withdrawn."""
-        open_queries = [
-            c for c in self if c.decl.role == INITIATOR and c.decl.protocol == FIPA_QUERY and not c.finished
+        open_queries = [  # not one this agent cancelled already: it may wait for the cancel's answer
+            c
+            for c in self
+            if c.decl.role == INITIATOR and c.decl.protocol == FIPA_QUERY and not c.finished and not c.cancels
         ]
         for conv in open_queries:
             conv.withdraw()
