@@ -17,24 +17,19 @@ import services.cli as cli
 from services.replay.driver import ReplayError, render, replay
 from services.runtime.counters import CountersReport, save_counters
 from shared.fipa_codec import Communicate, Performative
-from shared.fipa_codec.aid import aid
-from shared.fipa_codec.languages import encode_content
 from shared.fipa_codec.languages.l_hc import Status, StatusQuery, TaskState, TaskStatus
+from tests.support.messages import communicate
 from tests.support.recorded_run import write_recorded_run
 
 
 def _query(n: int) -> Communicate:
-    language, body = encode_content(StatusQuery())
-    return Communicate(
-        performative=Performative.QUERY_REF,
-        sender=aid("a_hi"),
-        receiver=(aid("a_co"),),
-        content=body,
-        language=language,
-        encoding="msgpack",
-        ontology="O_RoCo",
-        protocol="fipa-query",
-        conversation_id=f"status-{n}",
+    return communicate(
+        Performative.QUERY_REF,
+        "a_hi",
+        "a_co",
+        "fipa-query",
+        f"status-{n}",
+        StatusQuery(),
         reply_with=f"a_hi-{n}",
         reply_by=1_800_000_000.0 + 30.0,
     )
@@ -43,17 +38,13 @@ def _query(n: int) -> Communicate:
 def _answer(
     n: int, *, reply_with: str, in_reply_to: str | None = None, status: Status | None = None
 ) -> Communicate:
-    language, body = encode_content(status or Status(tasks=()))
-    return Communicate(
-        performative=Performative.INFORM_REF,
-        sender=aid("a_co"),
-        receiver=(aid("a_hi"),),
-        content=body,
-        language=language,
-        encoding="msgpack",
-        ontology="O_RoCo",
-        protocol="fipa-query",
-        conversation_id=f"status-{n}",
+    return communicate(
+        Performative.INFORM_REF,
+        "a_co",
+        "a_hi",
+        "fipa-query",
+        f"status-{n}",
+        status or Status(tasks=()),
         reply_with=reply_with,
         in_reply_to=in_reply_to or f"a_hi-{n}",
     )
