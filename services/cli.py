@@ -133,8 +133,8 @@ GatewayOption = Annotated[
         min=1,
         max=65535,
         metavar="PORT",
-        help="also run the ACL gateway (`roco gateway`, docs/gateway.md) as a process of the fleet, "
-        "serving agents of other FIPA platforms at http://127.0.0.1:PORT/acc [default: no gateway]",
+        help="also run the ACL gateway (`roco gateway --port PORT`, docs/gateway.md) as a process of "
+        "the fleet: agents of other FIPA platforms post to 127.0.0.1:PORT [default: no gateway]",
         show_default=False,
     ),
 ]
