@@ -31,7 +31,7 @@ import typer
 
 from services.deploy.cli import CheckOnly, SpecFile, deploy_app, file_option, shown
 from services.fault.cli import fault_app
-from services.fleet.launcher import AGENT_ORDER, Fleet, LaunchError
+from services.fleet.launcher import AGENT_ORDER, GATEWAY, Fleet, LaunchError
 from services.hosts.cli import hosts_app
 from services.runtime import keys
 from services.runtime.human import FINAL_REPORTS, HumanInput, HumanReport
@@ -125,6 +125,18 @@ RecordOption = Annotated[
 ]
 ViewOption = Annotated[
     bool, typer.Option("--view/--no-view", help="also show the recording live in a Rerun viewer")
+]
+GatewayOption = Annotated[
+    int | None,
+    typer.Option(
+        "--gateway",
+        min=1,
+        max=65535,
+        metavar="PORT",
+        help="also run the ACL gateway (`roco gateway --port PORT`, docs/gateway.md) as a process of "
+        "the fleet: agents of other FIPA platforms post to 127.0.0.1:PORT [default: no gateway]",
+        show_default=False,
+    ),
 ]
 LiveOption = Annotated[
     bool | None,
@@ -240,10 +252,12 @@ def run(
     acl: AclOption = None,
     tls: TlsOption = None,
     live: LiveOption = None,
+    gateway: GatewayOption = None,
 ) -> None:
-    """Start router, recorder and one process per agent; give a_hi the command; wait for the
-    outcome; stop everything; write the run folder's report. Exit 0 only on success, 130
-    when interrupted (Ctrl-C: the fleet is stopped, the report written)."""
+    """Start router, recorder and one process per agent (and the ACL gateway with
+    `--gateway`); give a_hi the command; wait for the outcome; stop everything; write the run
+    folder's report. Exit 0 only on success, 130 when interrupted (Ctrl-C: the fleet is
+    stopped, the report written)."""
     from services.scenario.model import Scenario, Step
 
     _security(acl, tls)
@@ -251,7 +265,16 @@ def run(
         name="", steps=(Step(say=command),), seed=seed, pose_seed=pose_seed, timeout_s=timeout
     )
     watch = _live_watch("roco run", live, quiet)
-    _run_scenario(scenario, runs_dir, realtime=realtime, quiet=quiet, record=record, view=view, watch=watch)
+    _run_scenario(
+        scenario,
+        runs_dir,
+        realtime=realtime,
+        quiet=quiet,
+        record=record,
+        view=view,
+        watch=watch,
+        gateway=gateway,
+    )
 
 
 @app.command(short_help="Run a scripted session and check every command's outcome.")
@@ -268,6 +291,7 @@ def scenario(
     acl: AclOption = None,
     tls: TlsOption = None,
     live: LiveOption = None,
+    gateway: GatewayOption = None,
 ) -> None:
     """Run a scenario (several commands, interruptions, disturbances, restarts; see
     services/scenario/model.py) headless, check every command's outcome against what the
@@ -287,7 +311,9 @@ def scenario(
     except ScenarioError as exc:
         raise fail(str(exc), code=2) from None
     watch = _live_watch(f"roco scenario {sc.name}", live, quiet)
-    _run_scenario(sc, runs_dir, realtime=realtime, quiet=quiet, record=record, view=view, watch=watch)
+    _run_scenario(
+        sc, runs_dir, realtime=realtime, quiet=quiet, record=record, view=view, watch=watch, gateway=gateway
+    )
 
 
 _CHAOS_DEFAULT = ",".join(default_spec().agent_names)
@@ -521,12 +547,15 @@ def _run_scenario(
     record: bool = True,
     view: bool = False,
     watch: LiveWatch | None = None,
+    gateway: int | None = None,
 ) -> None:
     from services.monitor import progress_line
     from services.scenario.model import Scenario
     from services.scenario.runner import ScenarioRunner
 
     assert isinstance(sc, Scenario)
+    if gateway is not None:
+        _port_free(gateway, "--gateway")
     scene = _scene_env(realtime, sc.seed, sc.pose_seed)
     run_dir = _new_run_dir(runs_dir)
     env = scene | _viewer_env(record, view)
@@ -547,6 +576,7 @@ def _run_scenario(
             traffic_lines=None if quiet else progress_line,
             info=info,
             on_session=watch.attach if watch is not None else None,
+            gateway=gateway,
         )
         outcome = runner.run()
     _finish_report(run_dir, info, interrupted=outcome.interrupted)
@@ -631,16 +661,19 @@ def up(
     ] = False,
     acl: AclOption = None,
     tls: TlsOption = None,
+    gateway: GatewayOption = None,
 ) -> None:
-    """Start router, recorder and all agents in the background; they keep running until
-    `roco down`, which writes the run's report. A port in use, or a runs folder that cannot
-    be written, is refused before anything starts; a fleet that does not come up is stopped
-    (its report written)."""
+    """Start router, recorder and all agents (and the ACL gateway with `--gateway`) in the
+    background; they keep running until `roco down`, which writes the run's report. A port in
+    use, or a runs folder that cannot be written, is refused before anything starts; a fleet
+    that does not come up is stopped (its report written)."""
     _security(acl, tls)
     state_file = runs_dir / FLEET_FILE
     if state_file.exists():
         raise fail(f"a fleet is already up ({state_file}); run 'roco down' first")
     _port_free(port, "--port")
+    if gateway is not None:
+        _port_free(gateway, "--gateway")
     scene = _scene_env(realtime, seed, pose_seed)
     run_dir = _new_run_dir(runs_dir)
     env = scene | _viewer_env(record, False)
@@ -657,6 +690,9 @@ def up(
         fleet.wait_alive(session, ["recorder"], timeout=60)
         fleet.start_agents()
         waited = fleet.wait_alive(session, AGENT_ORDER, timeout=120)
+        if gateway is not None:
+            fleet.start_gateway(gateway)
+            fleet.wait_alive(session, [GATEWAY], timeout=60)
     except (LaunchError, KeyboardInterrupt) as exc:
         if session is not None:
             session.close()
@@ -671,7 +707,8 @@ def up(
     info.processes = fleet.pids()
     write_run_info(run_dir, info)
     state_file.write_bytes(msgspec.json.encode(FleetState(endpoint, str(run_dir), fleet.pids())))
-    typer.echo(f"roco: fleet up on {endpoint} in {waited:.1f} s; run folder {run_dir}")
+    served = f"; gateway http://127.0.0.1:{gateway}/acc" if gateway is not None else ""
+    typer.echo(f"roco: fleet up on {endpoint} in {waited:.1f} s{served}; run folder {run_dir}")
 
 
 def _report_fleet_end(run_dir: Path, failure: str = "") -> str:

@@ -41,6 +41,10 @@ AGENT_ORDER = default_spec().launch_order
 their clients, a_hi last: it accepts the human's command)."""
 
 
+GATEWAY = "gateway"  # services/gateway/bridge.py: GATEWAY
+"""The ACL gateway's process name, which is also its identity (``roco gateway``)."""
+
+
 LAUNCH_ENV = "launch_env.json"
 """The run folder's record of the environment the launcher gives its processes."""
 
@@ -145,6 +149,15 @@ class Fleet:
                 if world is None or world.poll() is not None:
                     self._spawn(WORLD_SERVICE, ["-m", "velma.world"])
             self._spawn(name, service_args(name, self.endpoint))
+
+    def start_gateway(self, port: int) -> None:
+        """Start ``roco gateway`` (services/gateway/cli.py) on ``127.0.0.1:port`` for this
+        fleet's router as process :data:`GATEWAY`: it authenticates as ``gateway`` when the
+        fleet has access control and is stopped with the agents. Its liveliness token comes
+        once it serves HTTP (:meth:`wait_alive`)."""
+        self._spawn(
+            GATEWAY, ["-m", "services.cli", "gateway", "--router", self.endpoint, "--port", str(port)]
+        )
 
     def _check_alive(self, names: Iterable[str]) -> None:
         for name in names:

@@ -21,7 +21,7 @@ from typing import Protocol
 import msgspec
 import zenoh
 
-from services.fleet.launcher import AGENT_ORDER, Fleet, LaunchError, free_port
+from services.fleet.launcher import AGENT_ORDER, GATEWAY, Fleet, LaunchError, free_port
 from services.recorder.sync import sync
 from services.runtime import keys
 from services.runtime.counters import ask_counters, save_counters
@@ -213,7 +213,9 @@ class ScenarioRunner:
     environment of every process (ag_ex's pacing and scene); ``echo`` receives progress
     lines (None: silent); ``on_session`` is given the runner's Zenoh session as soon as the
     router answers, before anything else starts (a live view subscribes on it); ``hosting``:
-    where the fleet runs (default: :class:`LocalHosting`)."""
+    where the fleet runs (default: :class:`LocalHosting`); ``gateway``: a port on 127.0.0.1
+    where the fleet's ACL gateway serves agents of other FIPA platforms (``roco gateway``,
+    docs/gateway.md), started once the agents are alive (None: no gateway)."""
 
     def __init__(
         self,
@@ -226,8 +228,10 @@ class ScenarioRunner:
         info: RunInfo | None = None,
         on_session: Callable[[zenoh.Session], None] | None = None,
         hosting: Hosting | None = None,
+        gateway: int | None = None,
     ) -> None:
         self.scenario = scenario
+        self.gateway = gateway
         self.on_session = on_session
         self.run_dir = run_dir
         self.hosting: Hosting = hosting if hosting is not None else LocalHosting(run_dir, env or {})
@@ -506,6 +510,18 @@ class ScenarioRunner:
         self.info.processes = self.fleet.pids()
         write_run_info(self.run_dir, self.info)
         self._say(f"all agents alive after {waited:.1f} s: {', '.join(AGENT_ORDER)}")
+        if self.gateway is not None:
+            self._start_gateway(session, self.gateway)
+
+    def _start_gateway(self, session: zenoh.Session, port: int) -> None:
+        """Start the ACL gateway on ``port`` and wait until it serves (its liveliness token:
+        LaunchError naming its last log line when it exits first, e.g. the port was taken)."""
+        self.fleet.start_gateway(port)
+        waited = self.fleet.wait_alive(session, [GATEWAY], timeout=60)
+        self.info.processes = self.fleet.pids()
+        write_run_info(self.run_dir, self.info)
+        url = f"http://127.0.0.1:{port}/acc"
+        self._say(f"gateway serving {url} after {waited:.1f} s: agents of other FIPA platforms → a_hi (C8)")
 
     def _await_knowledge(self, deadline: float) -> None:
         """Paper Table 7: a_km receives initial knowledge about the environment first (within
@@ -536,12 +552,23 @@ class ScenarioRunner:
         while any(c.final is None for c in self.commands):
             self._pump(0.5, deadline)
         # what each agent says it put on Zenoh, then everything routed before is recorded
-        save_counters(self.run_dir, ask_counters(session, AGENT_ORDER, timeout=5.0))
+        self._save_counters(session)
         self._sync_recorder(session)
         # the lines of communicates that came after the final report (another subscriber's
         # thread) are still said: the person sees every step
         while not self.events.empty():
             self._pump(0.0, deadline)
+
+    def _save_counters(self, session: zenoh.Session) -> None:
+        """The agents' counters (and the gateway's: what crossed it, said in one line as
+        ``roco status`` shows it) into the run folder's counters.json."""
+        asked = [*AGENT_ORDER, *([GATEWAY] if self.gateway is not None else [])]
+        counters = ask_counters(session, asked, timeout=5.0)
+        save_counters(self.run_dir, counters)
+        if GATEWAY in counters:
+            from services.gateway.bridge import summary
+
+            self._say(f"gateway: {summary(counters[GATEWAY].counters)}")
 
     def _stop_hosting(self) -> bool:
         """Stop the fleet; whether a Ctrl-C came meanwhile (it starts the stop again: none is

@@ -219,6 +219,19 @@ def test_up_refuses_a_port_in_use_before_it_starts_anything(
     assert not (tmp_path / "runs").exists()
 
 
+@pytest.mark.parametrize("name", ["run", "scenario", "up"])
+def test_a_gateway_port_in_use_is_refused_before_anything_starts(
+    name: str, taken_port: int, tmp_path: Path, nothing_starts: None
+) -> None:
+    """``--gateway PORT`` (the ACL gateway as a process of the fleet) on a port in use: one
+    line naming the option, exit 2, no run folder."""
+    runs = tmp_path / "runs"
+    code, lines = invoke([*_args(name, runs), "--gateway", str(taken_port)])
+    assert code == 2
+    assert lines == [f"roco: {in_use(taken_port, '--gateway')}"]
+    assert not runs.exists()
+
+
 def test_gateway_refuses_a_port_in_use_before_it_reaches_the_fleet(
     taken_port: int, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:

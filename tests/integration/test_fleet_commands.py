@@ -1,4 +1,5 @@
-"""`roco up`, `roco status`, `roco send`, `roco down` against a fleet of real processes."""
+"""`roco up`, `roco status`, `roco send`, `roco down` against a fleet of real processes (the ACL
+gateway one of them: `roco up --gateway`)."""
 
 from __future__ import annotations
 
@@ -11,6 +12,7 @@ from pathlib import Path
 import pytest
 
 from services.fleet.launcher import free_port
+from services.runtime.session import listening
 
 pytestmark = [pytest.mark.slow, pytest.mark.fleet]
 
@@ -23,16 +25,20 @@ def roco(*args: str, timeout: float = 180) -> subprocess.CompletedProcess[str]:
 
 def test_up_status_send_down(tmp_path: Path) -> None:
     runs = str(tmp_path)
-    up = roco("up", "--port", str(free_port()), "--runs-dir", runs)
+    gateway = free_port()
+    up = roco("up", "--port", str(free_port()), "--gateway", str(gateway), "--runs-dir", runs)
     assert up.returncode == 0, up.stderr
     try:
         assert "fleet up on tcp/127.0.0.1:" in up.stdout
+        assert f"gateway http://127.0.0.1:{gateway}/acc" in up.stdout
+        assert listening(f"tcp/127.0.0.1:{gateway}")
         again = roco("up", "--runs-dir", runs)
         assert again.returncode == 1 and "already up" in again.stderr
         status = roco("status", "--runs-dir", runs)
         assert status.returncode == 0, status.stdout + status.stderr
         for agent in ("a_hi", "a_co", "a_pl", "a_km", "a_ta", "ag_ex"):
             assert f"{agent:9s} alive" in status.stdout
+        assert "gateway   alive  received 0, forwarded 0, refused 0, answered 0" in status.stdout
         sent = roco("send", "sing me a song", "--runs-dir", runs, timeout=60)
         assert sent.returncode == 1
         # a_hi names the word it does not know
@@ -78,6 +84,7 @@ def test_up_status_send_down(tmp_path: Path) -> None:
         down = roco("down", "--runs-dir", runs)
     assert down.returncode == 0, down.stderr
     assert "traffic record complete" in down.stdout, down.stdout  # the recorder answered the sync
+    assert " gateway" in down.stdout.split(";")[0] and not listening(f"tcp/127.0.0.1:{gateway}")
     assert not (tmp_path / ".fleet.json").exists()
     after = roco("down", "--runs-dir", runs)
     assert after.returncode == 1 and after.stderr.startswith("roco: no fleet is up")

@@ -1,29 +1,117 @@
-"""The main job, as a user runs it: ``roco run "pour the jar into the bowl"`` starts a router,
-the recorder and one OS process per agent, and the robot pours the jar into the bowl in
-MuJoCo (paper §5.7). Faster than real time (the executor is not paced)."""
+"""The main job, as a user runs it: ``roco run "pour the jar into the bowl" --gateway PORT``
+starts a router, the recorder, one OS process per agent and the ACL gateway, and the robot pours
+the jar into the bowl in MuJoCo (paper §5.7). Faster than real time (the executor is not paced).
+While it pours, an agent of another FIPA platform (tests/support/jade_platform.py) asks a_hi
+through the gateway what it is doing (requirement R1.4, channel C8)."""
 
 from __future__ import annotations
 
+import json
+import queue
 import subprocess
 import sys
+import threading
+import time
+from dataclasses import dataclass
 from pathlib import Path
+from typing import IO
 
 import pytest
 
+from services.fleet.launcher import free_port
 from services.recorder.record import read_records
 from services.report import build_report
 from services.report.load import load_run
 from services.runtime.run_folder import read_run_info
+from shared.fipa_codec import Performative
+from tests.support.jade_platform import JADE, JadePlatform, Received
 from tests.support.machine import needs_gl
 from tests.support.world import FULL, stands_at, untouched, world
 
 pytestmark = [pytest.mark.slow, pytest.mark.fleet]
 
+ASKED = "what are you doing?"
+"""What the foreign agent asks a_hi while the robot pours."""
+CONVERSATION = "status_jade"
+"""The foreign agent's conversation-id (its reply-with: ``status_jade-r1``)."""
+FINAL = {Performative.INFORM, Performative.FAILURE, Performative.REFUSE, Performative.NOT_UNDERSTOOD}
+"""The answers that end a fipa-request (FIPA SC00026)."""
+
+
+@dataclass(frozen=True)
+class PourRun:
+    """The pour as ``roco run`` ran it (its output, exit status, run folder), and what the
+    foreign agent received through the gateway while it ran (``foreign``, in order), or why it
+    could not ask (``foreign_error``; "" when it asked and got a final answer)."""
+
+    proc: subprocess.CompletedProcess[str]
+    run_dir: Path
+    foreign: tuple[Received, ...]
+    foreign_error: str
+
+
+class Lines:
+    """The lines of a stream read on a thread of its own: all of them (:meth:`text`) and, as
+    they come, the first that holds a text (:meth:`wait_for`)."""
+
+    def __init__(self, stream: IO[str]) -> None:
+        self.seen: list[str] = []
+        self._new: queue.SimpleQueue[str | None] = queue.SimpleQueue()
+        self._ended = False
+        self.thread = threading.Thread(target=self._read, args=(stream,), daemon=True)
+        self.thread.start()
+
+    def _read(self, stream: IO[str]) -> None:
+        for line in stream:
+            self.seen.append(line)
+            self._new.put(line)
+        self._new.put(None)
+
+    def wait_for(self, text: str, deadline: float) -> str:
+        """The next line holding ``text``; raises TimeoutError past ``deadline`` (monotonic s)
+        or at the stream's end."""
+        while not self._ended:
+            try:
+                line = self._new.get(timeout=max(0.0, deadline - time.monotonic()))
+            except queue.Empty:
+                raise TimeoutError(f"no line with {text!r} in time") from None
+            if line is None:
+                self._ended = True
+            elif text in line:
+                return line
+        raise TimeoutError(f"the output ended before a line with {text!r}")
+
+    def text(self) -> str:
+        self.thread.join(timeout=60)
+        return "".join(self.seen)
+
+
+def ask_what_it_is_doing(jade: JadePlatform, port: int, out: Lines) -> tuple[list[Received], str]:
+    """Once the gateway serves and a_co has the pour (it asked for plan #1), the foreign agent
+    asks a_hi :data:`ASKED`; what it received until a final answer, and "" or why it stopped."""
+    got: list[Received] = []
+    url = f"http://127.0.0.1:{port}/acc"
+    deadline = time.monotonic() + 600
+    try:
+        out.wait_for(f"gateway serving {url}", deadline)
+        out.wait_for("plan #1 requested", deadline)
+        sentence = json.dumps({"type": "sentence", "text": ASKED})
+        status = jade.request(url, "a_hi", jade.acl("a_hi", sentence, CONVERSATION))
+        if status != 200:
+            return got, f"the gateway answered HTTP {status}"
+        while not got or got[-1].msg.performative not in FINAL:
+            got.append(jade.next(timeout=max(0.0, deadline - time.monotonic())))
+    except (TimeoutError, queue.Empty, OSError) as exc:
+        return got, f"{type(exc).__name__}: {exc}"
+    return got, ""
+
 
 @pytest.fixture(scope="module")
-def pour_run(tmp_path_factory: pytest.TempPathFactory) -> tuple[subprocess.CompletedProcess[str], Path]:
+def pour_run(tmp_path_factory: pytest.TempPathFactory) -> PourRun:
     runs = tmp_path_factory.mktemp("runs")
-    proc = subprocess.run(
+    port = free_port()
+    jade = JadePlatform()
+    proc = subprocess.Popen(
         [
             sys.executable,
             "-m",
@@ -34,18 +122,41 @@ def pour_run(tmp_path_factory: pytest.TempPathFactory) -> tuple[subprocess.Compl
             str(runs),
             "--timeout",
             "900",
+            "--gateway",
+            str(port),
         ],
-        capture_output=True,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
         text=True,
-        timeout=1200,
     )
+    assert proc.stdout is not None and proc.stderr is not None
+    out, err = Lines(proc.stdout), Lines(proc.stderr)
+    try:
+        foreign, why = ask_what_it_is_doing(jade, port, out)
+        proc.wait(timeout=1200)
+    finally:
+        jade.close()
+        end(proc)
+    done = subprocess.CompletedProcess(proc.args, proc.returncode, out.text(), err.text())
     (run_dir,) = [p for p in runs.iterdir() if p.is_dir()]
-    return proc, run_dir
+    return PourRun(done, run_dir, tuple(foreign), why)
+
+
+def end(proc: subprocess.Popen[str]) -> None:
+    """End ``roco run`` if it still runs: SIGTERM (it stops its fleet), SIGKILL after 60 s."""
+    if proc.poll() is not None:
+        return
+    proc.terminate()
+    try:
+        proc.wait(timeout=60)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        proc.wait()
 
 
 @pytest.mark.requirement("R3.1")
-def test_pour_succeeds_and_most_spheres_end_in_the_bowl(pour_run: tuple) -> None:
-    proc, run_dir = pour_run
+def test_pour_succeeds_and_most_spheres_end_in_the_bowl(pour_run: PourRun) -> None:
+    proc, run_dir = pour_run.proc, pour_run.run_dir
     assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-2000:]
     report = build_report(run_dir)
     assert report.header.succeeded is True
@@ -56,10 +167,10 @@ def test_pour_succeeds_and_most_spheres_end_in_the_bowl(pour_run: tuple) -> None
 
 
 @pytest.mark.requirement("R3.1")
-def test_the_bowl_stands_on_the_table_holding_the_content_in_the_simulated_world(pour_run: tuple) -> None:
+def test_the_bowl_stands_on_the_table_holding_the_content_in_the_simulated_world(pour_run: PourRun) -> None:
     """Judged by the world the run left (the world's final scene, the physics' truth), not by
     what the agents reported."""
-    _, run_dir = pour_run
+    run_dir = pour_run.run_dir
     w = world(run_dir)
     assert stands_at(w["bowl"], "table"), w["bowl"]
     assert (w["bowl"].particles_inside or 0) >= FULL, w["bowl"]
@@ -67,11 +178,11 @@ def test_the_bowl_stands_on_the_table_holding_the_content_in_the_simulated_world
 
 
 @needs_gl
-def test_every_object_asked_for_was_seen_within_10_mm_the_held_jar_included(pour_run: tuple) -> None:
+def test_every_object_asked_for_was_seen_within_10_mm_the_held_jar_included(pour_run: PourRun) -> None:
     """The camera's observations beside the truth (ag_ex_perception.jsonl): the jar observed
     while the left hand holds it is localised at its height (segment.py ``lifted``), and no
     content was seen outside a container where there was none."""
-    _, run_dir = pour_run
+    run_dir = pour_run.run_dir
     rows = build_report(run_dir).perception
     assert rows and all(r.seen for r in rows), [(r.object, r.reason) for r in rows if not r.seen]
     assert max(r.error_mm or 0.0 for r in rows) <= 10.0, [(r.object, r.sim_time, r.error_mm) for r in rows]
@@ -83,29 +194,28 @@ def test_every_object_asked_for_was_seen_within_10_mm_the_held_jar_included(pour
     )
 
 
-def test_each_agent_ran_as_its_own_process(pour_run: tuple) -> None:
-    _, run_dir = pour_run
+def test_each_agent_ran_as_its_own_process(pour_run: PourRun) -> None:
+    run_dir = pour_run.run_dir
     info = read_run_info(run_dir)
     agents = ("a_hi", "a_co", "a_pl", "a_km", "a_ta", "ag_ex")
     assert set(agents) <= set(info.processes)
     assert len({info.processes[a] for a in agents}) == len(agents)
 
 
-def test_traffic_shows_both_planning_phases_and_all_six_participants(pour_run: tuple) -> None:
-    _, run_dir = pour_run
+def test_traffic_shows_both_planning_phases_and_all_six_participants(pour_run: PourRun) -> None:
+    run_dir = pour_run.run_dir
     records = read_records(run_dir)
     senders = {r.sender for r in records}
     assert senders >= {"a_hi", "a_co", "a_pl", "a_km", "a_ta", "ag_ex"}
-    assert {r.channel for r in records} == {"C1", "C2", "C3", "C4", "C5", "C6", "C7"}
+    assert {r.channel for r in records} == {"C1", "C2", "C3", "C4", "C5", "C6", "C7", "C8"}
     report = build_report(run_dir)
     assert [p.outcome for p in report.plans][-2:] == ["partial", "complete"]
     md = (run_dir / "report.md").read_text()
     assert "Table 8" in md and "Table 7" in md
 
 
-def test_progress_was_printed_as_it_happened(pour_run: tuple) -> None:
-    proc, _ = pour_run
-    out = proc.stdout
+def test_progress_was_printed_as_it_happened(pour_run: PourRun) -> None:
+    out = pour_run.proc.stdout
     assert "plan #1 requested" in out and "plan #2 requested" in out
     assert "Replan" in out and "Succeeded" in out
     # seconds apart, so in this order whatever the router's interleaving of two senders (a_co's
@@ -114,8 +224,31 @@ def test_progress_was_printed_as_it_happened(pour_run: tuple) -> None:
     assert out.index("plan #1 requested") < out.index("plan #2 requested")
 
 
-def test_roco_spec_verify_reports_full_conformance_of_the_pour(pour_run: tuple) -> None:
-    _, run_dir = pour_run
+@pytest.mark.requirement("R1.4")
+def test_a_foreign_agent_asked_through_the_gateway_while_the_robot_poured(pour_run: PourRun) -> None:
+    """The JADE-like agent's request (C8, fipa-request) reached a_hi through the gateway of the
+    run and was answered at once with an ``inform`` of a_hi's status report, in the foreign
+    agent's conversation, naming the pour under way (a status needs no ``agree``: it is done as
+    soon as it is answered); it is recorded under the foreign agent's name, and the run's end
+    says what crossed the gateway."""
+    assert pour_run.foreign_error == "", (pour_run.foreign_error, pour_run.foreign)
+    answers = [r.msg for r in pour_run.foreign]
+    assert [m.performative for m in answers] == [Performative.INFORM], answers
+    inform = answers[0]
+    assert (inform.conversation_id, inform.in_reply_to) == (CONVERSATION, f"{CONVERSATION}-r1")
+    assert inform.sender is not None and inform.sender.name == "a_hi"
+    assert [r.name for r in inform.receiver] == [JADE]
+    report = json.loads(inform.content)
+    assert report["type"] == "sentence_report" and report["kind"] == "status", report
+    assert "pour the jar into the bowl" in report["text"], report
+    records = read_records(pour_run.run_dir)
+    c8 = [(r.sender, r.receivers, r.performative) for r in records if r.channel == "C8"]
+    assert c8 == [(JADE, ("a_hi",), "request"), ("a_hi", (JADE,), "inform")]
+    assert "gateway: received 1, forwarded 1, refused 0, answered 1, posted 1" in pour_run.proc.stdout
+
+
+def test_roco_spec_verify_reports_full_conformance_of_the_pour(pour_run: PourRun) -> None:
+    run_dir = pour_run.run_dir
     proc = subprocess.run(
         [sys.executable, "-m", "services.cli", "spec", "verify", str(run_dir)], capture_output=True, text=True
     )
@@ -123,13 +256,13 @@ def test_roco_spec_verify_reports_full_conformance_of_the_pour(pour_run: tuple) 
     assert "violations: none" in proc.stdout and "full conformance: yes" in proc.stdout
 
 
-def test_the_run_leaves_one_rerun_recording_of_traffic_robot_and_scene(pour_run: tuple) -> None:
+def test_the_run_leaves_one_rerun_recording_of_traffic_robot_and_scene(pour_run: PourRun) -> None:
     """Traffic (recorder), robot, scene and loop timing (ag_ex), the command queue (a_co):
     three parts merged into one recording."""
     from services.recorder.record import read_records
     from tests.viewer.test_recording import rows
 
-    _, run_dir = pour_run
+    run_dir = pour_run.run_dir
     recording = run_dir / "recording.rrd"
     assert recording.exists(), sorted(p.name for p in run_dir.iterdir())
     counts = rows(recording)
@@ -143,27 +276,27 @@ def test_the_run_leaves_one_rerun_recording_of_traffic_robot_and_scene(pour_run:
 
 
 @needs_gl
-def test_the_recording_holds_the_head_camera_at_most_once_a_second(pour_run: tuple) -> None:
+def test_the_recording_holds_the_head_camera_at_most_once_a_second(pour_run: PourRun) -> None:
     """ag_ex renders the head camera for the recording at most 1 Hz, at the lowest CPU priority:
     a tick that finds the CPUs busy is skipped (services/viewer/camera.py)."""
     from tests.viewer.test_recording import rows
 
-    _, run_dir = pour_run
+    run_dir = pour_run.run_dir
     frames = rows(run_dir / "recording.rrd")["/world/robot/head_camera"]
     info = read_run_info(run_dir)
     assert info.ended is not None
     assert 3 <= frames <= info.ended - info.started + 1, (frames, info.ended - info.started)
 
 
-def test_roco_spec_trace_shows_every_leaf_but_the_foreign_platforms_from_the_pour(pour_run: tuple) -> None:
-    """The pour exercises every leaf requirement except R1.4 (agents of other FIPA platforms:
-    no one spoke through roco gateway), contradicts none, and every leaf has its tests."""
-    _, run_dir = pour_run
+def test_roco_spec_trace_shows_every_leaf_from_the_pour(pour_run: PourRun) -> None:
+    """The pour, with the foreign agent's question through the gateway (R1.4), exercises every
+    leaf requirement, contradicts none, and every leaf has its tests."""
+    run_dir = pour_run.run_dir
     proc = subprocess.run(
         [sys.executable, "-m", "services.cli", "spec", "trace", str(run_dir)], capture_output=True, text=True
     )
     assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-2000:]
-    assert "leaves: 9 shown, 1 not shown (R1.4), 0 contradicted" in proc.stdout, proc.stdout
+    assert "leaves: 10 shown, 0 not shown, 0 contradicted" in proc.stdout, proc.stdout
     assert "tests: none" not in proc.stdout
     md = (run_dir / "report.md").read_text()
     assert "Requirements traced to this run" in md and "**contradicted**" not in md
@@ -173,8 +306,8 @@ def test_roco_spec_trace_shows_every_leaf_but_the_foreign_platforms_from_the_pou
 
 
 @pytest.mark.parametrize("agent", ["a_pl", "a_km", "a_co"])
-def test_roco_replay_reproduces_what_the_agent_sent_in_the_pour(pour_run: tuple, agent: str) -> None:
-    _, run_dir = pour_run
+def test_roco_replay_reproduces_what_the_agent_sent_in_the_pour(pour_run: PourRun, agent: str) -> None:
+    run_dir = pour_run.run_dir
     proc = subprocess.run(
         [sys.executable, "-m", "services.cli", "replay", str(run_dir), "--agent", agent],
         capture_output=True,
@@ -189,7 +322,7 @@ def test_roco_replay_reproduces_what_the_agent_sent_in_the_pour(pour_run: tuple,
 
 
 def test_roco_replay_reports_a_cost_a_pl_drew_at_random(
-    pour_run: tuple, monkeypatch: pytest.MonkeyPatch
+    pour_run: PourRun, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     """Nondeterminism planted in a_pl — a random amount added to every plan's cost — is a
     difference in the content of each plan a_pl sent, and nowhere else."""
@@ -205,7 +338,7 @@ def test_roco_replay_reports_a_cost_a_pl_drew_at_random(
         return root, complete, cost + random.uniform(0.5, 1.5)
 
     monkeypatch.setattr(planner, "to_hfsm", noisy)
-    _, run_dir = pour_run
+    run_dir = pour_run.run_dir
     result = replay(run_dir, "a_pl")
     plans = [r.seq for r in read_records(run_dir) if r.sender == "a_pl" and r.performative == "inform"]
     assert len(plans) == 2
@@ -215,7 +348,7 @@ def test_roco_replay_reports_a_cost_a_pl_drew_at_random(
     assert all(0.5 <= float(d.replayed) - float(d.recorded) <= 1.5 for d in result.differences)
 
 
-def test_what_if_ag_ex_ran_on_a_host_of_its_own(pour_run: tuple) -> None:
+def test_what_if_ag_ex_ran_on_a_host_of_its_own(pour_run: PourRun) -> None:
     """``roco spec what-if`` on the pour (services/spec_check/whatif.py): with ag_ex alone on a
     host, only C5 crosses, every C5 communicate once, and the command's critical path crosses as
     often as the executions nested in it do (C3 stays on the brain)."""
@@ -223,7 +356,7 @@ def test_what_if_ag_ex_ran_on_a_host_of_its_own(pour_run: tuple) -> None:
     from services.spec_check.placement import parse_placement
     from services.spec_check.whatif import what_if
 
-    _, run_dir = pour_run
+    run_dir = pour_run.run_dir
     spec = load()
     w = what_if(run_dir, spec, parse_placement(spec.agent_names, "ag_ex | a_co a_pl a_km a_ta a_hi"), 0.02)
     assert {ch for flows in w.traffic.links.values() for ch in flows} == {"C5"}
