@@ -86,7 +86,8 @@ TlsOption = Annotated[
     bool | None,
     typer.Option(
         "--tls/--no-tls",
-        help="the router listens on mutual TLS (implies --acl) [default: off, unless ROCO_TLS=1]",
+        help="with access control, mutual TLS and direct links between agents; --no-tls: passwords "
+        "over TCP, every communicate through the router [default: on, unless ROCO_TLS=0]",
         show_default=False,
     ),
 ]

@@ -245,9 +245,20 @@ class Settings(msgspec.Struct, frozen=True, kw_only=True):
         bool,
         About(
             "ROCO_TLS",
-            "1: a local fleet's router listens on mutual TLS, and ROCO_ACL is 1 (the launcher; --tls)",
+            "a local fleet with access control authenticates its processes with mutual TLS as well as "
+            "passwords, and its agents link directly (ROCO_LINKS); 0: passwords over TCP, every communicate "
+            "through the router (the launcher; --no-tls)",
         ),
-    ] = False
+    ] = True
+    links: Annotated[
+        Literal["peer", "router"],
+        About(
+            "ROCO_LINKS",
+            "peer: agents on one host exchange communicates over direct links, one hop (without access "
+            "control, or on mutual TLS); router: every communicate through the router "
+            "(services/runtime/transport.py)",
+        ),
+    ] = "peer"
     listen: Annotated[
         str,
         About(

@@ -27,7 +27,7 @@ from services.runtime.agent import Agent
 from services.runtime.behaviour import FSM, Arc, Behaviour
 from services.runtime.polling import AdaptivePoll
 from services.runtime.protocol_state import ONTOLOGY
-from services.runtime.transport import Transport, ZenohTransport, client_config
+from services.runtime.transport import Transport, ZenohTransport, member_config
 from services.spec.model import (
     AgentSpec,
     ChannelProtocol,
@@ -322,7 +322,7 @@ def agent_process(name: str, pairs: int, endpoint: str, conn: Connection) -> Non
     spec = bench_spec(pairs)
     base: type[Agent] = BenchInitiator if name.startswith("b_ini") else BenchParticipant
     cls = type(name, (base,), {"name": name})
-    transport = ZenohTransport([endpoint])
+    transport = ZenohTransport([endpoint], links=None)
     agent = cls(transport, spec, conn)
     agent.bind()
     serve(agent, transport, conn)
@@ -367,7 +367,7 @@ def raw_process(role: str, k: int, endpoint: str, conn: Connection) -> None:
     ``("send", n, size)`` (pinger), ``("arm", n)``, ``("poll", max_us)`` (echo), ``("stop",)``.
     ``poll_us``/``max_us`` > 0: wait for each sample as roco's receiving threads do
     (services/runtime/polling.py) instead of in a blocking ``recv()``."""
-    session = zenoh.open(client_config([endpoint]))
+    session = zenoh.open(member_config([endpoint]))
     ping, pong, tput = f"bench/raw/{k}/ping", f"bench/raw/{k}/pong", f"bench/raw/{k}/tput"
     alive = f"bench/raw/{k}/alive"
     try:

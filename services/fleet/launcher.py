@@ -11,8 +11,9 @@ Access control is on by default (docs/security.md): a fleet issues fresh credent
 router's ACL into ``<run>/security/`` (~50 ms) before it starts anything, its processes get
 ``ROCO_SECURITY`` and authenticate as themselves, and the tools of this process find the folder
 by the fleet's endpoint (services/security/context.py). ``ROCO_ACL=0`` (or ``Fleet(acl=False)``)
-turns it off; ``ROCO_TLS=1`` (or ``Fleet(tls=True)``) makes the router listen on mutual TLS
-(``tls/127.0.0.1:PORT``) instead of TCP.
+turns it off. With it, the router listens on mutual TLS (``tls/127.0.0.1:PORT``), and the
+agents link to each other directly (services/runtime/transport.py, one hop); ``ROCO_TLS=0`` (or
+``Fleet(tls=False)``) keeps user/password over TCP and every communicate through the router.
 """
 
 from __future__ import annotations
@@ -66,9 +67,9 @@ class Fleet:
 
     ``endpoint``: the router endpoint clients connect to; ``run_dir``: where logs and traffic
     go; ``env``: extra environment for every process (e.g. ``ROCO_REALTIME``); ``acl``: with
-    authentication and access control (default: on unless ``ROCO_ACL=0``); ``tls``: the router
-    listens on mutual TLS (default: ``ROCO_TLS=1``; implies ``acl``; a ``tcp/`` endpoint
-    becomes ``tls/`` on the same address). ``security``: the credentials folder, or None.
+    authentication and access control (default: on unless ``ROCO_ACL=0``); ``tls``: with
+    ``acl``, the router listens on mutual TLS (default: on unless ``ROCO_TLS=0``; a ``tcp/``
+    endpoint becomes ``tls/`` on the same address). ``security``: the credentials folder, or None.
     """
 
     run_dir: Path
@@ -85,10 +86,8 @@ class Fleet:
     """The interpreter arguments each process was started with (:meth:`respawn`)."""
 
     def __post_init__(self) -> None:
-        if self.tls:
-            self.acl = True
-            if self.endpoint.startswith("tcp/"):
-                self.endpoint = "tls/" + self.endpoint.removeprefix("tcp/")
+        if self.tls and self.acl and self.endpoint.startswith("tcp/"):
+            self.endpoint = "tls/" + self.endpoint.removeprefix("tcp/")
         if self.acl:
             from services.deploy.deploy import ensure
             from services.spec.model import load, spec_path

@@ -39,6 +39,7 @@ from services.runtime.human import FINAL_REPORTS, HumanInput, HumanReport
 from services.runtime.session import open_client
 from services.security.context import register
 from services.spec.model import load, spec_path
+from shared.settings import Settings
 
 PORT = 7447
 ROBOT = ("ag_ex", "a_ta")
@@ -96,7 +97,10 @@ class TwoHosts:
         }
         wrap["router_brain"], wrap["router_robot"] = netns_exec(brain), netns_exec(robot)
         local = f"tls/127.0.0.1:{PORT}"
-        self.fleet = fleet = Fleet(self.run_dir, local, env=self.env, acl=True, tls=True, wrap=wrap)
+        # each host's agents reach the others through the routers: a peer listens on its own
+        # host's loopback, which the other host cannot reach (services/runtime/transport.py)
+        env = {**self.env, Settings.env_name("links"): "router"}
+        self.fleet = fleet = Fleet(self.run_dir, local, env=env, acl=True, tls=True, wrap=wrap)
         assert fleet.security is not None
         spec = load(spec_path(self.env, os.environ))
         brain_link = pair.link_addr("brain")

@@ -102,7 +102,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"roco: {Settings.env_name('faults')}: {exc}", file=sys.stderr)
         return 2
     try:  # authenticates as the agent itself when the fleet has access control (docs/security.md)
-        zenoh_transport = ZenohTransport(router_endpoints(), identity=name)
+        zenoh_transport = ZenohTransport(router_endpoints(), identity=name, links=None)
     except ValueError as exc:  # no credentials for this agent
         print(f"roco: agent {name}: {exc}", file=sys.stderr)
         return 2

@@ -31,7 +31,7 @@ import threading
 import time
 from collections.abc import Callable
 from pathlib import Path
-from typing import NamedTuple, Protocol
+from typing import Any, Literal, NamedTuple, Protocol
 
 import zenoh
 import zenoh.ext as zext
@@ -42,6 +42,7 @@ from services.runtime.polling import AdaptivePoll, max_poll_us
 from services.runtime.tap import Tap, fleet_group
 from services.security.context import identity_name, security_for
 from shared.fipa_codec.batch import unpack
+from shared.settings import Settings
 
 log = logging.getLogger(__name__)
 
@@ -204,7 +205,9 @@ def client_config(
     return conf
 
 
-def _client_auth(conf: zenoh.Config, folder: Path, identity: str) -> None:
+def _client_auth(conf: zenoh.Config, folder: Path, identity: str, *, serve: bool = False) -> None:
+    """Enter ``identity``'s user name, password and certificate (to connect; ``serve``: also
+    to accept, as a peer does) of ``folder`` in ``conf``."""
     from services.security.folder import identity as load_identity
 
     ident = load_identity(folder, identity)
@@ -216,7 +219,123 @@ def _client_auth(conf: zenoh.Config, folder: Path, identity: str) -> None:
         "connect_certificate": str(ident.cert),
         "enable_mtls": True,
     }
+    if serve:
+        tls |= {"listen_private_key": str(ident.key), "listen_certificate": str(ident.cert)}
     conf.insert_json5("transport/link/tls", json.dumps(tls))
+
+
+Links = Literal["peer", "router"]
+"""How a session on the data path (an agent's) reaches the others (``ROCO_LINKS``):
+``router``, a client of the router, every communicate two hops (sender → router → receiver);
+``peer``, a Zenoh peer that also links directly to every other peer on its host (one hop), the
+router kept for discovery, liveliness, the recorder and the operator's tools. See
+:func:`one_hop`."""
+
+LOOPBACK = ("127.0.0.1", "localhost")
+
+
+def links_setting() -> Links:
+    """``ROCO_LINKS`` (read now; default ``peer``)."""
+    return Settings.from_env(only=("links",)).links
+
+
+def one_hop(endpoints: list[str], folder: Path | None) -> bool:
+    """Whether sessions to the router at ``endpoints`` may link to each other directly:
+    every endpoint is on this host's loopback (peers listen on loopback only: across hosts and
+    containers the router path stays), and either there is no access control (no credentials
+    ``folder``) or every endpoint is mutual TLS. With access control over plain TCP a peer could
+    not tell the router's link from another peer's (the opener of a link learns nothing of the
+    acceptor's identity without a certificate), so such a fleet keeps the router path."""
+    for ep in endpoints:
+        proto, _, rest = ep.partition("/")
+        host = rest.rsplit(":", 1)[0].strip("[]")
+        if proto not in ("tcp", "tls") or host not in LOOPBACK:
+            return False
+        if folder is not None and proto != "tls":
+            return False
+    return bool(endpoints)
+
+
+def peer_access_control(acl: dict[str, Any]) -> dict[str, Any]:
+    """A peer session's ``access_control`` from the router's (``acl.json``,
+    services/spec_check/acl.py): the same rules and policies, each subject matched by its
+    certificate's common name only (the opener of a link sees the acceptor's certificate but
+    not its user name), and the router (common name ``router``, ``services.security.folder``
+    ROUTER) allowed everything on its link: the router applies the full access control to what
+    it relays from its clients. So each peer drops what another peer may not send it or it may
+    not send that peer, as the router would."""
+    from services.security.folder import ROUTER
+
+    rules = list(acl.get("rules", []))
+    subjects = [
+        {"id": s["id"], "cert_common_names": list(s.get("cert_common_names", s.get("usernames", [])))}
+        for s in acl.get("subjects", [])
+    ]
+    policies = list(acl.get("policies", []))
+    rules.append(
+        {
+            "id": "router/relays",
+            "permission": "allow",
+            "flows": ["ingress", "egress"],
+            "messages": list(ACL_MESSAGES),
+            "key_exprs": ["**"],
+        }
+    )
+    subjects.append({"id": "router/link", "cert_common_names": [ROUTER]})
+    policies.append({"id": "router/link", "rules": ["router/relays"], "subjects": ["router/link"]})
+    return {**acl, "rules": rules, "subjects": subjects, "policies": policies}
+
+
+ACL_MESSAGES = (
+    "put",
+    "delete",
+    "declare_subscriber",
+    "query",
+    "reply",
+    "declare_queryable",
+    "liveliness_token",
+    "liveliness_query",
+    "declare_liveliness_subscriber",
+)
+"""Every message kind Zenoh's access control names (eclipse-zenoh DEFAULT_CONFIG.json5)."""
+
+
+def member_config(
+    endpoints: list[str],
+    *,
+    links: Links | None = None,
+    wait_for_router: bool = True,
+    identity: str | None = None,
+    security: Path | None = None,
+) -> zenoh.Config:
+    """The configuration of a session on the data path (an agent, a benchmark's raw Zenoh end):
+    :func:`client_config`, made a peer when ``links`` (None: ``ROCO_LINKS``) is ``peer`` and
+    :func:`one_hop` allows it. The peer listens on this host's loopback (port chosen by the
+    system, same protocol as the router's endpoint), learns the other peers from the router
+    (Zenoh's gossip) and links to them directly; with credentials, it accepts only a peer with
+    a certificate of the folder's CA and its password (the folder's dictionary: the fleet's
+    processes share the folder on this host) and applies :func:`peer_access_control` to what
+    crosses each of its links. Raises as :func:`client_config`; OSError or ValueError when the
+    folder's ``acl.json`` is missing or malformed."""
+    conf = client_config(endpoints, wait_for_router=wait_for_router, identity=identity, security=security)
+    folder = security if security is not None else security_for(endpoints)
+    if (links or links_setting()) != "peer" or not one_hop(endpoints, folder):
+        return conf
+    proto = endpoints[0].partition("/")[0]
+    conf.insert_json5("mode", '"peer"')
+    conf.insert_json5("listen/endpoints", json.dumps([f"{proto}/127.0.0.1:0"]))
+    # one of two peers opens their link (the greater Zenoh id): when both opened at once, Zenoh
+    # closed both links and linked them no more
+    strategy = {"peer": {"to_router": "always", "to_peer": "greater-zid"}}
+    conf.insert_json5("scouting/gossip/autoconnect_strategy", json.dumps(strategy))
+    if folder is not None:
+        from services.security.folder import ACL_FILE, PASSWORDS
+
+        acl = json.loads((folder / ACL_FILE).read_text())
+        _client_auth(conf, folder, identity_name(identity), serve=True)
+        conf.insert_json5("transport/auth/usrpwd/dictionary_file", json.dumps(str(folder / PASSWORDS)))
+        conf.insert_json5("access_control", json.dumps(peer_access_control(acl)))
+    return conf
 
 
 def router_config(
@@ -321,16 +440,24 @@ class ZenohTransport:
     (``Agent._take_here``)."""
 
     def __init__(
-        self, endpoints: list[str], *, wait_for_router: bool = True, identity: str | None = None
+        self,
+        endpoints: list[str],
+        *,
+        wait_for_router: bool = True,
+        identity: str | None = None,
+        links: Links | None = "router",
     ) -> None:
-        """Open a client session to ``endpoints`` as ``identity`` (:func:`client_config`).
-        Raises ValueError for a malformed ``ROCO_RECEIVE_POLL_US`` (services/runtime/polling.py)
-        before opening anything, and for a ``ZENOH_RUNTIME`` Zenoh cannot read
-        (:func:`open_session`)."""
+        """Open a session to ``endpoints`` as ``identity``: a client of the router, or with
+        ``links`` ``peer`` (None: ``ROCO_LINKS``) a peer linked directly to the others where
+        :func:`one_hop` allows (:func:`member_config`). Raises ValueError for a malformed
+        ``ROCO_RECEIVE_POLL_US`` (services/runtime/polling.py) or ``ROCO_LINKS`` before opening
+        anything, and for a ``ZENOH_RUNTIME`` Zenoh cannot read (:func:`open_session`)."""
         self._poll_us = max_poll_us()
-        self.session = open_session(
-            client_config(endpoints, wait_for_router=wait_for_router, identity=identity)
-        )
+        conf = member_config(endpoints, links=links, wait_for_router=wait_for_router, identity=identity)
+        self.links: Links = "peer" if json.loads(conf.get_json("mode")) == "peer" else "router"
+        """How this session reaches the others: ``peer`` (one hop) or ``router``."""
+        self.session = open_session(conf)
+        log.info("Zenoh session %s: %s links (%s)", self.session.zid(), self.links, ", ".join(endpoints))
         self._subs: list[zenoh.Subscriber | zext.AdvancedSubscriber] = []
         self._receiving: list[threading.Thread] = []
         """The receiving threads of :meth:`subscribe` (each holds its subscription)."""

@@ -202,12 +202,16 @@ def make_ca(out: Path, days: int = 3650) -> None:
 
 def issue_identity(out: Path, name: str, days: int = 365) -> Identity:
     """Issue (or re-issue) identity ``name`` with the CA in ``out``: a certificate with common
-    name ``name``, a key and a fresh random password, entered in ``passwords.txt``. Raises
+    name ``name``, a key and a fresh random password, entered in ``passwords.txt``. The
+    certificate serves as well as connects, for ``localhost`` and ``127.0.0.1``: an agent's
+    session listens for its peers' direct links on loopback (services/runtime/transport.py,
+    one hop) and they check its name there. Raises
     CredentialError when ``out`` has no CA or ``name`` is not a plain name."""
     if not name or not all(c.isalnum() or c in "_-" for c in name) or name == ROUTER:
         raise CredentialError(f"not an identity name: {name!r}")
     ca_key, ca_cert = _load_ca(out)
-    key, cert = _issue_cert(name, ca_key, ca_cert.subject, days, server=False)
+    sans = [x509.DNSName(name), *_router_sans(("localhost",), ROUTER_IPS)]
+    key, cert = _issue_cert(name, ca_key, ca_cert.subject, days, server=True, sans=sans)
     return _store_identity(out, name, key, cert)
 
 

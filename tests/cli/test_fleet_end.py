@@ -90,7 +90,7 @@ def test_down_says_what_it_stops_and_writes_the_commands_and_the_report(
     sent = roco("send", POUR, "--runs-dir", str(tmp_path))
     assert sent.returncode == 0, sent.stdout + sent.stderr
     status = roco("status", "--runs-dir", str(tmp_path))
-    assert f"router    at tcp/127.0.0.1:{port}  refused 0" in status.stdout, status.stdout
+    assert f"router    at tls/127.0.0.1:{port}  refused 0" in status.stdout, status.stdout
     pids = json.loads((run_dir / "run.json").read_text())["processes"]
     assert set(pids.values()) <= set(processes_of(run_dir))  # the check below sees them
     down = roco("down", "--runs-dir", str(tmp_path))

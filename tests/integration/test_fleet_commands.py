@@ -29,7 +29,7 @@ def test_up_status_send_down(tmp_path: Path) -> None:
     up = roco("up", "--port", str(free_port()), "--gateway", str(gateway), "--runs-dir", runs)
     assert up.returncode == 0, up.stderr
     try:
-        assert "fleet up on tcp/127.0.0.1:" in up.stdout
+        assert "fleet up on tls/127.0.0.1:" in up.stdout
         assert f"gateway http://127.0.0.1:{gateway}/acc" in up.stdout
         assert listening(f"tcp/127.0.0.1:{gateway}")
         again = roco("up", "--runs-dir", runs)
