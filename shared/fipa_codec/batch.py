@@ -63,6 +63,37 @@ def unpack(payload: bytes) -> list[bytes]:
     return parts if parts else [payload]
 
 
+def count(payload: bytes | bytearray | memoryview) -> int:
+    """How many communicates ``payload`` carries, read from its msgpack array header: a batch's
+    item count, 1 for anything else (one communicate). Looks at ≤ 5 bytes; a malformed batch
+    may be miscounted (it only bounds what is joined to it: :func:`join`)."""
+    if not is_batch(payload):
+        return 1
+    head = payload[0]
+    if head == 0xDC:
+        return int.from_bytes(payload[1:3], "big")
+    if head == 0xDD:
+        return int.from_bytes(payload[1:5], "big")
+    return head & 0x0F
+
+
+def join(payloads: Sequence[bytes]) -> bytes:
+    """One payload carrying the communicates of ``payloads`` (each one communicate or a batch;
+    at least one), in order: the only one as it is, else one batch of all their communicates
+    (a batch's items taken out of it: batches never nest). A malformed batch
+    (:func:`unpack`) travels as one item, which its receiver answers with not-understood as if
+    it had come alone."""
+    if len(payloads) == 1:
+        return payloads[0]
+    parts: list[bytes] = []
+    for payload in payloads:
+        if is_batch(payload):
+            parts.extend(unpack(payload))
+        else:
+            parts.append(payload)
+    return pack(parts)
+
+
 def runs(
     items: Sequence[tuple[str, bytes]], batched: Callable[[str], bool]
 ) -> Iterator[tuple[str, bytes, int]]:
