@@ -36,16 +36,18 @@ from collections.abc import Callable
 
 from shared.fipa_codec.batch import BATCH_MAX_BYTES, BATCH_MAX_COMMUNICATES, count, join
 
-Put = Callable[[str, bytes], None]
+Put = Callable[[bytes], None]
+"""A put on one key: one payload (an encoded communicate or a batch of them)."""
 
 
 class _Key:
     """One key's state: whether a thread holds a put on it, and what waits behind that put
     (payloads, their communicates and bytes)."""
 
-    __slots__ = ("busy", "communicates", "pending", "size")
+    __slots__ = ("busy", "communicates", "pending", "put", "size")
 
-    def __init__(self) -> None:
+    def __init__(self, put: Put) -> None:
+        self.put = put
         self.busy = False
         self.pending: deque[bytes] = deque()
         self.communicates = 0
@@ -72,14 +74,16 @@ class _Key:
 
 
 class Backlog:
-    """Puts through ``put(key, payload)`` (payloads: encoded communicates or batches of them,
-    shared/fipa_codec/batch.py), joining per key what waits behind a put in progress (see the
-    module docstring). Thread-safe; keeps state for every key it was given (the caller bounds
-    the keys)."""
+    """Puts on each key through ``put_for(key)`` (asked once per key; its payloads: encoded
+    communicates or batches of them, shared/fipa_codec/batch.py), joining per key what waits
+    behind a put in progress (see the module docstring). Thread-safe; keeps state for every key
+    it was given (the caller bounds the keys)."""
 
-    def __init__(self, put: Put) -> None:
-        self._put = put
-        self._room = threading.Condition(threading.Lock())
+    def __init__(self, put_for: Callable[[str], Put]) -> None:
+        self._put_for = put_for
+        self._lock = threading.Lock()
+        self._room = threading.Condition(self._lock)
+        """Notified whenever a key's pending list shrinks or its put is let go."""
         self._keys: dict[str, _Key] = {}
         self.joined = 0
         """Puts that carried more than one waiting payload (a batch formed here)."""
@@ -88,42 +92,58 @@ class Backlog:
         """Put ``payload`` on ``key`` now on this thread, or, when another thread's put on
         ``key`` is in progress, leave it for that thread to put after its own (waiting while
         one batch's worth already waits). Raises what ``put`` raised (this thread's puts only)."""
-        with self._room:
+        with self._lock:
             k = self._keys.get(key)
             if k is None:
-                k = self._keys[key] = _Key()
-            while k.busy and k.full():
-                self._room.wait()
-            if k.busy:
-                k.pending.append(payload)
-                k.communicates += count(payload)
-                k.size += len(payload)
-                return
+                k = self._keys[key] = _Key(self._put_for(key))
+            mine: bytes | None = payload
+            if k.busy or k.pending:
+                if not self._wait_behind(k, payload):
+                    return
+                mine = None  # this thread holds the put now: its payload waits with the rest
             k.busy = True
-            first: bytes | None = payload
-            if k.pending:  # left by a holder whose put raised: they go first
-                k.pending.append(payload)
-                k.communicates += count(payload)
-                k.size += len(payload)
-                first = None
-        self._hold(key, k, first)
-
-    def _hold(self, key: str, k: _Key, first: bytes | None) -> None:
-        """Put ``first`` (unless None), then what is pending on ``key``, until nothing is."""
         try:
-            if first is not None:
-                self._put(key, first)
+            if mine is not None:
+                k.put(mine)
+            with self._lock:
+                if not k.pending:  # nothing waited: the common case, one put
+                    k.busy = False
+                    return
+        except BaseException:
+            self._let_go(k)
+            raise
+        self._drain(k)
+
+    def _wait_behind(self, k: _Key, payload: bytes) -> bool:
+        """Append ``payload`` to ``k``'s pending list, first waiting for room while a put is in
+        progress (lock held). Returns whether this thread must hold the put now (none is in
+        progress: what waits is left by a holder whose put raised, and goes first)."""
+        while k.busy and k.full():
+            self._room.wait()
+        k.pending.append(payload)
+        k.communicates += count(payload)
+        k.size += len(payload)
+        return not k.busy
+
+    def _drain(self, k: _Key) -> None:
+        """Put what waits on ``k``'s key (this thread holds its put), a batch at a time, until
+        nothing does."""
+        try:
             while True:
-                with self._room:
+                with self._lock:
                     if not k.pending:
                         k.busy = False
                         return
                     group = k.take()
                     self.joined += len(group) > 1
                     self._room.notify_all()
-                self._put(key, join(group))
+                k.put(join(group))
         except BaseException:
-            with self._room:
-                k.busy = False
-                self._room.notify_all()
+            self._let_go(k)
             raise
+
+    def _let_go(self, k: _Key) -> None:
+        """This thread's put raised: let go of ``k``'s put (what waits stays, for the next)."""
+        with self._lock:
+            k.busy = False
+            self._room.notify_all()

@@ -19,7 +19,8 @@ the publisher keeps its last :data:`CACHE_SAMPLES` in a cache that an advanced s
 traffic recorder) queries when it starts, when it detects a publisher that appeared before it,
 and when a sequence number is missing — so a restarted recorder fills the gap it was down for,
 in order, and a gap that cannot be filled shows as missing sequence numbers
-(docs/recovery.md).
+(docs/recovery.md). Communicates put on a key while another thread's put on it is in progress
+leave together, in one batch, after it (services/runtime/backlog.py).
 """
 
 from __future__ import annotations
@@ -340,7 +341,7 @@ class ZenohTransport:
         self._keys: dict[str, zenoh.KeyExpr] = {}
         self._publishers: dict[str, zext.AdvancedPublisher] = {}
         self._declaring = threading.Lock()
-        self._backlog = Backlog(self._put_communicate)
+        self._backlog = Backlog(self._put_on)
         """Joins the communicates that wait behind a put in progress on their key
         (services/runtime/backlog.py)."""
         self._tap = Tap.from_env(fleet_group(endpoints))
@@ -374,12 +375,18 @@ class ZenohTransport:
                 self._keys[key] = expr
         self.session.put(expr, payload, congestion_control=zenoh.CongestionControl.BLOCK)
 
-    def _put_communicate(self, key: str, payload: bytes) -> None:
-        """Put ``payload`` (a communicate or a batch) through ``key``'s advanced publisher, and
-        tap it: the tap sees what goes on the wire, in that order (:class:`Backlog` joins)."""
-        if self._tap is not None:
-            self._tap.put(time.time(), key, payload)
-        self._publishers[key].put(payload)
+    def _put_on(self, key: str) -> Callable[[bytes], None]:
+        """The put through ``key``'s advanced publisher (declared), of a communicate or a batch;
+        with a tap, the tap first sees what goes on the wire, in that order."""
+        put, tap = self._publishers[key].put, self._tap
+        if tap is None:
+            return put
+
+        def tapped(payload: bytes) -> None:
+            tap.put(time.time(), key, payload)
+            put(payload)
+
+        return tapped
 
     def _declare(self, key: str) -> zext.AdvancedPublisher:
         with self._declaring:  # the fault layer's worker also puts

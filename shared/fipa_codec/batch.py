@@ -5,7 +5,8 @@ sender and receiver: a stream of informs, a reply and a request), they travel as
 sample: each publication, route and delivery costs once for the batch instead of once per
 communicate (one pair streaming informs, 256 a step: 1.4–1.9 × the rate with one put per
 communicate on the 2-core VM of docs/benchmarks.md, "One put for what one step sends to one
-receiver"). Nothing waits to fill a batch: it holds what the step's output buffer already holds.
+receiver"). Nothing waits to fill a batch: it holds what the step's output buffer already holds,
+or what waited behind a put in progress on its key (:func:`join`; services/runtime/backlog.py).
 
 On the wire a batch is a msgpack array of ``bin`` items, each one encoded communicate exactly
 as :func:`shared.fipa_codec.encoding.encode` writes it (a msgpack map), in the order sent. The

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import os
 import threading
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 
 import pytest
 
@@ -54,6 +54,10 @@ class Gate:
     def open(self) -> None:
         self._open.set()
 
+    def on(self, key: str) -> Callable[[bytes], None]:
+        """The put on ``key``."""
+        return lambda payload: self(key, payload)
+
 
 @pytest.fixture
 def gate() -> Iterator[Gate]:
@@ -70,7 +74,7 @@ def in_thread(backlog: Backlog, key: str, payload: bytes) -> threading.Thread:
 
 
 def test_an_idle_publish_is_put_at_once_alone_on_its_thread(gate: Gate) -> None:
-    backlog = Backlog(gate)
+    backlog = Backlog(gate.on)
     one, two = communicate("one"), communicate("two")
     backlog.publish(KEY, one)
     assert gate.puts == [(KEY, one)]  # put before publish returned
@@ -80,7 +84,7 @@ def test_an_idle_publish_is_put_at_once_alone_on_its_thread(gate: Gate) -> None:
 
 
 def test_what_waits_behind_a_put_in_progress_leaves_in_one_batch(gate: Gate) -> None:
-    backlog = Backlog(gate)
+    backlog = Backlog(gate.on)
     first = communicate("first")
     waiting = [communicate(f"w{i}") for i in range(3)]
     gate.hold_next = True
@@ -96,7 +100,7 @@ def test_what_waits_behind_a_put_in_progress_leaves_in_one_batch(gate: Gate) -> 
 
 
 def test_another_key_is_not_held_up_by_a_put_in_progress(gate: Gate) -> None:
-    backlog = Backlog(gate)
+    backlog = Backlog(gate.on)
     gate.hold_next = True
     holder = in_thread(backlog, KEY, communicate("held"))
     assert gate.entered.wait(10.0)
@@ -108,7 +112,7 @@ def test_another_key_is_not_held_up_by_a_put_in_progress(gate: Gate) -> None:
 
 
 def test_batches_waiting_join_without_nesting_in_order(gate: Gate) -> None:
-    backlog = Backlog(gate)
+    backlog = Backlog(gate.on)
     gate.hold_next = True
     holder = in_thread(backlog, KEY, communicate("held"))
     assert gate.entered.wait(10.0)
@@ -125,7 +129,7 @@ def test_batches_waiting_join_without_nesting_in_order(gate: Gate) -> None:
 def test_what_waits_is_bounded_and_the_publisher_waits_for_room(gate: Gate) -> None:
     """One batch's worth waits at most; a further publish waits (as a BLOCK put waits for room)
     until the holder takes it; every put stays within the batch limits; nothing is lost."""
-    backlog = Backlog(gate)
+    backlog = Backlog(gate.on)
     gate.hold_next = True
     holder = in_thread(backlog, KEY, communicate("held"))
     assert gate.entered.wait(10.0)
@@ -151,7 +155,7 @@ def test_what_waits_is_bounded_and_the_publisher_waits_for_room(gate: Gate) -> N
 
 
 def test_the_count_limit_bounds_a_batch(gate: Gate) -> None:
-    backlog = Backlog(gate)
+    backlog = Backlog(gate.on)
     gate.hold_next = True
     holder = in_thread(backlog, KEY, communicate("held"))
     assert gate.entered.wait(10.0)
@@ -177,7 +181,7 @@ def test_a_put_that_raises_leaves_what_waits_for_the_next_publish() -> None:
             raise ConnectionError("session closed")
         puts.append((key, payload))
 
-    backlog = Backlog(put)
+    backlog = Backlog(lambda key: lambda payload: put(key, payload))
 
     def hold() -> None:
         try:
@@ -209,7 +213,7 @@ def test_order_per_key_under_concurrency_nothing_lost() -> None:
             puts.append((key, payload))
         os.sched_yield()
 
-    backlog = Backlog(put)
+    backlog = Backlog(lambda key: lambda payload: put(key, payload))
     n = 500
     sent = {
         (t, key): [communicate(f"{t}:{key[-4:]}:{i}") for i in range(n)]
