@@ -9,7 +9,8 @@ they can. Figures per run: communicates a second (all sent, from the threads' st
 receiver's last arrival, ``time.perf_counter``, one clock on Linux for both processes), and
 communicates per Zenoh sample (``backlog`` > 1: batches formed). The two variants take turns
 ``--repeats`` times; without the backlog each ``publish`` puts directly
-(``ZenohTransport._backlog`` replaced by a pass-through).
+(``ZenohTransport._backlog`` replaced by a pass-through). First, the cost of one ``publish``
+alone (the common path): ``--n`` in a loop on one thread, the fastest of 7 each way.
 
 Usage: ``python scripts/bench_backlog.py [--threads 1,2,4] [--n 20000] [--repeats 3]``
 """
@@ -110,6 +111,14 @@ def run_once(
     return got / (t_end - t0), got / samples
 
 
+def publish_cost(sender: ZenohTransport, payload: bytes, n: int) -> float:
+    """Seconds a ``publish`` of ``payload`` takes, over ``n`` in a loop on this thread."""
+    t0 = time.perf_counter()
+    for _ in range(n):
+        sender.publish(KEY, payload)
+    return (time.perf_counter() - t0) / n
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--threads", default="1,2,4")
@@ -135,6 +144,18 @@ def main() -> None:
     ]
     backlog, direct = sender._backlog, Direct(sender)
     try:
+        cost = {"backlog": 1.0, "direct": 1.0}
+        for _ in range(7):  # one publish alone, no thread else: the common path's cost
+            for name, via in (("backlog", backlog), ("direct", direct)):
+                sender._backlog = via  # type: ignore[assignment]
+                cost[name] = min(cost[name], publish_cost(sender, payloads[0], args.n))
+        parent.send(("want", 14 * args.n))  # what those put is counted, then let go
+        assert parent.poll(60.0)
+        parent.recv()
+        print(
+            f"one publish: {cost['backlog'] * 1e6:.2f} µs with the backlog, "
+            f"{cost['direct'] * 1e6:.2f} µs without"
+        )
         for threads in (int(t) for t in args.threads.split(",")):
             figures: dict[str, list[tuple[float, float]]] = {"backlog": [], "direct": []}
             for _ in range(args.repeats):
