@@ -14,7 +14,8 @@ agent and applies, to what the agent puts on the wire:
   gone to it; healing declares its tokens again and reports the others as they are.
 
 A batch (several communicates one step put on one key: shared/fipa_codec/batch.py) meets its
-faults one communicate at a time, each put on its own, as if it had not been batched.
+faults one communicate at a time, each published on its own, as if it had not been batched (the
+wrapped transport may batch them again: services/runtime/backlog.py).
 
 Faults are drawn from one ``random.Random`` seeded with ``"<seed>:<agent>"``: the same
 settings and the same sequence of publications give the same faults.

@@ -5,7 +5,8 @@ sender and receiver: a stream of informs, a reply and a request), they travel as
 sample: each publication, route and delivery costs once for the batch instead of once per
 communicate (one pair streaming informs, 256 a step: 1.4–1.9 × the rate with one put per
 communicate on the 2-core VM of docs/benchmarks.md, "One put for what one step sends to one
-receiver"). Nothing waits to fill a batch: it holds what the step's output buffer already holds.
+receiver"). Nothing waits to fill a batch: it holds what the step's output buffer already holds,
+or what waited behind a put in progress on its key (:func:`join`; services/runtime/backlog.py).
 
 On the wire a batch is a msgpack array of ``bin`` items, each one encoded communicate exactly
 as :func:`shared.fipa_codec.encoding.encode` writes it (a msgpack map), in the order sent. The
@@ -61,6 +62,37 @@ def unpack(payload: bytes) -> list[bytes]:
     except (msgspec.DecodeError, msgspec.ValidationError):
         return [payload]
     return parts if parts else [payload]
+
+
+def count(payload: bytes | bytearray | memoryview) -> int:
+    """How many communicates ``payload`` carries, read from its msgpack array header: a batch's
+    item count, 1 for anything else (one communicate). Looks at ≤ 5 bytes; a malformed batch
+    may be miscounted (it only bounds what is joined to it: :func:`join`)."""
+    if not is_batch(payload):
+        return 1
+    head = payload[0]
+    if head == 0xDC:
+        return int.from_bytes(payload[1:3], "big")
+    if head == 0xDD:
+        return int.from_bytes(payload[1:5], "big")
+    return head & 0x0F
+
+
+def join(payloads: Sequence[bytes]) -> bytes:
+    """One payload carrying the communicates of ``payloads`` (each one communicate or a batch;
+    at least one), in order: the only one as it is, else one batch of all their communicates
+    (a batch's items taken out of it: batches never nest). A malformed batch
+    (:func:`unpack`) travels as one item, which its receiver answers with not-understood as if
+    it had come alone."""
+    if len(payloads) == 1:
+        return payloads[0]
+    parts: list[bytes] = []
+    for payload in payloads:
+        if is_batch(payload):
+            parts.extend(unpack(payload))
+        else:
+            parts.append(payload)
+    return pack(parts)
 
 
 def runs(

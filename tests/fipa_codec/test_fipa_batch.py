@@ -7,7 +7,16 @@ from __future__ import annotations
 import pytest
 
 from shared.fipa_codec import Performative, decode, encode
-from shared.fipa_codec.batch import BATCH_MAX_BYTES, BATCH_MAX_COMMUNICATES, is_batch, pack, runs, unpack
+from shared.fipa_codec.batch import (
+    BATCH_MAX_BYTES,
+    BATCH_MAX_COMMUNICATES,
+    count,
+    is_batch,
+    join,
+    pack,
+    runs,
+    unpack,
+)
 from shared.fipa_codec.encoding import MAX_COMMUNICATE_BYTES
 from tests.support.messages import communicate
 
@@ -71,3 +80,26 @@ def test_runs_bound_a_batch_by_count_and_by_bytes() -> None:
     out = list(runs([(A, big), (A, big), (A, big)], lambda _: True))
     assert [c for _, _, c in out] == [2, 1]  # the third would pass the byte bound
     assert unpack(out[0][1]) == [big, big] and out[1][1] == big
+
+
+@pytest.mark.parametrize("n", [2, 15, 16, 300, 70_000])
+def test_count_reads_a_batch_header(n: int) -> None:
+    """fixarray (≤ 15), array 16 and array 32 headers."""
+    parts = [b"\x80"] * n
+    assert count(pack(parts)) == n
+    assert count(payloads(1)[0]) == 1
+
+
+def test_join_flattens_batches_in_order_and_leaves_one_payload_as_it_is() -> None:
+    a, b, c, d = payloads(4)
+    assert join([a]) is a
+    assert join([pack([b, c])]) == pack([b, c])
+    joined = join([a, pack([b, c]), d])
+    assert unpack(joined) == [a, b, c, d]
+    assert not any(is_batch(p) for p in unpack(joined))
+
+
+def test_join_keeps_a_malformed_batch_as_one_item() -> None:
+    a, b = payloads(2)
+    bad = b"\x92\xc4\x01"  # an array cut short
+    assert unpack(join([a, bad, b])) == [a, bad, b]
