@@ -66,7 +66,7 @@ import math
 import threading
 import time
 from collections import Counter, deque
-from collections.abc import Generator
+from collections.abc import Callable, Generator
 from typing import Any, ClassVar, NoReturn
 
 import msgspec
@@ -124,7 +124,8 @@ INLINE_OUTPUT_MAX = 32
 """Communicates a step taken in on a receiving thread may put from that thread; a step that
 sends more (a stream) is dispatched by the agent's own thread (see :meth:`Agent._take_here`)."""
 INLINE_GAP_S = 200e-6
-"""A communicate that arrives within this time (s) of the one before it is handed to the agent's
+"""On a transport that cannot tell whether more input waits (no ``more_waiting``): a
+communicate that arrives within this time (s) of the one before it is handed to the agent's
 thread, which takes what has arrived together in one step (a stream), instead of being taken in
 on the receiving thread one step each (see :meth:`Agent._take_here`)."""
 INLINE_BUDGET_S = 0.05
@@ -240,6 +241,8 @@ class Agent:
         self._here = False  # the actions run on a receiving thread (_take_here)
         self._last_arrival = 0.0  # time.perf_counter() of the last communicate's arrival
         self._declared = getattr(transport, "declared", None)
+        self._more_waiting: Callable[[], bool] | None = getattr(transport, "more_waiting", None)
+        """The transport's ``more_waiting()`` (a burst is arriving), if any."""
         """The transport's ``declared(key)`` (services/runtime/transport.py ``Transport``), if any."""
         self._inline = (
             self.RECEIVE_INLINE
@@ -674,10 +677,19 @@ class Agent:
         if is_batch(payload):  # several communicates put together: taken in together
             self._put_inputs([(key, part) for part in unpack(payload)])
             return
+        if not (self._inline and not self._in_burst() and self._take_here((key, payload))):
+            self._put_input((key, payload))
+
+    def _in_burst(self) -> bool:
+        """Whether the communicate being received arrived in a burst, to be taken in with the
+        others by the agent's thread: another one waits behind it (the transport's
+        ``more_waiting``), else (a transport that cannot tell) it came within
+        :data:`INLINE_GAP_S` of the one before."""
+        if self._more_waiting is not None:
+            return self._more_waiting()
         now = time.perf_counter()
         apart, self._last_arrival = now - self._last_arrival, now
-        if not (self._inline and apart > INLINE_GAP_S and self._take_here((key, payload))):
-            self._put_input((key, payload))
+        return apart <= INLINE_GAP_S
 
     def _on_counters_ask(self, key: str, payload: bytes) -> None:
         self._put_input((_COUNTERS, None))  # Zenoh thread: enqueue only
@@ -692,8 +704,8 @@ class Agent:
         actions on it until they block for input again, when the agent is idle: no thread runs
         them, none is about to (the turn is free) and no input waits before this one. Returns
         False, having done nothing, otherwise: the caller hands the item to the agent's thread.
-        (A communicate that arrives within :data:`INLINE_GAP_S` of the one before it is not
-        offered here: what arrives together is taken in together, by the agent's thread.)
+        (A communicate that arrives in a burst is not offered here: what arrives together is
+        taken in together, by the agent's thread; see :meth:`_in_burst`.)
 
         What runs here is what the agent's thread would run, under the same turn, so every
         check of the input is the same. A step whose output buffer holds more than

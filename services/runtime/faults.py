@@ -441,6 +441,12 @@ class FaultyTransport:
         """As the wrapped transport's (``Agent._take_here``)."""
         return bool(getattr(self.inner, "inline_receive", False))
 
+    def more_waiting(self) -> bool:
+        """As the wrapped transport's (False without one): another sample waits behind the one
+        being called back on this receiving thread."""
+        more = getattr(self.inner, "more_waiting", None)
+        return more is not None and bool(more())
+
     def declared(self, key: str) -> bool:
         """As the wrapped transport's: a put on ``key`` declares nothing."""
         declared = getattr(self.inner, "declared", None)

@@ -85,6 +85,8 @@ class Transport(Protocol):
     name (services/runtime/agent.py): ``inline_receive`` (True: subscribers are
     called back on threads of the transport's own, never inside ``publish``, so an idle agent
     may run its step there; without it every input goes to the agent's own thread),
+    ``more_waiting() -> bool`` (inside such a callback: another sample waits behind this one;
+    without it the agent judges a burst by the time between arrivals),
     ``declared(key) -> bool`` (a put on ``key`` declares nothing; without it every key counts
     as declared) and ``sources`` (the agent's clocks and fresh identifiers,
     services/runtime/sources.py; without it the system's)."""
@@ -463,6 +465,8 @@ class ZenohTransport:
         self._subs: list[zenoh.Subscriber | zext.AdvancedSubscriber] = []
         self._receiving: list[threading.Thread] = []
         """The receiving threads of :meth:`subscribe` (each holds its subscription)."""
+        self._receiving_here = threading.local()
+        """On a receiving thread: ``more``, whether a sample waits behind the one called back."""
         self._tokens: list[tuple[str, zenoh.LivelinessToken]] = []
         self._lock = threading.Lock()
         self._keys: dict[str, zenoh.KeyExpr] = {}
@@ -590,13 +594,17 @@ class ZenohTransport:
             return
         sub = self.session.declare_subscriber(key_expr, zenoh.handlers.FifoChannel(RECEIVE_QUEUE))
         waiting = AdaptivePoll(self._poll_us)
+        here = self._receiving_here
 
         def receive() -> None:
+            following: zenoh.Sample | None = None
             while True:
                 try:
-                    sample = waiting.next(sub)
+                    sample = following if following is not None else waiting.next(sub)
+                    following = sub.try_recv()
                 except Exception:  # the subscriber was undeclared: the thread ends
                     return
+                here.more = following is not None
                 try:
                     callback(str(sample.key_expr), sample.payload.to_bytes())
                 except Exception:  # a callback's fault must not end the subscription
@@ -606,6 +614,12 @@ class ZenohTransport:
         with self._lock:
             self._receiving.append(thread)  # ended by the session's close: it is in recv()
         thread.start()
+
+    def more_waiting(self) -> bool:
+        """On a receiving thread of :meth:`subscribe`, inside its callback: whether another
+        sample had arrived behind the one being called back (a burst: the agent takes them in
+        together on its own thread, ``Agent._on_payload``). False on any other thread."""
+        return bool(getattr(self._receiving_here, "more", False))
 
     def announce(self, key: str) -> None:
         """Declare a liveliness token on ``key`` for the life of this transport."""

@@ -26,6 +26,7 @@ from tests.runtime.test_agent_runtime import KEY, query
 from tests.support.router import embedded_router
 
 DELIVERY = "zenoh-callback"
+WAIT_S = 10.0
 AGENT = "agent"
 
 
@@ -386,3 +387,91 @@ def test_puts_from_the_receiving_thread_go_through_while_both_links_are_full(rou
     finally:
         for t in transports.values():
             t.close()
+
+
+class BurstTransport(ThreadedTransport):
+    """A threaded transport that says, as ZenohTransport's receiving threads do, whether more
+    input waits behind the communicate being called back (here: set by the test)."""
+
+    burst = False
+
+    def more_waiting(self) -> bool:
+        return self.burst
+
+
+def test_a_transport_that_reports_a_burst_decides_what_is_taken_in_here(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """With ``more_waiting`` the time between arrivals no longer counts: back-to-back
+    communicates are taken in here while nothing waits behind them, and a burst goes to the
+    agent's thread."""
+    monkeypatch.setattr(agent_module, "INLINE_GAP_S", 10.0)  # the gap rule would hand all over
+    bus = MemoryBus()
+    transport = BurstTransport(bus)
+    agent = Answering(transport)
+    agent.bind()
+    to_pl: queue.SimpleQueue[Communicate] = queue.SimpleQueue()
+    bus.subscribe(keys.inbox_key("a_pl"), lambda k, p: [to_pl.put(decode(part)) for part in unpack(p)])
+    thread = threading.Thread(target=agent.run, name=AGENT, daemon=True)
+    thread.start()
+    r = Running(bus, transport, agent, to_pl, thread, [])
+    r.idle()
+    try:
+        for n in range(2):
+            bus.publish(KEY, encode(query(f"q{n}", conversation_id=f"c{n}")))
+            assert to_pl.get(timeout=5).in_reply_to == f"q{n}"
+            r.idle()
+        assert agent.counters["received_inline"] == 2
+        transport.burst = True
+        bus.publish(KEY, encode(query("q2", conversation_id="c2")))
+        assert to_pl.get(timeout=5).in_reply_to == "q2"
+        assert agent.counters["received_inline"] == 2 and agent.handled_on[-1] == AGENT
+    finally:
+        agent.stop()
+        thread.join(timeout=5)
+        transport.close()
+
+
+def test_a_receiving_thread_knows_whether_a_sample_waits_behind_the_one_it_calls_back(
+    router_endpoint: str,
+) -> None:
+    """The first sample is called back while nothing follows it; two more put meanwhile (and
+    in the FIFO before a marker put after them on the same link arrives) are called back, the
+    first with one behind it, the last with none."""
+    receiver = ZenohTransport([router_endpoint])
+    sender = ZenohTransport([router_endpoint])
+    try:
+        seen: list[tuple[bytes, bool]] = []
+        probed, first = threading.Event(), threading.Event()
+        release, marker, done = threading.Event(), threading.Event(), threading.Event()
+
+        def on_sample(key: str, payload: bytes) -> None:
+            seen.append((payload, receiver.more_waiting()))
+            probed.set()
+            if payload == b"first":
+                first.set()
+                assert release.wait(WAIT_S)
+            if payload == b"third":
+                done.set()
+
+        receiver.subscribe(keys.inbox_key("a_pl"), on_sample)
+        receiver.subscribe("test/marker", lambda k, p: marker.set())
+        key = keys.fipa_key("C4", "a_km", "a_pl")
+        deadline = time.monotonic() + WAIT_S
+        while not probed.wait(0.05):  # until the subscriber's declaration has reached the sender
+            assert time.monotonic() < deadline
+            sender.publish(key, b"probe")
+        sender.publish(key, b"first")  # after every probe, on the same link
+        assert first.wait(WAIT_S)
+        sender.publish(key, b"second")
+        sender.publish(key, b"third")
+        sender.publish("test/marker", b"")
+        assert marker.wait(WAIT_S)
+        release.set()
+        assert done.wait(WAIT_S)
+        seen = [s for s in seen if s[0] != b"probe"]
+        assert seen == [(b"first", False), (b"second", True), (b"third", False)]
+        assert not receiver.more_waiting()  # not on a receiving thread
+    finally:
+        sender.close()
+        receiver.close()
