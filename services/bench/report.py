@@ -33,6 +33,7 @@ from services.bench.parts import (
 from services.bench.quiet import quiet_rule
 from services.bench.spade import SpadeFigures
 from services.runtime.human import MAX_LINE_CHARS
+from services.runtime.transport import links_setting
 
 ROOT = Path(__file__).resolve().parents[2]
 PACKAGES = ("eclipse-zenoh", "msgspec", "mujoco", "pin", "pyoxigraph", "gtpyhop-core")
@@ -736,9 +737,14 @@ def _platform_how(name: str, other: SpadeFigures | JadeFigures | None, why: str,
 
 def messaging_how(counts: Counts, spade: SpadeFigures | None, jade: JadeFigures | None = None) -> list[str]:
     """How parts 2, 3 and 3b measure: roco's synthetic pair, raw Zenoh and (when run) SPADE and JADE."""
+    path = (
+        "linked directly (Zenoh peers, `ROCO_LINKS=peer`: one hop), the router on a loopback port "
+        "for discovery"
+        if links_setting() == "peer"
+        else "through one router on a loopback port (`ROCO_LINKS=router`: two hops)"
+    )
     return [
-        "Two processes (spawn) through one router on a loopback port, no access control "
-        "(services/bench/messaging.py):",
+        f"Two processes (spawn) {path}, no access control (services/bench/messaging.py):",
         "",
         "- **roco**: two synthetic agents, each a real `Agent` on a `ZenohTransport` under a "
         "specification built in code (the Robot Companion's `fipa-request` and `fipa-subscribe`), "
@@ -747,10 +753,11 @@ def messaging_how(counts: Counts, spade: SpadeFigures | None, jade: JadeFigures 
         "`subscribe` with informs, 256 per step, one Zenoh put per step (shared/fipa_codec/batch.py), "
         "then one put per inform; rate: informs taken in, each decoded and checked, after the "
         "initiator's first step that took any, over the time from that step to its last.",
-        "- **raw Zenoh**: two bare Zenoh clients, configured alike, a payload as long as roco's "
-        "request; ping-pong with `put` and a subscriber's FIFO, each end sleeping in `recv()` as "
-        "zenoh-python's examples do (the target's reference), then polling as roco's receiving "
-        "threads do (equal terms); stream: a publisher's `put` in a loop, a counting callback.",
+        "- **raw Zenoh**: two bare Zenoh processes, configured alike (the same path), a payload "
+        "as long as roco's request; ping-pong with `put` and a subscriber's FIFO, each end "
+        "sleeping in `recv()` as zenoh-python's examples do (the target's reference), then "
+        "polling as roco's receiving threads do (equal terms); stream: a publisher's `put` in a "
+        "loop, a counting callback.",
         f"- {counts.rounds} round(s) of all of these, {counts.round_trips} round trips each (after 50 "
         f"warm-up ones), {counts.communicates:,} communicates per stream; round trips pooled, stream "
         "rates the median of the rounds'. `lost`: sent, not delivered (congestion control BLOCK).",
