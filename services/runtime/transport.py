@@ -282,13 +282,18 @@ def peer_access_control(acl: dict[str, Any]) -> dict[str, Any]:
             "permission": "allow",
             "flows": ["ingress", "egress"],
             "messages": list(ACL_MESSAGES),
-            "key_exprs": ["**"],
+            "key_exprs": list(RELAYED),
         }
     )
     subjects.append({"id": "router/link", "cert_common_names": [ROUTER]})
     policies.append({"id": "router/link", "rules": ["router/relays"], "subjects": ["router/link"]})
     return {**acl, "rules": rules, "subjects": subjects, "policies": policies}
 
+
+RELAYED = ("**", "**/@adv/**")
+"""What the router's link may carry to and from a peer: everything (``**`` never matches a
+verbatim ``@`` chunk, so zenoh-ext's advanced publishers' caches, tokens and heartbeats below
+``<key>/@adv/`` are named apart)."""
 
 ACL_MESSAGES = (
     "put",

@@ -220,8 +220,11 @@ def _cached_publisher(g: Grants, sends: list[str]) -> None:
     """What an agent's advanced publishers on its keys ``sends`` need (services/runtime/transport.py):
     to learn which subscribers match (a declared publisher that hears of none drops its puts),
     to declare their cache queryable, liveliness token and heartbeat below each key, to hear the
-    recorder's queries and to answer them — with replies on its own keys only."""
-    g.allow("egress", "declare_subscriber", keys.FIPA_ALL)
+    recorder's queries and to answer them — with replies on its own keys only. It also learns
+    of the recorder's subscriber to their heartbeats (below ``roco/fipa/**/@adv/``): a peer
+    sends its heartbeats towards the router only once it knows someone there listens (a client
+    sends everything to its router)."""
+    g.allow("egress", "declare_subscriber", keys.FIPA_ALL, keys.FIPA_CACHES)
     caches = [keys.caches_of(k) for k in sends]
     g.allow("ingress", "declare_queryable", *caches)
     g.allow("ingress", "liveliness_token", *caches)

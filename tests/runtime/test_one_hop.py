@@ -218,5 +218,42 @@ def test_a_peers_acl_matches_by_certificate_and_lets_the_router_relay() -> None:
     assert {"id": "a", "cert_common_names": ["a"]} in peer["subjects"]
     assert {"id": "router/link", "cert_common_names": ["router"]} in peer["subjects"]
     relay = next(r for r in peer["rules"] if r["id"] == "router/relays")
-    assert relay["key_exprs"] == ["**"] and set(relay["flows"]) == {"ingress", "egress"}
+    assert relay["key_exprs"] == ["**", "**/@adv/**"] and set(relay["flows"]) == {"ingress", "egress"}
     assert acl["subjects"] == [{"id": "a", "usernames": ["a"], "cert_common_names": ["a"]}]  # unchanged
+
+
+def test_a_recorder_started_later_fetches_what_a_peer_sent_from_its_cache(tls_fleet: Fleet) -> None:
+    """The recorder is the router's client; what an agent linked directly put before it started
+    reaches it from the agent's cache (zenoh-ext, below ``<key>/@adv/``), through the router's
+    link, which each peer's ACL lets carry that too."""
+    ep = tls_fleet.endpoint
+    ta = ZenohTransport([ep], identity="a_ta", links="peer")
+    co = ZenohTransport([ep], identity="a_co", links="peer")
+    recorder: ZenohTransport | None = None
+    try:
+        linked(ta.session, co.session)
+        inbox = Inbox()
+        co.subscribe(keys.inbox_key("a_co"), inbox)
+        key = keys.fipa_key("C1", "a_ta", "a_co")
+        delivered(ta, key, inbox, b"m0")
+        for payload in (b"m1", b"m2"):
+            ta.publish(key, payload)
+        assert inbox.wait_for(b"m2", WAIT_S)
+        recorder = ZenohTransport([ep], identity="recorder")
+        got: queue.SimpleQueue[bytes] = queue.SimpleQueue()
+        recorder.subscribe_recovering(keys.FIPA_ALL, lambda arrival: got.put(arrival.payload))
+        fetched = set()
+        deadline = time.monotonic() + WAIT_S
+        while not {b"m1", b"m2"} <= fetched:
+            left = deadline - time.monotonic()
+            assert left > 0, f"from the cache: {fetched}"
+            try:
+                fetched.add(got.get(timeout=left))
+            except queue.Empty:
+                break
+        assert {b"m1", b"m2"} <= fetched
+    finally:
+        if recorder is not None:
+            recorder.close()
+        co.close()
+        ta.close()

@@ -38,7 +38,7 @@ def test_values_are_stripped_and_typed() -> None:
 
 
 @pytest.mark.parametrize(
-    ("field", "default"), [("acl", True), ("rerun_camera", True), ("rerun", False), ("tls", False)]
+    ("field", "default"), [("acl", True), ("rerun_camera", True), ("rerun", False), ("tls", True)]
 )
 def test_a_flag_is_1_or_0_and_anything_else_leaves_its_default(field: str, default: bool) -> None:
     name = Settings.env_name(field)
