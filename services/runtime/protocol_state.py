@@ -643,12 +643,16 @@ class ProtocolStates:
         return outcome
 
     def _put(self, key: ConversationKey, tracker: CrossingTracker) -> None:
-        self._drop(key)
         if tracker.is_finished:
+            self._drop(key)
             self._ended[key] = tracker
             while len(self._ended) > self.max_ended:
                 self._ended.popitem(last=False)
+        elif key in self._open:  # still open: the newest now (its peer's count stays)
+            self._open[key] = tracker
+            self._open.move_to_end(key)
         else:
+            self._ended.pop(key, None)
             self._open[key] = tracker
             self._open_per_peer[key[0]] = self._open_per_peer.get(key[0], 0) + 1
             while len(self._open) > self.max_open:
