@@ -248,7 +248,11 @@ class Agent:
         (shared/fipa_codec/batch.py); False: one put each (the benchmark compares the two)."""
         self._inbox: deque[tuple[str, Any]] = deque()
         """Inputs waiting for a step: (key, payload) of a communicate, or a runtime event."""
-        self._arrived = threading.Condition()  # an RLock: stop() may run in a signal handler
+        self._arrived_lock = threading.RLock()  # an RLock: stop() may run in a signal handler
+        self._arrived = threading.Condition(self._arrived_lock)
+        self._sleepers = 0
+        """Threads waiting on ``_arrived`` (:meth:`_sleep`): an input put while none waits
+        notifies nobody (the notification is a Python call of ``threading``)."""
         self._turn = threading.Lock()
         """Held by whichever thread runs the agent's elementary actions (:meth:`run`)."""
         self._actions: Generator[float, None, None] | None = None
@@ -741,15 +745,26 @@ class Agent:
 
     def _put_input(self, item: tuple[str, Any]) -> None:
         """Hand an input to the agent's thread (any thread; wakes it)."""
-        with self._arrived:
+        with self._arrived_lock:
             self._inbox.append(item)
-            self._arrived.notify()
+            if self._sleepers:
+                self._arrived.notify()
 
     def _put_inputs(self, items: list[tuple[str, Any]]) -> None:
         """Hand several inputs, in order, to the agent's thread at once (any thread; wakes it)."""
-        with self._arrived:
+        with self._arrived_lock:
             self._inbox.extend(items)
-            self._arrived.notify()
+            if self._sleepers:
+                self._arrived.notify()
+
+    def _sleep(self, timeout: float) -> None:
+        """Wait on ``_arrived`` (its lock held) up to ``timeout`` s for an input, counted in
+        ``_sleepers`` so that an input put meanwhile wakes this thread."""
+        self._sleepers += 1
+        try:
+            self._arrived.wait(timeout)
+        finally:
+            self._sleepers -= 1
 
     def _on_payload(self, key: str, payload: bytes) -> None:  # the transport's thread
         if is_batch(payload):  # several communicates put together: taken in together
@@ -845,7 +860,7 @@ class Agent:
         if timeout > 0 and not self._inbox:
             with self._arrived:
                 if not self._inbox:
-                    self._arrived.wait(timeout)
+                    self._sleep(timeout)
         for _ in range(len(self._inbox)):
             self._take(*self._inbox.popleft())
         now = self.sources.time()
@@ -1162,7 +1177,7 @@ class Agent:
                             left = self._wake_at - self.sources.monotonic()
                             if left <= 0:
                                 break
-                            self._arrived.wait(left)
+                            self._sleep(left)
                 finally:
                     self._turn.acquire()
                 # a step taken in elsewhere meanwhile may have moved the time to go on

@@ -34,7 +34,7 @@ V = TypeVar("V")
 
 _MISSING = object()
 
-ScreenKey = tuple[str, str, str, str | None, str | None, str | None, str | None, bool]
+ScreenKey = tuple[str, str, Performative, str | None, str | None, str | None, str | None, bool]
 """(sender, channel, performative, protocol, language, ontology, encoding, has content)."""
 
 
@@ -124,7 +124,8 @@ class Lookups:
         """The checks of a communicate from ``sender`` on ``channel`` with these parameters
         that depend on nothing else (services/runtime/intake.py ``screen``, on the
         interface's kind of :meth:`accepts`)."""
-        key = (sender, channel, performative.value, protocol, language, ontology, encoding, has_content)
+        # the member itself is the key (equal to its value, whose lookup is a Python call)
+        key = (sender, channel, performative, protocol, language, ontology, encoding, has_content)
         found = self._screens.get(key)
         if found is None:
             kind = self.accepts(sender, performative.value, protocol)

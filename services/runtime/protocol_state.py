@@ -20,7 +20,7 @@ from __future__ import annotations
 
 from collections import OrderedDict
 from dataclasses import dataclass, field
-from typing import Literal
+from typing import Final, Literal
 
 from shared.fipa_codec.acts import Performative
 from shared.fipa_codec.languages import load_all
@@ -444,6 +444,11 @@ def _performative(performative: Performative | str) -> Performative:
     return performative if isinstance(performative, Performative) else Performative(performative)
 
 
+_CANCEL: Final = Performative.CANCEL
+_NOT_UNDERSTOOD: Final = Performative.NOT_UNDERSTOOD
+"""Members asked of every communicate followed, looked up once (a member's lookup on its enum
+class is a Python call on CPython 3.11)."""
+
 Outcome = Literal["step", "crossing", "forgotten", "restart", "aborted", "unchecked"]
 """What :func:`follow` did with a communicate."""
 
@@ -482,11 +487,11 @@ def follow(
     """
     if tracker is None:
         tracker = CrossingTracker(protocol, local_role=local_role)
-        if performative is Performative.CANCEL and role == INITIATOR and local_role != INITIATOR:
+        if performative is _CANCEL and role == INITIATOR and local_role != INITIATOR:
             tracker.forgotten()
             tracker.latest_initiator = reply_with
             return tracker, "forgotten"
-    if performative is Performative.NOT_UNDERSTOOD:
+    if performative is _NOT_UNDERSTOOD:
         tracker.abort()
         return tracker, "aborted"
     name = protocol if isinstance(protocol, str) else protocol.name

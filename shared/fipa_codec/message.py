@@ -55,9 +55,10 @@ class Communicate(msgspec.Struct, frozen=True, omit_defaults=True, kw_only=True,
     def __post_init__(self) -> None:
         if self.protocol is not None:
             check_word(self.protocol, ":protocol")
-        for key in self.user_params:
-            if not key.startswith(("X-", "x-")):
-                raise ValueError(f"user-defined parameter {key!r} must start with 'X-'")
+        if self.user_params:
+            for key in self.user_params:
+                if not key.startswith(("X-", "x-")):
+                    raise ValueError(f"user-defined parameter {key!r} must start with 'X-'")
 
     def reply(
         self,

@@ -80,6 +80,8 @@ def is_word(text: str) -> bool:
 def check_word(text: object, what: str) -> str:
     """``text`` when it is a FIPA SC00070 ``Word``; else ValueError naming ``what`` (the
     field, e.g. ``":protocol"``) and the rule."""
+    if type(text) is str and text in _KNOWN_WORDS:  # the common case: a protocol decoded again
+        return text
     if not isinstance(text, str) or not is_word(text):
         raise ValueError(
             f"invalid {what} {text!r}: not a FIPA SC00070 word (one must not be empty, hold white "
