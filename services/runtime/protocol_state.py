@@ -173,6 +173,7 @@ class CrossingTracker:
         local_role: Role | None = None,
         max_run: int = 16,
         max_readings: int = 16,
+        readings: tuple[Reading, ...] | None = None,
     ) -> None:
         if isinstance(protocol, str):
             if protocol not in PROTOCOLS:
@@ -182,7 +183,8 @@ class CrossingTracker:
         self.local_role = local_role
         self.max_run = max_run
         self.max_readings = max_readings
-        self.readings: tuple[Reading, ...] = _initial(protocol)
+        self.readings: tuple[Reading, ...] = readings if readings is not None else _initial(protocol)
+        """Where the conversation may stand (``readings`` given: a copy's, else its beginning)."""
         self.messages = 0
         self.crossings = 0
         """Communicates accepted only in an order other than their arrival (or as a late
@@ -202,9 +204,12 @@ class CrossingTracker:
     def copy(self) -> CrossingTracker:
         """An independent copy (readings are immutable, so this is cheap)."""
         other = CrossingTracker(
-            self.protocol, local_role=self.local_role, max_run=self.max_run, max_readings=self.max_readings
+            self.protocol,
+            local_role=self.local_role,
+            max_run=self.max_run,
+            max_readings=self.max_readings,
+            readings=self.readings,
         )  # attribute by attribute: compiled by mypyc (setup.py), the class has no __dict__
-        other.readings = self.readings
         other.messages = self.messages
         other.crossings = self.crossings
         other.aborted = self.aborted
