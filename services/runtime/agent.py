@@ -67,7 +67,7 @@ import threading
 import time
 from collections import Counter, deque
 from collections.abc import Callable, Generator
-from typing import Any, ClassVar, NoReturn
+from typing import Any, ClassVar, NamedTuple, NoReturn
 
 import msgspec
 
@@ -76,7 +76,7 @@ from services.runtime.behaviour import FSM
 from services.runtime.dedup import Dedup
 from services.runtime.heap import give_back_freed_heap
 from services.runtime.hooks import Hooks, load_hooks
-from services.runtime.intake import Refusal, content_of, interface_refusal
+from services.runtime.intake import SENDER_MISMATCH, Refusal, screened
 from services.runtime.limits import MAX_OPEN_CONVERSATIONS_PER_PEER
 from services.runtime.lookups import Lookups
 from services.runtime.protocol_state import ConversationError, ProtocolStates
@@ -96,7 +96,7 @@ from shared.fipa_codec import (
     encode,
 )
 from shared.fipa_codec.batch import is_batch, runs, unpack
-from shared.fipa_codec.languages import encode_content, language_of
+from shared.fipa_codec.languages import encode_term, language_of
 from shared.fipa_codec.protocols import (
     INITIATOR,
     PARTICIPANT,
@@ -165,6 +165,20 @@ class Received(msgspec.Struct, frozen=True):
         return self.msg.sender.name if self.msg.sender else ""
 
 
+class _Outgoing(NamedTuple):
+    """What every communicate an agent sends to one receiver, of one performative in one
+    protocol, carrying a term of one type (or none) shares, once the interface allowed it
+    (:meth:`Agent._outgoing`): its ``key`` and ``receiver``, its content ``language`` and
+    ``ontology``, and ``followed``, the conversation's state machine and the agent's role in it
+    (None: not followed)."""
+
+    key: str
+    receiver: tuple[AgentIdentifier, ...]
+    language: str | None
+    ontology: str | None
+    followed: tuple[ProtocolMachine, Role] | None
+
+
 class Agent:
     """Base class of every roco agent (a purely computational agent: control subsystem only,
     paper §5.5). Subclasses set ``name`` and implement :meth:`build_fsm`."""
@@ -221,6 +235,10 @@ class Agent:
         self._roles: dict[tuple[str, str], Role] = _roles(self.spec, self.name)
         self._followed: dict[tuple[str, str], tuple[ProtocolMachine, Role] | None] = {}
         """:meth:`_machine_and_role` per (peer, protocol), asked once (at most _FOLLOWED_MAX)."""
+        self._outgoings: dict[tuple[str, Performative, str, type], _Outgoing] = {}
+        """:meth:`_outgoing` per (receiver, performative, protocol, content type)."""
+        self._streaming: dict[tuple[str, Performative], bool] = {}
+        """:meth:`_streams` per (protocol, performative)."""
         self.roles = Roles(self, self.ROLES or (), check=self.ROLES is not None)
         """The agent's protocol roles and their open conversations (services/runtime/roles.py)."""
         self._y: list[tuple[str, bytes]] = []
@@ -231,7 +249,11 @@ class Agent:
         (shared/fipa_codec/batch.py); False: one put each (the benchmark compares the two)."""
         self._inbox: deque[tuple[str, Any]] = deque()
         """Inputs waiting for a step: (key, payload) of a communicate, or a runtime event."""
-        self._arrived = threading.Condition()  # an RLock: stop() may run in a signal handler
+        self._arrived_lock = threading.RLock()  # an RLock: stop() may run in a signal handler
+        self._arrived = threading.Condition(self._arrived_lock)
+        self._sleepers = 0
+        """Threads waiting on ``_arrived`` (:meth:`_sleep`): an input put while none waits
+        notifies nobody (the notification is a Python call of ``threading``)."""
         self._turn = threading.Lock()
         """Held by whichever thread runs the agent's elementary actions (:meth:`run`)."""
         self._actions: Generator[float, None, None] | None = None
@@ -360,18 +382,8 @@ class Agent:
         """
         if retry_s is not None and not retry_s > 0:
             raise ValueError(f"retry_s must be positive, not {retry_s}")
-        channel = self.lookups.channel(to)
-        if channel is None:
-            raise SpecViolation(f"{self.name}: no channel to {to}")
-        language, body = encode_content(content) if content is not None else (None, b"")
-        ontology = language_of(content).ontology if content is not None else None
-        self._check_send(
-            to,
-            performative.value,
-            protocol,
-            language,
-            type(content).__name__ if content is not None else None,
-        )
+        out = self._outgoing(to, performative, protocol, content)
+        body = encode_term(content) if content is not None else b""
         awaits = expect_reply or reply_by_s is not None or retry_s is not None
         if awaits and reply_with is None:
             reply_with = self.sources.new_id(f"{self.name}-")
@@ -379,45 +391,101 @@ class Agent:
         msg = Communicate(
             performative=performative,
             sender=self.aid,
-            receiver=(self.lookups.aid(to),),
+            receiver=out.receiver,
             content=body,
-            language=language,
+            language=out.language,
             encoding="msgpack" if body else None,
-            ontology=ontology,
+            ontology=out.ontology,
             protocol=protocol,
             conversation_id=conversation_id or self.sources.new_id("c-"),
             reply_with=reply_with,
             in_reply_to=in_reply_to,
             reply_by=deadline,
         )
-        self._follow_send(to, msg)
-        key, payload = self.lookups.key(channel.name, to), encode(msg)
+        self._follow_send(to, msg, out.followed)
+        payload = encode(msg)
         if awaits and reply_with is not None:
-            self.pending_replies.expect(
-                Pending(
-                    reply_with,
-                    to,
-                    protocol,
-                    msg.conversation_id,
-                    deadline,
-                    streaming=self._streams(protocol, performative),
-                    retry_s=retry_s,
-                    key=key if retry_s is not None else "",
-                    payload=payload if retry_s is not None else b"",
-                    next_retry=self.sources.time() + retry_s if retry_s is not None else None,
-                )
-            )
-        self._out(to, in_reply_to, key, payload)
+            self._await_reply(msg, to, out.key, payload, retry_s)
+        self._out(to, in_reply_to, out.key, payload)
         self.counters[_SENT_COUNTER[performative]] += 1
         return msg
 
+    def _outgoing(
+        self, to: str, performative: Performative, protocol: str, content: msgspec.Struct | None
+    ) -> _Outgoing:
+        """What every communicate to ``to`` of ``performative`` in ``protocol`` carrying a term
+        of ``content``'s type shares (:class:`_Outgoing`), checked against the interface the
+        first time and kept (at most ``_FOLLOWED_MAX``); raises as :meth:`send`, keeping
+        nothing, while the interface forbids it."""
+        route = (to, performative, protocol, type(content))
+        found = self._outgoings.get(route)
+        if found is None:
+            found = self._route(to, performative, protocol, content)
+            if len(self._outgoings) < _FOLLOWED_MAX:
+                self._outgoings[route] = found
+        return found
+
+    def _route(
+        self, to: str, performative: Performative, protocol: str, content: msgspec.Struct | None
+    ) -> _Outgoing:
+        """:meth:`_outgoing` found anew: the channel to ``to`` (SpecViolation: none), the
+        content's language (ContentError: none), the interface's checks (:meth:`_check_send`)."""
+        channel = self.lookups.channel(to)
+        if channel is None:
+            raise SpecViolation(f"{self.name}: no channel to {to}")
+        language = language_of(content) if content is not None else None
+        self._check_send(
+            to,
+            performative.value,
+            protocol,
+            language.name if language is not None else None,
+            type(content).__name__ if content is not None else None,
+        )
+        return _Outgoing(
+            self.lookups.key(channel.name, to),
+            (self.lookups.aid(to),),
+            language.name if language is not None else None,
+            language.ontology if language is not None else None,
+            self._following(to, protocol),
+        )
+
+    def _await_reply(
+        self, msg: Communicate, to: str, key: str, payload: bytes, retry_s: float | None
+    ) -> None:
+        """Await replies to ``msg``, sent to ``to`` on ``key`` as ``payload`` (its reply-with
+        set): its reply-by deadline, and retransmission every ``retry_s``
+        (services/runtime/replies.py)."""
+        assert msg.reply_with is not None and msg.protocol is not None
+        retries = retry_s is not None
+        self.pending_replies.expect(
+            Pending(
+                msg.reply_with,
+                to,
+                msg.protocol,
+                msg.conversation_id,
+                msg.reply_by,
+                streaming=self._streams(msg.protocol, msg.performative),
+                retry_s=retry_s,
+                key=key if retries else "",
+                payload=payload if retries else b"",
+                next_retry=self.sources.time() + retry_s if retry_s is not None else None,
+            )
+        )
+
     def _streams(self, protocol: str, performative: Performative) -> bool:
         """``performative`` opens a conversation of ``protocol`` that streams: many replies
-        answer it (fipa-subscribe's informs, coordinate's reports; from the state machine)."""
-        if protocol not in self.spec.protocols:
-            return False
-        machine = machine_of(self.spec, protocol)
-        return streams(machine) and machine.next_state(machine.initial, INITIATOR, performative) is not None
+        answer it (fipa-subscribe's informs, coordinate's reports; from the state machine).
+        Asked once per pair (raises SpecError, keeping nothing, for a protocol without a
+        state machine)."""
+        found = self._streaming.get((protocol, performative))
+        if found is None:
+            found = False
+            if protocol in self.spec.protocols:
+                machine = machine_of(self.spec, protocol)
+                opens = machine.next_state(machine.initial, INITIATOR, performative) is not None
+                found = streams(machine) and opens
+            self._streaming[(protocol, performative)] = found
+        return found
 
     def _out(self, to: str, in_reply_to: str | None, key: str, payload: bytes) -> None:
         """Put an encoded communicate into the output buffer; remember it as an answer to
@@ -470,7 +538,7 @@ class Agent:
             conversation_id=to.msg.conversation_id,
             in_reply_to=to.msg.reply_with,
         )
-        self._follow_send(to.sender, msg)
+        self._follow_send(to.sender, msg, self._following(to.sender, protocol))
         self._out(to.sender, msg.in_reply_to, self.lookups.key(channel.name, to.sender), encode(msg))
         self.counters[_SENT_COUNTER[performative]] += 1
 
@@ -566,11 +634,14 @@ class Agent:
         self.log.warning("refused to send (conversation %s): %s", conversation_id, text)
         raise SpecViolation(text)
 
-    def _follow_send(self, to: str, msg: Communicate) -> None:
-        """Follow a communicate about to be sent in its conversation's protocol state;
-        raises SpecViolation when the state does not allow it."""
-        why = self._follow(
-            to, msg.conversation_id, msg.protocol, msg.performative, True, is_terminal_report(msg), msg
+    def _follow_send(self, to: str, msg: Communicate, followed: tuple[ProtocolMachine, Role] | None) -> None:
+        """Follow a communicate about to be sent in its conversation's protocol state
+        (``followed``: its state machine and the agent's role, :meth:`_following`); raises
+        SpecViolation when the state does not allow it."""
+        if followed is None or msg.conversation_id is None:
+            return
+        why = self._step_conversation(
+            to, msg.conversation_id, followed, msg.performative, True, is_terminal_report(msg), msg
         )
         if why is not None:
             self._violation(
@@ -608,6 +679,20 @@ class Agent:
         followed = self._following(peer, protocol)
         if followed is None:
             return None
+        return self._step_conversation(peer, conversation_id, followed, performative, sent, terminal, msg)
+
+    def _step_conversation(
+        self,
+        peer: str,
+        conversation_id: str,
+        followed: tuple[ProtocolMachine, Role],
+        performative: Performative,
+        sent: bool,
+        terminal: bool | None,
+        msg: Communicate | None = None,
+    ) -> str | None:
+        """:meth:`_follow` in a followed conversation: ``followed`` is its state machine and
+        the agent's role in it (:meth:`_following`)."""
         machine, mine = followed
         role: Role = mine if sent else (PARTICIPANT if mine == INITIATOR else INITIATOR)
         try:
@@ -663,15 +748,26 @@ class Agent:
 
     def _put_input(self, item: tuple[str, Any]) -> None:
         """Hand an input to the agent's thread (any thread; wakes it)."""
-        with self._arrived:
+        with self._arrived_lock:
             self._inbox.append(item)
-            self._arrived.notify()
+            if self._sleepers:
+                self._arrived.notify()
 
     def _put_inputs(self, items: list[tuple[str, Any]]) -> None:
         """Hand several inputs, in order, to the agent's thread at once (any thread; wakes it)."""
-        with self._arrived:
+        with self._arrived_lock:
             self._inbox.extend(items)
-            self._arrived.notify()
+            if self._sleepers:
+                self._arrived.notify()
+
+    def _sleep(self, timeout: float) -> None:
+        """Wait on ``_arrived`` (its lock held) up to ``timeout`` s for an input, counted in
+        ``_sleepers`` so that an input put meanwhile wakes this thread."""
+        self._sleepers += 1
+        try:
+            self._arrived.wait(timeout)
+        finally:
+            self._sleepers -= 1
 
     def _on_payload(self, key: str, payload: bytes) -> None:  # the transport's thread
         if is_batch(payload):  # several communicates put together: taken in together
@@ -776,7 +872,7 @@ class Agent:
         if timeout > 0 and not self._inbox:
             with self._arrived:
                 if not self._inbox:
-                    self._arrived.wait(timeout)
+                    self._sleep(timeout)
         for _ in range(len(self._inbox)):
             self._take(*self._inbox.popleft())
         now = self.sources.time()
@@ -854,17 +950,34 @@ class Agent:
             self._copy(sender, msg)
             return
         self.counters[_RECEIVED_COUNTER[msg.performative]] += 1
-        kind = self.lookups.accepts(sender, msg.performative, msg.protocol)
-        refusal = interface_refusal(sender, channel, msg, kind)
-        content: msgspec.Struct | None = None
-        if refusal is None and kind is not None:
-            content, refusal = content_of(msg, kind)
+        content, refusal = self._screened(sender, channel, msg)
         if refusal is not None:
             self._refuse(sender, channel, msg, refusal)
         elif self._in_conversation(sender, channel, msg, content):
             if msg.in_reply_to is not None and self.pending_replies.knows(msg.in_reply_to):
                 self.pending_replies.answered(msg.in_reply_to, msg.performative)
             self.x.append(Received(msg, content, channel))
+
+    def _screened(
+        self, sender: str, channel: str, msg: Communicate
+    ) -> tuple[msgspec.Struct | None, Refusal | None]:
+        """The checks of services/runtime/intake.py: ``msg``'s sender is the key's, its
+        parameters pass the interface (``Lookups.screen``, kept per sender, channel,
+        performative, protocol, language, ontology and encoding), its content decodes to a term
+        its kind may carry. Returns that content (None: not checked) or the refusal."""
+        if msg.sender is None or msg.sender.name != sender:
+            return None, SENDER_MISMATCH
+        checks = self.lookups.screen(
+            sender,
+            channel,
+            msg.performative,
+            msg.protocol,
+            msg.language,
+            msg.ontology,
+            msg.encoding,
+            bool(msg.content),
+        )
+        return screened(msg, checks)
 
     def _undecodable(self, sender: str, channel: str, exc: DecodeError, copy: bool) -> None:
         """A payload from ``sender`` that does not decode (``exc``): a copy of one seen already
@@ -906,25 +1019,24 @@ class Agent:
         ``max_open_per_peer`` with ``sender`` (:meth:`_refuse_new_conversation`), and the
         conversation's protocol state allows it (:meth:`_follow`, which advances it). False:
         it was answered or dropped, and counted."""
-        if (
-            msg.conversation_id is None
-            and msg.protocol is not None
-            and self._following(sender, msg.protocol) is not None
-        ):
+        cid = msg.conversation_id
+        followed = self._following(sender, msg.protocol) if msg.protocol is not None else None
+        if cid is None:
+            if followed is None:
+                return True
             # its answer could not be told apart from those of other such conversations, nor
             # followed in the protocol: FIPA SC00061 leaves conversation-id optional, roco needs it
             needs = f"{msg.performative.value} in protocol {msg.protocol} needs a conversation-id"
             self.not_understood(sender, channel, needs, msg, "no_conversation_id")
             return False
-        if (
-            msg.conversation_id is not None
-            and self.protocol_states.open_with(sender) >= self.max_open_per_peer
-            and self.protocol_states.get(sender, msg.conversation_id) is None
-        ):
+        states = self.protocol_states
+        if states.open_with(sender) >= self.max_open_per_peer and states.get(sender, cid) is None:
             self._refuse_new_conversation(sender, channel, msg, content)
             return False
-        why = self._follow(
-            sender, msg.conversation_id, msg.protocol, msg.performative, False, is_terminal_report(msg), msg
+        if followed is None:
+            return True
+        why = self._step_conversation(
+            sender, cid, followed, msg.performative, False, is_terminal_report(msg), msg
         )
         if why is not None:
             self._out_of_state(sender, channel, msg, why)
@@ -1020,6 +1132,20 @@ class Agent:
 
     # ---- the loop -----------------------------------------------------------------------
     def _dispatch(self) -> None:
+        """Put the output buffer (communicates that one step sends in a row to one receiver in
+        one batch, :attr:`batch_puts`); what it held is sent: its protocol states are kept."""
+        if len(self._y) == 1:  # the usual step: one communicate, no batch to look for
+            key, payload = self._y[0]
+            self.transport.publish(key, payload)
+            if keys.is_communicate_key(key):
+                self.counters["published"] += 1
+        elif self._y:
+            self._dispatch_runs()
+        self._y.clear()
+        self._y_taken = 0
+        self.protocol_states.commit()
+
+    def _dispatch_runs(self) -> None:
         published = 0
         for key, payload, count in runs(self._y, keys.is_communicate_key if self.batch_puts else _alone):
             self.transport.publish(key, payload)
@@ -1027,9 +1153,6 @@ class Agent:
                 published += count
         if published:
             self.counters["published"] += published
-        self._y.clear()
-        self._y_taken = 0
-        self.protocol_states.commit()
 
     def bind(self) -> None:
         """Subscribe the input buffer and watch the peers' liveliness. The agent's own
@@ -1066,7 +1189,7 @@ class Agent:
                             left = self._wake_at - self.sources.monotonic()
                             if left <= 0:
                                 break
-                            self._arrived.wait(left)
+                            self._sleep(left)
                 finally:
                     self._turn.acquire()
                 # a step taken in elsewhere meanwhile may have moved the time to go on

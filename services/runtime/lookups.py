@@ -9,7 +9,11 @@ keeps the answer; each table holds at most :data:`MAX_ENTRIES` answers (a peer t
 ever new keys makes the agent look those up every time, as before, and grows nothing).
 
 Only answers are kept, never a decision about one communicate: every check the runtime makes
-(services/runtime/agent.py) still runs on each communicate, on these answers.
+(services/runtime/agent.py) still runs on each communicate, on these answers. Among them are
+the checks of a received communicate that depend only on its sender, channel, performative,
+protocol, language, ontology and encoding (services/runtime/intake.py ``screen``): kept per
+such tuple, their answer is the same for every communicate of it; its content is decoded and
+checked each time.
 """
 
 from __future__ import annotations
@@ -18,8 +22,9 @@ from collections.abc import Callable, Hashable
 from typing import TypeVar
 
 from services.runtime import keys
+from services.runtime.intake import Screen, screen
 from services.spec.model import ChannelSpec, Interface, MessageKind, SystemSpec, channel_between
-from shared.fipa_codec import AgentIdentifier
+from shared.fipa_codec import AgentIdentifier, Performative
 
 MAX_ENTRIES = 1024
 """Answers kept per table (an agent has a few peers, channels and kinds of communicate)."""
@@ -28,6 +33,9 @@ K = TypeVar("K", bound=Hashable)
 V = TypeVar("V")
 
 _MISSING = object()
+
+ScreenKey = tuple[str, str, Performative, str | None, str | None, str | None, str | None, bool]
+"""(sender, channel, performative, protocol, language, ontology, encoding, has content)."""
 
 
 def _memo(table: dict[K, V], key: K, compute: Callable[[], V]) -> V:
@@ -55,6 +63,7 @@ class Lookups:
         self._parsed: dict[str, keys.FipaKey] = {}
         self._accepts: dict[tuple[str, str, str | None], MessageKind | None] = {}
         self._sends: dict[tuple[str, str, str], MessageKind | None] = {}
+        self._screens: dict[ScreenKey, Screen] = {}
 
     def channel(self, to: str) -> ChannelSpec | None:
         """The channel joining this agent and ``to`` (``channel_between``; a foreign agent as
@@ -100,3 +109,27 @@ class Lookups:
             return None
 
         return _memo(self._sends, (to, performative, protocol), first)
+
+    def screen(
+        self,
+        sender: str,
+        channel: str,
+        performative: Performative,
+        protocol: str | None,
+        language: str | None,
+        ontology: str | None,
+        encoding: str | None,
+        has_content: bool,
+    ) -> Screen:
+        """The checks of a communicate from ``sender`` on ``channel`` with these parameters
+        that depend on nothing else (services/runtime/intake.py ``screen``, on the
+        interface's kind of :meth:`accepts`)."""
+        # the member itself is the key (equal to its value, whose lookup is a Python call)
+        key = (sender, channel, performative, protocol, language, ontology, encoding, has_content)
+        found = self._screens.get(key)
+        if found is None:
+            kind = self.accepts(sender, performative.value, protocol)
+            found = screen(channel, performative, protocol, language, ontology, encoding, has_content, kind)
+            if len(self._screens) < MAX_ENTRIES:
+                self._screens[key] = found
+        return found

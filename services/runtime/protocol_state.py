@@ -20,7 +20,7 @@ from __future__ import annotations
 
 from collections import OrderedDict
 from dataclasses import dataclass, field
-from typing import Literal
+from typing import Final, Literal
 
 from shared.fipa_codec.acts import Performative
 from shared.fipa_codec.languages import load_all
@@ -173,6 +173,7 @@ class CrossingTracker:
         local_role: Role | None = None,
         max_run: int = 16,
         max_readings: int = 16,
+        readings: tuple[Reading, ...] | None = None,
     ) -> None:
         if isinstance(protocol, str):
             if protocol not in PROTOCOLS:
@@ -182,7 +183,8 @@ class CrossingTracker:
         self.local_role = local_role
         self.max_run = max_run
         self.max_readings = max_readings
-        self.readings: tuple[Reading, ...] = _initial(protocol)
+        self.readings: tuple[Reading, ...] = readings if readings is not None else _initial(protocol)
+        """Where the conversation may stand (``readings`` given: a copy's, else its beginning)."""
         self.messages = 0
         self.crossings = 0
         """Communicates accepted only in an order other than their arrival (or as a late
@@ -202,9 +204,12 @@ class CrossingTracker:
     def copy(self) -> CrossingTracker:
         """An independent copy (readings are immutable, so this is cheap)."""
         other = CrossingTracker(
-            self.protocol, local_role=self.local_role, max_run=self.max_run, max_readings=self.max_readings
+            self.protocol,
+            local_role=self.local_role,
+            max_run=self.max_run,
+            max_readings=self.max_readings,
+            readings=self.readings,
         )  # attribute by attribute: compiled by mypyc (setup.py), the class has no __dict__
-        other.readings = self.readings
         other.messages = self.messages
         other.crossings = self.crossings
         other.aborted = self.aborted
@@ -444,6 +449,11 @@ def _performative(performative: Performative | str) -> Performative:
     return performative if isinstance(performative, Performative) else Performative(performative)
 
 
+_CANCEL: Final = Performative.CANCEL
+_NOT_UNDERSTOOD: Final = Performative.NOT_UNDERSTOOD
+"""Members asked of every communicate followed, looked up once (a member's lookup on its enum
+class is a Python call on CPython 3.11)."""
+
 Outcome = Literal["step", "crossing", "forgotten", "restart", "aborted", "unchecked"]
 """What :func:`follow` did with a communicate."""
 
@@ -482,11 +492,11 @@ def follow(
     """
     if tracker is None:
         tracker = CrossingTracker(protocol, local_role=local_role)
-        if performative is Performative.CANCEL and role == INITIATOR and local_role != INITIATOR:
+        if performative is _CANCEL and role == INITIATOR and local_role != INITIATOR:
             tracker.forgotten()
             tracker.latest_initiator = reply_with
             return tracker, "forgotten"
-    if performative is Performative.NOT_UNDERSTOOD:
+    if performative is _NOT_UNDERSTOOD:
         tracker.abort()
         return tracker, "aborted"
     name = protocol if isinstance(protocol, str) else protocol.name
@@ -643,12 +653,16 @@ class ProtocolStates:
         return outcome
 
     def _put(self, key: ConversationKey, tracker: CrossingTracker) -> None:
-        self._drop(key)
         if tracker.is_finished:
+            self._drop(key)
             self._ended[key] = tracker
             while len(self._ended) > self.max_ended:
                 self._ended.popitem(last=False)
+        elif key in self._open:  # still open: the newest now (its peer's count stays)
+            self._open[key] = tracker
+            self._open.move_to_end(key)
         else:
+            self._ended.pop(key, None)
             self._open[key] = tracker
             self._open_per_peer[key[0]] = self._open_per_peer.get(key[0], 0) + 1
             while len(self._open) > self.max_open:

@@ -14,7 +14,7 @@ from typing import Annotated
 
 import msgspec
 
-from shared.fipa_codec.names import MAX_NAME_LENGTH, check_agent_name, check_word
+from shared.fipa_codec.names import KNOWN_NAMES, MAX_NAME_LENGTH, check_agent_name, check_word
 
 __all__ = ["MAX_AID_DEPTH", "AgentIdentifier", "aid"]
 
@@ -120,7 +120,9 @@ class AgentIdentifier(msgspec.Struct, frozen=True, array_like=True):
     user: _User = ()
 
     def __post_init__(self) -> None:
-        check_agent_name(self.name)
+        name = self.name
+        if type(name) is not str or name not in KNOWN_NAMES:  # run on every identifier decoded
+            check_agent_name(name)
         for address in self.addresses:
             check_word(address, f"address of agent {self.name}")
         if self.user:

@@ -13,7 +13,7 @@ import msgspec
 
 from shared.fipa_codec.acts import Performative
 from shared.fipa_codec.aid import AgentIdentifier
-from shared.fipa_codec.names import check_word
+from shared.fipa_codec.names import KNOWN_WORDS, check_word
 
 
 class Communicate(msgspec.Struct, frozen=True, omit_defaults=True, kw_only=True, rename="kebab"):
@@ -53,11 +53,13 @@ class Communicate(msgspec.Struct, frozen=True, omit_defaults=True, kw_only=True,
     user_params: dict[str, str] = {}
 
     def __post_init__(self) -> None:
-        if self.protocol is not None:
-            check_word(self.protocol, ":protocol")
-        for key in self.user_params:
-            if not key.startswith(("X-", "x-")):
-                raise ValueError(f"user-defined parameter {key!r} must start with 'X-'")
+        protocol = self.protocol
+        if protocol is not None and (type(protocol) is not str or protocol not in KNOWN_WORDS):
+            check_word(protocol, ":protocol")
+        if self.user_params:
+            for key in self.user_params:
+                if not key.startswith(("X-", "x-")):
+                    raise ValueError(f"user-defined parameter {key!r} must start with 'X-'")
 
     def reply(
         self,

@@ -59,27 +59,32 @@ KNOWN_MAX = 4096
 same string is a set lookup: every communicate decoded checks its sender's and receivers' names
 and its protocol, which are few and repeat. A process that meets more keeps checking the rest
 with the regular expressions."""
-_KNOWN_WORDS: set[str] = set()
-_KNOWN_NAMES: set[str] = set()
+KNOWN_WORDS: set[str] = set()
+"""Words found valid (:func:`is_word`; at most :data:`KNOWN_MAX`): read outside this module
+only, where a check must cost no call (shared/fipa_codec/message.py, aid.py)."""
+KNOWN_NAMES: set[str] = set()
+"""Agent names found valid (:func:`check_agent_name`), as :data:`KNOWN_WORDS`."""
 
 
 def is_word(text: str) -> bool:
     """Whether ``text`` is a FIPA SC00070 ``Word`` (see the module docstring)."""
-    if text in _KNOWN_WORDS:
+    if text in KNOWN_WORDS:
         return True
     if _WORD.fullmatch(text) is None:
         return False
     # a Number or DateTime that passes the first-character rule starts with + or .
     if text[0] in "+." and (_NUMBER.fullmatch(text) is not None or _DATETIME.fullmatch(text) is not None):
         return False
-    if len(_KNOWN_WORDS) < KNOWN_MAX:
-        _KNOWN_WORDS.add(text)
+    if len(KNOWN_WORDS) < KNOWN_MAX:
+        KNOWN_WORDS.add(text)
     return True
 
 
 def check_word(text: object, what: str) -> str:
     """``text`` when it is a FIPA SC00070 ``Word``; else ValueError naming ``what`` (the
     field, e.g. ``":protocol"``) and the rule."""
+    if type(text) is str and text in KNOWN_WORDS:  # the common case: a protocol decoded again
+        return text
     if not isinstance(text, str) or not is_word(text):
         raise ValueError(
             f"invalid {what} {text!r}: not a FIPA SC00070 word (one must not be empty, hold white "
@@ -92,7 +97,7 @@ def check_agent_name(name: object) -> str:
     """``name`` when it is an agent name (a word of at most :data:`MAX_NAME_LENGTH`
     characters, FIPA SC00023 §4 / SC00070 §2.2); else ValueError saying why."""
     # the common case first: run on every agent identifier decoded
-    if type(name) is str and name in _KNOWN_NAMES:
+    if type(name) is str and name in KNOWN_NAMES:
         return name
     if (
         isinstance(name, str)
@@ -100,8 +105,8 @@ def check_agent_name(name: object) -> str:
         and _WORD.fullmatch(name) is not None
         and name[0] not in "+."
     ):
-        if type(name) is str and len(_KNOWN_NAMES) < KNOWN_MAX:
-            _KNOWN_NAMES.add(name)
+        if type(name) is str and len(KNOWN_NAMES) < KNOWN_MAX:
+            KNOWN_NAMES.add(name)
         return name
     check_word(name, "agent name")
     assert isinstance(name, str)

@@ -11,8 +11,8 @@ from pathlib import Path
 from types import ModuleType
 
 ROOT = Path(__file__).resolve().parents[2]
-MOST = 87
-"""Functions of complexity ≥ 11 on 2026-11-25 (1.64 per thousand lines)."""
+MOST = 86
+"""Functions of complexity ≥ 11 (Agent._follow fell below 11 when the runtime's hot path was split)."""
 
 
 def _check_complexity() -> ModuleType:

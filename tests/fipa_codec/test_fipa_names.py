@@ -175,23 +175,23 @@ def test_names_and_words_found_valid_are_kept_and_invalid_ones_never_are(
 ) -> None:
     from shared.fipa_codec import names
 
-    monkeypatch.setattr(names, "_KNOWN_NAMES", set())
-    monkeypatch.setattr(names, "_KNOWN_WORDS", set())
-    assert check_agent_name("a_co") == "a_co" and "a_co" in names._KNOWN_NAMES
-    assert is_word("fipa-request") and "fipa-request" in names._KNOWN_WORDS
+    monkeypatch.setattr(names, "KNOWN_NAMES", set())
+    monkeypatch.setattr(names, "KNOWN_WORDS", set())
+    assert check_agent_name("a_co") == "a_co" and "a_co" in names.KNOWN_NAMES
+    assert is_word("fipa-request") and "fipa-request" in names.KNOWN_WORDS
     for bad in ("+1", "1x", "a b"):
         for _ in range(2):  # refused the second time as the first
             with pytest.raises(ValueError):
                 check_agent_name(bad)
-        assert bad not in names._KNOWN_NAMES and bad not in names._KNOWN_WORDS
+        assert bad not in names.KNOWN_NAMES and bad not in names.KNOWN_WORDS
     assert not is_word("+1") and not is_word("+1")
     # a long valid word is a word, and still no agent name once kept as a word
     long_word = "x" * (MAX_NAME_LENGTH + 1)
-    assert is_word(long_word) and long_word in names._KNOWN_WORDS
+    assert is_word(long_word) and long_word in names.KNOWN_WORDS
     for _ in range(2):
         with pytest.raises(ValueError, match="longer than"):
             check_agent_name(long_word)
-    assert long_word not in names._KNOWN_NAMES
+    assert long_word not in names.KNOWN_NAMES
     monkeypatch.setattr(names, "KNOWN_MAX", 0)
     check_agent_name("a_ta")
-    assert "a_ta" not in names._KNOWN_NAMES  # the set is full: checked, not kept
+    assert "a_ta" not in names.KNOWN_NAMES  # the set is full: checked, not kept

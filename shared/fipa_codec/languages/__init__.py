@@ -18,6 +18,7 @@ from shared.fipa_codec.languages.base import (
     Language,
     decode_content,
     encode_content,
+    encode_term,
     language_of,
     load_all,
 )
@@ -28,6 +29,7 @@ __all__ = [
     "Language",
     "decode_content",
     "encode_content",
+    "encode_term",
     "language_of",
     "load_all",
 ]

@@ -75,7 +75,13 @@ def language_of(term: msgspec.Struct) -> Language:
 
 def encode_content(term: msgspec.Struct) -> tuple[str, bytes]:
     """Encode a language term: returns (language name, msgpack bytes)."""
-    return language_of(term).name, _encoder.encode(term)
+    return language_of(term).name, encode_term(term)
+
+
+encode_term = _encoder.encode
+"""The msgpack bytes of a language term, its language not looked up (a C function: the runtime
+calls it for every communicate it sends, once :func:`language_of` found the term's type a
+language)."""
 
 
 def decode_content(language: str | None, data: bytes) -> msgspec.Struct:
