@@ -90,7 +90,7 @@ def traced_agent(name: str, endpoint: str, conn: Connection) -> None:
         events.append(("take_cpu", time.thread_time_ns() - cpu, 0))
 
     cls = type(name, (base,), {"name": name, "send": send, "_take_communicate": take})
-    transport = Traced([endpoint])
+    transport = Traced([endpoint], links=None)  # as roco bench: ROCO_LINKS
     agent = cls(transport, bench_spec(1), conn)
     agent.bind()
 
@@ -155,7 +155,11 @@ def segments(ini: list[Event], par: list[Event], n: int) -> list[tuple[str, list
             diff(a["send"], a["put"]),
             same_thread(a["send"], a["put"]),
         ),
-        ("b_ini0 put → b_par0 Zenoh callback (Zenoh: client → router → client)", diff(a["put"], b["cb"]), ""),
+        (
+            "b_ini0 put → b_par0 Zenoh callback (Zenoh: one hop; ROCO_LINKS=router: two)",
+            diff(a["put"], b["cb"]),
+            "",
+        ),
         (
             "b_par0: Zenoh callback → _take_communicate entered (taken in where it arrived, or handed over)",
             diff(b["cb"], b["take0"]),
