@@ -110,10 +110,8 @@ from shared.fipa_codec.batch import is_batch, runs, unpack
 from shared.fipa_codec.languages import encode_term, language_of
 from shared.fipa_codec.protocols import (
     INITIATOR,
-    Role,
     is_terminal_report,
 )
-from shared.fipa_codec.protocols import Protocol as ProtocolMachine
 from shared.settings import Settings
 
 _UNASKED: Any = object()
@@ -185,7 +183,7 @@ class _Outgoing(NamedTuple):
     receiver: tuple[AgentIdentifier, ...]
     language: str | None
     ontology: str | None
-    followed: tuple[ProtocolMachine, Role] | None
+    followed: Followed | None
 
 
 class Agent:
@@ -640,15 +638,20 @@ class Agent:
         self.log.warning("refused to send (conversation %s): %s", conversation_id, text)
         raise SpecViolation(text)
 
-    def _follow_send(self, to: str, msg: Communicate, followed: tuple[ProtocolMachine, Role] | None) -> None:
+    def _follow_send(self, to: str, msg: Communicate, followed: Followed | None) -> None:
         """Follow a communicate about to be sent in its conversation's protocol state
-        (``followed``: its state machine and the agent's role, :meth:`_following`); raises
+        (``followed``: its state machine and the agent's role, ``Lookups.followed``); raises
         SpecViolation when the state does not allow it."""
-        if followed is None or msg.conversation_id is None:
+        cid = msg.conversation_id
+        if followed is None or cid is None:
             return
-        why = self._step_conversation(
-            to, msg.conversation_id, followed, msg.performative, True, is_terminal_report(msg), msg
+        performative = msg.performative
+        states = self.protocol_states
+        outcome, why = step(
+            states, self.name, to, cid, followed, performative, True, is_terminal_report(msg), msg
         )
+        if outcome != "step":
+            self._stepped(to, cid, performative, outcome)
         if why is not None:
             self._violation(
                 msg.conversation_id,
@@ -701,7 +704,8 @@ class Agent:
             terminal,
             msg,
         )
-        self._stepped(peer, conversation_id, performative, outcome)
+        if outcome != "step":
+            self._stepped(peer, conversation_id, performative, outcome)
         return why
 
     def _stepped(self, peer: str, conversation_id: str, performative: Performative, outcome: str) -> None:
@@ -919,8 +923,7 @@ class Agent:
         self.counters[_RECEIVED_COUNTER[msg.performative]] += 1
         if found.outcome and found.outcome != "step":
             self._stepped(found.sender, msg.conversation_id or "", msg.performative, found.outcome)
-        if msg.in_reply_to is not None and self.pending_replies.knows(msg.in_reply_to):
-            self.pending_replies.answered(msg.in_reply_to, msg.performative)
+        self.pending_replies.answered(msg.in_reply_to, msg.performative)  # if one was awaited
         self.x.append(Received(msg, found.content, found.channel))
 
     def _not_taken(self, found: Admission) -> None:
