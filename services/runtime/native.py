@@ -15,8 +15,9 @@ only touches a file changes nothing.
 ``ROCO_INTERPRETED=1`` loads every one from its source (to profile the Python with cProfile,
 or to compare).
 
-Measured (scripts/profile_runtime.py --cpu, docs/benchmarks.md): CPU per request → inform
-round trip 85 → 57 µs, per streamed communicate 26 → 22 µs.
+Measured (scripts/profile_runtime.py --cpu, median of 9, docs/benchmarks.md): CPU per
+request → inform round trip 50–51.5 µs interpreted, 27–30 µs compiled; per streamed
+communicate 13 → 9–10 µs.
 """
 
 from __future__ import annotations
