@@ -32,18 +32,14 @@ as long as it lasts; keeping them all grew an agent by every inform it streamed 
 of the benchmark: ≈ 10 MiB), and a copy of the subscribe would have had them all sent again."""
 
 
-_LOW64 = (1 << 64) - 1
-
-
-def digest(payload: bytes) -> int:
+def digest(payload: bytes) -> tuple[int, int]:
     """A 128-bit digest of an encoded communicate: CPython's hash of its bytes and of them after
     a zero byte, two 64-bit values of SipHash-1-3 keyed at random per process (PEP 456;
     distinct communicates share both with a chance of ≈ 2⁻¹²⁸, and no peer knows the key to
-    make them), as one int (which the garbage collector does not track, unlike a tuple).
-    ≈ 0.2 µs for 400 bytes, where BLAKE2b took 0.75 µs (timeit, CPython 3.11): asked of
-    every communicate received."""
+    make them). ≈ 0.15 µs for 400 bytes, where BLAKE2b took 0.75 µs (timeit, CPython 3.11):
+    asked of every communicate received."""
     data = payload if type(payload) is bytes else bytes(payload)  # a bytearray has no hash
-    return ((hash(data) & _LOW64) << 64) | (hash(b"\0" + data) & _LOW64)
+    return hash(data), hash(b"\0" + data)
 
 
 def wire_digest(key: str, payload: bytes) -> bytes:
@@ -63,16 +59,21 @@ class Dedup:
         if capacity < 1:
             raise ValueError(f"capacity must be at least 1, not {capacity}")
         self.capacity = capacity
-        self._seen: OrderedDict[int, None] = OrderedDict()
+        self._seen: OrderedDict[int, int] = OrderedDict()
         self._answers: OrderedDict[tuple[str, str], list[tuple[str, bytes]]] = OrderedDict()
 
     def seen(self, payload: bytes) -> bool:
         """True when ``payload`` was received before (it is a copy); else remember it."""
-        d = digest(payload)
-        if d in self._seen:
-            self._seen.move_to_end(d)
-            return True
-        self._seen[d] = None
+        first, second = digest(payload)
+        known = self._seen.get(first)
+        if known is not None:
+            self._seen.move_to_end(first)
+            if known == second:
+                return True
+        # kept as first half → second half: ints, which the garbage collector does not track
+        # (a tuple per communicate kept would be); a communicate whose first half is another's
+        # (a chance of 2⁻⁶⁴ per pair) takes its place
+        self._seen[first] = second
         if len(self._seen) > self.capacity:
             self._seen.popitem(last=False)
         return False
