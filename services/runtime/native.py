@@ -16,8 +16,8 @@ only touches a file changes nothing.
 or to compare).
 
 Measured (scripts/profile_runtime.py --cpu, median of 9, docs/benchmarks.md): CPU per
-request → inform round trip 50–51.5 µs interpreted, 27–30 µs compiled; per streamed
-communicate 13 → 9–10 µs.
+request → inform round trip 50.5–51.5 µs interpreted, 27–28 µs compiled; per streamed
+communicate 13 → 9 µs.
 """
 
 from __future__ import annotations
