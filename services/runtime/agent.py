@@ -114,7 +114,6 @@ from shared.fipa_codec.protocols import (
 )
 from shared.settings import Settings
 
-_UNASKED: Any = object()
 _FOLLOWED_MAX = 1024
 RESEND_ON_RETURN = math.inf
 """``retry_s`` that retransmits only when the peer's liveliness token reappears (a restarted
