@@ -76,10 +76,13 @@ RUNTIME_COMPILED = (
     "services/runtime/replies.py",
     "services/runtime/lookups.py",
     "services/runtime/dedup.py",
+    "services/runtime/intake.py",
+    "services/runtime/admission.py",
 )
 """The agent runtime's hot path compiled by mypyc (the protocol state, the replies awaited, the
 specification's kept answers and the duplicate filter of every communicate sent and
-received; services/runtime/native.py). Each is compiled on its own (``separate``): its
+received, the checks of a received one and ``admit``, which runs them all in one call;
+services/runtime/native.py). Each is compiled on its own (``separate``): its
 extension and its ``__mypyc`` library lie beside its source."""
 
 

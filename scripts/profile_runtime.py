@@ -13,8 +13,9 @@ cProfile's 30 most expensive functions of each instead (slower: figures then inc
 profiler's own cost).
 
 ``--cpu`` prints CPU time (``time.process_time``) instead, the median and the least of
-``--repeat`` runs: steadier than wall time on a machine other jobs share (the way to compare
-two commits).
+``--repeat`` runs, each after a full garbage collection (else one of the earlier runs'
+garbage lands in some runs, ≈ 15 ms each): steadier than wall time on a machine other jobs
+share (the way to compare two commits).
 
 Usage: ``python scripts/profile_runtime.py [--n 5000] [--profile | --cpu [--repeat 9]]``
 """
@@ -23,6 +24,7 @@ from __future__ import annotations
 
 import argparse
 import cProfile
+import gc
 import pstats
 import statistics
 import sys
@@ -147,9 +149,11 @@ def main() -> int:
     if args.cpu:
         rts, streams = [], []
         for _ in range(args.repeat):
+            gc.collect()  # the runs before left garbage whose full collection would land in a run
             c = time.process_time()
             round_trips(args.n)
             rts.append((time.process_time() - c) / (args.n + 50) * 1e6)
+            gc.collect()
             c = time.process_time()
             stream(args.n)
             streams.append((time.process_time() - c) / args.n * 1e6)

@@ -101,7 +101,7 @@ def compiled_runtime_check() -> Check:
         if ok
         else f"runs from source: {', '.join(missing + changed)} ("
         + ("not compiled" if missing else "changed since compiled")
-        + "; ≈ 30 % more CPU per communicate)"
+        + "; ≈ 85 % more CPU per round trip)"
     )
     return Check("compiled agent runtime", Use.SPEED, ok, detail, "" if ok else "pip install -e . again")
 

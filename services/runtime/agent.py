@@ -72,42 +72,48 @@ from typing import Any, ClassVar, NamedTuple, NoReturn
 import msgspec
 
 from services.runtime import fsm_record, keys
+from services.runtime.admission import (
+    BAD_KEY,
+    COPY,
+    NO_CONVERSATION_ID,
+    REFUSED,
+    TAKEN,
+    TOO_MANY,
+    UNDECODABLE,
+    Admission,
+    admit,
+    step,
+)
 from services.runtime.behaviour import FSM
 from services.runtime.dedup import Dedup
 from services.runtime.heap import give_back_freed_heap
 from services.runtime.hooks import Hooks, load_hooks
-from services.runtime.intake import SENDER_MISMATCH, Refusal, screened
+from services.runtime.intake import Refusal
 from services.runtime.limits import MAX_OPEN_CONVERSATIONS_PER_PEER
-from services.runtime.lookups import Lookups
-from services.runtime.protocol_state import ConversationError, ProtocolStates
+from services.runtime.lookups import Followed, Lookups
+from services.runtime.protocol_state import ProtocolStates
 from services.runtime.replies import Pending, PendingReplies
 from services.runtime.roles import Conversation, RoleDecl, Roles
 from services.runtime.sources import SYSTEM, Sources
 from services.runtime.state_store import NO_DATA, KeptConversations, StateFile
 from services.runtime.transport import Transport
-from services.spec.model import Interface, SpecError, SystemSpec, default_spec, interface
+from services.spec.model import Interface, SystemSpec, default_spec, interface
 from services.spec.protocol_defs import machine_of, streams
 from shared.fipa_codec import (
     AgentIdentifier,
     Communicate,
     DecodeError,
     Performative,
-    decode,
     encode,
 )
 from shared.fipa_codec.batch import is_batch, runs, unpack
 from shared.fipa_codec.languages import encode_term, language_of
 from shared.fipa_codec.protocols import (
     INITIATOR,
-    PARTICIPANT,
-    ProtocolViolation,
-    Role,
     is_terminal_report,
 )
-from shared.fipa_codec.protocols import Protocol as ProtocolMachine
 from shared.settings import Settings
 
-_UNASKED: Any = object()
 _FOLLOWED_MAX = 1024
 RESEND_ON_RETURN = math.inf
 """``retry_s`` that retransmits only when the peer's liveliness token reappears (a restarted
@@ -176,7 +182,7 @@ class _Outgoing(NamedTuple):
     receiver: tuple[AgentIdentifier, ...]
     language: str | None
     ontology: str | None
-    followed: tuple[ProtocolMachine, Role] | None
+    followed: Followed | None
 
 
 class Agent:
@@ -232,9 +238,6 @@ class Agent:
         """Open conversations a peer may have with this agent before a new one is refused."""
         self._log_window = (0.0, 0)  # (window start, monotonic s; warnings logged in it)
         self._log_suppressed = 0
-        self._roles: dict[tuple[str, str], Role] = _roles(self.spec, self.name)
-        self._followed: dict[tuple[str, str], tuple[ProtocolMachine, Role] | None] = {}
-        """:meth:`_machine_and_role` per (peer, protocol), asked once (at most _FOLLOWED_MAX)."""
         self._outgoings: dict[tuple[str, Performative, str, type], _Outgoing] = {}
         """:meth:`_outgoing` per (receiver, performative, protocol, content type)."""
         self._streaming: dict[tuple[str, Performative], bool] = {}
@@ -446,7 +449,7 @@ class Agent:
             (self.lookups.aid(to),),
             language.name if language is not None else None,
             language.ontology if language is not None else None,
-            self._following(to, protocol),
+            self.lookups.followed(to, protocol),
         )
 
     def _await_reply(
@@ -538,7 +541,7 @@ class Agent:
             conversation_id=to.msg.conversation_id,
             in_reply_to=to.msg.reply_with,
         )
-        self._follow_send(to.sender, msg, self._following(to.sender, protocol))
+        self._follow_send(to.sender, msg, self.lookups.followed(to.sender, protocol))
         self._out(to.sender, msg.in_reply_to, self.lookups.key(channel.name, to.sender), encode(msg))
         self.counters[_SENT_COUNTER[performative]] += 1
 
@@ -634,30 +637,26 @@ class Agent:
         self.log.warning("refused to send (conversation %s): %s", conversation_id, text)
         raise SpecViolation(text)
 
-    def _follow_send(self, to: str, msg: Communicate, followed: tuple[ProtocolMachine, Role] | None) -> None:
+    def _follow_send(self, to: str, msg: Communicate, followed: Followed | None) -> None:
         """Follow a communicate about to be sent in its conversation's protocol state
-        (``followed``: its state machine and the agent's role, :meth:`_following`); raises
+        (``followed``: its state machine and the agent's role, ``Lookups.followed``); raises
         SpecViolation when the state does not allow it."""
-        if followed is None or msg.conversation_id is None:
+        cid = msg.conversation_id
+        if followed is None or cid is None:
             return
-        why = self._step_conversation(
-            to, msg.conversation_id, followed, msg.performative, True, is_terminal_report(msg), msg
+        performative = msg.performative
+        states = self.protocol_states
+        outcome, why = step(
+            states, self.name, to, cid, followed, performative, True, is_terminal_report(msg), msg
         )
+        if outcome != "step":
+            self._stepped(to, cid, performative, outcome)
         if why is not None:
             self._violation(
                 msg.conversation_id,
                 f"{self.name}: may not send {msg.performative.value} to {to} in conversation "
                 f"{msg.conversation_id}: {why}",
             )
-
-    def _following(self, peer: str, protocol: str) -> tuple[ProtocolMachine, Role] | None:
-        """:meth:`_machine_and_role` for ``peer`` and ``protocol``, asked once per pair."""
-        followed = self._followed.get((peer, protocol), _UNASKED)
-        if followed is _UNASKED:
-            followed = self._machine_and_role(peer, protocol)
-            if len(self._followed) < _FOLLOWED_MAX:
-                self._followed[(peer, protocol)] = followed
-        return followed
 
     def _follow(
         self,
@@ -676,7 +675,7 @@ class Agent:
         machine), else the reason."""
         if conversation_id is None or protocol is None:
             return None
-        followed = self._following(peer, protocol)
+        followed = self.lookups.followed(peer, protocol)
         if followed is None:
             return None
         return self._step_conversation(peer, conversation_id, followed, performative, sent, terminal, msg)
@@ -685,55 +684,37 @@ class Agent:
         self,
         peer: str,
         conversation_id: str,
-        followed: tuple[ProtocolMachine, Role],
+        followed: Followed,
         performative: Performative,
         sent: bool,
         terminal: bool | None,
         msg: Communicate | None = None,
     ) -> str | None:
         """:meth:`_follow` in a followed conversation: ``followed`` is its state machine and
-        the agent's role in it (:meth:`_following`)."""
-        machine, mine = followed
-        role: Role = mine if sent else (PARTICIPANT if mine == INITIATOR else INITIATOR)
-        try:
-            outcome = self.protocol_states.observe(
-                peer,
-                conversation_id,
-                machine,
-                role,
-                performative,
-                local_role=mine,
-                terminal=terminal,
-                reply_with=None if msg is None else msg.reply_with,
-                in_reply_to=None if msg is None else msg.in_reply_to,
-            )
-        except (ProtocolViolation, ConversationError) as exc:
-            # observe leaves the table unchanged when it raises: it tells whether the
-            # conversation was known before this communicate
-            if self.protocol_states.get(peer, conversation_id) is None:
-                return f"no such conversation of {self.name} with {peer} ({exc})"
-            return str(exc)
+        the agent's role in it (``Lookups.followed``; services/runtime/admission.py ``step``)."""
+        outcome, why = step(
+            self.protocol_states,
+            self.name,
+            peer,
+            conversation_id,
+            followed,
+            performative,
+            sent,
+            terminal,
+            msg,
+        )
+        if outcome != "step":
+            self._stepped(peer, conversation_id, performative, outcome)
+        return why
+
+    def _stepped(self, peer: str, conversation_id: str, performative: Performative, outcome: str) -> None:
+        """Log a conversation opened anew; count a communicate that crossed another on the wire."""
         if outcome == "restart":
             self.log.info(
                 "conversation %s with %s opened anew: %s", conversation_id, peer, performative.value
             )
         elif outcome == "crossing":
             self.counters["crossings"] += 1
-        return None
-
-    def _machine_and_role(self, peer: str, protocol: str) -> tuple[ProtocolMachine, Role] | None:
-        """The state machine of ``protocol`` and this agent's role in it with ``peer``; None
-        when conversations of it with ``peer`` are not followed (a protocol the specification
-        does not name or gives no state machine, or none this agent plays with ``peer``)."""
-        if protocol not in self.spec.protocols:
-            return None
-        mine = self._roles.get((self.spec.role_of(peer), protocol))
-        if mine is None:
-            return None
-        try:
-            return machine_of(self.spec, protocol), mine
-        except SpecError:  # a protocol with no state machine is not followed
-            return None
 
     def emit(self, key: str, payload: bytes) -> None:
         """Put a payload for one of the agent's effectors (a non-FIPA key, e.g. a_hi's
@@ -929,55 +910,48 @@ class Agent:
             self.log.exception("taking in a communicate on %s raised", key)
 
     def _take_communicate(self, key: str, payload: bytes) -> None:
-        """Check one received communicate (paper §4 steps 3–4) and put it into ``x``, or
-        answer it with not-understood (or refuse) and count why (``rejected.<reason>``): the
-        key, an envelope that does not decode (:meth:`_undecodable`), a copy (:meth:`_copy`),
-        the checks against the interface (services/runtime/intake.py), then those of its
-        conversation (:meth:`_in_conversation`)."""
-        try:
-            channel, sender, _receiver = self.lookups.parse(key)
-        except ValueError:
+        """Check one received communicate (paper §4 steps 3–4; services/runtime/admission.py
+        ``admit``: its key, a copy, decoding, the interface, its content and conversation) and
+        put it into ``x``, or answer it with not-understood (or refuse) and count why
+        (``rejected.<reason>``; :meth:`_not_taken`)."""
+        found = admit(self.lookups, self.dedup, self.protocol_states, self.max_open_per_peer, key, payload)
+        msg = found.msg
+        if found.verdict != TAKEN or msg is None:
+            self._not_taken(found)
+            return
+        self.counters[_RECEIVED_COUNTER[msg.performative]] += 1
+        if found.outcome and found.outcome != "step":
+            self._stepped(found.sender, msg.conversation_id or "", msg.performative, found.outcome)
+        self.pending_replies.answered(msg.in_reply_to, msg.performative)  # if one was awaited
+        self.x.append(Received(msg, found.content, found.channel))
+
+    def _not_taken(self, found: Admission) -> None:
+        """A communicate :func:`admit` did not take (``found.verdict``): counted, and answered
+        (not-understood, a refuse, or the answers to its original sent again) or dropped."""
+        verdict, sender, channel, msg = found.verdict, found.sender, found.channel, found.msg
+        if verdict == BAD_KEY:
             self.counters["bad_key"] += 1
             self.counters["rejected.bad_key"] += 1
             return
-        copy = self.dedup.seen(payload)
-        try:
-            msg = decode(payload)
-        except DecodeError as exc:
-            self._undecodable(sender, channel, exc, copy)
+        if verdict == UNDECODABLE:
+            assert found.error is not None
+            self._undecodable(sender, channel, found.error, found.copy)
             return
-        if copy:
+        assert msg is not None
+        if verdict == COPY:
             self._copy(sender, msg)
             return
         self.counters[_RECEIVED_COUNTER[msg.performative]] += 1
-        content, refusal = self._screened(sender, channel, msg)
-        if refusal is not None:
-            self._refuse(sender, channel, msg, refusal)
-        elif self._in_conversation(sender, channel, msg, content):
-            if msg.in_reply_to is not None and self.pending_replies.knows(msg.in_reply_to):
-                self.pending_replies.answered(msg.in_reply_to, msg.performative)
-            self.x.append(Received(msg, content, channel))
-
-    def _screened(
-        self, sender: str, channel: str, msg: Communicate
-    ) -> tuple[msgspec.Struct | None, Refusal | None]:
-        """The checks of services/runtime/intake.py: ``msg``'s sender is the key's, its
-        parameters pass the interface (``Lookups.screen``, kept per sender, channel,
-        performative, protocol, language, ontology and encoding), its content decodes to a term
-        its kind may carry. Returns that content (None: not checked) or the refusal."""
-        if msg.sender is None or msg.sender.name != sender:
-            return None, SENDER_MISMATCH
-        checks = self.lookups.screen(
-            sender,
-            channel,
-            msg.performative,
-            msg.protocol,
-            msg.language,
-            msg.ontology,
-            msg.encoding,
-            bool(msg.content),
-        )
-        return screened(msg, checks)
+        if verdict == REFUSED:
+            assert found.refusal is not None
+            self._refuse(sender, channel, msg, found.refusal)
+        elif verdict == NO_CONVERSATION_ID:
+            needs = f"{msg.performative.value} in protocol {msg.protocol} needs a conversation-id"
+            self.not_understood(sender, channel, needs, msg, "no_conversation_id")
+        elif verdict == TOO_MANY:
+            self._refuse_new_conversation(sender, channel, msg, found.content)
+        else:
+            self._out_of_state(sender, channel, msg, found.why)
 
     def _undecodable(self, sender: str, channel: str, exc: DecodeError, copy: bool) -> None:
         """A payload from ``sender`` that does not decode (``exc``): a copy of one seen already
@@ -1010,37 +984,6 @@ class Agent:
         if refusal.counter == "content_type":
             self.counters["content_violations"] += 1
         self.not_understood(sender, channel, refusal.reason, msg, refusal.counter)
-
-    def _in_conversation(
-        self, sender: str, channel: str, msg: Communicate, content: msgspec.Struct | None
-    ) -> bool:
-        """Whether ``msg``, accepted by the interface, may be taken in: it has a
-        conversation-id where its protocol is followed, it opens no conversation beyond
-        ``max_open_per_peer`` with ``sender`` (:meth:`_refuse_new_conversation`), and the
-        conversation's protocol state allows it (:meth:`_follow`, which advances it). False:
-        it was answered or dropped, and counted."""
-        cid = msg.conversation_id
-        followed = self._following(sender, msg.protocol) if msg.protocol is not None else None
-        if cid is None:
-            if followed is None:
-                return True
-            # its answer could not be told apart from those of other such conversations, nor
-            # followed in the protocol: FIPA SC00061 leaves conversation-id optional, roco needs it
-            needs = f"{msg.performative.value} in protocol {msg.protocol} needs a conversation-id"
-            self.not_understood(sender, channel, needs, msg, "no_conversation_id")
-            return False
-        states = self.protocol_states
-        if states.open_with(sender) >= self.max_open_per_peer and states.get(sender, cid) is None:
-            self._refuse_new_conversation(sender, channel, msg, content)
-            return False
-        if followed is None:
-            return True
-        why = self._step_conversation(
-            sender, cid, followed, msg.performative, False, is_terminal_report(msg), msg
-        )
-        if why is not None:
-            self._out_of_state(sender, channel, msg, why)
-        return why is None
 
     def _out_of_state(self, sender: str, channel: str, msg: Communicate, why: str) -> None:
         """The conversation's protocol state does not allow ``msg`` (``why``): a late reply to
@@ -1306,15 +1249,3 @@ class Agent:
 def _alone(key: str) -> bool:
     """No key's communicates are batched (``Agent.batch_puts`` False)."""
     return False
-
-
-def _roles(spec: SystemSpec, agent: str) -> dict[tuple[str, str], Role]:
-    """``agent``'s role per (peer, protocol), from the channels' protocols' initiators."""
-    out: dict[tuple[str, str], Role] = {}
-    for ch in spec.channels:
-        if agent not in ch.ends:
-            continue
-        peer = ch.ends[1] if ch.ends[0] == agent else ch.ends[0]
-        for cp in ch.protocols:
-            out[(peer, cp.protocol)] = INITIATOR if cp.initiator == agent else PARTICIPANT
-    return out

@@ -19,7 +19,7 @@ from __future__ import annotations
 
 from collections import OrderedDict
 
-try:  # the BLAKE2 built into CPython; ``hashlib`` would also load OpenSSL (≈ 3.4 MiB resident)
+try:  # wire_digest's BLAKE2, built into CPython; ``hashlib`` would also load OpenSSL (≈ 3.4 MiB)
     from _blake2 import blake2b
 except ImportError:  # pragma: no cover - an interpreter without the built-in module
     from hashlib import blake2b
@@ -32,9 +32,14 @@ as long as it lasts; keeping them all grew an agent by every inform it streamed 
 of the benchmark: ≈ 10 MiB), and a copy of the subscribe would have had them all sent again."""
 
 
-def digest(payload: bytes) -> bytes:
-    """A 16-byte BLAKE2b digest of an encoded communicate."""
-    return blake2b(payload, digest_size=16).digest()
+def digest(payload: bytes) -> tuple[int, int]:
+    """A 128-bit digest of an encoded communicate: CPython's hash of its bytes and of them after
+    a zero byte, two 64-bit values of SipHash-1-3 keyed at random per process (PEP 456;
+    distinct communicates share both with a chance of ≈ 2⁻¹²⁸, and no peer knows the key to
+    make them). ≈ 0.15 µs for 400 bytes, where BLAKE2b took 0.75 µs (timeit, CPython 3.11):
+    asked of every communicate received."""
+    data = payload if type(payload) is bytes else bytes(payload)  # a bytearray has no hash
+    return hash(data), hash(b"\0" + data)
 
 
 def wire_digest(key: str, payload: bytes) -> bytes:
@@ -54,16 +59,21 @@ class Dedup:
         if capacity < 1:
             raise ValueError(f"capacity must be at least 1, not {capacity}")
         self.capacity = capacity
-        self._seen: OrderedDict[bytes, None] = OrderedDict()
+        self._seen: OrderedDict[int, int] = OrderedDict()
         self._answers: OrderedDict[tuple[str, str], list[tuple[str, bytes]]] = OrderedDict()
 
     def seen(self, payload: bytes) -> bool:
         """True when ``payload`` was received before (it is a copy); else remember it."""
-        d = digest(payload)
-        if d in self._seen:
-            self._seen.move_to_end(d)
-            return True
-        self._seen[d] = None
+        first, second = digest(payload)
+        known = self._seen.get(first)
+        if known is not None:
+            self._seen.move_to_end(first)
+            if known == second:
+                return True
+        # kept as first half → second half: ints, which the garbage collector does not track
+        # (a tuple per communicate kept would be); a communicate whose first half is another's
+        # (a chance of 2⁻⁶⁴ per pair) takes its place
+        self._seen[first] = second
         if len(self._seen) > self.capacity:
             self._seen.popitem(last=False)
         return False

@@ -23,8 +23,10 @@ from typing import TypeVar
 
 from services.runtime import keys
 from services.runtime.intake import Screen, screen
-from services.spec.model import ChannelSpec, Interface, MessageKind, SystemSpec, channel_between
+from services.spec.model import ChannelSpec, Interface, MessageKind, SpecError, SystemSpec, channel_between
+from services.spec.protocol_defs import machine_of
 from shared.fipa_codec import AgentIdentifier, Performative
+from shared.fipa_codec.protocols import INITIATOR, PARTICIPANT, Protocol, Role
 
 MAX_ENTRIES = 1024
 """Answers kept per table (an agent has a few peers, channels and kinds of communicate)."""
@@ -33,6 +35,9 @@ K = TypeVar("K", bound=Hashable)
 V = TypeVar("V")
 
 _MISSING = object()
+
+Followed = tuple[Protocol, Role]
+"""The state machine of a conversation's protocol and this agent's role in it."""
 
 ScreenKey = tuple[str, str, Performative, str | None, str | None, str | None, str | None, bool]
 """(sender, channel, performative, protocol, language, ontology, encoding, has content)."""
@@ -64,6 +69,8 @@ class Lookups:
         self._accepts: dict[tuple[str, str, str | None], MessageKind | None] = {}
         self._sends: dict[tuple[str, str, str], MessageKind | None] = {}
         self._screens: dict[ScreenKey, Screen] = {}
+        self._roles = roles(spec, name)
+        self._followed: dict[tuple[str, str], Followed | None] = {}
 
     def channel(self, to: str) -> ChannelSpec | None:
         """The channel joining this agent and ``to`` (``channel_between``; a foreign agent as
@@ -133,3 +140,37 @@ class Lookups:
             if len(self._screens) < MAX_ENTRIES:
                 self._screens[key] = found
         return found
+
+    def followed(self, peer: str, protocol: str) -> Followed | None:
+        """The state machine of ``protocol`` and this agent's role in it with ``peer``; None
+        when conversations of it with ``peer`` are not followed (a protocol the specification
+        does not name or gives no state machine, or none this agent plays with ``peer``)."""
+        found = self._followed.get((peer, protocol), _MISSING)
+        if found is _MISSING:
+            found = self._machine_and_role(peer, protocol)
+            if len(self._followed) < MAX_ENTRIES:
+                self._followed[(peer, protocol)] = found
+        return found  # type: ignore[return-value]
+
+    def _machine_and_role(self, peer: str, protocol: str) -> Followed | None:
+        if protocol not in self.spec.protocols:
+            return None
+        mine = self._roles.get((self.spec.role_of(peer), protocol))
+        if mine is None:
+            return None
+        try:
+            return machine_of(self.spec, protocol), mine
+        except SpecError:  # a protocol with no state machine is not followed
+            return None
+
+
+def roles(spec: SystemSpec, agent: str) -> dict[tuple[str, str], Role]:
+    """``agent``'s role per (peer, protocol), from the channels' protocols' initiators."""
+    out: dict[tuple[str, str], Role] = {}
+    for ch in spec.channels:
+        if agent not in ch.ends:
+            continue
+        peer = ch.ends[1] if ch.ends[0] == agent else ch.ends[0]
+        for cp in ch.protocols:
+            out[(peer, cp.protocol)] = INITIATOR if cp.initiator == agent else PARTICIPANT
+    return out

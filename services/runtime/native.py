@@ -2,20 +2,22 @@
 stale.
 
 setup.py compiles ``COMPILED`` (the protocol state of every conversation, the replies awaited,
-the specification's kept answers, the duplicate filter: the Python run for every communicate
-sent and received)
+the specification's kept answers, the duplicate filter, the checks of a received communicate
+and their taking in with one call: the Python run for every communicate sent and received)
 into extension modules beside their sources; Python imports an extension before a source of the
 same name. An editable install keeps the extensions while their sources are edited: a module
 whose source changed since it was compiled would run old code. ``use_fresh_sources``, called by
 the package (services/runtime/__init__.py) before any of them is imported, makes such a module
-load from its source instead and says so once (rebuild: ``pip install -e .``); what was
-compiled is known by content (``MANIFEST``), so a checkout that only touches a file changes
-nothing.
+load from its source instead and says so once (rebuild: ``pip install -e .``), and with it
+every other compiled module (they call each other's compiled code, which takes only their
+compiled objects); what was compiled is known by content (``MANIFEST``), so a checkout that
+only touches a file changes nothing.
 ``ROCO_INTERPRETED=1`` loads every one from its source (to profile the Python with cProfile,
 or to compare).
 
-Measured (scripts/profile_runtime.py --cpu, docs/benchmarks.md): CPU per request → inform
-round trip 85 → 57 µs, per streamed communicate 26 → 22 µs.
+Measured (scripts/profile_runtime.py --cpu, median of 9, docs/benchmarks.md): CPU per
+request → inform round trip 50.5–51.5 µs interpreted, 27–28 µs compiled; per streamed
+communicate 13 → 9 µs.
 """
 
 from __future__ import annotations
@@ -37,7 +39,7 @@ except ImportError:  # pragma: no cover - 3.12 renamed it; another interpreter: 
     except ImportError:
         from hashlib import sha256
 
-COMPILED = ("protocol_state", "replies", "lookups", "dedup")
+COMPILED = ("protocol_state", "replies", "lookups", "dedup", "intake", "admission")
 """Modules of services/runtime that setup.py compiles (its ``RUNTIME_COMPILED``)."""
 MANIFEST = "_compiled.json"
 """Beside the modules: {module name: SHA-256 of the source compiled} (setup.py writes it)."""
@@ -79,10 +81,11 @@ def source_digest(source: Path) -> str:
 
 
 def stale(folder: Path, names: Sequence[str], environ: Mapping[str, str] | None = None) -> dict[str, Path]:
-    """The modules of ``names`` in ``folder`` to load from their sources: those with an
-    extension whose source differs from what was compiled (``MANIFEST``, written by setup.py:
-    the source's SHA-256 when it was compiled; no manifest, or no entry, counts as differing),
-    or all with an extension when ``ROCO_INTERPRETED=1`` in ``environ`` (default
+    """The modules of ``names`` in ``folder`` to load from their sources: all with an
+    extension when one of them has a source that differs from what was compiled (``MANIFEST``,
+    written by setup.py: the source's SHA-256 when it was compiled; no manifest, or no entry,
+    counts as differing: compiled modules call each other's compiled code, so one from its
+    source takes the others along), or when ``ROCO_INTERPRETED=1`` in ``environ`` (default
     ``os.environ``, read now); name → the .py's path."""
     sources = {n: folder / f"{n}.py" for n in names if compiled_path(folder, n) is not None}
     sources = {n: s for n, s in sources.items() if s.is_file()}
@@ -94,7 +97,8 @@ def stale(folder: Path, names: Sequence[str], environ: Mapping[str, str] | None 
         compiled_from = json.loads((folder / MANIFEST).read_text())
     except (OSError, ValueError):
         compiled_from = {}
-    return {n: s for n, s in sources.items() if compiled_from.get(n) != source_digest(s)}
+    changed = any(compiled_from.get(n) != source_digest(s) for n, s in sources.items())
+    return sources if changed else {}
 
 
 def _interpreted(environ: Mapping[str, str] | None = None) -> bool:
@@ -115,7 +119,8 @@ def use_fresh_sources(package: str, folder: Path, names: Sequence[str] = COMPILE
     sys.meta_path.insert(0, _SourceFinder({f"{package}.{n}": p for n, p in sources.items()}))
     if not _interpreted():
         log.warning(
-            "%s: %s changed since compiled; running from source (pip install -e . compiles again)",
+            "%s: a compiled module changed since compiled; %s run from source (pip install -e . "
+            "compiles again)",
             package,
             ", ".join(sorted(sources)),
         )

@@ -636,7 +636,9 @@ class ProtocolStates:
         ``reply_with`` and ``in_reply_to`` as in :meth:`CrossingTracker.step`."""
         key = (peer, conversation_id)
         old = self.get(peer, conversation_id)
-        work = old.copy() if old is not None else None
+        # a tracker already stepped since the last commit is a copy no undo holds: stepped in
+        # place (the communicates of one stream taken in together copy it once)
+        work = old if key in self._undo or old is None else old.copy()
         tracker, outcome = follow(
             work,
             protocol,

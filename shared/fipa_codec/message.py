@@ -8,6 +8,7 @@ Times (``reply_by``) are POSIX seconds (UTC), as floats.
 from __future__ import annotations
 
 import os
+from collections.abc import Iterator
 
 import msgspec
 
@@ -96,7 +97,30 @@ class Communicate(msgspec.Struct, frozen=True, omit_defaults=True, kw_only=True,
         )
 
 
+_IDS_PER_READ = 256
+"""Identifiers :func:`new_id` draws from one ``os.urandom`` read."""
+_ids: Iterator[str] = iter(())
+
+
+def _fresh_ids() -> None:
+    """Forget the identifiers drawn but not handed out (a forked child must not reuse its
+    parent's)."""
+    global _ids
+    _ids = iter(())
+
+
+os.register_at_fork(after_in_child=_fresh_ids)
+
+
 def new_id(prefix: str = "") -> str:
-    """A fresh identifier for conversation-id or reply-with: ``prefix`` + 12 hex digits
-    (48 random bits from ``os.urandom``: ≈ 0.5 µs, where ``uuid.uuid4`` took ≈ 4 µs)."""
-    return f"{prefix}{os.urandom(6).hex()}"
+    """A fresh identifier for conversation-id or reply-with: ``prefix`` + 12 hex digits (48
+    random bits from ``os.urandom``, read :data:`_IDS_PER_READ` at a time: ≈ 0.15 µs, where
+    one read per identifier took ≈ 0.5 µs and ``uuid.uuid4`` ≈ 4 µs; each is handed out once,
+    from any thread: ``next`` on a list's iterator is one step under the GIL)."""
+    global _ids
+    try:
+        return prefix + next(_ids)
+    except StopIteration:
+        drawn = os.urandom(6 * _IDS_PER_READ).hex()
+        _ids = iter([drawn[i : i + 12] for i in range(0, len(drawn), 12)])
+        return prefix + next(_ids)

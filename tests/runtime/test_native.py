@@ -44,6 +44,16 @@ def test_an_edited_source_or_no_manifest_runs_from_source(tmp_path: Path) -> Non
     assert stale(tmp_path, ["m"], {}) == {"m": source}
 
 
+def test_one_edited_source_runs_every_compiled_module_from_source(tmp_path: Path) -> None:
+    """Compiled modules call each other's compiled code: one from its source takes the rest."""
+    first = _module(tmp_path, "m", "X = 1\n", compiled=True, manifest=False)
+    second = _module(tmp_path, "n", "Y = 1\n", compiled=True, manifest=False)
+    (tmp_path / MANIFEST).write_text(json.dumps({"m": source_digest(first), "n": source_digest(second)}))
+    assert stale(tmp_path, ["m", "n"], {}) == {}
+    second.write_text("Y = 2\n")
+    assert stale(tmp_path, ["m", "n"], {}) == {"m": first, "n": second}
+
+
 def test_roco_interpreted_runs_every_compiled_module_from_source(tmp_path: Path) -> None:
     source = _module(tmp_path, "m", "X = 1\n", compiled=True, manifest=True)
     _module(tmp_path, "plain", "Y = 1\n", compiled=False, manifest=False)
