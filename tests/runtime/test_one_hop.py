@@ -257,3 +257,14 @@ def test_a_recorder_started_later_fetches_what_a_peer_sent_from_its_cache(tls_fl
             recorder.close()
         co.close()
         ta.close()
+
+
+def test_the_routers_link_may_carry_every_kind_of_message_the_acl_names() -> None:
+    """transport.py lists Zenoh's message kinds for the router's link (the runtime cannot import
+    the ACL generator above it); the list is the generator's ``Message``."""
+    import typing
+
+    from services.runtime.transport import ACL_MESSAGES
+    from services.spec_check.acl import Message
+
+    assert set(ACL_MESSAGES) == set(typing.get_args(Message))
