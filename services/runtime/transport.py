@@ -326,8 +326,8 @@ def member_config(
     processes share the folder on this host) and applies :func:`peer_access_control` to what
     crosses each of its links. Raises as :func:`client_config`; OSError or ValueError when the
     folder's ``acl.json`` is missing or malformed."""
-    conf = client_config(endpoints, wait_for_router=wait_for_router, identity=identity, security=security)
     folder = security if security is not None else security_for(endpoints)
+    conf = client_config(endpoints, wait_for_router=wait_for_router, identity=identity, security=folder)
     if (links or links_setting()) != "peer" or not one_hop(endpoints, folder):
         return conf
     proto = endpoints[0].partition("/")[0]

@@ -124,9 +124,11 @@ class Running:
             pass
 
 
-def start(agent_cls: type[Answering] = Answering) -> Running:
+def start(
+    agent_cls: type[Answering] = Answering, transport_cls: type[ThreadedTransport] = ThreadedTransport
+) -> Running:
     bus = MemoryBus()
-    transport = ThreadedTransport(bus)
+    transport = transport_cls(bus)
     agent = agent_cls(transport)
     agent.bind()
     to_pl: queue.SimpleQueue[Communicate] = queue.SimpleQueue()
@@ -406,29 +408,22 @@ def test_a_transport_that_reports_a_burst_decides_what_is_taken_in_here(
     communicates are taken in here while nothing waits behind them, and a burst goes to the
     agent's thread."""
     monkeypatch.setattr(agent_module, "INLINE_GAP_S", 10.0)  # the gap rule would hand all over
-    bus = MemoryBus()
-    transport = BurstTransport(bus)
-    agent = Answering(transport)
-    agent.bind()
-    to_pl: queue.SimpleQueue[Communicate] = queue.SimpleQueue()
-    bus.subscribe(keys.inbox_key("a_pl"), lambda k, p: [to_pl.put(decode(part)) for part in unpack(p)])
-    thread = threading.Thread(target=agent.run, name=AGENT, daemon=True)
-    thread.start()
-    r = Running(bus, transport, agent, to_pl, thread, [])
-    r.idle()
+    r = start(transport_cls=BurstTransport)
+    transport, agent, to_pl = r.transport, r.agent, r.to_pl
+    assert isinstance(transport, BurstTransport)
     try:
         for n in range(2):
-            bus.publish(KEY, encode(query(f"q{n}", conversation_id=f"c{n}")))
+            r.bus.publish(KEY, encode(query(f"q{n}", conversation_id=f"c{n}")))
             assert to_pl.get(timeout=5).in_reply_to == f"q{n}"
             r.idle()
         assert agent.counters["received_inline"] == 2
         transport.burst = True
-        bus.publish(KEY, encode(query("q2", conversation_id="c2")))
+        r.bus.publish(KEY, encode(query("q2", conversation_id="c2")))
         assert to_pl.get(timeout=5).in_reply_to == "q2"
         assert agent.counters["received_inline"] == 2 and agent.handled_on[-1] == AGENT
     finally:
         agent.stop()
-        thread.join(timeout=5)
+        r.thread.join(timeout=5)
         transport.close()
 
 

@@ -24,31 +24,19 @@ from services.runtime.transport import (
     peer_access_control,
 )
 from services.security import certs
-from services.security.context import register
+from tests.support.router import router_fleet
 
 WAIT_S = 10.0
 
 
-def _fleet(tmp_path_factory: pytest.TempPathFactory, name: str, *, acl: bool, tls: bool) -> Iterator[Fleet]:
-    run_dir = tmp_path_factory.mktemp(name)
-    (run_dir / "logs").mkdir()
-    fleet = Fleet(run_dir, f"tcp/127.0.0.1:{free_port()}", acl=acl, tls=tls)
-    fleet.start_router()
-    try:
-        yield fleet
-    finally:
-        fleet.stop()
-        register(fleet.endpoint, None)
-
-
 @pytest.fixture(scope="module")
 def open_fleet(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Fleet]:
-    yield from _fleet(tmp_path_factory, "one-hop-open", acl=False, tls=False)
+    yield from router_fleet(tmp_path_factory, "one-hop-open")
 
 
 @pytest.fixture(scope="module")
 def tls_fleet(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Fleet]:
-    yield from _fleet(tmp_path_factory, "one-hop-tls", acl=True, tls=True)
+    yield from router_fleet(tmp_path_factory, "one-hop-tls", acl=True, tls=True)
 
 
 class Inbox:
@@ -113,7 +101,7 @@ def test_a_router_path_is_kept_where_configured(open_fleet: Fleet) -> None:
 def test_peers_link_directly_and_go_on_while_the_router_is_down(
     tmp_path_factory: pytest.TempPathFactory,
 ) -> None:
-    fleets = _fleet(tmp_path_factory, "one-hop-router-down", acl=False, tls=False)
+    fleets = router_fleet(tmp_path_factory, "one-hop-router-down")
     fleet = next(fleets)
     a = ZenohTransport([fleet.endpoint], links="peer")
     b = ZenohTransport([fleet.endpoint], links="peer")
