@@ -246,19 +246,19 @@ class Settings(msgspec.Struct, frozen=True, kw_only=True):
         About(
             "ROCO_TLS",
             "a local fleet with access control authenticates its processes with mutual TLS as well as "
-            "passwords, and its agents may link directly (ROCO_LINKS=peer); 0: passwords over TCP, every "
-            "communicate through the router (the launcher; --no-tls)",
+            "passwords, and its agents link directly (ROCO_LINKS); 0: passwords over TCP, every communicate "
+            "through the router (the launcher; --no-tls)",
         ),
     ] = True
     links: Annotated[
         Literal["peer", "router"],
         About(
             "ROCO_LINKS",
-            "router: every communicate through the router; peer: agents on one host exchange communicates "
-            "over direct links, one hop (without access control, or on mutual TLS; a pour after a stop "
-            "can fail with it: docs/security.md) (services/runtime/transport.py)",
+            "peer: agents on one host exchange communicates over direct links, one hop (without access "
+            "control, or on mutual TLS); router: every communicate through the router "
+            "(services/runtime/transport.py)",
         ),
-    ] = "router"
+    ] = "peer"
     listen: Annotated[
         str,
         About(

@@ -239,7 +239,7 @@ LOOPBACK = ("127.0.0.1", "localhost")
 
 
 def links_setting() -> Links:
-    """``ROCO_LINKS`` (read now; default ``router``)."""
+    """``ROCO_LINKS`` (read now; default ``peer``)."""
     return Settings.from_env(only=("links",)).links
 
 

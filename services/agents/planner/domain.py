@@ -4,7 +4,8 @@ Tasks: ``pour(src, dst)``, ``move_to(obj, furniture)`` (fetch if needed, then pl
 the cup to the table", "put the bowl back in the cabinet"), ``fetch(obj, arm)``,
 ``place(obj, furniture, arm)``, ``localise(obj)``, ``pour_into(src, dst, arm)`` and
 ``safe_stop()`` (put whatever the hands hold down in a free place on the table: the HFSM a_ta
-runs when cancelled, paper §3.2). Primitive actions are the leaf states of the HFSM a_ta runs
+runs when cancelled, paper §3.2; in an order whose turns and carries pass clear of what already
+stands, ``clearance.py``). Primitive actions are the leaf states of the HFSM a_ta runs
 (L_HFSM). Each task and action carries the path of the HFSM state it becomes, so the plan
 keeps its hierarchy (``pour(jar,bowl)/fetch_jar/take/grasp``). States named in
 ``ATOMIC_STATES`` must not be left half-way (a grasp, setting an object down, the tilt of a
@@ -39,6 +40,7 @@ import math
 from dataclasses import dataclass, field
 from typing import Any
 
+from services.agents.planner.clearance import Body, carry_meets, turn_meets
 from services.agents.planner.knowledge import ARMS, Knowledge
 from shared.fipa_codec.languages.common import Pose, Vec3
 from shared.fipa_codec.languages.l_wm import GraspAffordance
@@ -275,6 +277,22 @@ def m_pour_now(s: Any, path: str, src: str, dst: str) -> Any:
     return todo
 
 
+def m_pour_relocate(s: Any, path: str, src: str, dst: str) -> Any:
+    """dst was put on a surface but not seen there since (a stop came between its set-down and
+    its look): look where it was put, observe it, then plan again."""
+    pose = s.pose.get(dst)
+    where = s.where.get(dst, ("", ""))
+    if where[0] != "on" or s.localised.get(dst) or pose is None:
+        return False
+    facing = _place_facing(s, dst, where[1], pose.position)
+    return [
+        *(_face_steps(s, path, where[1], facing) if facing is not None else []),
+        ("a_look", f"{path}/look_at_{dst}", pose.position),
+        ("localise", f"{path}/localise_{dst}", dst),
+        ("a_replan", f"{path}/replan"),
+    ]
+
+
 def m_pour_prepare(s: Any, path: str, src: str, dst: str) -> Any:
     """dst is not yet on a surface: take both out, put dst on the table, localise it, replan."""
     if s.where.get(dst, ("",))[0] == "on":
@@ -389,6 +407,22 @@ def _place_facing(s: Any, obj: str, furniture: str, position: Vec3) -> float | N
     return _facing(s, furniture)
 
 
+def _where_put(s: Any, obj: str, furniture: str) -> Pose | None:
+    """Where ``obj``, put on or in ``furniture`` and not seen there since (a stop came between
+    its set-down and its look), most likely stands: its place there (a_km's placements) that no
+    other object occupies, when its last seen pose is at none of them (it is from before the
+    move); None when that pose is at one, or there is no such place."""
+    placement = _k(s).placements.get((obj, furniture))
+    pose = s.pose.get(obj)
+    if placement is None or pose is None:
+        return None
+    x, y, _ = pose.position
+    if any(math.hypot(px - x, py - y) < FREE_RADIUS_M for px, py, _ in placement.positions):
+        return None
+    free = _free_place(s, obj, furniture)
+    return Pose(free[1]) if free is not None else None
+
+
 def _free_place(s: Any, obj: str, furniture: str) -> tuple[int, Vec3, float] | None:
     """The first place for ``obj`` on ``furniture`` (in a_km's order of preference) no other
     object occupies: its index, position and the torso angle to work there."""
@@ -425,6 +459,8 @@ def m_place(s: Any, path: str, obj: str, furniture: str, arm: str) -> Any:
     target = Pose((x, y, z + placement.clearance), _rot_z(facing).orientation)
     grip = geo.compose(target, s.grip[obj])
     above = geo.translated(grip, (0.0, 0.0, placement.approach_at(i)))
+    if not _passes_clear(s, obj, facing, geo.compose(above, geo.inverse(s.grip[obj])).position):
+        return False  # another order of put-downs may pass (m_safe_stop_reversed)
     park = geo.translated(grip, geo.rotate(placement.park_at(i), _rot_z(facing)))
     grasp = _best_grasp(s, obj, arm)
     opening = grasp.preshape if grasp is not None else 0.5
@@ -458,9 +494,46 @@ def m_move_to(s: Any, path: str, obj: str, furniture: str) -> Any:
 
 
 def m_safe_stop(s: Any, path: str) -> Any:
-    """Put everything the hands hold down in free places on the table."""
+    """Put everything the hands hold down in free places on the table, the left hand's first."""
     held = [(arm, o) for arm, o in s.holding.items() if o is not None]
     return [("place", f"{path}/put_down_{o}", o, SAFE_SURFACE, arm) for arm, o in held]
+
+
+def m_safe_stop_reversed(s: Any, path: str) -> Any:
+    """The same, the right hand's first: for when the first put-down would leave its object
+    where the other hand's turn or carry passes (``_passes_clear``)."""
+    held = [(arm, o) for arm, o in s.holding.items() if o is not None]
+    if len(held) < 2:
+        return False
+    return [("place", f"{path}/put_down_{o}", o, SAFE_SURFACE, arm) for arm, o in reversed(held)]
+
+
+def _standing(s: Any) -> list[Body]:
+    """The objects standing on or in furniture whose pose and size a_km knows."""
+    out = []
+    for name, (relation, _furniture) in s.where.items():
+        info, pose = _k(s).objects.get(name), s.pose.get(name)
+        if relation in ("on", "in") and info is not None and info.size is not None and pose is not None:
+            out.append(Body.of(name, pose.position, info.size))
+    return out
+
+
+def _passes_clear(s: Any, obj: str, facing: float, to: Vec3) -> bool:
+    """Whether turning the torso from ``s.torso`` to ``facing`` keeps everything the hands hold
+    clear of the standing objects, and so does carrying ``obj`` from there to ``to`` (its
+    bottom centre, world, m): services/agents/planner/clearance.py."""
+    standing = _standing(s)
+    turn = facing - s.torso if s.torso is not None else 0.0
+    for held in s.holding.values():
+        info, pose = _k(s).objects.get(held or ""), s.pose.get(held or "")
+        if held is None or info is None or info.size is None or pose is None:
+            continue
+        body = Body.of(held, pose.position, info.size)
+        if turn and turn_meets(body, turn, standing) is not None:
+            return False
+        if held == obj and carry_meets(body.moved(_turned(pose, turn).position), to, standing) is not None:
+            return False
+    return True
 
 
 def m_localise(s: Any, path: str, obj: str) -> Any:
@@ -540,14 +613,14 @@ def declare() -> None:
     with contextlib.redirect_stdout(io.StringIO()):
         gtpyhop.Domain(DOMAIN_NAME)
         gtpyhop.declare_actions(*ACTIONS)
-        gtpyhop.declare_task_methods("pour", m_pour_locate, m_pour_now, m_pour_prepare)
+        gtpyhop.declare_task_methods("pour", m_pour_locate, m_pour_now, m_pour_relocate, m_pour_prepare)
         gtpyhop.declare_task_methods("move_to", m_move_to)
         gtpyhop.declare_task_methods("fetch", m_fetch)
         gtpyhop.declare_task_methods("place", m_place)
         gtpyhop.declare_task_methods("localise", m_localise)
         gtpyhop.declare_task_methods("pour_into", m_pour_into)
         gtpyhop.declare_task_methods("localise_placed", m_localise_placed)
-        gtpyhop.declare_task_methods("safe_stop", m_safe_stop)
+        gtpyhop.declare_task_methods("safe_stop", m_safe_stop, m_safe_stop_reversed)
         gtpyhop.set_verbose_level(0)
         gtpyhop.set_recursive_planning(True)
 
@@ -578,6 +651,12 @@ def initial_state(k: Knowledge, tool_poses: dict[str, Pose | None]) -> Any:
                 s.grip[n] = Pose(grasp.grip_in_object.position, grasp.grip_in_object.orientation)
         elif o.location:
             s.where[n] = (o.relation or "in", o.location)
+    for n, (_relation, furniture) in list(s.where.items()):
+        if furniture in ("left_gripper", "right_gripper") or s.localised.get(n):
+            continue
+        put = _where_put(s, n, furniture)
+        if put is not None:
+            s.pose[n] = put
     for arm in ARMS:
         held = s.holding[arm]
         if held is not None and s.tool.get(arm) is None and s.pose.get(held) is not None and held in s.grip:
