@@ -508,31 +508,38 @@ def m_safe_stop_reversed(s: Any, path: str) -> Any:
     return [("place", f"{path}/put_down_{o}", o, SAFE_SURFACE, arm) for arm, o in reversed(held)]
 
 
+def _body(s: Any, name: str) -> Body | None:
+    """``name`` as an upright cylinder where the state has it (None: no pose or size known)."""
+    info, pose = _k(s).objects.get(name), s.pose.get(name)
+    if info is None or info.size is None or pose is None:
+        return None
+    return Body.of(name, pose.position, info.size)
+
+
 def _standing(s: Any) -> list[Body]:
     """The objects standing on or in furniture whose pose and size a_km knows."""
-    out = []
-    for name, (relation, _furniture) in s.where.items():
-        info, pose = _k(s).objects.get(name), s.pose.get(name)
-        if relation in ("on", "in") and info is not None and info.size is not None and pose is not None:
-            out.append(Body.of(name, pose.position, info.size))
-    return out
+    bodies = (_body(s, name) for name, (relation, _) in s.where.items() if relation in ("on", "in"))
+    return [b for b in bodies if b is not None]
+
+
+def _held(s: Any) -> list[Body]:
+    """What the hands hold, as upright cylinders where the state has them."""
+    bodies = (_body(s, o) for o in s.holding.values() if o is not None)
+    return [b for b in bodies if b is not None]
 
 
 def _passes_clear(s: Any, obj: str, facing: float, to: Vec3) -> bool:
     """Whether turning the torso from ``s.torso`` to ``facing`` keeps everything the hands hold
     clear of the standing objects, and so does carrying ``obj`` from there to ``to`` (its
     bottom centre, world, m): services/agents/planner/clearance.py."""
-    standing = _standing(s)
+    standing, held = _standing(s), _held(s)
     turn = facing - s.torso if s.torso is not None else 0.0
-    for held in s.holding.values():
-        info, pose = _k(s).objects.get(held or ""), s.pose.get(held or "")
-        if held is None or info is None or info.size is None or pose is None:
-            continue
-        body = Body.of(held, pose.position, info.size)
-        if turn and turn_meets(body, turn, standing) is not None:
-            return False
-        if held == obj and carry_meets(body.moved(_turned(pose, turn).position), to, standing) is not None:
-            return False
+    if turn and any(turn_meets(b, turn, standing) is not None for b in held):
+        return False
+    for b in held:
+        if b.name == obj:
+            turned = _turned(Pose(b.at), turn).position
+            return carry_meets(b.moved(turned), to, standing) is None
     return True
 
 
