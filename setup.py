@@ -78,6 +78,7 @@ RUNTIME_COMPILED = (
     "services/runtime/dedup.py",
     "services/runtime/intake.py",
     "services/runtime/admission.py",
+    "services/runtime/emission.py",
 )
 """The agent runtime's hot path compiled by mypyc (the protocol state, the replies awaited, the
 specification's kept answers and the duplicate filter of every communicate sent and

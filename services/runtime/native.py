@@ -39,7 +39,7 @@ except ImportError:  # pragma: no cover - 3.12 renamed it; another interpreter: 
     except ImportError:
         from hashlib import sha256
 
-COMPILED = ("protocol_state", "replies", "lookups", "dedup", "intake", "admission")
+COMPILED = ("protocol_state", "replies", "lookups", "dedup", "intake", "admission", "emission")
 """Modules of services/runtime that setup.py compiles (its ``RUNTIME_COMPILED``)."""
 MANIFEST = "_compiled.json"
 """Beside the modules: {module name: SHA-256 of the source compiled} (setup.py writes it)."""

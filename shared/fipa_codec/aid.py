@@ -82,7 +82,7 @@ def _depth(agent: AgentIdentifier) -> int:
     return 1 + max((_depth(r) for r in agent.resolvers), default=0)
 
 
-class AgentIdentifier(msgspec.Struct, frozen=True, array_like=True):
+class AgentIdentifier(msgspec.Struct, frozen=True, array_like=True, gc=False):
     """A FIPA agent-identifier (SC00023 §4, SC00070 §2.2).
 
     ``name``: the globally unique name, a FIPA SC00070 word of at most

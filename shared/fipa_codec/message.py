@@ -17,7 +17,7 @@ from shared.fipa_codec.aid import AgentIdentifier
 from shared.fipa_codec.names import KNOWN_WORDS, check_word
 
 
-class Communicate(msgspec.Struct, frozen=True, omit_defaults=True, kw_only=True, rename="kebab"):
+class Communicate(msgspec.Struct, frozen=True, omit_defaults=True, kw_only=True, rename="kebab", gc=False):
     """A FIPA ACL message M = ⟨V, Z, L, O, I, t_b, m_w, m_t, m_c⟩ (paper eq. 3) plus addressing.
 
     Fields (FIPA SC00061 §2, wire names in kebab case):
