@@ -76,12 +76,12 @@ from services.runtime.admission import (
     BAD_KEY,
     COPY,
     NO_CONVERSATION_ID,
+    RECEIVED_COUNTER,
     REFUSED,
-    TAKEN,
     TOO_MANY,
     UNDECODABLE,
     Admission,
-    admit,
+    Gate,
     step,
 )
 from services.runtime.behaviour import FSM
@@ -141,7 +141,6 @@ step computed longer takes its input on its own thread from then on. CPU time, n
 with 100 agent processes on 2 cores a 100 µs step waits tens of ms for a core at times, and a
 wall-time budget turned inline receiving off for a third of them (docs/benchmarks.md, "Fewer
 wake-ups per communicate")."""
-_RECEIVED_COUNTER = {p: f"received.{p.value}" for p in Performative}
 
 
 class SpecViolation(RuntimeError):
@@ -242,6 +241,17 @@ class Agent:
             self.counters,
         )
         """Sends every communicate of :meth:`send` (services/runtime/emission.py), into ``_y``."""
+        self._gate = Gate(
+            self,
+            self.lookups,
+            self.dedup,
+            self.protocol_states,
+            self.pending_replies,
+            self.x,
+            self.counters,
+            Received,
+        )
+        """Takes every communicate in (services/runtime/admission.py), into ``x``."""
         """The agent's protocol roles and their open conversations (services/runtime/roles.py)."""
         self._y_taken = 0
         """How much of ``_y`` taking inputs in put there (answers a failing behaviour keeps)."""
@@ -431,6 +441,7 @@ class Agent:
             language.name if language is not None else None,
             language.ontology if language is not None else None,
             self.lookups.followed(to, protocol),
+            str(protocol),  # a plain str: a subclass's (ProtocolName) is checked by a call per send
         )
 
     def _streams(self, protocol: str, performative: Performative) -> bool:
@@ -872,16 +883,9 @@ class Agent:
         ``admit``: its key, a copy, decoding, the interface, its content and conversation) and
         put it into ``x``, or answer it with not-understood (or refuse) and count why
         (``rejected.<reason>``; :meth:`_not_taken`)."""
-        found = admit(self.lookups, self.dedup, self.protocol_states, self.max_open_per_peer, key, payload)
-        msg = found.msg
-        if found.verdict != TAKEN or msg is None:
+        found = self._gate.take(key, payload, self.max_open_per_peer)
+        if found is not None:
             self._not_taken(found)
-            return
-        self.counters[_RECEIVED_COUNTER[msg.performative]] += 1
-        if found.outcome and found.outcome != "step":
-            self._stepped(found.sender, msg.conversation_id or "", msg.performative, found.outcome)
-        self.pending_replies.answered(msg.in_reply_to, msg.performative)  # if one was awaited
-        self.x.append(Received(msg, found.content, found.channel))
 
     def _not_taken(self, found: Admission) -> None:
         """A communicate :func:`admit` did not take (``found.verdict``): counted, and answered
@@ -899,7 +903,7 @@ class Agent:
         if verdict == COPY:
             self._copy(sender, msg)
             return
-        self.counters[_RECEIVED_COUNTER[msg.performative]] += 1
+        self.counters[RECEIVED_COUNTER[msg.performative]] += 1
         if verdict == REFUSED:
             assert found.refusal is not None
             self._refuse(sender, channel, msg, found.refusal)

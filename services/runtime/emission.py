@@ -40,14 +40,18 @@ class Outgoing(NamedTuple):
     """What every communicate an agent sends to one receiver, of one performative in one
     protocol, carrying a term of one type (or none) shares, once the interface allowed it
     (services/runtime/agent.py ``Agent._outgoing``): its ``key`` and ``receiver``, its content
-    ``language`` and ``ontology``, and ``followed``, the conversation's state machine and the
-    agent's role in it (None: not followed)."""
+    ``language`` and ``ontology``, ``followed``, the conversation's state machine and the
+    agent's role in it (None: not followed), and ``protocol``, its name as a plain ``str``
+    (what the communicate carries: one of ``str``'s subclasses, e.g. services/spec/names.py
+    ``ProtocolName``, is not a word known to be valid without a call,
+    shared/fipa_codec/message.py)."""
 
     key: str
     receiver: tuple[AgentIdentifier, ...]
     language: str | None
     ontology: str | None
     followed: Followed | None
+    protocol: str
 
 
 class Host(Protocol):
@@ -146,7 +150,7 @@ class Outbox:
             language=out.language,
             encoding="msgpack" if body else None,
             ontology=out.ontology,
-            protocol=protocol,
+            protocol=out.protocol,
             conversation_id=conversation_id or sources.new_id("c-"),
             reply_with=reply_with,
             in_reply_to=in_reply_to,
