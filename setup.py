@@ -82,7 +82,8 @@ RUNTIME_COMPILED = (
 )
 """The agent runtime's hot path compiled by mypyc (the protocol state, the replies awaited, the
 specification's kept answers and the duplicate filter of every communicate sent and
-received, the checks of a received one and ``admit``, which runs them all in one call;
+received, the checks of a received one and ``admit``, which runs them all in one call, and
+``emission``, which sends one in one call;
 services/runtime/native.py). Each is compiled on its own (``separate``): its
 extension and its ``__mypyc`` library lie beside its source."""
 

@@ -154,7 +154,7 @@ class Received(msgspec.Struct, frozen=True, gc=False):
     synthesised: a failure when a reply-by deadline passed, or the not-understood this agent
     answered the peer with (services/runtime/roles.py ``Roles.not_understood_sent``). (A
     msgspec Struct: one is built per communicate taken in, ≈ 10 × cheaper than a frozen
-    dataclass.)"""
+    dataclass; not tracked by the garbage collector, as a communicate is not.)"""
 
     msg: Communicate
     content: msgspec.Struct | None

@@ -100,7 +100,8 @@ class AgentIdentifier(msgspec.Struct, frozen=True, array_like=True, gc=False):
     most once per identifier (spelling matters: ``X-a`` and ``x-a`` are two); the value is
     text. The string form writes them ``:X-name value``.
 
-    Equality and hashing compare all four fields, the sequences in order.
+    Equality and hashing compare all four fields, the sequences in order. Not tracked by
+    the garbage collector (``gc=False``: it holds no object that could refer back to it).
 
     On the wire (msgpack and JSON) an array ``[name, addresses, resolvers, user]``; a reader
     takes missing trailing items as empty, so the two-element arrays ``[name, addresses]``
