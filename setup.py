@@ -78,10 +78,12 @@ RUNTIME_COMPILED = (
     "services/runtime/dedup.py",
     "services/runtime/intake.py",
     "services/runtime/admission.py",
+    "services/runtime/emission.py",
 )
 """The agent runtime's hot path compiled by mypyc (the protocol state, the replies awaited, the
 specification's kept answers and the duplicate filter of every communicate sent and
-received, the checks of a received one and ``admit``, which runs them all in one call;
+received, the checks of a received one and ``admit``, which runs them all in one call, and
+``emission``, which sends one in one call;
 services/runtime/native.py). Each is compiled on its own (``separate``): its
 extension and its ``__mypyc`` library lie beside its source."""
 

@@ -16,7 +16,9 @@ not-understood, count, log, put the communicate into its input buffer) is the ag
 
 from __future__ import annotations
 
-from typing import Final
+from collections import Counter, deque
+from collections.abc import Callable
+from typing import Any, Final, Protocol
 
 import msgspec
 
@@ -24,6 +26,7 @@ from services.runtime.dedup import Dedup
 from services.runtime.intake import SENDER_MISMATCH, Refusal, screened
 from services.runtime.lookups import Followed, Lookups
 from services.runtime.protocol_state import ConversationError, Outcome, ProtocolStates
+from services.runtime.replies import PendingReplies
 from shared.fipa_codec import Communicate, DecodeError, Performative, decode
 from shared.fipa_codec.protocols import INITIATOR, PARTICIPANT, ProtocolViolation, Role, is_terminal_report
 
@@ -43,6 +46,8 @@ TOO_MANY: Final = 6
 """It opens one more conversation while its sender has the most open."""
 OUT_OF_STATE: Final = 7
 """Its conversation's protocol state does not allow it (``why``)."""
+RECEIVED_COUNTER = {p: f"received.{p.value}" for p in Performative}
+"""The counter of every communicate received, by performative (``received.<performative>``)."""
 
 
 class Admission:
@@ -70,6 +75,61 @@ class Admission:
         self.error: DecodeError | None = None
         self.copy = False
         self.outcome = ""
+
+
+class Host(Protocol):
+    """What :class:`Gate` asks of its agent (services/runtime/agent.py ``Agent``)."""
+
+    def _stepped(self, peer: str, conversation_id: str, performative: Performative, outcome: str) -> None:
+        """A conversation opened anew, or a communicate that crossed another: logged, counted."""
+        ...
+
+
+class Gate:
+    """The receiving half of one agent's runtime: :func:`admit` and, for a communicate it
+    takes, what follows in the same call: the ``received.<performative>`` counter, a
+    conversation opened anew or a crossing told to the ``host``, the reply awaited noted
+    (``pending``) and the communicate put into the input buffer ``x`` as
+    ``received(msg, content, channel)`` (services/runtime/agent.py ``Received``). ``lookups``,
+    ``dedup``, ``states``, ``pending``, ``x`` and ``counters`` are the agent's own (shared,
+    changed in place)."""
+
+    def __init__(
+        self,
+        host: Host,
+        lookups: Lookups,
+        dedup: Dedup,
+        states: ProtocolStates,
+        pending: PendingReplies,
+        x: deque[Any],
+        counters: Counter[str],
+        received: Callable[[Communicate, msgspec.Struct | None, str], Any],
+    ) -> None:
+        self.host = host
+        self.lookups = lookups
+        self.dedup = dedup
+        self.states = states
+        self.pending = pending
+        self.x = x
+        self.counters = counters
+        self.received = received
+
+    def take(self, key: str, payload: bytes, max_open: int) -> Admission | None:
+        """Take in the communicate ``payload`` that came on ``key`` (:func:`admit`, a sender
+        with ``max_open`` open conversations opening no more): None when it went into the
+        input buffer, else what :func:`admit` found (the agent answers or drops it)."""
+        found = admit(self.lookups, self.dedup, self.states, max_open, key, payload)
+        msg = found.msg
+        if found.verdict != TAKEN or msg is None:
+            return found
+        performative = msg.performative
+        self.counters[RECEIVED_COUNTER[performative]] += 1
+        outcome = found.outcome
+        if outcome and outcome != "step":
+            self.host._stepped(found.sender, msg.conversation_id or "", performative, outcome)
+        self.pending.answered(msg.in_reply_to, performative)  # if one was awaited
+        self.x.append(self.received(msg, found.content, found.channel))
+        return None
 
 
 def admit(

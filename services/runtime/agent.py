@@ -67,7 +67,7 @@ import threading
 import time
 from collections import Counter, deque
 from collections.abc import Callable, Generator
-from typing import Any, ClassVar, NamedTuple, NoReturn
+from typing import Any, ClassVar, NoReturn
 
 import msgspec
 
@@ -76,16 +76,17 @@ from services.runtime.admission import (
     BAD_KEY,
     COPY,
     NO_CONVERSATION_ID,
+    RECEIVED_COUNTER,
     REFUSED,
-    TAKEN,
     TOO_MANY,
     UNDECODABLE,
     Admission,
-    admit,
+    Gate,
     step,
 )
 from services.runtime.behaviour import FSM
 from services.runtime.dedup import Dedup
+from services.runtime.emission import SENT_COUNTER, Outbox, Outgoing
 from services.runtime.heap import give_back_freed_heap
 from services.runtime.hooks import Hooks, load_hooks
 from services.runtime.intake import Refusal
@@ -107,7 +108,7 @@ from shared.fipa_codec import (
     encode,
 )
 from shared.fipa_codec.batch import is_batch, runs, unpack
-from shared.fipa_codec.languages import encode_term, language_of
+from shared.fipa_codec.languages import language_of
 from shared.fipa_codec.protocols import (
     INITIATOR,
     is_terminal_report,
@@ -140,8 +141,6 @@ step computed longer takes its input on its own thread from then on. CPU time, n
 with 100 agent processes on 2 cores a 100 µs step waits tens of ms for a core at times, and a
 wall-time budget turned inline receiving off for a third of them (docs/benchmarks.md, "Fewer
 wake-ups per communicate")."""
-_SENT_COUNTER = {p: f"sent.{p.value}" for p in Performative}
-_RECEIVED_COUNTER = {p: f"received.{p.value}" for p in Performative}
 
 
 class SpecViolation(RuntimeError):
@@ -149,13 +148,13 @@ class SpecViolation(RuntimeError):
     its conversation's current protocol state does not allow (the agent's own bug)."""
 
 
-class Received(msgspec.Struct, frozen=True):
+class Received(msgspec.Struct, frozen=True, gc=False):
     """One acquired communicate: the message, its decoded ``content`` (a term of its
     language, or None), the ``channel`` it came on, and ``local`` True for what the runtime
     synthesised: a failure when a reply-by deadline passed, or the not-understood this agent
     answered the peer with (services/runtime/roles.py ``Roles.not_understood_sent``). (A
     msgspec Struct: one is built per communicate taken in, ≈ 10 × cheaper than a frozen
-    dataclass.)"""
+    dataclass; not tracked by the garbage collector, as a communicate is not.)"""
 
     msg: Communicate
     content: msgspec.Struct | None
@@ -169,20 +168,6 @@ class Received(msgspec.Struct, frozen=True):
     @property
     def sender(self) -> str:
         return self.msg.sender.name if self.msg.sender else ""
-
-
-class _Outgoing(NamedTuple):
-    """What every communicate an agent sends to one receiver, of one performative in one
-    protocol, carrying a term of one type (or none) shares, once the interface allowed it
-    (:meth:`Agent._outgoing`): its ``key`` and ``receiver``, its content ``language`` and
-    ``ontology``, and ``followed``, the conversation's state machine and the agent's role in it
-    (None: not followed)."""
-
-    key: str
-    receiver: tuple[AgentIdentifier, ...]
-    language: str | None
-    ontology: str | None
-    followed: Followed | None
 
 
 class Agent:
@@ -238,13 +223,36 @@ class Agent:
         """Open conversations a peer may have with this agent before a new one is refused."""
         self._log_window = (0.0, 0)  # (window start, monotonic s; warnings logged in it)
         self._log_suppressed = 0
-        self._outgoings: dict[tuple[str, Performative, str, type], _Outgoing] = {}
+        self._outgoings: dict[tuple[str, Performative, str, type], Outgoing] = {}
         """:meth:`_outgoing` per (receiver, performative, protocol, content type)."""
         self._streaming: dict[tuple[str, Performative], bool] = {}
         """:meth:`_streams` per (protocol, performative)."""
         self.roles = Roles(self, self.ROLES or (), check=self.ROLES is not None)
-        """The agent's protocol roles and their open conversations (services/runtime/roles.py)."""
         self._y: list[tuple[str, bytes]] = []
+        self._outbox = Outbox(
+            self,
+            self.name,
+            self.aid,
+            self.protocol_states,
+            self.dedup,
+            self.pending_replies,
+            self._outgoings,
+            self._y,
+            self.counters,
+        )
+        """Sends every communicate of :meth:`send` (services/runtime/emission.py), into ``_y``."""
+        self._gate = Gate(
+            self,
+            self.lookups,
+            self.dedup,
+            self.protocol_states,
+            self.pending_replies,
+            self.x,
+            self.counters,
+            Received,
+        )
+        """Takes every communicate in (services/runtime/admission.py), into ``x``."""
+        """The agent's protocol roles and their open conversations (services/runtime/roles.py)."""
         self._y_taken = 0
         """How much of ``_y`` taking inputs in put there (answers a failing behaviour keeps)."""
         self.batch_puts = True
@@ -383,41 +391,24 @@ class Agent:
         Raises SpecViolation when no channel joins the agents or the interface forbids it;
         ValueError for a ``retry_s`` that is not positive.
         """
-        if retry_s is not None and not retry_s > 0:
-            raise ValueError(f"retry_s must be positive, not {retry_s}")
-        out = self._outgoing(to, performative, protocol, content)
-        body = encode_term(content) if content is not None else b""
-        awaits = expect_reply or reply_by_s is not None or retry_s is not None
-        if awaits and reply_with is None:
-            reply_with = self.sources.new_id(f"{self.name}-")
-        deadline = self.sources.time() + reply_by_s if reply_by_s is not None else None
-        msg = Communicate(
-            performative=performative,
-            sender=self.aid,
-            receiver=out.receiver,
-            content=body,
-            language=out.language,
-            encoding="msgpack" if body else None,
-            ontology=out.ontology,
-            protocol=protocol,
-            conversation_id=conversation_id or self.sources.new_id("c-"),
-            reply_with=reply_with,
-            in_reply_to=in_reply_to,
-            reply_by=deadline,
+        return self._outbox.send(
+            to,
+            performative,
+            content,
+            protocol,
+            conversation_id,
+            reply_with,
+            in_reply_to,
+            reply_by_s,
+            expect_reply,
+            retry_s,
         )
-        self._follow_send(to, msg, out.followed)
-        payload = encode(msg)
-        if awaits and reply_with is not None:
-            self._await_reply(msg, to, out.key, payload, retry_s)
-        self._out(to, in_reply_to, out.key, payload)
-        self.counters[_SENT_COUNTER[performative]] += 1
-        return msg
 
     def _outgoing(
         self, to: str, performative: Performative, protocol: str, content: msgspec.Struct | None
-    ) -> _Outgoing:
+    ) -> Outgoing:
         """What every communicate to ``to`` of ``performative`` in ``protocol`` carrying a term
-        of ``content``'s type shares (:class:`_Outgoing`), checked against the interface the
+        of ``content``'s type shares (:class:`Outgoing`), checked against the interface the
         first time and kept (at most ``_FOLLOWED_MAX``); raises as :meth:`send`, keeping
         nothing, while the interface forbids it."""
         route = (to, performative, protocol, type(content))
@@ -430,7 +421,7 @@ class Agent:
 
     def _route(
         self, to: str, performative: Performative, protocol: str, content: msgspec.Struct | None
-    ) -> _Outgoing:
+    ) -> Outgoing:
         """:meth:`_outgoing` found anew: the channel to ``to`` (SpecViolation: none), the
         content's language (ContentError: none), the interface's checks (:meth:`_check_send`)."""
         channel = self.lookups.channel(to)
@@ -444,35 +435,13 @@ class Agent:
             language.name if language is not None else None,
             type(content).__name__ if content is not None else None,
         )
-        return _Outgoing(
+        return Outgoing(
             self.lookups.key(channel.name, to),
             (self.lookups.aid(to),),
             language.name if language is not None else None,
             language.ontology if language is not None else None,
             self.lookups.followed(to, protocol),
-        )
-
-    def _await_reply(
-        self, msg: Communicate, to: str, key: str, payload: bytes, retry_s: float | None
-    ) -> None:
-        """Await replies to ``msg``, sent to ``to`` on ``key`` as ``payload`` (its reply-with
-        set): its reply-by deadline, and retransmission every ``retry_s``
-        (services/runtime/replies.py)."""
-        assert msg.reply_with is not None and msg.protocol is not None
-        retries = retry_s is not None
-        self.pending_replies.expect(
-            Pending(
-                msg.reply_with,
-                to,
-                msg.protocol,
-                msg.conversation_id,
-                msg.reply_by,
-                streaming=self._streams(msg.protocol, msg.performative),
-                retry_s=retry_s,
-                key=key if retries else "",
-                payload=payload if retries else b"",
-                next_retry=self.sources.time() + retry_s if retry_s is not None else None,
-            )
+            str(protocol),  # a plain str: a subclass's (ProtocolName) is checked by a call per send
         )
 
     def _streams(self, protocol: str, performative: Performative) -> bool:
@@ -543,7 +512,7 @@ class Agent:
         )
         self._follow_send(to.sender, msg, self.lookups.followed(to.sender, protocol))
         self._out(to.sender, msg.in_reply_to, self.lookups.key(channel.name, to.sender), encode(msg))
-        self.counters[_SENT_COUNTER[performative]] += 1
+        self.counters[SENT_COUNTER[performative]] += 1
 
     def not_understood(
         self, sender: str, channel: str, why: str, about: Communicate | None, reason: str = "unhandled"
@@ -914,16 +883,9 @@ class Agent:
         ``admit``: its key, a copy, decoding, the interface, its content and conversation) and
         put it into ``x``, or answer it with not-understood (or refuse) and count why
         (``rejected.<reason>``; :meth:`_not_taken`)."""
-        found = admit(self.lookups, self.dedup, self.protocol_states, self.max_open_per_peer, key, payload)
-        msg = found.msg
-        if found.verdict != TAKEN or msg is None:
+        found = self._gate.take(key, payload, self.max_open_per_peer)
+        if found is not None:
             self._not_taken(found)
-            return
-        self.counters[_RECEIVED_COUNTER[msg.performative]] += 1
-        if found.outcome and found.outcome != "step":
-            self._stepped(found.sender, msg.conversation_id or "", msg.performative, found.outcome)
-        self.pending_replies.answered(msg.in_reply_to, msg.performative)  # if one was awaited
-        self.x.append(Received(msg, found.content, found.channel))
 
     def _not_taken(self, found: Admission) -> None:
         """A communicate :func:`admit` did not take (``found.verdict``): counted, and answered
@@ -941,7 +903,7 @@ class Agent:
         if verdict == COPY:
             self._copy(sender, msg)
             return
-        self.counters[_RECEIVED_COUNTER[msg.performative]] += 1
+        self.counters[RECEIVED_COUNTER[msg.performative]] += 1
         if verdict == REFUSED:
             assert found.refusal is not None
             self._refuse(sender, channel, msg, found.refusal)

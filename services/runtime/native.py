@@ -3,7 +3,8 @@ stale.
 
 setup.py compiles ``COMPILED`` (the protocol state of every conversation, the replies awaited,
 the specification's kept answers, the duplicate filter, the checks of a received communicate
-and their taking in with one call: the Python run for every communicate sent and received)
+and their taking in with one call, and the sending of one with another: the Python run for
+every communicate sent and received)
 into extension modules beside their sources; Python imports an extension before a source of the
 same name. An editable install keeps the extensions while their sources are edited: a module
 whose source changed since it was compiled would run old code. ``use_fresh_sources``, called by
@@ -16,8 +17,8 @@ only touches a file changes nothing.
 or to compare).
 
 Measured (scripts/profile_runtime.py --cpu, median of 9, docs/benchmarks.md): CPU per
-request → inform round trip 50.5–51.5 µs interpreted, 27–28 µs compiled; per streamed
-communicate 13 → 9 µs.
+request → inform round trip 49.5–51.5 µs interpreted, 23–24.5 µs compiled; per streamed
+communicate 12.5–13 → 7.7–8 µs.
 """
 
 from __future__ import annotations
@@ -39,7 +40,7 @@ except ImportError:  # pragma: no cover - 3.12 renamed it; another interpreter: 
     except ImportError:
         from hashlib import sha256
 
-COMPILED = ("protocol_state", "replies", "lookups", "dedup", "intake", "admission")
+COMPILED = ("protocol_state", "replies", "lookups", "dedup", "intake", "admission", "emission")
 """Modules of services/runtime that setup.py compiles (its ``RUNTIME_COMPILED``)."""
 MANIFEST = "_compiled.json"
 """Beside the modules: {module name: SHA-256 of the source compiled} (setup.py writes it)."""

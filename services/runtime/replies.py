@@ -23,7 +23,7 @@ FINAL_REPLIES = frozenset(
 """Performatives that answer a request or query for good; ``agree`` only acknowledges."""
 
 
-@dataclass
+@dataclass(init=False)
 class Pending:
     """A communicate awaiting a reply: its ``reply_with``, peer, protocol, conversation and
     the POSIX time ``deadline`` (None: no deadline)."""
@@ -41,6 +41,32 @@ class Pending:
     payload: bytes = b""
     next_retry: float | None = None
     retransmissions: int = 0
+
+    def __init__(  # written out: the one dataclasses writes is interpreted, this one compiled
+        self,
+        reply_with: str,
+        peer: str,
+        protocol: str | None,
+        conversation_id: str | None,
+        deadline: float | None,
+        streaming: bool = False,
+        retry_s: float | None = None,
+        key: str = "",
+        payload: bytes = b"",
+        next_retry: float | None = None,
+        retransmissions: int = 0,
+    ) -> None:
+        self.reply_with = reply_with
+        self.peer = peer
+        self.protocol = protocol
+        self.conversation_id = conversation_id
+        self.deadline = deadline
+        self.streaming = streaming
+        self.retry_s = retry_s
+        self.key = key
+        self.payload = payload
+        self.next_retry = next_retry
+        self.retransmissions = retransmissions
 
 
 class PendingReplies:

@@ -82,7 +82,7 @@ def _depth(agent: AgentIdentifier) -> int:
     return 1 + max((_depth(r) for r in agent.resolvers), default=0)
 
 
-class AgentIdentifier(msgspec.Struct, frozen=True, array_like=True):
+class AgentIdentifier(msgspec.Struct, frozen=True, array_like=True, gc=False):
     """A FIPA agent-identifier (SC00023 §4, SC00070 §2.2).
 
     ``name``: the globally unique name, a FIPA SC00070 word of at most
@@ -100,7 +100,8 @@ class AgentIdentifier(msgspec.Struct, frozen=True, array_like=True):
     most once per identifier (spelling matters: ``X-a`` and ``x-a`` are two); the value is
     text. The string form writes them ``:X-name value``.
 
-    Equality and hashing compare all four fields, the sequences in order.
+    Equality and hashing compare all four fields, the sequences in order. Not tracked by
+    the garbage collector (``gc=False``: it holds no object that could refer back to it).
 
     On the wire (msgpack and JSON) an array ``[name, addresses, resolvers, user]``; a reader
     takes missing trailing items as empty, so the two-element arrays ``[name, addresses]``

@@ -17,7 +17,7 @@ from shared.fipa_codec.aid import AgentIdentifier
 from shared.fipa_codec.names import KNOWN_WORDS, check_word
 
 
-class Communicate(msgspec.Struct, frozen=True, omit_defaults=True, kw_only=True, rename="kebab"):
+class Communicate(msgspec.Struct, frozen=True, omit_defaults=True, kw_only=True, rename="kebab", gc=False):
     """A FIPA ACL message M = ⟨V, Z, L, O, I, t_b, m_w, m_t, m_c⟩ (paper eq. 3) plus addressing.
 
     Fields (FIPA SC00061 §2, wire names in kebab case):
@@ -35,7 +35,9 @@ class Communicate(msgspec.Struct, frozen=True, omit_defaults=True, kw_only=True,
     not an SC00070 word (so every communicate that can be built can be written in the string
     form; decoded from the wire, msgspec reports it as a ValidationError). Only
     ``performative`` is mandatory (SC00061 §2); an empty ``receiver`` is accepted.
-    The FIPA string form (SC00070) is in ``shared.fipa_codec.string_form``.
+    The FIPA string form (SC00070) is in ``shared.fipa_codec.string_form``. Not tracked by
+    the garbage collector (``gc=False``: it holds nothing that could refer back to it), so
+    that building and decoding communicates sets off no collections.
     """
 
     performative: Performative
