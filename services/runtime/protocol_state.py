@@ -20,7 +20,7 @@ from __future__ import annotations
 
 from collections import OrderedDict
 from dataclasses import dataclass, field
-from typing import Final, Literal
+from typing import Final, Literal, NoReturn
 
 from shared.fipa_codec.acts import Performative
 from shared.fipa_codec.languages import load_all
@@ -97,14 +97,15 @@ class Reading:
     communicates advances from it in O(1) instead of replaying the run each time)."""
 
 
-_STEPS: dict[tuple[object, ...], tuple[Protocol, tuple[Reading, ...], tuple[Reading, ...], bool]] = {}
-"""Memo of :meth:`CrossingTracker._found`, keyed by (protocol id, max_run, max_readings,
-readings id, step, own); the protocol and the readings are kept in the value, so an id reused
-after either was freed never matches (readings are held once by value, :data:`_READINGS`: equal
-readings are one object, and the key need not hash them). Conversations repeat the same few
-readings (every fipa-request goes start → requested → done; a stream of informs keeps the same
-run), so following a communicate is a dict look-up instead of replaying its readings (≈ 20 µs
-→ ≈ 2 µs; roco bench, docs/benchmarks.md)."""
+_STEPS: dict[tuple[object, ...], tuple[Protocol, tuple[Reading, ...], tuple[Reading, ...], bool, bool]] = {}
+"""Memo of :meth:`CrossingTracker._found` and of whether every reading it gives has ended,
+keyed by (readings id, role, performative, terminal, own, seen, max_run, max_readings); the
+protocol and the readings are kept in the value, so an id reused after either was freed never
+matches, nor do the same readings followed under another protocol (readings are held once by
+value, :data:`_READINGS`: equal readings are one object, and the key need not hash them).
+Conversations repeat the same few readings (every fipa-request goes start → requested → done;
+a stream of informs keeps the same run), so following a communicate is a dict look-up instead
+of replaying its readings (≈ 20 µs → ≈ 2 µs; roco bench, docs/benchmarks.md)."""
 _STEPS_MAX = 8192
 """Entries of :data:`_STEPS` kept before it is emptied (bounded memory)."""
 _READINGS: dict[tuple[int, tuple[Reading, ...]], tuple[Protocol, tuple[Reading, ...]]] = {}
@@ -174,6 +175,7 @@ class CrossingTracker:
         max_run: int = 16,
         max_readings: int = 16,
         readings: tuple[Reading, ...] | None = None,
+        ended: bool | None = None,
     ) -> None:
         if isinstance(protocol, str):
             if protocol not in PROTOCOLS:
@@ -185,6 +187,9 @@ class CrossingTracker:
         self.max_readings = max_readings
         self.readings: tuple[Reading, ...] = readings if readings is not None else _initial(protocol)
         """Where the conversation may stand (``readings`` given: a copy's, else its beginning)."""
+        self.ended = ended if ended is not None else readings is not None and self._all_ended()
+        """Whether every reading has ended (kept with ``readings``, ``ended`` when given with
+        them: :attr:`is_finished` asks it of every communicate followed)."""
         self.messages = 0
         self.crossings = 0
         """Communicates accepted only in an order other than their arrival (or as a late
@@ -209,6 +214,7 @@ class CrossingTracker:
             max_run=self.max_run,
             max_readings=self.max_readings,
             readings=self.readings,
+            ended=self.ended,
         )  # attribute by attribute: compiled by mypyc (setup.py), the class has no __dict__
         other.messages = self.messages
         other.crossings = self.crossings
@@ -236,11 +242,15 @@ class CrossingTracker:
     def _ended(self, p: Position) -> bool:
         return (p.state in self.protocol.final or p.state == FORGOTTEN) and not p.owed
 
+    def _all_ended(self) -> bool:
+        """Whether every reading has ended (computed; :attr:`ended` keeps it)."""
+        return all(self._ended(p) for p in self._positions())
+
     @property
     def is_finished(self) -> bool:
         """True when every reading has ended (a final state, no cancel waiting for its
         answer), or a not-understood ended the conversation."""
-        return self.aborted or all(self._ended(p) for p in self._positions())
+        return self.aborted or self.ended
 
     @property
     def may_be_finished(self) -> bool:
@@ -264,6 +274,7 @@ class CrossingTracker:
         once (``failure``: nothing to cancel). Only for a tracker that has seen nothing."""
         assert self.messages == 0
         self.readings = (Reading(Position(FORGOTTEN, owed=True)),)
+        self.ended = False  # the cancel is owed its answer
         self.messages = 1
         self.crossings = 1
 
@@ -289,41 +300,69 @@ class CrossingTracker:
         conversation instead of also being read as a confirm sent again before it)."""
         if role not in (INITIATOR, PARTICIPANT):
             raise ValueError(f"role must be 'initiator' or 'participant', not {role!r}")
-        s: Step = (_role(role), _performative(performative), terminal)
-        own = self.local_role is not None and s[0] == self.local_role
-        other = self.latest_participant if s[0] == INITIATOR else self.latest_initiator
+        self.advance(_role(role), _performative(performative), terminal, reply_with, in_reply_to)
+        return self.state
+
+    def advance(
+        self,
+        role: Role,
+        performative: Performative,
+        terminal: bool | None,
+        reply_with: str | None,
+        in_reply_to: str | None,
+    ) -> None:
+        """:meth:`step` for a ``role`` and a ``performative`` known to be valid (a member of
+        each), without the state it returns: what :func:`follow` calls for every communicate
+        an agent sends and receives. Raises ProtocolViolation as :meth:`step` does."""
+        s: Step = (role, performative, terminal)
+        own = self.local_role is not None and role == self.local_role
+        other = self.latest_participant if role == INITIATOR else self.latest_initiator
         seen = in_reply_to is not None and in_reply_to == other
-        key = (id(self.protocol), self.max_run, self.max_readings, id(self.readings), s, own, seen)
+        readings = self.readings
+        key = (id(readings), role, performative, terminal, own, seen, self.max_run, self.max_readings)
         cached = _STEPS.get(key)
-        if cached is not None and cached[0] is self.protocol and cached[1] is self.readings:
-            found, in_order = cached[2], cached[3]
-        else:
-            found, in_order = self._found(s, own, seen)
-            if len(_STEPS) >= _STEPS_MAX:
-                _STEPS.clear()
-                _READINGS.clear()
-                _INITIAL.clear()
-            found = _held(self.protocol, found)
-            _STEPS[key] = (self.protocol, self.readings, found, in_order)
+        if cached is None or cached[0] is not self.protocol or cached[1] is not readings:
+            cached = self._remember(key, s, own, seen)
+        found = cached[2]
         if not found:
-            state = self.state
-            raise ProtocolViolation(
-                self.protocol.name,
-                state,
-                s[0],
-                s[1],
-                self.protocol.allowed(state) if state in self.protocol.states else [],
-                finished=state in self.protocol.final or state == FORGOTTEN,
-            )
+            self._violation(s)
         self.readings = found
+        self.ended = cached[4]
         self.messages += 1
-        if not in_order:
+        if not cached[3]:
             self.crossings += 1
-        if s[0] == INITIATOR:
+        if role == INITIATOR:
             self.latest_initiator = reply_with
         else:
             self.latest_participant = reply_with
-        return self.state
+
+    def _remember(
+        self, key: tuple[object, ...], s: Step, own: bool, seen: bool
+    ) -> tuple[Protocol, tuple[Reading, ...], tuple[Reading, ...], bool, bool]:
+        """:meth:`_found` for ``s`` from the current readings, with whether every reading
+        it gives has ended, kept in :data:`_STEPS` under ``key``."""
+        found, in_order = self._found(s, own, seen)
+        if len(_STEPS) >= _STEPS_MAX:
+            _STEPS.clear()
+            _READINGS.clear()
+            _INITIAL.clear()
+        found = _held(self.protocol, found)
+        ended = bool(found) and all(self._ended(p) for r in found for p in self._tip(r))
+        entry = (self.protocol, self.readings, found, in_order, ended)
+        _STEPS[key] = entry
+        return entry
+
+    def _violation(self, s: Step) -> NoReturn:
+        """Raise the ProtocolViolation of ``s``, which no reading allows."""
+        state = self.state
+        raise ProtocolViolation(
+            self.protocol.name,
+            state,
+            s[0],
+            s[1],
+            self.protocol.allowed(state) if state in self.protocol.states else [],
+            finished=state in self.protocol.final or state == FORGOTTEN,
+        )
 
     def _found(self, s: Step, own: bool, seen: bool = False) -> tuple[tuple[Reading, ...], bool]:
         """The readings after ``s`` (at most ``max_readings``; empty when none allows it) and
@@ -500,22 +539,8 @@ def follow(
         tracker.abort()
         return tracker, "aborted"
     name = protocol if isinstance(protocol, str) else protocol.name
-    if tracker.protocol.name == name and not tracker.aborted:  # the usual case: one step
-        crossings = tracker.crossings
-        try:
-            tracker.step(
-                role, performative, terminal=terminal, reply_with=reply_with, in_reply_to=in_reply_to
-            )
-        except ProtocolViolation:
-            if _crossed_reopening(tracker, role, performative, terminal):
-                return tracker, "crossing"
-            if not _opens(protocol, role, performative):
-                raise
-            fresh = _restart(protocol, role, performative, terminal, local_role, tracker, reply_with)
-            return fresh, "restart"
-        if role != tracker.reopened_by:  # the other party answers the new opening: it saw it
-            tracker.superseded = None
-        return tracker, "crossing" if tracker.crossings > crossings else "step"
+    if (tracker.protocol is protocol or tracker.protocol.name == name) and not tracker.aborted:
+        return _one_step(tracker, protocol, role, performative, terminal, local_role, reply_with, in_reply_to)
     opener = _opens(protocol, role, performative)
     if tracker.protocol.name != name:
         if not opener:
@@ -527,6 +552,34 @@ def follow(
     if opener:  # after a not-understood
         return _restart(protocol, role, performative, terminal, local_role, None, reply_with), "restart"
     return tracker, "unchecked"
+
+
+def _one_step(
+    tracker: CrossingTracker,
+    protocol: Protocol | str,
+    role: Role,
+    performative: Performative,
+    terminal: bool | None,
+    local_role: Role | None,
+    reply_with: str | None,
+    in_reply_to: str | None,
+) -> tuple[CrossingTracker, Outcome]:
+    """:func:`follow` in the usual case: one communicate in a conversation of its protocol
+    not ended by a not-understood."""
+    crossings = tracker.crossings
+    if role != INITIATOR and role != PARTICIPANT:
+        raise ValueError(f"role must be 'initiator' or 'participant', not {role!r}")
+    try:
+        tracker.advance(role, _performative(performative), terminal, reply_with, in_reply_to)
+    except ProtocolViolation:
+        if _crossed_reopening(tracker, role, performative, terminal):
+            return tracker, "crossing"
+        if not _opens(protocol, role, performative):
+            raise
+        return _restart(protocol, role, performative, terminal, local_role, tracker, reply_with), "restart"
+    if role != tracker.reopened_by:  # the other party answers the new opening: it saw it
+        tracker.superseded = None
+    return tracker, "crossing" if tracker.crossings > crossings else "step"
 
 
 def _machine(protocol: Protocol | str) -> Protocol:
@@ -635,7 +688,7 @@ class ProtocolStates:
         for the outcome and the exceptions (the table is unchanged when one is raised);
         ``reply_with`` and ``in_reply_to`` as in :meth:`CrossingTracker.step`."""
         key = (peer, conversation_id)
-        old = self.get(peer, conversation_id)
+        old = self._open.get(key) or self._ended.get(key)
         # a tracker already stepped since the last commit is a copy no undo holds: stepped in
         # place (the communicates of one stream taken in together copy it once)
         work = old if key in self._undo or old is None else old.copy()
