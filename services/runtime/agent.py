@@ -829,6 +829,12 @@ class Agent:
         self.roles.tick(now)  # subscription attempts that are due (services/runtime/subscriptions.py)
         self.protocol_states.commit()  # what arrived stays arrived; only sends are undone
         self._y_taken = len(self._y)  # so do the answers to it (not-understood, copies again)
+        if now >= self.pending_replies.earliest:  # a deadline or a retransmission may be due
+            self._overdue(now)
+
+    def _overdue(self, now: float) -> None:
+        """Retransmit what is due at POSIX time ``now``; end the conversations whose reply-by
+        deadline passed with a local failure (see :meth:`_acquire`)."""
         for p in self.pending_replies.due(now):
             self.counters["retransmitted"] += 1
             self.log.info(

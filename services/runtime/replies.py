@@ -81,10 +81,19 @@ class PendingReplies:
 
     def __init__(self) -> None:
         self._pending: dict[str, Pending] = {}
+        self.earliest = math.inf
+        """No entry's deadline or retransmission time (POSIX s) is before it (``math.inf``:
+        none is awaited): :meth:`due` and :meth:`expired` have nothing to give before then,
+        so an agent's step asks them only from then on. Set by :meth:`expect` and
+        :meth:`retry_now`, and to the exact earliest by :meth:`due` and :meth:`expired`."""
 
     def expect(self, pending: Pending) -> None:
         """Await replies to ``pending.reply_with`` (replacing an entry of that reply-with)."""
         self._pending[pending.reply_with] = pending
+        if pending.deadline is not None and pending.deadline < self.earliest:
+            self.earliest = pending.deadline
+        if pending.next_retry is not None and pending.next_retry < self.earliest:
+            self.earliest = pending.next_retry
 
     def answered(self, in_reply_to: str | None, performative: str) -> Pending | None:
         """Note a reply; returns the pending entry it answers (None if unknown). A final reply
@@ -123,7 +132,18 @@ class PendingReplies:
         out = [p for p in self._pending.values() if p.deadline is not None and p.deadline <= now]
         for p in out:
             del self._pending[p.reply_with]
+        self.earliest = self._earliest()
         return out
+
+    def _earliest(self) -> float:
+        """The earliest deadline or retransmission time of the entries (``math.inf``: none)."""
+        earliest = math.inf
+        for p in self._pending.values():
+            if p.deadline is not None and p.deadline < earliest:
+                earliest = p.deadline
+            if p.next_retry is not None and p.next_retry < earliest:
+                earliest = p.next_retry
+        return earliest
 
     def next_deadline(self) -> float | None:
         """The earliest reply-by deadline or retransmission time (POSIX s), None if none."""
@@ -143,6 +163,7 @@ class PendingReplies:
                 p.next_retry = now + p.retry_s
                 p.retransmissions += 1
                 out.append(p)
+        self.earliest = self._earliest()
         return out
 
     def retry_now(self, peer: str, now: float) -> int:
@@ -153,6 +174,8 @@ class PendingReplies:
             if p.peer == peer and p.next_retry is not None:
                 p.next_retry = now
                 n += 1
+        if n:
+            self.earliest = min(self.earliest, now)
         return n
 
     def __len__(self) -> int:

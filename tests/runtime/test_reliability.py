@@ -178,6 +178,7 @@ def test_an_unanswered_request_is_retransmitted_and_stops_when_answered() -> Non
     assert msg.reply_with is not None
     pending = w.agent.pending_replies._pending[msg.reply_with]
     pending.next_retry = 0.0  # its time has come
+    w.agent.pending_replies.expect(pending)  # moved by hand: expected again, so it is looked at
     w.agent._acquire()
     w.agent._dispatch()
     first, again = [raw for raw, m in zip(w.raw, w.out, strict=True) if m.reply_with == msg.reply_with]
@@ -702,6 +703,7 @@ def test_an_l_sw_inform_retransmitted_across_a_partition_is_its_copy_and_a_co_co
     pending = ta.agent.pending_replies.get(original.reply_with)
     assert pending is not None and pending.retry_s is not None
     pending.next_retry = 0.0
+    ta.agent.pending_replies.expect(pending)  # moved by hand: expected again, so it is looked at
     ta.agent._acquire()
     ta.agent._dispatch()
     informs = [raw for raw, m in zip(ta.raw, ta.out, strict=True) if m.receiver[0].name == "a_co"]

@@ -220,6 +220,7 @@ def test_why_says_a_peers_reason_none_or_that_it_did_not_answer_in_time() -> Non
     pending = w.agent.pending_replies.get(asked.reply_with or "")
     assert pending is not None
     pending.deadline = 0.0
+    w.agent.pending_replies.expect(pending)  # moved by hand: expected again, so it is looked at
     w.agent._acquire()
     w.step("serve")
     assert w.agent.why == ["it is dark", "no reason given", "a_i did not answer in time"]

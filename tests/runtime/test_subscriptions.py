@@ -61,6 +61,7 @@ def test_a_his_subscription_waits_for_a_co_backs_off_and_cancels_a_late_agree() 
     pending = hi.agent.pending_replies.get(rw or "")
     assert pending is not None
     pending.deadline = 0.0  # a_co did not answer in time
+    hi.agent.pending_replies.expect(pending)  # moved by hand: expected again, so it is looked at
     _tick(hi)
     hi.step("interact")
     assert not sub.pending and sub.retry_at is not None and len(_subscribes(hi)) == 1
