@@ -405,23 +405,42 @@ def test_a_foreign_request_a_co_refuses_fails_before_any_agree() -> None:
     assert not hi.commands and not hi.foreign.open
 
 
-def test_a_foreign_cancel_after_agree_is_answered_and_the_command_goes_on() -> None:
-    """A foreign agent cancels its request after a_hi agreed: a_hi's role answers the cancel
-    with failure (the cancel meta-protocol, FIPA SC00026 §2: a_hi stops commands on a stop
-    sentence, not on a cancel), the command goes on, and its outcome still answers the
-    request."""
+def test_a_foreign_cancel_after_agree_stops_the_command_and_is_answered_once_it_stopped() -> None:
+    """A foreign agent cancels its request after a_hi agreed: a_hi cancels the command with
+    a_co as a person's stop would, and answers the foreign cancel once a_co has stopped it:
+    ``inform`` in reply to the cancel (the cancel meta-protocol, FIPA SC00026 §2), which ends
+    the request; nothing else is sent in it."""
     with a_hi_with_a_foreigner() as (hi, foreign, a_co):
         foreign.send(P.REQUEST, "fipa-request", "bring", Sentence(text=BRING))
         request = a_co.next(P.REQUEST)
         answer(a_co, request, P.AGREE)
         assert foreign.next(cid="bring").performative is P.AGREE
         cancel = foreign.send(P.CANCEL, "fipa-request", "bring")
-        refused = foreign.next(cid="bring")
-        answer(a_co, request, P.INFORM, CommandOutcome(command_id="x", succeeded=True, detail="on the table"))
+        stop = a_co.next(P.CANCEL)
+        assert stop.conversation_id == request.conversation_id
+        answer(a_co, stop, P.INFORM, CommandOutcome(command_id="x", succeeded=False, detail="stopped"))
         done = foreign.next(cid="bring")
+    assert done.performative is P.INFORM and done.in_reply_to == cancel.reply_with, done
+    assert report_of(done).kind == ReportKind.STOPPED.value, report_of(done)
+    assert not hi.commands and not hi.foreign.open and not hi.foreign.cancels
+    assert hi.counters["handler_errors"] == 0
+
+
+def test_a_foreign_cancel_with_nothing_under_way_fails_and_the_request_goes_on() -> None:
+    """A foreign agent cancels its status question while a_hi waits for a_co's answer: no
+    command of it runs, so the cancel is answered ``failure`` at once and the answer still
+    comes (FIPA SC00026 §2: the request goes on)."""
+    with a_hi_with_a_foreigner() as (hi, foreign, a_co):
+        foreign.send(P.REQUEST, "fipa-request", "status", Sentence(text=STATUS))
+        query = a_co.next(P.QUERY_REF)
+        cancel = foreign.send(P.CANCEL, "fipa-request", "status")
+        refused = foreign.next(cid="status")
+        answer(a_co, query, P.INFORM_REF, Status(tasks=()))
+        done = foreign.next(cid="status")
     assert refused.performative is P.FAILURE and refused.in_reply_to == cancel.reply_with, refused
-    assert done.performative is P.INFORM and report_of(done).kind == ReportKind.SUCCEEDED.value, done
-    assert not hi.commands and hi.counters["handler_errors"] == 0
+    assert "nothing of it is under way" in report_of(refused).text
+    assert done.performative is P.INFORM, done
+    assert not hi.foreign.open and not hi.foreign.cancels
 
 
 @pytest.mark.parametrize("after", [P.AGREE, P.INFORM], ids=["agree", "inform"])
@@ -553,9 +572,10 @@ def test_a_hi_answer_crossing_a_foreign_cancel(
     monkeypatch: pytest.MonkeyPatch, text: str, kind: ReportKind, perf: Performative
 ) -> None:
     """A foreign agent cancels its request while a_hi answers it (an agree, the final inform,
-    or a refuse of a sentence it did not understand): the answer crosses the cancel; a_hi
-    answers the cancel with failure (after an agree the command goes on, and its outcome
-    still answers the request)."""
+    or a refuse of a sentence it did not understand): the answer crosses the cancel. After a
+    final answer a_hi answers the cancel with failure; after an agree it cancels the command
+    with a_co, whose outcome crosses that cancel: the foreign cancel is then answered with
+    failure and the outcome still answers the request (FIPA SC00026 §2)."""
     with a_hi_with_a_foreigner() as (hi, foreign, a_co):
         sent = cross(
             monkeypatch,
@@ -573,9 +593,11 @@ def test_a_hi_answer_crossing_a_foreign_cancel(
                 answer(a_co, opened, P.INFORM_REF, Status(tasks=()))
         answered = foreign.next(cid="ask")
         (cancel,) = sent
+        if perf is P.AGREE:
+            assert a_co.next(P.CANCEL).conversation_id == opened.conversation_id
+            answer(a_co, opened, P.INFORM, CommandOutcome(command_id="x", succeeded=True))
         failed = late_cancel_answered(foreign, "ask", cancel)
         if perf is P.AGREE:
-            answer(a_co, opened, P.INFORM, CommandOutcome(command_id="x", succeeded=True))
             assert foreign.next(cid="ask").performative is P.INFORM
     assert answered.performative is perf and answered.in_reply_to == asked.reply_with, answered
     assert report_of(answered).kind == kind.value and failed.performative is P.FAILURE, failed

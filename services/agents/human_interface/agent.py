@@ -298,6 +298,29 @@ class HumanInterface(Agent):
         """A foreign agent's sentence: read as a person's, its reports answer the request."""
         self._on_input(self.foreign.take(conv))
 
+    @handles(FIPA_REQUEST, PARTICIPANT, Performative.CANCEL, channel=C8)
+    def _on_foreign_cancel(self, conv: Conversation) -> None:
+        """A foreign agent cancels its request (FIPA SC00026 §2): its sentence, if not yet
+        acted on, is dropped, and its command, if running, is stopped as by a person's stop;
+        foreign.py answers the cancel once that is settled."""
+        request_id = self.foreign.cancelling(conv)
+        if request_id is not None and not self._stop_request(request_id):
+            self.foreign.nothing_to_cancel(request_id)
+
+    def _stop_request(self, request_id: str) -> bool:
+        """Drop the sentence of request ``request_id`` if it is not yet acted on, or cancel its
+        command if one runs; whether anything of it was under way."""
+        lines: list[HeldSentence | Reading] = [h for h in self.held if h.event.request_id == request_id]
+        lines += [r for r in self.reading if r.event.request_id == request_id]
+        for line in lines:
+            line.stopped = True
+        commands = [c for c in self.commands.values() if c.request_id == request_id]
+        for c in commands:
+            if c.cancel is None:
+                c.cancel = c.conversation.cancel(c.command, reply_by_s=CANCEL_REPLY_BY_S)
+                self._report(c.request_id, ReportKind.PROGRESS, f"{c.label}: stopping, as asked")
+        return bool(lines or commands)
+
     @property
     def vocabulary(self) -> Vocabulary:
         """The last vocabulary a_km gave; before its first answer, the files' (O_RoCo and the
