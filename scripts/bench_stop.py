@@ -25,8 +25,8 @@ process's own subscriber to every communicate (one hop after each put): a_hi's `
 a_co (C2), a_co's ``cancel`` to a_ta (C1), a_ta's ``cancel`` to ag_ex (C5). A stop that finds
 no motion to halt (the robot between two commands, observing, or the pour over) has no halt:
 it is counted apart and another pour is started, until each condition has ``--stops`` halts.
-After a failed pour, or three stops in a row finding nothing moving (the jar left where the
-robot cannot take it), a new fleet starts from a fresh kitchen.
+After a failed pour, or three stops in a row finding nothing moving in pours that did not
+succeed (the jar left where the robot cannot take it), a new fleet starts from a fresh kitchen.
 
 Prints the machine, a line per stop, then p50 / p99 / max (ms) per condition, and the median
 of each hop; :func:`measure` returns these figures (:class:`StopFigures`, ``roco bench``'s
@@ -167,8 +167,8 @@ def halts(log: Path) -> list[float]:
 
 
 IDLE_IN_ROW = 3
-"""Pours not accepted, or stops finding nothing moving, in a row before a fresh kitchen (a
-failed pour: at once)."""
+"""Pours not accepted, or stopped with nothing moving, in a row before a fresh kitchen (a
+failed pour: at once; a pour that succeeded before its stop came shows the kitchen usable)."""
 MAX_KITCHENS = 5
 """Fresh kitchens (fleets) the benchmark starts at most before it gives up."""
 
@@ -262,9 +262,9 @@ def measure(
     """Start a fleet, run one whole pour, then pours stopped until each condition has ``stops``
     halts (the module's docstring says how; ``window`` defaults to 16 s paced, else 6 s).
     Stopped again and again, the robot may leave the jar where it can no longer take it (a
-    safe stop puts it down where the robot stands): when a pour fails, or
-    ``IDLE_IN_ROW`` stops in a row find nothing moving, the fleet is ended and a new one
-    starts from a fresh kitchen (counted in ``kitchens``). ``echo`` is given a line per stop
+    safe stop puts it down where the robot stands): when a pour fails, or ``IDLE_IN_ROW``
+    stops in a row find nothing moving in pours that did not succeed, the fleet is ended and a
+    new one starts from a fresh kitchen (counted in ``kitchens``). ``echo`` is given a line per stop
     as it is measured; run folders are removed unless ``keep`` (then echoed). Raises
     RuntimeError when a fleet does not come up, or ``MAX_KITCHENS`` kitchens were used."""
     rng = random.Random(seed)
@@ -292,7 +292,7 @@ def measure(
             f"{len(long_line)} characters, {gap_ms:.0f} ms before the stop"
         )
         n = 0
-        spoiled = 0  # pours failed or not accepted, and stops finding nothing moving, in a row
+        spoiled = 0  # pours not accepted, or stopped with nothing moving, in a row
         while min(halted(c) for c in CONDITIONS) < stops:
             if spoiled >= IDLE_IN_ROW:
                 if kitchens >= MAX_KITCHENS:
@@ -325,8 +325,12 @@ def measure(
             if record.halt_t is None:
                 idle[condition] += 1
             records.append(record)
-            failed = ended[pour].kind is ReportKind.FAILED
-            spoiled = IDLE_IN_ROW if failed else spoiled + 1 if record.halt_t is None else 0
+            outcome = ended[pour].kind
+            if outcome is ReportKind.FAILED:
+                spoiled = IDLE_IN_ROW
+            else:  # a pour that halted or succeeded shows the kitchen usable
+                idle_stop = record.halt_t is None and outcome is not ReportKind.SUCCEEDED
+                spoiled = spoiled + 1 if idle_stop else 0
             done = record.latency_ms
             hops = ", ".join(
                 f"{c} {(record.hops[c] - record.line_t) * 1e3:.1f}" for c, _, _ in HOPS if c in record.hops
