@@ -1031,7 +1031,8 @@ def stop_how(f: StopFigures) -> list[str]:
         "on to a_hi counted) to the wall time ag_ex's loop logs in the cycle the halt replaced "
         "the running command. A stop finding nothing moving has no halt: it is counted apart and "
         "another pour started. Stopped again and again, the robot may leave the jar where it "
-        "cannot take it: after a failed pour, or three stops in a row with nothing moving, a new "
+        "cannot take it: after a failed pour, or three stops in a row with nothing moving in pours "
+        "that did not succeed, a new "
         f"fleet starts from a fresh kitchen ({f.kitchens} in this run). The cancels' columns: "
         "the median ms from the put to a subscriber in "
         "`roco bench` seeing each cancel on its way, over the stops that halted.",
