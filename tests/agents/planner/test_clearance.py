@@ -38,8 +38,8 @@ def test_a_carry_meets_what_stands_on_its_line() -> None:
     assert carry_meets(far, (0.34, -0.46, 0.80), [JAR]) is None  # stops short of it
 
 
-def _start() -> Any:
-    """a_km's answers at the start: jar and bowl standing in the cabinet."""
+def _start_world() -> WorldModel:
+    """a_km at the start: jar and bowl standing in the cabinet."""
     world = WorldModel()
     world.apply(
         WorldUpdate(
@@ -50,7 +50,12 @@ def _start() -> Any:
             ),
         )
     )
-    return knowledge(world)
+    return world
+
+
+def _start() -> Any:
+    """a_km's answers at the start."""
+    return knowledge(_start_world())
 
 
 def _sweeps(s: Any, actions: list[tuple[Any, ...]]) -> list[str]:
@@ -95,16 +100,7 @@ def test_no_safe_stop_of_the_pour_sweeps_a_held_object_through_a_standing_one() 
 def test_a_bowl_put_on_the_table_but_not_seen_since_is_looked_for_at_its_place() -> None:
     # a stop came during the bowl's set-down (atomic: it is finished) and the safe stop then put
     # the jar down: a_km knows the bowl is on the table, its last seen pose is in the cabinet
-    world = WorldModel()
-    world.apply(
-        WorldUpdate(
-            stamp=1.0,
-            objects=(
-                ObjectUpdate(name="jar", pose=Pose((0.7, 0.2, 0.85))),
-                ObjectUpdate(name="bowl", pose=Pose((0.7, -0.2, 0.85))),
-            ),
-        )
-    )
+    world = _start_world()
     for update in (
         ObjectUpdate(name="jar", held_by="left_gripper"),
         ObjectUpdate(name="bowl", held_by="right_gripper"),
