@@ -228,6 +228,7 @@ class Agent:
         self._streaming: dict[tuple[str, Performative], bool] = {}
         """:meth:`_streams` per (protocol, performative)."""
         self.roles = Roles(self, self.ROLES or (), check=self.ROLES is not None)
+        """The agent's protocol roles and their open conversations (services/runtime/roles.py)."""
         self._y: list[tuple[str, bytes]] = []
         self._outbox = Outbox(
             self,
@@ -252,7 +253,6 @@ class Agent:
             Received,
         )
         """Takes every communicate in (services/runtime/admission.py), into ``x``."""
-        """The agent's protocol roles and their open conversations (services/runtime/roles.py)."""
         self._y_taken = 0
         """How much of ``_y`` taking inputs in put there (answers a failing behaviour keeps)."""
         self.batch_puts = True
@@ -274,9 +274,9 @@ class Agent:
         self._here = False  # the actions run on a receiving thread (_take_here)
         self._last_arrival = 0.0  # time.perf_counter() of the last communicate's arrival
         self._declared = getattr(transport, "declared", None)
+        """The transport's ``declared(key)`` (services/runtime/transport.py ``Transport``), if any."""
         self._more_waiting: Callable[[], bool] | None = getattr(transport, "more_waiting", None)
         """The transport's ``more_waiting()`` (a burst is arriving), if any."""
-        """The transport's ``declared(key)`` (services/runtime/transport.py ``Transport``), if any."""
         self._inline = (
             self.RECEIVE_INLINE
             and bool(getattr(transport, "inline_receive", False))
