@@ -7,7 +7,7 @@ process (multiprocessing spawn), the benchmark's synthetic pair ``b_ini0``/``b_p
 two agent processes the runtime is traced (``time.perf_counter_ns``, CLOCK_MONOTONIC: one clock
 for every process of the host; the thread's native id) at five points of each communicate:
 
-- ``send``: :meth:`Agent.send` called (by the behaviour's transition function);
+- ``send``: :meth:`Agent.send` or :meth:`Agent.reply` called (by the behaviour's transition function);
 - ``put``: :meth:`ZenohTransport.publish` called (the output buffer dispatched after the step);
 - ``cb``: Zenoh's subscriber callback entered (on a Zenoh thread);
 - ``take0``/``take1``: :meth:`Agent._take_communicate` entered / left (on the agent's thread).
@@ -82,6 +82,10 @@ def traced_agent(name: str, endpoint: str, conn: Connection) -> None:
         events.append(("send", now(), tid()))
         return base.send(self, *args, **kwargs)
 
+    def reply(self: Agent, *args: Any, **kwargs: Any) -> Any:
+        events.append(("send", now(), tid()))
+        return base.reply(self, *args, **kwargs)
+
     def take(self: Agent, key: str, payload: bytes) -> None:
         cpu = time.thread_time_ns()
         events.append(("take0", now(), tid()))
@@ -89,7 +93,7 @@ def traced_agent(name: str, endpoint: str, conn: Connection) -> None:
         events.append(("take1", now(), tid()))
         events.append(("take_cpu", time.thread_time_ns() - cpu, 0))
 
-    cls = type(name, (base,), {"name": name, "send": send, "_take_communicate": take})
+    cls = type(name, (base,), {"name": name, "send": send, "reply": reply, "_take_communicate": take})
     transport = Traced([endpoint], links=None)  # as roco bench: ROCO_LINKS
     agent = cls(transport, bench_spec(1), conn)
     agent.bind()

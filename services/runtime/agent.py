@@ -228,6 +228,7 @@ class Agent:
         self._streaming: dict[tuple[str, Performative], bool] = {}
         """:meth:`_streams` per (protocol, performative)."""
         self.roles = Roles(self, self.ROLES or (), check=self.ROLES is not None)
+        """The agent's protocol roles and their open conversations (services/runtime/roles.py)."""
         self._y: list[tuple[str, bytes]] = []
         self._outbox = Outbox(
             self,
@@ -252,7 +253,6 @@ class Agent:
             Received,
         )
         """Takes every communicate in (services/runtime/admission.py), into ``x``."""
-        """The agent's protocol roles and their open conversations (services/runtime/roles.py)."""
         self._y_taken = 0
         """How much of ``_y`` taking inputs in put there (answers a failing behaviour keeps)."""
         self.batch_puts = True
@@ -274,9 +274,9 @@ class Agent:
         self._here = False  # the actions run on a receiving thread (_take_here)
         self._last_arrival = 0.0  # time.perf_counter() of the last communicate's arrival
         self._declared = getattr(transport, "declared", None)
+        """The transport's ``declared(key)`` (services/runtime/transport.py ``Transport``), if any."""
         self._more_waiting: Callable[[], bool] | None = getattr(transport, "more_waiting", None)
         """The transport's ``more_waiting()`` (a burst is arriving), if any."""
-        """The transport's ``declared(key)`` (services/runtime/transport.py ``Transport``), if any."""
         self._inline = (
             self.RECEIVE_INLINE
             and bool(getattr(transport, "inline_receive", False))
@@ -423,7 +423,8 @@ class Agent:
         self, to: str, performative: Performative, protocol: str, content: msgspec.Struct | None
     ) -> Outgoing:
         """:meth:`_outgoing` found anew: the channel to ``to`` (SpecViolation: none), the
-        content's language (ContentError: none), the interface's checks (:meth:`_check_send`)."""
+        content's language (ContentError: none), the interface's checks (:meth:`_check_send`),
+        whether ``performative`` opens a conversation that streams (:meth:`_streams`)."""
         channel = self.lookups.channel(to)
         if channel is None:
             raise SpecViolation(f"{self.name}: no channel to {to}")
@@ -442,6 +443,7 @@ class Agent:
             language.ontology if language is not None else None,
             self.lookups.followed(to, protocol),
             str(protocol),  # a plain str: a subclass's (ProtocolName) is checked by a call per send
+            self._streams(protocol, performative),
         )
 
     def _streams(self, protocol: str, performative: Performative) -> bool:
@@ -478,18 +480,20 @@ class Agent:
         retry_s: float | None = None,
     ) -> Communicate:
         """Reply within ``to``'s conversation: same protocol and conversation-id,
-        in-reply-to = its reply-with (other arguments as :meth:`send`)."""
-        return self.send(
+        in-reply-to = its reply-with (other arguments and errors as :meth:`send`, whose work
+        it hands to the same ``Outbox.send``)."""
+        msg = to.msg
+        return self._outbox.send(
             to.sender,
             performative,
             content,
-            protocol=to.msg.protocol or "",
-            conversation_id=to.msg.conversation_id,
-            in_reply_to=to.msg.reply_with,
-            reply_with=reply_with,
-            reply_by_s=reply_by_s,
-            expect_reply=expect_reply,
-            retry_s=retry_s,
+            msg.protocol or "",
+            msg.conversation_id,
+            reply_with,
+            msg.reply_with,
+            reply_by_s,
+            expect_reply,
+            retry_s,
         )
 
     def fail(self, to: Received, performative: Performative, reason: str) -> None:
@@ -724,7 +728,10 @@ class Agent:
             self._put_inputs([(key, part) for part in unpack(payload)])
             return
         if not (self._inline and not self._in_burst() and self._take_here((key, payload))):
-            self._put_input((key, payload))
+            with self._arrived_lock:  # as _put_input, without its call: once per communicate
+                self._inbox.append((key, payload))
+                if self._sleepers:
+                    self._arrived.notify()
 
     def _in_burst(self) -> bool:
         """Whether the communicate being received arrived in a burst, to be taken in with the
@@ -823,10 +830,12 @@ class Agent:
             with self._arrived:
                 if not self._inbox:
                     self._sleep(timeout)
-        for _ in range(len(self._inbox)):
-            self._take(*self._inbox.popleft())
+        inbox, take = self._inbox, self._take
+        for _ in range(len(inbox)):
+            take(*inbox.popleft())
         now = self.sources.time()
-        self.roles.tick(now)  # subscription attempts that are due (services/runtime/subscriptions.py)
+        if self.roles.ticks:  # subscription attempts that are due (services/runtime/subscriptions.py)
+            self.roles.tick(now)
         self.protocol_states.commit()  # what arrived stays arrived; only sends are undone
         self._y_taken = len(self._y)  # so do the answers to it (not-understood, copies again)
         if now >= self.pending_replies.earliest:  # a deadline or a retransmission may be due

@@ -41,10 +41,12 @@ class Outgoing(NamedTuple):
     protocol, carrying a term of one type (or none) shares, once the interface allowed it
     (services/runtime/agent.py ``Agent._outgoing``): its ``key`` and ``receiver``, its content
     ``language`` and ``ontology``, ``followed``, the conversation's state machine and the
-    agent's role in it (None: not followed), and ``protocol``, its name as a plain ``str``
+    agent's role in it (None: not followed), ``protocol``, its name as a plain ``str``
     (what the communicate carries: one of ``str``'s subclasses, e.g. services/spec/names.py
     ``ProtocolName``, is not a word known to be valid without a call,
-    shared/fipa_codec/message.py)."""
+    shared/fipa_codec/message.py), and ``streams``: the performative opens a conversation
+    of the protocol that many replies answer (services/runtime/agent.py ``Agent._streams``;
+    a reply awaited stays awaited after the first)."""
 
     key: str
     receiver: tuple[AgentIdentifier, ...]
@@ -52,6 +54,7 @@ class Outgoing(NamedTuple):
     ontology: str | None
     followed: Followed | None
     protocol: str
+    streams: bool
 
 
 class Host(Protocol):
@@ -66,10 +69,6 @@ class Host(Protocol):
         self, to: str, performative: Performative, protocol: str, content: msgspec.Struct | None
     ) -> Outgoing:
         """The interface's checks of such a communicate (raises SpecViolation), kept."""
-        ...
-
-    def _streams(self, protocol: str, performative: Performative) -> bool:
-        """Whether ``performative`` opens a conversation of ``protocol`` that streams."""
         ...
 
     def _stepped(self, peer: str, conversation_id: str, performative: Performative, outcome: str) -> None:
@@ -162,7 +161,7 @@ class Outbox:
             self._follow(to, cid, followed, msg)
         payload = encode(msg)
         if awaits and reply_with is not None:
-            self._await(msg, to, out.key, payload, retry_s, reply_with, cid, sources)
+            self._await(msg, to, out, payload, retry_s, reply_with, cid, sources)
         if in_reply_to is not None:  # a copy of what it answers gets it again
             self.dedup.answered(to, in_reply_to, out.key, payload)
         self.y.append((out.key, payload))
@@ -187,15 +186,15 @@ class Outbox:
         self,
         msg: Communicate,
         to: str,
-        key: str,
+        out: Outgoing,
         payload: bytes,
         retry_s: float | None,
         reply_with: str,
         cid: str | None,
         sources: Sources,
     ) -> None:
-        """Await replies to ``msg`` (its reply-with ``reply_with``), sent to ``to`` on ``key``
-        as ``payload``: its reply-by deadline, and retransmission every ``retry_s``
+        """Await replies to ``msg`` (its reply-with ``reply_with``), sent to ``to`` on
+        ``out.key`` as ``payload``: its reply-by deadline, and retransmission every ``retry_s``
         (services/runtime/replies.py)."""
         protocol = msg.protocol
         assert protocol is not None
@@ -207,9 +206,9 @@ class Outbox:
                 protocol,
                 cid,
                 msg.reply_by,
-                streaming=self.host._streams(protocol, msg.performative),
+                streaming=out.streams,
                 retry_s=retry_s,
-                key=key if retries else "",
+                key=out.key if retries else "",
                 payload=payload if retries else b"",
                 next_retry=sources.time() + retry_s if retry_s is not None else None,
             )

@@ -17,8 +17,8 @@ only touches a file changes nothing.
 or to compare).
 
 Measured (scripts/profile_runtime.py --cpu, median of 9, docs/benchmarks.md): CPU per
-request → inform round trip 49.5–51.5 µs interpreted (earlier), 21.5–22.5 µs compiled; per
-streamed communicate 12.5–13 → 7.4–7.5 µs.
+request → inform round trip 49.5–51.5 µs interpreted (earlier), 21.2–21.8 µs compiled; per
+streamed communicate 12.5–13 → 7.3 µs.
 """
 
 from __future__ import annotations

@@ -1038,6 +1038,9 @@ class Roles:
         """:attr:`_by_peer`'s roles as :class:`RoleTable`\\s, what :meth:`take` looks up."""
         self._open: OrderedDict[tuple[str, str], Conversation] = OrderedDict()
         self._subscriptions: dict[RoleDecl, StandingSubscription | ServedSubscription[Any]] = {}
+        self.ticks = False
+        """:meth:`tick` has something to look at (a subscription is kept): the agent calls it
+        on every step only then."""
         self._ended: OrderedDict[str, Any] = OrderedDict()  # :meth:`Conversation.abandon`, remember
         self._taken_up = itertools.count(1)
         self.keeps = any(d.keep for d in self.declared)
@@ -1108,6 +1111,7 @@ class Roles:
             on_lost=on_lost,
         )
         self._subscriptions[decl] = sub
+        self.ticks = True
         return sub
 
     def serve(
@@ -1151,6 +1155,7 @@ class Roles:
             dropped=dropped,
         )
         self._subscriptions[decl] = served
+        self.ticks = True
         return served
 
     def ended(self, conversation_id: str) -> Any:
