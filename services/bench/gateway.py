@@ -28,6 +28,7 @@ import asyncio
 import json
 import os
 import queue
+import shutil
 import socket
 import tempfile
 import time
@@ -468,7 +469,8 @@ def worst(gateway: GatewayProcess, inbox: Inbox) -> list[WorstRow]:
 
 def measure(quick: bool = False, load_peers: int = 100, burst_peers: int = 500) -> GatewayFigures:
     """Part 9 (module docstring): load with ``load_peers`` peers (20 messages each; 2 with
-    ``quick``), a burst of ``burst_peers`` (50 with ``quick``), the worst bodies."""
+    ``quick``), a burst of ``burst_peers`` (50 with ``quick``), the worst bodies. The gateway's
+    run folder (its router, credentials and logs) is removed at the end."""
     run_dir = Path(tempfile.mkdtemp(prefix="roco-bench-gateway-"))
     gateway = GatewayProcess.start(run_dir)
     inbox = Inbox()
@@ -482,4 +484,5 @@ def measure(quick: bool = False, load_peers: int = 100, burst_peers: int = 500) 
     finally:
         inbox.close()
         gateway.stop()
+        shutil.rmtree(run_dir, ignore_errors=True)
     return GatewayFigures(load, burst, rows, rss, peak, counters)
