@@ -316,9 +316,7 @@ class HumanInterface(Agent):
             line.stopped = True
         commands = [c for c in self.commands.values() if c.request_id == request_id]
         for c in commands:
-            if c.cancel is None:
-                c.cancel = c.conversation.cancel(c.command, reply_by_s=CANCEL_REPLY_BY_S)
-                self._report(c.request_id, ReportKind.PROGRESS, f"{c.label}: stopping, as asked")
+            self._cancel_command(c, "as asked")
         return bool(lines or commands)
 
     @property
@@ -470,11 +468,15 @@ class HumanInterface(Agent):
         self.stops[request_id] = stop
         for c in self.commands.values():
             c.stoppers.append(request_id)
-            if c.cancel is not None:
-                continue  # a cancel is already on its way; wait for its answer
-            c.cancel = c.conversation.cancel(c.command, reply_by_s=CANCEL_REPLY_BY_S)
-            self._report(c.request_id, ReportKind.PROGRESS, f"{c.label}: stopping, as you asked")
+            self._cancel_command(c, "as you asked")
         self._report(request_id, ReportKind.PROGRESS, stopping(list(stop.waiting.values()), named))
+
+    def _cancel_command(self, c: OpenCommand, why: str) -> None:
+        """Send a_co the cancel of command ``c`` and tell its person it is stopping ``why``,
+        unless a cancel is already on its way (its answer ends the command)."""
+        if c.cancel is None:
+            c.cancel = c.conversation.cancel(c.command, reply_by_s=CANCEL_REPLY_BY_S)
+            self._report(c.request_id, ReportKind.PROGRESS, f"{c.label}: stopping, {why}")
 
     def _ask_status(self, request_id: str) -> None:
         self.roles.open(

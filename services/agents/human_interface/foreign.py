@@ -56,7 +56,9 @@ class ForeignRequests:
         request_id = next((r for r, c in self.open.items() if c is conv), None)
         cancel = conv.answering
         if request_id is None or cancel is None:
-            conv.answer_cancel(False, SentenceReport(kind="failed", text="no request of yours is open"))
+            conv.answer_cancel(
+                False, SentenceReport(kind=ReportKind.FAILED.value, text="no request of yours is open")
+            )
             return None
         self.cancels[request_id] = cancel
         self.log.info("%s cancels its request [%s]", conv.peer, request_id)
@@ -68,7 +70,7 @@ class ForeignRequests:
         conv, cancel = self.open.get(request_id), self.cancels.pop(request_id, None)
         if conv is not None and cancel is not None:
             text = "nothing of it is under way to stop"
-            conv.answer_cancel(False, SentenceReport(kind="failed", text=text), to=cancel)
+            conv.answer_cancel(False, SentenceReport(kind=ReportKind.FAILED.value, text=text), to=cancel)
 
     def answer(self, report: HumanReport) -> None:
         """Answer the foreign request ``report`` is about, if any, with what the person is told

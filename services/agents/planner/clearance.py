@@ -43,6 +43,7 @@ class Body:
         return cls(name, position, max(size[0], size[1]) / 2.0, size[2])
 
     def moved(self, at: Vec3) -> Body:
+        """The same cylinder with its bottom centre at ``at`` (world, m)."""
         return Body(self.name, at, self.radius, self.height)
 
 

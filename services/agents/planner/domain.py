@@ -658,9 +658,9 @@ def initial_state(k: Knowledge, tool_poses: dict[str, Pose | None]) -> Any:
                 s.grip[n] = Pose(grasp.grip_in_object.position, grasp.grip_in_object.orientation)
         elif o.location:
             s.where[n] = (o.relation or "in", o.location)
-    for n, (_relation, furniture) in list(s.where.items()):
-        if furniture in ("left_gripper", "right_gripper") or s.localised.get(n):
-            continue
+    for n, (relation, furniture) in list(s.where.items()):
+        if relation not in ("on", "in") or s.localised.get(n):
+            continue  # held, or seen where it stands
         put = _where_put(s, n, furniture)
         if put is not None:
             s.pose[n] = put
