@@ -7,6 +7,7 @@ from __future__ import annotations
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
+from services.report.causal import causal_order, send_order
 from services.report.load import Message
 from services.report.model import CommandRow, CoordinationEvent
 from shared.fipa_codec.languages.l_hc import CommandOutcome, HumanCommand
@@ -117,12 +118,12 @@ def commands(messages: Sequence[Message]) -> list[CommandRow]:
 def coordination(messages: Sequence[Message]) -> list[CoordinationEvent]:
     """The C1 exchanges that change what the robot does: plan requests, cancels, and a_ta's
     Terminating, Preempted, Replan, Succeeded and Error informs (with a_co's confirmations
-    folded in)."""
+    folded in), in causal order (causal.py: agents linked directly reach the recorder on
+    different paths, so a_ta's Terminating can be recorded before a_co's cancel)."""
     out: list[CoordinationEvent] = []
     replay = _Coordination()
-    for m in messages:
-        if m.channel != "C1":
-            continue
+    c1 = [m for m in messages if m.channel == "C1"]
+    for m in send_order(causal_order(c1)[0])[0]:
         text = replay.text(m)
         if text is None:
             continue

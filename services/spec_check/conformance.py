@@ -20,7 +20,7 @@ Every conversation (one conversation-id between two agents) follows its interact
 protocol's state machine (FIPA SC00026 fipa-request, SC00027 fipa-query, SC00035
 fipa-subscribe, the paper's coordinate protocol), message by message in causal order
 (arrival order, with an answer that arrived before what it answers moved after it:
-:mod:`services.spec_check.causal`), as
+:mod:`services.report.causal`), as
 :class:`~services.runtime.protocol_state.CrossingTracker` follows it: communicates of the two
 agents that crossed on the wire are tolerated, as are the cancel meta-protocol's late
 cancels; an opening communicate that reuses a conversation-id begins it anew; a
@@ -42,6 +42,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from services.recorder.integrity import Integrity
+from services.report.causal import causal_order, send_order
 from services.report.load import Message, load_run
 from services.runtime import keys
 from services.runtime.protocol_state import (
@@ -62,7 +63,6 @@ from services.spec.model import (
     interface,
     load,
 )
-from services.spec_check.causal import causal_order, send_order
 from shared.fipa_codec import Communicate, Performative
 from shared.fipa_codec.languages import ContentError, decode_content
 from shared.fipa_codec.protocols import (
