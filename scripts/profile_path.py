@@ -10,7 +10,8 @@ for every process of the host; the thread's native id) at five points of each co
 - ``send``: :meth:`Agent.send` or :meth:`Agent.reply` called (by the behaviour's transition function);
 - ``put``: :meth:`ZenohTransport.publish` called (the output buffer dispatched after the step);
 - ``cb``: Zenoh's subscriber callback entered (on a Zenoh thread);
-- ``take0``/``take1``: :meth:`Agent._take_communicate` entered / left (on the agent's thread).
+- ``take0``/``take1``: the agent's take-in (services/runtime/admission.py ``Gate.take_all``, of
+  what arrived for one step) entered / left (on the thread that takes it in).
 
 ``--n`` request→inform round trips (after 50 warm-up ones) give the median of each segment of the
 path; ``--raw`` round trips of the bare pair give raw Zenoh's round trip in the same run. The
@@ -86,16 +87,23 @@ def traced_agent(name: str, endpoint: str, conn: Connection) -> None:
         events.append(("send", now(), tid()))
         return base.reply(self, *args, **kwargs)
 
-    def take(self: Agent, key: str, payload: bytes) -> None:
-        cpu = time.thread_time_ns()
-        events.append(("take0", now(), tid()))
-        base._take_communicate(self, key, payload)
-        events.append(("take1", now(), tid()))
-        events.append(("take_cpu", time.thread_time_ns() - cpu, 0))
+    class TracedGate:
+        """The agent's take-in (a compiled ``Gate``), traced around each call."""
 
-    cls = type(name, (base,), {"name": name, "send": send, "reply": reply, "_take_communicate": take})
+        def __init__(self, gate: Any) -> None:
+            self.gate = gate
+
+        def take_all(self, inbox: Any, max_open: int) -> None:
+            cpu = time.thread_time_ns()
+            events.append(("take0", now(), tid()))
+            self.gate.take_all(inbox, max_open)
+            events.append(("take1", now(), tid()))
+            events.append(("take_cpu", time.thread_time_ns() - cpu, 0))
+
+    cls = type(name, (base,), {"name": name, "send": send, "reply": reply})
     transport = Traced([endpoint], links=None)  # as roco bench: ROCO_LINKS
     agent = cls(transport, bench_spec(1), conn)
+    agent._gate = TracedGate(agent._gate)  # type: ignore[assignment]
     agent.bind()
 
     def trace(cmd: tuple[Any, ...]) -> bool:
@@ -165,22 +173,22 @@ def segments(ini: list[Event], par: list[Event], n: int) -> list[tuple[str, list
             "",
         ),
         (
-            "b_par0: Zenoh callback → _take_communicate entered (taken in where it arrived, or handed over)",
+            "b_par0: Zenoh callback → take-in entered (taken in where it arrived, or handed over)",
             diff(b["cb"], b["take0"]),
             same_thread(b["cb"], b["take0"]),
         ),
-        ("b_par0: _take_communicate (decode, checks, protocol state)", diff(b["take0"], b["take1"]), ""),
+        ("b_par0: take-in (decode, checks, protocol state)", diff(b["take0"], b["take1"]), ""),
         ("b_par0: taken → reply's send() called (behaviour step)", diff(b["take1"], b["send"]), ""),
         ("b_par0: send() called → put", diff(b["send"], b["put"]), ""),
         ("b_par0 put → b_ini0 Zenoh callback (Zenoh)", diff(b["put"], a["cb"]), ""),
         (
-            "b_ini0: Zenoh callback → _take_communicate entered (taken in where it arrived, or handed over)",
+            "b_ini0: Zenoh callback → take-in entered (taken in where it arrived, or handed over)",
             diff(a["cb"], a["take0"]),
             same_thread(a["cb"], a["take0"]),
         ),
-        ("b_ini0: _take_communicate", diff(a["take0"], a["take1"]), ""),
+        ("b_ini0: take-in", diff(a["take0"], a["take1"]), ""),
         (
-            "b_ini0: _take_communicate, CPU time of the agent's thread",
+            "b_ini0: take-in, CPU time of the thread that took it in",
             [e[1] / 1e3 for e in by_kind(ini, "take_cpu")[-n:]],
             "",
         ),

@@ -11,7 +11,7 @@ conversation-id where its protocol is followed, the bound on open conversations 
 and its protocol state, stepped (:func:`step`). It decides and changes only the protocol
 state and the duplicate filter; what the agent does about the outcome (answer
 not-understood, count, log, put the communicate into its input buffer) is the agent's
-(services/runtime/agent.py ``Agent._take_communicate``).
+(services/runtime/agent.py ``Agent._not_taken``).
 """
 
 from __future__ import annotations
@@ -28,7 +28,15 @@ from services.runtime.lookups import Followed, Lookups
 from services.runtime.protocol_state import ConversationError, Outcome, ProtocolStates
 from services.runtime.replies import PendingReplies
 from shared.fipa_codec import Communicate, DecodeError, Performative, decode
-from shared.fipa_codec.protocols import INITIATOR, PARTICIPANT, ProtocolViolation, Role, is_terminal_report
+from shared.fipa_codec.encoding import DECODE_ERRORS, MAX_COMMUNICATE_BYTES, decode_error, read
+from shared.fipa_codec.protocols import (
+    INITIATOR,
+    PARTICIPANT,
+    REPORT_LANGUAGE,
+    ProtocolViolation,
+    Role,
+    is_terminal_report,
+)
 
 TAKEN: Final = 0
 """Every check passed: the communicate goes into the agent's input buffer."""
@@ -84,15 +92,30 @@ class Host(Protocol):
         """A conversation opened anew, or a communicate that crossed another: logged, counted."""
         ...
 
+    def _take_event(self, key: str, payload: Any) -> None:
+        """An input of the runtime's own (one of :class:`Gate`'s ``events``): taken in."""
+        ...
+
+    def _not_taken(self, found: Admission) -> None:
+        """A communicate :func:`admit` did not take: counted, and answered or dropped."""
+        ...
+
+    def _take_raised(self, key: str) -> None:
+        """Taking in the communicate that came on ``key`` raised (the exception is being
+        handled): counted and logged; the agent goes on."""
+        ...
+
 
 class Gate:
     """The receiving half of one agent's runtime: :func:`admit` and, for a communicate it
     takes, what follows in the same call: the ``received.<performative>`` counter, a
     conversation opened anew or a crossing told to the ``host``, the reply awaited noted
     (``pending``) and the communicate put into the input buffer ``x`` as
-    ``received(msg, content, channel)`` (services/runtime/agent.py ``Received``). ``lookups``,
-    ``dedup``, ``states``, ``pending``, ``x`` and ``counters`` are the agent's own (shared,
-    changed in place)."""
+    ``received(msg, content, channel, False, performative, sender)``
+    (services/runtime/agent.py ``Received``). ``lookups``, ``dedup``, ``states``,
+    ``pending``, ``x`` and ``counters`` are the agent's own (shared, changed in place);
+    ``events`` are the keys of the agent's other inputs (the runtime's own events, which
+    :meth:`take_all` hands to the host)."""
 
     def __init__(
         self,
@@ -103,9 +126,11 @@ class Gate:
         pending: PendingReplies,
         x: deque[Any],
         counters: Counter[str],
-        received: Callable[[Communicate, msgspec.Struct | None, str], Any],
+        received: Callable[[Communicate, msgspec.Struct | None, str, bool, Performative, str], Any],
+        events: frozenset[str] = frozenset(),
     ) -> None:
         self.host = host
+        self.events = events
         self.lookups = lookups
         self.dedup = dedup
         self.states = states
@@ -113,6 +138,25 @@ class Gate:
         self.x = x
         self.counters = counters
         self.received = received
+
+    def take_all(self, inbox: deque[tuple[str, Any]], max_open: int) -> None:
+        """Take in, in order, the inputs that were in ``inbox`` when it began (popped; what
+        arrives meanwhile stays for the next call): a communicate by :meth:`take` (one it does
+        not take goes to the host's ``_not_taken``), an input whose key is one of ``events`` by
+        the host's ``_take_event``. No input stops the others: one whose taking in raised is
+        the host's ``_take_raised``."""
+        host, events = self.host, self.events
+        for _ in range(len(inbox)):
+            key, payload = inbox.popleft()
+            if key in events:
+                host._take_event(key, payload)
+                continue
+            try:
+                found = self.take(key, payload, max_open)
+                if found is not None:
+                    host._not_taken(found)
+            except Exception:  # no input may stop the agent
+                host._take_raised(key)
 
     def take(self, key: str, payload: bytes, max_open: int) -> Admission | None:
         """Take in the communicate ``payload`` that came on ``key`` (:func:`admit`, a sender
@@ -128,7 +172,7 @@ class Gate:
         if outcome and outcome != "step":
             self.host._stepped(found.sender, msg.conversation_id or "", performative, outcome)
         self.pending.answered(msg.in_reply_to, performative)  # if one was awaited
-        self.x.append(self.received(msg, found.content, found.channel))
+        self.x.append(self.received(msg, found.content, found.channel, False, performative, found.sender))
         return None
 
 
@@ -144,11 +188,11 @@ def admit(
     except ValueError:
         return Admission(BAD_KEY)
     copy = dedup.seen(payload)
-    try:
-        msg = decode(payload)
-    except DecodeError as exc:
+    try:  # shared.fipa_codec.decode, without its Python call for a communicate that decodes
+        msg = read(payload) if len(payload) <= MAX_COMMUNICATE_BYTES else decode(payload)
+    except DECODE_ERRORS as exc:
         found = Admission(UNDECODABLE, channel, sender)
-        found.error, found.copy = exc, copy
+        found.error, found.copy = decode_error(exc), copy
         return found
     if copy:
         return Admission(COPY, channel, sender, msg)
@@ -197,9 +241,8 @@ def _in_conversation(
         return Admission(TOO_MANY, channel, sender, msg, content)
     if followed is None:
         return Admission(TAKEN, channel, sender, msg, content)
-    outcome, why = step(
-        states, lookups.name, sender, cid, followed, msg.performative, False, is_terminal_report(msg), msg
-    )
+    terminal = msg.language == REPORT_LANGUAGE and is_terminal_report(msg)  # the language first: no call
+    outcome, why = step(states, lookups.name, sender, cid, followed, msg.performative, False, terminal, msg)
     found = Admission(TAKEN if why is None else OUT_OF_STATE, channel, sender, msg, content)
     found.why, found.outcome = why or "", outcome
     return found

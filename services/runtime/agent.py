@@ -107,7 +107,7 @@ from shared.fipa_codec import (
     Performative,
     encode,
 )
-from shared.fipa_codec.batch import is_batch, runs, unpack
+from shared.fipa_codec.batch import BATCH_HEADS, unpack
 from shared.fipa_codec.languages import language_of
 from shared.fipa_codec.protocols import (
     INITIATOR,
@@ -150,24 +150,27 @@ class SpecViolation(RuntimeError):
 
 class Received(msgspec.Struct, frozen=True, gc=False):
     """One acquired communicate: the message, its decoded ``content`` (a term of its
-    language, or None), the ``channel`` it came on, and ``local`` True for what the runtime
-    synthesised: a failure when a reply-by deadline passed, or the not-understood this agent
-    answered the peer with (services/runtime/roles.py ``Roles.not_understood_sent``). (A
-    msgspec Struct: one is built per communicate taken in, ≈ 10 × cheaper than a frozen
-    dataclass; not tracked by the garbage collector, as a communicate is not.)"""
+    language, or None), the ``channel`` it came on, ``local`` True for what the runtime
+    synthesised (a failure when a reply-by deadline passed, or the not-understood this agent
+    answered the peer with: services/runtime/roles.py ``Roles.not_understood_sent``), and the
+    message's ``performative`` and ``sender`` name ("" for none), read on every one taken in.
+    Built with :meth:`of`. (A msgspec Struct: one is built per communicate taken in, ≈ 10 ×
+    cheaper than a frozen dataclass; not tracked by the garbage collector, as a communicate is
+    not.)"""
 
     msg: Communicate
     content: msgspec.Struct | None
     channel: str
-    local: bool = False
+    local: bool
+    performative: Performative
+    sender: str
 
-    @property
-    def performative(self) -> Performative:
-        return self.msg.performative
-
-    @property
-    def sender(self) -> str:
-        return self.msg.sender.name if self.msg.sender else ""
+    @classmethod
+    def of(
+        cls, msg: Communicate, content: msgspec.Struct | None, channel: str, local: bool = False
+    ) -> Received:
+        """``msg`` acquired with its ``content`` on ``channel`` (``local``: synthesised)."""
+        return cls(msg, content, channel, local, msg.performative, msg.sender.name if msg.sender else "")
 
 
 class Agent:
@@ -251,6 +254,7 @@ class Agent:
             self.x,
             self.counters,
             Received,
+            frozenset(("r", _ALIVE, _COUNTERS)),
         )
         """Takes every communicate in (services/runtime/admission.py), into ``x``."""
         self._y_taken = 0
@@ -724,7 +728,7 @@ class Agent:
             self._sleepers -= 1
 
     def _on_payload(self, key: str, payload: bytes) -> None:  # the transport's thread
-        if is_batch(payload):  # several communicates put together: taken in together
+        if payload and payload[0] in BATCH_HEADS:  # a batch (batch.py is_batch, without its call)
             self._put_inputs([(key, part) for part in unpack(payload)])
             return
         if not (self._inline and not self._in_burst() and self._take_here((key, payload))):
@@ -830,9 +834,8 @@ class Agent:
             with self._arrived:
                 if not self._inbox:
                     self._sleep(timeout)
-        inbox, take = self._inbox, self._take
-        for _ in range(len(inbox)):
-            take(*inbox.popleft())
+        if self._inbox:
+            self._gate.take_all(self._inbox, self.max_open_per_peer)
         now = self.sources.time()
         if self.roles.ticks:  # subscription attempts that are due (services/runtime/subscriptions.py)
             self.roles.tick(now)
@@ -868,7 +871,7 @@ class Agent:
                 conversation_id=p.conversation_id,
                 in_reply_to=p.reply_with,
             )
-            self.x.append(Received(synthetic, None, "", local=True))
+            self.x.append(Received.of(synthetic, None, "", local=True))
 
     def _record_time_out(self, p: Pending) -> None:
         """Record that ``p``'s reply-by deadline passed, with the conversation's protocol state."""
@@ -878,29 +881,24 @@ class Agent:
         self.fsm_record.timed_out(p.peer, p.protocol, p.conversation_id, state)
 
     def _take(self, key: str, payload: Any) -> None:
+        """Take one input in, as :meth:`_acquire` does (tests and tools hand inputs over)."""
+        self._gate.take_all(deque(((key, payload),)), self.max_open_per_peer)
+
+    def _take_event(self, key: str, payload: Any) -> None:
+        """Take in an input of the runtime's own: a command for ``r``, a peer's liveliness, a
+        request for the counters (services/runtime/admission.py ``Gate.take_all``)."""
         if key == "r":
             self.r.append(payload)
-            return
-        if key == _ALIVE:
+        elif key == _ALIVE:
             self._peer_event(*payload)
-            return
-        if key == _COUNTERS:
+        else:
             self._y.append((keys.counters_key(self.name), self.counters_report()))
-            return
-        try:
-            self._take_communicate(key, payload)
-        except Exception:  # no input may stop the agent: count it, keep its traceback
-            self.counters["rejected.internal"] += 1
-            self.log.exception("taking in a communicate on %s raised", key)
 
-    def _take_communicate(self, key: str, payload: bytes) -> None:
-        """Check one received communicate (paper §4 steps 3–4; services/runtime/admission.py
-        ``admit``: its key, a copy, decoding, the interface, its content and conversation) and
-        put it into ``x``, or answer it with not-understood (or refuse) and count why
-        (``rejected.<reason>``; :meth:`_not_taken`)."""
-        found = self._gate.take(key, payload, self.max_open_per_peer)
-        if found is not None:
-            self._not_taken(found)
+    def _take_raised(self, key: str) -> None:
+        """Taking in the communicate on ``key`` raised: counted, its traceback logged (no input
+        may stop the agent)."""
+        self.counters["rejected.internal"] += 1
+        self.log.exception("taking in a communicate on %s raised", key)
 
     def _not_taken(self, found: Admission) -> None:
         """A communicate :func:`admit` did not take (``found.verdict``): counted, and answered
@@ -1013,7 +1011,7 @@ class Agent:
         )
         if may_refuse:
             try:
-                self.fail(Received(msg, content, channel), Performative.REFUSE, text)
+                self.fail(Received.of(msg, content, channel), Performative.REFUSE, text)
             except SpecViolation:  # the protocol's state machine has no refuse here
                 may_refuse = False
             else:
@@ -1053,26 +1051,10 @@ class Agent:
     # ---- the loop -----------------------------------------------------------------------
     def _dispatch(self) -> None:
         """Put the output buffer (communicates that one step sends in a row to one receiver in
-        one batch, :attr:`batch_puts`); what it held is sent: its protocol states are kept."""
-        if len(self._y) == 1:  # the usual step: one communicate, no batch to look for
-            key, payload = self._y[0]
-            self.transport.publish(key, payload)
-            if keys.is_communicate_key(key):
-                self.counters["published"] += 1
-        elif self._y:
-            self._dispatch_runs()
-        self._y.clear()
+        one batch, :attr:`batch_puts`); what it held is sent: its protocol states are kept
+        (services/runtime/emission.py ``Outbox.dispatch``)."""
+        self._outbox.dispatch(self.transport.publish, self.batch_puts)
         self._y_taken = 0
-        self.protocol_states.commit()
-
-    def _dispatch_runs(self) -> None:
-        published = 0
-        for key, payload, count in runs(self._y, keys.is_communicate_key if self.batch_puts else _alone):
-            self.transport.publish(key, payload)
-            if keys.is_communicate_key(key):
-                published += count
-        if published:
-            self.counters["published"] += published
 
     def bind(self) -> None:
         """Subscribe the input buffer and watch the peers' liveliness. The agent's own
@@ -1221,8 +1203,3 @@ class Agent:
         agent's handler (services/runtime/roles.py), oldest first."""
         while self.x:
             self.roles.take(self.x.popleft())
-
-
-def _alone(key: str) -> bool:
-    """No key's communicates are batched (``Agent.batch_puts`` False)."""
-    return False

@@ -18,19 +18,23 @@ output buffer and the ``sent.<performative>`` counter. What the agent does when 
 from __future__ import annotations
 
 from collections import Counter
+from collections.abc import Callable
 from typing import NamedTuple, NoReturn, Protocol
 
 import msgspec
 
 from services.runtime.admission import step
 from services.runtime.dedup import Dedup
+from services.runtime.keys import FIPA_PREFIX, is_communicate_key
 from services.runtime.lookups import Followed
 from services.runtime.protocol_state import ProtocolStates
 from services.runtime.replies import Pending, PendingReplies
 from services.runtime.sources import Sources
-from shared.fipa_codec import AgentIdentifier, Communicate, Performative, encode
+from shared.fipa_codec import AgentIdentifier, Communicate, Performative
+from shared.fipa_codec.batch import runs
+from shared.fipa_codec.encoding import MAX_COMMUNICATE_BYTES, too_long, write
 from shared.fipa_codec.languages import encode_term
-from shared.fipa_codec.protocols import is_terminal_report
+from shared.fipa_codec.protocols import REPORT_LANGUAGE, is_terminal_report
 
 SENT_COUNTER = {p: f"sent.{p.value}" for p in Performative}
 """The counter of every communicate sent, by performative (``sent.<performative>``)."""
@@ -159,7 +163,9 @@ class Outbox:
         followed = out.followed
         if followed is not None and cid is not None:
             self._follow(to, cid, followed, msg)
-        payload = encode(msg)
+        payload = write(msg)  # shared.fipa_codec.encode, without its Python call
+        if len(payload) > MAX_COMMUNICATE_BYTES:
+            raise too_long(msg, len(payload))
         if awaits and reply_with is not None:
             self._await(msg, to, out, payload, retry_s, reply_with, cid, sources)
         if in_reply_to is not None:  # a copy of what it answers gets it again
@@ -168,12 +174,35 @@ class Outbox:
         self.counters[SENT_COUNTER[performative]] += 1
         return msg
 
+    def dispatch(self, publish: Callable[[str, bytes], None], batched: bool) -> None:
+        """Put the output buffer with ``publish`` (the transport's: key, payload), in order,
+        and empty it; ``batched``: communicates in a row to one receiver go in one put, a
+        batch (shared/fipa_codec/batch.py ``runs``). Counts the communicates put
+        (``published``) and keeps the protocol states of what was sent. (services/runtime/
+        agent.py ``Agent._dispatch``.)"""
+        y = self.y
+        if len(y) == 1:  # the usual step: one communicate, no batch to look for
+            key, payload = y[0]
+            publish(key, payload)
+            if key.startswith(FIPA_PREFIX):  # keys.is_communicate_key, without its Python call
+                self.counters["published"] += 1
+        elif y:
+            published = 0
+            for key, payload, count in runs(y, is_communicate_key if batched else _alone):
+                publish(key, payload)
+                if is_communicate_key(key):
+                    published += count
+            if published:
+                self.counters["published"] += published
+        y.clear()
+        self.states.commit()
+
     def _follow(self, to: str, cid: str, followed: Followed, msg: Communicate) -> None:
         """Step the protocol state of conversation ``cid`` with ``to`` by ``msg``, about to be
         sent; the host raises SpecViolation when the state does not allow it."""
         performative = msg.performative
         # is_terminal_report asks the language first: only an L_SW inform may be one
-        terminal = msg.language == "L_SW" and is_terminal_report(msg)
+        terminal = msg.language == REPORT_LANGUAGE and is_terminal_report(msg)
         outcome, why = step(self.states, self.name, to, cid, followed, performative, True, terminal, msg)
         if outcome != "step":
             self.host._stepped(to, cid, performative, outcome)
@@ -213,3 +242,8 @@ class Outbox:
                 next_retry=sources.time() + retry_s if retry_s is not None else None,
             )
         )
+
+
+def _alone(key: str) -> bool:
+    """No key's communicates are batched (``Agent.batch_puts`` False)."""
+    return False

@@ -2,7 +2,7 @@
 on and the agent's interface (paper §4 steps 3–4; FIPA SC00061 §2): who sent it, whether the
 interface accepts it on that channel, its content language, ontology and content. Pure
 functions: each returns the :class:`Refusal` the agent answers with ``not-understood``, or
-None. The agent (services/runtime/agent.py ``Agent._take_communicate``) runs them on every
+None. The agent's take-in (services/runtime/admission.py ``admit``) runs them on every
 communicate it takes in, before the checks that need its state (the conversation's
 conversation-id and protocol state, the bound on open conversations): the sender's, then
 those that depend only on the communicate's sender, channel, performative, protocol,
@@ -18,7 +18,8 @@ import msgspec
 from services.runtime.protocol_state import expected_ontology
 from services.spec.model import MessageKind
 from shared.fipa_codec import Communicate, Performative
-from shared.fipa_codec.languages import ContentError, Language, load_all
+from shared.fipa_codec.encoding import DECODE_ERRORS
+from shared.fipa_codec.languages import Language, load_all
 
 PLAIN_REASONS = frozenset({Performative.FAILURE, Performative.REFUSE, Performative.NOT_UNDERSTOOD})
 """Performatives whose content may be a reason in plain UTF-8 text, in no content language
@@ -108,10 +109,10 @@ def screened(msg: Communicate, checks: Screen) -> tuple[msgspec.Struct | None, R
     is a term its kind may not carry."""
     if checks.refusal is not None or checks.language is None:
         return None, checks.refusal
-    try:
-        content = checks.language.decode(msg.content)
-    except ContentError as exc:
-        return None, Refusal(str(exc), "content")
+    try:  # the language's decode, without its Python call for content that decodes
+        content = checks.language.read(msg.content)
+    except DECODE_ERRORS as exc:
+        return None, Refusal(str(checks.language.error(exc)), "content")
     if checks.contents and type(content).__name__ not in checks.contents:
         why = (
             f"{msg.performative.value} in {msg.protocol} may carry {', '.join(checks.contents)}, "

@@ -989,7 +989,7 @@ class Conversation:
             raise RestoreError(
                 f"a kept communicate of {self.conversation_id} does not decode: {exc}"
             ) from None
-        return Received(msg, content, self.decl.channel)
+        return Received.of(msg, content, self.decl.channel)
 
     def answer_again(self, in_reply_to: str | None = None) -> int:
         """Publish again, byte for byte, what this agent answered the peer's communicate
@@ -1245,7 +1245,7 @@ class Roles:
             retry_s if retry_s is not None else decl.retry_s,
             expect=True,
         )
-        conv.opening = Received(msg, content, decl.channel)
+        conv.opening = Received.of(msg, content, decl.channel)
         if msg.reply_with is not None:
             conv.awaited.add(msg.reply_with)
         before = self._open.get((conv.peer, conv.conversation_id)) if conversation_id else None
@@ -1297,7 +1297,7 @@ class Roles:
             if expect is not None and not isinstance(content, expect):
                 what = type(content).__name__ if content is not None else "no content"
                 raise RestoreError(f"a kept {protocol} conversation carries {what}, not {expect.__name__}")
-            opening = Received(msg, content, decl.channel)
+            opening = Received.of(msg, content, decl.channel)
             conversation_id = msg.conversation_id
         if not conversation_id:
             raise RestoreError("restore needs the kept communicate or the conversation-id")
@@ -1492,7 +1492,7 @@ class Roles:
             conversation_id=about.conversation_id,
             in_reply_to=about.in_reply_to,  # what it answered: e.g. the answer to a cancel
         )
-        self.agent.x.append(Received(ended, None, channel, local=True))
+        self.agent.x.append(Received.of(ended, None, channel, local=True))
 
     def take(self, item: Received) -> None:
         """Route one received communicate (already checked against the interface and the

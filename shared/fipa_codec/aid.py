@@ -121,9 +121,13 @@ class AgentIdentifier(msgspec.Struct, frozen=True, array_like=True, gc=False):
     user: _User = ()
 
     def __post_init__(self) -> None:
-        name = self.name
-        if type(name) is not str or name not in KNOWN_NAMES:  # run on every identifier decoded
-            check_agent_name(name)
+        name = self.name  # run on every identifier decoded: one test for a known name alone
+        if type(name) is not str or name not in KNOWN_NAMES or self.addresses or self.user or self.resolvers:
+            self._check()
+
+    def _check(self) -> None:
+        """The checks of the class docstring (ValueError)."""
+        check_agent_name(self.name)
         for address in self.addresses:
             check_word(address, f"address of agent {self.name}")
         if self.user:

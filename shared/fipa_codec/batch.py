@@ -36,7 +36,8 @@ alone); far below :data:`MAX_COMMUNICATE_BYTES`, the most :func:`unpack` splits.
 
 _encode = msgspec.msgpack.Encoder().encode
 _decode = msgspec.msgpack.Decoder(list[bytes]).decode
-_ARRAY_HEADS = frozenset(range(0x90, 0xA0)) | {0xDC, 0xDD}
+BATCH_HEADS = frozenset(range(0x90, 0xA0)) | {0xDC, 0xDD}
+"""The first bytes of a batch (msgpack array headers); a communicate starts with a map's."""
 
 
 def pack(payloads: Sequence[bytes]) -> bytes:
@@ -47,7 +48,7 @@ def pack(payloads: Sequence[bytes]) -> bytes:
 def is_batch(payload: bytes | bytearray | memoryview) -> bool:
     """Whether ``payload`` is a batch (its first byte a msgpack array header), not one
     communicate. Looks at one byte only: :func:`unpack` checks the rest."""
-    return len(payload) > 0 and payload[0] in _ARRAY_HEADS
+    return len(payload) > 0 and payload[0] in BATCH_HEADS
 
 
 def unpack(payload: bytes) -> list[bytes]:

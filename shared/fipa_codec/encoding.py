@@ -103,10 +103,37 @@ def encode(msg: Communicate, max_size: int = MAX_COMMUNICATE_BYTES) -> bytes:
     would accept it)."""
     data = _mp_encoder.encode(msg)
     if len(data) > max_size:
-        raise EncodeError(
-            f"{msg.performative.value} of {len(data)} bytes exceeds the communicate limit of {max_size}"
-        )
+        raise too_long(msg, len(data), max_size)
     return data
+
+
+def too_long(msg: Communicate, size: int, max_size: int = MAX_COMMUNICATE_BYTES) -> EncodeError:
+    """The EncodeError of :func:`encode` for ``msg`` encoded in ``size`` bytes."""
+    why = f"{msg.performative.value} of {size} bytes exceeds the communicate limit of {max_size}"
+    return EncodeError(why)
+
+
+write = _mp_encoder.encode
+""":func:`encode` without its size check (a C function): for the runtime's compiled send path,
+which checks the size itself (services/runtime/emission.py)."""
+read = _mp_decoder.decode
+""":func:`decode` without its size check, raising what msgspec raises (:data:`DECODE_ERRORS`;
+:func:`decode_error` says why): for the runtime's compiled receive path, which checks the size
+itself and calls no Python for a communicate that decodes (services/runtime/admission.py)."""
+DECODE_ERRORS = (msgspec.DecodeError, msgspec.ValidationError, ValueError, RecursionError)
+"""What msgspec's decoders raise for bytes that are no communicate (:func:`read`), or no term of
+a content language (shared/fipa_codec/languages ``Language.read``); RecursionError: a value
+nested beyond the stack (agent identifiers through resolvers, a recursive term)."""
+
+
+def decode_error(exc: BaseException) -> DecodeError:
+    """The DecodeError, saying why in one line, of one of :data:`DECODE_ERRORS` that decoding
+    raised (a DecodeError itself as it is)."""
+    if isinstance(exc, DecodeError):
+        return exc
+    if isinstance(exc, RecursionError):
+        return DecodeError("agent identifiers nested too deeply")
+    return DecodeError(str(exc).splitlines()[0])
 
 
 def decode(data: bytes | bytearray | memoryview, max_size: int = MAX_COMMUNICATE_BYTES) -> Communicate:
@@ -119,10 +146,8 @@ def decode(data: bytes | bytearray | memoryview, max_size: int = MAX_COMMUNICATE
         raise DecodeError(f"communicate of {len(data)} bytes exceeds the limit of {max_size}", oversized=True)
     try:
         return _mp_decoder.decode(data)
-    except (msgspec.DecodeError, msgspec.ValidationError, ValueError) as exc:
-        raise DecodeError(str(exc).splitlines()[0]) from None
-    except RecursionError:  # agent identifiers nested (through resolvers) beyond the stack
-        raise DecodeError("agent identifiers nested too deeply") from None
+    except DECODE_ERRORS as exc:
+        raise decode_error(exc) from None
 
 
 def encode_json(msg: Communicate, max_size: int = MAX_COMMUNICATE_BYTES) -> bytes:
@@ -153,10 +178,8 @@ def decode_json(
         raise DecodeError(f"communicate of {len(data)} bytes exceeds the limit of {max_size}", oversized=True)
     try:
         return _json_decoder.decode(data)
-    except (msgspec.DecodeError, msgspec.ValidationError, ValueError) as exc:
-        raise DecodeError(str(exc).splitlines()[0]) from None
-    except RecursionError:  # agent identifiers nested (through resolvers) beyond the stack
-        raise DecodeError("agent identifiers nested too deeply") from None
+    except DECODE_ERRORS as exc:
+        raise decode_error(exc) from None
 
 
 def json_schema() -> dict[str, Any]:

@@ -179,7 +179,7 @@ def _received(box: Inbox, cid: str) -> Any:
     q = communicate(
         Performative.QUERY_REF, "a_pl", "a_km", "fipa-query", cid, ObjectQuery("jar"), reply_with="q0"
     )
-    return Received(q, ObjectQuery("jar"), "C4")
+    return Received.of(q, ObjectQuery("jar"), "C4")
 
 
 def test_a_fleet_flooded_with_malformed_communicates_completes_a_pour_and_keeps_serving() -> None:

@@ -16,6 +16,7 @@ from services.runtime.agent import Agent, Received, SpecViolation
 from services.runtime.behaviour import FSM, Arc, Behaviour
 from services.runtime.memory_transport import MemoryBus
 from shared.fipa_codec import AgentIdentifier, Communicate, Performative, decode, encode
+from shared.fipa_codec.encoding import MAX_COMMUNICATE_BYTES, write
 from shared.fipa_codec.languages import encode_content
 from shared.fipa_codec.languages.l_sw import SWState, SWStatus
 from shared.fipa_codec.languages.l_wm import Answer, ObjectQuery
@@ -106,6 +107,7 @@ def test_behaviour_iterates_until_terminal_then_switches(running: tuple) -> None
     ("payload", "why"),
     [
         (b"\x00garbage", "malformed communicate"),
+        (write(query(content=b"\x80" * MAX_COMMUNICATE_BYTES)), "oversized communicate"),  # unchecked size
         (encode(query(performative=Performative.PROPOSE)), "unexpected propose"),
         (encode(query(protocol="fipa-request")), "unexpected query-ref in protocol fipa-request"),
         (encode(query(language="L_SW")), "language L_SW not accepted"),
@@ -267,6 +269,26 @@ def test_a_failing_behaviour_drops_only_its_own_output() -> None:
     assert answers[0].content.startswith(b"malformed communicate")
 
 
+def test_an_input_whose_taking_in_raises_is_counted_and_the_next_is_taken_in() -> None:
+    """No input stops the others taken in with it: one whose handling raised (here the answer
+    to a malformed communicate) is counted ``rejected.internal``; the next is answered."""
+    bus = MemoryBus()
+    agent = Counter(bus.transport())
+    raised: list[object] = []
+
+    def not_taken(found: object) -> None:
+        raised.append(found)
+        raise RuntimeError("a fault while answering")
+
+    agent._not_taken = not_taken  # type: ignore[method-assign]
+    agent.count = 5  # past 'count': the agent answers queries
+    agent._inbox.extend([(KEY, b"\xc1 not msgpack"), (KEY, encode(query("q1")))])
+    agent._acquire()
+    assert len(raised) == 1 and agent.counters["rejected.internal"] == 1
+    assert [item.msg.reply_with for item in agent.x] == ["q1"]
+    assert agent.x[0].performative is Performative.QUERY_REF and agent.x[0].sender == "a_pl"
+
+
 def test_a_followed_protocol_without_a_conversation_id_is_not_understood(
     running: tuple[MemoryBus, Counter, queue.SimpleQueue[Communicate]],
 ) -> None:
@@ -291,7 +313,7 @@ def test_a_step_takes_in_what_had_arrived_when_it_began_not_what_floods_in_meanw
         if len(taken) < 1000:
             agent.post(("more", len(taken)))
 
-    agent._take = take  # type: ignore[method-assign]
+    agent._take_event = take  # type: ignore[method-assign]  # post() puts events
     for i in range(3):
         agent.post(("first", i))
     agent._acquire()

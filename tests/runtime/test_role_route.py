@@ -25,7 +25,7 @@ def received(perf: P, sender: str, protocol: str, cid: str, **kw: str) -> Receiv
         conversation_id=cid,
         **kw,  # type: ignore[arg-type]
     )
-    return Received(msg, None, "C1")
+    return Received.of(msg, None, "C1")
 
 
 def table_of(agent: Initiator | Participant, protocol: str) -> RoleTable:
