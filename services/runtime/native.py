@@ -16,9 +16,9 @@ only touches a file changes nothing.
 ``ROCO_INTERPRETED=1`` loads every one from its source (to profile the Python with cProfile,
 or to compare).
 
-Measured (scripts/profile_runtime.py --cpu, median of 9, docs/benchmarks.md): CPU per
-request → inform round trip 49.5–51.5 µs interpreted (earlier), 21.2–21.8 µs compiled; per
-streamed communicate 12.5–13 → 7.3 µs.
+Measured (scripts/profile_runtime.py --cpu, median of 7, docs/benchmarks.md): CPU per
+request → inform round trip 36.5–37.8 µs interpreted, 19.5–19.9 µs compiled; per streamed
+communicate 9.5 → 6.8 µs.
 """
 
 from __future__ import annotations
