@@ -11,7 +11,8 @@ conversation-id where its protocol is followed, the bound on open conversations 
 and its protocol state, stepped (:func:`step`). It decides and changes only the protocol
 state and the duplicate filter; what the agent does about the outcome (answer
 not-understood, count, log, put the communicate into its input buffer) is the agent's
-(services/runtime/agent.py ``Agent._not_taken``).
+(services/runtime/agent.py ``Agent._not_taken``). :meth:`Gate.take_all` takes a step's inputs in,
+in one call.
 """
 
 from __future__ import annotations

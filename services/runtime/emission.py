@@ -11,8 +11,9 @@ performative, protocol and content type by the agent, ``Agent._outgoing``), the
 communicate's construction (with its own checks, shared/fipa_codec/message.py), the
 conversation's protocol state, stepped (services/runtime/admission.py ``step``), encoding with
 its size limit, the reply awaited, the answer remembered for a copy of what it answers, the
-output buffer and the ``sent.<performative>`` counter. What the agent does when a check fails
-(count, log, raise SpecViolation) stays the agent's (:class:`Host`).
+output buffer and the ``sent.<performative>`` counter; :meth:`Outbox.dispatch` puts the output
+buffer on the transport after each step, in batches per receiver. What the agent does when a
+check fails (count, log, raise SpecViolation) stays the agent's (:class:`Host`).
 """
 
 from __future__ import annotations
