@@ -17,6 +17,7 @@ import pytest
 
 from tests.support.fresh import run_python
 from tests.support.machine import needs_gl
+from velma.world.files import LINK_FILE
 
 HEAVY = ("mujoco", "pinocchio", "matplotlib", "rerun", "rdflib", "pyoxigraph")
 """Libraries no lean agent may load."""
@@ -80,10 +81,15 @@ def test_the_runtime_loads_no_temporary_file_or_archive_module(name: str) -> Non
     assert loaded(PROBE.format(name=name, build=True, heavy=STDLIB_UNUSED)) == set()
 
 
-def test_the_executor_agent_loads_its_physics_only_when_it_starts_the_robot() -> None:
-    """ag_ex's module and class import no physics: MuJoCo and Pinocchio come with the executor
-    it builds (velma/executor), not with the communication side."""
-    assert loaded(PROBE.format(name="ag_ex", build=False, heavy=HEAVY)) == set()
+def test_the_executor_agent_loads_no_physics_when_built(tmp_path: Path) -> None:
+    """ag_ex's communication side, built as a fleet builds it (its world process has named its
+    link in the run folder: velma/world/files.py), imports no physics and no GL: MuJoCo and
+    Pinocchio are its loop's and its world's, the renderer its camera process's."""
+    (tmp_path / LINK_FILE).write_text("roco-world-test\n")
+    code = f"import os\nos.environ['ROCO_RUN_DIR'] = {str(tmp_path)!r}\n" + PROBE.format(
+        name="ag_ex", build=True, heavy=(*HEAVY, "OpenGL")
+    )
+    assert loaded(code) == set()
 
 
 def test_a_synthetic_agent_loads_no_heavy_library() -> None:

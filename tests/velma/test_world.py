@@ -20,10 +20,10 @@ from velma.control.mujoco_side import mujoco_side_unavailable
 from velma.control.robot_model import HEAD_JOINTS, SIDES, TORSO_JOINT, RobotModel, arm_joints
 from velma.executor.checkpoint import observe_scene
 from velma.shm import SHM_DIR
+from velma.world.files import FINAL_FILE, link_name
 from velma.world.hardware import CONTACT_PERIOD, DT, SimulatedVelma
 from velma.world.layout import COMMAND, HAND_KEEP, HAND_MOVE, HAND_OP, MEASURED
 from velma.world.link import RobotLink
-from velma.world.main import FINAL_FILE, link_name
 from velma.world.serve import HOLD_CYCLES
 
 HELD = [RobotModel().v_index(j) for j in (*arm_joints("right"), *arm_joints("left"), TORSO_JOINT)]

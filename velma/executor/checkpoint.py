@@ -351,7 +351,7 @@ def resume(loop: ControlLoop[Any], ckpt: Checkpoint) -> None:
 
 def observe_scene(values: bytes, *, seed: int = 0, pose_seed: int | None = None) -> Observation:
     """The ground truth of a kitchen saved as raw float64 (the time, then MuJoCo's ``qpos``: a
-    world process's final scene, velma/world/main.py ``FINAL_FILE``) for the scene of ``seed``
+    world process's final scene, velma/world/files.py ``FINAL_FILE``) for the scene of ``seed``
     and ``pose_seed``: for judging a run, never for the agents. Raises ValueError when the
     values do not fit that scene."""
     import mujoco
