@@ -34,7 +34,7 @@ from typing import TYPE_CHECKING, Any
 import msgspec
 import numpy as np
 
-from velma.executor.state import SNAPSHOT_SIDES
+from velma.control.joints import SIDES
 
 if TYPE_CHECKING:
     import mujoco
@@ -45,7 +45,6 @@ if TYPE_CHECKING:
 
 FORMAT = "roco-ex-checkpoint/1"
 RESTART_WHY = "ag_ex restarted"  # the loop's ``holding`` after ``resume``
-SIDES = SNAPSHOT_SIDES  # = velma.control.robot_model.SIDES
 MODES = ("joint", "cart", "safe")  # ArmCommand.mode, as a number in the checkpoint
 
 
