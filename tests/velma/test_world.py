@@ -259,3 +259,23 @@ def test_the_compiled_world_cycle_refuses_a_vector_shorter_than_the_layout() -> 
         sim.measure(np.zeros(MEASURED.size - 1))
     with pytest.raises(ValueError, match="shorter than the layout"):
         sim.apply(np.zeros(COMMAND.size - 1))
+
+
+def test_a_controller_that_orders_the_joints_otherwise_than_the_world_is_refused() -> None:
+    """The link carries the joints in the world's order (velma/control/joints.py
+    ``robot_joints``, Pinocchio's); a controller mapping them otherwise would command the wrong
+    joints: it is refused before it waits for the world's state."""
+    import mujoco
+
+    from velma.control.joints import JointMap, robot_joints
+    from velma.executor.world_link import WorldLink
+    from velma.model.scene import load_kitchen
+
+    model = load_kitchen(4)
+    link = RobotLink.create(MEASURED.size, COMMAND.size, 1 + model.nq)
+    try:
+        swapped = JointMap.build(model, robot_joints(model)[::-1])
+        with pytest.raises(ValueError, match="orders the robot's joints otherwise"):
+            WorldLink(link, model, mujoco.MjData(model), swapped, timeout_s=0.1)
+    finally:
+        link.close()
