@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import ctypes.util
 import os
+import sys
 from collections.abc import MutableMapping
 
 PLATFORMS = (("egl", "EGL"), ("osmesa", "OSMesa"))
@@ -30,6 +31,20 @@ def choose(environ: MutableMapping[str, str] = os.environ) -> str:
     chosen = next((name for name, library in PLATFORMS if ctypes.util.find_library(library)), NONE)
     environ["MUJOCO_GL"] = chosen
     return chosen
+
+
+def never_renders(environ: MutableMapping[str, str] = os.environ) -> bool:
+    """Say that this process never renders: ``environ["MUJOCO_GL"]`` becomes ``disable`` so that
+    MuJoCo, first imported after this, loads no GL platform (no PyOpenGL, libEGL or Mesa's
+    loader: ≈ 4.6 MiB VmRSS, ≈ 60 modules less; ``import mujoco`` in a fresh interpreter with
+    ``egl`` against ``disable``, Python 3.11, mujoco's wheel), and processes it starts
+    afterwards inherit that. For the world process and ag_ex's loop (the head camera renders in
+    a process of its own). Returns False, changing nothing, when MuJoCo is imported already: its
+    platform is chosen."""
+    if "mujoco" in sys.modules:
+        return False
+    environ["MUJOCO_GL"] = NONE
+    return True
 
 
 def renders(environ: MutableMapping[str, str] = os.environ) -> bool:

@@ -229,12 +229,12 @@ def final_world(run_dir: Path) -> Observation | None:
 
 def judged_world(run_dir: Path) -> tuple[Observation, str] | None:
     """The ground truth of the world as the run left it in ``run_dir`` (every known object's
-    pose, containers' particle counts): the world process's final scene (velma/world/main.py
+    pose, containers' particle counts): the world process's final scene (velma/world/files.py
     ``FINAL_FILE``) for the scene the launch environment names (ROCO_SEED, ROCO_POSE_SEED): for
     judging a run, never for the agents; with where it comes from. None when there is none
     (``ROCO_WORLD=loop``), or it does not fit (logged)."""
     from velma.executor.checkpoint import observe_scene
-    from velma.world.main import FINAL_FILE
+    from velma.world.files import FINAL_FILE
 
     scene = run_dir / FINAL_FILE
     if not scene.is_file():

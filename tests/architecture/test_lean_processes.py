@@ -6,17 +6,27 @@ Each check runs in a fresh interpreter (``subprocess``: a new process, nothing i
 this test process, which has imported everything) that does what ``services.runtime.main``
 does before the agent runs: load the specification, import the agent's class, build the agent
 (here on an in-memory transport), and prints ``sys.modules``' heavy libraries.
+
+ag_ex's processes each load only the physics they compute with, read from the shared libraries
+a running process maps (``/proc/PID/maps``): the world process MuJoCo, without Pinocchio; the
+loop Pinocchio and MuJoCo (its mirror of the kitchen); neither loads a GL platform (velma/gl.py
+``never_renders``: the head camera renders in a process of its own).
 """
 
 from __future__ import annotations
 
 import json
+import os
+import subprocess
+import sys
+import time
 from pathlib import Path
 
 import pytest
 
-from tests.support.fresh import run_python
+from tests.support.fresh import ROOT, run_python
 from tests.support.machine import needs_gl
+from velma.world.files import LINK_FILE, link_name
 
 HEAVY = ("mujoco", "pinocchio", "matplotlib", "rerun", "rdflib", "pyoxigraph")
 """Libraries no lean agent may load."""
@@ -80,10 +90,15 @@ def test_the_runtime_loads_no_temporary_file_or_archive_module(name: str) -> Non
     assert loaded(PROBE.format(name=name, build=True, heavy=STDLIB_UNUSED)) == set()
 
 
-def test_the_executor_agent_loads_its_physics_only_when_it_starts_the_robot() -> None:
-    """ag_ex's module and class import no physics: MuJoCo and Pinocchio come with the executor
-    it builds (velma/executor), not with the communication side."""
-    assert loaded(PROBE.format(name="ag_ex", build=False, heavy=HEAVY)) == set()
+def test_the_executor_agent_loads_no_physics_when_built(tmp_path: Path) -> None:
+    """ag_ex's communication side, built as a fleet builds it (its world process has named its
+    link in the run folder: velma/world/files.py), imports no physics and no GL: MuJoCo and
+    Pinocchio are its loop's and its world's, the renderer its camera process's."""
+    (tmp_path / LINK_FILE).write_text("roco-world-test\n")
+    code = f"import os\nos.environ['ROCO_RUN_DIR'] = {str(tmp_path)!r}\n" + PROBE.format(
+        name="ag_ex", build=True, heavy=(*HEAVY, "OpenGL")
+    )
+    assert loaded(code) == set()
 
 
 def test_a_synthetic_agent_loads_no_heavy_library() -> None:
@@ -136,3 +151,72 @@ def test_the_executor_observes_with_the_camera_without_loading_the_renderer() ->
         f"print(json.dumps([n for n in {HEAVY!r} if n in sys.modules]))\n"
     )
     assert loaded(code) == set()
+
+
+PHYSICS_LIBRARIES = ("libmujoco", "libpinocchio", "libcoal", "libboost_python", "libeigenpy")
+GL_LIBRARIES = ("libEGL", "libGL", "libOpenGL", "libOSMesa", "libglapi")
+
+
+def libraries(pid: int) -> set[str]:
+    """The file names of the shared libraries process ``pid`` maps (``/proc/PID/maps``)."""
+    lines = Path(f"/proc/{pid}/maps").read_text().splitlines()
+    return {line.rsplit("/", 1)[-1] for line in lines if ".so" in line.rsplit("/", 1)[-1]}
+
+
+def named(found: set[str], prefixes: tuple[str, ...]) -> set[str]:
+    """Those of ``found`` whose name begins with one of ``prefixes``."""
+    return {f for f in found if f.startswith(prefixes)}
+
+
+def test_the_library_check_sees_a_mapped_library() -> None:
+    """The check can fail: this test process, once it imported Pinocchio, maps it."""
+    import pinocchio  # noqa: F401
+
+    assert named(libraries(os.getpid()), ("libpinocchio",))
+
+
+def test_the_world_process_maps_mujoco_without_pinocchio_or_gl(tmp_path: Path) -> None:
+    """``python -m velma.world`` as the launcher starts it, once it serves its link: MuJoCo's
+    physics, no Pinocchio (the joints' order comes from MuJoCo's model, velma/control/joints.py
+    ``robot_joints``) and no GL platform."""
+    log = tmp_path / "world.stderr"
+    with log.open("w") as stderr:
+        world = subprocess.Popen(
+            [sys.executable, "-m", "velma.world", "--run-dir", str(tmp_path), "--no-realtime"],
+            cwd=ROOT,
+            env={**os.environ, "PYTHONPATH": str(ROOT)},
+            stderr=stderr,
+        )
+    try:
+        deadline = time.monotonic() + 120
+        while link_name(tmp_path) is None and world.poll() is None and time.monotonic() < deadline:
+            time.sleep(0.05)  # polls for the file the world writes once its link exists
+        assert link_name(tmp_path) is not None, log.read_text()[-2000:]
+        found = libraries(world.pid)
+    finally:
+        world.terminate()
+        world.wait(30)
+    assert named(found, ("libmujoco",))
+    assert named(found, PHYSICS_LIBRARIES[1:] + GL_LIBRARIES) == set()
+
+
+def test_the_loop_process_maps_its_physics_without_gl() -> None:
+    """ag_ex's loop (velma/executor/process.py, here with the kitchen's physics in it as with
+    ``ROCO_WORLD=loop``) computes with Pinocchio and MuJoCo, and renders nothing."""
+    code = (
+        "import json\n"
+        "from pathlib import Path\n"
+        "from velma.executor.process import ExecutorProcess\n"
+        "ex = ExecutorProcess(perception='truth', realtime=False)\n"
+        "ex.start()\n"
+        "try:\n"
+        "    maps = Path(f'/proc/{ex.pid}/maps').read_text().splitlines()\n"
+        "finally:\n"
+        "    ex.stop()\n"
+        "print(json.dumps(sorted({m.rsplit('/', 1)[-1] for m in maps if '.so' in m.rsplit('/', 1)[-1]})))\n"
+    )
+    done = run_python(code)
+    assert done.returncode == 0, done.stderr[-2000:]
+    found = set(json.loads(done.stdout.strip().splitlines()[-1]))
+    assert named(found, ("libmujoco",)) and named(found, ("libpinocchio",))
+    assert named(found, GL_LIBRARIES) == set()

@@ -217,8 +217,8 @@ def test_an_object_that_fell_after_its_last_observation_is_found_in_the_final_wo
     that does not fit the scene is not used."""
     import numpy as np
 
+    from velma.world.files import FINAL_FILE
     from velma.world.hardware import SimulatedVelma
-    from velma.world.main import FINAL_FILE
 
     b = RunBuilder()
     b.add(1, "C5", "ag_ex", "a_ta", "inform", _observation(0.76), protocol="fipa-request", conversation="c")

@@ -11,7 +11,7 @@ import sys
 import pytest
 
 from velma.executor.capture import DEFAULT_PERCEPTION, camera_unavailable, perception_mode
-from velma.gl import HOW, NONE, choose, renders
+from velma.gl import HOW, NONE, choose, never_renders, renders
 
 
 def _installed(*libraries: str) -> object:
@@ -35,6 +35,29 @@ def test_the_first_installed_library_is_chosen(
     env: dict[str, str] = {}
     assert choose(env) == chosen == env["MUJOCO_GL"]
     assert renders(env) is (chosen != NONE)
+
+
+def test_a_process_that_never_renders_imports_mujoco_without_a_gl_platform() -> None:
+    """The world process and ag_ex's loop: ``never_renders`` before MuJoCo's first import
+    leaves out its GL platform (PyOpenGL)."""
+    code = (
+        "import os, sys\n"
+        "from velma.gl import never_renders\n"
+        "first = never_renders()\n"
+        "import mujoco\n"
+        "print(first, os.environ['MUJOCO_GL'], 'OpenGL' in sys.modules)\n"
+    )
+    env = {**os.environ, "MUJOCO_GL": "egl"}
+    done = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, check=False)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.split() == ["True", NONE, "False"]
+
+
+def test_once_mujoco_is_imported_never_renders_changes_nothing() -> None:
+    import mujoco  # noqa: F401  (its platform is chosen)
+
+    env = {"MUJOCO_GL": "egl"}
+    assert never_renders(env) is False and env == {"MUJOCO_GL": "egl"}
 
 
 def test_without_a_gl_platform_mujoco_still_simulates() -> None:

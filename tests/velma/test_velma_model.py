@@ -13,8 +13,9 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from velma.control.robot_model import SIDES, JointMap, RobotModel, grip_frame
-from velma.model import KITCHEN_XML, VELMA_XML
+from velma.control.joints import JointMap, robot_joints
+from velma.control.robot_model import SIDES, RobotModel
+from velma.model import KITCHEN_XML, VELMA_XML, grip_frame
 from velma.model.generate import build, build_kitchen, effort_limits, velocity_limits
 
 TOL = 1e-9  # the agreement asked for; the models agree to ≈ 1e-14
@@ -25,7 +26,7 @@ SEEDS = range(8)
 def models() -> tuple[mujoco.MjModel, RobotModel, JointMap]:
     mj = mujoco.MjModel.from_xml_path(str(VELMA_XML))
     robot = RobotModel()
-    return mj, robot, JointMap.build(mj, robot)
+    return mj, robot, JointMap.build(mj, robot.joint_names)
 
 
 def test_model_files_are_generated() -> None:
@@ -41,6 +42,28 @@ def test_pinocchio_parses_whole_robot(models: tuple[mujoco.MjModel, RobotModel, 
     for side in SIDES:
         for k in range(7):
             assert f"{side}_arm_{k}_joint" in names
+
+
+def test_mujoco_numbers_the_robot_joints_in_pinocchio_order(
+    models: tuple[mujoco.MjModel, RobotModel, JointMap],
+) -> None:
+    """The world process maps the joints without Pinocchio (velma/control/joints.py
+    ``robot_joints``): MuJoCo's order, in velma.xml alone and in the kitchen, is Pinocchio's v
+    order, and the map built from it is the controller's."""
+    from velma.model.scene import load_kitchen
+
+    mj, robot, _ = models
+    assert robot_joints(mj) == robot.joint_names
+    assert [robot.v_index(n) for n in robot.joint_names] == list(range(robot.model.nv))
+    kitchen = load_kitchen(4)
+    assert robot_joints(kitchen) == robot.joint_names
+    mapped = JointMap.build(kitchen, robot_joints(kitchen))
+    by_pinocchio = JointMap.build(kitchen, robot.joint_names)
+    assert np.array_equal(mapped.qpos_adr, by_pinocchio.qpos_adr)
+    assert np.array_equal(mapped.dof_adr, by_pinocchio.dof_adr)
+    two = "<body name='torso_base'><joint/><geom size='.1'/><body><joint/><geom size='.1'/></body></body>"
+    with pytest.raises(ValueError, match="2 joints"):  # not Velma
+        robot_joints(mujoco.MjModel.from_xml_string(f"<mujoco><worldbody>{two}</worldbody></mujoco>"))
 
 
 # ------------------------------------------------------------------ the facts

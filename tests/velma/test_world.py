@@ -20,10 +20,10 @@ from velma.control.mujoco_side import mujoco_side_unavailable
 from velma.control.robot_model import HEAD_JOINTS, SIDES, TORSO_JOINT, RobotModel, arm_joints
 from velma.executor.checkpoint import observe_scene
 from velma.shm import SHM_DIR
+from velma.world.files import FINAL_FILE, link_name
 from velma.world.hardware import CONTACT_PERIOD, DT, SimulatedVelma
 from velma.world.layout import COMMAND, HAND_KEEP, HAND_MOVE, HAND_OP, MEASURED
 from velma.world.link import RobotLink
-from velma.world.main import FINAL_FILE, link_name
 from velma.world.serve import HOLD_CYCLES
 
 HELD = [RobotModel().v_index(j) for j in (*arm_joints("right"), *arm_joints("left"), TORSO_JOINT)]
@@ -259,3 +259,23 @@ def test_the_compiled_world_cycle_refuses_a_vector_shorter_than_the_layout() -> 
         sim.measure(np.zeros(MEASURED.size - 1))
     with pytest.raises(ValueError, match="shorter than the layout"):
         sim.apply(np.zeros(COMMAND.size - 1))
+
+
+def test_a_controller_that_orders_the_joints_otherwise_than_the_world_is_refused() -> None:
+    """The link carries the joints in the world's order (velma/control/joints.py
+    ``robot_joints``, Pinocchio's); a controller mapping them otherwise would command the wrong
+    joints: it is refused before it waits for the world's state."""
+    import mujoco
+
+    from velma.control.joints import JointMap, robot_joints
+    from velma.executor.world_link import WorldLink
+    from velma.model.scene import load_kitchen
+
+    model = load_kitchen(4)
+    link = RobotLink.create(MEASURED.size, COMMAND.size, 1 + model.nq)
+    try:
+        swapped = JointMap.build(model, robot_joints(model)[::-1])
+        with pytest.raises(ValueError, match="orders the robot's joints otherwise"):
+            WorldLink(link, model, mujoco.MjData(model), swapped, timeout_s=0.1)
+    finally:
+        link.close()

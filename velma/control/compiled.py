@@ -18,7 +18,6 @@ from __future__ import annotations
 
 import logging
 import math
-from types import ModuleType
 
 import numpy as np
 import pinocchio as pin
@@ -27,18 +26,13 @@ from shared.settings import Settings
 from velma.control import impedance as imp
 from velma.control.ik import DlsKernel
 from velma.control.limits import ARM_TORQUE_LIMIT, FULL_BAND_JOINTS, SINGULAR_JOINTS, TORQUE_RATE_LIMIT
+from velma.control.native import IMPORT_ERROR as _IMPORT_ERROR
+from velma.control.native import extension as _impedance
 from velma.control.robot_model import SIDES, Array, RobotModel
 from velma.control.self_collision import WRIST_BAND, WRIST_BAND_DAMPING, WRIST_BAND_TORQUE, WristField
 
 log = logging.getLogger(__name__)
 
-try:  # built by `pip install` (setup.py); absent when no C++ compiler was found
-    from velma.control import _impedance
-except ImportError as exc:  # pragma: no cover - depends on the build
-    _impedance = None  # type: ignore[assignment]
-    _IMPORT_ERROR: str | None = str(exc)
-else:
-    _IMPORT_ERROR = None
 
 ENV_LAW = Settings.env_name("control_law")
 """Environment variable: ``python`` forces the Python law, ``compiled`` requires the compiled
@@ -48,11 +42,6 @@ _MODE = {mode: k for k, mode in enumerate(imp.MODES)}  # kCart, kJoint, kSafe of
 _JOINT_KIND = {"JointModelRX": 0, "JointModelRY": 1, "JointModelRZ": 2, "JointModelRevoluteUnaligned": 3}
 # the command row of one arm (the layout of _impedance.cpp)
 _ROT, _POS, _TWIST, _STIFF, _POSTURE, _Q, _QD, _KJ, _WIDTH = 1, 10, 13, 19, 25, 32, 39, 46, 53
-
-
-def native_module() -> ModuleType | None:
-    """The compiled module (``velma.control._impedance``), or None when it is not built."""
-    return _impedance
 
 
 def compiled_available() -> bool:

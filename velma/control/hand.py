@@ -40,7 +40,7 @@ import mujoco
 import numpy as np
 import numpy.typing as npt
 
-from velma.control.robot_model import SIDES, Array, distal_joints, proximal_joints, spread_joints
+from velma.control.joints import ROBOT_ROOT, SIDES, Array, distal_joints, proximal_joints, spread_joints
 
 PROXIMAL_MAX = 2.4434  # rad (velma-facts.md, BarrettHand table)
 DISTAL_MAX = 0.8377  # rad (velma-facts.md, BarrettHand table)
@@ -301,7 +301,7 @@ class ContactMonitor:
     def __init__(self, model: mujoco.MjModel) -> None:
         self.hand_side = np.full(model.ngeom, -1, dtype=np.int64)
         robot_bodies = set()
-        root = model.body("torso_base").id
+        root = model.body(ROBOT_ROOT).id
         for b in range(model.nbody):
             x = b
             while x != 0 and x != root:

@@ -19,9 +19,9 @@ import mujoco
 
 from shared.settings import Settings
 from velma.control import hand
-from velma.control.compiled import native_module
 from velma.control.hand import ContactMonitor, Hands
-from velma.control.robot_model import SIDES, Array, JointMap
+from velma.control.joints import SIDES, Array, JointMap
+from velma.control.native import native_module
 
 ENV_PLANT = Settings.env_name("plant")
 """Environment variable: ``compiled`` requires the compiled plant (an error if it cannot

@@ -1,9 +1,10 @@
-"""Pinocchio model of Velma built from ``velma.xml``, and the index map to a MuJoCo model.
+"""Pinocchio model of Velma built from ``velma.xml``.
 
-The controller never assumes that MuJoCo's qpos/qvel order equals Pinocchio's q/v order: it
-maps every Velma joint by name (``JointMap``). Both models come from the same velma.xml
-(kitchen.xml includes it), so kinematics and dynamics agree to rounding (see
-tests/velma/test_velma_model.py).
+Both models come from the same velma.xml (kitchen.xml includes it), so kinematics and dynamics
+agree to rounding (see tests/velma/test_velma_model.py); the joints are matched by name
+(velma/control/joints.py ``JointMap``, built with ``RobotModel.joint_names``). The joint names
+and the map import no Pinocchio and are imported from velma/control/joints.py, re-exported here
+for the controller's modules.
 
 Source: velma-facts.md (joint names, tool chain); platform-notes.md (``buildModelFromMJCF``
 reads only the first body tree: the number of joints is checked after loading).
@@ -11,44 +12,43 @@ reads only the first body tree: the number of joints is checked after loading).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from pathlib import Path
 
-import mujoco
 import numpy as np
-import numpy.typing as npt
 import pinocchio as pin
 
+from velma.control.joints import (
+    EXPECTED_NV,
+    FINGERS,
+    HEAD_JOINTS,
+    SIDES,
+    TORSO_JOINT,
+    Array,
+    IntArray,
+    JointMap,
+    arm_joints,
+    distal_joints,
+    proximal_joints,
+    spread_joints,
+)
 from velma.model import VELMA_XML, grip_frame
 
-Array = npt.NDArray[np.float64]
-IntArray = npt.NDArray[np.int64]
-
-SIDES = ("right", "left")
-TORSO_JOINT = "torso_0_joint"
-HEAD_JOINTS = ("head_pan_joint", "head_tilt_joint")
-FINGERS = ("One", "Two", "Three")
-EXPECTED_NV = 33  # torso 1 + head 2 + 2 × (arm 7 + hand 8)
-
-
-def arm_joints(side: str) -> tuple[str, ...]:
-    """The seven LWR4+ joint names of ``side`` (``right``/``left``), base to wrist."""
-    return tuple(f"{side}_arm_{k}_joint" for k in range(7))
-
-
-def spread_joints(side: str) -> tuple[str, str]:
-    """Spread joints of fingers One and Two (one shared command)."""
-    return (f"{side}_HandFingerOneKnuckleOneJoint", f"{side}_HandFingerTwoKnuckleOneJoint")
-
-
-def proximal_joints(side: str) -> tuple[str, ...]:
-    """Proximal (KnuckleTwo) joints of fingers One, Two, Three."""
-    return tuple(f"{side}_HandFinger{n}KnuckleTwoJoint" for n in FINGERS)
-
-
-def distal_joints(side: str) -> tuple[str, ...]:
-    """Distal (KnuckleThree) joints of fingers One, Two, Three."""
-    return tuple(f"{side}_HandFinger{n}KnuckleThreeJoint" for n in FINGERS)
+__all__ = [
+    "EXPECTED_NV",
+    "FINGERS",
+    "HEAD_JOINTS",
+    "SIDES",
+    "TORSO_JOINT",
+    "Array",
+    "IntArray",
+    "JointMap",
+    "RobotModel",
+    "arm_joints",
+    "distal_joints",
+    "grip_frame",
+    "proximal_joints",
+    "spread_joints",
+]
 
 
 class RobotModel:
@@ -64,6 +64,7 @@ class RobotModel:
             raise RuntimeError(f"{path}: Pinocchio parsed nq={self.model.nq}, expected {EXPECTED_NV}")
         self.data: pin.Data = self.model.createData()
         self.joint_names: tuple[str, ...] = tuple(self.model.names[1:])
+        """The joints' names in v order (each 1-DOF: the v index of each is its place)."""
         self.grip_frame_id = {s: self.model.getFrameId(grip_frame(s)) for s in SIDES}
 
     def v_index(self, joint: str) -> int:
@@ -73,41 +74,3 @@ class RobotModel:
     def v_indices(self, joints: tuple[str, ...]) -> IntArray:
         """Indices of ``joints`` in v, in the order given."""
         return np.array([self.v_index(j) for j in joints], dtype=np.int64)
-
-
-@dataclass(frozen=True)
-class JointMap:
-    """Index arrays between a MuJoCo model and Pinocchio, matched by joint name.
-
-    ``qpos_adr[i]`` / ``dof_adr[i]`` are the MuJoCo qpos / qvel addresses of Pinocchio's
-    joint with v index ``i``; ``ctrl`` maps actuator names to MuJoCo actuator indices.
-    """
-
-    qpos_adr: IntArray
-    dof_adr: IntArray
-    ctrl: dict[str, int]
-
-    @staticmethod
-    def build(mj: mujoco.MjModel, robot: RobotModel) -> JointMap:
-        """Match by name; raises ``KeyError`` if a Pinocchio joint is missing in MuJoCo."""
-        qpos = np.zeros(robot.model.nv, dtype=np.int64)
-        dof = np.zeros(robot.model.nv, dtype=np.int64)
-        for name in robot.joint_names:
-            jid = mujoco.mj_name2id(mj, mujoco.mjtObj.mjOBJ_JOINT, name)
-            if jid < 0:
-                raise KeyError(f"joint {name} not in the MuJoCo model")
-            i = robot.v_index(name)
-            qpos[i] = mj.jnt_qposadr[jid]
-            dof[i] = mj.jnt_dofadr[jid]
-        ctrl = {mj.actuator(i).name: i for i in range(mj.nu)}
-        return JointMap(qpos_adr=qpos, dof_adr=dof, ctrl=ctrl)
-
-    def q(self, data: mujoco.MjData) -> Array:
-        """Pinocchio q (rad, shape (33,)) from MuJoCo ``data.qpos``."""
-        out: Array = data.qpos[self.qpos_adr]
-        return out
-
-    def v(self, data: mujoco.MjData) -> Array:
-        """Pinocchio v (rad/s, shape (33,)) from MuJoCo ``data.qvel``."""
-        out: Array = data.qvel[self.dof_adr]
-        return out

@@ -34,7 +34,7 @@ from typing import TYPE_CHECKING, Any
 import msgspec
 import numpy as np
 
-from velma.executor.state import SNAPSHOT_SIDES
+from velma.control.joints import SIDES
 
 if TYPE_CHECKING:
     import mujoco
@@ -45,7 +45,6 @@ if TYPE_CHECKING:
 
 FORMAT = "roco-ex-checkpoint/1"
 RESTART_WHY = "ag_ex restarted"  # the loop's ``holding`` after ``resume``
-SIDES = SNAPSHOT_SIDES  # = velma.control.robot_model.SIDES
 MODES = ("joint", "cart", "safe")  # ArmCommand.mode, as a number in the checkpoint
 
 
@@ -351,7 +350,7 @@ def resume(loop: ControlLoop[Any], ckpt: Checkpoint) -> None:
 
 def observe_scene(values: bytes, *, seed: int = 0, pose_seed: int | None = None) -> Observation:
     """The ground truth of a kitchen saved as raw float64 (the time, then MuJoCo's ``qpos``: a
-    world process's final scene, velma/world/main.py ``FINAL_FILE``) for the scene of ``seed``
+    world process's final scene, velma/world/files.py ``FINAL_FILE``) for the scene of ``seed``
     and ``pose_seed``: for judging a run, never for the agents. Raises ValueError when the
     values do not fit that scene."""
     import mujoco

@@ -22,8 +22,8 @@ import numpy.typing as npt
 
 from velma.control.compiled import CompiledController
 from velma.control.hand import ContactMonitor, Hands
+from velma.control.joints import SIDES, Array, JointMap
 from velma.control.mujoco_side import bind_servos, make_plant, mujoco_side_unavailable
-from velma.control.robot_model import SIDES, Array, JointMap
 from velma.executor.state import LINK_BODIES, raw_layout
 
 

@@ -212,6 +212,9 @@ class LoopConfig(msgspec.Struct, frozen=True, kw_only=True):
 # ---------------------------------------------------------------------- loop process side
 def loop_main(config: bytes, doorbell: multiprocessing.connection.Connection) -> None:
     """Entry point of the loop process (started with spawn by ``ExecutorProcess``)."""
+    from velma.gl import never_renders
+
+    never_renders()  # the loop renders nothing (the head camera's process does): no GL platform
     from velma.executor.loop import ControlLoop
     from velma.executor.runtime import Runtime
     from velma.executor.state_block import StateWriter

@@ -103,7 +103,8 @@ class Runtime:
         a hand grasps (``WorldLink.grasped``), and runs no plant. ``link_spin_s``: how long a
         cycle spins before it sleeps while it waits for the world. Raises RuntimeError when
         the world publishes nothing (``ATTACH_TIMEOUT_S``), ValueError when its kitchen is
-        another model than this one's."""
+        another model than this one's, or orders the robot's joints otherwise than Pinocchio
+        (velma/executor/world_link.py ``WorldLink``)."""
         self.pose_seed = pose_seed
         self.model = load_kitchen(N_PARTICLES if n_particles is None else n_particles, seed, pose_seed)
         self.model.opt.timestep = DT
@@ -127,7 +128,7 @@ class Runtime:
         }
         self.ft_site = {s: self.model.site(f"{s}_ft_sensor").id for s in SIDES}
         """The site of each wrist F/T sensor: its frame is the sensor's (``ft_force``)."""
-        self.jmap = JointMap.build(self.model, self.robot)
+        self.jmap = JointMap.build(self.model, self.robot.joint_names)
         self.ctrl = make_controller(self.robot, DT)
         self.ik_kernel: DlsKernel | None = (
             self.ctrl.ik_kernel if isinstance(self.ctrl, CompiledController) else None

@@ -12,13 +12,14 @@ import numpy as np
 import numpy.typing as npt
 
 from shared.fipa_codec.languages.common import Pose
+from velma.control.joints import SIDES
 from velma.executor.timing import TimingStats
 from velma.rotations import quat_wxyz
 
 if TYPE_CHECKING:
     from velma.executor.runtime import Runtime
 
-SNAPSHOT_SIDES = ("right", "left")  # = velma.control.robot_model.SIDES (not imported: no Pinocchio here)
+SNAPSHOT_SIDES = SIDES  # the order of the sides in a snapshot's numbers
 # The MuJoCo bodies whose world poses the snapshot carries (20): torso, head, each arm's 7
 # links and each hand's palm (velma/model/generate.py).
 LINK_BODIES: tuple[str, ...] = (
@@ -109,8 +110,6 @@ def raw_state(rt: Runtime, holding: str | None = None) -> RawState:
 
 def python_gather(rt: Runtime, out: npt.NDArray[np.float64]) -> None:
     """The numbers of ``raw_state`` into ``out`` in Python (the reference of ``CompiledPlant.gather``)."""
-    from velma.control.robot_model import SIDES
-
     data = rt.data
     grip_at, links_at, setpoint_at, ft_at, _ = raw_layout(len(rt.joint_v_index))
     out[:grip_at] = rt.q()[rt.snapshot_index]

@@ -20,7 +20,7 @@ import numpy as np
 import numpy.typing as npt
 
 from velma.control.hand import PROXIMAL_MAX, TARGET, Hands
-from velma.control.robot_model import SIDES, JointMap
+from velma.control.joints import SIDES, JointMap, robot_joints
 from velma.world.layout import COMMAND, HAND_KEEP, HAND_MOVE, HAND_OP, MEASURED, TOUCH_SLOTS
 from velma.world.link import RobotLink
 
@@ -80,8 +80,9 @@ class WorldLink:
 
     ``link`` is attached (``RobotLink.attach``); ``model`` and ``data`` are the controller's
     copy of the kitchen (same model as the world's: raises ValueError when the scene's size
-    differs); ``jmap`` maps the link's joints to them. Raises RuntimeError when the world
-    publishes nothing within ``timeout_s``."""
+    differs); ``jmap`` maps the link's joints to them, in Pinocchio's order, which must be the
+    world's (velma/control/joints.py ``robot_joints``: ValueError when it is not). Raises
+    RuntimeError when the world publishes nothing within ``timeout_s``."""
 
     def __init__(
         self,
@@ -100,6 +101,8 @@ class WorldLink:
             )
         if link.n_scene != 1 + model.nq:
             raise ValueError(f"the world's scene has {link.n_scene - 1} coordinates, this kitchen {model.nq}")
+        if not np.array_equal(JointMap.build(model, robot_joints(model)).qpos_adr, jmap.qpos_adr):
+            raise ValueError("the world orders the robot's joints otherwise than this controller")
         self.link, self.model, self.data, self.jmap = link, model, data, jmap
         self.spin_s = spin_s
         self.measured, self.scene = np.zeros(MEASURED.size), np.zeros(link.n_scene)

@@ -30,15 +30,14 @@ import numpy as np
 import numpy.typing as npt
 
 from velma.control.hand import ContactMonitor, Hands
+from velma.control.joints import HEAD_JOINTS, SIDES, TORSO_JOINT, JointMap, arm_joints, robot_joints
 from velma.control.mujoco_side import bind_servos, make_plant, mujoco_side_unavailable, plant_choice
-from velma.control.robot_model import HEAD_JOINTS, SIDES, TORSO_JOINT, JointMap, RobotModel, arm_joints
 from velma.model.scene import N_PARTICLES, initial_state, load_kitchen
 from velma.world.layout import (
     COMMAND,
     HAND_KEEP,
     HAND_OP,
     MEASURED,
-    N_JOINTS,
     SELF_SLOTS,
     TOUCH_SLOTS,
 )
@@ -79,9 +78,8 @@ class SimulatedVelma:
     poses (velma/model/scene.py; None: those of kitchen.xml). ``compiled``: step in C++
     (module docstring): True (required), False (Python), None (as ``ROCO_PLANT`` says; unset:
     C++ where it can run). Raises KeyError when the model lacks one of Velma's joints,
-    actuators or sensors, ValueError when Pinocchio's model has another number of joints than
-    the link carries or ``ROCO_PLANT`` another value, RuntimeError when C++ is required and
-    cannot run."""
+    actuators or sensors, ValueError when the robot has another number of joints than the link
+    carries or ``ROCO_PLANT`` another value, RuntimeError when C++ is required and cannot run."""
 
     def __init__(
         self,
@@ -95,10 +93,8 @@ class SimulatedVelma:
         model.opt.timestep = DT
         self.model = model
         self.data = initial_state(model)
-        robot = RobotModel()
-        if robot.model.nv != N_JOINTS:
-            raise ValueError(f"the robot has {robot.model.nv} joints, the link carries {N_JOINTS}")
-        self.jmap = JointMap.build(model, robot)
+        # Pinocchio's order without Pinocchio; ValueError: not the link's N_JOINTS (velma/control/joints.py)
+        self.jmap = JointMap.build(model, robot_joints(model))
         held = [j for s in SIDES for j in arm_joints(s)] + [TORSO_JOINT]
         motors = [f"{s}_arm_{k}_motor" for s in SIDES for k in range(7)] + ["torso_0_motor"]
         self.tau_act = np.array([self.jmap.ctrl[m] for m in motors])

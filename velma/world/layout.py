@@ -1,7 +1,7 @@
 """What crosses the robot link each cycle (velma/world/link.py), number by number: the
 robot's measured state from the world, the command back from the controller.
 
-Joints are in Pinocchio's velocity order (``velma.control.robot_model.RobotModel``: the
+Joints are in Pinocchio's velocity order (velma/control/joints.py ``robot_joints``: the
 torso, both arms, the head and the hands' joints, 33 in all), sides in ``SIDES`` order
 (right, left). SI units: s, rad, rad/s, N, N·m.
 
@@ -46,8 +46,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from velma.control.hand import HAND_WIDTH
+from velma.control.joints import EXPECTED_NV
 
-N_JOINTS = 33
+N_JOINTS = EXPECTED_NV
 """Velma's joints in the link (Pinocchio's nv: torso 1, arms 2 × 7, head 2, hands 2 × 8)."""
 N_SIDES = 2
 TOUCH_SLOTS = 4

@@ -1,11 +1,11 @@
 """``python -m velma.world``: Velma's hardware side in the simulated kitchen as a process of its
 own (velma/world/serve.py), the way a real robot exists beside its controller.
 
-It makes the robot link and writes the link's name to ``RUN/world.link`` (``LINK_FILE``,
-written whole: a reader sees the old name or the new one), where a controller finds it
-(:func:`link_name`); it serves until SIGTERM or SIGINT, then writes the kitchen as it is then
-to ``RUN/world_final.f64`` (``FINAL_FILE``: the time and MuJoCo's ``qpos`` as raw float64, for
-judging the run, e.g. by ``roco chaos``) and removes the link and its file.
+It makes the robot link and writes the link's name to ``RUN/world.link`` (velma/world/files.py
+``LINK_FILE``, written whole: a reader sees the old name or the new one), where a controller
+finds it (``link_name``); it serves until SIGTERM or SIGINT, then writes the kitchen as it is
+then to ``RUN/world_final.f64`` (``FINAL_FILE``: the time and MuJoCo's ``qpos`` as raw float64,
+for judging the run, e.g. by ``roco chaos``) and removes the link and its file.
 Settings come from the options, else from the fleet's environment: ``--run-dir``
 (``ROCO_RUN_DIR``), ``--realtime`` (``ROCO_REALTIME=1``), ``--seed`` (``ROCO_SEED``: the jar's
 content jitter), ``--pose-seed`` (``ROCO_POSE_SEED``: the jar's and the bowl's poses). A bad
@@ -26,24 +26,11 @@ import numpy as np
 
 from shared.settings import Settings
 from velma.shm import remove_orphans
+from velma.world.files import FINAL_FILE, LINK_FILE, link_name, write_whole
 from velma.world.hardware import SimulatedVelma
 from velma.world.layout import COMMAND, MEASURED
 from velma.world.link import RobotLink
 from velma.world.serve import serve
-
-LINK_FILE = "world.link"
-"""The file in the run folder that names the world's link block."""
-FINAL_FILE = "world_final.f64"
-"""The file in the run folder that holds the kitchen as the world left it (module docstring)."""
-
-
-def link_name(run_dir: Path) -> str | None:
-    """The name of the link the world of ``run_dir`` serves, or None when no world has
-    written one (not started yet, or ended)."""
-    try:
-        return (run_dir / LINK_FILE).read_text().strip() or None
-    except FileNotFoundError:
-        return None
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -89,15 +76,11 @@ def main(argv: list[str] | None = None) -> int:
     link = RobotLink.create(MEASURED.size, COMMAND.size, sim.scene_size)
     named = run_dir / LINK_FILE
     try:
-        partial = named.with_suffix(".tmp")
-        partial.write_text(link.name + "\n")
-        partial.replace(named)
+        write_whole(named, (link.name + "\n").encode())
         serve(sim, link, realtime=args.realtime, should_stop=stop.is_set)
         final = np.zeros(sim.scene_size)
         sim.scene(final)
-        partial = run_dir / (FINAL_FILE + ".tmp")
-        partial.write_bytes(final.tobytes())
-        partial.replace(run_dir / FINAL_FILE)
+        write_whole(run_dir / FINAL_FILE, final.tobytes())
     finally:
         if link_name(run_dir) == link.name:
             with contextlib.suppress(FileNotFoundError):

@@ -142,9 +142,9 @@ class ExecutorAgent(Agent):
     @staticmethod
     def _world_link() -> str:
         """The robot link of the run's world process, as it writes it
-        in the run folder once it runs (velma/world/main.py ``link_name``). Raises RuntimeError
+        in the run folder once it runs (velma/world/files.py ``link_name``). Raises RuntimeError
         without a run folder, or when no world names its link within ``WORLD_WAIT_S``."""
-        from velma.world.main import link_name
+        from velma.world.files import link_name
 
         run_dir = Settings.from_env(only=("run_dir",)).run_dir
         if run_dir is None:
