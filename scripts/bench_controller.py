@@ -40,7 +40,8 @@ import numpy as np
 import pinocchio as pin
 
 from velma.control.compiled import ENV_LAW, compiled_available
-from velma.control.robot_model import SIDES, RobotModel
+from velma.control.joints import SIDES
+from velma.control.robot_model import RobotModel
 from velma.executor.runtime import Runtime
 
 TARGET_P99_US = 150.0  # the controller alone, µs (the loop's goal, docs/executor.md)

@@ -25,7 +25,8 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from velma.control.compiled import make_controller
-from velma.control.robot_model import HEAD_JOINTS, SIDES, RobotModel
+from velma.control.joints import HEAD_JOINTS, SIDES
+from velma.control.robot_model import RobotModel
 from velma.world.hardware import DT, SimulatedVelma
 from velma.world.layout import COMMAND, MEASURED
 from velma.world.link import RobotLink

@@ -52,7 +52,8 @@ from services.viewer.recording import Recording
 from shared.fipa_codec.languages.common import Pose
 from shared.fipa_codec.languages.l_sd import Observation
 from velma import frames as geometry
-from velma.executor.state import FT_AXES, SNAPSHOT_SIDES, RobotSnapshot
+from velma.control.joints import SIDES
+from velma.executor.state import FT_AXES, RobotSnapshot
 from velma.executor.timing import TimingStats
 from velma.model import generate as g
 from velma.rotations import quat_mul, rpy_to_quat
@@ -297,7 +298,7 @@ def log_link_shapes(stream: rr.RecordingStream) -> None:
         colour = PALM_COLOUR if body.endswith("HandPalmLink") else LINK_COLOUR
         for i, shape in enumerate(shapes):
             stream.log(f"{LINKS}/{body}/geom{i}", _shape(shape, colour), static=True)
-    for side in SNAPSHOT_SIDES:
+    for side in SIDES:
         for link in FINGER_LINKS:
             path = f"{LINKS}/{side}_HandPalmLink/{link.path}/shape"
             stream.log(path, _shape(link.shape, PALM_COLOUR), static=True)
@@ -430,7 +431,7 @@ class RobotLogger:
     def _log_fingers(self, joints: dict[str, float]) -> None:
         """Each hand's finger links when one of its finger angles moved by more than
         ``FINGER_EPS`` since they were last logged (a snapshot without them: nothing)."""
-        for side in SNAPSHOT_SIDES:
+        for side in SIDES:
             now = _finger_angles(joints, side)
             if now is None or not self._fingers_moved(side, now):
                 continue

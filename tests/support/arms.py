@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pinocchio as pin
 
-from velma.control.robot_model import SIDES
+from velma.control.joints import SIDES
 from velma.executor.runtime import Runtime
 
 

@@ -12,7 +12,8 @@ from tests.support.arms import lift_both_arms
 from velma.control import compiled
 from velma.control.compiled import ENV_LAW, CompiledController, compiled_available, make_controller
 from velma.control.impedance import DEFAULT_CART_STIFFNESS, SafetyLimits, VelmaController
-from velma.control.robot_model import SIDES, RobotModel
+from velma.control.joints import SIDES
+from velma.control.robot_model import RobotModel
 from velma.executor.runtime import Runtime
 
 pytestmark = pytest.mark.skipif(not compiled_available(), reason="the compiled law is not built")

@@ -6,7 +6,8 @@ import numpy as np
 import pinocchio as pin
 
 from velma.control.ik import IkSearch, solve_ik_multi
-from velma.control.robot_model import RobotModel, arm_joints
+from velma.control.joints import arm_joints
+from velma.control.robot_model import RobotModel
 
 
 def test_ik_search_is_resumable_and_agrees_with_solve_ik_multi() -> None:

@@ -10,8 +10,9 @@ import pytest
 
 from tests.support.arms import lift_both_arms
 from velma.control.compiled import ENV_LAW, CompiledController, make_controller
+from velma.control.joints import SIDES
 from velma.control.mujoco_side import ENV_PLANT, plant_choice
-from velma.control.robot_model import SIDES, RobotModel
+from velma.control.robot_model import RobotModel
 from velma.executor import plant as plant_module
 from velma.executor.handoff import LatestValue
 from velma.executor.plant import plant_unavailable

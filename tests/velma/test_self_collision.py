@@ -15,7 +15,8 @@ import pytest
 
 from velma.control.hand import ContactMonitor
 from velma.control.ik import solve_ik_multi
-from velma.control.robot_model import SIDES, RobotModel, arm_joints
+from velma.control.joints import SIDES, arm_joints
+from velma.control.robot_model import RobotModel
 from velma.control.self_collision import (
     CHECK_STEPS,
     WRIST_BAND,

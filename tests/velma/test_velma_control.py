@@ -30,7 +30,8 @@ from velma.control.impedance import (
     double_diagonalisation_damping,
     pose_error,
 )
-from velma.control.robot_model import SIDES, RobotModel
+from velma.control.joints import SIDES
+from velma.control.robot_model import RobotModel
 from velma.executor.primitives import make_primitive
 from velma.executor.runtime import Runtime
 from velma.rotations import quat_wxyz

@@ -13,8 +13,8 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from velma.control.joints import JointMap, robot_joints
-from velma.control.robot_model import SIDES, RobotModel
+from velma.control.joints import SIDES, JointMap, robot_joints
+from velma.control.robot_model import RobotModel
 from velma.model import KITCHEN_XML, VELMA_XML, grip_frame
 from velma.model.generate import build, build_kitchen, effort_limits, velocity_limits
 

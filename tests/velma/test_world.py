@@ -16,8 +16,9 @@ import pytest
 
 from velma.control.compiled import make_controller
 from velma.control.hand import HAND_WIDTH, TARGET
+from velma.control.joints import HEAD_JOINTS, SIDES, TORSO_JOINT, arm_joints
 from velma.control.mujoco_side import mujoco_side_unavailable
-from velma.control.robot_model import HEAD_JOINTS, SIDES, TORSO_JOINT, RobotModel, arm_joints
+from velma.control.robot_model import RobotModel
 from velma.executor.checkpoint import observe_scene
 from velma.shm import SHM_DIR
 from velma.world.files import FINAL_FILE, link_name

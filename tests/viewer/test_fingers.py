@@ -13,7 +13,8 @@ import pytest
 from services.viewer import hooks, recording, robot
 from shared.fipa_codec.languages.common import Pose
 from tests.viewer.test_recording import rows
-from velma.executor.state import SNAPSHOT_SIDES, RobotSnapshot
+from velma.control.joints import SIDES
+from velma.executor.state import RobotSnapshot
 
 RUN = "20261121-150000-fingers"
 BODIES = {  # entity below the palm -> MJCF body (after "<side>_")
@@ -35,14 +36,14 @@ def test_finger_frames_are_mujocos() -> None:
     data = initial_state(model)
     rng = np.random.default_rng(7)
     angles: dict[str, float] = {}
-    for side in SNAPSHOT_SIDES:
+    for side in SIDES:
         for link in robot.FINGER_LINKS:
             name = f"{side}_{link.joint}"
             angles[name] = float(rng.uniform(0.1, 1.0))
             data.qpos[model.joint(name).qposadr[0]] = angles[name]
     mujoco.mj_kinematics(model, data)
     assert {link.path for link in robot.FINGER_LINKS} == set(BODIES)
-    for side in SNAPSHOT_SIDES:
+    for side in SIDES:
         palm = model.body(f"{side}_HandPalmLink").id
         world = {"": Pose(position=tuple(data.xpos[palm]), orientation=tuple(data.xquat[palm]))}
         for link in robot.FINGER_LINKS:  # parents come first

@@ -25,10 +25,11 @@ import pinocchio as pin
 from shared.settings import Settings
 from velma.control import impedance as imp
 from velma.control.ik import DlsKernel
+from velma.control.joints import SIDES, Array
 from velma.control.limits import ARM_TORQUE_LIMIT, FULL_BAND_JOINTS, SINGULAR_JOINTS, TORQUE_RATE_LIMIT
 from velma.control.native import IMPORT_ERROR as _IMPORT_ERROR
 from velma.control.native import extension as _impedance
-from velma.control.robot_model import SIDES, Array, RobotModel
+from velma.control.robot_model import RobotModel
 from velma.control.self_collision import WRIST_BAND, WRIST_BAND_DAMPING, WRIST_BAND_TORQUE, WristField
 
 log = logging.getLogger(__name__)

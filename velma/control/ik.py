@@ -22,7 +22,8 @@ from typing import Protocol
 import numpy as np
 import pinocchio as pin
 
-from velma.control.robot_model import SIDES, Array, IntArray, RobotModel, arm_joints
+from velma.control.joints import SIDES, Array, IntArray, arm_joints
+from velma.control.robot_model import RobotModel
 from velma.control.self_collision import SelfCollision
 
 LIMIT_MARGIN = 0.05  # rad

@@ -84,6 +84,7 @@ import eigenpy  # Eigen's decompositions, installed with (and imported by) pinoc
 import numpy as np
 import pinocchio as pin
 
+from velma.control.joints import SIDES, TORSO_JOINT, Array, arm_joints
 from velma.control.limits import (
     ARM_TORQUE_LIMIT,
     ARM_VELOCITY_LIMIT,
@@ -106,7 +107,7 @@ from velma.control.limits import (
     singularity_band_torque,
     velocity_limit_torque,
 )
-from velma.control.robot_model import SIDES, TORSO_JOINT, Array, RobotModel, arm_joints
+from velma.control.robot_model import RobotModel
 from velma.control.self_collision import WristField, wrist_band_torque, wrist_field
 
 __all__ = [

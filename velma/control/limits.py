@@ -49,7 +49,7 @@ from __future__ import annotations
 import numpy as np
 import numpy.typing as npt
 
-from velma.control.robot_model import Array
+from velma.control.joints import Array
 
 BoolArray = npt.NDArray[np.bool_]
 

@@ -2,9 +2,7 @@
 
 Both models come from the same velma.xml (kitchen.xml includes it), so kinematics and dynamics
 agree to rounding (see tests/velma/test_velma_model.py); the joints are matched by name
-(velma/control/joints.py ``JointMap``, built with ``RobotModel.joint_names``). The joint names
-and the map import no Pinocchio and are imported from velma/control/joints.py, re-exported here
-for the controller's modules.
+(velma/control/joints.py ``JointMap``, built with ``RobotModel.joint_names``).
 
 Source: velma-facts.md (joint names, tool chain); platform-notes.md (``buildModelFromMJCF``
 reads only the first body tree: the number of joints is checked after loading).
@@ -17,38 +15,8 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
-from velma.control.joints import (
-    EXPECTED_NV,
-    FINGERS,
-    HEAD_JOINTS,
-    SIDES,
-    TORSO_JOINT,
-    Array,
-    IntArray,
-    JointMap,
-    arm_joints,
-    distal_joints,
-    proximal_joints,
-    spread_joints,
-)
+from velma.control.joints import EXPECTED_NV, SIDES, IntArray
 from velma.model import VELMA_XML, grip_frame
-
-__all__ = [
-    "EXPECTED_NV",
-    "FINGERS",
-    "HEAD_JOINTS",
-    "SIDES",
-    "TORSO_JOINT",
-    "Array",
-    "IntArray",
-    "JointMap",
-    "RobotModel",
-    "arm_joints",
-    "distal_joints",
-    "grip_frame",
-    "proximal_joints",
-    "spread_joints",
-]
 
 
 class RobotModel:

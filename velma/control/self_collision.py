@@ -29,7 +29,8 @@ import numpy as np
 import numpy.typing as npt
 import pinocchio as pin
 
-from velma.control.robot_model import SIDES, RobotModel, arm_joints
+from velma.control.joints import SIDES, arm_joints
+from velma.control.robot_model import RobotModel
 from velma.model import VELMA_XML
 from velma.model.generate import SELF_COLLISION_EXCLUDES
 

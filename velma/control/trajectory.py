@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import pinocchio as pin
 
-from velma.control.robot_model import Array
+from velma.control.joints import Array
 
 
 def min_jerk(t: float, duration: float) -> tuple[float, float]:

@@ -37,7 +37,7 @@ import msgspec
 import numpy as np
 
 from shared.fipa_codec.languages.l_ex import HALTED, CommandResult, ExecutorCommand, command_name
-from velma.control.robot_model import SIDES
+from velma.control.joints import SIDES
 from velma.executor.primitives import HaltPrimitive, Primitive, Result, make_primitive
 from velma.executor.runtime import Runtime
 

@@ -52,7 +52,7 @@ from shared.fipa_codec.languages.l_sd import Observation
 from velma.control.hand import PROXIMAL_MAX, STALL_SPEED
 from velma.control.ik import IkSearch
 from velma.control.impedance import DEFAULT_CART_STIFFNESS
-from velma.control.robot_model import HEAD_JOINTS, SIDES, TORSO_JOINT, Array, arm_joints
+from velma.control.joints import HEAD_JOINTS, SIDES, TORSO_JOINT, Array, arm_joints
 from velma.control.trajectory import (
     MIN_JERK_PEAK_RATE,
     PosePath,

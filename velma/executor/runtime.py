@@ -38,16 +38,9 @@ import pinocchio as pin
 from velma.control.compiled import CompiledController, make_controller
 from velma.control.hand import ContactMonitor, Hands
 from velma.control.ik import DlsKernel
+from velma.control.joints import HEAD_JOINTS, SIDES, TORSO_JOINT, Array, JointMap, arm_joints
 from velma.control.mujoco_side import plant_choice
-from velma.control.robot_model import (
-    HEAD_JOINTS,
-    SIDES,
-    TORSO_JOINT,
-    Array,
-    JointMap,
-    RobotModel,
-    arm_joints,
-)
+from velma.control.robot_model import RobotModel
 from velma.control.self_collision import SelfCollision
 from velma.executor.capture import DEFAULT_PERCEPTION
 from velma.executor.ground_truth import GroundTruth

@@ -19,7 +19,6 @@ from velma.rotations import quat_wxyz
 if TYPE_CHECKING:
     from velma.executor.runtime import Runtime
 
-SNAPSHOT_SIDES = SIDES  # the order of the sides in a snapshot's numbers
 # The MuJoCo bodies whose world poses the snapshot carries (20): torso, head, each arm's 7
 # links and each hand's palm (velma/model/generate.py).
 LINK_BODIES: tuple[str, ...] = (
@@ -27,8 +26,8 @@ LINK_BODIES: tuple[str, ...] = (
     "torso_link0",
     "head_pan_link",
     "head_tilt_link",
-    *(f"{s}_arm_{k}_link" for s in SNAPSHOT_SIDES for k in range(1, 8)),
-    *(f"{s}_HandPalmLink" for s in SNAPSHOT_SIDES),
+    *(f"{s}_arm_{k}_link" for s in SIDES for k in range(1, 8)),
+    *(f"{s}_HandPalmLink" for s in SIDES),
 )
 FT_AXES = ("fx", "fy", "fz", "tx", "ty", "tz")  # the order of a wrench in ``RobotSnapshot.ft``
 
@@ -66,8 +65,8 @@ class RawState(msgspec.Struct, frozen=True, kw_only=True, array_like=True):
     """What the loop hands off every ``STATE_PERIOD`` cycles (the loop copies
     numbers, the communication side builds the :class:`RobotSnapshot`): ``values`` float64
     (native byte order) laid out by :func:`raw_layout` — joint positions in ``joints`` order, per
-    side (``SNAPSHOT_SIDES``) the grip site's position (3) and rotation matrix (9, row-major),
-    per link of ``LINK_BODIES`` position (3) and quaternion (4), per side a Cartesian setpoint
+    side (``SIDES``: right, left) the grip site's position (3) and rotation matrix (9,
+    row-major), per link of ``LINK_BODIES`` position (3) and quaternion (4), per side a Cartesian setpoint
     flag (1), position (3) and rotation (9), per side the wrench (6)."""
 
     sim_time: float
@@ -95,7 +94,7 @@ def raw_state(rt: Runtime, holding: str | None = None) -> RawState:
         _setpoints(rt, out)
     else:
         python_gather(rt, out)
-    right, left = rt.held[SNAPSHOT_SIDES[0]], rt.held[SNAPSHOT_SIDES[1]]
+    right, left = rt.held[SIDES[0]], rt.held[SIDES[1]]
     return RawState(
         sim_time=rt.time,
         joints=rt.robot.joint_names,
@@ -132,7 +131,7 @@ def _setpoints(rt: Runtime, out: npt.NDArray[np.float64]) -> None:
     """The setpoint block of ``raw_state``: per side a Cartesian flag (1), the commanded grip
     position (3) and rotation (9, row-major), zeros outside Cartesian mode."""
     setpoint_at = raw_layout(len(rt.joint_v_index))[2]
-    for k, side in enumerate(SNAPSHOT_SIDES):
+    for k, side in enumerate(SIDES):
         cmd = rt.ctrl.arm[side]
         at = setpoint_at + 13 * k
         if cmd.mode == "cart":
@@ -156,7 +155,7 @@ def snapshot_of(raw: RawState) -> RobotSnapshot:
     grip: dict[str, Pose] = {}
     setpoint: dict[str, Pose | None] = {}
     ft: dict[str, Wrench] = {}
-    for k, side in enumerate(SNAPSHOT_SIDES):
+    for k, side in enumerate(SIDES):
         at = grip_at + 12 * k
         p = v[at : at + 3].tolist()
         grip[side] = Pose(
@@ -177,12 +176,12 @@ def snapshot_of(raw: RawState) -> RobotSnapshot:
         name: Pose(position=(r[0], r[1], r[2]), orientation=(r[3], r[4], r[5], r[6]))
         for name, r in zip(LINK_BODIES, rows, strict=True)
     }
-    held_object = dict(zip(SNAPSHOT_SIDES, raw.held_object, strict=True))
+    held_object = dict(zip(SIDES, raw.held_object, strict=True))
     return RobotSnapshot(
         sim_time=raw.sim_time,
         joints=joints,
         grip=grip,
-        held={s: held_object[s] is not None for s in SNAPSHOT_SIDES},
+        held={s: held_object[s] is not None for s in SIDES},
         held_object=held_object,
         holding=raw.holding,
         links=links,

@@ -25,8 +25,9 @@ import msgspec
 import numpy as np
 import numpy.typing as npt
 
+from velma.control.joints import SIDES
 from velma.executor.handoff import LatestValue
-from velma.executor.state import SNAPSHOT_SIDES, RawState, python_gather, raw_layout
+from velma.executor.state import RawState, python_gather, raw_layout
 
 if TYPE_CHECKING:
     from velma.executor.runtime import Runtime
@@ -91,7 +92,7 @@ class StateWriter:
     def publish(self, holding: str | None) -> None:
         """Publish the state now, ``holding`` being why the loop holds position (or None)."""
         rt = self.rt
-        said = (rt.held[SNAPSHOT_SIDES[0]], rt.held[SNAPSHOT_SIDES[1]], holding)
+        said = (rt.held[SIDES[0]], rt.held[SIDES[1]], holding)
         if said != self._said:
             self.version += 1
             names = tuple(None if b is None else rt.model.body(b).name for b in said[:2])
