@@ -155,13 +155,12 @@ class _Bench:
             lambda: messaging.messaging(n.rounds, n.round_trips, n.communicates, n.content_bytes),
             timed=True,
         )
-        pair = got[0] if got else None
         sp = self.ran(
             "spade", lambda: spade.measure(n.spade_round_trips, n.spade_messages, n.content_bytes), timed=True
         )
         jd = self.jade_part()
-        if pair is not None or sp is not None or jd is not None:
-            self.emit(report.messaging_section(pair, sp, jd, n), report.verdict_lines(pair, sp))
+        if got is not None or sp is not None or jd is not None:
+            self.emit(report.messaging_section(got, sp, jd, n), report.verdict_lines(got, sp))
 
     def jade_part(self) -> jade.JadeFigures | None:
         """The jade part's figures; when a prerequisite is missing, one line saying which and

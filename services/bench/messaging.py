@@ -1,17 +1,17 @@
-"""Messaging benchmark (``roco bench`` parts 2 and 8): roco's runtime against bare Zenoh, through one
-router, measured side by side in the same run.
+"""Messaging benchmark (``roco bench`` parts 2 and 8): roco's runtime against bare Zenoh on the
+same link, measured side by side in the same run.
 
 **roco**: two (or more) synthetic agents, each a real :class:`services.runtime.agent.Agent` in
-its own process on a :class:`~services.runtime.transport.ZenohTransport` (client mode, explicit
-loopback endpoint, no multicast scouting), started with ``multiprocessing`` *spawn*. They
-follow a small specification built here (:func:`bench_spec`: one channel ``B<k>`` per pair,
-the real ``fipa-request`` and ``fipa-subscribe`` protocol definitions of the Robot
-Companion's specification) and talk in a content language registered here, ``L_BENCH``
-(ontology O_RoCo), whose terms carry an opaque ``data`` field sized so that the content of
-each communicate is the requested number of bytes. Every communicate goes through the whole
-send and receive path: interface and protocol-state checks, content encoding, the msgpack
-envelope (shared/fipa_codec), dedup digest, decoding, validation against the interface and
-the content schema, the agent's input queue and FSM step.
+its own process on a :class:`~services.runtime.transport.ZenohTransport` (explicit loopback
+endpoint, no multicast scouting; linked as ``ROCO_LINKS`` says), started with
+``multiprocessing`` *spawn*. They follow a small specification built here (:func:`bench_spec`:
+one channel ``B<k>`` per pair, the real ``fipa-request`` and ``fipa-subscribe`` protocol
+definitions of the Robot Companion's specification) and talk in a content language registered
+here, ``L_BENCH`` (ontology O_RoCo), whose terms carry an opaque ``data`` field sized so that
+the content of each communicate is the requested number of bytes. Every communicate goes
+through the whole send and receive path: interface and protocol-state checks, content
+encoding, the msgpack envelope (shared/fipa_codec), dedup digest, decoding, validation against
+the interface and the content schema, the agent's input queue and FSM step.
 
 - *round trip*: the initiator sends a ``request`` (fipa-request, a new conversation each time,
   ``expect_reply``) and the participant answers with an ``inform`` echoing the content; the
@@ -19,15 +19,22 @@ the content schema, the agent's input queue and FSM step.
   which the inform is in its input buffer.
 - *one-way throughput*: the initiator ``subscribe``s (fipa-subscribe) for ``n`` communicates;
   the participant ``agree``s and then sends ``n`` ``inform``s in the same conversation, 256
-  per FSM step; the initiator counts the informs that reach its input buffer, stamping each
-  step of its behaviour that sees some, and divides those after the first such step by the
-  time from it to the last (a step's informs all have that step's stamp).
+  per FSM step, either in one put per step (batched) or one put each; the initiator counts the
+  informs that reach its input buffer, stamping each step of its behaviour that sees some, and
+  divides those after the first such step by the time from it to the last (a step's informs
+  all have that step's stamp).
 
-**raw Zenoh**: two more Python processes with a bare session each (same client configuration,
-same router): a ping-pong (``put`` on a key, the other process receives it from a subscriber's
-FIFO handler and ``put``s it back) and a throughput test (``put`` ``n`` payloads in a loop; a
-subscriber callback on the other side counts them). The payload has the size of roco's
+**raw Zenoh**: two more Python processes with a bare session each, configured as an agent's
+(:func:`~services.runtime.transport.member_config`: same router, links and, on a secure
+testbed, credentials): a ping-pong (``put`` on a key, the other process takes it from a
+subscriber's FIFO and ``put``s it back) and a throughput test (``put`` ``n`` payloads in a
+loop; the other side's thread counts them from its FIFO). The payload has the size of roco's
 encoded request communicate (envelope included), so the ratio is the runtime's cost.
+
+Part 2 (:func:`messaging`) runs both on a :class:`Testbed` with access control and mutual TLS,
+as every fleet runs, then on one without, and checks the roco pair's exchange through the
+agents' counters (:func:`check_exchange`): a pair whose communicates are refused, not
+understood or dropped by the access control fails the part (:class:`SetupError`).
 
 The parent process only orchestrates (pipes to each child, no sleeps for synchronisation:
 children report ``ready``, the initiators wait for their peer's liveliness token); every wait
@@ -46,15 +53,19 @@ import sys
 import tempfile
 import time
 import types
-from collections.abc import Callable, Iterator, Sequence
+from collections import Counter
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from multiprocessing.connection import Connection
 from multiprocessing.process import BaseProcess
 from pathlib import Path
 from typing import Any
 
+import msgspec
+
 from services.bench.synthetic import (
     BENCH_LANGUAGE,
+    COUNTERS,
     STALL_S,
     STREAM_BATCH,
     WARMUP,
@@ -73,6 +84,7 @@ from services.bench.synthetic import (
 )
 from services.fleet.launcher import Fleet, free_port
 from services.runtime.polling import max_poll_us
+from services.runtime.transport import links_setting, one_hop
 from shared.settings import Settings
 
 __all__ = [
@@ -99,8 +111,8 @@ processes import only that); they are named here too for the callers of this mod
 @contextlib.contextmanager
 def no_access_control() -> Iterator[None]:
     """Fleets started inside (and processes they spawn) run without authentication and access
-    control (``ROCO_ACL=0``): the benchmark's own client sessions play agents (a_co, a_pl,
-    a_ta) or synthetic agents the ACL does not know."""
+    control (``ROCO_ACL=0``): for benchmarks whose own client sessions play agents (a_co, a_pl,
+    a_ta) the fleet's ACL does not let them be; part 2 measures both ways (:class:`Testbed`)."""
     acl, security = Settings.env_name("acl"), Settings.env_name("security")
     saved = {k: os.environ.get(k) for k in (acl, security)}
     os.environ[acl] = "0"
@@ -140,10 +152,20 @@ class Testbed:
     """A router on a free loopback port and the benchmark's child processes; ``meshed``: a
     second router on another free port, meshed with the first (``--connect``), serving the
     participants and the raw echo while the initiators and the raw pinger stay on the first:
-    every communicate crosses both routers and the link between them."""
+    every communicate crosses both routers and the link between them.
+
+    ``secure``: access control and mutual TLS, as every fleet runs (services/fleet/launcher.py):
+    credentials and the router's ACL issued by services/deploy/deploy.py ``prepare`` from
+    :func:`bench_spec` (the raw pairs' identities included, services/bench/synthetic.py
+    ``raw_names``), the router on ``tls/``, every process (agent or bare Zenoh)
+    authenticating as itself with its certificate and password; else neither (``tcp/``, no
+    credentials). Raises ValueError for ``secure`` with ``meshed``."""
 
     pairs: int
     meshed: bool = False
+    secure: bool = False
+    security: Path | None = None
+    """The credentials folder of a ``secure`` testbed, once started."""
     children: dict[str, Child] = field(default_factory=dict)
     endpoint: str = ""
     endpoint2: str = ""
@@ -155,29 +177,47 @@ class Testbed:
     def start(self, agent_names: Sequence[str], raw_pairs: Sequence[int], timeout: float = 180.0) -> None:
         """Start the router, the agent processes ``agent_names`` and the raw echo/pinger
         processes for each pair in ``raw_pairs``; wait until every one reports ready."""
+        if self.secure and self.meshed:
+            raise ValueError("a secure testbed has one router")
         run_dir = Path(tempfile.mkdtemp(prefix="roco-bench-"))
         (run_dir / "logs").mkdir()
         self.endpoint = f"tcp/127.0.0.1:{free_port()}"
+        if self.secure:
+            from services.deploy.deploy import prepare  # cryptography: only where credentials are issued
+
+            self.security = run_dir / "security"
+            prepare(self.security, bench_spec(self.pairs, max(raw_pairs, default=-1) + 1), tls=True)
+            # the fleet finds the folder prepared (deploy.ensure keeps it) and serves it on tls/
+            self.fleet = Fleet(run_dir, self.endpoint, acl=True, tls=True)
+            self.endpoint = self.fleet.endpoint
+            self.fleet.start_router()
+        else:
+            self._start_open(run_dir, timeout)
+        ctx = mp.get_context("spawn")
+        t0 = time.perf_counter()
+        security = None if self.security is None else str(self.security)
+        for name in agent_names:
+            args = (name, self.pairs, self._endpoint_of(name))
+            self._spawn(ctx, name, agent_process, args, security)
+        for k in raw_pairs:
+            for role in ("echo", "pinger"):
+                name = f"raw_{role}{k}"
+                self._spawn(ctx, name, raw_process, (role, k, self._endpoint_of(name)), security)
+        deadline = time.monotonic() + timeout
+        for child in self.children.values():
+            child.receive(max(1.0, deadline - time.monotonic()))
+        self.start_s = time.perf_counter() - t0
+
+    def _start_open(self, run_dir: Path, timeout: float) -> None:
+        """The router (and the second one when ``meshed``) without access control."""
         with no_access_control():  # synthetic agents and bare sessions: no ACL knows them
-            self.fleet = Fleet(run_dir, self.endpoint)
+            self.fleet = Fleet(run_dir, self.endpoint, acl=False, tls=False)
             self.fleet.start_router()
             if self.meshed:
                 self.endpoint2 = f"tcp/127.0.0.1:{free_port()}"
                 router = ["-m", "services.runtime.router", "--listen", self.endpoint2]
                 self.fleet.start_service("router2", [*router, "--connect", self.endpoint])
                 wait_listening(self.endpoint2, timeout)
-        ctx = mp.get_context("spawn")
-        t0 = time.perf_counter()
-        for name in agent_names:
-            self._spawn(ctx, name, agent_process, (name, self.pairs, self._endpoint_of(name)))
-        for k in raw_pairs:
-            for role in ("echo", "pinger"):
-                name = f"raw_{role}{k}"
-                self._spawn(ctx, name, raw_process, (role, k, self._endpoint_of(name)))
-        deadline = time.monotonic() + timeout
-        for child in self.children.values():
-            child.receive(max(1.0, deadline - time.monotonic()))
-        self.start_s = time.perf_counter() - t0
 
     def _endpoint_of(self, name: str) -> str:
         """The router a child connects to: the second one for participants and the raw echo
@@ -186,9 +226,9 @@ class Testbed:
             return self.endpoint2
         return self.endpoint
 
-    def _spawn(self, ctx: Any, name: str, target: Any, args: tuple[Any, ...]) -> None:
+    def _spawn(self, ctx: Any, name: str, target: Any, args: tuple[Any, ...], security: str | None) -> None:
         parent, child = ctx.Pipe()
-        proc = ctx.Process(target=target, args=(*args, child), name=name, daemon=True)
+        proc = ctx.Process(target=target, args=(*args, child, security), name=name, daemon=True)
         with _main_not_inherited():
             proc.start()
         child.close()
@@ -251,10 +291,15 @@ def wait_listening(endpoint: str, timeout: float) -> None:
 
 @contextlib.contextmanager
 def testbed(
-    pairs: int, agent_names: Sequence[str], raw_pairs: Sequence[int], *, meshed: bool = False
+    pairs: int,
+    agent_names: Sequence[str],
+    raw_pairs: Sequence[int],
+    *,
+    meshed: bool = False,
+    secure: bool = False,
 ) -> Iterator[Testbed]:
     """A started :class:`Testbed`, stopped on exit whatever happens."""
-    bed = Testbed(pairs, meshed)
+    bed = Testbed(pairs, meshed, secure)
     try:
         bed.start(agent_names, raw_pairs)
         yield bed
@@ -354,11 +399,120 @@ class PairFigures:
     raw_tput: Throughput = field(default_factory=Throughput)
 
 
+class SetupError(RuntimeError):
+    """The benchmark's pair did not do the work it is timed on: a communicate refused, not
+    understood, dropped on the way (access control) or a round trip missing; the part fails
+    instead of giving a figure."""
+
+
 def _answer(child: Child, cmd: tuple[Any, ...], timeout: float) -> dict[str, Any]:
     out = child.ask(cmd, timeout)
     if not isinstance(out, dict) or "error" in out:
-        raise RuntimeError(f"{child.name}: {out}")
+        raise SetupError(f"{child.name}: {out}")
     return out
+
+
+def _samples(child: Child, cmd: tuple[Any, ...], timeout: float) -> list[float]:
+    """The round trips (s) of a ``("pingpong", n, …)`` command; raises SetupError unless there
+    are ``n``: the timed work is the work named."""
+    samples: list[float] = _answer(child, cmd, timeout)["samples_s"]
+    if len(samples) != cmd[1]:
+        raise SetupError(f"{child.name} timed {len(samples)} round trips instead of {cmd[1]}")
+    return samples
+
+
+PROBE_S = 20.0
+"""How long (s) the first exchange of a pair may take before the setup is called broken."""
+
+UNWANTED = ("rejected", "protocol_violations", "send_violations", "content_violations", "bad_key")
+"""Counters (services/runtime/counters.py) that must not move while a pair is measured, with
+every ``rejected.<reason>`` and the not-understood, refuse and failure sent or received."""
+_UNWANTED_ACTS = tuple(
+    f"{way}.{act}" for way in ("sent", "received") for act in ("not-understood", "refuse", "failure")
+)
+
+
+def counters_of(child: Child, timeout: float = PROBE_S) -> Counter[str]:
+    """A synthetic agent's counters (services/bench/synthetic.py ``COUNTERS``)."""
+    got = _answer(child, (COUNTERS,), timeout)
+    return Counter({str(k): int(v) for k, v in got["counters"].items()})
+
+
+@dataclass(frozen=True)
+class Exchange:
+    """What one pair's initiator and participant should have sent each other, by performative."""
+
+    by_initiator: dict[str, int]
+    by_participant: dict[str, int]
+
+
+def pair_exchange(rounds: int, n_rt: int, n_tput: int) -> Exchange:
+    """What :func:`measure_pair` makes a roco pair send: per round ``WARMUP + n_rt`` requests
+    answered by as many informs, and two subscribes (a batched stream, then one put per
+    communicate), each agreed to and answered by ``n_tput`` informs."""
+    rt = rounds * (WARMUP + n_rt)
+    return Exchange(
+        {"request": rt, "subscribe": 2 * rounds},
+        {"inform": rt + 2 * rounds * n_tput, "agree": 2 * rounds},
+    )
+
+
+def check_exchange(
+    ini: Mapping[str, int],
+    par: Mapping[str, int],
+    want: Exchange,
+    names: tuple[str, str] = ("b_ini0", "b_par0"),
+) -> None:
+    """Check a pair's counter deltas (``ini``, ``par``: after minus before) against ``want``:
+    each communicate sent by one end was received by the other (none dropped on the way: the
+    access control drops silently), as many as ``want`` names, and nothing was refused, not
+    understood, failed or rejected (:data:`UNWANTED`). Raises SetupError naming every
+    difference."""
+    wrong: list[str] = []
+    for (sender, sent), (receiver, got), wanted in (
+        ((names[0], ini), (names[1], par), want.by_initiator),
+        ((names[1], par), (names[0], ini), want.by_participant),
+    ):
+        for act, n in wanted.items():
+            s, r = sent.get(f"sent.{act}", 0), got.get(f"received.{act}", 0)
+            if s != n or r != n:
+                wrong.append(f"{sender} sent {s} {act} and {receiver} received {r}, not {n}")
+    for name, deltas in ((names[0], ini), (names[1], par)):
+        bad = {
+            k: v
+            for k, v in deltas.items()
+            if v and (k in UNWANTED or k.startswith("rejected.") or k in _UNWANTED_ACTS)
+        }
+        if bad:
+            wrong.append(f"{name}: {', '.join(f'{k} {v}' for k, v in sorted(bad.items()))}")
+    if wrong:
+        raise SetupError("the pair's exchange was not the work timed: " + "; ".join(wrong))
+
+
+def probe_pair(bed: Testbed, k: int, size: int) -> None:
+    """Before pair ``k`` is timed: one warm-up's round trips of its roco pair and of its raw
+    pair, each within :data:`PROBE_S`, and the roco pair's counters for them (nothing refused,
+    not understood or dropped). Raises SetupError saying what went wrong."""
+    ini, par = (bed.children[n] for n in pair_names(k))
+    before = counters_of(ini), counters_of(par)
+    try:
+        _samples(ini, ("pingpong", 1, size), PROBE_S)
+    except TimeoutError:
+        after = counters_of(ini), counters_of(par)
+        sent = after[0]["sent.request"] - before[0]["sent.request"]
+        got = after[1]["received.request"] - before[1]["received.request"]
+        raise SetupError(
+            f"{ini.name} had no answer within {PROBE_S:.0f} s: requests sent {sent}, received by "
+            f"{par.name} {got} (the rest dropped on the way: access control?)"
+        ) from None
+    after = counters_of(ini), counters_of(par)
+    check_exchange(
+        after[0] - before[0], after[1] - before[1], Exchange({"request": WARMUP + 1}, {"inform": WARMUP + 1})
+    )
+    try:
+        _samples(bed.children[f"raw_pinger{k}"], ("pingpong", 1, request_bytes(size)), PROBE_S)
+    except TimeoutError:
+        raise SetupError(f"raw Zenoh pair {k} had no answer within {PROBE_S:.0f} s") from None
 
 
 def measure_pair(bed: Testbed, k: int, rounds: int, n_rt: int, n_tput: int, size: int) -> PairFigures:
@@ -374,13 +528,12 @@ def measure_pair(bed: Testbed, k: int, rounds: int, n_rt: int, n_tput: int, size
     out = PairFigures(poll_us=max_poll_us())
     timeout = 120.0
     for _ in range(rounds):
-        out.raw_rt.samples_s += _answer(pinger, ("pingpong", n_rt, raw_size), timeout)["samples_s"]
+        out.raw_rt.samples_s += _samples(pinger, ("pingpong", n_rt, raw_size), timeout)
         if out.poll_us > 0:
             echo.ask(("poll", out.poll_us), timeout)
-            got = _answer(pinger, ("pingpong", n_rt, raw_size, out.poll_us), timeout)
-            out.raw_poll_rt.samples_s += got["samples_s"]
+            out.raw_poll_rt.samples_s += _samples(pinger, ("pingpong", n_rt, raw_size, out.poll_us), timeout)
             echo.ask(("poll", 0.0), timeout)
-        out.roco_rt.samples_s += _answer(ini, ("pingpong", n_rt, size), timeout)["samples_s"]
+        out.roco_rt.samples_s += _samples(ini, ("pingpong", n_rt, size), timeout)
         echo.ask(("arm", n_tput), timeout)
         _answer(pinger, ("send", n_tput, raw_size), timeout)
         got = echo.receive(timeout)
@@ -465,13 +618,111 @@ def measure_all_pairs(
     return ConcurrentFigures(Latency(samples), total / wall if wall > 0 else 0.0, steady_rate(ends))
 
 
-def messaging(rounds: int, n_rt: int, n_tput: int, size: int = 200) -> tuple[PairFigures, dict[str, float]]:
-    """Part 2: one roco pair and one raw pair through one router; the figures and each
-    process's resident memory (MiB) at the end."""
+class MessagingSummary(msgspec.Struct, frozen=True, forbid_unknown_fields=True):
+    """Part 2's headline figures (what a summary of the bench quotes): round trips' p50 (µs)
+    and one pair's one-way stream (communicates/s, the median of the rounds), 200 B of content
+    unless the run said otherwise. ``secure``: access control and mutual TLS on, as every
+    fleet runs; ``open``: both off. Raw Zenoh is measured on the same link configuration as
+    the roco figure it stands beside (same router, endpoint, credentials and hops)."""
+
+    round_trip_p50_us: float
+    """roco, access control and mutual TLS on."""
+    raw_polling_p50_us: float
+    """Raw Zenoh on the same link, each end polling as roco's receiving threads do (0: polling
+    off, ``ROCO_RECEIVE_POLL_US=0``)."""
+    raw_sleeping_p50_us: float
+    """Raw Zenoh on the same link, each end sleeping in ``recv()``."""
+    round_trip_open_p50_us: float
+    """roco, access control and TLS off."""
+    raw_polling_open_p50_us: float
+    """Raw Zenoh polling, access control and TLS off."""
+    stream_per_s: float
+    """roco, one communicate per put, access control and mutual TLS on."""
+    stream_batched_per_s: float
+    """roco, the participant's 256 informs of a step in one put, access control and mutual TLS on."""
+    stream_open_per_s: float
+    """roco, one communicate per put, access control and TLS off."""
+    raw_stream_per_s: float
+    """Raw Zenoh, one payload per put, access control and mutual TLS on."""
+    content_bytes: int
+    links: str
+    """How the pair's sessions reach each other: ``peer`` (one hop) or ``router`` (two)."""
+    poll_us: float
+    """The receiving threads' maximum poll window (µs; 0: off)."""
+
+    @property
+    def round_trip_ratio(self) -> float:
+        """roco's round trip over raw Zenoh's polling on the same link (p50; inf when unmeasured)."""
+        return self.round_trip_p50_us / self.raw_polling_p50_us if self.raw_polling_p50_us else float("inf")
+
+
+@dataclass
+class MessagingFigures:
+    """Part 2: one roco pair and one raw pair measured on a testbed with access control and
+    mutual TLS (``secure``, the headline) and on one without (``open``), each pair's exchange
+    checked (:func:`check_exchange`); each process's resident memory (MiB) at the end of the
+    open testbed's run."""
+
+    secure: PairFigures
+    open: PairFigures
+    rss_mib: dict[str, float]
+    size: int
+    links: str
+    """``peer`` or ``router``: the path the sessions took (``ROCO_LINKS`` and
+    services/runtime/transport.py ``one_hop``; the same on both testbeds)."""
+
+    @property
+    def summary(self) -> MessagingSummary:
+        s, o = self.secure, self.open
+        return MessagingSummary(
+            round_trip_p50_us=s.roco_rt.p50_us,
+            raw_polling_p50_us=s.raw_poll_rt.p50_us,
+            raw_sleeping_p50_us=s.raw_rt.p50_us,
+            round_trip_open_p50_us=o.roco_rt.p50_us,
+            raw_polling_open_p50_us=o.raw_poll_rt.p50_us,
+            stream_per_s=s.roco_tput_single.median,
+            stream_batched_per_s=s.roco_tput.median,
+            stream_open_per_s=o.roco_tput_single.median,
+            raw_stream_per_s=s.raw_tput.median,
+            content_bytes=self.size,
+            links=self.links,
+            poll_us=s.poll_us,
+        )
+
+
+def checked_pair(bed: Testbed, rounds: int, n_rt: int, n_tput: int, size: int) -> PairFigures:
+    """Pair 0 of ``bed`` probed (:func:`probe_pair`), measured (:func:`measure_pair`) and its
+    exchange checked against what the measurement asked for (:func:`check_exchange`). Raises
+    SetupError when the work was not the work timed."""
+    probe_pair(bed, 0, size)
+    ini, par = (bed.children[n] for n in pair_names(0))
+    before = counters_of(ini), counters_of(par)
+    figures = measure_pair(bed, 0, rounds, n_rt, n_tput, size)
+    after = counters_of(ini), counters_of(par)
+    check_exchange(after[0] - before[0], after[1] - before[1], pair_exchange(rounds, n_rt, n_tput))
+    return figures
+
+
+def path_of(bed: Testbed) -> str:
+    """``peer`` when ``bed``'s sessions link to each other directly (one hop), else ``router``."""
+    direct = links_setting() == "peer" and one_hop([bed.endpoint], bed.security)
+    return "peer" if direct else "router"
+
+
+def messaging(rounds: int, n_rt: int, n_tput: int, size: int = 200) -> MessagingFigures:
+    """Part 2: one roco pair and one raw pair with access control and mutual TLS, then on a
+    fresh testbed without (:class:`MessagingFigures`). Raises SetupError (:func:`checked_pair`)
+    or TimeoutError (a process that does not answer)."""
     names = pair_names(0)
+    with testbed(1, names, [0], secure=True) as bed:
+        secure = checked_pair(bed, rounds, n_rt, n_tput, size)
+        links = path_of(bed)
     with testbed(1, names, [0]) as bed:
-        figures = measure_pair(bed, 0, rounds, n_rt, n_tput, size)
-        return figures, bed.rss_mib()
+        open_ = checked_pair(bed, rounds, n_rt, n_tput, size)
+        rss = bed.rss_mib()
+        if path_of(bed) != links:
+            raise SetupError(f"the paths differ: {links} with access control, {path_of(bed)} without")
+    return MessagingFigures(secure, open_, rss, size, links)
 
 
 @dataclass

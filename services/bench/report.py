@@ -20,7 +20,17 @@ from typing import Any
 
 from services.bench.gateway import GatewayFigures
 from services.bench.jade import JadeFigures
-from services.bench.messaging import ConcurrentFigures, PairFigures, ScaleRow, percentile, request_bytes
+from services.bench.messaging import (
+    STREAM_BATCH,
+    ConcurrentFigures,
+    Latency,
+    MessagingFigures,
+    PairFigures,
+    ScaleRow,
+    Throughput,
+    percentile,
+    request_bytes,
+)
 from services.bench.parts import (
     POUR,
     CodecRow,
@@ -38,9 +48,11 @@ from services.runtime.transport import links_setting
 ROOT = Path(__file__).resolve().parents[2]
 PACKAGES = ("eclipse-zenoh", "msgspec", "mujoco", "pin", "pyoxigraph", "gtpyhop-core")
 TARGET_RT_RATIO = 1.3
-"""roco's request → inform round trip over raw Zenoh's on the same path (p50), at most."""
+"""roco's request → inform round trip over raw Zenoh's on the same link, both polling, access
+control and mutual TLS on (p50), at most."""
 TARGET_TPUT = 50_000.0
-"""One pair's one-way stream of 200 B informs, communicates per second, at least."""
+"""One pair's one-way stream of 200 B informs, one per put, access control and mutual TLS on,
+communicates per second, at least."""
 TARGET_SPADE_RT = 3.0
 """SPADE's round trip over roco's (p50), at least."""
 TARGET_SPADE_TPUT = 10.0
@@ -266,79 +278,84 @@ def _latency_cells(samples_s: Sequence[float]) -> list[str]:
     return [*(f"{percentile(samples_s, q) * 1e6:.0f}" for q in (50, 90, 99)), str(len(samples_s))]
 
 
-def _pair_rows(f: PairFigures, size: int) -> list[list[str]]:
-    """Part 2's rows: raw Zenoh (sleeping, then polling) and roco (batched, then one put each)."""
+def _stream_cells(t: Throughput) -> list[str]:
+    """A stream's median rate, each run's rate and the communicates it lost."""
+    return [_rate(t.median), ", ".join(_rate(x) for x in t.rates), str(t.lost)]
+
+
+NO_RT = ["—"] * 4
+NO_STREAM = ["—"] * 3
+
+
+def link_label(secure: bool, links: str) -> str:
+    """The link column: the security and the path of a testbed (services/bench/messaging.py)."""
+    path = "one hop" if links == "peer" else "via the router"
+    return f"mutual TLS + ACL, {path}" if secure else f"TCP, no ACL, {path}"
+
+
+def _pair_rows(f: PairFigures, link: str, size: int) -> list[list[str]]:
+    """One testbed's rows: roco one communicate per put; raw Zenoh polling, then sleeping (its
+    stream on the first of them); roco's stream batched."""
     rows = [
         [
-            f"raw Zenoh (put/subscriber, {request_bytes(size)} B payload)",
-            *_latency_cells(f.raw_rt.samples_s),
-            _rate(f.raw_tput.median),
-            ", ".join(_rate(x) for x in f.raw_tput.rates),
-            str(f.raw_tput.lost),
-        ],
+            f"roco (Agent runtime, {size} B content; stream: one communicate per put)",
+            link,
+            *_latency_cells(f.roco_rt.samples_s),
+            *_stream_cells(f.roco_tput_single),
+        ]
     ]
+    raw = f"raw Zenoh ({request_bytes(size)} B payload, one per put)"
+    raw_rows: list[tuple[str, Latency]] = []
     if f.raw_poll_rt.samples_s:
-        rows.append(
-            [
-                f"raw Zenoh, each end polling as roco's receiving threads (≤ {f.poll_us:.0f} µs)",
-                *_latency_cells(f.raw_poll_rt.samples_s),
-                "—",
-                "—",
-                "—",
-            ]
-        )
+        raw_rows.append((f"{raw}, each end polling as roco's (≤ {f.poll_us:.0f} µs)", f.raw_poll_rt))
+    raw_rows.append((f"{raw}, each end sleeping in `recv()`", f.raw_rt))
+    for i, (label, latency) in enumerate(raw_rows):
+        stream = _stream_cells(f.raw_tput) if i == 0 else NO_STREAM
+        rows.append([label, link, *_latency_cells(latency.samples_s), *stream])
     rows.append(
         [
-            f"roco (Agent runtime, {size} B content)",
-            *_latency_cells(f.roco_rt.samples_s),
-            _rate(f.roco_tput.median),
-            ", ".join(_rate(x) for x in f.roco_tput.rates),
-            str(f.roco_tput.lost),
+            f"roco, stream batched: the {STREAM_BATCH} informs of a step in one put",
+            link,
+            *NO_RT,
+            *_stream_cells(f.roco_tput),
         ]
     )
-    if f.roco_tput_single.runs:
-        rows.append(
-            [
-                "roco, each communicate in a put of its own (no batches)",
-                *["—"] * 4,
-                _rate(f.roco_tput_single.median),
-                ", ".join(_rate(x) for x in f.roco_tput_single.rates),
-                str(f.roco_tput_single.lost),
-            ]
-        )
     return rows
 
 
-def _platform_row(label: str, other: SpadeFigures | JadeFigures) -> list[str]:
+def _platform_row(label: str, link: str, other: SpadeFigures | JadeFigures) -> list[str]:
     """SPADE's or JADE's row: its round trips, its one stream's rate, what it did not deliver."""
     lost = str(max(0, other.sent - other.count))
-    return [label, *_latency_cells(other.samples_s), _rate(other.rate), _rate(other.rate), lost]
+    return [label, link, *_latency_cells(other.samples_s), _rate(other.rate), _rate(other.rate), lost]
 
 
 def messaging_table(
-    f: PairFigures | None, spade: SpadeFigures | None, jade: JadeFigures | None, size: int
+    f: MessagingFigures | None, spade: SpadeFigures | None, jade: JadeFigures | None, size: int
 ) -> list[str]:
-    """Parts 2, 3 and 3b side by side: raw Zenoh, roco, SPADE, JADE (each when measured)."""
-    rows = _pair_rows(f, size) if f is not None else []
+    """Parts 2, 3 and 3b side by side: roco and raw Zenoh with access control and mutual TLS,
+    then both without, then SPADE and JADE (each when measured)."""
+    rows = []
+    if f is not None:
+        rows += _pair_rows(f.secure, link_label(True, f.links), size)
+        rows += _pair_rows(f.open, link_label(False, f.links), size)
     if spade is not None and not spade.error:
         label = f"SPADE {spade.versions.get('spade', '?')} over its XMPP server ({size}-character body)"
-        rows.append(_platform_row(label, spade))
+        rows.append(_platform_row(label, "TCP, no TLS, via the XMPP server", spade))
     if jade is not None and jade.samples_s:
-        label = (
-            f"JADE {jade.versions.get('jade', '?')}, two containers in two JVMs, IMTP over TCP "
-            f"({size}-character content)"
-        )
-        rows.append(_platform_row(label, jade))
+        version = jade.versions.get("jade", "?")
+        label = f"JADE {version}, two containers in two JVMs ({size}-character content)"
+        rows.append(_platform_row(label, "IMTP over TCP, one hop", jade))
     if not rows:
         return []
     return _table(
         [
             "system",
+            "link",
             "round trip p50 µs",
             "p90 µs",
             "p99 µs",
             "round trips",
-            "throughput /s (median)",
+            "stream /s (median)",
             "each run /s",
             "lost",
         ],
@@ -360,54 +377,59 @@ def _dash(value: object, fmt: str = "{}") -> str:
     return "—" if value is None else fmt.format(value)
 
 
-def _round_trip_verdicts(f: PairFigures) -> list[str]:
-    """roco's round trip against raw Zenoh's, and on equal terms when raw Zenoh polled too."""
-    ratio = f.roco_rt.p50_us / f.raw_rt.p50_us if f.raw_rt.p50_us else float("inf")
-    polling = (
-        f"roco's receiving threads poll for up to {f.poll_us:.0f} µs before sleeping "
-        "(services/runtime/polling.py), raw Zenoh's ends sleep in `recv()`"
-        if f.poll_us > 0
-        else "both sleep in a blocking receive (`ROCO_RECEIVE_POLL_US=0`)"
-    )
-    out = [
-        f"- roco round trip / raw Zenoh round trip (p50): **{ratio:.2f}×** (target ≤ "
-        f"{TARGET_RT_RATIO}×): "
-        f"{_met(ratio <= TARGET_RT_RATIO)}; {polling}."
-    ]
-    if f.raw_poll_rt.samples_s and f.raw_poll_rt.p50_us:
-        equal = f.roco_rt.p50_us / f.raw_poll_rt.p50_us
+def _round_trip_verdicts(f: MessagingFigures) -> list[str]:
+    """roco's round trip against raw Zenoh's on the same link (both polling, access control and
+    mutual TLS on), then against raw Zenoh sleeping, then what the security costs."""
+    s, o = f.secure, f.open
+    out = []
+    if s.raw_poll_rt.samples_s and s.raw_poll_rt.p50_us:
+        ratio = s.roco_rt.p50_us / s.raw_poll_rt.p50_us
         out.append(
-            f"- On equal terms, raw Zenoh's ends polling the same way: **{equal:.2f}×** "
-            f"({f.roco_rt.p50_us:.0f} against {f.raw_poll_rt.p50_us:.0f} µs): what roco's "
-            "runtime costs over the transport, wake-ups set aside."
+            f"- roco round trip / raw Zenoh's on the same link, both polling for up to {s.poll_us:.0f} µs "
+            f"before sleeping, access control and mutual TLS on (p50): **{ratio:.2f}×** "
+            f"({s.roco_rt.p50_us:.0f} against {s.raw_poll_rt.p50_us:.0f} µs; target ≤ {TARGET_RT_RATIO}×): "
+            f"{_met(ratio <= TARGET_RT_RATIO)}."
+        )
+    if s.raw_rt.p50_us:
+        sleeping = s.roco_rt.p50_us / s.raw_rt.p50_us
+        who = "roco's receiving threads polling" if s.poll_us > 0 else "roco's receiving threads sleeping too"
+        out.append(
+            f"- Against raw Zenoh's ends sleeping in `recv()` on the same link ({who}): "
+            f"**{sleeping:.2f}×** ({s.raw_rt.p50_us:.0f} µs)."
+        )
+    if o.roco_rt.p50_us:
+        extra = (s.roco_rt.p50_us / o.roco_rt.p50_us - 1) * 100
+        out.append(
+            f"- Access control and mutual TLS: roco's round trip {s.roco_rt.p50_us:.0f} µs with them, "
+            f"{o.roco_rt.p50_us:.0f} µs without (**{extra:+.0f} %**); its stream "
+            f"{_rate(s.roco_tput_single.median)} against {_rate(o.roco_tput_single.median)} /s."
         )
     return out
 
 
-def _throughput_verdict(f: PairFigures) -> str:
-    """One pair's one-way stream against the target and raw Zenoh's."""
-    tput = f.roco_tput.median
-    single = (
-        f"; each communicate in a put of its own (no batches): {_rate(f.roco_tput_single.median)} /s."
-        if f.roco_tput_single.runs
-        else "."
-    )
+def _throughput_verdict(f: MessagingFigures) -> str:
+    """One pair's one-way stream, one communicate per put, against the target and raw Zenoh's."""
+    s = f.secure
+    tput = s.roco_tput_single.median
+    share = tput / s.raw_tput.median * 100 if s.raw_tput.median else 0.0
     return (
-        f"- roco one-way throughput, one pair, 200 B content: **{_rate(tput)} /s** (target ≥ "
-        f"{_rate(TARGET_TPUT)} /s): {_met(tput >= TARGET_TPUT)}; "
-        f"{f.roco_tput.median / f.raw_tput.median * 100 if f.raw_tput.median else 0:.1f} % of raw "
-        "Zenoh's" + single
+        f"- roco one-way stream, one pair, one communicate per put, {f.size} B content, access control "
+        f"and mutual TLS on: **{_rate(tput)} /s** (target ≥ {_rate(TARGET_TPUT)} /s): "
+        f"{_met(tput >= TARGET_TPUT)}; {share:.1f} % of raw Zenoh's one payload per put on the same "
+        f"link; batched (the {STREAM_BATCH} informs of a step in one put): {_rate(s.roco_tput.median)} /s."
     )
 
 
-def _spade_verdict(f: PairFigures, spade: SpadeFigures) -> str:
-    """roco against SPADE: round trip and throughput."""
-    rt = spade_p50_us(spade) / f.roco_rt.p50_us if f.roco_rt.p50_us else 0.0
-    tp = f.roco_tput.median / spade.rate if spade.rate else 0.0
+def _spade_verdict(f: MessagingFigures, spade: SpadeFigures) -> str:
+    """roco against SPADE, both without TLS or access control: round trip and throughput (one
+    communicate per put)."""
+    o = f.open
+    rt = spade_p50_us(spade) / o.roco_rt.p50_us if o.roco_rt.p50_us else 0.0
+    tp = o.roco_tput_single.median / spade.rate if spade.rate else 0.0
     return (
-        f"- Against SPADE: round trip **{rt:.1f}× faster** (target ≥ {TARGET_SPADE_RT}×): "
-        f"{_met(rt >= TARGET_SPADE_RT)}; throughput **{tp:.1f}× higher** "
-        f"(target ≥ {TARGET_SPADE_TPUT}×): {_met(tp >= TARGET_SPADE_TPUT)}."
+        f"- Against SPADE, neither with TLS or access control, roco one communicate per put: round "
+        f"trip **{rt:.1f}× faster** (target ≥ {TARGET_SPADE_RT}×): {_met(rt >= TARGET_SPADE_RT)}; "
+        f"throughput **{tp:.1f}× higher** (target ≥ {TARGET_SPADE_TPUT}×): {_met(tp >= TARGET_SPADE_TPUT)}."
     )
 
 
@@ -481,11 +503,11 @@ def _fleet_memory_verdict(fleet: dict[str, dict[str, tuple[float, float]]]) -> l
     ]
 
 
-def verdict_lines(f: PairFigures | None, spade: SpadeFigures | None) -> list[str]:
-    """The messaging targets (round trip against raw Zenoh, one pair's stream, SPADE), each met
-    or missed, with the measured ratio."""
+def verdict_lines(f: MessagingFigures | None, spade: SpadeFigures | None) -> list[str]:
+    """The messaging targets (round trip against raw Zenoh on the same link, one pair's stream,
+    SPADE), each met or missed, with the measured ratio; and what the security costs."""
     out = []
-    if f is not None and f.raw_rt.samples_s:
+    if f is not None and f.secure.raw_rt.samples_s:
         out += [*_round_trip_verdicts(f), _throughput_verdict(f)]
     if f is not None and spade is not None and not spade.error and spade.samples_s:
         out.append(_spade_verdict(f, spade))
@@ -735,32 +757,55 @@ def _platform_how(name: str, other: SpadeFigures | JadeFigures | None, why: str,
     ]
 
 
-def messaging_how(counts: Counts, spade: SpadeFigures | None, jade: JadeFigures | None = None) -> list[str]:
-    """How parts 2, 3 and 3b measure: roco's synthetic pair, raw Zenoh and (when run) SPADE and JADE."""
+def messaging_how(
+    counts: Counts,
+    spade: SpadeFigures | None,
+    jade: JadeFigures | None = None,
+    links: str | None = None,
+) -> list[str]:
+    """How parts 2, 3 and 3b measure: roco's synthetic pair and raw Zenoh on two testbeds (with
+    and without security), and (when run) SPADE and JADE. ``links``: the path the pair took
+    (``peer``/``router``; None: ``ROCO_LINKS`` now)."""
+    peer = (links or links_setting()) == "peer"
     path = (
         "linked directly (Zenoh peers, `ROCO_LINKS=peer`: one hop), the router on a loopback port "
         "for discovery"
-        if links_setting() == "peer"
+        if peer
         else "through one router on a loopback port (`ROCO_LINKS=router`: two hops)"
     )
     return [
-        f"Two processes (spawn) {path}, no access control (services/bench/messaging.py):",
+        f"Four processes (spawn) {path}, on two testbeds in turn (services/bench/messaging.py): "
+        "**mutual TLS + ACL**, as every fleet runs (credentials and the router's access control issued "
+        "by `roco deploy`'s code from the benchmark's specification, the router on `tls/`, each "
+        "process authenticating as itself with its certificate and password, each peer applying the "
+        "ACL to its links), then **TCP, no ACL**. On each, roco and raw Zenoh share the router, the "
+        "endpoint, the credentials' kind and the path: each roco row is compared with the raw rows "
+        "of its own link.",
         "",
         "- **roco**: two synthetic agents, each a real `Agent` on a `ZenohTransport` under a "
         "specification built in code (the Robot Companion's `fipa-request` and `fipa-subscribe`), "
         f"{counts.content_bytes} B of content. Round trip: the initiator's `send` of a `request` until "
         "the participant's `inform` is in its input buffer. Stream: the participant answers a "
-        "`subscribe` with informs, 256 per step, one Zenoh put per step (shared/fipa_codec/batch.py), "
-        "then one put per inform; rate: informs taken in, each decoded and checked, after the "
+        "`subscribe` with informs, one communicate per Zenoh put (the headline, as JADE sends); the "
+        f"batched row puts the {STREAM_BATCH} informs of one step in one put "
+        "(shared/fipa_codec/batch.py). Rate: informs taken in, each decoded and checked, after the "
         "initiator's first step that took any, over the time from that step to its last.",
-        "- **raw Zenoh**: two bare Zenoh processes, configured alike (the same path), a payload "
-        "as long as roco's request; ping-pong with `put` and a subscriber's FIFO, each end "
-        "sleeping in `recv()` as zenoh-python's examples do (the target's reference), then "
-        "polling as roco's receiving threads do (equal terms); stream: a publisher's `put` in a "
-        "loop, a counting callback.",
-        f"- {counts.rounds} round(s) of all of these, {counts.round_trips} round trips each (after 50 "
-        f"warm-up ones), {counts.communicates:,} communicates per stream; round trips pooled, stream "
-        "rates the median of the rounds'. `lost`: sent, not delivered (congestion control BLOCK).",
+        "- **raw Zenoh**: two bare Zenoh processes configured as an agent's Zenoh (the same "
+        "link: same router and endpoint, TLS certificate, password and ACL when on, same hops), "
+        "putting on the keys a pair of agents would, which the ACL grants as it grants roco's; a "
+        "payload as long as roco's request. Ping-pong with `put` and a subscriber's FIFO, each end "
+        "polling as roco's receiving threads do (the target's reference), then sleeping in "
+        "`recv()` as zenoh-python's examples do; stream: a publisher's `put` in a loop, one payload "
+        "per put, counted from the FIFO by one thread as roco's inbox is read.",
+        "- Checked before a figure is given: the pair's first round trips answered within "
+        "20 s, each timed command's round trips counted, and the agents' counters after the run: "
+        "every communicate one sent the other received (the ACL drops silently), as many as "
+        "asked, none refused, not understood, failed or rejected; else the part fails.",
+        f"- {counts.rounds} round(s) of all of these per testbed, {counts.round_trips} round trips each "
+        f"(after 50 warm-up ones), {counts.communicates:,} communicates per stream; round trips "
+        "pooled, stream rates the median of the rounds'. `lost`: sent, not delivered (congestion "
+        "control BLOCK). SPADE and JADE run without TLS or access control: compare them with "
+        "the **TCP, no ACL** rows.",
         *_platform_how(
             "SPADE",
             spade,
@@ -774,19 +819,20 @@ def messaging_how(counts: Counts, spade: SpadeFigures | None, jade: JadeFigures 
             (jade.error or jade.skipped) if jade is not None else "",
             "Round trip (services/bench/java/, `System.nanoTime`): the initiator's `send` of a "
             "`request` until `blockingReceive` returns the responder's `inform`; stream: the "
-            "initiator `send`s the informs in a loop, the responder's cyclic behaviour takes them "
-            "from its queue, rate = (received − 1) / (last − first arrival) at the responder.",
+            "initiator `send`s the informs in a loop, one message each, the responder's cyclic "
+            "behaviour takes them from its queue, rate = (received − 1) / (last − first arrival) "
+            "at the responder.",
         ),
     ]
 
 
 def messaging_section(
-    pair: PairFigures | None, spade: SpadeFigures | None, jade: JadeFigures | None, counts: Counts
+    f: MessagingFigures | None, spade: SpadeFigures | None, jade: JadeFigures | None, counts: Counts
 ) -> Section:
     return Section(
         "2–3. Messaging: roco, raw Zenoh, SPADE and JADE (`messaging`, `spade`, `jade`)",
-        messaging_how(counts, spade, jade),
-        messaging_table(pair, spade, jade, counts.content_bytes),
+        messaging_how(counts, spade, jade, f.links if f is not None else None),
+        messaging_table(f, spade, jade, counts.content_bytes),
     )
 
 

@@ -1,7 +1,8 @@
 """The processes of the messaging benchmark (services/bench/messaging.py): the synthetic agents
 (a real :class:`~services.runtime.agent.Agent` each, on a
 :class:`~services.runtime.transport.ZenohTransport`), their specification and content language,
-and the bare-Zenoh processes they are compared with.
+and the bare-Zenoh processes they are compared with (an agent's Zenoh configuration, keys and,
+with access control, credentials of their own: :func:`raw_names`, :func:`raw_keys`).
 
 Kept apart from the orchestration so that a spawned benchmark process imports only what an
 agent imports (the runtime, the codec, the specification's model, Zenoh): its resident memory
@@ -18,16 +19,20 @@ import time
 from collections import deque
 from collections.abc import Callable
 from multiprocessing.connection import Connection
+from pathlib import Path
 from typing import Any, ClassVar
 
 import msgspec
 import zenoh
 
+from services.runtime import keys
 from services.runtime.agent import Agent
 from services.runtime.behaviour import FSM, Arc, Behaviour
 from services.runtime.polling import AdaptivePoll
 from services.runtime.protocol_state import ONTOLOGY
-from services.runtime.transport import Transport, ZenohTransport, member_config
+from services.runtime.transport import RECEIVE_QUEUE, Transport, ZenohTransport, member_config
+from services.security.context import ENV_SECURITY
+from services.security.context import register as register_credentials
 from services.spec.model import (
     AgentSpec,
     ChannelProtocol,
@@ -94,16 +99,35 @@ def pair_names(k: int) -> tuple[str, str]:
     return f"b_ini{k}", f"b_par{k}"
 
 
-def bench_spec(pairs: int) -> SystemSpec:
+def raw_names(k: int) -> tuple[str, str]:
+    """The identities the bare-Zenoh pinger and echo of raw pair ``k`` connect as."""
+    return f"z_ini{k}", f"z_par{k}"
+
+
+def raw_keys(k: int) -> tuple[str, str, str]:
+    """The keys of raw pair ``k``: the pinger's puts (pings and the stream), the echo's (pongs),
+    and the echo's liveliness token. They are the keys a pair of agents named
+    :func:`raw_names` would use on channel ``Z<k>`` (services/runtime/keys.py), so that the
+    router's and the peers' access control (services/spec_check/acl.py) check a raw put by the
+    same rules as an agent's."""
+    ini, par = raw_names(k)
+    return keys.fipa_key(f"Z{k}", ini, par), keys.fipa_key(f"Z{k}", par, ini), keys.alive_key(par)
+
+
+def bench_spec(pairs: int, raw_pairs: int = 0) -> SystemSpec:
     """A specification of ``pairs`` synthetic agent pairs, one channel ``B<k>`` each, with the
     Robot Companion's own fipa-request and fipa-subscribe definitions (who may send what, and
-    their state machines come from shared/fipa_codec/protocols.py)."""
+    their state machines come from shared/fipa_codec/protocols.py); ``raw_pairs`` more pairs
+    named :func:`raw_names` on channels ``Z<k>``, whose identities the bare-Zenoh processes
+    take when access control is on (the credentials and ACL are issued from this
+    specification; no agent runs for them)."""
     _register()  # registered where used: importing this module changes no registry
     real = default_spec().protocols
     agents: list[AgentSpec] = []
     channels: list[ChannelSpec] = []
-    for k in range(pairs):
-        ini, par = pair_names(k)
+    named = [(f"B{k}", *pair_names(k)) for k in range(pairs)]
+    named += [(f"Z{k}", *raw_names(k)) for k in range(raw_pairs)]
+    for channel, ini, par in named:
         agents.append(AgentSpec(ini, ini, "services.bench.synthetic:BenchInitiator", job="benchmark"))
         agents.append(AgentSpec(par, par, "services.bench.synthetic:BenchParticipant", job="benchmark"))
         request = ChannelProtocol(
@@ -118,7 +142,7 @@ def bench_spec(pairs: int) -> SystemSpec:
             languages={"subscribe": BENCH_LANGUAGE, "inform": BENCH_LANGUAGE},
             contents={"subscribe": ("BenchSubscription",), "inform": ("BenchInform",)},
         )
-        channels.append(ChannelSpec(f"B{k}", (ini, par), "benchmark communicates", (request, subscribe)))
+        channels.append(ChannelSpec(channel, (ini, par), "benchmark communicates", (request, subscribe)))
     return SystemSpec(
         system="bench",
         agents=tuple(agents),
@@ -182,7 +206,7 @@ class BenchInitiator(Agent):
     def _work(self) -> None:
         while self.r:
             cmd = self.r.popleft()
-            if cmd is not None:
+            if cmd is not None and not answer_counters(self, self.results, cmd):
                 self.commands.append(cmd)
         if self.job is None and self.commands and self.peer in self.peers:
             self._start(self.commands.popleft())
@@ -222,11 +246,10 @@ class BenchInitiator(Agent):
         n = self.job[1]
         while self.x:
             item = self.x.popleft()
-            if (
-                item.performative is Performative.INFORM
-                and self.outstanding
-                and item.msg.conversation_id == self.conversation
-            ):
+            if item.performative is not Performative.INFORM:  # not-understood, refuse, failure
+                self._finish({"error": f"{item.performative.value} from {item.sender} to a request"})
+                return
+            if self.outstanding and item.msg.conversation_id == self.conversation:
                 self.outstanding = False
                 self.done += 1
                 if self.done > WARMUP:
@@ -258,6 +281,9 @@ class BenchInitiator(Agent):
             item = self.x.popleft()
             if item.performative is Performative.INFORM and item.msg.conversation_id == self.conversation:
                 self.count += 1
+            elif item.performative is not Performative.AGREE:  # not-understood, refuse, failure
+                self._finish({"error": f"{item.performative.value} from {item.sender} to a subscribe"})
+                return
         if self.count > before:
             if before == 0:  # the rate counts what arrived after the first step that saw any
                 self.t_first, self.first = now, self.count
@@ -294,7 +320,10 @@ class BenchParticipant(Agent):
         return FSM([serve, stream], arcs)
 
     def _serve(self) -> None:
-        self.r.clear()
+        while self.r:
+            cmd = self.r.popleft()
+            if cmd is not None:
+                answer_counters(self, self.results, cmd)
         while self.x:
             item = self.x.popleft()
             content = item.content
@@ -314,15 +343,41 @@ class BenchParticipant(Agent):
             self.stream = None
 
 
-def agent_process(name: str, pairs: int, endpoint: str, conn: Connection) -> None:
+COUNTERS = "counters"
+"""The command (``("counters",)``) a synthetic agent answers with its counters, from its own
+thread between two steps: ``{"kind": "counters", "counters": {name: count}}``
+(services/runtime/counters.py names them)."""
+
+
+def answer_counters(agent: Agent, results: Connection, cmd: tuple[Any, ...]) -> bool:
+    """Send ``agent``'s counters on ``results`` when ``cmd`` asks for them; True if it did."""
+    if cmd[0] != COUNTERS:
+        return False
+    results.send({"kind": COUNTERS, "counters": dict(agent.counters)})
+    return True
+
+
+def use_credentials(endpoint: str, security: str | None) -> None:
+    """In a spawned process: sessions to ``endpoint`` authenticate with the credentials folder
+    ``security`` (services/security/context.py), or with none when it is None, whatever
+    ``ROCO_SECURITY`` the process inherited."""
+    os.environ.pop(ENV_SECURITY, None)
+    register_credentials(endpoint, Path(security) if security is not None else None)
+
+
+def agent_process(
+    name: str, pairs: int, endpoint: str, conn: Connection, security: str | None = None
+) -> None:
     """Body of one synthetic agent process (spawned): run agent ``name`` of
-    :func:`bench_spec` ``(pairs)`` on the router at ``endpoint``; commands arrive on ``conn``
-    (``("stop",)`` ends it), results leave on it."""
+    :func:`bench_spec` ``(pairs)`` on the router at ``endpoint``, authenticated as ``name``
+    with the credentials folder ``security`` (None: no access control); commands arrive on
+    ``conn`` (``("stop",)`` ends it), results leave on it."""
     logging.basicConfig(level=logging.ERROR)
+    use_credentials(endpoint, security)
     spec = bench_spec(pairs)
     base: type[Agent] = BenchInitiator if name.startswith("b_ini") else BenchParticipant
     cls = type(name, (base,), {"name": name})
-    transport = ZenohTransport([endpoint], links=None)
+    transport = ZenohTransport([endpoint], links=None, identity=name)
     agent = cls(transport, spec, conn)
     agent.bind()
     serve(agent, transport, conn)
@@ -360,53 +415,60 @@ def serve(
 
 
 # ------------------------------------------------------------------------------- raw Zenoh
-def raw_process(role: str, k: int, endpoint: str, conn: Connection) -> None:
-    """Body of one bare-Zenoh process (spawned). ``role`` "echo": puts every ping back and
-    counts throughput payloads in a subscriber callback; "pinger": does the ping-pong and
-    sends the throughput payloads. Commands on ``conn``: ``("pingpong", n, size[, poll_us])``,
+def raw_process(role: str, k: int, endpoint: str, conn: Connection, security: str | None = None) -> None:
+    """Body of one bare-Zenoh process (spawned), with the configuration of an agent's session
+    (:func:`~services.runtime.transport.member_config`: the same links, and with ``security``,
+    the credentials folder, the same mutual TLS, password and access control), connected as
+    :func:`raw_names` ``(k)`` on the keys :func:`raw_keys` ``(k)``. ``role`` "echo": puts
+    every ping back, or counts them while armed for a stream; "pinger": does the ping-pong
+    and sends the stream. Commands on ``conn``: ``("pingpong", n, size[, poll_us])``,
     ``("send", n, size)`` (pinger), ``("arm", n)``, ``("poll", max_us)`` (echo), ``("stop",)``.
     ``poll_us``/``max_us`` > 0: wait for each sample as roco's receiving threads do
     (services/runtime/polling.py) instead of in a blocking ``recv()``."""
-    session = zenoh.open(member_config([endpoint]))
-    ping, pong, tput = f"bench/raw/{k}/ping", f"bench/raw/{k}/pong", f"bench/raw/{k}/tput"
-    alive = f"bench/raw/{k}/alive"
+    use_credentials(endpoint, security)
+    identity = raw_names(k)[0 if role == "pinger" else 1]
+    session = zenoh.open(member_config([endpoint], identity=identity))
+    ping, pong, alive = raw_keys(k)
     try:
         if role == "echo":
-            _raw_echo(session, conn, ping, pong, tput, alive)
+            _raw_echo(session, conn, ping, pong, alive)
         else:
-            _raw_pinger(session, conn, ping, pong, tput, alive)
+            _raw_pinger(session, conn, ping, pong, alive)
     finally:
         session.close()
 
 
-def _raw_echo(session: zenoh.Session, conn: Connection, ping: str, pong: str, tput: str, alive: str) -> None:
-    pings = session.declare_subscriber(ping)
+def _raw_echo(session: zenoh.Session, conn: Connection, ping: str, pong: str, alive: str) -> None:
+    """One subscriber's FIFO on ``ping`` (as large as an agent's inbox's), read by one thread
+    as an agent's receiving thread reads its inbox: each sample is put back on ``pong``, or,
+    while armed for a stream, counted and stamped."""
+    pings = session.declare_subscriber(ping, zenoh.handlers.FifoChannel(RECEIVE_QUEUE))
     state = {"count": 0, "want": 0, "first": 0.0, "last": 0.0}
+    armed = threading.Event()
     complete = threading.Event()
-
-    def on_tput(sample: zenoh.Sample) -> None:
-        now = time.perf_counter()
-        if state["count"] == 0:
-            state["first"] = now
-        state["count"] += 1
-        state["last"] = now
-        if state["count"] >= state["want"]:
-            complete.set()
-
-    counter = session.declare_subscriber(tput, on_tput)
-
     ponger = session.declare_publisher(pong, congestion_control=zenoh.CongestionControl.BLOCK)
     polling: list[AdaptivePoll | None] = [None]
     """How the echo waits for a ping: None, a blocking ``recv()``; else polling as roco's
     receiving threads do (``("poll", max_us)`` sets it)."""
 
-    def echo() -> None:
+    def take() -> None:
         with contextlib.suppress(Exception):  # ends when the subscriber is undeclared
             while True:
                 poll = polling[0]
-                ponger.put((pings.recv() if poll is None else poll.next(pings)).payload.to_bytes())
+                sample = pings.recv() if poll is None else poll.next(pings)
+                if not armed.is_set():
+                    ponger.put(sample.payload.to_bytes())
+                    continue
+                now = time.perf_counter()
+                if state["count"] == 0:
+                    state["first"] = now
+                state["count"] += 1
+                state["last"] = now
+                if state["count"] >= state["want"]:
+                    armed.clear()
+                    complete.set()
 
-    threading.Thread(target=echo, name="raw-echo", daemon=True).start()
+    threading.Thread(target=take, name="raw-echo", daemon=True).start()
     token = session.liveliness().declare_token(alive)
     conn.send(("ready", os.getpid()))
     while True:
@@ -419,16 +481,18 @@ def _raw_echo(session: zenoh.Session, conn: Connection, ping: str, pong: str, tp
             continue
         complete.clear()
         state.update(count=0, want=cmd[1], first=0.0, last=0.0)
+        armed.set()
         conn.send(("armed",))
         t0 = time.perf_counter()
         while not complete.wait(0.5):
             last = state["last"] if state["count"] else t0
             if time.perf_counter() - last > STALL_S:
                 break
-        span = state["last"] - state["first"]  # a callback per sample: one at the first stamp
+        armed.clear()
+        span = state["last"] - state["first"]  # one sample per stamp: one at the first stamp
         conn.send({"kind": "stream", "count": state["count"], "first": 1, "span_s": span})
     token.undeclare()
-    counter.undeclare()  # the echo thread's subscriber goes with the session
+    ponger.undeclare()
 
 
 def _raw_pingpong(pinger: Any, pongs: Any, payload: bytes, n: int, poll_us: list[Any]) -> dict[str, Any]:
@@ -458,10 +522,8 @@ def _raw_stream(publisher: Any, payload: bytes, n: int) -> dict[str, Any]:
     return {"kind": "sent", "seconds": time.perf_counter() - t0}
 
 
-def _raw_pinger(
-    session: zenoh.Session, conn: Connection, ping: str, pong: str, tput: str, alive: str
-) -> None:
-    pongs = session.declare_subscriber(pong)
+def _raw_pinger(session: zenoh.Session, conn: Connection, ping: str, pong: str, alive: str) -> None:
+    pongs = session.declare_subscriber(pong, zenoh.handlers.FifoChannel(RECEIVE_QUEUE))
     present = threading.Event()
 
     def on_alive(sample: zenoh.Sample) -> None:
@@ -470,9 +532,7 @@ def _raw_pinger(
 
     watch = session.liveliness().declare_subscriber(alive, on_alive, history=True)
     # congestion control BLOCK, as roco's ZenohTransport: nothing is dropped on either side
-    block = zenoh.CongestionControl.BLOCK
-    publisher = session.declare_publisher(tput, congestion_control=block)
-    pinger = session.declare_publisher(ping, congestion_control=block)
+    pinger = session.declare_publisher(ping, congestion_control=zenoh.CongestionControl.BLOCK)
     conn.send(("ready", os.getpid()))
     while True:
         cmd = conn.recv()
@@ -486,8 +546,7 @@ def _raw_pinger(
         if kind == "pingpong":
             conn.send(_raw_pingpong(pinger, pongs, payload, n, rest))
         else:
-            conn.send(_raw_stream(publisher, payload, n))
-    publisher.undeclare()
+            conn.send(_raw_stream(pinger, payload, n))
     pinger.undeclare()
     watch.undeclare()
     pongs.undeclare()

@@ -19,6 +19,7 @@ from services.bench.messaging import (
     BenchRequest,
     ConcurrentFigures,
     Latency,
+    MessagingFigures,
     PairFigures,
     ScaleRow,
     Throughput,
@@ -207,20 +208,23 @@ def test_quick_bench_writes_codec_and_messaging_tables(tmp_path: Path) -> None:
     for r in codec:
         assert _number(r[2]) > 0 and _number(r[3]) > 0  # encode, decode µs
     messaging = _rows(text, "## 2–3. Messaging")
-    systems = [r[0] for r in messaging]
-    assert systems[0].startswith("raw Zenoh (put/subscriber")
-    assert systems[1].startswith("raw Zenoh, each end polling") and systems[2].startswith("roco")
-    for r in messaging[:3]:
-        p50, p90, p99, count = _number(r[1]), _number(r[2]), _number(r[3]), _number(r[4])
-        assert 0 < p50 <= p90 <= p99 and count == 300
-    assert _number(messaging[0][5]) > 0 and _number(messaging[2][5]) > 0  # throughput /s
-    # the same stream with each communicate in a put of its own (no batches), nothing lost either
-    assert (
-        systems[3].startswith("roco, each communicate in a put of its own") and _number(messaging[3][5]) > 0
-    )
-    assert messaging[2][7] == messaging[3][7] == "0"
+    systems, links = [r[0] for r in messaging], [r[1] for r in messaging]
+    # each testbed: roco, raw Zenoh polling then sleeping on the same link, roco's stream batched
+    assert links == ["mutual TLS + ACL, one hop"] * 4 + ["TCP, no ACL, one hop"] * 4
+    for first in (0, 4):
+        roco, polling, sleeping, batched = messaging[first : first + 4]
+        assert roco[0].startswith("roco (Agent runtime") and "one communicate per put" in roco[0]
+        assert "each end polling as roco's" in polling[0] and "each end sleeping" in sleeping[0]
+        assert batched[0].startswith("roco, stream batched: the 256 informs of a step in one put")
+        for r in (roco, polling, sleeping):
+            p50, p90, p99, count = _number(r[2]), _number(r[3]), _number(r[4]), _number(r[5])
+            assert 0 < p50 <= p90 <= p99 and count == 300
+        for r in (roco, polling, batched):  # streams: roco one per put, raw Zenoh, roco batched
+            assert _number(r[6]) > 0 and r[8] == "0"
+    assert systems[0] == systems[4] and "mutual TLS + ACL" in text
     targets = text.split("## Targets", 1)[1].split("\n## ", 1)[0]
-    assert "On equal terms, raw Zenoh's ends polling the same way" in targets
+    assert "roco round trip / raw Zenoh's on the same link, both polling" in targets
+    assert "Access control and mutual TLS: roco's round trip" in targets
     assert text.index("## This run") < text.index("## 1. Codec") < text.index("## Targets")
 
 
@@ -365,6 +369,16 @@ def _fixed_figures_document() -> str:
     jade = JadeFigures(
         [600e-6], 50_000, 50_000, 2.5, {"jade": "4.6.5"}, settings="two containers in two JVMs"
     )
+    unsecured = PairFigures(
+        roco_rt=Latency([300e-6] * 3),
+        raw_rt=Latency([250e-6] * 3),
+        raw_poll_rt=Latency([180e-6] * 3),
+        poll_us=500.0,
+        roco_tput=Throughput([(130_000, 50_000, 1.0, 1)]),
+        roco_tput_single=Throughput([(80_001, 50_000, 1.0, 1)]),
+        raw_tput=Throughput([(500_001, 50_000, 1.0, 1)]),
+    )
+    messaging = MessagingFigures(pair, unsecured, {}, 200, "peer")
     timing = TimingStats(
         pacing="realtime",
         cycles=54_890,
@@ -415,7 +429,7 @@ def _fixed_figures_document() -> str:
     )
     sections = [
         report.codec_section([CodecRow("200 B", 200, 412, 0.40, 1.25, 20_000)]),
-        report.messaging_section(pair, spade, jade, counts),
+        report.messaging_section(messaging, spade, jade, counts),
         report.knowledge_section(
             [QueryRow("ObjectQuery(jar)", 0.176, 0.286, 0.768, 0.933, 273)], "544 triples", counts
         ),
@@ -429,7 +443,7 @@ def _fixed_figures_document() -> str:
         report.reading_section(_reading_rows(), counts),
     ]
     targets = [
-        *report.verdict_lines(pair, spade),
+        *report.verdict_lines(messaging, spade),
         *report.memory_verdicts(memory),
         *report.scale_verdicts(scale),
         *report.plan_and_fleet_verdicts(planning, fleet),
@@ -476,13 +490,17 @@ def test_a_report_from_fixed_figures_states_the_method_and_the_present_only() ->
     # each part says how much it measured
     assert "2000 round trips each (after 50 warm-up ones), 50,000 communicates per stream" in text
     assert "- **JADE**: two containers in two JVMs; versions: jade 4.6.5. Round trip" in text
-    assert "| JADE 4.6.5, two containers in two JVMs, IMTP over TCP (200-character content) | 600 |" in text
+    assert (
+        "| JADE 4.6.5, two containers in two JVMs (200-character content) | IMTP over TCP, one hop | 600 |"
+        in text
+    )
     assert "500 round trips per initiator after 50 warm-up ones, 3 time(s)" in text
     assert "in turn until each has 20 halts" in text
     assert "50 lines per shape and length after 3 warm-up ones" in text
     # targets named by what they are, each met or missed by the figures given
     targets = text.split("## Targets", 1)[1].split("\n## ", 1)[0]
-    assert "**1.28×** (target ≤ 1.3×): met" in targets
+    assert "**1.80×** (346 against 192 µs; target ≤ 1.3×): missed" in targets
+    assert "**+15 %**); its stream 71,000 against 80,000 /s." in targets
     assert (
         "**48.6 %** of the 10-agent round trips /s while every pair runs (target ≥ 60 %): missed" in targets
     )

@@ -85,9 +85,9 @@ def test_a_line_is_read_within_its_bound(tmp_path: Path) -> None:
 def test_the_jade_row_sits_beside_roco_and_raw_zenoh() -> None:
     fig = JadeFigures([400e-6, 500e-6, 900e-6], 4999, 5000, 0.25, {"jade": "4.6.5", "java": "17"})
     rows = report.messaging_table(None, None, fig, 200)
-    assert rows[0].startswith("| system | round trip p50 µs | p90 µs | p99 µs |")
+    assert rows[0].startswith("| system | link | round trip p50 µs | p90 µs | p99 µs |")
     assert rows[2] == (
-        "| JADE 4.6.5, two containers in two JVMs, IMTP over TCP (200-character content) "
+        "| JADE 4.6.5, two containers in two JVMs (200-character content) | IMTP over TCP, one hop "
         "| 500 | 900 | 900 | 3 | 19,992 | 19,992 | 1 |"
     )
     assert report.messaging_table(None, None, JadeFigures(skipped="no javac"), 200) == []
