@@ -7,10 +7,20 @@ import json
 from pathlib import Path
 from typing import Any
 
+import msgspec
 import pytest
 
 from services.bench import messaging
-from services.bench.messaging import SetupError, check_exchange, pair_exchange
+from services.bench.messaging import (
+    Latency,
+    MessagingFigures,
+    MessagingSummary,
+    PairFigures,
+    SetupError,
+    Throughput,
+    check_exchange,
+    pair_exchange,
+)
 from services.deploy import deploy
 from services.runtime import keys
 from services.security.folder import ACL_FILE
@@ -72,3 +82,25 @@ def test_a_pair_the_access_control_refuses_fails_the_part(monkeypatch: pytest.Mo
         SetupError, match=r"b_ini0 had no answer within 5 s: requests sent 1, received by b_par0 0"
     ):
         messaging.messaging(1, 10, 100)
+
+
+def test_the_summary_takes_each_headline_figure_from_its_testbed() -> None:
+    def pair(rt_us: float, stream: int) -> PairFigures:
+        return PairFigures(
+            roco_rt=Latency([rt_us * 1e-6] * 3),
+            raw_rt=Latency([(rt_us - 10) * 1e-6] * 3),
+            raw_poll_rt=Latency([(rt_us - 20) * 1e-6] * 3),
+            poll_us=500.0,
+            roco_tput=Throughput([(stream + 3, 1000, 1.0, 1)]),
+            roco_tput_single=Throughput([(stream + 1, 1000, 1.0, 1)]),
+            raw_tput=Throughput([(stream + 5, 1000, 1.0, 1)]),
+        )
+
+    s = MessagingFigures(pair(300, 10_000), pair(200, 20_000), {}, 200, "peer").summary
+    assert (s.round_trip_p50_us, s.raw_polling_p50_us, s.raw_sleeping_p50_us) == pytest.approx(
+        (300, 280, 290)
+    )
+    assert (s.round_trip_open_p50_us, s.raw_polling_open_p50_us) == pytest.approx((200, 180))
+    assert (s.stream_per_s, s.stream_batched_per_s, s.raw_stream_per_s) == (10_000, 10_002, 10_004)
+    assert s.stream_open_per_s == 20_000 and s.round_trip_ratio == pytest.approx(300 / 280)
+    assert msgspec.json.decode(msgspec.json.encode(s), type=MessagingSummary) == s
