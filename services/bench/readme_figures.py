@@ -1,0 +1,427 @@
+"""README.md's "Figures" table, rendered from the documents the measuring runs wrote, and
+written between its two markers (:data:`BEGIN`, :data:`END`).
+
+Sources, each opening with its run's header (services/bench/run_header.py: command, commit,
+date, CPU and cores):
+
+- docs/benchmarks.md, written by ``roco bench`` (services/bench/report.py);
+- docs/bench/loop.md, the output of ``python scripts/bench_loop.py``;
+- docs/bench/pour_seeds_fleet.md, the output of ``python scripts/bench_pour_seeds.py --mode fleet``.
+
+One function per row (:data:`ROWS`), each reading named cells of its source's tables and
+returning the figure, its value, what it is compared with and how, and the run it is from.
+``roco bench`` calls :func:`write` after a whole run to docs/benchmarks.md; tests/docs checks
+README against the documents with :func:`differences`.
+"""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+from services.bench import report, run_header, targets
+from services.bench.run_header import RunHeader
+
+BEGIN = "<!-- figures:begin: written by `roco bench` (services/bench/readme_figures.py) -->"
+END = "<!-- figures:end -->"
+BENCHMARKS = "docs/benchmarks.md"
+LOOP = "docs/bench/loop.md"
+POUR_SEEDS = "docs/bench/pour_seeds_fleet.md"
+HEADER = ["figure", "value", "compared with, how", "measured by: command, commit, machine"]
+
+
+class FiguresError(ValueError):
+    """A source document lacks the header, section, table, row or cell a figure is read from."""
+
+
+@dataclass(frozen=True)
+class Table:
+    """A Markdown table: its header cells and its rows' cells."""
+
+    header: list[str]
+    rows: list[list[str]]
+
+    def row(self, first: str, where: str) -> list[str]:
+        """The first row whose first cell starts with ``first``; FiguresError when none does."""
+        for r in self.rows:
+            if r[0].startswith(first):
+                return r
+        raise FiguresError(f"{where}: no row starting {first!r}")
+
+    def rows_starting(self, first: str) -> list[list[str]]:
+        return [r for r in self.rows if r[0].startswith(first)]
+
+    def column(self, name: str, where: str) -> int:
+        """The index of the first column whose header starts with ``name``."""
+        for i, h in enumerate(self.header):
+            if h.startswith(name):
+                return i
+        raise FiguresError(f"{where}: no column starting {name!r}")
+
+
+@dataclass(frozen=True)
+class Document:
+    """A source document: its path from the repository root, its text and its run's header."""
+
+    path: str
+    text: str
+    run: RunHeader
+
+    @classmethod
+    def read(cls, root: Path, path: str) -> Document:
+        """``root / path`` with its run header (FiguresError when the file or header is missing)."""
+        try:
+            text = (root / path).read_text()
+        except OSError as exc:
+            raise FiguresError(f"{path}: {exc.strerror}") from exc
+        try:
+            return cls(path, text, run_header.read(text, path))
+        except run_header.HeaderError as exc:
+            raise FiguresError(str(exc)) from exc
+
+    def section(self, title: str) -> str:
+        """The text of the ``## `` section whose heading starts with ``title`` (the whole
+        document when ``title`` is empty)."""
+        if not title:
+            return self.text
+        for part in self.text.split("\n## ")[1:]:
+            if part.startswith(title):
+                return part
+        raise FiguresError(f"{self.path}: no section '## {title}…'")
+
+    def heading(self, title: str) -> str:
+        return self.section(title).split("\n", 1)[0]
+
+    def tables(self, title: str = "") -> list[Table]:
+        """The tables of a section (of the document's current run: before ``## Earlier runs``)."""
+        text = self.section(title).split("\n## Earlier runs", 1)[0]
+        out, block = [], []
+        for line in [*text.splitlines(), ""]:
+            if line.startswith("|"):
+                block.append(line)
+            elif block:
+                cells = [[c.strip() for c in b.strip().strip("|").split("|")] for b in block]
+                out.append(Table(cells[0], cells[2:]))
+                block = []
+        if not out:
+            raise FiguresError(f"{self.path}: no table in '{title or 'the document'}'")
+        return out
+
+    def table(self, title: str, first_column: str) -> Table:
+        """The section's first table whose first header cell starts with ``first_column``."""
+        for t in self.tables(title):
+            if t.header[0].startswith(first_column):
+                return t
+        raise FiguresError(f"{self.path}: no table headed {first_column!r} in '{title}'")
+
+
+@dataclass(frozen=True)
+class Row:
+    """One row of README's figures: the figure, its value, what it is compared with and how,
+    and where it was measured (the document, its section, the run's header)."""
+
+    figure: str
+    value: str
+    compared: str
+    source: Document
+    section: str = ""
+    part: str = ""
+    """The ``roco bench`` part (``--only``) that measured it; empty for a script's figure."""
+
+    def measured_by(self) -> str:
+        run = self.source.run
+        command = f"roco bench --only {self.part}" if self.part else run.command
+        anchor = f"#{slug(self.source.heading(self.section))}" if self.section else ""
+        return f"[`{command}`]({self.source.path}{anchor}) at {run.commit}, {run.date}; {run.machine}"
+
+    def cells(self) -> list[str]:
+        return [self.figure, self.value, self.compared, self.measured_by()]
+
+
+def slug(heading: str) -> str:
+    """A heading's anchor as GitHub makes it: lower case, punctuation dropped, spaces to ``-``."""
+    text = re.sub(r"[`*]", "", heading).strip().lower()
+    return re.sub(r"[^\w\- ]", "", text).replace(" ", "-")
+
+
+def _number(cell: str) -> float:
+    """The first number in a cell (``"1,418"`` → 1418.0, ``"7 (0.013 %)"`` → 7.0)."""
+    m = re.search(r"-?\d[\d,]*(?:\.\d+)?", cell)
+    if m is None:
+        raise FiguresError(f"no number in {cell!r}")
+    return float(m.group().replace(",", ""))
+
+
+def _span(cells: list[str]) -> str:
+    """``"a–b"`` over the cells' numbers as written (``"a"`` when all are equal)."""
+    ordered = sorted(cells, key=_number)
+    return ordered[0] if ordered[0] == ordered[-1] else f"{ordered[0]}–{ordered[-1]}"
+
+
+# ------------------------------------------------------------------------- one function per row
+
+MESSAGING = "2–3. Messaging"
+ROCO_ROW = "roco (Agent runtime"
+RAW_SLEEPING_ROW = "raw Zenoh (put/subscriber"
+RAW_POLLING_ROW = "raw Zenoh, each end polling"
+ROCO_ONE_PUT_ROW = "roco, each communicate in a put of its own"
+
+
+def _others(t: Table, column: int, labels: list[tuple[str, str]], unit: str) -> list[str]:
+    """``"NAME: VALUE UNIT"`` of each row of ``labels`` (first-cell prefix, name) that the
+    table has (SPADE and JADE may be skipped)."""
+    out = []
+    for first, name in labels:
+        rows = t.rows_starting(first)
+        if rows:
+            out.append(f"{name}: {rows[0][column]}{unit}")
+    return out
+
+
+def pour(docs: dict[str, Document]) -> Row:
+    """Part 7 (`task`): ``roco run`` of the pour, start to exit, unpaced and in real time;
+    reads the task table's ``pacing``, ```roco run` wall s`` and ``simulated s`` cells."""
+    doc, title = docs[BENCHMARKS], "7. Task"
+    t = doc.table(title, "pacing")
+    wall, sim = t.column("`roco run` wall s", title), t.column("simulated s", title)
+    fast = t.row("as fast as possible", title)
+    value = f"{fast[wall]} s as fast as possible"
+    paced = t.rows_starting("real time")
+    if paced:
+        value += f"; {paced[0][wall]} s in real time"
+    return Row(
+        "the pour, `roco run` start to exit",
+        value,
+        f"the {fast[sim]} s of simulated time it covers, from the run folder",
+        doc,
+        title,
+        "task",
+    )
+
+
+def plan_1(docs: dict[str, Document]) -> Row:
+    """Part 5 (`planning`): plan #1 of the pour, request → plan; reads the planning table's
+    ``plan #1, request N`` rows (``request → plan s (wall)``, ``a_km queries``)."""
+    doc, title = docs[BENCHMARKS], "5. Planning"
+    t = doc.table(title, "plan")
+    wall, queries = t.column("request → plan s", title), t.column("a_km queries", title)
+    rows = t.rows_starting("plan #1, request")
+    if not rows:
+        raise FiguresError(f"{doc.path}: no row 'plan #1, request …' in '{title}'")
+    worst = max(_number(r[wall]) for r in rows)
+    paper = report.PAPER_PLAN_1_TEXT
+    return Row(
+        "plan #1 of the pour, request → plan",
+        f"{_span([r[wall] for r in rows])} s over {len(rows)} requests, "
+        f"{_span([r[queries] for r in rows])} a_km queries",
+        f"target ≤ {report.TARGET_PLAN_1_S:g} s: {'met' if worst <= report.TARGET_PLAN_1_S else 'missed'}; "
+        f"{paper[0].lower()}{paper[1:].rstrip('.')}",
+        doc,
+        title,
+        "planning",
+    )
+
+
+def round_trip(docs: dict[str, Document]) -> Row:
+    """Parts 2–3 (`messaging`, `spade`, `jade`): request → inform round trip, p50; reads the
+    messaging table's ``round trip p50 µs`` of roco's, raw Zenoh's (sleeping, polling),
+    SPADE's and JADE's rows."""
+    doc = docs[BENCHMARKS]
+    t = doc.table(MESSAGING, "system")
+    p50 = t.column("round trip p50 µs", MESSAGING)
+    others = _others(
+        t,
+        p50,
+        [
+            (RAW_SLEEPING_ROW, "raw Zenoh sleeping in `recv()`"),
+            (RAW_POLLING_ROW, "raw Zenoh polling as roco does"),
+            ("JADE", "JADE"),
+            ("SPADE", "SPADE"),
+        ],
+        " µs",
+    )
+    return Row(
+        "request → inform round trip between two agent processes, p50",
+        f"{t.row(ROCO_ROW, MESSAGING)[p50]} µs",
+        "; ".join(others) + f" (each p50, {report.Counts().content_bytes} B of content, two processes)",
+        doc,
+        MESSAGING,
+        "messaging,spade,jade",
+    )
+
+
+def stream(docs: dict[str, Document]) -> Row:
+    """Parts 2–3: one pair streaming 200 B informs; reads the messaging table's
+    ``throughput /s (median)`` of roco's (batched, one put each), raw Zenoh's, SPADE's and
+    JADE's rows."""
+    doc = docs[BENCHMARKS]
+    t = doc.table(MESSAGING, "system")
+    rate = t.column("throughput /s", MESSAGING)
+    others = _others(
+        t,
+        rate,
+        [
+            (ROCO_ONE_PUT_ROW, "roco, one put each"),
+            ("JADE", "JADE"),
+            ("SPADE", "SPADE"),
+            (RAW_SLEEPING_ROW, "raw Zenoh"),
+        ],
+        " /s",
+    )
+    value = t.row(ROCO_ROW, MESSAGING)[rate]
+    return Row(
+        "one pair streaming 200 B informs",
+        f"{value} communicates/s",
+        f"target ≥ {report.TARGET_TPUT:,.0f} /s: "
+        f"{'met' if _number(value) >= report.TARGET_TPUT else 'missed'}; " + "; ".join(others),
+        doc,
+        MESSAGING,
+        "messaging,spade,jade",
+    )
+
+
+def fleet_memory(docs: dict[str, Document]) -> Row:
+    """Part 6b (`memory`): the fleet's memory at rest; reads the fleet table's ``**total**``
+    row, the PSS column after ``at rest: VmRSS MiB``."""
+    doc, title = docs[BENCHMARKS], "6b. Memory"
+    t = doc.table(title, "`roco up`'s fleet")
+    pss = t.column("at rest", title) + 1
+    total = t.row("**total**", title)[pss].strip("*")
+    return Row(
+        "the fleet's memory at rest",
+        f"{total} MiB PSS in all",
+        f"target ≤ {report.TARGET_FLEET_MIB:g} MiB: "
+        f"{'met' if _number(total) <= report.TARGET_FLEET_MIB else 'missed'}; "
+        "the sum of every process's PSS (a shared page counted once)",
+        doc,
+        title,
+        "memory",
+    )
+
+
+def loop(docs: dict[str, Document]) -> Row:
+    """scripts/bench_loop.py: ag_ex's 1 kHz loop in real time with the whole fleet; reads the
+    current run's ``fleet:`` rows (``compute p99 µs``, ``overruns``)."""
+    doc = docs[LOOP]
+    t = doc.table("", "condition")
+    p99, over = t.column("compute p99 µs", LOOP), t.column("overruns", LOOP)
+    rows = t.rows_starting("fleet:")
+    if not rows:
+        raise FiguresError(f"{doc.path}: no 'fleet:' row in its current run")
+    shares = [re.search(r"\(([\d.]+) %\)", r[over]) for r in rows]
+    if not all(shares):
+        raise FiguresError(f"{doc.path}: an overruns cell without its share '(x %)'")
+    share_cells = [m.group(1) for m in shares if m]
+    work_ok = all(targets.LOOP_WORK_P99.met(_number(r[p99])) for r in rows)
+    over_ok = all(targets.LOOP_OVERRUNS.met(float(s)) for s in share_cells)
+    return Row(
+        "ag_ex's 1 kHz loop in real time, whole fleet",
+        f"cycle work p99 {_span([r[p99] for r in rows])} µs, {_span(share_cells)} % of cycles overrun "
+        f"({len(rows)} runs)",
+        f"targets {targets.LOOP_WORK_P99.text()} and {targets.LOOP_OVERRUNS.text()} in every run: "
+        f"{'met' if work_ok and over_ok else 'missed'}",
+        doc,
+    )
+
+
+def pour_seeds(docs: dict[str, Document]) -> Row:
+    """scripts/bench_pour_seeds.py --mode fleet: pours with the jar and bowl moved; reads its
+    ``Success (…): N of M`` line and the table's ``spheres in bowl`` cells."""
+    doc = docs[POUR_SEEDS]
+    m = re.search(r"^Success \(([^)]*)\): (\d+) of (\d+)", doc.text, re.MULTILINE)
+    if m is None:
+        raise FiguresError(f"{doc.path}: no line 'Success (…): N of M'")
+    t = doc.table("", "seed")
+    spheres = t.column("spheres in bowl", POUR_SEEDS)
+    inside = sorted({r[spheres] for r in t.rows}, key=_number)
+    counts = " or ".join(dict.fromkeys(c.split("/")[0] for c in inside))
+    total = inside[-1].split("/")[-1]
+    return Row(
+        "pours with the jar and bowl moved ±2 cm, turned ±10°",
+        f"{m[2]} of {m[3]} succeeded, {counts} of {total} spheres in the bowl",
+        f"success: {m[1]}",
+        doc,
+    )
+
+
+ROWS: list[Callable[[dict[str, Document]], Row]] = [
+    pour,
+    plan_1,
+    round_trip,
+    stream,
+    fleet_memory,
+    loop,
+    pour_seeds,
+]
+"""README's rows, in order."""
+
+
+# ------------------------------------------------------------------------- README
+
+
+def documents(root: Path) -> dict[str, Document]:
+    """The source documents under ``root``, each with its run header."""
+    return {p: Document.read(root, p) for p in (BENCHMARKS, LOOP, POUR_SEEDS)}
+
+
+def render(root: Path) -> list[str]:
+    """README's figures table from the documents under ``root`` (FiguresError when one lacks
+    a figure or its run header)."""
+    docs = documents(root)
+    rows = [f(docs).cells() for f in ROWS]
+    return [
+        "| " + " | ".join(HEADER) + " |",
+        "|" + "---|" * len(HEADER),
+        *("| " + " | ".join(r) + " |" for r in rows),
+    ]
+
+
+def between(readme: str) -> tuple[int, int]:
+    """The character offsets of the text between the markers (ValueError when they are missing,
+    repeated or out of order)."""
+    if readme.count(BEGIN) != 1 or readme.count(END) != 1:
+        raise ValueError(f"README.md: expected one line {BEGIN!r} and one {END!r}")
+    start, end = readme.index(BEGIN) + len(BEGIN), readme.index(END)
+    if end < start:
+        raise ValueError(f"README.md: {END!r} comes before {BEGIN!r}")
+    return start, end
+
+
+def replaced(readme: str, table: list[str]) -> str:
+    """``readme`` with the text between the markers replaced by ``table``."""
+    start, end = between(readme)
+    return readme[:start] + "\n" + "\n".join(table) + "\n" + readme[end:]
+
+
+def differences(root: Path) -> list[str]:
+    """How README.md's table under ``root`` differs from the one its documents give (empty:
+    none): each README line that is not the rendered one, beside it."""
+    readme = (root / "README.md").read_text()
+    start, end = between(readme)
+    have = readme[start:end].strip("\n").splitlines()
+    want = render(root)
+    out = [f"README.md: {h!r}\n  documents: {w!r}" for h, w in zip(have, want, strict=False) if h != w]
+    if len(have) != len(want):
+        out.append(f"README.md has {len(have)} lines of figures, the documents give {len(want)}")
+    return out
+
+
+RUN_CELL = re.compile(
+    r"\) at [0-9a-f]{7,40}(?: \+ working tree)?, \d{4}-\d{2}-\d{2}[^;|]*; [^|]*\d+ cores? *$"
+)
+"""The last cell of a row: the run's command (a link), commit, date; its CPU and cores."""
+
+
+def rows_without_run(readme: str) -> list[str]:
+    """README's figure rows whose last cell does not name the run's commit and machine."""
+    start, end = between(readme)
+    rows = [line for line in readme[start:end].splitlines() if line.startswith("|")][2:]
+    return [r for r in rows if not RUN_CELL.search(r.rstrip("|").rstrip())]
+
+
+def write(root: Path) -> None:
+    """Write README.md's figures table under ``root`` from its documents."""
+    path = root / "README.md"
+    path.write_text(replaced(path.read_text(), render(root)))
