@@ -180,6 +180,30 @@ def _others(t: Table, column: int, labels: list[tuple[str, str]], unit: str) -> 
     return out
 
 
+def bench_targets(docs: dict[str, Document]) -> Row:
+    """``roco bench``'s targets: how many met and missed, and each missed one with its figure
+    and bound; reads the ``Targets`` section's ``Missed:`` and ``Met:`` lines (services/bench/
+    report.py ``targets_section``)."""
+    doc, title = docs[BENCHMARKS], report.TARGETS_TITLE
+    lines = [line for line in doc.section(title).splitlines() if line.startswith("- ")]
+    verdicts = [w for line in lines for w in report.VERDICT.findall(line)]
+    if not verdicts:
+        raise FiguresError(f"{doc.path}: no verdict '(target …): met|missed' in '{title}'")
+    missed = []
+    for line in lines:
+        for m in re.finditer(r"\(([^()]*; )?target:? ([^()]*)\): missed", line):
+            name, figure = line[2:].split(": ", 1)[0], re.search(r"\*\*([^*]+)\*\*", line)
+            missed.append(f"{name}: {figure[1] if figure else '?'} (target {m[2]})")
+    return Row(
+        "`roco bench`'s targets",
+        f"{verdicts.count('met')} met, {verdicts.count('missed')} missed",
+        ("missed: " + "; ".join(missed)) if missed else "none missed",
+        doc,
+        title,
+        "",
+    )
+
+
 def pour(docs: dict[str, Document]) -> Row:
     """Part 7 (`task`): ``roco run`` of the pour, start to exit, unpaced and in real time;
     reads the task table's ``pacing``, ```roco run` wall s`` and ``simulated s`` cells."""
@@ -347,6 +371,7 @@ def pour_seeds(docs: dict[str, Document]) -> Row:
 
 
 ROWS: list[Callable[[dict[str, Document]], Row]] = [
+    bench_targets,
     pour,
     plan_1,
     round_trip,

@@ -77,6 +77,13 @@ def test_a_document_s_new_figure_not_in_readme_is_caught(tmp_path: Path) -> None
     assert len(found) == 1 and "0.013–0.160 %" in found[0] and ": missed" in found[0]
 
 
+def test_a_target_missed_in_the_run_but_not_in_readme_is_caught(tmp_path: Path) -> None:
+    root = _copy(tmp_path)
+    _edit(root / BENCHMARKS, "(target ≤ 2 s): met", "(target ≤ 2 s): missed")
+    found = readme_figures.differences(root)
+    assert len(found) == 1 and "8 met, 4 missed" in found[0] and "Plan #1 wall time" in found[0]
+
+
 def test_a_readme_row_without_commit_or_machine_is_caught(tmp_path: Path) -> None:
     root = _copy(tmp_path)
     row = _readme_row(root, "pours with the jar")
