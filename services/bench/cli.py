@@ -23,6 +23,10 @@ Parts (`--only` takes a comma-separated subset; default all, in this order):
 Each timed part first waits for a quiet machine (`--settle`). `--quick` shrinks every count (a
 smoke test of the command, not figures to quote). A part that fails is reported in the
 document with its error; the others still run.
+
+A whole run (every part, full counts, none failed) to the default output also rewrites
+README.md's figures table from docs/benchmarks.md and docs/bench/
+(services/bench/readme_figures.py); any other run leaves README.md as it is.
 """
 
 from __future__ import annotations

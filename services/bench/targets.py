@@ -32,5 +32,7 @@ class Target:
 LOOP_WORK_P99 = Target(400.0, "µs")
 """ag_ex's 1 kHz loop in real time: each run's cycle work at p99 (scripts/bench_loop.py), at most
 (docs/executor.md, the loop's goals)."""
+CONTROLLER_P99 = Target(150.0, "µs")
+"""Velma's two-arm controller alone, ``update(q, v)`` at p99 (scripts/bench_controller.py), at most."""
 LOOP_OVERRUNS = Target(0.1, "%")
 """ag_ex's 1 kHz loop in real time: each run's share of cycles that overran, at most."""

@@ -11,6 +11,7 @@ import sys
 from pathlib import Path
 
 import pytest
+import typer
 
 from services.bench import cli, readme_figures, report, run_header
 from services.bench.readme_figures import BENCHMARKS, LOOP, POUR_SEEDS, FiguresError
@@ -186,3 +187,26 @@ def test_a_partial_run_leaves_readme_alone(tmp_path: Path) -> None:
     assert done.returncode == 0, done.stderr[-2000:]
     assert "README.md's figures left as they are (a run of some parts or with --quick)" in done.stderr
     assert (ROOT / "README.md").read_text() == before
+
+
+def test_a_whole_run_writes_readme_and_says_why_not_when_it_cannot(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    root = _copy(tmp_path)
+    monkeypatch.setattr(cli, "ROOT", root)
+    monkeypatch.setattr(cli, "DEFAULT_OUT", root / BENCHMARKS)
+    row = _readme_row(root, "the pour,")
+    _edit(root / "README.md", row, "| stale |")
+    cli._readme_figures(list(cli.PARTS), False, root / BENCHMARKS, {})
+    assert (root / "README.md").read_text() == (ROOT / "README.md").read_text()
+    assert "roco bench: wrote README.md's figures" in capsys.readouterr().err
+    # a source without its run header: one line saying so, a non-zero exit, README unchanged
+    _edit(root / LOOP, "- CPU: AMD EPYC", "- AMD EPYC")
+    with pytest.raises(typer.Exit) as exit_:
+        cli._readme_figures(list(cli.PARTS), False, root / BENCHMARKS, {})
+    assert exit_.value.exit_code == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == [
+        "roco: README.md's figures not written: docs/bench/loop.md: no line '- CPU: …, N of M cores usable'"
+    ]
+    assert (root / "README.md").read_text() == (ROOT / "README.md").read_text()
