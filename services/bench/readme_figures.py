@@ -21,8 +21,8 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
-from services.bench import report, run_header, targets
-from services.bench.run_header import RunHeader
+from services.bench import report, targets
+from services.bench.bench_docs import Document, FiguresError, Table, number, slug
 
 BEGIN = "<!-- figures:begin: written by `roco bench` (services/bench/readme_figures.py) -->"
 END = "<!-- figures:end -->"
@@ -30,91 +30,6 @@ BENCHMARKS = "docs/benchmarks.md"
 LOOP = "docs/bench/loop.md"
 POUR_SEEDS = "docs/bench/pour_seeds_fleet.md"
 HEADER = ["figure", "value", "compared with, how", "measured by: command, commit, machine"]
-
-
-class FiguresError(ValueError):
-    """A source document lacks the header, section, table, row or cell a figure is read from."""
-
-
-@dataclass(frozen=True)
-class Table:
-    """A Markdown table: its header cells and its rows' cells."""
-
-    header: list[str]
-    rows: list[list[str]]
-
-    def row(self, first: str, where: str) -> list[str]:
-        """The first row whose first cell starts with ``first``; FiguresError when none does."""
-        for r in self.rows:
-            if r[0].startswith(first):
-                return r
-        raise FiguresError(f"{where}: no row starting {first!r}")
-
-    def rows_starting(self, first: str) -> list[list[str]]:
-        return [r for r in self.rows if r[0].startswith(first)]
-
-    def column(self, name: str, where: str) -> int:
-        """The index of the first column whose header starts with ``name``."""
-        for i, h in enumerate(self.header):
-            if h.startswith(name):
-                return i
-        raise FiguresError(f"{where}: no column starting {name!r}")
-
-
-@dataclass(frozen=True)
-class Document:
-    """A source document: its path from the repository root, its text and its run's header."""
-
-    path: str
-    text: str
-    run: RunHeader
-
-    @classmethod
-    def read(cls, root: Path, path: str) -> Document:
-        """``root / path`` with its run header (FiguresError when the file or header is missing)."""
-        try:
-            text = (root / path).read_text()
-        except OSError as exc:
-            raise FiguresError(f"{path}: {exc.strerror}") from exc
-        try:
-            return cls(path, text, run_header.read(text, path))
-        except run_header.HeaderError as exc:
-            raise FiguresError(str(exc)) from exc
-
-    def section(self, title: str) -> str:
-        """The text of the ``## `` section whose heading starts with ``title`` (the whole
-        document when ``title`` is empty)."""
-        if not title:
-            return self.text
-        for part in self.text.split("\n## ")[1:]:
-            if part.startswith(title):
-                return part
-        raise FiguresError(f"{self.path}: no section '## {title}…'")
-
-    def heading(self, title: str) -> str:
-        return self.section(title).split("\n", 1)[0]
-
-    def tables(self, title: str = "") -> list[Table]:
-        """The tables of a section (of the document's current run: before ``## Earlier runs``)."""
-        text = self.section(title).split("\n## Earlier runs", 1)[0]
-        out, block = [], []
-        for line in [*text.splitlines(), ""]:
-            if line.startswith("|"):
-                block.append(line)
-            elif block:
-                cells = [[c.strip() for c in b.strip().strip("|").split("|")] for b in block]
-                out.append(Table(cells[0], cells[2:]))
-                block = []
-        if not out:
-            raise FiguresError(f"{self.path}: no table in '{title or 'the document'}'")
-        return out
-
-    def table(self, title: str, first_column: str) -> Table:
-        """The section's first table whose first header cell starts with ``first_column``."""
-        for t in self.tables(title):
-            if t.header[0].startswith(first_column):
-                return t
-        raise FiguresError(f"{self.path}: no table headed {first_column!r} in '{title}'")
 
 
 @dataclass(frozen=True)
@@ -128,35 +43,23 @@ class Row:
     source: Document
     section: str = ""
     part: str = ""
-    """The ``roco bench`` part (``--only``) that measured it; empty for a script's figure."""
+    """The ``roco bench`` parts (``--only``) that measured it; empty for a script's figure."""
 
     def measured_by(self) -> str:
         run = self.source.run
-        command = f"roco bench --only {self.part}" if self.part else run.command
         anchor = f"#{slug(self.source.heading(self.section))}" if self.section else ""
-        return f"[`{command}`]({self.source.path}{anchor}) at {run.commit}, {run.date}; {run.machine}"
+        part = f" (`--only {self.part}`)" if self.part else ""
+        return (
+            f"[`{run.command}`]({self.source.path}{anchor}){part} at {run.commit}, {run.date}; {run.machine}"
+        )
 
     def cells(self) -> list[str]:
         return [self.figure, self.value, self.compared, self.measured_by()]
 
 
-def slug(heading: str) -> str:
-    """A heading's anchor as GitHub makes it: lower case, punctuation dropped, spaces to ``-``."""
-    text = re.sub(r"[`*]", "", heading).strip().lower()
-    return re.sub(r"[^\w\- ]", "", text).replace(" ", "-")
-
-
-def _number(cell: str) -> float:
-    """The first number in a cell (``"1,418"`` → 1418.0, ``"7 (0.013 %)"`` → 7.0)."""
-    m = re.search(r"-?\d[\d,]*(?:\.\d+)?", cell)
-    if m is None:
-        raise FiguresError(f"no number in {cell!r}")
-    return float(m.group().replace(",", ""))
-
-
 def _span(cells: list[str]) -> str:
     """``"a–b"`` over the cells' numbers as written (``"a"`` when all are equal)."""
-    ordered = sorted(cells, key=_number)
+    ordered = sorted(cells, key=number)
     return ordered[0] if ordered[0] == ordered[-1] else f"{ordered[0]}–{ordered[-1]}"
 
 
@@ -234,7 +137,7 @@ def plan_1(docs: dict[str, Document]) -> Row:
     rows = t.rows_starting("plan #1, request")
     if not rows:
         raise FiguresError(f"{doc.path}: no row 'plan #1, request …' in '{title}'")
-    worst = max(_number(r[wall]) for r in rows)
+    worst = max(number(r[wall]) for r in rows)
     paper = report.PAPER_PLAN_1_TEXT
     return Row(
         "plan #1 of the pour, request → plan",
@@ -299,7 +202,7 @@ def stream(docs: dict[str, Document]) -> Row:
         "one pair streaming 200 B informs",
         f"{value} communicates/s",
         f"target ≥ {report.TARGET_TPUT:,.0f} /s: "
-        f"{'met' if _number(value) >= report.TARGET_TPUT else 'missed'}; " + "; ".join(others),
+        f"{'met' if number(value) >= report.TARGET_TPUT else 'missed'}; " + "; ".join(others),
         doc,
         MESSAGING,
         "messaging,spade,jade",
@@ -317,7 +220,7 @@ def fleet_memory(docs: dict[str, Document]) -> Row:
         "the fleet's memory at rest",
         f"{total} MiB PSS in all",
         f"target ≤ {report.TARGET_FLEET_MIB:g} MiB: "
-        f"{'met' if _number(total) <= report.TARGET_FLEET_MIB else 'missed'}; "
+        f"{'met' if number(total) <= report.TARGET_FLEET_MIB else 'missed'}; "
         "the sum of every process's PSS (a shared page counted once)",
         doc,
         title,
@@ -338,7 +241,7 @@ def loop(docs: dict[str, Document]) -> Row:
     if not all(shares):
         raise FiguresError(f"{doc.path}: an overruns cell without its share '(x %)'")
     share_cells = [m.group(1) for m in shares if m]
-    work_ok = all(targets.LOOP_WORK_P99.met(_number(r[p99])) for r in rows)
+    work_ok = all(targets.LOOP_WORK_P99.met(number(r[p99])) for r in rows)
     over_ok = all(targets.LOOP_OVERRUNS.met(float(s)) for s in share_cells)
     return Row(
         "ag_ex's 1 kHz loop in real time, whole fleet",
@@ -359,7 +262,7 @@ def pour_seeds(docs: dict[str, Document]) -> Row:
         raise FiguresError(f"{doc.path}: no line 'Success (…): N of M'")
     t = doc.table("", "seed")
     spheres = t.column("spheres in bowl", POUR_SEEDS)
-    inside = sorted({r[spheres] for r in t.rows}, key=_number)
+    inside = sorted({r[spheres] for r in t.rows}, key=number)
     counts = " or ".join(dict.fromkeys(c.split("/")[0] for c in inside))
     total = inside[-1].split("/")[-1]
     return Row(

@@ -14,7 +14,8 @@ import pytest
 import typer
 
 from services.bench import cli, readme_figures, report, run_header
-from services.bench.readme_figures import BENCHMARKS, LOOP, POUR_SEEDS, FiguresError
+from services.bench.bench_docs import FiguresError
+from services.bench.readme_figures import BENCHMARKS, LOOP, POUR_SEEDS
 
 ROOT = Path(__file__).resolve().parents[2]
 
