@@ -37,11 +37,6 @@ import numpy as np  # noqa: E402
 from velma.executor.timing import STALL_OFF_CPU, TimingStats  # noqa: E402
 
 
-def machine() -> str:
-    """CPU model, cores and library versions (what the figures were measured on)."""
-    return benchlib.machine(("mujoco", "pin"))
-
-
 def run_alone(seed: int, spin: float | None, camera: bool = False) -> tuple[TimingStats, str]:
     """The scripted pour through ExecutorProcess in real time, with the head camera rendering
     at 1 Hz if ``camera``; returns timing and outcome."""
@@ -196,7 +191,7 @@ def main() -> int:
         "--runs-dir", type=Path, default=None, help="where the fleet runs go (default: a temp dir)"
     )
     args = ap.parse_args()
-    print(f"# ag_ex control loop at 1 kHz, real-time pacing\n\nMeasured on: {machine()}\n")
+    print(f"# ag_ex control loop at 1 kHz, real-time pacing\n\n{benchlib.header(('mujoco', 'pin'))}")
     print(
         "| condition | cycles | compute p50 µs | compute p99 µs | compute max µs "
         "| cycles over 1 ms (off-CPU stalls) | lateness p99 µs | overruns | max in a row "

@@ -1,7 +1,8 @@
 """What the physics step alone costs in ag_ex's cycle, and what MuJoCo's options change.
 
 The loop's goal is the whole cycle's work (primitive, control law, physics step, hand-offs) at
-≤ 400 µs p99 (docs/executor.md). This benchmark measures the floor under that figure: the physics step
+p99 within services/bench/targets.py ``LOOP_WORK_P99``. This benchmark measures the floor
+under that figure: the physics step
 (``mujoco.mj_step``, MuJoCo's own C code) as the loop times it (the *physics* part of
 velma/executor/timing.py), over the scripted pour of velma/scenario.py, paced as fast as the
 machine goes (``Executor(realtime=False)``; the real-time loop adds scheduling, not work).

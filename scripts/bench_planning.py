@@ -1,6 +1,6 @@
 """Planning benchmark: how long a_pl takes to produce plan #1 of the pour, including every
-knowledge query to a_km (the target: ≤ 2 s; the paper's took 55 s with ~1,600 C4
-communicates; docs/benchmarks.md).
+knowledge query to a_km (the target: services/bench/report.py ``TARGET_PLAN_1_S``; the paper's
+took 55 s with ~1,600 C4 communicates; docs/benchmarks.md).
 
 Starts a Zenoh router and the a_km and a_pl processes only (``services.runtime.main``, a
 run folder in a temporary directory, a_km on its on-disk Oxigraph store), gives a_km the

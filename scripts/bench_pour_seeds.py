@@ -183,9 +183,9 @@ def main() -> int:
     args = ap.parse_args()
     runs_dir = args.runs_dir or Path(tempfile.mkdtemp(prefix="roco-seeds-"))
     print(f"# Pour robustness, {args.mode} mode, seeds {args.first}..{args.first + args.seeds - 1}\n")
-    print(f"Measured on: {benchlib.machine(('mujoco', 'pin'))}")
+    print(benchlib.header(("mujoco", "pin")), end="")
     if args.mode == "fleet":
-        print(f"Run folders: {runs_dir}")
+        print(f"- Run folders: {runs_dir}")
     print(
         "\n| seed | jar dx, dy (mm), yaw (°) | bowl dx, dy (mm), yaw (°) | spheres in bowl | share "
         "| camera counted | success | robot touched itself (commands) | wall s | detail |"

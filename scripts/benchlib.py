@@ -9,22 +9,39 @@ from importlib.metadata import PackageNotFoundError, version
 from pathlib import Path
 from typing import NamedTuple
 
-from services.bench import report
+from services.bench import report, run_header
 
 cpu_model = report.cpu_model
 """The CPU model name (services/bench/report.py: one copy for roco bench and these scripts)."""
 
 
-def machine(packages: tuple[str, ...] = ()) -> str:
-    """One line: CPU model, usable cores, OS, Python and the versions of ``packages``
-    (distribution names, e.g. ``"mujoco"``; "not installed" for a missing one)."""
-    usable = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
+def versions(packages: tuple[str, ...]) -> list[str]:
+    """``"NAME VERSION"`` of each of ``packages`` (distribution names, e.g. ``"mujoco"``;
+    ``"NAME not installed"`` for a missing one)."""
     libs = []
     for p in packages:
         try:
             libs.append(f"{p} {version(p)}")
         except PackageNotFoundError:
             libs.append(f"{p} not installed")
+    return libs
+
+
+def header(packages: tuple[str, ...] = ()) -> str:
+    """The header a script's Markdown output opens with (services/bench/run_header.py: its
+    command line, commit, date and machine, read back by the README's figures), and the
+    versions of ``packages``: lines ending in a newline."""
+    lines = run_header.script_lines()
+    if packages:
+        lines.append(f"- Versions: {', '.join(versions(packages))}.")
+    return "\n".join(lines) + "\n"
+
+
+def machine(packages: tuple[str, ...] = ()) -> str:
+    """One line: CPU model, usable cores, OS, Python and the versions of ``packages``
+    (distribution names, e.g. ``"mujoco"``; "not installed" for a missing one)."""
+    usable = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
+    libs = versions(packages)
     tail = f"; {', '.join(libs)}" if libs else ""
     return (
         f"{cpu_model()}, {usable} of {os.cpu_count()} cores, {platform.system()} {platform.release()}, "

@@ -23,6 +23,10 @@ Parts (`--only` takes a comma-separated subset; default all, in this order):
 Each timed part first waits for a quiet machine (`--settle`). `--quick` shrinks every count (a
 smoke test of the command, not figures to quote). A part that fails is reported in the
 document with its error; the others still run.
+
+A whole run (every part, full counts, none failed) to the default output also rewrites
+README.md's figures table from docs/benchmarks.md and docs/bench/
+(services/bench/readme_figures.py); any other run leaves README.md as it is.
 """
 
 from __future__ import annotations
@@ -344,8 +348,37 @@ def bench(
     out.write_text(report.document(run_lines, b.targets, b.sections, notes))
     typer.echo("\n".join(report.targets_section(b.targets).lines()))
     typer.echo(f"roco bench: wrote {out} in {seconds:.0f} s", err=True)
+    _readme_figures(chosen, quick, out, b.errors)
     if b.errors:
         raise typer.Exit(1)
+
+
+def writes_readme(chosen: list[str], quick: bool, out: Path, errors: dict[str, str]) -> str | None:
+    """None when this run writes README.md's figures (every part, full counts, to the default
+    output, none failed); else why not."""
+    if chosen != list(PARTS) or quick:
+        return "a run of some parts or with --quick"
+    if out.resolve() != DEFAULT_OUT.resolve():
+        return f"written to {out}, not {DEFAULT_OUT.relative_to(ROOT)}"
+    if errors:
+        return f"part(s) {', '.join(errors)} failed"
+    return None
+
+
+def _readme_figures(chosen: list[str], quick: bool, out: Path, errors: dict[str, str]) -> None:
+    """README.md's figures from the documents a whole run leaves (services/bench/readme_figures.py)."""
+    from services.bench import readme_figures
+
+    why = writes_readme(chosen, quick, out, errors)
+    if why is not None:
+        typer.echo(f"roco bench: README.md's figures left as they are ({why})", err=True)
+        return
+    try:
+        readme_figures.write(ROOT)
+    except (readme_figures.FiguresError, ValueError) as exc:
+        typer.echo(f"roco: README.md's figures not written: {exc}", err=True)
+        raise typer.Exit(1) from exc
+    typer.echo("roco bench: wrote README.md's figures", err=True)
 
 
 NOTES = Path(__file__).with_name("notes.md")

@@ -10,6 +10,7 @@ from __future__ import annotations
 import datetime
 import os
 import platform
+import re
 import statistics
 import subprocess
 from collections.abc import Sequence
@@ -95,8 +96,11 @@ INTRO = [
 ]
 RUN_TITLE = "## This run"
 TARGETS_TITLE = "Targets"
-TARGETS_INTRO = "The goals roco is measured against, each met or missed in this run:"
+TARGETS_INTRO = "The goals roco is measured against (`TARGET_*`, services/bench/report.py), in this run:"
 NO_TARGETS = "- (no part with a target was run)"
+MISSED, MET = "Missed:", "Met:"
+VERDICT = re.compile(r"target[^()]*\): (met|missed)")
+"""A target's verdict in a verdict line: ``(target ≤ 350 MiB): missed``; a line may hold two."""
 
 
 @dataclass(frozen=True)
@@ -1156,14 +1160,34 @@ def head(run_lines: Sequence[str]) -> list[str]:
 
 
 def targets_section(targets: Sequence[str]) -> Section:
-    """The goals, each met or missed in the run (:func:`verdict_lines` and the others)."""
-    return Section(TARGETS_TITLE, [TARGETS_INTRO], list(targets) or [NO_TARGETS])
+    """The goals with their figures (:func:`verdict_lines` and the others), the missed beside
+    the met: how many of each, then the lines with a missed target, then the others. A line
+    without a verdict (a figure beside the one before it) stays with the line before it."""
+    if not targets:
+        return Section(TARGETS_TITLE, [TARGETS_INTRO], [NO_TARGETS])
+    missed: list[str] = []
+    met: list[str] = []
+    group = met
+    counts = {"met": 0, "missed": 0}
+    for line in targets:
+        words = VERDICT.findall(line)
+        for w in words:
+            counts[w] += 1
+        if words:
+            group = missed if "missed" in words else met
+        group.append(line)
+    table = [*([MISSED, "", *missed, ""] if missed else []), *([MET, "", *met] if met else [])]
+    return Section(
+        TARGETS_TITLE,
+        [f"{TARGETS_INTRO} **{counts['missed']} missed**, {counts['met']} met."],
+        table[:-1] if table[-1] == "" else table,
+    )
 
 
 def document(
     run_lines: Sequence[str], targets: Sequence[str], sections: Sequence[Section], notes: str
 ) -> str:
-    """docs/benchmarks.md: the head, the parts' sections in order, the targets, then ``notes``
-    (the hand-written method, services/bench/notes.md) when not empty."""
-    body = "\n".join("\n".join(s.lines()) for s in [*sections, targets_section(targets)])
+    """docs/benchmarks.md: the head, the targets (missed and met), the parts' sections in order,
+    then ``notes`` (the hand-written method, services/bench/notes.md) when not empty."""
+    body = "\n".join("\n".join(s.lines()) for s in [targets_section(targets), *sections])
     return "\n".join(head(run_lines)) + "\n" + body + ("\n" + notes if notes else "")

@@ -225,7 +225,7 @@ def test_quick_bench_writes_codec_and_messaging_tables(tmp_path: Path) -> None:
     targets = text.split("## Targets", 1)[1].split("\n## ", 1)[0]
     assert "roco round trip / raw Zenoh's on the same link, both polling" in targets
     assert "Access control and mutual TLS: roco's round trip" in targets
-    assert text.index("## This run") < text.index("## 1. Codec") < text.index("## Targets")
+    assert text.index("## This run") < text.index("## Targets") < text.index("## 1. Codec")
 
 
 def test_settle_waits_for_a_quiet_window_and_says_so_when_there_is_none() -> None:
@@ -467,10 +467,10 @@ HISTORY_HEADING = re.compile(
 
 def test_a_report_from_fixed_figures_states_the_method_and_the_present_only() -> None:
     text = _fixed_figures_document()
-    # what it answers and how it was made come first, then the parts, the targets, the method
+    # what it answers and how it was made come first, then the targets, the parts, the method
     headings = [line for line in text.splitlines() if line.startswith("## ")]
-    assert headings[0] == "## This run"
-    assert [h.split(" ", 2)[1] for h in headings[1:12]] == [
+    assert headings[:2] == ["## This run", "## Targets"]
+    assert [h.split(" ", 2)[1] for h in headings[2:13]] == [
         "1.",
         "2–3.",
         "4.",
@@ -483,7 +483,7 @@ def test_a_report_from_fixed_figures_states_the_method_and_the_present_only() ->
         "10.",
         "11.",
     ]
-    assert headings[12:] == ["## Targets", "## Method and where the time goes"]
+    assert headings[13:] == ["## Method and where the time goes"]
     assert text.startswith("# roco benchmarks\n\nWhat roco costs on one machine")
     assert "- Command: `roco bench` (took 555 s), at commit" in text
     assert "- Before each timed part `roco bench` waited up to 90 s for a quiet machine" in text
@@ -530,3 +530,29 @@ def test_the_history_check_catches_what_it_is_for() -> None:
     ):
         assert HISTORY_HEADING.findall(heading + "\n"), heading
     assert not HISTORY_HEADING.findall("### Where the limit is\n### Adaptive polling\n")
+
+
+def test_the_targets_missed_stand_beside_the_met_and_are_counted() -> None:
+    lines = [
+        "- roco round trip / raw Zenoh (p50): **0.73×** (target ≤ 1.3×): met.",
+        "- On equal terms, raw Zenoh's ends polling the same way: **2.48×** (98 against 39 µs).",
+        "- An idle synthetic agent: **35.5 MiB** VmRSS at most (b_ini0; target ≤ 35 MiB): missed.",
+        "- Against SPADE: round trip (target ≥ 3.0×): met; throughput (target ≥ 10.0×): missed.",
+        "- `roco up` until every agent is alive: **2.16 s** (target ≤ 3 s): met.",
+    ]
+    section = report.targets_section(lines)
+    assert section.how == [f"{report.TARGETS_INTRO} **2 missed**, 3 met."]
+    assert section.table == [
+        report.MISSED,
+        "",
+        lines[2],
+        lines[3],
+        "",
+        report.MET,
+        "",
+        lines[0],
+        lines[1],  # a figure without a verdict stays with the line before it
+        lines[4],
+    ]
+    only_met = report.targets_section([lines[0], lines[4]])
+    assert report.MISSED not in only_met.table and only_met.how[0].endswith("**0 missed**, 2 met.")
