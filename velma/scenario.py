@@ -131,7 +131,7 @@ the frame turned by TORSO_PLACE (x forward, y the robot's left, z up)."""
 
 HEAD_LOOK_CABINET: Vec3 = (0.7, 0.0, 0.9)
 TORSO_Z = 0.03
-"""Height of torso_link0's origin above the world origin (velma-facts.md)."""
+"""Height of torso_link0's origin above the world origin (velma/model/README.md "Structure")."""
 MOVE_DURATION = 3.0
 SHORT_MOVE = 1.5
 

@@ -1,7 +1,8 @@
 """The local launcher: a Zenoh router, the traffic recorder and one OS process per agent.
 
 Processes are started with ``subprocess`` (fork + immediate exec of a fresh interpreter, i.e.
-spawn semantics: no Zenoh state is inherited, platform-notes.md). Each process gets its
+spawn semantics: no Zenoh state is inherited; a child forked after a Zenoh session exists
+hangs). Each process gets its
 configuration through the environment (``services.runtime.main``). The launcher ends only the
 processes it started, by their PID. The environment it gives them is kept in the run folder
 (``launch_env.json``: every ``ROCO_*`` variable and the fleet's extra environment) so that a

@@ -1,4 +1,5 @@
-"""The traffic record: one row per communicate seen crossing Zenoh (design.md, "traffic recorder").
+"""The traffic record: one row per communicate seen crossing Zenoh (docs/recovery.md, "The traffic
+record across recorder and router faults").
 
 A run folder holds ``traffic.jsonl`` (one :class:`TrafficRecord` per line, JSON, in the order
 written) and ``traffic.msgpack`` (the same communicates' raw msgpack payloads, so that content

@@ -9,8 +9,8 @@ A subclass declares its ``name`` (as in the specification), builds its FSM of be
 - :meth:`send` / :meth:`reply`, which fill the output buffer dispatched after each step,
 - checking against the specification (paper §4 steps 3–4; FIPA SC00061, SC00026/27/35):
   a received communicate outside the agent's interface, malformed, in a language it does not
-  accept or without its language's ontology (O_RoCo), with content that does not decode, or
-  not allowed in its conversation's current protocol state is answered with
+  accept or without its language's ontology (O_RoCo; O_Velma for L_EX), with content that does
+  not decode, or not allowed in its conversation's current protocol state is answered with
   ``not-understood`` and dropped; a communicate the agent itself may not send (outside its
   interface, or not allowed in the conversation's state) raises :class:`SpecViolation`.
   Every violation is counted (``counters``: ``protocol_violations`` for a received one

@@ -1,5 +1,5 @@
-"""What a process may be given to report to a viewer, without importing it (design.md: an
-agent receives tool hooks by injection, never imports a tool).
+"""What a process may be given to report to a viewer, without importing it (an agent receives
+tool hooks by injection and never imports a tool: tests/architecture/test_import_graph.py).
 
 The runtime knows only these protocols. The implementation is a plug-in named by a string, as
 the specification names each agent's implementation: ``ROCO_HOOKS`` (``module:attribute`` of

@@ -1,4 +1,5 @@
-"""Zenoh key expressions of roco (design.md: a key names channel, sender and receiver).
+"""Zenoh key expressions of roco: a key names channel, sender and receiver, so that the router's
+access control can say who may send what where (docs/security.md, "Who may send what where").
 
 ``roco/fipa/<channel>/<sender>/<receiver>``  one communicate (msgpack :class:`Communicate`)
 ``roco/alive/<agent>``                       liveliness token of a running agent (white pages)

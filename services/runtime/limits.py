@@ -34,7 +34,7 @@ REJECT_REASONS: dict[str, str] = {
     "sender_mismatch": "the sender parameter differs from the sender in the key",
     "not_in_interface": "performative/protocol/channel outside the agent's specified interface",
     "language": "a content language the interface does not accept for this communicate",
-    "ontology": "the ontology is not the one of the content language (O_RoCo)",
+    "ontology": "the ontology is not its content language's (O_RoCo; O_Velma for L_EX)",
     "content": "the content does not decode in its language (or is nested too deeply)",
     "content_type": "a term of the language the interface does not allow for this communicate",
     "protocol_state": "not allowed in its conversation's current protocol state",

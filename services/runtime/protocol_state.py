@@ -34,13 +34,15 @@ from shared.fipa_codec.protocols import (
 )
 
 ONTOLOGY = "O_RoCo"
-"""The ontology of every content language of the Robot Companion (paper §5.6)."""
+"""The Robot Companion's ontology of the robot's environment (paper §5.4), named by every content
+language but L_EX, and expected of a language roco does not know."""
 
 
 def expected_ontology(language: str) -> str:
     """The ontology a communicate in content language ``language`` must name (FIPA SC00061
-    §2.3: the ``ontology`` parameter gives meaning to the content's symbols): the language's
-    own (all of roco's are O_RoCo), or O_RoCo for a language roco does not know."""
+    §2.3: the ``ontology`` parameter gives meaning to the content's symbols): the one the
+    language names (shared/fipa_codec/languages: O_RoCo for all but L_EX, whose robot frames
+    and joints are O_Velma's), or O_RoCo for a language roco does not know."""
     known = load_all().get(language)
     return known.ontology if known is not None else ONTOLOGY
 

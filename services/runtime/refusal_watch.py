@@ -94,7 +94,7 @@ def watch_refusals(run_dir: Path | None) -> RefusalLog:
 def answer_counters(session: zenoh.Session, log: RefusalLog, done: threading.Event) -> zenoh.Subscriber:
     """Answer every put on ``roco/counters/ask`` with this router's
     :class:`~services.runtime.refusals.RefusalReport` on ``roco/refusals/report/<zid>``, from a
-    thread of its own (Zenoh is not called from its callbacks, platform-notes.md) until
+    thread of its own (Zenoh is not called from its callbacks: that has deadlocked) until
     ``done``. The router's own session is not subject to its access control."""
     zid = str(session.zid())
     key = f"{REPORT_PREFIX}/{zid}"

@@ -1,8 +1,8 @@
 """The Zenoh router process: ``python -m services.runtime.router [--listen EP]... [--connect EP]...``.
 
-The eclipse-zenoh Python package runs a router by itself in mode "router" (no zenohd needed;
-platform-notes.md). Defaults: listen on ``ROCO_LISTEN`` or ``tcp/0.0.0.0:7447``; ``--connect``
-meshes it with other routers (a deployment over several hosts).
+The eclipse-zenoh Python package runs a router by itself in mode "router": no zenohd is needed
+(none is on PyPI or in Debian). Defaults: listen on ``ROCO_LISTEN`` or ``tcp/0.0.0.0:7447``;
+``--connect`` meshes it with other routers (a deployment over several hosts).
 
 Access control (docs/security.md): with ``ROCO_SECURITY`` naming a credentials folder
 (services/security/), the router requires user/password authentication, mutual TLS on its

@@ -1,5 +1,6 @@
 """Transport: how buffers reach other agents. Zenoh in client mode against a router
-(design.md), explicit endpoints, no multicast scouting.
+(docs/security.md: the router is where access control applies), explicit endpoints, no
+multicast scouting.
 
 A subscription to communicates runs its callback on a receiving thread of its own, fed by
 Zenoh's network threads through a FIFO with room to spare (:data:`RECEIVE_QUEUE`; never on a
@@ -10,8 +11,8 @@ declared, a few communicates at a time. A put there may wait for room in a full 
 Zenoh goes on reading the links meanwhile: zenoh-python's own callback threads have a FIFO of
 256 places, and two sessions streaming to each other while answering from those threads
 deadlocked (tests/runtime/test_inline_receive.py). Declaring, and putting a stream, happen on
-the agent's own thread only (calling Zenoh from inside a callback has deadlocked:
-platform-notes.md); the liveliness and recording callbacks only enqueue.
+the agent's own thread only (calling Zenoh from inside a callback has deadlocked
+in zenoh-python 1.x); the liveliness and recording callbacks only enqueue.
 
 Communicates (``roco/fipa/**``) are put through zenoh-ext advanced publishers, one per key:
 each put carries its publisher's id and a sequence number (0, 1, 2, …) and a timestamp, and
@@ -178,7 +179,8 @@ def client_config(
 ) -> zenoh.Config:
     """A Zenoh client configuration connecting to ``endpoints`` (e.g. ``tcp/127.0.0.1:7447``
     or ``tls/127.0.0.1:7447``) with multicast scouting off. ``wait_for_router`` retries forever
-    instead of failing ``zenoh.open`` after ~0.1 s when no router answers (platform-notes.md).
+    instead of failing ``zenoh.open`` after ~0.1 s when no router answers (zenoh's
+    ``connect/timeout_ms`` = -1).
     Either way a session that loses its router reconnects on the :data:`CONNECT_RETRY`
     schedule, forever.
 

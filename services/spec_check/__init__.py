@@ -1,4 +1,4 @@
-"""The specification's checkers and derivations (design.md layer 5: above the runtime, never
-imported by it): the router's access control (acl), conformance of recorded traffic
-(conformance, causal), deadlock freedom of the protocols (deadlock) and the code check
-(code_check)."""
+"""The specification's checkers and derivations (a tool: above the runtime, never imported by
+it; README.md "How it is built", tests/architecture/test_import_graph.py): the router's access
+control (acl), conformance of recorded traffic (conformance, causal), deadlock freedom of the
+protocols (deadlock) and the code check (code_check)."""

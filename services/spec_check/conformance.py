@@ -13,8 +13,8 @@ Every communicate (FIPA SC00061):
 - its protocol is one of that channel's, and the sender's role in it (initiator or
   participant) may send its performative (``not-understood`` always);
 - its content is in a language the specification gives for that performative, with the
-  language's ontology (O_RoCo), and decodes in it; or, for ``failure``, ``refuse`` and
-  ``not-understood``, it is a reason in UTF-8 text.
+  language's ontology (O_RoCo; O_Velma for L_EX), and decodes in it; or, for ``failure``,
+  ``refuse`` and ``not-understood``, it is a reason in UTF-8 text.
 
 Every conversation (one conversation-id between two agents) follows its interaction
 protocol's state machine (FIPA SC00026 fipa-request, SC00027 fipa-query, SC00035

@@ -18,7 +18,7 @@ Agent names (FIPA SC00023 §4, SC00070 §2.2)
     (``a_co``, ``ag_ex``) as well as JADE's ``local@platform`` and default
     ``da0@host:1099/JADE``.
 
-Key chunks (design.md: a key expression names channel, sender and receiver)
+Key chunks (a key expression names channel, sender and receiver: services/runtime/keys.py)
     A Zenoh key chunk may not hold ``/``, ``*``, ``$``, ``?`` or ``#``, and one that starts
     with ``@`` is verbatim. :func:`key_chunk` maps a name to the chunk that carries it: the
     characters ``A–Z a–z 0–9 _ . - @ :`` stand for themselves, every other character is

@@ -1,5 +1,5 @@
-"""The import graph among roco's packages (design.md "Rules": an arrow only points down;
-no package imports another package that imports it back).
+"""The import graph among roco's packages: each layer imports only those below it (README.md,
+"How it is built"), and no package imports another package that imports it back.
 
 A package is a folder directly under ``shared/``, ``services/`` or ``velma/`` (or a module
 there: ``services/cli.py``), and each agent's folder under ``services/agents/``. Every
@@ -23,8 +23,8 @@ LAYERS = {
     "services.security": {"shared.settings"},
     "services.runtime": {"shared.fipa_codec", "shared.settings", "services.spec", "services.security"},
 }
-"""The bottom layers and everything each may import (design.md layers 1–3: the codec and the
-settings, the specification's data model, the credentials' format, the agent runtime)."""
+"""The bottom layers and everything each may import (README.md, "How it is built": the codec and
+the settings, the specification's data model, the credentials' format, the agent runtime)."""
 TOOLS = (
     "services.spec_check",
     "services.fleet",
@@ -150,7 +150,8 @@ def test_the_codec_and_the_robot_import_nothing_above_them() -> None:
 
 
 def test_agents_never_import_one_another() -> None:
-    """They only talk in communicates (design.md, decisions taken)."""
+    """They only talk in communicates (paper §3.2: what other agents send reaches an agent through
+    its transmission input buffer)."""
     graph = import_graph()
     agents = {f"services.agents.{a}" for a in AGENTS}
     for agent in agents:

@@ -1,6 +1,6 @@
 """BarrettHand control: distal = proximal / 3 on a free finger; breakaway on an obstacle
-(velma-facts.md: "the proximal link stops when it meets resistance and the distal link keeps
-closing"); opening re-engages the clutch.
+(velma/model/README.md, "BarrettHand BH8-282": the proximal link stops when it meets resistance
+and the distal link keeps closing); opening re-engages the clutch.
 
 The scene is velma.xml without gravity and with the arm and torso joints held still, plus a
 fixed box in front of finger One's proximal link of the right hand (only that finger can
@@ -24,7 +24,7 @@ from velma.model import VELMA_XML
 SIDE = "right"
 BLOCK_ANGLE = 0.7  # rad: the box touches finger One's proximal link at about this angle
 DT = 0.001
-DISTAL_RATIO = 1.0 / 3.0  # velma-facts.md: distal = proximal / 3
+DISTAL_RATIO = 1.0 / 3.0  # distal = proximal / 3 (velma/model/README.md)
 
 
 def _model(obstacle: bool) -> mujoco.MjModel:

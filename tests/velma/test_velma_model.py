@@ -1,7 +1,8 @@
-"""velma.xml: the files are generated; the model matches velma-facts.md; MuJoCo and Pinocchio
-agree on kinematics and dynamics (every body and site frame, the Jacobians and velocities of
-the frames the controllers and sensors use, mass matrix, bias forces), and that comparison
-is sharp enough to catch a small disagreement; the wrist F/T sensors read the hand's weight.
+"""velma.xml: the files are generated; the model matches velma/model/README.md; MuJoCo and
+Pinocchio agree on kinematics and dynamics (every body and site frame, the Jacobians and
+velocities of the frames the controllers and sensors use, mass matrix, bias forces), and that
+comparison is sharp enough to catch a small disagreement; the wrist F/T sensors read the hand's
+weight.
 """
 
 from __future__ import annotations
@@ -66,8 +67,8 @@ def test_mujoco_numbers_the_robot_joints_in_pinocchio_order(
         robot_joints(mujoco.MjModel.from_xml_string(f"<mujoco><worldbody>{two}</worldbody></mujoco>"))
 
 
-# ------------------------------------------------------------------ the facts
-ARM_FACTS = (  # velma-facts.md, KUKA LWR4+ table: z offset, axis, limit °, velocity °/s
+# ------------------------------------------------------------------ the facts (velma/model/README.md)
+ARM_FACTS = (  # velma/model/README.md, KUKA LWR4+: z offset, axis, limit °, velocity °/s
     (0.11, (0, 0, 1), 170, 110),
     (0.2005, (0, 1, 0), 120, 110),
     (0.20, (0, 0, 1), 170, 130),

@@ -1,13 +1,14 @@
 """BarrettHand BH8-282 position control with the proximal/distal coupling and the breakaway
 clutch, and contact monitoring of the hand against the scene.
 
-Each finger's proximal and distal joints have force-limited position servos (velma.xml);
-this module writes their setpoints, and one spread value for both spread joints
-(velma-facts.md: "the two spread joints share one command"). Closing ramps the proximal
-setpoints at ``CLOSE_RATE`` towards the target.
+Each finger's proximal and distal joints have force-limited position servos (velma.xml); this
+module writes their setpoints, and one spread value for both spread joints
+(velma/model/README.md "BarrettHand BH8-282": the two spread joints share one command). Closing
+ramps the proximal setpoints at ``CLOSE_RATE`` towards the target.
 
-Coupling and breakaway (velma-facts.md, BarrettHand: "distal = proximal / 3"; "the proximal
-link stops when it meets resistance and the distal link keeps closing (≈ 2 N / 1 N·m)"):
+Coupling and breakaway (velma/model/README.md "BarrettHand BH8-282": the distal joint follows
+the proximal at a third of its angle; the proximal link stops when it meets resistance, about 1
+N·m, and the distal link keeps closing):
 
 - A free finger is coupled: distal setpoint = proximal setpoint / 3.
 - While a finger closes, its clutch *breaks away* when the proximal servo's torque reaches
@@ -42,10 +43,10 @@ import numpy.typing as npt
 
 from velma.control.joints import ROBOT_ROOT, SIDES, Array, distal_joints, proximal_joints, spread_joints
 
-PROXIMAL_MAX = 2.4434  # rad (velma-facts.md, BarrettHand table)
-DISTAL_MAX = 0.8377  # rad (velma-facts.md, BarrettHand table)
-DISTAL_RATIO = 1.0 / 3.0  # velma-facts.md: distal = proximal / 3
-BREAKAWAY_TORQUE = 1.0  # N·m, proximal torque at which the clutch slips (velma-facts.md ≈ 1 N·m)
+PROXIMAL_MAX = 2.4434  # rad (velma/model/README.md "BarrettHand BH8-282")
+DISTAL_MAX = 0.8377  # rad (velma/model/README.md "BarrettHand BH8-282")
+DISTAL_RATIO = 1.0 / 3.0  # distal = proximal / 3 (velma/model/README.md "BarrettHand BH8-282")
+BREAKAWAY_TORQUE = 1.0  # N·m, proximal torque at which the clutch slips (velma/model/README.md)
 CLOSE_RATE = 1.5  # rad/s, proximal setpoint rate while closing (real finger ≤ 3.27 rad/s)
 OPEN_RATE = 2.0  # rad/s
 SPREAD_RATE = 1.5  # rad/s

@@ -1,6 +1,6 @@
 """Impedance control laws of Velma's arms and torso, computed with Pinocchio.
 
-Cartesian impedance, per arm (velma-facts.md "Control on the real robot", paper §5.3):
+Cartesian impedance, per arm (velma/model/README.md "Control", paper §5.3):
 
     τ = Jᵀ (K p + D (J q̇_d − J q̇)) + N τ_ns + g(q) + C(q, q̇) q̇ + τ_safety
 
@@ -10,7 +10,7 @@ Cartesian impedance, per arm (velma-facts.md "Control on the real robot", paper 
   on the real robot (so the rotational stiffness acts on ≈ half the angle).
 - ``Λ = (J M⁻¹ Jᵀ + εI)⁻¹`` (ε = ``LAMBDA_REGULARISATION`` bounds Λ near singularities);
   damping by double diagonalisation of K and Λ with damping ratio ξ (0.7 by default, the
-  "calmer simulation" value of the facts): with Λ = Q Qᵀ and K = Q S Qᵀ, D = Q 2ξ√S Qᵀ.
+  "calmer simulation" value; Velma uses 0.35): with Λ = Q Qᵀ and K = Q S Qᵀ, D = Q 2ξ√S Qᵀ.
 - ``N = I − Jᵀ Λ J M⁻¹`` (dynamically consistent null space); ``τ_ns`` is a joint-space
   posture spring-damper.
 - ``g + C q̇`` is Pinocchio's ``nonLinearEffects``.
@@ -19,11 +19,11 @@ Cartesian impedance, per arm (velma-facts.md "Control on the real robot", paper 
 
 Joint impedance (mode ``"joint"``: MoveJoints and ``hold``; mode ``"safe"``; the torso):
 τ = K (q_d − q) + D (q̇_d − q̇) + g + C q̇ + τ_safety, D from the generalised eigenproblem of K
-and M (double diagonalisation). Gains (velma-facts.md): ``"joint"`` K = 200 N·m/rad
-(Velma's jnt_imp for the arms), ξ = 0.7; ``"safe"`` K = 5 N·m/rad, ξ = 1.9 for every arm
-joint; torso K = 1200 N·m/rad, ξ = 0.7.
+and M (double diagonalisation). Gains (velma/model/README.md "Control"): ``"joint"``
+K = 200 N·m/rad (Velma's jnt_imp for the arms), ξ = 0.7 (Velma: 0.5); ``"safe"`` K = 5 N·m/rad,
+ξ = 1.9 for every arm joint; torso K = 1200 N·m/rad, ξ = 0.7.
 
-``τ_safety`` (velma/control/limits.py, velma-facts.md "Control on the real robot"):
+``τ_safety`` (velma/control/limits.py, velma/model/README.md "Control"):
 - the joint-limit avoidance band (all modes) and the singularity avoidance band of joints 1,
   3, 5 (Cartesian mode), each with its damping. In joint and safe mode they are added in full.
   In Cartesian mode they join τ_ns, i.e. act through the null space N, as RCPRG's
@@ -72,7 +72,7 @@ Simplifications (named):
 - The payload (a held object) is not compensated; the impedance absorbs it as a small sag.
 - Self-collision: only the hand against its own forearm is pushed apart (the wrist band);
   the arms against each other, the torso and the head are kept apart by the IK, which
-  rejects postures in self-collision (velma-facts.md lists a repulsion from 0.15 m).
+  rejects postures in self-collision (the real robot repels its links from 0.15 m).
 """
 
 from __future__ import annotations
@@ -130,19 +130,19 @@ __all__ = [
 ]
 
 DEFAULT_CART_STIFFNESS = (1000.0, 1000.0, 1000.0, 150.0, 150.0, 150.0)
-"""N/m (x, y, z) and N·m/rad (rx, ry, rz), in the grip frame (velma-facts.md, tests value)."""
+"""N/m (x, y, z) and N·m/rad (rx, ry, rz), in the grip frame (the value of Velma's tests)."""
 DAMPING_RATIO = 0.7
-"""ξ of the Cartesian and joint impedance (velma-facts.md: 0.7 for a calmer simulation)."""
+"""ξ of the Cartesian and joint impedance (Velma: 0.35 and 0.5; 0.7 for a calmer simulation)."""
 ARM_JOINT_STIFFNESS = 200.0
-"""N·m/rad, Velma's jnt_imp for the arms (velma-facts.md)."""
+"""N·m/rad, Velma's jnt_imp for the arms."""
 HOLD_STIFFNESS = ARM_JOINT_STIFFNESS
 """N·m/rad of ``VelmaController.hold`` (Velma's jnt_imp; ξ = ``DAMPING_RATIO``)."""
 SAFE_STIFFNESS = 5.0
-"""N·m/rad, safe mode, every arm joint (velma-facts.md)."""
+"""N·m/rad, Velma's safe mode, every arm joint."""
 SAFE_DAMPING_RATIO = 1.9
-"""ξ of safe mode (velma-facts.md)."""
+"""ξ of Velma's safe mode."""
 TORSO_STIFFNESS = 1200.0
-"""N·m/rad, Velma's jnt_imp for the torso (velma-facts.md)."""
+"""N·m/rad, Velma's jnt_imp for the torso."""
 NULLSPACE_STIFFNESS = 10.0
 """N·m/rad, null-space posture spring of the Cartesian law."""
 NULLSPACE_DAMPING = 2.0
@@ -176,8 +176,8 @@ def double_diagonalisation_damping(stiffness: Array, inertia: Array, xi: float) 
     ``stiffness`` (n × n, symmetric positive semi-definite) and ``inertia`` (n × n, symmetric
     positive definite). With Λ = L Lᵀ (Cholesky) and L⁻¹ K L⁻ᵀ = U S Uᵀ, Q = L U gives
     Λ = Q Qᵀ, K = Q S Qᵀ and D = Q (2 ξ √S) Qᵀ. Raises ``numpy.linalg.LinAlgError`` if
-    ``inertia`` is not positive definite. Source: velma-facts.md "Control on the real robot"
-    (double diagonalisation, as RCPRG's controllers).
+    ``inertia`` is not positive definite. Source: velma/model/README.md "Control" (double
+    diagonalisation, as RCPRG's controllers).
     """
     chol = np.linalg.cholesky(inertia)
     linv_k = np.linalg.solve(chol, stiffness)  # L⁻¹ K
@@ -344,8 +344,8 @@ class VelmaController:
 
     def safe(self, side: str, q_arm: Array | None = None) -> None:
         """Switch ``side`` to safe mode: joint impedance K = 5 N·m/rad, ξ = 1.9 for every
-        joint, plus gravity compensation (velma-facts.md), about ``q_arm`` (7,) rad, by
-        default the last measured configuration. Errors as ``hold``."""
+        joint, plus gravity compensation (velma/model/README.md "Control"), about ``q_arm``
+        (7,) rad, by default the last measured configuration. Errors as ``hold``."""
         cmd = self.arm[side]
         cmd.q = self._setpoint(side, q_arm)
         cmd.qd = np.zeros(7)

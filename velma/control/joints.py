@@ -9,7 +9,7 @@ order of its body tree, depth first, as MuJoCo numbers the joints of a model tha
 (``robot_joints``); tests/velma/test_velma_model.py checks that the two orders agree, and a
 controller attached to a world process checks it again (velma/executor/runtime.py).
 
-Source: velma-facts.md (joint names).
+Source: velma/model/README.md ("KUKA LWR4+ arms", "BarrettHand BH8-282": joint names).
 """
 
 from __future__ import annotations

@@ -3,7 +3,8 @@
 All functions are vectorised: ``q``, ``v`` and the other per-joint arguments broadcast to
 the same shape (``(n,)`` or ``(arms, n)``); they return new arrays of that shape.
 
-Terms (velma-facts.md "Control on the real robot"; KUKA LWR4+ table of the same file):
+Terms (velma/model/README.md, "Control" and "KUKA LWR4+ arms"; what departs from the real
+robot: its "Where the model departs from the real robot"):
 
 - **Joint-limit avoidance band** (``position_band_torque``): inside a band of width ``b``
   before a joint limit the joint gets a repulsive torque that grows quadratically from 0 at
@@ -16,19 +17,19 @@ Terms (velma-facts.md "Control on the real robot"; KUKA LWR4+ table of the same 
   it acts on with the stiffness ``τ_b / b`` and damping ratio 0.7 (``band_damping``).
 - **Singularity avoidance band** (``singularity_band_torque``): in Cartesian impedance,
   arm joints 1, 3, 5 stay outside ±0.2 rad of the stretched (singular) configuration q = 0,
-  with an avoidance band of 0.26 rad (velma-facts.md). The interval [−0.2, 0.2] is treated as
-  a pseudo-limit with the same quadratic band: the torque pushes away from 0, from 0 at
+  with an avoidance band of 0.26 rad (Velma's ``cart_imp``). The interval [−0.2, 0.2] is
+  treated as a pseudo-limit with the same quadratic band: the torque pushes away from 0, from 0 at
   |q| = 0.46 rad to ``τ_s`` at |q| = 0.2 rad, growing further inside.
 - **Joint velocity limit** (``velocity_limit_torque``): arms 2 rad/s, torso 0.52 rad/s
-  (velma-facts.md). Only the excess over the limit is damped, with the joint-space inertia as
-  gain: τ = −M (q̇ − sat(q̇)) / T_v, so that, with nothing else acting, the excess decays
+  (Velma's limits in control). Only the excess over the limit is damped, with the joint-space
+  inertia as gain: τ = −M (q̇ − sat(q̇)) / T_v, so that, with nothing else acting, the excess decays
   with time constant ``T_v``; against a sustained driving torque τ_d the excess settles near
   τ_d T_v / M_jj (a damper, not a hard clamp; the torque limit bounds τ_d). The controller
   adds it after the torque rate limit: limited to 1 N·m per tick, a brake of this gain lags
   and oscillates (measured: a 1 rad shoulder step then reached 31 rad/s instead of 2.1).
 - **Torque limit and torque rate limit** (applied in ``VelmaController.update``): 100 N·m for arm
-  joints 0–4, 60 N·m for 5–6 (velma-facts.md); change per cycle at most 1 N·m per 1 ms tick
-  (franka_ros, velma-facts.md "Comparable controllers").
+  joints 0–4, 60 N·m for 5–6 (Velma's limits); change per cycle at most 1 N·m per 1 ms tick
+  (borrowed from franka_ros's Cartesian impedance example, not Velma's).
 
 Where the band torques act (velma/control/impedance.py): in full in joint and safe mode; in
 Cartesian mode through the task's null space, as RCPRG's ``JointLimitAvoidance`` component
@@ -53,15 +54,15 @@ from velma.control.joints import Array
 
 BoolArray = npt.NDArray[np.bool_]
 
-# --- torque limits (velma-facts.md, KUKA LWR4+; franka_ros for the rate)
+# --- torque limits (velma/model/README.md, KUKA LWR4+ arms; franka_ros for the rate)
 ARM_TORQUE_LIMIT = np.array([100.0, 100.0, 100.0, 100.0, 100.0, 60.0, 60.0])
-"""N·m, arm joints 0–6 (velma-facts.md: 100 N·m joints 0–4, 60 N·m joints 5–6)."""
+"""N·m, arm joints 0–6 (Velma's limits: 100 N·m joints 0–4, 60 N·m joints 5–6)."""
 TORSO_TORQUE_LIMIT = 300.0
-"""N·m (placeholder: not in the facts)."""
+"""N·m (placeholder: not public; velma/model/README.md "Placeholders")."""
 TORQUE_RATE_LIMIT = 1000.0
 """N·m/s: 1 N·m per 1 ms tick, as franka_ros."""
 
-# --- joint-limit avoidance band (velma-facts.md: avoidance band 0.26 rad; RCPRG profile)
+# --- joint-limit avoidance band (the width of Velma's singularity band, 0.26 rad; RCPRG profile)
 LIMIT_BAND = 0.26
 """rad, width of the joint-limit avoidance band of every arm joint."""
 LIMIT_BAND_TORQUE = 20.0
@@ -69,13 +70,13 @@ LIMIT_BAND_TORQUE = 20.0
 BAND_DAMPING_RATIO = 0.7
 """Damping ratio of a joint inside a band, with stiffness peak torque / band (RCPRG: 0.7)."""
 
-# --- singularity avoidance band (velma-facts.md: joints 1, 3, 5 in cart_imp)
+# --- singularity avoidance band (joints 1, 3, 5 in Velma's cart_imp)
 SINGULAR_JOINTS = (1, 3, 5)
 """Arm joints kept away from their stretched (singular) value 0 in Cartesian impedance."""
 SINGULARITY_HALF_WIDTH = 0.2
-"""rad, the forbidden interval [−0.2, 0.2] around q = 0 (velma-facts.md)."""
+"""rad, the forbidden interval [−0.2, 0.2] around q = 0 (Velma's cart_imp)."""
 SINGULARITY_BAND = 0.26
-"""rad, avoidance band outside the forbidden interval (velma-facts.md)."""
+"""rad, avoidance band outside the forbidden interval (Velma's cart_imp)."""
 SINGULARITY_BAND_TORQUE = 20.0
 """N·m at |q| = 0.2 rad (chosen for this simulation, as ``LIMIT_BAND_TORQUE``)."""
 
@@ -92,11 +93,11 @@ FULL_BAND_JOINTS = (3,)
 torques act through the task's null space. The self-motion of the S-R-S LWR (elbow swivel)
 keeps the shoulder–wrist distance, hence joint 3: a null-space torque cannot move it."""
 
-# --- joint velocity limits (velma-facts.md)
+# --- joint velocity limits (velma/model/README.md, "Structure" and "KUKA LWR4+ arms")
 ARM_VELOCITY_LIMIT = 2.0
-"""rad/s, arm joints in control (velma-facts.md)."""
+"""rad/s, arm joints in Velma's control."""
 TORSO_VELOCITY_LIMIT = 0.52
-"""rad/s (velma-facts.md: 30 °/s)."""
+"""rad/s (the torso's 30 °/s)."""
 VELOCITY_LIMIT_TIME_CONSTANT = 0.005
 """s, decay time of a velocity excess under ``velocity_limit_torque`` (chosen: 5 cycles)."""
 

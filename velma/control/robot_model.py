@@ -4,8 +4,9 @@ Both models come from the same velma.xml (kitchen.xml includes it), so kinematic
 agree to rounding (see tests/velma/test_velma_model.py); the joints are matched by name
 (velma/control/joints.py ``JointMap``, built with ``RobotModel.joint_names``).
 
-Source: velma-facts.md (joint names, tool chain); platform-notes.md (``buildModelFromMJCF``
-reads only the first body tree: the number of joints is checked after loading).
+Source: velma/model/README.md (joint names, tool chain). Pinocchio's ``buildModelFromMJCF``
+reads only the first body tree under ``<worldbody>`` and drops the rest silently: the number
+of joints is checked after loading.
 """
 
 from __future__ import annotations

@@ -2,7 +2,7 @@
 step (read state → controllers → actuators → physics step). ``Executor`` runs it in its loop
 thread; tests may drive it directly.
 
-Cycle (1 kHz, physics dt = 1 ms, paper §5.3 / velma-facts.md "Loop: 1 kHz"):
+Cycle (1 kHz, physics dt = 1 ms, paper §5.3 / velma/model/README.md "Control"):
 1. the running primitive updates the setpoints;
 2. the hands and the head get their position-servo controls, and the impedance law
    (``make_controller``: compiled, velma/control/compiled.py, or the Python reference

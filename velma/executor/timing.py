@@ -1,5 +1,5 @@
 """Deadline monitor and real-time setup of the 1 kHz control loop (paper §5.3: ag_ex is the
-hard-timing part of the system; velma-facts.md "Loop: 1 kHz").
+hard-timing part of the system; velma/model/README.md "Control").
 
 Definitions (per cycle k, period ``dt`` = 1 ms):
 
@@ -95,8 +95,8 @@ class TimingStats(msgspec.Struct, frozen=True, kw_only=True):
 
     ``pacing`` is ``realtime`` or ``fast``; ``cycles`` and ``overruns`` count since start;
     ``overrun_share`` = overruns / cycles; ``max_consecutive_overruns`` is the longest run of
-    overrunning cycles (Franka stops a robot at 20, velma-facts.md); ``setup`` says whether the
-    loop got SCHED_FIFO and a CPU of its own."""
+    overrunning cycles (Franka stops a robot at 20: velma/model/README.md "Control"); ``setup``
+    says whether the loop got SCHED_FIFO and a CPU of its own."""
 
     pacing: str
     cycles: int

@@ -23,7 +23,7 @@ Both are applied in inverse depth, where they are uniform: a Gaussian of σ = ``
 (m⁻¹) is added to 1/Z, which is then rounded to steps of ``STEP_INV`` (m⁻¹). The quantised
 output's σ is ≈ √(σ² + step²/12) ≈ 1.15 × the random error alone.
 
-Missing depth (NaN): outside the range ``RANGE`` (0.5–4 m: velma-facts.md "Head depth sensor";
+Missing depth (NaN): outside the range ``RANGE`` (0.5–4 m: velma/model/README.md "Head Kinect";
 the Kinect's default mode is specified from 0.8 m, it returns depth from ≈ 0.5 m) and where
 the surface is inclined to the ray by more than ``MAX_INCIDENCE`` (75°, assumed, after
 Nguyen et al.'s observation above). Named simplifications: no projector shadow, no loss on

@@ -43,9 +43,9 @@ from velma.world.layout import (
 )
 
 DT = 0.001
-"""The physics step and the link's cycle (s): 1 kHz (velma-facts.md "Loop: 1 kHz")."""
+"""The physics step and the link's cycle (s): 1 kHz (velma/model/README.md "Control")."""
 HEAD_RATE = 1.04
-"""The head servos' speed limit (rad/s, velma-facts.md: neck velocity limit)."""
+"""The head servos' speed limit (rad/s; velma/model/README.md "Structure")."""
 BRAKE_STIFFNESS = 2000.0
 """Joint stiffness of the safety hold (N·m/rad), ten times Velma's arm joint impedance: the
 arm sags by less than a milliradian under its own weight."""
@@ -291,7 +291,7 @@ class SimulatedVelma:
 def ramp(now: Array, target: Array, step: float) -> None:
     """Move each servo setpoint of ``now`` (rad, shape (n,), in place) by at most ``step``
     (rad) towards ``target`` (same shape): one cycle of the head's pan and tilt servos, whose
-    ``step`` is ``HEAD_RATE · DT`` (velma-facts.md: neck velocity limit)."""
+    ``step`` is ``HEAD_RATE · DT`` (the neck's speed limit; velma/model/README.md)."""
     for i in range(len(now)):
         now[i] += min(max(float(target[i] - now[i]), -step), step)
 

@@ -6,7 +6,7 @@
 | ``L_HFSM`` | C1, C3 | ground task networks and hierarchical plans (HFSMs) |
 | ``L_SW``   | C1 | supervised-worker states of a_ta |
 | ``L_WM``   | C4, C6 | world-model queries, answers and updates (ontology O_RoCo) |
-| ``L_EX``   | C5 | low-level executor commands and their results |
+| ``L_EX``   | C5 | low-level executor commands and their results (ontology O_Velma) |
 | ``L_SD``   | C5 | sensor data: observations of the scene |
 
 Every language is a tagged union of msgspec Structs encoded as msgpack; decoding is strict.

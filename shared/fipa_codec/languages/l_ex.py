@@ -1,8 +1,9 @@
 """L_EX: low-level commands a_ta requests from ag_ex on C5, and their results.
 
 Poses are in the ``world`` frame; the tool frame of an arm is its BarrettHand grip frame
-(``{side}_HandGripLink``, velma-facts.md). Durations in seconds, angles in radians,
-stiffness in N/m (translation) and N·m/rad (rotation).
+(``{side}_HandGripLink``, velma/model/README.md "KUKA LWR4+ arms"). Durations in seconds,
+angles in radians, stiffness in N/m (translation) and N·m/rad (rotation). Its ontology is
+O_Velma (the robot's frames and joints), not O_RoCo.
 """
 
 from __future__ import annotations
@@ -27,14 +28,14 @@ class MoveTool(msgspec.Struct, frozen=True, tag="move_tool", kw_only=True):
     ``guard`` (N, positive; None: unguarded) makes it a guarded move, e.g. lowering a held
     object onto a surface. While the path runs, the contact force is the external force that
     resists the motion: the change, since the command began, of the force the arm exerts on
-    the hand as the wrist F/T sensor measures it (``{arm}_ft_sensor``, velma-facts.md; so the
-    hand's and the held object's weight cancel), projected on the motion's direction, from
-    the start to ``target`` (its magnitude for a move that only turns). When its mean over
-    the last 5 ms exceeds ``guard`` the move ends at once, ``ok``: the Cartesian setpoint is
-    set to the measured grip pose (the arm does not push on) and the result says so
-    (``CommandResult.contact``; ``reason`` ``contact (F N, D mm from the target)``). Without
-    such a contact it ends as an unguarded move does; a ``guard`` ≤ 0 fails at once
-    (``invalid guard``)."""
+    the hand as the wrist F/T sensor measures it (``{arm}_ft_sensor``, velma/model/README.md
+    "KUKA LWR4+ arms"; so the hand's and the held object's weight cancel), projected on the
+    motion's direction, from the start to ``target`` (its magnitude for a move that only
+    turns). When its mean over the last 5 ms exceeds ``guard`` the move ends at once, ``ok``:
+    the Cartesian setpoint is set to the measured grip pose (the arm does not push on) and the
+    result says so (``CommandResult.contact``; ``reason`` ``contact (F N, D mm from the
+    target)``). Without such a contact it ends as an unguarded move does; a ``guard`` ≤ 0
+    fails at once (``invalid guard``)."""
 
     arm: Arm
     target: Pose
