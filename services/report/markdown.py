@@ -516,7 +516,7 @@ def _world(w: WorldTiming | None) -> str:
         (
             f"stale commands (by age 1 … {len(w.stale_by_age)} cycles: {ages})",
             str(w.stale),
-            f"age {w.stale_worst_age}",
+            f"age {w.stale_worst_age}" if w.stale else "",
         ),
         ("steps held (no command applied)", str(w.held), ""),
         ("waits for the controller's command", str(w.waits), f"{w.wait_max_us:.0f} µs"),
