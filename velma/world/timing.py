@@ -124,20 +124,6 @@ class WorldTiming(msgspec.Struct, frozen=True, kw_only=True):
             stale_by_age=tuple(v[len(FIELDS) :]),
         )
 
-    def describe(self) -> str:
-        """One line for tables, e.g. ``52000 cycles, 3 late, 0 stalls, 0 resets, 2 stale
-        (worst 1), 120 held``."""
-        text = (
-            f"{self.cycles} cycles, {self.late} late, {self.stalls} stalls, {self.resets} resets, "
-            f"{self.stale} stale"
-        )
-        if self.stale:
-            text += f" (worst {self.stale_worst_age})"
-        text += f", {self.held} held"
-        if self.pacing == "fast":
-            text += f", {self.waits} waits"
-        return text
-
 
 class WorldClock:
     """The counts of one world run (module docstring), kept by the world's loop.
