@@ -12,6 +12,10 @@ publishing its whole state for the camera (``world_state=True``) and ag_ex's hea
 thread (services/viewer/camera.py) rendering 320×240 frames at 1 Hz into a Rerun recording in
 a temporary folder, as ag_ex does with ``ROCO_RERUN=1``.
 
+Beside the loop's figures, each row gives the world process's own cycle (velma/world/timing.py)
+as ag_ex read it from the robot link: late cycles and schedule resets, stalls, stale commands,
+held steps (``-`` where the physics ran in the loop, as in ``alone``).
+
 Usage: ``python scripts/bench_loop.py [--repeat N] [--skip-fleet] [--camera] [--runs-dir DIR]``.
 Percentiles are over the last 120 000 cycles of each run (the whole pour is ≈ 56 000).
 """
@@ -35,6 +39,7 @@ import msgspec  # noqa: E402
 import numpy as np  # noqa: E402
 
 from velma.executor.timing import STALL_OFF_CPU, TimingStats  # noqa: E402
+from velma.world.timing import DT, LATE_AFTER_S, MAX_BEHIND_S, STALL_PERIODS  # noqa: E402
 
 
 def run_alone(seed: int, spin: float | None, camera: bool = False) -> tuple[TimingStats, str]:
@@ -168,8 +173,17 @@ def row(name: str, s: TimingStats, outcome: str) -> str:
         f"| {name} | {s.cycles} | {s.compute_p50_us:.0f} | {s.compute_p99_us:.0f} | {s.compute_max_us:.0f} | "
         f"{s.long_cycles} ({s.stalls}) | "
         f"{s.lateness_p99_us:.0f} | {s.overruns} ({s.overrun_share * 100:.3f} %) | "
-        f"{s.max_consecutive_overruns} | {sched} | {outcome} |"
+        f"{s.max_consecutive_overruns} | {world(s)} | {sched} | {outcome} |"
     )
+
+
+def world(s: TimingStats) -> str:
+    """The world process's own cycle in one cell (velma/world/timing.py): late (resets) /
+    stalls / stale (worst age) / held; ``-`` when the physics ran in the loop."""
+    w = s.world
+    if w is None:
+        return "-"
+    return f"{w.late} ({w.resets}) / {w.stalls} / {w.stale} ({w.stale_worst_age}) / {w.held}"
 
 
 def main() -> int:
@@ -195,9 +209,9 @@ def main() -> int:
     print(
         "| condition | cycles | compute p50 µs | compute p99 µs | compute max µs "
         "| cycles over 1 ms (off-CPU stalls) | lateness p99 µs | overruns | max in a row "
-        "| scheduling | pour |"
+        "| world: late (resets) / stalls / stale (worst age) / held | scheduling | pour |"
     )
-    print("|---|---|---|---|---|---|---|---|---|---|---|")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|")
     runs_dir = args.runs_dir or Path(tempfile.mkdtemp(prefix="roco-bench-"))
     split: list[str] = []
     if args.baseline > 0:
@@ -229,7 +243,14 @@ def main() -> int:
         f"its CPU (compute time minus its thread CPU time) for more than {STALL_OFF_CPU * 1e6:.0f} µs: "
         "the machine (hypervisor, interrupts) took the CPU as Linux accounts it. The machine "
         "baseline (--baseline) runs a fixed calculation under the same real-time setup: its "
-        "cycles over 1 ms are the machine's own."
+        "cycles over 1 ms are the machine's own. World: the world process's own cycle over its "
+        f"run (velma/world/timing.py; '-' when the physics ran in the loop): late cycles (started "
+        f"over {LATE_AFTER_S * 1e3:.0f} ms after due) with, in brackets, the schedule resets among "
+        f"them (over {MAX_BEHIND_S * 1e3:.0f} ms behind: the world went on from then, no burst); "
+        f"stalls (over {STALL_PERIODS * DT * 1e3:.0f} ms between two cycle starts, waits for the controller "
+        "excluded); stale commands (a step applied a command older than the newest it could "
+        "have had) with the worst age in cycles; held steps (no command applied: before ag_ex "
+        "attached, after it ended, or its command too old)."
     )
     return 0
 

@@ -21,6 +21,7 @@ from services.report.model import (
 )
 from services.report.robot_clock import RobotClock
 from velma.executor.timing import STALL_OFF_CPU, RealtimeSetup, TimingStats
+from velma.world.timing import DT, LATE_AFTER_S, MAX_BEHIND_S, STALL_PERIODS, WorldTiming
 
 HOW_MEASURED = (
     "**How measured.** Two clocks. *Wall* times are the arrival times of the communicates at "
@@ -491,7 +492,44 @@ def _control(report: Report) -> str:
         "(impedance law, hands, head), physics (`mj_step`, contact scan), hand-offs (the rest); "
         "each part's percentiles are its own, so they do not add up to the cycle's."
     )
-    return "\n\n".join([title, text, _table(head, rows), how])
+    return "\n\n".join([title, text, _table(head, rows), how, _world(c.world)])
+
+
+def _world(w: WorldTiming | None) -> str:
+    """The world process's own timing beside the loop's (velma/world/timing.py)."""
+    if w is None:
+        return "**The world's cycle.** No figures: the physics ran in the loop, or ag_ex read none."
+    ages = " / ".join(str(n) for n in w.stale_by_age)
+    rows = [
+        ("cycles (of them paced on the wall clock)", f"{w.cycles} ({w.paced})", ""),
+        (
+            f"late cycles (started over {LATE_AFTER_S * 1e3:.0f} ms after due)",
+            str(w.late),
+            f"{w.late_max_us:.0f} µs",
+        ),
+        (f"schedule resets (over {MAX_BEHIND_S * 1e3:.0f} ms behind)", str(w.resets), ""),
+        (
+            f"stalls (over {STALL_PERIODS * DT * 1e3:.0f} ms between cycle starts, waits excluded)",
+            str(w.stalls),
+            f"{w.gap_max_us:.0f} µs",
+        ),
+        (
+            f"stale commands (by age 1 … {len(w.stale_by_age)} cycles: {ages})",
+            str(w.stale),
+            f"age {w.stale_worst_age}" if w.stale else "",
+        ),
+        ("steps held (no command applied)", str(w.held), ""),
+        ("waits for the controller's command", str(w.waits), f"{w.wait_max_us:.0f} µs"),
+    ]
+    how = (
+        f"**The world's cycle** (velma/world/, pacing: {w.pacing}), counted by the world process "
+        "over its run (velma/world/timing.py) and read from the robot link by ag_ex. A paced cycle "
+        "is due at a wall-clock time (real time, or while the safety layer holds the robot); a "
+        "stale command answers an older state than the newest the step could have had (real time "
+        "only: in lockstep the world waits for the newest); a held step applied no command (before "
+        "the controller attached, after it ended, or its command too old)."
+    )
+    return "\n\n".join([_table(("world process", "count", "worst"), rows), how])
 
 
 def _coordination(report: Report) -> str:

@@ -8,9 +8,11 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+import msgspec
 import pytest
 
 from services.report import Event, Report, build_report, paper, write_report
+from velma.world.timing import WorldTiming
 
 COMMAND = "pour the jar into the bowl"
 
@@ -200,6 +202,44 @@ def test_control_loop_section(run_dir: Path, control_timing: Any) -> None:
     assert "CPU wake-up latency held at 0 µs (PM QoS)" in section
     assert "3 cycles took over 1 ms; 2 cycles stalled (off their CPU for more than 100 µs" in section
     assert "at most 950 µs); the longest other cycle took 1100 µs." in section
+
+
+def test_control_loop_section_shows_the_world_process_s_cycle_beside_the_loop_s(
+    run_dir: Path, control_timing: Any
+) -> None:
+    world = WorldTiming(
+        pacing="realtime",
+        cycles=57_000,
+        paced=57_000,
+        late=12,
+        late_max_us=151_300.0,
+        resets=1,
+        stalls=2,
+        gap_max_us=152_000.0,
+        held=900,
+        waits=0,
+        wait_max_us=0.0,
+        stale=7,
+        stale_worst_age=3,
+        stale_by_age=(4, 2, 1, 0),
+    )
+    timing = msgspec.structs.replace(control_timing, world=world)
+    (run_dir / "ag_ex_timing.json").write_bytes(msgspec.json.encode(timing))
+    assert build_report(run_dir).control == timing
+    section = write_report(run_dir).read_text(encoding="utf-8").split("## 6. Control loop")[1]
+    section = section.split("## Notes")[0]
+    assert "| cycles (of them paced on the wall clock) | 57000 (57000) |  |" in section
+    assert "| late cycles (started over 1 ms after due) | 12 | 151300 µs |" in section
+    assert "| schedule resets (over 100 ms behind) | 1 |  |" in section
+    assert "| stalls (over 10 ms between cycle starts, waits excluded) | 2 | 152000 µs |" in section
+    assert "| stale commands (by age 1 … 4 cycles: 4 / 2 / 1 / 0) | 7 | age 3 |" in section
+    assert "| steps held (no command applied) | 900 |  |" in section
+    assert "pacing: realtime" in section
+
+
+def test_control_loop_section_without_a_world_process_says_so(run_dir: Path) -> None:
+    section = write_report(run_dir).read_text(encoding="utf-8").split("## 6. Control loop")[1]
+    assert "**The world's cycle.** No figures" in section.split("## Notes")[0]
 
 
 def test_control_loop_missing_or_corrupt(make_run: Callable[..., Path], pour: Any) -> None:

@@ -5,14 +5,18 @@ and finishes the lift: the world's time never goes back and the jar never jumps.
 
 from __future__ import annotations
 
+import json
 import os
 import queue
 import signal
 import threading
+from pathlib import Path
 
+import msgspec
 import numpy as np
 import pytest
 
+from services.report.build import TIMING_JSON, _control_timing
 from shared.fipa_codec.languages.l_ex import CommandResult
 from shared.fipa_codec.languages.l_sd import Observation
 from tests.support.grasp import LIFT_M, grasp_the_jar, left_jar_lift, run_command
@@ -160,3 +164,26 @@ def test_ag_ex_killed_mid_lift_leaves_the_jar_where_it_was_and_the_next_loop_lif
     steps = np.linalg.norm(np.diff(jar, axis=0), axis=1)
     assert steps.max() < 0.01  # the jar never jumps: no rollback, no drop
     assert jar[-1][2] - jar[0][2] == pytest.approx(LIFT_M, abs=0.02)
+
+
+def test_the_world_s_timing_reaches_the_loop_s_figures_and_the_run_s_report(
+    world: str, tmp_path: Path
+) -> None:
+    ex = ExecutorProcess(realtime=False, world_link=world, perception="truth", realtime_priority=False)
+    ex.start()
+    try:
+        first = ex.timing().world
+        snap = _state_after(ex, _state_after(ex, 0.0).sim_time + 0.2)
+        timing = ex.timing()
+    finally:
+        ex.stop()
+    assert first is not None and timing.world is not None
+    w = timing.world
+    assert w.pacing == "fast"
+    assert w.cycles > first.cycles and w.cycles >= round(snap.sim_time * 1000) - 100  # copied every 100
+    assert w.held > 0  # the safety layer held the robot until the loop attached
+    assert w.stale == 0 and w.stale_by_age == (0, 0, 0, 0)  # in lockstep every command is the newest
+    # as ag_ex writes it into the run folder (services/agents/executor/agent.py) and the report reads it
+    (tmp_path / TIMING_JSON).write_text(json.dumps(msgspec.to_builtins(timing), indent=1))
+    notes: list[str] = []
+    assert _control_timing(tmp_path, notes) == timing and not notes

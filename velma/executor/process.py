@@ -24,7 +24,8 @@ Hand-offs (all non-blocking on the loop's side):
   raw float64 in a second ``LatestValue``, rewritten every ``WORLD_PERIOD`` cycles (≈ 1.4 µs
   per write: a copy of 1.4 kB); whoever renders it does so in another process;
 - timing: the ``DeadlineMonitor``'s arrays live in shared memory; the communication side
-  computes percentiles from them, never the loop;
+  computes percentiles from them, never the loop; with a world process, the world's own
+  timing counts are read here from its link (velma/world/timing.py);
 
 Observe: the loop answers an Observe with a ``WorldCapture`` (velma/executor/capture.py:
 the requested names, sim time and a copy of ``qpos``); on this side ``ResultDelivery``
@@ -70,6 +71,8 @@ from velma.executor.handoff import LatestValue, SpscRing, new_block, remove_orph
 from velma.executor.state import RobotSnapshot, snapshot_of
 from velma.executor.state_block import StateReader
 from velma.executor.timing import DEFAULT_WINDOW, DeadlineMonitor, Pacer, RealtimeSetup, TimingStats
+from velma.world.link import LinkError, RobotLink
+from velma.world.timing import WorldTiming
 
 log = logging.getLogger(__name__)
 
@@ -449,6 +452,7 @@ class ExecutorProcess:
         self._world: LatestValue | None = None
         self._mon_shm: shared_memory.SharedMemory | None = None
         self._monitor: DeadlineMonitor | None = None
+        self._world_counts: RobotLink | None = None  # the world's link, read for its timing
         self._decode = msgspec.msgpack.Decoder(FromLoop).decode
         self._encode = msgspec.msgpack.Encoder().encode
 
@@ -552,6 +556,9 @@ class ExecutorProcess:
         if self._mon_shm is not None:
             self._mon_shm.close()
             self._mon_shm.unlink()
+        if self._world_counts is not None:
+            self._world_counts.close()
+            self._world_counts = None
         if self._bell is not None:
             self._bell.close()
         self._commands = self._results = self._state = self._state_names = None
@@ -641,7 +648,8 @@ class ExecutorProcess:
 
     def timing(self, sim_time: float | None = None) -> TimingStats:
         """The loop's deadline statistics (computed here, from the shared monitor) at
-        ``sim_time`` (default: that of the latest robot state). Raises ``RuntimeError``
+        ``sim_time`` (default: that of the latest robot state), with the world process's
+        timing (``TimingStats.world``) when the loop controls one. Raises ``RuntimeError``
         before ``start``."""
         if self._monitor is None or self._state_reader is None:
             raise RuntimeError("executor loop not started")
@@ -650,7 +658,22 @@ class ExecutorProcess:
         self._monitor.setup = self.setup
         self._monitor.control_law = self.control_law
         self._monitor.plant = self.plant
-        return self._monitor.stats(sim_time)
+        stats = self._monitor.stats(sim_time)
+        world = self._world_timing()
+        return stats if world is None else msgspec.structs.replace(stats, world=world)
+
+    def _world_timing(self) -> WorldTiming | None:
+        """The world process's timing counts (velma/world/timing.py), read from its link
+        (attached on first use and kept: the counts stay readable after the world ended);
+        None without a world process or when its link is not there."""
+        if not self.world_link:
+            return None
+        if self._world_counts is None:
+            try:
+                self._world_counts = RobotLink.attach(self.world_link)
+            except (FileNotFoundError, LinkError):
+                return None
+        return WorldTiming.read(self._world_counts.counters)
 
     # ------------------------------------------------------------------ reader thread
     def _read(self) -> None:

@@ -44,6 +44,8 @@ import time
 import msgspec
 import numpy as np
 
+from velma.world.timing import WorldTiming
+
 DEFAULT_WINDOW = 120_000  # cycles (2 min at 1 kHz) kept for percentiles
 PARTS = ("primitive", "control", "physics", "hand-offs")
 """The parts of a cycle's compute time (module docstring); the loop measures all but the last."""
@@ -134,6 +136,9 @@ class TimingStats(msgspec.Struct, frozen=True, kw_only=True):
     """The longest compute time (µs) of the window's cycles that were not stalls."""
     off_cpu_max_us: float = 0.0
     """The longest off-CPU time (µs) of one cycle in the window."""
+    world: WorldTiming | None = None
+    """The world process's own timing over its run (velma/world/timing.py), when the loop
+    controls a world process (None: the physics ran in the loop, or the world was not read)."""
 
 
 class DeadlineMonitor:

@@ -15,15 +15,18 @@ Layout (native byte order, x86-64 little-endian; offsets in bytes):
 80     command: sequence lock (u64), the world cycle the command answers (u64)
 96     doorbells (u32 each, futex words): world → controller, controller → world
 112    scene: sequence lock (u64), the world's cycle (u64)
-128    measured values, float64 × ``n_measured``
+128    the world's timing counts, int64 × ``N_COUNTERS`` (velma/world/timing.py)
+320    measured values, float64 × ``n_measured``
 …      command values, float64 × ``n_command``
 …      scene values, float64 × ``n_scene`` (may be none)
 ====== ======================================================================================
 
 A value block is copied under its sequence lock (one writer each: the world writes the
 measured state and the scene, the controller the command); a reader retries while the lock is
-odd or moved. The scene is what the world shows beyond the robot's own sensors (the head
-camera's capture is made from it); the controller reads it only when it needs it.
+odd or moved. The timing counts are written by the world alone, slot by slot (aligned
+8-byte stores, no lock): ``counters``. The scene is what the world shows beyond the robot's
+own sensors (the head camera's capture is made from it); the controller reads it only when it
+needs it.
 A waiter spins on the counter for ``spin_s``, then sleeps on the doorbell (Linux futex,
 shared between processes) until the writer rings it; so the cost of a hand-off is the
 spin's when the other side answers quickly and one wake-up otherwise (measured by
@@ -45,8 +48,11 @@ import numpy.typing as npt
 
 from velma.shm import BlockError, new_block, shared_view
 
-MAGIC = b"ROCOLNK2"
-HEADER = 128
+MAGIC = b"ROCOLNK3"
+COUNTERS_AT = 128
+N_COUNTERS = 24
+"""int64 slots for the world's timing counts (velma/world/timing.py ``N_SLOTS`` of them used)."""
+HEADER = COUNTERS_AT + 8 * N_COUNTERS
 _COUNTS = struct.Struct("<III")
 _MEASURED_SEQ, _MEASURED_CYCLE, _COMMAND_SEQ, _COMMAND_CYCLE = 8, 9, 10, 11  # u64 word indices
 _WORLD_BELL, _CONTROLLER_BELL = 24, 25  # u32 word indices (bytes 96, 100)
@@ -116,6 +122,9 @@ class RobotLink:
         self._buf = buf
         self._u64 = np.ndarray((HEADER // 8,), dtype=np.uint64, buffer=buf)
         self._u32 = np.ndarray((HEADER // 4,), dtype=np.uint32, buffer=buf)
+        self.counters = np.ndarray((N_COUNTERS,), dtype=np.int64, buffer=buf, offset=COUNTERS_AT)
+        """The world's timing counts (velma/world/timing.py ``WorldClock.publish`` writes them,
+        ``WorldTiming.read`` reads them; a view into the block)."""
         self._measured = np.ndarray((self.n_measured,), dtype=np.float64, buffer=buf, offset=HEADER)
         self._command = np.ndarray(
             (self.n_command,), dtype=np.float64, buffer=buf, offset=HEADER + 8 * self.n_measured
@@ -173,6 +182,12 @@ class RobotLink:
         """Copy the latest command into ``out``; returns the world cycle it answers, or None
         before the first command (or while a killed writer left it half written)."""
         return self._read(self._command, _COMMAND_SEQ, _COMMAND_CYCLE, out)
+
+    def command_cycle(self) -> int | None:
+        """The world cycle the latest command answers, None before the first (one load, no
+        copy: for the world to tell whether it will have to wait)."""
+        c = self._u64[_COMMAND_CYCLE]
+        return None if c == NO_CYCLE else int(c)
 
     def wait_command(self, cycle: int, timeout_s: float, spin_s: float) -> bool:
         """Wait until the command answering world cycle ``cycle`` (or a later one) is there;
@@ -255,7 +270,7 @@ class RobotLink:
 
     def close(self) -> None:
         """Let go of the block (the owner also removes it)."""
-        del self._u64, self._u32, self._measured, self._command, self._scene, self._buf
+        del self._u64, self._u32, self.counters, self._measured, self._command, self._scene, self._buf
         self.shm.close()
         if self.owner:
             # unlink() tells the tracker too: balance the unregister of create()

@@ -15,6 +15,10 @@ When no command answers one of the last ``HOLD_CYCLES`` states in real time, or 
 before in lockstep (the controller ended, hangs or has not attached yet), the safety layer
 holds the robot and the world steps on the wall clock until a controller commands again: the
 kitchen goes on, and a controller that attaches finds it as it is now.
+
+A paced world more than ``MAX_BEHIND_S`` behind the wall clock goes on from now instead of
+catching up in a burst. Late and stalled cycles, those resets, stale commands, holds and the
+waits for the controller are counted into the link (velma/world/timing.py).
 """
 
 from __future__ import annotations
@@ -28,16 +32,15 @@ import numpy as np
 from velma.world.hardware import DT, SimulatedVelma
 from velma.world.layout import COMMAND, MEASURED
 from velma.world.link import RobotLink
+from velma.world.timing import HOLD_CYCLES, MAX_BEHIND_S, PUBLISH_CYCLES, WorldClock
 
-HOLD_CYCLES = 5
-"""States a controller may leave unanswered before the safety layer holds the robot."""
+__all__ = ["HOLD_CYCLES", "LOCKSTEP_WAIT_S", "MAX_BEHIND_S", "serve", "world_process"]
+
 LOCKSTEP_WAIT_S = 0.5
 """How long (wall s) the world waits for a command in lockstep before it holds: far above a
 cycle's work (≈ 0.3 ms), so that only a controller that is gone or stuck causes a hold."""
-MAX_BEHIND_S = 0.1
-"""How far (s) a paced world may fall behind the wall clock before it stops catching up."""
-STOP_CHECK_CYCLES = 100
-"""Cycles between two calls of ``should_stop``."""
+STOP_CHECK_CYCLES = PUBLISH_CYCLES
+"""Cycles between two calls of ``should_stop`` (and two copies of the timing counts)."""
 
 
 def serve(
@@ -47,43 +50,63 @@ def serve(
     realtime: bool,
     should_stop: Callable[[], bool],
     max_cycles: int | None = None,
+    clock: Callable[[], float] = time.perf_counter,
+    sleep: Callable[[float], None] = time.sleep,
 ) -> int:
     """Step ``sim`` and serve it on ``link`` (module docstring) until ``should_stop()`` says so
     (asked every ``STOP_CHECK_CYCLES`` cycles) or ``max_cycles`` cycles ran; returns the
     number of cycles. The scene goes with every measured state when the link has room for
-    it (``sim.scene_size`` values). Raises what the physics raises."""
+    it (``sim.scene_size`` values). The world's timing is counted (velma/world/timing.py
+    ``WorldClock``) into ``link.counters``, copied every ``STOP_CHECK_CYCLES`` cycles and at
+    the end. ``clock`` (s, monotonic) and ``sleep`` pace the cycle (a test's own clock may
+    stand in). Raises what the physics raises."""
     measured, command = np.zeros(MEASURED.size), np.zeros(COMMAND.size)
     scene = np.zeros(link.n_scene) if link.n_scene == sim.scene_size else None
+    counts = WorldClock(link.counters, realtime=realtime)
     k = 0
-    due = time.perf_counter()  # wall time the next cycle is due, while paced
-    while max_cycles is None or k < max_cycles:
-        if k % STOP_CHECK_CYCLES == 0 and should_stop():
-            break
-        sim.measure(measured)
-        if scene is not None:
-            sim.scene(scene)
-            link.publish_scene(k, scene)
-        link.publish(k, measured)
-        fresh = False
-        if k > 0:
-            if not (realtime or sim.holding):
-                link.wait_command(k - 1, LOCKSTEP_WAIT_S, spin_s=0.0)
-            answered = link.read_command(command)
-            # in lockstep every cycle has its command (also to leave a hold), or the
-            # controller is gone
-            fresh = answered is not None and answered >= (k - HOLD_CYCLES if realtime else k - 1)
-        sim.apply(command if fresh else None)
-        sim.step()
-        k += 1
-        if realtime or sim.holding:
-            due += DT
-            left = due - time.perf_counter()
-            if left > 0:
-                time.sleep(left)
-            elif left < -MAX_BEHIND_S:  # far behind (a stall): go on from now, no burst
-                due = time.perf_counter()
-        else:
-            due = time.perf_counter()
+    due: float | None = None  # wall time the cycle is due, while paced (None: in lockstep)
+    if realtime or sim.holding:
+        due = clock()
+    try:
+        while max_cycles is None or k < max_cycles:
+            if k % STOP_CHECK_CYCLES == 0:
+                counts.publish()
+                if should_stop():
+                    break
+            start = clock()
+            if counts.started(start, due):  # far behind (a stall): go on from now, no burst
+                due = start
+            sim.measure(measured)
+            if scene is not None:
+                sim.scene(scene)
+                link.publish_scene(k, scene)
+            link.publish(k, measured)
+            answered: int | None = None
+            if k > 0:
+                if not (realtime or sim.holding):
+                    latest = link.command_cycle()
+                    if latest is None or latest < k - 1:  # not there yet: the world waits
+                        t = clock()
+                        link.wait_command(k - 1, LOCKSTEP_WAIT_S, spin_s=0.0)
+                        counts.waited(clock() - t)
+                answered = link.read_command(command)
+                # in lockstep every cycle has its command (also to leave a hold), or the
+                # controller is gone
+                if answered is not None and answered < (k - HOLD_CYCLES if realtime else k - 1):
+                    answered = None
+            counts.applied(k, answered)
+            sim.apply(command if answered is not None else None)
+            sim.step()
+            k += 1
+            if realtime or sim.holding:
+                due = (clock() if due is None else due) + DT
+                left = due - clock()
+                if left > 0:
+                    sleep(left)
+            else:
+                due = None
+    finally:
+        counts.publish()
     return k
 
 
