@@ -67,20 +67,39 @@ def _span(cells: list[str]) -> str:
 
 MESSAGING = "2–3. Messaging"
 ROCO_ROW = "roco (Agent runtime"
-RAW_SLEEPING_ROW = "raw Zenoh (put/subscriber"
-RAW_POLLING_ROW = "raw Zenoh, each end polling"
-ROCO_ONE_PUT_ROW = "roco, each communicate in a put of its own"
+RAW_SLEEPING_ROW = "raw Zenoh ("
+RAW_POLLING_ROW = "each end polling"
+BATCHED_ROW = "roco, stream batched"
+SECURE_LINK = "mutual TLS + ACL"
+OPEN_LINK = "TCP, no ACL"
 
 
-def _others(t: Table, column: int, labels: list[tuple[str, str]], unit: str) -> list[str]:
-    """``"NAME: VALUE UNIT"`` of each row of ``labels`` (first-cell prefix, name) that the
-    table has (SPADE and JADE may be skipped)."""
-    out = []
-    for first, name in labels:
-        rows = t.rows_starting(first)
-        if rows:
-            out.append(f"{name}: {rows[0][column]}{unit}")
-    return out
+def _messaging_row(t: Table, link: str, label: str) -> list[str] | None:
+    """The messaging table's first row on a link starting ``link`` whose system contains
+    ``label`` (raw Zenoh's sleeping row: the raw row that does not poll), or None."""
+    link_col = t.column("link", MESSAGING)
+    for r in t.rows:
+        if not r[link_col].startswith(link):
+            continue
+        if label == RAW_SLEEPING_ROW:
+            if r[0].startswith(label) and RAW_POLLING_ROW not in r[0]:
+                return r
+        elif label in r[0]:
+            return r
+    return None
+
+
+def _cell(t: Table, link: str, label: str, column: int) -> str:
+    r = _messaging_row(t, link, label)
+    if r is None:
+        raise FiguresError(f"{MESSAGING}: no row {label!r} on the link {link!r}")
+    return r[column]
+
+
+def _platforms(t: Table, column: int, unit: str) -> list[str]:
+    """``"NAME: VALUE UNIT"`` of JADE's and SPADE's rows when the run had them."""
+    found = ((name, t.rows_starting(name)) for name in ("JADE", "SPADE"))
+    return [f"{name}: {rows[0][column]}{unit}" for name, rows in found if rows]
 
 
 def bench_targets(docs: dict[str, Document]) -> Row:
@@ -153,25 +172,25 @@ def plan_1(docs: dict[str, Document]) -> Row:
 
 def round_trip(docs: dict[str, Document]) -> Row:
     """Parts 2–3 (`messaging`, `spade`, `jade`): request → inform round trip, p50; reads the
-    messaging table's ``round trip p50 µs`` of roco's, raw Zenoh's (sleeping, polling),
-    SPADE's and JADE's rows."""
+    messaging table's ``round trip p50 µs`` of roco's and raw Zenoh's rows on the secured link
+    (mutual TLS + ACL, as fleets run; raw Zenoh polling the same way is the headline), roco's on
+    the open link, and SPADE's and JADE's rows."""
     doc = docs[BENCHMARKS]
     t = doc.table(MESSAGING, "system")
     p50 = t.column("round trip p50 µs", MESSAGING)
-    others = _others(
-        t,
-        p50,
-        [
-            (RAW_SLEEPING_ROW, "raw Zenoh sleeping in `recv()`"),
-            (RAW_POLLING_ROW, "raw Zenoh polling as roco does"),
-            ("JADE", "JADE"),
-            ("SPADE", "SPADE"),
-        ],
-        " µs",
-    )
+    roco, polling = _cell(t, SECURE_LINK, ROCO_ROW, p50), _cell(t, SECURE_LINK, RAW_POLLING_ROW, p50)
+    sleeping = _cell(t, SECURE_LINK, RAW_SLEEPING_ROW, p50)
+    roco_open = _cell(t, OPEN_LINK, ROCO_ROW, p50)
+    others = [
+        f"raw Zenoh on the same link, polling as roco does: {polling} µs "
+        f"({number(roco) / number(polling):.1f} ×)",
+        f"sleeping in `recv()`: {sleeping} µs",
+        f"roco without TLS and access control: {roco_open} µs",
+        *(f"{o} (no TLS, no access control)" for o in _platforms(t, p50, " µs")),
+    ]
     return Row(
-        "request → inform round trip between two agent processes, p50",
-        f"{t.row(ROCO_ROW, MESSAGING)[p50]} µs",
+        "request → inform round trip between two agent processes, p50, mutual TLS and access control on",
+        f"{roco} µs",
         "; ".join(others) + f" (each p50, {report.Counts().content_bytes} B of content, two processes)",
         doc,
         MESSAGING,
@@ -180,26 +199,22 @@ def round_trip(docs: dict[str, Document]) -> Row:
 
 
 def stream(docs: dict[str, Document]) -> Row:
-    """Parts 2–3: one pair streaming 200 B informs; reads the messaging table's
-    ``throughput /s (median)`` of roco's (batched, one put each), raw Zenoh's, SPADE's and
-    JADE's rows."""
+    """Parts 2–3: one pair streaming 200 B informs, one communicate per put; reads the messaging
+    table's ``throughput /s (median)`` of roco's rows (secured and open links, one per put;
+    batched), raw Zenoh's, SPADE's and JADE's."""
     doc = docs[BENCHMARKS]
     t = doc.table(MESSAGING, "system")
-    rate = t.column("throughput /s", MESSAGING)
-    others = _others(
-        t,
-        rate,
-        [
-            (ROCO_ONE_PUT_ROW, "roco, one put each"),
-            ("JADE", "JADE"),
-            ("SPADE", "SPADE"),
-            (RAW_SLEEPING_ROW, "raw Zenoh"),
-        ],
-        " /s",
-    )
-    value = t.row(ROCO_ROW, MESSAGING)[rate]
+    rate = t.column("stream /s", MESSAGING)
+    value = _cell(t, SECURE_LINK, ROCO_ROW, rate)
+    others = [
+        f"without TLS and access control: {_cell(t, OPEN_LINK, ROCO_ROW, rate)} /s",
+        *(f"{o} (one per send, no TLS, no access control)" for o in _platforms(t, rate, " /s")),
+        f"roco batched (a step's {report.STREAM_BATCH} informs in one put): "
+        f"{_cell(t, SECURE_LINK, BATCHED_ROW, rate)} /s",
+        f"raw Zenoh on the same link: {_cell(t, SECURE_LINK, RAW_POLLING_ROW, rate)} /s",
+    ]
     return Row(
-        "one pair streaming 200 B informs",
+        "one pair streaming 200 B informs, one communicate per put, mutual TLS and access control on",
         f"{value} communicates/s",
         f"target ≥ {report.TARGET_TPUT:,.0f} /s: "
         f"{'met' if number(value) >= report.TARGET_TPUT else 'missed'}; " + "; ".join(others),
