@@ -1255,15 +1255,26 @@ def spec_check(spec: SpecFile = None) -> None:
 
 
 @spec_app.command("deadlock", short_help="Search the protocols and agents for reachable deadlocks.")
-def spec_deadlock(spec: SpecFile = None) -> None:
+def spec_deadlock(
+    spec: SpecFile = None,
+    library: Annotated[
+        bool,
+        typer.Option(
+            "--library", help="explore every built-in interaction protocol instead of a specification's"
+        ),
+    ] = False,
+) -> None:
     """Explore every channel protocol as two role automata over bounded FIFO queues, and the
     agents' wait-for graph; report reachable deadlocks with the trace that leads there
-    (paper §4 step 3). Exit 1 when one is found."""
+    (paper §4 step 3). With --library, every protocol of the built-in library (FIPA SC00026
+    to SC00036 and coordinate) instead. Exit 1 when one is found."""
     from services.spec.model import SpecError
-    from services.spec_check.deadlock import deadlock_report
+    from services.spec_check.deadlock import deadlock_report, library_report
 
+    if library and spec is not None:
+        raise fail("--library explores the built-in protocols; give no --spec with it", code=2)
     try:
-        found, text = deadlock_report(_spec_path(spec))
+        found, text = library_report() if library else deadlock_report(_spec_path(spec))
     except SpecError as exc:
         raise fail(str(exc), code=2) from None
     typer.echo(text)

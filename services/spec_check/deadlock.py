@@ -49,6 +49,11 @@ conservative assumption that a waiting agent serves nothing else meanwhile.
 
 :func:`analyse` gives a typed :class:`DeadlockResult`, :func:`render` the text,
 :func:`deadlock_report` both for the CLI (a deadlock found: non-zero exit).
+
+**The library.** :func:`analyse_library` explores the conversations of every protocol of
+the built-in library (:data:`shared.fipa_codec.protocols.PROTOCOLS`: the eleven of the FIPA
+SC00025 library, SC00026 to SC00036, and the paper's coordinate), whether a specification
+names it or not; :func:`library_report` renders it for ``roco spec deadlock --library``.
 """
 
 from __future__ import annotations
@@ -63,7 +68,7 @@ from typing import Any, Literal
 from services.spec.model import DEFAULT_SPEC, ChannelProtocol, ChannelSpec, SpecError, SystemSpec, load
 from services.spec.protocol_defs import protocols_of, read_raw, role_mismatches
 from shared.fipa_codec.acts import Performative
-from shared.fipa_codec.protocols import INITIATOR, PARTICIPANT, Protocol, Role
+from shared.fipa_codec.protocols import INITIATOR, PARTICIPANT, PROTOCOLS, Protocol, Role
 
 __all__ = [
     "MAX_CYCLES",
@@ -79,8 +84,10 @@ __all__ = [
     "WaitCycle",
     "WaitEdge",
     "analyse",
+    "analyse_library",
     "deadlock_report",
     "explore",
+    "library_report",
     "render",
     "wait_cycles",
     "wait_edges",
@@ -783,3 +790,44 @@ def deadlock_report(path: Path = DEFAULT_SPEC) -> tuple[bool, str]:
     :func:`render`'s report. Raises SpecError when the file is invalid."""
     result = analyse(path)
     return result.deadlock_found, render(result)
+
+
+# -------------------------------------------------------------------------------- library
+
+
+def analyse_library(
+    protocols: Mapping[str, Protocol] | None = None,
+    *,
+    queue_capacity: int = QUEUE_CAPACITY,
+    not_understood: bool = False,
+) -> tuple[ProtocolResult, ...]:
+    """The conversations of every protocol of ``protocols`` (by default the built-in library,
+    :data:`shared.fipa_codec.protocols.PROTOCOLS`), each explored by :func:`explore`, in the
+    order given. Raises SpecError as :func:`explore`."""
+    chosen = PROTOCOLS if protocols is None else protocols
+    return tuple(
+        explore(machine, queue_capacity=queue_capacity, not_understood=not_understood)
+        for machine in chosen.values()
+    )
+
+
+def library_report(protocols: Mapping[str, Protocol] | None = None) -> tuple[bool, str]:
+    """For ``roco spec deadlock --library``: (found, text), where ``found`` is True when a
+    conversation of a protocol of ``protocols`` (by default the built-in library) can deadlock
+    or receive a message it never consumes, and ``text`` lists per protocol the states
+    explored and the findings, with their shortest traces in role names."""
+    began = time.perf_counter()
+    results = analyse_library(protocols)
+    lines = [
+        "Deadlock analysis of the built-in interaction protocols (shared/fipa_codec/protocols.py)",
+        f"Conversations: the two roles over FIFO queues of {QUEUE_CAPACITY}, explored breadth "
+        "first (shortest traces); cancel included, not-understood left out.",
+        "",
+        "Protocols:",
+    ]
+    for r in results:
+        lines += _protocol_lines(r, set())
+    found = any(not r.ok for r in results)
+    verdict = "DEADLOCK FOUND" if found else "no deadlock found"
+    lines += ["", f"{verdict} ({(time.perf_counter() - began) * 1000:.1f} ms)"]
+    return found, "\n".join(lines) + "\n"

@@ -10,7 +10,8 @@ Conventions shared by all protocols (each after the FIPA specification cited):
 
 * ``not-understood`` (FIPA SC00037 §3.12) may be sent by either role in every state after
   the first message; it ends the conversation in the final state ``not-understood``.
-* The *cancel meta-protocol* (SC00026 §2, SC00027 §2, SC00028 §2, SC00029 §2, SC00035 §2):
+* The *cancel meta-protocol* (SC00026 §2, SC00027 §2, SC00028 §2, SC00029 §2, SC00030 §2,
+  SC00033 §2, SC00034 §2, SC00035 §2):
   where a protocol allows it, the initiator may send ``cancel`` while the participant owes
   it an outcome; the participant answers ``inform`` (cancelled) or ``failure`` (could not
   cancel), both ending the conversation (states ``cancelled``/``cancel-failed``). The
@@ -24,8 +25,16 @@ Conventions shared by all protocols (each after the FIPA specification cited):
 The protocols, by their FIPA ``protocol`` parameter name (:data:`PROTOCOLS`):
 
 ``fipa-request`` (SC00026), ``fipa-query`` (SC00027), ``fipa-request-when`` (SC00028),
-``fipa-contract-net`` (SC00029, one tracker per participant), ``fipa-subscribe``
-(SC00035), ``fipa-propose`` (SC00036) and roco's ``coordinate`` (paper §5.4, Figure 8).
+``fipa-contract-net`` (SC00029), ``fipa-iterated-contract-net`` (SC00030),
+``fipa-english-auction`` (SC00031), ``fipa-dutch-auction`` (SC00032), ``fipa-brokering``
+(SC00033), ``fipa-recruiting`` (SC00034), ``fipa-subscribe`` (SC00035), ``fipa-propose``
+(SC00036): the eleven of the FIPA library; and roco's ``coordinate`` (paper §5.4, Figure 8).
+
+A one-to-many protocol (the contract nets, the auctions, brokering and recruiting, where the
+initiator addresses several participants) is modelled, like the others, as the conversation
+between the initiator and one participant: one tracker per participant. Where the initiator
+goes on without waiting for the participant (an auction's next price, or its end), the
+machine takes a bid that crosses it on the wire.
 
 The ``coordinate`` protocol tells apart an ``inform`` that reports a terminal L_SW state
 (Succeeded, Error, Preempted, Replan) from one that reports any other state; the
@@ -491,6 +500,119 @@ FIPA_CONTRACT_NET = _build(
     cancellable=["accepted"],
 )
 
+FIPA_ITERATED_CONTRACT_NET = _build(
+    "fipa-iterated-contract-net",
+    "FIPA SC00030",
+    "The initiator calls for proposals (cfp); the participant refuses or proposes; the "
+    "initiator rejects or accepts the proposal, or re-iterates with a revised cfp (a new "
+    "round); an accepted participant reports failure or inform (done/result). Tracked per "
+    "participant (SC00030 §2).",
+    [
+        ("start", _I, _P.CFP, "cfp-sent"),
+        ("cfp-sent", _R, _P.REFUSE, "refused"),
+        ("cfp-sent", _R, _P.PROPOSE, "proposed"),
+        ("proposed", _I, _P.CFP, "cfp-sent"),  # re-iterate: a revised cfp
+        ("proposed", _I, _P.REJECT_PROPOSAL, "rejected"),
+        ("proposed", _I, _P.ACCEPT_PROPOSAL, "accepted"),
+        ("accepted", _R, _P.FAILURE, "failed"),
+        ("accepted", _R, _P.INFORM, "done"),
+    ],
+    ["refused", "rejected", "failed", "done"],
+    cancellable=["accepted"],
+)
+
+FIPA_ENGLISH_AUCTION = _build(
+    "fipa-english-auction",
+    "FIPA SC00031",
+    "The auctioneer (initiator) informs of the start of the auction, then calls rising "
+    "prices (cfp); the participant bids (propose) or stays silent. The auctioneer accepts a "
+    "bid (accept-proposal: the participant leads) or rejects it (reject-proposal: too late "
+    "or too low); a leader outbid later, or whose bid stays below the reservation price, is "
+    "told by reject-proposal too, so that the participant leading at the end is the winner. "
+    "The auctioneer informs of the end of the auction and requests the winner to complete "
+    "the sale. A price called, or the end, may cross a bid on the wire. Tracked per "
+    "participant (SC00031 §2).",
+    [
+        ("start", _I, _P.INFORM, "announced"),  # inform(start-auction)
+        ("announced", _I, _P.CFP, "called"),
+        ("called", _I, _P.CFP, "called"),  # a higher price: no bid from this participant
+        ("called", _R, _P.PROPOSE, "bid"),
+        ("called", _I, _P.INFORM, "ended"),  # inform(end-of-auction)
+        ("bid", _I, _P.CFP, "bid"),  # a higher price called before the bid arrived
+        ("bid", _I, _P.ACCEPT_PROPOSAL, "leading"),
+        ("bid", _I, _P.REJECT_PROPOSAL, "called"),
+        ("bid", _I, _P.INFORM, "ended"),  # the auction ended before the bid arrived
+        ("leading", _I, _P.CFP, "leading"),  # a higher price called: nobody has outbid it yet
+        ("leading", _I, _P.REJECT_PROPOSAL, "called"),  # outbid, or below the reservation price
+        ("leading", _I, _P.INFORM, "won"),  # inform(end-of-auction) to the winner
+        ("won", _I, _P.REQUEST, "requested"),  # the winner asked to complete the sale
+    ],
+    ["ended", "requested"],
+)
+
+FIPA_DUTCH_AUCTION = _build(
+    "fipa-dutch-auction",
+    "FIPA SC00032",
+    "The auctioneer (initiator) informs of the start of the auction, then calls falling "
+    "prices (cfp); the participant bids (propose) or stays silent; the first bid is "
+    "accepted (accept-proposal), a later one rejected (reject-proposal); the auctioneer "
+    "informs of the end of the auction (a bid won, or the reservation price was reached "
+    "unsold), and requests the winner to complete the sale. A lower price called, or the "
+    "end, may cross a bid on the wire. Tracked per participant (SC00032 §2).",
+    [
+        ("start", _I, _P.INFORM, "announced"),  # inform(start-auction)
+        ("announced", _I, _P.CFP, "called"),
+        ("called", _I, _P.CFP, "called"),  # a lower price: no bid from this participant
+        ("called", _R, _P.PROPOSE, "bid"),
+        ("called", _I, _P.INFORM, "ended"),  # inform(end-of-auction)
+        ("bid", _I, _P.CFP, "bid"),  # a lower price called before the bid arrived
+        ("bid", _I, _P.ACCEPT_PROPOSAL, "accepted"),
+        ("bid", _I, _P.REJECT_PROPOSAL, "rejected"),  # another bid came first
+        ("bid", _I, _P.INFORM, "ended"),  # the auction ended before the bid arrived
+        ("rejected", _I, _P.INFORM, "ended"),
+        ("accepted", _I, _P.INFORM, "won"),  # inform(end-of-auction) to the winner
+        ("won", _I, _P.REQUEST, "requested"),  # the winner asked to complete the sale
+    ],
+    ["ended", "requested"],
+)
+
+FIPA_BROKERING = _build(
+    "fipa-brokering",
+    "FIPA SC00033",
+    "The initiator asks a broker to proxy a communicative act to the agents that match a "
+    "description (proxy); the broker refuses or agrees, then reports failure (no-match: no "
+    "agent found; proxy: the proxied act failed) or forwards the targets' replies "
+    "(inform, reply-message). Tracked per broker (SC00033 §2).",
+    [
+        ("start", _I, _P.PROXY, "proxied"),
+        ("proxied", _R, _P.REFUSE, "refused"),
+        ("proxied", _R, _P.AGREE, "agreed"),
+        ("agreed", _R, _P.FAILURE, "failed"),
+        ("agreed", _R, _P.INFORM, "replied"),
+    ],
+    ["refused", "failed", "replied"],
+    cancellable=["proxied", "agreed"],
+)
+
+FIPA_RECRUITING = _build(
+    "fipa-recruiting",
+    "FIPA SC00034",
+    "The initiator asks a recruiter to proxy a communicative act to the agents that match a "
+    "description (proxy); the recruiter refuses or agrees, then reports failure (no-match: "
+    "no agent found; proxy: the proxied act failed) or inform (done: proxied). The targets' "
+    "replies go to the designated receiver (reply-to), not through the recruiter, in "
+    "conversations of their own. Tracked per recruiter (SC00034 §2).",
+    [
+        ("start", _I, _P.PROXY, "proxied"),
+        ("proxied", _R, _P.REFUSE, "refused"),
+        ("proxied", _R, _P.AGREE, "agreed"),
+        ("agreed", _R, _P.FAILURE, "failed"),
+        ("agreed", _R, _P.INFORM, "done"),
+    ],
+    ["refused", "failed", "done"],
+    cancellable=["proxied", "agreed"],
+)
+
 FIPA_PROPOSE = _build(
     "fipa-propose",
     "FIPA SC00036",
@@ -545,6 +667,11 @@ PROTOCOLS: dict[str, Protocol] = {
         FIPA_REQUEST_WHEN,
         FIPA_SUBSCRIBE,
         FIPA_CONTRACT_NET,
+        FIPA_ITERATED_CONTRACT_NET,
+        FIPA_ENGLISH_AUCTION,
+        FIPA_DUTCH_AUCTION,
+        FIPA_BROKERING,
+        FIPA_RECRUITING,
         FIPA_PROPOSE,
         COORDINATE,
     )

@@ -61,6 +61,108 @@ HAPPY_PATHS: dict[str, list[list[Step]]] = {
         [(I_, P.CFP), (R_, P.REFUSE)],
         [(I_, P.CFP), (R_, P.PROPOSE), (I_, P.ACCEPT_PROPOSAL), (I_, P.CANCEL), (R_, P.INFORM)],
     ],
+    "fipa-iterated-contract-net": [
+        [(I_, P.CFP), (R_, P.PROPOSE), (I_, P.ACCEPT_PROPOSAL), (R_, P.INFORM)],
+        [(I_, P.CFP), (R_, P.PROPOSE), (I_, P.ACCEPT_PROPOSAL), (R_, P.FAILURE)],
+        [(I_, P.CFP), (R_, P.PROPOSE), (I_, P.REJECT_PROPOSAL)],
+        [(I_, P.CFP), (R_, P.REFUSE)],
+        # re-iterated twice with a revised cfp, then refused
+        [(I_, P.CFP), (R_, P.PROPOSE), (I_, P.CFP), (R_, P.PROPOSE), (I_, P.CFP), (R_, P.REFUSE)],
+        [
+            (I_, P.CFP),
+            (R_, P.PROPOSE),
+            (I_, P.CFP),
+            (R_, P.PROPOSE),
+            (I_, P.ACCEPT_PROPOSAL),
+            (I_, P.CANCEL),
+            (R_, P.INFORM),
+        ],
+        [(I_, P.CFP), (R_, P.PROPOSE), (I_, P.ACCEPT_PROPOSAL), (I_, P.CANCEL), (R_, P.FAILURE)],
+        [(I_, P.CFP), (R_, P.NOT_UNDERSTOOD)],
+    ],
+    "fipa-english-auction": [
+        # start-auction, a price, a bid taken, a higher price nobody bids, end, the winner asked
+        [
+            (I_, P.INFORM),
+            (I_, P.CFP),
+            (R_, P.PROPOSE),
+            (I_, P.ACCEPT_PROPOSAL),
+            (I_, P.CFP),
+            (I_, P.INFORM),
+            (I_, P.REQUEST),
+        ],
+        [(I_, P.INFORM), (I_, P.CFP), (I_, P.CFP), (I_, P.INFORM)],  # never bid
+        # a bid too late, a bid taken, then outbid
+        [
+            (I_, P.INFORM),
+            (I_, P.CFP),
+            (R_, P.PROPOSE),
+            (I_, P.REJECT_PROPOSAL),
+            (I_, P.CFP),
+            (R_, P.PROPOSE),
+            (I_, P.ACCEPT_PROPOSAL),
+            (I_, P.CFP),
+            (I_, P.REJECT_PROPOSAL),
+            (I_, P.INFORM),
+        ],
+        # the next price crossed the bid on the wire; the bid still wins
+        [
+            (I_, P.INFORM),
+            (I_, P.CFP),
+            (R_, P.PROPOSE),
+            (I_, P.CFP),
+            (I_, P.ACCEPT_PROPOSAL),
+            (I_, P.INFORM),
+            (I_, P.REQUEST),
+        ],
+        [(I_, P.INFORM), (I_, P.CFP), (R_, P.PROPOSE), (I_, P.INFORM)],  # the end crossed the bid
+        [(I_, P.INFORM), (I_, P.CFP), (R_, P.NOT_UNDERSTOOD)],
+    ],
+    "fipa-dutch-auction": [
+        [
+            (I_, P.INFORM),
+            (I_, P.CFP),
+            (I_, P.CFP),
+            (R_, P.PROPOSE),
+            (I_, P.ACCEPT_PROPOSAL),
+            (I_, P.INFORM),
+            (I_, P.REQUEST),
+        ],
+        [(I_, P.INFORM), (I_, P.CFP), (I_, P.CFP), (I_, P.INFORM)],  # never bid
+        [(I_, P.INFORM), (I_, P.CFP), (R_, P.PROPOSE), (I_, P.REJECT_PROPOSAL), (I_, P.INFORM)],
+        # a lower price crossed the bid on the wire; the bid still wins
+        [
+            (I_, P.INFORM),
+            (I_, P.CFP),
+            (R_, P.PROPOSE),
+            (I_, P.CFP),
+            (I_, P.ACCEPT_PROPOSAL),
+            (I_, P.INFORM),
+            (I_, P.REQUEST),
+        ],
+        [(I_, P.INFORM), (I_, P.CFP), (R_, P.PROPOSE), (I_, P.INFORM)],  # the end crossed the bid
+        [(I_, P.INFORM), (R_, P.NOT_UNDERSTOOD)],
+    ],
+    "fipa-brokering": [
+        [(I_, P.PROXY), (R_, P.AGREE), (R_, P.INFORM)],
+        [(I_, P.PROXY), (R_, P.AGREE), (R_, P.FAILURE)],
+        [(I_, P.PROXY), (R_, P.REFUSE)],
+        [(I_, P.PROXY), (I_, P.CANCEL), (R_, P.INFORM)],
+        [(I_, P.PROXY), (R_, P.AGREE), (I_, P.CANCEL), (R_, P.FAILURE)],
+        [(I_, P.PROXY), (I_, P.CANCEL), (R_, P.AGREE), (R_, P.INFORM)],  # agree crossed the cancel
+        [(I_, P.PROXY), (I_, P.CANCEL), (R_, P.REFUSE)],  # refuse crossed the cancel
+        [(I_, P.PROXY), (R_, P.NOT_UNDERSTOOD)],
+    ],
+    "fipa-recruiting": [
+        [(I_, P.PROXY), (R_, P.AGREE), (R_, P.INFORM)],
+        [(I_, P.PROXY), (R_, P.AGREE), (R_, P.FAILURE)],
+        [(I_, P.PROXY), (R_, P.REFUSE)],
+        [(I_, P.PROXY), (I_, P.CANCEL), (R_, P.INFORM)],
+        [(I_, P.PROXY), (R_, P.AGREE), (I_, P.CANCEL), (R_, P.FAILURE)],
+        [(I_, P.PROXY), (I_, P.CANCEL), (R_, P.AGREE), (R_, P.INFORM)],
+        [(I_, P.PROXY), (I_, P.CANCEL), (R_, P.REFUSE)],
+        [(I_, P.PROXY), (R_, P.AGREE), (I_, P.NOT_UNDERSTOOD)],
+    ],
     "fipa-propose": [
         [(I_, P.PROPOSE), (R_, P.ACCEPT_PROPOSAL)],
         [(I_, P.PROPOSE), (R_, P.REJECT_PROPOSAL)],
@@ -115,8 +217,17 @@ def test_registry() -> None:
         "fipa-subscribe",
         "fipa-request-when",
         "fipa-contract-net",
+        "fipa-iterated-contract-net",
+        "fipa-english-auction",
+        "fipa-dutch-auction",
+        "fipa-brokering",
+        "fipa-recruiting",
         "fipa-propose",
         "coordinate",
+    }
+    # the FIPA interaction protocol library (SC00025): all eleven of its protocols
+    assert {p.spec for p in PROTOCOLS.values() if p.spec.startswith("FIPA")} == {
+        f"FIPA SC000{n}" for n in range(26, 37)
     }
     assert set(HAPPY_PATHS) == set(PROTOCOLS)
     for name, protocol in PROTOCOLS.items():
@@ -156,6 +267,50 @@ def test_happy_paths_reach_a_final_state(name: str, steps: list[Step]) -> None:
         ("fipa-contract-net", [(I_, P.CFP)], (R_, P.ACCEPT_PROPOSAL)),
         ("fipa-contract-net", [(I_, P.CFP), (R_, P.PROPOSE)], (R_, P.INFORM)),
         ("fipa-contract-net", [(I_, P.CFP)], (I_, P.CANCEL)),
+        ("fipa-iterated-contract-net", [(I_, P.CFP)], (I_, P.CFP)),  # a revised cfp needs a proposal
+        ("fipa-iterated-contract-net", [(I_, P.CFP), (R_, P.PROPOSE)], (R_, P.PROPOSE)),
+        ("fipa-iterated-contract-net", [(I_, P.CFP), (R_, P.PROPOSE), (I_, P.ACCEPT_PROPOSAL)], (I_, P.CFP)),
+        ("fipa-iterated-contract-net", [(I_, P.CFP)], (I_, P.CANCEL)),
+        ("fipa-english-auction", [], (I_, P.CFP)),  # a price before start-auction
+        ("fipa-english-auction", [(I_, P.INFORM)], (R_, P.PROPOSE)),  # a bid before a price
+        ("fipa-english-auction", [(I_, P.INFORM), (I_, P.CFP)], (I_, P.ACCEPT_PROPOSAL)),  # no bid
+        ("fipa-english-auction", [(I_, P.INFORM), (I_, P.CFP), (R_, P.PROPOSE)], (R_, P.PROPOSE)),
+        ("fipa-english-auction", [(I_, P.INFORM), (I_, P.CFP)], (I_, P.REQUEST)),  # not the winner
+        (
+            "fipa-english-auction",
+            [(I_, P.INFORM), (I_, P.CFP), (R_, P.PROPOSE), (I_, P.ACCEPT_PROPOSAL)],
+            (R_, P.PROPOSE),  # the leader does not outbid itself
+        ),
+        (
+            "fipa-english-auction",
+            [(I_, P.INFORM), (I_, P.CFP), (R_, P.PROPOSE), (I_, P.ACCEPT_PROPOSAL)],
+            (I_, P.REQUEST),  # the winner is asked once the auction has ended
+        ),
+        ("fipa-english-auction", [(I_, P.INFORM), (I_, P.CFP)], (I_, P.CANCEL)),
+        ("fipa-dutch-auction", [(I_, P.INFORM)], (R_, P.PROPOSE)),
+        (
+            "fipa-dutch-auction",
+            [(I_, P.INFORM), (I_, P.CFP), (R_, P.PROPOSE), (I_, P.REJECT_PROPOSAL)],
+            (I_, P.CFP),  # another bid won: no lower price
+        ),
+        (
+            "fipa-dutch-auction",
+            [(I_, P.INFORM), (I_, P.CFP), (R_, P.PROPOSE), (I_, P.REJECT_PROPOSAL)],
+            (I_, P.REQUEST),  # not the winner
+        ),
+        (
+            "fipa-dutch-auction",
+            [(I_, P.INFORM), (I_, P.CFP), (R_, P.PROPOSE), (I_, P.ACCEPT_PROPOSAL)],
+            (I_, P.CFP),  # the first bid won: the price falls no further
+        ),
+        ("fipa-dutch-auction", [(I_, P.INFORM), (I_, P.CFP), (R_, P.PROPOSE)], (R_, P.PROPOSE)),
+        ("fipa-brokering", [], (I_, P.REQUEST)),
+        ("fipa-brokering", [(I_, P.PROXY)], (R_, P.INFORM)),  # agree required
+        ("fipa-brokering", [(I_, P.PROXY), (R_, P.AGREE)], (R_, P.AGREE)),
+        ("fipa-brokering", [(I_, P.PROXY)], (I_, P.PROXY)),
+        ("fipa-recruiting", [(I_, P.PROXY)], (R_, P.INFORM)),  # agree required
+        ("fipa-recruiting", [(I_, P.PROXY), (R_, P.AGREE)], (R_, P.REFUSE)),
+        ("fipa-recruiting", [(I_, P.PROXY), (R_, P.AGREE)], (I_, P.PROXY)),
         ("fipa-propose", [(I_, P.PROPOSE)], (I_, P.ACCEPT_PROPOSAL)),
         ("fipa-propose", [(I_, P.PROPOSE)], (I_, P.CANCEL)),
         ("coordinate", [], (I_, P.CONFIRM)),
@@ -179,6 +334,47 @@ def test_violations_are_rejected(name: str, steps: list[Step], bad: tuple) -> No
     assert f"the {bad[0]} may not send {bad[1].value!r}" in str(exc)
     assert (tracker.state, tracker.history) == before  # unchanged
     assert isinstance(exc, ValueError)
+
+
+LIBRARY_BRANCHES = [
+    "fipa-iterated-contract-net",
+    "fipa-english-auction",
+    "fipa-dutch-auction",
+    "fipa-brokering",
+    "fipa-recruiting",
+]
+
+
+@pytest.mark.parametrize("name", LIBRARY_BRANCHES)
+def test_every_branch_is_taken(name: str) -> None:
+    """The paths of HAPPY_PATHS take every transition of the machine (not-understood aside:
+    test_machine_is_well_formed) and end in every final state."""
+    protocol = PROTOCOLS[name]
+    untaken, ended = _branches(protocol, HAPPY_PATHS[name])
+    assert untaken == {}
+    assert ended == set(protocol.final)
+
+
+def _branches(protocol: Protocol, paths: list[list[Step]]) -> tuple[dict, set[str]]:
+    """The transitions (not-understood aside) ``paths`` leave untaken, and the states they end in."""
+    untaken = {k: t for k, t in protocol.transitions.items() if k[2] is not P.NOT_UNDERSTOOD}
+    ended: set[str] = set()
+    for steps in paths:
+        tracker = ConversationTracker(protocol)
+        for role, perf, *_ in steps:
+            untaken.pop((tracker.state, role, perf), None)
+            tracker.step(role, perf)
+        ended.add(tracker.state)
+    return untaken, ended
+
+
+def test_the_branch_check_sees_a_branch_left_out() -> None:
+    """Planted: the English auction's paths without the bid that the auction's end crossed."""
+    protocol = PROTOCOLS["fipa-english-auction"]
+    paths = [p for p in HAPPY_PATHS[protocol.name] if p[-2:] != [(R_, P.PROPOSE), (I_, P.INFORM)]]
+    untaken, ended = _branches(protocol, paths)
+    assert untaken == {("bid", I_, P.INFORM): "ended"}
+    assert ended == set(protocol.final)
 
 
 def test_violation_message_lists_what_is_allowed() -> None:

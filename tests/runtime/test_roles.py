@@ -1,6 +1,6 @@
 """Protocol roles built from the state machines (services/runtime/roles.py): the same
-code plays both roles of every interaction protocol roco knows — fipa-request, fipa-query,
-fipa-request-when, fipa-subscribe, fipa-contract-net, fipa-propose and the paper's coordinate —
+code plays both roles of every interaction protocol roco knows — the eleven of the FIPA
+library (fipa-request ... fipa-propose, SC00026-SC00036) and the paper's coordinate —
 between two agents on one bus, and owns what the protocols imply: in-reply-to, reply-by
 deadlines, cancel, not-understood, handler faults and late replies."""
 
@@ -17,7 +17,7 @@ from services.runtime.memory_transport import MemoryBus
 from services.runtime.roles import Conversation, handlers_of, role_problems
 from shared.fipa_codec import AgentIdentifier, Communicate, decode, encode
 from shared.fipa_codec.protocols import PROTOCOLS
-from tests.support.role_agents import NU, SPEC, TIMEOUT, P
+from tests.support.role_agents import NU, SPEC, TIMEOUT, P, Scripted
 from tests.support.role_initiator import Initiator
 from tests.support.role_participant import Participant
 
@@ -52,10 +52,25 @@ EXPECTED = {
     "fipa-subscribe": ["inform", "inform"],  # the second answers the initiator's cancel
     "fipa-propose": ["accept-proposal"],
     "fipa-contract-net": ["propose", "inform"],
+    "fipa-iterated-contract-net": ["propose", "inform"],
+    "fipa-english-auction": ["propose"],  # then accept-proposal, inform(end-of-auction), request
+    "fipa-dutch-auction": ["propose"],
+    "fipa-brokering": ["inform"],  # the targets' replies, forwarded
+    "fipa-recruiting": ["inform"],
     "coordinate": ["inform", "inform"],  # each confirmed; the second reports a terminal state
 }
 OPENS = {"fipa-query": P.QUERY_REF}
-AGREES = {"fipa-request", "fipa-request-when", "fipa-subscribe"}
+THEN = {"fipa-english-auction": P.CFP, "fipa-dutch-auction": P.CFP}
+"""What the initiator sends at once after the opening: an auction's first price after
+inform(start-auction)."""
+AGREES = {"fipa-request", "fipa-request-when", "fipa-subscribe", "fipa-brokering", "fipa-recruiting"}
+
+
+def _open(a: Scripted, protocol: str) -> Conversation:
+    conv = a.roles.open("C1", protocol, None, performative=OPENS.get(protocol))
+    if protocol in THEN:
+        conv.send(THEN[protocol])
+    return conv
 
 
 @pytest.mark.parametrize("protocol", list(PROTOCOLS))
@@ -64,7 +79,7 @@ def test_both_roles_of_every_protocol_run_from_its_state_machine(
 ) -> None:
     _bus, i, p = pair
     opened: queue.SimpleQueue[Conversation] = queue.SimpleQueue()
-    i.do(lambda a: opened.put(a.roles.open("C1", protocol, None, performative=OPENS.get(protocol))))
+    i.do(lambda a: opened.put(_open(a, protocol)))
     conv = opened.get(timeout=TIMEOUT)
     said = []
     for _ in EXPECTED[protocol]:
@@ -88,6 +103,9 @@ def test_both_roles_of_every_protocol_run_from_its_state_machine(
         return
     i.do(lambda a: done.put(conv.finished))
     assert done.get(timeout=TIMEOUT)
+    if protocol in THEN:  # the auctioneer sends the last communicate: the participant handles it
+        while p.next()[1] != "request":
+            pass
     # the participant's side ended too, and neither role keeps the conversation open
     p.do(lambda a: done.put(not list(a.roles)))
     assert done.get(timeout=TIMEOUT)

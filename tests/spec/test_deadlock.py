@@ -17,15 +17,18 @@ from services.spec_check.deadlock import (
     WaitCycle,
     WaitEdge,
     analyse,
+    analyse_library,
     deadlock_report,
     explore,
+    library_report,
     render,
     wait_cycles,
     wait_edges,
 )
+from shared.fipa_codec.acts import Performative
 from shared.fipa_codec.protocols import INITIATOR as I_
 from shared.fipa_codec.protocols import PARTICIPANT as P_
-from shared.fipa_codec.protocols import PROTOCOLS, ConversationTracker
+from shared.fipa_codec.protocols import PROTOCOLS, ConversationTracker, Protocol, _build
 
 FIXTURES = Path(__file__).with_name("fixtures")
 
@@ -270,3 +273,83 @@ def test_waits_of_the_wrong_type_are_refused_when_the_spec_loads(tmp_path: Path)
     path = _spec_with_waits(tmp_path, "a_pl", '"C4"')
     with pytest.raises(SpecError, match=r"Expected `array`, got `str` - at `\$\.agents\[2\]\.waits`"):
         analyse(path)
+
+
+# ---------------------------------------------------------------- the built-in library
+
+
+def test_every_protocol_of_the_library_is_deadlock_free() -> None:
+    results = analyse_library()
+    assert [r.protocol for r in results] == list(PROTOCOLS)
+    for r in results:
+        assert r.ok, (r.protocol, [f.detail for f in (*r.deadlocks, *r.unspecified_receptions)])
+    found, text = library_report()
+    assert not found
+    for name in (
+        "fipa-iterated-contract-net",
+        "fipa-english-auction",
+        "fipa-dutch-auction",
+        "fipa-brokering",
+        "fipa-recruiting",
+    ):
+        assert f"\n  {name} (FIPA SC000" in text
+    assert text.rstrip().splitlines()[-1].startswith("no deadlock found (")
+
+
+def _without(protocol: Protocol, key: tuple[str, str, Performative]) -> Protocol:
+    transitions = dict(protocol.transitions)
+    del transitions[key]  # type: ignore[arg-type]
+    return Protocol(
+        name=protocol.name,
+        states=protocol.states,
+        initial=protocol.initial,
+        final=protocol.final,
+        transitions=transitions,
+        spec=protocol.spec,
+    )
+
+
+def test_an_auction_whose_end_cannot_cross_a_bid_deadlocks() -> None:
+    """Planted: the English auction without the end of the auction taken after a bid (the bid
+    and the auctioneer's inform(end-of-auction) cross on the wire)."""
+    english = PROTOCOLS["fipa-english-auction"]
+    broken = _without(english, ("bid", I_, Performative.INFORM))
+    result = explore(broken)
+    assert result.deadlocks and not result.ok
+    first = result.deadlocks[0]
+    assert first.state == GlobalState("ended", "bid", (Message("inform"),), (Message("propose"),))
+    assert first.trace == (
+        Step(I_, "send", "inform", "announced"),
+        Step(I_, "send", "cfp", "called"),
+        Step(P_, "receive", "inform", "announced"),
+        Step(I_, "send", "inform", "ended"),
+        Step(P_, "receive", "cfp", "called"),
+        Step(P_, "send", "propose", "bid"),
+    )
+    assert first.detail == (
+        "the initiator has ended in 'ended'; the participant waits in 'bid' for "
+        "accept-proposal, cfp, reject-proposal but its queue holds inform"
+    )
+    found, text = library_report({broken.name: broken, "fipa-request": PROTOCOLS["fipa-request"]})
+    assert found
+    assert "    DEADLOCK: the initiator has ended in 'ended'; the participant waits in 'bid' for" in text
+    assert "      6. participant sends propose -> bid\n" in text
+    assert text.rstrip().splitlines()[-1].startswith("DEADLOCK FOUND (")
+
+
+def test_a_winner_never_asked_is_a_state_with_no_way_out() -> None:
+    """Planted: the English auction's winner never requested: 'won' is not final and only
+    not-understood leads out of it, so both roles wait there for ever."""
+    english = PROTOCOLS["fipa-english-auction"]
+    edges = [
+        (source, role, perf, target)
+        for (source, role, perf), target in english.transitions.items()
+        if perf is not Performative.NOT_UNDERSTOOD and source != "won"
+    ]
+    broken = _build(english.name, english.spec, "", edges, ["ended"])
+    result = explore(broken)
+    assert [f.state for f in result.deadlocks] == [GlobalState("won", "won", (), ())]
+    assert result.deadlocks[0].detail == (
+        "the initiator waits in 'won' for nothing; the participant waits in 'won' for nothing"
+    )
+    assert library_report({broken.name: broken})[0]

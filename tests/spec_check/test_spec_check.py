@@ -250,6 +250,11 @@ def test_roco_spec_deadlock_and_verify_exit_codes(tmp_path: Path) -> None:
     assert shipped.returncode == 0 and "no deadlock found" in shipped.stdout
     broken = roco("deadlock", "--spec", str(fixtures / "deadlock_protocol.toml"))
     assert broken.returncode == 1 and "deadlock" in broken.stdout.lower()
+    library = roco("deadlock", "--library")
+    assert library.returncode == 0 and "fipa-dutch-auction (FIPA SC00032)" in library.stdout
+    assert library.stdout.rstrip().splitlines()[-1].startswith("no deadlock found (")
+    both = roco("deadlock", "--library", "--spec", str(fixtures / "deadlock_protocol.toml"))
+    assert both.returncode == 2 and both.stderr.startswith("roco: --library explores the built-in")
     missing = roco("verify", str(tmp_path / "no-run"))
     last = missing.stderr.splitlines()[-1]
     assert missing.returncode == 2 and last.startswith("roco: ") and last.endswith("no such run folder")

@@ -16,6 +16,10 @@ class Initiator(Scripted):
     )
     script: ClassVar[Script] = {
         ("fipa-contract-net", "propose"): [(P.ACCEPT_PROPOSAL, None)],
+        ("fipa-iterated-contract-net", "propose"): [(P.ACCEPT_PROPOSAL, None)],
+        # the bid is taken, the auction ends, and the winner is asked to complete the sale
+        ("fipa-english-auction", "propose"): [(P.ACCEPT_PROPOSAL, None), (P.INFORM, None), (P.REQUEST, None)],
+        ("fipa-dutch-auction", "propose"): [(P.ACCEPT_PROPOSAL, None), (P.INFORM, None), (P.REQUEST, None)],
         ("coordinate", "inform"): [(P.CONFIRM, None)],
         ("fipa-subscribe", "inform"): [(CANCEL, None)],
     }

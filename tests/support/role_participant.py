@@ -21,6 +21,12 @@ class Participant(Scripted):
         ("fipa-propose", "propose"): [(P.ACCEPT_PROPOSAL, None)],
         ("fipa-contract-net", "cfp"): [(P.PROPOSE, None)],
         ("fipa-contract-net", "accept-proposal"): [(P.INFORM, None)],
+        ("fipa-iterated-contract-net", "cfp"): [(P.PROPOSE, None)],
+        ("fipa-iterated-contract-net", "accept-proposal"): [(P.INFORM, None)],
+        ("fipa-english-auction", "cfp"): [(P.PROPOSE, None)],
+        ("fipa-dutch-auction", "cfp"): [(P.PROPOSE, None)],
+        ("fipa-brokering", "proxy"): [(P.AGREE, None), (P.INFORM, None)],
+        ("fipa-recruiting", "proxy"): [(P.AGREE, None), (P.INFORM, None)],
         ("coordinate", "request"): [(P.INFORM, RUNNING)],
         ("coordinate", "confirm"): [(P.INFORM, DONE)],
     }
