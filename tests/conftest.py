@@ -3,10 +3,11 @@
 MuJoCo reads ``MUJOCO_GL`` when ``mujoco`` is first imported, and any test module may be the
 first to import it: velma/gl.py chooses the off-screen platform here, before any test module.
 
-On a machine where no off-screen GL context opens (no EGL, no OSMesa), the fleets the tests
+On a machine where MuJoCo does not render off-screen (no EGL, no OSMesa), the fleets the tests
 start perceive with the physics' ground truth (``ROCO_PERCEPTION=truth``) instead of the head
-camera, and the tests of the camera itself skip with the packages to install
-(tests/support/machine.py ``needs_gl``); the session's header says so.
+camera, and the tests of the camera, and those of a fleet that check what the camera perceived,
+skip with the packages to install (tests/support/machine.py ``needs_gl``, ``needs_camera``); the
+session's header says so.
 
 The suite runs on every CPU (pytest-xdist, pyproject.toml): tests marked ``fleet`` (a whole
 fleet with ag_ex simulating a task, about a core and a half each) go to one worker, one after

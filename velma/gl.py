@@ -20,7 +20,7 @@ PLATFORMS = (("egl", "EGL"), ("osmesa", "OSMesa"))
 """Off-screen platforms in order of preference, each with its shared library's name."""
 NONE = "disable"
 """``MUJOCO_GL`` when no off-screen library is installed."""
-HOW = "apt-get install libegl1 libegl-mesa0 libgl1-mesa-dri"
+HOW = "apt-get install libegl1 libegl-mesa0 libgl1-mesa-dri libopengl0"
 """What gives a Debian or Ubuntu machine software EGL (``roco doctor`` says the same)."""
 
 

@@ -18,7 +18,25 @@ from velma.gl import HOW as EGL_HOW
 PROBE_TIMEOUT_S = 60.0
 ROUTER_PORT = 7447  # roco up's default router port (services/cli.py DEFAULT_ROUTER)
 
-GL_PROBE = "import mujoco\nctx = mujoco.GLContext(64, 64)\nctx.make_current()\nctx.free()\n"
+GL_MODEL = (
+    '<mujoco><worldbody><light pos="0 0 2"/>'
+    '<geom type="box" size=".1 .1 .1" rgba="1 0 0 1"/></worldbody></mujoco>'
+)
+"""The probe's scene: a lit red box in front of MuJoCo's free camera (about a quarter of the
+frame red, the rest background)."""
+GL_PROBE = (
+    "import sys, mujoco\n"
+    "m = mujoco.MjModel.from_xml_string(sys.argv[1])\n"
+    "d = mujoco.MjData(m)\n"
+    "mujoco.mj_forward(m, d)\n"
+    "with mujoco.Renderer(m, 64, 64) as r:\n"
+    "    r.update_scene(d)\n"
+    "    image = r.render()\n"
+    "if image.min() == image.max():\n"
+    "    sys.exit(f'the rendered image is constant (every value {image.min()})')\n"
+)
+"""Renders the model XML given as its argument at 64 × 64 off-screen (``mujoco.Renderer``, as
+velma/render.py does); exits non-zero when no context opens or the image is one colour."""
 FIFO_PROBE = "import os\nos.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(1))\n"
 PIN_PROBE = "import os, sys\nos.sched_setaffinity(0, {int(sys.argv[1])})\n"
 
@@ -48,18 +66,31 @@ def probe(code: str, *args: str, env: dict[str, str] | None = None) -> tuple[boo
     return done.returncode == 0, (lines[-1] if lines else f"exit status {done.returncode}")
 
 
-def rendering_checks() -> list[Check]:
-    """MuJoCo's off-screen GL context with EGL (what velma/render.py and the head camera use)
-    and, where EGL fails, OSMesa: one check per backend tried."""
+def rendering_checks(env: dict[str, str] | None = None, model: str = GL_MODEL) -> list[Check]:
+    """Whether MuJoCo renders ``model`` (XML) off-screen with EGL (what velma/render.py and the
+    head camera use) and, where EGL fails, OSMesa: one check per backend tried, each in a child
+    interpreter with ``env`` added to this one's environment. A backend counts only when the
+    image it renders is not constant (a context that opens but draws nothing fails)."""
     out = []
     for backend in ("egl", "osmesa"):
-        ok, why = probe(GL_PROBE, env={"MUJOCO_GL": backend})
+        ok, why = probe(GL_PROBE, model, env={**(env or {}), "MUJOCO_GL": backend})
         name = backend.upper() if backend == "egl" else "OSMesa"
-        detail = "an off-screen context opens (MuJoCo)" if ok else f"no context: {why}"
+        detail = "MuJoCo renders off-screen" if ok else f"does not render: {why}"
         out.append(Check(name, Use.CAMERA, ok, detail, "" if ok else GL_HOW[backend]))
         if ok:
             break
     return out
+
+
+def cannot_render(env: dict[str, str] | None = None, model: str = GL_MODEL) -> str | None:
+    """Why MuJoCo renders off-screen with neither EGL nor OSMesa here (each backend's reason,
+    and the packages that give software EGL), in one line; None when one renders
+    (:func:`rendering_checks`)."""
+    checks = rendering_checks(env, model)
+    if any(c.found for c in checks):
+        return None
+    why = "; ".join(f"{c.name} {c.detail}" for c in checks)
+    return f"MuJoCo cannot render off-screen ({why}): {checks[0].how}"
 
 
 def fifo_check() -> Check:

@@ -367,7 +367,7 @@ NO_GL = {"MUJOCO_GL": "disable"}  # velma/gl.py's choice where no libEGL or libO
         (
             {"ROCO_PERCEPTION": "camera", **NO_GL},
             "roco: ROCO_PERCEPTION=camera, but no off-screen GL library (libEGL or libOSMesa) for the "
-            "head camera: apt-get install libegl1 libegl-mesa0 libgl1-mesa-dri",
+            "head camera: apt-get install libegl1 libegl-mesa0 libgl1-mesa-dri libopengl0",
         ),
     ],
 )
@@ -395,5 +395,6 @@ def test_without_gl_roco_run_says_once_that_the_robot_perceives_with_the_truth(
     assert isinstance(result.exception, AssertionError)  # it went on to start the fleet
     assert result.output.splitlines()[0] == (
         "roco: the robot perceives with the physics' ground truth: no off-screen GL library "
-        "(libEGL or libOSMesa) for the head camera: apt-get install libegl1 libegl-mesa0 libgl1-mesa-dri"
+        "(libEGL or libOSMesa) for the head camera: "
+        "apt-get install libegl1 libegl-mesa0 libgl1-mesa-dri libopengl0"
     )

@@ -21,6 +21,7 @@ from services.doctor import settings as doctor_settings
 from services.doctor.model import Check, Use, run_ready
 from services.doctor.render import CAMERA_NEED, SETTINGS_TITLE, lines, settings_lines, verdict
 from services.security.certs import issue
+from tests.support.machine import needs_gl
 
 
 def test_python_below_3_11_is_missing_with_how_to_get_it() -> None:
@@ -51,6 +52,19 @@ def test_a_child_probe_reports_the_last_line_of_its_error() -> None:
         False,
         "refused here",
     )
+
+
+@needs_gl
+def test_mujoco_renders_here_and_a_constant_image_or_no_egl_vendor_fails_the_probe() -> None:
+    """The rendering probe (what `.ci/run` requires, ``needs_gl`` skips on): a lit box renders
+    here; a scene with nothing in view renders one colour and fails; so does EGL with no vendor
+    library to drive it (glvnd's ``__EGL_VENDOR_LIBRARY_FILENAMES`` pointing at nothing)."""
+    assert machine.cannot_render() is None
+    empty = machine.rendering_checks(model="<mujoco/>")
+    assert not empty[0].found and "the rendered image is constant" in empty[0].detail
+    why = machine.cannot_render({"__EGL_VENDOR_LIBRARY_FILENAMES": "/nonexistent/vendor.json"})
+    assert why is not None and why.startswith("MuJoCo cannot render off-screen (EGL does not render: ")
+    assert why.endswith(machine.GL_HOW["egl"])
 
 
 def test_a_taken_router_port_is_named_and_a_free_one_found() -> None:

@@ -139,13 +139,21 @@ def test_unanswered_conversations_end_by_age_and_by_number() -> None:
     ids = Identities(Limits(linger_s=0.0, conversation_s=100.0, max_conversations=3), clock=clock)
     for i in range(10):
         ids.claim("x@p", "10.0.0.1", ("http://a:1/acc",), f"c{i}")
-    for i in range(7, 10):
-        ids.answered("x@p", f"c{i}", final=True)  # the three kept are the newest
+    for i in range(7, 9):
+        ids.answered("x@p", f"c{i}", final=True)
     clock.t = 1.0
-    ids.claim("y@p", "10.0.0.1", (), None)  # x's conversations all ended: x is free
-    ids.claim("x@p", "10.0.0.2", ("http://b:1/acc",), "d")
-    clock.t = 200.0  # d unanswered past conversation_s
+    with pytest.raises(IdentityError, match="in use by another peer"):  # c9 is still open
+        ids.claim("x@p", "10.0.0.2", ("http://b:1/acc",), "d")
+    ids.answered("x@p", "c9", final=True)  # by number: the three kept were the newest, c7 to c9
+    clock.t = 2.0
+    ids.claim("x@p", "10.0.0.2", ("http://b:1/acc",), "d")  # x's conversations all ended: x is free
+    assert ids.addresses("x@p") == ("http://b:1/acc",) and ids.bound() == 1
+    clock.t = 101.0  # d unanswered for conversation_s: still open
+    with pytest.raises(IdentityError, match="in use by another peer"):
+        ids.claim("x@p", "10.0.0.3", ("http://c:1/acc",), "e")
+    clock.t = 200.0  # d unanswered past conversation_s: ended by age
     ids.claim("x@p", "10.0.0.3", ("http://c:1/acc",), "e")
+    assert ids.addresses("x@p") == ("http://c:1/acc",) and ids.bound() == 1
 
 
 def test_names_beyond_the_cap_are_busy_and_platforms_are_pinned() -> None:

@@ -55,8 +55,7 @@ def test_the_relay_delays_each_direction_and_keeps_the_order() -> None:
             rtts.append(time.monotonic() - t0)
             received += back
         assert received == b"".join(bytes([i]) * 10 for i in range(10))
-        assert min(rtts) >= 0.080  # 2 × (50 − 10) ms
-        assert sorted(rtts)[len(rtts) // 2] < 0.5
+        assert min(rtts) >= 0.080  # 2 × (50 − 10) ms at least (no upper bound: scripts/bench_relay.py)
         client.close()
         conn.close()
     finally:

@@ -25,7 +25,7 @@ from services.report.load import load_run
 from services.runtime.run_folder import read_run_info
 from shared.fipa_codec import Performative
 from tests.support.jade_platform import JADE, JadePlatform, Received
-from tests.support.machine import needs_gl
+from tests.support.machine import needs_camera
 from tests.support.world import FULL, stands_at, untouched, world
 
 pytestmark = [pytest.mark.slow, pytest.mark.fleet]
@@ -155,15 +155,23 @@ def end(proc: subprocess.Popen[str]) -> None:
 
 
 @pytest.mark.requirement("R3.1")
-def test_pour_succeeds_and_most_spheres_end_in_the_bowl(pour_run: PourRun) -> None:
+def test_pour_succeeds_without_the_robot_touching_itself(pour_run: PourRun) -> None:
     proc, run_dir = pour_run.proc, pour_run.run_dir
     assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-2000:]
     report = build_report(run_dir)
     assert report.header.succeeded is True
-    assert report.content.observed and report.content.share is not None
-    assert report.content.share >= 0.9, report.content
     # self-collision is on: no command made the robot touch itself
     assert [e.text for e in report.events if e.kind == "self_contact"] == []
+
+
+@needs_camera
+@pytest.mark.requirement("R3.1")
+def test_the_head_camera_counts_most_spheres_in_the_bowl(pour_run: PourRun) -> None:
+    """The content share of the last Observation of the bowl (services/report/content.py): the
+    head camera's count, what a_ta judged the pour by."""
+    content = build_report(pour_run.run_dir).content
+    assert content.observed and content.share is not None
+    assert content.share >= 0.9, content
 
 
 @pytest.mark.requirement("R3.1")
@@ -177,7 +185,7 @@ def test_the_bowl_stands_on_the_table_holding_the_content_in_the_simulated_world
     assert untouched(w["cup"]), w["cup"]
 
 
-@needs_gl
+@needs_camera
 def test_every_object_asked_for_was_seen_within_10_mm_the_held_jar_included(pour_run: PourRun) -> None:
     """The camera's observations beside the truth (ag_ex_perception.jsonl): the jar observed
     while the left hand holds it is localised at its height (segment.py ``lifted``), and no
@@ -275,7 +283,7 @@ def test_the_run_leaves_one_rerun_recording_of_traffic_robot_and_scene(pour_run:
     assert parts == ["a_co", "ag_ex", "recorder"]
 
 
-@needs_gl
+@needs_camera
 def test_the_recording_holds_the_head_camera_at_most_once_a_second(pour_run: PourRun) -> None:
     """ag_ex renders the head camera for the recording at most 1 Hz, at the lowest CPU priority:
     a tick that finds the CPUs busy is skipped (services/viewer/camera.py)."""

@@ -16,12 +16,16 @@ from services.report import build_report
 from services.report.load import load_run
 from services.runtime.run_folder import read_run_info
 from shared.fipa_codec.languages.l_sw import SWState, SWStatus
+from tests.support.machine import needs_camera
 from tests.support.world import FULL, START, stands_at, untouched, world
 
 pytestmark = [pytest.mark.slow, pytest.mark.fleet]
 
+Run = tuple[subprocess.CompletedProcess[str], Path]
+"""A scenario's ``roco scenario`` process (output, exit status) and its run folder."""
 
-def scenario(name: str, runs: Path) -> tuple[subprocess.CompletedProcess[str], Path]:
+
+def scenario(name: str, runs: Path) -> Run:
     proc = subprocess.run(
         [sys.executable, "-m", "services.cli", "scenario", name, "--runs-dir", str(runs), "--quiet"],
         capture_output=True,
@@ -43,8 +47,18 @@ def sw_states(run_dir: Path) -> list[SWStatus]:
     ]
 
 
-def test_an_urgent_command_preempts_the_pour_which_resumes(tmp_path: Path) -> None:
-    proc, run_dir = scenario("urgent_mid_pour", tmp_path)
+@pytest.fixture(scope="module")
+def urgent_mid_pour(tmp_path_factory: pytest.TempPathFactory) -> Run:
+    return scenario("urgent_mid_pour", tmp_path_factory.mktemp("runs"))
+
+
+@pytest.fixture(scope="module")
+def two_commands(tmp_path_factory: pytest.TempPathFactory) -> Run:
+    return scenario("two_commands", tmp_path_factory.mktemp("runs"))
+
+
+def test_an_urgent_command_preempts_the_pour_which_resumes(urgent_mid_pour: Run) -> None:
+    proc, run_dir = urgent_mid_pour
     assert proc.returncode == 0, proc.stdout[-4000:] + proc.stderr[-2000:]
     report = build_report(run_dir)
     assert [c.outcome for c in report.commands] == ["succeeded", "succeeded"]
@@ -55,7 +69,6 @@ def test_an_urgent_command_preempts_the_pour_which_resumes(tmp_path: Path) -> No
     assert cancel < terminating < preempted
     assert "put the jar down on the table" in texts[preempted]
     # the cup's plan ran between the preemption and the pour's end, and the pour finished
-    assert report.content.observed and report.content.share is not None and report.content.share >= 0.9
     assert re.search(r"^## \d+\. Commands and coordination", (run_dir / "report.md").read_text(), re.M)
     w = world(run_dir)
     assert stands_at(w["cup"], "table") and stands_at(w["bowl"], "table"), w
@@ -66,15 +79,27 @@ def test_an_urgent_command_preempts_the_pour_which_resumes(tmp_path: Path) -> No
     assert conforms, text  # cancel, Terminating, Preempted all within the coordinate protocol
 
 
-def test_two_commands_in_a_row(tmp_path: Path) -> None:
-    proc, run_dir = scenario("two_commands", tmp_path)
+def test_two_commands_in_a_row(two_commands: Run) -> None:
+    proc, run_dir = two_commands
     assert proc.returncode == 0, proc.stdout[-4000:] + proc.stderr[-2000:]
     report = build_report(run_dir)
     assert [c.outcome for c in report.commands] == ["succeeded", "succeeded"]
-    assert report.content.share is not None and report.content.share >= 0.9
     w = world(run_dir)
     assert stands_at(w["cup"], "table") and stands_at(w["bowl"], "table"), w
     assert (w["bowl"].particles_inside or 0) >= FULL, w["bowl"]
+
+
+@needs_camera
+@pytest.mark.parametrize("run", ["urgent_mid_pour", "two_commands"])
+def test_the_head_camera_counts_most_spheres_in_the_bowl_after_the_pour(
+    run: str, request: pytest.FixtureRequest
+) -> None:
+    """The content share of the last Observation of the bowl (services/report/content.py), the
+    head camera's count: the pour, resumed after the preemption or followed by another
+    command, left most spheres in the bowl."""
+    _, run_dir = request.getfixturevalue(run)
+    content = build_report(run_dir).content
+    assert content.observed and content.share is not None and content.share >= 0.9, content
 
 
 def test_an_object_moved_after_it_was_seen_makes_a_ta_replan(tmp_path: Path) -> None:

@@ -117,10 +117,12 @@ def test_partitions_during_a_motion_and_during_planning_are_ridden_out_in_full_c
     events = read_link_events(hosts.run_dir)
     kinds = [e["event"] for e in events]
     assert kinds == ["shaping", "down", "up", "down", "up"], kinds
+    # each cut was for the seconds asked, mended by its own timer (link.py ``partition``): the
+    # link came up no sooner (how much later a loaded machine's timer fires is not asserted)
+    assert [e["seconds"] for e in events if e["event"] == "down"] == [5.0, 10.0], events
     times = [float(e["t"]) for e in events]  # type: ignore[arg-type]
     windows = [(times[1], times[2]), (times[3], times[4])]
-    assert 4.9 <= windows[0][1] - windows[0][0] <= 7.0, windows
-    assert 9.9 <= windows[1][1] - windows[1][0] <= 12.0, windows
+    assert windows[0][1] - windows[0][0] >= 4.9 and windows[1][1] - windows[1][0] >= 9.9, windows
     record = [json.loads(line) for line in (hosts.run_dir / "traffic.jsonl").read_text().splitlines()]
     c5 = [r for r in record if r["channel"] == "C5"]
     requests = [r for r in c5 if r["performative"] == "request"]
