@@ -421,7 +421,9 @@ def stop(halts: int) -> Any:
     """``scripts/bench_stop.py``'s :func:`measure`: a fleet as ``roco run`` starts it, ag_ex's
     loop as fast as it can, pours stopped at random moments until each condition (``plain``,
     ``long line before``) has ``halts`` halts; a line per stop on stderr as it is measured.
-    Returns its ``StopFigures``; raises RuntimeError when the fleet cannot pour."""
+    Returns its ``StopFigures``; raises RuntimeError when the fleet cannot pour, SetupRefused
+    when an agent counted anything refused, not understood or against its protocol in the
+    first pour."""
     bs = scripts_module("bench_stop")
     return bs.measure(halts, echo=functools.partial(print, file=sys.stderr, flush=True))
 
