@@ -25,7 +25,7 @@ from typing import Any
 import msgspec
 
 from services.bench.messaging import no_access_control, percentile, process_rss_mib
-from services.bench.setup_check import check_run_folder
+from services.bench.setup_check import check_fleet, check_run_folder
 from shared.fipa_codec import AgentIdentifier, Communicate, Performative, decode, encode
 from shared.fipa_codec.batch import unpack
 
@@ -281,7 +281,8 @@ def fleet() -> FleetFigures:
     """``roco up --port P --runs-dir TMP --no-realtime`` (its own wall time from start to
     exit, and the "fleet up in X s" it prints: from starting the agents to every liveliness
     token), then VmRSS of each process it started (pids from its ``.fleet.json``), then
-    ``roco down``."""
+    ``roco down``. Raises SetupRefused when, once up, an agent counted anything refused, not
+    understood or against its protocol (services/bench/setup_check.py)."""
     from services.fleet.launcher import free_port
 
     with tempfile.TemporaryDirectory() as tmp:
@@ -299,6 +300,8 @@ def fleet() -> FleetFigures:
             if state.exists():
                 pids = msgspec.json.decode(state.read_bytes())["pids"]
                 rss = {name: process_rss_mib(int(pid)) for name, pid in pids.items()}
+                if done is not None and done.returncode == 0:
+                    check_fleet(runs, "roco up")
         finally:
             subprocess.run(
                 roco_cmd("down", "--runs-dir", str(runs)),

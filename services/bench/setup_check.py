@@ -80,3 +80,29 @@ def check_run_folder(run_dir: Path, during: str) -> None:
     except (OSError, ValueError) as exc:
         raise SetupRefused(f"{during}: no agent counters in {run_dir}: {exc}") from None
     check_counters({a: r.counters for a, r in reports.items()}, during)
+
+
+def check_fleet(runs_dir: Path, during: str, timeout: float = 10.0) -> None:
+    """:func:`check_agents` on every agent of the fleet ``roco up --runs-dir RUNS_DIR`` started,
+    through an operator's session with that fleet's credentials (``.fleet.json`` names its
+    endpoint and run folder; the credentials are the run folder's ``security``, as ``roco
+    status`` uses them). Raises SetupRefused also when the state cannot be read or the session
+    is refused."""
+    import json
+
+    from services.fleet.launcher import AGENT_ORDER
+    from services.runtime.session import SessionRefused, open_operator
+
+    try:
+        state = json.loads((runs_dir / ".fleet.json").read_text())
+        endpoint, security = str(state["endpoint"]), Path(state["run_dir"]) / "security"
+    except (OSError, ValueError, KeyError, TypeError) as exc:
+        raise SetupRefused(f"{during}: no fleet state in {runs_dir}: {exc}") from None
+    try:
+        session = open_operator(endpoint, credentials=security if security.is_dir() else None)
+    except SessionRefused as exc:
+        raise SetupRefused(f"{during}: {exc}") from None
+    try:
+        check_agents(session, AGENT_ORDER, during, timeout)
+    finally:
+        session.close()
