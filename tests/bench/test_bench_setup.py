@@ -132,3 +132,8 @@ def test_roco_bench_prints_one_line_and_no_figure_for_a_refused_set_up(
     ]
     assert "Traceback" not in got.output
     assert "| plan #1, request" not in out.read_text()
+
+
+def test_the_timed_query_set_is_as_long_as_plan_1s() -> None:
+    # what the knowledge part times as "plan #1 query set": as many queries as a_pl counts
+    assert len(parts.scripts_module("bench_km").PLAN_1) == expected_plan().km_queries
