@@ -5,8 +5,9 @@ does, in a_km's C6 fipa-subscribe conversation (FIPA SC00035), after agreeing to
 home posture with the content settled: ``velma.model.scene.initial_state``) as ag_ex's
 ground truth observes it (``velma.executor.ground_truth``), turned into the inform a_ta
 sends for an observation (``services.agents.task_executor.agent.observed_update``). A run's
-camera estimates these poses within millimetres; the plan a_pl makes is the same (its leaf
-states and actions: services/bench/plan_check.py).
+camera estimates these poses (docs/bench/observe.md); plan #1 a_pl makes from them has the same
+leaf states and actions (tests/bench/plan1_leaves.txt is a camera run's, and
+services/bench/plan_check.py makes it from this scene).
 
 :class:`SceneSource` plays a_ta's participant part on a Zenoh session: it answers a_km's
 ``subscribe`` with ``agree``, then ``inform`` with the scene (a_km re-sends the subscribe
