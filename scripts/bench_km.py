@@ -10,8 +10,9 @@ memory ("memory"), applies one observation (jar and bowl poses, particles), then
   GraspQuery, PlacementQuery, PourQuery;
 - a SPARQL ASK, and a HypotheticalQuery (the planner's goal check: copy, apply, ASK);
 - ``plan #1 query set``: every query a_pl sends for "pour the jar into the bowl", in a row
-  (scene, two grippers, per object its object, grasp and placement queries, the pour, the
-  hypothetical goal check), answered directly (no transport);
+  (scene, two grippers, per object its object, grasp and placement queries — on each piece of
+  furniture a_pl asks about —, the pour, the hypothetical goal check: the 15 a_pl counts),
+  answered directly (no transport);
 - ``apply``: one observation of two poses (one transaction; "disk": written to the WAL),
   and on disk ``apply + flush`` (memtables to fsynced table files);
 - ``open (kept)``: opening the existing on-disk store again (the restart of a_km);
@@ -38,6 +39,7 @@ import msgspec
 from rdflib import Graph
 
 from services.agents.knowledge.world_model import ROCO, Query, WorldModel
+from services.agents.planner.agent import FURNITURE
 from shared.fipa_codec.languages.common import Pose
 from shared.fipa_codec.languages.l_wm import (
     GraspQuery,
@@ -60,20 +62,20 @@ GOAL_CHECK = HypotheticalQuery(
     ),
     query=SparqlQuery("ASK { roco:bowl roco:on roco:table . }"),
 )
+
+
+def _about(obj: str) -> tuple[Query, ...]:
+    """What a_pl asks of a movable object: the object, its grasps, its places on the furniture."""
+    grasps = tuple(GraspQuery(object=obj, arm=arm) for arm in ("left", "right"))
+    return (ObjectQuery(obj), *grasps, *(PlacementQuery(object=obj, surface=where) for where in FURNITURE))
+
+
 PLAN_1: tuple[Query, ...] = (
     SceneQuery(),
     ObjectQuery("left_gripper"),
     ObjectQuery("right_gripper"),
-    *(
-        q
-        for obj in ("jar", "bowl")
-        for q in (
-            ObjectQuery(obj),
-            GraspQuery(object=obj, arm="left"),
-            GraspQuery(object=obj, arm="right"),
-            PlacementQuery(object=obj, surface="table"),
-        )
-    ),
+    *_about("jar"),
+    *_about("bowl"),
     PourQuery(source="jar", target="bowl"),
     GOAL_CHECK,
 )

@@ -110,7 +110,10 @@ def fleet(
     every process it started (pids from its ``.fleet.json``, and their children), first while
     ag_ex's camera process runs (it observes the kitchen for a_km's world model at start), then
     at rest, once that process has ended (after ``ROCO_CAMERA_IDLE_S`` without an Observe; at
-    most ``rest_timeout_s`` waited); then ``roco down``."""
+    most ``rest_timeout_s`` waited); then ``roco down``. Raises SetupRefused (a RuntimeError)
+    when an agent counted anything refused, not understood or against its protocol meanwhile
+    (services/bench/setup_check.py)."""
+    from services.bench.setup_check import check_fleet
     from services.fleet.launcher import free_port
 
     cli = [sys.executable, "-m", "services.cli"]
@@ -140,6 +143,7 @@ def fleet(
             if camera and not any(comm(pids[n]) for n in camera):
                 rest = {n: p for n, p in pids.items() if n not in camera}
                 out["fleet at rest"] = with_pss(settle(rest), rest)
+            check_fleet(Path(tmp), "roco up, its memory read")
             return out
         finally:
             if state.exists():
@@ -203,7 +207,10 @@ def main() -> None:
     if "synthetic" in parts:
         result["synthetic"] = synthetic(settle)
     if "fleet" in parts:
-        result.update(fleet(settle, args.rest_timeout_s))
+        try:
+            result.update(fleet(settle, args.rest_timeout_s))
+        except RuntimeError as exc:  # roco up failed, or its set-up was refused: no figure
+            raise SystemExit(f"roco: bench_memory: {exc}") from None
     if args.json:
         print(json.dumps(result, indent=1))
         return

@@ -64,6 +64,7 @@ import zenoh  # noqa: E402
 from bench_reading import line as reading_line  # noqa: E402
 
 from services.bench.messaging import percentile  # noqa: E402
+from services.bench.setup_check import check_agents  # noqa: E402
 from services.fleet.launcher import AGENT_ORDER, Fleet, free_port  # noqa: E402
 from services.monitor import is_world_update  # noqa: E402
 from services.runtime import keys  # noqa: E402
@@ -239,6 +240,12 @@ class Kitchen:
         assert self.session is not None
         return say(self.session, text, request_id)
 
+    def check(self, during: str) -> None:
+        """Raise SetupRefused when an agent counted anything refused, not understood or against
+        its protocol so far (services/bench/setup_check.py)."""
+        assert self.session is not None
+        check_agents(self.session, AGENT_ORDER, during)
+
     def close(self) -> None:
         if self.session is not None:
             self.session.close()
@@ -266,7 +273,9 @@ def measure(
     stops in a row find nothing moving in pours that did not succeed, the fleet is ended and a
     new one starts from a fresh kitchen (counted in ``kitchens``). ``echo`` is given a line per stop
     as it is measured; run folders are removed unless ``keep`` (then echoed). Raises
-    RuntimeError when a fleet does not come up, or ``MAX_KITCHENS`` kitchens were used."""
+    RuntimeError when a fleet does not come up, or ``MAX_KITCHENS`` kitchens were used, and
+    SetupRefused (a RuntimeError) when an agent counted anything refused, not understood or
+    against its protocol in the first pour, before any stop."""
     rng = random.Random(seed)
     long_line = reading_line(long_shape, MAX_LINE_CHARS)
     window = window if window is not None else (16.0 if realtime else 6.0)
@@ -285,6 +294,7 @@ def measure(
         start = time.monotonic()
         first = kitchen.watch.finals(rid)[rid]
         pour_s = time.monotonic() - start
+        kitchen.check("the first pour, before any stop")
         echo(
             f"ag_ex's loop {'paced to wall time' if realtime else 'as fast as it can'}; "
             f"first pour: {first.kind.value} in {pour_s:.1f} s ({t0.value} first); "

@@ -46,6 +46,7 @@ from typing import TYPE_CHECKING, Annotated, Any
 import typer
 
 from services.bench import quiet
+from services.bench.setup_check import SetupRefused
 from shared.settings import Settings
 
 if TYPE_CHECKING:
@@ -123,6 +124,10 @@ class _Bench:
         t, cpu = time.perf_counter(), quiet.read() if timed else None
         try:
             self.results[name] = fn()
+        except SetupRefused as exc:  # its set-up went wrong: no figure, one line says why
+            self.errors[name] = str(exc)
+            typer.echo(f"roco: bench: {name}: {exc}", err=True)
+            self.results[name] = None
         except Exception as exc:  # one part failing must not lose the others
             self.errors[name] = f"{type(exc).__name__}: {exc}"
             traceback.print_exc()

@@ -25,6 +25,7 @@ from typing import Any
 import msgspec
 
 from services.bench.messaging import no_access_control, percentile, process_rss_mib
+from services.bench.setup_check import check_fleet, check_run_folder
 from shared.fipa_codec import AgentIdentifier, Communicate, Performative, decode, encode
 from shared.fipa_codec.batch import unpack
 
@@ -101,14 +102,20 @@ class QueryRow:
     answer_bytes: int = 0
 
 
-def knowledge(quick: bool) -> tuple[list[QueryRow], str]:
-    """The planner's typical queries and the whole scene (SceneQuery): (a) ``WorldModel.answer``
-    in this process on a fresh on-disk store after the initial observation (bench_km's timer:
-    10 warm-up calls, then ``repeats``), (b) the same as a C4 ``query-ref`` (fipa-query,
-    L_WM) from a session playing a_pl to a real a_km process through a router, timed from the
-    put to the ``inform-ref``'s arrival. Returns rows and the store description."""
+def knowledge(quick: bool, update: Any = None) -> tuple[list[QueryRow], str]:
+    """The planner's typical queries and the whole scene (SceneQuery) on the default kitchen
+    of ``roco run`` (``update``: another scene; services/bench/scene.py): (a)
+    ``WorldModel.answer`` in this process on a fresh on-disk store holding that scene (bench_km's
+    timer: 10 warm-up calls, then ``repeats``), (b) the same as a C4 ``query-ref`` (fipa-query,
+    L_WM) from a session playing a_pl to a real a_km process through a router, a_km given the
+    scene as a_ta gives it (its C6 fipa-subscribe agreed, then informed), timed from the put
+    to the ``inform-ref``'s arrival. Returns rows and the store description. Raises
+    SetupRefused (services/bench/setup_check.py) when a_km refused, did not understand or
+    counted as a protocol violation anything, or answers a query without an ``inform-ref``
+    that carries an answer (the jar's and the bowl's poses among them)."""
     km = scripts_module("bench_km")
     from services.agents.knowledge.world_model import WorldModel
+    from services.bench.scene import kitchen_update
     from shared.fipa_codec.languages.l_wm import (
         GraspQuery,
         ObjectQuery,
@@ -117,6 +124,7 @@ def knowledge(quick: bool) -> tuple[list[QueryRow], str]:
         SceneQuery,
     )
 
+    scene = update if update is not None else kitchen_update()
     queries = [
         ("ObjectQuery(jar)", ObjectQuery("jar")),
         ("ObjectQuery(left_gripper)", ObjectQuery("left_gripper")),
@@ -130,7 +138,7 @@ def knowledge(quick: bool) -> tuple[list[QueryRow], str]:
     rows: list[QueryRow] = []
     with tempfile.TemporaryDirectory() as tmp:
         world = WorldModel(Path(tmp) / "km_store")
-        world.apply(km.observation(1.0))
+        world.apply(scene)
         for label, q in queries:
             ms = km.timed(lambda q=q: world.answer(q), repeats)
             size = len(msgspec.msgpack.encode(world.answer(q)))
@@ -143,19 +151,32 @@ def knowledge(quick: bool) -> tuple[list[QueryRow], str]:
         )
         triples = len(world)
         world.close()
-    zenoh_ms = _km_over_zenoh([q for _, q in queries], repeats)
+    zenoh_ms = _km_over_zenoh([q for _, q in queries], repeats, scene)
     for row, ms in zip(rows, zenoh_ms, strict=False):
         row.zenoh_p50_ms, row.zenoh_p99_ms = percentile(ms, 50), percentile(ms, 99)
-    return rows, f"{triples} triples after the initial observation"
+    return rows, f"{triples} triples after the first observation of the default kitchen"
 
 
-def _km_over_zenoh(queries: list[Any], repeats: int) -> list[list[float]]:
-    bp = scripts_module("bench_planning")
+def answer_missing(msg: Communicate) -> str:
+    """Why a_km's answer ``msg`` to a query-ref carries no answer ("" when it does): not an
+    ``inform-ref``, or an L_WM Answer with nothing set."""
+    from shared.fipa_codec.languages import decode_content
+    from shared.fipa_codec.languages.l_wm import Answer
+
+    if msg.performative is not Performative.INFORM_REF:
+        return f"{msg.performative.value} {msg.content[:120].decode('utf-8', 'replace')}"
+    got = decode_content(msg.language, msg.content) if msg.language else None
+    if not isinstance(got, Answer) or got == Answer():
+        return "an empty answer"
+    return ""
+
+
+def _km_over_zenoh(queries: list[Any], repeats: int, scene: Any) -> list[list[float]]:
+    from services.bench.scene import SceneSource, communicate, require_known
+    from services.bench.setup_check import SetupRefused, check_agents
     from services.fleet.launcher import Fleet, free_port
     from services.runtime import keys
     from services.runtime.session import open_client
-    from shared.fipa_codec.languages.common import Pose
-    from shared.fipa_codec.languages.l_wm import ObjectUpdate, WorldUpdate
 
     out: list[list[float]] = []
     with no_access_control(), tempfile.TemporaryDirectory() as tmp:
@@ -167,56 +188,54 @@ def _km_over_zenoh(queries: list[Any], repeats: int) -> list[list[float]]:
         try:
             fleet.start_router()
             session = open_client(endpoint)
+            try:
 
-            def on_answer(s: Any) -> None:  # a zenoh.Sample; a batch: each of its communicates
-                for p in unpack(s.payload.to_bytes()):
-                    answers.put((time.perf_counter(), p))
+                def on_answer(s: Any) -> None:  # a zenoh.Sample; a batch: each of its communicates
+                    for p in unpack(s.payload.to_bytes()):
+                        answers.put((time.perf_counter(), p))
 
-            session.declare_subscriber(
-                keys.fipa_key("C4", "a_km", "a_pl"),
-                on_answer,
-            )
-            session.declare_subscriber(keys.inbox_key("a_ta"), lambda s: None)
-            fleet.start_agents(["a_km"])
-            fleet.wait_alive(session, ["a_km"], timeout=60)
-            update = WorldUpdate(
-                stamp=0.0, objects=tuple(ObjectUpdate(name=n, pose=Pose(p)) for n, p in bp.SCENE.items())
-            )
-            session.put(
-                keys.fipa_key("C6", "a_ta", "a_km"),
-                bp.communicate(
-                    "a_ta",
-                    "a_km",
-                    Performative.INFORM,
-                    update,
-                    protocol="fipa-subscribe",
-                    conversation_id="km-environment",
-                ),
-            )
-            key = keys.fipa_key("C4", "a_pl", "a_km")
-            for qi, q in enumerate(queries):
-                times = []
-                for i in range(10 + repeats):
-                    cid = f"bench-{qi}-{i}"
-                    payload = bp.communicate(
-                        "a_pl",
-                        "a_km",
-                        Performative.QUERY_REF,
-                        q,
-                        protocol="fipa-query",
-                        conversation_id=cid,
-                        reply_with=cid,
-                    )
-                    t0 = time.perf_counter()
-                    session.put(key, payload)
-                    while True:
-                        t1, raw = answers.get(timeout=30)
-                        if decode(raw).conversation_id == cid:
-                            break
-                    if i >= 10:
-                        times.append((t1 - t0) * 1e3)
-                out.append(times)
-            session.close()
+                session.declare_subscriber(keys.fipa_key("C4", "a_km", "a_pl"), on_answer)
+                source = SceneSource(session, scene)
+                fleet.start_agents(["a_km"])
+                fleet.wait_alive(session, ["a_km"], timeout=60)
+                source.start()
+                missing = source.wait_known()
+                check_agents(session, ["a_km"], "giving a_km the scene")
+                require_known(missing)
+                key = keys.fipa_key("C4", "a_pl", "a_km")
+                for qi, q in enumerate(queries):
+                    times = []
+                    for i in range(10 + repeats):
+                        cid = f"bench-{qi}-{i}"
+                        payload = encode(
+                            communicate(
+                                "a_pl",
+                                "a_km",
+                                Performative.QUERY_REF,
+                                q,
+                                protocol="fipa-query",
+                                conversation_id=cid,
+                                reply_with=cid,
+                            )
+                        )
+                        t0 = time.perf_counter()
+                        session.put(key, payload)
+                        while True:
+                            try:
+                                t1, raw = answers.get(timeout=30)
+                            except queue.Empty:
+                                raise SetupRefused(f"a_km did not answer {cid} within 30 s") from None
+                            msg = decode(raw)
+                            if msg.conversation_id == cid:
+                                break
+                        if i == 0 and (why := answer_missing(msg)):
+                            raise SetupRefused(f"a_km answered {type(q).__name__} with {why}")
+                        if i >= 10:
+                            times.append((t1 - t0) * 1e3)
+                    out.append(times)
+                check_agents(session, ["a_km"], "querying a_km")
+            finally:
+                session.close()
         finally:
             fleet.stop()
     return out
@@ -233,7 +252,9 @@ class PlanningFigures:
 
 def planning(quick: bool) -> PlanningFigures:
     """``scripts/bench_planning.py``'s :func:`measure`: router, a_km and a_pl processes, the
-    scene given to a_km, plan #1 of pour(jar, bowl) requested 5 (quick: 2) times in a row."""
+    default kitchen given to a_km through its C6 fipa-subscribe, plan #1 of pour(jar, bowl)
+    requested 5 (quick: 2) times in a row, each checked to be plan #1 of ``roco run``'s pour.
+    Raises SetupRefused when the set-up went wrong or another plan came."""
     bp = scripts_module("bench_planning")
     with no_access_control():
         return PlanningFigures(bp.measure(2 if quick else 5))
@@ -260,7 +281,8 @@ def fleet() -> FleetFigures:
     """``roco up --port P --runs-dir TMP --no-realtime`` (its own wall time from start to
     exit, and the "fleet up in X s" it prints: from starting the agents to every liveliness
     token), then VmRSS of each process it started (pids from its ``.fleet.json``), then
-    ``roco down``."""
+    ``roco down``. Raises SetupRefused when, once up, an agent counted anything refused, not
+    understood or against its protocol (services/bench/setup_check.py)."""
     from services.fleet.launcher import free_port
 
     with tempfile.TemporaryDirectory() as tmp:
@@ -278,6 +300,8 @@ def fleet() -> FleetFigures:
             if state.exists():
                 pids = msgspec.json.decode(state.read_bytes())["pids"]
                 rss = {name: process_rss_mib(int(pid)) for name, pid in pids.items()}
+                if done is not None and done.returncode == 0:
+                    check_fleet(runs, "roco up")
         finally:
             subprocess.run(
                 roco_cmd("down", "--runs-dir", str(runs)),
@@ -377,7 +401,9 @@ def _read_run_folder(out: TaskRun, run_dir: Path) -> None:
 def task(realtime: bool, runs_dir: Path) -> TaskRun:
     """``roco run "pour the jar into the bowl" --quiet --runs-dir DIR`` (``--realtime`` when
     asked); then its run folder: run.json, ag_ex_timing.json, the report's plans, and the size
-    of a_km's store directory."""
+    of a_km's store directory. Raises SetupRefused when an agent counted anything refused, not
+    understood or against its protocol in a run that succeeded (its ``counters.json``,
+    services/bench/setup_check.py); a failed run is reported as failed."""
     args = ["run", POUR, "--quiet", "--runs-dir", str(runs_dir)] + (["--realtime"] if realtime else [])
     before = set(runs_dir.glob("*")) if runs_dir.exists() else set()
     ok, detail, command_s = _roco_run(args)
@@ -388,6 +414,8 @@ def task(realtime: bool, runs_dir: Path) -> TaskRun:
     run_dir = new[-1]
     out = TaskRun(pacing, command_s, ok, " ".join(detail), run_dir)
     _read_run_folder(out, run_dir)
+    if ok:
+        check_run_folder(run_dir, f"the pour ({pacing}, {run_dir})")
     return out
 
 
@@ -396,7 +424,9 @@ def stop(halts: int) -> Any:
     """``scripts/bench_stop.py``'s :func:`measure`: a fleet as ``roco run`` starts it, ag_ex's
     loop as fast as it can, pours stopped at random moments until each condition (``plain``,
     ``long line before``) has ``halts`` halts; a line per stop on stderr as it is measured.
-    Returns its ``StopFigures``; raises RuntimeError when the fleet cannot pour."""
+    Returns its ``StopFigures``; raises RuntimeError when the fleet cannot pour, SetupRefused
+    when an agent counted anything refused, not understood or against its protocol in the
+    first pour."""
     bs = scripts_module("bench_stop")
     return bs.measure(halts, echo=functools.partial(print, file=sys.stderr, flush=True))
 

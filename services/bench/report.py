@@ -843,10 +843,15 @@ def messaging_section(
 def knowledge_how(store: str, counts: Counts) -> list[str]:
     """How part 4 measures: a_km's world model in process, then over Zenoh."""
     return [
-        f"In process: `WorldModel.answer` on a fresh on-disk Oxigraph store ({store}), "
-        f"{counts.km_timed} calls after 10 warm-up ones (scripts/bench_km.py). Over Zenoh: the same "
-        "queries as C4 `query-ref`s from a Zenoh client playing a_pl to an a_km process, from the put "
-        "to the `inform-ref`'s arrival.",
+        "The scene is `roco run`'s default kitchen (velma/model/kitchen.xml at rest, its poses as "
+        "ag_ex's ground truth reads them, where a run's camera estimates them) in the inform a_ta "
+        f"sends a_km for a first observation. In process: `WorldModel.answer` on a fresh on-disk "
+        f"Oxigraph store holding it ({store}), {counts.km_timed} calls after 10 warm-up ones "
+        "(scripts/bench_km.py). Over Zenoh: an a_km process given the scene as a_ta gives it (its C6 "
+        "fipa-subscribe agreed, then informed), then the same queries as C4 `query-ref`s from a Zenoh "
+        "client playing a_pl, from the put to the `inform-ref`'s arrival. The part prints no figure "
+        "when a_km does not know the jar's and the bowl's poses, answers a query without an answer, or "
+        "counts anything refused, not understood or against its protocol.",
     ]
 
 
@@ -860,9 +865,14 @@ def planning_how() -> list[str]:
     """How part 5 measures: plan #1 alone, and the plans of part 7's pours."""
     return [
         "Plan #1 of pour(jar, bowl) requested repeatedly from a Zenoh client playing a_co, only a_km "
-        "(given the scene) and a_pl running (scripts/bench_planning.py), from the request's put to "
-        "the plan's arrival; then plans #1 and #2 of part 7's pours, from their run folders' "
-        f"reports. {PAPER_PLAN_1_TEXT}",
+        "and a_pl running (scripts/bench_planning.py), from the request's put to the plan's arrival. "
+        "a_km is given `roco run`'s default kitchen as a_ta gives it (its C6 fipa-subscribe agreed, "
+        "then informed), and each timed plan is checked to be plan #1 of `roco run`'s pour: the same "
+        "leaf states and actions as a_pl makes in process for that kitchen (services/bench/plan_check.py; "
+        "the leaves column counts them). The part prints no figure when a plan differs, when a_km does "
+        "not know the scene, or when an agent counts anything refused, not understood or against its "
+        "protocol. Then plans #1 and #2 of part 7's pours, from their run folders' reports (the last "
+        f"column: their outcome). {PAPER_PLAN_1_TEXT}",
     ]
 
 

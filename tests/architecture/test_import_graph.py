@@ -160,12 +160,15 @@ def test_agents_never_import_one_another() -> None:
 
 def test_tools_speak_to_agents_and_do_not_import_them() -> None:
     """The CLI, the scenario runner and the viewer reach agents through Zenoh only (the person's
-    side of a_hi is services/runtime/human.py); only the benchmarks time an agent's parts in
-    process (services/bench: a_km's world model)."""
+    side of a_hi is services/runtime/human.py); only the benchmarks run an agent's parts in
+    process (services/bench: a_km's world model; a_pl's plan #1 of the pour, the one the
+    planning part must time; a_ta's inform of an observation, the scene it gives a_km)."""
     graph = import_graph()
     for tool in (t for t in TOOLS if t != "services.bench"):
         imported = {p for p in graph[tool] if p.startswith("services.agents.")}
         assert not imported, (tool, imported)
     assert {p for p in graph["services.bench"] if p.startswith("services.agents.")} == {
-        "services.agents.knowledge"
+        "services.agents.knowledge",
+        "services.agents.planner",
+        "services.agents.task_executor",
     }

@@ -414,7 +414,7 @@ def _fixed_figures_document() -> str:
         {"b_ini0": (33.8, 18.8), "b_par0": (33.8, 18.8), "router": (31.2, 16.9)},
         {"fleet, camera process running": {"a_km": (69.3, 41.9)}, "fleet at rest": {"a_km": (69.3, 42.1)}},
     )
-    planning = PlanningFigures([(0.021, 0.017, 14, 1), (0.013, 0.008, 14, 1)])
+    planning = PlanningFigures([(0.081, 0.077, 15, 33), (0.062, 0.058, 15, 33)])
 
     def scale_row(agents: int, rate: float) -> ScaleRow:
         return ScaleRow(agents, 1.0, 40.0 * agents, pair, ConcurrentFigures(Latency([0.001]), rate, rate), 1)

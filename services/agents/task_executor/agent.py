@@ -134,6 +134,22 @@ WORLD_TIME_SLACK_S = 1e-6
 same world's (the times are the world's own; equal times are the same instant)."""
 
 
+def observed_update(obs: Observation) -> WorldUpdate:
+    """The C6 inform content a_ta sends a_km for ag_ex's L_SD observation ``obs``: each object
+    seen (pose, content count, position sigma) and the hands' grip frames under the grippers'
+    names (a_pl finishes a take from where the hand is), at ``obs.stamp`` (simulated s)."""
+    return WorldUpdate(
+        stamp=obs.stamp,
+        objects=tuple(
+            ObjectUpdate(
+                name=o.name, pose=o.pose, particles=o.particles_inside, position_sigma=o.position_sigma
+            )
+            for o in (*obs.objects, *obs.grips)
+        ),
+        total_particles=obs.total_particles,
+    )
+
+
 class PlanNote(msgspec.Struct, kw_only=True):
     """What a_ta notes of the plan it runs: the data of its C1 conversation, which the role
     keeps across a restart with the plan request (``keep=PlanNote``; docs/recovery.md):
@@ -413,19 +429,8 @@ class TaskExecutor(Agent):
         return self.roles.open(C5, FIPA_REQUEST, command, reply_by_s=reply_by_s, retry_s=retry_s)
 
     def _update_km(self, obs: Observation) -> None:
-        """Inform a_km of what ``obs`` saw and of where the hands' grip frames were (their
-        poses under the grippers' names: a_pl finishes a take from where the hand is)."""
-        update = WorldUpdate(
-            stamp=obs.stamp,
-            objects=tuple(
-                ObjectUpdate(
-                    name=o.name, pose=o.pose, particles=o.particles_inside, position_sigma=o.position_sigma
-                )
-                for o in (*obs.objects, *obs.grips)
-            ),
-            total_particles=obs.total_particles,
-        )
-        self._inform_km(update)
+        """Inform a_km of what ``obs`` saw (:func:`observed_update`)."""
+        self._inform_km(observed_update(obs))
 
     def _inform_km(self, update: WorldUpdate) -> None:
         if self.subscription is None:
