@@ -149,10 +149,11 @@ def pour(docs: dict[str, Document]) -> Row:
 
 def plan_1(docs: dict[str, Document]) -> Row:
     """Part 5 (`planning`): plan #1 of the pour, request → plan; reads the planning table's
-    ``plan #1, request N`` rows (``request → plan s (wall)``, ``a_km queries``)."""
+    ``plan #1, request N`` rows (``request → plan s (wall)``, ``a_km queries``, ``leaves``)."""
     doc, title = docs[BENCHMARKS], "5. Planning"
     t = doc.table(title, "plan")
     wall, queries = t.column("request → plan s", title), t.column("a_km queries", title)
+    leaves = t.column("leaves", title)
     rows = t.rows_starting("plan #1, request")
     if not rows:
         raise FiguresError(f"{doc.path}: no row 'plan #1, request …' in '{title}'")
@@ -161,6 +162,7 @@ def plan_1(docs: dict[str, Document]) -> Row:
     return Row(
         "plan #1 of the pour, request → plan",
         f"{_span([r[wall] for r in rows])} s over {len(rows)} requests, "
+        f"{_span([r[leaves] for r in rows])} leaves (the pour's plan #1, checked), "
         f"{_span([r[queries] for r in rows])} a_km queries",
         f"target ≤ {report.TARGET_PLAN_1_S:g} s: {'met' if worst <= report.TARGET_PLAN_1_S else 'missed'}; "
         f"{paper[0].lower()}{paper[1:].rstrip('.')}",
