@@ -204,7 +204,20 @@ def main() -> int:
     ap.add_argument(
         "--runs-dir", type=Path, default=None, help="where the fleet runs go (default: a temp dir)"
     )
+    ap.add_argument(
+        "--out",
+        type=Path,
+        default=None,
+        help="also write the output to this Markdown file as its current run (earlier runs kept "
+        "under its '## Earlier runs'), once every run finished: docs/bench/loop.md",
+    )
     args = ap.parse_args()
+    with benchlib.recorded(args.out):
+        return measure(args)
+
+
+def measure(args: argparse.Namespace) -> int:
+    """Run and print the conditions ``args`` asks for (:func:`main`'s options)."""
     print(f"# ag_ex control loop at 1 kHz, real-time pacing\n\n{benchlib.header(('mujoco', 'pin'))}")
     print(
         "| condition | cycles | compute p50 µs | compute p99 µs | compute max µs "

@@ -180,7 +180,20 @@ def main() -> int:
     ap.add_argument("--min-share", type=float, default=0.9, help="share of spheres that counts as success")
     ap.add_argument("--realtime", action="store_true", help="fleet mode: pace the loop to wall time")
     ap.add_argument("--runs-dir", type=Path, default=None, help="fleet mode: where run folders go")
+    ap.add_argument(
+        "--out",
+        type=Path,
+        default=None,
+        help="also write the output to this Markdown file, once every seed ran: "
+        "docs/bench/pour_seeds_fleet.md (fleet mode)",
+    )
     args = ap.parse_args()
+    with benchlib.recorded(args.out):
+        return measure(args)
+
+
+def measure(args: argparse.Namespace) -> int:
+    """Run and print the seeds ``args`` asks for (:func:`main`'s options)."""
     runs_dir = args.runs_dir or Path(tempfile.mkdtemp(prefix="roco-seeds-"))
     print(f"# Pour robustness, {args.mode} mode, seeds {args.first}..{args.first + args.seeds - 1}\n")
     print(benchlib.header(("mujoco", "pin")), end="")

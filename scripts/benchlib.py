@@ -3,11 +3,15 @@ measured on (README: every number says how it was measured and on what)."""
 
 from __future__ import annotations
 
+import contextlib
+import io
 import os
 import platform
+import sys
+from collections.abc import Iterator
 from importlib.metadata import PackageNotFoundError, version
 from pathlib import Path
-from typing import NamedTuple
+from typing import NamedTuple, TextIO
 
 from services.bench import report, run_header
 
@@ -35,6 +39,42 @@ def header(packages: tuple[str, ...] = ()) -> str:
     if packages:
         lines.append(f"- Versions: {', '.join(versions(packages))}.")
     return "\n".join(lines) + "\n"
+
+
+EARLIER = "## Earlier runs"
+"""The heading under which a document keeps the runs before its current one (docs/bench/loop.md)."""
+
+
+class _Tee(io.TextIOBase):
+    """Text written to the terminal and kept."""
+
+    def __init__(self, terminal: TextIO) -> None:
+        self.terminal, self.kept = terminal, io.StringIO()
+
+    def write(self, text: str) -> int:
+        self.kept.write(text)
+        return self.terminal.write(text)
+
+    def flush(self) -> None:
+        self.terminal.flush()
+
+
+@contextlib.contextmanager
+def recorded(out: Path | None) -> Iterator[None]:
+    """Print as usual; with ``out``, also write what was printed to ``out`` as its current run,
+    once the block ends without an exception: the file's text from its first :data:`EARLIER`
+    heading on is kept below it (a document's earlier runs); the rest is replaced. Nothing is
+    written when the block raises (a run that did not finish is not a measurement)."""
+    if out is None:
+        yield
+        return
+    tee = _Tee(sys.stdout)
+    with contextlib.redirect_stdout(tee):
+        yield
+    old = out.read_text() if out.exists() else ""
+    earlier = old[old.index(EARLIER) :] if EARLIER in old else ""
+    text = tee.kept.getvalue().rstrip("\n") + "\n"
+    out.write_text(text + ("\n" + earlier if earlier else ""))
 
 
 def machine(packages: tuple[str, ...] = ()) -> str:

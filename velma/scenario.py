@@ -311,7 +311,7 @@ def pour_script(obs: Observation, bowl_on_table: Vec3 | None = None) -> list[Exe
 
 
 def run_script(
-    submit: Callable[[ExecutorCommand, Callable[[CommandResult | Observation], None]], None],
+    submit: Callable[[ExecutorCommand, Callable[[CommandResult | Observation], None]], object],
     commands: list[ExecutorCommand],
     *,
     stop_on_failure: bool = True,
@@ -344,7 +344,7 @@ def run_script(
 
 
 def run_pour(
-    submit: Callable[[ExecutorCommand, Callable[[CommandResult | Observation], None]], None],
+    submit: Callable[[ExecutorCommand, Callable[[CommandResult | Observation], None]], object],
     *,
     timeout: float = 600.0,
 ) -> tuple[list[ExecutorCommand], list[CommandResult | Observation]]:
