@@ -131,6 +131,25 @@ def test_the_cli_exits_0_when_reproduced_and_1_with_one_line_per_difference(tmp_
     assert lines[1].startswith("roco: a_co replayed from") and "1 difference(s)" in lines[1]
 
 
+def test_roco_replay_without_an_agent_says_in_one_line_each_whether_it_reproduced(tmp_path: Path) -> None:
+    """Each agent of the specification in turn: one line each, exit 0 when every agent that
+    can be replayed reproduced, 1 when one differs (a mutated record output)."""
+    run = _run(tmp_path / "same", _query(1), _answer(1, reply_with="a_co-aaaa"))
+    done = CliRunner().invoke(cli.app, ["replay", str(run)], prog_name="roco")
+    assert done.exit_code == 0, done.output
+    lines = {line.partition(":")[0]: line for line in done.output.strip().splitlines()}
+    assert lines["a_co"] == "a_co: reproduced, 1 inputs, 1 outputs"
+    assert lines["a_pl"].startswith("a_pl: not replayed: ") and lines["a_hi"].startswith(
+        "a_hi: not replayed: "
+    )
+    other = _run(tmp_path / "other", _query(1), _answer(1, reply_with="a_co-aaaa", in_reply_to="a_hi-9"))
+    done = CliRunner().invoke(cli.app, ["replay", str(other)], prog_name="roco")
+    assert done.exit_code == 1
+    lines = {line.partition(":")[0]: line for line in done.output.strip().splitlines()}
+    assert lines["a_co"].startswith("a_co: 1 difference: #1 at ")
+    assert "in-reply-to: recorded a_hi-9, replayed a_hi-1" in lines["a_co"]
+
+
 @pytest.mark.parametrize(
     ("agent", "says"),
     [
