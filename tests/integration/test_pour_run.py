@@ -326,14 +326,18 @@ def test_roco_replay_reproduces_what_each_agent_sent_in_the_pour(pour_run: PourR
 
 
 def test_an_answer_recorded_before_its_question_is_fed_after_it(pour_run: PourRun, tmp_path: Path) -> None:
-    """A record of the pour rewritten so that a_km's first answer to a_pl comes before the
+    """a_pl's part of the pour's record rewritten so that a_km's first answer to a_pl comes before the
     request from a_co that made a_pl ask (as agents linked directly can reach the recorder):
     a_pl still reproduces, the answer held until the replayed a_pl has asked; fed in the
     record's order (the causal ordering off), a_pl answers it not-understood."""
     from services.replay.driver import render, replay
     from tests.support.recorded_run import STARTED, write_recorded_run
 
-    messages = [m for m in load_run(pour_run.run_dir).messages if m.comm is not None]
+    messages = [
+        m
+        for m in load_run(pour_run.run_dir).messages
+        if m.comm is not None and "a_pl" in (m.sender, *m.rec.receivers[:1])
+    ]
     answer = next(m for m in messages if m.sender == "a_km" and m.rec.receivers[:1] == ("a_pl",))
     ask = next(m for m in messages if m.sender == "a_co" and m.rec.receivers[:1] == ("a_pl",))
     assert ask.rec.seq < answer.rec.seq
