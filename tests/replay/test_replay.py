@@ -180,7 +180,7 @@ def _observed(first: str) -> list[Communicate]:
         "km-env",
         WorldUpdate(stamp=0.5, objects=(), total_particles=0),
         reply_with="a_ta-3",
-        in_reply_to="k-1",
+        in_reply_to="a_km-1",
     )
     return [seen, sub, agree, ask, update] if first == "before" else [sub, agree, ask, seen, update]
 
