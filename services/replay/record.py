@@ -75,7 +75,7 @@ def agent_record(run_dir: Path, agent: str, causal: bool = True) -> AgentRecord:
     the folder does not exist and ValueError when its record holds no communicate to or from
     ``agent``; anything else missing or corrupt becomes a note."""
     run = load_run(run_dir)
-    messages = _causal(run.messages) if causal else run.messages
+    messages = _ordered(run.messages, causal)
     out = AgentRecord(agent, run.t0, max((m.rec.t for m in run.messages), default=run.t0))
     out.notes = list(run.notes)
     sent: list[tuple[tuple[int, int, int], Recorded]] = []
@@ -100,10 +100,10 @@ def agent_record(run_dir: Path, agent: str, causal: bool = True) -> AgentRecord:
     return out
 
 
-def _causal(messages: list[Message]) -> list[Message]:
-    """``messages`` in causal order: answers after what they answer, then the senders' clocks
-    across a conversation (services/recorder/causal.py)."""
-    return send_order(causal_order(messages)[0])[0]
+def _ordered(messages: list[Message], causal: bool) -> list[Message]:
+    """``messages`` in causal order (``causal`` False: as given): answers after what they
+    answer, then the senders' clocks across a conversation (services/recorder/causal.py)."""
+    return send_order(causal_order(messages)[0])[0] if causal else messages
 
 
 def _way(m: Message, agent: str) -> str:
