@@ -13,6 +13,13 @@ stands still while the agent computes. After the last input the clock runs on to
 end. Each communicate the agent sends is compared at once with the next one it sent on that key
 in the run (services/replay/compare.py), which pairs their identifiers: the inputs that
 follow carry the replayed identifiers where they answer the agent.
+
+The inputs come in causal order (services/replay/record.py), and an input that answers one of
+the agent's own communicates (its in-reply-to names the reply-with of one the agent sent in the
+run, in the same conversation-id: FIPA SC00061 §2.4) waits until the replayed agent has sent
+that one, then goes in at once: the agent's outputs are made in the replay, so only the replay
+knows when it has asked. An answer to a communicate the replayed agent never sends goes in
+after the last input.
 """
 
 from __future__ import annotations
@@ -115,13 +122,37 @@ class _Transport(MemoryTransport):
         super().subscribe(key_expr, callback)
 
 
+_Token = tuple[str | None, str]
+"""(conversation-id, reply-with) of a communicate the agent sent in the run."""
+
+
+def _answered(comm: Communicate) -> _Token | None:
+    """The (conversation-id, in-reply-to) ``comm`` answers, None when it answers nothing."""
+    return None if comm.in_reply_to is None else (comm.conversation_id, comm.in_reply_to)
+
+
 class _Replay:
-    """One replay under way (see the module docstring)."""
+    """One replay under way (see the module docstring); ``causal`` False feeds the inputs as
+    they come in the record, none waiting for the agent's question."""
 
     def __init__(
-        self, record: AgentRecord, agent: Agent, sources: ReplaySources, transport: _Transport
+        self,
+        record: AgentRecord,
+        agent: Agent,
+        sources: ReplaySources,
+        transport: _Transport,
+        causal: bool = True,
     ) -> None:
         self.record, self.agent, self.sources, self.transport = record, agent, sources, transport
+        sent = (item.comm for items in record.outputs.values() for item in items)
+        self.asked: set[_Token] = (
+            {(c.conversation_id, c.reply_with) for c in sent if c.reply_with is not None} if causal else set()
+        )
+        """The tokens of the agent's recorded communicates an input may answer."""
+        self.replayed: set[_Token] = set()
+        """The tokens of the recorded communicates the replayed agent has sent the like of."""
+        self.held: list[Recorded] = []
+        """Inputs waiting for the agent to send what they answer, in input order."""
         self.ids = IdMap()
         self.differences: list[Difference] = []
         self.taken: dict[str, int] = defaultdict(int)  # per key: recorded outputs met so far
@@ -135,20 +166,44 @@ class _Replay:
         self._check_inputs()
         for item in self.record.inputs:
             wake = self._until(item.t, wake)
+            token = _answered(item.comm)
+            if token in self.asked and token not in self.replayed:
+                self.held.append(item)
+                continue
             self.sources.set(item.t)
-            self.transport.bus.publish(item.key, encode(self._fed(item.comm)))
-            wake = self.agent.drive()
+            self._put(item)
+            wake = self._drive()
         self._until(self.record.end, wake)
+        if self.held:  # answers to what the replayed agent never sent
+            for item in self.held:
+                self._put(item)
+            self.held.clear()
+            self.agent.drive()
         self.agent.stop()
         self.agent.drive()
         self._unsent()
+
+    def _put(self, item: Recorded) -> None:
+        """Put input ``item`` on the bus, with the replayed identifiers."""
+        self.transport.bus.publish(item.key, encode(self._fed(item.comm)))
+
+    def _drive(self) -> float | None:
+        """Let the agent take its steps due now, each held input whose question it has sent
+        put in as soon as it has; the time it next waits for (None: none)."""
+        wake = self.agent.drive()
+        while ready := [item for item in self.held if _answered(item.comm) in self.replayed]:
+            self.held = [item for item in self.held if item not in ready]
+            for item in ready:
+                self._put(item)
+            wake = self.agent.drive()
+        return wake
 
     def _until(self, t: float, wake: float | None) -> float | None:
         """Let the agent go on at each time it waits for up to ``t`` (POSIX s)."""
         steps = 0
         while wake is not None and wake <= t:
             self.sources.set(max(wake, math.nextafter(self.sources.now, math.inf)))
-            wake = self.agent.drive()
+            wake = self._drive()
             steps += 1
             if steps > MAX_STEPS:
                 raise _Failed(f"{self.agent.name} took {MAX_STEPS} steps without input, never waiting")
@@ -186,6 +241,8 @@ class _Replay:
         self.seen.add(digest)
         at = self.sources.now
         recorded = self._next_recorded(key)
+        if recorded is not None and recorded.comm.reply_with is not None:
+            self.replayed.add((recorded.comm.conversation_id, recorded.comm.reply_with))
         try:
             comm = decode(payload)
         except DecodeError as exc:
@@ -221,8 +278,9 @@ class _Replay:
                 )
 
 
-def replay(run_dir: Path, agent: str, spec: SystemSpec | None = None) -> ReplayResult:
-    """Replay ``agent`` of the run in ``run_dir`` (see the module docstring). Raises
+def replay(run_dir: Path, agent: str, spec: SystemSpec | None = None, *, causal: bool = True) -> ReplayResult:
+    """Replay ``agent`` of the run in ``run_dir`` (see the module docstring; ``causal`` False
+    feeds the inputs in the order they reached the recorder, none waiting). Raises
     FileNotFoundError for a folder that does not exist, and ReplayError (one line) when the
     replay cannot be made: an agent the specification does not name, a record that holds
     nothing of it, an agent that cannot be built here or takes input outside the record."""
@@ -230,7 +288,7 @@ def replay(run_dir: Path, agent: str, spec: SystemSpec | None = None) -> ReplayR
     spec = spec or default_spec()
     try:
         cls = agent_class(spec, agent)
-        record = agent_record(Path(run_dir), agent)
+        record = agent_record(Path(run_dir), agent, causal)
     except (SpecError, ValueError) as exc:
         raise ReplayError(str(exc)) from None
     result = ReplayResult(agent, Path(run_dir), inputs=len(record.inputs), notes=list(record.notes))
@@ -251,7 +309,7 @@ def replay(run_dir: Path, agent: str, spec: SystemSpec | None = None) -> ReplayR
             raise ReplayError(f"{agent} cannot be built outside its run: {exc}") from None
         result.build_seconds = time.perf_counter() - started
         try:
-            _run(_Replay(record, instance, sources, transport), result)
+            _run(_Replay(record, instance, sources, transport, causal), result)
         finally:
             close = getattr(instance, "close", None)
             if callable(close):
@@ -325,6 +383,17 @@ def render(result: ReplayResult, most: int = 50) -> str:
         lines.append(f"the replayed {result.agent} counted {counted}; --log prints its log")
     lines.append(_summary(result))
     return "\n".join(lines)
+
+
+def one_line(result: ReplayResult) -> str:
+    """The replay of one agent in one line: ``a_pl: reproduced, 32 inputs, 32 outputs``, or
+    ``a_pl: 3 differences: <the first>`` (or what the agent raised)."""
+    if result.equal:
+        return f"{result.agent}: reproduced, {result.inputs} inputs, {result.compared} outputs"
+    found = len(result.differences)
+    first = result.differences[0].line() if result.differences else result.failure
+    failed = ", then it failed" if result.failure is not None and result.differences else ""
+    return f"{result.agent}: {found} difference{'' if found == 1 else 's'}{failed}: {first}"
 
 
 def _summary(result: ReplayResult) -> str:

@@ -1,7 +1,10 @@
 """What a run's traffic record holds of one agent: what it received and what it sent.
 
 Read through services/report/load.py (``traffic.jsonl`` with ``traffic.msgpack``, integrity
-checked, copies marked), as ``roco spec verify`` reads it.
+checked, copies marked), as ``roco spec verify`` reads it. The inputs come in causal order
+(services/recorder/causal.py: an answer after what it answers, then the senders' clocks
+across a conversation), not in the order they reached the recorder, which need not be the
+order the agent received them: each publisher reaches the recorder over a path of its own.
 """
 
 from __future__ import annotations
@@ -9,6 +12,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from services.recorder.causal import causal_order, send_order
 from services.report.load import Message, load_run
 from services.runtime import keys
 from shared.fipa_codec import Communicate
@@ -40,8 +44,8 @@ class Recorded:
 @dataclass
 class AgentRecord:
     """The record of ``agent`` in one run: ``t0`` when the run began and ``end`` the last time
-    in the record (POSIX s); ``inputs``, the communicates to it, in the order they crossed
-    Zenoh; ``outputs``, those from it per key (one receiver and channel each) in the order it
+    in the record (POSIX s); ``inputs``, the communicates to it, in causal order (module
+    docstring); ``outputs``, those from it per key (one receiver and channel each) in the order it
     sent them (its publisher's sequence numbers), copies included; ``notes`` on what of the
     record could not be used."""
 
@@ -60,22 +64,24 @@ class AgentRecord:
         """When the agent was last seen not yet to have said or heard anything (POSIX s): its
         first communicate's time, the sender's timestamp for one it sent (it ran by then, and
         what it sends as it starts, a_km's subscription, goes at once)."""
-        first = [item.t for item in self.inputs[:1]]
+        first = [min(item.t for item in self.inputs)] if self.inputs else []
         first += [items[0].sent for items in self.outputs.values() if items]
         return min(first, default=self.t0)
 
 
-def agent_record(run_dir: Path, agent: str) -> AgentRecord:
-    """The record of ``agent`` in ``run_dir``. Raises FileNotFoundError (naming the path) when
+def agent_record(run_dir: Path, agent: str, causal: bool = True) -> AgentRecord:
+    """The record of ``agent`` in ``run_dir``, its inputs in causal order (``causal`` False:
+    in the order they reached the recorder). Raises FileNotFoundError (naming the path) when
     the folder does not exist and ValueError when its record holds no communicate to or from
     ``agent``; anything else missing or corrupt becomes a note."""
     run = load_run(run_dir)
+    messages = _ordered(run.messages, causal)
     out = AgentRecord(agent, run.t0, max((m.rec.t for m in run.messages), default=run.t0))
     out.notes = list(run.notes)
     sent: list[tuple[tuple[int, int, int], Recorded]] = []
     sessions: dict[str, int] = {}
     unusable = 0
-    for m in run.messages:
+    for m in messages:
         way = _way(m, agent)
         item = _recorded(m) if way else None
         if item is None:
@@ -92,6 +98,12 @@ def agent_record(run_dir: Path, agent: str) -> AgentRecord:
     if unusable:
         out.notes.append(f"{unusable} communicate(s) of {agent} without a payload that decodes: left out")
     return out
+
+
+def _ordered(messages: list[Message], causal: bool) -> list[Message]:
+    """``messages`` in causal order (``causal`` False: as given): answers after what they
+    answer, then the senders' clocks across a conversation (services/recorder/causal.py)."""
+    return send_order(causal_order(messages)[0])[0] if causal else messages
 
 
 def _way(m: Message, agent: str) -> str:

@@ -7,7 +7,7 @@ from __future__ import annotations
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
-from services.report.causal import causal_order, send_order
+from services.recorder.causal import causal_order, send_order
 from services.report.load import Message
 from services.report.model import CommandRow, CoordinationEvent
 from shared.fipa_codec.languages.l_hc import CommandOutcome, HumanCommand

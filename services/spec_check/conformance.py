@@ -20,7 +20,7 @@ Every conversation (one conversation-id between two agents) follows its interact
 protocol's state machine (FIPA SC00026 fipa-request, SC00027 fipa-query, SC00035
 fipa-subscribe, the paper's coordinate protocol), message by message in causal order
 (arrival order, with an answer that arrived before what it answers moved after it:
-:mod:`services.report.causal`), as
+:mod:`services.recorder.causal`), as
 :class:`~services.runtime.protocol_state.CrossingTracker` follows it: communicates of the two
 agents that crossed on the wire are tolerated, as are the cancel meta-protocol's late
 cancels; an opening communicate that reuses a conversation-id begins it anew; a
@@ -41,8 +41,8 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from services.recorder.causal import causal_order, send_order
 from services.recorder.integrity import Integrity
-from services.report.causal import causal_order, send_order
 from services.report.load import Message, load_run
 from services.runtime import keys
 from services.runtime.protocol_state import (

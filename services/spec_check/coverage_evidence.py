@@ -7,7 +7,7 @@ FSM record (``fsm/``: services/runtime/fsm_record.py). A tap folder (``ROCO_TAP_
 services/runtime/tap.py) holds what every bus and transport of a test run put, by group (one
 bus, one fleet), and the FSM records of every agent the tests started. Either becomes
 :class:`Evidence`: groups of communicates, each group in causal order (an answer after what
-it answers: services/report/causal.py), within which conversations are followed, and the
+it answers: services/recorder/causal.py), within which conversations are followed, and the
 FSM records. Copies (the same bytes again on the same key: a retransmission) are left out, as
 ``roco spec verify`` judges each communicate once.
 """
@@ -21,8 +21,8 @@ from collections.abc import Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from services.recorder.causal import causal_order, send_order
 from services.recorder.record import RawEntry, record_of
-from services.report.causal import causal_order, send_order
 from services.report.load import Message, load_run
 from services.runtime.dedup import wire_digest
 from services.runtime.fsm_record import Record, read_records, record_files

@@ -310,23 +310,56 @@ def test_roco_spec_trace_shows_every_leaf_from_the_pour(pour_run: PourRun) -> No
     assert "Requirements traced to this run" in md and "**contradicted**" not in md
 
 
-# ---- roco replay (services/replay): the pour's planner, knowledge manager and coordinator ----
+# ---- roco replay (services/replay): each agent of the pour that takes only communicates ----
+
+REPLAYED = ("a_co", "a_pl", "a_km", "a_ta")
 
 
-@pytest.mark.parametrize("agent", ["a_pl", "a_km", "a_co"])
-def test_roco_replay_reproduces_what_the_agent_sent_in_the_pour(pour_run: PourRun, agent: str) -> None:
+def test_roco_replay_reproduces_what_each_agent_sent_in_the_pour(pour_run: PourRun) -> None:
     run_dir = pour_run.run_dir
     proc = subprocess.run(
-        [sys.executable, "-m", "services.cli", "replay", str(run_dir), "--agent", agent],
+        [sys.executable, "-m", "services.cli", "replay", str(run_dir)],
         capture_output=True,
         text=True,
         timeout=300,
     )
     assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-2000:]
-    last = proc.stdout.strip().splitlines()[-1]
-    assert last.startswith(f"roco: {agent} replayed from") and "reproduced" in last
-    sent = [m for m in load_run(run_dir).messages if m.sender == agent and m.copy_of is None]
-    assert f"{len(sent)} compared" in last
+    lines = {line.partition(":")[0]: line for line in proc.stdout.strip().splitlines()}
+    messages = load_run(run_dir).messages
+    for agent in REPLAYED:
+        sent = [m for m in messages if m.sender == agent and m.copy_of is None]
+        got = [m for m in messages if m.rec.receivers[:1] == (agent,) and m.comm is not None]
+        assert lines[agent] == f"{agent}: reproduced, {len(got)} inputs, {len(sent)} outputs", proc.stdout
+    assert lines["a_hi"].startswith("a_hi: not replayed: ")
+
+
+def test_an_answer_recorded_before_its_question_is_fed_after_it(pour_run: PourRun, tmp_path: Path) -> None:
+    """a_pl's part of the pour's record rewritten so that a_km's first answer to a_pl comes before the
+    request from a_co that made a_pl ask (as agents linked directly can reach the recorder):
+    a_pl still reproduces, the answer held until the replayed a_pl has asked; fed in the
+    record's order (the causal ordering off), a_pl answers it not-understood."""
+    from services.replay.driver import render, replay
+    from tests.support.recorded_run import STARTED, write_recorded_run
+
+    messages = [
+        m
+        for m in load_run(pour_run.run_dir).messages
+        if m.comm is not None and "a_pl" in (m.sender, *m.rec.receivers[:1])
+    ]
+    answer = next(m for m in messages if m.sender == "a_km" and m.rec.receivers[:1] == ("a_pl",))
+    ask = next(m for m in messages if m.sender == "a_co" and m.rec.receivers[:1] == ("a_pl",))
+    assert ask.rec.seq < answer.rec.seq
+    order = [m for m in messages if m is not answer]
+    order.insert(order.index(ask), answer)
+    at = [(ask if m is answer else m).rec.t - STARTED for m in order]  # the run's clock: reply-by
+    traffic = [(t, m.comm) for t, m in zip(at, order, strict=True) if m.comm is not None]
+    moved = write_recorded_run(tmp_path / "run", traffic)
+    result = replay(moved, "a_pl")
+    assert result.equal, render(result)
+    unordered = replay(moved, "a_pl", causal=False)
+    assert not unordered.equal
+    said = [d for d in unordered.differences if d.field == "performative"]
+    assert said and said[0].replayed == "not-understood", render(unordered)
 
 
 def test_roco_replay_reports_a_cost_a_pl_drew_at_random(

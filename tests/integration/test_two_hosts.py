@@ -27,6 +27,9 @@ from services.hosts.fleet import TwoHosts
 from services.hosts.link import Shaping
 from services.hosts.netns import HostPair, netns_exec
 from services.recorder.record import read_link_events
+from services.recorder.sync import sync_fleet
+from services.replay.driver import render as replay_render
+from services.replay.driver import replay
 from services.runtime.refusals import Refusal, read_refusals
 from services.runtime.run_folder import new_run_dir
 from services.runtime.session import open_client
@@ -68,6 +71,11 @@ def test_the_pour_succeeds_across_two_hosts_over_a_shaped_link_with_mtls_and_acl
     assert events[0]["event"] == "shaping" and events[0]["delay_ms"] == 20 and events[0]["loss_pct"] == 1
     # C5 (a_ta ↔ ag_ex) stayed on the robot's host and still reached the brain's recorder
     assert any(r["sender"] == "ag_ex" for r in c5_record(hosts.run_dir))
+    # each agent that takes only communicates is reproduced from the record made on two hosts
+    assert sync_fleet(hosts.endpoint, hosts.run_dir / "security")
+    for agent in ("a_co", "a_pl", "a_km", "a_ta"):
+        replayed = replay(hosts.run_dir, agent)
+        assert replayed.equal, replay_render(replayed)
     # access control holds across the mesh: a robot-side process as a_ta may put on a_ta's own
     # C1 key, not on a_pl's C4 key (nor as a_pl); the brain's operator sees only the first
     seen: list[str] = []

@@ -10,6 +10,7 @@ import os
 import re
 from pathlib import Path
 
+import msgspec
 import pytest
 from typer.testing import CliRunner
 
@@ -17,9 +18,12 @@ import services.cli as cli
 from services.replay.driver import ReplayError, render, replay
 from services.runtime.counters import CountersReport, save_counters
 from shared.fipa_codec import Communicate, Performative
+from shared.fipa_codec.languages.l_ex import Observe
 from shared.fipa_codec.languages.l_hc import Status, StatusQuery, TaskState, TaskStatus
+from shared.fipa_codec.languages.l_sd import Observation
+from shared.fipa_codec.languages.l_wm import Subscription, WorldUpdate
 from tests.support.messages import communicate
-from tests.support.recorded_run import write_recorded_run
+from tests.support.recorded_run import STARTED, write_recorded_run
 
 
 def _query(n: int) -> Communicate:
@@ -129,6 +133,91 @@ def test_the_cli_exits_0_when_reproduced_and_1_with_one_line_per_difference(tmp_
     lines = done.output.strip().splitlines()
     assert len(lines) == 2 and "in-reply-to: recorded a_hi-9, replayed a_hi-1" in lines[0]
     assert lines[1].startswith("roco: a_co replayed from") and "1 difference(s)" in lines[1]
+
+
+def _observed(first: str) -> list[Communicate]:
+    """a_ta's start as a_km subscribes: it agrees, asks ag_ex for an observation (L_EX Observe,
+    3 s to answer) and passes ag_ex's answer on to a_km (L_WM WorldUpdate); ``first`` the
+    answer recorded after what it answers (``after``) or before a_km's subscribe (``before``),
+    as publishers linked directly can reach the recorder."""
+    sub = communicate(
+        Performative.SUBSCRIBE,
+        "a_km",
+        "a_ta",
+        "fipa-subscribe",
+        "km-env",
+        Subscription(),
+        reply_with="a_km-1",
+    )
+    agree = communicate(
+        Performative.AGREE,
+        "a_ta",
+        "a_km",
+        "fipa-subscribe",
+        "km-env",
+        reply_with="a_ta-1",
+        in_reply_to="a_km-1",
+    )
+    ask = communicate(
+        Performative.REQUEST, "a_ta", "ag_ex", "fipa-request", "c-1", Observe(), reply_with="a_ta-2"
+    )
+    ask = msgspec.structs.replace(ask, reply_by=STARTED + 1.0 + 3.0)
+    seen = communicate(
+        Performative.INFORM,
+        "ag_ex",
+        "a_ta",
+        "fipa-request",
+        "c-1",
+        Observation(stamp=0.5, objects=()),
+        reply_with="ag_ex-1",
+        in_reply_to="a_ta-2",
+    )
+    update = communicate(
+        Performative.INFORM,
+        "a_ta",
+        "a_km",
+        "fipa-subscribe",
+        "km-env",
+        WorldUpdate(stamp=0.5, objects=(), total_particles=0),
+        reply_with="a_ta-3",
+        in_reply_to="a_km-1",
+    )
+    return [seen, sub, agree, ask, update] if first == "before" else [sub, agree, ask, seen, update]
+
+
+def test_an_answer_recorded_before_the_question_is_fed_after_the_agent_asks(tmp_path: Path) -> None:
+    """ag_ex's observation recorded before a_km's subscribe that made a_ta ask for it: in
+    causal order a_ta reproduces as it does from the record in order; fed in the record's
+    order (the causal ordering off), a_ta gets an answer to nothing and says not-understood."""
+    in_order = write_recorded_run(tmp_path / "a", [(1.0, m) for m in _observed("after")])
+    assert replay(in_order, "a_ta").equal, render(replay(in_order, "a_ta"))
+    crossed = write_recorded_run(tmp_path / "b", [(1.0, m) for m in _observed("before")])
+    result = replay(crossed, "a_ta")
+    assert result.equal and (result.inputs, result.compared) == (2, 3), render(result)
+    unordered = replay(crossed, "a_ta", causal=False)
+    sent = [(d.field, d.replayed) for d in unordered.differences if d.recorded == "not sent"]
+    assert ("communicate", "sent") in sent and unordered.counters["protocol_violations"] == 1, render(
+        unordered
+    )
+
+
+def test_roco_replay_without_an_agent_says_in_one_line_each_whether_it_reproduced(tmp_path: Path) -> None:
+    """Each agent of the specification in turn: one line each, exit 0 when every agent that
+    can be replayed reproduced, 1 when one differs (a mutated record output)."""
+    run = _run(tmp_path / "same", _query(1), _answer(1, reply_with="a_co-aaaa"))
+    done = CliRunner().invoke(cli.app, ["replay", str(run)], prog_name="roco")
+    assert done.exit_code == 0, done.output
+    lines = {line.partition(":")[0]: line for line in done.output.strip().splitlines()}
+    assert lines["a_co"] == "a_co: reproduced, 1 inputs, 1 outputs"
+    assert lines["a_pl"].startswith("a_pl: not replayed: ") and lines["a_hi"].startswith(
+        "a_hi: not replayed: "
+    )
+    other = _run(tmp_path / "other", _query(1), _answer(1, reply_with="a_co-aaaa", in_reply_to="a_hi-9"))
+    done = CliRunner().invoke(cli.app, ["replay", str(other)], prog_name="roco")
+    assert done.exit_code == 1
+    lines = {line.partition(":")[0]: line for line in done.output.strip().splitlines()}
+    assert lines["a_co"].startswith("a_co: 1 difference: #1 at ")
+    assert "in-reply-to: recorded a_hi-9, replayed a_hi-1" in lines["a_co"]
 
 
 @pytest.mark.parametrize(

@@ -1,11 +1,14 @@
-"""Causal order of a traffic record: an answer is checked after what it answers.
+"""Causal order of a traffic record: an answer after what it answers.
 
 The traffic recorder (``services.recorder``) numbers communicates in the order they arrive
 at it. Zenoh keeps each publisher's order, but not the order between publishers: a query
-from a_pl and a_km's answer travel to the recorder over different paths of the router, and
-under load the answer can arrive first (seen in CI: ``inform-ref`` recorded 1 place before
-the ``query-ref`` it answers). A protocol state machine fed in arrival order would then call
-a correct conversation a violation.
+from a_pl and a_km's answer travel to the recorder over different paths (through the router,
+or each agent's own link to the recorder when agents are linked directly), and the answer can
+arrive first (seen in CI: ``inform-ref`` recorded 1 place before the ``query-ref`` it
+answers). A protocol state machine fed in arrival order would then call a correct
+conversation a violation (services/spec_check, services/report), and a replayed agent would
+get an answer before its question (services/replay). Both orderings here work on any
+recorded communicate that carries its record and decoded communicate (:class:`Recorded`).
 
 :func:`causal_order` moves every communicate whose ``in-reply-to`` names a ``reply-with``
 (FIPA SC00061 §2.4) of the same conversation recorded *later* to just after that
@@ -26,9 +29,26 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from typing import Generic, Protocol, TypeVar
 
 from services.recorder.record import TrafficRecord
-from services.report.load import Message
+from shared.fipa_codec import Communicate
+
+
+class Recorded(Protocol):
+    """A communicate of a traffic record as the orderings read it: its record ``rec`` and the
+    decoded communicate ``comm`` (None when its payload does not decode); services/report/load.py
+    ``Message`` is one."""
+
+    @property
+    def rec(self) -> TrafficRecord: ...
+
+    @property
+    def comm(self) -> Communicate | None: ...
+
+
+Message = TypeVar("Message", bound=Recorded)
+"""The kind of recorded communicate ordered: an ordering returns the elements it was given."""
 
 _Token = tuple[str | None, str]
 """(conversation-id, reply-with) of a communicate."""
@@ -51,7 +71,7 @@ def _answered(m: Message) -> _Token | None:
 
 
 @dataclass
-class _CausalReplay:
+class _CausalReplay(Generic[Message]):
     """The record replayed in arrival order (:meth:`take`): an answer to a communicate recorded
     later waits for it; a communicate taken brings in the answers waiting for it
     (:meth:`emit`)."""
@@ -85,7 +105,7 @@ def causal_order(messages: Sequence[Message]) -> tuple[list[Message], int]:
     """``messages`` (arrival order) in causal order, and how many were moved later.
 
     Shapes: a list of the same length with the same elements. O(n) in time and memory."""
-    replay = _CausalReplay({token for m in messages if (token := _offered(m)) is not None})
+    replay: _CausalReplay[Message] = _CausalReplay({t for m in messages if (t := _offered(m)) is not None})
     for m in messages:
         replay.take(m)
     # a cycle of answers (malformed traffic) leaves messages waiting: keep them, in arrival order
