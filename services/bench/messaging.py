@@ -468,25 +468,37 @@ def check_exchange(
     access control drops silently), as many as ``want`` names, and nothing was refused, not
     understood, failed or rejected (:data:`UNWANTED`). Raises SetupError naming every
     difference."""
-    wrong: list[str] = []
-    for (sender, sent), (receiver, got), wanted in (
-        ((names[0], ini), (names[1], par), want.by_initiator),
-        ((names[1], par), (names[0], ini), want.by_participant),
-    ):
-        for act, n in wanted.items():
-            s, r = sent.get(f"sent.{act}", 0), got.get(f"received.{act}", 0)
-            if s != n or r != n:
-                wrong.append(f"{sender} sent {s} {act} and {receiver} received {r}, not {n}")
-    for name, deltas in ((names[0], ini), (names[1], par)):
-        bad = {
-            k: v
-            for k, v in deltas.items()
-            if v and (k in UNWANTED or k.startswith("rejected.") or k in _UNWANTED_ACTS)
-        }
-        if bad:
-            wrong.append(f"{name}: {', '.join(f'{k} {v}' for k, v in sorted(bad.items()))}")
+    wrong = [
+        *_missing(names[0], ini, names[1], par, want.by_initiator),
+        *_missing(names[1], par, names[0], ini, want.by_participant),
+        *_unwanted(names[0], ini),
+        *_unwanted(names[1], par),
+    ]
     if wrong:
         raise SetupError("the pair's exchange was not the work timed: " + "; ".join(wrong))
+
+
+def _missing(
+    sender: str, sent: Mapping[str, int], receiver: str, got: Mapping[str, int], wanted: Mapping[str, int]
+) -> list[str]:
+    """Each performative of ``wanted`` that ``sender`` did not send, or ``receiver`` did not
+    receive, exactly as often as wanted."""
+    wrong = []
+    for act, n in wanted.items():
+        s, r = sent.get(f"sent.{act}", 0), got.get(f"received.{act}", 0)
+        if s != n or r != n:
+            wrong.append(f"{sender} sent {s} {act} and {receiver} received {r}, not {n}")
+    return wrong
+
+
+def _unwanted(name: str, deltas: Mapping[str, int]) -> list[str]:
+    """``name``'s counters of :data:`UNWANTED` that moved, in one line (none: empty)."""
+    bad = {
+        k: v
+        for k, v in deltas.items()
+        if v and (k in UNWANTED or k.startswith("rejected.") or k in _UNWANTED_ACTS)
+    }
+    return [f"{name}: {', '.join(f'{k} {v}' for k, v in sorted(bad.items()))}"] if bad else []
 
 
 def probe_pair(bed: Testbed, k: int, size: int) -> None:

@@ -15,13 +15,16 @@ tests/bench/test_bench.py checks that :func:`expected_plan` still makes it.
 
 from __future__ import annotations
 
+import contextlib
 import queue
 import threading
+from collections.abc import Iterator
 
 from services.bench.scene import communicate, kitchen_update
 from services.bench.setup_check import SetupRefused
 from services.runtime import keys
-from shared.fipa_codec import Performative, decode, encode
+from services.runtime.agent import Agent
+from shared.fipa_codec import Communicate, Performative, decode, encode
 from shared.fipa_codec.languages import decode_content
 from shared.fipa_codec.languages.l_ex import command_name
 from shared.fipa_codec.languages.l_hc import TaskAtom
@@ -76,6 +79,36 @@ def leaf_signature(plan: HierarchicalPlan) -> tuple[str, ...]:
     return (*(f"{path}: {_action(node)}" for path, node in plan.root.leaves()), f"complete: {plan.complete}")
 
 
+@contextlib.contextmanager
+def _running(*agents: Agent) -> Iterator[None]:
+    """``agents`` bound and each running on a thread of its own inside the block; stopped and
+    joined after it."""
+    threads = [threading.Thread(target=a.run, name=a.name, daemon=True) for a in agents]
+    for a in agents:
+        a.bind()
+    for t in threads:
+        t.start()
+    try:
+        yield
+    finally:
+        for a in agents:
+            a.stop()
+        for t in threads:
+            t.join(timeout=5)
+
+
+def _answer(answers: queue.SimpleQueue[bytes], timeout: float) -> Communicate:
+    """a_pl's first answer to the plan request that is not its ``agree``. Raises SetupRefused
+    when none comes within ``timeout`` s."""
+    while True:
+        try:
+            msg = decode(answers.get(timeout=timeout))
+        except queue.Empty:
+            raise SetupRefused(f"a_pl made no plan in this process within {timeout:.0f} s") from None
+        if msg.performative is not Performative.AGREE:
+            return msg
+
+
 def expected_plan(update: WorldUpdate | None = None, timeout: float = 60.0) -> HierarchicalPlan:
     """Plan #1 of the pour made in this process (module docstring) with a_km knowing
     ``update`` (default: the default kitchen). Raises SetupRefused when a_pl answers without a
@@ -89,25 +122,11 @@ def expected_plan(update: WorldUpdate | None = None, timeout: float = 60.0) -> H
     km.world.apply(update if update is not None else kitchen_update())
     answers: queue.SimpleQueue[bytes] = queue.SimpleQueue()
     bus.subscribe(keys.fipa_key("C3", "a_pl", "a_co"), lambda _k, p: answers.put(p))
-    threads = [threading.Thread(target=a.run, name=a.name, daemon=True) for a in (km, pl)]
-    for a in (km, pl):
-        a.bind()
-    for t in threads:
-        t.start()
     try:
-        bus.publish(keys.fipa_key("C3", "a_co", "a_pl"), pour_request(0))
-        while True:
-            try:
-                msg = decode(answers.get(timeout=timeout))
-            except queue.Empty:
-                raise SetupRefused(f"a_pl made no plan in this process within {timeout:.0f} s") from None
-            if msg.performative is not Performative.AGREE:
-                break
+        with _running(km, pl):
+            bus.publish(keys.fipa_key("C3", "a_co", "a_pl"), pour_request(0))
+            msg = _answer(answers, timeout)
     finally:
-        for a in (km, pl):
-            a.stop()
-        for t in threads:
-            t.join(timeout=5)
         km.close()
     plan = decode_content(msg.language, msg.content) if msg.language else None
     if not isinstance(plan, HierarchicalPlan):

@@ -245,25 +245,46 @@ def fleet_memory(docs: dict[str, Document]) -> Row:
     )
 
 
+def _shares(doc: Document, cells: list[str]) -> list[str]:
+    """The share in each overruns cell ``"N (x %)"``, as written; FiguresError when a cell
+    lacks it."""
+    shares = [re.search(r"\(([\d.]+) %\)", c) for c in cells]
+    if not all(shares):
+        raise FiguresError(f"{doc.path}: an overruns cell without its share '(x %)'")
+    return [m.group(1) for m in shares if m]
+
+
+def _world(cells: list[str]) -> str:
+    """The world process's cells ``late (resets) / stalls / stale (worst age) / held`` summed
+    over the runs, in words (scripts/bench_loop.py ``world``)."""
+    runs = [re.findall(r"\d+", c) for c in cells if c.strip() not in ("", "-")]
+    if not runs:
+        return "the world process's timing not measured"
+    late, resets, stalls, stale = (sum(int(r[i]) for r in runs) for i in (0, 1, 2, 3))
+    return (
+        f"the world process: {late} late cycles, {resets} schedule resets, {stalls} stalls, "
+        f"{stale} stale commands"
+    )
+
+
 def loop(docs: dict[str, Document]) -> Row:
     """scripts/bench_loop.py: ag_ex's 1 kHz loop in real time with the whole fleet; reads the
-    current run's ``fleet:`` rows (``compute p99 µs``, ``overruns``)."""
+    current run's ``fleet:`` rows (``compute p99 µs``, ``overruns``, and the world process's
+    ``world: …`` cell)."""
     doc = docs[LOOP]
     t = doc.table("", "condition")
     p99, over = t.column("compute p99 µs", LOOP), t.column("overruns", LOOP)
     rows = t.rows_starting("fleet:")
     if not rows:
         raise FiguresError(f"{doc.path}: no 'fleet:' row in its current run")
-    shares = [re.search(r"\(([\d.]+) %\)", r[over]) for r in rows]
-    if not all(shares):
-        raise FiguresError(f"{doc.path}: an overruns cell without its share '(x %)'")
-    share_cells = [m.group(1) for m in shares if m]
+    share_cells = _shares(doc, [r[over] for r in rows])
+    world = _world([r[t.column("world", LOOP)] for r in rows])
     work_ok = all(targets.LOOP_WORK_P99.met(number(r[p99])) for r in rows)
     over_ok = all(targets.LOOP_OVERRUNS.met(float(s)) for s in share_cells)
     return Row(
         "ag_ex's 1 kHz loop in real time, whole fleet",
         f"cycle work p99 {_span([r[p99] for r in rows])} µs, {_span(share_cells)} % of cycles overrun "
-        f"({len(rows)} runs)",
+        f"({len(rows)} runs); {world}",
         f"targets {targets.LOOP_WORK_P99.text()} and {targets.LOOP_OVERRUNS.text()} in every run: "
         f"{'met' if work_ok and over_ok else 'missed'}",
         doc,

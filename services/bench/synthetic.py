@@ -277,13 +277,10 @@ class BenchInitiator(Agent):
         n = self.job[1]
         now = time.perf_counter()  # every inform of this step was taken in by now
         before = self.count
-        while self.x:
-            item = self.x.popleft()
-            if item.performative is Performative.INFORM and item.msg.conversation_id == self.conversation:
-                self.count += 1
-            elif item.performative is not Performative.AGREE:  # not-understood, refuse, failure
-                self._finish({"error": f"{item.performative.value} from {item.sender} to a subscribe"})
-                return
+        refused = self._take_informs()
+        if refused is not None:
+            self._finish({"error": refused})
+            return
         if self.count > before:
             if before == 0:  # the rate counts what arrived after the first step that saw any
                 self.t_first, self.first = now, self.count
@@ -294,6 +291,17 @@ class BenchInitiator(Agent):
             self._finish(
                 {"kind": "stream", "count": self.count, "first": self.first, "span_s": span, "sent": n}
             )
+
+    def _take_informs(self) -> str | None:
+        """Count the stream's informs in the input buffer; what ended the stream instead (a
+        not-understood, refuse or failure to the subscribe), or None."""
+        while self.x:
+            item = self.x.popleft()
+            if item.performative is Performative.INFORM and item.msg.conversation_id == self.conversation:
+                self.count += 1
+            elif item.performative is not Performative.AGREE:
+                return f"{item.performative.value} from {item.sender} to a subscribe"
+        return None
 
 
 class BenchParticipant(Agent):
