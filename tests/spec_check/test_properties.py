@@ -271,3 +271,22 @@ def test_a_preempted_in_another_conversation_does_not_follow_the_cancel(urgent: 
     (prop,) = LEAVES["R2.1"].properties
     elsewhere = urgent.relink(_sw("Preempted"), conversation_id="elsewhere")
     assert evaluate(prop, _causal(elsewhere)).verdict == Verdict.VIOLATED
+
+
+def test_the_decision_is_the_next_plan_not_any_later_one(urgent: Recorded) -> None:
+    """R1.2's plan step is ``next``: the pour's plan sent first after the urgent command was
+    agreed means a_co chose the pour, even though the cup's plan comes later."""
+    (prop,) = LEAVES["R1.2"].properties
+    cup = next(m for m in urgent.messages if _cup_request(m)).conversation
+    pour_again = next(
+        m.conversation
+        for m in urgent.messages
+        if m.channel == "C1" and m.performative == "request" and m.conversation != f"{cup}-exec2" and m.t > 30
+    )
+
+    def first_cup_plan(m: Message) -> bool:
+        return m.channel == "C1" and m.performative == "request" and m.conversation == f"{cup}-exec2"
+
+    swapped = urgent.move(lambda m: m.channel == "C1" and m.conversation == pour_again, before=first_cup_plan)
+    assert evaluate(prop, _causal(urgent)).verdict == Verdict.SHOWN
+    assert evaluate(prop, _causal(swapped)).verdict == Verdict.NOT_EXERCISED
