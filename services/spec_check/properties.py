@@ -117,20 +117,23 @@ class _Partial:
 @dataclass(frozen=True)
 class Outcome:
     """A property in one run: its ``verdict``; ``events`` the communicates bound to its steps
-    by the match that got furthest (all of them when shown)."""
+    by the match that got furthest (all of them when shown); ``capped``: partial matches were
+    dropped (:data:`MAX_PARTIALS`), so a match may have been missed."""
 
     prop: Property
     verdict: Verdict
     events: tuple[Message, ...]
+    capped: bool = False
 
     def describe(self) -> str:
         """``shown: 18.3 s, 18.4 s`` or ``not exercised: steps 1–2 matched, then no C1 …``."""
         steps = self.prop.steps
+        capped = f" (partial matches capped at {MAX_PARTIALS})" if self.capped else ""
         if self.verdict == Verdict.SHOWN:
-            return f"{self.verdict}: events at " + ", ".join(f"{m.t:.1f} s" for m in self.events)
+            return f"{self.verdict}: events at " + ", ".join(f"{m.t:.1f} s" for m in self.events) + capped
         got = len(self.events)
         matched = "no step matched" if got == 0 else f"steps 1–{got} matched" if got > 1 else "step 1 matched"
-        return f"{self.verdict}: {matched}, then no {steps[got].describe()}"
+        return f"{self.verdict}: {matched}, then no {steps[got].describe()}{capped}"
 
 
 Closed = dict[tuple[str, str | None], set[str]]
@@ -183,7 +186,7 @@ class Monitor:
     def outcome(self, final: bool = True) -> Outcome:
         """The verdict with the events of the furthest match."""
         events = self.shown_by if self.shown_by is not None else self._furthest
-        return Outcome(self.prop, self.verdict(final), events)
+        return Outcome(self.prop, self.verdict(final), events, self.capped)
 
     # -----------------------------------------------------------------------------------------
 

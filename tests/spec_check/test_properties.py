@@ -290,3 +290,13 @@ def test_the_decision_is_the_next_plan_not_any_later_one(urgent: Recorded) -> No
     swapped = urgent.move(lambda m: m.channel == "C1" and m.conversation == pour_again, before=first_cup_plan)
     assert evaluate(prop, _causal(urgent)).verdict == Verdict.SHOWN
     assert evaluate(prop, _causal(swapped)).verdict == Verdict.NOT_EXERCISED
+
+
+def test_a_capped_evaluation_says_so(urgent: Recorded, monkeypatch: pytest.MonkeyPatch) -> None:
+    from services.spec_check import properties
+
+    (prop,) = LEAVES["R1.1"].properties
+    assert not evaluate(prop, _causal(urgent)).capped
+    monkeypatch.setattr(properties, "MAX_PARTIALS", 1)
+    outcome = evaluate(prop, _causal(urgent))
+    assert outcome.capped and "(partial matches capped at 1)" in outcome.describe()
