@@ -1450,17 +1450,20 @@ def spec_trace(
     run_dirs: Annotated[list[Path], typer.Argument(metavar="RUN…", help="run folders")],
     spec: SpecFile = None,
     require_shown: Annotated[
-        bool, typer.Option("--require-shown", help="exit 1 also when a leaf requirement is not shown")
+        bool, typer.Option("--require-shown", help="exit 1 also when a leaf requirement is not exercised")
     ] = False,
 ) -> None:
     """The requirement tree (paper Figure 5) with, for each leaf requirement, the steps and
     channels that serve it, the tests that name it (`@pytest.mark.requirement("R1.2")` in
-    tests/, read without running them), the communicates of each RUN that exercise it (its
-    `evidence` in the specification) and a verdict: *shown*, *not shown* or *contradicted*
-    (a conformance violation on a channel serving it, or a failed command for a requirement
-    with `task = true`). Exit 1 when a leaf is contradicted, and with --require-shown also
-    when one is not shown; exit 2 for a specification, run folder or marker that cannot be
-    read (docs/spec.md, "Requirements traced to evidence")."""
+    tests/, read without running them), its `properties` in the specification evaluated over
+    each RUN's communicates in causal order (what must have happened, in order and linked by
+    conversation-id and in-reply-to) and a verdict: *shown* (every property held in one run),
+    *violated* (a conformance violation on a channel serving it, a failed command for a
+    requirement with `task = true`, or a property whose situation happened and whose rest did
+    not follow) or *not exercised*. Exit 0 when no leaf is violated; 1 when a leaf is
+    violated, and with --require-shown also when one is not exercised; 2 for a specification,
+    run folder or marker that cannot be read (docs/spec.md, "Requirements traced to
+    evidence")."""
     from services.spec_check.trace import TraceError, trace_report
 
     try:

@@ -293,14 +293,14 @@ def _robot_span(clock: RobotClock, start: float, end: float | None) -> str:
 
 REQUIREMENTS_NOTE = (
     "Each requirement of the specification (paper Figure 5) with the decomposition steps and "
-    "channels that serve it, the communicates of this run that exercise it (its `evidence` in "
-    "the specification: channel, protocol, performative, content term; how many, and when "
-    "the first and the last arrived), the tests that name it "
-    "(`@pytest.mark.requirement`) and the verdict: *contradicted* when `roco spec verify` "
-    "found a violation on a channel serving it, or, for a requirement about the task, a "
-    "command failed; *shown* when every evidence statement was matched; else *not shown*. A "
-    "requirement with children is shown when all its leaves are. The same as `roco spec "
-    "trace RUN` (docs/spec.md)."
+    "channels that serve it, its properties (what must have happened, in order and linked by "
+    "conversation-id and in-reply-to; its `properties` in the specification) with their verdict "
+    "in this run and when the first and the last matched event arrived, the tests that name it "
+    "(`@pytest.mark.requirement`) and the verdict: *violated* when `roco spec verify` found a "
+    "violation on a channel serving it, for a requirement about the task a command failed, or "
+    "a property's situation happened and the rest did not follow; *shown* when every property "
+    "held; else *not exercised*. A requirement with children is shown when all its leaves are. "
+    "The same as `roco spec trace RUN` (docs/spec.md)."
 )
 
 

@@ -227,13 +227,13 @@ class CoverageSummary(msgspec.Struct, kw_only=True):
 class RequirementRow(msgspec.Struct, kw_only=True):
     """One requirement of the specification traced to this run (a generalised paper Table 7:
     where Table 7 names the channels each event used, this names, per requirement, the
-    channels serving it and the communicates of the run that exercise it;
+    channels serving it and whether the run did what it asks;
     services/spec_check/trace.py). ``depth``: 0 for the root; ``steps`` and ``channels``
-    (``C2 (a_co–a_hi)``) serve it; ``evidence``: per evidence statement, how many
-    communicates matched (``C2 fipa-request request HumanCommand: 1``), empty for a
-    requirement with children; ``first_t``/``last_t``: the first and last of them (s since
-    the run start); ``tests``: the tests that name it; ``verdict``: shown, not shown or
-    contradicted; ``against``: why it is contradicted."""
+    (``C2 (a_co–a_hi)``) serve it; ``evidence``: per property, its text and verdict in
+    this run (``a_km answers a knowledge query: shown``), empty for a requirement with
+    children; ``first_t``/``last_t``: the first and last event matched (s since the run
+    start); ``tests``: the tests that name it; ``verdict``: shown, not exercised or
+    violated; ``against``: why it is violated besides its properties."""
 
     id: str
     depth: int

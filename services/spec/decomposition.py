@@ -12,7 +12,12 @@ Schema (TOML, beside the channels in the same file; every field below is validat
                                   the communicates that exercise the requirement in a run, all
                                   of them (``roco spec trace``, services/spec/requirements.py);
                                   absent: one communicate on every channel serving it
-    task = true                   a failed command of a run contradicts it (default false)
+    properties = [{ text = "...", exercised = 2, steps = [{ name = "cmd", channel = "C2", ... },
+                  { channel = "C2", performative = "agree", answers = "cmd" }] }, ...]
+                                  what must have happened for the requirement to be met, all of
+                                  them in one run (services/spec/properties.py); when given,
+                                  ``evidence`` is not used
+    task = true                   a failed command of a run violates it (default false)
 
     [[steps]]                     the decomposition, in order (Tables 1–2)
     number = 1                    1, 2, 3, ...
@@ -43,6 +48,7 @@ from pathlib import Path
 import msgspec
 
 from services.spec.model import DEFAULT_SPEC, SpecError, one_line, read_text
+from services.spec.properties import Property
 
 
 class Evidence(msgspec.Struct, frozen=True, forbid_unknown_fields=True, kw_only=True):
@@ -67,13 +73,16 @@ class Evidence(msgspec.Struct, frozen=True, forbid_unknown_fields=True, kw_only=
 
 
 class Requirement(msgspec.Struct, frozen=True, forbid_unknown_fields=True, kw_only=True):
-    """A node of the requirement tree (``parent`` None for the root); ``evidence``: the
-    communicates that exercise it in a run (:class:`Evidence`, all of them; empty: one on each
-    channel serving it); ``task``: a failed command of a run contradicts it."""
+    """A node of the requirement tree (``parent`` None for the root); ``properties``: what must
+    have happened in a run for it to be met (:class:`~services.spec.properties.Property`, all
+    of them); without them, ``evidence``: the communicates that exercise it in a run
+    (:class:`Evidence`, all of them; empty: one on each channel serving it); ``task``: a failed
+    command of a run violates it."""
 
     id: str
     text: str
     parent: str | None = None
+    properties: tuple[Property, ...] = ()
     evidence: tuple[Evidence, ...] = ()
     task: bool = False
 

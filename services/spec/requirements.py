@@ -5,11 +5,13 @@ serve each requirement, and which communicates of a run exercise it.
 A step serves the requirements it lists (``[[steps]] requirements``) with the channels it
 creates (``new_channels``), reallocates (``reallocated``) and supplements (``supplemented``);
 a requirement is served by the channels of every step that lists it, each named ``C<k>`` as in
-``[[channels]]``, where it joins two agents. A requirement's ``evidence``
-(:class:`~services.spec.decomposition.Evidence`) says which communicates on those channels
-exercise it; without one, a communicate on each serving channel does (:func:`evidence_of`).
-:func:`evidence_problems` checks the statements against the channels (``roco spec check``
-reports them; ``roco spec trace`` refuses a file that has any).
+``[[channels]]``, where it joins two agents. A requirement's ``properties``
+(:class:`~services.spec.properties.Property`) say what must have happened on those channels
+for it to be met; without them, each ``evidence`` statement
+(:class:`~services.spec.decomposition.Evidence`) is a property of one step, and without
+either, a communicate on each serving channel is (:func:`properties_of`).
+:func:`evidence_problems` checks the statements and the properties' steps against the
+channels (``roco spec check`` reports them; ``roco spec trace`` refuses a file that has any).
 """
 
 from __future__ import annotations
@@ -18,6 +20,7 @@ from dataclasses import dataclass
 
 from services.spec.decomposition import Decomposition, Evidence, Requirement, Step
 from services.spec.model import NOT_UNDERSTOOD, ChannelProtocol, ChannelSpec, SystemSpec
+from services.spec.properties import EventPattern, Property, property_problems
 
 
 @dataclass(frozen=True)
@@ -69,11 +72,45 @@ def evidence_of(requirement: Requirement, serving: Served) -> tuple[Evidence, ..
     return tuple(Evidence(channel=c) for c in serving.channels)
 
 
+def properties_of(requirement: Requirement, serving: Served) -> tuple[Property, ...]:
+    """What must have happened for ``requirement`` to be met: its own ``properties``; else one
+    property of one step per ``evidence`` statement (:func:`evidence_of`)."""
+    if requirement.properties:
+        return requirement.properties
+    return tuple(
+        Property(
+            text=ev.describe(),
+            steps=(
+                EventPattern(
+                    channel=ev.channel,
+                    protocol=ev.protocol,
+                    performative=ev.performative,
+                    content=ev.content,
+                    at_least=ev.at_least,
+                ),
+            ),
+        )
+        for ev in evidence_of(requirement, serving)
+    )
+
+
+def _as_evidence(step: EventPattern) -> Evidence:
+    """The part of ``step`` the channels say something about."""
+    return Evidence(
+        channel=step.channel,
+        protocol=step.protocol,
+        performative=step.performative,
+        content=step.content,
+        at_least=step.at_least,
+    )
+
+
 def evidence_problems(d: Decomposition, spec: SystemSpec) -> list[str]:
-    """Every ``evidence`` statement that does not fit the specification, as sentences: its
-    channel must serve the requirement and exist; its protocol must be one of the channel's;
-    its performative one a role of that protocol may send (or ``not-understood``); its content
-    a term the channel lists for that performative; ``at_least`` at least 1."""
+    """Every ``evidence`` statement and property step that does not fit the specification, as
+    sentences: its channel must serve the requirement and exist; its protocol must be one of
+    the channel's; its performative one a role of that protocol may send (or
+    ``not-understood``); its content a term the channel lists for that performative;
+    ``at_least`` at least 1; and each property as :func:`property_problems` says."""
     serving = served(d)
     channels = {c.name: c for c in spec.channels}
     problems: list[str] = []
@@ -82,6 +119,12 @@ def evidence_problems(d: Decomposition, spec: SystemSpec) -> list[str]:
             where = f"requirement {r.id}, evidence {n} ({ev.describe()})"
             found = _problems(ev, serving[r.id], channels.get(ev.channel), spec)
             problems += [f"{where}: {p}" for p in found]
+        for n, prop in enumerate(r.properties, 1):
+            where = f"requirement {r.id}, property {n} ({prop.text})"
+            problems += [f"{where}: {p}" for p in property_problems(prop)]
+            for k, step in enumerate(prop.steps, 1):
+                found = _problems(_as_evidence(step), serving[r.id], channels.get(step.channel), spec)
+                problems += [f"{where}, step {k} ({step.describe()}): {p}" for p in found]
     return problems
 
 

@@ -8,44 +8,46 @@ For each leaf requirement:
   services/spec/requirements.py ``served``);
 - **tests**: the tests that name it with ``@pytest.mark.requirement("R…")``, found by reading
   the test files (services/spec_check/marks.py; nothing is run);
-- **events**: per run, how many recorded communicates match each of its ``evidence``
-  statements in the specification (channel, protocol, performative, content term; a copy of
-  a communicate is not counted again), and when the first and the last of them arrived;
-  without a statement, the communicates on each serving channel;
+- **properties**: per run, each of its ``properties`` (services/spec/properties.py; a leaf
+  without them: one property per ``evidence`` statement, or per serving channel) evaluated over
+  the run's communicates in causal order (services/report/causal.py) by
+  services/spec_check/properties.py, with the times of the events that matched;
 - **verdict**, one of :class:`Verdict`:
 
-  - *contradicted*: in some run, ``roco spec verify`` (services/spec_check/conformance.py)
-    found a violation on a channel serving the requirement, or the requirement says
-    ``task = true`` and a command of the run failed (a_co answered it on C2 with a failed
-    ``CommandOutcome``, a failure or a refuse: services/report/coordination.py ``commands``;
-    a command the person stopped did not fail);
-  - *shown*: not contradicted, and in one run every evidence statement was matched at least
-    ``at_least`` times;
-  - *not shown*: neither: the runs did not exercise it (or nothing serves it).
+  - *violated*: in some run, ``roco spec verify`` (services/spec_check/conformance.py) found a
+    violation on a channel serving the requirement; or the requirement says ``task = true``
+    and a command of the run failed (a_co answered it on C2 with a failed ``CommandOutcome``,
+    a failure or a refuse: services/report/coordination.py ``commands``; a command the person
+    stopped did not fail); or the run matched a property's situation (its first
+    ``exercised`` steps) and not the rest;
+  - *shown*: not violated, and in one run every property matched;
+  - *not exercised*: neither: no run brought about what it is about (or nothing serves it).
 
-A requirement with children is judged from its leaves: contradicted when one is, shown when
-all are, else not shown. ``roco spec trace`` exits 1 when a leaf is contradicted and, with
-``--require-shown``, also when one is not shown; 2 for a specification, a run folder or a
-marker that cannot be read.
+A requirement with children is judged from its leaves: violated when one is, shown when all
+are, else not exercised. ``roco spec trace`` exits 0 when no leaf is violated (and, with
+``--require-shown``, every leaf is shown); 1 when a leaf is violated or, with
+``--require-shown``, one is not exercised; 2 for a specification, a run folder or a marker
+that cannot be read.
 """
 
 from __future__ import annotations
 
-import enum
 from collections import Counter
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from services.report.causal import causal_order, send_order
 from services.report.coordination import commands
 from services.report.load import Message, RunData, load_run
 from services.report.model import RequirementRow
-from services.spec.decomposition import Decomposition, Evidence, Requirement, load_decomposition
+from services.spec.decomposition import Decomposition, Requirement, load_decomposition
 from services.spec.model import SpecError, SystemSpec, load, spec_path
 from services.spec.protocol_defs import protocols_of
-from services.spec.requirements import Served, children, evidence_of, evidence_problems, leaves, served
+from services.spec.requirements import Served, children, evidence_problems, leaves, properties_of, served
 from services.spec_check.conformance import verify_run
 from services.spec_check.marks import TESTS, MarkError, by_requirement, marked_tests
+from services.spec_check.properties import Outcome, Verdict, evaluate
 from shared.fipa_codec.protocols import Protocol
 
 __all__ = [
@@ -61,37 +63,14 @@ __all__ = [
 ]
 
 
-class Verdict(enum.StrEnum):
-    """What the evidence says of a requirement (see the module docstring)."""
-
-    SHOWN = "shown"
-    NOT_SHOWN = "not shown"
-    CONTRADICTED = "contradicted"
-
-
 class TraceError(ValueError):
     """A specification, run folder or test marker that cannot be read; one line naming it."""
 
 
 @dataclass(frozen=True)
-class Matched:
-    """The communicates of one run that match one evidence statement: how many, and when the
-    first and the last arrived (s since the run began; None when none did)."""
-
-    evidence: Evidence
-    count: int
-    first_t: float | None = None
-    last_t: float | None = None
-
-    @property
-    def enough(self) -> bool:
-        return self.count >= self.evidence.at_least
-
-
-@dataclass(frozen=True)
 class RunFacts:
     """What one run folder says: its ``label`` (the folder's name), its communicates
-    (``messages``, copies left out), the conformance ``violations`` per channel, the
+    (``messages``, copies left out, in causal order), the conformance ``violations`` per channel, the
     ``failed`` commands' texts, and ``notes`` on reading it."""
 
     label: str
@@ -103,21 +82,25 @@ class RunFacts:
 
 @dataclass(frozen=True)
 class RunJudgement:
-    """One leaf in one run: each evidence statement's matches and the reasons the run
-    contradicts the leaf (empty: it does not)."""
+    """One leaf in one run: each property's outcome and the reasons the run violates the leaf
+    besides its properties (empty: none)."""
 
     run: str
-    matched: tuple[Matched, ...]
+    outcomes: tuple[Outcome, ...]
     against: tuple[str, ...]
 
     @property
-    def shown(self) -> bool:
-        return bool(self.matched) and all(m.enough for m in self.matched)
+    def verdict(self) -> Verdict:
+        if self.against or any(o.verdict == Verdict.VIOLATED for o in self.outcomes):
+            return Verdict.VIOLATED
+        if self.outcomes and all(o.verdict == Verdict.SHOWN for o in self.outcomes):
+            return Verdict.SHOWN
+        return Verdict.NOT_EXERCISED
 
     @property
     def span(self) -> tuple[float, float] | None:
-        """The first and last matching communicate (s since the run began), None without one."""
-        times = [t for m in self.matched for t in (m.first_t, m.last_t) if t is not None]
+        """The first and last matched event (s since the run began), None without one."""
+        times = [m.t for o in self.outcomes for m in o.events]
         return (min(times), max(times)) if times else None
 
 
@@ -133,9 +116,11 @@ class LeafTrace:
 
     @property
     def verdict(self) -> Verdict:
-        if any(j.against for j in self.runs):
-            return Verdict.CONTRADICTED
-        return Verdict.SHOWN if any(j.shown for j in self.runs) else Verdict.NOT_SHOWN
+        verdicts = {j.verdict for j in self.runs}
+        for v in (Verdict.VIOLATED, Verdict.SHOWN):
+            if v in verdicts:
+                return v
+        return Verdict.NOT_EXERCISED
 
 
 @dataclass
@@ -158,9 +143,9 @@ class Trace:
         if rid in self.leaves:
             return self.leaves[rid].verdict
         below = [self.verdict(c.id) for c in children(self.d).get(rid, [])]
-        if Verdict.CONTRADICTED in below:
-            return Verdict.CONTRADICTED
-        return Verdict.SHOWN if below and all(v == Verdict.SHOWN for v in below) else Verdict.NOT_SHOWN
+        if Verdict.VIOLATED in below:
+            return Verdict.VIOLATED
+        return Verdict.SHOWN if below and all(v == Verdict.SHOWN for v in below) else Verdict.NOT_EXERCISED
 
     def count(self, verdict: Verdict) -> list[str]:
         """The leaves with ``verdict``, in file order."""
@@ -175,35 +160,20 @@ def run_facts(run: RunData, spec: SystemSpec, protocols: Mapping[str, Protocol] 
     the state machines ``protocols`` (None: FIPA's, as :func:`verify_run`)."""
     conformance = verify_run(run.run_dir, spec, protocols=protocols)
     notes = [] if conformance.record.intact else [f"traffic record {conformance.record.summary()}"]
+    causal, _ = causal_order([m for m in run.messages if m.copy_of is None])
+    ordered, _ = send_order(causal)
     return RunFacts(
         label=Path(run.run_dir).name,
-        messages=tuple(m for m in run.messages if m.copy_of is None),
+        messages=tuple(ordered),
         violations=Counter(v.channel for v in conformance.violations),
         failed=tuple(row.text for row in commands(run.messages) if row.outcome == "failed"),
         notes=tuple(notes),
     )
 
 
-def _matches(ev: Evidence, m: Message) -> bool:
-    rec = m.rec
-    return (
-        rec.channel == ev.channel
-        and ev.protocol in (None, rec.protocol)
-        and ev.performative in (None, rec.performative)
-        and (ev.content is None or type(m.content).__name__ == ev.content)
-    )
-
-
-def _matched(ev: Evidence, messages: Sequence[Message]) -> Matched:
-    times = [m.t for m in messages if _matches(ev, m)]
-    if not times:
-        return Matched(ev, 0)
-    return Matched(ev, len(times), min(times), max(times))
-
-
 def judge(requirement: Requirement, serving: Served, facts: RunFacts) -> RunJudgement:
-    """``requirement`` in one run: its evidence statements matched, and what contradicts it
-    (a violation on a serving channel; a failed command when it says ``task = true``)."""
+    """``requirement`` in one run: its properties evaluated, and what else violates it (a
+    violation on a serving channel; a failed command when it says ``task = true``)."""
     against = [
         f"{facts.violations[c]} conformance violation(s) on {c} in {facts.label}"
         for c in serving.channels
@@ -211,8 +181,8 @@ def judge(requirement: Requirement, serving: Served, facts: RunFacts) -> RunJudg
     ]
     if requirement.task:
         against += [f"command failed in {facts.label}: {text}" for text in facts.failed]
-    matched = tuple(_matched(ev, facts.messages) for ev in evidence_of(requirement, serving))
-    return RunJudgement(facts.label, matched, tuple(against))
+    outcomes = tuple(evaluate(p, facts.messages) for p in properties_of(requirement, serving))
+    return RunJudgement(facts.label, outcomes, tuple(against))
 
 
 def _tests(tests: Path | None, known: set[str]) -> dict[str, list[str]]:
@@ -283,18 +253,6 @@ def trace(spec_path: Path, run_dirs: Sequence[Path], tests: Path | None = TESTS)
 # ---------------------------------------------------------------------------------------------
 
 
-def _s(t: float) -> str:
-    return f"{t:.1f} s"
-
-
-def _matched_text(m: Matched) -> str:
-    need = f" (needs {m.evidence.at_least})" if not m.enough and m.evidence.at_least > 1 else ""
-    if m.first_t is None or m.last_t is None:
-        return f"{m.evidence.describe()}: none{need}"
-    when = _s(m.first_t) if f"{m.first_t:.1f}" == f"{m.last_t:.1f}" else f"{_s(m.first_t)}–{_s(m.last_t)}"
-    return f"{m.evidence.describe()}: {m.count} at {when}{need}"
-
-
 def _served_text(leaf: LeafTrace, ends: dict[str, tuple[str, str]]) -> str:
     if not leaf.served.steps:
         return "no step"
@@ -312,9 +270,9 @@ def _tests_lines(tests: Sequence[str], pad: str) -> list[str]:
 def _leaf_lines(leaf: LeafTrace, t: Trace, pad: str) -> list[str]:
     lines = [f"{pad}  served by: {_served_text(leaf, t.ends)}", *_tests_lines(leaf.tests, pad)]
     for j in leaf.runs:
-        lines.append(f"{pad}  events in {j.run}:" + ("" if j.matched else " none"))
-        lines += [f"{pad}    {_matched_text(m)}" for m in j.matched]
-        lines += [f"{pad}  against it: {reason}" for reason in j.against]
+        lines.append(f"{pad}  in {j.run}: {j.verdict}" + ("" if j.outcomes else " (no property)"))
+        lines += [f"{pad}    {o.prop.text}: {o.describe()}" for o in j.outcomes]
+        lines += [f"{pad}    against it: {reason}" for reason in j.against]
     return lines
 
 
@@ -331,7 +289,7 @@ def _node_lines(t: Trace, r: Requirement, depth: int) -> list[str]:
 
 
 def summary(t: Trace) -> str:
-    """``leaves: 9 shown, 1 not shown (R1.4), 0 contradicted``."""
+    """``leaves: 9 shown, 1 not exercised (R1.4), 0 violated``."""
     parts = []
     for v in Verdict:
         ids = t.count(v)
@@ -341,7 +299,7 @@ def summary(t: Trace) -> str:
 
 def render(t: Trace) -> str:
     """The tree as text: each requirement with its verdict, each leaf with what serves it,
-    its tests and its events per run; then the notes and the summary."""
+    its tests and its properties' outcomes per run; then the notes and the summary."""
     runs = ", ".join(t.runs) or "none"
     lines = [f"Requirements of {t.system} ({t.path}) traced to evidence; runs: {runs}"]
     for root in children(t.d).get(None, []):
@@ -354,10 +312,10 @@ def render(t: Trace) -> str:
 def trace_report(
     run_dirs: Sequence[Path], spec_path: Path, *, require_shown: bool = False, tests: Path | None = TESTS
 ) -> tuple[int, str]:
-    """``roco spec trace``: (exit code, text). 0: no leaf contradicted (and, with
+    """``roco spec trace``: (exit code, text). 0: no leaf violated (and, with
     ``require_shown``, every leaf shown); 1: otherwise. Raises TraceError (exit 2)."""
     t = trace(spec_path, run_dirs, tests)
-    failed = bool(t.count(Verdict.CONTRADICTED)) or (require_shown and bool(t.count(Verdict.NOT_SHOWN)))
+    failed = bool(t.count(Verdict.VIOLATED)) or (require_shown and bool(t.count(Verdict.NOT_EXERCISED)))
     return (1 if failed else 0), render(t)
 
 
@@ -379,7 +337,7 @@ def _row(t: Trace, r: Requirement, depth: int) -> RequirementRow:
     )
     if leaf is not None and leaf.runs:
         j = leaf.runs[0]
-        row.evidence = [f"{m.evidence.describe()}: {m.count}" for m in j.matched]
+        row.evidence = [f"{o.prop.text}: {o.verdict}" for o in j.outcomes]
         row.against = list(j.against)
         row.first_t, row.last_t = j.span or (None, None)
     return row

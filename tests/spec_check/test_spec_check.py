@@ -79,24 +79,34 @@ BROKEN = [
         "C3 fipa-request: the size estimate of request must be 0 < min ≤ max, not [1000, 100]",
     ),
     (
-        "evidence on a channel that does not serve the requirement",
-        '{ channel = "C6", protocol = "fipa-subscribe", performative = "subscribe", content = "Subscr',
-        '{ channel = "C5", protocol = "fipa-subscribe", performative = "subscribe", content = "Subscr',
-        "requirement R3.2, evidence 1 (C5 fipa-subscribe subscribe Subscription): C5 does not serve it "
+        "a property step on a channel that does not serve the requirement",
+        '{ name = "sub", channel = "C6", protocol = "fipa-subscribe"',
+        '{ name = "sub", channel = "C5", protocol = "fipa-subscribe"',
+        "requirement R3.2, property 1 (a_ta agrees to a_km's subscription and informs it of the world "
+        "in it), step 1 (C5 fipa-subscribe subscribe Subscription a_km→*): C5 does not serve it "
         "(its steps: 6; their channels: C6)",
     ),
     (
-        "evidence with a content term the channel does not list",
+        "a property step with a content term the channel does not list",
         'performative = "query-ref", content = "SparqlQuery" }',
         'performative = "query-ref", content = "ObjectQuery" }',
-        "requirement R1.3, evidence 1 (C7 fipa-query query-ref ObjectQuery): C7 lists no content "
-        "ObjectQuery for it (listed: SparqlQuery)",
+        "requirement R1.3, property 1 (a_km answers a_hi's query for the names of things), "
+        "step 1 (C7 fipa-query query-ref ObjectQuery): C7 lists no content ObjectQuery for it "
+        "(listed: SparqlQuery)",
     ),
     (
-        "evidence with a performative no role of the protocol sends",
-        '{ channel = "C2", protocol = "fipa-request", performative = "agree" }',
-        '{ channel = "C2", protocol = "fipa-request", performative = "confirm" }',
-        "requirement R1.1, evidence 2 (C2 fipa-request confirm): no role of fipa-request on C2 sends confirm",
+        "a property step with a performative no role of the protocol sends",
+        '{ channel = "C2", protocol = "fipa-request", performative = "agree", answers = "cmd" }',
+        '{ channel = "C2", protocol = "fipa-request", performative = "confirm", answers = "cmd" }',
+        "requirement R1.1, property 1 (a_co agrees to a person's interpreted command, in reply to it), "
+        "step 2 (C2 fipa-request confirm): no role of fipa-request on C2 sends confirm",
+    ),
+    (
+        "a property step that names no earlier step",
+        '{ channel = "C2", protocol = "fipa-request", performative = "agree", answers = "cmd" }',
+        '{ channel = "C2", protocol = "fipa-request", performative = "agree", answers = "command" }',
+        "requirement R1.1, property 1 (a_co agrees to a person's interpreted command, in reply to it): "
+        "step 2 (C2 fipa-request agree): names command, which no earlier step is",
     ),
     (
         "a requirement under a parent that does not exist",

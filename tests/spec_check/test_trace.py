@@ -2,9 +2,10 @@
 the tests that name it, the run communicates that exercise it and a verdict
 (services/spec_check/trace.py).
 
-The runs are synthetic traffic records of real encoded communicates (tests/report/conftest.py's
-pour, with the communicates it lacks added: a_hi's vocabulary query on C7, a_pl's scene and
-hypothetical queries on C4, a foreign agent's sentence on C8); no fleet runs."""
+The runs are part of a recorded ``roco scenario urgent_mid_pour`` with a foreign agent's
+sentence on C8 added (tests/spec_check/recorded.py), and synthetic traffic records of real
+encoded communicates (tests/report/conftest.py's pour: one command, its messages without
+reply-with, so few properties hold there); no fleet runs."""
 
 from __future__ import annotations
 
@@ -25,6 +26,7 @@ from services.spec_check.trace import TraceError, Verdict, report_rows, trace, t
 from shared.fipa_codec.languages.l_hc import CommandOutcome, Sentence, SentenceReport
 from shared.fipa_codec.languages.l_wm import Answer, HypotheticalQuery, ObjectQuery, SceneQuery, SparqlQuery
 from tests.report.conftest import COMMAND_TEXT, STARTED, RunBuilder, pour_run, write_traffic
+from tests.spec_check.recorded import URGENT, Recorded
 
 SHIPPED = DEFAULT_SPEC.read_text()
 JADE = "da0@host:1099/JADE"
@@ -57,41 +59,66 @@ def _run(tmp_path: Path, b: RunBuilder, name: str = "run") -> Path:
     return run_dir
 
 
+def _c8() -> RunBuilder:
+    """A foreign agent's sentence answered on C8, 46 s into the run."""
+    b = RunBuilder()
+    r = {"protocol": "fipa-request", "conversation": "j1"}
+    b.add(46.0, "C8", JADE, "a_hi", "request", Sentence(text="what are you doing?"), reply_with="j1-r", **r)
+    b.add(
+        46.1,
+        "C8",
+        "a_hi",
+        JADE,
+        "inform",
+        SentenceReport(kind="status", text="nothing"),
+        in_reply_to="j1-r",
+        **r,
+    )
+    return b
+
+
 @pytest.fixture
 def complete(tmp_path: Path) -> Path:
-    return _run(tmp_path, _complete(pour_run()), "complete")
+    """The recorded urgent scenario with a sentence on C8: every leaf shown."""
+    return Recorded.read(URGENT).plus(_c8()).write(tmp_path / "complete")
 
 
 def test_every_leaf_of_a_run_that_exercises_it_is_shown(complete: Path) -> None:
     t = trace(DEFAULT_SPEC, [complete], tests=None)
     assert {rid: leaf.verdict for rid, leaf in t.leaves.items()} == dict.fromkeys(LEAVES, Verdict.SHOWN)
     assert t.verdict("R") is Verdict.SHOWN
-    # R2.1 needs two plans: the replan of the pour gives them, at the times they were sent
+    # R2.1: the urgent command at 18.3 s, the cancel at 18.4 s, Preempted 21.3 s, the cup's plan 21.5 s
     (judged,) = t.leaves["R2.1"].runs
-    assert [(m.count, m.first_t, m.last_t) for m in judged.matched][1:] == [(2, 12.0, 27.0), (2, 17.5, 30.0)]
+    assert [round(m.t, 1) for m in judged.outcomes[0].events] == [8.3, 18.3, 18.4, 18.4, 21.3, 21.5]
 
 
-def test_what_a_run_does_not_exercise_is_not_shown_and_says_what_is_missing(tmp_path: Path) -> None:
-    """The synthetic pour alone has no C7, no C8, and C4 answers by inform only."""
+def test_a_plain_pour_exercises_neither_the_decision_nor_the_interruption(tmp_path: Path) -> None:
+    """The synthetic pour: one command (no decision between two), no cancel; its requests
+    carry no reply-with, so nothing answers them; C4 answers by inform only; no C7, no C8."""
     run_dir = _run(tmp_path, pour_run())
     t = trace(DEFAULT_SPEC, [run_dir], tests=None)
-    assert t.count(Verdict.NOT_SHOWN) == ["R1.3", "R1.4", "R2.3", "R2.4"]
-    assert t.verdict("R1") is Verdict.NOT_SHOWN and t.verdict("R3") is Verdict.SHOWN
+    assert (
+        t.leaves["R1.2"].verdict is Verdict.NOT_EXERCISED
+        and t.leaves["R2.1"].verdict is Verdict.NOT_EXERCISED
+    )
+    assert t.count(Verdict.VIOLATED) == []
+    assert t.verdict("R1") is Verdict.NOT_EXERCISED
     code, text = trace_report([run_dir], DEFAULT_SPEC, tests=None)
     assert code == 0
-    assert "C8 fipa-request request Sentence: none" in text
-    assert "leaves: 6 shown, 4 not shown (R1.3, R1.4, R2.3, R2.4), 0 contradicted" in text
+    assert (
+        "a sentence from another platform is answered with its report: not exercised: no step matched" in text
+    )
+    assert "with two commands open, the next plan run is the more urgent one's, and it is answered: " in text
+    assert "not exercised: step 1 matched, then no C2 fipa-request request HumanCommand" in text
     assert trace_report([run_dir], DEFAULT_SPEC, tests=None, require_shown=True)[0] == 1
 
 
 def test_two_runs_together_show_what_each_shows(tmp_path: Path) -> None:
-    partial = _run(tmp_path, pour_run(), "partial")
-    gateway = RunBuilder()
-    _complete(gateway)
-    gateway_dir = _run(tmp_path, gateway, "gateway")
-    t = trace(DEFAULT_SPEC, [partial, gateway_dir], tests=None)
-    assert t.count(Verdict.NOT_SHOWN) == []  # R1.3, R2.3, R2.4, R1.4 by the second run
-    assert [j.shown for j in t.leaves["R1.4"].runs] == [False, True]
+    urgent = Recorded.read(URGENT).write(tmp_path / "urgent")
+    gateway_dir = _run(tmp_path, _c8(), "gateway")
+    t = trace(DEFAULT_SPEC, [urgent, gateway_dir], tests=None)
+    assert t.count(Verdict.NOT_EXERCISED) == []  # R1.4 by the second run, the rest by the first
+    assert [j.verdict for j in t.leaves["R1.4"].runs] == [Verdict.NOT_EXERCISED, Verdict.SHOWN]
 
 
 def test_a_planted_requirement_that_nothing_serves_is_not_shown(complete: Path, tmp_path: Path) -> None:
@@ -102,13 +129,13 @@ def test_a_planted_requirement_that_nothing_serves_is_not_shown(complete: Path, 
     code, text = trace_report([complete], spec, tests=None)
     assert code == 0
     planted_lines = [
-        "R4 [not shown] fold the laundry",
+        "R4 [not exercised] fold the laundry",
         "served by: no step",
         "tests: none",
-        "events in complete: none",
+        "in complete: not exercised (no property)",
     ]
     assert "\n    ".join(planted_lines) in text
-    assert "R [not shown]" in text and "leaves: 10 shown, 1 not shown (R4), 0 contradicted" in text
+    assert "R [not exercised]" in text and "leaves: 10 shown, 1 not exercised (R4), 0 violated" in text
     proc = subprocess.run(
         [
             sys.executable,
@@ -124,7 +151,7 @@ def test_a_planted_requirement_that_nothing_serves_is_not_shown(complete: Path, 
         capture_output=True,
         text=True,
     )
-    assert proc.returncode == 1 and "1 not shown (R4)" in proc.stdout, proc.stdout + proc.stderr
+    assert proc.returncode == 1 and "1 not exercised (R4)" in proc.stdout, proc.stdout + proc.stderr
 
 
 def test_a_violation_on_a_serving_channel_contradicts_the_requirement(tmp_path: Path) -> None:
@@ -134,9 +161,9 @@ def test_a_violation_on_a_serving_channel_contradicts_the_requirement(tmp_path: 
     run_dir = _run(tmp_path, b)
     t = trace(DEFAULT_SPEC, [run_dir], tests=None)
     # C5 serves R3.1 only (step 5, with C1 and C6): the others stand
-    assert t.count(Verdict.CONTRADICTED) == ["R3.1"]
+    assert t.count(Verdict.VIOLATED) == ["R3.1"]
     assert t.leaves["R3.1"].runs[0].against == ("1 conformance violation(s) on C5 in run",)
-    assert t.verdict("R3") is Verdict.CONTRADICTED and t.verdict("R") is Verdict.CONTRADICTED
+    assert t.verdict("R3") is Verdict.VIOLATED and t.verdict("R") is Verdict.VIOLATED
     proc = subprocess.run(
         [sys.executable, "-m", "services.cli", "spec", "trace", str(run_dir)], capture_output=True, text=True
     )
@@ -159,7 +186,7 @@ def test_a_failed_command_contradicts_the_requirements_about_the_task(tmp_path: 
         protocol="fipa-request",
     )
     t = trace(DEFAULT_SPEC, [_run(tmp_path, _complete(failed))], tests=None)
-    assert t.count(Verdict.CONTRADICTED) == ["R3.1"]  # the only one with task = true
+    assert t.count(Verdict.VIOLATED) == ["R3.1"]  # the only one with task = true
     assert t.leaves["R3.1"].runs[0].against == ("command failed in run: pour the jar into the bowl",)
 
 
@@ -170,7 +197,7 @@ def test_a_folder_that_is_not_a_run_or_a_bad_spec_is_one_line_and_exit_2(
         trace(DEFAULT_SPEC, [tmp_path / "nothing"], tests=None)
     bad = tmp_path / "bad.toml"
     bad.write_text(SHIPPED.replace('content = "SparqlQuery" }', 'content = "Nonsense" }', 1))
-    with pytest.raises(TraceError, match=r"R1\.3, evidence 1 .*lists no content Nonsense"):
+    with pytest.raises(TraceError, match=r"R1\.3, property 1 .*, step 1 .*lists no content Nonsense"):
         trace(bad, [complete], tests=None)
     proc = subprocess.run(
         [sys.executable, "-m", "services.cli", "spec", "trace", str(complete), "--spec", str(bad)],

@@ -1,0 +1,130 @@
+"""The property language of the requirement tree: what must have happened in a run for a leaf
+requirement to be met (``roco spec trace``; the evaluator over records is
+services/spec_check/properties.py; docs/spec.md shows examples).
+
+A requirement's ``properties`` are all to hold in one run. A property is a sequence of event
+patterns (:class:`EventPattern`), matched *in order* ("then") by recorded communicates in causal order
+(services/report/causal.py); the communicates a match binds are the property's events. A step
+matches a communicate by what it is (channel, protocol, performative, content term, sender,
+receiver, content ``fields`` and ``minimum``) and by how it relates to the events of earlier
+steps, named by their ``name``:
+
+- ``same_conversation`` / ``other_conversation``: its conversation-id is / is not the named
+  event's (FIPA SC00061 §2.4);
+- ``answers``: it is in the named event's conversation and its in-reply-to is the named event's
+  reply-with (it is caused by that communicate);
+- ``while_open``: no inform, inform-ref, failure or refuse from another agent has been recorded
+  in the named event's conversation yet (the request is not answered);
+- ``refers``: ``{field = "name"}``: that content field holds the named event's conversation-id
+  (a_co's plans and plan requests name their command by its C2 conversation-id, ``task_id``);
+- ``above``: ``{field = "name"}``: that content field is larger than the same field of the
+  named event's content;
+- ``within_s``: at most this many seconds after the previous step's event;
+- ``next``: the first communicate after the previous step's event that fits the step's pattern
+  must also fit its relations (not any later one);
+- ``at_least``: that many communicates must match (the first is the step's event).
+
+A content field is a path: ``state``, ``goal.verb``, ``objects[bowl].particles_inside`` (the
+element of ``objects`` whose ``name`` is ``bowl``). ``fields`` compares a value as text (an
+enum by its value) or as a number; ``minimum`` asks for a number at least that large.
+
+``exercised`` says how many leading steps describe the situation the requirement is about:
+once a run matched them, the rest must follow, else the run *violates* the property (absent:
+all steps, so a property is then shown or not exercised, never violated by order alone).
+"""
+
+from __future__ import annotations
+
+import re
+
+import msgspec
+
+FieldValue = str | int | float | bool
+"""A value a content field is compared with."""
+
+_PATH = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*(\[[^\]]+\])?(\.[A-Za-z_][A-Za-z0-9_]*(\[[^\]]+\])?)*$")
+"""``name``, ``name[key]``, joined by dots."""
+
+
+class EventPattern(msgspec.Struct, frozen=True, forbid_unknown_fields=True, kw_only=True):
+    """One event pattern of a property (see the module docstring for each field)."""
+
+    channel: str
+    name: str | None = None
+    protocol: str | None = None
+    performative: str | None = None
+    content: str | None = None
+    sender: str | None = None
+    receiver: str | None = None
+    fields: dict[str, FieldValue] = {}
+    minimum: dict[str, float] = {}
+    at_least: int = 1
+    same_conversation: str | None = None
+    other_conversation: str | None = None
+    answers: str | None = None
+    while_open: str | None = None
+    refers: dict[str, str] = {}
+    above: dict[str, str] = {}
+    within_s: float | None = None
+    next: bool = False
+
+    def names(self) -> list[str]:
+        """The earlier steps this one names, in field order (repeats kept)."""
+        single = (self.same_conversation, self.other_conversation, self.answers, self.while_open)
+        return [n for n in single if n is not None] + list(self.refers.values()) + list(self.above.values())
+
+    def describe(self) -> str:
+        """``C1 coordinate inform SWStatus state=Preempted`` (only what is given)."""
+        parts = [self.channel, self.protocol, self.performative, self.content]
+        if self.sender is not None or self.receiver is not None:
+            parts.append(f"{self.sender or '*'}→{self.receiver or '*'}")
+        parts += [f"{k}={v}" for k, v in self.fields.items()]
+        parts += [f"{k}≥{v:g}" for k, v in self.minimum.items()]
+        words = " ".join(p for p in parts if p is not None)
+        return f"{words} ≥{self.at_least}" if self.at_least > 1 else words
+
+
+class Property(msgspec.Struct, frozen=True, forbid_unknown_fields=True, kw_only=True):
+    """What must have happened, in words (``text``) and as ``steps`` matched in order; the
+    first ``exercised`` steps are the situation (None: all of them)."""
+
+    text: str
+    steps: tuple[EventPattern, ...]
+    exercised: int | None = None
+
+    @property
+    def situation(self) -> int:
+        """How many leading steps make the run exercise the property."""
+        return len(self.steps) if self.exercised is None else self.exercised
+
+
+def property_problems(prop: Property) -> list[str]:
+    """What is wrong in ``prop`` itself, as sentences (its steps' patterns are checked against
+    the channels by services/spec/requirements.py): no steps; ``exercised`` outside 1..steps;
+    a name used twice; a step naming no earlier step; ``at_least`` below 1; ``within_s`` not
+    positive; a field path that is not ``a``, ``a[key]``, ``a.b``…"""
+    if not prop.steps:
+        return ["no steps"]
+    problems: list[str] = []
+    if not 1 <= prop.situation <= len(prop.steps):
+        problems.append(f"exercised must be 1 to {len(prop.steps)}, not {prop.situation}")
+    seen: set[str] = set()
+    for n, step in enumerate(prop.steps, 1):
+        where = f"step {n} ({step.describe()})"
+        problems += [f"{where}: {p}" for p in _step_problems(step, seen)]
+        if step.name is not None:
+            if step.name in seen:
+                problems.append(f"{where}: name {step.name} used twice")
+            seen.add(step.name)
+    return problems
+
+
+def _step_problems(step: EventPattern, earlier: set[str]) -> list[str]:
+    problems = [f"names {n}, which no earlier step is" for n in step.names() if n not in earlier]
+    if step.at_least < 1:
+        problems.append(f"at_least must be 1 or more, not {step.at_least}")
+    if step.within_s is not None and step.within_s <= 0:
+        problems.append(f"within_s must be positive, not {step.within_s}")
+    paths = [*step.fields, *step.minimum, *step.refers, *step.above]
+    problems += [f"field path {p!r} is not a, a[key], a.b, …" for p in paths if not _PATH.match(p)]
+    return problems

@@ -1,0 +1,273 @@
+"""Evaluate a requirement's properties (services/spec/properties.py) over a recorded run, one
+communicate at a time, so that the same evaluator serves a record read after the run and
+traffic as it arrives.
+
+:class:`Monitor` keeps every partial match of a property's steps (the events bound so far);
+:meth:`Monitor.feed` takes the next communicate in causal order (services/report/causal.py)
+and advances them. A property is *shown* once a partial match bound all its steps; it is
+*violated* when the run ended (:meth:`Monitor.verdict` with ``final``) after a partial match
+bound its first ``exercised`` steps but none bound them all; else *not exercised*.
+
+A step that no later step names, and that is not followed by a ``within_s`` or ``next`` step,
+binds the earliest communicate that fits (a later one cannot help a later step); any other
+binds each fitting communicate in turn (one partial match each). At most
+:data:`MAX_PARTIALS` partial matches are kept per property (the earliest ones); the monitor
+says so in :attr:`Monitor.capped`.
+"""
+
+from __future__ import annotations
+
+import enum
+import re
+from collections.abc import Iterable
+from dataclasses import dataclass
+from typing import Any
+
+from services.report.load import Message
+from services.spec.properties import EventPattern, FieldValue, Property
+
+__all__ = ["MAX_PARTIALS", "Monitor", "Outcome", "Verdict", "evaluate", "field_value"]
+
+MAX_PARTIALS = 10_000
+"""Partial matches kept per property."""
+
+CLOSING = frozenset({"inform", "inform-ref", "failure", "refuse"})
+"""Performatives that answer a request or query for good (FIPA SC00026, SC00027)."""
+
+_SEGMENT = re.compile(r"^([A-Za-z_][A-Za-z0-9_]*)(?:\[([^\]]+)\])?$")
+
+
+class Verdict(enum.StrEnum):
+    """What a run (or runs) say of a property or a requirement."""
+
+    SHOWN = "shown"
+    NOT_EXERCISED = "not exercised"
+    VIOLATED = "violated"
+
+
+_MISSING = object()
+
+
+def field_value(content: object, path: str) -> Any:
+    """The value at ``path`` (``a``, ``a[key]``, ``a.b``; ``[key]`` picks the element whose
+    ``name`` is ``key``) in ``content``; an enum as its value; None when a part is missing."""
+    value: Any = content
+    for segment in path.split("."):
+        m = _SEGMENT.match(segment)
+        if m is None or value is None:
+            return None
+        value = getattr(value, m.group(1), None)
+        if m.group(2) is not None:
+            value = next((x for x in value or () if getattr(x, "name", None) == m.group(2)), None)
+    return value.value if isinstance(value, enum.Enum) else value
+
+
+def _equal(value: Any, expected: FieldValue) -> bool:
+    if isinstance(expected, bool) or isinstance(value, bool):
+        return value is expected
+    if isinstance(expected, int | float):
+        return isinstance(value, int | float) and value == expected
+    return value is not None and str(value) == expected
+
+
+def _fits(step: EventPattern, m: Message) -> bool:
+    """``m`` is what ``step`` describes, leaving aside the earlier events."""
+    rec = m.rec
+    return (
+        rec.channel == step.channel
+        and step.protocol in (None, rec.protocol)
+        and step.performative in (None, rec.performative)
+        and step.sender in (None, rec.sender)
+        and (step.receiver is None or step.receiver in rec.receivers)
+        and _content_fits(step, m.content)
+    )
+
+
+def _content_fits(step: EventPattern, content: object) -> bool:
+    """``content`` is the term ``step`` names, with its ``fields`` and ``minimum``."""
+    return (
+        (step.content is None or type(content).__name__ == step.content)
+        and all(_equal(field_value(content, p), v) for p, v in step.fields.items())
+        and all(_at_least(field_value(content, p), v) for p, v in step.minimum.items())
+    )
+
+
+def _at_least(value: Any, minimum: float) -> bool:
+    return isinstance(value, int | float) and not isinstance(value, bool) and value >= minimum
+
+
+def _reply_with(m: Message) -> str | None:
+    return m.comm.reply_with if m.comm is not None else None
+
+
+def _in_reply_to(m: Message) -> str | None:
+    return m.comm.in_reply_to if m.comm is not None else None
+
+
+@dataclass(frozen=True)
+class _Partial:
+    """Steps ``0..step-1`` bound (``bound``: each one's first event), ``count`` communicates
+    matched of step ``step``."""
+
+    step: int
+    count: int
+    bound: tuple[Message, ...]
+
+
+@dataclass(frozen=True)
+class Outcome:
+    """A property in one run: its ``verdict``; ``events`` the communicates bound to its steps
+    by the match that got furthest (all of them when shown); ``capped``: partial matches were
+    dropped (:data:`MAX_PARTIALS`), so a match may have been missed."""
+
+    prop: Property
+    verdict: Verdict
+    events: tuple[Message, ...]
+    capped: bool = False
+
+    def describe(self) -> str:
+        """``shown: 18.3 s, 18.4 s`` or ``not exercised: steps 1–2 matched, then no C1 …``."""
+        steps = self.prop.steps
+        capped = f" (partial matches capped at {MAX_PARTIALS})" if self.capped else ""
+        if self.verdict == Verdict.SHOWN:
+            return f"{self.verdict}: events at " + ", ".join(f"{m.t:.1f} s" for m in self.events) + capped
+        got = len(self.events)
+        matched = "no step matched" if got == 0 else f"steps 1–{got} matched" if got > 1 else "step 1 matched"
+        return f"{self.verdict}: {matched}, then no {steps[got].describe()}{capped}"
+
+
+Closed = dict[tuple[str, str | None], set[str]]
+"""(channel, conversation-id) → the agents that answered in it for good."""
+Events = dict[str, Message]
+"""The events bound so far, by their step's name."""
+
+
+class Monitor:
+    """One property evaluated over one run's communicates, fed one by one in causal order."""
+
+    def __init__(self, prop: Property) -> None:
+        self.prop = prop
+        self._names = {s.name: i for i, s in enumerate(prop.steps) if s.name is not None}
+        named = {n for s in prop.steps for n in s.names()}
+        self._branch = [
+            (s.name is not None and s.name in named)
+            or (
+                i + 1 < len(prop.steps) and (prop.steps[i + 1].within_s is not None or prop.steps[i + 1].next)
+            )
+            for i, s in enumerate(prop.steps)
+        ]
+        self._partials: list[_Partial] = [_Partial(0, 0, ())]
+        self._closed: Closed = {}
+        self._furthest: tuple[Message, ...] = ()
+        self.shown_by: tuple[Message, ...] | None = None
+        self.exercised = False
+        self.capped = False
+
+    def feed(self, m: Message) -> None:
+        """Take the next communicate of the run (copies should be left out)."""
+        if self.shown_by is None:
+            advanced: dict[tuple[int, int, tuple[int, ...]], _Partial] = {}
+            for p in self._partials:
+                for q in self._advance(p, m):
+                    advanced.setdefault((q.step, q.count, tuple(id(x) for x in q.bound)), q)
+            self._partials = list(advanced.values())
+            if len(self._partials) > MAX_PARTIALS:
+                self._partials, self.capped = self._partials[:MAX_PARTIALS], True
+        if m.performative in CLOSING:
+            self._closed.setdefault((m.channel, m.conversation), set()).add(m.sender)
+
+    def verdict(self, final: bool = True) -> Verdict:
+        """Shown once matched; violated when ``final`` (the run ended) and the situation
+        happened but the property did not follow; else not exercised."""
+        if self.shown_by is not None:
+            return Verdict.SHOWN
+        return Verdict.VIOLATED if final and self.exercised else Verdict.NOT_EXERCISED
+
+    def outcome(self, final: bool = True) -> Outcome:
+        """The verdict with the events of the furthest match."""
+        events = self.shown_by if self.shown_by is not None else self._furthest
+        return Outcome(self.prop, self.verdict(final), events, self.capped)
+
+    # -----------------------------------------------------------------------------------------
+
+    def _advance(self, p: _Partial, m: Message) -> list[_Partial]:
+        """``p`` and what ``m`` makes of it: kept, advanced (and kept, when the step branches),
+        or dropped (a ``next`` step whose first fitting communicate is not related)."""
+        step = self.prop.steps[p.step]
+        if not _fits(step, m):
+            return [p]
+        if not self._related(step, m, p.bound):
+            return [] if step.next and p.count == 0 else [p]
+        q = self._step(p, m, step.at_least)
+        keep = p.count == 0 and self._branch[p.step] and not step.next
+        return [p, q] if keep else [q]
+
+    def _step(self, p: _Partial, m: Message, at_least: int) -> _Partial:
+        """``p`` with ``m`` counted for its step (and bound, when it is the first)."""
+        bound = (*p.bound, m) if p.count == 0 else p.bound
+        if p.count + 1 < at_least:
+            return _Partial(p.step, p.count + 1, bound)
+        q = _Partial(p.step + 1, 0, bound)
+        if len(q.bound) > len(self._furthest):
+            self._furthest = q.bound
+        self.exercised = self.exercised or q.step >= self.prop.situation
+        if q.step == len(self.prop.steps) and self.shown_by is None:
+            self.shown_by = q.bound
+        return q
+
+    def _related(self, step: EventPattern, m: Message, bound: tuple[Message, ...]) -> bool:
+        """``m`` stands to the events ``bound`` as ``step`` asks."""
+        ev = {name: bound[i] for name, i in self._names.items() if i < len(bound)}
+        return all(rule(step, m, ev, self._closed) for rule in _RELATIONS) and (
+            step.within_s is None or not bound or m.t - bound[-1].t <= step.within_s
+        )
+
+
+def _same(step: EventPattern, m: Message, ev: Events, closed: Closed) -> bool:
+    return step.same_conversation is None or m.conversation == ev[step.same_conversation].conversation
+
+
+def _other(step: EventPattern, m: Message, ev: Events, closed: Closed) -> bool:
+    return step.other_conversation is None or m.conversation != ev[step.other_conversation].conversation
+
+
+def _answers(step: EventPattern, m: Message, ev: Events, closed: Closed) -> bool:
+    if step.answers is None:
+        return True
+    asked = ev[step.answers]
+    offered = _reply_with(asked)
+    return m.conversation == asked.conversation and offered is not None and _in_reply_to(m) == offered
+
+
+def _open(step: EventPattern, m: Message, ev: Events, closed: Closed) -> bool:
+    if step.while_open is None:
+        return True
+    opened = ev[step.while_open]
+    return not closed.get((opened.channel, opened.conversation), set()) - {opened.sender}
+
+
+def _refers(step: EventPattern, m: Message, ev: Events, closed: Closed) -> bool:
+    return all(field_value(m.content, f) == ev[n].conversation for f, n in step.refers.items())
+
+
+def _is_above(step: EventPattern, m: Message, ev: Events, closed: Closed) -> bool:
+    return all(
+        _above(field_value(m.content, f), field_value(ev[n].content, f)) for f, n in step.above.items()
+    )
+
+
+_RELATIONS = (_same, _other, _answers, _open, _refers, _is_above)
+"""How a communicate must stand to the earlier events (services/spec/properties.py)."""
+
+
+def _above(value: Any, than: Any) -> bool:
+    numbers = (int, float)
+    return isinstance(value, numbers) and isinstance(than, numbers) and value > than
+
+
+def evaluate(prop: Property, messages: Iterable[Message]) -> Outcome:
+    """``prop`` over a whole run's communicates (causal order, copies left out)."""
+    monitor = Monitor(prop)
+    for m in messages:
+        monitor.feed(m)
+    return monitor.outcome(final=True)
