@@ -2,7 +2,7 @@
 process per agent, MuJoCo not paced unless ``--realtime``; each agent killed, paused or
 restarted once during the pour, services/scenario/chaos.py), one per seed, printed as a
 table: the faults drawn, how many fell during the command, the verdict's five answers, wall
-time.
+time (none when the verdict failed).
 
 Usage: ``python scripts/bench_chaos.py [--hosts] [--realtime] [--kinds K,…] [--count N]
 [--runs-dir DIR] [SEED ...]`` (default seeds 1 2 3 4 5; with ``--hosts`` each run is ``roco chaos
@@ -105,7 +105,8 @@ def main() -> int:
         failures += proc.returncode != 0
         during = re.search(r"\| faults during the command \| (\d+ of \d+) \|", text)
         in_pour = during.group(1) if during else "?"
-        print(f"| {seed} | {faults} | {in_pour} | " + " | ".join(answers) + f" | {wall:.0f} |")
+        took = f"{wall:.0f}" if proc.returncode == 0 else "–"  # a failed verdict: no run's time
+        print(f"| {seed} | {faults} | {in_pour} | " + " | ".join(answers) + f" | {took} |")
     return 1 if failures else 0
 
 

@@ -64,7 +64,10 @@ class Outcome:
 
 
 def run_fleet(seed: int, runs_dir: Path, realtime: bool) -> Outcome:
-    """One ``roco run`` with ``--seed seed --pose-seed seed``."""
+    """One ``roco run`` with ``--seed seed --pose-seed seed``. A run that succeeded while an
+    agent counted anything refused, not understood or against its protocol (its
+    ``counters.json``, services/bench/setup_check.py) is not a success: its detail says why."""
+    from services.bench.setup_check import SetupRefused, check_run_folder
     from services.report import build_report
 
     t0 = time.time()
@@ -88,8 +91,14 @@ def run_fleet(seed: int, runs_dir: Path, realtime: bool) -> Outcome:
         r.content_truth for r in report.perception if r.object == c.container and r.content_truth is not None
     ]
     inside = truth[-1] if truth else c.inside
+    ok = proc.returncode == 0
+    if ok:
+        try:
+            check_run_folder(new[-1], "the agents")
+        except SetupRefused as exc:
+            ok, detail = False, str(exc)
     return Outcome(
-        proc.returncode == 0,
+        ok,
         inside,
         c.total,
         f"{detail} ({new[-1].name})",

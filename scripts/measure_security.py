@@ -23,10 +23,19 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 
+import zenoh
+
 from services.fleet.launcher import Fleet, free_port
 from services.runtime import keys
 from services.runtime.session import open_client
 from services.security.context import register
+
+ROUTES_S = 30.0
+"""How long the first echo may take (the routes being put in place), s."""
+
+
+class Unanswered(RuntimeError):
+    """The echo did not come back: the setting measured is not working; no figure."""
 
 
 def measure(acl: bool, tls: bool, n: int, size: int) -> dict[str, float]:
@@ -52,26 +61,35 @@ def measure(acl: bool, tls: bool, n: int, size: int) -> dict[str, float]:
 
             worker = threading.Thread(target=echo, daemon=True)
             worker.start()
-            out = keys.fipa_key("C4", "a_pl", "a_km")
-            payload = b"x" * size
-            while True:  # until the routes are in place
-                pl.put(out, payload)
-                try:
-                    back.get(timeout=0.2)
-                    break
-                except queue.Empty:
-                    continue
-            rtts = []
-            for i in range(n + 200):
-                t = time.perf_counter()
-                pl.put(out, payload)
-                back.get(timeout=10)
-                if i >= 200:
-                    rtts.append((time.perf_counter() - t) * 1e6)
-            to_km.put(None)
-            worker.join()
-            pl.close()
-            km.close()
+            try:
+                out = keys.fipa_key("C4", "a_pl", "a_km")
+                payload = b"x" * size
+                deadline = time.monotonic() + ROUTES_S
+                while True:  # until the routes are in place
+                    pl.put(out, payload)
+                    try:
+                        back.get(timeout=0.2)
+                        break
+                    except queue.Empty:
+                        if time.monotonic() > deadline:
+                            raise Unanswered(
+                                f"no echo within {ROUTES_S:.0f} s (refused by the router?)"
+                            ) from None
+                rtts = []
+                for i in range(n + 200):
+                    t = time.perf_counter()
+                    pl.put(out, payload)
+                    try:
+                        back.get(timeout=10)
+                    except queue.Empty:
+                        raise Unanswered(f"round trip {i + 1} not answered within 10 s") from None
+                    if i >= 200:
+                        rtts.append((time.perf_counter() - t) * 1e6)
+            finally:
+                to_km.put(None)
+                worker.join()
+                pl.close()
+                km.close()
         finally:
             fleet.stop()
             register(fleet.endpoint, None)
@@ -91,7 +109,11 @@ def main() -> int:
     ]
     print(f"{'setting':26s} {'p50 µs':>8s} {'p99 µs':>8s} {'open ms':>8s}")
     for name, acl, tls in settings:
-        r = measure(acl, tls, args.n, args.size)
+        try:
+            r = measure(acl, tls, args.n, args.size)
+        except (Unanswered, zenoh.ZError) as exc:  # no echo, or a session refused
+            print(f"roco: measure_security: {name}: {exc}", file=sys.stderr)
+            return 1
         print(f"{name:26s} {r['p50_us']:8.0f} {r['p99_us']:8.0f} {r['open_ms']:8.1f}")
     return 0
 

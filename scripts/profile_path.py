@@ -39,6 +39,7 @@ import statistics
 import sys
 import threading
 import time
+from collections import Counter
 from multiprocessing.connection import Connection
 from pathlib import Path
 from typing import Any
@@ -103,7 +104,7 @@ def traced_agent(name: str, endpoint: str, conn: Connection) -> None:
     cls = type(name, (base,), {"name": name, "send": send, "reply": reply})
     transport = Traced([endpoint], links=None)  # as roco bench: ROCO_LINKS
     agent = cls(transport, bench_spec(1), conn)
-    agent._gate = TracedGate(agent._gate)  # type: ignore[assignment]
+    agent._gate = TracedGate(agent._gate)
     agent.bind()
 
     def trace(cmd: tuple[Any, ...]) -> bool:
@@ -201,14 +202,38 @@ def segments(ini: list[Event], par: list[Event], n: int) -> list[tuple[str, list
     ]
 
 
+def counters(conn: Connection) -> Counter[str]:
+    """A synthetic agent's counters, asked on its pipe (services/bench/synthetic.py ``COUNTERS``)."""
+    from services.bench.synthetic import COUNTERS
+
+    conn.send((COUNTERS,))
+    if not conn.poll(30):
+        raise TimeoutError("a synthetic agent did not give its counters within 30 s")
+    got = conn.recv()
+    return Counter({str(k): int(v) for k, v in got["counters"].items()})
+
+
 def main() -> int:
+    """Print the figures (module docstring); exit 1 with one ``roco:`` line and no figure when
+    the traced round trips were not the work timed (services/bench/messaging.py
+    ``check_exchange``: a round trip missing, anything refused or not understood)."""
+    from services.bench.messaging import SetupError
+
+    try:
+        return _main()
+    except SetupError as exc:
+        print(f"roco: profile_path: {exc}", file=sys.stderr)
+        return 1
+
+
+def _main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--n", type=int, default=2000, help="traced round trips (after 50 warm-up)")
     ap.add_argument("--raw", type=int, default=2000, help="raw Zenoh round trips (after 50 warm-up)")
     args = ap.parse_args()
 
-    from services.bench.messaging import no_access_control, request_bytes
-    from services.bench.synthetic import raw_process
+    from services.bench.messaging import Exchange, check_exchange, no_access_control, request_bytes
+    from services.bench.synthetic import WARMUP, raw_process
     from services.fleet.launcher import Fleet, free_port
 
     run_dir = Path(os.environ.get("TMPDIR", "/tmp")) / f"roco-profile-path-{os.getpid()}"
@@ -242,6 +267,7 @@ def main() -> int:
         for c in ("b_ini0", "b_par0"):
             procs[c][1].send(("trace",))
             procs[c][1].recv()
+        counted = {c: counters(procs[c][1]) for c in ("b_ini0", "b_par0")}
         load = os.getloadavg()
         before = {k: threads(p) for k, p in pids.items()}
         cpu_before = {k: cpu_s(p) for k, p in pids.items()}
@@ -249,6 +275,11 @@ def main() -> int:
         ini.recv()
         cpu = {k: cpu_s(p) - cpu_before[k] for k, p in pids.items()}
         after = {k: threads(p) for k, p in pids.items()}
+        check_exchange(
+            counters(procs["b_ini0"][1]) - counted["b_ini0"],
+            counters(procs["b_par0"][1]) - counted["b_par0"],
+            Exchange({"request": args.n + WARMUP}, {"inform": args.n + WARMUP}),
+        )
         traces = {}
         for c in ("b_ini0", "b_par0"):
             procs[c][1].send(("trace",))

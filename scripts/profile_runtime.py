@@ -35,7 +35,15 @@ from typing import Any
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from services.bench.messaging import BenchInitiator, BenchParticipant, bench_spec
+from services.bench.messaging import (
+    WARMUP,
+    BenchInitiator,
+    BenchParticipant,
+    Exchange,
+    SetupError,
+    bench_spec,
+    check_exchange,
+)
 
 
 class Collect:
@@ -92,14 +100,16 @@ def round_trips(n: int) -> float:
     t0 = time.perf_counter()
     ini._work()
     ini._dispatch()
-    while ini.job is not None:
+    while ini.job is not None and ini.transport.out:  # else the exchange stopped: checked below
         hand(ini, par)
         par._serve()
         par._dispatch()
         hand(par, ini)
         ini._work()
         ini._dispatch()
-    return (time.perf_counter() - t0) / (n + 50) * 1e6
+    took = (time.perf_counter() - t0) / (n + WARMUP) * 1e6
+    check_exchange(ini.counters, par.counters, Exchange({"request": n + WARMUP}, {"inform": n + WARMUP}))
+    return took
 
 
 def stream(n: int) -> tuple[float, float]:
@@ -128,7 +138,9 @@ def stream(n: int) -> tuple[float, float]:
             ini._on_payload(key, payload)
         ini._acquire(0)
         ini._work()
-    return send_us, (time.perf_counter() - t0) / n * 1e6
+    receive_us = (time.perf_counter() - t0) / n * 1e6
+    check_exchange(ini.counters, par.counters, Exchange({"subscribe": 1}, {"agree": 1, "inform": n}))
+    return send_us, receive_us
 
 
 def profiled(fn: Callable[[], object]) -> None:
@@ -140,6 +152,17 @@ def profiled(fn: Callable[[], object]) -> None:
 
 
 def main() -> int:
+    """Print the figures (module docstring); exit 1 with one ``roco:`` line, and no figure,
+    when the pair did not exchange what is timed or anything was refused or not understood
+    (services/bench/messaging.py ``check_exchange``)."""
+    try:
+        return _main()
+    except SetupError as exc:
+        print(f"roco: profile_runtime: {exc}", file=sys.stderr)
+        return 1
+
+
+def _main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--n", type=int, default=5000)
     ap.add_argument("--profile", action="store_true")
@@ -152,7 +175,7 @@ def main() -> int:
             gc.collect()  # the runs before left garbage whose full collection would land in a run
             c = time.process_time()
             round_trips(args.n)
-            rts.append((time.process_time() - c) / (args.n + 50) * 1e6)
+            rts.append((time.process_time() - c) / (args.n + WARMUP) * 1e6)
             gc.collect()
             c = time.process_time()
             stream(args.n)

@@ -98,7 +98,7 @@ def pin(pid: int, core: int) -> None:
 
 
 def profile(n_agents: int, n_rt: int, idle_s: float, pinned: str | None = None) -> None:
-    from services.bench.messaging import measure_all_pairs, testbed
+    from services.bench.messaging import Exchange, check_exchange, counters_of, measure_all_pairs, testbed
     from services.bench.synthetic import WARMUP, pair_names
 
     pairs = max(1, n_agents // 2)
@@ -115,9 +115,14 @@ def profile(n_agents: int, n_rt: int, idle_s: float, pinned: str | None = None) 
             print(f"\n## {len(names)} agents")
             idle(pids, idle_s)
         measure_all_pairs(bed, pairs, 100, 200)
+        children = [tuple(bed.children[n] for n in pair_names(k)) for k in range(pairs)]
+        counted = [(counters_of(i), counters_of(p)) for i, p in children]
         before = use_of(pids)
         figures = measure_all_pairs(bed, pairs, n_rt, 200)
         after = use_of(pids)
+        want = Exchange({"request": WARMUP + n_rt}, {"inform": WARMUP + n_rt})
+        for k, ((i, p), (bi, bp)) in enumerate(zip(children, counted, strict=True)):
+            check_exchange(counters_of(i) - bi, counters_of(p) - bp, want, pair_names(k))
     round_trips = pairs * (n_rt + WARMUP)
 
     def us(ticks: int) -> float:
@@ -144,6 +149,19 @@ def profile(n_agents: int, n_rt: int, idle_s: float, pinned: str | None = None) 
 
 
 def main() -> int:
+    """Profile each N (module docstring); exit 1 with one ``roco:`` line, and no figure for that
+    N, when a pair's exchange was not the work timed (services/bench/messaging.py
+    ``check_exchange``: a round trip missing, anything refused or not understood)."""
+    from services.bench.messaging import SetupError
+
+    try:
+        return _main()
+    except SetupError as exc:
+        print(f"roco: profile_scale: {exc}", file=sys.stderr)
+        return 1
+
+
+def _main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("agents", type=int, nargs="*", default=[10, 100], help="agent process counts")
     ap.add_argument("--n", type=int, default=500, help="round trips per pair, every pair at once")

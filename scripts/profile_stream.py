@@ -49,7 +49,15 @@ def main() -> int:
 
     import benchlib  # scripts/benchlib.py, beside this file
 
-    from services.bench.messaging import Throughput, _answer, testbed
+    from services.bench.messaging import (
+        Exchange,
+        SetupError,
+        Throughput,
+        _answer,
+        check_exchange,
+        counters_of,
+        testbed,
+    )
     from services.bench.synthetic import pair_names
 
     def reading(pids: dict[str, int]) -> Reading:
@@ -61,10 +69,11 @@ def main() -> int:
     names = pair_names(0)
     with testbed(1, names, []) as bed:
         assert bed.fleet is not None
-        ini = bed.children[names[0]]
+        ini, par = bed.children[names[0]], bed.children[names[1]]
+        assert ini.process.pid is not None and par.process.pid is not None
         pids = {
             "receiver": ini.process.pid,
-            "sender": bed.children[names[1]].process.pid,
+            "sender": par.process.pid,
             "router": bed.fleet.processes["router"].pid,
         }
         _answer(ini, ("stream", 2000, 200), 120)  # warm-up
@@ -74,9 +83,16 @@ def main() -> int:
         )
         for _ in range(args.repeat):
             for batched in (True, False):
+                counted = counters_of(ini), counters_of(par)
                 before = reading(pids)
                 got = _answer(ini, ("stream", args.n, 200, batched), 120)
                 after = reading(pids)
+                want = Exchange({"subscribe": 1}, {"agree": 1, "inform": args.n})
+                try:
+                    check_exchange(counters_of(ini) - counted[0], counters_of(par) - counted[1], want, names)
+                except SetupError as exc:
+                    print(f"roco: profile_stream: {exc}", file=sys.stderr)
+                    return 1
                 runs = Throughput()
                 runs.add(got, args.n)
                 rate = runs.rates[0]

@@ -18,6 +18,11 @@ back. Three measurements:
   peak RSS over its RSS before (``VmHWM`` reset through ``/proc/PID/clear_refs``) and its CPU
   time, user and system (``/proc/PID/stat``), from the post until that answer arrived.
 
+Between the burst and the worst bodies, the legitimate traffic is checked
+(services/bench/gateway_check.py): every request answered 200, counted received and forwarded
+by the gateway, none refused, each taken on a_hi's side of the router; else the part raises
+SetupRefused and prints no figure.
+
 The test suite runs the worst bodies with bounds (tests/gateway/test_worst_bodies.py); the
 figures here are the benchmark's.
 """
@@ -118,11 +123,18 @@ def request(
     return head.encode("latin-1") + data
 
 
-def message(url: str, sender: str, to: str, text: str, conversation: str, answer_at: str) -> bytes:
-    """A whole POST of a request from ``sender`` to ``to`` carrying the sentence ``text``."""
-    payload = acl(
-        sender, to, json.dumps({"type": "sentence", "text": text}), conversation, answer_at
-    ).encode()
+def sentence_content(text: str) -> str:
+    """The content (JSON of an L_HC sentence) of a request carrying ``text``."""
+    return json.dumps({"type": "sentence", "text": text})
+
+
+def message(
+    url: str, sender: str, to: str, text: str, conversation: str, answer_at: str, content: str | None = None
+) -> bytes:
+    """A whole POST of a request from ``sender`` to ``to`` carrying the sentence ``text`` (or
+    ``content`` as it is, when given)."""
+    said = sentence_content(text) if content is None else content
+    payload = acl(sender, to, said, conversation, answer_at).encode()
     return request(url, body(envelope(to, sender, len(payload)), payload))
 
 
@@ -385,18 +397,30 @@ class GatewayFigures:
     counters: dict[str, int] = field(default_factory=dict)
 
 
-def _peer_messages(url: str, peer: int, n: int) -> Iterator[bytes]:
+def _conversation(peer: int, i: int) -> str:
+    return f"c{peer}-{i}"
+
+
+def _peer_messages(url: str, peer: int, n: int, content: str | None = None) -> Iterator[bytes]:
     name = f"peer{peer}@bench:1099/JADE"
     for i in range(n):
-        yield message(url, name, "a_hi", "bring me the cup", f"c{peer}-{i}", "http://127.0.0.1:9/acc")
+        yield message(
+            url, name, "a_hi", "bring me the cup", _conversation(peer, i), "http://127.0.0.1:9/acc", content
+        )
 
 
-async def _load(url: str, address: tuple[str, int], peers: int, messages: int) -> LoadFigures:
+BURST_PEER = 10_000
+"""The first burst peer's number (load peers are numbered from 0)."""
+
+
+async def _load(
+    url: str, address: tuple[str, int], peers: int, messages: int, content: str | None = None
+) -> LoadFigures:
     latencies: list[float] = []
     statuses: Counter[int] = Counter()
 
     async def peer(i: int) -> None:
-        for data in _peer_messages(url, i, messages):
+        for data in _peer_messages(url, i, messages, content):
             t = time.perf_counter()
             status = await post(address, data)
             latencies.append(time.perf_counter() - t)
@@ -417,8 +441,8 @@ async def _load(url: str, address: tuple[str, int], peers: int, messages: int) -
     )
 
 
-async def _burst(url: str, address: tuple[str, int], peers: int) -> BurstFigures:
-    data = [next(_peer_messages(url, 10_000 + i, 1)) for i in range(peers)]
+async def _burst(url: str, address: tuple[str, int], peers: int, content: str | None = None) -> BurstFigures:
+    data = [next(_peer_messages(url, BURST_PEER + i, 1, content)) for i in range(peers)]
     done: list[float] = []
     t0 = time.perf_counter()
 
@@ -467,21 +491,40 @@ def worst(gateway: GatewayProcess, inbox: Inbox) -> list[WorstRow]:
     return rows
 
 
-def measure(quick: bool = False, load_peers: int = 100, burst_peers: int = 500) -> GatewayFigures:
+def measure(
+    quick: bool = False, load_peers: int = 100, burst_peers: int = 500, content: str | None = None
+) -> GatewayFigures:
     """Part 9 (module docstring): load with ``load_peers`` peers (20 messages each; 2 with
     ``quick``), a burst of ``burst_peers`` (50 with ``quick``), the worst bodies. The gateway's
-    run folder (its router, credentials and logs) is removed at the end."""
+    run folder (its router, credentials and logs) is removed at the end. ``content``: the
+    legitimate requests' content in place of the sentence (a planted fault).
+
+    Raises SetupRefused (services/bench/gateway_check.py) before the worst bodies when any
+    legitimate request of the load or the burst was not answered 200, was refused by the
+    gateway or did not reach a_hi's side of the router."""
+    from services.bench.gateway_check import Receptor, check_legitimate
+    from services.runtime.session import open_client
+
     run_dir = Path(tempfile.mkdtemp(prefix="roco-bench-gateway-"))
     gateway = GatewayProcess.start(run_dir)
     inbox = Inbox()
+    session = open_client(gateway.endpoint)
     try:
-        load = asyncio.run(_load(gateway.url, gateway.address, load_peers, 2 if quick else 20))
-        burst = asyncio.run(_burst(gateway.url, gateway.address, 50 if quick else burst_peers))
+        receptor = Receptor(session)
+        messages, burst_n = (2 if quick else 20), (50 if quick else burst_peers)
+        load = asyncio.run(_load(gateway.url, gateway.address, load_peers, messages, content))
+        burst = asyncio.run(_burst(gateway.url, gateway.address, burst_n, content))
+        sent = [_conversation(p, i) for p in range(load_peers) for i in range(messages)]
+        sent += [_conversation(BURST_PEER + p, 0) for p in range(burst_n)]
+        statuses = Counter(load.statuses) + Counter(burst.statuses)
+        check_legitimate(statuses, gateway.counters(), sent, receptor)
+        receptor.close()
         rss = gateway.status()["VmRSS"] / 1024
         rows = worst(gateway, inbox)
         peak = max(r.rss_growth_mib for r in rows) + rss
         counters = gateway.counters()
     finally:
+        session.close()
         inbox.close()
         gateway.stop()
         shutil.rmtree(run_dir, ignore_errors=True)
