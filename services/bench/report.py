@@ -1021,7 +1021,10 @@ def gateway_how() -> list[str]:
         "time followed by a valid message the gateway answers; peak RSS = VmHWM (reset through "
         "/proc/PID/clear_refs) over VmRSS before (memory an earlier request freed and the allocator "
         "kept is used again: a growth, not a use); CPU = user + system time of the gateway process "
-        "(/proc/PID/stat) until that answer arrived.",
+        "(/proc/PID/stat) until that answer arrived. Before the worst requests the part checks the "
+        "legitimate traffic (services/bench/gateway_check.py): every load and burst request answered "
+        "200, the gateway's counters with as many received and forwarded and nothing refused or "
+        "dropped, and each conversation delivered to a_hi's key once; else it gives no figure.",
     ]
 
 
