@@ -4,7 +4,7 @@ services/spec_check/properties.py; docs/spec.md shows examples).
 
 A requirement's ``properties`` are all to hold in one run. A property is a sequence of event
 patterns (:class:`EventPattern`), matched *in order* ("then") by recorded communicates in causal order
-(services/report/causal.py); the communicates a match binds are the property's events. A step
+(services/recorder/causal.py); the communicates a match binds are the property's events. A step
 matches a communicate by what it is (channel, protocol, performative, content term, sender,
 receiver, content ``fields`` and ``minimum``) and by how it relates to the events of earlier
 steps, named by their ``name``:

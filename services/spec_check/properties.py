@@ -3,7 +3,7 @@ communicate at a time, so that the same evaluator serves a record read after the
 traffic as it arrives.
 
 :class:`Monitor` keeps every partial match of a property's steps (the events bound so far);
-:meth:`Monitor.feed` takes the next communicate in causal order (services/report/causal.py)
+:meth:`Monitor.feed` takes the next communicate in causal order (services/recorder/causal.py)
 and advances them. A property is *shown* once a partial match bound all its steps; it is
 *violated* when the run ended (:meth:`Monitor.verdict` with ``final``) after a partial match
 bound its first ``exercised`` steps but none bound them all; else *not exercised*.

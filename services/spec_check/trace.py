@@ -10,7 +10,7 @@ For each leaf requirement:
   the test files (services/spec_check/marks.py; nothing is run);
 - **properties**: per run, each of its ``properties`` (services/spec/properties.py; a leaf
   without them: one property per ``evidence`` statement, or per serving channel) evaluated over
-  the run's communicates in causal order (services/report/causal.py) by
+  the run's communicates in causal order (services/recorder/causal.py) by
   services/spec_check/properties.py, with the times of the events that matched;
 - **verdict**, one of :class:`Verdict`:
 
@@ -37,7 +37,7 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from services.report.causal import causal_order, send_order
+from services.recorder.causal import causal_order, send_order
 from services.report.coordination import commands
 from services.report.load import Message, RunData, load_run
 from services.report.model import RequirementRow

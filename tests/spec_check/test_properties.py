@@ -234,7 +234,7 @@ def test_the_monitor_is_fed_one_communicate_at_a_time(urgent: Recorded) -> None:
 
 
 def _causal(r: Recorded) -> list[Message]:
-    from services.report.causal import causal_order
+    from services.recorder.causal import causal_order
 
     return causal_order(r.messages)[0]
 
