@@ -86,31 +86,54 @@ def check_legitimate(
     request each) were all answered 200 (``statuses``: status → how many posts got it; 0: no
     answer), the gateway's ``counters`` (asked after them) count each received and forwarded and
     none of :data:`GATEWAY_TROUBLE`, and ``receptor`` took each within ``timeout`` s, once."""
-    during = "the gateway's load and burst"
     conversations = list(sent)
     n = len(conversations)
-    problems: list[str] = []
+    problems = [
+        *_answers(statuses, n),
+        *_counted(counters, n),
+        *_delivered(receptor, conversations, timeout),
+    ]
+    if problems:
+        raise SetupRefused("the gateway's load and burst: " + "; ".join(problems))
+
+
+def _answers(statuses: Mapping[int, int], n: int) -> list[str]:
+    """What is wrong with the HTTP answers to ``n`` posts (``statuses``: status → count)."""
     answered = statuses.get(200, 0)
-    if answered != n or sum(statuses.values()) != n:
-        told = ", ".join(f"{k or 'none'}: {v}" for k, v in sorted(statuses.items()))
-        problems.append(f"{answered} of {n} requests answered 200 ({told})")
-    for name in ("received", "forwarded") if counters else ():
-        if counters.get(name, 0) != n:
-            problems.append(f"the gateway {name} {counters.get(name, 0)} of {n}")
+    if answered == n and sum(statuses.values()) == n:
+        return []
+    told = ", ".join(f"{k or 'none'}: {v}" for k, v in sorted(statuses.items()))
+    return [f"{answered} of {n} requests answered 200 ({told})"]
+
+
+def _counted(counters: Mapping[str, int], n: int) -> list[str]:
+    """What is wrong with the gateway's counters after ``n`` legitimate requests."""
+    if not counters:
+        return ["no counters from the gateway"]
+    wrong = [
+        f"the gateway {name} {counters.get(name, 0)} of {n}"
+        for name in ("received", "forwarded")
+        if counters.get(name, 0) != n
+    ]
     bad = {
         k: v for k, v in sorted(counters.items()) if v and (k in GATEWAY_TROUBLE or k.startswith("refused."))
     }
-    if not counters:
-        problems.append("no counters from the gateway")
     if bad:
-        problems.append("the gateway counted " + ", ".join(f"{k} {v}" for k, v in bad.items()))
+        wrong.append("the gateway counted " + ", ".join(f"{k} {v}" for k, v in bad.items()))
+    return wrong
+
+
+def _delivered(receptor: Receptor, conversations: list[str], timeout: float) -> list[str]:
+    """What is wrong with what ``receptor`` took of ``conversations`` within ``timeout`` s."""
+    wrong = []
     missing = receptor.wait_for(conversations, timeout)
     if missing:
-        problems.append(f"{len(missing)} of {n} never reached {receptor.receiver} (e.g. {min(missing)})")
+        wrong.append(
+            f"{len(missing)} of {len(conversations)} never reached {receptor.receiver} (e.g. {min(missing)})"
+        )
     twice = sorted(c for c, k in receptor.conversations.items() if k > 1)
     if twice:
-        problems.append(f"{len(twice)} reached {receptor.receiver} more than once (e.g. {twice[0]})")
+        wrong.append(f"{len(twice)} reached {receptor.receiver} more than once (e.g. {twice[0]})")
     if receptor.undecodable:
-        problems.append(f"{receptor.undecodable} communicates to {receptor.receiver} not decodable")
-    if problems:
-        raise SetupRefused(f"{during}: " + "; ".join(problems))
+        wrong.append(f"{receptor.undecodable} communicates to {receptor.receiver} not decodable")
+    return wrong
