@@ -5,6 +5,7 @@ failing on a planted fault in a copy of the repository's files."""
 
 from __future__ import annotations
 
+import re
 import shutil
 import subprocess
 import sys
@@ -67,31 +68,57 @@ def test_every_readme_figure_names_its_runs_commit_and_machine() -> None:
 def test_an_edited_readme_figure_is_caught(tmp_path: Path) -> None:
     root = _copy(tmp_path)
     row = _readme_row(root, "request → inform round trip")
-    _edit(root / "README.md", row, row.replace("| 98 µs |", "| 97 µs |"))
+    value = row.split(" | ")[1]  # "207 µs"
+    planted = f"{int(value.split()[0]) + 1} µs"
+    _edit(root / "README.md", row, row.replace(f"| {value} |", f"| {planted} |"))
     found = readme_figures.differences(root)
-    assert len(found) == 1 and "97 µs" in found[0] and "98 µs" in found[0]
+    assert len(found) == 1 and planted in found[0] and value in found[0]
+
+
+def _first_overrun_cell(text: str) -> str:
+    """The overruns cell ``"| N (x %) |"`` of the loop document's first fleet row."""
+    row = next(line for line in text.splitlines() if line.startswith("| fleet:"))
+    m = re.search(r"\| \d+ \([\d.]+ %\) \|", row)
+    assert m is not None, row
+    return m.group(0)
 
 
 def test_a_document_s_new_figure_not_in_readme_is_caught(tmp_path: Path) -> None:
     root = _copy(tmp_path)
-    _edit(root / LOOP, "| 3 (0.006 %) |", "| 3 (0.160 %) |")
+    cell = _first_overrun_cell((root / LOOP).read_text())
+    _edit(root / LOOP, cell, re.sub(r"\([\d.]+ %\)", "(0.160 %)", cell))
     found = readme_figures.differences(root)
-    assert len(found) == 1 and "0.013–0.160 %" in found[0] and ": missed" in found[0]
+    assert len(found) == 1 and "0.160 %" in found[0] and ": missed" in found[0]
 
 
 def test_a_target_missed_in_the_run_but_not_in_readme_is_caught(tmp_path: Path) -> None:
     root = _copy(tmp_path)
+    met, missed = (
+        int(n) for n in re.findall(r"(\d+) met, (\d+) missed", _readme_row(root, "`roco bench`"))[0]
+    )
     _edit(root / BENCHMARKS, "(target ≤ 2 s): met", "(target ≤ 2 s): missed")
     found = readme_figures.differences(root)
-    assert len(found) == 1 and "8 met, 4 missed" in found[0] and "Plan #1 wall time" in found[0]
+    assert (
+        len(found) == 1
+        and f"{met - 1} met, {missed + 1} missed" in found[0]
+        and "Plan #1 wall time" in found[0]
+    )
+
+
+def _commit(text: str) -> str:
+    """The commit a document's or a README row's run header names."""
+    m = re.search(r"at (?:commit )?([0-9a-f]{7,40})", text)
+    assert m is not None
+    return m.group(1)
 
 
 def test_a_readme_row_without_commit_or_machine_is_caught(tmp_path: Path) -> None:
     root = _copy(tmp_path)
     row = _readme_row(root, "pours with the jar")
-    _edit(root / "README.md", row, row.replace(" at 0c03ee0,", ","))
+    _edit(root / "README.md", row, row.replace(f" at {_commit(row)}", ""))
     row = _readme_row(root, "the fleet's memory")
-    _edit(root / "README.md", row, row.replace("; Intel(R) Xeon(R) Processor, 2 cores", ""))
+    machine = row.rstrip(" |").rsplit("; ", 1)[1]
+    _edit(root / "README.md", row, row.replace(f"; {machine}", ""))
     missing = readme_figures.rows_without_run((root / "README.md").read_text())
     assert [r.split(" | ")[0] for r in missing] == [
         "| the fleet's memory at rest",
@@ -101,7 +128,8 @@ def test_a_readme_row_without_commit_or_machine_is_caught(tmp_path: Path) -> Non
 
 def test_a_document_without_its_run_header_is_refused(tmp_path: Path) -> None:
     root = _copy(tmp_path)
-    _edit(root / POUR_SEEDS, ", at commit 0c03ee0,", ",")
+    text = (root / POUR_SEEDS).read_text()
+    _edit(root / POUR_SEEDS, f", at commit {_commit(text)}", ",")
     with pytest.raises(FiguresError, match=r"pour_seeds_fleet\.md: no line '- Command"):
         readme_figures.render(root)
 
@@ -109,7 +137,7 @@ def test_a_document_without_its_run_header_is_refused(tmp_path: Path) -> None:
 def test_a_missing_table_row_is_refused(tmp_path: Path) -> None:
     root = _copy(tmp_path)
     _edit(root / BENCHMARKS, "| roco (Agent runtime,", "| roco runtime (")
-    with pytest.raises(FiguresError, match="no row starting 'roco \\(Agent runtime'"):
+    with pytest.raises(FiguresError, match="no row 'roco \\(Agent runtime' on the link"):
         readme_figures.render(root)
 
 
