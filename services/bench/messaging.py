@@ -66,6 +66,8 @@ import msgspec
 from services.bench.synthetic import (
     BENCH_LANGUAGE,
     COUNTERS,
+    REACH,
+    REACH_TIMEOUT_S,
     STALL_S,
     STREAM_BATCH,
     WARMUP,
@@ -173,10 +175,13 @@ class Testbed:
     fleet: Fleet | None = None
     start_s: float = 0.0
     """Wall time (s) from the first spawn until every child reported ready."""
+    reach_s: float | None = None
+    """How long (s) :meth:`reach` waits for a pair's route (None: :data:`REACH_TIMEOUT_S`)."""
 
     def start(self, agent_names: Sequence[str], raw_pairs: Sequence[int], timeout: float = 180.0) -> None:
         """Start the router, the agent processes ``agent_names`` and the raw echo/pinger
-        processes for each pair in ``raw_pairs``; wait until every one reports ready."""
+        processes for each pair in ``raw_pairs``; wait until every one reports ready, then
+        until every pair's route exists (:meth:`reach`). Raises TimeoutError or SetupError."""
         if self.secure and self.meshed:
             raise ValueError("a secure testbed has one router")
         run_dir = Path(tempfile.mkdtemp(prefix="roco-bench-"))
@@ -207,6 +212,48 @@ class Testbed:
         for child in self.children.values():
             child.receive(max(1.0, deadline - time.monotonic()))
         self.start_s = time.perf_counter() - t0
+        self.reach()
+
+    def reach(self) -> None:
+        """Make sure every pair's route exists before anything is timed
+        (services/bench/synthetic.py :data:`REACH`): each roco initiator's request answered,
+        each bare Zenoh publisher matched, within :attr:`reach_s`. Raises SetupError naming
+        the ends that did not."""
+        timeout = REACH_TIMEOUT_S if self.reach_s is None else self.reach_s
+        ends = [c for name, c in self.children.items() if name.startswith(("b_ini", "raw_"))]
+        for c in ends:
+            c.conn.send((REACH, timeout))
+        deadline = time.monotonic() + timeout
+        wrong = []
+        for c in ends:
+            try:
+                got = c.receive(max(0.1, deadline - time.monotonic()))
+            except TimeoutError:
+                got = {"error": self._unreached(c, timeout)}
+            if not isinstance(got, dict) or got.get("kind") != REACH:
+                wrong.append(f"{c.name}: {got.get('error', got) if isinstance(got, dict) else got}")
+        if wrong:
+            raise SetupError("a pair's route was not there: " + "; ".join(wrong))
+
+    def _unreached(self, child: Child, timeout: float) -> str:
+        """Why ``child`` did not answer :data:`REACH` within ``timeout`` s: for a roco initiator,
+        its requests (retransmissions apart) and what its participant received of them."""
+        if not child.name.startswith("b_ini"):
+            return f"no answer within {timeout:g} s"
+        name = "b_par" + child.name.removeprefix("b_ini")
+        par = self.children.get(name)
+        try:
+            ini_n = counters_of(child)
+            par_n = counters_of(par) if par is not None else None
+        except TimeoutError as e:
+            return f"no answer within {timeout:g} s, nor its counters ({e})"
+        got = (
+            f"received by {name} {par_n['received.request']}" if par_n is not None else f"{name} not started"
+        )
+        return (
+            f"no answer within {timeout:g} s: requests sent {ini_n['sent.request']} (retransmitted "
+            f"{ini_n['retransmitted']} times), {got}"
+        )
 
     def _start_open(self, run_dir: Path, timeout: float) -> None:
         """The router (and the second one when ``meshed``) without access control."""
@@ -630,6 +677,20 @@ def measure_all_pairs(
     return ConcurrentFigures(Latency(samples), total / wall if wall > 0 else 0.0, steady_rate(ends))
 
 
+def checked_all_pairs(bed: Testbed, pairs: int, n_rt: int, size: int) -> ConcurrentFigures:
+    """:func:`measure_all_pairs` of the roco pairs, each pair's exchange checked against what
+    it was asked (:func:`check_exchange`: ``WARMUP + n_rt`` requests each answered, nothing
+    refused, not understood or dropped). Raises SetupError when the work was not the work
+    timed."""
+    children = [tuple(bed.children[n] for n in pair_names(k)) for k in range(pairs)]
+    before = [(counters_of(i), counters_of(p)) for i, p in children]
+    figures = measure_all_pairs(bed, pairs, n_rt, size)
+    want = Exchange({"request": WARMUP + n_rt}, {"inform": WARMUP + n_rt})
+    for k, ((i, p), (bi, bp)) in enumerate(zip(children, before, strict=True)):
+        check_exchange(counters_of(i) - bi, counters_of(p) - bp, want, pair_names(k))
+    return figures
+
+
 class MessagingSummary(msgspec.Struct, frozen=True, forbid_unknown_fields=True):
     """Part 2's headline figures (what a summary of the bench quotes): round trips' p50 (µs)
     and one pair's one-way stream (communicates/s, the median of the rounds), 200 B of content
@@ -702,16 +763,11 @@ class MessagingFigures:
         )
 
 
-def checked_pair(
-    bed: Testbed, rounds: int, n_rt: int, n_tput: int, size: int, *, probe: bool = True
-) -> PairFigures:
-    """Pair 0 of ``bed`` probed (:func:`probe_pair`; not with ``probe`` False: the scale part,
-    whose raw pair's first put can come before a hundred processes' routes are known, and be
-    lost), measured (:func:`measure_pair`) and its exchange checked against what the
-    measurement asked for (:func:`check_exchange`). Raises SetupError when the work was not the
-    work timed."""
-    if probe:
-        probe_pair(bed, 0, size)
+def checked_pair(bed: Testbed, rounds: int, n_rt: int, n_tput: int, size: int) -> PairFigures:
+    """Pair 0 of ``bed`` probed (:func:`probe_pair`), measured (:func:`measure_pair`) and its
+    exchange checked against what the measurement asked for (:func:`check_exchange`). Raises
+    SetupError when the work was not the work timed."""
+    probe_pair(bed, 0, size)
     ini, par = (bed.children[n] for n in pair_names(0))
     before = counters_of(ini), counters_of(par)
     figures = measure_pair(bed, 0, rounds, n_rt, n_tput, size)
@@ -766,8 +822,8 @@ def _scale_row(
     pairs = max(1, n // 2)
     names = [name for k in range(pairs) for name in pair_names(k)]
     with testbed(pairs, names, [0], meshed=meshed) as bed:
-        pair = checked_pair(bed, 1, n_rt, n_tput, size, probe=False)
-        concurrent = median_run([measure_all_pairs(bed, pairs, n_rt_all, size) for _ in range(all_rounds)])
+        pair = checked_pair(bed, 1, n_rt, n_tput, size)
+        concurrent = median_run([checked_all_pairs(bed, pairs, n_rt_all, size) for _ in range(all_rounds)])
         rss = bed.rss_mib()
         agents_rss = sum(v for k, v in rss.items() if k.startswith("b_"))
         start_s = bed.start_s

@@ -54,6 +54,16 @@ WARMUP = 50
 """Round trips done and discarded before the measured ones."""
 STALL_S = 3.0
 """A throughput test ends early when nothing arrived for this long (s): what is missing was lost."""
+REACH = "reach"
+"""The command (``("reach"[, timeout_s])``) that makes sure a pair's route exists before anything is
+timed: a peer's liveliness token (or, for a bare Zenoh session, its arrival) can be known before
+the route of its subscription, and a put in between reaches no one (seen with 100 agent
+processes: the first request of a pair lost, its round trip never ending). An initiator sends one
+request at-least-once (``retry_s`` :data:`REACH_RETRY_S`, as the fleet's agents send theirs) and
+answers ``{"kind": "reach"}`` at its inform; a bare Zenoh process waits until its publisher matches
+the other end's subscriber (Zenoh's matching status)."""
+REACH_RETRY_S = 0.5
+REACH_TIMEOUT_S = 60.0
 
 
 class BenchRequest(msgspec.Struct, frozen=True, tag="bench_request"):
@@ -175,7 +185,8 @@ def request_bytes(size: int) -> int:
 class BenchInitiator(Agent):
     """Plays the initiator: takes commands from the benchmark (receptor events, through its
     pipe) and reports results on it. ``("pingpong", n, size)``: ``WARMUP + n`` request/inform
-    round trips, one at a time; ``("stream", n, size)``: subscribe for ``n`` informs."""
+    round trips, one at a time; ``("stream", n, size)``: subscribe for ``n`` informs;
+    ``("reach",)``: one request sent at-least-once (:data:`REACH`)."""
 
     name: ClassVar[str] = "b_ini0"
 
@@ -214,10 +225,15 @@ class BenchInitiator(Agent):
             self.x.clear()
         elif self.job[0] == "pingpong":
             self._pingpong()
+        elif self.job[0] == REACH:
+            self._reach()
         else:
             self._count()
 
     def _start(self, cmd: tuple[Any, ...]) -> None:
+        if cmd[0] == REACH:
+            self._reach_start(cmd)
+            return
         kind, n, size, *rest = cmd  # ("stream", n, size, False): informs one put each
         self.job = cmd
         self.samples = []
@@ -236,6 +252,30 @@ class BenchInitiator(Agent):
                 expect_reply=True,
             )
             self.conversation = msg.conversation_id or ""
+
+    def _reach_start(self, cmd: tuple[Any, ...]) -> None:
+        """One request to the peer, retransmitted until answered (:data:`REACH`)."""
+        self.job = cmd
+        msg = self.send(
+            self.peer,
+            Performative.REQUEST,
+            BenchRequest(seq=-1, data=b""),
+            protocol=FIPA_REQUEST,
+            expect_reply=True,
+            retry_s=REACH_RETRY_S,
+        )
+        self.conversation = msg.conversation_id or ""
+
+    def _reach(self) -> None:
+        while self.x:
+            item = self.x.popleft()
+            if item.msg.conversation_id != self.conversation:
+                continue
+            if item.performative is Performative.INFORM:
+                self._finish({"kind": REACH})
+            else:
+                self._finish({"error": f"{item.performative.value} from {item.sender} to a request"})
+            return
 
     def _finish(self, result: dict[str, Any]) -> None:
         self.results.send(result)
@@ -430,7 +470,8 @@ def raw_process(role: str, k: int, endpoint: str, conn: Connection, security: st
     :func:`raw_names` ``(k)`` on the keys :func:`raw_keys` ``(k)``. ``role`` "echo": puts
     every ping back, or counts them while armed for a stream; "pinger": does the ping-pong
     and sends the stream. Commands on ``conn``: ``("pingpong", n, size[, poll_us])``,
-    ``("send", n, size)`` (pinger), ``("arm", n)``, ``("poll", max_us)`` (echo), ``("stop",)``.
+    ``("send", n, size)`` (pinger), ``("arm", n)``, ``("poll", max_us)`` (echo), ``("reach",)``
+    (both: :data:`REACH`), ``("stop",)``.
     ``poll_us``/``max_us`` > 0: wait for each sample as roco's receiving threads do
     (services/runtime/polling.py) instead of in a blocking ``recv()``."""
     use_credentials(endpoint, security)
@@ -444,6 +485,32 @@ def raw_process(role: str, k: int, endpoint: str, conn: Connection, security: st
             _raw_pinger(session, conn, ping, pong, alive)
     finally:
         session.close()
+
+
+def matched(publisher: zenoh.Publisher, timeout: float) -> bool:
+    """Whether ``publisher`` matches a subscriber (Zenoh's matching status: a put would be
+    routed to one), waiting up to ``timeout`` s for the status to change."""
+    now = threading.Event()
+
+    def on_status(status: zenoh.MatchingStatus) -> None:
+        if status.matching:
+            now.set()
+
+    listener = publisher.declare_matching_listener(on_status)
+    try:
+        status: Any = publisher.matching_status  # a MatchingStatus (zenoh's stub says bool)
+        return bool(getattr(status, "matching", status)) or now.wait(timeout)
+    finally:
+        listener.undeclare()
+
+
+def _reached(publisher: zenoh.Publisher, other: str, cmd: tuple[Any, ...]) -> dict[str, Any]:
+    """The answer to ``cmd`` (``("reach"[, timeout_s])``, :data:`REACH`) of a bare Zenoh process
+    whose ``publisher`` goes to ``other``."""
+    timeout = float(cmd[1]) if len(cmd) > 1 else REACH_TIMEOUT_S
+    if matched(publisher, timeout):
+        return {"kind": REACH}
+    return {"error": f"no subscriber of {other} matched within {timeout:g} s"}
 
 
 def _raw_echo(session: zenoh.Session, conn: Connection, ping: str, pong: str, alive: str) -> None:
@@ -486,6 +553,9 @@ def _raw_echo(session: zenoh.Session, conn: Connection, ping: str, pong: str, al
         if cmd[0] == "poll":
             polling[0] = AdaptivePoll(cmd[1]) if cmd[1] > 0 else None
             conn.send(("polling", cmd[1]))
+            continue
+        if cmd[0] == REACH:
+            conn.send(_reached(ponger, "the pinger", cmd))
             continue
         complete.clear()
         state.update(count=0, want=cmd[1], first=0.0, last=0.0)
@@ -546,6 +616,9 @@ def _raw_pinger(session: zenoh.Session, conn: Connection, ping: str, pong: str, 
         cmd = conn.recv()
         if cmd[0] == "stop":
             break
+        if cmd[0] == REACH:
+            conn.send(_reached(pinger, "the echo", cmd))
+            continue
         if not present.wait(30):
             conn.send({"error": "the echo process never appeared"})
             continue

@@ -9,6 +9,7 @@ from typing import Any
 
 import msgspec
 import pytest
+import zenoh
 
 from services.bench import messaging
 from services.bench.messaging import (
@@ -21,6 +22,7 @@ from services.bench.messaging import (
     check_exchange,
     pair_exchange,
 )
+from services.bench.synthetic import matched
 from services.deploy import deploy
 from services.runtime import keys
 from services.security.folder import ACL_FILE
@@ -77,9 +79,11 @@ def test_a_pair_the_access_control_refuses_fails_the_part(monkeypatch: pytest.Mo
         return names
 
     monkeypatch.setattr(deploy, "prepare", refusing)
-    monkeypatch.setattr(messaging, "PROBE_S", 5.0)
+    monkeypatch.setattr(messaging, "REACH_TIMEOUT_S", 3.0)
     with pytest.raises(
-        SetupError, match=r"b_ini0 had no answer within 5 s: requests sent 1, received by b_par0 0"
+        SetupError,
+        match=r"route was not there: b_ini0: no answer within 3 s: requests sent 1 \(retransmitted \d+ "
+        r"times\), received by b_par0 0",
     ):
         messaging.messaging(1, 10, 100)
 
@@ -104,3 +108,28 @@ def test_the_summary_takes_each_headline_figure_from_its_testbed() -> None:
     assert (s.stream_per_s, s.stream_batched_per_s, s.raw_stream_per_s) == (10_000, 10_002, 10_004)
     assert s.stream_open_per_s == 20_000 and s.round_trip_ratio == pytest.approx(300 / 280)
     assert msgspec.json.decode(msgspec.json.encode(s), type=MessagingSummary) == s
+
+
+def test_a_bare_publisher_is_matched_only_once_a_subscriber_is_there() -> None:
+    conf = zenoh.Config()
+    conf.insert_json5("scouting/multicast/enabled", "false")
+    conf.insert_json5("listen/endpoints", "[]")
+    session = zenoh.open(conf)
+    try:
+        publisher = session.declare_publisher("roco/bench/test/matched")
+        assert not matched(publisher, 0.2)
+        session.declare_subscriber("roco/bench/test/matched", lambda _sample: None)
+        assert matched(publisher, 10.0)
+    finally:
+        session.close()
+
+
+def test_a_pair_whose_participant_never_comes_fails_the_testbed_s_start() -> None:
+    bed = messaging.Testbed(1, reach_s=2.0)
+    try:
+        with pytest.raises(
+            SetupError, match=r"route was not there: b_ini0: no answer within 2 s: requests sent 0 "
+        ):
+            bed.start(["b_ini0"], [])
+    finally:
+        bed.stop()
