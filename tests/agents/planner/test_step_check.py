@@ -5,6 +5,8 @@ holding, a put-down where nothing fits — is refused with the step and the reas
 
 from __future__ import annotations
 
+from typing import Any
+
 import pytest
 
 from services.agents.knowledge.plan_check import StepRefused
@@ -21,7 +23,7 @@ scenario = pytest.importorskip("velma.scenario")
 TASK = ("pour", "jar", "bowl")
 JAR = (0.80, 0.22, 0.90)
 BOWL = (0.80, -0.20, 0.90)
-Action = tuple[object, ...]
+Action = tuple[Any, ...]
 
 
 def seen_in_the_cabinet() -> WorldModel:
@@ -59,7 +61,8 @@ def see(world: WorldModel, *objects: ObjectUpdate) -> None:
 def test_the_real_pours_plans_pass_every_step() -> None:
     world = seen_in_the_cabinet()
     first = plan(world)
-    assert [s.operator for s in steps(first)] == ["grasp(jar, left)", "grasp(bowl, right)", "put(bowl, table)"]
+    operators = [s.operator for s in steps(first)]
+    assert operators == ["grasp(jar, left)", "grasp(bowl, right)", "put(bowl, table)"]
     assert check(world, first)
     world = ready_to_pour(18, 0)
     second = plan(world)
@@ -99,7 +102,8 @@ def test_a_grasp_with_a_hand_already_holding_is_refused() -> None:
     actions = plan(world)  # made while both hands were free
     assert check(world, actions)
     see(world, ObjectUpdate(name="cup", held_by="left_gripper"))  # a_km learns it after
-    with pytest.raises(StepRefused, match=r"^step 9 grasp\(jar, left\): the left hand already holds the cup$"):
+    refused = r"^step 9 grasp\(jar, left\): the left hand already holds the cup$"
+    with pytest.raises(StepRefused, match=refused):
         check(world, actions)
 
 
@@ -126,7 +130,7 @@ def test_a_put_down_off_the_furniture_is_refused() -> None:
     world = seen_in_the_cabinet()
     actions = plan(world)
     (i,) = [n for n, a in enumerate(actions) if a[0] == "a_put"]
-    name, path, obj, furniture, relation, (x, y, z) = actions[i]
+    name, path, obj, furniture, relation, (x, _y, z) = actions[i]
     off = [*actions[:i], (name, path, obj, furniture, relation, (x, -0.33, z)), *actions[i + 1 :]]
     with pytest.raises(StepRefused, match=r"step 30 put\(bowl, table\): the bowl does not fit on the table"):
         check(world, off)
