@@ -39,7 +39,6 @@ from shared.fipa_codec.languages.l_wm import (
 QUERY_REPLY_BY_S = 30.0
 QUERY_RETRY_S = 2.0
 """Retransmission period of an unanswered a_km query (a_km may be restarting)."""
-_NO = (Performative.FAILURE, Performative.REFUSE)
 NO_GOAL = SparqlQuery("ASK { }")
 """The goal of a plan that states none (its steps are still checked): always true."""
 FURNITURE = ("table", "cabinet")
@@ -144,7 +143,7 @@ class Planner(Agent):
     def _on_no_answer(self, conv: Conversation) -> None:
         """Refused, failed, not understood, or no answer by the reply-by deadline."""
         if conv is self.check:
-            self._checked(conv)
+            self._not_checked(conv)
         elif conv in self.pending:
             self.pending.discard(conv)
             self._unanswered(conv)
@@ -155,17 +154,19 @@ class Planner(Agent):
             self.failure = f"I know of no {key[0]} ({conv.reason})"
 
     def _checked(self, conv: Conversation) -> None:
-        """a_km's answer to the hypothetical query: the goal holds (the plan is sent), it does
-        not, or a_km answered ``failure`` or ``refuse`` — a step cannot run ("step 7 pour(jar,
-        cup): the cup cannot take …") — or not at all."""
+        """a_km's answer to the hypothetical query: the goal holds (the plan is sent) or not."""
         self.checked = True
-        if isinstance(conv.content, Answer):
-            if conv.content.boolean is not True:
-                self.failure = "the plan would not reach its goal in a_km's hypothetical state (it is false)"
-        elif not conv.timed_out and conv.last is not None and conv.last.msg.performative in _NO:
-            self.failure = f"a_km found the plan cannot work: {conv.why}"
+        if not isinstance(conv.content, Answer) or conv.content.boolean is not True:
+            self.failure = "the plan would not reach its goal in a_km's hypothetical state (it is false)"
+
+    def _not_checked(self, conv: Conversation) -> None:
+        """a_km answered the hypothetical query ``failure`` or ``refuse`` — a step cannot run
+        ("step 7 pour(jar, cup): the cup cannot take …") — or not at all: the plan is not sent."""
+        self.checked = True
+        if conv.timed_out:
+            self.failure = f"the plan could not be checked in a_km's hypothetical state ({conv.why})"
         else:
-            self.failure = f"the plan would not reach its goal in a_km's hypothetical state ({conv.reason})"
+            self.failure = f"the plan cannot work: {conv.why}"
 
     # ---- the behaviours ---------------------------------------------------------------------
     def _idle(self) -> None:
