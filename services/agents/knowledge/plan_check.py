@@ -30,13 +30,17 @@ class StepRefused(KnowledgeError):
 
 
 def refusal(world: WorldModel, step: PlanStep) -> str | None:
-    """Why ``step`` cannot run in the state ``world`` holds (words), or None when it can.
-    Raises KnowledgeError for an individual nothing is known about."""
-    if isinstance(step, GraspStep):
-        return _grasp(world, step)
-    if isinstance(step, PutStep):
-        return _put(world, step)
-    return _pour(world, step)
+    """Why ``step`` cannot run in the state ``world`` holds (words), or None when it can. A
+    step about an individual nothing is known about, or whose facts are malformed, cannot run:
+    the reason is the KnowledgeError's."""
+    try:
+        if isinstance(step, GraspStep):
+            return _grasp(world, step)
+        if isinstance(step, PutStep):
+            return _put(world, step)
+        return _pour(world, step)
+    except KnowledgeError as exc:
+        return str(exc)
 
 
 def _hand(gripper: str) -> str:

@@ -15,7 +15,13 @@ from services.agents.planner.domain import find_plan
 from services.agents.planner.goals import goal_query, steps
 from services.agents.planner.hfsm import to_hfsm
 from shared.fipa_codec.languages.common import Pose
-from shared.fipa_codec.languages.l_wm import HypotheticalQuery, ObjectUpdate, WorldUpdate
+from shared.fipa_codec.languages.l_wm import (
+    GraspStep,
+    HypotheticalQuery,
+    ObjectUpdate,
+    SparqlQuery,
+    WorldUpdate,
+)
 from tests.agents.planner.kitchen import after_first_plan, knowledge
 
 scenario = pytest.importorskip("velma.scenario")
@@ -149,3 +155,10 @@ def test_a_pour_needs_the_source_in_a_hand_and_holding_content(jar: ObjectUpdate
     see(world, jar)
     with pytest.raises(StepRefused, match=rf"^step 4 pour\(jar, bowl\): {reason}$"):
         check(world, actions)
+
+
+def test_a_step_about_something_a_km_does_not_know_is_refused_with_the_step() -> None:
+    world = seen_in_the_cabinet()
+    teapot = GraspStep(index=3, object="teapot", arm="left")
+    with pytest.raises(StepRefused, match=r"^step 3 grasp\(teapot, left\): nothing is known about 'teapot'$"):
+        world.answer(HypotheticalQuery(steps=(teapot,), query=SparqlQuery("ASK { }")))
