@@ -10,10 +10,10 @@ import msgspec
 import pytest
 
 from services.runtime.human import ReportKind
-from shared.fipa_codec import decode
+from shared.fipa_codec import Communicate, decode
 from shared.fipa_codec.languages import decode_content
 from shared.fipa_codec.languages.common import Pose
-from shared.fipa_codec.languages.l_ex import CommandResult, ExecutorCommand, LookAt, Observe, Release
+from shared.fipa_codec.languages.l_ex import CommandResult, ExecutorCommand, LookAt, Observe, Release, Tilt
 from shared.fipa_codec.languages.l_hfsm import HierarchicalPlan
 from shared.fipa_codec.languages.l_sd import Observation
 from shared.fipa_codec.languages.l_sw import SWState, SWStatus
@@ -21,7 +21,7 @@ from tests.support.fake_executor import PARTICLES, FakeExecutor
 from tests.support.memory_fleet import MemoryFleet
 
 
-def _traffic(fleet: MemoryFleet) -> list[tuple[str, object]]:
+def _traffic(fleet: MemoryFleet) -> list[tuple[str, tuple[Communicate, msgspec.Struct | None]]]:
     out = []
     for key, payload in fleet.bus.published:
         if not key.startswith("roco/fipa/"):
@@ -42,7 +42,11 @@ def test_pour_runs_two_plans_and_succeeds() -> None:
     assert kinds == [ReportKind.ACCEPTED, ReportKind.SUCCEEDED]
     assert any(r.kind is ReportKind.PROGRESS for r in reports)  # the person sees progress
     assert fleet.executor.inside["jar"] == 0 and fleet.executor.inside["bowl"] == PARTICLES
-    plans = [c for _, (m, c) in traffic if isinstance(c, HierarchicalPlan) and m.sender.name == "a_pl"]
+    plans = [
+        c
+        for _, (m, c) in traffic
+        if isinstance(c, HierarchicalPlan) and m.sender is not None and m.sender.name == "a_pl"
+    ]
     assert [p.complete for p in plans] == [False, True]
     assert all(p.km_queries > 0 for p in plans)
     states = [c.state for k, (m, c) in traffic if isinstance(c, SWStatus)]
@@ -225,3 +229,28 @@ def test_it_names_the_object_the_person_named_last() -> None:
     assert second[-1].kind is ReportKind.SUCCEEDED, second[-1].text
     assert second[-1].text.startswith("put the cup on the table: succeeded")
     assert end != start and not fleet.executor.held.get("right")
+
+
+@pytest.mark.requirement("R2.2", "R2.3")
+def test_a_plan_whose_pour_the_target_cannot_take_is_not_run_and_the_person_hears_why() -> None:
+    """a_km refuses plan #2 at its pour step (the bowl already holds 70 of its 84); a_pl sends
+    no plan, and a_hi tells the person the step and the reason; nothing is poured."""
+    executor = FakeExecutor()
+    executor.inside["bowl"] = 70
+    with MemoryFleet(executor) as fleet:
+        fleet.wait_for_initial_knowledge()
+        reports = fleet.command("pour the jar into the bowl")
+        traffic = _traffic(fleet)
+    assert reports[-1].kind is ReportKind.FAILED
+    assert reports[-1].text.endswith(
+        "the plan cannot work: step 6 pour(jar, bowl): the bowl cannot take what the jar holds: "
+        f"{PARTICLES} particles into 70, capacity 84"
+    )
+    plans = [
+        c
+        for _, (m, c) in traffic
+        if isinstance(c, HierarchicalPlan) and m.sender is not None and m.sender.name == "a_pl"
+    ]
+    assert [p.complete for p in plans] == [False]  # plan #1 ran; plan #2 was not sent
+    assert executor.inside == {"jar": PARTICLES, "bowl": 70, "cup": 0}
+    assert not any(isinstance(c, Tilt) for c in executor.commands)

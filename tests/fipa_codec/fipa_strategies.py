@@ -52,6 +52,7 @@ from shared.fipa_codec.languages.l_wm import (
     Answer,
     GraspAffordance,
     GraspQuery,
+    GraspStep,
     HypotheticalQuery,
     ObjectInfo,
     ObjectQuery,
@@ -60,6 +61,8 @@ from shared.fipa_codec.languages.l_wm import (
     PlacementQuery,
     PourAffordance,
     PourQuery,
+    PourStep,
+    PutStep,
     SceneQuery,
     SparqlQuery,
     Subscription,
@@ -135,6 +138,16 @@ SAMPLE_TERMS: list[msgspec.Struct] = [
     HypotheticalQuery(
         changes=(ObjectUpdate(name="jar", location="table", relation="on", held_by=""),),
         query=SparqlQuery("ASK { roco:jar roco:on roco:table }"),
+    ),
+    HypotheticalQuery(
+        steps=(
+            GraspStep(
+                index=9, object="jar", arm="left", changes=(ObjectUpdate(name="jar", held_by="left_gripper"),)
+            ),
+            PutStep(index=30, object="jar", furniture="table", relation="on", position=(0.1, -0.5, 0.75)),
+            PourStep(index=41, source="jar", target="bowl", changes=(ObjectUpdate(name="jar", particles=0),)),
+        ),
+        query=SparqlQuery("ASK { }"),
     ),
     Subscription(),
     Answer(

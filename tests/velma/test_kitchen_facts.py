@@ -122,3 +122,57 @@ def test_the_jars_places_are_the_scripts(world: WorldModel, surface: str, spec: 
     assert (facing if facing is not None else world.object_info(surface).facing) == script.facing
     assert places.approach_at(i) == script.approach
     assert places.park_at(i) == script.park
+
+
+PACKING = 0.5
+"""The share of a container's inner volume its content's spheres fill (kitchen.ttl)."""
+
+
+@pytest.mark.parametrize(
+    ("obj", "radius", "height"),
+    [
+        ("jar", g.JAR_RADIUS - g.JAR_WALL, g.JAR_HEIGHT - g.JAR_BOTTOM),
+        ("cup", g.CUP_RADIUS - g.CUP_WALL, g.CUP_HEIGHT - g.CUP_BOTTOM),
+        ("bowl", g.BOWL_INNER_RADIUS, g.BOWL_INNER_TOP - g.BOWL_BOTTOM),
+    ],
+)
+def test_a_containers_capacity_is_what_its_inner_cylinder_takes(
+    world: WorldModel, obj: str, radius: float, height: float
+) -> None:
+    from services.agents.knowledge.plan_check import capacity
+    from velma.model.scene import N_PARTICLES, PARTICLE_RADIUS
+
+    sphere = 4 / 3 * np.pi * PARTICLE_RADIUS**3
+    takes = capacity(world, obj)
+    assert takes == int(PACKING * np.pi * radius**2 * height / sphere)
+    assert takes is not None and takes >= N_PARTICLES  # each takes the jar's content
+
+
+def test_the_place_areas_are_the_table_top_and_the_cabinet_shelf(world: WorldModel) -> None:
+    from services.agents.knowledge.plan_check import place_area
+
+    tx, ty, _ = g.TABLE_POS
+    assert place_area(world, "table") == pytest.approx(
+        (tx - g.TABLE_HALF, ty - g.TABLE_HALF, tx + g.TABLE_HALF, ty + g.TABLE_HALF)
+    )
+    cx, cy, _ = g.CABINET_POS
+    depth, width = g.CABINET_HALF
+    inside = width - 2 * g.PANEL
+    assert place_area(world, "cabinet") == pytest.approx(
+        (cx - depth, cy - inside, cx + depth - 2 * g.PANEL, cy + inside)
+    )
+
+
+@pytest.mark.parametrize(
+    ("obj", "surface"),
+    [("jar", "table"), ("bowl", "table"), ("cup", "table"), ("jar", "cabinet"), ("bowl", "cabinet")],
+)
+def test_every_place_lies_inside_its_area(world: WorldModel, obj: str, surface: str) -> None:
+    """The put-down check (plan_check.py) accepts every place kitchen.ttl states."""
+    from services.agents.knowledge.plan_check import footprint, place_area
+
+    area = place_area(world, surface)
+    assert area is not None
+    r = footprint(world.object_info(obj)) / 2
+    for x, y, _z in world.placement(obj, surface).positions:
+        assert area[0] + r <= x <= area[2] - r and area[1] + r <= y <= area[3] - r, (obj, surface, (x, y))

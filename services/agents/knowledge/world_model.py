@@ -57,6 +57,7 @@ from shared.fipa_codec.languages.l_wm import (
     ObjectUpdate,
     PlacementInfo,
     PlacementQuery,
+    PlanStep,
     PourAffordance,
     PourQuery,
     SceneQuery,
@@ -299,16 +300,29 @@ class WorldModel:
         if isinstance(query, SparqlQuery):
             return self.sparql(query.query)
         if isinstance(query, HypotheticalQuery):
-            return self.hypothetical(query.changes, query.query)
+            return self.hypothetical(query.changes, query.query, query.steps)
         raise UnsupportedQuery(f"unsupported query {type(query).__name__}")
 
-    def hypothetical(self, changes: Iterable[ObjectUpdate], query: Query) -> Answer:
-        """Answer ``query`` in the state after ``changes`` (paper §5.7), applied in order to an
-        in-memory copy; the real state is not touched. A hypothetical pose is taken as known
+    def hypothetical(
+        self, changes: Iterable[ObjectUpdate], query: Query, steps: Iterable[PlanStep] = ()
+    ) -> Answer:
+        """Answer ``query`` in the state after ``steps``, then ``changes`` (paper §5.7), applied
+        in order to an in-memory copy; the real state is not touched. Each step's preconditions
+        are checked (services/agents/knowledge/plan_check.py) in the state the steps before it
+        left, then its changes are applied; the first that fails raises ``StepRefused`` (a
+        KnowledgeError) naming the step and the reason. A hypothetical pose is taken as known
         (localised) but unobserved: no stamp, so ``pose_stamp`` is None."""
+        # imported here: plan_check reads the world model through this module's names
+        from services.agents.knowledge.plan_check import StepRefused, refusal
+
         if isinstance(query, HypotheticalQuery):
             raise UnsupportedQuery("a hypothetical query inside a hypothetical query")
         with self.fork() as scratch:
+            for step in steps:
+                why = refusal(scratch, step)
+                if why is not None:
+                    raise StepRefused(f"step {step.index} {step.operator}: {why}")
+                scratch._apply(step.changes, stamp=None)
             scratch._apply(tuple(changes), stamp=None)
             return scratch.answer(query)
 

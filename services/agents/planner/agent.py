@@ -4,8 +4,8 @@ FSM states: idle (await a planning problem from a_co, fipa-request on C3), initi
 a_km for the knowledge the problem needs: fipa-query on C4, several conversations at once;
 what the scene answer reveals — objects already held — is asked about next), search (HTN
 search with GTPyhop, and the safe stop of every step), finalize (ask a_km whether the plan's
-effects achieve its goal in a hypothetical state of the knowledge base, paper §5.7; then
-inform a_co of the L_HFSM hierarchical plan, or answer failure with a reason a person can
+steps can run and achieve its goal in a hypothetical state of the knowledge base, paper
+§5.7; then inform a_co of the L_HFSM hierarchical plan, or answer failure with a reason a person can
 read).
 """
 
@@ -16,7 +16,7 @@ from collections import deque
 import msgspec
 
 from services.agents.planner.domain import ATOMIC_STATES, PlanActions, PlanningFailure, plan_task
-from services.agents.planner.goals import effects, goal_query
+from services.agents.planner.goals import goal_query, steps
 from services.agents.planner.hfsm import to_hfsm
 from services.agents.planner.knowledge import ARMS, Knowledge
 from services.runtime.agent import Agent
@@ -33,11 +33,14 @@ from shared.fipa_codec.languages.l_wm import (
     PlacementQuery,
     PourQuery,
     SceneQuery,
+    SparqlQuery,
 )
 
 QUERY_REPLY_BY_S = 30.0
 QUERY_RETRY_S = 2.0
 """Retransmission period of an unanswered a_km query (a_km may be restarting)."""
+NO_GOAL = SparqlQuery("ASK { }")
+"""The goal of a plan that states none (its steps are still checked): always true."""
 FURNITURE = ("table", "cabinet")
 """Where objects can be put: a_pl asks a_km for placements on each."""
 
@@ -90,7 +93,7 @@ class Planner(Agent):
                     self._finalize,
                     terminal=lambda: self.request is None,
                     on_enter=self._verify,
-                    doc="check the plan's effects in a hypothetical state (a_km); reply to a_co",
+                    doc="check the plan's steps and goal in a hypothetical state (a_km); reply to a_co",
                 ),
             ],
             arcs=[
@@ -140,7 +143,7 @@ class Planner(Agent):
     def _on_no_answer(self, conv: Conversation) -> None:
         """Refused, failed, not understood, or no answer by the reply-by deadline."""
         if conv is self.check:
-            self._checked(conv)
+            self._not_checked(conv)
         elif conv in self.pending:
             self.pending.discard(conv)
             self._unanswered(conv)
@@ -151,11 +154,19 @@ class Planner(Agent):
             self.failure = f"I know of no {key[0]} ({conv.reason})"
 
     def _checked(self, conv: Conversation) -> None:
+        """a_km's answer to the hypothetical query: the goal holds (the plan is sent) or not."""
         self.checked = True
-        holds = isinstance(conv.content, Answer) and conv.content.boolean is True
-        if not holds:
-            why = conv.reason if conv.content is None else "it is false"
-            self.failure = f"the plan would not reach its goal in a_km's hypothetical state ({why})"
+        if not isinstance(conv.content, Answer) or conv.content.boolean is not True:
+            self.failure = "the plan would not reach its goal in a_km's hypothetical state (it is false)"
+
+    def _not_checked(self, conv: Conversation) -> None:
+        """a_km answered the hypothetical query ``failure`` or ``refuse`` — a step cannot run
+        ("step 7 pour(jar, cup): the cup cannot take …") — or not at all: the plan is not sent."""
+        self.checked = True
+        if conv.timed_out:
+            self.failure = f"the plan could not be checked in a_km's hypothetical state ({conv.why})"
+        else:
+            self.failure = f"the plan cannot work: {conv.why}"
 
     # ---- the behaviours ---------------------------------------------------------------------
     def _idle(self) -> None:
@@ -256,19 +267,21 @@ class Planner(Agent):
         )
 
     def _verify(self) -> None:
-        """Ask a_km whether the goal holds after the plan's effects (hypothetical state)."""
+        """Ask a_km whether the plan's steps can run and the goal holds after them (hypothetical
+        state)."""
         self.check, self.checked = None, True
         if self.failure is not None or self.result is None or self.plan is None:
             return
         query = goal_query(
             self.result.task, self.result.args, self.result.actions, self.plan.complete, self.knowledge
         )
-        if query is None:
-            return
+        checked = steps(self.result.actions)
+        if query is None and not checked:
+            return  # the plan only senses: nothing to check
         self.check = self.roles.open(
             C4,
             FIPA_QUERY,
-            HypotheticalQuery(changes=effects(self.result.actions), query=query),
+            HypotheticalQuery(steps=checked, query=query or NO_GOAL),
             performative=Performative.QUERY_REF,
         )
         self.checked = False

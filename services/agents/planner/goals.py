@@ -1,11 +1,14 @@
 """What a plan claims to achieve, checked by a_km in a hypothetical state (paper §5.7:
 "creation of the hypothetical state of the knowledge base").
 
-``effects`` turns the plan's operators into L_WM object updates (held by a gripper, put in
-or on furniture, the content poured from one container into another: ``a_poured``);
-``goal_query`` is the SPARQL ASK that must hold after them. a_pl sends both to a_km as one
-``HypotheticalQuery`` before it answers a_co: a plan whose effects do not achieve its goal in
-a_km's own terms (ontology, relations) is not sent.
+``steps`` turns the plan's operators into L_WM plan steps (grasp, put, pour), each with its
+knowledge changes (held by a gripper, put in or on furniture at a position, the content
+poured from one container into another: ``a_poured``); ``goal_query`` is the SPARQL ASK that
+must hold after them. a_pl sends both to a_km as one ``HypotheticalQuery`` before it answers
+a_co: a_km checks each step's preconditions in the state the steps before it left
+(services/agents/knowledge/plan_check.py) and answers ``failure`` naming the first step that
+cannot run; a plan whose step cannot run, or whose steps do not achieve its goal in a_km's
+own terms (ontology, relations), is not sent.
 
 The goal is stated from the task and a_km's knowledge before the plan, never from the plan:
 a pour's goal is that the target holds what it held plus ``CONTENT_SHARE_REQUIRED`` of what
@@ -19,28 +22,66 @@ import math
 from typing import Any
 
 from services.agents.planner.domain import CONTENT_SHARE_REQUIRED
+from services.agents.planner.hfsm import KNOWLEDGE_ONLY
 from services.agents.planner.knowledge import Knowledge
-from shared.fipa_codec.languages.l_wm import ObjectUpdate, SparqlQuery
+from shared.fipa_codec.languages.common import Pose
+from shared.fipa_codec.languages.l_wm import GraspStep, ObjectUpdate, PlanStep, PourStep, PutStep, SparqlQuery
+
+
+def steps(actions: list[tuple[Any, ...]]) -> tuple[PlanStep, ...]:
+    """The steps of ``actions`` (``(name, path, *args)`` as the domain makes them) whose
+    preconditions a_km checks, in order, each with its knowledge changes (held by a gripper;
+    put in or on furniture at a position; the content poured from one container into another:
+    ``a_poured``). A step's ``index`` is the number (1-based) of its leaf among the plan's
+    leaves (hfsm.py): the grasp's, the put's, the pour's first tilt. A pour whose source's
+    content a_pl does not know changes no counts."""
+    out: list[PlanStep] = []
+    leaf = grasp_leaf = tilt_leaf = 0
+    for name, _path, *args in actions:
+        if name not in KNOWLEDGE_ONLY:
+            leaf += 1
+        if name == "a_grasp":
+            grasp_leaf = leaf
+        elif name == "a_tilt":
+            tilt_leaf = tilt_leaf or leaf
+        step = _step(name, args, {"a_held": grasp_leaf, "a_put": leaf, "a_poured": tilt_leaf})
+        if step is not None:
+            out.append(step)
+            tilt_leaf = 0 if isinstance(step, PourStep) else tilt_leaf
+    return tuple(out)
+
+
+def _step(name: str, args: list[Any], index: dict[str, int]) -> PlanStep | None:
+    """The plan step of the action ``name`` with ``args`` (None: not a checked operator),
+    numbered ``index[name]``."""
+    if name == "a_held":
+        obj, arm, _picked_from = args
+        held = ObjectUpdate(name=obj, held_by=f"{arm}_gripper")
+        return GraspStep(index=index[name], object=obj, arm=arm, changes=(held,))
+    if name == "a_put":
+        obj, furniture, relation, (x, y, z) = args
+        position = (float(x), float(y), float(z))
+        put = ObjectUpdate(name=obj, location=furniture, relation=relation, held_by="", pose=Pose(position))
+        return PutStep(
+            index=index[name],
+            object=obj,
+            furniture=furniture,
+            relation=relation,
+            position=position,
+            changes=(put,),
+        )
+    if name == "a_poured":
+        src, dst, amount, into = args
+        counts: tuple[ObjectUpdate, ...] = ()
+        if amount is not None:
+            counts = (ObjectUpdate(name=src, particles=0), ObjectUpdate(name=dst, particles=into + amount))
+        return PourStep(index=index[name], source=src, target=dst, changes=counts)
+    return None
 
 
 def effects(actions: list[tuple[Any, ...]]) -> tuple[ObjectUpdate, ...]:
-    """The knowledge changes of ``actions`` (``(name, path, *args)`` as the domain makes
-    them), in order."""
-    out: list[ObjectUpdate] = []
-    for name, _path, *args in actions:
-        if name == "a_held":
-            obj, arm, _picked_from = args
-            out.append(ObjectUpdate(name=obj, held_by=f"{arm}_gripper"))
-        elif name == "a_put":
-            obj, furniture, relation, _position = args
-            out.append(ObjectUpdate(name=obj, location=furniture, relation=relation, held_by=""))
-        elif name == "a_poured":
-            src, dst, amount, into = args
-            if amount is None:
-                continue  # a_km does not know how much the source holds: no effect to state
-            out.append(ObjectUpdate(name=src, particles=0))
-            out.append(ObjectUpdate(name=dst, particles=into + amount))
-    return tuple(out)
+    """The knowledge changes of ``actions``, in order: those of their :func:`steps`."""
+    return tuple(change for step in steps(actions) for change in step.changes)
 
 
 def goal_query(

@@ -67,13 +67,63 @@ class ObjectUpdate(msgspec.Struct, frozen=True, kw_only=True, omit_defaults=True
 AnyQuery = SparqlQuery | ObjectQuery | SceneQuery | GraspQuery | PlacementQuery | PourQuery
 
 
-class HypotheticalQuery(msgspec.Struct, frozen=True, tag="hypothetical", kw_only=True):
-    """Answer ``query`` in the hypothetical state of the knowledge base after ``changes``
-    (paper §5.7: "creation of the hypothetical state of the knowledge base"). The real state
-    is not touched. ``changes`` are applied in order, as :class:`WorldUpdate` objects are."""
+class GraspStep(msgspec.Struct, frozen=True, tag="grasp_step", kw_only=True):
+    """A plan's step in which the hand of ``arm`` grasps ``object``; ``index`` is the step's
+    number among the plan's leaves (1-based), ``changes`` its effects on the knowledge."""
 
-    changes: tuple[ObjectUpdate, ...]
+    index: int
+    object: str
+    arm: str
+    changes: tuple[ObjectUpdate, ...] = ()
+
+    @property
+    def operator(self) -> str:
+        return f"grasp({self.object}, {self.arm})"
+
+
+class PutStep(msgspec.Struct, frozen=True, tag="put_step", kw_only=True):
+    """A plan's step in which the held ``object`` is put down ``relation`` (in/on)
+    ``furniture`` with its frame (bottom centre) at ``position`` (world, m)."""
+
+    index: int
+    object: str
+    furniture: str
+    relation: str
+    position: Vec3
+    changes: tuple[ObjectUpdate, ...] = ()
+
+    @property
+    def operator(self) -> str:
+        return f"put({self.object}, {self.furniture})"
+
+
+class PourStep(msgspec.Struct, frozen=True, tag="pour_step", kw_only=True):
+    """A plan's step in which the held ``source`` is poured out into ``target``."""
+
+    index: int
+    source: str
+    target: str
+    changes: tuple[ObjectUpdate, ...] = ()
+
+    @property
+    def operator(self) -> str:
+        return f"pour({self.source}, {self.target})"
+
+
+PlanStep = GraspStep | PutStep | PourStep
+"""A plan step whose preconditions a_km checks in the hypothetical state (paper §5.7)."""
+
+
+class HypotheticalQuery(msgspec.Struct, frozen=True, tag="hypothetical", kw_only=True):
+    """Answer ``query`` in the hypothetical state of the knowledge base after ``steps``, then
+    ``changes`` (paper §5.7: "creation of the hypothetical state of the knowledge base"). The
+    real state is not touched. Each step's preconditions are checked in the state the steps
+    before it left, then its ``changes`` applied; ``changes`` are applied in order, as
+    :class:`WorldUpdate` objects are."""
+
+    changes: tuple[ObjectUpdate, ...] = ()
     query: AnyQuery
+    steps: tuple[PlanStep, ...] = ()
 
 
 class Subscription(msgspec.Struct, frozen=True, tag="subscription"):

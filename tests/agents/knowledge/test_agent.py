@@ -26,6 +26,7 @@ from shared.fipa_codec.languages.l_wm import (
     ObjectInfo,
     ObjectQuery,
     ObjectUpdate,
+    PourStep,
     SparqlQuery,
     Subscription,
     WorldUpdate,
@@ -233,3 +234,41 @@ def test_a_restarted_km_answers_held_queries_when_no_observation_comes(
         assert reply.performative is Performative.INFORM_REF and isinstance(content, Answer)
         assert content.objects[0].pose_stamp == 3.0
         assert km.hold_until is None and not km.held
+
+
+@pytest.mark.requirement("R2.3")
+def test_a_plan_whose_step_cannot_run_is_answered_failure_with_the_step_and_the_reason(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """FIPA query (SC00027): a_km tried the query and could not answer it: ``failure``."""
+    monkeypatch.delenv("ROCO_KM_STORE", raising=False)
+    monkeypatch.delenv("ROCO_RUN_DIR", raising=False)
+    goal = SparqlQuery("ASK { roco:bowl roco:particles ?n . FILTER(?n >= 90) }")
+    pour = PourStep(
+        index=7,
+        source="jar",
+        target="bowl",
+        changes=(ObjectUpdate(name="jar", particles=0), ObjectUpdate(name="bowl", particles=90)),
+    )
+    with running_km() as (_km, peer):
+        peer.update(
+            WorldUpdate(
+                stamp=1.0,
+                objects=(
+                    ObjectUpdate(name="jar", held_by="left_gripper", particles=20),
+                    ObjectUpdate(name="bowl", particles=70),
+                ),
+            )
+        )
+        reply, content = peer.query(HypotheticalQuery(steps=(pour,), query=goal))
+        assert reply.performative is Performative.FAILURE
+        assert content == (
+            "step 7 pour(jar, bowl): the bowl cannot take what the jar holds: "
+            "20 particles into 70, capacity 84"
+        )
+        # the same plan with room in the bowl reaches its goal
+        peer.update(WorldUpdate(stamp=2.0, objects=(ObjectUpdate(name="bowl", particles=64),)))
+        reply, content = peer.query(HypotheticalQuery(steps=(pour,), query=goal))
+        assert reply.performative is Performative.INFORM_REF
+        assert isinstance(content, Answer) and content.boolean is True
+        assert peer.object("bowl").particles == 64  # the real state is untouched
