@@ -3,16 +3,16 @@ L_WM queries, update times, and the whole query set of a plan, on the on-disk Ox
 and in memory.
 
 Builds a :class:`WorldModel` on a fresh store in a temporary directory ("disk") and one in
-memory ("memory"), applies one observation (jar and bowl poses, particles), then times with
-``time.perf_counter`` over ``--repeats`` calls each (after 10 warm-up calls):
+memory ("memory"), gives each ``roco run``'s default kitchen (services/bench/scene.py), then
+times with ``time.perf_counter`` over ``--repeats`` calls each (after 10 warm-up calls):
 
 - the structured queries a_pl sends: ObjectQuery (a gripper, the jar), SceneQuery,
   GraspQuery, PlacementQuery, PourQuery;
-- a SPARQL ASK, and a HypotheticalQuery (the planner's goal check: copy, apply, ASK);
-- ``plan #1 query set``: every query a_pl sends for "pour the jar into the bowl", in a row
-  (scene, two grippers, per object its object, grasp and placement queries — on each piece of
-  furniture a_pl asks about —, the pour, the hypothetical goal check: the 15 a_pl counts),
-  answered directly (no transport);
+- a SPARQL ASK, and the HypotheticalQuery a_pl sends to check plan #1 (its steps, each one's
+  preconditions checked in a copy of the knowledge, then its goal);
+- ``plan #1 query set``: every query a_pl sends for "pour the jar into the bowl", in a row, as
+  a_pl makes them in this process on the same kitchen (services/bench/plan_check.py
+  ``plan1_queries``), answered directly (no transport);
 - ``apply``: one observation of two poses (one transaction; "disk": written to the WAL),
   and on disk ``apply + flush`` (memtables to fsynced table files);
 - ``open (kept)``: opening the existing on-disk store again (the restart of a_km);
@@ -39,11 +39,11 @@ import msgspec
 from rdflib import Graph
 
 from services.agents.knowledge.world_model import ROCO, Query, WorldModel
-from services.agents.planner.agent import FURNITURE
+from services.bench.plan_check import plan1_check, plan1_queries
+from services.bench.scene import kitchen_update
 from shared.fipa_codec.languages.common import Pose
 from shared.fipa_codec.languages.l_wm import (
     GraspQuery,
-    HypotheticalQuery,
     ObjectQuery,
     ObjectUpdate,
     PlacementQuery,
@@ -54,31 +54,6 @@ from shared.fipa_codec.languages.l_wm import (
 )
 
 ASK = SparqlQuery("ASK { roco:jar roco:in roco:cabinet . roco:jar roco:hasPose ?p }")
-GOAL_CHECK = HypotheticalQuery(
-    changes=(
-        ObjectUpdate(name="bowl", held_by="right_gripper"),
-        ObjectUpdate(name="bowl", location="table", relation="on", held_by=""),
-        ObjectUpdate(name="jar", held_by="left_gripper"),
-    ),
-    query=SparqlQuery("ASK { roco:bowl roco:on roco:table . }"),
-)
-
-
-def _about(obj: str) -> tuple[Query, ...]:
-    """What a_pl asks of a movable object: the object, its grasps, its places on the furniture."""
-    grasps = tuple(GraspQuery(object=obj, arm=arm) for arm in ("left", "right"))
-    return (ObjectQuery(obj), *grasps, *(PlacementQuery(object=obj, surface=where) for where in FURNITURE))
-
-
-PLAN_1: tuple[Query, ...] = (
-    SceneQuery(),
-    ObjectQuery("left_gripper"),
-    ObjectQuery("right_gripper"),
-    *_about("jar"),
-    *_about("bowl"),
-    PourQuery(source="jar", target="bowl"),
-    GOAL_CHECK,
-)
 
 
 def observation(stamp: float) -> WorldUpdate:
@@ -114,7 +89,8 @@ def machine() -> str:
     return benchlib.machine(("pyoxigraph", "oxrdflib", "rdflib"))
 
 
-def bench(name: str, world: WorldModel, repeats: int) -> None:
+def bench(name: str, world: WorldModel, repeats: int, plan_1: tuple[Query, ...]) -> None:
+    check = plan1_check(plan_1)
     print(f"\n{name}: {len(world)} triples            p50 ms    p99 ms   mean ms")
     queries: list[tuple[str, Query]] = [
         ("ObjectQuery(left_gripper)", ObjectQuery("left_gripper")),
@@ -124,12 +100,12 @@ def bench(name: str, world: WorldModel, repeats: int) -> None:
         ("PlacementQuery(bowl, table)", PlacementQuery(object="bowl", surface="table")),
         ("PourQuery(jar, bowl)", PourQuery(source="jar", target="bowl")),
         ("SparqlQuery ASK", ASK),
-        ("HypotheticalQuery (goal check)", GOAL_CHECK),
+        (f"HypotheticalQuery (plan #1's check, {len(check.steps)} steps)", check),
     ]
     for label, query in queries:
         print(row(label, timed(lambda q=query: world.answer(q), repeats)))  # type: ignore[misc]
-    plan = timed(lambda: [world.answer(q) for q in PLAN_1], max(20, repeats // 10))
-    print(row(f"plan #1 query set ({len(PLAN_1)} queries)", plan))
+    plan = timed(lambda: [world.answer(q) for q in plan_1], max(20, repeats // 10))
+    print(row(f"plan #1 query set ({len(plan_1)} queries)", plan))
     stamp = [10.0]
 
     def apply() -> None:
@@ -155,13 +131,14 @@ def main() -> None:
     parser.add_argument("--repeats", type=int, default=200)
     args = parser.parse_args()
     print(machine())
+    plan_1 = plan1_queries()
     with tempfile.TemporaryDirectory() as tmp:
         store = Path(tmp) / "km_store"
         t0 = time.perf_counter()
         disk = WorldModel(store)
         created_ms = (time.perf_counter() - t0) * 1e3
-        disk.apply(observation(1.0))
-        bench(f"disk ({store.name}, created and filled in {created_ms:.0f} ms)", disk, args.repeats)
+        disk.apply(kitchen_update())
+        bench(f"disk ({store.name}, created and filled in {created_ms:.0f} ms)", disk, args.repeats, plan_1)
         disk.close()
 
         def reopen() -> None:
@@ -169,8 +146,8 @@ def main() -> None:
 
         print(row("open (kept) + close", timed(reopen, 10, warmup=1)))
     memory = WorldModel()
-    memory.apply(observation(1.0))
-    bench("memory (Oxigraph, no directory)", memory, args.repeats)
+    memory.apply(kitchen_update())
+    bench("memory (Oxigraph, no directory)", memory, args.repeats, plan_1)
 
     reference = Graph()
     for t in memory.triples():

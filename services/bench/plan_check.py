@@ -37,9 +37,11 @@ from shared.fipa_codec.languages.l_hfsm import (
     Perceive,
     PlanNode,
 )
-from shared.fipa_codec.languages.l_wm import WorldUpdate
+from shared.fipa_codec.languages.l_wm import AnyQuery, HypotheticalQuery, WorldUpdate
 
 POUR = TaskAtom("pour", ("jar", "bowl"))
+Query = AnyQuery | HypotheticalQuery
+"""An L_WM query a_pl sends a_km (fipa-query, C4)."""
 
 
 def pour_request(n: int) -> bytes:
@@ -109,10 +111,9 @@ def _answer(answers: queue.SimpleQueue[bytes], timeout: float) -> Communicate:
             return msg
 
 
-def expected_plan(update: WorldUpdate | None = None, timeout: float = 60.0) -> HierarchicalPlan:
-    """Plan #1 of the pour made in this process (module docstring) with a_km knowing
-    ``update`` (default: the default kitchen). Raises SetupRefused when a_pl answers without a
-    plan or not within ``timeout`` s."""
+def _plan_one(update: WorldUpdate | None, timeout: float) -> tuple[Communicate, list[bytes]]:
+    """a_pl's answer to the plan request for plan #1 (module docstring), a_km knowing ``update``
+    (default: the default kitchen), and what a_pl sent a_km on C4 meanwhile (encoded)."""
     from services.agents.knowledge.agent import KnowledgeManager
     from services.agents.planner.agent import Planner
     from services.runtime.memory_transport import MemoryBus
@@ -121,19 +122,54 @@ def expected_plan(update: WorldUpdate | None = None, timeout: float = 60.0) -> H
     km, pl = KnowledgeManager(bus.transport()), Planner(bus.transport())
     km.world.apply(update if update is not None else kitchen_update())
     answers: queue.SimpleQueue[bytes] = queue.SimpleQueue()
+    asked: list[bytes] = []
     bus.subscribe(keys.fipa_key("C3", "a_pl", "a_co"), lambda _k, p: answers.put(p))
+    bus.subscribe(keys.fipa_key("C4", "a_pl", "a_km"), lambda _k, p: asked.append(p))
     try:
         with _running(km, pl):
             bus.publish(keys.fipa_key("C3", "a_co", "a_pl"), pour_request(0))
             msg = _answer(answers, timeout)
     finally:
         km.close()
+    return msg, asked
+
+
+def expected_plan(update: WorldUpdate | None = None, timeout: float = 60.0) -> HierarchicalPlan:
+    """Plan #1 of the pour made in this process (module docstring) with a_km knowing
+    ``update`` (default: the default kitchen). Raises SetupRefused when a_pl answers without a
+    plan or not within ``timeout`` s."""
+    msg, _ = _plan_one(update, timeout)
     plan = decode_content(msg.language, msg.content) if msg.language else None
     if not isinstance(plan, HierarchicalPlan):
         raise SetupRefused(
             f"a_pl made no plan in this process: {msg.performative.value} {msg.content[:120]!r}"
         )
     return plan
+
+
+def plan1_queries(update: WorldUpdate | None = None, timeout: float = 60.0) -> tuple[Query, ...]:
+    """Every L_WM query a_pl sends a_km for plan #1, in order (the check of its steps in the
+    hypothetical state, paper §5.7, among them), made in this process as :func:`expected_plan`
+    makes the plan. Raises SetupRefused when a_pl made no plan."""
+    msg, asked = _plan_one(update, timeout)
+    if msg.performative is not Performative.INFORM:
+        raise SetupRefused(f"a_pl made no plan in this process: {msg.performative.value}")
+    out = []
+    for payload in asked:
+        sent = decode(payload)
+        content = decode_content(sent.language, sent.content) if sent.language else None
+        if sent.performative is Performative.QUERY_REF and isinstance(content, Query):
+            out.append(content)
+    return tuple(out)
+
+
+def plan1_check(queries: tuple[Query, ...]) -> HypotheticalQuery:
+    """The HypotheticalQuery among plan #1's ``queries`` (:func:`plan1_queries`). Raises
+    SetupRefused when there is none."""
+    for q in queries:
+        if isinstance(q, HypotheticalQuery):
+            return q
+    raise SetupRefused("a_pl sent a_km no HypotheticalQuery for plan #1 in this process")
 
 
 def require_same(timed: HierarchicalPlan, expected: HierarchicalPlan) -> None:

@@ -8,13 +8,14 @@ from __future__ import annotations
 import functools
 import sys
 from pathlib import Path
+from typing import Any
 
 import msgspec
 import pytest
 
-from services.bench import parts
+from services.bench import parts, scene
 from services.bench.messaging import no_access_control
-from services.bench.plan_check import expected_plan, leaf_signature, require_same
+from services.bench.plan_check import expected_plan, leaf_signature, plan1_queries, require_same
 from services.bench.scene import kitchen_update
 from services.bench.setup_check import SetupRefused, check_counters, check_run_folder, trouble
 from services.runtime.counters import CountersReport, save_counters
@@ -103,10 +104,20 @@ def test_the_planning_bench_times_plan_1() -> None:
     assert [(queries, leaves) for _, _, queries, leaves in rows] == [(15, 33)]
 
 
-def test_the_knowledge_part_refuses_an_a_km_that_does_not_know_the_scene() -> None:
-    empty = WorldUpdate(stamp=0.0, objects=())
+def test_the_knowledge_part_refuses_an_a_km_that_does_not_know_the_scene(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    real = scene.SceneSource
+
+    class EmptyScene(real):  # type: ignore[misc, valid-type]
+        """Gives the a_km process an empty scene (the in-process plan still has the kitchen)."""
+
+        def __init__(self, session: Any, _update: WorldUpdate) -> None:
+            super().__init__(session, WorldUpdate(stamp=0.0, objects=()))
+
+    monkeypatch.setattr(scene, "SceneSource", EmptyScene)
     with pytest.raises(SetupRefused, match=r"a_km does not know the scene after it was given: jar \("):
-        parts.knowledge(True, update=empty)
+        parts.knowledge(True)
 
 
 def test_roco_bench_prints_one_line_and_no_figure_for_a_refused_set_up(
@@ -136,4 +147,4 @@ def test_roco_bench_prints_one_line_and_no_figure_for_a_refused_set_up(
 
 def test_the_timed_query_set_is_as_long_as_plan_1s() -> None:
     # what the knowledge part times as "plan #1 query set": as many queries as a_pl counts
-    assert len(parts.scripts_module("bench_km").PLAN_1) == expected_plan().km_queries
+    assert len(plan1_queries()) == expected_plan().km_queries
