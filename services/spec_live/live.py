@@ -97,13 +97,10 @@ class LiveMonitor:
         self.channels = frozenset(s.channel for _, p in watched for s in p.steps)
         """The channels the watched properties are about (others need not be fed)."""
         self._feed = CausalFeed(hold)
-        self.recorded = 0
-        """How many communicates arrived so far."""
 
     def arrive(self, m: Message) -> list[tuple[str, Outcome, Message]]:
         """Take the next communicate to arrive; the properties it (or what it released)
         violated, each once: (requirement id, outcome, the violating communicate)."""
-        self.recorded += 1
         return self._evaluate(self._feed.push(m))
 
     def end(self) -> list[tuple[str, Outcome, Message]]:

@@ -45,11 +45,15 @@ class RequirementsSink:
         self.monitor = monitor
         self.t0 = t0
         self.flags = 0
+        self.recorded = 0
+        """One past the highest ``seq`` written so far: the record's length when it began empty."""
         self._digests: set[bytes] = set()
         self._broken = False
 
     def communicate(self, record: Any, payload: bytes) -> None:
         """One communicate the recorder wrote (its ``TrafficRecord`` and bytes)."""
+        if isinstance(record, TrafficRecord):
+            self.recorded = max(self.recorded, record.seq + 1)
         watched = isinstance(record, TrafficRecord) and record.channel in self.monitor.channels
         if self._broken or not watched:
             return
@@ -93,7 +97,7 @@ class RequirementsSink:
 
     def _raise(self, raised: list[Any]) -> None:
         for rid, outcome, m in raised:
-            flag = flag_of(rid, outcome, m, self.monitor.recorded, time.time())
+            flag = flag_of(rid, outcome, m, self.recorded, time.time())
             append_flag(self.run_dir, flag)
             self.flags += 1
             log.warning("requirement violated: %s", flag.line())
