@@ -303,12 +303,13 @@ class _Loop:
 
 def _requirements_monitor(run_dir: Path) -> TrafficSink | None:
     """The live requirements monitor's sink (:data:`MONITOR`) for ``run_dir``; None when it
-    cannot be loaded (logged: the recorder records all the same) or has nothing to watch."""
+    cannot be loaded or started (logged: a monitor is never a reason to lose traffic) or has
+    nothing to watch."""
     module, _, attribute = MONITOR.partition(":")
     try:
         sink: TrafficSink | None = getattr(importlib.import_module(module), attribute)(RECORDER, run_dir)
-    except (ImportError, AttributeError) as exc:
-        log.error("the live requirements monitor cannot be loaded (%s); recording without it", exc)
+    except Exception:
+        log.exception("the live requirements monitor cannot be started; recording without it")
         return None
     return sink
 

@@ -12,9 +12,10 @@ first ``exercised`` steps but none bound them all; else *not exercised*. A viola
 whatever else matched; a property with an absent step is followed after it was shown (a
 later situation may still violate it).
 
-A step that no later step names, and that is not followed by a ``within_s`` or ``next`` step,
-binds the earliest communicate that fits (a later one cannot help a later step); any other
-binds each fitting communicate in turn (one partial match each). At most
+A step that no later step names, and that is not followed by an ``absent`` step or by a
+``within_s`` or ``next`` step, binds the earliest communicate that fits (a later one cannot
+help a later step); any other binds each fitting communicate in turn (one partial match
+each). At most
 :data:`MAX_PARTIALS` partial matches are kept per property (the earliest ones); the monitor
 says so in :attr:`Monitor.capped`.
 """
@@ -110,8 +111,9 @@ def _in_reply_to(m: Message) -> str | None:
 
 @dataclass(frozen=True)
 class _Partial:
-    """Steps ``0..step-1`` bound (``bound``: each one's first event), ``count`` communicates
-    matched of step ``step``."""
+    """The steps before ``step`` matched (``bound``: the first event of each that binds one;
+    absent steps bind none), ``count`` communicates matched of step ``step``, the next step
+    that binds (an absent step is never waited on: the ones just before ``step`` watch)."""
 
     step: int
     count: int
