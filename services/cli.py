@@ -258,7 +258,8 @@ def run(
 ) -> None:
     """Start router, recorder and one process per agent (and the ACL gateway with
     `--gateway`); give a_hi the command; wait for the outcome; stop everything; write the run
-    folder's report. Exit 0 only on success, 130 when interrupted (Ctrl-C: the fleet is
+    folder's report. Exit 0 only on success with no requirement flagged violated during the
+    run (docs/spec.md, the live monitor), 130 when interrupted (Ctrl-C: the fleet is
     stopped, the report written)."""
     from services.scenario.model import Scenario, Step
 
@@ -297,7 +298,8 @@ def scenario(
 ) -> None:
     """Run a scenario (several commands, interruptions, disturbances, restarts; see
     services/scenario/model.py) headless, check every command's outcome against what the
-    scenario expects, and write the report. Exit 0 only when everything went as expected, 130
+    scenario expects, and write the report. Exit 0 only when everything went as expected and
+    no requirement was flagged violated during the run (docs/spec.md, the live monitor), 130
     when interrupted."""
     from services.scenario.model import ScenarioError, library, load_scenario
 
@@ -584,9 +586,52 @@ def _run_scenario(
     _finish_report(run_dir, info, interrupted=outcome.interrupted)
     if sc.name:
         typer.echo(outcome.summary())
-    if not outcome.ok:
-        what = "the task failed" if not sc.name else f"scenario “{sc.name}” did not go as expected"
-        raise fail(f"{what}: {info.detail} (run folder {run_dir})")
+    _exit_on_failure(sc.name, outcome.ok, info.detail, run_dir)
+
+
+def _exit_on_failure(name: str, ok: bool, detail: str, run_dir: Path) -> None:
+    """Exit 1 with one line when the run failed (scenario ``name``, or ``roco run`` when
+    empty) or a requirement was flagged violated during it (:func:`_violated`)."""
+    violated = _violated(run_dir)
+    if not ok:
+        what = "the task failed" if not name else f"scenario “{name}” did not go as expected"
+        raise fail(f"{what}: {detail}{violated and '; ' + violated} (run folder {run_dir})")
+    if violated:
+        raise fail(f"{violated} (run folder {run_dir})")
+
+
+def _violated(run_dir: Path) -> str:
+    """``requirement R3.3 violated during the run: …`` for the requirements the live monitor
+    flagged in ``run_dir`` (services/recorder/flags.py), the first one's flag in words; empty
+    when none was flagged."""
+    from services.recorder.flags import read_flags
+
+    try:
+        flags = read_flags(run_dir)
+    except OSError as exc:
+        return f"the live requirement flags cannot be read: {exc}"
+    if not flags:
+        return ""
+    ids = sorted({f.requirement for f in flags})
+    which = f"requirement{'s' if len(ids) > 1 else ''} {', '.join(ids)}"
+    return f"{which} violated during the run: {flags[0].line()}"
+
+
+def _flag_lines(runs_dir: Path) -> list[str]:
+    """`roco status`'s lines of the requirements the live monitor flagged violated in the run
+    folder of the fleet of `roco up` in ``runs_dir`` (services/recorder/flags.py): one per
+    flag, ``violated  R3.3 “…”: <event> at <time> (<what it came before>)``; none without
+    such a fleet or flag."""
+    from services.recorder.flags import read_flags
+
+    state = _fleet_state(runs_dir)
+    if state is None:
+        return []
+    try:
+        flags = read_flags(Path(state.run_dir))
+    except OSError as exc:
+        return [f"{'violated':9s} (the flags cannot be read: {exc})"]
+    return [f"{'violated':9s} {f.line()}" for f in flags]
 
 
 def _check_perception() -> None:
@@ -1092,7 +1137,9 @@ def status(
     """List the agents that hold a liveliness token, each alive agent with its counters of
     received and rejected input (by reason; docs/security.md), and what each router with
     access control refused, named (identity, message, key, when); each router is named by its
-    host (brain, robot: `roco hosts`) or its endpoint. Exit 1 if any agent is missing."""
+    host (brain, robot: `roco hosts`) or its endpoint; then, for a fleet of `roco up`, one line
+    per requirement property the live monitor found violated (requirement, property, the
+    communicate that violated it, when; docs/spec.md). Exit 1 if any agent is missing."""
     from services.runtime.counters import ask_counters
     from services.runtime.refusals import RefusalReport, collect_reports
     from services.runtime.refusals import summary as refusal_summary
@@ -1115,6 +1162,8 @@ def status(
     for r in sorted(refusals, key=lambda r: names.get(r.router, r.router)):
         name = names.get(r.router, f"{r.router[:8]} (Zenoh id)")
         typer.echo(f"{'router':9s} {name}  {refusal_summary(r)}")
+    for line in _flag_lines(runs_dir):
+        typer.echo(line)
     if not set(AGENT_ORDER) <= alive:
         raise typer.Exit(1)
 

@@ -5,11 +5,14 @@ Run as ``python -m services.recorder.recorder`` with ``ROCO_ROUTER`` and ``ROCO_
 It announces liveliness as ``recorder`` once its subscription is declared, so a launcher can
 start agents only after the recorder listens. A payload that is not a communicate is recorded
 with performative ``malformed``. Fault events (``roco/fault/event/*``, docs/faults.md) go to
-``faults.jsonl``.
+``faults.jsonl``. Each communicate written is also given to the live requirements monitor
+(:data:`MONITOR`, loaded by name: services/spec_live/sink.py), which appends the requirement
+properties it finds violated to ``flags.jsonl`` as they happen (services/recorder/flags.py).
 """
 
 from __future__ import annotations
 
+import importlib
 import logging
 import queue
 import secrets
@@ -41,6 +44,9 @@ from services.runtime.transport import Arrival, ZenohTransport
 from shared.settings import Settings
 
 RECORDER = "recorder"
+MONITOR = "services.spec_live.sink:open_sink"
+"""The live requirements monitor's sink factory (``module:function``, called with the
+recorder's name and run folder; it returns a ``TrafficSink`` or None)."""
 _fault_event = msgspec.json.Decoder(faults.FaultEvent).decode
 _FAULT_EVENTS = faults.EVENT_ALL.removesuffix("*")
 BATCH = 256
@@ -224,8 +230,10 @@ def _write_all(f: BinaryIO, data: bytes) -> None:
 class _Loop:
     """The recorder's thread: writes what the Zenoh callbacks put in ``inbox``."""
 
-    def __init__(self, writer: TrafficWriter, transport: ZenohTransport, rerun: TrafficSink | None) -> None:
-        self.writer, self.transport, self.rerun = writer, transport, rerun
+    def __init__(
+        self, writer: TrafficWriter, transport: ZenohTransport, sinks: list[TrafficSink] | None = None
+    ) -> None:
+        self.writer, self.transport, self.sinks = writer, transport, sinks or []
         self.inbox: queue.SimpleQueue[Arrival | None] = queue.SimpleQueue()
         self.listening_since = time.time()
 
@@ -287,10 +295,23 @@ class _Loop:
         if not pending:
             return
         records = self.writer.write_many(pending)
-        if self.rerun is not None:  # a viewer
+        for sink in self.sinks:  # a viewer, the live requirements monitor
             for rec, a in zip(records, pending, strict=True):
-                self.rerun.communicate(rec, a.payload)
+                sink.communicate(rec, a.payload)
         pending.clear()
+
+
+def _requirements_monitor(run_dir: Path) -> TrafficSink | None:
+    """The live requirements monitor's sink (:data:`MONITOR`) for ``run_dir``; None when it
+    cannot be loaded or started (logged: a monitor is never a reason to lose traffic) or has
+    nothing to watch."""
+    module, _, attribute = MONITOR.partition(":")
+    try:
+        sink: TrafficSink | None = getattr(importlib.import_module(module), attribute)(RECORDER, run_dir)
+    except Exception:
+        log.exception("the live requirements monitor cannot be started; recording without it")
+        return None
+    return sink
 
 
 def main() -> int:
@@ -308,7 +329,8 @@ def main() -> int:
     except ValueError as exc:  # no credentials for the recorder, a malformed ROCO_RECEIVE_POLL_US
         print(f"roco: recorder: {exc}", file=sys.stderr)
         return 2
-    loop = _Loop(writer, transport, rerun)
+    monitor = _requirements_monitor(run_dir)
+    loop = _Loop(writer, transport, [s for s in (rerun, monitor) if s is not None])
     # every communicate, and what publishers' caches still hold of those sent before this start
     transport.subscribe_recovering(keys.FIPA_ALL, loop.inbox.put)
     transport.subscribe(keys.RECORDER_SYNC, loop.put)
@@ -328,6 +350,8 @@ def main() -> int:
         )
     writer.close()
     transport.close()
+    if monitor is not None:  # what it held back, evaluated
+        monitor.finish()
     if rerun is not None:  # a viewer: Rerun closes this part and merges all into <run>/recording.rrd
         rerun.finish()
     return 0

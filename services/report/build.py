@@ -7,6 +7,7 @@ from pathlib import Path
 
 import msgspec
 
+from services.recorder.flags import LiveFlag, read_flags
 from services.recorder.record import (
     FAULTS_JSONL,
     LINK_BYTES_JSONL,
@@ -93,7 +94,17 @@ def _assemble(run: RunData, container: str = "bowl", tracer: Tracer | None = Non
         clock=clock,
         perception=_perception(Path(run_dir), notes),
         requirements=_requirements(run, tracer, notes),
+        flags=_flags(Path(run_dir), notes),
     )
+
+
+def _flags(run_dir: Path, notes: list[str]) -> list[LiveFlag]:
+    """The live monitor's flags of the run (services/recorder/flags.py); unreadable: a note."""
+    try:
+        return read_flags(run_dir)
+    except OSError as exc:
+        notes.append(f"live requirement flags unreadable: {exc}")
+        return []
 
 
 def _requirements(run: RunData, tracer: Tracer | None, notes: list[str]) -> list[RequirementRow]:

@@ -8,6 +8,7 @@ from collections.abc import Mapping, Sequence
 from datetime import UTC, datetime
 from pathlib import Path
 
+from services.recorder.flags import LiveFlag
 from services.report import paper
 from services.report.figures import FigureFile
 from services.report.model import (
@@ -55,7 +56,7 @@ def render(report: Report, figures: Sequence[FigureFile] = ()) -> str:
         _statistics(report, figs),
         _matrix_section(report.matrix, figs),
         _timeline(report.events, report.clock, figs),
-        _requirements(report.requirements, report.clock),
+        _requirements(report.requirements, report.clock, report.flags, report.header.started_wall),
         _planning(report.plans),
         _content(report),
         _control(report),
@@ -313,20 +314,30 @@ def _requirement_row(r: RequirementRow, clock: RobotClock) -> list[str]:
     return [name, served or "—", "; ".join(r.evidence) or "—", when, wall, str(r.tests), verdict]
 
 
-def _requirements(rows: Sequence[RequirementRow], clock: RobotClock) -> str:
+FLAGS_NOTE = (
+    "Flagged violated during the run by the live monitor (run in the traffic recorder; "
+    "`flags.jsonl`), each with the communicate that violated the property, when it arrived "
+    "(s since the run start) and what it came before:"
+)
+
+
+def _requirements(
+    rows: Sequence[RequirementRow], clock: RobotClock, flags: Sequence[LiveFlag] = (), t0: float | None = None
+) -> str:
     """The requirement tree traced to this run: a generalised paper Table 7 (Table 7 says
     which channels each event used; this says which channels and communicates show each
-    requirement). Empty when the requirements were not traced."""
-    if not rows:
+    requirement), and the properties the live monitor flagged violated during the run (times
+    from ``t0``, the run's start, POSIX s). Empty when the requirements were not traced and
+    nothing was flagged."""
+    if not rows and not flags:
         return ""
     head = ["requirement", "served by", "communicates", "robot [s]", "wall [s]", "tests", "verdict"]
-    return "\n\n".join(
-        [
-            f"{SECTION}Requirements traced to this run (paper Table 7 generalised)",
-            REQUIREMENTS_NOTE,
-            _table(head, [_requirement_row(r, clock) for r in rows]),
-        ]
-    )
+    parts = [f"{SECTION}Requirements traced to this run (paper Table 7 generalised)"]
+    if rows:
+        parts += [REQUIREMENTS_NOTE, _table(head, [_requirement_row(r, clock) for r in rows])]
+    if flags:
+        parts += [FLAGS_NOTE, "\n".join(f"- **violated** {f.line(t0)}" for f in flags)]
+    return "\n\n".join(parts)
 
 
 def _timeline(events: Sequence[Event], clock: RobotClock, figs: Mapping[str, FigureFile]) -> str:

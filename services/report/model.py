@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import msgspec
 
+from services.recorder.flags import LiveFlag
 from services.report.robot_clock import RobotClock
 from velma.executor.timing import TimingStats
 
@@ -275,3 +276,6 @@ class Report(msgspec.Struct, kw_only=True):
     """How much of the specification the run exercised, when the report's writer counted it."""
     requirements: list[RequirementRow] = []
     """The requirement tree traced to this run (empty: not traced; services/spec_check/trace.py)."""
+    flags: list[LiveFlag] = []
+    """The requirement properties the live monitor flagged violated during the run, in the
+    order flagged (services/recorder/flags.py)."""

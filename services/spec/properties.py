@@ -22,15 +22,23 @@ steps, named by their ``name``:
 - ``within_s``: at most this many seconds after the previous step's event;
 - ``next``: the first communicate after the previous step's event that fits the step's pattern
   must also fit its relations (not any later one);
-- ``at_least``: that many communicates must match (the first is the step's event).
+- ``at_least``: that many communicates must match (the first is the step's event);
+- ``absent``: the step binds nothing: no communicate that fits its pattern and relations may
+  come after the previous step's event and before the next step's (an explicit forbidden
+  order). One that comes ends that partial match: the property is then *violated* at that
+  communicate when the partial match had bound the situation (its first ``exercised`` steps,
+  this step being after them), else the partial match is just dropped (the situation did not
+  happen). An absent step cannot be the first or the last, nor be named, nor carry
+  ``at_least``, ``within_s`` or ``next``.
 
 A content field is a path: ``state``, ``goal.verb``, ``objects[bowl].particles_inside`` (the
 element of ``objects`` whose ``name`` is ``bowl``). ``fields`` compares a value as text (an
 enum by its value) or as a number; ``minimum`` asks for a number at least that large.
 
-``exercised`` says how many leading steps describe the situation the requirement is about:
-once a run matched them, the rest must follow, else the run *violates* the property (absent:
-all steps, so a property is then shown or not exercised, never violated by order alone).
+``exercised`` says how many leading steps describe the situation the requirement is about
+(absent steps among them counted): once a run matched them, the rest must follow, else the
+run *violates* the property (``exercised`` not given: all steps, so a property is then shown
+or not exercised, never violated by order alone).
 """
 
 from __future__ import annotations
@@ -67,6 +75,7 @@ class EventPattern(msgspec.Struct, frozen=True, forbid_unknown_fields=True, kw_o
     above: dict[str, str] = {}
     within_s: float | None = None
     next: bool = False
+    absent: bool = False
 
     def names(self) -> list[str]:
         """The earlier steps this one names, in field order (repeats kept)."""
@@ -78,10 +87,15 @@ class EventPattern(msgspec.Struct, frozen=True, forbid_unknown_fields=True, kw_o
         parts = [self.channel, self.protocol, self.performative, self.content]
         if self.sender is not None or self.receiver is not None:
             parts.append(f"{self.sender or '*'}→{self.receiver or '*'}")
-        parts += [f"{k}={v}" for k, v in self.fields.items()]
+        parts += [f"{k}={_shown(v)}" for k, v in self.fields.items()]
         parts += [f"{k}≥{v:g}" for k, v in self.minimum.items()]
         words = " ".join(p for p in parts if p is not None)
-        return f"{words} ≥{self.at_least}" if self.at_least > 1 else words
+        return ("no " * self.absent) + (f"{words} ≥{self.at_least}" if self.at_least > 1 else words)
+
+
+def _shown(value: FieldValue) -> str:
+    """A field's value as a pattern shows it (the empty text as ``""``)."""
+    return '""' if value == "" else str(value)
 
 
 class Property(msgspec.Struct, frozen=True, forbid_unknown_fields=True, kw_only=True):
@@ -97,12 +111,18 @@ class Property(msgspec.Struct, frozen=True, forbid_unknown_fields=True, kw_only=
         """How many leading steps make the run exercise the property."""
         return len(self.steps) if self.exercised is None else self.exercised
 
+    @property
+    def binding(self) -> tuple[EventPattern, ...]:
+        """The steps that bind an event (all but the ``absent`` ones), in order."""
+        return tuple(s for s in self.steps if not s.absent)
+
 
 def property_problems(prop: Property) -> list[str]:
     """What is wrong in ``prop`` itself, as sentences (its steps' patterns are checked against
     the channels by services/spec/requirements.py): no steps; ``exercised`` outside 1..steps;
     a name used twice; a step naming no earlier step; ``at_least`` below 1; ``within_s`` not
-    positive; a field path that is not ``a``, ``a[key]``, ``a.b``…"""
+    positive; a field path that is not ``a``, ``a[key]``, ``a.b``…; an ``absent`` step first,
+    last, named, or with ``at_least``, ``within_s`` or ``next``."""
     if not prop.steps:
         return ["no steps"]
     problems: list[str] = []
@@ -112,6 +132,8 @@ def property_problems(prop: Property) -> list[str]:
     for n, step in enumerate(prop.steps, 1):
         where = f"step {n} ({step.describe()})"
         problems += [f"{where}: {p}" for p in _step_problems(step, seen)]
+        if step.absent:
+            problems += [f"{where}: {p}" for p in _absent_problems(step, n, len(prop.steps))]
         if step.name is not None:
             if step.name in seen:
                 problems.append(f"{where}: name {step.name} used twice")
@@ -127,4 +149,14 @@ def _step_problems(step: EventPattern, earlier: set[str]) -> list[str]:
         problems.append(f"within_s must be positive, not {step.within_s}")
     paths = [*step.fields, *step.minimum, *step.refers, *step.above]
     problems += [f"field path {p!r} is not a, a[key], a.b, …" for p in paths if not _PATH.match(p)]
+    return problems
+
+
+def _absent_problems(step: EventPattern, n: int, steps: int) -> list[str]:
+    """What an ``absent`` step (the ``n``-th of ``steps``) may not be or carry."""
+    problems = ["an absent step cannot be the first or the last"] if n in (1, steps) else []
+    if step.name is not None:
+        problems.append("an absent step binds nothing, so it cannot be named")
+    if step.at_least != 1 or step.within_s is not None or step.next:
+        problems.append("an absent step cannot carry at_least, within_s or next")
     return problems

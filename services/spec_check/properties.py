@@ -5,12 +5,17 @@ traffic as it arrives.
 :class:`Monitor` keeps every partial match of a property's steps (the events bound so far);
 :meth:`Monitor.feed` takes the next communicate in causal order (services/recorder/causal.py)
 and advances them. A property is *shown* once a partial match bound all its steps; it is
-*violated* when the run ended (:meth:`Monitor.verdict` with ``final``) after a partial match
-bound its first ``exercised`` steps but none bound them all; else *not exercised*.
+*violated* as soon as a communicate an ``absent`` step forbids comes in a partial match that
+bound the situation (:attr:`Monitor.violation`: the communicate, while the run goes on), or
+when the run ended (:meth:`Monitor.verdict` with ``final``) after a partial match bound its
+first ``exercised`` steps but none bound them all; else *not exercised*. A violation stands
+whatever else matched; a property with an absent step is followed after it was shown (a
+later situation may still violate it).
 
-A step that no later step names, and that is not followed by a ``within_s`` or ``next`` step,
-binds the earliest communicate that fits (a later one cannot help a later step); any other
-binds each fitting communicate in turn (one partial match each). At most
+A step that no later step names, and that is not followed by an ``absent`` step or by a
+``within_s`` or ``next`` step, binds the earliest communicate that fits (a later one cannot
+help a later step); any other binds each fitting communicate in turn (one partial match
+each). At most
 :data:`MAX_PARTIALS` partial matches are kept per property (the earliest ones); the monitor
 says so in :attr:`Monitor.capped`.
 """
@@ -26,7 +31,7 @@ from typing import Any
 from services.report.load import Message
 from services.spec.properties import EventPattern, FieldValue, Property
 
-__all__ = ["MAX_PARTIALS", "Monitor", "Outcome", "Verdict", "evaluate", "field_value"]
+__all__ = ["MAX_PARTIALS", "Monitor", "Outcome", "Verdict", "Violation", "evaluate", "field_value"]
 
 MAX_PARTIALS = 10_000
 """Partial matches kept per property."""
@@ -106,12 +111,23 @@ def _in_reply_to(m: Message) -> str | None:
 
 @dataclass(frozen=True)
 class _Partial:
-    """Steps ``0..step-1`` bound (``bound``: each one's first event), ``count`` communicates
-    matched of step ``step``."""
+    """The steps before ``step`` matched (``bound``: the first event of each that binds one;
+    absent steps bind none), ``count`` communicates matched of step ``step``, the next step
+    that binds (an absent step is never waited on: the ones just before ``step`` watch)."""
 
     step: int
     count: int
     bound: tuple[Message, ...]
+
+
+@dataclass(frozen=True)
+class Violation:
+    """Where a property was violated as it happened: its ``absent`` step ``step`` (index in
+    the property's steps) was matched by ``by`` after the ``events`` bound before it."""
+
+    step: int
+    by: Message
+    events: tuple[Message, ...]
 
 
 @dataclass(frozen=True)
@@ -124,16 +140,30 @@ class Outcome:
     verdict: Verdict
     events: tuple[Message, ...]
     capped: bool = False
+    violation: Violation | None = None
 
     def describe(self) -> str:
-        """``shown: 18.3 s, 18.4 s`` or ``not exercised: steps 1–2 matched, then no C1 …``."""
-        steps = self.prop.steps
+        """``shown: 18.3 s, 18.4 s``, ``not exercised: steps 1–2 matched, then no C1 …`` or
+        ``violated at 21.3 s: C1 … came while waiting for C6 …``."""
+        steps = self.prop.binding
         capped = f" (partial matches capped at {MAX_PARTIALS})" if self.capped else ""
+        if self.violation is not None:
+            return f"{self.verdict} at {self.violation.by.t:.1f} s: {self.forbidden()}{capped}"
         if self.verdict == Verdict.SHOWN:
             return f"{self.verdict}: events at " + ", ".join(f"{m.t:.1f} s" for m in self.events) + capped
         got = len(self.events)
         matched = "no step matched" if got == 0 else f"steps 1–{got} matched" if got > 1 else "step 1 matched"
         return f"{self.verdict}: {matched}, then no {steps[got].describe()}{capped}"
+
+    def forbidden(self) -> str:
+        """What the violating communicate was and what was awaited: ``C1 … came while waiting
+        for C6 …`` (empty without a violation)."""
+        if self.violation is None:
+            return ""
+        steps = self.prop.steps
+        awaited = next((s for s in steps[self.violation.step :] if not s.absent), None)
+        came = steps[self.violation.step].describe().removeprefix("no ")
+        return f"{came} came while waiting for {awaited.describe() if awaited else 'the end'}"
 
 
 Closed = dict[tuple[str, str | None], set[str]]
@@ -147,70 +177,94 @@ class Monitor:
 
     def __init__(self, prop: Property) -> None:
         self.prop = prop
-        self._names = {s.name: i for i, s in enumerate(prop.steps) if s.name is not None}
-        named = {n for s in prop.steps for n in s.names()}
-        self._branch = [
-            (s.name is not None and s.name in named)
-            or (
-                i + 1 < len(prop.steps) and (prop.steps[i + 1].within_s is not None or prop.steps[i + 1].next)
-            )
-            for i, s in enumerate(prop.steps)
-        ]
+        steps = prop.steps
+        slots = [sum(1 for s in steps[:i] if not s.absent) for i in range(len(steps))]
+        self._names = {s.name: slots[i] for i, s in enumerate(steps) if s.name is not None}
+        self._after = [_next_binding(steps, i + 1) for i in range(len(steps))]
+        """Step index → the index of the first binding step after it (len(steps): none)."""
+        self._guards = [_guards_before(steps, i) for i in range(len(steps))]
+        """Step index → the absent steps just before it (they watch while it waits)."""
+        self._branch = _branches(steps, self._after)
+        self._guarded = any(s.absent for s in steps)
         self._partials: list[_Partial] = [_Partial(0, 0, ())]
         self._closed: Closed = {}
         self._furthest: tuple[Message, ...] = ()
         self.shown_by: tuple[Message, ...] | None = None
+        self.violation: Violation | None = None
         self.exercised = False
         self.capped = False
 
     def feed(self, m: Message) -> None:
         """Take the next communicate of the run (copies should be left out)."""
-        if self.shown_by is None:
-            advanced: dict[tuple[int, int, tuple[int, ...]], _Partial] = {}
-            for p in self._partials:
-                for q in self._advance(p, m):
-                    advanced.setdefault((q.step, q.count, tuple(id(x) for x in q.bound)), q)
-            self._partials = list(advanced.values())
-            if len(self._partials) > MAX_PARTIALS:
-                self._partials, self.capped = self._partials[:MAX_PARTIALS], True
+        if self.violation is None and (self.shown_by is None or self._guarded):
+            self._advance_all(m)
         if m.performative in CLOSING:
             self._closed.setdefault((m.channel, m.conversation), set()).add(m.sender)
 
     def verdict(self, final: bool = True) -> Verdict:
-        """Shown once matched; violated when ``final`` (the run ended) and the situation
-        happened but the property did not follow; else not exercised."""
+        """Violated once a forbidden communicate came (:attr:`violation`); else shown once
+        matched; violated when ``final`` (the run ended) and the situation happened but the
+        property did not follow; else not exercised."""
+        if self.violation is not None:
+            return Verdict.VIOLATED
         if self.shown_by is not None:
             return Verdict.SHOWN
         return Verdict.VIOLATED if final and self.exercised else Verdict.NOT_EXERCISED
 
     def outcome(self, final: bool = True) -> Outcome:
-        """The verdict with the events of the furthest match."""
-        events = self.shown_by if self.shown_by is not None else self._furthest
-        return Outcome(self.prop, self.verdict(final), events, self.capped)
+        """The verdict with the events of the violating match, else of the furthest match."""
+        if self.violation is not None:
+            events = self.violation.events
+        else:
+            events = self.shown_by if self.shown_by is not None else self._furthest
+        return Outcome(self.prop, self.verdict(final), events, self.capped, self.violation)
 
     # -----------------------------------------------------------------------------------------
+
+    def _advance_all(self, m: Message) -> None:
+        """Every partial match advanced by ``m`` (repeats merged, complete ones let go)."""
+        advanced: dict[tuple[int, int, tuple[int, ...]], _Partial] = {}
+        for p in self._partials:
+            for q in self._advance(p, m):
+                advanced.setdefault((q.step, q.count, tuple(id(x) for x in q.bound)), q)
+        self._partials = [q for q in advanced.values() if q.step < len(self.prop.steps)]
+        if len(self._partials) > MAX_PARTIALS:
+            self._partials, self.capped = self._partials[:MAX_PARTIALS], True
 
     def _advance(self, p: _Partial, m: Message) -> list[_Partial]:
         """``p`` and what ``m`` makes of it: kept, advanced (and kept, when the step branches),
         or dropped (a ``next`` step whose first fitting communicate is not related)."""
         step = self.prop.steps[p.step]
         if not _fits(step, m):
-            return [p]
+            return self._guard(p, m)
         if not self._related(step, m, p.bound):
-            return [] if step.next and p.count == 0 else [p]
+            return [] if step.next and p.count == 0 else self._guard(p, m)
         q = self._step(p, m, step.at_least)
         keep = p.count == 0 and self._branch[p.step] and not step.next
         return [p, q] if keep else [q]
+
+    def _guard(self, p: _Partial, m: Message) -> list[_Partial]:
+        """``p``, unless ``m`` is what an absent step before its next step forbids: then the
+        partial match ends, and when it had bound the situation, the property is violated."""
+        if p.count:
+            return [p]
+        for g in self._guards[p.step]:
+            guard = self.prop.steps[g]
+            if _fits(guard, m) and self._related(guard, m, p.bound):
+                if g >= self.prop.situation and self.violation is None:
+                    self.violation = Violation(g, m, p.bound)
+                return []
+        return [p]
 
     def _step(self, p: _Partial, m: Message, at_least: int) -> _Partial:
         """``p`` with ``m`` counted for its step (and bound, when it is the first)."""
         bound = (*p.bound, m) if p.count == 0 else p.bound
         if p.count + 1 < at_least:
             return _Partial(p.step, p.count + 1, bound)
-        q = _Partial(p.step + 1, 0, bound)
+        q = _Partial(self._after[p.step], 0, bound)
         if len(q.bound) > len(self._furthest):
             self._furthest = q.bound
-        self.exercised = self.exercised or q.step >= self.prop.situation
+        self.exercised = self.exercised or p.step + 1 >= self.prop.situation
         if q.step == len(self.prop.steps) and self.shown_by is None:
             self.shown_by = q.bound
         return q
@@ -221,6 +275,40 @@ class Monitor:
         return all(rule(step, m, ev, self._closed) for rule in _RELATIONS) and (
             step.within_s is None or not bound or m.t - bound[-1].t <= step.within_s
         )
+
+
+def _next_binding(steps: tuple[EventPattern, ...], i: int) -> int:
+    """The index of the first step from ``i`` on that binds an event (len(steps): none)."""
+    while i < len(steps) and steps[i].absent:
+        i += 1
+    return i
+
+
+def _guards_before(steps: tuple[EventPattern, ...], i: int) -> tuple[int, ...]:
+    """The indices of the absent steps just before step ``i``."""
+    j = i
+    while j > 0 and steps[j - 1].absent:
+        j -= 1
+    return tuple(range(j, i)) if not steps[i].absent else ()
+
+
+def _branches(steps: tuple[EventPattern, ...], after: list[int]) -> list[bool]:
+    """Per step, whether it binds each fitting communicate in turn (module docstring): a later
+    step names it, or it is followed closely (:func:`_followed_closely`)."""
+    named = {n for s in steps for n in s.names()}
+    return [
+        (s.name is not None and s.name in named) or _followed_closely(steps, i, after[i])
+        for i, s in enumerate(steps)
+    ]
+
+
+def _followed_closely(steps: tuple[EventPattern, ...], i: int, after: int) -> bool:
+    """Step ``i`` must bind each fitting communicate in turn: an absent step follows it (a
+    forbidden communicate ends a match, and a later one may start again), or the next binding
+    step is ``within_s`` or ``next`` of it."""
+    if i + 1 < len(steps) and steps[i + 1].absent:
+        return True
+    return after < len(steps) and (steps[after].within_s is not None or steps[after].next)
 
 
 def _same(step: EventPattern, m: Message, ev: Events, closed: Closed) -> bool:

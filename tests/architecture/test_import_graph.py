@@ -27,6 +27,7 @@ LAYERS = {
 the settings, the specification's data model, the credentials' format, the agent runtime)."""
 TOOLS = (
     "services.spec_check",
+    "services.spec_live",
     "services.fleet",
     "services.deploy",
     "services.recorder",

@@ -85,7 +85,7 @@ def test_the_urgent_scenario_shows_every_leaf(urgent: Recorded, tmp_path: Path) 
     run_dir = urgent.write(tmp_path / "urgent")
     assert _verdicts(run_dir) == dict.fromkeys(LEAVES, Verdict.SHOWN)
     code, text = trace_report([run_dir], DEFAULT_SPEC, tests=None)
-    assert code == 0 and "leaves: 10 shown, 0 not exercised, 0 violated" in text
+    assert code == 0 and "leaves: 11 shown, 0 not exercised, 0 violated" in text
     assert "R2.1 [shown]" in text and "Terminating, Preempted, then the waiting command's plan: shown" in text
 
 
@@ -130,7 +130,14 @@ MUTATIONS: dict[str, tuple[Callable[[Recorded], Recorded], Verdict]] = {
     ),
     # a_ta's world updates travel outside the subscription a_km made
     "R3.2": (lambda r: r.relink(_on("C6", "inform"), conversation_id="elsewhere"), Verdict.VIOLATED),
+    # a_ta never tells a_km that the jar is put down: Preempted comes with the jar in hand
+    "R3.3": (lambda r: r.remove(_jar_put_down), Verdict.VIOLATED),
 }
+
+
+def _jar_put_down(m: Message) -> bool:
+    """a_ta's update to a_km that the jar is held by nothing (it was put down)."""
+    return m.channel == "C6" and m.sender == "a_ta" and field_value(m.content, "objects[jar].held_by") == ""
 
 
 def _pour(r: Recorded) -> str | None:

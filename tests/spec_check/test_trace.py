@@ -135,7 +135,7 @@ def test_a_planted_requirement_that_nothing_serves_is_not_shown(complete: Path, 
         "in complete: not exercised (no property)",
     ]
     assert "\n    ".join(planted_lines) in text
-    assert "R [not exercised]" in text and "leaves: 10 shown, 1 not exercised (R4), 0 violated" in text
+    assert "R [not exercised]" in text and "leaves: 11 shown, 1 not exercised (R4), 0 violated" in text
     proc = subprocess.run(
         [
             sys.executable,
@@ -160,8 +160,8 @@ def test_a_violation_on_a_serving_channel_contradicts_the_requirement(tmp_path: 
     b.add(47.0, "C5", "a_ta", "ag_ex", "inform", conversation="ex-9", protocol="fipa-request")
     run_dir = _run(tmp_path, b)
     t = trace(DEFAULT_SPEC, [run_dir], tests=None)
-    # C5 serves R3.1 only (step 5, with C1 and C6): the others stand
-    assert t.count(Verdict.VIOLATED) == ["R3.1"]
+    # C5 serves R3.1 and R3.3 only (step 5, with C1 and C6): the others stand
+    assert t.count(Verdict.VIOLATED) == ["R3.1", "R3.3"]
     assert t.leaves["R3.1"].runs[0].against == ("1 conformance violation(s) on C5 in run",)
     assert t.verdict("R3") is Verdict.VIOLATED and t.verdict("R") is Verdict.VIOLATED
     proc = subprocess.run(

@@ -1,0 +1,55 @@
+"""`roco run` / `roco scenario` exit 1 with one `roco:` line naming a requirement the live
+monitor flagged during the run (services/recorder/flags.py), even when the run went as
+expected; `roco status` lists the flags of the fleet of `roco up`. A run folder with a planted
+flag, no fleet."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import msgspec
+import pytest
+import typer
+
+from services.cli import FLEET_FILE, FleetState, _exit_on_failure, _flag_lines
+from services.recorder.flags import LiveFlag, append_flag
+
+FLAG = LiveFlag(
+    requirement="R3.3",
+    prop="p",
+    event="C1 a_ta → a_co inform",
+    why="w",
+    t=0.0,
+    seq=5,
+    recorded=6,
+    flagged=0.0,
+)
+
+
+def test_a_flag_makes_a_run_that_went_well_exit_1_with_one_line(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    _exit_on_failure("", True, "the task succeeded", tmp_path)  # no flag: no exit
+    append_flag(tmp_path, FLAG)
+    with pytest.raises(typer.Exit) as ended:
+        _exit_on_failure("", True, "the task succeeded", tmp_path)
+    assert ended.value.exit_code == 1
+    (line,) = capsys.readouterr().err.splitlines()
+    assert line.startswith(
+        "roco: requirement R3.3 violated during the run: R3.3 “p”: C1 a_ta → a_co inform at "
+    )
+    assert line.endswith(f"(w) (run folder {tmp_path})")
+    with pytest.raises(typer.Exit):
+        _exit_on_failure("s", False, "#1 failed", tmp_path)
+    (line,) = capsys.readouterr().err.splitlines()
+    assert line.startswith("roco: scenario “s” did not go as expected: #1 failed; requirement R3.3 violated")
+
+
+def test_status_lists_the_flags_of_the_fleet(tmp_path: Path) -> None:
+    run_dir = tmp_path / "run"
+    run_dir.mkdir()
+    assert _flag_lines(tmp_path) == []  # no fleet
+    (tmp_path / FLEET_FILE).write_bytes(msgspec.json.encode(FleetState("tcp/127.0.0.1:1", str(run_dir), {})))
+    assert _flag_lines(tmp_path) == []  # no flag
+    append_flag(run_dir, FLAG)
+    assert _flag_lines(tmp_path) == [f"violated  {FLAG.line()}"]
