@@ -69,10 +69,12 @@ def seen_share(action: CheckContent, obs: Observation) -> float:
 def content_seen(action: CheckContent, obs: Observation, look: int) -> str:
     """What look ``look`` (1: the first, 2: the second) counted in the checked container, in
     words: "the bowl holds 18 of 18 spheres, 15 seen (83 %) and 3 inferred behind its wall, at
-    the first look"."""
+    the first look"; "the bowl was not seen at the first look")."""
     inside, inferred = content_counts(action, obs)
     seen = inside - inferred
     which = "the first look" if look == 1 else "the second look"
+    if all(o.name != action.container for o in obs.objects):
+        return f"the {action.container} was not seen at {which}"
     share = f"{100 * seen / max(1, obs.total_particles):.0f} %"
     split = (
         f"{seen} seen ({share}) and {inferred} inferred behind its wall"
