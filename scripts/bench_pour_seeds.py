@@ -22,8 +22,8 @@ Success: every command succeeded (grasps by contact and friction) and ≥ ``--mi
 (default 90 %) of the spheres ended in the bowl.
 
 Verdict against truth: per seed the verdict (fleet: the task's outcome, a_ta's content check
-on what the camera saw, services/agents/task_executor/verdict.py; script: the same share rule
-on the last Observation's count, seen and inferred) beside the truth (the spheres the
+on what the camera saw, services/agents/task_executor/verdict.py; script: a_ta's verdict on the
+last Observation as a second look, there being no a_ta) beside the truth (the spheres the
 simulation holds in the bowl, the same ``--min-share`` of the content); the summary says in how
 many seeds they agree, and the script exits 1 when any disagrees. The camera's count is shown
 as seen + inferred (the spheres inferred behind the bowl's near wall, not seen).
@@ -195,7 +195,7 @@ def run_script(seed: int) -> Outcome:
     inside = GroundTruth(ex.rt.model).particles_inside(ex.rt.data, "bowl")
     touched = sum(isinstance(r, CommandResult) and bool(r.self_contacts) for r in results)
     detail = "all commands succeeded" if failed is None else f"{failed.command} failed: {failed.reason}"
-    verdict = failed is None and counted is not None and counted >= CONTENT_SHARE_REQUIRED * (total or 0)
+    verdict = failed is None and isinstance(final, Observation) and content_verdict(final)
     return Outcome(
         failed is None,
         inside,
@@ -207,6 +207,18 @@ def run_script(seed: int) -> Outcome:
         inferred=inferred,
         verdict=verdict,
     )
+
+
+def content_verdict(obs: object) -> bool:
+    """a_ta's verdict on ``obs`` (an L_SD Observation) as the pour's content check's second
+    look (services/agents/task_executor/verdict.py ``judge``): True when it goes on, so the
+    task succeeds. Script mode has no a_ta, so no first look."""
+    from services.agents.task_executor.verdict import Answer, Do, Step, judge
+    from shared.fipa_codec.languages.l_hfsm import CheckContent, PlanNode
+
+    check = CheckContent(container="bowl", min_fraction=CONTENT_SHARE_REQUIRED)
+    step = Step("pour/check_bowl", PlanNode(name="check_bowl", action=check), second_view=2)
+    return judge(step, Answer(True, obs, "inform", "inform"), False).do is Do.NEXT  # type: ignore[arg-type]
 
 
 def truth_verdict(out: Outcome, min_share: float) -> bool:
