@@ -19,9 +19,18 @@ Two modes:
   the simulation's truth at the end, beside the last Observation's count.
 
 Success: every command succeeded (grasps by contact and friction) and ≥ ``--min-share``
-(default 90 %) of the spheres ended in the bowl. Beside it, the number of commands during which
-the robot touched itself (``CommandResult.self_contacts``; Velma's links collide with each
-other in the simulation, docs/executor.md).
+(default 90 %) of the spheres ended in the bowl.
+
+Verdict against truth: per seed the verdict (fleet: the task's outcome, a_ta's content check
+on what the camera saw, services/agents/task_executor/verdict.py; script: a_ta's verdict on the
+last Observation as a second look, there being no a_ta) beside the truth (the spheres the
+simulation holds in the bowl, the same ``--min-share`` of the content); the summary says in how
+many seeds they agree, and the script exits 1 when any disagrees. The camera's count is shown
+as seen + inferred (the spheres inferred behind the bowl's near wall, not seen).
+
+Beside it, the number of commands during which the robot touched itself
+(``CommandResult.self_contacts``; Velma's links collide with each other in the simulation,
+docs/executor.md).
 
 Usage: ``python scripts/bench_pour_seeds.py [--mode fleet|script] [--seeds 20] [--first 1]``
 """
@@ -42,6 +51,7 @@ sys.path.insert(0, str(ROOT))
 import benchlib  # noqa: E402  (scripts/benchlib.py, beside this file)
 import numpy as np  # noqa: E402
 
+from services.agents.planner.domain import CONTENT_SHARE_REQUIRED  # noqa: E402
 from services.report.model import PerceptionRow  # noqa: E402
 from velma.model.scene import scene_perturbation  # noqa: E402
 
@@ -59,6 +69,10 @@ class Outcome:
     """Commands during which the robot touched itself (self-collision is on: docs/executor.md)."""
     counted: int | None = None
     """Spheres the last Observation reported in the bowl (the camera's count, or the truth)."""
+    inferred: int | None = None
+    """Of ``counted``, the spheres inferred behind the bowl's wall, not seen (None: not split)."""
+    verdict: bool | None = None
+    """The task's verdict: True succeeded, False failed (module docstring)."""
     perception: list[PerceptionRow] = field(default_factory=list)
     """The run's camera Observations beside the truth (fleet mode)."""
 
@@ -105,6 +119,8 @@ def run_fleet(seed: int, runs_dir: Path, realtime: bool) -> Outcome:
         wall,
         touched,
         counted=c.inside,
+        inferred=c.inferred,
+        verdict=report.header.succeeded,
         perception=list(report.perception),
     )
 
@@ -171,14 +187,53 @@ def run_script(seed: int) -> Outcome:
     wall = time.time() - t0
     failed = next((r for r in results if isinstance(r, CommandResult) and not r.ok), None)
     final = results[-1]
-    counted = total = None
+    counted = total = inferred = None
     if isinstance(final, Observation):
         bowl = next((o for o in final.objects if o.name == "bowl"), None)
         counted, total = (bowl.particles_inside if bowl else None), final.total_particles
+        inferred = bowl.particles_inferred if bowl else None
     inside = GroundTruth(ex.rt.model).particles_inside(ex.rt.data, "bowl")
     touched = sum(isinstance(r, CommandResult) and bool(r.self_contacts) for r in results)
     detail = "all commands succeeded" if failed is None else f"{failed.command} failed: {failed.reason}"
-    return Outcome(failed is None, inside, total, detail, wall, touched, counted=counted)
+    verdict = failed is None and isinstance(final, Observation) and content_verdict(final)
+    return Outcome(
+        failed is None,
+        inside,
+        total,
+        detail,
+        wall,
+        touched,
+        counted=counted,
+        inferred=inferred,
+        verdict=verdict,
+    )
+
+
+def content_verdict(obs: object) -> bool:
+    """a_ta's verdict on ``obs`` (an L_SD Observation) as the pour's content check's second
+    look (services/agents/task_executor/verdict.py ``judge``): True when it goes on, so the
+    task succeeds. Script mode has no a_ta, so no first look."""
+    from services.agents.task_executor.verdict import Answer, Do, Step, judge
+    from shared.fipa_codec.languages.l_hfsm import CheckContent, PlanNode
+
+    check = CheckContent(container="bowl", min_fraction=CONTENT_SHARE_REQUIRED)
+    step = Step("pour/check_bowl", PlanNode(name="check_bowl", action=check), second_view=2)
+    return judge(step, Answer(True, obs, "inform", "inform"), False).do is Do.NEXT  # type: ignore[arg-type]
+
+
+def truth_verdict(out: Outcome, min_share: float) -> bool:
+    """What the verdict should be: the spheres truly in the bowl are ≥ ``min_share`` of the
+    content (False when they were not observed)."""
+    return out.inside is not None and bool(out.total) and out.inside >= min_share * (out.total or 0)
+
+
+def camera_count(out: Outcome) -> str:
+    """The camera's count as "seen + inferred" ("—": none; a count not split: itself)."""
+    if out.counted is None:
+        return "—"
+    if out.inferred is None:
+        return str(out.counted)
+    return f"{out.counted - out.inferred} + {out.inferred}"
 
 
 def main() -> int:
@@ -210,11 +265,12 @@ def measure(args: argparse.Namespace) -> int:
         print(f"- Run folders: {runs_dir}")
     print(
         "\n| seed | jar dx, dy (mm), yaw (°) | bowl dx, dy (mm), yaw (°) | spheres in bowl | share "
-        "| camera counted | success | robot touched itself (commands) | wall s | detail |"
+        "| camera: seen + inferred | success | verdict | truth | robot touched itself (commands) | wall s "
+        "| detail |"
     )
-    print("|---|---|---|---|---|---|---|---|---|---|")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|")
     rows: list[PerceptionRow] = []
-    successes = touched = 0
+    successes = touched = agree = 0
     shares: list[float] = []
     for seed in range(args.first, args.first + args.seeds):
         p = scene_perturbation(seed)
@@ -222,6 +278,8 @@ def measure(args: argparse.Namespace) -> int:
         share = out.inside / out.total if out.inside is not None and out.total else 0.0
         ok = out.ok and share >= args.min_share
         successes += ok
+        truth = truth_verdict(out, args.min_share)
+        agree += out.verdict is truth
         touched += out.touched > 0
         shares.append(share)
         rows.extend(out.perception)
@@ -232,8 +290,9 @@ def measure(args: argparse.Namespace) -> int:
         inside = f"{out.inside}/{out.total}" if out.inside is not None else "not observed"
         print(
             f"| {seed} | {pert(p.jar)} | {pert(p.bowl)} | {inside} | {share * 100:.0f} % | "
-            f"{'—' if out.counted is None else out.counted} | {'yes' if ok else 'NO'} | {out.touched} | "
-            f"{out.wall:.0f} | {out.detail} |",
+            f"{camera_count(out)} | {'yes' if ok else 'NO'} | {_said(out.verdict)} | {_said(truth)}"
+            f"{'' if out.verdict is truth else ' (DISAGREES)'} | {out.touched} | {out.wall:.0f} "
+            f"| {out.detail} |",
             flush=True,
         )
     n = args.seeds
@@ -242,9 +301,17 @@ def measure(args: argparse.Namespace) -> int:
         f"{successes} of {n}; mean share {sum(shares) / n * 100:.1f} %, lowest {min(shares) * 100:.0f} %; "
         f"the robot touched itself in {touched} of {n} runs."
     )
+    print(
+        f"Verdict matches truth: {agree} of {n} (truth: ≥ {args.min_share * 100:.0f} % of the spheres "
+        "really in the bowl, from the simulation's state)."
+    )
     if args.mode == "fleet":
         print("\n" + "\n".join(perception_summary(rows)))
-    return 0
+    return 0 if agree == n else 1
+
+
+def _said(verdict: bool | None) -> str:
+    return "—" if verdict is None else ("succeeded" if verdict else "failed")
 
 
 if __name__ == "__main__":

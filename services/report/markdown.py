@@ -431,10 +431,16 @@ def _content(report: Report) -> str:
     if not c.observed:
         text = f"Spheres in the {c.container}: not observed (no L_SD Observation reports them)."
     else:
+        which = "second" if c.look == 2 else "first"
+        split = (
+            f"{c.seen} seen and {c.inferred} inferred behind its wall (not seen)"
+            if c.inferred
+            else ("all seen" if c.inferred == 0 else "not split into seen and inferred")
+        )
         text = (
-            f"{c.inside} of {c.total} spheres ({_pct(c.share)}) ended in the {c.container}, "
-            f"from the last observation (ag_ex → a_ta, C5) at {_s(c.t)} s wall "
-            f"({_s(c.stamp)} s robot time)."
+            f"{c.inside} of {c.total} spheres ({_pct(c.share)}) ended in the {c.container}: "
+            f"{split}, at the {which} look, the last observation (ag_ex → a_ta, C5) at "
+            f"{_s(c.t)} s wall ({_s(c.stamp)} s robot time)."
         )
     return "\n\n".join(
         [

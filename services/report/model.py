@@ -133,8 +133,11 @@ class PlanPhase(msgspec.Struct, kw_only=True):
 class ContentOutcome(msgspec.Struct, kw_only=True):
     """Spheres of the jar that ended in ``container``, from the last L_SD ``Observation``
     (ag_ex → a_ta, C5) reporting ``particles_inside`` for it. ``observed`` False when none;
+    ``inside`` = ``seen`` + ``inferred``: the spheres the camera saw and those it inferred
+    behind the container's wall (``inferred`` None: the observation does not split them);
     ``share`` = inside / total (None when total is 0); ``t`` arrival (s since run start);
-    ``stamp`` simulation time of the observation (s)."""
+    ``stamp`` simulation time of the observation (s); ``look`` 1 or 2: the first look at the
+    container or the second, after a_ta turned the head to it (services/report/content.py)."""
 
     container: str
     observed: bool
@@ -143,6 +146,9 @@ class ContentOutcome(msgspec.Struct, kw_only=True):
     share: float | None = None
     t: float | None = None
     stamp: float | None = None
+    seen: int | None = None
+    inferred: int | None = None
+    look: int | None = None
 
 
 class CommandRow(msgspec.Struct, kw_only=True):

@@ -387,6 +387,8 @@ def _observed(result: msgspec.Struct | None) -> str:
     for o in result.objects:
         if o.particles_inside is not None:
             text += f"; {o.particles_inside} of {result.total_particles} spheres in the {o.name}"
+            if o.particles_inferred:
+                text += f" ({o.particles_inferred} of them inferred, not seen)"
     return text
 
 

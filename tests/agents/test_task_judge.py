@@ -6,7 +6,14 @@ from __future__ import annotations
 
 import math
 
-from services.agents.task_executor.judge import content_share, content_shortfall, differences, too_uncertain
+from services.agents.task_executor.judge import (
+    content_seen,
+    content_share,
+    content_shortfall,
+    differences,
+    seen_share,
+    too_uncertain,
+)
 from shared.fipa_codec.languages.common import Pose
 from shared.fipa_codec.languages.l_hfsm import CheckContent, ExpectedPosition, Perceive
 from shared.fipa_codec.languages.l_sd import ObjectObservation, Observation
@@ -61,3 +68,14 @@ def test_a_position_too_uncertain_for_the_grasp_is_named() -> None:
     )
     assert too_uncertain(expect, seen(bowl(position_sigma=0.002))) is None
     assert too_uncertain(expect, seen(bowl(position_sigma=0.02))) == ("bowl", PLACED, 0.02)
+
+
+def test_the_count_in_words_tells_seen_from_inferred() -> None:
+    assert content_seen(CHECK, seen(bowl(inside=18, particles_inferred=3)), 2) == (
+        "the bowl holds 18 of 18 spheres, 15 seen (83 %) and 3 inferred behind its wall, at the second look"
+    )
+    assert content_seen(CHECK, seen(bowl(inside=17)), 1) == (
+        "the bowl holds 17 of 18 spheres, all seen (94 %), at the first look"
+    )
+    assert content_seen(CHECK, seen(), 1) == "the bowl was not seen at the first look"
+    assert seen_share(CHECK, seen(bowl(inside=18, particles_inferred=3))) == 15 / 18

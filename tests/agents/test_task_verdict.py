@@ -51,9 +51,18 @@ def seen(*objects: ObjectObservation) -> Observation:
 
 
 def bowl(
-    position: tuple[float, float, float] = PLACED, inside: int | None = 18, sigma: float | None = None
+    position: tuple[float, float, float] = PLACED,
+    inside: int | None = 18,
+    sigma: float | None = None,
+    inferred: int | None = None,
 ) -> ObjectObservation:
-    return ObjectObservation(name="bowl", pose=Pose(position), particles_inside=inside, position_sigma=sigma)
+    return ObjectObservation(
+        name="bowl",
+        pose=Pose(position),
+        particles_inside=inside,
+        position_sigma=sigma,
+        particles_inferred=inferred,
+    )
 
 
 def perceive(judges: bool = False, max_sigma: float | None = None) -> Perceive:
@@ -153,26 +162,56 @@ def test_an_uncertain_position_is_looked_at_once_then_replanned() -> None:
     )
 
 
-def test_a_content_check_that_passes_goes_on_and_notes_the_share() -> None:
+def test_a_content_check_that_passes_goes_on_and_says_what_it_saw() -> None:
     obs = seen(bowl(inside=17))
-    assert judge(step(CHECK), done(obs), False) == Verdict(
-        Do.NEXT, observed=obs, notes=("bowl holds 94 % of the content",)
-    )
+    counted = "the bowl holds 17 of 18 spheres, all seen (94 %), at the first look"
+    assert judge(step(CHECK), done(obs), False) == Verdict(Do.NEXT, counted, observed=obs, notes=(counted,))
 
 
 def test_a_short_content_is_looked_at_once_then_an_error() -> None:
     obs = seen(bowl(inside=10))
     shortfall = "bowl holds only 56 % of the content (needs 90 %)"
-    notes = ("bowl holds 56 % of the content",)
+    first = "the bowl holds 10 of 18 spheres, all seen (56 %), at the first look"
+    second = first.replace("first", "second")
     assert judge(step(CHECK), done(obs), False) == Verdict(
-        Do.LOOK, shortfall, look_at=PLACED, observed=obs, notes=notes
+        Do.LOOK, shortfall, look_at=PLACED, observed=obs, notes=(first,)
     )
     assert judge(step(CHECK, second_view=2), done(obs), False) == Verdict(
-        Do.ERROR, shortfall, observed=obs, notes=notes
+        Do.ERROR, f"{shortfall}; {second}", observed=obs, notes=(second,)
     )
     # in a safe stop, or with the container not seen, there is no second view
     assert judge(step(CHECK), done(obs), True).do is Do.ERROR
     assert judge(step(CHECK), done(seen()), False).do is Do.ERROR
+
+
+def test_when_the_inferred_spheres_decide_the_second_look_judges_on_what_it_saw() -> None:
+    # the first look saw 15 of 18 (83 %) and inferred 3 behind the wall: the inferred decide
+    first = seen(bowl(inside=18, inferred=3))
+    look = judge(step(CHECK), done(first), False)
+    assert look.do is Do.LOOK and look.look_at == PLACED
+    assert look.reason == "only 15 of 18 spheres seen in the bowl, 3 more inferred behind its wall"
+    # the head turned to the bowl: it is observed again, and that look judges
+    assert judge(step(CHECK, second_view=1), done(None), False) == Verdict(
+        Do.OBSERVE_AGAIN, objects=("bowl",)
+    )
+    better = seen(bowl(inside=18, inferred=1))
+    counted = (
+        "the bowl holds 18 of 18 spheres, 17 seen (94 %) and 1 inferred behind its wall, at the second look"
+    )
+    assert judge(step(CHECK, second_view=2), done(better), False) == Verdict(
+        Do.NEXT, counted, observed=better, notes=(counted,)
+    )
+    # the second look seeing no more: the task succeeds on the inference, and says so
+    still = judge(step(CHECK, second_view=2), done(first), False)
+    assert still.do is Do.NEXT
+    assert still.reason == (
+        "the bowl holds 18 of 18 spheres, 15 seen (83 %) and 3 inferred behind its wall, at the second look; "
+        "the 90 % rests on the 3 inferred, which no look saw"
+    )
+    # seen and inferred together short: a look, then an error, as for a short count
+    short = seen(bowl(inside=16, inferred=3))
+    assert judge(step(CHECK), done(short), False).do is Do.LOOK
+    assert judge(step(CHECK, second_view=2), done(short), False).do is Do.ERROR
 
 
 def test_a_sensing_leaf_answered_without_an_observation_goes_on() -> None:

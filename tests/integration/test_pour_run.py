@@ -174,6 +174,22 @@ def test_the_head_camera_counts_most_spheres_in_the_bowl(pour_run: PourRun) -> N
     assert content.share >= 0.9, content
 
 
+@needs_camera
+def test_the_report_says_how_many_spheres_were_seen_and_how_many_inferred(pour_run: PourRun) -> None:
+    """The report's content section splits the count into the spheres the camera saw and those
+    it inferred behind the bowl's wall, and names the look that decided; the outcome the person
+    read says the same (services/agents/task_executor/verdict.py)."""
+    c = build_report(pour_run.run_dir).content
+    assert c.seen is not None and c.inferred is not None and c.seen + c.inferred == c.inside, c
+    assert c.look in (1, 2)
+    md = (pour_run.run_dir / "report.md").read_text(encoding="utf-8")
+    section = md.split("Content outcome")[1]
+    which = "second" if c.look == 2 else "first"
+    split = f"{c.seen} seen and {c.inferred} inferred behind its wall" if c.inferred else "all seen"
+    assert f"ended in the bowl: {split}" in section and f"at the {which} look" in section, section[:600]
+    assert f"{c.inside} of {c.total} spheres" in pour_run.proc.stdout, pour_run.proc.stdout[-2000:]
+
+
 @pytest.mark.requirement("R3.1")
 def test_the_bowl_stands_on_the_table_holding_the_content_in_the_simulated_world(pour_run: PourRun) -> None:
     """Judged by the world the run left (the world's final scene, the physics' truth), not by

@@ -381,7 +381,9 @@ def pour_run() -> RunBuilder:
         "inform",
         Observation(
             stamp=30.0,
-            objects=(ObjectObservation(name="bowl", pose=_pose(0.4), particles_inside=17),),
+            objects=(
+                ObjectObservation(name="bowl", pose=_pose(0.4), particles_inside=17, particles_inferred=2),
+            ),
             total_particles=20,
         ),
         conversation="ex-5",

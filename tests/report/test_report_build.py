@@ -12,6 +12,8 @@ import msgspec
 import pytest
 
 from services.report import Event, Report, build_report, paper, write_report
+from shared.fipa_codec.languages.l_ex import LookAt
+from tests.report.conftest import RunBuilder
 from velma.world.timing import WorldTiming
 
 COMMAND = "pour the jar into the bowl"
@@ -106,7 +108,7 @@ def test_timeline(report: Report) -> None:
     obs = [e for e in report.events if e.kind == "observation"]
     assert [e.start for e in obs] == pytest.approx([24.5, 42.0])
     assert obs[0].text.startswith("bowl localised")
-    assert "17 of 20 spheres in the bowl" in obs[1].text
+    assert "17 of 20 spheres in the bowl (2 of them inferred, not seen)" in obs[1].text
     env = [e for e in report.events if e.kind == "environment"]
     assert [(e.start, e.end) for e in env] == [
         (pytest.approx(22.0), None),
@@ -139,9 +141,32 @@ def test_sphere_share(report: Report) -> None:
     c = report.content
     assert c.observed and c.container == "bowl"
     assert (c.inside, c.total) == (17, 20)
+    assert (c.seen, c.inferred, c.look) == (15, 2, 1)
     assert c.share == pytest.approx(0.85)
     assert c.t == pytest.approx(42.0)
     assert c.stamp == pytest.approx(30.0)
+
+
+def test_the_content_counted_after_a_turn_of_the_head_is_the_second_look(
+    make_run: Callable[..., Path], pour: RunBuilder
+) -> None:
+    # a_ta turns the head to the bowl after the pour (verdict.py: the inferred spheres decided)
+    pour.add(
+        40.5,
+        "C5",
+        "a_ta",
+        "ag_ex",
+        "request",
+        LookAt(point=(0.4, 0.0, 0.8)),
+        conversation="ex-look",
+        protocol="fipa-request",
+        reply_with="rl",
+    )
+    run = make_run(pour)
+    assert build_report(run).content.look == 2
+    assert "15 seen and 2 inferred behind its wall (not seen), at the second look" in write_report(
+        run
+    ).read_text(encoding="utf-8")
 
 
 def test_no_notes_for_clean_run(report: Report) -> None:
@@ -186,7 +211,8 @@ def test_markdown(run_dir: Path, pour: Any) -> None:
     assert "| #1 | 12.0 | 17.0 | 6 |" in md
     assert "| partial |" in md and "| complete |" in md
     assert "| #1 | 97 | 153 | 1598 |" in md
-    assert "17 of 20 spheres (85.0 %) ended in the bowl" in md
+    assert "17 of 20 spheres (85.0 %) ended in the bowl: 15 seen and 2 inferred behind its wall" in md
+    assert "at the first look" in md
     assert "None: every file was read completely." in md
 
 

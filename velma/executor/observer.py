@@ -12,7 +12,7 @@ What the agents get (L_SD, shared/fipa_codec/languages/l_sd.py):
   spheres counted (``count_spheres``: those seen, and those the bowl's near wall hides
   inferred from the gaps of the ring they form along the wall), at most the content there is
   (``total_particles`` less ``particles_outside``: the camera's inference behind the wall can
-  count more);
+  count more); ``particles_inferred`` says how many of them were inferred, not seen;
 - ``particles_outside`` when a movable object (each is a container) was asked for: the content
   spheres seen resting on a support outside every container (velma/perception/spill.py:
   spilled in view). When some are seen outside the containers asked for, all movable objects
@@ -78,6 +78,22 @@ class Seen:
     content: dict[str, ContentEstimate | SphereCount]
     outside: Spill | None = None
     """The content seen outside every container (None when no movable object was asked for)."""
+
+
+def _inside(guess: ContentEstimate | SphereCount | None, conserved: int) -> int | None:
+    """The spheres estimated in a container (``guess``'s count, at most ``conserved``: the
+    content not seen outside every container); None without an estimate."""
+    return max(0, min(guess.count, conserved)) if guess is not None else None
+
+
+def _inferred(guess: ContentEstimate | SphereCount | None, conserved: int) -> int | None:
+    """How many of :func:`_inside`'s spheres were inferred, not seen: a ``SphereCount``'s
+    hidden ones, less what the cap on ``conserved`` took (the cap takes the inferred first,
+    the seen ones being in view); None for an estimate not split so (a fill level)."""
+    if not isinstance(guess, SphereCount):
+        return None
+    seen = max(0, min(guess.visible, conserved))
+    return max(0, min(guess.count, conserved)) - seen
 
 
 class CameraObserver:
@@ -172,7 +188,8 @@ class CameraObserver:
                             position=(float(p[0]), float(p[1]), float(p[2])),
                             orientation=(float(q[0]), float(q[1]), float(q[2]), float(q[3])),
                         ),
-                        particles_inside=(max(0, min(guess.count, conserved)) if guess is not None else None),
+                        particles_inside=_inside(guess, conserved),
+                        particles_inferred=_inferred(guess, conserved),
                         position_sigma=max(e.sigma_position, POSITION_SIGMA_FLOOR)
                         if math.isfinite(e.sigma_position)
                         else None,

@@ -522,7 +522,8 @@ class Coordinator(Agent):
             else:
                 self._finish(task, False, f"stopped; {status.reason or 'the robot is safe'}", stopped=True)
         elif state is SWState.SUCCEEDED:
-            self._finish(task, True, "the task succeeded")
+            # a_ta's reason says how the world was judged (the content check's count)
+            self._finish(task, True, status.reason or "the task succeeded")
         elif state is SWState.ERROR:
             self._finish(task, False, f"execution failed: {status.reason or 'unknown error'}")
         elif state is SWState.REPLAN:

@@ -191,6 +191,7 @@ class TaskExecutor(Agent):
         self.step: Step | None = None
         self.outcome: SWState | None = None
         self.reason: str | None = None
+        self.judged: str | None = None  # the plan's last content check, in words: Succeeded's reason
         self.cancel_requested = False
         self.halted_at: str | None = None  # the leaf ag_ex halted
         self.terminating = False  # running the safe-stop HFSM
@@ -531,6 +532,7 @@ class TaskExecutor(Agent):
         self.step = None
         self.outcome = None
         self.reason = None
+        self.judged = None
         self.cancel_requested = False
         self.halted_at = None
         self.terminating = False
@@ -562,7 +564,7 @@ class TaskExecutor(Agent):
             if self.terminating:
                 self._end(SWState.PREEMPTED, self._safe_stop_summary())
             elif self.plan.complete:
-                self._end(SWState.SUCCEEDED, None)
+                self._end(SWState.SUCCEEDED, self.judged)
             else:
                 self._end(SWState.REPLAN, "the plan ends with sensing; a new plan is needed")
             return
@@ -704,6 +706,8 @@ class TaskExecutor(Agent):
             self.log.info("%s", note)
         if verdict.observed is not None:
             self._update_km(verdict.observed)
+        if verdict.do is Do.NEXT and isinstance(step.node.action, CheckContent):
+            self.judged = verdict.reason  # what the content check counted: Succeeded's reason
         self._apply(step, verdict, reply)
 
     def _apply(self, step: Step, verdict: Verdict, reply: Conversation) -> None:

@@ -42,17 +42,52 @@ def differences(action: Perceive, obs: Observation) -> str:
     return "; ".join(out)
 
 
+def content_counts(action: CheckContent, obs: Observation) -> tuple[int, int]:
+    """(spheres estimated, of them inferred and not seen) in the checked container: its
+    ``particles_inside`` and ``particles_inferred`` ((0, 0) when it was not seen; no split
+    known: none inferred)."""
+    for o in obs.objects:
+        if o.name == action.container:
+            inside = o.particles_inside or 0
+            return inside, min(inside, o.particles_inferred or 0)
+    return 0, 0
+
+
 def content_share(action: CheckContent, obs: Observation) -> float:
+    """The share (0..1) of the content (``total_particles``) ``obs`` estimated in the checked
+    container, the spheres seen and those inferred (0 when it was not seen)."""
+    return content_counts(action, obs)[0] / max(1, obs.total_particles)
+
+
+def seen_share(action: CheckContent, obs: Observation) -> float:
     """The share (0..1) of the content (``total_particles``) ``obs`` saw in the checked
-    container (0 when it was not seen)."""
-    inside = {o.name: o.particles_inside or 0 for o in obs.objects}
-    return inside.get(action.container, 0) / max(1, obs.total_particles)
+    container: the spheres inferred behind its wall left out (0 when it was not seen)."""
+    inside, inferred = content_counts(action, obs)
+    return (inside - inferred) / max(1, obs.total_particles)
+
+
+def content_seen(action: CheckContent, obs: Observation, look: int) -> str:
+    """What look ``look`` (1: the first, 2: the second) counted in the checked container, in
+    words: "the bowl holds 18 of 18 spheres, 15 seen (83 %) and 3 inferred behind its wall, at
+    the first look"; "the bowl was not seen at the first look")."""
+    inside, inferred = content_counts(action, obs)
+    seen = inside - inferred
+    which = "the first look" if look == 1 else "the second look"
+    if all(o.name != action.container for o in obs.objects):
+        return f"the {action.container} was not seen at {which}"
+    share = f"{100 * seen / max(1, obs.total_particles):.0f} %"
+    split = (
+        f"{seen} seen ({share}) and {inferred} inferred behind its wall"
+        if inferred
+        else f"all seen ({share})"
+    )
+    return f"the {action.container} holds {inside} of {obs.total_particles} spheres, {split}, at {which}"
 
 
 def content_shortfall(action: CheckContent, obs: Observation) -> str:
-    """Why the container holds too little of the content, in words ("" when it holds at least
-    ``min_fraction``); names the content ag_ex saw outside every container (spilled in view),
-    if any."""
+    """Why the container holds too little of the content, the spheres seen and inferred
+    together, in words ("" when it holds at least ``min_fraction``); names the content ag_ex
+    saw outside every container (spilled in view), if any."""
     share = content_share(action, obs)
     if share >= action.min_fraction:
         return ""

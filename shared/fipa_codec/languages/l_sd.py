@@ -21,8 +21,12 @@ from shared.fipa_codec.languages.common import Pose
 
 class ObjectObservation(msgspec.Struct, frozen=True, kw_only=True, omit_defaults=True):
     """One perceived object: ``name`` (as in the scene), its ``pose`` (world) and, for
-    containers, ``particles_inside`` (count of content particles seen within it; None: not a
-    container or no estimate).
+    containers, ``particles_inside`` (count of content particles estimated within it; None:
+    not a container or no estimate) and ``particles_inferred``: how many of those were not
+    seen but inferred (spheres the container's near wall hides, counted as full as their
+    neighbours, velma/perception/content.py ``count_spheres``); None when the estimate is not
+    split so (ground truth, or a fill level seen through glass), so the spheres seen are
+    ``particles_inside − (particles_inferred or 0)``.
 
     ``position_sigma`` (m): 1-σ of the position estimate (√trace of its 3 × 3 covariance, the
     3-D RMS error expected), never below the error scale the perception benchmark measured
@@ -34,6 +38,7 @@ class ObjectObservation(msgspec.Struct, frozen=True, kw_only=True, omit_defaults
     name: str
     pose: Pose
     particles_inside: int | None = None
+    particles_inferred: int | None = None
     position_sigma: float | None = None
     yaw_observable: bool = True
 

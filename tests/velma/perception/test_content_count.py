@@ -12,10 +12,13 @@ import numpy as np
 import pytest
 
 from services.agents.planner.domain import CONTENT_SHARE_REQUIRED
+from services.agents.task_executor.verdict import Answer, Do, Step, Verdict, judge
+from shared.fipa_codec.languages.l_hfsm import CheckContent, PlanNode
+from shared.fipa_codec.languages.l_sd import ObjectObservation
 from tests.support.machine import needs_gl
 from velma.executor.capture import WorldCapture
 from velma.executor.observer import CameraObserver
-from velma.model.scene import PARTICLE_PREFIX, PARTICLE_RADIUS, initial_state, load_kitchen
+from velma.model.scene import N_PARTICLES, PARTICLE_PREFIX, PARTICLE_RADIUS, initial_state, load_kitchen
 from velma.perception.content import SphereCount, _ring_radius, count_spheres
 from velma.perception.kinect import HeadKinect, aim_head
 from velma.perception.localise import Localiser
@@ -185,3 +188,43 @@ def test_no_content_outside_when_all_is_in_the_bowl(scene) -> None:  # type: ign
     assert obs.particles_outside == 0
     bowl = next(o for o in obs.objects if o.name == "bowl")
     assert bowl.particles_inside is not None and bowl.particles_inside >= 17
+
+
+def _bowl_checked(model: mujoco.MjModel, data: mujoco.MjData, look: int) -> tuple[ObjectObservation, Verdict]:
+    """The camera's Observation of the bowl in ``data`` and a_ta's verdict on it as the pour's
+    content check (services/agents/task_executor/verdict.py) at look ``look`` (1 or 2)."""
+    observer = CameraObserver(model, seed=0)
+    try:
+        obs, _ = observer.observe(WorldCapture.of(("bowl",), 0.0, data.qpos))
+    finally:
+        observer.close()
+    check = CheckContent(container="bowl", min_fraction=CONTENT_SHARE_REQUIRED)
+    step = Step(
+        "pour/check_bowl", PlanNode(name="check_bowl", action=check), second_view=0 if look == 1 else 2
+    )
+    verdict = judge(step, Answer(True, obs, "inform", "inform"), False)
+    return next(o for o in obs.objects if o.name == "bowl"), verdict
+
+
+def test_the_check_looks_again_when_inferred_spheres_decide_and_says_what_it_rests_on(scene) -> None:  # type: ignore[no-untyped-def]
+    """The bowl full (18 of 18): the camera sees 15 (83 %) and infers 3 behind the near wall,
+    so a_ta looks a second time; from the same head the second look sees no more, and the
+    task succeeds saying it rests on the 3 inferred. Two spheres taken from the hidden arc
+    (16 of 18, under 90 %) change nothing the camera sees, so neither the count nor the
+    verdict changes: content.py's named simplification, which the verdict's words name and
+    scripts/bench_pour_seeds.py's comparison with the simulation's truth catches."""
+    model = scene[0]
+    centres = _layout(scene[2], VACANCY)
+    full = _state(model, centres)
+    bowl, first = _bowl_checked(model, full, 1)
+    assert (bowl.particles_inside, bowl.particles_inferred) == (18, 3)
+    assert first.do is Do.LOOK
+    assert first.reason == "only 15 of 18 spheres seen in the bowl, 3 more inferred behind its wall"
+    _, second = _bowl_checked(model, full, 2)
+    assert second.do is Do.NEXT and second.reason is not None
+    assert second.reason.endswith("the 90 % rests on the 3 inferred, which no look saw")
+    taken = np.delete(centres, NEAR_WALL[:2], axis=0)
+    assert len(taken) / N_PARTICLES < CONTENT_SHARE_REQUIRED
+    bowl_taken, verdict_taken = _bowl_checked(model, _state(model, taken), 2)
+    assert (bowl_taken.particles_inside, bowl_taken.particles_inferred) == (18, 3)
+    assert verdict_taken.do is second.do and verdict_taken.reason == second.reason
