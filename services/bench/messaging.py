@@ -224,16 +224,20 @@ class Testbed:
         for c in ends:
             c.conn.send((REACH, timeout))
         deadline = time.monotonic() + timeout
-        wrong = []
-        for c in ends:
-            try:
-                got = c.receive(max(0.1, deadline - time.monotonic()))
-            except TimeoutError:
-                got = {"error": self._unreached(c, timeout)}
-            if not isinstance(got, dict) or got.get("kind") != REACH:
-                wrong.append(f"{c.name}: {got.get('error', got) if isinstance(got, dict) else got}")
+        wrong = [w for c in ends if (w := self._reached(c, deadline, timeout))]
         if wrong:
             raise SetupError("a pair's route was not there: " + "; ".join(wrong))
+
+    def _reached(self, child: Child, deadline: float, timeout: float) -> str:
+        """"" when ``child`` answered :data:`REACH` by ``deadline`` (time.monotonic()), else
+        ``"<name>: <why>"``."""
+        try:
+            got = child.receive(max(0.1, deadline - time.monotonic()))
+        except TimeoutError:
+            return f"{child.name}: {self._unreached(child, timeout)}"
+        if isinstance(got, dict) and got.get("kind") == REACH:
+            return ""
+        return f"{child.name}: {got.get('error', got) if isinstance(got, dict) else got}"
 
     def _unreached(self, child: Child, timeout: float) -> str:
         """Why ``child`` did not answer :data:`REACH` within ``timeout`` s: for a roco initiator,
