@@ -1225,8 +1225,9 @@ def replay(
     record, and compare what it sends with what it sent there: equal up to conversation-ids,
     reply-withs, times and fields read from a clock. One line per difference (the recorded
     communicate, the field, recorded and replayed). Without --agent, each agent of the
-    specification in turn, one line each (an agent that cannot be replayed says why). Exit 0
-    when equal, 1 with differences, 2 when no replay can be made."""
+    specification in turn, one line each (an agent that cannot be replayed says why; one with a
+    communicate of its own missing from the record says so). Exit 0 when equal, 1 with
+    differences or a communicate missing, 2 when no replay can be made."""
     import logging
 
     from services.replay.driver import ReplayError, render

@@ -81,6 +81,8 @@ class ReplayResult:
     """A replay's outcome: ``inputs`` fed, ``compared`` communicates of the run compared,
     ``differences`` in the order found, ``copies`` (recorded, replayed) not compared,
     ``failure`` what the agent raised if it stopped with an error (the replay stops there),
+    ``missing`` what of the agent's communicates the record lacks (None: nothing; then the
+    replay is made but cannot reproduce the run: :attr:`AgentRecord.missing`),
     ``counters`` of trouble the replayed agent counted (and ``run_counters``, the agent's
     counters when the run ended, None when the run folder has none), ``notes`` on the record, and the wall
     time (s) the replay took in all and to build the agent."""
@@ -92,6 +94,7 @@ class ReplayResult:
     differences: list[Difference] = field(default_factory=list)
     copies: tuple[int, int] = (0, 0)
     failure: str | None = None
+    missing: str | None = None
     counters: dict[str, int] = field(default_factory=dict)
     run_counters: dict[str, int] | None = None
     notes: list[str] = field(default_factory=list)
@@ -100,8 +103,9 @@ class ReplayResult:
 
     @property
     def equal(self) -> bool:
-        """The agent sent what it sent in the run, and did not fail."""
-        return not self.differences and self.failure is None
+        """The agent sent what it sent in the run, did not fail, and nothing of it is missing
+        from the record."""
+        return not self.differences and self.failure is None and self.missing is None
 
 
 class _Failed(Exception):
@@ -291,7 +295,9 @@ def replay(run_dir: Path, agent: str, spec: SystemSpec | None = None, *, causal:
         record = agent_record(Path(run_dir), agent, causal)
     except (SpecError, ValueError) as exc:
         raise ReplayError(str(exc)) from None
-    result = ReplayResult(agent, Path(run_dir), inputs=len(record.inputs), notes=list(record.notes))
+    result = ReplayResult(
+        agent, Path(run_dir), inputs=len(record.inputs), missing=record.missing, notes=list(record.notes)
+    )
     if record.sessions > 1:
         result.notes.append(
             f"{agent} sent from {record.sessions} sessions (it was restarted): replayed as one"
@@ -386,8 +392,12 @@ def render(result: ReplayResult, most: int = 50) -> str:
 
 
 def one_line(result: ReplayResult) -> str:
-    """The replay of one agent in one line: ``a_pl: reproduced, 32 inputs, 32 outputs``, or
-    ``a_pl: 3 differences: <the first>`` (or what the agent raised)."""
+    """The replay of one agent in one line: ``a_pl: reproduced, 32 inputs, 32 outputs``,
+    ``a_pl: cannot reproduce: 2 inputs missing from the record (…)`` when the record lacks
+    some of the agent's communicates (whatever the replay then differs in), or ``a_pl: 3
+    differences: <the first>`` (or what the agent raised)."""
+    if result.missing is not None:
+        return f"{result.agent}: cannot reproduce: {result.missing}"
     if result.equal:
         return f"{result.agent}: reproduced, {result.inputs} inputs, {result.compared} outputs"
     found = len(result.differences)
@@ -404,6 +414,8 @@ def _summary(result: ReplayResult) -> str:
     verdict = "reproduced" if result.equal else f"{len(result.differences)} difference(s)"
     if result.failure is not None:
         verdict += ", then it failed"
+    if result.missing is not None:
+        verdict = f"cannot reproduce: {result.missing} ({verdict})"
     return (
         f"roco: {result.agent} replayed from {result.run_dir}: {result.inputs} communicates in, "
         f"{result.compared} compared{copies}; {verdict} "

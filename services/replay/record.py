@@ -5,6 +5,14 @@ checked, copies marked), as ``roco spec verify`` reads it. The inputs come in ca
 (services/recorder/causal.py: an answer after what it answers, then the senders' clocks
 across a conversation), not in the order they reached the recorder, which need not be the
 order the agent received them: each publisher reaches the recorder over a path of its own.
+
+A record made by a recorder that was restarted during the run (docs/recovery.md) holds what the
+publishers' caches gave the next incarnation, stamped with the times they were sent (``late``),
+and may hold a communicate twice: each is taken once, by its identity (publisher and sequence
+number, and place in a batch). What the record lacks by the publishers' sequence numbers
+(services/recorder/integrity.py, gaps) is counted per agent, in and out: an agent with a
+communicate of its own missing cannot be reproduced from the record, and its replay says so
+(:attr:`AgentRecord.missing`).
 """
 
 from __future__ import annotations
@@ -13,7 +21,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from services.recorder.causal import causal_order, send_order
-from services.report.load import Message, load_run
+from services.recorder.integrity import Integrity
+from services.report.load import Message, RunData, load_run
 from services.runtime import keys
 from shared.fipa_codec import Communicate
 
@@ -58,6 +67,32 @@ class AgentRecord:
     sessions: int = 1
     """How many sessions (publishers' Zenoh sessions) the agent sent from: more than one when
     it was restarted during the run."""
+    missing_inputs: int = 0
+    """Communicates to the agent missing from the record (by their publishers' sequence
+    numbers)."""
+    missing_outputs: int = 0
+    """Communicates from the agent missing from the record."""
+    restarts: list[float] = field(default_factory=list)
+    """When each recorder incarnation after the first was listening, at the latest (s since
+    ``t0``: its first communicate that was not recovered from a cache)."""
+    duplicates: int = 0
+    """Communicates of the agent recorded twice (the same publisher and sequence number), each
+    taken once."""
+
+    @property
+    def missing(self) -> str | None:
+        """Why the agent cannot be reproduced from the record, None when nothing of it is
+        missing: ``2 inputs missing from the record (recorder restarted at 12.345 s)``."""
+        parts = [
+            f"{n} {what}{'' if n == 1 else 's'}"
+            for n, what in ((self.missing_inputs, "input"), (self.missing_outputs, "output"))
+            if n
+        ]
+        if not parts:
+            return None
+        when = ", ".join(f"{t:.3f} s" for t in self.restarts)
+        restarted = f" (recorder restarted at {when})" if self.restarts else ""
+        return f"{' and '.join(parts)} missing from the record{restarted}"
 
     @property
     def start(self) -> float:
@@ -75,29 +110,83 @@ def agent_record(run_dir: Path, agent: str, causal: bool = True) -> AgentRecord:
     the folder does not exist and ValueError when its record holds no communicate to or from
     ``agent``; anything else missing or corrupt becomes a note."""
     run = load_run(run_dir)
-    messages = _ordered(run.messages, causal)
     out = AgentRecord(agent, run.t0, max((m.rec.t for m in run.messages), default=run.t0))
     out.notes = list(run.notes)
+    unusable = _take(_ordered(run.messages, causal), agent, out)
+    if not out.inputs and not out.outputs:
+        raise ValueError(f"the traffic record of {run_dir} holds no communicate to or from {agent}")
+    _lost(run.integrity, agent, out)
+    out.restarts = restarts(run)
+    if unusable:
+        out.notes.append(f"{unusable} communicate(s) of {agent} without a payload that decodes: left out")
+    if out.duplicates:
+        out.notes.append(f"{out.duplicates} communicate(s) of {agent} recorded twice: taken once")
+    return out
+
+
+def _take(messages: list[Message], agent: str, out: AgentRecord) -> int:
+    """Put into ``out`` the communicates of ``messages`` to ``agent`` (inputs, in the order
+    given) and from it (outputs, per key in the order sent), each once; returns how many of
+    them have no payload that decodes."""
     sent: list[tuple[tuple[int, int, int], Recorded]] = []
     sessions: dict[str, int] = {}
+    seen: set[tuple[str, int, int]] = set()
     unusable = 0
     for m in messages:
         way = _way(m, agent)
-        item = _recorded(m) if way else None
+        if not way:
+            continue
+        if _again(m, seen):
+            out.duplicates += 1
+            continue
+        item = _recorded(m)
         if item is None:
-            unusable += bool(way)
+            unusable += 1
         elif way == "in":
             out.inputs.append(item)
         else:
             sent.append((_sent_order(m, sessions), item))
-    if not out.inputs and not sent:
-        raise ValueError(f"the traffic record of {run_dir} holds no communicate to or from {agent}")
     for _, item in sorted(sent, key=lambda x: x[0]):
         out.outputs.setdefault(item.key, []).append(item)
     out.sessions = max(1, len(sessions))
-    if unusable:
-        out.notes.append(f"{unusable} communicate(s) of {agent} without a payload that decodes: left out")
-    return out
+    return unusable
+
+
+def _again(m: Message, seen: set[tuple[str, int, int]]) -> bool:
+    """Whether ``m`` is a communicate already taken (the same publisher, sequence number and
+    place in a batch, in ``seen``); a communicate without them is never one."""
+    if m.rec.source is None or m.rec.sn is None:
+        return False
+    identity = (m.rec.source, m.rec.sn, m.rec.part)
+    if identity in seen:
+        return True
+    seen.add(identity)
+    return False
+
+
+def _lost(checked: Integrity, agent: str, out: AgentRecord) -> None:
+    """Count into ``out`` the communicates to and from ``agent`` that the record lacks (its
+    gaps by sequence number: services/recorder/integrity.py)."""
+    for gap in checked.gaps:
+        try:
+            parsed = keys.parse_fipa_key(gap.key)
+        except ValueError:
+            continue
+        if parsed.receiver == agent:
+            out.missing_inputs += gap.count
+        elif parsed.sender == agent:
+            out.missing_outputs += gap.count
+
+
+def restarts(run: RunData) -> list[float]:
+    """When each recorder incarnation after the first of ``run`` was listening, at the latest:
+    the time of its first communicate not recovered from a publisher's cache (s since the run
+    began), in the order the incarnations first wrote."""
+    first: dict[str, float] = {}
+    for m in run.messages:  # in time order
+        if not m.rec.late:
+            first.setdefault(m.rec.incarnation, m.rec.t - run.t0)
+    return [first[i] for i in run.integrity.incarnations[1:] if i in first]
 
 
 def _ordered(messages: list[Message], causal: bool) -> list[Message]:

@@ -82,3 +82,11 @@ def test_each_agent_that_does_not_move_the_robot_killed_or_restarted_during_a_po
         assert len(mine) == rep.counters.get("published", 0), agent
     for busy in ("a_ta", "ag_ex"):  # never faulted here, and they talk throughout the pour
         assert counters[busy].counters["published"] > 0, busy
+
+    # a_ta, never faulted, is reproduced from the record the two recorder incarnations wrote
+    # (each communicate once); the agents restarted are replayed as one process each, which
+    # their restarts make differ
+    from services.replay.driver import render, replay
+
+    replayed = replay(run_dir, "a_ta")
+    assert replayed.equal, render(replayed)

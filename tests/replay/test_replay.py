@@ -1,8 +1,10 @@
 """``roco replay`` on small records of a real agent (a_co answering "what are you doing?"):
 what it reproduces, and each kind of difference it reports — a wrong reference, an identifier
 used twice where the agent made two, a content term, a communicate sent in one and not the
-other — plus the replays it refuses. The pour's record is replayed in
-tests/integration/test_pour_run.py."""
+other — plus the replays it refuses, and records a restarted recorder made (a communicate
+twice, some recovered late, one missing). The pour's record is replayed in
+tests/integration/test_pour_run.py; records made through the router and by a restarted
+recorder in tests/integration/test_scenarios.py."""
 
 from __future__ import annotations
 
@@ -15,6 +17,7 @@ import pytest
 from typer.testing import CliRunner
 
 import services.cli as cli
+from services.recorder.record import RawEntry
 from services.replay.driver import ReplayError, render, replay
 from services.runtime.counters import CountersReport, save_counters
 from shared.fipa_codec import Communicate, Performative
@@ -23,7 +26,7 @@ from shared.fipa_codec.languages.l_hc import Status, StatusQuery, TaskState, Tas
 from shared.fipa_codec.languages.l_sd import Observation
 from shared.fipa_codec.languages.l_wm import Subscription, WorldUpdate
 from tests.support.messages import communicate
-from tests.support.recorded_run import STARTED, write_recorded_run
+from tests.support.recorded_run import STARTED, rewrite_record, write_recorded_run
 
 
 def _query(n: int) -> Communicate:
@@ -281,3 +284,58 @@ def test_what_goes_wrong_inside_the_replayed_agent_is_reported(
         .splitlines()[-1]
         .endswith(f"then it failed in {result.seconds:.2f} s ({result.build_seconds:.2f} s to build a_co)")
     )
+
+
+def _three(tmp_path: Path) -> Path:
+    """a_hi asks a_co three times, a_co answers each (one publisher per key: a_hi's queries
+    are sequence numbers 0, 1, 2 of one publisher)."""
+    answers = ("a_co-aaaa", "a_co-bbbb", "a_co-cccc")
+    return _run(
+        tmp_path, *(m for n, r in enumerate(answers, 1) for m in (_query(n), _answer(n, reply_with=r)))
+    )
+
+
+def test_an_input_missing_from_the_record_is_said_instead_of_the_differences(tmp_path: Path) -> None:
+    """a_hi's second query removed from the record (its publisher's sequence number 1 is not
+    there): a_co cannot be reproduced, and its line says why, not the differences that follow
+    from it; the whole replay still lists them."""
+    run = rewrite_record(_three(tmp_path), lambda es: [e for e in es if e.seq != 2])
+    result = replay(run, "a_co")
+    assert result.missing == "1 input missing from the record" and not result.equal
+    assert result.differences, render(result)  # the unasked answer, recorded but not sent
+    done = CliRunner().invoke(cli.app, ["replay", str(run)], prog_name="roco")
+    assert done.exit_code == 1
+    lines = {line.partition(":")[0]: line for line in done.output.strip().splitlines()}
+    assert lines["a_co"] == "a_co: cannot reproduce: 1 input missing from the record"
+    last = render(result).splitlines()[-1]
+    assert "; cannot reproduce: 1 input missing from the record (3 difference(s)) in " in last
+    # an answer of a_co's removed instead: an output missing
+    run = rewrite_record(_three(tmp_path / "out"), lambda es: [e for e in es if e.seq != 3])
+    assert replay(run, "a_co").missing == "1 output missing from the record"
+
+
+def _restarted(entries: list[RawEntry], at: int, twice: bool = True) -> list[RawEntry]:
+    """``entries`` as a recorder restarted before entry ``at`` writes them: the first
+    incarnation wrote those before, the next one the rest, the first of them recovered late
+    from its publisher's cache, and (``twice``) the entry before ``at`` written again."""
+    again = [RawEntry("test-2", len(entries), entries[at - 1].arrival)] if twice else []
+    later = [RawEntry("test-2", e.seq, e.arrival) for e in entries[at:]]
+    later[0] = RawEntry("test-2", later[0].seq, later[0].arrival._replace(late=True))
+    return entries[:at] + again + later
+
+
+def test_a_record_of_a_restarted_recorder_is_replayed_each_communicate_once(tmp_path: Path) -> None:
+    """A record written by two recorder incarnations, a_hi's second query recorded by both:
+    a_co is fed it once and reproduces; with one query lost as well, its line says when the
+    recorder restarted."""
+    whole = replay(_three(tmp_path / "a"), "a_co")
+    run = rewrite_record(_three(tmp_path / "b"), lambda es: _restarted(es, 3))
+    result = replay(run, "a_co")
+    assert result.equal, render(result)
+    assert (result.inputs, result.compared) == (whole.inputs, whole.compared) == (3, 3)
+    assert "note: 1 communicate(s) of a_co recorded twice: taken once" in render(result)
+    lost = rewrite_record(
+        _three(tmp_path / "c"), lambda es: [e for e in _restarted(es, 3, False) if e.seq != 2]
+    )
+    # the second incarnation's first communicate not recovered late: the third query, at 3.000 s
+    assert replay(lost, "a_co").missing == "1 input missing from the record (recorder restarted at 3.000 s)"

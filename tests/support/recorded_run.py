@@ -5,14 +5,16 @@ tests that read a record (``roco replay``) without running a fleet."""
 
 from __future__ import annotations
 
+import shutil
 from collections import defaultdict
+from collections.abc import Callable
 from pathlib import Path
 
 import msgspec
 
-from services.recorder.record import TRAFFIC_RAW, RawEntry, encode_entry, record_of
+from services.recorder.record import TRAFFIC_RAW, RawEntry, encode_entry, read_entries, record_of
 from services.runtime import keys
-from services.runtime.run_folder import TRAFFIC_JSONL, RunInfo, write_run_info
+from services.runtime.run_folder import RUN_INFO, TRAFFIC_JSONL, RunInfo, write_run_info
 from services.runtime.transport import Arrival
 from services.spec.model import channel_between, default_spec
 from shared.fipa_codec import Communicate, encode
@@ -43,4 +45,28 @@ def write_recorded_run(run_dir: Path, traffic: list[tuple[float, Communicate]]) 
         raw.append(encode_entry(entry))
     (run_dir / TRAFFIC_JSONL).write_bytes(b"".join(lines))
     (run_dir / TRAFFIC_RAW).write_bytes(b"".join(raw))
+    return run_dir
+
+
+RECORD_FILES = (RUN_INFO, TRAFFIC_JSONL, TRAFFIC_RAW)
+"""The files of a run folder that hold its traffic record and when it began."""
+
+
+def copy_record(run_dir: Path, dest: Path) -> Path:
+    """``dest`` (made) with a copy of ``run_dir``'s traffic record and ``run.json``, to be
+    mutated without touching the run."""
+    dest.mkdir(parents=True, exist_ok=True)
+    for name in RECORD_FILES:
+        shutil.copyfile(run_dir / name, dest / name)
+    return dest
+
+
+def rewrite_record(run_dir: Path, change: Callable[[list[RawEntry]], list[RawEntry]]) -> Path:
+    """Write ``run_dir``'s traffic record again, both files, as ``change`` makes its raw entries
+    (given in the order written): a communicate dropped, recorded twice, or by another recorder
+    incarnation."""
+    entries = [e for e, _, _, _ in read_entries(run_dir) if e is not None]
+    kept = change(entries)
+    (run_dir / TRAFFIC_JSONL).write_bytes(b"".join(msgspec.json.encode(record_of(e)) + b"\n" for e in kept))
+    (run_dir / TRAFFIC_RAW).write_bytes(b"".join(encode_entry(e) for e in kept))
     return run_dir
