@@ -6,7 +6,8 @@ process per agent, access control on; ag_ex's loop as fast as it can, or paced w
 then ``--stops`` halts per condition, the conditions taking turns:
 
 1. says "pour the jar into the bowl" (a pour after a stop starts from wherever the safe stop
-   put the jar, a pour after a pour with the jar still in the hand: they differ in length);
+   put the jar; the kitchen is fresh after the whole pour and after any pour that succeeded:
+   a_km refuses a plan that pours an empty jar);
 2. waits a random time, uniform in [0.3 s, ``--window``] from a_co's agreement (default 6 s,
    the shortest pour as fast as it can; 16 s paced): a random moment of the pour (taking the jar
    out, turning, carrying, lowering, tilting, letting it run out, tilting back);
@@ -25,8 +26,9 @@ process's own subscriber to every communicate (one hop after each put): a_hi's `
 a_co (C2), a_co's ``cancel`` to a_ta (C1), a_ta's ``cancel`` to ag_ex (C5). A stop that finds
 no motion to halt (the robot between two commands, observing, or the pour over) has no halt:
 it is counted apart and another pour is started, until each condition has ``--stops`` halts.
-After a failed pour, or three stops in a row finding nothing moving in pours that did not
-succeed (the jar left where the robot cannot take it), a new fleet starts from a fresh kitchen.
+After the whole pour, a pour that succeeded or failed, or three stops in a row finding nothing
+moving (the jar emptied, or left where the robot cannot take it), a new fleet starts from a
+fresh kitchen.
 
 Prints the machine, a line per stop, then p50 / p99 / max (ms) per condition, and the median
 of each hop; :func:`measure` returns these figures (:class:`StopFigures`, ``roco bench``'s
@@ -168,9 +170,9 @@ def halts(log: Path) -> list[float]:
 
 
 IDLE_IN_ROW = 3
-"""Pours not accepted, or stopped with nothing moving, in a row before a fresh kitchen (a
-failed pour: at once; a pour that succeeded before its stop came shows the kitchen usable)."""
-MAX_KITCHENS = 5
+"""Pours not accepted, or stopped with nothing moving, in a row before a fresh kitchen (a pour
+that failed, or succeeded before its stop came: at once)."""
+MAX_KITCHENS = 16
 """Fresh kitchens (fleets) the benchmark starts at most before it gives up."""
 
 
@@ -269,10 +271,11 @@ def measure(
     """Start a fleet, run one whole pour, then pours stopped until each condition has ``stops``
     halts (the module's docstring says how; ``window`` defaults to 16 s paced, else 6 s).
     Stopped again and again, the robot may leave the jar where it can no longer take it (a
-    safe stop puts it down where the robot stands): when a pour fails, or ``IDLE_IN_ROW``
-    stops in a row find nothing moving in pours that did not succeed, the fleet is ended and a
-    new one starts from a fresh kitchen (counted in ``kitchens``). ``echo`` is given a line per stop
-    as it is measured; run folders are removed unless ``keep`` (then echoed). Raises
+    safe stop puts it down where the robot stands), and a pour that ran to its end empties the
+    jar (a_km refuses to plan pouring an empty jar): after the whole pour, after a pour that
+    failed or succeeded, and after ``IDLE_IN_ROW`` stops in a row found nothing moving, the fleet
+    is ended and a new one starts from a fresh kitchen (counted in ``kitchens``). ``echo`` is
+    given a line per stop as it is measured; run folders are removed unless ``keep`` (then echoed). Raises
     RuntimeError when a fleet does not come up, or ``MAX_KITCHENS`` kitchens were used, and
     SetupRefused (a RuntimeError) when an agent counted anything refused, not understood or
     against its protocol in the first pour, before any stop."""
@@ -295,6 +298,9 @@ def measure(
         first = kitchen.watch.finals(rid)[rid]
         pour_s = time.monotonic() - start
         kitchen.check("the first pour, before any stop")
+        kitchen.close()  # the whole pour emptied the jar: the stops' pours start full
+        kitchen = Kitchen(realtime, keep, echo)
+        kitchens += 1
         echo(
             f"ag_ex's loop {'paced to wall time' if realtime else 'as fast as it can'}; "
             f"first pour: {first.kind.value} in {pour_s:.1f} s ({t0.value} first); "
@@ -303,15 +309,16 @@ def measure(
         )
         n = 0
         spoiled = 0  # pours not accepted, or stopped with nothing moving, in a row
+        why = ""  # why the next pour needs a fresh kitchen
         while min(halted(c) for c in CONDITIONS) < stops:
             if spoiled >= IDLE_IN_ROW:
                 if kitchens >= MAX_KITCHENS:
                     raise RuntimeError(f"the robot could not pour in {kitchens} fresh kitchens")
-                echo(f"  a fresh kitchen: {spoiled} pours in a row failed or found nothing to halt")
+                echo(f"  a fresh kitchen: {why or f'{spoiled} pours in a row found nothing to halt'}")
                 kitchen.close()
                 kitchen = Kitchen(realtime, keep, echo)
                 kitchens += 1
-                spoiled = 0
+                spoiled, why = 0, ""
             condition = CONDITIONS[n % 2]
             n += 1
             if halted(condition) >= stops:
@@ -336,11 +343,10 @@ def measure(
                 idle[condition] += 1
             records.append(record)
             outcome = ended[pour].kind
-            if outcome is ReportKind.FAILED:
-                spoiled = IDLE_IN_ROW
-            else:  # a pour that halted or succeeded shows the kitchen usable
-                idle_stop = record.halt_t is None and outcome is not ReportKind.SUCCEEDED
-                spoiled = spoiled + 1 if idle_stop else 0
+            if outcome in (ReportKind.FAILED, ReportKind.SUCCEEDED):  # the jar may be empty
+                spoiled, why = IDLE_IN_ROW, f"the pour {outcome.value}"
+            else:  # a pour that halted shows the kitchen usable
+                spoiled = spoiled + 1 if record.halt_t is None else 0
             done = record.latency_ms
             hops = ", ".join(
                 f"{c} {(record.hops[c] - record.line_t) * 1e3:.1f}" for c, _, _ in HOPS if c in record.hops

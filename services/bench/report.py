@@ -1093,9 +1093,10 @@ def stop_how(f: StopFigures) -> list[str]:
         f'{f.asked} halts. Timed on one wall clock from the put of "stop" on a_hi\'s key (the hop '
         "on to a_hi counted) to the wall time ag_ex's loop logs in the cycle the halt replaced "
         "the running command. A stop finding nothing moving has no halt: it is counted apart and "
-        "another pour started. Stopped again and again, the robot may leave the jar where it "
-        "cannot take it: after a failed pour, or three stops in a row with nothing moving in pours "
-        "that did not succeed, a new "
+        "another pour started. A pour that ran to its end empties the jar, which a_km then refuses "
+        "to plan pouring, and stopped again and again the robot may leave the jar where it cannot "
+        "take it: after the whole pour, a pour that failed or succeeded, or three stops in a row "
+        "with nothing moving, a new "
         f"fleet starts from a fresh kitchen ({f.kitchens} in this run). The cancels' columns: "
         "the median ms from the put to a subscriber in "
         "`roco bench` seeing each cancel on its way, over the stops that halted.",
