@@ -932,7 +932,11 @@ def scale_how(counts: Counts) -> list[str]:
     return [
         "For each N: a fresh router, N synthetic agents (N/2 pairs) and a raw Zenoh pair, each a "
         "process; then on two meshed routers, every communicate crossing both. `start s`: first "
-        f"spawn to all ready. One pair: as in part 2 ({counts.scale_round_trips} round trips, "
+        "spawn to all ready. Then, before anything is timed, every pair's route is shown to exist "
+        "(each initiator's request answered, sent at-least-once; each bare Zenoh publisher matched "
+        "by its subscriber): a peer's liveliness can be known before its subscription's route, and "
+        "a put in between is lost. After each all-pairs run every pair's exchange is checked as in "
+        f"part 2. One pair: as in part 2 ({counts.scale_round_trips} round trips, "
         f"{counts.scale_communicates:,} communicates), the other agents idle. All pairs at once: "
         f"{counts.scale_all_pairs} round trips per initiator after 50 warm-up ones, "
         f"{counts.scale_all_rounds} time(s), the median run shown (each run's rate in brackets); "
