@@ -293,7 +293,8 @@ def loop(docs: dict[str, Document]) -> Row:
 
 def pour_seeds(docs: dict[str, Document]) -> Row:
     """scripts/bench_pour_seeds.py --mode fleet: pours with the jar and bowl moved; reads its
-    ``Success (…): N of M`` line and the table's ``spheres in bowl`` cells."""
+    ``Success (…): N of M`` and ``Verdict matches truth: N of M`` lines and the table's
+    ``spheres in bowl`` cells."""
     doc = docs[POUR_SEEDS]
     m = re.search(r"^Success \(([^)]*)\): (\d+) of (\d+)", doc.text, re.MULTILINE)
     if m is None:
@@ -303,9 +304,13 @@ def pour_seeds(docs: dict[str, Document]) -> Row:
     inside = sorted({r[spheres] for r in t.rows}, key=number)
     counts = " or ".join(dict.fromkeys(c.split("/")[0] for c in inside))
     total = inside[-1].split("/")[-1]
+    v = re.search(r"^Verdict matches truth: (\d+) of (\d+)", doc.text, re.MULTILINE)
+    if v is None:
+        raise FiguresError(f"{doc.path}: no line 'Verdict matches truth: N of M'")
     return Row(
         "pours with the jar and bowl moved ±2 cm, turned ±10°",
-        f"{m[2]} of {m[3]} succeeded, {counts} of {total} spheres in the bowl",
+        f"{m[2]} of {m[3]} succeeded, {counts} of {total} spheres in the bowl; a_ta's verdict "
+        f"matched the simulation's truth in {v[1]} of {v[2]}",
         f"success: {m[1]}",
         doc,
     )

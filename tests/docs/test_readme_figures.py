@@ -134,6 +134,13 @@ def test_a_document_without_its_run_header_is_refused(tmp_path: Path) -> None:
         readme_figures.render(root)
 
 
+def test_randomised_pours_without_their_verdict_check_are_refused(tmp_path: Path) -> None:
+    root = _copy(tmp_path)
+    _edit(root / POUR_SEEDS, "Verdict matches truth:", "Verdict:")
+    with pytest.raises(FiguresError, match=r"pour_seeds_fleet\.md: no line 'Verdict matches truth: N of M'"):
+        readme_figures.render(root)
+
+
 def test_a_missing_table_row_is_refused(tmp_path: Path) -> None:
     root = _copy(tmp_path)
     _edit(root / BENCHMARKS, "| roco (Agent runtime,", "| roco runtime (")
