@@ -259,6 +259,31 @@ def m_pour_locate(s: Any, path: str, src: str, dst: str) -> Any:
     return [("a_perceive", f"{path}/observe_scene", "", None), ("a_replan", f"{path}/replan")]
 
 
+def m_pour_done(s: Any, path: str, src: str, dst: str) -> Any:
+    """src is known empty and dst stands localised on a surface (a pour interrupted after its
+    content ran out: nothing is left to pour, and a_km refuses a plan that pours an empty
+    source): a held src is brought upright to its clear-view pose beside dst, then dst's content
+    is checked."""
+    if s.content.get(src) != 0 or not (s.where.get(dst, ("",))[0] == "on" and s.localised.get(dst)):
+        return False
+    todo: list[tuple[Any, ...]] = []
+    arm = next((a for a in ARMS if s.holding[a] == src), None)
+    pour, dst_pose = _k(s).pours.get((src, dst)), s.pose.get(dst)
+    if arm is not None:
+        if pour is None or dst_pose is None or src not in s.grip:
+            return False
+        turn = _rot_z(pour.facing)
+        origin = geo.translated(Pose(dst_pose.position), geo.rotate(pour.source_in_target, turn))
+        grip = geo.compose(Pose(origin.position, turn.orientation), s.grip[src])
+        view = geo.translated(grip, geo.rotate(pour.clear_view, turn))
+        todo += [
+            *_face_steps(s, path, "pour", pour.facing),
+            ("a_move", f"{path}/clear_view", arm, view, LONG_MOVE_S),
+        ]
+    todo.append(("a_check", f"{path}/check_{dst}", dst, CONTENT_SHARE_REQUIRED))
+    return todo
+
+
 def m_pour_now(s: Any, path: str, src: str, dst: str) -> Any:
     """dst stands localised on a surface: fetch src if needed, pour, check."""
     if not (s.where.get(dst, ("",))[0] == "on" and s.localised.get(dst)):
@@ -620,7 +645,9 @@ def declare() -> None:
     with contextlib.redirect_stdout(io.StringIO()):
         gtpyhop.Domain(DOMAIN_NAME)
         gtpyhop.declare_actions(*ACTIONS)
-        gtpyhop.declare_task_methods("pour", m_pour_locate, m_pour_now, m_pour_relocate, m_pour_prepare)
+        gtpyhop.declare_task_methods(
+            "pour", m_pour_locate, m_pour_done, m_pour_now, m_pour_relocate, m_pour_prepare
+        )
         gtpyhop.declare_task_methods("move_to", m_move_to)
         gtpyhop.declare_task_methods("fetch", m_fetch)
         gtpyhop.declare_task_methods("place", m_place)

@@ -162,3 +162,15 @@ def test_a_step_about_something_a_km_does_not_know_is_refused_with_the_step() ->
     teapot = GraspStep(index=3, object="teapot", arm="left")
     with pytest.raises(StepRefused, match=r"^step 3 grasp\(teapot, left\): nothing is known about 'teapot'$"):
         world.answer(HypotheticalQuery(steps=(teapot,), query=SparqlQuery("ASK { }")))
+
+
+def test_a_pour_whose_jar_ran_out_is_finished_without_pouring_again() -> None:
+    # a_ta restarted mid-tilt after the content ran out: the replan must not pour an empty jar
+    # (a_km would refuse it) but bring the jar upright and check the bowl
+    world = ready_to_pour(0, 18)
+    actions = plan(world)
+    assert [s.operator for s in steps(actions)] == []
+    names = [a[0] for a in actions]
+    assert "a_tilt" not in names and names[-1] == "a_check"
+    assert any(a[0] == "a_move" and a[1].endswith("/clear_view") for a in actions)
+    assert check(world, actions)
