@@ -337,6 +337,16 @@ class ScenarioRunner:
         assert t.step is not None
         return any(t.step in s for s in self.steps_seen[steps_before:])
 
+    def _never(self, step: Step, steps_before: int, deadline: float) -> bool:
+        """Whether ``step`` waits for a plan step that can no longer come: every command said so
+        far has its final report (the events queued by then taken first)."""
+        if step.after is None or step.after.step is None or not self.commands:
+            return False
+        if any(c.final is None for c in self.commands):
+            return False
+        self._pump(0.5, deadline)
+        return not self._ready(step, steps_before)
+
     def _act(self, session: zenoh.Session, step: Step) -> None:
         if step.say is not None:
             record = CommandRecord(
@@ -538,6 +548,8 @@ class ScenarioRunner:
         before = len(self.steps_seen)
         while not self._ready(step, before):
             self._pump(0.2, deadline)
+            if step.after is not None and self._never(step, before, deadline):
+                raise LaunchError(f"a step waits for {step.after.step!r}, but every command has ended")
         delay = step.after.delay_s if step.after is not None else 0.0
         if delay > 0:  # e.g. half-way through the step that triggered
             until = time.monotonic() + delay

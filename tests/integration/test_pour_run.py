@@ -26,6 +26,7 @@ from services.runtime.run_folder import read_run_info
 from shared.fipa_codec import Performative
 from tests.support.jade_platform import JADE, JadePlatform, Received
 from tests.support.machine import needs_camera
+from tests.support.recorded_run import replay_lines
 from tests.support.world import FULL, stands_at, untouched, world
 
 pytestmark = [pytest.mark.slow, pytest.mark.fleet]
@@ -314,15 +315,15 @@ def test_the_recording_holds_the_head_camera_at_most_once_a_second(pour_run: Pou
 
 def test_roco_spec_trace_shows_every_leaf_from_the_pour(pour_run: PourRun) -> None:
     """The pour, with the foreign agent's question through the gateway (R1.4), shows every leaf
-    requirement but the two a single command cannot exercise (R1.2: a decision between two
-    open commands; R2.1: an interruption for a waiting one), violates none, and every leaf has
-    its tests."""
+    requirement but the three a single uninterrupted command cannot exercise (R1.2: a decision
+    between two open commands; R2.1: an interruption for a waiting one; R3.3: a safe stop before
+    Preempted), violates none, and every leaf has its tests."""
     run_dir = pour_run.run_dir
     proc = subprocess.run(
         [sys.executable, "-m", "services.cli", "spec", "trace", str(run_dir)], capture_output=True, text=True
     )
     assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-2000:]
-    assert "leaves: 8 shown, 2 not exercised (R1.2, R2.1), 0 violated" in proc.stdout, proc.stdout
+    assert "leaves: 8 shown, 3 not exercised (R1.2, R2.1, R3.3), 0 violated" in proc.stdout, proc.stdout
     assert "tests: none" not in proc.stdout
     md = (run_dir / "report.md").read_text()
     assert "Requirements traced to this run" in md and "**violated**" not in md
@@ -335,19 +336,12 @@ REPLAYED = ("a_co", "a_pl", "a_km", "a_ta")
 
 def test_roco_replay_reproduces_what_each_agent_sent_in_the_pour(pour_run: PourRun) -> None:
     run_dir = pour_run.run_dir
-    proc = subprocess.run(
-        [sys.executable, "-m", "services.cli", "replay", str(run_dir)],
-        capture_output=True,
-        text=True,
-        timeout=300,
-    )
-    assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-2000:]
-    lines = {line.partition(":")[0]: line for line in proc.stdout.strip().splitlines()}
+    lines = replay_lines(run_dir)
     messages = load_run(run_dir).messages
     for agent in REPLAYED:
         sent = [m for m in messages if m.sender == agent and m.copy_of is None]
         got = [m for m in messages if m.rec.receivers[:1] == (agent,) and m.comm is not None]
-        assert lines[agent] == f"{agent}: reproduced, {len(got)} inputs, {len(sent)} outputs", proc.stdout
+        assert lines[agent] == f"{agent}: reproduced, {len(got)} inputs, {len(sent)} outputs", lines
     assert lines["a_hi"].startswith("a_hi: not replayed: ")
 
 

@@ -25,6 +25,7 @@ from services.runtime.run_folder import read_run_info
 from services.scenario.model import LIBRARY
 from shared.fipa_codec.languages.l_sw import SWState, SWStatus
 from tests.support.machine import needs_camera
+from tests.support.recorded_run import replay_lines
 from tests.support.world import FULL, START, stands_at, untouched, world
 
 pytestmark = [pytest.mark.slow, pytest.mark.fleet]
@@ -139,18 +140,6 @@ REPLAYED = ("a_co", "a_pl", "a_km", "a_ta")
 """The agents ``roco replay`` reproduces: those whose input is communicates only."""
 
 
-def _replayed(run_dir: Path) -> dict[str, str]:
-    """``roco replay RUN``'s line per agent (its exit status checked: 0)."""
-    proc = subprocess.run(
-        [sys.executable, "-m", "services.cli", "replay", str(run_dir)],
-        capture_output=True,
-        text=True,
-        timeout=300,
-    )
-    assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-2000:]
-    return {line.partition(":")[0]: line for line in proc.stdout.strip().splitlines()}
-
-
 def _inputs(run_dir: Path, agent: str) -> int:
     """The communicates to ``agent`` in the record, each once (a restarted recorder may have
     written one twice: the same publisher and sequence number)."""
@@ -173,7 +162,7 @@ def test_roco_replay_reproduces_each_agent_through_the_router_and_across_a_recor
     if run == "urgent_mid_pour":
         for agent in (*REPLAYED, "a_hi"):
             assert ": router links (" in (run_dir / "logs" / f"{agent}.log").read_text(), agent
-    lines = _replayed(run_dir)
+    lines = replay_lines(run_dir)
     for agent in REPLAYED:
         assert lines[agent].startswith(f"{agent}: reproduced, {_inputs(run_dir, agent)} inputs, "), lines
 

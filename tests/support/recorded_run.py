@@ -6,6 +6,8 @@ tests that read a record (``roco replay``) without running a fleet."""
 from __future__ import annotations
 
 import shutil
+import subprocess
+import sys
 from collections import defaultdict
 from collections.abc import Callable
 from pathlib import Path
@@ -70,3 +72,15 @@ def rewrite_record(run_dir: Path, change: Callable[[list[RawEntry]], list[RawEnt
     (run_dir / TRAFFIC_JSONL).write_bytes(b"".join(msgspec.json.encode(record_of(e)) + b"\n" for e in kept))
     (run_dir / TRAFFIC_RAW).write_bytes(b"".join(encode_entry(e) for e in kept))
     return run_dir
+
+
+def replay_lines(run_dir: Path) -> dict[str, str]:
+    """``roco replay RUN``'s line per agent, by agent (its exit status checked: 0)."""
+    proc = subprocess.run(
+        [sys.executable, "-m", "services.cli", "replay", str(run_dir)],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-2000:]
+    return {line.partition(":")[0]: line for line in proc.stdout.strip().splitlines()}
