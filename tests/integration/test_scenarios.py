@@ -301,9 +301,10 @@ def test_after_the_pour_jar_and_bowl_go_back_in_the_cabinet(tmp_path: Path) -> N
 
 
 def test_a_pour_interrupted_twice_in_its_tilt_still_fills_the_bowl(tmp_path: Path) -> None:
-    """a_ta, then ag_ex, killed half-way through the tilt (scenario tilt_interrupted): each
-    time a_ta reports Replan, the pour is replanned and finishes; the world shows the bowl on
-    the table with the content in it."""
+    """a_ta killed half-way through the tilt, then ag_ex while the replanned pour brings the
+    jar to its clear-view pose (scenario tilt_interrupted): each time a_ta reports Replan, the
+    pour is replanned and finishes; the world shows the bowl on the table with the content in
+    it."""
     proc, run_dir = scenario("tilt_interrupted", tmp_path)
     assert proc.returncode == 0, proc.stdout[-4000:] + proc.stderr[-2000:]
     assert [c.outcome for c in build_report(run_dir).commands] == ["succeeded"]
