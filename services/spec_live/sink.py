@@ -4,8 +4,8 @@ feeds it to a :class:`~services.spec_live.live.LiveMonitor` of the specification
 names (else the shipped one), and appends each property it finds violated to the run folder's
 ``flags.jsonl`` (services/recorder/flags.py) at once, with a warning in the recorder's log.
 
-The recorder loads it by name (:data:`SINK`, as the specification names the agents'
-implementations), so that the recorder imports no tool above it. Like any sink it never
+The recorder loads it by name (services/recorder/recorder.py ``MONITOR``, as the specification
+names the agents' implementations), so that the recorder imports no tool above it. Like any sink it never
 raises: what goes wrong is logged once and the monitor stops; the traffic is recorded all
 the same.
 """
@@ -22,7 +22,7 @@ import msgspec
 from services.recorder.flags import append_flag
 from services.recorder.record import TrafficRecord
 from services.report.load import Message
-from services.runtime.dedup import wire_digest
+from services.runtime.dedup import Dedup
 from services.runtime.run_folder import read_run_info
 from services.spec.decomposition import load_decomposition
 from services.spec.model import SpecError, spec_path
@@ -31,8 +31,6 @@ from services.spec_live.live import LiveMonitor, flag_of, live_properties
 from shared.fipa_codec import DecodeError, decode
 from shared.fipa_codec.languages import ContentError, decode_content
 
-SINK = "services.spec_live.sink:open_sink"
-"""What the traffic recorder loads (``module:function``)."""
 log = logging.getLogger(__name__)
 
 
@@ -47,7 +45,9 @@ class RequirementsSink:
         self.flags = 0
         self.recorded = 0
         """One past the highest ``seq`` written so far: the record's length when it began empty."""
-        self._digests: set[bytes] = set()
+        self._copies = Dedup()
+        """The communicates fed, remembered as the runtime remembers what it received (the
+        last ``DEFAULT_CAPACITY``: a long-running fleet's monitor stays bounded)."""
         self._broken = False
 
     def communicate(self, record: Any, payload: bytes) -> None:
@@ -77,10 +77,8 @@ class RequirementsSink:
     def _message(self, record: TrafficRecord, payload: bytes) -> Message | None:
         """``record`` decoded as the report's loader does (services/report/load.py); None for
         a copy of a communicate already fed or bytes that are no communicate."""
-        digest = wire_digest(record.key, payload)
-        if digest in self._digests:
+        if self._copies.seen(payload):
             return None
-        self._digests.add(digest)
         try:
             comm = decode(payload)
         except DecodeError:
