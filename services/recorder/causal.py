@@ -50,11 +50,11 @@ class Recorded(Protocol):
 Message = TypeVar("Message", bound=Recorded)
 """The kind of recorded communicate ordered: an ordering returns the elements it was given."""
 
-_Token = tuple[str | None, str]
+Token = tuple[str | None, str]
 """(conversation-id, reply-with) of a communicate."""
 
 
-def _offered(m: Message) -> _Token | None:
+def offered(m: Message) -> Token | None:
     """The token an answer to ``m`` names (its reply-with), None when it has none."""
     comm = m.comm
     if comm is None or comm.reply_with is None:
@@ -62,7 +62,7 @@ def _offered(m: Message) -> _Token | None:
     return comm.conversation_id, comm.reply_with
 
 
-def _answered(m: Message) -> _Token | None:
+def answered(m: Message) -> Token | None:
     """The token ``m`` answers (its in-reply-to), None when it answers nothing."""
     comm = m.comm
     if comm is None or comm.in_reply_to is None:
@@ -76,15 +76,15 @@ class _CausalReplay(Generic[Message]):
     later waits for it; a communicate taken brings in the answers waiting for it
     (:meth:`emit`)."""
 
-    recorded: set[_Token]
+    recorded: set[Token]
     """The tokens some communicate of the record offers."""
-    seen: set[_Token] = field(default_factory=set)
-    waiting: dict[_Token, list[Message]] = field(default_factory=dict)
+    seen: set[Token] = field(default_factory=set)
+    waiting: dict[Token, list[Message]] = field(default_factory=dict)
     ordered: list[Message] = field(default_factory=list)
     moved: int = 0
 
     def take(self, m: Message) -> None:
-        token = _answered(m)
+        token = answered(m)
         if token is not None and token in self.recorded and token not in self.seen:
             self.waiting.setdefault(token, []).append(m)
             self.moved += 1
@@ -93,7 +93,7 @@ class _CausalReplay(Generic[Message]):
 
     def emit(self, m: Message) -> None:
         self.ordered.append(m)
-        token = _offered(m)
+        token = offered(m)
         if token is None:
             return
         self.seen.add(token)
@@ -105,7 +105,7 @@ def causal_order(messages: Sequence[Message]) -> tuple[list[Message], int]:
     """``messages`` (arrival order) in causal order, and how many were moved later.
 
     Shapes: a list of the same length with the same elements. O(n) in time and memory."""
-    replay: _CausalReplay[Message] = _CausalReplay({t for m in messages if (t := _offered(m)) is not None})
+    replay: _CausalReplay[Message] = _CausalReplay({t for m in messages if (t := offered(m)) is not None})
     for m in messages:
         replay.take(m)
     # a cycle of answers (malformed traffic) leaves messages waiting: keep them, in arrival order

@@ -16,9 +16,11 @@ communicates arrived (what it answers may never be recorded): then it is fed as 
 
 from __future__ import annotations
 
+from collections import OrderedDict
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 
+from services.recorder.causal import Token, answered, offered
 from services.recorder.flags import LiveFlag
 from services.report.load import Message
 from services.spec.properties import Property
@@ -26,17 +28,9 @@ from services.spec_check.properties import Monitor, Outcome
 
 HOLD = 64
 """How many communicates an answer waits at most for what it answers (arrival order)."""
-
-_Token = tuple[str | None, str]
-"""(conversation-id, reply-with) of a communicate."""
-
-
-def _offered(m: Message) -> _Token | None:
-    return (m.comm.conversation_id, m.comm.reply_with) if m.comm and m.comm.reply_with else None
-
-
-def _answered(m: Message) -> _Token | None:
-    return (m.comm.conversation_id, m.comm.in_reply_to) if m.comm and m.comm.in_reply_to else None
+SEEN = 4096
+"""How many reply-with tokens fed are remembered (the oldest forgotten first): an answer to a
+communicate older than that is held :data:`HOLD` communicates, then fed as it is."""
 
 
 @dataclass
@@ -45,14 +39,14 @@ class CausalFeed:
 
     hold: int = HOLD
     _arrived: int = 0
-    _seen: set[_Token] = field(default_factory=set)
-    _waiting: dict[_Token, list[tuple[int, Message]]] = field(default_factory=dict)
+    _seen: OrderedDict[Token, None] = field(default_factory=OrderedDict)
+    _waiting: dict[Token, list[tuple[int, Message]]] = field(default_factory=dict)
 
     def push(self, m: Message) -> list[Message]:
         """Take the next communicate to arrive; return those to evaluate now, in order."""
         self._arrived += 1
         out: list[Message] = []
-        token = _answered(m)
+        token = answered(m)
         if token is not None and token not in self._seen:
             self._waiting.setdefault(token, []).append((self._arrived, m))
         else:
@@ -74,10 +68,12 @@ class CausalFeed:
 
     def _emit(self, m: Message, out: list[Message]) -> None:
         out.append(m)
-        token = _offered(m)
+        token = offered(m)
         if token is None:
             return
-        self._seen.add(token)
+        self._seen[token] = None
+        if len(self._seen) > SEEN:
+            self._seen.popitem(last=False)
         for _, later in self._waiting.pop(token, []):
             self._emit(later, out)
 
