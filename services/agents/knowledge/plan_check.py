@@ -125,9 +125,15 @@ def place_area(world: WorldModel, furniture: str) -> tuple[float, float, float, 
 
 
 def capacity(world: WorldModel, container: str) -> int | None:
-    """How many particles ``container`` takes (``roco:capacity``), None when not stated."""
+    """How many particles ``container`` takes (``roco:capacity``), None when not stated.
+    Raises KnowledgeError for a value that is not a whole number."""
     value = world.graph.value(ROCO[container], ROCO.capacity)
-    return int(str(value)) if value is not None else None
+    if value is None:
+        return None
+    try:
+        return int(str(value))
+    except ValueError:
+        raise KnowledgeError(f"{container}: capacity is not a whole number: {value!r}") from None
 
 
 def _pour(world: WorldModel, step: PourStep) -> str | None:

@@ -174,3 +174,15 @@ def test_a_pour_whose_jar_ran_out_is_finished_without_pouring_again() -> None:
     assert "a_tilt" not in names and names[-1] == "a_check"
     assert any(a[0] == "a_move" and a[1].endswith("/clear_view") for a in actions)
     assert check(world, actions)
+
+
+def test_a_malformed_capacity_refuses_the_pour_naming_it() -> None:
+    from rdflib import Literal
+
+    from services.agents.knowledge.world_model import ROCO
+
+    world = ready_to_pour(18, 0)
+    actions = plan(world)
+    world.graph.set((ROCO.bowl, ROCO.capacity, Literal("a lot")))
+    with pytest.raises(StepRefused, match=r"^step 4 pour\(jar, bowl\): bowl: capacity is not a whole number"):
+        check(world, actions)
