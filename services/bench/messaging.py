@@ -229,7 +229,7 @@ class Testbed:
             raise SetupError("a pair's route was not there: " + "; ".join(wrong))
 
     def _reached(self, child: Child, deadline: float, timeout: float) -> str:
-        """"" when ``child`` answered :data:`REACH` by ``deadline`` (time.monotonic()), else
+        """ "" when ``child`` answered :data:`REACH` by ``deadline`` (time.monotonic()), else
         ``"<name>: <why>"``."""
         try:
             got = child.receive(max(0.1, deadline - time.monotonic()))
