@@ -30,8 +30,10 @@ import re
 from dataclasses import dataclass
 from pathlib import Path
 
+from services.security.folder import ACL_FILE, CA_CERT, PASSWORDS, ROUTER
 from services.spec.generated import GeneratedFile
 from services.spec.model import SystemSpec
+from services.spec_check.acl import RECORDER
 from shared.settings import Settings
 from velma.world.mode import WORLD_SERVICE
 
@@ -48,9 +50,38 @@ MAX_COMPOSE_BYTES = 1 << 20
 MOUNTS = (
     "${ROCO_RUNS:-../runs}:/runs",
     "fleet:/var/lib/roco/fleet",
-    "${ROCO_CERTS:-./certs}:/certs:ro",
 )
-"""What every roco service mounts: the run folders, the fleet's run name, the credentials."""
+"""What every roco service mounts: the run folders and the fleet's run name."""
+
+CERTS_HOST = "${ROCO_CERTS:-./certs}"
+"""The credentials folder on the host (services/security/certs.py lays it out)."""
+CERTS_IN = "/certs"
+"""Where a service finds its credentials (``ROCO_SECURITY``): the folder's layout, with only
+the files the service needs."""
+MESH_IDENTITY = "ROCO_ROUTER_IDENTITY"
+"""The variable naming a meshed router's identity (``router_<host>``, docs/deploy.md)."""
+
+
+def credentials(*entries: str) -> list[str]:
+    """Read-only mounts of ``entries`` (files or identity folders) of the credentials folder,
+    each at its own place below :data:`CERTS_IN`."""
+    return [f"{CERTS_HOST}/{e}:{CERTS_IN}/{e}:ro" for e in entries]
+
+
+def identity_mounts(name: str) -> list[str]:
+    """What identity ``name``'s service mounts of the credentials folder: the CA's certificate
+    and ``name``'s own folder (certificate, key, password); no other key, no password table."""
+    return credentials(CA_CERT, name)
+
+
+ROUTER_MOUNTS = [
+    *credentials(CA_CERT, f"{ROUTER}.pem", f"{ROUTER}.key", PASSWORDS, ACL_FILE),
+    # a meshed router's own identity folder; unset, the CA's certificate (public) at a path
+    # nothing reads: compose 1.29 has no conditional mount
+    f"{CERTS_HOST}/${{{MESH_IDENTITY}:-{CA_CERT}}}:{CERTS_IN}/${{{MESH_IDENTITY}:-unused-{CA_CERT}}}:ro",
+]
+"""What the router mounts of the credentials folder: the CA's certificate, its own certificate
+and key, the password table it checks, its ACL and, on a host of a mesh, its identity."""
 
 RUN_VARIABLES = tuple(Settings.env_name(f) for f in ("run_dir", "km_store", "state_dir"))
 """The variables in which deploy/entrypoint.sh replaces ``{run}`` by the run's name."""
@@ -141,12 +172,16 @@ HEAD = """\
 #   ROCO_VIEWER_BIND, ROCO_VIEWER_WEB_PORT, ROCO_VIEWER_GRPC_PORT  127.0.0.1, 9090, 9876
 #   ROCO_CERTS            host folder of the credentials           ./certs (deploy/certs)
 #   ROCO_SECURITY         credentials folder in the containers     /certs ("" = access control off)
+#   ROCO_ROUTER_IDENTITY  a meshed router's identity               none (router_HOST: docs/deploy.md)
 #   ROCO_PROTO            tls (mutual TLS) or tcp                  tls (tcp with ROCO_SECURITY="")
 #
 # Access control is on (docs/security.md): the one-shot service `certs` issues a private CA, the
 # router's certificate and one identity per agent/recorder/operator into ROCO_CERTS unless it
 # holds them already (`roco deploy certs --keep`); the router requires mutual TLS and a password
-# and applies the ACL generated from the specification. Off, for experiments:
+# and applies the ACL generated from the specification. Least privilege: only `certs` sees the
+# CA's key; every other service mounts, read-only, the CA's certificate and its own identity
+# (certificate, key, password), the router its own key, the password table and the ACL; the
+# world and the viewer no credentials. Off, for experiments:
 #   ROCO_SECURITY= ROCO_PROTO=tcp docker compose -f deploy/compose.yaml -p roco up -d
 #
 # Compose Specification format (no `version:`): valid for `docker compose` v2 and for
@@ -211,6 +246,8 @@ services:
       ROCO_CONNECT: ${ROCO_PEER:-}
       ROCO_PROTO: ${ROCO_PROTO:-tls}
       ROCO_ROUTER_IDENTITY: ${ROCO_ROUTER_IDENTITY:-}  # a meshed router's identity (roco deploy router)
+    volumes:
+@ROUTER_MOUNTS
     depends_on:
       certs:
         condition: service_completed_successfully
@@ -226,6 +263,8 @@ services:
     <<: *roco
     command: ["python", "-m", "services.recorder.recorder"]
     environment: *env
+    volumes:
+@RECORDER_MOUNTS
     depends_on:
       certs:
         condition: service_completed_successfully
@@ -297,18 +336,23 @@ def _key(name: str) -> str:
     return json.dumps(name)
 
 
-def _environment(state: StateVolume | None) -> list[str]:
-    """An agent service's environment, and its volumes when it keeps a state."""
-    if state is None:
-        return ["    environment: *env"]
-    return [
-        "    environment:",
-        "      <<: *env",
-        *(f"      {var}: {state.path}/{{run}}" for var in state.variables),
-        "    volumes:",
-        *(f"      - {m}" for m in MOUNTS),
-        f"      - {state.volume}:{state.path}",
-    ]
+def _environment(name: str, state: StateVolume | None) -> list[str]:
+    """Agent ``name``'s environment and volumes: every service's, its credentials and its kept
+    state."""
+    env = ["    environment: *env"]
+    if state is not None:
+        env = [
+            "    environment:",
+            "      <<: *env",
+            *(f"      {var}: {state.path}/{{run}}" for var in state.variables),
+        ]
+    kept = [f"{state.volume}:{state.path}"] if state is not None else []
+    return [*env, "    volumes:", *_list([*MOUNTS, *identity_mounts(name), *kept])]
+
+
+def _list(items: list[str]) -> list[str]:
+    """A service's list items (6 spaces deep)."""
+    return [f"      - {i}" for i in items]
 
 
 def _depends_on(spec: SystemSpec, name: str, extras: AgentExtras) -> list[str]:
@@ -354,7 +398,7 @@ def _agent(spec: SystemSpec, name: str) -> list[str]:
         "    <<: *roco",
         f'    command: ["python", "-m", "services.runtime.main", {key}]',
     ]
-    lines += _environment(extras.state)
+    lines += _environment(name, extras.state)
     lines += _depends_on(spec, name, extras)
     lines += _shared_with_hardware(extras.hardware)
     lines += [f"    # {why}" for why in extras.why]
@@ -388,6 +432,9 @@ def render(spec: SystemSpec) -> str:
         if state is not None and state.volume not in volumes:
             volumes.append(state.volume)
     head = HEAD.replace("@MOUNTS\n", "".join(f"    - {m}\n" for m in MOUNTS))
+    head = head.replace("@ROUTER_MOUNTS\n", "".join(f"{m}\n" for m in _list([*MOUNTS, *ROUTER_MOUNTS])))
+    recorder = identity_mounts(RECORDER)
+    head = head.replace("@RECORDER_MOUNTS\n", "".join(f"{m}\n" for m in _list([*MOUNTS, *recorder])))
     agents = "\n".join("\n".join(_agent(spec, name)) + "\n" for name in spec.launch_order)
     agents = AGENTS_COMMENT + agents
     if WORLD_SERVICE in hardware(spec):
