@@ -58,7 +58,7 @@ CERTS_HOST = "${ROCO_CERTS:-./certs}"
 CERTS_IN = "/certs"
 """Where a service finds its credentials (``ROCO_SECURITY``): the folder's layout, with only
 the files the service needs."""
-MESH_IDENTITY = "ROCO_ROUTER_IDENTITY"
+MESH_IDENTITY = Settings.env_name("router_identity")
 """The variable naming a meshed router's identity (``router_<host>``, docs/deploy.md)."""
 
 
@@ -418,6 +418,19 @@ def hardware(spec: SystemSpec) -> list[str]:
     return sorted({h for h in named if h is not None})
 
 
+def _head() -> str:
+    """:data:`HEAD` with its mounts: every service's, the router's and the recorder's."""
+    lines = {
+        "@MOUNTS": [f"    - {m}" for m in MOUNTS],
+        "@ROUTER_MOUNTS": _list([*MOUNTS, *ROUTER_MOUNTS]),
+        "@RECORDER_MOUNTS": _list([*MOUNTS, *identity_mounts(RECORDER)]),
+    }
+    head = HEAD
+    for mark, mounts in lines.items():
+        head = head.replace(mark + "\n", "\n".join(mounts) + "\n")
+    return head
+
+
 def render(spec: SystemSpec) -> str:
     """The compose file ``spec`` gives (see the module docstring). Raises ComposeError for an
     agent whose name cannot be a compose service's, or is one of :data:`NOT_AGENTS`."""
@@ -431,10 +444,7 @@ def render(spec: SystemSpec) -> str:
         state = AGENT_EXTRAS.get(name, AgentExtras()).state
         if state is not None and state.volume not in volumes:
             volumes.append(state.volume)
-    head = HEAD.replace("@MOUNTS\n", "".join(f"    - {m}\n" for m in MOUNTS))
-    head = head.replace("@ROUTER_MOUNTS\n", "".join(f"{m}\n" for m in _list([*MOUNTS, *ROUTER_MOUNTS])))
-    recorder = identity_mounts(RECORDER)
-    head = head.replace("@RECORDER_MOUNTS\n", "".join(f"{m}\n" for m in _list([*MOUNTS, *recorder])))
+    head = _head()
     agents = "\n".join("\n".join(_agent(spec, name)) + "\n" for name in spec.launch_order)
     agents = AGENTS_COMMENT + agents
     if WORLD_SERVICE in hardware(spec):
