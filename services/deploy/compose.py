@@ -18,6 +18,11 @@ file's comments are this module's text; the agents' services follow from the spe
   shared memory and processes its container shares, so that the robot link between them works
   and neither takes the other's link for an orphan).
 
+Least privilege for the credentials (:func:`credentials`): only ``certs`` mounts the whole
+folder (it issues; the CA's key is there); an agent or the recorder mounts the CA's certificate
+and its own identity (:func:`identity_mounts`), the router :data:`ROUTER_MOUNTS`, the world and
+the viewer nothing; all read-only.
+
 The file is in the Compose Specification format (no ``version:``), valid for ``docker
 compose`` v2 and Debian's ``docker-compose`` 1.29. ``roco deploy compose`` writes it,
 ``roco deploy compose --check`` compares it, and ``roco spec new-agent`` brings it up to date.
