@@ -18,6 +18,11 @@ file's comments are this module's text; the agents' services follow from the spe
   shared memory and processes its container shares, so that the robot link between them works
   and neither takes the other's link for an orphan).
 
+Least privilege for the credentials (:func:`credentials`): only ``certs`` mounts the whole
+folder (it issues; the CA's key is there); an agent or the recorder mounts the CA's certificate
+and its own identity (:func:`identity_mounts`), the router :data:`ROUTER_MOUNTS`, the world and
+the viewer nothing; all read-only.
+
 The file is in the Compose Specification format (no ``version:``), valid for ``docker
 compose`` v2 and Debian's ``docker-compose`` 1.29. ``roco deploy compose`` writes it,
 ``roco deploy compose --check`` compares it, and ``roco spec new-agent`` brings it up to date.
@@ -30,8 +35,10 @@ import re
 from dataclasses import dataclass
 from pathlib import Path
 
+from services.security.folder import ACL_FILE, CA_CERT, PASSWORDS, ROUTER
 from services.spec.generated import GeneratedFile
 from services.spec.model import SystemSpec
+from services.spec_check.acl import RECORDER
 from shared.settings import Settings
 from velma.world.mode import WORLD_SERVICE
 
@@ -48,9 +55,38 @@ MAX_COMPOSE_BYTES = 1 << 20
 MOUNTS = (
     "${ROCO_RUNS:-../runs}:/runs",
     "fleet:/var/lib/roco/fleet",
-    "${ROCO_CERTS:-./certs}:/certs:ro",
 )
-"""What every roco service mounts: the run folders, the fleet's run name, the credentials."""
+"""What every roco service mounts: the run folders and the fleet's run name."""
+
+CERTS_HOST = "${ROCO_CERTS:-./certs}"
+"""The credentials folder on the host (services/security/certs.py lays it out)."""
+CERTS_IN = "/certs"
+"""Where a service finds its credentials (``ROCO_SECURITY``): the folder's layout, with only
+the files the service needs."""
+MESH_IDENTITY = Settings.env_name("router_identity")
+"""The variable naming a meshed router's identity (``router_<host>``, docs/deploy.md)."""
+
+
+def credentials(*entries: str) -> list[str]:
+    """Read-only mounts of ``entries`` (files or identity folders) of the credentials folder,
+    each at its own place below :data:`CERTS_IN`."""
+    return [f"{CERTS_HOST}/{e}:{CERTS_IN}/{e}:ro" for e in entries]
+
+
+def identity_mounts(name: str) -> list[str]:
+    """What identity ``name``'s service mounts of the credentials folder: the CA's certificate
+    and ``name``'s own folder (certificate, key, password); no other key, no password table."""
+    return credentials(CA_CERT, name)
+
+
+ROUTER_MOUNTS = [
+    *credentials(CA_CERT, f"{ROUTER}.pem", f"{ROUTER}.key", PASSWORDS, ACL_FILE),
+    # a meshed router's own identity folder; unset, the CA's certificate (public) at a path
+    # nothing reads: compose 1.29 has no conditional mount
+    f"{CERTS_HOST}/${{{MESH_IDENTITY}:-{CA_CERT}}}:{CERTS_IN}/${{{MESH_IDENTITY}:-unused-{CA_CERT}}}:ro",
+]
+"""What the router mounts of the credentials folder: the CA's certificate, its own certificate
+and key, the password table it checks, its ACL and, on a host of a mesh, its identity."""
 
 RUN_VARIABLES = tuple(Settings.env_name(f) for f in ("run_dir", "km_store", "state_dir"))
 """The variables in which deploy/entrypoint.sh replaces ``{run}`` by the run's name."""
@@ -141,12 +177,16 @@ HEAD = """\
 #   ROCO_VIEWER_BIND, ROCO_VIEWER_WEB_PORT, ROCO_VIEWER_GRPC_PORT  127.0.0.1, 9090, 9876
 #   ROCO_CERTS            host folder of the credentials           ./certs (deploy/certs)
 #   ROCO_SECURITY         credentials folder in the containers     /certs ("" = access control off)
+#   ROCO_ROUTER_IDENTITY  a meshed router's identity               none (router_HOST: docs/deploy.md)
 #   ROCO_PROTO            tls (mutual TLS) or tcp                  tls (tcp with ROCO_SECURITY="")
 #
 # Access control is on (docs/security.md): the one-shot service `certs` issues a private CA, the
 # router's certificate and one identity per agent/recorder/operator into ROCO_CERTS unless it
 # holds them already (`roco deploy certs --keep`); the router requires mutual TLS and a password
-# and applies the ACL generated from the specification. Off, for experiments:
+# and applies the ACL generated from the specification. Least privilege: only `certs` sees the
+# CA's key; every other service mounts, read-only, the CA's certificate and its own identity
+# (certificate, key, password), the router its own key, the password table and the ACL; the
+# world and the viewer no credentials. Off, for experiments:
 #   ROCO_SECURITY= ROCO_PROTO=tcp docker compose -f deploy/compose.yaml -p roco up -d
 #
 # Compose Specification format (no `version:`): valid for `docker compose` v2 and for
@@ -211,6 +251,8 @@ services:
       ROCO_CONNECT: ${ROCO_PEER:-}
       ROCO_PROTO: ${ROCO_PROTO:-tls}
       ROCO_ROUTER_IDENTITY: ${ROCO_ROUTER_IDENTITY:-}  # a meshed router's identity (roco deploy router)
+    volumes:
+@ROUTER_MOUNTS
     depends_on:
       certs:
         condition: service_completed_successfully
@@ -226,6 +268,8 @@ services:
     <<: *roco
     command: ["python", "-m", "services.recorder.recorder"]
     environment: *env
+    volumes:
+@RECORDER_MOUNTS
     depends_on:
       certs:
         condition: service_completed_successfully
@@ -297,18 +341,23 @@ def _key(name: str) -> str:
     return json.dumps(name)
 
 
-def _environment(state: StateVolume | None) -> list[str]:
-    """An agent service's environment, and its volumes when it keeps a state."""
-    if state is None:
-        return ["    environment: *env"]
-    return [
-        "    environment:",
-        "      <<: *env",
-        *(f"      {var}: {state.path}/{{run}}" for var in state.variables),
-        "    volumes:",
-        *(f"      - {m}" for m in MOUNTS),
-        f"      - {state.volume}:{state.path}",
-    ]
+def _environment(name: str, state: StateVolume | None) -> list[str]:
+    """Agent ``name``'s environment and volumes: every service's, its credentials and its kept
+    state."""
+    env = ["    environment: *env"]
+    if state is not None:
+        env = [
+            "    environment:",
+            "      <<: *env",
+            *(f"      {var}: {state.path}/{{run}}" for var in state.variables),
+        ]
+    kept = [f"{state.volume}:{state.path}"] if state is not None else []
+    return [*env, "    volumes:", *_list([*MOUNTS, *identity_mounts(name), *kept])]
+
+
+def _list(items: list[str]) -> list[str]:
+    """A service's list items (6 spaces deep)."""
+    return [f"      - {i}" for i in items]
 
 
 def _depends_on(spec: SystemSpec, name: str, extras: AgentExtras) -> list[str]:
@@ -354,7 +403,7 @@ def _agent(spec: SystemSpec, name: str) -> list[str]:
         "    <<: *roco",
         f'    command: ["python", "-m", "services.runtime.main", {key}]',
     ]
-    lines += _environment(extras.state)
+    lines += _environment(name, extras.state)
     lines += _depends_on(spec, name, extras)
     lines += _shared_with_hardware(extras.hardware)
     lines += [f"    # {why}" for why in extras.why]
@@ -374,6 +423,19 @@ def hardware(spec: SystemSpec) -> list[str]:
     return sorted({h for h in named if h is not None})
 
 
+def _head() -> str:
+    """:data:`HEAD` with its mounts: every service's, the router's and the recorder's."""
+    lines = {
+        "@MOUNTS": [f"    - {m}" for m in MOUNTS],
+        "@ROUTER_MOUNTS": _list([*MOUNTS, *ROUTER_MOUNTS]),
+        "@RECORDER_MOUNTS": _list([*MOUNTS, *identity_mounts(RECORDER)]),
+    }
+    head = HEAD
+    for mark, mounts in lines.items():
+        head = head.replace(mark + "\n", "\n".join(mounts) + "\n")
+    return head
+
+
 def render(spec: SystemSpec) -> str:
     """The compose file ``spec`` gives (see the module docstring). Raises ComposeError for an
     agent whose name cannot be a compose service's, or is one of :data:`NOT_AGENTS`."""
@@ -387,7 +449,7 @@ def render(spec: SystemSpec) -> str:
         state = AGENT_EXTRAS.get(name, AgentExtras()).state
         if state is not None and state.volume not in volumes:
             volumes.append(state.volume)
-    head = HEAD.replace("@MOUNTS\n", "".join(f"    - {m}\n" for m in MOUNTS))
+    head = _head()
     agents = "\n".join("\n".join(_agent(spec, name)) + "\n" for name in spec.launch_order)
     agents = AGENTS_COMMENT + agents
     if WORLD_SERVICE in hardware(spec):

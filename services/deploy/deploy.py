@@ -8,10 +8,10 @@ of the specification (services/spec_check/acl.py) and writes the router's ``acl.
 from __future__ import annotations
 
 import json
-import os
 from pathlib import Path
 
 from services.security import certs
+from services.security.files import write_file
 from services.spec.model import SystemSpec
 from services.spec_check.acl import ROUTER_PREFIX, acl_config, identities, with_routers
 
@@ -23,9 +23,7 @@ def write_acl(out: Path, spec: SystemSpec, *, tls: bool) -> None:
     acl = with_routers(
         acl_config(spec, tls=tls, only=set(issued)), [n for n in issued if n.startswith(ROUTER_PREFIX)]
     )
-    tmp = out / (certs.ACL_FILE + ".tmp")
-    tmp.write_text(json.dumps(acl, indent=1))
-    os.replace(tmp, out / certs.ACL_FILE)
+    write_file(out / certs.ACL_FILE, json.dumps(acl, indent=1).encode())
 
 
 def acl_uses_tls(out: Path) -> bool:

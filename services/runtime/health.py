@@ -4,9 +4,10 @@ Exit 0 when NAME is healthy, else 1; either way one line on stdout saying why (D
 in ``docker inspect``'s health log). Exit 2 on a usage error.
 
 - an agent or the traffic recorder (``a_km``, ``recorder``, …): healthy when its liveliness
-  token ``roco/alive/NAME`` is visible through the router (Zenoh's white pages, the same
-  query as ``roco status``). The router is ``--router EP``, else ``ROCO_ROUTER`` (its first
-  endpoint), else ``tcp/127.0.0.1:7447``;
+  token ``roco/alive/NAME`` is visible through the router (Zenoh's white pages, the query of
+  ``roco status`` on that one key, as identity NAME where the credentials hold it). The
+  router is ``--router EP``, else ``ROCO_ROUTER`` (its first endpoint), else
+  ``tcp/127.0.0.1:7447``;
 - ``router``: healthy when the router's TCP endpoint accepts a connection (no Zenoh session
   is opened, so a probe costs the router nothing);
 - with ``--tcp HOST:PORT`` (repeatable; e.g. the Rerun viewer): healthy when every one of
@@ -59,20 +60,30 @@ def check_tcp(name: str, addresses: list[str], timeout: float) -> tuple[bool, st
 
 
 def check_alive(name: str, endpoint: str, timeout: float) -> tuple[bool, str]:
-    """Whether ``name``'s liveliness token is visible through the router at ``endpoint``."""
+    """Whether ``name``'s liveliness token is visible through the router at ``endpoint``: a
+    liveliness query on ``roco/alive/NAME`` alone, as identity ``name`` when the credentials
+    folder holds it (a container holds only its own service's, deploy/compose.yaml; the ACL lets
+    an identity ask for its own token, services/spec_check/acl.py), else as the default
+    identity (``ROCO_IDENTITY``, else ``operator``)."""
     from services.runtime.session import alive_agents, open_client
+    from services.security.folder import CredentialError
 
     try:
-        session = open_client(endpoint)
+        try:
+            session = open_client(endpoint, identity=name)
+        except CredentialError:
+            session = open_client(endpoint)
+    except CredentialError as exc:
+        return False, f"{name} unknown: {exc}"
     except Exception:  # zenoh.ZError: no router answers
         return False, f"{name} unknown: no router answers at {endpoint}"
     try:
-        alive = alive_agents(session, timeout=timeout)
+        alive = alive_agents(session, timeout=timeout, only=name)
     finally:
         session.close()
     if name in alive:
         return True, f"{name} alive at {endpoint}"
-    return False, f"{name} absent at {endpoint} (alive: {', '.join(sorted(alive)) or 'none'})"
+    return False, f"{name} absent at {endpoint}"
 
 
 def check(

@@ -90,9 +90,14 @@ _AUTH_FAILED = re.compile(
     r"UsrPwd extension - Recv \w+\. (?P<why>Invalid password|Invalid user|Expected extension)"
 )
 _BAD_CERT = re.compile(r"invalid peer certificate: (?P<why>[^.]+)")
+_NO_CERT = re.compile(r"peer sent no certificates")
+"""A TLS client that showed no certificate (mutual TLS requires one; zenoh_link_tls logs it at
+WARN, with no address)."""
 _ALERT = re.compile(r"received fatal alert: (?P<why>\w+)")
 """The peer ended the TLS handshake: it did not trust this router's certificate (a router or a
 client of another CA; zenoh_link_tls logs it at WARN, with no address)."""
+NO_CERTIFICATE = "no certificate"
+"""Why a TLS client that showed no certificate was refused (the refusal's ``key``)."""
 AUTH_REASONS = {
     "Invalid password": "wrong password",
     "Invalid user": "unknown user",
@@ -112,8 +117,9 @@ class Refusal(msgspec.Struct, frozen=True, kw_only=True):
     ``declare_liveliness_token``, …; ``session`` for a session that matches no ACL subject and
     may therefore do nothing; ``authenticate`` for a session refused at the handshake, ``key``
     then saying why: ``no credentials``, ``wrong password``, ``unknown user``, ``bad
-    certificate: <TLS error>``, or ``handshake ended by the peer: <TLS alert> …`` when the peer
-    (a router or client of another CA) did not trust this router's certificate); flow:
+    certificate: <TLS error>``, ``no certificate`` (a TLS client that showed none), or
+    ``handshake ended by the peer: <TLS alert> …`` when the peer (a router or client of another
+    CA) did not trust this router's certificate); flow:
     ``ingress`` (what the client sent) or ``egress`` (what the
     router would have delivered to it); key: the key expression; session: the Zenoh id (hex; ""
     before a session exists); peer: the client's address, where Zenoh logged it (a refused
@@ -276,6 +282,8 @@ class RefusalLog:
         bad = _BAD_CERT.search(line)
         if bad is not None:
             return self._add(_handshake(stamp, f"bad certificate: {bad['why']}"))
+        if _NO_CERT.search(line) is not None:
+            return self._add(_handshake(stamp, NO_CERTIFICATE))
         alert = _ALERT.search(line)
         if alert is not None:
             why = f"handshake ended by the peer: {alert['why']} (it does not trust our certificate)"

@@ -102,10 +102,13 @@ def listening(endpoint: str, timeout: float = 1.0) -> bool:
         return False
 
 
-def alive_agents(session: zenoh.Session, timeout: float = 1.0) -> set[str]:
-    """Names with a liveliness token under ``roco/alive/*`` (the white pages)."""
+def alive_agents(session: zenoh.Session, timeout: float = 1.0, only: str | None = None) -> set[str]:
+    """Names with a liveliness token under ``roco/alive/*`` (the white pages); ``only``: ask
+    for ``roco/alive/<only>`` alone (the most an identity other than the operator may ask,
+    services/spec_check/acl.py)."""
     names = set()
-    for reply in session.liveliness().get(keys.ALIVE_ALL, timeout=timeout):
+    key = keys.ALIVE_ALL if only is None else keys.alive_key(only)
+    for reply in session.liveliness().get(key, timeout=timeout):
         if reply.ok is not None:
             name = keys.alive_agent(str(reply.ok.key_expr))
             if name is not None:

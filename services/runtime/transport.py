@@ -249,7 +249,9 @@ def one_hop(endpoints: list[str], folder: Path | None) -> bool:
     """Whether sessions to the router at ``endpoints`` may link to each other directly:
     every endpoint is on this host's loopback (peers listen on loopback only: across hosts and
     containers the router path stays), and either there is no access control (no credentials
-    ``folder``) or every endpoint is mutual TLS. With access control over plain TCP a peer could
+    ``folder``) or every endpoint is mutual TLS and ``folder`` holds the ACL and the password
+    table a peer checks its peers with (a folder of one identity's credentials, as a container
+    of deploy/compose.yaml mounts it, keeps the router path). With access control over plain TCP a peer could
     not tell the router's link from another peer's (the opener of a link learns nothing of the
     acceptor's identity without a certificate), so such a fleet keeps the router path."""
     for ep in endpoints:
@@ -258,6 +260,11 @@ def one_hop(endpoints: list[str], folder: Path | None) -> bool:
         if proto not in ("tcp", "tls") or host not in LOOPBACK:
             return False
         if folder is not None and proto != "tls":
+            return False
+    if folder is not None:
+        from services.security.folder import ACL_FILE, PASSWORDS
+
+        if not ((folder / ACL_FILE).is_file() and (folder / PASSWORDS).is_file()):
             return False
     return bool(endpoints)
 

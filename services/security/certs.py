@@ -2,7 +2,8 @@
 (common name = the identity: an agent's name, ``recorder``, ``operator``) and the router's, and a
 user/password dictionary for Zenoh's ``usrpwd`` authentication.
 
-Layout of a credentials folder (:func:`issue`; every key and password file mode 0600)::
+Layout of a credentials folder (:func:`issue`; every key and password file mode 0600, each file
+written whole and fsynced, services/security/files.py)::
 
     ca.pem  ca.key             the private CA (keep ca.key off the robot: it issues identities)
     router.pem  router.key     the router's TLS certificate (SAN: localhost, 127.0.0.1, router)
@@ -21,7 +22,6 @@ from __future__ import annotations
 
 import datetime as dt
 import ipaddress
-import os
 import secrets
 from collections.abc import Iterable
 from pathlib import Path
@@ -31,6 +31,7 @@ from cryptography.hazmat.primitives import hashes, serialization
 from cryptography.hazmat.primitives.asymmetric import ec
 from cryptography.x509.oid import ExtendedKeyUsageOID, NameOID
 
+from services.security.files import write_file
 from services.security.folder import (
     ACL_FILE,
     CA_CERT,
@@ -72,15 +73,6 @@ __all__ = [
     "read_passwords",
     "revoke",
 ]
-
-
-def _write(path: Path, data: bytes, *, secret: bool = False) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(path.name + ".tmp")
-    fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o600 if secret else 0o644)
-    with os.fdopen(fd, "wb") as f:
-        f.write(data)
-    tmp.replace(path)
 
 
 def _key_pem(key: ec.EllipticCurvePrivateKey) -> bytes:
@@ -196,8 +188,8 @@ def make_ca(out: Path, days: int = 3650) -> None:
         .add_extension(x509.SubjectKeyIdentifier.from_public_key(key.public_key()), critical=False)
         .sign(key, hashes.SHA256())
     )
-    _write(out / CA_KEY, _key_pem(key), secret=True)
-    _write(out / CA_CERT, cert.public_bytes(serialization.Encoding.PEM))
+    write_file(out / CA_KEY, _key_pem(key), secret=True)
+    write_file(out / CA_CERT, cert.public_bytes(serialization.Encoding.PEM))
 
 
 def issue_identity(out: Path, name: str, days: int = 365) -> Identity:
@@ -220,10 +212,10 @@ def _store_identity(
 ) -> Identity:
     """Write identity ``name``'s key, certificate and a fresh password into ``out/<name>/`` and
     enter the password in ``passwords.txt``."""
-    _write(out / name / KEY, _key_pem(key), secret=True)
-    _write(out / name / CERT, cert.public_bytes(serialization.Encoding.PEM))
+    write_file(out / name / KEY, _key_pem(key), secret=True)
+    write_file(out / name / CERT, cert.public_bytes(serialization.Encoding.PEM))
     password = secrets.token_urlsafe(24)
-    _write(out / name / PASSWORD, password.encode(), secret=True)
+    write_file(out / name / PASSWORD, password.encode(), secret=True)
     users = {u: p for u, p in read_passwords(out).items() if u != name}
     users[name] = password
     _write_passwords(out, users)
@@ -254,8 +246,8 @@ def issue_router(out: Path, days: int = 365) -> None:
     """Issue the router's TLS certificate (``router.pem``, ``router.key``) with the CA in ``out``."""
     ca_key, ca_cert = _load_ca(out)
     key, cert = _issue_cert(ROUTER, ca_key, ca_cert.subject, days, server=True)
-    _write(out / f"{ROUTER}.key", _key_pem(key), secret=True)
-    _write(out / f"{ROUTER}.pem", cert.public_bytes(serialization.Encoding.PEM))
+    write_file(out / f"{ROUTER}.key", _key_pem(key), secret=True)
+    write_file(out / f"{ROUTER}.pem", cert.public_bytes(serialization.Encoding.PEM))
 
 
 def issue(out: Path, names: Iterable[str], days: int = 365) -> list[Identity]:
@@ -269,7 +261,7 @@ def issue(out: Path, names: Iterable[str], days: int = 365) -> list[Identity]:
 
 
 def _write_passwords(out: Path, users: dict[str, str]) -> None:
-    _write(out / PASSWORDS, "".join(f"{u}:{p}\n" for u, p in sorted(users.items())).encode(), secret=True)
+    write_file(out / PASSWORDS, "".join(f"{u}:{p}\n" for u, p in sorted(users.items())).encode(), secret=True)
 
 
 def revoke(out: Path, name: str) -> bool:

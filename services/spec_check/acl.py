@@ -9,7 +9,8 @@ liveliness declarations), ``egress`` what the router delivers to it. For agent `
   ``peer``: an agent sends only on its channels, only as itself;
 - declare_subscriber (ingress) on its inbox ``roco/fipa/*/*/A`` (how the runtime subscribes),
   and put (egress) only on ``roco/fipa/<C>/<peer>/A``: it receives only from its channels;
-- a liveliness token on ``roco/alive/A`` only; it watches ``roco/alive/*``;
+- a liveliness token on ``roco/alive/A`` only, and a liveliness query on that key alone (its
+  container's health check); it watches ``roco/alive/*``;
 - the fault layer every agent runs under (services/runtime/faults.py): it hears
   ``roco/fault/control/all`` and ``…/control/A``, puts on ``roco/fault/state/A`` and
   ``…/event/A``; it hears ``roco/counters/ask`` and answers on ``roco/counters/report/A``;
@@ -135,6 +136,14 @@ class Grants:
         self.allow("ingress", "declare_liveliness_subscriber", keys.ALIVE_ALL)
         self.allow("egress", "liveliness_token", keys.ALIVE_ALL)
 
+    def own_token(self, key: str) -> None:
+        """Hold the liveliness token ``key`` and ask whether it is there (a liveliness query on
+        that key alone: the health check of the identity's container, services/runtime/health.py,
+        runs with its credentials only)."""
+        self.allow("ingress", "liveliness_token", key)
+        self.allow("ingress", "liveliness_query", key)
+        self.allow("egress", "liveliness_token", key)
+
     def may(self, flow: Flow, message: Message, key: str) -> bool:
         """Whether a message on the concrete ``key`` is allowed (wildcards ``*`` and ``**`` in
         the granted expressions; a key with wildcards must be granted literally)."""
@@ -204,7 +213,7 @@ def agent_grants(spec: SystemSpec, agent: str) -> Grants:
     _cached_publisher(g, sends)
     g.allow("ingress", "declare_subscriber", keys.inbox_key(agent))
     g.allow("egress", "put", *(route_key(spec, c, s, r) for c, s, r in routes if r == agent))
-    g.allow("ingress", "liveliness_token", keys.alive_key(agent))
+    g.own_token(keys.alive_key(agent))
     g.watch_alive()
     g.hear(FAULT_CONTROL_ALL, _fault_control(agent))
     g.say(_fault_state(agent), _fault_event(agent))
@@ -244,7 +253,7 @@ def gateway_grants(spec: SystemSpec) -> Grants:
     g.say(*sends)
     _cached_publisher(g, sends)
     g.hear(*(route_key(spec, c, s, r) for c, s, r in routes if r in outside and s not in outside))
-    g.allow("ingress", "liveliness_token", keys.alive_key(GATEWAY))
+    g.own_token(keys.alive_key(GATEWAY))
     g.hear(keys.COUNTERS_ASK)
     g.say(keys.counters_key(GATEWAY))
     return g
@@ -261,7 +270,7 @@ def recorder_grants() -> Grants:
     g.allow("ingress", "declare_liveliness_subscriber", keys.FIPA_CACHES)
     g.allow("ingress", "liveliness_query", keys.FIPA_CACHES)
     g.allow("egress", "liveliness_token", keys.FIPA_CACHES)
-    g.allow("ingress", "liveliness_token", keys.alive_key(RECORDER))
+    g.own_token(keys.alive_key(RECORDER))
     return g
 
 

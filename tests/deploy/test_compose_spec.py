@@ -64,7 +64,7 @@ def test_the_six_agents_services_are_what_the_fleet_needs() -> None:
         "router": {"condition": "service_healthy"},
         "recorder": {"condition": "service_healthy"},
     }
-    mounts = ["${ROCO_RUNS:-../runs}:/runs", "fleet:/var/lib/roco/fleet", "${ROCO_CERTS:-./certs}:/certs:ro"]
+    mounts = ["${ROCO_RUNS:-../runs}:/runs", "fleet:/var/lib/roco/fleet"]
     for name in AGENTS:
         service = services[name]
         assert service["image"] == "${ROCO_IMAGE:-roco:latest}"
@@ -88,7 +88,8 @@ def test_the_six_agents_services_are_what_the_fleet_needs() -> None:
         }.get(name, {})
         assert service["environment"] == {**env, **extra_env}
         extra_volume = {"a_km": ["km_store:/var/lib/roco/km"], "a_co": ["co_state:/var/lib/roco/co"]}
-        assert service["volumes"] == mounts + extra_volume.get(name, [])
+        own = [f"${{ROCO_CERTS:-./certs}}/{e}:/certs/{e}:ro" for e in ("ca.pem", name)]  # and no other's
+        assert service["volumes"] == mounts + own + extra_volume.get(name, [])
         assert service.get("cap_add") == (["SYS_NICE"] if name == "ag_ex" else None)
         waits = {o: {"condition": "service_healthy"} for o in AGENTS if o != "a_hi"} if name == "a_hi" else {}
         if name == "ag_ex":  # the robot it drives: the world, whose shared memory and processes it sees
@@ -134,8 +135,9 @@ def test_a_new_agent_gets_a_service_and_the_last_agent_waits_for_it(tmp_path: Pa
     new, plain = services["a_wt"], services["a_pl"]
     assert new["command"] == ["python", "-m", "services.runtime.main", "a_wt"]
     assert new["healthcheck"]["test"] == ["CMD", "python", "-m", "services.runtime.health", "a_wt"]
-    for key in set(plain) - {"command", "healthcheck"}:
+    for key in set(plain) - {"command", "healthcheck", "volumes"}:
         assert new[key] == plain[key], key
+    assert new["volumes"] == [v.replace("a_pl", "a_wt") for v in plain["volumes"]]
     assert services["a_hi"]["depends_on"]["a_wt"] == {"condition": "service_healthy"}
     # the committed file lacks it, and says how to bring it up to date
     assert difference(COMPOSE_FILE.read_text(), spec) == "no service for agent a_wt"

@@ -82,6 +82,9 @@ def linked(a: zenoh.Session, b: zenoh.Session) -> None:
 
 def test_one_hop_only_on_this_hosts_loopback_and_with_access_control_only_on_tls(tmp_path: Path) -> None:
     assert one_hop(["tcp/127.0.0.1:7447"], None)
+    assert not one_hop(["tls/localhost:7447"], tmp_path)  # one identity's folder: no peers' passwords
+    (tmp_path / "acl.json").write_text("{}")
+    (tmp_path / "passwords.txt").write_text("")
     assert one_hop(["tls/localhost:7447"], tmp_path)
     assert not one_hop(["tcp/127.0.0.1:7447"], tmp_path)  # usrpwd over TCP: the router path
     assert not one_hop(["tcp/router:7447"], None)  # compose: another container's router

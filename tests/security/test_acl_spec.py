@@ -90,6 +90,8 @@ def test_each_agent_subscribes_to_its_inbox_and_holds_only_its_own_token(spec: S
         assert set(g.allowed[("ingress", "liveliness_token")]) == tokens
         assert g.allowed[("ingress", "declare_liveliness_subscriber")] == [keys.ALIVE_ALL]
         assert g.may("egress", "liveliness_token", keys.alive_key("a_co"))
+        # its health check asks for its own token, and only for it
+        assert g.allowed[("ingress", "liveliness_query")] == [keys.alive_key(a.name)]
         # the fault layer reaches it, and it answers as itself only
         assert g.may("egress", "put", "roco/fault/control/all")
         assert g.may("ingress", "put", f"roco/fault/state/{a.name}")
@@ -111,6 +113,8 @@ def test_recorder_hears_all_traffic_and_sends_none(spec: SystemSpec) -> None:
         assert g.may("egress", "put", keys.fipa_key(c, s, r))
         assert not g.may("ingress", "put", keys.fipa_key(c, s, r))
     assert g.allowed[("ingress", "put")] == [keys.RECORDER_SYNCED]
+    assert g.may("ingress", "liveliness_query", keys.alive_key("recorder"))
+    assert not g.may("ingress", "liveliness_query", keys.alive_key("a_km"))
 
 
 def test_operator_observes_and_commands_but_never_speaks_fipa(spec: SystemSpec) -> None:

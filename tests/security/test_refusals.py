@@ -275,6 +275,51 @@ def test_a_certificate_of_another_ca_is_refused_and_counted(tmp_path: Path) -> N
     assert "a client at authentication, bad certificate: " in summary(report)
 
 
+def test_a_tls_client_without_a_certificate_is_refused_and_counted(tmp_path: Path) -> None:
+    """Mutual TLS: a client that trusts the router's CA and knows a password but shows no
+    certificate of its own fails the TLS handshake; the router counts it among the refusals,
+    and ``roco status`` names it (Zenoh logs no address for it)."""
+    (tmp_path / "logs").mkdir()
+    fleet = Fleet(tmp_path, f"tcp/127.0.0.1:{free_port()}", acl=True, tls=True)
+    folder = fleet.security
+    assert folder is not None and fleet.endpoint.startswith("tls/")
+    fleet.start_router()
+    try:
+        conf = zenoh.Config()
+        conf.insert_json5("mode", '"client"')
+        conf.insert_json5("connect/endpoints", f'["{fleet.endpoint}"]')
+        conf.insert_json5("scouting/multicast/enabled", "false")
+        password = (folder / "a_pl" / certs.PASSWORD).read_text().strip()
+        conf.insert_json5("transport/auth/usrpwd/user", '"a_pl"')
+        conf.insert_json5("transport/auth/usrpwd/password", f'"{password}"')
+        conf.insert_json5(
+            "transport/link/tls", json.dumps({"root_ca_certificate": str(folder / certs.CA_CERT)})
+        )
+        with pytest.raises(zenoh.ZError):
+            zenoh.open(conf)
+        operator = open_client(fleet.endpoint)
+        try:
+            report = router_report(operator, 1)
+        finally:
+            operator.close()
+        out = cli(
+            ["status", "--router", fleet.endpoint, "--credentials", str(folder), "--counters-timeout", "0"],
+            tmp_path,
+        )
+    finally:
+        fleet.stop()
+        register(fleet.endpoint, None)
+    assert report.counters.get("refused.authenticate") == 1, report.counters
+    (named,) = [n for n in report.named if n.message == "authenticate"]
+    assert (named.identity, named.key, named.count) == (UNKNOWN, "no certificate", 1)
+    (written,) = [r for r in read_refusals(tmp_path) if r.message == "authenticate"]
+    assert written.key == "no certificate"
+    (status,) = [ln for ln in out.stdout.splitlines() if ln.startswith("router")]
+    assert "refused 1: a client at authentication, no certificate ×1 (last " in status, status
+    log = (tmp_path / "logs" / "router.stderr").read_text()
+    assert "roco router: refused #1: a client authenticate (ingress) no certificate" in log
+
+
 def test_a_session_matching_no_acl_subject_is_counted_as_refused(tmp_path: Path) -> None:
     """Credentials the router accepts but the ACL does not name (passwords.txt and acl.json
     disagree): the session may do nothing, and the router counts it once, by session id."""
