@@ -1,7 +1,7 @@
 """Chaos runs as a user runs them (``roco chaos --seed S --quiet``: router, recorder, one
 process per agent, MuJoCo not paced unless ``--realtime``; each agent killed, paused or
 restarted once during the pour, services/scenario/chaos.py), one per seed, printed as a
-table: the faults drawn, how many fell during the command, the verdict's five answers, wall
+table: the faults drawn, how many fell during the command, the verdict's six answers, wall
 time (none when the verdict failed).
 
 Usage: ``python scripts/bench_chaos.py [--hosts] [--realtime] [--kinds K,…] [--count N]
@@ -32,7 +32,14 @@ import benchlib  # noqa: E402  (scripts/benchlib.py, beside this file)
 from services.scenario.chaos import CHAOS_FILE, chaos_scenario  # noqa: E402
 from shared.settings import Settings  # noqa: E402
 
-ANSWERS = ("task done", "no command lost", "nothing executed twice", "no object dropped", "record intact")
+ANSWERS = (
+    "task done",
+    "no command lost",
+    "nothing executed twice",
+    "no object dropped",
+    "record intact",
+    "no agent raised",
+)
 
 
 def main() -> int:

@@ -467,8 +467,8 @@ def chaos(
 ) -> None:
     """Kill, pause or restart services at random times while the robot carries out a command
     (each service once by default), then say whether the task was done, no command was lost,
-    nothing was executed twice, no object was dropped and the traffic record is intact
-    (RUN/chaos.md). Exit 0 only if all five hold. With `--hosts` the fleet runs on the two
+    nothing was executed twice, no object was dropped, the traffic record is intact and no
+    agent raised (RUN/chaos.md). Exit 0 only if all six hold. With `--hosts` the fleet runs on the two
     hosts of `roco hosts` (link 20 ± 5 ms, 1 % loss unless told; mutual TLS between the
     routers, access control on) and the link is cut as well. On compose use `roco fault`
     (docs/recovery.md)."""
@@ -586,18 +586,20 @@ def _run_scenario(
     _finish_report(run_dir, info, interrupted=outcome.interrupted)
     if sc.name:
         typer.echo(outcome.summary())
-    _exit_on_failure(sc.name, outcome.ok, info.detail, run_dir)
+    _exit_on_failure(sc.name, outcome.ok, info.detail, run_dir, outcome.raised_line())
 
 
-def _exit_on_failure(name: str, ok: bool, detail: str, run_dir: Path) -> None:
+def _exit_on_failure(name: str, ok: bool, detail: str, run_dir: Path, raised: str = "") -> None:
     """Exit 1 with one line when the run failed (scenario ``name``, or ``roco run`` when
-    empty) or a requirement was flagged violated during it (:func:`_violated`)."""
+    empty), a requirement was flagged violated during it (:func:`_violated`) or an agent raised
+    (``raised``: services/runtime/raised.py ``raised_text``, "" when none did)."""
     violated = _violated(run_dir)
+    also = "; ".join(x for x in (violated, raised and f"agents raised: {raised}") if x)
     if not ok:
         what = "the task failed" if not name else f"scenario “{name}” did not go as expected"
-        raise fail(f"{what}: {detail}{violated and '; ' + violated} (run folder {run_dir})")
-    if violated:
-        raise fail(f"{violated} (run folder {run_dir})")
+        raise fail(f"{what}: {detail}{also and '; ' + also} (run folder {run_dir})")
+    if also:
+        raise fail(f"{also} (run folder {run_dir})")
 
 
 def _violated(run_dir: Path) -> str:
@@ -684,8 +686,17 @@ def _finish_report(run_dir: Path, info: RunInfo, *, interrupted: bool = False) -
     share = share if poured else f"{len(info.commands)} command(s)"
     typer.echo(
         f"roco: {'succeeded' if info.succeeded else 'failed'} in {info.ended - info.started:.1f} s wall; "  # type: ignore[operator]
-        f"{report.sizes.count} communicates; {share}; report {path}"
+        f"{_raised_clause(info)}{report.sizes.count} communicates; {share}; report {path}"
     )
+
+
+def _raised_clause(info: RunInfo) -> str:
+    """``2 handler errors in a_ta: see logs/a_ta.log; `` (what the agents raised during the run,
+    services/runtime/raised.py, and a separator), or "" when none did."""
+    from services.runtime.raised import raised_text
+
+    text = raised_text(info.raised, info.crashed)
+    return f"{text}; " if text else ""
 
 
 @app.command(short_help="Start a fleet that keeps running: router, recorder, agents.")
@@ -1135,7 +1146,8 @@ def status(
     credentials: CredentialsOption = None,
 ) -> None:
     """List the agents that hold a liveliness token, each alive agent with its counters of
-    received and rejected input (by reason; docs/security.md), and what each router with
+    received and rejected input (by reason; docs/security.md) and the handler and behaviour
+    errors it counted (when any), and what each router with
     access control refused, named (identity, message, key, when); each router is named by its
     host (brain, robot: `roco hosts`) or its endpoint; then, for a fleet of `roco up`, one line
     per requirement property the live monitor found violated (requirement, property, the

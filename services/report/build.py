@@ -302,4 +302,28 @@ def _header(run: RunData, command: Message | None, outcome: Message | None) -> H
         h.ended_wall = info.ended
     if run.messages:
         h.last_record_t = run.messages[-1].t
+    h.raised = _raised(run)
     return h
+
+
+def _raised(run: RunData) -> str:
+    """What the agents raised during the run, in one line (services/runtime/raised.py): the
+    error counters and restarts run.json keeps, else the counters of ``counters.json``; "" when
+    neither is there."""
+    from services.runtime.counters import read_counters
+    from services.runtime.raised import raised_by_agent, raised_text
+
+    info = run.info
+    by_agent = info.raised if info is not None else {}
+    crashed = info.crashed if info is not None else {}
+    if not by_agent:
+        try:
+            by_agent = raised_by_agent({a: r.counters for a, r in read_counters(Path(run.run_dir)).items()})
+        except (OSError, ValueError):  # none, or corrupt
+            if not crashed:
+                return ""
+    return raised_text(by_agent, crashed) or NOTHING_RAISED
+
+
+NOTHING_RAISED = "nothing: every agent's handler_errors and behaviour_errors were 0 when the commands ended"
+"""The report's line of what the agents raised when none did."""

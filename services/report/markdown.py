@@ -172,6 +172,8 @@ def _header(h: Header, perception: Sequence[PerceptionRow] = ()) -> str:
         ["Traffic record", h.record or "—"],
         ["Perception", _perceived(perception)],
     ]
+    if h.raised:
+        rows.append(["Agents raised", h.raised])
     if h.access_control:
         rows.append(["Access control", h.access_control])
     if h.link:

@@ -48,6 +48,10 @@ class Header(msgspec.Struct, kw_only=True):
     """What the router's access control refused (``refusals.jsonl``) and how many recorded
     communicates claim another sender than their key names, in one line; "" when the run has
     no refusals file (access control off)."""
+    raised: str = ""
+    """What the agents raised during the run (their handler and behaviour errors, and the
+    agents that exited by themselves and were started again), in one line; "" when the run
+    folder keeps no counters (services/report/build.py)."""
     link: str = ""
     """What the link between two hosts carried (``roco hosts``: the relay's count,
     ``link_bytes.jsonl``, and the link device's counters), in one line; "" for one host."""

@@ -19,6 +19,7 @@ from typing import Any
 import msgspec
 
 from services.runtime import keys
+from services.runtime.raised import raised
 
 
 class CountersReport(msgspec.Struct, frozen=True):
@@ -86,8 +87,9 @@ def rejects(counters: dict[str, int]) -> dict[str, int]:
 
 
 def summary(counters: dict[str, int]) -> str:
-    """One line: communicates received, rejected inputs by reason, duplicates
-    (``received 812, rejected 10012 (malformed 5000, protocol_state 12), duplicates 3``)."""
+    """One line: communicates received, rejected inputs by reason, duplicates, and what the
+    agent raised (services/runtime/raised.py) when it did (``received 812, rejected 10012
+    (malformed 5000, protocol_state 12), duplicates 3, handler_errors 2``)."""
     received = sum(v for k, v in counters.items() if k.startswith("received."))
     by_reason = rejects(counters)
     parts = [f"received {received}", f"rejected {sum(by_reason.values())}"]
@@ -95,4 +97,5 @@ def summary(counters: dict[str, int]) -> str:
         parts[-1] += " (" + ", ".join(f"{k} {v}" for k, v in by_reason.items()) + ")"
     if counters.get("duplicates"):
         parts.append(f"duplicates {counters['duplicates']}")
+    parts += [f"{k} {v}" for k, v in raised(counters).items()]
     return ", ".join(parts)

@@ -8,22 +8,35 @@ JSON; docs/faults.md), ``ROCO_SECURITY`` (credentials folder: the agent authenti
 docs/security.md). The Zenoh transport is always wrapped in the fault layer
 (:class:`~services.runtime.faults.FaultyTransport`) so that ``roco fault`` can reach every
 agent at run time; with no fault active it costs one attribute test per publication.
-SIGTERM and SIGINT stop the agent cleanly. Exit code 2 on a configuration error.
+SIGTERM and SIGINT stop the agent cleanly. Exit code 2 on a configuration error;
+:data:`EXIT_LOST` when a receiving thread of the transport ended before the agent stopped
+(the agent would go on alive, its liveliness token up, deaf on that subscription): the process
+ends after the current step (at the latest :data:`LOST_GRACE_S` later), and whoever runs it
+starts it again as any crashed agent (services/scenario/runner.py; compose's restart policy).
 """
 
 from __future__ import annotations
 
+import contextlib
 import importlib
 import logging
 import os
 import signal
 import sys
+import threading
 from types import FrameType
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
     from services.runtime.agent import Agent
     from services.spec.model import SystemSpec
+
+EXIT_LOST = 70
+"""The exit code of an agent whose receiving thread ended (``EX_SOFTWARE`` of sysexits.h: an
+internal error)."""
+LOST_GRACE_S = 10.0
+"""How long (s) an agent whose receiving thread ended has to stop by itself before its process
+is ended anyway (a step that does not return: a_pl planning)."""
 
 # The runtime, the transport and the specification are imported where they are used, not here:
 # a process that an agent starts with multiprocessing's spawn (ag_ex's loop and camera) imports
@@ -118,8 +131,17 @@ def main(argv: list[str] | None = None) -> int:
     def on_signal(signum: int, frame: FrameType | None) -> None:
         agent.stop()
 
+    deadline = threading.Timer(LOST_GRACE_S, os._exit, (EXIT_LOST,))
+    deadline.daemon = True
+
+    def on_lost(why: str) -> None:  # a receiving thread, just before it ends
+        agent.stop()
+        with contextlib.suppress(RuntimeError):  # started by another receiving thread
+            deadline.start()
+
     signal.signal(signal.SIGTERM, on_signal)
     signal.signal(signal.SIGINT, on_signal)
+    zenoh_transport.on_lost = on_lost
     agent.bind()
     logging.getLogger(name).info("started (pid %d)", os.getpid())
     try:
@@ -133,6 +155,10 @@ def main(argv: list[str] | None = None) -> int:
         if callable(close):
             close()
         transport.close()
+    deadline.cancel()
+    if zenoh_transport.lost is not None:
+        logging.getLogger(name).error("ended: %s", zenoh_transport.lost)
+        return EXIT_LOST
     return 0
 
 

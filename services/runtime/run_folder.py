@@ -71,6 +71,12 @@ class RunInfo(msgspec.Struct, kw_only=True):
     """Every sentence said to a_hi, in order (``command`` is the first)."""
     outcomes: list[RunCommand] = []
     """Every command given and how it ended, in order; filled when the run ends."""
+    raised: dict[str, dict[str, int]] = {}
+    """Each agent whose error counters (``handler_errors``, ``behaviour_errors``) were above
+    zero when the commands ended, with them (services/runtime/raised.py); filled when the run ends."""
+    crashed: dict[str, list[int]] = {}
+    """Each agent that exited during the run though nobody stopped it, and was started again:
+    its exit codes, in order; filled when the run ends."""
 
 
 _WHY = {

@@ -5,6 +5,10 @@ multicast scouting.
 A subscription to communicates runs its callback on a receiving thread of its own, fed by
 Zenoh's network threads through a FIFO with room to spare (:data:`RECEIVE_QUEUE`; never on a
 network thread); other subscriptions use zenoh-python's callback threads.
+A receiving thread ends only when :meth:`ZenohTransport.close` undeclares its subscription;
+one that ends otherwise (an exception outside the callback's, or a BaseException out of the
+callback) is logged and told to ``ZenohTransport.on_lost``, on which an agent's process ends
+(services/runtime/main.py), to be started again like any crashed agent.
 A communicate may be taken in there by an idle agent, whose step then puts its answers from
 that thread (services/runtime/agent.py ``Agent._take_here``): a put on a key whose publisher is
 declared, a few communicates at a time. A put there may wait for room in a full link, and
@@ -491,6 +495,14 @@ class ZenohTransport:
         (services/runtime/backlog.py)."""
         self._tap = Tap.from_env(fleet_group(endpoints))
         """Where the communicates put are tapped (None: ``ROCO_TAP_DIR`` unset; services/runtime/tap.py)."""
+        self._closing = False
+        """Set by :meth:`close`: a receiving thread that ends now ends by its undeclaration."""
+        self.on_lost: Callable[[str], None] | None = None
+        """Called with why (one line), on the receiving thread, when a receiving thread of
+        :meth:`subscribe` ends before :meth:`close`: its subscription receives nothing more.
+        An agent's process ends on it (services/runtime/main.py); None: only logged."""
+        self.lost: str | None = None
+        """Why the first receiving thread that ended before :meth:`close` ended (None: none did)."""
 
     def publish(self, key: str, payload: bytes) -> None:
         """Put ``payload`` on ``key`` with congestion control BLOCK: when the link's queue is
@@ -612,22 +624,34 @@ class ZenohTransport:
 
         def receive() -> None:
             following: zenoh.Sample | None = None
-            while True:
-                try:
+            try:
+                while True:
                     sample = following if following is not None else waiting.next(sub)
                     following = sub.try_recv()
-                except Exception:  # the subscriber was undeclared: the thread ends
-                    return
-                here.more = following is not None
-                try:
-                    callback(str(sample.key_expr), sample.payload.to_bytes())
-                except Exception:  # a callback's fault must not end the subscription
-                    log.exception("subscriber callback on %s raised", key_expr)
+                    here.more = following is not None
+                    try:
+                        callback(str(sample.key_expr), sample.payload.to_bytes())
+                    except Exception:  # a callback's fault must not end the subscription
+                        log.exception("subscriber callback on %s raised", key_expr)
+            except BaseException as exc:
+                if not self._closing:  # else: the subscriber was undeclared by close()
+                    self._lose(key_expr, exc)
 
         thread = threading.Thread(target=receive, name=f"receive {key_expr}", daemon=True)
         with self._lock:
             self._receiving.append(thread)  # ended by the session's close: it is in recv()
         thread.start()
+
+    def _lose(self, key_expr: str, exc: BaseException) -> None:
+        """A receiving thread of :meth:`subscribe` on ``key_expr`` ends by ``exc``, not by
+        :meth:`close`: logged with its traceback, kept in :attr:`lost` and told to
+        :attr:`on_lost`."""
+        why = f"the receiving thread of {key_expr} ended: {type(exc).__name__}: {exc}"
+        log.critical("%s; nothing more is received on it", why, exc_info=exc)
+        if self.lost is None:
+            self.lost = why
+        if self.on_lost is not None:
+            self.on_lost(why)
 
     def more_waiting(self) -> bool:
         """On a receiving thread of :meth:`subscribe`, inside its callback: whether another
@@ -661,6 +685,9 @@ class ZenohTransport:
             self._subs.append(self.session.liveliness().declare_subscriber(key_expr, on_sample, history=True))
 
     def close(self) -> None:
+        """Undeclare everything and close the session; the receiving threads end (quietly:
+        by their undeclaration) and are waited for."""
+        self._closing = True
         for pub in self._publishers.values():
             pub.undeclare()
         for _, tok in self._tokens:

@@ -21,7 +21,10 @@ answers what a fault-tolerant system must keep:
   object never observed counts as not known, and fails the check;
 - **record intact** — the traffic record lost nothing, paired every record with its own
   payload and holds nothing twice (services/recorder/integrity.py), judged before the other
-  questions read it: a record that is not intact could make them answer wrongly.
+  questions read it: a record that is not intact could make them answer wrongly;
+- **no agent raised** — every agent's ``handler_errors`` and ``behaviour_errors`` were 0
+  when the commands ended, and no agent exited that the run did not fault (one that did was
+  started again: services/scenario/runner.py; services/runtime/raised.py).
 """
 
 from __future__ import annotations
@@ -158,6 +161,8 @@ class Verdict:
     faults: int = 0
     judged_on: str = "the last observations during the run"
     record: Integrity = field(default_factory=Integrity)
+    raised: str = ""
+    """What the agents raised (services/runtime/raised.py ``raised_text``); "" when none did."""
 
     @property
     def ok(self) -> bool:
@@ -168,6 +173,7 @@ class Verdict:
             and not self.executed_twice
             and not self.dropped
             and self.last_observation
+            and not self.raised
         )
 
 
@@ -197,9 +203,10 @@ def _last_heights(messages: Sequence[Message]) -> dict[str, float]:
 
 
 def verdict(run_dir: Path, outcome: ScenarioOutcome) -> Verdict:
-    """Judge a chaos run from its outcome and its run folder's traffic record (the four
-    questions of the module docstring). Raises FileNotFoundError when ``run_dir`` is not a
-    folder; a missing or corrupt traffic record reads as no traffic (services/report/load.py)."""
+    """Judge a chaos run from its outcome and its run folder's traffic record (the six
+    questions of the module docstring, the last from ``outcome``). Raises FileNotFoundError
+    when ``run_dir`` is not a folder; a missing or corrupt traffic record reads as no traffic
+    (services/report/load.py)."""
     run = load_run(run_dir)
     twice = _executed_twice(run.messages)
     last = _last_heights(run.messages)
@@ -218,6 +225,7 @@ def verdict(run_dir: Path, outcome: ScenarioOutcome) -> Verdict:
         faults=len(outcome.faults),
         judged_on=judged_on,
         record=run.integrity,
+        raised=outcome.raised_line(),
     )
 
 
@@ -298,6 +306,7 @@ def write_chaos_report(run_dir: Path, scenario: Scenario, outcome: ScenarioOutco
         )
         + f" (judged on {v.judged_on}) |",
         f"| record intact | {_mark(v.record.intact)} ({v.record.detail()}) |",
+        f"| no agent raised | {_mark(not v.raised)} {v.raised} |",
         f"| faults during the command | {v.faults_during_command} of {v.faults} |",
         "",
         "Commands:",

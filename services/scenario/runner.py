@@ -27,6 +27,7 @@ from services.runtime import keys
 from services.runtime.counters import ask_counters, save_counters
 from services.runtime.faults import FaultEvent
 from services.runtime.human import FINAL_REPORTS, HumanInput, HumanReport
+from services.runtime.raised import raised_by_agent, raised_text
 from services.runtime.run_folder import RunCommand, RunInfo, write_run_info
 from services.runtime.session import open_client
 from services.scenario.model import Fault, Scenario, Step
@@ -36,6 +37,8 @@ from shared.fipa_codec.languages import ContentError, decode_content
 from shared.fipa_codec.languages.l_sw import SWStatus
 
 Echo = Callable[[str], None]
+MAX_CRASHES = 3
+"""Times an agent that exits by itself is started again during a run before the run ends."""
 
 
 class Hosting(Protocol):
@@ -183,10 +186,25 @@ class ScenarioOutcome:
     faults: list[FaultRecord] = field(default_factory=list)
     started: float = 0.0
     interrupted: bool = False
+    raised: dict[str, dict[str, int]] = field(default_factory=dict)
+    """Each agent's error counters above zero when the commands ended (services/runtime/raised.py)."""
+    crashed: dict[str, list[int]] = field(default_factory=dict)
+    """Each agent that exited though nobody stopped it (started again): its exit codes."""
 
     @property
     def ok(self) -> bool:
+        """Every command ended as expected and the run did not stop early (what the agents
+        raised is :attr:`clean`)."""
         return not self.detail and all(c.as_expected for c in self.commands)
+
+    @property
+    def clean(self) -> bool:
+        """No agent raised (its error counters all zero) and none exited by itself."""
+        return not self.raised and not any(self.crashed.values())
+
+    def raised_line(self) -> str:
+        """What the agents raised, one line (services/runtime/raised.py); empty when clean."""
+        return raised_text(self.raised, self.crashed)
 
     def summary(self) -> str:
         """One line per command."""
@@ -197,6 +215,8 @@ class ScenarioOutcome:
             lines.append(f"#{c.number} “{c.text}” → {got} [{mark}]")
         if self.detail:
             lines.append(self.detail)
+        if not self.clean:
+            lines.append(f"agents raised: {self.raised_line()}")
         return "\n".join(lines)
 
 
@@ -244,6 +264,11 @@ class ScenarioRunner:
         self.commands: list[CommandRecord] = []
         self.faults: list[FaultRecord] = []
         self.down: set[str] = set()  # services killed on purpose, not yet started again
+        self.crashed: dict[str, list[int]] = {}
+        """Each agent that exited though nobody stopped it: its exit codes, in order."""
+        self.raised: dict[str, dict[str, int]] = {}
+        """Each agent whose error counters were above zero when the commands ended
+        (services/runtime/raised.py)."""
         self.last_act = time.monotonic()
         self.t0 = time.time()
 
@@ -294,13 +319,14 @@ class ScenarioRunner:
         self.echo(f"{self._clock()} {line}")
 
     def _pump(self, timeout: float, deadline: float) -> None:
-        """Take events for up to ``timeout`` s; raise LaunchError past ``deadline`` or when a
-        process died that was not being restarted."""
+        """Take events for up to ``timeout`` s; raise LaunchError past ``deadline``. A process
+        that exited though no fault stopped it is started again if it is an agent, else ends
+        the run (:meth:`_start_crashed`)."""
         if time.monotonic() > deadline:
             raise LaunchError(f"the scenario did not end within {self.scenario.timeout_s:.0f} s")
         dead = [n for n in self.fleet.dead() if n not in self.down]
-        if dead:
-            raise LaunchError(f"process {dead[0]} exited during the run (see {self.run_dir}/logs)")
+        for name in dead:
+            self._start_crashed(name)
         try:
             kind, item = self.events.get(timeout=timeout)
         except queue.Empty:
@@ -311,6 +337,20 @@ class ScenarioRunner:
             self.steps_seen.append(str(item))
         elif kind == "report" and isinstance(item, HumanReport):
             self._report(item)
+
+    def _start_crashed(self, name: str) -> None:
+        """Process ``name`` exited though nobody stopped it: an agent is started again (as
+        compose's restart policy does), its exit code kept in :attr:`crashed`, up to
+        :data:`MAX_CRASHES` times; anything else, or an agent past that, ends the run
+        (LaunchError)."""
+        proc = self.fleet.processes[name]
+        if name not in AGENT_ORDER or len(self.crashed.get(name, [])) >= MAX_CRASHES:
+            raise LaunchError(f"process {name} exited during the run (see {self.run_dir}/logs)")
+        self.crashed.setdefault(name, []).append(proc.returncode)
+        pid = self.fleet.restart(name)
+        self.info.processes[name] = pid
+        write_run_info(self.run_dir, self.info)
+        self._say(f"{name} exited (code {proc.returncode}, see logs/{name}.log); started again (pid {pid})")
 
     def _report(self, item: HumanReport) -> None:
         """a_hi's report to the person: said, and kept with its command (the final one ends
@@ -494,7 +534,9 @@ class ScenarioRunner:
                 detail, interrupted = "interrupted", True
             with contextlib.suppress(LaunchError):  # no fleet when the two hosts were never made
                 self.info.processes = {**self.info.processes, **self.fleet.pids()}
-        outcome = ScenarioOutcome(self.commands, detail, self.faults, self.t0, interrupted)
+        outcome = ScenarioOutcome(
+            self.commands, detail, self.faults, self.t0, interrupted, self.raised, self.crashed
+        )
         self._note_outcome(outcome)
         return outcome
 
@@ -577,6 +619,9 @@ class ScenarioRunner:
         asked = [*AGENT_ORDER, *([GATEWAY] if self.gateway is not None else [])]
         counters = ask_counters(session, asked, timeout=5.0)
         save_counters(self.run_dir, counters)
+        self.raised = raised_by_agent({a: r.counters for a, r in counters.items()})
+        if self.raised:
+            self._say(f"agents raised: {raised_text(self.raised, {})}")
         if GATEWAY in counters:
             from services.gateway.bridge import summary
 
@@ -598,6 +643,8 @@ class ScenarioRunner:
         self.info.ended = time.time()
         self.info.outcomes = [c.run_command() for c in self.commands]
         self.info.succeeded = outcome.ok
+        self.info.raised = outcome.raised
+        self.info.crashed = {a: codes for a, codes in outcome.crashed.items() if codes}
         self.info.detail = outcome.detail or "; ".join(
             f"#{c.number} {c.final.kind.value}: {c.final.text}" for c in self.commands if c.final
         )

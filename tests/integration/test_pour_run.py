@@ -26,6 +26,7 @@ from services.runtime.run_folder import read_run_info
 from shared.fipa_codec import Performative
 from tests.support.jade_platform import JADE, JadePlatform, Received
 from tests.support.machine import needs_camera
+from tests.support.raised import assert_no_agent_raised
 from tests.support.recorded_run import replay_lines
 from tests.support.world import FULL, stands_at, untouched, world
 
@@ -35,6 +36,8 @@ ASKED = "what are you doing?"
 """What the foreign agent asks a_hi while the robot pours."""
 CONVERSATION = "status_jade"
 """The foreign agent's conversation-id (its reply-with: ``status_jade-r1``)."""
+AGENTS = ("a_hi", "a_co", "a_pl", "a_km", "a_ta", "ag_ex")
+"""Every agent of the fleet, each its own process."""
 FINAL = {Performative.INFORM, Performative.FAILURE, Performative.REFUSE, Performative.NOT_UNDERSTOOD}
 """The answers that end a fipa-request (FIPA SC00026)."""
 
@@ -219,12 +222,18 @@ def test_every_object_asked_for_was_seen_within_10_mm_the_held_jar_included(pour
     )
 
 
+def test_no_agent_raised(pour_run: PourRun) -> None:
+    """Every agent's handler_errors and behaviour_errors were 0 when the pour ended, and none
+    exited by itself (services/runtime/raised.py): a pour that succeeded with handlers raising
+    fails here."""
+    assert_no_agent_raised(pour_run.run_dir, AGENTS)
+
+
 def test_each_agent_ran_as_its_own_process(pour_run: PourRun) -> None:
     run_dir = pour_run.run_dir
     info = read_run_info(run_dir)
-    agents = ("a_hi", "a_co", "a_pl", "a_km", "a_ta", "ag_ex")
-    assert set(agents) <= set(info.processes)
-    assert len({info.processes[a] for a in agents}) == len(agents)
+    assert set(AGENTS) <= set(info.processes)
+    assert len({info.processes[a] for a in AGENTS}) == len(AGENTS)
 
 
 def test_traffic_shows_both_planning_phases_and_all_six_participants(pour_run: PourRun) -> None:

@@ -236,3 +236,22 @@ def test_an_object_that_fell_after_its_last_observation_is_found_in_the_final_wo
     assert v.judged_on == "the final world (the world's final scene)"
     (run / FINAL_FILE).write_bytes(scene[:-3].tobytes())  # not this kitchen
     assert verdict(run, _done()).judged_on == "the last observations during the run"
+
+
+def test_an_agent_that_raised_fails_the_verdict(tmp_path: Path) -> None:
+    """The sixth question: a run whose every other answer holds, with a_ta's counters planted
+    with two handler errors and a_km's exit by itself, does not keep everything."""
+    b = RunBuilder()
+    b.add(1, "C5", "ag_ex", "a_ta", "inform", _observation(0.76), protocol="fipa-request", conversation="c")
+    run = _run(tmp_path, b)
+    assert verdict(run, _done()).ok
+    outcome = _done()
+    outcome.raised = {"a_ta": {"handler_errors": 2}}
+    outcome.crashed = {"a_km": [70]}
+    v = verdict(run, outcome)
+    assert not v.ok and v.task_done
+    text = write_chaos_report(run, chaos_scenario(0), outcome, v).read_text()
+    assert (
+        "| no agent raised | **no** 2 handler errors in a_ta: see logs/a_ta.log; "
+        "a_km exited (code 70) and was started again: see logs/a_km.log |"
+    ) in text

@@ -3,7 +3,7 @@ endpoint, no multicast), without access control unless asked (tested in tests/se
 
 from __future__ import annotations
 
-from collections.abc import Iterator
+from collections.abc import Generator, Iterator
 
 import pytest
 
@@ -13,7 +13,7 @@ from services.security.context import register
 
 def router_fleet(
     tmp_path_factory: pytest.TempPathFactory, name: str, *, acl: bool = False, tls: bool = False
-) -> Iterator[Fleet]:
+) -> Generator[Fleet, None, None]:
     """Yield a fleet of only a router, started in a fresh folder ``name`` (``acl``/``tls``: as
     ``Fleet``'s); stop it after and forget its credentials."""
     run_dir = tmp_path_factory.mktemp(name)

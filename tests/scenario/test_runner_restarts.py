@@ -1,0 +1,100 @@
+"""The scenario runner (services/scenario/runner.py) starts again an agent that exited though
+nobody stopped it (a receiving thread that ended: services/runtime/main.py ``EXIT_LOST``), up to
+``MAX_CRASHES`` times, and keeps its exit codes; any other process that exits ends the run. What
+the agents raised is in the outcome's summary and makes it not clean."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from services.fleet.launcher import LaunchError
+from services.runtime.human import HumanReport, ReportKind
+from services.runtime.run_folder import read_run_info
+from services.scenario.model import Scenario, Step
+from services.scenario.runner import MAX_CRASHES, CommandRecord, ScenarioOutcome, ScenarioRunner
+
+
+@dataclass
+class _Proc:
+    pid: int
+    returncode: int | None = None
+
+    def poll(self) -> int | None:
+        return self.returncode
+
+
+@dataclass
+class _Fleet:
+    """A fleet whose processes exit when a test says so; ``restart`` starts a new one."""
+
+    processes: dict[str, Any] = field(default_factory=dict)
+    restarted: list[str] = field(default_factory=list)
+
+    def dead(self) -> list[str]:
+        return [n for n, p in self.processes.items() if p.poll() is not None]
+
+    def restart(self, name: str) -> int:
+        self.restarted.append(name)
+        self.processes[name] = _Proc(self.processes[name].pid + 1)
+        return int(self.processes[name].pid)
+
+
+@dataclass
+class _Hosting:
+    fleet: _Fleet
+
+
+def _runner(tmp_path: Path) -> tuple[ScenarioRunner, _Fleet]:
+    fleet = _Fleet({"a_ta": _Proc(100), "recorder": _Proc(200)})
+    runner = ScenarioRunner(Scenario(name="t", steps=(Step(say="pour"),)), tmp_path, hosting=_Hosting(fleet))  # type: ignore[arg-type]
+    return runner, fleet
+
+
+def test_an_agent_that_exited_by_itself_is_started_again_and_kept(tmp_path: Path) -> None:
+    runner, fleet = _runner(tmp_path)
+    said: list[str] = []
+    runner.echo = said.append
+    fleet.processes["a_ta"].returncode = 70
+    runner._pump(0.0, math.inf)
+    assert fleet.restarted == ["a_ta"] and runner.crashed == {"a_ta": [70]}
+    assert said and said[-1].endswith("a_ta exited (code 70, see logs/a_ta.log); started again (pid 101)")
+    assert read_run_info(tmp_path).processes["a_ta"] == 101
+    runner._pump(0.0, math.inf)  # alive again: nothing more
+    assert fleet.restarted == ["a_ta"]
+
+
+def test_an_agent_that_keeps_exiting_ends_the_run(tmp_path: Path) -> None:
+    runner, fleet = _runner(tmp_path)
+    for _ in range(MAX_CRASHES):
+        fleet.processes["a_ta"].returncode = 1
+        runner._pump(0.0, math.inf)
+    fleet.processes["a_ta"].returncode = 1
+    with pytest.raises(LaunchError, match="process a_ta exited during the run"):
+        runner._pump(0.0, math.inf)
+    assert runner.crashed == {"a_ta": [1] * MAX_CRASHES}
+
+
+def test_a_service_that_is_no_agent_is_not_started_again(tmp_path: Path) -> None:
+    runner, fleet = _runner(tmp_path)
+    fleet.processes["recorder"].returncode = 1
+    with pytest.raises(LaunchError, match="process recorder exited during the run"):
+        runner._pump(0.0, math.inf)
+    assert fleet.restarted == []
+
+
+def test_what_the_agents_raised_is_in_the_summary_and_the_outcome_is_not_clean() -> None:
+    record = CommandRecord(1, "pour the jar into the bowl", "r1")
+    record.final = HumanReport(request_id="r1", kind=ReportKind.SUCCEEDED, text="done")
+    clean = ScenarioOutcome([record])
+    assert clean.ok and clean.clean and clean.raised_line() == "" and "raised" not in clean.summary()
+    dirty = ScenarioOutcome([record], raised={"a_ta": {"handler_errors": 2}}, crashed={"a_km": [70]})
+    assert dirty.ok and not dirty.clean
+    assert dirty.summary().splitlines()[-1] == (
+        "agents raised: 2 handler errors in a_ta: see logs/a_ta.log; "
+        "a_km exited (code 70) and was started again: see logs/a_km.log"
+    )
