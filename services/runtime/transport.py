@@ -21,7 +21,10 @@ traffic recorder) queries when it starts, when it detects a publisher that appea
 and when a sequence number is missing — so a restarted recorder fills the gap it was down for,
 in order, and a gap that cannot be filled shows as missing sequence numbers
 (docs/recovery.md). Communicates put on a key while another thread's put on it is in progress
-leave together, in one batch, after it (services/runtime/backlog.py).
+leave together, in one batch, after it (services/runtime/backlog.py). a_hi's reports to the
+person (``roco/human/out``) go through such a publisher too, one report a put, never batched:
+a person's tool that was cut off from a_hi (the router down while the agents are linked
+directly) gets what it missed from that cache when it is back (services/runtime/reports.py).
 """
 
 from __future__ import annotations
@@ -490,7 +493,8 @@ class ZenohTransport:
         full the agent waits instead of the communicate being dropped (Zenoh's default for
         ``put`` drops after 1 ms: a burst of 5,000 communicates lost 2,000 of them;
         docs/benchmarks.md). A communicate (``roco/fipa/**``) goes through the key's advanced
-        publisher (declared at its first put; see the module docstring): at once, on this
+        publisher (declared at its first put; see the module docstring), and so does a report
+        on ``roco/human/out`` (put at once, alone); a communicate at once, on this
         thread, unless another thread's put on the key is in progress; then it waits behind it
         and leaves with what else waits there in one batch, put by that thread
         (services/runtime/backlog.py). Anything else is a
@@ -499,10 +503,13 @@ class ZenohTransport:
         callback (see the module docstring). With ``ROCO_TAP_DIR`` set, a communicate is
         also appended to the tap (services/runtime/tap.py)."""
         pub = self._publishers.get(key)
-        if pub is None and key.startswith(keys.FIPA_PREFIX) and len(self._publishers) < MAX_KEYS:
+        if pub is None and keys.is_cached_key(key) and len(self._publishers) < MAX_KEYS:
             pub = self._declare(key)
         if pub is not None:
-            self._backlog.publish(key, payload)
+            if keys.is_communicate_key(key):
+                self._backlog.publish(key, payload)
+            else:  # a report to the person: one JSON document a put
+                pub.put(payload)
             return
         if self._tap is not None:
             self._tap.put(time.time(), key, payload)
@@ -544,7 +551,7 @@ class ZenohTransport:
 
     def declared(self, key: str) -> bool:
         """A put on ``key`` declares nothing: its publisher exists, or it needs none."""
-        if key in self._publishers or not key.startswith(keys.FIPA_PREFIX):
+        if key in self._publishers or not keys.is_cached_key(key):
             return True
         return len(self._publishers) >= MAX_KEYS
 
