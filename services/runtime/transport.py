@@ -508,7 +508,9 @@ class ZenohTransport:
         if pub is not None:
             if keys.is_communicate_key(key):
                 self._backlog.publish(key, payload)
-            else:  # a report to the person: one JSON document a put
+            else:  # a report to the person: one JSON document a put, tapped as any plain put
+                if self._tap is not None:
+                    self._tap.put(time.time(), key, payload)
                 pub.put(payload)
             return
         if self._tap is not None:
