@@ -91,7 +91,7 @@ def test_send_prints_the_outcome_a_hi_gave_while_the_router_was_down(fleet: Flee
         out = lines_of(send)
         while not (seen and seen[-1].endswith(TILTING)):
             line = out.get(timeout=300)
-            assert line is not None, seen
+            assert line is not None, "\n".join([*seen, send.stderr.read() if send.stderr else ""])
             seen.append(line)
         router = fleet.processes["router"]
         os.kill(router.pid, signal.SIGKILL)
@@ -99,7 +99,15 @@ def test_send_prints_the_outcome_a_hi_gave_while_the_router_was_down(fleet: Flee
         assert not told_success(a_hi_log), "the pour ended before the router was killed"
         wait_until(lambda: told_success(a_hi_log), 300, "a_hi tells the person the pour succeeded")
         fleet.start_router()
-        while (line := out.get(timeout=120)) is not None:
+        while True:
+            try:
+                line = out.get(timeout=120)
+            except queue.Empty:
+                pytest.fail(
+                    "roco send printed no outcome within 120 s of the router's restart:\n" + "\n".join(seen)
+                )
+            if line is None:
+                break
             seen.append(line)
         send.wait(timeout=30)
         err = send.stderr.read() if send.stderr is not None else ""
