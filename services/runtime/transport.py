@@ -440,9 +440,9 @@ hold each other up (tests/runtime/test_inline_receive.py). The FIFO grows only a
 filled."""
 
 MAX_KEYS = 256
-"""Key expressions a :class:`ZenohTransport` keeps parsed, and communicate keys it keeps an
-advanced publisher for (an agent puts on a few keys: one per peer and channel); a further key is
-parsed at each put, and a communicate on it is put without cache or sequence number."""
+"""Key expressions a :class:`ZenohTransport` keeps parsed, and keys it keeps an advanced publisher
+for (communicates and a_hi's reports: an agent puts on a few keys, one per peer and channel); a
+further key is parsed at each put, and what is put on it goes without cache or sequence number."""
 
 
 class ZenohTransport:
