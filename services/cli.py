@@ -35,6 +35,7 @@ from services.fleet.launcher import AGENT_ORDER, GATEWAY, Fleet, LaunchError
 from services.hosts.cli import hosts_app
 from services.runtime import keys
 from services.runtime.human import FINAL_REPORTS, HumanInput, HumanReport
+from services.runtime.reports import ReportFilter, follow_reports
 from services.runtime.run_folder import (
     RunFolderError,
     RunInfo,
@@ -910,12 +911,14 @@ def send(
     ] = "",
     credentials: CredentialsOption = None,
 ) -> None:
-    """Give a running fleet a command and wait for a_hi's final report."""
+    """Give a running fleet a command and wait for a_hi's final report. Reports a_hi gave
+    while this session was cut off from it (the router restarted) come when it is back, each
+    shown once (services/runtime/reports.py)."""
     endpoint = _endpoint(router, runs_dir)
     session = _open_operator_session(endpoint, credentials, None if router else runs_dir)
     reports: queue.SimpleQueue[HumanReport] = queue.SimpleQueue()
-    dec = msgspec.json.Decoder(HumanReport)
-    session.declare_subscriber(keys.HUMAN_OUT, lambda s: reports.put(dec.decode(s.payload.to_bytes())))
+    follow_reports(session, reports.put)  # also what a_hi said while the router was away
+    shown = ReportFilter()
     if "a_hi" not in alive_agents(session):
         session.close()
         raise fail(f"a_hi is not alive at {endpoint}")
@@ -929,7 +932,7 @@ def send(
                 report = reports.get(timeout=max(0.1, deadline - time.monotonic()))
             except queue.Empty:
                 raise fail(f"no outcome within {timeout:.0f} s") from None
-            if report.request_id != request_id:
+            if report.request_id != request_id or not shown.keep(report):
                 continue
             typer.echo(f"{report.kind.value}: {report.text}")
             if report.kind in FINAL_REPORTS:

@@ -36,6 +36,7 @@ from services.recorder.record import HOSTS_JSON, LINK_BYTES_JSONL
 from services.runtime import keys
 from services.runtime.faults import FaultEvent
 from services.runtime.human import FINAL_REPORTS, HumanInput, HumanReport
+from services.runtime.reports import follow_reports
 from services.runtime.session import open_client
 from services.security.context import register
 from services.spec.model import load, spec_path
@@ -186,8 +187,7 @@ class TwoHosts:
         of the dict (e.g. a partition at a step). Raises queue.Empty after ``timeout`` s."""
         session = open_client(self.endpoint)
         reports: queue.SimpleQueue[HumanReport] = queue.SimpleQueue()
-        dec = msgspec.json.Decoder(HumanReport)
-        session.declare_subscriber(keys.HUMAN_OUT, lambda s: reports.put(dec.decode(s.payload.to_bytes())))
+        follow_reports(session, reports.put)  # also what a_hi said while the uplink was cut
         rid = uuid.uuid4().hex[:8]
         pending = on_progress if on_progress is not None else {}
         try:

@@ -33,6 +33,10 @@ advanced subscriber asks; ``**`` never matches a ``@`` chunk, so ``FIPA_ALL`` do
 ALIVE_ALL = f"{PREFIX}/alive/*"
 HUMAN_IN = f"{PREFIX}/human/in"
 HUMAN_OUT = f"{PREFIX}/human/out"
+HUMAN_OUT_CACHES = f"{HUMAN_OUT}/@adv/**"
+"""What a_hi's advanced publisher of reports declares below ``HUMAN_OUT`` (cache queryable,
+liveliness token, heartbeat) and what the person's tools' advanced subscribers ask and watch
+(services/runtime/reports.py)."""
 SIM_DISTURB = f"{PREFIX}/sim/disturb"
 RECORDER_SYNC = f"{PREFIX}/recorder/sync"
 """A token put here reaches the traffic recorder after every communicate routed before it;
@@ -62,6 +66,12 @@ def fipa_key(channel: str, sender: str, receiver: str) -> str:
 def caches_of(key: str) -> str:
     """The key expression of what advanced publishers on communicate ``key`` declare below it."""
     return f"{key}/@adv/**"
+
+
+def is_cached_key(key: str) -> bool:
+    """Whether puts on ``key`` go through an advanced publisher with a cache
+    (services/runtime/transport.py): communicates, and a_hi's reports to the person."""
+    return key.startswith(FIPA_PREFIX) or key == HUMAN_OUT
 
 
 def is_communicate_key(key: str) -> bool:

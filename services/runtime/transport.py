@@ -25,7 +25,10 @@ traffic recorder) queries when it starts, when it detects a publisher that appea
 and when a sequence number is missing — so a restarted recorder fills the gap it was down for,
 in order, and a gap that cannot be filled shows as missing sequence numbers
 (docs/recovery.md). Communicates put on a key while another thread's put on it is in progress
-leave together, in one batch, after it (services/runtime/backlog.py).
+leave together, in one batch, after it (services/runtime/backlog.py). a_hi's reports to the
+person (``roco/human/out``) go through such a publisher too, one report a put, never batched:
+a person's tool that was cut off from a_hi (the router down while the agents are linked
+directly) gets what it missed from that cache when it is back (services/runtime/reports.py).
 """
 
 from __future__ import annotations
@@ -448,9 +451,9 @@ hold each other up (tests/runtime/test_inline_receive.py). The FIFO grows only a
 filled."""
 
 MAX_KEYS = 256
-"""Key expressions a :class:`ZenohTransport` keeps parsed, and communicate keys it keeps an
-advanced publisher for (an agent puts on a few keys: one per peer and channel); a further key is
-parsed at each put, and a communicate on it is put without cache or sequence number."""
+"""Key expressions a :class:`ZenohTransport` keeps parsed, and keys it keeps an advanced publisher
+for (communicates and a_hi's reports: an agent puts on a few keys, one per peer and channel); a
+further key is parsed at each put, and what is put on it goes without cache or sequence number."""
 
 
 class ZenohTransport:
@@ -509,7 +512,8 @@ class ZenohTransport:
         full the agent waits instead of the communicate being dropped (Zenoh's default for
         ``put`` drops after 1 ms: a burst of 5,000 communicates lost 2,000 of them;
         docs/benchmarks.md). A communicate (``roco/fipa/**``) goes through the key's advanced
-        publisher (declared at its first put; see the module docstring): at once, on this
+        publisher (declared at its first put; see the module docstring), and so does a report
+        on ``roco/human/out`` (put at once, alone); a communicate at once, on this
         thread, unless another thread's put on the key is in progress; then it waits behind it
         and leaves with what else waits there in one batch, put by that thread
         (services/runtime/backlog.py). Anything else is a
@@ -518,10 +522,15 @@ class ZenohTransport:
         callback (see the module docstring). With ``ROCO_TAP_DIR`` set, a communicate is
         also appended to the tap (services/runtime/tap.py)."""
         pub = self._publishers.get(key)
-        if pub is None and key.startswith(keys.FIPA_PREFIX) and len(self._publishers) < MAX_KEYS:
+        if pub is None and keys.is_cached_key(key) and len(self._publishers) < MAX_KEYS:
             pub = self._declare(key)
         if pub is not None:
-            self._backlog.publish(key, payload)
+            if keys.is_communicate_key(key):
+                self._backlog.publish(key, payload)
+            else:  # a report to the person: one JSON document a put, tapped as any plain put
+                if self._tap is not None:
+                    self._tap.put(time.time(), key, payload)
+                pub.put(payload)
             return
         if self._tap is not None:
             self._tap.put(time.time(), key, payload)
@@ -563,7 +572,7 @@ class ZenohTransport:
 
     def declared(self, key: str) -> bool:
         """A put on ``key`` declares nothing: its publisher exists, or it needs none."""
-        if key in self._publishers or not key.startswith(keys.FIPA_PREFIX):
+        if key in self._publishers or not keys.is_cached_key(key):
             return True
         return len(self._publishers) >= MAX_KEYS
 

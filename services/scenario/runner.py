@@ -28,6 +28,7 @@ from services.runtime.counters import ask_counters, save_counters
 from services.runtime.faults import FaultEvent
 from services.runtime.human import FINAL_REPORTS, HumanInput, HumanReport
 from services.runtime.raised import raised_by_agent, raised_text
+from services.runtime.reports import ReportFilter, follow_reports
 from services.runtime.run_folder import RunCommand, RunInfo, write_run_info
 from services.runtime.session import open_client
 from services.scenario.model import Fault, Scenario, Step
@@ -259,6 +260,8 @@ class ScenarioRunner:
         self.traffic_lines = traffic_lines
         self.info = info or RunInfo()
         self.events: queue.SimpleQueue[tuple[str, object]] = queue.SimpleQueue()
+        self.shown = ReportFilter()
+        """a_hi's reports said: a command's, up to its final one (services/runtime/reports.py)."""
         self.steps_seen: list[str] = []  # a_ta's plan steps (C1 L_SW), in order
         self.knowledge = threading.Event()
         self.commands: list[CommandRecord] = []
@@ -281,9 +284,8 @@ class ScenarioRunner:
         return self.hosting.endpoint
 
     # ---- events from Zenoh (callback threads: enqueue only) ----
-    def _on_report(self, sample: zenoh.Sample) -> None:
-        with contextlib.suppress(msgspec.DecodeError):
-            self.events.put(("report", msgspec.json.decode(sample.payload.to_bytes(), type=HumanReport)))
+    def _on_report(self, report: HumanReport) -> None:
+        self.events.put(("report", report))
 
     def _on_traffic(self, sample: zenoh.Sample) -> None:
         key = str(sample.key_expr)
@@ -354,9 +356,9 @@ class ScenarioRunner:
 
     def _report(self, item: HumanReport) -> None:
         """a_hi's report to the person: said, and kept with its command (the final one ends
-        it); a report of no command of the run is ignored."""
+        it); a report of no command of the run, or after its command's final one, is ignored."""
         record = next((c for c in self.commands if c.request_id == item.request_id), None)
-        if record is None:
+        if record is None or not self.shown.keep(item):
             return
         record.reports.append(item)
         self._say(f"a_hi → person (#{record.number}): {item.kind.value}: {item.text}")
@@ -556,7 +558,7 @@ class ScenarioRunner:
         self.fleet.start_recorder()
         self.fleet.wait_alive(session, ["recorder"], timeout=60)
         session.declare_subscriber(keys.FIPA_ALL, self._on_traffic)
-        session.declare_subscriber(keys.HUMAN_OUT, self._on_report)
+        follow_reports(session, self._on_report)  # also what a_hi said while the router was away
         self.fleet.start_agents()
         waited = self.fleet.wait_alive(session, AGENT_ORDER, timeout=120)
         self.info.processes = self.fleet.pids()

@@ -15,7 +15,8 @@ liveliness declarations), ``egress`` what the router delivers to it. For agent `
   ``roco/fault/control/all`` and ``…/control/A``, puts on ``roco/fault/state/A`` and
   ``…/event/A``; it hears ``roco/counters/ask`` and answers on ``roco/counters/report/A``;
 - the receptors and effectors outside FIPA (:data:`AGENT_EXTRAS`): a_hi hears ``roco/human/in``
-  and speaks on ``roco/human/out``; ag_ex publishes ``roco/state/ag_ex`` and hears
+  and speaks on ``roco/human/out``, through an advanced publisher with its cache below
+  (``roco/human/out/@adv/**``, as for communicates); ag_ex publishes ``roco/state/ag_ex`` and hears
   ``roco/sim/disturb``.
 
 - its advanced publishers (one per key it sends on, services/runtime/transport.py): it learns of
@@ -40,7 +41,8 @@ watches their liveliness tokens and hears their heartbeats (``roco/fipa/**/@adv/
 The operator (``roco send``/``status``/``sniff``/``fault``, the scenario runner, the launcher's
 liveliness wait) may hear everything under ``roco/**`` and put on the human's receptor, the
 simulated world's disturbances, the recorder's sync key and the fault keys the injector uses —
-but never on ``roco/fipa/**`` and never a liveliness token.
+but never on ``roco/fipa/**`` and never a liveliness token; its advanced subscriber of a_hi's
+reports watches, hears and queries ``roco/human/out/@adv/**``.
 
 Zenoh (1.10) allows a message when an allow rule's key expression *includes* the message's key
 expression (a subscriber on ``roco/fipa/**`` is not allowed by rules naming single channels).
@@ -222,7 +224,21 @@ def agent_grants(spec: SystemSpec, agent: str) -> Grants:
     extra = AGENT_EXTRAS.get(agent, Extras())
     g.hear(*extra.hears)
     g.say(*extra.says)
+    if keys.HUMAN_OUT in extra.says:
+        _report_publisher(g)
     return g
+
+
+def _report_publisher(g: Grants) -> None:
+    """What a_hi's advanced publisher of reports needs (services/runtime/transport.py): to
+    learn of the person's tools' subscribers, to declare its cache queryable, liveliness token
+    and heartbeat below ``roco/human/out``, to hear their queries and to answer them."""
+    g.allow("egress", "declare_subscriber", keys.HUMAN_OUT, keys.HUMAN_OUT_CACHES)
+    g.allow("ingress", "declare_queryable", keys.HUMAN_OUT_CACHES)
+    g.allow("ingress", "liveliness_token", keys.HUMAN_OUT_CACHES)
+    g.say(keys.HUMAN_OUT_CACHES)
+    g.allow("egress", "query", keys.HUMAN_OUT_CACHES)
+    g.allow("ingress", "reply", keys.HUMAN_OUT, keys.HUMAN_OUT_CACHES)
 
 
 def _cached_publisher(g: Grants, sends: list[str]) -> None:
@@ -288,6 +304,14 @@ def operator_grants() -> Grants:
     )
     g.watch_alive()
     g.allow("ingress", "liveliness_query", keys.ALIVE_ALL)
+    # its advanced subscriber of a_hi's reports (services/runtime/reports.py): heartbeats,
+    # a_hi's publisher's token, queries of its cache
+    g.hear(keys.HUMAN_OUT_CACHES)
+    g.allow("ingress", "query", keys.HUMAN_OUT_CACHES)
+    g.allow("egress", "reply", keys.HUMAN_OUT, keys.HUMAN_OUT_CACHES)
+    g.allow("ingress", "declare_liveliness_subscriber", keys.HUMAN_OUT_CACHES)
+    g.allow("ingress", "liveliness_query", keys.HUMAN_OUT_CACHES)
+    g.allow("egress", "liveliness_token", keys.HUMAN_OUT_CACHES)
     return g
 
 

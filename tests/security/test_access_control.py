@@ -18,6 +18,7 @@ import time
 from collections.abc import Iterator
 from pathlib import Path
 
+import msgspec
 import pytest
 import zenoh
 
@@ -286,3 +287,24 @@ def test_a_revoked_identity_is_refused_after_the_router_restarts(tmp_path: Path)
     finally:
         fleet.stop()
         register(fleet.endpoint, None)
+
+
+def test_the_operator_gets_a_report_a_hi_gave_before_it_listened(router: Fleet) -> None:
+    """a_hi's advanced publisher of reports and the operator's follower (services/runtime/reports.py)
+    have what they need: a report put before the operator's session subscribed comes from
+    a_hi's cache, through the router's access control."""
+    from services.runtime.human import HumanReport, ReportKind
+    from services.runtime.reports import follow_reports
+    from services.runtime.transport import ZenohTransport
+
+    hi = ZenohTransport([router.endpoint], identity="a_hi")
+    op = open_client(router.endpoint)
+    got: queue.SimpleQueue[HumanReport] = queue.SimpleQueue()
+    try:
+        said = HumanReport(request_id="r1", kind=ReportKind.SUCCEEDED, text="done")
+        hi.publish(keys.HUMAN_OUT, msgspec.json.encode(said))
+        follow_reports(op, got.put)
+        assert got.get(timeout=WAIT_S) == said
+    finally:
+        op.close()
+        hi.close()
