@@ -302,8 +302,7 @@ def write_chaos_report(run_dir: Path, scenario: Scenario, outcome: ScenarioOutco
         "|---|---|",
         f"| task done | {_mark(v.task_done)} |",
         f"| no command lost | {_mark(v.commands_lost == 0)} ({v.commands_lost} lost) |",
-        f"| nothing executed twice | {_mark(v.once)} {', '.join(v.executed_twice)}"
-        + f"{'; ' if v.executed_twice else ''}ag_ex's ledger: {v.ledger.summary()} |",
+        _once_row(v),
         f"| no object dropped | {_mark(not v.dropped and v.last_observation)} "
         + (
             ", ".join(f"{k} at z = {z} m" for k, z in v.dropped.items())
@@ -322,6 +321,12 @@ def write_chaos_report(run_dir: Path, scenario: Scenario, outcome: ScenarioOutco
     path = run_dir / CHAOS_FILE
     path.write_text("\n".join(lines))
     return path
+
+
+def _once_row(v: Verdict) -> str:
+    """The "nothing executed twice" row: the requests answered twice, then the ledger's verdict."""
+    answered = "".join(f"{s}; " for s in v.executed_twice)
+    return f"| nothing executed twice | {_mark(v.once)} {answered}ag_ex's ledger: {v.ledger.summary()} |"
 
 
 def _fault_row(f: FaultRecord) -> str:
