@@ -309,11 +309,10 @@ class ExecutorAgent(Agent):
         the agent does not know is written under conversation "?"."""
         if self.ledger is None:
             return
+        conversation = self.ledger_runs.get(event.token, "?")  # forgotten when answered
         if isinstance(event, Began):
-            conversation = self.ledger_runs.get(event.token, "?")
             self.ledger.started(conversation, event.command, event.sim_time)
         else:
-            conversation = self.ledger_runs.pop(event.token, "?")
             self.ledger.ended(conversation, event.command, event.sim_time, event.outcome)
 
     @handles(FIPA_REQUEST, PARTICIPANT, Performative.CANCEL)
