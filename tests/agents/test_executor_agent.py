@@ -145,3 +145,32 @@ def test_the_ledger_names_each_run_s_conversation_before_the_answer(monkeypatch:
         assert len({e.life for e in lines}) == 1
     twice_found, _ = _started_twice(read_ledger(tmp_path).entries)
     assert twice_found == ["wait (c-True): started at 1.000, 2.000 s"]
+
+
+def test_a_ledger_line_that_cannot_be_written_is_counted_and_the_robot_goes_on(
+    monkeypatch: Any, tmp_path: Any
+) -> None:
+    """Planted: the ledger's file closed under ag_ex; the command is still answered."""
+    from services.spec.names import FIPA_REQUEST
+    from shared.fipa_codec import Performative
+    from shared.fipa_codec.languages.l_ex import Wait
+    from tests.support.peer import Peer, running
+
+    monkeypatch.setenv("ROCO_RUN_DIR", str(tmp_path))
+    bus = MemoryBus()
+    fake = LedgerFake()
+
+    class Ex(ExecutorAgent):
+        def make_executor(self) -> Any:
+            return fake
+
+    a_ta = Peer(bus, "a_ta", "ag_ex", "C5")
+    agent = Ex(bus.transport())
+    with running(agent):
+        a_ta.send(Performative.REQUEST, FIPA_REQUEST, "c-0", Wait(duration=0.5))
+        a_ta.next(Performative.INFORM, cid="c-0")  # ag_ex is set up: its ledger is open
+        assert agent.ledger is not None and agent.counters["ledger_errors"] == 0
+        agent.ledger.close()
+        a_ta.send(Performative.REQUEST, FIPA_REQUEST, "c-1", Wait(duration=0.5))
+        assert a_ta.next(Performative.INFORM, cid="c-1").conversation_id == "c-1"
+    assert agent.counters["ledger_errors"] == 2

@@ -306,14 +306,22 @@ class ExecutorAgent(Agent):
 
     def _note(self, event: Began | Ended) -> None:
         """The ledger's line of ``event`` (a command the loop began or ended), fsync-ed; a token
-        the agent does not know is written under conversation "?"."""
+        the agent does not know is written under conversation "?". A line that cannot be
+        written is counted (``ledger_errors``) and logged: the robot goes on, and the judges
+        find the run missing."""
         if self.ledger is None:
             return
         conversation = self.ledger_runs.get(event.token, "?")  # forgotten when answered
-        if isinstance(event, Began):
-            self.ledger.started(conversation, event.command, event.sim_time)
-        else:
-            self.ledger.ended(conversation, event.command, event.sim_time, event.outcome)
+        try:
+            if isinstance(event, Began):
+                self.ledger.started(conversation, event.command, event.sim_time)
+            else:
+                self.ledger.ended(conversation, event.command, event.sim_time, event.outcome)
+        except OSError as exc:
+            self.counters["ledger_errors"] += 1
+            self.log.error(
+                "ledger line of %s (conversation %s) not written: %s", event.command, conversation, exc
+            )
 
     @handles(FIPA_REQUEST, PARTICIPANT, Performative.CANCEL)
     def _on_cancel(self, conv: Conversation) -> None:
