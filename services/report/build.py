@@ -18,6 +18,7 @@ from services.recorder.record import (
 from services.report.content import sphere_share
 from services.report.coordination import commands, coordination
 from services.report.figures import write_figures
+from services.report.ledger import judge_ledger
 from services.report.load import Message, RunData, load_run
 from services.report.markdown import render
 from services.report.model import CoverageSummary, FaultRow, Header, PerceptionRow, Report, RequirementRow
@@ -74,6 +75,7 @@ def _assemble(run: RunData, container: str = "bowl", tracer: Tracer | None = Non
     header.record = run.integrity.summary() if run.integrity.records else ""
     header.access_control = _access_control(run)
     header.link = _link(Path(run_dir))
+    header.ledger = _ledger(Path(run_dir), messages, notes)
     return Report(
         header=header,
         sizes=size_stats(wire),
@@ -96,6 +98,17 @@ def _assemble(run: RunData, container: str = "bowl", tracer: Tracer | None = Non
         requirements=_requirements(run, tracer, notes),
         flags=_flags(Path(run_dir), notes),
     )
+
+
+def _ledger(run_dir: Path, messages: list[Message], notes: list[str]) -> str:
+    """ag_ex's ledger held against the record, in one line (services/report/ledger.py); ""
+    when the run has no ledger and no done answer of ag_ex; unreadable: a note."""
+    try:
+        v = judge_ledger(run_dir, messages)
+    except OSError as exc:
+        notes.append(f"ag_ex's ledger unreadable: {exc}")
+        return ""
+    return v.summary() if v.found or not v.ok else ""
 
 
 def _flags(run_dir: Path, notes: list[str]) -> list[LiveFlag]:

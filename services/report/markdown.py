@@ -178,6 +178,8 @@ def _header(h: Header, perception: Sequence[PerceptionRow] = ()) -> str:
         rows.append(["Access control", h.access_control])
     if h.link:
         rows.append(["Link between the hosts", h.link])
+    if h.ledger:
+        rows.append(["ag_ex's ledger", h.ledger])
     title = f"# Experiment report: {Path(h.run_dir).name}"
     return "\n\n".join([title, f"Run folder: `{h.run_dir}`", _table(["", ""], rows), HOW_MEASURED])
 

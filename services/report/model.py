@@ -55,6 +55,10 @@ class Header(msgspec.Struct, kw_only=True):
     link: str = ""
     """What the link between two hosts carried (``roco hosts``: the relay's count,
     ``link_bytes.jsonl``, and the link device's counters), in one line; "" for one host."""
+    ledger: str = ""
+    """ag_ex's ledger of executed commands held against the record (services/report/ledger.py):
+    commands started, ag_ex processes, and whether one ran twice or was answered done without
+    running, in one line; "" when the run has no ledger and ag_ex answered nothing done."""
 
 
 class SizeStats(msgspec.Struct, kw_only=True):

@@ -11,7 +11,10 @@ answers what a fault-tolerant system must keep:
 - **no command lost** — every command got a final report;
 - **nothing executed twice** — no request got two different final answers from the same
   agent (a retransmission answered from memory is byte-identical, so only a second
-  execution gives a second, different answer);
+  execution gives a second, different answer), and the robot agrees: ag_ex's ledger of the
+  commands its loop ran (``<run>/ag_ex_ledger.jsonl``, velma/executor/ledger.py) has no
+  command started twice for one request and no request answered done that never ran
+  (services/report/ledger.py);
 - **no object dropped** — every movable object (jar, bowl, cup) stands higher than
   ``DROPPED_BELOW_M`` (the floor is z = 0; table top 0.75 m, cabinet shelves higher) in the
   final world: the scene the world process left when the fleet stopped (``<run>/world_final.f64``,
@@ -41,6 +44,7 @@ from services.fleet.launcher import load_launch_env
 from services.hosts.fleet import ROUTERS
 from services.recorder.integrity import Integrity
 from services.recorder.record import read_link_events
+from services.report.ledger import LedgerVerdict, judge_ledger
 from services.report.load import Message, load_run
 from services.scenario.model import AGENTS, FAULT_KINDS, MOVABLE, Fault, Scenario, Step, Trigger
 from services.scenario.runner import LINK, FaultRecord, ScenarioOutcome
@@ -150,7 +154,8 @@ class Verdict:
     answered twice differently, as "sender: conversation"; ``dropped``: objects found below
     ``DROPPED_BELOW_M``, with their height (m); ``last_observation``: every movable object's
     height is known; ``judged_on``: where the heights come from (the world's final scene, or the
-    last observations during the run); ``record``: the traffic record's integrity."""
+    last observations during the run); ``record``: the traffic record's integrity; ``ledger``:
+    ag_ex's ledger held against the record (its faults count as executed twice)."""
 
     task_done: bool
     commands_lost: int
@@ -163,6 +168,12 @@ class Verdict:
     record: Integrity = field(default_factory=Integrity)
     raised: str = ""
     """What the agents raised (services/runtime/raised.py ``raised_text``); "" when none did."""
+    ledger: LedgerVerdict = field(default_factory=LedgerVerdict)
+
+    @property
+    def once(self) -> bool:
+        """Nothing executed twice: neither two answers nor the ledger say so."""
+        return not self.executed_twice and self.ledger.ok
 
     @property
     def ok(self) -> bool:
@@ -170,7 +181,7 @@ class Verdict:
             self.record.intact
             and self.task_done
             and self.commands_lost == 0
-            and not self.executed_twice
+            and self.once
             and not self.dropped
             and self.last_observation
             and not self.raised
@@ -203,10 +214,11 @@ def _last_heights(messages: Sequence[Message]) -> dict[str, float]:
 
 
 def verdict(run_dir: Path, outcome: ScenarioOutcome) -> Verdict:
-    """Judge a chaos run from its outcome and its run folder's traffic record (the six
-    questions of the module docstring, the last from ``outcome``). Raises FileNotFoundError
-    when ``run_dir`` is not a folder; a missing or corrupt traffic record reads as no traffic
-    (services/report/load.py)."""
+    """Judge a chaos run from its outcome, its run folder's traffic record and ag_ex's ledger
+    (the six questions of the module docstring, the last from ``outcome``). Raises
+    FileNotFoundError when ``run_dir`` is not a folder; a missing or corrupt traffic record reads
+    as no traffic (services/report/load.py), a missing ledger as an empty one; OSError when the
+    ledger cannot be read."""
     run = load_run(run_dir)
     twice = _executed_twice(run.messages)
     last = _last_heights(run.messages)
@@ -226,6 +238,7 @@ def verdict(run_dir: Path, outcome: ScenarioOutcome) -> Verdict:
         judged_on=judged_on,
         record=run.integrity,
         raised=outcome.raised_line(),
+        ledger=judge_ledger(run_dir, run.messages),
     )
 
 
@@ -297,7 +310,7 @@ def write_chaos_report(run_dir: Path, scenario: Scenario, outcome: ScenarioOutco
         "|---|---|",
         f"| task done | {_mark(v.task_done)} |",
         f"| no command lost | {_mark(v.commands_lost == 0)} ({v.commands_lost} lost) |",
-        f"| nothing executed twice | {_mark(not v.executed_twice)} {', '.join(v.executed_twice)} |",
+        _once_row(v),
         f"| no object dropped | {_mark(not v.dropped and v.last_observation)} "
         + (
             ", ".join(f"{k} at z = {z} m" for k, z in v.dropped.items())
@@ -317,6 +330,12 @@ def write_chaos_report(run_dir: Path, scenario: Scenario, outcome: ScenarioOutco
     path = run_dir / CHAOS_FILE
     path.write_text("\n".join(lines))
     return path
+
+
+def _once_row(v: Verdict) -> str:
+    """The "nothing executed twice" row: the requests answered twice, then the ledger's verdict."""
+    answered = "".join(f"{s}; " for s in v.executed_twice)
+    return f"| nothing executed twice | {_mark(v.once)} {answered}ag_ex's ledger: {v.ledger.summary()} |"
 
 
 def _fault_row(f: FaultRecord) -> str:

@@ -12,6 +12,7 @@ import msgspec
 from services.agents.executor.agent import ExecutorAgent
 from services.runtime import keys
 from services.runtime.memory_transport import MemoryBus
+from shared.fipa_codec.languages.l_ex import CommandResult
 from velma.executor.state import RobotSnapshot
 
 
@@ -86,3 +87,90 @@ def test_malformed_seed_is_a_clear_configuration_error(monkeypatch: Any) -> None
     monkeypatch.setenv("ROCO_POSE_SEED", "-3")
     with pytest.raises(ValueError, match="ROCO_POSE_SEED=-3 is negative"):
         ExecutorAgent(MemoryBus().transport())
+
+
+class LedgerFake(HoldingFake):
+    """Runs each command at once, reporting its start and end as ``ExecutorProcess`` does
+    (``on_start``, ``on_end``, before ``on_done``); ``twice``: the loop runs each command twice
+    (a planted fault) and answers once."""
+
+    def __init__(self, twice: bool = False) -> None:
+        super().__init__()
+        self.on_start: Any = None
+        self.on_end: Any = None
+        self.twice = twice
+
+    def submit(self, command: Any, on_done: Any) -> Any:
+        token = object()
+        for k in range(2 if self.twice else 1):
+            self.on_start(token, "wait", 1.0 + k)
+            self.on_end(token, "wait", 1.5 + k, "ok")
+        on_done(CommandResult(command="wait", ok=True, sim_time=1.5))
+        return token
+
+
+def test_the_ledger_names_each_run_s_conversation_before_the_answer(monkeypatch: Any, tmp_path: Any) -> None:
+    """ag_ex writes a start and an end line of the request's conversation-id to its ledger
+    (velma/executor/ledger.py) before it answers; a loop that runs the command twice (planted)
+    leaves two starts, which the judge finds (services/report/ledger.py)."""
+    from services.report.ledger import _started_twice
+    from services.spec.names import FIPA_REQUEST
+    from shared.fipa_codec import Performative
+    from shared.fipa_codec.languages.l_ex import Wait
+    from tests.support.peer import Peer, running
+    from velma.executor.ledger import read_ledger
+
+    monkeypatch.setenv("ROCO_RUN_DIR", str(tmp_path))
+    for twice in (False, True):
+        bus = MemoryBus()
+        fake = LedgerFake(twice)
+
+        class Ex(ExecutorAgent):
+            def make_executor(self, fake: LedgerFake = fake) -> Any:
+                return fake
+
+        a_ta = Peer(bus, "a_ta", "ag_ex", "C5")
+        agent = Ex(bus.transport())
+        with running(agent):
+            cid = f"c-{twice}"
+            a_ta.send(Performative.REQUEST, FIPA_REQUEST, cid, Wait(duration=0.5))
+            answer = a_ta.next(Performative.INFORM, cid=cid)
+            lines = [e for e in read_ledger(tmp_path).entries if e.conversation == cid]  # as answered
+        assert answer.conversation_id == cid
+        assert [(e.event, e.sim_time, e.outcome) for e in lines[:2]] == [
+            ("start", 1.0, None),
+            ("end", 1.5, "ok"),
+        ]
+        assert len(lines) == (4 if twice else 2)
+        assert len({e.life for e in lines}) == 1
+    twice_found, _ = _started_twice(read_ledger(tmp_path).entries)
+    assert twice_found == ["wait (c-True): started at 1.000, 2.000 s"]
+
+
+def test_a_ledger_line_that_cannot_be_written_is_counted_and_the_robot_goes_on(
+    monkeypatch: Any, tmp_path: Any
+) -> None:
+    """Planted: the ledger's file closed under ag_ex; the command is still answered."""
+    from services.spec.names import FIPA_REQUEST
+    from shared.fipa_codec import Performative
+    from shared.fipa_codec.languages.l_ex import Wait
+    from tests.support.peer import Peer, running
+
+    monkeypatch.setenv("ROCO_RUN_DIR", str(tmp_path))
+    bus = MemoryBus()
+    fake = LedgerFake()
+
+    class Ex(ExecutorAgent):
+        def make_executor(self) -> Any:
+            return fake
+
+    a_ta = Peer(bus, "a_ta", "ag_ex", "C5")
+    agent = Ex(bus.transport())
+    with running(agent):
+        a_ta.send(Performative.REQUEST, FIPA_REQUEST, "c-0", Wait(duration=0.5))
+        a_ta.next(Performative.INFORM, cid="c-0")  # ag_ex is set up: its ledger is open
+        assert agent.ledger is not None and agent.counters["ledger_errors"] == 0
+        agent.ledger.close()
+        a_ta.send(Performative.REQUEST, FIPA_REQUEST, "c-1", Wait(duration=0.5))
+        assert a_ta.next(Performative.INFORM, cid="c-1").conversation_id == "c-1"
+    assert agent.counters["ledger_errors"] == 2

@@ -363,3 +363,30 @@ def test_the_link_row_says_what_the_link_between_the_hosts_carried(
     assert "busiest second 10.0 kbit/s" in line
     assert "on the link device: robot → brain 2.1 kB in 9 packets, brain → robot 0.6 kB in 7" in line
     assert f"| Link between the hosts | {line} |" in write_report(d).read_text()
+
+
+def test_the_ledger_row_holds_ag_ex_s_ledger_against_the_record(run_dir: Path) -> None:
+    """The header's "ag_ex's ledger" row (services/report/ledger.py): without a ledger every
+    done answer is unaccounted for; a ledger with a run of each agrees; a start written twice
+    (planted) is named."""
+    from services.report.load import load_run
+    from tests.support.ledger import ran
+    from velma.executor.ledger import LEDGER_FILE
+
+    answers = load_run(run_dir).messages
+    done = sorted(
+        {m.conversation or "" for m in answers if m.sender == "ag_ex" and m.performative == "inform"}
+    )
+    assert len(done) >= 3 and "" not in done
+    row = "| ag_ex's ledger | no ledger (ag_ex_ledger.jsonl): answered done, never ran: "
+    assert row in write_report(run_dir).read_text()
+    ran(run_dir, *((c, "move_tool", float(k), k + 0.5) for k, c in enumerate(done)))
+    agrees = (
+        f"| ag_ex's ledger | {len(done)} command(s) started by 1 ag_ex process(es): nothing executed twice"
+    )
+    assert agrees in write_report(run_dir).read_text()
+    first = (run_dir / LEDGER_FILE).read_text().splitlines(keepends=True)[0]
+    with (run_dir / LEDGER_FILE).open("a") as f:
+        f.write(first)
+    twice = f"executed twice: move_tool ({done[0]}): started at 0.000, 0.000 s"
+    assert twice in write_report(run_dir).read_text()

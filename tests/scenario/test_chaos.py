@@ -18,6 +18,7 @@ from shared.fipa_codec.languages.common import Pose
 from shared.fipa_codec.languages.l_ex import CommandResult
 from shared.fipa_codec.languages.l_sd import ObjectObservation, Observation
 from tests.report.conftest import STARTED, RunBuilder, write_traffic
+from tests.support.ledger import ran
 
 
 def test_each_service_is_faulted_once_in_a_seeded_random_order() -> None:
@@ -122,10 +123,12 @@ def test_the_verdict_of_a_run_that_kept_everything(tmp_path: Path) -> None:
         in_reply_to="q2",
     )
     run = _run(tmp_path, b)
+    ran(run, ("c1", "grasp", 1.0, 2.0), ("c2", "observe", 3.0, 3.1))
     v = verdict(run, _done())
     assert v.ok and v.faults == 1 and v.faults_during_command == 1
     text = write_chaos_report(run, chaos_scenario(0), _done(), v).read_text()
     assert "| task done | yes |" in text and "| 5.0 | a_ta | kill | 2.0 | 10 → 11 | 3.2 | yes |" in text
+    assert "| nothing executed twice | yes ag_ex's ledger: 2 command(s) started by 1 ag_ex" in text
 
 
 def test_a_second_execution_a_dropped_object_and_a_lost_command_are_found(tmp_path: Path) -> None:
@@ -223,6 +226,7 @@ def test_an_object_that_fell_after_its_last_observation_is_found_in_the_final_wo
     b = RunBuilder()
     b.add(1, "C5", "ag_ex", "a_ta", "inform", _observation(0.76), protocol="fipa-request", conversation="c")
     run = _run(tmp_path, b)
+    ran(run, ("c", "observe", 1.0, 1.0))
     assert verdict(run, _done()).ok  # as last observed, the jar stands on the table
     sim = SimulatedVelma()
     scene = np.zeros(sim.scene_size)

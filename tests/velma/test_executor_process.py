@@ -70,6 +70,29 @@ def test_bad_command_is_answered_and_loop_goes_on(ex: ExecutorProcess) -> None:
     assert _submit(ex, Wait(duration=0.01)).get(timeout=60).ok  # type: ignore[union-attr]
 
 
+def test_the_loop_reports_each_start_and_end_before_the_result(ex: ExecutorProcess) -> None:
+    """``on_start`` and ``on_end`` (ag_ex's ledger, velma/executor/ledger.py) are called for
+    the commands the loop runs, in simulated time, before ``on_done``; a command cancelled
+    while queued ends without a start."""
+    events: queue.SimpleQueue[tuple[object, ...]] = queue.SimpleQueue()
+    ex.on_start = lambda token, name, t: events.put(("start", token, name, t))
+    ex.on_end = lambda token, name, t, outcome: events.put(("end", token, name, t, outcome))
+    try:
+        running = ex.submit(Wait(duration=0.1), lambda _r: events.put(("done", running)))
+        queued = ex.submit(Wait(duration=5.0), lambda _r: events.put(("done", queued)))
+        assert ex.cancel(queued)
+        got = [events.get(timeout=60) for _ in range(5)]
+        mine = [e for e in got if e[1] == running]
+        assert [e[0] for e in mine] == ["start", "end", "done"]
+        (_, _, name, start), (_, _, name_end, end, outcome) = mine[0], mine[1]
+        assert (name, name_end, outcome) == ("wait", "wait", "ok")
+        assert isinstance(start, float) and isinstance(end, float) and end >= start + 0.1
+        halted = [e for e in got if e[1] == queued]
+        assert [e[0] for e in halted] == ["end", "done"] and halted[0][4] == "failure: halted"
+    finally:
+        ex.on_start = ex.on_end = None
+
+
 def test_hold_ends_commands_and_says_so(ex: ExecutorProcess) -> None:
     long = _submit(ex, Wait(duration=1000.0))
     queued = _submit(ex, Wait(duration=1.0))

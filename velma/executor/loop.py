@@ -62,6 +62,10 @@ class ControlLoop(Generic[T]):
         the arms switch to joint impedance; None when none runs. Its result goes to nobody
         (its command was answered by ``hold``)."""
         self._self_contacts_at_start: dict[tuple[str, str], int] = {}
+        self.started: collections.deque[tuple[T, str, float]] = collections.deque(maxlen=64)
+        """(token, command name, sim time s) of each command the loop started, oldest first;
+        the host drains it after the cycle (ag_ex's ledger, velma/executor/ledger.py); a host
+        that does not keeps the latest 64."""
 
     def submit(self, token: T, command: ExecutorCommand) -> None:
         """Queue ``command``; its result comes back from ``cycle`` with ``token``."""
@@ -199,6 +203,7 @@ class ControlLoop(Generic[T]):
             token, command = self.queue.popleft()
             self.holding = None
             self._self_contacts_at_start = dict(rt.self_contact_pairs)
+            self.started.append((token, command_name(command), rt.time))
             try:
                 prim = make_primitive(command)
                 result = prim.start(rt)

@@ -12,10 +12,12 @@ Hand-offs (all non-blocking on the loop's side):
 - commands: ``SpscRing`` communication side → loop (``Submit``, ``Cancel``, ``Hold``, ``Safe``,
   ``Shutdown``), polled once per cycle (up to ``INBOX_PER_CYCLE`` messages): a ``Cancel`` halts
   its command in the cycle that takes it (velma/executor/loop.py ``ControlLoop.cancel``);
-- results: ``SpscRing`` loop → communication side (``Ready``, ``Done``, ``Halting``, ``Fault``),
-  plus one byte on a non-blocking pipe (a doorbell) so that the reader thread sleeps until
-  there is news; ``Halting`` says when (wall clock and simulation) the loop began a halt, and is
-  logged here;
+- results: ``SpscRing`` loop → communication side (``Ready``, ``Started``, ``Done``,
+  ``Halting``, ``Fault``), plus one byte on a non-blocking pipe (a doorbell) so that the reader
+  thread sleeps until there is news; ``Started`` says when (simulation) the loop started a
+  command and ``Done`` when it ended (both passed to the ``on_start`` and ``on_end`` hooks, for
+  ag_ex's ledger, velma/executor/ledger.py); ``Halting`` says when (wall clock and simulation)
+  the loop began a halt, and is logged here;
 - robot state: two ``LatestValue`` blocks (sequence locks), the numbers rewritten every
   ``STATE_PERIOD`` cycles (from C++ with the compiled plant), the names when they change
   (velma/executor/state_block.py);
@@ -68,6 +70,7 @@ from velma.executor.camera_process import camera_idle_s as camera_idle_s_of_env
 from velma.executor.capture import WorldCapture, perception_mode
 from velma.executor.delivery import RecordSink, ResultDelivery
 from velma.executor.handoff import LatestValue, SpscRing, new_block, remove_orphans, shared_view
+from velma.executor.ledger import STOPPED, outcome_of
 from velma.executor.state import RobotSnapshot, snapshot_of
 from velma.executor.state_block import StateReader
 from velma.executor.timing import DEFAULT_WINDOW, DeadlineMonitor, Pacer, RealtimeSetup, TimingStats
@@ -95,6 +98,11 @@ WORLD_CAPACITY = 65536  # B: sim time + qpos of up to 8 190 coordinates (the kit
 START_TIMEOUT = 120.0  # s for the loop process to build the scene and report Ready
 
 OnDone = Callable[[CommandResult | Observation], None]
+OnStart = Callable[[int, str, float], None]
+"""``(token, command name, sim_time s)`` of a command the loop started."""
+OnEnd = Callable[[int, str, float, str], None]
+"""``(token, command name, sim_time s, outcome)`` of a command the loop ended (velma/executor/
+ledger.py ``outcome_of``)."""
 
 
 class WorldState(NamedTuple):
@@ -163,6 +171,16 @@ class Done(msgspec.Struct, frozen=True, tag="done"):
     result: CommandResult | Observation | WorldCapture
 
 
+class Started(msgspec.Struct, frozen=True, tag="started"):
+    """The loop started the command submitted with ``token`` (L_EX name ``command``) in the
+    cycle at ``sim_time`` (s): its motion primitive began (velma/executor/loop.py
+    ``ControlLoop.started``)."""
+
+    token: int
+    command: str
+    sim_time: float
+
+
 class Halting(msgspec.Struct, frozen=True, tag="halting"):
     """The loop began to halt the running command ``command`` submitted with ``token`` in the
     cycle at ``wall_time`` (POSIX s, the loop's clock) and ``sim_time`` (s): from that cycle on
@@ -187,7 +205,7 @@ START = "start"
 """``Fault.command`` of a loop that could not start."""
 
 ToLoop = Submit | Cancel | Hold | Safe | Displace | Shutdown
-FromLoop = Ready | Done | Halting | Fault
+FromLoop = Ready | Started | Done | Halting | Fault
 
 
 class LoopConfig(msgspec.Struct, frozen=True, kw_only=True):
@@ -330,6 +348,9 @@ def loop_main(config: bytes, doorbell: multiprocessing.connection.Connection) ->
             else:
                 running = False
         done = loop.cycle()
+        while loop.started:  # after the control step, like the results
+            token, name, at = loop.started.popleft()
+            pending.append(encode(Started(token=token, command=name, sim_time=at)))
         if done is not None:
             pending.append(encode(Done(token=done[0], result=done[1])))
         while loop.errors:
@@ -354,7 +375,7 @@ def loop_main(config: bytes, doorbell: multiprocessing.connection.Connection) ->
         else:
             monitor.record(pacer.release, start, end, rt.part_s, cpu)
         pacer.wait()
-    pending.extend(encode(Done(token=t, result=r)) for t, r in loop.abort("stopped"))
+    pending.extend(encode(Done(token=t, result=r)) for t, r in loop.abort(STOPPED))
     ring()
     del monitor
     publisher.close()  # its plant holds a view of the state block
@@ -438,6 +459,11 @@ class ExecutorProcess:
         self._callbacks: dict[int, tuple[OnDone, str]] = {}
         self.halts: collections.deque[Halting] = collections.deque(maxlen=64)
         """The latest halts the loop began (``Halting``, oldest first), as logged."""
+        self.on_start: OnStart | None = None
+        """Called on the reader thread when the loop starts a command (before its ``on_done``)."""
+        self.on_end: OnEnd | None = None
+        """Called on the reader thread when the loop ends a command, before its ``on_done``;
+        not for the answers this side makes up (a full ring, a loop that is gone)."""
         self._tokens = itertools.count(1)
         self._lock = threading.Lock()
         self._ready = threading.Event()
@@ -545,7 +571,7 @@ class ExecutorProcess:
         if self._delivery is not None:  # the results the loop gave, in order, then the rest fail
             self._delivery.close()
             self._delivery = None
-        self._fail_open("stopped")
+        self._fail_open(STOPPED)
         self._monitor = None
         self._state_reader = None
         states = (self._state, self._state_names)
@@ -702,7 +728,10 @@ class ExecutorProcess:
             return
         while (raw := results.pop()) is not None:
             msg = self._decode(raw)
-            if isinstance(msg, Done):
+            if isinstance(msg, Started):
+                self._hook(self.on_start, msg.token, msg.command, msg.sim_time)
+            elif isinstance(msg, Done):
+                self._ended(msg)
                 if self._delivery is not None:
                     self._delivery.put(msg.token, msg.result)
                 elif not isinstance(msg.result, WorldCapture):
@@ -730,6 +759,26 @@ class ExecutorProcess:
                 self.exit_reason = msg.text
             else:
                 log.error("executor command %s raised %s", msg.command, msg.text)
+
+    def _ended(self, msg: Done) -> None:
+        """Tell ``on_end`` that the loop ended the command of ``msg``."""
+        if self.on_end is None:
+            return
+        with self._lock:
+            entry = self._callbacks.get(msg.token)
+        name = entry[1] if entry is not None else "?"
+        result = msg.result
+        at = result.sim_time if isinstance(result, CommandResult) else result.stamp
+        self._hook(self.on_end, msg.token, name, at, outcome_of(result))
+
+    @staticmethod
+    def _hook(hook: Callable[..., None] | None, *args: object) -> None:
+        if hook is None:
+            return
+        try:
+            hook(*args)
+        except Exception:
+            log.exception("executor hook raised")
 
     def _answer(self, token: int, result: CommandResult | Observation) -> None:
         with self._lock:
