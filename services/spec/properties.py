@@ -161,12 +161,16 @@ def _step_problems(step: EventPattern, earlier: set[str]) -> list[str]:
         problems.append(f"at_least must be 1 or more, not {step.at_least}")
     if step.within_s is not None and step.within_s <= 0:
         problems.append(f"within_s must be positive, not {step.within_s}")
+    return problems + _path_problems(step)
+
+
+def _path_problems(step: EventPattern) -> list[str]:
+    """Malformed field paths, variables in ``refers`` or ``above``, empty lists of values."""
     paths = [*step.fields, *step.minimum, *step.refers, *step.above]
-    problems += [f"field path {p!r} is not a, a[key], a.b, …" for p in paths if not _PATH.match(p)]
+    problems = [f"field path {p!r} is not a, a[key], a.b, …" for p in paths if not _PATH.match(p)]
     named = [p for p in (*step.refers, *step.above) if "[$" in p]
     problems += [f"field path {p!r} of refers/above names a variable" for p in named]
-    problems += [f"field {p!r} lists no value" for p, v in step.fields.items() if v == []]
-    return problems
+    return problems + [f"field {p!r} lists no value" for p, v in step.fields.items() if v == []]
 
 
 def _absent_problems(step: EventPattern, n: int, steps: int) -> list[str]:

@@ -26,6 +26,7 @@ import enum
 import re
 from collections.abc import Iterable
 from dataclasses import dataclass
+from functools import partial
 from typing import Any
 
 from services.report.load import Message
@@ -78,18 +79,21 @@ def _values(content: object, path: str, bound: Vars) -> list[tuple[Any, Vars]]:
 
 def _step_into(value: Any, attribute: str, key: str | None, vs: Vars) -> list[tuple[Any, Vars]]:
     """``value.attribute``, then the element named ``key`` of it (a variable: each element)."""
-    if value is None:
-        return [(None, vs)]
-    value = getattr(value, attribute, None)
-    if key is None:
+    value = getattr(value, attribute, None) if value is not None else None
+    if key is None or value is None:
         return [(value, vs)]
-    if key.startswith("$"):
-        name = dict(vs).get(key[1:])
-        if name is None:
-            elements = [(x, getattr(x, "name", None)) for x in value or ()]
-            return [(x, (*vs, (key[1:], n))) for x, n in elements if isinstance(n, str)]
-        key = name
-    return [(next((x for x in value or () if getattr(x, "name", None) == key), None), vs)]
+    if not key.startswith("$"):
+        return [(_named(value, key), vs)]
+    bound = dict(vs).get(key[1:])
+    if bound is not None:
+        return [(_named(value, bound), vs)]
+    elements = [(x, getattr(x, "name", None)) for x in value]
+    return [(x, (*vs, (key[1:], n))) for x, n in elements if isinstance(n, str)]
+
+
+def _named(elements: Any, name: str) -> Any:
+    """The element of ``elements`` whose ``name`` is ``name``; None when there is none."""
+    return next((x for x in elements if getattr(x, "name", None) == name), None)
 
 
 def _fits_value(value: Any, expected: Expected) -> bool:
@@ -127,11 +131,11 @@ def _content_fits(step: EventPattern, content: object, bound: Vars) -> list[Vars
     the variables bound then, each way once."""
     if step.content is not None and type(content).__name__ != step.content:
         return []
+    tests = [(p, partial(_fits_value, expected=v)) for p, v in step.fields.items()]
+    tests += [(p, partial(_at_least, minimum=v)) for p, v in step.minimum.items()]
     ways = [bound]
-    for path, expected in step.fields.items():
-        ways = [vs2 for vs in ways for v, vs2 in _values(content, path, vs) if _fits_value(v, expected)]
-    for path, minimum in step.minimum.items():
-        ways = [vs2 for vs in ways for v, vs2 in _values(content, path, vs) if _at_least(v, minimum)]
+    for path, test in tests:
+        ways = [vs2 for vs in ways for v, vs2 in _values(content, path, vs) if test(v)]
     return list(dict.fromkeys(ways))
 
 
