@@ -33,7 +33,7 @@ R = PARTICLE_RADIUS
 
 FAR_PLACE = (0.34, -0.46, 0.75)
 """A table place 5 cm further from the head than BOWL_PLACE_POSITION: from there the bowl's
-near wall hides ring places 5, 6 and 7 of ``_layout`` (``NEAR_WALL``), which content.py
+near wall hides ring places 4, 5 and 6 of ``_layout`` (``NEAR_WALL``), which content.py
 infers."""
 
 
