@@ -109,6 +109,11 @@ def _interrupted(ends: Sequence[LedgerEntry]) -> bool:
     return all(e.outcome == INTERRUPTED for e in ends)
 
 
+def _replayed(entries: Sequence[LedgerEntry]) -> list[str]:
+    """ "command (conversation)" of each request a restarted ag_ex answered from the ledger."""
+    return sorted({f"{e.command} ({e.conversation})" for e in entries if e.event == "replayed"})
+
+
 def _answered_done(messages: Sequence[Message]) -> dict[str, str]:
     """Conversation-id → command of each request ag_ex answered done (module docstring)."""
     done: dict[str, str] = {}
@@ -145,5 +150,5 @@ def judge_ledger(run_dir: Path, messages: Sequence[Message]) -> LedgerVerdict:
         twice=twice,
         never_ran=never,
         resumed=resumed,
-        replayed=sorted({f"{e.command} ({e.conversation})" for e in read.entries if e.event == "replayed"}),
+        replayed=_replayed(read.entries),
     )

@@ -257,23 +257,31 @@ def recall(path: Path, max_bytes: int = MAX_RECALL_BYTES) -> dict[str, Recalled]
     Raises OSError when it exists but cannot be read."""
     if not path.is_file():
         return {}
-    with path.open("rb") as f:
-        size = os.fstat(f.fileno()).st_size
-        if size > max_bytes:
-            f.seek(size - max_bytes - 1)
-            f.readline(max_bytes + 1)  # the rest of a line cut by the start of the window
-        ends = [e for e in _read_lines(f, max_bytes).entries if e.event == "end"]
+    ends = [e for e in _tail(path, max_bytes).entries if e.event == "end" and _recallable(e)]
     side = path.with_name(ANSWERS_FILE)
     out: dict[str, Recalled] = {}
     with contextlib.ExitStack() as stack:
         store = stack.enter_context(side.open("rb")) if side.is_file() else None
         for e in ends:
-            if e.outcome == INTERRUPTED or e.conversation == "?" or e.conversation.endswith("…"):
-                continue
             answer = e.result if e.result is not None else _stored(store, e.stored)
             if answer is not None:
                 out[e.conversation] = Recalled(e.command, e.sim_time, answer)
     return out
+
+
+def _tail(path: Path, max_bytes: int) -> LedgerRead:
+    """The lines of the ledger at ``path`` that lie whole in its last ``max_bytes``."""
+    with path.open("rb") as f:
+        size = os.fstat(f.fileno()).st_size
+        if size > max_bytes:
+            f.seek(size - max_bytes - 1)
+            f.readline(max_bytes + 1)  # the rest of a line cut by the start of the window
+        return _read_lines(f, max_bytes)
+
+
+def _recallable(e: LedgerEntry) -> bool:
+    """An end whose command ran to its end, under a conversation-id kept whole."""
+    return e.outcome != INTERRUPTED and e.conversation != "?" and not e.conversation.endswith("…")
 
 
 def _stored(store: BinaryIO | None, where: tuple[int, int] | None) -> Answer | None:

@@ -331,15 +331,7 @@ class ExecutorAgent(Agent):
             or (isinstance(known.answer, WorldCapture) and replay is None)
         ):
             return False
-        if self.ledger is not None:
-            try:
-                self.ledger.replayed(conv.conversation_id, name, known.sim_time)
-            except OSError as exc:
-                self.counters["ledger_errors"] += 1
-                self.log.error(
-                    "ledger line of %s (conversation %s) not written: %s", name, conv.conversation_id, exc
-                )
-        self.counters["answered_from_ledger"] += 1
+        self._note_replayed(conv.conversation_id, name, known.sim_time)
         self.log.info(
             "%s (conversation %s) ended at sim time %.3f s in an earlier ag_ex: answered from the ledger",
             name,
@@ -355,6 +347,19 @@ class ExecutorAgent(Agent):
         ok = not isinstance(answer, CommandResult) or answer.ok
         conv.reply(Performative.INFORM if ok else Performative.FAILURE, answer)
         return True
+
+    def _note_replayed(self, conversation: str, name: str, sim_time: float) -> None:
+        """The ledger's ``replayed`` line of ``conversation``'s command ``name`` (counted, as
+        ``answered_from_ledger``); one that cannot be written is counted and logged as in
+        ``_note``."""
+        self.counters["answered_from_ledger"] += 1
+        if self.ledger is None:
+            return
+        try:
+            self.ledger.replayed(conversation, name, sim_time)
+        except OSError as exc:
+            self.counters["ledger_errors"] += 1
+            self.log.error("ledger line of %s (conversation %s) not written: %s", name, conversation, exc)
 
     def track(self, token: object, conv: Conversation) -> None:
         """Name ``conv``'s conversation-id in the ledger lines of the executor's ``token``."""
