@@ -60,6 +60,7 @@ if TYPE_CHECKING:
 
     from services.hosts.link import Shaping
     from services.live.watch import LiveWatch
+    from services.recorder.flags import FlagsReply
     from services.report.model import CoverageSummary
     from services.runtime.counters import CountersReport
     from services.scenario.model import Scenario
@@ -620,21 +621,20 @@ def _violated(run_dir: Path) -> str:
     return f"{which} violated during the run: {flags[0].line()}"
 
 
-def _flag_lines(runs_dir: Path) -> list[str]:
-    """`roco status`'s lines of the requirements the live monitor flagged violated in the run
-    folder of the fleet of `roco up` in ``runs_dir`` (services/recorder/flags.py): one per
-    flag, ``violated  R3.3 “…”: <event> at <time> (<what it came before>)``; none without
-    such a fleet or flag."""
-    from services.recorder.flags import read_flags
-
-    state = _fleet_state(runs_dir)
-    if state is None:
-        return []
-    try:
-        flags = read_flags(Path(state.run_dir))
-    except OSError as exc:
-        return [f"{'violated':9s} (the flags cannot be read: {exc})"]
-    return [f"{'violated':9s} {f.line()}" for f in flags]
+def _flag_lines(reply: FlagsReply | None) -> list[str]:
+    """`roco status`'s lines of the requirements the live monitor flagged violated, from the
+    traffic recorder's ``reply`` (services/recorder/flags.py ``ask_flags``): one per flag,
+    ``violated  R3.3 “…”: <event> at <time> (<what it came before>)``, then how many more the
+    recorder holds when it sent only the first; one line saying the recorder did not answer
+    when ``reply`` is None; none without a flag."""
+    if reply is None:
+        return [f"{'flags':9s} (the recorder did not answer: live requirement flags unknown)"]
+    lines = [f"{'violated':9s} {f.line()}" for f in reply.flags]
+    if reply.total > len(reply.flags):
+        lines.append(
+            f"{'violated':9s} (and {reply.total - len(reply.flags)} more in the run folder's flags.jsonl)"
+        )
+    return lines
 
 
 def _check_perception() -> None:
@@ -1152,9 +1152,11 @@ def status(
     received and rejected input (by reason; docs/security.md) and the handler and behaviour
     errors it counted (when any), and what each router with
     access control refused, named (identity, message, key, when); each router is named by its
-    host (brain, robot: `roco hosts`) or its endpoint; then, for a fleet of `roco up`, one line
-    per requirement property the live monitor found violated (requirement, property, the
-    communicate that violated it, when; docs/spec.md). Exit 1 if any agent is missing."""
+    host (brain, robot: `roco hosts`) or its endpoint; then one line per requirement property
+    the live monitor found violated, as the traffic recorder answers over Zenoh (requirement,
+    property, the communicate that violated it, when; docs/spec.md), or one line saying the
+    recorder did not answer. Exit 1 if any agent is missing."""
+    from services.recorder.flags import ask_flags
     from services.runtime.counters import ask_counters
     from services.runtime.refusals import RefusalReport, collect_reports
     from services.runtime.refusals import summary as refusal_summary
@@ -1166,6 +1168,7 @@ def status(
         alive = alive_agents(session)
         with collect_reports(session, refusals):
             reports = ask_counters(session, alive & {*AGENT_ORDER, "gateway"}, timeout=counters_timeout)
+        flags = ask_flags(session, timeout=counters_timeout)
         mine = {str(z) for z in session.info.routers_zid()}  # the router this session reached
     finally:
         session.close()
@@ -1177,7 +1180,7 @@ def status(
     for r in sorted(refusals, key=lambda r: names.get(r.router, r.router)):
         name = names.get(r.router, f"{r.router[:8]} (Zenoh id)")
         typer.echo(f"{'router':9s} {name}  {refusal_summary(r)}")
-    for line in _flag_lines(runs_dir):
+    for line in _flag_lines(flags):
         typer.echo(line)
     if not set(AGENT_ORDER) <= alive:
         raise typer.Exit(1)

@@ -7,7 +7,8 @@ start agents only after the recorder listens. A payload that is not a communicat
 with performative ``malformed``. Fault events (``roco/fault/event/*``, docs/faults.md) go to
 ``faults.jsonl``. Each communicate written is also given to the live requirements monitor
 (:data:`MONITOR`, loaded by name: services/spec_live/sink.py), which appends the requirement
-properties it finds violated to ``flags.jsonl`` as they happen (services/recorder/flags.py).
+properties it finds violated to ``flags.jsonl`` as they happen (services/recorder/flags.py);
+the recorder answers queries of ``roco/recorder/flags`` with them (``roco status``).
 """
 
 from __future__ import annotations
@@ -26,6 +27,7 @@ from typing import BinaryIO
 
 import msgspec
 
+from services.recorder.flags import flags_reply
 from services.recorder.record import (
     FAULTS_JSONL,
     TRAFFIC_JSONL,
@@ -335,6 +337,7 @@ def main() -> int:
     transport.subscribe_recovering(keys.FIPA_ALL, loop.inbox.put)
     transport.subscribe(keys.RECORDER_SYNC, loop.put)
     transport.subscribe(faults.EVENT_ALL, loop.put)
+    transport.serve(keys.RECORDER_FLAGS, lambda: flags_reply(run_dir))
     transport.announce(keys.alive_key(RECORDER))
 
     def on_signal(signum: int, frame: FrameType | None) -> None:

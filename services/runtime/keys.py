@@ -9,6 +9,9 @@ access control can say who may send what where (docs/security.md, "Who may send 
                                              object): JSON :class:`services.agents.executor.agent.Disturbance`
 ``roco/counters/ask``                        any put here makes every agent publish its counters
 ``roco/counters/report/<agent>``             an agent's counters (JSON, ``Agent.counters_report``)
+``roco/recorder/flags``                      a query here: the traffic recorder answers with the
+                                             live requirement flags of its run (JSON,
+                                             services/recorder/flags.py ``FlagsReply``)
 
 ``<sender>``, ``<receiver>`` and ``<agent>`` are FIPA agent names written as the key chunk
 ``shared.fipa_codec.names.key_chunk`` maps them to: roco's agents (``a_co``) as themselves,
@@ -42,6 +45,9 @@ RECORDER_SYNC = f"{PREFIX}/recorder/sync"
 """A token put here reaches the traffic recorder after every communicate routed before it;
 the recorder writes them all, then puts the token on ``RECORDER_SYNCED``."""
 RECORDER_SYNCED = f"{PREFIX}/recorder/synced"
+RECORDER_FLAGS = f"{PREFIX}/recorder/flags"
+"""The traffic recorder's queryable: a query here (``roco status``) is answered with the
+requirement properties the live monitor flagged violated in the recorder's run folder."""
 COUNTERS_ASK = f"{PREFIX}/counters/ask"
 """A put here (any payload) asks every agent for its counters (``roco status``)."""
 COUNTERS_ALL = f"{PREFIX}/counters/report/*"

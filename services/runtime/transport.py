@@ -489,6 +489,7 @@ class ZenohTransport:
         self._receiving_here = threading.local()
         """On a receiving thread: ``more``, whether a sample waits behind the one called back."""
         self._tokens: list[tuple[str, zenoh.LivelinessToken]] = []
+        self._queryables: list[zenoh.Queryable[None]] = []
         self._lock = threading.Lock()
         self._keys: dict[str, zenoh.KeyExpr] = {}
         self._publishers: dict[str, zext.AdvancedPublisher] = {}
@@ -662,6 +663,22 @@ class ZenohTransport:
         if self.on_lost is not None:
             self.on_lost(why)
 
+    def serve(self, key: str, answer: Callable[[], bytes]) -> None:
+        """Declare a queryable on ``key``: each query gets one reply on ``key``, the bytes of
+        ``answer()``, called on Zenoh's thread (it must be quick). When ``answer`` raises, the
+        query gets no reply (logged)."""
+
+        def on_query(query: zenoh.Query) -> None:
+            try:
+                payload = answer()
+            except Exception:
+                log.exception("the answer to a query on %s failed", key)
+                return
+            query.reply(key, payload)
+
+        with self._lock:
+            self._queryables.append(self.session.declare_queryable(key, on_query))
+
     def more_waiting(self) -> bool:
         """On a receiving thread of :meth:`subscribe`, inside its callback: whether another
         sample had arrived behind the one being called back (a burst: the agent takes them in
@@ -701,6 +718,8 @@ class ZenohTransport:
             pub.undeclare()
         for _, tok in self._tokens:
             tok.undeclare()
+        for queryable in self._queryables:
+            queryable.undeclare()
         for sub in self._subs:
             sub.undeclare()
         # a subscription read by a receiving thread is held by its recv(): closing the session

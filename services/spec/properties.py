@@ -33,7 +33,16 @@ steps, named by their ``name``:
 
 A content field is a path: ``state``, ``goal.verb``, ``objects[bowl].particles_inside`` (the
 element of ``objects`` whose ``name`` is ``bowl``). ``fields`` compares a value as text (an
-enum by its value) or as a number; ``minimum`` asks for a number at least that large.
+enum by its value) or as a number, or with a list of such values: any one of them;
+``minimum`` asks for a number at least that large.
+
+In ``fields`` and ``minimum`` an element's key may be a variable, ``objects[$held]``: the first
+step whose path names ``$held`` fits a communicate through any element of the list, and binds
+``$held`` to that element's ``name`` for the rest of the match (one partial match per element
+that fits); a later step's ``objects[$held]`` is that same element, an ``absent`` step's too.
+So ``{ "objects[$held].held_by" = ["left_gripper", "right_gripper"] }`` then ``{
+"objects[$held].held_by" = "" }`` is "an object held by either gripper, then that object held
+by nothing". ``refers`` and ``above`` name no variable.
 
 ``exercised`` says how many leading steps describe the situation the requirement is about
 (absent steps among them counted): once a run matched them, the rest must follow, else the
@@ -49,6 +58,8 @@ import msgspec
 
 FieldValue = str | int | float | bool
 """A value a content field is compared with."""
+Expected = FieldValue | list[FieldValue]
+"""What ``fields`` gives for a path: a value, or a list of values any one of which fits."""
 
 _PATH = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*(\[[^\]]+\])?(\.[A-Za-z_][A-Za-z0-9_]*(\[[^\]]+\])?)*$")
 """``name``, ``name[key]``, joined by dots."""
@@ -64,7 +75,7 @@ class EventPattern(msgspec.Struct, frozen=True, forbid_unknown_fields=True, kw_o
     content: str | None = None
     sender: str | None = None
     receiver: str | None = None
-    fields: dict[str, FieldValue] = {}
+    fields: dict[str, Expected] = {}
     minimum: dict[str, float] = {}
     at_least: int = 1
     same_conversation: str | None = None
@@ -93,8 +104,10 @@ class EventPattern(msgspec.Struct, frozen=True, forbid_unknown_fields=True, kw_o
         return ("no " * self.absent) + (f"{words} ≥{self.at_least}" if self.at_least > 1 else words)
 
 
-def _shown(value: FieldValue) -> str:
-    """A field's value as a pattern shows it (the empty text as ``""``)."""
+def _shown(value: Expected) -> str:
+    """A field's value as a pattern shows it (the empty text as ``""``, a list as ``a|b``)."""
+    if isinstance(value, list):
+        return "|".join(_shown(v) for v in value)
     return '""' if value == "" else str(value)
 
 
@@ -121,7 +134,8 @@ def property_problems(prop: Property) -> list[str]:
     """What is wrong in ``prop`` itself, as sentences (its steps' patterns are checked against
     the channels by services/spec/requirements.py): no steps; ``exercised`` outside 1..steps;
     a name used twice; a step naming no earlier step; ``at_least`` below 1; ``within_s`` not
-    positive; a field path that is not ``a``, ``a[key]``, ``a.b``…; an ``absent`` step first,
+    positive; a field path that is not ``a``, ``a[key]``, ``a.b``…, or a variable in a path of
+    ``refers`` or ``above``; an empty list of values; an ``absent`` step first,
     last, named, or with ``at_least``, ``within_s`` or ``next``."""
     if not prop.steps:
         return ["no steps"]
@@ -147,9 +161,16 @@ def _step_problems(step: EventPattern, earlier: set[str]) -> list[str]:
         problems.append(f"at_least must be 1 or more, not {step.at_least}")
     if step.within_s is not None and step.within_s <= 0:
         problems.append(f"within_s must be positive, not {step.within_s}")
+    return problems + _path_problems(step)
+
+
+def _path_problems(step: EventPattern) -> list[str]:
+    """Malformed field paths, variables in ``refers`` or ``above``, empty lists of values."""
     paths = [*step.fields, *step.minimum, *step.refers, *step.above]
-    problems += [f"field path {p!r} is not a, a[key], a.b, …" for p in paths if not _PATH.match(p)]
-    return problems
+    problems = [f"field path {p!r} is not a, a[key], a.b, …" for p in paths if not _PATH.match(p)]
+    named = [p for p in (*step.refers, *step.above) if "[$" in p]
+    problems += [f"field path {p!r} of refers/above names a variable" for p in named]
+    return problems + [f"field {p!r} lists no value" for p, v in step.fields.items() if v == []]
 
 
 def _absent_problems(step: EventPattern, n: int, steps: int) -> list[str]:

@@ -36,13 +36,14 @@ it hears ``roco/fipa/C8/a_hi/$*@$*``, holds ``roco/alive/gateway`` and answers
 
 The recorder hears every communicate (``roco/fipa/**``), the sync token and fault events, and
 answers on ``roco/recorder/synced``; its advanced subscriber queries the publishers' caches,
-watches their liveliness tokens and hears their heartbeats (``roco/fipa/**/@adv/**``).
+watches their liveliness tokens and hears their heartbeats (``roco/fipa/**/@adv/**``). It
+answers queries of ``roco/recorder/flags`` (the live requirement flags) and no other.
 
 The operator (``roco send``/``status``/``sniff``/``fault``, the scenario runner, the launcher's
 liveliness wait) may hear everything under ``roco/**`` and put on the human's receptor, the
-simulated world's disturbances, the recorder's sync key and the fault keys the injector uses —
-but never on ``roco/fipa/**`` and never a liveliness token; its advanced subscriber of a_hi's
-reports watches, hears and queries ``roco/human/out/@adv/**``.
+simulated world's disturbances, the recorder's sync key and the fault keys the injector uses,
+and query the recorder's flags — but never on ``roco/fipa/**`` and never a liveliness token; its
+advanced subscriber of a_hi's reports watches, hears and queries ``roco/human/out/@adv/**``.
 
 Zenoh (1.10) allows a message when an allow rule's key expression *includes* the message's key
 expression (a subscriber on ``roco/fipa/**`` is not allowed by rules naming single channels).
@@ -287,6 +288,10 @@ def recorder_grants() -> Grants:
     g.allow("ingress", "liveliness_query", keys.FIPA_CACHES)
     g.allow("egress", "liveliness_token", keys.FIPA_CACHES)
     g.own_token(keys.alive_key(RECORDER))
+    # its queryable of the live requirement flags (roco status asks it)
+    g.allow("ingress", "declare_queryable", keys.RECORDER_FLAGS)
+    g.allow("egress", "query", keys.RECORDER_FLAGS)
+    g.allow("ingress", "reply", keys.RECORDER_FLAGS)
     return g
 
 
@@ -312,6 +317,8 @@ def operator_grants() -> Grants:
     g.allow("ingress", "declare_liveliness_subscriber", keys.HUMAN_OUT_CACHES)
     g.allow("ingress", "liveliness_query", keys.HUMAN_OUT_CACHES)
     g.allow("egress", "liveliness_token", keys.HUMAN_OUT_CACHES)
+    g.allow("ingress", "query", keys.RECORDER_FLAGS)  # the recorder's flags (roco status)
+    g.allow("egress", "reply", keys.RECORDER_FLAGS)
     return g
 
 

@@ -26,10 +26,11 @@ import enum
 import re
 from collections.abc import Iterable
 from dataclasses import dataclass
+from functools import partial
 from typing import Any
 
 from services.report.load import Message
-from services.spec.properties import EventPattern, FieldValue, Property
+from services.spec.properties import EventPattern, Expected, FieldValue, Property
 
 __all__ = ["MAX_PARTIALS", "Monitor", "Outcome", "Verdict", "Violation", "evaluate", "field_value"]
 
@@ -50,21 +51,56 @@ class Verdict(enum.StrEnum):
     VIOLATED = "violated"
 
 
-_MISSING = object()
+Vars = tuple[tuple[str, str], ...]
+"""The variables a partial match bound (services/spec/properties.py), in binding order:
+(variable without its ``$``, the element's name)."""
 
 
 def field_value(content: object, path: str) -> Any:
     """The value at ``path`` (``a``, ``a[key]``, ``a.b``; ``[key]`` picks the element whose
-    ``name`` is ``key``) in ``content``; an enum as its value; None when a part is missing."""
-    value: Any = content
+    ``name`` is ``key``; ``[$var]`` the first element) in ``content``; an enum as its value;
+    None when a part is missing."""
+    found = _values(content, path, ())
+    return found[0][0] if found else None
+
+
+def _values(content: object, path: str, bound: Vars) -> list[tuple[Any, Vars]]:
+    """Every value at ``path`` in ``content`` with the variables it binds on top of
+    ``bound``: one for a path without an unbound variable (None when a part is missing), one
+    per element for each ``[$var]`` not in ``bound``; an enum as its value."""
+    found: list[tuple[Any, Vars]] = [(content, bound)]
     for segment in path.split("."):
         m = _SEGMENT.match(segment)
-        if m is None or value is None:
-            return None
-        value = getattr(value, m.group(1), None)
-        if m.group(2) is not None:
-            value = next((x for x in value or () if getattr(x, "name", None) == m.group(2)), None)
-    return value.value if isinstance(value, enum.Enum) else value
+        if m is None:
+            return [(None, bound)]
+        found = [x for value, vs in found for x in _step_into(value, m.group(1), m.group(2), vs)]
+    return [(v.value if isinstance(v, enum.Enum) else v, vs) for v, vs in found]
+
+
+def _step_into(value: Any, attribute: str, key: str | None, vs: Vars) -> list[tuple[Any, Vars]]:
+    """``value.attribute``, then the element named ``key`` of it (a variable: each element)."""
+    value = getattr(value, attribute, None) if value is not None else None
+    if key is None or value is None:
+        return [(value, vs)]
+    if not key.startswith("$"):
+        return [(_named(value, key), vs)]
+    bound = dict(vs).get(key[1:])
+    if bound is not None:
+        return [(_named(value, bound), vs)]
+    elements = [(x, getattr(x, "name", None)) for x in value]
+    return [(x, (*vs, (key[1:], n))) for x, n in elements if isinstance(n, str)]
+
+
+def _named(elements: Any, name: str) -> Any:
+    """The element of ``elements`` whose ``name`` is ``name``; None when there is none."""
+    return next((x for x in elements if getattr(x, "name", None) == name), None)
+
+
+def _fits_value(value: Any, expected: Expected) -> bool:
+    """``value`` is ``expected``, or one of them when it is a list."""
+    if isinstance(expected, list):
+        return any(_equal(value, e) for e in expected)
+    return _equal(value, expected)
 
 
 def _equal(value: Any, expected: FieldValue) -> bool:
@@ -75,26 +111,32 @@ def _equal(value: Any, expected: FieldValue) -> bool:
     return value is not None and str(value) == expected
 
 
-def _fits(step: EventPattern, m: Message) -> bool:
-    """``m`` is what ``step`` describes, leaving aside the earlier events."""
+def _fits(step: EventPattern, m: Message, bound: Vars = ()) -> list[Vars]:
+    """The ways ``m`` is what ``step`` describes, leaving aside the earlier events: the
+    variables bound then, on top of ``bound`` (none: it is not)."""
     rec = m.rec
-    return (
+    if not (
         rec.channel == step.channel
         and step.protocol in (None, rec.protocol)
         and step.performative in (None, rec.performative)
         and step.sender in (None, rec.sender)
         and (step.receiver is None or step.receiver in rec.receivers)
-        and _content_fits(step, m.content)
-    )
+    ):
+        return []
+    return _content_fits(step, m.content, bound)
 
 
-def _content_fits(step: EventPattern, content: object) -> bool:
-    """``content`` is the term ``step`` names, with its ``fields`` and ``minimum``."""
-    return (
-        (step.content is None or type(content).__name__ == step.content)
-        and all(_equal(field_value(content, p), v) for p, v in step.fields.items())
-        and all(_at_least(field_value(content, p), v) for p, v in step.minimum.items())
-    )
+def _content_fits(step: EventPattern, content: object, bound: Vars) -> list[Vars]:
+    """The ways ``content`` is the term ``step`` names, with its ``fields`` and ``minimum``:
+    the variables bound then, each way once."""
+    if step.content is not None and type(content).__name__ != step.content:
+        return []
+    tests = [(p, partial(_fits_value, expected=v)) for p, v in step.fields.items()]
+    tests += [(p, partial(_at_least, minimum=v)) for p, v in step.minimum.items()]
+    ways = [bound]
+    for path, test in tests:
+        ways = [vs2 for vs in ways for v, vs2 in _values(content, path, vs) if test(v)]
+    return list(dict.fromkeys(ways))
 
 
 def _at_least(value: Any, minimum: float) -> bool:
@@ -112,12 +154,14 @@ def _in_reply_to(m: Message) -> str | None:
 @dataclass(frozen=True)
 class _Partial:
     """The steps before ``step`` matched (``bound``: the first event of each that binds one;
-    absent steps bind none), ``count`` communicates matched of step ``step``, the next step
-    that binds (an absent step is never waited on: the ones just before ``step`` watch)."""
+    absent steps bind none; ``vars``: the variables bound), ``count`` communicates matched of
+    step ``step``, the next step that binds (an absent step is never waited on: the ones just
+    before ``step`` watch)."""
 
     step: int
     count: int
     bound: tuple[Message, ...]
+    vars: Vars = ()
 
 
 @dataclass(frozen=True)
@@ -223,10 +267,10 @@ class Monitor:
 
     def _advance_all(self, m: Message) -> None:
         """Every partial match advanced by ``m`` (repeats merged, complete ones let go)."""
-        advanced: dict[tuple[int, int, tuple[int, ...]], _Partial] = {}
+        advanced: dict[tuple[int, int, tuple[int, ...], Vars], _Partial] = {}
         for p in self._partials:
             for q in self._advance(p, m):
-                advanced.setdefault((q.step, q.count, tuple(id(x) for x in q.bound)), q)
+                advanced.setdefault((q.step, q.count, tuple(id(x) for x in q.bound), q.vars), q)
         self._partials = [q for q in advanced.values() if q.step < len(self.prop.steps)]
         if len(self._partials) > MAX_PARTIALS:
             self._partials, self.capped = self._partials[:MAX_PARTIALS], True
@@ -235,13 +279,14 @@ class Monitor:
         """``p`` and what ``m`` makes of it: kept, advanced (and kept, when the step branches),
         or dropped (a ``next`` step whose first fitting communicate is not related)."""
         step = self.prop.steps[p.step]
-        if not _fits(step, m):
+        ways = _fits(step, m, p.vars)
+        if not ways:
             return self._guard(p, m)
         if not self._related(step, m, p.bound):
             return [] if step.next and p.count == 0 else self._guard(p, m)
-        q = self._step(p, m, step.at_least)
+        qs = [self._step(p, m, step.at_least, vs) for vs in ways]
         keep = p.count == 0 and self._branch[p.step] and not step.next
-        return [p, q] if keep else [q]
+        return [p, *qs] if keep else qs
 
     def _guard(self, p: _Partial, m: Message) -> list[_Partial]:
         """``p``, unless ``m`` is what an absent step before its next step forbids: then the
@@ -250,18 +295,19 @@ class Monitor:
             return [p]
         for g in self._guards[p.step]:
             guard = self.prop.steps[g]
-            if _fits(guard, m) and self._related(guard, m, p.bound):
+            if _fits(guard, m, p.vars) and self._related(guard, m, p.bound):
                 if g >= self.prop.situation and self.violation is None:
                     self.violation = Violation(g, m, p.bound)
                 return []
         return [p]
 
-    def _step(self, p: _Partial, m: Message, at_least: int) -> _Partial:
-        """``p`` with ``m`` counted for its step (and bound, when it is the first)."""
+    def _step(self, p: _Partial, m: Message, at_least: int, vs: Vars) -> _Partial:
+        """``p`` with ``m`` counted for its step (and bound, when it is the first), with the
+        variables ``vs``."""
         bound = (*p.bound, m) if p.count == 0 else p.bound
         if p.count + 1 < at_least:
-            return _Partial(p.step, p.count + 1, bound)
-        q = _Partial(self._after[p.step], 0, bound)
+            return _Partial(p.step, p.count + 1, bound, vs)
+        q = _Partial(self._after[p.step], 0, bound, vs)
         if len(q.bound) > len(self._furthest):
             self._furthest = q.bound
         self.exercised = self.exercised or p.step + 1 >= self.prop.situation

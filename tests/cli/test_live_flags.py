@@ -1,18 +1,17 @@
 """`roco run` / `roco scenario` exit 1 with one `roco:` line naming a requirement the live
 monitor flagged during the run (services/recorder/flags.py), even when the run went as
-expected; `roco status` lists the flags of the fleet of `roco up`. A run folder with a planted
-flag, no fleet."""
+expected; `roco status` lists the flags the traffic recorder answers with. A run folder with a
+planted flag, no fleet."""
 
 from __future__ import annotations
 
 from pathlib import Path
 
-import msgspec
 import pytest
 import typer
 
-from services.cli import FLEET_FILE, FleetState, _exit_on_failure, _flag_lines
-from services.recorder.flags import LiveFlag, append_flag
+from services.cli import _exit_on_failure, _flag_lines
+from services.recorder.flags import FlagsReply, LiveFlag, append_flag
 
 FLAG = LiveFlag(
     requirement="R3.3",
@@ -45,11 +44,12 @@ def test_a_flag_makes_a_run_that_went_well_exit_1_with_one_line(
     assert line.startswith("roco: scenario “s” did not go as expected: #1 failed; requirement R3.3 violated")
 
 
-def test_status_lists_the_flags_of_the_fleet(tmp_path: Path) -> None:
-    run_dir = tmp_path / "run"
-    run_dir.mkdir()
-    assert _flag_lines(tmp_path) == []  # no fleet
-    (tmp_path / FLEET_FILE).write_bytes(msgspec.json.encode(FleetState("tcp/127.0.0.1:1", str(run_dir), {})))
-    assert _flag_lines(tmp_path) == []  # no flag
-    append_flag(run_dir, FLAG)
-    assert _flag_lines(tmp_path) == [f"violated  {FLAG.line()}"]
+def test_status_lists_the_flags_the_recorder_answered_with() -> None:
+    """One line per flag; how many more when the answer was capped; one line when no recorder
+    answered (tests/recorder/test_flags_query.py asks a real recorder)."""
+    assert _flag_lines(FlagsReply(flags=[], total=0)) == []
+    assert _flag_lines(FlagsReply(flags=[FLAG], total=1)) == [f"violated  {FLAG.line()}"]
+    assert _flag_lines(FlagsReply(flags=[FLAG], total=3))[1:] == [
+        "violated  (and 2 more in the run folder's flags.jsonl)"
+    ]
+    assert _flag_lines(None) == ["flags     (the recorder did not answer: live requirement flags unknown)"]

@@ -8,7 +8,7 @@ the scenario expects: only the live flag makes the exit non-zero.
 One fleet run (about 40 s on a 2-core VM), checked for: the exit and its one ``roco:`` line
 naming R3.3, the flag in the run folder (raised by the recorder while traffic still came,
 before the run ended), the recorder's log, the report's lines beside the requirements'
-verdicts, and `roco status`'s line."""
+verdicts, and `roco status`'s line from a recorder started again on the run folder."""
 
 from __future__ import annotations
 
@@ -17,13 +17,14 @@ import subprocess
 import sys
 from pathlib import Path
 
-import msgspec
 import pytest
 
-from services.cli import FLEET_FILE, FleetState, _flag_lines
-from services.recorder.flags import read_flags
+from services.cli import _flag_lines
+from services.fleet.launcher import Fleet, free_port
+from services.recorder.flags import ask_flags, read_flags
 from services.report.load import load_run
 from services.runtime.run_folder import read_run_info
+from services.runtime.session import open_client
 from services.spec.model import DEFAULT_SPEC
 from shared.fipa_codec.languages.l_sw import SWState, SWStatus
 
@@ -98,8 +99,22 @@ def test_the_planted_a_ta_is_flagged_live_and_the_run_exits_non_zero(
     row = next(line for line in report.splitlines() if line.startswith("| R3.3 "))
     assert row.endswith("| **violated** |"), row
 
-    # roco status of a fleet whose run folder this is: one line for the flag
-    runs = tmp_path / "runs"
-    runs.mkdir()
-    (runs / FLEET_FILE).write_bytes(msgspec.json.encode(FleetState("tcp/127.0.0.1:1", str(run_dir), {})))
-    assert _flag_lines(runs) == [f"violated  {flag.line()}"]
+    # a recorder on this run folder answers roco status with the flag (a router and a recorder
+    # on a loopback endpoint; tests/recorder/test_flags_query.py for the query itself)
+    fleet = Fleet(
+        run_dir,
+        f"tcp/127.0.0.1:{free_port()}",
+        env={"ROCO_SPEC": str(run_dir.parent.parent / "planted.toml")},
+    )
+    fleet.start_router()
+    fleet.start_recorder()
+    try:
+        session = open_client(fleet.endpoint)
+        try:
+            fleet.wait_alive(session, ["recorder"], timeout=30.0)
+            reply = ask_flags(session, timeout=30.0)
+        finally:
+            session.close()
+    finally:
+        fleet.stop()
+    assert reply is not None and _flag_lines(reply) == [f"violated  {flag.line()}"]

@@ -26,6 +26,7 @@ from services.deploy.deploy import issue_router, prepare
 from services.hosts.fleet import TwoHosts
 from services.hosts.link import Shaping
 from services.hosts.netns import HostPair, netns_exec
+from services.recorder.flags import LiveFlag, append_flag
 from services.recorder.record import read_link_events
 from services.recorder.sync import sync_fleet
 from services.replay.driver import render as replay_render
@@ -41,6 +42,17 @@ from tests.support.machine import needs_two_hosts
 pytestmark = [pytest.mark.fleet, needs_two_hosts]
 
 SHAPING = Shaping(delay_ms=20, jitter_ms=5, loss_pct=1)
+FLAG = LiveFlag(
+    requirement="R3.3",
+    prop="p",
+    event="C1 a_ta → a_co inform",
+    why="w",
+    t=0.0,
+    seq=1,
+    recorded=2,
+    flagged=0.0,
+)
+"""A live requirement flag planted in a fleet's run folder (services/recorder/flags.py)."""
 POUR = "pour the jar into the bowl"
 ENV = {"ROCO_REALTIME": "0", "ROCO_RERUN": "0"}
 
@@ -331,7 +343,8 @@ def _open_when_listening(endpoint: str, timeout: float = 10.0) -> zenoh.Session:
 
 
 def test_roco_hosts_up_status_partition_down(tmp_path: Path) -> None:
-    """What a user types (docs/deploy.md): `roco hosts up`, `roco status` through the mesh,
+    """What a user types (docs/deploy.md): `roco hosts up`, `roco status` through the mesh (with
+    a live requirement flag planted in the run folder: the brain's recorder answers with it),
     `roco hosts partition 1`, `roco hosts status`, `roco hosts down` — nothing left behind."""
 
     def roco(*args: str) -> subprocess.CompletedProcess[str]:
@@ -349,6 +362,11 @@ def test_roco_hosts_up_status_partition_down(tmp_path: Path) -> None:
         assert all(
             f"{n:9s} alive" in status.stdout for n in ("a_hi", "a_co", "a_pl", "a_km", "a_ta", "ag_ex")
         )
+        assert "violated" not in status.stdout and "did not answer" not in status.stdout, status.stdout
+        # a flag planted in the run folder reaches roco status from the brain's recorder
+        append_flag(Path(state["run_dir"]), FLAG)
+        flagged = roco("status")
+        assert f"violated  {FLAG.line()}" in flagged.stdout.splitlines(), flagged.stdout
         cut = roco("hosts", "partition", "1")
         assert cut.returncode == 0 and "link up" in cut.stdout, cut.stderr
         shown = roco("hosts", "status")

@@ -248,6 +248,7 @@ def test_an_agent_that_raised_fails_the_verdict(tmp_path: Path) -> None:
     b = RunBuilder()
     b.add(1, "C5", "ag_ex", "a_ta", "inform", _observation(0.76), protocol="fipa-request", conversation="c")
     run = _run(tmp_path, b)
+    ran(run, ("c", "observe", 0.5, 0.9))
     assert verdict(run, _done()).ok
     outcome = _done()
     outcome.raised = {"a_ta": {"handler_errors": 2}}

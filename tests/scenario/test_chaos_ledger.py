@@ -1,6 +1,6 @@
 """`roco chaos`'s "nothing executed twice" asks ag_ex's ledger too (velma/executor/ledger.py,
 services/report/ledger.py): each fault is planted in a mutated ledger beside a synthetic record
-(a real fleet's ledger: tests/integration/test_ledger_plant.py)."""
+(a real fleet's ledger: tests/integration/test_planted_faults_run.py)."""
 
 from __future__ import annotations
 

@@ -130,6 +130,23 @@ def test_operator_observes_and_commands_but_never_speaks_fipa(spec: SystemSpec) 
     assert not g.may("ingress", "put", keys.HUMAN_OUT)
 
 
+def test_only_the_recorder_answers_queries_of_its_flags_and_the_operator_asks(spec: SystemSpec) -> None:
+    """roco status asks the recorder for the live requirement flags (services/recorder/flags.py)."""
+    rec, op = recorder_grants(), operator_grants()
+    assert rec.allowed[("ingress", "declare_queryable")] == [keys.RECORDER_FLAGS]
+    assert rec.may("egress", "query", keys.RECORDER_FLAGS) and rec.may(
+        "ingress", "reply", keys.RECORDER_FLAGS
+    )
+    assert op.may("ingress", "query", keys.RECORDER_FLAGS) and op.may("egress", "reply", keys.RECORDER_FLAGS)
+    assert not op.allowed.get(("ingress", "declare_queryable")) and not op.may(
+        "ingress", "reply", keys.RECORDER_FLAGS
+    )
+    for a in spec.agents:
+        g = agent_grants(spec, a.name)
+        assert not g.may("ingress", "declare_queryable", keys.RECORDER_FLAGS)
+        assert not g.may("ingress", "reply", keys.RECORDER_FLAGS)
+
+
 def test_acl_config_is_default_deny_with_one_subject_and_policy_per_identity(spec: SystemSpec) -> None:
     names = identities(spec)
     assert names == [*(a.name for a in spec.agents), RECORDER, OPERATOR, GATEWAY]

@@ -17,6 +17,7 @@ from services.recorder.record import TRAFFIC_JSONL, read_payloads
 from services.report.load import Message, load_run
 from services.runtime.run_folder import RUN_INFO
 from shared.fipa_codec import Communicate, decode, encode
+from shared.fipa_codec.languages import decode_content, encode_content
 from tests.report.conftest import STARTED, RunBuilder, write_raw
 
 URGENT = Path(__file__).parent / "fixtures" / "urgent_mid_pour"
@@ -82,6 +83,20 @@ class Recorded:
                 messages[i].rec, conversation_id=comm.conversation_id, size=len(payloads[i])
             )
             messages[i] = Message(rec, messages[i].t, comm, messages[i].content)
+        return Recorded(self.source, messages, payloads)
+
+    def recontent(self, pick: Pick, change: Callable[[msgspec.Struct], msgspec.Struct]) -> Recorded:
+        """The communicates ``pick`` chooses with their content term replaced by ``change`` of
+        it, re-encoded."""
+        messages, payloads = list(self.messages), list(self.payloads)
+        for i in self.select(pick):
+            content = messages[i].content
+            assert content is not None, "the mutation picks a communicate without content"
+            language, data = encode_content(change(content))
+            comm: Communicate = msgspec.structs.replace(decode(payloads[i]), language=language, content=data)
+            payloads[i] = encode(comm)
+            rec = msgspec.structs.replace(messages[i].rec, size=len(payloads[i]))
+            messages[i] = Message(rec, messages[i].t, comm, decode_content(language, data))
         return Recorded(self.source, messages, payloads)
 
     def plus(self, b: RunBuilder) -> Recorded:

@@ -6,10 +6,12 @@ The record is part of one ``roco scenario urgent_mid_pour`` (tests/spec_check/fi
 urgent_mid_pour/README.md): a_co cancels the pour while a_ta holds the jar; a_ta puts the jar
 down (its C6 update to a_km: the jar held by nothing), then reports Preempted. Mutations of a
 copy of it plant the faults: the put-down removed (Preempted with the jar in hand), the
-put-down moved before the cancel (nothing held when the cancel comes)."""
+put-down moved before the cancel (nothing held when the cancel comes), the bowl (held by the
+right gripper) kept in hand at the cancel, the jar taken by the right gripper instead."""
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
 
 import msgspec
@@ -20,12 +22,13 @@ from services.recorder.flags import FLAGS_JSONL, LiveFlag, append_flag, read_fla
 from services.report.load import Message
 from services.spec.decomposition import load_decomposition
 from services.spec.model import DEFAULT_SPEC
-from services.spec.properties import EventPattern, Property, property_problems
+from services.spec.properties import EventPattern, Expected, Property, property_problems
 from services.spec.requirements import leaves
-from services.spec_check.properties import Monitor, Verdict, field_value
+from services.spec_check.properties import Monitor, Verdict, _content_fits, field_value
 from services.spec_live.live import CausalFeed, LiveMonitor
 from services.spec_live.sink import open_sink, watched
 from shared.fipa_codec.languages.l_sw import SWStatus
+from shared.fipa_codec.languages.l_wm import ObjectUpdate, WorldUpdate
 from tests.spec_check.recorded import URGENT, Recorded
 
 pytestmark = pytest.mark.requirement("R3.3")
@@ -92,6 +95,78 @@ def test_a_jar_put_down_before_the_cancel_does_not_make_the_situation(urgent: Re
     moved = urgent.move(_put_down, before=_cancel)
     seen = _verdicts(SAFE, _causal(moved))
     assert Verdict.VIOLATED not in seen and seen[-1] == Verdict.NOT_EXERCISED
+
+
+def _released(name: str) -> Callable[[Message], bool]:
+    def pick(m: Message) -> bool:
+        return (
+            m.channel == "C6"
+            and m.sender == "a_ta"
+            and field_value(m.content, f"objects[{name}].held_by") == ""
+        )
+
+    return pick
+
+
+def _taken(m: Message) -> bool:
+    return m.channel == "C6" and field_value(m.content, "objects[jar].held_by") == "left_gripper"
+
+
+def _in_right(content: msgspec.Struct) -> msgspec.Struct:
+    assert isinstance(content, WorldUpdate)
+    objects = tuple(
+        msgspec.structs.replace(o, held_by="right_gripper") if o.name == "jar" else o for o in content.objects
+    )
+    return msgspec.structs.replace(content, objects=objects)
+
+
+def test_an_object_in_the_right_gripper_at_the_cancel_must_be_put_down_too(urgent: Recorded) -> None:
+    """The bowl, held by the right gripper before the cancel, kept in hand (its release
+    removed): Preempted comes with the bowl in hand, and the property is violated there."""
+    messages = _causal(urgent.remove(_released("bowl")))
+    seen = _verdicts(SAFE, messages)
+    at = seen.index(Verdict.VIOLATED)
+    assert _preempted(messages[at]) and set(seen[at:]) == {Verdict.VIOLATED}
+
+
+def test_the_jar_taken_by_the_right_gripper_is_followed_as_by_the_left(urgent: Recorded) -> None:
+    """The jar's grasp rewritten to the right gripper: put down before Preempted, shown;
+    its put-down removed, violated at the Preempted."""
+    right = urgent.recontent(_taken, _in_right)
+    assert any(field_value(m.content, "objects[jar].held_by") == "right_gripper" for m in right.messages)
+    seen = _verdicts(SAFE, _causal(right))
+    assert Verdict.VIOLATED not in seen and seen[-1] == Verdict.SHOWN
+    messages = _causal(right.remove(_put_down))
+    seen = _verdicts(SAFE, messages)
+    assert _preempted(messages[seen.index(Verdict.VIOLATED)])
+
+
+def test_a_variable_binds_one_element_per_match() -> None:
+    """``objects[$o]`` fits through each element; a later ``objects[$o]`` is that element."""
+    held = WorldUpdate(
+        stamp=1.0,
+        objects=(
+            ObjectUpdate(name="jar", held_by="left_gripper"),
+            ObjectUpdate(name="bowl", held_by="right_gripper"),
+        ),
+    )
+    either: dict[str, Expected] = {"objects[$o].held_by": ["left_gripper", "right_gripper"]}
+    step = EventPattern(channel="C6", content="WorldUpdate", fields=either)
+    assert _content_fits(step, held, ()) == [(("o", "jar"),), (("o", "bowl"),)]
+    released = WorldUpdate(stamp=2.0, objects=(ObjectUpdate(name="bowl", held_by=""),))
+    down = EventPattern(channel="C6", content="WorldUpdate", fields={"objects[$o].held_by": ""})
+    assert _content_fits(down, released, (("o", "bowl"),)) == [(("o", "bowl"),)]
+    assert _content_fits(down, released, (("o", "jar"),)) == []
+    assert step.describe() == "C6 WorldUpdate objects[$o].held_by=left_gripper|right_gripper"
+    cross = EventPattern(channel="C6", refers={"objects[$o].name": "x"}, name="y")
+    empty = EventPattern(channel="C6", fields={"a": []})
+    problems = property_problems(
+        Property(text="x", steps=(EventPattern(channel="C6", name="x"), cross, empty))
+    )
+    assert problems == [
+        "step 2 (C6): field path 'objects[$o].name' of refers/above names a variable",
+        "step 3 (C6 a=): field 'a' lists no value",
+    ]
 
 
 def test_absent_steps_are_checked() -> None:

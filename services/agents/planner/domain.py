@@ -372,7 +372,11 @@ def _relation(s: Any, furniture: str) -> str:
 def m_fetch(s: Any, path: str, obj: str, arm: str) -> Any:
     """Face the furniture ``obj`` stands on or in, look at the object and check it is where it
     should be, (take the grasp's arm posture,) open the hand, (enter,) go to the pre-grasp pose
-    and take it: approach, grasp, lift, withdraw (atomic)."""
+    and take it: approach, grasp, lift, withdraw (atomic). The posture and the entry are taken
+    only at the grasp's own facing (the cabinet's, ``GRASP_FACING``): into the cabinet the hand
+    enters horizontally; elsewhere (the table) it goes straight to the pre-grasp pose above the
+    object (an entry point 0.25 m back from the bowl at its table place folds the right wrist
+    onto itself)."""
     pose = s.pose.get(obj)
     grasp = _best_grasp(s, obj, arm)
     if pose is None or grasp is None or s.holding[arm] is not None:
@@ -398,7 +402,7 @@ def m_fetch(s: Any, path: str, obj: str, arm: str) -> Any:
         steps.append(("a_posture", f"{path}/arm_posture", arm, grasp.posture, SHORT_MOVE_S))
     steps.append(("a_preshape", f"{path}/open_hand", arm, grasp.preshape))
     first_move = SHORT_MOVE_S if grasp.posture else LONG_MOVE_S
-    if grasp.entry is not None and grasp.entry_distance > 0:
+    if grasp.entry is not None and grasp.entry_distance > 0 and abs(turn) < 1e-9:
         entry = geo.translated(pre, _scaled(geo.rotate(grasp.entry, obj_frame), -grasp.entry_distance))
         steps += [
             ("a_move", f"{path}/enter", arm, entry, first_move),
