@@ -8,7 +8,11 @@ run report's header.
   that ag_ex's life, or the ``end`` of a stopping loop, ``failure: stopped``) and a later ag_ex
   started it again. A request a_ta sends again to a restarted ag_ex is such a case
   (services/agents/task_executor/agent.py: only absolute motions are sent again); a command
-  that ran to its end and ran again, or started twice by one ag_ex, is not.
+  that ran to its end and ran again, or started twice by one ag_ex, is not. A restarted ag_ex
+  answers a request whose command a loop ended before from the ledger instead
+  (services/agents/executor/agent.py): a ``replayed`` line, no ``start``; those are listed,
+  *answered from the ledger after a restart*, and are not a fault (an Observe's capture is
+  rendered again then: sensing moves nothing in the world).
 - **Answered done, never ran**: an ``inform`` from ag_ex in a fipa-request with a CommandResult
   that is ``ok`` or an L_SD Observation (the answer to a cancel is never such: it says
   ``halted``), whose conversation-id has no ``start`` and ``end`` in the ledger.
@@ -38,7 +42,9 @@ class LedgerVerdict:
     lines that did not decode; ``twice``: conversations executed twice, as "command
     (conversation): started at t1, t2 s"; ``never_ran``: conversations answered done without a
     run in the ledger, as "command (conversation)"; ``resumed``: conversations started again
-    by a restarted ag_ex after their first run was interrupted (not a fault)."""
+    by a restarted ag_ex after their first run was interrupted (not a fault); ``replayed``:
+    conversations a restarted ag_ex answered from the ledger without running them (not a
+    fault), as "command (conversation)"."""
 
     found: bool = False
     runs: int = 0
@@ -47,6 +53,7 @@ class LedgerVerdict:
     twice: list[str] = field(default_factory=list)
     never_ran: list[str] = field(default_factory=list)
     resumed: list[str] = field(default_factory=list)
+    replayed: list[str] = field(default_factory=list)
 
     @property
     def ok(self) -> bool:
@@ -68,6 +75,8 @@ class LedgerVerdict:
                 head += f", {self.skipped} unreadable line(s)"
         verdict = "; ".join(self.problems()) or "nothing executed twice, every done answer ran"
         resumed = f" (resumed after a restart: {', '.join(self.resumed)})" if self.resumed else ""
+        if self.replayed:
+            resumed += f" (answered from the ledger after a restart: {', '.join(self.replayed)})"
         return f"{head}: {verdict}{resumed}"
 
 
@@ -78,7 +87,7 @@ def _started_twice(entries: Sequence[LedgerEntry]) -> tuple[list[str], list[str]
     for e in entries:
         if e.event == "start":
             starts[e.conversation].append(e)
-        else:
+        elif e.event == "end":
             ends[(e.conversation, e.life)].append(e)
     twice: list[str] = []
     resumed: list[str] = []
@@ -98,6 +107,11 @@ def _started_twice(entries: Sequence[LedgerEntry]) -> tuple[list[str], list[str]
 def _interrupted(ends: Sequence[LedgerEntry]) -> bool:
     """True when a run whose life wrote ``ends`` was cut short by its ag_ex stopping."""
     return all(e.outcome == INTERRUPTED for e in ends)
+
+
+def _replayed(entries: Sequence[LedgerEntry]) -> list[str]:
+    """ "command (conversation)" of each request a restarted ag_ex answered from the ledger."""
+    return sorted({f"{e.command} ({e.conversation})" for e in entries if e.event == "replayed"})
 
 
 def _answered_done(messages: Sequence[Message]) -> dict[str, str]:
@@ -136,4 +150,5 @@ def judge_ledger(run_dir: Path, messages: Sequence[Message]) -> LedgerVerdict:
         twice=twice,
         never_ran=never,
         resumed=resumed,
+        replayed=_replayed(read.entries),
     )

@@ -109,6 +109,124 @@ class LedgerFake(HoldingFake):
         return token
 
 
+class CountingFake(HoldingFake):
+    """Runs each command at once as ``ExecutorProcess`` reports it (``on_start``, ``on_end``
+    with the result, then ``on_done``) and counts the runs by command name (``ran``); ``replay``
+    renders a WorldCapture as an Observation at its stamp (``replays``)."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.on_start: Any = None
+        self.on_end: Any = None
+        self.ran: list[str] = []
+        self.replays: list[str] = []
+
+    def submit(self, command: Any, on_done: Any) -> Any:
+        from shared.fipa_codec.languages.l_ex import command_name
+
+        token, name = object(), command_name(command)
+        self.ran.append(name)
+        result = CommandResult(command=name, ok=True, reason="ran here", sim_time=9.0)
+        self.on_start(token, name, 8.0)
+        self.on_end(token, name, 9.0, "ok", result)
+        on_done(result)
+        return token
+
+    def replay(self, name: str, result: Any, on_done: Any) -> Any:
+        from shared.fipa_codec.languages.l_sd import Observation
+
+        self.replays.append(name)
+        on_done(Observation(stamp=result.stamp, objects=()))
+        return object()
+
+
+def test_a_restarted_ag_ex_answers_a_command_that_ended_before_from_the_ledger(
+    monkeypatch: Any, tmp_path: Any
+) -> None:
+    """An earlier ag_ex's loop ended x's grasp (no contact), y's observe (a capture, not yet
+    rendered when it stopped) and z's wait (a CommandResult too long for the line, kept in the
+    side store); v's wait was cut short by its stop (``failure: stopped``) and w's started
+    without an end. A restarted ag_ex answers x, y and z
+    from the ledger without running them (a ``replayed`` line each), and runs v and w again (resumed).
+    Planted: the ledger lookup disabled: the loop runs x again, and the judge says executed
+    twice."""
+    from services.report.ledger import _started_twice
+    from services.spec.names import FIPA_REQUEST
+    from shared.fipa_codec import Performative
+    from shared.fipa_codec.languages import decode_content
+    from shared.fipa_codec.languages.l_ex import Arm, Grasp, Observe, Wait
+    from shared.fipa_codec.languages.l_sd import Observation
+    from tests.support.peer import Peer, running
+    from velma.executor.capture import WorldCapture
+    from velma.executor.ledger import INTERRUPTED, LEDGER_FILE, Ledger, read_ledger
+
+    grasp = CommandResult(command="grasp", ok=False, reason="no contact", sim_time=2.0)
+    contacts = tuple(f"link_{k} + link_{k + 1}" for k in range(60))  # too long for a line
+    long_wait = CommandResult(command="wait", ok=True, sim_time=3.0, self_contacts=contacts)
+    capture = WorldCapture(objects=("jar",), stamp=4.0, qpos=bytes(8 * 180))
+    monkeypatch.setenv("ROCO_RUN_DIR", str(tmp_path))
+    for planted in (False, True):
+        (tmp_path / LEDGER_FILE).unlink(missing_ok=True)
+        before = Ledger(tmp_path / LEDGER_FILE, life="100-aaaaaa")
+        for cid, name, result in (("x", "grasp", grasp), ("y", "observe", capture), ("z", "wait", long_wait)):
+            before.started(cid, name, 1.0)
+            before.ended(
+                cid, name, result.stamp if isinstance(result, WorldCapture) else result.sim_time, "ok", result
+            )
+        before.started("v", "wait", 5.0)
+        before.ended("v", "wait", 5.5, INTERRUPTED, CommandResult(command="wait", ok=False, reason="stopped"))
+        before.started("w", "wait", 6.0)  # cut short: no end
+        before.close()
+        bus = MemoryBus()
+        fake = CountingFake()
+
+        class Ex(ExecutorAgent):
+            def make_executor(self, fake: CountingFake = fake) -> Any:
+                return fake
+
+            if planted:
+
+                def _answer_from_ledger(self, conv: Any, name: str) -> bool:
+                    return False
+
+        a_ta = Peer(bus, "a_ta", "ag_ex", "C5")
+        agent = Ex(bus.transport())
+        with running(agent):
+            a_ta.send(Performative.REQUEST, FIPA_REQUEST, "x", Grasp(arm=Arm.LEFT))
+            x = a_ta.next(Performative.INFORM, Performative.FAILURE, cid="x")
+            if not planted:
+                a_ta.send(Performative.REQUEST, FIPA_REQUEST, "y", Observe(objects=("jar",)))
+                y = a_ta.next(Performative.INFORM, Performative.FAILURE, cid="y")
+                a_ta.send(Performative.REQUEST, FIPA_REQUEST, "z", Wait(duration=1.0))
+                z = a_ta.next(Performative.INFORM, Performative.FAILURE, cid="z")
+            for cid in ("v", "w"):
+                a_ta.send(Performative.REQUEST, FIPA_REQUEST, cid, Wait(duration=1.0))
+                assert (
+                    a_ta.next(Performative.INFORM, Performative.FAILURE, cid=cid).performative
+                    == Performative.INFORM
+                )
+        twice, resumed = _started_twice(read_ledger(tmp_path).entries)
+        if planted:  # the loop ran x again
+            assert fake.ran == ["grasp", "wait", "wait"] and x.performative == Performative.INFORM
+            assert twice == ["grasp (x): started at 1.000, 8.000 s"]
+            continue
+        assert fake.ran == ["wait", "wait"] and fake.replays == ["observe"]  # v and w only
+        assert agent.counters["answered_from_ledger"] == 3
+        assert x.performative == Performative.FAILURE and decode_content(x.language, x.content) == grasp
+        observed = decode_content(y.language, y.content)
+        assert y.performative == Performative.INFORM and isinstance(observed, Observation)
+        assert observed.stamp == 4.0
+        assert z.performative == Performative.INFORM and decode_content(z.language, z.content) == long_wait
+        replayed = [
+            (e.conversation, e.command) for e in read_ledger(tmp_path).entries if e.event == "replayed"
+        ]
+        assert replayed == [("x", "grasp"), ("y", "observe"), ("z", "wait")]
+        assert twice == [] and resumed == [
+            "wait (v): started at 5.000, 8.000 s",
+            "wait (w): started at 6.000, 8.000 s",
+        ]
+
+
 def test_the_ledger_names_each_run_s_conversation_before_the_answer(monkeypatch: Any, tmp_path: Any) -> None:
     """ag_ex writes a start and an end line of the request's conversation-id to its ledger
     (velma/executor/ledger.py) before it answers; a loop that runs the command twice (planted)

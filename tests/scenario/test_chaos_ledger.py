@@ -149,3 +149,21 @@ def test_torn_and_overlong_lines_are_skipped_and_counted(tmp_path: Path) -> None
     last = read_ledger(run).entries[-1]
     assert len(last.conversation) == 256 and last.conversation.endswith("…")
     assert last.outcome is not None and len(last.outcome) == 256
+
+
+def test_a_command_answered_from_the_ledger_after_a_restart_is_listed_not_twice(tmp_path: Path) -> None:
+    """A restarted ag_ex answered c1 again from the ledger (a ``replayed`` line, no start): the
+    question passes and chaos.md lists it. Planted: the restarted ag_ex started c1 again
+    instead: executed twice."""
+    run = _run(tmp_path)
+    ledger = Ledger(run / LEDGER_FILE, life="200-bbbbbb")
+    ledger.replayed("c1", "grasp", 2.0)
+    ledger.close()
+    v = verdict(run, _outcome())
+    assert v.ok and v.ledger.replayed == ["grasp (c1)"] and v.ledger.runs == 3 and v.ledger.lives == 2
+    text = write_chaos_report(run, chaos_scenario(0), _outcome(), v).read_text()
+    assert "| nothing executed twice | yes " in text
+    assert "(answered from the ledger after a restart: grasp (c1))" in text
+    ran(run, ("c1", "grasp", 6.0, 7.0), life="200-bbbbbb")
+    v = verdict(run, _outcome())
+    assert not v.ok and v.ledger.twice == ["grasp (c1): started at 1.000, 6.000 s"]

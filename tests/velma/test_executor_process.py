@@ -76,7 +76,7 @@ def test_the_loop_reports_each_start_and_end_before_the_result(ex: ExecutorProce
     while queued ends without a start."""
     events: queue.SimpleQueue[tuple[object, ...]] = queue.SimpleQueue()
     ex.on_start = lambda token, name, t: events.put(("start", token, name, t))
-    ex.on_end = lambda token, name, t, outcome: events.put(("end", token, name, t, outcome))
+    ex.on_end = lambda token, name, t, outcome, result: events.put(("end", token, name, t, outcome, result))
     try:
         running = ex.submit(Wait(duration=0.1), lambda _r: events.put(("done", running)))
         queued = ex.submit(Wait(duration=5.0), lambda _r: events.put(("done", queued)))
@@ -84,13 +84,31 @@ def test_the_loop_reports_each_start_and_end_before_the_result(ex: ExecutorProce
         got = [events.get(timeout=60) for _ in range(5)]
         mine = [e for e in got if e[1] == running]
         assert [e[0] for e in mine] == ["start", "end", "done"]
-        (_, _, name, start), (_, _, name_end, end, outcome) = mine[0], mine[1]
+        (_, _, name, start), (_, _, name_end, end, outcome, _result) = mine[0], mine[1]
         assert (name, name_end, outcome) == ("wait", "wait", "ok")
-        assert isinstance(start, float) and isinstance(end, float) and end >= start + 0.1
+        assert isinstance(mine[1][5], CommandResult) and mine[1][5].ok  # the result, for the ledger
+        assert isinstance(start, float) and isinstance(end, float) and end >= start + 0.1 - 1e-9  # float sums
         halted = [e for e in got if e[1] == queued]
         assert [e[0] for e in halted] == ["end", "done"] and halted[0][4] == "failure: halted"
     finally:
         ex.on_start = ex.on_end = None
+
+
+def test_a_replayed_result_is_answered_in_order_and_the_loop_does_not_run_it(ex: ExecutorProcess) -> None:
+    """``replay`` (ag_ex's answer from its ledger) answers with the result it is given, and
+    the loop starts nothing for it."""
+    starts: queue.SimpleQueue[str] = queue.SimpleQueue()
+    ex.on_start = lambda _token, name, _t: starts.put(name)
+    try:
+        assert _submit(ex, Wait(duration=0.05)).get(timeout=60).ok  # type: ignore[union-attr]
+        kept = CommandResult(command="grasp", ok=False, reason="no contact", sim_time=4.0)
+        out: queue.SimpleQueue[Result] = queue.SimpleQueue()
+        ex.replay("grasp", kept, out.put)
+        assert out.get(timeout=60) == kept
+        assert _submit(ex, Wait(duration=0.05)).get(timeout=60).ok  # type: ignore[union-attr]
+        assert [starts.get(timeout=10), starts.get(timeout=10)] == ["wait", "wait"] and starts.empty()
+    finally:
+        ex.on_start = None
 
 
 def test_hold_ends_commands_and_says_so(ex: ExecutorProcess) -> None:

@@ -100,9 +100,10 @@ START_TIMEOUT = 120.0  # s for the loop process to build the scene and report Re
 OnDone = Callable[[CommandResult | Observation], None]
 OnStart = Callable[[int, str, float], None]
 """``(token, command name, sim_time s)`` of a command the loop started."""
-OnEnd = Callable[[int, str, float, str], None]
-"""``(token, command name, sim_time s, outcome)`` of a command the loop ended (velma/executor/
-ledger.py ``outcome_of``)."""
+OnEnd = Callable[[int, str, float, str, CommandResult | Observation | WorldCapture], None]
+"""``(token, command name, sim_time s, outcome, result)`` of a command the loop ended (velma/
+executor/ledger.py ``outcome_of``; ``result``: the loop's own, an Observe's WorldCapture before
+it is rendered)."""
 
 
 class WorldState(NamedTuple):
@@ -619,6 +620,22 @@ class ExecutorProcess:
             self._answer(token, CommandResult(command=command_name(command), ok=False, reason=reason))
         return token
 
+    def replay(self, name: str, result: CommandResult | Observation | WorldCapture, on_done: OnDone) -> int:
+        """Answer ``on_done`` with ``result`` of command ``name`` that a loop ran before (ag_ex's
+        ledger, velma/executor/ledger.py ``recall``) without running it: after every result
+        put before it, a WorldCapture rendered and localised as the loop's own are. Returns
+        its token (the loop does not know it: a ``cancel`` of it asks nothing)."""
+        token = next(self._tokens)
+        with self._lock:
+            self._callbacks[token] = (on_done, name)
+        if self._delivery is not None:
+            self._delivery.put(token, result)
+        elif not isinstance(result, WorldCapture):
+            self._answer(token, result)
+        else:
+            self._answer(token, CommandResult(command=name, ok=False, reason=STOPPED, sim_time=result.stamp))
+        return token
+
     def cancel(self, token: int) -> bool:
         """Ask the loop to halt the command ``token`` (``Cancel``): its ``on_done`` then gets
         a result that says ``halted`` (L_EX ``HALTED``) — or its own result, when it ended
@@ -769,7 +786,7 @@ class ExecutorProcess:
         name = entry[1] if entry is not None else "?"
         result = msg.result
         at = result.sim_time if isinstance(result, CommandResult) else result.stamp
-        self._hook(self.on_end, msg.token, name, at, outcome_of(result))
+        self._hook(self.on_end, msg.token, name, at, outcome_of(result), result)
 
     @staticmethod
     def _hook(hook: Callable[..., None] | None, *args: object) -> None:

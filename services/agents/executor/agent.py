@@ -40,7 +40,13 @@ Besides the C5 conversation, ag_ex
   each with the request's conversation-id, the command and the robot's (simulated) time,
   appended and fsync-ed on the agent's thread (never the loop's) before the answer is sent,
   and kept across ag_ex's restarts; `roco chaos` and the run report read it
-  (services/report/ledger.py) to find a command run twice or answered done without running;
+  (services/report/ledger.py) to find a command run twice or answered done without running.
+  The end line keeps the loop's result, and a starting ag_ex reads the ledger's end
+  (velma/executor/ledger.py ``recall``): a request for a conversation whose command a loop
+  ended in an earlier ag_ex (a_ta sends it again when a restart left it unanswered) is
+  answered with that result, not run again (an Observe's capture is rendered again, which
+  moves nothing), and a ``replayed`` line says so; one started and not ended (cut short by
+  the stop) is run again;
 - watches the liveliness tokens of the agents that command it (the initiators on its
   channels in the specification: a_ta). When one disappears the executor holds position in
   joint impedance, with the hands closed as they are, so a held object is never dropped
@@ -71,8 +77,8 @@ from shared.fipa_codec import Performative
 from shared.fipa_codec.languages.l_ex import HALTED, CommandResult, ExecutorCommand, command_name
 from shared.fipa_codec.languages.l_sd import Observation
 from shared.settings import Settings
-from velma.executor.capture import PERCEPTION_LOG
-from velma.executor.ledger import LEDGER_FILE, Ledger
+from velma.executor.capture import PERCEPTION_LOG, WorldCapture
+from velma.executor.ledger import LEDGER_FILE, Answer, Ledger, Recalled, recall
 from velma.world.mode import world_in_process
 
 COMMAND_TYPES = tuple(t for t in ExecutorCommand.__args__)
@@ -125,12 +131,13 @@ class Began:
 @dataclass(frozen=True)
 class Ended:
     """The loop ended the command of executor token ``token`` at ``sim_time`` (s) with
-    ``outcome`` (velma/executor/ledger.py ``outcome_of``)."""
+    ``outcome`` (velma/executor/ledger.py ``outcome_of``) and ``result`` (None: not known)."""
 
     token: object
     command: str
     sim_time: float
     outcome: str
+    result: Answer | None = None
 
 
 @dataclass(frozen=True)
@@ -204,6 +211,8 @@ class ExecutorAgent(Agent):
         self.ledger: Ledger | None = None
         self.ledger_runs: dict[object, str] = {}
         """Executor token → conversation-id of each command with the loop (for the ledger)."""
+        self.recalled: dict[str, Recalled] = {}
+        """Conversation-id → command an earlier ag_ex's loop ended, with its result (the ledger)."""
         self.commanders = self._commanders()
         self.alive_peers: set[str] = set()
         self._next_state = 0.0
@@ -242,10 +251,18 @@ class ExecutorAgent(Agent):
         run_dir = Settings.from_env(only=("run_dir",)).run_dir
         if run_dir is None or not hasattr(self.executor, "on_start") or not hasattr(self.executor, "on_end"):
             return
-        self.ledger = Ledger(run_dir / LEDGER_FILE)  # OSError: ag_ex does not start without it
+        self.recalled = recall(run_dir / LEDGER_FILE)  # OSError: ag_ex does not start without it
+        self.ledger = Ledger(run_dir / LEDGER_FILE)
         self.executor.on_start = lambda token, name, t: self.post(Began(token, name, t))
-        self.executor.on_end = lambda token, name, t, outcome: self.post(Ended(token, name, t, outcome))
-        self.log.info("ledger of executed commands: %s (this ag_ex: %s)", self.ledger.path, self.ledger.life)
+        self.executor.on_end = lambda token, name, t, outcome, result=None: self.post(
+            Ended(token, name, t, outcome, result)
+        )
+        self.log.info(
+            "ledger of executed commands: %s (this ag_ex: %s; %d ended before it)",
+            self.ledger.path,
+            self.ledger.life,
+            len(self.recalled),
+        )
 
     def setup(self) -> None:
         self._open_ledger()
@@ -294,10 +311,55 @@ class ExecutorAgent(Agent):
             what = type(command).__name__ if command is not None else "no content"
             conv.refuse_with(Performative.REFUSE, f"not an L_EX command: {what}")
             return
+        if self._answer_from_ledger(conv, command_name(command)):
+            return
         running = Running(command_name(command))
         conv.data = running
         running.token = self.executor.submit(command, lambda result, req=conv: self.post(Done(req, result)))
         self.track(running.token, conv)
+
+    def _answer_from_ledger(self, conv: Conversation, name: str) -> bool:
+        """Answer ``conv`` with the result an earlier ag_ex's loop gave its command ``name``
+        (``recalled``), after a ``replayed`` line: a WorldCapture through the executor's
+        ``replay`` (rendered, as the loop's own), else at once. False (run it) when the ledger
+        has no ended command ``name`` of the conversation, or a capture and no ``replay``."""
+        known = self.recalled.get(conv.conversation_id)
+        replay = getattr(self.executor, "replay", None)
+        if (
+            known is None
+            or known.command != name
+            or (isinstance(known.answer, WorldCapture) and replay is None)
+        ):
+            return False
+        self._note_replayed(conv.conversation_id, name, known.sim_time)
+        self.log.info(
+            "%s (conversation %s) ended at sim time %.3f s in an earlier ag_ex: answered from the ledger",
+            name,
+            conv.conversation_id,
+            known.sim_time,
+        )
+        answer = known.answer
+        if isinstance(answer, WorldCapture) and replay is not None:
+            running = Running(name)
+            conv.data = running
+            running.token = replay(name, answer, lambda result, req=conv: self.post(Done(req, result)))
+            return True
+        ok = not isinstance(answer, CommandResult) or answer.ok
+        conv.reply(Performative.INFORM if ok else Performative.FAILURE, answer)
+        return True
+
+    def _note_replayed(self, conversation: str, name: str, sim_time: float) -> None:
+        """The ledger's ``replayed`` line of ``conversation``'s command ``name`` (counted, as
+        ``answered_from_ledger``); one that cannot be written is counted and logged as in
+        ``_note``."""
+        self.counters["answered_from_ledger"] += 1
+        if self.ledger is None:
+            return
+        try:
+            self.ledger.replayed(conversation, name, sim_time)
+        except OSError as exc:
+            self.counters["ledger_errors"] += 1
+            self.log.error("ledger line of %s (conversation %s) not written: %s", name, conversation, exc)
 
     def track(self, token: object, conv: Conversation) -> None:
         """Name ``conv``'s conversation-id in the ledger lines of the executor's ``token``."""
@@ -316,7 +378,7 @@ class ExecutorAgent(Agent):
             if isinstance(event, Began):
                 self.ledger.started(conversation, event.command, event.sim_time)
             else:
-                self.ledger.ended(conversation, event.command, event.sim_time, event.outcome)
+                self.ledger.ended(conversation, event.command, event.sim_time, event.outcome, event.result)
         except OSError as exc:
             self.counters["ledger_errors"] += 1
             self.log.error(
