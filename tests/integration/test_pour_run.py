@@ -7,6 +7,7 @@ through the gateway what it is doing (requirement R1.4, channel C8)."""
 from __future__ import annotations
 
 import json
+import os
 import queue
 import subprocess
 import sys
@@ -129,6 +130,8 @@ def pour_run(tmp_path_factory: pytest.TempPathFactory) -> PourRun:
             "--gateway",
             str(port),
         ],
+        # the defaults a user gets: mutual TLS and access control (none of them set otherwise)
+        env={k: v for k, v in os.environ.items() if k not in ("ROCO_TLS", "ROCO_ACL", "ROCO_SECURITY")},
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,
@@ -170,6 +173,16 @@ def test_pour_succeeds_without_the_robot_touching_itself(pour_run: PourRun) -> N
 
 @needs_camera
 @pytest.mark.requirement("R3.1")
+def test_the_pour_ran_over_mutual_tls_with_access_control(pour_run: PourRun) -> None:
+    """``roco run``'s default deployment (docs/security.md): the router listens on
+    ``tls/127.0.0.1:PORT`` with access control, and every identity's certificate names it
+    alone."""
+    router_log = (pour_run.run_dir / "logs" / "router.stderr").read_text()
+    assert "listening on tls/127.0.0.1:" in router_log and "access control from" in router_log
+    acl = json.loads((pour_run.run_dir / "security" / "acl.json").read_text())
+    assert acl["subjects"] and all(s["cert_common_names"] == [s["id"]] for s in acl["subjects"])
+
+
 def test_the_head_camera_counts_most_spheres_in_the_bowl(pour_run: PourRun) -> None:
     """The content share of the last Observation of the bowl (services/report/content.py): the
     head camera's count, what a_ta judged the pour by."""
