@@ -11,18 +11,10 @@ import pytest
 import typer
 
 from services.cli import _exit_on_failure, _flag_lines
-from services.recorder.flags import FlagsReply, LiveFlag, append_flag
+from services.recorder.flags import FlagsReply, append_flag
+from tests.support.flags import a_flag
 
-FLAG = LiveFlag(
-    requirement="R3.3",
-    prop="p",
-    event="C1 a_ta → a_co inform",
-    why="w",
-    t=0.0,
-    seq=5,
-    recorded=6,
-    flagged=0.0,
-)
+FLAG = a_flag()
 
 
 def test_a_flag_makes_a_run_that_went_well_exit_1_with_one_line(

@@ -16,7 +16,6 @@ import queue
 import signal
 import subprocess
 import sys
-import threading
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -27,6 +26,7 @@ from services.fleet.launcher import Fleet, free_port
 from services.runtime import keys
 from services.runtime.human import HumanInput, HumanReport, ReportKind, RequestKind
 from services.runtime.transport import ZenohTransport
+from tests.support.lines import lines_of
 
 ROOT = Path(__file__).resolve().parents[2]
 OUTCOME = "pour the jar into the bowl: succeeded"
@@ -49,20 +49,6 @@ def kill_router(fleet: Fleet) -> None:
     proc = fleet.processes["router"]
     os.kill(proc.pid, signal.SIGKILL)
     proc.wait(timeout=10)
-
-
-def lines_of(proc: subprocess.Popen[str]) -> queue.SimpleQueue[str | None]:
-    """A queue of ``proc``'s stdout lines, None at its end (read on a thread of its own)."""
-    out: queue.SimpleQueue[str | None] = queue.SimpleQueue()
-
-    def read() -> None:
-        assert proc.stdout is not None
-        for line in proc.stdout:
-            out.put(line.rstrip("\n"))
-        out.put(None)
-
-    threading.Thread(target=read, daemon=True).start()
-    return out
 
 
 @pytest.mark.parametrize("cached", [True, False], ids=["advanced-publisher", "plain-put"])

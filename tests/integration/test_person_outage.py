@@ -17,7 +17,6 @@ import re
 import signal
 import subprocess
 import sys
-import threading
 import time
 from collections.abc import Iterator
 from pathlib import Path
@@ -26,6 +25,7 @@ import pytest
 
 from services.fleet.launcher import AGENT_ORDER, Fleet, free_port
 from services.runtime.session import open_client
+from tests.support.lines import lines_of
 
 pytestmark = [pytest.mark.slow, pytest.mark.fleet]
 ROOT = Path(__file__).resolve().parents[2]
@@ -52,20 +52,6 @@ def fleet(tmp_path: Path) -> Iterator[Fleet]:
         yield f
     finally:
         f.stop()
-
-
-def lines_of(proc: subprocess.Popen[str]) -> queue.SimpleQueue[str | None]:
-    """A queue of ``proc``'s stdout lines, None at its end (read on a thread of its own)."""
-    out: queue.SimpleQueue[str | None] = queue.SimpleQueue()
-
-    def read() -> None:
-        assert proc.stdout is not None
-        for line in proc.stdout:
-            out.put(line.rstrip("\n"))
-        out.put(None)
-
-    threading.Thread(target=read, daemon=True).start()
-    return out
 
 
 def told_success(log: Path) -> bool:

@@ -26,7 +26,7 @@ from services.deploy.deploy import issue_router, prepare
 from services.hosts.fleet import TwoHosts
 from services.hosts.link import Shaping
 from services.hosts.netns import HostPair, netns_exec
-from services.recorder.flags import LiveFlag, append_flag
+from services.recorder.flags import append_flag
 from services.recorder.record import read_link_events
 from services.recorder.sync import sync_fleet
 from services.replay.driver import render as replay_render
@@ -37,21 +37,13 @@ from services.runtime.session import open_client
 from services.security.context import register
 from services.spec.model import default_spec
 from services.spec_check.conformance import render, verify_run
+from tests.support.flags import a_flag
 from tests.support.machine import needs_two_hosts
 
 pytestmark = [pytest.mark.fleet, needs_two_hosts]
 
 SHAPING = Shaping(delay_ms=20, jitter_ms=5, loss_pct=1)
-FLAG = LiveFlag(
-    requirement="R3.3",
-    prop="p",
-    event="C1 a_ta → a_co inform",
-    why="w",
-    t=0.0,
-    seq=1,
-    recorded=2,
-    flagged=0.0,
-)
+FLAG = a_flag(seq=1, recorded=2)
 """A live requirement flag planted in a fleet's run folder (services/recorder/flags.py)."""
 POUR = "pour the jar into the bowl"
 ENV = {"ROCO_REALTIME": "0", "ROCO_RERUN": "0"}

@@ -17,12 +17,12 @@ from typer.testing import CliRunner
 
 from services.cli import app
 from services.fleet.launcher import Fleet, free_port
-from services.recorder.flags import MAX_REPLIED, FlagsReply, LiveFlag, append_flag, ask_flags
+from services.recorder.flags import MAX_REPLIED, FlagsReply, append_flag, ask_flags
 from services.runtime.session import open_client
+from tests.support.flags import a_flag
 
 WAIT_S = 30.0
-FLAG = LiveFlag(
-    requirement="R3.3",
+FLAG = a_flag(
     prop="a plan cancelled while a_ta holds an object in either gripper: that object put down, …",
     event="C1 a_ta → a_co inform SWStatus state=Preempted (conversation c-1)",
     why="C1 … came while waiting for C6 …",

@@ -18,7 +18,7 @@ import msgspec
 import pytest
 
 from services.recorder.causal import causal_order, send_order
-from services.recorder.flags import FLAGS_JSONL, LiveFlag, append_flag, read_flags
+from services.recorder.flags import FLAGS_JSONL, append_flag, read_flags
 from services.report.load import Message
 from services.spec.decomposition import load_decomposition
 from services.spec.model import DEFAULT_SPEC
@@ -30,6 +30,7 @@ from services.spec_live.sink import open_sink, watched
 from shared.fipa_codec.languages.l_sw import SWStatus
 from shared.fipa_codec.languages.l_wm import ObjectUpdate, WorldUpdate
 from tests.spec_check.recorded import URGENT, Recorded
+from tests.support.flags import a_flag
 
 pytestmark = pytest.mark.requirement("R3.3")
 LEAVES = {r.id: r for r in leaves(load_decomposition(DEFAULT_SPEC))}
@@ -242,11 +243,7 @@ def test_only_properties_with_an_absent_step_are_watched() -> None:
 
 
 def test_flags_are_read_back_and_a_cut_line_is_skipped(tmp_path: Path) -> None:
-    flag = LiveFlag(
-        requirement="R3.3",
-        prop="p",
-        event="C1 a_ta → a_co inform",
-        why="w",
+    flag = a_flag(
         t=110.0,
         seq=7,
         recorded=9,
