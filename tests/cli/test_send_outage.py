@@ -22,11 +22,12 @@ from pathlib import Path
 import msgspec
 import pytest
 
-from services.fleet.launcher import Fleet, free_port
+from services.fleet.launcher import Fleet
 from services.runtime import keys
 from services.runtime.human import HumanInput, HumanReport, ReportKind, RequestKind
 from services.runtime.transport import ZenohTransport
 from tests.support.lines import lines_of
+from tests.support.router import router_fleet
 
 ROOT = Path(__file__).resolve().parents[2]
 OUTCOME = "pour the jar into the bowl: succeeded"
@@ -35,14 +36,8 @@ SEND_TIMEOUT_S = 20
 
 
 @pytest.fixture
-def fleet(tmp_path: Path) -> Iterator[Fleet]:
-    (tmp_path / "logs").mkdir()
-    f = Fleet(tmp_path, f"tcp/127.0.0.1:{free_port()}", acl=False)
-    f.start_router()
-    try:
-        yield f
-    finally:
-        f.stop()
+def fleet(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Fleet]:
+    yield from router_fleet(tmp_path_factory, "outage")
 
 
 def kill_router(fleet: Fleet) -> None:
