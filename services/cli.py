@@ -35,7 +35,7 @@ from services.fleet.launcher import AGENT_ORDER, GATEWAY, Fleet, LaunchError
 from services.hosts.cli import hosts_app
 from services.runtime import keys
 from services.runtime.human import FINAL_REPORTS, HumanInput, HumanReport
-from services.runtime.reports import ReportFilter, follow_reports
+from services.runtime.reports import MissedOutcomes, ReportFilter, follow_reports, next_report
 from services.runtime.run_folder import (
     RunFolderError,
     RunInfo,
@@ -800,9 +800,10 @@ def down(
     ] = Path("runs"),
 ) -> None:
     """Stop the fleet `roco up` started (only the processes it started, by PID), naming each
-    as it stops: the agents, the recorder once it confirmed the traffic record complete, the
-    router. Then record in the run's run.json the commands the fleet was given and their
-    outcomes (from its C2 traffic) and write its report. A fleet of `roco hosts up` is
+    as it stops: the agents (their counters kept first: what they raised is said and in the
+    report), the recorder once it confirmed the traffic record complete, the router. Then
+    record in the run's run.json the commands the fleet was given and their outcomes (from its
+    C2 traffic) and write its report. A fleet of `roco hosts up` is
     stopped as `roco hosts down` does."""
     from services.hosts.cli import HOSTS_FILE
     from services.hosts.cli import down as hosts_down
@@ -814,6 +815,7 @@ def down(
     state = _fleet_state(runs_dir)
     if state is None:
         raise fail(f"no fleet is up (no {runs_dir / FLEET_FILE})")
+    raised = _save_fleet_counters(state)
     typer.echo("roco: stopping", nl=False)
     _stop_pids({n: p for n, p in state.pids.items() if n not in ("recorder", "router")})
     # everything the agents sent before they stopped is in the traffic record before it closes
@@ -827,6 +829,30 @@ def down(
     typer.echo("")
     (runs_dir / FLEET_FILE).unlink()
     typer.echo(f"roco: fleet stopped {_report_fleet_end(Path(state.run_dir))}")
+    if raised:
+        typer.echo(f"roco: agents raised: {raised}")
+
+
+def _save_fleet_counters(state: FleetState) -> str:
+    """Before `roco down` stops a fleet: its agents' counters into the run folder's
+    counters.json (the report's "Agents raised" reads them) and what they raised, in words
+    (services/runtime/raised.py; "" when nothing). Nothing is saved when no router answers."""
+    from services.runtime.counters import ask_counters, save_counters
+    from services.runtime.raised import raised_by_agent, raised_text
+
+    run_dir = Path(state.run_dir)
+    if (run_dir / "security").is_dir():  # a fleet of `roco up` with access control
+        register(state.endpoint, run_dir / "security")
+    try:
+        session = open_operator(state.endpoint)
+    except SessionRefused:
+        return ""
+    try:
+        counters = ask_counters(session, [n for n in state.pids if n in AGENT_ORDER], timeout=5.0)
+    finally:
+        session.close()
+    save_counters(run_dir, counters)
+    return raised_text(raised_by_agent({a: r.counters for a, r in counters.items()}), {})
 
 
 def _running(pid: int) -> bool:
@@ -913,7 +939,8 @@ def send(
 ) -> None:
     """Give a running fleet a command and wait for a_hi's final report. Reports a_hi gave
     while this session was cut off from it (the router restarted) come when it is back, each
-    shown once (services/runtime/reports.py)."""
+    shown once; after 10 s without one, a_hi is asked for the outcome, which it keeps across
+    its restarts (services/runtime/reports.py)."""
     endpoint = _endpoint(router, runs_dir)
     session = _open_operator_session(endpoint, credentials, None if router else runs_dir)
     reports: queue.SimpleQueue[HumanReport] = queue.SimpleQueue()
@@ -926,19 +953,15 @@ def send(
     said = HumanInput(text=command, request_id=request_id, priority=priority, person=person)
     session.put(keys.HUMAN_IN, msgspec.json.encode(said))
     deadline = time.monotonic() + timeout
+    missed = MissedOutcomes(session)
     try:
-        while True:
-            try:
-                report = reports.get(timeout=max(0.1, deadline - time.monotonic()))
-            except queue.Empty:
-                raise fail(f"no outcome within {timeout:.0f} s") from None
-            if report.request_id != request_id or not shown.keep(report):
-                continue
+        while (report := next_report(reports, request_id, shown, missed, deadline)) is not None:
             typer.echo(f"{report.kind.value}: {report.text}")
             if report.kind in FINAL_REPORTS:
                 if not report.done_as_asked:
                     raise typer.Exit(1)
                 return
+        raise fail(f"no outcome within {timeout:.0f} s")
     finally:
         session.close()
 

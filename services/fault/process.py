@@ -360,12 +360,25 @@ def _wait_alive(endpoint: str, service: str, proc: subprocess.Popen[bytes], time
         session.close()
 
 
-def record_events(session: zenoh.Session, events: list[FaultEvent], sync_timeout: float = 5.0) -> bool:
+RECORDER = "recorder"  # services/recorder/recorder.py: RECORDER, the name its token holds
+
+
+def record_events(session: zenoh.Session, events: list[FaultEvent], sync_timeout: float = 15.0) -> bool:
     """Put ``events`` on ``roco/fault/event/roco`` for the traffic recorder and wait until it
-    confirms it wrote them (recorder sync); False when it did not within ``sync_timeout``."""
+    confirms it wrote them (recorder sync); False when it did not within ``sync_timeout`` s.
+    First waits until ``session`` sees the recorder's liveliness token: after a router restart
+    (a fault of the router itself, or one the recorder lived through) both sessions reconnect in
+    their own time, and a put made before would be lost."""
     import queue
+    import threading
     import uuid
 
+    deadline = time.monotonic() + sync_timeout
+    pause = threading.Event()  # never set: a short wait between asks while the router is away
+    while RECORDER not in alive_agents(session, timeout=0.5):
+        if time.monotonic() > deadline:
+            return False
+        pause.wait(0.1)
     enc = msgspec.json.Encoder()
     for ev in events:
         session.put(event_key(INJECTOR), enc.encode(ev))
@@ -377,7 +390,7 @@ def record_events(session: zenoh.Session, events: list[FaultEvent], sync_timeout
     try:
         session.put(keys.RECORDER_SYNC, token)
         try:
-            return synced.get(timeout=sync_timeout)
+            return synced.get(timeout=max(0.5, deadline - time.monotonic()))
         except queue.Empty:
             return False
     finally:

@@ -51,25 +51,35 @@ def read_counters(run_dir: Path) -> dict[str, CountersReport]:
     return msgspec.json.decode(data, type=dict[str, CountersReport])
 
 
+ASK_AGAIN_S = 1.0
+"""Seconds between the asks of :func:`ask_counters` while some agents have not answered."""
+
+
 def ask_counters(session: Any, agents: Iterable[str], timeout: float = 2.0) -> dict[str, CountersReport]:
     """Ask every agent for its counters over ``session`` (a :class:`zenoh.Session`); wait up to
-    ``timeout`` s for each of ``agents`` to answer. Returns the answers by agent (an agent
-    that did not answer in time is absent; malformed answers are ignored)."""
+    ``timeout`` s for each of ``agents`` to answer, asking again every :data:`ASK_AGAIN_S` while
+    some have not (an ask or an answer lost while a session reconnects after a router restart).
+    Returns the latest answer by agent (an agent that did not answer in time is absent;
+    malformed answers are ignored)."""
     wanted = set(agents)
     answers: queue.SimpleQueue[bytes] = queue.SimpleQueue()
     sub = session.declare_subscriber(keys.COUNTERS_ALL, lambda s: answers.put(s.payload.to_bytes()))
     out: dict[str, CountersReport] = {}
     try:
-        session.put(keys.COUNTERS_ASK, b"")
+        session.put(keys.COUNTERS_ASK, b"")  # asked once whatever the timeout (roco status's 0)
         deadline = time.monotonic() + timeout
+        ask_at = time.monotonic() + ASK_AGAIN_S
         while not wanted <= out.keys():
-            left = deadline - time.monotonic()
-            if left <= 0:
+            now = time.monotonic()
+            if now >= deadline:
                 break
+            if now >= ask_at:
+                session.put(keys.COUNTERS_ASK, b"")
+                ask_at = now + ASK_AGAIN_S
             try:
-                payload = answers.get(timeout=left)
+                payload = answers.get(timeout=max(0.0, min(deadline, ask_at) - now))
             except queue.Empty:
-                break
+                continue
             try:
                 report = _decoder.decode(payload)
             except (msgspec.DecodeError, msgspec.ValidationError):

@@ -12,6 +12,8 @@ access control can say who may send what where (docs/security.md, "Who may send 
 ``roco/recorder/flags``                      a query here: the traffic recorder answers with the
                                              live requirement flags of its run (JSON,
                                              services/recorder/flags.py ``FlagsReply``)
+``roco/human/outcomes``                      a query here: a_hi answers with the final reports it
+                                             gave last (JSON list of ``HumanReport``)
 
 ``<sender>``, ``<receiver>`` and ``<agent>`` are FIPA agent names written as the key chunk
 ``shared.fipa_codec.names.key_chunk`` maps them to: roco's agents (``a_co``) as themselves,
@@ -40,6 +42,10 @@ HUMAN_OUT_CACHES = f"{HUMAN_OUT}/@adv/**"
 """What a_hi's advanced publisher of reports declares below ``HUMAN_OUT`` (cache queryable,
 liveliness token, heartbeat) and what the person's tools' advanced subscribers ask and watch
 (services/runtime/reports.py)."""
+HUMAN_OUTCOMES = f"{PREFIX}/human/outcomes"
+"""a_hi's queryable of the final reports it gave last, kept across its restarts
+(services/agents/human_interface/told.py): what a person's tool asks when its wait for an
+outcome runs long (services/runtime/reports.py ``ask_outcomes``)."""
 SIM_DISTURB = f"{PREFIX}/sim/disturb"
 RECORDER_SYNC = f"{PREFIX}/recorder/sync"
 """A token put here reaches the traffic recorder after every communicate routed before it;

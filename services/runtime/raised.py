@@ -33,6 +33,12 @@ def _counted(n: int, what: str) -> str:
     return f"{n} {what}{'s' if n != 1 else ''}"
 
 
+def log_of(name: str) -> str:
+    """The log of a fleet's process ``name`` in its run folder: ``logs/<name>.log``; a router
+    writes only ``logs/<name>.stderr`` (services/fleet/launcher.py)."""
+    return f"logs/{name}.stderr" if name.startswith("router") else f"logs/{name}.log"
+
+
 def raised_text(by_agent: Mapping[str, Mapping[str, int]], crashed: Mapping[str, list[int]]) -> str:
     """One clause per agent that raised or exited, with its log:
     ``2 handler errors in a_ta: see logs/a_ta.log; a_co exited (code 70) and was started again:
@@ -47,5 +53,5 @@ def raised_text(by_agent: Mapping[str, Mapping[str, int]], crashed: Mapping[str,
         if codes:
             times = "" if len(codes) == 1 else f" {len(codes)} times"
             which = ", ".join(str(c) for c in codes)
-            parts.append(f"{agent} exited{times} (code {which}) and was started again: see logs/{agent}.log")
+            parts.append(f"{agent} exited{times} (code {which}) and was started again: see {log_of(agent)}")
     return "; ".join(parts)

@@ -16,14 +16,23 @@ zenoh-ext advanced subscriber that
 zenoh-ext delivers each publisher's reports once and in order of sequence number;
 :class:`ReportFilter` also drops a request's reports after its final one (a restarted a_hi
 telling a command's outcome again), so an outcome is shown once.
+
+What a publisher's cache no longer holds (a_hi died after telling, or told more than the cache
+keeps) a tool asks a_hi for with :func:`ask_outcomes` when it has heard nothing of a request
+for :data:`ASK_AFTER_S`: a_hi keeps the last final reports of commands across its restarts and
+answers a query of ``roco/human/outcomes`` with them
+(services/agents/human_interface/told.py).
 """
 
 from __future__ import annotations
 
 import datetime
 import logging
+import queue
+import time
 from collections import OrderedDict
-from collections.abc import Callable
+from collections.abc import Callable, Collection
+from typing import Any
 
 import msgspec
 import zenoh
@@ -41,6 +50,13 @@ after the last one it got."""
 MAX_REPORT_BYTES = 64 * 1024
 """The largest report payload read (bytes); a larger one is dropped with a warning (a status
 report has one line per command: a few kB)."""
+MAX_OUTCOMES_BYTES = 256 * 1024
+"""The largest answer of a_hi's outcomes queryable read (bytes); a larger one is dropped with a
+warning (a_hi keeps at most 64 outcomes of at most 2,000 characters each)."""
+ASK_AFTER_S = 10.0
+"""Seconds without a report of a request still open after which a tool asks a_hi for its
+outcome (:func:`ask_outcomes`), and again every as many seconds: a pour's progress reports
+come every few seconds, so a longer silence means reports may have been missed."""
 MAX_ENDED = 4096
 """Requests whose final report a :class:`ReportFilter` remembers (the oldest forgotten first)."""
 
@@ -105,3 +121,80 @@ def follow_reports(
             heartbeat=None,
         ),
     )
+
+
+_outcomes_decode = msgspec.json.Decoder(list[HumanReport]).decode
+
+
+def ask_outcomes(session: Any, request_ids: Collection[str], timeout: float = 2.0) -> list[HumanReport]:
+    """Ask a_hi over ``session`` (a :class:`zenoh.Session`) for the outcomes it told; wait up
+    to ``timeout`` s. The final reports of ``request_ids`` among them, in the order told; none
+    when a_hi did not answer in time, or its answer was larger than
+    :data:`MAX_OUTCOMES_BYTES` or malformed (a warning)."""
+    wanted = set(request_ids)
+    found: list[HumanReport] = []
+    for reply in session.get(keys.HUMAN_OUTCOMES, timeout=timeout):
+        if reply.ok is None:
+            continue
+        payload = reply.ok.payload.to_bytes()
+        if len(payload) > MAX_OUTCOMES_BYTES:
+            log.warning("dropped outcomes of %d bytes (at most %d read)", len(payload), MAX_OUTCOMES_BYTES)
+            continue
+        try:
+            told = _outcomes_decode(payload)
+        except (msgspec.DecodeError, msgspec.ValidationError) as exc:
+            log.warning("dropped a malformed answer about outcomes: %s", exc)
+            continue
+        found.extend(r for r in told if r.request_id in wanted and r.kind in FINAL_REPORTS)
+    return found
+
+
+class MissedOutcomes:
+    """When a tool asks a_hi for outcomes it may have missed (:func:`ask_outcomes`): after
+    :data:`ASK_AFTER_S` without a report of its open requests, then every as many seconds.
+    Call :meth:`heard` on each report of one of them; not thread-safe (one thread)."""
+
+    def __init__(self, session: Any, after_s: float = ASK_AFTER_S) -> None:
+        self._session = session
+        self._after = after_s
+        self._last = time.monotonic()
+
+    def heard(self) -> None:
+        """A report of an open request came: the silence starts again."""
+        self._last = time.monotonic()
+
+    def due_in(self) -> float:
+        """Seconds until the next ask (0: due now)."""
+        return max(0.0, self._last + self._after - time.monotonic())
+
+    def ask_if_due(self, request_ids: Collection[str]) -> list[HumanReport]:
+        """The final reports of ``request_ids`` a_hi still keeps, when an ask is due and some
+        request is open (blocks up to 2 s for a_hi's answer); else none."""
+        if not request_ids or self.due_in() > 0:
+            return []
+        self._last = time.monotonic()
+        return ask_outcomes(self._session, request_ids)
+
+
+def next_report(
+    reports: queue.SimpleQueue[HumanReport],
+    request_id: str,
+    shown: ReportFilter,
+    missed: MissedOutcomes,
+    deadline: float,
+) -> HumanReport | None:
+    """The next report of ``request_id`` to show, from ``reports`` (what :func:`follow_reports`
+    hands on), skipping other requests' and those ``shown`` filters out; when ``missed`` says
+    the silence has lasted, a_hi is asked for the outcome meanwhile. None past ``deadline``
+    (``time.monotonic()``)."""
+    while (left := deadline - time.monotonic()) > 0:
+        try:
+            report = reports.get(timeout=max(0.05, min(left, missed.due_in())))
+        except queue.Empty:  # a long silence: ask a_hi for an outcome this session missed
+            for told in missed.ask_if_due([request_id]):
+                reports.put(told)
+            continue
+        if report.request_id == request_id and shown.keep(report):
+            missed.heard()
+            return report
+    return None

@@ -27,8 +27,8 @@ from services.runtime import keys
 from services.runtime.counters import ask_counters, save_counters
 from services.runtime.faults import FaultEvent
 from services.runtime.human import FINAL_REPORTS, HumanInput, HumanReport
-from services.runtime.raised import raised_by_agent, raised_text
-from services.runtime.reports import ReportFilter, follow_reports
+from services.runtime.raised import log_of, raised_by_agent, raised_text
+from services.runtime.reports import MissedOutcomes, ReportFilter, follow_reports
 from services.runtime.run_folder import RunCommand, RunInfo, write_run_info
 from services.runtime.session import open_client
 from services.scenario.model import Fault, Scenario, Step
@@ -39,7 +39,8 @@ from shared.fipa_codec.languages.l_sw import SWStatus
 
 Echo = Callable[[str], None]
 MAX_CRASHES = 3
-"""Times an agent that exits by itself is started again during a run before the run ends."""
+"""Times a process (an agent, the recorder, a router) that exits by itself is started again
+during a run before the run ends."""
 
 
 class Hosting(Protocol):
@@ -274,6 +275,10 @@ class ScenarioRunner:
         (services/runtime/raised.py)."""
         self.last_act = time.monotonic()
         self.t0 = time.time()
+        self.missed: MissedOutcomes | None = None
+        """When to ask a_hi for outcomes the reports' subscriber missed (set once it follows them)."""
+        self.session: zenoh.Session | None = None
+        """The runner's session with the routers, once the fleet starts."""
 
     @property
     def fleet(self) -> Fleet:
@@ -322,13 +327,15 @@ class ScenarioRunner:
 
     def _pump(self, timeout: float, deadline: float) -> None:
         """Take events for up to ``timeout`` s; raise LaunchError past ``deadline``. A process
-        that exited though no fault stopped it is started again if it is an agent, else ends
-        the run (:meth:`_start_crashed`)."""
+        that exited though no fault stopped it is started again, the world's exit ends the run
+        (:meth:`_start_crashed`). After a silence of the open commands' reports, a_hi
+        is asked for their outcomes (services/runtime/reports.py ``MissedOutcomes``)."""
         if time.monotonic() > deadline:
             raise LaunchError(f"the scenario did not end within {self.scenario.timeout_s:.0f} s")
         dead = [n for n in self.fleet.dead() if n not in self.down]
         for name in dead:
             self._start_crashed(name)
+        self._ask_missed()
         try:
             kind, item = self.events.get(timeout=timeout)
         except queue.Empty:
@@ -340,19 +347,39 @@ class ScenarioRunner:
         elif kind == "report" and isinstance(item, HumanReport):
             self._report(item)
 
+    def _ask_missed(self) -> None:
+        """After a silence of the open commands' reports, their outcomes a_hi kept, as reports."""
+        if self.missed is not None:
+            for told in self.missed.ask_if_due([c.request_id for c in self.commands if c.final is None]):
+                self._report(told)
+
     def _start_crashed(self, name: str) -> None:
-        """Process ``name`` exited though nobody stopped it: an agent is started again (as
-        compose's restart policy does), its exit code kept in :attr:`crashed`, up to
-        :data:`MAX_CRASHES` times; anything else, or an agent past that, ends the run
+        """Process ``name`` exited though nobody stopped it: an agent, the traffic recorder or a
+        router is started again (as compose's restart policy does; a router on its endpoint,
+        the sessions reconnect), its exit code kept in :attr:`crashed`, up to
+        :data:`MAX_CRASHES` times; anything else (the world), or past that, ends the run
         (LaunchError)."""
         proc = self.fleet.processes[name]
-        if name not in AGENT_ORDER or len(self.crashed.get(name, [])) >= MAX_CRASHES:
+        router = name.startswith("router")
+        restartable = name in AGENT_ORDER or name == "recorder" or router
+        if not restartable or len(self.crashed.get(name, [])) >= MAX_CRASHES:
             raise LaunchError(f"process {name} exited during the run (see {self.run_dir}/logs)")
         self.crashed.setdefault(name, []).append(proc.returncode)
-        pid = self.fleet.restart(name)
+        if router:
+            from services.fault.process import FaultError
+
+            if self.session is None:  # before the fleet starts: the run's start fails
+                raise LaunchError(f"process {name} exited before the fleet started (see {self.run_dir}/logs)")
+            try:
+                self.hosting.start_again(self.session, name, 60)
+            except FaultError as exc:
+                raise LaunchError(f"process {name} exited and did not start again: {exc}") from None
+        else:
+            self.fleet.restart(name)
+        pid = self.fleet.processes[name].pid
         self.info.processes[name] = pid
         write_run_info(self.run_dir, self.info)
-        self._say(f"{name} exited (code {proc.returncode}, see logs/{name}.log); started again (pid {pid})")
+        self._say(f"{name} exited (code {proc.returncode}, see {log_of(name)}); started again (pid {pid})")
 
     def _report(self, item: HumanReport) -> None:
         """a_hi's report to the person: said, and kept with its command (the final one ends
@@ -360,6 +387,8 @@ class ScenarioRunner:
         record = next((c for c in self.commands if c.request_id == item.request_id), None)
         if record is None or not self.shown.keep(item):
             return
+        if self.missed is not None:
+            self.missed.heard()
         record.reports.append(item)
         self._say(f"a_hi → person (#{record.number}): {item.kind.value}: {item.text}")
         if item.kind in FINAL_REPORTS:
@@ -471,7 +500,7 @@ class ScenarioRunner:
         self.info.processes[name] = record.pid_after
         write_run_info(self.run_dir, self.info)
         record.back_after_s = round(time.monotonic() - t_fault, 1)
-        process.record_events(session, events)
+        self._record_events(session, events)
         self._say(f"{name} is back after {record.back_after_s:.1f} s (pid {record.pid_after})")
 
     def _cut(self, session: zenoh.Session, fault: Fault) -> None:
@@ -499,8 +528,17 @@ class ScenarioRunner:
             self.hosting.heal()
         events.append(FaultEvent(t=time.time(), agent=process.INJECTOR, kind="heal", target=LINK))
         record.back_after_s = round(time.monotonic() - t_fault, 1)
-        process.record_events(session, events)
+        self._record_events(session, events)
         self._say(f"the link is up again after {record.back_after_s:.1f} s")
+
+    def _record_events(self, session: zenoh.Session, events: list[FaultEvent]) -> None:
+        """Have the traffic recorder write a fault's ``events`` (the run folder's faults.jsonl,
+        report section 8); say so when it did not confirm them."""
+        from services.fault import process
+
+        if not process.record_events(session, events):
+            kinds = ", ".join(f"{e.kind} {e.target}" for e in events)
+            self._say(f"the traffic recorder did not confirm the fault events ({kinds}): not in the record")
 
     def _sync_recorder(self, session: zenoh.Session, timeout: float = 10.0) -> None:
         """Wait until the traffic recorder has written every communicate routed so far (the
@@ -559,6 +597,8 @@ class ScenarioRunner:
         self.fleet.wait_alive(session, ["recorder"], timeout=60)
         session.declare_subscriber(keys.FIPA_ALL, self._on_traffic)
         follow_reports(session, self._on_report)  # also what a_hi said while the router was away
+        self.missed = MissedOutcomes(session)  # and what it no longer has a cache of
+        self.session = session
         self.fleet.start_agents()
         waited = self.fleet.wait_alive(session, AGENT_ORDER, timeout=120)
         self.info.processes = self.fleet.pids()
@@ -619,7 +659,7 @@ class ScenarioRunner:
         """The agents' counters (and the gateway's: what crossed it, said in one line as
         ``roco status`` shows it) into the run folder's counters.json."""
         asked = [*AGENT_ORDER, *([GATEWAY] if self.gateway is not None else [])]
-        counters = ask_counters(session, asked, timeout=5.0)
+        counters = ask_counters(session, asked, timeout=10.0)
         save_counters(self.run_dir, counters)
         self.raised = raised_by_agent({a: r.counters for a, r in counters.items()})
         if self.raised:

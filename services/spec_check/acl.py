@@ -16,7 +16,8 @@ liveliness declarations), ``egress`` what the router delivers to it. For agent `
   ``…/event/A``; it hears ``roco/counters/ask`` and answers on ``roco/counters/report/A``;
 - the receptors and effectors outside FIPA (:data:`AGENT_EXTRAS`): a_hi hears ``roco/human/in``
   and speaks on ``roco/human/out``, through an advanced publisher with its cache below
-  (``roco/human/out/@adv/**``, as for communicates); ag_ex publishes ``roco/state/ag_ex`` and hears
+  (``roco/human/out/@adv/**``, as for communicates), and answers queries of
+  ``roco/human/outcomes`` (the outcomes it told); ag_ex publishes ``roco/state/ag_ex`` and hears
   ``roco/sim/disturb``.
 
 - its advanced publishers (one per key it sends on, services/runtime/transport.py): it learns of
@@ -42,8 +43,9 @@ answers queries of ``roco/recorder/flags`` (the live requirement flags) and no o
 The operator (``roco send``/``status``/``sniff``/``fault``, the scenario runner, the launcher's
 liveliness wait) may hear everything under ``roco/**`` and put on the human's receptor, the
 simulated world's disturbances, the recorder's sync key and the fault keys the injector uses,
-and query the recorder's flags — but never on ``roco/fipa/**`` and never a liveliness token; its
-advanced subscriber of a_hi's reports watches, hears and queries ``roco/human/out/@adv/**``.
+and query the recorder's flags and a_hi's outcomes — but never on ``roco/fipa/**`` and never a
+liveliness token; its advanced subscriber of a_hi's reports watches, hears and queries
+``roco/human/out/@adv/**``.
 
 Zenoh (1.10) allows a message when an allow rule's key expression *includes* the message's key
 expression (a subscriber on ``roco/fipa/**`` is not allowed by rules naming single channels).
@@ -227,7 +229,21 @@ def agent_grants(spec: SystemSpec, agent: str) -> Grants:
     g.say(*extra.says)
     if keys.HUMAN_OUT in extra.says:
         _report_publisher(g)
+        _answers(g, keys.HUMAN_OUTCOMES)  # the outcomes it told (a person's tool asks)
     return g
+
+
+def _answers(g: Grants, key: str) -> None:
+    """A queryable on ``key``: declare it, be asked, answer on ``key`` only."""
+    g.allow("ingress", "declare_queryable", key)
+    g.allow("egress", "query", key)
+    g.allow("ingress", "reply", key)
+
+
+def _asks(g: Grants, key: str) -> None:
+    """Ask the queryable on ``key`` and hear its answers."""
+    g.allow("ingress", "query", key)
+    g.allow("egress", "reply", key)
 
 
 def _report_publisher(g: Grants) -> None:
@@ -288,10 +304,7 @@ def recorder_grants() -> Grants:
     g.allow("ingress", "liveliness_query", keys.FIPA_CACHES)
     g.allow("egress", "liveliness_token", keys.FIPA_CACHES)
     g.own_token(keys.alive_key(RECORDER))
-    # its queryable of the live requirement flags (roco status asks it)
-    g.allow("ingress", "declare_queryable", keys.RECORDER_FLAGS)
-    g.allow("egress", "query", keys.RECORDER_FLAGS)
-    g.allow("ingress", "reply", keys.RECORDER_FLAGS)
+    _answers(g, keys.RECORDER_FLAGS)  # the live requirement flags (roco status asks it)
     return g
 
 
@@ -317,8 +330,8 @@ def operator_grants() -> Grants:
     g.allow("ingress", "declare_liveliness_subscriber", keys.HUMAN_OUT_CACHES)
     g.allow("ingress", "liveliness_query", keys.HUMAN_OUT_CACHES)
     g.allow("egress", "liveliness_token", keys.HUMAN_OUT_CACHES)
-    g.allow("ingress", "query", keys.RECORDER_FLAGS)  # the recorder's flags (roco status)
-    g.allow("egress", "reply", keys.RECORDER_FLAGS)
+    _asks(g, keys.RECORDER_FLAGS)  # the recorder's flags (roco status)
+    _asks(g, keys.HUMAN_OUTCOMES)  # the outcomes a_hi told (roco send, the scenario runner)
     return g
 
 

@@ -1,12 +1,18 @@
 """`roco send` hears a_hi's outcome when a_hi gave it while the router was down.
 
-A real router on a loopback port, a stand-in for a_hi on a ZenohTransport (its reports put as
-a_hi's are, through the transport's advanced publisher), and `roco send` as a process of its
-own. The router is SIGKILLed while `roco send` waits, a_hi tells the outcome into the outage,
-and the router is started again on the same endpoint: `roco send` prints the outcome once and
-exits 0. The same outage with the outcome put as a plain Zenoh put (no cache: how a_hi put its
-reports before) loses it, and `roco send` gives up: the check can fail. Every wait reads a line
-or a queue against a deadline.
+A real router on a loopback port, a stand-in for a_hi on a ZenohTransport, and `roco send` as a
+process of its own. The router is SIGKILLed while `roco send` waits, a_hi tells the outcome into
+the outage, and the router is started again on the same endpoint. Three ways a_hi tells it:
+
+- through the transport's advanced publisher (as a_hi does): its cache gives it to `roco send`
+  once the router is back; `roco send` prints it once and exits 0;
+- as a plain Zenoh put, and a_hi keeps the outcomes it told (services/agents/human_interface/
+  told.py, as a_hi does: an a_hi that died after telling has no cache left): `roco send` asks
+  for it after ``ASK_AFTER_S`` of silence, prints it once and exits 0;
+- as a plain put, kept nowhere (how a_hi told before either): it is lost, and `roco send`
+  gives up: the check can fail.
+
+Every wait reads a line or a queue against a deadline.
 """
 
 from __future__ import annotations
@@ -22,6 +28,7 @@ from pathlib import Path
 import msgspec
 import pytest
 
+from services.agents.human_interface.told import Told
 from services.fleet.launcher import Fleet
 from services.runtime import keys
 from services.runtime.human import HumanInput, HumanReport, ReportKind, RequestKind
@@ -31,8 +38,9 @@ from tests.support.router import router_fleet
 
 ROOT = Path(__file__).resolve().parents[2]
 OUTCOME = "pour the jar into the bowl: succeeded"
-SEND_TIMEOUT_S = 20
-"""`roco send --timeout`: ample for reconnecting after the outage (≈ 1 s, the retry schedule)."""
+SEND_TIMEOUT_S = 25
+"""`roco send --timeout`: ample for reconnecting after the outage (≈ 1 s, the retry schedule)
+and for asking a_hi after ``ASK_AFTER_S`` (10 s) of silence."""
 
 
 @pytest.fixture
@@ -46,15 +54,26 @@ def kill_router(fleet: Fleet) -> None:
     proc.wait(timeout=10)
 
 
-@pytest.mark.parametrize("cached", [True, False], ids=["advanced-publisher", "plain-put"])
-def test_send_prints_an_outcome_given_while_the_router_was_down(fleet: Fleet, cached: bool) -> None:
+@pytest.mark.parametrize(
+    ("cached", "kept"),
+    [(True, False), (False, True), (False, False)],
+    ids=["advanced-publisher", "plain-put-kept", "plain-put-lost"],
+)
+def test_send_prints_an_outcome_given_while_the_router_was_down(
+    fleet: Fleet, cached: bool, kept: bool
+) -> None:
     a_hi = ZenohTransport([fleet.endpoint])
     heard: queue.SimpleQueue[HumanInput] = queue.SimpleQueue()
     a_hi.subscribe(keys.HUMAN_IN, lambda _k, p: heard.put(msgspec.json.decode(p, type=HumanInput)))
+    told = Told()
+    if kept:
+        a_hi.serve(keys.HUMAN_OUTCOMES, told.answer)
     a_hi.announce(keys.alive_key("a_hi"))
 
     def report(request_id: str, kind: ReportKind, text: str) -> None:
-        payload = msgspec.json.encode(HumanReport(request_id=request_id, kind=kind, text=text))
+        said = HumanReport(request_id=request_id, kind=kind, text=text)
+        told.keep(said)
+        payload = msgspec.json.encode(said)
         if cached:
             a_hi.publish(keys.HUMAN_OUT, payload)
         else:
@@ -86,7 +105,7 @@ def test_send_prints_an_outcome_given_while_the_router_was_down(fleet: Fleet, ca
             send.kill()
             send.wait()
         a_hi.close()
-    if cached:
+    if cached or kept:
         assert rest == [f"succeeded: {OUTCOME}"], (rest, err)
         assert send.returncode == 0, err
     else:  # the bug: the outcome is lost, roco send waits out its timeout

@@ -22,7 +22,7 @@ from pathlib import Path
 
 import pytest
 
-from services.recorder.record import read_link_events
+from services.recorder.record import read_fault_events, read_link_events
 from services.scenario.chaos import CHAOS_FILE
 from tests.support.machine import needs_two_hosts
 
@@ -60,6 +60,19 @@ def test_chaos_across_two_hosts_faults_both_hosts_and_the_link_and_keeps_everyth
     assert events == ["shaping", "down", "up", "counters"], events  # counters: read at hosts down
     cut_s = float(rows["link"][5])
     assert 2.0 <= cut_s <= 6.0 and "- link down from t = " in report
+    # every fault is in the record too (faults.jsonl, report section 8), those of the routers
+    # included: the runner records them once its session sees the recorder again
+    recorded = {(e.target, e.kind) for e in read_fault_events(run_dir)[0]}
+    assert {
+        ("a_ta", "stop"),
+        ("a_ta", "start"),
+        ("router_robot", "kill"),
+        ("router_robot", "start"),
+        ("router_brain", "pause"),
+        ("router_brain", "unpause"),
+        ("link", "partition"),
+        ("link", "heal"),
+    } <= recorded, recorded
     placed = json.loads((run_dir / "hosts.json").read_text())["hosts"]
     assert {"a_ta", "ag_ex"} <= set(placed["robot"]["processes"])
     left = subprocess.run(["ip", "netns", "list"], capture_output=True, text=True).stdout

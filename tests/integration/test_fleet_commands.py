@@ -12,6 +12,8 @@ from pathlib import Path
 import pytest
 
 from services.fleet.launcher import free_port
+from services.report.build import NOTHING_RAISED
+from services.runtime.counters import read_counters
 from services.runtime.session import listening
 
 pytestmark = [pytest.mark.slow, pytest.mark.fleet]
@@ -86,5 +88,9 @@ def test_up_status_send_down(tmp_path: Path) -> None:
     assert "traffic record complete" in down.stdout, down.stdout  # the recorder answered the sync
     assert " gateway" in down.stdout.split(";")[0] and not listening(f"tcp/127.0.0.1:{gateway}")
     assert not (tmp_path / ".fleet.json").exists()
+    # the agents' counters were kept before they stopped: the report says what they raised
+    (run_dir,) = [p for p in tmp_path.iterdir() if p.is_dir()]
+    assert set(read_counters(run_dir)) >= {"a_hi", "a_co", "a_pl", "a_km", "a_ta", "ag_ex"}
+    assert f"| Agents raised | {NOTHING_RAISED} |" in (run_dir / "report.md").read_text()
     after = roco("down", "--runs-dir", runs)
     assert after.returncode == 1 and after.stderr.startswith("roco: no fleet is up")

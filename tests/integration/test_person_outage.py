@@ -17,7 +17,6 @@ import re
 import signal
 import subprocess
 import sys
-import time
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -25,7 +24,7 @@ import pytest
 
 from services.fleet.launcher import AGENT_ORDER, Fleet, free_port
 from services.runtime.session import open_client
-from tests.support.lines import lines_of
+from tests.support.lines import lines_of, wait_until
 
 pytestmark = [pytest.mark.slow, pytest.mark.fleet]
 ROOT = Path(__file__).resolve().parents[2]
@@ -56,14 +55,6 @@ def fleet(tmp_path: Path) -> Iterator[Fleet]:
 
 def told_success(log: Path) -> bool:
     return log.is_file() and f"succeeded: {POUR}: succeeded" in log.read_text(errors="replace")
-
-
-def wait_until(condition: object, timeout: float, what: str) -> None:
-    deadline = time.monotonic() + timeout
-    while not condition():  # type: ignore[operator]
-        if time.monotonic() > deadline:
-            pytest.fail(f"not within {timeout:.0f} s: {what}")
-        time.sleep(0.05)
 
 
 def test_send_prints_the_outcome_a_hi_gave_while_the_router_was_down(fleet: Fleet) -> None:

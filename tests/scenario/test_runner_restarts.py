@@ -1,7 +1,8 @@
-"""The scenario runner (services/scenario/runner.py) starts again an agent that exited though
-nobody stopped it (a receiving thread that ended: services/runtime/main.py ``EXIT_LOST``), up to
-``MAX_CRASHES`` times, and keeps its exit codes; any other process that exits ends the run. What
-the agents raised is in the outcome's summary and makes it not clean."""
+"""The scenario runner (services/scenario/runner.py) starts again an agent, the traffic recorder
+or the router that exited though nobody stopped it (a receiving thread that ended:
+services/runtime/main.py ``EXIT_LOST``; a router killed from outside), up to ``MAX_CRASHES``
+times, and keeps its exit codes; the world process exiting ends the run. What the agents raised
+is in the outcome's summary and makes it not clean."""
 
 from __future__ import annotations
 
@@ -46,12 +47,18 @@ class _Fleet:
 
 @dataclass
 class _Hosting:
+    """Starts a router again as the local hosting does (services/fault/process.py ``start``)."""
+
     fleet: _Fleet
+
+    def start_again(self, session: object, service: str, timeout: float) -> None:
+        self.fleet.restart(service)
 
 
 def _runner(tmp_path: Path) -> tuple[ScenarioRunner, _Fleet]:
-    fleet = _Fleet({"a_ta": _Proc(100), "recorder": _Proc(200)})
+    fleet = _Fleet({"a_ta": _Proc(100), "recorder": _Proc(200), "router": _Proc(300), "world": _Proc(400)})
     runner = ScenarioRunner(Scenario(name="t", steps=(Step(say="pour"),)), tmp_path, hosting=_Hosting(fleet))  # type: ignore[arg-type]
+    runner.session = object()  # type: ignore[assignment]  # the fleet has started
     return runner, fleet
 
 
@@ -79,10 +86,26 @@ def test_an_agent_that_keeps_exiting_ends_the_run(tmp_path: Path) -> None:
     assert runner.crashed == {"a_ta": [1] * MAX_CRASHES}
 
 
-def test_a_service_that_is_no_agent_is_not_started_again(tmp_path: Path) -> None:
+@pytest.mark.parametrize(
+    ("name", "log"), [("recorder", "logs/recorder.log"), ("router", "logs/router.stderr")]
+)
+def test_the_recorder_and_the_router_are_started_again_too(tmp_path: Path, name: str, log: str) -> None:
     runner, fleet = _runner(tmp_path)
-    fleet.processes["recorder"].returncode = 1
-    with pytest.raises(LaunchError, match="process recorder exited during the run"):
+    said: list[str] = []
+    runner.echo = said.append
+    fleet.processes[name].returncode = -9
+    runner._pump(0.0, math.inf)
+    assert fleet.restarted == [name] and runner.crashed == {name: [-9]}
+    pid = fleet.processes[name].pid
+    assert said[-1].endswith(f"{name} exited (code -9, see {log}); started again (pid {pid})")
+    outcome = ScenarioOutcome([], crashed=runner.crashed)
+    assert outcome.raised_line().endswith(f"{name} exited (code -9) and was started again: see {log}")
+
+
+def test_the_world_process_exiting_ends_the_run(tmp_path: Path) -> None:
+    runner, fleet = _runner(tmp_path)
+    fleet.processes["world"].returncode = 1
+    with pytest.raises(LaunchError, match="process world exited during the run"):
         runner._pump(0.0, math.inf)
     assert fleet.restarted == []
 

@@ -130,21 +130,27 @@ def test_operator_observes_and_commands_but_never_speaks_fipa(spec: SystemSpec) 
     assert not g.may("ingress", "put", keys.HUMAN_OUT)
 
 
-def test_only_the_recorder_answers_queries_of_its_flags_and_the_operator_asks(spec: SystemSpec) -> None:
-    """roco status asks the recorder for the live requirement flags (services/recorder/flags.py)."""
-    rec, op = recorder_grants(), operator_grants()
-    assert rec.allowed[("ingress", "declare_queryable")] == [keys.RECORDER_FLAGS]
-    assert rec.may("egress", "query", keys.RECORDER_FLAGS) and rec.may(
-        "ingress", "reply", keys.RECORDER_FLAGS
-    )
-    assert op.may("ingress", "query", keys.RECORDER_FLAGS) and op.may("egress", "reply", keys.RECORDER_FLAGS)
-    assert not op.allowed.get(("ingress", "declare_queryable")) and not op.may(
-        "ingress", "reply", keys.RECORDER_FLAGS
-    )
-    for a in spec.agents:
-        g = agent_grants(spec, a.name)
-        assert not g.may("ingress", "declare_queryable", keys.RECORDER_FLAGS)
-        assert not g.may("ingress", "reply", keys.RECORDER_FLAGS)
+@pytest.mark.parametrize(
+    ("answerer", "key"), [("recorder", keys.RECORDER_FLAGS), ("a_hi", keys.HUMAN_OUTCOMES)]
+)
+def test_only_its_owner_answers_a_queryable_and_the_operator_asks(
+    spec: SystemSpec, answerer: str, key: str
+) -> None:
+    """roco status asks the recorder for the live requirement flags (services/recorder/flags.py);
+    roco send and the scenario runner ask a_hi for the outcomes it told
+    (services/agents/human_interface/told.py). Nobody else declares the queryable or replies on
+    its key."""
+    identities = [agent_grants(spec, a.name) for a in spec.agents] + [recorder_grants()]
+    owner = next(g for g in identities if g.identity == answerer)
+    assert key in owner.allowed[("ingress", "declare_queryable")]
+    assert owner.may("egress", "query", key) and owner.may("ingress", "reply", key)
+    op = operator_grants()
+    assert op.may("ingress", "query", key) and op.may("egress", "reply", key)
+    assert not op.allowed.get(("ingress", "declare_queryable")) and not op.may("ingress", "reply", key)
+    for g in identities:
+        if g is not owner:
+            assert not g.may("ingress", "declare_queryable", key), g.identity
+            assert not g.may("ingress", "reply", key), g.identity
 
 
 def test_acl_config_is_default_deny_with_one_subject_and_policy_per_identity(spec: SystemSpec) -> None:

@@ -23,7 +23,8 @@ what it named and a question asked back (language.py). Agents of other FIPA plat
 
 Restarts (docs/recovery.md): a command's request is retransmitted until a_co agrees; the
 fipa-request role keeps the open commands (``keep=CommandNote``), which a restarted a_hi takes
-back (:meth:`HumanInterface.on_restored`); open stops and status queries are not kept.
+back (:meth:`HumanInterface.on_restored`), and the outcomes it told (``NOTE``: told.py, asked
+on ``roco/human/outcomes``); open stops and status queries are not kept.
 """
 
 from __future__ import annotations
@@ -48,6 +49,7 @@ from services.agents.human_interface.language import (
 from services.agents.human_interface.reading import LineReader, Reading
 from services.agents.human_interface.stop import StopWords, command_openings
 from services.agents.human_interface.task_grammar import Grammar, default_grammar, load_grammar
+from services.agents.human_interface.told import Told
 from services.agents.human_interface.vocabulary import VOCABULARY_QUERY, Vocabulary
 from services.agents.human_interface.wording import (
     NOTHING_TO_STOP,
@@ -196,6 +198,7 @@ class HumanInterface(Agent):
     """a_hi: sentences in, L_HC on C2 to a_co, readable reports out."""
 
     name = "a_hi"
+    NOTE = Told
     progress: StandingSubscription
     """a_co's progress stream (services/runtime/subscriptions.py), opened in :meth:`setup`."""
     ROLES: ClassVar[tuple[RoleDecl, ...]] = (
@@ -230,17 +233,9 @@ class HumanInterface(Agent):
         self.reading: deque[Reading] = deque()  # sentences given to the reader, in order
         self.reader = LineReader(self.grammar, lambda: self.post(ReadDone()))
         self.foreign = ForeignRequests(self.log, self.sources.new_id)  # agents of other platforms (C8)
-        return FSM(
-            [
-                Behaviour(
-                    "interact",
-                    self._interact,
-                    terminal=lambda: False,
-                    doc="turn sentences into requests, cancels and queries to a_co; "
-                    "report a_co's answers and progress to the person",
-                )
-            ],
-        )
+        what = "turn sentences into requests, cancels and queries to a_co; "
+        what += "report a_co's answers and progress to the person"
+        return FSM([Behaviour("interact", self._interact, terminal=lambda: False, doc=what)])
 
     def setup(self) -> None:
         decoder = msgspec.json.Decoder(HumanInput)
@@ -252,6 +247,8 @@ class HumanInterface(Agent):
                 self.log.warning("ignored malformed human input: %s", exc)
 
         self.transport.subscribe(keys.HUMAN_IN, on_text)
+        if (serve := getattr(self.transport, "serve", None)) is not None:  # a ZenohTransport
+            serve(keys.HUMAN_OUTCOMES, self.note.answer)  # on Zenoh's thread: encoded under the GIL
         # opened when a_co's liveliness token is seen: it never waits on an a_co not there yet
         self.progress = self.roles.subscribe(
             C2,
@@ -290,6 +287,7 @@ class HumanInterface(Agent):
         request = self.asked.pop(request_id, None) if kind in FINAL_REPORTS else self.asked.get(request_id)
         report = HumanReport(request_id=request_id, kind=kind, text=text, request=request)
         self.emit(keys.HUMAN_OUT, msgspec.json.encode(report))
+        self.note.keep(report)
         self.foreign.answer(report)
 
     # ---- from agents of other platforms (C8, fipa-request, participant: foreign.py) ---------

@@ -7,6 +7,7 @@ import queue
 import threading
 from collections import defaultdict
 from collections.abc import Callable, Iterator
+from pathlib import Path
 from typing import Any
 
 import msgspec
@@ -19,6 +20,7 @@ from services.runtime.agent import Agent, Received
 from services.runtime.behaviour import FSM, Behaviour
 from services.runtime.human import FINAL_REPORTS, HumanInput, HumanReport, ReportKind
 from services.runtime.memory_transport import MemoryBus
+from services.runtime.state_store import ENV_STATE_DIR
 from shared.fipa_codec import AgentIdentifier, Communicate, Performative, decode, encode
 from shared.fipa_codec.languages import encode_content
 from shared.fipa_codec.languages.l_hc import (
@@ -206,6 +208,32 @@ def test_command_agree_progress_inform_gives_readable_reports(stage: Stage) -> N
         (ReportKind.SUCCEEDED, "pour the jar into the bowl: succeeded; done"),
     ]
     assert not hi.commands and len(hi.pending_replies) == 1  # only the subscription stays open
+
+
+def test_the_outcomes_told_are_kept_across_a_restart_and_given_to_whoever_asks(
+    stage: Stage, monkeypatch: pytest.MonkeyPatch, tmp_path: Path
+) -> None:
+    """A command's final report is kept in a_hi's NOTE (told.py): what its queryable of
+    ``roco/human/outcomes`` answers, and what an a_hi started after it on the same state folder
+    answers too (an a_hi that died after telling: its publisher's cache is gone)."""
+    monkeypatch.setenv(ENV_STATE_DIR, str(tmp_path))
+    co, hi, person = _ready(stage)
+    person.say("pour the jar into the bowl", "r1")
+    request = co.receive(Performative.REQUEST)
+    cid = request.msg.conversation_id or ""
+
+    def run(co: ScriptedCo) -> None:
+        co.reply(request, Performative.AGREE)
+        co.reply(request, Performative.INFORM, CommandOutcome(command_id=cid, succeeded=True, detail="done"))
+
+    co.do(run)
+    final = person.until_final("r1")[-1]
+    stage.stop()  # a_hi persists after each step: stopped, it has written what it told
+    told = msgspec.json.decode(hi.note.answer(), type=list[HumanReport])
+    assert [(r.request_id, r.kind) for r in told] == [("r1", ReportKind.SUCCEEDED)]
+    assert told[-1] == final
+    again = HumanInterface(MemoryBus().transport())
+    assert msgspec.json.decode(again.note.answer(), type=list[HumanReport]) == told
 
 
 @pytest.mark.requirement("R1.1", "R1.2")
