@@ -39,6 +39,7 @@ import math
 import os
 import tempfile
 import time
+from bisect import bisect_left
 from collections import defaultdict
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -156,6 +157,17 @@ def _before(output: Recorded, item: Recorded) -> bool:
     return output.sent < item.sent and not output.copy and not answers
 
 
+def _sent_by(items: list[Recorded]) -> list[float]:
+    """The latest send time (POSIX s) of ``items`` up to each, copies left out (-inf before the
+    first that is none): non-decreasing."""
+    out, latest = [], -math.inf
+    for item in items:
+        if not item.copy:
+            latest = max(latest, item.sent)
+        out.append(latest)
+    return out
+
+
 class _Replay:
     """One replay under way (see the module docstring); ``causal`` False feeds the inputs as
     they come in the record, none waiting for the agent."""
@@ -175,6 +187,9 @@ class _Replay:
         )
         """The tokens of the agent's recorded communicates an input may answer."""
         self.causal = causal
+        self.sent_by = {key: _sent_by(items) for key, items in record.outputs.items()}
+        """Per key of the agent's: by each of its communicates on it, the latest send time of
+        those up to it (copies left out), for a bisection."""
         self.after: dict[int, tuple[tuple[str, int], ...]] = {}
         """Per input (its ``seq``): what of the agent's it comes after (:meth:`_after`)."""
         self.replayed: set[_Token] = set()
@@ -231,8 +246,12 @@ class _Replay:
         for key, items in self.record.outputs.items() if self.causal else ():
             if keys.parse_fipa_key(key).receiver != peer:
                 continue
-            last = max((i for i, o in enumerate(items) if _before(o, item)), default=None)
-            if last is not None:
+            # the last place all before which were sent before item, then back past copies
+            # and an answer to item
+            last = bisect_left(self.sent_by[key], item.sent) - 1
+            while last >= 0 and not _before(items[last], item):
+                last -= 1
+            if last >= 0:
                 found.append((key, last))
         self.after[item.seq] = tuple(found)
         return self.after[item.seq]
