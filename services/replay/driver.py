@@ -14,11 +14,22 @@ end. Each communicate the agent sends is compared at once with the next one it s
 in the run (services/replay/compare.py), which pairs their identifiers: the inputs that
 follow carry the replayed identifiers where they answer the agent.
 
-The inputs come in causal order (services/replay/record.py), and an input that answers one of
-the agent's own communicates (its in-reply-to names the reply-with of one the agent sent in the
-run, in the same conversation-id: FIPA SC00061 §2.4) waits until the replayed agent has sent
-that one, then goes in at once: the agent's outputs are made in the replay, so only the replay
-knows when it has asked. An answer to a communicate the replayed agent never sends goes in
+The inputs come in causal order (services/replay/record.py), and an input waits until the
+replayed agent has sent what came before it in the run, then goes in at once: the agent's
+outputs are made in the replay, so only the replay knows when it has sent them. Before an input
+came (:meth:`_Replay.waits`):
+
+- the communicate of the agent's it answers (its in-reply-to names the reply-with of one the
+  agent sent in the run, in the same conversation-id: FIPA SC00061 §2.4);
+- every communicate the agent sent to the input's sender before the input was sent (the
+  record's send timestamps, ``Recorded.sent``), but one that answers the input: the sender had
+  it, or it crossed the input on its way, and either way the agent had sent it before the input
+  reached it. An answer does not name all of that: each of a_ta's informs on a plan's progress
+  (coordinate protocol) answers a_co's request, yet a_ta sends the next only once a_co's confirm
+  of the previous one has come, and a_hi's next command follows a_co's outcome of the last.
+
+The send times are read on one clock: a run on several hosts trusts theirs to agree better than
+an agent takes to answer. An input whose predecessors the replayed agent never sends goes in
 after the last input.
 """
 
@@ -28,6 +39,7 @@ import math
 import os
 import tempfile
 import time
+from bisect import bisect_left
 from collections import defaultdict
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -135,9 +147,30 @@ def _answered(comm: Communicate) -> _Token | None:
     return None if comm.in_reply_to is None else (comm.conversation_id, comm.in_reply_to)
 
 
+def _before(output: Recorded, item: Recorded) -> bool:
+    """Whether the agent's ``output`` was sent before input ``item`` (its sender's timestamps),
+    neither a copy of an earlier one nor an answer to ``item``."""
+    answers = output.comm.in_reply_to is not None and (
+        output.comm.conversation_id,
+        output.comm.in_reply_to,
+    ) == (item.comm.conversation_id, item.comm.reply_with)
+    return output.sent < item.sent and not output.copy and not answers
+
+
+def _sent_by(items: list[Recorded]) -> list[float]:
+    """The latest send time (POSIX s) of ``items`` up to each, copies left out (-inf before the
+    first that is none): non-decreasing."""
+    out, latest = [], -math.inf
+    for item in items:
+        if not item.copy:
+            latest = max(latest, item.sent)
+        out.append(latest)
+    return out
+
+
 class _Replay:
     """One replay under way (see the module docstring); ``causal`` False feeds the inputs as
-    they come in the record, none waiting for the agent's question."""
+    they come in the record, none waiting for the agent."""
 
     def __init__(
         self,
@@ -153,10 +186,17 @@ class _Replay:
             {(c.conversation_id, c.reply_with) for c in sent if c.reply_with is not None} if causal else set()
         )
         """The tokens of the agent's recorded communicates an input may answer."""
+        self.causal = causal
+        self.sent_by = {key: _sent_by(items) for key, items in record.outputs.items()}
+        """Per key of the agent's: by each of its communicates on it, the latest send time of
+        those up to it (copies left out), for a bisection."""
+        self.after: dict[int, tuple[tuple[str, int], ...]] = {}
+        """Per input (its ``seq``): what of the agent's it comes after (:meth:`_after`)."""
         self.replayed: set[_Token] = set()
         """The tokens of the recorded communicates the replayed agent has sent the like of."""
         self.held: list[Recorded] = []
-        """Inputs waiting for the agent to send what they answer, in input order."""
+        """Inputs waiting for the agent to send what came before them (:meth:`waits`), in input
+        order."""
         self.ids = IdMap()
         self.differences: list[Difference] = []
         self.taken: dict[str, int] = defaultdict(int)  # per key: recorded outputs met so far
@@ -170,15 +210,14 @@ class _Replay:
         self._check_inputs()
         for item in self.record.inputs:
             wake = self._until(item.t, wake)
-            token = _answered(item.comm)
-            if token in self.asked and token not in self.replayed:
+            if self.waits(item):
                 self.held.append(item)
                 continue
             self.sources.set(item.t)
             self._put(item)
             wake = self._drive()
         self._until(self.record.end, wake)
-        if self.held:  # answers to what the replayed agent never sent
+        if self.held:  # inputs after what the replayed agent never sent
             for item in self.held:
                 self._put(item)
             self.held.clear()
@@ -187,15 +226,45 @@ class _Replay:
         self.agent.drive()
         self._unsent()
 
+    def waits(self, item: Recorded) -> bool:
+        """Whether input ``item`` still waits for the replayed agent to send something it sent
+        before ``item`` came in the run (module docstring); never when the replay is not causal."""
+        token = _answered(item.comm)
+        if token in self.asked and token not in self.replayed:
+            return True
+        return any(self.taken[key] <= i for key, i in self._after(item))
+
+    def _after(self, item: Recorded) -> tuple[tuple[str, int], ...]:
+        """Per key of the agent's to ``item``'s sender: the place of the last communicate on it
+        that ``item`` must come after (sent before it, not a copy, not answering it); the agent
+        has sent it once ``taken`` of that key is past it. Empty when the replay is not causal."""
+        known = self.after.get(item.seq)
+        if known is not None:
+            return known
+        peer = keys.parse_fipa_key(item.key).sender
+        found = []
+        for key, items in self.record.outputs.items() if self.causal else ():
+            if keys.parse_fipa_key(key).receiver != peer:
+                continue
+            # the last place all before which were sent before item, then back past copies
+            # and an answer to item
+            last = bisect_left(self.sent_by[key], item.sent) - 1
+            while last >= 0 and not _before(items[last], item):
+                last -= 1
+            if last >= 0:
+                found.append((key, last))
+        self.after[item.seq] = tuple(found)
+        return self.after[item.seq]
+
     def _put(self, item: Recorded) -> None:
         """Put input ``item`` on the bus, with the replayed identifiers."""
         self.transport.bus.publish(item.key, encode(self._fed(item.comm)))
 
     def _drive(self) -> float | None:
-        """Let the agent take its steps due now, each held input whose question it has sent
-        put in as soon as it has; the time it next waits for (None: none)."""
+        """Let the agent take its steps due now, each held input put in as soon as the agent has
+        sent what came before it; the time it next waits for (None: none)."""
         wake = self.agent.drive()
-        while ready := [item for item in self.held if _answered(item.comm) in self.replayed]:
+        while ready := [item for item in self.held if not self.waits(item)]:
             self.held = [item for item in self.held if item not in ready]
             for item in ready:
                 self._put(item)

@@ -22,6 +22,11 @@ observation: the default of the first step), ``seconds`` (wall seconds after the
 ran); with no trigger a step runs right after the one before. A trigger may add ``delay_s``
 (wall seconds to wait once it holds, e.g. ``after = { step = "tilt", delay_s = 1.3 }`` to
 act half-way through the tilt).
+A ``say`` step's ``from`` says who says it: ``"person"`` (the default: the line a person types,
+on a_hi's human input) or ``"gateway"`` (an agent of another FIPA platform: a fipa-request of a
+``Sentence`` posted to a_hi through the fleet's ACL gateway, C8, which the run then starts:
+docs/gateway.md; its final answer, ``inform`` or ``failure`` of a ``SentenceReport``, is the
+command's outcome).
 ``expect`` is the final report kind of a ``say`` command (``succeeded``,
 ``failed``, ``stopped``, ``not-understood``); ``expect_text`` a text its final report must
 contain.
@@ -44,6 +49,9 @@ AGENTS = frozenset(default_spec().agent_names)
 SERVICES = AGENTS | {"recorder", "router"}
 """What a ``fault`` step can hit: the agents, the traffic recorder and the Zenoh router."""
 FAULT_KINDS = frozenset({"kill", "pause", "restart"})
+SPEAKERS = ("person", "gateway")
+"""Who a ``say`` step's sentence comes from (``from``): a person, or an agent of another FIPA
+platform through the ACL gateway."""
 MOVABLE = ("jar", "bowl", "cup")
 """The free bodies of the kitchen a ``disturb`` step can move (velma/executor/ground_truth.py
 CONTAINERS; repeated here so that reading a scenario needs no physics engine)."""
@@ -89,6 +97,8 @@ class Step(msgspec.Struct, frozen=True, forbid_unknown_fields=True, kw_only=True
 
     say: str | None = None
     priority: int = 0
+    from_: str = msgspec.field(default="person", name="from")
+    """Who says ``say``: one of :data:`SPEAKERS`."""
     disturb: Disturb | None = None
     restart: str | None = None
     fault: Fault | None = None
@@ -166,6 +176,16 @@ def _disturb_rule(step: Step, i: int, said: int) -> str | None:
     return None
 
 
+def _from_rule(step: Step, i: int, said: int) -> str | None:
+    if step.from_ not in SPEAKERS:
+        return f"step {i}: from must be one of {', '.join(SPEAKERS)}, not {step.from_!r}"
+    if step.from_ != "person" and step.say is None:
+        return f"step {i}: only a say step comes from someone"
+    if step.from_ != "person" and step.priority:
+        return f"step {i}: a sentence from the gateway has no priority (a person's line has)"
+    return None
+
+
 def _restart_rule(step: Step, i: int, said: int) -> str | None:
     if step.restart is not None and step.restart not in AGENTS:
         return f"step {i}: no agent {step.restart!r} to restart"
@@ -199,6 +219,7 @@ _STEP_RULES: tuple[Callable[[Step, int, int], str | None], ...] = (
     _one_action,
     _fault_rule,
     _disturb_rule,
+    _from_rule,
     _restart_rule,
     _expect_rule,
     _after_rule,

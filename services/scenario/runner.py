@@ -18,26 +18,32 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Protocol
 
+import aiohttp
 import msgspec
 import zenoh
 
 from services.fleet.launcher import AGENT_ORDER, GATEWAY, Fleet, LaunchError, free_port
+from services.gateway.http_mtp import MTPError
+from services.gateway.platform import ForeignPlatform
 from services.recorder.sync import sync
 from services.runtime import keys
 from services.runtime.counters import ask_counters, save_counters
 from services.runtime.faults import FaultEvent
-from services.runtime.human import FINAL_REPORTS, HumanInput, HumanReport
+from services.runtime.human import FINAL_REPORTS, HumanInput, HumanReport, ReportKind
 from services.runtime.raised import log_of, raised_by_agent, raised_text
 from services.runtime.reports import MissedOutcomes, ReportFilter, follow_reports
 from services.runtime.run_folder import RunCommand, RunInfo, write_run_info
 from services.runtime.session import open_client
 from services.scenario.model import Fault, Scenario, Step
-from shared.fipa_codec import DecodeError, Performative, decode
+from shared.fipa_codec import Communicate, DecodeError, Performative, decode
 from shared.fipa_codec.batch import unpack
 from shared.fipa_codec.languages import ContentError, decode_content
+from shared.fipa_codec.languages.l_hc import SentenceReport
 from shared.fipa_codec.languages.l_sw import SWStatus
 
 Echo = Callable[[str], None]
+KINDS = frozenset(k.value for k in ReportKind)
+"""The kinds of report a ``SentenceReport`` may carry (services/runtime/human.py)."""
 MAX_CRASHES = 3
 """Times a process (an agent, the recorder, a router) that exits by itself is started again
 during a run before the run ends."""
@@ -237,7 +243,8 @@ class ScenarioRunner:
     router answers, before anything else starts (a live view subscribes on it); ``hosting``:
     where the fleet runs (default: :class:`LocalHosting`); ``gateway``: a port on 127.0.0.1
     where the fleet's ACL gateway serves agents of other FIPA platforms (``roco gateway``,
-    docs/gateway.md), started once the agents are alive (None: no gateway)."""
+    docs/gateway.md), started once the agents are alive (None: no gateway, unless a ``say``
+    step comes ``from = "gateway"``: then on a free port)."""
 
     def __init__(
         self,
@@ -253,7 +260,12 @@ class ScenarioRunner:
         gateway: int | None = None,
     ) -> None:
         self.scenario = scenario
-        self.gateway = gateway
+        from_platform = any(s.from_ == "gateway" for s in scenario.commands)
+        self.gateway = gateway if gateway is not None or not from_platform else free_port()
+        self.platform: ForeignPlatform | None = None
+        """The foreign agent that says the ``from = "gateway"`` steps (made at the first)."""
+        self.conversations: dict[str, CommandRecord] = {}
+        """The foreign agent's commands, by its conversation-id."""
         self.on_session = on_session
         self.run_dir = run_dir
         self.hosting: Hosting = hosting if hosting is not None else LocalHosting(run_dir, env or {})
@@ -340,12 +352,19 @@ class ScenarioRunner:
             kind, item = self.events.get(timeout=timeout)
         except queue.Empty:
             return
+        self._take(kind, item)
+
+    def _take(self, kind: str, item: object) -> None:
+        """One event: a progress line, a plan step of a_ta, a report of a_hi to the person, an
+        answer the foreign agent received."""
         if kind == "line":
             self._say(str(item))
         elif kind == "step":
             self.steps_seen.append(str(item))
         elif kind == "report" and isinstance(item, HumanReport):
             self._report(item)
+        elif kind == "foreign" and isinstance(item, Communicate):
+            self._foreign_answer(item)
 
     def _ask_missed(self) -> None:
         """After a silence of the open commands' reports, their outcomes a_hi kept, as reports."""
@@ -381,16 +400,17 @@ class ScenarioRunner:
         write_run_info(self.run_dir, self.info)
         self._say(f"{name} exited (code {proc.returncode}, see {log_of(name)}); started again (pid {pid})")
 
-    def _report(self, item: HumanReport) -> None:
-        """a_hi's report to the person: said, and kept with its command (the final one ends
-        it); a report of no command of the run, or after its command's final one, is ignored."""
+    def _report(self, item: HumanReport, to: str = "person") -> None:
+        """a_hi's report to the person (or, ``to`` ``platform``, its answer to the foreign
+        agent): said, and kept with its command (the final one ends it); a report of no command
+        of the run, or after its command's final one, is ignored."""
         record = next((c for c in self.commands if c.request_id == item.request_id), None)
         if record is None or not self.shown.keep(item):
             return
         if self.missed is not None:
             self.missed.heard()
         record.reports.append(item)
-        self._say(f"a_hi → person (#{record.number}): {item.kind.value}: {item.text}")
+        self._say(f"a_hi → {to} (#{record.number}): {item.kind.value}: {item.text}")
         if item.kind in FINAL_REPORTS:
             record.final = item
             record.ended = time.time()
@@ -418,21 +438,30 @@ class ScenarioRunner:
         self._pump(0.5, deadline)
         return not self._ready(step, steps_before)
 
+    def _command(self, session: zenoh.Session, step: Step, text: str) -> None:
+        """Say ``text``: a person's line on a_hi's human input, or a foreign agent's request
+        through the gateway (``from = "gateway"``)."""
+        record = CommandRecord(
+            len(self.commands) + 1, text, uuid.uuid4().hex[:8], step.expect, step.expect_text
+        )
+        self.commands.append(record)
+        record.sent = time.time()
+        if step.from_ == "gateway":
+            self._request_from_platform(record)
+        else:
+            payload = HumanInput(text=text, request_id=record.request_id, priority=step.priority)
+            session.put(keys.HUMAN_IN, msgspec.json.encode(payload))
+        if self.info.command_sent is None:
+            self.info.command_sent = time.time()
+            self.info.command = text
+        self.info.commands.append(text)
+        write_run_info(self.run_dir, self.info)
+        speaker = "platform" if step.from_ == "gateway" else "person"
+        self._say(f"{speaker} → a_hi (#{record.number}): “{text}”")
+
     def _act(self, session: zenoh.Session, step: Step) -> None:
         if step.say is not None:
-            record = CommandRecord(
-                len(self.commands) + 1, step.say, uuid.uuid4().hex[:8], step.expect, step.expect_text
-            )
-            self.commands.append(record)
-            payload = HumanInput(text=step.say, request_id=record.request_id, priority=step.priority)
-            record.sent = time.time()
-            session.put(keys.HUMAN_IN, msgspec.json.encode(payload))
-            if self.info.command_sent is None:
-                self.info.command_sent = time.time()
-                self.info.command = step.say
-            self.info.commands.append(step.say)
-            write_run_info(self.run_dir, self.info)
-            self._say(f"person → a_hi (#{record.number}): “{step.say}”")
+            self._command(session, step, step.say)
         elif step.disturb is not None:
             d = step.disturb
             disturbance = {"object": d.object, "delta": [d.dx, d.dy, d.dz], "tilt": d.tilt}
@@ -447,6 +476,46 @@ class ScenarioRunner:
             self.info.processes[step.restart] = pid
             write_run_info(self.run_dir, self.info)
             self._say(f"{step.restart} restarted (pid {pid})")
+
+    def _request_from_platform(self, record: CommandRecord) -> None:
+        """Post ``record``'s sentence to a_hi through the run's gateway as an agent of another
+        FIPA platform (services/gateway/platform.py), its answers taken as events; LaunchError
+        when its address cannot be bound or the gateway does not take the request."""
+        assert self.gateway is not None  # a from = "gateway" step starts one (__init__)
+        try:
+            if self.platform is None:
+                self.platform = ForeignPlatform(free_port(), lambda m: self.events.put(("foreign", m)))
+                self.platform.start()
+            url = f"http://127.0.0.1:{self.gateway}/acc"
+            conversation = self.platform.request(url, "a_hi", record.text)
+        except (MTPError, aiohttp.ClientError, OSError, TimeoutError) as exc:
+            raise LaunchError(f"the foreign platform's request through the gateway: {exc}") from None
+        self.conversations[conversation] = record
+
+    def _foreign_answer(self, msg: Communicate) -> None:
+        """An answer the foreign agent received, as a report of its command (its
+        ``SentenceReport``: an ``agree`` accepted, an ``inform``, ``failure`` or ``refuse`` the
+        final one); an answer that carries no report (e.g. the gateway's refusal with a reason)
+        ends the command ``failed`` with the answer's text."""
+        record = self.conversations.get(msg.conversation_id or "")
+        if record is None:
+            return
+        try:  # a term crosses the gateway as JSON (services/gateway/bridge.py)
+            content = (
+                msgspec.json.decode(msg.content, type=SentenceReport) if msg.language == "L_HC" else None
+            )
+        except msgspec.DecodeError:
+            content = None
+        if content is not None and content.kind in KINDS:
+            kind, text = ReportKind(content.kind), content.text
+        else:
+            kind = ReportKind.FAILED
+            text = f"{msg.performative.value}: {msg.content.decode(errors='replace')[:300]}"
+        self._report(HumanReport(request_id=record.request_id, kind=kind, text=text), to="platform")
+
+    def _stop_platform(self) -> None:
+        if self.platform is not None:
+            self.platform.stop()
 
     def _wait_pumping(self, seconds: float) -> None:
         until = time.monotonic() + seconds
@@ -570,6 +639,7 @@ class ScenarioRunner:
         finally:
             if session is not None:
                 session.close()
+            self._stop_platform()
             if self._stop_hosting():
                 detail, interrupted = "interrupted", True
             with contextlib.suppress(LaunchError):  # no fleet when the two hosts were never made

@@ -123,6 +123,28 @@ def test_two_commands_in_a_row(two_commands: Run) -> None:
     assert (w["bowl"].particles_inside or 0) >= FULL, w["bowl"]
 
 
+@pytest.mark.requirement("R1.4")
+def test_the_second_command_came_from_another_fipa_platform_through_the_gateway(two_commands: Run) -> None:
+    """``two_commands``' pour is said by an agent of another FIPA platform (``from =
+    "gateway"``): its fipa-request of a Sentence reached a_hi through the run's ACL gateway
+    (C8) and was answered in its conversation with ``agree``, then the ``inform`` of a
+    ``succeeded`` SentenceReport; ``roco spec trace`` on the run shows R1.4."""
+    from services.gateway.platform import NAME
+    from services.recorder.record import read_records
+    from services.spec.model import DEFAULT_SPEC
+    from services.spec_check.trace import Verdict, trace
+
+    _, run_dir = two_commands
+    c8 = [r for r in read_records(run_dir) if r.channel == "C8"]
+    assert [(r.sender, r.receivers, r.performative) for r in c8] == [
+        (NAME, ("a_hi",), "request"),
+        ("a_hi", (NAME,), "agree"),
+        ("a_hi", (NAME,), "inform"),
+    ]
+    traced = trace(DEFAULT_SPEC, [run_dir], tests=None)
+    assert traced.leaves["R1.4"].verdict is Verdict.SHOWN, traced.leaves["R1.4"].runs
+
+
 @needs_camera
 @pytest.mark.parametrize("run", ["urgent_mid_pour", "two_commands"])
 def test_the_head_camera_counts_most_spheres_in_the_bowl_after_the_pour(

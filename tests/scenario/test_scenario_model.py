@@ -39,6 +39,14 @@ def test_a_scenario_is_found_by_name_or_path(tmp_path: Path) -> None:
         load_scenario("nothing")
 
 
+def test_a_say_step_comes_from_a_person_unless_it_names_the_gateway() -> None:
+    """``from`` (services/scenario/model.py): a person by default; ``two_commands``' second
+    command comes from an agent of another FIPA platform through the gateway (R1.4)."""
+    first, second = load_scenario("two_commands").commands
+    assert (first.from_, second.from_) == ("person", "gateway")
+    assert second.say == "pour the jar into the bowl"
+
+
 @pytest.mark.parametrize(
     ("text", "problem"),
     [
@@ -53,6 +61,15 @@ def test_a_scenario_is_found_by_name_or_path(tmp_path: Path) -> None:
         ('name = "x"\n[[steps]]\ndisturb = { object = "jar" }\nexpect = "failed"', "only a say step"),
         ('name = "x"\n[[steps]]\nsay = "a"\nafter = { delay_s = 1.0 }', "exactly one of step"),
         ('name = "x"\n[[steps]]\nsay = "a"\nafter = { knowledge = true, delay_s = -1 }', "delay_s must be"),
+        (
+            'name = "x"\n[[steps]]\nsay = "a"\nfrom = "jade"',
+            "from must be one of .*, not 'jade'",
+        ),
+        ('name = "x"\n[[steps]]\nrestart = "a_km"\nfrom = "gateway"', "only a say step comes from someone"),
+        (
+            'name = "x"\n[[steps]]\nsay = "a"\nfrom = "gateway"\npriority = 2',
+            "has no priority",
+        ),
     ],
 )
 def test_malformed_scenarios_are_refused_with_the_reason(text: str, problem: str) -> None:
