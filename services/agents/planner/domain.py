@@ -660,7 +660,10 @@ def declare() -> None:
 
 
 def initial_state(k: Knowledge, tool_poses: dict[str, Pose | None]) -> Any:
-    """The planning state from a_km's knowledge: poses, where things are, what is held."""
+    """The planning state from a_km's knowledge: poses, where things are, what is held. A held
+    object not seen since it was taken is where the hand, seen since, holds it
+    (:func:`_held_by_hand`): its pose from before the grasp would put it where it no longer is
+    (the clearance checks, services/agents/planner/clearance.py, would meet it there)."""
     s = gtpyhop.State("kitchen")
     s.k = k
     s.pose = {n: o.pose for n, o in k.objects.items()}
@@ -693,6 +696,8 @@ def initial_state(k: Knowledge, tool_poses: dict[str, Pose | None]) -> Any:
             s.pose[n] = put
     for arm in ARMS:
         held = s.holding[arm]
+        if held is not None and not s.localised.get(held):  # not seen since it was taken:
+            s.pose[held] = _held_by_hand(s, held, arm) or s.pose.get(held)  # where the hand is
         if held is not None and s.tool.get(arm) is None and s.pose.get(held) is not None and held in s.grip:
             s.tool[arm] = geo.compose(s.pose[held], s.grip[held])
     return s
@@ -791,10 +796,8 @@ def finish_takes(s: Any, root: str) -> list[tuple[Any, ...]]:
         placement = _k(s).placements.get((obj, furniture))
         if pose is None or grasp is None or placement is None or not placement.positions:
             continue
-        if not s.localised.get(obj):  # not seen since it was taken (chaos across hosts, seed 6)
-            pose = _held_by_hand(s, obj, arm)
-            if pose is None:
-                continue
+        if not s.localised.get(obj) and _held_by_hand(s, obj, arm) is None:
+            continue  # not seen since it was taken, nor the hand since (initial_state)
         x, y, z = pose.position
         place = min(placement.positions, key=lambda p: math.hypot(p[0] - x, p[1] - y))
         if math.hypot(place[0] - x, place[1] - y) >= UNFINISHED_TAKE_SHARE * grasp.retreat_distance:

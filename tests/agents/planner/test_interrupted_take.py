@@ -4,6 +4,7 @@ both atomic, before any torso turn. An object already withdrawn is left as it is
 
 from __future__ import annotations
 
+import msgspec
 import pytest
 
 from services.agents.knowledge.world_model import WorldModel
@@ -14,9 +15,11 @@ from shared.fipa_codec.languages.common import Pose
 from shared.fipa_codec.languages.l_wm import ObjectUpdate, WorldUpdate
 from tests.agents.planner.kitchen import knowledge as kitchen_knowledge
 from velma import frames as geo
+from velma.model.generate import CUP_POS
 
 JAR_PLACE = (0.70, 0.20, 0.85)  # kitchen.ttl: cabinet_jar_place
 BOWL = (0.80, -0.20, 0.90)
+CUP_PLACE = CUP_POS  # the cup on the cabinet's shelf
 
 
 def knowledge(jar: tuple[float, float, float]) -> Knowledge:
@@ -139,3 +142,35 @@ def test_a_hidden_held_object_out_of_the_cabinet_or_an_old_hand_pose_is_left(
 ) -> None:
     actions = plan_task(_unseen_in_hand(hand_stamp, jar), ("pour", "jar", "bowl"), "pour(jar,bowl)").actions
     assert not any("finish_take" in a[1] for a in actions)
+
+
+def test_a_held_object_not_seen_since_it_was_taken_is_where_the_hand_holds_it() -> None:
+    """a_ta restarted after the jar's take and before any look at it (chaos, seed 4): a_km has
+    the jar held by the left hand at its pose from before the grasp, and the hand's grip frame
+    observed since, withdrawn. The plan takes the jar to be in the hand, not in the cabinet,
+    and finds its way (fetch the bowl with the right hand, put it on the table); with the jar
+    taken to stand at its old place, the torso's turn to the table swings it through the cup
+    standing beside it in the cabinet (clearance.py) and no plan is found."""
+    world = WorldModel()
+    world.apply(
+        WorldUpdate(
+            stamp=0.0,
+            objects=(
+                ObjectUpdate(name="jar", pose=Pose(JAR_PLACE)),
+                ObjectUpdate(name="bowl", pose=Pose(BOWL)),
+                ObjectUpdate(name="cup", pose=Pose(CUP_PLACE)),
+            ),
+        )
+    )
+    world.apply(WorldUpdate(stamp=1.0, objects=(ObjectUpdate(name="jar", held_by="left_gripper"),)))
+    k = kitchen_knowledge(world, ("table", "cabinet"))
+    assert not k.objects["jar"].localised  # its pose is from before the grasp
+    grasp = next(g for g in k.grasps[("jar", "left")] if "cabinet" in g.on)
+    out = Pose((JAR_PLACE[0] - 0.25, JAR_PLACE[1], 0.89))  # withdrawn
+    hand = geo.compose(out, Pose(grasp.grip_in_object.position, grasp.grip_in_object.orientation))
+    k.objects["left_gripper"] = msgspec.structs.replace(k.objects["left_gripper"], pose=hand, pose_stamp=3.0)
+    result = plan_task(k, ("pour", "jar", "bowl"), "pour(jar,bowl)")
+    paths = [a[1] for a in result.actions]
+    assert "pour(jar,bowl)/fetch_bowl/take/grasp" in paths
+    assert "pour(jar,bowl)/place_bowl/set_down/put" in paths
+    assert not any("finish_take" in p for p in paths)  # withdrawn already: not taken again
