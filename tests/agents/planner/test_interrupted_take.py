@@ -19,24 +19,20 @@ from velma.model.generate import CUP_POS
 
 JAR_PLACE = (0.70, 0.20, 0.85)  # kitchen.ttl: cabinet_jar_place
 BOWL = (0.80, -0.20, 0.90)
-CUP_PLACE = CUP_POS  # the cup on the cabinet's shelf
 
 
-def knowledge(jar: tuple[float, float, float]) -> Knowledge:
+def knowledge(jar: tuple[float, float, float] | None, *, cup: bool = False) -> Knowledge:
     """a_km's answers with the jar grasped by the left hand (picked from the cabinet) at
-    ``jar``, the bowl still standing in the cabinet."""
+    ``jar`` (None: not seen since it was taken: its pose from before the grasp), the bowl
+    still standing in the cabinet, and the cup on its shelf when ``cup``."""
     world = WorldModel()
-    world.apply(
-        WorldUpdate(
-            stamp=0.0,
-            objects=(
-                ObjectUpdate(name="jar", pose=Pose(JAR_PLACE)),
-                ObjectUpdate(name="bowl", pose=Pose(BOWL)),
-            ),
-        )
-    )
+    standing = [ObjectUpdate(name="jar", pose=Pose(JAR_PLACE)), ObjectUpdate(name="bowl", pose=Pose(BOWL))]
+    if cup:
+        standing.append(ObjectUpdate(name="cup", pose=Pose(CUP_POS)))
+    world.apply(WorldUpdate(stamp=0.0, objects=tuple(standing)))
     world.apply(WorldUpdate(stamp=1.0, objects=(ObjectUpdate(name="jar", held_by="left_gripper"),)))
-    world.apply(WorldUpdate(stamp=2.0, objects=(ObjectUpdate(name="jar", pose=Pose(jar)),)))
+    if jar is not None:
+        world.apply(WorldUpdate(stamp=2.0, objects=(ObjectUpdate(name="jar", pose=Pose(jar)),)))
     k = kitchen_knowledge(world, ("table", "cabinet"))
     assert k.objects["jar"].picked_from == "cabinet"
     return k
@@ -151,19 +147,7 @@ def test_a_held_object_not_seen_since_it_was_taken_is_where_the_hand_holds_it() 
     and finds its way (fetch the bowl with the right hand, put it on the table); with the jar
     taken to stand at its old place, the torso's turn to the table swings it through the cup
     standing beside it in the cabinet (clearance.py) and no plan is found."""
-    world = WorldModel()
-    world.apply(
-        WorldUpdate(
-            stamp=0.0,
-            objects=(
-                ObjectUpdate(name="jar", pose=Pose(JAR_PLACE)),
-                ObjectUpdate(name="bowl", pose=Pose(BOWL)),
-                ObjectUpdate(name="cup", pose=Pose(CUP_PLACE)),
-            ),
-        )
-    )
-    world.apply(WorldUpdate(stamp=1.0, objects=(ObjectUpdate(name="jar", held_by="left_gripper"),)))
-    k = kitchen_knowledge(world, ("table", "cabinet"))
+    k = knowledge(None, cup=True)
     assert not k.objects["jar"].localised  # its pose is from before the grasp
     grasp = next(g for g in k.grasps[("jar", "left")] if "cabinet" in g.on)
     out = Pose((JAR_PLACE[0] - 0.25, JAR_PLACE[1], 0.89))  # withdrawn
