@@ -673,14 +673,22 @@ _CONVERSATION, _OPENS, _REPEATED, _ORPHAN = Route.CONVERSATION, Route.OPENS, Rou
 """(Module names, as ``_AGREE`` above: compared once per communicate.)"""
 
 
-def route(table: RoleTable, conv: Conversation | None, item: Received) -> Route:
+def route(
+    table: RoleTable,
+    conv: Conversation | None,
+    item: Received,
+    restored: Container[tuple[str, str]] = (),
+) -> Route:
     """Where ``item``, received in ``table``'s role, goes (:class:`Route`), ``conv`` being the
-    open conversation with its sender and conversation-id (None: none). Pure: reads ``item``,
-    ``conv`` and ``table``, changes nothing. A conversation restored after a restart by its id
-    alone does not know what it awaited: no reply in it is taken for one to an earlier
-    opening."""
+    open conversation with its sender and conversation-id (None: none); ``restored``: (sender,
+    reply-with) of the openings of conversations taken back after a restart, which may have
+    ended since (their opening coming again is :data:`Route.REPEATED` too). Pure: reads its
+    arguments, changes nothing. A conversation restored after a restart by its id alone does
+    not know what it awaited: no reply in it is taken for one to an earlier opening."""
     if item.msg.performative in table.opens:
-        return _REPEATED if conv is not None and not item.local and conv.repeats(item) else _OPENS
+        if conv is None:
+            return _REPEATED if (item.sender, item.msg.reply_with) in restored else _OPENS
+        return _REPEATED if not item.local and conv.repeats(item) else _OPENS
     if conv is None or (table.initiator and conv.answers_other(item.msg)):
         return _ORPHAN
     return _CONVERSATION
@@ -1042,6 +1050,10 @@ class Roles:
         """:meth:`tick` has something to look at (a subscription is kept): the agent calls it
         on every step only then."""
         self._ended: OrderedDict[str, Any] = OrderedDict()  # :meth:`Conversation.abandon`, remember
+        self._restored_openings: OrderedDict[tuple[str, str], None] = OrderedDict()
+        """(sender, reply-with) of the openings of participant conversations taken back after a
+        restart (the last :data:`ENDED_KEPT`): a copy that comes after the conversation ended
+        is its opening again, not a new one (:func:`route`, :meth:`_repeated`)."""
         self._taken_up = itertools.count(1)
         self.keeps = any(d.keep for d in self.declared)
         """Some role keeps its conversations across a restart (:meth:`kept`)."""
@@ -1506,12 +1518,11 @@ class Roles:
             return
         cid = msg.conversation_id or ""
         conv = self._open.get((sender, cid))
-        way = route(table, conv, item)
+        way = route(table, conv, item, self._restored_openings)
         if way is _OPENS:
             conv = Conversation(self, table.decl, sender, cid, opening=item)
             self._keep(conv)
         elif way is _REPEATED:
-            assert conv is not None
             self._repeated(conv, item)
             return
         elif way is _ORPHAN:
@@ -1573,19 +1584,30 @@ class Roles:
         if not table.initiator and not conv.finished and not item.local:
             self._fail_quietly(item, f"internal error: {type(exc).__name__}: {exc}")
 
-    def _repeated(self, conv: Conversation, item: Received) -> None:
+    def _repeated(self, conv: Conversation | None, item: Received) -> None:
         """The opening of ``conv`` came again (FIPA SC00061 §2.4: the same reply-with from the
         same sender is the same communicate): e.g. a_hi's request retransmitted to an a_co that
-        restarted meanwhile, or a_co's plan sent again to an a_ta that kept it. It is not acted
-        on twice: what the conversation answered it is published again (none after a restart:
-        the peer hears the answers still to come), and it is counted (``repeated_requests``)."""
-        again = conv.answer_again(conv.opening.msg.reply_with if conv.opening is not None else None)
+        restarted meanwhile, or a_co's plan sent again to an a_ta that kept it; ``conv`` None:
+        the opening of a conversation taken back after this agent's restart that has ended since
+        (a_hi restarted too, before it heard the end, and sends its kept request again). It is
+        not acted on twice: what this process answered it is published again (none after a
+        restart: the peer hears the answers still to come), and it is counted
+        (``repeated_requests``)."""
+        reply_with = item.msg.reply_with
+        if conv is not None:
+            again = conv.answer_again(conv.opening.msg.reply_with if conv.opening is not None else None)
+        else:
+            answers = self.agent.dedup.answers(item.sender, reply_with)
+            for key, payload in answers:
+                self.agent.emit(key, payload)
+            again = len(answers)
         self.agent.counters["repeated_requests"] += 1
         self.agent.log.info(
-            "%s from %s in conversation %s came again; not acted on twice (%d answer(s) sent again)",
+            "%s from %s in conversation %s came again%s; not acted on twice (%d answer(s) sent again)",
             item.performative.value,
             item.sender,
-            conv.conversation_id,
+            item.msg.conversation_id,
+            "" if conv is not None else " after it ended",
             again,
         )
 
@@ -1643,9 +1665,15 @@ class Roles:
             self._ended.popitem(last=False)
 
     def _taken_back(self, conv: Conversation) -> None:
-        """``conv`` was taken back after a restart: a served subscription takes its stream."""
+        """``conv`` was taken back after a restart: a served subscription takes its stream; a
+        participant's opening is remembered (:meth:`_repeated`)."""
         from services.runtime.served import ServedSubscription
 
+        opening = conv.opening
+        if conv.decl.role == PARTICIPANT and opening is not None and opening.msg.reply_with:
+            self._restored_openings[(opening.sender, opening.msg.reply_with)] = None
+            while len(self._restored_openings) > ENDED_KEPT:
+                self._restored_openings.popitem(last=False)
         served = self._subscriptions.get(conv.decl)
         if isinstance(served, ServedSubscription):
             served.taken_back(conv)

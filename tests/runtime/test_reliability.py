@@ -237,6 +237,30 @@ def test_a_restarted_a_co_keeps_the_accepted_command_and_does_not_take_it_twice(
     assert stopped.conversation_id == "cmd-1" and stopped.in_reply_to == "x1"
 
 
+def test_a_request_taken_back_and_ended_is_not_taken_again_when_it_comes_again(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """a_co took a command back after its restart and the command ended (here: stopped); then
+    a_hi, restarted too before it heard the end, sends its kept request again — the first this
+    a_co receives. It is not opened anew (the command would run twice: chaos seed 12), but
+    answered with what this a_co answered it, and counted."""
+    monkeypatch.setenv(ENV_STATE_DIR, str(tmp_path))
+    request = encode(communicate(P.REQUEST, "a_hi", "a_co", "fipa-request", "cmd-1", POUR, reply_with="r1"))
+    first = Wire(Coordinator)
+    first.deliver(request)
+    first.step("procReq")
+    second = Wire(Coordinator)  # a new process: it takes the command back from its state file
+    second.agent.setup()
+    second.deliver(communicate(P.CANCEL, "a_hi", "a_co", "fipa-request", "cmd-1", POUR, reply_with="x1"))
+    second.step("procReq")
+    (stopped,) = second.mine(P.INFORM)
+    assert stopped.in_reply_to == "x1" and "cmd-1" not in second.agent.tasks
+    second.deliver(request)
+    second.step("procReq")
+    assert second.agent.counters["repeated_requests"] == 1 and second.agent.counters["duplicates"] == 0
+    assert not second.mine(P.AGREE, P.REFUSE) and "cmd-1" not in second.agent.tasks
+
+
 def test_a_restarted_a_co_goes_on_with_the_plan_a_ta_runs(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
