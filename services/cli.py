@@ -840,18 +840,15 @@ def _save_fleet_counters(state: FleetState) -> str:
     from services.runtime.counters import ask_counters, save_counters
     from services.runtime.raised import raised_by_agent, raised_text
 
-    run_dir = Path(state.run_dir)
-    if (run_dir / "security").is_dir():  # a fleet of `roco up` with access control
-        register(state.endpoint, run_dir / "security")
     try:
-        session = open_operator(state.endpoint)
+        session = open_operator(_fleet_endpoint(state))
     except SessionRefused:
         return ""
     try:
         counters = ask_counters(session, [n for n in state.pids if n in AGENT_ORDER], timeout=5.0)
     finally:
         session.close()
-    save_counters(run_dir, counters)
+    save_counters(Path(state.run_dir), counters)
     return raised_text(raised_by_agent({a: r.counters for a, r in counters.items()}), {})
 
 
@@ -919,6 +916,12 @@ def _endpoint(router: str | None, runs_dir: Path) -> str:
     state = _fleet_state(runs_dir)
     if state is None:
         return ",".join(Settings.from_env(only=("router",)).router)
+    return _fleet_endpoint(state)
+
+
+def _fleet_endpoint(state: FleetState) -> str:
+    """The router endpoint of the fleet `roco up` left ``state`` of, its credentials registered
+    for it when the fleet runs with access control (its run folder's ``security``)."""
     security = Path(state.run_dir) / "security"
     if security.is_dir():  # the fleet of `roco up --runs-dir …` runs with access control
         register(state.endpoint, security)

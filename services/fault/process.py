@@ -370,15 +370,13 @@ def record_events(session: zenoh.Session, events: list[FaultEvent], sync_timeout
     (a fault of the router itself, or one the recorder lived through) both sessions reconnect in
     their own time, and a put made before would be lost."""
     import queue
-    import threading
     import uuid
 
     deadline = time.monotonic() + sync_timeout
-    pause = threading.Event()  # never set: a short wait between asks while the router is away
-    while RECORDER not in alive_agents(session, timeout=0.5):
+    while RECORDER not in alive_agents(session, timeout=0.5):  # asked again while it is away
         if time.monotonic() > deadline:
             return False
-        pause.wait(0.1)
+        time.sleep(0.1)  # a router away answers at once: not asked in a busy loop
     enc = msgspec.json.Encoder()
     for ev in events:
         session.put(event_key(INJECTOR), enc.encode(ev))

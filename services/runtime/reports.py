@@ -185,14 +185,14 @@ def next_report(
 ) -> HumanReport | None:
     """The next report of ``request_id`` to show, from ``reports`` (what :func:`follow_reports`
     hands on), skipping other requests' and those ``shown`` filters out; when ``missed`` says
-    the silence has lasted, a_hi is asked for the outcome meanwhile. None past ``deadline``
-    (``time.monotonic()``)."""
+    the silence has lasted (other requests' reports may still flow), a_hi is asked for the
+    outcome meanwhile. None past ``deadline`` (``time.monotonic()``)."""
     while (left := deadline - time.monotonic()) > 0:
+        for told in missed.ask_if_due([request_id]):  # a long silence of this request's reports
+            reports.put(told)
         try:
             report = reports.get(timeout=max(0.05, min(left, missed.due_in())))
-        except queue.Empty:  # a long silence: ask a_hi for an outcome this session missed
-            for told in missed.ask_if_due([request_id]):
-                reports.put(told)
+        except queue.Empty:
             continue
         if report.request_id == request_id and shown.keep(report):
             missed.heard()

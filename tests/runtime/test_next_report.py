@@ -1,0 +1,66 @@
+"""`next_report` (services/runtime/reports.py) asks a_hi for a request's outcome once that
+request's reports have been silent for the ask period, even while other requests' reports keep
+coming (a busy fleet): the silence is this request's, not the queue's."""
+
+from __future__ import annotations
+
+import queue
+import time
+from dataclasses import dataclass, field
+from typing import Any
+
+import msgspec
+
+from services.runtime import keys
+from services.runtime.human import HumanReport, ReportKind
+from services.runtime.reports import MissedOutcomes, ReportFilter, next_report
+
+OUTCOME = HumanReport(
+    request_id="mine", kind=ReportKind.SUCCEEDED, text="pour the jar into the bowl: succeeded"
+)
+
+
+class _Busy(queue.SimpleQueue[HumanReport]):
+    """A queue of reports that always holds another person's progress report first."""
+
+    def get(self, block: bool = True, timeout: float | None = None) -> HumanReport:
+        if not self.empty():
+            return super().get(block, timeout)
+        return HumanReport(request_id="theirs", kind=ReportKind.PROGRESS, text="running")
+
+
+@dataclass
+class _Reply:
+    ok: Any
+
+
+@dataclass
+class _Sample:
+    payload: Any
+
+
+@dataclass
+class _Payload:
+    data: bytes
+
+    def to_bytes(self) -> bytes:
+        return self.data
+
+
+@dataclass
+class _Session:
+    """a_hi's outcomes queryable: it kept the outcome this session missed."""
+
+    asked: list[str] = field(default_factory=list)
+
+    def get(self, key: str, timeout: float) -> list[_Reply]:
+        self.asked.append(key)
+        return [_Reply(_Sample(_Payload(msgspec.json.encode([OUTCOME]))))]
+
+
+def test_the_outcome_is_asked_for_while_other_requests_reports_keep_coming() -> None:
+    session = _Session()
+    got = next_report(
+        _Busy(), "mine", ReportFilter(), MissedOutcomes(session, after_s=0.2), time.monotonic() + 5
+    )
+    assert got == OUTCOME and session.asked == [keys.HUMAN_OUTCOMES]
