@@ -20,6 +20,7 @@ from services.report.build import TIMING_JSON, _control_timing
 from shared.fipa_codec.languages.l_ex import CommandResult
 from shared.fipa_codec.languages.l_sd import Observation
 from tests.support.grasp import LIFT_M, grasp_the_jar, left_jar_lift, run_command
+from tests.support.lines import wait_until
 from velma.executor import ExecutorProcess
 from velma.executor.loop import ControlLoop
 from velma.executor.runtime import Runtime
@@ -59,6 +60,42 @@ def test_the_runtime_attached_to_a_world_grasps_and_a_second_one_finds_the_jar_i
     assert isinstance(result, CommandResult) and result.ok, result
     assert float(again.data.xpos[jar][2]) == pytest.approx(lifted_from + LIFT_M, abs=0.02)
     again.world.link.close()
+
+
+def test_a_motion_paused_with_its_controller_goes_on_from_where_it_stopped(world: str) -> None:
+    """The controller stops commanding mid-lift (as ag_ex does under SIGSTOP) while the world
+    holds the robot and its time runs on: the lift's setpoint goes on from where it was, not
+    leaping ahead by the time away and dragging the arm after it."""
+    rt = Runtime(link=RobotLink.attach(world))
+    assert rt.world is not None
+    rt.observe_by_camera = False
+    loop: ControlLoop[int] = ControlLoop(rt)
+    poses = grasp_the_jar(loop)
+    loop.submit(1, left_jar_lift(poses))
+    for _ in range(300):  # a fifth of the way up
+        assert loop.cycle() is None
+    paused_at = rt.time
+    watch = RobotLink.attach(world)
+    scene = np.zeros(watch.n_scene)
+
+    def world_went_on() -> bool:
+        return watch.read_scene(scene) is not None and scene[0] > paused_at + 1.5
+
+    wait_until(world_went_on, 30, "the world's time to run 1.5 s on while the robot is held")
+    watch.close()
+    lag, result = 0.0, None
+    for _ in range(5000):
+        result = loop.cycle()
+        ahead = rt.ctrl.arm["left"].pose.translation - rt.grip("left").translation
+        lag = max(lag, float(np.linalg.norm(ahead)))
+        if result is not None:
+            break
+    assert rt.away_s > 1.0
+    # the arm lags its moving setpoint by ≈ 6 mm with or without the pause; a setpoint that
+    # leapt to the path's end lags by the rest of the lift (≈ 100 mm)
+    assert lag < 0.02, f"the setpoint ran {lag * 1000:.0f} mm ahead of the hand"
+    assert result is not None and isinstance(result[1], CommandResult) and result[1].ok, result
+    rt.world.link.close()
 
 
 def test_a_world_takes_a_displacement_once(world: str) -> None:

@@ -213,7 +213,7 @@ class _CartesianMotion:
         cmd.posture = self.q0.copy()
         cmd.mode = "cart"
         self.path = self.pending
-        self.t0 = rt.time
+        self.t0 = rt.motion_time
         return None
 
     def start_pose(self, rt: Runtime) -> pin.SE3:
@@ -228,7 +228,7 @@ class _CartesianMotion:
         now; returns the time (s) since the path began. Only once the path runs (after
         ``_solve`` succeeded)."""
         assert self.path is not None
-        t = rt.time - self.t0
+        t = rt.motion_time - self.t0
         pose, twist = self.path.sample(t)
         cmd = rt.ctrl.arm[self.side]
         cmd.pose = pose
@@ -433,11 +433,11 @@ class MoveJointsPrimitive:
             elif cmd.mode == "cart" and self.torso is not None:
                 self.carried[side] = torso_frame(self.torso[0]).actInv(cmd.pose)
         rt.head_target = head
-        self.t0 = rt.time
+        self.t0 = rt.motion_time
         return None
 
     def step(self, rt: Runtime) -> Result | None:
-        t = rt.time - self.t0
+        t = rt.motion_time - self.t0
         s, ds = min_jerk(t, self.duration)
         for side, start in self.arm_start.items():
             goal = self.arm_goal[side]
@@ -528,18 +528,18 @@ class GraspPrimitive:
                 return _result(rt, self.name, False, NOT_AT_GRASP_POSE, away)
         hs = rt.hands.set[self.side]
         rt.hands.command(self.side, float(np.max(hs.proximal)), self.spread)
-        self.t0 = rt.time
+        self.t0 = rt.motion_time
         return None
 
     def step(self, rt: Runtime) -> Result | None:
-        t = rt.time - self.t0
+        t = rt.motion_time - self.t0
         if t > GRASP_TIMEOUT:
             return _result(rt, self.name, False, "timeout")
         if self.phase == "spread":
             if rt.hands.ramp_done(self.side):
                 rt.hands.command(self.side, PROXIMAL_MAX)
                 self.phase = "close"
-                self.t0 = rt.time
+                self.t0 = rt.motion_time
             return None
         if t < 0.2:
             return None
@@ -550,9 +550,9 @@ class GraspPrimitive:
             self.stall_since = None
             return None
         if self.stall_since is None:
-            self.stall_since = rt.time
+            self.stall_since = rt.motion_time
             return None
-        if rt.time - self.stall_since < GRASP_SETTLE:
+        if rt.motion_time - self.stall_since < GRASP_SETTLE:
             return None
         if bool(np.all(prox > CLOSED)):
             return _result(rt, self.name, False, "no contact")
@@ -578,11 +578,11 @@ class ReleasePrimitive:
     def start(self, rt: Runtime) -> Result | None:
         rt.hands.command(self.side, self.opening)
         rt.held[self.side] = None
-        self.t0 = rt.time
+        self.t0 = rt.motion_time
         return None
 
     def step(self, rt: Runtime) -> Result | None:
-        t = rt.time - self.t0
+        t = rt.motion_time - self.t0
         prox = rt.hands.proximal(rt.data, self.side)
         if rt.hands.ramp_done(self.side) and bool(np.all(np.abs(prox - self.opening) < 0.05)):
             return _result(rt, self.name, True)
@@ -620,14 +620,14 @@ class LookAtPrimitive:
             return _result(rt, self.name, False, "unreachable")
         rt.head_target = self.target.copy()
         rt.gaze = self.point.copy()
-        self.t0 = rt.time
+        self.t0 = rt.motion_time
         return None
 
     def step(self, rt: Runtime) -> Result | None:
         q = rt.data.qpos[rt.head_qadr]
         if np.max(np.abs(q - self.target)) < HEAD_TOL:
             return _result(rt, self.name, True)
-        if rt.time - self.t0 > HEAD_TIMEOUT:
+        if rt.motion_time - self.t0 > HEAD_TIMEOUT:
             return _result(rt, self.name, False, "timeout")
         return None
 
@@ -642,13 +642,13 @@ class WaitPrimitive:
         self.t0 = 0.0
 
     def start(self, rt: Runtime) -> Result | None:
-        self.t0 = rt.time
+        self.t0 = rt.motion_time
         for side in SIDES:
             rt.ctrl.arm[side].twist = np.zeros(6)
         return None
 
     def step(self, rt: Runtime) -> Result | None:
-        if rt.time - self.t0 >= self.duration - 1e-9:
+        if rt.motion_time - self.t0 >= self.duration - 1e-9:
             return _result(rt, self.name, True)
         return None
 
@@ -860,7 +860,7 @@ class HaltPrimitive:
         self.follow_gaze = False
 
     def start(self, rt: Runtime) -> Result | None:
-        self.t0 = rt.time
+        self.t0 = rt.motion_time
         ctrl = rt.ctrl
         if isinstance(self.halted, MoveJointsPrimitive):
             self.carried = dict(self.halted.carried)
@@ -915,7 +915,7 @@ class HaltPrimitive:
             self.postures[side] = (np.array(rt.ctrl.arm[side].posture, dtype=float), upright.copy())
 
     def step(self, rt: Runtime) -> Result | None:
-        t = rt.time - self.t0
+        t = rt.motion_time - self.t0
         ctrl = rt.ctrl
         for side, (p0, r0, v, w, duration) in self.cart.items():
             b, f = brake(t, duration)

@@ -58,10 +58,14 @@ from velma.world.hardware import (  # the robot's rates, stated once
     ramp,
 )
 from velma.world.link import RobotLink
+from velma.world.timing import HOLD_CYCLES
 
 log = logging.getLogger(__name__)
 
 TORSO_Z = 0.03  # m, torso_0_joint above torso_base
+AWAY_GAP_S = (HOLD_CYCLES + 1) * DT
+"""A gap (s) between two consecutive states wider than this was time the world held the robot
+without its controller (``Runtime.away_s``)."""
 
 
 def torso_frame(angle: float) -> pin.SE3:
@@ -198,6 +202,11 @@ class Runtime:
             log.warning("the cycle's MuJoCo side runs in Python: %s (velma/executor/plant.py)", why)
         self.waited_s = 0.0
         """Attached to a world process: how long (s) the last cycle waited for its state."""
+        self.away_s = 0.0
+        """Attached to a world process: the world time (s) that passed while this controller
+        commanded nothing and the world's safety layer held the robot (a pause of this
+        process, say); ``motion_time`` leaves it out."""
+        self._sensed_at = self.time
         self.part_s = np.zeros(3)
         """The last cycle's measured parts (s): primitive (set by the loop), control, physics
         (velma.executor.timing.PARTS)."""
@@ -265,6 +274,14 @@ class Runtime:
         """Simulation time (s)."""
         return self.world.time if self.world is not None else float(self._data.time)
 
+    @property
+    def motion_time(self) -> float:
+        """The primitives' clock (s): ``time`` less ``away_s``. A motion whose controller
+        stopped (the world held the robot where it was) goes on along its path from where it
+        stopped, as a trajectory generator on the controller's own clock does, instead of its
+        setpoint leaping ahead by the time away."""
+        return self.time - self.away_s
+
     def q(self) -> Array:
         """Pinocchio q (33,) rad, measured."""
         if self.world is not None:
@@ -323,6 +340,7 @@ class Runtime:
             t1 = time.perf_counter()
             part[1] = t1 - t0
             world.sense()
+            self._count_away(world.time)
             self.head[:2] = world.head_set
             t_step = time.perf_counter()
             self.waited_s = t_step - t1
@@ -359,6 +377,15 @@ class Runtime:
             else:
                 self.lost_cycles[s] = 0
         part[2] = time.perf_counter() - t1 + (self.plant.parts[1] if self.plant is not None else t1 - t_step)
+
+    def _count_away(self, now: float) -> None:
+        """Add to ``away_s`` the time between two states that the world stepped without this
+        controller: past the ``HOLD_CYCLES`` states a late command still answers, the world's
+        safety layer held the robot (velma/world/serve.py)."""
+        gap = now - self._sensed_at
+        if gap > AWAY_GAP_S:
+            self.away_s += gap - DT
+        self._sensed_at = now
 
     def _step_head(self) -> None:
         """The head's servo setpoints one step (≤ HEAD_RATE·DT per joint) towards ``head_target``."""
