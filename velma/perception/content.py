@@ -147,10 +147,17 @@ MIN_INNER_SHARE = 0.3
 spheres found took (``count_spheres``)."""
 RING_STEP_DEG = 1.0
 """Angular resolution (°) of the wall ring's visibility test."""
-CAP_ANGLE = 0.8
-"""Half-angle (rad) of the cap of a sphere facing the camera whose visibility is tested."""
-CAP_VISIBLE_SHARE = 0.34
-"""A ring position is in view when at least this share of its cap's test points is."""
+HEMISPHERE_ANGLES = (0.35, 0.7, 1.05, 1.4)
+"""Angles (rad) from the camera-facing point of a sphere at which rings of
+``HEMISPHERE_RING_POINTS`` test points cover its camera-facing hemisphere (with that point,
+1 + 4 × 12 = 49 points; ``_ring_hidden``)."""
+HEMISPHERE_RING_POINTS = 12
+"""Test points on each ring of ``HEMISPHERE_ANGLES``, evenly spaced about the line of sight."""
+HIDDEN_BELOW_SHARE = 0.05
+"""A ring position is out of view when fewer than this share of its hemisphere's test points
+are in view: a sphere there would show almost nothing, less than the ``MIN_SPHERE_POINTS``
+a sphere found needs. A sphere against the near wall that shows only its top is in view, so
+one taken from there lowers the count."""
 CAP_DEPTH_TOLERANCE = 0.006
 """m: a test point is in view when its pixel's depth is not nearer than it by more than this
 (the averaged Kinect depth's noise at ≈ 1 m is ≈ 1–2 mm, velma/perception/noise.py)."""
@@ -187,17 +194,22 @@ def count_spheres(
     ``_ring_radius`` from the axis at which a sphere on the floor touches the wall, where the
     frictionless spheres settle (velma/model/scene.py); the spheres found beyond one radius
     inside it are the ring's; (4) the ring's positions the camera cannot see
-    (``_ring_hidden``: the cap of a sphere there, facing the camera, is behind something
-    nearer in the depth image: the bowl's near wall, an arm); (5) ``hidden``: for each gap
-    between neighbouring ring spheres that reaches into positions out of view, the spheres
-    that fit it at the spacing of the ring's neighbours in view (the median of the gaps
-    shorter than 1.5 touching spacings; touching when there are none), at most as many as its
-    hidden positions hold touching; a gap wholly in view is empty (the floor is seen there).
+    (``_ring_hidden``: a sphere there would show almost nothing, its whole camera-facing
+    hemisphere being behind something nearer in the depth image: the bowl's near wall, an
+    arm; from the head's pour view of the bowl at velma/scenario.py BOWL_PLACE_POSITION
+    every sphere along the wall is in view, tests/velma/perception/test_content_count.py);
+    (5) ``hidden``: for each gap between neighbouring ring spheres that reaches into
+    positions out of view, the spheres that fit it at the spacing of the ring's neighbours in
+    view (the median of the gaps shorter than 1.5 touching spacings; touching when there are
+    none), at most as many as its hidden positions hold touching; a gap wholly in view is
+    empty (the floor is seen there).
 
-    Named simplifications: the hidden arc of the ring is assumed as full as its neighbours
-    make it (a vacancy that happens to lie in the hidden arc, or a sphere taken from it, is
-    counted full), spheres hidden elsewhere than along the wall are not inferred, and spheres
-    stacked on others (a second layer) are not counted. ag_ex's Observation caps the count at
+    Named simplifications: a hidden arc of the ring (the bowl seen from further away than
+    its pour place) is assumed as full as its neighbours make it (a vacancy that happens to
+    lie in it, or a sphere taken from it, is counted full); so is a gap of two or more
+    neighbouring ring spheres that reaches a few hidden degrees; spheres hidden elsewhere
+    than along the wall are not inferred, and spheres stacked on others (a second layer) are
+    not counted. ag_ex's Observation caps the count at
     what the content seen outside every container leaves (velma/perception/spill.py), so a
     sphere spilled in view is not counted in the bowl; one gone out of view from the hidden arc
     still is, so the Observation says how many it inferred (L_SD ``particles_inferred``) and a_ta
@@ -293,10 +305,12 @@ def _ring_hidden(
 ) -> npt.NDArray[np.bool_]:
     """Per ``RING_STEP_DEG`` of angle about the vertical axis through ``centre`` (3,) m (the
     layer's centre, world), whether a sphere of radius ``r`` centred ``ring`` m from the axis
-    there would be out of view: fewer than ``CAP_VISIBLE_SHARE`` of nine points of its cap
-    facing the camera (its nearest point and eight at ``CAP_ANGLE`` from it) have a pixel
-    whose depth is not nearer than the point by more than ``CAP_DEPTH_TOLERANCE`` (a point
-    outside the image or whose pixel has no depth is not in view)."""
+    there would be out of view: fewer than ``HIDDEN_BELOW_SHARE`` of the test points of its
+    hemisphere facing the camera (its nearest point and ``HEMISPHERE_RING_POINTS`` at each of
+    ``HEMISPHERE_ANGLES`` from it) have a pixel whose depth is not nearer than the point by
+    more than ``CAP_DEPTH_TOLERANCE`` (a point outside the image or whose pixel has no depth
+    is not in view). Returns a boolean array of 360 / ``RING_STEP_DEG`` entries, entry k for
+    the angle k · ``RING_STEP_DEG`` (° from the world's x axis)."""
     theta = np.radians(np.arange(0.0, 360.0, RING_STEP_DEG))
     at = centre + ring * np.stack([np.cos(theta), np.sin(theta), np.zeros_like(theta)], axis=1)
     to_cam = cam - at
@@ -305,10 +319,11 @@ def _ring_hidden(
     side /= np.linalg.norm(side, axis=1, keepdims=True)
     other = np.cross(to_cam, side)
     dirs = [to_cam] + [
-        math.cos(CAP_ANGLE) * to_cam + math.sin(CAP_ANGLE) * (math.cos(phi) * side + math.sin(phi) * other)
-        for phi in np.linspace(0.0, 2 * math.pi, 8, endpoint=False)
+        math.cos(a) * to_cam + math.sin(a) * (math.cos(phi) * side + math.sin(phi) * other)
+        for a in HEMISPHERE_ANGLES
+        for phi in np.linspace(0.0, 2 * math.pi, HEMISPHERE_RING_POINTS, endpoint=False)
     ]
-    test = np.stack([at + r * d for d in dirs], axis=1).reshape(-1, 3)  # (n · 9, 3)
+    test = np.stack([at + r * d for d in dirs], axis=1).reshape(-1, 3)  # (n · len(dirs), 3)
     optical = (test - cam) @ np.asarray(rotation, dtype=np.float64)
     z = optical[:, 2]
     h, w = depth.shape
@@ -321,7 +336,7 @@ def _ring_hidden(
     with np.errstate(invalid="ignore"):
         in_view = inside & (seen_depth >= z - CAP_DEPTH_TOLERANCE)
     share = in_view.reshape(len(theta), len(dirs)).mean(axis=1)
-    return np.asarray(share < CAP_VISIBLE_SHARE)
+    return np.asarray(share < HIDDEN_BELOW_SHARE)
 
 
 def _hidden_in_gaps(angles: Array, hidden_at: npt.NDArray[np.bool_], step: float) -> int:
