@@ -133,8 +133,12 @@ NEAR_WALL = [4, 5, 6]
 ``FAR_PLACE``, in view from BOWL_PLACE_POSITION."""
 
 
-def test_at_its_pour_place_every_sphere_of_the_full_bowl_is_seen(scene) -> None:  # type: ignore[no-untyped-def]
-    count, truth = _observe(scene, _layout(scene, VACANCY))
+@pytest.mark.parametrize("seed", range(4))
+def test_at_its_pour_place_every_sphere_of_the_full_bowl_is_seen(scene, seed: int) -> None:  # type: ignore[no-untyped-def]
+    """Over several draws of the camera's noise: of the spheres along the near wall only the
+    tops show, 4 to 40 pixels each; the Hough transform finds each of them, none twice and
+    none halfway between two (content.py ``SEE_THROUGH_SHARE``)."""
+    count, truth = _observe(scene, _layout(scene, VACANCY), seed)
     assert (count.visible, count.hidden) == (truth, 0)
 
 
@@ -272,24 +276,30 @@ def test_the_check_passes_at_the_first_look_on_a_full_bowl_and_fails_two_short(s
 
 
 def test_the_check_looks_again_when_inferred_spheres_decide_and_says_what_it_rests_on(scene) -> None:  # type: ignore[no-untyped-def]
-    """The full bowl (18 of 18) at ``FAR_PLACE``: the camera sees 15 (83 %) and infers 3
-    behind the near wall, so a_ta looks a second time; from the same head the second look
-    sees no more, and the task succeeds saying it rests on the 3 inferred. Two spheres taken
-    from the hidden arc (16 of 18, under 90 %) change nothing the camera sees, so neither the
-    count nor the verdict changes: content.py's named simplification, which the verdict's
-    words name."""
+    """The full bowl (18 of 18) at ``FAR_PLACE``: the camera sees 15 (83 %) and infers the
+    spheres behind the near wall (to within one), so a_ta looks a second time; from the same
+    head the second look sees no more, and the task succeeds saying it rests on the inferred
+    ones. Two spheres taken from the hidden arc (16 of 18, under 90 %) change nothing the
+    camera sees of the spheres, and the inference still makes 90 %, so the task succeeds on
+    it: content.py's named simplification, which the verdict's words name."""
     model = scene[0]
     centres = _layout(scene, VACANCY, FAR_PLACE)
     full = _state(model, centres, place=FAR_PLACE)
     bowl, first = _bowl_checked(model, full, 1)
-    assert (bowl.particles_inside, bowl.particles_inferred) == (18, 3)
+    inside, inferred = bowl.particles_inside, bowl.particles_inferred
+    assert inside is not None and inferred is not None
+    assert inside - inferred == 15 and inferred >= 2 and abs(inside - 18) <= 1
     assert first.do is Do.LOOK
-    assert first.reason == "only 15 of 18 spheres seen in the bowl, 3 more inferred behind its wall"
+    assert first.reason == f"only 15 of 18 spheres seen in the bowl, {inferred} more inferred behind its wall"
     _, second = _bowl_checked(model, full, 2)
     assert second.do is Do.NEXT and second.reason is not None
-    assert second.reason.endswith("the 90 % rests on the 3 inferred, which no look saw")
+    assert second.reason.endswith(f"the 90 % rests on the {inferred} inferred, which no look saw")
     taken = np.delete(centres, NEAR_WALL[1:], axis=0)
     assert len(taken) / N_PARTICLES < CONTENT_SHARE_REQUIRED
     bowl_taken, verdict_taken = _bowl_checked(model, _state(model, taken, place=FAR_PLACE), 2)
-    assert (bowl_taken.particles_inside, bowl_taken.particles_inferred) == (18, 3)
-    assert verdict_taken.do is second.do and verdict_taken.reason == second.reason
+    inside_taken, inferred_taken = bowl_taken.particles_inside, bowl_taken.particles_inferred
+    assert inside_taken is not None and inferred_taken is not None
+    assert inside_taken - inferred_taken == 15 and inside_taken / N_PARTICLES >= CONTENT_SHARE_REQUIRED
+    assert verdict_taken.do is Do.NEXT and verdict_taken.reason is not None
+    rests = f"the 90 % rests on the {inferred_taken} inferred, which no look saw"
+    assert verdict_taken.reason.endswith(rests)
