@@ -12,8 +12,11 @@ from shared.fipa_codec.languages.common import Pose
 from shared.fipa_codec.languages.l_ex import NOT_AT_GRASP_POSE, CommandResult, Wait
 from shared.fipa_codec.languages.l_hfsm import CheckContent, Execute, ExpectedPosition, Perceive, PlanNode
 from shared.fipa_codec.languages.l_sd import ObjectObservation, Observation
+from velma.scenario import BOWL_PLACE_POSITION
 
-PLACED = (0.34, -0.46, 0.75)
+PLACED = BOWL_PLACE_POSITION
+ELSEWHERE = (PLACED[0], PLACED[1] + 0.10, PLACED[2])
+"""10 cm from the bowl's place."""
 WAIT = Execute(command=Wait(duration=1.0))
 CHECK = CheckContent(container="bowl", min_fraction=0.9)
 
@@ -141,14 +144,14 @@ def test_a_perceive_that_sees_what_the_plan_expects_goes_on() -> None:
 
 
 def test_an_object_elsewhere_is_a_replan_or_when_it_judges_the_task_an_error() -> None:
-    obs = seen(bowl((0.34, -0.36, 0.75)))
+    obs = seen(bowl(ELSEWHERE))
     difference = "pour/wait: the bowl is 10 cm from where the plan expects it"
     assert judge(step(perceive()), done(obs), False) == Verdict(Do.REPLAN, difference, observed=obs)
     assert judge(step(perceive(judges=True)), done(obs), False) == Verdict(Do.ERROR, difference, observed=obs)
 
 
 def test_in_a_safe_stop_a_perceive_only_informs_a_km() -> None:
-    obs = seen(bowl((0.34, -0.36, 0.75)))
+    obs = seen(bowl(ELSEWHERE))
     assert judge(step(perceive(judges=True)), done(obs), True) == Verdict(Do.NEXT, observed=obs)
 
 
