@@ -217,5 +217,29 @@ def test_when_the_inferred_spheres_decide_the_second_look_judges_on_what_it_saw(
     assert judge(step(CHECK, second_view=2), done(short), False).do is Do.ERROR
 
 
+def test_after_a_second_look_the_look_that_saw_more_decides() -> None:
+    # 17 in the bowl: the first look saw 16 (89 %) and inferred 1; the second, from the turned
+    # head, missed one more against the near wall (15 + 1: 89 % even with the inferred)
+    first = seen(bowl(inside=17, inferred=1))
+    assert judge(step(CHECK), done(first), False).do is Do.LOOK
+    second = seen(bowl(inside=16, inferred=1))
+    again = step(CHECK, second_view=2)
+    assert judge(again, done(second), False).do is Do.ERROR  # the second look alone
+    again.first_look = first
+    verdict = judge(again, done(second), False)
+    assert verdict.do is Do.NEXT
+    assert verdict.reason == (
+        "the bowl holds 17 of 18 spheres, 16 seen (89 %) and 1 inferred behind its wall, at the first look; "
+        "the 90 % rests on the 1 inferred, which no look saw"
+    )
+    assert verdict.observed == second  # a_km learns the latest look
+    # a second look that saw more decides, and one that saw as many: the later one
+    assert judge(again, done(seen(bowl(inside=17, inferred=0))), False).reason == (
+        "the bowl holds 17 of 18 spheres, all seen (94 %), at the second look"
+    )
+    tie = judge(again, done(first), False).reason or ""
+    assert tie.endswith("at the second look; the 90 % rests on the 1 inferred, which no look saw")
+
+
 def test_a_sensing_leaf_answered_without_an_observation_goes_on() -> None:
     assert judge(step(perceive()), done(None), False) == Verdict(Do.NEXT)
