@@ -81,8 +81,13 @@ TORSO_PLACE = -0.95
 TORSO_POUR = -1.2
 """Torso angle while pouring."""
 
-BOWL_PLACE_POSITION: Vec3 = (0.34, -0.46, 0.75)
-"""Where the bowl frame goes on the table (world; table top at 0.75 m)."""
+BOWL_PLACE_POSITION: Vec3 = (0.31, -0.42, 0.75)
+"""Where the bowl frame goes on the table (world; table top at 0.75 m; a_km's
+``roco:table_bowl_place``, services/agents/knowledge/kitchen.ttl). Near enough to the head
+that, from the pour's head pose, the camera sees every sphere along the bowl's near wall
+(tests/velma/perception/test_content_count.py); its rim stays 4 mm inside the table's edge,
+and the jar set down at its table place beside it (velma/scenario_kitchen.py ``JAR_TABLE``)
+leaves it standing where it is (tests/velma/test_velma_kitchen.py)."""
 PLACE_CLEARANCE = 0.005
 """The bowl is released this far above the table (it drops onto it)."""
 PLACE_APPROACH = 0.08
@@ -104,11 +109,14 @@ POUR_ANGLE = -2.3
 POUR_DURATION = 4.0
 POUR_WAIT = 2.5
 UNTILT_DURATION = 3.0
-POUR_CLEAR_VIEW: Vec3 = (0.0, 0.15, 0.15)
+POUR_CLEAR_VIEW: Vec3 = (0.12, 0.15, 0.15)
 """After the pour the upright jar moves this far (m, the turned frame of JAR_POUR_START_IN_BOWL)
-from its pour-start pose, up and to the robot's left, so that the head camera sees the whole
-bowl for the content check: beside the bowl the jar and the hand hide half of its floor
-(found by rendering the head's view from candidate poses the IK reaches)."""
+from its pour-start pose, forward, up and to the robot's left, so that the head camera sees the
+whole bowl for the content check: beside the bowl the jar and the hand hide half of its floor
+(found by rendering the head's view from candidate poses the IK reaches). Forward keeps the
+left elbow (left_arm_3_joint) 0.33 rad inside its limit at the IK's solution for the bowl at
+BOWL_PLACE_POSITION, outside the controller's joint-limit band (velma/control/limits.py
+``LIMIT_BAND``), which otherwise holds the jar over 1 cm short of the pose."""
 
 RIGHT_PICK_POSTURE: tuple[float, ...] = (1.46, -0.98, -0.15, 1.82, -0.2, 1.26, 2.29)
 """right_arm_0..6_joint (rad) before the bowl approach: the IK solution of the bowl entry

@@ -282,9 +282,9 @@ def fetch_commands(
     """Take the object at ``position`` (world, m) with ``grasp``, working at torso angle
     ``facing`` (rad; the torso is at ``torso`` now): look at ``look`` (if given), face,
     (posture,) open the hand, (enter,) approach, grasp, lift, withdraw (planner ``m_fetch``).
-    The posture is taken only at the grasp's own facing (the cabinet's), as the planner does;
-    elsewhere the arm is already in the grasp's branch (it parked there) and it is not
-    needed: the bowl is taken from the table either way."""
+    The posture and the entry are taken only at the grasp's own facing (the cabinet's), as the
+    planner does; elsewhere the arm is already in the grasp's branch (it parked there) and
+    goes straight to the pre-grasp pose: the bowl is taken from the table either way."""
     p = grasp_poses(grasp, position, facing)
     arm = grasp.arm
     cmds: list[ExecutorCommand] = [LookAt(point=look)] if look is not None else []
@@ -294,7 +294,7 @@ def fetch_commands(
         cmds.append(MoveJoints(positions=dict(zip(names, grasp.posture, strict=True)), duration=SHORT_MOVE))
     cmds.append(Release(arm=arm, opening=grasp.preshape))
     first = SHORT_MOVE if grasp.posture else LONG_MOVE
-    if "entry" in p:
+    if "entry" in p and abs(facing - CABINET_FACING) < 1e-9:
         cmds += [
             MoveTool(arm=arm, target=p["entry"], duration=first),
             MoveTool(arm=arm, target=p["pregrasp"], duration=SHORT_MOVE),

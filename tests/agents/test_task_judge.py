@@ -17,8 +17,11 @@ from services.agents.task_executor.judge import (
 from shared.fipa_codec.languages.common import Pose
 from shared.fipa_codec.languages.l_hfsm import CheckContent, ExpectedPosition, Perceive
 from shared.fipa_codec.languages.l_sd import ObjectObservation, Observation
+from velma.scenario import BOWL_PLACE_POSITION
 
-PLACED = (0.34, -0.46, 0.75)
+PLACED = BOWL_PLACE_POSITION
+ELSEWHERE = (PLACED[0], PLACED[1] + 0.10, PLACED[2])
+"""10 cm from the bowl's place."""
 CHECK = CheckContent(container="bowl", min_fraction=0.9)
 
 
@@ -52,10 +55,7 @@ def test_a_placed_object_elsewhere_or_leaning_is_a_difference() -> None:
         objects=("bowl",), expect=(ExpectedPosition(object="bowl", position=PLACED, max_tilt=0.2),)
     )
     assert differences(expect, seen(bowl())) == ""
-    assert (
-        differences(expect, seen(bowl((0.34, -0.36, 0.75))))
-        == "the bowl is 10 cm from where the plan expects it"
-    )
+    assert differences(expect, seen(bowl(ELSEWHERE))) == "the bowl is 10 cm from where the plan expects it"
     assert differences(expect, seen()) == "the bowl was not seen"
     s = math.sin(math.pi / 4)
     fallen = ObjectObservation(name="bowl", pose=Pose(PLACED, (s, s, 0.0, 0.0)))

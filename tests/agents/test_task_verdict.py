@@ -12,8 +12,11 @@ from shared.fipa_codec.languages.common import Pose
 from shared.fipa_codec.languages.l_ex import NOT_AT_GRASP_POSE, CommandResult, Wait
 from shared.fipa_codec.languages.l_hfsm import CheckContent, Execute, ExpectedPosition, Perceive, PlanNode
 from shared.fipa_codec.languages.l_sd import ObjectObservation, Observation
+from velma.scenario import BOWL_PLACE_POSITION
 
-PLACED = (0.34, -0.46, 0.75)
+PLACED = BOWL_PLACE_POSITION
+ELSEWHERE = (PLACED[0], PLACED[1] + 0.10, PLACED[2])
+"""10 cm from the bowl's place."""
 WAIT = Execute(command=Wait(duration=1.0))
 CHECK = CheckContent(container="bowl", min_fraction=0.9)
 
@@ -141,14 +144,14 @@ def test_a_perceive_that_sees_what_the_plan_expects_goes_on() -> None:
 
 
 def test_an_object_elsewhere_is_a_replan_or_when_it_judges_the_task_an_error() -> None:
-    obs = seen(bowl((0.34, -0.36, 0.75)))
+    obs = seen(bowl(ELSEWHERE))
     difference = "pour/wait: the bowl is 10 cm from where the plan expects it"
     assert judge(step(perceive()), done(obs), False) == Verdict(Do.REPLAN, difference, observed=obs)
     assert judge(step(perceive(judges=True)), done(obs), False) == Verdict(Do.ERROR, difference, observed=obs)
 
 
 def test_in_a_safe_stop_a_perceive_only_informs_a_km() -> None:
-    obs = seen(bowl((0.34, -0.36, 0.75)))
+    obs = seen(bowl(ELSEWHERE))
     assert judge(step(perceive(judges=True)), done(obs), True) == Verdict(Do.NEXT, observed=obs)
 
 
@@ -212,6 +215,30 @@ def test_when_the_inferred_spheres_decide_the_second_look_judges_on_what_it_saw(
     short = seen(bowl(inside=16, inferred=3))
     assert judge(step(CHECK), done(short), False).do is Do.LOOK
     assert judge(step(CHECK, second_view=2), done(short), False).do is Do.ERROR
+
+
+def test_after_a_second_look_the_look_that_saw_more_decides() -> None:
+    # 17 in the bowl: the first look saw 16 (89 %) and inferred 1; the second, from the turned
+    # head, missed one more against the near wall (15 + 1: 89 % even with the inferred)
+    first = seen(bowl(inside=17, inferred=1))
+    assert judge(step(CHECK), done(first), False).do is Do.LOOK
+    second = seen(bowl(inside=16, inferred=1))
+    again = step(CHECK, second_view=2)
+    assert judge(again, done(second), False).do is Do.ERROR  # the second look alone
+    again.first_look = first
+    verdict = judge(again, done(second), False)
+    assert verdict.do is Do.NEXT
+    assert verdict.reason == (
+        "the bowl holds 17 of 18 spheres, 16 seen (89 %) and 1 inferred behind its wall, at the first look; "
+        "the 90 % rests on the 1 inferred, which no look saw"
+    )
+    assert verdict.observed == second  # a_km learns the latest look
+    # a second look that saw more decides, and one that saw as many: the later one
+    assert judge(again, done(seen(bowl(inside=17, inferred=0))), False).reason == (
+        "the bowl holds 17 of 18 spheres, all seen (94 %), at the second look"
+    )
+    tie = judge(again, done(first), False).reason or ""
+    assert tie.endswith("at the second look; the 90 % rests on the 1 inferred, which no look saw")
 
 
 def test_a_sensing_leaf_answered_without_an_observation_goes_on() -> None:

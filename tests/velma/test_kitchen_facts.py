@@ -84,7 +84,16 @@ def test_places_on_the_table_are_on_its_top(world: WorldModel, obj: str) -> None
     for x, y, z in world.placement(obj, "table").positions:
         assert z == pytest.approx(g.TABLE_TOP_HEIGHT)
         for centre, at, half in ((g.TABLE_POS[0], x, size[0] / 2), (g.TABLE_POS[1], y, size[1] / 2)):
-            assert abs(at - centre) + half <= g.TABLE_HALF, (obj, (x, y), "overhangs the table")
+            # to rounding: the bowl's bound (its rim's margin included) reaches the edge exactly
+            assert abs(at - centre) + half <= g.TABLE_HALF + 1e-9, (obj, (x, y), "overhangs the table")
+
+
+def test_the_bowls_table_place_is_the_scripts(world: WorldModel) -> None:
+    """velma/scenario.py puts the bowl where a_km's ``roco:table_bowl_place`` says (the pour's
+    content check depends on it: tests/velma/perception/test_content_count.py)."""
+    from velma.scenario import BOWL_PLACE_POSITION
+
+    assert world.placement("bowl", "table").positions == (BOWL_PLACE_POSITION,)
 
 
 @pytest.mark.parametrize(

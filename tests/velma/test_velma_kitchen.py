@@ -159,8 +159,10 @@ def test_interrupted_pour_sets_the_jar_down_brings_the_cup_and_fills_the_bowl() 
     obs = [r for r in results if isinstance(r, Observation)]
     # observations: first, bowl placed, jar set down, cup on the table, after the pour
     assert len(obs) == 5
-    first, _, jar_down, cup_down, final = obs
+    first, placed, jar_down, cup_down, final = obs
     total = final.total_particles
+    # the jar set down beside the standing bowl leaves it where it was placed
+    assert np.allclose(_obj(jar_down, "bowl").position, _obj(placed, "bowl").position, atol=1e-3)
     jar = _obj(jar_down, "jar")
     assert _inside(jar_down, "jar") == _inside(first, "jar") == total
     assert _tilt(jar) < 0.05

@@ -28,6 +28,7 @@ gives no estimate.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -147,13 +148,21 @@ MIN_INNER_SHARE = 0.3
 spheres found took (``count_spheres``)."""
 RING_STEP_DEG = 1.0
 """Angular resolution (°) of the wall ring's visibility test."""
-CAP_ANGLE = 0.8
-"""Half-angle (rad) of the cap of a sphere facing the camera whose visibility is tested."""
-CAP_VISIBLE_SHARE = 0.34
-"""A ring position is in view when at least this share of its cap's test points is."""
+SEE_THROUGH_SHARE = 0.5
+"""A candidate centre of ``spheres_on_layer`` is no sphere when more than this share of the
+pixels inside ``SEE_THROUGH_CORE`` of its silhouette that are not hidden behind something
+nearer show a depth beyond its surface: the camera sees through where the sphere would be
+(``_silhouette_pixels``). A sphere there shows its own surface in those pixels; two
+neighbours along the near wall, of which only the tops show, leave a notch between them
+that a candidate halfway between them would fill."""
+SEE_THROUGH_CORE = 0.8
+"""Share of a sphere's radius: the pixels whose rays pass this close to a candidate's centre
+make its core, away from its outline, where a pixel's depth mixes the sphere's and the
+background's."""
 CAP_DEPTH_TOLERANCE = 0.006
-"""m: a test point is in view when its pixel's depth is not nearer than it by more than this
-(the averaged Kinect depth's noise at ≈ 1 m is ≈ 1–2 mm, velma/perception/noise.py)."""
+"""m: a pixel shows a sphere's surface when its depth is within this of it, something nearer
+or the background beyond when it is further off (the averaged Kinect depth's noise at ≈ 1 m
+is ≈ 1–2 mm, velma/perception/noise.py)."""
 
 
 def count_spheres(
@@ -180,24 +189,33 @@ def count_spheres(
     Method: (1) the content-coloured points within the container's inner radius, from its
     inner bottom to a sphere diameter above its rim; (2) the spheres resting on the floor,
     found by ``spheres_on_layer`` (a Hough transform for spheres of the known radius whose
-    centres lie one radius above the inner bottom), less those off the wall ring (3) that took
-    fewer than ``MIN_INNER_SHARE`` of the median points (off the ring the floor is in view, so
-    a sphere there shows most of its cap), then refined by least squares: ``visible``; (3) the
+    centres lie one radius above the inner bottom; a candidate centre the camera sees through
+    is none, ``SEE_THROUGH_SHARE``: of a sphere against the near wall only its top shows,
+    which a candidate a few mm off, or halfway to its neighbour, fits as well), less those
+    off the wall ring (3) that took fewer than ``MIN_INNER_SHARE`` of the median points (off
+    the ring the floor is in view, so a sphere there shows most of its cap), then refined by
+    least squares: ``visible``; (3) the
     ring along the wall: the container's shape (its model) gives the distance
     ``_ring_radius`` from the axis at which a sphere on the floor touches the wall, where the
     frictionless spheres settle (velma/model/scene.py); the spheres found beyond one radius
     inside it are the ring's; (4) the ring's positions the camera cannot see
-    (``_ring_hidden``: the cap of a sphere there, facing the camera, is behind something
-    nearer in the depth image: the bowl's near wall, an arm); (5) ``hidden``: for each gap
-    between neighbouring ring spheres that reaches into positions out of view, the spheres
-    that fit it at the spacing of the ring's neighbours in view (the median of the gaps
-    shorter than 1.5 touching spacings; touching when there are none), at most as many as its
-    hidden positions hold touching; a gap wholly in view is empty (the floor is seen there).
+    (``_ring_hidden``: a sphere there would show fewer pixels than a sphere found takes, the
+    rest of it behind something nearer in the depth image: the bowl's near wall, an arm, a
+    neighbour; from the head's pour view of the bowl at velma/scenario.py BOWL_PLACE_POSITION
+    the least visible place along the near wall shows about four pixels of a sphere, so on
+    some frames a few degrees there are out of view, tests/velma/perception/test_content_count.py);
+    (5) ``hidden``: for each gap between neighbouring ring spheres that reaches into
+    positions out of view, the spheres that fit it at the spacing of the ring's neighbours in
+    view (the median of the gaps shorter than 1.5 touching spacings; touching when there are
+    none), at most as many as its hidden positions hold touching; a gap wholly in view is
+    empty (the floor is seen there).
 
-    Named simplifications: the hidden arc of the ring is assumed as full as its neighbours
-    make it (a vacancy that happens to lie in the hidden arc, or a sphere taken from it, is
-    counted full), spheres hidden elsewhere than along the wall are not inferred, and spheres
-    stacked on others (a second layer) are not counted. ag_ex's Observation caps the count at
+    Named simplifications: a hidden arc of the ring (the bowl seen from further away than
+    its pour place) is assumed as full as its neighbours make it (a vacancy that happens to
+    lie in it, or a sphere taken from it, is counted full); so is a gap of two or more
+    neighbouring ring spheres that reaches a few hidden degrees; spheres hidden elsewhere
+    than along the wall are not inferred, and spheres stacked on others (a second layer) are
+    not counted. ag_ex's Observation caps the count at
     what the content seen outside every container leaves (velma/perception/spill.py), so a
     sphere spilled in view is not counted in the bowl; one gone out of view from the hidden arc
     still is, so the Observation says how many it inferred (L_SD ``particles_inferred``) and a_ta
@@ -216,7 +234,11 @@ def count_spheres(
     cam = np.asarray(camera_position, dtype=np.float64)
     layer = inner_bottom + r
     centre = origin + np.array([0.0, 0.0, layer])
-    found, took = spheres_on_layer(points[match], centre, inner_radius - r, r)
+
+    def seen_through(cand: Array) -> npt.NDArray[np.bool_]:
+        return _seen_through(cand, depth, cam, camera_rotation, fx, cx, cy, r)
+
+    found, took = spheres_on_layer(points[match], centre, inner_radius - r, r, seen_through)
     ring = _ring_radius(model, layer, r)
     at_ring = np.hypot(found[:, 0] - origin[0], found[:, 1] - origin[1]) > ring - r
     # off the ring the floor is in view: a real sphere there shows much of its cap; a weak
@@ -293,35 +315,77 @@ def _ring_hidden(
 ) -> npt.NDArray[np.bool_]:
     """Per ``RING_STEP_DEG`` of angle about the vertical axis through ``centre`` (3,) m (the
     layer's centre, world), whether a sphere of radius ``r`` centred ``ring`` m from the axis
-    there would be out of view: fewer than ``CAP_VISIBLE_SHARE`` of nine points of its cap
-    facing the camera (its nearest point and eight at ``CAP_ANGLE`` from it) have a pixel
-    whose depth is not nearer than the point by more than ``CAP_DEPTH_TOLERANCE`` (a point
-    outside the image or whose pixel has no depth is not in view)."""
+    there would be out of view: fewer than ``MIN_SPHERE_POINTS`` pixels of its silhouette
+    are not behind something nearer in ``depth`` (``_silhouette_pixels``), fewer than a
+    sphere found takes, so ``spheres_on_layer`` could not find it, and no more than
+    ``SEE_THROUGH_SHARE`` of those few show a depth beyond it (where they do, the camera sees
+    the place empty). Returns a boolean array
+    of 360 / ``RING_STEP_DEG`` entries, entry k for the angle k · ``RING_STEP_DEG`` (° from
+    the world's x axis)."""
     theta = np.radians(np.arange(0.0, 360.0, RING_STEP_DEG))
     at = centre + ring * np.stack([np.cos(theta), np.sin(theta), np.zeros_like(theta)], axis=1)
-    to_cam = cam - at
-    to_cam /= np.linalg.norm(to_cam, axis=1, keepdims=True)
-    side = np.cross(to_cam, np.array([0.0, 0.0, 1.0]))
-    side /= np.linalg.norm(side, axis=1, keepdims=True)
-    other = np.cross(to_cam, side)
-    dirs = [to_cam] + [
-        math.cos(CAP_ANGLE) * to_cam + math.sin(CAP_ANGLE) * (math.cos(phi) * side + math.sin(phi) * other)
-        for phi in np.linspace(0.0, 2 * math.pi, 8, endpoint=False)
-    ]
-    test = np.stack([at + r * d for d in dirs], axis=1).reshape(-1, 3)  # (n · 9, 3)
-    optical = (test - cam) @ np.asarray(rotation, dtype=np.float64)
-    z = optical[:, 2]
+    past, on = _silhouette_pixels(at, depth, cam, rotation, fx, cx, cy, r, 1.0)
+    return np.asarray((past + on < MIN_SPHERE_POINTS) & (past <= SEE_THROUGH_SHARE * (past + on)))
+
+
+def _seen_through(
+    centres: Array,
+    depth: npt.NDArray[np.floating],
+    cam: Array,
+    rotation: Array,
+    fx: float,
+    cx: float,
+    cy: float,
+    r: float,
+) -> npt.NDArray[np.bool_]:
+    """Whether the camera sees past a sphere of radius ``r`` m centred at each of ``centres``
+    (K × 3, m, world): more than ``SEE_THROUGH_SHARE`` of the pixels of its core
+    (``SEE_THROUGH_CORE``) not hidden behind something nearer show a depth beyond its
+    surface, so no sphere is there (arguments as ``_silhouette_pixels``; (K,) mask)."""
+    past, on = _silhouette_pixels(centres, depth, cam, rotation, fx, cx, cy, r, SEE_THROUGH_CORE)
+    return np.asarray(past > SEE_THROUGH_SHARE * (past + on))
+
+
+def _silhouette_pixels(
+    centres: Array,
+    depth: npt.NDArray[np.floating],
+    cam: Array,
+    rotation: Array,
+    fx: float,
+    cx: float,
+    cy: float,
+    r: float,
+    core: float,
+) -> tuple[npt.NDArray[np.int64], npt.NDArray[np.int64]]:
+    """For spheres of radius ``r`` m centred at ``centres`` (K × 3, m, world), seen from
+    ``cam`` (3,) m with ``rotation`` (3 × 3, world-from-optical), focal length ``fx`` (px)
+    and principal point ``cx``, ``cy`` (px): among the pixels of ``depth`` (H × W, m along
+    the optical axis, NaN missing) whose ray passes within ``core`` · r of a sphere's centre,
+    how many show a depth beyond its front surface by more than ``CAP_DEPTH_TOLERANCE``
+    (the camera sees past it) and how many show a depth within that of it (its own surface,
+    or something just in front). Pixels whose depth is nearer (hidden behind something),
+    missing or outside the image count in neither. Returns two (K,) arrays."""
+    c = (np.asarray(centres, dtype=np.float64) - cam) @ np.asarray(rotation, dtype=np.float64)
+    if len(c) == 0 or float(np.min(c[:, 2])) <= r:
+        return np.zeros(len(c), dtype=np.int64), np.zeros(len(c), dtype=np.int64)
+    reach = math.ceil(fx * r / float(np.min(c[:, 2]) - r)) + 1
+    du, dv = (g.ravel() for g in np.meshgrid(np.arange(-reach, reach + 1), np.arange(-reach, reach + 1)))
+    u = np.floor(fx * c[:, 0] / c[:, 2] + cx).astype(np.int64)[:, None] + du[None, :]
+    v = np.floor(fx * c[:, 1] / c[:, 2] + cy).astype(np.int64)[:, None] + dv[None, :]
     h, w = depth.shape
-    with np.errstate(divide="ignore", invalid="ignore"):
-        u = np.floor(fx * optical[:, 0] / z + cx)
-        v = np.floor(fx * optical[:, 1] / z + cy)
-    inside = (z > 0) & (u >= 0) & (u < w) & (v >= 0) & (v < h)
-    seen_depth = np.full(len(z), np.nan)
-    seen_depth[inside] = depth[v[inside].astype(np.int64), u[inside].astype(np.int64)]
+    inside = (u >= 0) & (u < w) & (v >= 0) & (v < h)
+    ray = np.stack([(u + 0.5 - cx) / fx, (v + 0.5 - cy) / fx, np.ones(u.shape)], axis=2)  # z = 1
+    sq = np.sum(ray * ray, axis=2)
+    closest = np.sum(ray * c[:, None, :], axis=2) / sq  # depth of the ray's closest approach
+    miss2 = np.sum((closest[..., None] * ray - c[:, None, :]) ** 2, axis=2)
+    within = inside & (miss2 <= (core * r) ** 2)
+    front = closest - np.sqrt(np.maximum(r * r - miss2, 0.0) / sq)
+    seen = np.full(u.shape, np.nan)
+    seen[inside] = depth[v[inside], u[inside]]
     with np.errstate(invalid="ignore"):
-        in_view = inside & (seen_depth >= z - CAP_DEPTH_TOLERANCE)
-    share = in_view.reshape(len(theta), len(dirs)).mean(axis=1)
-    return np.asarray(share < CAP_VISIBLE_SHARE)
+        past = within & (seen > front + CAP_DEPTH_TOLERANCE)
+        on = within & (np.abs(seen - front) <= CAP_DEPTH_TOLERANCE)
+    return past.sum(axis=1).astype(np.int64), on.sum(axis=1).astype(np.int64)
 
 
 def _hidden_in_gaps(angles: Array, hidden_at: npt.NDArray[np.bool_], step: float) -> int:
@@ -358,7 +422,11 @@ GRID_STEP = 0.002  # m, candidate centres on the layer
 
 
 def spheres_on_layer(
-    surface: Array, centre: Array, reach: float, r: float
+    surface: Array,
+    centre: Array,
+    reach: float,
+    r: float,
+    ruled_out: Callable[[Array], npt.NDArray[np.bool_]] | None = None,
 ) -> tuple[Array, npt.NDArray[np.int64]]:
     """Count spheres of radius ``r`` resting in one layer: their centres lie on the horizontal
     plane through ``centre`` (3,) within ``reach`` of it (m), and ``surface`` (M × 3, m) are
@@ -366,8 +434,10 @@ def spheres_on_layer(
     known: every candidate centre on a ``GRID_STEP`` grid scores the points within
     ``SURFACE_BAND`` × r of its sphere's surface; the best is a sphere, candidates closer
     than 1.6 r to it are suppressed (touching spheres' centres are 2 r apart), until the best
-    scores fewer than ``MIN_SPHERE_POINTS``. A sphere on a second layer is not counted.
-    Returns the centres found (K × 3, m) and the points each took (K,)."""
+    scores fewer than ``MIN_SPHERE_POINTS``. ``ruled_out`` (candidate centres, C × 3 m, to a
+    (C,) mask) removes candidates that cannot be spheres beforehand (``count_spheres``: the
+    camera sees through them). A sphere on a second layer is not counted. Returns the
+    centres found (K × 3, m) and the points each took (K,)."""
     if len(surface) < MIN_SPHERE_POINTS:
         return np.zeros((0, 3)), np.zeros(0, dtype=np.int64)
     steps = np.arange(-reach, reach + 1e-12, GRID_STEP)
@@ -377,7 +447,7 @@ def spheres_on_layer(
     dist = np.linalg.norm(surface[None, :, :] - cand[:, None, :], axis=2)
     on = np.abs(dist - r) <= SURFACE_BAND * r
     score = on.sum(axis=1).astype(np.int64)
-    alive = np.ones(len(cand), dtype=bool)
+    alive = np.ones(len(cand), dtype=bool) if ruled_out is None else ~ruled_out(cand)
     found: list[int] = []
     taken: list[int] = []
     while alive.any():

@@ -372,7 +372,11 @@ def _relation(s: Any, furniture: str) -> str:
 def m_fetch(s: Any, path: str, obj: str, arm: str) -> Any:
     """Face the furniture ``obj`` stands on or in, look at the object and check it is where it
     should be, (take the grasp's arm posture,) open the hand, (enter,) go to the pre-grasp pose
-    and take it: approach, grasp, lift, withdraw (atomic)."""
+    and take it: approach, grasp, lift, withdraw (atomic). The posture and the entry are taken
+    only at the grasp's own facing (the cabinet's, ``GRASP_FACING``): into the cabinet the hand
+    enters horizontally; elsewhere (the table) it goes straight to the pre-grasp pose above the
+    object (an entry point 0.25 m back from the bowl at its table place folds the right wrist
+    onto itself)."""
     pose = s.pose.get(obj)
     grasp = _best_grasp(s, obj, arm)
     if pose is None or grasp is None or s.holding[arm] is not None:
@@ -394,18 +398,11 @@ def m_fetch(s: Any, path: str, obj: str, arm: str) -> Any:
         ("a_look", f"{path}/look_at_{obj}", pose.position),
         ("a_perceive", f"{path}/see_{obj}", obj, (obj, pose.position)),
     ]
-    if grasp.posture and abs(turn) < 1e-9:  # a posture is given for the grasp's own facing
+    own_facing = abs(turn) < 1e-9  # the posture and the entry are given for it
+    if grasp.posture and own_facing:
         steps.append(("a_posture", f"{path}/arm_posture", arm, grasp.posture, SHORT_MOVE_S))
     steps.append(("a_preshape", f"{path}/open_hand", arm, grasp.preshape))
-    first_move = SHORT_MOVE_S if grasp.posture else LONG_MOVE_S
-    if grasp.entry is not None and grasp.entry_distance > 0:
-        entry = geo.translated(pre, _scaled(geo.rotate(grasp.entry, obj_frame), -grasp.entry_distance))
-        steps += [
-            ("a_move", f"{path}/enter", arm, entry, first_move),
-            ("a_move", f"{path}/pregrasp", arm, pre, SHORT_MOVE_S),
-        ]
-    else:
-        steps.append(("a_move", f"{path}/pregrasp", arm, pre, first_move))
+    steps += _to_pregrasp(path, arm, grasp, pre, obj_frame, own_facing)
     reach_s = round(max(1.0, grasp.distance / CONTACT_SPEED_M_S), 2)
     take = f"{path}/take"
     return [
@@ -415,6 +412,23 @@ def m_fetch(s: Any, path: str, obj: str, arm: str) -> Any:
         ("a_held", f"{take}/held", obj, arm, where),
         ("a_move", f"{take}/lift", arm, lifted, 1.0),
         ("a_move", f"{take}/withdraw", arm, out, SHORT_MOVE_S),
+    ]
+
+
+def _to_pregrasp(
+    path: str, arm: str, grasp: Any, pre: Pose, obj_frame: Pose, own_facing: bool
+) -> list[tuple[Any, ...]]:
+    """The moves of ``m_fetch`` to the pre-grasp pose ``pre``: through the grasp's entry point
+    (``grasp.entry_distance`` m back along ``grasp.entry`` in ``obj_frame``) when it has one and
+    the torso is at the grasp's own facing, else straight there; the first move short after the
+    grasp's posture, long without one."""
+    first_move = SHORT_MOVE_S if grasp.posture else LONG_MOVE_S
+    if grasp.entry is None or grasp.entry_distance <= 0 or not own_facing:
+        return [("a_move", f"{path}/pregrasp", arm, pre, first_move)]
+    entry = geo.translated(pre, _scaled(geo.rotate(grasp.entry, obj_frame), -grasp.entry_distance))
+    return [
+        ("a_move", f"{path}/enter", arm, entry, first_move),
+        ("a_move", f"{path}/pregrasp", arm, pre, SHORT_MOVE_S),
     ]
 
 

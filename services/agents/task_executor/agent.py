@@ -726,6 +726,7 @@ class TaskExecutor(Agent):
             assert verdict.look_at is not None
             self.log.info("%s: %s: a second view", step.path, verdict.reason)
             step.second_view = 1
+            step.first_look = verdict.observed
             step.waiting_for = self._request(LookAt(point=verdict.look_at), LOOK_REPLY_BY_S, RESEND_ON_RETURN)
         elif do is Do.SURPRISE:
             if verdict.interrupted:

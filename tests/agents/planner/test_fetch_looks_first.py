@@ -9,8 +9,9 @@ from services.agents.planner.domain import plan_task
 from shared.fipa_codec.languages.common import Pose
 from shared.fipa_codec.languages.l_wm import ObjectUpdate, WorldUpdate
 from tests.agents.planner.kitchen import knowledge as kitchen_knowledge
+from velma.scenario import BOWL_PLACE_POSITION
 
-BOWL_ON_TABLE = (0.34, -0.46, 0.75)  # velma/scenario.py BOWL_PLACE_POSITION
+BOWL_ON_TABLE = BOWL_PLACE_POSITION
 
 
 def test_the_bowl_on_the_table_is_looked_at_and_seen_before_the_hand_moves() -> None:

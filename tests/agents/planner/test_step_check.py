@@ -125,8 +125,8 @@ def test_a_put_down_where_nothing_fits_is_refused() -> None:
     with pytest.raises(StepRefused) as refused:
         check(world, actions)
     assert str(refused.value) == (
-        "step 30 put(bowl, table): nothing fits on the table at (0.34, -0.46): the cup stands "
-        "there (0.050 m away, the two need 0.110 m)"
+        f"step 30 put(bowl, table): nothing fits on the table at ({place[0]:.2f}, {place[1]:.2f}): "
+        "the cup stands there (0.050 m away, the two need 0.110 m)"
     )
     see(world, ObjectUpdate(name="cup", pose=Pose((place[0] + 0.12, place[1], place[2]))))
     assert check(world, actions)  # 0.12 m away: both fit
