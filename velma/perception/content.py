@@ -165,6 +165,35 @@ or the background beyond when it is further off (the averaged Kinect depth's noi
 is ≈ 1–2 mm, velma/perception/noise.py)."""
 
 
+@dataclass(frozen=True)
+class DepthView:
+    """A frame's ``depth`` image (H × W, m along the optical axis, NaN missing) and the camera
+    that took it: at ``camera`` (3,) m with ``rotation`` (3 × 3, world-from-optical), focal
+    length ``fx`` (px, square pixels), principal point ``cx``, ``cy`` (px)."""
+
+    depth: npt.NDArray[np.floating]
+    camera: Array
+    rotation: Array
+    fx: float
+    cx: float
+    cy: float
+
+    def optical(self, points: Array) -> Array:
+        """``points`` (K × 3, m, world) in the optical frame (K × 3, m; z along the axis)."""
+        return np.asarray((np.asarray(points, dtype=np.float64) - self.camera) @ self.rotation)
+
+    def pixel(self, optical: Array) -> tuple[npt.NDArray[np.int64], npt.NDArray[np.int64]]:
+        """The pixel (column u, row v) of each optical-frame point (K × 3, m, z > 0)."""
+        u = np.floor(self.fx * optical[:, 0] / optical[:, 2] + self.cx).astype(np.int64)
+        v = np.floor(self.fx * optical[:, 1] / optical[:, 2] + self.cy).astype(np.int64)
+        return u, v
+
+    def in_image(self, u: npt.NDArray[np.int64], v: npt.NDArray[np.int64]) -> npt.NDArray[np.bool_]:
+        """Whether pixels (``u``, ``v``: same shape) lie in the image."""
+        h, w = self.depth.shape
+        return np.asarray((u >= 0) & (u < w) & (v >= 0) & (v < h))
+
+
 def count_spheres(
     estimate: ObjectEstimate,
     model: ObjectModel,
@@ -231,12 +260,19 @@ def count_spheres(
     near = (radial <= inner_radius + 0.002) & (rel[:, 2] > inner_bottom) & (rel[:, 2] <= model.height + 2 * r)
     idx = np.flatnonzero(near)
     match = idx[_content_match(colours[idx], content_rgba, model, CONTENT_TOLERANCE)]
-    cam = np.asarray(camera_position, dtype=np.float64)
+    view = DepthView(
+        depth,
+        np.asarray(camera_position, dtype=np.float64),
+        np.asarray(camera_rotation, dtype=np.float64),
+        fx,
+        cx,
+        cy,
+    )
     layer = inner_bottom + r
     centre = origin + np.array([0.0, 0.0, layer])
 
     def seen_through(cand: Array) -> npt.NDArray[np.bool_]:
-        return _seen_through(cand, depth, cam, camera_rotation, fx, cx, cy, r)
+        return _seen_through(cand, view, r)
 
     found, took = spheres_on_layer(points[match], centre, inner_radius - r, r, seen_through)
     ring = _ring_radius(model, layer, r)
@@ -247,8 +283,8 @@ def count_spheres(
     keep = at_ring | strong
     centres = _refine_centres(points[match], found[keep], r)
     at_ring = at_ring[keep]
-    share = _floor_visible(origin, layer, inner_radius - r, depth, cam, camera_rotation, fx, cx, cy, r)
-    hidden_at = _ring_hidden(centre, ring, depth, cam, camera_rotation, fx, cx, cy, r)
+    share = _floor_visible(origin, layer, inner_radius - r, view, r)
+    hidden_at = _ring_hidden(centre, ring, view, r)
     angles = np.arctan2(centres[at_ring, 1] - origin[1], centres[at_ring, 0] - origin[0])
     hidden = _hidden_in_gaps(angles, hidden_at, 2 * math.asin(min(1.0, r / ring)))
     return SphereCount(
@@ -305,12 +341,7 @@ def _ring_radius(model: ObjectModel, layer: float, r: float) -> float:
 def _ring_hidden(
     centre: Array,
     ring: float,
-    depth: npt.NDArray[np.floating],
-    cam: Array,
-    rotation: Array,
-    fx: float,
-    cx: float,
-    cy: float,
+    view: DepthView,
     r: float,
 ) -> npt.NDArray[np.bool_]:
     """Per ``RING_STEP_DEG`` of angle about the vertical axis through ``centre`` (3,) m (the
@@ -324,56 +355,44 @@ def _ring_hidden(
     the world's x axis)."""
     theta = np.radians(np.arange(0.0, 360.0, RING_STEP_DEG))
     at = centre + ring * np.stack([np.cos(theta), np.sin(theta), np.zeros_like(theta)], axis=1)
-    past, on = _silhouette_pixels(at, depth, cam, rotation, fx, cx, cy, r, 1.0)
+    past, on = _silhouette_pixels(at, view, r, 1.0)
     return np.asarray((past + on < MIN_SPHERE_POINTS) & (past <= SEE_THROUGH_SHARE * (past + on)))
 
 
 def _seen_through(
     centres: Array,
-    depth: npt.NDArray[np.floating],
-    cam: Array,
-    rotation: Array,
-    fx: float,
-    cx: float,
-    cy: float,
+    view: DepthView,
     r: float,
 ) -> npt.NDArray[np.bool_]:
     """Whether the camera sees past a sphere of radius ``r`` m centred at each of ``centres``
     (K × 3, m, world): more than ``SEE_THROUGH_SHARE`` of the pixels of its core
     (``SEE_THROUGH_CORE``) not hidden behind something nearer show a depth beyond its
     surface, so no sphere is there (arguments as ``_silhouette_pixels``; (K,) mask)."""
-    past, on = _silhouette_pixels(centres, depth, cam, rotation, fx, cx, cy, r, SEE_THROUGH_CORE)
+    past, on = _silhouette_pixels(centres, view, r, SEE_THROUGH_CORE)
     return np.asarray(past > SEE_THROUGH_SHARE * (past + on))
 
 
 def _silhouette_pixels(
     centres: Array,
-    depth: npt.NDArray[np.floating],
-    cam: Array,
-    rotation: Array,
-    fx: float,
-    cx: float,
-    cy: float,
+    view: DepthView,
     r: float,
     core: float,
 ) -> tuple[npt.NDArray[np.int64], npt.NDArray[np.int64]]:
-    """For spheres of radius ``r`` m centred at ``centres`` (K × 3, m, world), seen from
-    ``cam`` (3,) m with ``rotation`` (3 × 3, world-from-optical), focal length ``fx`` (px)
-    and principal point ``cx``, ``cy`` (px): among the pixels of ``depth`` (H × W, m along
-    the optical axis, NaN missing) whose ray passes within ``core`` · r of a sphere's centre,
+    """For spheres of radius ``r`` m centred at ``centres`` (K × 3, m, world) in ``view``:
+    among the pixels of its depth image whose ray passes within ``core`` · r of a sphere's centre,
     how many show a depth beyond its front surface by more than ``CAP_DEPTH_TOLERANCE``
     (the camera sees past it) and how many show a depth within that of it (its own surface,
     or something just in front). Pixels whose depth is nearer (hidden behind something),
     missing or outside the image count in neither. Returns two (K,) arrays."""
-    c = (np.asarray(centres, dtype=np.float64) - cam) @ np.asarray(rotation, dtype=np.float64)
+    c = view.optical(centres)
     if len(c) == 0 or float(np.min(c[:, 2])) <= r:
         return np.zeros(len(c), dtype=np.int64), np.zeros(len(c), dtype=np.int64)
+    fx, cx, cy, depth = view.fx, view.cx, view.cy, view.depth
     reach = math.ceil(fx * r / float(np.min(c[:, 2]) - r)) + 1
     du, dv = (g.ravel() for g in np.meshgrid(np.arange(-reach, reach + 1), np.arange(-reach, reach + 1)))
-    u = np.floor(fx * c[:, 0] / c[:, 2] + cx).astype(np.int64)[:, None] + du[None, :]
-    v = np.floor(fx * c[:, 1] / c[:, 2] + cy).astype(np.int64)[:, None] + dv[None, :]
-    h, w = depth.shape
-    inside = (u >= 0) & (u < w) & (v >= 0) & (v < h)
+    u0, v0 = view.pixel(c)
+    u, v = u0[:, None] + du[None, :], v0[:, None] + dv[None, :]
+    inside = view.in_image(u, v)
     ray = np.stack([(u + 0.5 - cx) / fx, (v + 0.5 - cy) / fx, np.ones(u.shape)], axis=2)  # z = 1
     sq = np.sum(ray * ray, axis=2)
     closest = np.sum(ray * c[:, None, :], axis=2) / sq  # depth of the ray's closest approach
@@ -467,12 +486,7 @@ def _floor_visible(
     origin: Array,
     layer_z: float,
     radius: float,
-    depth: npt.NDArray[np.floating],
-    cam: Array,
-    rotation: Array,
-    fx: float,
-    cx: float,
-    cy: float,
+    view: DepthView,
     r: float,
     inner: float = 0.0,
 ) -> float:
@@ -483,16 +497,15 @@ def _floor_visible(
     xx, yy = np.meshgrid(g, g)
     disc = (np.hypot(xx, yy) <= radius) & (np.hypot(xx, yy) >= inner)
     world = np.column_stack([xx[disc], yy[disc], np.full(int(disc.sum()), layer_z)]) + origin
-    optical = (world - cam) @ np.asarray(rotation, dtype=np.float64)
+    optical = view.optical(world)
     z = optical[:, 2]
-    u = np.floor(fx * optical[:, 0] / z + cx).astype(np.int64)
-    v = np.floor(fx * optical[:, 1] / z + cy).astype(np.int64)
-    h, w = depth.shape
-    inside = (z > 0) & (u >= 0) & (u < w) & (v >= 0) & (v < h)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        u, v = view.pixel(np.where(z[:, None] > 0, optical, 1.0))
+    inside = (z > 0) & view.in_image(u, v)
     if not np.any(inside):
         return 0.0
     seen_depth = np.full(len(z), np.nan)
-    seen_depth[inside] = depth[v[inside], u[inside]]
+    seen_depth[inside] = view.depth[v[inside], u[inside]]
     known = ~inside | np.isfinite(seen_depth)  # missing depth says nothing: left out
     with np.errstate(invalid="ignore"):
         clear = inside & (seen_depth >= z - 3 * r)
