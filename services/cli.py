@@ -1583,8 +1583,10 @@ def spec_new_agent(
     """Write the folder of agent NAME from the specification: its protocol roles and one
     handler per performative its peers may send, each raising NotImplementedError until
     written; render services/spec/names.py again with the names of its channels (`roco spec
-    names`) and deploy/compose.yaml with a service for it (docs/spec.md, "Walk-through: adding
-    an agent"). Exit 1 when the file exists or the specification has no such agent."""
+    names`), deploy/compose.yaml with a service for it and deploy/compose.netfault.yaml
+    (docs/spec.md, "Walk-through: adding an agent"). Exit 1 when the file exists or the
+    specification has no such agent."""
+    from services.deploy import netfault
     from services.deploy.compose import ComposeError, bring_up_to_date
     from services.spec import render_names
     from services.spec.model import SpecError, load
@@ -1596,6 +1598,7 @@ def spec_new_agent(
         typer.echo(f"roco: wrote {scaffold.module}")
         typer.echo(f"roco: {render_names.bring_up_to_date(root or PROJECT, system)}")
         typer.echo(f"roco: {bring_up_to_date(root or PROJECT, system)}")
+        typer.echo(f"roco: {netfault.bring_up_to_date(root or PROJECT, system)}")
     except (SpecError, FileExistsError, ComposeError) as exc:
         raise fail(str(exc)) from None
     timer = f" and what {scaffold.timer} opens" if scaffold.timer else ""
@@ -1665,6 +1668,9 @@ def _world_apart() -> bool:
 @app.command(short_help="Check what this machine offers roco, and how to get what is missing.")
 def doctor(
     runs_dir: Annotated[Path, typer.Option(help="where 'roco up' keeps its fleet state")] = Path("runs"),
+    compose: Annotated[
+        bool, typer.Option("--compose", help="only what the compose fleet needs (docs/deploy.md)")
+    ] = False,
 ) -> None:
     """Check, item by item, what roco can use on this machine: Python and the libraries,
     the compiled control law, a free loopback port, EGL or OSMesa for the head camera,
@@ -1676,15 +1682,29 @@ def doctor(
     Each item says found or not found and how to get it. Exit 0 when everything `roco run`
     needs is there (with the head camera perceiving, the default where libEGL or libOSMesa is
     installed, an off-screen GL context that opens), 1 otherwise. Takes a few seconds: MuJoCo's
-    GL is tried in a child process, Docker is asked with time limits."""
+    GL is tried in a child process, Docker is asked with time limits.
+
+    With --compose, only the compose fleet's prerequisites (docs/deploy.md): the docker client
+    (Debian's docker.io), an engine that answers it, Compose (`docker compose` or Debian's
+    `docker-compose`), roco's image and, until it is built, debootstrap for
+    scripts/build_image.sh; each one missing is named with how to get it, and the exit is 1."""
     from rich.console import Console
 
     from services.doctor import run_checks
     from services.doctor.model import run_ready
-    from services.doctor.render import show, verdict
+    from services.doctor.render import compose_verdict, show, verdict
     from services.doctor.settings import readings
     from velma.executor.capture import perception_mode
 
+    if compose:
+        from services.doctor.tools import docker_checks
+
+        found = docker_checks()
+        show(found, Console(highlight=False))
+        typer.echo(compose_verdict(found))
+        if any(c.missing for c in found):
+            raise typer.Exit(1)
+        return
     checks = run_checks(runs_dir)
     try:
         camera = perception_mode() == "camera"

@@ -87,14 +87,24 @@ def _runner(answers: dict[str, tuple[int, str]]) -> tools.Runner:
 
 def test_docker_missing_engine_and_compose_fallback_and_image() -> None:
     none = tools.docker_checks(_runner({}), which=lambda name: None)
-    assert [(c.name, c.found) for c in none] == [("Docker engine", False)]
-    assert "docker" in none[0].how
+    assert [(c.name, c.found) for c in none] == [
+        ("docker", False),
+        ("Compose", False),
+        ("debootstrap", False),
+    ]
+    assert "docker.io" in none[0].how and "docker-compose" in none[1].how and "debootstrap" in none[2].how
     unreachable = tools.docker_checks(
         _runner({"docker version": (1, "Cannot connect to the Docker daemon")}),
         which=lambda name: f"/usr/bin/{name}",
     )
-    assert [(c.name, c.found) for c in unreachable] == [("Docker engine", False), ("Compose", False)]
-    assert "Cannot connect" in unreachable[0].detail
+    assert [(c.name, c.found) for c in unreachable] == [
+        ("docker", True),
+        ("Docker engine", False),
+        ("Compose", False),
+        ("debootstrap", True),
+    ]
+    assert "Cannot connect" in unreachable[1].detail
+    assert "without systemd: service docker start, or dockerd &" in unreachable[1].how
     ready = tools.docker_checks(
         _runner(
             {
@@ -107,11 +117,40 @@ def test_docker_missing_engine_and_compose_fallback_and_image() -> None:
         which=lambda name: f"/usr/bin/{name}",
     )
     assert [(c.name, c.found) for c in ready] == [
+        ("docker", True),
         ("Docker engine", True),
         ("Compose", True),
         ("image roco:latest", False),
+        ("debootstrap", True),
     ]
-    assert ready[1].detail == "docker-compose 1.29.2" and "build_image.sh" in ready[2].how
+    assert ready[2].detail == "docker-compose 1.29.2" and "build_image.sh" in ready[3].how
+    built = tools.docker_checks(
+        _runner(
+            {"docker version": (0, "26.1.5"), "docker compose": (0, "2.27.0"), "docker image": (0, "sha")}
+        ),
+        which=lambda name: None if name == "debootstrap" else f"/usr/bin/{name}",
+    )
+    assert [c.name for c in built if c.missing] == []  # debootstrap is not needed once the image is built
+    assert built[2].detail == "docker compose 2.27.0"
+
+
+def test_doctor_compose_names_each_missing_prerequisite(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A PATH without docker and docker-compose (nor debootstrap): `roco doctor --compose` names
+    each on a line of its own with how to get it, and exits 1; its last line names them all."""
+    monkeypatch.setenv("PATH", str(tmp_path))
+    result = CliRunner().invoke(app, ["doctor", "--compose"])
+    out = result.output.splitlines()
+    assert result.exit_code == 1, result.output
+    for name, how in (
+        ("docker", "apt-get install docker.io"),
+        ("Compose", "apt-get install docker-compose"),
+        ("debootstrap", "apt-get install debootstrap"),
+    ):
+        line = next(i for i, text in enumerate(out) if text.split()[2:3] == [name])
+        assert "not found" in out[line] and how in out[line + 1], result.output
+    assert out[-1] == "roco: the compose fleet lacks docker, Compose, debootstrap (how to get each: above)"
 
 
 def test_chromium_is_looked_up_by_its_names() -> None:
