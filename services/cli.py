@@ -798,17 +798,47 @@ def down(
     runs_dir: Annotated[
         Path, typer.Option("--runs-dir", help="where 'roco up' keeps the state of the fleet to stop")
     ] = Path("runs"),
+    compose: Annotated[
+        bool, typer.Option("--compose", help="stop the compose fleet (docs/deploy.md) and write its report")
+    ] = False,
+    project: Annotated[
+        str | None,
+        typer.Option(help="compose: the project [default: $ROCO_COMPOSE_PROJECT, else the one running]"),
+    ] = None,
+    compose_file: Annotated[
+        Path | None, typer.Option(help="compose: the compose file [default: the running fleet's]")
+    ] = None,
+    volumes: Annotated[
+        bool, typer.Option("--volumes", "-v", help="compose: delete the named volumes too (down -v)")
+    ] = False,
+    router: Annotated[
+        str, typer.Option(help="compose: the router, for the agents' counters")
+    ] = "tls/127.0.0.1:7447",
+    credentials: Annotated[
+        Path | None,
+        typer.Option(
+            help="compose: the operator's credentials [default: deploy/certs beside the compose file]"
+        ),
+    ] = None,
 ) -> None:
     """Stop the fleet `roco up` started (only the processes it started, by PID), naming each
     as it stops: the agents (their counters kept first: what they raised is said and in the
     report), the recorder once it confirmed the traffic record complete, the router. Then
     record in the run's run.json the commands the fleet was given and their outcomes (from its
     C2 traffic) and write its report. A fleet of `roco hosts up` is
-    stopped as `roco hosts down` does."""
+    stopped as `roco hosts down` does.
+
+    With --compose, the compose fleet: its agents' counters kept (when the router answers
+    with the operator's credentials), `docker compose down` (or `docker-compose`), then
+    run.json and the report of its run folder on the host, as above (writing there needs the
+    right to: the containers make its files as root)."""
     from services.hosts.cli import HOSTS_FILE
     from services.hosts.cli import down as hosts_down
     from services.recorder.sync import sync_fleet, sync_words
 
+    if compose:
+        _compose_down(project, compose_file, volumes, router, credentials)
+        return
     if (runs_dir / HOSTS_FILE).exists():
         hosts_down(runs_dir)
         return
@@ -831,6 +861,73 @@ def down(
     typer.echo(f"roco: fleet stopped {_report_fleet_end(Path(state.run_dir))}")
     if raised:
         typer.echo(f"roco: agents raised: {raised}")
+
+
+def _compose_target(project: str | None, file: Path | None) -> tuple[str, Path]:
+    """The compose fleet `roco down --compose` stops: ``project`` (else ``ROCO_COMPOSE_PROJECT``,
+    else the one running) and its compose ``file`` (else the running fleet's, else the
+    project's deploy/compose.yaml); exit 2 when no fleet, or several, run and none is named."""
+    from services.deploy import engine
+    from services.deploy.compose import COMPOSE_FILE
+
+    project = project or Settings.from_env(only=("compose_project",)).compose_project
+    if project is not None:
+        return project, file or COMPOSE_FILE
+    fleets = engine.running_fleets(engine.run_command)
+    if len(fleets) != 1:
+        running = ", ".join(f.project for f in fleets)
+        which = f"compose fleets {running} run" if fleets else "no compose fleet runs"
+        raise fail(f"{which}: say which with --project NAME", code=2)
+    return fleets[0].project, file or fleets[0].file() or COMPOSE_FILE
+
+
+def _compose_down(
+    project: str | None, file: Path | None, volumes: bool, router: str, credentials: Path | None
+) -> None:
+    """`roco down --compose`: find the fleet (services/deploy/engine.py), keep its agents'
+    counters, stop it, then conclude its run folder and write the report (:func:`_report_fleet_end`);
+    one line and exit 1 (2 for a choice to make) when any step cannot be done."""
+    from services.deploy import engine
+
+    project, file = _compose_target(project, file)
+    try:
+        base = engine.base_command(file, project, engine.run_command)
+        name = engine.run_name(base, engine.run_command)
+        runs = engine.runs_folder(base, engine.run_command)
+        run_dir = runs / name if runs is not None and name is not None else None
+        kept = _save_compose_counters(router, credentials or file.parent / "certs", run_dir)
+        engine.down(base, volumes, engine.run_command)
+    except engine.ComposeFailed as exc:
+        raise fail(str(exc)) from None
+    typer.echo(f"roco: compose project {project} stopped{kept}")
+    if run_dir is None:
+        raise fail(f"no report: the run of compose project {project} is not known (was it running?)")
+    ended = _report_fleet_end(run_dir)
+    typer.echo(f"roco: run {run_dir} {ended}")
+    if "report not written" in ended:
+        raise typer.Exit(1)
+
+
+def _save_compose_counters(router: str, credentials: Path, run_dir: Path | None) -> str:
+    """Keep a compose fleet's agents' counters in its run folder (the report's "Agents raised");
+    the words that say whether they were kept."""
+    from services.runtime.counters import ask_counters, save_counters
+
+    if run_dir is None:
+        return ""
+    try:
+        session = open_operator(router, credentials=credentials if credentials.is_dir() else None)
+    except SessionRefused as exc:
+        return f" (agents' counters not kept: {exc})"
+    try:
+        counters = ask_counters(session, AGENT_ORDER, timeout=5.0)
+    finally:
+        session.close()
+    try:
+        save_counters(run_dir, counters)
+    except OSError as exc:
+        return f" (agents' counters not kept: {exc.strerror or exc})"
+    return f" (counters of {', '.join(sorted(counters)) or 'no agent'} kept)"
 
 
 def _save_fleet_counters(state: FleetState) -> str:

@@ -6,7 +6,8 @@
   labels Compose v1 and v2 both put on a container (``com.docker.compose.project``,
   ``com.docker.compose.service``, ``com.docker.compose.project.config_files``);
 - :func:`run_name`: the run a compose fleet is in (deploy/entrypoint.sh writes it to the
-  ``fleet`` volume and says it in the router's log).
+  ``fleet`` volume and says it in the router's log), :func:`runs_folder` where its run folders
+  are on the host, :func:`down` to stop it (``roco down --compose``).
 
 The command runner and the program lookup are injectable: tests give the answers of an engine
 without one.
@@ -70,6 +71,10 @@ class ComposeFleet:
     project: str
     files: tuple[Path, ...] = ()
 
+    def file(self) -> Path | None:
+        """The first of :attr:`files` that is on this host (an absolute path to a file)."""
+        return next((f for f in self.files if f.is_absolute() and f.is_file()), None)
+
 
 def running_fleets(run: Runner = run_command, which: Which = shutil.which) -> list[ComposeFleet]:
     """The compose projects whose :data:`PROBE_SERVICE` container runs, by project name; [] when
@@ -108,3 +113,40 @@ def run_name(base: Sequence[str], run: Runner = run_command) -> str | None:
     logs = run([*base, "logs", "--no-color", PROBE_SERVICE])
     names = RUN_LINE.findall(logs.stdout + logs.stderr)
     return names[-1] if names else None
+
+
+class ComposeFailed(RuntimeError):
+    """A compose or docker command failed; the message is one line."""
+
+
+def base_command(
+    file: Path, project: str | None, run: Runner = run_command, which: Which = shutil.which
+) -> list[str]:
+    """``docker compose -f FILE [-p PROJECT]`` (or ``docker-compose …``); ComposeFailed when
+    neither is installed."""
+    cmd = compose_command(run, which)
+    if cmd is None:
+        raise ComposeFailed("neither 'docker compose' nor 'docker-compose' is installed")
+    return [*cmd, "-f", str(file), *(["-p", project] if project else [])]
+
+
+def runs_folder(base: Sequence[str], run: Runner = run_command) -> Path | None:
+    """The host folder mounted at ``/runs`` in the router's container of the compose fleet
+    ``base`` (its ``ROCO_RUNS``, as Docker resolved it); None when it has no container or mount."""
+    ps = run([*base, "ps", "-q", PROBE_SERVICE])
+    ids = ps.stdout.split() if ps.returncode == 0 else []
+    if not ids:
+        return None
+    fmt = '{{range .Mounts}}{{if eq .Destination "/runs"}}{{.Source}}{{end}}{{end}}'
+    out = run(["docker", "inspect", "-f", fmt, ids[0]])
+    source = out.stdout.strip() if out.returncode == 0 else ""
+    return Path(source) if source else None
+
+
+def down(base: Sequence[str], volumes: bool = False, run: Runner = run_command) -> None:
+    """``docker compose … down`` (``-v``: the named volumes too): the services stop in reverse
+    start order, each within its ``stop_grace_period``; ComposeFailed with compose's last line."""
+    out = run([*base, "down", *(["-v"] if volumes else [])])
+    if out.returncode != 0:
+        why = last_line(out.stderr) or last_line(out.stdout) or f"exit code {out.returncode}"
+        raise ComposeFailed(f"{' '.join(base[:2])} down failed: {why}")

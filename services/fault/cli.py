@@ -117,9 +117,7 @@ def _the_running_fleet() -> ComposeFleet | None:
 def _compose_of(fleet: ComposeFleet, file: Path | None, runs_dir: Path) -> Compose:
     """The running ``fleet``: its project, and the first of its compose files that is on this
     host unless ``file`` is given."""
-    if file is None:
-        file = next((f for f in fleet.files if f.is_absolute() and f.is_file()), DEFAULT_FILE)
-    return Compose(file=file, project=fleet.project, state_dir=runs_dir)
+    return Compose(file=file or fleet.file() or DEFAULT_FILE, project=fleet.project, state_dir=runs_dir)
 
 
 def _endpoint(router: str | None, runs_dir: Path, credentials: Path | None = None) -> str:
