@@ -155,19 +155,10 @@ def _header(h: Header, perception: Sequence[PerceptionRow] = (), commands: Seque
     if h.detail:
         outcome += f" — {h.detail}"
     outcome += f" (source: {h.outcome_source})"
-    if len(commands) > 1:
-        duration = _each_duration(h, commands)
-    elif h.task_duration_s is not None:
-        duration = (
-            f"{_robot_time(h.robot_duration_s)}; {_s(h.task_duration_s)} s wall (human command at "
-            f"{_s(h.command_t)} s → outcome at {_s(h.finished_t)} s)"
-        )
-    else:
-        duration = "— (command or outcome not recorded)"
     rows = [
         ["Command", h.command or "—"],
         ["Outcome", outcome],
-        ["Task duration" if len(commands) < 2 else "Task durations", duration],
+        ["Task duration" if len(commands) < 2 else "Task durations", _duration(h, commands)],
         ["Run started", _wall(h.started_wall)],
         ["Command sent", _wall(h.command_wall)],
         ["Run ended", _wall(h.ended_wall)],
@@ -185,6 +176,19 @@ def _header(h: Header, perception: Sequence[PerceptionRow] = (), commands: Seque
         rows.append(["ag_ex's ledger", h.ledger])
     title = f"# Experiment report: {Path(h.run_dir).name}"
     return "\n\n".join([title, f"Run folder: `{h.run_dir}`", _table(["", ""], rows), HOW_MEASURED])
+
+
+def _duration(h: Header, commands: Sequence[CommandRow]) -> str:
+    """The header's task duration: robot time and wall clock from the command to the outcome,
+    or each command's with several (:func:`_each_duration`)."""
+    if len(commands) > 1:
+        return _each_duration(h, commands)
+    if h.task_duration_s is None:
+        return "— (command or outcome not recorded)"
+    return (
+        f"{_robot_time(h.robot_duration_s)}; {_s(h.task_duration_s)} s wall (human command at "
+        f"{_s(h.command_t)} s → outcome at {_s(h.finished_t)} s)"
+    )
 
 
 def _took(c: CommandRow) -> str:
