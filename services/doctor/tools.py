@@ -1,13 +1,15 @@
 """Programs roco can use: what the compose fleet needs on a machine with Debian's packages and
 no registry (the Docker client and engine, Compose v2 or Debian's ``docker-compose`` 1.29,
-``debootstrap`` for scripts/build_image.sh's base image, roco's image; docs/deploy.md) and
-Chromium (scripts/viewer_screenshot.py)."""
+``debootstrap`` for scripts/build_image.sh's base image and its wheelhouse, roco's image;
+docs/deploy.md) and Chromium (scripts/viewer_screenshot.py)."""
 
 from __future__ import annotations
 
+import hashlib
 import shutil
 import subprocess
 from collections.abc import Callable, Sequence
+from pathlib import Path
 
 from services.doctor.model import Check, Use
 
@@ -19,6 +21,7 @@ ENGINE_HOW = "start it: systemctl start docker; without systemd: service docker 
 COMPOSE_HOW = "apt-get install docker-compose (Debian's 1.29), or Compose v2 (docker compose)"
 DEBOOTSTRAP_HOW = "apt-get install debootstrap"
 IMAGE_HOW = "scripts/build_image.sh, as root (docs/deploy.md): builds it without a registry"
+WHEELHOUSE_HOW = "scripts/build_image.sh makes it; this host needs PyPI for that, once"
 
 Runner = Callable[[Sequence[str]], tuple[int, str]]
 
@@ -36,11 +39,14 @@ def run(args: Sequence[str]) -> tuple[int, str]:
     return done.returncode, (text[-1] if text else "")
 
 
-def docker_checks(runner: Runner = run, which: Callable[[str], str | None] = shutil.which) -> list[Check]:
+def docker_checks(
+    runner: Runner = run, which: Callable[[str], str | None] = shutil.which, root: Path | None = None
+) -> list[Check]:
     """Every prerequisite of the compose fleet, each its own check: the ``docker`` client, an
     engine that answers it (``docker version``'s server), Compose (``docker compose``, else
     ``docker-compose``), roco's image and, while that is not built, ``debootstrap`` (what
-    scripts/build_image.sh makes the base image with when no registry gives one)."""
+    scripts/build_image.sh makes the base image with when no registry gives one) and the
+    wheelhouse (:func:`wheelhouse_check`, of the project at ``root``, default this one)."""
     client = which("docker")
     found = [
         Check(
@@ -79,7 +85,37 @@ def docker_checks(runner: Runner = run, which: Callable[[str], str | None] = shu
             )
         )
     found.append(_debootstrap_check(which, built))
+    found.append(wheelhouse_check(built, root))
     return found
+
+
+WHEELHOUSE = Path("deploy", "wheelhouse")
+"""scripts/build_image.sh's wheelhouse, in the project; its ``.pyproject.sha256`` names the
+pyproject.toml it was made for."""
+
+
+def wheelhouse_check(built: bool, root: Path | None = None) -> Check:
+    """Whether scripts/build_image.sh's wheelhouse under ``root`` (default: this project) matches
+    its pyproject.toml (else the host needs PyPI once to make it); only a fact once roco's
+    image is built."""
+    if root is None:
+        from services.deploy.compose import PROJECT
+
+        root = PROJECT
+    stamp = root / WHEELHOUSE / ".pyproject.sha256"
+    try:
+        want = hashlib.sha256((root / "pyproject.toml").read_bytes()).hexdigest()
+        ok = stamp.read_text().strip() == want
+    except OSError:
+        ok = False
+    if ok:
+        return Check("wheelhouse", Use.COMPOSE, True, f"{WHEELHOUSE} matches pyproject.toml")
+    detail = f"{WHEELHOUSE} not made for this pyproject.toml"
+    if built:
+        return Check(
+            "wheelhouse", Use.COMPOSE, False, f"{detail}; not needed: {IMAGE} is built", informative=True
+        )
+    return Check("wheelhouse", Use.COMPOSE, False, detail, WHEELHOUSE_HOW)
 
 
 def _debootstrap_check(which: Callable[[str], str | None], built: bool) -> Check:
