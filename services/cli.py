@@ -1771,8 +1771,8 @@ def doctor(
 ) -> None:
     """Check, item by item, what roco can use on this machine: Python and the libraries,
     the compiled control law, a free loopback port, EGL or OSMesa for the head camera,
-    SCHED_FIFO and CPU pinning for `--realtime`, a Docker engine, Compose and roco's image
-    for the compose fleet, Chromium for the viewer's screenshot, and the credentials of the
+    SCHED_FIFO and CPU pinning for `--realtime`, the compose fleet's prerequisites (below),
+    Chromium for the viewer's screenshot, and the credentials of the
     fleet `roco up` left under `runs/`. Then every `ROCO_*` setting (docs/settings.md): its
     value here, its default and what it sets; a value that does not parse is a failed item.
 
@@ -1783,7 +1783,7 @@ def doctor(
 
     With --compose, only the compose fleet's prerequisites (docs/deploy.md): the docker client
     (Debian's docker.io), an engine that answers it, Compose (`docker compose` or Debian's
-    `docker-compose`), roco's image and, until it is built, debootstrap for
+    `docker-compose`), roco's image and, until it is built, debootstrap and the wheelhouse of
     scripts/build_image.sh; each one missing is named with how to get it, and the exit is 1."""
     from rich.console import Console
 
