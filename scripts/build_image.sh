@@ -19,7 +19,9 @@
 #   ROCO_BASE_PACKAGES (Debian packages of the local base); ROCO_WHEEL_PORT (loopback port the
 #   wheelhouse is served on, default 7449); PYTHON (host Python with pip, default python3);
 #   DOCKER (default docker).
-# Making the local base needs root (debootstrap). Prints the time of each phase; on a terminal,
+# Before phase 1 it checks that an engine answers and that the base is here, can be pulled, or
+# can be made (debootstrap, as root); each missing one is named at once (`roco doctor --compose`
+# lists them all). Prints the time of each phase; on a terminal,
 # a status line shows the running phase, its seconds and its log's last line
 # (scripts/live_status.sh).
 set -euo pipefail
@@ -46,7 +48,7 @@ while [ $# -gt 0 ]; do
         --mirror) MIRROR=$2; shift 2 ;;
         --refresh-wheelhouse) REFRESH=1; shift ;;
         --no-cache) NO_CACHE=(--no-cache); shift ;;
-        -h|--help) sed -n '2,24p' "$0"; exit 0 ;;
+        -h|--help) sed -n '2,26p' "$0"; exit 0 ;;
         *) echo "build_image.sh: unknown argument $1" >&2; exit 2 ;;
     esac
 done
@@ -76,6 +78,36 @@ phase() {  # phase NAME: print how long the phase that just ended took
     phase_start=$now
 }
 
+# before anything takes time: an engine that answers, and the base image or what makes it
+"$DOCKER" version >/dev/null 2>&1 || {
+    echo "build_image.sh: no Docker engine answers '$DOCKER version' (apt-get install docker.io; start it:" \
+        "systemctl start docker, or without systemd: service docker start, or dockerd &)" >&2
+    exit 1
+}
+have_image() { "$DOCKER" image inspect "$1" >/dev/null 2>&1; }
+if [ -z "$BASE" ]; then
+    if have_image python:3.11-slim || timeout 120 "$DOCKER" pull -q python:3.11-slim >/dev/null 2>&1; then
+        BASE=python:3.11-slim
+    else
+        echo "build_image.sh: no python:3.11-slim here, and none can be pulled: the base is $LOCAL_BASE"
+        BASE=$LOCAL_BASE
+    fi
+fi
+if ! have_image "$BASE"; then
+    if [ "$BASE" != "$LOCAL_BASE" ]; then
+        echo "build_image.sh: base image $BASE is not here and cannot be pulled" >&2
+        exit 1
+    fi
+    command -v debootstrap >/dev/null || {
+        echo "build_image.sh: making $LOCAL_BASE needs debootstrap (apt-get install debootstrap)" >&2
+        exit 1
+    }
+    [ "$(id -u)" = 0 ] || {
+        echo "build_image.sh: making $LOCAL_BASE with debootstrap needs root" >&2
+        exit 1
+    }
+fi
+
 # 1. the wheelhouse -----------------------------------------------------------------------
 mkdir -p "$WHEELHOUSE"
 stamp="$WHEELHOUSE/.pyproject.sha256"
@@ -103,25 +135,8 @@ else
 fi
 phase wheelhouse
 
-# 2. the base image -----------------------------------------------------------------------
-have_image() { "$DOCKER" image inspect "$1" >/dev/null 2>&1; }
-if [ -z "$BASE" ]; then
-    if have_image python:3.11-slim || timeout 120 "$DOCKER" pull -q python:3.11-slim >/dev/null 2>&1; then
-        BASE=python:3.11-slim
-    else
-        echo "build_image.sh: no python:3.11-slim here, and none can be pulled: the base is $LOCAL_BASE"
-        BASE=$LOCAL_BASE
-    fi
-fi
+# 2. the base image (chosen, and its tools checked, before phase 1) --------------------------
 if ! have_image "$BASE"; then
-    if [ "$BASE" != "$LOCAL_BASE" ]; then
-        echo "build_image.sh: base image $BASE is not here and cannot be pulled" >&2
-        exit 1
-    fi
-    command -v debootstrap >/dev/null || {
-        echo "build_image.sh: making $LOCAL_BASE needs debootstrap (apt-get install debootstrap)" >&2
-        exit 1
-    }
     if [ -z "$MIRROR" ]; then
         # the mirror this host's apt uses (sources.list, sources.list.d/*.list and *.sources)
         MIRROR=$("$PYTHON" scripts/apt_mirror.py --suite bookworm) || exit 1

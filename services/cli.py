@@ -798,17 +798,47 @@ def down(
     runs_dir: Annotated[
         Path, typer.Option("--runs-dir", help="where 'roco up' keeps the state of the fleet to stop")
     ] = Path("runs"),
+    compose: Annotated[
+        bool, typer.Option("--compose", help="stop the compose fleet (docs/deploy.md) and write its report")
+    ] = False,
+    project: Annotated[
+        str | None,
+        typer.Option(help="compose: the project [default: $ROCO_COMPOSE_PROJECT, else the one running]"),
+    ] = None,
+    compose_file: Annotated[
+        Path | None, typer.Option(help="compose: the compose file [default: the running fleet's]")
+    ] = None,
+    volumes: Annotated[
+        bool, typer.Option("--volumes", "-v", help="compose: delete the named volumes too (down -v)")
+    ] = False,
+    router: Annotated[
+        str, typer.Option(help="compose: the router, for the agents' counters")
+    ] = "tls/127.0.0.1:7447",
+    credentials: Annotated[
+        Path | None,
+        typer.Option(
+            help="compose: the operator's credentials [default: deploy/certs beside the compose file]"
+        ),
+    ] = None,
 ) -> None:
     """Stop the fleet `roco up` started (only the processes it started, by PID), naming each
     as it stops: the agents (their counters kept first: what they raised is said and in the
     report), the recorder once it confirmed the traffic record complete, the router. Then
     record in the run's run.json the commands the fleet was given and their outcomes (from its
     C2 traffic) and write its report. A fleet of `roco hosts up` is
-    stopped as `roco hosts down` does."""
+    stopped as `roco hosts down` does.
+
+    With --compose, the compose fleet: its agents' counters kept (when the router answers
+    with the operator's credentials), `docker compose down` (or `docker-compose`), then
+    run.json and the report of its run folder on the host, as above (writing there needs the
+    right to: the containers make its files as root)."""
     from services.hosts.cli import HOSTS_FILE
     from services.hosts.cli import down as hosts_down
     from services.recorder.sync import sync_fleet, sync_words
 
+    if compose:
+        _compose_down(project, compose_file, volumes, router, credentials)
+        return
     if (runs_dir / HOSTS_FILE).exists():
         hosts_down(runs_dir)
         return
@@ -831,6 +861,73 @@ def down(
     typer.echo(f"roco: fleet stopped {_report_fleet_end(Path(state.run_dir))}")
     if raised:
         typer.echo(f"roco: agents raised: {raised}")
+
+
+def _compose_target(project: str | None, file: Path | None) -> tuple[str, Path]:
+    """The compose fleet `roco down --compose` stops: ``project`` (else ``ROCO_COMPOSE_PROJECT``,
+    else the one running) and its compose ``file`` (else the running fleet's, else the
+    project's deploy/compose.yaml); exit 2 when no fleet, or several, run and none is named."""
+    from services.deploy import engine
+    from services.deploy.compose import COMPOSE_FILE
+
+    project = project or Settings.from_env(only=("compose_project",)).compose_project
+    if project is not None:
+        return project, file or COMPOSE_FILE
+    fleets = engine.running_fleets(engine.run_command)
+    if len(fleets) != 1:
+        running = ", ".join(f.project for f in fleets)
+        which = f"compose fleets {running} run" if fleets else "no compose fleet runs"
+        raise fail(f"{which}: say which with --project NAME", code=2)
+    return fleets[0].project, file or fleets[0].file() or COMPOSE_FILE
+
+
+def _compose_down(
+    project: str | None, file: Path | None, volumes: bool, router: str, credentials: Path | None
+) -> None:
+    """`roco down --compose`: find the fleet (services/deploy/engine.py), keep its agents'
+    counters, stop it, then conclude its run folder and write the report (:func:`_report_fleet_end`);
+    one line and exit 1 (2 for a choice to make) when any step cannot be done."""
+    from services.deploy import engine
+
+    project, file = _compose_target(project, file)
+    try:
+        base = engine.base_command(file, project, engine.run_command)
+        name = engine.run_name(base, engine.run_command)
+        runs = engine.runs_folder(base, engine.run_command)
+        run_dir = runs / name if runs is not None and name is not None else None
+        kept = _save_compose_counters(router, credentials or file.parent / "certs", run_dir)
+        engine.down(base, volumes, engine.run_command)
+    except engine.ComposeFailed as exc:
+        raise fail(str(exc)) from None
+    typer.echo(f"roco: compose project {project} stopped{kept}")
+    if run_dir is None:
+        raise fail(f"no report: the run of compose project {project} is not known (was it running?)")
+    ended = _report_fleet_end(run_dir)
+    typer.echo(f"roco: run {run_dir} {ended}")
+    if "report not written" in ended:
+        raise typer.Exit(1)
+
+
+def _save_compose_counters(router: str, credentials: Path, run_dir: Path | None) -> str:
+    """Keep a compose fleet's agents' counters in its run folder (the report's "Agents raised");
+    the words that say whether they were kept."""
+    from services.runtime.counters import ask_counters, save_counters
+
+    if run_dir is None:
+        return ""
+    try:
+        session = open_operator(router, credentials=credentials if credentials.is_dir() else None)
+    except SessionRefused as exc:
+        return f" (agents' counters not kept: {exc})"
+    try:
+        counters = ask_counters(session, AGENT_ORDER, timeout=5.0)
+    finally:
+        session.close()
+    try:
+        save_counters(run_dir, counters)
+    except OSError as exc:
+        return f" (agents' counters not kept: {exc.strerror or exc})"
+    return f" (counters of {', '.join(sorted(counters)) or 'no agent'} kept)"
 
 
 def _save_fleet_counters(state: FleetState) -> str:
@@ -1583,8 +1680,10 @@ def spec_new_agent(
     """Write the folder of agent NAME from the specification: its protocol roles and one
     handler per performative its peers may send, each raising NotImplementedError until
     written; render services/spec/names.py again with the names of its channels (`roco spec
-    names`) and deploy/compose.yaml with a service for it (docs/spec.md, "Walk-through: adding
-    an agent"). Exit 1 when the file exists or the specification has no such agent."""
+    names`), deploy/compose.yaml with a service for it and deploy/compose.netfault.yaml
+    (docs/spec.md, "Walk-through: adding an agent"). Exit 1 when the file exists or the
+    specification has no such agent."""
+    from services.deploy import netfault
     from services.deploy.compose import ComposeError, bring_up_to_date
     from services.spec import render_names
     from services.spec.model import SpecError, load
@@ -1596,6 +1695,7 @@ def spec_new_agent(
         typer.echo(f"roco: wrote {scaffold.module}")
         typer.echo(f"roco: {render_names.bring_up_to_date(root or PROJECT, system)}")
         typer.echo(f"roco: {bring_up_to_date(root or PROJECT, system)}")
+        typer.echo(f"roco: {netfault.bring_up_to_date(root or PROJECT, system)}")
     except (SpecError, FileExistsError, ComposeError) as exc:
         raise fail(str(exc)) from None
     timer = f" and what {scaffold.timer} opens" if scaffold.timer else ""
@@ -1665,26 +1765,43 @@ def _world_apart() -> bool:
 @app.command(short_help="Check what this machine offers roco, and how to get what is missing.")
 def doctor(
     runs_dir: Annotated[Path, typer.Option(help="where 'roco up' keeps its fleet state")] = Path("runs"),
+    compose: Annotated[
+        bool, typer.Option("--compose", help="only what the compose fleet needs (docs/deploy.md)")
+    ] = False,
 ) -> None:
     """Check, item by item, what roco can use on this machine: Python and the libraries,
     the compiled control law, a free loopback port, EGL or OSMesa for the head camera,
-    SCHED_FIFO and CPU pinning for `--realtime`, a Docker engine, Compose and roco's image
-    for the compose fleet, Chromium for the viewer's screenshot, and the credentials of the
+    SCHED_FIFO and CPU pinning for `--realtime`, the compose fleet's prerequisites (below),
+    Chromium for the viewer's screenshot, and the credentials of the
     fleet `roco up` left under `runs/`. Then every `ROCO_*` setting (docs/settings.md): its
     value here, its default and what it sets; a value that does not parse is a failed item.
 
     Each item says found or not found and how to get it. Exit 0 when everything `roco run`
     needs is there (with the head camera perceiving, the default where libEGL or libOSMesa is
     installed, an off-screen GL context that opens), 1 otherwise. Takes a few seconds: MuJoCo's
-    GL is tried in a child process, Docker is asked with time limits."""
+    GL is tried in a child process, Docker is asked with time limits.
+
+    With --compose, only the compose fleet's prerequisites (docs/deploy.md): the docker client
+    (Debian's docker.io), an engine that answers it, Compose (`docker compose` or Debian's
+    `docker-compose`), roco's image and, until it is built, debootstrap and the wheelhouse of
+    scripts/build_image.sh; each one missing is named with how to get it, and the exit is 1."""
     from rich.console import Console
 
     from services.doctor import run_checks
     from services.doctor.model import run_ready
-    from services.doctor.render import show, verdict
+    from services.doctor.render import compose_verdict, show, verdict
     from services.doctor.settings import readings
     from velma.executor.capture import perception_mode
 
+    if compose:
+        from services.doctor.tools import docker_checks
+
+        found = docker_checks()
+        show(found, Console(highlight=False))
+        typer.echo(compose_verdict(found))
+        if any(c.missing for c in found):
+            raise typer.Exit(1)
+        return
     checks = run_checks(runs_dir)
     try:
         camera = perception_mode() == "camera"

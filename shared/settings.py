@@ -285,7 +285,8 @@ class Settings(msgspec.Struct, frozen=True, kw_only=True):
         str | None,
         About(
             "ROCO_COMPOSE_PROJECT",
-            "the compose project `roco fault` acts on; set: it acts on the compose fleet by default",
+            "the compose project `roco fault` and `roco down --compose` act on; set: `roco fault` "
+            "acts on the compose fleet by default",
         ),
     ] = None
     # --- the agent runtime

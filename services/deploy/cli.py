@@ -9,7 +9,8 @@
     roco deploy router OUT router_HOST [--ip A] [--dns N]  a meshed router's identity
     roco deploy acl [--tls/--no-tls]                    print the ACL the specification gives
     roco deploy table [--full]                          who may send what where (Markdown)
-    roco deploy compose [--check] [--file F]            deploy/compose.yaml from the specification
+    roco deploy compose [--check] [--file F]            deploy/compose.yaml from the specification,
+                                                        and compose.netfault.yaml beside it
 
 Bad input: one line starting with ``roco:``, exit 2.
 """
@@ -177,23 +178,30 @@ def compose(
 ) -> None:
     """Write the compose file the specification gives: one service per agent (in its start
     order, the last one waiting for every other), beside the router, the recorder, the viewer
-    and the one-shot certs service (services/deploy/compose.py). With --check, write nothing:
-    exit 0 when the file is what the specification gives, 1 (one line saying how it differs)
-    when not."""
+    and the one-shot certs service (services/deploy/compose.py); and beside it the override
+    compose.netfault.yaml that grants NET_ADMIN for `roco fault net` (services/deploy/
+    netfault.py). With --check, write nothing: exit 0 when both files are what the
+    specification gives, 1 (one line saying how the first that differs does) when not."""
+    from services.deploy import netfault
     from services.deploy.compose import COMPOSE_FILE, ComposeError, hardware, write
     from services.deploy.compose import check as check_file
 
     path = file or COMPOSE_FILE
+    override = netfault.beside(path)
     system = _spec(spec)
     try:
         if check:
-            problem = check_file(path, system, shown(path))
+            problem = check_file(path, system, shown(path)) or netfault.check(
+                override, system, shown(override)
+            )
             if problem is not None:
                 typer.echo(f"roco: {problem}", err=True)
                 raise typer.Exit(1)
             typer.echo(f"roco: {shown(path)} is what the specification gives")
+            typer.echo(f"roco: {shown(override)} is what the specification gives")
             return
         changed = write(path, system)
+        override_changed = netfault.write(override, system)
     except ComposeError as exc:
         typer.echo(f"roco: {exc}", err=True)
         raise typer.Exit(2) from None
@@ -203,3 +211,7 @@ def compose(
         typer.echo(f"roco: wrote {shown(path)}: {others} and the agents {agents}")
     else:
         typer.echo(f"roco: {shown(path)} is up to date (the agents {agents})")
+    if override_changed:
+        typer.echo(f"roco: wrote {shown(override)}: NET_ADMIN for {', '.join(netfault.services(system))}")
+    else:
+        typer.echo(f"roco: {shown(override)} is up to date")

@@ -152,10 +152,12 @@ HEAD = """\
 # each agent's volumes and capabilities): change those, not this file; `roco deploy compose
 # --check` says whether this file is what they give, and `roco spec new-agent` renders it again.
 #
-#   docker compose -f deploy/compose.yaml -p roco up -d        (or docker-compose 1.29: same flags)
+#   scripts/build_image.sh                                     (roco:latest without a registry)
+#   docker compose -f deploy/compose.yaml -p roco up -d        (or docker-compose 1.29: same flags;
+#                    add -f deploy/compose.netfault.yaml for `roco fault net --delay/--loss`)
 #   roco status --router tls/127.0.0.1:7447 --credentials deploy/certs
 #   roco send --router tls/127.0.0.1:7447 --credentials deploy/certs "pour the jar into the bowl"
-#   docker compose -f deploy/compose.yaml -p roco down
+#   roco down --compose                                        (compose down, then the run's report)
 #
 # Configured by environment (shell or deploy/.env):
 #   ROCO_IMAGE            image to run/build                       roco:latest

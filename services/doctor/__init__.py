@@ -10,7 +10,8 @@ context for it.
 - services/doctor/environment.py: Python, the libraries pyproject.toml names, the compiled law;
 - services/doctor/machine.py: off-screen rendering (EGL, OSMesa), SCHED_FIFO, CPU pinning,
   loopback ports;
-- services/doctor/tools.py: Docker engine, compose, roco's image, Chromium;
+- services/doctor/tools.py: the compose fleet's prerequisites (docker, its engine, Compose,
+  roco's image, debootstrap, the wheelhouse), Chromium;
 - services/doctor/credentials.py: the credentials of the fleet ``roco up`` left under ``runs/``;
 - services/doctor/settings.py: the ``ROCO_*`` settings (shared/settings.py), each one's value
   here; one that does not parse is a failed item;

@@ -88,6 +88,15 @@ def verdict(checks: Sequence[Check], camera: bool = True, truth_by_default: bool
     return f"roco: roco run lacks {', '.join(needed)}{others}"
 
 
+def compose_verdict(checks: Sequence[Check]) -> str:
+    """The last line of ``roco doctor --compose``: that the compose fleet has what it needs, or
+    each missing prerequisite (``Use.COMPOSE``) by name."""
+    missing = [c.name for c in checks if c.missing and c.use is Use.COMPOSE]
+    if not missing:
+        return "roco: the compose fleet has everything it needs"
+    return f"roco: the compose fleet lacks {', '.join(missing)} (how to get each: above)"
+
+
 def _lacking(c: Check, camera: bool) -> bool:
     """Whether ``c`` is a missing item of a use other than ``roco run`` (and, with ``camera``,
     other than the head camera's)."""

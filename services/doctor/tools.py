@@ -1,18 +1,27 @@
-"""Programs roco can use: a Docker engine, Compose and roco's image (the compose fleet,
-deploy/compose.yaml) and Chromium (scripts/viewer_screenshot.py)."""
+"""Programs roco can use: what the compose fleet needs on a machine with Debian's packages and
+no registry (the Docker client and engine, Compose v2 or Debian's ``docker-compose`` 1.29,
+``debootstrap`` for scripts/build_image.sh's base image and its wheelhouse, roco's image;
+docs/deploy.md) and Chromium (scripts/viewer_screenshot.py)."""
 
 from __future__ import annotations
 
+import hashlib
 import shutil
 import subprocess
 from collections.abc import Callable, Sequence
+from pathlib import Path
 
 from services.doctor.model import Check, Use
 
 TIMEOUT_S = 15.0
 IMAGE = "roco:latest"  # deploy/compose.yaml's default ROCO_IMAGE
 CHROMIUM_NAMES = ("chromium", "chromium-browser")  # scripts/viewer_screenshot.py CHROMIUM_NAMES
-DOCKER_HOW = "apt-get install docker.io (Debian), then start it (systemctl start docker or dockerd &)"
+DOCKER_HOW = "apt-get install docker.io (Debian)"
+ENGINE_HOW = "start it: systemctl start docker; without systemd: service docker start, or dockerd &"
+COMPOSE_HOW = "apt-get install docker-compose (Debian's 1.29), or Compose v2 (docker compose)"
+DEBOOTSTRAP_HOW = "apt-get install debootstrap"
+IMAGE_HOW = "scripts/build_image.sh, as root (docs/deploy.md): builds it without a registry"
+WHEELHOUSE_HOW = "scripts/build_image.sh makes it; this host needs PyPI for that, once"
 
 Runner = Callable[[Sequence[str]], tuple[int, str]]
 
@@ -30,42 +39,106 @@ def run(args: Sequence[str]) -> tuple[int, str]:
     return done.returncode, (text[-1] if text else "")
 
 
-def docker_checks(runner: Runner = run, which: Callable[[str], str | None] = shutil.which) -> list[Check]:
-    """The engine (``docker version``'s server), Compose (``docker compose`` or
-    ``docker-compose``) and roco's image."""
-    if which("docker") is None:
-        return [Check("Docker engine", Use.COMPOSE, False, "no docker on PATH", DOCKER_HOW)]
-    code, out = runner(["docker", "version", "--format", "{{.Server.Version}}"])
-    engine = code == 0 and bool(out)
+def docker_checks(
+    runner: Runner = run, which: Callable[[str], str | None] = shutil.which, root: Path | None = None
+) -> list[Check]:
+    """Every prerequisite of the compose fleet, each its own check: the ``docker`` client, an
+    engine that answers it (``docker version``'s server), Compose (``docker compose``, else
+    ``docker-compose``), roco's image and, while that is not built, ``debootstrap`` (what
+    scripts/build_image.sh makes the base image with when no registry gives one) and the
+    wheelhouse (:func:`wheelhouse_check`, of the project at ``root``, default this one)."""
+    client = which("docker")
     found = [
         Check(
-            "Docker engine",
+            "docker",
             Use.COMPOSE,
-            engine,
-            f"server {out}" if engine else f"the client cannot reach an engine: {out}",
-            "" if engine else DOCKER_HOW,
+            client is not None,
+            client or "no docker on PATH",
+            "" if client else DOCKER_HOW,
         )
     ]
-    found.append(_compose_check(runner, which))
+    engine = False
+    if client is not None:
+        code, out = runner(["docker", "version", "--format", "{{.Server.Version}}"])
+        engine = code == 0 and bool(out)
+        found.append(
+            Check(
+                "Docker engine",
+                Use.COMPOSE,
+                engine,
+                f"server {out}" if engine else f"the client cannot reach an engine: {out}",
+                "" if engine else ENGINE_HOW,
+            )
+        )
+    found.append(_compose_check(runner, which, client is not None))
+    built = False
     if engine:
         code, out = runner(["docker", "image", "inspect", "--format", "{{.Id}}", IMAGE])
+        built = code == 0
         found.append(
             Check(
                 f"image {IMAGE}",
                 Use.COMPOSE,
-                code == 0,
-                "built" if code == 0 else "not built",
-                "" if code == 0 else "scripts/build_image.sh (docs/deploy.md)",
+                built,
+                "built" if built else "not built",
+                "" if built else IMAGE_HOW,
             )
         )
+    found.append(_debootstrap_check(which, built))
+    found.append(wheelhouse_check(built, root))
     return found
 
 
-def _compose_check(runner: Runner, which: Callable[[str], str | None]) -> Check:
-    """Compose: ``docker compose``, else ``docker-compose``."""
-    code, out = runner(["docker", "compose", "version", "--short"])
-    if code == 0:
-        return Check("Compose", Use.COMPOSE, True, f"docker compose {out}")
+WHEELHOUSE = Path("deploy", "wheelhouse")
+"""scripts/build_image.sh's wheelhouse, in the project; its ``.pyproject.sha256`` names the
+pyproject.toml it was made for."""
+
+
+def wheelhouse_check(built: bool, root: Path | None = None) -> Check:
+    """Whether scripts/build_image.sh's wheelhouse under ``root`` (default: this project) matches
+    its pyproject.toml (else the host needs PyPI once to make it); only a fact once roco's
+    image is built."""
+    if root is None:
+        from services.deploy.compose import PROJECT
+
+        root = PROJECT
+    stamp = root / WHEELHOUSE / ".pyproject.sha256"
+    try:
+        want = hashlib.sha256((root / "pyproject.toml").read_bytes()).hexdigest()
+        ok = stamp.read_text().strip() == want
+    except OSError:
+        ok = False
+    if ok:
+        return Check("wheelhouse", Use.COMPOSE, True, f"{WHEELHOUSE} matches pyproject.toml")
+    detail = f"{WHEELHOUSE} not made for this pyproject.toml"
+    if built:
+        return Check(
+            "wheelhouse", Use.COMPOSE, False, f"{detail}; not needed: {IMAGE} is built", informative=True
+        )
+    return Check("wheelhouse", Use.COMPOSE, False, detail, WHEELHOUSE_HOW)
+
+
+def _debootstrap_check(which: Callable[[str], str | None], built: bool) -> Check:
+    """debootstrap on PATH; only a fact once roco's image is built (nothing left to make)."""
+    path = which("debootstrap")
+    if path is None and built:
+        return Check(
+            "debootstrap", Use.COMPOSE, False, f"not on PATH; not needed: {IMAGE} is built", informative=True
+        )
+    return Check(
+        "debootstrap",
+        Use.COMPOSE,
+        path is not None,
+        path or "not on PATH (scripts/build_image.sh makes the base image with it without a registry)",
+        "" if path else DEBOOTSTRAP_HOW,
+    )
+
+
+def _compose_check(runner: Runner, which: Callable[[str], str | None], docker: bool = True) -> Check:
+    """Compose: ``docker compose`` (asked only where ``docker`` is on PATH), else
+    ``docker-compose``."""
+    if docker and (r := runner(["docker", "compose", "version", "--short"]))[0] == 0:
+        return Check("Compose", Use.COMPOSE, True, f"docker compose {r[1]}")
     if (
         which("docker-compose") is not None
         and (r := runner(["docker-compose", "version", "--short"]))[0] == 0
@@ -76,7 +149,7 @@ def _compose_check(runner: Runner, which: Callable[[str], str | None]) -> Check:
         Use.COMPOSE,
         False,
         "neither 'docker compose' nor 'docker-compose'",
-        "apt-get install docker-compose (or the compose plugin)",
+        COMPOSE_HOW,
     )
 
 

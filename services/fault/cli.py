@@ -8,9 +8,10 @@
     roco fault show
 
 Local fleet (``roco up``): process faults by PID, network and message faults through the
-agents' fault layer over Zenoh. Compose (``--compose``, or ``ROCO_COMPOSE_PROJECT`` set):
-process faults with ``docker compose``, network faults with ``docker network`` and ``tc
-netem``; message faults still over Zenoh (``--router``). Bad input: one line, exit 2.
+agents' fault layer over Zenoh. Compose (``--compose``, ``ROCO_COMPOSE_PROJECT`` set, or no
+local fleet and one compose fleet running): process faults with ``docker compose``, network
+faults with ``docker network`` and ``tc netem``; message faults still over Zenoh
+(``--router``). Bad input: one line, exit 2.
 """
 
 from __future__ import annotations
@@ -24,9 +25,10 @@ from typing import Annotated
 import typer
 import zenoh
 
+from services.deploy.engine import ComposeFleet, running_fleets
 from services.fault import process
 from services.fault.compose import COMPOSE_SERVICES, DEFAULT_FILE, Compose
-from services.fault.process import ACTIONS, LOCAL_SERVICES, FaultError, UpFleet
+from services.fault.process import ACTIONS, FLEET_FILE, LOCAL_SERVICES, FaultError, UpFleet
 from services.fleet.launcher import AGENT_ORDER
 from services.runtime.faults import (
     ANY_CHANNEL,
@@ -50,11 +52,17 @@ RunsDir = Annotated[Path, typer.Option(help="where 'roco up' keeps its fleet sta
 ComposeFlag = Annotated[
     bool | None,
     typer.Option(
-        "--compose/--local", help=f"a Docker Compose deployment (default: local unless ${PROJECT_ENV} is set)"
+        "--compose/--local",
+        help=f"a Docker Compose deployment (default: compose when ${PROJECT_ENV} is set, or when no "
+        "local fleet is up and one compose fleet runs)",
     ),
 ]
-Project = Annotated[str | None, typer.Option(help=f"compose project name (default: ${PROJECT_ENV})")]
-ComposeFile = Annotated[Path, typer.Option(help="the compose file")]
+Project = Annotated[
+    str | None, typer.Option(help=f"compose project name (default: ${PROJECT_ENV}, else the one running)")
+]
+ComposeFile = Annotated[
+    Path | None, typer.Option(help=f"the compose file [default: the running fleet's, else {DEFAULT_FILE}]")
+]
 Router = Annotated[
     str | None, typer.Option(help="router endpoint (default: the fleet of 'roco up', else $ROCO_ROUTER)")
 ]
@@ -74,12 +82,42 @@ def fail(message: str, code: int = 1) -> typer.Exit:
     return typer.Exit(code)
 
 
-def _compose(flag: bool | None, project: str | None, file: Path, runs_dir: Path) -> Compose | None:
-    named = Settings.from_env(only=("compose_project",)).compose_project
-    use = flag if flag is not None else named is not None
-    if not use:
+def _compose(flag: bool | None, project: str | None, file: Path | None, runs_dir: Path) -> Compose | None:
+    """The compose fleet a fault command acts on, None for the local fleet of ``roco up``.
+    Without ``--compose/--local`` (``flag`` None) and ``ROCO_COMPOSE_PROJECT``: the local fleet
+    when ``runs_dir`` holds one, else the compose fleet that runs (several: exit 2 asking for
+    ``--project``; none: local, whose error says to start one or add ``--compose``)."""
+    named = project or Settings.from_env(only=("compose_project",)).compose_project
+    if _local(flag, named, runs_dir):
         return None
-    return Compose(file=file, project=project or named, state_dir=runs_dir)
+    if named is not None:
+        return Compose(file=file or DEFAULT_FILE, project=named, state_dir=runs_dir)
+    running = _the_running_fleet()
+    if running is not None:
+        return _compose_of(running, file, runs_dir)
+    return Compose(file=file or DEFAULT_FILE, state_dir=runs_dir) if flag else None
+
+
+def _local(flag: bool | None, named: str | None, runs_dir: Path) -> bool:
+    """Whether the local fleet is meant: ``--local``, or neither flag nor project given and
+    ``runs_dir`` holds the state of ``roco up``'s fleet."""
+    return flag is False or (flag is None and named is None and (runs_dir / FLEET_FILE).exists())
+
+
+def _the_running_fleet() -> ComposeFleet | None:
+    """The one compose fleet that runs (services/deploy/engine.py), None when none does; exit
+    2 asking for ``--project`` when several do."""
+    fleets = running_fleets()
+    if len(fleets) > 1:
+        names = ", ".join(f.project for f in fleets)
+        raise fail(f"compose fleets {names} run: say which with --compose --project NAME", code=2)
+    return fleets[0] if fleets else None
+
+
+def _compose_of(fleet: ComposeFleet, file: Path | None, runs_dir: Path) -> Compose:
+    """The running ``fleet``: its project, and the first of its compose files that is on this
+    host unless ``file`` is given."""
+    return Compose(file=file or fleet.file() or DEFAULT_FILE, project=fleet.project, state_dir=runs_dir)
 
 
 def _endpoint(router: str | None, runs_dir: Path, credentials: Path | None = None) -> str:
@@ -167,7 +205,7 @@ def _process_fault(action: str) -> None:
         runs_dir: RunsDir = Path("runs"),
         compose: ComposeFlag = None,
         project: Project = None,
-        compose_file: ComposeFile = DEFAULT_FILE,
+        compose_file: ComposeFile = None,
         router: Router = None,
         credentials: Credentials = None,
         timeout: Annotated[float, typer.Option(help="seconds to wait for the service")] = 60.0,
@@ -240,7 +278,7 @@ def net(
     runs_dir: RunsDir = Path("runs"),
     compose: ComposeFlag = None,
     project: Project = None,
-    compose_file: ComposeFile = DEFAULT_FILE,
+    compose_file: ComposeFile = None,
     router: Router = None,
     credentials: Credentials = None,
 ) -> None:
@@ -454,7 +492,7 @@ def clear(
     runs_dir: RunsDir = Path("runs"),
     compose: ComposeFlag = None,
     project: Project = None,
-    compose_file: ComposeFile = DEFAULT_FILE,
+    compose_file: ComposeFile = None,
     router: Router = None,
     credentials: Credentials = None,
 ) -> None:
@@ -496,7 +534,7 @@ def show(
     runs_dir: RunsDir = Path("runs"),
     compose: ComposeFlag = None,
     project: Project = None,
-    compose_file: ComposeFile = DEFAULT_FILE,
+    compose_file: ComposeFile = None,
     router: Router = None,
     credentials: Credentials = None,
 ) -> None:

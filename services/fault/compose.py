@@ -7,11 +7,13 @@
   ``docker network connect --alias …`` to heal; without a record, the project's default
   network ``<project>_default`` with the service name as alias;
 - delay and loss: ``docker exec CONTAINER tc qdisc replace dev eth0 root netem delay …ms
-  loss …%`` (``tc qdisc del dev eth0 root`` to clear). This needs ``tc`` (Debian's
-  ``iproute2``) in the service's image and the ``NET_ADMIN`` capability (``cap_add:
-  [NET_ADMIN]`` in compose.yaml).
+  loss …%`` (``tc qdisc del dev eth0 root`` to clear). This needs three things, and a failure
+  names the one missing (:func:`netem_failure`): ``tc`` (Debian's ``iproute2``) in the
+  service's image, the ``NET_ADMIN`` capability (the override deploy/compose.netfault.yaml
+  grants it) and the host kernel's netem queueing discipline (``sch_netem``).
 
-The command runner is injectable (tests check the command lines without a Docker engine).
+The compose command is ``docker compose`` or ``docker-compose`` (services/deploy/engine.py);
+the command runner is injectable (tests check the command lines without a Docker engine).
 """
 
 from __future__ import annotations
@@ -24,6 +26,7 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from services.deploy.engine import compose_command, last_line, run_command
 from services.fault.process import INJECTOR, FaultError
 from services.fleet.launcher import AGENT_ORDER
 from services.runtime.faults import FaultEvent
@@ -34,20 +37,31 @@ COMPOSE_SERVICES = ("router", *AGENT_ORDER, "recorder", "viewer")
 DEFAULT_FILE = Path("deploy/compose.yaml")
 PARTITIONS_FILE = ".fault_partitions.json"
 
+NETFAULT_FILE = Path("deploy/compose.netfault.yaml")
+"""The override that grants NET_ADMIN to the services network faults reach
+(services/deploy/netfault.py writes it)."""
+
 Runner = Callable[[Sequence[str]], "subprocess.CompletedProcess[str]"]
 
 
-def run_command(args: Sequence[str]) -> subprocess.CompletedProcess[str]:
-    """Run ``args``, capturing text output; a missing program is exit code 127."""
-    try:
-        return subprocess.run(list(args), capture_output=True, text=True, timeout=120, check=False)
-    except FileNotFoundError as exc:
-        return subprocess.CompletedProcess(list(args), 127, "", str(exc))
-
-
-def _last_line(text: str) -> str:
-    lines = [line.strip() for line in text.strip().splitlines() if line.strip()]
-    return lines[-1] if lines else ""
+def netem_failure(service: str, out: subprocess.CompletedProcess[str]) -> str:
+    """Why ``tc … netem`` in ``service``'s container failed (``out``: what ``docker exec``
+    gave), naming the missing piece: ``tc`` in the image (the exec cannot start it), the
+    ``NET_ADMIN`` capability (``Operation not permitted``) or the kernel's netem (``Specified
+    qdisc kind is unknown``, or ``No such file or directory`` from the kernel on an older
+    iproute2); else tc's own last line."""
+    text = f"{out.stderr}\n{out.stdout}"
+    said = last_line(out.stderr) or last_line(out.stdout) or f"exit code {out.returncode}"
+    if "executable file not found" in text or "tc: not found" in text or out.returncode == 127:
+        return f"{service}'s image has no tc (Debian's iproute2; deploy/Dockerfile installs it): {said}"
+    if "Operation not permitted" in text:
+        return (
+            f"{service}'s container lacks the NET_ADMIN capability: start the fleet with "
+            f"-f {NETFAULT_FILE} as well (docs/faults.md): {said}"
+        )
+    if "qdisc kind is unknown" in text or ("RTNETLINK" in text and "No such file or directory" in text):
+        return f"the host's kernel has no netem (modprobe sch_netem on the host, or a kernel with it): {said}"
+    return f"tc in {service} failed: {said}"
 
 
 @dataclass
@@ -66,11 +80,8 @@ class Compose:
         """``docker compose -f FILE [-p PROJECT]`` or ``docker-compose …``; FaultError when
         neither is installed."""
         if self._base is None:
-            if shutil.which("docker") and self.run(["docker", "compose", "version"]).returncode == 0:
-                cmd = ["docker", "compose"]
-            elif shutil.which("docker-compose"):
-                cmd = ["docker-compose"]
-            else:
+            cmd = compose_command(self.run, shutil.which)
+            if cmd is None:
                 raise FaultError("neither 'docker compose' nor 'docker-compose' is installed")
             cmd += ["-f", str(self.file)]
             if self.project:
@@ -81,7 +92,7 @@ class Compose:
     def _check(self, args: Sequence[str], what: str) -> str:
         out = self.run(args)
         if out.returncode != 0:
-            why = _last_line(out.stderr) or _last_line(out.stdout) or f"exit code {out.returncode}"
+            why = last_line(out.stderr) or last_line(out.stdout) or f"exit code {out.returncode}"
             raise FaultError(f"{what} failed: {why}")
         return out.stdout
 
@@ -109,7 +120,8 @@ class Compose:
 
     # ---- network faults -------------------------------------------------------------------
     def netem(self, service: str, delay_s: float, loss: float, dev: str = "eth0") -> FaultEvent:
-        """Egress delay and loss of ``service``'s container with tc netem (both 0: cleared)."""
+        """Egress delay and loss of ``service``'s container with tc netem (both 0: cleared);
+        FaultError naming what is missing when tc fails (:func:`netem_failure`)."""
         cid = self.container(service)
         if not delay_s and not loss:
             out = self.run(["docker", "exec", cid, "tc", "qdisc", "del", "dev", dev, "root"])
@@ -118,15 +130,16 @@ class Compose:
                 and "No such file" not in out.stderr
                 and "handle of zero" not in out.stderr
             ):
-                raise FaultError(f"tc in {service} failed: {_last_line(out.stderr) or out.returncode}")
+                raise FaultError(netem_failure(service, out))
             return _event("net", service, "netem cleared")
         netem = ["netem"]
         if delay_s:
             netem += ["delay", f"{delay_s * 1000:g}ms"]
         if loss:
             netem += ["loss", f"{loss * 100:g}%"]
-        args = ["docker", "exec", cid, "tc", "qdisc", "replace", "dev", dev, "root", *netem]
-        self._check(args, f"tc in {service} (needs iproute2 and NET_ADMIN in its container)")
+        out = self.run(["docker", "exec", cid, "tc", "qdisc", "replace", "dev", dev, "root", *netem])
+        if out.returncode != 0:
+            raise FaultError(netem_failure(service, out))
         return _event("net", service, " ".join(netem))
 
     def _partitions(self) -> dict[str, dict[str, list[str]]]:
@@ -186,7 +199,7 @@ class Compose:
     def tc_show(self, service: str, dev: str = "eth0") -> str:
         cid = self.container(service)
         out = self.run(["docker", "exec", cid, "tc", "qdisc", "show", "dev", dev])
-        return out.stdout.strip() if out.returncode == 0 else f"(tc: {_last_line(out.stderr)})"
+        return out.stdout.strip() if out.returncode == 0 else f"(tc: {last_line(out.stderr)})"
 
 
 def _check_service(service: str) -> None:

@@ -86,7 +86,9 @@ class UpFleet:
             state = msgspec.json.decode(path.read_bytes())
             return cls(runs_dir, str(state["endpoint"]), Path(state["run_dir"]), dict(state["pids"]))
         except FileNotFoundError:
-            raise FaultError(f"no fleet is up (no {path}); start one with 'roco up'") from None
+            raise FaultError(
+                f"no fleet is up (no {path}); start one with 'roco up' (a compose fleet: add --compose)"
+            ) from None
         except (msgspec.DecodeError, KeyError, TypeError, ValueError) as exc:
             raise FaultError(f"{path} is unreadable: {exc}") from None
 

@@ -21,9 +21,17 @@ from services.report.figures import write_figures
 from services.report.ledger import judge_ledger
 from services.report.load import Message, RunData, load_run
 from services.report.markdown import render
-from services.report.model import CoverageSummary, FaultRow, Header, PerceptionRow, Report, RequirementRow
+from services.report.model import (
+    CommandRow,
+    CoverageSummary,
+    FaultRow,
+    Header,
+    PerceptionRow,
+    Report,
+    RequirementRow,
+)
 from services.report.planning import plan_phases
-from services.report.robot_clock import robot_clock
+from services.report.robot_clock import RobotClock, robot_clock
 from services.report.stats import agent_matrix, channel_stats, size_stats
 from services.report.timeline import command_text, find_command, find_outcome, link_events, timeline
 from services.runtime.refusals import REFUSALS_JSONL, read_refusals
@@ -90,7 +98,7 @@ def _assemble(run: RunData, container: str = "bowl", tracer: Tracer | None = Non
         content=sphere_share(messages, container),
         notes=notes,
         control=control,
-        commands=commands(messages),
+        commands=_timed(commands(messages), clock),
         coordination=coordination(messages),
         faults=_faults(run, notes),
         clock=clock,
@@ -98,6 +106,13 @@ def _assemble(run: RunData, container: str = "bowl", tracer: Tracer | None = Non
         requirements=_requirements(run, tracer, notes),
         flags=_flags(Path(run_dir), notes),
     )
+
+
+def _timed(rows: list[CommandRow], clock: RobotClock) -> list[CommandRow]:
+    """``rows`` with each command's duration in robot time (``CommandRow.robot_s``)."""
+    for row in rows:
+        row.robot_s = clock.between(row.requested_t, row.ended_t)
+    return rows
 
 
 def _ledger(run_dir: Path, messages: list[Message], notes: list[str]) -> str:

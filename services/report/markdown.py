@@ -13,6 +13,7 @@ from services.report import paper
 from services.report.figures import FigureFile
 from services.report.model import (
     AgentMatrix,
+    CommandRow,
     Event,
     Header,
     PerceptionRow,
@@ -52,7 +53,7 @@ def render(report: Report, figures: Sequence[FigureFile] = ()) -> str:
     sizes over time, bandwidth and size histogram in 1, the matrix in 2, the timeline in 3."""
     figs = {f.name: f for f in figures}
     parts = [
-        _header(report.header, report.perception),
+        _header(report.header, report.perception, report.commands),
         _statistics(report, figs),
         _matrix_section(report.matrix, figs),
         _timeline(report.events, report.clock, figs),
@@ -149,22 +150,15 @@ def _perceived(rows: Sequence[PerceptionRow]) -> str:
     )
 
 
-def _header(h: Header, perception: Sequence[PerceptionRow] = ()) -> str:
+def _header(h: Header, perception: Sequence[PerceptionRow] = (), commands: Sequence[CommandRow] = ()) -> str:
     outcome = {None: "unknown", True: "succeeded", False: "failed"}[h.succeeded]
     if h.detail:
         outcome += f" — {h.detail}"
     outcome += f" (source: {h.outcome_source})"
-    if h.task_duration_s is not None:
-        duration = (
-            f"{_robot_time(h.robot_duration_s)}; {_s(h.task_duration_s)} s wall (human command at "
-            f"{_s(h.command_t)} s → outcome at {_s(h.finished_t)} s)"
-        )
-    else:
-        duration = "— (command or outcome not recorded)"
     rows = [
         ["Command", h.command or "—"],
         ["Outcome", outcome],
-        ["Task duration", duration],
+        ["Task duration" if len(commands) < 2 else "Task durations", _duration(h, commands)],
         ["Run started", _wall(h.started_wall)],
         ["Command sent", _wall(h.command_wall)],
         ["Run ended", _wall(h.ended_wall)],
@@ -182,6 +176,36 @@ def _header(h: Header, perception: Sequence[PerceptionRow] = ()) -> str:
         rows.append(["ag_ex's ledger", h.ledger])
     title = f"# Experiment report: {Path(h.run_dir).name}"
     return "\n\n".join([title, f"Run folder: `{h.run_dir}`", _table(["", ""], rows), HOW_MEASURED])
+
+
+def _duration(h: Header, commands: Sequence[CommandRow]) -> str:
+    """The header's task duration: robot time and wall clock from the command to the outcome,
+    or each command's with several (:func:`_each_duration`)."""
+    if len(commands) > 1:
+        return _each_duration(h, commands)
+    if h.task_duration_s is None:
+        return "— (command or outcome not recorded)"
+    return (
+        f"{_robot_time(h.robot_duration_s)}; {_s(h.task_duration_s)} s wall (human command at "
+        f"{_s(h.command_t)} s → outcome at {_s(h.finished_t)} s)"
+    )
+
+
+def _took(c: CommandRow) -> str:
+    """A command's wall-clock duration, or that it has not ended."""
+    return "not ended" if c.took_s is None else f"{_s(c.took_s)} s"
+
+
+def _each_duration(h: Header, commands: Sequence[CommandRow]) -> str:
+    """The header's durations of several commands: each from its request to its outcome (wall
+    clock and robot time), then the span from the first request to the last outcome."""
+    each = "; ".join(
+        f"#{i} {_took(c)} wall, {_robot_time(c.robot_s)} (at {_s(c.requested_t)} s)"
+        for i, c in enumerate(commands, 1)
+    )
+    span = f"{_s(h.task_duration_s)} s wall" if h.task_duration_s is not None else "—"
+    first_to_last = f"first command → last outcome: {span}"
+    return f"{len(commands)} commands, each from its request to its outcome: {each}; {first_to_last}"
 
 
 def _statistics(report: Report, figs: Mapping[str, FigureFile]) -> str:
@@ -206,6 +230,19 @@ def _statistics(report: Report, figs: Mapping[str, FigureFile]) -> str:
         ["task duration (robot time)", _robot_time(h.robot_duration_s), paper_duration],
         ["task duration (wall clock)", f"{_s(h.task_duration_s)} s", "the same (a real robot)"],
     ]
+    if len(report.commands) > 1:  # one task per command: each its own duration
+        rows[-2:] = [
+            [
+                "task duration (robot time)",
+                ", ".join(f"#{i} {_robot_time(c.robot_s)}" for i, c in enumerate(report.commands, 1)),
+                paper_duration,
+            ],
+            [
+                "task duration (wall clock)",
+                ", ".join(f"#{i} {_took(c)}" for i, c in enumerate(report.commands, 1)),
+                "the same (a real robot)",
+            ],
+        ]
     derived = paper.table8_channel_counts()
     ch_rows = []
     for c in report.channels:
@@ -565,6 +602,7 @@ def _coordination(report: Report) -> str:
             _s(c.requested_t),
             _s(c.cancelled_t) if c.cancelled_t is not None else "",
             _s(c.ended_t) if c.ended_t is not None else "",
+            _s(c.took_s) if c.took_s is not None else "",
             c.outcome or "no outcome",
             c.detail,
         )
@@ -578,6 +616,7 @@ def _coordination(report: Report) -> str:
             "requested (s wall)",
             "stopped (s wall)",
             "ended (s wall)",
+            "took (s wall)",
             "outcome",
             "detail",
         ),

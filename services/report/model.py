@@ -22,7 +22,8 @@ class Header(msgspec.Struct, kw_only=True):
     (``"C2 CommandOutcome"``, ``"C2 failure"``, ``"run.json"`` or ``"none"``).
     command_t, finished_t: arrival of the command (C2 request a_hi → a_co) and of the final
     outcome (C2 inform/failure a_co → a_hi); task_duration_s is their difference (paper:
-    778 s counted from the log's start, command at 83 s).
+    778 s counted from the log's start, command at 83 s). With several commands these are the
+    first command and the last outcome; each command's own duration is its ``CommandRow``'s.
     started_wall, command_wall, ended_wall: POSIX times from ``run.json`` (None if absent).
     """
 
@@ -173,6 +174,14 @@ class CommandRow(msgspec.Struct, kw_only=True):
     ended_t: float | None = None
     outcome: str | None = None
     detail: str = ""
+    robot_s: float | None = None
+    """The command's duration in robot time, from its request to its outcome
+    (services/report/robot_clock.py ``between``); None when ag_ex answered nothing in between."""
+
+    @property
+    def took_s(self) -> float | None:
+        """Wall-clock seconds from the request to the outcome; None when it has not ended."""
+        return None if self.ended_t is None else self.ended_t - self.requested_t
 
 
 class CoordinationEvent(msgspec.Struct, kw_only=True):

@@ -4,6 +4,7 @@ and the command exits 0 exactly when everything ``roco run`` needs is found."""
 from __future__ import annotations
 
 import datetime as dt
+import hashlib
 import json
 import os
 import socket
@@ -85,16 +86,42 @@ def _runner(answers: dict[str, tuple[int, str]]) -> tools.Runner:
     return run
 
 
-def test_docker_missing_engine_and_compose_fallback_and_image() -> None:
-    none = tools.docker_checks(_runner({}), which=lambda name: None)
-    assert [(c.name, c.found) for c in none] == [("Docker engine", False)]
-    assert "docker" in none[0].how
+def _project(tmp_path: Path, wheelhouse: bool) -> Path:
+    """A project folder with a pyproject.toml and, when ``wheelhouse``, the wheelhouse's stamp
+    that matches it (scripts/build_image.sh writes it)."""
+    tmp_path.mkdir(parents=True, exist_ok=True)
+    (tmp_path / "pyproject.toml").write_text('[project]\nname = "x"\n')
+    if wheelhouse:
+        stamp = tmp_path / tools.WHEELHOUSE / ".pyproject.sha256"
+        stamp.parent.mkdir(parents=True)
+        stamp.write_text(hashlib.sha256((tmp_path / "pyproject.toml").read_bytes()).hexdigest() + "\n")
+    return tmp_path
+
+
+def test_docker_missing_engine_and_compose_fallback_and_image(tmp_path: Path) -> None:
+    root = _project(tmp_path, wheelhouse=True)
+    none = tools.docker_checks(_runner({}), which=lambda name: None, root=root)
+    assert [(c.name, c.found) for c in none] == [
+        ("docker", False),
+        ("Compose", False),
+        ("debootstrap", False),
+        ("wheelhouse", True),
+    ]
+    assert "docker.io" in none[0].how and "docker-compose" in none[1].how and "debootstrap" in none[2].how
     unreachable = tools.docker_checks(
         _runner({"docker version": (1, "Cannot connect to the Docker daemon")}),
         which=lambda name: f"/usr/bin/{name}",
+        root=root,
     )
-    assert [(c.name, c.found) for c in unreachable] == [("Docker engine", False), ("Compose", False)]
-    assert "Cannot connect" in unreachable[0].detail
+    assert [(c.name, c.found) for c in unreachable] == [
+        ("docker", True),
+        ("Docker engine", False),
+        ("Compose", False),
+        ("debootstrap", True),
+        ("wheelhouse", True),
+    ]
+    assert "Cannot connect" in unreachable[1].detail
+    assert "without systemd: service docker start, or dockerd &" in unreachable[1].how
     ready = tools.docker_checks(
         _runner(
             {
@@ -105,13 +132,56 @@ def test_docker_missing_engine_and_compose_fallback_and_image() -> None:
             }
         ),
         which=lambda name: f"/usr/bin/{name}",
+        root=root,
     )
     assert [(c.name, c.found) for c in ready] == [
+        ("docker", True),
         ("Docker engine", True),
         ("Compose", True),
         ("image roco:latest", False),
+        ("debootstrap", True),
+        ("wheelhouse", True),
     ]
-    assert ready[1].detail == "docker-compose 1.29.2" and "build_image.sh" in ready[2].how
+    assert ready[2].detail == "docker-compose 1.29.2" and "build_image.sh" in ready[3].how
+    built = tools.docker_checks(
+        _runner(
+            {"docker version": (0, "26.1.5"), "docker compose": (0, "2.27.0"), "docker image": (0, "sha")}
+        ),
+        which=lambda name: None if name == "debootstrap" else f"/usr/bin/{name}",
+        root=_project(tmp_path / "unmade", wheelhouse=False),
+    )
+    # neither debootstrap nor the wheelhouse is needed once the image is built
+    assert [c.name for c in built if c.missing] == []
+    assert built[2].detail == "docker compose 2.27.0"
+
+
+def test_the_wheelhouse_must_match_pyproject_until_the_image_is_built(tmp_path: Path) -> None:
+    made = _project(tmp_path / "made", wheelhouse=True)
+    assert tools.wheelhouse_check(built=False, root=made).found
+    (made / "pyproject.toml").write_text('[project]\nname = "x"\nversion = "2"\n')  # changed since
+    stale = tools.wheelhouse_check(built=False, root=made)
+    assert stale.missing and "PyPI" in stale.how
+    assert not tools.wheelhouse_check(built=True, root=made).missing
+    assert tools.wheelhouse_check(built=False, root=tmp_path).missing  # none made
+
+
+def test_doctor_compose_names_each_missing_prerequisite(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A PATH without docker and docker-compose (nor debootstrap): `roco doctor --compose` names
+    each on a line of its own with how to get it, and exits 1; its last line names them all."""
+    monkeypatch.setenv("PATH", str(tmp_path))
+    result = CliRunner().invoke(app, ["doctor", "--compose"])
+    out = result.output.splitlines()
+    assert result.exit_code == 1, result.output
+    for name, how in (
+        ("docker", "apt-get install docker.io"),
+        ("Compose", "apt-get install docker-compose"),
+        ("debootstrap", "apt-get install debootstrap"),
+    ):
+        line = next(i for i, text in enumerate(out) if text.split()[2:3] == [name])
+        assert "not found" in out[line] and how in out[line + 1], result.output
+    assert out[-1].startswith("roco: the compose fleet lacks docker, Compose, debootstrap")
 
 
 def test_chromium_is_looked_up_by_its_names() -> None:

@@ -11,6 +11,7 @@ from typing import Any
 
 from services.report.ending import commands_summary, end
 from services.runtime.run_folder import RunCommand, RunInfo, read_run_info, write_run_info
+from shared.fipa_codec.languages.l_ex import CommandResult
 from shared.fipa_codec.languages.l_hc import CommandOutcome, HumanCommand, TaskAtom
 from tests.report.conftest import COMMAND_TEXT, STARTED, RunBuilder
 
@@ -118,3 +119,54 @@ def test_the_summary_counts_each_outcome() -> None:
     assert commands_summary([]) == "no command given"
     one = RunCommand(text="a", outcome="failed")
     assert commands_summary([one]) == "1 command: 1 failed"
+
+
+def _second_command(b: RunBuilder, start: float = 60.0) -> RunBuilder:
+    """After the pour (10 → 44 s, 20 s of robot time): "bring the cup", asked at ``start`` s
+    and done 5 s later, ag_ex answering 1.5 s of robot time apart in between."""
+    conv: dict[str, Any] = dict(conversation="cmd-2", protocol="fipa-request")
+    b.add(
+        start,
+        "C2",
+        "a_hi",
+        "a_co",
+        "request",
+        HumanCommand(text=BRING, goal=TaskAtom("bring", ("cup",))),
+        **conv,
+    )
+    b.add(start + 0.1, "C2", "a_co", "a_hi", "agree", **conv)
+    for k, robot in enumerate((100.0, 101.5)):
+        b.add(
+            start + 1.0 + k,
+            "C5",
+            "ag_ex",
+            "a_ta",
+            "inform",
+            CommandResult(command="move", ok=True, sim_time=robot),
+            conversation=f"ex-bring-{k}",
+            protocol="fipa-request",
+        )
+    outcome = CommandOutcome(command_id="cmd-2", succeeded=True, detail="the cup is on the table")
+    b.add(start + 5.0, "C2", "a_co", "a_hi", "inform", outcome, **conv)
+    return b
+
+
+def test_the_report_gives_each_command_its_own_duration(
+    make_run: Callable[..., Path], pour: RunBuilder
+) -> None:
+    """Two commands (the pour, 34 s; then "bring the cup", 5 s, 16 s later): the report times
+    each apart, in wall-clock and robot time, and names the span from the first to the last as
+    no task's duration (it holds the 16 s the fleet waited)."""
+    run = _fleet(make_run, _second_command(pour))
+    ending = end(run, ended=STARTED + 70.0)
+    assert ending.path is not None
+    md = ending.path.read_text()
+    assert (
+        "| Task durations | 2 commands, each from its request to its outcome: "
+        "#1 34.0 s wall, 20.0 s robot time (at 10.0 s); #2 5.0 s wall, 1.5 s robot time (at 60.0 s); "
+        "first command → last outcome: 55.0 s wall |"
+    ) in md
+    assert "| task duration (wall clock) | #1 34.0 s, #2 5.0 s | the same (a real robot) |" in md
+    assert "| task duration (robot time) | #1 20.0 s robot time, #2 1.5 s robot time |" in md
+    assert f"| 2 | {BRING} | 0 | 60.0 |  | 65.0 | 5.0 | succeeded |" in md
+    assert "55.0 s wall (human command" not in md  # no single duration summing both
