@@ -20,14 +20,19 @@ from pathlib import Path
 __all__ = ["clear", "mark"]
 
 
-def mark(path: Path | None, what: str) -> None:
+def mark(path: Path | None, what: str) -> str | None:
     """Write ``what`` (one line, e.g. ``"a_km ready: ..."``) to ``path``, whole; nothing when
-    ``path`` is None. The folder must exist. Raises OSError when the file cannot be written."""
+    ``path`` is None. Returns None when written (or nothing to write), else why not (one line:
+    a process goes on without it, and its health check says unhealthy)."""
     if path is None:
-        return
+        return None
     tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    tmp.write_text(what.replace("\n", " ") + "\n")
-    tmp.replace(path)
+    try:
+        tmp.write_text(what.replace("\n", " ") + "\n")
+        tmp.replace(path)
+    except OSError as exc:
+        return f"cannot write the ready file {path}: {exc.strerror or exc}"
+    return None
 
 
 def clear(path: Path | None) -> None:

@@ -42,10 +42,9 @@ from services.recorder.record import (
 )
 from services.runtime import faults, keys
 from services.runtime.hooks import TrafficSink, load_hooks
-from services.runtime.main import ready_file, router_endpoints, setup_logging
+from services.runtime.main import ready_file, router_endpoints, say_ready, setup_logging
 from services.runtime.transport import Arrival, ZenohTransport
 from shared.ready_file import clear as clear_ready
-from shared.ready_file import mark as mark_ready
 from shared.settings import Settings
 
 RECORDER = "recorder"
@@ -350,7 +349,7 @@ def main() -> int:
     signal.signal(signal.SIGTERM, on_signal)
     signal.signal(signal.SIGINT, on_signal)
     log.info("recording to %s as incarnation %s", run_dir, writer.incarnation)
-    mark_ready(ready, f"{RECORDER} ready: recording to {run_dir} as incarnation {writer.incarnation}")
+    say_ready(ready, f"{RECORDER} ready: recording to {run_dir} as incarnation {writer.incarnation}")
     loop.run()
     clear_ready(ready)
     if writer.duplicates:

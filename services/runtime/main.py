@@ -7,9 +7,9 @@ and a container: ``ROCO_ROUTER`` (comma-separated Zenoh endpoints, default
 standard output too, :func:`setup_logging`), ``ROCO_READY_FILE`` (written once the agent is
 ready, ``Agent.ready``; removed at its start and stop: shared/ready_file.py), ``ROCO_FAULTS``
 (fault settings, JSON; docs/faults.md), ``ROCO_SECURITY`` (credentials folder: the agent
-authenticates as itself; docs/security.md). The Zenoh transport is always wrapped in the fault layer
-(:class:`~services.runtime.faults.FaultyTransport`) so that ``roco fault`` can reach every
-agent at run time; with no fault active it costs one attribute test per publication.
+authenticates as itself; docs/security.md). The Zenoh transport is always wrapped in the fault
+layer (:class:`~services.runtime.faults.FaultyTransport`) so that ``roco fault`` can reach
+every agent at run time; with no fault active it costs one attribute test per publication.
 SIGTERM and SIGINT stop the agent cleanly. Exit code 2 on a configuration error;
 :data:`EXIT_LOST` when a receiving thread of the transport ended before the agent stopped
 (the agent would go on alive, its liveliness token up, deaf on that subscription): the process
@@ -107,12 +107,22 @@ def ready_file() -> Path | None:
     return path
 
 
+def say_ready(path: Path | None, line: str) -> None:
+    """Write ``line`` to the ready file ``path`` (shared/ready_file.py); a file that cannot be
+    written is logged, never a reason to stop the process (its health check then says
+    unhealthy)."""
+    from shared import ready_file as ready
+
+    why = ready.mark(path, line)
+    if why is not None:
+        logging.getLogger(__name__).error("%s", why)
+
+
 def main(argv: list[str] | None = None) -> int:
     from services.runtime.faults import FaultyTransport, settings_from_env
     from services.runtime.transport import ZenohTransport
     from services.spec.model import SpecError, load, spec_path
     from shared.ready_file import clear as clear_ready
-    from shared.ready_file import mark as mark_ready
     from shared.settings import Settings
 
     args = sys.argv[1:] if argv is None else argv
@@ -165,7 +175,7 @@ def main(argv: list[str] | None = None) -> int:
     signal.signal(signal.SIGINT, on_signal)
     zenoh_transport.on_lost = on_lost
     ready = ready_file()
-    agent.on_ready = functools.partial(mark_ready, ready)
+    agent.on_ready = functools.partial(say_ready, ready)
     agent.bind()
     logging.getLogger(name).info("started (pid %d)", os.getpid())
     try:

@@ -93,7 +93,8 @@ def main(argv: list[str] | None = None) -> int:
     acl = f"; access control from {security}" if security else "; no access control"
     listening = f"roco router {session.zid()} listening on {', '.join(listen)}{acl}"
     print(listening, flush=True)
-    mark_ready(read.ready_file, listening)
+    if (why := mark_ready(read.ready_file, listening)) is not None:
+        print(f"roco router: {why}", file=sys.stderr, flush=True)
     # wait with a timeout: a signal delivered to one of Zenoh's threads does not wake a main
     # thread blocked without one, and its handler would then never run (seen: a router left
     # running after SIGTERM)

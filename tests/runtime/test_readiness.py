@@ -98,7 +98,7 @@ def test_ready_only_once_set_up(tmp_path: Path, name: str) -> None:
 
 def test_the_ready_file_is_written_whole_and_cleared(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     path = tmp_path / "ready"
-    mark(path, "a_x ready\nsecond line")
+    assert mark(path, "a_x ready\nsecond line") is None
     assert path.read_text() == "a_x ready second line\n"
     assert [p.name for p in tmp_path.iterdir()] == ["ready"]  # no temporary file left
     # a process's start: the file a killed one left is removed (ROCO_READY_FILE)
@@ -107,5 +107,7 @@ def test_the_ready_file_is_written_whole_and_cleared(tmp_path: Path, monkeypatch
     clear(path)  # absent: nothing to do
     monkeypatch.delenv("ROCO_READY_FILE")
     assert ready_file() is None
-    mark(None, "nowhere")
+    assert mark(None, "nowhere") is None
     clear(None)
+    why = mark(tmp_path / "missing" / "ready", "a_x ready")  # a process goes on without it
+    assert why == f"cannot write the ready file {tmp_path / 'missing' / 'ready'}: No such file or directory"

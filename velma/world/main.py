@@ -85,7 +85,8 @@ def main(argv: list[str] | None = None) -> int:
         write_whole(named, (link.name + "\n").encode())
         serving = f"velma.world: serving the robot link {link.name} ({named})"
         print(serving, flush=True)
-        mark_ready(ready, serving)
+        if (why := mark_ready(ready, serving)) is not None:
+            print(f"velma.world: {why}", file=sys.stderr, flush=True)
         serve(sim, link, realtime=args.realtime, should_stop=stop.is_set)
         final = np.zeros(sim.scene_size)
         sim.scene(final)
