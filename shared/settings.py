@@ -182,7 +182,7 @@ class Settings(msgspec.Struct, frozen=True, kw_only=True):
         tuple[str, ...],
         About(
             "ROCO_ROUTER",
-            "Zenoh endpoints of the router (comma-separated): every agent, the recorder, the health check, "
+            "Zenoh endpoints of the router (comma-separated): every agent, the recorder, the health probe, "
             "and the tools when no fleet of `roco up` is found; the launcher sets it",
         ),
     ] = (DEFAULT_ROUTER,)
