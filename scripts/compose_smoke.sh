@@ -158,7 +158,7 @@ say "all healthy $(( $(date +%s) - phase_start )) s after up"
 roco_host status --router "$endpoint"
 # what an operator reads: the agents' logs in `compose logs`, the router's at INFO, rotation
 $COMPOSE logs --no-color a_km >"$work/a_km.out" 2>&1
-grep -q 'a_km INFO a_km ready: roles set up' "$work/a_km.out" ||
+grep -q 'a_km INFO ready: roles set up' "$work/a_km.out" ||
     { tail -20 "$work/a_km.out"; say "compose logs a_km does not show the agent's log"; exit 1; }
 $COMPOSE logs --no-color router >"$work/router.out" 2>&1
 if grep -E ' (DEBUG|TRACE) |tls handshake eof' "$work/router.out"; then

@@ -1055,10 +1055,9 @@ class Agent:
             return
         self.ready = True
         seen = f"; {', '.join(self.asks)} seen" if self.asks else ""
-        line = f"{self.name} ready: roles set up{seen}"
-        self.log.info("%s", line)
+        self.log.info("ready: roles set up%s", seen)
         if self.on_ready is not None:
-            self.on_ready(line)
+            self.on_ready(f"{self.name} ready: roles set up{seen}")
 
     def restore_conversation(
         self, peer: str, conversation_id: str, protocol: str, history: list[tuple[Performative, bool]]
