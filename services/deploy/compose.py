@@ -102,7 +102,7 @@ into ``docker inspect``'s health log); no interpreter, no connection."""
 LOG_SIZE = "10m"
 LOG_FILES = 3
 """Docker's json-file log of a container: rotated at :data:`LOG_SIZE`, :data:`LOG_FILES` files
-kept (at most 30 MB a service)."""
+kept, per container."""
 ROUTER_LOG = "info"
 """Zenoh's log level in the router (``RUST_LOG``; ``ROCO_ROUTER_LOG`` overrides it at ``up``):
 INFO, as services/runtime/zenoh_log.py's default."""
