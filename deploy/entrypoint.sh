@@ -77,4 +77,8 @@ write_run_info(Path(sys.argv[1]), RunInfo(
     fi
 fi
 
+# not ready until the service says so (ROCO_READY_FILE, read by the health check): a file left
+# in the container's layer by the service's last life does not speak for this one
+if [ -n "${ROCO_READY_FILE:-}" ]; then rm -f "$ROCO_READY_FILE"; fi
+
 exec "$@"

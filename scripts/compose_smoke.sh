@@ -7,7 +7,9 @@
 #            dockerd started in the background if no engine answers (and stopped at the end)
 #   build    scripts/build_image.sh: wheelhouse, local base, docker build with no network
 #   up       `compose up -d` under a project of its own, on free host ports
-#   healthy  every service healthy (health checks from Zenoh liveliness; router and viewer by TCP)
+#   healthy  every service healthy (each roco service's ready file; the viewer's ports); then the
+#            operator's view: `compose logs a_km` shows the agent's log, the router's log has no
+#            DEBUG/TRACE line and no "tls handshake eof", every container's log is rotated
 #   pour     `roco send "pour the jar into the bowl"` from the host, in the background; once a_co
 #            has sent a_ta plan #1 (the first request on C1 in the run folder's traffic.jsonl),
 #            `compose restart a_km`; the pour must end "succeeded" and the restarted a_km must
@@ -137,7 +139,7 @@ $COMPOSE up -d >"$work/up.log" 2>&1 || { cat "$work/up.log"; exit 1; }
 phase up
 
 # --- healthy -------------------------------------------------------------------------------
-services=(router recorder a_km a_pl a_co ag_ex a_ta a_hi viewer)
+services=(router recorder world a_km a_pl a_co ag_ex a_ta a_hi viewer)
 declare -A cid
 for s in "${services[@]}"; do
     cid[$s]=$($COMPOSE ps -q "$s")
@@ -154,6 +156,19 @@ while :; do
 done
 say "all healthy $(( $(date +%s) - phase_start )) s after up"
 roco_host status --router "$endpoint"
+# what an operator reads: the agents' logs in `compose logs`, the router's at INFO, rotation
+$COMPOSE logs --no-color a_km >"$work/a_km.out" 2>&1
+grep -q 'a_km INFO ready: roles set up' "$work/a_km.out" ||
+    { tail -20 "$work/a_km.out"; say "compose logs a_km does not show the agent's log"; exit 1; }
+$COMPOSE logs --no-color router >"$work/router.out" 2>&1
+if grep -E ' (DEBUG|TRACE) |tls handshake eof' "$work/router.out"; then
+    say "the router's log has DEBUG/TRACE lines or health-probe warnings"; exit 1
+fi
+for s in "${services[@]}"; do
+    rotation=$(docker inspect -f '{{.HostConfig.LogConfig.Type}} {{index .HostConfig.LogConfig.Config "max-size"}}' "${cid[$s]}")
+    [ "$rotation" = "json-file 10m" ] || { say "$s: log not rotated ($rotation)"; exit 1; }
+done
+say "compose logs show the agents' lines; the router logs at INFO; every log is rotated"
 phase healthy
 
 # --- pour, with a_km restarted mid-task ----------------------------------------------------

@@ -182,7 +182,7 @@ class Settings(msgspec.Struct, frozen=True, kw_only=True):
         tuple[str, ...],
         About(
             "ROCO_ROUTER",
-            "Zenoh endpoints of the router (comma-separated): every agent, the recorder, the health check, "
+            "Zenoh endpoints of the router (comma-separated): every agent, the recorder, the health probe, "
             "and the tools when no fleet of `roco up` is found; the launcher sets it",
         ),
     ] = (DEFAULT_ROUTER,)
@@ -211,6 +211,22 @@ class Settings(msgspec.Struct, frozen=True, kw_only=True):
             kind=" / ".join(LOG_LEVELS),
         ),
     ] = "INFO"
+    log_stdout: Annotated[
+        bool,
+        About(
+            "ROCO_LOG_STDOUT",
+            "1: an agent's and the recorder's log lines go to standard output too, besides the run folder's "
+            "logs/NAME.log (compose sets it: `docker compose logs`; services/runtime/main.py)",
+        ),
+    ] = False
+    ready_file: Annotated[
+        Path | None,
+        About(
+            "ROCO_READY_FILE",
+            "a file the router, the recorder, an agent or the world writes once it is ready and removes when "
+            "it stops (shared/ready_file.py); compose's health checks read it; unset: none",
+        ),
+    ] = None
     faults: Annotated[
         str,
         About(
@@ -524,6 +540,7 @@ DEPLOYMENT: tuple[DeploymentVariable, ...] = (
     ),
     DeploymentVariable("ROCO_CERTS", "./certs", "host folder of the compose fleet's credentials"),
     DeploymentVariable("ROCO_PROTO", "tls", "the compose router's protocol: tls (mutual TLS) or tcp"),
+    DeploymentVariable("ROCO_ROUTER_LOG", "info", "Zenoh's log level in the compose router (its RUST_LOG)"),
     DeploymentVariable("ROCO_VIEWER_BIND", "127.0.0.1", "host address of the compose Rerun viewer's ports"),
     DeploymentVariable("ROCO_VIEWER_WEB_PORT", "9090", "host port of the compose viewer's web page"),
     DeploymentVariable("ROCO_VIEWER_GRPC_PORT", "9876", "host port of the compose viewer's gRPC stream"),

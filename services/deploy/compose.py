@@ -8,7 +8,8 @@ file's comments are this module's text; the agents' services follow from the spe
 
 - one service per agent, in the specification's start order (``SystemSpec.launch_order``),
   running ``python -m services.runtime.main NAME`` after the certificates, the router and the
-  recorder, with a health check from the agent's liveliness token;
+  recorder, healthy once the agent is ready (its roles set up and the agents it asks seen:
+  it writes :data:`READY_FILE`, which the check reads);
 - the agent the specification's ``start_order`` names last (a_hi: a person's command is taken
   once the others are there) waits until every other agent is healthy;
 - what an agent's container needs beyond that is stated here, once, in :data:`AGENT_EXTRAS`:
@@ -22,6 +23,10 @@ Least privilege for the credentials (:func:`credentials`): only ``certs`` mounts
 folder (it issues; the CA's key is there); an agent or the recorder mounts the CA's certificate
 and its own identity (:func:`identity_mounts`), the router :data:`ROUTER_MOUNTS`, the world and
 the viewer nothing; all read-only.
+
+Every service logs to standard output, rotated by Docker's json-file driver (:data:`LOG_SIZE`,
+:data:`LOG_FILES`); the router's Zenoh log is at :data:`ROUTER_LOG`. No health check starts an
+interpreter or opens a connection to the router.
 
 The file is in the Compose Specification format (no ``version:``), valid for ``docker
 compose`` v2 and Debian's ``docker-compose`` 1.29. ``roco deploy compose`` writes it,
@@ -37,7 +42,7 @@ from pathlib import Path
 
 from services.security.folder import ACL_FILE, CA_CERT, PASSWORDS, ROUTER
 from services.spec.generated import GeneratedFile
-from services.spec.model import SystemSpec
+from services.spec.model import SystemSpec, asked
 from services.spec_check.acl import RECORDER
 from shared.settings import Settings
 from velma.world.mode import WORLD_SERVICE
@@ -87,6 +92,20 @@ ROUTER_MOUNTS = [
 ]
 """What the router mounts of the credentials folder: the CA's certificate, its own certificate
 and key, the password table it checks, its ACL and, on a host of a mesh, its identity."""
+
+READY_FILE = "/tmp/roco.ready"
+"""Where a roco service writes that it is ready (``ROCO_READY_FILE``, shared/ready_file.py): in
+the container's own layer; the process removes it when it starts and stops."""
+READY_TEST = json.dumps(["CMD", "cat", READY_FILE])
+"""The health check of every roco service: the ready file is there (``cat`` prints what it says
+into ``docker inspect``'s health log); no interpreter, no connection."""
+LOG_SIZE = "10m"
+LOG_FILES = 3
+"""Docker's json-file log of a container: rotated at :data:`LOG_SIZE`, :data:`LOG_FILES` files
+kept, per container."""
+ROUTER_LOG = "info"
+"""Zenoh's log level in the router (``RUST_LOG``; ``ROCO_ROUTER_LOG`` overrides it at ``up``):
+INFO, as services/runtime/zenoh_log.py's default."""
 
 RUN_VARIABLES = tuple(Settings.env_name(f) for f in ("run_dir", "km_store", "state_dir"))
 """The variables in which deploy/entrypoint.sh replaces ``{run}`` by the run's name."""
@@ -169,6 +188,8 @@ HEAD = """\
 #   ROCO_RUN              run folder name                          the router's creation time (UTC)
 #   ROCO_REALTIME         1: pace the simulation to wall time      1
 #   ROCO_SEED, ROCO_POSE_SEED, ROCO_LOG_LEVEL                      as for `roco run`
+#   ROCO_ROUTER_LOG       Zenoh's log level in the router          info
+#                         (RUST_LOG: trace, debug, info, warn, error)
 #   ROCO_PERCEPTION       camera (head Kinect) or truth (physics)  camera
 #   ROCO_CAMERA_IDLE_S    s without an Observe before ag_ex's      60
 #                         camera process ends ("never": kept)
@@ -191,6 +212,14 @@ HEAD = """\
 # world and the viewer no credentials. Off, for experiments:
 #   ROCO_SECURITY= ROCO_PROTO=tcp docker compose -f deploy/compose.yaml -p roco up -d
 #
+# Logs: every service writes its log lines to standard output (`docker compose logs a_km`),
+# the agents and the recorder to the run folder's logs/NAME.log as well; Docker's json-file
+# driver keeps at most @LOG_FILES files of @LOG_SIZE per container. Health: a service is
+# healthy once it is ready (an agent: its roles set up and the agents it asks seen; the
+# recorder: it records; the router: it listens; the world: it serves the robot link), which it
+# says by writing @READY_FILE (ROCO_READY_FILE); the check reads that file with `cat`.
+# The viewer's check opens its two ports from bash.
+#
 # Compose Specification format (no `version:`): valid for `docker compose` v2 and for
 # Debian's `docker-compose` 1.29 (depends_on conditions, healthchecks, init, cap_add).
 
@@ -203,11 +232,16 @@ x-roco: &roco
       BASE: ${ROCO_BASE:-python:3.11-slim}
   init: true  # tini as PID 1: signals reach the service, zombies are reaped
   restart: unless-stopped
+  logging:  # docker compose logs; rotated
+    driver: json-file
+    options:
+      max-size: "@LOG_SIZE"
+      max-file: "@LOG_FILES"
   volumes:
 @MOUNTS
   healthcheck: &health
     interval: 5s
-    timeout: 10s
+    timeout: 5s
     retries: 5
     start_period: 120s
 
@@ -223,6 +257,8 @@ x-env: &env
   ROCO_CAMERA_IDLE_S: ${ROCO_CAMERA_IDLE_S:-}
   ROCO_RECEIVE_POLL_US: ${ROCO_RECEIVE_POLL_US:-}
   ROCO_LOG_LEVEL: ${ROCO_LOG_LEVEL:-INFO}
+  ROCO_LOG_STDOUT: "1"
+  ROCO_READY_FILE: @READY_FILE
   ROCO_RERUN: ${ROCO_RERUN:-1}
   ROCO_RERUN_CONNECT: ${ROCO_RERUN_CONNECT-rerun+http://viewer:9876/proxy}
 
@@ -253,6 +289,7 @@ services:
       ROCO_CONNECT: ${ROCO_PEER:-}
       ROCO_PROTO: ${ROCO_PROTO:-tls}
       ROCO_ROUTER_IDENTITY: ${ROCO_ROUTER_IDENTITY:-}  # a meshed router's identity (roco deploy router)
+      RUST_LOG: ${ROCO_ROUTER_LOG:-@ROUTER_LOG}
     volumes:
 @ROUTER_MOUNTS
     depends_on:
@@ -262,9 +299,7 @@ services:
       - ${ROCO_ROUTER_PUBLISH:-127.0.0.1:7447}:7447
     healthcheck:
       <<: *health
-      # a TCP connect
-      test: ["CMD", "python", "-m", "services.runtime.health", "router",
-             "--router", "tcp/127.0.0.1:7447"]
+      test: @READY_TEST
 
   recorder:
     <<: *roco
@@ -280,7 +315,7 @@ services:
     stop_grace_period: 60s  # it merges the Rerun parts into recording.rrd when it stops
     healthcheck:
       <<: *health
-      test: ["CMD", "python", "-m", "services.runtime.health", "recorder"]
+      test: @READY_TEST
 
 """
 
@@ -307,10 +342,9 @@ VIEWER = """\
     ports:
       - ${ROCO_VIEWER_BIND:-127.0.0.1}:${ROCO_VIEWER_WEB_PORT:-9090}:9090
       - ${ROCO_VIEWER_BIND:-127.0.0.1}:${ROCO_VIEWER_GRPC_PORT:-9876}:9876
-    healthcheck:
+    healthcheck:  # both ports accept a connection (bash's /dev/tcp: no Python started)
       <<: *health
-      test: ["CMD", "python", "-m", "services.runtime.health", "viewer",
-             "--tcp", "127.0.0.1:9876", "--tcp", "127.0.0.1:9090"]
+      test: ["CMD", "bash", "-c", "exec 3<>/dev/tcp/127.0.0.1/9876 4<>/dev/tcp/127.0.0.1/9090"]
 """
 
 WORLD = """\
@@ -322,8 +356,9 @@ WORLD = """\
     depends_on:  # the run's name (its folder) comes from the router
       router:
         condition: service_healthy
-    healthcheck:  # no Zenoh, no port: ag_ex waits for the link the world names in the run folder
-      disable: true
+    healthcheck:  # ready once it serves the robot link (it names it in the run folder)
+      <<: *health
+      test: @READY_TEST
 """
 
 NOT_AGENTS = ("certs", "router", "recorder", "viewer", WORLD_SERVICE)
@@ -365,7 +400,7 @@ def _list(items: list[str]) -> list[str]:
 def _depends_on(spec: SystemSpec, name: str, extras: AgentExtras) -> list[str]:
     """What agent ``name``'s service waits for: the router, its hardware, and every other agent
     when it is the last started."""
-    needs = [f"      {extras.hardware}:", "        condition: service_started"] if extras.hardware else []
+    needs = [f"      {extras.hardware}:", "        condition: service_healthy"] if extras.hardware else []
     if name == last_started(spec):
         return [
             "    depends_on:  # last in the specification's start_order: once every other agent is healthy",
@@ -414,7 +449,7 @@ def _agent(spec: SystemSpec, name: str) -> list[str]:
     lines += [
         "    healthcheck:",
         "      <<: *health",
-        f'      test: ["CMD", "python", "-m", "services.runtime.health", {key}]',
+        f"      test: {READY_TEST}",
     ]
     return lines
 
@@ -425,8 +460,23 @@ def hardware(spec: SystemSpec) -> list[str]:
     return sorted({h for h in named if h is not None})
 
 
+def _fill(text: str) -> str:
+    """``text`` with the settings of this module in place of their marks (``@READY_TEST``, …)."""
+    values = {
+        "@READY_TEST": READY_TEST,
+        "@READY_FILE": READY_FILE,
+        "@LOG_SIZE": LOG_SIZE,
+        "@LOG_FILES": str(LOG_FILES),
+        "@ROUTER_LOG": ROUTER_LOG,
+    }
+    for mark, value in values.items():
+        text = text.replace(mark, value)
+    return text
+
+
 def _head() -> str:
-    """:data:`HEAD` with its mounts: every service's, the router's and the recorder's."""
+    """:data:`HEAD` with its mounts (every service's, the router's and the recorder's) and
+    settings."""
     lines = {
         "@MOUNTS": [f"    - {m}" for m in MOUNTS],
         "@ROUTER_MOUNTS": _list([*MOUNTS, *ROUTER_MOUNTS]),
@@ -435,12 +485,28 @@ def _head() -> str:
     head = HEAD
     for mark, mounts in lines.items():
         head = head.replace(mark + "\n", "\n".join(mounts) + "\n")
-    return head
+    return _fill(head)
+
+
+def _check_readiness(spec: SystemSpec) -> None:
+    """Raise ComposeError when an agent asks the one started last: that one waits until every
+    other agent is healthy, and an agent is healthy once it has seen the agents it asks
+    (services/spec/model.py ``asked``), so neither would ever be."""
+    last = last_started(spec)
+    for name in spec.launch_order:
+        if name != last and last in asked(spec, name):
+            raise ComposeError(
+                f"agent {name} asks {last}, which starts once every other agent is healthy: {name} "
+                f"would never be ready (an agent is ready once it has seen the agents it asks); "
+                f"name another agent last in the specification's start_order"
+            )
 
 
 def render(spec: SystemSpec) -> str:
     """The compose file ``spec`` gives (see the module docstring). Raises ComposeError for an
-    agent whose name cannot be a compose service's, or is one of :data:`NOT_AGENTS`."""
+    agent whose name cannot be a compose service's, or is one of :data:`NOT_AGENTS`, and when
+    an agent asks the last started one (:func:`last_started`, which waits for it to be healthy:
+    neither would ever be)."""
     volumes = ["fleet"]
     for name in spec.launch_order:
         if not _SERVICE.fullmatch(name) or name in NOT_AGENTS:
@@ -451,11 +517,12 @@ def render(spec: SystemSpec) -> str:
         state = AGENT_EXTRAS.get(name, AgentExtras()).state
         if state is not None and state.volume not in volumes:
             volumes.append(state.volume)
+    _check_readiness(spec)
     head = _head()
     agents = "\n".join("\n".join(_agent(spec, name)) + "\n" for name in spec.launch_order)
     agents = AGENTS_COMMENT + agents
     if WORLD_SERVICE in hardware(spec):
-        agents = WORLD + "\n" + agents
+        agents = _fill(WORLD) + "\n" + agents
     tail = "volumes:\n" + "".join(f"  {v}: {{}}\n" for v in volumes)
     return f"{head}{agents}\n{VIEWER}\n{tail}"
 

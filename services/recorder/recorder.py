@@ -3,7 +3,8 @@ folder (``traffic.jsonl`` metadata, ``traffic.msgpack`` raw payloads).
 
 Run as ``python -m services.recorder.recorder`` with ``ROCO_ROUTER`` and ``ROCO_RUN_DIR``.
 It announces liveliness as ``recorder`` once its subscription is declared, so a launcher can
-start agents only after the recorder listens. A payload that is not a communicate is recorded
+start agents only after the recorder listens, and then writes ``ROCO_READY_FILE`` (a
+container's health check: shared/ready_file.py). A payload that is not a communicate is recorded
 with performative ``malformed``. Fault events (``roco/fault/event/*``, docs/faults.md) go to
 ``faults.jsonl``. Each communicate written is also given to the live requirements monitor
 (:data:`MONITOR`, loaded by name: services/spec_live/sink.py), which appends the requirement
@@ -41,8 +42,9 @@ from services.recorder.record import (
 )
 from services.runtime import faults, keys
 from services.runtime.hooks import TrafficSink, load_hooks
-from services.runtime.main import router_endpoints, setup_logging
+from services.runtime.main import ready_file, router_endpoints, say_ready, setup_logging
 from services.runtime.transport import Arrival, ZenohTransport
+from shared.ready_file import clear as clear_ready
 from shared.settings import Settings
 
 RECORDER = "recorder"
@@ -322,6 +324,7 @@ def main() -> int:
     except ValueError as exc:  # a bad ROCO_LOG_LEVEL
         print(f"roco: recorder: {exc}", file=sys.stderr)
         return 2
+    ready = ready_file()
     run_dir = Settings.from_env(only=("run_dir",)).run_dir or Path(".")
     writer = TrafficWriter(run_dir)
     hooks = load_hooks()  # a viewer's, named by string (services/runtime/hooks.py); None: none
@@ -346,7 +349,9 @@ def main() -> int:
     signal.signal(signal.SIGTERM, on_signal)
     signal.signal(signal.SIGINT, on_signal)
     log.info("recording to %s as incarnation %s", run_dir, writer.incarnation)
+    say_ready(ready, f"{RECORDER} ready: recording to {run_dir} as incarnation {writer.incarnation}")
     loop.run()
+    clear_ready(ready)
     if writer.duplicates:
         log.info(
             "%d communicate(s) sent again by publishers' caches were recorded already", writer.duplicates

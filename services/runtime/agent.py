@@ -42,6 +42,9 @@ A subclass declares its ``name`` (as in the specification), builds its FSM of be
 - peer liveliness: :meth:`Agent.peer_changed` is called on the agent's thread whenever
   another agent's token appears or disappears (the white pages, ``roco/alive/*``), after the
   subscriptions its roles keep with that peer acted on it (services/runtime/subscriptions.py),
+- readiness: :attr:`Agent.ready` once :meth:`Agent.setup` has run, the agent's liveliness
+  token is declared and every agent it asks (:attr:`Agent.asks`) has been seen; then
+  :attr:`Agent.on_ready` is called (a container's health check reads what it writes),
 - a persistence hook, :meth:`Agent.persist`, called after every step once its output
   buffer is dispatched: it writes the open conversations of the roles declared with ``keep``
   and the agent's :attr:`Agent.NOTE` (services/runtime/state_store.py) when they changed,
@@ -98,7 +101,7 @@ from services.runtime.roles import Conversation, RoleDecl, Roles
 from services.runtime.sources import SYSTEM, Sources
 from services.runtime.state_store import NO_DATA, KeptConversations, StateFile
 from services.runtime.transport import Transport
-from services.spec.model import Interface, SystemSpec, default_spec, interface
+from services.spec.model import Interface, SystemSpec, asked, default_spec, interface
 from services.spec.protocol_defs import machine_of, streams
 from shared.fipa_codec import (
     AgentIdentifier,
@@ -222,6 +225,17 @@ class Agent:
         self.dedup = Dedup()
         self.peers: set[str] = set()
         """Agents whose liveliness token is present (kept up to date on the agent's thread)."""
+        self.asks: tuple[str, ...] = asked(self.spec, self.name)
+        """The agents this one asks (services/spec/model.py ``asked``): it is :attr:`ready` once
+        it has seen each of them."""
+        self.ready = False
+        """Set once, on the agent's thread: :meth:`setup` has run, the liveliness token is
+        declared and every agent of :attr:`asks` has been seen. It stays set when one of them
+        disappears later (that one's own readiness says so)."""
+        self.on_ready: Callable[[str], None] | None = None
+        """Called once when the agent becomes :attr:`ready`, with one line saying so (the process
+        writes it to its ready file, services/runtime/main.py); None: nothing is called."""
+        self._set_up = False  # setup() has run and the liveliness token is declared
         self.max_open_per_peer = MAX_OPEN_CONVERSATIONS_PER_PEER
         """Open conversations a peer may have with this agent before a new one is refused."""
         self._log_window = (0.0, 0)  # (window start, monotonic s; warnings logged in it)
@@ -1028,11 +1042,22 @@ class Agent:
             n = self.pending_replies.retry_now(peer, self.sources.time())
             if n:
                 self.log.info("%s appeared: %d unanswered communicate(s) to it sent again", peer, n)
+            self._check_ready()
         else:
             self.peers.discard(peer)
             self.log.info("%s disappeared", peer)
         self.roles.peer_changed(peer, alive)  # the subscriptions kept with it
         self.peer_changed(peer, alive)
+
+    def _check_ready(self) -> None:
+        """Become :attr:`ready` when set up with every agent of :attr:`asks` seen (once)."""
+        if self.ready or not self._set_up or not self.peers.issuperset(self.asks):
+            return
+        self.ready = True
+        seen = f"; {', '.join(self.asks)} seen" if self.asks else ""
+        self.log.info("ready: roles set up%s", seen)
+        if self.on_ready is not None:
+            self.on_ready(f"{self.name} ready: roles set up{seen}")
 
     def restore_conversation(
         self, peer: str, conversation_id: str, protocol: str, history: list[tuple[Performative, bool]]
@@ -1137,6 +1162,8 @@ class Agent:
         receiving thread must go on on the agent's own (:meth:`_dispatch_here`)."""
         self.setup()
         self.transport.announce(keys.alive_key(self.name))
+        self._set_up = True
+        self._check_ready()
         self._dispatch()
         state = self.fsm.initial
         if self.fsm_record is not None:

@@ -1,7 +1,8 @@
-"""Health probe for containers and scripts: ``python -m services.runtime.health NAME``.
+"""Health probe for scripts and people: ``python -m services.runtime.health NAME``.
 
-Exit 0 when NAME is healthy, else 1; either way one line on stdout saying why (Docker keeps it
-in ``docker inspect``'s health log). Exit 2 on a usage error.
+Exit 0 when NAME is healthy, else 1; either way one line on stdout saying why. Exit 2 on a
+usage error. (The compose fleet's own health checks read each service's ready file instead,
+shared/ready_file.py: they start no interpreter and open no connection.)
 
 - an agent or the traffic recorder (``a_km``, ``recorder``, …): healthy when its liveliness
   token ``roco/alive/NAME`` is visible through the router (Zenoh's white pages, the query of

@@ -3,11 +3,13 @@
 Configuration comes from the environment so that the same command serves the local launcher
 and a container: ``ROCO_ROUTER`` (comma-separated Zenoh endpoints, default
 ``tcp/127.0.0.1:7447``), ``ROCO_RUN_DIR`` (run folder; logs go to stderr otherwise),
-``ROCO_SPEC`` (specification file), ``ROCO_LOG_LEVEL``, ``ROCO_FAULTS`` (fault settings,
-JSON; docs/faults.md), ``ROCO_SECURITY`` (credentials folder: the agent authenticates as itself;
-docs/security.md). The Zenoh transport is always wrapped in the fault layer
-(:class:`~services.runtime.faults.FaultyTransport`) so that ``roco fault`` can reach every
-agent at run time; with no fault active it costs one attribute test per publication.
+``ROCO_SPEC`` (specification file), ``ROCO_LOG_LEVEL``, ``ROCO_LOG_STDOUT`` (1: the log on
+standard output too, :func:`setup_logging`), ``ROCO_READY_FILE`` (written once the agent is
+ready, ``Agent.ready``; removed at its start and stop: shared/ready_file.py), ``ROCO_FAULTS``
+(fault settings, JSON; docs/faults.md), ``ROCO_SECURITY`` (credentials folder: the agent
+authenticates as itself; docs/security.md). The Zenoh transport is always wrapped in the fault
+layer (:class:`~services.runtime.faults.FaultyTransport`) so that ``roco fault`` can reach
+every agent at run time; with no fault active it costs one attribute test per publication.
 SIGTERM and SIGINT stop the agent cleanly. Exit code 2 on a configuration error;
 :data:`EXIT_LOST` when a receiving thread of the transport ended before the agent stopped
 (the agent would go on alive, its liveliness token up, deaf on that subscription): the process
@@ -18,12 +20,14 @@ starts it again as any crashed agent (services/scenario/runner.py; compose's res
 from __future__ import annotations
 
 import contextlib
+import functools
 import importlib
 import logging
 import os
 import signal
 import sys
 import threading
+from pathlib import Path
 from types import FrameType
 from typing import TYPE_CHECKING
 
@@ -71,26 +75,54 @@ def agent_class(spec: SystemSpec, name: str) -> type[Agent]:
 
 def setup_logging(name: str) -> None:
     """Log at ``ROCO_LOG_LEVEL`` (default INFO) to the run folder's ``logs/NAME.log``, else to
-    stderr; one line per record (services/runtime/log_format.py). Raises ValueError for a
-    ``ROCO_LOG_LEVEL`` that is not a level."""
+    stderr, and with ``ROCO_LOG_STDOUT=1`` to standard output as well (instead of stderr without
+    a run folder): what ``docker compose logs`` shows. One line per record, the same on each
+    (services/runtime/log_format.py). Raises ValueError for a ``ROCO_LOG_LEVEL`` that is not a
+    level."""
     from services.runtime.log_format import OneLineFormatter
     from shared.settings import Settings
 
-    read = Settings.from_env(only=("log_level", "run_dir"))
-    handler: logging.Handler
+    read = Settings.from_env(only=("log_level", "run_dir", "log_stdout"))
+    handlers: list[logging.Handler] = []
     if read.run_dir is not None:
         (read.run_dir / "logs").mkdir(parents=True, exist_ok=True)
-        handler = logging.FileHandler(read.run_dir / "logs" / f"{name}.log")
-    else:
-        handler = logging.StreamHandler(sys.stderr)
-    handler.setFormatter(OneLineFormatter())
-    logging.basicConfig(level=read.log_level, handlers=[handler], force=True)
+        handlers.append(logging.FileHandler(read.run_dir / "logs" / f"{name}.log"))
+    if read.log_stdout:
+        handlers.append(logging.StreamHandler(sys.stdout))
+    elif not handlers:
+        handlers.append(logging.StreamHandler(sys.stderr))
+    for handler in handlers:
+        handler.setFormatter(OneLineFormatter())
+    logging.basicConfig(level=read.log_level, handlers=handlers, force=True)
+
+
+def ready_file() -> Path | None:
+    """``ROCO_READY_FILE`` (read now), emptied: a file a killed process left there does not
+    speak for this one (shared/ready_file.py). Raises OSError when it cannot be removed."""
+    from shared import ready_file as ready
+    from shared.settings import Settings
+
+    path = Settings.from_env(only=("ready_file",)).ready_file
+    ready.clear(path)
+    return path
+
+
+def say_ready(path: Path | None, line: str) -> None:
+    """Write ``line`` to the ready file ``path`` (shared/ready_file.py); a file that cannot be
+    written is logged, never a reason to stop the process (its health check then says
+    unhealthy)."""
+    from shared import ready_file as ready
+
+    why = ready.mark(path, line)
+    if why is not None:
+        logging.getLogger(__name__).error("%s", why)
 
 
 def main(argv: list[str] | None = None) -> int:
     from services.runtime.faults import FaultyTransport, settings_from_env
     from services.runtime.transport import ZenohTransport
     from services.spec.model import SpecError, load, spec_path
+    from shared.ready_file import clear as clear_ready
     from shared.settings import Settings
 
     args = sys.argv[1:] if argv is None else argv
@@ -142,6 +174,8 @@ def main(argv: list[str] | None = None) -> int:
     signal.signal(signal.SIGTERM, on_signal)
     signal.signal(signal.SIGINT, on_signal)
     zenoh_transport.on_lost = on_lost
+    ready = ready_file()
+    agent.on_ready = functools.partial(say_ready, ready)
     agent.bind()
     logging.getLogger(name).info("started (pid %d)", os.getpid())
     try:
@@ -150,6 +184,7 @@ def main(argv: list[str] | None = None) -> int:
         logging.getLogger(name).exception("stopped by an error")
         raise
     finally:
+        clear_ready(ready)
         logging.getLogger(name).info("stopping; counters %s", dict(agent.counters))
         close = getattr(agent, "close", None)
         if callable(close):

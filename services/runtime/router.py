@@ -12,6 +12,11 @@ folder is incomplete. With access control on, every message it refuses is counte
 ``$ROCO_RUN_DIR/refusals.jsonl``, announced in the router's log and reported on
 ``roco/counters/ask``.
 
+Zenoh's own log goes to standard output at ``RUST_LOG``'s level, INFO when unset
+(services/runtime/zenoh_log.py: what the refusal watch turns on beyond it is read, not passed
+on). ``ROCO_READY_FILE`` (shared/ready_file.py) is written once the router listens and removed
+when it stops: a container's health check reads it, and opens no connection to the router.
+
 A router of a mesh (docs/deploy.md, "Two machines", "Two hosts on one machine") runs with
 ``--identity router_<host>`` (or ``ROCO_ROUTER_IDENTITY``): it serves and connects with that
 identity's certificate, so the routers' link is mutual TLS; ``--lease-ms`` sets how long a
@@ -27,7 +32,11 @@ import threading
 from types import FrameType
 
 from services.runtime.refusal_watch import answer_counters, watch_refusals
+from services.runtime.refusals import RefusalLog
 from services.runtime.transport import open_session, router_config
+from services.runtime.zenoh_log import capture_zenoh_log
+from shared.ready_file import clear as clear_ready
+from shared.ready_file import mark as mark_ready
 from shared.settings import Settings
 
 SIGNAL_POLL_S = 0.5
@@ -35,7 +44,10 @@ SIGNAL_POLL_S = 0.5
 
 
 def main(argv: list[str] | None = None) -> int:
-    read = Settings.from_env(only=("router_identity", "listen", "connect", "security", "run_dir"))
+    read = Settings.from_env(
+        only=("router_identity", "listen", "connect", "security", "run_dir", "ready_file")
+    )
+    clear_ready(read.ready_file)  # a file a killed router left does not speak for this one
     parser = argparse.ArgumentParser(prog="roco-router")
     parser.add_argument("--listen", action="append", default=None)
     parser.add_argument(
@@ -60,7 +72,11 @@ def main(argv: list[str] | None = None) -> int:
     except (OSError, ValueError) as exc:
         print(f"roco router: {Settings.env_name('security')}: {exc}", file=sys.stderr)
         return 2
-    refusals = watch_refusals(read.run_dir) if security else None
+    if security:
+        refusals: RefusalLog | None = watch_refusals(read.run_dir)
+    else:
+        refusals = None
+        capture_zenoh_log(lambda _line: False)
     try:
         session = open_session(conf)
     except ValueError as exc:  # a ZENOH_RUNTIME Zenoh cannot read
@@ -75,12 +91,16 @@ def main(argv: list[str] | None = None) -> int:
     signal.signal(signal.SIGTERM, on_signal)
     signal.signal(signal.SIGINT, on_signal)
     acl = f"; access control from {security}" if security else "; no access control"
-    print(f"roco router {session.zid()} listening on {', '.join(listen)}{acl}", flush=True)
+    listening = f"roco router {session.zid()} listening on {', '.join(listen)}{acl}"
+    print(listening, flush=True)
+    if (why := mark_ready(read.ready_file, listening)) is not None:
+        print(f"roco router: {why}", file=sys.stderr, flush=True)
     # wait with a timeout: a signal delivered to one of Zenoh's threads does not wake a main
     # thread blocked without one, and its handler would then never run (seen: a router left
     # running after SIGTERM)
     while not done.wait(SIGNAL_POLL_S):
         pass
+    clear_ready(read.ready_file)
     if asked is not None:
         asked.undeclare()
     session.close()

@@ -309,6 +309,21 @@ def interface(spec: SystemSpec, agent: str) -> Interface:
     return Interface(agent, tuple(sends), tuple(receives))
 
 
+def asked(spec: SystemSpec, agent: str) -> tuple[str, ...]:
+    """The agents ``agent`` asks: the other end of each channel on which it initiates a protocol,
+    each once, in the channels' order; an external role (``x_fipa``) is not an agent of the
+    platform and is left out. An agent is ready once it has seen these (services/runtime/agent.py
+    ``Agent.ready``)."""
+    found: list[str] = []
+    for ch in spec.channels:
+        if agent not in ch.ends or not any(cp.initiator == agent for cp in ch.protocols):
+            continue
+        peer = ch.ends[1] if ch.ends[0] == agent else ch.ends[0]
+        if peer != agent and peer in spec.agent_names and peer not in found:
+            found.append(peer)
+    return tuple(found)
+
+
 def _langs(cp: ChannelProtocol, performative: str) -> tuple[str, ...]:
     lang = cp.languages.get(performative)
     if lang is None:

@@ -143,8 +143,8 @@ class Grants:
 
     def own_token(self, key: str) -> None:
         """Hold the liveliness token ``key`` and ask whether it is there (a liveliness query on
-        that key alone: the health check of the identity's container, services/runtime/health.py,
-        runs with its credentials only)."""
+        that key alone: the health probe services/runtime/health.py, run in the identity's
+        container, has its credentials only)."""
         self.allow("ingress", "liveliness_token", key)
         self.allow("ingress", "liveliness_query", key)
         self.allow("egress", "liveliness_token", key)

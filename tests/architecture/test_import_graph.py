@@ -19,12 +19,20 @@ AGENTS = ("coordinator", "human_interface", "planner", "knowledge", "task_execut
 LAYERS = {
     "shared.fipa_codec": set(),
     "shared.settings": set(),
+    "shared.ready_file": set(),
     "services.spec": {"shared.fipa_codec", "shared.settings"},
     "services.security": {"shared.settings"},
-    "services.runtime": {"shared.fipa_codec", "shared.settings", "services.spec", "services.security"},
+    "services.runtime": {
+        "shared.fipa_codec",
+        "shared.settings",
+        "shared.ready_file",
+        "services.spec",
+        "services.security",
+    },
 }
 """The bottom layers and everything each may import (README.md, "How it is built": the codec and
-the settings, the specification's data model, the credentials' format, the agent runtime)."""
+the settings, the readiness file, the specification's data model, the credentials' format, the
+agent runtime)."""
 TOOLS = (
     "services.spec_check",
     "services.spec_live",
@@ -145,6 +153,7 @@ def test_the_codec_and_the_robot_import_nothing_above_them() -> None:
     graph = import_graph()
     assert graph["shared.fipa_codec"] <= set()
     assert graph["shared.settings"] <= set()
+    assert graph["shared.ready_file"] <= set()
     for package, imports in graph.items():
         if package.startswith("velma."):
             assert all(p.startswith(("velma.", "shared.")) for p in imports), (package, imports)

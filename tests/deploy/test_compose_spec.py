@@ -19,6 +19,7 @@ from services.deploy.compose import (
     AGENT_EXTRAS,
     COMPOSE_FILE,
     MOUNTS,
+    READY_FILE,
     ComposeError,
     check,
     difference,
@@ -77,10 +78,10 @@ def test_the_six_agents_services_are_what_the_fleet_needs() -> None:
         assert service["command"] == ["python", "-m", "services.runtime.main", name]
         assert service["healthcheck"] == {
             "interval": "5s",
-            "timeout": "10s",
+            "timeout": "5s",
             "retries": 5,
             "start_period": "120s",
-            "test": ["CMD", "python", "-m", "services.runtime.health", name],
+            "test": ["CMD", "cat", READY_FILE],
         }
         extra_env = {
             "a_km": {"ROCO_KM_STORE": "/var/lib/roco/km/{run}"},
@@ -93,11 +94,11 @@ def test_the_six_agents_services_are_what_the_fleet_needs() -> None:
         assert service.get("cap_add") == (["SYS_NICE"] if name == "ag_ex" else None)
         waits = {o: {"condition": "service_healthy"} for o in AGENTS if o != "a_hi"} if name == "a_hi" else {}
         if name == "ag_ex":  # the robot it drives: the world, whose shared memory and processes it sees
-            waits = {"world": {"condition": "service_started"}}
+            waits = {"world": {"condition": "service_healthy"}}
             assert service["ipc"] == service["pid"] == "service:world"
         assert service["depends_on"] == {**after_router, **waits}
         assert set(service) <= {
-            "image", "build", "init", "restart", "volumes", "healthcheck",
+            "image", "build", "init", "restart", "logging", "volumes", "healthcheck",
             "command", "environment", "depends_on", "cap_add", "ipc", "pid",
         }  # fmt: skip
     world = services["world"]  # Velma's hardware: no Zenoh, not an agent
@@ -110,13 +111,12 @@ def test_the_other_services_keep_their_settings() -> None:
     assert services["certs"]["restart"] == "no" and services["certs"]["healthcheck"] == {"disable": True}
     assert services["router"]["ports"] == ["${ROCO_ROUTER_PUBLISH:-127.0.0.1:7447}:7447"]
     assert services["router"]["environment"]["ROCO_NEW_RUN"] == "1"
-    assert services["router"]["healthcheck"]["test"] == [
-        "CMD", "python", "-m", "services.runtime.health", "router", "--router", "tcp/127.0.0.1:7447",
-    ]  # fmt: skip
+    assert services["router"]["healthcheck"]["test"] == ["CMD", "cat", READY_FILE]
     assert services["recorder"]["stop_grace_period"] == "60s"
     assert services["viewer"]["volumes"] == ["${ROCO_RUNS:-../runs}:/runs:ro"]
     viewer_health = services["viewer"]["healthcheck"]["test"]
-    assert viewer_health[-4:] == ["--tcp", "127.0.0.1:9876", "--tcp", "127.0.0.1:9090"]
+    assert viewer_health[:3] == ["CMD", "bash", "-c"]
+    assert "/dev/tcp/127.0.0.1/9876" in viewer_health[3] and "/dev/tcp/127.0.0.1/9090" in viewer_health[3]
     assert config(COMPOSE_FILE.read_text())["x-roco"]["volumes"] == list(MOUNTS)
 
 
@@ -134,8 +134,7 @@ def test_a_new_agent_gets_a_service_and_the_last_agent_waits_for_it(tmp_path: Pa
     assert list(services) == ["certs", "router", "recorder", "world", *AGENTS, "a_wt", "viewer"]
     new, plain = services["a_wt"], services["a_pl"]
     assert new["command"] == ["python", "-m", "services.runtime.main", "a_wt"]
-    assert new["healthcheck"]["test"] == ["CMD", "python", "-m", "services.runtime.health", "a_wt"]
-    for key in set(plain) - {"command", "healthcheck", "volumes"}:
+    for key in set(plain) - {"command", "volumes"}:
         assert new[key] == plain[key], key
     assert new["volumes"] == [v.replace("a_pl", "a_wt") for v in plain["volumes"]]
     assert services["a_hi"]["depends_on"]["a_wt"] == {"condition": "service_healthy"}

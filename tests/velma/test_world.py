@@ -136,17 +136,33 @@ def test_the_safety_layer_holds_the_arms_against_gravity() -> None:
     assert np.abs(measured[MEASURED.slice("q")][HELD] - q0[HELD]).max() < 1e-3  # without: 1.7 rad
 
 
+def says(path: Path) -> str:
+    """What a file that may be replaced or removed meanwhile holds ("" when absent)."""
+    try:
+        return path.read_text()
+    except FileNotFoundError:
+        return ""
+
+
 def test_python_m_velma_world_serves_the_run_folder_and_cleans_up_on_sigterm(tmp_path: Path) -> None:
+    """...and says it is ready (its ready file, a container's health check) while it serves."""
+    ready = tmp_path / "world.ready"
+    ready.write_text("left by a world that was killed\n")
     world = subprocess.Popen(
         [sys.executable, "-m", "velma.world", "--run-dir", str(tmp_path)],
         stderr=subprocess.PIPE,
+        stdout=subprocess.DEVNULL,
         text=True,
+        env={**os.environ, "ROCO_READY_FILE": str(ready)},
     )
     try:
         deadline = time.monotonic() + 120
         while (name := link_name(tmp_path)) is None and world.poll() is None and time.monotonic() < deadline:
             time.sleep(0.05)  # polls for the file the world writes once its link exists
         assert name is not None, world.stderr.read() if world.poll() is not None and world.stderr else ""
+        while not says(ready).startswith("velma.world: serving") and time.monotonic() < deadline:
+            time.sleep(0.05)  # written just after the link's name
+        assert says(ready).startswith(f"velma.world: serving the robot link {name} ")
         controller = Controller(name)
         controller.run(HOLD_CYCLES)
         controller.close()
@@ -156,7 +172,7 @@ def test_python_m_velma_world_serves_the_run_folder_and_cleans_up_on_sigterm(tmp
         if world.poll() is None:
             world.kill()
             world.wait()
-    assert link_name(tmp_path) is None and not (SHM_DIR / name).exists()
+    assert link_name(tmp_path) is None and not (SHM_DIR / name).exists() and not ready.exists()
     final = observe_scene((tmp_path / FINAL_FILE).read_bytes())  # the kitchen as the world left it
     sim = SimulatedVelma()
     first = np.zeros(sim.scene_size)

@@ -5,7 +5,9 @@ It makes the robot link and writes the link's name to ``RUN/world.link`` (velma/
 ``LINK_FILE``, written whole: a reader sees the old name or the new one), where a controller
 finds it (``link_name``); it serves until SIGTERM or SIGINT, then writes the kitchen as it is
 then to ``RUN/world_final.f64`` (``FINAL_FILE``: the time and MuJoCo's ``qpos`` as raw float64,
-for judging the run, e.g. by ``roco chaos``) and removes the link and its file.
+for judging the run, e.g. by ``roco chaos``) and removes the link and its file. Once it serves
+the link it says so on stdout and writes ``ROCO_READY_FILE`` (shared/ready_file.py: a
+container's health check reads it), which it removes when it stops.
 Settings come from the options, else from the fleet's environment: ``--run-dir``
 (``ROCO_RUN_DIR``), ``--realtime`` (``ROCO_REALTIME=1``), ``--seed`` (``ROCO_SEED``: the jar's
 content jitter), ``--pose-seed`` (``ROCO_POSE_SEED``: the jar's and the bowl's poses). A bad
@@ -24,6 +26,8 @@ from types import FrameType
 
 import numpy as np
 
+from shared.ready_file import clear as clear_ready
+from shared.ready_file import mark as mark_ready
 from shared.settings import Settings
 from velma.shm import remove_orphans
 from velma.world.files import FINAL_FILE, LINK_FILE, link_name, write_whole
@@ -64,6 +68,8 @@ def main(argv: list[str] | None = None) -> int:
         print(f"velma.world: no run folder {run_dir or '(give --run-dir or ROCO_RUN_DIR)'}", file=sys.stderr)
         return 2
     run_dir = Path(run_dir)
+    ready = Settings.from_env(only=("ready_file",)).ready_file
+    clear_ready(ready)  # a file a killed world left does not speak for this one
     stop = threading.Event()
 
     def on_signal(signum: int, frame: FrameType | None) -> None:
@@ -77,11 +83,16 @@ def main(argv: list[str] | None = None) -> int:
     named = run_dir / LINK_FILE
     try:
         write_whole(named, (link.name + "\n").encode())
+        serving = f"velma.world: serving the robot link {link.name} ({named})"
+        print(serving, flush=True)
+        if (why := mark_ready(ready, serving)) is not None:
+            print(f"velma.world: {why}", file=sys.stderr, flush=True)
         serve(sim, link, realtime=args.realtime, should_stop=stop.is_set)
         final = np.zeros(sim.scene_size)
         sim.scene(final)
         write_whole(run_dir / FINAL_FILE, final.tobytes())
     finally:
+        clear_ready(ready)
         if link_name(run_dir) == link.name:
             with contextlib.suppress(FileNotFoundError):
                 named.unlink()
