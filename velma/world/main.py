@@ -52,22 +52,27 @@ def _parser() -> argparse.ArgumentParser:
     return ap
 
 
-def main(argv: list[str] | None = None) -> int:
-    """Run the world (module docstring); the exit code."""
-    args = _parser().parse_args(argv)
+def _inputs(args: argparse.Namespace) -> tuple[int, int | None, Path]:
+    """The seeds (the options', else the environment's) and the run folder of ``args``.
+    Raises ValueError for a seed that is not an integer ≥ 0 or a run folder that is not one."""
     unset = [f for f, given in (("seed", args.seed), ("pose_seed", args.pose_seed)) if given is None]
-    try:  # the environment's seeds where the options give none
-        read = Settings.from_env(only=unset)
-    except ValueError as exc:  # a seed that is not an integer ≥ 0
-        print(f"velma.world: {exc}", file=sys.stderr)
-        return 2
+    read = Settings.from_env(only=unset)
     seed = args.seed if args.seed is not None else read.seed
     pose_seed = args.pose_seed if args.pose_seed is not None else read.pose_seed
     run_dir: Path | None = args.run_dir
     if run_dir is None or not Path(run_dir).is_dir():
-        print(f"velma.world: no run folder {run_dir or '(give --run-dir or ROCO_RUN_DIR)'}", file=sys.stderr)
+        raise ValueError(f"no run folder {run_dir or '(give --run-dir or ROCO_RUN_DIR)'}")
+    return seed, pose_seed, Path(run_dir)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run the world (module docstring); the exit code."""
+    args = _parser().parse_args(argv)
+    try:
+        seed, pose_seed, run_dir = _inputs(args)
+    except ValueError as exc:
+        print(f"velma.world: {exc}", file=sys.stderr)
         return 2
-    run_dir = Path(run_dir)
     ready = Settings.from_env(only=("ready_file",)).ready_file
     clear_ready(ready)  # a file a killed world left does not speak for this one
     stop = threading.Event()
