@@ -37,6 +37,7 @@ from __future__ import annotations
 
 import json
 import re
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -542,15 +543,33 @@ def _named_difference(text: str, spec: SystemSpec) -> str | None:
     return None
 
 
-COMPOSE = GeneratedFile(
-    what="compose file",
-    relative=IN_CHECKOUT,
-    command="roco deploy compose",
-    max_bytes=MAX_COMPOSE_BYTES,
-    error=ComposeError,
-    render=render,
-    named_difference=_named_difference,
-    wrote=lambda spec: f"one service per agent ({', '.join(spec.launch_order)})",
+def compose_generated(
+    what: str,
+    relative: Path,
+    render: Callable[[SystemSpec], str],
+    named_difference: Callable[[str, SystemSpec], str | None],
+    wrote: Callable[[SystemSpec], str],
+) -> GeneratedFile:
+    """A file of the compose deployment at ``relative`` in a checkout, written by `roco deploy
+    compose` (``GeneratedFile``'s other arguments), bounded and failing as the compose file."""
+    return GeneratedFile(
+        what=what,
+        relative=relative,
+        command="roco deploy compose",
+        max_bytes=MAX_COMPOSE_BYTES,
+        error=ComposeError,
+        render=render,
+        named_difference=named_difference,
+        wrote=wrote,
+    )
+
+
+COMPOSE = compose_generated(
+    "compose file",
+    IN_CHECKOUT,
+    render,
+    _named_difference,
+    lambda spec: f"one service per agent ({', '.join(spec.launch_order)})",
 )
 """``deploy/compose.yaml`` (services/spec/generated.py): ``read``, ``difference``, ``check``,
 ``write``, ``bring_up_to_date``."""

@@ -19,8 +19,7 @@ import json
 import re
 from pathlib import Path
 
-from services.deploy.compose import MAX_COMPOSE_BYTES, ComposeError
-from services.spec.generated import GeneratedFile
+from services.deploy.compose import compose_generated
 from services.spec.model import SystemSpec
 
 IN_CHECKOUT = Path("deploy", "compose.netfault.yaml")
@@ -70,15 +69,12 @@ def _named_difference(text: str, spec: SystemSpec) -> str | None:
     return f"no NET_ADMIN for {', '.join(missing)}" if missing else None
 
 
-NETFAULT = GeneratedFile(
-    what="compose override",
-    relative=IN_CHECKOUT,
-    command="roco deploy compose",
-    max_bytes=MAX_COMPOSE_BYTES,
-    error=ComposeError,
-    render=render,
-    named_difference=_named_difference,
-    wrote=lambda spec: f"NET_ADMIN for {', '.join(services(spec))}",
+NETFAULT = compose_generated(
+    "compose override",
+    IN_CHECKOUT,
+    render,
+    _named_difference,
+    lambda spec: f"NET_ADMIN for {', '.join(services(spec))}",
 )
 """``deploy/compose.netfault.yaml`` (services/spec/generated.py)."""
 check = NETFAULT.check
