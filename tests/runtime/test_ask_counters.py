@@ -12,19 +12,7 @@ import pytest
 
 from services.runtime import counters, keys
 from services.runtime.counters import CountersReport, ask_counters
-
-
-@dataclass
-class _Payload:
-    data: bytes
-
-    def to_bytes(self) -> bytes:
-        return self.data
-
-
-@dataclass
-class _Sample:
-    payload: _Payload
+from tests.support.zenoh_sample import sample
 
 
 @dataclass
@@ -55,7 +43,7 @@ class _Session:
             return
         for a in self.agents:
             report = CountersReport(agent=a, time=0.0, counters={"handler_errors": 0})
-            self.on_answer(_Sample(_Payload(msgspec.json.encode(report))))
+            self.on_answer(sample(msgspec.json.encode(report)))
 
 
 def test_an_ask_lost_is_asked_again_until_every_agent_answered(monkeypatch: pytest.MonkeyPatch) -> None:

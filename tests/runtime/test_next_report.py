@@ -14,6 +14,7 @@ import msgspec
 from services.runtime import keys
 from services.runtime.human import HumanReport, ReportKind
 from services.runtime.reports import MissedOutcomes, ReportFilter, next_report
+from tests.support.zenoh_sample import sample
 
 OUTCOME = HumanReport(
     request_id="mine", kind=ReportKind.SUCCEEDED, text="pour the jar into the bowl: succeeded"
@@ -35,19 +36,6 @@ class _Reply:
 
 
 @dataclass
-class _Sample:
-    payload: Any
-
-
-@dataclass
-class _Payload:
-    data: bytes
-
-    def to_bytes(self) -> bytes:
-        return self.data
-
-
-@dataclass
 class _Session:
     """a_hi's outcomes queryable: it kept the outcome this session missed."""
 
@@ -55,7 +43,7 @@ class _Session:
 
     def get(self, key: str, timeout: float) -> list[_Reply]:
         self.asked.append(key)
-        return [_Reply(_Sample(_Payload(msgspec.json.encode([OUTCOME]))))]
+        return [_Reply(sample(msgspec.json.encode([OUTCOME])))]
 
 
 def test_the_outcome_is_asked_for_while_other_requests_reports_keep_coming() -> None:
