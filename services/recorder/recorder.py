@@ -358,6 +358,7 @@ def main() -> int:
         )
     writer.close()
     transport.close()
+    log.info("recording stopped: the record holds %d communicate(s)", writer.seq)
     if monitor is not None:  # what it held back, evaluated
         monitor.finish()
     if rerun is not None:  # a viewer: Rerun closes this part and merges all into <run>/recording.rrd

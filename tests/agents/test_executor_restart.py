@@ -175,6 +175,7 @@ def test_the_world_survives_a_restart_of_ag_ex(fleet: tuple[Fleet, zenoh.Session
         assert back.sim_time >= before.stamp, how  # the simulation went on from where it was
         jar_now = _jar(a_ta.observe())
         # the new controller takes the arm at its measured joints: the payload sags it ≈ 1 cm
-        assert math.dist(jar_now, before_jar) < 0.02, (how, jar_now, before_jar)
+        # (20.5 mm seen once in a loaded full suite); a dropped jar falls tens of cm
+        assert math.dist(jar_now, before_jar) < 0.03, (how, jar_now, before_jar)
         assert jar_now[2] - jar0[2] > 0.05, how  # not back on the shelf
         assert world.poll() is None and f.processes["world"] is world, how  # never restarted
