@@ -7,7 +7,7 @@ These are a_hi's own terms; a :class:`Command` becomes an L_HC ``HumanCommand`` 
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 from services.agents.human_interface.task_words import TaskWords, default_task_words
 from shared.fipa_codec.languages.l_hc import TaskAtom
@@ -24,23 +24,35 @@ SURFACE = "table"
 SAFE_SURFACE); "put the cup down" is read as ``place(cup, table)``."""
 
 
+ReadAs = tuple[tuple[str, str], ...]
+"""Typos corrected in a sentence: (the word as written, the word a_hi read), in order."""
+
+
 @dataclass(frozen=True)
 class Command:
-    """Do ``goal``; ``priority`` larger is more urgent; ``deadline_s`` seconds from acceptance."""
+    """Do ``goal``; ``priority`` larger is more urgent; ``deadline_s`` seconds from acceptance;
+    ``read_as``: the typos corrected to read it (said back; not part of its equality)."""
 
     goal: TaskAtom
     priority: int = 0
     deadline_s: float | None = None
+    read_as: ReadAs = field(default=(), compare=False)
 
 
 @dataclass(frozen=True)
 class Stop:
-    """Stop every command that is still open (the robot first puts down what it holds)."""
+    """Stop every command that is still open (the robot first puts down what it holds);
+    ``read_as`` as for :class:`Command`."""
+
+    read_as: ReadAs = field(default=(), compare=False)
 
 
 @dataclass(frozen=True)
 class StatusRequest:
-    """ "What are you doing?": the state of every command a_co holds."""
+    """ "What are you doing?", "are you done yet?", "how long will it take?": the state of every
+    command a_co holds; ``read_as`` as for :class:`Command`."""
+
+    read_as: ReadAs = field(default=(), compare=False)
 
 
 Intent = Command | Stop | StatusRequest
@@ -61,6 +73,17 @@ class Incomplete(NotUnderstood):
         self.missing = missing
 
 
+class Misspelt(NotUnderstood):
+    """A word a_hi does not know is as near to two or more of its words, each making a sentence
+    of it ("pout": "pour" or "put"); the message names the word and the candidates, which are
+    ``word`` and ``candidates``, rather than guessing."""
+
+    def __init__(self, message: str, word: str, candidates: tuple[str, ...]) -> None:
+        super().__init__(message)
+        self.word = word
+        self.candidates = candidates
+
+
 class Ambiguous(NotUnderstood):
     """A reference names more than one thing; the message asks which ("Which cup: the one in
     the cabinet or the one on the table?"). ``at`` is the reference's first token, ``candidates``
@@ -75,6 +98,15 @@ class Ambiguous(NotUnderstood):
 class UnknownReference(NotUnderstood):
     """A reference names nothing the knowledge base holds ("the small jar", "the cup on the
     table" when the only cup is in the cabinet); the message says what there is."""
+
+
+def said_back(read_as: ReadAs) -> str:
+    """The typos corrected, said back: "I read 'doimg' as 'doing'." ("" when there are none)."""
+    if not read_as:
+        return ""
+    pairs = [f"'{written}' as '{read}'" for written, read in read_as]
+    said = pairs[0] if len(pairs) == 1 else ", ".join(pairs[:-1]) + " and " + pairs[-1]
+    return f"I read {said}."
 
 
 def show(name: str) -> str:
@@ -111,10 +143,13 @@ __all__ = [
     "Command",
     "Incomplete",
     "Intent",
+    "Misspelt",
     "NotUnderstood",
+    "ReadAs",
     "StatusRequest",
     "Stop",
     "UnknownReference",
     "describe",
+    "said_back",
     "show",
 ]

@@ -32,7 +32,11 @@ location.
 
 from __future__ import annotations
 
+import dataclasses
 import functools
+import itertools
+import math
+import re
 from dataclasses import dataclass, field
 
 from services.agents.human_interface.grammar import ParseFailure, Word
@@ -43,14 +47,19 @@ from services.agents.human_interface.intents import (
     Command,
     Incomplete,
     Intent,
+    Misspelt,
     NotUnderstood,
+    ReadAs,
     StatusRequest,
     Stop,
     UnknownReference,
     describe,
+    said_back,
     show,
 )
 from services.agents.human_interface.meaning import Context, Reader, Reply, loc_count, loc_depth
+from services.agents.human_interface.spelling import candidates, known_words, max_distance
+from services.agents.human_interface.stop import StopWords, command_openings
 from services.agents.human_interface.task_grammar import Grammar, default_grammar
 from services.agents.human_interface.vocabulary import KNOWLEDGE_FILES, Vocabulary
 
@@ -212,11 +221,15 @@ def interpret(
     updated (the last object named, a question asked or answered). ``grammar``: grammar.lark with
     the frames of the task words (default: those of tasks.toml,
     :func:`~.task_grammar.default_grammar`). Raises :class:`NotUnderstood` — :class:`Incomplete`,
-    :class:`Ambiguous` (a question: the next sentence may answer it) or
-    :class:`UnknownReference` — with one line for the person; :class:`NotUnderstood` also for a
-    control character other than :data:`ALLOWED_CONTROLS` or a negative or zero deadline. While a
-    question is open, a sentence with no verb (no new request) that does not answer it raises
-    :class:`Ambiguous` with the question again, which stays open."""
+    :class:`Ambiguous` (a question: the next sentence may answer it),
+    :class:`UnknownReference` or :class:`Misspelt` — with one line for the person;
+    :class:`NotUnderstood` also for a control character other than :data:`ALLOWED_CONTROLS` or a
+    negative or zero deadline. While a question is open, a sentence with no verb (no new request)
+    that does not answer it raises :class:`Ambiguous` with the question again, which stays open.
+
+    A sentence holding words a_hi does not know is read with its typos corrected when one
+    reading is clearly meant (:func:`_corrected`); the intent's ``read_as`` and the first words
+    of a refusal or question say so ("I read 'doimg' as 'doing'.")."""
     vocab = vocabulary if vocabulary is not None else default_vocabulary()
     talk = dialogue if dialogue is not None else Dialogue()
     rules = grammar if grammar is not None else default_grammar()
@@ -224,6 +237,148 @@ def interpret(
     if control is not None:
         raise control  # a refused line: the question asked, if any, stays open
     words = rules.tag(sentence, vocab)
+    fixed = _corrected(sentence, words, priority, vocab, talk, rules)
+    if fixed is None:
+        return _interpret_words(sentence, words, priority, vocab, talk, rules)
+    text, words, read_as = fixed
+    if not words:  # a stop, once corrected ("stpo"): acted on, whatever else the line holds
+        talk.pending = None
+        return Stop(read_as)
+    try:
+        intent = _interpret_words(text, words, priority, vocab, talk, rules)
+    except NotUnderstood as exc:
+        raise _prefixed(exc, said_back(read_as)) from None
+    return dataclasses.replace(intent, read_as=read_as)
+
+
+MAX_CORRECTED_TOKENS = 24
+"""A sentence of more tokens is not corrected (it bounds the work: each reading tried is a parse)."""
+MAX_TYPO_WORDS = 3
+"""A sentence with more unknown words that could be typos is not corrected (nonsense, most
+likely); the first unknown word is named, as for any sentence not understood."""
+MAX_READINGS_TRIED = 8
+"""At most this many corrected readings of one sentence are tried (one per combination of the
+candidates of its unknown words); with more, it is not corrected."""
+
+
+@functools.cache
+def _stop_words(grammar: Grammar) -> StopWords:
+    """a_hi's stop matcher (stop.py) for ``grammar``'s command words, built once per grammar."""
+    return StopWords(command_openings(grammar))
+
+
+def _corrected(
+    sentence: str,
+    words: tuple[Word, ...],
+    priority: int,
+    vocab: Vocabulary,
+    talk: Dialogue,
+    grammar: Grammar,
+) -> tuple[str, tuple[Word, ...], ReadAs] | None:
+    """``sentence`` with its typos corrected, when one reading is clearly meant: (the corrected
+    words as text, their tokens, the corrections), the tokens empty when the corrected line is
+    a stop (stop.py); None when it needs no correction or none reads.
+
+    The unknown words (``WORD`` tokens) of at least :data:`~.spelling.MIN_LETTERS` letters get
+    their candidates (spelling.py); each combination of candidates is a reading, kept when the
+    corrected line is a stop or parses (a command, a status request, a question back, an answer
+    to the question open). One reading kept: it is taken. More than one: :class:`Misspelt`
+    names the first word they differ in and its candidates. Bounded: :data:`MAX_CORRECTED_TOKENS`,
+    :data:`MAX_TYPO_WORDS`, :data:`MAX_READINGS_TRIED`."""
+    unknown = [w for w in words if w.kind == "WORD"]
+    if not unknown or len(words) > MAX_CORRECTED_TOKENS:
+        return None
+    typos = [w for w in unknown if max_distance(w.text) > 0]
+    if not typos or len(typos) > MAX_TYPO_WORDS:
+        return None
+    known = known_words(grammar.phrases, vocab)
+    options = [(w, candidates(w.text, known)) for w in typos]
+    options = [(w, c) for w, c in options if c]
+    if not options or math.prod(len(c) for _, c in options) > MAX_READINGS_TRIED:
+        return None
+    readings: list[tuple[dict[int, str], str, tuple[Word, ...]]] = []
+    for choice in itertools.product(*(c for _, c in options)):
+        chosen = {w.index: c for (w, _), c in zip(options, choice, strict=True)}
+        text = " ".join(chosen.get(w.index, w.text) for w in words)
+        if _stop_words(grammar).match(_replaced(sentence, words, chosen) or text) is not None:
+            readings.append((chosen, text, ()))
+            continue
+        fixed = grammar.tag(text, vocab)
+        if _reads(fixed, priority, vocab, talk, grammar):
+            readings.append((chosen, text, fixed))
+    if not readings:
+        return None
+    if len(readings) > 1:
+        at = next(i for i in sorted(readings[0][0]) if len({r[0][i] for r in readings}) > 1)
+        said = next(w.text for w in typos if w.index == at)
+        options_said = tuple(sorted({r[0][at] for r in readings}))
+        quoted = [f"'{o}'" for o in options_said]
+        meant = ", ".join(quoted[:-1]) + " or " + quoted[-1]
+        raise Misspelt(
+            f"I do not know '{said}': did you mean {meant}? Say it again with the word you meant.",
+            said,
+            options_said,
+        )
+    chosen, text, fixed = readings[0]
+    read_as = tuple((w.text, chosen[w.index]) for w in words if w.index in chosen)
+    return text, fixed, read_as
+
+
+def _replaced(sentence: str, words: tuple[Word, ...], chosen: dict[int, str]) -> str | None:
+    """``sentence`` as written, each corrected word replaced (its marks kept, for stop.py's
+    clauses); None when a word is not found as written ("what's": normalised)."""
+    out = sentence
+    for w in words:
+        if w.index in chosen:
+            pattern = re.compile(rf"(?<![^\W_]){re.escape(w.text)}(?![^\W_])", re.IGNORECASE)
+            out, n = pattern.subn(chosen[w.index], out, count=1)
+            if n == 0:
+                return None
+    return out
+
+
+def _reads(
+    words: tuple[Word, ...], priority: int, vocab: Vocabulary, talk: Dialogue, grammar: Grammar
+) -> bool:
+    """Whether the tokens ``words`` parse and mean something: an intent, a question back or a
+    refusal of what they name — an answer only while a question is open. Changes nothing."""
+    ctx = Context(
+        vocab,
+        last=talk.last,
+        among=talk.pending.candidates if talk.pending else (),
+        token_seconds={w.index: w.seconds for w in words if w.seconds is not None},
+        frames=grammar.frames,
+    )
+    try:
+        outcome = _read(words, priority, ctx, grammar)
+    except ParseFailure:
+        return False
+    except NotUnderstood:
+        return True
+    return not isinstance(outcome, Reply) or talk.pending is not None
+
+
+def _prefixed(exc: NotUnderstood, prefix: str) -> NotUnderstood:
+    """``exc`` with ``prefix`` before its message (its kind and data kept)."""
+    text = f"{prefix} {exc}"
+    if isinstance(exc, Ambiguous):
+        return Ambiguous(text, exc.at, exc.candidates)
+    if isinstance(exc, Incomplete):
+        return Incomplete(text, exc.missing)
+    if isinstance(exc, Misspelt):
+        return Misspelt(text, exc.word, exc.candidates)
+    return type(exc)(text)
+
+
+def _interpret_words(
+    sentence: str,
+    words: tuple[Word, ...],
+    priority: int,
+    vocab: Vocabulary,
+    talk: Dialogue,
+    rules: Grammar,
+) -> Intent:
+    """:func:`interpret` of the tagged ``words`` of ``sentence``."""
     bad = _bad_deadline(words)
     if bad is not None:
         raise bad
@@ -317,6 +472,7 @@ __all__ = [
     "Grammar",
     "Incomplete",
     "Intent",
+    "Misspelt",
     "NotUnderstood",
     "Pending",
     "StatusRequest",

@@ -254,11 +254,8 @@ class Reader:
         request: Node | None = None
         for c in tree.children:
             if isinstance(c, Tree) and c.data in ("pre", "post"):
-                tok = c.children[0]
-                assert isinstance(tok, Token)
-                if tok.type == "URGENT":
-                    urgent = True
-                elif tok.type == "DEADLINE":
+                urgent = urgent or _has(c, "URGENT")
+                for tok in _tokens(c, "DEADLINE"):
                     deadline = self.ctx.token_seconds.get(int(tok.start_pos or 0))
             elif isinstance(c, Tree):
                 request = c

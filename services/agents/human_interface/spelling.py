@@ -1,0 +1,108 @@
+"""Typos in the words a_hi knows: the candidates for a word it does not know.
+
+A word of a sentence that is none of a_hi's words (grammar.py tags it ``WORD``) may be a typo of
+one of them: "doimg" of "doing", "stpo" of "stop", "tabel" of "table". Its **candidates** are the
+words a_hi knows (:func:`known_words`: the words of grammar.lark's closed-class phrases and of
+the task frames, the number words and units of a deadline, the nouns and adjectives of the
+vocabulary) within a small Damerau-Levenshtein distance (the optimal-string-alignment variant:
+insertions, deletions, substitutions and transpositions of two adjacent letters, each costing
+1; :func:`distance`): 1 for a word of 4 to 7 letters, 2 for one of 8 or more
+(:func:`max_distance`); a word of fewer than 4 letters, or of more than :data:`MAX_LETTERS`, has
+none. Only the candidates at the smallest distance found are kept: "jarr" is "jar" (1), not
+also a word at 2.
+
+Which candidate is meant, if any, is language.py's to decide (it reads the sentence with each);
+this module only finds them. The work is bounded: per word, one distance per known word of a
+length within the limit, each over at most (:data:`MAX_LETTERS` + 1)² cells and cut short once
+a row exceeds the limit.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Collection, Mapping
+
+from services.agents.human_interface.grammar import NUMBERS, UNITS
+from services.agents.human_interface.vocabulary import Vocabulary
+
+MIN_LETTERS = 4
+"""A word of fewer letters is not corrected (too many words are one edit from it)."""
+LONG_LETTERS = 8
+"""A word of this many letters or more may be two edits from its candidate."""
+MAX_LETTERS = 24
+"""A longer word is not corrected (it bounds the work of one distance)."""
+
+
+def max_distance(word: str) -> int:
+    """The largest distance of a candidate for ``word``: 0 (not corrected) below
+    :data:`MIN_LETTERS` letters or above :data:`MAX_LETTERS`, 1 below :data:`LONG_LETTERS`,
+    else 2."""
+    n = len(word)
+    if n < MIN_LETTERS or n > MAX_LETTERS:
+        return 0
+    return 1 if n < LONG_LETTERS else 2
+
+
+def distance(a: str, b: str, limit: int) -> int:
+    """The optimal-string-alignment distance of ``a`` and ``b`` (Damerau-Levenshtein without
+    editing a substring twice: each insertion, deletion, substitution or transposition of two
+    adjacent characters costs 1), or ``limit + 1`` as soon as it is known to exceed ``limit``."""
+    if abs(len(a) - len(b)) > limit:
+        return limit + 1
+    before: list[int] = []  # row i - 2
+    above = list(range(len(b) + 1))  # row i - 1
+    for i in range(1, len(a) + 1):
+        row = [i] + [0] * len(b)
+        for j in range(1, len(b) + 1):
+            cost = 0 if a[i - 1] == b[j - 1] else 1
+            row[j] = min(above[j] + 1, row[j - 1] + 1, above[j - 1] + cost)
+            if i > 1 and j > 1 and a[i - 1] == b[j - 2] and a[i - 2] == b[j - 1]:
+                row[j] = min(row[j], before[j - 2] + 1)
+        if min(row) > limit:
+            return limit + 1
+        before, above = above, row
+    return min(above[-1], limit + 1)
+
+
+def known_words(phrases: Mapping[tuple[str, ...], str], vocabulary: Vocabulary) -> frozenset[str]:
+    """The words a_hi knows, as candidates: each word of the closed-class ``phrases`` (the
+    tagger's: grammar.lark's and the task frames'), of the number words and units of a deadline,
+    and of the ``vocabulary``'s nouns and adjectives; words of letters only."""
+    words: set[str] = set()
+    for phrase in phrases:
+        words.update(phrase)
+    for number in NUMBERS:
+        words.update(number.split())
+    words.update(UNITS)
+    for noun in vocabulary.nouns:
+        words.update(noun)
+    for thing in vocabulary.things:
+        words.update(thing.adjectives)
+    return frozenset(w for w in words if w.isalpha())
+
+
+def candidates(word: str, known: Collection[str]) -> tuple[str, ...]:
+    """The words of ``known`` nearest to ``word`` within :func:`max_distance` (sorted; empty when
+    there is none, ``word`` is not corrected, or it is itself a known word: a word of a phrase,
+    "what", is no typo)."""
+    limit = max_distance(word)
+    if limit == 0 or word in known:
+        return ()
+    best, found = limit + 1, []
+    for k in known:
+        d = distance(word, k, min(limit, best))
+        if d < best:
+            best, found = d, [k]
+        elif d == best and d <= limit:
+            found.append(k)
+    return tuple(sorted(found)) if best <= limit else ()
+
+
+__all__ = [
+    "LONG_LETTERS",
+    "MAX_LETTERS",
+    "MIN_LETTERS",
+    "candidates",
+    "distance",
+    "known_words",
+    "max_distance",
+]
