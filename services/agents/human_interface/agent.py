@@ -37,6 +37,7 @@ from typing import TYPE_CHECKING, ClassVar
 import msgspec
 
 from services.agents.human_interface.foreign import ForeignRequests
+from services.agents.human_interface.intents import said_back
 from services.agents.human_interface.language import (
     Command,
     Dialogue,
@@ -227,6 +228,7 @@ class HumanInterface(Agent):
         self.commands: dict[str, OpenCommand] = {}  # conversation-id → open command
         self.asked: dict[str, RequestKind] = {}  # person's request id → what it was, until its final report
         self.stops: dict[str, StopRequest] = {}  # request_id → stop request
+        self.read_as: dict[str, str] = {}  # request_id → its typos corrected, said in its first report
         self._vocabulary: Vocabulary | None = None  # the last vocabulary a_km gave (None: none yet)
         self.dialogues: dict[str, Dialogue] = {}  # person → conversation
         self.held: deque[HeldSentence] = deque()  # sentences waiting for the vocabulary, in order
@@ -283,6 +285,11 @@ class HumanInterface(Agent):
         self.handle_received()
 
     def _report(self, request_id: str, kind: ReportKind, text: str) -> None:
+        """Tell the person ``text`` about request ``request_id``; the first report of a request
+        read with typos corrected begins by saying so ("I read 'doimg' as 'doing'.")."""
+        said = self.read_as.pop(request_id, "")
+        if said:
+            text = f"{said} {text}"
         self.log.info("to person [%s] %s: %s", request_id, kind.value, text)
         request = self.asked.pop(request_id, None) if kind in FINAL_REPORTS else self.asked.get(request_id)
         report = HumanReport(request_id=request_id, kind=kind, text=text, request=request)
@@ -427,9 +434,13 @@ class HumanInterface(Agent):
             if reading.stopped:
                 reading.dialogue.pending = None
                 self._report(event.request_id, ReportKind.NOT_UNDERSTOOD, dropped(event.text))
-            elif isinstance(outcome, NotUnderstood):
+                continue
+            if isinstance(outcome, NotUnderstood):
                 self._report(event.request_id, ReportKind.NOT_UNDERSTOOD, str(outcome))
-            elif isinstance(outcome, Command):
+                continue
+            if isinstance(outcome, Command | Stop | StatusRequest) and outcome.read_as:
+                self.read_as[event.request_id] = said_back(outcome.read_as)
+            if isinstance(outcome, Command):
                 self.asked[event.request_id] = RequestKind.COMMAND
                 self._command(event, outcome)
             elif isinstance(outcome, Stop):

@@ -282,9 +282,10 @@ def _corrected(
     The unknown words (``WORD`` tokens) of at least :data:`~.spelling.MIN_LETTERS` letters get
     their candidates (spelling.py); each combination of candidates is a reading, kept when the
     corrected line is a stop or parses (a command, a status request, a question back, an answer
-    to the question open). One reading kept: it is taken. More than one: :class:`Misspelt`
-    names the first word they differ in and its candidates. Bounded: :data:`MAX_CORRECTED_TOKENS`,
-    :data:`MAX_TYPO_WORDS`, :data:`MAX_READINGS_TRIED`."""
+    to the question open). The readings kept all mean the same: the one taken is the one whose
+    corrected words end with the letter they were written with ("minuts": "minutes"). They mean
+    different things: :class:`Misspelt` names the first word they differ in and its candidates.
+    Bounded: :data:`MAX_CORRECTED_TOKENS`, :data:`MAX_TYPO_WORDS`, :data:`MAX_READINGS_TRIED`."""
     unknown = [w for w in words if w.kind == "WORD"]
     if not unknown or len(words) > MAX_CORRECTED_TOKENS:
         return None
@@ -297,18 +298,22 @@ def _corrected(
     if not options or math.prod(len(c) for _, c in options) > MAX_READINGS_TRIED:
         return None
     readings: list[tuple[dict[int, str], str, tuple[Word, ...]]] = []
+    meanings: set[str] = set()
     for choice in itertools.product(*(c for _, c in options)):
         chosen = {w.index: c for (w, _), c in zip(options, choice, strict=True)}
         text = " ".join(chosen.get(w.index, w.text) for w in words)
         if _stop_words(grammar).match(_replaced(sentence, words, chosen) or text) is not None:
             readings.append((chosen, text, ()))
+            meanings.add("a stop")
             continue
         fixed = grammar.tag(text, vocab)
-        if _reads(fixed, priority, vocab, talk, grammar):
+        meaning = _meaning(fixed, priority, vocab, talk, grammar)
+        if meaning is not None:
             readings.append((chosen, text, fixed))
+            meanings.add(meaning)
     if not readings:
         return None
-    if len(readings) > 1:
+    if len(meanings) > 1:
         at = next(i for i in sorted(readings[0][0]) if len({r[0][i] for r in readings}) > 1)
         said = next(w.text for w in typos if w.index == at)
         options_said = tuple(sorted({r[0][at] for r in readings}))
@@ -319,7 +324,10 @@ def _corrected(
             said,
             options_said,
         )
-    chosen, text, fixed = readings[0]
+    typo_at = {w.index: w.text for w in typos}
+    chosen, text, fixed = min(  # of equal meanings, the one whose words end as written ("minuts")
+        readings, key=lambda r: sum(c[-1] != typo_at[i][-1] for i, c in r[0].items())
+    )
     read_as = tuple((w.text, chosen[w.index]) for w in words if w.index in chosen)
     return text, fixed, read_as
 
@@ -337,11 +345,13 @@ def _replaced(sentence: str, words: tuple[Word, ...], chosen: dict[int, str]) ->
     return out
 
 
-def _reads(
+def _meaning(
     words: tuple[Word, ...], priority: int, vocab: Vocabulary, talk: Dialogue, grammar: Grammar
-) -> bool:
-    """Whether the tokens ``words`` parse and mean something: an intent, a question back or a
-    refusal of what they name — an answer only while a question is open. Changes nothing."""
+) -> str | None:
+    """What the tokens ``words`` mean, as a key that is equal for equal meanings ("within two
+    minute" and "within two minutes"), when they parse and mean something: an intent, a question
+    back or a refusal of what they name — an answer only while a question is open; else None.
+    Changes nothing."""
     ctx = Context(
         vocab,
         last=talk.last,
@@ -352,15 +362,35 @@ def _reads(
     try:
         outcome = _read(words, priority, ctx, grammar)
     except ParseFailure:
-        return False
-    except NotUnderstood:
-        return True
-    return not isinstance(outcome, Reply) or talk.pending is not None
+        return None
+    except NotUnderstood as exc:
+        return f"{type(exc).__name__}: {exc}"
+    if isinstance(outcome, Reply) and talk.pending is None:
+        return None
+    return repr(outcome)
 
 
-def _prefixed(exc: NotUnderstood, prefix: str) -> NotUnderstood:
-    """``exc`` with ``prefix`` before its message (its kind and data kept)."""
-    text = f"{prefix} {exc}"
+MAX_NAMED = 3
+"""At most this many more unknown words are named in a refusal (:func:`_also_unknown`)."""
+
+
+def _also_unknown(exc: NotUnderstood, words: tuple[Word, ...]) -> NotUnderstood:
+    """``exc`` naming also the sentence's other unknown words, up to :data:`MAX_NAMED` ("I do
+    not know the word 'or' here; … I do not know 'jra' either."): a typo the refusal does not
+    stop at is named too."""
+    said = str(exc)
+    others = [w.text for w in words if w.kind == "WORD" and f"'{w.text}'" not in said]
+    others = list(dict.fromkeys(others))[:MAX_NAMED]
+    if not others:
+        return exc
+    quoted = [f"'{o}'" for o in others]
+    listed = quoted[0] if len(quoted) == 1 else ", ".join(quoted[:-1]) + " or " + quoted[-1]
+    return _prefixed(exc, "", f" I do not know {listed} either.")
+
+
+def _prefixed(exc: NotUnderstood, prefix: str, suffix: str = "") -> NotUnderstood:
+    """``exc`` with ``prefix`` before its message and ``suffix`` after it (its kind and data kept)."""
+    text = f"{prefix} {exc}{suffix}".lstrip()
     if isinstance(exc, Ambiguous):
         return Ambiguous(text, exc.at, exc.candidates)
     if isinstance(exc, Incomplete):
@@ -399,7 +429,7 @@ def _interpret_words(
         if answering and pending is not None:  # "hmm", "I don't know": the question again
             talk.pending = pending
             raise _again(pending, "That does not answer my question.") from None
-        raise _failure(exc, vocab, priority, ctx, rules) from None
+        raise _also_unknown(_failure(exc, vocab, priority, ctx, rules), words) from None
     except Ambiguous as exc:
         if answering and pending is not None:  # "the cup", when both were asked about
             talk.pending = pending

@@ -4,12 +4,15 @@ A word of a sentence that is none of a_hi's words (grammar.py tags it ``WORD``) 
 one of them: "doimg" of "doing", "stpo" of "stop", "tabel" of "table". Its **candidates** are the
 words a_hi knows (:func:`known_words`: the words of grammar.lark's closed-class phrases and of
 the task frames, the number words and units of a deadline, the nouns and adjectives of the
-vocabulary) within a small Damerau-Levenshtein distance (the optimal-string-alignment variant:
-insertions, deletions, substitutions and transpositions of two adjacent letters, each costing
-1; :func:`distance`): 1 for a word of 4 to 7 letters, 2 for one of 8 or more
+vocabulary) within a small Damerau-Levenshtein distance (:func:`distance`, the
+optimal-string-alignment variant: an insertion, a deletion or a transposition of two adjacent
+letters costs 1, a substitution 1 when the two letters are neighbours on a QWERTY keyboard,
+:data:`KEY_ROWS`, else 2): 1 for a word of 4 to 7 letters, 2 for one of 8 or more
 (:func:`max_distance`); a word of fewer than 4 letters, or of more than :data:`MAX_LETTERS`, has
-none. Only the candidates at the smallest distance found are kept: "jarr" is "jar" (1), not
-also a word at 2.
+none. Substitutions are held to a slip of the finger because a word a_hi does not know is as
+often a real word of a task it does not have: "smash" is one substitution from "stash" (m and t
+are far apart: not corrected), "doimg" one from "doing" (m beside n). Only the candidates at the
+smallest distance found are kept: "jarr" is "jar" (1), not also a word at 2.
 
 Which candidate is meant, if any, is language.py's to decide (it reads the sentence with each);
 this module only finds them. The work is bounded: per word, one distance per known word of a
@@ -19,10 +22,36 @@ a row exceeds the limit.
 
 from __future__ import annotations
 
-from collections.abc import Collection, Mapping
+import itertools
+from collections.abc import Collection, Iterable, Mapping
 
 from services.agents.human_interface.grammar import NUMBERS, UNITS
+from services.agents.human_interface.stop import STOP_WORDS, WAITING_WORDS
 from services.agents.human_interface.vocabulary import Vocabulary
+
+STOPPING = STOP_WORDS + WAITING_WORDS
+"""stop.py's phrases that stop (or wait): their words are candidates too, so that a typo of one
+is a stop or named, never read as another word ("pase": "pause" or "pass")."""
+
+KEY_ROWS = ("qwertyuiop", "asdfghjkl", "zxcvbnm")
+"""The letter rows of a QWERTY keyboard, each set half a key right of the one above: the key at
+(row r, column c) neighbours (r, c ± 1), (r - 1, c), (r - 1, c + 1), (r + 1, c - 1), (r + 1, c)."""
+
+
+def _neighbours() -> frozenset[tuple[str, str]]:
+    at = {ch: (r, c) for r, row in enumerate(KEY_ROWS) for c, ch in enumerate(row)}
+    near = ((0, -1), (0, 1), (-1, 0), (-1, 1), (1, -1), (1, 0))
+    by_place = {place: ch for ch, place in at.items()}
+    return frozenset(
+        (ch, other)
+        for ch, (r, c) in at.items()
+        for dr, dc in near
+        if (other := by_place.get((r + dr, c + dc))) is not None
+    )
+
+
+NEIGHBOURS = _neighbours()
+"""Pairs of letters on neighbouring keys (both orders): a substitution between them costs 1."""
 
 MIN_LETTERS = 4
 """A word of fewer letters is not corrected (too many words are one edit from it)."""
@@ -44,8 +73,9 @@ def max_distance(word: str) -> int:
 
 def distance(a: str, b: str, limit: int) -> int:
     """The optimal-string-alignment distance of ``a`` and ``b`` (Damerau-Levenshtein without
-    editing a substring twice: each insertion, deletion, substitution or transposition of two
-    adjacent characters costs 1), or ``limit + 1`` as soon as it is known to exceed ``limit``."""
+    editing a substring twice: each insertion, deletion or transposition of two adjacent
+    characters costs 1, a substitution 1 between :data:`NEIGHBOURS`, else 2), or ``limit + 1``
+    as soon as it is known to exceed ``limit``."""
     if abs(len(a) - len(b)) > limit:
         return limit + 1
     before: list[int] = []  # row i - 2
@@ -53,7 +83,8 @@ def distance(a: str, b: str, limit: int) -> int:
     for i in range(1, len(a) + 1):
         row = [i] + [0] * len(b)
         for j in range(1, len(b) + 1):
-            cost = 0 if a[i - 1] == b[j - 1] else 1
+            x, y = a[i - 1], b[j - 1]
+            cost = 0 if x == y else 1 if (x, y) in NEIGHBOURS else 2
             row[j] = min(above[j] + 1, row[j - 1] + 1, above[j - 1] + cost)
             if i > 1 and j > 1 and a[i - 1] == b[j - 2] and a[i - 2] == b[j - 1]:
                 row[j] = min(row[j], before[j - 2] + 1)
@@ -63,11 +94,15 @@ def distance(a: str, b: str, limit: int) -> int:
     return min(above[-1], limit + 1)
 
 
-def known_words(phrases: Mapping[tuple[str, ...], str], vocabulary: Vocabulary) -> frozenset[str]:
+def known_words(
+    phrases: Mapping[tuple[str, ...], str], vocabulary: Vocabulary, also: Iterable[str] = STOPPING
+) -> frozenset[str]:
     """The words a_hi knows, as candidates: each word of the closed-class ``phrases`` (the
     tagger's: grammar.lark's and the task frames'), of the number words and units of a deadline,
-    and of the ``vocabulary``'s nouns and adjectives; words of letters only."""
-    words: set[str] = set()
+    of the ``vocabulary``'s nouns and adjectives, and of the phrases ``also`` (default: the stop
+    and waiting words of stop.py, :data:`STOPPING`: "pase" is as near "pause" as "pass"); words
+    of letters only."""
+    words: set[str] = set(itertools.chain.from_iterable(p.split() for p in also))
     for phrase in phrases:
         words.update(phrase)
     for number in NUMBERS:
@@ -98,9 +133,12 @@ def candidates(word: str, known: Collection[str]) -> tuple[str, ...]:
 
 
 __all__ = [
+    "KEY_ROWS",
     "LONG_LETTERS",
     "MAX_LETTERS",
     "MIN_LETTERS",
+    "NEIGHBOURS",
+    "STOPPING",
     "candidates",
     "distance",
     "known_words",
