@@ -12,7 +12,9 @@ to the length (at a word):
 
 - ``command``: "please please … pour the jar into the bowl" (parsed in full: the slowest);
 - ``words``: "the jar is on the table and the bowl …" (not understood at its second sentence);
-- ``stop``: the same words ending "oh no, stop!" (a stop, found by the stop check alone).
+- ``stop``: the same words ending "oh no, stop!" (a stop, found by the stop check alone);
+- ``typo``: "please please … pour the jar itno the bowl" (a typo: corrected and read once more
+  while the line is within language.py's ``MAX_CORRECTED_TOKENS``, else not understood).
 
 :func:`measure` returns, per shape and length, p50 / p99 in milliseconds, the stop check's
 phrase look-ups (its work: linear in the length, and bounded beyond the bound) and what a_hi
@@ -52,6 +54,7 @@ SHAPES = {
     "command": ("please ", "pour the jar into the bowl"),
     "words": (WORDS, ""),
     "stop": (WORDS, "oh no, stop!"),
+    "typo": ("please ", "pour the jar itno the bowl"),
 }
 READ_S = 60.0
 """s to wait for the reader thread to be done with one line."""

@@ -22,12 +22,17 @@ object named; an answer naming none of the candidates ("hmm", "I don't know") ge
 again. A sentence not understood gets one line naming the word or the missing part and what
 could be said instead (:class:`NotUnderstood` and its subclasses, intents.py); so does one with a
 control character (:data:`ALLOWED_CONTROLS`) or a negative or zero deadline, and a place a_hi
-cannot see ("over there") gets a question back.
+cannot see ("over there") gets a question back. Progress is asked in the common wordings ("what
+is the status?", "are you done yet?", "how long will it take?": a :class:`StatusRequest`).
 
-Pipeline: :meth:`~.task_grammar.Grammar.tag` → :meth:`~.task_grammar.Grammar.parse` (every
-reading) → :class:`~.meaning.Reader` per reading → the best: a command over a question over a
-refusal, then the reading whose prepositions are the verb's arguments rather than an object's
-location.
+Typos: a word a_hi does not know is read as one of its words when one reading is clearly meant
+(:func:`_corrected`, candidates from spelling.py), and said back ("I read 'doimg' as 'doing'.");
+a word as near two meanings is named with its candidates (:class:`Misspelt`).
+
+Pipeline: :meth:`~.task_grammar.Grammar.tag` → typos corrected, if any →
+:meth:`~.task_grammar.Grammar.parse` (every reading) → :class:`~.meaning.Reader` per reading →
+the best: a command over a question over a refusal, then the reading whose prepositions are the
+verb's arguments rather than an object's location.
 """
 
 from __future__ import annotations
