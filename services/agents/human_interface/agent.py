@@ -37,7 +37,6 @@ from typing import TYPE_CHECKING, ClassVar
 import msgspec
 
 from services.agents.human_interface.foreign import ForeignRequests
-from services.agents.human_interface.intents import said_back
 from services.agents.human_interface.language import (
     Command,
     Dialogue,
@@ -285,11 +284,8 @@ class HumanInterface(Agent):
         self.handle_received()
 
     def _report(self, request_id: str, kind: ReportKind, text: str) -> None:
-        """Tell the person ``text`` about request ``request_id``; the first report of a request
-        read with typos corrected begins by saying so ("I read 'doimg' as 'doing'.")."""
-        said = self.read_as.pop(request_id, "")
-        if said:
-            text = f"{said} {text}"
+        # the first report of a request read with typos corrected says so ("I read 'doimg' as 'doing'.")
+        text = " ".join(filter(None, (self.read_as.pop(request_id, ""), text)))
         self.log.info("to person [%s] %s: %s", request_id, kind.value, text)
         request = self.asked.pop(request_id, None) if kind in FINAL_REPORTS else self.asked.get(request_id)
         report = HumanReport(request_id=request_id, kind=kind, text=text, request=request)
@@ -431,16 +427,14 @@ class HumanInterface(Agent):
         while self.reading and self.reading[0].done:
             reading = self.reading.popleft()
             event, outcome = reading.event, reading.outcome
+            if isinstance(outcome, Command | Stop | StatusRequest) and outcome.read_as:
+                self.read_as[event.request_id] = outcome.said
             if reading.stopped:
                 reading.dialogue.pending = None
                 self._report(event.request_id, ReportKind.NOT_UNDERSTOOD, dropped(event.text))
-                continue
-            if isinstance(outcome, NotUnderstood):
+            elif isinstance(outcome, NotUnderstood):
                 self._report(event.request_id, ReportKind.NOT_UNDERSTOOD, str(outcome))
-                continue
-            if isinstance(outcome, Command | Stop | StatusRequest) and outcome.read_as:
-                self.read_as[event.request_id] = said_back(outcome.read_as)
-            if isinstance(outcome, Command):
+            elif isinstance(outcome, Command):
                 self.asked[event.request_id] = RequestKind.COMMAND
                 self._command(event, outcome)
             elif isinstance(outcome, Stop):

@@ -29,30 +29,36 @@ ReadAs = tuple[tuple[str, str], ...]
 
 
 @dataclass(frozen=True)
-class Command:
-    """Do ``goal``; ``priority`` larger is more urgent; ``deadline_s`` seconds from acceptance;
-    ``read_as``: the typos corrected to read it (said back; not part of its equality)."""
+class Read:
+    """What every intent carries: ``read_as``, the typos corrected to read it (said back; not
+    part of its equality)."""
+
+    read_as: ReadAs = field(default=(), compare=False, kw_only=True)
+
+    @property
+    def said(self) -> str:
+        """The typos corrected, said back (:func:`said_back`; "" when there are none)."""
+        return said_back(self.read_as)
+
+
+@dataclass(frozen=True)
+class Command(Read):
+    """Do ``goal``; ``priority`` larger is more urgent; ``deadline_s`` seconds from acceptance."""
 
     goal: TaskAtom
     priority: int = 0
     deadline_s: float | None = None
-    read_as: ReadAs = field(default=(), compare=False)
 
 
 @dataclass(frozen=True)
-class Stop:
-    """Stop every command that is still open (the robot first puts down what it holds);
-    ``read_as`` as for :class:`Command`."""
-
-    read_as: ReadAs = field(default=(), compare=False)
+class Stop(Read):
+    """Stop every command that is still open (the robot first puts down what it holds)."""
 
 
 @dataclass(frozen=True)
-class StatusRequest:
+class StatusRequest(Read):
     """ "What are you doing?", "are you done yet?", "how long will it take?": the state of every
-    command a_co holds; ``read_as`` as for :class:`Command`."""
-
-    read_as: ReadAs = field(default=(), compare=False)
+    command a_co holds."""
 
 
 Intent = Command | Stop | StatusRequest
@@ -145,6 +151,7 @@ __all__ = [
     "Intent",
     "Misspelt",
     "NotUnderstood",
+    "Read",
     "ReadAs",
     "StatusRequest",
     "Stop",

@@ -248,7 +248,7 @@ def interpret(
     text, words, read_as = fixed
     if not words:  # a stop, once corrected ("stpo"): acted on, whatever else the line holds
         talk.pending = None
-        return Stop(read_as)
+        return Stop(read_as=read_as)
     try:
         intent = _interpret_words(text, words, priority, vocab, talk, rules)
     except NotUnderstood as exc:
@@ -291,50 +291,89 @@ def _corrected(
     corrected words end with the letter they were written with ("minuts": "minutes"). They mean
     different things: :class:`Misspelt` names the first word they differ in and its candidates.
     Bounded: :data:`MAX_CORRECTED_TOKENS`, :data:`MAX_TYPO_WORDS`, :data:`MAX_READINGS_TRIED`."""
-    unknown = [w for w in words if w.kind == "WORD"]
-    if not unknown or len(words) > MAX_CORRECTED_TOKENS:
+    if len(words) > MAX_CORRECTED_TOKENS:
         return None
-    typos = [w for w in unknown if max_distance(w.text) > 0]
-    if not typos or len(typos) > MAX_TYPO_WORDS:
-        return None
-    known = known_words(grammar.phrases, vocab)
-    options = [(w, candidates(w.text, known)) for w in typos]
-    options = [(w, c) for w, c in options if c]
-    if not options or math.prod(len(c) for _, c in options) > MAX_READINGS_TRIED:
-        return None
-    readings: list[tuple[dict[int, str], str, tuple[Word, ...]]] = []
-    meanings: set[str] = set()
-    for choice in itertools.product(*(c for _, c in options)):
-        chosen = {w.index: c for (w, _), c in zip(options, choice, strict=True)}
-        text = " ".join(chosen.get(w.index, w.text) for w in words)
-        if _stop_words(grammar).match(_replaced(sentence, words, chosen) or text) is not None:
-            readings.append((chosen, text, ()))
-            meanings.add("a stop")
-            continue
-        fixed = grammar.tag(text, vocab)
-        meaning = _meaning(fixed, priority, vocab, talk, grammar)
-        if meaning is not None:
-            readings.append((chosen, text, fixed))
-            meanings.add(meaning)
+    options = _typo_options(words, vocab, grammar)
+    readings = [
+        reading
+        for chosen in _choices(options)
+        for reading in _reading(sentence, words, chosen, priority, vocab, talk, grammar)
+    ]
     if not readings:
         return None
-    if len(meanings) > 1:
-        at = next(i for i in sorted(readings[0][0]) if len({r[0][i] for r in readings}) > 1)
-        said = next(w.text for w in typos if w.index == at)
-        options_said = tuple(sorted({r[0][at] for r in readings}))
-        quoted = [f"'{o}'" for o in options_said]
-        meant = ", ".join(quoted[:-1]) + " or " + quoted[-1]
-        raise Misspelt(
-            f"I do not know '{said}': did you mean {meant}? Say it again with the word you meant.",
-            said,
-            options_said,
-        )
-    typo_at = {w.index: w.text for w in typos}
-    chosen, text, fixed = min(  # of equal meanings, the one whose words end as written ("minuts")
-        readings, key=lambda r: sum(c[-1] != typo_at[i][-1] for i, c in r[0].items())
+    if len({r.meaning for r in readings}) > 1:
+        raise _misspelt(readings, words)
+    written = {w.index: w.text for w in words}
+    best = min(  # of equal meanings, the one whose words end as written ("minuts": "minutes")
+        readings, key=lambda r: sum(c[-1] != written[i][-1] for i, c in r.chosen.items())
     )
-    read_as = tuple((w.text, chosen[w.index]) for w in words if w.index in chosen)
-    return text, fixed, read_as
+    return best.text, best.words, tuple((written[i], c) for i, c in sorted(best.chosen.items()))
+
+
+@dataclass(frozen=True)
+class _Reading:
+    """A sentence read with typos corrected: ``chosen`` (token index → the word read), the
+    corrected ``text`` and its tokens (``words``, empty for a stop), and its ``meaning`` (a key
+    equal for equal meanings)."""
+
+    chosen: dict[int, str]
+    text: str
+    words: tuple[Word, ...]
+    meaning: str
+
+
+def _typo_options(
+    words: tuple[Word, ...], vocab: Vocabulary, grammar: Grammar
+) -> list[tuple[Word, tuple[str, ...]]]:
+    """The unknown words of ``words`` that may be typos, each with its candidates (spelling.py);
+    empty when there is none, or more than :data:`MAX_TYPO_WORDS`, or more than
+    :data:`MAX_READINGS_TRIED` combinations of candidates."""
+    typos = [w for w in words if w.kind == "WORD" and max_distance(w.text) > 0]
+    if len(typos) > MAX_TYPO_WORDS:
+        return []
+    known = known_words(grammar.phrases, vocab)
+    options = [(w, found) for w in typos if (found := candidates(w.text, known))]
+    return options if math.prod(len(c) for _, c in options) <= MAX_READINGS_TRIED else []
+
+
+def _choices(options: list[tuple[Word, tuple[str, ...]]]) -> list[dict[int, str]]:
+    """Each combination of the candidates in ``options``: token index → the word read (none
+    when there are no options)."""
+    if not options:
+        return []
+    combinations = itertools.product(*(c for _, c in options))
+    return [{w.index: c for (w, _), c in zip(options, choice, strict=True)} for choice in combinations]
+
+
+def _reading(
+    sentence: str,
+    words: tuple[Word, ...],
+    chosen: dict[int, str],
+    priority: int,
+    vocab: Vocabulary,
+    talk: Dialogue,
+    grammar: Grammar,
+) -> list[_Reading]:
+    """``sentence`` read with the words ``chosen``: a stop (stop.py), or what its tokens mean
+    (:func:`_meaning`); none when it reads as neither."""
+    text = " ".join(chosen.get(w.index, w.text) for w in words)
+    if _stop_words(grammar).match(_replaced(sentence, words, chosen) or text) is not None:
+        return [_Reading(chosen, text, (), "a stop")]
+    fixed = grammar.tag(text, vocab)
+    meaning = _meaning(fixed, priority, vocab, talk, grammar)
+    return [_Reading(chosen, text, fixed, meaning)] if meaning is not None else []
+
+
+def _misspelt(readings: list[_Reading], words: tuple[Word, ...]) -> Misspelt:
+    """The first word the ``readings`` differ in, named with the words it was read as."""
+    at = next(i for i in sorted(readings[0].chosen) if len({r.chosen[i] for r in readings}) > 1)
+    said = next(w.text for w in words if w.index == at)
+    options = tuple(sorted({r.chosen[at] for r in readings}))
+    quoted = [f"'{o}'" for o in options]
+    meant = ", ".join(quoted[:-1]) + " or " + quoted[-1]
+    return Misspelt(
+        f"I do not know '{said}': did you mean {meant}? Say it again with the word you meant.", said, options
+    )
 
 
 def _replaced(sentence: str, words: tuple[Word, ...], chosen: dict[int, str]) -> str | None:

@@ -81,17 +81,23 @@ def distance(a: str, b: str, limit: int) -> int:
     before: list[int] = []  # row i - 2
     above = list(range(len(b) + 1))  # row i - 1
     for i in range(1, len(a) + 1):
-        row = [i] + [0] * len(b)
-        for j in range(1, len(b) + 1):
-            x, y = a[i - 1], b[j - 1]
-            cost = 0 if x == y else 1 if (x, y) in NEIGHBOURS else 2
-            row[j] = min(above[j] + 1, row[j - 1] + 1, above[j - 1] + cost)
-            if i > 1 and j > 1 and a[i - 1] == b[j - 2] and a[i - 2] == b[j - 1]:
-                row[j] = min(row[j], before[j - 2] + 1)
+        row = _row(a, b, i, above, before)
         if min(row) > limit:
             return limit + 1
         before, above = above, row
     return min(above[-1], limit + 1)
+
+
+def _row(a: str, b: str, i: int, above: list[int], before: list[int]) -> list[int]:
+    """Row ``i`` of :func:`distance`'s table, from the two rows ``above`` it."""
+    row = [i] + [0] * len(b)
+    for j in range(1, len(b) + 1):
+        x, y = a[i - 1], b[j - 1]
+        cost = 0 if x == y else 1 if (x, y) in NEIGHBOURS else 2
+        row[j] = min(above[j] + 1, row[j - 1] + 1, above[j - 1] + cost)
+        if i > 1 and j > 1 and x == b[j - 2] and a[i - 2] == y:
+            row[j] = min(row[j], before[j - 2] + 1)
+    return row
 
 
 def known_words(
