@@ -63,7 +63,7 @@ from services.agents.human_interface.intents import (
     show,
 )
 from services.agents.human_interface.meaning import Context, Reader, Reply, loc_count, loc_depth
-from services.agents.human_interface.spelling import candidates, known_words, max_distance
+from services.agents.human_interface.spelling import candidates, correctable, known_words
 from services.agents.human_interface.stop import StopWords, command_openings
 from services.agents.human_interface.task_grammar import Grammar, default_grammar
 from services.agents.human_interface.vocabulary import KNOWLEDGE_FILES, Vocabulary
@@ -284,7 +284,7 @@ def _corrected(
     words as text, their tokens, the corrections), the tokens empty when the corrected line is
     a stop (stop.py); None when it needs no correction or none reads.
 
-    The unknown words (``WORD`` tokens) of at least :data:`~.spelling.MIN_LETTERS` letters get
+    The unknown words (``WORD`` tokens) that may be typos (:func:`~.spelling.correctable`) get
     their candidates (spelling.py); each combination of candidates is a reading, kept when the
     corrected line is a stop or parses (a command, a status request, a question back, an answer
     to the question open). The readings kept all mean the same: the one taken is the one whose
@@ -328,7 +328,7 @@ def _typo_options(
     """The unknown words of ``words`` that may be typos, each with its candidates (spelling.py);
     empty when there is none, or more than :data:`MAX_TYPO_WORDS`, or more than
     :data:`MAX_READINGS_TRIED` combinations of candidates."""
-    typos = [w for w in words if w.kind == "WORD" and max_distance(w.text) > 0]
+    typos = [w for w in words if w.kind == "WORD" and correctable(w.text)]
     if len(typos) > MAX_TYPO_WORDS:
         return []
     known = known_words(grammar.phrases, vocab)

@@ -54,7 +54,8 @@ NEIGHBOURS = _neighbours()
 """Pairs of letters on neighbouring keys (both orders): a substitution between them costs 1."""
 
 MIN_LETTERS = 4
-"""A word of fewer letters is not corrected (too many words are one edit from it)."""
+"""A word of fewer letters is not corrected (too many words are one edit from it), but for two
+adjacent letters swapped in a word of three ("teh", "jra", "cpu": :func:`candidates`)."""
 LONG_LETTERS = 8
 """A word of this many letters or more may be two edits from its candidate."""
 MAX_LETTERS = 24
@@ -69,6 +70,12 @@ def max_distance(word: str) -> int:
     if n < MIN_LETTERS or n > MAX_LETTERS:
         return 0
     return 1 if n < LONG_LETTERS else 2
+
+
+def correctable(word: str) -> bool:
+    """Whether ``word`` may be corrected: :func:`max_distance` above 0, or three letters (a swap
+    of two adjacent ones: :func:`candidates`)."""
+    return max_distance(word) > 0 or len(word) == MIN_LETTERS - 1
 
 
 def distance(a: str, b: str, limit: int) -> int:
@@ -124,9 +131,15 @@ def known_words(
 def candidates(word: str, known: Collection[str]) -> tuple[str, ...]:
     """The words of ``known`` nearest to ``word`` within :func:`max_distance` (sorted; empty when
     there is none, ``word`` is not corrected, or it is itself a known word: a word of a phrase,
-    "what", is no typo)."""
+    "what", is no typo); for a word of three letters, the known words it is with two adjacent
+    letters swapped."""
+    if word in known:
+        return ()
+    if len(word) == MIN_LETTERS - 1:  # only a swap of two adjacent letters
+        swaps = {word[:i] + word[i + 1] + word[i] + word[i + 2 :] for i in range(len(word) - 1)}
+        return tuple(sorted(k for k in swaps if k != word and k in known))
     limit = max_distance(word)
-    if limit == 0 or word in known:
+    if limit == 0:
         return ()
     best, found = limit + 1, []
     for k in known:
@@ -146,6 +159,7 @@ __all__ = [
     "NEIGHBOURS",
     "STOPPING",
     "candidates",
+    "correctable",
     "distance",
     "known_words",
     "max_distance",

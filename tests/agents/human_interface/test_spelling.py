@@ -68,7 +68,9 @@ def test_candidates_are_the_nearest_known_words() -> None:
     assert candidates("doimg", known) == ("doing",)
     assert candidates("pout", known) == ("out", "pour", "put")
     assert candidates("stop", known) == ()  # a known word is no typo
-    assert candidates("jra", known) == ()  # too short
+    # three letters: only two adjacent ones swapped ("jra" is one edit from many short words)
+    assert candidates("jra", known) == ("jar",) and candidates("teh", known) == ("the",)
+    assert candidates("jat", known) == () and candidates("cpu", known) == ("cup",)
     assert candidates("smash", known) == ()
 
 
@@ -84,6 +86,7 @@ def test_candidates_are_the_nearest_known_words() -> None:
         ),
         ("bring me the cup within two minuts", Command(TaskAtom("bring", ("cup",)), deadline_s=120.0),
          (("minuts", "minutes"),)),
+        ("tidy teh cpu away", Command(TaskAtom("return", ("cup",))), (("teh", "the"), ("cpu", "cup"))),
     ],
 )  # fmt: skip
 def test_a_typo_is_corrected_when_one_reading_is_meant(
