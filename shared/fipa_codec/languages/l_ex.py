@@ -139,7 +139,9 @@ class CommandResult(msgspec.Struct, frozen=True, tag="result", kw_only=True):
     (``"a + b"``, sorted) that touched each other while the command ran — empty when the robot
     did not touch itself (Velma's links collide with each other in the simulation);
     ``contact`` the external force along the motion (N, ``MoveTool.guard``'s measure) that
-    ended a guarded MoveTool early, None for any other ending."""
+    ended a guarded MoveTool early, None for any other ending; ``world`` which power-on of the
+    robot (the world process's run: velma/world/) the command ran in, "" when not known: a
+    different one than before means the robot was power-cycled, its kitchen started anew."""
 
     command: str
     ok: bool
@@ -148,6 +150,7 @@ class CommandResult(msgspec.Struct, frozen=True, tag="result", kw_only=True):
     tool_error: float | None = None
     self_contacts: tuple[str, ...] = ()
     contact: float | None = None
+    world: str = ""
 
 
 HALTED = "halted"
