@@ -181,6 +181,10 @@ class TaskExecutor(Agent):
         """The initial observes asked since the last one answered (any answer will do)."""
         self.initial_done = False
         self.world_time: float | None = None  # the latest simulated time ag_ex answered at (s)
+        self.world: str | None = None
+        """The robot's power-on ag_ex's answers last named (L_EX ``CommandResult.world``)."""
+        self.renew_km = False
+        """The robot was power-cycled: the next observation a_km learns renews its world."""
         # the last asserted change per object (held by / in, on), sent again to a new subscriber
         self.asserted: dict[str, ObjectUpdate] = {}
         self.plan: HierarchicalPlan | None = None
@@ -337,6 +341,7 @@ class TaskExecutor(Agent):
 
     def _ex_answer(self, conv: Conversation, ok: bool) -> None:
         went_back = self._world_time(conv.content)
+        restarted = self._started_anew(conv.content)
         if conv is self.initial_observe or (
             not self.initial_done and ok and any(conv is c for c in self.initial_asked)
         ):
@@ -361,6 +366,7 @@ class TaskExecutor(Agent):
                 )
                 return
             self.step.went_back = went_back
+            self.step.restarted = restarted
             if conv.answers_cancel and ok:  # inform: cancelled, the command halted, the robot at rest
                 self.step.halted = True
             elif conv.answers_cancel:
@@ -398,6 +404,31 @@ class TaskExecutor(Agent):
             return latest, t
         return None
 
+    def _started_anew(self, answer: object) -> bool:
+        """True when ag_ex's ``answer`` names another power-on of the robot than the answers
+        before (L_EX ``CommandResult.world``, L_SD ``Observation.world``): the robot was
+        power-cycled, its kitchen started anew. Then what a_ta asserted is forgotten, a_km's
+        next observation renews its world (``renew_km``) and the scene is observed at once, so
+        that a_km knows the new kitchen before the next plan."""
+        world = answer.world if isinstance(answer, CommandResult | Observation) else ""
+        if not world:
+            return False
+        before, self.world = self.world, world
+        if before is None or before == world:
+            return False
+        self.counters["world_restarts"] += 1
+        self.log.warning(
+            "ag_ex's robot was power-cycled (world %s, before %s): its kitchen started anew; "
+            "a_km's picture of it is renewed from a fresh observation",
+            world,
+            before,
+        )
+        self.asserted.clear()
+        self.renew_km = True
+        self.initial_done = False
+        self._observe_initial()
+        return True
+
     def _catch_up_subscriber(self) -> None:
         """A new subscription (a_km started, or restarted and maybe missed updates that were
         in flight: fipa-subscribe informs are not acknowledged) gets the world anew: first the
@@ -430,8 +461,13 @@ class TaskExecutor(Agent):
         return self.roles.open(C5, FIPA_REQUEST, command, reply_by_s=reply_by_s, retry_s=retry_s)
 
     def _update_km(self, obs: Observation) -> None:
-        """Inform a_km of what ``obs`` saw (:func:`observed_update`)."""
-        self._inform_km(observed_update(obs))
+        """Inform a_km of what ``obs`` saw (:func:`observed_update`); the first observation of a
+        robot that was power-cycled renews a_km's world (``renew_km``)."""
+        update = observed_update(obs)
+        if self.renew_km and self.subscription is not None and obs.world in ("", self.world):
+            update = msgspec.structs.replace(update, renews=True)
+            self.renew_km = False
+        self._inform_km(update)
 
     def _inform_km(self, update: WorldUpdate) -> None:
         if self.subscription is None:

@@ -1,0 +1,43 @@
+"""The robot power-cycled between two commands, on the agents themselves (MemoryBus,
+kinematic robot double): ag_ex's answers name a new power-on, a_ta reports it, renews a_km's
+picture of the kitchen from a fresh observation, and the next command succeeds. The fleet
+version (a world process started anew) is tests/integration/test_power_cycle.py."""
+
+from __future__ import annotations
+
+from shared.fipa_codec.languages.l_sw import SWState
+from shared.fipa_codec.languages.l_wm import WorldUpdate
+from tests.agents.test_coordination import Session
+from tests.support.fake_executor import FakeExecutor
+
+
+class PowerCycled(FakeExecutor):
+    """The kinematic double as a robot that can be power-cycled: the kitchen as it starts, the
+    time from 0, a new ``world_link`` (which ag_ex names in its answers)."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.world_link = "power-on-1"
+
+    def power_cycle(self) -> None:
+        FakeExecutor.__init__(self)
+        self.world_link = "power-on-2"
+
+
+def test_after_a_power_cycle_a_km_is_renewed_and_the_next_pour_succeeds() -> None:
+    robot = PowerCycled()
+    with Session(robot) as s:
+        s.wait_for_initial_knowledge()
+        s.say("pour the jar into the bowl", "first")
+        assert s.final("first").kind.value == "succeeded", s.by_request["first"]
+        assert robot.inside["bowl"] > 0
+        robot.power_cycle()
+        s.say("pour the jar into the bowl", "second")
+        assert s.final("second").kind.value == "succeeded", s.by_request["second"]
+        assert robot.inside["bowl"] > 0 and robot.inside["jar"] == 0
+        renewals = [c for k, m, c in s.traffic() if isinstance(c, WorldUpdate) and c.renews]
+        replans = [c.reason or "" for c in s.sw_states() if c.state is SWState.REPLAN]
+    assert len(renewals) == 1, renewals
+    assert any("power-cycled" in r for r in replans), replans
+    (a_ta,) = [a for a in s.agents if a.name == "a_ta"]
+    assert a_ta.counters["world_restarts"] == 1
