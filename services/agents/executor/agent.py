@@ -254,6 +254,12 @@ class ExecutorAgent(Agent):
             return None
         return LinkWatch(run_dir, self.attached_world)
 
+    def _watch_world(self) -> None:
+        """Reattach when the world was started anew (``link_watch``)."""
+        renewed = self.link_watch.renewed() if self.link_watch is not None else None
+        if renewed is not None:
+            self._reattach(renewed)
+
     def _reattach(self, name: str) -> None:
         """The world was started anew under link ``name``: end the loop of the old one and
         start one attached to the new one (module docstring). A loop that does not start is
@@ -517,9 +523,7 @@ class ExecutorAgent(Agent):
                 self._peer_changed(event)
             elif isinstance(event, Disturbance):
                 self._disturb(event)
-        renewed = self.link_watch.renewed() if self.link_watch is not None else None
-        if renewed is not None:
-            self._reattach(renewed)
+        self._watch_world()
         now = time.monotonic()
         if now >= self._next_state:
             self._next_state = now + STATE_PERIOD
