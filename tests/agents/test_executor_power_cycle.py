@@ -1,6 +1,7 @@
 """ag_ex when the robot is power-cycled (services/agents/executor/agent.py): the world names a
 new link in the run folder, ag_ex ends the loop of the old world and attaches a new one by
-itself, and its answers name the world they come from (velma/world/files.py ``LinkWatch``)."""
+itself, tells a_ta's subscription the new power-on, and its answers name the world they come
+from (velma/world/files.py ``LinkWatch``)."""
 
 from __future__ import annotations
 
@@ -15,7 +16,7 @@ from services.agents.executor.agent import ExecutorAgent
 from services.runtime.memory_transport import MemoryBus
 from shared.fipa_codec import Performative
 from shared.fipa_codec.languages import decode_content
-from shared.fipa_codec.languages.l_ex import CommandResult, Wait
+from shared.fipa_codec.languages.l_ex import CommandResult, PowerOn, PowerOns, Wait
 from tests.support.peer import Peer
 from velma.world.files import LINK_FILE, LinkWatch, write_whole
 
@@ -94,11 +95,22 @@ def test_ag_ex_reattaches_to_a_world_started_anew_and_names_it_in_its_answers(
             assert isinstance(content, CommandResult)
             return content
 
+        def told() -> PowerOn:
+            inform = a_ta.got.get(timeout=TIMEOUT_S)
+            assert inform.performative is Performative.INFORM and inform.language is not None
+            content = decode_content(inform.language, inform.content)
+            assert isinstance(content, PowerOn)
+            return content
+
+        a_ta.send(Performative.SUBSCRIBE, "fipa-subscribe", "power-ons", PowerOns())
+        assert a_ta.got.get(timeout=TIMEOUT_S).performative is Performative.AGREE
+        assert told() == PowerOn(world="psm_old")  # the current power-on, at once
         assert answer("before").world == "psm_old"
         name_link(tmp_path, "psm_new")  # the world process started again: a new link
         second = made.get(timeout=TIMEOUT_S)
         assert first.stopped.wait(TIMEOUT_S) and second.started.wait(TIMEOUT_S)
         assert second.world_link == "psm_new"
+        assert told() == PowerOn(world="psm_new")  # told before any command
         assert answer("after").world == "psm_new"
         assert agent.counters["world_restarts"] == 1
     finally:

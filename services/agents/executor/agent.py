@@ -59,7 +59,9 @@ Besides the C5 conversation, ag_ex
   ``WATCH_PERIOD_S``), logs it, ends its loop (open commands end ``stopped``), forgets the
   ledger's results of the old world and attaches a new loop to the new world by itself. Each
   answer names the world it comes from (L_EX ``CommandResult.world``, L_SD
-  ``Observation.world``: the link's name), so that a_ta tells the new kitchen from the old.
+  ``Observation.world``: the link's name), so that a_ta tells the new kitchen from the old, and
+  a_ta's subscription to the robot's power-ons (fipa-subscribe on C5, L_EX ``PowerOns``) is told
+  the new one at once (``PowerOn``), before a_ta's next command.
   With ``ROCO_WORLD=loop`` (velma/world/mode.py: to measure the split) the kitchen is
   in the loop instead and a restarted ag_ex starts it anew.
 """
@@ -78,9 +80,16 @@ from services.runtime import keys
 from services.runtime.agent import Agent, Received
 from services.runtime.behaviour import FSM, Behaviour
 from services.runtime.roles import PARTICIPANT, Conversation, handles, participant
-from services.spec.names import C5, FIPA_REQUEST, L_EX, L_SD
+from services.spec.names import C5, FIPA_REQUEST, FIPA_SUBSCRIBE, L_EX, L_SD
 from shared.fipa_codec import Performative
-from shared.fipa_codec.languages.l_ex import HALTED, CommandResult, ExecutorCommand, command_name
+from shared.fipa_codec.languages.l_ex import (
+    HALTED,
+    CommandResult,
+    ExecutorCommand,
+    PowerOn,
+    PowerOns,
+    command_name,
+)
 from shared.fipa_codec.languages.l_sd import Observation
 from shared.settings import Settings
 from velma.executor.capture import PERCEPTION_LOG, WorldCapture
@@ -159,7 +168,7 @@ class PeerChange:
 
 class ExecutorAgent(Agent):
     name = "ag_ex"
-    ROLES = (participant(C5, FIPA_REQUEST, L_EX, L_SD),)
+    ROLES = (participant(C5, FIPA_REQUEST, L_EX, L_SD), participant(C5, FIPA_SUBSCRIBE, L_EX))
     period = STATE_PERIOD
 
     def make_executor(self) -> Any:
@@ -224,6 +233,8 @@ class ExecutorAgent(Agent):
         """Conversation-id → command an earlier ag_ex's loop ended, with its result (the ledger)."""
         self.commanders = self._commanders()
         self.link_watch = self._link_watch()
+        self.watchers: dict[str, Conversation] = {}
+        """Per agent, its subscription to the robot's power-ons (L_EX ``PowerOns``)."""
         self.alive_peers: set[str] = set()
         self._next_state = 0.0
         self._next_timing_file = 0.0
@@ -287,6 +298,8 @@ class ExecutorAgent(Agent):
             return
         self.log.info("control loop attached to the new world (link %s)", self.attached_world)
         self._start_camera()
+        for watcher in self.watchers.values():
+            watcher.reply(Performative.INFORM, PowerOn(world=self.attached_world))
 
     def _commanders(self) -> tuple[str, ...]:
         """Agents that initiate conversations with ag_ex (from the specification)."""
@@ -454,6 +467,24 @@ class ExecutorAgent(Agent):
             self.log.error(
                 "ledger line of %s (conversation %s) not written: %s", event.command, conversation, exc
             )
+
+    @handles(FIPA_SUBSCRIBE, PARTICIPANT, Performative.SUBSCRIBE)
+    def _on_power_ons(self, conv: Conversation) -> None:
+        """a_ta subscribes to the robot's power-ons: agreed, then told the current one (when the
+        loop is attached to a world process) and each new one (``_reattach``)."""
+        if not isinstance(conv.content, PowerOns):
+            conv.refuse_with(Performative.REFUSE, "not an L_EX PowerOns subscription")
+            return
+        self.watchers[conv.peer] = conv
+        conv.reply(Performative.AGREE)
+        if self.attached_world:
+            conv.reply(Performative.INFORM, PowerOn(world=self.attached_world))
+
+    @handles(FIPA_SUBSCRIBE, PARTICIPANT, Performative.CANCEL)
+    def _on_power_ons_cancel(self, conv: Conversation) -> None:
+        if self.watchers.get(conv.peer) is conv:
+            del self.watchers[conv.peer]
+        conv.reply(Performative.INFORM)
 
     @handles(FIPA_REQUEST, PARTICIPANT, Performative.CANCEL)
     def _on_cancel(self, conv: Conversation) -> None:

@@ -94,6 +94,8 @@ from shared.fipa_codec.languages.l_ex import (
     MoveJoints,
     MoveTool,
     Observe,
+    PowerOn,
+    PowerOns,
     Tilt,
     Wait,
     command_name,
@@ -130,6 +132,9 @@ restarting or away): the coordinate protocol lets a_ta send its next state only 
 _ENDS = {Do.REPLAN: SWState.REPLAN, Do.ERROR: SWState.ERROR}
 """The final state of each verdict that ends the plan (services/agents/task_executor/verdict.py)."""
 WORLD_TIME_SLACK_S = 1e-6
+POWER_ONS_REPLY_BY_S = 5.0
+"""How long (s) a_ta waits for ag_ex to agree to its subscription to the robot's power-ons
+before it subscribes again."""
 """How far (s) an answer's simulated time may lie before the latest one seen and still be the
 same world's (the times are the world's own; equal times are the same instant)."""
 
@@ -167,6 +172,8 @@ class TaskExecutor(Agent):
         # a kept plan is taken back in running whatever state it was in: a_ta reports on it
         participant(C1, COORDINATE, L_HFSM, L_SW, keep=PlanNote, resume_in="running"),
         initiator(C5, FIPA_REQUEST, L_EX, L_SD),
+        # the robot's power-ons (a world started anew), told by ag_ex as they happen
+        initiator(C5, FIPA_SUBSCRIBE, L_EX, reply_by_s=POWER_ONS_REPLY_BY_S, resubscribes=True),
         participant(C6, FIPA_SUBSCRIBE, L_WM),
         # paper Table 6: a_ta may query a_km when it needs knowledge; roco's plans carry what
         # a_ta needs (expected poses, safe stops), so it asks nothing
@@ -243,6 +250,17 @@ class TaskExecutor(Agent):
                 Arc("running", "finished"),
                 Arc("finished", "idle"),
             ],
+        )
+
+    def setup(self) -> None:
+        self.roles.subscribe(
+            C5,
+            FIPA_SUBSCRIBE,
+            PowerOns(),
+            conversation_id="ta-power-ons",
+            retry_s=(1.0, 10.0),
+            same_id=True,
+            while_away=False,
         )
 
     # ---- communicates handled in every state ----
@@ -329,6 +347,14 @@ class TaskExecutor(Agent):
             self.subscription = None
         conv.reply(Performative.INFORM)
 
+    # the robot's power-ons (fipa-subscribe to ag_ex, initiator)
+    @handles(FIPA_SUBSCRIBE, INITIATOR, Performative.INFORM)
+    def _on_power_on(self, conv: Conversation) -> None:
+        """ag_ex tells the power-on of the robot its loop is attached to (at once, then each new
+        one): a new one renews what a_km knows before the next plan (``_started_anew``)."""
+        if isinstance(conv.content, PowerOn):
+            self._started_anew(conv.content)
+
     # ag_ex's answers (fipa-request, initiator)
     @handles(FIPA_REQUEST, INITIATOR, Performative.INFORM)
     def _on_ex_done(self, conv: Conversation) -> None:
@@ -406,11 +432,12 @@ class TaskExecutor(Agent):
 
     def _started_anew(self, answer: object) -> bool:
         """True when ag_ex's ``answer`` names another power-on of the robot than the answers
-        before (L_EX ``CommandResult.world``, L_SD ``Observation.world``): the robot was
-        power-cycled, its kitchen started anew. Then what a_ta asserted is forgotten, a_km's
-        next observation renews its world (``renew_km``) and the scene is observed at once, so
-        that a_km knows the new kitchen before the next plan."""
-        world = answer.world if isinstance(answer, CommandResult | Observation) else ""
+        before (L_EX ``CommandResult.world``, L_SD ``Observation.world``, or ag_ex's L_EX
+        ``PowerOn`` in a_ta's subscription): the robot was power-cycled, its kitchen started
+        anew. Then what a_ta asserted is forgotten, a_km's next observation renews its world
+        (``renew_km``) and the scene is observed at once, so that a_km knows the new kitchen
+        before the next plan is made."""
+        world = answer.world if isinstance(answer, CommandResult | Observation | PowerOn) else ""
         if not world:
             return False
         before, self.world = self.world, world

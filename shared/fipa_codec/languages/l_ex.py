@@ -160,10 +160,23 @@ HALTED = "halted"
 robot came to rest. It comes in ag_ex's ``inform`` that answers the ``cancel``."""
 
 
+class PowerOns(msgspec.Struct, frozen=True, tag="power_ons"):
+    """a_ta's fipa-subscribe to ag_ex (C5; FIPA SC00035): tell each power-on of the robot
+    ag_ex's loop is attached to (:class:`PowerOn`), the current one at once."""
+
+
+class PowerOn(msgspec.Struct, frozen=True, tag="power_on", kw_only=True):
+    """ag_ex's inform in a_ta's :class:`PowerOns` subscription: its loop is attached to the
+    robot's power-on ``world`` (the world process's link name, as ``CommandResult.world``); a
+    new one means the robot was power-cycled, its kitchen started anew."""
+
+    world: str
+
+
 L_EX = register(
     Language(
         "L_EX",
         "O_Velma",
-        (MoveTool, MoveJoints, Grasp, Release, LookAt, Tilt, Observe, Wait, CommandResult),
+        (MoveTool, MoveJoints, Grasp, Release, LookAt, Tilt, Observe, Wait, CommandResult, PowerOns, PowerOn),
     )
 )
