@@ -1,14 +1,19 @@
 """The robot power-cycled between two commands, on the agents themselves (MemoryBus,
-kinematic robot double): ag_ex's answers name a new power-on, a_ta reports it, renews a_km's
-picture of the kitchen from a fresh observation, and the next command succeeds. The fleet
+kinematic robot double): ag_ex tells a_ta the new power-on (or its answers name it), a_ta
+reports it, renews a_km's picture of the kitchen from a fresh observation, and the next command
+succeeds. The fleet
 version (a world process started anew) is tests/integration/test_power_cycle.py."""
 
 from __future__ import annotations
 
+from pathlib import Path
+
+from services.agents.executor.agent import ExecutorAgent
 from shared.fipa_codec.languages.l_sw import SWState
 from shared.fipa_codec.languages.l_wm import WorldUpdate
 from tests.agents.test_coordination import Session
 from tests.support.fake_executor import FakeExecutor
+from velma.world.files import LINK_FILE, LinkWatch, write_whole
 
 
 class PowerCycled(FakeExecutor):
@@ -41,3 +46,26 @@ def test_after_a_power_cycle_a_km_is_renewed_and_the_next_pour_succeeds() -> Non
     assert any("power-cycled" in r for r in replans), replans
     (a_ta,) = [a for a in s.agents if a.name == "a_ta"]
     assert a_ta.counters["world_restarts"] == 1
+
+
+def test_told_the_new_power_on_a_ta_renews_a_km_before_the_next_plan(tmp_path: Path) -> None:
+    """ag_ex watches the run folder's link name (as in a fleet, here a folder of the test's):
+    the new one is told to a_ta's subscription (L_EX PowerOn) before any command, a_km's picture
+    is renewed then, and the next pour is planned from it: no Replan for the power cycle."""
+    robot = PowerCycled()
+    write_whole(tmp_path / LINK_FILE, b"power-on-1\n")
+    with Session(robot) as s:
+        ag_ex = s.agent("ag_ex")
+        assert isinstance(ag_ex, ExecutorAgent)
+        ag_ex.link_watch = LinkWatch(tmp_path, "power-on-1", period_s=0.05)
+        s.wait_for_initial_knowledge()
+        s.say("pour the jar into the bowl", "first")
+        assert s.final("first").kind.value == "succeeded", s.by_request["first"]
+        robot.power_cycle()
+        write_whole(tmp_path / LINK_FILE, b"power-on-2\n")
+        s.wait_for(lambda _k, _m, c: isinstance(c, WorldUpdate) and c.renews)
+        s.say("pour the jar into the bowl", "second")
+        assert s.final("second").kind.value == "succeeded", s.by_request["second"]
+        replans = [c.reason or "" for c in s.sw_states() if c.state is SWState.REPLAN]
+    assert not any("power-cycled" in r for r in replans), replans
+    assert ag_ex.counters["world_restarts"] == 1
