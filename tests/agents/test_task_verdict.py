@@ -105,7 +105,8 @@ def test_an_answer_from_a_world_started_anew_is_a_surprise_except_in_a_safe_stop
     v = judge(step(restarted=True), done(), False)
     assert v == Verdict(
         Do.SURPRISE,
-        "pour/wait: ag_ex's robot was power-cycled: its kitchen started anew (what was done is undone)",
+        "pour/wait: ag_ex's robot was power-cycled: its kitchen started anew "
+        "(the plan may be of the one before)",
     )
     assert judge(step(restarted=True), done(), True).do is Do.NEXT
 

@@ -192,6 +192,9 @@ class TaskExecutor(Agent):
         """The robot's power-on ag_ex's answers last named (L_EX ``CommandResult.world``)."""
         self.renew_km = False
         """The robot was power-cycled: the next observation a_km learns renews its world."""
+        self.distrust_plan = False
+        """The robot was power-cycled: the next leaf answered (of the plan running then, or of
+        the next one, which may have been planned before a_km knew) is a surprise (Replan)."""
         # the last asserted change per object (held by / in, on), sent again to a new subscriber
         self.asserted: dict[str, ObjectUpdate] = {}
         self.plan: HierarchicalPlan | None = None
@@ -392,7 +395,9 @@ class TaskExecutor(Agent):
                 )
                 return
             self.step.went_back = went_back
-            self.step.restarted = restarted
+            self.step.restarted = restarted or (self.distrust_plan and not self.terminating)
+            if self.step.restarted:
+                self.distrust_plan = False
             if conv.answers_cancel and ok:  # inform: cancelled, the command halted, the robot at rest
                 self.step.halted = True
             elif conv.answers_cancel:
@@ -436,7 +441,8 @@ class TaskExecutor(Agent):
         ``PowerOn`` in a_ta's subscription): the robot was power-cycled, its kitchen started
         anew. Then what a_ta asserted is forgotten, a_km's next observation renews its world
         (``renew_km``) and the scene is observed at once, so that a_km knows the new kitchen
-        before the next plan is made."""
+        before the next plan is made; the next leaf answered ends its plan in Replan
+        (``distrust_plan``): that plan may be of the kitchen before."""
         world = answer.world if isinstance(answer, CommandResult | Observation | PowerOn) else ""
         if not world:
             return False
@@ -452,6 +458,7 @@ class TaskExecutor(Agent):
         )
         self.asserted.clear()
         self.renew_km = True
+        self.distrust_plan = True
         self.initial_done = False
         self._observe_initial()
         return True
