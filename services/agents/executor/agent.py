@@ -289,11 +289,11 @@ class ExecutorAgent(Agent):
         self.executor.stop()  # open commands end "stopped"
         self.recalled.clear()  # results of commands in the old kitchen
         self.ledger_runs.clear()
-        self.executor = self.make_executor()
-        self._hook_ledger()
         try:
+            self.executor = self.make_executor()
+            self._hook_ledger()
             self.executor.start()
-        except RuntimeError as exc:
+        except RuntimeError as exc:  # the world gone again, or a loop that did not start
             self.log.error("no control loop for the new world %s: %s", name, exc)
             return
         self.log.info("control loop attached to the new world (link %s)", self.attached_world)
