@@ -8,7 +8,12 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import pytest
+
 from services.agents.executor.agent import ExecutorAgent
+from services.agents.task_executor.agent import TaskExecutor
+from services.runtime.memory_transport import MemoryBus
+from shared.fipa_codec.languages.l_ex import CommandResult, PowerOn
 from shared.fipa_codec.languages.l_sw import SWState
 from shared.fipa_codec.languages.l_wm import WorldUpdate
 from tests.agents.test_coordination import Session
@@ -72,3 +77,19 @@ def test_told_the_new_power_on_a_ta_renews_a_km_before_the_next_plan(tmp_path: P
     assert len([r for r in replans if "power-cycled" in r]) == 1, replans
     assert len(renewals) == 1
     assert ag_ex.counters["world_restarts"] == 1
+
+
+def test_a_late_answer_from_the_world_before_is_no_new_power_on(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A command the power cycle ended answers ``stopped`` from the old world's loop after ag_ex
+    told the new one: a_ta does not take the old world for a newer power-on."""
+    monkeypatch.delenv("ROCO_RUN_DIR", raising=False)
+    a_ta = TaskExecutor(MemoryBus().transport())
+    observed: list[bool] = []
+    monkeypatch.setattr(a_ta, "_observe_initial", lambda: observed.append(True))
+    assert not a_ta._started_anew(PowerOn(world="power-on-1"))  # the first: a baseline
+    assert a_ta._started_anew(PowerOn(world="power-on-2"))
+    late = CommandResult(command="tilt", ok=False, reason="stopped", world="power-on-1")
+    assert not a_ta._started_anew(late)
+    assert not a_ta._started_anew(CommandResult(command="wait", ok=True, world="power-on-2"))
+    assert a_ta._started_anew(PowerOn(world="power-on-3"))
+    assert a_ta.counters["world_restarts"] == 2 and observed == [True, True]

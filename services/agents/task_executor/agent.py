@@ -190,6 +190,8 @@ class TaskExecutor(Agent):
         self.world_time: float | None = None  # the latest simulated time ag_ex answered at (s)
         self.world: str | None = None
         """The robot's power-on ag_ex's answers last named (L_EX ``CommandResult.world``)."""
+        self.worlds_before: set[str] = set()
+        """The power-ons before it: a late answer from one of them is no new power-on."""
         self.renew_km = False
         """The robot was power-cycled: the next observation a_km learns renews its world."""
         self.distrust_plan = False
@@ -436,19 +438,21 @@ class TaskExecutor(Agent):
         return None
 
     def _started_anew(self, answer: object) -> bool:
-        """True when ag_ex's ``answer`` names another power-on of the robot than the answers
-        before (L_EX ``CommandResult.world``, L_SD ``Observation.world``, or ag_ex's L_EX
-        ``PowerOn`` in a_ta's subscription): the robot was power-cycled, its kitchen started
-        anew. Then what a_ta asserted is forgotten, a_km's next observation renews its world
-        (``renew_km``) and the scene is observed at once, so that a_km knows the new kitchen
-        before the next plan is made; the next leaf answered ends its plan in Replan
-        (``distrust_plan``): that plan may be of the kitchen before."""
+        """True when ag_ex's ``answer`` names a power-on of the robot never named before (L_EX
+        ``CommandResult.world``, L_SD ``Observation.world``, or ag_ex's L_EX ``PowerOn`` in
+        a_ta's subscription): the robot was power-cycled, its kitchen started anew. Then what
+        a_ta asserted is forgotten, a_km's next observation renews its world (``renew_km``) and
+        the scene is observed at once, so that a_km knows the new kitchen before the next plan
+        is made; the next leaf answered ends its plan in Replan (``distrust_plan``): that plan
+        may be of the kitchen before. A late answer from a loop of a world before (a command
+        the power cycle ended ``stopped``) names none new."""
         world = answer.world if isinstance(answer, CommandResult | Observation | PowerOn) else ""
-        if not world:
-            return False
+        if not world or world == self.world or world in self.worlds_before:
+            return False  # none named, the same, or a late answer of a loop of a world before
         before, self.world = self.world, world
-        if before is None or before == world:
+        if before is None:
             return False
+        self.worlds_before.add(before)
         self.counters["world_restarts"] += 1
         self.log.warning(
             "ag_ex's robot was power-cycled (world %s, before %s): its kitchen started anew; "
