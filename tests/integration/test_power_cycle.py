@@ -45,7 +45,7 @@ def test_a_pour_after_the_world_was_restarted_succeeds(tmp_path: Path) -> None:
     assert ag_ex.count("the world started anew") == 1, ag_ex[-3000:]
     assert "control loop attached to the new world" in ag_ex
     a_ta = (run_dir / "logs" / "a_ta.log").read_text()
-    assert a_ta.count("ag_ex's robot was power-cycled") == 1, a_ta[-3000:]
+    assert a_ta.count("ag_ex's robot was power-cycled (world ") == 1, a_ta[-3000:]
     renewals = [
         m for m in load_run(run_dir).messages if isinstance(m.content, WorldUpdate) and m.content.renews
     ]
