@@ -43,32 +43,40 @@ def timeline(events: list[PresenceEvent] | None, agent: str, start: float, agent
     the start). The replayed agent's own token is never in it."""
     if events is None:
         return Timeline({a for a in agents if a != agent}, recorded=False)
-    alive: set[str] = set()
-    changes: list[Change] = []
     first = events[0].incarnation if events else ""
-    snapshots: dict[str, set[str]] = {}
-    for e in events:
-        if e.snapshot:
-            snapshots.setdefault(e.incarnation, set()).add(e.name)
-    reconciled: set[str] = set()
-    for e in events:
-        if e.name == agent:
-            continue
-        if e.snapshot and e.incarnation not in reconciled:
-            reconciled.add(e.incarnation)
-            seen = snapshots[e.incarnation] - {agent}
-            t = float("-inf") if e.incarnation == first else e.t
-            changes += [Change(t, n, False) for n in sorted(alive - seen)]
-            changes += [Change(t, n, True) for n in sorted(seen - alive)]
-            alive = set(seen)
-        elif not e.snapshot and (e.name in alive) != e.alive:
-            changes.append(Change(e.t, e.name, e.alive))
-            (alive.add if e.alive else alive.discard)(e.name)
     initial: set[str] = set()
     later = []
-    for c in changes:
+    for c in _changes([e for e in events if e.name != agent], first):
         if c.t <= start:
             (initial.add if c.alive else initial.discard)(c.name)
         else:
             later.append(c)
     return Timeline(initial, later)
+
+
+def _changes(events: list[PresenceEvent], first: str) -> list[Change]:
+    """Each change of a token ``events`` show, in their order; the snapshot of the incarnation
+    ``first`` at the start of time, a later one's at its time (module docstring)."""
+    snapshots: dict[str, set[str]] = {}
+    for e in events:
+        if e.snapshot:
+            snapshots.setdefault(e.incarnation, set()).add(e.name)
+    alive: set[str] = set()
+    changes: list[Change] = []
+    for e in events:
+        if e.snapshot and e.incarnation in snapshots:  # reconciled once, at its first line
+            t = float("-inf") if e.incarnation == first else e.t
+            changes += _reconcile(alive, snapshots.pop(e.incarnation), t)
+        elif not e.snapshot and (e.name in alive) != e.alive:
+            changes.append(Change(e.t, e.name, e.alive))
+            (alive.add if e.alive else alive.discard)(e.name)
+    return changes
+
+
+def _reconcile(alive: set[str], seen: set[str], t: float) -> list[Change]:
+    """What a snapshot ``seen`` at ``t`` changes of ``alive`` (made equal to it)."""
+    changes = [Change(t, n, False) for n in sorted(alive - seen)]
+    changes += [Change(t, n, True) for n in sorted(seen - alive)]
+    alive.clear()
+    alive.update(seen)
+    return changes
