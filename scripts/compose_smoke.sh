@@ -14,6 +14,9 @@
 #            has sent a_ta plan #1 (the first request on C1 in the run folder's traffic.jsonl),
 #            `compose restart a_km`; the pour must end "succeeded" and the restarted a_km must
 #            have kept its knowledge (its store is a volume)
+#   power    `compose restart world` (a power cycle of the robot: a fresh kitchen), world and
+#            ag_ex healthy again, then the same pour, which must end "succeeded"; a_ta must have
+#            reported the power cycle
 #   down     `compose down -v` (the project's volumes too); the run folder stays in runs/
 #
 # Prints the time of each phase and a closing line "compose_smoke: N passed, N failed".
@@ -202,6 +205,31 @@ kept=$(grep -c 'kept from before' "$run_dir/logs/a_km.log" || true)
 [ "$kept" -ge 1 ] || { say "the restarted a_km did not find its store (no 'kept from before' in its log)"; exit 1; }
 say "the pour succeeded; the restarted a_km kept its knowledge"
 phase pour
+
+# --- a power cycle of the robot: the world restarted, then the pour again -------------------
+# (a fresh kitchen, its time from 0; ag_ex shares the world's PID namespace, so the restart
+# ends it too and compose starts it again; a_ta must renew a_km's picture of the kitchen)
+started_ag_ex=$(docker inspect -f '{{.State.StartedAt}}' "${cid[ag_ex]}")
+say "restarting the world (a power cycle of the robot)"
+r0=$(date +%s)
+$COMPOSE restart world >/dev/null 2>&1
+until [ "$(health world)" = healthy ] && [ "$(health ag_ex)" = healthy ] &&
+    [ "$(docker inspect -f '{{.State.StartedAt}}' "${cid[ag_ex]}")" != "$started_ag_ex" ]; do
+    [ $(($(date +%s) - r0)) -le 180 ] || { say "world and ag_ex not back 180 s after the world's restart"; exit 1; }
+    sleep 0.5
+done
+say "world and ag_ex healthy again in $(($(date +%s) - r0)) s; sending \"$SENTENCE\" again"
+send_rc=0
+roco_host send --router "$endpoint" --timeout 900 "$SENTENCE" >"$work/send2.log" 2>&1 || send_rc=$?
+tail -3 "$work/send2.log"
+if [ "$send_rc" != 0 ] || ! tail -1 "$work/send2.log" | grep -q '^succeeded:'; then
+    say "the pour after the power cycle did not succeed (roco send exit $send_rc)"
+    exit 1
+fi
+grep -q "ag_ex's robot was power-cycled" "$run_dir/logs/a_ta.log" ||
+    { say "a_ta did not report the power cycle"; exit 1; }
+say "the pour after the power cycle succeeded; a_ta reported the power cycle"
+phase power
 
 # --- down ----------------------------------------------------------------------------------
 $COMPOSE down -v --timeout 30 >"$work/down.log" 2>&1 || { cat "$work/down.log"; exit 1; }

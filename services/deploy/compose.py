@@ -349,7 +349,7 @@ VIEWER = """\
 """
 
 WORLD = """\
-  world:  # Velma's hardware side: the simulated kitchen (velma/world/); not an agent, never faulted
+  world:  # Velma's hardware side: the simulated kitchen (velma/world/); restarted, a power cycle of the robot
     <<: *roco
     command: ["python", "-m", "velma.world"]
     environment: *env

@@ -11,10 +11,14 @@ applied (``agent="roco"``) and raises :class:`FaultError` (one line) when it can
   after ``timeout`` s;
 - ``start``: start it again as the launcher did (same arguments, same environment: the run
   folder's ``launch_env.json``), then wait until it holds its liveliness token (the router:
-  until it listens);
+  until it listens; the world: until it names a new link in the run folder);
 - ``pause`` / ``unpause``: SIGSTOP / SIGCONT to its process group (like ``docker pause``:
   its liveliness token stays until the Zenoh lease, 10 s, expires);
 - ``restart``: stop, then start.
+
+The world (velma/world/, the robot's hardware side) is the robot's power: restarted, its
+kitchen starts anew and its time from 0; ag_ex attaches to it by itself
+(services/agents/executor/agent.py).
 
 Only processes of the fleet are signalled, by PID: a PID whose command line is not the
 service's (it ended and the PID was reused) counts as not running.
@@ -50,10 +54,13 @@ from services.runtime.faults import FaultEvent, event_key
 from services.runtime.run_folder import read_run_info, write_run_info
 from services.runtime.session import alive_agents, open_client
 from services.security.context import register
+from velma.world.files import link_name
+from velma.world.mode import WORLD_SERVICE
 
 ACTIONS = ("kill", "stop", "start", "pause", "unpause", "restart")
-LOCAL_SERVICES = ("router", "recorder", *AGENT_ORDER)
-"""The services of a local fleet (a compose deployment adds ``viewer``)."""
+LOCAL_SERVICES = ("router", "recorder", WORLD_SERVICE, *AGENT_ORDER)
+"""The services of a local fleet (a compose deployment adds ``viewer``); ``world`` runs unless
+``ROCO_WORLD=loop`` (velma/world/mode.py)."""
 INJECTOR = "roco"
 """The ``agent`` of the fault events of ``roco fault`` and ``roco chaos``."""
 FLEET_FILE = ".fleet.json"  # services/cli.py: FLEET_FILE
@@ -299,10 +306,13 @@ def start(fleet: LocalFleet, service: str, timeout: float = 60.0, wait: bool = T
     old = running_pid(fleet, service)
     if old is not None:
         raise FaultError(f"{service} is running already (pid {old})")
+    link_before = link_name(fleet.run_dir)  # a killed world leaves its link's name behind
     proc = (
         _relaunch(fleet, service, timeout) if isinstance(fleet, Fleet) else _respawn(fleet, service, timeout)
     )
-    if wait and service != "router":
+    if wait and service == WORLD_SERVICE:
+        _wait_world(fleet.run_dir, link_before, proc, timeout)
+    elif wait and service != "router":
         _wait_alive(fleet.endpoint, service, proc, timeout)
     return _event("start", service, f"pid {proc.pid}")
 
@@ -343,6 +353,19 @@ def _wait_listening(endpoint: str, proc: subprocess.Popen[bytes], timeout: float
         except OSError:
             time.sleep(0.05)
     raise FaultError(f"router did not listen on {endpoint} within {timeout:.0f} s")
+
+
+def _wait_world(run_dir: Path, before: str | None, proc: subprocess.Popen[bytes], timeout: float) -> None:
+    """Wait until the world started as ``proc`` names its link in ``run_dir`` (another name than
+    ``before``: velma/world/files.py ``link_name``). Raises FaultError when it exits first or
+    names none within ``timeout`` s."""
+    deadline = time.monotonic() + timeout
+    while link_name(run_dir) in (None, before):
+        if proc.poll() is not None:
+            raise FaultError(f"{WORLD_SERVICE} exited with code {proc.returncode}")
+        if time.monotonic() > deadline:
+            raise FaultError(f"{WORLD_SERVICE} (pid {proc.pid}) named no link after {timeout:.0f} s")
+        time.sleep(0.05)
 
 
 def _wait_alive(endpoint: str, service: str, proc: subprocess.Popen[bytes], timeout: float) -> None:

@@ -147,7 +147,7 @@ class Fleet:
             if name == "ag_ex" and world_in_process(self._environ()):
                 world = self.processes.get(WORLD_SERVICE)
                 if world is None or world.poll() is not None:
-                    self._spawn(WORLD_SERVICE, ["-m", "velma.world"])
+                    self._spawn(WORLD_SERVICE, service_args(WORLD_SERVICE, self.endpoint))
             self._spawn(name, service_args(name, self.endpoint))
 
     def start_gateway(self, port: int) -> None:
@@ -245,6 +245,8 @@ def service_args(name: str, endpoint: str) -> list[str]:
         return ["-m", "services.runtime.router", "--listen", endpoint]
     if name == "recorder":
         return ["-m", "services.recorder.recorder"]
+    if name == WORLD_SERVICE:
+        return ["-m", "velma.world"]
     return ["-m", "services.runtime.main", name]
 
 

@@ -29,6 +29,7 @@ from typing import BinaryIO
 import msgspec
 
 from services.recorder.flags import flags_reply
+from services.recorder.presence import PresenceEvent, PresenceWriter
 from services.recorder.record import (
     FAULTS_JSONL,
     TRAFFIC_JSONL,
@@ -43,6 +44,7 @@ from services.recorder.record import (
 from services.runtime import faults, keys
 from services.runtime.hooks import TrafficSink, load_hooks
 from services.runtime.main import ready_file, router_endpoints, say_ready, setup_logging
+from services.runtime.session import alive_agents
 from services.runtime.transport import Arrival, ZenohTransport
 from shared.ready_file import clear as clear_ready
 from shared.settings import Settings
@@ -53,6 +55,12 @@ MONITOR = "services.spec_live.sink:open_sink"
 recorder's name and run folder; it returns a ``TrafficSink`` or None)."""
 _fault_event = msgspec.json.Decoder(faults.FaultEvent).decode
 _FAULT_EVENTS = faults.EVENT_ALL.removesuffix("*")
+_ALIVE = keys.ALIVE_ALL.removesuffix("*")
+SNAPSHOT_S = 5.0
+"""How long (s) the recorder waits at most for the tokens alive when it starts (a liveliness
+query, answered at once by a reachable router)."""
+_APPEARED, _GONE, _ALIVE_AT_START = b"+", b"-", b"="
+"""What a liveliness token did, as :meth:`_Loop.alive` and :meth:`_Loop.snapshot` enqueue it."""
 BATCH = 256
 """Communicates written with one write per file at most (what arrived together)."""
 log = logging.getLogger(RECORDER)
@@ -235,15 +243,29 @@ class _Loop:
     """The recorder's thread: writes what the Zenoh callbacks put in ``inbox``."""
 
     def __init__(
-        self, writer: TrafficWriter, transport: ZenohTransport, sinks: list[TrafficSink] | None = None
+        self,
+        writer: TrafficWriter,
+        transport: ZenohTransport,
+        sinks: list[TrafficSink] | None = None,
+        presence: PresenceWriter | None = None,
     ) -> None:
-        self.writer, self.transport, self.sinks = writer, transport, sinks or []
+        self.writer, self.transport, self.sinks, self.presence = writer, transport, sinks or [], presence
         self.inbox: queue.SimpleQueue[Arrival | None] = queue.SimpleQueue()
         self.listening_since = time.time()
 
     def put(self, key: str, payload: bytes) -> None:
         """A callback for Zenoh's threads: enqueue a non-FIPA sample (sync token, fault event)."""
         self.inbox.put(Arrival(time.time(), key, payload))
+
+    def alive(self, key: str, alive: bool) -> None:
+        """A callback for Zenoh's threads: a liveliness token appeared or disappeared."""
+        self.inbox.put(Arrival(time.time(), key, _APPEARED if alive else _GONE))
+
+    def snapshot(self, names: set[str]) -> None:
+        """The tokens alive when this incarnation began to watch (services/recorder/presence.py)."""
+        t = time.time()
+        for name in sorted(names):
+            self.inbox.put(Arrival(t, keys.alive_key(name), _ALIVE_AT_START))
 
     def run(self) -> None:
         """Write batches of what arrived until ``None`` is enqueued, then what is left."""
@@ -283,10 +305,31 @@ class _Loop:
             elif item.key.startswith(_FAULT_EVENTS):
                 if not self.writer.fault(item.payload):
                     log.warning("ignored a malformed fault event on %s", item.key)
+            elif item.key.startswith(_ALIVE):
+                self._write(pending)  # its seq counts what came before it
+                self._presence(item)
             elif self.writer.admit(item.source, item.sn, item.part):
                 pending.append(self._stamp(item))
         self._write(pending)
         return stop
+
+    def _presence(self, a: Arrival) -> None:
+        name = keys.alive_agent(a.key)
+        if name is None or self.presence is None:
+            return
+        event = PresenceEvent(
+            name=name,
+            alive=a.payload != _GONE,
+            t=a.t,
+            seq=self.writer.seq,
+            incarnation=self.writer.incarnation,
+            snapshot=a.payload == _ALIVE_AT_START,
+        )
+        try:
+            self.presence.write([event])
+        except OSError:
+            log.exception("cannot write the presence record; recording traffic without it")
+            self.presence = None
 
     def _stamp(self, a: Arrival) -> Arrival:
         """A communicate sent before this incarnation listened came from its publisher's cache:
@@ -335,12 +378,16 @@ def main() -> int:
         print(f"roco: recorder: {exc}", file=sys.stderr)
         return 2
     monitor = _requirements_monitor(run_dir)
-    loop = _Loop(writer, transport, [s for s in (rerun, monitor) if s is not None])
+    presence = PresenceWriter(run_dir)
+    loop = _Loop(writer, transport, [s for s in (rerun, monitor) if s is not None], presence)
     # every communicate, and what publishers' caches still hold of those sent before this start
     transport.subscribe_recovering(keys.FIPA_ALL, loop.inbox.put)
     transport.subscribe(keys.RECORDER_SYNC, loop.put)
     transport.subscribe(faults.EVENT_ALL, loop.put)
     transport.serve(keys.RECORDER_FLAGS, lambda: flags_reply(run_dir))
+    # the processes' liveliness tokens: what is alive now, then each change (presence.jsonl)
+    transport.watch(keys.ALIVE_ALL, loop.alive, history=False)
+    loop.snapshot(alive_agents(transport.session, timeout=SNAPSHOT_S))
     transport.announce(keys.alive_key(RECORDER))
 
     def on_signal(signum: int, frame: FrameType | None) -> None:
@@ -357,6 +404,7 @@ def main() -> int:
             "%d communicate(s) sent again by publishers' caches were recorded already", writer.duplicates
         )
     writer.close()
+    presence.close()
     transport.close()
     log.info("recording stopped: the record holds %d communicate(s)", writer.seq)
     if monitor is not None:  # what it held back, evaluated

@@ -3,8 +3,8 @@
 The agent is built as its process builds it (the implementation the specification names), on
 an in-memory bus, with neither the run folder nor a viewer, its kept state (and a_km's
 knowledge store) in fresh folders of the replay's own: it starts as in the run, with nothing
-kept. Every other agent's liveliness token is on the bus from the start (the record holds no
-liveliness). The driver owns the agent's time
+kept. Every other agent's liveliness token is on the bus when the recorder saw it, appearing
+and going away at the times it did (services/replay/presence.py). The driver owns the agent's time
 (:class:`~services.replay.sources.ReplaySources`) and runs its elementary actions on its own
 thread (``Agent.drive``): the agent starts at its first communicate's recorded time
 (``AgentRecord.start``), the clock moves to each input's recorded time, or first to whatever
@@ -40,7 +40,7 @@ import os
 import tempfile
 import time
 from bisect import bisect_left
-from collections import defaultdict
+from collections import defaultdict, deque
 from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass, field
@@ -48,7 +48,9 @@ from pathlib import Path
 
 import msgspec
 
+from services.recorder.presence import read_presence
 from services.replay.compare import Difference, IdMap, compare
+from services.replay.presence import Change, timeline
 from services.replay.record import AgentRecord, Recorded, agent_record
 from services.replay.sources import ReplaySources
 from services.runtime import keys
@@ -179,8 +181,11 @@ class _Replay:
         sources: ReplaySources,
         transport: _Transport,
         causal: bool = True,
+        changes: list[Change] | None = None,
     ) -> None:
         self.record, self.agent, self.sources, self.transport = record, agent, sources, transport
+        self.changes = deque(changes or [])
+        """The peers' tokens that appear or go away during the replay, in time order."""
         sent = (item.comm for items in record.outputs.values() for item in items)
         self.asked: set[_Token] = (
             {(c.conversation_id, c.reply_with) for c in sent if c.reply_with is not None} if causal else set()
@@ -209,6 +214,7 @@ class _Replay:
         wake = self.agent.drive()
         self._check_inputs()
         for item in self.record.inputs:
+            wake = self._peers_until(item.t, wake)
             wake = self._until(item.t, wake)
             if self.waits(item):
                 self.held.append(item)
@@ -216,7 +222,7 @@ class _Replay:
             self.sources.set(item.t)
             self._put(item)
             wake = self._drive()
-        self._until(self.record.end, wake)
+        self._until(self.record.end, self._peers_until(self.record.end, wake))
         if self.held:  # inputs after what the replayed agent never sent
             for item in self.held:
                 self._put(item)
@@ -269,6 +275,18 @@ class _Replay:
             for item in ready:
                 self._put(item)
             wake = self.agent.drive()
+        return wake
+
+    def _peers_until(self, t: float, wake: float | None) -> float | None:
+        """Put on the bus, or take off it, each peer's token that changed up to ``t`` (POSIX s),
+        at its time, the agent going on at each time it waits for before."""
+        while self.changes and self.changes[0].t <= t:
+            change = self.changes.popleft()
+            wake = self._until(change.t, wake)
+            self.sources.set(change.t)
+            key = keys.alive_key(change.name)
+            (self.transport.bus.announce if change.alive else self.transport.bus.withdraw)(key)
+            wake = self._drive()
         return wake
 
     def _until(self, t: float, wake: float | None) -> float | None:
@@ -373,9 +391,9 @@ def replay(run_dir: Path, agent: str, spec: SystemSpec | None = None, *, causal:
         )
     sources = ReplaySources(record.start)
     bus = MemoryBus()
-    for a in spec.agents:
-        if a.name != agent:
-            bus.announce(keys.alive_key(a.name))
+    peers = timeline(read_presence(Path(run_dir)), agent, record.start, [a.name for a in spec.agents])
+    for name in sorted(peers.initial):
+        bus.announce(keys.alive_key(name))
     with _isolated():
         transport = _Transport(bus, sources)
         try:
@@ -384,7 +402,7 @@ def replay(run_dir: Path, agent: str, spec: SystemSpec | None = None, *, causal:
             raise ReplayError(f"{agent} cannot be built outside its run: {exc}") from None
         result.build_seconds = time.perf_counter() - started
         try:
-            _run(_Replay(record, instance, sources, transport, causal), result)
+            _run(_Replay(record, instance, sources, transport, causal, peers.changes), result)
         finally:
             close = getattr(instance, "close", None)
             if callable(close):

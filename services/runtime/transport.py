@@ -699,16 +699,18 @@ class ZenohTransport:
         for tok in gone:
             tok.undeclare()
 
-    def watch(self, key_expr: str, callback: AliveCallback) -> None:
+    def watch(self, key_expr: str, callback: AliveCallback, *, history: bool = True) -> None:
         """Call ``callback(key, alive)`` whenever a liveliness token matching ``key_expr``
-        appears (True; tokens alive at the time of the call included) or disappears (False:
-        undeclared, or its owner's session ended or was lost). Runs on Zenoh's threads."""
+        appears (True; with ``history``, tokens alive at the time of the call included) or
+        disappears (False: undeclared, or its owner's session ended or was lost). Runs on
+        Zenoh's threads."""
 
         def on_sample(sample: zenoh.Sample) -> None:
             callback(str(sample.key_expr), sample.kind == zenoh.SampleKind.PUT)
 
         with self._lock:
-            self._subs.append(self.session.liveliness().declare_subscriber(key_expr, on_sample, history=True))
+            sub = self.session.liveliness().declare_subscriber(key_expr, on_sample, history=history)
+            self._subs.append(sub)
 
     def close(self) -> None:
         """Undeclare everything and close the session; the receiving threads end (quietly:

@@ -41,13 +41,15 @@ from pathlib import Path
 import msgspec
 
 from services.spec.model import default_spec
+from velma.world.mode import WORLD_SERVICE
 
 LIBRARY = Path(__file__).parent / "library"
 """The scenarios shipped with roco (``roco scenario --list``)."""
 FINAL_KINDS = frozenset({"succeeded", "failed", "stopped", "not-understood"})
 AGENTS = frozenset(default_spec().agent_names)
-SERVICES = AGENTS | {"recorder", "router"}
-"""What a ``fault`` step can hit: the agents, the traffic recorder and the Zenoh router."""
+SERVICES = AGENTS | {"recorder", "router", WORLD_SERVICE}
+"""What a ``fault`` step can hit: the agents, the traffic recorder, the Zenoh router and the
+world process (the robot's power: restarted, its kitchen starts anew)."""
 FAULT_KINDS = frozenset({"kill", "pause", "restart"})
 SPEAKERS = ("person", "gateway")
 """Who a ``say`` step's sentence comes from (``from``): a person, or an agent of another FIPA

@@ -30,8 +30,8 @@ class Channel(enum.StrEnum):
     C4 = "C4"
     """Between a_pl and a_km (fipa-query): knowledge needed by the planner."""
     C5 = "C5"
-    """Between ag_ex and a_ta (fipa-request): low-level commands for the hardware and sensor
-    readings."""
+    """Between ag_ex and a_ta (fipa-request, fipa-subscribe): low-level commands for the hardware
+    and sensor readings."""
     C6 = "C6"
     """Between a_ta and a_km (fipa-subscribe, fipa-query): knowledge needed by a_ta and updates
     of the environment model."""
@@ -52,7 +52,7 @@ class ProtocolName(enum.StrEnum):
     FIPA_QUERY = "fipa-query"
     """FIPA SC00027; on C2, C4, C6, C7."""
     FIPA_SUBSCRIBE = "fipa-subscribe"
-    """FIPA SC00035; on C2, C6."""
+    """FIPA SC00035; on C2, C5, C6."""
     COORDINATE = "coordinate"
     """paper §5.4, Figure 8; on C1."""
 

@@ -38,7 +38,8 @@ it hears ``roco/fipa/C8/a_hi/$*@$*``, holds ``roco/alive/gateway`` and answers
 The recorder hears every communicate (``roco/fipa/**``), the sync token and fault events, and
 answers on ``roco/recorder/synced``; its advanced subscriber queries the publishers' caches,
 watches their liveliness tokens and hears their heartbeats (``roco/fipa/**/@adv/**``). It
-answers queries of ``roco/recorder/flags`` (the live requirement flags) and no other.
+watches and asks for the processes' tokens (``roco/alive/*``: the run folder's presence record).
+It answers queries of ``roco/recorder/flags`` (the live requirement flags) and no other.
 
 The operator (``roco send``/``status``/``sniff``/``fault``, the scenario runner, the launcher's
 liveliness wait) may hear everything under ``roco/**`` and put on the human's receptor, the
@@ -304,6 +305,9 @@ def recorder_grants() -> Grants:
     g.allow("ingress", "liveliness_query", keys.FIPA_CACHES)
     g.allow("egress", "liveliness_token", keys.FIPA_CACHES)
     g.own_token(keys.alive_key(RECORDER))
+    # the processes' tokens for the run folder's presence record: those alive, then each change
+    g.watch_alive()
+    g.allow("ingress", "liveliness_query", keys.ALIVE_ALL)
     _answers(g, keys.RECORDER_FLAGS)  # the live requirement flags (roco status asks it)
     return g
 

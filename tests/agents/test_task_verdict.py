@@ -28,6 +28,7 @@ def step(
     second_view: int = 0,
     halted: bool = False,
     went_back: tuple[float, float] | None = None,
+    restarted: bool = False,
 ) -> Step:
     node = PlanNode(name="wait", action=action)
     return Step(
@@ -37,6 +38,7 @@ def step(
         second_view=second_view,
         halted=halted,
         went_back=went_back,
+        restarted=restarted,
     )
 
 
@@ -97,6 +99,16 @@ def test_a_world_that_went_back_is_a_surprise_except_in_a_safe_stop() -> None:
         v.reason == "pour/wait: ag_ex's world went back from 12.50 s to 3.25 s (what was done may be undone)"
     )
     assert judge(step(went_back=(12.5, 3.25)), done(), True).do is Do.NEXT
+
+
+def test_an_answer_from_a_world_started_anew_is_a_surprise_except_in_a_safe_stop() -> None:
+    v = judge(step(restarted=True), done(), False)
+    assert v == Verdict(
+        Do.SURPRISE,
+        "pour/wait: ag_ex's robot was power-cycled: its kitchen started anew "
+        "(the plan may be of the one before)",
+    )
+    assert judge(step(restarted=True), done(), True).do is Do.NEXT
 
 
 def test_held_position_is_a_surprise_of_an_unfinished_leaf() -> None:

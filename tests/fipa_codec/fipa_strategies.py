@@ -18,6 +18,8 @@ from shared.fipa_codec.languages.l_ex import (
     MoveJoints,
     MoveTool,
     Observe,
+    PowerOn,
+    PowerOns,
     Release,
     Tilt,
     Wait,
@@ -197,6 +199,9 @@ SAMPLE_TERMS: list[msgspec.Struct] = [
     Observe(objects=("jar",)),
     Wait(duration=1.0),
     CommandResult(command="grasp", ok=False, reason="no contact", sim_time=4.2, tool_error=0.01),
+    CommandResult(command="wait", ok=True, sim_time=1.5, world="roco_4242_0a1b2c3d"),
+    PowerOns(),
+    PowerOn(world="roco_4242_0a1b2c3d"),
     CommandResult(command="move_tool", ok=True, sim_time=9.1, self_contacts=("left_arm_5 + left_arm_3",)),
     CommandResult(
         command="move_tool",

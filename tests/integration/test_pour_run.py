@@ -367,6 +367,36 @@ def test_roco_replay_reproduces_what_each_agent_sent_in_the_pour(pour_run: PourR
     assert lines["a_hi"].startswith("a_hi: not replayed: ")
 
 
+def test_the_presence_record_is_what_a_replayed_a_ta_needs(pour_run: PourRun, tmp_path: Path) -> None:
+    """The recorder's presence record (services/recorder/presence.py): each agent's token seen
+    to appear, the recorder's own first. a_ta subscribes to ag_ex's power-ons when
+    ag_ex's token appears (after the world is up, after a_ta's first observe): with the record
+    the replay reproduces that moment; without it (every agent alive from the start) the
+    replayed a_ta subscribes first and differs."""
+    from services.recorder.presence import read_presence
+    from services.replay.driver import replay
+    from services.runtime.run_folder import TRAFFIC_JSONL
+    from tests.support.recorded_run import PRESENCE_JSONL, copy_record
+
+    events = read_presence(pour_run.run_dir)
+    assert events is not None and events[0].name == "recorder", events  # the fleet starts it first
+    appeared = {e.name for e in events if e.alive}
+    assert appeared >= set(AGENTS) | {"recorder"}, events
+    first = {e.name: e.t for e in reversed(events) if e.alive}
+    subscribe = next(
+        m
+        for m in load_run(pour_run.run_dir).messages
+        if m.sender == "a_ta" and m.comm is not None and m.comm.performative.value == "subscribe"
+    )
+    assert first["ag_ex"] <= subscribe.rec.t, (first, subscribe.rec)
+
+    bare = copy_record(pour_run.run_dir, tmp_path / "bare")
+    (bare / PRESENCE_JSONL).unlink()
+    assert (bare / TRAFFIC_JSONL).exists()
+    result = replay(bare, "a_ta")
+    assert not result.equal and any(d.field == "performative" for d in result.differences)
+
+
 def test_an_answer_recorded_before_its_question_is_fed_after_it(pour_run: PourRun, tmp_path: Path) -> None:
     """a_pl's part of the pour's record rewritten so that a_km's first answer to a_pl comes before the
     request from a_co that made a_pl ask (as agents linked directly can reach the recorder):

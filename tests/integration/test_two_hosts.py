@@ -172,7 +172,9 @@ def test_partitions_during_a_motion_and_during_planning_are_ridden_out_in_full_c
     answered = collections.Counter(
         r["conversation_id"]
         for r in c5
-        if r["sender"] == "ag_ex" and r["performative"] in ("inform", "failure")
+        if r["sender"] == "ag_ex"
+        and r["protocol"] == "fipa-request"  # (not a_ta's subscription to the robot's power-ons)
+        and r["performative"] in ("inform", "failure")
     )
     assert asked and all(len(sizes) == 1 for sizes in asked.values()), asked
     assert max(answered.values()) == 1 and set(answered) == set(asked), (asked, answered)

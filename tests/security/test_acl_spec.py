@@ -115,8 +115,11 @@ def test_recorder_hears_all_traffic_and_sends_none(spec: SystemSpec) -> None:
         assert g.may("egress", "put", keys.fipa_key(c, s, r))
         assert not g.may("ingress", "put", keys.fipa_key(c, s, r))
     assert g.allowed[("ingress", "put")] == [keys.RECORDER_SYNCED]
-    assert g.may("ingress", "liveliness_query", keys.alive_key("recorder"))
-    assert not g.may("ingress", "liveliness_query", keys.alive_key("a_km"))
+    # it holds its own token only, and watches and asks for every process's (presence.jsonl)
+    assert g.may("ingress", "liveliness_token", keys.alive_key("recorder"))
+    assert not g.may("ingress", "liveliness_token", keys.alive_key("a_km"))
+    assert g.may("ingress", "liveliness_query", keys.alive_key("a_km"))
+    assert g.may("ingress", "declare_liveliness_subscriber", keys.ALIVE_ALL)
 
 
 def test_operator_observes_and_commands_but_never_speaks_fipa(spec: SystemSpec) -> None:

@@ -213,7 +213,7 @@ def test_verify_code_passes_on_the_shipped_agents() -> None:
 
     ok, text = verify_code_report(DEFAULT_SPEC)
     assert ok, text
-    assert "ag_ex: 2 files; 1 protocol roles agree with the specification:" in text
+    assert "ag_ex: 2 files; 2 protocol roles agree with the specification:" in text
     assert (
         "  C5 fipa-request participant with a_ta in L_EX, L_SD: receives cancel, request; "
         "sends agree, failure, inform, refuse"

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import queue
 import threading
-from typing import Any
+from typing import Any, Self
 
 import msgspec
 
@@ -58,7 +58,7 @@ class MemoryFleet:
     def agent(self, name: str) -> Agent:
         return next(a for a in self.agents if a.name == name)
 
-    def __enter__(self) -> MemoryFleet:
+    def __enter__(self) -> Self:
         for a in self.agents:
             a.bind()
         for a in self.agents:

@@ -14,6 +14,7 @@ from pathlib import Path
 
 import msgspec
 
+from services.recorder.presence import PRESENCE_JSONL, PresenceEvent
 from services.recorder.record import TRAFFIC_RAW, RawEntry, encode_entry, read_entries, record_of
 from services.runtime import keys
 from services.runtime.run_folder import RUN_INFO, TRAFFIC_JSONL, RunInfo, write_run_info
@@ -25,10 +26,22 @@ STARTED = 1_800_000_000.0
 """When the written runs began (POSIX s)."""
 
 
-def write_recorded_run(run_dir: Path, traffic: list[tuple[float, Communicate]]) -> Path:
+def write_recorded_run(
+    run_dir: Path, traffic: list[tuple[float, Communicate]], alive: list[str] | None = None
+) -> Path:
     """``run_dir`` (made) with ``run.json`` and a traffic record of ``traffic``: (s after
     :data:`STARTED`, communicate) in the order they crossed Zenoh, each on the key of the
-    specification's channel between its sender and its first receiver."""
+    specification's channel between its sender and its first receiver; with ``alive``, a
+    presence record in which those processes were alive throughout (and no other), else none
+    (every agent alive, services/replay/presence.py)."""
+    if alive is not None:
+        write_presence(
+            run_dir,
+            [
+                PresenceEvent(name=n, alive=True, t=STARTED, seq=0, incarnation="test", snapshot=True)
+                for n in alive
+            ],
+        )
     run_dir.mkdir(parents=True, exist_ok=True)
     write_run_info(run_dir, RunInfo(started=STARTED))
     spec = default_spec()
@@ -50,16 +63,25 @@ def write_recorded_run(run_dir: Path, traffic: list[tuple[float, Communicate]]) 
     return run_dir
 
 
-RECORD_FILES = (RUN_INFO, TRAFFIC_JSONL, TRAFFIC_RAW)
-"""The files of a run folder that hold its traffic record and when it began."""
+RECORD_FILES = (RUN_INFO, TRAFFIC_JSONL, TRAFFIC_RAW, PRESENCE_JSONL)
+"""The files of a run folder that hold its traffic record, its presence record and when it
+began."""
+
+
+def write_presence(run_dir: Path, events: list[PresenceEvent]) -> Path:
+    """``run_dir`` (made) with a presence record of ``events``, in their order."""
+    run_dir.mkdir(parents=True, exist_ok=True)
+    (run_dir / PRESENCE_JSONL).write_bytes(b"".join(msgspec.json.encode(e) + b"\n" for e in events))
+    return run_dir
 
 
 def copy_record(run_dir: Path, dest: Path) -> Path:
-    """``dest`` (made) with a copy of ``run_dir``'s traffic record and ``run.json``, to be
-    mutated without touching the run."""
+    """``dest`` (made) with a copy of ``run_dir``'s traffic record, presence record (if it has
+    one) and ``run.json``, to be mutated without touching the run."""
     dest.mkdir(parents=True, exist_ok=True)
     for name in RECORD_FILES:
-        shutil.copyfile(run_dir / name, dest / name)
+        if name != PRESENCE_JSONL or (run_dir / name).exists():
+            shutil.copyfile(run_dir / name, dest / name)
     return dest
 
 

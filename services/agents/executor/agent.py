@@ -54,7 +54,15 @@ Besides the C5 conversation, ag_ex
 - keeps the simulated world across its own restarts: the kitchen is a world process of its
   own (velma/world/, started by the launcher before ag_ex) and the loop only its controller,
   which attaches to it again after a restart and finds the robot, and what it holds, as they
-  are. With ``ROCO_WORLD=loop`` (velma/world/mode.py: to measure the split) the kitchen is
+  are. The world restarted (the robot's power cycle: a fresh kitchen, its time from 0) names a
+  new link in the run folder: ag_ex notices it (velma/world/files.py ``LinkWatch``, read every
+  ``WATCH_PERIOD_S``), logs it, ends its loop (open commands end ``stopped``), forgets the
+  ledger's results of the old world and attaches a new loop to the new world by itself. Each
+  answer names the world it comes from (L_EX ``CommandResult.world``, L_SD
+  ``Observation.world``: the link's name), so that a_ta tells the new kitchen from the old, and
+  a_ta's subscription to the robot's power-ons (fipa-subscribe on C5, L_EX ``PowerOns``) is told
+  the new one at once (``PowerOn``), before a_ta's next command.
+  With ``ROCO_WORLD=loop`` (velma/world/mode.py: to measure the split) the kitchen is
   in the loop instead and a restarted ag_ex starts it anew.
 """
 
@@ -72,13 +80,21 @@ from services.runtime import keys
 from services.runtime.agent import Agent, Received
 from services.runtime.behaviour import FSM, Behaviour
 from services.runtime.roles import PARTICIPANT, Conversation, handles, participant
-from services.spec.names import C5, FIPA_REQUEST, L_EX, L_SD
+from services.spec.names import C5, FIPA_REQUEST, FIPA_SUBSCRIBE, L_EX, L_SD
 from shared.fipa_codec import Performative
-from shared.fipa_codec.languages.l_ex import HALTED, CommandResult, ExecutorCommand, command_name
+from shared.fipa_codec.languages.l_ex import (
+    HALTED,
+    CommandResult,
+    ExecutorCommand,
+    PowerOn,
+    PowerOns,
+    command_name,
+)
 from shared.fipa_codec.languages.l_sd import Observation
 from shared.settings import Settings
 from velma.executor.capture import PERCEPTION_LOG, WorldCapture
 from velma.executor.ledger import LEDGER_FILE, Answer, Ledger, Recalled, recall
+from velma.world.files import LinkWatch
 from velma.world.mode import world_in_process
 
 COMMAND_TYPES = tuple(t for t in ExecutorCommand.__args__)
@@ -95,6 +111,8 @@ class Done:
 
     request: Conversation
     result: CommandResult | Observation
+    world: str = ""
+    """The world the loop that answered was attached to ("": none named)."""
 
 
 @dataclass
@@ -150,7 +168,7 @@ class PeerChange:
 
 class ExecutorAgent(Agent):
     name = "ag_ex"
-    ROLES = (participant(C5, FIPA_REQUEST, L_EX, L_SD),)
+    ROLES = (participant(C5, FIPA_REQUEST, L_EX, L_SD), participant(C5, FIPA_SUBSCRIBE, L_EX))
     period = STATE_PERIOD
 
     def make_executor(self) -> Any:
@@ -214,6 +232,9 @@ class ExecutorAgent(Agent):
         self.recalled: dict[str, Recalled] = {}
         """Conversation-id → command an earlier ag_ex's loop ended, with its result (the ledger)."""
         self.commanders = self._commanders()
+        self.link_watch = self._link_watch()
+        self.watchers: dict[str, Conversation] = {}
+        """Per agent, its subscription to the robot's power-ons (L_EX ``PowerOns``)."""
         self.alive_peers: set[str] = set()
         self._next_state = 0.0
         self._next_timing_file = 0.0
@@ -230,6 +251,55 @@ class ExecutorAgent(Agent):
                 )
             ],
         )
+
+    @property
+    def attached_world(self) -> str:
+        """The name of the world link the executor's loop is attached to ("": none)."""
+        return str(getattr(self.executor, "world_link", "") or "")
+
+    def _link_watch(self) -> LinkWatch | None:
+        """Watches the run folder for a world started anew (module docstring); None without a
+        world process or a run folder."""
+        run_dir = Settings.from_env(only=("run_dir",)).run_dir
+        if not self.attached_world or run_dir is None:
+            return None
+        return LinkWatch(run_dir, self.attached_world)
+
+    def _watch_world(self) -> None:
+        """Reattach when the world was started anew (``link_watch``)."""
+        renewed = self.link_watch.renewed() if self.link_watch is not None else None
+        if renewed is not None:
+            self._reattach(renewed)
+
+    def _reattach(self, name: str) -> None:
+        """The world was started anew under link ``name``: end the loop of the old one and
+        start one attached to the new one (module docstring). A loop that does not start is
+        logged; the next world started anew is tried again."""
+        old = self.attached_world
+        self.counters["world_restarts"] += 1
+        self.log.warning(
+            "the world started anew (the robot's power cycle: link %s, before %s): a fresh kitchen; "
+            "ending the control loop of the old one and attaching a new one",
+            name,
+            old,
+        )
+        rerun = self.rerun
+        if rerun is not None:
+            rerun.stop_camera()
+        self.executor.stop()  # open commands end "stopped"
+        self.recalled.clear()  # results of commands in the old kitchen
+        self.ledger_runs.clear()
+        try:
+            self.executor = self.make_executor()
+            self._hook_ledger()
+            self.executor.start()
+        except RuntimeError as exc:  # the world gone again, or a loop that did not start
+            self.log.error("no control loop for the new world %s: %s", name, exc)
+            return
+        self.log.info("control loop attached to the new world (link %s)", self.attached_world)
+        self._start_camera()
+        for watcher in self.watchers.values():
+            watcher.reply(Performative.INFORM, PowerOn(world=self.attached_world))
 
     def _commanders(self) -> tuple[str, ...]:
         """Agents that initiate conversations with ag_ex (from the specification)."""
@@ -253,10 +323,7 @@ class ExecutorAgent(Agent):
             return
         self.recalled = recall(run_dir / LEDGER_FILE)  # OSError: ag_ex does not start without it
         self.ledger = Ledger(run_dir / LEDGER_FILE)
-        self.executor.on_start = lambda token, name, t: self.post(Began(token, name, t))
-        self.executor.on_end = lambda token, name, t, outcome, result=None: self.post(
-            Ended(token, name, t, outcome, result)
-        )
+        self._hook_ledger()
         self.log.info(
             "ledger of executed commands: %s (this ag_ex: %s; %d ended before it)",
             self.ledger.path,
@@ -264,17 +331,19 @@ class ExecutorAgent(Agent):
             len(self.recalled),
         )
 
+    def _hook_ledger(self) -> None:
+        """Have the executor report its starts and ends to the ledger (when there is one)."""
+        if self.ledger is None:
+            return
+        self.executor.on_start = lambda token, name, t: self.post(Began(token, name, t))
+        self.executor.on_end = lambda token, name, t, outcome, result=None: self.post(
+            Ended(token, name, t, outcome, result)
+        )
+
     def setup(self) -> None:
         self._open_ledger()
         self.executor.start()
-        world = getattr(self.executor, "world", None)
-        if self.rerun is not None and world is not None and getattr(self.executor, "world_state", False):
-            # Rerun: the head camera, rendered in a thread of this process (never in the loop's)
-            self.rerun.start_camera(
-                world,
-                seed=getattr(self.executor, "seed", 0),
-                pose_seed=getattr(self.executor, "pose_seed", None),
-            )
+        self._start_camera()
         for peer in self.commanders:
             self.transport.watch(keys.alive_key(peer), self._on_liveliness(peer))
         decoder = msgspec.json.Decoder(Disturbance)
@@ -286,6 +355,17 @@ class ExecutorAgent(Agent):
                 self.log.warning("ignored malformed disturbance: %s", exc)
 
         self.transport.subscribe(keys.SIM_DISTURB, on_disturb)
+
+    def _start_camera(self) -> None:
+        """Rerun: the head camera, rendered in a thread of this process (never in the loop's)
+        from the whole simulation state the loop copies (``world_state``)."""
+        world = getattr(self.executor, "world", None)
+        if self.rerun is not None and world is not None and getattr(self.executor, "world_state", False):
+            self.rerun.start_camera(
+                world,
+                seed=getattr(self.executor, "seed", 0),
+                pose_seed=getattr(self.executor, "pose_seed", None),
+            )
 
     def _on_liveliness(self, peer: str) -> Callable[[str, bool], None]:
         def changed(_key: str, alive: bool) -> None:  # Zenoh thread: enqueue only
@@ -315,7 +395,10 @@ class ExecutorAgent(Agent):
             return
         running = Running(command_name(command))
         conv.data = running
-        running.token = self.executor.submit(command, lambda result, req=conv: self.post(Done(req, result)))
+        world = self.attached_world
+        running.token = self.executor.submit(
+            command, lambda result, req=conv: self.post(Done(req, result, world))
+        )
         self.track(running.token, conv)
 
     def _answer_from_ledger(self, conv: Conversation, name: str) -> bool:
@@ -385,6 +468,24 @@ class ExecutorAgent(Agent):
                 "ledger line of %s (conversation %s) not written: %s", event.command, conversation, exc
             )
 
+    @handles(FIPA_SUBSCRIBE, PARTICIPANT, Performative.SUBSCRIBE)
+    def _on_power_ons(self, conv: Conversation) -> None:
+        """a_ta subscribes to the robot's power-ons: agreed, then told the current one (when the
+        loop is attached to a world process) and each new one (``_reattach``)."""
+        if not isinstance(conv.content, PowerOns):
+            conv.refuse_with(Performative.REFUSE, "not an L_EX PowerOns subscription")
+            return
+        self.watchers[conv.peer] = conv
+        conv.reply(Performative.AGREE)
+        if self.attached_world:
+            conv.reply(Performative.INFORM, PowerOn(world=self.attached_world))
+
+    @handles(FIPA_SUBSCRIBE, PARTICIPANT, Performative.CANCEL)
+    def _on_power_ons_cancel(self, conv: Conversation) -> None:
+        if self.watchers.get(conv.peer) is conv:
+            del self.watchers[conv.peer]
+        conv.reply(Performative.INFORM)
+
     @handles(FIPA_REQUEST, PARTICIPANT, Performative.CANCEL)
     def _on_cancel(self, conv: Conversation) -> None:
         """a_ta cancels a request it made: the executor is asked to halt its command (module
@@ -413,6 +514,8 @@ class ExecutorAgent(Agent):
         an Observation cannot be a failure's content, so that failure says so in words). Else
         ``inform``, or ``failure`` for a CommandResult that is not ok."""
         conv, result = event.request, event.result
+        if event.world:  # the world the loop that ran it was attached to
+            result = msgspec.structs.replace(result, world=event.world)
         running = conv.data if isinstance(conv.data, Running) else None
         if running is not None:
             self.ledger_runs.pop(running.token, None)
@@ -451,6 +554,7 @@ class ExecutorAgent(Agent):
                 self._peer_changed(event)
             elif isinstance(event, Disturbance):
                 self._disturb(event)
+        self._watch_world()
         now = time.monotonic()
         if now >= self._next_state:
             self._next_state = now + STATE_PERIOD

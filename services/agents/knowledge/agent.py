@@ -11,6 +11,11 @@ conversation with a_ta for environment updates; the role keeps it open
 once after each refuse, failure or passed reply-by deadline until a_ta agrees (a_ta may start
 later), and again when a_ta's token reappears after it disappeared (a restarted a_ta has lost it).
 
+An update that ``renews`` the world (L_WM ``WorldUpdate.renews``: a_ta found the robot
+power-cycled, its kitchen started anew) makes a_km drop what it believed (where each object
+was put, what a hand holds, the content's container, the poses and their stamps) and take the
+kitchen's initial knowledge with that update's observation (``WorldModel.renew``).
+
 A restarted a_km may have missed updates that were in flight when it stopped (fipa-subscribe
 informs are not acknowledged), so its kept knowledge can be a step behind. When it starts with
 kept knowledge it holds the queries it receives until the first observation a_ta sends after
@@ -249,7 +254,16 @@ class KnowledgeManager(Agent):
     def _save(self) -> None:
         update = self.current
         assert isinstance(update, WorldUpdate)
-        n = self.world.apply(update)
+        if update.renews:  # a_ta: the robot was power-cycled, its kitchen started anew
+            n = self.world.renew(update)
+            self.counters["renewals"] += 1
+            self.log.warning(
+                "the robot was power-cycled: what was known of the world dropped, the initial "
+                "kitchen taken with the observation at t=%.2f",
+                update.stamp,
+            )
+        else:
+            n = self.world.apply(update)
         self.counters["updates"] += 1
         self.counters["stale_poses"] = self.world.stale_poses
         self.counters["unstamped_poses"] = self.world.unstamped_poses

@@ -101,6 +101,11 @@ class StoreError(ValueError):
     ``services.runtime.main`` ends the process with exit code 2 and the message."""
 
 
+def _parsed(files: tuple[Path, ...]) -> Iterator[ox.Quad]:
+    """The quads of the Turtle ``files``, in order."""
+    return itertools.chain.from_iterable(ox.parse(path=f, format=ox.RdfFormat.TURTLE) for f in files)
+
+
 def _name(node: Node) -> str:
     return str(node).removeprefix(str(ROCO))
 
@@ -215,6 +220,8 @@ class WorldModel:
         flush_each_update: bool = False,
     ) -> None:
         self.path = store
+        self.files = files
+        """The initial knowledge (Turtle files) an empty store is filled with (:meth:`renew`)."""
         self.flush_each_update = flush_each_update
         self.stale_poses = 0
         """Poses ignored because the stored pose was observed later (paper §5.5, item 3 of a_km)."""
@@ -233,9 +240,7 @@ class WorldModel:
         if self.kept:
             log.info("knowledge kept: %d triples in %s", len(self._ox), store)
         elif files:
-            self._ox.extend(
-                itertools.chain.from_iterable(ox.parse(path=f, format=ox.RdfFormat.TURTLE) for f in files)
-            )
+            self._ox.extend(_parsed(files))
             log.info("knowledge loaded: %d triples from %s", len(self._ox), ", ".join(f.name for f in files))
 
     # ---- life cycle ----
@@ -573,6 +578,25 @@ class WorldModel:
         :attr:`unstamped_poses`. Durable when it returns (see the module docstring)."""
         self._apply(update.objects, stamp=update.stamp, total_particles=update.total_particles)
         return len(update.objects)
+
+    def renew(self, update: WorldUpdate) -> int:
+        """Drop everything known of the world and take it anew: the store is emptied, filled
+        with the initial knowledge (the ``files`` it was opened with: the kitchen as it starts),
+        then ``update`` is applied (:meth:`apply`; the stale check finds no stamp to compare
+        with). For a robot that was power-cycled: its kitchen started again, its time from 0
+        (L_WM ``WorldUpdate.renews``). Three steps, each durable: a process that ends between
+        them leaves an empty store (filled with the initial knowledge when it is opened again)
+        or the initial knowledge. Returns the number of object updates ``update`` carried."""
+        store = self._store
+        store.clear()
+        if self.files:
+            store.extend(
+                itertools.chain.from_iterable(
+                    ox.parse(path=f, format=ox.RdfFormat.TURTLE) for f in self.files
+                )
+            )
+        log.info("knowledge renewed: %d triples of the initial kitchen", len(store))
+        return self.apply(update)
 
     def _apply(
         self, objects: tuple[ObjectUpdate, ...], *, stamp: float | None, total_particles: int | None = None

@@ -94,6 +94,8 @@ from shared.fipa_codec.languages.l_ex import (
     MoveJoints,
     MoveTool,
     Observe,
+    PowerOn,
+    PowerOns,
     Tilt,
     Wait,
     command_name,
@@ -130,6 +132,9 @@ restarting or away): the coordinate protocol lets a_ta send its next state only 
 _ENDS = {Do.REPLAN: SWState.REPLAN, Do.ERROR: SWState.ERROR}
 """The final state of each verdict that ends the plan (services/agents/task_executor/verdict.py)."""
 WORLD_TIME_SLACK_S = 1e-6
+POWER_ONS_REPLY_BY_S = 5.0
+"""How long (s) a_ta waits for ag_ex to agree to its subscription to the robot's power-ons
+before it subscribes again."""
 """How far (s) an answer's simulated time may lie before the latest one seen and still be the
 same world's (the times are the world's own; equal times are the same instant)."""
 
@@ -167,6 +172,8 @@ class TaskExecutor(Agent):
         # a kept plan is taken back in running whatever state it was in: a_ta reports on it
         participant(C1, COORDINATE, L_HFSM, L_SW, keep=PlanNote, resume_in="running"),
         initiator(C5, FIPA_REQUEST, L_EX, L_SD),
+        # the robot's power-ons (a world started anew), told by ag_ex as they happen
+        initiator(C5, FIPA_SUBSCRIBE, L_EX, reply_by_s=POWER_ONS_REPLY_BY_S, resubscribes=True),
         participant(C6, FIPA_SUBSCRIBE, L_WM),
         # paper Table 6: a_ta may query a_km when it needs knowledge; roco's plans carry what
         # a_ta needs (expected poses, safe stops), so it asks nothing
@@ -181,6 +188,15 @@ class TaskExecutor(Agent):
         """The initial observes asked since the last one answered (any answer will do)."""
         self.initial_done = False
         self.world_time: float | None = None  # the latest simulated time ag_ex answered at (s)
+        self.world: str | None = None
+        """The robot's power-on ag_ex's answers last named (L_EX ``CommandResult.world``)."""
+        self.worlds_before: set[str] = set()
+        """The power-ons before it: a late answer from one of them is no new power-on."""
+        self.renew_km = False
+        """The robot was power-cycled: the next observation a_km learns renews its world."""
+        self.distrust_plan = False
+        """The robot was power-cycled: the next leaf answered (of the plan running then, or of
+        the next one, which may have been planned before a_km knew) is a surprise (Replan)."""
         # the last asserted change per object (held by / in, on), sent again to a new subscriber
         self.asserted: dict[str, ObjectUpdate] = {}
         self.plan: HierarchicalPlan | None = None
@@ -239,6 +255,17 @@ class TaskExecutor(Agent):
                 Arc("running", "finished"),
                 Arc("finished", "idle"),
             ],
+        )
+
+    def setup(self) -> None:
+        self.roles.subscribe(
+            C5,
+            FIPA_SUBSCRIBE,
+            PowerOns(),
+            conversation_id="ta-power-ons",
+            retry_s=(1.0, 10.0),
+            same_id=True,
+            while_away=False,
         )
 
     # ---- communicates handled in every state ----
@@ -325,6 +352,14 @@ class TaskExecutor(Agent):
             self.subscription = None
         conv.reply(Performative.INFORM)
 
+    # the robot's power-ons (fipa-subscribe to ag_ex, initiator)
+    @handles(FIPA_SUBSCRIBE, INITIATOR, Performative.INFORM)
+    def _on_power_on(self, conv: Conversation) -> None:
+        """ag_ex tells the power-on of the robot its loop is attached to (at once, then each new
+        one): a new one renews what a_km knows before the next plan (``_started_anew``)."""
+        if isinstance(conv.content, PowerOn):
+            self._started_anew(conv.content)
+
     # ag_ex's answers (fipa-request, initiator)
     @handles(FIPA_REQUEST, INITIATOR, Performative.INFORM)
     def _on_ex_done(self, conv: Conversation) -> None:
@@ -337,6 +372,7 @@ class TaskExecutor(Agent):
 
     def _ex_answer(self, conv: Conversation, ok: bool) -> None:
         went_back = self._world_time(conv.content)
+        restarted = self._started_anew(conv.content)
         if conv is self.initial_observe or (
             not self.initial_done and ok and any(conv is c for c in self.initial_asked)
         ):
@@ -361,6 +397,9 @@ class TaskExecutor(Agent):
                 )
                 return
             self.step.went_back = went_back
+            self.step.restarted = restarted or (self.distrust_plan and not self.terminating)
+            if self.step.restarted:
+                self.distrust_plan = False
             if conv.answers_cancel and ok:  # inform: cancelled, the command halted, the robot at rest
                 self.step.halted = True
             elif conv.answers_cancel:
@@ -398,6 +437,36 @@ class TaskExecutor(Agent):
             return latest, t
         return None
 
+    def _started_anew(self, answer: object) -> bool:
+        """True when ag_ex's ``answer`` names a power-on of the robot never named before (L_EX
+        ``CommandResult.world``, L_SD ``Observation.world``, or ag_ex's L_EX ``PowerOn`` in
+        a_ta's subscription): the robot was power-cycled, its kitchen started anew. Then what
+        a_ta asserted is forgotten, a_km's next observation renews its world (``renew_km``) and
+        the scene is observed at once, so that a_km knows the new kitchen before the next plan
+        is made; the next leaf answered ends its plan in Replan (``distrust_plan``): that plan
+        may be of the kitchen before. A late answer from a loop of a world before (a command
+        the power cycle ended ``stopped``) names none new."""
+        world = answer.world if isinstance(answer, CommandResult | Observation | PowerOn) else ""
+        if not world or world == self.world or world in self.worlds_before:
+            return False  # none named, the same, or a late answer of a loop of a world before
+        before, self.world = self.world, world
+        if before is None:
+            return False
+        self.worlds_before.add(before)
+        self.counters["world_restarts"] += 1
+        self.log.warning(
+            "ag_ex's robot was power-cycled (world %s, before %s): its kitchen started anew; "
+            "a_km's picture of it is renewed from a fresh observation",
+            world,
+            before,
+        )
+        self.asserted.clear()
+        self.renew_km = True
+        self.distrust_plan = True
+        self.initial_done = False
+        self._observe_initial()
+        return True
+
     def _catch_up_subscriber(self) -> None:
         """A new subscription (a_km started, or restarted and maybe missed updates that were
         in flight: fipa-subscribe informs are not acknowledged) gets the world anew: first the
@@ -430,8 +499,13 @@ class TaskExecutor(Agent):
         return self.roles.open(C5, FIPA_REQUEST, command, reply_by_s=reply_by_s, retry_s=retry_s)
 
     def _update_km(self, obs: Observation) -> None:
-        """Inform a_km of what ``obs`` saw (:func:`observed_update`)."""
-        self._inform_km(observed_update(obs))
+        """Inform a_km of what ``obs`` saw (:func:`observed_update`); the first observation of a
+        robot that was power-cycled renews a_km's world (``renew_km``)."""
+        update = observed_update(obs)
+        if self.renew_km and self.subscription is not None and obs.world in ("", self.world):
+            update = msgspec.structs.replace(update, renews=True)
+            self.renew_km = False
+        self._inform_km(update)
 
     def _inform_km(self, update: WorldUpdate) -> None:
         if self.subscription is None:

@@ -12,6 +12,8 @@ the leaf, the answer                           verdict
 =============================================  ===========================================
 ag_ex halted the command for a_ta's cancel     ``HALTED``
 the observation after a surprise came          ``REPLAN`` with the surprise's reason
+the first answer after the robot was power-   ``SURPRISE``: the plan may be of the
+cycled (not in a safe stop)                    kitchen before
 ag_ex's simulated time went back (not in a     ``SURPRISE``: the world went back
 safe stop)
 refuse, failure, not-understood, deadline:     ``SURPRISE`` (``interrupted``: ag_ex held
@@ -95,6 +97,7 @@ class Step:
     first_look: Observation | None = None  # what the first look saw, while a second view is taken
     halted: bool = False  # ag_ex answered a_ta's cancel: the command was halted
     went_back: tuple[float, float] | None = None  # (latest, answer's) simulated time, s: the world went back
+    restarted: bool = False  # the robot was power-cycled since the plan was made (or may have been)
 
 
 @dataclass(frozen=True)
@@ -160,6 +163,9 @@ def judge(step: Step, answer: Answer, terminating: bool) -> Verdict:
     if step.replan_reason is not None:  # the observation made after a surprise
         observed = answer.content if isinstance(answer.content, Observation) else None
         return Verdict(Do.REPLAN, step.replan_reason, observed=observed)
+    if step.restarted and not terminating:
+        anew = "ag_ex's robot was power-cycled: its kitchen started anew (the plan may be of the one before)"
+        return Verdict(Do.SURPRISE, f"{step.path}: {anew}")
     if step.went_back is not None and not terminating:
         latest, now = step.went_back
         went = f"ag_ex's world went back from {latest:.2f} s to {now:.2f} s (what was done may be undone)"

@@ -139,7 +139,9 @@ class CommandResult(msgspec.Struct, frozen=True, tag="result", kw_only=True):
     (``"a + b"``, sorted) that touched each other while the command ran — empty when the robot
     did not touch itself (Velma's links collide with each other in the simulation);
     ``contact`` the external force along the motion (N, ``MoveTool.guard``'s measure) that
-    ended a guarded MoveTool early, None for any other ending."""
+    ended a guarded MoveTool early, None for any other ending; ``world`` which power-on of the
+    robot (the world process's run: velma/world/) the command ran in, "" when not known: a
+    different one than before means the robot was power-cycled, its kitchen started anew."""
 
     command: str
     ok: bool
@@ -148,6 +150,7 @@ class CommandResult(msgspec.Struct, frozen=True, tag="result", kw_only=True):
     tool_error: float | None = None
     self_contacts: tuple[str, ...] = ()
     contact: float | None = None
+    world: str = ""
 
 
 HALTED = "halted"
@@ -157,10 +160,23 @@ HALTED = "halted"
 robot came to rest. It comes in ag_ex's ``inform`` that answers the ``cancel``."""
 
 
+class PowerOns(msgspec.Struct, frozen=True, tag="power_ons"):
+    """a_ta's fipa-subscribe to ag_ex (C5; FIPA SC00035): tell each power-on of the robot
+    ag_ex's loop is attached to (:class:`PowerOn`), the current one at once."""
+
+
+class PowerOn(msgspec.Struct, frozen=True, tag="power_on", kw_only=True):
+    """ag_ex's inform in a_ta's :class:`PowerOns` subscription: its loop is attached to the
+    robot's power-on ``world`` (the world process's link name, as ``CommandResult.world``); a
+    new one means the robot was power-cycled, its kitchen started anew."""
+
+    world: str
+
+
 L_EX = register(
     Language(
         "L_EX",
         "O_Velma",
-        (MoveTool, MoveJoints, Grasp, Release, LookAt, Tilt, Observe, Wait, CommandResult),
+        (MoveTool, MoveJoints, Grasp, Release, LookAt, Tilt, Observe, Wait, CommandResult, PowerOns, PowerOn),
     )
 )

@@ -59,7 +59,9 @@ class Observation(msgspec.Struct, frozen=True, tag="observation", kw_only=True, 
     ``grips``: each hand's grip frame (``{side}_HandGripLink``) where the forward kinematics
     of the joint angles measured at ``stamp`` puts it, named as a_km's grippers
     (``left_gripper``, ``right_gripper``): the robot's proprioception, not the camera's, so it
-    holds where a held object is hidden (``position_sigma`` None)."""
+    holds where a held object is hidden (``position_sigma`` None).
+    ``world``: which power-on of the robot (the world process's run: velma/world/) was observed,
+    "" when not known (L_EX ``CommandResult.world``)."""
 
     stamp: float
     objects: tuple[ObjectObservation, ...]
@@ -67,6 +69,7 @@ class Observation(msgspec.Struct, frozen=True, tag="observation", kw_only=True, 
     unseen: tuple[str, ...] = ()
     particles_outside: int | None = None
     grips: tuple[ObjectObservation, ...] = ()
+    world: str = ""
 
 
 L_SD = register(Language("L_SD", "O_RoCo", (Observation,)))

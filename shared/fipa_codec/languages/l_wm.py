@@ -249,11 +249,15 @@ class Answer(msgspec.Struct, frozen=True, tag="answer", kw_only=True):
 
 
 class WorldUpdate(msgspec.Struct, frozen=True, tag="update", kw_only=True):
-    """Observations and changes a_ta sends a_km (C6) at simulation time ``stamp``."""
+    """Observations and changes a_ta sends a_km (C6) at simulation time ``stamp``.
+    ``renews``: the observation is of a robot that was power-cycled (its kitchen started anew,
+    its time from 0): a_km drops what it believed of the world and takes the kitchen's initial
+    knowledge with this observation instead."""
 
     stamp: float
     objects: tuple[ObjectUpdate, ...]
     total_particles: int | None = None
+    renews: bool = False
 
 
 L_WM = register(

@@ -272,3 +272,21 @@ def test_a_plan_whose_step_cannot_run_is_answered_failure_with_the_step_and_the_
         assert reply.performative is Performative.INFORM_REF
         assert isinstance(content, Answer) and content.boolean is True
         assert peer.object("bowl").particles == 64  # the real state is untouched
+
+
+def test_an_update_that_renews_the_world_replaces_what_km_believed(monkeypatch: pytest.MonkeyPatch) -> None:
+    """a_ta's update for a power-cycled robot (``renews``): a_km drops the jar it believed held
+    and seen at 268 s, and answers from the initial kitchen with the new observation (t = 0.9 s),
+    which it would have ignored as stale otherwise."""
+    monkeypatch.delenv("ROCO_KM_STORE", raising=False)
+    monkeypatch.delenv("ROCO_RUN_DIR", raising=False)
+    with running_km() as (km, peer):
+        peer.update(WorldUpdate(stamp=-1.0, objects=(ObjectUpdate(name="jar", held_by="right_gripper"),)))
+        peer.update(WorldUpdate(stamp=268.2, objects=(ObjectUpdate(name="jar", pose=Pose((0.6, 0.1, 1.1))),)))
+        assert peer.object("jar").held_by == "right_gripper"
+        fresh = Pose((0.8, 0.22, 0.9))
+        peer.update(WorldUpdate(stamp=0.9, objects=(ObjectUpdate(name="jar", pose=fresh),), renews=True))
+        jar = peer.object("jar")
+        assert not jar.held_by and jar.location == "cabinet"
+        assert jar.pose == fresh and jar.pose_stamp == 0.9
+        assert km.counters["renewals"] == 1 and km.world.stale_poses == 0

@@ -324,3 +324,35 @@ def test_a_pose_keeps_its_uncertainty_until_a_newer_observation_replaces_it() ->
         WorldUpdate(stamp=3.0, objects=(ObjectUpdate(name="jar", pose=Pose(JAR), position_sigma=0.002),))
     )
     assert world.object_info("jar").position_sigma == 0.002
+
+
+# ---- a power-cycled robot: the world taken anew ------------------------------------------------
+
+
+def test_a_renewing_update_drops_what_was_believed_and_takes_the_initial_kitchen(tmp_path: Path) -> None:
+    """After the robot's power cycle (its kitchen started anew, its time from 0) the update that
+    renews the world replaces the beliefs of the old one: the jar back in the cabinet, not held,
+    its content back in it, and the new observation's pose taken though its stamp is older."""
+    with WorldModel(tmp_path / "km") as world:
+        initial = world.object_info("jar")
+        world.apply(WorldUpdate(stamp=-1.0, objects=(ObjectUpdate(name="jar", held_by="right_gripper"),)))
+        world.apply(
+            WorldUpdate(
+                stamp=-1.0, objects=(ObjectUpdate(name="jar", location="table", relation="on", held_by=""),)
+            )
+        )
+        observe(world, 268.2, jar=(0.6, -0.4, 0.8))
+        world.apply(WorldUpdate(stamp=268.3, objects=(ObjectUpdate(name="bowl", particles=18),)))
+        assert world.object_info("jar").location == "table"
+        renewed = WorldUpdate(stamp=0.9, objects=(ObjectUpdate(name="jar", pose=Pose(JAR)),), renews=True)
+        assert world.renew(renewed) == 1
+        jar = world.object_info("jar")
+        assert jar.location == initial.location == "cabinet" and not jar.held_by
+        assert jar.pose == Pose(JAR) and jar.pose_stamp == 0.9
+        assert world.object_info("bowl").particles == initial.particles
+        assert world.stale_poses == 0
+        # a later observation of the new world is taken as any other
+        observe(world, 1.5, jar=BOWL)
+        assert world.object_info("jar").pose_stamp == 1.5
+    with WorldModel(tmp_path / "km") as kept:  # renewed on disk too
+        assert kept.kept and kept.object_info("jar").location == "cabinet"

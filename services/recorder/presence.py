@@ -1,0 +1,85 @@
+"""The run folder's record of which processes were up: ``presence.jsonl``, written by the traffic
+recorder from the processes' liveliness tokens (services/runtime/keys.py ``alive_key``).
+
+An agent acts on its peers' tokens as well as on communicates (a standing subscription opens when
+the peer's token appears: services/runtime/subscriptions.py), so a replay that is to reproduce it
+(services/replay) feeds both, in the order the recorder saw them. Each recorder incarnation writes
+first a *snapshot*, the tokens alive when it began to watch (one line per token, ``snapshot``
+true; a token alive before the run's first recorder began was alive from the replay's start), then
+one line per token that appeared or disappeared. A token that changed while no recorder ran is
+missing from the file: the next incarnation's snapshot says how things stood then. This module is
+only the format, so that the recorder and the replay read it without importing each other.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import BinaryIO
+
+import msgspec
+
+PRESENCE_JSONL = "presence.jsonl"
+"""The run folder's presence record: one JSON :class:`PresenceEvent` per line, in the order the
+recorder saw them."""
+
+MAX_LINE_BYTES = 4096
+"""A longer line is no presence event (the file is read whole; names are short)."""
+
+
+class PresenceEvent(msgspec.Struct, frozen=True, kw_only=True):
+    """One process's liveliness token seen by the recorder: ``name`` the process (an agent's name,
+    ``recorder``, ``world``…), ``alive`` whether its token appeared (True) or disappeared, ``t``
+    when the recorder saw it (POSIX s), ``seq`` how many communicates the traffic record held then
+    (the next ``traffic.jsonl`` ``seq``), ``incarnation`` the recorder incarnation that saw it
+    (as in ``traffic.jsonl``), ``snapshot`` True for a token alive when that incarnation began to
+    watch (``t`` is then that moment)."""
+
+    name: str
+    alive: bool
+    t: float
+    seq: int
+    incarnation: str
+    snapshot: bool = False
+
+
+_encode = msgspec.json.Encoder().encode
+_decode = msgspec.json.Decoder(PresenceEvent).decode
+
+
+class PresenceWriter:
+    """Appends :class:`PresenceEvent`\\ s to ``run_dir/presence.jsonl``, opened at the first one.
+    Raises OSError when the file cannot be written."""
+
+    def __init__(self, run_dir: Path) -> None:
+        self._path = run_dir / PRESENCE_JSONL
+        self._f: BinaryIO | None = None
+
+    def write(self, events: list[PresenceEvent]) -> None:
+        if not events:
+            return
+        if self._f is None:
+            self._f = self._path.open("ab")
+        self._f.write(b"".join(_encode(e) + b"\n" for e in events))
+        self._f.flush()
+
+    def close(self) -> None:
+        if self._f is not None:
+            self._f.close()
+
+
+def read_presence(run_dir: Path) -> list[PresenceEvent] | None:
+    """The presence events of ``run_dir`` in file order; None when the run has no presence record
+    (recorded before the recorder wrote one). A line that is not an event (a killed recorder's
+    torn last line) is skipped. Raises OSError when the file exists but cannot be read."""
+    path = run_dir / PRESENCE_JSONL
+    if not path.exists():
+        return None
+    events = []
+    for line in path.read_bytes().splitlines():
+        if not line.strip() or len(line) > MAX_LINE_BYTES:
+            continue
+        try:
+            events.append(_decode(line))
+        except (msgspec.DecodeError, msgspec.ValidationError):
+            continue
+    return events
