@@ -50,7 +50,6 @@ from services.spec.generated import GeneratedFile
 from services.spec.model import SystemSpec, asked
 from services.spec_check.acl import RECORDER
 from shared.settings import Settings
-from velma.executor.timing import FIFO_PRIORITY
 from velma.world.mode import WORLD_SERVICE
 
 PROJECT = Path(__file__).resolve().parents[2]
@@ -143,23 +142,34 @@ class Limits:
 
 
 LIMITS: dict[str, Limits] = {
-    "certs": Limits(memory_mb=256, cpus=1, pids=64),
+    "certs": Limits(memory_mb=256, cpus=1, pids=128),
     "router": Limits(memory_mb=256, cpus=1, pids=128),
-    "recorder": Limits(memory_mb=1024, cpus=1, pids=256),
-    "world": Limits(memory_mb=1024, cpus=1.5, pids=128),
-    "a_km": Limits(memory_mb=512, cpus=1, pids=128),
-    "a_pl": Limits(memory_mb=512, cpus=1, pids=128),
-    "a_co": Limits(memory_mb=512, cpus=1, pids=128),
-    "ag_ex": Limits(memory_mb=1536, cpus=2, pids=256),
-    "a_ta": Limits(memory_mb=512, cpus=1, pids=128),
-    "a_hi": Limits(memory_mb=512, cpus=1, pids=128),
-    "viewer": Limits(memory_mb=1024, cpus=1, pids=256),
+    "recorder": Limits(memory_mb=640, cpus=1, pids=128),
+    "world": Limits(memory_mb=256, cpus=1, pids=128),
+    "a_km": Limits(memory_mb=256, cpus=1, pids=128),
+    "a_pl": Limits(memory_mb=256, cpus=1, pids=128),
+    "a_co": Limits(memory_mb=256, cpus=1, pids=128),
+    "ag_ex": Limits(memory_mb=1152, cpus=2, pids=256),
+    "a_ta": Limits(memory_mb=256, cpus=1, pids=128),
+    "a_hi": Limits(memory_mb=256, cpus=1, pids=128),
+    "viewer": Limits(memory_mb=1280, cpus=1, pids=128),
 }
-"""Each service's limits: about twice the peak measured in the compose smoke test
-(scripts/compose_smoke.sh with scripts/container_peaks.sh; docs/deploy.md gives the peaks and
-the machine). An agent not named here has :data:`AGENT_LIMITS`."""
-AGENT_LIMITS = Limits(memory_mb=512, cpus=1, pids=128)
-"""The limits of an agent :data:`LIMITS` does not name (a new agent of the specification)."""
+"""Each service's limits, from its peaks in the compose smoke test (scripts/compose_smoke.sh
+sampled by scripts/container_peaks.sh; docs/deploy.md gives the peaks and the machine):
+
+- memory: twice the peak, rounded up to 64 MiB, at least 256 MiB (a long-lived fleet's
+  knowledge and queues grow past one pour's); the viewer's also holds the Rerun server's
+  buffer (1 GiB, ``rerun --server-memory-limit``'s default);
+- CPUs: 1 (twice each peak is less), but ag_ex 2: its 1 kHz loop must not meet the quota,
+  which throttles in 100 ms periods (the loop would count them as overruns);
+- PIDs (processes and threads): 128, over twice each peak, as Zenoh's and Mesa's thread pools
+  grow with the host's CPUs; ag_ex 256 (its camera renders with Mesa's llvmpipe, up to 32
+  threads of its own).
+
+An agent not named here has :data:`AGENT_LIMITS`."""
+AGENT_LIMITS = Limits(memory_mb=256, cpus=1, pids=128)
+"""The limits of an agent :data:`LIMITS` does not name (a new agent of the specification): an
+agent's but ag_ex's."""
 
 
 def limits(service: str) -> Limits:
@@ -185,12 +195,10 @@ class StateVolume:
 @dataclass(frozen=True)
 class AgentExtras:
     """What an agent's container needs beyond every agent's: a ``state`` volume, Linux
-    ``capabilities`` (``cap_add``), the real-time priority its user may ask for (``rtprio``,
-    the ``RLIMIT_RTPRIO`` ulimit; 0: none) and the comment lines that say why."""
+    ``capabilities`` (``cap_add``) and the comment lines that say why."""
 
     state: StateVolume | None = None
     capabilities: tuple[str, ...] = ()
-    rtprio: int = 0
     why: tuple[str, ...] = ()
     hardware: str | None = None
     """The service of the hardware the agent drives (its IPC and PID namespaces are shared,
@@ -202,12 +210,10 @@ AGENT_EXTRAS: dict[str, AgentExtras] = {
     "a_co": AgentExtras(state=StateVolume("co_state", "/var/lib/roco/co", (Settings.env_name("state_dir"),))),
     "ag_ex": AgentExtras(
         hardware=WORLD_SERVICE,
-        rtprio=FIFO_PRIORITY,
         why=(
-            "the 1 kHz loop asks for SCHED_FIFO: the rtprio ulimit lets its user (not root, so no",
-            "capability would count) have it; refused (e.g. no real-time budget in the container's",
-            "cgroup v1) it runs on with normal scheduling and says so in its log and report",
-            "(velma/executor/timing.py)",
+            "the 1 kHz loop asks for SCHED_FIFO, which its user (not root) is refused here: it runs",
+            "on with normal scheduling and says so in its log and report (velma/executor/timing.py;",
+            "docs/deploy.md: an override that grants it)",
         ),
     ),
 }
@@ -288,8 +294,8 @@ HEAD = """\
 # the peaks measured in the compose smoke test (docs/deploy.md: how, and on what machine).
 #
 # Compose Specification format (no `version:`): valid for `docker compose` v2 and for
-# Debian's `docker-compose` 1.29 (depends_on conditions, healthchecks, init, cap_add, ulimits,
-# mem_limit, cpus, pids_limit).
+# Debian's `docker-compose` 1.29 (depends_on conditions, healthchecks, init, cap_add, mem_limit,
+# cpus, pids_limit).
 
 x-roco: &roco
   image: ${ROCO_IMAGE:-roco:latest}
@@ -522,8 +528,6 @@ def _agent(spec: SystemSpec, name: str) -> list[str]:
     lines += [f"    # {why}" for why in extras.why]
     if extras.capabilities:
         lines.append(f"    cap_add: [{', '.join(extras.capabilities)}]")
-    if extras.rtprio:
-        lines += ["    ulimits:", f"      rtprio: {extras.rtprio}"]
     lines += limits(name).lines()
     lines += [
         "    healthcheck:",

@@ -96,7 +96,6 @@ def test_the_six_agents_services_are_what_the_fleet_needs() -> None:
         own = [f"${{ROCO_CERTS:-./certs}}/{e}:/certs/{e}:ro" for e in ("ca.pem", name)]  # and no other's
         assert service["volumes"] == mounts + own + extra_volume.get(name, [])
         assert service.get("cap_add") is None  # not root: a capability would not count
-        assert service.get("ulimits") == ({"rtprio": 80} if name == "ag_ex" else None)
         assert {service["mem_limit"], service["cpus"], service["pids_limit"]} != {None}
         waits = {o: {"condition": "service_healthy"} for o in AGENTS if o != "a_hi"} if name == "a_hi" else {}
         if name == "ag_ex":  # the robot it drives: the world, whose shared memory and processes it sees
@@ -105,7 +104,7 @@ def test_the_six_agents_services_are_what_the_fleet_needs() -> None:
         assert service["depends_on"] == {**after_router, **waits}
         assert set(service) <= {
             "image", "build", "init", "restart", "logging", "volumes", "healthcheck",
-            "command", "environment", "depends_on", "ulimits", "ipc", "pid", "user",
+            "command", "environment", "depends_on", "ipc", "pid", "user",
             "mem_limit", "cpus", "pids_limit",
         }  # fmt: skip
     world = services["world"]  # Velma's hardware: no Zenoh, not an agent
