@@ -14,7 +14,7 @@ file's comments are this module's text; the agents' services follow from the spe
   once the others are there) waits until every other agent is healthy;
 - what an agent's container needs beyond that is stated here, once, in :data:`AGENT_EXTRAS`:
   a named volume for what it keeps across restarts (a_km's knowledge, a_co's accepted
-  commands), capabilities (ag_ex's ``SYS_NICE`` for its 1 kHz loop) and the robot's hardware
+  commands), Linux capabilities (none has one now: the services are not root) and the robot's hardware
   it drives (ag_ex's: the ``world`` service, the simulated kitchen of velma/world/, whose
   shared memory and processes its container shares, so that the robot link between them works
   and neither takes the other's link for an orphan).
