@@ -559,6 +559,15 @@ DEPLOYMENT: tuple[DeploymentVariable, ...] = (
 (deploy/compose.yaml), deploy/entrypoint.sh, setup.py."""
 
 
+def deployment_name(key: str) -> str:
+    """The :data:`DEPLOYMENT` variable of ``key`` (``uid`` → ``ROCO_UID``); KeyError when none
+    is declared."""
+    name = PREFIX + key.upper()
+    if not any(d.name == name for d in DEPLOYMENT):
+        raise KeyError(f"no deployment variable {name}")
+    return name
+
+
 def names() -> list[str]:
     """Every declared variable's name: the settings', then :data:`DEPLOYMENT`'s."""
     return [v.name for v in variables().values()] + [d.name for d in DEPLOYMENT]

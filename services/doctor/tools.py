@@ -13,6 +13,7 @@ from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 
 from services.doctor.model import Check, Use
+from shared.settings import deployment_name
 
 TIMEOUT_S = 15.0
 IMAGE = "roco:latest"  # deploy/compose.yaml's default ROCO_IMAGE
@@ -24,7 +25,7 @@ DEBOOTSTRAP_HOW = "apt-get install debootstrap"
 IMAGE_HOW = "scripts/build_image.sh, as root (docs/deploy.md): builds it without a registry"
 WHEELHOUSE_HOW = "scripts/build_image.sh makes it; this host needs PyPI for that, once"
 SERVICES_UID = 10001  # deploy/Dockerfile's user roco, deploy/compose.yaml's default ROCO_UID
-HOST_FOLDERS = (("ROCO_RUNS", "../runs"), ("ROCO_CERTS", "./certs"))
+HOST_FOLDERS = ((deployment_name("runs"), "../runs"), (deployment_name("certs"), "./certs"))
 """The host folders the compose services write (variable, deploy/compose.yaml's default,
 relative to deploy/)."""
 
@@ -95,42 +96,58 @@ def docker_checks(
         )
     found.append(_debootstrap_check(which, built))
     found.append(wheelhouse_check(built, root))
-    found.append(host_folders_check(root, os.environ if env is None else env))
+    found.append(host_folders_check(root, env))
     return found
 
 
-def host_folders_check(root: Path | None, env: Mapping[str, str]) -> Check:
+def host_folders_check(root: Path | None, env: Mapping[str, str] | None = None) -> Check:
     """Whether the host folders the compose services write (:data:`HOST_FOLDERS`, as ``env``
-    names them, relative to ``root``'s deploy/) exist and are writable by the services' user
-    (``ROCO_UID``, default :data:`SERVICES_UID`): its own, or writable by all. Docker makes a
-    missing one root's, and the services then cannot write it."""
-    if root is None:
-        from services.deploy.compose import PROJECT
-
-        root = PROJECT
-    raw = env.get("ROCO_UID") or str(SERVICES_UID)
-    uid = int(raw) if raw.isdigit() else SERVICES_UID
-    wrong = []
-    for variable, default in HOST_FOLDERS:
-        folder = (root / "deploy" / (env.get(variable) or default)).resolve()
-        try:
-            info = folder.stat()
-        except OSError:
-            wrong.append(f"{folder} missing")
-            continue
-        if uid != 0 and not ((info.st_uid == uid and info.st_mode & 0o200) or info.st_mode & 0o002):
-            wrong.append(f"{folder} is uid {info.st_uid}'s")
+    (default os.environ) names them, relative to ``root``'s deploy/) exist and are writable by
+    the services' user (``ROCO_UID``, default :data:`SERVICES_UID`): its own, or writable by
+    all. Docker makes a missing one root's, and the services then cannot write it."""
+    env = os.environ if env is None else env
+    uid, gid = _services_user(env)
+    folders = _host_folders(root, env)
+    wrong = [problem for folder in folders if (problem := _unwritable(folder, uid))]
     if not wrong:
         return Check("host folders", Use.COMPOSE, True, f"the run and credentials folders are uid {uid}'s")
-    folders = " ".join(str((root / "deploy" / (env.get(v) or d)).resolve()) for v, d in HOST_FOLDERS)
+    both = " ".join(map(str, folders))
     return Check(
         "host folders",
         Use.COMPOSE,
         False,
         f"the services (uid {uid}) cannot write: {'; '.join(wrong)}",
-        f"mkdir -p {folders} && chown {uid}:{env.get('ROCO_GID') or uid} {folders} "
-        "(or ROCO_UID: docs/deploy.md)",
+        f"mkdir -p {both} && chown {uid}:{gid} {both} (or ROCO_UID: docs/deploy.md)",
     )
+
+
+def _services_user(env: Mapping[str, str]) -> tuple[int, int]:
+    """The compose services' uid and gid (``ROCO_UID``, ``ROCO_GID``; :data:`SERVICES_UID`)."""
+    ids = [env.get(deployment_name(key)) or str(SERVICES_UID) for key in ("uid", "gid")]
+    uid, gid = (int(i) if i.isdigit() else SERVICES_UID for i in ids)
+    return uid, gid
+
+
+def _host_folders(root: Path | None, env: Mapping[str, str]) -> list[Path]:
+    """:data:`HOST_FOLDERS` as ``env`` names them, relative to the deploy/ folder of ``root``
+    (default this project)."""
+    if root is None:
+        from services.deploy.compose import PROJECT
+
+        root = PROJECT
+    return [(root / "deploy" / (env.get(v) or d)).resolve() for v, d in HOST_FOLDERS]
+
+
+def _unwritable(folder: Path, uid: int) -> str | None:
+    """Why ``uid`` cannot write ``folder`` (missing, another's), or None (its own and writable
+    by its owner, writable by all, or ``uid`` is root)."""
+    try:
+        info = folder.stat()
+    except OSError:
+        return f"{folder} missing"
+    if uid == 0 or (info.st_uid == uid and info.st_mode & 0o200) or info.st_mode & 0o002:
+        return None
+    return f"{folder} is uid {info.st_uid}'s"
 
 
 WHEELHOUSE = Path("deploy", "wheelhouse")

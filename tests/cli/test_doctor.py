@@ -18,6 +18,7 @@ from typer.testing import CliRunner
 import services.doctor
 from services.cli import app
 from services.doctor import credentials, environment, machine, tools
+from shared.settings import deployment_name
 from services.doctor import settings as doctor_settings
 from services.doctor.model import Check, Use, run_ready
 from services.doctor.render import CAMERA_NEED, SETTINGS_TITLE, lines, settings_lines, verdict
@@ -184,6 +185,9 @@ def test_the_host_folders_must_be_the_services_users(tmp_path: Path) -> None:
     elsewhere.chmod(0o777)  # writable by all (the umask aside): any uid may write it
     moved = {"ROCO_UID": other, "ROCO_RUNS": str(elsewhere), "ROCO_CERTS": str(elsewhere)}
     assert tools.host_folders_check(tmp_path, moved).found
+    assert deployment_name("uid") == "ROCO_UID"
+    with pytest.raises(KeyError, match="no deployment variable ROCO_NOT_ONE"):
+        deployment_name("not_one")
 
 
 def test_the_wheelhouse_must_match_pyproject_until_the_image_is_built(tmp_path: Path) -> None:
