@@ -18,11 +18,11 @@ from typer.testing import CliRunner
 import services.doctor
 from services.cli import app
 from services.doctor import credentials, environment, machine, tools
-from shared.settings import deployment_name
 from services.doctor import settings as doctor_settings
 from services.doctor.model import Check, Use, run_ready
 from services.doctor.render import CAMERA_NEED, SETTINGS_TITLE, lines, settings_lines, verdict
 from services.security.certs import issue
+from shared.settings import deployment_name
 from tests.support.machine import needs_gl
 
 
