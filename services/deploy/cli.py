@@ -73,6 +73,7 @@ def certs(
     spec: SpecFile = None,
 ) -> None:
     """Issue a deployment's credentials: CA, router certificate, identities, passwords, ACL.
+
     A folder it cannot write (e.g. the compose ``certs`` service's, not its user's): one
     ``roco:`` line, exit 1."""
     from services.deploy.deploy import prepare
