@@ -166,7 +166,7 @@ for s in "${services[@]}"; do
         '{{.Config.User}} {{.HostConfig.Memory}} {{.HostConfig.NanoCpus}} {{.HostConfig.PidsLimit}}' "${cid[$s]}")
     case "${user%%:*}" in ""|0|root) say "$s runs as root (user '$user')"; exit 1 ;; esac
     for limit in "$mem" "$cpus" "$pids"; do
-        case "$limit" in ""|0|"<nil>"|-1) say "$s has no limit (memory $mem, nano-CPUs $cpus, PIDs $pids)"; exit 1 ;; esac
+        case "$limit" in ""|0|"<nil>"|"<no value>"|-1) say "$s has no limit (memory $mem, nano-CPUs $cpus, PIDs $pids)"; exit 1 ;; esac
     done
 done
 say "every service runs as $(docker inspect -f '{{.Config.User}}' "${cid[a_km]}"), within its memory, CPU and PIDs limits"
