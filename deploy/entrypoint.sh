@@ -10,7 +10,16 @@
 # Then "{run}" in ROCO_RUN_DIR, ROCO_KM_STORE and ROCO_STATE_DIR is replaced by
 # the name, so a restarted agent continues in the same run folder with the same store, and a
 # new fleet (docker compose down && up) starts with a fresh one, as the simulated kitchen does.
+#
+# The services run as the image's user roco (uid 10001) or ROCO_UID: a run folder it cannot
+# write (the host's ROCO_RUNS belongs to another uid) stops the service with one line saying so.
 set -eu
+
+cannot_write() {  # cannot_write PATH: the line that says whose folder it must be, then exit 2
+    echo "roco-entrypoint: cannot write $1 as uid $(id -u): make the host folder mounted there" \
+        "(ROCO_RUNS) writable by uid $(id -u), or run as its owner (ROCO_UID, ROCO_GID; docs/deploy.md)" >&2
+    exit 2
+}
 
 fleet_dir=${ROCO_FLEET_DIR:-/var/lib/roco/fleet}
 run=${ROCO_RUN:-}
@@ -62,7 +71,7 @@ if [ -n "$run" ]; then
     export ROCO_RUN="$run"
 fi
 if [ -n "${ROCO_RUN_DIR:-}" ]; then
-    mkdir -p "$ROCO_RUN_DIR/logs"
+    mkdir -p "$ROCO_RUN_DIR/logs" 2>/dev/null && [ -w "$ROCO_RUN_DIR/logs" ] || cannot_write "$ROCO_RUN_DIR"
     if [ "${ROCO_NEW_RUN:-0}" = 1 ] && [ ! -e "$ROCO_RUN_DIR/run.json" ]; then
         # run.json as `roco up` writes it (the run's start, for `roco report`); never fatal
         python -c '

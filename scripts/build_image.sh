@@ -4,22 +4,26 @@
 #   1. wheelhouse: the wheels of roco's dependencies for Linux x86_64 / CPython 3.11, made on
 #      this host with pip (PyPI must be reachable from the host once; the build needs nothing)
 #      into deploy/wheelhouse/ (git-ignored); skipped while it matches pyproject.toml;
-#   2. base image: python:3.11-slim if it is here or can be pulled; else roco-base:bookworm-<hash
-#      of its package list>, made once with debootstrap (Debian bookworm: its python3.11,
-#      libgomp1, iproute2 and the software EGL MuJoCo renders the head camera with) and
-#      `docker import`;
-#   3. docker build --network host --build-arg BASE=<base> -f deploy/Dockerfile, with the
-#      wheelhouse served on 127.0.0.1 for the build's `pip install --no-index --find-links`.
+#   2. base images: python:3.11-slim if it is here or can be pulled (both stages); else two made
+#      once each with debootstrap (Debian bookworm) and `docker import`: the runtime base
+#      roco-base:bookworm-<hash of its package list> (python3, libgomp1, iproute2 and the
+#      software EGL MuJoCo renders the head camera with) and the build base (the same with
+#      python3-venv, Python's headers and g++);
+#   3. docker build --network host --build-arg BASE=<runtime base> --build-arg
+#      BUILD_BASE=<build base> -f deploy/Dockerfile, with the wheelhouse served on 127.0.0.1 for
+#      the build's `pip install --no-index --find-links`; tagged TAG and, beside it, TAG's
+#      repository with the version in pyproject.toml (roco:latest and roco:0.1.0).
 #
 # Usage: scripts/build_image.sh [--tag IMAGE] [--base IMAGE] [--mirror URI] [--refresh-wheelhouse]
 #                               [--no-cache]
-# Environment: ROCO_IMAGE (tag, default roco:latest); ROCO_BASE (base image, default as in 2);
-#   ROCO_LOCAL_BASE (default roco-base:bookworm-<hash>); DEBIAN_MIRROR (the Debian mirror for
-#   debootstrap, as --mirror; default: the one this host's apt uses, scripts/apt_mirror.py);
-#   ROCO_BASE_PACKAGES (Debian packages of the local base); ROCO_WHEEL_PORT (loopback port the
-#   wheelhouse is served on, default 7449); PYTHON (host Python with pip, default python3);
-#   DOCKER (default docker).
-# Before phase 1 it checks that an engine answers and that the base is here, can be pulled, or
+# Environment: ROCO_IMAGE (tag, default roco:latest); ROCO_BASE (runtime base image, default as
+#   in 2); ROCO_BUILD_BASE (build base, default: ROCO_BASE if set, else as in 2);
+#   ROCO_LOCAL_BASE, ROCO_LOCAL_BUILD_BASE (default roco-base:bookworm-<hash>);
+#   DEBIAN_MIRROR (the Debian mirror for debootstrap, as --mirror; default: the one this host's
+#   apt uses, scripts/apt_mirror.py); ROCO_BASE_PACKAGES, ROCO_BUILD_BASE_PACKAGES (Debian
+#   packages of the local bases); ROCO_WHEEL_PORT (loopback port the wheelhouse is served on,
+#   default 7449); PYTHON (host Python with pip, default python3); DOCKER (default docker).
+# Before phase 1 it checks that an engine answers and that the bases are here, can be pulled, or
 # can be made (debootstrap, as root); each missing one is named at once (`roco doctor --compose`
 # lists them all). Prints the time of each phase; on a terminal,
 # a status line shows the running phase, its seconds and its log's last line
@@ -31,10 +35,21 @@ cd "$(dirname "$0")/.."
 
 TAG=${ROCO_IMAGE:-roco:latest}
 BASE=${ROCO_BASE:-}
+BUILD_BASE=${ROCO_BUILD_BASE:-}  # none: the runtime base, or the local build base (phase 2)
 MIRROR=${DEBIAN_MIRROR:-}  # none: this host's apt configuration names it (phase 2)
-BASE_PACKAGES=${ROCO_BASE_PACKAGES:-python3,python3-venv,python3-dev,g++,libgomp1,iproute2,libegl1,libegl-mesa0,libgl1-mesa-dri,libgl1,libopengl0}
-# the local base's tag names its package list: another list makes another base
-LOCAL_BASE=${ROCO_LOCAL_BASE:-roco-base:bookworm-$(printf '%s' "$BASE_PACKAGES" | sha256sum | cut -c1-8)}
+# the runtime stage's base: what roco runs with, no compiler, no headers
+BASE_PACKAGES=${ROCO_BASE_PACKAGES:-python3,libgomp1,iproute2,libegl1,libegl-mesa0,libgl1-mesa-dri,libgl1,libopengl0}
+# the build stage's base: the same with the venv module, Python's headers and g++
+BUILD_BASE_PACKAGES=${ROCO_BUILD_BASE_PACKAGES:-python3,python3-venv,python3-dev,g++,libgomp1,iproute2,libegl1,libegl-mesa0,libgl1-mesa-dri,libgl1,libopengl0}
+# a local base's tag names its package list: another list makes another base
+base_tag() { printf 'roco-base:bookworm-%s' "$(printf '%s' "$1" | sha256sum | cut -c1-8)"; }
+LOCAL_BASE=${ROCO_LOCAL_BASE:-$(base_tag "$BASE_PACKAGES")}
+LOCAL_BUILD_BASE=${ROCO_LOCAL_BUILD_BASE:-$(base_tag "$BUILD_BASE_PACKAGES")}
+# the image's version tag, beside TAG: the version in pyproject.toml
+VERSION=""
+while IFS= read -r line; do
+    case "$line" in 'version = "'*'"') VERSION=${line#version = \"}; VERSION=${VERSION%\"}; break ;; esac
+done < pyproject.toml
 PORT=${ROCO_WHEEL_PORT:-7449}
 PYTHON=${PYTHON:-python3}
 DOCKER=${DOCKER:-docker}
@@ -48,7 +63,7 @@ while [ $# -gt 0 ]; do
         --mirror) MIRROR=$2; shift 2 ;;
         --refresh-wheelhouse) REFRESH=1; shift ;;
         --no-cache) NO_CACHE=(--no-cache); shift ;;
-        -h|--help) sed -n '2,26p' "$0"; exit 0 ;;
+        -h|--help) sed -n '2,32p' "$0"; exit 0 ;;
         *) echo "build_image.sh: unknown argument $1" >&2; exit 2 ;;
     esac
 done
@@ -78,6 +93,12 @@ phase() {  # phase NAME: print how long the phase that just ended took
     phase_start=$now
 }
 
+[ -n "$VERSION" ] || { echo "build_image.sh: no version = \"...\" line in pyproject.toml" >&2; exit 1; }
+# the version tag: TAG's repository (an optional registry host:port/ included) with the version
+repository=$TAG
+case "${TAG##*/}" in *:*) repository=${TAG%:*} ;; esac
+VERSION_TAG=$repository:$VERSION
+
 # before anything takes time: an engine that answers, and the base image or what makes it
 "$DOCKER" version >/dev/null 2>&1 || {
     echo "build_image.sh: no Docker engine answers '$DOCKER version' (apt-get install docker.io; start it:" \
@@ -89,21 +110,29 @@ if [ -z "$BASE" ]; then
     if have_image python:3.11-slim || timeout 120 "$DOCKER" pull -q python:3.11-slim >/dev/null 2>&1; then
         BASE=python:3.11-slim
     else
-        echo "build_image.sh: no python:3.11-slim here, and none can be pulled: the base is $LOCAL_BASE"
+        echo "build_image.sh: no python:3.11-slim here, and none can be pulled: the bases are $LOCAL_BASE and $LOCAL_BUILD_BASE"
         BASE=$LOCAL_BASE
     fi
 fi
-if ! have_image "$BASE"; then
-    if [ "$BASE" != "$LOCAL_BASE" ]; then
-        echo "build_image.sh: base image $BASE is not here and cannot be pulled" >&2
-        exit 1
-    fi
+if [ -z "$BUILD_BASE" ]; then
+    if [ "$BASE" = "$LOCAL_BASE" ]; then BUILD_BASE=$LOCAL_BUILD_BASE; else BUILD_BASE=$BASE; fi
+fi
+to_make=()  # "TAG PACKAGES" of each local base still to make
+for image in "$BASE" "$BUILD_BASE"; do
+    have_image "$image" && continue
+    case "$image" in
+        "$LOCAL_BASE") to_make+=("$LOCAL_BASE $BASE_PACKAGES") ;;
+        "$LOCAL_BUILD_BASE") to_make+=("$LOCAL_BUILD_BASE $BUILD_BASE_PACKAGES") ;;
+        *) echo "build_image.sh: base image $image is not here and cannot be pulled" >&2; exit 1 ;;
+    esac
+done
+if [ ${#to_make[@]} -gt 0 ]; then
     command -v debootstrap >/dev/null || {
-        echo "build_image.sh: making $LOCAL_BASE needs debootstrap (apt-get install debootstrap)" >&2
+        echo "build_image.sh: making ${to_make[0]%% *} needs debootstrap (apt-get install debootstrap)" >&2
         exit 1
     }
     [ "$(id -u)" = 0 ] || {
-        echo "build_image.sh: making $LOCAL_BASE with debootstrap needs root" >&2
+        echo "build_image.sh: making ${to_make[0]%% *} with debootstrap needs root" >&2
         exit 1
     }
 fi
@@ -135,37 +164,41 @@ else
 fi
 phase wheelhouse
 
-# 2. the base image (chosen, and its tools checked, before phase 1) --------------------------
-if ! have_image "$BASE"; then
+# 2. the base images (chosen, and their tools checked, before phase 1) ----------------------
+make_base() {  # make_base TAG PACKAGES: debootstrap --variant=minbase, then docker import
+    local tag=$1 packages=$2
     if [ -z "$MIRROR" ]; then
         # the mirror this host's apt uses (sources.list, sources.list.d/*.list and *.sources)
         MIRROR=$("$PYTHON" scripts/apt_mirror.py --suite bookworm) || exit 1
         echo "build_image.sh: Debian mirror from this host's apt configuration: $MIRROR"
     fi
-    echo "build_image.sh: making the base $LOCAL_BASE with debootstrap ($MIRROR)"
+    echo "build_image.sh: making the base $tag with debootstrap ($MIRROR)"
     rootfs="$work/rootfs"
     mkdir -p "$rootfs"
     # dpkg on a tmpfs: ≈ 3× faster than on this kind of VM's disk
     mount -t tmpfs -o size=4g,mode=0755 roco-rootfs "$rootfs" 2>/dev/null || true
     live_status "build_image.sh: phase base" "$work/debootstrap.log" \
-        debootstrap --variant=minbase --include="$BASE_PACKAGES" bookworm "$rootfs" "$MIRROR" || {
+        debootstrap --variant=minbase --include="$packages" bookworm "$rootfs" "$MIRROR" || {
         tail -20 "$work/debootstrap.log" >&2
         echo "build_image.sh: debootstrap failed" >&2
         exit 1
     }
-    # a smaller base: no package lists, caches, docs, man pages or logs
+    # a smaller base: no package lists, caches, docs, man pages, translations or logs
     rm -rf "$rootfs"/var/lib/apt/lists/* "$rootfs"/var/cache/apt/*.bin "$rootfs"/var/cache/apt/archives/*.deb \
-        "$rootfs"/usr/share/doc/* "$rootfs"/usr/share/man/* "$rootfs"/usr/share/info/* "$rootfs"/var/log/*.log
+        "$rootfs"/usr/share/doc/* "$rootfs"/usr/share/man/* "$rootfs"/usr/share/info/* \
+        "$rootfs"/usr/share/locale/* "$rootfs"/var/log/*.log
     tar -C "$rootfs" --numeric-owner -c . | "$DOCKER" import \
         --change 'ENV PATH=/usr/local/sbin:/usr/local/bin:/usr/sbin:/usr/bin:/sbin:/bin' \
         --change 'ENV LANG=C.UTF-8' \
         --change 'CMD ["/bin/bash"]' \
-        -m "debootstrap --variant=minbase --include=$BASE_PACKAGES bookworm" \
-        - "$LOCAL_BASE" >/dev/null
+        -m "debootstrap --variant=minbase --include=$packages bookworm" \
+        - "$tag" >/dev/null
     if mountpoint -q "$rootfs"; then umount "$rootfs"; fi
+    rm -rf "$rootfs"
     rootfs=""
-    echo "build_image.sh: made $LOCAL_BASE ($("$DOCKER" image inspect -f '{{.Size}}' "$LOCAL_BASE" | awk '{printf "%.0f MB", $1/1e6}'))"
-fi
+    echo "build_image.sh: made $tag ($("$DOCKER" image inspect -f '{{.Size}}' "$tag" | awk '{printf "%.0f MB", $1/1e6}'))"
+}
+for entry in "${to_make[@]}"; do make_base "${entry%% *}" "${entry#* }"; done
 phase base
 
 # 3. the image ----------------------------------------------------------------------------
@@ -177,13 +210,14 @@ fi
 server_pid=$!
 for _ in $(seq 50); do (exec 3<>"/dev/tcp/127.0.0.1/$PORT") 2>/dev/null && break; sleep 0.1; done
 wheelhouse_id=$(find "$WHEELHOUSE" -name '*.whl' -printf '%f %s\n' | sort | sha256sum | cut -c1-16)
-echo "build_image.sh: building $TAG on $BASE (log: $work/build.log)"
+echo "build_image.sh: building $TAG ($VERSION_TAG) on $BASE, compiled on $BUILD_BASE (log: $work/build.log)"
 live_status "build_image.sh: phase build" "$work/build.log" \
     "$DOCKER" build "${NO_CACHE[@]}" --network host \
     --build-arg BASE="$BASE" \
+    --build-arg BUILD_BASE="$BUILD_BASE" \
     --build-arg WHEELS="http://127.0.0.1:$PORT/" \
     --build-arg WHEELHOUSE_ID="$wheelhouse_id" \
-    -f deploy/Dockerfile -t "$TAG" . || {
+    -f deploy/Dockerfile -t "$TAG" -t "$VERSION_TAG" . || {
     tail -40 "$work/build.log" >&2
     cp "$work/build.log" /tmp/roco-build-image.log
     echo "build_image.sh: docker build failed (whole log: /tmp/roco-build-image.log)" >&2
@@ -192,4 +226,5 @@ live_status "build_image.sh: phase build" "$work/build.log" \
 kill "$server_pid"; wait "$server_pid" 2>/dev/null || true; server_pid=""
 phase build
 size=$("$DOCKER" image inspect -f '{{.Size}}' "$TAG" | awk '{printf "%.0f MB", $1/1e6}')
-echo "build_image.sh: $TAG built on $BASE ($size) in $(($(date +%s) - t_start)) s"
+user=$("$DOCKER" image inspect -f '{{.Config.User}}' "$TAG")
+echo "build_image.sh: $TAG and $VERSION_TAG built on $BASE ($size, runs as user $user) in $(($(date +%s) - t_start)) s"

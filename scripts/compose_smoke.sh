@@ -6,9 +6,11 @@
 #   engine   Debian's docker.io, docker-compose (1.29) and debootstrap, installed if missing;
 #            dockerd started in the background if no engine answers (and stopped at the end)
 #   build    scripts/build_image.sh: wheelhouse, local base, docker build with no network
-#   up       `compose up -d` under a project of its own, on free host ports
-#   healthy  every service healthy (each roco service's ready file; the viewer's ports); then the
-#            operator's view: `compose logs a_km` shows the agent's log, the router's log has no
+#   up       `compose up -d` under a project of its own, on free host ports; the host folders the
+#            services write (the run folder, the credentials) belong to their user (ROCO_UID,
+#            default the image's roco, 10001)
+#   healthy  every service healthy (each roco service's ready file; the viewer's ports) within its
+#            limits (memory, CPU, PIDs) and not as root; then the operator's view: `compose logs a_km` shows the agent's log, the router's log has no
 #            DEBUG/TRACE line and no "tls handshake eof", every container's log is rotated
 #   pour     `roco send "pour the jar into the bowl"` from the host, in the background; once a_co
 #            has sent a_ta plan #1 (the first request on C1 in the run folder's traffic.jsonl),
@@ -132,10 +134,13 @@ ROCO_VIEWER_GRPC_PORT=$(free_port)
 # access control on, as by default: the one-shot `certs` service issues the deployment's
 # credentials into ROCO_CERTS; the host's roco talks to the router as `operator` over mutual TLS
 export ROCO_CERTS="$work/certs"
-mkdir -p "$ROCO_CERTS"
 endpoint="tls/127.0.0.1:$router_port"
 roco_host() { ROCO_SECURITY="$ROCO_CERTS" "$ROCO_BIN" "$@"; }
 run_dir="$repo/runs/$RUN_NAME"
+# the services run as the image's user (not root): the host folders they write are its own
+owner="${ROCO_UID:-10001}:${ROCO_GID:-10001}"
+mkdir -p "$ROCO_CERTS" "$run_dir"
+chown "$owner" "$ROCO_CERTS" "$run_dir"
 $COMPOSE down -v --timeout 5 >/dev/null 2>&1 || true  # a project left over by an earlier run
 compose_up=1
 $COMPOSE up -d >"$work/up.log" 2>&1 || { cat "$work/up.log"; exit 1; }
@@ -158,6 +163,16 @@ while :; do
     sleep 1
 done
 say "all healthy $(( $(date +%s) - phase_start )) s after up"
+# each service limited, none root (its user: the image's or ROCO_UID's)
+for s in "${services[@]}"; do
+    read -r user mem cpus pids < <(docker inspect -f \
+        '{{.Config.User}} {{.HostConfig.Memory}} {{.HostConfig.NanoCpus}} {{.HostConfig.PidsLimit}}' "${cid[$s]}")
+    case "${user%%:*}" in ""|0|root) say "$s runs as root (user '$user')"; exit 1 ;; esac
+    for limit in "$mem" "$cpus" "$pids"; do
+        case "$limit" in ""|0|"<nil>"|"<no value>"|-1) say "$s has no limit (memory $mem, nano-CPUs $cpus, PIDs $pids)"; exit 1 ;; esac
+    done
+done
+say "every service runs as $(docker inspect -f '{{.Config.User}}' "${cid[a_km]}"), within its memory, CPU and PIDs limits"
 roco_host status --router "$endpoint"
 # what an operator reads: the agents' logs in `compose logs`, the router's at INFO, rotation
 $COMPOSE logs --no-color a_km >"$work/a_km.out" 2>&1

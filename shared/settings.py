@@ -529,7 +529,10 @@ class DeploymentVariable(msgspec.Struct, frozen=True):
 
 DEPLOYMENT: tuple[DeploymentVariable, ...] = (
     DeploymentVariable("ROCO_IMAGE", "roco:latest", "image the compose fleet runs and builds"),
-    DeploymentVariable("ROCO_BASE", "python:3.11-slim", "base image of the compose build"),
+    DeploymentVariable("ROCO_BASE", "python:3.11-slim", "base of the compose build's runtime stage"),
+    DeploymentVariable("ROCO_BUILD_BASE", "python:3.11-slim", "base of the compose build's build stage"),
+    DeploymentVariable("ROCO_UID", "10001", "uid the compose services run as (the image's roco)"),
+    DeploymentVariable("ROCO_GID", "10001", "gid the compose services run as (the image's roco)"),
     DeploymentVariable(
         "ROCO_ROUTER_PUBLISH", "127.0.0.1:7447", "host address:port of the compose router (0.0.0.0: meshable)"
     ),
@@ -554,6 +557,15 @@ DEPLOYMENT: tuple[DeploymentVariable, ...] = (
 )
 """Variables of the deployment files and the build (module docstring): docker compose
 (deploy/compose.yaml), deploy/entrypoint.sh, setup.py."""
+
+
+def deployment_name(key: str) -> str:
+    """The :data:`DEPLOYMENT` variable of ``key`` (``uid`` → ``ROCO_UID``); KeyError when none
+    is declared."""
+    name = PREFIX + key.upper()
+    if not any(d.name == name for d in DEPLOYMENT):
+        raise KeyError(f"no deployment variable {name}")
+    return name
 
 
 def names() -> list[str]:

@@ -18,6 +18,7 @@ Bad input: one line starting with ``roco:``, exit 2.
 from __future__ import annotations
 
 import json
+import os
 from pathlib import Path
 from typing import Annotated, Any
 
@@ -71,14 +72,26 @@ def certs(
     keep: Annotated[bool, typer.Option(help="leave a folder that already has an ACL as it is")] = False,
     spec: SpecFile = None,
 ) -> None:
-    """Issue a deployment's credentials: CA, router certificate, identities, passwords, ACL."""
+    """Issue a deployment's credentials: CA, router certificate, identities, passwords, ACL.
+
+    A folder it cannot write (e.g. the compose ``certs`` service's, not its user's): one
+    ``roco:`` line, exit 1."""
     from services.deploy.deploy import prepare
     from services.security.certs import ACL_FILE, identities
 
     if keep and (out / ACL_FILE).is_file():
         typer.echo(f"roco: kept the credentials in {out} ({', '.join(identities(out))})")
         return
-    names = prepare(out, _spec(spec), tls=tls, days=days)
+    system = _spec(spec)
+    try:
+        names = prepare(out, system, tls=tls, days=days)
+    except OSError as exc:
+        typer.echo(
+            f"roco: cannot write the credentials in {out}: {exc.strerror or exc} (as uid {os.getuid()}; "
+            f"in compose, ROCO_CERTS must be the services' user's: docs/deploy.md)",
+            err=True,
+        )
+        raise typer.Exit(1) from None
     typer.echo(f"roco: credentials for {', '.join(names)} in {out} (keep {out / 'ca.key'} off the robot)")
 
 

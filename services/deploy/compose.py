@@ -14,7 +14,7 @@ file's comments are this module's text; the agents' services follow from the spe
   once the others are there) waits until every other agent is healthy;
 - what an agent's container needs beyond that is stated here, once, in :data:`AGENT_EXTRAS`:
   a named volume for what it keeps across restarts (a_km's knowledge, a_co's accepted
-  commands), capabilities (ag_ex's ``SYS_NICE`` for its 1 kHz loop) and the robot's hardware
+  commands), Linux capabilities (none has one now: the services are not root) and the robot's hardware
   it drives (ag_ex's: the ``world`` service, the simulated kitchen of velma/world/, whose
   shared memory and processes its container shares, so that the robot link between them works
   and neither takes the other's link for an orphan).
@@ -23,6 +23,10 @@ Least privilege for the credentials (:func:`credentials`): only ``certs`` mounts
 folder (it issues; the CA's key is there); an agent or the recorder mounts the CA's certificate
 and its own identity (:func:`identity_mounts`), the router :data:`ROUTER_MOUNTS`, the world and
 the viewer nothing; all read-only.
+
+Every service runs as the image's user (uid :data:`UID`; ``ROCO_UID``/``ROCO_GID`` name another,
+e.g. the owner of the host's run and credentials folders) within its own memory, CPU and
+process limits (:data:`LIMITS`, measured: docs/deploy.md).
 
 Every service logs to standard output, rotated by Docker's json-file driver (:data:`LOG_SIZE`,
 :data:`LOG_FILES`); the router's Zenoh log is at :data:`ROUTER_LOG`. No health check starts an
@@ -112,6 +116,67 @@ RUN_VARIABLES = tuple(Settings.env_name(f) for f in ("run_dir", "km_store", "sta
 """The variables in which deploy/entrypoint.sh replaces ``{run}`` by the run's name."""
 
 
+UID = 10001
+"""The uid and gid of the image's user ``roco`` (deploy/Dockerfile), the services' default."""
+
+
+@dataclass(frozen=True)
+class Limits:
+    """A container's resource limits: ``memory_mb`` MiB of memory (``mem_limit``; the kernel's
+    OOM killer ends the service past it, and ``restart: unless-stopped`` starts it again),
+    ``cpus`` CPUs of time (``cpus``, a CFS quota) and ``pids`` processes and threads
+    (``pids_limit``)."""
+
+    memory_mb: int
+    cpus: float
+    pids: int
+
+    def lines(self) -> list[str]:
+        """The service's keys, as compose file format 2.x and the Compose Specification name
+        them (docker-compose 1.29 and docker compose v2 read both)."""
+        return [
+            f"    mem_limit: {self.memory_mb}m",
+            f"    cpus: {self.cpus:g}",
+            f"    pids_limit: {self.pids}",
+        ]
+
+
+LIMITS: dict[str, Limits] = {
+    "certs": Limits(memory_mb=256, cpus=1, pids=128),
+    "router": Limits(memory_mb=256, cpus=1, pids=128),
+    "recorder": Limits(memory_mb=640, cpus=1, pids=128),
+    "world": Limits(memory_mb=256, cpus=1, pids=128),
+    "a_km": Limits(memory_mb=256, cpus=1, pids=128),
+    "a_pl": Limits(memory_mb=256, cpus=1, pids=128),
+    "a_co": Limits(memory_mb=256, cpus=1, pids=128),
+    "ag_ex": Limits(memory_mb=1152, cpus=2, pids=256),
+    "a_ta": Limits(memory_mb=256, cpus=1, pids=128),
+    "a_hi": Limits(memory_mb=256, cpus=1, pids=128),
+    "viewer": Limits(memory_mb=1280, cpus=1, pids=128),
+}
+"""Each service's limits, from its peaks in the compose smoke test (scripts/compose_smoke.sh
+sampled by scripts/container_peaks.sh; docs/deploy.md gives the peaks and the machine):
+
+- memory: twice the peak, rounded up to 64 MiB, at least 256 MiB (a long-lived fleet's
+  knowledge and queues grow past one pour's); the viewer's also holds the Rerun server's
+  buffer (1 GiB, ``rerun --server-memory-limit``'s default);
+- CPUs: 1 (twice each peak is less), but ag_ex 2: its 1 kHz loop must not meet the quota,
+  which throttles in 100 ms periods (the loop would count them as overruns);
+- PIDs (processes and threads): 128, over twice each peak, as Zenoh's and Mesa's thread pools
+  grow with the host's CPUs; ag_ex 256 (its camera renders with Mesa's llvmpipe, up to 32
+  threads of its own).
+
+An agent not named here has :data:`AGENT_LIMITS`."""
+AGENT_LIMITS = Limits(memory_mb=256, cpus=1, pids=128)
+"""The limits of an agent :data:`LIMITS` does not name (a new agent of the specification): an
+agent's but ag_ex's."""
+
+
+def limits(service: str) -> Limits:
+    """``service``'s limits (:data:`LIMITS`, else :data:`AGENT_LIMITS`)."""
+    return LIMITS.get(service, AGENT_LIMITS)
+
+
 class ComposeError(ValueError):
     """The specification cannot be rendered as a compose file, or the file cannot be read."""
 
@@ -145,11 +210,10 @@ AGENT_EXTRAS: dict[str, AgentExtras] = {
     "a_co": AgentExtras(state=StateVolume("co_state", "/var/lib/roco/co", (Settings.env_name("state_dir"),))),
     "ag_ex": AgentExtras(
         hardware=WORLD_SERVICE,
-        capabilities=("SYS_NICE",),
         why=(
-            "the 1 kHz loop asks for SCHED_FIFO (as root with CAP_SYS_NICE no rtprio ulimit is needed);",
-            "refused (e.g. no real-time budget in the container's cgroup v1) it runs on with normal",
-            "scheduling and says so in its log and report (velma/executor/timing.py)",
+            "the 1 kHz loop asks for SCHED_FIFO, which its user (not root) is refused here: it runs",
+            "on with normal scheduling and says so in its log and report (velma/executor/timing.py;",
+            "docs/deploy.md: an override that grants it)",
         ),
     ),
 }
@@ -172,7 +236,8 @@ HEAD = """\
 # each agent's volumes and capabilities): change those, not this file; `roco deploy compose
 # --check` says whether this file is what they give, and `roco spec new-agent` renders it again.
 #
-#   scripts/build_image.sh                                     (roco:latest without a registry)
+#   scripts/build_image.sh                                     (roco:latest and roco:VERSION,
+#                                                               without a registry)
 #   docker compose -f deploy/compose.yaml -p roco up -d        (or docker-compose 1.29: same flags;
 #                    add -f deploy/compose.netfault.yaml for `roco fault net --delay/--loss`)
 #   roco status --router tls/127.0.0.1:7447 --credentials deploy/certs
@@ -181,7 +246,11 @@ HEAD = """\
 #
 # Configured by environment (shell or deploy/.env):
 #   ROCO_IMAGE            image to run/build                       roco:latest
-#   ROCO_BASE             base image of the build                  python:3.11-slim
+#                         (roco:VERSION, e.g. roco:0.1.0: that version, as build_image.sh tags it)
+#   ROCO_BASE             base image of the runtime stage          python:3.11-slim
+#   ROCO_BUILD_BASE       base image of the build stage            python:3.11-slim
+#   ROCO_UID, ROCO_GID    user and group the services run as       10001 (the image's roco)
+#                         (the owner of ROCO_RUNS and ROCO_CERTS: `id -u`, `id -g`)
 #   ROCO_ROUTER_PUBLISH   host address:port of the router          127.0.0.1:7447
 #                         (0.0.0.0:7447 to let another host's router mesh with this one)
 #   ROCO_PEER             other routers to mesh with, comma-separated (tcp/HOST:7447)
@@ -221,8 +290,12 @@ HEAD = """\
 # says by writing @READY_FILE (ROCO_READY_FILE); the check reads that file with `cat`.
 # The viewer's check opens its two ports from bash.
 #
+# Limits: each service has a memory limit, a CPU quota and a process/thread limit, about twice
+# the peaks measured in the compose smoke test (docs/deploy.md: how, and on what machine).
+#
 # Compose Specification format (no `version:`): valid for `docker compose` v2 and for
-# Debian's `docker-compose` 1.29 (depends_on conditions, healthchecks, init, cap_add).
+# Debian's `docker-compose` 1.29 (depends_on conditions, healthchecks, init, cap_add, mem_limit,
+# cpus, pids_limit).
 
 x-roco: &roco
   image: ${ROCO_IMAGE:-roco:latest}
@@ -231,6 +304,9 @@ x-roco: &roco
     dockerfile: deploy/Dockerfile
     args:
       BASE: ${ROCO_BASE:-python:3.11-slim}
+      BUILD_BASE: ${ROCO_BUILD_BASE:-python:3.11-slim}
+  # the image's user roco, or the owner of the host's folders (ROCO_RUNS, ROCO_CERTS)
+  user: "${ROCO_UID:-@UID}:${ROCO_GID:-@UID}"
   init: true  # tini as PID 1: signals reach the service, zombies are reaped
   restart: unless-stopped
   logging:  # docker compose logs; rotated
@@ -278,6 +354,7 @@ services:
     command: ["python", "-m", "services.cli", "deploy", "certs", "/certs", "--keep"]
     volumes:
       - ${ROCO_CERTS:-./certs}:/certs
+@LIMITS certs
     healthcheck:
       disable: true
 
@@ -298,6 +375,7 @@ services:
         condition: service_completed_successfully
     ports:
       - ${ROCO_ROUTER_PUBLISH:-127.0.0.1:7447}:7447
+@LIMITS router
     healthcheck:
       <<: *health
       test: @READY_TEST
@@ -314,6 +392,7 @@ services:
       router:
         condition: service_healthy
     stop_grace_period: 60s  # it merges the Rerun parts into recording.rrd when it stops
+@LIMITS recorder
     healthcheck:
       <<: *health
       test: @READY_TEST
@@ -343,6 +422,7 @@ VIEWER = """\
     ports:
       - ${ROCO_VIEWER_BIND:-127.0.0.1}:${ROCO_VIEWER_WEB_PORT:-9090}:9090
       - ${ROCO_VIEWER_BIND:-127.0.0.1}:${ROCO_VIEWER_GRPC_PORT:-9876}:9876
+@LIMITS viewer
     healthcheck:  # both ports accept a connection (bash's /dev/tcp: no Python started)
       <<: *health
       test: ["CMD", "bash", "-c", "exec 3<>/dev/tcp/127.0.0.1/9876 4<>/dev/tcp/127.0.0.1/9090"]
@@ -357,6 +437,7 @@ WORLD = """\
     depends_on:  # the run's name (its folder) comes from the router
       router:
         condition: service_healthy
+@LIMITS world
     healthcheck:  # ready once it serves the robot link (it names it in the run folder)
       <<: *health
       test: @READY_TEST
@@ -447,6 +528,7 @@ def _agent(spec: SystemSpec, name: str) -> list[str]:
     lines += [f"    # {why}" for why in extras.why]
     if extras.capabilities:
         lines.append(f"    cap_add: [{', '.join(extras.capabilities)}]")
+    lines += limits(name).lines()
     lines += [
         "    healthcheck:",
         "      <<: *health",
@@ -461,9 +543,15 @@ def hardware(spec: SystemSpec) -> list[str]:
     return sorted({h for h in named if h is not None})
 
 
+_LIMITS_MARK = re.compile(r"^@LIMITS (\S+)\n", re.M)
+
+
 def _fill(text: str) -> str:
-    """``text`` with the settings of this module in place of their marks (``@READY_TEST``, …)."""
+    """``text`` with the settings of this module in place of their marks (``@READY_TEST``, …;
+    a line ``@LIMITS SERVICE``: that service's :data:`LIMITS`)."""
+    text = _LIMITS_MARK.sub(lambda m: "\n".join(limits(m.group(1)).lines()) + "\n", text)
     values = {
+        "@UID": str(UID),
         "@READY_TEST": READY_TEST,
         "@READY_FILE": READY_FILE,
         "@LOG_SIZE": LOG_SIZE,
@@ -525,7 +613,7 @@ def render(spec: SystemSpec) -> str:
     if WORLD_SERVICE in hardware(spec):
         agents = _fill(WORLD) + "\n" + agents
     tail = "volumes:\n" + "".join(f"  {v}: {{}}\n" for v in volumes)
-    return f"{head}{agents}\n{VIEWER}\n{tail}"
+    return f"{head}{agents}\n{_fill(VIEWER)}\n{tail}"
 
 
 _SERVICE_LINE = re.compile(r'^  "?([A-Za-z0-9][A-Za-z0-9_.-]*)"?:', re.M)

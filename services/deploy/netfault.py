@@ -6,7 +6,9 @@ Delay and loss are ``tc qdisc … netem`` run in a service's container, which ne
 being faulted needs none). This file adds ``cap_add: [NET_ADMIN]`` to every service a network
 fault reaches: the router, the recorder, one per agent of the specification (in its start
 order) and the viewer; Compose v2 and ``docker-compose`` 1.29 both merge an override's
-``cap_add`` with the main file's (ag_ex keeps ``SYS_NICE``). Used as a second ``-f``::
+``cap_add`` with the main file's (none has one now) and keep every other key. ``roco fault
+net`` runs ``tc`` as root in the container (services/fault/compose.py), where the capability
+counts. Used as a second ``-f``::
 
     docker compose -f deploy/compose.yaml -f deploy/compose.netfault.yaml -p roco up -d
 

@@ -106,7 +106,7 @@ def fifo_check() -> Check:
         ""
         if ok
         else "run as root, or raise the rtprio limit (limits.conf: '<user> - rtprio 90'); "
-        "containers: --cap-add SYS_NICE",
+        "containers: --ulimit rtprio=90, or as root --cap-add SYS_NICE",
     )
 
 

@@ -6,12 +6,14 @@ docs/deploy.md) and Chromium (scripts/viewer_screenshot.py)."""
 from __future__ import annotations
 
 import hashlib
+import os
 import shutil
 import subprocess
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 
 from services.doctor.model import Check, Use
+from shared.settings import deployment_name
 
 TIMEOUT_S = 15.0
 IMAGE = "roco:latest"  # deploy/compose.yaml's default ROCO_IMAGE
@@ -22,6 +24,10 @@ COMPOSE_HOW = "apt-get install docker-compose (Debian's 1.29), or Compose v2 (do
 DEBOOTSTRAP_HOW = "apt-get install debootstrap"
 IMAGE_HOW = "scripts/build_image.sh, as root (docs/deploy.md): builds it without a registry"
 WHEELHOUSE_HOW = "scripts/build_image.sh makes it; this host needs PyPI for that, once"
+SERVICES_UID = 10001  # deploy/Dockerfile's user roco, deploy/compose.yaml's default ROCO_UID
+HOST_FOLDERS = ((deployment_name("runs"), "../runs"), (deployment_name("certs"), "./certs"))
+"""The host folders the compose services write (variable, deploy/compose.yaml's default,
+relative to deploy/)."""
 
 Runner = Callable[[Sequence[str]], tuple[int, str]]
 
@@ -40,13 +46,17 @@ def run(args: Sequence[str]) -> tuple[int, str]:
 
 
 def docker_checks(
-    runner: Runner = run, which: Callable[[str], str | None] = shutil.which, root: Path | None = None
+    runner: Runner = run,
+    which: Callable[[str], str | None] = shutil.which,
+    root: Path | None = None,
+    env: Mapping[str, str] | None = None,
 ) -> list[Check]:
     """Every prerequisite of the compose fleet, each its own check: the ``docker`` client, an
     engine that answers it (``docker version``'s server), Compose (``docker compose``, else
     ``docker-compose``), roco's image and, while that is not built, ``debootstrap`` (what
-    scripts/build_image.sh makes the base image with when no registry gives one) and the
-    wheelhouse (:func:`wheelhouse_check`, of the project at ``root``, default this one)."""
+    scripts/build_image.sh makes the base image with when no registry gives one), the
+    wheelhouse (:func:`wheelhouse_check`, of the project at ``root``, default this one) and the
+    host folders the services write (:func:`host_folders_check`, ``env`` default os.environ)."""
     client = which("docker")
     found = [
         Check(
@@ -86,7 +96,58 @@ def docker_checks(
         )
     found.append(_debootstrap_check(which, built))
     found.append(wheelhouse_check(built, root))
+    found.append(host_folders_check(root, env))
     return found
+
+
+def host_folders_check(root: Path | None, env: Mapping[str, str] | None = None) -> Check:
+    """Whether the host folders the compose services write (:data:`HOST_FOLDERS`, as ``env``
+    (default os.environ) names them, relative to ``root``'s deploy/) exist and are writable by
+    the services' user (``ROCO_UID``, default :data:`SERVICES_UID`): its own, or writable by
+    all. Docker makes a missing one root's, and the services then cannot write it."""
+    env = os.environ if env is None else env
+    uid, gid = _services_user(env)
+    folders = _host_folders(root, env)
+    wrong = [problem for folder in folders if (problem := _unwritable(folder, uid))]
+    if not wrong:
+        return Check("host folders", Use.COMPOSE, True, f"the run and credentials folders are uid {uid}'s")
+    both = " ".join(map(str, folders))
+    return Check(
+        "host folders",
+        Use.COMPOSE,
+        False,
+        f"the services (uid {uid}) cannot write: {'; '.join(wrong)}",
+        f"mkdir -p {both} && chown {uid}:{gid} {both} (or ROCO_UID: docs/deploy.md)",
+    )
+
+
+def _services_user(env: Mapping[str, str]) -> tuple[int, int]:
+    """The compose services' uid and gid (``ROCO_UID``, ``ROCO_GID``; :data:`SERVICES_UID`)."""
+    ids = [env.get(deployment_name(key)) or str(SERVICES_UID) for key in ("uid", "gid")]
+    uid, gid = (int(i) if i.isdigit() else SERVICES_UID for i in ids)
+    return uid, gid
+
+
+def _host_folders(root: Path | None, env: Mapping[str, str]) -> list[Path]:
+    """:data:`HOST_FOLDERS` as ``env`` names them, relative to the deploy/ folder of ``root``
+    (default this project)."""
+    if root is None:
+        from services.deploy.compose import PROJECT
+
+        root = PROJECT
+    return [(root / "deploy" / (env.get(v) or d)).resolve() for v, d in HOST_FOLDERS]
+
+
+def _unwritable(folder: Path, uid: int) -> str | None:
+    """Why ``uid`` cannot write ``folder`` (missing, another's), or None (its own and writable
+    by its owner, writable by all, or ``uid`` is root)."""
+    try:
+        info = folder.stat()
+    except OSError:
+        return f"{folder} missing"
+    if uid == 0 or (info.st_uid == uid and info.st_mode & 0o200) or info.st_mode & 0o002:
+        return None
+    return f"{folder} is uid {info.st_uid}'s"
 
 
 WHEELHOUSE = Path("deploy", "wheelhouse")

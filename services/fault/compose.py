@@ -6,8 +6,10 @@
   networks (remembered, with the container's aliases, in ``runs/.fault_partitions.json``) and
   ``docker network connect --alias …`` to heal; without a record, the project's default
   network ``<project>_default`` with the service name as alias;
-- delay and loss: ``docker exec CONTAINER tc qdisc replace dev eth0 root netem delay …ms
-  loss …%`` (``tc qdisc del dev eth0 root`` to clear). This needs three things, and a failure
+- delay and loss: ``docker exec -u 0 CONTAINER tc qdisc replace dev eth0 root netem delay …ms
+  loss …%`` (``tc qdisc del dev eth0 root`` to clear), as root in the container: the services
+  run as the image's user, and a capability the container is granted is a root process's
+  only (capabilities(7): a non-root exec gets none). This needs three things, and a failure
   names the one missing (:func:`netem_failure`): ``tc`` (Debian's ``iproute2``) in the
   service's image, the ``NET_ADMIN`` capability (the override deploy/compose.netfault.yaml
   grants it) and the host kernel's netem queueing discipline (``sch_netem``).
@@ -40,6 +42,10 @@ PARTITIONS_FILE = ".fault_partitions.json"
 NETFAULT_FILE = Path("deploy/compose.netfault.yaml")
 """The override that grants NET_ADMIN to the services network faults reach
 (services/deploy/netfault.py writes it)."""
+
+TC_EXEC = ("docker", "exec", "-u", "0")
+"""How ``tc`` runs in a service's container: as root there, where the NET_ADMIN capability of
+deploy/compose.netfault.yaml counts (the service itself runs as the image's user)."""
 
 Runner = Callable[[Sequence[str]], "subprocess.CompletedProcess[str]"]
 
@@ -124,7 +130,7 @@ class Compose:
         FaultError naming what is missing when tc fails (:func:`netem_failure`)."""
         cid = self.container(service)
         if not delay_s and not loss:
-            out = self.run(["docker", "exec", cid, "tc", "qdisc", "del", "dev", dev, "root"])
+            out = self.run([*TC_EXEC, cid, "tc", "qdisc", "del", "dev", dev, "root"])
             if (
                 out.returncode != 0
                 and "No such file" not in out.stderr
@@ -137,7 +143,7 @@ class Compose:
             netem += ["delay", f"{delay_s * 1000:g}ms"]
         if loss:
             netem += ["loss", f"{loss * 100:g}%"]
-        out = self.run(["docker", "exec", cid, "tc", "qdisc", "replace", "dev", dev, "root", *netem])
+        out = self.run([*TC_EXEC, cid, "tc", "qdisc", "replace", "dev", dev, "root", *netem])
         if out.returncode != 0:
             raise FaultError(netem_failure(service, out))
         return _event("net", service, " ".join(netem))
@@ -198,7 +204,7 @@ class Compose:
 
     def tc_show(self, service: str, dev: str = "eth0") -> str:
         cid = self.container(service)
-        out = self.run(["docker", "exec", cid, "tc", "qdisc", "show", "dev", dev])
+        out = self.run([*TC_EXEC, cid, "tc", "qdisc", "show", "dev", dev])
         return out.stdout.strip() if out.returncode == 0 else f"(tc: {last_line(out.stderr)})"
 
 

@@ -22,6 +22,7 @@ from services.doctor import settings as doctor_settings
 from services.doctor.model import Check, Use, run_ready
 from services.doctor.render import CAMERA_NEED, SETTINGS_TITLE, lines, settings_lines, verdict
 from services.security.certs import issue
+from shared.settings import deployment_name
 from tests.support.machine import needs_gl
 
 
@@ -106,6 +107,7 @@ def test_docker_missing_engine_and_compose_fallback_and_image(tmp_path: Path) ->
         ("Compose", False),
         ("debootstrap", False),
         ("wheelhouse", True),
+        ("host folders", False),
     ]
     assert "docker.io" in none[0].how and "docker-compose" in none[1].how and "debootstrap" in none[2].how
     unreachable = tools.docker_checks(
@@ -119,6 +121,7 @@ def test_docker_missing_engine_and_compose_fallback_and_image(tmp_path: Path) ->
         ("Compose", False),
         ("debootstrap", True),
         ("wheelhouse", True),
+        ("host folders", False),
     ]
     assert "Cannot connect" in unreachable[1].detail
     assert "without systemd: service docker start, or dockerd &" in unreachable[1].how
@@ -141,18 +144,50 @@ def test_docker_missing_engine_and_compose_fallback_and_image(tmp_path: Path) ->
         ("image roco:latest", False),
         ("debootstrap", True),
         ("wheelhouse", True),
+        ("host folders", False),
     ]
     assert ready[2].detail == "docker-compose 1.29.2" and "build_image.sh" in ready[3].how
+    unmade = _project(tmp_path / "unmade", wheelhouse=False)
+    for folder in ("runs", "deploy/certs"):
+        (unmade / folder).mkdir(parents=True)
     built = tools.docker_checks(
         _runner(
             {"docker version": (0, "26.1.5"), "docker compose": (0, "2.27.0"), "docker image": (0, "sha")}
         ),
         which=lambda name: None if name == "debootstrap" else f"/usr/bin/{name}",
-        root=_project(tmp_path / "unmade", wheelhouse=False),
+        root=unmade,
+        env={"ROCO_UID": str(os.getuid())},  # the folders' owner
     )
     # neither debootstrap nor the wheelhouse is needed once the image is built
     assert [c.name for c in built if c.missing] == []
     assert built[2].detail == "docker compose 2.27.0"
+
+
+def test_the_host_folders_must_be_the_services_users(tmp_path: Path) -> None:
+    """The run and credentials folders the compose services write: theirs (ROCO_UID), else the
+    check names each and how to give it them. Planted faults: a missing folder (Docker would
+    make it root's) and one of another uid."""
+    (tmp_path / "deploy").mkdir()
+    me = str(os.getuid())
+    missing = tools.host_folders_check(tmp_path, {"ROCO_UID": me})
+    assert missing.missing and f"{tmp_path / 'runs'} missing" in missing.detail
+    assert missing.how.startswith(
+        f"mkdir -p {tmp_path / 'runs'} {tmp_path / 'deploy' / 'certs'} && chown {me}:"
+    )
+    (tmp_path / "runs").mkdir(mode=0o755)
+    (tmp_path / "deploy" / "certs").mkdir(mode=0o755)
+    assert tools.host_folders_check(tmp_path, {"ROCO_UID": me}).found
+    other = str(os.getuid() + 1)
+    theirs = tools.host_folders_check(tmp_path, {"ROCO_UID": other})
+    assert theirs.missing and f"{tmp_path / 'runs'} is uid {me}'s" in theirs.detail
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir(mode=0o777)
+    elsewhere.chmod(0o777)  # writable by all (the umask aside): any uid may write it
+    moved = {"ROCO_UID": other, "ROCO_RUNS": str(elsewhere), "ROCO_CERTS": str(elsewhere)}
+    assert tools.host_folders_check(tmp_path, moved).found
+    assert deployment_name("uid") == "ROCO_UID"
+    with pytest.raises(KeyError, match="no deployment variable ROCO_NOT_ONE"):
+        deployment_name("not_one")
 
 
 def test_the_wheelhouse_must_match_pyproject_until_the_image_is_built(tmp_path: Path) -> None:

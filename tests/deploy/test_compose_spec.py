@@ -72,8 +72,12 @@ def test_the_six_agents_services_are_what_the_fleet_needs() -> None:
         assert service["build"] == {
             "context": "..",
             "dockerfile": "deploy/Dockerfile",
-            "args": {"BASE": "${ROCO_BASE:-python:3.11-slim}"},
+            "args": {
+                "BASE": "${ROCO_BASE:-python:3.11-slim}",
+                "BUILD_BASE": "${ROCO_BUILD_BASE:-python:3.11-slim}",
+            },
         }
+        assert service["user"] == "${ROCO_UID:-10001}:${ROCO_GID:-10001}"  # the image's roco, not root
         assert service["init"] is True and service["restart"] == "unless-stopped"
         assert service["command"] == ["python", "-m", "services.runtime.main", name]
         assert service["healthcheck"] == {
@@ -91,7 +95,8 @@ def test_the_six_agents_services_are_what_the_fleet_needs() -> None:
         extra_volume = {"a_km": ["km_store:/var/lib/roco/km"], "a_co": ["co_state:/var/lib/roco/co"]}
         own = [f"${{ROCO_CERTS:-./certs}}/{e}:/certs/{e}:ro" for e in ("ca.pem", name)]  # and no other's
         assert service["volumes"] == mounts + own + extra_volume.get(name, [])
-        assert service.get("cap_add") == (["SYS_NICE"] if name == "ag_ex" else None)
+        assert service.get("cap_add") is None  # not root: a capability would not count
+        assert {service["mem_limit"], service["cpus"], service["pids_limit"]} != {None}
         waits = {o: {"condition": "service_healthy"} for o in AGENTS if o != "a_hi"} if name == "a_hi" else {}
         if name == "ag_ex":  # the robot it drives: the world, whose shared memory and processes it sees
             waits = {"world": {"condition": "service_healthy"}}
@@ -99,7 +104,8 @@ def test_the_six_agents_services_are_what_the_fleet_needs() -> None:
         assert service["depends_on"] == {**after_router, **waits}
         assert set(service) <= {
             "image", "build", "init", "restart", "logging", "volumes", "healthcheck",
-            "command", "environment", "depends_on", "cap_add", "ipc", "pid",
+            "command", "environment", "depends_on", "ipc", "pid", "user",
+            "mem_limit", "cpus", "pids_limit",
         }  # fmt: skip
     world = services["world"]  # Velma's hardware: no Zenoh, not an agent
     assert world["command"] == ["python", "-m", "velma.world"] and world["environment"] == env

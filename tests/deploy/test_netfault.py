@@ -1,7 +1,7 @@
 """deploy/compose.netfault.yaml (services/deploy/netfault.py): the override that grants
 NET_ADMIN for `roco fault net` is the rendered one, names every service a network fault
 reaches, and `roco deploy compose --check` catches it out of date; where docker-compose is
-installed, the merge keeps ag_ex's SYS_NICE beside NET_ADMIN."""
+installed, the merge grants NET_ADMIN beside every service's own keys (its limits)."""
 
 from __future__ import annotations
 
@@ -46,7 +46,7 @@ def test_check_names_a_service_left_without_net_admin(tmp_path: Path) -> None:
 
 
 @pytest.mark.skipif(shutil.which("docker-compose") is None, reason="needs docker-compose (Debian's 1.29)")
-def test_docker_compose_merges_the_override_keeping_sys_nice() -> None:
+def test_docker_compose_merges_the_override_keeping_each_services_keys() -> None:
     merged = subprocess.run(
         ["docker-compose", "-f", str(COMPOSE_FILE), "-f", str(ROOT / NETFAULT_FILE), "-p", "roco", "config"],
         capture_output=True,
@@ -54,7 +54,9 @@ def test_docker_compose_merges_the_override_keeping_sys_nice() -> None:
         timeout=60,
         check=True,
     ).stdout
-    caps = {name: set(s.get("cap_add", ())) for name, s in yaml.safe_load(merged)["services"].items()}
-    assert caps["ag_ex"] == {"NET_ADMIN", "SYS_NICE"}
+    services = yaml.safe_load(merged)["services"]
+    caps = {name: set(s.get("cap_add", ())) for name, s in services.items()}
+    assert caps["ag_ex"] == {"NET_ADMIN"}
+    assert all(s["mem_limit"] and s["cpus"] and s["pids_limit"] for s in services.values())
     assert all("NET_ADMIN" in caps[s] for s in COMPOSE_SERVICES)
     assert not caps["world"] and not caps["certs"]

@@ -82,10 +82,11 @@ def test_netem_delay_loss_and_clear(docker: FakeDocker, tmp_path: Path) -> None:
     dc = Compose(project="roco", state_dir=tmp_path, run=docker)
     ev = dc.netem("a_km", 0.2, 0.05)
     tc = ["tc", "qdisc", "replace", "dev", "eth0", "root", "netem", "delay", "200ms", "loss", "5%"]
-    assert docker.calls[-1] == ["docker", "exec", CID, *tc]
+    # as root in the container (the service runs as the image's user; NET_ADMIN is root's)
+    assert docker.calls[-1] == ["docker", "exec", "-u", "0", CID, *tc]
     assert ev.detail == "netem delay 200ms loss 5%"
     dc.netem("a_km", 0.0, 0.0)
-    assert docker.calls[-1] == ["docker", "exec", CID, "tc", "qdisc", "del", "dev", "eth0", "root"]
+    assert docker.calls[-1] == ["docker", "exec", "-u", "0", CID, "tc", "qdisc", "del", "dev", "eth0", "root"]
     with pytest.raises(FaultError, match="viewer has no container"):
         dc.netem("viewer", 0.1, 0.0)
 

@@ -74,7 +74,7 @@ TC_OUTPUTS = {
     "kernel": (2, "", "Error: Specified qdisc kind is unknown."),
     "kernel, older iproute2": (2, "", "RTNETLINK answers: No such file or directory"),
 }
-"""What ``docker exec CONTAINER tc qdisc replace … netem`` prints when each piece is missing."""
+"""What ``docker exec -u 0 CONTAINER tc qdisc replace … netem`` prints when each piece is missing."""
 NAMED = {
     "tc": "image has no tc",
     "NET_ADMIN": "lacks the NET_ADMIN capability: start the fleet with -f deploy/compose.netfault.yaml",
@@ -92,7 +92,7 @@ def test_fault_net_names_the_missing_piece(
         {
             "docker compose version": (0, "v2", ""),
             "docker compose -f deploy/compose.yaml -p roco ps -q a_co": (0, f"{CID}\n", ""),
-            f"docker exec {CID} tc qdisc replace": TC_OUTPUTS[missing],
+            f"docker exec -u 0 {CID} tc qdisc replace": TC_OUTPUTS[missing],
         }
     )
     dc = Compose(project="roco", state_dir=tmp_path, run=docker)

@@ -92,3 +92,14 @@ def test_a_meshed_routers_identity_names_its_addresses_and_the_routers_trust_eac
     for bad in (["robot"], ["router_x", "--ip", "not-an-address"]):
         r = runner.invoke(app, ["deploy", "router", str(out), *bad])
         assert r.exit_code == 2 and r.output.startswith("roco: "), r.output
+
+
+def test_certs_into_a_folder_it_cannot_write_is_one_line(tmp_path: Path) -> None:
+    """As the compose ``certs`` service meets a ROCO_CERTS that is not its user's: no traceback.
+    (A path under a file stands for the folder: root may write any folder.)"""
+    blocked = tmp_path / "file"
+    blocked.write_text("")
+    r = runner.invoke(app, ["deploy", "certs", str(blocked / "certs"), "--keep"])
+    assert r.exit_code == 1, r.output
+    assert r.output.startswith(f"roco: cannot write the credentials in {blocked / 'certs'}: Not a directory")
+    assert "docs/deploy.md" in r.output

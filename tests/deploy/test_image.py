@@ -1,0 +1,161 @@
+"""The image and its services' limits, read from deploy/Dockerfile and deploy/compose.yaml
+without a Docker engine (scripts/compose_smoke.sh checks the built image and the running
+fleet): the runtime stage has no compiler and no headers and runs as a non-root user who owns
+the mount points of the compose file's volumes; every service has a memory, CPU and PIDs
+limit and runs as that user; the entrypoint names a run folder it cannot write."""
+
+from __future__ import annotations
+
+import os
+import re
+import shutil
+import subprocess
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from services.deploy.compose import COMPOSE_FILE, LIMITS, UID, render
+from services.spec.model import default_spec
+
+yaml = pytest.importorskip("yaml", reason="PyYAML reads the compose file: pip install -e '.[dev]'")
+
+ROOT = Path(__file__).resolve().parents[2]
+DOCKERFILE = ROOT / "deploy" / "Dockerfile"
+ENTRYPOINT = ROOT / "deploy" / "entrypoint.sh"
+BUILD_ONLY = re.compile(r"(?<![\w.-])(g\+\+|gcc|clang|build-essential|(lib)?python3(\.\d+)?-dev)(?![\w.+-])")
+"""Debian packages of a compiler or of Python's headers."""
+
+
+def stages(text: str) -> list[tuple[str, str]]:
+    """The Dockerfile's stages: (its FROM line, its instructions), comment lines left out."""
+    lines = [line for line in text.splitlines() if not line.lstrip().startswith("#")]
+    found: list[tuple[str, list[str]]] = []
+    for line in lines:
+        if line.startswith("FROM "):
+            found.append((line, []))
+        elif found:
+            found[-1][1].append(line)
+    return [(head, "\n".join(body)) for head, body in found]
+
+
+def runtime_problems(text: str) -> list[str]:
+    """What keeps the Dockerfile's last (runtime) stage from being lean and non-root: a
+    compiler or Python's headers installed, anything but the venv taken from the build stage
+    unnamed, no USER or a root one."""
+    found = []
+    all_stages = stages(text)
+    if len(all_stages) < 2:
+        return ["one stage: the compiler is in the image"]
+    body = all_stages[-1][1]
+    for line in body.splitlines():
+        if "apt-get install" in line and (m := BUILD_ONLY.search(line)):
+            found.append(f"the runtime stage installs {m.group(0)}")
+    if "COPY --from=build /opt/venv /opt/venv" not in body:
+        found.append("the runtime stage does not take the venv from the build stage")
+    users = re.findall(r"^USER\s+(\S+)", body, re.M)
+    if not users:
+        found.append("the runtime stage has no USER: it runs as root")
+    elif users[-1].split(":")[0] in ("0", "root"):
+        found.append(f"the runtime stage runs as {users[-1]}")
+    return found
+
+
+def volume_mount_points(compose: dict[str, Any]) -> set[str]:
+    """The container paths of the compose file's named volumes."""
+    named = set(compose.get("volumes") or {})
+    points = set()
+    for service in compose["services"].values():
+        for volume in service.get("volumes", []):
+            source, target, *_ = volume.split(":")
+            if source in named:
+                points.add(target)
+    return points
+
+
+def unowned_mount_points(dockerfile: str, compose: dict[str, Any]) -> list[str]:
+    """The named volumes' mount points the runtime stage does not create for its user (a new
+    volume takes its mount point's owner and mode: otherwise root's)."""
+    body = stages(dockerfile)[-1][1]
+    made = re.search(r"install -d -o roco -g roco -m 1777 ([^;\n]+)", body)
+    created = set(made.group(1).split()) if made else set()
+    return sorted(volume_mount_points(compose) - created)
+
+
+def unlimited(compose: dict[str, Any]) -> list[str]:
+    """The services without a memory, CPU or PIDs limit, or running as root."""
+    found = []
+    for name, service in compose["services"].items():
+        missing = [key for key in ("mem_limit", "cpus", "pids_limit") if not service.get(key)]
+        if missing:
+            found.append(f"{name}: no {', '.join(missing)}")
+        user = str(service.get("user", "")).replace("${ROCO_UID:-", "").split(":")[0].rstrip("}")
+        if user in ("", "0", "root"):
+            found.append(f"{name}: runs as root")
+    return found
+
+
+def test_the_runtime_stage_has_no_compiler_and_runs_as_roco() -> None:
+    text = DOCKERFILE.read_text()
+    assert runtime_problems(text) == []
+    build, runtime = stages(text)
+    assert build[0] == "FROM ${BUILD_BASE} AS build" and runtime[0] == "FROM ${BASE}"
+    assert "USER 10001:10001" in runtime[1] and f"--uid {UID}" in runtime[1]
+
+
+def test_the_check_catches_a_compiler_or_root_in_the_runtime_stage() -> None:
+    """Planted faults: g++ installed in the runtime stage, USER root, and no USER at all."""
+    text = DOCKERFILE.read_text()
+    with_gxx = text.replace(
+        "--no-install-recommends $need $want;", "--no-install-recommends $need $want g++;"
+    )
+    assert with_gxx != text
+    assert runtime_problems(with_gxx) == ["the runtime stage installs g++"]
+    as_root = text.replace("USER 10001:10001", "USER root")
+    assert runtime_problems(as_root) == ["the runtime stage runs as root"]
+    no_user = text.replace("USER 10001:10001\n", "")
+    assert runtime_problems(no_user) == ["the runtime stage has no USER: it runs as root"]
+    one_stage = "\n".join(line for line in text.splitlines() if not line.startswith("FROM ${BASE}"))
+    assert runtime_problems(one_stage) == ["one stage: the compiler is in the image"]
+
+
+def test_the_image_user_owns_every_volumes_mount_point() -> None:
+    compose = yaml.safe_load(COMPOSE_FILE.read_text())
+    assert volume_mount_points(compose) == {"/var/lib/roco/fleet", "/var/lib/roco/km", "/var/lib/roco/co"}
+    assert unowned_mount_points(DOCKERFILE.read_text(), compose) == []
+    planted = DOCKERFILE.read_text().replace(" /var/lib/roco/km ", " ")  # a_km's store left to root
+    assert unowned_mount_points(planted, compose) == ["/var/lib/roco/km"]
+
+
+def test_every_service_is_limited_and_not_root() -> None:
+    compose = yaml.safe_load(COMPOSE_FILE.read_text())
+    assert unlimited(compose) == []
+    assert set(LIMITS) == set(compose["services"])  # every limit is a measured one
+    new_agent = yaml.safe_load(render(default_spec()).replace("a_pl", "a_new"))
+    assert unlimited(new_agent) == []
+    planted = COMPOSE_FILE.read_text().replace("    pids_limit: 128\n", "", 1)
+    assert (
+        len(unlimited(yaml.safe_load(planted))) == 1
+        and "no pids_limit" in unlimited(yaml.safe_load(planted))[0]
+    )
+    as_root = COMPOSE_FILE.read_text().replace('user: "${ROCO_UID:-10001}:${ROCO_GID:-10001}"', 'user: "0:0"')
+    assert len(unlimited(yaml.safe_load(as_root))) == len(compose["services"])
+
+
+@pytest.mark.skipif(shutil.which("sh") is None, reason="needs sh")
+def test_the_entrypoint_names_a_run_folder_it_cannot_write(tmp_path: Path) -> None:
+    blocked = tmp_path / "runs"
+    blocked.write_text("a file where the run folder's parent should be")
+    env = {"PATH": os.environ["PATH"], "ROCO_RUN": "r1", "ROCO_RUN_DIR": f"{blocked}/{{run}}"}
+    done = subprocess.run(
+        ["sh", str(ENTRYPOINT), "true"], capture_output=True, text=True, env=env, timeout=30, check=False
+    )
+    assert done.returncode == 2
+    assert done.stderr.startswith(f"roco-entrypoint: cannot write {blocked}/r1 as uid ")
+    assert "ROCO_UID" in done.stderr and "docs/deploy.md" in done.stderr
+    env["ROCO_RUN_DIR"] = f"{tmp_path}/ok/{{run}}"
+    done = subprocess.run(
+        ["sh", str(ENTRYPOINT), "true"], capture_output=True, text=True, env=env, timeout=30, check=False
+    )
+    assert done.returncode == 0, done.stderr
+    assert (tmp_path / "ok" / "r1" / "logs").is_dir()
