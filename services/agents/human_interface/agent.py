@@ -12,7 +12,11 @@ doubling from ``SUBSCRIBE_RETRY_S[0]`` to ``SUBSCRIBE_RETRY_S[1]``), and a fipa-
 request. Towards a_km, on C7 in L_WM, a fipa-query per sentence asks for the vocabulary
 (vocabulary.py), which the sentence waits for; when a_km is away or does not answer within
 ``VOCABULARY_REPLY_BY_S``, it is read with the last one; when a_km's token appears, a_hi asks
-at once, and the sentences waiting for an earlier a_km wait for that answer instead.
+at once, and the sentences waiting for an earlier a_km wait for that answer instead. A person's
+question about the kitchen (questions.py) is one more fipa-query on C7 (answers.py), answered
+with one ``answer`` report; when a_km is away, refuses, fails or does not answer within
+``QUESTION_REPLY_BY_S``, the answer says a_hi cannot reach its knowledge ("what can you do" needs
+no a_km).
 
 Every line is first checked for a stop (stop.py), which is acted on at once, whatever it names;
 the sentences still waiting are dropped. A line over ``MAX_LINE_CHARS`` that is no stop is
@@ -36,6 +40,7 @@ from typing import TYPE_CHECKING, ClassVar
 
 import msgspec
 
+from services.agents.human_interface.answers import NO_KNOWLEDGE, answer_text, question_query
 from services.agents.human_interface.foreign import ForeignRequests
 from services.agents.human_interface.language import (
     Command,
@@ -43,6 +48,7 @@ from services.agents.human_interface.language import (
     NotUnderstood,
     StatusRequest,
     Stop,
+    WorldQuestion,
     default_vocabulary,
     describe,
 )
@@ -122,6 +128,17 @@ SUBSCRIPTION = "hi-progress"
 """Conversation-id of the first subscription attempt; later ones add ``-2``, ``-3``, …"""
 VOCABULARY_REPLY_BY_S = 2.0
 """How long a sentence waits for a_km's vocabulary before it is read with the last one."""
+QUESTION_REPLY_BY_S = 5.0
+"""How long a person's question waits for a_km's answer before a_hi says it cannot reach it."""
+
+
+@dataclass(frozen=True)
+class AskedQuestion:
+    """A person's question put to a_km (the data of its C7 conversation): the person's
+    ``request_id`` and the ``question``."""
+
+    request_id: str
+    question: WorldQuestion
 
 
 @dataclass
@@ -378,10 +395,16 @@ class HumanInterface(Agent):
         if peer != KM or not alive:
             return
         waiting: list[HeldSentence] = []
+        questions: list[AskedQuestion] = []
         for query in self.roles.conversations(C7, FIPA_QUERY):
             query.abandon()  # asked of the a_km that went away, or before it was up
-            waiting += query.data  # the sentences it was asked for (see _ask_words)
+            if isinstance(query.data, AskedQuestion):
+                questions.append(query.data)  # a person's question: asked again
+            else:
+                waiting += query.data  # the sentences it was asked for (see _ask_words)
         self._ask_words("words-", *waiting)
+        for asked in questions:
+            self._ask_world(asked.request_id, asked.question)
 
     def _read_held(self) -> None:
         """Read the waiting sentences, in order, as far as their vocabulary is there."""
@@ -395,6 +418,9 @@ class HumanInterface(Agent):
     @handles(FIPA_QUERY, INITIATOR, Performative.INFORM_REF, Performative.INFORM, channel=C7)
     def _on_vocabulary(self, conv: Conversation) -> None:
         conv.abandon()
+        if isinstance(conv.data, AskedQuestion):
+            self._answer_question(conv.data, conv.content)
+            return
         if isinstance(conv.content, Answer) and conv.content.rows:
             self.vocabulary = Vocabulary.from_rows(conv.content.rows)
         if conv.data:
@@ -404,8 +430,13 @@ class HumanInterface(Agent):
 
     @handles(FIPA_QUERY, INITIATOR, Performative.REFUSE, Performative.FAILURE, channel=C7)
     def _on_no_vocabulary(self, conv: Conversation) -> None:
-        """Refused, failed, not understood or unanswered in time: read with the last vocabulary."""
+        """Refused, failed, not understood or unanswered in time: read with the last vocabulary
+        (a question: the person is told a_hi cannot reach its knowledge)."""
         conv.abandon()
+        if isinstance(conv.data, AskedQuestion):
+            self.log.warning("a_km did not answer a question (%s)", reason_of(conv))
+            self._report(conv.data.request_id, ReportKind.ANSWER, NO_KNOWLEDGE)
+            return
         self.log.warning("a_km gave no vocabulary (%s); reading with the last one", reason_of(conv))
         if conv.data:
             for held in conv.data:
@@ -438,6 +469,37 @@ class HumanInterface(Agent):
             elif isinstance(outcome, StatusRequest):
                 self.asked[event.request_id] = RequestKind.STATUS
                 self._ask_status(event.request_id)
+            elif isinstance(outcome, WorldQuestion):
+                self.asked[event.request_id] = RequestKind.QUESTION
+                self._ask_world(event.request_id, outcome)
+
+    # ---- a person's questions about the kitchen (C7 to a_km; answers.py) -----------------
+    def _ask_world(self, request_id: str, question: WorldQuestion) -> None:
+        """Answer ``question``: "what can you do" from a_hi's own task words; any other by a
+        query-ref of a_km (C7), or at once that a_hi cannot reach its knowledge when a_km is away."""
+        if question.kind == "abilities":
+            self._report(request_id, ReportKind.ANSWER, abilities(self.grammar))
+            return
+        if KM not in self.peers:
+            self._report(request_id, ReportKind.ANSWER, NO_KNOWLEDGE)
+            return
+        self.roles.open(
+            C7,
+            FIPA_QUERY,
+            SparqlQuery(question_query(question)),
+            performative=Performative.QUERY_REF,
+            conversation_id=self.sources.new_id(f"ask-{request_id}-"),
+            data=AskedQuestion(request_id, question),
+            reply_by_s=QUESTION_REPLY_BY_S,
+        )
+
+    def _answer_question(self, asked: AskedQuestion, content: object) -> None:
+        """a_km's answer to a question: one sentence, its age on a_hi's clock."""
+        if not isinstance(content, Answer):
+            self._report(asked.request_id, ReportKind.ANSWER, NO_KNOWLEDGE)
+            return
+        text = answer_text(asked.question, content.rows, self.sources.time())
+        self._report(asked.request_id, ReportKind.ANSWER, text)
 
     def _command(self, event: HumanInput, intent: Command) -> None:
         command = HumanCommand(
@@ -652,4 +714,13 @@ class HumanInterface(Agent):
         self._report(request_id, ReportKind.PROGRESS, progress_text(label, progress))
 
 
-__all__ = ["HumanInterface", "OpenCommand", "StopRequest"]
+def abilities(grammar: Grammar) -> str:
+    """What a_hi answers "what can you do?" with: its verbs (grammar.lark's and the task
+    words') and the questions it answers."""
+    return (
+        f"I can {grammar.verbs()}; and you can ask me about the kitchen, e.g. "
+        "'what is in the bowl?', 'where is the cup?', 'is the jar empty?', 'what did you see?'."
+    )
+
+
+__all__ = ["AskedQuestion", "HumanInterface", "OpenCommand", "StopRequest", "abilities"]

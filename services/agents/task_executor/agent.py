@@ -134,10 +134,11 @@ WORLD_TIME_SLACK_S = 1e-6
 same world's (the times are the world's own; equal times are the same instant)."""
 
 
-def observed_update(obs: Observation) -> WorldUpdate:
+def observed_update(obs: Observation, seen_at: float | None = None) -> WorldUpdate:
     """The C6 inform content a_ta sends a_km for ag_ex's L_SD observation ``obs``: each object
     seen (pose, content count, position sigma) and the hands' grip frames under the grippers'
-    names (a_pl finishes a take from where the hand is), at ``obs.stamp`` (simulated s)."""
+    names (a_pl finishes a take from where the hand is), at ``obs.stamp`` (simulated s);
+    ``seen_at``: a_ta's wall clock when it received ``obs`` (POSIX s), None when unknown."""
     return WorldUpdate(
         stamp=obs.stamp,
         objects=tuple(
@@ -147,6 +148,7 @@ def observed_update(obs: Observation) -> WorldUpdate:
             for o in (*obs.objects, *obs.grips)
         ),
         total_particles=obs.total_particles,
+        seen_at=seen_at,
     )
 
 
@@ -431,7 +433,7 @@ class TaskExecutor(Agent):
 
     def _update_km(self, obs: Observation) -> None:
         """Inform a_km of what ``obs`` saw (:func:`observed_update`)."""
-        self._inform_km(observed_update(obs))
+        self._inform_km(observed_update(obs, self.sources.time()))
 
     def _inform_km(self, update: WorldUpdate) -> None:
         if self.subscription is None:
