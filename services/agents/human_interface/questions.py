@@ -20,13 +20,14 @@ what can you do, what are you able to do, help               ``abilities``
 ==========================================================  ===========================
 
 Each may open with "robot,"/"velma,", "please", "so", "and", "hey", "ok", "quickly", and end
-with "please" or "now"; "where is" alone asks back which object is meant. A reference X (or Y) is resolved as a_hi resolves a reference today ("the
-small cup", "the cup on the table", "the jar's beans", "it"): by the ``resolve`` callback
-(language.py reads it with the command grammar as a bare reference). A reference that names
-nothing a_km knows gets "I have not seen a spoon; …" (:class:`~.intents.UnknownReference`); a
-line matching a form whose reference is no reference ("what is in the jar into the bowl": the
-rest of a command) is not a question, and is left to the command grammar. The reader is
-bounded: a line over :data:`MAX_QUESTION_CHARS` is not read as a question.
+with "please" or "now"; "where is" alone asks back which object is meant. A reference X (or Y)
+is resolved as a_hi resolves a command's ("the small cup", "the cup on the table", "the jar's
+beans", "it"): by the ``resolve`` callback (language.py reads it with the command grammar as a
+bare reference). A reference that names nothing a_km knows gets "I have not seen a spoon; …"
+(:class:`~.intents.UnknownReference`); a line matching a form whose reference is no reference
+("what is in the jar into the bowl": the rest of a command) is not a question, and is left to
+the command grammar. The reader is bounded: a line over :data:`MAX_QUESTION_CHARS` is not read
+as a question.
 """
 
 from __future__ import annotations
