@@ -14,7 +14,7 @@ Pure functions; no state, no I/O.
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 
 from services.agents.human_interface.intents import WorldQuestion, show
 from services.agents.human_interface.vocabulary import ROCO_IRI, local_name
@@ -148,67 +148,94 @@ class _Known:
 def answer_text(q: WorldQuestion, rows: Iterable[Sequence[str | None]], now: float) -> str:
     """The one sentence answering ``q`` from the rows of a_km's answer to
     :func:`question_query`; ``now``: a_hi's wall clock (POSIX s). What the rows do not hold is
-    said to be unknown ("I have not looked into the bowl yet")."""
+    said to be unknown ("I have not looked into the bowl yet"). Raises ValueError for
+    ``abilities`` (answered without a_km) or a kind it does not know."""
     facts = facts_of(rows)
     if q.kind == "seen":
         return _seen(facts, now)
-    assert q.thing is not None
-    k = _Known(facts, q.thing, now)
-    it = show(q.thing)
-    if q.kind == "where":
-        if k.where() is None:
-            return f"I do not know where {it} is."
-        seen = (
-            f"; I last saw it {ago(max(0.0, now - k.seen))}" if k.seen is not None else ", as far as I know"
-        )
-        return f"{_cap(it)} is {k.where_words()}{seen}."
-    if q.kind == "located":
-        assert q.place is not None
-        at = k.where()
-        if at is None:
-            return f"I do not know where {it} is."
-        yes = at[1] == q.place and at[0] in ("in", "on")
-        return f"{'Yes' if yes else 'No'}, {it} is {k.where_words()}, as far as I know."
-    if q.kind == "on":
-        on = k.inside("on")
-        if not on:
-            return f"Nothing is on {it}, as far as I know."
-        return f"On {it}: {_and(on)}, as far as I know."
-    things = k.inside("in")
+    answer = _ANSWERS.get(q.kind)
+    if answer is None or q.thing is None:
+        raise ValueError(f"no answer from a_km's rows for a question of kind {q.kind!r}")
+    return answer(q, _Known(facts, q.thing, now))
+
+
+def _are(things: Sequence[str]) -> str:
+    """ "the cup is", "the cup and the jar are"."""
+    return f"{_and(things)} {'is' if len(things) == 1 else 'are'}"
+
+
+def _where(q: WorldQuestion, k: _Known) -> str:
+    it = show(k.name)
+    if k.where() is None:
+        return f"I do not know where {it} is."
+    seen = ", as far as I know" if k.seen is None else f"; I last saw it {ago(max(0.0, k.now - k.seen))}"
+    return f"{_cap(it)} is {k.where_words()}{seen}."
+
+
+def _located(q: WorldQuestion, k: _Known) -> str:
+    at = k.where()
+    if at is None:
+        return f"I do not know where {show(k.name)} is."
+    yes = at[1] == q.place and at[0] in ("in", "on")
+    return f"{'Yes' if yes else 'No'}, {show(k.name)} is {k.where_words()}, as far as I know."
+
+
+def _on(q: WorldQuestion, k: _Known) -> str:
+    on = k.inside("on")
+    if not on:
+        return f"Nothing is on {show(k.name)}, as far as I know."
+    return f"On {show(k.name)}: {_and(on)}, as far as I know."
+
+
+def _contents(q: WorldQuestion, k: _Known) -> str:
+    it, things = show(k.name), k.inside("in")
     if q.kind == "count" and q.counted == "things":
-        if not things:
-            return f"Nothing is in {it}, as far as I know."
         n = len(things)
-        return f"{n} thing{'s' if n > 1 else ''} in {it}, as far as I know: {_and(things)}."
-    if q.kind in ("contents", "count"):
-        if k.particles is not None:
-            also = f"; {_and(things)} {'is' if len(things) == 1 else 'are'} in it too" if things else ""
-            return f"{k.looked()}{also}."
-        if things:
-            return f"{_cap(_and(things))} {'is' if len(things) == 1 else 'are'} in {it}, as far as I know."
-        if k.capacity is not None:
-            return f"I have not looked into {it} yet."
-        return f"Nothing is in {it}, as far as I know."
-    if q.kind == "empty":
-        if things:
-            return f"No, {_and(things)} {'is' if len(things) == 1 else 'are'} in {it}, as far as I know."
-        if k.particles is None:
-            return f"I do not know: I have not looked into {it} yet."
-        if k.particles == 0:
-            return f"Yes, {it} was empty when I last looked{k.when()}."
-        return f"No, {it} held {_spheres(k.particles)} when I last looked{k.when()}."
-    if q.kind == "full":
-        if k.particles is None:
-            return f"I do not know: I have not looked into {it} yet."
-        if k.capacity is None:
-            held = f"it held {_spheres(k.particles)} when I last looked{k.when()}"
-            return f"I do not know how much {it} takes; {held}."
-        full = k.particles >= k.capacity
-        return (
-            f"{'Yes' if full else 'No'}, {it} held {k.particles} of the {k.capacity} spheres it takes "
-            f"when I last looked{k.when()}."
-        )
-    raise ValueError(f"no answer for a question of kind {q.kind!r}")
+        listed = f": {_and(things)}" if things else ""
+        return f"{n} thing{'' if n == 1 else 's'} in {it}, as far as I know{listed}."
+    if k.particles is not None:
+        return f"{k.looked()}{f'; {_are(things)} in it too' if things else ''}."
+    if things:
+        return f"{_cap(_are(things))} in {it}, as far as I know."
+    if k.capacity is not None:
+        return f"I have not looked into {it} yet."
+    return f"Nothing is in {it}, as far as I know."
+
+
+def _empty(q: WorldQuestion, k: _Known) -> str:
+    it, things = show(k.name), k.inside("in")
+    if things:
+        return f"No, {_are(things)} in {it}, as far as I know."
+    if k.particles is None:
+        return f"I do not know: I have not looked into {it} yet."
+    if k.particles == 0:
+        return f"Yes, {it} was empty when I last looked{k.when()}."
+    return f"No, {it} held {_spheres(k.particles)} when I last looked{k.when()}."
+
+
+def _full(q: WorldQuestion, k: _Known) -> str:
+    it = show(k.name)
+    if k.particles is None:
+        return f"I do not know: I have not looked into {it} yet."
+    if k.capacity is None:
+        held = f"it held {_spheres(k.particles)} when I last looked{k.when()}"
+        return f"I do not know how much {it} takes; {held}."
+    full = "Yes" if k.particles >= k.capacity else "No"
+    return (
+        f"{full}, {it} held {k.particles} of the {k.capacity} spheres it takes when I last looked{k.when()}."
+    )
+
+
+_ANSWERS: dict[str, Callable[[WorldQuestion, _Known], str]] = {
+    "where": _where,
+    "located": _located,
+    "on": _on,
+    "contents": _contents,
+    "count": _contents,
+    "empty": _empty,
+    "full": _full,
+}
+"""The sentence of each kind of question about one thing."""
 
 
 def _seen(facts: Facts, now: float) -> str:

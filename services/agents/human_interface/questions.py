@@ -115,6 +115,24 @@ def _thing(words: str, resolve: Resolve) -> str | None:
         return None
 
 
+def _question(kind: str, m: re.Match[str], resolve: Resolve) -> WorldQuestion | None:
+    """The question of ``kind`` a form matched (``m``), or None when its reference is none."""
+    if kind in ("abilities", "seen"):
+        return WorldQuestion(kind)
+    thing = _thing(m["x"], resolve)
+    if thing is None:
+        return None
+    if kind == "located":
+        place = _thing(m["y"], resolve)
+        if place is None:
+            return None
+        return WorldQuestion(kind, thing, place=place, relation="on" if m["rel"] == "on" else "in")
+    if kind == "count":
+        what = m.groupdict().get("what")
+        return WorldQuestion(kind, thing, counted="things" if what in _COUNTED_THINGS else "spheres")
+    return WorldQuestion(kind, thing)
+
+
 def read_question(sentence: str, resolve: Resolve) -> WorldQuestion | None:
     """The question ``sentence`` asks (see the module docstring), or None when it is none of
     the forms (it goes to the command grammar). Raises what resolving its reference raises:
@@ -129,20 +147,9 @@ def read_question(sentence: str, resolve: Resolve) -> WorldQuestion | None:
         m = form.fullmatch(text)
         if m is None:
             continue
-        if kind in ("abilities", "seen"):
-            return WorldQuestion(kind)
-        thing = _thing(m["x"], resolve)
-        if thing is None:
-            continue
-        if kind == "located":
-            place = _thing(m["y"], resolve)
-            if place is None:
-                continue
-            return WorldQuestion(kind, thing, place=place, relation="on" if m["rel"] == "on" else "in")
-        if kind == "count":
-            what = m.groupdict().get("what")
-            return WorldQuestion(kind, thing, counted="things" if what in _COUNTED_THINGS else "spheres")
-        return WorldQuestion(kind, thing)
+        question = _question(kind, m, resolve)
+        if question is not None:
+            return question
     return None
 
 

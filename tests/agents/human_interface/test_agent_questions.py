@@ -11,7 +11,7 @@ from collections.abc import Iterator
 
 import pytest
 
-import services.agents.human_interface.agent as hi_agent
+import services.agents.human_interface.asking as asking
 from services.agents.human_interface.agent import HumanInterface
 from services.agents.human_interface.answers import NO_KNOWLEDGE
 from services.agents.human_interface.vocabulary import VOCABULARY_QUERY
@@ -145,7 +145,7 @@ def test_an_a_km_that_does_not_answer_in_time_is_told_as_knowledge_out_of_reach(
     stage: Stage, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     km, _ta = with_km(stage)
-    monkeypatch.setattr(hi_agent, "QUESTION_REPLY_BY_S", 0.3)
+    monkeypatch.setattr(asking, "QUESTION_REPLY_BY_S", 0.3)
     sparql = km.world.sparql
     release = threading.Event()
 
