@@ -3,11 +3,12 @@ sends a_km on C7 (``query-ref`` of an L_WM ``SparqlQuery``; a_km answers ``infor
 ``Answer``), and the one sentence a_hi makes of its rows, saying when the knowledge is from.
 
 Every query answers rows ``(thing IRI, property IRI, value)`` — the values of ``roco:in``,
-``roco:on``, ``roco:heldBy``, ``roco:particles``, ``roco:capacity`` and ``roco:seenAt``
-(services/agents/knowledge/o_roco.ttl) of the thing asked about and of the things in or on it,
-or, for "what did you see", of every object a_ta has seen — at most :data:`ROW_LIMIT` rows.
-``roco:seenAt`` is a_ta's wall clock when it received the observation (POSIX s); "40 s ago" is
-measured from it on a_hi's clock (``Agent.sources``), so the two hosts' clocks must agree.
+``roco:on``, ``roco:heldBy``, ``roco:particles``, ``roco:capacity``, ``roco:seenAt`` and
+``roco:contentSeenAt`` (services/agents/knowledge/o_roco.ttl) of the thing asked about and of
+the things in or on it, or, for "what did you see", of every object a_ta has seen — at most
+:data:`ROW_LIMIT` rows. ``roco:seenAt`` is a_ta's wall clock when it received the observation
+that saw the thing, ``roco:contentSeenAt`` the one that counted its content (POSIX s); "40 s ago"
+is measured from them on a_hi's clock (``Agent.sources``), so the two hosts' clocks must agree.
 
 Pure functions; no state, no I/O.
 """
@@ -24,7 +25,7 @@ ROW_LIMIT = 200
 NO_KNOWLEDGE = "I cannot reach my knowledge now; ask me again in a moment."
 """The answer when a_km is away, refuses, fails or does not answer in time."""
 
-_PROPERTIES = ("in", "on", "heldBy", "particles", "capacity", "seenAt")
+_PROPERTIES = ("in", "on", "heldBy", "particles", "capacity", "seenAt", "contentSeenAt")
 
 Facts = dict[str, dict[str, list[str]]]
 """thing (O_RoCo name) → property (local name) → values (names for IRIs, lexical forms)."""
@@ -112,10 +113,12 @@ class _Known:
         capacity = _number(self.props, "capacity")
         self.capacity = int(capacity) if capacity is not None else None
         self.seen = _number(self.props, "seenAt")
+        self.counted = _number(self.props, "contentSeenAt")
 
     def when(self) -> str:
-        """ ", 40 s ago" after "when I last looked"; empty when the time is unknown."""
-        return f", {ago(max(0.0, self.now - self.seen))}" if self.seen is not None else ""
+        """ ", 40 s ago" after "when I last looked" (into it: when its content was counted);
+        empty when that time is unknown."""
+        return f", {ago(max(0.0, self.now - self.counted))}" if self.counted is not None else ""
 
     def where(self) -> tuple[str, str] | None:
         for relation in ("heldBy", "in", "on"):
@@ -247,8 +250,9 @@ def _seen(facts: Facts, now: float) -> str:
         return "I have not looked at anything yet."
     parts = []
     for name, at in seen:
-        particles = _number(facts[name], "particles")
-        inside = f", {_spheres(int(particles))} in it" if particles is not None else ""
+        particles, counted = _number(facts[name], "particles"), _number(facts[name], "contentSeenAt")
+        same_look = particles is not None and counted is not None and abs(counted - at) < 0.5
+        inside = f", {_spheres(int(particles))} in it" if same_look and particles is not None else ""
         parts.append(f"{show(name)} {ago(max(0.0, now - at))}{inside}")
     return "I have seen " + "; ".join(parts) + "."
 

@@ -571,7 +571,8 @@ class WorldModel:
         ignored and counted in :attr:`stale_poses`; a pose in an update with no observation
         time (stamp < 0, a_ta's asserted changes) is ignored and counted in
         :attr:`unstamped_poses`. An observation's ``seen_at`` (a_ta's wall clock, POSIX s) becomes
-        ``roco:seenAt`` of each object whose pose it takes. Durable when it returns (see the
+        ``roco:seenAt`` of each object whose pose it takes, and ``roco:contentSeenAt`` of each
+        whose content count it gives. Durable when it returns (see the
         module docstring)."""
         self._apply(
             update.objects, stamp=update.stamp, total_particles=update.total_particles, seen_at=update.seen_at
@@ -645,6 +646,8 @@ class WorldModel:
                     self._unlocalise(ch, node)
         if change.particles is not None:
             ch.set(node, ROCO.particles, Literal(change.particles))
+            if stamp is not None and stamp >= 0 and seen_at is not None:
+                ch.set(node, ROCO.contentSeenAt, Literal(float(seen_at)))
 
     def _set_pose(
         self, ch: _Changes, node: URIRef, change: ObjectUpdate, stamp: float | None, seen_at: float | None
