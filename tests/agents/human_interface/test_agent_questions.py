@@ -19,6 +19,7 @@ from services.agents.knowledge.agent import KnowledgeManager
 from services.agents.knowledge.world_model import KnowledgeError
 from services.runtime import keys
 from services.runtime.human import HumanReport, ReportKind, RequestKind
+from services.runtime.memory_transport import MemoryTransport
 from services.runtime.sources import SYSTEM
 from shared.fipa_codec.languages.common import Pose
 from shared.fipa_codec.languages.l_wm import Answer, ObjectUpdate, WorldUpdate
@@ -160,3 +161,34 @@ def test_an_a_km_that_does_not_answer_in_time_is_told_as_knowledge_out_of_reach(
     finally:
         release.set()
     assert (report.kind, report.text) == (ReportKind.ANSWER, NO_KNOWLEDGE)
+
+
+def test_a_question_open_when_a_km_went_away_is_asked_again_of_the_a_km_back(stage: Stage) -> None:
+    """a_km's token goes while a question waits for it (its answer is lost with it), then
+    comes back (a restarted a_km): a_hi asks the question again, and the person gets its answer."""
+    km, _ta = with_km(stage)
+    sparql = km.world.sparql
+    asked, release = threading.Event(), threading.Event()
+
+    def slow(text: str) -> Answer:
+        if text != VOCABULARY_QUERY and not asked.is_set():
+            asked.set()
+            release.wait(10.0)  # the first a_km never answers in time: it goes away meanwhile
+        return sparql(text)
+
+    km.world.sparql = slow  # type: ignore[method-assign]
+    say(stage, "where is the cup?", "q1")
+    try:
+        assert asked.wait(5.0)
+        transport = km.transport
+        assert isinstance(transport, MemoryTransport)
+        transport.withdraw(keys.alive_key("a_km"))  # gone: its session ended
+        transport.announce(keys.alive_key("a_km"))  # back: a restarted a_km
+    finally:
+        release.set()
+    (report,) = stage.person.until_final("q1")
+    assert (report.kind, report.text) == (ReportKind.ANSWER, "The cup is in the cabinet, as far as I know.")
+    questions = [
+        p for k, p in stage.bus.published if k == keys.fipa_key("C7", "a_hi", "a_km") and b"seenAt" in p
+    ]
+    assert len(questions) == 2  # asked, and asked again
