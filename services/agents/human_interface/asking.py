@@ -63,7 +63,7 @@ def abilities(grammar: Grammar) -> str:
     """What a_hi answers "what can you do?" with: its verbs (grammar.lark's and the task words',
     :meth:`~.task_grammar.Grammar.verbs`) and the questions it answers."""
     return (
-        f"I can {grammar.verbs()}; and you can ask me about the kitchen, e.g. "
+        f"You can tell me to {grammar.verbs()}; and ask me about the kitchen, e.g. "
         "'what is in the bowl?', 'where is the cup?', 'is the jar empty?', 'what did you see?'."
     )
 
