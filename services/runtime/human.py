@@ -37,12 +37,14 @@ class ReportKind(enum.StrEnum):
     request) — or ``not-understood`` at once. For a stop request ("stop"): ``progress``
     (which commands are being stopped), then ``stopped`` (all stopped, or nothing was
     running) or ``failed`` (some could not be stopped). For a status request ("what are you
-    doing?"): ``status``, one line per command.
+    doing?"): ``status``, one line per command. For a question ("what is in the bowl?"):
+    ``answer``, one sentence.
     """
 
     ACCEPTED = "accepted"
     PROGRESS = "progress"
     STATUS = "status"
+    ANSWER = "answer"
     NOT_UNDERSTOOD = "not-understood"
     SUCCEEDED = "succeeded"
     FAILED = "failed"
@@ -55,6 +57,7 @@ class RequestKind(enum.StrEnum):
     COMMAND = "command"
     STOP = "stop"
     STATUS = "status"
+    QUESTION = "question"
 
 
 class HumanReport(msgspec.Struct, frozen=True, kw_only=True):
@@ -71,8 +74,12 @@ class HumanReport(msgspec.Struct, frozen=True, kw_only=True):
     def done_as_asked(self) -> bool:
         """A final report that means the request was carried out: ``succeeded`` for a command
         (also when ``request`` is None), ``stopped`` for a stop request, ``status`` for a status
-        request."""
-        wanted = {RequestKind.STOP: ReportKind.STOPPED, RequestKind.STATUS: ReportKind.STATUS}
+        request, ``answer`` for a question."""
+        wanted = {
+            RequestKind.STOP: ReportKind.STOPPED,
+            RequestKind.STATUS: ReportKind.STATUS,
+            RequestKind.QUESTION: ReportKind.ANSWER,
+        }
         return self.kind is wanted.get(self.request or RequestKind.COMMAND, ReportKind.SUCCEEDED)
 
 
@@ -83,8 +90,9 @@ FINAL_REPORTS = frozenset(
         ReportKind.FAILED,
         ReportKind.STOPPED,
         ReportKind.STATUS,
+        ReportKind.ANSWER,
     }
 )
 """Kinds after which no more reports come for a request: for a command, the command has
 ended (not understood, succeeded, failed, stopped); ``status`` only ever ends a status
-request."""
+request, ``answer`` a question."""

@@ -28,8 +28,8 @@ on a_hi's human input) or ``"gateway"`` (an agent of another FIPA platform: a fi
 docs/gateway.md; its final answer, ``inform`` or ``failure`` of a ``SentenceReport``, is the
 command's outcome).
 ``expect`` is the final report kind of a ``say`` command (``succeeded``,
-``failed``, ``stopped``, ``not-understood``); ``expect_text`` a text its final report must
-contain.
+``failed``, ``stopped``, ``not-understood``, or ``answer`` for a question such as "what is in the
+bowl?"); ``expect_text`` a text its final report must contain.
 """
 
 from __future__ import annotations
@@ -45,7 +45,7 @@ from velma.world.mode import WORLD_SERVICE
 
 LIBRARY = Path(__file__).parent / "library"
 """The scenarios shipped with roco (``roco scenario --list``)."""
-FINAL_KINDS = frozenset({"succeeded", "failed", "stopped", "not-understood"})
+FINAL_KINDS = frozenset({"succeeded", "failed", "stopped", "not-understood", "answer"})
 AGENTS = frozenset(default_spec().agent_names)
 SERVICES = AGENTS | {"recorder", "router", WORLD_SERVICE}
 """What a ``fault`` step can hit: the agents, the traffic recorder, the Zenoh router and the

@@ -37,7 +37,8 @@ class Channel(enum.StrEnum):
     of the environment model."""
     C7 = "C7"
     """Between a_hi and a_km (fipa-query): the words for the kitchen's things and where they are
-    (a_hi's vocabulary)."""
+    (a_hi's vocabulary), and what a_km knows of them for a person's questions (contents,
+    places, when a_ta last saw them)."""
     C8 = "C8"
     """Between x_fipa and a_hi (fipa-request): sentences from agents of other FIPA platforms
     (through roco gateway) and their outcome."""

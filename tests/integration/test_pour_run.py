@@ -1,14 +1,17 @@
-"""The main job, as a user runs it: ``roco run "pour the jar into the bowl" --gateway PORT``
-starts a router, the recorder, one OS process per agent and the ACL gateway, and the robot pours
-the jar into the bowl in MuJoCo (paper §5.7). Faster than real time (the executor is not paced).
-While it pours, an agent of another FIPA platform (tests/support/jade_platform.py) asks a_hi
-through the gateway what it is doing (requirement R1.4, channel C8)."""
+"""The main job, as a user runs it: ``roco scenario FILE --gateway PORT`` (:data:`SESSION`: the
+command ``roco run "pour the jar into the bowl"`` gives, and the person's question "what is in
+the bowl?" right after it and once it ended) starts a router, the recorder, one OS process per
+agent and the ACL gateway, and the robot pours the jar into the bowl in MuJoCo (paper §5.7).
+Faster than real time (the executor is not paced). While it pours, an agent of another FIPA
+platform (tests/support/jade_platform.py) asks a_hi through the gateway what it is doing
+(requirement R1.4, channel C8)."""
 
 from __future__ import annotations
 
 import json
 import os
 import queue
+import re
 import subprocess
 import sys
 import threading
@@ -41,6 +44,21 @@ AGENTS = ("a_hi", "a_co", "a_pl", "a_km", "a_ta", "ag_ex")
 """Every agent of the fleet, each its own process."""
 FINAL = {Performative.INFORM, Performative.FAILURE, Performative.REFUSE, Performative.NOT_UNDERSTOOD}
 """The answers that end a fipa-request (FIPA SC00026)."""
+QUESTION = "what is in the bowl?"
+SESSION = f"""name = "pour, and what is in the bowl before and after"
+timeout_s = 900
+[[steps]]
+say = "pour the jar into the bowl"
+[[steps]]
+say = "{QUESTION}"
+expect = "answer"
+[[steps]]
+say = "{QUESTION}"
+after = {{ ended = 1 }}
+expect = "answer"
+"""
+"""The session: the pour; the question right after it is said (a_km has a_ta's first look,
+the pour has not begun), and again once the pour ended."""
 
 
 @dataclass(frozen=True)
@@ -114,6 +132,8 @@ def ask_what_it_is_doing(jade: JadePlatform, port: int, out: Lines) -> tuple[lis
 @pytest.fixture(scope="module")
 def pour_run(tmp_path_factory: pytest.TempPathFactory) -> PourRun:
     runs = tmp_path_factory.mktemp("runs")
+    session = tmp_path_factory.mktemp("session") / "pour.toml"
+    session.write_text(SESSION)
     port = free_port()
     jade = JadePlatform()
     proc = subprocess.Popen(
@@ -121,12 +141,10 @@ def pour_run(tmp_path_factory: pytest.TempPathFactory) -> PourRun:
             sys.executable,
             "-m",
             "services.cli",
-            "run",
-            "pour the jar into the bowl",
+            "scenario",
+            str(session),
             "--runs-dir",
             str(runs),
-            "--timeout",
-            "900",
             "--gateway",
             str(port),
         ],
@@ -205,6 +223,36 @@ def test_the_report_says_how_many_spheres_were_seen_and_how_many_inferred(pour_r
     split = f"{c.seen} seen and {c.inferred} inferred behind its wall" if c.inferred else "all seen"
     assert f"ended in the bowl: {split}" in section and f"at the {which} look" in section, section[:600]
     assert f"{c.inside} of {c.total} spheres" in pour_run.proc.stdout, pour_run.proc.stdout[-2000:]
+
+
+@pytest.mark.requirement("R1.3")
+def test_what_is_in_the_bowl_is_answered_from_a_km_before_and_after_the_pour(pour_run: PourRun) -> None:
+    """The person's question, asked right after the pour was said and again once it ended, is
+    answered from a_km (C7): no spheres first (a_ta's first look saw an empty bowl), then the
+    count of a_ta's last look (the report's content section: the last Observation of the bowl),
+    each saying how old the knowledge is."""
+    outcomes = read_run_info(pour_run.run_dir).outcomes
+    assert [(o.text, o.outcome) for o in outcomes] == [
+        ("pour the jar into the bowl", "succeeded"),
+        (QUESTION, "answer"),
+        (QUESTION, "answer"),
+    ], outcomes
+    before, after = outcomes[1].detail, outcomes[2].detail
+    assert re.fullmatch(
+        r"The bowl held 0 spheres when I last looked, (just now|\d+ s ago): it was empty\.", before
+    ), before
+    inside = build_report(pour_run.run_dir).content.inside
+    assert inside is not None and inside > 0
+    assert re.fullmatch(
+        rf"The bowl held {inside} spheres when I last looked, (just now|\d+ s ago)\.", after
+    ), after
+    records = read_records(pour_run.run_dir)
+    asked = [
+        r
+        for r in records
+        if r.channel == "C7" and r.sender == "a_hi" and (r.conversation_id or "").startswith("ask-")
+    ]
+    assert len(asked) == 2, asked
 
 
 @pytest.mark.requirement("R3.1")

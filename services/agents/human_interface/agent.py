@@ -9,10 +9,9 @@ initiates a fipa-request per command (a stop sends ``cancel`` in every open one:
 meta-protocol), one fipa-subscribe to the progress, which the role keeps open
 (services/runtime/subscriptions.py: while a_co does not agree, a new attempt, the interval
 doubling from ``SUBSCRIBE_RETRY_S[0]`` to ``SUBSCRIBE_RETRY_S[1]``), and a fipa-query per status
-request. Towards a_km, on C7 in L_WM, a fipa-query per sentence asks for the vocabulary
-(vocabulary.py), which the sentence waits for; when a_km is away or does not answer within
-``VOCABULARY_REPLY_BY_S``, it is read with the last one; when a_km's token appears, a_hi asks
-at once, and the sentences waiting for an earlier a_km wait for that answer instead.
+request. Towards a_km, on C7 in L_WM (asking.py), a fipa-query per sentence asks for the
+vocabulary (vocabulary.py), which the sentence waits for (at most ``VOCABULARY_REPLY_BY_S``),
+and one per question about the kitchen (questions.py) for the answer.
 
 Every line is first checked for a stop (stop.py), which is acted on at once, whatever it names;
 the sentences still waiting are dropped. A line over ``MAX_LINE_CHARS`` that is no stop is
@@ -36,6 +35,7 @@ from typing import TYPE_CHECKING, ClassVar
 
 import msgspec
 
+from services.agents.human_interface.asking import KM, AskingKnowledge, HeldSentence
 from services.agents.human_interface.foreign import ForeignRequests
 from services.agents.human_interface.language import (
     Command,
@@ -43,14 +43,14 @@ from services.agents.human_interface.language import (
     NotUnderstood,
     StatusRequest,
     Stop,
-    default_vocabulary,
+    WorldQuestion,
     describe,
 )
 from services.agents.human_interface.reading import LineReader, Reading
 from services.agents.human_interface.stop import StopWords, command_openings
 from services.agents.human_interface.task_grammar import Grammar, default_grammar, load_grammar
 from services.agents.human_interface.told import Told
-from services.agents.human_interface.vocabulary import VOCABULARY_QUERY, Vocabulary
+from services.agents.human_interface.vocabulary import Vocabulary
 from services.agents.human_interface.wording import (
     NOTHING_TO_STOP,
     accepted,
@@ -65,7 +65,6 @@ from services.agents.human_interface.wording import (
     too_long,
 )
 from services.runtime import keys
-from services.runtime.agent import Agent
 from services.runtime.behaviour import FSM, Behaviour
 from services.runtime.human import (
     FINAL_REPORTS,
@@ -95,14 +94,12 @@ from shared.fipa_codec.languages.l_hc import (
     Status,
     StatusQuery,
 )
-from shared.fipa_codec.languages.l_wm import Answer, SparqlQuery
 
 if TYPE_CHECKING:
     from services.runtime.transport import Transport
     from services.spec.model import SystemSpec
 
 CO = "a_co"
-KM = "a_km"
 
 AGREE_BY_S = 120.0
 """How long a_co has to agree to (or refuse) a command."""
@@ -122,18 +119,6 @@ SUBSCRIPTION = "hi-progress"
 """Conversation-id of the first subscription attempt; later ones add ``-2``, ``-3``, …"""
 VOCABULARY_REPLY_BY_S = 2.0
 """How long a sentence waits for a_km's vocabulary before it is read with the last one."""
-
-
-@dataclass
-class HeldSentence:
-    """A sentence waiting for a_km's vocabulary; ``ready`` once answered or given up, with the
-    ``vocabulary`` to read it with (None: the last one); ``stopped``: a stop came after it, so
-    it is dropped, not read."""
-
-    event: HumanInput
-    ready: bool = False
-    vocabulary: Vocabulary | None = None
-    stopped: bool = False
 
 
 @dataclass(frozen=True)
@@ -194,7 +179,7 @@ class StopRequest:
     failed: bool = False
 
 
-class HumanInterface(Agent):
+class HumanInterface(AskingKnowledge):
     """a_hi: sentences in, L_HC on C2 to a_co, readable reports out."""
 
     name = "a_hi"
@@ -320,18 +305,6 @@ class HumanInterface(Agent):
             self._cancel_command(c, "as asked")
         return bool(lines or commands)
 
-    @property
-    def vocabulary(self) -> Vocabulary:
-        """The last vocabulary a_km gave; before its first answer, the files' (O_RoCo and the
-        kitchen, read with rdflib at the first use: an idle a_hi does not load rdflib)."""
-        if self._vocabulary is None:
-            self._vocabulary = default_vocabulary()
-        return self._vocabulary
-
-    @vocabulary.setter
-    def vocabulary(self, value: Vocabulary) -> None:
-        self._vocabulary = value
-
     # ---- from the person ---------------------------------------------------------------
     def _on_input(self, event: HumanInput) -> None:
         """A line: first checked for a stop (stop.py), which is acted on at once (it needs no
@@ -363,58 +336,6 @@ class HumanInterface(Agent):
         self.held.append(held)
         self._ask_words(f"words-{event.request_id}-", held)
 
-    def _ask_words(self, prefix: str, *waiting: HeldSentence) -> None:
-        """Ask a_km for its vocabulary (C7, ``query-ref``) for the ``waiting`` sentences (the
-        conversation's data; none for the question asked when a_km's token appears)."""
-        self.roles.open(
-            C7,
-            FIPA_QUERY,
-            SparqlQuery(VOCABULARY_QUERY),
-            performative=Performative.QUERY_REF,
-            conversation_id=self.sources.new_id(prefix),  # never one a_km has seen end
-            data=list(waiting),
-        )
-
-    def peer_changed(self, peer: str, alive: bool) -> None:
-        """a_km's token appeared (a_km started or restarted): ask for its vocabulary at once, and
-        let the sentences still waiting for an earlier a_km wait for this answer instead."""
-        if peer != KM or not alive:
-            return
-        waiting: list[HeldSentence] = []
-        for query in self.roles.conversations(C7, FIPA_QUERY):
-            query.abandon()  # asked of the a_km that went away, or before it was up
-            waiting += query.data  # the sentences it was asked for (see _ask_words)
-        self._ask_words("words-", *waiting)
-
-    def _read_held(self) -> None:
-        """Read the waiting sentences, in order, as far as their vocabulary is there."""
-        while self.held and self.held[0].ready:
-            held = self.held.popleft()
-            if held.stopped:
-                self._report(held.event.request_id, ReportKind.NOT_UNDERSTOOD, dropped(held.event.text))
-                continue
-            self._understand(held.event, held.vocabulary or self.vocabulary)
-
-    @handles(FIPA_QUERY, INITIATOR, Performative.INFORM_REF, Performative.INFORM, channel=C7)
-    def _on_vocabulary(self, conv: Conversation) -> None:
-        conv.abandon()
-        if isinstance(conv.content, Answer) and conv.content.rows:
-            self.vocabulary = Vocabulary.from_rows(conv.content.rows)
-        if conv.data:
-            for held in conv.data:
-                held.ready, held.vocabulary = True, self.vocabulary
-            self._read_held()
-
-    @handles(FIPA_QUERY, INITIATOR, Performative.REFUSE, Performative.FAILURE, channel=C7)
-    def _on_no_vocabulary(self, conv: Conversation) -> None:
-        """Refused, failed, not understood or unanswered in time: read with the last vocabulary."""
-        conv.abandon()
-        self.log.warning("a_km gave no vocabulary (%s); reading with the last one", reason_of(conv))
-        if conv.data:
-            for held in conv.data:
-                held.ready = True
-            self._read_held()
-
     def _understand(self, event: HumanInput, vocabulary: Vocabulary) -> None:
         """Give ``event``'s line to the reader (reading.py); it is acted on, in order, once read."""
         reading = Reading(event, self.dialogues.setdefault(event.person, Dialogue()))
@@ -443,6 +364,9 @@ class HumanInterface(Agent):
             elif isinstance(outcome, StatusRequest):
                 self.asked[event.request_id] = RequestKind.STATUS
                 self._ask_status(event.request_id)
+            elif isinstance(outcome, WorldQuestion):
+                self.asked[event.request_id] = RequestKind.QUESTION
+                self._ask_world(event.request_id, outcome)
 
     def _command(self, event: HumanInput, intent: Command) -> None:
         command = HumanCommand(

@@ -1,4 +1,5 @@
-"""What a person's sentence asks a_hi for (an L_HC command, a stop, a status request), and the
+"""What a person's sentence asks a_hi for (an L_HC command, a stop, a status request, a question
+about the kitchen), and the
 ways it can fail to: not understood, incomplete, or naming an object ambiguously or not at all.
 
 These are a_hi's own terms; a :class:`Command` becomes an L_HC ``HumanCommand`` (its goal a
@@ -61,7 +62,29 @@ class StatusRequest(Read):
     command a_co holds."""
 
 
-Intent = Command | Stop | StatusRequest
+@dataclass(frozen=True)
+class WorldQuestion:
+    """A question about the kitchen, or about a_hi itself, answered in one sentence
+    (questions.py reads it, answers.py words the answer). ``kind``: one of
+    :data:`QUESTION_KINDS`; ``thing``: the O_RoCo name of the object asked about (None for
+    ``seen`` and ``abilities``); ``place`` and ``relation`` ("in"/"on"): for ``located`` ("is the
+    cup on the table?"), where the thing is asked to be; ``counted``: for ``count``, "spheres"
+    (the content) or "things" (the objects in it)."""
+
+    kind: str
+    thing: str | None = None
+    place: str | None = None
+    relation: str | None = None
+    counted: str = "spheres"
+
+
+QUESTION_KINDS = ("where", "contents", "on", "empty", "full", "located", "count", "seen", "abilities")
+"""What a :class:`WorldQuestion` asks: where a thing is; what is in it, on it; whether it is empty,
+full, in or on a place; how many spheres or things are in it; what a_hi's robot saw; what a_hi
+can do (answered from its own task words, without a_km)."""
+
+
+Intent = Command | Stop | StatusRequest | WorldQuestion
 """What a sentence asks for."""
 
 
@@ -142,6 +165,7 @@ def describe(goal: TaskAtom, words: TaskWords | None = None) -> str:
 
 
 __all__ = [
+    "QUESTION_KINDS",
     "STORAGE",
     "SURFACE",
     "URGENT_PRIORITY",
@@ -156,6 +180,7 @@ __all__ = [
     "StatusRequest",
     "Stop",
     "UnknownReference",
+    "WorldQuestion",
     "describe",
     "said_back",
     "show",

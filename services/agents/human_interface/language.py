@@ -1,4 +1,5 @@
-"""From a sentence to an intent: an L_HC command, a stop, a status request — or one line back.
+"""From a sentence to an intent: an L_HC command, a stop, a status request, a question about the
+kitchen (questions.py, read first) — or one line back.
 
 Named simplifications (paper §5.2 leaves the human interface open): the understanding is a
 **hand-written grammar** of English kitchen commands (grammar.lark, parsed by lark's Earley
@@ -58,11 +59,13 @@ from services.agents.human_interface.intents import (
     StatusRequest,
     Stop,
     UnknownReference,
+    WorldQuestion,
     describe,
     said_back,
     show,
 )
 from services.agents.human_interface.meaning import Context, Reader, Reply, loc_count, loc_depth
+from services.agents.human_interface.questions import Resolve, read_question
 from services.agents.human_interface.spelling import candidates, correctable, known_words
 from services.agents.human_interface.stop import StopWords, command_openings
 from services.agents.human_interface.task_grammar import Grammar, default_grammar
@@ -241,6 +244,12 @@ def interpret(
     control = _control(sentence)
     if control is not None:
         raise control  # a refused line: the question asked, if any, stays open
+    question = read_question(sentence, _resolver(vocab, talk, rules))
+    if question is not None:  # a question about the kitchen: any question asked back is dropped
+        talk.pending = None
+        if question.thing is not None:
+            talk.last = question.thing
+        return question
     words = rules.tag(sentence, vocab)
     fixed = _corrected(sentence, words, priority, vocab, talk, rules)
     if fixed is None:
@@ -505,6 +514,20 @@ def _interpret_words(
     return intent
 
 
+def _resolver(vocab: Vocabulary, talk: Dialogue, grammar: Grammar) -> Resolve:
+    """How a question's reference is resolved (questions.py): read with the command grammar as a
+    bare reference, against ``vocab`` and the person's last object ("it"); None when the words
+    read as something else (a stop, a command)."""
+
+    def resolve(words: str) -> str | None:
+        tagged = grammar.tag(words, vocab)
+        ctx = Context(vocab, last=talk.last, frames=grammar.frames)
+        outcome = _read(tagged, 0, ctx, grammar)
+        return outcome.name if isinstance(outcome, Reply) else None
+
+    return resolve
+
+
 def _again(pending: Pending, why: str) -> Ambiguous:
     """The pending question asked again after an answer that names none of its candidates."""
     question = pending.question or "Which of " + ", ".join(show(c) for c in pending.candidates) + "?"
@@ -552,6 +575,7 @@ __all__ = [
     "StatusRequest",
     "Stop",
     "UnknownReference",
+    "WorldQuestion",
     "default_grammar",
     "default_vocabulary",
     "describe",

@@ -6,7 +6,7 @@ that cache, would be lost to a person who was cut off when it was told; so a_hi 
 last :data:`MAX_TOLD` final reports of commands in :class:`Told`, its ``NOTE`` (written by the
 runtime after every step, services/runtime/state_store.py, and so kept across a restart), and
 answers a query of ``roco/human/outcomes`` with them (JSON list of ``HumanReport``, oldest
-first). Status reports are not kept: a status is asked again, not missed.
+first). Status reports and answers to questions are not kept: they are asked again, not missed.
 """
 
 from __future__ import annotations
@@ -30,9 +30,9 @@ class Told(msgspec.Struct, kw_only=True):
 
     def keep(self, report: HumanReport) -> bool:
         """Keep ``report`` when it is the final report of a command (a kind in
-        ``FINAL_REPORTS`` other than ``status``), its text cut to :data:`MAX_TOLD_TEXT`; the
+        ``FINAL_REPORTS`` other than ``status`` and ``answer``), its text cut to :data:`MAX_TOLD_TEXT`; the
         oldest kept is forgotten past :data:`MAX_TOLD`. Whether it was kept."""
-        if report.kind not in FINAL_REPORTS or report.kind is ReportKind.STATUS:
+        if report.kind not in FINAL_REPORTS or report.kind in (ReportKind.STATUS, ReportKind.ANSWER):
             return False
         if len(report.text) > MAX_TOLD_TEXT:
             report = msgspec.structs.replace(report, text=report.text[: MAX_TOLD_TEXT - 1] + "…")

@@ -575,8 +575,13 @@ class WorldModel:
         new was seen). A pose older than the stored one (``update.stamp`` < its stamp) is
         ignored and counted in :attr:`stale_poses`; a pose in an update with no observation
         time (stamp < 0, a_ta's asserted changes) is ignored and counted in
-        :attr:`unstamped_poses`. Durable when it returns (see the module docstring)."""
-        self._apply(update.objects, stamp=update.stamp, total_particles=update.total_particles)
+        :attr:`unstamped_poses`. An observation's ``seen_at`` (a_ta's wall clock, POSIX s) becomes
+        ``roco:seenAt`` of each object whose pose it takes, and ``roco:contentSeenAt`` of each
+        whose content count it gives. Durable when it returns (see the
+        module docstring)."""
+        self._apply(
+            update.objects, stamp=update.stamp, total_particles=update.total_particles, seen_at=update.seen_at
+        )
         return len(update.objects)
 
     def renew(self, update: WorldUpdate) -> int:
@@ -599,7 +604,12 @@ class WorldModel:
         return self.apply(update)
 
     def _apply(
-        self, objects: tuple[ObjectUpdate, ...], *, stamp: float | None, total_particles: int | None = None
+        self,
+        objects: tuple[ObjectUpdate, ...],
+        *,
+        stamp: float | None,
+        total_particles: int | None = None,
+        seen_at: float | None = None,
     ) -> None:
         """``stamp`` None: hypothetical changes (poses taken without a stamp and no stale check)."""
         self._check_open()
@@ -609,14 +619,14 @@ class WorldModel:
             if content is not None:
                 ch.set(content, ROCO.totalParticles, Literal(total_particles))
         for change in objects:
-            self._change(ch, change, stamp)
+            self._change(ch, change, stamp, seen_at)
         text = ch.sparql_update()
         if text is not None:
             self.graph.update(text)
             if self.flush_each_update and self.path is not None:
                 self._store.flush()
 
-    def _change(self, ch: _Changes, change: ObjectUpdate, stamp: float | None) -> None:
+    def _change(self, ch: _Changes, change: ObjectUpdate, stamp: float | None, seen_at: float | None) -> None:
         if not _NAME.match(change.name):
             self.rejected_changes += 1
             log.warning("update of %r ignored: not an individual's name", change.name)
@@ -625,7 +635,7 @@ class WorldModel:
         if ch.value(node, RDF.type) is None:
             ch.add(node, RDF.type, ROCO.PhysicalObject)
         if change.pose is not None:
-            self._set_pose(ch, node, change, stamp)
+            self._set_pose(ch, node, change, stamp, seen_at)
         if change.held_by is not None:
             ch.remove(node, ROCO.heldBy)
             if change.held_by:
@@ -660,8 +670,12 @@ class WorldModel:
                     self._unlocalise(ch, node)
         if change.particles is not None:
             ch.set(node, ROCO.particles, Literal(change.particles))
+            if stamp is not None and stamp >= 0 and seen_at is not None:
+                ch.set(node, ROCO.contentSeenAt, Literal(float(seen_at)))
 
-    def _set_pose(self, ch: _Changes, node: URIRef, change: ObjectUpdate, stamp: float | None) -> None:
+    def _set_pose(
+        self, ch: _Changes, node: URIRef, change: ObjectUpdate, stamp: float | None, seen_at: float | None
+    ) -> None:
         assert change.pose is not None
         pose_node = ROCO[f"{change.name}_pose"]
         if stamp is not None:
@@ -692,6 +706,8 @@ class WorldModel:
         if change.position_sigma is not None:
             ch.add(pose_node, ROCO.positionSigma, Literal(float(change.position_sigma)))
         ch.add(pose_node, ROCO.localised, Literal(True))
+        if stamp is not None and seen_at is not None:
+            ch.set(node, ROCO.seenAt, Literal(float(seen_at)))
 
     @staticmethod
     def _unlocalise(ch: _Changes, node: URIRef) -> None:

@@ -139,10 +139,11 @@ before it subscribes again."""
 same world's (the times are the world's own; equal times are the same instant)."""
 
 
-def observed_update(obs: Observation) -> WorldUpdate:
+def observed_update(obs: Observation, seen_at: float | None = None) -> WorldUpdate:
     """The C6 inform content a_ta sends a_km for ag_ex's L_SD observation ``obs``: each object
     seen (pose, content count, position sigma) and the hands' grip frames under the grippers'
-    names (a_pl finishes a take from where the hand is), at ``obs.stamp`` (simulated s)."""
+    names (a_pl finishes a take from where the hand is), at ``obs.stamp`` (simulated s);
+    ``seen_at``: a_ta's wall clock when it received ``obs`` (POSIX s), None when unknown."""
     return WorldUpdate(
         stamp=obs.stamp,
         objects=tuple(
@@ -152,6 +153,7 @@ def observed_update(obs: Observation) -> WorldUpdate:
             for o in (*obs.objects, *obs.grips)
         ),
         total_particles=obs.total_particles,
+        seen_at=seen_at,
     )
 
 
@@ -501,7 +503,7 @@ class TaskExecutor(Agent):
     def _update_km(self, obs: Observation) -> None:
         """Inform a_km of what ``obs`` saw (:func:`observed_update`); the first observation of a
         robot that was power-cycled renews a_km's world (``renew_km``)."""
-        update = observed_update(obs)
+        update = observed_update(obs, self.sources.time())
         if self.renew_km and self.subscription is not None and obs.world in ("", self.world):
             update = msgspec.structs.replace(update, renews=True)
             self.renew_km = False

@@ -114,7 +114,7 @@ class Sentence(msgspec.Struct, frozen=True, tag="sentence", kw_only=True):
 
 class SentenceReport(msgspec.Struct, frozen=True, tag="sentence_report", kw_only=True):
     """a_hi's report on a :class:`Sentence`: ``kind`` is what a person would be told
-    (``accepted``, ``not-understood``, ``succeeded``, ``failed``, ``stopped``, ``status``:
+    (``accepted``, ``not-understood``, ``succeeded``, ``failed``, ``stopped``, ``status``, ``answer``:
     services/runtime/human.py ``ReportKind``), ``text`` the readable sentences."""
 
     kind: str

@@ -7,10 +7,12 @@ Lengths in metres, poses in the world frame, stamps in simulation seconds.
 
 from __future__ import annotations
 
+from typing import Annotated
+
 import msgspec
 
 from shared.fipa_codec.languages.base import Language, register
-from shared.fipa_codec.languages.common import Pose, Vec3
+from shared.fipa_codec.languages.common import CLOCK, Pose, Vec3
 
 
 class SparqlQuery(msgspec.Struct, frozen=True, tag="sparql"):
@@ -252,12 +254,15 @@ class WorldUpdate(msgspec.Struct, frozen=True, tag="update", kw_only=True):
     """Observations and changes a_ta sends a_km (C6) at simulation time ``stamp``.
     ``renews``: the observation is of a robot that was power-cycled (its kitchen started anew,
     its time from 0): a_km drops what it believed of the world and takes the kitchen's initial
-    knowledge with this observation instead."""
+    knowledge with this observation instead. ``seen_at``: for an observation, when a_ta received
+    it on its wall clock (POSIX s), which a_km keeps as each seen object's ``roco:seenAt`` (what
+    a person is told the knowledge's age by); None for asserted changes."""
 
     stamp: float
     objects: tuple[ObjectUpdate, ...]
     total_particles: int | None = None
     renews: bool = False
+    seen_at: Annotated[float, CLOCK] | None = None
 
 
 L_WM = register(

@@ -52,9 +52,17 @@ class Refuse:
     says: str
 
 
+@dataclass(frozen=True)
+class Question:
+    """A question about the kitchen (questions.py): its kind and the thing it asks about."""
+
+    kind: str
+    thing: str | None = None
+
+
 STOP = "stop"
 STATUS = "status"
-Expected = Do | Ask | Refuse | str
+Expected = Do | Ask | Refuse | Question | str
 
 URGENT = 5
 
@@ -161,16 +169,16 @@ PARAPHRASES: tuple[tuple[str, Expected], ...] = (
     ("please pass me the salad bowl, thank you", Do("hand_over", "bowl")),
     ("find the jar", Do("localise", "jar")),
     ("look for the cup", Do("localise", "cup")),
-    ("where is the bowl?", Do("localise", "bowl")),
+    ("where is the bowl?", Question("where", "bowl")),
     ("locate the jar", Do("localise", "jar")),
     ("could you find the glass jar, please?", Do("localise", "jar")),
     ("please look for the coffee mug", Do("localise", "cup")),
-    ("robot, where is the salad bowl?", Do("localise", "bowl")),
+    ("robot, where is the salad bowl?", Question("where", "bowl")),
     ("search for the table", Do("localise", "table")),
     ("look where the cup is", Do("localise", "cup")),
     ("show me where the bowl is", Do("localise", "bowl")),
     ("find the beans", Do("localise", "jar")),
-    ("where is the jar in the cabinet", Do("localise", "jar")),
+    ("where is the jar in the cabinet", Question("where", "jar")),
     ("stop", STOP),
     ("Stop everything!", STOP),
     ("please stop now", STOP),
@@ -200,7 +208,7 @@ PARAPHRASES: tuple[tuple[str, Expected], ...] = (
     ("put the jar back within half an hour", Do("return", "jar", deadline_s=1800.0)),
     ("bring me the mug right away, within 45 seconds", Do("bring", "cup", priority=URGENT, deadline_s=45.0)),
     ("immediately put the bowl away please", Do("return", "bowl", priority=URGENT)),
-    ("quickly, where is the cup?", Do("localise", "cup", priority=URGENT)),
+    ("quickly, where is the cup?", Question("where", "cup")),
     ("find the jar within 30 seconds", Do("localise", "jar", deadline_s=30.0)),
 )
 
@@ -226,7 +234,7 @@ REFERENCES: tuple[tuple[str, Expected], ...] = (
     ("bring me the blue cup", Do("bring", "cup_2")),
     ("bring me the small cup", Do("bring", "cup")),
     ("fill the cup on the table from the jar", Do("pour", "jar", "cup_2")),
-    ("where is the cup on the table", Do("localise", "cup_2")),
+    ("where is the cup on the table", Question("where", "cup_2")),
     ("look for the blue cup", Do("localise", "cup_2")),
     # unknown: nothing fits
     ("bring me the small jar", Refuse("I know of no small jar: the jar is big, glass, transparent.")),
@@ -244,7 +252,7 @@ REFERENCES: tuple[tuple[str, Expected], ...] = (
     ("pour it into the bowl", Ask("missing", "Which object should I pour into the bowl?")),
     ("hand it over", Ask("missing", "What should I hand you?")),
     ("put that back", Ask("missing", "What should I put back?")),
-    ("where is it?", Ask("missing", "What should I look for? Say e.g. 'find the jar'.")),
+    ("where is it?", Ask("missing", "Which object do you mean?")),
     ("locate the small jar", Refuse("I know of no small jar")),
     # possessives, wishes and phrasal verbs naming one of the two cups
     ("bring me the table's cup", Do("bring", "cup_2")),
@@ -256,7 +264,7 @@ REFERENCES: tuple[tuple[str, Expected], ...] = (
     ("take out the cup", Ask("which", "Which cup:")),
     ("put down the cup", Ask("which", "Which cup:")),
     ("I want the blue cup", Do("bring", "cup_2")),
-    ("where's the blue cup?", Do("localise", "cup_2")),
+    ("where's the blue cup?", Question("where", "cup_2")),
 )
 
 REFUSALS: tuple[tuple[str, Expected], ...] = (
@@ -292,10 +300,10 @@ REFUSALS: tuple[tuple[str, Expected], ...] = (
     ("bring me the small jar", Refuse("no small jar")),
     ("bring me", Ask("missing", "What should I bring?")),
     ("find", Ask("missing", "What should I look for? Say e.g. 'find the jar'.")),
-    ("where is", Ask("missing", "What should I look for?")),
+    ("where is", Ask("missing", "Which object do you ask about?")),
     ("look for the cups", Refuse("one object at a time")),
     ("find the jar and the cup", Refuse("one object at a time")),
-    ("where is the teapot", Refuse("'teapot'")),
+    ("where is the teapot", Refuse("I have not seen a teapot")),
     ("look at the jar", Refuse("'at'")),
 )
 
@@ -524,9 +532,9 @@ DEADLINES: tuple[tuple[str, Expected], ...] = (
 a minute"; one not understood is refused."""
 
 LOCALISE: tuple[tuple[str, Expected], ...] = (
-    ("where's the cup?", Do("localise", "cup")),
-    ("where’s the jar", Do("localise", "jar")),
-    ("where are the beans?", Do("localise", "jar")),
+    ("where's the cup?", Question("where", "cup")),
+    ("where’s the jar", Question("where", "jar")),
+    ("where are the beans?", Question("where", "jar")),
     ("could you tell me where the jar is?", Do("localise", "jar")),
     ("tell me where the bowl is, please", Do("localise", "bowl")),
     ("do you know where the mug is?", Do("localise", "cup")),
@@ -536,7 +544,7 @@ LOCALISE: tuple[tuple[str, Expected], ...] = (
     ("check where the cup is", Do("localise", "cup")),
     ("locate the bowl within a minute", Do("localise", "bowl", deadline_s=60.0)),
     ("look for the jar's beans", Do("localise", "jar")),
-    ("where's", Ask("missing", "What should I look for?")),
+    ("where's", Ask("missing", "Which object do you ask about?")),
     ("have you seen", Ask("missing", "What should I look for?")),
     ("do you know where the teapot is", Refuse("'teapot'")),
 )

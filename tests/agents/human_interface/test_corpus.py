@@ -14,6 +14,7 @@ from services.agents.human_interface.language import (
     NotUnderstood,
     StatusRequest,
     Stop,
+    WorldQuestion,
     default_vocabulary,
     interpret,
 )
@@ -38,6 +39,7 @@ from tests.agents.human_interface.corpus import (
     Ask,
     Do,
     Expected,
+    Question,
     Refuse,
 )
 
@@ -57,6 +59,11 @@ def check(sentence: str, expected: Expected, vocabulary: Vocabulary) -> None:
         assert interpret(sentence, vocabulary=vocabulary) == Command(
             TaskAtom(expected.task, expected.args), expected.priority, expected.deadline_s
         )
+        return
+    if isinstance(expected, Question):
+        question = interpret(sentence, vocabulary=vocabulary)
+        assert isinstance(question, WorldQuestion), question
+        assert (question.kind, question.thing) == (expected.kind, expected.thing), question
         return
     if expected == STOP:
         assert interpret(sentence, vocabulary=vocabulary) == Stop()
@@ -130,7 +137,7 @@ def test_the_corpus_is_large_and_covers_every_task_a_pl_accepts() -> None:
     assert len(unsure) >= 20
     assert len(REFUSALS) >= 30
     for name, group in EVERYDAY.items():  # each gap has its own sentences, most of them understood
-        understood = [e for _, e in group if isinstance(e, Do)]
+        understood = [e for _, e in group if isinstance(e, Do | Question)]
         assert len(group) >= 15 and len(understood) >= 0.8 * len(group), name
     refused = [e for _, e in BAD_INPUT if isinstance(e, Refuse)]
     asked = [e for _, e in BAD_INPUT if isinstance(e, Ask)]

@@ -128,7 +128,7 @@ def test_a_refused_line_keeps_the_question_and_a_new_request_drops_it(kitchen: V
     assert talk.pending is not None
     with pytest.raises(Ambiguous, match="does not answer"):  # no verb a_hi knows: no new request
         interpret("sing me a song", vocabulary=kitchen, dialogue=talk)
-    assert interpret("where is the bowl?", vocabulary=kitchen, dialogue=talk) == Command(
+    assert interpret("find the bowl", vocabulary=kitchen, dialogue=talk) == Command(
         TaskAtom("localise", ("bowl",))
     )
     assert talk.pending is None
