@@ -37,6 +37,7 @@ import msgspec
 
 from services.agents.human_interface.asking import KM, AskingKnowledge, HeldSentence
 from services.agents.human_interface.foreign import ForeignRequests
+from services.agents.human_interface.intents import Intent, Read
 from services.agents.human_interface.language import (
     Command,
     Dialogue,
@@ -348,25 +349,30 @@ class HumanInterface(AskingKnowledge):
         while self.reading and self.reading[0].done:
             reading = self.reading.popleft()
             event, outcome = reading.event, reading.outcome
-            if isinstance(outcome, Command | Stop | StatusRequest) and outcome.read_as:
+            if isinstance(outcome, Read) and outcome.read_as:
                 self.read_as[event.request_id] = outcome.said
             if reading.stopped:
                 reading.dialogue.pending = None
                 self._report(event.request_id, ReportKind.NOT_UNDERSTOOD, dropped(event.text))
             elif isinstance(outcome, NotUnderstood):
                 self._report(event.request_id, ReportKind.NOT_UNDERSTOOD, str(outcome))
-            elif isinstance(outcome, Command):
-                self.asked[event.request_id] = RequestKind.COMMAND
-                self._command(event, outcome)
-            elif isinstance(outcome, Stop):
-                self.asked[event.request_id] = RequestKind.STOP
-                self._stop_commands(event.request_id)
-            elif isinstance(outcome, StatusRequest):
-                self.asked[event.request_id] = RequestKind.STATUS
-                self._ask_status(event.request_id)
-            elif isinstance(outcome, WorldQuestion):
-                self.asked[event.request_id] = RequestKind.QUESTION
-                self._ask_world(event.request_id, outcome)
+            elif outcome is not None:
+                self._act(event, outcome)
+
+    def _act(self, event: HumanInput, outcome: Intent) -> None:
+        """Act on the intent a line was read as."""
+        if isinstance(outcome, Command):
+            self.asked[event.request_id] = RequestKind.COMMAND
+            self._command(event, outcome)
+        elif isinstance(outcome, Stop):
+            self.asked[event.request_id] = RequestKind.STOP
+            self._stop_commands(event.request_id)
+        elif isinstance(outcome, StatusRequest):
+            self.asked[event.request_id] = RequestKind.STATUS
+            self._ask_status(event.request_id)
+        elif isinstance(outcome, WorldQuestion):
+            self.asked[event.request_id] = RequestKind.QUESTION
+            self._ask_world(event.request_id, outcome)
 
     def _command(self, event: HumanInput, intent: Command) -> None:
         command = HumanCommand(

@@ -63,7 +63,7 @@ class StatusRequest(Read):
 
 
 @dataclass(frozen=True)
-class WorldQuestion:
+class WorldQuestion(Read):
     """A question about the kitchen, or about a_hi itself, answered in one sentence
     (questions.py reads it, answers.py words the answer). ``kind``: one of
     :data:`QUESTION_KINDS`; ``thing``: the O_RoCo name of the object asked about (None for

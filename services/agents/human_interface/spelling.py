@@ -135,9 +135,8 @@ def candidates(word: str, known: Collection[str]) -> tuple[str, ...]:
     letters swapped."""
     if word in known:
         return ()
-    if len(word) == MIN_LETTERS - 1:  # only a swap of two adjacent letters
-        swaps = {word[:i] + word[i + 1] + word[i] + word[i + 2 :] for i in range(len(word) - 1)}
-        return tuple(sorted(k for k in swaps if k != word and k in known))
+    if len(word) == MIN_LETTERS - 1:
+        return _swapped(word, known)
     limit = max_distance(word)
     if limit == 0:
         return ()
@@ -149,6 +148,12 @@ def candidates(word: str, known: Collection[str]) -> tuple[str, ...]:
         elif d == best and d <= limit:
             found.append(k)
     return tuple(sorted(found)) if best <= limit else ()
+
+
+def _swapped(word: str, known: Collection[str]) -> tuple[str, ...]:
+    """The words of ``known`` that are ``word`` with two adjacent letters swapped (sorted)."""
+    swaps = {word[:i] + word[i + 1] + word[i] + word[i + 2 :] for i in range(len(word) - 1)}
+    return tuple(sorted(k for k in swaps if k != word and k in known))
 
 
 __all__ = [
