@@ -6,7 +6,7 @@ from __future__ import annotations
 import queue
 import threading
 from collections import defaultdict
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -157,15 +157,6 @@ class Stage:
             agent.stop()
         for _, t in self.agents:
             t.join(timeout=TIMEOUT)
-
-
-@pytest.fixture
-def stage() -> Iterator[Stage]:
-    s = Stage()
-    try:
-        yield s
-    finally:
-        s.stop()
 
 
 def _ready(stage: Stage) -> tuple[ScriptedCo, HumanInterface, Person]:

@@ -7,7 +7,6 @@ waiting. "What can you do?" needs no a_km."""
 from __future__ import annotations
 
 import threading
-from collections.abc import Iterator
 
 import pytest
 
@@ -46,17 +45,6 @@ class ClockFromNow:
 
     def time(self) -> float:
         return NOW + SYSTEM.monotonic() - self.start
-
-
-@pytest.fixture
-def stage(monkeypatch: pytest.MonkeyPatch) -> Iterator[Stage]:
-    monkeypatch.delenv("ROCO_KM_STORE", raising=False)
-    monkeypatch.delenv("ROCO_RUN_DIR", raising=False)
-    s = Stage()
-    try:
-        yield s
-    finally:
-        s.stop()
 
 
 def start_hi(stage: Stage) -> HumanInterface:

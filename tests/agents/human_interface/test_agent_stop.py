@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import queue
 import threading
-from collections.abc import Iterator
 from typing import Any
 
 import pytest
@@ -21,16 +20,6 @@ from shared.fipa_codec.languages.l_wm import Answer
 from tests.agents.human_interface.test_agent import TIMEOUT, Person, ScriptedCo, Stage, _ready
 from tests.agents.human_interface.test_agent_words import _with_silent_km, goal, say
 from tests.agents.human_interface.test_stop import STOPS
-
-
-@pytest.fixture
-def stage(monkeypatch: pytest.MonkeyPatch) -> Iterator[Stage]:
-    monkeypatch.delenv("ROCO_RUN_DIR", raising=False)
-    s = Stage()
-    try:
-        yield s
-    finally:
-        s.stop()
 
 
 def _two_commands(co: ScriptedCo, person: Person) -> None:

@@ -18,9 +18,7 @@ from shared.fipa_codec.languages.l_hc import (
     TaskAtom,
     TaskState,
 )
-from tests.agents.human_interface.test_agent import ScriptedCo, Stage, _ready, stage
-
-__all__ = ["stage"]  # the fixture, used by name
+from tests.agents.human_interface.test_agent import ScriptedCo, Stage, _ready
 
 
 def test_a_corrected_command_says_what_was_read_in_its_first_report_only(stage: Stage) -> None:

@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import logging
 import queue
-from collections.abc import Iterator
 
 import msgspec
 import pytest
@@ -34,17 +33,6 @@ def goal(co: ScriptedCo) -> TaskAtom:
     request = co.receive(Performative.REQUEST)
     assert isinstance(request.content, HumanCommand)
     return request.content.goal
-
-
-@pytest.fixture
-def stage(monkeypatch: pytest.MonkeyPatch) -> Iterator[Stage]:
-    monkeypatch.delenv("ROCO_KM_STORE", raising=False)
-    monkeypatch.delenv("ROCO_RUN_DIR", raising=False)
-    s = Stage()
-    try:
-        yield s
-    finally:
-        s.stop()
 
 
 def _with_km(stage: Stage) -> tuple[ScriptedCo, HumanInterface, Peer]:
