@@ -6,12 +6,13 @@
 #   engine   Debian's docker.io, docker-compose (1.29) and debootstrap, installed if missing;
 #            dockerd started in the background if no engine answers (and stopped at the end)
 #   build    scripts/build_image.sh: wheelhouse, local base, docker build with no network
-#   up       `compose up -d` under a project of its own, on free host ports; the host folders the
-#            services write (the run folder, the credentials) belong to their user (ROCO_UID,
-#            default the image's roco, 10001)
+#   up       `compose up -d` (with the NET_ADMIN override) under a project of its own, on free
+#            host ports; the host folders the services write (the run folder, the credentials)
+#            belong to their user (ROCO_UID, default the image's roco, 10001)
 #   healthy  every service healthy (each roco service's ready file; the viewer's ports) within its
-#            limits (memory, CPU, PIDs) and not as root; then the operator's view: `compose logs a_km` shows the agent's log, the router's log has no
-#            DEBUG/TRACE line and no "tls handshake eof", every container's log is rotated
+#            limits (memory, CPU, PIDs) and not as root; then the operator's view: `compose logs
+#            a_km` shows the agent's log, the router's log has no DEBUG/TRACE line and no "tls
+#            handshake eof", every container's log is rotated
 #   pour     `roco send "pour the jar into the bowl"` from the host, in the background; once a_co
 #            has sent a_ta plan #1 (the first request on C1 in the run folder's traffic.jsonl),
 #            `compose restart a_km`; the pour must end "succeeded" and the restarted a_km must
@@ -19,7 +20,10 @@
 #   power    `compose restart world` (a power cycle of the robot: a fresh kitchen), world and
 #            ag_ex healthy again, then the same pour, which must end "succeeded"; a_ta must have
 #            reported the power cycle
-#   down     `compose down -v` (the project's volumes too); the run folder stays in runs/
+#   netfault under deploy/compose.netfault.yaml (the fleet is up with it): `roco fault net a_km
+#            --delay 0.2` applies and clears netem, or, on a kernel without netem, says so
+#   down     `roco down --compose --volumes`: compose down (the project's volumes too), then
+#            run.json and the report, each command's duration apart; the run folder stays in runs/
 #
 # Prints the time of each phase and a closing line "compose_smoke: N passed, N failed".
 # Environment: ROCO_BIN (the host's roco, default .venv/bin/roco, else roco on PATH),
@@ -110,7 +114,7 @@ fi
 if [ -z "${COMPOSE:-}" ]; then
     if docker compose version >/dev/null 2>&1; then COMPOSE="docker compose"; else COMPOSE=docker-compose; fi
 fi
-COMPOSE="$COMPOSE -f deploy/compose.yaml -p $PROJECT"
+COMPOSE="$COMPOSE -f deploy/compose.yaml -f deploy/compose.netfault.yaml -p $PROJECT"
 say "engine $(docker version -f '{{.Server.Version}}'), compose: $COMPOSE"
 ROCO_BIN=${ROCO_BIN:-}
 if [ -z "$ROCO_BIN" ]; then
@@ -189,6 +193,22 @@ done
 say "compose logs show the agents' lines; the router logs at INFO; every log is rotated"
 phase healthy
 
+# --- a network fault under the documented override (deploy/compose.netfault.yaml) --------------
+# netem where the host's kernel has it (then cleared); else the error must name the kernel
+rc=0
+out=$(roco_host fault net a_km --delay 0.2 --compose --project "$PROJECT" --compose-file deploy/compose.yaml \
+    --router "$endpoint" --credentials "$ROCO_CERTS" 2>&1) || rc=$?
+if [ "$rc" = 0 ]; then
+    roco_host fault net a_km --delay 0 --compose --project "$PROJECT" --compose-file deploy/compose.yaml \
+        --router "$endpoint" --credentials "$ROCO_CERTS" >/dev/null 2>&1 || { say "roco fault net: the delay was not cleared"; exit 1; }
+    say "roco fault net a_km --delay 0.2: applied and cleared"
+elif grep -q "kernel has no netem" <<<"$out"; then
+    say "roco fault net a_km --delay 0.2: this kernel has no netem, and the error says so"
+else
+    echo "$out"; say "roco fault net a_km --delay 0.2 failed without naming the kernel"; exit 1
+fi
+phase netfault
+
 # --- pour, with a_km restarted mid-task ----------------------------------------------------
 say "sending \"$SENTENCE\" to $endpoint; run folder $run_dir"
 roco_host send --router "$endpoint" --timeout 900 "$SENTENCE" >"$work/send.log" 2>&1 &
@@ -246,14 +266,19 @@ grep -q "ag_ex's robot was power-cycled" "$run_dir/logs/a_ta.log" ||
 say "the pour after the power cycle succeeded; a_ta reported the power cycle"
 phase power
 
-# --- down ----------------------------------------------------------------------------------
-$COMPOSE down -v --timeout 30 >"$work/down.log" 2>&1 || { cat "$work/down.log"; exit 1; }
+# --- down, as an operator ends a session: roco down --compose --------------------------------
+roco_host down --compose --project "$PROJECT" --compose-file deploy/compose.yaml --volumes \
+    --router "$endpoint" --credentials "$ROCO_CERTS" >"$work/down.log" 2>&1 || { cat "$work/down.log"; exit 1; }
 compose_up=0
+tail -3 "$work/down.log"
 if [ -s "$run_dir/recording.rrd" ]; then
     say "Rerun recording $(du -h "$run_dir/recording.rrd" | cut -f1)"
 else
     say "no merged Rerun recording in $run_dir (not a failure)"
 fi
-"$ROCO_BIN" report "$run_dir" >/dev/null && say "report $run_dir/report.md"
+# the report of the session, each of its two commands' durations apart
+grep -q '^| Task durations |' "$run_dir/report.md" ||
+    { say "roco down --compose wrote no report with each command's duration"; exit 1; }
+say "roco down --compose wrote $run_dir/report.md"
 phase down
 failed=0
