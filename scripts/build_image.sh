@@ -1,22 +1,29 @@
 #!/usr/bin/env bash
-# Build roco's image (deploy/Dockerfile) where the build can reach no registry (robots, CI):
+# Build roco's images (deploy/Dockerfile's targets runtime, viewer and robot) where the build can
+# reach no registry (robots, CI):
 #
 #   1. wheelhouse: the wheels of roco's dependencies for Linux x86_64 / CPython 3.11, made on
 #      this host with pip (PyPI must be reachable from the host once; the build needs nothing)
 #      into deploy/wheelhouse/ (git-ignored); skipped while it matches pyproject.toml;
 #   2. base images: python:3.11-slim if it is here or can be pulled (both stages); else two made
 #      once each with debootstrap (Debian bookworm) and `docker import`: the runtime base
-#      roco-base:bookworm-<hash of its package list> (python3, libgomp1, iproute2 and the
-#      software EGL MuJoCo renders the head camera with) and the build base (the same with
-#      python3-venv, Python's headers and g++);
+#      roco-base:bookworm-<hash of its package list> (python3, libgomp1, iproute2) and the build
+#      base (the same with python3-venv, Python's headers, g++ and the software EGL MuJoCo
+#      renders the head camera with, which the robot target copies from it);
 #   3. docker build --network host --build-arg BASE=<runtime base> --build-arg
 #      BUILD_BASE=<build base> -f deploy/Dockerfile, with the wheelhouse served on 127.0.0.1 for
-#      the build's `pip install --no-index --find-links`; tagged TAG and, beside it, TAG's
-#      repository with the version in pyproject.toml (roco:latest and roco:0.1.0).
+#      the build's `pip install --no-index --find-links`, three times, one target after the
+#      other (the legacy builder reuses the stages built before): --target runtime tagged TAG,
+#      viewer (runtime + the Rerun CLI) tagged VIEWER_TAG, robot (runtime + Mesa) tagged
+#      ROBOT_TAG; each also with its repository and the version in pyproject.toml (roco:latest
+#      and roco:0.1.0, roco-viewer:latest and roco-viewer:0.1.0, ...). Prints each one's size
+#      (docker's Size, as `docker images` shows it, 1 MB = 10^6 bytes).
 #
 # Usage: scripts/build_image.sh [--tag IMAGE] [--base IMAGE] [--mirror URI] [--refresh-wheelhouse]
 #                               [--no-cache]
-# Environment: ROCO_IMAGE (tag, default roco:latest); ROCO_BASE (runtime base image, default as
+# Environment: ROCO_IMAGE (TAG, default roco:latest); ROCO_VIEWER_IMAGE, ROCO_ROBOT_IMAGE
+#   (VIEWER_TAG, ROBOT_TAG; default TAG's repository with -viewer, -robot: roco-viewer:latest,
+#   roco-robot:latest, as deploy/compose.yaml runs them); ROCO_BASE (runtime base image, default as
 #   in 2); ROCO_BUILD_BASE (build base, default: ROCO_BASE if set, else as in 2);
 #   ROCO_LOCAL_BASE, ROCO_LOCAL_BUILD_BASE (default roco-base:bookworm-<hash>);
 #   DEBIAN_MIRROR (the Debian mirror for debootstrap, as --mirror; default: the one this host's
@@ -38,8 +45,9 @@ BASE=${ROCO_BASE:-}
 BUILD_BASE=${ROCO_BUILD_BASE:-}  # none: the runtime base, or the local build base (phase 2)
 MIRROR=${DEBIAN_MIRROR:-}  # none: this host's apt configuration names it (phase 2)
 # the runtime stage's base: what roco runs with, no compiler, no headers
-BASE_PACKAGES=${ROCO_BASE_PACKAGES:-python3,libgomp1,iproute2,libegl1,libegl-mesa0,libgl1-mesa-dri,libgl1,libopengl0}
-# the build stage's base: the same with the venv module, Python's headers and g++
+BASE_PACKAGES=${ROCO_BASE_PACKAGES:-python3,libgomp1,iproute2}
+# the build stage's base: the same with the venv module, Python's headers, g++ and Mesa's EGL
+# (the robot target takes Mesa's files from it: deploy/mesa_files.py)
 BUILD_BASE_PACKAGES=${ROCO_BUILD_BASE_PACKAGES:-python3,python3-venv,python3-dev,g++,libgomp1,iproute2,libegl1,libegl-mesa0,libgl1-mesa-dri,libgl1,libopengl0}
 # a local base's tag names its package list: another list makes another base
 base_tag() { printf 'roco-base:bookworm-%s' "$(printf '%s' "$1" | sha256sum | cut -c1-8)"; }
@@ -63,7 +71,7 @@ while [ $# -gt 0 ]; do
         --mirror) MIRROR=$2; shift 2 ;;
         --refresh-wheelhouse) REFRESH=1; shift ;;
         --no-cache) NO_CACHE=(--no-cache); shift ;;
-        -h|--help) sed -n '2,32p' "$0"; exit 0 ;;
+        -h|--help) sed -n '2,41p' "$0"; exit 0 ;;
         *) echo "build_image.sh: unknown argument $1" >&2; exit 2 ;;
     esac
 done
@@ -94,9 +102,16 @@ phase() {  # phase NAME: print how long the phase that just ended took
 }
 
 [ -n "$VERSION" ] || { echo "build_image.sh: no version = \"...\" line in pyproject.toml" >&2; exit 1; }
-# the version tag: TAG's repository (an optional registry host:port/ included) with the version
-repository=$TAG
-case "${TAG##*/}" in *:*) repository=${TAG%:*} ;; esac
+repository_of() {  # repository_of IMAGE: IMAGE without its :tag (a registry's host:port/ kept)
+    case "${1##*/}" in *:*) printf '%s' "${1%:*}" ;; *) printf '%s' "$1" ;; esac
+}
+tag_of() {  # tag_of IMAGE: IMAGE's tag (latest when it has none)
+    case "${1##*/}" in *:*) printf '%s' "${1##*:}" ;; *) printf latest ;; esac
+}
+repository=$(repository_of "$TAG")
+VIEWER_TAG=${ROCO_VIEWER_IMAGE:-$repository-viewer:$(tag_of "$TAG")}
+ROBOT_TAG=${ROCO_ROBOT_IMAGE:-$repository-robot:$(tag_of "$TAG")}
+# each image also gets its repository with the version: roco:0.1.0, roco-viewer:0.1.0, ...
 VERSION_TAG=$repository:$VERSION
 
 # before anything takes time: an engine that answers, and the base image or what makes it
@@ -210,21 +225,36 @@ fi
 server_pid=$!
 for _ in $(seq 50); do (exec 3<>"/dev/tcp/127.0.0.1/$PORT") 2>/dev/null && break; sleep 0.1; done
 wheelhouse_id=$(find "$WHEELHOUSE" -name '*.whl' -printf '%f %s\n' | sort | sha256sum | cut -c1-16)
-echo "build_image.sh: building $TAG ($VERSION_TAG) on $BASE, compiled on $BUILD_BASE (log: $work/build.log)"
-live_status "build_image.sh: phase build" "$work/build.log" \
-    "$DOCKER" build "${NO_CACHE[@]}" --network host \
-    --build-arg BASE="$BASE" \
-    --build-arg BUILD_BASE="$BUILD_BASE" \
-    --build-arg WHEELS="http://127.0.0.1:$PORT/" \
-    --build-arg WHEELHOUSE_ID="$wheelhouse_id" \
-    -f deploy/Dockerfile -t "$TAG" -t "$VERSION_TAG" . || {
-    tail -40 "$work/build.log" >&2
-    cp "$work/build.log" /tmp/roco-build-image.log
-    echo "build_image.sh: docker build failed (whole log: /tmp/roco-build-image.log)" >&2
-    exit 1
+build_target() {  # build_target TARGET IMAGE: deploy/Dockerfile's TARGET, tagged IMAGE and its version
+    local target=$1 image=$2
+    local version_tag
+    version_tag=$(repository_of "$image"):$VERSION
+    echo "build_image.sh: building $image ($version_tag, target $target) on $BASE, compiled on $BUILD_BASE (log: $work/build-$target.log)"
+    live_status "build_image.sh: phase build $target" "$work/build-$target.log" \
+        "$DOCKER" build "${NO_CACHE[@]}" --network host --target "$target" \
+        --build-arg BASE="$BASE" \
+        --build-arg BUILD_BASE="$BUILD_BASE" \
+        --build-arg WHEELS="http://127.0.0.1:$PORT/" \
+        --build-arg WHEELHOUSE_ID="$wheelhouse_id" \
+        -f deploy/Dockerfile -t "$image" -t "$version_tag" . || {
+        tail -40 "$work/build-$target.log" >&2
+        cp "$work/build-$target.log" /tmp/roco-build-image.log
+        echo "build_image.sh: docker build --target $target failed (whole log: /tmp/roco-build-image.log)" >&2
+        exit 1
+    }
 }
+build_target runtime "$TAG"
+NO_CACHE=()  # the next targets reuse the stages just built
+build_target viewer "$VIEWER_TAG"
+build_target robot "$ROBOT_TAG"
 kill "$server_pid"; wait "$server_pid" 2>/dev/null || true; server_pid=""
 phase build
-size=$("$DOCKER" image inspect -f '{{.Size}}' "$TAG" | awk '{printf "%.0f MB", $1/1e6}')
+megabytes() { "$DOCKER" image inspect -f '{{.Size}}' "$1" | awk '{printf "%.0f", $1 / 1e6}'; }
+runtime_mb=$(megabytes "$TAG")
 user=$("$DOCKER" image inspect -f '{{.Config.User}}' "$TAG")
-echo "build_image.sh: $TAG and $VERSION_TAG built on $BASE ($size, runs as user $user) in $(($(date +%s) - t_start)) s"
+echo "build_image.sh: built on $BASE in $(($(date +%s) - t_start)) s, each runs as user $user:"
+echo "build_image.sh:   $TAG ($VERSION_TAG): $runtime_mb MB"
+for image in "$VIEWER_TAG" "$ROBOT_TAG"; do
+    mb=$(megabytes "$image")
+    echo "build_image.sh:   $image ($(repository_of "$image"):$VERSION): $mb MB, $TAG + $((mb - runtime_mb)) MB"
+done

@@ -5,14 +5,17 @@
 #
 #   engine   Debian's docker.io, docker-compose (1.29) and debootstrap, installed if missing;
 #            dockerd started in the background if no engine answers (and stopped at the end)
-#   build    scripts/build_image.sh: wheelhouse, local base, docker build with no network
+#   build    scripts/build_image.sh: wheelhouse, local base, docker build with no network of the
+#            three images; the runtime image (roco:latest) must be at most 1000 MB (docker's
+#            Size, 1 MB = 10^6 bytes, rounded up): "runtime image N MB ≤ 1000 MB"
 #   up       `compose up -d` (with the NET_ADMIN override) under a project of its own, on free
 #            host ports; the host folders the services write (the run folder, the credentials)
 #            belong to their user (ROCO_UID, default the image's roco, 10001)
 #   healthy  every service healthy (each roco service's ready file; the viewer's ports) within its
-#            limits (memory, CPU, PIDs) and not as root; then the operator's view: `compose logs
-#            a_km` shows the agent's log, the router's log has no DEBUG/TRACE line and no "tls
-#            handshake eof", every container's log is rotated
+#            limits (memory, CPU, PIDs) and not as root, each in its image (ag_ex the robot
+#            image, the recorder and the viewer the viewer image, the others roco:latest); then
+#            the operator's view: `compose logs a_km` shows the agent's log, the router's log has
+#            no DEBUG/TRACE line and no "tls handshake eof", every container's log is rotated
 #   pour     `roco send "pour the jar into the bowl"` from the host, in the background; once a_co
 #            has sent a_ta plan #1 (the first request on C1 in the run folder's traffic.jsonl),
 #            `compose restart a_km`; the pour must end "succeeded" and the restarted a_km must
@@ -127,6 +130,13 @@ phase engine
 PYTHON=${PYTHON:-$(dirname "$ROCO_BIN")/python}
 [ -x "$PYTHON" ] || PYTHON=python3
 PYTHON=$PYTHON bash scripts/build_image.sh
+runtime_image=${ROCO_IMAGE:-roco:latest}
+runtime_mb=$(docker image inspect -f '{{.Size}}' "$runtime_image" | awk '{printf "%d", ($1 + 999999) / 1e6}')
+if [ "$runtime_mb" -le 1000 ]; then
+    say "runtime image $runtime_image $runtime_mb MB ≤ 1000 MB"
+else
+    say "runtime image $runtime_image $runtime_mb MB > 1000 MB"; exit 1
+fi
 phase build
 
 # --- up ------------------------------------------------------------------------------------
@@ -177,6 +187,18 @@ for s in "${services[@]}"; do
     done
 done
 say "every service runs as $(docker inspect -f '{{.Config.User}}' "${cid[a_km]}"), within its memory, CPU and PIDs limits"
+# each service in the image it needs (deploy/compose.yaml: the robot image has Mesa, the viewer
+# image the Rerun CLI)
+for s in "${services[@]}"; do
+    case "$s" in
+        ag_ex) want=${ROCO_ROBOT_IMAGE:-roco-robot:latest} ;;
+        recorder|viewer) want=${ROCO_VIEWER_IMAGE:-roco-viewer:latest} ;;
+        *) want=$runtime_image ;;
+    esac
+    image=$(docker inspect -f '{{.Config.Image}}' "${cid[$s]}")
+    [ "$image" = "$want" ] || { say "$s runs $image, not $want"; exit 1; }
+done
+say "ag_ex runs ${ROCO_ROBOT_IMAGE:-roco-robot:latest}, the recorder and the viewer ${ROCO_VIEWER_IMAGE:-roco-viewer:latest}, the others $runtime_image"
 roco_host status --router "$endpoint"
 # what an operator reads: the agents' logs in `compose logs`, the router's at INFO, rotation
 $COMPOSE logs --no-color a_km >"$work/a_km.out" 2>&1

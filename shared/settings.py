@@ -528,7 +528,17 @@ class DeploymentVariable(msgspec.Struct, frozen=True):
 
 
 DEPLOYMENT: tuple[DeploymentVariable, ...] = (
-    DeploymentVariable("ROCO_IMAGE", "roco:latest", "image the compose fleet runs and builds"),
+    DeploymentVariable(
+        "ROCO_IMAGE", "roco:latest", "runtime image the compose fleet runs and builds (all but these:)"
+    ),
+    DeploymentVariable(
+        "ROCO_ROBOT_IMAGE", "roco-robot:latest", "ag_ex's image in the compose fleet (runtime + Mesa)"
+    ),
+    DeploymentVariable(
+        "ROCO_VIEWER_IMAGE",
+        "roco-viewer:latest",
+        "the compose viewer's and recorder's image (runtime + Rerun CLI)",
+    ),
     DeploymentVariable("ROCO_BASE", "python:3.11-slim", "base of the compose build's runtime stage"),
     DeploymentVariable("ROCO_BUILD_BASE", "python:3.11-slim", "base of the compose build's build stage"),
     DeploymentVariable("ROCO_UID", "10001", "uid the compose services run as (the image's roco)"),

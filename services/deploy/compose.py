@@ -2,7 +2,9 @@
 
 The file runs the fleet in containers: the one-shot ``certs`` service, the Zenoh router, the
 traffic recorder, one service per agent of the specification, the ``world`` (the simulated
-kitchen, when an agent drives it) and a Rerun web viewer, all from one image. The services
+kitchen, when an agent drives it) and a Rerun web viewer, from the images of deploy/Dockerfile
+(:data:`IMAGES`: the runtime image for most, the robot image for ag_ex, the viewer image for
+the viewer and the recorder). The services
 that are not agents, the shared settings (the ``x-roco`` and ``x-env`` anchors) and the
 file's comments are this module's text; the agents' services follow from the specification:
 
@@ -13,7 +15,8 @@ file's comments are this module's text; the agents' services follow from the spe
 - the agent the specification's ``start_order`` names last (a_hi: a person's command is taken
   once the others are there) waits until every other agent is healthy;
 - what an agent's container needs beyond that is stated here, once, in :data:`AGENT_EXTRAS`:
-  a named volume for what it keeps across restarts (a_km's knowledge, a_co's accepted
+  its image when not the runtime one (ag_ex's: the robot image, with Mesa for the head
+  camera), a named volume for what it keeps across restarts (a_km's knowledge, a_co's accepted
   commands), Linux capabilities (none has one now: the services are not root) and the robot's hardware
   it drives (ag_ex's: the ``world`` service, the simulated kitchen of velma/world/, whose
   shared memory and processes its container shares, so that the robot link between them works
@@ -49,7 +52,7 @@ from services.security.folder import ACL_FILE, CA_CERT, PASSWORDS, ROUTER
 from services.spec.generated import GeneratedFile
 from services.spec.model import SystemSpec, asked
 from services.spec_check.acl import RECORDER
-from shared.settings import Settings
+from shared.settings import Settings, deployment_name
 from velma.world.mode import WORLD_SERVICE
 
 PROJECT = Path(__file__).resolve().parents[2]
@@ -118,6 +121,28 @@ RUN_VARIABLES = tuple(Settings.env_name(f) for f in ("run_dir", "km_store", "sta
 
 UID = 10001
 """The uid and gid of the image's user ``roco`` (deploy/Dockerfile), the services' default."""
+
+
+@dataclass(frozen=True)
+class Image:
+    """One of roco's images: a ``target`` of deploy/Dockerfile, tagged ``${variable:-default}``
+    in the compose file, whose services take the YAML anchor ``anchor`` (its image and build)."""
+
+    target: str
+    variable: str
+    default: str
+    anchor: str
+
+
+IMAGES: dict[str, Image] = {
+    "runtime": Image("runtime", deployment_name("image"), "roco:latest", "roco"),
+    "robot": Image("robot", deployment_name("robot_image"), "roco-robot:latest", "roco-robot"),
+    "viewer": Image("viewer", deployment_name("viewer_image"), "roco-viewer:latest", "roco-viewer"),
+}
+"""roco's images (deploy/Dockerfile; docs/deploy.md gives their sizes): ``runtime`` for every
+service but these: ``robot`` (runtime + Mesa's software OpenGL) for ag_ex, whose camera process
+renders the head camera; ``viewer`` (runtime + the Rerun CLI) for the web viewer and the
+recorder, which merges the run's Rerun parts with ``rerun rrd merge``."""
 
 
 @dataclass(frozen=True)
@@ -203,6 +228,8 @@ class AgentExtras:
     hardware: str | None = None
     """The service of the hardware the agent drives (its IPC and PID namespaces are shared,
     and the agent starts after it), or None."""
+    image: str = "runtime"
+    """Which of :data:`IMAGES` the agent runs in."""
 
 
 AGENT_EXTRAS: dict[str, AgentExtras] = {
@@ -210,6 +237,7 @@ AGENT_EXTRAS: dict[str, AgentExtras] = {
     "a_co": AgentExtras(state=StateVolume("co_state", "/var/lib/roco/co", (Settings.env_name("state_dir"),))),
     "ag_ex": AgentExtras(
         hardware=WORLD_SERVICE,
+        image="robot",
         why=(
             "the 1 kHz loop asks for SCHED_FIFO, which its user (not root) is refused here: it runs",
             "on with normal scheduling and says so in its log and report (velma/executor/timing.py;",
@@ -228,16 +256,18 @@ _YAML_WORDS = frozenset({"y", "n", "yes", "no", "on", "off", "true", "false", "n
 
 HEAD = """\
 # The roco fleet in containers: the Zenoh router, the traffic recorder, the agents of the
-# specification, the simulated world ag_ex drives and a Rerun web viewer, one image for all
-# (deploy/Dockerfile). docs/deploy.md tells the whole story.
+# specification, the simulated world ag_ex drives and a Rerun web viewer, from three images, the
+# targets of deploy/Dockerfile: runtime (ROCO_IMAGE) for most, robot (ROCO_ROBOT_IMAGE: with Mesa,
+# the head camera's) for ag_ex, viewer (ROCO_VIEWER_IMAGE: with the Rerun CLI) for the viewer and
+# the recorder. docs/deploy.md tells the whole story.
 #
 # Rendered by `roco deploy compose` from the specification (services/spec/robot_companion.toml:
 # one service per agent) and services/deploy/compose.py (the other services, the settings below,
 # each agent's volumes and capabilities): change those, not this file; `roco deploy compose
 # --check` says whether this file is what they give, and `roco spec new-agent` renders it again.
 #
-#   scripts/build_image.sh                                     (roco:latest and roco:VERSION,
-#                                                               without a registry)
+#   scripts/build_image.sh                                     (the three images, :latest and
+#                                                               :VERSION, without a registry)
 #   docker compose -f deploy/compose.yaml -p roco up -d        (or docker-compose 1.29: same flags;
 #                    add -f deploy/compose.netfault.yaml for `roco fault net --delay/--loss`)
 #   roco status --router tls/127.0.0.1:7447 --credentials deploy/certs
@@ -245,8 +275,11 @@ HEAD = """\
 #   roco down --compose                                        (compose down, then the run's report)
 #
 # Configured by environment (shell or deploy/.env):
-#   ROCO_IMAGE            image to run/build                       roco:latest
+#   ROCO_IMAGE            image to run/build (target runtime)      roco:latest
 #                         (roco:VERSION, e.g. roco:0.1.0: that version, as build_image.sh tags it)
+#   ROCO_ROBOT_IMAGE      ag_ex's (target robot)                   roco-robot:latest
+#   ROCO_VIEWER_IMAGE     the viewer's and recorder's (viewer)     roco-viewer:latest
+#                         (`compose build` or `up` without them builds each service's target)
 #   ROCO_BASE             base image of the runtime stage          python:3.11-slim
 #   ROCO_BUILD_BASE       base image of the build stage            python:3.11-slim
 #   ROCO_UID, ROCO_GID    user and group the services run as       10001 (the image's roco)
@@ -299,9 +332,10 @@ HEAD = """\
 
 x-roco: &roco
   image: ${ROCO_IMAGE:-roco:latest}
-  build:
+  build: &build
     context: ..
     dockerfile: deploy/Dockerfile
+    target: runtime
     args:
       BASE: ${ROCO_BASE:-python:3.11-slim}
       BUILD_BASE: ${ROCO_BUILD_BASE:-python:3.11-slim}
@@ -322,6 +356,7 @@ x-roco: &roco
     retries: 5
     start_period: 120s
 
+@IMAGES
 x-env: &env
   ROCO_ROUTER: ${ROCO_PROTO:-tls}/router:7447
   ROCO_SECURITY: ${ROCO_SECURITY-/certs}
@@ -380,8 +415,8 @@ services:
       <<: *health
       test: @READY_TEST
 
-  recorder:
-    <<: *roco
+  recorder:  # the viewer image: it merges the run's Rerun parts with the Rerun CLI
+    <<: *roco-viewer
     command: ["python", "-m", "services.recorder.recorder"]
     environment: *env
     volumes:
@@ -403,7 +438,7 @@ AGENTS_COMMENT = "  # The agents of the specification, in its start order (servi
 
 VIEWER = """\
   viewer:
-    <<: *roco
+    <<: *roco-viewer
     command:
       - python
       - -m
@@ -519,7 +554,7 @@ def _agent(spec: SystemSpec, name: str) -> list[str]:
     key = json.dumps(name)
     lines = [
         f"  {_key(name)}:",
-        "    <<: *roco",
+        f"    <<: *{IMAGES[extras.image].anchor}",
         f'    command: ["python", "-m", "services.runtime.main", {key}]',
     ]
     lines += _environment(name, extras.state)
@@ -563,6 +598,24 @@ def _fill(text: str) -> str:
     return text
 
 
+def _image_anchors() -> str:
+    """The anchors of the images but the runtime one (``x-roco``'s): each is ``x-roco`` with
+    its own image and build target."""
+    text = ""
+    for image in IMAGES.values():
+        if image.target == "runtime":
+            continue
+        text += (
+            f"x-{image.anchor}: &{image.anchor}\n"
+            "  <<: *roco\n"
+            f"  image: ${{{image.variable}:-{image.default}}}\n"
+            "  build:\n"
+            "    <<: *build\n"
+            f"    target: {image.target}\n\n"
+        )
+    return text
+
+
 def _head() -> str:
     """:data:`HEAD` with its mounts (every service's, the router's and the recorder's) and
     settings."""
@@ -571,7 +624,7 @@ def _head() -> str:
         "@ROUTER_MOUNTS": _list([*MOUNTS, *ROUTER_MOUNTS]),
         "@RECORDER_MOUNTS": _list([*MOUNTS, *identity_mounts(RECORDER)]),
     }
-    head = HEAD
+    head = HEAD.replace("@IMAGES\n", _image_anchors())
     for mark, mounts in lines.items():
         head = head.replace(mark + "\n", "\n".join(mounts) + "\n")
     return _fill(head)

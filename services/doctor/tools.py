@@ -16,13 +16,15 @@ from services.doctor.model import Check, Use
 from shared.settings import deployment_name
 
 TIMEOUT_S = 15.0
-IMAGE = "roco:latest"  # deploy/compose.yaml's default ROCO_IMAGE
+IMAGES = ("roco:latest", "roco-viewer:latest", "roco-robot:latest")
+"""deploy/compose.yaml's default ROCO_IMAGE, ROCO_VIEWER_IMAGE and ROCO_ROBOT_IMAGE (the runtime,
+viewer and robot targets of deploy/Dockerfile, which scripts/build_image.sh builds together)."""
 CHROMIUM_NAMES = ("chromium", "chromium-browser")  # scripts/viewer_screenshot.py CHROMIUM_NAMES
 DOCKER_HOW = "apt-get install docker.io (Debian)"
 ENGINE_HOW = "start it: systemctl start docker; without systemd: service docker start, or dockerd &"
 COMPOSE_HOW = "apt-get install docker-compose (Debian's 1.29), or Compose v2 (docker compose)"
 DEBOOTSTRAP_HOW = "apt-get install debootstrap"
-IMAGE_HOW = "scripts/build_image.sh, as root (docs/deploy.md): builds it without a registry"
+IMAGE_HOW = "scripts/build_image.sh, as root (docs/deploy.md): builds them without a registry"
 WHEELHOUSE_HOW = "scripts/build_image.sh makes it; this host needs PyPI for that, once"
 SERVICES_UID = 10001  # deploy/Dockerfile's user roco, deploy/compose.yaml's default ROCO_UID
 HOST_FOLDERS = ((deployment_name("runs"), "../runs"), (deployment_name("certs"), "./certs"))
@@ -45,6 +47,20 @@ def run(args: Sequence[str]) -> tuple[int, str]:
     return done.returncode, (text[-1] if text else "")
 
 
+def images_check(runner: Runner = run) -> Check:
+    """Whether roco's images (:data:`IMAGES`) are built here (``docker image inspect``); the
+    detail names those that are not."""
+    missing = [i for i in IMAGES if runner(["docker", "image", "inspect", "--format", "{{.Id}}", i])[0] != 0]
+    built = not missing
+    return Check(
+        "images",
+        Use.COMPOSE,
+        built,
+        f"{', '.join(IMAGES)} built" if built else f"not built: {', '.join(missing)}",
+        "" if built else IMAGE_HOW,
+    )
+
+
 def docker_checks(
     runner: Runner = run,
     which: Callable[[str], str | None] = shutil.which,
@@ -53,7 +69,7 @@ def docker_checks(
 ) -> list[Check]:
     """Every prerequisite of the compose fleet, each its own check: the ``docker`` client, an
     engine that answers it (``docker version``'s server), Compose (``docker compose``, else
-    ``docker-compose``), roco's image and, while that is not built, ``debootstrap`` (what
+    ``docker-compose``), roco's images and, while they are not built, ``debootstrap`` (what
     scripts/build_image.sh makes the base image with when no registry gives one), the
     wheelhouse (:func:`wheelhouse_check`, of the project at ``root``, default this one) and the
     host folders the services write (:func:`host_folders_check`, ``env`` default os.environ)."""
@@ -83,17 +99,8 @@ def docker_checks(
     found.append(_compose_check(runner, which, client is not None))
     built = False
     if engine:
-        code, out = runner(["docker", "image", "inspect", "--format", "{{.Id}}", IMAGE])
-        built = code == 0
-        found.append(
-            Check(
-                f"image {IMAGE}",
-                Use.COMPOSE,
-                built,
-                "built" if built else "not built",
-                "" if built else IMAGE_HOW,
-            )
-        )
+        found.append(images_check(runner))
+        built = found[-1].found
     found.append(_debootstrap_check(which, built))
     found.append(wheelhouse_check(built, root))
     found.append(host_folders_check(root, env))
@@ -174,7 +181,7 @@ def wheelhouse_check(built: bool, root: Path | None = None) -> Check:
     detail = f"{WHEELHOUSE} not made for this pyproject.toml"
     if built:
         return Check(
-            "wheelhouse", Use.COMPOSE, False, f"{detail}; not needed: {IMAGE} is built", informative=True
+            "wheelhouse", Use.COMPOSE, False, f"{detail}; not needed: the images are built", informative=True
         )
     return Check("wheelhouse", Use.COMPOSE, False, detail, WHEELHOUSE_HOW)
 
@@ -184,7 +191,11 @@ def _debootstrap_check(which: Callable[[str], str | None], built: bool) -> Check
     path = which("debootstrap")
     if path is None and built:
         return Check(
-            "debootstrap", Use.COMPOSE, False, f"not on PATH; not needed: {IMAGE} is built", informative=True
+            "debootstrap",
+            Use.COMPOSE,
+            False,
+            "not on PATH; not needed: the images are built",
+            informative=True,
         )
     return Check(
         "debootstrap",

@@ -27,6 +27,7 @@ Environment:
 
 from __future__ import annotations
 
+import importlib.util
 import logging
 import os
 import subprocess
@@ -123,6 +124,22 @@ def rerun_cli() -> list[str]:
     return [sys.executable, "-m", "rerun_cli"]
 
 
+def rerun_cli_missing() -> str | None:
+    """Why :func:`rerun_cli` cannot run here, in one line, or None when it can: rerun-sdk's
+    ``rerun_cli`` package holds the CLI as the binary ``rerun_cli/rerun``, which roco's
+    runtime image leaves out (deploy/Dockerfile: the viewer image has it)."""
+    found = importlib.util.find_spec("rerun_cli")
+    if found is None or found.origin is None:
+        return "no Rerun CLI here: the rerun_cli package is not installed (pip install rerun-sdk)"
+    binary = Path(found.origin).with_name("rerun")
+    if not binary.exists():
+        return (
+            f"no Rerun CLI here: {binary} is absent (roco's runtime image leaves it out; "
+            f"the viewer image roco-viewer has it)"
+        )
+    return None
+
+
 def merge_parts(run_dir: Path, *, wait: float = 0.0, poll: float = 0.05) -> Path | None:
     """Merge the run's parts into ``<run_dir>/recording.rrd`` (``rerun rrd merge``) and return
     its path; None when there is no part or the merge failed (logged).
@@ -154,6 +171,9 @@ def _settled_parts(run_dir: Path, wait: float, poll: float) -> tuple[list[Path],
 def _merge(found: list[Path], out: Path) -> Path | None:
     """``rerun rrd merge`` of the parts ``found`` into ``out`` (through a temporary file);
     None when it failed (logged)."""
+    if (missing := rerun_cli_missing()) is not None:
+        log.error("rerun rrd merge not run: %s", missing)
+        return None
     tmp = out.with_name(out.name + ".tmp")
     cmd = [*rerun_cli(), "rrd", "merge", "--continue-on-error", "-o", str(tmp), *map(str, found)]
     env = dict(os.environ, RUST_LOG="warn")

@@ -28,7 +28,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
-from services.viewer.recording import RECORDING_FILE, merge_parts, parts, rerun_cli
+from services.viewer.recording import RECORDING_FILE, merge_parts, parts, rerun_cli, rerun_cli_missing
 
 READY_TIMEOUT = 15.0  # s, for the viewer's port to accept connections
 
@@ -107,6 +107,13 @@ def _wait_port(port: int, proc: subprocess.Popen[bytes], timeout: float) -> None
     raise TimeoutError(f"the Rerun viewer did not listen on port {port} within {timeout} s")
 
 
+def _rerun_cli_here() -> list[str]:
+    """:func:`rerun_cli`; RuntimeError with :func:`rerun_cli_missing`'s line when it cannot run."""
+    if (missing := rerun_cli_missing()) is not None:
+        raise RuntimeError(missing)
+    return rerun_cli()
+
+
 def start_viewer(
     rrd: Path | None,
     *,
@@ -119,11 +126,13 @@ def start_viewer(
     waits for SDKs); ``web`` None: web when there is no display. ``grpc_port``, ``web_port``
     (web only): the ports on 127.0.0.1 (None: free ones). Returns once its ports listen.
     Raises :class:`PortInUse` for a port given that is in use, FileNotFoundError when ``rrd``
-    holds no recording, RuntimeError or TimeoutError when the viewer does not come up."""
+    holds no recording, RuntimeError when there is no Rerun CLI here (:func:`rerun_cli_missing`,
+    its one line) or the viewer exits, TimeoutError when it does not come up."""
+    cli = _rerun_cli_here()
     files = recording_files(rrd)
     use_web = (not has_display()) if web is None else web
     grpc_port = _port(grpc_port)
-    cmd = [*rerun_cli(), *map(str, files), "--port", str(grpc_port)]
+    cmd = [*cli, *map(str, files), "--port", str(grpc_port)]
     web_url = None
     if use_web:
         web_port = _port(web_port)

@@ -141,12 +141,24 @@ def test_docker_missing_engine_and_compose_fallback_and_image(tmp_path: Path) ->
         ("docker", True),
         ("Docker engine", True),
         ("Compose", True),
-        ("image roco:latest", False),
+        ("images", False),
         ("debootstrap", True),
         ("wheelhouse", True),
         ("host folders", False),
     ]
     assert ready[2].detail == "docker-compose 1.29.2" and "build_image.sh" in ready[3].how
+    assert ready[3].detail == "not built: roco:latest, roco-viewer:latest, roco-robot:latest"
+    answers = {"docker version": (0, "26.1.5"), "docker compose": (0, "2.27.0")}
+
+    def without_robot(args: Sequence[str]) -> tuple[int, str]:  # planted: only the robot image missing
+        if args[:2] == ["docker", "image"]:
+            return (1, "No such image") if args[-1] == "roco-robot:latest" else (0, "sha")
+        return answers.get(" ".join(args[:2]), (1, "unknown"))
+
+    partly = tools.docker_checks(without_robot, which=lambda name: f"/usr/bin/{name}", root=root)
+    assert [(c.name, c.found, c.detail) for c in partly if c.name == "images"] == [
+        ("images", False, "not built: roco-robot:latest")
+    ]
     unmade = _project(tmp_path / "unmade", wheelhouse=False)
     for folder in ("runs", "deploy/certs"):
         (unmade / folder).mkdir(parents=True)

@@ -18,8 +18,10 @@ from services.deploy.cli import deploy_app
 from services.deploy.compose import (
     AGENT_EXTRAS,
     COMPOSE_FILE,
+    IMAGES,
     MOUNTS,
     READY_FILE,
+    AgentExtras,
     ComposeError,
     check,
     difference,
@@ -54,7 +56,15 @@ def test_the_six_agents_services_are_what_the_fleet_needs() -> None:
     """The meaning of each agent's service, key by key (what `docker compose config` shows)."""
     compose = config(COMPOSE_FILE.read_text())
     assert "version" not in compose  # the Compose Specification format
-    assert set(compose) == {"x-roco", "x-env", "x-after-router", "services", "volumes"}
+    assert set(compose) == {
+        "x-roco",
+        "x-roco-robot",
+        "x-roco-viewer",
+        "x-env",
+        "x-after-router",
+        "services",
+        "volumes",
+    }
     services = compose["services"]
     assert list(services) == ["certs", "router", "recorder", "world", *AGENTS, "viewer"]
     assert compose["volumes"] == {"fleet": {}, "km_store": {}, "co_state": {}}
@@ -68,10 +78,12 @@ def test_the_six_agents_services_are_what_the_fleet_needs() -> None:
     mounts = ["${ROCO_RUNS:-../runs}:/runs", "fleet:/var/lib/roco/fleet"]
     for name in AGENTS:
         service = services[name]
-        assert service["image"] == "${ROCO_IMAGE:-roco:latest}"
+        image = IMAGES[AGENT_EXTRAS.get(name, AgentExtras()).image]
+        assert service["image"] == f"${{{image.variable}:-{image.default}}}"
         assert service["build"] == {
             "context": "..",
             "dockerfile": "deploy/Dockerfile",
+            "target": image.target,
             "args": {
                 "BASE": "${ROCO_BASE:-python:3.11-slim}",
                 "BUILD_BASE": "${ROCO_BUILD_BASE:-python:3.11-slim}",
@@ -124,6 +136,13 @@ def test_the_other_services_keep_their_settings() -> None:
     assert viewer_health[:3] == ["CMD", "bash", "-c"]
     assert "/dev/tcp/127.0.0.1/9876" in viewer_health[3] and "/dev/tcp/127.0.0.1/9090" in viewer_health[3]
     assert config(COMPOSE_FILE.read_text())["x-roco"]["volumes"] == list(MOUNTS)
+    # the viewer image (with the Rerun CLI) for the viewer and the recorder (`rerun rrd merge`)
+    for name in ("recorder", "viewer"):
+        assert services[name]["image"] == "${ROCO_VIEWER_IMAGE:-roco-viewer:latest}"
+        assert services[name]["build"]["target"] == "viewer"
+    for name in ("certs", "router", "world"):
+        assert services[name]["image"] == "${ROCO_IMAGE:-roco:latest}"
+        assert services[name]["build"]["target"] == "runtime"
 
 
 def walkthrough_spec(tmp_path: Path) -> Path:

@@ -1,8 +1,10 @@
-"""The image and its services' limits, read from deploy/Dockerfile and deploy/compose.yaml
-without a Docker engine (scripts/compose_smoke.sh checks the built image and the running
-fleet): the runtime stage has no compiler and no headers and runs as a non-root user who owns
-the mount points of the compose file's volumes; every service has a memory, CPU and PIDs
-limit and runs as that user; the entrypoint names a run folder it cannot write."""
+"""The images and their services' limits, read from deploy/Dockerfile and deploy/compose.yaml
+without a Docker engine (scripts/compose_smoke.sh checks the built images and the running
+fleet): the runtime stage has no compiler, no headers, no Mesa and no Rerun CLI and runs as a
+non-root user who owns the mount points of the compose file's volumes; the viewer target adds
+the Rerun CLI and the robot target Mesa, each on the runtime image; each service runs the image
+it needs; every service has a memory, CPU and PIDs limit and runs as that user; the entrypoint
+names a run folder it cannot write."""
 
 from __future__ import annotations
 
@@ -15,7 +17,7 @@ from typing import Any
 
 import pytest
 
-from services.deploy.compose import COMPOSE_FILE, LIMITS, UID, render
+from services.deploy.compose import COMPOSE_FILE, IMAGES, LIMITS, UID, render
 from services.spec.model import default_spec
 
 yaml = pytest.importorskip("yaml", reason="PyYAML reads the compose file: pip install -e '.[dev]'")
@@ -25,6 +27,12 @@ DOCKERFILE = ROOT / "deploy" / "Dockerfile"
 ENTRYPOINT = ROOT / "deploy" / "entrypoint.sh"
 BUILD_ONLY = re.compile(r"(?<![\w.-])(g\+\+|gcc|clang|build-essential|(lib)?python3(\.\d+)?-dev)(?![\w.+-])")
 """Debian packages of a compiler or of Python's headers."""
+MESA = re.compile(
+    r"(?<![\w.-])(libegl1|libegl-mesa0|libgl1-mesa-dri|libgl1|libopengl0|libosmesa6)(?![\w.+-])"
+)
+"""Debian packages of Mesa's OpenGL (the robot target's)."""
+CLI_IN_VENV = "/opt/venv/lib/python3.11/site-packages/rerun_cli/rerun"
+"""Where rerun-sdk installs the Rerun CLI's binary in the venv."""
 
 
 def stages(text: str) -> list[tuple[str, str]]:
@@ -39,17 +47,26 @@ def stages(text: str) -> list[tuple[str, str]]:
     return [(head, "\n".join(body)) for head, body in found]
 
 
+def stage(text: str, name: str) -> str:
+    """The instructions of the stage ``FROM ... AS name`` ("" when there is none)."""
+    return next((body for head, body in stages(text) if head.endswith(f" AS {name}")), "")
+
+
 def runtime_problems(text: str) -> list[str]:
-    """What keeps the Dockerfile's last (runtime) stage from being lean and non-root: a
-    compiler or Python's headers installed, anything but the venv taken from the build stage
-    unnamed, no USER or a root one."""
+    """What keeps the Dockerfile's runtime stage from being lean and non-root: a compiler,
+    Python's headers or Mesa installed, the venv not taken from the build stage, no USER or a
+    root one."""
     found = []
     all_stages = stages(text)
     if len(all_stages) < 2:
         return ["one stage: the compiler is in the image"]
-    body = all_stages[-1][1]
+    body = stage(text, "runtime")
+    if not body:
+        return ["no stage named runtime"]
     for line in body.splitlines():
         if "apt-get install" in line and (m := BUILD_ONLY.search(line)):
+            found.append(f"the runtime stage installs {m.group(0)}")
+        if "apt-get install" in line and (m := MESA.search(line)):
             found.append(f"the runtime stage installs {m.group(0)}")
     if "COPY --from=build /opt/venv /opt/venv" not in body:
         found.append("the runtime stage does not take the venv from the build stage")
@@ -58,6 +75,49 @@ def runtime_problems(text: str) -> list[str]:
         found.append("the runtime stage has no USER: it runs as root")
     elif users[-1].split(":")[0] in ("0", "root"):
         found.append(f"the runtime stage runs as {users[-1]}")
+    return found
+
+
+def target_problems(text: str) -> list[str]:
+    """What keeps the Dockerfile's targets apart as docs/deploy.md says: the Rerun CLI's binary
+    moved out of the venv in the build stage, the runtime stage checking it is absent and
+    refusing a base with Mesa; ``viewer`` and ``robot`` each the runtime image plus the CLI or
+    Mesa; the stages in the order the legacy builder builds them (runtime, viewer, mesa, robot:
+    each target builds the stages before it)."""
+    found = []
+    build, runtime, viewer, robot = (stage(text, n) for n in ("build", "runtime", "viewer", "robot"))
+    if f"mv {CLI_IN_VENV} /opt/rerun-cli/rerun" not in build:
+        found.append("the build stage leaves the Rerun CLI in the venv")
+    if f"test ! -e {CLI_IN_VENV}" not in runtime:
+        found.append("the runtime stage does not check that the Rerun CLI is absent")
+    if "libEGL_mesa" not in runtime:
+        found.append("the runtime stage does not refuse a base with Mesa")
+    if f"COPY --from=build /opt/rerun-cli/rerun {CLI_IN_VENV}" not in viewer:
+        found.append("the viewer target has no Rerun CLI")
+    if "COPY --from=mesa /opt/mesa /" not in robot or "MUJOCO_GL=egl" not in robot:
+        found.append("the robot target has no Mesa, or does not render with it")
+    heads = [head for head, _ in stages(text)]
+    for name in ("viewer", "robot"):
+        if f"FROM runtime AS {name}" not in heads:
+            found.append(f"the {name} target is not built on the runtime image")
+    order = [n for head in heads for n in ("runtime", "viewer", "mesa", "robot") if head.endswith(f" AS {n}")]
+    if order != ["runtime", "viewer", "mesa", "robot"]:
+        found.append(f"the stages are in the order {', '.join(order)}")
+    return found
+
+
+def image_problems(compose: dict[str, Any]) -> list[str]:
+    """The services not in the image they need: ag_ex the robot image (its camera process
+    renders), the viewer and the recorder (`rerun rrd merge`) the viewer image, every other the
+    runtime image."""
+    needs = {"ag_ex": "robot", "viewer": "viewer", "recorder": "viewer"}
+    found = []
+    for name, service in compose["services"].items():
+        want = needs.get(name, "runtime")
+        if service.get("build", {}).get("target") != want or IMAGES[want].default not in service.get(
+            "image", ""
+        ):
+            found.append(f"{name}: not the {want} image")
     return found
 
 
@@ -76,7 +136,7 @@ def volume_mount_points(compose: dict[str, Any]) -> set[str]:
 def unowned_mount_points(dockerfile: str, compose: dict[str, Any]) -> list[str]:
     """The named volumes' mount points the runtime stage does not create for its user (a new
     volume takes its mount point's owner and mode: otherwise root's)."""
-    body = stages(dockerfile)[-1][1]
+    body = stage(dockerfile, "runtime")
     made = re.search(r"install -d -o roco -g roco -m 1777 ([^;\n]+)", body)
     created = set(made.group(1).split()) if made else set()
     return sorted(volume_mount_points(compose) - created)
@@ -98,9 +158,50 @@ def unlimited(compose: dict[str, Any]) -> list[str]:
 def test_the_runtime_stage_has_no_compiler_and_runs_as_roco() -> None:
     text = DOCKERFILE.read_text()
     assert runtime_problems(text) == []
-    build, runtime = stages(text)
-    assert build[0] == "FROM ${BUILD_BASE} AS build" and runtime[0] == "FROM ${BASE}"
+    build, runtime = stages(text)[:2]
+    assert build[0] == "FROM ${BUILD_BASE} AS build" and runtime[0] == "FROM ${BASE} AS runtime"
     assert "USER 10001:10001" in runtime[1] and f"--uid {UID}" in runtime[1]
+
+
+def test_the_targets_runtime_viewer_and_robot() -> None:
+    assert target_problems(DOCKERFILE.read_text()) == []
+
+
+def test_the_check_catches_the_cli_or_mesa_in_the_wrong_target() -> None:
+    """Planted faults: the CLI left in the venv, Mesa installed in the runtime stage, the viewer
+    without the CLI, the robot without Mesa or on another base, the stages out of order."""
+    text = DOCKERFILE.read_text()
+
+    def planted(old: str, new: str) -> str:
+        assert old in text, old
+        return text.replace(old, new)
+
+    cli_kept = planted(f"mv {CLI_IN_VENV} /opt/rerun-cli/rerun", f"cp {CLI_IN_VENV} /opt/rerun-cli/rerun")
+    assert target_problems(cli_kept) == ["the build stage leaves the Rerun CLI in the venv"]
+    mesa = planted("$need $want;", "$need $want libgl1-mesa-dri;")
+    assert runtime_problems(mesa) == ["the runtime stage installs libgl1-mesa-dri"]
+    no_cli = planted(f"COPY --from=build /opt/rerun-cli/rerun {CLI_IN_VENV}", "")
+    assert target_problems(no_cli) == ["the viewer target has no Rerun CLI"]
+    no_mesa = planted("COPY --from=mesa /opt/mesa /", "")
+    assert target_problems(no_mesa) == ["the robot target has no Mesa, or does not render with it"]
+    own_base = planted("FROM runtime AS robot", "FROM ${BASE} AS robot")
+    assert target_problems(own_base) == ["the robot target is not built on the runtime image"]
+    robot_first = text.split("# --- robot")[1]
+    reordered = text.replace("# --- robot" + robot_first, "").replace(
+        "# --- viewer", "# --- robot" + robot_first + "# --- viewer"
+    )
+    assert target_problems(reordered) == ["the stages are in the order runtime, robot, viewer, mesa"]
+
+
+def test_each_service_runs_the_image_it_needs() -> None:
+    compose = yaml.safe_load(COMPOSE_FILE.read_text())
+    assert image_problems(compose) == []
+    planted = COMPOSE_FILE.read_text().replace(
+        "    <<: *roco-robot\n", "    <<: *roco\n"
+    )  # ag_ex without Mesa
+    assert image_problems(yaml.safe_load(planted)) == ["ag_ex: not the robot image"]
+    planted = COMPOSE_FILE.read_text().replace("    <<: *roco-viewer\n", "    <<: *roco\n", 1)
+    assert image_problems(yaml.safe_load(planted)) == ["recorder: not the viewer image"]
 
 
 def test_the_check_catches_a_compiler_or_root_in_the_runtime_stage() -> None:
@@ -115,7 +216,7 @@ def test_the_check_catches_a_compiler_or_root_in_the_runtime_stage() -> None:
     assert runtime_problems(as_root) == ["the runtime stage runs as root"]
     no_user = text.replace("USER 10001:10001\n", "")
     assert runtime_problems(no_user) == ["the runtime stage has no USER: it runs as root"]
-    one_stage = "\n".join(line for line in text.splitlines() if not line.startswith("FROM ${BASE}"))
+    one_stage = text.split("# --- runtime")[0]
     assert runtime_problems(one_stage) == ["one stage: the compiler is in the image"]
 
 
