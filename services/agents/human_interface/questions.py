@@ -49,7 +49,9 @@ sentence). Raises :class:`~.grammar.ParseFailure` when they do not parse, and
 _OPENING = re.compile(r"^(?:(?:robot|velma|please|so|and|hey|ok|okay|well|quickly|quick)\s+)+")
 _CUT = re.compile(r"where(?: is| are|s)?")
 """A "where" question cut short: it asks which object is meant."""
-_CLOSING = re.compile(r"(?:\s+(?:please|now|right now|at the moment|then|robot|velma))+$")
+_CLOSING = re.compile(
+    r"(?:\s+(?:please|now|right now|at the moment|then|robot|velma|yet|still|already|so far|anymore))+$"
+)
 _WHICH = "Which object do you ask about? Say e.g. 'where is the jar?'."
 _COUNTED_THINGS = frozenset({"things", "objects", "items"})
 
@@ -58,19 +60,22 @@ _FORMS: tuple[tuple[str, re.Pattern[str]], ...] = tuple(
     for kind, pattern in (
         (
             "abilities",
-            r"what (?:else )?can you do(?: for me)?|what are you able to do|what do you know how to do|help",
+            r"what (?:else )?can you do(?: for me)?|what are you able to do|what do you know how to do|help"
+            r"|what can i (?:ask|say|tell)(?: you)?",
         ),
         (
             "seen",
-            r"what (?:did|do|have|had) you (?:see|seen|saw|looked at)(?: last| so far| recently| lately)?",
+            r"what (?:did|do|have|had|can) you (?:see|seen|saw|looked at)"
+            r"(?: last| so far| recently| lately)?",
         ),
         ("where", r"where (?:did|have) you (?:put|left|leave|placed|place|set) (?P<x>.+)"),
         ("where", r"(?:where is|wheres|where are) (?P<x>.+)"),
-        ("empty", r"is (?P<x>.+) empty"),
-        ("full", r"is (?P<x>.+) full"),
+        ("empty", r"is (?P<x>.+?) (?:still |already |now )?empty"),
+        ("full", r"is (?P<x>.+?) (?:still |already |now )?full"),
         (
             "count",
-            r"how many(?: (?P<what>[a-z]+))? (?:are |is |do you see )?(?:there )?(?:in|inside) (?P<x>.+)",
+            r"how many(?: (?P<what>[a-z]+))? (?:are |is |do you see )?(?:there )?(?:left )?"
+            r"(?:in|inside) (?P<x>.+)",
         ),
         ("count", r"(?:how much is|how full is) (?:there )?(?:in |inside )?(?P<x>.+)"),
         ("contents", r"(?:what is|whats|what are) (?:there )?(?:in|inside) (?P<x>.+)"),
@@ -78,6 +83,7 @@ _FORMS: tuple[tuple[str, re.Pattern[str]], ...] = tuple(
         ("contents", r"is there (?:anything|something) (?:in|inside) (?P<x>.+)"),
         ("on", r"(?:what is|whats|what are) (?:there )?(?:standing |lying )?on (?P<x>.+)"),
         ("on", r"is there (?:anything|something) on (?P<x>.+)"),
+        ("on", r"how many (?:things|objects|items) (?:are )?(?:there )?on (?P<x>.+)"),
         ("located", r"is (?P<x>.+?) (?P<rel>in|inside|on) (?P<y>.+)"),
     )
 )

@@ -21,6 +21,7 @@ from services.agents.human_interface.intents import (
     NotUnderstood,
     StatusRequest,
     Stop,
+    WorldQuestion,
 )
 from services.agents.human_interface.language import default_vocabulary, interpret
 from services.agents.human_interface.stop import StopWords, command_openings
@@ -81,6 +82,8 @@ def as_meant(case: Case, got: Intent | NotUnderstood) -> bool:
         meant = isinstance(got, Ambiguous | Incomplete)
     elif kind == "named":
         meant = isinstance(got, Misspelt) and got.word == rest[0]
+    elif kind == "question":
+        meant = isinstance(got, WorldQuestion) and [got.kind, *([got.thing] if rest[1:] else [])] == rest
     else:
         priority = URGENT_PRIORITY if case.urgent else 0
         meant = got == Command(TaskAtom(kind, tuple(rest)), priority, case.deadline_s)
@@ -124,10 +127,10 @@ def test_the_corpus_is_answered_as_meant() -> None:
 def test_the_corpus_covers_each_kind_of_sentence() -> None:
     cases = load()
     groups = {c.group for c in cases}
-    assert groups >= {"status", "names", "urgency", "stops", "typos", "refusals"}
+    assert groups >= {"status", "names", "urgency", "stops", "typos", "refusals", "questions"}
     wants = [c.want.split()[0] for c in cases]
     assert {name for name in TASKS} <= set(wants)
-    assert wants.count("status") >= 40 and wants.count("refuse") >= 50
+    assert wants.count("status") >= 40 and wants.count("refuse") >= 50 and wants.count("question") >= 30
     assert sum(1 for c in cases if c.read) >= 40
     assert len({c.say.lower() for c in cases}) == len(cases), "each sentence once"
 
