@@ -18,10 +18,11 @@ A step does exactly one of: ``say`` (a sentence to a_hi, with an optional ``prio
 later; ``restart`` — SIGTERM, then started again at once). It runs when its ``after``
 trigger holds: ``step`` (a_ta reported a plan step whose path contains the text), ``ended``
 (the n-th ``say`` command, counted from 1, has ended), ``knowledge`` (a_km has the initial
-observation: the default of the first step), ``seconds`` (wall seconds after the step before
-ran); with no trigger a step runs right after the one before. A trigger may add ``delay_s``
-(wall seconds to wait once it holds, e.g. ``after = { step = "tilt", delay_s = 1.3 }`` to
-act half-way through the tilt).
+observation: the default of the first step), ``renewed`` (a_ta has renewed a_km's picture of a
+power-cycled robot's kitchen: a C6 ``WorldUpdate`` that ``renews``), ``seconds`` (wall
+seconds after the step before ran); with no trigger a step runs right after the one before. A
+trigger may add ``delay_s`` (wall seconds to wait once it holds, e.g. ``after = { step =
+"tilt", delay_s = 1.3 }`` to act half-way through the tilt).
 A ``say`` step's ``from`` says who says it: ``"person"`` (the default: the line a person types,
 on a_hi's human input) or ``"gateway"`` (an agent of another FIPA platform: a fipa-request of a
 ``Sentence`` posted to a_hi through the fleet's ACL gateway, C8, which the run then starts:
@@ -69,6 +70,7 @@ class Trigger(msgspec.Struct, frozen=True, forbid_unknown_fields=True, kw_only=T
     step: str | None = None
     ended: int | None = None
     knowledge: bool = False
+    renewed: bool = False
     seconds: float | None = None
     delay_s: float = 0.0
     """Wall seconds to wait once the trigger holds (0..60), e.g. to fault a step half-way."""
@@ -206,8 +208,8 @@ def _after_rule(step: Step, i: int, said: int) -> str | None:
     t = step.after
     if t is None:
         return None
-    if sum([t.step is not None, t.ended is not None, t.knowledge, t.seconds is not None]) != 1:
-        return f"step {i}: after needs exactly one of step, ended, knowledge, seconds"
+    if sum([t.step is not None, t.ended is not None, t.knowledge, t.renewed, t.seconds is not None]) != 1:
+        return f"step {i}: after needs exactly one of step, ended, knowledge, renewed, seconds"
     if not 0 <= t.delay_s <= 60:
         return f"step {i}: after.delay_s must be within 0..60, not {t.delay_s}"
     if t.seconds is not None and not 0 <= t.seconds <= 3600:

@@ -40,6 +40,7 @@ from shared.fipa_codec.batch import unpack
 from shared.fipa_codec.languages import ContentError, decode_content
 from shared.fipa_codec.languages.l_hc import SentenceReport
 from shared.fipa_codec.languages.l_sw import SWStatus
+from shared.fipa_codec.languages.l_wm import WorldUpdate
 
 Echo = Callable[[str], None]
 KINDS = frozenset(k.value for k in ReportKind)
@@ -277,6 +278,8 @@ class ScenarioRunner:
         """a_hi's reports said: a command's, up to its final one (services/runtime/reports.py)."""
         self.steps_seen: list[str] = []  # a_ta's plan steps (C1 L_SW), in order
         self.knowledge = threading.Event()
+        self.renewed = threading.Event()
+        """a_ta renewed a_km's picture of a power-cycled robot's kitchen (WorldUpdate.renews)."""
         self.commands: list[CommandRecord] = []
         self.faults: list[FaultRecord] = []
         self.down: set[str] = set()  # services killed on purpose, not yet started again
@@ -329,6 +332,8 @@ class ScenarioRunner:
             self.events.put(("step", content.step))
         elif key.endswith("/a_km") and msg.performative is Performative.INFORM:
             self.knowledge.set()
+            if isinstance(content, WorldUpdate) and content.renews:
+                self.renewed.set()
 
     # ---- the run ----
     def _clock(self) -> str:
@@ -421,6 +426,8 @@ class ScenarioRunner:
             return True
         if t.knowledge:
             return self.knowledge.is_set()
+        if t.renewed:
+            return self.renewed.is_set()
         if t.seconds is not None:
             return time.monotonic() - self.last_act >= t.seconds
         if t.ended is not None:
