@@ -50,7 +50,7 @@ import msgspec
 
 from services.recorder.presence import read_presence
 from services.replay.compare import Difference, IdMap, compare
-from services.replay.presence import Change, timeline
+from services.replay.presence import Change, Timeline, lag_of, timeline
 from services.replay.record import AgentRecord, Recorded, agent_record
 from services.replay.sources import ReplaySources
 from services.runtime import keys
@@ -391,7 +391,7 @@ def replay(run_dir: Path, agent: str, spec: SystemSpec | None = None, *, causal:
         )
     sources = ReplaySources(record.start)
     bus = MemoryBus()
-    peers = timeline(read_presence(Path(run_dir)), agent, record.start, [a.name for a in spec.agents])
+    peers = _peers(Path(run_dir), record, spec)
     for name in sorted(peers.initial):
         bus.announce(keys.alive_key(name))
     with _isolated():
@@ -411,6 +411,13 @@ def replay(run_dir: Path, agent: str, spec: SystemSpec | None = None, *, causal:
     result.run_counters = _run_counters(Path(run_dir), agent)
     result.seconds = time.perf_counter() - started
     return result
+
+
+def _peers(run_dir: Path, record: AgentRecord, spec: SystemSpec) -> Timeline:
+    """The peers' tokens the replay of ``record``'s agent sees (services/replay/presence.py)."""
+    delays = [i.t - i.sent for items in record.outputs.values() for i in items]
+    names = [a.name for a in spec.agents]
+    return timeline(read_presence(run_dir), record.agent, record.start, names, lag_of(delays))
 
 
 def _run(run: _Replay, result: ReplayResult) -> None:

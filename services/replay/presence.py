@@ -37,16 +37,22 @@ class Timeline:
     recorded: bool = True
 
 
-def timeline(events: list[PresenceEvent] | None, agent: str, start: float, agents: list[str]) -> Timeline:
+def timeline(
+    events: list[PresenceEvent] | None, agent: str, start: float, agents: list[str], lag: float = 0.0
+) -> Timeline:
     """The tokens the replay of ``agent`` (which starts at POSIX time ``start``) sees, from the
     presence ``events`` in file order (None: no presence record; then ``agents`` are alive from
-    the start). The replayed agent's own token is never in it."""
+    the start). The replayed agent's own token is never in it. ``lag`` (s): how much later the
+    recorder sees what happens at the agent (its communicates' least delay, :func:`lag_of`); each
+    change is taken that much earlier, as the agent saw it (on one host, or the recorder's, both
+    see a token at about the same time; across a link, the recorder later)."""
     if events is None:
         return Timeline({a for a in agents if a != agent}, recorded=False)
     first = events[0].incarnation if events else ""
     initial: set[str] = set()
     later = []
     for c in _changes([e for e in events if e.name != agent], first):
+        c = Change(c.t - lag, c.name, c.alive)
         if c.t <= start:
             (initial.add if c.alive else initial.discard)(c.name)
         else:
@@ -80,3 +86,9 @@ def _reconcile(alive: set[str], seen: set[str], t: float) -> list[Change]:
     alive.clear()
     alive.update(seen)
     return changes
+
+
+def lag_of(delays: list[float]) -> float:
+    """The least of ``delays`` (s: a communicate's arrival at the recorder less its send time,
+    each of the replayed agent's that carried one) above 0; 0 when there is none."""
+    return min((d for d in delays if d > 0), default=0.0)

@@ -331,9 +331,14 @@ class ScenarioRunner:
         if isinstance(content, SWStatus) and content.step:
             self.events.put(("step", content.step))
         elif key.endswith("/a_km") and msg.performative is Performative.INFORM:
-            self.knowledge.set()
-            if isinstance(content, WorldUpdate) and content.renews:
-                self.renewed.set()
+            self._km_learnt(content)
+
+    def _km_learnt(self, content: object) -> None:
+        """a_km was informed of the world (C6): it has knowledge; an update that renews it, a
+        power-cycled robot's kitchen renewed."""
+        self.knowledge.set()
+        if isinstance(content, WorldUpdate) and content.renews:
+            self.renewed.set()
 
     # ---- the run ----
     def _clock(self) -> str:

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from services.recorder.presence import PresenceEvent
-from services.replay.presence import Change, timeline
+from services.replay.presence import Change, lag_of, timeline
 
 
 def _e(name: str, alive: bool, t: float, inc: str = "r1", snapshot: bool = False) -> PresenceEvent:
@@ -48,3 +48,16 @@ def test_a_later_recorder_s_snapshot_says_what_changed_while_none_watched() -> N
 def test_without_a_presence_record_every_other_agent_is_alive_from_the_start() -> None:
     peers = timeline(None, "a_ta", start=0.0, agents=["a_co", "a_ta", "ag_ex"])
     assert peers.initial == {"a_co", "ag_ex"} and not peers.changes and not peers.recorded
+
+
+def test_across_a_link_a_change_is_taken_as_early_as_the_agent_saw_it() -> None:
+    """The recorder on another host sees ag_ex's token 60 ms after a_ta (beside ag_ex) did, as it
+    sees a_ta's communicates 60 ms after they were sent: the change is taken at a_ta's time, before
+    a_ta's timer at 3.055 s (seen in test_two_hosts: the replayed a_ta's timer went first)."""
+    events = [_e("a_km", True, 1.0, snapshot=True), _e("ag_ex", True, 3.06)]
+    lag = lag_of([0.0, 0.061, 0.060, 0.075])  # a copy from a cache (0) is no delay
+    assert lag == 0.060
+    peers = timeline(events, "a_ta", start=0.5, agents=[], lag=lag)
+    (change,) = peers.changes
+    assert change.name == "ag_ex" and change.t < 3.055
+    assert timeline(events, "a_ta", start=0.5, agents=[]).changes[0].t == 3.06  # on one host
