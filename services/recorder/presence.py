@@ -55,6 +55,7 @@ class PresenceWriter:
         self._f: BinaryIO | None = None
 
     def write(self, events: list[PresenceEvent]) -> None:
+        """Append ``events`` (one line each) and flush. Raises OSError."""
         if not events:
             return
         if self._f is None:
@@ -63,6 +64,7 @@ class PresenceWriter:
         self._f.flush()
 
     def close(self) -> None:
+        """Close the file, if it was opened."""
         if self._f is not None:
             self._f.close()
 

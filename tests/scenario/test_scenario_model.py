@@ -60,6 +60,7 @@ def test_a_say_step_comes_from_a_person_unless_it_names_the_gateway() -> None:
         ('name = "x"\n[[steps]\n', "not TOML"),
         ('name = "x"\n[[steps]]\ndisturb = { object = "jar" }\nexpect = "failed"', "only a say step"),
         ('name = "x"\n[[steps]]\nsay = "a"\nafter = { delay_s = 1.0 }', "exactly one of step"),
+        ('name = "x"\n[[steps]]\nsay = "a"\nafter = { renewed = true, knowledge = true }', "renewed"),
         ('name = "x"\n[[steps]]\nsay = "a"\nafter = { knowledge = true, delay_s = -1 }', "delay_s must be"),
         (
             'name = "x"\n[[steps]]\nsay = "a"\nfrom = "jade"',
