@@ -10,11 +10,14 @@ wait for it included) and a_hi acting on it (``_act_on_read``: the request to a_
 one-line answer); for a longer line its refusal, or its stop. Lines of three shapes, each cut
 to the length (at a word):
 
-- ``command``: "please please … pour the jar into the bowl" (parsed in full: the slowest);
+- ``command``: "please please … pour the jar into the bowl" (the run of "please" is one token,
+  grammar.py ``FOLDED``: a short command at any length);
+- ``polite``: "please robot please robot … pour the jar into the bowl" (a token per word:
+  parsed in full up to language.py's ``MAX_READ_TOKENS``, the slowest line read; past it,
+  refused unparsed);
 - ``words``: "the jar is on the table and the bowl …" (not understood at its second sentence);
 - ``stop``: the same words ending "oh no, stop!" (a stop, found by the stop check alone);
-- ``typo``: "please please … pour the jar itno the bowl" (a typo: corrected and read once more
-  while the line is within language.py's ``MAX_CORRECTED_TOKENS``, else not understood).
+- ``typo``: "please please … pour the jar itno the bowl" (a typo: corrected and read once more).
 
 :func:`measure` returns, per shape and length, p50 / p99 in milliseconds, the stop check's
 phrase look-ups (its work: linear in the length, and bounded beyond the bound) and what a_hi
@@ -48,15 +51,23 @@ from services.bench.messaging import percentile  # noqa: E402
 from services.runtime.human import MAX_LINE_CHARS, HumanInput  # noqa: E402
 from services.runtime.memory_transport import MemoryBus  # noqa: E402
 
-LENGTHS = (10, 30, 100, 300, MAX_LINE_CHARS, 4228, 100_000)
+LENGTHS = (10, 30, 100, 299, 312, MAX_LINE_CHARS, 4228, 100_000)
+"""Line lengths (characters); 299: a ``polite`` line of ``MAX_READ_TOKENS`` tokens, the longest
+parsed, and 312 two tokens past it."""
 WORDS = "the jar is on the table and the bowl is next to it, "
 SHAPES = {
     "command": ("please ", "pour the jar into the bowl"),
+    "polite": ("please robot ", "pour the jar into the bowl"),
     "words": (WORDS, ""),
     "stop": (WORDS, "oh no, stop!"),
     "typo": ("please ", "pour the jar itno the bowl"),
 }
 READ_S = 60.0
+TOO_MANY = "That is too long for one request"
+"""How language.py's refusal of a line of more than ``MAX_READ_TOKENS`` tokens begins."""
+EXPECTED = {"command": "read: a command", "polite": "read: a command", "typo": "read: a command"}
+"""What a_hi must make of a line of these shapes that holds its whole command, within both
+bounds (characters and tokens): the benchmark checks it, so that it times the work it names."""
 """s to wait for the reader thread to be done with one line."""
 
 
@@ -136,6 +147,8 @@ def answer(text: str, stop: bool, readings: list[Reading]) -> str:
     outcomes = [r.outcome for r in readings]
     if not outcomes:
         return "read: nothing"
+    if any(isinstance(o, NotUnderstood) and str(o).startswith(TOO_MANY) for o in outcomes):
+        return "refused: too many tokens"
     named = {Command: "a command", Stop: "a stop", StatusRequest: "a status request"}
     return "read: " + ", ".join(
         "not understood" if isinstance(o, NotUnderstood) else named.get(type(o), type(o).__name__)
@@ -166,6 +179,9 @@ def measure(repeats: int, on_row: Callable[[ReadingRow], None] | None = None) ->
                 work = hi.stop_words.examined - before
                 readings = handle(hi, HumanInput(text=text, request_id="what"), read)
                 did = answer(text, stop is not None, readings)
+                whole = SHAPES[shape][1] in text and len(text) <= MAX_LINE_CHARS  # the command in full
+                if whole and shape in EXPECTED and not did.startswith("refused") and did != EXPECTED[shape]:
+                    raise RuntimeError(f"a_hi made {did!r} of the {shape} line of {len(text)} characters")
                 reset(hi)
                 ms = timed(hi, text, repeats, read)
                 p50, p99 = statistics.median(ms), percentile(ms, 99)

@@ -1145,12 +1145,14 @@ def reading_how(counts: Counts) -> list[str]:
     """How part 11 measures a_hi's reading (scripts/bench_reading.py)."""
     return [
         "scripts/bench_reading.py, in the process of `roco bench`: a_hi on an in-memory bus (no a_co, "
-        "no a_km: lines read at once with the kitchen's words), given lines of four shapes cut at a "
-        'word to each length: `command` ("please please … pour the jar into the bowl", parsed in '
-        'full: the slowest), `words` ("the jar is on the table and the bowl …", not understood at '
-        'its second sentence), `stop` (the same words ending "oh no, stop!"), `typo` ("please … '
-        'pour the jar itno the bowl": corrected and read again while short enough, else not '
-        "understood). Timed with "
+        "no a_km: lines read at once with the kitchen's words), given lines of five shapes cut at a "
+        'word to each length: `command` ("please please … pour the jar into the bowl": the run of '
+        '"please" is one token), `polite` ("please robot please robot … pour the jar into the '
+        "bowl\": a token per word, parsed in full up to the 48-token bound, the slowest line read; "
+        'past it refused unparsed), `words` ("the jar is on the table and the bowl …", not '
+        'understood at its second sentence, or refused past the token bound), `stop` (the same '
+        'words ending "oh no, stop!"), `typo` ("please … pour the jar itno the bowl": corrected and '
+        "read again). Timed with "
         "`time.perf_counter` from the line's arrival to what a_hi does with it: the stop check; "
         f"within the {MAX_LINE_CHARS:,}-character bound, the parse in a_hi's reader thread (lark's "
         "Earley parser) and the request to a_co or the answer; beyond it, the refusal. "

@@ -10,7 +10,9 @@ seconds, N digits or a number word of :data:`NUMBERS`; a negative or zero value 
 language.py to refuse), "within" not followed by one ``WITHIN``; after "would you mind" a
 gerund of a closed-class verb is read as the verb ("pouring" as "pour"); a plural of a known
 noun is ``PLURAL``; any other word is ``WORD``, which no rule accepts, so that the parse stops
-at it and :class:`ParseFailure` names it.
+at it and :class:`ParseFailure` names it. A run of courtesy words of one class
+(:data:`FOLDED`: "please please", "thanks, thank you") is one token: its repeats mean nothing
+more, and each token costs the parser a step.
 
 :func:`parse` returns every reading of the sentence (lark's ambiguities collapsed), for
 meaning.py to choose from. Raises :class:`ParseFailure` (the token where the parse stopped,
@@ -35,6 +37,8 @@ from lark.visitors import CollapseAmbiguities
 from services.agents.human_interface.vocabulary import Vocabulary
 
 GRAMMAR_FILE = Path(__file__).with_name("grammar.lark")
+FOLDED = frozenset({"PLEASE", "THANKS", "ADDRESS"})
+"""Word classes whose run in a sentence is tagged as one token (see the module docstring)."""
 MAX_READINGS = 64
 """At most this many readings of one sentence are weighed (a short command has a handful)."""
 
@@ -579,7 +583,11 @@ def tag(
         for n in range(min(longest, len(words) - i), 0, -1):
             phrase = tuple(read[i : i + n])
             if phrase in lexicon:
-                out.append(Word(lexicon[phrase], tuple(words[i : i + n]), len(out)))
+                kind = lexicon[phrase]
+                if kind in FOLDED and out and out[-1].kind == kind:  # "please please": one token
+                    out[-1] = Word(kind, out[-1].words + tuple(words[i : i + n]), out[-1].index)
+                else:
+                    out.append(Word(kind, tuple(words[i : i + n]), len(out)))
                 gerund = gerund or (lexicon[phrase] == "POLITE" and phrase[-1] == "mind")
                 i += n
                 break

@@ -231,7 +231,8 @@ def interpret(
     :func:`~.task_grammar.default_grammar`). Raises :class:`NotUnderstood` — :class:`Incomplete`,
     :class:`Ambiguous` (a question: the next sentence may answer it),
     :class:`UnknownReference` or :class:`Misspelt` — with one line for the person;
-    :class:`NotUnderstood` also for a control character other than :data:`ALLOWED_CONTROLS` or a
+    :class:`NotUnderstood` also for more than :data:`MAX_READ_TOKENS` tokens, a control
+    character other than :data:`ALLOWED_CONTROLS` or a
     negative or zero deadline. While a question is open, a sentence with no verb (no new request)
     that does not answer it raises :class:`Ambiguous` with the question again, which stays open.
 
@@ -251,6 +252,11 @@ def interpret(
             talk.last = question.thing
         return question
     words = rules.tag(sentence, vocab)
+    if len(words) > MAX_READ_TOKENS:
+        raise NotUnderstood(
+            f"That is too long for one request ({len(words)} words and phrases, at most "
+            f"{MAX_READ_TOKENS}); say one thing at a time, e.g. {EXAMPLES[0]}."
+        )
     fixed = _corrected(sentence, words, priority, vocab, talk, rules)
     if fixed is None:
         return _interpret_words(sentence, words, priority, vocab, talk, rules)
@@ -265,6 +271,10 @@ def interpret(
     return dataclasses.replace(intent, read_as=read_as)
 
 
+MAX_READ_TOKENS = 48
+"""A sentence of more tokens (grammar.py's tags: a word, a phrase, a run of courtesy words) is
+not parsed but refused: it bounds the parser's work, which grows with the tokens (a command
+has at most about 20)."""
 MAX_CORRECTED_TOKENS = 24
 """A sentence of more tokens is not corrected (it bounds the work: each reading tried is a parse)."""
 MAX_TYPO_WORDS = 3

@@ -5,10 +5,12 @@ from __future__ import annotations
 
 import pytest
 
+from services.agents.human_interface import task_grammar
 from services.agents.human_interface.grammar import normalise
 from services.agents.human_interface.intents import SURFACE
 from services.agents.human_interface.language import (
     ALLOWED_CONTROLS,
+    MAX_READ_TOKENS,
     URGENT_PRIORITY,
     Command,
     Incomplete,
@@ -20,6 +22,7 @@ from services.agents.human_interface.language import (
     describe,
     interpret,
 )
+from services.agents.human_interface.task_grammar import default_grammar
 from services.agents.planner.domain import SAFE_SURFACE
 from shared.fipa_codec.languages.l_hc import TaskAtom
 
@@ -383,3 +386,35 @@ def test_a_wish_without_an_object_is_asked_back() -> None:
     with pytest.raises(Incomplete, match="What would you like\\?") as info:
         interpret("I would like")
     assert info.value.missing == "object"
+
+
+def test_a_run_of_courtesy_words_is_one_token() -> None:
+    """ "please please …": the repeats fold into one token (grammar.py FOLDED), so a long line of
+    them reads as the short command it is."""
+    grammar = default_grammar()
+    line = "please please kindly pour the jar into the bowl thanks thank you"
+    words = grammar.tag(line, default_vocabulary())
+    assert [w.kind for w in words][:2] == ["PLEASE", "POUR"]
+    assert words[0].text == "please please kindly" and words[-1].kind == "THANKS"
+    assert [w.index for w in words] == list(range(len(words)))
+    intent = interpret("please " * 140 + "pour the jar into the bowl")
+    assert isinstance(intent, Command) and intent.goal.args == ("jar", "bowl")
+
+
+def test_a_sentence_of_too_many_tokens_is_refused_unparsed(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Past MAX_READ_TOKENS tokens the parser is not run (its work grows with the tokens); at the
+    bound the sentence reads as before."""
+    at_bound = "please robot " * ((MAX_READ_TOKENS - 6) // 2) + "pour the jar into the bowl"
+    assert len(default_grammar().tag(at_bound, default_vocabulary())) == MAX_READ_TOKENS
+    assert isinstance(interpret(at_bound), Command)
+    parsed: list[int] = []
+    real = task_grammar.Grammar.parse
+
+    def counting(self: task_grammar.Grammar, words: object) -> object:
+        parsed.append(1)
+        return real(self, words)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(task_grammar.Grammar, "parse", counting)
+    with pytest.raises(NotUnderstood, match=f"too long for one request \\({MAX_READ_TOKENS + 2} words"):
+        interpret("please robot " + at_bound)
+    assert parsed == []

@@ -180,7 +180,7 @@ def test_the_work_is_bounded(monkeypatch: pytest.MonkeyPatch) -> None:
     interpret("brign me the cupp")
     assert 0 < len(calls) <= 2 * len(known)  # one distance per known word, per unknown word
     calls.clear()
-    long = "please " * MAX_CORRECTED_TOKENS + "brign me the cup"
+    long = "please robot " * (MAX_CORRECTED_TOKENS // 2) + "brign me the cup"  # a token per word
     with pytest.raises(NotUnderstood, match="'brign'"):
         interpret(long)
     assert calls == []  # a long line is not corrected
