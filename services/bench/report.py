@@ -1148,9 +1148,9 @@ def reading_how(counts: Counts) -> list[str]:
         "no a_km: lines read at once with the kitchen's words), given lines of five shapes cut at a "
         'word to each length: `command` ("please please … pour the jar into the bowl": the run of '
         '"please" is one token), `polite` ("please robot please robot … pour the jar into the '
-        "bowl\": a token per word, parsed in full up to the 48-token bound, the slowest line read; "
+        'bowl": a token per word, parsed in full up to the 48-token bound, the slowest line read; '
         'past it refused unparsed), `words` ("the jar is on the table and the bowl …", not '
-        'understood at its second sentence, or refused past the token bound), `stop` (the same '
+        "understood at its second sentence, or refused past the token bound), `stop` (the same "
         'words ending "oh no, stop!"), `typo` ("please … pour the jar itno the bowl": corrected and '
         "read again). Timed with "
         "`time.perf_counter` from the line's arrival to what a_hi does with it: the stop check; "
