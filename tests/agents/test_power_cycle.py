@@ -14,6 +14,7 @@ from services.agents.executor.agent import ExecutorAgent
 from services.agents.task_executor.agent import TaskExecutor
 from services.runtime.memory_transport import MemoryBus
 from shared.fipa_codec.languages.l_ex import CommandResult, PowerOn
+from shared.fipa_codec.languages.l_sd import Observation
 from shared.fipa_codec.languages.l_sw import SWState
 from shared.fipa_codec.languages.l_wm import WorldUpdate
 from tests.agents.test_coordination import Session
@@ -93,3 +94,25 @@ def test_a_late_answer_from_the_world_before_is_no_new_power_on(monkeypatch: pyt
     assert not a_ta._started_anew(CommandResult(command="wait", ok=True, world="power-on-2"))
     assert a_ta._started_anew(PowerOn(world="power-on-3"))
     assert a_ta.counters["world_restarts"] == 2 and observed == [True, True]
+
+
+def test_a_late_observation_of_the_world_before_is_not_sent_to_a_km(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """A look the power cycle caught answers late from the old loop, after ag_ex told the new
+    power-on: its robot time (later than the new kitchen's) would make a_km take every
+    observation of the new kitchen for stale, and a_pl plan looks at the old kitchen's poses
+    over and over. a_ta sends a_km only the new kitchen's observation, which renews it."""
+    monkeypatch.delenv("ROCO_RUN_DIR", raising=False)
+    a_ta = TaskExecutor(MemoryBus().transport())
+    sent: list[WorldUpdate] = []
+    monkeypatch.setattr(a_ta, "_observe_initial", lambda: None)
+    monkeypatch.setattr(a_ta, "_inform_km", sent.append)
+    a_ta.subscription = object()  # type: ignore[assignment]  # a_km subscribed
+    a_ta._started_anew(PowerOn(world="power-on-1"))
+    a_ta._update_km(Observation(stamp=268.0, objects=(), world="power-on-1"))
+    assert a_ta._started_anew(PowerOn(world="power-on-2"))
+    a_ta._update_km(Observation(stamp=270.0, objects=(), world="power-on-1"))  # late, of the kitchen before
+    a_ta._update_km(Observation(stamp=3.0, objects=(), world="power-on-2"))
+    assert [(u.stamp, u.renews) for u in sent] == [(268.0, False), (3.0, True)]
+    assert a_ta.counters["observations_of_world_before"] == 1

@@ -373,9 +373,14 @@ class TaskExecutor(Agent):
         self._ex_answer(conv, False)
 
     def _ex_answer(self, conv: Conversation, ok: bool) -> None:
-        went_back = self._world_time(conv.content)
+        # a late answer of the world before keeps neither its robot time nor its observation
+        went_back = None if self._of_world_before(conv.content) else self._world_time(conv.content)
         restarted = self._started_anew(conv.content)
-        if conv is self.initial_observe or (
+        if (
+            conv is self.initial_observe or any(conv is c for c in self.initial_asked)
+        ) and self._of_world_before(conv.content):
+            self.log.info("a late observation of the kitchen before the power cycle ignored")
+        elif conv is self.initial_observe or (
             not self.initial_done and ok and any(conv is c for c in self.initial_asked)
         ):
             # an earlier one's late answer will do: the camera may take longer than the short
@@ -500,9 +505,24 @@ class TaskExecutor(Agent):
         """Request ``command`` of ag_ex (fipa-request on C5)."""
         return self.roles.open(C5, FIPA_REQUEST, command, reply_by_s=reply_by_s, retry_s=retry_s)
 
+    def _of_world_before(self, answer: object) -> bool:
+        """True when ag_ex's ``answer`` comes from a power-on before the robot's last one (a
+        command the power cycle ended, answered late by the old loop): it describes a kitchen
+        that no longer exists, at a robot time that is no longer the robot's."""
+        world = answer.world if isinstance(answer, CommandResult | Observation | PowerOn) else ""
+        return bool(world) and world in self.worlds_before
+
     def _update_km(self, obs: Observation) -> None:
         """Inform a_km of what ``obs`` saw (:func:`observed_update`); the first observation of a
-        robot that was power-cycled renews a_km's world (``renew_km``)."""
+        robot that was power-cycled renews a_km's world (``renew_km``). An observation of the
+        kitchen before the power cycle is not sent: its robot time (later than the new kitchen's)
+        would make a_km take every observation of the new one for stale."""
+        if self._of_world_before(obs):
+            self.counters["observations_of_world_before"] += 1
+            self.log.info(
+                "an observation of the kitchen before the power cycle (world %s) not sent to a_km", obs.world
+            )
+            return
         update = observed_update(obs, self.sources.time())
         if self.renew_km and self.subscription is not None and obs.world in ("", self.world):
             update = msgspec.structs.replace(update, renews=True)
