@@ -1228,7 +1228,9 @@ class Roles:
     ) -> Conversation:
         """Open a conversation as the initiator of ``protocol`` on ``channel``: send its
         opening communicate (``performative``, or the protocol's only opening performative)
-        carrying ``content``. ``reply_by_s``/``retry_s`` default to the role's. Raises KeyError
+        carrying ``content``. ``reply_by_s``/``retry_s`` default to the role's; an opening
+        that ends the conversation (the inform of a one-message protocol) awaits no reply,
+        and the conversation is not kept open. Raises KeyError
         for a role not declared, SpecViolation for a performative that does not open the
         protocol."""
         decl = self.role(channel, protocol)
@@ -1249,13 +1251,15 @@ class Roles:
         from services.runtime.agent import Received
 
         conv = Conversation(self, decl, self._peer_of[decl], conversation_id or "", data=data)
+        # an opening that ends the conversation (a one-message protocol's inform) awaits nothing
+        answered = machine.next_state(machine.initial, INITIATOR, perf) not in machine.final
         msg = self._send(
             conv,
             perf,
             content,
-            reply_by_s if reply_by_s is not None else decl.reply_by_s,
-            retry_s if retry_s is not None else decl.retry_s,
-            expect=True,
+            (reply_by_s if reply_by_s is not None else decl.reply_by_s) if answered else None,
+            (retry_s if retry_s is not None else decl.retry_s) if answered else None,
+            expect=answered,
         )
         conv.opening = Received.of(msg, content, decl.channel)
         if msg.reply_with is not None:
@@ -1267,6 +1271,7 @@ class Roles:
             # (services/runtime/protocol_state.py: it crosses the opening), not a late reply
             conv.awaited |= before.awaited
         self._keep(conv)
+        self._settle(conv)  # forgotten at once when the opening ended it
         return conv
 
     def restore(
