@@ -89,7 +89,7 @@ def role_lines(
         how = " (declared for every channel)" if (decl.channel, decl.protocol) in (every or set()) else ""
         out.append(
             f"  {decl.channel} {decl.protocol} {decl.role} with {peer} in {', '.join(decl.languages)}{how}: "
-            f"receives {', '.join(receives)}; sends {', '.join(sends)}"
+            f"receives {', '.join(receives) or 'nothing'}; sends {', '.join(sends) or 'nothing'}"
         )
     return out
 

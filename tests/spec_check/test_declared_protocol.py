@@ -1,6 +1,6 @@
 """A protocol the specification declares by name in its own table (docs/spec.md, "Declaring a
 protocol's state machine") is checked, explored for deadlocks, verified on a record and
-counted by coverage as a built-in one is.
+counted by coverage, and compared with the agents' code, as a built-in one is.
 
 The specification is a copy of the shipped one with two declared protocols on C6, a_ta
 initiating: ``notify`` (one inform, nothing answers) and ``tell`` (an inform the participant
@@ -17,6 +17,7 @@ from services.runtime.run_folder import RunInfo, write_run_info
 from services.spec.check import check_report
 from services.spec.model import DEFAULT_SPEC, SpecError, load
 from services.spec.protocol_defs import protocols_of
+from services.spec_check.code_check import verify_code_report
 from services.spec_check.conformance import verify_report, verify_run
 from services.spec_check.coverage import coverage_of
 from services.spec_check.deadlock import analyse
@@ -226,3 +227,16 @@ def test_a_spec_whose_declared_machine_is_malformed_stops_verify(tmp_path: Path)
     spec = declared_spec(tmp_path, tell=TELL.replace('"confirmed"]', '"confirmed", "told"]', 1))
     with pytest.raises(SpecError, match="leaves the final state 'told'"):
         protocols_of(spec)
+
+
+def test_verify_code_lists_a_declared_protocol_s_roles_and_asks_for_them(tmp_path: Path) -> None:
+    """The agents' code is compared with the declared machine: the shipped a_ta and a_km do
+    not play notify yet, and the listing says what each role would send and receive."""
+    ok, report = verify_code_report(declared_spec(tmp_path))
+    assert not ok
+    lines = report.splitlines()
+    assert "  C6 notify initiator with a_km in L_WM: receives nothing; sends inform" in lines
+    assert "  C6 notify participant with a_ta in L_WM: receives inform; sends nothing" in lines
+    assert (
+        "- agent a_ta declares no initiator role for notify on C6, which [[channels]] C6 gives it (in L_WM)"
+    ) in lines
