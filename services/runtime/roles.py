@@ -1251,14 +1251,13 @@ class Roles:
         from services.runtime.agent import Received
 
         conv = Conversation(self, decl, self._peer_of[decl], conversation_id or "", data=data)
-        # an opening that ends the conversation (a one-message protocol's inform) awaits nothing
-        answered = machine.next_state(machine.initial, INITIATOR, perf) not in machine.final
+        answered = _answered(machine, perf)
         msg = self._send(
             conv,
             perf,
             content,
-            (reply_by_s if reply_by_s is not None else decl.reply_by_s) if answered else None,
-            (retry_s if retry_s is not None else decl.retry_s) if answered else None,
+            _default(reply_by_s, decl.reply_by_s, answered),
+            _default(retry_s, decl.retry_s, answered),
             expect=answered,
         )
         conv.opening = Received.of(msg, content, decl.channel)
@@ -1753,6 +1752,20 @@ class Roles:
 
     def __iter__(self) -> Iterator[Conversation]:
         return iter(list(self._open.values()))
+
+
+def _answered(machine: Protocol, opening: Performative) -> bool:
+    """Whether the initiator's ``opening`` leaves the conversation open for an answer: not
+    when it ends it (the inform of a one-message protocol), which then awaits nothing."""
+    return machine.next_state(machine.initial, INITIATOR, opening) not in machine.final
+
+
+def _default(given: float | None, role: float | None, answered: bool) -> float | None:
+    """A wait (s) of an opening: the one ``given``, else the ``role``'s; none when nothing
+    answers the opening."""
+    if not answered:
+        return None
+    return given if given is not None else role
 
 
 def _path_to(machine: Protocol, state: str) -> list[tuple[Role, Performative]] | None:

@@ -136,17 +136,23 @@ def protocol_items(group: str, machine: Protocol, cp: ChannelProtocol) -> list[I
     items = [
         Item(group, "transition", edge_name(s, r, p.value, t, terminal)) for s, r, p, t, terminal in edges
     ]
-    senders = {r for _, r, _, _, _ in edges}
+    items += _answer_items(group, {r for _, r, _, _, _ in edges})
     items += [
+        Item(group, "term", f"{perf} carries {term}") for perf, terms in cp.contents.items() for term in terms
+    ]
+    return items
+
+
+def _answer_items(group: str, senders: set[Role]) -> list[Item]:
+    """A not-understood by each role the other sends something to (``senders``: the roles
+    that send), and a time-out when the participant answers at all."""
+    items = [
         Item(group, "not-understood", f"not-understood by the {role}")
         for role, other in ((INITIATOR, PARTICIPANT), (PARTICIPANT, INITIATOR))
         if other in senders
     ]
     if PARTICIPANT in senders:
         items.append(Item(group, "time-out", TIME_OUT))
-    items += [
-        Item(group, "term", f"{perf} carries {term}") for perf, terms in cp.contents.items() for term in terms
-    ]
     return items
 
 
