@@ -354,11 +354,12 @@ def protocol_from_table(name: str, table: Mapping[str, Any], *, source: str | Pa
 
     Every transition is checked: four strings, a known role, a FIPA performative (FIPA
     SC00037) that the role's ``initiator``/``participant`` list allows when the table has
-    that list, no second target for the same (state, role, performative), no transition out
-    of a final state; then the machine itself (every state reachable, a final state
-    reachable from every state; :class:`shared.fipa_codec.protocols.Protocol`). Raises
+    that list, the initiator's out of the initial state, no second target for the same
+    (state, role, performative), no transition out of a final state; then the machine itself
+    (the initial state not final, every state reachable, a final state reachable from every
+    state; :class:`shared.fipa_codec.protocols.Protocol`). Raises
     :class:`services.spec.model.SpecError` naming ``source`` (the file), the protocol and
-    the offending entry.
+    the offending entry, and saying what to change (docs/spec.md lists every rule).
     """
     where = f"{source}: protocol {name}" if source is not None else f"protocol {name}"
     _check_keys(table, where)

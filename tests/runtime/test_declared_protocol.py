@@ -107,7 +107,7 @@ def test_a_second_confirm_is_outside_the_declared_machine(pair: tuple[MemoryBus,
 def test_a_malformed_notification_is_answered_not_understood_without_a_violation(
     pair: tuple[MemoryBus, Sender, Listener],
 ) -> None:
-    """The participant answers a notification it cannot read not-understood (FIPA SC00061):
+    """The participant answers a notification it cannot read not-understood (FIPA SC00037 §3.12):
     after the end of the conversation, outside the machine, and taken by both agents as
     ending it (services/runtime/protocol_state.py ``follow``)."""
     bus, n, listener = pair
