@@ -1228,7 +1228,9 @@ class Roles:
     ) -> Conversation:
         """Open a conversation as the initiator of ``protocol`` on ``channel``: send its
         opening communicate (``performative``, or the protocol's only opening performative)
-        carrying ``content``. ``reply_by_s``/``retry_s`` default to the role's. Raises KeyError
+        carrying ``content``. ``reply_by_s``/``retry_s`` default to the role's; an opening
+        that ends the conversation (the inform of a one-message protocol) awaits no reply,
+        and the conversation is not kept open. Raises KeyError
         for a role not declared, SpecViolation for a performative that does not open the
         protocol."""
         decl = self.role(channel, protocol)
@@ -1249,13 +1251,14 @@ class Roles:
         from services.runtime.agent import Received
 
         conv = Conversation(self, decl, self._peer_of[decl], conversation_id or "", data=data)
+        answered = _answered(machine, perf)
         msg = self._send(
             conv,
             perf,
             content,
-            reply_by_s if reply_by_s is not None else decl.reply_by_s,
-            retry_s if retry_s is not None else decl.retry_s,
-            expect=True,
+            _default(reply_by_s, decl.reply_by_s, answered),
+            _default(retry_s, decl.retry_s, answered),
+            expect=answered,
         )
         conv.opening = Received.of(msg, content, decl.channel)
         if msg.reply_with is not None:
@@ -1267,6 +1270,7 @@ class Roles:
             # (services/runtime/protocol_state.py: it crosses the opening), not a late reply
             conv.awaited |= before.awaited
         self._keep(conv)
+        self._settle(conv)  # forgotten at once when the opening ended it
         return conv
 
     def restore(
@@ -1748,6 +1752,20 @@ class Roles:
 
     def __iter__(self) -> Iterator[Conversation]:
         return iter(list(self._open.values()))
+
+
+def _answered(machine: Protocol, opening: Performative) -> bool:
+    """Whether the initiator's ``opening`` leaves the conversation open for an answer: not
+    when it ends it (the inform of a one-message protocol), which then awaits nothing."""
+    return machine.next_state(machine.initial, INITIATOR, opening) not in machine.final
+
+
+def _default(given: float | None, role: float | None, answered: bool) -> float | None:
+    """A wait (s) of an opening: the one ``given``, else the ``role``'s; none when nothing
+    answers the opening."""
+    if not answered:
+        return None
+    return given if given is not None else role
 
 
 def _path_to(machine: Protocol, state: str) -> list[tuple[Role, Performative]] | None:

@@ -28,8 +28,15 @@ answered by the participant's ``inform`` (``cancelled``) or ``failure`` (``cance
 and an ``agree`` crossing the ``cancel`` (when the participant may agree at all); further
 transitions out of ``cancelling`` may be listed, e.g. a ``refuse`` that crossed the cancel:
 ``["cancelling", "participant", "refuse", "refused"]``. ``not-understood`` is implicit:
-either role may send it in every state after the first (FIPA SC00037 §3.12); a table must
-not list it.
+either role may send it in every state after the first that is not final (FIPA SC00037
+§3.12), ending the conversation in the final state ``not-understood``; a table must not list
+it. A *one-message* protocol (FIPA's notifications: the initiator's ``inform`` ends the
+conversation) is valid and has no such state; a not-understood answering its one message
+ends the conversation in the runtime and in ``roco spec verify`` as any not-understood does
+(services/runtime/protocol_state.py :func:`~services.runtime.protocol_state.follow`).
+
+Every rule a table must satisfy, with the error that names it and what to change, is in
+docs/spec.md ("Declaring a protocol's state machine"); each error says what to change.
 
 :func:`protocols_of` gives, for every protocol a specification names, its declared state
 machine or else the built-in one of :data:`shared.fipa_codec.protocols.PROTOCOLS`.
@@ -37,6 +44,7 @@ machine or else the built-in one of :data:`shared.fipa_codec.protocols.PROTOCOLS
 
 from __future__ import annotations
 
+import difflib
 import tomllib
 from collections.abc import Mapping, Sequence
 from pathlib import Path
@@ -98,22 +106,32 @@ def _check_keys(table: object, where: str) -> None:
     unknown = sorted(set(table) - TABLE_KEYS)
     if unknown:
         raise SpecError(
-            f"{where}: unknown key(s) {', '.join(unknown)}; known: {', '.join(sorted(TABLE_KEYS))}"
+            f"{where}: unknown key(s) {', '.join(unknown)}; known: {', '.join(sorted(TABLE_KEYS))}; "
+            "remove or rename it"
         )
     if "transitions" not in table:
-        raise SpecError(f"{where}: a state machine needs 'transitions'")
+        raise SpecError(
+            f"{where}: a state machine needs 'transitions'; add transitions = "
+            "[[state, role, performative, state], ...]"
+        )
     if "final" not in table:
-        raise SpecError(f"{where}: a state machine needs 'final' (the final states)")
+        raise SpecError(
+            f"{where}: a state machine needs 'final' (the final states); add final = [the states "
+            "that end the conversation]"
+        )
 
 
 def _initial_and_final(table: Mapping[str, Any], where: str) -> tuple[str, list[str]]:
     """The initial state (``start`` by default) and the final states, at least one."""
     initial = table.get("initial", "start")
     if not isinstance(initial, str) or not initial:
-        raise SpecError(f"{where}: 'initial' must be a state name, not {initial!r}")
+        raise SpecError(
+            f"{where}: 'initial' must be a state name, not {initial!r}; name a state, or leave "
+            'it out ("start")'
+        )
     final = _names(table["final"], "final", where)
     if not final:
-        raise SpecError(f"{where}: 'final' names no state")
+        raise SpecError(f"{where}: 'final' names no state; name the states that end the conversation")
     return initial, final
 
 
@@ -129,7 +147,8 @@ def _check_cancellable(
     for state in cancellable:
         if state not in states or state in final:
             raise SpecError(
-                f"{where}: cancellable state {state!r} is not a non-final state of the transitions"
+                f"{where}: cancellable state {state!r} is not a non-final state of the transitions; "
+                "name a state the transitions reach that is not final, or take it out of 'cancellable'"
             )
     if cancellable:
         _require(lists, INITIATOR, Performative.CANCEL, where, "the cancel meta-protocol ('cancellable')")
@@ -140,29 +159,43 @@ def _check_cancellable(
 def _check_group(
     kind: str,
     group: list[tuple[int, Edge]],
-    final: list[str],
+    ends: tuple[str, list[str]],
     meta: Mapping[tuple[str, Role, Performative], str],
     where: str,
 ) -> None:
-    """No second target for the same (state, role, performative) in ``group``, none out of a
-    final state, none against the cancel meta-protocol's transitions ``meta``."""
+    """In ``group``: every transition out of the initial state sent by the initiator, no
+    second target for the same (state, role, performative), none out of a final state, none
+    against the cancel meta-protocol's transitions ``meta`` (``ends``: the initial state and
+    the final ones)."""
+    initial, final = ends
     seen: dict[tuple[str, Role, Performative], tuple[int, str]] = {}
     for n, edge in group:
         source_state, role, perf, target = edge
+        if source_state == initial and role != INITIATOR:
+            raise SpecError(
+                f"{where}: {kind} {n} {_show(edge)} opens the conversation from the {role}; the "
+                "first message is the initiator's (its sender is the initiator): make the role "
+                "'initiator', or leave from a later state"
+            )
         key = (source_state, role, perf)
         if key in seen and seen[key][1] != target:
             first, other = seen[key]
             raise SpecError(
                 f"{where}: {kind} {n} {_show(edge)} conflicts with "
-                f"{kind} {first}: the same state, role and performative lead to {other!r} and {target!r}"
+                f"{kind} {first}: the same state, role and performative lead to {other!r} and "
+                f"{target!r}; keep one of the two"
             )
         seen.setdefault(key, (n, target))
         if source_state in final:
-            raise SpecError(f"{where}: {kind} {n} {_show(edge)} leaves the final state {source_state!r}")
+            raise SpecError(
+                f"{where}: {kind} {n} {_show(edge)} leaves the final state {source_state!r}; "
+                f"remove it, or take {source_state!r} out of 'final'"
+            )
         if meta.get(key, target) != target:
             raise SpecError(
                 f"{where}: {kind} {n} {_show(edge)} conflicts with the "
-                f"cancel meta-protocol ('cancellable'), which leads there to {meta[key]!r}"
+                f"cancel meta-protocol ('cancellable'), which leads there to {meta[key]!r}; "
+                "remove it (the meta-protocol adds that transition)"
             )
 
 
@@ -177,6 +210,7 @@ def _checked_build(
     """The machine built (``states``: initial, final, cancellable), every state reachable and a
     final state reachable from every state."""
     initial, final, cancellable = states
+    _check_reachable(initial, final, [*edges, *terminal], cancellable, where)
     try:
         protocol = _build(
             name,
@@ -195,42 +229,92 @@ def _checked_build(
     if stuck:
         raise SpecError(
             f"{where}: invalid state machine: no final state can be reached from "
-            f"{', '.join(repr(x) for x in stuck)} (only not-understood would end the conversation)"
+            f"{', '.join(repr(x) for x in stuck)} (only not-understood would end the conversation); "
+            "add a transition from it toward a final state, or name it in 'final'"
         )
     return protocol
 
 
+def _check_reachable(
+    initial: str, final: list[str], edges: list[tuple[int, Edge]], cancellable: list[str], where: str
+) -> None:
+    """The initial state is not final, and every state (the final ones and the cancel
+    meta-protocol's included) is reachable from it."""
+    if initial in final:
+        raise SpecError(
+            f"{where}: invalid state machine: the initial state {initial!r} is final; take it out "
+            "of 'final', or name another 'initial'"
+        )
+    successors: dict[str, set[str]] = {}
+    states = {initial, *final}
+    for _, (source, _, _, target) in edges:
+        successors.setdefault(source, set()).add(target)
+        states |= {source, target}
+    if cancellable:
+        for state in cancellable:
+            successors.setdefault(state, set()).add("cancelling")
+        successors["cancelling"] = successors.get("cancelling", set()) | {"cancelled", "cancel-failed"}
+        states |= {"cancelling", "cancelled", "cancel-failed"}
+    reached, todo = {initial}, [initial]
+    while todo:
+        for nxt in successors.get(todo.pop(), ()):
+            if nxt not in reached:
+                reached.add(nxt)
+                todo.append(nxt)
+    unreachable = sorted(states - reached)
+    if unreachable:
+        state = unreachable[0]
+        change = "take it out of 'final'" if state in final else "remove the transitions that leave it"
+        raise SpecError(
+            f"{where}: invalid state machine: state {state!r} is unreachable from {initial!r}; add a "
+            f"transition into it from a reachable state, or {change}"
+        )
+
+
 def _table_of(roles: ProtocolRoles) -> dict[str, Any]:
-    """A spec's protocol entry as the ``[protocols.NAME]`` table it was read from."""
-    table = {
-        key: list(value) if isinstance(value, tuple) else value
-        for key, value in msgspec.structs.asdict(roles).items()
-        if value not in (None, (), "")
-    }
-    table["transitions"] = [list(t) for t in roles.transitions]
-    table["terminal"] = [list(t) for t in roles.terminal]
+    """A spec's protocol entry as the ``[protocols.NAME]`` table it was read from (the roles'
+    lists always, other keys when given)."""
+    table: dict[str, Any] = {}
+    for key, value in msgspec.structs.asdict(roles).items():
+        if key in ("transitions", "terminal"):
+            value = [list(t) for t in value]
+        elif isinstance(value, tuple):
+            value = list(value)
+        if key in (INITIATOR, PARTICIPANT) or value not in (None, [], ""):
+            table[key] = value
     return table
+
+
+def _no_machine(name: str) -> str:
+    """The error for a protocol with neither a declared nor a built-in state machine."""
+    return (
+        f"protocol {name} declares no state machine ({', '.join(sorted(MACHINE_KEYS))}) and is not "
+        f"a built-in protocol ({', '.join(PROTOCOLS)}); declare its state machine in "
+        f"[protocols.{name}] (docs/spec.md), or use a built-in protocol"
+    )
 
 
 def _machine(spec: SystemSpec, name: str) -> Protocol:
     """:func:`machine_of`'s machine, built."""
     roles = spec.protocols.get(name)
     if roles is None:
-        raise SpecError(f"the specification names no protocol {name!r}")
-    if roles.transitions:
-        return protocol_from_table(name, _table_of(roles))
+        raise SpecError(f"the specification names no protocol {name!r}; declare it in [protocols.{name}]")
+    table = _table_of(roles)
+    if declares_state_machine(table):
+        return protocol_from_table(name, table)
     if name in PROTOCOLS:
         return PROTOCOLS[name]
-    raise SpecError(
-        f"protocol {name} declares no state machine and is not a built-in protocol ({', '.join(PROTOCOLS)})"
-    )
+    raise SpecError(_no_machine(name))
 
 
 def _listed(listed: set[str] | None, role: str, perf_name: str, here: str) -> None:
     """The role's ``initiator``/``participant`` list, when the table has it, allows the performative."""
     if listed is not None and perf_name not in listed:
         shown = ", ".join(sorted(listed)) or "nothing"
-        raise SpecError(f"{here}: the {role} may not send {perf_name!r} ('{role}' lists {shown})")
+        raise SpecError(
+            f"{here}: the {role} may not send {perf_name!r} ('{role}' lists {shown}); add it to "
+            f"'{role}', or change the transition"
+        )
 
 
 def _edge(n: int, entry: object, kind: str, where: str, lists: Mapping[str, set[str] | None]) -> Edge:
@@ -242,7 +326,7 @@ def _edge(n: int, entry: object, kind: str, where: str, lists: Mapping[str, set[
     source, role, perf_name, target = entry
     here = f"{where}: {kind} {n} {_show((source, role, perf_name, target))}"
     if role not in (INITIATOR, PARTICIPANT):
-        raise SpecError(f"{here}: role {role!r} is neither 'initiator' nor 'participant'")
+        raise SpecError(f"{here}: role {role!r} is neither 'initiator' nor 'participant'; write one of them")
     perf = _performative(perf_name, here)
     _listed(lists[role], role, perf_name, here)
     checked: Role = INITIATOR if role == INITIATOR else PARTICIPANT
@@ -254,10 +338,13 @@ def _performative(perf_name: str, here: str) -> Performative:
     try:
         perf = Performative(perf_name)
     except ValueError:
-        raise SpecError(f"{here}: {perf_name!r} is not a FIPA performative (FIPA SC00037)") from None
+        close = difflib.get_close_matches(perf_name, [p.value for p in Performative], n=1)
+        hint = f"did you mean {close[0]!r}?" if close else "use one of FIPA SC00037's communicative acts"
+        raise SpecError(f"{here}: {perf_name!r} is not a FIPA performative (FIPA SC00037); {hint}") from None
     if perf is Performative.NOT_UNDERSTOOD:
         raise SpecError(
-            f"{here}: not-understood is implicit (either role, in every state after the first); leave it out"
+            f"{here}: not-understood is implicit (either role, in every state after the first that "
+            "is not final); leave it out"
         )
     return perf
 
@@ -267,11 +354,12 @@ def protocol_from_table(name: str, table: Mapping[str, Any], *, source: str | Pa
 
     Every transition is checked: four strings, a known role, a FIPA performative (FIPA
     SC00037) that the role's ``initiator``/``participant`` list allows when the table has
-    that list, no second target for the same (state, role, performative), no transition out
-    of a final state; then the machine itself (every state reachable, a final state
-    reachable from every state; :class:`shared.fipa_codec.protocols.Protocol`). Raises
+    that list, the initiator's out of the initial state, no second target for the same
+    (state, role, performative), no transition out of a final state; then the machine itself
+    (the initial state not final, every state reachable, a final state reachable from every
+    state; :class:`shared.fipa_codec.protocols.Protocol`). Raises
     :class:`services.spec.model.SpecError` naming ``source`` (the file), the protocol and
-    the offending entry.
+    the offending entry, and saying what to change (docs/spec.md lists every rule).
     """
     where = f"{source}: protocol {name}" if source is not None else f"protocol {name}"
     _check_keys(table, where)
@@ -279,15 +367,18 @@ def protocol_from_table(name: str, table: Mapping[str, Any], *, source: str | Pa
     initial, final = _initial_and_final(table, where)
     edges = _edges(table["transitions"], "transition", where, lists)
     if not edges:
-        raise SpecError(f"{where}: 'transitions' is empty")
+        raise SpecError(
+            f"{where}: 'transitions' is empty; list at least the opening "
+            f'["{initial}", "initiator", performative, state]'
+        )
     terminal = _edges(table.get("terminal", []), "terminal transition", where, lists)
     cancellable = _names(table.get("cancellable", []), "cancellable", where)
     states = {initial} | set(final)
     for _, (source_state, _, _, target) in [*edges, *terminal]:
         states |= {source_state, target}
     _check_cancellable(cancellable, states, final, lists, where)
-    _check_group("transition", edges, final, _cancel_meta(cancellable, edges), where)
-    _check_group("terminal transition", terminal, final, {}, where)
+    _check_group("transition", edges, (initial, final), _cancel_meta(cancellable, edges), where)
+    _check_group("terminal transition", terminal, (initial, final), {}, where)
     return _checked_build(name, table, where, edges, terminal, (initial, final, cancellable))
 
 
@@ -311,14 +402,11 @@ def protocols_of(path: Path = DEFAULT_SPEC) -> dict[str, Protocol]:
                 if unknown:
                     raise SpecError(
                         f"{path}: protocol {name}: unknown key(s) {', '.join(unknown)}; "
-                        f"known: {', '.join(sorted(TABLE_KEYS))}"
+                        f"known: {', '.join(sorted(TABLE_KEYS))}; remove or rename it"
                     )
             out[name] = PROTOCOLS[name]
         else:
-            raise SpecError(
-                f"{path}: protocol {name} declares no state machine ({', '.join(sorted(MACHINE_KEYS))}) "
-                f"and is not a built-in protocol ({', '.join(PROTOCOLS)})"
-            )
+            raise SpecError(f"{path}: {_no_machine(name)}")
     return out
 
 
@@ -488,7 +576,10 @@ def _require(
 ) -> None:
     listed = lists[role]
     if listed is not None and perf.value not in listed:
-        raise SpecError(f"{where}: {why} lets the {role} send {perf.value!r}, which '{role}' does not list")
+        raise SpecError(
+            f"{where}: {why} lets the {role} send {perf.value!r}, which '{role}' does not list; add "
+            f"it to '{role}', or drop 'cancellable'"
+        )
 
 
 def _edges(

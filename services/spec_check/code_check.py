@@ -89,9 +89,14 @@ def role_lines(
         how = " (declared for every channel)" if (decl.channel, decl.protocol) in (every or set()) else ""
         out.append(
             f"  {decl.channel} {decl.protocol} {decl.role} with {peer} in {', '.join(decl.languages)}{how}: "
-            f"receives {', '.join(receives)}; sends {', '.join(sends)}"
+            f"receives {_perfs(receives)}; sends {_perfs(sends)}"
         )
     return out
+
+
+def _perfs(names: list[str]) -> str:
+    """Performatives as a list in words (``nothing`` for none: a one-message protocol's)."""
+    return ", ".join(names) or "nothing"
 
 
 def _agent_lines(spec: SystemSpec, name: str, implementation: str) -> tuple[list[str], list[str]]:

@@ -18,9 +18,9 @@ Every communicate (FIPA SC00061):
 
 Every conversation (one conversation-id between two agents) follows its interaction
 protocol's state machine (FIPA SC00026 fipa-request, SC00027 fipa-query, SC00035
-fipa-subscribe, the paper's coordinate protocol), message by message in causal order
-(arrival order, with an answer that arrived before what it answers moved after it:
-:mod:`services.recorder.causal`), as
+fipa-subscribe, the paper's coordinate protocol, or one the specification declares),
+message by message in causal order (arrival order, with an answer that arrived before what
+it answers moved after it: :mod:`services.recorder.causal`), as
 :class:`~services.runtime.protocol_state.CrossingTracker` follows it: communicates of the two
 agents that crossed on the wire are tolerated, as are the cancel meta-protocol's late
 cancels; an opening communicate that reuses a conversation-id begins it anew; a
@@ -68,7 +68,6 @@ from shared.fipa_codec.languages import ContentError, decode_content
 from shared.fipa_codec.protocols import (
     INITIATOR,
     PARTICIPANT,
-    PROTOCOLS,
     Protocol,
     ProtocolViolation,
     Role,
@@ -219,11 +218,12 @@ def verify_run(
 ) -> ConformanceReport:
     """Check the recorded traffic of ``run_dir`` against ``spec`` (see the module docstring).
 
-    ``protocols`` maps protocol names to their state machines (default: the FIPA library
-    :data:`shared.fipa_codec.protocols.PROTOCOLS`); a protocol without one is checked per
+    ``protocols`` maps protocol names to their state machines (default: ``spec``'s, each the
+    one its ``[protocols.NAME]`` table declares or the built-in one,
+    :func:`services.spec.protocol_defs.machine_of`); a protocol without one is checked per
     communicate only. Raises FileNotFoundError when ``run_dir`` is not a folder; anything
     unreadable inside it becomes a note (``services.report.load``)."""
-    machines = dict(PROTOCOLS if protocols is None else protocols)
+    machines = dict(_machines_of(spec) if protocols is None else protocols)
     data = load_run(Path(run_dir))
     # the loader tries every content in its language; the checks below judge content
     # themselves, so its note on undecodable content is left out
@@ -250,6 +250,19 @@ def verify_run(
         checker.check(message)
     checker.finish()
     return report
+
+
+def _machines_of(spec: SystemSpec) -> dict[str, Protocol]:
+    """The state machine of every protocol ``spec`` names that has one."""
+    from services.spec.protocol_defs import machine_of
+
+    machines = {}
+    for name in spec.protocols:
+        try:
+            machines[name] = machine_of(spec, name)
+        except SpecError:  # no machine (or a malformed one: roco spec check says which)
+            continue
+    return machines
 
 
 Problem = tuple[str, str]

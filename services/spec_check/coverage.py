@@ -125,20 +125,34 @@ def read_why(path: Path = WHY_FILE) -> tuple[Why, ...]:
 
 def protocol_items(group: str, machine: Protocol, cp: ChannelProtocol) -> list[Item]:
     """The items of one channel's protocol: its transitions (not-understood aside), a
-    not-understood by each role, a time-out, and its content terms."""
-    items = [
-        Item(group, "transition", edge_name(s, r, p.value, t, terminal))
+    not-understood by each role that the other may send something to, a time-out when the
+    participant answers at all (not in a one-message protocol), and its content terms."""
+    edges = [
+        (s, r, p, t, terminal)
         for table, terminal in ((machine.transitions, False), (machine.terminal_transitions, True))
         for (s, r, p), t in table.items()
         if p is not Performative.NOT_UNDERSTOOD
     ]
-    items += [
-        Item(group, "not-understood", f"not-understood by the {role}") for role in (INITIATOR, PARTICIPANT)
+    items = [
+        Item(group, "transition", edge_name(s, r, p.value, t, terminal)) for s, r, p, t, terminal in edges
     ]
-    items.append(Item(group, "time-out", TIME_OUT))
+    items += _answer_items(group, {r for _, r, _, _, _ in edges})
     items += [
         Item(group, "term", f"{perf} carries {term}") for perf, terms in cp.contents.items() for term in terms
     ]
+    return items
+
+
+def _answer_items(group: str, senders: set[Role]) -> list[Item]:
+    """A not-understood by each role the other sends something to (``senders``: the roles
+    that send), and a time-out when the participant answers at all."""
+    items = [
+        Item(group, "not-understood", f"not-understood by the {role}")
+        for role, other in ((INITIATOR, PARTICIPANT), (PARTICIPANT, INITIATOR))
+        if other in senders
+    ]
+    if PARTICIPANT in senders:
+        items.append(Item(group, "time-out", TIME_OUT))
     return items
 
 

@@ -9,7 +9,14 @@ and raises :class:`ProtocolViolation` on a message the protocol does not allow.
 Conventions shared by all protocols (each after the FIPA specification cited):
 
 * ``not-understood`` (FIPA SC00037 §3.12) may be sent by either role in every state after
-  the first message; it ends the conversation in the final state ``not-understood``.
+  the first message that is not final; it ends the conversation in the final state
+  ``not-understood``. A protocol with no such state (a *one-message* protocol: the
+  initiator's ``inform`` ends it) has no state ``not-understood``. A not-understood that
+  answers the message which ended a conversation (a malformed final ``inform``, or the one
+  message of a one-message protocol) is outside the machine: a :class:`ConversationTracker`
+  rejects it as sent after the end, while the runtime's tracker, which the agents and
+  ``roco spec verify`` follow conversations with, takes a not-understood at any point as
+  ending the conversation.
 * The *cancel meta-protocol* (SC00026 §2, SC00027 §2, SC00028 §2, SC00029 §2, SC00030 §2,
   SC00033 §2, SC00034 §2, SC00035 §2):
   where a protocol allows it, the initiator may send ``cancel`` while the participant owes
@@ -353,7 +360,9 @@ def _build(
     initial: str = "start",
 ) -> Protocol:
     """A protocol from its edges, adding the cancel meta-protocol from the ``cancellable``
-    states and ``not-understood`` from every state but the initial one."""
+    states and ``not-understood`` from every state but the initial and the final ones (with
+    the final state ``not-understood`` only when some state has it: not in a protocol whose
+    every state after the first is final, such as one ``inform`` that nothing answers)."""
     transitions: dict[Key, str] = {}
     finals = set(final)
 
@@ -391,11 +400,13 @@ def _build(
     states = {initial} | finals
     for (source, _, _), target in [*transitions.items(), *terminal.items()]:
         states |= {source, target}
-    finals.add("not-understood")
-    for source in sorted(states - finals - {initial}):
+    answerable = sorted(states - finals - {initial})
+    for source in answerable:
         for role in _ROLES:
             add(transitions, (source, role, _P.NOT_UNDERSTOOD), "not-understood")
-    states.add("not-understood")
+    if answerable:  # a one-message protocol has no state to answer in: no such state either
+        finals.add("not-understood")
+        states.add("not-understood")
     return Protocol(
         name=name,
         states=frozenset(states),
