@@ -146,6 +146,17 @@ def _bad_deadline(words: tuple[Word, ...]) -> NotUnderstood | None:
 _RANK = {Command: 0, Stop: 0, StatusRequest: 0, Reply: 0, Ambiguous: 1, Incomplete: 2, UnknownReference: 3}
 
 
+def _within_bound(words: tuple[Word, ...]) -> tuple[Word, ...]:
+    """``words``, when there are at most :data:`MAX_READ_TOKENS`; raises :class:`NotUnderstood`
+    (one line for the person) otherwise, before any parse."""
+    if len(words) > MAX_READ_TOKENS:
+        raise NotUnderstood(
+            f"That is too long for one request ({len(words)} words and phrases, at most "
+            f"{MAX_READ_TOKENS}); say one thing at a time, e.g. {EXAMPLES[0]}."
+        )
+    return words
+
+
 def _rank(outcome: object) -> int:
     return next((r for t, r in _RANK.items() if isinstance(outcome, t)), 4)
 
@@ -251,12 +262,7 @@ def interpret(
         if question.thing is not None:
             talk.last = question.thing
         return question
-    words = rules.tag(sentence, vocab)
-    if len(words) > MAX_READ_TOKENS:
-        raise NotUnderstood(
-            f"That is too long for one request ({len(words)} words and phrases, at most "
-            f"{MAX_READ_TOKENS}); say one thing at a time, e.g. {EXAMPLES[0]}."
-        )
+    words = _within_bound(rules.tag(sentence, vocab))
     fixed = _corrected(sentence, words, priority, vocab, talk, rules)
     if fixed is None:
         return _interpret_words(sentence, words, priority, vocab, talk, rules)
