@@ -252,11 +252,20 @@ def a_replan(s: Any, path: str) -> Any:
 
 # ------------------------------------------------------------------ methods
 def m_pour_locate(s: Any, path: str, src: str, dst: str) -> Any:
-    """Where src or dst has never been seen: observe the scene, then plan again."""
+    """Where src or dst has never been seen: observe the scene as the head sees it, then look
+    at each furniture with a view point (a_km's ``roco:viewPoint``: the cabinet) and observe
+    it, then plan again. After a power cycle a_km's renewed picture holds only what the robot
+    saw from where it then stood; the kitchen's objects start in the cabinet."""
     missing = [o for o in (src, dst) if s.pose.get(o) is None]
     if not missing:
         return False
-    return [("a_perceive", f"{path}/observe_scene", "", None), ("a_replan", f"{path}/replan")]
+    viewed = sorted(n for n, o in _k(s).objects.items() if o.view_point is not None)
+    looks = [
+        step
+        for name in viewed
+        for step in (*_face(s, path, name), ("a_perceive", f"{path}/observe_{name}", "", None))
+    ]
+    return [("a_perceive", f"{path}/observe_scene", "", None), *looks, ("a_replan", f"{path}/replan")]
 
 
 def m_pour_done(s: Any, path: str, src: str, dst: str) -> Any:
