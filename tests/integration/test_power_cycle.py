@@ -4,8 +4,8 @@ robot's time from 0), then the same pour again, which succeeds: ag_ex attached t
 by itself and told a_ta, which reported it and renewed a_km's picture of the kitchen from a
 fresh observation (without the renewal a_km still knows the jar empty and the bowl full, and the
 second pour fails). The second pour is said once a_ta has renewed a_km's picture (the ``renewed``
-trigger): a pour said while the power cycle is under way (planned from the kitchen before, run
-in the new one) can still fail; docs/recovery.md says so. The kinematic version:
+trigger), as an operator would once the world is healthy again; a pour said while the power
+cycle is under way is measured in docs/recovery.md. The kinematic version:
 tests/agents/test_power_cycle.py."""
 
 from __future__ import annotations
