@@ -1,0 +1,200 @@
+"""What a_km tells one subscriber of changes of the scene (L_WM ``SceneSubscription``,
+``SceneChange``; FIPA SC00035 fipa-subscribe, a_km the participant).
+
+A :class:`Watch` holds one agreed subscription: the objects and changes of interest, what the
+subscriber was last told of each object (its *baseline*: at first what a_km knew when it
+agreed), and the changes not yet sent. After each update a_km saved, :meth:`Watch.compare`
+sets each changed object of interest against its baseline and queues a ``SceneChange`` for
+what crossed the subscription's thresholds; the baseline of what was told moves on, the rest
+stays, so that a slow drift is told once it adds up to the threshold. The queue is bounded by
+the subscription's ``queue``: past it the oldest change goes, and the next one sent says how
+many went before it (``SceneChange.dropped``). a_km sends at most :data:`BURST` queued changes
+to each subscriber per step of its ``idle`` behaviour, so a flood of changes does not hold up
+its queries.
+
+:func:`problems` says why a subscription is out of range (a_km refuses it with that reason).
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from collections import deque
+from collections.abc import Iterable
+from dataclasses import dataclass
+
+import msgspec
+
+from shared.fipa_codec.languages.common import Pose, Vec3
+from shared.fipa_codec.languages.l_wm import ObjectInfo, SceneChange, SceneSubscription
+
+MAX_SUBSCRIBERS = 8
+"""Scene subscriptions a_km serves at once (one per channel; the next one is refused)."""
+MAX_QUEUE = 256
+"""Largest ``SceneSubscription.queue`` a_km accepts (changes kept per subscriber)."""
+MAX_OBJECTS = 64
+"""Most objects one subscription may name."""
+MOVED_RANGE = (0.001, 10.0)
+"""Accepted ``SceneSubscription.moved`` (m): below a millimetre is the observation's noise;
+above the kitchen's size nothing ever moves that far."""
+TILTED_RANGE = (0.01, math.pi - 0.01)
+"""Accepted ``SceneSubscription.tilted`` (rad, from upright)."""
+BURST = 16
+"""Queued changes a_km sends each subscriber per step of its ``idle`` behaviour."""
+
+_NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_\-]*$")
+
+
+def problems(sub: SceneSubscription) -> list[str]:
+    """Why a_km cannot serve ``sub`` (empty: it can): a bound out of its range above, a
+    name that is not an individual's, or nothing of interest."""
+    out: list[str] = []
+    if sub.moved is not None and not (MOVED_RANGE[0] <= sub.moved <= MOVED_RANGE[1]):
+        out.append(f"moved must be {MOVED_RANGE[0]}..{MOVED_RANGE[1]} m, not {sub.moved}")
+    if sub.tilted is not None and not (TILTED_RANGE[0] <= sub.tilted <= TILTED_RANGE[1]):
+        out.append(f"tilted must be {TILTED_RANGE[0]}..{TILTED_RANGE[1]:.2f} rad, not {sub.tilted}")
+    if not 1 <= sub.queue <= MAX_QUEUE:
+        out.append(f"queue must be 1..{MAX_QUEUE} changes, not {sub.queue}")
+    if len(sub.objects) > MAX_OBJECTS:
+        out.append(f"at most {MAX_OBJECTS} objects, not {len(sub.objects)}")
+    bad = [name for name in sub.objects if not _NAME.match(name)]
+    if bad:
+        out.append(f"not an individual's name: {bad[0]!r}")
+    if sub.moved is None and sub.tilted is None and not sub.content and not sub.relation:
+        out.append("no change is of interest (moved, tilted, content and relation all off)")
+    return out
+
+
+@dataclass
+class _Told:
+    """What a subscriber was last told of one object (its baseline)."""
+
+    position: Vec3 | None
+    tilted: bool
+    particles: int | None
+    held_by: str
+    place: tuple[str | None, str | None]
+
+
+def _tilt(pose: Pose | None) -> float | None:
+    if pose is None:
+        return None
+    try:
+        return pose.tilt()
+    except ValueError:  # a zero quaternion: no orientation known
+        return None
+
+
+class Watch:
+    """One agreed scene subscription (module docstring): ``conversation_id`` names it,
+    ``subscription`` is what it asked for."""
+
+    def __init__(self, conversation_id: str, subscription: SceneSubscription) -> None:
+        self.conversation_id = conversation_id
+        self.subscription = subscription
+        self.objects = frozenset(subscription.objects)
+        self.told: dict[str, _Told] = {}
+        self.queue: deque[SceneChange] = deque()
+        self.dropped = 0
+        """Changes dropped since the last one queued was sent (told in the next one sent)."""
+        self.dropped_in_all = 0
+
+    def of_interest(self, name: str) -> bool:
+        """Whether the subscription is about object ``name``."""
+        return not self.objects or name in self.objects
+
+    def _told_now(self, info: ObjectInfo) -> _Told:
+        tilt = _tilt(info.pose)
+        threshold = self.subscription.tilted
+        return _Told(
+            position=info.pose.position if info.pose is not None else None,
+            tilted=tilt is not None and threshold is not None and tilt > threshold,
+            particles=info.particles,
+            held_by=info.held_by or "",
+            place=(info.location, info.relation),
+        )
+
+    def start(self, known: Iterable[ObjectInfo]) -> None:
+        """Take what a_km knows now of the objects of interest as what was told."""
+        for info in known:
+            if self.of_interest(info.name):
+                self.told[info.name] = self._told_now(info)
+
+    def compare(self, now: Iterable[ObjectInfo], stamp: float, seen_at: float | None) -> int:
+        """Queue a change for each object of interest in ``now`` (as a_km knows it after the
+        update of robot time ``stamp`` s, received by a_ta at ``seen_at``) that differs from
+        what was told past the subscription's thresholds; returns how many were queued. An
+        object never told of before is taken as told (nothing queued for it)."""
+        queued = 0
+        for info in now:
+            if not self.of_interest(info.name):
+                continue
+            told = self.told.get(info.name)
+            if told is None:
+                self.told[info.name] = self._told_now(info)
+                continue
+            change = self._change(info, told, stamp, seen_at)
+            if change is not None:
+                self._queue(change)
+                queued += 1
+        return queued
+
+    def _change(
+        self, info: ObjectInfo, told: _Told, stamp: float, seen_at: float | None
+    ) -> SceneChange | None:
+        sub, now = self.subscription, self._told_now(info)
+        changed: list[str] = []
+        distance = None
+        if sub.moved is not None and now.position is not None and told.position is not None:
+            distance = math.dist(now.position, told.position)
+            if distance > sub.moved:
+                changed.append("moved")
+                told.position = now.position
+        elif told.position is None:
+            told.position = now.position
+        if sub.tilted is not None and now.tilted != told.tilted and _tilt(info.pose) is not None:
+            changed.append("tilted" if now.tilted else "upright")
+            told.tilted = now.tilted
+        if sub.content and now.particles != told.particles and now.particles is not None:
+            changed.append("content")
+            told.particles = now.particles
+        if sub.relation:
+            if now.held_by != told.held_by:
+                changed.append("held" if now.held_by else "released")
+            if now.place != told.place and now.place[0] is not None:
+                changed.append("placed")
+            told.held_by, told.place = now.held_by, now.place
+        if not changed:
+            return None
+        return SceneChange(
+            object=info.name,
+            changed=tuple(changed),
+            stamp=stamp,
+            seen_at=seen_at,
+            pose=info.pose,
+            distance=distance if "moved" in changed else None,
+            tilt=_tilt(info.pose),
+            particles=info.particles,
+            held_by=info.held_by or "",
+            location=info.location,
+            relation=info.relation,
+        )
+
+    def _queue(self, change: SceneChange) -> None:
+        if len(self.queue) >= self.subscription.queue:
+            self.queue.popleft()
+            self.dropped += 1
+            self.dropped_in_all += 1
+        self.queue.append(change)
+
+    def due(self) -> list[SceneChange]:
+        """The next changes to send (at most :data:`BURST`, oldest first), the first saying how
+        many were dropped before it."""
+        out: list[SceneChange] = []
+        while self.queue and len(out) < BURST:
+            change = self.queue.popleft()
+            if self.dropped and not out:
+                change = msgspec.structs.replace(change, dropped=self.dropped)
+                self.dropped = 0
+            out.append(change)
+        return out
