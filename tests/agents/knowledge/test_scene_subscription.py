@@ -154,7 +154,7 @@ def test_a_subscriber_is_told_when_an_object_moves_or_tilts_and_not_otherwise(
         assert performative is Performative.AGREE
         # below the threshold, an object not of interest, and the same pose again: nothing
         peer.update(seen(2.0, at("jar", 0.83), at("bowl", 0.90)))
-        peer.update(seen(3.0, at("jar", 0.83)))
+        peer.update(seen(3.0, at("jar", 0.83), at("bowl", 0.30)))
         settled(peer)
         assert wt.nothing()
         # the drift adds up: 6 cm from what was told, though 3 cm from the last observation
