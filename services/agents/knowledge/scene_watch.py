@@ -45,24 +45,32 @@ BURST = 16
 _NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_\-]*$")
 
 
+def _out_of(value: float | None, bounds: tuple[float, float]) -> bool:
+    return value is not None and not (bounds[0] <= value <= bounds[1])
+
+
 def problems(sub: SceneSubscription) -> list[str]:
     """Why a_km cannot serve ``sub`` (empty: it can): a bound out of its range above, a
     name that is not an individual's, or nothing of interest."""
-    out: list[str] = []
-    if sub.moved is not None and not (MOVED_RANGE[0] <= sub.moved <= MOVED_RANGE[1]):
-        out.append(f"moved must be {MOVED_RANGE[0]}..{MOVED_RANGE[1]} m, not {sub.moved}")
-    if sub.tilted is not None and not (TILTED_RANGE[0] <= sub.tilted <= TILTED_RANGE[1]):
-        out.append(f"tilted must be {TILTED_RANGE[0]}..{TILTED_RANGE[1]:.2f} rad, not {sub.tilted}")
-    if not 1 <= sub.queue <= MAX_QUEUE:
-        out.append(f"queue must be 1..{MAX_QUEUE} changes, not {sub.queue}")
-    if len(sub.objects) > MAX_OBJECTS:
-        out.append(f"at most {MAX_OBJECTS} objects, not {len(sub.objects)}")
     bad = [name for name in sub.objects if not _NAME.match(name)]
-    if bad:
-        out.append(f"not an individual's name: {bad[0]!r}")
-    if sub.moved is None and sub.tilted is None and not sub.content and not sub.relation:
-        out.append("no change is of interest (moved, tilted, content and relation all off)")
-    return out
+    checks = (
+        (
+            _out_of(sub.moved, MOVED_RANGE),
+            f"moved must be {MOVED_RANGE[0]}..{MOVED_RANGE[1]} m, not {sub.moved}",
+        ),
+        (
+            _out_of(sub.tilted, TILTED_RANGE),
+            f"tilted must be {TILTED_RANGE[0]}..{TILTED_RANGE[1]:.2f} rad, not {sub.tilted}",
+        ),
+        (_out_of(sub.queue, (1, MAX_QUEUE)), f"queue must be 1..{MAX_QUEUE} changes, not {sub.queue}"),
+        (len(sub.objects) > MAX_OBJECTS, f"at most {MAX_OBJECTS} objects, not {len(sub.objects)}"),
+        (bool(bad), f"not an individual's name: {bad[0]!r}" if bad else ""),
+        (
+            sub.moved is None and sub.tilted is None and not sub.content and not sub.relation,
+            "no change is of interest (moved, tilted, content and relation all off)",
+        ),
+    )
+    return [why for failed, why in checks if failed]
 
 
 @dataclass
@@ -142,28 +150,14 @@ class Watch:
     def _change(
         self, info: ObjectInfo, told: _Told, stamp: float, seen_at: float | None
     ) -> SceneChange | None:
-        sub, now = self.subscription, self._told_now(info)
-        changed: list[str] = []
-        distance = None
-        if sub.moved is not None and now.position is not None and told.position is not None:
-            distance = math.dist(now.position, told.position)
-            if distance > sub.moved:
-                changed.append("moved")
-                told.position = now.position
-        elif told.position is None:
-            told.position = now.position
-        if sub.tilted is not None and now.tilted != told.tilted and _tilt(info.pose) is not None:
-            changed.append("tilted" if now.tilted else "upright")
-            told.tilted = now.tilted
-        if sub.content and now.particles != told.particles and now.particles is not None:
-            changed.append("content")
-            told.particles = now.particles
-        if sub.relation:
-            if now.held_by != told.held_by:
-                changed.append("held" if now.held_by else "released")
-            if now.place != told.place and now.place[0] is not None:
-                changed.append("placed")
-            told.held_by, told.place = now.held_by, now.place
+        now = self._told_now(info)
+        distance = self._distance(now, told)
+        changed = [
+            *self._moved(now, told, distance),
+            *self._tilted(info, now, told),
+            *self._content(now, told),
+            *self._relation(now, told),
+        ]
         if not changed:
             return None
         return SceneChange(
@@ -179,6 +173,45 @@ class Watch:
             location=info.location,
             relation=info.relation,
         )
+
+    # each aspect: what changed of it since ``told``, which then takes what is told of it now
+    @staticmethod
+    def _distance(now: _Told, told: _Told) -> float | None:
+        if now.position is None or told.position is None:
+            return None
+        return math.dist(now.position, told.position)
+
+    def _moved(self, now: _Told, told: _Told, distance: float | None) -> list[str]:
+        if told.position is None:  # its first position: taken as told
+            told.position = now.position
+            return []
+        if self.subscription.moved is None or distance is None or distance <= self.subscription.moved:
+            return []
+        told.position = now.position
+        return ["moved"]
+
+    def _tilted(self, info: ObjectInfo, now: _Told, told: _Told) -> list[str]:
+        if self.subscription.tilted is None or now.tilted == told.tilted or _tilt(info.pose) is None:
+            return []
+        told.tilted = now.tilted
+        return ["tilted" if now.tilted else "upright"]
+
+    def _content(self, now: _Told, told: _Told) -> list[str]:
+        if not self.subscription.content or now.particles is None or now.particles == told.particles:
+            return []
+        told.particles = now.particles
+        return ["content"]
+
+    def _relation(self, now: _Told, told: _Told) -> list[str]:
+        if not self.subscription.relation:
+            return []
+        changed = []
+        if now.held_by != told.held_by:
+            changed.append("held" if now.held_by else "released")
+        if now.place != told.place and now.place[0] is not None:
+            changed.append("placed")
+        told.held_by, told.place = now.held_by, now.place
+        return changed
 
     def _queue(self, change: SceneChange) -> None:
         if len(self.queue) >= self.subscription.queue:
