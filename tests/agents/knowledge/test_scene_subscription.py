@@ -174,9 +174,20 @@ def test_a_subscriber_is_told_when_an_object_moves_or_tilts_and_not_otherwise(
         peer.update(WorldUpdate(stamp=-1.0, objects=(ObjectUpdate(name="jar", held_by="right_gripper"),)))
         held = wt.change()
         assert held.changed == ("held",) and held.held_by == "right_gripper" and held.seen_at is None
+        # put on the table; then some of its content poured out
+        put = ObjectUpdate(name="jar", held_by="", location="table", relation="on")
+        peer.update(WorldUpdate(stamp=-1.0, objects=(put,)))
+        placed = wt.change()
+        assert placed.changed == ("released", "placed") and (placed.location, placed.relation) == (
+            "table",
+            "on",
+        )
+        peer.update(seen(7.0, ObjectUpdate(name="jar", particles=37)))
+        poured = wt.change()
+        assert poured.changed == ("content",) and poured.particles == 37 and poured.stamp == 7.0
         settled(peer)
         assert wt.nothing()
-        assert km.counters["scene_changes"] == 4
+        assert km.counters["scene_changes"] == 6
 
 
 def test_a_malformed_or_out_of_range_subscription_is_refused_with_the_reason(
