@@ -178,10 +178,8 @@ def test_a_subscriber_is_told_when_an_object_moves_or_tilts_and_not_otherwise(
         put = ObjectUpdate(name="jar", held_by="", location="table", relation="on")
         peer.update(WorldUpdate(stamp=-1.0, objects=(put,)))
         placed = wt.change()
-        assert placed.changed == ("released", "placed") and (placed.location, placed.relation) == (
-            "table",
-            "on",
-        )
+        assert placed.changed == ("released", "placed")
+        assert (placed.location, placed.relation) == ("table", "on")
         peer.update(seen(7.0, ObjectUpdate(name="jar", particles=37)))
         poured = wt.change()
         assert poured.changed == ("content",) and poured.particles == 37 and poured.stamp == 7.0
