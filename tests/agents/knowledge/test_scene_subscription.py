@@ -33,6 +33,7 @@ from shared.fipa_codec.languages.l_wm import (
     Subscription,
     WorldUpdate,
 )
+from tests.agents.knowledge.scene_watcher import Watcher
 from tests.agents.knowledge.test_agent import Peer
 from tests.spec_check.walkthrough import GROUP_EDIT, snippet, staged
 
@@ -111,11 +112,11 @@ class Subscriber:
 
 @contextmanager
 def running_km(
-    spec: SystemSpec, monkeypatch: pytest.MonkeyPatch
+    spec: SystemSpec, monkeypatch: pytest.MonkeyPatch, bus: MemoryBus | None = None
 ) -> Iterator[tuple[KnowledgeManager, MemoryBus]]:
     monkeypatch.delenv("ROCO_KM_STORE", raising=False)
     monkeypatch.delenv("ROCO_RUN_DIR", raising=False)
-    bus = MemoryBus()
+    bus = bus or MemoryBus()
     km = KnowledgeManager(bus.transport(), spec)
     km.bind()
     thread = threading.Thread(target=km.run, name="a_km", daemon=True)
@@ -283,3 +284,30 @@ def test_at_most_n_subscribers_and_one_per_channel(tmp_path: Path, monkeypatch: 
         assert hi.next()[0] is Performative.INFORM
         assert wt.subscribe(SceneSubscription(), "w2")[0] is Performative.AGREE
         assert list(km.watches) == ["C9"]
+
+
+def test_a_restarted_km_serves_the_subscription_the_subscriber_makes_again(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """a_km keeps no scene subscription across a restart: the subscriber's role subscribes
+    again (a new attempt) when a_km's token reappears, and the changes go on."""
+    spec = watcher_spec(tmp_path)
+    bus = MemoryBus()
+    watcher = Watcher(bus.transport(), spec)
+    watcher.bind()
+    thread = threading.Thread(target=watcher.run, name="a_wt", daemon=True)
+    thread.start()
+    try:
+        for stamp, attempt in ((1.0, "wt-scene"), (10.0, "wt-scene-2")):  # a_km, then restarted
+            with running_km(spec, monkeypatch, bus) as (km, _):
+                assert watcher.agreed.get(timeout=TIMEOUT_S) == attempt
+                peer = Peer(bus)
+                peer.update(seen(stamp, at("jar", 0.80)))
+                peer.update(seen(stamp + 1.0, at("jar", 0.60)))
+                change = watcher.changes.get(timeout=TIMEOUT_S)
+                assert change.object == "jar" and change.changed == ("moved",) and change.stamp == stamp + 1.0
+                assert list(km.watches) == ["C9"]
+            km.transport.close()  # its liveliness token goes, as when its process ends
+    finally:
+        watcher.stop()
+        thread.join(timeout=TIMEOUT_S)
