@@ -156,7 +156,7 @@ class KnowledgeManager(Agent):
                     "idle",
                     self._idle,
                     terminal=lambda: self.current is not None,
-                    doc="await a query or an observation",
+                    doc="await a query or an observation; send the queued changes of the scene",
                 ),
                 Behaviour(
                     "questionAnswering",
