@@ -35,8 +35,7 @@ MAX_QUEUE = 256
 MAX_OBJECTS = 64
 """Most objects one subscription may name."""
 MOVED_RANGE = (0.001, 10.0)
-"""Accepted ``SceneSubscription.moved`` (m): below a millimetre is the observation's noise;
-above the kitchen's size nothing ever moves that far."""
+"""Accepted ``SceneSubscription.moved`` (m): from a millimetre to well past the kitchen's size."""
 TILTED_RANGE = (0.01, math.pi - 0.01)
 """Accepted ``SceneSubscription.tilted`` (rad, from upright)."""
 BURST = 16
