@@ -36,9 +36,9 @@ class Channel(enum.StrEnum):
     """Between a_ta and a_km (fipa-subscribe, fipa-query): knowledge needed by a_ta and updates
     of the environment model."""
     C7 = "C7"
-    """Between a_hi and a_km (fipa-query): the words for the kitchen's things and where they are
-    (a_hi's vocabulary), and what a_km knows of them for a person's questions (contents,
-    places, when a_ta last saw them)."""
+    """Between a_hi and a_km (fipa-query, fipa-subscribe): the words for the kitchen's things and
+    where they are (a_hi's vocabulary), and what a_km knows of them for a person's questions
+    (contents, places, when a_ta last saw them)."""
     C8 = "C8"
     """Between x_fipa and a_hi (fipa-request): sentences from agents of other FIPA platforms
     (through roco gateway) and their outcome."""
@@ -53,7 +53,7 @@ class ProtocolName(enum.StrEnum):
     FIPA_QUERY = "fipa-query"
     """FIPA SC00027; on C2, C4, C6, C7."""
     FIPA_SUBSCRIBE = "fipa-subscribe"
-    """FIPA SC00035; on C2, C5, C6."""
+    """FIPA SC00035; on C2, C5, C6, C7."""
     COORDINATE = "coordinate"
     """paper §5.4, Figure 8; on C1."""
 

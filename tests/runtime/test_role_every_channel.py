@@ -28,17 +28,19 @@ SPEC = default_spec()
 SUBSCRIBE = initiator(
     "C6", "fipa-subscribe", "L_WM", reply_by_s=2.0, resubscribes=True
 )  # as a_km declares it
+SCENE = participant(EVERY_CHANNEL, "fipa-subscribe", "L_WM")  # a_km's changes of the scene
 HANDLERS = list(handlers_of(KnowledgeManager))
 
 
 def test_a_role_for_every_channel_stands_for_each_channel_the_spec_gives_it_in_order() -> None:
-    declared = [participant(EVERY_CHANNEL, "fipa-query", "L_WM"), SUBSCRIBE]
+    declared = [participant(EVERY_CHANNEL, "fipa-query", "L_WM"), SUBSCRIBE, SCENE]
     roles = expand_roles(SPEC, "a_km", declared)
     assert [(r.channel, r.protocol, r.role, r.languages) for r in roles] == [
         ("C4", "fipa-query", "participant", ("L_WM",)),
         ("C6", "fipa-query", "participant", ("L_WM",)),
         ("C7", "fipa-query", "participant", ("L_WM",)),
         ("C6", "fipa-subscribe", "initiator", ("L_WM",)),
+        ("C7", "fipa-subscribe", "participant", ("L_WM",)),
     ]
     assert role_problems(SPEC, "a_km", declared, HANDLERS) == []
     # a channel declared by itself is left to that declaration (its own deadline here)
@@ -50,7 +52,7 @@ def test_a_role_for_every_channel_stands_for_each_channel_the_spec_gives_it_in_o
 def test_it_is_as_strict_as_roles_declared_one_by_one() -> None:
     # other languages: it stands for no channel, and each channel's role is missing
     problems = role_problems(
-        SPEC, "a_km", [participant(EVERY_CHANNEL, "fipa-query", "L_HC"), SUBSCRIBE], HANDLERS
+        SPEC, "a_km", [participant(EVERY_CHANNEL, "fipa-query", "L_HC"), SUBSCRIBE, SCENE], HANDLERS
     )
     assert problems[0] == (
         "agent a_km declares itself participant of fipa-query on every channel (L_HC), but no "
@@ -62,17 +64,17 @@ def test_it_is_as_strict_as_roles_declared_one_by_one() -> None:
     )
     # the other role of the protocol
     problems = role_problems(
-        SPEC, "a_km", [initiator(EVERY_CHANNEL, "fipa-query", "L_WM"), SUBSCRIBE], HANDLERS
+        SPEC, "a_km", [initiator(EVERY_CHANNEL, "fipa-query", "L_WM"), SUBSCRIBE, SCENE], HANDLERS
     )
     assert any("no [[channels]] entry makes it the initiator of fipa-query in L_WM" in p for p in problems)
     # twice, and a role for every channel whose channels are all declared by themselves
     every = participant(EVERY_CHANNEL, "fipa-query", "L_WM")
     assert "agent a_km declares participant of fipa-query on every channel (L_WM) twice" in role_problems(
-        SPEC, "a_km", [every, every, SUBSCRIBE], HANDLERS
+        SPEC, "a_km", [every, every, SUBSCRIBE, SCENE], HANDLERS
     )
     each = [participant(c, "fipa-query", "L_WM") for c in ("C4", "C6", "C7")]
-    assert role_problems(SPEC, "a_km", [*each, SUBSCRIBE], HANDLERS) == []
-    assert role_problems(SPEC, "a_km", [every, *each, SUBSCRIBE], HANDLERS) == [
+    assert role_problems(SPEC, "a_km", [*each, SUBSCRIBE, SCENE], HANDLERS) == []
+    assert role_problems(SPEC, "a_km", [every, *each, SUBSCRIBE, SCENE], HANDLERS) == [
         "agent a_km declares itself participant of fipa-query on every channel (L_WM), but declares each "
         "such channel (C4, C6, C7) by itself: the role on every channel covers none"
     ]
@@ -81,7 +83,7 @@ def test_it_is_as_strict_as_roles_declared_one_by_one() -> None:
 def test_a_channel_with_other_languages_is_not_covered(tmp_path: Path) -> None:
     text = DEFAULT_SPEC.read_text()
     c7 = text[text.index('name = "C7"') :]
-    c7 = c7[: c7.index("[[channels]]")]
+    c7 = c7[: c7.index("[[channels.protocols]]", c7.index("protocol = "))]  # its fipa-query
     path = tmp_path / "spec.toml"
     path.write_text(
         text.replace(c7, c7.replace('"L_WM"', '"L_HC"').replace('["SparqlQuery"]', '["StatusQuery"]'))
@@ -114,7 +116,7 @@ def test_a_km_serves_a_new_channel_of_the_walkthrough_without_an_edit(tmp_path: 
         km.close()
 
     class NamedChannels(KnowledgeManager):
-        ROLES = (*(participant(c, "fipa-query", "L_WM") for c in ("C4", "C6", "C7")), SUBSCRIBE)  # type: ignore[assignment]
+        ROLES = (*(participant(c, "fipa-query", "L_WM") for c in ("C4", "C6", "C7")), SUBSCRIBE, SCENE)  # type: ignore[assignment]
 
     with pytest.raises(RoleMismatch, match="declares no participant role for fipa-query on C9"):
         NamedChannels(MemoryBus().transport(), spec)

@@ -222,7 +222,7 @@ def test_verify_code_passes_on_the_shipped_agents() -> None:
         "  C4 fipa-query participant with a_pl in L_WM (declared for every channel): receives cancel, "
         "query-if, query-ref"
     ) in text
-    assert "a_km: 4 files; 4 protocol roles agree with the specification:" in text
+    assert "a_km: 5 files; 5 protocol roles agree with the specification:" in text
 
 
 def test_verify_code_reports_an_implementation_that_does_not_exist(tmp_path: Path) -> None:

@@ -193,6 +193,7 @@ class HumanInterface(AskingKnowledge):
         initiator(C2, FIPA_SUBSCRIBE, L_HC, reply_by_s=SUBSCRIBE_REPLY_BY_S, resubscribes=True),
         initiator(C2, FIPA_QUERY, L_HC, reply_by_s=STATUS_REPLY_BY_S),
         initiator(C7, FIPA_QUERY, L_WM, reply_by_s=VOCABULARY_REPLY_BY_S),
+        initiator(C7, FIPA_SUBSCRIBE, L_WM, unused=True),  # changes of the scene: a_km serves them
         participant(C8, FIPA_REQUEST, L_HC),
     )
 

@@ -23,6 +23,18 @@ agreeing to the new subscription (a_ta answers every new subscription with its l
 changes and a fresh observation), at most ``HOLD_QUERIES_S``; then it answers them in the order
 they came. A start with no kept knowledge answers at once.
 
+Changes of the scene (L_WM ``SceneSubscription``, ``SceneChange``): a_km serves fipa-subscribe
+(FIPA SC00035) as the participant on every channel where the specification makes it that, one
+subscription per channel (a later one on the same channel replaces the earlier), at most
+:data:`~services.agents.knowledge.scene_watch.MAX_SUBSCRIBERS` at once. A subscription out of
+range is refused with the reason; an agreed one is informed of each change of an object of
+interest it learns from a_ta's updates (C6) past the subscription's thresholds
+(services/agents/knowledge/scene_watch.py: what is compared, the bounded queue). A ``cancel``
+or ``not-understood`` ends it (services/runtime/served.py). Scene subscriptions are not kept
+across a restart of a_km: the subscriber subscribes again when a_km's token reappears, as a_km
+does with a_ta (an initiator role declared ``resubscribes``, ``while_away=False``:
+services/runtime/subscriptions.py); what it was told starts again from a_km's knowledge then.
+
 The knowledge persists across restarts of a_km (see :mod:`services.agents.knowledge.world_model`):
 the store is the directory ``ROCO_KM_STORE``; when that is unset, ``<ROCO_RUN_DIR>/km_store``;
 when neither is set, the knowledge is kept in memory only. :meth:`KnowledgeManager.close`
@@ -36,6 +48,8 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
+from services.agents.knowledge import scene_watch
+from services.agents.knowledge.scene_watch import Watch
 from services.agents.knowledge.world_model import KnowledgeError, UnsupportedQuery, WorldModel
 from services.runtime.agent import Agent
 from services.runtime.behaviour import FSM, Arc, Behaviour
@@ -48,16 +62,20 @@ from services.runtime.roles import (
     initiator,
     participant,
 )
+from services.runtime.served import ServedSubscription
 from services.runtime.subscriptions import StandingSubscription
 from services.spec.names import C6, FIPA_QUERY, FIPA_SUBSCRIBE, L_WM
 from shared.fipa_codec import Performative
 from shared.fipa_codec.languages.l_wm import (
     GraspQuery,
     HypotheticalQuery,
+    ObjectInfo,
     ObjectQuery,
     PlacementQuery,
     PourQuery,
+    SceneChange,
     SceneQuery,
+    SceneSubscription,
     SparqlQuery,
     Subscription,
     WorldUpdate,
@@ -97,6 +115,8 @@ class KnowledgeManager(Agent):
     ROLES = (
         # every channel that asks a_km L_WM queries (C4, C6, C7, and any the specification adds)
         participant(EVERY_CHANNEL, FIPA_QUERY, L_WM),
+        # every channel that subscribes to changes of the scene (any the specification adds)
+        participant(EVERY_CHANNEL, FIPA_SUBSCRIBE, L_WM),
         initiator(C6, FIPA_SUBSCRIBE, L_WM, reply_by_s=SUBSCRIBE_RETRY_S, resubscribes=True),
     )
 
@@ -114,13 +134,29 @@ class KnowledgeManager(Agent):
         self.current: Query | WorldUpdate | None = None
         self.held: deque[Query] = deque()  # queries waiting for the first observation
         self.hold_until: float | None = self.sources.monotonic() + HOLD_QUERIES_S if self.world.kept else None
+        # changes of the scene, served on every channel that subscribes to them: one stream per
+        # channel; a_km informs only an agreed subscription, so nothing is kept while none is
+        self.scene_streams: dict[str, ServedSubscription[SceneChange]] = {
+            decl.channel: self.roles.serve(
+                decl.channel,
+                FIPA_SUBSCRIBE,
+                unsent=list,
+                about=lambda change: change.object,
+                kept_each=1,
+                kept_in_all=1,
+                dropped="scene_changes_dropped",
+            )
+            for decl in self.roles.declared
+            if decl.protocol == FIPA_SUBSCRIBE and decl.role == PARTICIPANT
+        }
+        self.watches: dict[str, Watch] = {}  # the agreed scene subscription of each channel
         return FSM(
             [
                 Behaviour(
                     "idle",
                     self._idle,
                     terminal=lambda: self.current is not None,
-                    doc="await a query or an observation",
+                    doc="await a query or an observation; send the queued changes of the scene",
                 ),
                 Behaviour(
                     "questionAnswering",
@@ -188,6 +224,82 @@ class KnowledgeManager(Agent):
                     return
         conv.refuse_with(Performative.FAILURE, "nothing to cancel: the query was already answered")
 
+    # ---- changes of the scene (fipa-subscribe, participant) --------------------------------
+    @handles(FIPA_SUBSCRIBE, PARTICIPANT, Performative.SUBSCRIBE)
+    def _on_scene_subscribe(self, conv: Conversation) -> None:
+        sub = conv.content
+        channel = conv.decl.channel
+        if not isinstance(sub, SceneSubscription):
+            what = type(sub).__name__ if sub is not None else "no content"
+            conv.refuse_with(Performative.REFUSE, f"not a SceneSubscription: {what}")
+            return
+        why = scene_watch.problems(sub)
+        others = [c for c in self._watching() if c != channel]
+        if not why and len(others) >= scene_watch.MAX_SUBSCRIBERS:
+            why = [f"a_km serves at most {scene_watch.MAX_SUBSCRIBERS} scene subscriptions at once"]
+        if why:
+            self.log.info("refused the scene subscription of %s: %s", conv.peer, "; ".join(why))
+            conv.refuse_with(Performative.REFUSE, "; ".join(why))
+            return
+        watch = Watch(conv.conversation_id, sub)
+        watch.start(self._known(None if not sub.objects else sub.objects))
+        self.watches[channel] = watch
+        self.scene_streams[channel].agree(conv)
+        self.log.info(
+            "%s subscribed to changes of %s (%s)",
+            conv.peer,
+            ", ".join(sub.objects) or "the scene",
+            conv.conversation_id,
+        )
+
+    def _watching(self) -> dict[str, Watch]:
+        """The agreed scene subscriptions still open, by channel (an ended one is forgotten)."""
+        for channel, watch in list(self.watches.items()):
+            conv = self.scene_streams[channel].conversation
+            if conv is None or conv.conversation_id != watch.conversation_id:
+                del self.watches[channel]
+                self.log.info("the scene subscription %s on %s ended", watch.conversation_id, channel)
+        return self.watches
+
+    def _known(self, names: tuple[str, ...] | list[str] | None) -> list[ObjectInfo]:
+        """What a_km knows of the objects ``names`` (None: every physical object); an object it
+        knows nothing of is left out."""
+        out: list[ObjectInfo] = []
+        for name in self.world.physical_objects() if names is None else names:
+            try:
+                out.append(self.world.object_info(name))
+            except KnowledgeError:
+                continue
+        return out
+
+    def _tell_changes(self, update: WorldUpdate) -> None:
+        """Queue, for every scene subscription, the changes ``update`` (just saved) made."""
+        watches = self._watching()
+        if not watches:
+            return
+        names = None if update.renews else sorted({o.name for o in update.objects})
+        now = self._known(names)
+        for watch in watches.values():
+            before = watch.dropped_in_all
+            watch.compare(now, update.stamp, update.seen_at)
+            if watch.dropped_in_all > before:
+                self.counters["scene_changes_dropped"] += watch.dropped_in_all - before
+                if before == 0:
+                    self.log.warning(
+                        "scene subscription %s: changes came faster than they were sent, the "
+                        "oldest dropped (at most %d kept)",
+                        watch.conversation_id,
+                        watch.subscription.queue,
+                    )
+
+    def _send_changes(self) -> None:
+        """Send each scene subscription its next queued changes (at most
+        :data:`~services.agents.knowledge.scene_watch.BURST` each)."""
+        for channel, watch in self._watching().items():
+            for change in watch.due():
+                self.scene_streams[channel].inform(change)
+                self.counters["scene_changes"] += 1
+
     def _take_query(self, query: Query) -> None:
         if self._holding():
             if not self.held:
@@ -216,6 +328,7 @@ class KnowledgeManager(Agent):
     # ---- the behaviours ---------------------------------------------------------------------
     def _idle(self) -> None:
         self.current = None
+        self._send_changes()
         if self.held and not self._holding():
             self.current = self.held.popleft()
             return
@@ -269,6 +382,7 @@ class KnowledgeManager(Agent):
         self.counters["unstamped_poses"] = self.world.unstamped_poses
         self.counters["rejected_changes"] = self.world.rejected_changes
         self.log.info("saved %d object updates (t=%.2f)", n, update.stamp)
+        self._tell_changes(update)
         if self.hold_until is not None and update.stamp >= 0:  # an observation
             self.hold_until = None
             if self.held:

@@ -1,7 +1,9 @@
 """L_WM: world-model queries, answers and updates over ontology O_RoCo (C4 and C6).
 
 Queries travel in ``query-ref`` (a_pl → a_km, a_ta → a_km), answers in ``inform-ref``-style
-``inform`` replies; updates travel in the ``fipa-subscribe`` conversation a_km opens with a_ta.
+``inform`` replies; updates travel in the ``fipa-subscribe`` conversation a_km opens with a_ta;
+changes of the scene in a ``fipa-subscribe`` any agent may open with a_km (``SceneSubscription``,
+``SceneChange``).
 Lengths in metres, poses in the world frame, stamps in simulation seconds.
 """
 
@@ -265,6 +267,53 @@ class WorldUpdate(msgspec.Struct, frozen=True, tag="update", kw_only=True):
     seen_at: Annotated[float, CLOCK] | None = None
 
 
+class SceneSubscription(msgspec.Struct, frozen=True, tag="scene_subscription", kw_only=True):
+    """A fipa-subscribe (FIPA SC00035) to a_km for changes of the scene, on any channel where
+    the specification makes a_km its participant. ``objects``: the individuals of interest
+    (empty: every physical object). What counts as a change, each measured from what the
+    subscriber was last told of that object (at first: what a_km knew when it agreed):
+    ``moved`` (m), the object's position moved farther than this (None: not of interest);
+    ``tilted`` (rad), the object's up axis crossed this angle from upright, either way (an
+    object knocked over, or stood up again; None: not of interest); ``content``, its count of
+    particles changed; ``relation``, who holds it or where it stands (in/on) changed.
+    ``queue``: the changes a_km keeps for this subscriber before it drops the oldest (the
+    bounds a_km accepts: services/agents/knowledge/scene_watch.py)."""
+
+    objects: tuple[str, ...] = ()
+    moved: float | None = 0.05
+    tilted: float | None = 0.5
+    content: bool = True
+    relation: bool = True
+    queue: int = 64
+
+
+class SceneChange(msgspec.Struct, frozen=True, tag="scene_change", kw_only=True, omit_defaults=True):
+    """A change of one object that matches a :class:`SceneSubscription`, in an ``inform`` of
+    that subscription. ``changed``: what changed, each of ``moved``, ``tilted`` (its up axis
+    now farther than the subscription's angle from upright), ``upright`` (back within it),
+    ``content``, ``held`` (a hand took it), ``released``, ``placed`` (it now stands in/on
+    ``location``). ``stamp``: the robot's time (simulation s) of the update a_km learnt it
+    from (a_ta's C6 inform; < 0: an asserted change, not an observation); ``seen_at``: when a_ta
+    received that observation (its wall clock, POSIX s; None for asserted changes). The
+    object as it is now: ``pose`` (world, m), its ``tilt`` (rad from upright), ``particles``,
+    ``held_by`` ("" when no hand holds it), ``location`` with ``relation``; ``distance`` (m):
+    how far it moved from the position last told. ``dropped``: changes for this subscriber
+    a_km dropped (its queue was full) just before this one."""
+
+    object: str
+    changed: tuple[str, ...]
+    stamp: float
+    seen_at: Annotated[float, CLOCK] | None = None
+    pose: Pose | None = None
+    distance: float | None = None
+    tilt: float | None = None
+    particles: int | None = None
+    held_by: str | None = None
+    location: str | None = None
+    relation: str | None = None
+    dropped: int = 0
+
+
 L_WM = register(
     Language(
         "L_WM",
@@ -280,6 +329,8 @@ L_WM = register(
             Subscription,
             Answer,
             WorldUpdate,
+            SceneSubscription,
+            SceneChange,
         ),
     )
 )
