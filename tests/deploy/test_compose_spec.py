@@ -29,7 +29,7 @@ from services.deploy.compose import (
     render,
 )
 from services.spec.model import DEFAULT_SPEC, AgentSpec, SpecError, default_spec, load
-from tests.spec_check.walkthrough import GROUP_EDIT, snippet, staged
+from tests.spec_check.walkthrough import walkthrough_spec
 
 yaml = pytest.importorskip("yaml", reason="PyYAML reads the compose file: pip install -e '.[dev]'")
 
@@ -145,15 +145,8 @@ def test_the_other_services_keep_their_settings() -> None:
         assert services[name]["build"]["target"] == "runtime"
 
 
-def walkthrough_spec(tmp_path: Path) -> Path:
-    """The shipped specification with docs/spec.md's new agent a_wt (stages 1 and 2)."""
-    path = tmp_path / "spec.toml"
-    path.write_text(staged(DEFAULT_SPEC.read_text(), snippet(1), snippet(2), edits=GROUP_EDIT))
-    return path
-
-
 def test_a_new_agent_gets_a_service_and_the_last_agent_waits_for_it(tmp_path: Path) -> None:
-    spec = load(walkthrough_spec(tmp_path))
+    spec = load(walkthrough_spec(tmp_path / "spec.toml"))  # docs/spec.md's new agent a_wt
     assert spec.launch_order[-1] == "a_wt" and last_started(spec) == "a_hi"
     services = config(render(spec))["services"]
     assert list(services) == ["certs", "router", "recorder", "world", *AGENTS, "a_wt", "viewer"]
@@ -172,7 +165,7 @@ def test_a_new_agent_gets_a_service_and_the_last_agent_waits_for_it(tmp_path: Pa
 
 
 def test_roco_deploy_compose_writes_and_checks_the_file(tmp_path: Path) -> None:
-    spec_file = walkthrough_spec(tmp_path)
+    spec_file = walkthrough_spec(tmp_path / "spec.toml")
     target = tmp_path / "compose.yaml"
     target.write_text(COMPOSE_FILE.read_text())
     args = ["--file", str(target), "--spec", str(spec_file)]

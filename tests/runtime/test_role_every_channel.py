@@ -22,7 +22,7 @@ from services.runtime.roles import (
     role_problems,
 )
 from services.spec.model import DEFAULT_SPEC, default_spec, load
-from tests.spec_check.walkthrough import GROUP_EDIT, snippet, staged
+from tests.spec_check.walkthrough import NEXT, walkthrough_spec
 
 SPEC = default_spec()
 SUBSCRIBE = initiator(
@@ -95,26 +95,26 @@ def test_a_channel_with_other_languages_is_not_covered(tmp_path: Path) -> None:
 
 
 def test_a_km_serves_a_new_channel_of_the_walkthrough_without_an_edit(tmp_path: Path) -> None:
-    """docs/spec.md's walk-through adds C9 (fipa-query from a_wt): a_km starts on that
-    specification and plays the participant there; an a_km that named its channels one by one
-    refuses to start, naming C9."""
-    path = tmp_path / "spec.toml"
-    path.write_text(staged(DEFAULT_SPEC.read_text(), snippet(1), snippet(2), edits=GROUP_EDIT))
-    spec = load(path)
+    """docs/spec.md's walk-through adds a channel (C9 in the shipped specification; fipa-query
+    from a_wt): a_km starts on that specification and plays the participant there; an a_km
+    that named its channels one by one refuses to start, naming the new one."""
+    new = NEXT.channel_name
+    spec = load(walkthrough_spec(tmp_path / "spec.toml"))
+    queried = [
+        c.name
+        for c in spec.channels
+        if "a_km" in c.ends and any(p.protocol == "fipa-query" for p in c.protocols)
+    ]
     km = KnowledgeManager(MemoryBus().transport(), spec)
     try:
-        assert km.roles.role("C9", "fipa-query").role == "participant"
-        assert [d.channel for d in km.roles.declared if d.protocol == "fipa-query"] == [
-            "C4",
-            "C6",
-            "C7",
-            "C9",
-        ]
+        assert km.roles.role(new, "fipa-query").role == "participant"
+        assert [d.channel for d in km.roles.declared if d.protocol == "fipa-query"] == queried
+        assert {"C4", "C6", "C7"} < set(queried) and queried[-1] == new
     finally:
         km.close()
 
     class NamedChannels(KnowledgeManager):
-        ROLES = (*(participant(c, "fipa-query", "L_WM") for c in ("C4", "C6", "C7")), SUBSCRIBE)  # type: ignore[assignment]
+        ROLES = (*(participant(c, "fipa-query", "L_WM") for c in queried if c != new), SUBSCRIBE)  # type: ignore[assignment]
 
-    with pytest.raises(RoleMismatch, match="declares no participant role for fipa-query on C9"):
+    with pytest.raises(RoleMismatch, match=f"declares no participant role for fipa-query on {new},"):
         NamedChannels(MemoryBus().transport(), spec)
