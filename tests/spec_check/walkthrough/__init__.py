@@ -32,11 +32,13 @@ IMPORTS = (
 
 @dataclass(frozen=True)
 class Numbers:
-    """A top-level requirement id (``R4``), a decomposition step number and a channel number."""
+    """A top-level requirement id (``R4``), a decomposition step number and a channel number,
+    and the group a_km substitutes (the new channel's other end)."""
 
     requirement: str
     step: int
     channel: int
+    km_group: str = "km"
 
     @property
     def channel_name(self) -> str:
@@ -44,21 +46,22 @@ class Numbers:
         return f"C{self.channel}"
 
 
-AS_WRITTEN = Numbers("R4", 9, 9)
-"""The numbers the document's snippets carry."""
+AS_WRITTEN = Numbers("R4", 9, 9, "km")
+"""The numbers (and a_km's group) the document's snippets carry."""
 
 
 def free_numbers(spec_text: str) -> Numbers:
     """The next free top-level requirement (``R<n>``), step and channel numbers of a
     specification's text (one past the largest of each; a channel's number from the steps'
-    ``new_channels`` and the ``[[channels]]`` names)."""
+    ``new_channels`` and the ``[[channels]]`` names), and the group a_km substitutes there."""
     data = tomllib.loads(spec_text)
     tops = [int(m[1]) for r in data.get("requirements", []) if (m := re.fullmatch(r"R(\d+)", r["id"]))]
     steps = [int(s["number"]) for s in data.get("steps", [])]
     made = [int(c["number"]) for s in data.get("steps", []) for c in s.get("new_channels", [])]
     named = [int(m[1]) for c in data.get("channels", []) if (m := re.fullmatch(r"C(\d+)", c["name"]))]
     top, step, channel = (max(numbers, default=0) + 1 for numbers in (tops, steps, made + named))
-    return Numbers(f"R{top}", step, channel)
+    km_group = next(a["group"] for a in data.get("agents", []) if a["name"] == "a_km")
+    return Numbers(f"R{top}", step, channel, km_group)
 
 
 NEXT = free_numbers(DEFAULT_SPEC.read_text())
@@ -67,8 +70,10 @@ NEXT = free_numbers(DEFAULT_SPEC.read_text())
 
 def renumbered(text: str, to: Numbers) -> str:
     """A snippet's ``text`` with :data:`AS_WRITTEN`'s requirement, step and channel numbers
-    replaced by ``to``'s (the steps' other channel numbers, as in ``reallocated``, are kept)."""
+    replaced by ``to``'s (the steps' other channel numbers, as in ``reallocated``, are kept), and
+    the new channel's end at a_km's group by ``to``'s."""
     was = AS_WRITTEN
+    text = text.replace(f'ends = ["wt", "{was.km_group}"]', f'ends = ["wt", "{to.km_group}"]')
     text = text.replace(f'"{was.requirement}"', f'"{to.requirement}"')
     text = re.sub(rf"(?m)^number = {was.step}$", f"number = {to.step}", text)
     text = text.replace(f"{{ number = {was.channel}, ends", f"{{ number = {to.channel}, ends")
