@@ -27,7 +27,20 @@ from services.spec_check.code_check import verify_code_report
 from services.spec_check.new_agent import write_agent
 from shared.fipa_codec.languages.common import Pose
 from shared.fipa_codec.languages.l_wm import ObjectInfo
-from tests.spec_check.walkthrough import GROUP_EDIT, MODULE, NEXT, ROOT, fill, snippet, staged
+from tests.spec_check.walkthrough import (
+    AS_WRITTEN,
+    GROUP_EDIT,
+    MODULE,
+    NEXT,
+    ROOT,
+    Numbers,
+    fill,
+    free_numbers,
+    renumbered,
+    snippet,
+    staged,
+    walkthrough_spec,
+)
 from tests.support.spec_names import use_names
 
 HANDLERS = ("_on_failure", "_on_inform", "_on_inform_ref", "_on_refuse")
@@ -179,3 +192,17 @@ def test_stage_3_the_finished_agent_conforms_and_a_km_answers_it_as_it_is(
     )
     assert moved(here, ObjectInfo(name="jar", type="Jar", pose=Pose((0.52, 0.0, 0.9)), location="cabinet"))
     assert moved(here, ObjectInfo(name="jar", type="Jar", pose=Pose((0.5, 0.0, 0.9)), held_by="left_hand"))
+
+
+def test_the_walkthrough_takes_the_next_free_numbers_of_what_it_grows(tmp_path: Path) -> None:
+    """Grown by the walk-through, a specification's next free numbers are one past its own."""
+    grown = walkthrough_spec(tmp_path / "spec.toml").read_text()
+    assert f'id = "{NEXT.requirement}"' in grown and f'name = "{C}"' in grown
+    after = free_numbers(grown)
+    assert after == Numbers(
+        f"R{int(NEXT.requirement[1:]) + 1}", NEXT.step + 1, NEXT.channel + 1, NEXT.km_group
+    )
+    moved = renumbered(snippet(1, numbers=AS_WRITTEN), Numbers("R7", 12, 11, "kx"))
+    assert 'id = "R7"' in moved and 'requirements = ["R7"]' in moved and "\nnumber = 12\n" in moved
+    assert '{ number = 11, ends = ["wt", "kx"]' in moved
+    assert '{ number = 2, from = "hi", to = "ui" }' in moved  # the reallocations keep their numbers
