@@ -86,6 +86,11 @@ class Placement:
         return f"H{host + 1}"
 
     @property
+    def recorded_hosts(self) -> tuple[frozenset[str], ...]:
+        """Each host's agents but those placed with their peers (not in the record)."""
+        return tuple(frozenset(agents) - set(self.with_peers) for agents in self.hosts)
+
+    @property
     def agents(self) -> tuple[str, ...]:
         """Every agent placed, host by host."""
         return tuple(a for agents in self.hosts for a in agents)
@@ -149,6 +154,18 @@ def _hosts(
     it left out that :func:`_with_peers` placed. Raises PlacementError."""
     if text is None:
         return (tuple(agents),), ()
+    hosts, where = _named(agents, text)
+    joined = _with_peers([a for a in agents if a not in where and a in unseen], unseen, where)
+    missing = [a for a in agents if a not in where]
+    if missing:
+        raise PlacementError(f"--hosts: {', '.join(missing)} on no host; place every agent")
+    for name in joined:
+        hosts[where[name]] += (name,)
+    return tuple(hosts), joined
+
+
+def _named(agents: Sequence[str], text: str) -> tuple[list[tuple[str, ...]], dict[str, int]]:
+    """The hosts ``--hosts`` names as written, and each agent's host. Raises PlacementError."""
     if len(text) > MAX_OPTION_CHARS:
         raise PlacementError(f"--hosts: longer than {MAX_OPTION_CHARS} characters")
     hosts = [tuple(_names(part)) for part in text.split("|")]
@@ -158,13 +175,7 @@ def _hosts(
             raise PlacementError(f"--hosts: host {i + 1} names no agent ({text!r})")
         for name in names:
             _place(agents, name, i, where)
-    joined = _with_peers([a for a in agents if a not in where and a in unseen], unseen, where)
-    missing = [a for a in agents if a not in where]
-    if missing:
-        raise PlacementError(f"--hosts: {', '.join(missing)} on no host; place every agent")
-    for name in joined:
-        hosts[where[name]] += (name,)
-    return tuple(hosts), joined
+    return hosts, where
 
 
 def _with_peers(
@@ -177,27 +188,30 @@ def _with_peers(
     placed: list[str] = []
     todo = list(left_out)
     while todo:
-        progress = False
-        for name in list(todo):
-            on = sorted({where[p] for p in peers[name] if p in where})
-            if len(on) > 1:
-                at = ", ".join(f"{p} on H{where[p] + 1}" for p in sorted(peers[name]) if p in where)
-                raise PlacementError(
-                    f"--hosts: {name} on no host; the record never saw it and its peers are on "
-                    f"more than one ({at}): name its host in --hosts"
-                )
-            if on:
-                where[name] = on[0]
-                placed.append(name)
-                todo.remove(name)
-                progress = True
-        if not progress:
+        found = {name: host for name in todo if (host := _peers_host(name, peers[name], where)) is not None}
+        if not found:
+            them = len(todo) > 1
             raise PlacementError(
-                f"--hosts: {', '.join(todo)} on no host; the record never saw "
-                f"{'it' if len(todo) == 1 else 'them'} and no peer is placed: name "
-                f"{'its' if len(todo) == 1 else 'their'} host in --hosts"
+                f"--hosts: {', '.join(todo)} on no host; the record never saw {'them' if them else 'it'} "
+                f"and no peer is placed: name {'their' if them else 'its'} host in --hosts"
             )
+        where.update(found)
+        placed += found
+        todo = [name for name in todo if name not in found]
     return tuple(placed)
+
+
+def _peers_host(name: str, peers: Collection[str], where: Mapping[str, int]) -> int | None:
+    """The one host of ``name``'s placed ``peers`` (None: none is placed). Raises
+    PlacementError naming ``--hosts`` when they are on more than one."""
+    on = {where[p] for p in peers if p in where}
+    if len(on) > 1:
+        at = ", ".join(f"{p} on H{where[p] + 1}" for p in sorted(peers) if p in where)
+        raise PlacementError(
+            f"--hosts: {name} on no host; the record never saw it and its peers are on more than "
+            f"one ({at}): name its host in --hosts"
+        )
+    return next(iter(on), None)
 
 
 def _place(agents: Sequence[str], name: str, host: int, where: dict[str, int]) -> None:

@@ -186,10 +186,7 @@ def _as_run(run_dir: Path, placement: Placement) -> tuple[int, int] | None:
     hosts = _run_hosts(run_dir)
     if hosts is None or len(placement.hosts) != 2 or placement.merged:
         return None
-    index = {
-        frozenset(a for a in agents if a not in placement.with_peers): i
-        for i, agents in enumerate(placement.hosts)
-    }
+    index = {agents: i for i, agents in enumerate(placement.recorded_hosts)}
     robot, brain = (index.get(frozenset(h & set(placement.agents))) for h in hosts)
     if robot is None or brain is None or placement.recorder != brain:
         return None
@@ -235,6 +232,15 @@ def _paths(
     return paths, CriticalPaths(convs, waits, lambda a, b: int(placement.are_merged(a, b)))
 
 
+def _placed_with_peers(placement: Placement, peers: dict[str, tuple[str, ...]]) -> list[str]:
+    """A note per agent placed with its ``peers``: where, and beside whom."""
+    return [
+        f"{name} is not in the record (the specification has grown since the run): placed on "
+        f"{placement.label(placement.host_of(name) or 0)} with its peers ({', '.join(peers.get(name, ()))})"
+        for name in placement.with_peers
+    ]
+
+
 def unseen_peers(spec: SystemSpec, records: Iterable[TrafficRecord]) -> dict[str, tuple[str, ...]]:
     """The agents of ``spec`` no communicate of ``records`` was sent by or to (the specification
     has grown since the run), each with its peers: the agents at the other end of its
@@ -277,13 +283,7 @@ def what_if(
     w.waits = paths.all_waits()
     w.one_way_s = _one_way_s(records, placement)
     w.measured = _measured(run_dir, placement, first_t, last_t)
-    peers = unseen_peers(spec, records)
-    for name in placement.with_peers:
-        host = placement.host_of(name)
-        notes.append(
-            f"{name} is not in the record (the specification has grown since the run): placed on "
-            f"H{(host or 0) + 1} with its peers ({', '.join(peers.get(name, ()))})"
-        )
+    notes += _placed_with_peers(placement, unseen_peers(spec, records))
     if w.traffic.unplaced:
         notes.append(
             f"{w.traffic.unplaced} communicate(s) of agents not placed (outside the platform) left out"
