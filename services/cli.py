@@ -1429,6 +1429,23 @@ def _spec_path(path: Path | None) -> Path:
     return path if path is not None else DEFAULT_SPEC
 
 
+def _readable_spec(path: Path | None, *, decomposition: bool = False) -> Path:
+    """``--spec``'s file (default: the shipped one) once it loads, and with ``decomposition``
+    its requirement tree and steps too; for one that does not, the one-line ``roco:`` refusal,
+    exit 2."""
+    from services.spec.decomposition import load_decomposition
+    from services.spec.model import SpecError, load
+
+    path = _spec_path(path)
+    try:
+        load(path)
+        if decomposition:
+            load_decomposition(path)
+    except SpecError as exc:
+        raise fail(str(exc), code=2) from None
+    return path
+
+
 @spec_app.command("show", short_help="The decomposition, channels, interfaces and agent graph.")
 def spec_show(
     spec: SpecFile = None,
@@ -1467,10 +1484,11 @@ def spec_show(
 def spec_check(spec: SpecFile = None) -> None:
     """Check the decomposition (each step splits one fringe group in two, reallocated channels
     end at groups that exist, every requirement addressed, the stop condition) and that the
-    agents' interfaces match the channels. Exit 1 with one line per problem."""
+    agents' interfaces match the channels. Exit 1 with one line per problem; exit 2 for a
+    specification that does not load."""
     from services.spec.check import check_report
 
-    ok, text = check_report(_spec_path(spec))
+    ok, text = check_report(_readable_spec(spec, decomposition=True))
     typer.echo(text)
     if not ok:
         raise typer.Exit(1)
@@ -1549,10 +1567,11 @@ def spec_verify(
     """Check a run's recorded traffic against the specification: every communicate on a
     channel between its sender and receiver, allowed for its role and in its language, and
     every conversation following its protocol's state machine. Exit 1 unless fully
-    conformant; exit 2 for a folder that is not a run folder."""
+    conformant; exit 2 for a folder that is not a run folder or a specification that does not
+    load."""
     from services.spec_check.conformance import verify_report
 
-    ok, text = verify_report(_run_folder(run_dir), spec)
+    ok, text = verify_report(_run_folder(run_dir), spec and _readable_spec(spec))
     typer.echo(text)
     if not ok:
         raise typer.Exit(1)
@@ -1707,10 +1726,15 @@ def spec_verify_code(spec: SpecFile = None) -> None:
     """Compare every agent with its interface in the specification without starting it (the
     paper's ClassInterfaceInfo check): its protocol roles (channel, protocol, initiator or
     participant, languages), a handler for everything its peers may send, and no send outside
-    its roles; list what each role sends and receives. Exit 1 with one line per problem."""
+    its roles; list what each role sends and receives. Exit 1 with one line per problem; exit
+    2 for a specification that does not load."""
+    from services.spec.model import SpecError
     from services.spec_check.code_check import verify_code_report
 
-    ok, text = verify_code_report(_spec_path(spec))
+    try:
+        ok, text = verify_code_report(_spec_path(spec))
+    except SpecError as exc:
+        raise fail(str(exc), code=2) from None
     typer.echo(text)
     if not ok:
         raise typer.Exit(1)

@@ -119,17 +119,19 @@ def _agent_lines(spec: SystemSpec, name: str, implementation: str) -> tuple[list
 
 
 def verify_code_report(path: Path = DEFAULT_SPEC) -> tuple[bool, str]:
-    """``roco spec verify-code``: (ok, the report's text)."""
-    try:
-        spec = load(path)
-        problems: list[str] = []
-        lines: list[str] = []
-        for a in spec.agents:
+    """``roco spec verify-code``: (ok, the report's text). An agent whose code cannot be read
+    (no such module, a syntax error) is one problem of the report. Raises SpecError when the
+    specification file ``path`` does not load."""
+    spec = load(path)
+    problems: list[str] = []
+    lines: list[str] = []
+    for a in spec.agents:
+        try:
             found, agent_lines = _agent_lines(spec, a.name, a.implementation)
-            problems += found
-            lines += agent_lines
-    except (SpecError, SyntaxError) as exc:
-        return False, str(exc)
+        except (SpecError, SyntaxError) as exc:
+            found, agent_lines = [f"agent {a.name}: {exc}"], [f"{a.name}: its code is not read"]
+        problems += found
+        lines += agent_lines
     if not problems:
         return True, "\n".join(
             [

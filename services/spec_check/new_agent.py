@@ -362,6 +362,23 @@ def _comment(lines: list[str], indent: str) -> str:
     return "".join(f"{indent}# {line}\n" for line in out)
 
 
+def _summary(agent: str, job: str) -> str:
+    """The module docstring's opening, ``agent — job.``, in lines of at most :data:`WIDTH`
+    characters; a backslash and a run of three quotes in ``job`` escaped, so that the docstring
+    reads as the job was written and stays one string."""
+    said = " ".join(job.split()).rstrip(".").replace("\\", "\\\\").replace('"""', '\\"\\"\\"')
+    lines = textwrap.wrap(f"{agent} — {said}.", WIDTH, break_long_words=False, break_on_hyphens=False)
+    return "\n".join(lines)
+
+
+def _roles_tuple(declared: list[str]) -> str:
+    """The class's ``ROLES = (…)`` from its entries, as ruff formats it: one role on one line
+    when it fits, else one per line."""
+    if len(declared) == 1 and len(one := f"    ROLES = ({declared[0].strip()})") <= WIDTH:
+        return one
+    return "    ROLES = (\n" + "\n".join(declared) + "\n    )"
+
+
 def _handlers(spec: SystemSpec, roles: list[RoleDecl]) -> list[_Handler]:
     """One handler per performative each role must handle, named uniquely: by performative,
     with the channel when the agent plays the role on several channels, and with the protocol
@@ -433,7 +450,7 @@ def agent_source(spec: SystemSpec, agent: str, class_name: str, where: str) -> t
     job = entry.job or f"the agent that substitutes group {entry.group}"
     unused = "" if handlers else "  # noqa: F401  (the performatives handlers answer with)"
     behaviour_import, period, serve, timer = _behaviour(spec, agent, opens, modules)
-    text = f'''"""{agent} — {job}.
+    text = f'''"""{_summary(agent, job)}
 
 Written by ``roco spec new-agent {agent}`` from the specification: its protocol roles (one per
 channel and protocol the specification gives it) and one handler per performative its peers
@@ -453,9 +470,7 @@ from shared.fipa_codec import Performative{unused}
 
 class {class_name}(Agent):
     name = "{agent}"
-    ROLES = (
-{chr(10).join(declared)}
-    )
+{_roles_tuple(declared)}
 
     def build_fsm(self) -> FSM:
         return FSM(

@@ -4,7 +4,9 @@ on its links (``roco spec what-if``; paper §5.7 and §6, Figure 13; docs/spec.m
 A placement is written ``--hosts "ag_ex | a_co a_pl a_km a_ta a_hi"`` (hosts split by ``|``,
 agents by spaces or commas; every agent of the specification on exactly one host) and
 ``--merge a_pl+a_km`` (agents in one process: they must share a host). Without ``--hosts`` every
-agent is on one host, as ``roco run`` places them.
+agent is on one host, as ``roco run`` places them. An agent the record never saw (the
+specification has grown since the run) may be left out of ``--hosts``: it is placed on the host
+of its peers (the agents it has channels with), when they are all on one.
 
 How roco routes (services/hosts/fleet.py, docs/deploy.md): each host runs a Zenoh router its
 agents connect to, so two agents of one host talk through that host's router, never through
@@ -32,7 +34,7 @@ from __future__ import annotations
 import math
 import re
 from collections import Counter
-from collections.abc import Iterable, Sequence
+from collections.abc import Collection, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 
 from services.recorder.record import TrafficRecord
@@ -72,6 +74,8 @@ class Placement:
     merged: tuple[tuple[str, ...], ...] = ()
     recorder: int | None = 0
     hub: int = 0
+    with_peers: tuple[str, ...] = ()
+    """Agents ``--hosts`` left out, placed on the host of their peers (:func:`parse_placement`)."""
     _host: dict[str, int] = field(default_factory=dict, init=False, compare=False, repr=False)
 
     def __post_init__(self) -> None:
@@ -80,6 +84,11 @@ class Placement:
     def label(self, host: int) -> str:
         """``H1``, ``H2``, … for host index 0, 1, …"""
         return f"H{host + 1}"
+
+    @property
+    def recorded_hosts(self) -> tuple[frozenset[str], ...]:
+        """Each host's agents but those placed with their peers (not in the record)."""
+        return tuple(frozenset(agents) - set(self.with_peers) for agents in self.hosts)
 
     @property
     def agents(self) -> tuple[str, ...]:
@@ -138,10 +147,25 @@ def _names(text: str) -> list[str]:
     return [n for n in re.split(r"[\s,]+", text.strip()) if n]
 
 
-def _hosts(agents: Sequence[str], text: str | None) -> tuple[tuple[str, ...], ...]:
-    """The hosts ``--hosts`` names; every agent on exactly one. Raises PlacementError."""
+def _hosts(
+    agents: Sequence[str], text: str | None, unseen: Mapping[str, Collection[str]]
+) -> tuple[tuple[tuple[str, ...], ...], tuple[str, ...]]:
+    """The hosts ``--hosts`` names, every agent on exactly one, and the agents of ``unseen``
+    it left out that :func:`_with_peers` placed. Raises PlacementError."""
     if text is None:
-        return (tuple(agents),)
+        return (tuple(agents),), ()
+    hosts, where = _named(agents, text)
+    joined = _with_peers([a for a in agents if a not in where and a in unseen], unseen, where)
+    missing = [a for a in agents if a not in where]
+    if missing:
+        raise PlacementError(f"--hosts: {', '.join(missing)} on no host; place every agent")
+    for name in joined:
+        hosts[where[name]] += (name,)
+    return tuple(hosts), joined
+
+
+def _named(agents: Sequence[str], text: str) -> tuple[list[tuple[str, ...]], dict[str, int]]:
+    """The hosts ``--hosts`` names as written, and each agent's host. Raises PlacementError."""
     if len(text) > MAX_OPTION_CHARS:
         raise PlacementError(f"--hosts: longer than {MAX_OPTION_CHARS} characters")
     hosts = [tuple(_names(part)) for part in text.split("|")]
@@ -151,10 +175,43 @@ def _hosts(agents: Sequence[str], text: str | None) -> tuple[tuple[str, ...], ..
             raise PlacementError(f"--hosts: host {i + 1} names no agent ({text!r})")
         for name in names:
             _place(agents, name, i, where)
-    missing = [a for a in agents if a not in where]
-    if missing:
-        raise PlacementError(f"--hosts: {', '.join(missing)} on no host; place every agent")
-    return tuple(hosts)
+    return hosts, where
+
+
+def _with_peers(
+    left_out: Sequence[str], peers: Mapping[str, Collection[str]], where: dict[str, int]
+) -> tuple[str, ...]:
+    """Place each agent of ``left_out`` in ``where`` on the one host of its ``peers`` (as many
+    rounds as it takes: a peer may be placed so itself); returns those placed, in order. Raises
+    PlacementError naming ``--hosts`` for one whose placed peers are on more than one host, or
+    none of whose peers is placed."""
+    placed: list[str] = []
+    todo = list(left_out)
+    while todo:
+        found = {name: host for name in todo if (host := _peers_host(name, peers[name], where)) is not None}
+        if not found:
+            them = len(todo) > 1
+            raise PlacementError(
+                f"--hosts: {', '.join(todo)} on no host; the record never saw {'them' if them else 'it'} "
+                f"and no peer is placed: name {'their' if them else 'its'} host in --hosts"
+            )
+        where.update(found)
+        placed += found
+        todo = [name for name in todo if name not in found]
+    return tuple(placed)
+
+
+def _peers_host(name: str, peers: Collection[str], where: Mapping[str, int]) -> int | None:
+    """The one host of ``name``'s placed ``peers`` (None: none is placed). Raises
+    PlacementError naming ``--hosts`` when they are on more than one."""
+    on = {where[p] for p in peers if p in where}
+    if len(on) > 1:
+        at = ", ".join(f"{p} on H{where[p] + 1}" for p in sorted(peers) if p in where)
+        raise PlacementError(
+            f"--hosts: {name} on no host; the record never saw it and its peers are on more than "
+            f"one ({at}): name its host in --hosts"
+        )
+    return next(iter(on), None)
 
 
 def _place(agents: Sequence[str], name: str, host: int, where: dict[str, int]) -> None:
@@ -213,11 +270,14 @@ def parse_placement(
     hosts: str | None = None,
     merges: Sequence[str] = (),
     recorder_with: str = RECORDER_DEFAULT,
+    unseen: Mapping[str, Collection[str]] | None = None,
 ) -> Placement:
     """The placement ``--hosts``, ``--merge`` and ``--recorder-with`` (an agent whose host
-    carries the recorder, or ``none``) describe, for the specification's ``agents``. The hub is
+    carries the recorder, or ``none``) describe, for the specification's ``agents``. ``unseen``:
+    the agents the record never saw, each with its peers (the agents it has channels with); one
+    ``--hosts`` leaves out is placed on its peers' host (``Placement.with_peers``). The hub is
     the recorder's host (a_hi's without one). Raises PlacementError naming what is wrong."""
-    placed = _hosts(agents, hosts)
+    placed, joined = _hosts(agents, hosts, unseen or {})
     host_of = {a: i for i, names in enumerate(placed) for a in names}
     groups = _merges(agents, merges, host_of)
     if recorder_with != NO_RECORDER:
@@ -227,7 +287,7 @@ def parse_placement(
     else:
         recorder = None
     hub = recorder if recorder is not None else host_of.get(RECORDER_DEFAULT, 0)
-    return Placement(placed, groups, recorder, hub)
+    return Placement(placed, groups, recorder, hub, joined)
 
 
 _RTT = re.compile(r"\s*(\d+(?:\.\d*)?|\.\d+)\s*(us|µs|ms|s)\s*")

@@ -27,12 +27,12 @@ import json
 import math
 import statistics
 from collections import defaultdict
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
 from services.recorder.record import HOSTS_JSON, TrafficRecord, read_link_bytes
-from services.report.load import load_run
+from services.report.load import RunData, load_run
 from services.spec.model import SpecError, SystemSpec
 from services.spec_check.critical_path import Conversation, CriticalPaths, Wait, conversations, waits_of
 from services.spec_check.placement import Edge, Placement, PlacementError, Traffic, traffic
@@ -181,12 +181,12 @@ def _run_hosts(run_dir: Path) -> tuple[set[str], set[str]] | None:
 
 def _as_run(run_dir: Path, placement: Placement) -> tuple[int, int] | None:
     """(robot, brain): ``placement``'s host indices of a two-host run's robot and brain when it
-    places the agents as the run did (two hosts, the recorder on the brain, no merge); None
-    otherwise."""
+    places the agents as the run did (two hosts, the recorder on the brain, no merge; an agent
+    placed with its peers is not in the record, so it changes nothing); None otherwise."""
     hosts = _run_hosts(run_dir)
     if hosts is None or len(placement.hosts) != 2 or placement.merged:
         return None
-    index = {frozenset(agents): i for i, agents in enumerate(placement.hosts)}
+    index = {agents: i for i, agents in enumerate(placement.recorded_hosts)}
     robot, brain = (index.get(frozenset(h & set(placement.agents))) for h in hosts)
     if robot is None or brain is None or placement.recorder != brain:
         return None
@@ -232,18 +232,43 @@ def _paths(
     return paths, CriticalPaths(convs, waits, lambda a, b: int(placement.are_merged(a, b)))
 
 
+def _placed_with_peers(placement: Placement, peers: dict[str, tuple[str, ...]]) -> list[str]:
+    """A note per agent placed with its ``peers``: where, and beside whom."""
+    return [
+        f"{name} is not in the record (the specification has grown since the run): placed on "
+        f"{placement.label(placement.host_of(name) or 0)} with its peers ({', '.join(peers.get(name, ()))})"
+        for name in placement.with_peers
+    ]
+
+
+def unseen_peers(spec: SystemSpec, records: Iterable[TrafficRecord]) -> dict[str, tuple[str, ...]]:
+    """The agents of ``spec`` no communicate of ``records`` was sent by or to (the specification
+    has grown since the run), each with its peers: the agents at the other end of its
+    ``[[channels]]`` (external roles left out), sorted. The ``unseen`` of
+    :func:`~services.spec_check.placement.parse_placement`."""
+    seen = {name for r in records for name in (r.sender, *r.receivers)}
+    agents = spec.agent_names
+    return {
+        a: tuple(sorted({e for c in spec.channels if a in c.ends for e in c.ends if e != a and e in agents}))
+        for a in agents
+        if a not in seen
+    }
+
+
 def what_if(
     run_dir: Path,
     spec: SystemSpec,
     placement: Placement,
     rtt_s: float | None,
     roles: Sequence[RoleReplyBy] = (),
+    data: RunData | None = None,
 ) -> WhatIf:
     """Weigh ``placement`` with links of round-trip time ``rtt_s`` (s; None: none given) on the
-    record of ``run_dir``, against ``roles``' declared reply-by. Raises FileNotFoundError when
-    ``run_dir`` is not a folder, PlacementError when its record holds no communicate; what
-    cannot be read in it becomes a note."""
-    data = load_run(run_dir)
+    record of ``run_dir`` (``data``: that folder as read already), against ``roles``' declared
+    reply-by. Raises FileNotFoundError when ``run_dir`` is not a folder, PlacementError when its
+    record holds no communicate; what cannot be read in it becomes a note, and so does each
+    agent placed with its peers (``Placement.with_peers``)."""
+    data = data if data is not None else load_run(run_dir)
     records = [m.rec for m in data.messages]
     if not records:
         raise PlacementError(f"{run_dir}: the record holds no communicates to weigh")
@@ -258,6 +283,7 @@ def what_if(
     w.waits = paths.all_waits()
     w.one_way_s = _one_way_s(records, placement)
     w.measured = _measured(run_dir, placement, first_t, last_t)
+    notes += _placed_with_peers(placement, unseen_peers(spec, records))
     if w.traffic.unplaced:
         notes.append(
             f"{w.traffic.unplaced} communicate(s) of agents not placed (outside the platform) left out"

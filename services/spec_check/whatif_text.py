@@ -13,6 +13,7 @@ from collections import Counter, defaultdict
 from collections.abc import Sequence
 from pathlib import Path
 
+from services.report.load import load_run
 from services.spec.model import DEFAULT_SPEC, load
 from services.spec_check.critical_path import CriticalPaths, Wait
 from services.spec_check.placement import (
@@ -25,7 +26,7 @@ from services.spec_check.placement import (
     parse_rtt,
     peak_kbps,
 )
-from services.spec_check.whatif import WhatIf, declared_reply_by, size_rows, what_if
+from services.spec_check.whatif import WhatIf, declared_reply_by, size_rows, unseen_peers, what_if
 
 CRITICAL_PATHS = "Round trips that cross a link on each conversation's critical path"
 MERGED_PATHS = "Hand-overs between merged agents on each conversation's critical path, now in process"
@@ -298,9 +299,11 @@ def what_if_report(
     record without communicates, SpecError for a specification that does not load,
     FileNotFoundError for a run folder that is not there."""
     spec = load(spec_path or DEFAULT_SPEC)
-    placement = parse_placement(spec.agent_names, hosts, merges, recorder_with)
+    data = load_run(run_dir)
+    unseen = unseen_peers(spec, (m.rec for m in data.messages))
+    placement = parse_placement(spec.agent_names, hosts, merges, recorder_with, unseen)
     rtt_s = parse_rtt(rtt) if rtt is not None else None
     roles, notes = declared_reply_by(spec)
-    w = what_if(run_dir, spec, placement, rtt_s, roles)
+    w = what_if(run_dir, spec, placement, rtt_s, roles, data)
     w.notes += notes
     return not w.broken(), render(w)

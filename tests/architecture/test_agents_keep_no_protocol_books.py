@@ -108,12 +108,62 @@ def test_the_check_finds_what_it_names(tmp_path: Path) -> None:
     ]
 
 
-SHORTER = {"coordinator": 729, "human_interface": 825}
-"""Lines of a_co's and a_hi's agent.py when the runtime took their protocol machinery over;
-each stays at least a fifth shorter (what moved is not to come back)."""
+SHORTER = {"coordinator": 636, "human_interface": 694}
+"""Lines of a_co's and a_hi's agent.py outside their handlers (:func:`outside_handlers`) when the
+runtime took their protocol machinery over (729 and 825 lines in all then). What moved was
+bookkeeping around the handlers (replies matched by hand, deadlines, kept conversations); each
+stays at least a fifth shorter there, so that it does not come back. A handler (an ``@handles``
+method: a decision of the agent) is not counted: an agent grows by handlers as its channels do."""
+
+
+def outside_handlers(text: str) -> int:
+    """Lines of module ``text`` outside its ``@handles`` methods (decorators included)."""
+    inside: set[int] = set()
+    for node in ast.walk(ast.parse(text)):
+        if isinstance(node, ast.FunctionDef | ast.AsyncFunctionDef) and any(
+            ast.unparse(d).split("(")[0].split(".")[-1] == "handles" for d in node.decorator_list
+        ):
+            start = min(d.lineno for d in node.decorator_list)
+            inside.update(range(start, (node.end_lineno or node.lineno) + 1))
+    return len(text.splitlines()) - len(inside)
+
+
+def _over_budget(folder: str, text: str) -> str | None:
+    lines, budget = outside_handlers(text), int(0.8 * SHORTER[folder])
+    return (
+        f"{folder}/agent.py: {lines} lines outside its handlers, at most {budget}" if lines > budget else None
+    )
 
 
 def test_a_co_and_a_hi_stay_a_fifth_shorter_than_before_the_roles_took_their_protocols() -> None:
-    for folder, before in SHORTER.items():
-        lines = len((ROOT / "services" / "agents" / folder / "agent.py").read_text().splitlines())
-        assert lines <= 0.8 * before, f"{folder}/agent.py: {lines} lines, at most {int(0.8 * before)}"
+    for folder in SHORTER:
+        problem = _over_budget(folder, (ROOT / "services" / "agents" / folder / "agent.py").read_text())
+        assert problem is None, problem
+
+
+HANDLER = (
+    """    @handles(FIPA_QUERY, INITIATOR, Performative.INFORM_REF)
+    def _on_scene(self, conv: Conversation) -> None:
+        \"\"\"a_km's answer: what the kitchen holds now.\"\"\"
+        if not isinstance(conv.content, Answer):
+            return
+        for thing in conv.content.objects:
+            self.seen[thing.name] = thing
+"""
+    + "        self.counters['scenes'] += 1\n" * 14
+)
+
+
+def test_the_budget_takes_a_new_handler_and_not_bookkeeping_beside_the_handlers() -> None:
+    for agent in default_spec().agents:
+        folder = agent.implementation.split(".")[2]
+        if folder not in SHORTER:
+            continue
+        text = (ROOT / "services" / "agents" / folder / "agent.py").read_text()
+        head = f"class {agent.implementation.split(':')[1]}("
+        cls = next(line for line in text.splitlines(keepends=True) if line.startswith(head))
+        grown = text.replace(cls, cls + HANDLER, 1)  # a decision of ~20 lines more
+        assert len(HANDLER.splitlines()) >= 20 and _over_budget(folder, grown) is None
+        room = int(0.8 * SHORTER[folder]) - outside_handlers(text)
+        book = "    def _book(self) -> None:\n" + "        self.replies_seen = {}\n" * room
+        assert _over_budget(folder, text.replace(cls, cls + book, 1)) is not None

@@ -9,9 +9,9 @@ from pathlib import Path
 from typer.testing import CliRunner
 
 from services.cli import app
-from services.spec.model import DEFAULT_SPEC, load
+from services.spec.model import load
 from services.spec.render_names import NAMES_FILE, render
-from tests.spec_check.walkthrough import GROUP_EDIT, snippet, staged
+from tests.spec_check.walkthrough import NEXT, walkthrough_spec
 
 runner = CliRunner()
 
@@ -25,29 +25,24 @@ def test_roco_spec_names_checks_the_committed_module() -> None:
 
 
 def test_roco_spec_names_writes_and_checks_a_file(tmp_path: Path) -> None:
-    spec = tmp_path / "spec.toml"
-    spec.write_text(staged(DEFAULT_SPEC.read_text(), snippet(1), snippet(2), edits=GROUP_EDIT))
+    spec = walkthrough_spec(tmp_path / "spec.toml")
     target = tmp_path / "names.py"
     target.write_text(NAMES_FILE.read_text())
     args = ["--file", str(target), "--spec", str(spec)]
     done = runner.invoke(app, ["spec", "names", "--check", *args])
     assert done.exit_code == 1
     assert done.output == (
-        f"roco: {target} differs from what the specification gives (no name C9): run `roco spec names`\n"
+        f"roco: {target} differs from what the specification gives (no name {NEXT.channel_name}): "
+        "run `roco spec names`\n"
     )
+    counts = f"{len(load(spec).channels)} channels, 4 protocols, 6 languages"
     done = runner.invoke(app, ["spec", "names", *args])
-    assert (
-        done.exit_code == 0
-        and done.output == f"roco: wrote {target} (9 channels, 4 protocols, 6 languages)\n"
-    )
+    assert done.exit_code == 0 and done.output == f"roco: wrote {target} ({counts})\n"
     assert target.read_text() == render(load(spec))
     done = runner.invoke(app, ["spec", "names", "--check", *args])
     assert done.exit_code == 0 and done.output == f"roco: {target} is what the specification gives\n"
     done = runner.invoke(app, ["spec", "names", *args])
-    assert (
-        done.exit_code == 0
-        and done.output == f"roco: {target} is up to date (9 channels, 4 protocols, 6 languages)\n"
-    )
+    assert done.exit_code == 0 and done.output == f"roco: {target} is up to date ({counts})\n"
 
 
 def test_a_file_or_specification_that_cannot_be_read_exits_2(tmp_path: Path) -> None:

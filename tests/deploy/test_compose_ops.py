@@ -115,7 +115,8 @@ def test_the_checks_fail_on_the_old_values(committed: dict[str, Any]) -> None:
     for service in old["services"].values():
         service.get("environment", {}).pop("ROCO_LOG_STDOUT", None)
     roco = [n for n in old["services"] if n not in ONE_SHOT | NOT_ROCO]
-    assert roco == ["router", "recorder", "world", "a_km", "a_pl", "a_co", "ag_ex", "a_ta", "a_hi"]
+    assert roco == ["router", "recorder", "world", *default_spec().launch_order]
+    assert roco[3:9] == ["a_km", "a_pl", "a_co", "ag_ex", "a_ta", "a_hi"]  # the shipped agents first
     assert ops_problems(old) == [f"{n}: does not log to standard output (ROCO_LOG_STDOUT=1)" for n in roco]
 
 

@@ -29,7 +29,7 @@ from services.deploy.compose import (
     render,
 )
 from services.spec.model import DEFAULT_SPEC, AgentSpec, SpecError, default_spec, load
-from tests.spec_check.walkthrough import GROUP_EDIT, snippet, staged
+from tests.spec_check.walkthrough import walkthrough_spec
 
 yaml = pytest.importorskip("yaml", reason="PyYAML reads the compose file: pip install -e '.[dev]'")
 
@@ -66,7 +66,8 @@ def test_the_six_agents_services_are_what_the_fleet_needs() -> None:
         "volumes",
     }
     services = compose["services"]
-    assert list(services) == ["certs", "router", "recorder", "world", *AGENTS, "viewer"]
+    assert list(services) == ["certs", "router", "recorder", "world", *SPEC.launch_order, "viewer"]
+    assert SPEC.launch_order[: len(AGENTS)] == AGENTS  # each of these, key by key; one added since below
     assert compose["volumes"] == {"fleet": {}, "km_store": {}, "co_state": {}}
     env = compose["x-env"]
     assert env["ROCO_ROUTER"] == "${ROCO_PROTO:-tls}/router:7447" and env["ROCO_RUN_DIR"] == "/runs/{run}"
@@ -109,7 +110,8 @@ def test_the_six_agents_services_are_what_the_fleet_needs() -> None:
         assert service["volumes"] == mounts + own + extra_volume.get(name, [])
         assert service.get("cap_add") is None  # not root: a capability would not count
         assert {service["mem_limit"], service["cpus"], service["pids_limit"]} != {None}
-        waits = {o: {"condition": "service_healthy"} for o in AGENTS if o != "a_hi"} if name == "a_hi" else {}
+        others = (o for o in SPEC.launch_order if o != "a_hi")
+        waits = {o: {"condition": "service_healthy"} for o in others} if name == "a_hi" else {}
         if name == "ag_ex":  # the robot it drives: the world, whose shared memory and processes it sees
             waits = {"world": {"condition": "service_healthy"}}
             assert service["ipc"] == service["pid"] == "service:world"
@@ -145,18 +147,11 @@ def test_the_other_services_keep_their_settings() -> None:
         assert services[name]["build"]["target"] == "runtime"
 
 
-def walkthrough_spec(tmp_path: Path) -> Path:
-    """The shipped specification with docs/spec.md's new agent a_wt (stages 1 and 2)."""
-    path = tmp_path / "spec.toml"
-    path.write_text(staged(DEFAULT_SPEC.read_text(), snippet(1), snippet(2), edits=GROUP_EDIT))
-    return path
-
-
 def test_a_new_agent_gets_a_service_and_the_last_agent_waits_for_it(tmp_path: Path) -> None:
-    spec = load(walkthrough_spec(tmp_path))
+    spec = load(walkthrough_spec(tmp_path / "spec.toml"))  # docs/spec.md's new agent a_wt
     assert spec.launch_order[-1] == "a_wt" and last_started(spec) == "a_hi"
     services = config(render(spec))["services"]
-    assert list(services) == ["certs", "router", "recorder", "world", *AGENTS, "a_wt", "viewer"]
+    assert list(services) == ["certs", "router", "recorder", "world", *SPEC.launch_order, "a_wt", "viewer"]
     new, plain = services["a_wt"], services["a_pl"]
     assert new["command"] == ["python", "-m", "services.runtime.main", "a_wt"]
     for key in set(plain) - {"command", "volumes"}:
@@ -172,7 +167,7 @@ def test_a_new_agent_gets_a_service_and_the_last_agent_waits_for_it(tmp_path: Pa
 
 
 def test_roco_deploy_compose_writes_and_checks_the_file(tmp_path: Path) -> None:
-    spec_file = walkthrough_spec(tmp_path)
+    spec_file = walkthrough_spec(tmp_path / "spec.toml")
     target = tmp_path / "compose.yaml"
     target.write_text(COMPOSE_FILE.read_text())
     args = ["--file", str(target), "--spec", str(spec_file)]
@@ -217,4 +212,5 @@ def test_the_start_order_refuses_an_unknown_agent_and_starts_unnamed_ones_last(t
     with pytest.raises(SpecError, match="start_order names unknown agent 'a_tx'"):
         load(bad)
     bad.write_text(text.replace('"ag_ex", "a_ta", "a_hi"]', '"ag_ex", "a_hi"]', 1))
-    assert load(bad).launch_order == ("a_km", "a_pl", "a_co", "ag_ex", "a_hi", "a_ta")
+    unnamed = (a for a in SPEC.agent_names if a == "a_ta" or a not in SPEC.start_order)
+    assert load(bad).launch_order == ("a_km", "a_pl", "a_co", "ag_ex", "a_hi", *unnamed)

@@ -11,6 +11,7 @@ from typer.testing import CliRunner
 from services.cli import app
 from services.report import build_report
 from services.runtime.faults import FaultEvent
+from services.spec.model import default_spec
 from shared.fipa_codec import Performative
 from tests.fault.conftest import LiveFleet
 
@@ -78,8 +79,9 @@ def test_partition_makes_an_agent_look_gone_and_heal_brings_it_back(live: LiveFl
 
 def test_bad_fault_input_is_one_line_and_exit_2(tmp_path: Path) -> None:
     runner = CliRunner()
+    new = f"C{len(default_spec().channels) + 1}"  # no channel of the specification
     for args, text in [
-        (("msg", "C9", "--drop", "0.1"), "unknown channel 'C9'"),
+        (("msg", new, "--drop", "0.1"), f"unknown channel '{new}'"),
         (("msg", "C4", "--drop", "1.5"), "--drop must be a probability"),
         (("msg", "C4"), "no fault given"),
         (("msg", "C4", "--delay-p", "0.5"), "--delay-p needs --delay"),

@@ -23,12 +23,15 @@ from pathlib import Path
 import pytest
 
 from services.recorder.record import read_records
-from tests.spec_check.walkthrough import AGENT, GROUP_EDIT, fill, snippet, staged
+from services.spec.model import load
+from tests.spec_check.walkthrough import AGENT, NEXT, fill, walkthrough_spec
 
 pytestmark = [pytest.mark.slow, pytest.mark.fleet]
 
 ROOT = Path(__file__).resolve().parents[2]
 SENTENCE = "pour the jar into the bowl"
+C = NEXT.channel_name
+"""The new agent's channel (C9 in the shipped specification; the copy's is this checkout's)."""
 BUILT = ("services/**/*.so", "velma/**/*.so", "shared/**/*.so", "services/runtime/_compiled.json")
 """What ``pip install -e .`` built beside the sources (not tracked): the compiled control law
 and runtime, copied so that the copy runs as fast as this checkout."""
@@ -78,7 +81,7 @@ def checkout(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Checkout]:
     copy_checkout(root)
     spec = root / "services" / "spec" / "robot_companion.toml"
     doc = root / "docs" / "spec.md"
-    spec.write_text(staged(spec.read_text(), snippet(1, doc=doc), snippet(2, doc=doc), edits=GROUP_EDIT))
+    walkthrough_spec(spec, base=spec, doc=doc)
     env = {k: v for k, v in os.environ.items() if k not in ("ROCO_ACL", "ROCO_SPEC", "ROCO_RUN_DIR")}
     env["PYTHONPATH"] = str(root)
     made = Checkout(root, env, subprocess.CompletedProcess([], 0))
@@ -118,8 +121,8 @@ def test_spec_check_and_verify_code_pass_with_no_edit_of_another_agent(checkout:
     done = checkout.roco("spec", "verify-code")
     assert done.returncode == 0, done.stdout + done.stderr
     assert "a_wt: 2 files; 1 protocol roles agree with the specification:" in done.stdout
-    assert "  C9 fipa-query participant with a_wt in L_WM (declared for every channel)" in done.stdout
-    for agent in ("knowledge", "human_interface"):  # a_km serves C9 as it is; a_hi only changed group
+    assert f"  {C} fipa-query participant with a_wt in L_WM (declared for every channel)" in done.stdout
+    for agent in ("knowledge", "human_interface"):  # a_km serves C as it is; a_hi only changed group
         copied = checkout.root / "services" / "agents" / agent / "agent.py"
         assert copied.read_text() == (ROOT / "services" / "agents" / agent / "agent.py").read_text()
 
@@ -129,10 +132,10 @@ def test_the_access_control_lets_it_send_on_its_channel_and_nowhere_else(checkou
     assert done.returncode == 0, done.stderr
     rules = {r["id"]: r for r in json.loads(done.stdout)["rules"]}
     sends = [k for k in rules["a_wt/ingress/put"]["key_exprs"] if k.startswith("roco/fipa/")]
-    assert sends == ["roco/fipa/C9/a_wt/a_km", "roco/fipa/C9/a_wt/a_km/@adv/**"]
-    assert "roco/fipa/C9/a_km/a_wt" in rules["a_wt/egress/put"]["key_exprs"]
-    assert "roco/fipa/C9/a_km/a_wt" in rules["a_km/ingress/put"]["key_exprs"]
-    assert "roco/fipa/C9/a_wt/a_km" in rules["a_km/egress/put"]["key_exprs"]
+    assert sends == [f"roco/fipa/{C}/a_wt/a_km", f"roco/fipa/{C}/a_wt/a_km/@adv/**"]
+    assert f"roco/fipa/{C}/a_km/a_wt" in rules["a_wt/egress/put"]["key_exprs"]
+    assert f"roco/fipa/{C}/a_km/a_wt" in rules["a_km/ingress/put"]["key_exprs"]
+    assert f"roco/fipa/{C}/a_wt/a_km" in rules["a_km/egress/put"]["key_exprs"]
 
 
 @pytest.fixture(scope="module")
@@ -151,10 +154,11 @@ def test_it_runs_in_the_fleet_with_access_control_and_the_run_conforms(
     done, run_dir = pour
     assert done.returncode == 0, done.stdout[-3000:] + done.stderr[-2000:]
     alive = next(line for line in done.stdout.splitlines() if "all agents alive" in line)
-    assert alive.endswith("a_km, a_pl, a_co, ag_ex, a_ta, a_hi, a_wt"), alive
+    order = load(checkout.root / "services" / "spec" / "robot_companion.toml").launch_order
+    assert alive.endswith(", ".join(order)) and order[-1] == "a_wt", alive
     assert (run_dir / "security" / "acl.json").is_file()  # access control was on
-    # the traffic record: a_wt's queries on C9 and a_km's answers
-    records = [r for r in read_records(run_dir) if r.channel == "C9"]
+    # the traffic record: a_wt's queries on its channel and a_km's answers
+    records = [r for r in read_records(run_dir) if r.channel == C]
     asked = [r for r in records if r.sender == "a_wt" and r.performative == "query-ref"]
     answered = [r for r in records if r.sender == "a_km" and r.performative == "inform-ref"]
     assert asked and answered, [(r.sender, r.performative) for r in records]
@@ -166,7 +170,7 @@ def test_it_runs_in_the_fleet_with_access_control_and_the_run_conforms(
     assert stopping and "'scenes': " in stopping[-1], stopping  # its counters when it stopped
     # the report names it, and the run conforms to the specification
     report = (run_dir / "report.md").read_text()
-    assert "a_wt" in report and "C9" in report
+    assert "a_wt" in report and C in report
     verified = checkout.roco("spec", "verify", str(run_dir))
     assert verified.returncode == 0, verified.stdout[-3000:]
     assert "full conformance: yes" in verified.stdout

@@ -23,7 +23,7 @@ from services.runtime.roles import (
     participant,
 )
 from services.spec import names
-from services.spec.model import DEFAULT_SPEC, ChannelProtocol, ChannelSpec, default_spec, load
+from services.spec.model import ChannelProtocol, ChannelSpec, default_spec, load
 from services.spec.render_names import (
     NAMES_FILE,
     NamesError,
@@ -37,15 +37,11 @@ from services.spec.render_names import (
     write,
 )
 from shared.fipa_codec import Performative
-from tests.spec_check.walkthrough import GROUP_EDIT, snippet, staged
+from tests.spec_check.walkthrough import NEXT, walkthrough_spec
 
 SPEC = default_spec()
-
-
-def walkthrough_spec(tmp_path: Path) -> Path:
-    path = tmp_path / "spec.toml"
-    path.write_text(staged(DEFAULT_SPEC.read_text(), snippet(1), snippet(2), edits=GROUP_EDIT))
-    return path
+NEW = NEXT.channel_name
+"""A channel number the shipped specification has not used yet (the walk-through's: C9)."""
 
 
 def test_the_committed_names_module_is_what_the_specification_gives() -> None:
@@ -129,7 +125,7 @@ def test_two_spellings_of_one_python_name_are_refused() -> None:
     with pytest.raises(NamesError, match="channel 'c1' and channel 'C1' would both be C1"):
         render(spec)
     as_language = ChannelProtocol("coordinate", "a_co", languages={"request": "C2"})
-    mixed = ChannelSpec("C9", ("a_co", "a_ta"), "x", (as_language,))
+    mixed = ChannelSpec(NEW, ("a_co", "a_ta"), "x", (as_language,))
     spec = msgspec.structs.replace(SPEC, channels=(*SPEC.channels, mixed))
     with pytest.raises(NamesError, match="language 'C2' and channel 'C2' would both be C2"):
         render(spec)
@@ -137,21 +133,22 @@ def test_two_spellings_of_one_python_name_are_refused() -> None:
 
 
 def test_a_new_channel_is_named_and_the_committed_module_lacks_it(tmp_path: Path) -> None:
-    spec = load(walkthrough_spec(tmp_path))
+    spec = load(walkthrough_spec(tmp_path / "spec.toml"))
     text = render(spec)
-    assert "\nC9 = Channel.C9\n" in text
-    assert '    C9 = "C9"\n    """Between a_wt and a_km (fipa-query): ' in text
-    assert difference(NAMES_FILE.read_text(), spec) == "no name C9"
+    assert f"\n{NEW} = Channel.{NEW}\n" in text
+    assert f'    {NEW} = "{NEW}"\n    """Between a_wt and a_km (fipa-query): ' in text
+    assert difference(NAMES_FILE.read_text(), spec) == f"no name {NEW}"
     assert check(NAMES_FILE, spec, "services/spec/names.py") == (
-        "services/spec/names.py differs from what the specification gives (no name C9): run `roco spec names`"
+        f"services/spec/names.py differs from what the specification gives (no name {NEW}): "
+        "run `roco spec names`"
     )
     module: dict[str, object] = {}
     exec(compile(text, "names", "exec"), module)
-    assert module["C9"] == "C9" and module["FIPA_QUERY"] == "fipa-query"
+    assert module[NEW] == NEW and module["FIPA_QUERY"] == "fipa-query"
 
 
 def test_write_and_bring_up_to_date(tmp_path: Path) -> None:
-    spec = load(walkthrough_spec(tmp_path))
+    spec = load(walkthrough_spec(tmp_path / "spec.toml"))
     target = tmp_path / "names.py"
     assert write(target, spec) and not write(target, spec)
     assert target.read_text() == render(spec)

@@ -21,6 +21,10 @@ from shared.fipa_codec.languages import decode_content, encode_content
 from tests.report.conftest import STARTED, RunBuilder, write_raw
 
 URGENT = Path(__file__).parent / "fixtures" / "urgent_mid_pour"
+URGENT_LEAVES = ("R1.1", "R1.2", "R1.3", "R2.1", "R2.2", "R2.3", "R2.4", "R3.1", "R3.3", "R3.2")
+"""The leaves ``URGENT`` shows (those of the specification it was recorded with, but R1.4: a
+sentence from another platform, which tests add on C8). A leaf added to the specification since
+is for a record of its own to show."""
 
 Pick = Callable[[Message], bool]
 """Which communicates a mutation applies to."""

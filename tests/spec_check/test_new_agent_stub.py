@@ -11,12 +11,14 @@ specification, whose protocols the shipped one lacks, that module is rendered fr
 from __future__ import annotations
 
 import importlib
+import importlib.util
 import re
 import shutil
 import subprocess
 import sys
 from pathlib import Path
 
+import msgspec
 import pytest
 
 from services.runtime.memory_transport import MemoryBus
@@ -189,3 +191,33 @@ def test_ruff_finds_nothing_in_a_stub(tmp_path: Path) -> None:
         text=True,
     )
     assert done.returncode == 0, done.stdout + done.stderr
+
+
+def test_a_long_job_wraps_and_the_written_module_passes_ruff_and_mypy(tmp_path: Path) -> None:
+    """The job is the module docstring's first line; at 200 characters (with quotes and a
+    backslash, as a person may write) it wraps, and ruff and mypy accept what ``roco spec
+    new-agent`` wrote."""
+    bin_dir = str(Path(sys.executable).parent)
+    ruff, mypy = (shutil.which(t, path=bin_dir) or shutil.which(t) for t in ("ruff", "mypy"))
+    if ruff is None or mypy is None:
+        pytest.skip("ruff and mypy are not installed (pip install -e '.[dev]')")
+    job = ('plans """what to do""" \\ next: ' + "turns a ground task network into a plan, " * 5)[:200].strip()
+    assert len(job) == 200
+    agents = tuple(msgspec.structs.replace(a, job=job) if a.name == "a_pl" else a for a in SHIPPED.agents)
+    module = tmp_path / "stub_long_job.py"
+    module.write_text(
+        agent_source(msgspec.structs.replace(SHIPPED, agents=agents), "a_pl", "Stub", "x.py")[0]
+    )
+    config = str(ROOT / "pyproject.toml")
+    for command in (
+        [ruff, "check", "--no-cache", "--config", config, str(module)],
+        [mypy, "--config-file", config, str(module)],
+    ):
+        done = subprocess.run(command, capture_output=True, text=True, cwd=ROOT)
+        assert done.returncode == 0, f"{Path(command[0]).name}: {done.stdout}{done.stderr}"
+    # the docstring says the job as written
+    module_doc = importlib.util.spec_from_file_location("stub_long_job", module)
+    assert module_doc is not None and module_doc.loader is not None
+    loaded = importlib.util.module_from_spec(module_doc)
+    module_doc.loader.exec_module(loaded)
+    assert " ".join((loaded.__doc__ or "").split("\n\n")[0].split()) == f"a_pl — {job}."

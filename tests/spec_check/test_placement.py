@@ -10,16 +10,17 @@ link (``link_bytes.jsonl``), ``link.jsonl``, ``hosts.json`` and ``run.json``."""
 from __future__ import annotations
 
 import itertools
+import re
 from pathlib import Path
 
 import pytest
 from typer.testing import CliRunner
 
 import services.cli as cli
-from services.recorder.record import TrafficRecord
+from services.recorder.record import TrafficRecord, read_records
 from services.report.load import Message
-from services.spec.model import load
-from services.spec_check.critical_path import CriticalPaths, conversations
+from services.spec.model import SystemSpec, load
+from services.spec_check.critical_path import Conversation, CriticalPaths, conversations
 from services.spec_check.placement import (
     PUT_OVERHEAD_B,
     Placement,
@@ -29,13 +30,21 @@ from services.spec_check.placement import (
     puts_of,
     traffic,
 )
-from services.spec_check.whatif import declared_reply_by, what_if
+from services.spec_check.whatif import declared_reply_by, unseen_peers, what_if
 from services.spec_check.whatif_text import what_if_report
 from shared.fipa_codec import AgentIdentifier, Communicate, Performative
+from tests.spec_check.walkthrough import walkthrough_spec
 
 TWO_HOSTS_RUN = Path(__file__).with_name("two_hosts_run")
 AGENTS = ("a_hi", "a_co", "a_pl", "a_km", "a_ta", "ag_ex")
 ROBOT = "ag_ex a_ta | a_km a_pl a_co a_hi"
+
+
+def placed(spec: SystemSpec, hosts: str, records: list[TrafficRecord] | None = None) -> Placement:
+    """``hosts`` for ``spec``'s agents as what-if places them for ``records`` (default: the two-host
+    run's): an agent the record never saw (one added since) goes with its peers."""
+    seen = read_records(TWO_HOSTS_RUN) if records is None else records
+    return parse_placement(spec.agent_names, hosts, unseen=unseen_peers(spec, seen))
 
 
 # ---- reading the options -------------------------------------------------------------------
@@ -65,6 +74,52 @@ def test_a_placement_that_does_not_read_is_refused_naming_why(
         parse_placement(AGENTS, hosts, merges, recorder)
     assert str(caught.value).startswith(message)
     assert "\n" not in str(caught.value)
+
+
+def test_an_agent_the_record_never_saw_goes_with_its_peers_or_is_refused_naming_the_option() -> None:
+    """A specification that has grown since the run: its new agent is not in the record."""
+    agents = (*AGENTS, "a_new")
+    p = parse_placement(agents, ROBOT, unseen={"a_new": ("a_km", "a_pl")})
+    assert p.hosts == (("ag_ex", "a_ta"), ("a_km", "a_pl", "a_co", "a_hi", "a_new")) and p.with_peers == (
+        "a_new",
+    )
+    named = parse_placement(agents, ROBOT + " a_new", unseen={"a_new": ("a_km",)})
+    assert named.host_of("a_new") == 1 and named.with_peers == ()
+    # two new agents, one of them joined to the other only
+    two = parse_placement((*agents, "a_two"), ROBOT, unseen={"a_two": ("a_new",), "a_new": ("a_ta",)})
+    assert (two.host_of("a_new"), two.host_of("a_two")) == (0, 0)
+    for unseen, message in (
+        (
+            {"a_new": ("a_km", "a_ta")},
+            "--hosts: a_new on no host; the record never saw it and its peers are on more than one "
+            "(a_km on H2, a_ta on H1): name its host in --hosts",
+        ),
+        ({"a_new": ()}, "--hosts: a_new on no host; the record never saw it and no peer is placed"),
+        ({}, "--hosts: a_new on no host; place every agent"),  # one the record saw
+    ):
+        with pytest.raises(PlacementError) as caught:
+            parse_placement(agents, ROBOT, unseen=unseen)
+        assert str(caught.value).startswith(message), caught.value
+
+
+def test_what_if_on_a_record_older_than_the_specification_places_the_new_agent_and_says_so(
+    tmp_path: Path,
+) -> None:
+    grown = walkthrough_spec(tmp_path / "spec.toml")  # docs/spec.md's a_wt, on a channel to a_km
+    ok, text = what_if_report(TWO_HOSTS_RUN, hosts=ROBOT, rtt="40ms", spec_path=grown)
+    assert ok, text
+    # on H2 with a_km, after the agents --hosts names (and any other the record never saw)
+    assert re.search(
+        r"ran as: H1 ag_ex a_ta \| H2 a_km a_pl a_co a_hi( \w+)* a_wt( \w+)* \(\+recorder\)", text
+    )
+    assert (
+        "note: a_wt is not in the record (the specification has grown since the run): placed on H2 "
+        "with its peers (a_km)"
+    ) in text
+    assert "measured on this run's link" in text  # still the run's own placement
+    args = ["spec", "what-if", str(TWO_HOSTS_RUN), "--hosts", "ag_ex | a_ta a_km a_pl a_co a_hi"]
+    result = CliRunner().invoke(cli.app, [*args, "--spec", str(grown)], prog_name="roco")
+    assert result.exit_code == 0 and re.search(r"\| H2 a_ta a_km a_pl a_co a_hi( \w+)* a_wt", result.output)
 
 
 def test_a_placement_reads_hosts_merges_and_the_recorder() -> None:
@@ -234,10 +289,11 @@ def command_run() -> list[Message]:
     return m
 
 
-def paths_for(hosts: str) -> tuple[CriticalPaths, dict[str, object]]:
+def paths_for(hosts: str) -> tuple[CriticalPaths, dict[str, Conversation]]:
     spec = load()
-    placement = parse_placement(spec.agent_names, hosts)
-    convs = conversations(command_run())
+    run = command_run()
+    placement = placed(spec, hosts, [m.rec for m in run])
+    convs = conversations(run)
     from services.spec_check.critical_path import waits_of
 
     paths = CriticalPaths(convs, waits_of((a.name, a.waits) for a in spec.agents), placement.crossings)
@@ -283,7 +339,7 @@ def test_the_prediction_for_a_two_host_run_is_within_10_percent_of_what_its_link
     """The done-when of the tool: a real `roco hosts` pour (two_hosts_run/README.md), its record
     placed as it ran, the cross-host kbps predicted beside the relay's count of the same seconds."""
     spec = load()
-    placement = parse_placement(spec.agent_names, ROBOT)
+    placement = placed(spec, ROBOT)
     w = what_if(TWO_HOSTS_RUN, spec, placement, parse_rtt("40ms"))
     assert w.measured is not None, "the run's own placement is recognised"
     for edge, measured_b in w.measured.by_edge.items():
@@ -299,9 +355,7 @@ def test_the_prediction_for_a_two_host_run_is_within_10_percent_of_what_its_link
 
 def test_another_placement_of_the_run_is_not_compared_with_its_link() -> None:
     spec = load()
-    w = what_if(
-        TWO_HOSTS_RUN, spec, parse_placement(spec.agent_names, "ag_ex | a_ta a_km a_pl a_co a_hi"), None
-    )
+    w = what_if(TWO_HOSTS_RUN, spec, placed(spec, "ag_ex | a_ta a_km a_pl a_co a_hi"), None)
     assert w.measured is None
     assert set(w.traffic.totals) == {(0, 1), (1, 0)}
     assert {ch for flows in w.traffic.links.values() for ch in flows} == {"C5"}

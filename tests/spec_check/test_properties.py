@@ -82,10 +82,14 @@ def _cup_request(m: Message) -> bool:
 
 
 def test_the_urgent_scenario_shows_every_leaf(urgent: Recorded, tmp_path: Path) -> None:
+    """Every leaf of the shipped specification (those with a mutation below); a leaf added since
+    is for its own record to show, not for this one, and this one violates none."""
     run_dir = urgent.write(tmp_path / "urgent")
-    assert _verdicts(run_dir) == dict.fromkeys(LEAVES, Verdict.SHOWN)
+    verdicts = _verdicts(run_dir)
+    assert {rid: verdicts[rid] for rid in MUTATIONS} == dict.fromkeys(MUTATIONS, Verdict.SHOWN)
+    assert Verdict.VIOLATED not in verdicts.values()
     code, text = trace_report([run_dir], DEFAULT_SPEC, tests=None)
-    assert code == 0 and "leaves: 11 shown, 0 not exercised, 0 violated" in text
+    assert code == 0 and "leaves: 11 shown, " in text and ", 0 violated" in text
     assert "R2.1 [shown]" in text and "Terminating, Preempted, then the waiting command's plan: shown" in text
 
 
@@ -153,8 +157,9 @@ def _last_look(r: Recorded) -> set[str | None]:
     return {[m for m in r.messages if type(m.content).__name__ == "Observation"][-1].conversation}
 
 
-def test_every_leaf_has_a_mutation() -> None:
-    assert set(MUTATIONS) == set(LEAVES)
+def test_every_leaf_the_urgent_record_shows_has_a_mutation(urgent: Recorded, tmp_path: Path) -> None:
+    shown = {rid for rid, v in _verdicts(urgent.write(tmp_path / "urgent")).items() if v is Verdict.SHOWN}
+    assert shown == set(MUTATIONS) and shown <= set(LEAVES)
 
 
 @pytest.mark.parametrize("rid", sorted(MUTATIONS))

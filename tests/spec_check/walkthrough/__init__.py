@@ -1,12 +1,21 @@
 """The walk-through of docs/spec.md ("Walk-through: adding an agent") as text edits, as a user
 makes them: its TOML snippets added to a specification, its Python snippet in place of the
 handlers ``roco spec new-agent`` writes. Used by tests/spec_check/test_walkthrough.py (stage by
-stage) and tests/integration/test_new_agent.py (in a copy of the checkout, with a fleet)."""
+stage) and tests/integration/test_new_agent.py (in a copy of the checkout, with a fleet).
+
+The document numbers its requirement, step and channel R4, 9 and C9, the next free ones of the
+shipped specification. A specification that has grown since takes them; so the snippets are
+renumbered to the next free numbers of the specification they are added to (:data:`NEXT` for
+this checkout's)."""
 
 from __future__ import annotations
 
 import re
+import tomllib
+from dataclasses import dataclass
 from pathlib import Path
+
+from services.spec.model import DEFAULT_SPEC
 
 ROOT = Path(__file__).resolve().parents[3]
 DOC = ROOT / "docs" / "spec.md"
@@ -21,11 +30,62 @@ IMPORTS = (
 """What stage 3 imports (docs/spec.md says so beside the snippet)."""
 
 
-def snippet(n: int, kind: str = "toml", doc: Path = DOC) -> str:
-    """Walk-through snippet ``n`` of ``doc`` (a fenced block ```` ```KIND walkthrough-N ````)."""
+@dataclass(frozen=True)
+class Numbers:
+    """A top-level requirement id (``R4``), a decomposition step number and a channel number,
+    and the group a_km substitutes (the new channel's other end)."""
+
+    requirement: str
+    step: int
+    channel: int
+    km_group: str = "km"
+
+    @property
+    def channel_name(self) -> str:
+        """The channel's ``[[channels]]`` name: ``C9``."""
+        return f"C{self.channel}"
+
+
+AS_WRITTEN = Numbers("R4", 9, 9, "km")
+"""The numbers (and a_km's group) the document's snippets carry."""
+
+
+def free_numbers(spec_text: str) -> Numbers:
+    """The next free top-level requirement (``R<n>``), step and channel numbers of a
+    specification's text (one past the largest of each; a channel's number from the steps'
+    ``new_channels`` and the ``[[channels]]`` names), and the group a_km substitutes there."""
+    data = tomllib.loads(spec_text)
+    tops = [int(m[1]) for r in data.get("requirements", []) if (m := re.fullmatch(r"R(\d+)", r["id"]))]
+    steps = [int(s["number"]) for s in data.get("steps", [])]
+    made = [int(c["number"]) for s in data.get("steps", []) for c in s.get("new_channels", [])]
+    named = [int(m[1]) for c in data.get("channels", []) if (m := re.fullmatch(r"C(\d+)", c["name"]))]
+    top, step, channel = (max(numbers, default=0) + 1 for numbers in (tops, steps, made + named))
+    km_group = next(a["group"] for a in data.get("agents", []) if a["name"] == "a_km")
+    return Numbers(f"R{top}", step, channel, km_group)
+
+
+NEXT = free_numbers(DEFAULT_SPEC.read_text())
+"""The walk-through's numbers in this checkout's specification."""
+
+
+def renumbered(text: str, to: Numbers) -> str:
+    """A snippet's ``text`` with :data:`AS_WRITTEN`'s requirement, step and channel numbers
+    replaced by ``to``'s (the steps' other channel numbers, as in ``reallocated``, are kept), and
+    the new channel's end at a_km's group by ``to``'s."""
+    was = AS_WRITTEN
+    text = text.replace(f'ends = ["wt", "{was.km_group}"]', f'ends = ["wt", "{to.km_group}"]')
+    text = text.replace(f'"{was.requirement}"', f'"{to.requirement}"')
+    text = re.sub(rf"(?m)^number = {was.step}$", f"number = {to.step}", text)
+    text = text.replace(f"{{ number = {was.channel}, ends", f"{{ number = {to.channel}, ends")
+    return re.sub(rf"\b{was.channel_name}\b", to.channel_name, text)
+
+
+def snippet(n: int, kind: str = "toml", doc: Path = DOC, numbers: Numbers | None = None) -> str:
+    """Walk-through snippet ``n`` of ``doc`` (a fenced block ```` ```KIND walkthrough-N ````),
+    renumbered to ``numbers`` (default :data:`NEXT`)."""
     m = re.search(rf"```{kind} walkthrough-{n}\n(.*?)```", doc.read_text(), re.S)
     assert m, f"{doc} lost walk-through snippet {n}"
-    return m.group(1)
+    return renumbered(m.group(1), numbers or NEXT)
 
 
 def staged(text: str, *parts: str, edits: dict[str, str] | None = None) -> str:
@@ -40,12 +100,24 @@ def staged(text: str, *parts: str, edits: dict[str, str] | None = None) -> str:
     return head + "\n" + decomposition + "\n[[agents]]" + tail + "\n" + rest
 
 
-def fill(module: Path, doc: Path = DOC) -> None:
-    """Write stage 3 into the agent ``roco spec new-agent`` wrote at ``module``: snippet 3 in
-    place of ``_periodically`` and the handlers (the end of the class), and its imports."""
+def walkthrough_spec(path: Path, base: Path = DEFAULT_SPEC, doc: Path = DOC) -> Path:
+    """Write to ``path`` the specification ``base`` with ``doc``'s walk-through stages 1 and 2
+    (the new agent a_wt and its channel, numbered :func:`free_numbers` of ``base``); returns
+    ``path``."""
+    text = base.read_text()
+    numbers = free_numbers(text)
+    stages = (snippet(1, doc=doc, numbers=numbers), snippet(2, doc=doc, numbers=numbers))
+    path.write_text(staged(text, *stages, edits=GROUP_EDIT))
+    return path
+
+
+def fill(module: Path, doc: Path = DOC, numbers: Numbers | None = None) -> None:
+    """Write stage 3 into the agent ``roco spec new-agent`` wrote at ``module``: snippet 3 (its
+    channel numbered ``numbers``, default :data:`NEXT`) in place of ``_periodically`` and the
+    handlers (the end of the class), and its imports."""
     text = module.read_text()
     start = text.index("    def _periodically(self) -> None:")
-    text = text[:start] + snippet(3, "python", doc)
+    text = text[:start] + snippet(3, "python", doc, numbers)
     future = "from __future__ import annotations\n\n"
     assert text.count(future) == 1 and text.count("from shared.fipa_codec import Performative") == 1
     text = text.replace(future, future + IMPORTS[0])
