@@ -78,15 +78,9 @@ def test_it_is_as_strict_as_roles_declared_one_by_one() -> None:
     assert "agent a_km declares participant of fipa-query on every channel (L_WM) twice" in role_problems(
         SPEC, "a_km", [every, every, SUBSCRIBE, SCENE], HANDLERS
     )
-<<<<<<< HEAD
-    each = [participant(c, "fipa-query", "L_WM") for c in ("C4", "C6", "C7")]
+    each = [participant(c, "fipa-query", "L_WM") for c in KM_QUERIED]
     assert role_problems(SPEC, "a_km", [*each, SUBSCRIBE, SCENE], HANDLERS) == []
     assert role_problems(SPEC, "a_km", [every, *each, SUBSCRIBE, SCENE], HANDLERS) == [
-=======
-    each = [participant(c, "fipa-query", "L_WM") for c in KM_QUERIED]
-    assert role_problems(SPEC, "a_km", [*each, SUBSCRIBE], HANDLERS) == []
-    assert role_problems(SPEC, "a_km", [every, *each, SUBSCRIBE], HANDLERS) == [
->>>>>>> hgrowth
         "agent a_km declares itself participant of fipa-query on every channel (L_WM), but declares each "
         f"such channel ({', '.join(KM_QUERIED)}) by itself: the role on every channel covers none"
     ]
@@ -128,11 +122,7 @@ def test_a_km_serves_a_new_channel_of_the_walkthrough_without_an_edit(tmp_path: 
         km.close()
 
     class NamedChannels(KnowledgeManager):
-<<<<<<< HEAD
-        ROLES = (*(participant(c, "fipa-query", "L_WM") for c in ("C4", "C6", "C7")), SUBSCRIBE, SCENE)  # type: ignore[assignment]
-=======
-        ROLES = (*(participant(c, "fipa-query", "L_WM") for c in queried if c != new), SUBSCRIBE)  # type: ignore[assignment]
->>>>>>> hgrowth
+        ROLES = (*(participant(c, "fipa-query", "L_WM") for c in queried if c != new), SUBSCRIBE, SCENE)  # type: ignore[assignment]
 
     with pytest.raises(RoleMismatch, match=f"declares no participant role for fipa-query on {new},"):
         NamedChannels(MemoryBus().transport(), spec)
