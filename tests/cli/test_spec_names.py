@@ -38,7 +38,7 @@ def test_roco_spec_names_writes_and_checks_a_file(tmp_path: Path) -> None:
     done = runner.invoke(app, ["spec", "names", *args])
     assert (
         done.exit_code == 0
-        and done.output == f"roco: wrote {target} (9 channels, 4 protocols, 6 languages)\n"
+        and done.output == f"roco: wrote {target} (9 channels, 5 protocols, 6 languages)\n"
     )
     assert target.read_text() == render(load(spec))
     done = runner.invoke(app, ["spec", "names", "--check", *args])
@@ -46,7 +46,7 @@ def test_roco_spec_names_writes_and_checks_a_file(tmp_path: Path) -> None:
     done = runner.invoke(app, ["spec", "names", *args])
     assert (
         done.exit_code == 0
-        and done.output == f"roco: {target} is up to date (9 channels, 4 protocols, 6 languages)\n"
+        and done.output == f"roco: {target} is up to date (9 channels, 5 protocols, 6 languages)\n"
     )
 
 
