@@ -73,7 +73,7 @@ class Progress:
     overruns: int
     cycles: int
     notice: str | None = None
-    """The last notice an agent sent a_hi for the person (protocol ``notify``): ``a_wt
+    """The last notice an agent sent a_hi for the person (protocol ``roco-notify``): ``a_wt
     (warning): the jar tipped over``; None: none yet."""
     notices: int = 0
     """Notices seen so far."""

@@ -645,7 +645,7 @@ def _notices(report: Report) -> str:
     rows = [(_s(n.t), n.sender, n.severity, " ".join(n.about) or "—", n.text) for n in report.notices]
     table = _table(("time (s wall)", "sender", "severity", "about", "text"), rows)
     how = (
-        "**How read.** Every `inform` of the `notify` protocol carrying an L_HC `Notice` in the "
+        "**How read.** Every `inform` of the `roco-notify` protocol carrying an L_HC `Notice` in the "
         "traffic record: an agent telling the person something unprompted through a_hi; the "
         f"sender is the communicate's. a_hi passes on at most {NOTICES_PER_S} a second per sender (the rest "
         "it counts as `notices_dropped`, which `roco status` shows): the record holds every one sent."

@@ -273,7 +273,7 @@ class RequirementRow(msgspec.Struct, kw_only=True):
 
 
 class NoticeRow(msgspec.Struct, kw_only=True):
-    """A notice an agent sent a_hi for the person (L_HC ``Notice``, protocol ``notify``): when
+    """A notice an agent sent a_hi for the person (L_HC ``Notice``, protocol ``roco-notify``): when
     (``t``, s since the run start), who said it (``sender``), its ``severity``, ``text`` and the
     things it is ``about``."""
 

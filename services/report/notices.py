@@ -1,5 +1,5 @@
 """What agents told the person through a_hi: every L_HC ``Notice`` in the traffic (protocol
-``notify``, an ``inform`` to a_hi; shared/fipa_codec/languages/l_hc.py), in the order it
+``roco-notify``, an ``inform`` to a_hi; shared/fipa_codec/languages/l_hc.py), in the order it
 crossed the wire. A notice a_hi did not read (not-understood) is no ``Notice`` here: its
 content does not decode. a_hi passes on at most a few per sender a second
 (services/agents/human_interface/notices.py): the record holds all that were sent."""

@@ -44,7 +44,7 @@ class ReportKind(enum.StrEnum):
     running) or ``failed`` (some could not be stopped). For a status request ("what are you
     doing?"): ``status``, one line per command. For a question ("what is in the bowl?"):
     ``answer``, one sentence. ``notice``: no request of the person's; an agent tells the person
-    something unprompted (its ``sender``; protocol ``notify``, L_HC ``Notice``).
+    something unprompted (its ``sender``; protocol ``roco-notify``, L_HC ``Notice``).
     """
 
     ACCEPTED = "accepted"

@@ -166,13 +166,18 @@ def test_the_view_shows_every_row() -> None:
 
 
 def test_the_view_shows_the_last_notice_to_the_person_with_its_sender() -> None:
-    """A notice (protocol notify, sent to a_hi for the person) is shown with who sent it, from
+    """A notice (protocol roco-notify, sent to a_hi for the person) is shown with who sent it, from
     the communicate's key; none, no row."""
     state = LiveState(AGENTS, started=0.0)
     assert "notice" not in dict(LiveView("roco run", state.progress(1.0)).rows())
     for text in ("the cup is gone", "the jar tipped over"):
         msg = communicate(
-            Performative.INFORM, "a_wt", "a_hi", "notify", "n", Notice(text=text, severity=Severity.WARNING)
+            Performative.INFORM,
+            "a_wt",
+            "a_hi",
+            "roco-notify",
+            "n",
+            Notice(text=text, severity=Severity.WARNING),
         )
         state.communicate(keys.fipa_key("C9", "a_wt", "a_hi"), encode(msg))
     p = state.progress(1.0)

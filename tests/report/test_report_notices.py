@@ -1,5 +1,5 @@
 """The report's "Notices to the person" section (services/report/notices.py): every L_HC
-``Notice`` an agent sent a_hi (protocol notify) in the record, with time, sender and text; no
+``Notice`` an agent sent a_hi (protocol roco-notify) in the record, with time, sender and text; no
 section when there is none."""
 
 from __future__ import annotations
@@ -20,7 +20,7 @@ def _run(*notices: tuple[float, str, Notice]) -> RunBuilder:
     b = RunBuilder()
     b.add(1.0, "C2", "a_hi", "a_co", "query-ref", StatusQuery(), conversation="s", protocol="fipa-query")
     for i, (t, sender, notice) in enumerate(notices):
-        b.add(t, "C9", sender, "a_hi", "inform", notice, conversation=f"n{i}", protocol="notify")
+        b.add(t, "C9", sender, "a_hi", "inform", notice, conversation=f"n{i}", protocol="roco-notify")
     return b
 
 

@@ -80,7 +80,7 @@ def test_the_coverage_of_a_known_record_is_exactly_what_it_took(tmp_path: Path) 
     # C2, C4, C6, C7: 17 transitions, a not-understood by each role and a time-out each; their
     # content terms (C4 and C6: 7 queries each by query-ref and by query-if, Answer by two)
     assert protocol == 4 * (17 + 2 + 1) + 2 + 2 * (7 + 7 + 1 + 1) + 2
-    machines = protocols_of(DEFAULT_SPEC)  # the built-in machines, and notify's of the table
+    machines = protocols_of(DEFAULT_SPEC)  # the built-in machines, and roco-notify's of the table
     every = [
         protocol_items(f"{ch.name} {cp.protocol}", machines[cp.protocol], cp)
         for ch in spec.channels
@@ -129,7 +129,7 @@ def test_the_figure_draws_each_protocol_and_the_known_fsms(tmp_path: Path) -> No
         "fipa-request",
         "fipa-subscribe",
         "fipa-query",
-        "notify",
+        "roco-notify",
         "a_pl FSM",
     ]
     query = drawn[4]

@@ -1,6 +1,6 @@
 """What tests/agents/human_interface/test_agent_notices.py shares: the shipped specification
 with one more agent, a_wt (a kitchen watcher), on a channel of its own to a_hi, C9, that
-carries ``notify`` (a_wt initiates) in L_HC; ``ANY_TERM_SPEC`` names no ``contents`` there
+carries ``roco-notify`` (a_wt initiates) in L_HC; ``ANY_TERM_SPEC`` names no ``contents`` there
 (any L_HC term passes the runtime's check). The watcher is in notice_watcher.py (the module
 that declares an agent's roles may name only what they send: services/runtime/code_scan.py)."""
 
@@ -12,7 +12,7 @@ from services.spec.model import AgentSpec, ChannelProtocol, ChannelSpec, SystemS
 
 WATCHER = "a_wt"
 CHANNEL = "C9"
-NOTIFY = "notify"
+NOTIFY = "roco-notify"
 
 
 def _spec(contents: dict[str, tuple[str, ...]]) -> SystemSpec:

@@ -1,5 +1,5 @@
 """a_wt of tests/agents/human_interface/test_agent_notices.py: tells the person something
-through a_hi (``notify`` on C9, notice_agents.py), whatever content the test gives it."""
+through a_hi (``roco-notify`` on C9, notice_agents.py), whatever content the test gives it."""
 
 from __future__ import annotations
 

@@ -20,7 +20,7 @@ that a stop never waits for the parse of the line before it; a conversation per 
 what it named and a question asked back (language.py). Agents of other FIPA platforms ask on C8
 (foreign.py).
 
-Notices: a_hi is the participant of ``notify`` on every channel where the specification makes
+Notices: a_hi is the participant of ``roco-notify`` on every channel where the specification makes
 it so (C8 today; a new agent with such a channel to a_hi needs no edit here): each L_HC
 ``Notice`` goes to the person as a ``notice`` report naming its sender, at most
 ``NOTICES_PER_S`` per sender a second (notices.py).
@@ -92,7 +92,7 @@ from services.runtime.roles import (
     participant,
 )
 from services.runtime.subscriptions import StandingSubscription
-from services.spec.names import C2, C7, C8, FIPA_QUERY, FIPA_REQUEST, FIPA_SUBSCRIBE, L_HC, L_WM, NOTIFY
+from services.spec.names import C2, C7, C8, FIPA_QUERY, FIPA_REQUEST, FIPA_SUBSCRIBE, L_HC, L_WM, ROCO_NOTIFY
 from shared.fipa_codec import Performative
 from shared.fipa_codec.languages.l_hc import (
     CommandOutcome,
@@ -203,7 +203,7 @@ class HumanInterface(AskingKnowledge):
         initiator(C7, FIPA_QUERY, L_WM, reply_by_s=VOCABULARY_REPLY_BY_S),
         participant(C8, FIPA_REQUEST, L_HC),
         # any agent the specification lets tell the person something (module docstring)
-        participant(EVERY_CHANNEL, NOTIFY, L_HC),
+        participant(EVERY_CHANNEL, ROCO_NOTIFY, L_HC),
     )
 
     def __init__(
@@ -290,14 +290,14 @@ class HumanInterface(AskingKnowledge):
         self.note.keep(report)
         self.foreign.answer(report)
 
-    # ---- notices (notify, participant, on every channel that gives a_hi the role) ---------
-    @handles(NOTIFY, PARTICIPANT, Performative.INFORM)
+    # ---- notices (roco-notify, participant, on every channel that gives a_hi the role) ---------
+    @handles(ROCO_NOTIFY, PARTICIPANT, Performative.INFORM)
     def _on_notice(self, conv: Conversation) -> None:
         """An agent tells the person something: a ``notice`` report with its name, unless it
         sent more than the gate passes this second (counted: ``notices_dropped``). A content
         that does not decode as its channel's ``contents`` allow is answered ``not-understood``
         by the runtime; one that decodes as another L_HC term (a channel that names no
-        ``contents``) is logged and counted (``notices_unreadable``): notify has no answer."""
+        ``contents``) is logged and counted (``notices_unreadable``): roco-notify has no answer."""
         notice = conv.content
         if not isinstance(notice, Notice):
             self.counters["notices_unreadable"] += 1

@@ -1,4 +1,4 @@
-"""How many notices a_hi passes on to the person (protocol ``notify``, L_HC ``Notice``:
+"""How many notices a_hi passes on to the person (protocol ``roco-notify``, L_HC ``Notice``:
 shared/fipa_codec/languages/l_hc.py): at most ``NOTICES_PER_S`` (services/runtime/human.py)
 per sender in each one-second window; the excess is counted and dropped, with one log line per
 sender and window, so that an agent that floods a_hi neither floods the person nor a_hi's log."""

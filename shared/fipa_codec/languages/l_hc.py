@@ -15,7 +15,7 @@ On C8, an agent of another FIPA platform asks a_hi as a person would: fipa-reque
 succeeded, stopped for a stop request, the status for a status request) or ``failure``;
 ``refuse`` when it does not understand the sentence.
 
-Any agent the specification gives a channel to a_hi with the ``notify`` protocol (one
+Any agent the specification gives a channel to a_hi with the ``roco-notify`` protocol (one
 ``inform``, nothing answers; inform: FIPA SC00037) tells the person something unprompted
 with a :class:`Notice` (who said it is the communicate's sender).
 """
@@ -144,7 +144,7 @@ class Severity(enum.StrEnum):
 
 
 class Notice(msgspec.Struct, frozen=True, tag="notice", kw_only=True):
-    """Something an agent tells the person unprompted (protocol ``notify``): ``text`` in words
+    """Something an agent tells the person unprompted (protocol ``roco-notify``): ``text`` in words
     a person reads (1 to :data:`MAX_NOTICE_CHARS` characters), its ``severity``, and the
     kitchen's things it is ``about`` (O_RoCo names, e.g. ``("jar",)``; at most
     :data:`MAX_NOTICE_ABOUT`). A term outside these bounds does not decode (ContentError), and

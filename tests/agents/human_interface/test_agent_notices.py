@@ -1,4 +1,4 @@
-"""a_hi passes on what any agent tells the person (protocol ``notify``, L_HC ``Notice``) on a
+"""a_hi passes on what any agent tells the person (protocol ``roco-notify``, L_HC ``Notice``) on a
 channel the specification adds — C9 from a watcher, a_wt (tests/support/notice_agents.py) —
 with no edit of a_hi: a ``notice`` report naming the sender; a malformed notice is answered
 ``not-understood`` and a_hi goes on; a flood is bounded per sender (notices.py)."""
@@ -50,7 +50,7 @@ def _answers_to_watcher(stage: Stage) -> queue.SimpleQueue[Performative]:
 def test_a_new_agent_on_a_channel_of_its_own_tells_the_person_with_its_name(stage: Stage) -> None:
     hi, watcher = _start(stage)
     assert (
-        hi.roles.role(CHANNEL, "notify").role == "participant"
+        hi.roles.role(CHANNEL, "roco-notify").role == "participant"
     )  # no edit of a_hi: its role on every channel
     watcher.tell(TIPPED)
     (report,) = _notices(stage, 1)
@@ -69,12 +69,12 @@ def test_a_new_agent_on_a_channel_of_its_own_tells_the_person_with_its_name(stag
 def test_an_a_hi_that_named_its_channels_one_by_one_refuses_the_new_one() -> None:
     """The role on every channel is what serves C9: an a_hi with the role on C8 alone refuses
     to start on the specification with C9."""
-    roles = tuple(r for r in HumanInterface.ROLES if r.protocol != "notify")
+    roles = tuple(r for r in HumanInterface.ROLES if r.protocol != "roco-notify")
 
     class NamedChannels(HumanInterface):
-        ROLES = (*roles, participant("C8", "notify", "L_HC"))
+        ROLES = (*roles, participant("C8", "roco-notify", "L_HC"))
 
-    with pytest.raises(RoleMismatch, match="declares no participant role for notify on C9"):
+    with pytest.raises(RoleMismatch, match="declares no participant role for roco-notify on C9"):
         NamedChannels(Stage().bus.transport(), SPEC)
 
 
