@@ -45,6 +45,8 @@ from shared.fipa_codec.languages.l_wm import WorldUpdate
 Echo = Callable[[str], None]
 KINDS = frozenset(k.value for k in ReportKind)
 """The kinds of report a ``SentenceReport`` may carry (services/runtime/human.py)."""
+SUMMARY_NOTICES = 20
+"""The most notices to the person a run's summary lists (the last ones)."""
 MAX_CRASHES = 3
 """Times a process (an agent, the recorder, a router) that exits by itself is started again
 during a run before the run ends."""
@@ -219,13 +221,18 @@ class ScenarioOutcome:
         return raised_text(self.raised, self.crashed)
 
     def summary(self) -> str:
-        """One line per command, then one per notice to the person."""
+        """One line per command, then one per notice to the person (the last
+        :data:`SUMMARY_NOTICES`, after a line counting the earlier ones)."""
         lines = []
         for c in self.commands:
             got = f"{c.final.kind.value}: {c.final.text}" if c.final else "no outcome"
             mark = "ok" if c.as_expected else f"expected {c.expect or 'succeeded'}"
             lines.append(f"#{c.number} “{c.text}” → {got} [{mark}]")
-        lines += [f"[{t:7.1f} s] {n.notice_line}" for t, n in self.notices]
+        if len(self.notices) > SUMMARY_NOTICES:
+            lines.append(
+                f"({len(self.notices) - SUMMARY_NOTICES} earlier notices to the person: see the run's report)"
+            )
+        lines += [f"[{t:7.1f} s] {n.notice_line}" for t, n in self.notices[-SUMMARY_NOTICES:]]
         if self.detail:
             lines.append(self.detail)
         if not self.clean:

@@ -9,7 +9,7 @@ from typing import Any
 
 from services.runtime.human import HumanReport, ReportKind
 from services.scenario.model import Scenario, Step
-from services.scenario.runner import CommandRecord, ScenarioOutcome, ScenarioRunner
+from services.scenario.runner import SUMMARY_NOTICES, CommandRecord, ScenarioOutcome, ScenarioRunner
 
 NOTICE = HumanReport(
     request_id="", kind=ReportKind.NOTICE, text="the jar tipped over", sender="a_wt", severity="warning"
@@ -36,3 +36,10 @@ def test_a_notice_is_said_with_its_sender_and_kept(tmp_path: Path) -> None:
     assert [r.kind for r in record.reports] == [ReportKind.ACCEPTED]  # the command's reports only
     outcome = ScenarioOutcome(runner.commands, notices=runner.notices)
     assert outcome.summary().splitlines()[-1].endswith("notice from a_wt (warning): the jar tipped over")
+
+
+def test_the_summary_lists_the_last_notices_and_counts_the_earlier_ones() -> None:
+    many = [(float(i), NOTICE) for i in range(SUMMARY_NOTICES + 3)]
+    lines = ScenarioOutcome([], notices=many).summary().splitlines()
+    assert lines[0] == "(3 earlier notices to the person: see the run's report)"
+    assert len(lines) == SUMMARY_NOTICES + 1 and lines[1].startswith("[    3.0 s] notice from a_wt")
