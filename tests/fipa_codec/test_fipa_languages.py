@@ -126,4 +126,5 @@ def test_a_notice_outside_its_bounds_does_not_decode(notice: Notice, why: str) -
     language, data = encode_content(notice)  # encoding does not check the bounds: decoding does
     with pytest.raises(ContentError, match=why):
         decode_content(language, data)
-    assert decode_content(language, encode_content(Notice(text="x" * MAX_NOTICE_CHARS))[1]).text
+    longest = Notice(text="x" * MAX_NOTICE_CHARS)
+    assert decode_content(language, encode_content(longest)[1]) == longest
