@@ -1025,6 +1025,11 @@ def _fleet_endpoint(state: FleetState) -> str:
     return state.endpoint
 
 
+def _show_notice(report: HumanReport) -> None:
+    """What an agent told the person (a_hi's ``notice`` report), one line naming who said it."""
+    typer.echo(report.notice_line)
+
+
 @app.command(short_help="Give a running fleet a command and wait for its outcome.")
 def send(
     command: Annotated[str, typer.Argument(help="what the person says")],
@@ -1037,7 +1042,8 @@ def send(
     ] = "",
     credentials: CredentialsOption = None,
 ) -> None:
-    """Give a running fleet a command and wait for a_hi's final report. Reports a_hi gave
+    """Give a running fleet a command and wait for a_hi's final report; what agents tell the
+    person meanwhile (a_hi's notices) is shown with who said it. Reports a_hi gave
     while this session was cut off from it (the router restarted) come when it is back, each
     shown once; after 10 s without one, a_hi is asked for the outcome, which it keeps across
     its restarts (services/runtime/reports.py)."""
@@ -1055,7 +1061,7 @@ def send(
     deadline = time.monotonic() + timeout
     missed = MissedOutcomes(session)
     try:
-        while (report := next_report(reports, request_id, shown, missed, deadline)) is not None:
+        while (report := next_report(reports, request_id, shown, missed, deadline, _show_notice)) is not None:
             typer.echo(f"{report.kind.value}: {report.text}")
             if report.kind in FINAL_REPORTS:
                 if not report.done_as_asked:

@@ -19,7 +19,7 @@ from services.runtime import keys
 from shared.fipa_codec import DecodeError, decode
 from shared.fipa_codec.batch import unpack
 from shared.fipa_codec.languages import ContentError, decode_content
-from shared.fipa_codec.languages.l_hc import CommandOutcome, HumanCommand
+from shared.fipa_codec.languages.l_hc import CommandOutcome, HumanCommand, Notice
 from shared.fipa_codec.languages.l_hfsm import GroundTaskNetwork, HierarchicalPlan
 from shared.fipa_codec.languages.l_sw import SWStatus
 from velma.executor.timing import TimingStats
@@ -72,6 +72,11 @@ class Progress:
     overrun_share: float | None
     overruns: int
     cycles: int
+    notice: str | None = None
+    """The last notice an agent sent a_hi for the person (protocol ``roco-notify``): ``a_wt
+    (warning): the jar tipped over``; None: none yet."""
+    notices: int = 0
+    """Notices seen so far."""
 
 
 @dataclass
@@ -95,6 +100,8 @@ class LiveState:
     _first: tuple[float, float] | None = None  # (wall, sim) of the first state seen
     _last_wall: float | None = None
     _timing: TimingStats | None = None
+    _notice: str | None = None
+    _notices: int = 0
 
     def communicates(self, key: str, payload: bytes) -> None:
         """Take one sample: one communicate or a batch of them (shared/fipa_codec/batch.py)."""
@@ -104,12 +111,16 @@ class LiveState:
     def communicate(self, key: str, payload: bytes) -> None:
         """Take one communicate; anything that is not one of the view's is ignored."""
         try:
-            keys.parse_fipa_key(key)
+            sender = keys.parse_fipa_key(key).sender
             msg = decode(payload)
             content = decode_content(msg.language, msg.content) if msg.language and msg.content else None
         except (ValueError, DecodeError, ContentError):
             return
         with self._lock:
+            if isinstance(content, Notice):  # said by its sender (the key's)
+                self._notices += 1
+                self._notice = f"{sender} ({content.severity.value}): {content.text}"
+                return
             for kind, take in _TAKES:
                 if isinstance(content, kind):
                     take(self, content)
@@ -180,6 +191,8 @@ class LiveState:
                 overrun_share=t.overrun_share if t is not None else None,
                 overruns=t.overruns if t is not None else 0,
                 cycles=t.cycles if t is not None else 0,
+                notice=self._notice,
+                notices=self._notices,
             )
 
     def _shown_plan(self) -> PlanInfo | None:

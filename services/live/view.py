@@ -1,6 +1,6 @@
 """The live view's look: one :class:`~services.live.state.Progress` as a rich panel of
 labelled rows (command, plan, step with a bar of its place in the plan, a_ta's state,
-agents, time, loop)."""
+agents, time, loop, and the last notice to the person once there is one)."""
 
 from __future__ import annotations
 
@@ -75,7 +75,7 @@ class LiveView:
         if p.plan is not None:
             kind = "complete" if p.plan.complete else "partial, ends with sensing"
             plan = Text(f"#{p.plan.index} of {p.plan.of} ({kind})")
-        return [
+        rows: list[tuple[str, RenderableType]] = [
             ("command", command),
             ("plan", plan),
             ("step", _step(p)),
@@ -84,6 +84,9 @@ class LiveView:
             ("time", _time(p)),
             ("loop", _loop(p)),
         ]
+        if p.notice is not None:
+            rows.append(("notice", Text(f"{p.notice}  ({p.notices} in all)" if p.notices > 1 else p.notice)))
+        return rows
 
     def __rich__(self) -> RenderableType:
         grid = Table.grid(padding=(0, 2))

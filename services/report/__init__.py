@@ -5,7 +5,8 @@
 
 Modules: ``load`` (tolerant reading of the run folder), ``stats`` (sizes, channels, Table 8
 matrix), ``planning`` (planning phases), ``timeline`` (Table 7 events), ``content`` (spheres
-in the bowl), ``paper`` (the paper's figures), ``markdown`` (rendering), ``build`` (assembly).
+in the bowl), ``notices`` (what agents told the person), ``paper`` (the paper's figures),
+``markdown`` (rendering), ``build`` (assembly).
 """
 
 from services.report.build import REPORT_MD, build_report, write_report

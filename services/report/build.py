@@ -30,6 +30,7 @@ from services.report.model import (
     Report,
     RequirementRow,
 )
+from services.report.notices import notice_rows
 from services.report.planning import plan_phases
 from services.report.robot_clock import RobotClock, robot_clock
 from services.report.stats import agent_matrix, channel_stats, size_stats
@@ -105,6 +106,7 @@ def _assemble(run: RunData, container: str = "bowl", tracer: Tracer | None = Non
         perception=_perception(Path(run_dir), notes),
         requirements=_requirements(run, tracer, notes),
         flags=_flags(Path(run_dir), notes),
+        notices=notice_rows(messages),
     )
 
 

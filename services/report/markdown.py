@@ -22,6 +22,7 @@ from services.report.model import (
     RequirementRow,
 )
 from services.report.robot_clock import RobotClock
+from services.runtime.human import NOTICES_PER_S
 from velma.executor.timing import STALL_OFF_CPU, RealtimeSetup, TimingStats
 from velma.world.timing import DT, LATE_AFTER_S, MAX_BEHIND_S, STALL_PERIODS, WorldTiming
 
@@ -62,6 +63,7 @@ def render(report: Report, figures: Sequence[FigureFile] = ()) -> str:
         _content(report),
         _control(report),
         _coordination(report),
+        _notices(report),
         _faults(report),
         _coverage(report),
         _perception(report),
@@ -634,6 +636,21 @@ def _coordination(report: Report) -> str:
         "urgent command's plan, then the preempted command's new plan."
     )
     return "\n\n".join([title, commands, events, how])
+
+
+def _notices(report: Report) -> str:
+    """What agents told the person through a_hi, only when one did (services/report/notices.py)."""
+    if not report.notices:
+        return ""
+    rows = [(_s(n.t), n.sender, n.severity, " ".join(n.about) or "—", n.text) for n in report.notices]
+    table = _table(("time (s wall)", "sender", "severity", "about", "text"), rows)
+    how = (
+        "**How read.** Every `inform` of the `roco-notify` protocol carrying an L_HC `Notice` in the "
+        "traffic record: an agent telling the person something unprompted through a_hi; the "
+        f"sender is the communicate's. a_hi passes on at most {NOTICES_PER_S} a second per sender (the rest "
+        "it counts as `notices_dropped`, which `roco status` shows): the record holds every one sent."
+    )
+    return f"{SECTION}Notices to the person\n\n{table}\n\n{how}"
 
 
 def _faults(report: Report) -> str:

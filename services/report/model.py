@@ -272,6 +272,18 @@ class RequirementRow(msgspec.Struct, kw_only=True):
     against: list[str] = []
 
 
+class NoticeRow(msgspec.Struct, kw_only=True):
+    """A notice an agent sent a_hi for the person (L_HC ``Notice``, protocol ``roco-notify``): when
+    (``t``, s since the run start), who said it (``sender``), its ``severity``, ``text`` and the
+    things it is ``about``."""
+
+    t: float
+    sender: str
+    severity: str
+    text: str
+    about: list[str] = []
+
+
 class Report(msgspec.Struct, kw_only=True):
     """The experiment report of one run folder (paper §5.7). ``notes`` lists what was
     missing or could not be read."""
@@ -302,3 +314,5 @@ class Report(msgspec.Struct, kw_only=True):
     flags: list[LiveFlag] = []
     """The requirement properties the live monitor flagged violated during the run, in the
     order flagged (services/recorder/flags.py)."""
+    notices: list[NoticeRow] = []
+    """What agents told the person through a_hi, in order (services/report/notices.py)."""

@@ -97,9 +97,11 @@ def rejects(counters: dict[str, int]) -> dict[str, int]:
 
 
 def summary(counters: dict[str, int]) -> str:
-    """One line: communicates received, rejected inputs by reason, duplicates, and what the
-    agent raised (services/runtime/raised.py) when it did (``received 812, rejected 10012
-    (malformed 5000, protocol_state 12), duplicates 3, handler_errors 2``)."""
+    """One line: communicates received, rejected inputs by reason, duplicates, the notices a_hi
+    passed on to the person and dropped (services/agents/human_interface/notices.py) when
+    there were any, and what the agent raised (services/runtime/raised.py) when it did
+    (``received 812, rejected 10012 (malformed 5000, protocol_state 12), duplicates 3, notices
+    4 (2 dropped), handler_errors 2``)."""
     received = sum(v for k, v in counters.items() if k.startswith("received."))
     by_reason = rejects(counters)
     parts = [f"received {received}", f"rejected {sum(by_reason.values())}"]
@@ -107,5 +109,8 @@ def summary(counters: dict[str, int]) -> str:
         parts[-1] += " (" + ", ".join(f"{k} {v}" for k, v in by_reason.items()) + ")"
     if counters.get("duplicates"):
         parts.append(f"duplicates {counters['duplicates']}")
+    told, dropped = counters.get("notices", 0), counters.get("notices_dropped", 0)
+    if told or dropped:
+        parts.append(f"notices {told}" + (f" ({dropped} dropped)" if dropped else ""))
     parts += [f"{k} {v}" for k, v in raised(counters).items()]
     return ", ".join(parts)

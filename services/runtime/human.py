@@ -17,6 +17,11 @@ MAX_LINE_CHARS = 1000
 refused with one ``not-understood`` report, except that a stop in it is still acted on."""
 
 
+NOTICES_PER_S = 5
+"""The most notices of one sender a_hi passes on to the person in a second (the rest it counts,
+``notices_dropped``, and drops: services/agents/human_interface/notices.py)."""
+
+
 class HumanInput(msgspec.Struct, frozen=True, kw_only=True):
     """A sentence from a person; ``request_id`` lets the sender match the reports. ``text``
     is read when at most :data:`MAX_LINE_CHARS` characters long. ``priority`` > 0 overrides the
@@ -38,7 +43,8 @@ class ReportKind(enum.StrEnum):
     (which commands are being stopped), then ``stopped`` (all stopped, or nothing was
     running) or ``failed`` (some could not be stopped). For a status request ("what are you
     doing?"): ``status``, one line per command. For a question ("what is in the bowl?"):
-    ``answer``, one sentence.
+    ``answer``, one sentence. ``notice``: no request of the person's; an agent tells the person
+    something unprompted (its ``sender``; protocol ``roco-notify``, L_HC ``Notice``).
     """
 
     ACCEPTED = "accepted"
@@ -49,6 +55,7 @@ class ReportKind(enum.StrEnum):
     SUCCEEDED = "succeeded"
     FAILED = "failed"
     STOPPED = "stopped"
+    NOTICE = "notice"
 
 
 class RequestKind(enum.StrEnum):
@@ -63,12 +70,25 @@ class RequestKind(enum.StrEnum):
 class HumanReport(msgspec.Struct, frozen=True, kw_only=True):
     """What a_hi tells the person about request ``request_id`` (``text``: readable
     sentences; a status report has one line per command). ``request``: what a_hi understood
-    the sentence to be (None: not understood, or a command a_hi restored after its restart)."""
+    the sentence to be (None: not understood, or a command a_hi restored after its restart).
+    A ``notice`` answers no request (``request_id`` empty): ``sender`` names the agent that
+    said it, ``severity`` is the L_HC ``Notice``'s (``info``, ``warning``, ``alarm``) and
+    ``about`` the things it names."""
 
     request_id: str
     kind: ReportKind
     text: str
     request: RequestKind | None = None
+    sender: str = ""
+    severity: str = ""
+    about: tuple[str, ...] = ()
+
+    @property
+    def notice_line(self) -> str:
+        """The notice as one line for the person: ``notice from a_wt (warning, about jar):
+        the jar tipped over``."""
+        what = ", ".join(filter(None, (self.severity, f"about {' '.join(self.about)}" if self.about else "")))
+        return f"notice from {self.sender or 'an agent'}{f' ({what})' if what else ''}: {self.text}"
 
     @property
     def done_as_asked(self) -> bool:

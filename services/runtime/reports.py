@@ -39,7 +39,7 @@ import zenoh
 import zenoh.ext as zext
 
 from services.runtime import keys
-from services.runtime.human import FINAL_REPORTS, HumanReport
+from services.runtime.human import FINAL_REPORTS, HumanReport, ReportKind
 from services.runtime.transport import CACHE_SAMPLES
 
 log = logging.getLogger(__name__)
@@ -182,17 +182,24 @@ def next_report(
     shown: ReportFilter,
     missed: MissedOutcomes,
     deadline: float,
+    notices: Callable[[HumanReport], None] | None = None,
 ) -> HumanReport | None:
     """The next report of ``request_id`` to show, from ``reports`` (what :func:`follow_reports`
-    hands on), skipping other requests' and those ``shown`` filters out; when ``missed`` says
-    the silence has lasted (other requests' reports may still flow), a_hi is asked for the
-    outcome meanwhile. None past ``deadline`` (``time.monotonic()``)."""
+    hands on), skipping other requests' and those ``shown`` filters out; a ``notice`` (an
+    agent tells the person something, of no request) is handed to ``notices`` meanwhile (None:
+    skipped). When ``missed`` says the silence has lasted (other requests' reports may still
+    flow), a_hi is asked for the outcome meanwhile. None past ``deadline``
+    (``time.monotonic()``)."""
     while (left := deadline - time.monotonic()) > 0:
         for told in missed.ask_if_due([request_id]):  # a long silence of this request's reports
             reports.put(told)
         try:
             report = reports.get(timeout=max(0.05, min(left, missed.due_in())))
         except queue.Empty:
+            continue
+        if report.kind is ReportKind.NOTICE:
+            if notices is not None:
+                notices(report)
             continue
         if report.request_id == request_id and shown.keep(report):
             missed.heard()

@@ -45,6 +45,8 @@ from shared.fipa_codec.languages.l_wm import WorldUpdate
 Echo = Callable[[str], None]
 KINDS = frozenset(k.value for k in ReportKind)
 """The kinds of report a ``SentenceReport`` may carry (services/runtime/human.py)."""
+SUMMARY_NOTICES = 20
+"""The most notices to the person a run's summary lists (the last ones)."""
 MAX_CRASHES = 3
 """Times a process (an agent, the recorder, a router) that exits by itself is started again
 during a run before the run ends."""
@@ -199,6 +201,9 @@ class ScenarioOutcome:
     """Each agent's error counters above zero when the commands ended (services/runtime/raised.py)."""
     crashed: dict[str, list[int]] = field(default_factory=dict)
     """Each agent that exited though nobody stopped it (started again): its exit codes."""
+    notices: list[tuple[float, HumanReport]] = field(default_factory=list)
+    """What agents told the person unprompted (a_hi's ``notice`` reports): (s since the run
+    started, the report), in the order a_hi told them."""
 
     @property
     def ok(self) -> bool:
@@ -216,12 +221,18 @@ class ScenarioOutcome:
         return raised_text(self.raised, self.crashed)
 
     def summary(self) -> str:
-        """One line per command."""
+        """One line per command, then one per notice to the person (the last
+        :data:`SUMMARY_NOTICES`, after a line counting the earlier ones)."""
         lines = []
         for c in self.commands:
             got = f"{c.final.kind.value}: {c.final.text}" if c.final else "no outcome"
             mark = "ok" if c.as_expected else f"expected {c.expect or 'succeeded'}"
             lines.append(f"#{c.number} “{c.text}” → {got} [{mark}]")
+        if len(self.notices) > SUMMARY_NOTICES:
+            lines.append(
+                f"({len(self.notices) - SUMMARY_NOTICES} earlier notices to the person: see the run's report)"
+            )
+        lines += [f"[{t:7.1f} s] {n.notice_line}" for t, n in self.notices[-SUMMARY_NOTICES:]]
         if self.detail:
             lines.append(self.detail)
         if not self.clean:
@@ -281,6 +292,8 @@ class ScenarioRunner:
         self.renewed = threading.Event()
         """a_ta renewed a_km's picture of a power-cycled robot's kitchen (WorldUpdate.renews)."""
         self.commands: list[CommandRecord] = []
+        self.notices: list[tuple[float, HumanReport]] = []
+        """a_hi's ``notice`` reports: what agents told the person (s since the run started)."""
         self.faults: list[FaultRecord] = []
         self.down: set[str] = set()  # services killed on purpose, not yet started again
         self.crashed: dict[str, list[int]] = {}
@@ -413,7 +426,12 @@ class ScenarioRunner:
     def _report(self, item: HumanReport, to: str = "person") -> None:
         """a_hi's report to the person (or, ``to`` ``platform``, its answer to the foreign
         agent): said, and kept with its command (the final one ends it); a report of no command
-        of the run, or after its command's final one, is ignored."""
+        of the run, or after its command's final one, is ignored. A notice (an agent tells the
+        person something unprompted) is said with its sender and kept in :attr:`notices`."""
+        if item.kind is ReportKind.NOTICE:
+            self.notices.append((round(time.time() - self.t0, 1), item))
+            self._say(f"a_hi → person: {item.notice_line}")
+            return
         record = next((c for c in self.commands if c.request_id == item.request_id), None)
         if record is None or not self.shown.keep(item):
             return
@@ -657,7 +675,14 @@ class ScenarioRunner:
             with contextlib.suppress(LaunchError):  # no fleet when the two hosts were never made
                 self.info.processes = {**self.info.processes, **self.fleet.pids()}
         outcome = ScenarioOutcome(
-            self.commands, detail, self.faults, self.t0, interrupted, self.raised, self.crashed
+            self.commands,
+            detail,
+            self.faults,
+            self.t0,
+            interrupted,
+            self.raised,
+            self.crashed,
+            self.notices,
         )
         self._note_outcome(outcome)
         return outcome

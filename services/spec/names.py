@@ -40,8 +40,8 @@ class Channel(enum.StrEnum):
     where they are (a_hi's vocabulary), and what a_km knows of them for a person's questions
     (contents, places, when a_ta last saw them)."""
     C8 = "C8"
-    """Between x_fipa and a_hi (fipa-request): sentences from agents of other FIPA platforms
-    (through roco gateway) and their outcome."""
+    """Between x_fipa and a_hi (fipa-request, roco-notify): sentences from agents of other FIPA
+    platforms (through roco gateway) and their outcome; their notices to the person."""
 
 
 class ProtocolName(enum.StrEnum):
@@ -56,6 +56,8 @@ class ProtocolName(enum.StrEnum):
     """FIPA SC00035; on C2, C5, C6, C7."""
     COORDINATE = "coordinate"
     """paper §5.4, Figure 8; on C1."""
+    ROCO_NOTIFY = "roco-notify"
+    """inform: FIPA SC00037; on C8."""
 
 
 class Language(enum.StrEnum):
@@ -89,6 +91,7 @@ FIPA_REQUEST = ProtocolName.FIPA_REQUEST
 FIPA_QUERY = ProtocolName.FIPA_QUERY
 FIPA_SUBSCRIBE = ProtocolName.FIPA_SUBSCRIBE
 COORDINATE = ProtocolName.COORDINATE
+ROCO_NOTIFY = ProtocolName.ROCO_NOTIFY
 
 L_EX = Language.L_EX
 L_HC = Language.L_HC

@@ -24,7 +24,7 @@ from services.live.watch import LiveWatch
 from services.runtime import keys
 from services.runtime.session import open_client
 from shared.fipa_codec import Performative, encode
-from shared.fipa_codec.languages.l_hc import CommandOutcome, HumanCommand, TaskAtom
+from shared.fipa_codec.languages.l_hc import CommandOutcome, HumanCommand, Notice, Severity, TaskAtom
 from shared.fipa_codec.languages.l_hfsm import GroundTaskNetwork, HierarchicalPlan, PlanNode
 from shared.fipa_codec.languages.l_sw import SWState, SWStatus
 from tests.support.messages import communicate
@@ -163,6 +163,28 @@ def test_the_view_shows_every_row() -> None:
         "overruns 0.062 % (5 of 8,000 cycles)",
     ):
         assert expected in text, (expected, text)
+
+
+def test_the_view_shows_the_last_notice_to_the_person_with_its_sender() -> None:
+    """A notice (protocol roco-notify, sent to a_hi for the person) is shown with who sent it, from
+    the communicate's key; none, no row."""
+    state = LiveState(AGENTS, started=0.0)
+    assert "notice" not in dict(LiveView("roco run", state.progress(1.0)).rows())
+    for text in ("the cup is gone", "the jar tipped over"):
+        msg = communicate(
+            Performative.INFORM,
+            "a_wt",
+            "a_hi",
+            "roco-notify",
+            "n",
+            Notice(text=text, severity=Severity.WARNING),
+        )
+        state.communicate(keys.fipa_key("C9", "a_wt", "a_hi"), encode(msg))
+    p = state.progress(1.0)
+    assert (p.notice, p.notices) == ("a_wt (warning): the jar tipped over", 2)
+    out = io.StringIO()
+    Console(file=out, width=120, color_system=None).print(LiveView("roco run", p))
+    assert "notice   a_wt (warning): the jar tipped over  (2 in all)" in out.getvalue()
 
 
 @pytest.fixture(scope="module")

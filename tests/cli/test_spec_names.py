@@ -35,7 +35,7 @@ def test_roco_spec_names_writes_and_checks_a_file(tmp_path: Path) -> None:
         f"roco: {target} differs from what the specification gives (no name {NEXT.channel_name}): "
         "run `roco spec names`\n"
     )
-    counts = f"{len(load(spec).channels)} channels, 4 protocols, 6 languages"
+    counts = f"{len(load(spec).channels)} channels, {len(load(spec).protocols)} protocols, 6 languages"
     done = runner.invoke(app, ["spec", "names", *args])
     assert done.exit_code == 0 and done.output == f"roco: wrote {target} ({counts})\n"
     assert target.read_text() == render(load(spec))

@@ -27,10 +27,12 @@ from shared.fipa_codec.languages.l_ex import (
 from shared.fipa_codec.languages.l_hc import (
     CommandOutcome,
     HumanCommand,
+    Notice,
     Progress,
     ProgressSubscription,
     Sentence,
     SentenceReport,
+    Severity,
     Status,
     StatusQuery,
     TaskAtom,
@@ -106,6 +108,7 @@ SAMPLE_TERMS: list[msgspec.Struct] = [
     StatusQuery(),
     Sentence(text="bring me the cup"),
     SentenceReport(kind="succeeded", text="bring the cup: succeeded; done"),
+    Notice(text="the jar tipped over", severity=Severity.WARNING, about=("jar",)),
     Status(
         tasks=(
             TaskStatus(command_id="cmd-1", text="pour", state=TaskState.PREEMPTED, priority=1),

@@ -17,7 +17,7 @@ from shared.fipa_codec.languages import (
     language_of,
 )
 from shared.fipa_codec.languages.base import Language, register
-from shared.fipa_codec.languages.l_hc import TaskAtom
+from shared.fipa_codec.languages.l_hc import MAX_NOTICE_ABOUT, MAX_NOTICE_CHARS, Notice, TaskAtom
 from shared.fipa_codec.languages.l_sw import SWStatus
 from shared.fipa_codec.languages.l_wm import ObjectQuery
 
@@ -108,3 +108,23 @@ def test_register_rejects_duplicates() -> None:
     assert "L_NEW" not in LANGUAGES
     with pytest.raises(ContentError):  # _Probe was not half-registered to L_NEW
         language_of(_Probe())
+
+
+@pytest.mark.parametrize(
+    ("notice", "why"),
+    [
+        (Notice(text=""), "length >= 1"),
+        (Notice(text="x" * (MAX_NOTICE_CHARS + 1)), f"length <= {MAX_NOTICE_CHARS}"),
+        (Notice(text="t", about=("cup",) * (MAX_NOTICE_ABOUT + 1)), f"length <= {MAX_NOTICE_ABOUT}"),
+        (Notice(text="t", about=("",)), "length >= 1"),
+    ],
+    ids=["empty", "too long", "too many names", "empty name"],
+)
+def test_a_notice_outside_its_bounds_does_not_decode(notice: Notice, why: str) -> None:
+    """L_HC ``Notice`` (a_hi's notices): text 1..500 characters, at most 16 names of things,
+    none empty; outside, its receiver cannot read it (and answers not-understood)."""
+    language, data = encode_content(notice)  # encoding does not check the bounds: decoding does
+    with pytest.raises(ContentError, match=why):
+        decode_content(language, data)
+    longest = Notice(text="x" * MAX_NOTICE_CHARS)
+    assert decode_content(language, encode_content(longest)[1]) == longest

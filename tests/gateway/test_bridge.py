@@ -173,3 +173,21 @@ def test_a_payload_in_another_character_set_is_read_in_it() -> None:
             )
     finally:
         gateway.stop()
+
+
+def test_a_foreign_agent_s_notice_reaches_the_person_with_its_name(b: Bridge) -> None:
+    """An agent of another platform tells the person something (roco-notify on C8, an inform of
+    an L_HC Notice): a_hi passes it on as a notice report naming the foreign agent; nothing
+    answers it."""
+    notice = json.dumps({"type": "notice", "text": "the jar tipped over", "severity": "warning"})
+    acl = b.jade.acl("a_hi", notice, "N1_jade", performative="INFORM").replace(
+        ":protocol  fipa-request", ":protocol  roco-notify"
+    )
+    assert b.jade.request(b.url, "a_hi", acl) == 200
+    told = b.stage.person.next("")
+    assert (told.kind, told.sender, told.severity, told.text) == (
+        ReportKind.NOTICE,
+        JADE,
+        "warning",
+        "the jar tipped over",
+    )

@@ -3,6 +3,7 @@ gateway one of them: `roco up --gateway`)."""
 
 from __future__ import annotations
 
+import json
 import select
 import signal
 import subprocess
@@ -15,6 +16,7 @@ from services.fleet.launcher import free_port
 from services.report.build import NOTHING_RAISED
 from services.runtime.counters import read_counters
 from services.runtime.session import listening
+from tests.support.jade_platform import JADE, JadePlatform
 
 pytestmark = [pytest.mark.slow, pytest.mark.fleet]
 
@@ -23,6 +25,30 @@ def roco(*args: str, timeout: float = 180) -> subprocess.CompletedProcess[str]:
     return subprocess.run(
         [sys.executable, "-m", "services.cli", *args], capture_output=True, text=True, timeout=timeout
     )
+
+
+def _a_foreign_notice_is_counted_and_shown(runs: str, gateway: int) -> None:
+    """A foreign agent tells the person something (roco-notify on C8, through the gateway):
+    `roco status` counts it in a_hi's line once a_hi has passed it on (asked again until then:
+    the gateway's post returns before a_hi has it), and `roco send` shows it with its sender
+    (a_hi's cached reports come first)."""
+    notice = json.dumps({"type": "notice", "text": "the jar tipped over", "severity": "warning"})
+    jade = JadePlatform()
+    try:
+        acl = jade.acl("a_hi", notice, "N1_jade", performative="INFORM")
+        acl = acl.replace(":protocol  fipa-request", ":protocol  roco-notify")
+        assert jade.request(f"http://127.0.0.1:{gateway}/acc", "a_hi", acl) == 200
+    finally:
+        jade.close()
+    line = ""
+    for _ in range(20):
+        status = roco("status", "--runs-dir", runs)
+        line = next(x for x in status.stdout.splitlines() if x.startswith("a_hi "))
+        if "notices 1" in line:
+            break
+    assert "notices 1" in line, line
+    shown = roco("send", "what are you doing?", "--runs-dir", runs, timeout=60)
+    assert f"notice from {JADE} (warning): the jar tipped over" in shown.stdout, shown.stdout
 
 
 def test_up_status_send_down(tmp_path: Path) -> None:
@@ -82,6 +108,7 @@ def test_up_status_send_down(tmp_path: Path) -> None:
         stopped = roco("send", "stop", "--runs-dir", runs, timeout=60)
         assert stopped.returncode == 0, stopped.stdout + stopped.stderr
         assert "nothing to stop" in stopped.stdout.lower()
+        _a_foreign_notice_is_counted_and_shown(runs, gateway)
     finally:
         down = roco("down", "--runs-dir", runs)
     assert down.returncode == 0, down.stderr
@@ -91,6 +118,9 @@ def test_up_status_send_down(tmp_path: Path) -> None:
     # the agents' counters were kept before they stopped: the report says what they raised
     (run_dir,) = [p for p in tmp_path.iterdir() if p.is_dir()]
     assert set(read_counters(run_dir)) >= {"a_hi", "a_co", "a_pl", "a_km", "a_ta", "ag_ex"}
-    assert f"| Agents raised | {NOTHING_RAISED} |" in (run_dir / "report.md").read_text()
+    report = (run_dir / "report.md").read_text()
+    assert f"| Agents raised | {NOTHING_RAISED} |" in report
+    notices = report[report.index("Notices to the person") :]
+    assert f"| {JADE} | warning | — | the jar tipped over |" in notices
     after = roco("down", "--runs-dir", runs)
     assert after.returncode == 1 and after.stderr.startswith("roco: no fleet is up")

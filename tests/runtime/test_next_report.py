@@ -52,3 +52,17 @@ def test_the_outcome_is_asked_for_while_other_requests_reports_keep_coming() -> 
         _Busy(), "mine", ReportFilter(), MissedOutcomes(session, after_s=0.2), time.monotonic() + 5
     )
     assert got == OUTCOME and session.asked == [keys.HUMAN_OUTCOMES]
+
+
+def test_a_notice_is_handed_on_while_the_request_s_reports_are_awaited() -> None:
+    """A notice answers no request: it goes to ``notices`` (``roco send`` prints it with its
+    sender) and the wait for the request's report goes on."""
+    reports: queue.SimpleQueue[HumanReport] = queue.SimpleQueue()
+    notice = HumanReport(request_id="", kind=ReportKind.NOTICE, text="the jar tipped over", sender="a_wt")
+    reports.put(notice)
+    reports.put(OUTCOME)
+    told: list[HumanReport] = []
+    got = next_report(
+        reports, "mine", ReportFilter(), MissedOutcomes(_Session()), time.monotonic() + 5, told.append
+    )
+    assert got == OUTCOME and told == [notice]

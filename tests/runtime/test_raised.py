@@ -43,6 +43,14 @@ def test_status_line_names_the_errors_an_agent_counted() -> None:
     assert line == "received 3, rejected 0, behaviour_errors 1"
 
 
+def test_status_line_counts_the_notices_a_hi_passed_on_and_dropped() -> None:
+    """`roco status` says how many notices a_hi told the person (and dropped, over its
+    per-sender bound); nothing of notices when there were none."""
+    told = summary({"received.inform": 9, "notices": 4, "notices_dropped": 5})
+    assert told == "received 9, rejected 0, notices 4 (5 dropped)"
+    assert summary({"received.inform": 4, "notices": 4}) == "received 4, rejected 0, notices 4"
+
+
 def test_the_end_to_end_check_fails_on_an_agent_that_raised(tmp_path: Path) -> None:
     """tests/support/raised.py, as the pour's end-to-end test uses it, on planted run folders."""
     agents = ("a_co", "a_ta")

@@ -73,11 +73,16 @@ def test_a_table_builds_the_same_machine_as_the_library(name: str, table: dict[s
     assert dict(built.terminal_transitions) == dict(library.terminal_transitions)
 
 
-def test_the_shipped_spec_uses_the_built_in_protocols() -> None:
+def test_the_shipped_spec_uses_the_built_in_protocols_and_declares_roco_notify() -> None:
+    """The four protocols the paper's channels use are the built-in ones; roco-notify (a_hi's
+    notices, one inform) is declared in the specification's table."""
     protocols = protocols_of(DEFAULT_SPEC)
     assert set(protocols) == set(load(DEFAULT_SPEC).protocols)
     for name, protocol in protocols.items():
-        assert protocol is PROTOCOLS[name]
+        if name != "roco-notify":
+            assert protocol is PROTOCOLS[name]
+    notify = protocols["roco-notify"]
+    assert "roco-notify" not in PROTOCOLS and notify.final == {"told"}
 
 
 def test_a_declared_machine_replaces_the_built_in_one() -> None:

@@ -12,13 +12,14 @@ from services import cli
 from services.runtime.behaviour import FSM, Arc, Behaviour
 from services.runtime.fsm_record import FsmRecord
 from services.runtime.tap import Tap, appender
-from services.spec.model import default_spec
+from services.spec.model import DEFAULT_SPEC, default_spec
+from services.spec.protocol_defs import protocols_of
 from services.spec_check.coverage import Item, coverage_of, protocol_items
 from services.spec_check.coverage_figure import panels
 from services.spec_check.coverage_text import render
 from shared.fipa_codec import Performative, encode
 from shared.fipa_codec.languages.l_wm import Answer, SparqlQuery
-from shared.fipa_codec.protocols import COORDINATE, FIPA_QUERY, FIPA_REQUEST, FIPA_SUBSCRIBE
+from shared.fipa_codec.protocols import FIPA_QUERY
 from tests.support.messages import communicate
 
 P = Performative
@@ -80,12 +81,7 @@ def test_the_coverage_of_a_known_record_is_exactly_what_it_took(tmp_path: Path) 
     # transitions, a not-understood by each role and a time-out each; their
     # content terms (C4 and C6: 7 queries each by query-ref and by query-if, Answer by two)
     assert protocol == 4 * (17 + 2 + 1) + 2 + 2 * (7 + 7 + 1 + 1) + 2
-    machines = {
-        "fipa-query": FIPA_QUERY,
-        "fipa-request": FIPA_REQUEST,
-        "fipa-subscribe": FIPA_SUBSCRIBE,
-        "coordinate": COORDINATE,
-    }
+    machines = protocols_of(DEFAULT_SPEC)  # the built-in machines, and roco-notify's of the table
     every = [
         protocol_items(f"{ch.name} {cp.protocol}", machines[cp.protocol], cp)
         for ch in spec.channels
@@ -134,12 +130,13 @@ def test_the_figure_draws_each_protocol_and_the_known_fsms(tmp_path: Path) -> No
         "fipa-request",
         "fipa-subscribe",
         "fipa-query",
+        "roco-notify",
         "a_pl FSM",
     ]
     query = drawn[4]
     assert ("P: inform-ref", 1) in query.edges[("queried", "answered")]
     assert ("P: refuse", 0) in query.edges[("queried", "refused")]
-    assert drawn[5].edges[("busy", "idle")] == [("", 0)]
+    assert drawn[6].edges[("busy", "idle")] == [("", 0)]
 
 
 def test_min_fails_with_one_line_when_the_share_is_under_it(tmp_path: Path) -> None:

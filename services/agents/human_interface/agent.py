@@ -20,6 +20,11 @@ that a stop never waits for the parse of the line before it; a conversation per 
 what it named and a question asked back (language.py). Agents of other FIPA platforms ask on C8
 (foreign.py).
 
+Notices: a_hi is the participant of ``roco-notify`` on every channel where the specification makes
+it so (C8 today; a new agent with such a channel to a_hi needs no edit here): each L_HC
+``Notice`` goes to the person as a ``notice`` report naming its sender, at most
+``NOTICES_PER_S`` per sender a second (notices.py).
+
 Restarts (docs/recovery.md): a command's request is retransmitted until a_co agrees; the
 fipa-request role keeps the open commands (``keep=CommandNote``), which a restarted a_hi takes
 back (:meth:`HumanInterface.on_restored`), and the outcomes it told (``NOTE``: told.py, asked
@@ -47,6 +52,7 @@ from services.agents.human_interface.language import (
     WorldQuestion,
     describe,
 )
+from services.agents.human_interface.notices import NoticeGate
 from services.agents.human_interface.reading import LineReader, Reading
 from services.agents.human_interface.stop import StopWords, command_openings
 from services.agents.human_interface.task_grammar import Grammar, default_grammar, load_grammar
@@ -76,6 +82,7 @@ from services.runtime.human import (
     RequestKind,
 )
 from services.runtime.roles import (
+    EVERY_CHANNEL,
     INITIATOR,
     PARTICIPANT,
     Conversation,
@@ -85,11 +92,12 @@ from services.runtime.roles import (
     participant,
 )
 from services.runtime.subscriptions import StandingSubscription
-from services.spec.names import C2, C7, C8, FIPA_QUERY, FIPA_REQUEST, FIPA_SUBSCRIBE, L_HC, L_WM
+from services.spec.names import C2, C7, C8, FIPA_QUERY, FIPA_REQUEST, FIPA_SUBSCRIBE, L_HC, L_WM, ROCO_NOTIFY
 from shared.fipa_codec import Performative
 from shared.fipa_codec.languages.l_hc import (
     CommandOutcome,
     HumanCommand,
+    Notice,
     Progress,
     ProgressSubscription,
     Status,
@@ -195,6 +203,8 @@ class HumanInterface(AskingKnowledge):
         initiator(C7, FIPA_QUERY, L_WM, reply_by_s=VOCABULARY_REPLY_BY_S),
         initiator(C7, FIPA_SUBSCRIBE, L_WM, unused=True),  # changes of the scene: a_km serves them
         participant(C8, FIPA_REQUEST, L_HC),
+        # any agent the specification lets tell the person something (module docstring)
+        participant(EVERY_CHANNEL, ROCO_NOTIFY, L_HC),
     )
 
     def __init__(
@@ -221,6 +231,7 @@ class HumanInterface(AskingKnowledge):
         self.reading: deque[Reading] = deque()  # sentences given to the reader, in order
         self.reader = LineReader(self.grammar, lambda: self.post(ReadDone()))
         self.foreign = ForeignRequests(self.log, self.sources.new_id)  # agents of other platforms (C8)
+        self.notices = NoticeGate(self.log, self.sources.monotonic)  # notices passed on, per sender
         what = "turn sentences into requests, cancels and queries to a_co; "
         what += "report a_co's answers and progress to the person"
         return FSM([Behaviour("interact", self._interact, terminal=lambda: False, doc=what)])
@@ -279,6 +290,34 @@ class HumanInterface(AskingKnowledge):
         self.emit(keys.HUMAN_OUT, msgspec.json.encode(report))
         self.note.keep(report)
         self.foreign.answer(report)
+
+    # ---- notices (roco-notify, participant, on every channel that gives a_hi the role) ---------
+    @handles(ROCO_NOTIFY, PARTICIPANT, Performative.INFORM)
+    def _on_notice(self, conv: Conversation) -> None:
+        """An agent tells the person something: a ``notice`` report with its name, unless it
+        sent more than the gate passes this second (counted: ``notices_dropped``). A content
+        that does not decode as its channel's ``contents`` allow is answered ``not-understood``
+        by the runtime; one that decodes as another L_HC term (a channel that names no
+        ``contents``) is logged and counted (``notices_unreadable``): roco-notify has no answer."""
+        notice = conv.content
+        if not isinstance(notice, Notice):
+            self.counters["notices_unreadable"] += 1
+            self.log.warning("a notice from %s is no L_HC Notice: %s", conv.peer, type(notice).__name__)
+            return
+        if not self.notices.admit(conv.peer):
+            self.counters["notices_dropped"] += 1
+            return
+        self.counters["notices"] += 1
+        self.log.info("to person: notice from %s (%s): %s", conv.peer, notice.severity.value, notice.text)
+        report = HumanReport(
+            request_id="",
+            kind=ReportKind.NOTICE,
+            text=notice.text,
+            sender=conv.peer,
+            severity=notice.severity.value,
+            about=notice.about,
+        )
+        self.emit(keys.HUMAN_OUT, msgspec.json.encode(report))
 
     # ---- from agents of other platforms (C8, fipa-request, participant: foreign.py) ---------
     @handles(FIPA_REQUEST, PARTICIPANT, Performative.REQUEST, channel=C8)

@@ -14,6 +14,10 @@ On C8, an agent of another FIPA platform asks a_hi as a person would: fipa-reque
 :class:`SentenceReport` s: ``agree`` (a command was accepted), then ``inform`` (done as asked:
 succeeded, stopped for a stop request, the status for a status request) or ``failure``;
 ``refuse`` when it does not understand the sentence.
+
+Any agent the specification gives a channel to a_hi with the ``roco-notify`` protocol (one
+``inform``, nothing answers; inform: FIPA SC00037) tells the person something unprompted
+with a :class:`Notice` (who said it is the communicate's sender).
 """
 
 from __future__ import annotations
@@ -121,6 +125,39 @@ class SentenceReport(msgspec.Struct, frozen=True, tag="sentence_report", kw_only
     text: str
 
 
+MAX_NOTICE_CHARS = 500
+"""The longest :attr:`Notice.text`, in characters (str length)."""
+MAX_NOTICE_ABOUT = 16
+"""The most names :attr:`Notice.about` holds; each at most :data:`MAX_NOTICE_NAME_CHARS`."""
+MAX_NOTICE_NAME_CHARS = 100
+
+
+class Severity(enum.StrEnum):
+    """How much a :class:`Notice` asks of the person."""
+
+    INFO = "info"
+    """worth knowing"""
+    WARNING = "warning"
+    """worth looking at (something tipped over)"""
+    ALARM = "alarm"
+    """worth acting on at once"""
+
+
+class Notice(msgspec.Struct, frozen=True, tag="notice", kw_only=True):
+    """Something an agent tells the person unprompted (protocol ``roco-notify``): ``text`` in words
+    a person reads (1 to :data:`MAX_NOTICE_CHARS` characters), its ``severity``, and the
+    kitchen's things it is ``about`` (O_RoCo names, e.g. ``("jar",)``; at most
+    :data:`MAX_NOTICE_ABOUT`). A term outside these bounds does not decode (ContentError), and
+    its receiver answers it ``not-understood``."""
+
+    text: Annotated[str, msgspec.Meta(min_length=1, max_length=MAX_NOTICE_CHARS)]
+    severity: Severity = Severity.INFO
+    about: Annotated[
+        tuple[Annotated[str, msgspec.Meta(min_length=1, max_length=MAX_NOTICE_NAME_CHARS)], ...],
+        msgspec.Meta(max_length=MAX_NOTICE_ABOUT),
+    ] = ()
+
+
 L_HC = register(
     Language(
         "L_HC",
@@ -134,6 +171,7 @@ L_HC = register(
             Status,
             Sentence,
             SentenceReport,
+            Notice,
         ),
     )
 )

@@ -1,0 +1,33 @@
+"""a_wt of tests/agents/human_interface/test_agent_notices.py: tells the person something
+through a_hi (``roco-notify`` on C9, notice_agents.py), whatever content the test gives it."""
+
+from __future__ import annotations
+
+import msgspec
+
+from services.runtime.agent import Agent
+from services.runtime.behaviour import FSM, Behaviour
+from services.runtime.roles import initiator
+from shared.fipa_codec import Performative
+from tests.support.notice_agents import CHANNEL, NOTIFY, WATCHER
+
+
+class Watcher(Agent):
+    """Sends each content :meth:`tell` is given, in order, on its own thread."""
+
+    name = WATCHER
+    period = 0.01
+    ROLES = (initiator(CHANNEL, NOTIFY, "L_HC"),)
+
+    def build_fsm(self) -> FSM:
+        return FSM([Behaviour("tell", self._tell, terminal=lambda: False)])
+
+    def tell(self, *contents: msgspec.Struct) -> None:
+        """Send each of ``contents`` as a notice's ``inform`` (a conversation each)."""
+        self.post(contents)
+
+    def _tell(self) -> None:
+        while self.r:
+            for content in self.r.popleft():
+                self.roles.open(CHANNEL, NOTIFY, content, performative=Performative.INFORM)
+        self.handle_received()
