@@ -69,9 +69,8 @@ class Every:
         self.at_start = at_start
         self.wall = wall
         self.clock: Callable[[], float] = clock or time.monotonic
-        self.fleet: FleetClock | None = None
-        """The agent's clock once :meth:`bind` gave it (None: ``clock`` is what was given, or
-        the wall clock)."""
+        self.fleet: FleetClock | None = clock if isinstance(clock, FleetClock) else None
+        """The agent's clock, given or once :meth:`bind` gave it (None: another clock)."""
         self._bindable = clock is None
         self.due: float | None = None
         """When (``clock`` s) the condition holds next; None before the first call."""

@@ -129,6 +129,8 @@ def test_a_timer_given_a_clock_keeps_it_and_one_cannot_ask_for_both() -> None:
     timer = Every(1.0, clock=own)
     timer.bind(FleetClock(wall), wall)
     assert timer.clock is own and timer.fleet is None
+    fleet = FleetClock(wall)
+    assert Every(1.0, clock=fleet).fleet is fleet  # a condition on the agent's clock (self.fleet_clock)
     with pytest.raises(ValueError, match="not both"):
         Every(1.0, clock=own, wall=True)
 
