@@ -301,7 +301,8 @@ class _Replay:
         return wake
 
     def _check_inputs(self) -> None:
-        ours = {keys.inbox_key(self.agent.name), keys.COUNTERS_ASK}
+        # the simulation's time is not replayed: the agent's clock runs at the replayed clock's pace
+        ours = {keys.inbox_key(self.agent.name), keys.COUNTERS_ASK, keys.SIM_CLOCK}
         other = [k for k in self.transport.subscribed if k not in ours]
         if other:
             raise ReplayError(

@@ -20,6 +20,8 @@ from services.recorder import integrity
 from services.recorder.record import TRAFFIC_JSONL, TRAFFIC_RAW, RecordKey, TrafficRecord, read_payloads
 from services.runtime.dedup import wire_digest
 from services.runtime.run_folder import RUN_INFO, RunInfo, read_run_info
+from services.spec.model import SpecError
+from services.spec.terms import load_spec_terms
 from shared.fipa_codec import Communicate
 from shared.fipa_codec.languages import ContentError, decode_content
 
@@ -185,9 +187,14 @@ def _decode_all(
     notes: list[str],
 ) -> list[Message]:
     """One :class:`Message` per record, with the communicate it was paired with (none when it
-    was not: see the integrity) and its content decoded in its language."""
+    was not: see the integrity) and its content decoded in its language (the specification's
+    agents' own terms registered first: services/spec/terms.py)."""
     messages: list[Message] = []
     bad_content: list[int] = []
+    try:
+        load_spec_terms()  # the specification's agents' own terms (services/spec/terms.py)
+    except SpecError as exc:
+        notes.append(f"agents' own content terms not registered: {exc}")
     for rec in records:
         comm = comms.get(rec.ref)
         content: msgspec.Struct | None = None

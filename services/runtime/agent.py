@@ -64,6 +64,7 @@ condition holds; then the FSM's initial conditions choose the next behaviour.
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import math
 import threading
@@ -88,6 +89,7 @@ from services.runtime.admission import (
     step,
 )
 from services.runtime.behaviour import FSM
+from services.runtime.clock import FleetClock, decode_sim_time
 from services.runtime.dedup import Dedup
 from services.runtime.emission import SENT_COUNTER, Outbox, Outgoing
 from services.runtime.heap import give_back_freed_heap
@@ -303,7 +305,14 @@ class Agent:
         self._stop = threading.Event()
         self.note: Any = self.NOTE() if self.NOTE is not None else None
         """The agent's :attr:`NOTE`, kept across a restart by the runtime (None: none)."""
+        self.fleet_clock = FleetClock(self.sources.monotonic)
+        """The clock the FSM's periodic behaviours run on (services/runtime/clock.py): the
+        simulation's pace once ag_ex's ``roco/sim/clock`` is heard (:meth:`bind`), the wall
+        clock's before and in real time."""
         self.fsm = self.build_fsm()
+        for b in self.fsm.states.values():
+            if b.timer is not None:
+                b.timer.bind(self.fleet_clock, self.sources.monotonic)
         self.fsm_record = fsm_record.for_agent(self.name)
         """Where the agent records its FSM's transitions and its time-outs
         (services/runtime/fsm_record.py); None: neither a run folder nor a tap folder is set."""
@@ -762,6 +771,10 @@ class Agent:
         apart, self._last_arrival = now - self._last_arrival, now
         return apart <= INLINE_GAP_S
 
+    def _on_sim_clock(self, key: str, payload: bytes) -> None:
+        with contextlib.suppress(ValueError):  # not a simulation time: the clock runs on as it did
+            self.fleet_clock.mark(decode_sim_time(payload))  # thread-safe: no input to take in
+
     def _on_counters_ask(self, key: str, payload: bytes) -> None:
         self._put_input((_COUNTERS, None))  # Zenoh thread: enqueue only
 
@@ -1082,12 +1095,15 @@ class Agent:
         self._y_taken = 0
 
     def bind(self) -> None:
-        """Subscribe the input buffer and watch the peers' liveliness. The agent's own
-        liveliness token is declared by :meth:`run`, after :meth:`setup`: a peer (or a
-        person) that sees it finds every subscription of the agent in place."""
+        """Subscribe the input buffer and watch the peers' liveliness; hear the simulation's
+        time (:attr:`fleet_clock`) unless the fleet runs in real time (``ROCO_REALTIME``). The
+        agent's own liveliness token is declared by :meth:`run`, after :meth:`setup`: a peer
+        (or a person) that sees it finds every subscription of the agent in place."""
         self.transport.subscribe(keys.inbox_key(self.name), self._on_payload)
         self.transport.subscribe(keys.COUNTERS_ASK, self._on_counters_ask)
         self.transport.watch(keys.ALIVE_ALL, self._on_alive)
+        if not Settings.from_env(only=("realtime",)).realtime:
+            self.transport.subscribe(keys.SIM_CLOCK, self._on_sim_clock)
 
     def stop(self) -> None:
         """End :meth:`run` after the current step (any thread; also a signal handler)."""
@@ -1197,7 +1213,7 @@ class Agent:
                 done = behaviour.error() or behaviour.terminal()
                 wait = self.period if behaviour.waits and not done else 0.0
                 if wait and behaviour.timer is not None:
-                    wait = min(wait, behaviour.timer.left())
+                    wait = min(wait, behaviour.timer.wall_left())
                 yield from self._acquire_blocking(wait)
                 if done or behaviour.error() or behaviour.terminal():
                     break

@@ -10,7 +10,8 @@ A *periodic* behaviour (:func:`periodic`) acts on a timer: its transition functi
 what arrived at every iteration and, once its period has elapsed (:class:`Every`), also acts
 (e.g. opens a conversation). The agent then blocks no longer than until the next period is due,
 so the action is as punctual as the agent's thread is (docs/agents.md, "An agent that acts on a
-timer").
+timer"). Periods are on the agent's clock (services/runtime/clock.py): the simulation's pace
+while the fleet runs as fast as possible, unless a behaviour asks for the wall clock.
 """
 
 from __future__ import annotations
@@ -19,6 +20,8 @@ import math
 import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
+
+from services.runtime.clock import FleetClock
 
 Predicate = Callable[[], bool]
 
@@ -39,20 +42,49 @@ class Every:
     """A condition that holds once every ``period_s`` seconds (> 0, finite): calling it returns
     True when a period has elapsed since it last did (at the first call too, unless
     ``at_start`` is False: then one period after the first call), else False. Periods are kept on
-    a fixed grid of ``clock`` (s, default ``time.monotonic``) from the first call; periods missed
-    entirely (the agent was busy longer than a period) are skipped, not made up. Raises
-    ValueError for a period that is not a positive finite number."""
+    a fixed grid of its clock from the first call; periods missed entirely (the agent was busy
+    longer than a period) are skipped, not made up.
+
+    Its clock (s): ``clock`` when given; else, once the agent gives it its clocks (:meth:`bind`,
+    for every periodic behaviour of its FSM), the agent's :class:`FleetClock`
+    (services/runtime/clock.py: the simulation's pace while the fleet runs as fast as possible,
+    the wall clock in real time), or with ``wall=True`` the agent's wall clock
+    (``sources.monotonic``), for what must keep wall time whatever the simulation does;
+    ``time.monotonic`` until then. Raises ValueError for a period that is not a positive finite
+    number, or for both ``clock`` and ``wall``."""
 
     def __init__(
-        self, period_s: float, *, at_start: bool = True, clock: Callable[[], float] = time.monotonic
+        self,
+        period_s: float,
+        *,
+        at_start: bool = True,
+        clock: Callable[[], float] | None = None,
+        wall: bool = False,
     ) -> None:
         if not (isinstance(period_s, int | float) and math.isfinite(period_s) and period_s > 0):
             raise ValueError(f"a period must be a positive number of seconds, not {period_s!r}")
+        if clock is not None and wall:
+            raise ValueError("a timer takes a clock or the wall clock, not both")
         self.period_s = float(period_s)
         self.at_start = at_start
-        self.clock = clock
+        self.wall = wall
+        self.clock: Callable[[], float] = clock or time.monotonic
+        self.fleet: FleetClock | None = clock if isinstance(clock, FleetClock) else None
+        """The agent's clock, given or once :meth:`bind` gave it (None: another clock)."""
+        self._bindable = clock is None
         self.due: float | None = None
         """When (``clock`` s) the condition holds next; None before the first call."""
+
+    def bind(self, fleet: FleetClock, wall_clock: Callable[[], float]) -> None:
+        """Run on the agent's clocks (services/runtime/agent.py does it for every timer of its
+        FSM): ``fleet``, or ``wall_clock`` (s, monotonic) for a timer that asked for the wall
+        clock; a timer given a clock, or that has already run, keeps its clock."""
+        if not self._bindable or self.due is not None:
+            return
+        if self.wall:
+            self.clock = wall_clock
+        else:
+            self.clock = self.fleet = fleet
 
     def __call__(self) -> bool:
         now = self.clock()
@@ -65,8 +97,15 @@ class Every:
         return True
 
     def left(self) -> float:
-        """Seconds until the condition holds next (0 when due or before the first call)."""
+        """Seconds of its clock until the condition holds next (0 when due or before the first
+        call)."""
         return 0.0 if self.due is None else max(0.0, self.due - self.clock())
+
+    def wall_left(self) -> float:
+        """Wall seconds until the condition holds next: :meth:`left` at its clock's pace (how
+        long the agent may block)."""
+        left = self.left()
+        return self.fleet.wall_seconds(left) if self.fleet is not None and left else left
 
 
 @dataclass(frozen=True)
@@ -97,16 +136,19 @@ def periodic(
     error: Predicate = _never,
     at_start: bool = True,
     doc: str = "",
-    clock: Callable[[], float] = time.monotonic,
+    clock: Callable[[], float] | None = None,
+    wall: bool = False,
 ) -> Behaviour:
     """A periodic behaviour: a communication state whose transition function runs ``serve``
     (e.g. ``agent.handle_received``: the answers to what ``act`` asked) at every iteration and
     ``act`` once every ``period_s`` seconds (:class:`Every`: at once when the state is first
     entered unless ``at_start`` is False, then on a fixed grid; a period missed while the agent
-    was busy is skipped). Between iterations the agent blocks until input arrives or the next
-    period is due. ``terminal``/``error`` end it as any behaviour's do. Raises ValueError for a
-    period that is not a positive finite number of seconds."""
-    timer = Every(period_s, at_start=at_start, clock=clock)
+    was busy is skipped), on the agent's clock (the simulation's pace while the fleet runs as
+    fast as possible), or on ``clock``, or with ``wall=True`` on the wall clock (:class:`Every`).
+    Between iterations the agent blocks until input arrives or the next period is due.
+    ``terminal``/``error`` end it as any behaviour's do. Raises ValueError for a period that is
+    not a positive finite number of seconds, or for both ``clock`` and ``wall``."""
+    timer = Every(period_s, at_start=at_start, clock=clock, wall=wall)
 
     def transition() -> None:
         serve()

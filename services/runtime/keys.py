@@ -47,6 +47,9 @@ HUMAN_OUTCOMES = f"{PREFIX}/human/outcomes"
 (services/agents/human_interface/told.py): what a person's tool asks when its wait for an
 outcome runs long (services/runtime/reports.py ``ask_outcomes``)."""
 SIM_DISTURB = f"{PREFIX}/sim/disturb"
+SIM_CLOCK = f"{PREFIX}/sim/clock"
+"""ag_ex publishes the simulation's time here at its state rate; the agents' clocks follow it
+while the fleet runs as fast as possible (services/runtime/clock.py)."""
 RECORDER_SYNC = f"{PREFIX}/recorder/sync"
 """A token put here reaches the traffic recorder after every communicate routed before it;
 the recorder writes them all, then puts the token on ``RECORDER_SYNCED``."""

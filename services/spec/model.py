@@ -32,14 +32,17 @@ class SpecError(ValueError):
 
 class AgentSpec(msgspec.Struct, frozen=True, forbid_unknown_fields=True):
     """An agent: its ``name``, the decomposition ``group`` it substitutes, its ``job``, the
-    ``implementation`` (``module:Class``) the launcher starts for it, and ``waits``: the
-    conversations it opens while serving another (validated by services/spec_check/deadlock.py)."""
+    ``implementation`` (``module:Class``) the launcher starts for it, ``waits``: the
+    conversations it opens while serving another (validated by services/spec_check/deadlock.py),
+    and ``terms``: the module (``services.agents.x.terms``) declaring the agent's own content
+    terms, which :func:`load` registers (services/spec/terms.py; empty: none)."""
 
     name: str
     group: str
     implementation: str
     job: str = ""
     waits: tuple[dict[str, str | list[str]], ...] = ()
+    terms: str = ""
 
 
 class ExternalSpec(msgspec.Struct, frozen=True, forbid_unknown_fields=True):
@@ -244,9 +247,11 @@ def _check_channel(spec: SystemSpec, ch: ChannelSpec, path: Path) -> None:
 
 
 def load(path: Path = DEFAULT_SPEC) -> SystemSpec:
-    """Load and cross-check a specification. Raises SpecError, one line naming the file and
-    the place: line and column for TOML syntax, the key path (``$.channels[0].ends``) for a
-    wrong type or unknown field, the channel for an unknown agent or protocol."""
+    """Load and cross-check a specification and register its agents' own content terms
+    (``terms``: services/spec/terms.py), so that every process that loads it decodes them.
+    Raises SpecError, one line naming the file and the place: line and column for TOML syntax,
+    the key path (``$.channels[0].ends``) for a wrong type or unknown field, the channel for an
+    unknown agent or protocol, the agent for a terms module that cannot be registered."""
     text = read_text(path)
     try:
         spec = msgspec.toml.decode(text, type=SystemSpec)
@@ -255,6 +260,9 @@ def load(path: Path = DEFAULT_SPEC) -> SystemSpec:
     _check_agents(spec, path)
     for ch in spec.channels:
         _check_channel(spec, ch, path)
+    from services.spec.terms import register_terms  # it reads this module's types
+
+    register_terms(spec, path)
     return spec
 
 

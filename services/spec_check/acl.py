@@ -14,11 +14,12 @@ liveliness declarations), ``egress`` what the router delivers to it. For agent `
 - the fault layer every agent runs under (services/runtime/faults.py): it hears
   ``roco/fault/control/all`` and ``…/control/A``, puts on ``roco/fault/state/A`` and
   ``…/event/A``; it hears ``roco/counters/ask`` and answers on ``roco/counters/report/A``;
+  it hears ``roco/sim/clock`` (the simulation's time, services/runtime/clock.py);
 - the receptors and effectors outside FIPA (:data:`AGENT_EXTRAS`): a_hi hears ``roco/human/in``
   and speaks on ``roco/human/out``, through an advanced publisher with its cache below
   (``roco/human/out/@adv/**``, as for communicates), and answers queries of
-  ``roco/human/outcomes`` (the outcomes it told); ag_ex publishes ``roco/state/ag_ex`` and hears
-  ``roco/sim/disturb``.
+  ``roco/human/outcomes`` (the outcomes it told); ag_ex publishes ``roco/state/ag_ex`` and
+  ``roco/sim/clock`` and hears ``roco/sim/disturb``.
 
 - its advanced publishers (one per key it sends on, services/runtime/transport.py): it learns of
   the subscribers of ``roco/fipa/**`` (egress declare_subscriber: without it a declared
@@ -111,7 +112,7 @@ class Extras:
 
 AGENT_EXTRAS: dict[str, Extras] = {
     "a_hi": Extras(hears=(keys.HUMAN_IN,), says=(keys.HUMAN_OUT,)),
-    "ag_ex": Extras(hears=(keys.SIM_DISTURB,), says=(keys.state_key("ag_ex"),)),
+    "ag_ex": Extras(hears=(keys.SIM_DISTURB,), says=(keys.state_key("ag_ex"), keys.SIM_CLOCK)),
 }
 """Receptors and effectors outside the FIPA channels, by agent (services/agents/human_interface/agent.py,
 services/agents/executor/agent.py). An agent not named here has none."""
@@ -224,6 +225,7 @@ def agent_grants(spec: SystemSpec, agent: str) -> Grants:
     g.hear(FAULT_CONTROL_ALL, _fault_control(agent))
     g.say(_fault_state(agent), _fault_event(agent))
     g.hear(keys.COUNTERS_ASK)  # roco status asks every agent for its counters
+    g.hear(keys.SIM_CLOCK)  # the simulation's time its periodic behaviours run on (runtime/clock.py)
     g.say(keys.counters_key(agent))
     extra = AGENT_EXTRAS.get(agent, Extras())
     g.hear(*extra.hears)

@@ -266,7 +266,6 @@ _SERVE_AND_OPEN = """                periodic(
                     self.{timer},
                     serve=self.handle_received,
                     doc=f"answer what arrives; every {{OPEN_EVERY_S:g}} s open conversations",
-                    clock=self.sources.monotonic,
                 )"""
 """The behaviour of an agent that also opens conversations (``{timer}``: :data:`TIMER_METHOD`)."""
 

@@ -5,8 +5,12 @@ record and seeded random bytes and replay it exactly (docs/agents.md, "How an ag
 The agents' code is read (Python's ``ast``; nothing is run): no call of ``time.time``,
 ``time.monotonic``, ``time.perf_counter``, ``os.urandom``, ``random.*``, ``uuid.*``,
 ``datetime.now``/``utcnow`` or the codec's ``new_id``, and no import of ``random`` or ``uuid``;
-a periodic behaviour's timer (``periodic``, ``Every``) is given ``clock=``. ag_ex is left out:
-it paces the simulated robot on the wall clock. A failure names each place as ``file:line``."""
+a periodic behaviour (``periodic``) is given no ``clock=``: the runtime gives it the agent's
+clock (the simulation's pace, or with ``wall=True`` the agent's wall clock, both read through
+``Agent.sources``: services/runtime/behaviour.py ``Every.bind``); a timer used as a condition
+(``Every``), which the runtime does not see, is given ``clock=`` (``self.fleet_clock`` or
+``self.sources.monotonic``). ag_ex is left out: it paces the simulated robot on the wall clock.
+A failure names each place as ``file:line``."""
 
 from __future__ import annotations
 
@@ -27,7 +31,6 @@ CLOCK_CALLS = {
 }
 """(object, attribute) calls that read the system's clock or randomness."""
 RANDOM_MODULES = ("random", "uuid", "secrets")
-TIMERS = ("periodic", "Every")
 
 
 def _dotted(func: ast.expr) -> tuple[str, str] | None:
@@ -54,8 +57,15 @@ def problems(source: str, path: str) -> list[str]:
             if dotted in CLOCK_CALLS or (dotted is not None and dotted[0] in RANDOM_MODULES):
                 found.append(f"{where}: {'.'.join(dotted)}() (use self.sources)")
             name = node.func.id if isinstance(node.func, ast.Name) else ""
-            if name in TIMERS and not any(k.arg == "clock" for k in node.keywords):
-                found.append(f"{where}: {name}(…) without clock= (give it self.sources.monotonic)")
+            clocked = any(k.arg == "clock" for k in node.keywords)
+            if name == "periodic" and clocked:
+                found.append(
+                    f"{where}: periodic(…, clock=…) (the runtime gives the clock; wall=True: wall time)"
+                )
+            if name == "Every" and not clocked:
+                found.append(
+                    f"{where}: Every(…) without clock= (give it self.fleet_clock or self.sources.monotonic)"
+                )
     return found
 
 
@@ -76,9 +86,11 @@ import time, os
 a = time.monotonic()
 b = os.urandom(6)
 c = random.random()
-d = periodic("tick", 1.0, act)
-e = periodic("tick", 1.0, act, clock=self.sources.monotonic)
+d = periodic("tick", 1.0, act, clock=self.sources.monotonic)
+e = periodic("tick", 1.0, act, wall=True)
 f = self.sources.time()
+g = Every(2.0)
+h = Every(2.0, clock=self.fleet_clock)
 """
     lines = sorted(p.split(":")[1] for p in problems(planted, "planted.py"))
-    assert lines == ["2", "3", "5", "6", "7", "8"], problems(planted, "planted.py")
+    assert lines == ["11", "2", "3", "5", "6", "7", "8"], problems(planted, "planted.py")

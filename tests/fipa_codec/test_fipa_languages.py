@@ -3,22 +3,28 @@ ContentError."""
 
 from __future__ import annotations
 
+from typing import Annotated
+
 import msgspec
 import pytest
 from fipa_strategies import SAMPLE_TERMS
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from term_sample import build_sample
 
 from shared.fipa_codec.languages import (
     LANGUAGES,
     ContentError,
+    base,
     decode_content,
     encode_content,
+    extend,
     language_of,
+    load_all,
 )
 from shared.fipa_codec.languages.base import Language, register
 from shared.fipa_codec.languages.l_hc import MAX_NOTICE_ABOUT, MAX_NOTICE_CHARS, Notice, TaskAtom
-from shared.fipa_codec.languages.l_sw import SWStatus
+from shared.fipa_codec.languages.l_sw import SWState, SWStatus
 from shared.fipa_codec.languages.l_wm import ObjectQuery
 
 
@@ -27,10 +33,46 @@ def test_the_six_languages_are_registered() -> None:
     assert set(LANGUAGES) == {"L_HC", "L_HFSM", "L_SW", "L_WM", "L_EX", "L_SD"}
 
 
-def test_every_term_type_has_a_sample() -> None:
-    language_of(ObjectQuery("x"))
-    types = {t for lang in LANGUAGES.values() for t in lang.types}
-    assert types == {type(t) for t in SAMPLE_TERMS}
+def _registered() -> list[type[msgspec.Struct]]:
+    load_all()
+    return [t for lang in LANGUAGES.values() for t in lang.types]
+
+
+def test_every_term_type_has_a_sample_that_round_trips() -> None:
+    """A hand-written sample (SAMPLE_TERMS, for the codec's own terms) or one built from the
+    term's declaration (term_sample.py: an agent's own terms, services/spec/terms.py)."""
+    hand = {type(t): t for t in SAMPLE_TERMS}
+    assert set(hand) <= set(_registered())
+    for kind in _registered():
+        term = hand.get(kind) or build_sample(kind)
+        assert decode_content(*encode_content(term)) == term, kind.__name__
+
+
+@pytest.mark.parametrize("kind", _registered(), ids=lambda t: t.__name__)
+def test_a_sample_built_from_the_declaration_round_trips(kind: type[msgspec.Struct]) -> None:
+    term = build_sample(kind)
+    assert type(term) is kind
+    assert decode_content(*encode_content(term)) == term
+
+
+def test_a_sample_is_built_for_an_agents_own_term() -> None:
+    class Watched(msgspec.Struct, frozen=True, tag="watched_probe"):
+        name: Annotated[str, msgspec.Meta(min_length=2)]
+        count: Annotated[int, msgspec.Meta(gt=3)]
+        state: SWState
+        seen: tuple[float, ...] = ()
+
+    languages, by_type = dict(LANGUAGES), dict(base._BY_TYPE)
+    try:
+        extend("L_SW", Watched)
+        assert Watched not in {type(t) for t in SAMPLE_TERMS}
+        test_every_term_type_has_a_sample_that_round_trips()
+        assert build_sample(Watched) == Watched(name="xx", count=4, state=next(iter(SWState)))
+    finally:
+        LANGUAGES.clear()
+        LANGUAGES.update(languages)
+        base._BY_TYPE.clear()
+        base._BY_TYPE.update(by_type)
 
 
 @pytest.mark.parametrize("term", SAMPLE_TERMS, ids=lambda t: type(t).__name__)

@@ -193,6 +193,29 @@ def test_an_agent_cannot_send_outside_its_channels_nor_as_another(router: Fleet)
             s.close()
 
 
+def test_ag_ex_s_simulation_time_reaches_every_agent_and_no_other_agent_says_it(router: Fleet) -> None:
+    ep = router.endpoint
+    ex = open_client(ep, identity="ag_ex")
+    pl = open_client(ep, identity="a_pl")
+    km = open_client(ep, identity="a_km")
+    try:
+        payloads: list[bytes] = []
+        inbox = Inbox()
+
+        def heard(sample: zenoh.Sample) -> None:
+            payloads.append(sample.payload.to_bytes())
+            inbox(sample)
+
+        km.declare_subscriber(keys.SIM_CLOCK, heard)  # a_km's clock follows the simulation
+        routed(ex, keys.SIM_CLOCK, inbox)
+        pl.put(keys.SIM_CLOCK, b"forged")  # a_pl may hear the simulation's time, not say it
+        routed(ex, keys.SIM_CLOCK, inbox)
+        assert payloads and b"forged" not in payloads
+    finally:
+        for s in (km, pl, ex):
+            s.close()
+
+
 def test_an_identity_without_recorder_rights_sees_nothing(router: Fleet) -> None:
     ep = router.endpoint
     pl = open_client(ep, identity="a_pl")

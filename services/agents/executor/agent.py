@@ -79,6 +79,7 @@ import msgspec
 from services.runtime import keys
 from services.runtime.agent import Agent, Received
 from services.runtime.behaviour import FSM, Behaviour
+from services.runtime.clock import encode_sim_time
 from services.runtime.roles import PARTICIPANT, Conversation, handles, participant
 from services.spec.names import C5, FIPA_REQUEST, FIPA_SUBSCRIBE, L_EX, L_SD
 from shared.fipa_codec import Performative
@@ -603,6 +604,7 @@ class ExecutorAgent(Agent):
         snap = snapshot() if snapshot is not None else None
         if snap is not None:
             self.emit(keys.state_key(self.name), self._encode(snap))
+            self.emit(keys.SIM_CLOCK, encode_sim_time(snap.sim_time))  # the fleet's clock
             if self.rerun is not None:  # Rerun, at the state rate (20 Hz)
                 self.rerun.snapshot(snap)
 

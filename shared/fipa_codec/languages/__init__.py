@@ -10,6 +10,7 @@
 | ``L_SD``   | C5 | sensor data: observations of the scene |
 
 Every language is a tagged union of msgspec Structs encoded as msgpack; decoding is strict.
+An agent's own terms join a language through :func:`extend` (docs/spec.md).
 """
 
 from shared.fipa_codec.languages.base import (
@@ -19,6 +20,7 @@ from shared.fipa_codec.languages.base import (
     decode_content,
     encode_content,
     encode_term,
+    extend,
     language_of,
     load_all,
 )
@@ -30,6 +32,7 @@ __all__ = [
     "decode_content",
     "encode_content",
     "encode_term",
+    "extend",
     "language_of",
     "load_all",
 ]

@@ -10,6 +10,7 @@ from pathlib import Path
 from typing import Any
 
 import msgspec
+import msgspec.inspect
 
 from shared.fipa_codec.encoding import DECODE_ERRORS
 
@@ -74,6 +75,64 @@ def register(language: Language) -> Language:
         _BY_TYPE[t] = language
     LANGUAGES[language.name] = language
     return language
+
+
+def extend(language: str, *terms: type[msgspec.Struct]) -> Language:
+    """Add ``terms`` (msgspec Struct types, each with its own ``tag``) to the vocabulary of the
+    registered content language ``language`` and return the language as extended: how an agent
+    outside this package declares content terms of its own (services/spec/terms.py loads the
+    ``terms`` module an agent's entry in the specification names; docs/spec.md, "Content terms
+    of a new agent"). Decoding stays strict: the language decodes its own terms and these,
+    nothing else. A term already in ``language`` is skipped (registering twice is harmless).
+
+    Raises ValueError, nothing registered, when ``language`` is not registered, a term is not a
+    Struct type or has no tag, belongs to another language, has the name of a registered term
+    (the specification names terms by name), or has the tag of a term of ``language``."""
+    _load_all()
+    known = LANGUAGES.get(language)
+    if known is None:
+        raise ValueError(
+            f"no content language {language!r} to extend (known: {', '.join(sorted(LANGUAGES))})"
+        )
+    new = tuple(dict.fromkeys(t for t in terms if t not in known.types))
+    if not new:
+        return known
+    names = {t.__name__: lang.name for t, lang in _BY_TYPE.items()}
+    tags = {_tag(t): t.__name__ for t in known.types if _tagged(t)}
+    for t in new:
+        if not (isinstance(t, type) and issubclass(t, msgspec.Struct)):
+            raise ValueError(f"{language}: a content term is a msgspec Struct type, not {t!r}")
+        if not _tagged(t):
+            raise ValueError(f"{language}: term {t.__name__} has no tag (declare it with tag=...)")
+        if t in _BY_TYPE:
+            raise ValueError(f"{language}: term {t.__name__} already belongs to {_BY_TYPE[t].name}")
+        if t.__name__ in names:
+            raise ValueError(f"{language}: a term named {t.__name__} is already in {names[t.__name__]}")
+        if _tag(t) in tags:
+            raise ValueError(f"{language}: term {t.__name__} has tag {_tag(t)!r}, the tag of {tags[_tag(t)]}")
+        names[t.__name__] = language
+        tags[_tag(t)] = t.__name__
+    try:
+        extended = Language(known.name, known.ontology, known.types + new)
+    except TypeError as exc:  # msgspec refuses the union (e.g. another tag field)
+        raise ValueError(
+            f"{language}: {', '.join(t.__name__ for t in new)} cannot join it: {str(exc).split(' - ')[0]}"
+        ) from None
+    LANGUAGES[language] = extended
+    for t in extended.types:
+        _BY_TYPE[t] = extended
+    return extended
+
+
+def _tagged(t: type[msgspec.Struct]) -> bool:
+    info = msgspec.inspect.type_info(t)
+    return isinstance(info, msgspec.inspect.StructType) and info.tag is not None
+
+
+def _tag(t: type[msgspec.Struct]) -> object:
+    info = msgspec.inspect.type_info(t)
+    assert isinstance(info, msgspec.inspect.StructType)
+    return info.tag
 
 
 def language_of(term: msgspec.Struct) -> Language:

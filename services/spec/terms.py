@@ -1,0 +1,100 @@
+"""An agent's own content terms (docs/spec.md, "Content terms of a new agent").
+
+An agent's entry in the specification may name a ``terms`` module (``terms =
+"services.agents.watcher.terms"``): a module of the agent's folder that declares msgspec
+Structs, each with its own ``tag``, and lists them in ``TERMS``. :func:`register_terms`
+(run by services/spec/model.py ``load``, so by every process that loads the specification:
+the agents, the recorder's tools, ``roco spec verify``, replay) imports it and adds each term
+to the content language the specification gives it: the language of the performatives whose
+``contents`` name the term on the agent's channels, or, when no ``contents`` names it, the one
+language of all the agent's channels. The codec (shared/fipa_codec/languages/base.py
+``extend``) refuses a term whose name or tag is taken; decoding stays strict.
+
+Every process that loads the specification imports these modules: a terms module imports
+msgspec and the codec's shared types only (no agent code, no heavy library).
+"""
+
+from __future__ import annotations
+
+import importlib
+from functools import cache
+from pathlib import Path
+
+import msgspec
+
+from services.spec.model import SpecError, SystemSpec, one_line
+from shared.fipa_codec.languages import extend
+
+TERMS = "TERMS"
+"""The name a terms module lists its terms under: a tuple of Struct types."""
+
+
+def register_terms(spec: SystemSpec, path: Path) -> None:
+    """Import the ``terms`` module of every agent of ``spec`` that names one and add its terms
+    to their languages (module docstring). Raises SpecError, one line naming ``path`` and the
+    agent: a module that cannot be imported, no ``TERMS`` tuple of Struct types in it, a term
+    whose language the channels do not tell, or one the codec refuses (name or tag taken)."""
+    for agent in spec.agents:
+        if not agent.terms:
+            continue
+        where = f"{path}: agent {agent.name}"
+        for term in declared_terms(agent.terms, where):
+            languages = term_languages(spec, agent.name, term.__name__)
+            if len(languages) != 1:
+                why = (
+                    "no channel of the agent has a content language"
+                    if not languages
+                    else (
+                        f"its channels allow {', '.join(sorted(languages))}: name it in the `contents` of one"
+                    )
+                )
+                raise SpecError(f"{where}: term {term.__name__} has no one language ({why})")
+            try:
+                extend(languages.pop(), term)
+            except ValueError as exc:
+                raise SpecError(f"{where}: {exc}") from None
+
+
+def declared_terms(module_name: str, where: str = "") -> tuple[type[msgspec.Struct], ...]:
+    """The Struct types module ``module_name`` lists in ``TERMS``. Raises SpecError (prefixed
+    ``where``) when the module cannot be imported or ``TERMS`` is not a tuple or list of
+    msgspec Struct types."""
+    prefix = f"{where}: " if where else ""
+    try:
+        module = importlib.import_module(module_name)
+    except Exception as exc:  # any error of the module's code: one line naming it
+        raise SpecError(f"{prefix}terms module {module_name!r} cannot be imported: {one_line(exc)}") from None
+    terms = getattr(module, TERMS, None)
+    if not isinstance(terms, tuple | list) or not all(
+        isinstance(t, type) and issubclass(t, msgspec.Struct) for t in terms
+    ):
+        raise SpecError(f"{prefix}terms module {module_name!r} has no {TERMS} tuple of msgspec Struct types")
+    return tuple(terms)
+
+
+def term_languages(spec: SystemSpec, agent: str, term: str) -> set[str]:
+    """The content languages the channels ``agent`` ends give term ``term``: those of the
+    performatives whose ``contents`` name it, else every language of those channels."""
+    named: set[str] = set()
+    every: set[str] = set()
+    for ch in spec.channels:
+        if agent not in ch.ends:
+            continue
+        for cp in ch.protocols:
+            for performative, language in cp.languages.items():
+                languages = {language} if isinstance(language, str) else set(language)
+                every |= languages
+                if term in cp.content_types(performative):
+                    named |= languages
+    return named or every
+
+
+@cache
+def load_spec_terms() -> None:
+    """Register the content terms of the specification ``ROCO_SPEC`` names (else the Robot
+    Companion's), once per process: for a tool that decodes a record without loading the
+    specification itself (``roco report``). Raises SpecError as services/spec/model.py
+    ``load`` does."""
+    from services.spec.model import load, spec_path
+
+    load(spec_path())
