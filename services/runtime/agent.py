@@ -310,9 +310,7 @@ class Agent:
         simulation's pace once ag_ex's ``roco/sim/clock`` is heard (:meth:`bind`), the wall
         clock's before and in real time."""
         self.fsm = self.build_fsm()
-        for b in self.fsm.states.values():
-            if b.timer is not None:
-                b.timer.bind(self.fleet_clock, self.sources.monotonic)
+        self._bind_timers()
         self.fsm_record = fsm_record.for_agent(self.name)
         """Where the agent records its FSM's transitions and its time-outs
         (services/runtime/fsm_record.py); None: neither a run folder nor a tap folder is set."""
@@ -770,6 +768,13 @@ class Agent:
         now = time.perf_counter()
         apart, self._last_arrival = now - self._last_arrival, now
         return apart <= INLINE_GAP_S
+
+    def _bind_timers(self) -> None:
+        """Put the FSM's periodic behaviours on :attr:`fleet_clock` (a timer that asks for the
+        wall clock, or gives its own clock, keeps it: services/runtime/behaviour.py ``Every``)."""
+        for b in self.fsm.states.values():
+            if b.timer is not None:
+                b.timer.bind(self.fleet_clock, self.sources.monotonic)
 
     def _on_sim_clock(self, key: str, payload: bytes) -> None:
         with contextlib.suppress(ValueError):  # not a simulation time: the clock runs on as it did
