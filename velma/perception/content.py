@@ -239,7 +239,8 @@ def count_spheres(
     beyond one radius inside it are the ring's; (4) the ring's spheres that show in colour
     but not in depth (``_ring_spheres_in_colour``: of a sphere along the near wall only a
     sliver over the rim may show, seen at a grazing angle, where the Kinect returns no
-    depth); (2) and (4) make ``visible``; (5) the ring's positions the camera cannot see
+    depth; the ring's spheres found in (2) put on the ring for it); (2) and (4) make
+    ``visible``; (5) the ring's positions the camera cannot see
     (``_ring_hidden``: a sphere there would show fewer pixels than a sphere found takes, the
     rest of it behind something nearer in the depth image: the bowl's near wall, an arm, a
     neighbour); (6) ``hidden``:
@@ -299,7 +300,12 @@ def count_spheres(
     ring_centres = centre + ring * np.stack([np.cos(theta), np.sin(theta), np.zeros_like(theta)], axis=1)
     h, w = depth.shape
     content_pixels = _content_match(rgb.reshape(-1, 3), content_rgba, model, CONTENT_TOLERANCE).reshape(h, w)
-    extra = _ring_spheres_in_colour(ring_centres, centres, view, content_pixels, r)
+    # the spheres along the wall touch it (3): of one along the near wall only the top shows,
+    # which the fit places a few mm inward; put on the ring it shows where its sliver is
+    snapped = centres.copy()
+    out = centres[at_ring, :2] - origin[:2]
+    snapped[at_ring, :2] = origin[:2] + ring * out / np.linalg.norm(out, axis=1, keepdims=True)
+    extra = _ring_spheres_in_colour(ring_centres, snapped, view, content_pixels, r)
     centres = np.vstack([centres, extra])
     at_ring = np.append(at_ring, np.ones(len(extra), dtype=bool))
     share = _floor_visible(origin, layer, inner_radius - r, view, r)
