@@ -175,7 +175,7 @@ class CameraObserver:
                 else:
                     k = frame.intrinsics
                     guess = count_spheres(
-                        e, model, points, colours, frame.depth, frame.position, frame.rotation,
+                        e, model, points, colours, frame.depth, frame.rgb, frame.position, frame.rotation,
                         k.fx, k.cx, k.cy, self.content_rgba, PARTICLE_RADIUS,
                     )  # fmt: skip
                 if guess is not None:

@@ -23,6 +23,13 @@ pile is level, so a partly filled top layer counts as a fraction of a full one, 
 counts high. Error bound: measured by scripts/bench_perception.py (docs/bench/perception.md).
 An estimate with no content pixels is 0 (the container looks empty); a container not seen
 gives no estimate.
+
+In an open opaque container (the bowl, the cup) the spheres are counted one by one
+(``count_spheres``): a Hough transform for spheres of the known radius on the floor layer
+finds them in the depth cloud, a joint least-squares fit places them, the colour image
+finds those along the near wall of which only a sliver over the rim shows, seen at a
+grazing angle where the Kinect returns no depth, and the ring along the wall is completed
+over the arc the wall hides. Its named simplifications are in its docstring.
 """
 
 from __future__ import annotations
@@ -36,6 +43,7 @@ import numpy.typing as npt
 
 from velma.perception.cloud import Array
 from velma.perception.localise import ObjectEstimate
+from velma.perception.noise import MAX_INCIDENCE
 from velma.perception.objects import ObjectModel
 from velma.perception.segment import GREY, chromaticity
 
@@ -200,6 +208,7 @@ def count_spheres(
     points: Array,
     colours: npt.NDArray[np.uint8],
     depth: npt.NDArray[np.floating],
+    rgb: npt.NDArray[np.uint8],
     camera_position: Array,
     camera_rotation: Array,
     fx: float,
@@ -211,9 +220,9 @@ def count_spheres(
     """Count the spheres (radius ``particle_radius`` m, colour ``content_rgba``) in the open,
     opaque container ``estimate`` (seen, else None) with ``model``, from the cloud ``points``
     (N × 3, m, world) and ``colours`` (N × 3) of a frame whose ``depth`` image (H × W, m, NaN
-    missing) was taken from ``camera_position`` (3,) m with ``camera_rotation`` (3 × 3,
-    world-from-optical) and focal length ``fx`` (px, square pixels), principal point ``cx``,
-    ``cy`` (px).
+    missing) and colour image ``rgb`` (H × W × 3, uint8) were taken from ``camera_position``
+    (3,) m with ``camera_rotation`` (3 × 3, world-from-optical) and focal length ``fx`` (px,
+    square pixels), principal point ``cx``, ``cy`` (px).
 
     Method: (1) the content-coloured points within the container's inner radius, from its
     inner bottom to a sphere diameter above its rim; (2) the spheres resting on the floor,
@@ -222,22 +231,26 @@ def count_spheres(
     is none, ``SEE_THROUGH_SHARE``: of a sphere against the near wall only its top shows,
     which a candidate a few mm off, or halfway to its neighbour, fits as well), less those
     off the wall ring (3) that took fewer than ``MIN_INNER_SHARE`` of the median points (off
-    the ring the floor is in view, so a sphere there shows most of its cap), then refined by
-    least squares: ``visible``; (3) the
-    ring along the wall: the container's shape (its model) gives the distance
-    ``_ring_radius`` from the axis at which a sphere on the floor touches the wall, where the
-    frictionless spheres settle (velma/model/scene.py); the spheres found beyond one radius
-    inside it are the ring's; (4) the ring's positions the camera cannot see
+    the ring the floor is in view, so a sphere there shows most of its cap), then refined
+    jointly by least squares (``_refine_centres``: each point fits the sphere whose surface
+    it lies nearest to); (3) the ring along the wall: the container's shape (its model) gives
+    the distance ``_ring_radius`` from the axis at which a sphere on the floor touches the
+    wall, where the frictionless spheres settle (velma/model/scene.py); the spheres found
+    beyond one radius inside it are the ring's; (4) the ring's spheres that show in colour
+    but not in depth (``_ring_spheres_in_colour``: of a sphere along the near wall only a
+    sliver over the rim may show, seen at a grazing angle, where the Kinect returns no
+    depth; the ring's spheres found in (2) put on the ring for it); (2) and (4) make
+    ``visible``; (5) the ring's positions the camera cannot see
     (``_ring_hidden``: a sphere there would show fewer pixels than a sphere found takes, the
     rest of it behind something nearer in the depth image: the bowl's near wall, an arm, a
-    neighbour; from the head's pour view of the bowl at velma/scenario.py BOWL_PLACE_POSITION
-    the least visible place along the near wall shows about four pixels of a sphere, so on
-    some frames a few degrees there are out of view, tests/velma/perception/test_content_count.py);
-    (5) ``hidden``: for each gap between neighbouring ring spheres that reaches into
-    positions out of view, the spheres that fit it at the spacing of the ring's neighbours in
-    view (the median of the gaps shorter than 1.5 touching spacings; touching when there are
-    none), at most as many as its hidden positions hold touching; a gap wholly in view is
-    empty (the floor is seen there).
+    neighbour); (6) ``hidden``:
+    for each gap between neighbouring ring spheres that reaches into positions out of view,
+    the spheres that fit it at the spacing of the ring's neighbours in view (the median of
+    the gaps shorter than 1.5 touching spacings; touching when there are none), at most as
+    many as its hidden positions hold touching; a gap wholly in view is empty (the floor is
+    seen there). From the head's pour view of the bowl at velma/scenario.py
+    BOWL_PLACE_POSITION every place of the ring shows (step 4 for the least visible, along
+    the near wall); from 7 cm further three are hidden (tests/velma/perception/test_content_count.py).
 
     Named simplifications: a hidden arc of the ring (the bowl seen from further away than
     its pour place) is assumed as full as its neighbours make it (a vacancy that happens to
@@ -283,6 +296,18 @@ def count_spheres(
     keep = at_ring | strong
     centres = _refine_centres(points[match], found[keep], r)
     at_ring = at_ring[keep]
+    theta = np.radians(np.arange(0.0, 360.0, RING_STEP_DEG))
+    ring_centres = centre + ring * np.stack([np.cos(theta), np.sin(theta), np.zeros_like(theta)], axis=1)
+    h, w = depth.shape
+    content_pixels = _content_match(rgb.reshape(-1, 3), content_rgba, model, CONTENT_TOLERANCE).reshape(h, w)
+    # the spheres along the wall touch it (3): of one along the near wall only the top shows,
+    # which the fit places a few mm inward; put on the ring it shows where its sliver is
+    snapped = centres.copy()
+    out = centres[at_ring, :2] - origin[:2]
+    snapped[at_ring, :2] = origin[:2] + ring * out / np.linalg.norm(out, axis=1, keepdims=True)
+    extra = _ring_spheres_in_colour(ring_centres, snapped, view, content_pixels, r)
+    centres = np.vstack([centres, extra])
+    at_ring = np.append(at_ring, np.ones(len(extra), dtype=bool))
     share = _floor_visible(origin, layer, inner_radius - r, view, r)
     hidden_at = _ring_hidden(centre, ring, view, r)
     angles = np.arctan2(centres[at_ring, 1] - origin[1], centres[at_ring, 0] - origin[0])
@@ -301,15 +326,21 @@ def count_spheres(
 def _refine_centres(surface: Array, centres: Array, r: float, iterations: int = 5) -> Array:
     """``centres`` (K × 3, m) moved horizontally to fit, by Gauss–Newton least squares, the
     ``surface`` points (M × 3, m) within ``SURFACE_BAND`` × r of their sphere's surface
-    (radius ``r``; the height stays the layer's): the Hough grid's 2 mm steps and its
-    neighbours' points bias a centre by a few mm."""
+    (radius ``r``; the height stays the layer's), jointly: at each step a point counts for the
+    sphere whose surface it lies nearest to. The Hough grid's 2 mm steps and its neighbours'
+    points bias a centre by a few mm, more for a sphere along the near wall of which only
+    the top shows, next to a neighbour of which much shows."""
     out = centres.copy()
-    for c in out:
-        d = np.linalg.norm(surface - c, axis=1)
-        near = surface[np.abs(d - r) <= SURFACE_BAND * r]
-        for _ in range(iterations):
+    if len(out) == 0:
+        return out
+    for _ in range(iterations):
+        off = np.abs(np.linalg.norm(surface[:, None, :] - out[None, :, :], axis=2) - r)
+        owner = np.argmin(off, axis=1)
+        fits = off[np.arange(len(surface)), owner] <= SURFACE_BAND * r
+        for k, c in enumerate(out):
+            near = surface[fits & (owner == k)]
             if len(near) < MIN_SPHERE_POINTS:
-                break
+                continue
             v = near - c
             n = np.maximum(np.linalg.norm(v, axis=1), 1e-9)
             jacobian = -v[:, :2] / n[:, None]
@@ -384,9 +415,41 @@ def _silhouette_pixels(
     (the camera sees past it) and how many show a depth within that of it (its own surface,
     or something just in front). Pixels whose depth is nearer (hidden behind something),
     missing or outside the image count in neither. Returns two (K,) arrays."""
+    s = _silhouettes(centres, view, r, core)
+    if s is None:
+        return np.zeros(len(centres), dtype=np.int64), np.zeros(len(centres), dtype=np.int64)
+    with np.errstate(invalid="ignore"):
+        past = s.within & (s.seen > s.front + CAP_DEPTH_TOLERANCE)
+        on = s.within & (np.abs(s.seen - s.front) <= CAP_DEPTH_TOLERANCE)
+    return past.sum(axis=1).astype(np.int64), on.sum(axis=1).astype(np.int64)
+
+
+@dataclass(frozen=True)
+class _Silhouettes:
+    """Per sphere (rows, K) the pixels of a square window about its image (columns, P):
+    ``u``, ``v`` (K × P, px), ``within`` (K × P) whether the pixel lies in the image and its ray
+    passes within the asked share of the radius of the centre, ``front`` (K × P, m along the
+    optical axis) where that ray meets the sphere's front surface (its closest approach where
+    it misses), ``seen`` (K × P, m) the depth image there (NaN missing or outside the image),
+    ``ray`` (K × P × 3) the pixel rays (optical frame, z = 1), ``miss`` (K × P, m) how far
+    each passes from the centre."""
+
+    u: npt.NDArray[np.int64]
+    v: npt.NDArray[np.int64]
+    within: npt.NDArray[np.bool_]
+    front: npt.NDArray[np.float64]
+    seen: npt.NDArray[np.float64]
+    ray: npt.NDArray[np.float64]
+    miss: npt.NDArray[np.float64]
+
+
+def _silhouettes(centres: Array, view: DepthView, r: float, core: float) -> _Silhouettes | None:
+    """The image windows of spheres of radius ``r`` m at ``centres`` (K × 3, m, world) in
+    ``view`` (``_Silhouettes``, rays within ``core`` · r of a centre); None when there are no
+    centres or one lies within r of the camera's plane."""
     c = view.optical(centres)
     if len(c) == 0 or float(np.min(c[:, 2])) <= r:
-        return np.zeros(len(c), dtype=np.int64), np.zeros(len(c), dtype=np.int64)
+        return None
     fx, cx, cy, depth = view.fx, view.cx, view.cy, view.depth
     reach = math.ceil(fx * r / float(np.min(c[:, 2]) - r)) + 1
     du, dv = (g.ravel() for g in np.meshgrid(np.arange(-reach, reach + 1), np.arange(-reach, reach + 1)))
@@ -401,10 +464,84 @@ def _silhouette_pixels(
     front = closest - np.sqrt(np.maximum(r * r - miss2, 0.0) / sq)
     seen = np.full(u.shape, np.nan)
     seen[inside] = depth[v[inside], u[inside]]
+    return _Silhouettes(u, v, within, front, seen, ray, np.sqrt(miss2))
+
+
+GRAZING_SHARE = 0.8
+"""Share of a sphere's radius: a pixel without depth shows the sphere's own outline when its
+ray passes at least this far from the centre, where the surface turns from the ray by more
+than the Kinect returns depth for (velma/perception/noise.py ``MAX_INCIDENCE``, 75°: from
+0.97 r on; a pixel is ≈ 0.15 r wide at the pour view's ≈ 0.8 m)."""
+
+
+def _ring_spheres_in_colour(
+    ring_centres: Array,
+    found: Array,
+    view: DepthView,
+    content_pixels: npt.NDArray[np.bool_],
+    r: float,
+) -> Array:
+    """Spheres of the wall ring that show in colour but barely in depth (``count_spheres``
+    step 4): of a sphere along the near wall only a sliver over the rim shows, seen at a
+    grazing angle, where the Kinect returns no depth (velma/perception/noise.py
+    ``MAX_INCIDENCE``), so its few points are missing from the cloud, or are within the
+    surface band of its inner neighbour, whose peak takes them.
+
+    ``ring_centres`` (C × 3, m, world): the ring's positions (``_ring_radius``, every
+    ``RING_STEP_DEG``); ``found`` (K × 3, m): the sphere centres found; ``content_pixels``
+    (H × W): the pixels of ``view``'s colour image with the content's colour. A position is a
+    sphere when it lies at least 1.6 r from every sphere found (as ``spheres_on_layer``
+    suppresses), and among the pixels whose ray passes within r of its centre and not within
+    (1 + ``SURFACE_BAND``) r of a sphere found less than r behind its surface (in front of
+    it, or beside it: that sphere shows there): at least ``MIN_SPHERE_POINTS`` have the
+    content's colour and either its surface's depth (within ``CAP_DEPTH_TOLERANCE``) where
+    the ray passes less than sin(``MAX_INCIDENCE``) r from the centre (further out the sphere
+    returns no depth, so a depth there is something else's) or no depth where it passes
+    ``GRAZING_SHARE`` r or more from it (its outline), and no more than ``SEE_THROUGH_SHARE``
+    of those and the ones showing a depth beyond it show that depth. Best first, each one
+    found joining ``found``. Returns the centres (J × 3, m, world). An empty place along the
+    near wall, through which the top of an inner sphere shows, is what these rules tell from
+    a sphere (tests/velma/perception/test_content_count.py)."""
+    s = _silhouettes(ring_centres, view, r, 1.0)
+    if s is None:
+        return np.zeros((0, 3))
+    h, w = content_pixels.shape
+    coloured = s.within & content_pixels[np.clip(s.v, 0, h - 1), np.clip(s.u, 0, w - 1)]
     with np.errstate(invalid="ignore"):
-        past = within & (seen > front + CAP_DEPTH_TOLERANCE)
-        on = within & (np.abs(seen - front) <= CAP_DEPTH_TOLERANCE)
-    return past.sum(axis=1).astype(np.int64), on.sum(axis=1).astype(np.int64)
+        past = s.within & (s.seen > s.front + CAP_DEPTH_TOLERANCE)
+        grazing = np.isnan(s.seen) & (s.miss >= GRAZING_SHARE * r)
+        # past sin(MAX_INCIDENCE) r from the centre the sphere returns no depth: a depth there is another's
+        faced = (np.abs(s.seen - s.front) <= CAP_DEPTH_TOLERANCE) & (s.miss < math.sin(MAX_INCIDENCE) * r)
+        shows = coloured & (grazing | faced)
+    sq = np.sum(s.ray * s.ray, axis=2)
+    reach = (1.0 + SURFACE_BAND) * r
+
+    def in_front(centre: Array) -> npt.NDArray[np.bool_]:
+        """Pixels whose ray passes within ``reach`` of ``centre`` less than r behind the
+        candidate's front (its sphere is in front, or beside it)."""
+        c = view.optical(centre[None, :])[0]
+        closest = s.ray @ c / sq
+        miss2 = np.sum((closest[..., None] * s.ray - c) ** 2, axis=2)
+        return np.asarray((miss2 <= reach * reach) & (closest < s.front + r))
+
+    taken = np.zeros(s.within.shape, dtype=bool)
+    for c in found:
+        taken |= in_front(c)
+    alive = np.ones(len(ring_centres), dtype=bool)
+    for c in found:
+        alive &= np.sum((ring_centres[:, :2] - c[:2]) ** 2, axis=1) >= (1.6 * r) ** 2
+    out: list[Array] = []
+    while alive.any():
+        score = np.sum(shows & ~taken, axis=1)
+        beyond = np.sum(past & ~taken, axis=1)
+        fits = alive & (score >= MIN_SPHERE_POINTS) & (beyond <= SEE_THROUGH_SHARE * (score + beyond))
+        if not fits.any():
+            break
+        best = int(np.argmax(np.where(fits, score, -1)))
+        out.append(ring_centres[best])
+        taken |= in_front(ring_centres[best])
+        alive &= np.sum((ring_centres[:, :2] - ring_centres[best, :2]) ** 2, axis=1) >= (1.6 * r) ** 2
+    return np.array(out).reshape(-1, 3)
 
 
 def _hidden_in_gaps(angles: Array, hidden_at: npt.NDArray[np.bool_], step: float) -> int:
