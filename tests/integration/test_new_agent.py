@@ -2,9 +2,10 @@
 in a copy of this checkout, the walk-through's specification entries are added, ``roco spec
 new-agent a_wt`` writes the agent and renders deploy/compose.yaml, the handlers are written as
 the document writes them, and then the tools agree (spec check, verify-code, the compose file,
-the access control), and ``roco run`` pours with the new agent in the fleet, access control on:
-the traffic record holds its conversations with a_km, the report names it, and ``roco spec
-verify`` passes on the run. No other agent's code is edited.
+the access control), and ``roco scenario`` pours with the new agent in the fleet, access control
+on, then knocks the bowl over: the watcher warns the person through a_hi within 1 s of robot
+time, ``roco scenario``'s output and the report show the warning with its sender, and ``roco
+spec verify`` passes on the run. No other agent's code is edited.
 
 Every command runs in the copy (its working folder, first on PYTHONPATH), so that the copy's
 code runs, not this checkout's (which the virtual environment installs editable)."""
@@ -29,9 +30,28 @@ from tests.spec_check.walkthrough import AGENT, NEXT, fill, walkthrough_spec
 pytestmark = [pytest.mark.slow, pytest.mark.fleet]
 
 ROOT = Path(__file__).resolve().parents[2]
-SENTENCE = "pour the jar into the bowl"
 C = NEXT.channel_name
-"""The new agent's channel (C9 in the shipped specification; the copy's is this checkout's)."""
+"""The new agent's channel to a_km (C9 in the shipped specification; the copy's is this
+checkout's)."""
+N = NEXT.notice_channel_name
+"""The new agent's channel to a_hi (C10 in the shipped specification)."""
+WARNING = "the bowl has tipped over"
+SESSION = """name = "the watcher warns of a knocked-over bowl"
+timeout_s = 900
+[[steps]]
+say = "pour the jar into the bowl"
+expect = "succeeded"
+[[steps]]
+disturb = { object = "bowl", tilt = 1.6 }
+after = { ended = 1 }
+[[steps]]
+say = "what is in the bowl?"
+after = { seconds = 3 }
+expect = "answer"
+"""
+"""The session: the pour; the bowl knocked onto its side (1.6 rad, past the watcher's 60°) once
+the pour ended; a question 3 wall seconds later, so that the fleet runs on while the warning
+goes out."""
 BUILT = ("services/**/*.so", "velma/**/*.so", "shared/**/*.so", "services/runtime/_compiled.json")
 """What ``pip install -e .`` built beside the sources (not tracked): the compiled control law
 and runtime, copied so that the copy runs as fast as this checkout."""
@@ -120,22 +140,66 @@ def test_spec_check_and_verify_code_pass_with_no_edit_of_another_agent(checkout:
     assert done.returncode == 0, done.stdout + done.stderr
     done = checkout.roco("spec", "verify-code")
     assert done.returncode == 0, done.stdout + done.stderr
-    assert "a_wt: 2 files; 1 protocol roles agree with the specification:" in done.stdout
-    assert f"  {C} fipa-query participant with a_wt in L_WM (declared for every channel)" in done.stdout
-    for agent in ("knowledge", "human_interface"):  # a_km serves C as it is; a_hi only changed group
+    assert "a_wt: 2 files; 2 protocol roles agree with the specification:" in done.stdout
+    assert f"  {C} fipa-subscribe participant with a_wt in L_WM (declared for every channel)" in done.stdout
+    assert f"  {N} roco-notify participant with a_wt in L_HC (declared for every channel)" in done.stdout
+    for agent in ("knowledge", "human_interface"):  # a_km and a_hi serve the new channels as they are
         copied = checkout.root / "services" / "agents" / agent / "agent.py"
         assert copied.read_text() == (ROOT / "services" / "agents" / agent / "agent.py").read_text()
 
 
-def test_the_access_control_lets_it_send_on_its_channel_and_nowhere_else(checkout: Checkout) -> None:
+def test_the_access_control_lets_it_send_on_its_channels_and_nowhere_else(checkout: Checkout) -> None:
     done = checkout.roco("deploy", "acl")
     assert done.returncode == 0, done.stderr
     rules = {r["id"]: r for r in json.loads(done.stdout)["rules"]}
     sends = [k for k in rules["a_wt/ingress/put"]["key_exprs"] if k.startswith("roco/fipa/")]
-    assert sends == [f"roco/fipa/{C}/a_wt/a_km", f"roco/fipa/{C}/a_wt/a_km/@adv/**"]
+    assert sorted(sends) == sorted(
+        [
+            f"roco/fipa/{ch}/a_wt/{peer}{tail}"
+            for ch, peer in ((C, "a_km"), (N, "a_hi"))
+            for tail in ("", "/@adv/**")
+        ]
+    )
+    assert f"roco/fipa/{N}/a_wt/a_hi" in rules["a_hi/egress/put"]["key_exprs"]
     assert f"roco/fipa/{C}/a_km/a_wt" in rules["a_wt/egress/put"]["key_exprs"]
     assert f"roco/fipa/{C}/a_km/a_wt" in rules["a_km/ingress/put"]["key_exprs"]
     assert f"roco/fipa/{C}/a_wt/a_km" in rules["a_km/egress/put"]["key_exprs"]
+
+
+FAST_PART = (
+    "tests/spec",
+    "tests/spec_check/test_spec_check.py",
+    "tests/spec_check/test_declared_protocol.py",
+    "tests/spec_check/test_new_agent_stub.py",
+    "tests/spec_check/test_properties.py",
+    "tests/spec_check/test_trace.py",
+    "tests/architecture",
+    "tests/fipa_codec/test_fipa_languages.py",
+)
+"""The fast part of roco's own tests: the folders a new agent could break, run in the copy
+after it is added — the specification's model, names, content terms, protocols and deadlock
+search (tests/spec), the specification checks that read the whole specification
+(tests/spec_check: its check, declared protocols, the new-agent stub, properties, tracing;
+not the walk-through, which adds the watcher again, nor what replays recorded runs), the
+architecture rules every agent's code must keep (tests/architecture), and the round trip of a
+sample of every content term (tests/fipa_codec/test_fipa_languages.py)."""
+
+
+def test_the_tools_and_the_fast_part_of_the_tests_pass_in_the_copy(checkout: Checkout) -> None:
+    """With the watcher added (the specification edited, its folder written), ``roco spec
+    check``, ``verify-code`` and ``deadlock`` pass in the copy, and so does :data:`FAST_PART`
+    (``-x -q -n 0 -p no:cacheprovider``), run by the copy's code on the copy's
+    specification."""
+    assert checkout.new_agent.returncode == 0, checkout.new_agent.stderr
+    for tool in ("check", "verify-code", "deadlock"):
+        done = checkout.roco("spec", tool)
+        assert done.returncode == 0, f"roco spec {tool}: " + done.stdout[-3000:] + done.stderr[-2000:]
+    command = [sys.executable, "-m", "pytest", "-x", "-q", "-n", "0", "-p", "no:cacheprovider", *FAST_PART]
+    done = subprocess.run(
+        command, cwd=checkout.root, env=checkout.env, capture_output=True, text=True, timeout=600
+    )
+    assert done.returncode == 0, done.stdout[-4000:] + done.stderr[-2000:]
+    assert " failed" not in done.stdout.splitlines()[-1], done.stdout[-2000:]
 
 
 @pytest.fixture(scope="module")
@@ -143,7 +207,9 @@ def pour(checkout: Checkout) -> tuple[subprocess.CompletedProcess[str], Path]:
     if checkout.new_agent.returncode != 0:
         pytest.fail("roco spec new-agent failed: " + checkout.new_agent.stderr)
     runs = checkout.root / "runs"
-    done = checkout.roco("run", SENTENCE, "--runs-dir", str(runs), "--timeout", "900", timeout=1200)
+    session = checkout.root / "watcher.toml"
+    session.write_text(SESSION)
+    done = checkout.roco("scenario", str(session), "--runs-dir", str(runs), timeout=1200)
     (run_dir,) = [p for p in runs.iterdir() if p.is_dir()]
     return done, run_dir
 
@@ -157,20 +223,27 @@ def test_it_runs_in_the_fleet_with_access_control_and_the_run_conforms(
     order = load(checkout.root / "services" / "spec" / "robot_companion.toml").launch_order
     assert alive.endswith(", ".join(order)) and order[-1] == "a_wt", alive
     assert (run_dir / "security" / "acl.json").is_file()  # access control was on
-    # the traffic record: a_wt's queries on its channel and a_km's answers
-    records = [r for r in read_records(run_dir) if r.channel == C]
-    asked = [r for r in records if r.sender == "a_wt" and r.performative == "query-ref"]
-    answered = [r for r in records if r.sender == "a_km" and r.performative == "inform-ref"]
-    assert asked and answered, [(r.sender, r.performative) for r in records]
-    assert {r.receivers for r in asked} == {("a_km",)} and {r.receivers for r in answered} == {("a_wt",)}
-    # what it did with the answers: its log and counters
+    # the traffic record: a_wt's subscription on C, a_km's changes, and one warning on N
+    records = [r for r in read_records(run_dir) if r.channel in (C, N)]
+    sent = [(r.channel, r.sender, r.performative) for r in records]
+    for one in ((C, "a_wt", "subscribe"), (C, "a_km", "agree"), (C, "a_km", "inform")):
+        assert one in sent, sent
+    warnings = [r for r in records if r.channel == N]
+    assert [(r.sender, r.receivers, r.performative, r.protocol) for r in warnings] == [
+        ("a_wt", ("a_hi",), "inform", "roco-notify")
+    ], sent
+    # what it did with the changes: its log and counters
     log = (run_dir / "logs" / "a_wt.log").read_text()
     assert "started (pid" in log and "stopped by an error" not in log
+    assert f"told the person: {WARNING}" in log
     stopping = [line for line in log.splitlines() if "stopping; counters" in line]
-    assert stopping and "'scenes': " in stopping[-1], stopping  # its counters when it stopped
+    assert stopping and "'warnings': 1" in stopping[-1], stopping  # its counters when it stopped
+    # the person saw it, with its sender: in roco scenario's output and in the report
+    assert any("a_wt" in line and WARNING in line for line in done.stdout.splitlines()), done.stdout[-3000:]
     # the report names it, and the run conforms to the specification
     report = (run_dir / "report.md").read_text()
     assert "a_wt" in report and C in report
+    assert any("a_wt" in line and WARNING in line for line in report.splitlines())
     verified = checkout.roco("spec", "verify", str(run_dir))
     assert verified.returncode == 0, verified.stdout[-3000:]
     assert "full conformance: yes" in verified.stdout
