@@ -17,14 +17,18 @@ import os
 import shutil
 import subprocess
 import sys
+import time
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
 import pytest
 
-from services.recorder.record import read_records
+from services.recorder.record import TrafficRecord, read_payloads, read_records
 from services.spec.model import load
+from shared.fipa_codec import decode
+from shared.fipa_codec.languages import decode_content
+from shared.fipa_codec.languages.l_wm import WorldUpdate
 from tests.spec_check.walkthrough import AGENT, NEXT, fill, walkthrough_spec
 
 pytestmark = [pytest.mark.slow, pytest.mark.fleet]
@@ -39,18 +43,20 @@ WARNING = "the bowl has tipped over"
 SESSION = """name = "the watcher warns of a knocked-over bowl"
 timeout_s = 900
 [[steps]]
-say = "pour the jar into the bowl"
-expect = "succeeded"
+say = "bring me the bowl"
+expect = "failed"
+expect_text = "the bowl is not upright"
 [[steps]]
-disturb = { object = "bowl", tilt = 1.6 }
-after = { ended = 1 }
+disturb = { object = "bowl", dz = 0.07, tilt = 3.1416 }
+after = { step = "place_bowl/park" }
 [[steps]]
 say = "what is in the bowl?"
-after = { seconds = 3 }
+after = { ended = 1 }
 expect = "answer"
 """
-"""The session: the pour; the bowl knocked onto its side (1.6 rad, past the watcher's 60°) once
-the pour ended; a question 3 wall seconds later, so that the fleet runs on while the warning
+"""The session (the library's ``knocked_bowl``, then a question): the bowl brought to the table
+and knocked upside down while the arm parks; the set-down's last look sees it, so a_km learns
+it and the watcher warns the person; the question keeps the fleet running while the warning
 goes out."""
 BUILT = ("services/**/*.so", "velma/**/*.so", "shared/**/*.so", "services/runtime/_compiled.json")
 """What ``pip install -e .`` built beside the sources (not tracked): the compiled control law
@@ -171,35 +177,70 @@ FAST_PART = (
     "tests/spec_check/test_spec_check.py",
     "tests/spec_check/test_declared_protocol.py",
     "tests/spec_check/test_new_agent_stub.py",
-    "tests/spec_check/test_properties.py",
-    "tests/spec_check/test_trace.py",
     "tests/architecture",
     "tests/fipa_codec/test_fipa_languages.py",
 )
 """The fast part of roco's own tests: the folders a new agent could break, run in the copy
 after it is added — the specification's model, names, content terms, protocols and deadlock
-search (tests/spec), the specification checks that read the whole specification
-(tests/spec_check: its check, declared protocols, the new-agent stub, properties, tracing;
-not the walk-through, which adds the watcher again, nor what replays recorded runs), the
-architecture rules every agent's code must keep (tests/architecture), and the round trip of a
-sample of every content term (tests/fipa_codec/test_fipa_languages.py)."""
+search (tests/spec), the checks of the whole specification, its declared protocols and the
+new-agent stub (tests/spec_check), the architecture rules every agent's code keeps
+(tests/architecture: imports, layers, roles, names, complexity), and the round trip of a sample
+of every content term (tests/fipa_codec/test_fipa_languages.py). Left out: the tests marked
+``walkthrough`` (they add the watcher again), and tests/spec_check/test_trace.py, whose rule
+that each leaf requirement has a test marked with it a new requirement keeps only once a test
+of this checkout names it."""
 
 
 def test_the_tools_and_the_fast_part_of_the_tests_pass_in_the_copy(checkout: Checkout) -> None:
     """With the watcher added (the specification edited, its folder written), ``roco spec
     check``, ``verify-code`` and ``deadlock`` pass in the copy, and so does :data:`FAST_PART`
-    (``-x -q -n 0 -p no:cacheprovider``), run by the copy's code on the copy's
-    specification."""
+    (``-x -q -n 0 -p no:cacheprovider -m "not walkthrough"``), run by the copy's code on the
+    copy's specification."""
     assert checkout.new_agent.returncode == 0, checkout.new_agent.stderr
     for tool in ("check", "verify-code", "deadlock"):
         done = checkout.roco("spec", tool)
         assert done.returncode == 0, f"roco spec {tool}: " + done.stdout[-3000:] + done.stderr[-2000:]
-    command = [sys.executable, "-m", "pytest", "-x", "-q", "-n", "0", "-p", "no:cacheprovider", *FAST_PART]
+    options = ["-x", "-q", "-n", "0", "-p", "no:cacheprovider", "-m", "not walkthrough"]
     done = subprocess.run(
-        command, cwd=checkout.root, env=checkout.env, capture_output=True, text=True, timeout=600
+        [sys.executable, "-m", "pytest", *options, *FAST_PART],
+        cwd=checkout.root,
+        env=checkout.env,
+        capture_output=True,
+        text=True,
+        timeout=600,
     )
     assert done.returncode == 0, done.stdout[-4000:] + done.stderr[-2000:]
-    assert " failed" not in done.stdout.splitlines()[-1], done.stdout[-2000:]
+    assert " passed" in done.stdout.splitlines()[-1], done.stdout[-2000:]
+
+
+def disturbed_at(run_dir: Path) -> float:
+    """When ag_ex applied the run's disturbance: the wall time (POSIX s) of its log line "the
+    world: … moved by …" (services/agents/executor/agent.py ``_disturb``; the runtime's log
+    format, services/runtime/log_format.py: local time to the millisecond)."""
+    line = next(x for x in (run_dir / "logs" / "ag_ex.log").read_text().splitlines() if "the world: " in x)
+    stamp, ms = line[:23].split(",")
+    return time.mktime(time.strptime(stamp, "%Y-%m-%d %H:%M:%S")) + int(ms) / 1000
+
+
+def observations(run_dir: Path, records: list[TrafficRecord]) -> list[tuple[float, float]]:
+    """Each observation a_ta informed a_km of on C6 (L_WM ``WorldUpdate``), as (a_ta's wall
+    clock on receiving it ``seen_at``, POSIX s; its robot time ``stamp``, s), in time order."""
+    observed = {(r.incarnation, r.seq) for r in records if r.channel == "C6" and r.performative == "inform"}
+    seen: list[tuple[float, float]] = []
+    for key, payload in read_payloads(run_dir):
+        if (key.incarnation, key.seq) in observed:
+            msg = decode(payload)
+            update = decode_content(msg.language, msg.content)
+            if isinstance(update, WorldUpdate) and update.seen_at is not None and update.stamp >= 0:
+                seen.append((update.seen_at, update.stamp))
+    return sorted(seen)
+
+
+def robot_pace(seen: list[tuple[float, float]]) -> float:
+    """The simulation's average pace over the run (robot s per wall s), from the first to the
+    last of :func:`observations`."""
+    (wall0, robot0), (wall1, robot1) = seen[0], seen[-1]
+    return (robot1 - robot0) / (wall1 - wall0)
 
 
 @pytest.fixture(scope="module")
@@ -232,6 +273,15 @@ def test_it_runs_in_the_fleet_with_access_control_and_the_run_conforms(
     assert [(r.sender, r.receivers, r.performative, r.protocol) for r in warnings] == [
         ("a_wt", ("a_hi",), "inform", "roco-notify")
     ], sent
+    # the warning within 1 s of robot time of the robot's first look after the knock (the robot
+    # learns of a knock only by looking: docs/agents.md, Scenarios); wall times at the run's pace
+    seen = observations(run_dir, read_records(run_dir))
+    knocked = disturbed_at(run_dir)
+    look = next(wall for wall, _ in seen if wall > knocked)
+    told, pace = warnings[0].t, robot_pace(seen)
+    to_look, to_warning = (look - knocked) * pace, (told - knocked) * pace
+    print(f"robot s from the knock: {to_look:.3f} to the look, {to_warning:.3f} to the warning")
+    assert 0 < (told - look) * pace <= 1.0, ((told - look) * pace, pace)
     # what it did with the changes: its log and counters
     log = (run_dir / "logs" / "a_wt.log").read_text()
     assert "started (pid" in log and "stopped by an error" not in log

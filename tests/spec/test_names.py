@@ -134,6 +134,7 @@ def test_two_spellings_of_one_python_name_are_refused() -> None:
     assert "C2" in spellings(spec)  # read leniently by the code scan: the first keeps the name
 
 
+@pytest.mark.walkthrough
 def test_a_new_channel_is_named_and_the_committed_module_lacks_it(tmp_path: Path) -> None:
     spec = load(walkthrough_spec(tmp_path / "spec.toml"))
     text = render(spec)
@@ -149,6 +150,7 @@ def test_a_new_channel_is_named_and_the_committed_module_lacks_it(tmp_path: Path
     assert module[NEW] == NEW and module["FIPA_QUERY"] == "fipa-query"
 
 
+@pytest.mark.walkthrough
 def test_write_and_bring_up_to_date(tmp_path: Path) -> None:
     spec = load(walkthrough_spec(tmp_path / "spec.toml"))
     target = tmp_path / "names.py"
