@@ -174,21 +174,25 @@ def test_the_access_control_lets_it_send_on_its_channels_and_nowhere_else(checko
 
 FAST_PART = (
     "tests/spec",
-    "tests/spec_check/test_spec_check.py",
     "tests/spec_check/test_declared_protocol.py",
-    "tests/spec_check/test_new_agent_stub.py",
-    "tests/architecture",
+    "tests/architecture/test_agents_keep_no_protocol_books.py",
+    "tests/architecture/test_agents_read_their_sources.py",
+    "tests/architecture/test_agents_use_names.py",
+    "tests/architecture/test_agents_use_roles.py",
+    "tests/architecture/test_complexity.py",
+    "tests/architecture/test_imports_resolve.py",
     "tests/fipa_codec/test_fipa_languages.py",
 )
-"""The fast part of roco's own tests: the folders a new agent could break, run in the copy
-after it is added — the specification's model, names, content terms, protocols and deadlock
-search (tests/spec), the checks of the whole specification, its declared protocols and the
-new-agent stub (tests/spec_check), the architecture rules every agent's code keeps
-(tests/architecture: imports, layers, roles, names, complexity), and the round trip of a sample
-of every content term (tests/fipa_codec/test_fipa_languages.py). Left out: the tests marked
-``walkthrough`` (they add the watcher again), and tests/spec_check/test_trace.py, whose rule
-that each leaf requirement has a test marked with it a new requirement keeps only once a test
-of this checkout names it."""
+"""The fast part of roco's own tests: those a new agent could break, run in the copy after it
+is added, within about 30 s of test time — the specification's model, names, content terms,
+protocols and deadlock search (tests/spec), the declared protocols (tests/spec_check), the
+architecture rules an agent's module keeps (tests/architecture: no protocol machinery by hand,
+its sources, the names module, its roles, no state machine hidden in branches, imports that
+resolve), and the round trip of a sample of every content term
+(tests/fipa_codec/test_fipa_languages.py). Left out: the tests marked ``walkthrough`` (they add
+the watcher again); tests/spec_check/test_trace.py, whose rule that each leaf requirement has a
+test marked with it a new requirement keeps only once a test in tests/ names it; and the
+slower architecture tests of the whole package (import graph, lean processes, settings)."""
 
 
 def test_the_tools_and_the_fast_part_of_the_tests_pass_in_the_copy(checkout: Checkout) -> None:
