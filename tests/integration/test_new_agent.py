@@ -2,10 +2,12 @@
 in a copy of this checkout, the walk-through's specification entries are added, ``roco spec
 new-agent a_wt`` writes the agent and renders deploy/compose.yaml, the handlers are written as
 the document writes them, and then the tools agree (spec check, verify-code, the compose file,
-the access control), and ``roco scenario`` pours with the new agent in the fleet, access control
-on, then knocks the bowl over: the watcher warns the person through a_hi within 1 s of robot
-time, ``roco scenario``'s output and the report show the warning with its sender, and ``roco
-spec verify`` passes on the run. No other agent's code is edited.
+the access control), and ``roco scenario`` has Velma bring the bowl with the new agent in the
+fleet, access control on, and knocks the bowl over as it is set down: the watcher warns the
+person through a_hi within 1 s of robot time of the robot's next look, ``roco scenario``'s
+output and the report show the warning with its sender, and ``roco spec verify`` passes on the
+run. In the same copy, the tools and the fast part of roco's tests pass (:data:`FAST_PART`).
+No other agent's code is edited.
 
 Every command runs in the copy (its working folder, first on PYTHONPATH), so that the copy's
 code runs, not this checkout's (which the virtual environment installs editable)."""
