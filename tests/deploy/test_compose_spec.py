@@ -147,17 +147,20 @@ def test_the_other_services_keep_their_settings() -> None:
         assert services[name]["build"]["target"] == "runtime"
 
 
-def test_a_new_agent_gets_a_service_and_the_last_agent_waits_for_it(tmp_path: Path) -> None:
+def test_a_new_agent_gets_a_service_and_waits_for_the_others(tmp_path: Path) -> None:
     spec = load(walkthrough_spec(tmp_path / "spec.toml"))  # docs/spec.md's new agent a_wt
-    assert spec.launch_order[-1] == "a_wt" and last_started(spec) == "a_hi"
+    assert spec.launch_order[-1] == "a_wt" and last_started(spec) == "a_wt"  # it asks a_hi: after it
     services = config(render(spec))["services"]
     assert list(services) == ["certs", "router", "recorder", "world", *SPEC.launch_order, "a_wt", "viewer"]
     new, plain = services["a_wt"], services["a_pl"]
     assert new["command"] == ["python", "-m", "services.runtime.main", "a_wt"]
-    for key in set(plain) - {"command", "volumes"}:
+    for key in set(plain) - {"command", "volumes", "depends_on"}:
         assert new[key] == plain[key], key
     assert new["volumes"] == [v.replace("a_pl", "a_wt") for v in plain["volumes"]]
-    assert services["a_hi"]["depends_on"]["a_wt"] == {"condition": "service_healthy"}
+    # started last, it waits for every other agent to be healthy, a_hi among them
+    assert {a for a, c in new["depends_on"].items() if c == {"condition": "service_healthy"}} >= set(
+        SPEC.launch_order
+    )
     # the committed file lacks it, and says how to bring it up to date
     assert difference(COMPOSE_FILE.read_text(), spec) == "no service for agent a_wt"
     assert check(COMPOSE_FILE, spec, "deploy/compose.yaml") == (

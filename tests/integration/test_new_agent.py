@@ -2,9 +2,12 @@
 in a copy of this checkout, the walk-through's specification entries are added, ``roco spec
 new-agent a_wt`` writes the agent and renders deploy/compose.yaml, the handlers are written as
 the document writes them, and then the tools agree (spec check, verify-code, the compose file,
-the access control), and ``roco run`` pours with the new agent in the fleet, access control on:
-the traffic record holds its conversations with a_km, the report names it, and ``roco spec
-verify`` passes on the run. No other agent's code is edited.
+the access control), and ``roco scenario`` has Velma bring the bowl with the new agent in the
+fleet, access control on, and knocks the bowl over as it is set down: the watcher warns the
+person through a_hi within 1 s of robot time of the robot's next look, ``roco scenario``'s
+output and the report show the warning with its sender, and ``roco spec verify`` passes on the
+run. In the same copy, the tools and the fast part of roco's tests pass (:data:`FAST_PART`).
+No other agent's code is edited.
 
 Every command runs in the copy (its working folder, first on PYTHONPATH), so that the copy's
 code runs, not this checkout's (which the virtual environment installs editable)."""
@@ -16,22 +19,47 @@ import os
 import shutil
 import subprocess
 import sys
+import time
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
 import pytest
 
-from services.recorder.record import read_records
+from services.recorder.record import TrafficRecord, read_payloads, read_records
 from services.spec.model import load
+from shared.fipa_codec import decode
+from shared.fipa_codec.languages import decode_content
+from shared.fipa_codec.languages.l_wm import WorldUpdate
 from tests.spec_check.walkthrough import AGENT, NEXT, fill, walkthrough_spec
 
 pytestmark = [pytest.mark.slow, pytest.mark.fleet]
 
 ROOT = Path(__file__).resolve().parents[2]
-SENTENCE = "pour the jar into the bowl"
 C = NEXT.channel_name
-"""The new agent's channel (C9 in the shipped specification; the copy's is this checkout's)."""
+"""The new agent's channel to a_km (C9 in the shipped specification; the copy's is this
+checkout's)."""
+N = NEXT.notice_channel_name
+"""The new agent's channel to a_hi (C10 in the shipped specification)."""
+WARNING = "the bowl has tipped over"
+SESSION = """name = "the watcher warns of a knocked-over bowl"
+timeout_s = 900
+[[steps]]
+say = "bring me the bowl"
+expect = "failed"
+expect_text = "the bowl is not upright"
+[[steps]]
+disturb = { object = "bowl", dz = 0.07, tilt = 3.1416 }
+after = { step = "place_bowl/park" }
+[[steps]]
+say = "what is in the bowl?"
+after = { ended = 1 }
+expect = "answer"
+"""
+"""The session (the library's ``knocked_bowl``, then a question): the bowl brought to the table
+and knocked upside down while the arm parks; the set-down's last look sees it, so a_km learns
+it and the watcher warns the person; the question keeps the fleet running while the warning
+goes out."""
 BUILT = ("services/**/*.so", "velma/**/*.so", "shared/**/*.so", "services/runtime/_compiled.json")
 """What ``pip install -e .`` built beside the sources (not tracked): the compiled control law
 and runtime, copied so that the copy runs as fast as this checkout."""
@@ -120,22 +148,105 @@ def test_spec_check_and_verify_code_pass_with_no_edit_of_another_agent(checkout:
     assert done.returncode == 0, done.stdout + done.stderr
     done = checkout.roco("spec", "verify-code")
     assert done.returncode == 0, done.stdout + done.stderr
-    assert "a_wt: 2 files; 1 protocol roles agree with the specification:" in done.stdout
-    assert f"  {C} fipa-query participant with a_wt in L_WM (declared for every channel)" in done.stdout
-    for agent in ("knowledge", "human_interface"):  # a_km serves C as it is; a_hi only changed group
+    assert "a_wt: 2 files; 2 protocol roles agree with the specification:" in done.stdout
+    assert f"  {C} fipa-subscribe participant with a_wt in L_WM (declared for every channel)" in done.stdout
+    assert f"  {N} roco-notify participant with a_wt in L_HC (declared for every channel)" in done.stdout
+    for agent in ("knowledge", "human_interface"):  # a_km and a_hi serve the new channels as they are
         copied = checkout.root / "services" / "agents" / agent / "agent.py"
         assert copied.read_text() == (ROOT / "services" / "agents" / agent / "agent.py").read_text()
 
 
-def test_the_access_control_lets_it_send_on_its_channel_and_nowhere_else(checkout: Checkout) -> None:
+def test_the_access_control_lets_it_send_on_its_channels_and_nowhere_else(checkout: Checkout) -> None:
     done = checkout.roco("deploy", "acl")
     assert done.returncode == 0, done.stderr
     rules = {r["id"]: r for r in json.loads(done.stdout)["rules"]}
     sends = [k for k in rules["a_wt/ingress/put"]["key_exprs"] if k.startswith("roco/fipa/")]
-    assert sends == [f"roco/fipa/{C}/a_wt/a_km", f"roco/fipa/{C}/a_wt/a_km/@adv/**"]
+    assert sorted(sends) == sorted(
+        [
+            f"roco/fipa/{ch}/a_wt/{peer}{tail}"
+            for ch, peer in ((C, "a_km"), (N, "a_hi"))
+            for tail in ("", "/@adv/**")
+        ]
+    )
+    assert f"roco/fipa/{N}/a_wt/a_hi" in rules["a_hi/egress/put"]["key_exprs"]
     assert f"roco/fipa/{C}/a_km/a_wt" in rules["a_wt/egress/put"]["key_exprs"]
     assert f"roco/fipa/{C}/a_km/a_wt" in rules["a_km/ingress/put"]["key_exprs"]
     assert f"roco/fipa/{C}/a_wt/a_km" in rules["a_km/egress/put"]["key_exprs"]
+
+
+FAST_PART = (
+    "tests/spec",
+    "tests/spec_check/test_declared_protocol.py",
+    "tests/architecture/test_agents_keep_no_protocol_books.py",
+    "tests/architecture/test_agents_read_their_sources.py",
+    "tests/architecture/test_agents_use_names.py",
+    "tests/architecture/test_agents_use_roles.py",
+    "tests/architecture/test_complexity.py",
+    "tests/architecture/test_imports_resolve.py",
+    "tests/fipa_codec/test_fipa_languages.py",
+)
+"""The fast part of roco's own tests: those a new agent could break, run in the copy after it
+is added, within about 30 s of test time — the specification's model, names, content terms,
+protocols and deadlock search (tests/spec), the declared protocols (tests/spec_check), the
+architecture rules an agent's module keeps (tests/architecture: no protocol machinery by hand,
+its sources, the names module, its roles, no state machine hidden in branches, imports that
+resolve), and the round trip of a sample of every content term
+(tests/fipa_codec/test_fipa_languages.py). Left out: the tests marked ``walkthrough`` (they add
+the watcher again); tests/spec_check/test_trace.py, whose rule that each leaf requirement has a
+test marked with it a new requirement keeps only once a test in tests/ names it; and the
+slower architecture tests of the whole package (import graph, lean processes, settings)."""
+
+
+def test_the_tools_and_the_fast_part_of_the_tests_pass_in_the_copy(checkout: Checkout) -> None:
+    """With the watcher added (the specification edited, its folder written), ``roco spec
+    check``, ``verify-code`` and ``deadlock`` pass in the copy, and so does :data:`FAST_PART`
+    (``-x -q -n 0 -p no:cacheprovider -m "not walkthrough"``), run by the copy's code on the
+    copy's specification."""
+    assert checkout.new_agent.returncode == 0, checkout.new_agent.stderr
+    for tool in ("check", "verify-code", "deadlock"):
+        done = checkout.roco("spec", tool)
+        assert done.returncode == 0, f"roco spec {tool}: " + done.stdout[-3000:] + done.stderr[-2000:]
+    options = ["-x", "-q", "-n", "0", "-p", "no:cacheprovider", "-m", "not walkthrough"]
+    done = subprocess.run(
+        [sys.executable, "-m", "pytest", *options, *FAST_PART],
+        cwd=checkout.root,
+        env=checkout.env,
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
+    assert done.returncode == 0, done.stdout[-4000:] + done.stderr[-2000:]
+    assert " passed" in done.stdout.splitlines()[-1], done.stdout[-2000:]
+
+
+def disturbed_at(run_dir: Path) -> float:
+    """When ag_ex applied the run's disturbance: the wall time (POSIX s) of its log line "the
+    world: … moved by …" (services/agents/executor/agent.py ``_disturb``; the runtime's log
+    format, services/runtime/log_format.py: local time to the millisecond)."""
+    line = next(x for x in (run_dir / "logs" / "ag_ex.log").read_text().splitlines() if "the world: " in x)
+    stamp, ms = line[:23].split(",")
+    return time.mktime(time.strptime(stamp, "%Y-%m-%d %H:%M:%S")) + int(ms) / 1000
+
+
+def observations(run_dir: Path, records: list[TrafficRecord]) -> list[tuple[float, float]]:
+    """Each observation a_ta informed a_km of on C6 (L_WM ``WorldUpdate``), as (a_ta's wall
+    clock on receiving it ``seen_at``, POSIX s; its robot time ``stamp``, s), in time order."""
+    observed = {(r.incarnation, r.seq) for r in records if r.channel == "C6" and r.performative == "inform"}
+    seen: list[tuple[float, float]] = []
+    for key, payload in read_payloads(run_dir):
+        if (key.incarnation, key.seq) in observed:
+            msg = decode(payload)
+            update = decode_content(msg.language, msg.content)
+            if isinstance(update, WorldUpdate) and update.seen_at is not None and update.stamp >= 0:
+                seen.append((update.seen_at, update.stamp))
+    return sorted(seen)
+
+
+def robot_pace(seen: list[tuple[float, float]]) -> float:
+    """The simulation's average pace over the run (robot s per wall s), from the first to the
+    last of :func:`observations`."""
+    (wall0, robot0), (wall1, robot1) = seen[0], seen[-1]
+    return (robot1 - robot0) / (wall1 - wall0)
 
 
 @pytest.fixture(scope="module")
@@ -143,7 +254,9 @@ def pour(checkout: Checkout) -> tuple[subprocess.CompletedProcess[str], Path]:
     if checkout.new_agent.returncode != 0:
         pytest.fail("roco spec new-agent failed: " + checkout.new_agent.stderr)
     runs = checkout.root / "runs"
-    done = checkout.roco("run", SENTENCE, "--runs-dir", str(runs), "--timeout", "900", timeout=1200)
+    session = checkout.root / "watcher.toml"
+    session.write_text(SESSION)
+    done = checkout.roco("scenario", str(session), "--runs-dir", str(runs), timeout=1200)
     (run_dir,) = [p for p in runs.iterdir() if p.is_dir()]
     return done, run_dir
 
@@ -157,20 +270,36 @@ def test_it_runs_in_the_fleet_with_access_control_and_the_run_conforms(
     order = load(checkout.root / "services" / "spec" / "robot_companion.toml").launch_order
     assert alive.endswith(", ".join(order)) and order[-1] == "a_wt", alive
     assert (run_dir / "security" / "acl.json").is_file()  # access control was on
-    # the traffic record: a_wt's queries on its channel and a_km's answers
-    records = [r for r in read_records(run_dir) if r.channel == C]
-    asked = [r for r in records if r.sender == "a_wt" and r.performative == "query-ref"]
-    answered = [r for r in records if r.sender == "a_km" and r.performative == "inform-ref"]
-    assert asked and answered, [(r.sender, r.performative) for r in records]
-    assert {r.receivers for r in asked} == {("a_km",)} and {r.receivers for r in answered} == {("a_wt",)}
-    # what it did with the answers: its log and counters
+    # the traffic record: a_wt's subscription on C, a_km's changes, and one warning on N
+    records = [r for r in read_records(run_dir) if r.channel in (C, N)]
+    sent = [(r.channel, r.sender, r.performative) for r in records]
+    for one in ((C, "a_wt", "subscribe"), (C, "a_km", "agree"), (C, "a_km", "inform")):
+        assert one in sent, sent
+    warnings = [r for r in records if r.channel == N]
+    assert [(r.sender, r.receivers, r.performative, r.protocol) for r in warnings] == [
+        ("a_wt", ("a_hi",), "inform", "roco-notify")
+    ], sent
+    # the warning within 1 s of robot time of the robot's first look after the knock (the robot
+    # learns of a knock only by looking: docs/agents.md, Scenarios); wall times at the run's pace
+    seen = observations(run_dir, read_records(run_dir))
+    knocked = disturbed_at(run_dir)
+    look = next(wall for wall, _ in seen if wall > knocked)
+    told, pace = warnings[0].t, robot_pace(seen)
+    to_look, to_warning = (look - knocked) * pace, (told - knocked) * pace
+    print(f"robot s from the knock: {to_look:.3f} to the look, {to_warning:.3f} to the warning")
+    assert 0 < (told - look) * pace <= 1.0, ((told - look) * pace, pace)
+    # what it did with the changes: its log and counters
     log = (run_dir / "logs" / "a_wt.log").read_text()
     assert "started (pid" in log and "stopped by an error" not in log
+    assert f"told the person: {WARNING}" in log
     stopping = [line for line in log.splitlines() if "stopping; counters" in line]
-    assert stopping and "'scenes': " in stopping[-1], stopping  # its counters when it stopped
+    assert stopping and "'warnings': 1" in stopping[-1], stopping  # its counters when it stopped
+    # the person saw it, with its sender: in roco scenario's output and in the report
+    assert any("a_wt" in line and WARNING in line for line in done.stdout.splitlines()), done.stdout[-3000:]
     # the report names it, and the run conforms to the specification
     report = (run_dir / "report.md").read_text()
     assert "a_wt" in report and C in report
+    assert any("a_wt" in line and WARNING in line for line in report.splitlines())
     verified = checkout.roco("spec", "verify", str(run_dir))
     assert verified.returncode == 0, verified.stdout[-3000:]
     assert "full conformance: yes" in verified.stdout

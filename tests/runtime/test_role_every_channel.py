@@ -103,26 +103,33 @@ def test_a_channel_with_other_languages_is_not_covered(tmp_path: Path) -> None:
 
 
 def test_a_km_serves_a_new_channel_of_the_walkthrough_without_an_edit(tmp_path: Path) -> None:
-    """docs/spec.md's walk-through adds a channel (C9 in the shipped specification; fipa-query
-    from a_wt): a_km starts on that specification and plays the participant there; an a_km
-    that named its channels one by one refuses to start, naming the new one."""
+    """docs/spec.md's walk-through adds a channel (C9 in the shipped specification;
+    fipa-subscribe from a_wt): a_km starts on that specification and plays the participant
+    there; an a_km that named its channels one by one refuses to start, naming the new one."""
     new = NEXT.channel_name
     spec = load(walkthrough_spec(tmp_path / "spec.toml"))
-    queried = [
+    subscribed = [
         c.name
         for c in spec.channels
-        if "a_km" in c.ends and any(p.protocol == "fipa-query" for p in c.protocols)
+        if "a_km" in c.ends
+        and any(p.protocol == "fipa-subscribe" and p.initiator != "a_km" for p in c.protocols)
     ]
     km = KnowledgeManager(MemoryBus().transport(), spec)
     try:
-        assert km.roles.role(new, "fipa-query").role == "participant"
-        assert [d.channel for d in km.roles.declared if d.protocol == "fipa-query"] == queried
-        assert {"C4", "C6", "C7"} < set(queried) and queried[-1] == new
+        assert km.roles.role(new, "fipa-subscribe").role == "participant"
+        served = [
+            d.channel for d in km.roles.declared if d.protocol == "fipa-subscribe" and d.role == "participant"
+        ]
+        assert served == subscribed and "C7" in subscribed and subscribed[-1] == new
     finally:
         km.close()
 
     class NamedChannels(KnowledgeManager):
-        ROLES = (*(participant(c, "fipa-query", "L_WM") for c in queried if c != new), SUBSCRIBE, SCENE)  # type: ignore[assignment]
+        ROLES = (  # type: ignore[assignment]
+            participant(EVERY_CHANNEL, "fipa-query", "L_WM"),
+            SUBSCRIBE,
+            *(participant(c, "fipa-subscribe", "L_WM") for c in subscribed if c != new),
+        )
 
-    with pytest.raises(RoleMismatch, match=f"declares no participant role for fipa-query on {new},"):
+    with pytest.raises(RoleMismatch, match=f"declares no participant role for fipa-subscribe on {new},"):
         NamedChannels(MemoryBus().transport(), spec)

@@ -42,6 +42,8 @@ from tests.spec_check.walkthrough import NEXT, walkthrough_spec
 SPEC = default_spec()
 NEW = NEXT.channel_name
 """A channel number the shipped specification has not used yet (the walk-through's: C9)."""
+NOTICE = NEXT.notice_channel_name
+"""The walk-through's second new channel (to a_hi: C10)."""
 
 
 def test_the_committed_names_module_is_what_the_specification_gives() -> None:
@@ -132,14 +134,15 @@ def test_two_spellings_of_one_python_name_are_refused() -> None:
     assert "C2" in spellings(spec)  # read leniently by the code scan: the first keeps the name
 
 
+@pytest.mark.walkthrough
 def test_a_new_channel_is_named_and_the_committed_module_lacks_it(tmp_path: Path) -> None:
     spec = load(walkthrough_spec(tmp_path / "spec.toml"))
     text = render(spec)
     assert f"\n{NEW} = Channel.{NEW}\n" in text
-    assert f'    {NEW} = "{NEW}"\n    """Between a_wt and a_km (fipa-query): ' in text
-    assert difference(NAMES_FILE.read_text(), spec) == f"no name {NEW}"
+    assert f'    {NEW} = "{NEW}"\n    """Between a_wt and a_km (fipa-subscribe): ' in text
+    assert difference(NAMES_FILE.read_text(), spec) == f"no name {NEW}, {NOTICE}"
     assert check(NAMES_FILE, spec, "services/spec/names.py") == (
-        f"services/spec/names.py differs from what the specification gives (no name {NEW}): "
+        f"services/spec/names.py differs from what the specification gives (no name {NEW}, {NOTICE}): "
         "run `roco spec names`"
     )
     module: dict[str, object] = {}
@@ -147,6 +150,7 @@ def test_a_new_channel_is_named_and_the_committed_module_lacks_it(tmp_path: Path
     assert module[NEW] == NEW and module["FIPA_QUERY"] == "fipa-query"
 
 
+@pytest.mark.walkthrough
 def test_write_and_bring_up_to_date(tmp_path: Path) -> None:
     spec = load(walkthrough_spec(tmp_path / "spec.toml"))
     target = tmp_path / "names.py"

@@ -105,7 +105,7 @@ def test_an_agent_the_record_never_saw_goes_with_its_peers_or_is_refused_naming_
 def test_what_if_on_a_record_older_than_the_specification_places_the_new_agent_and_says_so(
     tmp_path: Path,
 ) -> None:
-    grown = walkthrough_spec(tmp_path / "spec.toml")  # docs/spec.md's a_wt, on a channel to a_km
+    grown = walkthrough_spec(tmp_path / "spec.toml")  # docs/spec.md's a_wt, on channels to a_km and a_hi
     ok, text = what_if_report(TWO_HOSTS_RUN, hosts=ROBOT, rtt="40ms", spec_path=grown)
     assert ok, text
     # on H2 with a_km, after the agents --hosts names (and any other the record never saw)
@@ -114,7 +114,7 @@ def test_what_if_on_a_record_older_than_the_specification_places_the_new_agent_a
     )
     assert (
         "note: a_wt is not in the record (the specification has grown since the run): placed on H2 "
-        "with its peers (a_km)"
+        "with its peers (a_hi, a_km)"
     ) in text
     assert "measured on this run's link" in text  # still the run's own placement
     args = ["spec", "what-if", str(TWO_HOSTS_RUN), "--hosts", "ag_ex | a_ta a_km a_pl a_co a_hi"]

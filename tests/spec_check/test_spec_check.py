@@ -128,9 +128,9 @@ BROKEN = [
     ),
     (
         "an agent substituting a group outside the system",
-        'human_interface.agent:HumanInterface"\ngroup = "hi"',
-        'human_interface.agent:HumanInterface"\ngroup = "xp"',
-        "group 'xp' outside the system is substituted by agent a_hi",
+        'knowledge.agent:KnowledgeManager"\ngroup = "km"',
+        'knowledge.agent:KnowledgeManager"\ngroup = "xp"',
+        "group 'xp' outside the system is substituted by agent a_km",
     ),
 ]
 

@@ -10,6 +10,7 @@ module rendered from the staged specification stands in for it (tests/support/sp
 
 from __future__ import annotations
 
+import queue
 import shutil
 import subprocess
 import sys
@@ -19,14 +20,18 @@ from pathlib import Path
 import pytest
 
 from services.deploy.compose import check, read
+from services.runtime import keys
 from services.runtime.memory_transport import MemoryBus
 from services.spec.check import check_report
 from services.spec.model import DEFAULT_SPEC, load
 from services.spec.render_names import NAMES_FILE, render
 from services.spec_check.code_check import verify_code_report
 from services.spec_check.new_agent import write_agent
-from shared.fipa_codec.languages.common import Pose
-from shared.fipa_codec.languages.l_wm import ObjectInfo
+from shared.fipa_codec import Communicate, Performative, decode
+from shared.fipa_codec.languages import decode_content
+from shared.fipa_codec.languages.l_hc import Notice, Severity
+from tests.agents.knowledge.test_agent import Peer
+from tests.agents.knowledge.test_scene_subscription import ON_ITS_SIDE, at, seen, settled
 from tests.spec_check.walkthrough import (
     AS_WRITTEN,
     GROUP_EDIT,
@@ -43,9 +48,11 @@ from tests.spec_check.walkthrough import (
 )
 from tests.support.spec_names import use_names
 
-HANDLERS = ("_on_failure", "_on_inform", "_on_inform_ref", "_on_refuse")
+HANDLERS = ("_on_failure", "_on_inform", "_on_refuse")
 C = NEXT.channel_name
-"""The walk-through's channel: C9 in the shipped specification."""
+"""The walk-through's channel to a_km: C9 in the shipped specification."""
+N = NEXT.notice_channel_name
+"""The walk-through's channel to a_hi: C10 in the shipped specification."""
 
 
 def stage(tmp_path: Path, *parts: str, edits: dict[str, str] | None = None) -> Path:
@@ -71,7 +78,8 @@ def test_stage_1_a_new_step_makes_check_list_what_is_missing(tmp_path: Path) -> 
         "channel C7 joins <group ui> and a_km by the decomposition, but a_hi and a_km in [[channels]]",
         "channel C8 joins <group ui> and x_fipa by the decomposition, but x_fipa and a_hi in [[channels]]",
         f"channel {C} of the decomposition is not specified in [[channels]]",
-        "7 problem(s)",
+        f"channel {N} of the decomposition is not specified in [[channels]]",
+        "8 problem(s)",
     ):
         assert line in text, text
 
@@ -98,7 +106,9 @@ def test_stage_2_new_agent_writes_the_agent_and_its_service_and_verify_code_list
     assert done.returncode == 0, done.stderr
     assert f"roco: wrote {tmp_path / 'walk_wt2' / 'agent.py'}" in done.stdout
     channels = ", ".join(c.name for c in load(path).channels)
-    assert f"roco: wrote {names}: the names of channels {channels}" in done.stdout and channels.endswith(C)
+    assert f"roco: wrote {names}: the names of channels {channels}" in done.stdout and channels.endswith(
+        f"{C}, {N}"
+    )
     assert f"roco: wrote {compose}: one service per agent (" in done.stdout
     assert (
         f"roco: fill in {', '.join(HANDLERS)} and what _periodically opens; then: roco spec verify-code"
@@ -106,8 +116,11 @@ def test_stage_2_new_agent_writes_the_agent_and_its_service_and_verify_code_list
     )
     # the names module now names the new channel, and the compose file runs the new agent too,
     # as the specification gives them
-    assert names.read_text() == render(load(path)) and f"\n{C} = Channel.{C}\n" in names.read_text()
-    assert f"initiator({C}, FIPA_QUERY, L_WM)" in (tmp_path / "walk_wt2" / "agent.py").read_text()
+    assert names.read_text() == render(load(path)) and f"\n{N} = Channel.{N}\n" in names.read_text()
+    written = (tmp_path / "walk_wt2" / "agent.py").read_text()
+    assert (
+        f"initiator({C}, FIPA_SUBSCRIBE, L_WM)" in written and f"initiator({N}, ROCO_NOTIFY, L_HC)" in written
+    )
     assert check(compose, load(path)) is None
     assert '    command: ["python", "-m", "services.runtime.main", "a_wt"]' in read(compose)
     again = new_agent()
@@ -124,12 +137,17 @@ def test_stage_2_new_agent_writes_the_agent_and_its_service_and_verify_code_list
     assert not ok
     for handler in HANDLERS:
         assert f"- agent a_wt has a handler not written yet: {handler} raises NotImplementedError" in text
-    assert "4 problem(s)" in text
-    # the other end of the new channel is served by a_km's code as it is: a role for every channel
-    assert "agent a_km" not in text
+    assert "3 problem(s)" in text
+    # the other ends of the new channels are served by a_km's and a_hi's code as it is: a role
+    # for every channel
+    assert "agent a_km" not in text and "agent a_hi" not in text
     assert (
-        f"  {C} fipa-query participant with a_wt in L_WM (declared for every channel): receives cancel, "
-        "query-if, query-ref; sends agree, failure, inform, inform-ref, refuse"
+        f"  {C} fipa-subscribe participant with a_wt in L_WM (declared for every channel): receives "
+        "cancel, subscribe; sends agree, failure, inform, refuse"
+    ) in text
+    assert (
+        f"  {N} roco-notify participant with a_wt in L_HC (declared for every channel): receives inform; "
+        "sends nothing"
     ) in text
 
 
@@ -140,7 +158,7 @@ def finished_watch(tmp_path: Path, package: str) -> Path:
     return path
 
 
-def test_stage_3_the_finished_agent_conforms_and_a_km_answers_it_as_it_is(
+def test_stage_3_the_finished_agent_conforms_and_warns_the_person_of_a_tipped_bowl(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     path = finished_watch(tmp_path, "walk_wt3")
@@ -148,61 +166,75 @@ def test_stage_3_the_finished_agent_conforms_and_a_km_answers_it_as_it_is(
     use_names(load(path), monkeypatch)
     ok, text = verify_code_report(path)
     assert ok, text
-    assert "a_wt: 2 files; 1 protocol roles agree with the specification:" in text
+    assert "a_wt: 2 files; 2 protocol roles agree with the specification:" in text
     assert (
-        f"  {C} fipa-query initiator with a_km in L_WM: receives agree, failure, inform, inform-ref, refuse; "
-        "sends cancel, query-if, query-ref"
+        f"initiator({C}, FIPA_SUBSCRIBE, L_WM, reply_by_s=2.0, resubscribes=True)"
+        in (tmp_path / "walk_wt3" / "agent.py").read_text()
+    )
+    assert (
+        f"  {C} fipa-subscribe initiator with a_km in L_WM: receives agree, failure, inform, refuse; "
+        "sends cancel, subscribe"
     ) in text
+    assert f"  {N} roco-notify initiator with a_hi in L_HC: receives nothing; sends inform" in text
 
-    # both ends of the new channel on one bus, started from the staged specification; a_km keeps its
-    # knowledge in memory
+    # a_km and the watcher on one bus, started from the staged specification (a_km keeps its
+    # knowledge in memory); the test plays a_ta and reads what the watcher tells a_hi
     for name in ("ROCO_KM_STORE", "ROCO_RUN_DIR", "ROCO_STATE_DIR"):
         monkeypatch.delenv(name, raising=False)
     from services.runtime.main import agent_class
 
     spec = load(path)
     bus = MemoryBus()
+    told: queue.SimpleQueue[Communicate] = queue.SimpleQueue()
+    bus.subscribe(keys.fipa_key(N, "a_wt", "a_hi"), lambda _k, p: told.put(decode(p)))
     km = agent_class(spec, "a_km")(bus.transport(), spec)
     watch = agent_class(spec, "a_wt")(bus.transport(), spec)
     for agent in (km, watch):
         agent.bind()
     thread = threading.Thread(target=km.run, daemon=True)
     thread.start()
-    try:
-        watch.setup()
-        watch._periodically()  # type: ignore[attr-defined]  # what the periodic behaviour runs
-        watch._dispatch()
+
+    def until(counter: str) -> None:
         for _ in range(400):  # each acquire blocks until input arrives or 0.05 s pass
             watch._acquire(0.05)
             watch.handle_received()
-            if watch.counters["scenes"] or watch.counters["unanswered"]:
+            watch._dispatch()  # what the agent's loop publishes after each step
+            if watch.counters[counter]:
                 break
-        assert watch.counters["scenes"] == 1, dict(watch.counters)
-        assert {"jar", "bowl"} <= set(watch.seen)  # type: ignore[attr-defined]
-        assert km.counters["queries"] == 1
+        assert watch.counters[counter] == 1, dict(watch.counters)
+
+    try:
+        peer = Peer(bus)
+        peer.update(seen(1.0, at("bowl", 0.5), at("jar", 0.8), at("cup", 0.3)))
+        settled(peer)
+        watch.setup()  # its role subscribes once a_km's token is seen
+        until("subscribed")
+        # the jar moved 10 cm: logged, nobody told; the bowl knocked onto its side: the person told
+        peer.update(seen(2.0, at("jar", 0.9)))
+        peer.update(seen(3.0, at("bowl", 0.5, ON_ITS_SIDE)))
+        until("warnings")
+        notice = told.get(timeout=5)
+        assert notice.performative is Performative.INFORM and notice.protocol == "roco-notify"
+        assert decode_content(notice.language or "", notice.content) == Notice(
+            text="the bowl has tipped over", severity=Severity.WARNING, about=("bowl",)
+        )
+        assert watch.counters["changes"] == 2 and told.empty()
     finally:
         km.stop()
         thread.join(timeout=5)
         km.close()  # type: ignore[attr-defined]
 
-    moved = sys.modules["walk_wt3.agent"].moved
-    here = ObjectInfo(name="jar", type="Jar", pose=Pose((0.5, 0.0, 0.9)), location="cabinet")
-    assert not moved(
-        here, ObjectInfo(name="jar", type="Jar", pose=Pose((0.505, 0.0, 0.9)), location="cabinet")
-    )
-    assert moved(here, ObjectInfo(name="jar", type="Jar", pose=Pose((0.52, 0.0, 0.9)), location="cabinet"))
-    assert moved(here, ObjectInfo(name="jar", type="Jar", pose=Pose((0.5, 0.0, 0.9)), held_by="left_hand"))
-
 
 def test_the_walkthrough_takes_the_next_free_numbers_of_what_it_grows(tmp_path: Path) -> None:
     """Grown by the walk-through, a specification's next free numbers are one past its own."""
     grown = walkthrough_spec(tmp_path / "spec.toml").read_text()
-    assert f'id = "{NEXT.requirement}"' in grown and f'name = "{C}"' in grown
+    assert f'id = "{NEXT.requirement}"' in grown and f'name = "{C}"' in grown and f'name = "{N}"' in grown
     after = free_numbers(grown)
     assert after == Numbers(
-        f"R{int(NEXT.requirement[1:]) + 1}", NEXT.step + 1, NEXT.channel + 1, NEXT.km_group
+        f"R{int(NEXT.requirement[1:]) + 1}", NEXT.step + 1, NEXT.channel + 2, NEXT.km_group
     )
     moved = renumbered(snippet(1, numbers=AS_WRITTEN), Numbers("R7", 12, 11, "kx"))
     assert 'id = "R7"' in moved and 'requirements = ["R7"]' in moved and "\nnumber = 12\n" in moved
+    assert "{ number = 11, ends" in moved and "{ number = 12, ends" in moved
     assert '{ number = 11, ends = ["wt", "kx"]' in moved
     assert '{ number = 2, from = "hi", to = "ui" }' in moved  # the reallocations keep their numbers

@@ -1,5 +1,5 @@
 """A subscriber to a_km's changes of the scene, for tests: a_wt of docs/spec.md's walk-through
-on a specification whose C9 also carries fipa-subscribe from a_wt to a_km
+(C9 carries fipa-subscribe from a_wt to a_km; its warnings on C10 are not sent here)
 (tests/agents/knowledge/test_scene_subscription.py). A module of its own: the runtime reads
 an agent's module for sends outside its roles."""
 
@@ -22,7 +22,7 @@ class Watcher(Agent):
 
     name = "a_wt"
     ROLES = (
-        initiator("C9", "fipa-query", "L_WM", unused=True),
+        initiator("C10", "roco-notify", "L_HC", unused=True),
         initiator("C9", "fipa-subscribe", "L_WM", reply_by_s=2.0, resubscribes=True),
     )
 

@@ -1,7 +1,7 @@
 """a_km serves subscriptions to changes of the scene (L_WM ``SceneSubscription``,
 ``SceneChange``; FIPA SC00035) on every channel where the specification makes it the
 participant of fipa-subscribe: here C7 (a_hi, the shipped specification) and C9 (a_wt, the
-watcher of docs/spec.md's walk-through, given fipa-subscribe to a_km). The tests play the
+kitchen watcher of docs/spec.md's walk-through). The tests play the
 subscribers and a_ta on a MemoryBus; a_km takes its inputs in order, so the answer to a query
 sent after an update comes after every inform that update caused (the bus delivers in order):
 that is how a test knows an inform did not come."""
@@ -43,18 +43,10 @@ ON_ITS_SIDE = (math.cos(math.pi / 4), math.sin(math.pi / 4), 0.0, 0.0)  # 90° a
 
 
 def watcher_spec(tmp_path: Path) -> SystemSpec:
-    """The shipped specification with the walk-through's a_wt and C9, C9 also carrying
-    fipa-subscribe from a_wt to a_km as C7 carries it from a_hi (what docs/spec.md says a new
-    agent adds)."""
-    shipped = DEFAULT_SPEC.read_text()
-    start = shipped.index('  protocol = "fipa-subscribe"', shipped.index('name = "C7"'))
-    start = shipped.rindex("  [[channels.protocols]]", 0, start)
-    block = shipped[start : shipped.index("\n", shipped.index("  sizes = ", start)) + 1]
-    text = staged(shipped, snippet(1), snippet(2), edits=GROUP_EDIT)
-    c9 = text.index('name = "C9"')
-    end = text.index("\n\n", c9) + 1 if "\n\n" in text[c9:] else len(text)
+    """The shipped specification with the walk-through's a_wt and its channels: C9 carries
+    fipa-subscribe from a_wt to a_km as C7 carries it from a_hi (docs/spec.md)."""
     path = tmp_path / "spec.toml"
-    path.write_text(text[:end] + block.replace('"a_hi"', '"a_wt"') + text[end:])
+    path.write_text(staged(DEFAULT_SPEC.read_text(), snippet(1), snippet(2), edits=GROUP_EDIT))
     return load(path)
 
 

@@ -3,10 +3,10 @@ makes them: its TOML snippets added to a specification, its Python snippet in pl
 handlers ``roco spec new-agent`` writes. Used by tests/spec_check/test_walkthrough.py (stage by
 stage) and tests/integration/test_new_agent.py (in a copy of the checkout, with a fleet).
 
-The document numbers its requirement, step and channel R4, 9 and C9, the next free ones of the
-shipped specification. A specification that has grown since takes them; so the snippets are
-renumbered to the next free numbers of the specification they are added to (:data:`NEXT` for
-this checkout's)."""
+The document numbers its requirement, step and channels R4, 9, C9 (to a_km) and C10 (to a_hi),
+the next free ones of the shipped specification. A specification that has grown since takes
+them; so the snippets are renumbered to the next free numbers of the specification they are
+added to (:data:`NEXT` for this checkout's)."""
 
 from __future__ import annotations
 
@@ -21,19 +21,29 @@ ROOT = Path(__file__).resolve().parents[3]
 DOC = ROOT / "docs" / "spec.md"
 AGENT = "a_wt"
 MODULE = "services.agents.watch.agent"
-GROUP_EDIT = {'group = "hi"': 'group = "ui"'}
-"""Stage 2's edit of a_hi's entry: it substitutes ``ui`` now."""
+START_ORDER = 'start_order = ["a_km", "a_pl", "a_co", "ag_ex", "a_ta", "a_hi"]'
+GROUP_EDIT = {
+    'group = "hi"': 'group = "ui"',
+    START_ORDER: START_ORDER.replace('"a_hi"]', '"a_hi", "a_wt"]'),
+}
+"""Stage 2's edits of the shipped entries: a_hi substitutes ``ui`` now, and the watcher, which
+asks a_hi, starts after it (the agent started last waits for every other to be healthy, so
+none may ask it: services/deploy/compose.py ``_check_readiness``)."""
 IMPORTS = (
     "import math\n\n",
-    "from shared.fipa_codec.languages.l_wm import Answer, ObjectInfo, SceneQuery\n",
+    "from shared.fipa_codec.languages.l_hc import Notice, Severity\n"
+    "from shared.fipa_codec.languages.l_wm import SceneChange, SceneSubscription\n",
 )
 """What stage 3 imports (docs/spec.md says so beside the snippet)."""
+RESUBSCRIBES = "reply_by_s=2.0, resubscribes=True"
+"""What stage 3 adds to the subscription's role (docs/spec.md says so beside the snippet)."""
 
 
 @dataclass(frozen=True)
 class Numbers:
-    """A top-level requirement id (``R4``), a decomposition step number and a channel number,
-    and the group a_km substitutes (the new channel's other end)."""
+    """A top-level requirement id (``R4``), a decomposition step number, the number of the
+    first of the two new channels (to a_km; the one to a_hi is the next), and the group a_km
+    substitutes (the first channel's other end)."""
 
     requirement: str
     step: int
@@ -42,8 +52,13 @@ class Numbers:
 
     @property
     def channel_name(self) -> str:
-        """The channel's ``[[channels]]`` name: ``C9``."""
+        """The channel to a_km's ``[[channels]]`` name: ``C9``."""
         return f"C{self.channel}"
+
+    @property
+    def notice_channel_name(self) -> str:
+        """The channel to a_hi's ``[[channels]]`` name: ``C10``."""
+        return f"C{self.channel + 1}"
 
 
 AS_WRITTEN = Numbers("R4", 9, 9, "km")
@@ -69,15 +84,20 @@ NEXT = free_numbers(DEFAULT_SPEC.read_text())
 
 
 def renumbered(text: str, to: Numbers) -> str:
-    """A snippet's ``text`` with :data:`AS_WRITTEN`'s requirement, step and channel numbers
+    """A snippet's ``text`` with :data:`AS_WRITTEN`'s requirement, step and two channel numbers
     replaced by ``to``'s (the steps' other channel numbers, as in ``reallocated``, are kept), and
     the new channel's end at a_km's group by ``to``'s."""
     was = AS_WRITTEN
     text = text.replace(f'ends = ["wt", "{was.km_group}"]', f'ends = ["wt", "{to.km_group}"]')
     text = text.replace(f'"{was.requirement}"', f'"{to.requirement}"')
     text = re.sub(rf"(?m)^number = {was.step}$", f"number = {to.step}", text)
-    text = text.replace(f"{{ number = {was.channel}, ends", f"{{ number = {to.channel}, ends")
-    return re.sub(rf"\b{was.channel_name}\b", to.channel_name, text)
+    numbers = {was.channel + k: to.channel + k for k in (0, 1)}
+    text = re.sub(
+        r"\{ number = (\d+), ends",
+        lambda m: f"{{ number = {numbers.get(int(m[1]), int(m[1]))}, ends",
+        text,
+    )
+    return re.sub(r"\bC(\d+)\b", lambda m: f"C{numbers.get(int(m[1]), int(m[1]))}", text)
 
 
 def snippet(n: int, kind: str = "toml", doc: Path = DOC, numbers: Numbers | None = None) -> str:
@@ -114,10 +134,15 @@ def walkthrough_spec(path: Path, base: Path = DEFAULT_SPEC, doc: Path = DOC) -> 
 def fill(module: Path, doc: Path = DOC, numbers: Numbers | None = None) -> None:
     """Write stage 3 into the agent ``roco spec new-agent`` wrote at ``module``: snippet 3 (its
     channel numbered ``numbers``, default :data:`NEXT`) in place of ``_periodically`` and the
-    handlers (the end of the class), and its imports."""
+    handlers (the end of the class), its imports, and :data:`RESUBSCRIBES` in its subscription's
+    role."""
     text = module.read_text()
     start = text.index("    def _periodically(self) -> None:")
     text = text[:start] + snippet(3, "python", doc, numbers)
+    channel = (numbers or NEXT).channel_name
+    role = f"initiator({channel}, FIPA_SUBSCRIBE, L_WM)"
+    assert text.count(role) == 1, role
+    text = text.replace(role, role[:-1] + ", " + RESUBSCRIBES + ")")
     future = "from __future__ import annotations\n\n"
     assert text.count(future) == 1 and text.count("from shared.fipa_codec import Performative") == 1
     text = text.replace(future, future + IMPORTS[0])
