@@ -34,6 +34,7 @@ import benchlib  # noqa: E402  (scripts/benchlib.py, beside this file)
 import numpy as np  # noqa: E402
 import numpy.typing as npt  # noqa: E402
 
+from shared.settings import Settings  # noqa: E402
 from velma.executor.capture import WorldCapture  # noqa: E402  (velma chooses MuJoCo's GL first)
 from velma.executor.observer import FRAMES_AVERAGED, CameraObserver  # noqa: E402
 from velma.model.scene import PARTICLE_PREFIX, PARTICLE_RADIUS, load_kitchen  # noqa: E402
@@ -58,10 +59,11 @@ class Look:
 
 
 def _kitchen_key(run: Path) -> tuple[int, int | None]:
-    """(ROCO_SEED, ROCO_POSE_SEED) of ``run``'s launch (0 and None when unset)."""
+    """The kitchen's seed and pose seed (shared/settings.py ``seed``, ``pose_seed``) of ``run``'s
+    launch (0 and None when unset)."""
     env = json.loads((run / "launch_env.json").read_text())
-    pose = env.get("ROCO_POSE_SEED")
-    return int(env.get("ROCO_SEED") or 0), int(pose) if pose else None
+    pose = env.get(Settings.env_name("pose_seed"))
+    return int(env.get(Settings.env_name("seed")) or 0), int(pose) if pose else None
 
 
 def _segment_pixels(observer: CameraObserver, data: mujoco.MjData, geoms: list[int]) -> npt.NDArray[np.int64]:

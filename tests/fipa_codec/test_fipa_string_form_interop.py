@@ -35,6 +35,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from shared.fipa_codec import AgentIdentifier, Communicate, Performative
+from shared.fipa_codec.names import is_word
 from shared.fipa_codec.string_form import (
     AidExtras,
     StringFormError,
@@ -392,7 +393,7 @@ def _string_form(draw: st.DrawFn, data: bytes, word_ok: bool = True) -> bytes:
         return forms[0]
     if not text.endswith("\\"):
         forms.append(b'"' + data.replace(b'"', b'\\"') + b'"')
-    if word_ok and _SC_WORD.match(text):
+    if word_ok and _SC_WORD.match(text) and is_word(text):  # "+0", ".5": Numbers, not Words
         forms.append(data)
     return draw(st.sampled_from(forms))
 
