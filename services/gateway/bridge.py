@@ -1,64 +1,24 @@
-"""The ACL gateway: roco's Zenoh channels ↔ the FIPA HTTP message transport.
+"""The ACL gateway: roco's Zenoh channels ↔ the FIPA HTTP message transport (SC00084, SC00085
+envelope, SC00070 string form). The manual: docs/gateway.md.
 
-How a foreign agent fits the specification
-    The specification has an external role (``[[externals]]``, ``x_fipa``) substituting a group
-    outside the system that a decomposition step declares (step 8), and a channel (C8) between
-    it and a_hi: every agent named ``local@platform`` that is not an agent of roco (JADE's
-    ``da0@host:1099/JADE``) plays that role (``SystemSpec.role_of``). So a foreign agent may
-    open fipa-request with a_hi, in L_HC, carrying a ``Sentence`` — what a person may say — and
-    nothing else; a_hi's runtime checks it like any communicate, as x_fipa's.
+Every ``local@platform`` name that is no agent of roco plays the specification's external role
+(``x_fipa``, ``SystemSpec.role_of``) on C8 to a_hi. On Zenoh the gateway speaks *as* that
+agent (``roco/fipa/C8/da0@host:1099%2FJADE/a_hi``, the name's key chunk: shared/fipa_codec/
+names.py), authenticated as ``gateway``, whom the router lets put only on
+``roco/fipa/C8/$*@$*/a_hi`` and hear only ``roco/fipa/C8/a_hi/$*@$*`` (services/security/). It
+holds ``roco/alive/gateway`` and answers ``roco/counters/ask`` as agents do.
 
-How the gateway appears on Zenoh
-    As the foreign agents themselves: a request from ``da0@host:1099/JADE`` to a_hi is put on
-    ``roco/fipa/C8/da0@host:1099%2FJADE/a_hi`` (the name's key chunk, shared/fipa_codec/names.py)
-    with that sender, so the recorder, ``roco sniff`` and a_hi see the JADE-named agent. The
-    gateway's session authenticates as the identity ``gateway`` (services/security/), which the
-    router's access control allows to put only on the keys of channels whose one end is an
-    external role, from any foreign name to the agent at the other end
-    (``roco/fipa/C8/$*@$*/a_hi``: a chunk holding ``@``, as foreign names do and roco's do not),
-    and to hear only that agent's communicates to foreign names (``roco/fipa/C8/a_hi/$*@$*``):
-    whatever the gateway does, the router keeps it to C8. It holds
-    the liveliness token ``roco/alive/gateway`` and answers ``roco/counters/ask`` on
-    ``roco/counters/report/gateway`` as agents do (``roco status`` shows the counters).
-
-What crosses, checked against the specification (per receiver of the envelope)
-    In: the ACL payload (FIPA SC00070 string form, in the envelope's ``payload-encoding``) must
-    name a foreign sender; the receiver must
-    be an agent the sender's role has a channel to; the performative and protocol must be ones
-    the role may send there; the content must be the JSON of a term of a language the
-    specification gives that performative (``{"type": "sentence", "text": "…"}``: msgspec's JSON
-    of the L_HC term, its tag in ``type``), of a type the channel allows. The gateway re-encodes
-    it in the language (msgpack) and puts it on Zenoh. Out: a communicate of an agent to a
-    foreign name is checked against the role's interface, its content written as the JSON of
-    its term (a plain-text reason as it is), and posted to the addresses the foreign agent gave:
-    its ``:reply-to``'s, else its ``:sender``'s, else the envelope's ``from``'s. The gateway
-    writes the roco agent as ``(agent-identifier :name a_hi :addresses (sequence <gateway
-    address>))`` so that the foreign platform sends its next message back through the gateway.
-
-What is refused
-    Before a message is taken (HTTP, on the server's reader thread): what is not a message of
-    the transport, or over the gateway's limits (services/gateway/bounds.py: size, tokens,
-    receivers, payload encodings), is answered 406; a sender that is missing or no foreign
-    name (``sender``), or a foreign name bound to another peer (``identity``,
-    services/gateway/identity.py), 403; too many messages waiting (``max_pending``) or
-    foreign names in use (``busy``), 503. After (on the gateway's thread), a message the
-    checks above reject is answered at once, posted back to the sender's address
-    in its conversation (conversation-id, in-reply-to = its reply-with, protocol), from the agent
-    it addressed: ``refuse`` when the sender may not address that agent (FIPA SC00037 §3.17:
-    the action will not be done), ``not-understood`` when it may address
-    it but not with that performative, protocol, language or content (content over
-    ``max_content`` octets or JSON nested deeper than ``max_json_depth`` included; SC00037
-    §3.12); the reason is the content, as text. A ``refuse``, ``failure`` or
-    ``not-understood`` is never answered (two gateways cannot answer each other's refusals for
-    ever). Each refusal is logged (WARNING, one line naming sender, receiver and reason) and
-    counted: ``refused`` and ``refused.<reason>`` (:data:`REFUSE_REASONS`).
-
-Where answers go
-    To the addresses bound to the foreign name (services/gateway/identity.py), at most
-    ``max_answer_addresses`` of them, never to one of roco's own (the gateway's address, its
-    port, a router's: services/gateway/addresses.py; skipped addresses are counted
-    ``post_skipped.<reason>``), posted without holding the gateway's thread
-    (services/gateway/poster.py): ``posted``, ``post_failed``, ``post_dropped``.
+In, per receiver of the envelope: a foreign sender, a receiver its role has a channel to
+(else ``refuse``, SC00037 §3.17), a performative, protocol, language and content (the JSON of
+the term, ``{"type": "sentence", …}``, within ``max_content`` octets and ``max_json_depth``)
+the role may send there (else ``not-understood``, SC00037 §3.12); re-encoded in msgpack and put.
+HTTP answers before that: 406 (services/gateway/bounds.py), 403 (``sender``, ``identity``:
+services/gateway/identity.py), 503 (``max_pending``, ``busy``). Out: an agent's communicate to
+a foreign name, checked against x_fipa's interface, content as JSON, the roco agent written
+with the gateway's address, posted (services/gateway/poster.py) to at most
+``max_answer_addresses`` addresses bound to the name, never roco's own
+(services/gateway/addresses.py). A ``refuse``, ``failure`` or ``not-understood`` is never
+answered. Each refusal is logged (WARNING, one line) and counted (:data:`REFUSE_REASONS`).
 """
 
 from __future__ import annotations
@@ -466,7 +426,7 @@ class Gateway:
 
     def _send_out(self, msg: Communicate, foreign: str) -> None:
         """Post ``msg`` to the foreign agent ``foreign`` at the addresses bound to its name
-        that may be posted to (module docstring), in order, until one takes it."""
+        that may be posted to (services/gateway/addresses.py), in order, until one takes it."""
         self.identities.answered(
             foreign, msg.conversation_id, final=msg.performative is not Performative.AGREE
         )

@@ -1,132 +1,18 @@
-"""The FIPA ACL string representation of a communicate (FIPA SC00070), and human one-liners.
+"""The FIPA ACL string representation of a communicate (FIPA SC00070 §2.2), and human one-liners.
 
-:func:`to_string` writes a :class:`Communicate` as the S-expression of FIPA SC00070 §2.2::
+:func:`to_string` (``str``, octets of byte-length strings as U+0000–U+00FF) and :func:`to_bytes`
+(SC00070's octet stream: UTF-8 but for those raw octets) write a :class:`Communicate` as
+``(query-ref :sender (agent-identifier :name a_pl …) :receiver (set …) :content "…" …)``;
+:func:`parse` reads either back, strictly, plus the two JADE 4.6 leniencies named in the
+reference (``StringACLCodec``, ``ACLParser.jj``). ``parse(to_string(m)) == m`` for every
+communicate whose ``reply_by`` is a whole number of milliseconds (``:reply-by`` is written in
+UTC as ``YYYYMMDDThhmmssmmmZ``). Agent names and ``:protocol`` are SC00070 Words
+(``shared/fipa_codec/names.py``); parameters are those of SC00061 §2, identifiers SC00023 §4.
 
-    (query-ref
-     :sender (agent-identifier :name a_pl :addresses (sequence tcp/127.0.0.1:7447))
-     :receiver (set (agent-identifier :name a_km))
-     :content #23"<23 bytes>
-     :language L_WM :encoding msgpack :protocol fipa-query :conversation-id c-ab12
-     :reply-by 20261121T153000000Z :X-priority 2)
-
-and :func:`parse` reads it back; ``parse(to_string(m)) == m`` for every communicate ``m``
-whose ``reply_by`` is a whole number of milliseconds (see *Times* below). :func:`parse` also
-reads what other FIPA platforms print (JADE's ``ACLMessage.toString`` layout among them),
-field for field, and JADE's default agent names (``da0@host:1099/JADE``) among them.
-
-Grammar (SC00070 §2.2 syntax, §2.3 lexical rules and the notes on them), as read here
-    ``Message = "(" MessageType MessageParameter* ")"``; the message type is one of the 22
-    performatives of SC00037; the parameters are the 12 of SC00061 §2 plus user-defined
-    ``:X-`` parameters, each at most once (the notes: a well-formed message has at most one of
-    each), in any order. ``Expression = Word | String | Number | DateTime | "(" Expression*
-    ")"``. White space is any character U+0000–U+0020 (space, tab, CR, LF, FF…), needed only
-    between two atoms; SC00070 has no comments. Every atom must be a ``Word``, a ``Number``
-    or a ``DateTime`` (``9x``, ``-a``, ``@host``, ``2026-11-21`` are none: an error where
-    they stand); ``shared.fipa_codec.names`` states the Word rule. Keywords (the
-    performative, parameter names, ``set``, ``sequence``, ``agent-identifier``, ``:name``,
-    ``:addresses``, ``:resolvers``) are read in any case (the notes; JADE's parser ignores
-    case too); user parameter names keep their spelling and are told apart by it (``:X-a``
-    and ``:x-a`` are two parameters, as they are two keys of ``user_params``). Every
-    deviation from this grammar is a :class:`StringFormError` naming its position; the
-    only readings beyond it are JADE's leniencies listed below, each named.
-
-Strings (SC00070 §2.3 ``String = StringLiteral | ByteLengthEncodedString``)
-    * ``StringLiteral``: text between double quotes in which ``\\"`` stands for ``"``. That is
-      the only escape of SC00070, and the only one JADE unescapes (``ACLParser.unescape``):
-      any other backslash stands for itself (``"C:\\dir"`` is the 6 characters ``C:\\dir``;
-      ``\\\\`` is two backslashes). Any character may stand in a literal, line breaks and tabs
-      included.
-    * ``ByteLengthEncodedString``: ``#<n>"`` followed by exactly ``n`` octets, whatever they
-      are (no escapes, no terminator); ``n`` counts octets, not characters (the notes).
-
-    Writing: a value that is text — valid UTF-8 — and does not end in a backslash is written
-    as a ``StringLiteral`` (``"`` written ``\\"``, backslashes, line breaks, tabs and other
-    characters as they are). Only octets that are not UTF-8 (in roco usually: msgpack content)
-    and text ending in a backslash are written as a ``ByteLengthEncodedString`` of their
-    octets. Why: JADE never writes byte-length strings (its byte content travels as base64
-    text flagged ``:X-JADE-Encoding Base64``) and its parser counts ``n`` in *characters*
-    (``ACLParser.jj`` reads ``n`` chars of the decoded stream), so a byte-length string of
-    non-ASCII text arrives corrupted there; a literal arrives intact. A literal ending in a
-    backslash cannot be written unambiguously (``\\"`` would read as an escaped quote), hence
-    the byte-length form for it (JADE reads that right when the text is ASCII).
-
-    Because :func:`to_string` returns ``str``, the octets of a byte-length-encoded string
-    appear in it as the characters U+0000–U+00FF of the same value (ISO 8859-1), one
-    character per byte, so ``n`` counts both. :func:`to_bytes` gives the octet stream of
-    SC00070 proper: everything as UTF-8 except the octets of byte-length-encoded strings,
-    which are raw. :func:`parse` accepts both: a ``str`` (octets as U+0000–U+00FF) or
-    ``bytes`` (raw octets, the rest UTF-8). Both forms round-trip exactly.
-
-Words (SC00070 §2.2: ``:protocol Word``, ``:name Word``, ``URL``, ``UserDefinedParameter``)
-    These fields are written as the word they are, and a value that is no word is refused:
-    :class:`AgentIdentifier` refuses a name or an address that is no word on construction,
-    :class:`Communicate` a ``protocol`` that is no word (``"fipa request"``);
-    :func:`to_string` / :func:`to_bytes` check the protocol again and raise ValueError for a
-    user parameter name with white space or a parenthesis. On
-    parsing, only a ``Word`` is read there: a string or a parenthesised expression after
-    ``:protocol`` or ``:name`` or in ``:addresses (sequence …)`` is an error where it stands.
-
-Parameters (SC00061 §2, SC00070 §2.2)
-    ``:content`` is written as a ``String``. The other text-valued parameters
-    (``:language``, ``:encoding``, ``:ontology``, ``:conversation-id``, ``:reply-with``,
-    ``:in-reply-to``, user parameter values) are ``Expression`` s: written as a ``Word`` when
-    they are a plain ASCII identifier (``[A-Za-z_][A-Za-z0-9_.+/:@-]*``, a word every reader
-    takes as one), else as a ``String`` as above. On parsing, any ``Expression`` is accepted
-    for them: a word, number or date-time gives its text, a string its value, a
-    parenthesised expression its source text (``(a (b "c"))``), which is written back as a
-    string. JADE sends byte content as base64 text flagged by ``:X-JADE-Encoding Base64``;
-    that is read as it stands (the base64 text as content, the flag as a user parameter).
-
-JADE's leniencies, read as JADE means them (from JADE 4.6's ``StringACLCodec`` and ``ACLParser.jj``)
-    * A value ending in a backslash: JADE escapes only quotes when it prints
-      (``StringACLCodec.escape``), so content ``C:\\dir\\`` goes out as ``"C:\\dir\\"``, whose
-      final ``\\"`` a strict reader takes for an escaped quote. JADE's lexer takes the longest
-      literal and, when no later quote closes it, ends it at that last ``\\"``, keeping the
-      backslash. So does :func:`parse`: a literal that no quote closes but that passed over
-      ``\\"`` ends at the last of them, its backslash the value's last character. (When a
-      later plain quote exists, JADE and :func:`parse` both read the ``\\"`` as an escape.)
-    * ``:content`` as a ``Word`` (``:content yes``): SC00070 asks for a String; JADE's
-      ``Content()`` takes a Word too, and so does :func:`parse`. A number or date-time there is
-      an error, as it is in JADE.
-
-Times (SC00070 §2.3 ``DateTime`` and the notes on time tokens)
-    ``:reply-by`` is written in UTC as ``YYYYMMDDThhmmssmmmZ`` (milliseconds, type designator
-    ``Z``), rounded to the nearest millisecond; parsing gives ``milliseconds / 1000``. Also
-    read: local times (no type designator), taken in the time zone ``tz`` given to
-    :func:`parse` (default: this machine's), and relative times (a leading ``+`` or ``-``:
-    that long after or before ``now``, default: the time of the call, rounded to the
-    millisecond), where, as in JADE, a year is 365 days and a month 30 days. The type
-    designator ``Z`` (or ``z``) is UTC; any other letter is rejected, and so is a time outside
-    the years 0001–9999 (UTC), which could not be written back.
-
-Agent identifiers (FIPA SC00023 §4, SC00070 §2.2 ``AgentIdentifier``)
-    Written in the order of the grammar::
-
-        (agent-identifier :name <word> :addresses (sequence <url>*)
-         :resolvers (sequence (agent-identifier …)*) :X-<name> <value>*)
-
-    ``:addresses`` and ``:resolvers`` left out when empty, the user-defined parameters in
-    the order of :attr:`AgentIdentifier.user`, values as the text-valued parameters above.
-    Read in full, in any order: ``:name``, ``:addresses (sequence URL*)``, ``:resolvers
-    (sequence AgentIdentifier*)`` (recursive, up to :data:`MAX_AID_DEPTH` identifiers deep,
-    counting the outer one) and user-defined ``:X-`` parameters (kept in the order read, each
-    name at most once, spelling kept as for message parameters). An empty ``(sequence)``
-    reads as no addresses or resolvers. ``parse(..., aid_extras=...)`` can instead reject
-    (``"reject"``) or leave out (``"drop"``) the resolvers and user parameters of the agent
-    identifiers of the message; the default, ``"keep"``, keeps them. ``:name`` and each
-    address must be a SC00070 ``Word``, resolvers' too (with ``"drop"`` as well): roco's
-    ``a_co`` as JADE's default ``da0@host:1099/JADE``; a name longer than 255 characters is
-    an error too. In Zenoh keys a name travels as its key chunk
-    (``shared.fipa_codec.names.key_chunk``).
-
-User-defined parameters (SC00061 §2, SC00070 §2.2)
-    ``:X-name value`` for every entry of ``user_params``; the key is written as is and must
-    therefore have a name after ``X-`` and contain no white space (U+0000–U+0020) and no
-    parenthesis.
-
-Errors
-    :func:`parse` raises :class:`StringFormError` only, naming what was expected and where:
-    the offset, line and column of the problem.
+Errors: :func:`parse` raises :class:`StringFormError` only (a ``ValueError`` naming what was
+expected and its offset, line and column); :func:`to_string` / :func:`to_bytes` raise
+``ValueError`` for a protocol that is no Word or a user parameter name with white space or a
+parenthesis. The full grammar, string, time and agent-identifier rules: docs/string_form.md.
 """
 
 from __future__ import annotations
@@ -230,7 +116,7 @@ def _is_plain_text(data: bytes) -> str | None:
 
 def _string_pieces(data: bytes) -> list[_Piece]:
     """``data`` as a SC00070 ``String``: a literal when it is text (UTF-8) not ending in a
-    backslash, else byte-length encoded (see *Strings* in the module docstring)."""
+    backslash, else byte-length encoded (docs/string_form.md, *Strings*)."""
     text = _as_text(data)
     if text is not None and not text.endswith("\\"):
         return [_literal(text)]
@@ -353,8 +239,8 @@ def _join(params: list[list[_Piece]], pretty: bool) -> list[_Piece]:
 def to_string(msg: Communicate, *, pretty: bool = False, human: bool = False) -> str:
     """``msg`` in the FIPA ACL string representation (FIPA SC00070 §2), as text.
 
-    Byte-length-encoded strings appear as characters U+0000–U+00FF, one per octet (see the
-    module docstring); ``parse(to_string(msg)) == msg`` (``reply_by`` rounded to the ms).
+    Byte-length-encoded strings appear as characters U+0000–U+00FF, one per octet (see
+    docs/string_form.md); ``parse(to_string(msg)) == msg`` (``reply_by`` rounded to the ms).
     ``pretty`` puts each parameter on its own line. ``human`` is a display-only form: content
     that decodes in its language is written as a string holding its JSON
     (:func:`content_as_json`), other binary content as ``"<n bytes, base64 …>"``; it is
@@ -453,7 +339,7 @@ def _fix_text(raw: str, octets: bool, position: int) -> str:
 def _string_literal(src: str, i: int, octets: bool) -> _Token:
     """The ``StringLiteral`` opening at ``src[i]``: ``\\"`` is a quote, all else as it stands.
 
-    JADE's leniency (module docstring, *Strings*): when no quote closes the literal but it
+    JADE's leniency (docs/string_form.md, *JADE's leniencies*): when no quote closes the literal but it
     passed over ``\\"``, the last of those closes it, its backslash the literal's last character.
     The closing quote is found by a regular expression, in time linear in the literal's length.
     """
@@ -561,7 +447,7 @@ class _Lexer:
 def parse_datetime(
     token: str, position: int = 0, *, now: float | None = None, tz: tzinfo | None = None
 ) -> float:
-    """A SC00070 §2.3 ``DateTime`` token as POSIX seconds (see *Times* in the module docstring).
+    """A SC00070 §2.3 ``DateTime`` token as POSIX seconds (docs/string_form.md, *Times*).
 
     ``YYYYMMDDThhmmssmmmZ`` is UTC; without the ``Z`` the time is local to ``tz`` (default:
     this machine's time zone); with a leading ``+``/``-`` it is a duration after/before
@@ -673,7 +559,7 @@ class _Parser:
 
     # -- values
     def expression_text(self, what: str) -> str:
-        """Any SC00070 Expression, as text (see module docstring)."""
+        """Any SC00070 Expression, as text (docs/string_form.md, *Parameters*)."""
         tok = self.next(what)
         if tok.kind == _ATOM:
             if tok.text.startswith(":"):
@@ -907,7 +793,7 @@ def parse(
     over ``max_size`` (characters or octets: refused before anything is read) or holding more
     than ``max_tokens`` tokens (atoms, strings, parentheses: refused where the one over the
     limit starts; the input is read token by token, so the work done is bounded by the limits,
-    not by the input). JADE's leniencies (module docstring) are read, not refused.
+    not by the input). JADE's leniencies (docs/string_form.md) are read, not refused.
     """
     if aid_extras not in ("keep", "reject", "drop"):
         raise ValueError(f"aid_extras must be 'keep', 'reject' or 'drop', not {aid_extras!r}")

@@ -1,78 +1,32 @@
-"""Impedance control laws of Velma's arms and torso, computed with Pinocchio.
+"""Impedance control laws of Velma's arms and torso, computed with Pinocchio (paper §5.3,
+velma/model/README.md "Control"; torques in N·m, q in rad, q̇ in rad/s, poses in m).
 
-Cartesian impedance, per arm (velma/model/README.md "Control", paper §5.3):
-
-    τ = Jᵀ (K p + D (J q̇_d − J q̇)) + N τ_ns + g(q) + C(q, q̇) q̇ + τ_safety
-
-- ``J`` (6 × 7) is the grip frame's Jacobian in that frame (Pinocchio ``LOCAL``) for the
-  seven arm joints; ``p`` = (R⁻¹ (p_cmd − p), vec(quat(R⁻¹ R_cmd))): translation error and
-  the vector part of the error quaternion (w ≥ 0), both in the current end-effector frame, as
-  on the real robot (so the rotational stiffness acts on ≈ half the angle).
-- ``Λ = (J M⁻¹ Jᵀ + εI)⁻¹`` (ε = ``LAMBDA_REGULARISATION`` bounds Λ near singularities);
-  damping by double diagonalisation of K and Λ with damping ratio ξ (0.7 by default, the
-  "calmer simulation" value; Velma uses 0.35): with Λ = Q Qᵀ and K = Q S Qᵀ, D = Q 2ξ√S Qᵀ.
-- ``N = I − Jᵀ Λ J M⁻¹`` (dynamically consistent null space); ``τ_ns`` is a joint-space
-  posture spring-damper.
-- ``g + C q̇`` is Pinocchio's ``nonLinearEffects``.
-- The desired twist (feed-forward of the setpoint velocity) enters the damping term, so a
-  moving setpoint is tracked without lag from D.
+Cartesian impedance, per arm: τ = Jᵀ (K p + D (J q̇_d − J q̇)) + N τ_ns + g(q) + C(q, q̇) q̇ +
+τ_safety, with ``J`` (6 × 7) the grip frame's Jacobian in that frame (Pinocchio ``LOCAL``),
+``p`` = (R⁻¹ (p_cmd − p), vec(quat(R⁻¹ R_cmd))) (translation error and the error quaternion's
+vector part, w ≥ 0, in the current end-effector frame, as on the real robot), ``Λ = (J M⁻¹ Jᵀ
++ εI)⁻¹`` (ε = ``LAMBDA_REGULARISATION``), D by double diagonalisation of K and Λ with damping
+ratio ξ (0.7 by default; Velma: 0.35), ``N = I − Jᵀ Λ J M⁻¹`` (dynamically consistent null
+space), ``τ_ns`` a joint-space posture spring-damper and ``g + C q̇`` Pinocchio's
+``nonLinearEffects``. The setpoint's twist enters the damping term, so a moving setpoint is
+tracked without lag from D.
 
 Joint impedance (mode ``"joint"``: MoveJoints and ``hold``; mode ``"safe"``; the torso):
 τ = K (q_d − q) + D (q̇_d − q̇) + g + C q̇ + τ_safety, D from the generalised eigenproblem of K
-and M (double diagonalisation). Gains (velma/model/README.md "Control"): ``"joint"``
-K = 200 N·m/rad (Velma's jnt_imp for the arms), ξ = 0.7 (Velma: 0.5); ``"safe"`` K = 5 N·m/rad,
-ξ = 1.9 for every arm joint; torso K = 1200 N·m/rad, ξ = 0.7.
+and M. Gains: ``"joint"`` K = 200 N·m/rad, ξ = 0.7 (Velma: 0.5); ``"safe"`` K = 5 N·m/rad,
+ξ = 1.9; torso K = 1200 N·m/rad, ξ = 0.7.
 
-``τ_safety`` (velma/control/limits.py, velma/model/README.md "Control"):
-- the joint-limit avoidance band (all modes) and the singularity avoidance band of joints 1,
-  3, 5 (Cartesian mode), each with its damping. In joint and safe mode they are added in full.
-  In Cartesian mode they join τ_ns, i.e. act through the null space N, as RCPRG's
-  ``JointLimitAvoidance`` output feeds the ``NullSpaceTorqueCommand`` of its
-  ``CartesianImpedance`` (orocos_controllers), scaled by 0.25 (limits.py
-  ``NULL_SPACE_BAND_SCALE``): they use the redundancy and do not pull the grip off its
-  target. Exception: joint 3 (the elbow), whose band torques are added in full, as the
-  self-motion of the S-R-S arm cannot move it (limits.py ``FULL_BAND_JOINTS``).
-- the joint velocity limit (arms 2 rad/s, torso 0.52 rad/s): braking of the excess only,
-  τ = −M (q̇ − sat(q̇)) / T_v, added after the torque rate limit (a rate-limited brake of this
-  gain oscillates) and before the magnitude limit;
-- the torque rate limit (``TORQUE_RATE_LIMIT`` × dt per cycle, not on the first cycle) and
-  the torque limits (100 N·m joints 0–4, 60 N·m joints 5–6; torso 300 N·m);
-- the wrist's self-collision band (velma/control/self_collision.py, all modes, in full): joints
-  5 and 6 are pushed along the gradient of the hand-to-forearm distance once the hand's rigid
-  parts come within ``WRIST_BAND`` of their own forearm.
+``τ_safety`` (velma/control/limits.py): the joint-limit band (all modes) and the singularity
+band of joints 1, 3, 5 (Cartesian mode), in full in joint and safe mode, in Cartesian mode
+through the null space scaled by ``NULL_SPACE_BAND_SCALE`` (joint 3 in full); braking of
+joint velocity over 2 rad/s (arms) or 0.52 rad/s (torso), τ = −M (q̇ − sat(q̇)) / T_v, after
+the torque rate limit (``TORQUE_RATE_LIMIT`` × dt per cycle, not on the first) and before the
+torque limits (100 N·m joints 0–4, 60 N·m joints 5–6, torso 300 N·m); the wrist's
+self-collision band (velma/control/self_collision.py, all modes, in full).
 
-How it is computed (both arms in Cartesian mode plus the torso, on the quiet 2-core
-development machine: ≈ 64 µs per ``update`` in a tight loop; between MuJoCo steps of the
-kitchen scene p50 ≈ 75–80 µs, p99 ≈ 120–155 µs; before this rewrite p50 ≈ 195 µs, p99 ≈
-300–470 µs; see scripts/bench_controller.py):
-- Pinocchio: ``crba`` with the WORLD convention (mass matrix plus the joint Jacobians and
-  placements, so no separate ``computeJointJacobians``), ``nonLinearEffects``, and the two
-  grip frames only (``updateFramePlacement``).
-- Both arms are computed as one batch of stacked matrices (numpy), the decompositions per arm.
-- M⁻¹ by Eigen's LLT on the arm block's lower triangle (eigenpy, which Pinocchio ships and
-  imports): Pinocchio fills only the upper triangle of M, so its transpose is passed as is.
-- Double diagonalisation without Cholesky nor inverse of Λ: for a diagonal K > 0, with
-  B = K^½ Λ⁻¹ K^½ = V W Vᵀ (one symmetric eigendecomposition, Eigen's), the generalised
-  eigenvectors are Q = K^½ V W^-½, so Λ = K^½ V W⁻¹ Vᵀ K^½ and D = 2ξ K^½ V W^-½ Vᵀ K^½ —
-  both applied to vectors, never formed. In joint space the same identity with C = K^-½ M K^-½ = V W Vᵀ
-  gives D = 2ξ K^½ V W^½ Vᵀ K^½. (A zero stiffness falls back to the Cholesky form,
-  ``double_diagonalisation_damping``.)
-- N τ_ns is applied as τ_ns − Jᵀ Λ (J M⁻¹ τ_ns), never forming N; J M⁻¹ Jᵀ and J M⁻¹ τ_ns
-  come from one product with M⁻¹ [Jᵀ | τ_ns].
-- The quaternion error comes from Pinocchio (``SE3ToXYZQUAT`` of grip⁻¹ · target).
-- The safety terms are skipped after one cheap test when no joint is near a band and no
-  joint is faster than its limit.
-
-Simplifications (named):
-- Each arm's law uses the 7 × 7 arm block of the full 33-DOF mass matrix: the coupling to the
-  torso, head and finger joints is neglected in Λ and N (the torso is held by its own stiff
-  joint impedance; the fingers are light).
-- The torso is not part of the Cartesian chain (the real robot stacks 15 DOF); it is held by
-  joint impedance K = 1200 N·m/rad.
-- The payload (a held object) is not compensated; the impedance absorbs it as a small sag.
-- Self-collision: only the hand against its own forearm is pushed apart (the wrist band);
-  the arms against each other, the torso and the head are kept apart by the IK, which
-  rejects postures in self-collision (the real robot repels its links from 0.15 m).
+How each term is computed (Pinocchio calls, Eigen decompositions, what is never formed):
+docs/executor.md "How the law is computed"; where the law departs from the real robot's:
+velma/model/README.md "Where the model departs from the real robot".
 """
 
 from __future__ import annotations

@@ -6,64 +6,21 @@ an L_EX CommandResult (or an L_SD Observation for ``observe``), or ``failure`` w
 CommandResult that says why. Results come back through the agent's receptor buffer; nothing
 here blocks the loop. ``ROCO_REALTIME=1`` paces the loop to wall time.
 
-a_ta's ``cancel`` of a request (FIPA SC00026 §2 cancel meta-protocol; paper §3.2 safe
-interruption) halts its command: a queued one is dropped, the running one is brought to rest
-by the loop within the cycle the cancel reaches it (velma/executor/loop.py
-``ControlLoop.cancel``: braked; mid-pour the jar is turned upright). Once the robot is at rest
-the cancel is answered ``inform`` with the CommandResult that says ``halted`` (L_EX
-``HALTED``), which ends the conversation. When the command ended before the halt began (or the
-loop cannot be reached), the cancel is answered ``failure`` (could not cancel) carrying the
-command's own CommandResult; a cancel of a request already answered gets the runtime's
-``failure`` (nothing to cancel). Each halt is logged with wall time: here when asked and when
-answered, and by the executor when its loop began it (``Halting``).
+a_ta's ``cancel`` (FIPA SC00026 §2; paper §3.2 safe interruption) halts its command
+(velma/executor/loop.py ``ControlLoop.cancel``) and is answered ``inform`` with the
+CommandResult ``halted`` (L_EX ``HALTED``) once the robot is at rest, or ``failure`` carrying
+the command's own result when it ended before the halt began or the loop cannot be reached.
 
-Besides the C5 conversation, ag_ex
-
-- publishes the robot state with the loop's deadline statistics on ``roco/state/ag_ex``
-  (msgpack ``RobotSnapshot``, every ``STATE_PERIOD`` s), for viewers;
-- writes the latest deadline statistics to ``<ROCO_RUN_DIR>/ag_ex_timing.json`` (for the run
-  report) every ``TIMING_FILE_PERIOD`` s and when it stops;
-- perceives with the head camera (the default, velma/executor/capture.py
-  ``DEFAULT_PERCEPTION``): the
-  loop captures the world at an Observe, the executor's delivery thread in this process renders
-  and localises (velma/executor/delivery.py), and each camera Observation is logged beside the
-  ground truth of the same state, one JSON line per object, to
-  ``<ROCO_RUN_DIR>/ag_ex_perception.jsonl`` (velma/executor/perception_log.py) — for the
-  report, never for the agents. ``ROCO_PERCEPTION=truth`` answers from the physics;
-- with Rerun logging on (``ROCO_RERUN=1``; the hooks come from the runtime,
-  services/runtime/hooks.py): logs each published state, the loop's timing (about once a
-  second) and the observations, and renders the head camera about once a second in a thread
-  of this process from the whole simulation state the loop copies into shared memory
-  (``ROCO_RERUN_CAMERA=0``: no camera);
-- keeps a ledger of the commands its loop executed, ``<ROCO_RUN_DIR>/ag_ex_ledger.jsonl``
-  (velma/executor/ledger.py): a line when the loop starts a command and one when it ends it,
-  each with the request's conversation-id, the command and the robot's (simulated) time,
-  appended and fsync-ed on the agent's thread (never the loop's) before the answer is sent,
-  and kept across ag_ex's restarts; `roco chaos` and the run report read it
-  (services/report/ledger.py) to find a command run twice or answered done without running.
-  The end line keeps the loop's result, and a starting ag_ex reads the ledger's end
-  (velma/executor/ledger.py ``recall``): a request for a conversation whose command a loop
-  ended in an earlier ag_ex (a_ta sends it again when a restart left it unanswered) is
-  answered with that result, not run again (an Observe's capture is rendered again, which
-  moves nothing), and a ``replayed`` line says so; one started and not ended (cut short by
-  the stop) is run again;
-- watches the liveliness tokens of the agents that command it (the initiators on its
-  channels in the specification: a_ta). When one disappears the executor holds position in
-  joint impedance, with the hands closed as they are, so a held object is never dropped
-  because a peer died; ag_ex logs a warning and the published state says ``holding``;
-- keeps the simulated world across its own restarts: the kitchen is a world process of its
-  own (velma/world/, started by the launcher before ag_ex) and the loop only its controller,
-  which attaches to it again after a restart and finds the robot, and what it holds, as they
-  are. The world restarted (the robot's power cycle: a fresh kitchen, its time from 0) names a
-  new link in the run folder: ag_ex notices it (velma/world/files.py ``LinkWatch``, read every
-  ``WATCH_PERIOD_S``), logs it, ends its loop (open commands end ``stopped``), forgets the
-  ledger's results of the old world and attaches a new loop to the new world by itself. Each
-  answer names the world it comes from (L_EX ``CommandResult.world``, L_SD
-  ``Observation.world``: the link's name), so that a_ta tells the new kitchen from the old, and
-  a_ta's subscription to the robot's power-ons (fipa-subscribe on C5, L_EX ``PowerOns``) is told
-  the new one at once (``PowerOn``), before a_ta's next command.
-  With ``ROCO_WORLD=loop`` (velma/world/mode.py: to measure the split) the kitchen is
-  in the loop instead and a restarted ag_ex starts it anew.
+Besides C5, ag_ex publishes ``RobotSnapshot`` (msgpack) on ``roco/state/ag_ex`` every
+``STATE_PERIOD`` s; writes ``<ROCO_RUN_DIR>/ag_ex_timing.json`` every ``TIMING_FILE_PERIOD`` s
+and at stop, ``ag_ex_perception.jsonl`` (each camera Observation beside the ground truth, for
+the report; ``ROCO_PERCEPTION=truth`` answers from the physics) and ``ag_ex_ledger.jsonl``
+(velma/executor/ledger.py: a request whose command ended in an earlier ag_ex is answered from
+it, not run again); logs to Rerun with ``ROCO_RERUN=1``; holds position in joint impedance,
+hands as they are, when a_ta's liveliness token goes away; and re-attaches a new loop when the
+world process (velma/world/) is started anew, telling a_ta by ``PowerOn`` (fipa-subscribe on
+C5). How and why: docs/executor.md ("A halt", "When a_ta disappears", "The world as its own
+process", "Restart") and docs/recovery.md.
 """
 
 from __future__ import annotations
@@ -259,7 +216,7 @@ class ExecutorAgent(Agent):
         return str(getattr(self.executor, "world_link", "") or "")
 
     def _link_watch(self) -> LinkWatch | None:
-        """Watches the run folder for a world started anew (module docstring); None without a
+        """Watches the run folder for a world started anew (docs/executor.md); None without a
         world process or a run folder."""
         run_dir = Settings.from_env(only=("run_dir",)).run_dir
         if not self.attached_world or run_dir is None:
@@ -274,7 +231,7 @@ class ExecutorAgent(Agent):
 
     def _reattach(self, name: str) -> None:
         """The world was started anew under link ``name``: end the loop of the old one and
-        start one attached to the new one (module docstring). A loop that does not start is
+        start one attached to the new one (docs/executor.md). A loop that does not start is
         logged; the next world started anew is tried again."""
         old = self.attached_world
         self.counters["world_restarts"] += 1
