@@ -1,53 +1,20 @@
 """The property language of the requirement tree: what must have happened in a run for a leaf
 requirement to be met (``roco spec trace``; the evaluator over records is
-services/spec_check/properties.py; docs/spec.md shows examples).
+services/spec_check/properties.py). The manual, key by key with examples: docs/spec.md
+"The property language".
 
 A requirement's ``properties`` are all to hold in one run. A property is a sequence of event
-patterns (:class:`EventPattern`), matched *in order* ("then") by recorded communicates in causal order
-(services/recorder/causal.py); the communicates a match binds are the property's events. A step
-matches a communicate by what it is (channel, protocol, performative, content term, sender,
-receiver, content ``fields`` and ``minimum``) and by how it relates to the events of earlier
-steps, named by their ``name``:
-
-- ``same_conversation`` / ``other_conversation``: its conversation-id is / is not the named
-  event's (FIPA SC00061 §2.4);
-- ``answers``: it is in the named event's conversation and its in-reply-to is the named event's
-  reply-with (it is caused by that communicate);
-- ``while_open``: no inform, inform-ref, failure or refuse from another agent has been recorded
-  in the named event's conversation yet (the request is not answered);
-- ``refers``: ``{field = "name"}``: that content field holds the named event's conversation-id
-  (a_co's plans and plan requests name their command by its C2 conversation-id, ``task_id``);
-- ``above``: ``{field = "name"}``: that content field is larger than the same field of the
-  named event's content;
-- ``within_s``: at most this many seconds after the previous step's event;
-- ``next``: the first communicate after the previous step's event that fits the step's pattern
-  must also fit its relations (not any later one);
-- ``at_least``: that many communicates must match (the first is the step's event);
-- ``absent``: the step binds nothing: no communicate that fits its pattern and relations may
-  come after the previous step's event and before the next step's (an explicit forbidden
-  order). One that comes ends that partial match: the property is then *violated* at that
-  communicate when the partial match had bound the situation (its first ``exercised`` steps,
-  this step being after them), else the partial match is just dropped (the situation did not
-  happen). An absent step cannot be the first or the last, nor be named, nor carry
-  ``at_least``, ``within_s`` or ``next``.
-
-A content field is a path: ``state``, ``goal.verb``, ``objects[bowl].particles_inside`` (the
-element of ``objects`` whose ``name`` is ``bowl``). ``fields`` compares a value as text (an
-enum by its value) or as a number, or with a list of such values: any one of them;
-``minimum`` asks for a number at least that large.
-
-In ``fields`` and ``minimum`` an element's key may be a variable, ``objects[$held]``: the first
-step whose path names ``$held`` fits a communicate through any element of the list, and binds
-``$held`` to that element's ``name`` for the rest of the match (one partial match per element
-that fits); a later step's ``objects[$held]`` is that same element, an ``absent`` step's too.
-So ``{ "objects[$held].held_by" = ["left_gripper", "right_gripper"] }`` then ``{
-"objects[$held].held_by" = "" }`` is "an object held by either gripper, then that object held
-by nothing". ``refers`` and ``above`` name no variable.
-
-``exercised`` says how many leading steps describe the situation the requirement is about
-(absent steps among them counted): once a run matched them, the rest must follow, else the
-run *violates* the property (``exercised`` not given: all steps, so a property is then shown
-or not exercised, never violated by order alone).
+patterns (:class:`EventPattern`), matched *in order* ("then") by recorded communicates in
+causal order (services/recorder/causal.py). A step matches a communicate by what it is
+(channel, protocol, performative, content term, sender, receiver, content ``fields`` and
+``minimum``) and by how it relates to earlier steps' events, named by ``name``
+(``same_conversation``, ``other_conversation``: FIPA SC00061 §2.4 conversation-id;
+``answers``, ``while_open``, ``refers``, ``above``), plus ``within_s`` (s), ``next``,
+``at_least`` and ``absent`` (a forbidden order: binds nothing; neither first nor last, no name,
+no ``at_least``, ``within_s`` or ``next``). A content field is a path (``goal.verb``,
+``objects[bowl].particles_inside``, a variable ``objects[$held]`` in ``fields`` and
+``minimum``). ``exercised`` counts the leading steps that describe the situation: once a run
+matched them the rest must follow, else the run *violates* the property (unset: all steps).
 """
 
 from __future__ import annotations
@@ -66,7 +33,7 @@ _PATH = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*(\[[^\]]+\])?(\.[A-Za-z_][A-Za-z0-9_
 
 
 class EventPattern(msgspec.Struct, frozen=True, forbid_unknown_fields=True, kw_only=True):
-    """One event pattern of a property (see the module docstring for each field)."""
+    """One event pattern of a property (each field: docs/spec.md, "The property language")."""
 
     channel: str
     name: str | None = None

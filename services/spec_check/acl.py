@@ -1,53 +1,19 @@
-"""The Zenoh router's access control, derived from the specification (docs/security.md).
+"""The Zenoh router's access control, derived from the specification; default deny. The
+manual, key by key per identity: docs/security.md "Who may send what where".
 
-Default deny. Each identity (an agent of the specification, the traffic ``recorder``, the
-``operator``'s tools) gets exactly the key expressions it needs, per message kind and flow as the
-router sees it: ``ingress`` is what the identity sends to the router (its puts, its subscriber and
-liveliness declarations), ``egress`` what the router delivers to it. For agent ``A``:
-
-- put (ingress) on ``roco/fipa/<C>/A/<peer>`` for every channel ``C`` of ``A`` and its other end
-  ``peer``: an agent sends only on its channels, only as itself;
-- declare_subscriber (ingress) on its inbox ``roco/fipa/*/*/A`` (how the runtime subscribes),
-  and put (egress) only on ``roco/fipa/<C>/<peer>/A``: it receives only from its channels;
-- a liveliness token on ``roco/alive/A`` only, and a liveliness query on that key alone (its
-  container's health check); it watches ``roco/alive/*``;
-- the fault layer every agent runs under (services/runtime/faults.py): it hears
-  ``roco/fault/control/all`` and ``…/control/A``, puts on ``roco/fault/state/A`` and
-  ``…/event/A``; it hears ``roco/counters/ask`` and answers on ``roco/counters/report/A``;
-  it hears ``roco/sim/clock`` (the simulation's time, services/runtime/clock.py);
-- the receptors and effectors outside FIPA (:data:`AGENT_EXTRAS`): a_hi hears ``roco/human/in``
-  and speaks on ``roco/human/out``, through an advanced publisher with its cache below
-  (``roco/human/out/@adv/**``, as for communicates), and answers queries of
-  ``roco/human/outcomes`` (the outcomes it told); ag_ex publishes ``roco/state/ag_ex`` and
-  ``roco/sim/clock`` and hears ``roco/sim/disturb``.
-
-- its advanced publishers (one per key it sends on, services/runtime/transport.py): it learns of
-  the subscribers of ``roco/fipa/**`` (egress declare_subscriber: without it a declared
-  publisher believes nobody listens and drops its puts), declares a cache queryable, a
-  liveliness token and heartbeats below its own keys (``<key>/@adv/**``), hears the recorder's
-  queries of ``roco/fipa/**/@adv/**`` and replies only with communicates on its own keys.
-
-A channel whose one end is an external role (``x_fipa``: agents of other FIPA
-platforms) is keyed with ``$*@$*`` for that end (``keys.FOREIGN``: a chunk holding an ``@``,
-which every foreign name ``local@platform`` has, ``da0@host:1099%2FJADE``, and no name of roco's
-agents has): a_hi puts on ``roco/fipa/C8/a_hi/$*@$*`` and is delivered
-``roco/fipa/C8/$*@$*/a_hi``. Only the ``gateway`` (``roco gateway``, services/gateway/) puts
-as a foreign agent: on ``roco/fipa/C8/$*@$*/a_hi``, with its advanced publishers' caches below;
-it hears ``roco/fipa/C8/a_hi/$*@$*``, holds ``roco/alive/gateway`` and answers
-``roco/counters/ask``. So neither can use C8 to reach or pose as one of roco's agents.
-
-The recorder hears every communicate (``roco/fipa/**``), the sync token and fault events, and
-answers on ``roco/recorder/synced``; its advanced subscriber queries the publishers' caches,
-watches their liveliness tokens and hears their heartbeats (``roco/fipa/**/@adv/**``). It
-watches and asks for the processes' tokens (``roco/alive/*``: the run folder's presence record).
-It answers queries of ``roco/recorder/flags`` (the live requirement flags) and no other.
-
-The operator (``roco send``/``status``/``sniff``/``fault``, the scenario runner, the launcher's
-liveliness wait) may hear everything under ``roco/**`` and put on the human's receptor, the
-simulated world's disturbances, the recorder's sync key and the fault keys the injector uses,
-and query the recorder's flags and a_hi's outcomes — but never on ``roco/fipa/**`` and never a
-liveliness token; its advanced subscriber of a_hi's reports watches, hears and queries
-``roco/human/out/@adv/**``.
+Each identity (an agent of the specification, the traffic ``recorder``, the ``gateway``, the
+``operator``'s tools) gets exactly the key expressions it needs, per message kind and flow as
+the router sees it (``ingress``: what the identity sends; ``egress``: what the router
+delivers to it). Agent ``A`` puts only on ``roco/fipa/<C>/A/<peer>`` for its channels ``C``,
+subscribes to its inbox ``roco/fipa/*/*/A`` and is delivered only ``roco/fipa/<C>/<peer>/A``;
+holds only ``roco/alive/A``; has the fault layer's, the counters' and the clock's keys
+(services/runtime/faults.py, services/runtime/clock.py), its advanced publishers' ``@adv``
+keys below its own (services/runtime/transport.py), and :data:`AGENT_EXTRAS` (keys outside
+FIPA). A channel end that is an external role (``x_fipa``) is keyed ``$*@$*``
+(``keys.FOREIGN``: a chunk holding ``@``, as every foreign name has and no roco agent's);
+only the ``gateway`` puts as a foreign agent. The recorder hears ``roco/fipa/**`` and queries
+the publishers' caches; the operator hears ``roco/**`` but never puts on ``roco/fipa/**`` nor
+holds a liveliness token.
 
 Zenoh (1.10) allows a message when an allow rule's key expression *includes* the message's key
 expression (a subscriber on ``roco/fipa/**`` is not allowed by rules naming single channels).

@@ -1,59 +1,25 @@
 """``roco spec deadlock``: communication deadlocks of a specification (paper §4 step 3: "while
 specifying new communication channels, an analysis targeted at communication deadlocks is
-mandatory").
+mandatory"). The manual, with what each finding means: docs/spec.md "Deadlocks".
 
-Two levels.
+**Conversations.** Each (channel, protocol) is one conversation of its protocol
+(:func:`services.spec.protocol_defs.protocols_of`; FIPA SC00026, SC00027, SC00035, the
+paper's coordinate, ...), explored breadth first as two communicating role automata over
+FIFO input queues bounded by :data:`QUEUE_CAPACITY`, so each trace reported is a shortest
+one. Findings: *deadlock* (no step enabled, a role not final), *unspecified reception* (a
+queue's head its role can never receive), *late message* (informational: it reaches an ended
+role). ``not-understood`` (SC00037 §3.12) is left out unless ``not_understood=True``;
+``cancel`` (SC00026 §2, SC00027 §2, SC00035 §2) is explored like any other performative.
 
-**Conversations.** Every interaction protocol a specification names (its declared state
-machine or the built-in one, :func:`services.spec.protocol_defs.protocols_of`; FIPA SC00026
-fipa-request, SC00027 fipa-query, SC00035 fipa-subscribe, the paper's coordinate, ...) is
-explored as a pair of communicating automata, the product that a Petri net of the two roles
-and their buffers would unfold to (paper §4 step 3: the input and output buffers of the two
-agents). Each role keeps its own copy of the protocol state: the role may *send*
-performative p in state s when (s, role, p) is a transition, and *receive* p from the head
-of its input queue when (s, other role, p) is; an ``inform`` flagged terminal (the
-``coordinate`` protocol's terminal L_SW reports) is a message of its own. The two queues are
-FIFO (asynchronous messaging, as over Zenoh, where messages cross on the wire) and bounded
-(:data:`QUEUE_CAPACITY`: a send to a full queue waits). The reachable product states are
-explored breadth first, so every trace reported is a shortest one. Findings:
-
-* *deadlock*: no step is enabled (a send blocked only by the bound counts as enabled), at
-  least one role is not in a final state, so it waits for a message that never comes;
-* *unspecified reception*: a message at the head of a role's queue that the role, not in a
-  final state, can never receive: neither in its state nor in any state it reaches by its
-  own sends (the conversation can no longer end normally);
-* *late message* (informational): a message that reaches a role after it has ended (e.g. a
-  ``cancel`` crossing the final ``inform``).
-
-``not-understood`` (FIPA SC00037 §3.12) is left out by default: either role may send it in
-every state after the first and it ends the conversation, so it is an escape from any
-deadlock, not part of the protocol's normal course (``not_understood=True`` includes it).
-``cancel`` and the cancel meta-protocol (SC00026 §2, SC00027 §2, SC00035 §2) are explored
-like any other performative. Conversations are independent: their messages are told apart
-by conversation-id, so each (channel, protocol) is one conversation of its protocol.
-
-**Agents** (the agents' communication states). An agent that, while serving a conversation
-it participates in, opens another conversation as initiator and waits for its answer,
-waits for that conversation's participant. The specification declares this per agent
-(parsed here from the raw TOML)::
-
-    [[agents]]
-    name = "a_pl"
-    ...
-    waits = [{ serving = "C3:fipa-request", opens = ["C4:fipa-query"] }]
-
-``serving`` names ``CHANNEL:PROTOCOL`` the agent takes part in as participant, ``opens``
-the ``CHANNEL:PROTOCOL`` conversations it then initiates and waits on. Every cycle of the
-resulting wait-for graph (agent -> the agent it waits for) is a potential deadlock, on the
-conservative assumption that a waiting agent serves nothing else meanwhile.
+**Agents.** Each agent's ``waits = [{ serving = "C3:fipa-request", opens = ["C4:fipa-query"] }]``
+(``[[agents]]``, read from the raw TOML) makes a wait-for graph; every cycle is a potential
+deadlock (a waiting agent is assumed to serve nothing else).
 
 :func:`analyse` gives a typed :class:`DeadlockResult`, :func:`render` the text,
 :func:`deadlock_report` both for the CLI (a deadlock found: non-zero exit).
-
-**The library.** :func:`analyse_library` explores the conversations of every protocol of
-the built-in library (:data:`shared.fipa_codec.protocols.PROTOCOLS`: the eleven of the FIPA
-SC00025 library, SC00026 to SC00036, and the paper's coordinate), whether a specification
-names it or not; :func:`library_report` renders it for ``roco spec deadlock --library``.
+:func:`analyse_library` and :func:`library_report` explore every protocol of
+:data:`shared.fipa_codec.protocols.PROTOCOLS` (the eleven of FIPA SC00025's library, SC00026
+to SC00036, and coordinate) for ``roco spec deadlock --library``.
 """
 
 from __future__ import annotations

@@ -27,10 +27,6 @@ What the agents get (L_SD, shared/fipa_codec/languages/l_sd.py):
 - ``total_particles``: the number of content spheres the scene description states (its content
   bodies, ``N_PARTICLES`` = 18 in the kitchen), a task fact, not a measurement.
 
-``POSITION_SIGMA_FLOOR``: ICP's own σ (0.1–0.4 mm) is smaller than the true error, which
-docs/bench/perception.md measured over 20 pose seeds: the RMS of the 3-D errors of the jar's
-20 fits is 0.95 mm (p50 0.71, p95 1.69); the floor is that, rounded up to 1 mm.
-
 ``ROCO_PERCEPTION`` (velma/executor/capture.py ``perception_mode``) chooses ``camera`` or
 ``truth`` (velma/executor/ground_truth.py, in the loop); unset: ``DEFAULT_PERCEPTION``.
 """
@@ -59,7 +55,10 @@ MOVABLE = ("jar", "bowl", "cup")
 """The objects the camera localises (free bodies with a model, velma/perception/objects.py)."""
 FURNITURE = ("table", "cabinet")
 """Fixed bodies: poses from the kitchen's map (module docstring)."""
-POSITION_SIGMA_FLOOR = 0.001  # m (module docstring)
+POSITION_SIGMA_FLOOR = 0.001
+"""Least ``position_sigma`` (m) of a seen object. ICP's own σ (0.1–0.4 mm) is smaller than the
+true error, which docs/bench/perception.md measured over 20 pose seeds: the RMS of the 3-D
+errors of the jar's 20 fits is 0.95 mm (p50 0.71, p95 1.69); the floor is that, rounded up."""
 CAMERA_SIZE = (640, 480)
 """Frame (px) rendered per Observe: the Kinect's own. 320 × 240 localises as well and takes
 ≈ 0.3 s an Observe instead of ≈ 0.3–1 s, but counted 13–14 of ≈ 16 visible spheres in the

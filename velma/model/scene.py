@@ -24,12 +24,8 @@ with 3 instead of 6 degrees of freedom (nv 159 → 105). The flow is the granula
 frictionless hard spheres; a real granular content (peas, rice) has friction, which makes it
 pile at an angle where this content levels out.
 
-Measured with scripts/bench_physics.py over the scripted pour on the 2-core
-development machine (docs/bench/physics.md): frictionless sphere–sphere contacts took the
-physics step's p99 from ≈ 395 to ≈ 350 µs; all content contacts frictionless with the
-rotation dropped took its median from ≈ 206 to ≈ 150 µs and its p99 from ≈ 386 to ≈ 275 µs
-(the three rotational DoF of each sphere were a third of the model's velocity vector, and
-the friction rows of the sphere–wall contacts three quarters of their constraint rows).
+What the frictionless content saves in the physics step, measured against wall friction with
+scripts/bench_physics.py: docs/bench/physics.md.
 """
 
 from __future__ import annotations

@@ -1,44 +1,21 @@
-"""a_km — the knowledge manager (paper §5.5, Table 5, Figure 11c).
+"""a_km — the knowledge manager (paper §5.5, Table 5, Figure 11c). The manual: docs/agents.md
+"a_km"; its restarts: docs/recovery.md.
 
-FSM states: idle (wait for a query from a_pl, a_ta or a_hi — a_hi asks on C7 for the words
-a person may use for things —, or an observation), questionAnswering
-(answer one query from the knowledge base, hypothetical queries of §5.7 included: inform-ref
-with an L_WM Answer to query-ref, inform to query-if; ``refuse`` with the reason for a query
-a_km does not answer, ``failure`` with the reason for one it cannot answer), knowledgeSaving
-(apply one observation or asserted change). At start-up it opens the fipa-subscribe
-conversation with a_ta for environment updates; the role keeps it open
-(services/runtime/subscriptions.py): the subscribe is repeated, in the same conversation, at
-once after each refuse, failure or passed reply-by deadline until a_ta agrees (a_ta may start
-later), and again when a_ta's token reappears after it disappeared (a restarted a_ta has lost it).
+FSM states: idle (wait for a query from a_pl, a_ta or a_hi, or an observation),
+questionAnswering (one query, hypothetical queries of §5.7 included: ``inform-ref`` with an
+L_WM Answer to ``query-ref``, ``inform`` to ``query-if``; ``refuse`` with the reason for a
+query a_km does not answer, ``failure`` with the reason for one it cannot), knowledgeSaving
+(apply one observation or asserted change; an update that ``renews`` the world replaces what
+a_km believed by the kitchen's initial knowledge and that observation, ``WorldModel.renew``).
 
-An update that ``renews`` the world (L_WM ``WorldUpdate.renews``: a_ta found the robot
-power-cycled, its kitchen started anew) makes a_km drop what it believed (where each object
-was put, what a hand holds, the content's container, the poses and their stamps) and take the
-kitchen's initial knowledge with that update's observation (``WorldModel.renew``).
-
-A restarted a_km may have missed updates that were in flight when it stopped (fipa-subscribe
-informs are not acknowledged), so its kept knowledge can be a step behind. When it starts with
-kept knowledge it holds the queries it receives until the first observation a_ta sends after
-agreeing to the new subscription (a_ta answers every new subscription with its last asserted
-changes and a fresh observation), at most ``HOLD_QUERIES_S``; then it answers them in the order
-they came. A start with no kept knowledge answers at once.
-
-Changes of the scene (L_WM ``SceneSubscription``, ``SceneChange``): a_km serves fipa-subscribe
-(FIPA SC00035) as the participant on every channel where the specification makes it that, one
-subscription per channel (a later one on the same channel replaces the earlier), at most
-:data:`~services.agents.knowledge.scene_watch.MAX_SUBSCRIBERS` at once. A subscription out of
-range is refused with the reason; an agreed one is informed of each change of an object of
-interest it learns from a_ta's updates (C6) past the subscription's thresholds
-(services/agents/knowledge/scene_watch.py: what is compared, the bounded queue). A ``cancel``
-or ``not-understood`` ends it (services/runtime/served.py). Scene subscriptions are not kept
-across a restart of a_km: the subscriber subscribes again when a_km's token reappears, as a_km
-does with a_ta (an initiator role declared ``resubscribes``, ``while_away=False``:
-services/runtime/subscriptions.py); what it was told starts again from a_km's knowledge then.
-
-The knowledge persists across restarts of a_km (see :mod:`services.agents.knowledge.world_model`):
-the store is the directory ``ROCO_KM_STORE``; when that is unset, ``<ROCO_RUN_DIR>/km_store``;
-when neither is set, the knowledge is kept in memory only. :meth:`KnowledgeManager.close`
-(called by ``services.runtime.main`` after the agent stops) flushes and releases the store.
+It keeps a fipa-subscribe with a_ta open for environment updates (C6,
+services/runtime/subscriptions.py), and serves fipa-subscribe (FIPA SC00035) to scene changes
+(L_WM ``SceneSubscription``, ``SceneChange``; services/agents/knowledge/scene_watch.py) on every
+channel where the specification makes it the participant; those are not kept across its
+restart. Started with kept knowledge, it holds queries until a_ta's first observation, at most
+``HOLD_QUERIES_S``. The knowledge is stored in ``ROCO_KM_STORE``, else
+``<ROCO_RUN_DIR>/km_store``, else memory only (services/agents/knowledge/world_model.py);
+:meth:`KnowledgeManager.close` (called by ``services.runtime.main``) flushes and releases it.
 """
 
 from __future__ import annotations

@@ -40,13 +40,8 @@ reach the share, a second look is taken first, and of the two looks the one that
 spheres decides (``_deciding_look``). If it still sees too few, the task
 succeeds on the inference and says so: from the head's height the bowl's near wall hides part
 of its floor's ring when the bowl stands far enough away, whatever the torso's angle
-(velma/perception/content.py ``count_spheres``), so failing there would fail every full bowl.
-Measured on the pour's layout of tests/velma/perception/test_content_count.py (18 spheres,
-the head aimed at the bowl), with the torso at the pour's angle and turned by −0.5, −0.3,
-+0.3 and +0.5 rad (the head camera moves less than 1 cm: the head sits on the torso's axis):
-at the bowl's table place (velma/scenario.py BOWL_PLACE_POSITION) it sees all 18 every time;
-5 cm further away (that test's ``FAR_PLACE``) 15, 15, 15, 14 and 10 seen with 3, 3, 3, 3 and
-7 inferred.
+(velma/perception/content.py ``count_spheres``; measured in docs/bench/observe.md), so failing
+there would fail every full bowl.
 """
 
 from __future__ import annotations
