@@ -23,29 +23,12 @@ Conventions as velma/scenario.py: grip frame ``{side}_HandGripLink``; quaternion
 z); metres, radians, seconds; "turned frame": world axes turned about z by the torso angle
 (x forward, y the robot's left).
 
-Geometry found by simulation (IK scans of velma.control.ik with collision checks, then runs
-on the executor; scripts/bench_kitchen_tasks.py repeats the runs over seeds):
-
-- The jar's side grasp, turned by the table's facing −0.95, does not work on the table: the
-  left arm reaches the palm-forward orientation at table height only left of the torso's
-  centre line (turned y ≥ 0.05 m), and the wrist (flange 0.08 m below and 0.24 m behind the
-  grip frame, 0.05 m thick) must hang beyond a table edge or it hits the table top. At −0.95
-  the spots that satisfy both (by the edge nearest the cabinet, x ≈ 0.5 m) put the bowl in
-  the way of the open fingers on the horizontal approach. It works at
-  torso angle −1.5 (``JAR_TABLE_FACING``) in the table's corner nearest the robot, right of
-  the bowl (``JAR_TABLE``): set down, released, re-grasped with the same grip reached from
-  above (``JAR_TABLE_GRASP``: along the torso's forward direction the forearm would meet the
-  torso), and poured with the unchanged pour.
-- The cup is taken with the right hand's top grasp (as the bowl, palm down, after
-  RIGHT_PICK_POSTURE) and put on the table at the table's facing −0.95 (``CUP_TABLE``).
-- Back in the cabinet, the right hand must not rise more than ≈ 0.05 m above where it
-  releases the bowl: the palm-down forearm then meets the cabinet's top board
-  (``BOWL_CABINET``).
-- Parking poses matter for the next torso turn: a hand parked far out on the right side is
-  carried into the cabinet's side panel when the torso turns back to 0 (``CUP_TABLE``).
-- Grip of a held object: the grip in the object frame is the affordance's turned by the
-  facing at which it was grasped (:func:`place_poses`); the world grip at a placement is
-  then the affordance's turned by the placement's facing.
+Each placement's and grasp's geometry was found by simulation (IK scans of velma.control.ik
+with collision checks, then runs on the executor; scripts/bench_kitchen_tasks.py repeats the
+runs over seeds); why each value is what it is, is said at its constant. The grip of a held
+object in the object frame is the affordance's turned by the facing at which it was grasped
+(:func:`place_poses`); the world grip at a placement is then the affordance's turned by the
+placement's facing.
 """
 
 from __future__ import annotations
@@ -89,8 +72,13 @@ CABINET_FACING = sc.TORSO_PICK
 TABLE_FACING = sc.TORSO_PLACE
 """Torso angle at the table (rad): bowl and cup (right hand, palm down)."""
 JAR_TABLE_FACING = -1.5
-"""Torso angle for the jar on the table (rad; left hand, side grasp). At −0.95 no free table
-spot works (see the module docstring); −1.5 is 0.07 rad inside the torso's limit."""
+"""Torso angle for the jar on the table (rad; left hand, side grasp); 0.07 rad inside the
+torso's limit. At the table's facing −0.95 no free table spot works: the left arm reaches the
+palm-forward orientation at table height only left of the torso's centre line (turned
+y ≥ 0.05 m), and the wrist (flange 0.08 m below and 0.24 m behind the grip frame, 0.05 m thick)
+must hang beyond a table edge or it hits the table top; the spots that satisfy both (by the
+edge nearest the cabinet, x ≈ 0.5 m) put the bowl in the way of the open fingers on the
+horizontal approach."""
 
 
 @dataclass(frozen=True)

@@ -2,9 +2,9 @@
 the report shows.
 
 The traffic record stamps each communicate with the recorder's wall clock. In the fast
-pacing of ``roco run`` the simulation runs faster than that (≈ 67 s of robot time in ≈ 25 s
-of wall time), so wall-clock durations do not compare with the paper's, which a real robot
-logged in real time. Every answer of ag_ex on C5 carries the simulation time it ended at
+pacing of ``roco run`` the simulation runs faster than that (docs/viewer.md, "The report"),
+so wall-clock durations do not compare with the paper's, which a real robot logged in real
+time. Every answer of ag_ex on C5 carries the simulation time it ended at
 (L_EX ``CommandResult.sim_time``, L_SD ``Observation.stamp``): those pairs (recorder time,
 robot time) are the clock's marks, and a moment between two marks reads as the straight line
 between them. Before the first mark or after the last, the robot's time is not known.

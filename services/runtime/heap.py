@@ -3,9 +3,8 @@
 Loading the specification, the content languages and the agent's own modules allocates and
 frees a great deal before the first behaviour blocks for input; glibc keeps the freed pages of
 its heaps resident for later allocations. ``malloc_trim(0)`` hands every whole free page of
-every heap back (glibc ≥ 2.8; Rust's allocations, Zenoh's, live in the same heaps). Measured on
-an idle synthetic agent: 35.7 → 34.4 MiB resident, less the 0.4 MiB that importing ``ctypes``
-costs (docs/benchmarks.md, "Memory again: the start-up's freed heap given back").
+every heap back (glibc ≥ 2.8; Rust's allocations, Zenoh's, live in the same heaps). What it
+saves: docs/benchmarks.md, "Where the memory goes".
 """
 
 from __future__ import annotations

@@ -14,11 +14,8 @@ every other compiled module (they call each other's compiled code, which takes o
 compiled objects); what was compiled is known by content (``MANIFEST``), so a checkout that
 only touches a file changes nothing.
 ``ROCO_INTERPRETED=1`` loads every one from its source (to profile the Python with cProfile,
-or to compare).
-
-Measured (scripts/profile_runtime.py --cpu, median of 7, docs/benchmarks.md): CPU per
-request → inform round trip 36.5–37.8 µs interpreted, 19.5–19.9 µs compiled; per streamed
-communicate 9.5 → 6.8 µs.
+or to compare). What compiling saves per communicate: docs/benchmarks.md, "Python per
+communicate" (scripts/profile_runtime.py --cpu).
 """
 
 from __future__ import annotations

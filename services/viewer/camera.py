@@ -16,11 +16,12 @@ thread, in the other process, reads the latest copy, puts it into an MjData of i
 (``velma.render.SceneCamera``: the same kitchen model, one reused renderer, closed when the
 thread ends) and renders. The thread runs at the lowest CPU priority (nice ``NICE``, this
 thread only) and software rendering stays in it (``LP_NUM_THREADS=0``: Mesa's llvmpipe
-starts no rasteriser threads of its own), so that it only takes CPU time nobody else wants:
-≈ 23 ms of CPU per frame on the development VM. Frames are skipped, never queued: a tick
-comes every ``PERIOD`` s, a tick that finds no new state is skipped, and ticks missed while a
-render was slow are dropped. Rendering off-screen needs EGL or OSMesa (velma/gl.py); when it
-cannot start, one warning is logged and the recording goes on without images.
+starts no rasteriser threads of its own), so that it only takes CPU time nobody else wants
+(its cost: docs/viewer.md, "The head camera stays out of the control loop"). Frames are
+skipped, never queued: a tick comes every ``PERIOD`` s, a tick that finds no new state is
+skipped, and ticks missed while a render was slow are dropped. Rendering off-screen needs EGL
+or OSMesa (velma/gl.py); when it cannot start, one warning is logged and the recording goes on
+without images.
 """
 
 from __future__ import annotations

@@ -43,9 +43,8 @@ The JSON encoding (for tools outside Python)
       parenthesis, and appears at most once per identifier.
 
     Trailing items may be left out and count as empty (``["a_km"]``,
-    ``["a_km", ["tcp/127.0.0.1:7447"]]``, as written before resolvers and user parameters
-    were added); roco writes all four. Unknown object fields and trailing array items are
-    ignored, so that newer writers stay readable. Example::
+    ``["a_km", ["tcp/127.0.0.1:7447"]]``); roco writes all four. Unknown object fields and
+    trailing array items are ignored, so that newer writers stay readable. Example::
 
         {"performative":"inform","sender":["a_co",["tcp/127.0.0.1:7447"],[],[]],
          "receiver":[["a_km",[],[],[]]],"content":"gaR0eXBl","language":"L_WM",

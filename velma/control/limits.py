@@ -25,8 +25,7 @@ robot: its "Where the model departs from the real robot"):
   inertia as gain: τ = −M (q̇ − sat(q̇)) / T_v, so that, with nothing else acting, the excess decays
   with time constant ``T_v``; against a sustained driving torque τ_d the excess settles near
   τ_d T_v / M_jj (a damper, not a hard clamp; the torque limit bounds τ_d). The controller
-  adds it after the torque rate limit: limited to 1 N·m per tick, a brake of this gain lags
-  and oscillates (measured: a 1 rad shoulder step then reached 31 rad/s instead of 2.1).
+  adds it after the torque rate limit (why: docs/executor.md "How the law is computed").
 - **Torque limit and torque rate limit** (applied in ``VelmaController.update``): 100 N·m for arm
   joints 0–4, 60 N·m for 5–6 (Velma's limits); change per cycle at most 1 N·m per 1 ms tick
   (borrowed from franka_ros's Cartesian impedance example, not Velma's).
