@@ -29,13 +29,9 @@ Conventions shared by all protocols (each after the FIPA specification cited):
 * FIPA's ``inform-done``/``inform-result``/``inform-t/f`` are all the performative
   ``inform``.
 
-The protocols, by their FIPA ``protocol`` parameter name (:data:`PROTOCOLS`):
-
-``fipa-request`` (SC00026), ``fipa-query`` (SC00027), ``fipa-request-when`` (SC00028),
-``fipa-contract-net`` (SC00029), ``fipa-iterated-contract-net`` (SC00030),
-``fipa-english-auction`` (SC00031), ``fipa-dutch-auction`` (SC00032), ``fipa-brokering``
-(SC00033), ``fipa-recruiting`` (SC00034), ``fipa-subscribe`` (SC00035), ``fipa-propose``
-(SC00036): the eleven of the FIPA library; and roco's ``coordinate`` (paper §5.4, Figure 8).
+The protocols, by their FIPA ``protocol`` parameter name (:data:`PROTOCOLS`): the eleven of
+the FIPA library, ``fipa-request`` (SC00026) to ``fipa-propose`` (SC00036), each after its
+specification; and roco's ``coordinate`` (paper §5.4, Figure 8).
 
 A one-to-many protocol (the contract nets, the auctions, brokering and recruiting, where the
 initiator addresses several participants) is modelled, like the others, as the conversation
