@@ -1,13 +1,15 @@
-"""A new agent, end to end, as a user adds one (docs/spec.md, "Walk-through: adding an agent"):
-in a copy of this checkout, the walk-through's specification entries are added, ``roco spec
-new-agent a_wt`` writes the agent and renders deploy/compose.yaml, the handlers are written as
-the document writes them, and then the tools agree (spec check, verify-code, the compose file,
-the access control), and ``roco scenario`` has Velma bring the bowl with the new agent in the
-fleet, access control on, and knocks the bowl over as it is set down: the watcher warns the
-person through a_hi within 1 s of robot time of the robot's next look, ``roco scenario``'s
-output and the report show the warning with its sender, and ``roco spec verify`` passes on the
-run. In the same copy, the tools and the fast part of roco's tests pass (:data:`FAST_PART`).
-No other agent's code is edited.
+"""A new agent, end to end, as a user adds one (docs/spec.md, "Walk-through: adding an agent"): in
+a copy of this checkout, the watcher's terms module (``Tipped``) is written in its folder, the
+walk-through's specification entries are added (the agent, its channels, and its own protocol
+``kitchen-warning`` in the table), ``roco spec new-agent a_wt`` writes the agent and renders
+deploy/compose.yaml, the handlers are written as the document writes them, and then the tools
+agree (spec check, verify-code, deadlock, the compose file, the access control), and ``roco
+scenario`` has Velma bring the bowl with the new agent in the fleet, access control on, and
+knocks the bowl over as it is set down: the watcher warns the person through a_hi (a ``Tipped``
+in ``kitchen-warning``, which a_hi tells as the term says itself) within 1 s of robot time of
+the robot's next look, ``roco scenario``'s output and the report show the warning with its
+sender, and ``roco spec verify`` passes on the run. In the same copy, the tools and the fast
+part of roco's tests pass (:data:`FAST_PART`). No other agent's code is edited.
 
 Every command runs in the copy (its working folder, first on PYTHONPATH), so that the copy's
 code runs, not this checkout's (which the virtual environment installs editable)."""
@@ -31,7 +33,7 @@ from services.spec.model import load
 from shared.fipa_codec import decode
 from shared.fipa_codec.languages import decode_content
 from shared.fipa_codec.languages.l_wm import WorldUpdate
-from tests.spec_check.walkthrough import AGENT, NEXT, fill, walkthrough_spec
+from tests.spec_check.walkthrough import AGENT, NEXT, fill, walkthrough_spec, write_terms
 
 pytestmark = [pytest.mark.slow, pytest.mark.fleet]
 
@@ -109,6 +111,8 @@ def checkout(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Checkout]:
     copy_checkout(root)
     spec = root / "services" / "spec" / "robot_companion.toml"
     doc = root / "docs" / "spec.md"
+    folder = root / "services" / "agents" / "watch"
+    write_terms(folder, doc)  # before the specification names it: loading it imports the module
     walkthrough_spec(spec, base=spec, doc=doc)
     env = {k: v for k, v in os.environ.items() if k not in ("ROCO_ACL", "ROCO_SPEC", "ROCO_RUN_DIR")}
     env["PYTHONPATH"] = str(root)
@@ -116,7 +120,7 @@ def checkout(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Checkout]:
     new_agent = made.roco("spec", "new-agent", AGENT)
     made = Checkout(root, env, new_agent)
     if new_agent.returncode == 0:
-        fill(root / "services" / "agents" / "watch" / "agent.py", doc)
+        fill(folder / "agent.py", doc)
     yield made
 
 
@@ -148,9 +152,9 @@ def test_spec_check_and_verify_code_pass_with_no_edit_of_another_agent(checkout:
     assert done.returncode == 0, done.stdout + done.stderr
     done = checkout.roco("spec", "verify-code")
     assert done.returncode == 0, done.stdout + done.stderr
-    assert "a_wt: 2 files; 2 protocol roles agree with the specification:" in done.stdout
+    assert "a_wt: 3 files; 2 protocol roles agree with the specification:" in done.stdout
     assert f"  {C} fipa-subscribe participant with a_wt in L_WM (declared for every channel)" in done.stdout
-    assert f"  {N} roco-notify participant with a_wt in L_HC (declared for every channel)" in done.stdout
+    assert f"  {N} kitchen-warning participant with a_wt in L_HC (declared for every channel)" in done.stdout
     for agent in ("knowledge", "human_interface"):  # a_km and a_hi serve the new channels as they are
         copied = checkout.root / "services" / "agents" / agent / "agent.py"
         assert copied.read_text() == (ROOT / "services" / "agents" / agent / "agent.py").read_text()
@@ -277,7 +281,7 @@ def test_it_runs_in_the_fleet_with_access_control_and_the_run_conforms(
         assert one in sent, sent
     warnings = [r for r in records if r.channel == N]
     assert [(r.sender, r.receivers, r.performative, r.protocol) for r in warnings] == [
-        ("a_wt", ("a_hi",), "inform", "roco-notify")
+        ("a_wt", ("a_hi",), "inform", "kitchen-warning")
     ], sent
     # the warning within 1 s of robot time of the robot's first look after the knock (the robot
     # learns of a knock only by looking: docs/agents.md, Scenarios); wall times at the run's pace
