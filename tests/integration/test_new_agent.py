@@ -178,6 +178,10 @@ def test_the_access_control_lets_it_send_on_its_channels_and_nowhere_else(checko
     assert f"roco/fipa/{C}/a_wt/a_km" in rules["a_km/egress/put"]["key_exprs"]
 
 
+LANGUAGE_TESTS = "tests/fipa_codec/test_fipa_languages.py"
+"""The round trip of a sample of every content term (in :data:`FAST_PART`)."""
+
+
 FAST_PART = (
     "tests/spec",
     "tests/spec_check/test_declared_protocol.py",
@@ -187,7 +191,7 @@ FAST_PART = (
     "tests/architecture/test_agents_use_roles.py",
     "tests/architecture/test_complexity.py",
     "tests/architecture/test_imports_resolve.py",
-    "tests/fipa_codec/test_fipa_languages.py",
+    LANGUAGE_TESTS,
 )
 """The fast part of roco's own tests: those a new agent could break, run in the copy after it
 is added, within about 30 s of test time — the specification's model, names, content terms,
@@ -205,7 +209,8 @@ def test_the_tools_and_the_fast_part_of_the_tests_pass_in_the_copy(checkout: Che
     """With the watcher added (the specification edited, its folder written), ``roco spec
     check``, ``verify-code`` and ``deadlock`` pass in the copy, and so does :data:`FAST_PART`
     (``-x -q -n 0 -p no:cacheprovider -m "not walkthrough"``), run by the copy's code on the
-    copy's specification."""
+    copy's specification; the watcher's ``Tipped`` is among the terms whose sample is built from
+    their declaration there."""
     assert checkout.new_agent.returncode == 0, checkout.new_agent.stderr
     for tool in ("check", "verify-code", "deadlock"):
         done = checkout.roco("spec", tool)
@@ -221,6 +226,16 @@ def test_the_tools_and_the_fast_part_of_the_tests_pass_in_the_copy(checkout: Che
     )
     assert done.returncode == 0, done.stdout[-4000:] + done.stderr[-2000:]
     assert " passed" in done.stdout.splitlines()[-1], done.stdout[-2000:]
+    # the watcher's own term is among those whose sample is built from the declaration
+    listed = subprocess.run(
+        [sys.executable, "-m", "pytest", "--collect-only", "-q", "-p", "no:cacheprovider", LANGUAGE_TESTS],
+        cwd=checkout.root,
+        env=checkout.env,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert f"{LANGUAGE_TESTS}::test_a_sample_built_from_the_declaration_round_trips[Tipped]" in listed.stdout
 
 
 def disturbed_at(run_dir: Path) -> float:
