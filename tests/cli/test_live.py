@@ -30,7 +30,7 @@ from shared.fipa_codec.languages.l_hfsm import GroundTaskNetwork, HierarchicalPl
 from shared.fipa_codec.languages.l_sw import SWState, SWStatus
 from tests.support.codec_registry import languages_restored
 from tests.support.messages import communicate
-from tests.support.notice_agents import Tipped
+from tests.support.notice_agents import Fallen
 from tests.support.router import embedded_router
 from velma.executor.state import RobotSnapshot
 from velma.executor.timing import TimingStats
@@ -196,10 +196,10 @@ def test_an_inform_of_a_notice_protocol_is_shown_as_the_term_says_itself_and_ano
     protocol carrying the same term is no notice."""
     state = LiveState(AGENTS, started=0.0, notice_protocols=frozenset({"kitchen-warning"}))
     with languages_restored():
-        extend("L_HC", Tipped)
+        extend("L_HC", Fallen)
         for protocol in ("kitchen-warning", "fipa-subscribe"):
             msg = communicate(
-                Performative.INFORM, "a_wt", "a_hi", protocol, "n", Tipped(object=protocol, tilt_deg=90.0)
+                Performative.INFORM, "a_wt", "a_hi", protocol, "n", Fallen(object=protocol, tilt_deg=90.0)
             )
             state.communicate(keys.fipa_key("C10", "a_wt", "a_hi"), encode(msg))
     p = state.progress(1.0)

@@ -33,7 +33,7 @@ from services.spec.model import load
 from shared.fipa_codec import decode
 from shared.fipa_codec.languages import decode_content
 from shared.fipa_codec.languages.l_wm import WorldUpdate
-from tests.spec_check.walkthrough import AGENT, NEXT, fill, walkthrough_spec, write_terms
+from tests.spec_check.walkthrough import AGENT, NEXT, TERMS_MODULE, fill, walkthrough_spec, write_terms
 
 pytestmark = [pytest.mark.slow, pytest.mark.fleet]
 
@@ -113,14 +113,14 @@ def checkout(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Checkout]:
     doc = root / "docs" / "spec.md"
     folder = root / "services" / "agents" / "watch"
     write_terms(folder, doc)  # before the specification names it: loading it imports the module
-    walkthrough_spec(spec, base=spec, doc=doc)
+    walkthrough_spec(spec, base=spec, doc=doc, terms=TERMS_MODULE)
     env = {k: v for k, v in os.environ.items() if k not in ("ROCO_ACL", "ROCO_SPEC", "ROCO_RUN_DIR")}
     env["PYTHONPATH"] = str(root)
     made = Checkout(root, env, subprocess.CompletedProcess([], 0))
     new_agent = made.roco("spec", "new-agent", AGENT)
     made = Checkout(root, env, new_agent)
     if new_agent.returncode == 0:
-        fill(folder / "agent.py", doc)
+        fill(folder / "agent.py", doc, terms=TERMS_MODULE)
     yield made
 
 

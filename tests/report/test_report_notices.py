@@ -25,7 +25,7 @@ from shared.fipa_codec.languages.l_hc import (
 )
 from tests.report.conftest import RunBuilder
 from tests.support.codec_registry import languages_restored
-from tests.support.notice_agents import Plain, Tipped
+from tests.support.notice_agents import Fallen, Plain
 
 TIPPED = Notice(text="the jar tipped over", severity=Severity.WARNING, about=("jar",))
 
@@ -62,7 +62,7 @@ def watcher_terms() -> Iterator[None]:
     """A watcher's own terms in L_HC, for the test only (services/spec/terms.py puts them there
     for a specification whose agent names them)."""
     with languages_restored():
-        extend("L_HC", Tipped, Plain)
+        extend("L_HC", Fallen, Plain)
         yield
 
 
@@ -79,7 +79,7 @@ def test_a_term_of_a_notice_protocol_is_told_by_its_own_sentence_or_string_form(
         "a_wt",
         "a_hi",
         "inform",
-        Tipped(object="bowl", tilt_deg=170.0),
+        Fallen(object="bowl", tilt_deg=170.0),
         conversation="w1",
         protocol="roco-notify",
     )

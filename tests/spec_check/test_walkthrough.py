@@ -39,18 +39,18 @@ from tests.agents.knowledge.test_scene_subscription import ON_ITS_SIDE, at, seen
 from tests.spec_check.walkthrough import (
     AS_WRITTEN,
     GROUP_EDIT,
-    MODULE,
     NEXT,
     ROOT,
-    TERMS_MODULE,
+    TERMS_PACKAGE,
     Numbers,
+    entries,
     fill,
     free_numbers,
     renumbered,
+    shared_terms,
     snippet,
     staged,
     walkthrough_spec,
-    write_terms,
 )
 from tests.support.codec_registry import languages_restored
 from tests.support.spec_names import use_names
@@ -77,13 +77,11 @@ def stage(tmp_path: Path, *parts: str, edits: dict[str, str] | None = None) -> P
 
 
 def watch_stage(tmp_path: Path, package: str, monkeypatch: pytest.MonkeyPatch) -> Path:
-    """Stages 1 and 2, with the watcher's folder under ``tmp_path`` as ``package`` (a package
-    of its own per test: a module is imported once per process), its terms module written there
-    and ``tmp_path`` on the import path."""
+    """Stages 1 and 2, with the watcher's agent module under ``tmp_path`` as ``package.agent``
+    (a package of its own per test: a module is imported once per process; ``tmp_path`` on the
+    import path) and its terms module the process's (walkthrough.shared_terms)."""
     monkeypatch.syspath_prepend(str(tmp_path))
-    write_terms(tmp_path / package)
-    entries = snippet(2).replace(MODULE, f"{package}.agent").replace(TERMS_MODULE, f"{package}.terms")
-    return stage(tmp_path, snippet(1), entries, edits=GROUP_EDIT)
+    return stage(tmp_path, snippet(1), entries(agent=f"{package}.agent"), edits=GROUP_EDIT)
 
 
 def test_stage_1_a_new_step_makes_check_list_what_is_missing(tmp_path: Path) -> None:
@@ -117,7 +115,7 @@ def test_stage_2_new_agent_writes_the_agent_and_its_service_and_verify_code_list
 
     def new_agent() -> subprocess.CompletedProcess[str]:
         command = ["spec", "new-agent", "a_wt", "--spec", str(path), "--root", str(tmp_path)]
-        env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT), str(tmp_path)])}
+        env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT), str(shared_terms())])}
         return subprocess.run(
             [sys.executable, "-m", "services.cli", *command],
             capture_output=True,
@@ -179,7 +177,7 @@ def test_stage_2_new_agent_writes_the_agent_and_its_service_and_verify_code_list
 def finished_watch(tmp_path: Path, package: str, monkeypatch: pytest.MonkeyPatch) -> Path:
     path = watch_stage(tmp_path, package, monkeypatch)
     module = write_agent(load(path), "a_wt", tmp_path).module
-    fill(module, package=package)
+    fill(module)
     return path
 
 
@@ -190,7 +188,8 @@ def test_stage_3_the_finished_agent_conforms_and_warns_the_person_of_a_tipped_bo
     use_names(load(path), monkeypatch)
     ok, text = verify_code_report(path)
     assert ok, text
-    assert "a_wt: 3 files; 2 protocol roles agree with the specification:" in text
+    # its folder: agent.py and __init__.py (its terms module is the process's: shared_terms)
+    assert "a_wt: 2 files; 2 protocol roles agree with the specification:" in text
     assert (
         f"initiator({C}, FIPA_SUBSCRIBE, L_WM, reply_by_s=2.0, resubscribes=True)"
         in (tmp_path / "walk_wt3" / "agent.py").read_text()
@@ -241,7 +240,7 @@ def test_stage_3_the_finished_agent_conforms_and_warns_the_person_of_a_tipped_bo
         notice = warned.get(timeout=5)
         assert notice.performative is Performative.INFORM and notice.protocol == "kitchen-warning"
         warning = decode_content(notice.language or "", notice.content)
-        assert type(warning).__module__ == "walk_wt3.terms" and type(warning).__name__ == "Tipped"
+        assert type(warning).__module__ == f"{TERMS_PACKAGE}.terms" and type(warning).__name__ == "Tipped"
         assert told(warning) == "the bowl has tipped over"  # what a_hi tells the person
         assert watch.counters["changes"] == 2 and warned.empty()
     finally:

@@ -3,7 +3,7 @@ with one more agent, a_wt (a kitchen watcher), on a channel of its own to a_hi, 
 carries ``roco-notify`` (a_wt initiates) in L_HC; ``ANY_TERM_SPEC`` names no ``contents`` there
 (any L_HC term passes the runtime's check). ``WARNING_SPEC`` carries instead ``kitchen-warning``,
 a notice protocol of its own table (one inform, nothing answers), with the watcher's own terms
-(:class:`Tipped`, which says itself, and :class:`Plain`, which does not; test_agent_notices.py
+(:class:`Fallen`, which says itself, and :class:`Plain`, which does not; test_agent_notices.py
 adds them to L_HC); ``CHAT_SPEC`` carries ``chat``, two messages (an inform answered by an
 inform), which is no notice protocol. The watcher is in notice_watcher.py (the module that
 declares an agent's roles may name only what they send: services/runtime/code_scan.py)."""
@@ -46,8 +46,8 @@ TABLES = {
 """The protocols of :data:`WARNING_SPEC` and :data:`CHAT_SPEC`, as their tables declare them."""
 
 
-class Tipped(msgspec.Struct, frozen=True, tag="tipped_test", kw_only=True):
-    """A thing of the kitchen tipped over (the watcher's own term): says itself."""
+class Fallen(msgspec.Struct, frozen=True, tag="fallen_test", kw_only=True):
+    """A thing of the kitchen fell over (the watcher's own term): says itself."""
 
     object: str
     tilt_deg: float
@@ -73,7 +73,7 @@ class Long(msgspec.Struct, frozen=True, tag="long_test", kw_only=True):
         return "a" * self.n
 
 
-TERMS = (Tipped, Plain, Long)
+TERMS = (Fallen, Plain, Long)
 
 
 def _spec(contents: dict[str, tuple[str, ...]], protocol: str = NOTIFY) -> SystemSpec:
@@ -102,5 +102,5 @@ def _spec(contents: dict[str, tuple[str, ...]], protocol: str = NOTIFY) -> Syste
 
 SPEC = _spec({"inform": ("Notice",)})
 ANY_TERM_SPEC = _spec({})
-WARNING_SPEC = _spec({"inform": ("Tipped", "Plain", "Long")}, WARNING)
+WARNING_SPEC = _spec({"inform": ("Fallen", "Plain", "Long")}, WARNING)
 CHAT_SPEC = _spec({}, CHAT)

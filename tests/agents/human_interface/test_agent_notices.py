@@ -36,9 +36,9 @@ from tests.support.notice_agents import (
     WARNING,
     WARNING_SPEC,
     WATCHER,
+    Fallen,
     Long,
     Plain,
-    Tipped,
 )
 from tests.support.notice_watcher import WarningWatcher, Watcher
 
@@ -118,7 +118,7 @@ def test_a_notice_protocol_of_its_own_with_a_term_of_its_own_is_told_by_the_term
     the person the term's own sentence (``told()``), or a term's string form when it has none."""
     hi, watcher = _start(stage, WARNING_SPEC, WarningWatcher)
     assert hi.roles.role(CHANNEL, WARNING).role == "participant"
-    watcher.tell(Tipped(object="bowl", tilt_deg=170.0), Plain(name="cup"))
+    watcher.tell(Fallen(object="bowl", tilt_deg=170.0), Plain(name="cup"))
     tipped, plain = _notices(stage, 2)
     assert tipped == HumanReport(
         request_id="", kind=ReportKind.NOTICE, text="the bowl has tipped over", sender=WATCHER

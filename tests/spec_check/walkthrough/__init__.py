@@ -12,8 +12,11 @@ added to (:data:`NEXT` for this checkout's)."""
 from __future__ import annotations
 
 import re
+import sys
+import tempfile
 import tomllib
 from dataclasses import dataclass
+from functools import cache
 from pathlib import Path
 
 from services.spec.model import DEFAULT_SPEC
@@ -125,13 +128,48 @@ def staged(text: str, *parts: str, edits: dict[str, str] | None = None) -> str:
     return head + "\n" + decomposition + "\n[[agents]]" + tail + "\n" + rest
 
 
-def walkthrough_spec(path: Path, base: Path = DEFAULT_SPEC, doc: Path = DOC) -> Path:
+TERMS_PACKAGE = "walkthrough_watch"
+"""The package the walk-through's terms module is imported as in a test process of this
+checkout (:func:`shared_terms`): one ``Tipped`` class per process, so that loading the grown
+specification again registers nothing new (shared/fipa_codec/languages/base.py ``extend``
+skips a term it has)."""
+
+
+@cache
+def shared_terms() -> Path:
+    """The folder, put first on ``sys.path`` once per process, that holds the walk-through's
+    terms module (snippet ``terms`` of this checkout's document) as
+    ``TERMS_PACKAGE.terms``: what a specification grown here names (:func:`entries`) and the
+    agents written here import (:func:`fill`). A subprocess that loads such a specification
+    needs it on its PYTHONPATH."""
+    root = Path(tempfile.mkdtemp(prefix="roco-walkthrough-"))
+    write_terms(root / TERMS_PACKAGE)
+    sys.path.insert(0, str(root))
+    return root
+
+
+def entries(
+    doc: Path = DOC, numbers: Numbers | None = None, agent: str = MODULE, terms: str | None = None
+) -> str:
+    """Stage 2's specification entries (snippet 2 of ``doc``, numbered ``numbers``) with the
+    agent's implementation module ``agent`` and its terms module ``terms`` (default: the
+    process's :func:`shared_terms`, ``TERMS_PACKAGE.terms``)."""
+    if terms is None:
+        shared_terms()
+        terms = f"{TERMS_PACKAGE}.terms"
+    return snippet(2, doc=doc, numbers=numbers).replace(MODULE, agent).replace(TERMS_MODULE, terms)
+
+
+def walkthrough_spec(
+    path: Path, base: Path = DEFAULT_SPEC, doc: Path = DOC, terms: str | None = None
+) -> Path:
     """Write to ``path`` the specification ``base`` with ``doc``'s walk-through stages 1 and 2
-    (the new agent a_wt and its channel, numbered :func:`free_numbers` of ``base``); returns
-    ``path``."""
+    (the new agent a_wt, its protocol and its channels, numbered :func:`free_numbers` of
+    ``base``; its terms module ``terms``, by default the process's :func:`shared_terms`: loading
+    the specification imports it); returns ``path``."""
     text = base.read_text()
     numbers = free_numbers(text)
-    stages = (snippet(1, doc=doc, numbers=numbers), snippet(2, doc=doc, numbers=numbers))
+    stages = (snippet(1, doc=doc, numbers=numbers), entries(doc, numbers, terms=terms))
     path.write_text(staged(text, *stages, edits=GROUP_EDIT))
     return path
 
@@ -146,11 +184,11 @@ def write_terms(folder: Path, doc: Path = DOC) -> Path:
     return path
 
 
-def fill(module: Path, doc: Path = DOC, numbers: Numbers | None = None, package: str = PACKAGE) -> None:
+def fill(module: Path, doc: Path = DOC, numbers: Numbers | None = None, terms: str | None = None) -> None:
     """Write stage 3 into the agent ``roco spec new-agent`` wrote at ``module``: snippet 3 (its
     channel numbered ``numbers``, default :data:`NEXT`) in place of ``_periodically`` and the
-    handlers (the end of the class), its imports (the terms module of ``package``, the
-    watcher's folder as a module, default :data:`PACKAGE`), and :data:`RESUBSCRIBES` in its
+    handlers (the end of the class), its imports (``Tipped`` from the terms module ``terms``,
+    by default the process's :func:`shared_terms`), and :data:`RESUBSCRIBES` in its
     subscription's role."""
     text = module.read_text()
     start = text.index("    def _periodically(self) -> None:")
@@ -164,7 +202,10 @@ def fill(module: Path, doc: Path = DOC, numbers: Numbers | None = None, package:
     assert text.count(future) == 1 and text.count(agent) == 1
     assert text.count("from shared.fipa_codec import Performative") == 1
     text = text.replace(future, future + IMPORTS[0])
-    text = text.replace(agent, IMPORTS[1].replace(TERMS_MODULE, f"{package}.terms") + agent)
+    if terms is None:
+        shared_terms()
+        terms = f"{TERMS_PACKAGE}.terms"
+    text = text.replace(agent, IMPORTS[1].replace(TERMS_MODULE, terms) + agent)
     line = next(
         x
         for x in text.splitlines(keepends=True)
