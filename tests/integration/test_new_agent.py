@@ -29,7 +29,6 @@ from pathlib import Path
 import pytest
 
 from services.recorder.record import TrafficRecord, read_payloads, read_records
-from services.spec.model import load
 from shared.fipa_codec import decode
 from shared.fipa_codec.languages import decode_content
 from shared.fipa_codec.languages.l_wm import WorldUpdate
@@ -72,6 +71,20 @@ class Checkout:
     root: Path
     env: dict[str, str]
     new_agent: subprocess.CompletedProcess[str]
+
+    def python(self, code: str) -> str:
+        """What Python ``code`` prints, run in the copy by the copy's code (its specification
+        imports the watcher's terms, which only the copy has)."""
+        done = subprocess.run(
+            [sys.executable, "-c", code],
+            cwd=self.root,
+            env=self.env,
+            capture_output=True,
+            text=True,
+            timeout=120,
+            check=True,
+        )
+        return done.stdout.strip()
 
     def roco(self, *args: str, timeout: float = 300) -> subprocess.CompletedProcess[str]:
         """``roco ARGS`` run in the copy, by the copy's code."""
@@ -286,8 +299,10 @@ def test_it_runs_in_the_fleet_with_access_control_and_the_run_conforms(
     done, run_dir = pour
     assert done.returncode == 0, done.stdout[-3000:] + done.stderr[-2000:]
     alive = next(line for line in done.stdout.splitlines() if "all agents alive" in line)
-    order = load(checkout.root / "services" / "spec" / "robot_companion.toml").launch_order
-    assert alive.endswith(", ".join(order)) and order[-1] == "a_wt", alive
+    order = checkout.python(
+        "from services.spec.model import default_spec; print(*default_spec().launch_order)"
+    )
+    assert alive.endswith(", ".join(order.split())) and order.split()[-1] == "a_wt", alive
     assert (run_dir / "security" / "acl.json").is_file()  # access control was on
     # the traffic record: a_wt's subscription on C, a_km's changes, and one warning on N
     records = [r for r in read_records(run_dir) if r.channel in (C, N)]
