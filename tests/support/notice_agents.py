@@ -73,7 +73,17 @@ class Long(msgspec.Struct, frozen=True, tag="long_test", kw_only=True):
         return "a" * self.n
 
 
-TERMS = (Fallen, Plain, Long)
+class Broken(msgspec.Struct, frozen=True, tag="broken_test", kw_only=True):
+    """A term whose ``told()`` fails."""
+
+    n: int
+
+    def told(self) -> str:
+        """Fails: ValueError."""
+        raise ValueError(f"no sentence for {self.n}")
+
+
+TERMS = (Fallen, Plain, Long, Broken)
 
 
 def _spec(contents: dict[str, tuple[str, ...]], protocol: str = NOTIFY) -> SystemSpec:
@@ -102,5 +112,5 @@ def _spec(contents: dict[str, tuple[str, ...]], protocol: str = NOTIFY) -> Syste
 
 SPEC = _spec({"inform": ("Notice",)})
 ANY_TERM_SPEC = _spec({})
-WARNING_SPEC = _spec({"inform": ("Fallen", "Plain", "Long")}, WARNING)
+WARNING_SPEC = _spec({"inform": ("Fallen", "Plain", "Long", "Broken")}, WARNING)
 CHAT_SPEC = _spec({}, CHAT)

@@ -36,6 +36,7 @@ from tests.support.notice_agents import (
     WARNING,
     WARNING_SPEC,
     WATCHER,
+    Broken,
     Fallen,
     Long,
     Plain,
@@ -133,6 +134,18 @@ def test_a_term_s_over_long_sentence_is_cut_to_a_notice_s_length(stage: Stage, w
     watcher.tell(Long(n=MAX_NOTICE_CHARS + 40), Long(n=MAX_NOTICE_CHARS))
     cut, whole = _notices(stage, 2)
     assert cut.text == "a" * (MAX_NOTICE_CHARS - 1) + CUT and whole.text == "a" * MAX_NOTICE_CHARS
+
+
+def test_a_term_whose_told_fails_is_counted_and_a_hi_goes_on(
+    stage: Stage, watcher_terms: None, caplog: pytest.LogCaptureFixture
+) -> None:
+    hi, watcher = _start(stage, WARNING_SPEC, WarningWatcher)
+    caplog.set_level(logging.WARNING, logger=hi.log.name)
+    watcher.tell(Broken(n=1), Fallen(object="cup", tilt_deg=95.0))
+    (report,) = _notices(stage, 1)
+    assert report.text == "the cup has tipped over"
+    assert hi.counters["notices_unreadable"] == 1 and hi.counters["notices"] == 1
+    assert any("Broken.told() failed: no sentence for 1" in r.getMessage() for r in caplog.records)
 
 
 def test_a_protocol_of_two_messages_is_no_notice_protocol() -> None:
