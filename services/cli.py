@@ -159,11 +159,12 @@ def _live_watch(title: str, live: bool | None, quiet: bool) -> LiveWatch | None:
     from rich.console import Console
 
     from services.live.watch import LiveWatch
+    from services.spec.notices import notice_protocols
 
     console = Console(highlight=False)
     if live is False or (live is None and (quiet or not console.is_terminal)):
         return None
-    return LiveWatch(title, AGENT_ORDER, console=console)
+    return LiveWatch(title, AGENT_ORDER, console=console, notice_protocols=notice_protocols(default_spec()))
 
 
 def _security(acl: bool | None, tls: bool | None) -> None:

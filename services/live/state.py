@@ -9,19 +9,20 @@ caller's clock (``time.monotonic``), ``sim`` on ag_ex's simulation clock."""
 from __future__ import annotations
 
 import threading
-from collections.abc import Callable
+from collections.abc import Callable, Collection
 from dataclasses import dataclass, field
 from typing import Any
 
 import msgspec
 
 from services.runtime import keys
-from shared.fipa_codec import DecodeError, decode
+from shared.fipa_codec import Communicate, DecodeError, Performative, decode
 from shared.fipa_codec.batch import unpack
 from shared.fipa_codec.languages import ContentError, decode_content
 from shared.fipa_codec.languages.l_hc import CommandOutcome, HumanCommand, Notice
 from shared.fipa_codec.languages.l_hfsm import GroundTaskNetwork, HierarchicalPlan
 from shared.fipa_codec.languages.l_sw import SWStatus
+from shared.fipa_codec.languages.told import told
 from velma.executor.timing import TimingStats
 
 
@@ -73,8 +74,10 @@ class Progress:
     overruns: int
     cycles: int
     notice: str | None = None
-    """The last notice an agent sent a_hi for the person (protocol ``roco-notify``): ``a_wt
-    (warning): the jar tipped over``; None: none yet."""
+    """The last notice an agent sent a_hi for the person (an inform of a notice protocol, or
+    carrying an L_HC ``Notice``): its sender, a Notice's severity and what a_hi tells the person
+    (shared/fipa_codec/languages/told.py), ``a_wt (warning): the jar tipped over``; None: none
+    yet."""
     notices: int = 0
     """Notices seen so far."""
 
@@ -82,10 +85,13 @@ class Progress:
 @dataclass
 class LiveState:
     """The fold; ``expected`` the agents that should be alive, ``started`` the wall time
-    (caller's clock, s) the run started."""
+    (caller's clock, s) the run started, ``notice_protocols`` the specification's notice
+    protocols (services/spec/notices.py: their informs are notices to the person, as are the
+    informs carrying an L_HC ``Notice``)."""
 
     expected: tuple[str, ...]
     started: float
+    notice_protocols: Collection[str] = ()
     _lock: threading.Lock = field(default_factory=threading.Lock, repr=False)
     _commands: list[str] = field(default_factory=list)
     _outcome: str | None = None
@@ -117,14 +123,19 @@ class LiveState:
         except (ValueError, DecodeError, ContentError):
             return
         with self._lock:
-            if isinstance(content, Notice):  # said by its sender (the key's)
+            if content is not None and self._is_notice(msg, content):  # said by its sender (the key's)
                 self._notices += 1
-                self._notice = f"{sender} ({content.severity.value}): {content.text}"
+                self._notice = f"{sender}{_severity(content)}: {_told(content)}"
                 return
             for kind, take in _TAKES:
                 if isinstance(content, kind):
                     take(self, content)
                     break
+
+    def _is_notice(self, msg: Communicate, content: msgspec.Struct) -> bool:
+        return isinstance(content, Notice) or (
+            msg.performative is Performative.INFORM and msg.protocol in self.notice_protocols
+        )
 
     def _command(self, content: HumanCommand) -> None:
         self._commands.append(content.text)
@@ -222,3 +233,17 @@ _TAKES: tuple[tuple[type, Callable[[LiveState, Any], None]], ...] = (
     (CommandOutcome, LiveState._command_outcome),
 )
 """What :meth:`LiveState.communicate` takes from a content of each kind (the first that fits)."""
+
+
+def _severity(content: msgspec.Struct) -> str:
+    """`` (warning)`` for a Notice (its severity); empty for another term."""
+    return f" ({content.severity.value})" if isinstance(content, Notice) else ""
+
+
+def _told(content: msgspec.Struct) -> str:
+    """What a_hi tells the person of ``content`` (told.py); its string form when its own
+    ``told()`` fails."""
+    try:
+        return told(content)
+    except Exception:  # a term's own told() is the sender's code: any error of it
+        return told(str(content))

@@ -4,7 +4,7 @@
 from __future__ import annotations
 
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Collection, Sequence
 from types import TracebackType
 from typing import Any
 
@@ -23,7 +23,9 @@ class LiveWatch:
     """``with LiveWatch("roco run", agents) as watch:`` shows the view until the block ends;
     ``watch.attach(session)`` subscribes to the run's traffic, ag_ex's state and the white
     pages; ``watch.line(text)`` prints an event line above the view. ``console`` defaults to
-    a new rich Console on stdout; ``clock`` (s) to ``time.monotonic``."""
+    a new rich Console on stdout; ``clock`` (s) to ``time.monotonic``; ``notice_protocols``: the
+    specification's notice protocols (services/spec/notices.py), whose informs the view shows as
+    notices to the person."""
 
     def __init__(
         self,
@@ -32,10 +34,11 @@ class LiveWatch:
         *,
         console: Console | None = None,
         clock: Callable[[], float] = time.monotonic,
+        notice_protocols: Collection[str] = (),
     ) -> None:
         self.title = title
         self.clock = clock
-        self.state = LiveState(tuple(expected), clock())
+        self.state = LiveState(tuple(expected), clock(), notice_protocols)
         self.console = console or Console(highlight=False)
         self._subscribers: list[Any] = []
         self._live = Live(

@@ -36,6 +36,8 @@ from services.report.robot_clock import RobotClock, robot_clock
 from services.report.stats import agent_matrix, channel_stats, size_stats
 from services.report.timeline import command_text, find_command, find_outcome, link_events, timeline
 from services.runtime.refusals import REFUSALS_JSONL, read_refusals
+from services.spec.model import SpecError, load, spec_path
+from services.spec.notices import notice_protocols
 from shared.fipa_codec.languages.l_hc import CommandOutcome
 from velma.executor.capture import PERCEPTION_LOG as PERCEPTION_JSONL
 from velma.executor.timing import TimingStats
@@ -106,7 +108,7 @@ def _assemble(run: RunData, container: str = "bowl", tracer: Tracer | None = Non
         perception=_perception(Path(run_dir), notes),
         requirements=_requirements(run, tracer, notes),
         flags=_flags(Path(run_dir), notes),
-        notices=notice_rows(messages),
+        notices=notice_rows(messages, _notice_protocols(notes)),
     )
 
 
@@ -126,6 +128,17 @@ def _ledger(run_dir: Path, messages: list[Message], notes: list[str]) -> str:
         notes.append(f"ag_ex's ledger unreadable: {exc}")
         return ""
     return v.summary() if v.found or not v.ok else ""
+
+
+def _notice_protocols(notes: list[str]) -> frozenset[str]:
+    """The notice protocols of the specification ``ROCO_SPEC`` names (services/spec/notices.py);
+    none, with a note, when it does not load (the notices are then the informs carrying an
+    L_HC ``Notice``)."""
+    try:
+        return notice_protocols(load(spec_path()))
+    except SpecError as exc:
+        notes.append(f"notice protocols not read ({exc}): the notices are the informs carrying a Notice")
+        return frozenset()
 
 
 def _flags(run_dir: Path, notes: list[str]) -> list[LiveFlag]:

@@ -642,11 +642,13 @@ def _notices(report: Report) -> str:
     """What agents told the person through a_hi, only when one did (services/report/notices.py)."""
     if not report.notices:
         return ""
-    rows = [(_s(n.t), n.sender, n.severity, " ".join(n.about) or "—", n.text) for n in report.notices]
+    rows = [(_s(n.t), n.sender, n.severity or "—", " ".join(n.about) or "—", n.text) for n in report.notices]
     table = _table(("time (s wall)", "sender", "severity", "about", "text"), rows)
     how = (
-        "**How read.** Every `inform` of the `roco-notify` protocol carrying an L_HC `Notice` in the "
-        "traffic record: an agent telling the person something unprompted through a_hi; the "
+        "**How read.** Every `inform` of a notice protocol (one inform that nothing answers, as "
+        "`roco-notify`) or carrying an L_HC `Notice` in the traffic record: an agent telling the "
+        "person something unprompted through a_hi. The text is what a_hi tells the person: a "
+        "`Notice`'s text, or the term's own sentence (its `told()`), else its string form; the "
         f"sender is the communicate's. a_hi passes on at most {NOTICES_PER_S} a second per sender (the rest "
         "it counts as `notices_dropped`, which `roco status` shows): the record holds every one sent."
     )

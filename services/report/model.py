@@ -273,9 +273,10 @@ class RequirementRow(msgspec.Struct, kw_only=True):
 
 
 class NoticeRow(msgspec.Struct, kw_only=True):
-    """A notice an agent sent a_hi for the person (L_HC ``Notice``, protocol ``roco-notify``): when
-    (``t``, s since the run start), who said it (``sender``), its ``severity``, ``text`` and the
-    things it is ``about``."""
+    """A notice an agent sent a_hi for the person (an inform of a notice protocol, or an L_HC
+    ``Notice``: services/report/notices.py): when (``t``, s since the run start), who said it
+    (``sender``), its ``severity`` and the things it is ``about`` (a ``Notice``'s; empty for
+    another term), and ``text``, what a_hi tells the person."""
 
     t: float
     sender: str

@@ -44,7 +44,8 @@ class ReportKind(enum.StrEnum):
     running) or ``failed`` (some could not be stopped). For a status request ("what are you
     doing?"): ``status``, one line per command. For a question ("what is in the bowl?"):
     ``answer``, one sentence. ``notice``: no request of the person's; an agent tells the person
-    something unprompted (its ``sender``; protocol ``roco-notify``, L_HC ``Notice``).
+    something unprompted (its ``sender``; a notice protocol such as ``roco-notify``:
+    services/spec/notices.py).
     """
 
     ACCEPTED = "accepted"
@@ -73,7 +74,8 @@ class HumanReport(msgspec.Struct, frozen=True, kw_only=True):
     the sentence to be (None: not understood, or a command a_hi restored after its restart).
     A ``notice`` answers no request (``request_id`` empty): ``sender`` names the agent that
     said it, ``severity`` is the L_HC ``Notice``'s (``info``, ``warning``, ``alarm``) and
-    ``about`` the things it names."""
+    ``about`` the things it names (both empty for another term: its ``text`` is what the term
+    says, shared/fipa_codec/languages/told.py)."""
 
     request_id: str
     kind: ReportKind

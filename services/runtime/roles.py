@@ -8,7 +8,11 @@ the specification, services/spec/render_names.py). A role declared on :data:`EVE
 stands for one such role on every channel where the specification gives the agent that role of
 that protocol in exactly those languages (:func:`expand_roles`): an agent that answers the same
 queries wherever they come from serves a channel added to the specification later without an
-edit of its code. It writes one *handler* per performative the other role may send
+edit of its code. A participant role declared on :data:`EVERY_CHANNEL` with the protocol
+:data:`EVERY_NOTICE` stands for its participant role of every *notice protocol* (one initiator
+``inform`` that nothing answers, by the protocol's state machine: services/spec/notices.py) on
+every channel that gives it one in those languages: a_hi's, which tells the person what any
+agent tells it. It writes one *handler* per performative the other role may send
 (:func:`handles`: ``@handles(FIPA_REQUEST, PARTICIPANT, Performative.REQUEST)``), and nothing
 else of the protocol. The runtime's :class:`Roles` — the same code for every protocol, driven
 by the protocol's state machine in the specification (``[protocols.NAME]``, or the built-in
@@ -90,6 +94,7 @@ from services.runtime import keys
 from services.runtime.code_scan import findings_text, scan
 from services.spec.model import ChannelSpec, SpecError, SystemSpec
 from services.spec.names import FIPA_QUERY
+from services.spec.notices import notice_protocols
 from services.spec.protocol_defs import machine_of, streams
 from services.spec.render_names import spellings
 from shared.fipa_codec import Communicate, DecodeError, decode, encode
@@ -105,6 +110,7 @@ if TYPE_CHECKING:
 
 __all__ = [
     "EVERY_CHANNEL",
+    "EVERY_NOTICE",
     "INITIATOR",
     "PARTICIPANT",
     "Conversation",
@@ -143,6 +149,12 @@ def optional(machine: Protocol, role: Role) -> frozenset[Performative]:
 EVERY_CHANNEL = "*"
 """The channel of a role declared for every channel the specification gives the agent with its
 protocol, role and languages (:func:`expand_roles`)."""
+
+EVERY_NOTICE = "*notice"
+"""The protocol of a participant role on :data:`EVERY_CHANNEL` that stands for every notice
+protocol of the specification (services/spec/notices.py: one initiator ``inform``, nothing
+answers), and of its handlers: ``participant(EVERY_CHANNEL, EVERY_NOTICE, L_HC)`` with
+``@handles(EVERY_NOTICE, PARTICIPANT, Performative.INFORM)`` (:func:`expand_roles`)."""
 
 MAX_OPEN = 1024
 """Open conversations a :class:`Roles` keeps before it forgets the oldest (bounded memory)."""
@@ -192,14 +204,21 @@ class RoleDecl:
     ended (a not-understood ended a_ta's plan conversation while a_ta still runs the plan).
     None: taken back in the state it was kept in, and kept while open. Checked against the
     protocol's states when the agent starts (:func:`role_problems`)."""
+    handled_as: str = ""
+    """The protocol the role's handlers name when it is not :attr:`protocol`:
+    :data:`EVERY_NOTICE` for a role :func:`expand_roles` made from a role on every notice
+    protocol; empty otherwise."""
 
     def __post_init__(self) -> None:
         if self.resume_in is not None and (self.role != PARTICIPANT or not self.keep):
             raise ValueError(f"{self}: resume_in is for a participant role declared with keep")
+        if self.protocol == EVERY_NOTICE and (self.channel != EVERY_CHANNEL or self.role != PARTICIPANT):
+            raise ValueError(f"{self}: every notice protocol is a participant role on EVERY_CHANNEL")
 
     def __str__(self) -> str:
         where = "every channel" if self.channel == EVERY_CHANNEL else self.channel
-        return f"{self.role} of {self.protocol} on {where} ({', '.join(self.languages)})"
+        what = "every notice protocol" if self.protocol == EVERY_NOTICE else self.protocol
+        return f"{self.role} of {what} on {where} ({', '.join(self.languages)})"
 
 
 def initiator(
@@ -361,30 +380,44 @@ def expand_roles(spec: SystemSpec, agent: str, declared: Iterable[RoleDecl]) -> 
     reply-by, retransmission and ``unused``) on every channel where the specification gives
     ``agent`` that role of that protocol in exactly those languages, in the specification's
     order; a channel the agent declares that protocol on by itself is left to that declaration.
-    A role on EVERY_CHANNEL that covers no channel is dropped (:func:`role_problems` names it)."""
+    A role of :data:`EVERY_NOTICE` stands so for every notice protocol (services/spec/notices.py),
+    each made the role of that protocol (``handled_as`` EVERY_NOTICE). A role on EVERY_CHANNEL
+    that covers no channel is dropped (:func:`role_problems` names it)."""
     declared = list(declared)
     own = {(d.channel, d.protocol) for d in declared if d.channel != EVERY_CHANNEL}
     given = spec_roles(spec, agent)
+    notices = _notices(spec, declared)
     out: list[RoleDecl] = []
     for decl in declared:
         if decl.channel != EVERY_CHANNEL:
             out.append(decl)
             continue
         out += [
-            replace(decl, channel=r.channel)
-            for r in given
-            if _covers(decl, r) and (r.channel, r.protocol) not in own
+            _on(decl, r) for r in given if _covers(decl, r, notices) and (r.channel, r.protocol) not in own
         ]
     return out
 
 
-def _covers(decl: RoleDecl, given: RoleDecl) -> bool:
-    """Whether role ``decl`` on EVERY_CHANNEL stands for ``given``, a role of the specification."""
-    return (
-        given.protocol == decl.protocol
-        and given.role == decl.role
-        and given.languages == tuple(sorted(decl.languages))
-    )
+def _on(decl: RoleDecl, given: RoleDecl) -> RoleDecl:
+    """Role ``decl`` on EVERY_CHANNEL made the role ``given`` of the specification it stands for."""
+    if decl.protocol == EVERY_NOTICE:
+        return replace(decl, channel=given.channel, protocol=given.protocol, handled_as=EVERY_NOTICE)
+    return replace(decl, channel=given.channel)
+
+
+def _notices(spec: SystemSpec, declared: Sequence[RoleDecl]) -> frozenset[str]:
+    """The specification's notice protocols when a role of ``declared`` is on
+    :data:`EVERY_NOTICE` (else none: not worked out)."""
+    if any(d.protocol == EVERY_NOTICE for d in declared):
+        return notice_protocols(spec)
+    return frozenset()
+
+
+def _covers(decl: RoleDecl, given: RoleDecl, notices: Container[str] = ()) -> bool:
+    """Whether role ``decl`` on EVERY_CHANNEL stands for ``given``, a role of the specification
+    (``notices``: the specification's notice protocols, what :data:`EVERY_NOTICE` stands for)."""
+    protocol = given.protocol in notices if decl.protocol == EVERY_NOTICE else given.protocol == decl.protocol
+    return protocol and given.role == decl.role and given.languages == tuple(sorted(decl.languages))
 
 
 def _every_channel_problems(spec: SystemSpec, agent: str, declared: Sequence[RoleDecl]) -> list[str]:
@@ -393,6 +426,7 @@ def _every_channel_problems(spec: SystemSpec, agent: str, declared: Sequence[Rol
     seen: set[tuple[str, str, tuple[str, ...]]] = set()
     given = spec_roles(spec, agent)
     own = {(d.channel, d.protocol) for d in declared if d.channel != EVERY_CHANNEL}
+    notices = _notices(spec, declared)
     for decl in declared:
         if decl.channel != EVERY_CHANNEL:
             continue
@@ -401,11 +435,12 @@ def _every_channel_problems(spec: SystemSpec, agent: str, declared: Sequence[Rol
             problems.append(f"agent {agent} declares {decl} twice")
             continue
         seen.add(key)
-        covered = [r for r in given if _covers(decl, r)]
+        covered = [r for r in given if _covers(decl, r, notices)]
         if not covered:
+            what = "a notice protocol" if decl.protocol == EVERY_NOTICE else decl.protocol
             problems.append(
                 f"agent {agent} declares itself {decl}, but no [[channels]] entry makes it the "
-                f"{decl.role} of {decl.protocol} in {', '.join(sorted(decl.languages)) or 'no language'}"
+                f"{decl.role} of {what} in {', '.join(sorted(decl.languages)) or 'no language'}"
             )
         elif all((r.channel, r.protocol) in own for r in covered):
             problems.append(
@@ -509,7 +544,7 @@ def role_problems(
                 )
     for h in handlers:
         if not any(
-            h.protocol == d.protocol
+            h.protocol in (d.protocol, d.handled_as)
             and h.role == d.role
             and h.channel in (None, d.channel)
             and not d.unused
@@ -588,11 +623,13 @@ def _other(role: Role) -> Role:
 def _handler_for(
     handlers: Collection[HandlerKey], decl: RoleDecl, perf: Performative | None
 ) -> HandlerKey | None:
-    """The handler of ``perf`` for ``decl``: a channel's own before one for every channel."""
-    for channel in (decl.channel, None):
-        key = HandlerKey(decl.protocol, decl.role, perf, channel)
-        if key in handlers:
-            return key
+    """The handler of ``perf`` for ``decl``: a channel's own before one for every channel, and
+    one for its protocol before one for what it is handled as (:attr:`RoleDecl.handled_as`)."""
+    for protocol in (decl.protocol, decl.handled_as) if decl.handled_as else (decl.protocol,):
+        for channel in (decl.channel, None):
+            key = HandlerKey(protocol, decl.role, perf, channel)
+            if key in handlers:
+                return key
     return None
 
 

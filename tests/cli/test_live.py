@@ -24,10 +24,13 @@ from services.live.watch import LiveWatch
 from services.runtime import keys
 from services.runtime.session import open_client
 from shared.fipa_codec import Performative, encode
+from shared.fipa_codec.languages import extend
 from shared.fipa_codec.languages.l_hc import CommandOutcome, HumanCommand, Notice, Severity, TaskAtom
 from shared.fipa_codec.languages.l_hfsm import GroundTaskNetwork, HierarchicalPlan, PlanNode
 from shared.fipa_codec.languages.l_sw import SWState, SWStatus
+from tests.support.codec_registry import languages_restored
 from tests.support.messages import communicate
+from tests.support.notice_agents import Fallen
 from tests.support.router import embedded_router
 from velma.executor.state import RobotSnapshot
 from velma.executor.timing import TimingStats
@@ -185,6 +188,22 @@ def test_the_view_shows_the_last_notice_to_the_person_with_its_sender() -> None:
     out = io.StringIO()
     Console(file=out, width=120, color_system=None).print(LiveView("roco run", p))
     assert "notice   a_wt (warning): the jar tipped over  (2 in all)" in out.getvalue()
+
+
+def test_an_inform_of_a_notice_protocol_is_shown_as_the_term_says_itself_and_another_is_not() -> None:
+    """An inform of a notice protocol (here ``kitchen-warning``) carrying a term of the sender's
+    own is shown by its ``told()`` (shared/fipa_codec/languages/told.py); an inform of another
+    protocol carrying the same term is no notice."""
+    state = LiveState(AGENTS, started=0.0, notice_protocols=frozenset({"kitchen-warning"}))
+    with languages_restored():
+        extend("L_HC", Fallen)
+        for protocol in ("kitchen-warning", "fipa-subscribe"):
+            msg = communicate(
+                Performative.INFORM, "a_wt", "a_hi", protocol, "n", Fallen(object=protocol, tilt_deg=90.0)
+            )
+            state.communicate(keys.fipa_key("C10", "a_wt", "a_hi"), encode(msg))
+    p = state.progress(1.0)
+    assert (p.notice, p.notices) == ("a_wt: the kitchen-warning has tipped over", 1)
 
 
 @pytest.fixture(scope="module")

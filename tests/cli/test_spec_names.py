@@ -33,7 +33,7 @@ def test_roco_spec_names_writes_and_checks_a_file(tmp_path: Path) -> None:
     assert done.exit_code == 1
     assert done.output == (
         f"roco: {target} differs from what the specification gives "
-        f"(no name {NEXT.channel_name}, {NEXT.notice_channel_name}): "
+        f"(no name {NEXT.channel_name}, {NEXT.notice_channel_name}, KITCHEN_WARNING): "
         "run `roco spec names`\n"
     )
     counts = f"{len(load(spec).channels)} channels, {len(load(spec).protocols)} protocols, 6 languages"

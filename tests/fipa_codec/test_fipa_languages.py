@@ -12,6 +12,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from term_sample import build_sample
 
+from services.spec.terms import load_spec_terms
 from shared.fipa_codec.languages import (
     LANGUAGES,
     ContentError,
@@ -34,7 +35,11 @@ def test_the_six_languages_are_registered() -> None:
 
 
 def _registered() -> list[type[msgspec.Struct]]:
+    """Every term of every language: the codec's, and the specification's agents' own (its
+    ``terms`` modules, services/spec/terms.py; those of docs/spec.md's walk-through where it was
+    added)."""
     load_all()
+    load_spec_terms()
     return [t for lang in LANGUAGES.values() for t in lang.types]
 
 

@@ -1,13 +1,15 @@
-"""A new agent, end to end, as a user adds one (docs/spec.md, "Walk-through: adding an agent"):
-in a copy of this checkout, the walk-through's specification entries are added, ``roco spec
-new-agent a_wt`` writes the agent and renders deploy/compose.yaml, the handlers are written as
-the document writes them, and then the tools agree (spec check, verify-code, the compose file,
-the access control), and ``roco scenario`` has Velma bring the bowl with the new agent in the
-fleet, access control on, and knocks the bowl over as it is set down: the watcher warns the
-person through a_hi within 1 s of robot time of the robot's next look, ``roco scenario``'s
-output and the report show the warning with its sender, and ``roco spec verify`` passes on the
-run. In the same copy, the tools and the fast part of roco's tests pass (:data:`FAST_PART`).
-No other agent's code is edited.
+"""A new agent, end to end, as a user adds one (docs/spec.md, "Walk-through: adding an agent"): in
+a copy of this checkout, the watcher's terms module (``Tipped``) is written in its folder, the
+walk-through's specification entries are added (the agent, its channels, and its own protocol
+``kitchen-warning`` in the table), ``roco spec new-agent a_wt`` writes the agent and renders
+deploy/compose.yaml, the handlers are written as the document writes them, and then the tools
+agree (spec check, verify-code, deadlock, the compose file, the access control), and ``roco
+scenario`` has Velma bring the bowl with the new agent in the fleet, access control on, and
+knocks the bowl over as it is set down: the watcher warns the person through a_hi (a ``Tipped``
+in ``kitchen-warning``, which a_hi tells as the term says itself) within 1 s of robot time of
+the robot's next look, ``roco scenario``'s output and the report show the warning with its
+sender, and ``roco spec verify`` passes on the run. In the same copy, the tools and the fast
+part of roco's tests pass (:data:`FAST_PART`). No other agent's code is edited.
 
 Every command runs in the copy (its working folder, first on PYTHONPATH), so that the copy's
 code runs, not this checkout's (which the virtual environment installs editable)."""
@@ -27,11 +29,10 @@ from pathlib import Path
 import pytest
 
 from services.recorder.record import TrafficRecord, read_payloads, read_records
-from services.spec.model import load
 from shared.fipa_codec import decode
 from shared.fipa_codec.languages import decode_content
 from shared.fipa_codec.languages.l_wm import WorldUpdate
-from tests.spec_check.walkthrough import AGENT, NEXT, fill, walkthrough_spec
+from tests.spec_check.walkthrough import AGENT, NEXT, TERMS_MODULE, fill, walkthrough_spec, write_terms
 
 pytestmark = [pytest.mark.slow, pytest.mark.fleet]
 
@@ -71,6 +72,20 @@ class Checkout:
     env: dict[str, str]
     new_agent: subprocess.CompletedProcess[str]
 
+    def python(self, code: str) -> str:
+        """What Python ``code`` prints, run in the copy by the copy's code (its specification
+        imports the watcher's terms, which only the copy has)."""
+        done = subprocess.run(
+            [sys.executable, "-c", code],
+            cwd=self.root,
+            env=self.env,
+            capture_output=True,
+            text=True,
+            timeout=120,
+            check=True,
+        )
+        return done.stdout.strip()
+
     def roco(self, *args: str, timeout: float = 300) -> subprocess.CompletedProcess[str]:
         """``roco ARGS`` run in the copy, by the copy's code."""
         return subprocess.run(
@@ -109,14 +124,16 @@ def checkout(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Checkout]:
     copy_checkout(root)
     spec = root / "services" / "spec" / "robot_companion.toml"
     doc = root / "docs" / "spec.md"
-    walkthrough_spec(spec, base=spec, doc=doc)
+    folder = root / "services" / "agents" / "watch"
+    write_terms(folder, doc)  # before the specification names it: loading it imports the module
+    walkthrough_spec(spec, base=spec, doc=doc, terms=TERMS_MODULE)
     env = {k: v for k, v in os.environ.items() if k not in ("ROCO_ACL", "ROCO_SPEC", "ROCO_RUN_DIR")}
     env["PYTHONPATH"] = str(root)
     made = Checkout(root, env, subprocess.CompletedProcess([], 0))
     new_agent = made.roco("spec", "new-agent", AGENT)
     made = Checkout(root, env, new_agent)
     if new_agent.returncode == 0:
-        fill(root / "services" / "agents" / "watch" / "agent.py", doc)
+        fill(folder / "agent.py", doc, terms=TERMS_MODULE)
     yield made
 
 
@@ -148,9 +165,9 @@ def test_spec_check_and_verify_code_pass_with_no_edit_of_another_agent(checkout:
     assert done.returncode == 0, done.stdout + done.stderr
     done = checkout.roco("spec", "verify-code")
     assert done.returncode == 0, done.stdout + done.stderr
-    assert "a_wt: 2 files; 2 protocol roles agree with the specification:" in done.stdout
+    assert "a_wt: 3 files; 2 protocol roles agree with the specification:" in done.stdout
     assert f"  {C} fipa-subscribe participant with a_wt in L_WM (declared for every channel)" in done.stdout
-    assert f"  {N} roco-notify participant with a_wt in L_HC (declared for every channel)" in done.stdout
+    assert f"  {N} kitchen-warning participant with a_wt in L_HC (declared for every channel)" in done.stdout
     for agent in ("knowledge", "human_interface"):  # a_km and a_hi serve the new channels as they are
         copied = checkout.root / "services" / "agents" / agent / "agent.py"
         assert copied.read_text() == (ROOT / "services" / "agents" / agent / "agent.py").read_text()
@@ -174,6 +191,10 @@ def test_the_access_control_lets_it_send_on_its_channels_and_nowhere_else(checko
     assert f"roco/fipa/{C}/a_wt/a_km" in rules["a_km/egress/put"]["key_exprs"]
 
 
+LANGUAGE_TESTS = "tests/fipa_codec/test_fipa_languages.py"
+"""The round trip of a sample of every content term (in :data:`FAST_PART`)."""
+
+
 FAST_PART = (
     "tests/spec",
     "tests/spec_check/test_declared_protocol.py",
@@ -183,7 +204,7 @@ FAST_PART = (
     "tests/architecture/test_agents_use_roles.py",
     "tests/architecture/test_complexity.py",
     "tests/architecture/test_imports_resolve.py",
-    "tests/fipa_codec/test_fipa_languages.py",
+    LANGUAGE_TESTS,
 )
 """The fast part of roco's own tests: those a new agent could break, run in the copy after it
 is added, within about 30 s of test time — the specification's model, names, content terms,
@@ -201,7 +222,8 @@ def test_the_tools_and_the_fast_part_of_the_tests_pass_in_the_copy(checkout: Che
     """With the watcher added (the specification edited, its folder written), ``roco spec
     check``, ``verify-code`` and ``deadlock`` pass in the copy, and so does :data:`FAST_PART`
     (``-x -q -n 0 -p no:cacheprovider -m "not walkthrough"``), run by the copy's code on the
-    copy's specification."""
+    copy's specification; the watcher's ``Tipped`` is among the terms whose sample is built from
+    their declaration there."""
     assert checkout.new_agent.returncode == 0, checkout.new_agent.stderr
     for tool in ("check", "verify-code", "deadlock"):
         done = checkout.roco("spec", tool)
@@ -217,6 +239,16 @@ def test_the_tools_and_the_fast_part_of_the_tests_pass_in_the_copy(checkout: Che
     )
     assert done.returncode == 0, done.stdout[-4000:] + done.stderr[-2000:]
     assert " passed" in done.stdout.splitlines()[-1], done.stdout[-2000:]
+    # the watcher's own term is among those whose sample is built from the declaration
+    listed = subprocess.run(
+        [sys.executable, "-m", "pytest", "--collect-only", "-q", "-p", "no:cacheprovider", LANGUAGE_TESTS],
+        cwd=checkout.root,
+        env=checkout.env,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert f"{LANGUAGE_TESTS}::test_a_sample_built_from_the_declaration_round_trips[Tipped]" in listed.stdout
 
 
 def disturbed_at(run_dir: Path) -> float:
@@ -267,8 +299,10 @@ def test_it_runs_in_the_fleet_with_access_control_and_the_run_conforms(
     done, run_dir = pour
     assert done.returncode == 0, done.stdout[-3000:] + done.stderr[-2000:]
     alive = next(line for line in done.stdout.splitlines() if "all agents alive" in line)
-    order = load(checkout.root / "services" / "spec" / "robot_companion.toml").launch_order
-    assert alive.endswith(", ".join(order)) and order[-1] == "a_wt", alive
+    order = checkout.python(
+        "from services.spec.model import default_spec; print(*default_spec().launch_order)"
+    )
+    assert alive.endswith(", ".join(order.split())) and order.split()[-1] == "a_wt", alive
     assert (run_dir / "security" / "acl.json").is_file()  # access control was on
     # the traffic record: a_wt's subscription on C, a_km's changes, and one warning on N
     records = [r for r in read_records(run_dir) if r.channel in (C, N)]
@@ -277,7 +311,7 @@ def test_it_runs_in_the_fleet_with_access_control_and_the_run_conforms(
         assert one in sent, sent
     warnings = [r for r in records if r.channel == N]
     assert [(r.sender, r.receivers, r.performative, r.protocol) for r in warnings] == [
-        ("a_wt", ("a_hi",), "inform", "roco-notify")
+        ("a_wt", ("a_hi",), "inform", "kitchen-warning")
     ], sent
     # the warning within 1 s of robot time of the robot's first look after the knock (the robot
     # learns of a knock only by looking: docs/agents.md, Scenarios); wall times at the run's pace

@@ -140,10 +140,10 @@ def test_a_new_channel_is_named_and_the_committed_module_lacks_it(tmp_path: Path
     text = render(spec)
     assert f"\n{NEW} = Channel.{NEW}\n" in text
     assert f'    {NEW} = "{NEW}"\n    """Between a_wt and a_km (fipa-subscribe): ' in text
-    assert difference(NAMES_FILE.read_text(), spec) == f"no name {NEW}, {NOTICE}"
+    assert difference(NAMES_FILE.read_text(), spec) == f"no name {NEW}, {NOTICE}, KITCHEN_WARNING"
     assert check(NAMES_FILE, spec, "services/spec/names.py") == (
-        f"services/spec/names.py differs from what the specification gives (no name {NEW}, {NOTICE}): "
-        "run `roco spec names`"
+        "services/spec/names.py differs from what the specification gives "
+        f"(no name {NEW}, {NOTICE}, KITCHEN_WARNING): run `roco spec names`"
     )
     module: dict[str, object] = {}
     exec(compile(text, "names", "exec"), module)

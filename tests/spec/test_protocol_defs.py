@@ -12,7 +12,13 @@ import pytest
 
 from services.spec.check import check_report
 from services.spec.model import DEFAULT_SPEC, SpecError, load
-from services.spec.protocol_defs import protocol_from_table, protocols_of, role_mismatches
+from services.spec.protocol_defs import (
+    declares_state_machine,
+    protocol_from_table,
+    protocols_of,
+    read_raw,
+    role_mismatches,
+)
 from shared.fipa_codec.acts import Performative
 from shared.fipa_codec.protocols import PROTOCOLS, ConversationTracker
 
@@ -75,12 +81,17 @@ def test_a_table_builds_the_same_machine_as_the_library(name: str, table: dict[s
 
 def test_the_shipped_spec_uses_the_built_in_protocols_and_declares_roco_notify() -> None:
     """The four protocols the paper's channels use are the built-in ones; roco-notify (a_hi's
-    notices, one inform) is declared in the specification's table."""
+    notices, one inform) is declared in the specification's table, as is any protocol an agent
+    added to it declares (docs/spec.md's walk-through: ``kitchen-warning``)."""
     protocols = protocols_of(DEFAULT_SPEC)
     assert set(protocols) == set(load(DEFAULT_SPEC).protocols)
+    tables = read_raw(DEFAULT_SPEC)["protocols"]
     for name, protocol in protocols.items():
-        if name != "roco-notify":
+        if name in PROTOCOLS:
             assert protocol is PROTOCOLS[name]
+        else:
+            assert declares_state_machine(tables[name]), name
+    assert {"fipa-request", "fipa-query", "fipa-subscribe", "coordinate"} <= set(protocols)
     notify = protocols["roco-notify"]
     assert "roco-notify" not in PROTOCOLS and notify.final == {"told"}
 

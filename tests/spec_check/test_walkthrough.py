@@ -1,8 +1,10 @@
 """The walk-through of docs/spec.md ("adding an agent"), stage by stage: its TOML and Python
-snippets are read from the document itself and added to a copy of the shipped specification
-and to the agent ``roco spec new-agent`` writes, and the tools say what the document says
-they say; a_km serves the new channel with no edit of its code; at the end the new agent and
-a_km run on one bus and the watcher's query is answered. The snippets' requirement, step and
+snippets are read from the document itself and added to a copy of the shipped specification,
+to the agent's folder (its terms module) and to the agent ``roco spec new-agent`` writes, and
+the tools say what the document says they say; a_km and a_hi serve the new channels with no
+edit of their code (a_hi: the new protocol is a notice protocol by its state machine); at the
+end the new agent and a_km run on one bus and the watcher's warning, a term of its own that
+says itself, goes to a_hi. The snippets' requirement, step and
 channel are numbered the next free ones of the shipped specification (R4, 9 and C9 as the
 document writes them, until the specification grows; walkthrough.NEXT). The agent names its
 channel by services/spec/names.py, which new-agent renders again where it writes; in this process the
@@ -10,11 +12,13 @@ module rendered from the staged specification stands in for it (tests/support/sp
 
 from __future__ import annotations
 
+import os
 import queue
 import shutil
 import subprocess
 import sys
 import threading
+from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
@@ -29,23 +33,26 @@ from services.spec_check.code_check import verify_code_report
 from services.spec_check.new_agent import write_agent
 from shared.fipa_codec import Communicate, Performative, decode
 from shared.fipa_codec.languages import decode_content
-from shared.fipa_codec.languages.l_hc import Notice, Severity
+from shared.fipa_codec.languages.told import told
 from tests.agents.knowledge.test_agent import Peer
 from tests.agents.knowledge.test_scene_subscription import ON_ITS_SIDE, at, seen, settled
 from tests.spec_check.walkthrough import (
     AS_WRITTEN,
     GROUP_EDIT,
-    MODULE,
     NEXT,
     ROOT,
+    TERMS_PACKAGE,
     Numbers,
+    entries,
     fill,
     free_numbers,
     renumbered,
+    shared_terms,
     snippet,
     staged,
     walkthrough_spec,
 )
+from tests.support.codec_registry import languages_restored
 from tests.support.spec_names import use_names
 
 HANDLERS = ("_on_failure", "_on_inform", "_on_refuse")
@@ -55,16 +62,26 @@ N = NEXT.notice_channel_name
 """The walk-through's channel to a_hi: C10 in the shipped specification."""
 
 
+@pytest.fixture(autouse=True)
+def _terms_leave_with_the_test() -> Iterator[None]:
+    """Each test's watcher registers its own ``Tipped`` (a package of its own per test): the
+    codec's registry is put back after it."""
+    with languages_restored():
+        yield
+
+
 def stage(tmp_path: Path, *parts: str, edits: dict[str, str] | None = None) -> Path:
     path = tmp_path / "spec.toml"
     path.write_text(staged(DEFAULT_SPEC.read_text(), *parts, edits=edits))
     return path
 
 
-def watch_stage(tmp_path: Path, package: str) -> Path:
-    """Stages 1 and 2, with the watcher written under ``tmp_path`` as ``package.agent`` (a
-    package of its own per test: a module is imported once per process)."""
-    return stage(tmp_path, snippet(1), snippet(2).replace(MODULE, f"{package}.agent"), edits=GROUP_EDIT)
+def watch_stage(tmp_path: Path, package: str, monkeypatch: pytest.MonkeyPatch) -> Path:
+    """Stages 1 and 2, with the watcher's agent module under ``tmp_path`` as ``package.agent``
+    (a package of its own per test: a module is imported once per process; ``tmp_path`` on the
+    import path) and its terms module the process's (walkthrough.shared_terms)."""
+    monkeypatch.syspath_prepend(str(tmp_path))
+    return stage(tmp_path, snippet(1), entries(agent=f"{package}.agent"), edits=GROUP_EDIT)
 
 
 def test_stage_1_a_new_step_makes_check_list_what_is_missing(tmp_path: Path) -> None:
@@ -87,7 +104,7 @@ def test_stage_1_a_new_step_makes_check_list_what_is_missing(tmp_path: Path) -> 
 def test_stage_2_new_agent_writes_the_agent_and_its_service_and_verify_code_lists_its_handlers(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    path = watch_stage(tmp_path, "walk_wt2")
+    path = watch_stage(tmp_path, "walk_wt2", monkeypatch)
     assert check_report(path)[0]
     compose = tmp_path / "deploy" / "compose.yaml"
     compose.parent.mkdir()
@@ -98,8 +115,13 @@ def test_stage_2_new_agent_writes_the_agent_and_its_service_and_verify_code_list
 
     def new_agent() -> subprocess.CompletedProcess[str]:
         command = ["spec", "new-agent", "a_wt", "--spec", str(path), "--root", str(tmp_path)]
+        env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT), str(shared_terms())])}
         return subprocess.run(
-            [sys.executable, "-m", "services.cli", *command], capture_output=True, text=True, cwd=ROOT
+            [sys.executable, "-m", "services.cli", *command],
+            capture_output=True,
+            text=True,
+            cwd=ROOT,
+            env=env,
         )
 
     done = new_agent()
@@ -119,8 +141,10 @@ def test_stage_2_new_agent_writes_the_agent_and_its_service_and_verify_code_list
     assert names.read_text() == render(load(path)) and f"\n{N} = Channel.{N}\n" in names.read_text()
     written = (tmp_path / "walk_wt2" / "agent.py").read_text()
     assert (
-        f"initiator({C}, FIPA_SUBSCRIBE, L_WM)" in written and f"initiator({N}, ROCO_NOTIFY, L_HC)" in written
+        f"initiator({C}, FIPA_SUBSCRIBE, L_WM)" in written
+        and f"initiator({N}, KITCHEN_WARNING, L_HC)" in written
     )
+    assert f"self.roles.open({N}, KITCHEN_WARNING, Tipped(…))" in written
     assert check(compose, load(path)) is None
     assert '    command: ["python", "-m", "services.runtime.main", "a_wt"]' in read(compose)
     again = new_agent()
@@ -131,7 +155,6 @@ def test_stage_2_new_agent_writes_the_agent_and_its_service_and_verify_code_list
         and last.endswith("new-agent writes only new files")
     )
 
-    monkeypatch.syspath_prepend(str(tmp_path))
     use_names(load(path), monkeypatch)
     ok, text = verify_code_report(path)
     assert not ok
@@ -146,13 +169,13 @@ def test_stage_2_new_agent_writes_the_agent_and_its_service_and_verify_code_list
         "cancel, subscribe; sends agree, failure, inform, refuse"
     ) in text
     assert (
-        f"  {N} roco-notify participant with a_wt in L_HC (declared for every channel): receives inform; "
-        "sends nothing"
+        f"  {N} kitchen-warning participant with a_wt in L_HC (declared for every channel): receives "
+        "inform; sends nothing"
     ) in text
 
 
-def finished_watch(tmp_path: Path, package: str) -> Path:
-    path = watch_stage(tmp_path, package)
+def finished_watch(tmp_path: Path, package: str, monkeypatch: pytest.MonkeyPatch) -> Path:
+    path = watch_stage(tmp_path, package, monkeypatch)
     module = write_agent(load(path), "a_wt", tmp_path).module
     fill(module)
     return path
@@ -161,11 +184,11 @@ def finished_watch(tmp_path: Path, package: str) -> Path:
 def test_stage_3_the_finished_agent_conforms_and_warns_the_person_of_a_tipped_bowl(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    path = finished_watch(tmp_path, "walk_wt3")
-    monkeypatch.syspath_prepend(str(tmp_path))
+    path = finished_watch(tmp_path, "walk_wt3", monkeypatch)
     use_names(load(path), monkeypatch)
     ok, text = verify_code_report(path)
     assert ok, text
+    # its folder: agent.py and __init__.py (its terms module is the process's: shared_terms)
     assert "a_wt: 2 files; 2 protocol roles agree with the specification:" in text
     assert (
         f"initiator({C}, FIPA_SUBSCRIBE, L_WM, reply_by_s=2.0, resubscribes=True)"
@@ -175,7 +198,8 @@ def test_stage_3_the_finished_agent_conforms_and_warns_the_person_of_a_tipped_bo
         f"  {C} fipa-subscribe initiator with a_km in L_WM: receives agree, failure, inform, refuse; "
         "sends cancel, subscribe"
     ) in text
-    assert f"  {N} roco-notify initiator with a_hi in L_HC: receives nothing; sends inform" in text
+    assert f"  {N} kitchen-warning initiator with a_hi in L_HC: receives nothing; sends inform" in text
+    assert f"  {N} kitchen-warning participant with a_wt in L_HC (declared for every channel)" in text
 
     # a_km and the watcher on one bus, started from the staged specification (a_km keeps its
     # knowledge in memory); the test plays a_ta and reads what the watcher tells a_hi
@@ -185,8 +209,8 @@ def test_stage_3_the_finished_agent_conforms_and_warns_the_person_of_a_tipped_bo
 
     spec = load(path)
     bus = MemoryBus()
-    told: queue.SimpleQueue[Communicate] = queue.SimpleQueue()
-    bus.subscribe(keys.fipa_key(N, "a_wt", "a_hi"), lambda _k, p: told.put(decode(p)))
+    warned: queue.SimpleQueue[Communicate] = queue.SimpleQueue()
+    bus.subscribe(keys.fipa_key(N, "a_wt", "a_hi"), lambda _k, p: warned.put(decode(p)))
     km = agent_class(spec, "a_km")(bus.transport(), spec)
     watch = agent_class(spec, "a_wt")(bus.transport(), spec)
     for agent in (km, watch):
@@ -213,12 +237,12 @@ def test_stage_3_the_finished_agent_conforms_and_warns_the_person_of_a_tipped_bo
         peer.update(seen(2.0, at("jar", 0.9)))
         peer.update(seen(3.0, at("bowl", 0.5, ON_ITS_SIDE)))
         until("warnings")
-        notice = told.get(timeout=5)
-        assert notice.performative is Performative.INFORM and notice.protocol == "roco-notify"
-        assert decode_content(notice.language or "", notice.content) == Notice(
-            text="the bowl has tipped over", severity=Severity.WARNING, about=("bowl",)
-        )
-        assert watch.counters["changes"] == 2 and told.empty()
+        notice = warned.get(timeout=5)
+        assert notice.performative is Performative.INFORM and notice.protocol == "kitchen-warning"
+        warning = decode_content(notice.language or "", notice.content)
+        assert type(warning).__module__ == f"{TERMS_PACKAGE}.terms" and type(warning).__name__ == "Tipped"
+        assert told(warning) == "the bowl has tipped over"  # what a_hi tells the person
+        assert watch.counters["changes"] == 2 and warned.empty()
     finally:
         km.stop()
         thread.join(timeout=5)

@@ -1,5 +1,6 @@
 """a_wt of tests/agents/human_interface/test_agent_notices.py: tells the person something
-through a_hi (``roco-notify`` on C9, notice_agents.py), whatever content the test gives it."""
+through a_hi (``roco-notify`` on C9, notice_agents.py; :class:`WarningWatcher`:
+``kitchen-warning``), whatever content the test gives it."""
 
 from __future__ import annotations
 
@@ -9,7 +10,7 @@ from services.runtime.agent import Agent
 from services.runtime.behaviour import FSM, Behaviour
 from services.runtime.roles import initiator
 from shared.fipa_codec import Performative
-from tests.support.notice_agents import CHANNEL, NOTIFY, WATCHER
+from tests.support.notice_agents import CHANNEL, NOTIFY, WARNING, WATCHER
 
 
 class Watcher(Agent):
@@ -17,6 +18,7 @@ class Watcher(Agent):
 
     name = WATCHER
     period = 0.01
+    PROTOCOL = NOTIFY
     ROLES = (initiator(CHANNEL, NOTIFY, "L_HC"),)
 
     def build_fsm(self) -> FSM:
@@ -29,5 +31,12 @@ class Watcher(Agent):
     def _tell(self) -> None:
         while self.r:
             for content in self.r.popleft():
-                self.roles.open(CHANNEL, NOTIFY, content, performative=Performative.INFORM)
+                self.roles.open(CHANNEL, self.PROTOCOL, content, performative=Performative.INFORM)
         self.handle_received()
+
+
+class WarningWatcher(Watcher):
+    """The watcher of ``WARNING_SPEC``: its notices in ``kitchen-warning``."""
+
+    PROTOCOL = WARNING
+    ROLES = (initiator(CHANNEL, WARNING, "L_HC"),)

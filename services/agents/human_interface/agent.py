@@ -20,10 +20,13 @@ that a stop never waits for the parse of the line before it; a conversation per 
 what it named and a question asked back (language.py). Agents of other FIPA platforms ask on C8
 (foreign.py).
 
-Notices: a_hi is the participant of ``roco-notify`` on every channel where the specification makes
-it so (C8 today; a new agent with such a channel to a_hi needs no edit here): each L_HC
-``Notice`` goes to the person as a ``notice`` report naming its sender, at most
-``NOTICES_PER_S`` per sender a second (notices.py).
+Notices: a_hi is the participant of every notice protocol (one initiator ``inform`` that nothing
+answers, by its state machine: services/spec/notices.py; ``roco-notify`` is one) on every channel
+where the specification makes it so in L_HC (C8 today; a new agent with such a channel to a_hi
+needs no edit here): each goes to the person as a ``notice`` report naming its sender, at most
+``NOTICES_PER_S`` per sender a second (notices.py). Its text is what the content term says
+(shared/fipa_codec/languages/told.py: a ``Notice``'s text, a term's own ``told()``, else its
+string form).
 
 Restarts (docs/recovery.md): a command's request is retransmitted until a_co agrees; the
 fipa-request role keeps the open commands (``keep=CommandNote``), which a restarted a_hi takes
@@ -83,6 +86,7 @@ from services.runtime.human import (
 )
 from services.runtime.roles import (
     EVERY_CHANNEL,
+    EVERY_NOTICE,
     INITIATOR,
     PARTICIPANT,
     Conversation,
@@ -92,7 +96,7 @@ from services.runtime.roles import (
     participant,
 )
 from services.runtime.subscriptions import StandingSubscription
-from services.spec.names import C2, C7, C8, FIPA_QUERY, FIPA_REQUEST, FIPA_SUBSCRIBE, L_HC, L_WM, ROCO_NOTIFY
+from services.spec.names import C2, C7, C8, FIPA_QUERY, FIPA_REQUEST, FIPA_SUBSCRIBE, L_HC, L_WM
 from shared.fipa_codec import Performative
 from shared.fipa_codec.languages.l_hc import (
     CommandOutcome,
@@ -103,6 +107,7 @@ from shared.fipa_codec.languages.l_hc import (
     Status,
     StatusQuery,
 )
+from shared.fipa_codec.languages.told import told
 
 if TYPE_CHECKING:
     from services.runtime.transport import Transport
@@ -204,7 +209,7 @@ class HumanInterface(AskingKnowledge):
         initiator(C7, FIPA_SUBSCRIBE, L_WM, unused=True),  # changes of the scene: a_km serves them
         participant(C8, FIPA_REQUEST, L_HC),
         # any agent the specification lets tell the person something (module docstring)
-        participant(EVERY_CHANNEL, ROCO_NOTIFY, L_HC),
+        participant(EVERY_CHANNEL, EVERY_NOTICE, L_HC),
     )
 
     def __init__(
@@ -291,31 +296,40 @@ class HumanInterface(AskingKnowledge):
         self.note.keep(report)
         self.foreign.answer(report)
 
-    # ---- notices (roco-notify, participant, on every channel that gives a_hi the role) ---------
-    @handles(ROCO_NOTIFY, PARTICIPANT, Performative.INFORM)
+    # ---- notices (every notice protocol, participant, on every channel that gives a_hi one) ----
+    @handles(EVERY_NOTICE, PARTICIPANT, Performative.INFORM)
     def _on_notice(self, conv: Conversation) -> None:
-        """An agent tells the person something: a ``notice`` report with its name, unless it
-        sent more than the gate passes this second (counted: ``notices_dropped``). A content
-        that does not decode as its channel's ``contents`` allow is answered ``not-understood``
-        by the runtime; one that decodes as another L_HC term (a channel that names no
-        ``contents``) is logged and counted (``notices_unreadable``): roco-notify has no answer."""
-        notice = conv.content
-        if not isinstance(notice, Notice):
+        """An agent tells the person something: a ``notice`` report with its name and what the
+        content says (told.py: an L_HC ``Notice``'s text, with its severity and the things it
+        is about; any other term's ``told()``, else its string form), unless it sent more
+        than the gate passes this second (counted: ``notices_dropped``). A content that does
+        not decode as its channel's ``contents`` allow is answered ``not-understood`` by the
+        runtime; a notice without content, or whose term's ``told()`` fails, is logged and
+        counted (``notices_unreadable``): a notice has no answer."""
+        term = conv.content
+        try:
+            text = told(term) if term is not None else ""
+        except Exception as exc:  # a term's own told() is the sender's code: any error of it
+            text, why = "", f"{type(term).__name__}.told() failed: {exc}"
+        else:
+            why = "no content"
+        if not text:
             self.counters["notices_unreadable"] += 1
-            self.log.warning("a notice from %s is no L_HC Notice: %s", conv.peer, type(notice).__name__)
+            self.log.warning("a notice from %s says nothing to the person: %s", conv.peer, why)
             return
         if not self.notices.admit(conv.peer):
             self.counters["notices_dropped"] += 1
             return
         self.counters["notices"] += 1
-        self.log.info("to person: notice from %s (%s): %s", conv.peer, notice.severity.value, notice.text)
+        severity, about = (term.severity.value, term.about) if isinstance(term, Notice) else ("", ())
+        self.log.info("to person: notice from %s (%s): %s", conv.peer, severity or "-", text)
         report = HumanReport(
             request_id="",
             kind=ReportKind.NOTICE,
-            text=notice.text,
+            text=text,
             sender=conv.peer,
-            severity=notice.severity.value,
-            about=notice.about,
+            severity=severity,
+            about=about,
         )
         self.emit(keys.HUMAN_OUT, msgspec.json.encode(report))
 

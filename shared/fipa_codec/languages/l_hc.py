@@ -15,9 +15,11 @@ On C8, an agent of another FIPA platform asks a_hi as a person would: fipa-reque
 succeeded, stopped for a stop request, the status for a status request) or ``failure``;
 ``refuse`` when it does not understand the sentence.
 
-Any agent the specification gives a channel to a_hi with the ``roco-notify`` protocol (one
-``inform``, nothing answers; inform: FIPA SC00037) tells the person something unprompted
-with a :class:`Notice` (who said it is the communicate's sender).
+Any agent the specification gives a channel to a_hi with the ``roco-notify`` protocol, or
+another notice protocol (one ``inform``, nothing answers; inform: FIPA SC00037;
+services/spec/notices.py), tells the person something unprompted with a :class:`Notice` (who
+said it is the communicate's sender), or with a term of its own that says itself
+(shared/fipa_codec/languages/told.py).
 """
 
 from __future__ import annotations
@@ -156,6 +158,11 @@ class Notice(msgspec.Struct, frozen=True, tag="notice", kw_only=True):
         tuple[Annotated[str, msgspec.Meta(min_length=1, max_length=MAX_NOTICE_NAME_CHARS)], ...],
         msgspec.Meta(max_length=MAX_NOTICE_ABOUT),
     ] = ()
+
+    def told(self) -> str:
+        """What the notice tells the person: its ``text`` (the hook of
+        shared/fipa_codec/languages/told.py)."""
+        return self.text
 
 
 L_HC = register(

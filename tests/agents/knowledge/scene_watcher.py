@@ -22,7 +22,7 @@ class Watcher(Agent):
 
     name = "a_wt"
     ROLES = (
-        initiator("C10", "roco-notify", "L_HC", unused=True),
+        initiator("C10", "kitchen-warning", "L_HC", unused=True),
         initiator("C9", "fipa-subscribe", "L_WM", reply_by_s=2.0, resubscribes=True),
     )
 

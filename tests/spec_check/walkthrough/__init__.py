@@ -1,7 +1,8 @@
 """The walk-through of docs/spec.md ("Walk-through: adding an agent") as text edits, as a user
-makes them: its TOML snippets added to a specification, its Python snippet in place of the
-handlers ``roco spec new-agent`` writes. Used by tests/spec_check/test_walkthrough.py (stage by
-stage) and tests/integration/test_new_agent.py (in a copy of the checkout, with a fleet).
+makes them: its TOML snippets added to a specification, its terms module written in the agent's
+folder, its Python snippet in place of the handlers ``roco spec new-agent`` writes. Used by
+tests/spec_check/test_walkthrough.py (stage by stage) and tests/integration/test_new_agent.py
+(in a copy of the checkout, with a fleet).
 
 The document numbers its requirement, step and channels R4, 9, C9 (to a_km) and C10 (to a_hi),
 the next free ones of the shipped specification. A specification that has grown since takes
@@ -11,8 +12,11 @@ added to (:data:`NEXT` for this checkout's)."""
 from __future__ import annotations
 
 import re
+import sys
+import tempfile
 import tomllib
 from dataclasses import dataclass
+from functools import cache
 from pathlib import Path
 
 from services.spec.model import DEFAULT_SPEC
@@ -20,7 +24,10 @@ from services.spec.model import DEFAULT_SPEC
 ROOT = Path(__file__).resolve().parents[3]
 DOC = ROOT / "docs" / "spec.md"
 AGENT = "a_wt"
-MODULE = "services.agents.watch.agent"
+PACKAGE = "services.agents.watch"
+"""The watcher's folder as the document names it (its agent and terms modules)."""
+MODULE = f"{PACKAGE}.agent"
+TERMS_MODULE = f"{PACKAGE}.terms"
 START_ORDER = 'start_order = ["a_km", "a_pl", "a_co", "ag_ex", "a_ta", "a_hi"]'
 GROUP_EDIT = {
     'group = "hi"': 'group = "ui"',
@@ -31,10 +38,11 @@ asks a_hi, starts after it (the agent started last waits for every other to be h
 none may ask it: services/deploy/compose.py ``_check_readiness``)."""
 IMPORTS = (
     "import math\n\n",
-    "from shared.fipa_codec.languages.l_hc import Notice, Severity\n"
+    f"from {TERMS_MODULE} import Tipped\n",
     "from shared.fipa_codec.languages.l_wm import SceneChange, SceneSubscription\n",
 )
-"""What stage 3 imports (docs/spec.md says so beside the snippet)."""
+"""What stage 3 imports (docs/spec.md says so beside the snippet): the standard library, the
+agent's own terms (among the ``services`` imports), the codec's."""
 RESUBSCRIBES = "reply_by_s=2.0, resubscribes=True"
 """What stage 3 adds to the subscription's role (docs/spec.md says so beside the snippet)."""
 
@@ -100,9 +108,9 @@ def renumbered(text: str, to: Numbers) -> str:
     return re.sub(r"\bC(\d+)\b", lambda m: f"C{numbers.get(int(m[1]), int(m[1]))}", text)
 
 
-def snippet(n: int, kind: str = "toml", doc: Path = DOC, numbers: Numbers | None = None) -> str:
-    """Walk-through snippet ``n`` of ``doc`` (a fenced block ```` ```KIND walkthrough-N ````),
-    renumbered to ``numbers`` (default :data:`NEXT`)."""
+def snippet(n: int | str, kind: str = "toml", doc: Path = DOC, numbers: Numbers | None = None) -> str:
+    """Walk-through snippet ``n`` of ``doc`` (a fenced block ```` ```KIND walkthrough-N ````;
+    ``terms``: the agent's terms module), renumbered to ``numbers`` (default :data:`NEXT`)."""
     m = re.search(rf"```{kind} walkthrough-{n}\n(.*?)```", doc.read_text(), re.S)
     assert m, f"{doc} lost walk-through snippet {n}"
     return renumbered(m.group(1), numbers or NEXT)
@@ -120,22 +128,68 @@ def staged(text: str, *parts: str, edits: dict[str, str] | None = None) -> str:
     return head + "\n" + decomposition + "\n[[agents]]" + tail + "\n" + rest
 
 
-def walkthrough_spec(path: Path, base: Path = DEFAULT_SPEC, doc: Path = DOC) -> Path:
+TERMS_PACKAGE = "walkthrough_watch"
+"""The package the walk-through's terms module is imported as in a test process of this
+checkout (:func:`shared_terms`): one ``Tipped`` class per process, so that loading the grown
+specification again registers nothing new (shared/fipa_codec/languages/base.py ``extend``
+skips a term it has)."""
+
+
+@cache
+def shared_terms() -> Path:
+    """The folder, put first on ``sys.path`` once per process, that holds the walk-through's
+    terms module (snippet ``terms`` of this checkout's document) as
+    ``TERMS_PACKAGE.terms``: what a specification grown here names (:func:`entries`) and the
+    agents written here import (:func:`fill`). A subprocess that loads such a specification
+    needs it on its PYTHONPATH."""
+    root = Path(tempfile.mkdtemp(prefix="roco-walkthrough-"))
+    write_terms(root / TERMS_PACKAGE)
+    sys.path.insert(0, str(root))
+    return root
+
+
+def entries(
+    doc: Path = DOC, numbers: Numbers | None = None, agent: str = MODULE, terms: str | None = None
+) -> str:
+    """Stage 2's specification entries (snippet 2 of ``doc``, numbered ``numbers``) with the
+    agent's implementation module ``agent`` and its terms module ``terms`` (default: the
+    process's :func:`shared_terms`, ``TERMS_PACKAGE.terms``)."""
+    if terms is None:
+        shared_terms()
+        terms = f"{TERMS_PACKAGE}.terms"
+    return snippet(2, doc=doc, numbers=numbers).replace(MODULE, agent).replace(TERMS_MODULE, terms)
+
+
+def walkthrough_spec(
+    path: Path, base: Path = DEFAULT_SPEC, doc: Path = DOC, terms: str | None = None
+) -> Path:
     """Write to ``path`` the specification ``base`` with ``doc``'s walk-through stages 1 and 2
-    (the new agent a_wt and its channel, numbered :func:`free_numbers` of ``base``); returns
-    ``path``."""
+    (the new agent a_wt, its protocol and its channels, numbered :func:`free_numbers` of
+    ``base``; its terms module ``terms``, by default the process's :func:`shared_terms`: loading
+    the specification imports it); returns ``path``."""
     text = base.read_text()
     numbers = free_numbers(text)
-    stages = (snippet(1, doc=doc, numbers=numbers), snippet(2, doc=doc, numbers=numbers))
+    stages = (snippet(1, doc=doc, numbers=numbers), entries(doc, numbers, terms=terms))
     path.write_text(staged(text, *stages, edits=GROUP_EDIT))
     return path
 
 
-def fill(module: Path, doc: Path = DOC, numbers: Numbers | None = None) -> None:
+def write_terms(folder: Path, doc: Path = DOC) -> Path:
+    """Write stage 2's terms module (snippet ``terms`` of ``doc``) as ``folder``/terms.py, the
+    folder made if it is not there (the agent's folder before ``roco spec new-agent``); returns
+    its path."""
+    folder.mkdir(parents=True, exist_ok=True)
+    path = folder / "terms.py"
+    path.write_text(snippet("terms", "python", doc))
+    return path
+
+
+def fill(module: Path, doc: Path = DOC, numbers: Numbers | None = None, terms: str | None = None) -> None:
     """Write stage 3 into the agent ``roco spec new-agent`` wrote at ``module``: snippet 3 (its
     channel numbered ``numbers``, default :data:`NEXT`) in place of ``_periodically`` and the
-    handlers (the end of the class), its imports, and :data:`RESUBSCRIBES` in its subscription's
-    role."""
+    handlers (the end of the class), its imports (``Tipped`` from the terms module ``terms``,
+    by default the process's :func:`shared_terms`), and :data:`RESUBSCRIBES` in its
+    subscription's role."""
     text = module.read_text()
     start = text.index("    def _periodically(self) -> None:")
     text = text[:start] + snippet(3, "python", doc, numbers)
@@ -144,12 +198,18 @@ def fill(module: Path, doc: Path = DOC, numbers: Numbers | None = None) -> None:
     assert text.count(role) == 1, role
     text = text.replace(role, role[:-1] + ", " + RESUBSCRIBES + ")")
     future = "from __future__ import annotations\n\n"
-    assert text.count(future) == 1 and text.count("from shared.fipa_codec import Performative") == 1
+    agent = "from services.runtime.agent import Agent\n"
+    assert text.count(future) == 1 and text.count(agent) == 1
+    assert text.count("from shared.fipa_codec import Performative") == 1
     text = text.replace(future, future + IMPORTS[0])
+    if terms is None:
+        shared_terms()
+        terms = f"{TERMS_PACKAGE}.terms"
+    text = text.replace(agent, IMPORTS[1].replace(TERMS_MODULE, terms) + agent)
     line = next(
         x
         for x in text.splitlines(keepends=True)
         if x.startswith("from shared.fipa_codec import Performative")
     )
-    text = text.replace(line, line + IMPORTS[1])
+    text = text.replace(line, line + IMPORTS[2])
     module.write_text(text)

@@ -1,0 +1,24 @@
+"""The codec's registry of content languages put back as it was (shared/fipa_codec/languages/
+base.py): for a test that adds terms of its own to a language (``extend``, or a specification
+whose agent names a ``terms`` module), so that its terms leave with it."""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from contextlib import contextmanager
+
+from shared.fipa_codec.languages import base, load_all
+
+
+@contextmanager
+def languages_restored() -> Iterator[None]:
+    """The registry after the block is the registry before it."""
+    load_all()
+    languages, by_type = dict(base.LANGUAGES), dict(base._BY_TYPE)
+    try:
+        yield
+    finally:
+        base.LANGUAGES.clear()
+        base.LANGUAGES.update(languages)
+        base._BY_TYPE.clear()
+        base._BY_TYPE.update(by_type)
