@@ -112,7 +112,7 @@ class Runtime:
         """The IK's self-collision check (velma/control/self_collision.py)."""
         self.joint_v_index = tuple(self.robot.v_index(n) for n in self.robot.joint_names)
         self.snapshot_index = np.array(self.joint_v_index, dtype=np.intp)
-        """``joint_v_index`` as an index array (velma.executor.state.raw_state)."""
+        """``joint_v_index`` as an index array (velma.executor.gather.raw_state)."""
         self.grip_site = {s: self.model.site(grip_frame(s)).id for s in SIDES}
         # the snapshot's link bodies and wrist F/T sensors (velma.executor.state)
         self.link_ids = np.array([self.model.body(n).id for n in LINK_BODIES], dtype=np.intp)
