@@ -12,8 +12,12 @@ import enum
 
 import msgspec
 
-from shared.fipa_codec.languages.base import Language, register
+from shared.fipa_codec.languages.base import Language, extend, register
 from shared.fipa_codec.languages.common import Pose, Vec3
+
+TORSO_JOINT = "torso_0_joint"
+"""O_Velma's name of the torso's one joint (a hinge about the vertical, velma/model/README.md
+"Structure"), as in ``MoveJoints.positions`` and ``RobotSnapshot.joints``."""
 
 
 class Arm(enum.StrEnum):
@@ -45,7 +49,7 @@ class MoveTool(msgspec.Struct, frozen=True, tag="move_tool", kw_only=True):
 
 
 class MoveJoints(msgspec.Struct, frozen=True, tag="move_joints", kw_only=True):
-    """Move the named joints (``torso_0_joint``, ``left_arm_3_joint``…) to ``positions`` (rad)
+    """Move the named joints (``TORSO_JOINT``, ``left_arm_3_joint``…) to ``positions`` (rad)
     in ``duration`` seconds under joint impedance."""
 
     positions: dict[str, float]
@@ -180,3 +184,18 @@ L_EX = register(
         (MoveTool, MoveJoints, Grasp, Release, LookAt, Tilt, Observe, Wait, CommandResult, PowerOns, PowerOn),
     )
 )
+
+COMMANDS: dict[str, type[msgspec.Struct]] = {
+    str(t.__struct_config__.tag): t
+    for t in (MoveTool, MoveJoints, Grasp, Release, LookAt, Tilt, Observe, Wait)
+}
+"""The L_EX commands by tag, a table: ag_ex takes a request whose content is one of them
+(``ExecutorCommand`` is the union of those defined here). :func:`add_command` adds a row."""
+
+
+def add_command(command: type[msgspec.Struct]) -> None:
+    """Make ``command`` (a msgspec Struct type with its own ``tag``) an L_EX command: a term of
+    L_EX (``base.extend``) and a row of ``COMMANDS``. Raises ValueError as ``extend`` does
+    (no tag, a tag or name taken, a term of another language)."""
+    extend(L_EX.name, command)
+    COMMANDS[str(command.__struct_config__.tag)] = command
