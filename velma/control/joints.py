@@ -21,6 +21,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 import numpy.typing as npt
 
+from shared.fipa_codec.languages.l_ex import TORSO_JOINT as TORSO_JOINT  # O_Velma's name, stated there
+
 if TYPE_CHECKING:
     import mujoco
 
@@ -28,7 +30,6 @@ Array = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]
 
 SIDES = ("right", "left")
-TORSO_JOINT = "torso_0_joint"
 HEAD_JOINTS = ("head_pan_joint", "head_tilt_joint")
 FINGERS = ("One", "Two", "Three")
 EXPECTED_NV = 33  # torso 1 + head 2 + 2 × (arm 7 + hand 8)

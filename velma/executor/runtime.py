@@ -62,7 +62,7 @@ from velma.world.timing import HOLD_CYCLES
 
 log = logging.getLogger(__name__)
 
-TORSO_Z = 0.03  # m, torso_0_joint above torso_base
+TORSO_Z = 0.03  # m, TORSO_JOINT above torso_base
 AWAY_GAP_S = (HOLD_CYCLES + 1) * DT
 """A gap (s) between two consecutive states wider than this was time the world held the robot
 without its controller (``Runtime.away_s``)."""

@@ -64,6 +64,7 @@ from pathlib import Path
 import numpy as np
 import numpy.typing as npt
 
+from shared.fipa_codec.languages.l_ex import TORSO_JOINT
 from velma.rotations import quat_matrix, quat_mul, quat_rotate, rpy_to_quat
 
 MODEL_DIR = Path(__file__).resolve().parent
@@ -75,7 +76,7 @@ Quat = tuple[float, float, float, float]
 
 # ============================================================== Velma (velma.xml)
 # ----------------------------------------------------------------- torso (facts, "Structure")
-TORSO_JOINT_Z = 0.03  # m, torso_0_joint above torso_base (facts)
+TORSO_JOINT_Z = 0.03  # m, TORSO_JOINT above torso_base (facts)
 TORSO_LIMIT = 1.57  # rad (facts)
 TORSO_VELOCITY = 0.52  # rad/s, 30 °/s (facts)
 TORSO_DAMPING = 10.0  # N·m·s/rad (facts)
@@ -226,7 +227,7 @@ def velocity_limits() -> dict[str, float]:
     finger joints 3.27). MJCF has no velocity-limit field; the controllers enforce them (the
     arms are further limited to ``ARM_CONTROL_VELOCITY`` = 2 rad/s in control)."""
     out = {
-        "torso_0_joint": TORSO_VELOCITY,
+        TORSO_JOINT: TORSO_VELOCITY,
         "head_pan_joint": HEAD_PAN_VELOCITY,
         "head_tilt_joint": NECK_VELOCITY,
     }
@@ -247,7 +248,7 @@ def effort_limits() -> dict[str, float]:
 
     Sources: facts for the arms (100 N·m joints 0–4, 60 N·m joints 5–6); placeholders for the
     torso, neck and hand servos (see the constants)."""
-    out = {"torso_0_joint": TORSO_TORQUE}
+    out = {TORSO_JOINT: TORSO_TORQUE}
     out["head_pan_joint"], out["head_tilt_joint"] = HEAD_SERVO_TORQUE
     for side in ("right", "left"):
         for k, joint in enumerate(ARM_JOINTS):
@@ -603,7 +604,7 @@ def _worldbody(w: Writer) -> None:
     w.open(f'<body name="torso_link0" pos="0 0 {f(TORSO_JOINT_Z)}">')
     w.add(inertial((0, 0, 0.7), TORSO_LINK0_MASS, box_inertia(TORSO_LINK0_MASS, (0.12, 0.18, 0.6))))
     w.add(
-        f'<joint name="torso_0_joint" type="hinge" axis="0 0 1" range="{f(-TORSO_LIMIT, TORSO_LIMIT)}" '
+        f'<joint name="{TORSO_JOINT}" type="hinge" axis="0 0 1" range="{f(-TORSO_LIMIT, TORSO_LIMIT)}" '
         f'damping="{f(TORSO_DAMPING)}" armature="{f(TORSO_ARMATURE)}" '
         f'actuatorfrcrange="{f(-TORSO_TORQUE, TORSO_TORQUE)}"/>'
     )
@@ -636,7 +637,7 @@ def _actuators(w: Writer) -> None:
                 f'ctrlrange="{f(-lim, lim)}" forcerange="{f(-lim, lim)}"/>'
             )
     w.add(
-        f'<motor name="torso_0_motor" joint="torso_0_joint" ctrlrange="{f(-TORSO_TORQUE, TORSO_TORQUE)}" '
+        f'<motor name="torso_0_motor" joint="{TORSO_JOINT}" ctrlrange="{f(-TORSO_TORQUE, TORSO_TORQUE)}" '
         f'forcerange="{f(-TORSO_TORQUE, TORSO_TORQUE)}"/>'
     )
     for joint, kp, torque, lo_hi in (

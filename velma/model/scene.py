@@ -41,6 +41,7 @@ import mujoco
 import numpy as np
 import numpy.typing as npt
 
+from shared.fipa_codec.languages.l_ex import TORSO_JOINT
 from velma.model import KITCHEN_XML
 from velma.model.generate import SCENE_CONAFFINITY, SCENE_CONTYPE
 
@@ -69,7 +70,7 @@ POSE_YAW_MAX = math.radians(10.0)  # rad, |yaw| bound of the pose randomisation
 # palm-down "ready" posture above the shelf (velma/scenario.py RIGHT_PICK_POSTURE explains
 # why). Elbow/wrist joints 1, 3, 5 stay clear of the singular stretch (|q| ≥ 0.2).
 HOME_POSTURE: dict[str, float] = {
-    "torso_0_joint": 0.0,
+    TORSO_JOINT: 0.0,
     "head_pan_joint": 0.0,
     "head_tilt_joint": 0.6,
     "right_arm_0_joint": 1.46,
