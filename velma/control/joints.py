@@ -34,7 +34,7 @@ HEAD_JOINTS = ("head_pan_joint", "head_tilt_joint")
 FINGERS = ("One", "Two", "Three")
 EXPECTED_NV = 33  # torso 1 + head 2 + 2 × (arm 7 + hand 8)
 ROBOT_ROOT = "torso_base"
-"""The root body of Velma's body tree in velma.xml (velma/model/generate.py)."""
+"""The root body of Velma's body tree in velma.xml (velma/model/robot_mjcf.py)."""
 
 
 def arm_joints(side: str) -> tuple[str, ...]:

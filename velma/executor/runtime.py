@@ -306,7 +306,7 @@ class Runtime:
     def ft_force(self, side: str) -> Array:
         """The force (N, (3,), world axes) that ``side``'s arm exerts on its hand through the
         wrist F/T sensor: MuJoCo's ``{side}_ft_force`` (the interaction between arm_7_link and
-        the palm's subtree: palm, fingers and what they hold; velma/model/generate.py) turned
+        the palm's subtree: palm, fingers and what they hold; velma/model/robot_mjcf.py) turned
         from the sensor frame ``{side}_ft_sensor`` into the world's. At rest it carries the
         hand's and the held object's weight (+z); a surface pushing the hand or what it holds
         up lowers it. As of the last physics step, with either cycle: the compiled plant steps

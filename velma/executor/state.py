@@ -15,7 +15,7 @@ from velma.executor.timing import TimingStats
 from velma.rotations import quat_wxyz
 
 # The MuJoCo bodies whose world poses the snapshot carries (20): torso, head, each arm's 7
-# links and each hand's palm (velma/model/generate.py).
+# links and each hand's palm (velma/model/robot_mjcf.py).
 LINK_BODIES: tuple[str, ...] = (
     "torso_base",
     "torso_link0",

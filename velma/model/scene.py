@@ -43,7 +43,7 @@ import numpy.typing as npt
 
 from shared.fipa_codec.languages.l_ex import TORSO_JOINT
 from velma.model import KITCHEN_XML
-from velma.model.generate import SCENE_CONAFFINITY, SCENE_CONTYPE
+from velma.model.mjcf import SCENE_CONAFFINITY, SCENE_CONTYPE
 
 N_PARTICLES = 18
 """Content spheres in the jar. The physics step's cost grows with the contacts: with 27 the
@@ -185,7 +185,7 @@ def build_spec(n_particles: int = N_PARTICLES, seed: int = 0, pose_seed: int | N
             type=mujoco.mjtGeom.mjGEOM_SPHERE,
             size=[PARTICLE_RADIUS, 0, 0],
             mass=PARTICLE_MASS,
-            contype=SCENE_CONTYPE,  # the content collides as the scene does (generate.py)
+            contype=SCENE_CONTYPE,  # the content collides as the scene does (mjcf.py)
             conaffinity=SCENE_CONAFFINITY,
             condim=PARTICLE_CONDIM,
             priority=PARTICLE_PRIORITY,
