@@ -9,6 +9,7 @@ O_Velma (the robot's frames and joints), not O_RoCo.
 from __future__ import annotations
 
 import enum
+import typing
 
 import msgspec
 
@@ -123,6 +124,14 @@ class Wait(msgspec.Struct, frozen=True, tag="wait", kw_only=True):
 
 
 ExecutorCommand = MoveTool | MoveJoints | Grasp | Release | LookAt | Tilt | Observe | Wait
+"""The L_EX commands, a table: a new command is a row here (docs/executor.md, "Adding a robot
+primitive")."""
+
+COMMANDS: dict[str, type[msgspec.Struct]] = {
+    str(t.__struct_config__.tag): t for t in typing.get_args(ExecutorCommand)
+}
+"""The L_EX commands by tag: ag_ex takes a request whose content is one of them.
+:func:`add_command` adds one at run time (a test's)."""
 
 
 def command_name(command: object) -> str:
@@ -181,16 +190,9 @@ L_EX = register(
     Language(
         "L_EX",
         "O_Velma",
-        (MoveTool, MoveJoints, Grasp, Release, LookAt, Tilt, Observe, Wait, CommandResult, PowerOns, PowerOn),
+        (*COMMANDS.values(), CommandResult, PowerOns, PowerOn),
     )
 )
-
-COMMANDS: dict[str, type[msgspec.Struct]] = {
-    str(t.__struct_config__.tag): t
-    for t in (MoveTool, MoveJoints, Grasp, Release, LookAt, Tilt, Observe, Wait)
-}
-"""The L_EX commands by tag, a table: ag_ex takes a request whose content is one of them
-(``ExecutorCommand`` is the union of those defined here). :func:`add_command` adds a row."""
 
 
 def add_command(command: type[msgspec.Struct]) -> None:
