@@ -12,7 +12,7 @@ that is cheaper but drops the jar shows as such.
 
 Variants (the model as ag_ex runs it, with one change each):
 
-- ``baseline``: velma/model/generate.py's ``<option>`` (Newton, implicitfast, pyramidal cones,
+- ``baseline``: velma/model/mjcf.py's ``<option>`` (Newton, implicitfast, pyramidal cones,
   impratio 30, 60 iterations, tolerance 1e-8, constraint islands off), self-collision on,
   frictionless content spheres on three slide joints each (velma/model/scene.py);
 - solver and option settings: ``CG``, ``PGS``, ``elliptic`` cones, ``iterations=3``,
@@ -53,7 +53,7 @@ def _opt(**values: object) -> Tweak:
 
 
 def _no_self_collision(model: mujoco.MjModel) -> None:
-    from velma.model.generate import ROBOT_CONTYPE, SCENE_CONTYPE
+    from velma.model.mjcf import ROBOT_CONTYPE, SCENE_CONTYPE
 
     robot = model.geom_contype == ROBOT_CONTYPE
     model.geom_conaffinity[robot] = SCENE_CONTYPE  # robot geoms still touch the scene

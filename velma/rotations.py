@@ -1,5 +1,5 @@
 """Quaternions (w, x, y, z; MuJoCo's order) and rotation matrices (3, 3, acting on column
-vectors), in numpy alone: what the MJCF generator (velma/model/generate.py), the scripted
+vectors), in numpy alone: what the MJCF writers (velma/model/robot_mjcf.py, kitchen_mjcf.py), the scripted
 experiment (velma/scenario.py) and the robot-state snapshot (velma/executor/state.py, built on
 the communication side, which loads neither Pinocchio nor MuJoCo) share. Pose ↔ SE3 helpers
 are in velma/frames.py (Pinocchio)."""

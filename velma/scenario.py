@@ -26,6 +26,7 @@ import numpy.typing as npt
 
 from shared.fipa_codec.languages.common import Pose, Quat, Vec3
 from shared.fipa_codec.languages.l_ex import (
+    TORSO_JOINT,
     Arm,
     CommandResult,
     ExecutorCommand,
@@ -263,7 +264,7 @@ def pour_commands(bowl: Vec3) -> list[ExecutorCommand]:
     clear = np.array(p.jar_pour_start.position) + _rot_z(TORSO_POUR) @ np.array(POUR_CLEAR_VIEW)
     jar_clear_view = Pose((float(clear[0]), float(clear[1]), float(clear[2])), p.jar_pour_start.orientation)
     return [
-        MoveJoints(positions={"torso_0_joint": TORSO_POUR}, duration=SHORT_MOVE),
+        MoveJoints(positions={TORSO_JOINT: TORSO_POUR}, duration=SHORT_MOVE),
         MoveTool(arm=left, target=p.jar_above_pour, duration=MOVE_DURATION),
         MoveTool(arm=left, target=p.jar_pour_start, duration=SHORT_MOVE),
         Tilt(arm=left, pivot=p.pour_pivot, axis=p.pour_axis, angle=POUR_ANGLE, duration=POUR_DURATION),
@@ -286,7 +287,7 @@ def pour_script(obs: Observation, bowl_on_table: Vec3 | None = None) -> list[Exe
     right_names = [f"right_arm_{k}_joint" for k in range(7)]
     return [
         LookAt(point=HEAD_LOOK_CABINET),
-        MoveJoints(positions={"torso_0_joint": TORSO_PICK}, duration=SHORT_MOVE),
+        MoveJoints(positions={TORSO_JOINT: TORSO_PICK}, duration=SHORT_MOVE),
         # --- jar, left hand
         MoveJoints(positions=dict(zip(left_names, LEFT_PICK_POSTURE, strict=True)), duration=SHORT_MOVE),
         Release(arm=left, opening=PREGRASP_OPENING),
@@ -305,7 +306,7 @@ def pour_script(obs: Observation, bowl_on_table: Vec3 | None = None) -> list[Exe
         MoveTool(arm=right, target=p.bowl_lift, duration=1.0),
         MoveTool(arm=right, target=p.bowl_retreat, duration=SHORT_MOVE),
         # --- turn to the table, place the bowl
-        MoveJoints(positions={"torso_0_joint": TORSO_PLACE}, duration=MOVE_DURATION),
+        MoveJoints(positions={TORSO_JOINT: TORSO_PLACE}, duration=MOVE_DURATION),
         LookAt(point=(float(place[0]), float(place[1]), float(place[2]))),
         MoveTool(arm=right, target=p.bowl_above_place, duration=MOVE_DURATION),
         MoveTool(arm=right, target=p.bowl_place, duration=SHORT_MOVE),

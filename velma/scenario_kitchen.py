@@ -40,6 +40,7 @@ import numpy as np
 
 from shared.fipa_codec.languages.common import Pose, Quat, Vec3
 from shared.fipa_codec.languages.l_ex import (
+    TORSO_JOINT,
     Arm,
     CommandResult,
     ExecutorCommand,
@@ -229,7 +230,7 @@ def face(current: float | None, target: float) -> list[ExecutorCommand]:
     unknown)."""
     if current is not None and abs(current - target) < 1e-9:
         return []
-    return [MoveJoints(positions={"torso_0_joint": target}, duration=_turn_duration(current, target))]
+    return [MoveJoints(positions={TORSO_JOINT: target}, duration=_turn_duration(current, target))]
 
 
 def arm_joint_names(arm: Arm) -> list[str]:

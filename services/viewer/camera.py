@@ -45,7 +45,7 @@ if TYPE_CHECKING:
     from velma.render import SceneCamera
 
 ENTITY = "world/robot/head_camera"
-CAMERA = "head_camera"  # the MJCF camera (velma/model/generate.py)
+CAMERA = "head_camera"  # the MJCF camera (velma/model/robot_mjcf.py)
 PERIOD = 1.0  # s between frames (wall time)
 WIDTH, HEIGHT = 320, 240  # px
 JPEG_QUALITY = 80

@@ -4,7 +4,7 @@ observations.
 Entities (timelines ``wall``, POSIX s, shared with the traffic, and ``sim_time``, s):
 
 - ``world`` — view coordinates, z up (static); ``world/table``, ``world/cabinet`` — boxes
-  (static, sizes and placement from velma/model/generate.py);
+  (static, sizes and placement from velma/model/kitchen_mjcf.py);
 - ``world/objects/<name>`` — ``Transform3D`` of jar, bowl and cup (object frame: bottom
   centre, z up), with a static cylinder ``world/objects/<name>/shape``; the poses come from
   ag_ex's L_SD observations, and while a hand holds an object from its grip frame (the
@@ -20,7 +20,7 @@ Entities (timelines ``wall``, POSIX s, shared with the traffic, and ``sim_time``
   BarrettHand's finger links, nested as in the MJCF (fingers one and two: knuckle, proximal,
   distal; finger three: proximal, distal), each a ``Transform3D`` in its parent link's frame
   computed from the finger joint angles of the snapshot (``FINGER_LINKS``, the constants of
-  velma/model/generate.py), logged for a hand only when one of its angles moved by more than
+  velma/model/robot_mjcf.py), logged for a hand only when one of its angles moved by more than
   ``FINGER_EPS``, with a static shape ``.../shape``;
 - ``world/robot/setpoint/<side>`` — ``Transform3D`` and axes of the commanded grip frame while
   that arm is in Cartesian impedance; cleared when it leaves it;
@@ -55,7 +55,8 @@ from velma import frames as geometry
 from velma.control.joints import SIDES
 from velma.executor.state import FT_AXES, RobotSnapshot
 from velma.executor.timing import TimingStats
-from velma.model import generate as g
+from velma.model import kitchen_mjcf as kitchen
+from velma.model import robot_mjcf as velma
 from velma.rotations import quat_mul, rpy_to_quat
 
 WALL = "wall"
@@ -71,11 +72,15 @@ CONTENT = "scene/content"
 
 # object name -> (radius, height) of the cylinder drawn for it, and its colour
 OBJECT_SHAPES: dict[str, tuple[float, float, tuple[int, int, int]]] = {
-    "jar": (g.JAR_RADIUS, g.JAR_HEIGHT, (120, 200, 230)),
-    "bowl": (g.BOWL_WALL_RADIUS + 2 * g.BOWL_WALL_HALF[2] * np.sin(g.BOWL_FLARE), 0.061, (230, 230, 220)),
-    "cup": (g.CUP_RADIUS, g.CUP_HEIGHT, (200, 120, 90)),
+    "jar": (kitchen.JAR_RADIUS, kitchen.JAR_HEIGHT, (120, 200, 230)),
+    "bowl": (
+        kitchen.BOWL_WALL_RADIUS + 2 * kitchen.BOWL_WALL_HALF[2] * np.sin(kitchen.BOWL_FLARE),
+        0.061,
+        (230, 230, 220),
+    ),
+    "cup": (kitchen.CUP_RADIUS, kitchen.CUP_HEIGHT, (200, 120, 90)),
 }
-NOMINAL_POSITIONS = {"jar": g.JAR_POS, "bowl": g.BOWL_POS, "cup": g.CUP_POS}
+NOMINAL_POSITIONS = {"jar": kitchen.JAR_POS, "bowl": kitchen.BOWL_POS, "cup": kitchen.CUP_POS}
 
 
 Vec3 = tuple[float, float, float]
@@ -91,7 +96,7 @@ class LinkShape(NamedTuple):
     centre: Vec3
 
 
-# Copied from the collision geoms of velma.xml (velma/model/generate.py), so that the viewer
+# Copied from the collision geoms of velma.xml (velma/model/robot_mjcf.py), so that the viewer
 # needs no MuJoCo model.
 _ARM: dict[int, list[LinkShape]] = {
     **{k: [LinkShape("capsule", (0.06, 0.1, 0.0), (0.0, 0.0, 0.1))] for k in range(1, 5)},
@@ -139,12 +144,15 @@ class FingerLink(NamedTuple):
     shape: LinkShape
 
 
-# From velma/model/generate.py (hand, finger): the chain MuJoCo builds, checked against its
+# From velma/model/robot_mjcf.py (hand, finger): the chain MuJoCo builds, checked against its
 # body poses in tests/viewer/test_fingers.py
 _KNUCKLE = LinkShape("box", (0.022, 0.012, 0.008), (0.03, 0.0, 0.004))
 _PROXIMAL = LinkShape("capsule_x", (0.011, 0.025, 0.0), (0.037, 0.0, 0.0))  # 0.012–0.062 m
 _DISTAL = LinkShape("capsule_x", (0.01, 0.0185, 0.0), (0.0265, 0.0, 0.0))  # 0.008–0.045 m
-_DISTAL_ORIGIN = ((g.DISTAL_IN_PROXIMAL_X, 0.0, 0.0), rpy_to_quat((0.0, 0.0, g.DISTAL_BEND)))
+_DISTAL_ORIGIN = (
+    (velma.DISTAL_IN_PROXIMAL_X, 0.0, 0.0),
+    rpy_to_quat((0.0, 0.0, velma.DISTAL_BEND)),
+)
 FINGER_LINKS: tuple[FingerLink, ...] = (
     *(
         link
@@ -154,16 +162,16 @@ FINGER_LINKS: tuple[FingerLink, ...] = (
                 f"finger_{name.lower()}",
                 f"HandFinger{name}KnuckleOneJoint",
                 -sign,  # the spread joints turn the two fingers in opposite senses
-                (sign * g.SPREAD_ORIGIN_X, 0.0, g.SPREAD_ORIGIN_Z),
-                rpy_to_quat((0.0, 0.0, g.SPREAD_YAW)),
+                (sign * velma.SPREAD_ORIGIN_X, 0.0, velma.SPREAD_ORIGIN_Z),
+                rpy_to_quat((0.0, 0.0, velma.SPREAD_YAW)),
                 _KNUCKLE,
             ),
             FingerLink(
                 f"finger_{name.lower()}/proximal",
                 f"HandFinger{name}KnuckleTwoJoint",
                 -1.0,
-                g.PROXIMAL_IN_KNUCKLE,
-                rpy_to_quat(g.PROXIMAL_RPY),
+                velma.PROXIMAL_IN_KNUCKLE,
+                rpy_to_quat(velma.PROXIMAL_RPY),
                 _PROXIMAL,
             ),
             FingerLink(
@@ -179,8 +187,8 @@ FINGER_LINKS: tuple[FingerLink, ...] = (
         "finger_three",
         "HandFingerThreeKnuckleTwoJoint",
         -1.0,
-        g.F3_PROXIMAL_IN_PALM[0],
-        rpy_to_quat(g.F3_PROXIMAL_IN_PALM[1]),
+        velma.F3_PROXIMAL_IN_PALM[0],
+        rpy_to_quat(velma.F3_PROXIMAL_IN_PALM[1]),
         _PROXIMAL,
     ),
     FingerLink("finger_three/distal", "HandFingerThreeKnuckleThreeJoint", -1.0, *_DISTAL_ORIGIN, _DISTAL),
@@ -212,30 +220,30 @@ def transform(pose: Pose) -> rr.Transform3D:
 def log_scene(stream: rr.RecordingStream) -> None:
     """The fixed scene (static): view coordinates, table, cabinet, object shapes."""
     stream.log("world", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
-    tx, ty, tz = g.TABLE_POS
-    top_z = g.TABLE_TOP_HEIGHT - g.TABLE_TOP_HALF_THICKNESS
-    leg_half_h = (g.TABLE_TOP_HEIGHT - 2 * g.TABLE_TOP_HALF_THICKNESS) / 2
-    leg_xy = g.TABLE_HALF - 0.04
+    tx, ty, tz = kitchen.TABLE_POS
+    top_z = kitchen.TABLE_TOP_HEIGHT - kitchen.TABLE_TOP_HALF_THICKNESS
+    leg_half_h = (kitchen.TABLE_TOP_HEIGHT - 2 * kitchen.TABLE_TOP_HALF_THICKNESS) / 2
+    leg_xy = kitchen.TABLE_HALF - 0.04
     centers = [(tx, ty, tz + top_z)]
-    halves = [(g.TABLE_HALF, g.TABLE_HALF, g.TABLE_TOP_HALF_THICKNESS)]
+    halves = [(kitchen.TABLE_HALF, kitchen.TABLE_HALF, kitchen.TABLE_TOP_HALF_THICKNESS)]
     for sx, sy in ((1, 1), (-1, 1), (1, -1), (-1, -1)):
         centers.append((tx + sx * leg_xy, ty + sy * leg_xy, tz + leg_half_h))
-        halves.append((g.TABLE_LEG_HALF, g.TABLE_LEG_HALF, leg_half_h))
+        halves.append((kitchen.TABLE_LEG_HALF, kitchen.TABLE_LEG_HALF, leg_half_h))
     stream.log(
         "world/table",
         rr.Boxes3D(centers=centers, half_sizes=halves, colors=[(150, 110, 70)], fill_mode="solid"),
         static=True,
     )
-    cx, cy, cz = g.CABINET_POS
-    dx, dy = g.CABINET_HALF
-    zc = (g.SHELF_HEIGHT + g.CABINET_HEIGHT) / 2
-    hc = (g.CABINET_HEIGHT - g.SHELF_HEIGHT) / 2
+    cx, cy, cz = kitchen.CABINET_POS
+    dx, dy = kitchen.CABINET_HALF
+    zc = (kitchen.SHELF_HEIGHT + kitchen.CABINET_HEIGHT) / 2
+    hc = (kitchen.CABINET_HEIGHT - kitchen.SHELF_HEIGHT) / 2
     parts = (
-        ((0, 0, g.SHELF_HEIGHT / 2), (dx, dy, g.SHELF_HEIGHT / 2)),
-        ((dx - g.PANEL, 0, zc), (g.PANEL, dy, hc)),
-        ((0, dy - g.PANEL, zc), (dx, g.PANEL, hc)),
-        ((0, -(dy - g.PANEL), zc), (dx, g.PANEL, hc)),
-        ((0, 0, g.CABINET_HEIGHT - g.TOP_HALF), (dx, dy, g.TOP_HALF)),
+        ((0, 0, kitchen.SHELF_HEIGHT / 2), (dx, dy, kitchen.SHELF_HEIGHT / 2)),
+        ((dx - kitchen.PANEL, 0, zc), (kitchen.PANEL, dy, hc)),
+        ((0, dy - kitchen.PANEL, zc), (dx, kitchen.PANEL, hc)),
+        ((0, -(dy - kitchen.PANEL), zc), (dx, kitchen.PANEL, hc)),
+        ((0, 0, kitchen.CABINET_HEIGHT - kitchen.TOP_HALF), (dx, dy, kitchen.TOP_HALF)),
     )
     stream.log(
         "world/cabinet",

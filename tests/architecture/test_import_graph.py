@@ -2,7 +2,9 @@
 "How it is built"), and no package imports another package that imports it back.
 
 A package is a folder directly under ``shared/``, ``services/`` or ``velma/`` (or a module
-there: ``services/cli.py``), and each agent's folder under ``services/agents/``. Every
+there: ``services/cli.py``), and each agent's folder under ``services/agents/``. The agents are
+those of the specification, the tools every other package under ``services/`` above the bottom
+layers: a new one is checked without an edit here. Every
 ``import`` of roco code counts, also those inside functions and under ``TYPE_CHECKING``.
 """
 
@@ -12,9 +14,10 @@ import ast
 from collections import defaultdict
 from pathlib import Path
 
+from services.spec.model import default_spec
+
 ROOT = Path(__file__).resolve().parents[2]
 TOPS = ("shared", "services", "velma")
-AGENTS = ("coordinator", "human_interface", "planner", "knowledge", "task_executor", "executor")
 
 LAYERS = {
     "shared.fipa_codec": set(),
@@ -33,24 +36,25 @@ LAYERS = {
 """The bottom layers and everything each may import (README.md, "How it is built": the codec and
 the settings, the readiness file, the specification's data model, the credentials' format, the
 agent runtime)."""
-TOOLS = (
-    "services.spec_check",
-    "services.spec_live",
-    "services.fleet",
-    "services.deploy",
-    "services.recorder",
-    "services.report",
-    "services.viewer",
-    "services.fault",
-    "services.scenario",
-    "services.bench",
-    "services.sniff",
-    "services.doctor",
-    "services.hosts",
-    "services.live",
-    "services.replay",
-    "services.cli",
-)
+AGENTS = tuple(sorted({a.implementation.split(":")[0].split(".")[2] for a in default_spec().agents}))
+"""The agents' packages (``services.agents.<name>``), from the specification's agents."""
+
+
+def _tools() -> tuple[str, ...]:
+    """Every package under services/ (a folder, or a module such as services/cli.py) that is
+    neither a bottom layer nor an agent nor services/agents itself."""
+    found = set()
+    for path in (ROOT / "services").iterdir():
+        if path.name.startswith(("_", ".")) or not (path.is_dir() or path.suffix == ".py"):
+            continue
+        if path.is_dir() and not any(path.rglob("*.py")):
+            continue
+        found.add(f"services.{path.stem}")
+    return tuple(sorted(found - set(LAYERS) - {"services.agents"}))
+
+
+TOOLS = _tools()
+"""The tools (README.md, "How it is built": layer 5 and the CLI), from the tree."""
 
 
 def package_of(module: str) -> str | None:
@@ -182,3 +186,18 @@ def test_tools_speak_to_agents_and_do_not_import_them() -> None:
         "services.agents.planner",
         "services.agents.task_executor",
     }
+
+
+def test_the_agents_are_the_specifications_and_the_tools_the_trees() -> None:
+    """Each agent's package is a folder under services/agents/ and each folder there an agent's;
+    the tools found in the tree include those the graph names."""
+    tree = {
+        p.name
+        for p in (ROOT / "services" / "agents").iterdir()
+        if p.is_dir() and (p / "__init__.py").exists()
+    }
+    assert set(AGENTS) == tree, set(AGENTS) ^ tree
+    assert {"services.cli", "services.bench", "services.fleet"} <= set(TOOLS)
+    graph = import_graph()
+    services = {p for p in graph if p.startswith("services.") and not p.startswith("services.agents")}
+    assert services == set(TOOLS) | set(LAYERS) - {p for p in LAYERS if not p.startswith("services.")}

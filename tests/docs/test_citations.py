@@ -38,7 +38,7 @@ def test_the_check_reads_the_code_the_tests_and_the_manual(repo: Repository) -> 
     read = {p.relative_to(ROOT).as_posix() for p in citations.scanned_files(repo)}
     assert len(read) > 400
     assert {
-        "velma/model/generate.py",
+        "velma/model/robot_mjcf.py",
         "velma/model/README.md",
         "velma/control/_plant.hpp",
         "services/runtime/transport.py",

@@ -1,5 +1,5 @@
 """velma/model/README.md, the robot's facts in prose, against the model that uses them
-(velma/model/generate.py): the KUKA LWR4+ table, the BarrettHand table, the arm mounts and the
+(velma/model/robot_mjcf.py): the KUKA LWR4+ table, the BarrettHand table, the arm mounts and the
 masses say what the generator writes into velma.xml; its links reach their headings. A number
 changed in a copy of the README is caught."""
 
@@ -12,7 +12,7 @@ from pathlib import Path
 import pytest
 
 from tests.docs import doccheck
-from velma.model import generate
+from velma.model import robot_mjcf as robot
 
 ROOT = Path(__file__).resolve().parents[2]
 README = ROOT / "velma" / "model" / "README.md"
@@ -47,24 +47,24 @@ def _rows(section: str) -> list[list[str]]:
 
 
 def mismatches(text: str) -> list[str]:
-    """What the README ``text`` says that velma/model/generate.py does not use, one line each."""
+    """What the README ``text`` says that velma/model/robot_mjcf.py does not use, one line each."""
     out: list[str] = []
 
     arm = _rows(_section(text, "KUKA LWR4+ arms"))
-    if len(arm) != len(generate.ARM_JOINTS):
-        out.append(f"LWR4+ table: {len(arm)} rows, the model has {len(generate.ARM_JOINTS)} joints")
-    for row, (dz, axis, limit, velocity, torque) in zip(arm, generate.ARM_JOINTS, strict=False):
+    if len(arm) != len(robot.ARM_JOINTS):
+        out.append(f"LWR4+ table: {len(arm)} rows, the model has {len(robot.ARM_JOINTS)} joints")
+    for row, (dz, axis, limit, velocity, torque) in zip(arm, robot.ARM_JOINTS, strict=False):
         joint = (_num(row[1]), AXES.get(row[2]), _num(row[3].lstrip("±")), _num(row[4]), _num(row[5]))
         if joint != (dz, tuple(axis), limit, velocity, torque):
             out.append(f"LWR4+ joint {row[0]}: README {joint}, model {(dz, axis, limit, velocity, torque)}")
 
     hand = {r[0]: r for r in _rows(_section(text, "BarrettHand BH8-282"))}
     ranges = {
-        "finger 1 spread": generate.FINGER_SPREAD_RANGE,
-        "finger 2 spread": generate.FINGER_SPREAD_RANGE,
-        "fingers 1, 2 proximal": generate.PROXIMAL_RANGE,
-        "finger 3 proximal": generate.PROXIMAL_RANGE,
-        "distal (each finger)": generate.DISTAL_RANGE,
+        "finger 1 spread": robot.FINGER_SPREAD_RANGE,
+        "finger 2 spread": robot.FINGER_SPREAD_RANGE,
+        "fingers 1, 2 proximal": robot.PROXIMAL_RANGE,
+        "finger 3 proximal": robot.PROXIMAL_RANGE,
+        "distal (each finger)": robot.DISTAL_RANGE,
     }
     for name, (lo, hi) in ranges.items():
         cells = hand.get(name)
@@ -74,11 +74,11 @@ def mismatches(text: str) -> list[str]:
         ):
             out.append(f"BarrettHand {name}: README range {span}, model {(lo, hi)}")
     origins = {
-        "finger 1 spread": (generate.SPREAD_ORIGIN_X, 0.0, generate.SPREAD_ORIGIN_Z),
-        "finger 2 spread": (-generate.SPREAD_ORIGIN_X, 0.0, generate.SPREAD_ORIGIN_Z),
-        "fingers 1, 2 proximal": generate.PROXIMAL_IN_KNUCKLE,
-        "finger 3 proximal": generate.F3_PROXIMAL_IN_PALM[0],
-        "distal (each finger)": (generate.DISTAL_IN_PROXIMAL_X, 0.0, 0.0),
+        "finger 1 spread": (robot.SPREAD_ORIGIN_X, 0.0, robot.SPREAD_ORIGIN_Z),
+        "finger 2 spread": (-robot.SPREAD_ORIGIN_X, 0.0, robot.SPREAD_ORIGIN_Z),
+        "fingers 1, 2 proximal": robot.PROXIMAL_IN_KNUCKLE,
+        "finger 3 proximal": robot.F3_PROXIMAL_IN_PALM[0],
+        "distal (each finger)": (robot.DISTAL_IN_PROXIMAL_X, 0.0, 0.0),
     }
     for name, xyz in origins.items():
         found = re.search(rf"\(({NUMBER}), ({NUMBER}), ({NUMBER})\)", hand[name][1]) if name in hand else None
@@ -87,18 +87,18 @@ def mismatches(text: str) -> list[str]:
             out.append(f"BarrettHand {name}: README origin {origin}, model {xyz}")
 
     structure = _section(text, "Structure")
-    for side, (xyz, rpy) in generate.ARM_MOUNT.items():
+    for side, (xyz, rpy) in robot.ARM_MOUNT.items():
         found = re.search(rf"{side} \(([^;]*); ([^)]*)\)", structure)
         mount = tuple(tuple(_num(x) for x in part.split(",")) for part in found.groups()) if found else None
         if mount != (xyz, rpy):
             out.append(f"arm mount {side}: README {mount}, model {(xyz, rpy)}")
     for value, pattern in (
-        (generate.TORSO_JOINT_Z, rf"`torso_0_joint` turns `torso_link0` about z,\s+({NUMBER}) above"),
-        (generate.TORSO_LIMIT, rf"limits ±({NUMBER}), velocity 30 °/s"),
-        (generate.TORSO_VELOCITY, rf"30 °/s \(({NUMBER}) rad/s\)"),
-        (generate.TORSO_DAMPING, rf"damping ({NUMBER})\s+N·m·s/rad"),
-        (generate.TORSO_BASE_MASS, rf"weigh ({NUMBER}) kg each"),
-        (generate.NECK_VELOCITY, rf"at most ({NUMBER}) rad/s"),
+        (robot.TORSO_JOINT_Z, rf"`torso_0_joint` turns `torso_link0` about z,\s+({NUMBER}) above"),
+        (robot.TORSO_LIMIT, rf"limits ±({NUMBER}), velocity 30 °/s"),
+        (robot.TORSO_VELOCITY, rf"30 °/s \(({NUMBER}) rad/s\)"),
+        (robot.TORSO_DAMPING, rf"damping ({NUMBER})\s+N·m·s/rad"),
+        (robot.TORSO_BASE_MASS, rf"weigh ({NUMBER}) kg each"),
+        (robot.NECK_VELOCITY, rf"at most ({NUMBER}) rad/s"),
     ):
         found = re.search(pattern, structure)
         if found is None or _num(found.group(1)) != value:
@@ -106,14 +106,19 @@ def mismatches(text: str) -> list[str]:
     head = re.search(
         rf"`head_base` sits on `torso_link0` at \(({NUMBER}), ({NUMBER}), ({NUMBER})\)", structure
     )
-    if head is None or tuple(_num(x) for x in head.groups()) != generate.HEAD_BASE:
-        out.append(f"Structure: head_base at {head and head.groups()}, model {generate.HEAD_BASE}")
+    if head is None or tuple(_num(x) for x in head.groups()) != robot.HEAD_BASE:
+        out.append(f"Structure: head_base at {head and head.groups()}, model {robot.HEAD_BASE}")
 
     masses = re.search(
         rf"Palm ({NUMBER}) kg, knuckle-one ({NUMBER}) kg, proximal ({NUMBER}) kg, distal ({NUMBER}) kg",
         _section(text, "BarrettHand BH8-282"),
     )
-    model = (generate.PALM_MASS, generate.KNUCKLE_ONE_MASS, generate.PROXIMAL_MASS, generate.DISTAL_MASS)
+    model = (
+        robot.PALM_MASS,
+        robot.KNUCKLE_ONE_MASS,
+        robot.PROXIMAL_MASS,
+        robot.DISTAL_MASS,
+    )
     if masses is None or tuple(_num(x) for x in masses.groups()) != model:
         out.append(f"BarrettHand masses: README {masses and masses.groups()}, model {model}")
     return out

@@ -24,6 +24,8 @@ def build_sample(kind: type[msgspec.Struct]) -> msgspec.Struct:
 
 
 def _value(t: mi.Type) -> Any:
+    if isinstance(t, mi.Metadata) and isinstance(t.type, mi.RawType) and "language" in (t.extra or {}):
+        return _term_of(str((t.extra or {})["language"]))  # a term of that language, taken as raw bytes
     if isinstance(t, mi.Metadata):
         return _value(t.type)
     if isinstance(t, mi.StructType):
@@ -55,3 +57,15 @@ def _value(t: mi.Type) -> Any:
     if isinstance(t, mi.UnionType):
         return _value(next((x for x in t.types if not isinstance(x, mi.NoneType)), t.types[0]))
     raise NoSample(f"no simple value of {type(t).__name__}")
+
+
+def _term_of(language: str) -> msgspec.Raw:
+    """The encoded sample of the first term of ``language`` the builder has a value for."""
+    from shared.fipa_codec.languages import LANGUAGES, encode_term
+
+    for kind in LANGUAGES[language].types:
+        try:
+            return msgspec.Raw(encode_term(build_sample(kind)))
+        except NoSample:
+            continue
+    raise NoSample(f"no term of {language} has a simple value")

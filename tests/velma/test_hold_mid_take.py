@@ -31,7 +31,7 @@ from shared.fipa_codec.languages.l_sd import Observation
 from velma.executor import checkpoint as ck
 from velma.executor.loop import ControlLoop
 from velma.executor.runtime import Runtime
-from velma.model.generate import CUP_POS
+from velma.model.kitchen_mjcf import CUP_POS
 from velma.scenario import JAR_LIFT, JAR_RETREAT, script_poses
 
 Result = CommandResult | Observation

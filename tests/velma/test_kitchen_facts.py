@@ -1,4 +1,4 @@
-"""The kitchen's geometry is stated once, in the robot's scene (velma/model/generate.py, built
+"""The kitchen's geometry is stated once, in the robot's scene (velma/model/kitchen_mjcf.py, built
 into the MuJoCo model by velma/model/scene.py); a_km's facts about it
 (services/agents/knowledge/kitchen.ttl) agree with it. The planner holds no
 geometry of its own: it plans from a_km's answers, and tests/agents/planner/
@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from services.agents.knowledge.world_model import WorldModel
-from velma.model import generate as g
+from velma.model import kitchen_mjcf as kitchen
 from velma.model.scene import initial_state, load_kitchen
 
 SIZE_TOLERANCE_M = 0.011
@@ -66,15 +66,18 @@ def test_a_kms_sizes_of_the_objects_hold_the_models_geoms(
 
 
 def test_the_jar_and_the_cup_are_the_cylinders_the_model_builds(world: WorldModel) -> None:
-    for obj, radius, height in (("jar", g.JAR_RADIUS, g.JAR_HEIGHT), ("cup", g.CUP_RADIUS, g.CUP_HEIGHT)):
+    for obj, radius, height in (
+        ("jar", kitchen.JAR_RADIUS, kitchen.JAR_HEIGHT),
+        ("cup", kitchen.CUP_RADIUS, kitchen.CUP_HEIGHT),
+    ):
         assert world.object_info(obj).size == pytest.approx((2 * radius, 2 * radius, height))
 
 
 def test_places_in_the_cabinet_are_where_the_model_puts_the_objects_on_its_shelf(world: WorldModel) -> None:
-    for obj, where in (("jar", g.JAR_POS), ("bowl", g.BOWL_POS)):
+    for obj, where in (("jar", kitchen.JAR_POS), ("bowl", kitchen.BOWL_POS)):
         (position,) = world.placement(obj, "cabinet").positions
         assert position == pytest.approx(where)
-        assert position[2] == pytest.approx(g.SHELF_HEIGHT)
+        assert position[2] == pytest.approx(kitchen.SHELF_HEIGHT)
 
 
 @pytest.mark.parametrize("obj", ["jar", "bowl", "cup"])
@@ -82,10 +85,17 @@ def test_places_on_the_table_are_on_its_top(world: WorldModel, obj: str) -> None
     size = world.object_info(obj).size
     assert size is not None
     for x, y, z in world.placement(obj, "table").positions:
-        assert z == pytest.approx(g.TABLE_TOP_HEIGHT)
-        for centre, at, half in ((g.TABLE_POS[0], x, size[0] / 2), (g.TABLE_POS[1], y, size[1] / 2)):
+        assert z == pytest.approx(kitchen.TABLE_TOP_HEIGHT)
+        for centre, at, half in (
+            (kitchen.TABLE_POS[0], x, size[0] / 2),
+            (kitchen.TABLE_POS[1], y, size[1] / 2),
+        ):
             # to rounding: the bowl's bound (its rim's margin included) reaches the edge exactly
-            assert abs(at - centre) + half <= g.TABLE_HALF + 1e-9, (obj, (x, y), "overhangs the table")
+            assert abs(at - centre) + half <= kitchen.TABLE_HALF + 1e-9, (
+                obj,
+                (x, y),
+                "overhangs the table",
+            )
 
 
 def test_the_bowls_table_place_is_the_scripts(world: WorldModel) -> None:
@@ -140,9 +150,17 @@ PACKING = 0.5
 @pytest.mark.parametrize(
     ("obj", "radius", "height"),
     [
-        ("jar", g.JAR_RADIUS - g.JAR_WALL, g.JAR_HEIGHT - g.JAR_BOTTOM),
-        ("cup", g.CUP_RADIUS - g.CUP_WALL, g.CUP_HEIGHT - g.CUP_BOTTOM),
-        ("bowl", g.BOWL_INNER_RADIUS, g.BOWL_INNER_TOP - g.BOWL_BOTTOM),
+        (
+            "jar",
+            kitchen.JAR_RADIUS - kitchen.JAR_WALL,
+            kitchen.JAR_HEIGHT - kitchen.JAR_BOTTOM,
+        ),
+        (
+            "cup",
+            kitchen.CUP_RADIUS - kitchen.CUP_WALL,
+            kitchen.CUP_HEIGHT - kitchen.CUP_BOTTOM,
+        ),
+        ("bowl", kitchen.BOWL_INNER_RADIUS, kitchen.BOWL_INNER_TOP - kitchen.BOWL_BOTTOM),
     ],
 )
 def test_a_containers_capacity_is_what_its_inner_cylinder_takes(
@@ -160,15 +178,20 @@ def test_a_containers_capacity_is_what_its_inner_cylinder_takes(
 def test_the_place_areas_are_the_table_top_and_the_cabinet_shelf(world: WorldModel) -> None:
     from services.agents.knowledge.plan_check import place_area
 
-    tx, ty, _ = g.TABLE_POS
+    tx, ty, _ = kitchen.TABLE_POS
     assert place_area(world, "table") == pytest.approx(
-        (tx - g.TABLE_HALF, ty - g.TABLE_HALF, tx + g.TABLE_HALF, ty + g.TABLE_HALF)
+        (
+            tx - kitchen.TABLE_HALF,
+            ty - kitchen.TABLE_HALF,
+            tx + kitchen.TABLE_HALF,
+            ty + kitchen.TABLE_HALF,
+        )
     )
-    cx, cy, _ = g.CABINET_POS
-    depth, width = g.CABINET_HALF
-    inside = width - 2 * g.PANEL
+    cx, cy, _ = kitchen.CABINET_POS
+    depth, width = kitchen.CABINET_HALF
+    inside = width - 2 * kitchen.PANEL
     assert place_area(world, "cabinet") == pytest.approx(
-        (cx - depth, cy - inside, cx + depth - 2 * g.PANEL, cy + inside)
+        (cx - depth, cy - inside, cx + depth - 2 * kitchen.PANEL, cy + inside)
     )
 
 

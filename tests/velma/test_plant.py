@@ -14,10 +14,11 @@ from velma.control.joints import SIDES
 from velma.control.mujoco_side import ENV_PLANT, plant_choice
 from velma.control.robot_model import RobotModel
 from velma.executor import plant as plant_module
+from velma.executor.gather import raw_state
 from velma.executor.handoff import LatestValue
 from velma.executor.plant import plant_unavailable
 from velma.executor.runtime import Runtime
-from velma.executor.state import raw_layout, raw_state
+from velma.executor.state import raw_layout
 from velma.executor.state_block import StateReader, StateWriter, state_values
 
 pytestmark = pytest.mark.skipif(

@@ -25,7 +25,7 @@ from velma.control.self_collision import (
     wrist_field,
 )
 from velma.model import VELMA_XML
-from velma.model.generate import SELF_COLLISION_EXCLUDES
+from velma.model.robot_mjcf import SELF_COLLISION_EXCLUDES
 
 # the left wrist of the pour's first reach before the IK knew about self-collision: the
 # palm's F/T housing 1 mm into the forearm

@@ -16,12 +16,12 @@ from velma import scenario as sc
 from velma import scenario_kitchen as sk
 from velma.executor import Executor
 from velma.executor.ground_truth import CONTAINERS, KNOWN_OBJECTS
-from velma.model import generate as gen
+from velma.model import kitchen_mjcf as kitchen
 from velma.model.scene import initial_state, load_kitchen
 from velma.rotations import quat_to_rot
 
-TABLE_MIN = np.array(gen.TABLE_POS[:2]) - gen.TABLE_HALF
-TABLE_MAX = np.array(gen.TABLE_POS[:2]) + gen.TABLE_HALF
+TABLE_MIN = np.array(kitchen.TABLE_POS[:2]) - kitchen.TABLE_HALF
+TABLE_MAX = np.array(kitchen.TABLE_POS[:2]) + kitchen.TABLE_HALF
 
 
 def _rot(pose: Pose) -> np.ndarray:
@@ -52,18 +52,18 @@ def test_cup_stands_in_the_cabinet_and_is_perceived() -> None:
     model = load_kitchen()
     data = initial_state(model)
     cup = model.body("cup")
-    assert np.allclose(data.xpos[cup.id], gen.CUP_POS, atol=1e-3)
-    assert math.isclose(float(model.body_mass[cup.id]), gen.CUP_MASS)
+    assert np.allclose(data.xpos[cup.id], kitchen.CUP_POS, atol=1e-3)
+    assert math.isclose(float(model.body_mass[cup.id]), kitchen.CUP_MASS)
     # inertia of a thin-walled open cylinder: between a solid and a hollow one of its size
     izz = float(model.body_inertia[cup.id][2])
-    r = gen.CUP_RADIUS
-    assert gen.CUP_MASS * r**2 / 2 < izz < gen.CUP_MASS * r**2
+    r = kitchen.CUP_RADIUS
+    assert kitchen.CUP_MASS * r**2 / 2 < izz < kitchen.CUP_MASS * r**2
     assert "cup" in KNOWN_OBJECTS and "cup" in CONTAINERS
     # in line with jar and bowl, half-way between them, inside the compartment
-    assert gen.CUP_POS[0] == gen.JAR_POS[0] == gen.BOWL_POS[0]
-    assert abs(gen.CUP_POS[1]) < 1e-12 and gen.CUP_POS[2] == gen.SHELF_HEIGHT
-    front = gen.CABINET_POS[0] - gen.CABINET_HALF[0]
-    assert gen.CUP_POS[0] - gen.CUP_RADIUS > front
+    assert kitchen.CUP_POS[0] == kitchen.JAR_POS[0] == kitchen.BOWL_POS[0]
+    assert abs(kitchen.CUP_POS[1]) < 1e-12 and kitchen.CUP_POS[2] == kitchen.SHELF_HEIGHT
+    front = kitchen.CABINET_POS[0] - kitchen.CABINET_HALF[0]
+    assert kitchen.CUP_POS[0] - kitchen.CUP_RADIUS > front
 
 
 # ----------------------------------------------------------------- geometry rules
@@ -90,10 +90,10 @@ def test_grasp_turned_by_the_facing_approaches_along_the_torso_forward() -> None
 
 def test_table_places_are_free_and_on_the_table() -> None:
     bowl = np.array(sc.BOWL_PLACE_POSITION[:2])
-    spots = {"jar": (sk.JAR_TABLE, gen.JAR_RADIUS), "cup": (sk.CUP_TABLE, gen.CUP_RADIUS)}
+    spots = {"jar": (sk.JAR_TABLE, kitchen.JAR_RADIUS), "cup": (sk.CUP_TABLE, kitchen.CUP_RADIUS)}
     for place, radius in spots.values():
         xy = np.array(place.position[:2])
-        assert place.position[2] == gen.TABLE_TOP_HEIGHT
+        assert place.position[2] == kitchen.TABLE_TOP_HEIGHT
         assert np.all(xy - radius - 0.05 > TABLE_MIN) and np.all(xy + radius + 0.05 < TABLE_MAX)
         assert np.linalg.norm(xy - bowl) > 0.2
     jar, cup = (np.array(p.position[:2]) for p, _ in spots.values())
@@ -103,7 +103,7 @@ def test_table_places_are_free_and_on_the_table() -> None:
 
 @pytest.mark.requirement("R3.1")
 def test_fetch_and_place_follow_the_planner_steps() -> None:
-    fetch = sk.fetch_commands(sk.CUP_TOP_GRASP, gen.CUP_POS, 0.0, sk.TABLE_FACING)
+    fetch = sk.fetch_commands(sk.CUP_TOP_GRASP, kitchen.CUP_POS, 0.0, sk.TABLE_FACING)
     kinds = [type(c).__name__ for c in fetch]
     assert kinds == [
         "MoveJoints",  # face the cabinet

@@ -17,7 +17,8 @@ import pytest
 from velma.control.joints import SIDES, JointMap, robot_joints
 from velma.control.robot_model import RobotModel
 from velma.model import KITCHEN_XML, VELMA_XML, grip_frame
-from velma.model.generate import build, build_kitchen, effort_limits, velocity_limits
+from velma.model.kitchen_mjcf import build_kitchen
+from velma.model.robot_mjcf import build, effort_limits, velocity_limits
 
 TOL = 1e-9  # the agreement asked for; the models agree to ≈ 1e-14
 SEEDS = range(8)

@@ -10,7 +10,7 @@ import pytest
 from shared.fipa_codec.languages.l_ex import CommandResult, Observe
 from shared.fipa_codec.languages.l_sd import Observation
 from velma.executor import Executor
-from velma.model.generate import CUP_POS
+from velma.model.kitchen_mjcf import CUP_POS
 from velma.scenario import run_pour
 
 

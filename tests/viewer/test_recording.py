@@ -256,8 +256,8 @@ def test_snapshot_from_runtime() -> None:
 
     import msgspec
 
+    from velma.executor.gather import robot_snapshot
     from velma.executor.runtime import Runtime
-    from velma.executor.state import robot_snapshot
 
     rt = Runtime(seed=0, n_particles=0)
     for _ in range(20):

@@ -21,6 +21,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 import numpy.typing as npt
 
+from shared.fipa_codec.languages.l_ex import TORSO_JOINT as TORSO_JOINT  # O_Velma's name, stated there
+
 if TYPE_CHECKING:
     import mujoco
 
@@ -28,12 +30,11 @@ Array = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]
 
 SIDES = ("right", "left")
-TORSO_JOINT = "torso_0_joint"
 HEAD_JOINTS = ("head_pan_joint", "head_tilt_joint")
 FINGERS = ("One", "Two", "Three")
 EXPECTED_NV = 33  # torso 1 + head 2 + 2 × (arm 7 + hand 8)
 ROBOT_ROOT = "torso_base"
-"""The root body of Velma's body tree in velma.xml (velma/model/generate.py)."""
+"""The root body of Velma's body tree in velma.xml (velma/model/robot_mjcf.py)."""
 
 
 def arm_joints(side: str) -> tuple[str, ...]:

@@ -2,7 +2,7 @@
 
 The geometry is velma.xml's (Pinocchio's ``buildGeomFromMJCF``; distances and collisions by
 coal, Pinocchio's collision library), so the controller's check and the simulation's contacts
-come from one description. The pairs are those MuJoCo collides (velma/model/generate.py,
+come from one description. The pairs are those MuJoCo collides (velma/model/robot_mjcf.py,
 "Self-collision"): every two robot geoms except
 
 - geoms on the same Pinocchio joint (one rigid body: MuJoCo's welded bodies) or on a joint and
@@ -32,7 +32,7 @@ import pinocchio as pin
 from velma.control.joints import SIDES, arm_joints
 from velma.control.robot_model import RobotModel
 from velma.model import VELMA_XML
-from velma.model.generate import SELF_COLLISION_EXCLUDES
+from velma.model.robot_mjcf import SELF_COLLISION_EXCLUDES
 
 MARGIN = 0.003
 """m: two geoms closer than this count as colliding (coal's security margin)."""

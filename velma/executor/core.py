@@ -34,9 +34,10 @@ from velma.control.compiled import law_name
 from velma.executor.camera import InThreadCamera
 from velma.executor.capture import WorldCapture, perception_mode
 from velma.executor.delivery import RecordSink, ResultDelivery
+from velma.executor.gather import robot_snapshot
 from velma.executor.loop import ControlLoop
 from velma.executor.runtime import DT, Runtime
-from velma.executor.state import RobotSnapshot, robot_snapshot
+from velma.executor.state import RobotSnapshot
 from velma.executor.timing import DeadlineMonitor, Pacer, TimingStats
 
 log = logging.getLogger(__name__)

@@ -123,6 +123,6 @@ class CompiledPlant:
         return self._plant.self_contacts()
 
     def gather(self, out: Array) -> None:
-        """The numbers of velma/executor/state.py ``raw_state`` that MuJoCo's data holds into
+        """The numbers of velma/executor/gather.py ``raw_state`` that MuJoCo's data holds into
         ``out`` (its layout); the setpoint block is left as it is."""
         self._plant.gather(out)

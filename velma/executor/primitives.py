@@ -27,7 +27,8 @@ from __future__ import annotations
 
 import math
 from collections import deque
-from typing import NamedTuple, Protocol
+from collections.abc import Callable
+from typing import Any, NamedTuple, Protocol
 
 import numpy as np
 import pinocchio as pin
@@ -960,22 +961,24 @@ class HaltPrimitive:
         return _result(rt, command_name(self.command), False, HALTED)
 
 
+PRIMITIVES: dict[type, Callable[[Any], Primitive]] = {
+    MoveTool: MoveToolPrimitive,
+    MoveJoints: MoveJointsPrimitive,
+    Grasp: GraspPrimitive,
+    Release: ReleasePrimitive,
+    LookAt: LookAtPrimitive,
+    Tilt: TiltPrimitive,
+    Observe: ObservePrimitive,
+    Wait: WaitPrimitive,
+}
+"""The primitive class of each L_EX command type, a table: a new command adds its row
+(docs/executor.md, "Adding a robot primitive")."""
+
+
 def make_primitive(command: ExecutorCommand) -> Primitive:
-    """The primitive that executes ``command``. Raises TypeError for a non-L_EX command."""
-    if isinstance(command, MoveTool):
-        return MoveToolPrimitive(command)
-    if isinstance(command, MoveJoints):
-        return MoveJointsPrimitive(command)
-    if isinstance(command, Grasp):
-        return GraspPrimitive(command)
-    if isinstance(command, Release):
-        return ReleasePrimitive(command)
-    if isinstance(command, LookAt):
-        return LookAtPrimitive(command)
-    if isinstance(command, Tilt):
-        return TiltPrimitive(command)
-    if isinstance(command, Observe):
-        return ObservePrimitive(command)
-    if isinstance(command, Wait):
-        return WaitPrimitive(command)
-    raise TypeError(f"not an executor command: {type(command).__name__}")
+    """The primitive that executes ``command`` (``PRIMITIVES``). Raises TypeError for a command
+    with no row in ``PRIMITIVES``."""
+    make = PRIMITIVES.get(type(command))
+    if make is None:
+        raise TypeError(f"not an executor command: {type(command).__name__}")
+    return make(command)

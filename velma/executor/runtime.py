@@ -62,7 +62,7 @@ from velma.world.timing import HOLD_CYCLES
 
 log = logging.getLogger(__name__)
 
-TORSO_Z = 0.03  # m, torso_0_joint above torso_base
+TORSO_Z = 0.03  # m, TORSO_JOINT above torso_base
 AWAY_GAP_S = (HOLD_CYCLES + 1) * DT
 """A gap (s) between two consecutive states wider than this was time the world held the robot
 without its controller (``Runtime.away_s``)."""
@@ -112,7 +112,7 @@ class Runtime:
         """The IK's self-collision check (velma/control/self_collision.py)."""
         self.joint_v_index = tuple(self.robot.v_index(n) for n in self.robot.joint_names)
         self.snapshot_index = np.array(self.joint_v_index, dtype=np.intp)
-        """``joint_v_index`` as an index array (velma.executor.state.raw_state)."""
+        """``joint_v_index`` as an index array (velma.executor.gather.raw_state)."""
         self.grip_site = {s: self.model.site(grip_frame(s)).id for s in SIDES}
         # the snapshot's link bodies and wrist F/T sensors (velma.executor.state)
         self.link_ids = np.array([self.model.body(n).id for n in LINK_BODIES], dtype=np.intp)
@@ -306,7 +306,7 @@ class Runtime:
     def ft_force(self, side: str) -> Array:
         """The force (N, (3,), world axes) that ``side``'s arm exerts on its hand through the
         wrist F/T sensor: MuJoCo's ``{side}_ft_force`` (the interaction between arm_7_link and
-        the palm's subtree: palm, fingers and what they hold; velma/model/generate.py) turned
+        the palm's subtree: palm, fingers and what they hold; velma/model/robot_mjcf.py) turned
         from the sensor frame ``{side}_ft_sensor`` into the world's. At rest it carries the
         hand's and the held object's weight (+z); a surface pushing the hand or what it holds
         up lowers it. As of the last physics step, with either cycle: the compiled plant steps

@@ -26,8 +26,9 @@ import numpy as np
 import numpy.typing as npt
 
 from velma.control.joints import SIDES
+from velma.executor.gather import python_gather
 from velma.executor.handoff import LatestValue
-from velma.executor.state import RawState, python_gather, raw_layout
+from velma.executor.state import RawState, raw_layout
 
 if TYPE_CHECKING:
     from velma.executor.runtime import Runtime

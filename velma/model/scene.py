@@ -37,8 +37,9 @@ import mujoco
 import numpy as np
 import numpy.typing as npt
 
+from shared.fipa_codec.languages.l_ex import TORSO_JOINT
 from velma.model import KITCHEN_XML
-from velma.model.generate import SCENE_CONAFFINITY, SCENE_CONTYPE
+from velma.model.mjcf import SCENE_CONAFFINITY, SCENE_CONTYPE
 
 N_PARTICLES = 18
 """Content spheres in the jar. The physics step's cost grows with the contacts: with 27 the
@@ -65,7 +66,7 @@ POSE_YAW_MAX = math.radians(10.0)  # rad, |yaw| bound of the pose randomisation
 # palm-down "ready" posture above the shelf (velma/scenario.py RIGHT_PICK_POSTURE explains
 # why). Elbow/wrist joints 1, 3, 5 stay clear of the singular stretch (|q| ≥ 0.2).
 HOME_POSTURE: dict[str, float] = {
-    "torso_0_joint": 0.0,
+    TORSO_JOINT: 0.0,
     "head_pan_joint": 0.0,
     "head_tilt_joint": 0.6,
     "right_arm_0_joint": 1.46,
@@ -180,7 +181,7 @@ def build_spec(n_particles: int = N_PARTICLES, seed: int = 0, pose_seed: int | N
             type=mujoco.mjtGeom.mjGEOM_SPHERE,
             size=[PARTICLE_RADIUS, 0, 0],
             mass=PARTICLE_MASS,
-            contype=SCENE_CONTYPE,  # the content collides as the scene does (generate.py)
+            contype=SCENE_CONTYPE,  # the content collides as the scene does (mjcf.py)
             conaffinity=SCENE_CONAFFINITY,
             condim=PARTICLE_CONDIM,
             priority=PARTICLE_PRIORITY,

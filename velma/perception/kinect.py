@@ -1,7 +1,7 @@
 """The head's depth camera: a first-generation Microsoft Kinect, simulated with MuJoCo.
 
 The sensor (velma/model/README.md "Head Kinect"): 640 × 480 depth at 30 Hz, field of view
-≈ 57° × 43°, range ≈ 0.5–4 m. It is the model's camera ``head_camera`` (velma/model/generate.py
+≈ 57° × 43°, range ≈ 0.5–4 m. It is the model's camera ``head_camera`` (velma/model/robot_mjcf.py
 ``HEAD_CAMERA_FOVY`` = 43°, the vertical field of view). MuJoCo renders square pixels, so at
 4 : 3 the horizontal field of view is 2·atan(4/3 · tan 21.5°) = 55.4°, not 57°: the data
 sheet's 57° × 43° pair is not one of square pixels at 4 : 3 (the Kinect's published depth

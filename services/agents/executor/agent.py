@@ -41,9 +41,9 @@ from services.runtime.roles import PARTICIPANT, Conversation, handles, participa
 from services.spec.names import C5, FIPA_REQUEST, FIPA_SUBSCRIBE, L_EX, L_SD
 from shared.fipa_codec import Performative
 from shared.fipa_codec.languages.l_ex import (
+    COMMANDS,
     HALTED,
     CommandResult,
-    ExecutorCommand,
     PowerOn,
     PowerOns,
     command_name,
@@ -55,7 +55,6 @@ from velma.executor.ledger import LEDGER_FILE, Answer, Ledger, Recalled, recall
 from velma.world.files import LinkWatch
 from velma.world.mode import world_in_process
 
-COMMAND_TYPES = tuple(t for t in ExecutorCommand.__args__)
 STATE_PERIOD = 0.05  # s between robot-state publications (20 Hz)
 TIMING_FILE_PERIOD = 5.0  # s between writes of ag_ex_timing.json
 TIMING_FILE = "ag_ex_timing.json"
@@ -345,7 +344,7 @@ class ExecutorAgent(Agent):
     @handles(FIPA_REQUEST, PARTICIPANT, Performative.REQUEST)
     def _on_request(self, conv: Conversation) -> None:
         command = conv.content
-        if not isinstance(command, COMMAND_TYPES):
+        if command is None or type(command) not in COMMANDS.values():
             what = type(command).__name__ if command is not None else "no content"
             conv.refuse_with(Performative.REFUSE, f"not an L_EX command: {what}")
             return

@@ -37,6 +37,7 @@ from __future__ import annotations
 import contextlib
 import io
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -641,33 +642,40 @@ def m_pour_into(s: Any, path: str, src: str, dst: str, arm: str) -> Any:
     ]
 
 
-ACTIONS = (
-    a_move,
-    a_posture,
-    a_face,
-    a_preshape,
-    a_grasp,
-    a_held,
-    a_release,
-    a_put,
-    a_look,
-    a_perceive,
-    a_tilt,
-    a_wait,
-    a_check,
-    a_poured,
-    a_replan,
-)
+ACTIONS: dict[str, Callable[..., Any]] = {
+    "a_move": a_move,
+    "a_posture": a_posture,
+    "a_face": a_face,
+    "a_preshape": a_preshape,
+    "a_grasp": a_grasp,
+    "a_held": a_held,
+    "a_release": a_release,
+    "a_put": a_put,
+    "a_look": a_look,
+    "a_perceive": a_perceive,
+    "a_tilt": a_tilt,
+    "a_wait": a_wait,
+    "a_check": a_check,
+    "a_poured": a_poured,
+    "a_replan": a_replan,
+}
+"""The planner actions by name, a table (GTPyhop's primitive actions: each takes the state, the
+leaf's path and its arguments, and returns the state it leads to or False). An action with a
+leaf in the plan a_ta runs has its row in services/agents/planner/hfsm.py ``LEAVES`` too
+(docs/executor.md, "Adding a robot primitive")."""
 
 
 def declare() -> None:
     """Create (once) and select the GTPyhop domain."""
     if gtpyhop.is_domain_created(DOMAIN_NAME):
-        gtpyhop.set_current_domain(gtpyhop.find_domain_by_name(DOMAIN_NAME))
+        domain = gtpyhop.find_domain_by_name(DOMAIN_NAME)
+        gtpyhop.set_current_domain(domain)
+        if ACTIONS.keys() - domain._action_dict.keys():  # a row added since it was created
+            gtpyhop.declare_actions(*ACTIONS.values())
         return
     with contextlib.redirect_stdout(io.StringIO()):
         gtpyhop.Domain(DOMAIN_NAME)
-        gtpyhop.declare_actions(*ACTIONS)
+        gtpyhop.declare_actions(*ACTIONS.values())
         gtpyhop.declare_task_methods(
             "pour", m_pour_locate, m_pour_done, m_pour_now, m_pour_relocate, m_pour_prepare
         )
@@ -738,8 +746,6 @@ TASKS: dict[str, tuple[int, str]] = {
 """Goal tasks a_pl accepts: number of arguments and what they mean."""
 STORAGE = "cabinet"
 """Where ``return`` puts things back."""
-
-_ACTIONS = {f.__name__: f for f in ACTIONS}
 
 
 @dataclass
@@ -840,7 +846,7 @@ def finish_takes(s: Any, root: str) -> list[tuple[Any, ...]]:
             ("a_move", f"{take}/withdraw", arm, withdrawn, SHORT_MOVE_S),
         ]
         for name, path, *args in moves:
-            _ACTIONS[name](s, path, *args)
+            ACTIONS[name](s, path, *args)
         out += moves
     return out
 
@@ -886,7 +892,7 @@ def safe_stops(s0: Any, actions: list[tuple[Any, ...]]) -> tuple[list[str | None
                 else:
                     key = None  # nowhere to put it down: a cancel then stops in place
         keys.append(key)
-        _ACTIONS[name](s, path, *args)
+        ACTIONS[name](s, path, *args)
     return keys, stops
 
 

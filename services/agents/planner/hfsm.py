@@ -2,9 +2,21 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import Any
 
-from shared.fipa_codec.languages.l_ex import Arm, Grasp, LookAt, MoveJoints, MoveTool, Release, Tilt, Wait
+from shared.fipa_codec.languages.common import Pose, Vec3
+from shared.fipa_codec.languages.l_ex import (
+    TORSO_JOINT,
+    Arm,
+    Grasp,
+    LookAt,
+    MoveJoints,
+    MoveTool,
+    Release,
+    Tilt,
+    Wait,
+)
 from shared.fipa_codec.languages.l_hfsm import (
     Action,
     Assert,
@@ -32,67 +44,112 @@ observation: the hand's pre-grasp opening leaves â‰ˆ 1 cm either way; a larger Ï
 again (a second view) before it reaches."""
 
 
-def leaf_action(name: str, args: tuple[Any, ...]) -> tuple[Action | None, float]:
-    """The L_HFSM leaf action of one planner action, and its expected duration (s).
-    Raises ValueError for an action name the HFSM does not know."""
-    if name == "a_move":
-        arm, target, duration, *guard = args
-        move = MoveTool(arm=Arm(arm), target=target, duration=duration, guard=guard[0] if guard else None)
-        return Execute(move), duration
-    if name == "a_face":
-        angle, duration = args
-        return Execute(MoveJoints(positions={"torso_0_joint": angle}, duration=duration)), duration
-    if name == "a_preshape":
-        arm, opening = args
-        return Execute(Release(arm=Arm(arm), opening=opening)), 1.0
-    if name == "a_grasp":
-        arm, _obj, spread, at = args
-        return Execute(Grasp(arm=Arm(arm), spread=spread, at=at)), 1.5
-    if name == "a_posture":
-        arm, positions, duration = args
-        joints = {f"{arm}_arm_{i}_joint": float(q) for i, q in enumerate(positions)}
-        return Execute(MoveJoints(positions=joints, duration=duration)), duration
-    if name == "a_held":
-        obj, arm, _picked_from = args
-        return Assert(subject=obj, relation="heldBy", object=f"{arm}_gripper"), 0.0
-    if name == "a_release":
-        arm, _obj, opening = args
-        return Execute(Release(arm=Arm(arm), opening=opening)), 1.0
-    if name == "a_put":
-        obj, furniture, relation, _position = args
-        return Assert(subject=obj, relation=relation, object=furniture), 0.0
-    if name == "a_look":
-        (point,) = args
-        return Execute(LookAt(point=tuple(point))), 1.0
-    if name == "a_perceive":
-        names, expect, *placed = args
-        judges = bool(placed and placed[0])
-        expected = (
-            (
-                ExpectedPosition(
-                    object=expect[0],
-                    position=tuple(expect[1]),
-                    tolerance=PLACED_TOLERANCE_M if judges else EXPECT_TOLERANCE_M,
-                    max_tilt=PLACED_MAX_TILT if judges else None,
-                    max_sigma=None if judges else GRASP_MAX_SIGMA_M,
-                ),
-            )
-            if expect is not None
-            else ()
+Leaf = tuple[Action | None, float]
+"""A planner action's L_HFSM leaf action (None: no leaf, a replan marker) and its expected
+duration (s)."""
+
+
+def _move(arm: str, target: Pose, duration: float, guard: float | None = None) -> Leaf:
+    return Execute(MoveTool(arm=Arm(arm), target=target, duration=duration, guard=guard)), duration
+
+
+def _face(angle: float, duration: float) -> Leaf:
+    return Execute(MoveJoints(positions={TORSO_JOINT: angle}, duration=duration)), duration
+
+
+def _preshape(arm: str, opening: float) -> Leaf:
+    return Execute(Release(arm=Arm(arm), opening=opening)), 1.0
+
+
+def _grasp(arm: str, _obj: str, spread: float, at: Pose) -> Leaf:
+    return Execute(Grasp(arm=Arm(arm), spread=spread, at=at)), 1.5
+
+
+def _posture(arm: str, positions: tuple[float, ...], duration: float) -> Leaf:
+    joints = {f"{arm}_arm_{i}_joint": float(q) for i, q in enumerate(positions)}
+    return Execute(MoveJoints(positions=joints, duration=duration)), duration
+
+
+def _held(obj: str, arm: str, _picked_from: str) -> Leaf:
+    return Assert(subject=obj, relation="heldBy", object=f"{arm}_gripper"), 0.0
+
+
+def _release(arm: str, _obj: str, opening: float) -> Leaf:
+    return Execute(Release(arm=Arm(arm), opening=opening)), 1.0
+
+
+def _put(obj: str, furniture: str, relation: str, _position: Vec3) -> Leaf:
+    return Assert(subject=obj, relation=relation, object=furniture), 0.0
+
+
+def _look(point: Vec3) -> Leaf:
+    x, y, z = point  # a list when it came through the plan's arguments
+    return Execute(LookAt(point=(x, y, z))), 1.0
+
+
+def _perceive(names: str, expect: tuple[str, Vec3] | None, placed: bool = False) -> Leaf:
+    judges = bool(placed)
+    expected = (
+        (
+            ExpectedPosition(
+                object=expect[0],
+                position=(expect[1][0], expect[1][1], expect[1][2]),
+                tolerance=PLACED_TOLERANCE_M if judges else EXPECT_TOLERANCE_M,
+                max_tilt=PLACED_MAX_TILT if judges else None,
+                max_sigma=None if judges else GRASP_MAX_SIGMA_M,
+            ),
         )
-        objects = tuple(names.split(",")) if names else ()
-        return Perceive(objects=objects, expect=expected, judges=judges), OBSERVE_COST_S
-    if name == "a_tilt":
-        arm, pivot, axis, angle, duration = args
-        return Execute(Tilt(arm=Arm(arm), pivot=pivot, axis=axis, angle=angle, duration=duration)), duration
-    if name == "a_wait":
-        return Execute(Wait(duration=args[0])), args[0]
-    if name == "a_check":
-        container, share = args
-        return CheckContent(container=container, min_fraction=share), OBSERVE_COST_S
-    if name == "a_replan":
-        return None, 0.0
-    raise ValueError(f"unknown planner action {name}")
+        if expect is not None
+        else ()
+    )
+    objects = tuple(names.split(",")) if names else ()
+    return Perceive(objects=objects, expect=expected, judges=judges), OBSERVE_COST_S
+
+
+def _tilt(arm: str, pivot: Vec3, axis: Vec3, angle: float, duration: float) -> Leaf:
+    return Execute(Tilt(arm=Arm(arm), pivot=pivot, axis=axis, angle=angle, duration=duration)), duration
+
+
+def _wait(duration: float) -> Leaf:
+    return Execute(Wait(duration=duration)), duration
+
+
+def _check(container: str, share: float) -> Leaf:
+    return CheckContent(container=container, min_fraction=share), OBSERVE_COST_S
+
+
+def _replan() -> Leaf:
+    return None, 0.0
+
+
+LEAVES: dict[str, Callable[..., Leaf]] = {
+    "a_move": _move,
+    "a_face": _face,
+    "a_preshape": _preshape,
+    "a_grasp": _grasp,
+    "a_posture": _posture,
+    "a_held": _held,
+    "a_release": _release,
+    "a_put": _put,
+    "a_look": _look,
+    "a_perceive": _perceive,
+    "a_tilt": _tilt,
+    "a_wait": _wait,
+    "a_check": _check,
+    "a_replan": _replan,
+}
+"""The L_HFSM leaf of each planner action (services/agents/planner/domain.py ``ACTIONS``) but
+those in ``KNOWLEDGE_ONLY``, a table: called with the action's arguments (after its path), a
+row gives its ``Leaf`` (docs/executor.md, "Adding a robot primitive")."""
+
+
+def leaf_action(name: str, args: tuple[Any, ...]) -> Leaf:
+    """The L_HFSM leaf action of one planner action, and its expected duration (s)
+    (``LEAVES``). Raises ValueError for an action name the HFSM does not know."""
+    make = LEAVES.get(name)
+    if make is None:
+        raise ValueError(f"unknown planner action {name}")
+    return make(*args)
 
 
 def to_hfsm(

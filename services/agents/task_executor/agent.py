@@ -89,15 +89,14 @@ from services.spec.names import (
 from shared.fipa_codec import Performative
 from shared.fipa_codec.languages.l_ex import (
     HALTED,
+    TORSO_JOINT,
     CommandResult,
     LookAt,
     MoveJoints,
-    MoveTool,
     Observe,
     PowerOn,
     PowerOns,
     Tilt,
-    Wait,
     command_name,
 )
 from shared.fipa_codec.languages.l_hfsm import (
@@ -112,6 +111,7 @@ from shared.fipa_codec.languages.l_sd import Observation
 from shared.fipa_codec.languages.l_sw import TERMINAL_SW_STATES, SWState, SWStatus
 from shared.fipa_codec.languages.l_wm import ObjectUpdate, Subscription, WorldUpdate
 
+from .expected import expected_s
 from .retreat import RetreatStep, finish_set_down, undo_take
 from .verdict import Answer, Do, Step, Verdict, judge
 
@@ -122,7 +122,6 @@ INITIAL_OBSERVE_RETRY_S = 3.0
 INITIAL_OBSERVE_KEPT = 20
 """How many unanswered initial observes a_ta still takes a late answer of."""
 COMMAND_MARGIN_S = 60.0
-TORSO_JOINT = "torso_0_joint"
 HALT_REPLY_BY_S = 30.0
 """How long ag_ex may take to answer a cancel of the command it runs (s): the halt brings the
 robot to rest first (mid-pour up to the tilt's end and the turn upright, ≈ 4 s)."""
@@ -759,10 +758,9 @@ class TaskExecutor(Agent):
         action = step.node.action
         if isinstance(action, Execute):
             cmd = action.command
-            duration = cmd.duration if isinstance(cmd, MoveTool | MoveJoints | Tilt | Wait) else 10.0
             step.waiting_for = self._request(
                 cmd,
-                duration * 2 + COMMAND_MARGIN_S,
+                expected_s(cmd) * 2 + COMMAND_MARGIN_S,
                 # a tilt is relative: done again from where the last one stopped it over-tilts
                 None if isinstance(cmd, Tilt) else RESEND_ON_RETURN,
             )
@@ -892,8 +890,7 @@ class TaskExecutor(Agent):
             if isinstance(cmd, Assert):  # a_km learns where the object was put; no motion
                 self._assert(cmd)
                 continue
-            duration = cmd.duration if isinstance(cmd, MoveTool) else 10.0
-            self.retreat_wait = self._request(cmd, duration * 2 + COMMAND_MARGIN_S, RESEND_ON_RETURN)
+            self.retreat_wait = self._request(cmd, expected_s(cmd) * 2 + COMMAND_MARGIN_S, RESEND_ON_RETURN)
             self.retreated = True
             return
         if self.retreated:  # the hand moved: a_km learns the scene as it is now

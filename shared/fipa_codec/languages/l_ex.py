@@ -9,11 +9,16 @@ O_Velma (the robot's frames and joints), not O_RoCo.
 from __future__ import annotations
 
 import enum
+import typing
 
 import msgspec
 
-from shared.fipa_codec.languages.base import Language, register
+from shared.fipa_codec.languages.base import Language, extend, register
 from shared.fipa_codec.languages.common import Pose, Vec3
+
+TORSO_JOINT = "torso_0_joint"
+"""O_Velma's name of the torso's one joint (a hinge about the vertical, velma/model/README.md
+"Structure"), as in ``MoveJoints.positions`` and ``RobotSnapshot.joints``."""
 
 
 class Arm(enum.StrEnum):
@@ -45,7 +50,7 @@ class MoveTool(msgspec.Struct, frozen=True, tag="move_tool", kw_only=True):
 
 
 class MoveJoints(msgspec.Struct, frozen=True, tag="move_joints", kw_only=True):
-    """Move the named joints (``torso_0_joint``, ``left_arm_3_joint``…) to ``positions`` (rad)
+    """Move the named joints (``TORSO_JOINT``, ``left_arm_3_joint``…) to ``positions`` (rad)
     in ``duration`` seconds under joint impedance."""
 
     positions: dict[str, float]
@@ -119,6 +124,14 @@ class Wait(msgspec.Struct, frozen=True, tag="wait", kw_only=True):
 
 
 ExecutorCommand = MoveTool | MoveJoints | Grasp | Release | LookAt | Tilt | Observe | Wait
+"""The L_EX commands, a table: a new command is a row here (docs/executor.md, "Adding a robot
+primitive")."""
+
+COMMANDS: dict[str, type[msgspec.Struct]] = {
+    str(t.__struct_config__.tag): t for t in typing.get_args(ExecutorCommand)
+}
+"""The L_EX commands by tag: ag_ex takes a request whose content is one of them.
+:func:`add_command` adds one at run time (a test's)."""
 
 
 def command_name(command: object) -> str:
@@ -177,6 +190,14 @@ L_EX = register(
     Language(
         "L_EX",
         "O_Velma",
-        (MoveTool, MoveJoints, Grasp, Release, LookAt, Tilt, Observe, Wait, CommandResult, PowerOns, PowerOn),
+        (*COMMANDS.values(), CommandResult, PowerOns, PowerOn),
     )
 )
+
+
+def add_command(command: type[msgspec.Struct]) -> None:
+    """Make ``command`` (a msgspec Struct type with its own ``tag``) an L_EX command: a term of
+    L_EX (``base.extend``) and a row of ``COMMANDS``. Raises ValueError as ``extend`` does
+    (no tag, a tag or name taken, a term of another language)."""
+    extend(L_EX.name, command)
+    COMMANDS[str(command.__struct_config__.tag)] = command

@@ -18,13 +18,21 @@ point: put it down in a safe place), and only then reports Preempted
 
 from __future__ import annotations
 
-from typing import Annotated
+import functools
+import operator
+from typing import TYPE_CHECKING, Annotated, cast
 
 import msgspec
+from msgspec.structs import force_setattr
 
-from shared.fipa_codec.languages.base import Language, register
+from shared.fipa_codec.languages.base import LANGUAGES, Language, register
 from shared.fipa_codec.languages.common import CLOCK, Vec3
-from shared.fipa_codec.languages.l_ex import ExecutorCommand
+from shared.fipa_codec.languages.l_ex import L_EX, ExecutorCommand
+
+if TYPE_CHECKING:
+    _Command = ExecutorCommand
+else:  # decoded as bytes, then as a term of L_EX as it stands (Execute.__post_init__)
+    _Command = Annotated[msgspec.Raw, msgspec.Meta(extra={"language": "L_EX"})]
 from shared.fipa_codec.languages.l_hc import TaskAtom
 
 
@@ -38,9 +46,31 @@ class GroundTaskNetwork(msgspec.Struct, frozen=True, tag="gtn", kw_only=True):
 
 
 class Execute(msgspec.Struct, frozen=True, tag="execute"):
-    """Leaf action: request ``command`` from ag_ex on C5 and wait for its result."""
+    """Leaf action: request ``command`` (an L_EX command) from ag_ex on C5 and wait for its
+    result. Decoded, ``command`` is a term of L_EX with the commands added to it since
+    (``l_ex.add_command``); a term that is not one fails the decoding as any invalid value."""
 
-    command: ExecutorCommand
+    command: _Command
+
+    def __post_init__(self) -> None:
+        if isinstance(self.command, msgspec.Raw):
+            force_setattr(self, "command", _command(bytes(self.command)))
+
+
+def _command(raw: bytes) -> ExecutorCommand:
+    """The L_EX command in ``raw``: msgpack (content) or JSON (a state file, a record)."""
+    language = LANGUAGES[L_EX.name]
+    if raw.lstrip()[:1] != b"{":
+        return cast(ExecutorCommand, language.decode(raw))
+    try:
+        return cast(ExecutorCommand, _json_decoder(language.types).decode(raw))
+    except msgspec.ValidationError as exc:
+        raise language.error(exc) from None
+
+
+@functools.cache
+def _json_decoder(types: tuple[type[msgspec.Struct], ...]) -> msgspec.json.Decoder[msgspec.Struct]:
+    return msgspec.json.Decoder(functools.reduce(operator.or_, types))
 
 
 class ExpectedPosition(msgspec.Struct, frozen=True, kw_only=True, omit_defaults=True):

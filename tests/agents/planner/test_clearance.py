@@ -76,7 +76,7 @@ def _sweeps(s: Any, actions: list[tuple[Any, ...]]) -> list[str]:
                 hit = None
             if hit is not None:
                 met.append(f"{path}: {held} → {hit}")
-        domain._ACTIONS[name](s, path, *args)
+        domain.ACTIONS[name](s, path, *args)
     return met
 
 
@@ -89,7 +89,7 @@ def test_no_safe_stop_of_the_pour_sweeps_a_held_object_through_a_standing_one() 
         for (name, path, *args), on_cancel in zip(plan.actions, plan.on_cancel, strict=True):
             if on_cancel == key:
                 break
-            domain._ACTIONS[name](s, path, *args)
+            domain.ACTIONS[name](s, path, *args)
         assert _sweeps(s, stop) == [], key
     # a stop while the bowl is carried to the table (the jar in the other hand): the bowl first
     carry = next(i for i, a in enumerate(plan.actions) if a[1] == "pour(jar,bowl)/place_bowl/carry")

@@ -15,7 +15,7 @@ from shared.fipa_codec.languages.common import Pose
 from shared.fipa_codec.languages.l_wm import ObjectUpdate, WorldUpdate
 from tests.agents.planner.kitchen import knowledge as kitchen_knowledge
 from velma import frames as geo
-from velma.model.generate import CUP_POS
+from velma.model.kitchen_mjcf import CUP_POS
 
 JAR_PLACE = (0.70, 0.20, 0.85)  # kitchen.ttl: cabinet_jar_place
 BOWL = (0.80, -0.20, 0.90)
