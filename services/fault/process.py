@@ -49,6 +49,7 @@ from services.fleet.launcher import (
     service_args,
     spawn_process,
 )
+from services.fleet.processes import proc_state
 from services.runtime import keys
 from services.runtime.faults import FaultEvent, event_key
 from services.runtime.run_folder import read_run_info, write_run_info
@@ -136,15 +137,6 @@ def _cmdline(pid: int) -> list[str] | None:
     except OSError:
         return None
     return [a.decode(errors="replace") for a in raw.split(b"\0") if a]
-
-
-def proc_state(pid: int) -> str | None:
-    """The state letter of ``/proc/<pid>/stat`` (R, S, T stopped, Z zombie…), None when gone."""
-    try:
-        stat = Path(f"/proc/{pid}/stat").read_text()
-    except OSError:
-        return None
-    return stat.rsplit(")", 1)[1].split()[0]
 
 
 def _reap(pid: int) -> None:
