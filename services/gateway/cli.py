@@ -26,9 +26,7 @@ from services.runtime.session import listening, port_in_use, refusal
 from services.runtime.transport import ZenohTransport
 from services.security.context import security_for
 from services.spec.model import DEFAULT_SPEC, SpecError, SystemSpec, load
-
-DEFAULT_PORT = 7778
-"""JADE's default port of its HTTP message transport."""
+from shared.settings import GATEWAY_PORT
 
 
 class GatewayError(Exception):
@@ -44,7 +42,7 @@ class GatewayConfig:
 
     endpoint: str
     host: str = "127.0.0.1"
-    port: int = DEFAULT_PORT
+    port: int = GATEWAY_PORT
     address: str | None = None
     spec: Path = DEFAULT_SPEC
     platforms: tuple[str, ...] = ()
