@@ -50,6 +50,7 @@ from services.fleet.launcher import (
     spawn_process,
 )
 from services.fleet.processes import proc_state
+from services.fleet_state import FLEET_FILE
 from services.runtime import keys
 from services.runtime.faults import FaultEvent, event_key
 from services.runtime.run_folder import read_run_info, write_run_info
@@ -64,7 +65,6 @@ LOCAL_SERVICES = ("router", "recorder", WORLD_SERVICE, *AGENT_ORDER)
 ``ROCO_WORLD=loop`` (velma/world/mode.py)."""
 INJECTOR = "roco"
 """The ``agent`` of the fault events of ``roco fault`` and ``roco chaos``."""
-FLEET_FILE = ".fleet.json"  # services/cli.py: FLEET_FILE
 
 
 class FaultError(RuntimeError):
@@ -74,7 +74,7 @@ class FaultError(RuntimeError):
 @dataclass
 class UpFleet:
     """The fleet of ``roco up``: its state file ``runs_dir/.fleet.json`` (``FleetState`` of
-    services/cli.py), router endpoint, run folder and PID per service."""
+    services/fleet_state.py), router endpoint, run folder and PID per service."""
 
     runs_dir: Path
     endpoint: str
@@ -102,7 +102,7 @@ class UpFleet:
 
     @classmethod
     def from_state(cls, runs_dir: Path, state: Any) -> UpFleet:
-        """From a ``FleetState`` of services/cli.py (``endpoint``, ``run_dir``, ``pids``)
+        """From a ``FleetState`` of services/fleet_state.py (``endpoint``, ``run_dir``, ``pids``)
         already read from ``runs_dir``."""
         return cls(runs_dir, state.endpoint, Path(state.run_dir), dict(state.pids))
 

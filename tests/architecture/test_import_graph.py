@@ -49,6 +49,8 @@ TOOLS = (
     "services.hosts",
     "services.live",
     "services.replay",
+    "services.control",
+    "services.cli_common",
     "services.cli",
 )
 
