@@ -34,8 +34,8 @@ def sniff(
 ) -> None:
     """Print live communicates as they cross Zenoh, in FIPA SC00070 string form (like JADE's
     Sniffer), until interrupted. Content is shown as its decoded term unless --raw."""
-    from services.sniff import parse_filters
-    from services.sniff import sniff as run_sniff
+    from services.sniff.sniffer import parse_filters
+    from services.sniff.sniffer import sniff as run_sniff
 
     try:
         f = parse_filters(
