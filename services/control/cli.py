@@ -28,6 +28,7 @@ from services.fleet_state import FLEET_FILE, FleetState, write_state
 from services.runtime.run_folder import RunInfo, write_run_info
 from services.runtime.session import SessionRefused, open_client, open_operator
 from services.scenario.run_env import scene_env, viewer_env
+from services.spec_check.report_cli import fleet_end
 from shared.settings import ROUTER_PORT, Settings
 
 if TYPE_CHECKING:
@@ -95,7 +96,7 @@ def up(
         why = "interrupted" if isinstance(exc, KeyboardInterrupt) else str(exc)
         info.processes = fleet.pids()
         write_run_info(run_dir, info)
-        _report_fleet_end(run_dir, failure=why)
+        fleet_end(run_dir, failure=why)
         code = INTERRUPTED if isinstance(exc, KeyboardInterrupt) else 1
         raise fail(f"{why}; nothing of the fleet is left running; run folder {run_dir}", code) from None
     session.close()
@@ -104,18 +105,6 @@ def up(
     write_state(runs_dir, FleetState(endpoint, str(run_dir), fleet.pids()))
     served = f"; gateway http://127.0.0.1:{gateway}/acc" if gateway is not None else ""
     typer.echo(f"roco: fleet up on {endpoint} in {waited:.1f} s{served}; run folder {run_dir}")
-
-
-def _report_fleet_end(run_dir: Path, failure: str = "") -> str:
-    """Record the commands a fleet of `roco up` was given and their outcomes in its run.json,
-    write its report (services/report/ending.py) and return the words that say so."""
-    from services.report.ending import end
-    from services.spec_check.coverage_figure import report_summary
-    from services.spec_check.trace import report_rows
-
-    return end(
-        run_dir, ended=time.time(), failure=failure, tracer=report_rows, coverage=report_summary
-    ).line()
 
 
 @control_app.command(short_help="Stop the fleet that roco up started and write its report.")
@@ -183,7 +172,7 @@ def down(
         _stop({"router": state.pids["router"]}, named=False)
     typer.echo("")
     (runs_dir / FLEET_FILE).unlink()
-    typer.echo(f"roco: fleet stopped {_report_fleet_end(Path(state.run_dir))}")
+    typer.echo(f"roco: fleet stopped {fleet_end(Path(state.run_dir))}")
     if raised:
         typer.echo(f"roco: agents raised: {raised}")
 
@@ -210,8 +199,9 @@ def _compose_down(
     project: str | None, file: Path | None, volumes: bool, router: str, credentials: Path | None
 ) -> None:
     """`roco down --compose`: find the fleet (services/deploy/engine.py), keep its agents'
-    counters, stop it, then conclude its run folder and write the report (:func:`_report_fleet_end`);
-    one line and exit 1 (2 for a choice to make) when any step cannot be done."""
+    counters, stop it, then conclude its run folder and write the report
+    (services/spec_check/report_cli.py ``fleet_end``); one line and exit 1 (2 for a choice to
+    make) when any step cannot be done."""
     from services.deploy import engine
 
     project, file = _compose_target(project, file)
@@ -227,7 +217,7 @@ def _compose_down(
     typer.echo(f"roco: compose project {project} stopped{kept}")
     if run_dir is None:
         raise fail(f"no report: the run of compose project {project} is not known (was it running?)")
-    ended = _report_fleet_end(run_dir)
+    ended = fleet_end(run_dir)
     typer.echo(f"roco: run {run_dir} {ended}")
     if "report not written" in ended:
         raise typer.Exit(1)

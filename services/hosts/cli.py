@@ -103,17 +103,15 @@ def _up_shaping(runs_dir: Path, delay_ms: float, jitter_ms: float, loss_pct: flo
 def _not_up(hosts: TwoHosts, exc: BaseException, run_dir: Path, info: RunInfo) -> typer.Exit:
     """The exit of a fleet that did not come up (``exc``; its hosts are removed already), once
     its processes are noted and its report written."""
-    from services.report.ending import end
     from services.runtime.run_folder import write_run_info
-    from services.spec_check.coverage_figure import report_summary
-    from services.spec_check.trace import report_rows
+    from services.spec_check.report_cli import fleet_end
 
     interrupted = isinstance(exc, KeyboardInterrupt)
     why = "interrupted" if interrupted else str(exc)
     if hosts.fleet is not None:
         info.processes = hosts.fleet.pids()
         write_run_info(run_dir, info)
-    end(run_dir, ended=time.time(), failure=why, tracer=report_rows, coverage=report_summary)
+    fleet_end(run_dir, failure=why)
     code = INTERRUPTED if interrupted else 1
     return fail(f"{why}; nothing of the fleet is left running; run folder {run_dir}", code)
 
@@ -224,9 +222,7 @@ def down(runs_dir: RunsDir = Path("runs")) -> None:
     from services.hosts.link import record_counters
     from services.hosts.netns import end_processes
     from services.recorder.sync import sync_fleet, sync_words
-    from services.report.ending import end
-    from services.spec_check.coverage_figure import report_summary
-    from services.spec_check.trace import report_rows
+    from services.spec_check.report_cli import fleet_end
 
     state = _state(runs_dir)
     pair, run_dir = _pair(state), Path(state.run_dir)
@@ -250,8 +246,7 @@ def down(runs_dir: RunsDir = Path("runs")) -> None:
     typer.echo("; both hosts removed")
     fleet_file.unlink(missing_ok=True)
     (runs_dir / HOSTS_FILE).unlink(missing_ok=True)
-    ending = end(run_dir, ended=time.time(), tracer=report_rows, coverage=report_summary)
-    typer.echo(f"roco: two hosts down {ending.line()}")
+    typer.echo(f"roco: two hosts down {fleet_end(run_dir)}")
 
 
 @hosts_app.command(short_help="Remove the host pairs that killed runs left behind.")

@@ -3,6 +3,7 @@ services/spec_check/trace.py), and the report and the one-line outcome a run end
 
 from __future__ import annotations
 
+import time
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated
 
@@ -78,3 +79,16 @@ def report(run_dir: Annotated[Path, typer.Argument(metavar="RUN", help="a run fo
         )
     except OSError as exc:
         raise fail(f"cannot write the report in {run_dir}: {exc.strerror or exc}") from None
+
+
+def fleet_end(run_dir: Path, failure: str = "") -> str:
+    """Record the commands a fleet (`roco up`, `roco hosts up`, compose) was given and their
+    outcomes in its run.json, write its report (services/report/ending.py) and return the words
+    that say so."""
+    from services.report.ending import end
+    from services.spec_check.coverage_figure import report_summary
+    from services.spec_check.trace import report_rows
+
+    return end(
+        run_dir, ended=time.time(), failure=failure, tracer=report_rows, coverage=report_summary
+    ).line()
