@@ -52,7 +52,7 @@ for commands in (
     report_app,  # report
 ):
     app.add_typer(commands)
-spec_app.add_typer(new_agent_app)  # spec new-agent writes the compose files too: deploy's
+spec_app.add_typer(new_agent_app)  # spec new-agent: in deploy, as it writes the compose files too
 for name, group in (
     ("fault", fault_app),
     ("deploy", deploy_app),
