@@ -72,11 +72,12 @@ from services.monitor import is_world_update  # noqa: E402
 from services.runtime import keys  # noqa: E402
 from services.runtime.human import FINAL_REPORTS, MAX_LINE_CHARS, HumanInput, HumanReport, ReportKind  # noqa: E402
 from services.runtime.session import open_client  # noqa: E402
+from services.scenario.model import DEFAULT_COMMAND  # noqa: E402
 from shared.fipa_codec import Performative, decode  # noqa: E402
 from shared.fipa_codec.batch import unpack  # noqa: E402
 from shared.settings import Settings  # noqa: E402
 
-POUR = "pour the jar into the bowl"
+POUR = DEFAULT_COMMAND
 HALTING = re.compile(r"halted by a cancel at wall time (\d+\.\d+)")
 CONDITIONS = ("plain", "long line before")
 HOPS = (("C2", "a_hi", "a_co"), ("C1", "a_co", "a_ta"), ("C5", "a_ta", "ag_ex"))

@@ -168,7 +168,11 @@ def env_text(value: Any) -> str:
 
 
 # ------------------------------------------------------------------------------ the settings
-DEFAULT_ROUTER = "tcp/127.0.0.1:7447"
+ROUTER_PORT = 7447
+"""The TCP port a fleet's Zenoh router listens on: ``roco up``, compose, the two hosts."""
+GATEWAY_PORT = 7778
+"""The port of ``roco gateway``'s FIPA HTTP message transport (JADE's default, FIPA SC00084)."""
+DEFAULT_ROUTER = f"tcp/127.0.0.1:{ROUTER_PORT}"
 """The router endpoint of a local fleet (``ROCO_ROUTER`` unset)."""
 
 
@@ -281,7 +285,7 @@ class Settings(msgspec.Struct, frozen=True, kw_only=True):
             "ROCO_LISTEN",
             "the endpoint the router listens on without --listen (services/runtime/router.py)",
         ),
-    ] = "tcp/0.0.0.0:7447"
+    ] = f"tcp/0.0.0.0:{ROUTER_PORT}"
     connect: Annotated[
         tuple[str, ...],
         About(
@@ -544,7 +548,9 @@ DEPLOYMENT: tuple[DeploymentVariable, ...] = (
     DeploymentVariable("ROCO_UID", "10001", "uid the compose services run as (the image's roco)"),
     DeploymentVariable("ROCO_GID", "10001", "gid the compose services run as (the image's roco)"),
     DeploymentVariable(
-        "ROCO_ROUTER_PUBLISH", "127.0.0.1:7447", "host address:port of the compose router (0.0.0.0: meshable)"
+        "ROCO_ROUTER_PUBLISH",
+        f"127.0.0.1:{ROUTER_PORT}",
+        "host address:port of the compose router (0.0.0.0: meshable)",
     ),
     DeploymentVariable("ROCO_PEER", "", "other routers the compose router meshes with, comma-separated"),
     DeploymentVariable("ROCO_RUNS", "../runs", "host folder of the compose fleet's run folders"),

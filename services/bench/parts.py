@@ -26,12 +26,13 @@ import msgspec
 
 from services.bench.messaging import no_access_control, percentile, process_rss_mib
 from services.bench.setup_check import check_fleet, check_run_folder
+from services.scenario.model import DEFAULT_COMMAND
 from shared.fipa_codec import AgentIdentifier, Communicate, Performative, decode, encode
 from shared.fipa_codec.batch import unpack
 
 ROOT = Path(__file__).resolve().parents[2]
 SCRIPTS = ROOT / "scripts"
-POUR = "pour the jar into the bowl"
+POUR = DEFAULT_COMMAND
 
 
 def scripts_module(name: str) -> Any:

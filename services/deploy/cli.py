@@ -20,48 +20,26 @@ from __future__ import annotations
 import json
 import os
 from pathlib import Path
-from typing import Annotated, Any
+from typing import Annotated
 
 import typer
 
+from services.cli_common import MARKUP, CheckOnly, SpecFile, fail, file_option, shown
 from services.spec.model import DEFAULT_SPEC, SpecError, SystemSpec, load
 
 deploy_app = typer.Typer(
     add_completion=False,
     no_args_is_help=True,
-    rich_markup_mode="markdown",
+    rich_markup_mode=MARKUP,
     help="Credentials, access control and compose file of a deployment (docs/deploy.md).",
 )
-
-SpecFile = Annotated[
-    Path | None, typer.Option("--spec", help="a specification file (default: the shipped one)")
-]
-"""``--spec FILE`` of the commands that read the specification."""
-CheckOnly = Annotated[
-    bool, typer.Option("--check", help="only say whether the file is what the specification gives")
-]
-"""``--check`` of the commands that write a file rendered from the specification."""
-
-
-def file_option(what: str, default: str) -> Any:
-    """``--file F`` of a command that writes ``what`` (default: ``default`` in this checkout)."""
-    return typer.Option(help=f"the {what} [default: {default} of this checkout]", show_default=False)
-
-
-def shown(path: Path) -> str:
-    """``path`` relative to the working folder where it is below it."""
-    try:
-        return str(path.resolve().relative_to(Path.cwd().resolve()))
-    except ValueError:
-        return str(path)
 
 
 def _spec(path: Path | None) -> SystemSpec:
     try:
         return load(path or DEFAULT_SPEC)
     except SpecError as exc:
-        typer.echo(f"roco: {exc}", err=True)
-        raise typer.Exit(2) from None
+        raise fail(str(exc), code=2) from None
 
 
 @deploy_app.command()
@@ -109,8 +87,7 @@ def issue(
     try:
         ident = issue_identity(out, _spec(spec), name, days)
     except CredentialError as exc:
-        typer.echo(f"roco: {exc}", err=True)
-        raise typer.Exit(2) from None
+        raise fail(str(exc), code=2) from None
     typer.echo(f"roco: issued {ident.name} ({ident.cert}); restart the router to accept the new password")
 
 
@@ -124,8 +101,7 @@ def revoke(
     from services.deploy.deploy import revoke_identity
 
     if not revoke_identity(out, _spec(spec), name):
-        typer.echo(f"roco: no identity {name!r} in {out}", err=True)
-        raise typer.Exit(2)
+        raise fail(f"no identity {name!r} in {out}", code=2)
     typer.echo(f"roco: revoked {name}; restart the router so that it reads {out}/acl.json and passwords.txt")
 
 
@@ -149,13 +125,11 @@ def router(
         for a in ip or []:
             ipaddress.ip_address(a)
     except ValueError as exc:
-        typer.echo(f"roco: {exc}", err=True)
-        raise typer.Exit(2) from None
+        raise fail(str(exc), code=2) from None
     try:
         ident = issue_router(out, _spec(spec), name, dns or [], ip or [], days)
     except CredentialError as exc:
-        typer.echo(f"roco: {exc}", err=True)
-        raise typer.Exit(2) from None
+        raise fail(str(exc), code=2) from None
     typer.echo(
         f"roco: issued {ident.name} ({ident.cert}); restart the routers to read the new ACL and passwords"
     )
@@ -208,16 +182,14 @@ def compose(
                 override, system, shown(override)
             )
             if problem is not None:
-                typer.echo(f"roco: {problem}", err=True)
-                raise typer.Exit(1)
+                raise fail(problem)
             typer.echo(f"roco: {shown(path)} is what the specification gives")
             typer.echo(f"roco: {shown(override)} is what the specification gives")
             return
         changed = write(path, system)
         override_changed = netfault.write(override, system)
     except ComposeError as exc:
-        typer.echo(f"roco: {exc}", err=True)
-        raise typer.Exit(2) from None
+        raise fail(str(exc), code=2) from None
     agents = ", ".join(system.launch_order)
     if changed:
         others = ", ".join(["router", "recorder", "viewer", *hardware(system)])
@@ -228,3 +200,41 @@ def compose(
         typer.echo(f"roco: wrote {shown(override)}: NET_ADMIN for {', '.join(netfault.services(system))}")
     else:
         typer.echo(f"roco: {shown(override)} is up to date")
+
+
+new_agent_app = typer.Typer()
+"""``roco spec new-agent`` (joined to the ``spec`` group by services/cli.py): it writes the
+compose files as well, and services/deploy imports services/spec_check, not the reverse."""
+
+
+@new_agent_app.command("new-agent", short_help="Write a new agent's folder from the specification.")
+def spec_new_agent(
+    name: Annotated[str, typer.Argument(metavar="NAME", help="the agent, as [[agents]] names it")],
+    spec: SpecFile = None,
+    root: Annotated[
+        Path | None,
+        typer.Option(help="the folder the implementation's package path starts in (default: the project)"),
+    ] = None,
+) -> None:
+    """Write the folder of agent NAME from the specification: its protocol roles and one
+    handler per performative its peers may send, each raising NotImplementedError until
+    written; render services/spec/names.py again with the names of its channels (`roco spec
+    names`), deploy/compose.yaml with a service for it and deploy/compose.netfault.yaml
+    (docs/spec.md, "Walk-through: adding an agent"). Exit 1 when the file exists or the
+    specification has no such agent."""
+    from services.deploy import netfault
+    from services.deploy.compose import ComposeError, bring_up_to_date
+    from services.spec import render_names
+    from services.spec_check.new_agent import PROJECT, write_agent
+
+    try:
+        system = load(spec or DEFAULT_SPEC)
+        scaffold = write_agent(system, name, root or PROJECT)
+        typer.echo(f"roco: wrote {scaffold.module}")
+        typer.echo(f"roco: {render_names.bring_up_to_date(root or PROJECT, system)}")
+        typer.echo(f"roco: {bring_up_to_date(root or PROJECT, system)}")
+        typer.echo(f"roco: {netfault.bring_up_to_date(root or PROJECT, system)}")
+    except (SpecError, FileExistsError, ComposeError) as exc:
+        raise fail(str(exc)) from None
+    timer = f" and what {scaffold.timer} opens" if scaffold.timer else ""
+    typer.echo(f"roco: fill in {', '.join(scaffold.handlers)}{timer}; then: roco spec verify-code")

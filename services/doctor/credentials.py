@@ -11,9 +11,9 @@ from pathlib import Path
 from cryptography import x509
 
 from services.doctor.model import Check, Use
+from services.fleet_state import FLEET_FILE
 from services.security.certs import CA_CERT, CredentialError, identity
 
-FLEET_FILE = ".fleet.json"  # services/cli.py FLEET_FILE
 OPERATOR = "operator"  # services/security/context.py OPERATOR
 
 

@@ -13,10 +13,10 @@ import subprocess
 import sys
 
 from services.doctor.model import Check, Use
+from shared.settings import ROUTER_PORT
 from velma.gl import HOW as EGL_HOW
 
 PROBE_TIMEOUT_S = 60.0
-ROUTER_PORT = 7447  # roco up's default router port (services/cli.py DEFAULT_ROUTER)
 
 GL_MODEL = (
     '<mujoco><worldbody><light pos="0 0 2"/>'

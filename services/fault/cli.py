@@ -25,11 +25,13 @@ from typing import Annotated
 import typer
 import zenoh
 
+from services.cli_common import MARKUP, CredentialsOption, RouterOption, fail
 from services.deploy.engine import ComposeFleet, running_fleets
 from services.fault import process
 from services.fault.compose import COMPOSE_SERVICES, DEFAULT_FILE, Compose
-from services.fault.process import ACTIONS, FLEET_FILE, LOCAL_SERVICES, FaultError, UpFleet
+from services.fault.process import ACTIONS, LOCAL_SERVICES, FaultError, UpFleet
 from services.fleet.launcher import AGENT_ORDER
+from services.fleet_state import FLEET_FILE
 from services.runtime.faults import (
     ANY_CHANNEL,
     FaultEvent,
@@ -43,7 +45,7 @@ from shared.settings import Settings
 fault_app = typer.Typer(
     add_completion=False,
     no_args_is_help=True,
-    rich_markup_mode="markdown",
+    rich_markup_mode=MARKUP,
     help="Inject faults into a running fleet: processes, network, messages (docs/faults.md).",
 )
 
@@ -63,23 +65,6 @@ Project = Annotated[
 ComposeFile = Annotated[
     Path | None, typer.Option(help=f"the compose file [default: the running fleet's, else {DEFAULT_FILE}]")
 ]
-Router = Annotated[
-    str | None, typer.Option(help="router endpoint (default: the fleet of 'roco up', else $ROCO_ROUTER)")
-]
-Credentials = Annotated[
-    Path | None,
-    typer.Option(
-        "--credentials",
-        help="the deployment's credentials folder for a router with access control "
-        "[default: ROCO_SECURITY, else the fleet of 'roco up']",
-        show_default=False,
-    ),
-]
-
-
-def fail(message: str, code: int = 1) -> typer.Exit:
-    typer.echo(f"roco: {message}", err=True)
-    return typer.Exit(code)
 
 
 def _compose(flag: bool | None, project: str | None, file: Path | None, runs_dir: Path) -> Compose | None:
@@ -206,8 +191,8 @@ def _process_fault(action: str) -> None:
         compose: ComposeFlag = None,
         project: Project = None,
         compose_file: ComposeFile = None,
-        router: Router = None,
-        credentials: Credentials = None,
+        router: RouterOption = None,
+        credentials: CredentialsOption = None,
         timeout: Annotated[float, typer.Option(help="seconds to wait for the service")] = 60.0,
     ) -> None:
         dc = _compose(compose, project, compose_file, runs_dir)
@@ -279,8 +264,8 @@ def net(
     compose: ComposeFlag = None,
     project: Project = None,
     compose_file: ComposeFile = None,
-    router: Router = None,
-    credentials: Credentials = None,
+    router: RouterOption = None,
+    credentials: CredentialsOption = None,
 ) -> None:
     """Network faults of one service: delay, loss, partition.
 
@@ -422,8 +407,8 @@ def msg(
     corrupt: Annotated[float, typer.Option(help="probability 1–3 of its bytes are flipped")] = 0.0,
     seed: Annotated[int | None, typer.Option(help="reseed every agent's fault RNG")] = None,
     runs_dir: RunsDir = Path("runs"),
-    router: Router = None,
-    credentials: Credentials = None,
+    router: RouterOption = None,
+    credentials: CredentialsOption = None,
 ) -> None:
     """Message faults on one channel: drop, duplicate, delay, reorder, corrupt.
 
@@ -493,8 +478,8 @@ def clear(
     compose: ComposeFlag = None,
     project: Project = None,
     compose_file: ComposeFile = None,
-    router: Router = None,
-    credentials: Credentials = None,
+    router: RouterOption = None,
+    credentials: CredentialsOption = None,
 ) -> None:
     """Remove message and network faults of a channel, a service, or all.
 
@@ -535,8 +520,8 @@ def show(
     compose: ComposeFlag = None,
     project: Project = None,
     compose_file: ComposeFile = None,
-    router: Router = None,
-    credentials: Credentials = None,
+    router: RouterOption = None,
+    credentials: CredentialsOption = None,
 ) -> None:
     """Each agent's fault settings and the faults it applied so far.
 

@@ -49,6 +49,8 @@ from services.fleet.launcher import (
     service_args,
     spawn_process,
 )
+from services.fleet.processes import proc_state
+from services.fleet_state import FLEET_FILE
 from services.runtime import keys
 from services.runtime.faults import FaultEvent, event_key
 from services.runtime.run_folder import read_run_info, write_run_info
@@ -63,7 +65,6 @@ LOCAL_SERVICES = ("router", "recorder", WORLD_SERVICE, *AGENT_ORDER)
 ``ROCO_WORLD=loop`` (velma/world/mode.py)."""
 INJECTOR = "roco"
 """The ``agent`` of the fault events of ``roco fault`` and ``roco chaos``."""
-FLEET_FILE = ".fleet.json"  # services/cli.py: FLEET_FILE
 
 
 class FaultError(RuntimeError):
@@ -73,7 +74,7 @@ class FaultError(RuntimeError):
 @dataclass
 class UpFleet:
     """The fleet of ``roco up``: its state file ``runs_dir/.fleet.json`` (``FleetState`` of
-    services/cli.py), router endpoint, run folder and PID per service."""
+    services/fleet_state.py), router endpoint, run folder and PID per service."""
 
     runs_dir: Path
     endpoint: str
@@ -101,7 +102,7 @@ class UpFleet:
 
     @classmethod
     def from_state(cls, runs_dir: Path, state: Any) -> UpFleet:
-        """From a ``FleetState`` of services/cli.py (``endpoint``, ``run_dir``, ``pids``)
+        """From a ``FleetState`` of services/fleet_state.py (``endpoint``, ``run_dir``, ``pids``)
         already read from ``runs_dir``."""
         return cls(runs_dir, state.endpoint, Path(state.run_dir), dict(state.pids))
 
@@ -136,15 +137,6 @@ def _cmdline(pid: int) -> list[str] | None:
     except OSError:
         return None
     return [a.decode(errors="replace") for a in raw.split(b"\0") if a]
-
-
-def proc_state(pid: int) -> str | None:
-    """The state letter of ``/proc/<pid>/stat`` (R, S, T stopped, Z zombie…), None when gone."""
-    try:
-        stat = Path(f"/proc/{pid}/stat").read_text()
-    except OSError:
-        return None
-    return stat.rsplit(")", 1)[1].split()[0]
 
 
 def _reap(pid: int) -> None:

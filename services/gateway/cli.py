@@ -1,156 +1,50 @@
-"""``roco gateway``: run the ACL gateway (services/gateway/bridge.py) in the foreground.
-
-It opens a Zenoh session to the fleet's router as the identity ``gateway`` (with the fleet's
-credentials when it has access control: services/security/context.py), serves the FIPA HTTP
-message transport (FIPA SC00084) on ``host:port`` and tells foreign platforms to post to
-``address`` (default ``http://<host>:<port>/acc``). It prints one line when it is ready, and
-a line of counters when it stops (Ctrl-C, SIGTERM). Its log is one line per event
-(services/runtime/log_format.py), on stderr.
-"""
+"""``roco gateway``: the ACL gateway in the foreground (services/gateway/serve.py)."""
 
 from __future__ import annotations
 
-import logging
-import signal
-import sys
-import threading
-from dataclasses import dataclass
 from pathlib import Path
-from types import FrameType
+from typing import Annotated
 
-from services.gateway.bridge import GATEWAY, open_gateway
-from services.gateway.http_mtp import MTPError, check_address
-from services.runtime.log_format import OneLineFormatter
-from services.runtime.polling import max_poll_us
-from services.runtime.session import listening, port_in_use, refusal
-from services.runtime.transport import ZenohTransport
-from services.security.context import security_for
-from services.spec.model import DEFAULT_SPEC, SpecError, SystemSpec, load
+import typer
 
-DEFAULT_PORT = 7778
-"""JADE's default port of its HTTP message transport."""
+from services.cli_common import FleetRunsDir, RouterOption, endpoint_of
+from shared.settings import GATEWAY_PORT
+
+gateway_app = typer.Typer()
 
 
-class GatewayError(Exception):
-    """The gateway cannot start; the message is one line."""
+@gateway_app.command(short_help="Bridge the fleet to other FIPA platforms (HTTP, SC00084).")
+def gateway(
+    router: RouterOption = None,
+    runs_dir: FleetRunsDir = Path("runs"),
+    host: Annotated[str, typer.Option(help="interface the HTTP transport listens on")] = "127.0.0.1",
+    port: Annotated[int, typer.Option(min=1, max=65535, help="port of the HTTP transport")] = GATEWAY_PORT,
+    address: Annotated[
+        str | None,
+        typer.Option(help="the URL other platforms post to (default http://HOST:PORT/acc)"),
+    ] = None,
+    spec: Annotated[Path | None, typer.Option("--spec", help="a specification file")] = None,
+    platform: Annotated[
+        list[str] | None,
+        typer.Option(
+            help="PLATFORM=URL[,URL…]: answer every agent …@PLATFORM only at these addresses "
+            "(repeatable; default: a name is bound to the peer that first used it)"
+        ),
+    ] = None,
+) -> None:
+    """Serve the FIPA HTTP message transport (FIPA SC00084, SC00085 XML envelope, SC00070
+    string form) for agents of other FIPA platforms (JADE…): what they send to a roco agent
+    the specification lets them address (its external role, x_fipa: a_hi on C8) is put on
+    the fleet's Zenoh under their own names, and the answers are posted back to them; anything
+    else is refused (FIPA refuse or not-understood) and counted. Runs until Ctrl-C
+    (docs/gateway.md)."""
+    from services.gateway.serve import GatewayConfig
+    from services.gateway.serve import main as run_gateway
+    from services.spec.model import DEFAULT_SPEC
 
-
-@dataclass(frozen=True)
-class GatewayConfig:
-    """What ``roco gateway`` is given: the router ``endpoint``, the ``host`` and ``port`` the
-    HTTP server listens on, the ``address`` advertised to foreign platforms (None: derived from
-    host and port), the specification file ``spec`` and ``platforms``: ``PLATFORM=URL[,URL…]``
-    each, the addresses every agent ``…@PLATFORM`` is answered at (services/gateway/identity.py)."""
-
-    endpoint: str
-    host: str = "127.0.0.1"
-    port: int = DEFAULT_PORT
-    address: str | None = None
-    spec: Path = DEFAULT_SPEC
-    platforms: tuple[str, ...] = ()
-
-
-def parse_platforms(items: tuple[str, ...]) -> dict[str, tuple[str, ...]]:
-    """``PLATFORM=URL[,URL…]`` items as platform → addresses. Raises GatewayError (one line)
-    for an item without ``=``, with no platform or address, or with an address that is no
-    ``http://`` URL."""
-    platforms: dict[str, tuple[str, ...]] = {}
-    for item in items:
-        platform, sep, urls = item.partition("=")
-        addresses = tuple(u.strip() for u in urls.split(",") if u.strip())
-        if not sep or not platform.strip() or not addresses:
-            raise GatewayError(f"--platform {item!r}: expected PLATFORM=URL[,URL…] (host:1099/JADE=http://…)")
-        for address in addresses:
-            try:
-                check_address(address)
-            except MTPError as exc:
-                raise GatewayError(f"--platform {platform.strip()}: {exc}") from None
-        platforms[platform.strip()] = addresses
-    return platforms
-
-
-def _external_spec(config: GatewayConfig) -> SystemSpec:
-    """The specification of ``config``; GatewayError when it does not load or has no external
-    role."""
-    try:
-        spec = load(config.spec)
-    except SpecError as exc:
-        raise GatewayError(str(exc)) from None
-    if not spec.externals:
-        raise GatewayError(f"{config.spec}: no external role ([[externals]]): nobody may come in")
-    return spec
-
-
-def _transport(config: GatewayConfig) -> ZenohTransport:
-    """The gateway's session with ``config``'s router; GatewayError when there are no
-    credentials for it or the router does not answer (or refuses them)."""
-    try:
-        return ZenohTransport([config.endpoint], wait_for_router=False, identity=GATEWAY)
-    except ValueError as exc:  # CredentialError: no credentials for the gateway in the folder
-        raise GatewayError(str(exc)) from None
-    except Exception:  # zenoh.ZError
-        why = refusal(config.endpoint, GATEWAY, security_for([config.endpoint]))
-        raise GatewayError(why) from None
-
-
-def serve(
-    config: GatewayConfig, stop: threading.Event, ready: threading.Event | None = None
-) -> dict[str, int]:
-    """Run the gateway until ``stop`` is set; set ``ready`` once it serves. Returns its
-    counters. Raises GatewayError when the specification does not load or has no external
-    role, when the port is in use or cannot be bound (checked before the fleet is reached), or
-    when no router answers (or it refuses the gateway's credentials)."""
-    spec = _external_spec(config)
-    address = config.address or f"http://{config.host}:{config.port}/acc"
-    platforms = parse_platforms(config.platforms)
-    try:
-        max_poll_us()  # a malformed ROCO_RECEIVE_POLL_US is named as such, not as a missing router
-    except ValueError as exc:
-        raise GatewayError(str(exc)) from None
-    if listening(f"tcp/{config.host}:{config.port}"):
-        raise GatewayError(port_in_use(config.host, config.port, "--port"))
-    transport = _transport(config)
-    try:
-        gateway, server = open_gateway(
-            transport, spec, config.host, config.port, address, routers=[config.endpoint], platforms=platforms
-        )
-    except OSError as exc:
-        transport.close()
-        where, why = f"{config.host}:{config.port}", exc.strerror or str(exc)
-        raise GatewayError(f"cannot listen on {where} ({why}): choose another --port") from None
-    routes = ", ".join(f"{role} → {agent} on {channel}" for channel, role, agent in gateway.routes)
-    print(f"roco gateway: {address} ↔ {config.endpoint} ({routes})", flush=True)
-    if ready is not None:
-        ready.set()
-    try:
-        while not stop.wait(0.5):  # a timeout: a signal taken by a Zenoh thread must still end it
-            pass
-    finally:
-        server.stop()
-        gateway.stop()
-        transport.close()
-    return dict(gateway.counters)
-
-
-def main(config: GatewayConfig) -> int:
-    """Run ``roco gateway`` in this process until SIGINT or SIGTERM; 0 when it ran, 1 (one line
-    on stderr) when it could not start."""
-    if not logging.getLogger().handlers:  # run inside another program: its logging stays as it is
-        handler = logging.StreamHandler(sys.stderr)
-        handler.setFormatter(OneLineFormatter())
-        logging.basicConfig(level=logging.INFO, handlers=[handler])
-    stop = threading.Event()
-
-    def on_signal(signum: int, frame: FrameType | None) -> None:
-        stop.set()
-
-    signal.signal(signal.SIGINT, on_signal)
-    signal.signal(signal.SIGTERM, on_signal)
-    try:
-        counters = serve(config, stop)
-    except GatewayError as exc:
-        print(f"roco: gateway: {exc}", file=sys.stderr)
-        return 1
-    shown = ", ".join(f"{k} {v}" for k, v in sorted(counters.items())) or "nothing"
-    print(f"roco gateway: stopped; {shown}", flush=True)
-    return 0
+    config = GatewayConfig(
+        endpoint_of(router, runs_dir), host, port, address, spec or DEFAULT_SPEC, tuple(platform or ())
+    )
+    code = run_gateway(config)
+    if code:
+        raise typer.Exit(code)

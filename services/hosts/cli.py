@@ -23,6 +23,8 @@ from typing import TYPE_CHECKING, Annotated
 import msgspec
 import typer
 
+from services.cli_common import INTERRUPTED, MARKUP, fail, interrupt, new_run_folder
+from services.fleet_state import FLEET_FILE
 from shared.settings import Settings
 
 if TYPE_CHECKING:
@@ -34,12 +36,11 @@ if TYPE_CHECKING:
 hosts_app = typer.Typer(
     add_completion=False,
     no_args_is_help=True,
-    rich_markup_mode="markdown",
+    rich_markup_mode=MARKUP,
     help="The fleet on two hosts made on this machine: brain and robot, a shaped link (docs/deploy.md).",
     short_help="The fleet on two hosts of this machine, joined by a shaped link.",
 )
 HOSTS_FILE = ".hosts.json"
-FLEET_FILE = ".fleet.json"  # services/cli.py: FLEET_FILE
 RunsDir = Annotated[
     Path, typer.Option("--runs-dir", help="where 'roco hosts up' keeps the state of the two hosts")
 ]
@@ -51,8 +52,6 @@ UpRunsDir = Annotated[
         "other 'roco hosts' commands and 'roco send', 'status'",
     ),
 ]
-INTERRUPTED = 130
-"""The exit status of a command ended by Ctrl-C (SIGINT) or SIGTERM: 128 + SIGINT."""
 
 
 class HostsState(msgspec.Struct):
@@ -67,30 +66,20 @@ class HostsState(msgspec.Struct):
     how: str
 
 
-def _fail(message: str, code: int = 2) -> typer.Exit:
-    typer.echo(f"roco: {message}", err=True)
-    return typer.Exit(code)
-
-
 def _state(runs_dir: Path) -> HostsState:
     path = runs_dir / HOSTS_FILE
     try:
         return msgspec.json.decode(path.read_bytes(), type=HostsState)
     except FileNotFoundError:
-        raise _fail(f"no two-host fleet is up (no {path}); 'roco hosts up' first") from None
+        raise fail(f"no two-host fleet is up (no {path}); 'roco hosts up' first", 2) from None
     except (OSError, msgspec.DecodeError, msgspec.ValidationError) as exc:
-        raise _fail(f"{path}: not a hosts state file: {str(exc).splitlines()[0]}") from None
+        raise fail(f"{path}: not a hosts state file: {str(exc).splitlines()[0]}", 2) from None
 
 
 def _pair(state: HostsState) -> HostPair:
     from services.hosts.netns import HostPair
 
     return HostPair(state.tag, state.subnet, state.maker)
-
-
-def _interrupt(signum: int, frame: object) -> None:
-    """SIGTERM ends a timed partition as Ctrl-C does: the link is mended first."""
-    raise KeyboardInterrupt
 
 
 def _up_shaping(runs_dir: Path, delay_ms: float, jitter_ms: float, loss_pct: float) -> Shaping:
@@ -100,33 +89,31 @@ def _up_shaping(runs_dir: Path, delay_ms: float, jitter_ms: float, loss_pct: flo
     from services.hosts.netns import unavailable
 
     if (runs_dir / HOSTS_FILE).exists() or (runs_dir / FLEET_FILE).exists():
-        raise _fail(f"a fleet is already up in {runs_dir}; 'roco hosts down' (or 'roco down') first")
+        raise fail(f"a fleet is already up in {runs_dir}; 'roco hosts down' (or 'roco down') first", 2)
     try:
         shaping = Shaping(delay_ms, jitter_ms, loss_pct)
     except ValueError as exc:
-        raise _fail(str(exc)) from None
+        raise fail(str(exc), 2) from None
     why = unavailable()
     if why:
-        raise _fail(f"cannot make two hosts here: {why}")
+        raise fail(f"cannot make two hosts here: {why}", 2)
     return shaping
 
 
 def _not_up(hosts: TwoHosts, exc: BaseException, run_dir: Path, info: RunInfo) -> typer.Exit:
     """The exit of a fleet that did not come up (``exc``; its hosts are removed already), once
     its processes are noted and its report written."""
-    from services.report.ending import end
     from services.runtime.run_folder import write_run_info
-    from services.spec_check.coverage_figure import report_summary
-    from services.spec_check.trace import report_rows
+    from services.spec_check.report_cli import fleet_end
 
     interrupted = isinstance(exc, KeyboardInterrupt)
     why = "interrupted" if interrupted else str(exc)
     if hosts.fleet is not None:
         info.processes = hosts.fleet.pids()
         write_run_info(run_dir, info)
-    end(run_dir, ended=time.time(), failure=why, tracer=report_rows, coverage=report_summary)
+    fleet_end(run_dir, failure=why)
     code = INTERRUPTED if interrupted else 1
-    return _fail(f"{why}; nothing of the fleet is left running; run folder {run_dir}", code)
+    return fail(f"{why}; nothing of the fleet is left running; run folder {run_dir}", code)
 
 
 @hosts_app.command(short_help="Make brain and robot, shape the link, start the fleet across them.")
@@ -144,16 +131,13 @@ def up(
     from services.fleet.launcher import LaunchError
     from services.hosts.fleet import TwoHosts
     from services.hosts.netns import HostsError
-    from services.runtime.run_folder import RunFolderError, RunInfo, new_run_dir, write_run_info
+    from services.runtime.run_folder import RunInfo, write_run_info
 
     shaping = _up_shaping(runs_dir, delay_ms, jitter_ms, loss_pct)
-    try:
-        run_dir = new_run_dir(runs_dir)
-    except RunFolderError as exc:
-        raise _fail(str(exc)) from None
+    run_dir = new_run_folder(runs_dir)
     info = RunInfo(started=time.time(), realtime=realtime)
     write_run_info(run_dir, info)
-    signal.signal(signal.SIGTERM, _interrupt)
+    signal.signal(signal.SIGTERM, interrupt)
     env = {Settings.env_name("realtime"): "1" if realtime else "0", Settings.env_name("rerun"): "0"}
     hosts = TwoHosts(run_dir, shaping, env=env)
     try:
@@ -192,7 +176,7 @@ def partition(
     if seconds is None:
         typer.echo("roco: link down; 'roco hosts heal' mends it")
         return
-    signal.signal(signal.SIGTERM, _interrupt)
+    signal.signal(signal.SIGTERM, interrupt)
     typer.echo(f"roco: link down for {seconds:g} s")
     try:
         time.sleep(seconds)
@@ -221,7 +205,7 @@ def status(runs_dir: RunsDir = Path("runs")) -> None:
     state = _state(runs_dir)
     pair = _pair(state)
     if not pair.exists():
-        raise _fail(f"the namespaces of {runs_dir / HOSTS_FILE} are gone; 'roco hosts down' clears it", 1)
+        raise fail(f"the namespaces of {runs_dir / HOSTS_FILE} are gone; 'roco hosts down' clears it", 1)
     typer.echo(f"brain  {pair.netns('brain'):22s} link {pair.link_addr('brain')}  uplink {pair.uplink_addr}")
     typer.echo(f"robot  {pair.netns('robot'):22s} link {pair.link_addr('robot')}")
     typer.echo(f"link   {'DOWN (partitioned)' if link.is_cut(pair) else 'up'}; {state.shaping} ({state.how})")
@@ -238,9 +222,7 @@ def down(runs_dir: RunsDir = Path("runs")) -> None:
     from services.hosts.link import record_counters
     from services.hosts.netns import end_processes
     from services.recorder.sync import sync_fleet, sync_words
-    from services.report.ending import end
-    from services.spec_check.coverage_figure import report_summary
-    from services.spec_check.trace import report_rows
+    from services.spec_check.report_cli import fleet_end
 
     state = _state(runs_dir)
     pair, run_dir = _pair(state), Path(state.run_dir)
@@ -264,8 +246,7 @@ def down(runs_dir: RunsDir = Path("runs")) -> None:
     typer.echo("; both hosts removed")
     fleet_file.unlink(missing_ok=True)
     (runs_dir / HOSTS_FILE).unlink(missing_ok=True)
-    ending = end(run_dir, ended=time.time(), tracer=report_rows, coverage=report_summary)
-    typer.echo(f"roco: two hosts down {ending.line()}")
+    typer.echo(f"roco: two hosts down {fleet_end(run_dir)}")
 
 
 @hosts_app.command(short_help="Remove the host pairs that killed runs left behind.")
@@ -276,6 +257,6 @@ def clean() -> None:
 
     why = unavailable(link=False)
     if why:
-        raise _fail(why)
+        raise fail(why, 2)
     removed = sweep()
     typer.echo(f"roco: removed {len(removed)} host pair(s){': ' + ', '.join(removed) if removed else ''}")

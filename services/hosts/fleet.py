@@ -40,9 +40,9 @@ from services.runtime.reports import follow_reports
 from services.runtime.session import open_client
 from services.security.context import register
 from services.spec.model import load, spec_path
-from shared.settings import Settings
+from shared.settings import ROUTER_PORT, Settings
 
-PORT = 7447
+PORT = ROUTER_PORT
 ROBOT = ("ag_ex", "a_ta")
 """The robot's services (besides its router); every other agent and the recorder are the brain's."""
 ROUTERS = ("router_brain", "router_robot")

@@ -34,6 +34,8 @@ import time
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
+from services.fleet.processes import running
+
 STATE_DIR = Path("/run/roco-hosts")
 """One JSON marker per host pair made on this machine (``<tag>.json``)."""
 PREFIX = "roco-"
@@ -193,7 +195,7 @@ def end_processes(pids: list[int], grace_s: float) -> None:
     alive = list(pids)
     while alive and time.monotonic() < deadline:
         time.sleep(0.05)
-        alive = [p for p in alive if _alive(p)]
+        alive = [p for p in alive if running(p)]
     for pid in alive:
         with _gone():
             os.kill(pid, signal.SIGKILL)
@@ -205,17 +207,6 @@ class _gone:
 
     def __exit__(self, kind: object, exc: object, tb: object) -> bool:
         return isinstance(exc, ProcessLookupError)
-
-
-def _alive(pid: int) -> bool:
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    try:  # a zombie of ours counts as gone
-        return Path(f"/proc/{pid}/stat").read_text().split()[2] != "Z"
-    except OSError:
-        return False
 
 
 def load(tag: str) -> HostPair | None:
@@ -253,6 +244,6 @@ def _tags() -> set[str]:
 def _kept(pair: HostPair) -> bool:
     """Whether :func:`sweep` leaves ``pair``: its maker is alive, or it exited and something
     runs in it (a fleet of `roco hosts up` keeps running: `roco hosts down`)."""
-    if pair.maker and _alive(pair.maker):
+    if pair.maker and running(pair.maker):
         return True
     return bool(pair.pids()) and bool(pair.maker)

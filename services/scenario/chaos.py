@@ -46,13 +46,21 @@ from services.recorder.integrity import Integrity
 from services.recorder.record import read_link_events
 from services.report.ledger import LedgerVerdict, judge_ledger
 from services.report.load import Message, load_run
-from services.scenario.model import AGENTS, FAULT_KINDS, MOVABLE, Fault, Scenario, Step, Trigger
+from services.scenario.model import (
+    AGENTS,
+    DEFAULT_COMMAND,
+    FAULT_KINDS,
+    MOVABLE,
+    Fault,
+    Scenario,
+    Step,
+    Trigger,
+)
 from services.scenario.runner import LINK, FaultRecord, ScenarioOutcome
 from services.spec.model import default_spec
 from shared.fipa_codec.languages.l_sd import Observation
 from shared.settings import Settings
 
-DEFAULT_COMMAND = "pour the jar into the bowl"
 DROPPED_BELOW_M = 0.5
 """An object whose base is below this height (m, world z) has fallen off its furniture."""
 CHAOS_FILE = "chaos.md"

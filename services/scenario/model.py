@@ -56,6 +56,8 @@ SPEAKERS = ("person", "gateway")
 """Who a ``say`` step's sentence comes from (``from``): a person, or an agent of another FIPA
 platform through the ACL gateway."""
 MOVABLE = ("jar", "bowl", "cup")
+DEFAULT_COMMAND = "pour the jar into the bowl"
+"""The command roco's examples, ``roco chaos`` and the benchmarks give (the task the robot was built for)."""
 """The free bodies of the kitchen a ``disturb`` step can move (velma/executor/ground_truth.py
 CONTAINERS; repeated here so that reading a scenario needs no physics engine)."""
 

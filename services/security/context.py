@@ -22,7 +22,8 @@ from pathlib import Path
 from shared.settings import Settings
 
 ENV_SECURITY = Settings.env_name("security")
-FLEET_FILE = Path("runs") / ".fleet.json"  # services/cli.py: FLEET_FILE under the default runs dir
+# services/fleet_state.py FLEET_FILE under the default runs dir (this layer cannot import it)
+FLEET_FILE = Path("runs") / ".fleet.json"
 
 _lock = threading.Lock()
 _registry: dict[str, Path] = {}

@@ -46,7 +46,7 @@ def nothing_starts(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setattr("services.fleet.launcher.Fleet.__post_init__", started)
     monkeypatch.setattr("services.hosts.fleet.TwoHosts.start", started)
     monkeypatch.setattr("services.hosts.netns.unavailable", lambda link=True: None)  # root, ip, nft
-    monkeypatch.setattr(cli.signal, "signal", lambda *args: None)  # pytest keeps its SIGTERM
+    monkeypatch.setattr("signal.signal", lambda *args: None)  # pytest keeps its SIGTERM
 
 
 def _args(name: str, runs: Path) -> list[str]:
@@ -172,8 +172,8 @@ NO_FLEET = [
 def test_without_a_fleet_each_tool_names_the_router_and_the_fix(
     command: list[str], tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    monkeypatch.setattr("services.gateway.cli.signal.signal", lambda *args: None)
-    monkeypatch.setattr(cli.signal, "signal", lambda *args: None)
+    monkeypatch.setattr("services.gateway.serve.signal.signal", lambda *args: None)
+    monkeypatch.setattr("signal.signal", lambda *args: None)
     router = f"tcp/127.0.0.1:{free_port()}"
     args = [str(free_port()) if a == "PORT" else a for a in command]
     code, lines = invoke([*args, "--router", router, "--runs-dir", str(tmp_path)])
@@ -235,12 +235,12 @@ def test_a_gateway_port_in_use_is_refused_before_anything_starts(
 def test_gateway_refuses_a_port_in_use_before_it_reaches_the_fleet(
     taken_port: int, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    monkeypatch.setattr("services.gateway.cli.signal.signal", lambda *args: None)
+    monkeypatch.setattr("services.gateway.serve.signal.signal", lambda *args: None)
 
     def reached(*args: object, **kwargs: object) -> None:
         raise AssertionError("the gateway opened a session")
 
-    monkeypatch.setattr("services.gateway.cli.ZenohTransport", reached)
+    monkeypatch.setattr("services.gateway.serve.ZenohTransport", reached)
     router = f"tcp/127.0.0.1:{free_port()}"
     code, lines = invoke(
         ["gateway", "--port", str(taken_port), "--router", router, "--runs-dir", str(tmp_path)]
@@ -326,7 +326,7 @@ def test_run_takes_record_and_view_as_scenario_does(tmp_path: Path, monkeypatch:
     def run_scenario(sc: object, runs_dir: Path, **kwargs: object) -> None:
         given.append(kwargs)
 
-    monkeypatch.setattr(cli, "_run_scenario", run_scenario)
+    monkeypatch.setattr("services.scenario.cli._run_scenario", run_scenario)
     for args in ([], ["--no-record"], ["--view"], ["--no-record", "--view"]):
         code, lines = invoke(["run", "pour the jar into the bowl", *args, "--runs-dir", str(tmp_path)])
         assert code == 0, lines

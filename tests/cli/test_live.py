@@ -23,6 +23,7 @@ from services.live.view import LiveView
 from services.live.watch import LiveWatch
 from services.runtime import keys
 from services.runtime.session import open_client
+from services.scenario.run_env import live_watch
 from shared.fipa_codec import Performative, encode
 from shared.fipa_codec.languages import extend
 from shared.fipa_codec.languages.l_hc import CommandOutcome, HumanCommand, Notice, Severity, TaskAtom
@@ -252,13 +253,13 @@ def test_the_watch_takes_traffic_state_and_tokens_from_zenoh(router: str) -> Non
 
 
 def test_off_a_terminal_or_quiet_there_is_no_live_view(monkeypatch: pytest.MonkeyPatch) -> None:
-    assert cli._live_watch("roco run", None, quiet=False) is None  # pytest's stdout is no terminal
-    assert cli._live_watch("roco run", True, quiet=True) is not None  # asked for
+    assert live_watch("roco run", None, quiet=False) is None  # pytest's stdout is no terminal
+    assert live_watch("roco run", True, quiet=True) is not None  # asked for
     monkeypatch.setenv("FORCE_COLOR", "1")
     monkeypatch.setenv("TTY_COMPATIBLE", "1")
-    assert cli._live_watch("roco run", None, quiet=True) is None
-    assert cli._live_watch("roco run", False, quiet=False) is None
-    watch = cli._live_watch("roco chaos", True, quiet=False)
+    assert live_watch("roco run", None, quiet=True) is None
+    assert live_watch("roco run", False, quiet=False) is None
+    watch = live_watch("roco chaos", True, quiet=False)
     assert watch is not None and watch.state.expected == tuple(AGENT_ORDER)
 
 
@@ -276,7 +277,7 @@ def test_run_with_live_hands_the_watch_its_session_and_lines(
             raise KeyboardInterrupt  # stop before anything starts
 
     monkeypatch.setattr("services.scenario.runner.ScenarioRunner", Runner)
-    monkeypatch.setattr(cli.signal, "signal", lambda *args: None)  # pytest keeps its SIGTERM
+    monkeypatch.setattr("signal.signal", lambda *args: None)  # pytest keeps its SIGTERM
     result = CliRunner().invoke(
         cli.app, ["run", "pour the jar into the bowl", "--live", "--runs-dir", str(tmp_path)]
     )

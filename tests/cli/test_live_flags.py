@@ -10,8 +10,9 @@ from pathlib import Path
 import pytest
 import typer
 
-from services.cli import _exit_on_failure, _flag_lines
+from services.control.status_cli import _flag_lines
 from services.recorder.flags import FlagsReply, append_flag
+from services.scenario.cli import _exit_on_failure
 from tests.support.flags import a_flag
 
 FLAG = a_flag()

@@ -11,8 +11,9 @@ from pathlib import Path
 import pytest
 import typer
 
-from services.cli import _exit_on_failure, _finish_report
 from services.runtime.run_folder import RunInfo, write_run_info
+from services.scenario.cli import _exit_on_failure
+from services.spec_check.report_cli import finish_report
 
 RAISED = "2 handler errors in a_ta: see logs/a_ta.log"
 
@@ -27,7 +28,7 @@ def test_the_last_line_names_the_errors_and_the_log(
 ) -> None:
     info = _info(raised={"a_ta": {"handler_errors": 2}})
     write_run_info(tmp_path, info)
-    _finish_report(tmp_path, info)
+    finish_report(tmp_path, info)
     line = capsys.readouterr().out.splitlines()[-1]
     assert line.startswith("roco: succeeded in 12.0 s wall; 2 handler errors in a_ta: see logs/a_ta.log; ")
     assert "Agents raised | 2 handler errors in a_ta" in (tmp_path / "report.md").read_text()
@@ -36,7 +37,7 @@ def test_the_last_line_names_the_errors_and_the_log(
 def test_a_clean_run_says_nothing_of_errors(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     info = _info()
     write_run_info(tmp_path, info)
-    _finish_report(tmp_path, info)
+    finish_report(tmp_path, info)
     line = capsys.readouterr().out.splitlines()[-1]
     assert line.startswith("roco: succeeded in 12.0 s wall; 0 communicates; "), line
 

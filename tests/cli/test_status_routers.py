@@ -7,7 +7,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from services.cli import _router_names
+from services.control.status_cli import _router_names
 
 BRAIN, BRAIN_AGAIN, ROBOT, LOCAL = "a1b2c3d4e5f60718", "0f1e2d3c4b5a6978", "99887766554433221", "5e5e5e5e"
 

@@ -9,7 +9,8 @@ from pathlib import Path
 import pytest
 from typer.testing import CliRunner
 
-from services.cli import FLEET_FILE, app
+from services.cli import app
+from services.fleet_state import FLEET_FILE
 from services.scenario.model import ScenarioError, load_scenario
 from services.spec.model import DEFAULT_SPEC, SpecError, load
 

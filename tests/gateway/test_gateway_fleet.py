@@ -26,7 +26,7 @@ from services.runtime.counters import ask_counters
 from services.runtime.session import open_client
 from services.runtime.transport import ZenohTransport
 from services.security.context import register
-from services.sniff import sniff
+from services.sniff.sniffer import sniff
 from services.spec.model import default_spec
 from shared.fipa_codec import Performative
 from shared.fipa_codec.languages.l_hc import CommandOutcome

@@ -1,4 +1,4 @@
-"""`roco sniff` (services/sniff.py): live communicates from a Zenoh router on a loopback port,
+"""`roco sniff` (services/sniff/sniffer.py): live communicates from a Zenoh router on a loopback port,
 filtered by agent, channel, performative and conversation, printed in the FIPA SC00070 string
 form (readable content, or exact with --raw), malformed payloads reported without stopping."""
 
@@ -17,7 +17,7 @@ import zenoh
 from services.fleet.launcher import free_port
 from services.runtime import keys
 from services.runtime.session import open_client
-from services.sniff import Filters, parse_filters, render, sniff
+from services.sniff.sniffer import Filters, parse_filters, render, sniff
 from services.spec.model import default_spec
 from shared.fipa_codec import Communicate, Performative, encode
 from shared.fipa_codec.aid import aid

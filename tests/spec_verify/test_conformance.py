@@ -74,7 +74,7 @@ def test_a_retransmitted_inform_and_the_confirm_sent_again_are_copies_not_steps(
     ``reported``, a violation)."""
     from services.report import build_report
     from services.report.load import load_run
-    from services.sniff import _clock, _one, parse_filters
+    from services.sniff.sniffer import _clock, _one, parse_filters
 
     c1 = keys.fipa_key("C1", "a_ta", "a_co"), keys.fipa_key("C1", "a_co", "a_ta")
     at = next(i for i, (k, p) in enumerate(pour_traffic) if k == c1[0] and b"sw" in p)

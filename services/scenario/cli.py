@@ -1,0 +1,203 @@
+"""``roco run`` and ``roco scenario``: the whole system on one command or a scripted session,
+each command's outcome checked (services/scenario/runner.py)."""
+
+from __future__ import annotations
+
+import contextlib
+import time
+from collections.abc import Callable
+from pathlib import Path
+from typing import TYPE_CHECKING, Annotated
+
+import typer
+
+from services.cli_common import (
+    AclOption,
+    GatewayOption,
+    LiveOption,
+    RecordOption,
+    RunsDirMade,
+    TlsOption,
+    ViewOption,
+    fail,
+    new_run_folder,
+    port_free,
+    security_switches,
+    stop_on_signals,
+)
+from services.runtime.run_folder import RunInfo
+from services.scenario.run_env import live_watch, scene_env, viewer_env
+from services.spec_check.report_cli import finish_report
+
+if TYPE_CHECKING:
+    from services.live.watch import LiveWatch
+
+scenario_app = typer.Typer()
+
+
+@scenario_app.command(short_help="Run the whole system on one command, to the end of the task.")
+def run(
+    command: Annotated[str, typer.Argument(help="what the person says, e.g. 'pour the jar into the bowl'")],
+    runs_dir: RunsDirMade = Path("runs"),
+    realtime: Annotated[bool, typer.Option(help="pace the simulation to wall time")] = False,
+    timeout: Annotated[float, typer.Option(help="give up after this many seconds")] = 900.0,
+    quiet: Annotated[bool, typer.Option(help="print only the outcome")] = False,
+    seed: Annotated[int, typer.Option(min=0, help="jitter of the jar content's start positions")] = 0,
+    pose_seed: Annotated[
+        int | None, typer.Option(min=0, help="randomise the jar and bowl poses (±2 cm, ±10°) with this seed")
+    ] = None,
+    record: RecordOption = True,
+    view: ViewOption = False,
+    acl: AclOption = None,
+    tls: TlsOption = None,
+    live: LiveOption = None,
+    gateway: GatewayOption = None,
+) -> None:
+    """Start router, recorder and one process per agent (and the ACL gateway with
+    `--gateway`); give a_hi the command; wait for the outcome; stop everything; write the run
+    folder's report. Exit 0 only on success with no requirement flagged violated during the
+    run (docs/spec.md, the live monitor), 130 when interrupted (Ctrl-C: the fleet is
+    stopped, the report written)."""
+    from services.scenario.model import Scenario, Step
+
+    security_switches(acl, tls)
+    scenario = Scenario(
+        name="", steps=(Step(say=command),), seed=seed, pose_seed=pose_seed, timeout_s=timeout
+    )
+    watch = live_watch("roco run", live, quiet)
+    _run_scenario(
+        scenario,
+        runs_dir,
+        realtime=realtime,
+        quiet=quiet,
+        record=record,
+        view=view,
+        watch=watch,
+        gateway=gateway,
+    )
+
+
+@scenario_app.command(short_help="Run a scripted session and check every command's outcome.")
+def scenario(
+    name: Annotated[
+        str | None, typer.Argument(help="a scenario file, or the name of one in the library")
+    ] = None,
+    runs_dir: RunsDirMade = Path("runs"),
+    realtime: Annotated[bool, typer.Option(help="pace the simulation to wall time")] = False,
+    quiet: Annotated[bool, typer.Option(help="print only the outcome")] = False,
+    list_: Annotated[bool, typer.Option("--list", help="list the library's scenarios")] = False,
+    record: RecordOption = True,
+    view: ViewOption = False,
+    acl: AclOption = None,
+    tls: TlsOption = None,
+    live: LiveOption = None,
+    gateway: GatewayOption = None,
+) -> None:
+    """Run a scenario (several commands, interruptions, disturbances, restarts; see
+    services/scenario/model.py) headless, check every command's outcome against what the
+    scenario expects, and write the report. Exit 0 only when everything went as expected and
+    no requirement was flagged violated during the run (docs/spec.md, the live monitor), 130
+    when interrupted."""
+    from services.scenario.model import ScenarioError, library, load_scenario
+
+    security_switches(acl, tls)
+    if list_:
+        for stem, sc in library().items():
+            typer.echo(f"{stem:24s} {sc.name}: {sc.description}")
+        return
+    if name is None:
+        raise fail("name a scenario file or a library scenario (roco scenario --list)", code=2)
+    try:
+        sc = load_scenario(name)
+    except ScenarioError as exc:
+        raise fail(str(exc), code=2) from None
+    watch = live_watch(f"roco scenario {sc.name}", live, quiet)
+    _run_scenario(
+        sc, runs_dir, realtime=realtime, quiet=quiet, record=record, view=view, watch=watch, gateway=gateway
+    )
+
+
+def _run_echo(say: Callable[[str], None], quiet: bool) -> Callable[[str], None]:
+    """The runner's progress lines to ``say`` (with ``quiet``: only a_hi's to the person)."""
+    return lambda line: say(line) if not quiet or "a_hi → person" in line else None
+
+
+def _run_scenario(
+    sc: object,
+    runs_dir: Path,
+    *,
+    realtime: bool,
+    quiet: bool,
+    record: bool = True,
+    view: bool = False,
+    watch: LiveWatch | None = None,
+    gateway: int | None = None,
+) -> None:
+    """Run scenario ``sc`` (services/scenario/model.py) in a new run folder under ``runs_dir``
+    and end as `roco run` and `roco scenario` do: the report written, one line of outcome,
+    exit 1 on failure (:func:`_exit_on_failure`), 130 when interrupted. The port of
+    ``gateway`` is checked free before anything starts."""
+    from services.monitor import progress_line
+    from services.scenario.model import Scenario
+    from services.scenario.runner import ScenarioRunner
+
+    assert isinstance(sc, Scenario)
+    if gateway is not None:
+        port_free(gateway, "--gateway")
+    scene = scene_env(realtime, sc.seed, sc.pose_seed)
+    run_dir = new_run_folder(runs_dir)
+    env = scene | viewer_env(record, view)
+    info = RunInfo(
+        started=time.time(),
+        realtime=realtime,
+        seed=sc.seed,
+        pose_seed=sc.pose_seed,
+        scenario=sc.name,
+    )
+    stop_on_signals()
+    with watch if watch is not None else contextlib.nullcontext():
+        runner = ScenarioRunner(
+            sc,
+            run_dir,
+            env=env,
+            echo=_run_echo(watch.line if watch is not None else typer.echo, quiet),
+            traffic_lines=None if quiet else progress_line,
+            info=info,
+            on_session=watch.attach if watch is not None else None,
+            gateway=gateway,
+        )
+        outcome = runner.run()
+    finish_report(run_dir, info, interrupted=outcome.interrupted)
+    if sc.name:
+        typer.echo(outcome.summary())
+    _exit_on_failure(sc.name, outcome.ok, info.detail, run_dir, outcome.raised_line())
+
+
+def _exit_on_failure(name: str, ok: bool, detail: str, run_dir: Path, raised: str = "") -> None:
+    """Exit 1 with one line when the run failed (scenario ``name``, or ``roco run`` when
+    empty), a requirement was flagged violated during it (:func:`_violated`) or an agent raised
+    (``raised``: services/runtime/raised.py ``raised_text``, "" when none did)."""
+    violated = _violated(run_dir)
+    also = "; ".join(x for x in (violated, raised and f"agents raised: {raised}") if x)
+    if not ok:
+        what = "the task failed" if not name else f"scenario “{name}” did not go as expected"
+        raise fail(f"{what}: {detail}{also and '; ' + also} (run folder {run_dir})")
+    if also:
+        raise fail(f"{also} (run folder {run_dir})")
+
+
+def _violated(run_dir: Path) -> str:
+    """``requirement R3.3 violated during the run: …`` for the requirements the live monitor
+    flagged in ``run_dir`` (services/recorder/flags.py), the first one's flag in words; empty
+    when none was flagged."""
+    from services.recorder.flags import read_flags
+
+    try:
+        flags = read_flags(run_dir)
+    except OSError as exc:
+        return f"the live requirement flags cannot be read: {exc}"
+    if not flags:
+        return ""
+    ids = sorted({f.requirement for f in flags})
+    which = f"requirement{'s' if len(ids) > 1 else ''} {', '.join(ids)}"
+    return f"{which} violated during the run: {flags[0].line()}"

@@ -1,0 +1,66 @@
+"""``roco sniff``: live communicates as they cross Zenoh, in FIPA SC00070 string form."""
+
+from __future__ import annotations
+
+import threading
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from services.cli_common import (
+    CredentialsOption,
+    FleetRunsDir,
+    RouterOption,
+    endpoint_of,
+    fail,
+    operator_session,
+    stop_on_signals,
+)
+
+sniff_app = typer.Typer()
+
+
+@sniff_app.command(short_help="Print live communicates as they cross Zenoh (FIPA SC00070).")
+def sniff(
+    router: RouterOption = None,
+    runs_dir: FleetRunsDir = Path("runs"),
+    agent: Annotated[list[str] | None, typer.Option(help="only communicates from or to this agent")] = None,
+    channel: Annotated[list[str] | None, typer.Option(help="only this channel (C1..C8)")] = None,
+    performative: Annotated[list[str] | None, typer.Option(help="only this performative")] = None,
+    conversation: Annotated[str | None, typer.Option(help="only this conversation-id")] = None,
+    raw: Annotated[bool, typer.Option(help="print :content exactly as on the wire (SC00070)")] = False,
+    credentials: CredentialsOption = None,
+) -> None:
+    """Print live communicates as they cross Zenoh, in FIPA SC00070 string form (like JADE's
+    Sniffer), until interrupted. Content is shown as its decoded term unless --raw."""
+    from services.sniff.sniffer import parse_filters
+    from services.sniff.sniffer import sniff as run_sniff
+
+    try:
+        f = parse_filters(
+            agents=agent, channels=channel, performatives=performative, conversation=conversation
+        )
+    except ValueError as exc:
+        raise fail(str(exc), code=2) from None
+    endpoint = endpoint_of(router, runs_dir)
+    stop = threading.Event()
+    stop_on_signals()
+    session = operator_session(endpoint, credentials, None if router else runs_dir)
+    try:
+        count = run_sniff(
+            session,
+            agents=f.agents,
+            channels=f.channels,
+            performatives=f.performatives,
+            conversation=f.conversation,
+            out=typer.echo,
+            stop=stop,
+            content=not raw,
+        )
+    except KeyboardInterrupt:
+        stop.set()
+        return
+    finally:
+        session.close()
+    typer.echo(f"roco: {count} communicates")
