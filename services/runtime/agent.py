@@ -66,7 +66,6 @@ from __future__ import annotations
 
 import contextlib
 import logging
-import math
 import threading
 import time
 from collections import Counter, deque
@@ -103,6 +102,7 @@ from services.runtime.roles import Conversation, RoleDecl, Roles
 from services.runtime.sources import SYSTEM, Sources
 from services.runtime.state_store import NO_DATA, KeptConversations, StateFile
 from services.runtime.transport import Transport
+from services.runtime.values import RESEND_ON_RETURN, Received, SpecViolation
 from services.spec.model import Interface, SystemSpec, asked, default_spec, interface
 from services.spec.protocol_defs import machine_of, streams
 from shared.fipa_codec import (
@@ -120,10 +120,9 @@ from shared.fipa_codec.protocols import (
 )
 from shared.settings import Settings
 
+__all__ = ["RESEND_ON_RETURN", "Agent", "Received", "SpecViolation"]
+
 _FOLLOWED_MAX = 1024
-RESEND_ON_RETURN = math.inf
-"""``retry_s`` that retransmits only when the peer's liveliness token reappears (a restarted
-peer lost what it was sent), never periodically."""
 _ALIVE = "\x00alive"
 """Input-queue key of a peer liveliness event (never a Zenoh key)."""
 _COUNTERS = "\x00counters"
@@ -146,36 +145,6 @@ step computed longer takes its input on its own thread from then on. CPU time, n
 with 100 agent processes on 2 cores a 100 µs step waits tens of ms for a core at times, and a
 wall-time budget turned inline receiving off for a third of them (docs/benchmarks.md, "Fewer
 wake-ups per communicate")."""
-
-
-class SpecViolation(RuntimeError):
-    """The agent tried to send a communicate its specified interface does not allow, or one
-    its conversation's current protocol state does not allow (the agent's own bug)."""
-
-
-class Received(msgspec.Struct, frozen=True, gc=False):
-    """One acquired communicate: the message, its decoded ``content`` (a term of its
-    language, or None), the ``channel`` it came on, ``local`` True for what the runtime
-    synthesised (a failure when a reply-by deadline passed, or the not-understood this agent
-    answered the peer with: services/runtime/roles.py ``Roles.not_understood_sent``), and the
-    message's ``performative`` and ``sender`` name ("" for none), read on every one taken in.
-    Built with :meth:`of`. (A msgspec Struct: one is built per communicate taken in, ≈ 10 ×
-    cheaper than a frozen dataclass; not tracked by the garbage collector, as a communicate is
-    not.)"""
-
-    msg: Communicate
-    content: msgspec.Struct | None
-    channel: str
-    local: bool
-    performative: Performative
-    sender: str
-
-    @classmethod
-    def of(
-        cls, msg: Communicate, content: msgspec.Struct | None, channel: str, local: bool = False
-    ) -> Received:
-        """``msg`` acquired with its ``content`` on ``channel`` (``local``: synthesised)."""
-        return cls(msg, content, channel, local, msg.performative, msg.sender.name if msg.sender else "")
 
 
 class Agent:

@@ -88,6 +88,7 @@ import msgspec
 
 from services.runtime import keys
 from services.runtime.code_scan import findings_text, scan
+from services.runtime.values import Received, SpecViolation
 from services.spec.model import ChannelSpec, SpecError, SystemSpec
 from services.spec.names import FIPA_QUERY
 from services.spec.protocol_defs import machine_of, streams
@@ -98,7 +99,7 @@ from shared.fipa_codec.languages import ContentError, decode_content
 from shared.fipa_codec.protocols import INITIATOR, PARTICIPANT, Protocol, Role
 
 if TYPE_CHECKING:
-    from services.runtime.agent import Agent, Received
+    from services.runtime.agent import Agent
     from services.runtime.served import ServedSubscription
     from services.runtime.state_store import KeptConversations
     from services.runtime.subscriptions import StandingSubscription
@@ -988,8 +989,6 @@ class Conversation:
         """A communicate of this conversation kept encoded (FIPA SC00061 msgpack, e.g. the
         peer's ``cancel``, to be answered after a restart), as received on its channel, its
         content decoded. Raises RestoreError (a ValueError) when it does not decode."""
-        from services.runtime.agent import Received
-
         try:
             msg = decode(kept)
             content = decode_content(msg.language, msg.content) if msg.language and msg.content else None
@@ -1248,8 +1247,6 @@ class Roles:
         perf = performative or (openers[0] if len(openers) == 1 else None)
         if perf is None:
             raise ValueError(f"{protocol} opens with {' or '.join(p.value for p in openers)}: name one")
-        from services.runtime.agent import Received
-
         conv = Conversation(self, decl, self._peer_of[decl], conversation_id or "", data=data)
         answered = _answered(machine, perf)
         msg = self._send(
@@ -1297,8 +1294,6 @@ class Roles:
         RestoreError (a ValueError) for kept bytes that do not decode, name no conversation or
         carry content of another type, and when no path leads to ``state``; KeyError for a role
         not declared."""
-        from services.runtime.agent import Received
-
         decl = self.role(channel, protocol)
         peer = self._peer_of[decl]
         opening: Received | None = None
@@ -1394,7 +1389,6 @@ class Roles:
         that cannot be taken back (its role no longer keeps any, its data or opening does not
         decode, no path leads to its state) is logged and left out. Returns those taken back,
         oldest first."""
-        from services.runtime.agent import SpecViolation
         from services.runtime.state_store import NO_DATA
 
         out: list[Conversation] = []
@@ -1492,8 +1486,6 @@ class Roles:
         no more: it stops waiting and ends through the agent's not-understood (else failure)
         handler (:attr:`Conversation.unreadable`, its reason ``why``), at once instead of at
         its reply-by deadline, or never when it has none (a_co's plan on C1)."""
-        from services.runtime.agent import Received
-
         conv = self._open.get((peer, about.conversation_id or ""))
         if conv is None or conv.decl.role != INITIATOR:
             return
@@ -1618,8 +1610,6 @@ class Roles:
     def _fail_quietly(self, item: Received, reason: str) -> bool:
         """Answer ``item`` with ``failure`` and ``reason``; False when the conversation's state
         allows no failure (the peer is then left to its deadline)."""
-        from services.runtime.agent import SpecViolation
-
         try:
             self.agent.fail(item, Performative.FAILURE, reason)
         except SpecViolation:
