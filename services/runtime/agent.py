@@ -41,7 +41,7 @@ A subclass declares its ``name`` (as in the specification), builds its FSM of be
   replays included: what the traffic record must hold of this agent's session, docs/recovery.md),
 - peer liveliness: :meth:`Agent.peer_changed` is called on the agent's thread whenever
   another agent's token appears or disappears (the white pages, ``roco/alive/*``), after the
-  subscriptions its roles keep with that peer acted on it (services/runtime/subscriptions.py),
+  subscriptions its roles keep with that peer acted on it (services/runtime/roles/subscriptions.py),
 - readiness: :attr:`Agent.ready` once :meth:`Agent.setup` has run, the agent's liveliness
   token is declared and every agent it asks (:attr:`Agent.asks`) has been seen; then
   :attr:`Agent.on_ready` is called (a container's health check reads what it writes),
@@ -153,7 +153,7 @@ class Agent:
 
     name: ClassVar[str]
     ROLES: ClassVar[tuple[RoleDecl, ...] | None] = None
-    """The protocol roles the agent plays (services/runtime/roles.py), compared with its
+    """The protocol roles the agent plays (services/runtime/roles/), compared with its
     interface in the specification when it starts (RoleMismatch, one line, when they differ).
     None: the agent declares none and handles its input buffer itself (checked at run time
     only)."""
@@ -216,7 +216,7 @@ class Agent:
         self._streaming: dict[tuple[str, Performative], bool] = {}
         """:meth:`_streams` per (protocol, performative)."""
         self.roles = Roles(self, self.ROLES or (), check=self.ROLES is not None)
-        """The agent's protocol roles and their open conversations (services/runtime/roles.py)."""
+        """The agent's protocol roles and their open conversations (services/runtime/roles/)."""
         self._y: list[tuple[str, bytes]] = []
         self._outbox = Outbox(
             self,
@@ -309,7 +309,7 @@ class Agent:
     def persist(self) -> None:
         """Runs after every step, once its output buffer is dispatched (so what it has said is
         what it keeps): the open conversations of the roles declared with ``keep``
-        (services/runtime/roles.py :meth:`Roles.kept`) and :attr:`note`, written when they
+        (services/runtime/roles/ :meth:`Roles.kept`) and :attr:`note`, written when they
         changed; the file is encoded only then (an opening kept is not encoded again every
         step). An agent whose data of a kept conversation follows from its state sets it here
         before calling this (a_ta: the leaf step it is in). Raises OSError when the state
@@ -838,7 +838,7 @@ class Agent:
         if self._inbox:
             self._gate.take_all(self._inbox, self.max_open_per_peer)
         now = self.sources.time()
-        if self.roles.ticks:  # subscription attempts that are due (services/runtime/subscriptions.py)
+        if self.roles.ticks:  # subscription attempts that are due (services/runtime/roles/subscriptions.py)
             self.roles.tick(now)
         self.protocol_states.commit()  # what arrived stays arrived; only sends are undone
         self._y_taken = len(self._y)  # so do the answers to it (not-understood, copies again)
@@ -1217,6 +1217,6 @@ class Agent:
     # ---- helpers for behaviours ---------------------------------------------------------
     def handle_received(self) -> None:
         """Route every communicate in the input buffer ``x`` to its protocol role and the
-        agent's handler (services/runtime/roles.py), oldest first."""
+        agent's handler (services/runtime/roles/), oldest first."""
         while self.x:
             self.roles.take(self.x.popleft())

@@ -30,7 +30,7 @@ class Received(msgspec.Struct, frozen=True, gc=False):
     """One acquired communicate: the message, its decoded ``content`` (a term of its
     language, or None), the ``channel`` it came on, ``local`` True for what the runtime
     synthesised (a failure when a reply-by deadline passed, or the not-understood this agent
-    answered the peer with: services/runtime/roles.py ``Roles.not_understood_sent``), and the
+    answered the peer with: services/runtime/roles/ ``Roles.not_understood_sent``), and the
     message's ``performative`` and ``sender`` name ("" for none), read on every one taken in.
     Built with :meth:`of`. (A msgspec Struct: one is built per communicate taken in, ≈ 10 ×
     cheaper than a frozen dataclass; not tracked by the garbage collector, as a communicate is

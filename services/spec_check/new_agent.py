@@ -166,7 +166,7 @@ def _carries(cp: ChannelProtocol, perf: Performative, modules: dict[str, str]) -
 
 
 def _call(perf: Performative, cp: ChannelProtocol, role: Role) -> str:
-    """The roles' call that sends ``perf`` in a conversation (services/runtime/roles.py
+    """The roles' call that sends ``perf`` in a conversation (services/runtime/roles/
     :class:`~services.runtime.roles.Conversation`)."""
     terms = cp.content_types(perf.value)
     term = f"{terms[0]}(…)" if len(terms) == 1 else "content" if terms else ""
@@ -455,7 +455,7 @@ Written by ``roco spec new-agent {agent}`` from the specification: its protocol 
 channel and protocol the specification gives it) and one handler per performative its peers
 may send. Each handler raises NotImplementedError until it is written; ``roco spec
 verify-code`` lists those not yet written. The runtime's roles answer not-understood, cancels
-without a handler, and passed reply-by deadlines (services/runtime/roles.py).
+without a handler, and passed reply-by deadlines (services/runtime/roles/).
 """
 
 from __future__ import annotations

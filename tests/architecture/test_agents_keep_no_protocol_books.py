@@ -1,6 +1,6 @@
 """No agent carries protocol machinery by hand (README: "an agent never compares
 performatives nor keeps a book of replies"; beside JADE's jade.proto, where a protocol object
-per conversation carries its context): the roles own it (services/runtime/roles.py).
+per conversation carries its context): the roles own it (services/runtime/roles/).
 
 Read by AST, every agent module of the specification must not
 

@@ -1,4 +1,4 @@
-"""Protocol roles built from the state machines (services/runtime/roles.py): the same
+"""Protocol roles built from the state machines (services/runtime/roles/): the same
 code plays both roles of every interaction protocol roco knows — the eleven of the FIPA
 library (fipa-request ... fipa-propose, SC00026-SC00036) and the paper's coordinate —
 between two agents on one bus, and owns what the protocols imply: in-reply-to, reply-by

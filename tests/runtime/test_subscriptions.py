@@ -1,6 +1,6 @@
 """The subscription a fipa-subscribe initiator role keeps open itself
-(services/runtime/subscriptions.py, FIPA SC00035), a repeated opening recognised by the
-participant role (services/runtime/roles.py, FIPA SC00061 §2.4), and the conversations a role
+(services/runtime/roles/subscriptions.py, FIPA SC00035), a repeated opening recognised by the
+participant role (services/runtime/roles/, FIPA SC00061 §2.4), and the conversations a role
 declared with ``keep`` keeps across a restart (services/runtime/state_store.py). The agents are driven by hand
 on a MemoryBus, as in test_reliability.py; time is moved by setting the next attempt's time."""
 

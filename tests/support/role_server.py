@@ -1,5 +1,5 @@
 """a_s of tests/runtime/test_served.py: on C1 with a_i (whose communicates the tests deliver by
-hand), the participant of a fipa-subscribe it serves through its role (services/runtime/served.py)
+hand), the participant of a fipa-subscribe it serves through its role (services/runtime/roles/served.py)
 and of a fipa-request whose cancels it answers later, and the initiator of a fipa-query.
 The module that declares an agent's roles is read when it starts (services/runtime/code_scan.py)."""
 

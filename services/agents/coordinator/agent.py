@@ -8,7 +8,7 @@ communicates are handled in every state; each L_SW inform is confirmed (paper §
 
 Towards the person (C2, L_HC): commands by fipa-request (agree, then inform or failure with a
 CommandOutcome; a ``cancel`` is answered once the robot is safe), progress by fipa-subscribe
-(a Progress inform at every change, served by the role: services/runtime/served.py), status by
+(a Progress inform at every change, served by the role: services/runtime/roles/served.py), status by
 fipa-query.
 
 Restarts (docs/recovery.md): the roles keep the commands (``keep=TaskNote``) and the progress
@@ -136,7 +136,7 @@ class Coordinator(Agent):
         self.ta: Conversation | None = None  # the C1 conversation of the plan a_ta runs
         self.person: deque[Callable[[], None]] = deque()  # the person's commands and stops, for procReq
         # a_hi's progress subscription: what is made while none is agreed is kept in the NOTE,
-        # bounded, and sent after the next agree (services/runtime/served.py)
+        # bounded, and sent after the next agree (services/runtime/roles/served.py)
         self.progress = self.roles.serve(
             C2,
             FIPA_SUBSCRIBE,
@@ -217,7 +217,7 @@ class Coordinator(Agent):
             return
         now = self.sources.time()
         task_id = conv.conversation_id or f"task-{len(self.tasks)}"
-        if task_id in self.tasks:  # (the same request again is the role's: services/runtime/roles.py)
+        if task_id in self.tasks:  # (the same request again is the role's: services/runtime/roles/)
             conv.refuse_with(Performative.REFUSE, f"command {task_id} is already being carried out")
             return
         deadline = now + item.content.deadline_s if item.content.deadline_s is not None else None

@@ -7,7 +7,7 @@ under its own ``request_id`` and ends with one of a kind in FINAL_REPORTS
 (services/runtime/human.py); their words are wording.py's. Towards a_co, on C2 in L_HC, a_hi
 initiates a fipa-request per command (a stop sends ``cancel`` in every open one: the cancel
 meta-protocol), one fipa-subscribe to the progress, which the role keeps open
-(services/runtime/subscriptions.py: while a_co does not agree, a new attempt, the interval
+(services/runtime/roles/subscriptions.py: while a_co does not agree, a new attempt, the interval
 doubling from ``SUBSCRIBE_RETRY_S[0]`` to ``SUBSCRIBE_RETRY_S[1]``), and a fipa-query per status
 request. Towards a_km, on C7 in L_WM (asking.py), a fipa-query per sentence asks for the
 vocabulary (vocabulary.py), which the sentence waits for (at most ``VOCABULARY_REPLY_BY_S``),
@@ -91,7 +91,7 @@ from services.runtime.roles import (
     initiator,
     participant,
 )
-from services.runtime.subscriptions import StandingSubscription
+from services.runtime.roles.subscriptions import StandingSubscription
 from services.spec.names import C2, C7, C8, FIPA_QUERY, FIPA_REQUEST, FIPA_SUBSCRIBE, L_HC, L_WM, ROCO_NOTIFY
 from shared.fipa_codec import Performative
 from shared.fipa_codec.languages.l_hc import (
@@ -194,7 +194,7 @@ class HumanInterface(AskingKnowledge):
     name = "a_hi"
     NOTE = Told
     progress: StandingSubscription
-    """a_co's progress stream (services/runtime/subscriptions.py), opened in :meth:`setup`."""
+    """a_co's progress stream (services/runtime/roles/subscriptions.py), opened in :meth:`setup`."""
     ROLES: ClassVar[tuple[RoleDecl, ...]] = (
         # open commands are kept across a restart, each sent again (docs/recovery.md)
         initiator(C2, FIPA_REQUEST, L_HC, reply_by_s=AGREE_BY_S, retry_s=COMMAND_RETRY_S, keep=CommandNote),

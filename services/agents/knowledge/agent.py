@@ -7,7 +7,7 @@ with an L_WM Answer to query-ref, inform to query-if; ``refuse`` with the reason
 a_km does not answer, ``failure`` with the reason for one it cannot answer), knowledgeSaving
 (apply one observation or asserted change). At start-up it opens the fipa-subscribe
 conversation with a_ta for environment updates; the role keeps it open
-(services/runtime/subscriptions.py): the subscribe is repeated, in the same conversation, at
+(services/runtime/roles/subscriptions.py): the subscribe is repeated, in the same conversation, at
 once after each refuse, failure or passed reply-by deadline until a_ta agrees (a_ta may start
 later), and again when a_ta's token reappears after it disappeared (a restarted a_ta has lost it).
 
@@ -30,10 +30,10 @@ subscription per channel (a later one on the same channel replaces the earlier),
 range is refused with the reason; an agreed one is informed of each change of an object of
 interest it learns from a_ta's updates (C6) past the subscription's thresholds
 (services/agents/knowledge/scene_watch.py: what is compared, the bounded queue). A ``cancel``
-or ``not-understood`` ends it (services/runtime/served.py). Scene subscriptions are not kept
+or ``not-understood`` ends it (services/runtime/roles/served.py). Scene subscriptions are not kept
 across a restart of a_km: the subscriber subscribes again when a_km's token reappears, as a_km
 does with a_ta (an initiator role declared ``resubscribes``, ``while_away=False``:
-services/runtime/subscriptions.py); what it was told starts again from a_km's knowledge then.
+services/runtime/roles/subscriptions.py); what it was told starts again from a_km's knowledge then.
 
 The knowledge persists across restarts of a_km (see :mod:`services.agents.knowledge.world_model`):
 the store is the directory ``ROCO_KM_STORE``; when that is unset, ``<ROCO_RUN_DIR>/km_store``;
@@ -62,8 +62,8 @@ from services.runtime.roles import (
     initiator,
     participant,
 )
-from services.runtime.served import ServedSubscription
-from services.runtime.subscriptions import StandingSubscription
+from services.runtime.roles.served import ServedSubscription
+from services.runtime.roles.subscriptions import StandingSubscription
 from services.spec.names import C6, FIPA_QUERY, FIPA_SUBSCRIBE, L_WM
 from shared.fipa_codec import Performative
 from shared.fipa_codec.languages.l_wm import (
