@@ -87,12 +87,21 @@ from services.runtime.admission import (
     Gate,
     step,
 )
-from services.runtime.behaviour import FSM
-from services.runtime.clock import FleetClock, decode_sim_time
+from services.runtime.behaviour import FSM, Arc, Behaviour, once, periodic
+from services.runtime.clock import FleetClock, decode_sim_time, encode_sim_time
 from services.runtime.dedup import Dedup
 from services.runtime.emission import SENT_COUNTER, Outbox, Outgoing
 from services.runtime.heap import give_back_freed_heap
 from services.runtime.hooks import Hooks, load_hooks
+from services.runtime.human import (
+    FINAL_REPORTS,
+    MAX_LINE_CHARS,
+    NOTICES_PER_S,
+    HumanInput,
+    HumanReport,
+    ReportKind,
+    RequestKind,
+)
 from services.runtime.intake import Refusal
 from services.runtime.limits import MAX_OPEN_CONVERSATIONS_PER_PEER
 from services.runtime.lookups import Followed, Lookups
@@ -120,7 +129,32 @@ from shared.fipa_codec.protocols import (
 )
 from shared.settings import Settings
 
-__all__ = ["RESEND_ON_RETURN", "Agent", "Received", "SpecViolation"]
+__all__ = [
+    "FINAL_REPORTS",
+    "FSM",
+    "MAX_LINE_CHARS",
+    "NOTICES_PER_S",
+    "RESEND_ON_RETURN",
+    "Agent",
+    "Arc",
+    "Behaviour",
+    "HumanInput",
+    "HumanReport",
+    "Received",
+    "ReportKind",
+    "RequestKind",
+    "SpecViolation",
+    "Transport",
+    "encode_sim_time",
+    "keys",
+    "once",
+    "periodic",
+]
+"""An agent's API besides its roles (services/runtime/roles/): the agent, its behaviours
+(services/runtime/behaviour.py), a received communicate and the agent's own send errors
+(services/runtime/values.py), the Zenoh keys (services/runtime/keys.py), the simulation
+clock's encoding (services/runtime/clock.py) and the person's side of a_hi
+(services/runtime/human.py), re-exported so that an agent imports from two runtime modules."""
 
 _FOLLOWED_MAX = 1024
 _ALIVE = "\x00alive"

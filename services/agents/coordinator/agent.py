@@ -28,8 +28,7 @@ from functools import partial
 import msgspec
 
 from services.agents.coordinator.scheduling import Candidate, Decision, Running, decide, plan_left
-from services.runtime.agent import RESEND_ON_RETURN, Agent, Received
-from services.runtime.behaviour import FSM, Arc, Behaviour, once
+from services.runtime.agent import FSM, RESEND_ON_RETURN, Agent, Arc, Behaviour, Received, once
 from services.runtime.roles import INITIATOR, PARTICIPANT, Conversation, handles, initiator, participant
 from services.spec.names import (
     C1,

@@ -71,15 +71,16 @@ from services.agents.human_interface.wording import (
     stopping,
     too_long,
 )
-from services.runtime import keys
-from services.runtime.behaviour import FSM, Behaviour
-from services.runtime.human import (
+from services.runtime.agent import (
     FINAL_REPORTS,
+    FSM,
     MAX_LINE_CHARS,
+    Behaviour,
     HumanInput,
     HumanReport,
     ReportKind,
     RequestKind,
+    keys,
 )
 from services.runtime.roles import (
     EVERY_CHANNEL,
@@ -87,11 +88,11 @@ from services.runtime.roles import (
     PARTICIPANT,
     Conversation,
     RoleDecl,
+    StandingSubscription,
     handles,
     initiator,
     participant,
 )
-from services.runtime.roles.subscriptions import StandingSubscription
 from services.spec.names import C2, C7, C8, FIPA_QUERY, FIPA_REQUEST, FIPA_SUBSCRIBE, L_HC, L_WM, ROCO_NOTIFY
 from shared.fipa_codec import Performative
 from shared.fipa_codec.languages.l_hc import (
@@ -105,7 +106,7 @@ from shared.fipa_codec.languages.l_hc import (
 )
 
 if TYPE_CHECKING:
-    from services.runtime.transport import Transport
+    from services.runtime.agent import Transport
     from services.spec.model import SystemSpec
 
 CO = "a_co"

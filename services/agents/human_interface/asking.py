@@ -26,8 +26,7 @@ from services.agents.human_interface.language import default_vocabulary
 from services.agents.human_interface.task_grammar import Grammar
 from services.agents.human_interface.vocabulary import VOCABULARY_QUERY, Vocabulary
 from services.agents.human_interface.wording import dropped, reason_of
-from services.runtime.agent import Agent
-from services.runtime.human import HumanInput, ReportKind
+from services.runtime.agent import Agent, HumanInput, ReportKind
 from services.runtime.roles import INITIATOR, Conversation, handles
 from services.spec.names import C7, FIPA_QUERY
 from shared.fipa_codec import Performative

@@ -19,8 +19,7 @@ from __future__ import annotations
 import logging
 from collections.abc import Callable
 
-from services.runtime.agent import Received, SpecViolation
-from services.runtime.human import FINAL_REPORTS, HumanInput, HumanReport, ReportKind
+from services.runtime.agent import FINAL_REPORTS, HumanInput, HumanReport, Received, ReportKind, SpecViolation
 from services.runtime.roles import Conversation
 from shared.fipa_codec import Performative
 from shared.fipa_codec.languages.l_hc import Sentence, SentenceReport

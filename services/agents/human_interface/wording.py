@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 
-from services.runtime.human import MAX_LINE_CHARS
+from services.runtime.agent import MAX_LINE_CHARS
 from services.runtime.roles import Conversation
 from shared.fipa_codec.languages.l_hc import (
     CommandOutcome,

@@ -51,19 +51,18 @@ from pathlib import Path
 from services.agents.knowledge import scene_watch
 from services.agents.knowledge.scene_watch import Watch
 from services.agents.knowledge.world_model import KnowledgeError, UnsupportedQuery, WorldModel
-from services.runtime.agent import Agent
-from services.runtime.behaviour import FSM, Arc, Behaviour
+from services.runtime.agent import FSM, Agent, Arc, Behaviour
 from services.runtime.roles import (
     EVERY_CHANNEL,
     INITIATOR,
     PARTICIPANT,
     Conversation,
+    ServedSubscription,
+    StandingSubscription,
     handles,
     initiator,
     participant,
 )
-from services.runtime.roles.served import ServedSubscription
-from services.runtime.roles.subscriptions import StandingSubscription
 from services.spec.names import C6, FIPA_QUERY, FIPA_SUBSCRIBE, L_WM
 from shared.fipa_codec import Performative
 from shared.fipa_codec.languages.l_wm import (

@@ -19,8 +19,7 @@ from services.agents.planner.domain import ATOMIC_STATES, PlanActions, PlanningF
 from services.agents.planner.goals import goal_query, steps
 from services.agents.planner.hfsm import to_hfsm
 from services.agents.planner.knowledge import ARMS, Knowledge
-from services.runtime.agent import Agent
-from services.runtime.behaviour import FSM, Arc, Behaviour
+from services.runtime.agent import FSM, Agent, Arc, Behaviour
 from services.runtime.roles import INITIATOR, PARTICIPANT, Conversation, handles, initiator, participant
 from services.spec.names import C3, C4, FIPA_QUERY, FIPA_REQUEST, L_HFSM, L_WM
 from shared.fipa_codec import Performative

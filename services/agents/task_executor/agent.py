@@ -62,8 +62,7 @@ from collections import deque
 
 import msgspec
 
-from services.runtime.agent import RESEND_ON_RETURN, Agent
-from services.runtime.behaviour import FSM, Arc, Behaviour
+from services.runtime.agent import FSM, RESEND_ON_RETURN, Agent, Arc, Behaviour
 from services.runtime.roles import (
     INITIATOR,
     PARTICIPANT,
