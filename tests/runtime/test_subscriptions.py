@@ -193,7 +193,9 @@ def test_resume_in_names_a_state_the_protocol_can_take_a_conversation_back_in() 
     assert role_problems(spec, "a_ta", TaskExecutor.ROLES, handlers) == []
     for state in ("runing", "finished", "ending", "start"):
         roles = [
-            participant("C1", "coordinate", "L_HFSM", "L_SW", keep=True, resume_in=state),
+            participant(
+                "C1", "coordinate", "L_HFSM", "L_SW", keep=True, resume_in=state, confirmed_informs=True
+            ),
             *TaskExecutor.ROLES[1:],
         ]
         assert role_problems(spec, "a_ta", roles, handlers) == [

@@ -84,7 +84,8 @@ services/runtime/agent.py), whose modules are:
 - dispatch.py: the roles at run time (:class:`Roles`), reaching their agent through
   host.py's :class:`~services.runtime.roles.host.RoleHost`;
 - subscriptions.py, served.py: a fipa-subscribe initiator's subscription kept open, a
-  participant's stream served.
+  participant's stream served;
+- confirmed.py: a participant's informs sent one at a time until confirmed (coordinate).
 """
 
 from services.runtime.roles.check import (
@@ -97,6 +98,7 @@ from services.runtime.roles.check import (
     role_problems,
     spec_roles,
 )
+from services.runtime.roles.confirmed import ConfirmedInforms
 from services.runtime.roles.conversation import Conversation
 from services.runtime.roles.declare import (
     EVERY_CHANNEL,
@@ -120,6 +122,7 @@ __all__ = [
     "EVERY_CHANNEL",
     "INITIATOR",
     "PARTICIPANT",
+    "ConfirmedInforms",
     "Conversation",
     "HandlerKey",
     "RestoreError",

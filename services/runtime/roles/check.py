@@ -201,6 +201,7 @@ def role_problems(
     handlers = list(handlers)
     valid = [d for d in declared if want.get((d.channel, d.protocol)) == _normal(d)]
     problems += [p for d in valid if (p := _resume_problem(spec, agent, d)) is not None]
+    problems += [p for d in valid if (p := _confirm_problem(spec, agent, d)) is not None]
     for decl in valid:
         if decl.unused:
             continue
@@ -277,12 +278,32 @@ def _resume_problem(spec: SystemSpec, agent: str, decl: RoleDecl) -> str | None:
     )
 
 
+def _confirm_problem(spec: SystemSpec, agent: str, decl: RoleDecl) -> str | None:
+    """Why ``decl``'s ``confirmed_informs`` (:attr:`RoleDecl.confirmed_informs`) does not fit
+    its protocol (its participant sends no ``inform``, or its initiator no ``confirm``), or None."""
+    if not decl.confirmed_informs:
+        return None
+    machine = machine_of(spec, decl.protocol)
+    if Performative.INFORM in outgoing(machine, decl.role) and Performative.CONFIRM in incoming(
+        machine, decl.role
+    ):
+        return None
+    return (
+        f"agent {agent} has its {decl.protocol} informs on {decl.channel} confirmed one at a time, "
+        f"but in [protocols.{decl.protocol}] the {decl.role} sends no inform or the "
+        f"{_other(decl.role)} no confirm"
+    )
+
+
 def _kept_by_role(decl: RoleDecl) -> frozenset[Performative]:
-    """What a role that keeps its subscription open (:attr:`RoleDecl.resubscribes`) handles
-    itself: every answer but the stream's ``inform``."""
-    if not decl.resubscribes:
-        return frozenset()
-    return frozenset({Performative.AGREE, Performative.REFUSE, Performative.FAILURE})
+    """What a role handles itself: a role that keeps its subscription open
+    (:attr:`RoleDecl.resubscribes`) every answer but the stream's ``inform``; a role whose
+    informs are confirmed one at a time (:attr:`RoleDecl.confirmed_informs`) the ``confirm``."""
+    if decl.resubscribes:
+        return frozenset({Performative.AGREE, Performative.REFUSE, Performative.FAILURE})
+    if decl.confirmed_informs:
+        return frozenset({Performative.CONFIRM})
+    return frozenset()
 
 
 def _normal(decl: RoleDecl) -> RoleDecl:

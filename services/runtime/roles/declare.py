@@ -78,10 +78,17 @@ class RoleDecl:
     ended (a not-understood ended a_ta's plan conversation while a_ta still runs the plan).
     None: taken back in the state it was kept in, and kept while open. Checked against the
     protocol's states when the agent starts (:func:`role_problems`)."""
+    confirmed_informs: bool = False
+    """A participant role whose peer confirms each ``inform`` before the next (coordinate,
+    paper §5.4, Figure 8): the role sends the agent's informs one at a time, each once the one
+    before was confirmed, retransmitted until then (:meth:`Roles.report`,
+    services/runtime/roles/confirmed.py), and handles ``confirm`` itself."""
 
     def __post_init__(self) -> None:
         if self.resume_in is not None and (self.role != PARTICIPANT or not self.keep):
             raise ValueError(f"{self}: resume_in is for a participant role declared with keep")
+        if self.confirmed_informs and self.role != PARTICIPANT:
+            raise ValueError(f"{self}: confirmed_informs is for a participant role")
 
     def __str__(self) -> str:
         where = "every channel" if self.channel == EVERY_CHANNEL else self.channel
@@ -124,13 +131,16 @@ def participant(
     *languages: str,
     keep: bool | type[msgspec.Struct] = False,
     resume_in: str | None = None,
+    confirmed_informs: bool = False,
 ) -> RoleDecl:
     """The participant role of ``protocol`` on ``channel`` (or :data:`EVERY_CHANNEL`: every
     channel where the specification makes the agent its participant in exactly ``languages``),
     in ``languages``: ``participant(C5, FIPA_REQUEST, L_EX, L_SD)``, named as by
     :func:`initiator`; ``keep`` as there; ``resume_in``: the protocol state a kept
-    conversation is taken back in (:attr:`RoleDecl.resume_in`). Raises ValueError for
-    ``resume_in`` without ``keep``."""
+    conversation is taken back in (:attr:`RoleDecl.resume_in`); ``confirmed_informs``: the
+    role sends the agent's informs one at a time until confirmed
+    (:attr:`RoleDecl.confirmed_informs`). Raises ValueError for ``resume_in`` without
+    ``keep``."""
     return RoleDecl(
         _spelling(channel),
         _spelling(protocol),
@@ -138,6 +148,7 @@ def participant(
         tuple(_spelling(lang) for lang in languages),
         keep=keep,
         resume_in=resume_in,
+        confirmed_informs=confirmed_informs,
     )
 
 

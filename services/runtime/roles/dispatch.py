@@ -19,6 +19,7 @@ import msgspec
 from services.runtime import keys
 from services.runtime.replies import Pending
 from services.runtime.roles.check import agent_problems, expand_roles, path_to
+from services.runtime.roles.confirmed import ConfirmedInforms
 from services.runtime.roles.conversation import Conversation, is_deadline
 from services.runtime.roles.declare import RestoreError, RoleDecl, RoleMismatch, handler_for, handlers_of
 from services.runtime.roles.host import RoleHost
@@ -74,7 +75,9 @@ class Roles:
         }
         """:attr:`_by_peer`'s roles as :class:`RoleTable`\\s, what :meth:`take` looks up."""
         self._open: OrderedDict[tuple[str, str], Conversation] = OrderedDict()
-        self._subscriptions: dict[RoleDecl, StandingSubscription | ServedSubscription[Any]] = {}
+        self._subscriptions: dict[
+            RoleDecl, StandingSubscription | ServedSubscription[Any] | ConfirmedInforms
+        ] = {}
         self.ticks = False
         """:meth:`tick` has something to look at (a subscription is kept): the agent calls it
         on every step only then."""
@@ -194,6 +197,22 @@ class Roles:
         self._subscriptions[decl] = served
         self.ticks = True
         return served
+
+    def report(self, channel: str, protocol: str, *, retry_s: float | None) -> ConfirmedInforms:
+        """Send the informs of the participant role on ``channel`` in ``protocol`` (declared
+        ``confirmed_informs=True``) one at a time, each once the peer confirmed the one before,
+        retransmitted every ``retry_s`` (s) until then (services/runtime/roles/confirmed.py).
+        Raises KeyError for a role not declared, not so declared, or reported already."""
+        decl = self.role(channel, protocol)
+        if not decl.confirmed_informs:
+            raise KeyError(
+                f"{self.host.name} declares no {protocol} role on {channel} with confirmed informs"
+            )
+        if decl in self._subscriptions:
+            raise KeyError(f"{self.host.name} reports in the {protocol} role on {channel} already")
+        reports = ConfirmedInforms(self, decl, retry_s=retry_s)
+        self._subscriptions[decl] = reports
+        return reports
 
     def ended(self, conversation_id: str) -> Any:
         """The :attr:`Conversation.data` of conversation ``conversation_id``, which this agent
