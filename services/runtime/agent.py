@@ -382,7 +382,7 @@ class Agent:
                 self.log.warning(
                     "a kept %s conversation cannot be taken back (%s): dropped", conv.decl.protocol, exc
                 )
-                conv.abandon()
+                conv.forget()
                 continue
             n += 1
         if n:

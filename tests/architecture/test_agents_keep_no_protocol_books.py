@@ -9,7 +9,7 @@ Read by AST, every agent module of the specification must not
 - build a ``StateFile`` itself (the same: services/runtime/state_store.py),
 - read ``.reply_with`` or ``.in_reply_to`` (the roles route replies; a repeated request is
   recognised by the role, ``Conversation.repeats``; what a reply answers is
-  ``Conversation.answers_to``),
+  ``Conversation.last_answers``),
 - open a fipa-subscribe conversation itself (``self.roles.open(…, FIPA_SUBSCRIBE, …)``: a
   subscribe back-off by hand; ``Roles.subscribe`` keeps a subscription open).
 

@@ -205,7 +205,7 @@ def test_a_reply_in_an_abandoned_conversation_is_dropped_as_late(
     i.do(lambda a: opened.put(a.roles.open("C1", "fipa-request", None)))
     conv = opened.get(timeout=TIMEOUT)
     assert p.next()[:2] == ("fipa-request", "request")
-    i.do(lambda a: conv.abandon())
+    i.do(lambda a: conv.forget())
     assert conv.opening is not None
     late = Communicate(
         performative=P.INFORM,

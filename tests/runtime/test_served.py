@@ -234,12 +234,12 @@ def test_a_free_conversation_id_skips_open_and_remembered_ones(monkeypatch: pyte
     _query(w, "q")
     assert roles.free_id("q") == "q-2" and roles.free_id("q", taken={"q-2"}) == "q-3"
     (q,) = roles.conversations("C1", QUERY)
-    q.abandon(remember=True)
+    q.forget(remember=True)
     assert roles.ended("q") == "Q" and roles.free_id("q") == "q-2"
     _query(w, "o")
-    roles.conversations("C1", QUERY)[0].abandon()  # not remembered
+    roles.conversations("C1", QUERY)[0].forget()  # not remembered
     assert roles.ended("o") is None and roles.free_id("o") == "o"
     for cid in ("q-2", "q-3"):  # at most ENDED_KEPT remembered: the oldest, q, is forgotten
         _query(w, cid)
-        roles.conversations("C1", QUERY)[0].abandon(remember=True)
+        roles.conversations("C1", QUERY)[0].forget(remember=True)
     assert roles.ended("q") is None and roles.ended("q-3") == "Q-3" and roles.free_id("q") == "q"

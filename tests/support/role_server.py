@@ -96,7 +96,7 @@ class Server(Agent):
             dropped="statuses_dropped",
         )
         self.cancels: list[tuple[Conversation, Received]] = []  # to be answered later
-        self.why: list[str] = []  # Conversation.why of every negative answer to a query
+        self.why: list[str] = []  # Conversation.explanation of every negative answer to a query
         self.answered: list[Any] = []  # what the queries were answered
         return FSM([Behaviour("serve", self.handle_received, terminal=lambda: False)])
 
@@ -122,4 +122,4 @@ class Server(Agent):
 
     @handles(QUERY, INITIATOR, P.REFUSE, P.FAILURE)
     def on_no_answer(self, conv: Conversation) -> None:
-        self.why.append(conv.why)
+        self.why.append(conv.explanation)

@@ -357,7 +357,7 @@ class Coordinator(Agent):
         if not alive and self.note.ta_task is not None:
             self.ta_lost = True
             self.log.warning("a_ta disappeared while running %s; the robot holds position", self.note.ta_task)
-        elif alive and self.ta_lost and self.ta is not None and self.ta.answered_last is not None:
+        elif alive and self.ta_lost and self.ta is not None and self.ta.replied_to is not None:
             self.log.info("a_ta is back: the last confirm goes again (a new a_ta will not know it)")
             self.ta.answer_again()
 
@@ -428,7 +428,7 @@ class Coordinator(Agent):
     def _drop_planning(self, task: Task) -> None:
         """The plan requested for ``task`` is no longer wanted: withdrawn (a_pl stops planning it)."""
         if task.planning is not None:
-            task.planning.withdraw()
+            task.planning.cancel_if_open()
         task.planning = None
 
     @handles(FIPA_REQUEST, INITIATOR, Performative.INFORM)
@@ -545,7 +545,7 @@ class Coordinator(Agent):
     def _release_ta(self) -> None:
         self.ta_lost = False
         if self.ta is not None:
-            self.ta.stop_waiting()
+            self.ta.stop_awaiting_replies()
         self.note.ta_task, self.note.ta_conversation = None, None
         self.ta = None
         self.note.ta_cancelled = False

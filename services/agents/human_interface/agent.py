@@ -566,7 +566,7 @@ class HumanInterface(AskingKnowledge):
         """Command ``c`` has ended: the final report, and every stop request waiting for it."""
         self._report(c.request_id, kind, text)
         del self.commands[c.conversation_id]
-        c.conversation.abandon(remember=True)  # its note names the person's request of late progress
+        c.conversation.forget(remember=True)  # its note names the person's request of late progress
         if kind is not ReportKind.STOPPED:
             text = f"{text} (it ended before it could be stopped)"
         self._tell_stoppers(c, text, ok=True)
@@ -597,7 +597,7 @@ class HumanInterface(AskingKnowledge):
 
     def _status_answer(self, conv: Conversation, answered: bool) -> None:
         request_id: str = conv.data  # (see _ask_status)
-        conv.abandon()  # (what a_co still sends in it is dropped by the role)
+        conv.forget()  # (what a_co still sends in it is dropped by the role)
         labels = {c.conversation_id: c.label for c in self.commands.values()}
         status = conv.content
         if answered and isinstance(status, Status):

@@ -53,7 +53,7 @@ class ForeignRequests:
         handler runs), its cancel kept to be answered; None when a_hi has no such request open
         (the cancel is then answered ``failure`` at once)."""
         request_id = next((r for r, c in self.open.items() if c is conv), None)
-        cancel = conv.answering
+        cancel = conv.to_answer
         if request_id is None or cancel is None:
             conv.answer_cancel(
                 False, SentenceReport(kind=ReportKind.FAILED.value, text="no request of yours is open")

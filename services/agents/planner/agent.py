@@ -163,9 +163,9 @@ class Planner(Agent):
         ("step 7 pour(jar, cup): the cup cannot take …") — or not at all: the plan is not sent."""
         self.checked = True
         if conv.timed_out:
-            self.failure = f"the plan could not be checked in a_km's hypothetical state ({conv.why})"
+            self.failure = f"the plan could not be checked in a_km's hypothetical state ({conv.explanation})"
         else:
-            self.failure = f"the plan cannot work: {conv.why}"
+            self.failure = f"the plan cannot work: {conv.explanation}"
 
     # ---- the behaviours ---------------------------------------------------------------------
     def _idle(self) -> None:
@@ -324,7 +324,7 @@ class Planner(Agent):
         (FIPA SC00027 §2, the cancel meta-protocol), neither sent again nor awaited; a_km's
         answer that crossed a cancel, and its answer to the cancel, are taken and ignored."""
         for conv in [*self.pending, *([self.check] if self.check is not None else [])]:
-            conv.withdraw(forget=False)
+            conv.cancel_if_open(forget=False)
 
     def _done(self) -> None:
         self.request = self.problem = None

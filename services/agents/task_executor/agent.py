@@ -314,7 +314,7 @@ class TaskExecutor(Agent):
             or isinstance(command, Observe)
         ):
             return
-        request.stop_waiting()
+        request.stop_awaiting_replies()
         request.cancel(command, reply_by_s=HALT_REPLY_BY_S)
         self.counters["halts_asked"] += 1
         self.log.info(
@@ -581,7 +581,7 @@ class TaskExecutor(Agent):
         tilt = isinstance(action, Execute) and isinstance(action.command, Tilt)
         halting = bool(step.waiting_for.cancels)
         if (tilt or halting) and self.outcome is None:
-            step.waiting_for.abandon()
+            step.waiting_for.forget()
             during = "the halt" if halting else "the tilt"
             self._surprise(step, f"{step.path}: ag_ex restarted during {during}")
 

@@ -25,7 +25,7 @@ FIPA machine of :mod:`shared.fipa_codec.protocols`) — owns what the protocol i
   reply-with, so that answers name what they answer and no two are byte-identical;
 - ``cancel`` (FIPA SC00026 §2 cancel meta-protocol): a participant's ``cancel`` handler is
   optional; without one, or once the conversation has ended, the role answers ``failure``
-  with the reason; the cancel's answer answers the cancel (:attr:`Conversation.answering`,
+  with the reason; the cancel's answer answers the cancel (:attr:`Conversation.to_answer`,
   or later :meth:`Conversation.answer_cancel`), and its ``inform`` ends the conversation
   (:attr:`Conversation.answers_cancel`);
 - ``not-understood``: it ends the conversation; an initiator's conversation ends through its
@@ -36,7 +36,7 @@ FIPA machine of :mod:`shared.fipa_codec.protocols`) — owns what the protocol i
   a handler for it is optional;
 - a fault in a handler is logged and counted (``handler_errors``); a participant's peer gets
   ``failure`` with the reason instead of waiting for its deadline;
-- a reply in a conversation the role no longer has (abandoned, or from before a restart) is
+- a reply in a conversation the role no longer has (forgotten, or from before a restart) is
   counted (``late_replies``) and dropped;
 - the opening of an open conversation again (the same reply-with from the same sender, FIPA
   SC00061 §2.4: a retransmission that reached a restarted agent, or a copy that is not
@@ -50,7 +50,7 @@ FIPA machine of :mod:`shared.fipa_codec.protocols`) — owns what the protocol i
   services/runtime/roles/served.py) informs the latest agreed subscription, keeps (bounded) what is
   informed while none is and sends it after the next agree, answers ``cancel`` and ends the
   subscription on ``not-understood``; the agent's ``subscribe`` handler only agrees or refuses;
-- conversations the agent ended and asked it to remember (``abandon(remember=True)``): their
+- conversations the agent ended and asked it to remember (``forget(remember=True)``): their
   data for what is said of them later (:meth:`Roles.ended`), their conversation-ids not chosen
   again (:meth:`Roles.free_id`);
 - the conversation's state across a restart: :meth:`Conversation.keep` gives the

@@ -70,7 +70,7 @@ class ConversationHost(Protocol):
         """Wait for the reply to ``reply_with`` until ``reply_by_s`` s from now."""
         ...
 
-    def stop_waiting(self, conversation_id: str) -> None:
+    def stop_awaiting_replies(self, conversation_id: str) -> None:
         """No more reply-by deadlines nor retransmissions in ``conversation_id``."""
         ...
 
@@ -135,7 +135,7 @@ class Conversation:
     sent before the restart, so no reply in it is taken for a stale one."""
     cancels: set[str] = field(default_factory=set, repr=False)
     """The reply-with of every cancel this agent sent in it awaiting an answer."""
-    answered_last: str | None = field(default=None, repr=False)
+    replied_to: str | None = field(default=None, repr=False)
     """The reply-with of the peer's communicate this agent last answered in it (None: none
     yet), what :meth:`answer_again` publishes the answers to."""
     _cancel: Received | None = field(default=None, repr=False)
@@ -159,7 +159,7 @@ class Conversation:
         return text or msg.performative.value
 
     @property
-    def why(self) -> str:
+    def explanation(self) -> str:
         """Why the peer answered :attr:`last` negatively (refuse, failure, not-understood) or
         not at all, in words for a person: ``<peer> did not answer in time`` when the reply-by
         deadline passed, else the plain-text reason it gave, or ``no reason given``."""
@@ -179,7 +179,7 @@ class Conversation:
         return self.last is not None and is_deadline(self.last)
 
     @property
-    def answers_to(self) -> str | None:
+    def last_answers(self) -> str | None:
         """The reply-with of this agent's communicate that :attr:`last` answers (its
         in-reply-to; None: it answers none), to be compared with what :meth:`send` returned."""
         return self.last.msg.in_reply_to if self.last is not None else None
@@ -215,12 +215,6 @@ class Conversation:
         return self.last is not None and self.last.local and self.not_understood
 
     @property
-    def answered(self) -> bool:
-        """The peer's latest communicate is an answer with content (not a refusal, failure or
-        the runtime's deadline)."""
-        return self.last is not None and not self.last.local and self.last.content is not None
-
-    @property
     def state(self) -> str | None:
         """The conversation's state in its protocol's state machine (e.g. ``requested``,
         ``agreed`` in fipa-request; shared/fipa_codec/protocols.py), None before its first
@@ -237,7 +231,7 @@ class Conversation:
         return self.host.protocol_finished(self.peer, self.conversation_id)
 
     @property
-    def answering(self) -> Received | None:
+    def to_answer(self) -> Received | None:
         """The communicate this agent's next reply answers (its in-reply-to): a participant
         answers the communicate that opened the conversation — or, while its ``cancel``
         handler runs, the cancel (FIPA SC00026 §2: the cancel is answered by itself); an
@@ -256,7 +250,7 @@ class Conversation:
         *,
         to: Received | None = None,
     ) -> str | None:
-        """Answer :attr:`answering` (or ``to``, a communicate received in this conversation
+        """Answer :attr:`to_answer` (or ``to``, a communicate received in this conversation
         earlier: e.g. a cancel answered once the robot is safe) with ``performative`` carrying
         ``content``. Returns its reply-with (every communicate of a role has one). Raises
         SpecViolation when the role or the conversation's state does not allow it."""
@@ -272,10 +266,10 @@ class Conversation:
         return self.reply(Performative.INFORM if cancelled else Performative.FAILURE, content, to=to)
 
     def refuse_with(self, performative: Performative, reason: str, *, to: Received | None = None) -> None:
-        """Answer :attr:`answering` (or ``to``) with ``refuse`` or ``failure`` whose content
+        """Answer :attr:`to_answer` (or ``to``) with ``refuse`` or ``failure`` whose content
         is ``reason`` as UTF-8 text (FIPA SC00037: a reason a person can read). Raises
         SpecViolation as :meth:`reply`."""
-        answering = to or self.answering
+        answering = to or self.to_answer
         assert answering is not None, "nothing received to answer"
         self.host.fail(answering, performative, reason)
         self.host.settle(self)
@@ -340,31 +334,31 @@ class Conversation:
             self._kept = encode(self.opening.msg)
         return self._kept
 
-    def stop_waiting(self) -> None:
+    def stop_awaiting_replies(self) -> None:
         """Stop waiting for replies in this conversation: no reply-by deadline, no
         retransmission. The conversation stays open: what the peer sends still arrives."""
-        self.host.stop_waiting(self.conversation_id)
+        self.host.stop_awaiting_replies(self.conversation_id)
 
-    def abandon(self, *, remember: bool = False) -> None:
-        """:meth:`stop_waiting`, and forget the conversation: what the peer still sends in
+    def forget(self, *, remember: bool = False) -> None:
+        """:meth:`stop_awaiting_replies`, and forget the conversation: what the peer still sends in
         it is dropped as a late reply. ``remember``: its conversation-id and :attr:`data` are
         remembered (the last :data:`ENDED_KEPT`), for what is said of it later
         (:meth:`Roles.ended`), and its conversation-id is not chosen again (:meth:`Roles.free_id`)."""
-        self.stop_waiting()
+        self.stop_awaiting_replies()
         self.host.forget(self)
         if remember:
             self.host.remember(self)
 
-    def withdraw(self, *, forget: bool = True) -> None:
-        """The initiator no longer wants this conversation: :meth:`stop_waiting`, :meth:`cancel`
-        it when it is still open (FIPA SC00026 §2, the cancel meta-protocol: the participant
-        stops working on it), and, with ``forget``, :meth:`abandon` it (what the peer still
-        sends is dropped as a late reply; else it is taken as it comes)."""
-        self.stop_waiting()
+    def cancel_if_open(self, *, forget: bool = True) -> None:
+        """The initiator no longer wants this conversation: :meth:`stop_awaiting_replies`,
+        :meth:`cancel` it when it is still open (FIPA SC00026 §2, the cancel meta-protocol: the
+        participant stops working on it), and, with ``forget``, :meth:`forget` it (what the
+        peer still sends is dropped as a late reply; else it is taken as it comes)."""
+        self.stop_awaiting_replies()
         if not self.finished:
             self.cancel()
         if forget:
-            self.abandon()
+            self.forget()
 
     def decode(self, kept: bytes) -> Received:
         """A communicate of this conversation kept encoded (FIPA SC00061 msgpack, e.g. the
@@ -381,10 +375,10 @@ class Conversation:
 
     def answer_again(self, in_reply_to: str | None = None) -> int:
         """Publish again, byte for byte, what this agent answered the peer's communicate
-        ``in_reply_to`` (default :attr:`answered_last`: e.g. the last ``confirm`` to a peer
+        ``in_reply_to`` (default :attr:`replied_to`: e.g. the last ``confirm`` to a peer
         that may have restarted; a peer that still has it drops the copy,
         services/runtime/dedup.py). Returns how many (0: nothing answered, or forgotten)."""
-        return self.host.publish_again(self.peer, in_reply_to or self.answered_last)
+        return self.host.publish_again(self.peer, in_reply_to or self.replied_to)
 
     def _sent(self, reply_with: str | None) -> str | None:
         if reply_with is not None:

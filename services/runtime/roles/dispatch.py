@@ -42,7 +42,7 @@ S = TypeVar("S", bound=msgspec.Struct)
 MAX_OPEN = 1024
 """Open conversations a :class:`Roles` keeps before it forgets the oldest (bounded memory)."""
 ENDED_KEPT = 256
-"""Ended conversations a :class:`Roles` remembers when asked to (:meth:`Conversation.abandon`
+"""Ended conversations a :class:`Roles` remembers when asked to (:meth:`Conversation.forget`
 with ``remember``), the oldest forgotten first."""
 
 
@@ -81,7 +81,7 @@ class Roles:
         self.ticks = False
         """:meth:`tick` has something to look at (a subscription is kept): the agent calls it
         on every step only then."""
-        self._ended: OrderedDict[str, Any] = OrderedDict()  # :meth:`Conversation.abandon`, remember
+        self._ended: OrderedDict[str, Any] = OrderedDict()  # :meth:`Conversation.forget`, remember
         self._restored_openings: OrderedDict[tuple[str, str], None] = OrderedDict()
         """(sender, reply-with) of the openings of participant conversations taken back after a
         restart (the last :data:`ENDED_KEPT`): a copy that comes after the conversation ended
@@ -216,12 +216,12 @@ class Roles:
 
     def ended(self, conversation_id: str) -> Any:
         """The :attr:`Conversation.data` of conversation ``conversation_id``, which this agent
-        abandoned lately with ``remember`` (the last :data:`ENDED_KEPT`); None when it is not
+        forgot lately with ``remember`` (the last :data:`ENDED_KEPT`); None when it is not
         remembered."""
         return self._ended.get(conversation_id)
 
     def withdraw_queries(self) -> int:
-        """Withdraw every query this agent asked and still waits on (:meth:`Conversation.withdraw`:
+        """Withdraw every query this agent asked and still waits on (:meth:`Conversation.cancel_if_open`:
         a cancel, FIPA SC00027 §2): called when the agent stops, so that no participant answers
         a question nobody will read. Requests are left alone: what they started (a plan, a
         motion) is the other agents' to end, and a restarted agent takes them up again.
@@ -232,7 +232,7 @@ class Roles:
             if c.decl.role == INITIATOR and c.decl.protocol == FIPA_QUERY and not c.finished and not c.cancels
         ]
         for conv in open_queries:
-            conv.withdraw()
+            conv.cancel_if_open()
         return len(open_queries)
 
     def free_id(self, base: str, taken: Container[str] = ()) -> str:
@@ -528,7 +528,7 @@ class Roles:
         conv = self._open.get((peer, about.conversation_id or ""))
         if conv is None or conv.decl.role != INITIATOR:
             return
-        conv.stop_waiting()
+        conv.stop_awaiting_replies()
         ended = Communicate(
             performative=Performative.NOT_UNDERSTOOD,
             sender=about.sender,
@@ -729,7 +729,7 @@ class Roles:
         retry_s: float | None = None,
         to: Received | None = None,
     ) -> str | None:
-        answering = to or conv.answering
+        answering = to or conv.to_answer
         if (
             performative is Performative.INFORM
             and answering is not None
@@ -742,7 +742,7 @@ class Roles:
             conv, performative, content, reply_by_s, retry_s, expect=False, in_reply_to=in_reply_to
         ).reply_with
         if in_reply_to is not None:
-            conv.answered_last = in_reply_to
+            conv.replied_to = in_reply_to
         return reply_with
 
     def send_in(
@@ -783,7 +783,7 @@ class Roles:
         ``fail``; raises SpecViolation when the state does not allow it)."""
         self.host.fail(to, performative, reason)
 
-    def stop_waiting(self, conversation_id: str) -> None:
+    def stop_awaiting_replies(self, conversation_id: str) -> None:
         """No more reply-by deadlines nor retransmissions in ``conversation_id``
         (services/runtime/replies.py)."""
         self.host.pending_replies.forget_conversation(conversation_id)

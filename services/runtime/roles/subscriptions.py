@@ -106,7 +106,7 @@ class StandingSubscription:
         n = self.attempts
         cid = self.base_id if n == 1 or self.same_id else f"{self.base_id}-{n}"
         if self.conversation is not None:  # the previous attempt is given up (or its peer gone)
-            self.conversation.stop_waiting()
+            self.conversation.stop_awaiting_replies()
         self.conversation = self.roles.open(
             self.decl.channel,
             self.decl.protocol,
