@@ -246,7 +246,7 @@ class Agent:
         self._log_window = (0.0, 0)  # (window start, monotonic s; warnings logged in it)
         self._log_suppressed = 0
         self._outgoings: dict[tuple[str, Performative, str, type], Outgoing] = {}
-        """:meth:`_outgoing` per (receiver, performative, protocol, content type)."""
+        """:meth:`outgoing` per (receiver, performative, protocol, content type)."""
         self._streaming: dict[tuple[str, Performative], bool] = {}
         """:meth:`_streams` per (protocol, performative)."""
         self.roles = Roles(self, self.ROLES or (), check=self.ROLES is not None)
@@ -432,7 +432,7 @@ class Agent:
             retry_s,
         )
 
-    def _outgoing(
+    def outgoing(
         self, to: str, performative: Performative, protocol: str, content: msgspec.Struct | None
     ) -> Outgoing:
         """What every communicate to ``to`` of ``performative`` in ``protocol`` carrying a term
@@ -450,7 +450,7 @@ class Agent:
     def _route(
         self, to: str, performative: Performative, protocol: str, content: msgspec.Struct | None
     ) -> Outgoing:
-        """:meth:`_outgoing` found anew: the channel to ``to`` (SpecViolation: none), the
+        """:meth:`outgoing` found anew: the channel to ``to`` (SpecViolation: none), the
         content's language (ContentError: none), the interface's checks (:meth:`_check_send`),
         whether ``performative`` opens a conversation that streams (:meth:`_streams`)."""
         channel = self.lookups.channel(to)
@@ -618,21 +618,21 @@ class Agent:
     ) -> None:
         kind = self.lookups.sends(to, performative, protocol)
         if kind is None:
-            self._violation(None, f"{self.name}: may not send {performative} to {to} in {protocol}")
+            self.send_violation(None, f"{self.name}: may not send {performative} to {to} in {protocol}")
         if language is not None and kind.languages and language not in kind.languages:
-            self._violation(
+            self.send_violation(
                 None,
                 f"{self.name}: {performative} to {to} in {protocol} must use "
                 f"{'/'.join(kind.languages)}, not {language}",
             )
         if term is not None and kind.contents and term not in kind.contents:
-            self._violation(
+            self.send_violation(
                 None,
                 f"{self.name}: {performative} to {to} in {protocol} may carry "
                 f"{', '.join(kind.contents)}, not {term}",
             )
 
-    def _violation(self, conversation_id: str | None, text: str) -> NoReturn:
+    def send_violation(self, conversation_id: str | None, text: str) -> NoReturn:
         """Count, log and raise a violation the agent's own code is about to commit."""
         self.counters["send_violations"] += 1
         self.log.warning("refused to send (conversation %s): %s", conversation_id, text)
@@ -651,9 +651,9 @@ class Agent:
             states, self.name, to, cid, followed, performative, True, is_terminal_report(msg), msg
         )
         if outcome != "step":
-            self._stepped(to, cid, performative, outcome)
+            self.conversation_stepped(to, cid, performative, outcome)
         if why is not None:
-            self._violation(
+            self.send_violation(
                 msg.conversation_id,
                 f"{self.name}: may not send {msg.performative.value} to {to} in conversation "
                 f"{msg.conversation_id}: {why}",
@@ -705,10 +705,12 @@ class Agent:
             msg,
         )
         if outcome != "step":
-            self._stepped(peer, conversation_id, performative, outcome)
+            self.conversation_stepped(peer, conversation_id, performative, outcome)
         return why
 
-    def _stepped(self, peer: str, conversation_id: str, performative: Performative, outcome: str) -> None:
+    def conversation_stepped(
+        self, peer: str, conversation_id: str, performative: Performative, outcome: str
+    ) -> None:
         """Log a conversation opened anew; count a communicate that crossed another on the wire."""
         if outcome == "restart":
             self.log.info(
@@ -919,7 +921,7 @@ class Agent:
         """Take one input in, as :meth:`_acquire` does (tests and tools hand inputs over)."""
         self._gate.take_all(deque(((key, payload),)), self.max_open_per_peer)
 
-    def _take_event(self, key: str, payload: Any) -> None:
+    def take_event(self, key: str, payload: Any) -> None:
         """Take in an input of the runtime's own: a command for ``r``, a peer's liveliness, a
         request for the counters (services/runtime/admission.py ``Gate.take_all``)."""
         if key == "r":
@@ -929,13 +931,13 @@ class Agent:
         else:
             self._y.append((keys.counters_key(self.name), self.counters_report()))
 
-    def _take_raised(self, key: str) -> None:
+    def take_raised(self, key: str) -> None:
         """Taking in the communicate on ``key`` raised: counted, its traceback logged (no input
         may stop the agent)."""
         self.counters["rejected.internal"] += 1
         self.log.exception("taking in a communicate on %s raised", key)
 
-    def _not_taken(self, found: Admission) -> None:
+    def not_taken(self, found: Admission) -> None:
         """A communicate :func:`admit` did not take (``found.verdict``): counted, and answered
         (not-understood, a refuse, or the answers to its original sent again) or dropped."""
         verdict, sender, channel, msg = found.verdict, found.sender, found.channel, found.msg
