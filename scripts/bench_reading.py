@@ -101,7 +101,7 @@ def reset(hi: HumanInterface) -> None:
     """Forget what the last line started (its request to a_co, its reports), so that every
     call reads against the same state."""
     for c in hi.commands.values():
-        c.conversation.abandon()
+        c.conversation.forget()
     hi.commands.clear()
     hi.asked.clear()
     hi.stops.clear()

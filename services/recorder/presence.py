@@ -2,7 +2,7 @@
 recorder from the processes' liveliness tokens (services/runtime/keys.py ``alive_key``).
 
 An agent acts on its peers' tokens as well as on communicates (a standing subscription opens when
-the peer's token appears: services/runtime/subscriptions.py), so a replay that is to reproduce it
+the peer's token appears: services/runtime/roles/subscriptions.py), so a replay that is to reproduce it
 (services/replay) feeds both, in the order the recorder saw them. Each recorder incarnation writes
 first a *snapshot*, the tokens alive when it began to watch (one line per token, ``snapshot``
 true; a token alive before the run's first recorder began was alive from the replay's start), then

@@ -11,7 +11,7 @@ conversation-id where its protocol is followed, the bound on open conversations 
 and its protocol state, stepped (:func:`step`). It decides and changes only the protocol
 state and the duplicate filter; what the agent does about the outcome (answer
 not-understood, count, log, put the communicate into its input buffer) is the agent's
-(services/runtime/agent.py ``Agent._not_taken``). :meth:`Gate.take_all` takes a step's inputs in,
+(services/runtime/agent.py ``Agent.not_taken``). :meth:`Gate.take_all` takes a step's inputs in,
 in one call.
 """
 
@@ -89,19 +89,21 @@ class Admission:
 class Host(Protocol):
     """What :class:`Gate` asks of its agent (services/runtime/agent.py ``Agent``)."""
 
-    def _stepped(self, peer: str, conversation_id: str, performative: Performative, outcome: str) -> None:
+    def conversation_stepped(
+        self, peer: str, conversation_id: str, performative: Performative, outcome: str
+    ) -> None:
         """A conversation opened anew, or a communicate that crossed another: logged, counted."""
         ...
 
-    def _take_event(self, key: str, payload: Any) -> None:
+    def take_event(self, key: str, payload: Any) -> None:
         """An input of the runtime's own (one of :class:`Gate`'s ``events``): taken in."""
         ...
 
-    def _not_taken(self, found: Admission) -> None:
+    def not_taken(self, found: Admission) -> None:
         """A communicate :func:`admit` did not take: counted, and answered or dropped."""
         ...
 
-    def _take_raised(self, key: str) -> None:
+    def take_raised(self, key: str) -> None:
         """Taking in the communicate that came on ``key`` raised (the exception is being
         handled): counted and logged; the agent goes on."""
         ...
@@ -143,21 +145,21 @@ class Gate:
     def take_all(self, inbox: deque[tuple[str, Any]], max_open: int) -> None:
         """Take in, in order, the inputs that were in ``inbox`` when it began (popped; what
         arrives meanwhile stays for the next call): a communicate by :meth:`take` (one it does
-        not take goes to the host's ``_not_taken``), an input whose key is one of ``events`` by
-        the host's ``_take_event``. No input stops the others: one whose taking in raised is
-        the host's ``_take_raised``."""
+        not take goes to the host's ``not_taken``), an input whose key is one of ``events`` by
+        the host's ``take_event``. No input stops the others: one whose taking in raised is
+        the host's ``take_raised``."""
         host, events = self.host, self.events
         for _ in range(len(inbox)):
             key, payload = inbox.popleft()
             if key in events:
-                host._take_event(key, payload)
+                host.take_event(key, payload)
                 continue
             try:
                 found = self.take(key, payload, max_open)
                 if found is not None:
-                    host._not_taken(found)
+                    host.not_taken(found)
             except Exception:  # no input may stop the agent
-                host._take_raised(key)
+                host.take_raised(key)
 
     def take(self, key: str, payload: bytes, max_open: int) -> Admission | None:
         """Take in the communicate ``payload`` that came on ``key`` (:func:`admit`, a sender
@@ -171,7 +173,7 @@ class Gate:
         self.counters[RECEIVED_COUNTER[performative]] += 1
         outcome = found.outcome
         if outcome and outcome != "step":
-            self.host._stepped(found.sender, msg.conversation_id or "", performative, outcome)
+            self.host.conversation_stepped(found.sender, msg.conversation_id or "", performative, outcome)
         self.pending.answered(msg.in_reply_to, performative)  # if one was awaited
         self.x.append(self.received(msg, found.content, found.channel, False, performative, found.sender))
         return None

@@ -1,61 +1,30 @@
-"""The embodied agent's control subsystem c_j (paper §3.2, eq. 2) on a transport.
+"""The embodied agent's control subsystem c_j (paper §3.2, eq. 2) on a transport; the manual:
+docs/agents.md and docs/spec.md ("Protocol roles").
 
-A subclass declares its ``name`` (as in the specification), builds its FSM of behaviours in
-:meth:`Agent.build_fsm` and keeps its internal memory as attributes. The runtime provides:
+A subclass declares its ``name`` (as in the specification), creates its memory in
+``__init__`` and builds its FSM of behaviours in :meth:`Agent.build_fsm`. The runtime provides:
 
-- the transmission input buffer ``x`` (:class:`Received` communicates, acquired each step),
-- the receptor input buffer ``r`` (events from the agent's own receptors: human text,
-  executor results),
-- :meth:`send` / :meth:`reply`, which fill the output buffer dispatched after each step,
-- checking against the specification (paper §4 steps 3–4; FIPA SC00061, SC00026/27/35):
-  a received communicate outside the agent's interface, malformed, in a language it does not
-  accept or without its language's ontology (O_RoCo; O_Velma for L_EX), with content that does
-  not decode, or not allowed in its conversation's current protocol state is answered with
-  ``not-understood`` and dropped; a communicate the agent itself may not send (outside its
-  interface, or not allowed in the conversation's state) raises :class:`SpecViolation`.
-  Every violation is counted (``counters``: ``protocol_violations`` for a received one
-  outside its conversation's state, ``rejected`` for every not-understood sent,
-  ``rejected.<reason>`` for every rejected input by reason (services/runtime/limits.py
-  ``REJECT_REASONS``), ``send_violations`` for the agent's own) and logged at WARNING with its
-  conversation-id (at most ``LOG_BURST`` such warnings per ``LOG_WINDOW_S``, then one line
-  saying how many were left out: a flood of bad input does not flood the log); the traffic
-  recorder records the communicates themselves. Nothing a peer sends stops the agent: an
-  exception while taking a communicate in is counted (``rejected.internal``) and logged,
-- a bound on the conversations a peer may have open with the agent
-  (``MAX_OPEN_CONVERSATIONS_PER_PEER``): one more is refused,
-- agents of other platforms (docs/gateway.md): a sender named ``local@platform`` that is not an agent of
-  the specification is checked as the specification's external role (``SystemSpec.role_of``:
-  x_fipa, which ends C8 with a_hi), and answered under its own name,
-- its ``counters`` on request: a put on ``roco/counters/ask`` makes every agent publish them
-  on ``roco/counters/report/<agent>`` (JSON; ``roco status`` shows them),
-- the protocol state of every conversation (:class:`ProtocolStates`, one tracker per peer
-  and conversation-id, tolerant of communicates that cross on the wire;
-  services/runtime/protocol_state.py),
-- reply-by deadlines ending in a local ``failure`` (:attr:`Agent.pending_replies`, the replies
-  the agent awaits; services/runtime/replies.py),
-- at-least-once delivery where an agent asks for it (``send(..., retry_s=…)``: retransmitted
-  until answered, at once when the peer's liveliness token reappears) and at-most-once
-  handling: byte-identical copies are dropped and the answers already sent are published
-  again (services/runtime/dedup.py); ``counters``: ``retransmitted``, ``duplicates``,
-  ``replayed``; ``published`` counts every communicate put on Zenoh (retransmissions and
-  replays included: what the traffic record must hold of this agent's session, docs/recovery.md),
-- peer liveliness: :meth:`Agent.peer_changed` is called on the agent's thread whenever
-  another agent's token appears or disappears (the white pages, ``roco/alive/*``), after the
-  subscriptions its roles keep with that peer acted on it (services/runtime/subscriptions.py),
-- readiness: :attr:`Agent.ready` once :meth:`Agent.setup` has run, the agent's liveliness
-  token is declared and every agent it asks (:attr:`Agent.asks`) has been seen; then
-  :attr:`Agent.on_ready` is called (a container's health check reads what it writes),
-- a persistence hook, :meth:`Agent.persist`, called after every step once its output
-  buffer is dispatched: it writes the open conversations of the roles declared with ``keep``
-  and the agent's :attr:`Agent.NOTE` (services/runtime/state_store.py) when they changed,
-  given back after a restart through :meth:`Agent.on_restored`.
-- the agent's clocks and fresh identifiers (:attr:`Agent.sources`, services/runtime/sources.py):
-  the system's, or those its transport offers (a replay's: services/replay, run by
-  :meth:`Agent.drive` on the replay's thread),
-- one thread at a time runs the elementary actions (it holds the agent's turn): the agent's
-  own, or, while the agent is idle, the transport's receiving thread a communicate arrived on
-  (:meth:`Agent._take_here`: no hand-over between threads for a communicate that
-  finds the agent waiting). ``RECEIVE_INLINE = False`` keeps every step on the agent's thread.
+- the transmission input buffer ``x`` (:class:`Received` communicates) and the receptor input
+  buffer ``r`` (its own receptors' events: human text, executor results); :meth:`send` /
+  :meth:`reply` fill the output buffer dispatched after each step;
+- checks against the specification (paper §4 steps 3–4; FIPA SC00061, SC00026/27/35): a
+  received communicate outside the agent's interface, malformed, in a language or ontology it
+  does not accept, whose content does not decode, or not allowed in its conversation's protocol
+  state is answered ``not-understood`` and dropped; one the agent may not send raises
+  :class:`SpecViolation`. Each is counted (``counters``, services/runtime/limits.py
+  ``REJECT_REASONS``) and logged (at most ``LOG_BURST`` per ``LOG_WINDOW_S``); nothing a peer
+  sends stops the agent; at most ``MAX_OPEN_CONVERSATIONS_PER_PEER`` open conversations a peer;
+- agents of other platforms (``local@platform``) checked as the specification's external role
+  (docs/gateway.md); ``counters`` on request (``roco/counters/ask``; ``roco status``);
+- the protocol state of every conversation (services/runtime/protocol_state.py), reply-by
+  deadlines (services/runtime/replies.py), at-least-once delivery where asked (``retry_s``)
+  and at-most-once handling (services/runtime/dedup.py; docs/recovery.md);
+- peer liveliness (:meth:`Agent.peer_changed`), readiness (:attr:`Agent.ready`,
+  :attr:`Agent.on_ready`), persistence after every step (:meth:`Agent.persist`,
+  services/runtime/state_store.py; :meth:`Agent.on_restored`), its clocks and identifiers
+  (:attr:`Agent.sources`, services/runtime/sources.py);
+- one thread at a time runs the elementary actions: the agent's own or, while it is idle, the
+  transport's receiving thread (``RECEIVE_INLINE = False`` keeps every step on the agent's).
 
 The elementary action (paper §3.2): compute the transition function, dispatch the output
 buffer, increment i, acquire new inputs. It repeats until the behaviour's terminal or error
@@ -66,7 +35,6 @@ from __future__ import annotations
 
 import contextlib
 import logging
-import math
 import threading
 import time
 from collections import Counter, deque
@@ -88,12 +56,21 @@ from services.runtime.admission import (
     Gate,
     step,
 )
-from services.runtime.behaviour import FSM
-from services.runtime.clock import FleetClock, decode_sim_time
+from services.runtime.behaviour import FSM, Arc, Behaviour, once, periodic
+from services.runtime.clock import FleetClock, decode_sim_time, encode_sim_time
 from services.runtime.dedup import Dedup
 from services.runtime.emission import SENT_COUNTER, Outbox, Outgoing
 from services.runtime.heap import give_back_freed_heap
 from services.runtime.hooks import Hooks, load_hooks
+from services.runtime.human import (
+    FINAL_REPORTS,
+    MAX_LINE_CHARS,
+    NOTICES_PER_S,
+    HumanInput,
+    HumanReport,
+    ReportKind,
+    RequestKind,
+)
 from services.runtime.intake import Refusal
 from services.runtime.limits import MAX_OPEN_CONVERSATIONS_PER_PEER
 from services.runtime.lookups import Followed, Lookups
@@ -103,6 +80,7 @@ from services.runtime.roles import Conversation, RoleDecl, Roles
 from services.runtime.sources import SYSTEM, Sources
 from services.runtime.state_store import NO_DATA, KeptConversations, StateFile
 from services.runtime.transport import Transport
+from services.runtime.values import RESEND_ON_RETURN, Received, SpecViolation
 from services.spec.model import Interface, SystemSpec, asked, default_spec, interface
 from services.spec.protocol_defs import machine_of, streams
 from shared.fipa_codec import (
@@ -120,10 +98,34 @@ from shared.fipa_codec.protocols import (
 )
 from shared.settings import Settings
 
+__all__ = [
+    "FINAL_REPORTS",
+    "FSM",
+    "MAX_LINE_CHARS",
+    "NOTICES_PER_S",
+    "RESEND_ON_RETURN",
+    "Agent",
+    "Arc",
+    "Behaviour",
+    "HumanInput",
+    "HumanReport",
+    "Received",
+    "ReportKind",
+    "RequestKind",
+    "SpecViolation",
+    "Transport",
+    "encode_sim_time",
+    "keys",
+    "once",
+    "periodic",
+]
+"""An agent's API besides its roles (services/runtime/roles/): the agent, its behaviours
+(services/runtime/behaviour.py), a received communicate and the agent's own send errors
+(services/runtime/values.py), the Zenoh keys (services/runtime/keys.py), the simulation
+clock's encoding (services/runtime/clock.py) and the person's side of a_hi
+(services/runtime/human.py), re-exported so that an agent imports from two runtime modules."""
+
 _FOLLOWED_MAX = 1024
-RESEND_ON_RETURN = math.inf
-"""``retry_s`` that retransmits only when the peer's liveliness token reappears (a restarted
-peer lost what it was sent), never periodically."""
 _ALIVE = "\x00alive"
 """Input-queue key of a peer liveliness event (never a Zenoh key)."""
 _COUNTERS = "\x00counters"
@@ -148,43 +150,13 @@ wall-time budget turned inline receiving off for a third of them (docs/benchmark
 wake-ups per communicate")."""
 
 
-class SpecViolation(RuntimeError):
-    """The agent tried to send a communicate its specified interface does not allow, or one
-    its conversation's current protocol state does not allow (the agent's own bug)."""
-
-
-class Received(msgspec.Struct, frozen=True, gc=False):
-    """One acquired communicate: the message, its decoded ``content`` (a term of its
-    language, or None), the ``channel`` it came on, ``local`` True for what the runtime
-    synthesised (a failure when a reply-by deadline passed, or the not-understood this agent
-    answered the peer with: services/runtime/roles.py ``Roles.not_understood_sent``), and the
-    message's ``performative`` and ``sender`` name ("" for none), read on every one taken in.
-    Built with :meth:`of`. (A msgspec Struct: one is built per communicate taken in, ≈ 10 ×
-    cheaper than a frozen dataclass; not tracked by the garbage collector, as a communicate is
-    not.)"""
-
-    msg: Communicate
-    content: msgspec.Struct | None
-    channel: str
-    local: bool
-    performative: Performative
-    sender: str
-
-    @classmethod
-    def of(
-        cls, msg: Communicate, content: msgspec.Struct | None, channel: str, local: bool = False
-    ) -> Received:
-        """``msg`` acquired with its ``content`` on ``channel`` (``local``: synthesised)."""
-        return cls(msg, content, channel, local, msg.performative, msg.sender.name if msg.sender else "")
-
-
 class Agent:
     """Base class of every roco agent (a purely computational agent: control subsystem only,
     paper §5.5). Subclasses set ``name`` and implement :meth:`build_fsm`."""
 
     name: ClassVar[str]
     ROLES: ClassVar[tuple[RoleDecl, ...] | None] = None
-    """The protocol roles the agent plays (services/runtime/roles.py), compared with its
+    """The protocol roles the agent plays (services/runtime/roles/), compared with its
     interface in the specification when it starts (RoleMismatch, one line, when they differ).
     None: the agent declares none and handles its input buffer itself (checked at run time
     only)."""
@@ -243,11 +215,11 @@ class Agent:
         self._log_window = (0.0, 0)  # (window start, monotonic s; warnings logged in it)
         self._log_suppressed = 0
         self._outgoings: dict[tuple[str, Performative, str, type], Outgoing] = {}
-        """:meth:`_outgoing` per (receiver, performative, protocol, content type)."""
+        """:meth:`outgoing` per (receiver, performative, protocol, content type)."""
         self._streaming: dict[tuple[str, Performative], bool] = {}
         """:meth:`_streams` per (protocol, performative)."""
         self.roles = Roles(self, self.ROLES or (), check=self.ROLES is not None)
-        """The agent's protocol roles and their open conversations (services/runtime/roles.py)."""
+        """The agent's protocol roles and their open conversations (services/runtime/roles/)."""
         self._y: list[tuple[str, bytes]] = []
         self._outbox = Outbox(
             self,
@@ -340,7 +312,7 @@ class Agent:
     def persist(self) -> None:
         """Runs after every step, once its output buffer is dispatched (so what it has said is
         what it keeps): the open conversations of the roles declared with ``keep``
-        (services/runtime/roles.py :meth:`Roles.kept`) and :attr:`note`, written when they
+        (services/runtime/roles/ :meth:`Roles.kept`) and :attr:`note`, written when they
         changed; the file is encoded only then (an opening kept is not encoded again every
         step). An agent whose data of a kept conversation follows from its state sets it here
         before calling this (a_ta: the leaf step it is in). Raises OSError when the state
@@ -379,7 +351,7 @@ class Agent:
                 self.log.warning(
                     "a kept %s conversation cannot be taken back (%s): dropped", conv.decl.protocol, exc
                 )
-                conv.abandon()
+                conv.forget()
                 continue
             n += 1
         if n:
@@ -429,7 +401,7 @@ class Agent:
             retry_s,
         )
 
-    def _outgoing(
+    def outgoing(
         self, to: str, performative: Performative, protocol: str, content: msgspec.Struct | None
     ) -> Outgoing:
         """What every communicate to ``to`` of ``performative`` in ``protocol`` carrying a term
@@ -447,7 +419,7 @@ class Agent:
     def _route(
         self, to: str, performative: Performative, protocol: str, content: msgspec.Struct | None
     ) -> Outgoing:
-        """:meth:`_outgoing` found anew: the channel to ``to`` (SpecViolation: none), the
+        """:meth:`outgoing` found anew: the channel to ``to`` (SpecViolation: none), the
         content's language (ContentError: none), the interface's checks (:meth:`_check_send`),
         whether ``performative`` opens a conversation that streams (:meth:`_streams`)."""
         channel = self.lookups.channel(to)
@@ -615,21 +587,21 @@ class Agent:
     ) -> None:
         kind = self.lookups.sends(to, performative, protocol)
         if kind is None:
-            self._violation(None, f"{self.name}: may not send {performative} to {to} in {protocol}")
+            self.send_violation(None, f"{self.name}: may not send {performative} to {to} in {protocol}")
         if language is not None and kind.languages and language not in kind.languages:
-            self._violation(
+            self.send_violation(
                 None,
                 f"{self.name}: {performative} to {to} in {protocol} must use "
                 f"{'/'.join(kind.languages)}, not {language}",
             )
         if term is not None and kind.contents and term not in kind.contents:
-            self._violation(
+            self.send_violation(
                 None,
                 f"{self.name}: {performative} to {to} in {protocol} may carry "
                 f"{', '.join(kind.contents)}, not {term}",
             )
 
-    def _violation(self, conversation_id: str | None, text: str) -> NoReturn:
+    def send_violation(self, conversation_id: str | None, text: str) -> NoReturn:
         """Count, log and raise a violation the agent's own code is about to commit."""
         self.counters["send_violations"] += 1
         self.log.warning("refused to send (conversation %s): %s", conversation_id, text)
@@ -648,9 +620,9 @@ class Agent:
             states, self.name, to, cid, followed, performative, True, is_terminal_report(msg), msg
         )
         if outcome != "step":
-            self._stepped(to, cid, performative, outcome)
+            self.conversation_stepped(to, cid, performative, outcome)
         if why is not None:
-            self._violation(
+            self.send_violation(
                 msg.conversation_id,
                 f"{self.name}: may not send {msg.performative.value} to {to} in conversation "
                 f"{msg.conversation_id}: {why}",
@@ -702,10 +674,12 @@ class Agent:
             msg,
         )
         if outcome != "step":
-            self._stepped(peer, conversation_id, performative, outcome)
+            self.conversation_stepped(peer, conversation_id, performative, outcome)
         return why
 
-    def _stepped(self, peer: str, conversation_id: str, performative: Performative, outcome: str) -> None:
+    def conversation_stepped(
+        self, peer: str, conversation_id: str, performative: Performative, outcome: str
+    ) -> None:
         """Log a conversation opened anew; count a communicate that crossed another on the wire."""
         if outcome == "restart":
             self.log.info(
@@ -869,7 +843,7 @@ class Agent:
         if self._inbox:
             self._gate.take_all(self._inbox, self.max_open_per_peer)
         now = self.sources.time()
-        if self.roles.ticks:  # subscription attempts that are due (services/runtime/subscriptions.py)
+        if self.roles.ticks:  # subscription attempts that are due (services/runtime/roles/subscriptions.py)
             self.roles.tick(now)
         self.protocol_states.commit()  # what arrived stays arrived; only sends are undone
         self._y_taken = len(self._y)  # so do the answers to it (not-understood, copies again)
@@ -916,7 +890,7 @@ class Agent:
         """Take one input in, as :meth:`_acquire` does (tests and tools hand inputs over)."""
         self._gate.take_all(deque(((key, payload),)), self.max_open_per_peer)
 
-    def _take_event(self, key: str, payload: Any) -> None:
+    def take_event(self, key: str, payload: Any) -> None:
         """Take in an input of the runtime's own: a command for ``r``, a peer's liveliness, a
         request for the counters (services/runtime/admission.py ``Gate.take_all``)."""
         if key == "r":
@@ -926,13 +900,13 @@ class Agent:
         else:
             self._y.append((keys.counters_key(self.name), self.counters_report()))
 
-    def _take_raised(self, key: str) -> None:
+    def take_raised(self, key: str) -> None:
         """Taking in the communicate on ``key`` raised: counted, its traceback logged (no input
         may stop the agent)."""
         self.counters["rejected.internal"] += 1
         self.log.exception("taking in a communicate on %s raised", key)
 
-    def _not_taken(self, found: Admission) -> None:
+    def not_taken(self, found: Admission) -> None:
         """A communicate :func:`admit` did not take (``found.verdict``): counted, and answered
         (not-understood, a refuse, or the answers to its original sent again) or dropped."""
         verdict, sender, channel, msg = found.verdict, found.sender, found.channel, found.msg
@@ -1248,6 +1222,6 @@ class Agent:
     # ---- helpers for behaviours ---------------------------------------------------------
     def handle_received(self) -> None:
         """Route every communicate in the input buffer ``x`` to its protocol role and the
-        agent's handler (services/runtime/roles.py), oldest first."""
+        agent's handler (services/runtime/roles/), oldest first."""
         while self.x:
             self.roles.take(self.x.popleft())

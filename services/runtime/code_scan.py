@@ -1,6 +1,6 @@
 """Reading an agent's code for communication outside its protocol roles.
 
-An agent that declares its roles (services/runtime/roles.py) sends only through them: a
+An agent that declares its roles (services/runtime/roles/) sends only through them: a
 conversation's ``reply``/``send``/``cancel``/``refuse_with`` or ``self.roles.open``, which the
 protocol's state machine checks at run time. This module reads the code (Python's ``ast``; it
 runs nothing) for what would bypass or blur that:

@@ -12,7 +12,7 @@ Memory is bounded: the last ``capacity`` digests and the answers to the last ``c
 requests are kept (least recently used dropped first). After a restart an agent remembers
 nothing: agents that must not repeat work after a restart persist what they accepted
 (a_co's queue, a_hi's open commands), and their participant roles recognise a repeated
-request by its reply-with (services/runtime/roles.py).
+request by its reply-with (services/runtime/roles/).
 """
 
 from __future__ import annotations

@@ -7,7 +7,7 @@ buffer y; FIPA SC00061 §2), compiled by mypyc with the rest of the agent runtim
 its conversations' protocol states, its duplicate filter, the replies it awaits, its output
 buffer and counters) and :meth:`Outbox.send` does, for each one, what ``Agent.send`` promises
 (services/runtime/agent.py): the checks against the interface (kept per receiver,
-performative, protocol and content type by the agent, ``Agent._outgoing``), the
+performative, protocol and content type by the agent, ``Agent.outgoing``), the
 communicate's construction (with its own checks, shared/fipa_codec/message.py), the
 conversation's protocol state, stepped (services/runtime/admission.py ``step``), encoding with
 its size limit, the reply awaited, the answer remembered for a copy of what it answers, the
@@ -44,7 +44,7 @@ SENT_COUNTER = {p: f"sent.{p.value}" for p in Performative}
 class Outgoing(NamedTuple):
     """What every communicate an agent sends to one receiver, of one performative in one
     protocol, carrying a term of one type (or none) shares, once the interface allowed it
-    (services/runtime/agent.py ``Agent._outgoing``): its ``key`` and ``receiver``, its content
+    (services/runtime/agent.py ``Agent.outgoing``): its ``key`` and ``receiver``, its content
     ``language`` and ``ontology``, ``followed``, the conversation's state machine and the
     agent's role in it (None: not followed), ``protocol``, its name as a plain ``str``
     (what the communicate carries: one of ``str``'s subclasses, e.g. services/spec/names.py
@@ -70,17 +70,19 @@ class Host(Protocol):
         """The agent's clocks and fresh identifiers (read on every send: it may be replaced)."""
         ...
 
-    def _outgoing(
+    def outgoing(
         self, to: str, performative: Performative, protocol: str, content: msgspec.Struct | None
     ) -> Outgoing:
         """The interface's checks of such a communicate (raises SpecViolation), kept."""
         ...
 
-    def _stepped(self, peer: str, conversation_id: str, performative: Performative, outcome: str) -> None:
+    def conversation_stepped(
+        self, peer: str, conversation_id: str, performative: Performative, outcome: str
+    ) -> None:
         """A conversation opened anew, or a communicate that crossed another: logged, counted."""
         ...
 
-    def _violation(self, conversation_id: str | None, text: str) -> NoReturn:
+    def send_violation(self, conversation_id: str | None, text: str) -> NoReturn:
         """Count, log and raise SpecViolation."""
         ...
 
@@ -139,7 +141,7 @@ class Outbox:
         host = self.host
         out = self.outgoings.get((to, performative, protocol, type(content)))
         if out is None:
-            out = host._outgoing(to, performative, protocol, content)
+            out = host.outgoing(to, performative, protocol, content)
         body = encode_term(content) if content is not None else b""
         awaits = expect_reply or reply_by_s is not None or retry_s is not None
         sources = host.sources
@@ -206,9 +208,9 @@ class Outbox:
         terminal = msg.language == REPORT_LANGUAGE and is_terminal_report(msg)
         outcome, why = step(self.states, self.name, to, cid, followed, performative, True, terminal, msg)
         if outcome != "step":
-            self.host._stepped(to, cid, performative, outcome)
+            self.host.conversation_stepped(to, cid, performative, outcome)
         if why is not None:
-            self.host._violation(
+            self.host.send_violation(
                 cid, f"{self.name}: may not send {performative.value} to {to} in conversation {cid}: {why}"
             )
 

@@ -1,5 +1,5 @@
 """What the agents raised during a run, in one line: their error counters (a handler or a
-transition function that raised, services/runtime/roles.py and agent.py) and the agents that
+transition function that raised, services/runtime/roles/ and agent.py) and the agents that
 exited by themselves and were started again (services/scenario/runner.py).
 
 The counters come from every agent's last counters report (services/runtime/counters.py,

@@ -7,7 +7,7 @@ file, ``<folder>/<agent>.json``, atomically (a temporary file renamed over the o
 only when its content changed.
 
 What an agent keeps is the open conversations of its roles declared with ``keep``
-(services/runtime/roles.py) and its ``NOTE``, written and taken back by the runtime itself
+(services/runtime/roles/) and its ``NOTE``, written and taken back by the runtime itself
 (:class:`KeptConversations`, in a :class:`StateFile`; the agent gets each conversation back
 through :meth:`~services.runtime.agent.Agent.on_restored`).
 """

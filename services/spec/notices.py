@@ -7,7 +7,7 @@ no other transition, no terminal one, no cancel meta-protocol — so nothing ans
 shipped ``roco-notify`` is one; a table a new agent declares with the same machine
 (``[protocols.kitchen-warning]`` of the walk-through) is one too. The rule reads the machine,
 never the name. a_hi is the participant of every notice protocol on every channel that makes
-it so (services/runtime/roles.py ``EVERY_NOTICE``)."""
+it so (services/runtime/roles/declare.py ``EVERY_NOTICE``)."""
 
 from __future__ import annotations
 

@@ -5,7 +5,7 @@ specification (the paper's ClassInterfaceInfo check, §5.6).
 An agent's code is the package of its ``implementation`` (``services.agents.planner.agent:Planner``
 → every module of ``services/agents/planner/``).
 
-Every agent declares its protocol roles (``ROLES``; services/runtime/roles.py) and is checked
+Every agent declares its protocol roles (``ROLES``; services/runtime/roles/) and is checked
 exactly, by the comparison it also runs when it starts
 (:func:`services.runtime.roles.agent_problems`): its roles against its interface in the
 specification — every channel, protocol, role and content language, none missing, none

@@ -166,7 +166,7 @@ def _carries(cp: ChannelProtocol, perf: Performative, modules: dict[str, str]) -
 
 
 def _call(perf: Performative, cp: ChannelProtocol, role: Role) -> str:
-    """The roles' call that sends ``perf`` in a conversation (services/runtime/roles.py
+    """The roles' call that sends ``perf`` in a conversation (services/runtime/roles/
     :class:`~services.runtime.roles.Conversation`)."""
     terms = cp.content_types(perf.value)
     term = f"{terms[0]}(…)" if len(terms) == 1 else "content" if terms else ""
@@ -273,10 +273,11 @@ _SERVE_AND_OPEN = """                periodic(
 def _behaviour(
     spec: SystemSpec, agent: str, opens: list[RoleDecl], modules: dict[str, str]
 ) -> tuple[str, ...]:
-    """The behaviour's import, the period's constant, the behaviour, and the timer method that
-    opens conversations (empty for an agent that only answers)."""
+    """What the module imports from services/runtime/agent.py, the period's constant, the
+    behaviour, and the timer method that opens conversations (empty for an agent that only
+    answers)."""
     if not opens:
-        return "FSM, Behaviour", "", _SERVE_ONLY, ""
+        return "FSM, Agent, Behaviour", "", _SERVE_ONLY, ""
     period = f"""
 OPEN_EVERY_S = {OPEN_EVERY_S!r}
 \"\"\"How often (s) {TIMER_METHOD} runs: the period of this agent's periodic behaviour.\"\"\"
@@ -288,7 +289,7 @@ OPEN_EVERY_S = {OPEN_EVERY_S!r}
         + "".join(_opening(spec, d, _peer(spec, agent, d.channel), modules) for d in opens)
         + "\n"
     )
-    return "FSM, periodic", period, _SERVE_AND_OPEN.format(timer=TIMER_METHOD), timer
+    return "FSM, Agent, periodic", period, _SERVE_AND_OPEN.format(timer=TIMER_METHOD), timer
 
 
 def _module_of(spec: SystemSpec, agent: str) -> tuple[list[str], str]:
@@ -455,13 +456,12 @@ Written by ``roco spec new-agent {agent}`` from the specification: its protocol 
 channel and protocol the specification gives it) and one handler per performative its peers
 may send. Each handler raises NotImplementedError until it is written; ``roco spec
 verify-code`` lists those not yet written. The runtime's roles answer not-understood, cancels
-without a handler, and passed reply-by deadlines (services/runtime/roles.py).
+without a handler, and passed reply-by deadlines (services/runtime/roles/).
 """
 
 from __future__ import annotations
 
-from services.runtime.agent import Agent
-from services.runtime.behaviour import {behaviour_import}
+from services.runtime.agent import {behaviour_import}
 from services.runtime.roles import {imports}
 {_import("services.spec.names", named)}
 from shared.fipa_codec import Performative{unused}

@@ -43,7 +43,7 @@ MAX_HOSTS_JSON = 1 << 20
 @dataclass(frozen=True)
 class RoleReplyBy:
     """An initiator role's declared reply-by: ``agent`` opens ``protocol`` on ``channel`` and
-    waits ``reply_by_s`` (s) for the answer (services/runtime/roles.py ``reply_by_s``)."""
+    waits ``reply_by_s`` (s) for the answer (services/runtime/roles/ ``reply_by_s``)."""
 
     agent: str
     channel: str

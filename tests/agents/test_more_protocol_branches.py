@@ -214,7 +214,7 @@ def test_a_progress_subscription_a_co_ends_with_failure_is_made_again() -> None:
 def test_a_superfluous_subscription_whose_cancel_fails_leaves_the_newer_one() -> None:
     """a_co lets a_hi's first subscribe pass its reply-by (a_hi's clock is moved) and agrees
     to it only after a_hi subscribed again: a_hi cancels the superfluous one (the role:
-    services/runtime/subscriptions.py), a_co answers the cancel with failure (SC00035 §2: it
+    services/runtime/roles/subscriptions.py), a_co answers the cancel with failure (SC00035 §2: it
     could not cancel), and a_hi goes on with the newer subscription."""
     with a_hi_with_a_co(alive=True) as (hi, a_co, person, clock):
         first = a_co.next(P.SUBSCRIBE)

@@ -288,7 +288,8 @@ def test_a_withdrawal_after_an_earlier_plan_was_confirmed_is_not_taken_as_confir
     wherever the hand stood, refused as unreachable."""
     monkeypatch.setenv(ENV_STATE_DIR, str(tmp_path))
     w = restarted_in("pour/place_bowl/set_down/release", tmp_path, Observation(stamp=3.0, objects=()))
-    w.agent.confirmed = True  # as the previous plan's confirmation by a_co left it
+    assert w.agent.plan_request is not None
+    w.agent.reports._confirmed.add(w.agent.plan_request)  # as a confirmation from before would leave it
     finished = w.agent.fsm.states["finished"]
     finished.on_enter()
     assert w.agent.withdrawing and not finished.terminal()

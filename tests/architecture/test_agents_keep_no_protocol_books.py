@@ -1,6 +1,6 @@
 """No agent carries protocol machinery by hand (README: "an agent never compares
 performatives nor keeps a book of replies"; beside JADE's jade.proto, where a protocol object
-per conversation carries its context): the roles own it (services/runtime/roles.py).
+per conversation carries its context): the roles own it (services/runtime/roles/).
 
 Read by AST, every agent module of the specification must not
 
@@ -9,7 +9,7 @@ Read by AST, every agent module of the specification must not
 - build a ``StateFile`` itself (the same: services/runtime/state_store.py),
 - read ``.reply_with`` or ``.in_reply_to`` (the roles route replies; a repeated request is
   recognised by the role, ``Conversation.repeats``; what a reply answers is
-  ``Conversation.answers_to``),
+  ``Conversation.last_answers``),
 - open a fipa-subscribe conversation itself (``self.roles.open(…, FIPA_SUBSCRIBE, …)``: a
   subscribe back-off by hand; ``Roles.subscribe`` keeps a subscription open).
 

@@ -280,7 +280,7 @@ def test_an_input_whose_taking_in_raises_is_counted_and_the_next_is_taken_in() -
         raised.append(found)
         raise RuntimeError("a fault while answering")
 
-    agent._not_taken = not_taken  # type: ignore[method-assign]
+    agent.not_taken = not_taken  # type: ignore[method-assign]
     agent.count = 5  # past 'count': the agent answers queries
     agent._inbox.extend([(KEY, b"\xc1 not msgpack"), (KEY, encode(query("q1")))])
     agent._acquire()
@@ -313,7 +313,7 @@ def test_a_step_takes_in_what_had_arrived_when_it_began_not_what_floods_in_meanw
         if len(taken) < 1000:
             agent.post(("more", len(taken)))
 
-    agent._take_event = take  # type: ignore[method-assign]  # post() puts events
+    agent.take_event = take  # type: ignore[method-assign]  # post() puts events
     for i in range(3):
         agent.post(("first", i))
     agent._acquire()

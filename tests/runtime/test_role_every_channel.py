@@ -1,4 +1,4 @@
-"""A role declared for every channel (services/runtime/roles.py ``EVERY_CHANNEL``): it stands
+"""A role declared for every channel (services/runtime/roles/ ``EVERY_CHANNEL``): it stands
 for one role per channel where the specification gives the agent that role of that protocol in
 exactly those languages, so that an agent serves a channel added to the specification without
 an edit of its code; the comparison with the specification stays as strict as for roles

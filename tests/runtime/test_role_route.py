@@ -1,4 +1,4 @@
-"""Where a role puts a received communicate (services/runtime/roles.py): each role's
+"""Where a role puts a received communicate (services/runtime/roles/): each role's
 ``RoleTable``, worked out once from its protocol's state machine and the agent's handlers, and
 the pure ``route`` of one communicate — a new conversation, the next communicate of an open one,
 its opening again, or a reply to no conversation of this agent."""

@@ -1,4 +1,4 @@
-"""Protocol roles built from the state machines (services/runtime/roles.py): the same
+"""Protocol roles built from the state machines (services/runtime/roles/): the same
 code plays both roles of every interaction protocol roco knows — the eleven of the FIPA
 library (fipa-request ... fipa-propose, SC00026-SC00036) and the paper's coordinate —
 between two agents on one bus, and owns what the protocols imply: in-reply-to, reply-by
@@ -205,7 +205,7 @@ def test_a_reply_in_an_abandoned_conversation_is_dropped_as_late(
     i.do(lambda a: opened.put(a.roles.open("C1", "fipa-request", None)))
     conv = opened.get(timeout=TIMEOUT)
     assert p.next()[:2] == ("fipa-request", "request")
-    i.do(lambda a: conv.abandon())
+    i.do(lambda a: conv.forget())
     assert conv.opening is not None
     late = Communicate(
         performative=P.INFORM,

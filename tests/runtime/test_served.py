@@ -1,7 +1,7 @@
-"""The participant's side of fipa-subscribe served by the role (services/runtime/served.py, FIPA
+"""The participant's side of fipa-subscribe served by the role (services/runtime/roles/served.py, FIPA
 SC00035): the latest agreed subscription takes the stream, informs made while none is agreed are
 kept, bounded, and sent after the next agree, across a restart too; and the conversations'
-helpers an agent answers with (services/runtime/roles.py): a cancel answered later (FIPA
+helpers an agent answers with (services/runtime/roles/): a cancel answered later (FIPA
 SC00026 §2), a kept communicate decoded, why a peer said no, a free conversation-id and the
 ended conversations remembered. a_s (tests/support/role_server.py) is driven by hand on a
 MemoryBus, as in test_reliability.py."""
@@ -14,9 +14,9 @@ from pathlib import Path
 import msgspec
 import pytest
 
-from services.runtime import roles as roles_module
 from services.runtime.roles import RestoreError
-from services.runtime.served import ServedSubscription
+from services.runtime.roles import dispatch as roles_module
+from services.runtime.roles.served import ServedSubscription
 from services.runtime.state_store import ENV_STATE_DIR
 from shared.fipa_codec import Communicate, encode
 from shared.fipa_codec.languages.l_sw import SWState, SWStatus
@@ -234,12 +234,12 @@ def test_a_free_conversation_id_skips_open_and_remembered_ones(monkeypatch: pyte
     _query(w, "q")
     assert roles.free_id("q") == "q-2" and roles.free_id("q", taken={"q-2"}) == "q-3"
     (q,) = roles.conversations("C1", QUERY)
-    q.abandon(remember=True)
+    q.forget(remember=True)
     assert roles.ended("q") == "Q" and roles.free_id("q") == "q-2"
     _query(w, "o")
-    roles.conversations("C1", QUERY)[0].abandon()  # not remembered
+    roles.conversations("C1", QUERY)[0].forget()  # not remembered
     assert roles.ended("o") is None and roles.free_id("o") == "o"
     for cid in ("q-2", "q-3"):  # at most ENDED_KEPT remembered: the oldest, q, is forgotten
         _query(w, cid)
-        roles.conversations("C1", QUERY)[0].abandon(remember=True)
+        roles.conversations("C1", QUERY)[0].forget(remember=True)
     assert roles.ended("q") is None and roles.ended("q-3") == "Q-3" and roles.free_id("q") == "q"

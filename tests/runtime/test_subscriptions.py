@@ -1,6 +1,6 @@
 """The subscription a fipa-subscribe initiator role keeps open itself
-(services/runtime/subscriptions.py, FIPA SC00035), a repeated opening recognised by the
-participant role (services/runtime/roles.py, FIPA SC00061 §2.4), and the conversations a role
+(services/runtime/roles/subscriptions.py, FIPA SC00035), a repeated opening recognised by the
+participant role (services/runtime/roles/, FIPA SC00061 §2.4), and the conversations a role
 declared with ``keep`` keeps across a restart (services/runtime/state_store.py). The agents are driven by hand
 on a MemoryBus, as in test_reliability.py; time is moved by setting the next attempt's time."""
 
@@ -193,7 +193,9 @@ def test_resume_in_names_a_state_the_protocol_can_take_a_conversation_back_in() 
     assert role_problems(spec, "a_ta", TaskExecutor.ROLES, handlers) == []
     for state in ("runing", "finished", "ending", "start"):
         roles = [
-            participant("C1", "coordinate", "L_HFSM", "L_SW", keep=True, resume_in=state),
+            participant(
+                "C1", "coordinate", "L_HFSM", "L_SW", keep=True, resume_in=state, confirmed_informs=True
+            ),
             *TaskExecutor.ROLES[1:],
         ]
         assert role_problems(spec, "a_ta", roles, handlers) == [

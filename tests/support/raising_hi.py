@@ -1,6 +1,6 @@
 """A planted a_hi for tests: the handler of a_co's progress (C2, fipa-subscribe inform) raises
 the first time it is called in the process; the runtime logs and counts it (``handler_errors``,
-services/runtime/roles.py) and a_hi goes on: one progress line is not said to the person, the
+services/runtime/roles/) and a_hi goes on: one progress line is not said to the person, the
 task is unharmed. A test names it as a_hi's implementation in a copy of the specification
 (``ROCO_SPEC``); roco itself never starts it."""
 

@@ -1,5 +1,5 @@
 """a_s of tests/runtime/test_served.py: on C1 with a_i (whose communicates the tests deliver by
-hand), the participant of a fipa-subscribe it serves through its role (services/runtime/served.py)
+hand), the participant of a fipa-subscribe it serves through its role (services/runtime/roles/served.py)
 and of a fipa-request whose cancels it answers later, and the initiator of a fipa-query.
 The module that declares an agent's roles is read when it starts (services/runtime/code_scan.py)."""
 
@@ -96,7 +96,7 @@ class Server(Agent):
             dropped="statuses_dropped",
         )
         self.cancels: list[tuple[Conversation, Received]] = []  # to be answered later
-        self.why: list[str] = []  # Conversation.why of every negative answer to a query
+        self.why: list[str] = []  # Conversation.explanation of every negative answer to a query
         self.answered: list[Any] = []  # what the queries were answered
         return FSM([Behaviour("serve", self.handle_received, terminal=lambda: False)])
 
@@ -122,4 +122,4 @@ class Server(Agent):
 
     @handles(QUERY, INITIATOR, P.REFUSE, P.FAILURE)
     def on_no_answer(self, conv: Conversation) -> None:
-        self.why.append(conv.why)
+        self.why.append(conv.explanation)

@@ -8,7 +8,7 @@ communicates are handled in every state; each L_SW inform is confirmed (paper §
 
 Towards the person (C2, L_HC): commands by fipa-request (agree, then inform or failure with a
 CommandOutcome; a ``cancel`` is answered once the robot is safe), progress by fipa-subscribe
-(a Progress inform at every change, served by the role: services/runtime/served.py), status by
+(a Progress inform at every change, served by the role: services/runtime/roles/served.py), status by
 fipa-query.
 
 Restarts (docs/recovery.md): the roles keep the commands (``keep=TaskNote``) and the progress
@@ -28,8 +28,7 @@ from functools import partial
 import msgspec
 
 from services.agents.coordinator.scheduling import Candidate, Decision, Running, decide, plan_left
-from services.runtime.agent import RESEND_ON_RETURN, Agent, Received
-from services.runtime.behaviour import FSM, Arc, Behaviour, once
+from services.runtime.agent import FSM, RESEND_ON_RETURN, Agent, Arc, Behaviour, Received, once
 from services.runtime.roles import INITIATOR, PARTICIPANT, Conversation, handles, initiator, participant
 from services.spec.names import (
     C1,
@@ -136,7 +135,7 @@ class Coordinator(Agent):
         self.ta: Conversation | None = None  # the C1 conversation of the plan a_ta runs
         self.person: deque[Callable[[], None]] = deque()  # the person's commands and stops, for procReq
         # a_hi's progress subscription: what is made while none is agreed is kept in the NOTE,
-        # bounded, and sent after the next agree (services/runtime/served.py)
+        # bounded, and sent after the next agree (services/runtime/roles/served.py)
         self.progress = self.roles.serve(
             C2,
             FIPA_SUBSCRIBE,
@@ -217,7 +216,7 @@ class Coordinator(Agent):
             return
         now = self.sources.time()
         task_id = conv.conversation_id or f"task-{len(self.tasks)}"
-        if task_id in self.tasks:  # (the same request again is the role's: services/runtime/roles.py)
+        if task_id in self.tasks:  # (the same request again is the role's: services/runtime/roles/)
             conv.refuse_with(Performative.REFUSE, f"command {task_id} is already being carried out")
             return
         deadline = now + item.content.deadline_s if item.content.deadline_s is not None else None
@@ -358,7 +357,7 @@ class Coordinator(Agent):
         if not alive and self.note.ta_task is not None:
             self.ta_lost = True
             self.log.warning("a_ta disappeared while running %s; the robot holds position", self.note.ta_task)
-        elif alive and self.ta_lost and self.ta is not None and self.ta.answered_last is not None:
+        elif alive and self.ta_lost and self.ta is not None and self.ta.replied_to is not None:
             self.log.info("a_ta is back: the last confirm goes again (a new a_ta will not know it)")
             self.ta.answer_again()
 
@@ -429,7 +428,7 @@ class Coordinator(Agent):
     def _drop_planning(self, task: Task) -> None:
         """The plan requested for ``task`` is no longer wanted: withdrawn (a_pl stops planning it)."""
         if task.planning is not None:
-            task.planning.withdraw()
+            task.planning.cancel_if_open()
         task.planning = None
 
     @handles(FIPA_REQUEST, INITIATOR, Performative.INFORM)
@@ -546,7 +545,7 @@ class Coordinator(Agent):
     def _release_ta(self) -> None:
         self.ta_lost = False
         if self.ta is not None:
-            self.ta.stop_waiting()
+            self.ta.stop_awaiting_replies()
         self.note.ta_task, self.note.ta_conversation = None, None
         self.ta = None
         self.note.ta_cancelled = False

@@ -33,10 +33,7 @@ from typing import Any
 
 import msgspec
 
-from services.runtime import keys
-from services.runtime.agent import Agent, Received
-from services.runtime.behaviour import FSM, Behaviour
-from services.runtime.clock import encode_sim_time
+from services.runtime.agent import FSM, Agent, Behaviour, Received, encode_sim_time, keys
 from services.runtime.roles import PARTICIPANT, Conversation, handles, participant
 from services.spec.names import C5, FIPA_REQUEST, FIPA_SUBSCRIBE, L_EX, L_SD
 from shared.fipa_codec import Performative

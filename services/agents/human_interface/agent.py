@@ -7,7 +7,7 @@ under its own ``request_id`` and ends with one of a kind in FINAL_REPORTS
 (services/runtime/human.py); their words are wording.py's. Towards a_co, on C2 in L_HC, a_hi
 initiates a fipa-request per command (a stop sends ``cancel`` in every open one: the cancel
 meta-protocol), one fipa-subscribe to the progress, which the role keeps open
-(services/runtime/subscriptions.py: while a_co does not agree, a new attempt, the interval
+(services/runtime/roles/subscriptions.py: while a_co does not agree, a new attempt, the interval
 doubling from ``SUBSCRIBE_RETRY_S[0]`` to ``SUBSCRIBE_RETRY_S[1]``), and a fipa-query per status
 request. Towards a_km, on C7 in L_WM (asking.py), a fipa-query per sentence asks for the
 vocabulary (vocabulary.py), which the sentence waits for (at most ``VOCABULARY_REPLY_BY_S``),
@@ -74,15 +74,16 @@ from services.agents.human_interface.wording import (
     stopping,
     too_long,
 )
-from services.runtime import keys
-from services.runtime.behaviour import FSM, Behaviour
-from services.runtime.human import (
+from services.runtime.agent import (
     FINAL_REPORTS,
+    FSM,
     MAX_LINE_CHARS,
+    Behaviour,
     HumanInput,
     HumanReport,
     ReportKind,
     RequestKind,
+    keys,
 )
 from services.runtime.roles import (
     EVERY_CHANNEL,
@@ -91,11 +92,11 @@ from services.runtime.roles import (
     PARTICIPANT,
     Conversation,
     RoleDecl,
+    StandingSubscription,
     handles,
     initiator,
     participant,
 )
-from services.runtime.subscriptions import StandingSubscription
 from services.spec.names import C2, C7, C8, FIPA_QUERY, FIPA_REQUEST, FIPA_SUBSCRIBE, L_HC, L_WM
 from shared.fipa_codec import Performative
 from shared.fipa_codec.languages.l_hc import (
@@ -110,7 +111,7 @@ from shared.fipa_codec.languages.l_hc import (
 from shared.fipa_codec.languages.told import told
 
 if TYPE_CHECKING:
-    from services.runtime.transport import Transport
+    from services.runtime.agent import Transport
     from services.spec.model import SystemSpec
 
 CO = "a_co"
@@ -199,7 +200,7 @@ class HumanInterface(AskingKnowledge):
     name = "a_hi"
     NOTE = Told
     progress: StandingSubscription
-    """a_co's progress stream (services/runtime/subscriptions.py), opened in :meth:`setup`."""
+    """a_co's progress stream (services/runtime/roles/subscriptions.py), opened in :meth:`setup`."""
     ROLES: ClassVar[tuple[RoleDecl, ...]] = (
         # open commands are kept across a restart, each sent again (docs/recovery.md)
         initiator(C2, FIPA_REQUEST, L_HC, reply_by_s=AGREE_BY_S, retry_s=COMMAND_RETRY_S, keep=CommandNote),
@@ -579,7 +580,7 @@ class HumanInterface(AskingKnowledge):
         """Command ``c`` has ended: the final report, and every stop request waiting for it."""
         self._report(c.request_id, kind, text)
         del self.commands[c.conversation_id]
-        c.conversation.abandon(remember=True)  # its note names the person's request of late progress
+        c.conversation.forget(remember=True)  # its note names the person's request of late progress
         if kind is not ReportKind.STOPPED:
             text = f"{text} (it ended before it could be stopped)"
         self._tell_stoppers(c, text, ok=True)
@@ -610,7 +611,7 @@ class HumanInterface(AskingKnowledge):
 
     def _status_answer(self, conv: Conversation, answered: bool) -> None:
         request_id: str = conv.data  # (see _ask_status)
-        conv.abandon()  # (what a_co still sends in it is dropped by the role)
+        conv.forget()  # (what a_co still sends in it is dropped by the role)
         labels = {c.conversation_id: c.label for c in self.commands.values()}
         status = conv.content
         if answered and isinstance(status, Status):

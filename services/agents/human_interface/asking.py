@@ -26,8 +26,7 @@ from services.agents.human_interface.language import default_vocabulary
 from services.agents.human_interface.task_grammar import Grammar
 from services.agents.human_interface.vocabulary import VOCABULARY_QUERY, Vocabulary
 from services.agents.human_interface.wording import dropped, reason_of
-from services.runtime.agent import Agent
-from services.runtime.human import HumanInput, ReportKind
+from services.runtime.agent import Agent, HumanInput, ReportKind
 from services.runtime.roles import INITIATOR, Conversation, handles
 from services.spec.names import C7, FIPA_QUERY
 from shared.fipa_codec import Performative
@@ -116,7 +115,7 @@ class AskingKnowledge(Agent):
         waiting: list[HeldSentence] = []
         questions: list[AskedQuestion] = []
         for query in self.roles.conversations(C7, FIPA_QUERY):
-            query.abandon()  # asked of the a_km that went away, or before it was up
+            query.forget()  # asked of the a_km that went away, or before it was up
             if isinstance(query.data, AskedQuestion):
                 questions.append(query.data)
             else:
@@ -137,7 +136,7 @@ class AskingKnowledge(Agent):
     @handles(FIPA_QUERY, INITIATOR, Performative.INFORM_REF, Performative.INFORM, channel=C7)
     def _on_vocabulary(self, conv: Conversation) -> None:
         """a_km's answer: the vocabulary, the sentences waiting for it read; or a question's answer."""
-        conv.abandon()
+        conv.forget()
         if isinstance(conv.data, AskedQuestion):
             self._answer_world(conv.data, conv.content)
             return
@@ -152,7 +151,7 @@ class AskingKnowledge(Agent):
     def _on_no_vocabulary(self, conv: Conversation) -> None:
         """Refused, failed, not understood or unanswered in time: read with the last vocabulary;
         a question: the person is told a_hi cannot reach its knowledge."""
-        conv.abandon()
+        conv.forget()
         if isinstance(conv.data, AskedQuestion):
             self.log.warning("a_km did not answer a question (%s)", reason_of(conv))
             self._report(conv.data.request_id, ReportKind.ANSWER, NO_KNOWLEDGE)

@@ -19,8 +19,7 @@ from __future__ import annotations
 import logging
 from collections.abc import Callable
 
-from services.runtime.agent import Received, SpecViolation
-from services.runtime.human import FINAL_REPORTS, HumanInput, HumanReport, ReportKind
+from services.runtime.agent import FINAL_REPORTS, HumanInput, HumanReport, Received, ReportKind, SpecViolation
 from services.runtime.roles import Conversation
 from shared.fipa_codec import Performative
 from shared.fipa_codec.languages.l_hc import Sentence, SentenceReport
@@ -54,7 +53,7 @@ class ForeignRequests:
         handler runs), its cancel kept to be answered; None when a_hi has no such request open
         (the cancel is then answered ``failure`` at once)."""
         request_id = next((r for r, c in self.open.items() if c is conv), None)
-        cancel = conv.answering
+        cancel = conv.to_answer
         if request_id is None or cancel is None:
             conv.answer_cancel(
                 False, SentenceReport(kind=ReportKind.FAILED.value, text="no request of yours is open")

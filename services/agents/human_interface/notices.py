@@ -10,7 +10,7 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass
 
-from services.runtime.human import NOTICES_PER_S
+from services.runtime.agent import NOTICES_PER_S
 
 WINDOW_S = 1.0
 """The length of a window, in seconds of the gate's clock."""

@@ -21,7 +21,7 @@ from dataclasses import dataclass
 from services.agents.human_interface.language import Dialogue, Intent, NotUnderstood, interpret
 from services.agents.human_interface.task_grammar import Grammar
 from services.agents.human_interface.vocabulary import Vocabulary
-from services.runtime.human import HumanInput
+from services.runtime.agent import HumanInput
 
 log = logging.getLogger(__name__)
 

@@ -61,7 +61,7 @@ from collections.abc import Iterable, Iterator, Mapping
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
-from services.runtime.human import MAX_LINE_CHARS
+from services.runtime.agent import MAX_LINE_CHARS
 
 if TYPE_CHECKING:
     from services.agents.human_interface.task_grammar import Grammar

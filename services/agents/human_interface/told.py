@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import msgspec
 
-from services.runtime.human import FINAL_REPORTS, HumanReport, ReportKind
+from services.runtime.agent import FINAL_REPORTS, HumanReport, ReportKind
 
 MAX_TOLD = 64
 """Final reports kept (the oldest forgotten first)."""

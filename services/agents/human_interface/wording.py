@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 
-from services.runtime.human import MAX_LINE_CHARS
+from services.runtime.agent import MAX_LINE_CHARS
 from services.runtime.roles import Conversation
 from shared.fipa_codec.languages.l_hc import (
     CommandOutcome,
@@ -120,7 +120,7 @@ def too_long(chars: int) -> str:
 
 def reason_of(conv: Conversation) -> str:
     """Why the peer of ``conv`` (a_co, a_km) answered negatively or not at all, in words: the
-    detail of a_co's :class:`CommandOutcome`, else :attr:`Conversation.why`."""
+    detail of a_co's :class:`CommandOutcome`, else :attr:`Conversation.explanation`."""
     if not conv.timed_out and isinstance(conv.content, CommandOutcome):
         return conv.content.detail or "no reason given"
-    return conv.why
+    return conv.explanation

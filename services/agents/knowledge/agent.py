@@ -9,7 +9,7 @@ query a_km does not answer, ``failure`` with the reason for one it cannot), know
 a_km believed by the kitchen's initial knowledge and that observation, ``WorldModel.renew``).
 
 It keeps a fipa-subscribe with a_ta open for environment updates (C6,
-services/runtime/subscriptions.py), and serves fipa-subscribe (FIPA SC00035) to scene changes
+services/runtime/roles/subscriptions.py), and serves fipa-subscribe (FIPA SC00035) to scene changes
 (L_WM ``SceneSubscription``, ``SceneChange``; services/agents/knowledge/scene_watch.py) on every
 channel where the specification makes it the participant; those are not kept across its
 restart. Started with kept knowledge, it holds queries until a_ta's first observation, at most
@@ -28,19 +28,18 @@ from pathlib import Path
 from services.agents.knowledge import scene_watch
 from services.agents.knowledge.scene_watch import Watch
 from services.agents.knowledge.world_model import KnowledgeError, UnsupportedQuery, WorldModel
-from services.runtime.agent import Agent
-from services.runtime.behaviour import FSM, Arc, Behaviour
+from services.runtime.agent import FSM, Agent, Arc, Behaviour
 from services.runtime.roles import (
     EVERY_CHANNEL,
     INITIATOR,
     PARTICIPANT,
     Conversation,
+    ServedSubscription,
+    StandingSubscription,
     handles,
     initiator,
     participant,
 )
-from services.runtime.served import ServedSubscription
-from services.runtime.subscriptions import StandingSubscription
 from services.spec.names import C6, FIPA_QUERY, FIPA_SUBSCRIBE, L_WM
 from shared.fipa_codec import Performative
 from shared.fipa_codec.languages.l_wm import (

@@ -19,8 +19,7 @@ from services.agents.planner.domain import ATOMIC_STATES, PlanActions, PlanningF
 from services.agents.planner.goals import goal_query, steps
 from services.agents.planner.hfsm import to_hfsm
 from services.agents.planner.knowledge import ARMS, Knowledge
-from services.runtime.agent import Agent
-from services.runtime.behaviour import FSM, Arc, Behaviour
+from services.runtime.agent import FSM, Agent, Arc, Behaviour
 from services.runtime.roles import INITIATOR, PARTICIPANT, Conversation, handles, initiator, participant
 from services.spec.names import C3, C4, FIPA_QUERY, FIPA_REQUEST, L_HFSM, L_WM
 from shared.fipa_codec import Performative
@@ -164,9 +163,9 @@ class Planner(Agent):
         ("step 7 pour(jar, cup): the cup cannot take …") — or not at all: the plan is not sent."""
         self.checked = True
         if conv.timed_out:
-            self.failure = f"the plan could not be checked in a_km's hypothetical state ({conv.why})"
+            self.failure = f"the plan could not be checked in a_km's hypothetical state ({conv.explanation})"
         else:
-            self.failure = f"the plan cannot work: {conv.why}"
+            self.failure = f"the plan cannot work: {conv.explanation}"
 
     # ---- the behaviours ---------------------------------------------------------------------
     def _idle(self) -> None:
@@ -325,7 +324,7 @@ class Planner(Agent):
         (FIPA SC00027 §2, the cancel meta-protocol), neither sent again nor awaited; a_km's
         answer that crossed a cancel, and its answer to the cancel, are taken and ignored."""
         for conv in [*self.pending, *([self.check] if self.check is not None else [])]:
-            conv.withdraw(forget=False)
+            conv.cancel_if_open(forget=False)
 
     def _done(self) -> None:
         self.request = self.problem = None

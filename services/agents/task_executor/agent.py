@@ -62,8 +62,7 @@ from collections import deque
 
 import msgspec
 
-from services.runtime.agent import RESEND_ON_RETURN, Agent
-from services.runtime.behaviour import FSM, Arc, Behaviour
+from services.runtime.agent import FSM, RESEND_ON_RETURN, Agent, Arc, Behaviour, Transport
 from services.runtime.roles import (
     INITIATOR,
     PARTICIPANT,
@@ -72,6 +71,7 @@ from services.runtime.roles import (
     initiator,
     participant,
 )
+from services.spec.model import SystemSpec
 from services.spec.names import (
     C1,
     C5,
@@ -171,7 +171,7 @@ class TaskExecutor(Agent):
     name = "a_ta"
     ROLES = (
         # a kept plan is taken back in running whatever state it was in: a_ta reports on it
-        participant(C1, COORDINATE, L_HFSM, L_SW, keep=PlanNote, resume_in="running"),
+        participant(C1, COORDINATE, L_HFSM, L_SW, keep=PlanNote, resume_in="running", confirmed_informs=True),
         initiator(C5, FIPA_REQUEST, L_EX, L_SD),
         # the robot's power-ons (a world started anew), told by ag_ex as they happen
         initiator(C5, FIPA_SUBSCRIBE, L_EX, reply_by_s=POWER_ONS_REPLY_BY_S, resubscribes=True),
@@ -181,7 +181,10 @@ class TaskExecutor(Agent):
         initiator(C6, FIPA_QUERY, L_WM, unused=True),
     )
 
-    def build_fsm(self) -> FSM:
+    def __init__(self, transport: Transport, spec: SystemSpec | None = None) -> None:
+        """a_ta's memory (paper §3.2: the agent's internal memory), then the runtime's
+        (:class:`~services.runtime.agent.Agent`), which builds the FSM and may give a kept
+        plan back (:meth:`on_restored`)."""
         self.restored = False
         self.subscription: Conversation | None = None
         self.initial_observe: Conversation | None = None
@@ -214,10 +217,6 @@ class TaskExecutor(Agent):
         self.terminating = False  # running the safe-stop HFSM
         self.safe_stop_key: str | None = None
         self.atomic_spans: list[tuple[int, int]] = []
-        self.final_inform: str | None = None
-        self.confirmed = False
-        self.sw_queue: deque[SWStatus] = deque()
-        self.awaiting: str | None = None  # reply-with of the L_SW inform a_co has not confirmed
         self.interrupted = False  # the plan ended inside a leaf ag_ex did not finish
         self.retreat: deque[RetreatStep] = deque()
         self.retreat_wait: Conversation | None = None  # the retreat request (or observe)
@@ -225,6 +224,12 @@ class TaskExecutor(Agent):
         self.retreated = False  # retreat commands were sent: observe before reporting
         self.withdrawing = False  # in finished: the retreat runs, the final state waits
         self.retreat_note = ""  # what the final state's reason says of the withdrawal
+        super().__init__(transport, spec)
+        self.reports = self.roles.report(C1, COORDINATE, retry_s=SW_RETRY_S)
+        """a_ta's L_SW informs to a_co, sent one at a time, each once a_co confirmed the one
+        before (the coordinate role's: services/runtime/roles/confirmed.py)."""
+
+    def build_fsm(self) -> FSM:
         return FSM(
             [
                 Behaviour(
@@ -245,7 +250,7 @@ class TaskExecutor(Agent):
                 Behaviour(
                     "finished",
                     self._finished,
-                    terminal=lambda: self.confirmed,
+                    terminal=lambda: self.plan is None,  # a_co confirmed the final state: done with the plan
                     on_enter=self._enter_finished,
                     doc="await a_co's acknowledgement of the final state",
                 ),
@@ -272,7 +277,6 @@ class TaskExecutor(Agent):
     # ---- communicates handled in every state ----
     def _common(self) -> None:
         self.handle_received()
-        self._flush_sw()
 
     # a_co's plans (coordinate, participant)
     @handles(COORDINATE, PARTICIPANT, Performative.REQUEST)
@@ -280,24 +284,6 @@ class TaskExecutor(Agent):
         # (a_co sends an unanswered plan again when a_ta reappears; a restarted a_ta that kept
         # this very request reports on it: the role does not hand the copy to this handler)
         self.requests.append(conv)
-
-    @handles(COORDINATE, PARTICIPANT, Performative.CONFIRM)
-    def _on_confirm(self, conv: Conversation) -> None:
-        self._confirmed(conv)
-
-    @handles(COORDINATE, PARTICIPANT, Performative.NOT_UNDERSTOOD)
-    def _on_unconfirmed(self, conv: Conversation) -> None:
-        """A restarted a_co that kept nothing does not know the plan: nobody waits for it."""
-        self.log.warning("a_co does not know plan of %s: going on", conv.answers_to)
-        self._confirmed(conv)
-
-    def _confirmed(self, conv: Conversation) -> None:
-        """a_co confirmed (or will never confirm) the L_SW inform its reply answers."""
-        answered = conv.answers_to
-        if answered is not None and answered == self.awaiting:
-            self.awaiting = None
-        if self.final_inform is not None and answered == self.final_inform:
-            self.confirmed = True
 
     @handles(COORDINATE, PARTICIPANT, Performative.CANCEL)
     def _on_cancel(self, conv: Conversation) -> None:
@@ -327,7 +313,7 @@ class TaskExecutor(Agent):
             or isinstance(command, Observe)
         ):
             return
-        request.stop_waiting()
+        request.stop_awaiting_replies()
         request.cancel(command, reply_by_s=HALT_REPLY_BY_S)
         self.counters["halts_asked"] += 1
         self.log.info(
@@ -535,20 +521,13 @@ class TaskExecutor(Agent):
         self.subscription.reply(Performative.INFORM, update)
 
     def _inform_co(self, state: SWState, step: str | None = None, reason: str | None = None) -> None:
-        """Queue an L_SW inform for a_co; informs go one at a time, each after a_co confirmed
-        the previous one (coordinate protocol, paper Figure 8: loop of inform and confirm)."""
+        """Inform a_co of the plan's supervised-worker state; the coordinate role sends the
+        informs one at a time, each after a_co confirmed the previous one (paper Figure 8: loop
+        of inform and confirm), a terminal state being the plan's last."""
         if self.plan_request is None or self.plan is None:
             return
-        self.sw_queue.append(SWStatus(state=state, plan_id=self.plan.plan_id, step=step, reason=reason))
-        self._flush_sw()
-
-    def _flush_sw(self) -> None:
-        if self.awaiting is not None or not self.sw_queue or self.plan_request is None:
-            return
-        status = self.sw_queue.popleft()
-        self.awaiting = self.plan_request.send(Performative.INFORM, status, retry_s=SW_RETRY_S)
-        if status.state in TERMINAL_SW_STATES:
-            self.final_inform = self.awaiting
+        status = SWStatus(state=state, plan_id=self.plan.plan_id, step=step, reason=reason)
+        self.reports.inform(self.plan_request, status, final=state in TERMINAL_SW_STATES)
 
     # ---- restarts (the role keeps the plan's conversation: docs/recovery.md) ----
     def persist(self) -> None:
@@ -601,7 +580,7 @@ class TaskExecutor(Agent):
         tilt = isinstance(action, Execute) and isinstance(action.command, Tilt)
         halting = bool(step.waiting_for.cancels)
         if (tilt or halting) and self.outcome is None:
-            step.waiting_for.abandon()
+            step.waiting_for.forget()
             during = "the halt" if halting else "the tilt"
             self._surprise(step, f"{step.path}: ag_ex restarted during {during}")
 
@@ -845,10 +824,6 @@ class TaskExecutor(Agent):
         """Make the hands safe after an interrupted take (``undo_take``) or set-down
         (``finish_set_down``; services/agents/task_executor/retreat.py), else
         report the final state at once."""
-        # the last plan's confirmation is not this one's: left set, it ended "finished" at once
-        # and the plan ran again from its first leaf (a withdrawal reports only at its end)
-        self.confirmed = False
-        self.final_inform = None
         commands: tuple[RetreatStep, ...] = ()
         if self.interrupted:
             commands = undo_take(self.leaves, self.atomic_spans, self.index)
@@ -903,8 +878,6 @@ class TaskExecutor(Agent):
 
     def _report_final(self) -> None:
         assert self.outcome is not None
-        self.confirmed = False
-        self.final_inform = None
         self._inform_co(self.outcome, reason=self.reason)
 
     def _finished(self) -> None:
@@ -912,10 +885,10 @@ class TaskExecutor(Agent):
         if self.withdrawing:
             self._retreat_step()
             return
-        if self.confirmed:
+        if self.reports.final_confirmed(self.plan_request):
             if self.plan_request is not None:
                 self.plan_request.data = None  # nothing to keep any more
+                self.reports.done_with(self.plan_request)
             self.plan = None
             self.plan_request = None
-            self.final_inform = None
             self.restored = False

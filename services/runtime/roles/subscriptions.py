@@ -1,7 +1,7 @@
 """A subscription the fipa-subscribe initiator role keeps open itself (FIPA SC00035).
 
 An agent that subscribes to a peer's stream declares its initiator role with
-``resubscribes=True`` (services/runtime/roles.py :func:`~services.runtime.roles.initiator`)
+``resubscribes=True`` (services/runtime/roles/ :func:`~services.runtime.roles.initiator`)
 and, in its ``setup``, asks the role for the subscription::
 
     self.progress = self.roles.subscribe(
@@ -33,14 +33,13 @@ handler of the stream's ``inform``\\s (and, if it wants them, the hooks ``on_sub
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import TYPE_CHECKING
 
 import msgspec
 
+from services.runtime.roles.conversation import Conversation
+from services.runtime.roles.declare import RoleDecl
+from services.runtime.roles.host import SubscriptionHost
 from shared.fipa_codec.acts import Performative
-
-if TYPE_CHECKING:
-    from services.runtime.roles import Conversation, RoleDecl, Roles
 
 Hook = Callable[["Conversation"], None]
 
@@ -55,7 +54,7 @@ class StandingSubscription:
 
     def __init__(
         self,
-        roles: Roles,
+        roles: SubscriptionHost,
         decl: RoleDecl,
         content: msgspec.Struct,
         *,
@@ -94,7 +93,7 @@ class StandingSubscription:
         """POSIX time of the next attempt (None: none scheduled)."""
         self.away = False
         """The peer's token disappeared and has not appeared since."""
-        if at_start or self.peer in roles.agent.peers:
+        if at_start or self.peer in roles.host.peers:
             self._open()
 
     @property
@@ -107,7 +106,7 @@ class StandingSubscription:
         n = self.attempts
         cid = self.base_id if n == 1 or self.same_id else f"{self.base_id}-{n}"
         if self.conversation is not None:  # the previous attempt is given up (or its peer gone)
-            self.conversation.stop_waiting()
+            self.conversation.stop_awaiting_replies()
         self.conversation = self.roles.open(
             self.decl.channel,
             self.decl.protocol,
@@ -125,7 +124,7 @@ class StandingSubscription:
         if self.interval <= 0:
             self._open()
             return
-        self.retry_at = self.roles.agent.sources.time() + self.interval
+        self.retry_at = self.roles.host.sources.time() + self.interval
         self.interval = min(self.interval * 2, self.retry_s[1])
 
     def _agreed(self, conv: Conversation) -> None:
@@ -133,7 +132,7 @@ class StandingSubscription:
         self.pending = False
         self.retry_at = None
         self.interval = self.retry_s[0]
-        log = self.roles.agent.log
+        log = self.roles.host.log
         log.info("%s agreed to the subscription %s (%s)", self.peer, conv.conversation_id, self.decl.protocol)
         if self.on_subscribed is not None:
             self.on_subscribed(conv)
@@ -162,7 +161,7 @@ class StandingSubscription:
         # refuse, failure, not-understood, or the reply-by deadline passed
         if not self._latest(conv) or conv.answers_cancel:
             return False  # an attempt already given up
-        log = self.roles.agent.log
+        log = self.roles.host.log
         (log.debug if self.attempts > 1 else log.info)(
             "%s did not take the subscription %s (%s: %s); subscribing again in %.0f s",
             self.peer,
@@ -186,13 +185,13 @@ class StandingSubscription:
             self.interval = self.retry_s[0]
             if (back and not self.while_away) or (not self.subscribed and not self.pending):
                 if back:
-                    self.roles.agent.log.info("%s is back: subscribing again", self.peer)
+                    self.roles.host.log.info("%s is back: subscribing again", self.peer)
                 self._open()
             return
         self.away = True
         if not self.subscribed:
             return
-        self.roles.agent.log.warning(
+        self.roles.host.log.warning(
             "%s went away; the subscription %s pauses until it is back", self.peer, self.conversation_id
         )
         self.subscribed = False

@@ -31,14 +31,14 @@ owns the rest of the participant's side:
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import TYPE_CHECKING, Generic, TypeVar
+from typing import Generic, TypeVar
 
 import msgspec
 
+from services.runtime.roles.conversation import Conversation
+from services.runtime.roles.declare import RoleDecl
+from services.runtime.roles.host import SubscriptionHost
 from shared.fipa_codec.acts import Performative
-
-if TYPE_CHECKING:
-    from services.runtime.roles import Conversation, RoleDecl, Roles
 
 T = TypeVar("T", bound=msgspec.Struct)
 
@@ -50,7 +50,7 @@ class ServedSubscription(Generic[T]):
 
     def __init__(
         self,
-        roles: Roles,
+        roles: SubscriptionHost,
         decl: RoleDecl,
         *,
         unsent: Callable[[], list[T]],
@@ -80,7 +80,7 @@ class ServedSubscription(Generic[T]):
         conv.reply(Performative.AGREE)
         unsent = self.unsent()
         if unsent:
-            self.roles.agent.log.info(
+            self.roles.host.log.info(
                 "sending %d inform(s) kept until a subscription (%s %s)",
                 len(unsent),
                 self.decl.protocol,
@@ -103,7 +103,7 @@ class ServedSubscription(Generic[T]):
         unsent.append(content)
 
     def _dropped(self, about: str) -> None:
-        agent = self.roles.agent
+        agent = self.roles.host
         agent.counters[self.dropped] += 1
         if agent.counters[self.dropped] == 1:
             agent.log.warning(
@@ -131,7 +131,7 @@ class ServedSubscription(Generic[T]):
             conv.reply(Performative.INFORM)
         elif last.performative is Performative.NOT_UNDERSTOOD:
             self._ends(conv)
-            self.roles.agent.log.info(
+            self.roles.host.log.info(
                 "not-understood from %s (conversation %s): the subscription ends",
                 conv.peer,
                 conv.conversation_id,
