@@ -14,6 +14,7 @@ from pathlib import Path
 import msgspec
 import pytest
 
+from services.runtime.behaviour import FSM
 from services.runtime.roles import RestoreError
 from services.runtime.roles import dispatch as roles_module
 from services.runtime.roles.served import ServedSubscription
@@ -113,18 +114,30 @@ def test_what_is_kept_is_bounded_per_thing_and_in_all(caplog: pytest.LogCaptureF
     assert len([r for r in caplog.records if "dropped" in r.getMessage()]) == 1  # the first drop only
 
 
+class EarlyServer(Server):
+    """a_s serving its stream while its FSM is built, before the runtime takes back what it kept."""
+
+    def build_fsm(self) -> FSM:
+        self.early = super().serve_statuses()
+        return super().build_fsm()
+
+    def serve_statuses(self) -> ServedSubscription[SWStatus]:
+        return self.early
+
+
+@pytest.mark.parametrize("server", [Server, EarlyServer], ids=["served-after-take-back", "served-before"])
 def test_the_subscription_and_what_was_not_sent_are_kept_across_a_restart(
-    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+    server: type[Server], tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     monkeypatch.setenv(ENV_STATE_DIR, str(tmp_path))
-    first = Wire(Server)
+    first = Wire(server)
     inform(first, "a")
     first.agent.persist()
-    second = Wire(Server)  # a new process, nothing subscribed yet: the kept status waits
+    second = Wire(server)  # a new process, nothing subscribed yet: the kept status waits
     assert [s.step for s in second.agent.note.unsent] == ["a"] and second.agent.stream.conversation is None
     subscribe(second, "s1")
     second.agent.persist()
-    third = Wire(Server)  # the agreed subscription is taken back and takes the stream at once
+    third = Wire(server)  # the agreed subscription is taken back and takes the stream at once
     assert third.agent.stream.conversation is not None
     assert third.agent.stream.conversation.conversation_id == "s1"
     inform(third, "b")

@@ -15,6 +15,7 @@ from services.runtime.roles import (
     INITIATOR,
     PARTICIPANT,
     Conversation,
+    ServedSubscription,
     handles,
     initiator,
     outgoing,
@@ -83,10 +84,16 @@ class Server(Agent):
     )
 
     def __init__(self, transport: Transport, spec: SystemSpec | None = None) -> None:
+        self.cancels: list[tuple[Conversation, Received]] = []  # to be answered later
+        self.why: list[str] = []  # Conversation.explanation of every negative answer to a query
+        self.answered: list[Any] = []  # what the queries were answered
         super().__init__(transport, spec or SPEC)
+        # served once the runtime took back what it kept: a kept subscription takes the stream
+        self.stream = self.serve_statuses()
 
-    def build_fsm(self) -> FSM:
-        self.stream = self.roles.serve(
+    def serve_statuses(self) -> ServedSubscription[SWStatus]:
+        """The role's stream of statuses (services/runtime/roles/served.py)."""
+        return self.roles.serve(
             "C1",
             SUBSCRIBE,
             unsent=lambda: self.note.unsent,
@@ -95,9 +102,8 @@ class Server(Agent):
             kept_in_all=KEPT_IN_ALL,
             dropped="statuses_dropped",
         )
-        self.cancels: list[tuple[Conversation, Received]] = []  # to be answered later
-        self.why: list[str] = []  # Conversation.explanation of every negative answer to a query
-        self.answered: list[Any] = []  # what the queries were answered
+
+    def build_fsm(self) -> FSM:
         return FSM([Behaviour("serve", self.handle_received, terminal=lambda: False)])
 
     @handles(SUBSCRIBE, PARTICIPANT, P.SUBSCRIBE)

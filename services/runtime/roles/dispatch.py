@@ -92,6 +92,9 @@ class Roles:
         self._held: dict[int, Conversation] = {}
         """Conversations of a role declared ``resume_in`` that ended while the agent's data of
         them was set, by :attr:`Conversation._seq`: kept until the agent sets it to None."""
+        self._unserved: dict[RoleDecl, Conversation] = {}
+        """Per role, the latest subscription taken back after a restart before the agent served
+        its stream (:meth:`serve`, called in the agent's ``__init__`` after the runtime's)."""
 
     # ---- the agent's side ---------------------------------------------------------------
     def role(self, channel: str, protocol: str) -> RoleDecl:
@@ -174,7 +177,8 @@ class Roles:
         the role answers ``cancel`` and ends the subscription on ``not-understood``. Informs
         made while none is agreed are kept in the list ``unsent()`` gives, in order, sent after
         the next agree: at most ``kept_each`` per ``about(inform)`` and ``kept_in_all`` in all,
-        the oldest dropped first and counted under ``dropped``. Raises KeyError for a role not
+        the oldest dropped first and counted under ``dropped``. A subscription taken back after
+        a restart before this call takes the stream (the latest such). Raises KeyError for a role not
         declared, not a participant's, of a protocol that is no subscription (no stream with a
         cancel meta-protocol) or served already; ValueError for a bound below 1."""
         decl = self.role(channel, protocol)
@@ -195,6 +199,9 @@ class Roles:
             dropped=dropped,
         )
         self._subscriptions[decl] = served
+        kept = self._unserved.pop(decl, None)
+        if kept is not None and not kept.finished:
+            served.taken_back(kept)
         self.ticks = True
         return served
 
@@ -695,8 +702,8 @@ class Roles:
             self._ended.popitem(last=False)
 
     def _taken_back(self, conv: Conversation) -> None:
-        """``conv`` was taken back after a restart: a served subscription takes its stream; a
-        participant's opening is remembered (:meth:`_repeated`)."""
+        """``conv`` was taken back after a restart: a served subscription takes its stream (or
+        will, once served); a participant's opening is remembered (:meth:`_repeated`)."""
         opening = conv.opening
         if conv.decl.role == PARTICIPANT and opening is not None and opening.msg.reply_with:
             self._restored_openings[(opening.sender, opening.msg.reply_with)] = None
@@ -705,6 +712,12 @@ class Roles:
         served = self._subscriptions.get(conv.decl)
         if isinstance(served, ServedSubscription):
             served.taken_back(conv)
+        elif (
+            served is None
+            and conv.decl.role == PARTICIPANT
+            and streams(machine_of(self.host.spec, conv.decl.protocol))
+        ):
+            self._unserved[conv.decl] = conv  # its stream, served later, takes it (:meth:`serve`)
 
     def settle(self, conv: Conversation) -> None:
         """Forget a conversation that has ended, once nothing of it waits in the input

@@ -1,7 +1,8 @@
 """A stream a fipa-subscribe participant role serves to its latest subscriber (FIPA SC00035).
 
 An agent that informs a subscriber of changes (a_co: a_hi of its commands' progress) declares
-its participant role as usual and, in its ``build_fsm``, asks the role to serve the stream::
+its participant role as usual and, in its ``__init__`` once the runtime's has run, asks the
+role to serve the stream::
 
     self.progress = self.roles.serve(
         C2, FIPA_SUBSCRIBE, unsent=lambda: self.note.unsent, about=lambda p: p.command_id,
@@ -25,7 +26,8 @@ owns the rest of the participant's side:
   ``not-understood`` is never answered (FIPA SC00037 §3.12); either ends that subscription,
   and, if it was the latest agreed, the informs are kept until the next agree;
 - a subscription the role kept across a restart (declared ``keep=True``) takes the stream
-  again when the runtime takes it back.
+  again: the runtime takes it back while the agent is built, and the stream, served then,
+  takes it.
 """
 
 from __future__ import annotations
