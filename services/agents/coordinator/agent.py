@@ -28,8 +28,9 @@ from functools import partial
 import msgspec
 
 from services.agents.coordinator.scheduling import Candidate, Decision, Running, decide, plan_left
-from services.runtime.agent import FSM, RESEND_ON_RETURN, Agent, Arc, Behaviour, Received, once
+from services.runtime.agent import FSM, RESEND_ON_RETURN, Agent, Arc, Behaviour, Received, Transport, once
 from services.runtime.roles import INITIATOR, PARTICIPANT, Conversation, handles, initiator, participant
+from services.spec.model import SystemSpec
 from services.spec.names import (
     C1,
     C2,
@@ -129,13 +130,21 @@ class Coordinator(Agent):
         initiator(C1, COORDINATE, L_HFSM, L_SW, retry_s=RESEND_ON_RETURN),
     )
 
-    def build_fsm(self) -> FSM:
+    def __init__(self, transport: Transport, spec: SystemSpec | None = None) -> None:
+        """a_co's memory (paper §3.2: the agent's internal memory), then the runtime's
+        (:class:`~services.runtime.agent.Agent`), which builds the FSM and gives the kept
+        commands back (:meth:`on_restored`), then what needs the runtime: the progress stream
+        and a viewer's queue."""
         self.ta_lost = False  # a_ta's token disappeared while it ran a plan
-        self.tasks: dict[str, Task] = {}
+        self.tasks: dict[str, Task] = {}  # the commands held, by conversation-id
         self.ta: Conversation | None = None  # the C1 conversation of the plan a_ta runs
         self.person: deque[Callable[[], None]] = deque()  # the person's commands and stops, for procReq
+        self.decision: Decision = Decision(None, False, "")  # schedule's, which switch carries out
+        self.reschedule = False  # plans or a_ta's state changed: schedule again
+        super().__init__(transport, spec)
         # a_hi's progress subscription: what is made while none is agreed is kept in the NOTE,
-        # bounded, and sent after the next agree (services/runtime/roles/served.py)
+        # bounded, and sent after the next agree (services/runtime/roles/served.py); one kept
+        # across a restart, taken back above, takes the stream
         self.progress = self.roles.serve(
             C2,
             FIPA_SUBSCRIBE,
@@ -145,9 +154,9 @@ class Coordinator(Agent):
             kept_in_all=PROGRESS_KEPT,
             dropped="progress_dropped",
         )
-        self.decision: Decision = Decision(None, False, "")
-        self.reschedule = False
         self.rerun = self.hooks.queue(self.name) if self.hooks else None  # a viewer: runtime/hooks.py
+
+    def build_fsm(self) -> FSM:
         return FSM(
             [
                 Behaviour(

@@ -33,8 +33,9 @@ from typing import Any
 
 import msgspec
 
-from services.runtime.agent import FSM, Agent, Behaviour, Received, encode_sim_time, keys
+from services.runtime.agent import FSM, Agent, Behaviour, Received, Transport, encode_sim_time, keys
 from services.runtime.roles import PARTICIPANT, Conversation, handles, participant
+from services.spec.model import SystemSpec
 from services.spec.names import C5, FIPA_REQUEST, FIPA_SUBSCRIBE, L_EX, L_SD
 from shared.fipa_codec import Performative
 from shared.fipa_codec.languages.l_ex import (
@@ -178,22 +179,29 @@ class ExecutorAgent(Agent):
 
         return write
 
-    def build_fsm(self) -> FSM:
-        self.executor = self.make_executor()
+    def __init__(self, transport: Transport, spec: SystemSpec | None = None) -> None:
+        """ag_ex's memory (paper §3.2: the agent's internal memory), then the runtime's
+        (:class:`~services.runtime.agent.Agent`), which builds the FSM, then what needs the
+        runtime: the executor (:meth:`make_executor`; its errors raised), the agents that
+        command ag_ex, the watch of the world's link and a viewer's robot."""
         self.ledger: Ledger | None = None
         self.ledger_runs: dict[object, str] = {}
         """Executor token → conversation-id of each command with the loop (for the ledger)."""
         self.recalled: dict[str, Recalled] = {}
         """Conversation-id → command an earlier ag_ex's loop ended, with its result (the ledger)."""
-        self.commanders = self._commanders()
-        self.link_watch = self._link_watch()
         self.watchers: dict[str, Conversation] = {}
         """Per agent, its subscription to the robot's power-ons (L_EX ``PowerOns``)."""
-        self.alive_peers: set[str] = set()
-        self._next_state = 0.0
-        self._next_timing_file = 0.0
-        self._encode = msgspec.msgpack.Encoder().encode
+        self.alive_peers: set[str] = set()  # commanding agents whose liveliness token is present
+        self._next_state = 0.0  # when the robot's state is next published (time.monotonic s)
+        self._next_timing_file = 0.0  # when the timing file is next written (time.monotonic s)
+        self._encode = msgspec.msgpack.Encoder().encode  # the robot's state for its key
+        super().__init__(transport, spec)
+        self.executor = self.make_executor()
+        self.commanders = self._commanders()
+        self.link_watch = self._link_watch()
         self.rerun = self.hooks.robot(self.name) if self.hooks else None  # a viewer: runtime/hooks.py
+
+    def build_fsm(self) -> FSM:
         return FSM(
             [
                 Behaviour(

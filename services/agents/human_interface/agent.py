@@ -216,7 +216,10 @@ class HumanInterface(AskingKnowledge):
     def __init__(
         self, transport: Transport, spec: SystemSpec | None = None, *, tasks: Path | None = None
     ) -> None:
-        """``tasks``: the task words file (default: tasks.toml beside this module, task_words.py),
+        """a_hi's memory (paper §3.2: the agent's internal memory), then the runtime's
+        (:class:`~services.runtime.agent.Agent`), which builds the FSM and gives the kept
+        commands back (:meth:`on_restored`), then what needs the runtime's log and clocks.
+        ``tasks``: the task words file (default: tasks.toml beside this module, task_words.py),
         read and checked here, at start. Raises :class:`~.task_words.TaskWordsError` (a
         ValueError: services/runtime/main.py prints it as one line) when it is missing or
         malformed, or a frame collides."""
@@ -224,9 +227,6 @@ class HumanInterface(AskingKnowledge):
         """grammar.lark with the frames of the task words: what a person can say."""
         self.stop_words = StopWords(command_openings(self.grammar))
         """The matcher every line goes through first (stop.py)."""
-        super().__init__(transport, spec)
-
-    def build_fsm(self) -> FSM:
         self.commands: dict[str, OpenCommand] = {}  # conversation-id → open command
         self.asked: dict[str, RequestKind] = {}  # person's request id → what it was, until its final report
         self.stops: dict[str, StopRequest] = {}  # request_id → stop request
@@ -236,8 +236,11 @@ class HumanInterface(AskingKnowledge):
         self.held: deque[HeldSentence] = deque()  # sentences waiting for the vocabulary, in order
         self.reading: deque[Reading] = deque()  # sentences given to the reader, in order
         self.reader = LineReader(self.grammar, lambda: self.post(ReadDone()))
+        super().__init__(transport, spec)
         self.foreign = ForeignRequests(self.log, self.sources.new_id)  # agents of other platforms (C8)
         self.notices = NoticeGate(self.log, self.sources.monotonic)  # notices passed on, per sender
+
+    def build_fsm(self) -> FSM:
         what = "turn sentences into requests, cancels and queries to a_co; "
         what += "report a_co's answers and progress to the person"
         return FSM([Behaviour("interact", self._interact, terminal=lambda: False, doc=what)])

@@ -28,7 +28,7 @@ from pathlib import Path
 from services.agents.knowledge import scene_watch
 from services.agents.knowledge.scene_watch import Watch
 from services.agents.knowledge.world_model import KnowledgeError, UnsupportedQuery, WorldModel
-from services.runtime.agent import FSM, Agent, Arc, Behaviour
+from services.runtime.agent import FSM, Agent, Arc, Behaviour, Transport
 from services.runtime.roles import (
     EVERY_CHANNEL,
     INITIATOR,
@@ -40,6 +40,7 @@ from services.runtime.roles import (
     initiator,
     participant,
 )
+from services.spec.model import SystemSpec
 from services.spec.names import C6, FIPA_QUERY, FIPA_SUBSCRIBE, L_WM
 from shared.fipa_codec import Performative
 from shared.fipa_codec.languages.l_wm import (
@@ -96,7 +97,17 @@ class KnowledgeManager(Agent):
         initiator(C6, FIPA_SUBSCRIBE, L_WM, reply_by_s=SUBSCRIBE_RETRY_S, resubscribes=True),
     )
 
-    def build_fsm(self) -> FSM:
+    def __init__(self, transport: Transport, spec: SystemSpec | None = None) -> None:
+        """a_km's memory (paper §3.2: the agent's internal memory), then the runtime's
+        (:class:`~services.runtime.agent.Agent`), which builds the FSM, then what needs the
+        runtime: the knowledge base in the run's store (services/agents/knowledge/world_model.py)
+        and the streams of scene changes. Raises StoreError (a ValueError) when the store
+        cannot be opened."""
+        self.work: deque[Query | WorldUpdate] = deque()  # queries and observations, as they came
+        self.current: Query | WorldUpdate | None = None  # the one being answered or saved
+        self.held: deque[Query] = deque()  # queries waiting for the first observation
+        self.watches: dict[str, Watch] = {}  # the agreed scene subscription of each channel
+        super().__init__(transport, spec)
         path = store_path()
         # the knowledge base; StoreError (a ValueError) when the store cannot be opened
         self.world = WorldModel(path)
@@ -106,9 +117,8 @@ class KnowledgeManager(Agent):
             len(self.world),
             " (kept from before)" if self.world.kept else "",
         )
-        self.work: deque[Query | WorldUpdate] = deque()  # queries and observations, as they came
-        self.current: Query | WorldUpdate | None = None
-        self.held: deque[Query] = deque()  # queries waiting for the first observation
+        # until when queries wait for the first observation after a restart (the agent's
+        # monotonic s; None: they do not, the knowledge base is new or the wait is over)
         self.hold_until: float | None = self.sources.monotonic() + HOLD_QUERIES_S if self.world.kept else None
         # changes of the scene, served on every channel that subscribes to them: one stream per
         # channel; a_km informs only an agreed subscription, so nothing is kept while none is
@@ -125,7 +135,8 @@ class KnowledgeManager(Agent):
             for decl in self.roles.declared
             if decl.protocol == FIPA_SUBSCRIBE and decl.role == PARTICIPANT
         }
-        self.watches: dict[str, Watch] = {}  # the agreed scene subscription of each channel
+
+    def build_fsm(self) -> FSM:
         return FSM(
             [
                 Behaviour(

@@ -19,8 +19,9 @@ from services.agents.planner.domain import ATOMIC_STATES, PlanActions, PlanningF
 from services.agents.planner.goals import goal_query, steps
 from services.agents.planner.hfsm import to_hfsm
 from services.agents.planner.knowledge import ARMS, Knowledge
-from services.runtime.agent import FSM, Agent, Arc, Behaviour
+from services.runtime.agent import FSM, Agent, Arc, Behaviour, Transport
 from services.runtime.roles import INITIATOR, PARTICIPANT, Conversation, handles, initiator, participant
+from services.spec.model import SystemSpec
 from services.spec.names import C3, C4, FIPA_QUERY, FIPA_REQUEST, L_HFSM, L_WM
 from shared.fipa_codec import Performative
 from shared.fipa_codec.languages.l_hfsm import GroundTaskNetwork, HierarchicalPlan, PlanFailure
@@ -51,20 +52,25 @@ class Planner(Agent):
         initiator(C4, FIPA_QUERY, L_WM, reply_by_s=QUERY_REPLY_BY_S, retry_s=QUERY_RETRY_S),
     )
 
-    def build_fsm(self) -> FSM:
+    def __init__(self, transport: Transport, spec: SystemSpec | None = None) -> None:
+        """a_pl's memory (paper §3.2: the agent's internal memory), then the runtime's
+        (:class:`~services.runtime.agent.Agent`), which builds the FSM."""
         self.requests: deque[Conversation] = deque()  # planning requests not yet taken up
-        self.request: Conversation | None = None
-        self.problem: GroundTaskNetwork | None = None
-        self.knowledge = Knowledge()
+        self.request: Conversation | None = None  # the planning request being worked on
+        self.problem: GroundTaskNetwork | None = None  # its ground task network
+        self.knowledge = Knowledge()  # what a_km answered for it
         self.pending: set[Conversation] = set()  # open knowledge queries; data = (kind, key)
-        self.failure: str | None = None
-        self.result: PlanActions | None = None
-        self.cancelled = False
-        self.plan: HierarchicalPlan | None = None
+        self.failure: str | None = None  # why it has no plan, in words (None: none yet)
+        self.result: PlanActions | None = None  # the search's actions
+        self.cancelled = False  # a_co cancelled it (and the cancel was answered)
+        self.plan: HierarchicalPlan | None = None  # the search's plan as an L_HFSM hierarchy
         self.check: Conversation | None = None  # the hypothetical-state query
-        self.checked = True
-        self.asked: set[tuple[str, tuple[str, ...]]] = set()
-        self.started = 0.0
+        self.checked = True  # a_km answered the hypothetical-state query (or none was asked)
+        self.asked: set[tuple[str, tuple[str, ...]]] = set()  # (kind, key) of the queries asked for it
+        self.started = 0.0  # when it was taken up (the agent's monotonic s)
+        super().__init__(transport, spec)
+
+    def build_fsm(self) -> FSM:
         return FSM(
             [
                 Behaviour(

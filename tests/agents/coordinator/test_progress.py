@@ -212,3 +212,19 @@ def test_progress_not_yet_sent_is_kept_across_a_restart(
     second.agent.setup()
     subscribe(second, "hi-progress")
     assert words(second.sent("hi-progress")) == ["agree", "waiting:accepted", "planning:plan #1 requested"]
+
+
+def test_an_agreed_subscription_is_taken_back_and_gets_the_progress_at_once(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """a_co serves its progress stream once the runtime took back what it kept: the agreed
+    subscription kept across a restart takes it, without a new subscribe."""
+    monkeypatch.setenv(ENV_STATE_DIR, str(tmp_path))
+    first = Wire()
+    subscribe(first, "hi-progress")
+    first.agent.persist()
+    second = Wire()  # a new process
+    second.agent.setup()
+    assert second.agent.progress.conversation is not None
+    command(second)
+    assert words(second.sent("hi-progress")) == ["waiting:accepted", "planning:plan #1 requested"]
