@@ -3,10 +3,10 @@ L_SW informs one at a time until a_co confirmed each (``confirmed_informs=True``
 services/runtime/roles/confirmed.py), so a_ta's code, read by AST,
 
 - handles no ``confirm`` (the role takes it),
-- sends no ``inform`` in a conversation itself (``<conversation>.send(Performative.INFORM, …)``;
-  it reports through ``self.reports.inform``; answering a_km's subscription is ``reply``),
-- and creates its memory in ``__init__``, where a reader looks for it: ``build_fsm`` assigns no
-  attribute of ``self``.
+- and sends no ``inform`` in a conversation itself (``<conversation>.send(Performative.INFORM, …)``;
+  it reports through ``self.reports.inform``; answering a_km's subscription is ``reply``).
+
+(Its memory is made in ``__init__``, as every agent's: test_agents_make_memory_in_init.py.)
 """
 
 from __future__ import annotations
@@ -27,23 +27,6 @@ def _handles_confirm(fn: ast.FunctionDef) -> bool:
     )
 
 
-def _made_in(fn: ast.FunctionDef) -> list[tuple[int, str]]:
-    """(line, attribute) of each ``self.<attribute>`` that ``fn`` assigns."""
-    out = []
-    for node in ast.walk(fn):
-        targets: list[ast.expr] = []
-        if isinstance(node, ast.Assign):
-            targets = node.targets
-        elif isinstance(node, ast.AnnAssign | ast.AugAssign):
-            targets = [node.target]
-        out += [
-            (t.lineno, t.attr)
-            for t in targets
-            if isinstance(t, ast.Attribute) and ast.unparse(t.value) == "self"
-        ]
-    return out
-
-
 def _sends_inform(call: ast.Call) -> bool:
     return (
         isinstance(call.func, ast.Attribute)
@@ -54,13 +37,11 @@ def _sends_inform(call: ast.Call) -> bool:
 
 
 def findings(source: str, name: str = "<source>") -> list[tuple[int, str]]:
-    """(line, what) for each piece of the confirm loop, or memory made in ``build_fsm``."""
+    """(line, what) for each piece of the confirm loop."""
     out: list[tuple[int, str]] = []
     for node in ast.walk(ast.parse(source, name)):
         if isinstance(node, ast.FunctionDef) and _handles_confirm(node):
             out.append((node.lineno, f"{node.name} handles confirm"))
-        if isinstance(node, ast.FunctionDef) and node.name == "build_fsm":
-            out += [(line, f"build_fsm creates self.{attr}") for line, attr in _made_in(node)]
         elif isinstance(node, ast.Call) and _sends_inform(node):
             out.append((node.lineno, f"sends an inform itself ({ast.unparse(node.func)})"))
     return sorted(out)
@@ -77,11 +58,6 @@ def test_a_ta_has_no_confirm_loop_of_its_own() -> None:
 
 PLANTED = """
 class TaskExecutor(Agent):
-    def build_fsm(self) -> FSM:
-        self.awaiting: str | None = None
-        self.sw_queue = deque()
-        return FSM([], [])
-
     @handles(COORDINATE, PARTICIPANT, Performative.CONFIRM)
     def _on_confirm(self, conv: Conversation) -> None:
         self.awaiting = None
@@ -94,8 +70,6 @@ class TaskExecutor(Agent):
 def test_the_confirm_loop_as_a_ta_once_wrote_it_is_found() -> None:
     """The planted fault: a_ta's own loop before the role kept it."""
     assert [what for _, what in findings(PLANTED)] == [
-        "build_fsm creates self.awaiting",
-        "build_fsm creates self.sw_queue",
         "_on_confirm handles confirm",
         "sends an inform itself (self.plan_request.send)",
     ]
