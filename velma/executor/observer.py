@@ -31,6 +31,12 @@ What the agents get (L_SD, shared/fipa_codec/languages/l_sd.py):
 docs/bench/perception.md measured over 20 pose seeds: the RMS of the 3-D errors of the jar's
 20 fits is 0.95 mm (p50 0.71, p95 1.69); the floor is that, rounded up to 1 mm.
 
+A watch frame (``WorldCapture.watch``: velma/executor/watch.py, ag_ex's watch) is observed in
+a cheaper mode: one Kinect frame (``WATCH_FRAMES``, not ``FRAMES_AVERAGED``), the requested
+movable objects localised, no content count (``particles_inside`` None) and no spill count
+(``particles_outside`` None): a watch tells where things are and how they stand, an Observe
+also what they hold (docs/bench/observe.md measures both).
+
 ``ROCO_PERCEPTION`` (velma/executor/capture.py ``perception_mode``) chooses ``camera`` or
 ``truth`` (velma/executor/ground_truth.py, in the loop); unset: ``DEFAULT_PERCEPTION``.
 """
@@ -67,6 +73,9 @@ bowl where 640 × 480 counts 15–16 (docs/bench/observe.md)."""
 FRAMES_AVERAGED = 5
 """Depth frames averaged per Observe (the scene is static while the robot observes: 5 frames
 are 0.17 s of the Kinect's 30 Hz; velma/perception/kinect.py ``HeadKinect.capture``)."""
+WATCH_FRAMES = 1
+"""Depth frames per watch frame (module docstring): the scene may be moving, and one frame is
+what a streaming Kinect gives every 1/30 s."""
 
 
 @dataclass(frozen=True)
@@ -142,7 +151,10 @@ class CameraObserver:
 
     def observe(self, capture: WorldCapture) -> tuple[Observation, Seen]:
         """The Observation of ``capture``'s objects (all movable ones and the furniture when
-        empty) as the head camera sees them (module docstring), and the details."""
+        empty) as the head camera sees them (module docstring), and the details; a watch frame
+        (``capture.watch``) in the watch mode (:meth:`watch`)."""
+        if capture.watch:
+            return self.watch(capture)
         names = capture.objects or (*MOVABLE, *FURNITURE)
         data = self.load(capture)
         wanted = [n for n in names if n in self.models]
@@ -207,6 +219,49 @@ class CameraObserver:
             grips=self.grips.observe(data),
         )
         return obs, Seen(estimates=estimates, content=content, outside=outside)
+
+    def watch(self, capture: WorldCapture) -> tuple[Observation, Seen]:
+        """The watch mode's Observation of ``capture`` (module docstring): one frame, the
+        requested movable objects (all when empty) localised, the furniture from the map, no
+        content and no spill count."""
+        names = capture.objects or (*MOVABLE, *FURNITURE)
+        data = self.load(capture)
+        wanted = [n for n in names if n in self.models]
+        estimates: dict[str, ObjectEstimate] = {}
+        objects: list[ObjectObservation] = []
+        if wanted:
+            frame = self.kinect.capture(data, self.rng, WATCH_FRAMES)
+            points, colours, _ = frame.cloud()
+            found = self.localiser.localise(points, colours, frame.position, wanted, support_heights(points))
+            estimates = {n: found[n] for n in wanted}
+            for n in wanted:
+                e = estimates[n]
+                if not e.seen or e.position is None or e.quaternion is None:
+                    continue
+                p, q = e.position, e.quaternion
+                objects.append(
+                    ObjectObservation(
+                        name=n,
+                        pose=Pose(
+                            position=(float(p[0]), float(p[1]), float(p[2])),
+                            orientation=(float(q[0]), float(q[1]), float(q[2]), float(q[3])),
+                        ),
+                        position_sigma=max(e.sigma_position, POSITION_SIGMA_FLOOR)
+                        if math.isfinite(e.sigma_position)
+                        else None,
+                        yaw_observable=e.yaw_observable,
+                    )
+                )
+        objects += [ObjectObservation(name=n, pose=self.map[n]) for n in names if n in self.map]
+        seen = {o.name for o in objects}
+        obs = Observation(
+            stamp=capture.stamp,
+            objects=tuple(objects),
+            total_particles=self.total_particles,
+            unseen=tuple(n for n in names if n not in seen),
+            grips=self.grips.observe(data),
+        )
+        return obs, Seen(estimates=estimates, content={})
 
     def _outside(
         self, points: np.ndarray, colours: np.ndarray, supports: list[float], found: dict[str, ObjectEstimate]

@@ -303,12 +303,31 @@ class Pacer:
     ``spin`` s before the next release and busy-waits the rest (a sleeping CPU of a virtual
     machine wakes late); a loop more than one period behind skips ahead instead of catching up
     in a burst. Otherwise ``wait`` returns at once and each cycle is released when it starts.
-    ``release`` is the current cycle's release time, for ``DeadlineMonitor.record``."""
+    ``release`` is the current cycle's release time, for ``DeadlineMonitor.record``.
+
+    ``pace(factor)`` switches at run time to real-time pacing at ``factor`` × wall time (each
+    cycle of ``dt`` released every ``dt / factor`` s of wall time; ag_ex's watch,
+    velma/executor/watch.py); ``pace(None)`` returns to the pacing it was built with."""
 
     def __init__(self, dt: float, *, realtime: bool, spin: float = 0.0) -> None:
         self.dt = dt
         self.realtime = realtime
         self.spin = spin
+        self.release = time.perf_counter()
+        self._built = (dt, realtime, spin)
+
+    def pace(self, factor: float | None) -> None:
+        """Release cycles at ``factor`` × wall time from now on (the busy-wait ``spin`` off: a
+        slowed simulation is no hard-timing loop); None: the pacing given at construction. A
+        pacer built real-time keeps its pacing. Raises ``ValueError`` for a factor that is not
+        a finite number > 0."""
+        dt, realtime, spin = self._built
+        if factor is None or realtime:
+            self.dt, self.realtime, self.spin = dt, realtime, spin
+        elif not (factor > 0 and factor != float("inf")):
+            raise ValueError(f"a pace is a finite factor > 0, not {factor}")
+        else:
+            self.dt, self.realtime, self.spin = dt / factor, True, 0.0
         self.release = time.perf_counter()
 
     def begin(self) -> float:
