@@ -46,6 +46,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import msgspec
 import mujoco
 import numpy as np
 
@@ -103,6 +104,29 @@ def _inferred(guess: ContentEstimate | SphereCount | None, conserved: int) -> in
         return None
     seen = max(0, min(guess.visible, conserved))
     return max(0, min(guess.count, conserved)) - seen
+
+
+def _located(e: ObjectEstimate) -> bool:
+    """Whether the localiser saw the object and gave its pose."""
+    return e.seen and e.position is not None and e.quaternion is not None
+
+
+def _seen(name: str, e: ObjectEstimate) -> ObjectObservation:
+    """The observation of object ``name`` that estimate ``e`` (:func:`_located`) gives: its pose
+    and the position's σ (floored at ``POSITION_SIGMA_FLOOR``), no content."""
+    assert e.position is not None and e.quaternion is not None
+    p, q = e.position, e.quaternion
+    return ObjectObservation(
+        name=name,
+        pose=Pose(
+            position=(float(p[0]), float(p[1]), float(p[2])),
+            orientation=(float(q[0]), float(q[1]), float(q[2]), float(q[3])),
+        ),
+        position_sigma=max(e.sigma_position, POSITION_SIGMA_FLOOR)
+        if math.isfinite(e.sigma_position)
+        else None,
+        yaw_observable=e.yaw_observable,
+    )
 
 
 class CameraObserver:
@@ -176,7 +200,7 @@ class CameraObserver:
             conserved = self.total_particles - spill.count
             for n in wanted:
                 e = estimates[n]
-                if not e.seen or e.position is None or e.quaternion is None:
+                if not _located(e):
                     continue
                 model = self.models[n]
                 guess: ContentEstimate | SphereCount | None
@@ -192,32 +216,14 @@ class CameraObserver:
                     )  # fmt: skip
                 if guess is not None:
                     content[n] = guess
-                p, q = e.position, e.quaternion
                 objects.append(
-                    ObjectObservation(
-                        name=n,
-                        pose=Pose(
-                            position=(float(p[0]), float(p[1]), float(p[2])),
-                            orientation=(float(q[0]), float(q[1]), float(q[2]), float(q[3])),
-                        ),
+                    msgspec.structs.replace(
+                        _seen(n, e),
                         particles_inside=_inside(guess, conserved),
                         particles_inferred=_inferred(guess, conserved),
-                        position_sigma=max(e.sigma_position, POSITION_SIGMA_FLOOR)
-                        if math.isfinite(e.sigma_position)
-                        else None,
-                        yaw_observable=e.yaw_observable,
                     )
                 )
-        objects += [ObjectObservation(name=n, pose=self.map[n]) for n in names if n in self.map]
-        seen = {o.name for o in objects}
-        obs = Observation(
-            stamp=capture.stamp,
-            objects=tuple(objects),
-            total_particles=self.total_particles,
-            unseen=tuple(n for n in names if n not in seen),
-            particles_outside=outside.count if outside is not None else None,
-            grips=self.grips.observe(data),
-        )
+        obs = self._observation(capture, names, objects, data, outside)
         return obs, Seen(estimates=estimates, content=content, outside=outside)
 
     def watch(self, capture: WorldCapture) -> tuple[Observation, Seen]:
@@ -226,42 +232,39 @@ class CameraObserver:
         content and no spill count."""
         names = capture.objects or (*MOVABLE, *FURNITURE)
         data = self.load(capture)
-        wanted = [n for n in names if n in self.models]
-        estimates: dict[str, ObjectEstimate] = {}
-        objects: list[ObjectObservation] = []
-        if wanted:
-            frame = self.kinect.capture(data, self.rng, WATCH_FRAMES)
-            points, colours, _ = frame.cloud()
-            found = self.localiser.localise(points, colours, frame.position, wanted, support_heights(points))
-            estimates = {n: found[n] for n in wanted}
-            for n in wanted:
-                e = estimates[n]
-                if not e.seen or e.position is None or e.quaternion is None:
-                    continue
-                p, q = e.position, e.quaternion
-                objects.append(
-                    ObjectObservation(
-                        name=n,
-                        pose=Pose(
-                            position=(float(p[0]), float(p[1]), float(p[2])),
-                            orientation=(float(q[0]), float(q[1]), float(q[2]), float(q[3])),
-                        ),
-                        position_sigma=max(e.sigma_position, POSITION_SIGMA_FLOOR)
-                        if math.isfinite(e.sigma_position)
-                        else None,
-                        yaw_observable=e.yaw_observable,
-                    )
-                )
-        objects += [ObjectObservation(name=n, pose=self.map[n]) for n in names if n in self.map]
+        estimates = self._localise_once([n for n in names if n in self.models], data)
+        objects = [_seen(n, e) for n, e in estimates.items() if _located(e)]
+        return self._observation(capture, names, objects, data, None), Seen(estimates=estimates, content={})
+
+    def _localise_once(self, wanted: list[str], data: mujoco.MjData) -> dict[str, ObjectEstimate]:
+        """The estimates of the objects ``wanted`` in one Kinect frame of ``data``."""
+        if not wanted:
+            return {}
+        frame = self.kinect.capture(data, self.rng, WATCH_FRAMES)
+        points, colours, _ = frame.cloud()
+        found = self.localiser.localise(points, colours, frame.position, wanted, support_heights(points))
+        return {n: found[n] for n in wanted}
+
+    def _observation(
+        self,
+        capture: WorldCapture,
+        names: tuple[str, ...],
+        objects: list[ObjectObservation],
+        data: mujoco.MjData,
+        outside: Spill | None,
+    ) -> Observation:
+        """The Observation of ``capture``: ``objects`` seen, the furniture of ``names`` from the
+        map, the rest of ``names`` unseen, the hands' grips of ``data``, the spill seen."""
+        objects = objects + [ObjectObservation(name=n, pose=self.map[n]) for n in names if n in self.map]
         seen = {o.name for o in objects}
-        obs = Observation(
+        return Observation(
             stamp=capture.stamp,
             objects=tuple(objects),
             total_particles=self.total_particles,
             unseen=tuple(n for n in names if n not in seen),
+            particles_outside=outside.count if outside is not None else None,
             grips=self.grips.observe(data),
         )
-        return obs, Seen(estimates=estimates, content={})
 
     def _outside(
         self, points: np.ndarray, colours: np.ndarray, supports: list[float], found: dict[str, ObjectEstimate]

@@ -62,6 +62,11 @@ Besides the C5 conversation, ag_ex
   ``Observation.world``: the link's name), so that a_ta tells the new kitchen from the old, and
   a_ta's subscription to the robot's power-ons (fipa-subscribe on C5, L_EX ``PowerOns``) is told
   the new one at once (``PowerOn``), before a_ta's next command.
+- watches with the head camera while a_ta subscribes to it (fipa-subscribe on C5, L_EX
+  ``Watch``; services/agents/executor/watching.py): a camera frame every ``period_s`` of robot
+  time, informed as an L_SD ``Observation``; while the watch is on, a loop that runs as fast as
+  possible is paced to at most ROCO_WATCH_PACE × wall time (velma/executor/watch.py). The loop
+  publishes the whole simulation state for it whenever the camera perceives.
   With ``ROCO_WORLD=loop`` (velma/world/mode.py: to measure the split) the kitchen is
   in the loop instead and a restarted ag_ex starts it anew.
 """
@@ -76,6 +81,7 @@ from typing import Any
 
 import msgspec
 
+from services.agents.executor.watching import Frame, WatchService
 from services.runtime import keys
 from services.runtime.agent import Agent, Received
 from services.runtime.behaviour import FSM, Behaviour
@@ -89,6 +95,7 @@ from shared.fipa_codec.languages.l_ex import (
     ExecutorCommand,
     PowerOn,
     PowerOns,
+    Watch,
     command_name,
 )
 from shared.fipa_codec.languages.l_sd import Observation
@@ -169,23 +176,26 @@ class PeerChange:
 
 class ExecutorAgent(Agent):
     name = "ag_ex"
-    ROLES = (participant(C5, FIPA_REQUEST, L_EX, L_SD), participant(C5, FIPA_SUBSCRIBE, L_EX))
+    ROLES = (participant(C5, FIPA_REQUEST, L_EX, L_SD), participant(C5, FIPA_SUBSCRIBE, L_EX, L_SD))
     period = STATE_PERIOD
 
     def make_executor(self) -> Any:
         """The hard-timing executor this agent serves: velma's loop in its own process, paced
         to wall time when ROCO_REALTIME=1; ROCO_SEED (default 0) jitters the jar's content,
         ROCO_POSE_SEED (unset: none) randomises the jar and bowl poses; the loop publishes
-        the whole simulation state only for the head camera (``camera_wanted``)."""
+        the whole simulation state for the watch (the camera perceives) and Rerun's head
+        camera (``camera_wanted``)."""
         from velma.executor import ExecutorProcess
+        from velma.executor.capture import perception_mode
 
         read = Settings.from_env(only=("seed", "pose_seed", "realtime"))  # ValueError: a bad seed
         world = self._world_link() if world_in_process() else None
+        rerun_camera = self.hooks.camera_wanted() if self.hooks else False
         return ExecutorProcess(
             realtime=read.realtime,
             seed=read.seed,
             pose_seed=read.pose_seed,
-            world_state=self.hooks.camera_wanted() if self.hooks else False,
+            world_state=rerun_camera or perception_mode() == "camera",
             perception=None,  # ROCO_PERCEPTION, else velma/executor/capture.py DEFAULT_PERCEPTION
             perception_log=self._perception_sink(),
             camera_idle_s=None,  # ROCO_CAMERA_IDLE_S, else velma/executor/camera_process.py DEFAULT_IDLE_S
@@ -236,6 +246,8 @@ class ExecutorAgent(Agent):
         self.link_watch = self._link_watch()
         self.watchers: dict[str, Conversation] = {}
         """Per agent, its subscription to the robot's power-ons (L_EX ``PowerOns``)."""
+        self.watch = WatchService(self.post, self.log)
+        """The watch a_ta subscribed to (L_EX ``Watch``)."""
         self.alive_peers: set[str] = set()
         self._next_state = 0.0
         self._next_timing_file = 0.0
@@ -299,6 +311,7 @@ class ExecutorAgent(Agent):
             return
         self.log.info("control loop attached to the new world (link %s)", self.attached_world)
         self._start_camera()
+        self.watch.rearm(self.executor)
         for watcher in self.watchers.values():
             watcher.reply(Performative.INFORM, PowerOn(world=self.attached_world))
 
@@ -470,21 +483,30 @@ class ExecutorAgent(Agent):
             )
 
     @handles(FIPA_SUBSCRIBE, PARTICIPANT, Performative.SUBSCRIBE)
-    def _on_power_ons(self, conv: Conversation) -> None:
+    def _on_subscribe(self, conv: Conversation) -> None:
+        """a_ta subscribes to the robot's power-ons (``PowerOns``) or has it watch (``Watch``:
+        services/agents/executor/watching.py)."""
+        if isinstance(conv.content, Watch):
+            self.watch.subscribe(conv, conv.content, self.executor)
+            return
+        if not isinstance(conv.content, PowerOns):
+            conv.refuse_with(Performative.REFUSE, "not an L_EX PowerOns or Watch subscription")
+            return
+        self._power_ons(conv)
+
+    def _power_ons(self, conv: Conversation) -> None:
         """a_ta subscribes to the robot's power-ons: agreed, then told the current one (when the
         loop is attached to a world process) and each new one (``_reattach``)."""
-        if not isinstance(conv.content, PowerOns):
-            conv.refuse_with(Performative.REFUSE, "not an L_EX PowerOns subscription")
-            return
         self.watchers[conv.peer] = conv
         conv.reply(Performative.AGREE)
         if self.attached_world:
             conv.reply(Performative.INFORM, PowerOn(world=self.attached_world))
 
     @handles(FIPA_SUBSCRIBE, PARTICIPANT, Performative.CANCEL)
-    def _on_power_ons_cancel(self, conv: Conversation) -> None:
+    def _on_subscription_cancel(self, conv: Conversation) -> None:
         if self.watchers.get(conv.peer) is conv:
             del self.watchers[conv.peer]
+        self.watch.cancelled(conv, self.executor)
         conv.reply(Performative.INFORM)
 
     @handles(FIPA_REQUEST, PARTICIPANT, Performative.CANCEL)
@@ -544,17 +566,7 @@ class ExecutorAgent(Agent):
     def _serve(self) -> None:
         self.handle_received()
         while self.r:
-            event = self.r.popleft()
-            if isinstance(event, Done):
-                if self.rerun is not None and isinstance(event.result, Observation):  # Rerun
-                    self.rerun.observation(event.result)
-                self._answer(event)
-            elif isinstance(event, Began | Ended):
-                self._note(event)
-            elif isinstance(event, PeerChange):
-                self._peer_changed(event)
-            elif isinstance(event, Disturbance):
-                self._disturb(event)
+            self._act_on(self.r.popleft())
         self._watch_world()
         now = time.monotonic()
         if now >= self._next_state:
@@ -564,6 +576,21 @@ class ExecutorAgent(Agent):
             self._next_timing_file = now + TIMING_FILE_PERIOD
             self._write_timing_file()
 
+    def _act_on(self, event: object) -> None:
+        """Act on one event of the receptor buffer (from the executor, the transport's threads)."""
+        if isinstance(event, Done):
+            if self.rerun is not None and isinstance(event.result, Observation):  # Rerun
+                self.rerun.observation(event.result)
+            self._answer(event)
+        elif isinstance(event, Began | Ended):
+            self._note(event)
+        elif isinstance(event, PeerChange):
+            self._peer_changed(event)
+        elif isinstance(event, Disturbance):
+            self._disturb(event)
+        elif isinstance(event, Frame):
+            self.watch.inform(event, self.attached_world)
+
     def _disturb(self, event: Disturbance) -> None:
         displace = getattr(self.executor, "displace", None)
         try:
@@ -572,12 +599,16 @@ class ExecutorAgent(Agent):
             self.log.warning("disturbance not applied: %s", exc)
             return
         self.counters["disturbances"] += 1
+        snapshot = getattr(self.executor, "snapshot", None)
+        snap = snapshot() if snapshot is not None else None
         self.log.info(
-            "the world: %s moved by %s m, tilted %.2f rad%s",
+            "the world: %s moved by %s m, tilted %.2f rad%s%s",
             event.object,
             event.delta,
             event.tilt,
             "" if done else " (not applied)",
+            # the latest robot state's time: at most STATE_PERIOD cycles before the loop takes it
+            f" at robot time {snap.sim_time:.3f} s" if snap is not None else "",
         )
 
     def _peer_changed(self, event: PeerChange) -> None:
@@ -587,6 +618,7 @@ class ExecutorAgent(Agent):
             self.alive_peers.add(event.agent)
             return
         self.alive_peers.discard(event.agent)
+        self.watch.drop(event.agent, self.executor)
         hold = getattr(self.executor, "hold", None)
         asked = bool(hold(f"{event.agent} lost")) if hold is not None else False
         self.counters["holds"] += 1

@@ -23,6 +23,10 @@ agreeing to the new subscription (a_ta answers every new subscription with its l
 changes and a fresh observation), at most ``HOLD_QUERIES_S``; then it answers them in the order
 they came. A start with no kept knowledge answers at once.
 
+A scene subscription with ``within_s`` (tell a change within that long) makes a_km ask a_ta
+for a watch while it lasts (a second fipa-subscribe on C6, ``Subscription`` topic ``watch``:
+services/agents/knowledge/watch_demand.py); a_ta's watched frames then come as observations.
+
 Changes of the scene (L_WM ``SceneSubscription``, ``SceneChange``): a_km serves fipa-subscribe
 (FIPA SC00035) as the participant on every channel where the specification makes it that, one
 subscription per channel (a later one on the same channel replaces the earlier), at most
@@ -50,6 +54,7 @@ from pathlib import Path
 
 from services.agents.knowledge import scene_watch
 from services.agents.knowledge.scene_watch import Watch
+from services.agents.knowledge.watch_demand import WatchDemand, period_for
 from services.agents.knowledge.world_model import KnowledgeError, UnsupportedQuery, WorldModel
 from services.runtime.agent import Agent
 from services.runtime.behaviour import FSM, Arc, Behaviour
@@ -150,6 +155,8 @@ class KnowledgeManager(Agent):
             if decl.protocol == FIPA_SUBSCRIBE and decl.role == PARTICIPANT
         }
         self.watches: dict[str, Watch] = {}  # the agreed scene subscription of each channel
+        self.watch_demand = WatchDemand(self._subscribe_watch, self.roles.unsubscribe, self.log)
+        """The robot's watch a_km asks of a_ta while a subscriber needs it (watch_demand.py)."""
         return FSM(
             [
                 Behaviour(
@@ -245,6 +252,7 @@ class KnowledgeManager(Agent):
         watch.start(self._known(None if not sub.objects else sub.objects))
         self.watches[channel] = watch
         self.scene_streams[channel].agree(conv)
+        self._watching()  # a subscriber that needs changes quickly: the robot watches
         self.log.info(
             "%s subscribed to changes of %s (%s)",
             conv.peer,
@@ -253,13 +261,29 @@ class KnowledgeManager(Agent):
         )
 
     def _watching(self) -> dict[str, Watch]:
-        """The agreed scene subscriptions still open, by channel (an ended one is forgotten)."""
+        """The agreed scene subscriptions still open, by channel (an ended one is forgotten);
+        the robot's watch asked for as they need it (watch_demand.py)."""
         for channel, watch in list(self.watches.items()):
             conv = self.scene_streams[channel].conversation
             if conv is None or conv.conversation_id != watch.conversation_id:
                 del self.watches[channel]
                 self.log.info("the scene subscription %s on %s ended", watch.conversation_id, channel)
+        self.watch_demand.need(period_for(w.subscription for w in self.watches.values()))
         return self.watches
+
+    def _subscribe_watch(self, subscription: Subscription) -> StandingSubscription:
+        """Have the role keep the robot's watch asked of a_ta (fipa-subscribe on C6, beside the
+        environment subscription; watch_demand.py)."""
+        return self.roles.subscribe(
+            C6,
+            FIPA_SUBSCRIBE,
+            subscription,
+            conversation_id=self.roles.free_id("km-watch"),
+            retry_s=(1.0, 10.0),
+            at_start=True,
+            same_id=True,
+            while_away=False,
+        )
 
     def _known(self, names: tuple[str, ...] | list[str] | None) -> list[ObjectInfo]:
         """What a_km knows of the objects ``names`` (None: every physical object); an object it
