@@ -746,6 +746,13 @@ class ExecutorProcess:
         """True while a watch is on."""
         return self._watcher is not None
 
+    @property
+    def watch_counts(self) -> tuple[int, int] | None:
+        """The watch on: frames made so far and frames skipped (due while one was in flight);
+        None when none is on."""
+        w = self._watcher
+        return (w.frames, w.skipped) if w is not None else None
+
     def _deliver(self, token: int, result: CommandResult | Observation) -> None:
         """The delivery thread's result for ``token``: a watch frame's to ``on_frame``, a
         command's to its ``on_done``."""
