@@ -4,9 +4,10 @@
    480, software GL where no GPU) observes the kitchen's initial state with the head aimed at
    the shelf (velma/scenario.py ``HEAD_LOOK_CABINET``) and at the table, ``--repeats`` times
    each, as an Observe (``FRAMES_AVERAGED`` frames, the jar, bowl and cup localised, their
-   content counted, the spill counted) and as a watch frame (``WorldCapture.watch``: one frame,
-   localisation only). Printed: wall ms per observation (p50 / p95 / max), the renderer made
-   beforehand.
+   content counted, the spill counted) and as a watch frame (``WorldCapture.watch``: one frame
+   of 320 × 240 px, localisation only). Printed: wall ms per observation (p50 / p95 / max), the
+   renderers made beforehand, and the largest position error of an object seen (mm, against the
+   physics: velma/executor/ground_truth.py).
 2. Pace: ag_ex's executor with its loop in its own process, as fast as possible
    (``ExecutorProcess(realtime=False)``), runs ``Wait`` commands of ``--seconds`` robot s
    without a watch and with one (``ExecutorProcess.watch``, every ``--period`` robot s,
@@ -35,6 +36,7 @@ from shared.fipa_codec.languages.l_ex import CommandResult, Wait  # noqa: E402
 from shared.fipa_codec.languages.l_sd import Observation  # noqa: E402
 from velma.executor import ExecutorProcess  # noqa: E402
 from velma.executor.capture import WorldCapture  # noqa: E402
+from velma.executor.ground_truth import GroundTruth  # noqa: E402
 from velma.executor.observer import CameraObserver  # noqa: E402
 from velma.model.scene import initial_state, load_kitchen  # noqa: E402
 from velma.perception.kinect import aim_head  # noqa: E402
@@ -54,8 +56,9 @@ def frames(repeats: int) -> None:
     model = load_kitchen()
     data = initial_state(model)
     observer = CameraObserver(model)
-    print("| head aimed at | observation | wall ms p50 / p95 / max | objects seen |")
-    print("|---|---|---|---|")
+    truth = GroundTruth(model)
+    print("| head aimed at | observation | wall ms p50 / p95 / max | objects seen | largest error, mm |")
+    print("|---|---|---|---|---|")
     try:
         for where, point in (("shelf", HEAD_LOOK_CABINET), ("table", TABLE_LOOK)):
             aim_head(model, data, np.asarray(point, dtype=float))
@@ -64,13 +67,18 @@ def frames(repeats: int) -> None:
                 capture = WorldCapture.of(OBJECTS, float(data.time), data.qpos, watch=watch)
                 observer.observe(capture)  # the first one builds the renderer's buffers
                 took: list[float] = []
-                seen = 0
+                seen, worst = 0, 0.0
                 for _ in range(repeats):
                     t0 = time.perf_counter()
                     obs, _ = observer.observe(capture)
                     took.append(1e3 * (time.perf_counter() - t0))
-                    seen = sum(o.name in OBJECTS for o in obs.objects)
-                print(f"| {where} | {kind} | {_ms(took)} | {seen} of {len(OBJECTS)} |")
+                    found = [o for o in obs.objects if o.name in OBJECTS]
+                    seen = len(found)
+                    for o in found:
+                        true = truth.pose(data, o.name).position
+                        worst = max(worst, 1e3 * float(np.linalg.norm(np.subtract(o.pose.position, true))))
+                error = f"{worst:.1f}" if seen else "–"
+                print(f"| {where} | {kind} | {_ms(took)} | {seen} of {len(OBJECTS)} | {error} |")
     finally:
         observer.close()
 

@@ -10,6 +10,8 @@ from __future__ import annotations
 import msgspec
 
 from services.agents.task_executor.agent import TaskExecutor
+from services.runtime import keys
+from services.runtime.memory_transport import MemoryBus
 from shared.fipa_codec import Performative as P
 from shared.fipa_codec.languages.common import Pose
 from shared.fipa_codec.languages.l_ex import PowerOns, Watch
@@ -39,8 +41,12 @@ def _to_ex(w: Wire[TaskExecutor], perf: P) -> list[tuple[str | None, object]]:
 
 
 def test_a_watch_a_km_asks_for_reaches_ag_ex_and_its_frames_reach_a_km_only() -> None:
-    w = Wire(TaskExecutor)
+    bus = MemoryBus()
+    w = Wire(TaskExecutor, bus)
     w.agent.setup()
+    ag_ex = bus.transport()
+    ag_ex.announce(keys.alive_key("ag_ex"))  # the role subscribes to ag_ex once it is there
+    w.agent._acquire()
     subscribe(w, "km-env")
     ag_ex_answers(w, observe_request(w), Observation(stamp=1.0, objects=()))
     w.step("idle")

@@ -32,8 +32,9 @@ docs/bench/perception.md measured over 20 pose seeds: the RMS of the 3-D errors 
 20 fits is 0.95 mm (p50 0.71, p95 1.69); the floor is that, rounded up to 1 mm.
 
 A watch frame (``WorldCapture.watch``: velma/executor/watch.py, ag_ex's watch) is observed in
-a cheaper mode: one Kinect frame (``WATCH_FRAMES``, not ``FRAMES_AVERAGED``), the requested
-movable objects localised, no content count (``particles_inside`` None) and no spill count
+a cheaper mode: one Kinect frame (``WATCH_FRAMES``, not ``FRAMES_AVERAGED``) of ``WATCH_SIZE``
+px by a renderer of its own (made at the first watch frame), the requested movable objects
+localised, no content count (``particles_inside`` None) and no spill count
 (``particles_outside`` None): a watch tells where things are and how they stand, an Observe
 also what they hold (docs/bench/observe.md measures both).
 
@@ -77,6 +78,10 @@ are 0.17 s of the Kinect's 30 Hz; velma/perception/kinect.py ``HeadKinect.captur
 WATCH_FRAMES = 1
 """Depth frames per watch frame (module docstring): the scene may be moving, and one frame is
 what a streaming Kinect gives every 1/30 s."""
+WATCH_SIZE = (320, 240)
+"""Frame (px) rendered per watch frame: a quarter of the pixels, so a quarter of the software
+renderer's work; it localises as well as 640 × 480 (``CAMERA_SIZE``), and a watch counts no
+content (docs/bench/observe.md)."""
 
 
 @dataclass(frozen=True)
@@ -139,6 +144,8 @@ class CameraObserver:
         self.model = model
         self.data = mujoco.MjData(model)
         self.kinect = HeadKinect(model, size[0], size[1])
+        self.watch_kinect: HeadKinect | None = None
+        """The watch frames' camera (``WATCH_SIZE``), made at the first one."""
         self.models: dict[str, ObjectModel] = {n: object_model(model, n) for n in MOVABLE}
         self.localiser = Localiser(self.models.values())
         self.rng = np.random.default_rng(seed)
@@ -240,7 +247,9 @@ class CameraObserver:
         """The estimates of the objects ``wanted`` in one Kinect frame of ``data``."""
         if not wanted:
             return {}
-        frame = self.kinect.capture(data, self.rng, WATCH_FRAMES)
+        if self.watch_kinect is None:
+            self.watch_kinect = HeadKinect(self.model, *WATCH_SIZE)
+        frame = self.watch_kinect.capture(data, self.rng, WATCH_FRAMES)
         points, colours, _ = frame.cloud()
         found = self.localiser.localise(points, colours, frame.position, wanted, support_heights(points))
         return {n: found[n] for n in wanted}
@@ -275,5 +284,7 @@ class CameraObserver:
         return count_outside(points, colours, supports, containers, self.content_rgba, PARTICLE_RADIUS)
 
     def close(self) -> None:
-        """Free the renderer (from the thread that observed)."""
+        """Free the renderers (from the thread that observed)."""
         self.kinect.close()
+        if self.watch_kinect is not None:
+            self.watch_kinect.close()

@@ -280,7 +280,6 @@ class KnowledgeManager(Agent):
             subscription,
             conversation_id=self.roles.free_id("km-watch"),
             retry_s=(1.0, 10.0),
-            at_start=True,
             same_id=True,
             while_away=False,
         )

@@ -391,7 +391,6 @@ class TaskExecutor(Agent):
             conversation_id=self.roles.free_id("ta-watch"),
             reply_by_s=WATCH_REPLY_BY_S,
             retry_s=(1.0, 10.0),
-            at_start=True,
             same_id=True,
             while_away=False,
         )

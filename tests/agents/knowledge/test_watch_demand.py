@@ -14,6 +14,7 @@ from pathlib import Path
 import pytest
 
 from services.agents.knowledge.watch_demand import PERIOD_RANGE_S, period_for
+from services.runtime import keys
 from shared.fipa_codec import Communicate, Performative
 from shared.fipa_codec.languages import decode_content
 from shared.fipa_codec.languages.l_wm import SceneSubscription, Subscription
@@ -56,6 +57,7 @@ def test_a_subscriber_within_a_time_has_the_robot_watch_until_it_cancels(
 ) -> None:
     with running_km(watcher_spec(tmp_path), monkeypatch) as (km, bus):
         peer, wt = Peer(bus), Subscriber(bus, "C9", "a_wt")
+        bus.transport().announce(keys.alive_key("a_ta"))  # a_km asks a_ta once it is there
         watched = SceneSubscription(objects=("bowl",), tilted=1.0, within_s=0.5)
         performative, _ = wt.subscribe(watched, "w1")
         assert performative is Performative.AGREE
