@@ -134,3 +134,43 @@ def test_a_watch_that_cannot_be_made_is_refused_with_the_reason(
     refused = a_ta.got.get(timeout=TIMEOUT_S)
     assert refused.performative is Performative.REFUSE
     assert _content(refused) == "cannot watch: a watch needs the head camera, not perception 'truth'"
+
+
+def test_after_a_power_cycle_the_new_loop_watches_again(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The world started anew (a new link): ag_ex's new executor is asked for the watch served,
+    and its frames name the new power-on."""
+    monkeypatch.setenv("ROCO_RUN_DIR", str(tmp_path))
+    name_link(tmp_path, "psm_old")
+    made: queue.SimpleQueue[WatchingFake] = queue.SimpleQueue()
+
+    class Ex(ExecutorAgent):
+        def make_executor(self) -> Any:
+            fake = WatchingFake(self._world_link())
+            made.put(fake)
+            return fake
+
+    bus = MemoryBus()
+    a_ta = Peer(bus, "a_ta", "ag_ex", "C5")
+    agent = Ex(bus.transport())
+    agent.bind()
+    thread = threading.Thread(target=agent.run, daemon=True)
+    thread.start()
+    try:
+        first = made.get(timeout=TIMEOUT_S)
+        a_ta.send(Performative.SUBSCRIBE, "fipa-subscribe", "watch-1", Watch(period_s=0.5))
+        assert a_ta.got.get(timeout=TIMEOUT_S).performative is Performative.AGREE
+        assert first.watches.get(timeout=TIMEOUT_S) == ((), 0.5)
+        name_link(tmp_path, "psm_new")  # the world process started again
+        second = made.get(timeout=TIMEOUT_S)
+        assert second.watches.get(timeout=TIMEOUT_S) == ((), 0.5)
+        assert second.on_frame is not None
+        second.on_frame(Observation(stamp=0.5, objects=()))
+        inform = a_ta.got.get(timeout=TIMEOUT_S)
+        assert inform.conversation_id == "watch-1" and _content(inform) == Observation(
+            stamp=0.5, objects=(), world="psm_new"
+        )
+    finally:
+        agent.stop()
+        thread.join(TIMEOUT_S)
