@@ -401,7 +401,7 @@ def loop_main(config: bytes, doorbell: multiprocessing.connection.Connection) ->
             monitor.record(start, start, end, rt.part_s, cpu)
         else:
             monitor.record(pacer.release, start, end, rt.part_s, cpu)
-        pacer.wait()
+        pacer.wait(rt.time)  # the simulation's time: paced while watched (Pacer.pace)
     pending.extend(encode(Done(token=t, result=r)) for t, r in loop.abort(STOPPED))
     ring()
     del monitor
