@@ -372,9 +372,16 @@ class ExecutorAgent(Agent):
 
     def _start_camera(self) -> None:
         """Rerun: the head camera, rendered in a thread of this process (never in the loop's)
-        from the whole simulation state the loop copies (``world_state``)."""
+        from the whole simulation state the loop copies (``world_state``), when the hooks want
+        it (``camera_wanted``: the loop copies the state for the watch too)."""
         world = getattr(self.executor, "world", None)
-        if self.rerun is not None and world is not None and getattr(self.executor, "world_state", False):
+        wanted = self.hooks.camera_wanted() if self.hooks else False
+        if (
+            self.rerun is not None
+            and world is not None
+            and wanted
+            and getattr(self.executor, "world_state", False)
+        ):
             self.rerun.start_camera(
                 world,
                 seed=getattr(self.executor, "seed", 0),
