@@ -174,3 +174,63 @@ def test_after_a_power_cycle_the_new_loop_watches_again(
     finally:
         agent.stop()
         thread.join(TIMEOUT_S)
+
+
+class _Sink:
+    """A viewer's robot sink that records whether its head camera was started."""
+
+    def __init__(self) -> None:
+        self.camera = threading.Event()
+
+    def start_camera(self, source: Any, *, seed: int = 0, pose_seed: int | None = None) -> None:
+        self.camera.set()
+
+    def stop_camera(self, timeout: float = 10.0) -> None: ...
+    def snapshot(self, snap: Any) -> None: ...
+    def observation(self, obs: Any) -> None: ...
+    def close(self) -> None: ...
+
+
+class _Hooks:
+    """A viewer's hooks (services/runtime/hooks.py) that do not want the head camera."""
+
+    def __init__(self) -> None:
+        self.sink = _Sink()
+
+    def traffic(self, process: str, run_dir: Path | None = None) -> None:
+        return None
+
+    def robot(self, process: str) -> _Sink:
+        return self.sink
+
+    def queue(self, process: str) -> None:
+        return None
+
+    def camera_wanted(self) -> bool:
+        return False
+
+
+HOOKS = _Hooks()
+"""Loaded by name (``ROCO_HOOKS``) in the next test."""
+
+
+def test_a_viewer_that_wants_no_camera_gets_none_though_the_world_state_is_copied(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The loop copies the world state for the watch whenever the camera perceives; the
+    viewer's head camera still starts only when its hooks want it."""
+    monkeypatch.setenv("ROCO_HOOKS", f"{__name__}:HOOKS")
+    monkeypatch.setenv("ROCO_RUN_DIR", str(tmp_path))
+    name_link(tmp_path, "psm_1")
+    fake = WatchingFake("psm_1")
+    fake.world_state = True  # type: ignore[attr-defined]
+    fake.world = lambda: None  # type: ignore[attr-defined]
+
+    class Ex(ExecutorAgent):
+        def make_executor(self) -> Any:
+            return fake
+
+    agent = Ex(MemoryBus().transport())
+    agent.bind()
+    agent.setup()
+    assert agent.rerun is HOOKS.sink and not HOOKS.sink.camera.is_set()
