@@ -76,6 +76,17 @@ def _seconds_or_never(name: str, value: str, default: Any) -> float:
     return seconds
 
 
+def _positive_factor(name: str, value: str, default: Any) -> float:
+    """A finite number > 0."""
+    try:
+        factor = float(value)
+    except ValueError:
+        factor = math.nan
+    if not factor > 0 or math.isinf(factor):
+        raise ValueError(f"{name}={value!r}: expected a number > 0")
+    return factor
+
+
 def _microseconds(name: str, value: str, default: Any) -> float:
     """Microseconds ≥ 0, finite."""
     try:
@@ -435,6 +446,16 @@ class Settings(msgspec.Struct, frozen=True, kw_only=True):
             kind="s > 0 / never",
         ),
     ] = 60.0
+    watch_pace: Annotated[
+        float,
+        About(
+            "ROCO_WATCH_PACE",
+            "robot s per wall s at most while ag_ex watches with the head camera, when the fleet runs as "
+            "fast as possible (velma/executor/watch.py)",
+            parse=_positive_factor,
+            kind="factor > 0",
+        ),
+    ] = 1.0
     world: Annotated[
         Literal["process", "loop"],
         About(

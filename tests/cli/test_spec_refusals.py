@@ -60,4 +60,4 @@ def test_verify_code_lists_an_agent_whose_code_is_missing_among_the_others(tmp_p
         in result.output
     )
     assert "a_pl: its code is not read" in result.output
-    assert "a_km: 5 files;" in result.output and result.output.rstrip().endswith("1 problem(s)")
+    assert "a_km: 6 files;" in result.output and result.output.rstrip().endswith("1 problem(s)")

@@ -23,6 +23,7 @@ from shared.fipa_codec.languages.l_ex import (
     Release,
     Tilt,
     Wait,
+    Watch,
 )
 from shared.fipa_codec.languages.l_hc import (
     CommandOutcome,
@@ -157,6 +158,7 @@ SAMPLE_TERMS: list[msgspec.Struct] = [
         query=SparqlQuery("ASK { }"),
     ),
     Subscription(),
+    Subscription("watch", period_s=0.25),
     Answer(
         objects=(
             ObjectInfo(
@@ -193,6 +195,7 @@ SAMPLE_TERMS: list[msgspec.Struct] = [
         total_particles=200,
     ),
     SceneSubscription(objects=("jar", "bowl"), moved=0.02, tilted=None, content=False, queue=8),
+    SceneSubscription(objects=("bowl",), within_s=0.5),
     SceneChange(
         object="jar",
         changed=("moved", "tilted"),
@@ -221,6 +224,7 @@ SAMPLE_TERMS: list[msgspec.Struct] = [
     CommandResult(command="wait", ok=True, sim_time=1.5, world="roco_4242_0a1b2c3d"),
     PowerOns(),
     PowerOn(world="roco_4242_0a1b2c3d"),
+    Watch(objects=("bowl", "jar"), period_s=0.25),
     CommandResult(command="move_tool", ok=True, sim_time=9.1, self_contacts=("left_arm_5 + left_arm_3",)),
     CommandResult(
         command="move_tool",

@@ -216,7 +216,7 @@ def test_verify_code_passes_on_the_shipped_agents() -> None:
 
     ok, text = verify_code_report(DEFAULT_SPEC)
     assert ok, text
-    assert "ag_ex: 2 files; 2 protocol roles agree with the specification:" in text
+    assert "ag_ex: 3 files; 2 protocol roles agree with the specification:" in text
     assert (
         "  C5 fipa-request participant with a_ta in L_EX, L_SD: receives cancel, request; "
         "sends agree, failure, inform, refuse"
@@ -227,7 +227,7 @@ def test_verify_code_passes_on_the_shipped_agents() -> None:
     ) in text
     # a_km plays a role per protocol of each channel it ends
     km_roles = sum(len(c.protocols) for c in default_spec().channels if "a_km" in c.ends)
-    assert f"a_km: 5 files; {km_roles} protocol roles agree with the specification:" in text
+    assert f"a_km: 6 files; {km_roles} protocol roles agree with the specification:" in text
 
 
 def test_verify_code_reports_an_implementation_that_does_not_exist(tmp_path: Path) -> None:

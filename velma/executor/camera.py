@@ -75,7 +75,8 @@ class CameraWork:
 
     def perceive(self, capture: WorldCapture) -> Perceived:
         """Observe ``capture``; an exception of the perception becomes ``reason``
-        ("perception error: …"), one of the log a missing ``records``."""
+        ("perception error: …"), one of the log a missing ``records``. A watch frame
+        (``capture.watch``) has no records: the perception log holds the Observes."""
         try:
             t0 = time.perf_counter()
             obs, seen = self.observer.observe(capture)
@@ -83,7 +84,7 @@ class CameraWork:
         except Exception as exc:
             return Perceived(reason=f"perception error: {exc}")
         records: list[Record] | None = None
-        if self.truth is not None:
+        if self.truth is not None and not capture.watch:
             try:
                 from velma.executor.perception_log import records as log_records
 

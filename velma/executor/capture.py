@@ -52,19 +52,24 @@ def camera_unavailable() -> str | None:
     return f"no off-screen GL library (libEGL or libOSMesa) for the head camera: {GL_HOW}"
 
 
-class WorldCapture(msgspec.Struct, frozen=True, tag="world_capture", kw_only=True):
+class WorldCapture(msgspec.Struct, frozen=True, tag="world_capture", kw_only=True, omit_defaults=True):
     """The world when an Observe ran: ``objects`` asked for (empty: all known), ``stamp``
     (simulation time, s) and ``qpos`` (MuJoCo's ``qpos`` as raw little-endian float64 bytes,
-    ``model.nq`` values)."""
+    ``model.nq`` values). ``watch``: a watch frame (velma/executor/watch.py), observed in the
+    observer's cheaper watch mode (velma/executor/observer.py ``CameraObserver.observe``), not
+    an Observe."""
 
     objects: tuple[str, ...]
     stamp: float
     qpos: bytes
+    watch: bool = False
 
     @classmethod
-    def of(cls, objects: tuple[str, ...], stamp: float, qpos: npt.NDArray[np.float64]) -> WorldCapture:
-        """A capture of ``qpos`` (copied) at ``stamp``."""
-        return cls(objects=objects, stamp=stamp, qpos=np.asarray(qpos, dtype="<f8").tobytes())
+    def of(
+        cls, objects: tuple[str, ...], stamp: float, qpos: npt.NDArray[np.float64], *, watch: bool = False
+    ) -> WorldCapture:
+        """A capture of ``qpos`` (copied) at ``stamp`` (``watch``: a watch frame)."""
+        return cls(objects=objects, stamp=stamp, qpos=np.asarray(qpos, dtype="<f8").tobytes(), watch=watch)
 
     def positions(self) -> npt.NDArray[np.float64]:
         """``qpos`` as an array (shape ``(nq,)``, a read-only view)."""

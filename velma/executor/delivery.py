@@ -17,6 +17,8 @@ running: its Observe should not wait for the camera to start), and rested after
 A perception that raises answers the Observe with ``CommandResult(ok=False, reason="perception
 error: …")``. With ``record`` each camera Observation is compared with the ground truth of the
 same captured state (velma/executor/perception_log.py) and the records passed to ``record``.
+A watch frame (``WorldCapture.watch``, velma/executor/watch.py) goes through the same FIFO and
+camera host, so it is never delivered out of order with the results; it has no records.
 """
 
 from __future__ import annotations
@@ -63,6 +65,8 @@ class ResultDelivery(Generic[T]):
         self._queue: queue.SimpleQueue[tuple[T, Item] | None] = queue.SimpleQueue()
         self.observe_ms: list[float] = []
         """Wall time (ms) of each camera Observation made (render + localisation)."""
+        self.watch_ms: list[float] = []
+        """Wall time (ms) of each watch frame observed (``WorldCapture.watch``)."""
         self._thread = threading.Thread(target=self._run, name=name, daemon=True)
         self._thread.start()
 
@@ -123,7 +127,7 @@ class ResultDelivery(Generic[T]):
                 log.exception("the camera host raised")
                 got = Perceived(reason=f"perception error: {exc}")
             if got.observation is not None:
-                self.observe_ms.append(got.ms)
+                (self.watch_ms if capture.watch else self.observe_ms).append(got.ms)
                 if self._record is not None and got.records is not None:
                     try:
                         self._record(got.records)

@@ -27,6 +27,13 @@ What the agents get (L_SD, shared/fipa_codec/languages/l_sd.py):
 - ``total_particles``: the number of content spheres the scene description states (its content
   bodies, ``N_PARTICLES`` = 18 in the kitchen), a task fact, not a measurement.
 
+A watch frame (``WorldCapture.watch``: velma/executor/watch.py, ag_ex's watch) is observed in
+a cheaper mode: one Kinect frame (``WATCH_FRAMES``, not ``FRAMES_AVERAGED``) of ``WATCH_SIZE``
+px by a renderer of its own (made at the first watch frame), the requested movable objects
+localised, no content count (``particles_inside`` None) and no spill count
+(``particles_outside`` None): a watch tells where things are and how they stand, an Observe
+also what they hold (docs/bench/observe.md measures both).
+
 ``ROCO_PERCEPTION`` (velma/executor/capture.py ``perception_mode``) chooses ``camera`` or
 ``truth`` (velma/executor/ground_truth.py, in the loop); unset: ``DEFAULT_PERCEPTION``.
 """
@@ -36,6 +43,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import msgspec
 import mujoco
 import numpy as np
 
@@ -66,6 +74,13 @@ bowl where 640 × 480 counts 15–16 (docs/bench/observe.md)."""
 FRAMES_AVERAGED = 5
 """Depth frames averaged per Observe (the scene is static while the robot observes: 5 frames
 are 0.17 s of the Kinect's 30 Hz; velma/perception/kinect.py ``HeadKinect.capture``)."""
+WATCH_FRAMES = 1
+"""Depth frames per watch frame (module docstring): the scene may be moving, and one frame is
+what a streaming Kinect gives every 1/30 s."""
+WATCH_SIZE = (320, 240)
+"""Frame (px) rendered per watch frame: a quarter of the pixels, so a quarter of the software
+renderer's work; it localises as well as 640 × 480 (``CAMERA_SIZE``), and a watch counts no
+content (docs/bench/observe.md)."""
 
 
 @dataclass(frozen=True)
@@ -95,6 +110,29 @@ def _inferred(guess: ContentEstimate | SphereCount | None, conserved: int) -> in
     return max(0, min(guess.count, conserved)) - seen
 
 
+def _located(e: ObjectEstimate) -> bool:
+    """Whether the localiser saw the object and gave its pose."""
+    return e.seen and e.position is not None and e.quaternion is not None
+
+
+def _seen(name: str, e: ObjectEstimate) -> ObjectObservation:
+    """The observation of object ``name`` that estimate ``e`` (:func:`_located`) gives: its pose
+    and the position's σ (floored at ``POSITION_SIGMA_FLOOR``), no content."""
+    assert e.position is not None and e.quaternion is not None
+    p, q = e.position, e.quaternion
+    return ObjectObservation(
+        name=name,
+        pose=Pose(
+            position=(float(p[0]), float(p[1]), float(p[2])),
+            orientation=(float(q[0]), float(q[1]), float(q[2]), float(q[3])),
+        ),
+        position_sigma=max(e.sigma_position, POSITION_SIGMA_FLOOR)
+        if math.isfinite(e.sigma_position)
+        else None,
+        yaw_observable=e.yaw_observable,
+    )
+
+
 class CameraObserver:
     """Observes captured world states of ``model`` (the loop's kitchen, same seeds) with the
     head Kinect at ``size`` px; Kinect noise drawn from a generator seeded with ``seed``.
@@ -105,6 +143,8 @@ class CameraObserver:
         self.model = model
         self.data = mujoco.MjData(model)
         self.kinect = HeadKinect(model, size[0], size[1])
+        self.watch_kinect: HeadKinect | None = None
+        """The watch frames' camera (``WATCH_SIZE``), made at the first one."""
         self.models: dict[str, ObjectModel] = {n: object_model(model, n) for n in MOVABLE}
         self.localiser = Localiser(self.models.values())
         self.rng = np.random.default_rng(seed)
@@ -141,7 +181,10 @@ class CameraObserver:
 
     def observe(self, capture: WorldCapture) -> tuple[Observation, Seen]:
         """The Observation of ``capture``'s objects (all movable ones and the furniture when
-        empty) as the head camera sees them (module docstring), and the details."""
+        empty) as the head camera sees them (module docstring), and the details; a watch frame
+        (``capture.watch``) in the watch mode (:meth:`watch`)."""
+        if capture.watch:
+            return self.watch(capture)
         names = capture.objects or (*MOVABLE, *FURNITURE)
         data = self.load(capture)
         wanted = [n for n in names if n in self.models]
@@ -163,7 +206,7 @@ class CameraObserver:
             conserved = self.total_particles - spill.count
             for n in wanted:
                 e = estimates[n]
-                if not e.seen or e.position is None or e.quaternion is None:
+                if not _located(e):
                     continue
                 model = self.models[n]
                 guess: ContentEstimate | SphereCount | None
@@ -179,25 +222,50 @@ class CameraObserver:
                     )  # fmt: skip
                 if guess is not None:
                     content[n] = guess
-                p, q = e.position, e.quaternion
                 objects.append(
-                    ObjectObservation(
-                        name=n,
-                        pose=Pose(
-                            position=(float(p[0]), float(p[1]), float(p[2])),
-                            orientation=(float(q[0]), float(q[1]), float(q[2]), float(q[3])),
-                        ),
+                    msgspec.structs.replace(
+                        _seen(n, e),
                         particles_inside=_inside(guess, conserved),
                         particles_inferred=_inferred(guess, conserved),
-                        position_sigma=max(e.sigma_position, POSITION_SIGMA_FLOOR)
-                        if math.isfinite(e.sigma_position)
-                        else None,
-                        yaw_observable=e.yaw_observable,
                     )
                 )
-        objects += [ObjectObservation(name=n, pose=self.map[n]) for n in names if n in self.map]
+        obs = self._observation(capture, names, objects, data, outside)
+        return obs, Seen(estimates=estimates, content=content, outside=outside)
+
+    def watch(self, capture: WorldCapture) -> tuple[Observation, Seen]:
+        """The watch mode's Observation of ``capture`` (module docstring): one frame, the
+        requested movable objects (all when empty) localised, the furniture from the map, no
+        content and no spill count."""
+        names = capture.objects or (*MOVABLE, *FURNITURE)
+        data = self.load(capture)
+        estimates = self._localise_once([n for n in names if n in self.models], data)
+        objects = [_seen(n, e) for n, e in estimates.items() if _located(e)]
+        return self._observation(capture, names, objects, data, None), Seen(estimates=estimates, content={})
+
+    def _localise_once(self, wanted: list[str], data: mujoco.MjData) -> dict[str, ObjectEstimate]:
+        """The estimates of the objects ``wanted`` in one Kinect frame of ``data``."""
+        if not wanted:
+            return {}
+        if self.watch_kinect is None:
+            self.watch_kinect = HeadKinect(self.model, *WATCH_SIZE)
+        frame = self.watch_kinect.capture(data, self.rng, WATCH_FRAMES)
+        points, colours, _ = frame.cloud()
+        found = self.localiser.localise(points, colours, frame.position, wanted, support_heights(points))
+        return {n: found[n] for n in wanted}
+
+    def _observation(
+        self,
+        capture: WorldCapture,
+        names: tuple[str, ...],
+        objects: list[ObjectObservation],
+        data: mujoco.MjData,
+        outside: Spill | None,
+    ) -> Observation:
+        """The Observation of ``capture``: ``objects`` seen, the furniture of ``names`` from the
+        map, the rest of ``names`` unseen, the hands' grips of ``data``, the spill seen."""
+        objects = objects + [ObjectObservation(name=n, pose=self.map[n]) for n in names if n in self.map]
         seen = {o.name for o in objects}
-        obs = Observation(
+        return Observation(
             stamp=capture.stamp,
             objects=tuple(objects),
             total_particles=self.total_particles,
@@ -205,7 +273,6 @@ class CameraObserver:
             particles_outside=outside.count if outside is not None else None,
             grips=self.grips.observe(data),
         )
-        return obs, Seen(estimates=estimates, content=content, outside=outside)
 
     def _outside(
         self, points: np.ndarray, colours: np.ndarray, supports: list[float], found: dict[str, ObjectEstimate]
@@ -216,5 +283,7 @@ class CameraObserver:
         return count_outside(points, colours, supports, containers, self.content_rgba, PARTICLE_RADIUS)
 
     def close(self) -> None:
-        """Free the renderer (from the thread that observed)."""
+        """Free the renderers (from the thread that observed)."""
         self.kinect.close()
+        if self.watch_kinect is not None:
+            self.watch_kinect.close()

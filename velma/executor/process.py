@@ -10,8 +10,9 @@ switch interval (5 ms). In its own process the loop competes only for a CPU, whi
 Hand-offs (all non-blocking on the loop's side):
 
 - commands: ``SpscRing`` communication side → loop (``Submit``, ``Cancel``, ``Hold``, ``Safe``,
-  ``Shutdown``), polled once per cycle (up to ``INBOX_PER_CYCLE`` messages): a ``Cancel`` halts
-  its command in the cycle that takes it (velma/executor/loop.py ``ControlLoop.cancel``);
+  ``Displace``, ``Pace``, ``Shutdown``), polled once per cycle (up to ``INBOX_PER_CYCLE``
+  messages): a ``Cancel`` halts its command in the cycle that takes it
+  (velma/executor/loop.py ``ControlLoop.cancel``);
 - results: ``SpscRing`` loop → communication side (``Ready``, ``Started``, ``Done``,
   ``Halting``, ``Fault``), plus one byte on a non-blocking pipe (a doorbell) so that the reader
   thread sleeps until there is news; ``Started`` says when (simulation) the loop started a
@@ -21,10 +22,11 @@ Hand-offs (all non-blocking on the loop's side):
 - robot state: two ``LatestValue`` blocks (sequence locks), the numbers rewritten every
   ``STATE_PERIOD`` cycles (from C++ with the compiled plant), the names when they change
   (velma/executor/state_block.py);
-- world state (only when asked, ``world_state=True``: for the head camera of the Rerun
-  recording): the simulation time and MuJoCo's whole ``qpos`` (robot, objects, particles) as
-  raw float64 in a second ``LatestValue``, rewritten every ``WORLD_PERIOD`` cycles (≈ 1.4 µs
-  per write: a copy of 1.4 kB); whoever renders it does so in another process;
+- world state (only when asked, ``world_state=True``: for the watch, velma/executor/watch.py,
+  and the head camera of the Rerun recording): the simulation time and MuJoCo's whole ``qpos``
+  (robot, objects, particles) as raw float64 in a second ``LatestValue``, rewritten every
+  ``WORLD_PERIOD`` cycles (≈ 1.4 µs per write: a copy of 1.4 kB); whoever renders it does so
+  in another process;
 - timing: the ``DeadlineMonitor``'s arrays live in shared memory; the communication side
   computes percentiles from them, never the loop; with a world process, the world's own
   timing counts are read here from its link (velma/world/timing.py);
@@ -35,6 +37,13 @@ the requested names, sim time and a copy of ``qpos``); on this side ``ResultDeli
 delivers every result in the loop's order (an Observation is never overtaken by a later
 command's result). The loop never renders or fits. ``perception="truth"`` (ROCO_PERCEPTION)
 makes the loop answer with the ground truth instead (tests).
+
+Watch (``ExecutorProcess.watch``, velma/executor/watch.py): while on, a thread of this side
+makes a watch frame of the world state every ``period_s`` of robot time and puts it through the
+same ``ResultDelivery`` (in order with the results; at most one in flight), and, when the loop
+runs as fast as possible, the loop is paced to at most ``watch_pace`` × wall time (``Pace``;
+ROCO_WATCH_PACE): in simulation a camera frame costs wall time, so a watched robot runs at the
+camera's pace. ``unwatch`` ends it and the fast pace returns. Real-time pacing is unchanged.
 
 The loop process ends when asked (``Shutdown``), on SIGTERM or SIGINT, when its parent process
 disappears (checked every second) or when it is killed; the communication side then answers
@@ -74,6 +83,7 @@ from velma.executor.ledger import STOPPED, outcome_of
 from velma.executor.state import RobotSnapshot, snapshot_of
 from velma.executor.state_block import StateReader
 from velma.executor.timing import DEFAULT_WINDOW, DeadlineMonitor, Pacer, RealtimeSetup, TimingStats
+from velma.executor.watch import Watcher, check_period
 from velma.world.link import LinkError, RobotLink
 from velma.world.timing import WorldTiming
 
@@ -92,12 +102,16 @@ INBOX_PER_CYCLE = 4  # messages taken from the command ring per cycle
 PARENT_CHECK = 1000  # cycles between checks that the parent process still exists
 DEFAULT_SPIN = 0.0003  # s before each release time that the real-time loop busy-waits instead of sleeping
 TIMING_REFRESH = 1.0  # s between recomputations of the timing attached to snapshots
-WORLD_PERIOD = 100  # cycles between world-state writes (10 Hz), when asked for
-WORLD_PHASE = 13  # … in cycles 13, 113…: neither a state publication nor a contact scan
+WORLD_PERIOD = 20  # cycles between world-state writes (50 Hz), when asked for (a watch frame's age)
+WORLD_PHASE = 13  # … in cycles 13, 33…: neither a state publication nor a contact scan
 WORLD_CAPACITY = 65536  # B: sim time + qpos of up to 8 190 coordinates (the kitchen has 180)
 START_TIMEOUT = 120.0  # s for the loop process to build the scene and report Ready
 
 OnDone = Callable[[CommandResult | Observation], None]
+OnFrame = Callable[[Observation], None]
+"""Called with each watch frame's Observation (``ExecutorProcess.watch``)."""
+WATCH_TOKEN = 0
+"""The delivery token of watch frames (commands' tokens count from 1)."""
 OnStart = Callable[[int, str, float], None]
 """``(token, command name, sim_time s)`` of a command the loop started."""
 OnEnd = Callable[[int, str, float, str, CommandResult | Observation | WorldCapture], None]
@@ -150,6 +164,13 @@ class Displace(msgspec.Struct, frozen=True, tag="displace"):
     body: str
     delta: tuple[float, float, float]
     tilt: float = 0.0
+
+
+class Pace(msgspec.Struct, frozen=True, tag="pace"):
+    """Pace the loop to at most ``factor`` × wall time (``Pacer.pace``, velma/executor/timing.py;
+    the watch's pace); 0: the pacing it started with."""
+
+    factor: float = 0.0
 
 
 class Shutdown(msgspec.Struct, frozen=True, tag="shutdown"):
@@ -205,7 +226,7 @@ class Fault(msgspec.Struct, frozen=True, tag="fault"):
 START = "start"
 """``Fault.command`` of a loop that could not start."""
 
-ToLoop = Submit | Cancel | Hold | Safe | Displace | Shutdown
+ToLoop = Submit | Cancel | Hold | Safe | Displace | Pace | Shutdown
 FromLoop = Ready | Started | Done | Halting | Fault
 
 
@@ -346,6 +367,11 @@ def loop_main(config: bytes, doorbell: multiprocessing.connection.Connection) ->
                     loop.rt.displace(msg.body, msg.delta, msg.tilt)
                 except (KeyError, ValueError) as exc:
                     pending.append(encode(Fault(command="displace", text=str(exc))))
+            elif isinstance(msg, Pace):
+                try:
+                    pacer.pace(msg.factor or None)
+                except ValueError as exc:
+                    pending.append(encode(Fault(command="pace", text=str(exc))))
             else:
                 running = False
         done = loop.cycle()
@@ -375,7 +401,7 @@ def loop_main(config: bytes, doorbell: multiprocessing.connection.Connection) ->
             monitor.record(start, start, end, rt.part_s, cpu)
         else:
             monitor.record(pacer.release, start, end, rt.part_s, cpu)
-        pacer.wait()
+        pacer.wait(rt.time)  # the simulation's time: paced while watched (Pacer.pace)
     pending.extend(encode(Done(token=t, result=r)) for t, r in loop.abort(STOPPED))
     ring()
     del monitor
@@ -415,6 +441,9 @@ class ExecutorProcess:
     the controller of that world (velma/executor/world_link.py), which keeps the kitchen when
     the loop ends; a loop that starts again attaches to it and finds the robot as it is.
     Without it the physics runs in the loop and ends with it.
+
+    ``watch_pace`` (None: ROCO_WATCH_PACE): the pace (robot s per wall s) a loop that runs as
+    fast as possible keeps while a watch is on (``watch``; module docstring).
     """
 
     def __init__(
@@ -433,11 +462,17 @@ class ExecutorProcess:
         perception_log: RecordSink | None = None,
         camera_idle_s: float | None = None,
         world_link: str | None = None,
+        watch_pace: float | None = None,
     ) -> None:
         self.perception = perception_mode(
             None if perception is None else {Settings.env_name("perception"): perception}
         )
         self.camera_idle_s = camera_idle_s_of_env() if camera_idle_s is None else camera_idle_s
+        self.watch_pace = (
+            Settings.from_env(only=("watch_pace",)).watch_pace if watch_pace is None else watch_pace
+        )
+        self._watcher: Watcher | None = None
+        self._on_frame: OnFrame | None = None
         self.perception_log = perception_log
         self._delivery: ResultDelivery[int] | None = None
         self.realtime = realtime
@@ -531,7 +566,7 @@ class ExecutorProcess:
             )
             camera = CameraProcess(spec)
         self._delivery = ResultDelivery(
-            self._answer, camera, rest_after_s=self.camera_idle_s, record=self.perception_log
+            self._deliver, camera, rest_after_s=self.camera_idle_s, record=self.perception_log
         )
         ctx = multiprocessing.get_context("spawn")
         reader_end, writer_end = ctx.Pipe(duplex=False)
@@ -558,6 +593,7 @@ class ExecutorProcess:
         proc = self._proc
         if proc is None:
             return
+        self.unwatch()
         if self._commands is not None and proc.is_alive():
             self._commands.push(self._encode(Shutdown()))
         proc.join(timeout)
@@ -664,6 +700,77 @@ class ExecutorProcess:
     def safe(self, why: str) -> bool:
         """Ask the loop to enter safe mode (velma.executor.loop); False if it could not be asked."""
         return self._commands is not None and self.alive and self._commands.push(self._encode(Safe(why=why)))
+
+    def watch(self, objects: tuple[str, ...], period_s: float, on_frame: OnFrame) -> None:
+        """See continuously (module docstring; velma/executor/watch.py): every ``period_s``
+        (robot s) a watch frame of ``objects`` (empty: all the camera knows), observed in the
+        camera's watch mode, is passed to ``on_frame`` (on the delivery thread, in order with
+        the commands' results; at most one frame in flight, a due one skipped meanwhile); a
+        loop that runs as fast as possible is paced to at most ``watch_pace`` × wall time. A
+        watch replaces the one before. Raises ``RuntimeError`` before ``start``, without the
+        camera (``perception="truth"``) or the world state (``world_state=False``);
+        ``ValueError`` for a period out of velma/executor/watch.py ``PERIOD_RANGE_S``."""
+        check_period(period_s)
+        if self._delivery is None or self._commands is None:
+            raise RuntimeError("executor loop not started")
+        if self.perception != "camera":
+            raise RuntimeError(f"a watch needs the head camera, not perception {self.perception!r}")
+        if self._world is None:
+            raise RuntimeError("a watch needs the world state (ExecutorProcess(world_state=True))")
+        self.unwatch()
+        delivery = self._delivery
+        self._on_frame = on_frame
+        self._watcher = Watcher(self.world, lambda frame: delivery.put(WATCH_TOKEN, frame), objects, period_s)
+        if not self.realtime:
+            self._commands.push(self._encode(Pace(factor=self.watch_pace)))
+        log.info(
+            "watch on: %s every %.2f s of robot time%s",
+            ", ".join(objects) or "every object",
+            period_s,
+            "" if self.realtime else f", the loop paced to at most {self.watch_pace:g} × wall time",
+        )
+
+    def unwatch(self) -> None:
+        """End the watch (nothing when none is on): no frame is made after it returns (one in
+        flight is still delivered), and the loop's own pacing returns."""
+        watcher, self._watcher = self._watcher, None
+        if watcher is None:
+            return
+        watcher.stop()
+        if not self.realtime and self._commands is not None and self.alive:
+            self._commands.push(self._encode(Pace(factor=0.0)))
+        log.info("watch off: %d frames made, %d skipped (one in flight)", watcher.frames, watcher.skipped)
+
+    @property
+    def watching(self) -> bool:
+        """True while a watch is on."""
+        return self._watcher is not None
+
+    @property
+    def watch_counts(self) -> tuple[int, int] | None:
+        """The watch on: frames made so far and frames skipped (due while one was in flight);
+        None when none is on."""
+        w = self._watcher
+        return (w.frames, w.skipped) if w is not None else None
+
+    def _deliver(self, token: int, result: CommandResult | Observation) -> None:
+        """The delivery thread's result for ``token``: a watch frame's to ``on_frame``, a
+        command's to its ``on_done``."""
+        if token != WATCH_TOKEN:
+            self._answer(token, result)
+            return
+        watcher, on_frame = self._watcher, self._on_frame
+        if watcher is not None:
+            watcher.delivered()
+        if watcher is None or on_frame is None:
+            return  # the watch ended meanwhile
+        if not isinstance(result, Observation):
+            log.warning("a watch frame was not observed: %s", result.reason)
+            return
+        try:
+            on_frame(result)
+        except Exception:
+            log.exception("on_frame callback raised")
 
     def snapshot(self) -> RobotSnapshot | None:
         """The latest robot state (≤ ``STATE_PERIOD`` ms old) with the loop's timing (at most

@@ -303,12 +303,48 @@ class Pacer:
     ``spin`` s before the next release and busy-waits the rest (a sleeping CPU of a virtual
     machine wakes late); a loop more than one period behind skips ahead instead of catching up
     in a burst. Otherwise ``wait`` returns at once and each cycle is released when it starts.
-    ``release`` is the current cycle's release time, for ``DeadlineMonitor.record``."""
+    ``release`` is the current cycle's release time, for ``DeadlineMonitor.record``.
+
+    ``pace(factor)`` switches at run time to pacing the simulation's time to at most ``factor``
+    × wall time (ag_ex's watch, velma/executor/watch.py): ``wait(sim_time)`` returns once wall
+    time has caught up with ``sim_time`` at that pace, measured from the first such wait; a
+    loop more than ``dt`` behind goes on from now. It paces the simulation's time, not the
+    cycles, since a loop attached to a world process in lockstep may see the world step twice
+    in one of its cycles (velma/world/serve.py: the world steps with the command of the state
+    before). ``pace(None)`` returns to the pacing it was built with."""
 
     def __init__(self, dt: float, *, realtime: bool, spin: float = 0.0) -> None:
         self.dt = dt
         self.realtime = realtime
         self.spin = spin
+        self.release = time.perf_counter()
+        self._built = (dt, realtime, spin)
+        self._factor: float | None = None
+        self._anchor: tuple[float, float] | None = None  # (wall s, simulation s) the pace counts from
+
+    def _catch_up(self, sim_time: float, factor: float) -> None:
+        """Sleep until wall time has caught up with ``sim_time`` at ``factor`` (class docstring)."""
+        now = time.perf_counter()
+        if self._anchor is None:
+            self._anchor = (now, sim_time)
+        wall0, sim0 = self._anchor
+        self.release = wall0 + (sim_time - sim0) / factor
+        if self.release > now:
+            time.sleep(self.release - now)
+        elif now - self.release > self.dt:
+            self._anchor = (now, sim_time)  # behind: go on from now, no burst
+
+    def pace(self, factor: float | None) -> None:
+        """Release cycles at ``factor`` × wall time from now on (the busy-wait ``spin`` off: a
+        slowed simulation is no hard-timing loop); None: the pacing given at construction. A
+        pacer built real-time keeps its pacing. Raises ``ValueError`` for a factor that is not
+        a finite number > 0."""
+        dt, realtime, spin = self._built
+        if factor is not None and not (factor > 0 and factor != float("inf")):
+            raise ValueError(f"a pace is a finite factor > 0, not {factor}")
+        self._factor = None if factor is None or realtime else factor
+        self._anchor = None
+        self.dt, self.realtime, self.spin = (dt, realtime, spin) if self._factor is None else (dt, True, 0.0)
         self.release = time.perf_counter()
 
     def begin(self) -> float:
@@ -318,9 +354,13 @@ class Pacer:
             self.release = start
         return start
 
-    def wait(self) -> None:
-        """End a cycle: in real-time pacing, return at the next release time."""
+    def wait(self, sim_time: float | None = None) -> None:
+        """End a cycle: in real-time pacing, return at the next release time; paced
+        (``pace``), once wall time has caught up with ``sim_time`` (s)."""
         if not self.realtime:
+            return
+        if self._factor is not None and sim_time is not None:
+            self._catch_up(sim_time, self._factor)
             return
         self.release += self.dt
         now = time.perf_counter()

@@ -17,10 +17,12 @@ and at stop, ``ag_ex_perception.jsonl`` (each camera Observation beside the grou
 the report; ``ROCO_PERCEPTION=truth`` answers from the physics) and ``ag_ex_ledger.jsonl``
 (velma/executor/ledger.py: a request whose command ended in an earlier ag_ex is answered from
 it, not run again); logs to Rerun with ``ROCO_RERUN=1``; holds position in joint impedance,
-hands as they are, when a_ta's liveliness token goes away; and re-attaches a new loop when the
+hands as they are, when a_ta's liveliness token goes away; re-attaches a new loop when the
 world process (velma/world/) is started anew, telling a_ta by ``PowerOn`` (fipa-subscribe on
-C5). How and why: docs/executor.md ("A halt", "When a_ta disappears", "The world as its own
-process", "Restart") and docs/recovery.md.
+C5); and watches with the head camera while a_ta subscribes to it (fipa-subscribe on C5, L_EX
+``Watch``: services/agents/executor/watching.py, velma/executor/watch.py). How and why:
+docs/executor.md ("A halt", "When a_ta disappears", "The world as its own process",
+"Restart", "The watch") and docs/recovery.md.
 """
 
 from __future__ import annotations
@@ -33,6 +35,7 @@ from typing import Any
 
 import msgspec
 
+from services.agents.executor.watching import Frame, WatchService
 from services.runtime.agent import FSM, Agent, Behaviour, Received, Transport, encode_sim_time, keys
 from services.runtime.roles import PARTICIPANT, Conversation, handles, participant
 from services.spec.model import SystemSpec
@@ -44,6 +47,7 @@ from shared.fipa_codec.languages.l_ex import (
     CommandResult,
     PowerOn,
     PowerOns,
+    Watch,
     command_name,
 )
 from shared.fipa_codec.languages.l_sd import Observation
@@ -123,23 +127,26 @@ class PeerChange:
 
 class ExecutorAgent(Agent):
     name = "ag_ex"
-    ROLES = (participant(C5, FIPA_REQUEST, L_EX, L_SD), participant(C5, FIPA_SUBSCRIBE, L_EX))
+    ROLES = (participant(C5, FIPA_REQUEST, L_EX, L_SD), participant(C5, FIPA_SUBSCRIBE, L_EX, L_SD))
     period = STATE_PERIOD
 
     def make_executor(self) -> Any:
         """The hard-timing executor this agent serves: velma's loop in its own process, paced
         to wall time when ROCO_REALTIME=1; ROCO_SEED (default 0) jitters the jar's content,
         ROCO_POSE_SEED (unset: none) randomises the jar and bowl poses; the loop publishes
-        the whole simulation state only for the head camera (``camera_wanted``)."""
+        the whole simulation state for the watch (the camera perceives) and Rerun's head
+        camera (``camera_wanted``)."""
         from velma.executor import ExecutorProcess
+        from velma.executor.capture import perception_mode
 
         read = Settings.from_env(only=("seed", "pose_seed", "realtime"))  # ValueError: a bad seed
         world = self._world_link() if world_in_process() else None
+        rerun_camera = self.hooks.camera_wanted() if self.hooks else False
         return ExecutorProcess(
             realtime=read.realtime,
             seed=read.seed,
             pose_seed=read.pose_seed,
-            world_state=self.hooks.camera_wanted() if self.hooks else False,
+            world_state=rerun_camera or perception_mode() == "camera",
             perception=None,  # ROCO_PERCEPTION, else velma/executor/capture.py DEFAULT_PERCEPTION
             perception_log=self._perception_sink(),
             camera_idle_s=None,  # ROCO_CAMERA_IDLE_S, else velma/executor/camera_process.py DEFAULT_IDLE_S
@@ -196,6 +203,8 @@ class ExecutorAgent(Agent):
         self._next_timing_file = 0.0  # when the timing file is next written (time.monotonic s)
         self._encode = msgspec.msgpack.Encoder().encode  # the robot's state for its key
         super().__init__(transport, spec)
+        self.watch = WatchService(self.post, self.log)
+        """The watch a_ta subscribed to (L_EX ``Watch``), served through the receptor buffer."""
         self.executor = self.make_executor()
         self.commanders = self._commanders()
         self.link_watch = self._link_watch()
@@ -260,6 +269,7 @@ class ExecutorAgent(Agent):
             return
         self.log.info("control loop attached to the new world (link %s)", self.attached_world)
         self._start_camera()
+        self.watch.rearm(self.executor)
         for watcher in self.watchers.values():
             watcher.reply(Performative.INFORM, PowerOn(world=self.attached_world))
 
@@ -320,9 +330,16 @@ class ExecutorAgent(Agent):
 
     def _start_camera(self) -> None:
         """Rerun: the head camera, rendered in a thread of this process (never in the loop's)
-        from the whole simulation state the loop copies (``world_state``)."""
+        from the whole simulation state the loop copies (``world_state``), when the hooks want
+        it (``camera_wanted``: the loop copies the state for the watch too)."""
         world = getattr(self.executor, "world", None)
-        if self.rerun is not None and world is not None and getattr(self.executor, "world_state", False):
+        wanted = self.hooks.camera_wanted() if self.hooks else False
+        if (
+            self.rerun is not None
+            and world is not None
+            and wanted
+            and getattr(self.executor, "world_state", False)
+        ):
             self.rerun.start_camera(
                 world,
                 seed=getattr(self.executor, "seed", 0),
@@ -431,21 +448,30 @@ class ExecutorAgent(Agent):
             )
 
     @handles(FIPA_SUBSCRIBE, PARTICIPANT, Performative.SUBSCRIBE)
-    def _on_power_ons(self, conv: Conversation) -> None:
+    def _on_subscribe(self, conv: Conversation) -> None:
+        """a_ta subscribes to the robot's power-ons (``PowerOns``) or has it watch (``Watch``:
+        services/agents/executor/watching.py)."""
+        if isinstance(conv.content, Watch):
+            self.watch.subscribe(conv, conv.content, self.executor)
+            return
+        if not isinstance(conv.content, PowerOns):
+            conv.refuse_with(Performative.REFUSE, "not an L_EX PowerOns or Watch subscription")
+            return
+        self._power_ons(conv)
+
+    def _power_ons(self, conv: Conversation) -> None:
         """a_ta subscribes to the robot's power-ons: agreed, then told the current one (when the
         loop is attached to a world process) and each new one (``_reattach``)."""
-        if not isinstance(conv.content, PowerOns):
-            conv.refuse_with(Performative.REFUSE, "not an L_EX PowerOns subscription")
-            return
         self.watchers[conv.peer] = conv
         conv.reply(Performative.AGREE)
         if self.attached_world:
             conv.reply(Performative.INFORM, PowerOn(world=self.attached_world))
 
     @handles(FIPA_SUBSCRIBE, PARTICIPANT, Performative.CANCEL)
-    def _on_power_ons_cancel(self, conv: Conversation) -> None:
+    def _on_subscription_cancel(self, conv: Conversation) -> None:
         if self.watchers.get(conv.peer) is conv:
             del self.watchers[conv.peer]
+        self.watch.cancelled(conv, self.executor)
         conv.reply(Performative.INFORM)
 
     @handles(FIPA_REQUEST, PARTICIPANT, Performative.CANCEL)
@@ -505,17 +531,7 @@ class ExecutorAgent(Agent):
     def _serve(self) -> None:
         self.handle_received()
         while self.r:
-            event = self.r.popleft()
-            if isinstance(event, Done):
-                if self.rerun is not None and isinstance(event.result, Observation):  # Rerun
-                    self.rerun.observation(event.result)
-                self._answer(event)
-            elif isinstance(event, Began | Ended):
-                self._note(event)
-            elif isinstance(event, PeerChange):
-                self._peer_changed(event)
-            elif isinstance(event, Disturbance):
-                self._disturb(event)
+            self._act_on(self.r.popleft())
         self._watch_world()
         now = time.monotonic()
         if now >= self._next_state:
@@ -525,6 +541,21 @@ class ExecutorAgent(Agent):
             self._next_timing_file = now + TIMING_FILE_PERIOD
             self._write_timing_file()
 
+    def _act_on(self, event: object) -> None:
+        """Act on one event of the receptor buffer (from the executor, the transport's threads)."""
+        if isinstance(event, Done):
+            if self.rerun is not None and isinstance(event.result, Observation):  # Rerun
+                self.rerun.observation(event.result)
+            self._answer(event)
+        elif isinstance(event, Began | Ended):
+            self._note(event)
+        elif isinstance(event, PeerChange):
+            self._peer_changed(event)
+        elif isinstance(event, Disturbance):
+            self._disturb(event)
+        elif isinstance(event, Frame):
+            self.watch.inform(event, self.attached_world)
+
     def _disturb(self, event: Disturbance) -> None:
         displace = getattr(self.executor, "displace", None)
         try:
@@ -533,12 +564,16 @@ class ExecutorAgent(Agent):
             self.log.warning("disturbance not applied: %s", exc)
             return
         self.counters["disturbances"] += 1
+        snapshot = getattr(self.executor, "snapshot", None)
+        snap = snapshot() if snapshot is not None else None
         self.log.info(
-            "the world: %s moved by %s m, tilted %.2f rad%s",
+            "the world: %s moved by %s m, tilted %.2f rad%s%s",
             event.object,
             event.delta,
             event.tilt,
             "" if done else " (not applied)",
+            # the latest robot state's time: at most STATE_PERIOD cycles before the loop takes it
+            f" at robot time {snap.sim_time:.3f} s" if snap is not None else "",
         )
 
     def _peer_changed(self, event: PeerChange) -> None:
@@ -548,6 +583,7 @@ class ExecutorAgent(Agent):
             self.alive_peers.add(event.agent)
             return
         self.alive_peers.discard(event.agent)
+        self.watch.drop(event.agent, self.executor)
         hold = getattr(self.executor, "hold", None)
         asked = bool(hold(f"{event.agent} lost")) if hold is not None else False
         self.counters["holds"] += 1

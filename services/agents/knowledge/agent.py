@@ -12,7 +12,10 @@ It keeps a fipa-subscribe with a_ta open for environment updates (C6,
 services/runtime/roles/subscriptions.py), and serves fipa-subscribe (FIPA SC00035) to scene changes
 (L_WM ``SceneSubscription``, ``SceneChange``; services/agents/knowledge/scene_watch.py) on every
 channel where the specification makes it the participant; those are not kept across its
-restart. Started with kept knowledge, it holds queries until a_ta's first observation, at most
+restart. A scene subscription with ``within_s`` (tell a change within that long) makes a_km ask
+a_ta for a watch while it lasts (a second fipa-subscribe on C6, ``Subscription`` topic
+``watch``: services/agents/knowledge/watch_demand.py); a_ta's watched frames then come as
+observations. Started with kept knowledge, it holds queries until a_ta's first observation, at most
 ``HOLD_QUERIES_S``. The knowledge is stored in ``ROCO_KM_STORE``, else
 ``<ROCO_RUN_DIR>/km_store``, else memory only (services/agents/knowledge/world_model.py);
 :meth:`KnowledgeManager.close` (called by ``services.runtime.main``) flushes and releases it.
@@ -27,6 +30,7 @@ from pathlib import Path
 
 from services.agents.knowledge import scene_watch
 from services.agents.knowledge.scene_watch import Watch
+from services.agents.knowledge.watch_demand import WatchDemand, period_for
 from services.agents.knowledge.world_model import KnowledgeError, UnsupportedQuery, WorldModel
 from services.runtime.agent import FSM, Agent, Arc, Behaviour, Transport
 from services.runtime.roles import (
@@ -135,6 +139,8 @@ class KnowledgeManager(Agent):
             for decl in self.roles.declared
             if decl.protocol == FIPA_SUBSCRIBE and decl.role == PARTICIPANT
         }
+        self.watch_demand = WatchDemand(self._subscribe_watch, self.roles.unsubscribe, self.log)
+        """The robot's watch a_km asks of a_ta while a subscriber needs it (watch_demand.py)."""
 
     def build_fsm(self) -> FSM:
         return FSM(
@@ -232,6 +238,7 @@ class KnowledgeManager(Agent):
         watch.start(self._known(None if not sub.objects else sub.objects))
         self.watches[channel] = watch
         self.scene_streams[channel].agree(conv)
+        self._watching()  # a subscriber that needs changes quickly: the robot watches
         self.log.info(
             "%s subscribed to changes of %s (%s)",
             conv.peer,
@@ -240,13 +247,28 @@ class KnowledgeManager(Agent):
         )
 
     def _watching(self) -> dict[str, Watch]:
-        """The agreed scene subscriptions still open, by channel (an ended one is forgotten)."""
+        """The agreed scene subscriptions still open, by channel (an ended one is forgotten);
+        the robot's watch asked for as they need it (watch_demand.py)."""
         for channel, watch in list(self.watches.items()):
             conv = self.scene_streams[channel].conversation
             if conv is None or conv.conversation_id != watch.conversation_id:
                 del self.watches[channel]
                 self.log.info("the scene subscription %s on %s ended", watch.conversation_id, channel)
+        self.watch_demand.need(period_for(w.subscription for w in self.watches.values()))
         return self.watches
+
+    def _subscribe_watch(self, subscription: Subscription) -> StandingSubscription:
+        """Have the role keep the robot's watch asked of a_ta (fipa-subscribe on C6, beside the
+        environment subscription; watch_demand.py)."""
+        return self.roles.subscribe(
+            C6,
+            FIPA_SUBSCRIBE,
+            subscription,
+            conversation_id=self.roles.free_id("km-watch"),
+            retry_s=(1.0, 10.0),
+            same_id=True,
+            while_away=False,
+        )
 
     def _known(self, names: tuple[str, ...] | list[str] | None) -> list[ObjectInfo]:
         """What a_km knows of the objects ``names`` (None: every physical object); an object it

@@ -25,6 +25,7 @@ from dataclasses import dataclass
 
 import msgspec
 
+from services.agents.knowledge.watch_demand import WITHIN_RANGE_S
 from shared.fipa_codec.languages.common import Pose, Vec3
 from shared.fipa_codec.languages.l_wm import ObjectInfo, SceneChange, SceneSubscription
 
@@ -62,6 +63,10 @@ def problems(sub: SceneSubscription) -> list[str]:
             f"tilted must be {TILTED_RANGE[0]}..{TILTED_RANGE[1]:.2f} rad, not {sub.tilted}",
         ),
         (_out_of(sub.queue, (1, MAX_QUEUE)), f"queue must be 1..{MAX_QUEUE} changes, not {sub.queue}"),
+        (
+            sub.within_s is not None and not (WITHIN_RANGE_S[0] <= sub.within_s <= WITHIN_RANGE_S[1]),
+            f"within_s must be {WITHIN_RANGE_S[0]}..{WITHIN_RANGE_S[1]} s of robot time, not {sub.within_s}",
+        ),
         (len(sub.objects) > MAX_OBJECTS, f"at most {MAX_OBJECTS} objects, not {len(sub.objects)}"),
         (bool(bad), f"not an individual's name: {bad[0]!r}" if bad else ""),
         (

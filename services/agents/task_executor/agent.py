@@ -39,6 +39,10 @@ When the world differs from the plan — an object is not where a Perceive step 
 a grasp closes on nothing, a held object slips out — a_ta observes the scene, informs a_km of
 what it saw, and reports Replan with the difference in words.
 
+The watch (services/agents/task_executor/watching.py): a_km's second subscription on C6
+(``Subscription`` topic ``watch``) has a_ta subscribe to ag_ex's watch on C5 (L_EX ``Watch``);
+each frame ag_ex informs goes to a_km as an observation, and changes none of a_ta's decisions.
+
 Restarts (docs/recovery.md): each L_SW inform is retransmitted until a_co confirms it
 (a_co may be restarting); a request to ag_ex is sent again when ag_ex's liveliness token
 reappears (a restarted ag_ex attached to the running world). The coordinate role keeps the
@@ -67,6 +71,7 @@ from services.runtime.roles import (
     INITIATOR,
     PARTICIPANT,
     Conversation,
+    StandingSubscription,
     handles,
     initiator,
     participant,
@@ -97,6 +102,7 @@ from shared.fipa_codec.languages.l_ex import (
     PowerOn,
     PowerOns,
     Tilt,
+    Watch,
     command_name,
 )
 from shared.fipa_codec.languages.l_hfsm import (
@@ -114,6 +120,8 @@ from shared.fipa_codec.languages.l_wm import ObjectUpdate, Subscription, WorldUp
 from .expected import expected_s
 from .retreat import RetreatStep, finish_set_down, undo_take
 from .verdict import Answer, Do, Step, Verdict, judge
+from .watching import TOPIC as WATCH_TOPIC
+from .watching import WATCH_REPLY_BY_S, WatchRelay
 
 OBSERVE_REPLY_BY_S = 30.0
 LOOK_REPLY_BY_S = 10.0
@@ -173,8 +181,9 @@ class TaskExecutor(Agent):
         # a kept plan is taken back in running whatever state it was in: a_ta reports on it
         participant(C1, COORDINATE, L_HFSM, L_SW, keep=PlanNote, resume_in="running", confirmed_informs=True),
         initiator(C5, FIPA_REQUEST, L_EX, L_SD),
-        # the robot's power-ons (a world started anew), told by ag_ex as they happen
-        initiator(C5, FIPA_SUBSCRIBE, L_EX, reply_by_s=POWER_ONS_REPLY_BY_S, resubscribes=True),
+        # the robot's power-ons (a world started anew), told by ag_ex as they happen; and its
+        # watch (camera frames, L_SD), while a_km asks for one
+        initiator(C5, FIPA_SUBSCRIBE, L_EX, L_SD, reply_by_s=POWER_ONS_REPLY_BY_S, resubscribes=True),
         participant(C6, FIPA_SUBSCRIBE, L_WM),
         # paper Table 6: a_ta may query a_km when it needs knowledge; roco's plans carry what
         # a_ta needs (expected poses, safe stops), so it asks nothing
@@ -228,6 +237,8 @@ class TaskExecutor(Agent):
         self.reports = self.roles.report(C1, COORDINATE, retry_s=SW_RETRY_S)
         """a_ta's L_SW informs to a_co, sent one at a time, each once a_co confirmed the one
         before (the coordinate role's: services/runtime/roles/confirmed.py)."""
+        self.watching = WatchRelay(self._subscribe_watch, self.roles.unsubscribe, self.log)
+        """The watch a_km asked for (services/agents/task_executor/watching.py)."""
 
     def build_fsm(self) -> FSM:
         return FSM(
@@ -329,6 +340,9 @@ class TaskExecutor(Agent):
         if not isinstance(conv.content, Subscription):
             conv.refuse_with(Performative.REFUSE, "not an L_WM subscription")
             return
+        if conv.content.topic == WATCH_TOPIC:
+            self.watching.asked(conv, conv.content)
+            return
         self.subscription = conv
         conv.reply(Performative.AGREE)
         self._catch_up_subscriber()
@@ -337,15 +351,34 @@ class TaskExecutor(Agent):
     def _on_unsubscribe(self, conv: Conversation) -> None:
         if conv is self.subscription:
             self.subscription = None
+        self.watching.cancelled(conv)
         conv.reply(Performative.INFORM)
 
     # the robot's power-ons (fipa-subscribe to ag_ex, initiator)
     @handles(FIPA_SUBSCRIBE, INITIATOR, Performative.INFORM)
     def _on_power_on(self, conv: Conversation) -> None:
         """ag_ex tells the power-on of the robot its loop is attached to (at once, then each new
-        one): a new one renews what a_km knows before the next plan (``_started_anew``)."""
+        one): a new one renews what a_km knows before the next plan (``_started_anew``); or a
+        frame of its watch, which goes to a_km (``_update_km``) and nowhere else."""
         if isinstance(conv.content, PowerOn):
             self._started_anew(conv.content)
+        elif isinstance(conv.content, Observation) and self.watching.is_frame(conv):
+            self.watching.frames += 1
+            self._update_km(conv.content)
+
+    def _subscribe_watch(self, watch: Watch) -> StandingSubscription:
+        """Have the role keep ag_ex's watch asked (fipa-subscribe on C5, beside the power-ons;
+        services/agents/task_executor/watching.py)."""
+        return self.roles.subscribe(
+            C5,
+            FIPA_SUBSCRIBE,
+            watch,
+            conversation_id=self.roles.free_id("ta-watch"),
+            reply_by_s=WATCH_REPLY_BY_S,
+            retry_s=(1.0, 10.0),
+            same_id=True,
+            while_away=False,
+        )
 
     # ag_ex's answers (fipa-request, initiator)
     @handles(FIPA_REQUEST, INITIATOR, Performative.INFORM)
@@ -572,7 +605,10 @@ class TaskExecutor(Agent):
         """ag_ex came back (restarted, attached to the running world) while a tilt it
         was running, or a command a_ta was having it halt, had no answer: neither can be sent
         again (a tilt is relative; a halted command must not run on), so the world is observed
-        and Replan reported. Other commands are sent again by the runtime."""
+        and Replan reported. Other commands are sent again by the runtime. a_km gone, the
+        watch it asked for ends."""
+        if peer == "a_km" and not alive:
+            self.watching.stop("a_km lost")
         step = self.step
         if peer != "ag_ex" or not alive or step is None or step.waiting_for is None or step.reply:
             return

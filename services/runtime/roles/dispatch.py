@@ -76,8 +76,10 @@ class Roles:
         """:attr:`_by_peer`'s roles as :class:`RoleTable`\\s, what :meth:`take` looks up."""
         self._open: OrderedDict[tuple[str, str], Conversation] = OrderedDict()
         self._subscriptions: dict[
-            RoleDecl, StandingSubscription | ServedSubscription[Any] | ConfirmedInforms
+            tuple[RoleDecl, str], StandingSubscription | ServedSubscription[Any] | ConfirmedInforms
         ] = {}
+        """The subscriptions the roles keep (by role and first conversation-id), and the streams
+        they serve and the informs they report (by role and "")."""
         self.ticks = False
         """:meth:`tick` has something to look at (a subscription is kept): the agent calls it
         on every step only then."""
@@ -132,16 +134,19 @@ class Roles:
         … added unless ``same_id``); ``while_away``: attempts go on while the peer's token is
         away. ``on_subscribed``/``on_lost``: called with the conversation when the peer agrees,
         and when an agreed subscription ends. Returns the handle (its ``subscribed``); the
-        agent handles the stream's ``inform``\\s. Raises KeyError for a role not declared or
-        not declared ``resubscribes``, ValueError for a back-off that is not (first ≤ longest)
+        agent handles the stream's ``inform``\\s. A role keeps several subscriptions apart by
+        their conversation-ids; :meth:`unsubscribe` ends one. Raises KeyError for a role not
+        declared or not declared ``resubscribes``, or a subscription of ``conversation_id``
+        kept already; ValueError for a back-off that is not (first ≤ longest)
         (services/runtime/roles/subscriptions.py)."""
         decl = self.role(channel, protocol)
         if not decl.resubscribes or decl.role != INITIATOR:
             raise KeyError(
                 f"{self.host.name} declares no resubscribing initiator role of {protocol} on {channel}"
             )
-        if decl in self._subscriptions:
-            raise KeyError(f"{self.host.name} keeps a subscription of {protocol} on {channel} already")
+        if (decl, conversation_id) in self._subscriptions:
+            kept = f"the subscription {conversation_id} of {protocol} on {channel}"
+            raise KeyError(f"{self.host.name} keeps {kept} already")
         sub = StandingSubscription(
             self,
             decl,
@@ -155,9 +160,33 @@ class Roles:
             on_subscribed=on_subscribed,
             on_lost=on_lost,
         )
-        self._subscriptions[decl] = sub
+        self._subscriptions[(decl, conversation_id)] = sub
         self.ticks = True
         return sub
+
+    def unsubscribe(self, sub: StandingSubscription) -> None:
+        """Stop keeping ``sub`` (from :meth:`subscribe`) open: its latest attempt, unless it has
+        ended, is cancelled (FIPA SC00026 §2 cancel meta-protocol; the peer's answer to the
+        cancel reaches the agent's ``inform`` handler as :attr:`Conversation.answers_cancel`),
+        and no attempt follows. Nothing for a subscription not kept."""
+        if self._subscriptions.get((sub.decl, sub.base_id)) is not sub:
+            return
+        del self._subscriptions[(sub.decl, sub.base_id)]
+        sub.end()
+
+    def _kept_for(
+        self, decl: RoleDecl, conv: Conversation
+    ) -> StandingSubscription | ServedSubscription[Any] | ConfirmedInforms | None:
+        """The subscription of ``decl`` that ``conv`` belongs to: the stream served or the
+        informs reported in it, or the kept one of which ``conv`` is an attempt
+        (:meth:`StandingSubscription.owns`); None: the agent's own."""
+        served = self._subscriptions.get((decl, ""))
+        if served is not None:
+            return served
+        for (of, _), sub in self._subscriptions.items():
+            if of == decl and isinstance(sub, StandingSubscription) and sub.owns(conv):
+                return sub
+        return None
 
     def serve(
         self,
@@ -187,7 +216,7 @@ class Roles:
             raise KeyError(
                 f"{self.host.name} declares no participant role of a subscription {protocol} on {channel}"
             )
-        if decl in self._subscriptions:
+        if any(of == decl for of, _ in self._subscriptions):
             raise KeyError(f"{self.host.name} serves the {protocol} subscription on {channel} already")
         served = ServedSubscription(
             self,
@@ -198,7 +227,7 @@ class Roles:
             kept_in_all=kept_in_all,
             dropped=dropped,
         )
-        self._subscriptions[decl] = served
+        self._subscriptions[(decl, "")] = served
         kept = self._unserved.pop(decl, None)
         if kept is not None and not kept.finished:
             served.taken_back(kept)
@@ -215,10 +244,10 @@ class Roles:
             raise KeyError(
                 f"{self.host.name} declares no {protocol} role on {channel} with confirmed informs"
             )
-        if decl in self._subscriptions:
+        if any(of == decl for of, _ in self._subscriptions):
             raise KeyError(f"{self.host.name} reports in the {protocol} role on {channel} already")
         reports = ConfirmedInforms(self, decl, retry_s=retry_s)
-        self._subscriptions[decl] = reports
+        self._subscriptions[(decl, "")] = reports
         return reports
 
     def ended(self, conversation_id: str) -> Any:
@@ -591,7 +620,7 @@ class Roles:
             conv._cancel = item
         deadline = is_deadline(item)
         method = table.on_deadline if deadline else table.on_received.get(item.msg.performative)
-        sub = self._subscriptions.get(table.decl)
+        sub = self._kept_for(table.decl, conv)
         try:
             if sub is not None and not sub.take(conv):
                 pass  # an answer the subscription's role acts on itself
@@ -709,7 +738,7 @@ class Roles:
             self._restored_openings[(opening.sender, opening.msg.reply_with)] = None
             while len(self._restored_openings) > ENDED_KEPT:
                 self._restored_openings.popitem(last=False)
-        served = self._subscriptions.get(conv.decl)
+        served = self._subscriptions.get((conv.decl, ""))
         if isinstance(served, ServedSubscription):
             served.taken_back(conv)
         elif (

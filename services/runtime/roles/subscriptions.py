@@ -28,6 +28,10 @@ handler of the stream's ``inform``\\s (and, if it wants them, the hooks ``on_sub
 - an earlier attempt that agrees after a later one was made is superfluous: the role cancels
   it (FIPA SC00026 §2 cancel meta-protocol); the ``inform`` answering that cancel does not
   reach the agent, other informs of any attempt do.
+
+A role keeps several subscriptions apart by their conversation-ids (:meth:`StandingSubscription.owns`:
+e.g. a_ta's power-ons and its watch, both fipa-subscribe to ag_ex on C5); ``roles.unsubscribe``
+ends one: its latest attempt is cancelled and no other follows.
 """
 
 from __future__ import annotations
@@ -101,6 +105,17 @@ class StandingSubscription:
         """The conversation-id of the latest attempt (None before the first)."""
         return self.conversation.conversation_id if self.conversation is not None else None
 
+    def end(self) -> None:
+        """No attempt follows (:meth:`services.runtime.roles.dispatch.Roles.unsubscribe` calls it): the
+        latest attempt, unless it has ended or is cancelled already, is cancelled."""
+        self.retry_at = None
+        self.pending = False
+        self.subscribed = False
+        conv = self.conversation
+        if conv is not None and not conv.finished and not conv.cancels:
+            conv.stop_awaiting_replies()
+            conv.cancel(self.content)
+
     def _open(self) -> None:
         self.attempts += 1
         n = self.attempts
@@ -138,6 +153,13 @@ class StandingSubscription:
             self.on_subscribed(conv)
 
     # ---- the role's side -----------------------------------------------------------------
+    def owns(self, conv: Conversation) -> bool:
+        """Whether ``conv`` is one of this subscription's attempts (its conversation-id, or one
+        made from it: ``-2``, ``-3``, …), not another conversation the agent opened in the same
+        role."""
+        cid, base = conv.conversation_id, self.base_id
+        return cid == base or (cid.startswith(base + "-") and cid[len(base) + 1 :].isdigit())
+
     def take(self, conv: Conversation) -> bool:
         """Act on :attr:`Conversation.last` of ``conv``, one of this subscription's
         conversations; True when it goes on to the agent's handler (an ``inform`` of the

@@ -186,11 +186,22 @@ class PowerOn(msgspec.Struct, frozen=True, tag="power_on", kw_only=True):
     world: str
 
 
+class Watch(msgspec.Struct, frozen=True, tag="watch", kw_only=True):
+    """a_ta's fipa-subscribe to ag_ex (C5; FIPA SC00035): see continuously — every
+    ``period_s`` s of robot time ag_ex informs an L_SD ``Observation`` of ``objects`` (empty:
+    every object the camera knows) from one head-camera frame, the content not counted
+    (velma/executor/watch.py). At most one watch at ag_ex (a later one replaces it); while it
+    is on, a simulation that runs as fast as possible runs at most at the camera's pace."""
+
+    objects: tuple[str, ...] = ()
+    period_s: float
+
+
 L_EX = register(
     Language(
         "L_EX",
         "O_Velma",
-        (*COMMANDS.values(), CommandResult, PowerOns, PowerOn),
+        (*COMMANDS.values(), CommandResult, PowerOns, PowerOn, Watch),
     )
 )
 

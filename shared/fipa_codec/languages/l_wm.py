@@ -131,9 +131,13 @@ class HypotheticalQuery(msgspec.Struct, frozen=True, tag="hypothetical", kw_only
 
 
 class Subscription(msgspec.Struct, frozen=True, tag="subscription"):
-    """a_km's fipa-subscribe to a_ta: send every observation of ``topic`` (``environment``)."""
+    """a_km's fipa-subscribe to a_ta: send every observation of ``topic`` (``environment``);
+    ``watch``: have the robot watch the scene, a camera frame every ``period_s`` s of robot time
+    (a_ta sends what it sees as observations of ``environment``), as long as the subscription
+    lasts."""
 
     topic: str = "environment"
+    period_s: float | None = None
 
 
 class ObjectInfo(msgspec.Struct, frozen=True, kw_only=True, omit_defaults=True):
@@ -277,7 +281,10 @@ class SceneSubscription(msgspec.Struct, frozen=True, tag="scene_subscription", k
     object knocked over, or stood up again; None: not of interest); ``content``, its count of
     particles changed; ``relation``, who holds it or where it stands (in/on) changed.
     ``queue``: the changes a_km keeps for this subscriber before it drops the oldest (the
-    bounds a_km accepts: services/agents/knowledge/scene_watch.py)."""
+    bounds a_km accepts: services/agents/knowledge/scene_watch.py). ``within_s`` (robot s;
+    None: whenever the robot next looks): tell a change within this long of its happening — a_km
+    then has the robot watch the scene while the subscription lasts (a camera frame every
+    ``within_s / 2``), which in simulation paces the robot to the camera (docs/agents.md)."""
 
     objects: tuple[str, ...] = ()
     moved: float | None = 0.05
@@ -285,6 +292,7 @@ class SceneSubscription(msgspec.Struct, frozen=True, tag="scene_subscription", k
     content: bool = True
     relation: bool = True
     queue: int = 64
+    within_s: float | None = None
 
 
 class SceneChange(msgspec.Struct, frozen=True, tag="scene_change", kw_only=True, omit_defaults=True):
