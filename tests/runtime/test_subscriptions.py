@@ -19,6 +19,7 @@ from services.runtime.memory_transport import MemoryBus
 from services.runtime.state_store import ENV_STATE_DIR, KeptConversations
 from shared.fipa_codec import Performative
 from shared.fipa_codec.languages.l_hc import HumanCommand, Progress, ProgressSubscription, TaskAtom, TaskState
+from shared.fipa_codec.languages.l_wm import Subscription
 from tests.runtime.test_reliability import Wire, a_hi_that_sent_the_pour
 from tests.support.messages import communicate
 
@@ -121,6 +122,53 @@ def test_a_kms_subscription_goes_at_start_again_at_once_and_when_a_ta_is_back() 
     km.agent._acquire()
     km.agent._dispatch()
     assert len(km.mine(P.SUBSCRIBE)) == 3  # back: a restarted a_ta has lost it
+
+
+def test_one_role_keeps_two_subscriptions_apart_and_unsubscribe_ends_one() -> None:
+    """a_km keeps its environment subscription and a watch (L_WM ``Subscription`` topic
+    ``watch``) in the one C6 fipa-subscribe role: each answer reaches the subscription whose
+    conversation it is in (``StandingSubscription.owns``), ``Roles.unsubscribe`` cancels the
+    watch's attempt and no other follows, and a second subscription of a kept conversation-id
+    is refused."""
+    km = Wire(KnowledgeManager)
+    km.agent.setup()
+    km.agent._dispatch()
+    env = km.agent.environment
+    watch = km.agent.roles.subscribe(
+        "C6",
+        "fipa-subscribe",
+        Subscription("watch", period_s=0.25),
+        conversation_id="km-watch",
+        at_start=True,
+    )
+    km.agent._dispatch()
+    sent = {m.conversation_id: m.reply_with for m in km.mine(P.SUBSCRIBE)}
+    assert set(sent) == {"km-environment", "km-watch"}
+    km.deliver(
+        communicate(P.AGREE, "a_ta", "a_km", "fipa-subscribe", "km-watch", in_reply_to=sent["km-watch"])
+    )
+    km.step("idle")
+    assert watch.subscribed and not env.subscribed  # the watch's agree is the watch's alone
+    km.deliver(
+        communicate(
+            P.AGREE, "a_ta", "a_km", "fipa-subscribe", "km-environment", in_reply_to=sent["km-environment"]
+        )
+    )
+    km.step("idle")
+    assert env.subscribed
+    with pytest.raises(KeyError, match="keeps the subscription km-watch"):
+        km.agent.roles.subscribe("C6", "fipa-subscribe", Subscription("watch"), conversation_id="km-watch")
+    km.agent.roles.unsubscribe(watch)
+    km.agent._dispatch()
+    (cancel,) = km.mine(P.CANCEL)
+    assert cancel.conversation_id == "km-watch" and not watch.subscribed and watch.retry_at is None
+    assert env.subscribed  # the other subscription of the role stands
+    watch.retry_at = 0.0  # were an attempt due, none is made: the role keeps it no more
+    km.agent._acquire()
+    km.agent._dispatch()
+    assert [m.conversation_id for m in km.mine(P.SUBSCRIBE)].count("km-watch") == 1
+    km.agent.roles.unsubscribe(watch)  # not kept: nothing
+    assert len(km.mine(P.CANCEL)) == 1
 
 
 def test_a_role_that_keeps_no_subscription_refuses_to_keep_one() -> None:
