@@ -198,8 +198,10 @@ def fill(module: Path, doc: Path = DOC, numbers: Numbers | None = None, terms: s
     assert text.count(role) == 1, role
     text = text.replace(role, role[:-1] + ", " + RESUBSCRIBES + ")")
     future = "from __future__ import annotations\n\n"
-    agent = "from services.runtime.agent import Agent\n"
-    assert text.count(future) == 1 and text.count(agent) == 1
+    lines = text.splitlines(keepends=True)
+    agents = [x for x in lines if x.startswith("from services.runtime.agent import ")]
+    assert text.count(future) == 1 and len(agents) == 1, agents
+    agent = agents[0]
     assert text.count("from shared.fipa_codec import Performative") == 1
     text = text.replace(future, future + IMPORTS[0])
     if terms is None:
