@@ -15,6 +15,7 @@ import pytest
 
 from shared.fipa_codec.languages.l_ex import Arm, CommandResult, Grasp, MoveJoints, Observe, Wait
 from shared.fipa_codec.languages.l_sd import Observation
+from tests.support.hold import Hold
 from velma.control.compiled import compiled_available
 from velma.executor import ExecutorProcess
 from velma.executor.loop import ControlLoop
@@ -67,6 +68,16 @@ def test_commands_cross_and_state_is_published(ex: ExecutorProcess) -> None:
 def test_bad_command_is_answered_and_loop_goes_on(ex: ExecutorProcess) -> None:
     r = _submit(ex, MoveJoints(positions={"no_such_joint": 0.0}, duration=1.0)).get(timeout=60)
     assert isinstance(r, CommandResult) and not r.ok and r.reason == "unknown joint: no_such_joint"
+    assert _submit(ex, Wait(duration=0.01)).get(timeout=60).ok  # type: ignore[union-attr]
+
+
+def test_a_command_the_loop_s_process_does_not_know_is_answered_and_loop_goes_on(ex: ExecutorProcess) -> None:
+    """A command with no row of L_EX ``COMMANDS`` in the loop's process (tests/support/hold.py's
+    ``Hold``, registered nowhere: the loop's process imports only what its own modules import)
+    fails by name, and the loop goes on."""
+    r = _submit(ex, Hold(duration=0.01)).get(timeout=60)
+    assert isinstance(r, CommandResult) and not r.ok, r
+    assert r.command == "hold" and r.reason == "not an executor command in the loop's process: hold", r
     assert _submit(ex, Wait(duration=0.01)).get(timeout=60).ok  # type: ignore[union-attr]
 
 

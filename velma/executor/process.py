@@ -12,7 +12,9 @@ Hand-offs (all non-blocking on the loop's side):
 - commands: ``SpscRing`` communication side → loop (``Submit``, ``Cancel``, ``Hold``, ``Safe``,
   ``Displace``, ``Pace``, ``Shutdown``), polled once per cycle (up to ``INBOX_PER_CYCLE``
   messages): a ``Cancel`` halts its command in the cycle that takes it
-  (velma/executor/loop.py ``ControlLoop.cancel``);
+  (velma/executor/loop.py ``ControlLoop.cancel``); a ``Submit`` carries its command's bytes,
+  which the loop decodes with the L_EX commands of its own process (``COMMANDS``), answering
+  one it does not know with the failure ``not an executor command in the loop's process: NAME``;
 - results: ``SpscRing`` loop → communication side (``Ready``, ``Started``, ``Done``,
   ``Halting``, ``Fault``), plus one byte on a non-blocking pipe (a doorbell) so that the reader
   thread sleeps until there is news; ``Started`` says when (simulation) the loop started a
@@ -71,7 +73,7 @@ import msgspec
 import numpy as np
 import numpy.typing as npt
 
-from shared.fipa_codec.languages.l_ex import CommandResult, ExecutorCommand, command_name
+from shared.fipa_codec.languages.l_ex import CommandResult, ExecutorCommand, command_decoder, command_name
 from shared.fipa_codec.languages.l_sd import Observation
 from shared.settings import Settings
 from velma.executor.camera_process import CameraProcess, CameraSpec
@@ -131,10 +133,15 @@ class WorldState(NamedTuple):
 
 # ---------------------------------------------------------------------- wire messages
 class Submit(msgspec.Struct, frozen=True, tag="submit"):
-    """Run ``command``; its result comes back as ``Done`` with the same ``token``."""
+    """Run the L_EX command ``name`` whose msgpack bytes are ``command``; its result comes back
+    as ``Done`` with the same ``token``. The loop decodes the command with the commands its own
+    process knows (L_EX ``COMMANDS``, ``command_decoder``), not a fixed union: a command added
+    with ``add_command`` reaches it as the built-in ones do (docs/executor.md, "Adding a robot
+    primitive")."""
 
     token: int
-    command: ExecutorCommand
+    name: str
+    command: msgspec.Raw
 
 
 class Cancel(msgspec.Struct, frozen=True, tag="cancel"):
@@ -277,6 +284,7 @@ def loop_main(config: bytes, doorbell: multiprocessing.connection.Connection) ->
     os.set_blocking(bell, False)
     encode = msgspec.msgpack.Encoder().encode
     decode = msgspec.msgpack.Decoder(ToLoop).decode
+    read_command = command_decoder()
 
     try:
         link = RobotLink.attach(cfg.world_link) if cfg.world_link else None
@@ -350,7 +358,12 @@ def loop_main(config: bytes, doorbell: multiprocessing.connection.Connection) ->
                 break
             msg = decode(raw)
             if isinstance(msg, Submit):
-                loop.submit(msg.token, msg.command)
+                try:
+                    loop.submit(msg.token, read_command(msg.command))
+                except msgspec.ValidationError:  # no row of COMMANDS in this process
+                    unknown = f"not an executor command in the loop's process: {msg.name}"
+                    failed = CommandResult(command=msg.name, ok=False, reason=unknown, sim_time=rt.time)
+                    pending.append(encode(Done(token=msg.token, result=failed)))
             elif isinstance(msg, Cancel):
                 ended = loop.cancel(msg.token)
                 if ended == [] and loop.current is not None:  # it runs: the halt begins now
@@ -650,7 +663,11 @@ class ExecutorProcess:
         reason: str | None = None
         if self._commands is None or not self.alive:
             reason = f"executor loop not running{': ' + self.exit_reason if self.exit_reason else ''}"
-        elif not self._commands.push(self._encode(Submit(token=token, command=command))):
+        elif not self._commands.push(
+            self._encode(
+                Submit(token=token, name=command_name(command), command=msgspec.Raw(self._encode(command)))
+            )
+        ):
             reason = "executor busy: command queue full"
         if reason is not None:
             self._answer(token, CommandResult(command=command_name(command), ok=False, reason=reason))

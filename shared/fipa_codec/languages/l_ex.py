@@ -9,6 +9,8 @@ O_Velma (the robot's frames and joints), not O_RoCo.
 from __future__ import annotations
 
 import enum
+import functools
+import operator
 import typing
 
 import msgspec
@@ -212,3 +214,12 @@ def add_command(command: type[msgspec.Struct]) -> None:
     (no tag, a tag or name taken, a term of another language)."""
     extend(L_EX.name, command)
     COMMANDS[str(command.__struct_config__.tag)] = command
+
+
+def command_decoder() -> typing.Callable[[bytes], ExecutorCommand]:
+    """A decoder of one L_EX command from its msgpack bytes, for the commands ``COMMANDS`` holds
+    now (those of ``ExecutorCommand`` and any :func:`add_command` added in this process). The
+    decoder raises msgspec.ValidationError for a command it does not know, msgspec.DecodeError
+    for bytes that are no msgpack."""
+    commands: typing.Any = functools.reduce(operator.or_, COMMANDS.values())
+    return msgspec.msgpack.Decoder(commands).decode
