@@ -5,10 +5,12 @@ from (velma/world/files.py ``LinkWatch``)."""
 
 from __future__ import annotations
 
+import contextlib
 import queue
 import threading
+from collections.abc import Callable, Iterator
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
 import pytest
 
@@ -25,6 +27,39 @@ TIMEOUT_S = 30.0
 
 def name_link(run_dir: Path, name: str) -> None:
     write_whole(run_dir / LINK_FILE, (name + "\n").encode())
+
+
+F = TypeVar("F")
+
+
+@contextlib.contextmanager
+def linked_ag_ex(
+    run_dir: Path, monkeypatch: pytest.MonkeyPatch, fake: Callable[[str], F]
+) -> Iterator[tuple[queue.SimpleQueue[F], Peer, ExecutorAgent]]:
+    """ag_ex on a MemoryBus in ``run_dir`` attached to a world named ``psm_old``, each executor
+    it makes ``fake(world link)``: yields the executors as they are made, a_ta's end of C5 and
+    the agent; the agent is stopped after, and its thread joined."""
+    monkeypatch.setenv("ROCO_RUN_DIR", str(run_dir))
+    name_link(run_dir, "psm_old")
+    made: queue.SimpleQueue[F] = queue.SimpleQueue()
+
+    class Ex(ExecutorAgent):
+        def make_executor(self) -> Any:
+            executor = fake(self._world_link())
+            made.put(executor)
+            return executor
+
+    bus = MemoryBus()
+    a_ta = Peer(bus, "a_ta", "ag_ex", "C5")
+    agent = Ex(bus.transport())
+    agent.bind()
+    thread = threading.Thread(target=agent.run, daemon=True)
+    thread.start()
+    try:
+        yield made, a_ta, agent
+    finally:
+        agent.stop()
+        thread.join(TIMEOUT_S)
 
 
 def test_the_watch_tells_a_new_link_once_and_not_a_world_that_is_away(tmp_path: Path) -> None:
@@ -67,23 +102,7 @@ class LinkedFake:
 def test_ag_ex_reattaches_to_a_world_started_anew_and_names_it_in_its_answers(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    monkeypatch.setenv("ROCO_RUN_DIR", str(tmp_path))
-    name_link(tmp_path, "psm_old")
-    made: queue.SimpleQueue[LinkedFake] = queue.SimpleQueue()
-
-    class Ex(ExecutorAgent):
-        def make_executor(self) -> Any:
-            fake = LinkedFake(self._world_link())
-            made.put(fake)
-            return fake
-
-    bus = MemoryBus()
-    a_ta = Peer(bus, "a_ta", "ag_ex", "C5")
-    agent = Ex(bus.transport())
-    agent.bind()
-    thread = threading.Thread(target=agent.run, daemon=True)
-    thread.start()
-    try:
+    with linked_ag_ex(tmp_path, monkeypatch, LinkedFake) as (made, a_ta, agent):
         first = made.get(timeout=TIMEOUT_S)
         assert first.started.wait(TIMEOUT_S)
 
@@ -113,6 +132,3 @@ def test_ag_ex_reattaches_to_a_world_started_anew_and_names_it_in_its_answers(
         assert told() == PowerOn(world="psm_new")  # told before any command
         assert answer("after").world == "psm_new"
         assert agent.counters["world_restarts"] == 1
-    finally:
-        agent.stop()
-        thread.join(TIMEOUT_S)

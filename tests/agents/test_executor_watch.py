@@ -21,7 +21,7 @@ from shared.fipa_codec import Communicate, Performative
 from shared.fipa_codec.languages import decode_content
 from shared.fipa_codec.languages.l_ex import Watch
 from shared.fipa_codec.languages.l_sd import Observation
-from tests.agents.test_executor_power_cycle import name_link
+from tests.agents.test_executor_power_cycle import linked_ag_ex, name_link
 from tests.support.peer import Peer
 
 TIMEOUT_S = 30.0
@@ -141,23 +141,7 @@ def test_after_a_power_cycle_the_new_loop_watches_again(
 ) -> None:
     """The world started anew (a new link): ag_ex's new executor is asked for the watch served,
     and its frames name the new power-on."""
-    monkeypatch.setenv("ROCO_RUN_DIR", str(tmp_path))
-    name_link(tmp_path, "psm_old")
-    made: queue.SimpleQueue[WatchingFake] = queue.SimpleQueue()
-
-    class Ex(ExecutorAgent):
-        def make_executor(self) -> Any:
-            fake = WatchingFake(self._world_link())
-            made.put(fake)
-            return fake
-
-    bus = MemoryBus()
-    a_ta = Peer(bus, "a_ta", "ag_ex", "C5")
-    agent = Ex(bus.transport())
-    agent.bind()
-    thread = threading.Thread(target=agent.run, daemon=True)
-    thread.start()
-    try:
+    with linked_ag_ex(tmp_path, monkeypatch, WatchingFake) as (made, a_ta, _):
         first = made.get(timeout=TIMEOUT_S)
         a_ta.send(Performative.SUBSCRIBE, "fipa-subscribe", "watch-1", Watch(period_s=0.5))
         assert a_ta.got.get(timeout=TIMEOUT_S).performative is Performative.AGREE
@@ -171,9 +155,6 @@ def test_after_a_power_cycle_the_new_loop_watches_again(
         assert inform.conversation_id == "watch-1" and _content(inform) == Observation(
             stamp=0.5, objects=(), world="psm_new"
         )
-    finally:
-        agent.stop()
-        thread.join(TIMEOUT_S)
 
 
 class _Sink:
