@@ -29,6 +29,7 @@ from services.fault.cli import fault_app
 from services.gateway.cli import gateway_app
 from services.hosts.cli import hosts_app
 from services.replay.cli import replay_app
+from services.ros2.cli import export_app
 from services.scenario.chaos_cli import chaos_app
 from services.scenario.cli import scenario_app
 from services.sniff.cli import sniff_app
@@ -50,6 +51,7 @@ for commands in (
     replay_app,  # replay
     doctor_app,  # doctor
     report_app,  # report
+    export_app,  # export
 ):
     app.add_typer(commands)
 spec_app.add_typer(new_agent_app)  # spec new-agent: in deploy, as it writes the compose files too

@@ -136,8 +136,13 @@ def shown(path: Path) -> str:
 
 # ------------------------------------------------------------------ checks made before a run
 def run_folder(path: Path) -> Path:
-    """``path`` when it is a run folder (``run.json`` or ``traffic.jsonl`` in it); one line and
-    exit 2 otherwise, before anything is read or written."""
+    """``path`` when it is a run folder (``run.json`` or ``traffic.jsonl`` in it) or a rosbag2
+    folder of ``roco export`` (services/ros2/bag.py); one line and exit 2 otherwise, before
+    anything is read or written."""
+    from services.ros2.bag import is_bag
+
+    if is_bag(path):
+        return path
     try:
         check_run_folder(path)
     except RunFolderError as exc:

@@ -91,9 +91,14 @@ def load_run(run_dir: Path) -> RunData:
     if not run_dir.is_dir():
         raise FileNotFoundError(errno.ENOENT, "run folder not found", str(run_dir))
     notes: list[str] = []
-    info = _read_info(run_dir, notes)
-    records = _read_records(run_dir, notes)
-    payloads = _read_raw(run_dir, notes, expect=bool(records))
+    if _is_bag(run_dir):  # a rosbag2 folder of roco export: the record from its /roco/traffic
+        info, records, payloads = _read_bag(run_dir, notes)
+        raw_present = True
+    else:
+        info = _read_info(run_dir, notes)
+        records = _read_records(run_dir, notes)
+        payloads = _read_raw(run_dir, notes, expect=bool(records))
+        raw_present = (run_dir / TRAFFIC_RAW).exists()
     if info is not None and info.started > 0:
         t0 = info.started
     elif records:
@@ -101,7 +106,6 @@ def load_run(run_dir: Path) -> RunData:
         notes.append("run start unknown (no run.json `started`): times count from the first record")
     else:
         t0 = 0.0
-    raw_present = (run_dir / TRAFFIC_RAW).exists()
     checked, comms = integrity.check(records, payloads if raw_present else [])
     if raw_present and not checked.intact:
         notes.insert(0, f"traffic record {checked.summary()}")
@@ -124,6 +128,29 @@ def _mark_copies(messages: list[Message], payloads: dict[RecordKey, bytes]) -> N
             messages[i] = dataclasses.replace(m, copy_of=first[d])
         else:
             first[d] = m.rec.seq
+
+
+def _is_bag(run_dir: Path) -> bool:
+    from services.ros2.bag import is_bag
+
+    return is_bag(run_dir)
+
+
+def _read_bag(
+    run_dir: Path, notes: list[str]
+) -> tuple[RunInfo | None, list[TrafficRecord], list[tuple[RecordKey, bytes]]]:
+    """run.json, records and payloads of a bag folder (services/ros2/bag.py); its problems as
+    notes."""
+    from services.ros2.bag import BagError, read_bag
+    from services.ros2.messages import MissingExtra
+
+    try:
+        bag = read_bag(run_dir)
+    except (BagError, MissingExtra) as exc:
+        notes.append(str(exc))
+        return None, [], []
+    notes.extend(bag.notes)
+    return bag.info, bag.records, bag.payloads
 
 
 def _read_info(run_dir: Path, notes: list[str]) -> RunInfo | None:
