@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING, Annotated, Any, Literal
 import typer
 
 from services.fleet_state import FLEET_FILE, FleetState, FleetStateError, read_state
-from services.runtime.run_folder import RunFolderError, check_run_folder, new_run_dir
+from services.runtime.run_folder import RunFolderError, check_run_folder, is_bag_folder, new_run_dir
 from services.runtime.session import SessionRefused, listening, open_operator, port_in_use
 from services.security.context import register
 from shared.settings import ROUTER_PORT, Settings
@@ -139,9 +139,7 @@ def run_folder(path: Path) -> Path:
     """``path`` when it is a run folder (``run.json`` or ``traffic.jsonl`` in it) or a rosbag2
     folder of ``roco export`` (services/ros2/bag.py); one line and exit 2 otherwise, before
     anything is read or written."""
-    from services.ros2.bag import is_bag
-
-    if is_bag(path):
+    if is_bag_folder(path):
         return path
     try:
         check_run_folder(path)

@@ -106,11 +106,51 @@ def compiled_runtime_check() -> Check:
     return Check("compiled agent runtime", Use.SPEED, ok, detail, "" if ok else "pip install -e . again")
 
 
+ROS2_EXTRA = "ros2"
+ROS2_HOW = "pip install -e '.[ros2]' (rosbags, mcap, mcap-ros2-support)"
+
+
+def extra_requirements(extra: str, pyproject: Path = PYPROJECT) -> list[Requirement]:
+    """The requirements of roco's optional ``extra`` (``[project.optional-dependencies]`` of
+    ``pyproject``, else the installed distribution's metadata); none when unreadable."""
+    lines: list[str] = []
+    try:
+        lines = list(tomllib.loads(pyproject.read_text())["project"]["optional-dependencies"][extra])
+    except (tomllib.TOMLDecodeError, KeyError, OSError):
+        try:
+            marker = f'extra == "{extra}"'
+            lines = [r.split(";")[0] for r in importlib.metadata.requires("roco") or [] if marker in r]
+        except importlib.metadata.PackageNotFoundError:
+            lines = []
+    out = []
+    for line in lines:
+        try:
+            out.append(Requirement(line))
+        except InvalidRequirement:
+            continue
+    return out
+
+
+def ros2_extra_check() -> Check:
+    """The ``ros2`` extra (rosbags, mcap, mcap-ros2-support) that ``roco export --mcap`` and
+    reading its bags need: one line, every library of it installed at a version it allows."""
+    found: list[str] = []
+    lacking: list[str] = []
+    for req in extra_requirements(ROS2_EXTRA):
+        c = library_check(req)
+        (found if c.found else lacking).append(f"{req.name} {c.detail}")
+    ok = not lacking and bool(found)
+    detail = ", ".join(found) if ok else "; ".join(lacking) or "the ros2 extra is not declared"
+    return Check("ROS 2 formats (ros2 extra)", Use.EXPORT, ok, detail, "" if ok else ROS2_HOW)
+
+
 def checks() -> list[Check]:
-    """Python, every library of :func:`requirements`, the compiled law and runtime."""
+    """Python, every library of :func:`requirements`, the compiled law and runtime, the ros2
+    extra."""
     return [
         python_check(),
         *(library_check(r) for r in requirements()),
         compiled_law_check(),
         compiled_runtime_check(),
+        ros2_extra_check(),
     ]

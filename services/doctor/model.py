@@ -19,6 +19,7 @@ class Use(enum.Enum):
     VIEWER = "viewer screenshot"
     FLEET = "fleet credentials"
     SETTINGS = "settings"
+    EXPORT = "roco export"
 
 
 @dataclass(frozen=True)

@@ -19,7 +19,7 @@ import msgspec
 from services.recorder import integrity
 from services.recorder.record import TRAFFIC_JSONL, TRAFFIC_RAW, RecordKey, TrafficRecord, read_payloads
 from services.runtime.dedup import wire_digest
-from services.runtime.run_folder import RUN_INFO, RunInfo, read_run_info
+from services.runtime.run_folder import RUN_INFO, RunInfo, is_bag_folder, read_run_info
 from services.spec.model import SpecError
 from services.spec.terms import load_spec_terms
 from shared.fipa_codec import Communicate
@@ -91,14 +91,7 @@ def load_run(run_dir: Path) -> RunData:
     if not run_dir.is_dir():
         raise FileNotFoundError(errno.ENOENT, "run folder not found", str(run_dir))
     notes: list[str] = []
-    if _is_bag(run_dir):  # a rosbag2 folder of roco export: the record from its /roco/traffic
-        info, records, payloads = _read_bag(run_dir, notes)
-        raw_present = True
-    else:
-        info = _read_info(run_dir, notes)
-        records = _read_records(run_dir, notes)
-        payloads = _read_raw(run_dir, notes, expect=bool(records))
-        raw_present = (run_dir / TRAFFIC_RAW).exists()
+    info, records, payloads, raw_present = _read_sources(run_dir, notes)
     if info is not None and info.started > 0:
         t0 = info.started
     elif records:
@@ -130,10 +123,17 @@ def _mark_copies(messages: list[Message], payloads: dict[RecordKey, bytes]) -> N
             first[d] = m.rec.seq
 
 
-def _is_bag(run_dir: Path) -> bool:
-    from services.ros2.bag import is_bag
-
-    return is_bag(run_dir)
+def _read_sources(
+    run_dir: Path, notes: list[str]
+) -> tuple[RunInfo | None, list[TrafficRecord], list[tuple[RecordKey, bytes]], bool]:
+    """run.json, the records, the payloads and whether a raw stream was there: from the run
+    folder's files, or from the /roco/traffic of a rosbag2 folder of roco export."""
+    if is_bag_folder(run_dir):
+        return (*_read_bag(run_dir, notes), True)
+    info = _read_info(run_dir, notes)
+    records = _read_records(run_dir, notes)
+    payloads = _read_raw(run_dir, notes, expect=bool(records))
+    return info, records, payloads, (run_dir / TRAFFIC_RAW).exists()
 
 
 def _read_bag(

@@ -16,11 +16,11 @@ import msgspec
 
 from services.recorder.record import RecordKey, TrafficRecord
 from services.ros2 import messages
-from services.runtime.run_folder import RunInfo
+from services.runtime.run_folder import BAG_METADATA, RunInfo, is_bag_folder
 
 TRAFFIC_TOPIC = "/roco/traffic"
 MCAP_NAME = "run.mcap"
-METADATA_YAML = "metadata.yaml"
+METADATA_YAML = BAG_METADATA
 RUN_METADATA = "roco.run"
 """Name of the MCAP metadata record that holds the run's ``run.json`` (key ``run.json``)."""
 
@@ -39,7 +39,8 @@ class BagError(ValueError):
 
 @dataclass
 class BagTraffic:
-    """The traffic record in a bag: ``records`` in the order written, their ``payloads`` (by
+    """The traffic record in a bag: ``records`` in the order written (the MCAP messages'
+    ``sequence``), their ``payloads`` (by
     record key; a record without payload has none), ``info`` (run.json; None when the bag has
     none) and ``notes``."""
 
@@ -49,10 +50,8 @@ class BagTraffic:
     notes: list[str] = field(default_factory=list)
 
 
-def is_bag(path: Path) -> bool:
-    """True when ``path`` is a rosbag2 folder with an MCAP file (``metadata.yaml`` and a
-    ``*.mcap`` in it)."""
-    return path.is_dir() and (path / METADATA_YAML).is_file() and any(path.glob("*.mcap"))
+is_bag = is_bag_folder
+"""True when a path is a rosbag2 folder with an MCAP file (services/runtime/run_folder.py)."""
 
 
 def mcap_file(path: Path) -> Path:
@@ -68,39 +67,52 @@ def read_bag(path: Path) -> BagTraffic:
     too large (:data:`MAX_BAG_BYTES`) or corrupt, MissingExtra without the ros2 extra."""
     try:
         from mcap.exceptions import McapError
-        from mcap.reader import make_reader
     except ImportError as exc:
         raise messages.MissingExtra(
             f"reading a bag needs the ros2 extra: {messages.EXTRA_HINT} ({exc})"
         ) from None
-    from services.ros2.traffic import from_message
+    from rosbags.serde import SerdeError
 
-    store = messages.typestore()
     file = mcap_file(path)
     size = file.stat().st_size
     if size > MAX_BAG_BYTES:
         raise BagError(f"{file}: {size} bytes, more than the {MAX_BAG_BYTES} read")
     out = BagTraffic(notes=[MISSING])
     try:
-        with file.open("rb") as stream:
-            reader = make_reader(stream)
-            for meta in reader.iter_metadata():
-                if meta.name == RUN_METADATA and "run.json" in meta.metadata:
-                    out.info = _run_info(meta.metadata["run.json"], out.notes)
-            for schema, _, message in reader.iter_messages(topics=[TRAFFIC_TOPIC]):
-                if schema is None or schema.name != messages.COMMUNICATE:
-                    raise BagError(f"{file}: {TRAFFIC_TOPIC} is not of type {messages.COMMUNICATE}")
-                rec, payload = from_message(store.deserialize_cdr(message.data, messages.COMMUNICATE))
-                out.records.append(rec)
-                if payload is not None:
-                    out.payloads.append((rec.ref, payload))
-    except (McapError, OSError, ValueError, AssertionError) as exc:
-        if isinstance(exc, BagError):
-            raise
+        _read(file, out)
+    except BagError:
+        raise
+    except (McapError, SerdeError, OSError, ValueError, AssertionError) as exc:
         raise BagError(f"{file}: not a readable MCAP file of roco export ({exc})") from None
     if not out.records:
         out.notes.append(f"no {TRAFFIC_TOPIC} messages in the bag")
     return out
+
+
+def _read(file: Path, out: BagTraffic) -> None:
+    """run.json and the traffic of the MCAP ``file`` into ``out``, the records in the order
+    the traffic record was written in (the messages' ``sequence``)."""
+    from mcap.reader import make_reader
+
+    from services.ros2.traffic import from_message
+
+    store = messages.typestore()
+    with file.open("rb") as stream:
+        reader = make_reader(stream)
+        for meta in reader.iter_metadata():
+            if meta.name == RUN_METADATA and "run.json" in meta.metadata:
+                out.info = _run_info(meta.metadata["run.json"], out.notes)
+        found = []
+        for schema, _, message in reader.iter_messages(topics=[TRAFFIC_TOPIC]):
+            if schema is None or schema.name != messages.COMMUNICATE:
+                raise BagError(f"{file}: {TRAFFIC_TOPIC} is not of type {messages.COMMUNICATE}")
+            found.append((message.sequence, message.data))
+    found.sort(key=lambda sd: sd[0])
+    for _, data in found:
+        rec, payload = from_message(store.deserialize_cdr(data, messages.COMMUNICATE))
+        out.records.append(rec)
+        if payload is not None:
+            out.payloads.append((rec.ref, payload))
 
 
 def _run_info(text: str, notes: list[str]) -> RunInfo | None:

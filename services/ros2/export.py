@@ -5,7 +5,9 @@
 Topics: the robot's state (:mod:`services.ros2.state`) when the run kept ``recording.rrd``,
 and every communicate of the traffic record on ``/roco/traffic`` as ``roco_msgs/msg/Communicate``
 (:mod:`services.ros2.traffic`). Each message's log time is when it was logged (POSIX ns: the
-recorder's arrival time for a communicate); header stamps are robot time. The run's
+recorder's arrival time for a communicate); header stamps are robot time. A communicate's MCAP
+``sequence`` is its place in the traffic record as written (messages are stored in log-time
+order, which may differ). The run's
 ``run.json`` travels in the MCAP file as the metadata record ``roco.run``.
 
 CDR by rosbags (``Typestore.serialize_cdr``), the MCAP file by ``mcap`` (its ``Writer``).
@@ -116,10 +118,10 @@ def traffic_messages(run_dir: Path, clock: tuple[np.ndarray, np.ndarray]) -> tup
     stamps = robot_time(walls, clock)
     lost = 0
     out = []
-    for rec, wall, stamp in zip(records, walls.tolist(), stamps.tolist(), strict=True):
+    for index, (rec, wall, stamp) in enumerate(zip(records, walls.tolist(), stamps.tolist(), strict=True)):
         payload = payloads.get(rec.ref)
         lost += payload is None
-        out.append(Out(TRAFFIC_TOPIC, messages.COMMUNICATE, wall, to_message(rec, payload, stamp)))
+        out.append(Out(TRAFFIC_TOPIC, messages.COMMUNICATE, wall, to_message(rec, payload, stamp), index))
     if lost:
         notes.append(f"{lost} communicate(s) without their payload in {TRAFFIC_RAW}: exported without")
     return out, notes
@@ -195,7 +197,8 @@ def _write(out: Path, store: Any, items: list[Out], run_json: str | None, result
             )
         for item in items:
             data = bytes(store.serialize_cdr(item.message, item.typename, little_endian=True))
-            writer.add_message(channels[item.topic], item.log_time, data, item.log_time, counts[item.topic])
+            sequence = counts[item.topic] if item.sequence is None else item.sequence
+            writer.add_message(channels[item.topic], item.log_time, data, item.log_time, sequence)
             counts[item.topic] += 1
         info = _bag_info(topics, counts, items)
         writer.add_metadata("rosbag2", {"serialized_metadata": json.dumps(info), "ROS_DISTRO": ROS_DISTRO})

@@ -102,25 +102,16 @@ def read_recording(path: Path) -> RobotRecording:
     """The robot state logged in the recording ``path``. Raises FileNotFoundError when it is
     missing, RecordingError when it is larger than :data:`MAX_RECORDING_BYTES`, holds more than
     :data:`MAX_ROWS` rows or does not read (rerun-sdk's error named)."""
-    from rerun.chunk import RrdReader
-
     size = path.stat().st_size
     if size > MAX_RECORDING_BYTES:
         raise RecordingError(f"{path}: {size} bytes, more than the {MAX_RECORDING_BYTES} read")
     out = RobotRecording()
     ft_axes: dict[str, dict[str, list[ScalarRow]]] = {}
     try:
-        for chunk in RrdReader(path).stream():
-            entity = chunk.entity_path
-            if not (entity.startswith((_WORLD, _FT)) or entity == _JOINTS):
-                continue
-            batch = chunk.to_record_batch()
-            _take(out, ft_axes, entity, chunk.is_static, {n: batch.column(n) for n in batch.schema.names})
-            if out.rows > MAX_ROWS:
-                raise RecordingError(f"{path}: more than {MAX_ROWS} rows of robot state")
+        _read_chunks(path, out, ft_axes)
+    except RecordingError:
+        raise
     except (OSError, ValueError) as exc:
-        if isinstance(exc, RecordingError):
-            raise
         raise RecordingError(f"{path}: not a readable Rerun recording ({exc})") from None
     for side, axes in ft_axes.items():
         out.ft[side] = _wrenches(axes)
@@ -131,54 +122,69 @@ def read_recording(path: Path) -> RobotRecording:
     return out
 
 
-def _take(
-    out: RobotRecording,
-    ft_axes: dict[str, dict[str, list[ScalarRow]]],
-    entity: str,
-    static: bool,
-    cols: dict[str, Any],
+def _read_chunks(path: Path, out: RobotRecording, ft_axes: dict[str, dict[str, list[ScalarRow]]]) -> None:
+    """Every chunk of the robot's entities in ``path`` into ``out`` (wrench axes into
+    ``ft_axes``); RecordingError past :data:`MAX_ROWS`."""
+    from rerun.chunk import RrdReader
+
+    for chunk in RrdReader(path).stream():
+        entity = chunk.entity_path
+        if not (entity.startswith((_WORLD, _FT)) or entity == _JOINTS):
+            continue
+        batch = chunk.to_record_batch()
+        cols = {n: batch.column(n) for n in batch.schema.names}
+        if chunk.is_static:
+            _take_static(out, entity, cols)
+        elif "wall" in cols and "sim_time" in cols:
+            _take_rows(out, ft_axes, entity, cols)
+        if out.rows > MAX_ROWS:
+            raise RecordingError(f"{path}: more than {MAX_ROWS} rows of robot state")
+
+
+def _take_static(out: RobotRecording, entity: str, cols: dict[str, Any]) -> None:
+    """The joints' names and the camera's pinhole model (static rows)."""
+    if entity == _JOINTS and "SeriesLines:names" in cols:
+        out.joint_names = tuple(cols["SeriesLines:names"].to_pylist()[-1])
+    elif entity == _CAMERA and "Pinhole:image_from_camera" in cols:
+        flat = cols["Pinhole:image_from_camera"].to_pylist()[-1][0]
+        k = np.asarray(flat, dtype=float).reshape(3, 3).T  # Rerun's Mat3x3 is column-major
+        out.intrinsics = (_vec3(k[0]), _vec3(k[1]), _vec3(k[2]))
+        w, h = cols["Pinhole:resolution"].to_pylist()[-1][0]
+        out.resolution = (round(w), round(h))
+
+
+def _take_rows(
+    out: RobotRecording, ft_axes: dict[str, dict[str, list[ScalarRow]]], entity: str, cols: dict[str, Any]
 ) -> None:
-    """Add one chunk's rows (its columns ``cols``, pyarrow arrays) to ``out``."""
-    if static:
-        if entity == _JOINTS and "SeriesLines:names" in cols:
-            out.joint_names = tuple(cols["SeriesLines:names"].to_pylist()[-1])
-        elif entity == _CAMERA and "Pinhole:image_from_camera" in cols:
-            flat = cols["Pinhole:image_from_camera"].to_pylist()[-1][0]
-            k = np.asarray(flat, dtype=float).reshape(3, 3).T  # Rerun's Mat3x3 is column-major
-            out.intrinsics = (_vec3(k[0]), _vec3(k[1]), _vec3(k[2]))
-            w, h = cols["Pinhole:resolution"].to_pylist()[-1][0]
-            out.resolution = (round(w), round(h))
-        return
-    if "wall" not in cols or "sim_time" not in cols:
-        return
+    """One chunk's timed rows (its columns ``cols``, pyarrow arrays) into ``out``."""
+    walls = cols["wall"].cast("int64").to_pylist()
     stamps = [
-        Stamp(int(w), int(s))
-        for w, s in zip(
-            cols["wall"].cast("int64").to_pylist(), cols["sim_time"].cast("int64").to_pylist(), strict=True
-        )
+        Stamp(int(w), int(s)) for w, s in zip(walls, cols["sim_time"].cast("int64").to_pylist(), strict=True)
     ]
     if entity == _JOINTS:
-        out.joints += [
-            ScalarRow(t, tuple(v)) for t, v in zip(stamps, _column(cols, "Scalars:scalars"), strict=True) if v
-        ]
+        out.joints += _scalar_rows(stamps, cols)
     elif entity.startswith(_FT):
         side, _, axis = entity[len(_FT) :].partition("/")
-        rows = ft_axes.setdefault(side, {}).setdefault(axis, [])
-        rows += [
-            ScalarRow(t, tuple(v)) for t, v in zip(stamps, _column(cols, "Scalars:scalars"), strict=True) if v
-        ]
+        ft_axes.setdefault(side, {}).setdefault(axis, []).extend(_scalar_rows(stamps, cols))
     elif entity == _CAMERA:
         _take_frames(out, stamps, cols)
     elif "Transform3D:translation" in cols and "Transform3D:quaternion" in cols:
         poses = out.poses.setdefault(entity[len(_WORLD) :], [])
-        for t, p, q in zip(
-            stamps,
-            _column(cols, "Transform3D:translation"),
-            _column(cols, "Transform3D:quaternion"),
-            strict=True,
-        ):
-            if p and q:
-                poses.append(PoseRow(t, _vec3(p[0]), _quat(q[0])))
+        translations = _column(cols, "Transform3D:translation")
+        quaternions = _column(cols, "Transform3D:quaternion")
+        poses += [
+            PoseRow(t, _vec3(p[0]), _quat(q[0]))
+            for t, p, q in zip(stamps, translations, quaternions, strict=True)
+            if p and q
+        ]
+
+
+def _scalar_rows(stamps: list[Stamp], cols: dict[str, Any]) -> list[ScalarRow]:
+    if "Scalars:scalars" not in cols:
+        return []
+    return [
+        ScalarRow(t, tuple(v)) for t, v in zip(stamps, _column(cols, "Scalars:scalars"), strict=True) if v
+    ]
 
 
 def _take_frames(out: RobotRecording, stamps: list[Stamp], cols: dict[str, Any]) -> None:

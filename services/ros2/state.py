@@ -52,40 +52,50 @@ MAX_IMAGE_PIXELS = 4096 * 4096
 
 class Out(NamedTuple):
     """One message to write: ``topic``, ROS 2 ``typename``, ``log_time`` (POSIX ns, when it
-    was logged) and the rosbags ``message``."""
+    was logged), the rosbags ``message`` and its ``sequence`` number in the topic (None: in
+    the order of log times)."""
 
     topic: str
     typename: str
     log_time: int
     message: Any
+    sequence: int | None = None
 
 
 def wrench_topic(side: str) -> str:
     return f"/{side}_ft_sensor/wrench"
 
 
+_WORLD_CHILD: dict[tuple[str, ...], str] = {
+    ("robot", "links"): "{}",
+    ("robot", "grip"): "{}_HandGripLink",
+    ("robot", "setpoint"): "{}_HandGripLink_setpoint",
+    ("objects",): "{}",
+}
+"""Recording path below ``world/`` without its last part → the frame (of that last part) that
+``world`` is the parent of."""
+
+
 def child_frame(path: str) -> tuple[str, str] | None:
     """(parent frame, child frame) of a recording pose path below ``world/`` (None: not a
     frame of the export)."""
-    parts = path.split("/")
-    if parts[:2] == ["robot", "links"] and len(parts) == 3:
-        return WORLD, parts[2]
-    if parts[:2] == ["robot", "links"] and len(parts) > 3:
-        palm = parts[2]
-        side = palm.split("_", 1)[0]
-        finger = "/".join(parts[3:])
-        parent_path = "/".join(parts[3:-1])
-        by_path = {f.path: f"{side}_{f.joint.removesuffix('Joint')}Link" for f in FINGER_LINKS}
-        if finger not in by_path:
-            return None
-        return by_path.get(parent_path, palm), by_path[finger]
-    if parts[:2] == ["robot", "grip"] and len(parts) == 3:
-        return WORLD, f"{parts[2]}_HandGripLink"
-    if parts[:2] == ["robot", "setpoint"] and len(parts) == 3:
-        return WORLD, f"{parts[2]}_HandGripLink_setpoint"
-    if parts[0] == "objects" and len(parts) == 2:
-        return WORLD, parts[1]
+    *head, last = path.split("/")
+    pattern = _WORLD_CHILD.get(tuple(head))
+    if pattern is not None:
+        return WORLD, pattern.format(last)
+    if head[:2] == ["robot", "links"] and len(head) > 2:
+        return _finger_frame(head[2], "/".join([*head[3:], last]))
     return None
+
+
+def _finger_frame(palm: str, finger: str) -> tuple[str, str] | None:
+    """(parent, child) of finger link ``finger`` (its path below the palm's, FINGER_LINKS) of
+    the hand whose palm link is ``palm``: MJCF body names."""
+    side = palm.split("_", 1)[0]
+    by_path = {f.path: f"{side}_{f.joint.removesuffix('Joint')}Link" for f in FINGER_LINKS}
+    if finger not in by_path:
+        return None
+    return by_path.get(finger.rpartition("/")[0], palm), by_path[finger]
 
 
 def state_messages(rec: RobotRecording) -> Iterator[Out]:

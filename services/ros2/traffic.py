@@ -45,17 +45,53 @@ def time_msg(ns: int) -> Any:
     return cls(sec=ns // NANOS, nanosec=ns % NANOS)
 
 
+def _text(value: str | None) -> str:
+    return "" if value is None else value
+
+
+def _optional(text: str) -> str | None:
+    return text or None
+
+
+def _number(value: float | None) -> float:
+    return math.nan if value is None else value
+
+
+def _decoded(payload: bytes | None) -> Communicate | None:
+    try:
+        return decode(payload) if payload else None
+    except DecodeError:
+        return None
+
+
+def payload_parameters(payload: bytes | None) -> dict[str, Any]:
+    """The parameters of a ``roco_msgs/msg/Communicate`` that the traffic record does not
+    hold, read from the communicate's ``payload``: all empty (reply-by NaN) when it is lost
+    or does not decode."""
+    comm = _decoded(payload)
+    if comm is None:
+        return {
+            "reply_to": [],
+            "content": "",
+            "encoding": "",
+            "reply_with": "",
+            "in_reply_to": "",
+            "reply_by": math.nan,
+        }
+    return {
+        "reply_to": [a.name for a in comm.reply_to],
+        "content": content_text(comm),
+        "encoding": _text(comm.encoding),
+        "reply_with": _text(comm.reply_with),
+        "in_reply_to": _text(comm.in_reply_to),
+        "reply_by": _number(comm.reply_by),
+    }
+
+
 def to_message(rec: TrafficRecord, payload: bytes | None, stamp_ns: int) -> Any:
     """The ``roco_msgs/msg/Communicate`` of record ``rec`` and its ``payload`` (None: lost),
     stamped ``stamp_ns`` (robot time, ns; 0 when unknown). Parameters the record does not
-    hold (reply-to, content, encoding, reply-with, in-reply-to, reply-by) come from the
-    payload when it decodes, else are empty."""
-    comm: Communicate | None = None
-    if payload:
-        try:
-            comm = decode(payload)
-        except DecodeError:
-            comm = None
+    hold come from the payload (:func:`payload_parameters`)."""
     cls = messages.typestore().types[messages.COMMUNICATE]
     return cls(
         stamp=time_msg(stamp_ns),
@@ -66,25 +102,20 @@ def to_message(rec: TrafficRecord, payload: bytes | None, stamp_ns: int) -> Any:
         performative=rec.performative,
         sender=rec.sender,
         receiver=list(rec.receivers),
-        reply_to=[a.name for a in comm.reply_to] if comm else [],
-        content=content_text(comm) if comm else "",
-        language=rec.language or "",
-        encoding=(comm.encoding or "") if comm else "",
-        ontology=rec.ontology or "",
-        protocol=rec.protocol or "",
-        conversation_id=rec.conversation_id or "",
-        reply_with=(comm.reply_with or "") if comm else "",
-        in_reply_to=(comm.in_reply_to or "") if comm else "",
-        reply_by=comm.reply_by if comm and comm.reply_by is not None else math.nan,
+        language=_text(rec.language),
+        ontology=_text(rec.ontology),
+        protocol=_text(rec.protocol),
+        conversation_id=_text(rec.conversation_id),
         incarnation=rec.incarnation,
         seq=rec.seq,
-        source=rec.source or "",
+        source=_text(rec.source),
         sn=-1 if rec.sn is None else rec.sn,
-        t_sent=math.nan if rec.t_sent is None else rec.t_sent,
+        t_sent=_number(rec.t_sent),
         late=rec.late,
-        key_sender=rec.key_sender or "",
+        key_sender=_text(rec.key_sender),
         part=rec.part,
         payload=np.frombuffer(payload or b"", dtype=np.uint8),
+        **payload_parameters(payload),
     )
 
 
@@ -100,17 +131,17 @@ def from_message(msg: Any) -> tuple[TrafficRecord, bytes | None]:
         sender=msg.sender,
         receivers=tuple(msg.receiver),
         performative=msg.performative,
-        protocol=msg.protocol or None,
-        conversation_id=msg.conversation_id or None,
-        language=msg.language or None,
-        ontology=msg.ontology or None,
+        protocol=_optional(msg.protocol),
+        conversation_id=_optional(msg.conversation_id),
+        language=_optional(msg.language),
+        ontology=_optional(msg.ontology),
         key=msg.key,
         incarnation=msg.incarnation,
-        source=msg.source or None,
+        source=_optional(msg.source),
         sn=None if msg.sn < 0 else int(msg.sn),
         t_sent=None if math.isnan(msg.t_sent) else float(msg.t_sent),
         late=bool(msg.late),
-        key_sender=msg.key_sender or None,
+        key_sender=_optional(msg.key_sender),
         part=int(msg.part),
     )
     return rec, payload or None

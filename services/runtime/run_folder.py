@@ -116,6 +116,16 @@ def new_run_dir(root: Path) -> Path:
     return path
 
 
+BAG_METADATA = "metadata.yaml"
+"""The file that makes a folder a rosbag2 folder (``roco export --mcap`` writes one: services/ros2)."""
+
+
+def is_bag_folder(path: Path) -> bool:
+    """True when ``path`` is a rosbag2 folder holding an MCAP file (:data:`BAG_METADATA` and a
+    ``*.mcap`` in it), which the commands that read a run's traffic take in its place."""
+    return path.is_dir() and (path / BAG_METADATA).is_file() and any(path.glob("*.mcap"))
+
+
 def check_run_folder(path: Path) -> None:
     """Raise :class:`RunFolderError` unless ``path`` is a run folder: a folder holding
     ``run.json`` or ``traffic.jsonl`` (what ``roco run``, ``roco up`` and compose runs leave)."""
