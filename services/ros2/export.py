@@ -150,7 +150,7 @@ def export_run(run_dir: Path, out: Path) -> Exported:
     items.sort(key=lambda o: o.log_time)
     out.mkdir(parents=True, exist_ok=True)
     run_json = (run_dir / RUN_INFO).read_text("utf-8") if (run_dir / RUN_INFO).is_file() else None
-    _write(out, store, items, run_json, result)
+    write_bag(out, store, items, run_json, result)
     return result
 
 
@@ -165,7 +165,10 @@ def _recording(run_dir: Path, notes: list[str]) -> RobotRecording | None:
         raise ExportError(str(exc)) from None
 
 
-def _write(out: Path, store: Any, items: list[Out], run_json: str | None, result: Exported) -> None:
+def write_bag(out: Path, store: Any, items: list[Out], run_json: str | None, result: Exported) -> None:
+    """Write ``items`` (in log-time order) as the MCAP file and metadata.yaml of the folder
+    ``out`` (made), ``run_json`` as the metadata record :data:`RUN_METADATA`; the counts and
+    types into ``result``. Raises MissingExtra without mcap, OSError when writing fails."""
     try:
         from mcap.writer import CompressionType, Writer
     except ImportError as exc:
