@@ -8,7 +8,8 @@ writing CDR and MCAP). Target: the command under 10 s.
 The setup is checked first (exit 2 when it is not a real default pour with all its topics):
 ``run.json`` says ``roco run "pour the jar into the bowl"`` succeeded, the folder holds
 ``recording.rrd`` and its traffic record, and the bag holds every topic of the export with
-messages on it, as many communicates on /roco/traffic as the record has.
+messages on it, as many communicates on /roco/traffic as the record has, and ``roco spec
+verify`` gives the bag the run folder's verdict.
 
 Usage: ``python scripts/bench_export.py RUN [--repeats N]`` (default 5), RUN a folder of
 ``roco run "pour the jar into the bowl"``.
@@ -33,6 +34,7 @@ from services.recorder.record import read_records  # noqa: E402
 from services.ros2 import export, messages, state  # noqa: E402
 from services.ros2.recording import read_recording  # noqa: E402
 from services.runtime.run_folder import read_run_info  # noqa: E402
+from services.spec_check.conformance import verify_report  # noqa: E402
 from services.viewer.recording import RECORDING_FILE  # noqa: E402
 
 TARGET_S = 10.0
@@ -53,8 +55,13 @@ PACKAGES = ("rosbags", "mcap", "mcap-ros2-support", "rerun-sdk")
 
 
 def setup_problems(run: Path, done: export.Exported) -> list[str]:
-    """Why ``run`` (exported as ``done``) is not a real default pour with all its topics."""
+    """Why ``run`` (exported as ``done``) is not a real default pour with all its topics, or its
+    bag not verified as the run is."""
     problems = []
+    run_ok, _ = verify_report(run)
+    bag_ok, _ = verify_report(done.out)
+    if run_ok != bag_ok:
+        problems.append(f"spec verify: full conformance {run_ok} for the run, {bag_ok} for its bag")
     info = read_run_info(run)
     if info.command != POUR or not info.succeeded:
         problems.append(
@@ -128,7 +135,7 @@ def main() -> int:
     print(f"Machine: {benchlib.machine(PACKAGES)}")
     print(
         f"Run: {POUR!r}, {first.counts[export.TRAFFIC_TOPIC]} communicates, "
-        f"recording.rrd {rrd / 1e6:.1f} MB; "
+        f"recording.rrd {rrd / 1e6:.1f} MB; the same spec verify verdict on the run and the bag; "
         f"bag: {first.messages} messages on {len(first.counts)} topics, {size / 1e6:.1f} MB"
     )
     for topic, count in first.counts.items():
