@@ -13,6 +13,7 @@ from services.cli_common import (
     INTERRUPTED,
     AclOption,
     GatewayOption,
+    Ros2Option,
     TlsOption,
     fail,
     fleet_endpoint,
@@ -22,7 +23,7 @@ from services.cli_common import (
     security_switches,
     stop_on_signals,
 )
-from services.fleet.launcher import AGENT_ORDER, GATEWAY, Fleet, LaunchError
+from services.fleet.launcher import AGENT_ORDER, GATEWAY, ROS2, Fleet, LaunchError
 from services.fleet.processes import stop_pids
 from services.fleet_state import FLEET_FILE, FleetState, write_state
 from services.runtime.run_folder import RunInfo, write_run_info
@@ -58,8 +59,10 @@ def up(
     acl: AclOption = None,
     tls: TlsOption = None,
     gateway: GatewayOption = None,
+    ros2: Ros2Option = False,
 ) -> None:
-    """Start router, recorder and all agents (and the ACL gateway with `--gateway`) in the
+    """Start router, recorder and all agents (and the ACL gateway with `--gateway`, the ROS 2
+    face with `--ros2`) in the
     background; they keep running until `roco down`, which writes the run's report. A port in
     use, or a runs folder that cannot be written, is refused before anything starts; a fleet
     that does not come up is stopped (its report written)."""
@@ -89,6 +92,9 @@ def up(
         if gateway is not None:
             fleet.start_gateway(gateway)
             fleet.wait_alive(session, [GATEWAY], timeout=60)
+        if ros2:
+            fleet.start_ros2()
+            fleet.wait_alive(session, [ROS2], timeout=60)
     except (LaunchError, KeyboardInterrupt) as exc:
         if session is not None:
             session.close()
