@@ -33,6 +33,7 @@ from typing import Any
 
 import msgspec
 import numpy as np
+from rosbags.typesys.store import Typestore
 
 from services.ros2 import messages, rmw
 from services.ros2.node import Call, Publisher, RosNode, Service
@@ -82,6 +83,16 @@ _FINAL = {
 log = logging.getLogger(ROS2)
 
 
+def say_store() -> Typestore:
+    """services/ros2/messages.py's type store with roco_msgs/srv/Say registered as a service
+    (``Say_Request``, ``Say_Response``, ``Say_Event``: rmw.register_service)."""
+    store = messages.typestore()
+    if f"{messages.SAY}_Request" not in store.fielddefs:
+        request, response = messages.SAY_SRV.split("---\n")
+        rmw.register_service(store, messages.SAY, request, response)
+    return store
+
+
 class _Glance(msgspec.Struct, frozen=True):
     """What the face reads of ag_ex's RobotSnapshot (velma/executor/state.py)."""
 
@@ -126,10 +137,7 @@ class Ros2Face:
         self.spec = spec
         self.config = config
         self.counters: Counter[str] = Counter()
-        self.store = messages.typestore()
-        if f"{messages.SAY}_Request" not in self.store.fielddefs:
-            request, response = messages.SAY_SRV.split("---\n")
-            rmw.register_service(self.store, messages.SAY, request, response)
+        self.store = say_store()
         self.say_hash = rmw.type_hash(self.store, messages.SAY)
         self.role = next((e.name for e in spec.externals if e.platform == ROS2), "")
         self._queue: queue.SimpleQueue[tuple[str, Any]] = queue.SimpleQueue()

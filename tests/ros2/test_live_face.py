@@ -20,7 +20,16 @@ import zenoh
 
 from services.fleet.launcher import Fleet
 from services.ros2 import messages
-from services.ros2.face import JOINT_STATES, SAY_PROGRESS, TASK_STATE, TF, FaceConfig, Ros2Face, summary
+from services.ros2.face import (
+    JOINT_STATES,
+    SAY_PROGRESS,
+    TASK_STATE,
+    TF,
+    FaceConfig,
+    Ros2Face,
+    say_store,
+    summary,
+)
 from services.runtime import keys
 from services.runtime.counters import ask_counters
 from services.runtime.session import open_client
@@ -145,9 +154,7 @@ def _raw_call(port: int, key: str, payload: bytes, attachment: bytes | None) -> 
                 sent.sequence_id,
                 sent.gid,
             ) and got.timestamp_ns >= sent.timestamp_ns
-            return messages.typestore().deserialize_cdr(
-                reply.ok.payload.to_bytes(), f"{messages.SAY}_Response"
-            )
+            return say_store().deserialize_cdr(reply.ok.payload.to_bytes(), f"{messages.SAY}_Response")
         return reply.err.payload.to_bytes().decode()
     return None
 
