@@ -1,8 +1,10 @@
 """rmw_zenoh's wire format as pure functions: data key expressions, liveliness tokens, QoS
 strings, the 33-byte attachment, GIDs and RIHS01 type hashes.
 
-Source: rmw_zenoh docs/design.md (Jazzy and later: "Topic and Service name mapping to Zenoh key
-expressions", "Graph Cache", "Publishers", "Service Clients", "Service Servers") and its
+Source: rmw_zenoh's design document (Jazzy and later),
+https://github.com/ros2/rmw_zenoh/blob/rolling/docs/design.md: "Topic and Service name
+mapping to Zenoh key expressions", "Graph Cache", "Publishers", "Service Clients", "Service
+Servers"; and its
 ``qos_to_keyexpr`` (liveliness_utils.cpp) with the defaults of qos.cpp; type hashes per REP-2016
 (RIHS01), computed by rosbags' ``Typestore.hash_rihs01``. Nothing here opens a session.
 """

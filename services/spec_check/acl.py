@@ -67,7 +67,7 @@ ROS2_SAYS = tuple(
 ROS2_SERVES = "**/roco_msgs::srv::dds_::Say_/*"
 """The queryable of its sentence service (any type hash: a wrong one is refused and counted)."""
 ROS2_TOKENS = "@ros2_lv/**"
-"""Its node's and entities' liveliness tokens (rmw_zenoh docs/design.md, "Graph Cache")."""
+"""Its node's and entities' liveliness tokens (rmw_zenoh's design document, "Graph Cache")."""
 INJECTOR = "roco"  # services/fault/process.py: INJECTOR, the sender of process-fault events
 
 _FAULT = "roco/fault"  # services/runtime/faults.py: FAULT_PREFIX

@@ -133,8 +133,8 @@ def _counters(router: Fleet) -> dict[str, int]:
 
 def _raw_call(port: int, key: str, payload: bytes, attachment: bytes | None) -> Any:
     """A call put together by hand on the SDK's session: the response (CDR decoded; its
-    attachment must carry the request's sequence number and GID, design.md "Service Servers"),
-    or the error reply's text."""
+    attachment must carry the request's sequence number and GID: rmw_zenoh's design document,
+    "Service Servers"), or the error reply's text."""
     from zenoh_ros2_sdk.session import ZenohSession
 
     session = ZenohSession.get_instance("127.0.0.1", port).session

@@ -1,7 +1,8 @@
 """services/ros2/rmw.py against rmw_zenoh's documented examples.
 
-Golden data: rmw_zenoh docs/design.md (Jazzy and later), sections "Topic and Service name mapping
-to Zenoh key expressions" (data keys), "Graph Cache" (liveliness tokens of the demo_nodes_cpp
+Golden data: rmw_zenoh's design document (Jazzy and later),
+https://github.com/ros2/rmw_zenoh/blob/rolling/docs/design.md, sections "Topic and
+Service name mapping to Zenoh key expressions" (data keys), "Graph Cache" (liveliness tokens of the demo_nodes_cpp
 listener, talker, add_two_ints_server and add_two_ints_client, QoS strings included),
 "Publishers"/"Service Clients"/"Service Servers" (the attachment layout). Type hashes: the
 RIHS01 values those examples carry (std_msgs/msg/String, example_interfaces/srv/AddTwoInts) and
@@ -23,7 +24,7 @@ ADD_TWO_INTS_HASH = "RIHS01_e118de6bf5eeb66a2491b5bda11202e7b68f198d6f67922cf303
 STRING = "std_msgs::msg::dds_::String_"
 ADD_TWO_INTS = "example_interfaces::srv::dds_::AddTwoInts_"
 
-# design.md, "Graph Cache", verbatim (its examples use domain 2)
+# the design document, "Graph Cache", verbatim (its examples use domain 2)
 LISTENER_NN = "@ros2_lv/2/aac3178e146ba6f1fc6e6a4085e77f21/0/0/NN/%/%/listener"
 LISTENER_MS = (
     "@ros2_lv/2/aac3178e146ba6f1fc6e6a4085e77f21/0/10/MS/%/%/listener/%chatter/"
@@ -133,7 +134,7 @@ def test_a_malformed_token_is_refused(bad: str) -> None:
 def test_attachment_is_the_documented_33_bytes() -> None:
     gid = bytes(range(16))
     data = Attachment(sequence=1, timestamp_ns=1_700_000_000_123_456_789, gid=gid).encode()
-    # design.md: int64 LE sequence number, int64 LE ns since the epoch, one octet 16, the GID
+    # the design document: int64 LE sequence number, int64 LE ns since the epoch, one octet 16, the GID
     assert len(data) == rmw.ATTACHMENT_SIZE == 33
     assert data[:8] == b"\x01" + b"\x00" * 7
     assert data[8:16] == struct.pack("<q", 1_700_000_000_123_456_789)
