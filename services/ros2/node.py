@@ -3,7 +3,8 @@ liveliness token, publishers (CDR payloads with the 33-byte attachment) and serv
 (queryables). The manual: docs/ros2.md.
 
 Source: rmw_zenoh's design document, https://github.com/ros2/rmw_zenoh/blob/rolling/docs/design.md
-("Graph Cache", "Publishers", "Service Servers"). The node holds only what it declares; closing it undeclares them all.
+("Graph Cache", "Publishers", "Service Servers"). The node holds only what it declares;
+closing it undeclares them all.
 """
 
 from __future__ import annotations

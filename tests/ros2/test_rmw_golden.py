@@ -2,8 +2,8 @@
 
 Golden data: rmw_zenoh's design document (Jazzy and later),
 https://github.com/ros2/rmw_zenoh/blob/rolling/docs/design.md, sections "Topic and
-Service name mapping to Zenoh key expressions" (data keys), "Graph Cache" (liveliness tokens of the demo_nodes_cpp
-listener, talker, add_two_ints_server and add_two_ints_client, QoS strings included),
+Service name mapping to Zenoh key expressions" (data keys), "Graph Cache" (liveliness tokens
+of the demo_nodes_cpp listener, talker, add_two_ints_server and add_two_ints_client, QoS strings included),
 "Publishers"/"Service Clients"/"Service Servers" (the attachment layout). Type hashes: the
 RIHS01 values those examples carry (std_msgs/msg/String, example_interfaces/srv/AddTwoInts) and
 the Jazzy values of the types `roco ros2` publishes, as `ros2 topic info -v` prints them.
