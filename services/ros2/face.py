@@ -42,7 +42,7 @@ from services.runtime import keys
 from services.runtime.human import MAX_LINE_CHARS
 from services.runtime.log_format import escape_controls
 from services.runtime.transport import ZenohTransport
-from services.spec.model import SystemSpec, channel_between, interface
+from services.spec.model import MessageKind, SystemSpec, channel_between, interface
 from shared.fipa_codec import AgentIdentifier, Communicate, DecodeError, Performative, decode, encode
 from shared.fipa_codec.batch import unpack
 from shared.fipa_codec.languages import LANGUAGES, ContentError, decode_content, encode_content, load_all
@@ -91,6 +91,24 @@ def say_store() -> Typestore:
         request, response = messages.SAY_SRV.split("---\n")
         rmw.register_service(store, messages.SAY, request, response)
     return store
+
+
+class _Refused(Exception):
+    """A call that fails a check: ``reason`` (a key of :data:`REFUSE_REASONS`), the text, and
+    its attachment when it has one (then answered with a response, else an error reply)."""
+
+    def __init__(self, reason: str, text: str, attachment: Attachment | None = None) -> None:
+        super().__init__(text)
+        self.reason = reason
+        self.attachment = attachment
+
+
+def _request_kind(spec: SystemSpec, role: str) -> MessageKind | None:
+    """What ``role`` may send a_hi as a fipa-request ``request`` carrying a Sentence, or None."""
+    for k in interface(spec, role).sends:
+        if (k.receiver, k.performative, k.protocol) == ("a_hi", "request", "fipa-request"):
+            return k if not k.contents or "Sentence" in k.contents else None
+    return None
 
 
 class _Glance(msgspec.Struct, frozen=True):
@@ -281,8 +299,9 @@ class Ros2Face:
             ),
         )
 
-    def _take_c1(self, payload: bytes) -> None:
-        pub = self._pubs.get(TASK_STATE)
+    def _statuses(self, payload: bytes) -> list[SWStatus]:
+        """a_ta's L_SW informs in a C1 payload (a batch or one communicate)."""
+        out = []
         for item in unpack(payload):
             try:
                 msg = decode(item)
@@ -290,10 +309,14 @@ class Ros2Face:
             except (DecodeError, ContentError):
                 self.count("dropped.c1")
                 continue
-            if not isinstance(status, SWStatus) or msg.performative is not Performative.INFORM:
-                continue
-            step = status.step or ""
-            state = status.state.value
+            if isinstance(status, SWStatus) and msg.performative is Performative.INFORM:
+                out.append(status)
+        return out
+
+    def _take_c1(self, payload: bytes) -> None:
+        pub = self._pubs.get(TASK_STATE)
+        for status in self._statuses(payload):
+            step, state, detail = status.step or "", status.state.value, status.reason or ""
             if pub is not None:
                 pub.publish(
                     self.store.types[messages.TASK_STATE](
@@ -303,12 +326,12 @@ class Ros2Face:
                         state=state,
                         step=step,
                         path=f"{state} {step}".strip(),
-                        detail=status.reason or "",
+                        detail=detail,
                     )
                 )
                 self.count("published.task_state")
             for opened in list(self._open.values()):
-                self._progress(opened, state, step, status.reason or "")
+                self._progress(opened, state, step, detail)
 
     def _progress(self, opened: _Open, state: str, step: str = "", detail: str = "") -> None:
         if (pub := self._pubs.get(SAY_PROGRESS)) is None:
@@ -338,41 +361,43 @@ class Ros2Face:
         response = self.store.types[f"{messages.SAY}_Response"](ok=False, outcome="refused", report=text)
         self._say.answer(call, response, attachment)
 
-    def _take_call(self, call: Call) -> None:
-        self.count("received")
+    def _checked(self, call: Call) -> tuple[Attachment, str, str]:
+        """The attachment, sentence and caller name of ``call``; :class:`_Refused` when it fails
+        a check of the module docstring (in its order)."""
         if call.type_hash != self.say_hash:
-            return self._refuse(
-                call, "type_hash", f"type hash {call.type_hash[:80]} is not {messages.SAY}'s", None
-            )
+            raise _Refused("type_hash", f"type hash {call.type_hash[:80]} is not {messages.SAY}'s")
         try:
             attachment = Attachment.decode(call.attachment)
         except RmwError as exc:
-            return self._refuse(call, "attachment", str(exc), None)
+            raise _Refused("attachment", str(exc)) from None
         if call.size > MAX_REQUEST:
-            return self._refuse(call, "too_big", f"{call.size} octets (at most {MAX_REQUEST})", attachment)
+            raise _Refused("too_big", f"{call.size} octets (at most {MAX_REQUEST})", attachment)
         assert self._say is not None
         try:
             request = self._say.decode_request(call)
         except RmwError as exc:
-            return self._refuse(call, "cdr", str(exc), attachment)
+            raise _Refused("cdr", str(exc), attachment) from None
         sentence = str(request.sentence).strip()
         if not sentence or len(sentence) > MAX_LINE_CHARS:
-            return self._refuse(
-                call, "content", f"a sentence of 1 to {MAX_LINE_CHARS} characters", attachment
-            )
+            raise _Refused("content", f"a sentence of 1 to {MAX_LINE_CHARS} characters", attachment)
         caller = f"c{attachment.gid.hex()}@{ROS2}"
         if caller in self._callers:
-            return self._refuse(
-                call, "protocol", f"{caller} has a call not yet answered (one at a time)", attachment
-            )
+            raise _Refused("protocol", f"{caller} has a call not yet answered (one at a time)", attachment)
         if len(self._open) >= MAX_OPEN:
-            return self._refuse(
-                call, "busy", f"{len(self._open)} calls open (at most {MAX_OPEN})", attachment
-            )
+            raise _Refused("busy", f"{len(self._open)} calls open (at most {MAX_OPEN})", attachment)
+        return attachment, sentence, caller
+
+    def _take_call(self, call: Call) -> None:
+        self.count("received")
         try:
-            channel, communicate = self._admit(caller, sentence)
-        except LookupError as exc:
-            return self._refuse(call, "not_in_interface", str(exc), attachment)
+            attachment, sentence, caller = self._checked(call)
+            try:
+                channel, communicate = self._admit(caller, sentence)
+            except LookupError as exc:
+                raise _Refused("not_in_interface", str(exc), attachment) from None
+        except _Refused as refused:
+            self._refuse(call, refused.reason, str(refused), refused.attachment)
+            return
         self.transport.publish(keys.fipa_key(channel, caller, "a_hi"), encode(communicate))
         assert communicate.conversation_id is not None
         opened = self._open[communicate.conversation_id] = _Open(call, attachment, sentence, caller)
@@ -392,20 +417,10 @@ class Ros2Face:
         specification gives the caller's role; LookupError when it gives none."""
         role = self.spec.role_of(caller)
         channel = channel_between(self.spec, role, "a_hi") if role == self.role else None
-        kinds = (
-            [
-                k
-                for k in interface(self.spec, role).sends
-                if k.receiver == "a_hi" and k.performative == "request" and k.protocol == "fipa-request"
-            ]
-            if channel is not None
-            else []
-        )
-        if channel is None or not kinds or (kinds[0].contents and "Sentence" not in kinds[0].contents):
-            raise LookupError(f"{caller} ({role}) may not request a Sentence of a_hi")
+        kind = _request_kind(self.spec, role) if channel is not None else None
         language, content = encode_content(Sentence(text=sentence))
-        if kinds[0].languages and language not in kinds[0].languages:
-            raise LookupError(f"{language} is not the language of {channel.name}")
+        if channel is None or kind is None or (kind.languages and language not in kind.languages):
+            raise LookupError(f"{caller} ({role}) may not request a Sentence in {language} of a_hi")
         conversation = f"ros2-{uuid.uuid4().hex[:16]}"
         return channel.name, Communicate(
             performative=Performative.REQUEST,
@@ -444,10 +459,12 @@ class Ros2Face:
             response = self.store.types[f"{messages.SAY}_Response"](
                 ok=ok, outcome=report.kind, report=report.text
             )
+            self._progress(
+                opened, report.kind, detail=report.text
+            )  # before: the caller may stop on the answer
             assert self._say is not None
             self._say.answer(opened.call, response, opened.attachment)
             self.count("answered")
-            self._progress(opened, report.kind, detail=report.text)
 
     def _report(self, msg: Communicate) -> SentenceReport:
         if msg.performative is Performative.NOT_UNDERSTOOD:
@@ -463,22 +480,21 @@ class Ros2Face:
 
 def summary(counters: dict[str, int]) -> str:
     """The face's counters in one line (``roco status``): ``received 3, forwarded 1, refused 2
-    (cdr 1, type_hash 1), answered 1, published 250``; parts that are 0 left out, but for
-    received, forwarded, refused and answered."""
-    refused = {k[8:]: v for k, v in counters.items() if k.startswith("refused.") and v}
-    published = sum(v for k, v in counters.items() if k.startswith("published."))
-    dropped = sum(v for k, v in counters.items() if k.startswith("dropped."))
-    detail = " (" + ", ".join(f"{k} {v}" for k, v in sorted(refused.items())) + ")" if refused else ""
-    line = [
-        f"received {counters.get('received', 0)}",
-        f"forwarded {counters.get('forwarded', 0)}",
-        f"refused {counters.get('refused', 0)}{detail}",
-        f"answered {counters.get('answered', 0)}",
-    ]
-    if published:
-        line.append(f"published {published}")
-    if dropped:
-        line.append(f"dropped {dropped}")
-    if counters.get("internal_errors"):
-        line.append(f"internal_errors {counters['internal_errors']}")
-    return ", ".join(line)
+    (cdr 1, type_hash 1), answered 1, published 250``; the last parts (published, dropped,
+    internal_errors) only when not 0."""
+
+    def total(prefix: str) -> int:
+        return sum(v for k, v in counters.items() if k.startswith(prefix))
+
+    refused = sorted(
+        (k.removeprefix("refused."), v) for k, v in counters.items() if k.startswith("refused.") and v
+    )
+    detail = " (" + ", ".join(f"{k} {v}" for k, v in refused) + ")" if refused else ""
+    line = [f"{n} {counters.get(n, 0)}" for n in ("received", "forwarded")]
+    line += [f"refused {counters.get('refused', 0)}{detail}", f"answered {counters.get('answered', 0)}"]
+    extra = {
+        "published": total("published."),
+        "dropped": total("dropped."),
+        "internal_errors": total("internal_errors"),
+    }
+    return ", ".join(line + [f"{k} {v}" for k, v in extra.items() if v])

@@ -20,7 +20,7 @@ from services.runtime.log_format import OneLineFormatter
 from services.runtime.session import refusal
 from services.runtime.transport import ZenohTransport
 from services.security.context import security_for
-from services.spec.model import DEFAULT_SPEC, SpecError, load
+from services.spec.model import DEFAULT_SPEC, SpecError, SystemSpec, load
 
 
 class LiveError(Exception):
@@ -36,22 +36,35 @@ class LiveConfig:
     spec: Path = DEFAULT_SPEC
 
 
-def serve(config: LiveConfig, stop: threading.Event, ready: threading.Event | None = None) -> dict[str, int]:
-    """Run the face until ``stop`` is set; set ``ready`` once it is declared. Returns its
-    counters. Raises LiveError when the specification does not load, the router does not
-    answer (or refuses the credentials of ``ros2``), or the domain or namespace is bad."""
+def _spec(config: LiveConfig) -> SystemSpec:
+    """The specification; LiveError when it does not load, or has no role for ROS 2 callers
+    while the service is asked for."""
     try:
         spec = load(config.spec)
     except SpecError as exc:
         raise LiveError(str(exc)) from None
     if config.face.say and not any(e.platform == ROS2 for e in spec.externals):
         raise LiveError(f"{config.spec}: no external role of platform {ROS2}: no ROS 2 node may ask")
+    return spec
+
+
+def _transport(endpoint: str) -> ZenohTransport:
+    """The face's session as ``ros2``; LiveError when there are no credentials for it or the
+    router does not answer (or refuses them)."""
     try:
-        transport = ZenohTransport([config.endpoint], wait_for_router=False, identity=ROS2)
+        return ZenohTransport([endpoint], wait_for_router=False, identity=ROS2)
     except ValueError as exc:  # CredentialError: no credentials for ros2 in the folder
         raise LiveError(str(exc)) from None
     except Exception:  # zenoh.ZError
-        raise LiveError(refusal(config.endpoint, ROS2, security_for([config.endpoint]))) from None
+        raise LiveError(refusal(endpoint, ROS2, security_for([endpoint]))) from None
+
+
+def serve(config: LiveConfig, stop: threading.Event, ready: threading.Event | None = None) -> dict[str, int]:
+    """Run the face until ``stop`` is set; set ``ready`` once it is declared. Returns its
+    counters. Raises LiveError when the specification does not load, the router does not
+    answer (or refuses the credentials of ``ros2``), or the domain or namespace is bad."""
+    spec = _spec(config)
+    transport = _transport(config.endpoint)
     try:
         face = Ros2Face(transport, spec, config.face)
         face.bind()

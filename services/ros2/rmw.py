@@ -253,17 +253,24 @@ def endpoint_token(ep: Endpoint) -> str:
     return "/".join([*chunks, mangle(ep.name), ep.type_name, ep.type_hash, qos_string(ep.qos)])
 
 
-def parse_token(token: str) -> Node | Endpoint:
-    """The node or endpoint a liveliness token names. Raises RmwError when it is not one:
-    another admin space, a kind not NN/MP/MS/SS/SC, a wrong number of chunks, ids that are
-    no numbers, or a bad QoS string."""
+def _token_chunks(token: str) -> list[str]:
+    """The chunks of a token: RmwError unless 9 or 13, none empty, the first the admin space,
+    the ids numbers."""
     if len(token) > 4 * MAX_NAME + 400:
         raise RmwError("liveliness token over its longest possible length")
     c = token.split("/")
     if c[0] != ADMIN_SPACE or len(c) not in (9, 13) or not all(c):
         raise RmwError(f"{token[:80]!r} is no rmw_zenoh liveliness token")
-    if not (c[1].isdigit() and c[3].isdigit() and c[4].isdigit()):
+    if not all(c[i].isdigit() for i in (1, 3, 4)):
         raise RmwError(f"{token[:80]!r}: domain, node and entity ids must be numbers")
+    return c
+
+
+def parse_token(token: str) -> Node | Endpoint:
+    """The node or endpoint a liveliness token names. Raises RmwError when it is not one:
+    another admin space, a kind not NN/MP/MS/SS/SC, a wrong number of chunks, ids that are
+    no numbers, or a bad QoS string."""
+    c = _token_chunks(token)
     try:
         kind = EntityKind(c[5])
     except ValueError:

@@ -216,18 +216,25 @@ def one_line(exc: Exception) -> str:
 
 
 def _check_externals(spec: SystemSpec, names: set[str], path: Path) -> None:
-    """External roles named as no agent (``names``) and no GUID, each once; at most one
-    without a platform, each platform (a FIPA word) once."""
-    platforms = [e.platform for e in spec.externals]
-    if platforms.count("") > 1 or len(set(platforms)) != len(platforms):
-        raise SpecError(f"{path}: at most one external role per platform (and one without)")
+    """External roles named as no agent (``names``) and no GUID, each once
+    (:func:`_check_platforms`)."""
+    _check_platforms(spec, path)
     if len({e.name for e in spec.externals}) != len(spec.externals):
         raise SpecError(f"{path}: an external role is named twice")
     for e in spec.externals:
-        if e.platform and not e.platform.replace("_", "").replace("-", "").isalnum():
-            raise SpecError(f"{path}: external role {e.name!r}: platform {e.platform!r} is no word")
         if e.name in names or is_foreign(e.name):
             raise SpecError(f"{path}: external role {e.name!r} must be no agent's name and no GUID")
+
+
+def _check_platforms(spec: SystemSpec, path: Path) -> None:
+    """At most one external role without a platform, each platform once and a word (letters,
+    digits, ``_``, ``-``: a key chunk's end of an agent's name)."""
+    platforms = [e.platform for e in spec.externals]
+    if len(set(platforms)) != len(platforms):
+        raise SpecError(f"{path}: at most one external role per platform (and one without)")
+    for p in platforms:
+        if p and not p.replace("_", "").replace("-", "").isalnum():
+            raise SpecError(f"{path}: platform {p!r} of an external role is no word")
 
 
 def _check_agents(spec: SystemSpec, path: Path) -> None:

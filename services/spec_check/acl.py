@@ -281,6 +281,16 @@ def gateway_grants(spec: SystemSpec) -> Grants:
     return g
 
 
+def _speak_for(g: Grants, spec: SystemSpec, outside: tuple[str, ...]) -> None:
+    """Put as the external roles ``outside`` to the agents they have channels to (with the
+    advanced publishers' keys), hear what those agents say to them."""
+    routes = channel_routes(spec)
+    sends = [route_key(spec, c, s, r) for c, s, r in routes if s in outside and r not in outside]
+    g.say(*sends)
+    _cached_publisher(g, sends)
+    g.hear(*(route_key(spec, c, s, r) for c, s, r in routes if r in outside and s not in outside))
+
+
 def ros2_grants(spec: SystemSpec) -> Grants:
     """The grants of ``roco ros2``: it puts as any ``…@ros2`` caller to the agents the external
     role of platform ``ros2`` has channels to and hears what they say to such callers; hears
@@ -288,14 +298,9 @@ def ros2_grants(spec: SystemSpec) -> Grants:
     republishes); publishes :data:`ROS2_SAYS`, serves :data:`ROS2_SERVES`, holds
     :data:`ROS2_TOKENS` and its own ``roco/alive/ros2``."""
     g = Grants(ROS2)
-    outside = tuple(e.name for e in spec.externals if e.platform == ROS2)
-    routes = channel_routes(spec)
-    sends = [route_key(spec, c, s, r) for c, s, r in routes if s in outside and r not in outside]
-    g.say(*sends)
-    _cached_publisher(g, sends)
-    g.hear(*(route_key(spec, c, s, r) for c, s, r in routes if r in outside and s not in outside))
+    _speak_for(g, spec, tuple(e.name for e in spec.externals if e.platform == ROS2))
     g.hear(keys.state_key("ag_ex"), keys.SIM_CLOCK)
-    g.hear(*(route_key(spec, c, s, r) for c, s, r in routes if (s, r) == ("a_ta", "a_co")))
+    g.hear(*(route_key(spec, c, s, r) for c, s, r in channel_routes(spec) if (s, r) == ("a_ta", "a_co")))
     g.say(*ROS2_SAYS)
     _answers(g, ROS2_SERVES)
     g.allow("ingress", "liveliness_token", ROS2_TOKENS)

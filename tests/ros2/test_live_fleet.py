@@ -145,6 +145,7 @@ def test_a_ros2_node_gets_joint_states_and_the_pour_it_asked_for_while_bad_calls
         seen.append(tasks.get())
     assert {t.state for t in seen} >= {"Running", "Succeeded"}, [t.state for t in seen]
     assert any("pour" in t.step for t in seen)
+    # a_hi's agree, then its outcome (published before the call is answered)
     kinds = []
     while not progress.empty():
         kinds.append(progress.get().state)
