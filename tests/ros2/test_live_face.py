@@ -104,7 +104,7 @@ def setup(
     face.start()
     mp = pytest.MonkeyPatch()
     folder = tmp_path_factory.mktemp("msgs")
-    write_definitions(folder, ["sensor_msgs/msg/JointState", messages.SAY_PROGRESS])
+    write_definitions(folder, ["sensor_msgs/msg/JointState", "tf2_msgs/msg/TFMessage", messages.SAY_PROGRESS])
     use_offline(folder, mp)
     try:
         yield face, hi, port
@@ -168,8 +168,11 @@ def test_joint_states_reach_an_independent_ros2_subscriber(
         "/joint_states", "sensor_msgs/msg/JointState", got.put, router_ip="127.0.0.1", router_port=port
     )
     assert sub.keyexpr == face._pubs[JOINT_STATES].endpoint.key  # the SDK's own hash equals ours
+    frames: queue.SimpleQueue[Any] = queue.SimpleQueue()
+    sdk.ROS2Subscriber("/tf", "tf2_msgs/msg/TFMessage", frames.put, router_ip="127.0.0.1", router_port=port)
     snapshot = {"sim_time": 2.25, "joints": {"torso_0_joint": 0.5, "right_arm_0_joint": -1.0}}
-    snapshot |= {"grip": {}, "held": {}, "held_object": {}}
+    jar = [[0.6, -0.1, 0.9], [0.9, 0.1, 0.2, 0.3], "world"]  # a Pose: position, (w, x, y, z), frame
+    snapshot |= {"grip": {}, "held": {}, "held_object": {}, "links": {"jar": jar}}
     state = ZenohTransport([router.endpoint], identity="ag_ex")
     try:
         deadline = time.monotonic() + TIMEOUT
@@ -185,6 +188,10 @@ def test_joint_states_reach_an_independent_ros2_subscriber(
     assert list(msg.position) == [0.5, -1.0]
     assert (msg.header.stamp.sec, msg.header.stamp.nanosec) == (2, 250_000_000)
     assert face.counters["published.joint_states"] >= 1
+    tf = frames.get(timeout=TIMEOUT).transforms[0]
+    assert (tf.header.frame_id, tf.child_frame_id) == ("world", "jar")
+    t, r = tf.transform.translation, tf.transform.rotation
+    assert (t.x, t.y, t.z, r.w, r.x, r.y, r.z) == (0.6, -0.1, 0.9, 0.9, 0.1, 0.2, 0.3)
 
 
 def test_a_sentence_is_answered_with_a_his_report_and_its_progress(
