@@ -95,6 +95,7 @@ def scenario(
     tls: TlsOption = None,
     live: LiveOption = None,
     gateway: GatewayOption = None,
+    ros2: Ros2Option = False,
 ) -> None:
     """Run a scenario (several commands, interruptions, disturbances, restarts; see
     services/scenario/model.py) headless, check every command's outcome against what the
@@ -116,7 +117,15 @@ def scenario(
         raise fail(str(exc), code=2) from None
     watch = live_watch(f"roco scenario {sc.name}", live, quiet)
     _run_scenario(
-        sc, runs_dir, realtime=realtime, quiet=quiet, record=record, view=view, watch=watch, gateway=gateway
+        sc,
+        runs_dir,
+        realtime=realtime,
+        quiet=quiet,
+        record=record,
+        view=view,
+        watch=watch,
+        gateway=gateway,
+        ros2=ros2,
     )
 
 
