@@ -6,7 +6,8 @@ process of the fleet (Fleet.start_ros2, as ``--ros2`` starts it). The SDK receiv
 a_hi's outcome: the pour succeeds (requirement R1.5, channel C9). Meanwhile a call with a wrong
 type hash, one with a malformed CDR body and the same client's second call while its first is
 open (outside fipa-request's one request) are refused and counted, and `roco status` shows the
-face's counters with every agent alive. The file's only pour: the whole test took 35 s, the
+face's counters with every agent alive, and `roco spec trace` of the run shows R1.5. The file's
+only pour: the whole test took 35 s, the
 call of the pour 27 s, on this project's 2-core VM (2026-11-27, shared with other work)."""
 
 from __future__ import annotations
@@ -23,6 +24,7 @@ import pytest
 import zenoh
 
 from services.fleet.launcher import AGENT_ORDER, ROS2, Fleet, free_port
+from services.recorder.sync import sync_fleet
 from services.ros2 import messages
 from services.ros2.face import say_store
 from services.runtime.session import open_client
@@ -173,4 +175,14 @@ def test_a_ros2_node_gets_joint_states_and_the_pour_it_asked_for_while_bad_calls
     line = next(x for x in status.stdout.splitlines() if x.startswith("ros2 "))
     assert "alive" in line and "forwarded 1" in line and "answered 1" in line, line
     assert "refused 3 (cdr 1, protocol 1, type_hash 1)" in line, line
+    # the recorder has the C9 conversation: the run shows R1.5 (docs/spec.md, the trace)
+    assert sync_fleet(fleet.endpoint, timeout=10)
+    trace = subprocess.run(
+        [sys.executable, "-m", "services.cli", "spec", "trace", str(fleet.run_dir)],
+        capture_output=True,
+        text=True,
+        cwd=ROOT,
+        timeout=120,
+    )
+    assert "R1.5 [shown]" in trace.stdout, trace.stdout + trace.stderr
     print(f"the pour asked over ROS 2 took {took:.1f} s")
