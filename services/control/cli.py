@@ -110,6 +110,7 @@ def up(
     write_run_info(run_dir, info)
     write_state(runs_dir, FleetState(endpoint, str(run_dir), fleet.pids()))
     served = f"; gateway http://127.0.0.1:{gateway}/acc" if gateway is not None else ""
+    served += "; ROS 2 node /roco on domain 0 (roco ros2 --all)" if ros2 else ""
     typer.echo(f"roco: fleet up on {endpoint} in {waited:.1f} s{served}; run folder {run_dir}")
 
 
