@@ -28,7 +28,7 @@ import time
 import uuid
 from collections import Counter
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any
 
 import msgspec
@@ -61,6 +61,9 @@ MAX_REQUEST = 8192
 """The largest request payload read (octets): a sentence of MAX_LINE_CHARS characters fits."""
 MAX_OPEN = 64
 """The most calls answered at once; one more is refused ``busy``."""
+MAX_CALL_S = 3600.0
+"""A call a_hi has not answered after this long (s) is dropped when the next call comes: its
+caller may call again (a ROS 2 client has long given up), counted ``expired``."""
 REFUSE_REASONS: dict[str, str] = {
     "type_hash": "the key's type hash is not roco_msgs/srv/Say's",
     "attachment": "no rmw_zenoh attachment of 33 octets",
@@ -136,8 +139,8 @@ class _Open:
     attachment: Attachment
     sentence: str
     caller: str
+    started: float
     command_id: str = ""
-    started: float = field(default_factory=time.monotonic)
 
 
 class Ros2Face:
@@ -160,6 +163,8 @@ class Ros2Face:
         self.role = next((e.name for e in spec.externals if e.platform == ROS2), "")
         self._queue: queue.SimpleQueue[tuple[str, Any]] = queue.SimpleQueue()
         self._open: dict[str, _Open] = {}
+        self.clock: Callable[[], float] = time.monotonic
+        """The face's clock for :data:`MAX_CALL_S` (tests set it)."""
         self._callers: set[str] = set()
         self._lock = threading.Lock()
         self._thread: threading.Thread | None = None
@@ -387,8 +392,20 @@ class Ros2Face:
             raise _Refused("busy", f"{len(self._open)} calls open (at most {MAX_OPEN})", attachment)
         return attachment, sentence, caller
 
+    def _expire(self) -> None:
+        """Drop the calls open longer than :data:`MAX_CALL_S` (answered with an error reply)."""
+        now = self.clock()
+        for conversation, opened in list(self._open.items()):
+            if now - opened.started > MAX_CALL_S:
+                del self._open[conversation]
+                self._callers.discard(opened.caller)
+                self.count("expired")
+                assert self._say is not None
+                self._say.fail(opened.call, f"no answer of a_hi within {MAX_CALL_S:.0f} s")
+
     def _take_call(self, call: Call) -> None:
         self.count("received")
+        self._expire()
         try:
             attachment, sentence, caller = self._checked(call)
             try:
@@ -400,7 +417,8 @@ class Ros2Face:
             return
         self.transport.publish(keys.fipa_key(channel, caller, "a_hi"), encode(communicate))
         assert communicate.conversation_id is not None
-        opened = self._open[communicate.conversation_id] = _Open(call, attachment, sentence, caller)
+        opened = _Open(call, attachment, sentence, caller, started=self.clock())
+        self._open[communicate.conversation_id] = opened
         self._callers.add(caller)
         self.count("forwarded")
         log.info(
@@ -481,7 +499,7 @@ class Ros2Face:
 def summary(counters: dict[str, int]) -> str:
     """The face's counters in one line (``roco status``): ``received 3, forwarded 1, refused 2
     (cdr 1, type_hash 1), answered 1, published 250``; the last parts (published, dropped,
-    internal_errors) only when not 0."""
+    expired, internal_errors) only when not 0."""
 
     def total(prefix: str) -> int:
         return sum(v for k, v in counters.items() if k.startswith(prefix))
@@ -495,6 +513,7 @@ def summary(counters: dict[str, int]) -> str:
     extra = {
         "published": total("published."),
         "dropped": total("dropped."),
+        "expired": total("expired"),
         "internal_errors": total("internal_errors"),
     }
     return ", ".join(line + [f"{k} {v}" for k, v in extra.items() if v])

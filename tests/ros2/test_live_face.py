@@ -22,6 +22,7 @@ from services.fleet.launcher import Fleet
 from services.ros2 import messages
 from services.ros2.face import (
     JOINT_STATES,
+    MAX_CALL_S,
     SAY_PROGRESS,
     TASK_STATE,
     TF,
@@ -243,8 +244,18 @@ def test_each_malformed_or_out_of_protocol_call_is_refused_counted_and_the_face_
     assert hi.sentences.get(timeout=TIMEOUT) == "pour the jar into the bowl"
     second = client.call(sentence="what are you doing?")
     assert (second.ok, second.outcome) == (False, "refused") and "one at a time" in second.report
+    # a call a_hi never answers expires when the next comes after MAX_CALL_S: the client may call again
     hi.hold.clear()
+    real = face.clock
+    face.clock = lambda: real() + 2 * MAX_CALL_S
+    try:
+        retried = client.call(sentence="pour the jar into the bowl")
+    finally:
+        face.clock = real
+    assert retried is not None and retried.ok
+    assert first.get(timeout=TIMEOUT) is None  # its error reply
     counters = _counters(router)
+    assert counters["expired"] == before.get("expired", 0) + 1
     for reason in ("type_hash", "cdr", "attachment", "too_big", "content", "protocol"):
         assert counters.get(f"refused.{reason}", 0) == before.get(f"refused.{reason}", 0) + 1, reason
     assert "refused" in summary(counters) and "protocol 1" in summary(counters)
