@@ -61,6 +61,9 @@ MAX_REQUEST = 8192
 """The largest request payload read (octets): a sentence of MAX_LINE_CHARS characters fits."""
 MAX_OPEN = 64
 """The most calls answered at once; one more is refused ``busy``."""
+MAX_WAITING = 1024
+"""The most things waiting for the face's thread; a call beyond is answered ``busy`` at once
+(an error reply), a communicate dropped and counted ``dropped.waiting``."""
 MAX_CALL_S = 3600.0
 """A call a_hi has not answered after this long (s) is dropped when the next call comes: its
 caller may call again (a ROS 2 client has long given up), counted ``expired``."""
@@ -166,6 +169,8 @@ class Ros2Face:
         self.clock: Callable[[], float] = time.monotonic
         """The face's clock for :data:`MAX_CALL_S` (tests set it)."""
         self._callers: set[str] = set()
+        self._state: bytes | None = None
+        """ag_ex's latest snapshot not yet published: a newer one replaces it (never queued)."""
         self._lock = threading.Lock()
         self._thread: threading.Thread | None = None
         self.node: RosNode | None = None
@@ -185,7 +190,7 @@ class Ros2Face:
             if topic in cfg.topics:
                 self._pubs[topic] = node.publisher(topic, kinds[topic])
         if cfg.topics & {JOINT_STATES, TF}:
-            self.transport.subscribe(keys.state_key("ag_ex"), self._enqueue("state"))
+            self.transport.subscribe(keys.state_key("ag_ex"), self._on_state)
         if TASK_STATE in cfg.topics:
             self._pubs[TASK_STATE] = node.publisher(TASK_STATE, messages.TASK_STATE)
             self.transport.subscribe(keys.fipa_key("C1", "a_ta", "a_co"), self._enqueue("c1"))
@@ -214,12 +219,30 @@ class Ros2Face:
 
     def _enqueue(self, kind: str) -> Callable[[str, bytes], None]:
         def put(key: str, payload: bytes) -> None:
+            if self._queue.qsize() >= MAX_WAITING:
+                self.count("dropped.waiting")
+                return
             self._queue.put((kind, (key, payload)))
 
         return put
 
+    def _on_state(self, key: str, payload: bytes) -> None:
+        with self._lock:
+            waiting, self._state = self._state is not None, payload
+        if waiting:
+            self.count("skipped.state")
+        else:
+            self._queue.put(("state", None))
+
     def _on_call(self, call: Call) -> None:
-        self._queue.put(("call", call))  # Zenoh's thread: enqueue only
+        """Zenoh's thread: enqueue only; over :data:`MAX_WAITING` waiting, answer busy."""
+        if self._queue.qsize() >= MAX_WAITING:
+            self.count("refused")
+            self.count("refused.busy")
+            call.query.reply_err(b"refused (busy): too many calls waiting")
+            call.query.drop()
+            return
+        self._queue.put(("call", call))
 
     def count(self, name: str) -> None:
         with self._lock:
@@ -229,7 +252,7 @@ class Ros2Face:
         handlers: dict[str, Callable[[Any], None]] = {
             "call": self._take_call,
             "answer": lambda item: self._take_answer(*item),
-            "state": lambda item: self._take_state(item[1]),
+            "state": lambda item: self._take_state(self._latest_state()),
             "c1": lambda item: self._take_c1(item[1]),
             "ask": lambda item: self._report_counters(),
         }
@@ -262,6 +285,11 @@ class Ros2Face:
 
     def _header(self, t: float, frame: str) -> Any:
         return self.store.types["std_msgs/msg/Header"](stamp=self._stamp(t), frame_id=frame)
+
+    def _latest_state(self) -> bytes:
+        with self._lock:
+            payload, self._state = self._state or b"", None
+        return payload
 
     def _take_state(self, payload: bytes) -> None:
         try:

@@ -263,3 +263,37 @@ def test_each_malformed_or_out_of_protocol_call_is_refused_counted_and_the_face_
     after = _client(port, timeout=TIMEOUT).call(sentence="what is in the bowl?")
     assert after is not None and after.ok and after.report == "done: what is in the bowl?"
     assert face.counters["internal_errors"] == 0
+
+
+class _Query:
+    """A Zenoh query's side the face uses when it answers at once."""
+
+    def __init__(self) -> None:
+        self.errors: list[bytes] = []
+
+    def reply_err(self, payload: bytes) -> None:
+        self.errors.append(payload)
+
+    def drop(self) -> None:
+        pass
+
+
+def test_snapshots_are_never_queued_and_calls_beyond_the_bound_are_answered_busy() -> None:
+    """ag_ex's snapshots replace each other until the face's thread takes the latest; a call
+    that finds MAX_WAITING things waiting is answered busy on Zenoh's thread (not started
+    here: nothing is taken)."""
+    from services.ros2 import face as face_module
+    from services.ros2.node import Call
+
+    face = Ros2Face(None, default_spec(), FaceConfig())  # type: ignore[arg-type]  # no session needed
+    for n in range(3):
+        face._on_state("roco/state/ag_ex", bytes([n]))
+    assert face._queue.qsize() == 1 and face.counters["skipped.state"] == 2
+    assert face._latest_state() == bytes([2]) and face._latest_state() == b""
+    for _ in range(face_module.MAX_WAITING - 1):
+        face._enqueue("c1")("k", b"")
+    query = _Query()
+    face._on_call(Call(query, "h", b"", b"", 0))  # type: ignore[arg-type]
+    assert query.errors and b"busy" in query.errors[0] and face.counters["refused.busy"] == 1
+    face._enqueue("answer")("k", b"")
+    assert face.counters["dropped.waiting"] == 1 and face._queue.qsize() == face_module.MAX_WAITING
