@@ -89,12 +89,7 @@ def up(
         fleet.wait_alive(session, ["recorder"], timeout=60)
         fleet.start_agents()
         waited = fleet.wait_alive(session, AGENT_ORDER, timeout=120)
-        if gateway is not None:
-            fleet.start_gateway(gateway)
-            fleet.wait_alive(session, [GATEWAY], timeout=60)
-        if ros2:
-            fleet.start_ros2()
-            fleet.wait_alive(session, [ROS2], timeout=60)
+        served = _start_faces(fleet, session, gateway, ros2)
     except (LaunchError, KeyboardInterrupt) as exc:
         if session is not None:
             session.close()
@@ -109,9 +104,22 @@ def up(
     info.processes = fleet.pids()
     write_run_info(run_dir, info)
     write_state(runs_dir, FleetState(endpoint, str(run_dir), fleet.pids()))
-    served = f"; gateway http://127.0.0.1:{gateway}/acc" if gateway is not None else ""
-    served += "; ROS 2 node /roco on domain 0 (roco ros2 --all)" if ros2 else ""
     typer.echo(f"roco: fleet up on {endpoint} in {waited:.1f} s{served}; run folder {run_dir}")
+
+
+def _start_faces(fleet: Fleet, session: zenoh.Session, gateway: int | None, ros2: bool) -> str:
+    """Start the ACL gateway on port ``gateway`` (None: none) and the ROS 2 face (``ros2``) and
+    wait for their tokens; the tail of `roco up`'s line that names them. Raises LaunchError."""
+    served = ""
+    if gateway is not None:
+        fleet.start_gateway(gateway)
+        fleet.wait_alive(session, [GATEWAY], timeout=60)
+        served += f"; gateway http://127.0.0.1:{gateway}/acc"
+    if ros2:
+        fleet.start_ros2()
+        fleet.wait_alive(session, [ROS2], timeout=60)
+        served += "; ROS 2 node /roco on domain 0 (roco ros2 --all)"
+    return served
 
 
 @control_app.command(short_help="Stop the fleet that roco up started and write its report.")
