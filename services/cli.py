@@ -30,6 +30,7 @@ from services.gateway.cli import gateway_app
 from services.hosts.cli import hosts_app
 from services.replay.cli import replay_app
 from services.ros2.cli import export_app
+from services.ros2.live_cli import ros2_app
 from services.scenario.chaos_cli import chaos_app
 from services.scenario.cli import scenario_app
 from services.sniff.cli import sniff_app
@@ -47,6 +48,7 @@ for commands in (
     view_app,  # view
     sniff_app,  # sniff
     gateway_app,  # gateway
+    ros2_app,  # ros2
     status_app,  # status
     replay_app,  # replay
     doctor_app,  # doctor

@@ -102,6 +102,14 @@ GatewayOption = Annotated[
         show_default=False,
     ),
 ]
+Ros2Option = Annotated[
+    bool,
+    typer.Option(
+        "--ros2",
+        help="also run `roco ros2 --all` (docs/ros2.md) as a process of the fleet: ROS 2 node /roco "
+        "on domain 0 publishes joint_states, tf, roco/task_state and serves roco/say",
+    ),
+]
 LiveOption = Annotated[
     bool | None,
     typer.Option(

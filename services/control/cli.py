@@ -13,6 +13,7 @@ from services.cli_common import (
     INTERRUPTED,
     AclOption,
     GatewayOption,
+    Ros2Option,
     TlsOption,
     fail,
     fleet_endpoint,
@@ -22,7 +23,7 @@ from services.cli_common import (
     security_switches,
     stop_on_signals,
 )
-from services.fleet.launcher import AGENT_ORDER, GATEWAY, Fleet, LaunchError
+from services.fleet.launcher import AGENT_ORDER, GATEWAY, ROS2, Fleet, LaunchError
 from services.fleet.processes import stop_pids
 from services.fleet_state import FLEET_FILE, FleetState, write_state
 from services.runtime.run_folder import RunInfo, write_run_info
@@ -58,8 +59,10 @@ def up(
     acl: AclOption = None,
     tls: TlsOption = None,
     gateway: GatewayOption = None,
+    ros2: Ros2Option = False,
 ) -> None:
-    """Start router, recorder and all agents (and the ACL gateway with `--gateway`) in the
+    """Start router, recorder and all agents (and the ACL gateway with `--gateway`, the ROS 2
+    face with `--ros2`) in the
     background; they keep running until `roco down`, which writes the run's report. A port in
     use, or a runs folder that cannot be written, is refused before anything starts; a fleet
     that does not come up is stopped (its report written)."""
@@ -86,9 +89,7 @@ def up(
         fleet.wait_alive(session, ["recorder"], timeout=60)
         fleet.start_agents()
         waited = fleet.wait_alive(session, AGENT_ORDER, timeout=120)
-        if gateway is not None:
-            fleet.start_gateway(gateway)
-            fleet.wait_alive(session, [GATEWAY], timeout=60)
+        served = _start_faces(fleet, session, gateway, ros2)
     except (LaunchError, KeyboardInterrupt) as exc:
         if session is not None:
             session.close()
@@ -103,8 +104,22 @@ def up(
     info.processes = fleet.pids()
     write_run_info(run_dir, info)
     write_state(runs_dir, FleetState(endpoint, str(run_dir), fleet.pids()))
-    served = f"; gateway http://127.0.0.1:{gateway}/acc" if gateway is not None else ""
     typer.echo(f"roco: fleet up on {endpoint} in {waited:.1f} s{served}; run folder {run_dir}")
+
+
+def _start_faces(fleet: Fleet, session: zenoh.Session, gateway: int | None, ros2: bool) -> str:
+    """Start the ACL gateway on port ``gateway`` (None: none) and the ROS 2 face (``ros2``) and
+    wait for their tokens; the tail of `roco up`'s line that names them. Raises LaunchError."""
+    served = ""
+    if gateway is not None:
+        fleet.start_gateway(gateway)
+        fleet.wait_alive(session, [GATEWAY], timeout=60)
+        served += f"; gateway http://127.0.0.1:{gateway}/acc"
+    if ros2:
+        fleet.start_ros2()
+        fleet.wait_alive(session, [ROS2], timeout=60)
+        served += "; ROS 2 node /roco on domain 0 (roco ros2 --all)"
+    return served
 
 
 @control_app.command(short_help="Stop the fleet that roco up started and write its report.")

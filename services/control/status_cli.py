@@ -44,13 +44,18 @@ def _flag_lines(reply: FlagsReply | None) -> list[str]:
 
 def _counters_text(name: str, alive: set[str], reports: dict[str, CountersReport]) -> str:
     """The tail of `roco status`'s line of ``name``: its counters (the gateway's: what came
-    in, was refused, went out), or that an alive agent did not send them in time."""
+    in, was refused, went out; the ROS 2 face's likewise), or that an alive agent did not send
+    them in time."""
     from services.runtime.counters import summary
 
     if name == "gateway" and name in reports:
         from services.gateway.bridge import summary as gateway_summary
 
         return f"  {gateway_summary(reports[name].counters)}"
+    if name == "ros2" and name in reports:
+        from services.ros2.face import summary as ros2_summary
+
+        return f"  {ros2_summary(reports[name].counters)}"
     if name in reports:
         return f"  {summary(reports[name].counters)}"
     if name in alive and name != "recorder":  # (the gateway answers as agents do)
@@ -86,13 +91,16 @@ def status(
     try:
         alive = alive_agents(session)
         with collect_reports(session, refusals):
-            reports = ask_counters(session, alive & {*AGENT_ORDER, "gateway"}, timeout=counters_timeout)
+            reports = ask_counters(
+                session, alive & {*AGENT_ORDER, "gateway", "ros2"}, timeout=counters_timeout
+            )
         flags = ask_flags(session, timeout=counters_timeout)
         mine = {str(z) for z in session.info.routers_zid()}  # the router this session reached
     finally:
         session.close()
     names = _routers_named(runs_dir, endpoint, mine)
-    for name in (*AGENT_ORDER, "recorder", *(["gateway"] if "gateway" in alive else [])):
+    extra = [n for n in ("gateway", "ros2") if n in alive]
+    for name in (*AGENT_ORDER, "recorder", *extra):
         typer.echo(
             f"{name:9s} {'alive' if name in alive else 'absent'}{_counters_text(name, alive, reports)}"
         )

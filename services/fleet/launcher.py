@@ -45,6 +45,8 @@ their clients, a_hi last: it accepts the human's command)."""
 
 GATEWAY = "gateway"  # services/gateway/bridge.py: GATEWAY
 """The ACL gateway's process name, which is also its identity (``roco gateway``)."""
+ROS2 = "ros2"  # services/ros2/face.py: ROS2
+"""The ROS 2 face's process name, which is also its identity (``roco ros2``)."""
 
 
 LAUNCH_ENV = "launch_env.json"
@@ -158,6 +160,13 @@ class Fleet:
         self._spawn(
             GATEWAY, ["-m", "services.cli", "gateway", "--router", self.endpoint, "--port", str(port)]
         )
+
+    def start_ros2(self, args: Iterable[str] = ("--all",)) -> None:
+        """Start ``roco ros2 args…`` (services/ros2/live_cli.py) for this fleet's router as
+        process :data:`ROS2`: it authenticates as ``ros2`` when the fleet has access control
+        and is stopped with the agents. Its liveliness token comes once its node is declared
+        (:meth:`wait_alive`)."""
+        self._spawn(ROS2, ["-m", "services.cli", "ros2", "--router", self.endpoint, *args])
 
     def _check_alive(self, names: Iterable[str]) -> None:
         for name in names:

@@ -154,7 +154,7 @@ class Gateway:
             (ch.name, end, other)
             for ch in spec.channels
             for end, other in (ch.ends, ch.ends[::-1])
-            if end in spec.external_names and other not in spec.external_names
+            if end in _roles(spec) and other not in spec.external_names
         ]
         """(channel, external role, agent) for every channel a foreign agent may use."""
 
@@ -463,12 +463,18 @@ def _answer_addresses(msg: Communicate, envelope: Envelope) -> tuple[str, ...]:
 def _sender_refusal(msg: Communicate, spec: SystemSpec) -> Refusal | None:
     """The refusal of a message whose sender is missing or no foreign name, else None."""
     sender = msg.sender.name if msg.sender is not None else ""
-    if sender and is_foreign(sender) and sender not in spec.agent_names:
+    if sender and is_foreign(sender) and spec.role_of(sender) in _roles(spec):
         return None
     return Refusal(
         "sender",
         f"{sender[:300] or 'no sender'}: only agents of other platforms (local@platform) come in here",
     )
+
+
+def _roles(spec: SystemSpec) -> tuple[str, ...]:
+    """The external roles the gateway speaks for: those of no platform of their own (``x_fipa``;
+    ``…@ros2`` names play x_ros2, served by ``roco ros2``)."""
+    return tuple(e.name for e in spec.externals if not e.platform)
 
 
 def _kind(sends: tuple[MessageKind, ...], receiver: str, msg: Communicate) -> MessageKind | None:

@@ -16,6 +16,7 @@ from services.cli_common import (
     GatewayOption,
     LiveOption,
     RecordOption,
+    Ros2Option,
     RunsDirMade,
     TlsOption,
     ViewOption,
@@ -52,12 +53,13 @@ def run(
     tls: TlsOption = None,
     live: LiveOption = None,
     gateway: GatewayOption = None,
+    ros2: Ros2Option = False,
 ) -> None:
     """Start router, recorder and one process per agent (and the ACL gateway with
-    `--gateway`); give a_hi the command; wait for the outcome; stop everything; write the run
-    folder's report. Exit 0 only on success with no requirement flagged violated during the
-    run (docs/spec.md, the live monitor), 130 when interrupted (Ctrl-C: the fleet is
-    stopped, the report written)."""
+    `--gateway`, the ROS 2 face with `--ros2`); give a_hi the command; wait for the outcome;
+    stop everything; write the run folder's report. Exit 0 only on success with no
+    requirement flagged violated during the run (docs/spec.md, the live monitor), 130 when
+    interrupted (Ctrl-C: the fleet is stopped, the report written)."""
     from services.scenario.model import Scenario, Step
 
     security_switches(acl, tls)
@@ -74,6 +76,7 @@ def run(
         view=view,
         watch=watch,
         gateway=gateway,
+        ros2=ros2,
     )
 
 
@@ -92,6 +95,7 @@ def scenario(
     tls: TlsOption = None,
     live: LiveOption = None,
     gateway: GatewayOption = None,
+    ros2: Ros2Option = False,
 ) -> None:
     """Run a scenario (several commands, interruptions, disturbances, restarts; see
     services/scenario/model.py) headless, check every command's outcome against what the
@@ -113,7 +117,15 @@ def scenario(
         raise fail(str(exc), code=2) from None
     watch = live_watch(f"roco scenario {sc.name}", live, quiet)
     _run_scenario(
-        sc, runs_dir, realtime=realtime, quiet=quiet, record=record, view=view, watch=watch, gateway=gateway
+        sc,
+        runs_dir,
+        realtime=realtime,
+        quiet=quiet,
+        record=record,
+        view=view,
+        watch=watch,
+        gateway=gateway,
+        ros2=ros2,
     )
 
 
@@ -132,6 +144,7 @@ def _run_scenario(
     view: bool = False,
     watch: LiveWatch | None = None,
     gateway: int | None = None,
+    ros2: bool = False,
 ) -> None:
     """Run scenario ``sc`` (services/scenario/model.py) in a new run folder under ``runs_dir``
     and end as `roco run` and `roco scenario` do: the report written, one line of outcome,
@@ -165,6 +178,7 @@ def _run_scenario(
             info=info,
             on_session=watch.attach if watch is not None else None,
             gateway=gateway,
+            ros2=ros2,
         )
         outcome = runner.run()
     finish_report(run_dir, info, interrupted=outcome.interrupted)

@@ -22,7 +22,7 @@ import aiohttp
 import msgspec
 import zenoh
 
-from services.fleet.launcher import AGENT_ORDER, GATEWAY, Fleet, LaunchError, free_port
+from services.fleet.launcher import AGENT_ORDER, GATEWAY, ROS2, Fleet, LaunchError, free_port
 from services.gateway.http_mtp import MTPError
 from services.gateway.platform import ForeignPlatform
 from services.recorder.sync import sync
@@ -256,7 +256,8 @@ class ScenarioRunner:
     where the fleet runs (default: :class:`LocalHosting`); ``gateway``: a port on 127.0.0.1
     where the fleet's ACL gateway serves agents of other FIPA platforms (``roco gateway``,
     docs/gateway.md), started once the agents are alive (None: no gateway, unless a ``say``
-    step comes ``from = "gateway"``: then on a free port)."""
+    step comes ``from = "gateway"``: then on a free port); ``ros2``: also the ROS 2 face
+    (``roco ros2 --all``, docs/ros2.md), started once the agents are alive."""
 
     def __init__(
         self,
@@ -270,8 +271,10 @@ class ScenarioRunner:
         on_session: Callable[[zenoh.Session], None] | None = None,
         hosting: Hosting | None = None,
         gateway: int | None = None,
+        ros2: bool = False,
     ) -> None:
         self.scenario = scenario
+        self.ros2 = ros2
         from_platform = any(s.from_ == "gateway" for s in scenario.commands)
         self.gateway = gateway if gateway is not None or not from_platform else free_port()
         self.platform: ForeignPlatform | None = None
@@ -713,6 +716,12 @@ class ScenarioRunner:
         self._say(f"all agents alive after {waited:.1f} s: {', '.join(AGENT_ORDER)}")
         if self.gateway is not None:
             self._start_gateway(session, self.gateway)
+        if self.ros2:
+            self.fleet.start_ros2()
+            waited = self.fleet.wait_alive(session, [ROS2], timeout=60)
+            self.info.processes = self.fleet.pids()
+            write_run_info(self.run_dir, self.info)
+            self._say(f"ROS 2 node /roco up after {waited:.1f} s: roco/say → a_hi (C9) and the robot's state")
 
     def _start_gateway(self, session: zenoh.Session, port: int) -> None:
         """Start the ACL gateway on ``port`` and wait until it serves (its liveliness token:
@@ -765,7 +774,11 @@ class ScenarioRunner:
     def _save_counters(self, session: zenoh.Session) -> None:
         """The agents' counters (and the gateway's: what crossed it, said in one line as
         ``roco status`` shows it) into the run folder's counters.json."""
-        asked = [*AGENT_ORDER, *([GATEWAY] if self.gateway is not None else [])]
+        asked = [
+            *AGENT_ORDER,
+            *([GATEWAY] if self.gateway is not None else []),
+            *([ROS2] if self.ros2 else []),
+        ]
         counters = ask_counters(session, asked, timeout=10.0)
         save_counters(self.run_dir, counters)
         self.raised = raised_by_agent({a: r.counters for a, r in counters.items()})
@@ -775,6 +788,10 @@ class ScenarioRunner:
             from services.gateway.bridge import summary
 
             self._say(f"gateway: {summary(counters[GATEWAY].counters)}")
+        if ROS2 in counters:
+            from services.ros2.face import summary as ros2_summary
+
+            self._say(f"ros2: {ros2_summary(counters[ROS2].counters)}")
 
     def _stop_hosting(self) -> bool:
         """Stop the fleet; whether a Ctrl-C came meanwhile (it starts the stop again: none is

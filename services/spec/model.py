@@ -52,11 +52,13 @@ class ExternalSpec(msgspec.Struct, frozen=True, forbid_unknown_fields=True):
     system that a decomposition step introduces (``outside``), ``job`` what such agents do here.
     No process of roco plays it: every agent name of the form ``local@platform`` (a FIPA
     SC00023 GUID, e.g. JADE's ``da0@host:1099/JADE``) that is not an agent of the
-    specification plays it (:meth:`SystemSpec.role_of`)."""
+    specification plays it (:meth:`SystemSpec.role_of`); with a ``platform``, only the names
+    ``local@<platform>`` play it (``x_ros2``: ``…@ros2``, the callers of ``roco ros2``)."""
 
     name: str
     group: str
     job: str = ""
+    platform: str = ""
 
 
 class ProtocolRoles(msgspec.Struct, frozen=True, forbid_unknown_fields=True):
@@ -115,7 +117,7 @@ class SystemSpec(msgspec.Struct, frozen=True, forbid_unknown_fields=True):
     """The order a launcher starts the agents in; agents it does not name start after those it
     names, in file order."""
     externals: tuple[ExternalSpec, ...] = ()
-    """Roles of agents outside the platform (at most one; see :class:`ExternalSpec`)."""
+    """Roles of agents outside the platform (one per platform; see :class:`ExternalSpec`)."""
 
     @property
     def external_names(self) -> tuple[str, ...]:
@@ -125,10 +127,14 @@ class SystemSpec(msgspec.Struct, frozen=True, forbid_unknown_fields=True):
     def role_of(self, name: str) -> str:
         """The name agent ``name`` has in the channels: an agent of the specification is
         itself; a foreign agent (``local@platform``, not an agent of the specification) plays
-        the external role when the specification has one (:class:`ExternalSpec`); any other
+        the external role of its platform, else the one without a platform
+        (:class:`ExternalSpec`); any other
         name is itself (and ends no channel)."""
         if self.externals and is_foreign(name) and name not in self.agent_names:
-            return self.externals[0].name
+            platform = name[name.find("@", 1) + 1 :]
+            named = [e.name for e in self.externals if e.platform == platform]
+            anyone = [e.name for e in self.externals if not e.platform]
+            return (named or anyone or [name])[0]
         return name
 
     @property
@@ -210,12 +216,25 @@ def one_line(exc: Exception) -> str:
 
 
 def _check_externals(spec: SystemSpec, names: set[str], path: Path) -> None:
-    """At most one external role, named as no agent (``names``) and no GUID."""
-    if len(spec.externals) > 1:
-        raise SpecError(f"{path}: at most one external role, not {len(spec.externals)}")
+    """External roles named as no agent (``names``) and no GUID, each once
+    (:func:`_check_platforms`)."""
+    _check_platforms(spec, path)
+    if len({e.name for e in spec.externals}) != len(spec.externals):
+        raise SpecError(f"{path}: an external role is named twice")
     for e in spec.externals:
         if e.name in names or is_foreign(e.name):
             raise SpecError(f"{path}: external role {e.name!r} must be no agent's name and no GUID")
+
+
+def _check_platforms(spec: SystemSpec, path: Path) -> None:
+    """At most one external role without a platform, each platform once and a word (letters,
+    digits, ``_``, ``-``: a key chunk's end of an agent's name)."""
+    platforms = [e.platform for e in spec.externals]
+    if len(set(platforms)) != len(platforms):
+        raise SpecError(f"{path}: at most one external role per platform (and one without)")
+    for p in platforms:
+        if p and not p.replace("_", "").replace("-", "").isalnum():
+            raise SpecError(f"{path}: platform {p!r} of an external role is no word")
 
 
 def _check_agents(spec: SystemSpec, path: Path) -> None:

@@ -42,6 +42,9 @@ class Channel(enum.StrEnum):
     C8 = "C8"
     """Between x_fipa and a_hi (fipa-request, roco-notify): sentences from agents of other FIPA
     platforms (through roco gateway) and their outcome; their notices to the person."""
+    C9 = "C9"
+    """Between x_ros2 and a_hi (fipa-request): sentences from ROS 2 nodes (through roco ros2) and
+    their outcome."""
 
 
 class ProtocolName(enum.StrEnum):
@@ -49,7 +52,7 @@ class ProtocolName(enum.StrEnum):
     parameter carries them (FIPA SC00061)."""
 
     FIPA_REQUEST = "fipa-request"
-    """FIPA SC00026; on C2, C3, C5, C8."""
+    """FIPA SC00026; on C2, C3, C5, C8, C9."""
     FIPA_QUERY = "fipa-query"
     """FIPA SC00027; on C2, C4, C6, C7."""
     FIPA_SUBSCRIBE = "fipa-subscribe"
@@ -67,7 +70,7 @@ class Language(enum.StrEnum):
     L_EX = "L_EX"
     """On C5."""
     L_HC = "L_HC"
-    """On C2, C8."""
+    """On C2, C8, C9."""
     L_HFSM = "L_HFSM"
     """On C1, C3."""
     L_SD = "L_SD"
@@ -86,6 +89,7 @@ C5 = Channel.C5
 C6 = Channel.C6
 C7 = Channel.C7
 C8 = Channel.C8
+C9 = Channel.C9
 
 FIPA_REQUEST = ProtocolName.FIPA_REQUEST
 FIPA_QUERY = ProtocolName.FIPA_QUERY

@@ -50,6 +50,24 @@ OPERATOR = "operator"
 """The identity of the operator's tools (CLI, scenario runner, fault injector, tests)."""
 GATEWAY = "gateway"  # services/gateway/bridge.py: GATEWAY
 """The identity of ``roco gateway``, which speaks for agents of other platforms."""
+ROS2 = "ros2"  # services/ros2/face.py: ROS2
+"""The identity of ``roco ros2``, which speaks for ROS 2 nodes (the external role of platform
+``ros2``) and publishes the robot's state in rmw_zenoh's wire format."""
+ROS2_SAYS = tuple(
+    f"**/{t}/*"  # <domain>/<topic>/<DDS type>/<type hash>: no key of roco ends so
+    for t in (
+        "sensor_msgs::msg::dds_::JointState_",
+        "tf2_msgs::msg::dds_::TFMessage_",
+        "sensor_msgs::msg::dds_::Image_",
+        "roco_msgs::msg::dds_::TaskState_",
+        "roco_msgs::msg::dds_::SayProgress_",
+    )
+)
+"""What ``roco ros2`` publishes (services/ros2/face.py)."""
+ROS2_SERVES = "**/roco_msgs::srv::dds_::Say_/*"
+"""The queryable of its sentence service (any type hash: a wrong one is refused and counted)."""
+ROS2_TOKENS = "@ros2_lv/**"
+"""Its node's and entities' liveliness tokens (rmw_zenoh's design document, "Graph Cache")."""
 INJECTOR = "roco"  # services/fault/process.py: INJECTOR, the sender of process-fault events
 
 _FAULT = "roco/fault"  # services/runtime/faults.py: FAULT_PREFIX
@@ -167,10 +185,12 @@ def channel_routes(spec: SystemSpec) -> list[tuple[str, str, str]]:
 def route_key(spec: SystemSpec, channel: str, sender: str, receiver: str) -> str:
     """The key expression of a route: :func:`keys.fipa_key`, with ``keys.FOREIGN`` for an
     external role's end (any foreign name plays it)."""
-    outside = spec.external_names
+    platforms = {e.name: e.platform for e in spec.externals}
 
     def chunk(name: str) -> str:
-        return keys.FOREIGN if name in outside else keys.key_chunk(name)
+        if name not in platforms:
+            return keys.key_chunk(name)
+        return f"$*@{keys.key_chunk(platforms[name])}" if platforms[name] else keys.FOREIGN
 
     return f"{keys.FIPA_PREFIX}{channel}/{chunk(sender)}/{chunk(receiver)}"
 
@@ -249,7 +269,7 @@ def gateway_grants(spec: SystemSpec) -> Grants:
     agents the external roles have channels to, and hears only what those agents say to
     foreign agents."""
     g = Grants(GATEWAY)
-    outside = spec.external_names
+    outside = tuple(e.name for e in spec.externals if not e.platform)
     routes = channel_routes(spec)
     sends = [route_key(spec, c, s, r) for c, s, r in routes if s in outside and r not in outside]
     g.say(*sends)
@@ -258,6 +278,35 @@ def gateway_grants(spec: SystemSpec) -> Grants:
     g.own_token(keys.alive_key(GATEWAY))
     g.hear(keys.COUNTERS_ASK)
     g.say(keys.counters_key(GATEWAY))
+    return g
+
+
+def _speak_for(g: Grants, spec: SystemSpec, outside: tuple[str, ...]) -> None:
+    """Put as the external roles ``outside`` to the agents they have channels to (with the
+    advanced publishers' keys), hear what those agents say to them."""
+    routes = channel_routes(spec)
+    sends = [route_key(spec, c, s, r) for c, s, r in routes if s in outside and r not in outside]
+    g.say(*sends)
+    _cached_publisher(g, sends)
+    g.hear(*(route_key(spec, c, s, r) for c, s, r in routes if r in outside and s not in outside))
+
+
+def ros2_grants(spec: SystemSpec) -> Grants:
+    """The grants of ``roco ros2``: it puts as any ``…@ros2`` caller to the agents the external
+    role of platform ``ros2`` has channels to and hears what they say to such callers; hears
+    ag_ex's state, the simulation's clock and a_ta's informs to a_co on C1 (the task state it
+    republishes); publishes :data:`ROS2_SAYS`, serves :data:`ROS2_SERVES`, holds
+    :data:`ROS2_TOKENS` and its own ``roco/alive/ros2``."""
+    g = Grants(ROS2)
+    _speak_for(g, spec, tuple(e.name for e in spec.externals if e.platform == ROS2))
+    g.hear(keys.state_key("ag_ex"), keys.SIM_CLOCK)
+    g.hear(*(route_key(spec, c, s, r) for c, s, r in channel_routes(spec) if (s, r) == ("a_ta", "a_co")))
+    g.say(*ROS2_SAYS)
+    _answers(g, ROS2_SERVES)
+    g.allow("ingress", "liveliness_token", ROS2_TOKENS)
+    g.own_token(keys.alive_key(ROS2))
+    g.hear(keys.COUNTERS_ASK)
+    g.say(keys.counters_key(ROS2))
     return g
 
 
@@ -309,13 +358,16 @@ def operator_grants() -> Grants:
 
 def all_grants(spec: SystemSpec) -> list[Grants]:
     """The grants of every identity: the agents in file order, then recorder and operator, then
-    the gateway when the specification has an external role."""
-    gateway = [gateway_grants(spec)] if spec.externals else []
+    the gateway when the specification has an external role without a platform, ``roco ros2``
+    when it has one of platform ``ros2``."""
+    gateway = [gateway_grants(spec)] if any(not e.platform for e in spec.externals) else []
+    ros2 = [ros2_grants(spec)] if any(e.platform == ROS2 for e in spec.externals) else []
     return [
         *(agent_grants(spec, a.name) for a in spec.agents),
         recorder_grants(),
         operator_grants(),
         *gateway,
+        *ros2,
     ]
 
 

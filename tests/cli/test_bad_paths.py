@@ -161,6 +161,7 @@ NO_FLEET = [
     ["sniff"],
     ["disturb", "jar", "--dx", "0.1"],
     ["gateway", "--port", "PORT"],
+    ["ros2", "--all"],
     ["fault", "show"],
     ["fault", "net", "a_pl", "--delay", "0.1"],
     ["fault", "msg", "C4", "--drop", "0.5"],
@@ -177,7 +178,7 @@ def test_without_a_fleet_each_tool_names_the_router_and_the_fix(
     router = f"tcp/127.0.0.1:{free_port()}"
     args = [str(free_port()) if a == "PORT" else a for a in command]
     code, lines = invoke([*args, "--router", router, "--runs-dir", str(tmp_path)])
-    prefix = "roco: gateway: " if command[0] == "gateway" else "roco: "
+    prefix = f"roco: {command[0]}: " if command[0] in ("gateway", "ros2") else "roco: "
     assert code == 1
     fix = "start a fleet with 'roco up', or name its router with --router"
     assert lines == [f"{prefix}no router answers at {router}: {fix}"]
@@ -291,6 +292,7 @@ RUNS_DIR_HELP = {
     ("sniff",): "keeps",
     ("disturb",): "keeps",
     ("gateway",): "keeps",
+    ("ros2",): "keeps",
     ("doctor",): "keeps",
     ("hosts", "partition"): "keeps",
     ("hosts", "heal"): "keeps",

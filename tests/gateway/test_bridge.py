@@ -21,7 +21,7 @@ from services.spec.model import default_spec
 from shared.fipa_codec import Performative, decode
 from shared.fipa_codec.languages.l_hc import CommandOutcome, HumanCommand, SentenceReport, TaskAtom
 from tests.agents.human_interface.test_agent import TIMEOUT, ScriptedCo, Stage
-from tests.support.jade_platform import JADE, JadePlatform, post
+from tests.support.jade_platform import JADE, JadePlatform, envelope_xml, jade_body, post
 
 
 @dataclass
@@ -191,3 +191,14 @@ def test_a_foreign_agent_s_notice_reaches_the_person_with_its_name(b: Bridge) ->
         "warning",
         "the jar tipped over",
     )
+
+
+def test_a_ros2_callers_name_is_no_sender_the_gateway_speaks_for(b: Bridge) -> None:
+    """Names ``…@ros2`` play x_ros2, served by roco ros2 on C9 (docs/ros2.md): over HTTP the
+    gateway answers 403 and puts nothing on Zenoh."""
+    caller = "c00ff@ros2"
+    payload = b.jade.acl("a_hi", sentence("bring me the cup"), "C9_ros2").replace(JADE, caller).encode()
+    body = jade_body(envelope_xml("a_hi", caller, b.jade.address, len(payload)), payload)
+    assert post(b.url, body) == 403
+    assert b.gateway.counters["refused.sender"] == 1
+    assert not [k for k, _ in b.stage.bus.published if k.startswith(keys.FIPA_PREFIX) and "ros2" in k]

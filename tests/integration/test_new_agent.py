@@ -38,10 +38,10 @@ pytestmark = [pytest.mark.slow, pytest.mark.fleet]
 
 ROOT = Path(__file__).resolve().parents[2]
 C = NEXT.channel_name
-"""The new agent's channel to a_km (C9 in the shipped specification; the copy's is this
+"""The new agent's channel to a_km (C10 in the shipped specification; the copy's is this
 checkout's)."""
 N = NEXT.notice_channel_name
-"""The new agent's channel to a_hi (C10 in the shipped specification)."""
+"""The new agent's channel to a_hi (C11 in the shipped specification)."""
 WARNING = "the bowl has tipped over"
 SESSION = """name = "the watcher warns of a knocked-over bowl"
 timeout_s = 900

@@ -14,6 +14,7 @@ from services.spec_check.acl import (
     GATEWAY,
     OPERATOR,
     RECORDER,
+    ROS2,
     _includes,
     acl_config,
     agent_grants,
@@ -24,18 +25,21 @@ from services.spec_check.acl import (
     markdown_table,
     operator_grants,
     recorder_grants,
+    ros2_grants,
     route_key,
 )
 
 JADE = "da0@host:1099/JADE"
 """A foreign agent's name: it plays the external role x_fipa."""
+CALLER = "c000102030405060708090a0b0c0d0e0f@ros2"
+"""A ROS 2 caller's name as roco ros2 puts it (services/ros2/face.py): it plays x_ros2."""
 
 
 def key_of(spec: SystemSpec, channel: str, sender: str, receiver: str) -> str:
     """A concrete key of a route, a JADE-named agent standing for an external role."""
 
     def name(n: str) -> str:
-        return JADE if n in spec.external_names else n
+        return {"x_fipa": JADE, "x_ros2": CALLER}.get(n, n)
 
     return keys.fipa_key(channel, name(sender), name(receiver))
 
@@ -158,7 +162,7 @@ def test_only_its_owner_answers_a_queryable_and_the_operator_asks(
 
 def test_acl_config_is_default_deny_with_one_subject_and_policy_per_identity(spec: SystemSpec) -> None:
     names = identities(spec)
-    assert names == [*(a.name for a in spec.agents), RECORDER, OPERATOR, GATEWAY]
+    assert names == [*(a.name for a in spec.agents), RECORDER, OPERATOR, GATEWAY, ROS2]
     for tls in (False, True):
         conf = acl_config(spec, tls=tls)
         assert conf["enabled"] is True and conf["default_permission"] == "deny"
@@ -221,3 +225,34 @@ def test_the_gateway_speaks_only_as_foreign_agents_on_their_channels(spec: Syste
     assert not hi.may("ingress", "put", keys.fipa_key("C8", "a_hi", "a_co"))
     assert hi.may("egress", "put", keys.fipa_key("C8", JADE, "a_hi"))
     assert not hi.may("egress", "put", keys.fipa_key("C8", "a_co", "a_hi"))
+
+
+def test_roco_ros2_speaks_only_as_ros2_callers_to_a_hi_on_c9(spec: SystemSpec) -> None:
+    """roco ros2 puts as any …@ros2 caller to a_hi on C9 and hears a_hi's answers to them; it
+    cannot speak on C8 (the gateway's), as a JADE agent or as a roco agent; it hears ag_ex's
+    state and a_ta's informs to a_co, publishes only its ROS 2 types under their DDS names and
+    holds only its own tokens. The gateway cannot speak as a ROS 2 caller on C9."""
+    g = ros2_grants(spec)
+    assert g.may("ingress", "put", keys.fipa_key("C9", CALLER, "a_hi"))
+    assert not g.may("ingress", "put", keys.fipa_key("C8", CALLER, "a_hi"))
+    assert not g.may("ingress", "put", keys.fipa_key("C9", JADE, "a_hi"))
+    assert not g.may("ingress", "put", keys.fipa_key("C9", "a_co", "a_hi"))
+    assert not g.may("ingress", "put", keys.fipa_key("C2", "a_hi", "a_co"))
+    assert g.may("egress", "put", keys.fipa_key("C9", "a_hi", CALLER))
+    assert not g.may("egress", "put", keys.fipa_key("C8", "a_hi", JADE))
+    assert g.may("egress", "put", keys.state_key("ag_ex")) and g.may(
+        "egress", "put", keys.fipa_key("C1", "a_ta", "a_co")
+    )
+    assert not g.may("egress", "put", keys.fipa_key("C1", "a_co", "a_ta"))
+    joint = "0/joint_states/sensor_msgs::msg::dds_::JointState_/RIHS01_a13e"
+    assert g.may("ingress", "put", joint) and g.may("ingress", "put", "3/robot1/" + joint[2:])
+    assert not g.may("ingress", "put", "roco/fipa/C9/a_hi/x") and not g.may("ingress", "put", keys.HUMAN_IN)
+    assert g.may("ingress", "declare_queryable", "0/roco/say/roco_msgs::srv::dds_::Say_/*")
+    assert g.may("ingress", "liveliness_token", "@ros2_lv/0/zid/0/0/NN/%/%/roco")
+    assert g.may("ingress", "liveliness_token", keys.alive_key(ROS2))
+    assert not g.may("ingress", "liveliness_token", keys.alive_key("a_hi"))
+    assert not gateway_grants(spec).may("ingress", "put", keys.fipa_key("C9", CALLER, "a_hi"))
+    hi = agent_grants(spec, "a_hi")
+    assert hi.may("egress", "put", keys.fipa_key("C9", CALLER, "a_hi"))
+    assert hi.may("ingress", "put", keys.fipa_key("C9", "a_hi", CALLER))
+    assert not hi.may("ingress", "put", keys.fipa_key("C9", "a_hi", JADE))

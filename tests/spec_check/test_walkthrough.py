@@ -5,7 +5,7 @@ the tools say what the document says they say; a_km and a_hi serve the new chann
 edit of their code (a_hi: the new protocol is a notice protocol by its state machine); at the
 end the new agent and a_km run on one bus and the watcher's warning, a term of its own that
 says itself, goes to a_hi. The snippets' requirement, step and
-channel are numbered the next free ones of the shipped specification (R4, 9 and C9 as the
+channel are numbered the next free ones of the shipped specification (R4, 10 and C10 as the
 document writes them, until the specification grows; walkthrough.NEXT). The agent names its
 channel by services/spec/names.py, which new-agent renders again where it writes; in this process the
 module rendered from the staged specification stands in for it (tests/support/spec_names.py)."""
@@ -57,9 +57,9 @@ from tests.support.spec_names import use_names
 
 HANDLERS = ("_on_failure", "_on_inform", "_on_refuse")
 C = NEXT.channel_name
-"""The walk-through's channel to a_km: C9 in the shipped specification."""
+"""The walk-through's channel to a_km: C10 in the shipped specification."""
 N = NEXT.notice_channel_name
-"""The walk-through's channel to a_hi: C10 in the shipped specification."""
+"""The walk-through's channel to a_hi: C11 in the shipped specification."""
 
 
 @pytest.fixture(autouse=True)
@@ -94,9 +94,10 @@ def test_stage_1_a_new_step_makes_check_list_what_is_missing(tmp_path: Path) -> 
         "channel C2 joins <group ui> and a_co by the decomposition, but a_co and a_hi in [[channels]]",
         "channel C7 joins <group ui> and a_km by the decomposition, but a_hi and a_km in [[channels]]",
         "channel C8 joins <group ui> and x_fipa by the decomposition, but x_fipa and a_hi in [[channels]]",
+        "channel C9 joins <group ui> and x_ros2 by the decomposition, but x_ros2 and a_hi in [[channels]]",
         f"channel {C} of the decomposition is not specified in [[channels]]",
         f"channel {N} of the decomposition is not specified in [[channels]]",
-        "8 problem(s)",
+        "9 problem(s)",
     ):
         assert line in text, text
 

@@ -97,7 +97,7 @@ from services.runtime.roles import (
     initiator,
     participant,
 )
-from services.spec.names import C2, C7, C8, FIPA_QUERY, FIPA_REQUEST, FIPA_SUBSCRIBE, L_HC, L_WM
+from services.spec.names import C2, C7, C8, C9, FIPA_QUERY, FIPA_REQUEST, FIPA_SUBSCRIBE, L_HC, L_WM
 from shared.fipa_codec import Performative
 from shared.fipa_codec.languages.l_hc import (
     CommandOutcome,
@@ -209,6 +209,7 @@ class HumanInterface(AskingKnowledge):
         initiator(C7, FIPA_QUERY, L_WM, reply_by_s=VOCABULARY_REPLY_BY_S),
         initiator(C7, FIPA_SUBSCRIBE, L_WM, unused=True),  # changes of the scene: a_km serves them
         participant(C8, FIPA_REQUEST, L_HC),
+        participant(C9, FIPA_REQUEST, L_HC),  # ROS 2 nodes through roco ros2: as C8
         # any agent the specification lets tell the person something (module docstring)
         participant(EVERY_CHANNEL, EVERY_NOTICE, L_HC),
     )
@@ -339,11 +340,13 @@ class HumanInterface(AskingKnowledge):
 
     # ---- from agents of other platforms (C8, fipa-request, participant: foreign.py) ---------
     @handles(FIPA_REQUEST, PARTICIPANT, Performative.REQUEST, channel=C8)
+    @handles(FIPA_REQUEST, PARTICIPANT, Performative.REQUEST, channel=C9)
     def _on_foreign_request(self, conv: Conversation) -> None:
         """A foreign agent's sentence: read as a person's, its reports answer the request."""
         self._on_input(self.foreign.take(conv))
 
     @handles(FIPA_REQUEST, PARTICIPANT, Performative.CANCEL, channel=C8)
+    @handles(FIPA_REQUEST, PARTICIPANT, Performative.CANCEL, channel=C9)
     def _on_foreign_cancel(self, conv: Conversation) -> None:
         """A foreign agent cancels its request (FIPA SC00026 §2): its sentence, if not yet
         acted on, is dropped, and its command, if running, is stopped as by a person's stop;

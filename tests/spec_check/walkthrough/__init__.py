@@ -4,7 +4,7 @@ folder, its Python snippet in place of the handlers ``roco spec new-agent`` writ
 tests/spec_check/test_walkthrough.py (stage by stage) and tests/integration/test_new_agent.py
 (in a copy of the checkout, with a fleet).
 
-The document numbers its requirement, step and channels R4, 9, C9 (to a_km) and C10 (to a_hi),
+The document numbers its requirement, step and channels R4, 10, C10 (to a_km) and C11 (to a_hi),
 the next free ones of the shipped specification. A specification that has grown since takes
 them; so the snippets are renumbered to the next free numbers of the specification they are
 added to (:data:`NEXT` for this checkout's)."""
@@ -60,16 +60,16 @@ class Numbers:
 
     @property
     def channel_name(self) -> str:
-        """The channel to a_km's ``[[channels]]`` name: ``C9``."""
+        """The channel to a_km's ``[[channels]]`` name: ``C10``."""
         return f"C{self.channel}"
 
     @property
     def notice_channel_name(self) -> str:
-        """The channel to a_hi's ``[[channels]]`` name: ``C10``."""
+        """The channel to a_hi's ``[[channels]]`` name: ``C11``."""
         return f"C{self.channel + 1}"
 
 
-AS_WRITTEN = Numbers("R4", 9, 9, "km")
+AS_WRITTEN = Numbers("R4", 10, 10, "km")
 """The numbers (and a_km's group) the document's snippets carry."""
 
 

@@ -1,0 +1,67 @@
+"""``roco ros2``'s options and ``--ros2`` on ``roco run``, ``roco scenario`` and ``roco up``
+(services/ros2/live_cli.py, services/scenario/cli.py, services/control/cli.py): what is
+published is only what is asked; a bad namespace is one ``roco:`` line. No fleet starts."""
+
+from __future__ import annotations
+
+import threading
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+from typer.testing import CliRunner
+
+from services import cli
+from services.fleet.launcher import Fleet
+from services.ros2.face import JOINT_STATES, TASK_STATE, TF, FaceConfig
+from services.ros2.live import LiveConfig, LiveError, serve
+from tests.support.router import router_fleet
+
+
+def invoke(args: list[str]) -> tuple[int, str]:
+    result = CliRunner().invoke(cli.app, args, prog_name="roco")
+    return result.exit_code, result.output
+
+
+@pytest.mark.parametrize(
+    ("args", "topics", "say"),
+    [
+        ([], set(), True),
+        (["--joint-states"], {JOINT_STATES}, True),
+        (["--tf", "--task-state", "--no-say"], {TF, TASK_STATE}, False),
+        (["--all"], {JOINT_STATES, TF, TASK_STATE}, True),
+    ],
+)
+def test_only_the_topics_asked_for_are_published(
+    args: list[str], topics: set[str], say: bool, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    given: list[LiveConfig] = []
+    monkeypatch.setattr("services.ros2.live.main", lambda config: given.append(config) or 0)
+    code, out = invoke(["ros2", *args, "--router", "tcp/127.0.0.1:1", "--domain", "7", "--namespace", "/k"])
+    assert code == 0, out
+    (config,) = given
+    assert (set(config.face.topics), config.face.say) == (topics, say)
+    assert (config.face.domain, config.face.namespace, config.endpoint) == (7, "/k", "tcp/127.0.0.1:1")
+
+
+def test_run_and_scenario_pass_ros2_to_the_runner(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    given: list[dict[str, object]] = []
+    monkeypatch.setattr("services.scenario.cli._run_scenario", lambda sc, runs_dir, **kw: given.append(kw))
+    for args in ([], ["--ros2"]):
+        code, out = invoke(["run", "pour the jar into the bowl", *args, "--runs-dir", str(tmp_path)])
+        assert code == 0, out
+    assert [g["ros2"] for g in given] == [False, True]
+    for command in (["up"], ["scenario"]):
+        assert "--ros2" in invoke([*command, "--help"])[1]
+
+
+@pytest.fixture
+def router(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Fleet]:
+    yield from router_fleet(tmp_path_factory, "ros2_cli")
+
+
+def test_a_bad_domain_or_namespace_is_refused_in_one_line(router: Fleet) -> None:
+    code, out = invoke(["ros2", "--domain", "300", "--router", router.endpoint])
+    assert code == 2 and "--domain" in out  # typer's own range check: 0 to 232
+    with pytest.raises(LiveError, match="'/bad name' is no ROS 2 topic or service name"):
+        serve(LiveConfig(router.endpoint, FaceConfig(namespace="/bad name")), threading.Event())
