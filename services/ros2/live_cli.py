@@ -24,13 +24,21 @@ def ros2(
     all_topics: Annotated[bool, typer.Option("--all", help="publish every topic above")] = False,
     say: Annotated[bool, typer.Option(help="serve roco/say (a person's sentence to a_hi)")] = True,
     spec: Annotated[Path | None, typer.Option("--spec", help="a specification file")] = None,
+    write_package: Annotated[
+        Path | None,
+        typer.Option("--write-package", help="write ROS 2 package roco_msgs into this new folder; exit"),
+    ] = None,
 ) -> None:
     """Be ROS 2 node /roco on the fleet's own Zenoh, in rmw_zenoh's wire format (key
     expressions, CDR, attachments, liveliness tokens): publish the topics asked for (nothing
     unless asked) and serve roco/say (roco_msgs/srv/Say): a sentence, checked against the
     specification's external role x_ros2 (C9 to a_hi), answered with a_hi's outcome; progress
     on roco/say/progress. A malformed or out-of-protocol call is refused and counted (roco
-    status). Runs until Ctrl-C (docs/ros2.md)."""
+    status). Runs until Ctrl-C (docs/ros2.md). With --write-package DIR: writes roco's own
+    interfaces as the ROS 2 package roco_msgs (for colcon build) and exits."""
+    if write_package is not None:
+        _write_package(write_package)
+        return
     from services.ros2.face import JOINT_STATES, TASK_STATE, TF, TOPICS, FaceConfig
     from services.ros2.live import LiveConfig
     from services.ros2.live import main as run_live
@@ -42,3 +50,14 @@ def ros2(
     code = run_live(LiveConfig(endpoint_of(router, runs_dir), face, spec or DEFAULT_SPEC))
     if code:
         raise typer.Exit(code)
+
+
+def _write_package(out: Path) -> None:
+    from services.cli_common import fail
+    from services.ros2.package import write_package
+
+    try:
+        written = write_package(out)
+    except OSError as exc:  # FileExistsError: a folder that holds something
+        raise fail(str(exc)) from None
+    typer.echo(f"roco: roco_msgs ({len(written)} files) in {out}: colcon build it in a ROS 2 workspace")
