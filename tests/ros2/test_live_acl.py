@@ -1,17 +1,20 @@
 """An outside ROS 2 session under access control: zenoh-ros2-sdk (PyPI) as the identity
-``ros2_peer`` (services/spec_check/acl.py ``ros2_peer_grants``), its user and password given as
+``ros2_peer`` (services/spec_check/acl.py ``ros2_peer_grants``), its credentials given as
 rmw_zenoh takes them (``ZENOH_CONFIG_OVERRIDE``), on a router process with the fleet's access
-control, beside ``roco ros2``'s face and a stand-in a_hi (tests/ros2/test_live_face.py). It
-receives /joint_states and calls /roco/say; what it puts or subscribes to under ``roco/**`` is
-refused by the router: never delivered (a later call, answered through a_hi on the same
-session, is the marker) and counted and named in the router's refusal report."""
+control (TCP with user/password, and mutual TLS), beside ``roco ros2``'s face and a stand-in
+a_hi (tests/ros2/test_live_face.py). It receives /joint_states and calls /roco/say; what it
+puts or subscribes to under ``roco/**`` is refused by the router: never delivered (a later
+call, answered through a_hi on the same session, is the marker) and counted and named in the
+router's refusal report."""
 
 from __future__ import annotations
 
 import contextlib
+import json
 import queue
 import time
 from collections.abc import Iterator
+from pathlib import Path
 from typing import Any
 
 import msgspec
@@ -38,9 +41,28 @@ FORGED = ("roco/fipa/C9/x@ros2/a_hi", keys.HUMAN_IN)
 """What the ROS 2 session tries to put: a C9 request as a ROS 2 caller, a person's line."""
 
 
-@pytest.fixture(scope="module")
-def router(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Fleet]:
-    yield from router_fleet(tmp_path_factory, "ros2_acl", acl=True)
+@pytest.fixture(scope="module", params=["tcp", "tls"])
+def router(request: pytest.FixtureRequest, tmp_path_factory: pytest.TempPathFactory) -> Iterator[Fleet]:
+    yield from router_fleet(
+        tmp_path_factory, f"ros2_acl_{request.param}", acl=True, tls=request.param == "tls"
+    )
+
+
+def override(folder: Path, endpoint: str) -> str:
+    """``ZENOH_CONFIG_OVERRIDE`` for :data:`ROS2_PEER`'s credentials in ``folder`` (roco
+    deploy's files), as docs/ros2.md gives it to rmw_zenoh_cpp: user and password; over TLS
+    also the router's endpoint, the deployment's CA and the identity's certificate and key."""
+    password = (folder / ROS2_PEER / certs.PASSWORD).read_text().strip()
+    pairs = {"transport/auth/usrpwd/user": ROS2_PEER, "transport/auth/usrpwd/password": password}
+    if endpoint.startswith("tls/"):
+        pairs |= {
+            "connect/endpoints": [endpoint],
+            "transport/link/tls/root_ca_certificate": str(folder / certs.CA_CERT),
+            "transport/link/tls/connect_certificate": str(folder / ROS2_PEER / certs.CERT),
+            "transport/link/tls/connect_private_key": str(folder / ROS2_PEER / certs.KEY),
+            "transport/link/tls/enable_mtls": True,
+        }
+    return ";".join(f"{path}={json.dumps(value)}" for path, value in pairs.items())
 
 
 @pytest.fixture(scope="module")
@@ -48,7 +70,6 @@ def setup(
     router: Fleet, tmp_path_factory: pytest.TempPathFactory
 ) -> Iterator[tuple[Ros2Face, StandInHi, int]]:
     assert router.security is not None
-    password = (router.security / ROS2_PEER / certs.PASSWORD).read_text().strip()
     port = int(router.endpoint.rsplit(":", 1)[1])
     face_transport = ZenohTransport([router.endpoint], identity="ros2")
     hi = StandInHi(ZenohTransport([router.endpoint], identity="a_hi"))
@@ -56,11 +77,7 @@ def setup(
     face.bind()
     face.start()
     mp = pytest.MonkeyPatch()
-    # as rmw_zenoh_cpp reads it (docs/ros2.md): path=value pairs, ';'-separated
-    mp.setenv(
-        "ZENOH_CONFIG_OVERRIDE",
-        f'transport/auth/usrpwd/user="{ROS2_PEER}";transport/auth/usrpwd/password="{password}"',
-    )
+    mp.setenv("ZENOH_CONFIG_OVERRIDE", override(router.security, router.endpoint))  # as rmw_zenoh reads it
     folder = tmp_path_factory.mktemp("msgs")
     write_definitions(folder, ["sensor_msgs/msg/JointState"])
     use_offline(folder, mp)
