@@ -107,9 +107,33 @@ Ros2Option = Annotated[
     typer.Option(
         "--ros2",
         help="also run `roco ros2 --all` (docs/ros2.md) as a process of the fleet: ROS 2 node /roco "
-        "on domain 0 publishes joint_states, tf, roco/task_state and serves roco/say",
+        "on --ros2-domain publishes joint_states, tf, roco/task_state and serves roco/say",
     ),
 ]
+Ros2DomainOption = Annotated[
+    int, typer.Option("--ros2-domain", min=0, max=232, help="with --ros2: the face's ROS_DOMAIN_ID")
+]
+Ros2NamespaceOption = Annotated[
+    str, typer.Option("--ros2-namespace", help="with --ros2: the face's namespace (its topics below it)")
+]
+
+
+def ros2_args(on: bool, domain: int, namespace: str) -> tuple[str, ...] | None:
+    """The arguments of ``roco ros2`` for ``--ros2`` (``--all`` on ``domain`` in ``namespace``);
+    None without ``--ros2``. A bad namespace is one ``roco:`` line (exit 2) before anything
+    starts."""
+    if not on:
+        return None
+    if namespace != "/":
+        from services.ros2.rmw import RmwError, fully_qualified
+
+        try:
+            fully_qualified(namespace)
+        except RmwError as exc:
+            raise fail(f"--ros2-namespace: {exc}", 2) from None
+    return ("--all", "--domain", str(domain), "--namespace", namespace)
+
+
 LiveOption = Annotated[
     bool | None,
     typer.Option(
