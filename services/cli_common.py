@@ -118,22 +118,6 @@ Ros2NamespaceOption = Annotated[
 ]
 
 
-def ros2_args(on: bool, domain: int, namespace: str) -> tuple[str, ...] | None:
-    """The arguments of ``roco ros2`` for ``--ros2`` (``--all`` on ``domain`` in ``namespace``);
-    None without ``--ros2``. A bad namespace is one ``roco:`` line (exit 2) before anything
-    starts."""
-    if not on:
-        return None
-    if namespace != "/":
-        from services.ros2.rmw import RmwError, fully_qualified
-
-        try:
-            fully_qualified(namespace)
-        except RmwError as exc:
-            raise fail(f"--ros2-namespace: {exc}", 2) from None
-    return ("--all", "--domain", str(domain), "--namespace", namespace)
-
-
 LiveOption = Annotated[
     bool | None,
     typer.Option(

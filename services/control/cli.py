@@ -22,13 +22,13 @@ from services.cli_common import (
     fleet_state,
     new_run_folder,
     port_free,
-    ros2_args,
     security_switches,
     stop_on_signals,
 )
 from services.fleet.launcher import AGENT_ORDER, GATEWAY, ROS2, Fleet, LaunchError
 from services.fleet.processes import stop_pids
 from services.fleet_state import FLEET_FILE, FleetState, write_state
+from services.ros2.live_cli import ros2_args
 from services.runtime.run_folder import RunInfo, write_run_info
 from services.runtime.session import SessionRefused, open_client, open_operator
 from services.scenario.run_env import scene_env, viewer_env

@@ -25,10 +25,10 @@ from services.cli_common import (
     fail,
     new_run_folder,
     port_free,
-    ros2_args,
     security_switches,
     stop_on_signals,
 )
+from services.ros2.live_cli import ros2_args
 from services.runtime.run_folder import RunInfo
 from services.scenario.run_env import live_watch, scene_env, viewer_env
 from services.spec_check.report_cli import finish_report
