@@ -2,10 +2,10 @@
 ``ros2_peer`` (services/spec_check/acl.py ``ros2_peer_grants``), its credentials given as
 rmw_zenoh takes them (``ZENOH_CONFIG_OVERRIDE``), on a router process with the fleet's access
 control (TCP with user/password, and mutual TLS), beside ``roco ros2``'s face and a stand-in
-a_hi (tests/ros2/test_live_face.py). It receives /joint_states and calls /roco/say; what it
-puts or subscribes to under ``roco/**`` is refused by the router: never delivered (a later
-call, answered through a_hi on the same session, is the marker) and counted and named in the
-router's refusal report."""
+a_hi (tests/ros2/test_live_face.py). It receives /joint_states, calls /roco/say and hears its
+progress; what it puts or subscribes to under ``roco/**`` is refused by the router: never
+delivered (a later call, answered through a_hi on the same session, is the marker) and
+counted and named in the router's refusal report."""
 
 from __future__ import annotations
 
@@ -22,7 +22,7 @@ import pytest
 
 from services.fleet.launcher import Fleet
 from services.ros2 import messages
-from services.ros2.face import JOINT_STATES, FaceConfig, Ros2Face
+from services.ros2.face import JOINT_STATES, SAY_PROGRESS, FaceConfig, Ros2Face
 from services.runtime import keys
 from services.runtime.session import open_client
 from services.runtime.transport import ZenohTransport
@@ -79,7 +79,7 @@ def setup(
     mp = pytest.MonkeyPatch()
     mp.setenv("ZENOH_CONFIG_OVERRIDE", override(router.security, router.endpoint))  # as rmw_zenoh reads it
     folder = tmp_path_factory.mktemp("msgs")
-    write_definitions(folder, ["sensor_msgs/msg/JointState"])
+    write_definitions(folder, ["sensor_msgs/msg/JointState", messages.SAY_PROGRESS])
     use_offline(folder, mp)
     try:
         yield face, hi, port
@@ -133,6 +133,10 @@ def test_a_ros2_peer_gets_joint_states_calls_say_and_nothing_on_roco(
         before = router_report(operator, 0).counters.get("refused.ingress", 0)
         for key in FORGED:
             peer.put(key, b"forged")
+        progress: queue.SimpleQueue[Any] = queue.SimpleQueue()
+        sdk.ROS2Subscriber(
+            f"/{SAY_PROGRESS}", messages.SAY_PROGRESS, progress.put, router_ip="127.0.0.1", router_port=port
+        )
         # the marker: a call on the same session, put to a_hi by the face, answered through a_hi
         client = sdk.ROS2ServiceClient(
             "/roco/say", messages.SAY, router_ip="127.0.0.1", router_port=port, timeout=TIMEOUT
@@ -140,6 +144,11 @@ def test_a_ros2_peer_gets_joint_states_calls_say_and_nothing_on_roco(
         response = client.call(sentence="bring me the cup")
         assert response is not None and (response.ok, response.report) == (True, "done: bring me the cup")
         assert hi.sentences.get(timeout=TIMEOUT) == "bring me the cup"
+        assert [progress.get(timeout=TIMEOUT).state for _ in range(3)] == [
+            "requested",
+            "accepted",
+            "succeeded",
+        ]
         keys_seen = _drain_until(seen, f"{keys.FIPA_PREFIX}C9/$*@ros2/a_hi")
         report = router_report(operator, before + len(FORGED))
     finally:
