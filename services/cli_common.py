@@ -107,9 +107,17 @@ Ros2Option = Annotated[
     typer.Option(
         "--ros2",
         help="also run `roco ros2 --all` (docs/ros2.md) as a process of the fleet: ROS 2 node /roco "
-        "on domain 0 publishes joint_states, tf, roco/task_state and serves roco/say",
+        "on --ros2-domain publishes joint_states, tf, roco/task_state and serves roco/say",
     ),
 ]
+Ros2DomainOption = Annotated[
+    int, typer.Option("--ros2-domain", min=0, max=232, help="with --ros2: the face's ROS_DOMAIN_ID")
+]
+Ros2NamespaceOption = Annotated[
+    str, typer.Option("--ros2-namespace", help="with --ros2: the face's namespace (its topics below it)")
+]
+
+
 LiveOption = Annotated[
     bool | None,
     typer.Option(

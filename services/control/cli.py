@@ -13,6 +13,8 @@ from services.cli_common import (
     INTERRUPTED,
     AclOption,
     GatewayOption,
+    Ros2DomainOption,
+    Ros2NamespaceOption,
     Ros2Option,
     TlsOption,
     fail,
@@ -26,6 +28,7 @@ from services.cli_common import (
 from services.fleet.launcher import AGENT_ORDER, GATEWAY, ROS2, Fleet, LaunchError
 from services.fleet.processes import stop_pids
 from services.fleet_state import FLEET_FILE, FleetState, write_state
+from services.ros2.live_cli import ros2_args
 from services.runtime.run_folder import RunInfo, write_run_info
 from services.runtime.session import SessionRefused, open_client, open_operator
 from services.scenario.run_env import scene_env, viewer_env
@@ -60,6 +63,8 @@ def up(
     tls: TlsOption = None,
     gateway: GatewayOption = None,
     ros2: Ros2Option = False,
+    ros2_domain: Ros2DomainOption = 0,
+    ros2_namespace: Ros2NamespaceOption = "/",
 ) -> None:
     """Start router, recorder and all agents (and the ACL gateway with `--gateway`, the ROS 2
     face with `--ros2`) in the
@@ -71,6 +76,7 @@ def up(
     if state_file.exists():
         raise fail(f"a fleet is already up ({state_file}); run 'roco down' first")
     port_free(port, "--port")
+    face = ros2_args(ros2, ros2_domain, ros2_namespace)
     if gateway is not None:
         port_free(gateway, "--gateway")
     scene = scene_env(realtime, seed, pose_seed)
@@ -89,7 +95,7 @@ def up(
         fleet.wait_alive(session, ["recorder"], timeout=60)
         fleet.start_agents()
         waited = fleet.wait_alive(session, AGENT_ORDER, timeout=120)
-        served = _start_faces(fleet, session, gateway, ros2)
+        served = _start_faces(fleet, session, gateway, face)
     except (LaunchError, KeyboardInterrupt) as exc:
         if session is not None:
             session.close()
@@ -107,18 +113,21 @@ def up(
     typer.echo(f"roco: fleet up on {endpoint} in {waited:.1f} s{served}; run folder {run_dir}")
 
 
-def _start_faces(fleet: Fleet, session: zenoh.Session, gateway: int | None, ros2: bool) -> str:
-    """Start the ACL gateway on port ``gateway`` (None: none) and the ROS 2 face (``ros2``) and
-    wait for their tokens; the tail of `roco up`'s line that names them. Raises LaunchError."""
+def _start_faces(
+    fleet: Fleet, session: zenoh.Session, gateway: int | None, ros2: tuple[str, ...] | None
+) -> str:
+    """Start the ACL gateway on port ``gateway`` (None: none) and the ROS 2 face (``roco ros2``
+    with the arguments ``ros2``; None: none) and wait for their tokens; the tail of `roco up`'s
+    line that names them. Raises LaunchError."""
     served = ""
     if gateway is not None:
         fleet.start_gateway(gateway)
         fleet.wait_alive(session, [GATEWAY], timeout=60)
         served += f"; gateway http://127.0.0.1:{gateway}/acc"
-    if ros2:
-        fleet.start_ros2()
+    if ros2 is not None:
+        fleet.start_ros2(ros2)
         fleet.wait_alive(session, [ROS2], timeout=60)
-        served += "; ROS 2 node /roco on domain 0 (roco ros2 --all)"
+        served += f"; ROS 2 node /roco (roco ros2 {' '.join(ros2)})"
     return served
 
 

@@ -7,9 +7,25 @@ from typing import Annotated
 
 import typer
 
-from services.cli_common import FleetRunsDir, RouterOption, endpoint_of
+from services.cli_common import FleetRunsDir, RouterOption, endpoint_of, fail
 
 ros2_app = typer.Typer()
+
+
+def ros2_args(on: bool, domain: int, namespace: str) -> tuple[str, ...] | None:
+    """The arguments of ``roco ros2`` for ``--ros2`` (``--all`` on ``domain`` in ``namespace``);
+    None without ``--ros2``. A bad namespace is one ``roco:`` line (exit 2) before anything
+    starts."""
+    if not on:
+        return None
+    if namespace != "/":
+        from services.ros2.rmw import RmwError, fully_qualified
+
+        try:
+            fully_qualified(namespace)
+        except RmwError as exc:
+            raise fail(f"--ros2-namespace: {exc}", 2) from None
+    return ("--all", "--domain", str(domain), "--namespace", namespace)
 
 
 @ros2_app.command(short_help="A ROS 2 node on the fleet's Zenoh (rmw_zenoh's wire format).")

@@ -16,6 +16,8 @@ from services.cli_common import (
     GatewayOption,
     LiveOption,
     RecordOption,
+    Ros2DomainOption,
+    Ros2NamespaceOption,
     Ros2Option,
     RunsDirMade,
     TlsOption,
@@ -26,6 +28,7 @@ from services.cli_common import (
     security_switches,
     stop_on_signals,
 )
+from services.ros2.live_cli import ros2_args
 from services.runtime.run_folder import RunInfo
 from services.scenario.run_env import live_watch, scene_env, viewer_env
 from services.spec_check.report_cli import finish_report
@@ -54,6 +57,8 @@ def run(
     live: LiveOption = None,
     gateway: GatewayOption = None,
     ros2: Ros2Option = False,
+    ros2_domain: Ros2DomainOption = 0,
+    ros2_namespace: Ros2NamespaceOption = "/",
 ) -> None:
     """Start router, recorder and one process per agent (and the ACL gateway with
     `--gateway`, the ROS 2 face with `--ros2`); give a_hi the command; wait for the outcome;
@@ -63,6 +68,7 @@ def run(
     from services.scenario.model import Scenario, Step
 
     security_switches(acl, tls)
+    face = ros2_args(ros2, ros2_domain, ros2_namespace)
     scenario = Scenario(
         name="", steps=(Step(say=command),), seed=seed, pose_seed=pose_seed, timeout_s=timeout
     )
@@ -76,7 +82,7 @@ def run(
         view=view,
         watch=watch,
         gateway=gateway,
-        ros2=ros2,
+        ros2=face,
     )
 
 
@@ -96,6 +102,8 @@ def scenario(
     live: LiveOption = None,
     gateway: GatewayOption = None,
     ros2: Ros2Option = False,
+    ros2_domain: Ros2DomainOption = 0,
+    ros2_namespace: Ros2NamespaceOption = "/",
 ) -> None:
     """Run a scenario (several commands, interruptions, disturbances, restarts; see
     services/scenario/model.py) headless, check every command's outcome against what the
@@ -115,6 +123,7 @@ def scenario(
         sc = load_scenario(name)
     except ScenarioError as exc:
         raise fail(str(exc), code=2) from None
+    face = ros2_args(ros2, ros2_domain, ros2_namespace)
     watch = live_watch(f"roco scenario {sc.name}", live, quiet)
     _run_scenario(
         sc,
@@ -125,7 +134,7 @@ def scenario(
         view=view,
         watch=watch,
         gateway=gateway,
-        ros2=ros2,
+        ros2=face,
     )
 
 
@@ -144,7 +153,7 @@ def _run_scenario(
     view: bool = False,
     watch: LiveWatch | None = None,
     gateway: int | None = None,
-    ros2: bool = False,
+    ros2: tuple[str, ...] | None = None,
 ) -> None:
     """Run scenario ``sc`` (services/scenario/model.py) in a new run folder under ``runs_dir``
     and end as `roco run` and `roco scenario` do: the report written, one line of outcome,

@@ -256,8 +256,8 @@ class ScenarioRunner:
     where the fleet runs (default: :class:`LocalHosting`); ``gateway``: a port on 127.0.0.1
     where the fleet's ACL gateway serves agents of other FIPA platforms (``roco gateway``,
     docs/gateway.md), started once the agents are alive (None: no gateway, unless a ``say``
-    step comes ``from = "gateway"``: then on a free port); ``ros2``: also the ROS 2 face
-    (``roco ros2 --all``, docs/ros2.md), started once the agents are alive."""
+    step comes ``from = "gateway"``: then on a free port); ``ros2``: the arguments of the ROS 2
+    face (``roco ros2 --all …``, docs/ros2.md), started once the agents are alive (None: none)."""
 
     def __init__(
         self,
@@ -271,7 +271,7 @@ class ScenarioRunner:
         on_session: Callable[[zenoh.Session], None] | None = None,
         hosting: Hosting | None = None,
         gateway: int | None = None,
-        ros2: bool = False,
+        ros2: tuple[str, ...] | None = None,
     ) -> None:
         self.scenario = scenario
         self.ros2 = ros2
@@ -716,8 +716,8 @@ class ScenarioRunner:
         self._say(f"all agents alive after {waited:.1f} s: {', '.join(AGENT_ORDER)}")
         if self.gateway is not None:
             self._start_gateway(session, self.gateway)
-        if self.ros2:
-            self.fleet.start_ros2()
+        if self.ros2 is not None:
+            self.fleet.start_ros2(self.ros2)
             waited = self.fleet.wait_alive(session, [ROS2], timeout=60)
             self.info.processes = self.fleet.pids()
             write_run_info(self.run_dir, self.info)
@@ -777,7 +777,7 @@ class ScenarioRunner:
         asked = [
             *AGENT_ORDER,
             *([GATEWAY] if self.gateway is not None else []),
-            *([ROS2] if self.ros2 else []),
+            *([ROS2] if self.ros2 is not None else []),
         ]
         counters = ask_counters(session, asked, timeout=10.0)
         save_counters(self.run_dir, counters)

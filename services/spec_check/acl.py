@@ -68,6 +68,10 @@ ROS2_SERVES = "**/roco_msgs::srv::dds_::Say_/*"
 """The queryable of its sentence service (any type hash: a wrong one is refused and counted)."""
 ROS2_TOKENS = "@ros2_lv/**"
 """Its node's and entities' liveliness tokens (rmw_zenoh's design document, "Graph Cache")."""
+ROS2_PEER = "ros2_peer"
+"""The identity of a ROS 2 session outside the fleet (rmw_zenoh_cpp or any ROS 2-over-Zenoh
+client) that talks to ``roco ros2``'s node: it plays the external role of platform ``ros2``
+only through that node, never on ``roco/**``."""
 INJECTOR = "roco"  # services/fault/process.py: INJECTOR, the sender of process-fault events
 
 _FAULT = "roco/fault"  # services/runtime/faults.py: FAULT_PREFIX
@@ -302,11 +306,33 @@ def ros2_grants(spec: SystemSpec) -> Grants:
     g.hear(keys.state_key("ag_ex"), keys.SIM_CLOCK)
     g.hear(*(route_key(spec, c, s, r) for c, s, r in channel_routes(spec) if (s, r) == ("a_ta", "a_co")))
     g.say(*ROS2_SAYS)
+    # a publisher that hears of no subscriber drops its puts: it learns of ROS 2 sessions' ones
+    g.allow("egress", "declare_subscriber", *ROS2_SAYS)
     _answers(g, ROS2_SERVES)
     g.allow("ingress", "liveliness_token", ROS2_TOKENS)
     g.own_token(keys.alive_key(ROS2))
     g.hear(keys.COUNTERS_ASK)
     g.say(keys.counters_key(ROS2))
+    return g
+
+
+def ros2_peer_grants(spec: SystemSpec) -> Grants:
+    """The grants of :data:`ROS2_PEER`, the mirror of ``roco ros2``'s (:func:`ros2_grants`):
+    subscribe to and be delivered what the face publishes (:data:`ROS2_SAYS`, any domain,
+    namespace and type hash); query its sentence service (:data:`ROS2_SERVES`) and hear the
+    replies, when the specification gives the external role of platform ``ros2`` a channel;
+    declare, watch and query liveliness tokens under :data:`ROS2_TOKENS` (rmw_zenoh's graph:
+    its own node's and entities' and the face's). Nothing under ``roco/``."""
+    g = Grants(ROS2_PEER)
+    g.hear(*ROS2_SAYS)
+    roles = {e.name for e in spec.externals if e.platform == ROS2}
+    if any(roles & set(ch.ends) for ch in spec.channels):
+        _asks(g, ROS2_SERVES)
+        g.allow("egress", "declare_queryable", ROS2_SERVES)  # a peer learns where to send a query
+    g.allow("ingress", "liveliness_token", ROS2_TOKENS)
+    g.allow("ingress", "declare_liveliness_subscriber", ROS2_TOKENS)
+    g.allow("ingress", "liveliness_query", ROS2_TOKENS)
+    g.allow("egress", "liveliness_token", ROS2_TOKENS)
     return g
 
 
@@ -359,9 +385,11 @@ def operator_grants() -> Grants:
 def all_grants(spec: SystemSpec) -> list[Grants]:
     """The grants of every identity: the agents in file order, then recorder and operator, then
     the gateway when the specification has an external role without a platform, ``roco ros2``
-    when it has one of platform ``ros2``."""
+    and the outside ROS 2 sessions (:data:`ROS2_PEER`) when it has one of platform ``ros2``."""
     gateway = [gateway_grants(spec)] if any(not e.platform for e in spec.externals) else []
-    ros2 = [ros2_grants(spec)] if any(e.platform == ROS2 for e in spec.externals) else []
+    ros2 = (
+        [ros2_grants(spec), ros2_peer_grants(spec)] if any(e.platform == ROS2 for e in spec.externals) else []
+    )
     return [
         *(agent_grants(spec, a.name) for a in spec.agents),
         recorder_grants(),

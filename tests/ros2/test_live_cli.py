@@ -47,12 +47,43 @@ def test_only_the_topics_asked_for_are_published(
 def test_run_and_scenario_pass_ros2_to_the_runner(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     given: list[dict[str, object]] = []
     monkeypatch.setattr("services.scenario.cli._run_scenario", lambda sc, runs_dir, **kw: given.append(kw))
-    for args in ([], ["--ros2"]):
+    kitchen = ["--ros2", "--ros2-domain", "3", "--ros2-namespace", "/kitchen"]
+    for args in ([], ["--ros2"], kitchen, kitchen[1:]):
         code, out = invoke(["run", "pour the jar into the bowl", *args, "--runs-dir", str(tmp_path)])
         assert code == 0, out
-    assert [g["ros2"] for g in given] == [False, True]
+    assert [g["ros2"] for g in given] == [
+        None,
+        ("--all", "--domain", "0", "--namespace", "/"),
+        ("--all", "--domain", "3", "--namespace", "/kitchen"),
+        None,  # no face without --ros2
+    ]
+    code, out = invoke(
+        ["run", "pour", "--ros2", "--ros2-namespace", "/bad name", "--runs-dir", str(tmp_path)]
+    )
+    assert code == 2 and "roco: --ros2-namespace: name '/bad name' is no ROS 2" in out and len(given) == 4
     for command in (["up"], ["scenario"]):
-        assert "--ros2" in invoke([*command, "--help"])[1]
+        help_text = invoke([*command, "--help"])[1]
+        assert "--ros2" in help_text and "--ros2-domain" in help_text and "--ros2-namespace" in help_text
+
+
+def test_up_starts_the_face_with_its_domain_and_namespace() -> None:
+    from services.control.cli import _start_faces
+
+    class Started:
+        def __init__(self) -> None:
+            self.args: list[tuple[str, ...]] = []
+
+        def start_ros2(self, args: tuple[str, ...]) -> None:
+            self.args.append(args)
+
+        def wait_alive(self, session: object, names: list[str], timeout: float) -> float:
+            return 0.0
+
+    fleet = Started()
+    face = ("--all", "--domain", "3", "--namespace", "/kitchen")
+    line = _start_faces(fleet, None, None, face)  # type: ignore[arg-type]
+    assert fleet.args == [face] and "roco ros2 --all --domain 3 --namespace /kitchen" in line
+    assert _start_faces(fleet, None, None, None) == "" and fleet.args == [face]  # type: ignore[arg-type]
 
 
 @pytest.fixture

@@ -15,6 +15,7 @@ from services.spec_check.acl import (
     OPERATOR,
     RECORDER,
     ROS2,
+    ROS2_PEER,
     _includes,
     acl_config,
     agent_grants,
@@ -26,6 +27,7 @@ from services.spec_check.acl import (
     operator_grants,
     recorder_grants,
     ros2_grants,
+    ros2_peer_grants,
     route_key,
 )
 
@@ -162,7 +164,7 @@ def test_only_its_owner_answers_a_queryable_and_the_operator_asks(
 
 def test_acl_config_is_default_deny_with_one_subject_and_policy_per_identity(spec: SystemSpec) -> None:
     names = identities(spec)
-    assert names == [*(a.name for a in spec.agents), RECORDER, OPERATOR, GATEWAY, ROS2]
+    assert names == [*(a.name for a in spec.agents), RECORDER, OPERATOR, GATEWAY, ROS2, ROS2_PEER]
     for tls in (False, True):
         conf = acl_config(spec, tls=tls)
         assert conf["enabled"] is True and conf["default_permission"] == "deny"
@@ -188,7 +190,8 @@ def test_only_leaves_a_revoked_identity_without_subject(spec: SystemSpec) -> Non
 def test_table_names_every_identity(spec: SystemSpec) -> None:
     table = markdown_table(spec)
     for g in all_grants(spec):
-        assert f"| {g.identity} | puts on |" in table or g.identity == OPERATOR
+        assert f"| {g.identity} | puts on |" in table or g.identity in (OPERATOR, ROS2_PEER)
+        assert f"| {g.identity} | subscribes to |" in table
     assert "`roco/fipa/C4/a_pl/a_km`" in table
 
 
@@ -256,3 +259,38 @@ def test_roco_ros2_speaks_only_as_ros2_callers_to_a_hi_on_c9(spec: SystemSpec) -
     assert hi.may("egress", "put", keys.fipa_key("C9", CALLER, "a_hi"))
     assert hi.may("ingress", "put", keys.fipa_key("C9", "a_hi", CALLER))
     assert not hi.may("ingress", "put", keys.fipa_key("C9", "a_hi", JADE))
+
+
+def test_a_ros2_peer_reaches_only_the_faces_topics_service_and_graph(spec: SystemSpec) -> None:
+    """an outside ROS 2 session (ros2_peer) subscribes to what roco ros2 publishes, in any
+    domain and namespace, calls roco/say, holds, watches and asks for rmw_zenoh's liveliness
+    tokens, and does nothing on roco/**: it speaks to a_hi only through the face."""
+    g = ros2_peer_grants(spec)
+    face = ros2_grants(spec)
+    joint = "0/joint_states/sensor_msgs::msg::dds_::JointState_/RIHS01_a13e"
+    say = "0/roco/say/roco_msgs::srv::dds_::Say_/RIHS01_0f"
+    for key in (
+        joint,
+        "3/kitchen/" + joint[2:],
+        "0/roco/task_state/roco_msgs::msg::dds_::TaskState_/RIHS01_1",
+    ):
+        assert g.may("ingress", "declare_subscriber", key) and g.may("egress", "put", key)
+        assert face.may("ingress", "put", key) and not g.may("ingress", "put", key)
+    assert g.may("ingress", "query", say) and g.may("egress", "reply", say)
+    assert g.may("egress", "declare_queryable", say) and not g.may("ingress", "declare_queryable", say)
+    assert face.may("egress", "query", say) and face.may("ingress", "reply", say)
+    token = "@ros2_lv/0/zid/0/1/MS/%/%/listener/%joint_states/sensor_msgs::msg::dds_::JointState_/RIHS01_a"
+    for message in ("liveliness_token", "declare_liveliness_subscriber", "liveliness_query"):
+        assert g.may("ingress", message, token)  # type: ignore[arg-type]
+    assert g.may("egress", "liveliness_token", token)
+    for key in (
+        keys.fipa_key("C9", CALLER, "a_hi"),
+        keys.HUMAN_IN,
+        keys.state_key("ag_ex"),
+        keys.alive_key(ROS2),
+    ):
+        for flow, message in g.allowed:
+            assert not g.may(flow, message, key), (flow, message, key)
+    granted = [k for ks in g.allowed.values() for k in ks]
+    assert not any(k in ("**", "*/**") or k.startswith(keys.PREFIX) for k in granted), granted
+    assert not g.allowed.get(("ingress", "put")) and not g.allowed.get(("ingress", "reply"))

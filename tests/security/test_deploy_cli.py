@@ -24,7 +24,9 @@ def test_certs_issue_revoke(tmp_path: Path) -> None:
     assert r.exit_code == 0, r.output
     names = certs.identities(out)
     # one identity per agent of the specification, and the fleet's own
-    assert names == sorted([*default_spec().agent_names, "recorder", "operator", "gateway", "ros2"])
+    assert names == sorted(
+        [*default_spec().agent_names, "recorder", "operator", "gateway", "ros2", "ros2_peer"]
+    )
     assert {"a_hi", "a_co", "a_pl", "a_km", "a_ta", "ag_ex"} <= set(names)
     ca = x509.load_pem_x509_certificate((out / certs.CA_CERT).read_bytes())
     for n in names:
