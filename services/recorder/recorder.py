@@ -409,10 +409,12 @@ def main() -> int:
     monitor = _requirements_monitor(run_dir)
     presence = PresenceWriter(run_dir)
     loop = _Loop(writer, transport, [s for s in (rerun, monitor) if s is not None], presence)
-    # every communicate, and what publishers' caches still hold of those sent before this start
-    transport.subscribe_recovering(keys.FIPA_ALL, loop.inbox.put)
-    transport.subscribe(keys.RECORDER_SYNC, loop.put)
-    transport.subscribe(faults.EVENT_ALL, loop.put)
+    # every communicate, and what publishers' caches still hold of those sent before this start;
+    # enqueued on the network thread that read them, so that a sync token comes after what was
+    # routed before it (on threads of their own a sync overtook communicates: 2 rounds in 200)
+    transport.subscribe_recovering(keys.FIPA_ALL, loop.inbox.put, direct=True)
+    transport.subscribe(keys.RECORDER_SYNC, loop.put, direct=True)
+    transport.subscribe(faults.EVENT_ALL, loop.put, direct=True)
     transport.serve(keys.RECORDER_FLAGS, lambda: flags_reply(run_dir))
     # the processes' liveliness tokens: what is alive now, then each change (presence.jsonl)
     transport.watch(keys.ALIVE_ALL, loop.alive, history=False)
