@@ -51,8 +51,8 @@ from services.fleet.launcher import (
 )
 from services.fleet.processes import proc_state
 from services.fleet_state import FLEET_FILE
-from services.runtime import keys
-from services.runtime.faults import FaultEvent, event_key
+from services.recorder import sync
+from services.runtime.faults import FaultEvent
 from services.runtime.run_folder import read_run_info, write_run_info
 from services.runtime.session import alive_agents, open_client
 from services.security.context import register
@@ -63,7 +63,7 @@ ACTIONS = ("kill", "stop", "start", "pause", "unpause", "restart")
 LOCAL_SERVICES = ("router", "recorder", WORLD_SERVICE, *AGENT_ORDER)
 """The services of a local fleet (a compose deployment adds ``viewer``); ``world`` runs unless
 ``ROCO_WORLD=loop`` (velma/world/mode.py)."""
-INJECTOR = "roco"
+INJECTOR = sync.INJECTOR
 """The ``agent`` of the fault events of ``roco fault`` and ``roco chaos``."""
 
 
@@ -377,36 +377,10 @@ def _wait_alive(endpoint: str, service: str, proc: subprocess.Popen[bytes], time
         session.close()
 
 
-RECORDER = "recorder"  # services/recorder/recorder.py: RECORDER, the name its token holds
-
-
 def record_events(session: zenoh.Session, events: list[FaultEvent], sync_timeout: float = 15.0) -> bool:
-    """Put ``events`` on ``roco/fault/event/roco`` for the traffic recorder and wait until it
-    confirms it wrote them (recorder sync); False when it did not within ``sync_timeout`` s.
-    First waits until ``session`` sees the recorder's liveliness token: after a router restart
-    (a fault of the router itself, or one the recorder lived through) both sessions reconnect in
-    their own time, and a put made before would be lost."""
-    import queue
-    import uuid
-
-    deadline = time.monotonic() + sync_timeout
-    while RECORDER not in alive_agents(session, timeout=0.5):  # asked again while it is away
-        if time.monotonic() > deadline:
-            return False
-        time.sleep(0.1)  # a router away answers at once: not asked in a busy loop
-    enc = msgspec.json.Encoder()
-    for ev in events:
-        session.put(event_key(INJECTOR), enc.encode(ev))
-    token = uuid.uuid4().hex.encode()
-    synced: queue.SimpleQueue[bool] = queue.SimpleQueue()
-    sub = session.declare_subscriber(
-        keys.RECORDER_SYNCED, lambda s: synced.put(True) if s.payload.to_bytes() == token else None
-    )
-    try:
-        session.put(keys.RECORDER_SYNC, token)
-        try:
-            return synced.get(timeout=max(0.5, deadline - time.monotonic()))
-        except queue.Empty:
-            return False
-    finally:
-        sub.undeclare()
+    """Have the traffic recorder write ``events`` (of agent :data:`INJECTOR`) to the run
+    folder's ``faults.jsonl``; True once it confirmed they are written, False when it did not
+    within ``sync_timeout`` s. The events travel inside the recorder's sync, sent again until
+    answered (services/recorder/sync.py ``record``): a put of its own could be lost or
+    overtaken by the sync (after a router restart both sessions reconnect in their own time)."""
+    return sync.record(session, events, sync_timeout)

@@ -5,11 +5,12 @@ Run as ``python -m services.recorder.recorder`` with ``ROCO_ROUTER`` and ``ROCO_
 It announces liveliness as ``recorder`` once its subscription is declared, so a launcher can
 start agents only after the recorder listens, and then writes ``ROCO_READY_FILE`` (a
 container's health check: shared/ready_file.py). A payload that is not a communicate is recorded
-with performative ``malformed``. Fault events (``roco/fault/event/*``, docs/faults.md) go to
-``faults.jsonl``. Each communicate written is also given to the live requirements monitor
-(:data:`MONITOR`, loaded by name: services/spec_live/sink.py), which appends the requirement
-properties it finds violated to ``flags.jsonl`` as they happen (services/recorder/flags.py);
-the recorder answers queries of ``roco/recorder/flags`` with them (``roco status``).
+with performative ``malformed``. Fault events (``roco/fault/event/*``, docs/faults.md, and
+those a sync carries: services/recorder/sync.py) go to ``faults.jsonl``. Each communicate
+written is also given to the live requirements monitor (:data:`MONITOR`, loaded by name:
+services/spec_live/sink.py), which appends the requirement properties it finds violated to
+``flags.jsonl`` as they happen (services/recorder/flags.py); the recorder answers queries of
+``roco/recorder/flags`` with them (``roco status``).
 """
 
 from __future__ import annotations
@@ -21,6 +22,7 @@ import secrets
 import signal
 import sys
 import time
+from collections import OrderedDict
 from dataclasses import dataclass, field
 from pathlib import Path
 from types import FrameType
@@ -28,6 +30,7 @@ from typing import BinaryIO
 
 import msgspec
 
+from services.recorder import sync
 from services.recorder.flags import flags_reply
 from services.recorder.presence import PresenceEvent, PresenceWriter
 from services.recorder.record import (
@@ -63,6 +66,9 @@ _APPEARED, _GONE, _ALIVE_AT_START = b"+", b"-", b"="
 """What a liveliness token did, as :meth:`_Loop.alive` and :meth:`_Loop.snapshot` enqueue it."""
 BATCH = 256
 """Communicates written with one write per file at most (what arrived together)."""
+SYNCS_KEPT = 1024
+"""How many tokens of syncs that carried fault events the recorder keeps, to write the events
+of a sync sent again only once."""
 log = logging.getLogger(RECORDER)
 
 
@@ -180,10 +186,14 @@ class TrafficWriter:
             event = _fault_event(payload)
         except (msgspec.DecodeError, msgspec.ValidationError):
             return False
+        self.fault_event(event)
+        return True
+
+    def fault_event(self, event: faults.FaultEvent) -> None:
+        """Append ``event`` to ``faults.jsonl`` (buffered: written at :meth:`flush`)."""
         if self._faults is None:
             self._faults = (self._run_dir / FAULTS_JSONL).open("ab")
         self._faults.write(_json(event) + b"\n")
-        return True
 
     def admit(self, source: str | None, sn: int | None, part: int = 0) -> bool:
         """Whether a communicate from publisher ``source`` with sequence number ``sn`` is new
@@ -252,6 +262,8 @@ class _Loop:
         self.writer, self.transport, self.sinks, self.presence = writer, transport, sinks or [], presence
         self.inbox: queue.SimpleQueue[Arrival | None] = queue.SimpleQueue()
         self.listening_since = time.time()
+        self._synced: OrderedDict[bytes, None] = OrderedDict()
+        """The tokens of the last :data:`SYNCS_KEPT` syncs whose events were written."""
 
     def put(self, key: str, payload: bytes) -> None:
         """A callback for Zenoh's threads: enqueue a non-FIPA sample (sync token, fault event)."""
@@ -300,8 +312,7 @@ class _Loop:
                 stop = True
             elif item.key == keys.RECORDER_SYNC:
                 self._write(pending)  # a sync token arrives after the traffic routed before it
-                self.writer.flush()
-                self.transport.publish(keys.RECORDER_SYNCED, item.payload)
+                self._sync(item.payload)
             elif item.key.startswith(_FAULT_EVENTS):
                 if not self.writer.fault(item.payload):
                     log.warning("ignored a malformed fault event on %s", item.key)
@@ -312,6 +323,24 @@ class _Loop:
                 pending.append(self._stamp(item))
         self._write(pending)
         return stop
+
+    def _sync(self, payload: bytes) -> None:
+        """Answer a sync (services/recorder/sync.py): write the fault events it carries unless
+        its token's were written already (a sync sent again), flush, put the answer back. A bad
+        one is logged and not answered."""
+        try:
+            answer, events = sync.parse(payload)
+        except sync.BadSync as exc:
+            log.warning("ignored %s", exc)
+            return
+        if events and answer not in self._synced:
+            for event in events:
+                self.writer.fault_event(event)
+            self._synced[answer] = None
+            if len(self._synced) > SYNCS_KEPT:
+                self._synced.popitem(last=False)
+        self.writer.flush()
+        self.transport.publish(keys.RECORDER_SYNCED, answer)
 
     def _presence(self, a: Arrival) -> None:
         name = keys.alive_agent(a.key)
@@ -380,10 +409,12 @@ def main() -> int:
     monitor = _requirements_monitor(run_dir)
     presence = PresenceWriter(run_dir)
     loop = _Loop(writer, transport, [s for s in (rerun, monitor) if s is not None], presence)
-    # every communicate, and what publishers' caches still hold of those sent before this start
-    transport.subscribe_recovering(keys.FIPA_ALL, loop.inbox.put)
-    transport.subscribe(keys.RECORDER_SYNC, loop.put)
-    transport.subscribe(faults.EVENT_ALL, loop.put)
+    # every communicate, and what publishers' caches still hold of those sent before this start;
+    # enqueued on the network thread that read them, so that a sync token comes after what was
+    # routed before it (on threads of their own a sync overtook communicates: 2 rounds in 200)
+    transport.subscribe_recovering(keys.FIPA_ALL, loop.inbox.put, direct=True)
+    transport.subscribe(keys.RECORDER_SYNC, loop.put, direct=True)
+    transport.subscribe(faults.EVENT_ALL, loop.put, direct=True)
     transport.serve(keys.RECORDER_FLAGS, lambda: flags_reply(run_dir))
     # the processes' liveliness tokens: what is alive now, then each change (presence.jsonl)
     transport.watch(keys.ALIVE_ALL, loop.alive, history=False)

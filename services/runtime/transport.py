@@ -582,14 +582,17 @@ class ZenohTransport:
         """This session's Zenoh id (hex), as the ``source`` of its communicates starts."""
         return str(self.session.zid())
 
-    def subscribe_recovering(self, key_expr: str, callback: Callable[[Arrival], None]) -> None:
+    def subscribe_recovering(
+        self, key_expr: str, callback: Callable[[Arrival], None], *, direct: bool = False
+    ) -> None:
         """Subscribe to ``key_expr`` with a zenoh-ext advanced subscriber: ``callback`` gets
         every sample as an :class:`Arrival` (a batch of communicates as one each, in order),
         first what the advanced publishers matching it still hold in their caches (also those
         of publishers detected later), then what they put, each publisher's in order of
         sequence number, a missed one fetched again from its publisher's cache (heartbeats and
         gaps). What a publisher sends again is not filtered
-        here (the caller keeps the sequence numbers it has). Runs on Zenoh's threads."""
+        here (the caller keeps the sequence numbers it has). Runs on Zenoh's threads;
+        ``direct``: as :meth:`subscribe`'s."""
 
         def on_sample(sample: zenoh.Sample) -> None:
             t = time.time()
@@ -606,27 +609,32 @@ class ZenohTransport:
         sub = zext.declare_advanced_subscriber(
             self.session,
             key_expr,
-            on_sample,
+            _on_network_thread(on_sample) if direct else on_sample,
             history=zext.HistoryConfig(detect_late_publishers=True),
             recovery=zext.RecoveryConfig(periodic_queries=None, heartbeat=True),
         )
         with self._lock:
             self._subs.append(sub)
 
-    def subscribe(self, key_expr: str, callback: Callback) -> None:
+    def subscribe(self, key_expr: str, callback: Callback, *, direct: bool = False) -> None:
         """Call ``callback(key, payload)`` for every sample on ``key_expr``, in order. For
         communicates (``roco/fipa/**``: an agent's inbox) on a receiving thread of this
         subscription's own (see the module docstring): Zenoh hands samples to it through a FIFO
         of :data:`RECEIVE_QUEUE` places, so a callback that waits (an idle agent's step putting
         into a full link) never stops Zenoh reading the link. Anything else on zenoh-python's
-        callback thread (the callback must only enqueue)."""
+        callback thread of this subscription's own (the callback must only enqueue), or with
+        ``direct`` on the Zenoh network thread that read the sample, so that the samples of
+        several direct subscriptions reach their callbacks in the order they arrived (each
+        subscription's own thread may run before another's: the recorder's sync barrier,
+        services/recorder/recorder.py); the callback must only enqueue, never call Zenoh."""
         if not key_expr.startswith(keys.FIPA_PREFIX):
 
             def on_sample(sample: zenoh.Sample) -> None:
                 callback(str(sample.key_expr), sample.payload.to_bytes())
 
+            handler = _on_network_thread(on_sample) if direct else on_sample
             with self._lock:
-                self._subs.append(self.session.declare_subscriber(key_expr, on_sample))
+                self._subs.append(self.session.declare_subscriber(key_expr, handler))
             return
         sub = self.session.declare_subscriber(key_expr, zenoh.handlers.FifoChannel(RECEIVE_QUEUE))
         waiting = AdaptivePoll(self._poll_us)
@@ -731,3 +739,9 @@ class ZenohTransport:
         for thread in self._receiving:
             if thread is not threading.current_thread():
                 thread.join(timeout=2.0)
+
+
+def _on_network_thread(on_sample: Callable[[zenoh.Sample], None]) -> zenoh.handlers.Callback[zenoh.Sample]:
+    """``on_sample`` called on the Zenoh network thread that read the sample (zenoh-python's
+    ``Callback`` with ``indirect=False``), not on a thread of the subscription's own."""
+    return zenoh.handlers.Callback(on_sample, indirect=False)

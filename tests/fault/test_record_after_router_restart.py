@@ -1,9 +1,10 @@
 """A fault of the router itself is recorded (services/fault/process.py ``record_events``): a
 router and the traffic recorder of real processes; the router is killed and started again on
-its endpoint, and the events are put at once. Both sessions reconnect in their own time, so
-``record_events`` first waits until the injector's session sees the recorder's token again;
-without that wait a put made before the recorder is back is lost (seen: no router fault in a
-scenario's faults.jsonl)."""
+its endpoint, and the events are recorded at once. They travel inside the recorder's sync,
+sent again until answered (services/recorder/sync.py ``record``): put on their own key, they
+could reach the recorder's inbox after the sync, on another subscriber's thread, and the
+answer came before they were written (seen: no router fault, or only the kill, in
+faults.jsonl; tests/recorder/test_sync_events.py)."""
 
 from __future__ import annotations
 

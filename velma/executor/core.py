@@ -16,6 +16,13 @@ Timing: physics dt = 1 ms, control at 1 kHz (one control update per physics step
 ``realtime=True`` releases cycle k at t₀ + k·1 ms of wall time; ``realtime=False`` runs as fast
 as it can. ``DeadlineMonitor`` (velma.executor.timing) counts compute time, lateness and
 overruns either way.
+
+Idle steps: while no command runs the loop steps on (the robot holds its pose as time
+passes), so how much robot time passes between two commands of a caller that submits one
+after the other's result depends on the caller's thread timing, and so does what the
+kitchen's contact-rich physics does next. ``idle_steps=False`` (as fast as possible only) waits
+instead: the next command starts in the cycle after the last one ended, and a run of
+commands ends in the same state whatever the machine's load (the scripted kitchen tasks).
 """
 
 from __future__ import annotations
@@ -53,6 +60,8 @@ class Executor:
     ``submit``, ``cancel`` and ``hold`` are thread-safe; ``on_done`` is called from the loop thread
     exactly once per command (exceptions it raises are logged and swallowed).
     Commands still queued at ``stop`` are answered with ``ok=False, reason="stopped"``.
+    ``idle_steps=False``: no physics step while no command runs (module docstring); raises
+    ``ValueError`` with ``realtime``.
 
     ``perception``: ``camera`` or ``truth`` (None: ``ROCO_PERCEPTION``, else the default of
     velma/executor/capture.py ``perception_mode``); ``perception_log`` receives each camera
@@ -69,8 +78,12 @@ class Executor:
         runtime: Runtime | None = None,
         perception: str | None = None,
         perception_log: RecordSink | None = None,
+        idle_steps: bool = True,
     ) -> None:
+        if realtime and not idle_steps:
+            raise ValueError("idle_steps=False is for an executor as fast as possible, not real time")
         self.realtime = realtime
+        self.idle_steps = idle_steps
         self.rt = runtime if runtime is not None else Runtime(seed=seed, pose_seed=pose_seed)
         self.perception = perception_mode(
             {Settings.env_name("perception"): perception} if perception is not None else None
@@ -83,6 +96,8 @@ class Executor:
         self.monitor.control_law = law_name(self.rt.ctrl)
         self.monitor.plant = self.rt.plant_name
         self._lock = threading.Lock()
+        self._work = threading.Condition(self._lock)
+        """Notified when the loop may have work (a command, a hold, a cancel) or must stop."""
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
 
@@ -106,7 +121,9 @@ class Executor:
     def stop(self) -> None:
         """Stop the loop and join its thread; answer queued commands with ``stopped`` (after
         the results already ended, in order); end the delivery thread."""
-        self._stop.set()
+        with self._lock:
+            self._stop.set()
+            self._work.notify_all()
         if self._thread is not None:
             self._thread.join()
             self._thread = None
@@ -124,6 +141,7 @@ class Executor:
         callable of its own to cancel it)."""
         with self._lock:
             self.loop.submit(on_done, command)
+            self._work.notify_all()
         return on_done
 
     def cancel(self, token: OnDone) -> bool:
@@ -134,6 +152,7 @@ class Executor:
         with self._lock:
             ended = self.loop.cancel(token)
             running = self.loop.current
+            self._work.notify_all()
             at = (time.time(), self.rt.time)
         if ended is None:
             return False
@@ -152,6 +171,7 @@ class Executor:
         (velma.executor.loop)."""
         with self._lock:
             ended = self.loop.hold(why)
+            self._work.notify_all()
         for on_done, result in ended:
             self._put(on_done, result)
 
@@ -167,6 +187,7 @@ class Executor:
         """Enter safe mode, ending every command with ``safe mode: why`` (velma.executor.loop)."""
         with self._lock:
             ended = self.loop.safe(why)
+            self._work.notify_all()
         for on_done, result in ended:
             self._put(on_done, result)
 
@@ -184,6 +205,8 @@ class Executor:
     def _run(self) -> None:
         pacer = Pacer(DT, realtime=self.realtime)
         while not self._stop.is_set():
+            if not self.idle_steps and not self._await_work():
+                break
             start = pacer.begin()
             with self._lock:
                 done = self.loop.cycle()
@@ -194,6 +217,17 @@ class Executor:
                 name, text = self.loop.errors.popleft()
                 log.error("command %s raised %s", name, text)
             pacer.wait()
+
+    def _await_work(self) -> bool:
+        """Wait until a command runs or is queued or a hold's halt runs (True), or ``stop`` was
+        called (False)."""
+        loop = self.loop
+        with self._lock:
+            while loop.current is None and not loop.queue and loop.stopping is None:
+                if self._stop.is_set():
+                    return False
+                self._work.wait()
+        return True
 
     def _put(self, on_done: OnDone, result: CommandResult | Observation | WorldCapture) -> None:
         """Hand ``result`` to the delivery thread (or deliver it here when there is none)."""
