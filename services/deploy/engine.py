@@ -53,9 +53,11 @@ def last_line(text: str) -> str:
     return lines[-1] if lines else ""
 
 
-def compose_command(run: Runner = run_command, which: Which = shutil.which) -> list[str] | None:
+def compose_command(run: Runner = run_command, which: Which | None = None) -> list[str] | None:
     """``["docker", "compose"]`` when ``docker compose version`` succeeds, else
-    ``["docker-compose"]`` when that program is on PATH, else None."""
+    ``["docker-compose"]`` when that program is on PATH, else None. ``which``: shutil.which, as it
+    is when called."""
+    which = which or shutil.which
     if which("docker") is not None and run(["docker", "compose", "version"]).returncode == 0:
         return ["docker", "compose"]
     if which("docker-compose") is not None:
@@ -76,10 +78,10 @@ class ComposeFleet:
         return next((f for f in self.files if f.is_absolute() and f.is_file()), None)
 
 
-def running_fleets(run: Runner = run_command, which: Which = shutil.which) -> list[ComposeFleet]:
+def running_fleets(run: Runner = run_command, which: Which | None = None) -> list[ComposeFleet]:
     """The compose projects whose :data:`PROBE_SERVICE` container runs, by project name; [] when
     there is no ``docker`` or no engine answers."""
-    if which("docker") is None:
+    if (which or shutil.which)("docker") is None:
         return []
     label = "com.docker.compose"
     out = run(
@@ -120,7 +122,7 @@ class ComposeFailed(RuntimeError):
 
 
 def base_command(
-    file: Path, project: str | None, run: Runner = run_command, which: Which = shutil.which
+    file: Path, project: str | None, run: Runner = run_command, which: Which | None = None
 ) -> list[str]:
     """``docker compose -f FILE [-p PROJECT]`` (or ``docker-compose …``); ComposeFailed when
     neither is installed."""

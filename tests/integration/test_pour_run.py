@@ -387,13 +387,14 @@ def test_roco_spec_trace_shows_every_leaf_from_the_pour(pour_run: PourRun) -> No
     """The pour, with the foreign agent's question through the gateway (R1.4), shows every leaf
     requirement but the three a single uninterrupted command cannot exercise (R1.2: a decision
     between two open commands; R2.1: an interruption for a waiting one; R3.3: a safe stop before
-    Preempted), violates none, and every leaf has its tests."""
+    Preempted) and R1.5 (a ROS 2 node's sentence: tests/ros2/test_live_fleet.py's run shows it),
+    violates none, and every leaf has its tests."""
     run_dir = pour_run.run_dir
     proc = subprocess.run(
         [sys.executable, "-m", "services.cli", "spec", "trace", str(run_dir)], capture_output=True, text=True
     )
     assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-2000:]
-    assert "leaves: 8 shown, 3 not exercised (R1.2, R2.1, R3.3), 0 violated" in proc.stdout, proc.stdout
+    assert "leaves: 8 shown, 4 not exercised (R1.2, R1.5, R2.1, R3.3), 0 violated" in proc.stdout, proc.stdout
     assert "tests: none" not in proc.stdout
     md = (run_dir / "report.md").read_text()
     assert "Requirements traced to this run" in md and "**violated**" not in md

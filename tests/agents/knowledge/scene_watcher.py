@@ -1,5 +1,6 @@
 """A subscriber to a_km's changes of the scene, for tests: a_wt of docs/spec.md's walk-through
-(C9 carries fipa-subscribe from a_wt to a_km; its warnings on C10 are not sent here)
+(its first channel, the next free one, carries fipa-subscribe from a_wt to a_km; its warnings
+on the second are not sent here)
 (tests/agents/knowledge/test_scene_subscription.py). A module of its own: the runtime reads
 an agent's module for sends outside its roles."""
 
@@ -14,6 +15,7 @@ from services.runtime.transport import Transport
 from services.spec.model import SystemSpec
 from shared.fipa_codec import Performative
 from shared.fipa_codec.languages.l_wm import SceneChange, SceneSubscription
+from tests.spec_check.walkthrough import NEXT
 
 
 class Watcher(Agent):
@@ -22,8 +24,8 @@ class Watcher(Agent):
 
     name = "a_wt"
     ROLES = (
-        initiator("C10", "kitchen-warning", "L_HC", unused=True),
-        initiator("C9", "fipa-subscribe", "L_WM", reply_by_s=2.0, resubscribes=True),
+        initiator(NEXT.notice_channel_name, "kitchen-warning", "L_HC", unused=True),
+        initiator(NEXT.channel_name, "fipa-subscribe", "L_WM", reply_by_s=2.0, resubscribes=True),
     )
 
     def __init__(self, transport: Transport, spec: SystemSpec) -> None:
@@ -36,7 +38,7 @@ class Watcher(Agent):
 
     def setup(self) -> None:
         self.roles.subscribe(
-            "C9",
+            NEXT.channel_name,
             "fipa-subscribe",
             SceneSubscription(objects=("jar",)),
             conversation_id="wt-scene",

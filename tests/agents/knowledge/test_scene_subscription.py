@@ -1,7 +1,7 @@
 """a_km serves subscriptions to changes of the scene (L_WM ``SceneSubscription``,
 ``SceneChange``; FIPA SC00035) on every channel where the specification makes it the
-participant of fipa-subscribe: here C7 (a_hi, the shipped specification) and C9 (a_wt, the
-kitchen watcher of docs/spec.md's walk-through). The tests play the
+participant of fipa-subscribe: here C7 (a_hi, the shipped specification) and the next free
+channel (a_wt, the kitchen watcher of docs/spec.md's walk-through). The tests play the
 subscribers and a_ta on a MemoryBus; a_km takes its inputs in order, so the answer to a query
 sent after an update comes after every inform that update caused (the bus delivers in order):
 that is how a test knows an inform did not come."""
@@ -35,16 +35,18 @@ from shared.fipa_codec.languages.l_wm import (
 )
 from tests.agents.knowledge.scene_watcher import Watcher
 from tests.agents.knowledge.test_agent import Peer
-from tests.spec_check.walkthrough import GROUP_EDIT, entries, snippet, staged
+from tests.spec_check.walkthrough import GROUP_EDIT, NEXT, entries, snippet, staged
 
 TIMEOUT_S = 10.0
+WT_CHANNEL = NEXT.channel_name
+"""The walk-through's channel from a_wt to a_km: the next free number of the shipped specification."""
 UPRIGHT = (1.0, 0.0, 0.0, 0.0)
 ON_ITS_SIDE = (math.cos(math.pi / 4), math.sin(math.pi / 4), 0.0, 0.0)  # 90° about x
 
 
 def watcher_spec(tmp_path: Path) -> SystemSpec:
-    """The shipped specification with the walk-through's a_wt and its channels: C9 carries
-    fipa-subscribe from a_wt to a_km as C7 carries it from a_hi (docs/spec.md)."""
+    """The shipped specification with the walk-through's a_wt and its channels: WT_CHANNEL
+    carries fipa-subscribe from a_wt to a_km as C7 carries it from a_hi (docs/spec.md)."""
     path = tmp_path / "spec.toml"
     path.write_text(staged(DEFAULT_SPEC.read_text(), snippet(1), entries(), edits=GROUP_EDIT))
     return load(path)
@@ -140,7 +142,7 @@ def test_a_subscriber_is_told_when_an_object_moves_or_tilts_and_not_otherwise(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     with running_km(watcher_spec(tmp_path), monkeypatch) as (km, bus):
-        peer, wt = Peer(bus), Subscriber(bus, "C9", "a_wt")
+        peer, wt = Peer(bus), Subscriber(bus, WT_CHANNEL, "a_wt")
         peer.update(seen(1.0, at("jar", 0.80), at("bowl", 0.50)))
         settled(peer)
         performative, _ = wt.subscribe(SceneSubscription(objects=("jar",), moved=0.05, tilted=0.5), "w1")
@@ -185,7 +187,7 @@ def test_a_malformed_or_out_of_range_subscription_is_refused_with_the_reason(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     with running_km(watcher_spec(tmp_path), monkeypatch) as (km, bus):
-        wt = Subscriber(bus, "C9", "a_wt")
+        wt = Subscriber(bus, WT_CHANNEL, "a_wt")
         refused = [
             (SceneSubscription(moved=0.0), "moved must be 0.001..10.0 m, not 0.0"),
             (SceneSubscription(moved=50.0), "moved must be"),
@@ -216,7 +218,7 @@ def test_a_malformed_or_out_of_range_subscription_is_refused_with_the_reason(
 
 def test_a_cancel_ends_the_informs(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     with running_km(watcher_spec(tmp_path), monkeypatch) as (km, bus):
-        peer, wt = Peer(bus), Subscriber(bus, "C9", "a_wt")
+        peer, wt = Peer(bus), Subscriber(bus, WT_CHANNEL, "a_wt")
         peer.update(seen(1.0, at("jar", 0.80)))
         settled(peer)
         assert wt.subscribe(SceneSubscription(), "w1")[0] is Performative.AGREE
@@ -233,7 +235,7 @@ def test_a_cancel_ends_the_informs(tmp_path: Path, monkeypatch: pytest.MonkeyPat
 def test_the_queue_drops_the_oldest_and_says_so(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     """A planted flood: one update moves eight objects for a subscriber that keeps two."""
     with running_km(watcher_spec(tmp_path), monkeypatch) as (km, bus):
-        peer, wt = Peer(bus), Subscriber(bus, "C9", "a_wt")
+        peer, wt = Peer(bus), Subscriber(bus, WT_CHANNEL, "a_wt")
         names = [f"thing{i}" for i in range(8)]
         peer.update(seen(1.0, *(at(name, 0.1 * i) for i, name in enumerate(names))))
         settled(peer)
@@ -251,7 +253,7 @@ def test_a_flood_larger_than_a_burst_arrives_whole_and_in_order(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     with running_km(watcher_spec(tmp_path), monkeypatch) as (km, bus):
-        peer, wt = Peer(bus), Subscriber(bus, "C9", "a_wt")
+        peer, wt = Peer(bus), Subscriber(bus, WT_CHANNEL, "a_wt")
         names = [f"thing{i}" for i in range(2 * scene_watch.BURST + 3)]
         peer.update(seen(1.0, *(at(name, 0.01 * i) for i, name in enumerate(names))))
         settled(peer)
@@ -264,7 +266,7 @@ def test_a_flood_larger_than_a_burst_arrives_whole_and_in_order(
 def test_at_most_n_subscribers_and_one_per_channel(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setattr(scene_watch, "MAX_SUBSCRIBERS", 1)
     with running_km(watcher_spec(tmp_path), monkeypatch) as (km, bus):
-        hi, wt = Subscriber(bus, "C7", "a_hi"), Subscriber(bus, "C9", "a_wt")
+        hi, wt = Subscriber(bus, "C7", "a_hi"), Subscriber(bus, WT_CHANNEL, "a_wt")
         assert hi.subscribe(SceneSubscription(), "h1")[0] is Performative.AGREE
         performative, reason = wt.subscribe(SceneSubscription(), "w1")
         assert performative is Performative.REFUSE
@@ -275,7 +277,7 @@ def test_at_most_n_subscribers_and_one_per_channel(tmp_path: Path, monkeypatch: 
         hi.send(Performative.CANCEL, SceneSubscription(), "h2")
         assert hi.next()[0] is Performative.INFORM
         assert wt.subscribe(SceneSubscription(), "w2")[0] is Performative.AGREE
-        assert list(km.watches) == ["C9"]
+        assert list(km.watches) == [WT_CHANNEL]
 
 
 def test_a_restarted_km_serves_the_subscription_the_subscriber_makes_again(
@@ -298,7 +300,7 @@ def test_a_restarted_km_serves_the_subscription_the_subscriber_makes_again(
                 peer.update(seen(stamp + 1.0, at("jar", 0.60)))
                 change = watcher.changes.get(timeout=TIMEOUT_S)
                 assert change.object == "jar" and change.changed == ("moved",) and change.stamp == stamp + 1.0
-                assert list(km.watches) == ["C9"]
+                assert list(km.watches) == [WT_CHANNEL]
             km.transport.close()  # its liveliness token goes, as when its process ends
     finally:
         watcher.stop()

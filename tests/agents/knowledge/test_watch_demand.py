@@ -21,6 +21,7 @@ from shared.fipa_codec.languages.l_wm import SceneSubscription, Subscription
 from tests.agents.knowledge.test_agent import Peer
 from tests.agents.knowledge.test_scene_subscription import (
     TIMEOUT_S,
+    WT_CHANNEL,
     Subscriber,
     running_km,
     watcher_spec,
@@ -56,7 +57,7 @@ def test_a_subscriber_within_a_time_has_the_robot_watch_until_it_cancels(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     with running_km(watcher_spec(tmp_path), monkeypatch) as (km, bus):
-        peer, wt = Peer(bus), Subscriber(bus, "C9", "a_wt")
+        peer, wt = Peer(bus), Subscriber(bus, WT_CHANNEL, "a_wt")
         bus.transport().announce(keys.alive_key("a_ta"))  # a_km asks a_ta once it is there
         watched = SceneSubscription(objects=("bowl",), tilted=1.0, within_s=0.5)
         performative, _ = wt.subscribe(watched, "w1")
@@ -74,7 +75,7 @@ def test_a_subscriber_with_no_time_asks_no_watch_and_an_impossible_time_is_refus
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     with running_km(watcher_spec(tmp_path), monkeypatch) as (km, bus):
-        peer, wt = Peer(bus), Subscriber(bus, "C9", "a_wt")
+        peer, wt = Peer(bus), Subscriber(bus, WT_CHANNEL, "a_wt")
         performative, reason = wt.subscribe(SceneSubscription(within_s=0.05), "w0")
         assert performative is Performative.REFUSE and "within_s must be 0.2..10.0 s" in str(reason)
         performative, _ = wt.subscribe(SceneSubscription(objects=("bowl",)), "w1")
