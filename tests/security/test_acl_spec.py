@@ -256,3 +256,20 @@ def test_roco_ros2_speaks_only_as_ros2_callers_to_a_hi_on_c9(spec: SystemSpec) -
     assert hi.may("egress", "put", keys.fipa_key("C9", CALLER, "a_hi"))
     assert hi.may("ingress", "put", keys.fipa_key("C9", "a_hi", CALLER))
     assert not hi.may("ingress", "put", keys.fipa_key("C9", "a_hi", JADE))
+
+
+def test_only_ag_ex_puts_its_camera_images_and_roco_ros2_hears_them(spec: SystemSpec) -> None:
+    """ag_ex puts roco/state/ag_ex/camera and learns of its subscribers (it renders only while one
+    matches); roco ros2 subscribes and is delivered it, and publishes Image and CameraInfo; no
+    other agent puts the images and none hears them."""
+    camera = keys.camera_key("ag_ex")
+    ex, g = agent_grants(spec, "ag_ex"), ros2_grants(spec)
+    assert ex.may("ingress", "put", camera) and ex.may("egress", "declare_subscriber", camera)
+    assert g.may("ingress", "declare_subscriber", camera) and g.may("egress", "put", camera)
+    assert not g.may("ingress", "put", camera)
+    for a in spec.agents:
+        if a.name != "ag_ex":
+            other = agent_grants(spec, a.name)
+            assert not other.may("ingress", "put", camera) and not other.may("egress", "put", camera)
+    for t in ("Image_", "CameraInfo_"):
+        assert g.may("ingress", "put", f"0/head_camera/image_raw/sensor_msgs::msg::dds_::{t}/RIHS01_ab")
