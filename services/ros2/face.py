@@ -204,8 +204,7 @@ class Ros2Face:
                 self._pubs[topic] = node.publisher(topic, kinds[topic])
         if cfg.topics & {JOINT_STATES, TF}:
             self.transport.subscribe(keys.state_key("ag_ex"), self._on_state)
-        if CAMERA in cfg.topics:
-            self._bind_camera(node)
+        self._bind_camera(node)
         if TASK_STATE in cfg.topics:
             self._pubs[TASK_STATE] = node.publisher(TASK_STATE, messages.TASK_STATE)
             self.transport.subscribe(keys.fipa_key("C1", "a_ta", "a_co"), self._enqueue("c1"))
@@ -222,7 +221,10 @@ class Ros2Face:
 
     def _bind_camera(self, node: RosNode) -> None:
         """The camera's publishers; whether a subscriber matches each goes to the face's thread,
-        which subscribes to ag_ex's images while one does (never declared on Zenoh's thread)."""
+        which subscribes to ag_ex's images while one does (never declared on Zenoh's thread).
+        Nothing unless the camera was asked for."""
+        if CAMERA not in self.config.topics:
+            return
         types = {IMAGE_RAW: state.IMAGE_TYPE, CAMERA_INFO: state.CAMERA_INFO_TYPE}
         for topic, ros_type in types.items():
             pub = self._pubs[topic] = node.publisher(topic, ros_type)

@@ -145,35 +145,44 @@ class CameraFeed:
         camera: Camera | None = None
         last: float | None = None
         try:
-            while True:
-                with self._cond:
-                    if not (self._wanted or self._stopping):
-                        self.idle.set()
-                        self._cond.wait_for(lambda: self._wanted or self._stopping)
-                    self.idle.clear()
-                    if self._stopping:
-                        return
+            while self._wait_wanted():
                 t0 = time.monotonic()
+                camera = camera or self._open()
                 if camera is None:
-                    camera = self._open()
-                    if camera is None:
-                        return
-                state = self._world()
-                if state is None or state.sim_time == last:
-                    self.skipped += 1
-                else:
-                    last = state.sim_time
-                    self._frame(camera, state)
-                with self._cond:
-                    rest = t0 + self.period_s - time.monotonic()
-                    if rest > 0:
-                        self._cond.wait_for(lambda: self._stopping, rest)
+                    return
+                last = self._tick(camera, last)
+                self._rest(t0)
         except Exception as exc:
             self.failed = f"{type(exc).__name__}: {exc}"
             log.exception("the camera feed failed; no frames from now on")
         finally:
             if camera is not None:
                 camera.close()
+
+    def _wait_wanted(self) -> bool:
+        """Wait (:attr:`idle`) until frames are wanted (True) or the feed stops (False)."""
+        with self._cond:
+            if not (self._wanted or self._stopping):
+                self.idle.set()
+                self._cond.wait_for(lambda: self._wanted or self._stopping)
+            self.idle.clear()
+            return not self._stopping
+
+    def _tick(self, camera: Camera, last: float | None) -> float | None:
+        """Render and put the latest state unless it is ``last`` (then skipped); its time."""
+        state = self._world()
+        if state is None or state.sim_time == last:
+            self.skipped += 1
+            return last
+        self._frame(camera, state)
+        return state.sim_time
+
+    def _rest(self, t0: float) -> None:
+        """Wait until one period after ``t0`` (monotonic s), or until the feed stops."""
+        with self._cond:
+            rest = t0 + self.period_s - time.monotonic()
+            if rest > 0:
+                self._cond.wait_for(lambda: self._stopping, rest)
 
     def _open(self) -> Camera | None:
         try:  # this thread only (Linux: a thread id); software GL renders in it

@@ -14,7 +14,7 @@ from typing import Any
 
 import zenoh
 
-from services.runtime import keys
+from services.runtime.agent import keys
 from velma.executor.camera_feed import Camera, CameraFeed, State, kitchen_camera
 
 log = logging.getLogger(__name__)
@@ -40,7 +40,8 @@ class CameraPublisher:
         make = make_camera or (lambda: kitchen_camera(seed, pose_seed))
         self.feed = CameraFeed(world, self._pub.put, make, rate_hz)
         self._listener: Any = self._pub.declare_matching_listener(self._changed)
-        self.feed.want(bool(self._pub.matching_status.matching))
+        # zenoh-python 1.10 returns a MatchingStatus (its stub says bool)
+        self.feed.want(bool(getattr(self._pub.matching_status, "matching", False)))
 
     def _changed(self, status: zenoh.MatchingStatus) -> None:  # Zenoh's thread
         log.info("camera feed %s", "on: a subscriber matches" if status.matching else "off: no subscriber")
