@@ -126,6 +126,7 @@ class CameraFeedRun:
 
         self.sessions = [peer("listen/endpoints")]
         self.received = 0
+        self.cpu_s = 0.0
         self.publisher = CameraPublisher(
             self.sessions[0], world, Settings.from_env(only=("camera_hz",)).camera_hz, seed=seed
         )  # type: ignore[arg-type]
@@ -141,9 +142,24 @@ class CameraFeedRun:
         ms = sorted(1e3 * x for x in f.render_s)
         median = f"{ms[len(ms) // 2]:.0f} ms" if ms else "-"
         failed = f"; feed failed: {f.failed}" if f.failed else ""
-        return f"feed: {f.frames} frames rendered, {self.received} received, render median {median}{failed}"
+        return (
+            f"feed: {f.frames} frames rendered, {self.received} received, render median {median}, "
+            f"its thread's CPU {self.cpu_s:.2f} s{failed}"
+        )
+
+    def _thread_cpu_s(self) -> float:
+        """CPU time (user + system, s) of the feed's thread so far (Linux /proc; 0 elsewhere)."""
+        import os
+
+        tid = self.publisher.feed._thread.native_id
+        try:
+            fields = Path(f"/proc/self/task/{tid}/stat").read_text().rsplit(")", 1)[1].split()
+        except OSError:
+            return 0.0
+        return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")  # utime, stime
 
     def close(self) -> None:
+        self.cpu_s = self._thread_cpu_s()
         self.publisher.close()
         for s in reversed(self.sessions):
             s.close()
