@@ -31,9 +31,10 @@ def ros2(
 ) -> None:
     """Be ROS 2 node /roco on the fleet's own Zenoh, in rmw_zenoh's wire format (key
     expressions, CDR, attachments, liveliness tokens): publish the topics asked for (nothing
-    unless asked; the camera's images are rendered by ag_ex only while a ROS 2 node subscribes) and serve roco/say (roco_msgs/srv/Say): a sentence, checked against the
-    specification's external role x_ros2 (C9 to a_hi), answered with a_hi's outcome; progress
-    on roco/say/progress. A malformed or out-of-protocol call is refused and counted (roco
+    unless asked; ag_ex renders the camera's images only while a ROS 2 node subscribes) and
+    serve roco/say (roco_msgs/srv/Say): a sentence, checked against the specification's
+    external role x_ros2 (C9 to a_hi), answered with a_hi's outcome; progress on
+    roco/say/progress. A malformed or out-of-protocol call is refused and counted (roco
     status). Runs until Ctrl-C (docs/ros2.md)."""
     from services.ros2.face import CAMERA, JOINT_STATES, TASK_STATE, TF, TOPICS, FaceConfig
     from services.ros2.live import LiveConfig
