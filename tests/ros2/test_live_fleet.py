@@ -10,7 +10,7 @@ second call while its first is open (outside fipa-request's one request) are ref
 counted, and `roco status` shows the face's counters with every agent alive, and `roco spec
 trace` of the run shows R1.5. The file's only pour: the whole test took 35 s, the call of the
 pour 27 s, on this project's 2-core VM (2026-11-27, shared with other work); with the camera's
-image first, 39 s and 21 s (2026-11-27)."""
+image first, 39 s and 64 s, the pour's call 21.3 s and 34.8 s (two runs, 2026-11-27)."""
 
 from __future__ import annotations
 
