@@ -12,11 +12,18 @@ publishing its whole state for the camera (``world_state=True``) and ag_ex's hea
 thread (services/viewer/camera.py) rendering 320×240 frames at 1 Hz into a Rerun recording in
 a temporary folder, as ag_ex does with ``ROCO_RERUN=1``.
 
+``--camera-feed`` adds two runs after each ``alone`` run: the loop publishing its whole state,
+with ag_ex's camera feed for ``roco ros2 --camera`` (services/agents/executor/camera_feed.py) on
+a Zenoh session of its own, first with no subscriber (nothing rendered: the feed waits), then
+with a subscriber on another session over loopback TCP (320×240 frames at ``ROCO_CAMERA_HZ``,
+default 5 Hz).
+
 Beside the loop's figures, each row gives the world process's own cycle (velma/world/timing.py)
 as ag_ex read it from the robot link: late cycles and schedule resets, stalls, stale commands,
 held steps (``-`` where the physics ran in the loop, as in ``alone``).
 
-Usage: ``python scripts/bench_loop.py [--repeat N] [--skip-fleet] [--camera] [--runs-dir DIR]``.
+Usage: ``python scripts/bench_loop.py [--repeat N] [--skip-fleet] [--camera] [--camera-feed]
+[--runs-dir DIR]``.
 Percentiles are over the last 120 000 cycles of each run (the whole pour is ≈ 56 000).
 """
 
@@ -42,20 +49,29 @@ from velma.executor.timing import STALL_OFF_CPU, TimingStats  # noqa: E402
 from velma.world.timing import DT, LATE_AFTER_S, MAX_BEHIND_S, STALL_PERIODS  # noqa: E402
 
 
-def run_alone(seed: int, spin: float | None, camera: bool = False) -> tuple[TimingStats, str]:
+def run_alone(
+    seed: int, spin: float | None, camera: bool = False, feed: str | None = None
+) -> tuple[TimingStats, str]:
     """The scripted pour through ExecutorProcess in real time, with the head camera rendering
-    at 1 Hz if ``camera``; returns timing and outcome."""
+    at 1 Hz if ``camera``, with ag_ex's camera feed if ``feed`` (``idle``: no subscriber,
+    ``subscribed``: one); returns timing and outcome."""
     from shared.fipa_codec.languages.l_ex import CommandResult
     from velma.executor import ExecutorProcess
     from velma.executor.process import DEFAULT_SPIN
     from velma.scenario import run_pour
 
     ex = ExecutorProcess(
-        realtime=True, seed=seed, spin=DEFAULT_SPIN if spin is None else spin, world_state=camera
+        realtime=True,
+        seed=seed,
+        spin=DEFAULT_SPIN if spin is None else spin,
+        world_state=camera or feed is not None,
     )
     ex.start()
     cam = None
+    fed: CameraFeedRun | None = None
     try:
+        if feed is not None:
+            fed = CameraFeedRun(ex.world, seed, subscribed=feed == "subscribed")
         if camera:
             from services.viewer.camera import HeadCamera
             from services.viewer.recording import Recording
@@ -66,6 +82,8 @@ def run_alone(seed: int, spin: float | None, camera: bool = False) -> tuple[Timi
         _, results = run_pour(ex.submit)
         timing = ex.timing()
     finally:
+        if fed is not None:
+            fed.close()
         if cam is not None:
             cam.stop()
             rec.close()
@@ -78,7 +96,73 @@ def run_alone(seed: int, spin: float | None, camera: bool = False) -> tuple[Timi
         outcome += f"; {cam.frames} frames, {cam.skipped} skipped, render median {median}"
         if cam.failed:
             outcome += f"; camera failed: {cam.failed}"
+    if fed is not None:
+        outcome += f"; {fed.describe()}"
     return timing, outcome
+
+
+class CameraFeedRun:
+    """ag_ex's camera feed of ``world`` on a peer session listening on loopback TCP, and with
+    ``subscribed`` a second session connected to it that subscribes to the images."""
+
+    def __init__(self, world: object, seed: int, *, subscribed: bool) -> None:
+        import json
+
+        import zenoh
+
+        from services.agents.executor.camera_feed import CameraPublisher
+        from services.fleet.launcher import free_port
+        from services.runtime import keys
+        from shared.settings import Settings
+
+        endpoint = f"tcp/127.0.0.1:{free_port()}"
+
+        def peer(key: str) -> zenoh.Session:
+            conf = zenoh.Config()
+            conf.insert_json5("mode", '"peer"')
+            conf.insert_json5(key, json.dumps([endpoint]))
+            conf.insert_json5("scouting/multicast/enabled", "false")
+            return zenoh.open(conf)
+
+        self.sessions = [peer("listen/endpoints")]
+        self.received = 0
+        self.cpu_s = 0.0
+        self.publisher = CameraPublisher(
+            self.sessions[0], world, Settings.from_env(only=("camera_hz",)).camera_hz, seed=seed
+        )  # type: ignore[arg-type]
+        if subscribed:
+            self.sessions.append(peer("connect/endpoints"))
+            self.sessions[1].declare_subscriber(keys.camera_key("ag_ex"), self._count)
+
+    def _count(self, sample: object) -> None:
+        self.received += 1
+
+    def describe(self) -> str:
+        f = self.publisher.feed
+        ms = sorted(1e3 * x for x in f.render_s)
+        median = f"{ms[len(ms) // 2]:.0f} ms" if ms else "-"
+        failed = f"; feed failed: {f.failed}" if f.failed else ""
+        return (
+            f"feed: {f.frames} frames rendered, {self.received} received, render median {median}, "
+            f"its thread's CPU {self.cpu_s:.2f} s{failed}"
+        )
+
+    def _thread_cpu_s(self) -> float:
+        """CPU time (user + system, s) of the feed's thread so far (Linux /proc; 0 elsewhere)."""
+        import os
+
+        tid = self.publisher.feed._thread.native_id
+        try:
+            fields = Path(f"/proc/self/task/{tid}/stat").read_text().rsplit(")", 1)[1].split()
+        except OSError:
+            return 0.0
+        return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")  # utime, stime
+
+    def close(self) -> None:
+        self.cpu_s = self._thread_cpu_s()
+        self.publisher.close()
+        for s in reversed(self.sessions):
+            s.close()
 
 
 def _fixed_work(reps: int, a: np.ndarray, out: np.ndarray) -> None:
@@ -194,6 +278,11 @@ def main() -> int:
     ap.add_argument("--skip-alone", action="store_true", help="only the fleet run")
     ap.add_argument("--camera", action="store_true", help="alone: also run with the head camera at 1 Hz")
     ap.add_argument(
+        "--camera-feed",
+        action="store_true",
+        help="alone: also run with ag_ex's camera feed, without and with a subscriber",
+    )
+    ap.add_argument(
         "--baseline",
         type=float,
         default=0.0,
@@ -242,6 +331,13 @@ def measure(args: argparse.Namespace) -> int:
                 name = f"alone + head camera (seed {k}, {time.time() - t0:.0f} s)"
                 print(row(name, stats, outcome), flush=True)
                 split.append(parts(name, stats))
+            for feed in ("idle", "subscribed") if args.camera_feed else ():
+                t0 = time.time()
+                spin = None if args.spin_us is None else args.spin_us * 1e-6
+                stats, outcome = run_alone(k, spin, feed=feed)
+                name = f"alone + camera feed, {'no subscriber' if feed == 'idle' else 'a subscriber'}"
+                print(row(f"{name} (seed {k}, {time.time() - t0:.0f} s)", stats, outcome), flush=True)
+                split.append(parts(f"{name} (seed {k})", stats))
         if not args.skip_fleet:
             t0 = time.time()
             stats, outcome = run_fleet(runs_dir)

@@ -107,7 +107,8 @@ Ros2Option = Annotated[
     typer.Option(
         "--ros2",
         help="also run `roco ros2 --all` (docs/ros2.md) as a process of the fleet: ROS 2 node /roco "
-        "on --ros2-domain publishes joint_states, tf, roco/task_state and serves roco/say",
+        "on --ros2-domain publishes joint_states, tf, roco/task_state, the head camera (while subscribed) "
+        "and serves roco/say",
     ),
 ]
 Ros2DomainOption = Annotated[

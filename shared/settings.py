@@ -446,6 +446,16 @@ class Settings(msgspec.Struct, frozen=True, kw_only=True):
             kind="s > 0 / never",
         ),
     ] = 60.0
+    camera_hz: Annotated[
+        float,
+        About(
+            "ROCO_CAMERA_HZ",
+            "head-camera images per wall second at most that ag_ex renders while roco ros2 --camera "
+            "subscribes (velma/executor/camera_feed.py; at most 30)",
+            parse=_positive_factor,
+            kind="Hz > 0",
+        ),
+    ] = 5.0
     watch_pace: Annotated[
         float,
         About(

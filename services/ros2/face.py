@@ -5,7 +5,11 @@ docs/ros2.md.
 Out (only the topics asked for): ``joint_states`` (sensor_msgs/msg/JointState) and ``tf``
 (tf2_msgs/msg/TFMessage: the world pose of each link) from ag_ex's snapshots on
 ``roco/state/ag_ex``, stamped with the simulation's time; ``roco/task_state``
-(roco_msgs/msg/TaskState) from a_ta's L_SW informs to a_co on C1.
+(roco_msgs/msg/TaskState) from a_ta's L_SW informs to a_co on C1; ``head_camera/image_raw``
+(sensor_msgs/msg/Image, rgb8) and ``head_camera/camera_info`` (sensor_msgs/msg/CameraInfo) from
+ag_ex's images on ``roco/state/ag_ex/camera``, stamped with the robot time of the frame: the face
+subscribes there only while a ROS 2 subscriber matches one of the two topics, and ag_ex renders
+only while the face subscribes (Zenoh's matching status at both hops).
 
 In: the service ``roco/say`` (roco_msgs/srv/Say). Each call is checked as the gateway checks
 HTTP traffic (docs/gateway.md): the key's type hash, the attachment (33 octets), the size, the
@@ -35,7 +39,7 @@ import msgspec
 import numpy as np
 from rosbags.typesys.store import Typestore
 
-from services.ros2 import messages, rmw
+from services.ros2 import messages, rmw, state
 from services.ros2.node import Call, Publisher, RosNode, Service
 from services.ros2.rmw import Attachment, RmwError
 from services.runtime import keys
@@ -49,13 +53,17 @@ from shared.fipa_codec.languages import LANGUAGES, ContentError, decode_content,
 from shared.fipa_codec.languages.common import Pose
 from shared.fipa_codec.languages.l_hc import Sentence, SentenceReport
 from shared.fipa_codec.languages.l_sw import SWStatus
+from velma.executor.camera_feed import MAX_FRAME_OCTETS, CameraFrame
 
 ROS2 = "ros2"
 """The face's identity on Zenoh (services/spec_check/acl.py: ROS2) and its callers' platform."""
 SAY = "roco/say"
 SAY_PROGRESS = "roco/say/progress"
-JOINT_STATES, TF, TASK_STATE = "joint_states", "tf", "roco/task_state"
-TOPICS = (JOINT_STATES, TF, TASK_STATE)
+JOINT_STATES, TF, TASK_STATE, CAMERA = "joint_states", "tf", "roco/task_state", "head_camera"
+TOPICS = (JOINT_STATES, TF, TASK_STATE, CAMERA)
+IMAGE_RAW = state.IMAGE.removeprefix("/")
+CAMERA_INFO = state.CAMERA_INFO.removeprefix("/")
+"""The camera's two topics (``CAMERA`` asks for both), named as ``roco export`` names them."""
 """What ``roco ros2`` may publish besides the sentence service's progress."""
 MAX_REQUEST = 8192
 """The largest request payload read (octets): a sentence of MAX_LINE_CHARS characters fits."""
@@ -171,6 +179,11 @@ class Ros2Face:
         self._callers: set[str] = set()
         self._state: bytes | None = None
         """ag_ex's latest snapshot not yet published: a newer one replaces it (never queued)."""
+        self._image: bytes | None = None
+        """ag_ex's latest camera frame not yet published (as ``_state``)."""
+        self._camera_sub: Any = None
+        self._matching = {IMAGE_RAW: False, CAMERA_INFO: False}
+        """Whether a ROS 2 subscriber matches each camera topic (the face's thread's)."""
         self._lock = threading.Lock()
         self._thread: threading.Thread | None = None
         self.node: RosNode | None = None
@@ -191,6 +204,7 @@ class Ros2Face:
                 self._pubs[topic] = node.publisher(topic, kinds[topic])
         if cfg.topics & {JOINT_STATES, TF}:
             self.transport.subscribe(keys.state_key("ag_ex"), self._on_state)
+        self._bind_camera(node)
         if TASK_STATE in cfg.topics:
             self._pubs[TASK_STATE] = node.publisher(TASK_STATE, messages.TASK_STATE)
             self.transport.subscribe(keys.fipa_key("C1", "a_ta", "a_co"), self._enqueue("c1"))
@@ -205,6 +219,21 @@ class Ros2Face:
         self.transport.subscribe(keys.COUNTERS_ASK, self._enqueue("ask"))
         self.transport.announce(keys.alive_key(ROS2))
 
+    def _bind_camera(self, node: RosNode) -> None:
+        """The camera's publishers; whether a subscriber matches each goes to the face's thread,
+        which subscribes to ag_ex's images while one does (never declared on Zenoh's thread).
+        Nothing unless the camera was asked for."""
+        if CAMERA not in self.config.topics:
+            return
+        types = {IMAGE_RAW: state.IMAGE_TYPE, CAMERA_INFO: state.CAMERA_INFO_TYPE}
+        for topic, ros_type in types.items():
+            pub = self._pubs[topic] = node.publisher(topic, ros_type)
+
+            def changed(matching: bool, topic: str = topic) -> None:
+                self._queue.put(("matching", (topic, matching)))
+
+            changed(pub.on_matching(changed))
+
     def start(self) -> None:
         self._thread = threading.Thread(target=self._run, name=ROS2, daemon=True)
         self._thread.start()
@@ -214,6 +243,9 @@ class Ros2Face:
         self._queue.put(("stop", None))
         if self._thread is not None:
             self._thread.join(timeout=10.0)
+        if self._camera_sub is not None:
+            self._camera_sub.undeclare()
+            self._camera_sub = None
         if self.node is not None:
             self.node.close()
 
@@ -233,6 +265,18 @@ class Ros2Face:
             self.count("skipped.state")
         else:
             self._queue.put(("state", None))
+
+    def _on_image(self, sample: Any) -> None:
+        """Zenoh's thread: keep the latest frame (too big: dropped unread)."""
+        if len(sample.payload) > MAX_FRAME_OCTETS:
+            self.count("dropped.camera")
+            return
+        with self._lock:
+            waiting, self._image = self._image is not None, sample.payload.to_bytes()
+        if waiting:
+            self.count("skipped.camera")
+        else:
+            self._queue.put(("image", None))
 
     def _on_call(self, call: Call) -> None:
         """Zenoh's thread: enqueue only; over :data:`MAX_WAITING` waiting, answer busy."""
@@ -254,6 +298,8 @@ class Ros2Face:
             "answer": lambda item: self._take_answer(*item),
             "state": lambda item: self._take_state(self._latest_state()),
             "c1": lambda item: self._take_c1(item[1]),
+            "matching": lambda item: self._take_matching(*item),
+            "image": lambda item: self._take_image(self._latest_image()),
             "ask": lambda item: self._report_counters(),
         }
         while True:
@@ -331,6 +377,53 @@ class Ros2Face:
                 rotation=t["geometry_msgs/msg/Quaternion"](x=x, y=y, z=z, w=w),
             ),
         )
+
+    # ---- out: the head camera -------------------------------------------------------------
+    def _take_matching(self, topic: str, matching: bool) -> None:
+        """Subscribe to ag_ex's images while a ROS 2 subscriber matches a camera topic."""
+        self._matching[topic] = matching
+        wanted = any(self._matching.values())
+        if wanted and self._camera_sub is None:
+            key = keys.camera_key("ag_ex")
+            self._camera_sub = self.transport.session.declare_subscriber(key, self._on_image)
+            log.info("a ROS 2 subscriber of the camera: subscribed to %s", key)
+        elif not wanted and self._camera_sub is not None:
+            self._camera_sub.undeclare()
+            self._camera_sub = None
+            with self._lock:
+                self._image = None
+            log.info("no ROS 2 subscriber of the camera any more: unsubscribed")
+
+    def _latest_image(self) -> bytes:
+        with self._lock:
+            payload, self._image = self._image or b"", None
+        return payload
+
+    def _take_image(self, payload: bytes) -> None:
+        try:
+            frame = msgspec.msgpack.decode(payload, type=CameraFrame)
+        except (msgspec.DecodeError, msgspec.ValidationError):
+            self.count("dropped.camera")
+            return
+        w, h = frame.width, frame.height
+        if frame.encoding != "rgb8" or w <= 0 or h <= 0 or len(frame.data) != 3 * w * h:
+            self.count("dropped.camera")
+            return
+        header = self._header(frame.stamp, state.OPTICAL_FRAME)
+        image = self.store.types[state.IMAGE_TYPE](
+            header=header,
+            height=h,
+            width=w,
+            encoding="rgb8",
+            is_bigendian=0,
+            step=3 * w,
+            data=np.frombuffer(frame.data, dtype=np.uint8),
+        )
+        self._pubs[IMAGE_RAW].publish(image)
+        self.count("published.image_raw")
+        k = ((frame.fx, 0.0, frame.cx), (0.0, frame.fy, frame.cy), (0.0, 0.0, 1.0))
+        self._pubs[CAMERA_INFO].publish(state.camera_info(self.store, header, w, h, k))
+        self.count("published.camera_info")
 
     def _statuses(self, payload: bytes) -> list[SWStatus]:
         """a_ta's L_SW informs in a C1 payload (a batch or one communicate)."""

@@ -45,6 +45,14 @@ class Publisher:
         self._seq = itertools.count(1)
         self._pub = session.declare_publisher(endpoint.key, encoding=CDR)
         self._token = session.liveliness().declare_token(self.token_key)
+        self._listeners: list[Any] = []
+
+    def on_matching(self, changed: Callable[[bool], None]) -> bool:
+        """Call ``changed`` (on Zenoh's thread) whenever whether a subscriber matches this topic
+        changes (Zenoh's matching status: a ROS 2 subscription of rmw_zenoh is a subscriber on
+        the same key); returns whether one matches now."""
+        self._listeners.append(self._pub.declare_matching_listener(lambda s: changed(s.matching)))
+        return bool(getattr(self._pub.matching_status, "matching", False))  # its stub says bool
 
     def publish(self, msg: Any) -> None:
         """Put ``msg`` (an instance of the store's class of ``ros_type``)."""
@@ -53,6 +61,8 @@ class Publisher:
         self._pub.put(data, attachment=attachment)
 
     def close(self) -> None:
+        for listener in self._listeners:
+            listener.undeclare()
         self._token.undeclare()
         self._pub.undeclare()
 

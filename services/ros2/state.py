@@ -204,21 +204,20 @@ def _camera(store: Any, rec: RobotRecording) -> Iterator[Out]:
             data=rgb.reshape(-1),
         )
         yield Out(IMAGE, IMAGE_TYPE, stamp.wall, msg)
-        info = _camera_info(store, rec, stamp, w, h)
-        if info is not None:
+        if rec.intrinsics is not None:
+            info = camera_info(store, _header(store, stamp, OPTICAL_FRAME), w, h, rec.intrinsics)
             yield Out(CAMERA_INFO, CAMERA_INFO_TYPE, stamp.wall, info)
 
 
-def _camera_info(store: Any, rec: RobotRecording, stamp: Stamp, w: int, h: int) -> Any:
-    """The pinhole model of the frames (REP 104 conventions; plumb_bob with no distortion)."""
-    if rec.intrinsics is None:
-        return None
+def camera_info(store: Any, header: Any, w: int, h: int, k: Any) -> Any:
+    """sensor_msgs/msg/CameraInfo of a ``w`` × ``h`` px image under ``header`` whose pinhole is
+    ``k`` (3 × 3, px): REP 104 conventions, plumb_bob with no distortion, P = [K | 0]."""
     t = store.types
-    k = np.asarray(rec.intrinsics, dtype=np.float64)
+    k = np.asarray(k, dtype=np.float64).reshape(3, 3)
     p = np.hstack([k, np.zeros((3, 1))])
     roi = t["sensor_msgs/msg/RegionOfInterest"](x_offset=0, y_offset=0, height=0, width=0, do_rectify=False)
     return t[CAMERA_INFO_TYPE](
-        header=_header(store, stamp, OPTICAL_FRAME),
+        header=header,
         height=h,
         width=w,
         distortion_model="plumb_bob",

@@ -5,6 +5,7 @@ access control can say who may send what where (docs/security.md, "Who may send 
 ``roco/alive/<agent>``                       liveliness token of a running agent (white pages)
 ``roco/human/in`` / ``roco/human/out``       a_hi's receptor and effector: text from/to a person
 ``roco/state/<agent>``                       state snapshots (executor, for viewers)
+``roco/state/<agent>/camera``                head-camera images (ag_ex, while someone subscribes)
 ``roco/sim/disturb``                         the simulated world's disturbances (a person moves an
                                              object): JSON :class:`services.agents.executor.agent.Disturbance`
 ``roco/counters/ask``                        any put here makes every agent publish its counters
@@ -128,6 +129,13 @@ def alive_agent(key: str) -> str | None:
 
 def state_key(agent: str) -> str:
     return f"{PREFIX}/state/{key_chunk(agent)}"
+
+
+def camera_key(agent: str) -> str:
+    """Where ``agent`` (ag_ex) puts its head camera's images (msgpack
+    velma/executor/camera_feed.py ``CameraFrame``), rendered only while a subscriber matches
+    (Zenoh's matching status): ``roco ros2 --camera`` (docs/ros2.md)."""
+    return f"{PREFIX}/state/{key_chunk(agent)}/camera"
 
 
 def counters_key(agent: str) -> str:

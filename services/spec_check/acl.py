@@ -59,6 +59,7 @@ ROS2_SAYS = tuple(
         "sensor_msgs::msg::dds_::JointState_",
         "tf2_msgs::msg::dds_::TFMessage_",
         "sensor_msgs::msg::dds_::Image_",
+        "sensor_msgs::msg::dds_::CameraInfo_",
         "roco_msgs::msg::dds_::TaskState_",
         "roco_msgs::msg::dds_::SayProgress_",
     )
@@ -100,7 +101,10 @@ class Extras:
 
 AGENT_EXTRAS: dict[str, Extras] = {
     "a_hi": Extras(hears=(keys.HUMAN_IN,), says=(keys.HUMAN_OUT,)),
-    "ag_ex": Extras(hears=(keys.SIM_DISTURB,), says=(keys.state_key("ag_ex"), keys.SIM_CLOCK)),
+    "ag_ex": Extras(
+        hears=(keys.SIM_DISTURB,),
+        says=(keys.state_key("ag_ex"), keys.SIM_CLOCK, keys.camera_key("ag_ex")),
+    ),
 }
 """Receptors and effectors outside the FIPA channels, by agent (services/agents/human_interface/agent.py,
 services/agents/executor/agent.py). An agent not named here has none."""
@@ -220,6 +224,8 @@ def agent_grants(spec: SystemSpec, agent: str) -> Grants:
     extra = AGENT_EXTRAS.get(agent, Extras())
     g.hear(*extra.hears)
     g.say(*extra.says)
+    if agent == "ag_ex":  # renders its camera only while a subscriber matches (the matching status)
+        g.allow("egress", "declare_subscriber", keys.camera_key(agent))
     if keys.HUMAN_OUT in extra.says:
         _report_publisher(g)
         _answers(g, keys.HUMAN_OUTCOMES)  # the outcomes it told (a person's tool asks)
@@ -298,12 +304,12 @@ def _speak_for(g: Grants, spec: SystemSpec, outside: tuple[str, ...]) -> None:
 def ros2_grants(spec: SystemSpec) -> Grants:
     """The grants of ``roco ros2``: it puts as any ``…@ros2`` caller to the agents the external
     role of platform ``ros2`` has channels to and hears what they say to such callers; hears
-    ag_ex's state, the simulation's clock and a_ta's informs to a_co on C1 (the task state it
-    republishes); publishes :data:`ROS2_SAYS`, serves :data:`ROS2_SERVES`, holds
+    ag_ex's state and camera images, the simulation's clock and a_ta's informs to a_co on C1
+    (the task state it republishes); publishes :data:`ROS2_SAYS`, serves :data:`ROS2_SERVES`, holds
     :data:`ROS2_TOKENS` and its own ``roco/alive/ros2``."""
     g = Grants(ROS2)
     _speak_for(g, spec, tuple(e.name for e in spec.externals if e.platform == ROS2))
-    g.hear(keys.state_key("ag_ex"), keys.SIM_CLOCK)
+    g.hear(keys.state_key("ag_ex"), keys.SIM_CLOCK, keys.camera_key("ag_ex"))
     g.hear(*(route_key(spec, c, s, r) for c, s, r in channel_routes(spec) if (s, r) == ("a_ta", "a_co")))
     g.say(*ROS2_SAYS)
     # a publisher that hears of no subscriber drops its puts: it learns of ROS 2 sessions' ones

@@ -13,7 +13,7 @@ from typer.testing import CliRunner
 
 from services import cli
 from services.fleet.launcher import Fleet
-from services.ros2.face import JOINT_STATES, TASK_STATE, TF, FaceConfig
+from services.ros2.face import CAMERA, JOINT_STATES, TASK_STATE, TF, FaceConfig
 from services.ros2.live import LiveConfig, LiveError, serve
 from tests.support.router import router_fleet
 
@@ -29,7 +29,8 @@ def invoke(args: list[str]) -> tuple[int, str]:
         ([], set(), True),
         (["--joint-states"], {JOINT_STATES}, True),
         (["--tf", "--task-state", "--no-say"], {TF, TASK_STATE}, False),
-        (["--all"], {JOINT_STATES, TF, TASK_STATE}, True),
+        (["--camera"], {CAMERA}, True),
+        (["--all"], {JOINT_STATES, TF, TASK_STATE, CAMERA}, True),
     ],
 )
 def test_only_the_topics_asked_for_are_published(

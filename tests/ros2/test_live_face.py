@@ -15,12 +15,17 @@ from collections.abc import Iterator
 from typing import Any
 
 import msgspec
+import numpy as np
 import pytest
 import zenoh
 
+from services.agents.executor.camera_feed import CameraPublisher
 from services.fleet.launcher import Fleet
 from services.ros2 import messages
 from services.ros2.face import (
+    CAMERA,
+    CAMERA_INFO,
+    IMAGE_RAW,
     JOINT_STATES,
     MAX_CALL_S,
     SAY_PROGRESS,
@@ -40,6 +45,7 @@ from shared.fipa_codec import AgentIdentifier, Communicate, Performative, decode
 from shared.fipa_codec.languages import decode_content, encode_content
 from shared.fipa_codec.languages.l_hc import Sentence, SentenceReport
 from tests.ros2.sdk import use_offline, write_definitions
+from tests.support.camera import Made, World
 from tests.support.router import router_fleet
 
 sdk = pytest.importorskip("zenoh_ros2_sdk", reason="the loopback tests need zenoh-ros2-sdk (PyPI)")
@@ -99,13 +105,24 @@ def setup(
     face_transport = ZenohTransport([router.endpoint], identity="ros2")
     hi = StandInHi(ZenohTransport([router.endpoint], identity="a_hi"))
     face = Ros2Face(
-        face_transport, default_spec(), FaceConfig(topics=frozenset({JOINT_STATES, TF, TASK_STATE}))
+        face_transport,
+        default_spec(),
+        FaceConfig(topics=frozenset({JOINT_STATES, TF, TASK_STATE, CAMERA})),
     )
     face.bind()
     face.start()
     mp = pytest.MonkeyPatch()
     folder = tmp_path_factory.mktemp("msgs")
-    write_definitions(folder, ["sensor_msgs/msg/JointState", "tf2_msgs/msg/TFMessage", messages.SAY_PROGRESS])
+    write_definitions(
+        folder,
+        [
+            "sensor_msgs/msg/JointState",
+            "tf2_msgs/msg/TFMessage",
+            "sensor_msgs/msg/Image",
+            "sensor_msgs/msg/CameraInfo",
+            messages.SAY_PROGRESS,
+        ],
+    )
     use_offline(folder, mp)
     try:
         yield face, hi, port
@@ -193,6 +210,49 @@ def test_joint_states_reach_an_independent_ros2_subscriber(
     assert (tf.header.frame_id, tf.child_frame_id) == ("world", "jar")
     t, r = tf.transform.translation, tf.transform.rotation
     assert (t.x, t.y, t.z, r.w, r.x, r.y, r.z) == (0.6, -0.1, 0.9, 0.9, 0.1, 0.2, 0.3)
+
+
+def test_camera_images_reach_an_independent_ros2_subscriber_rendered_only_while_it_subscribes(
+    setup: tuple[Ros2Face, StandInHi, int], router: Fleet
+) -> None:
+    """A stand-in ag_ex (its camera feed, a stand-in renderer): nothing rendered before a ROS 2
+    node subscribes (the face does not subscribe to ag_ex's images then); the SDK then gets
+    Image and CameraInfo with the frame's robot time; once it leaves, ag_ex stops rendering."""
+    from velma.perception.cloud import Intrinsics
+
+    face, _hi, port = setup
+    made, world = Made(), World()
+    ag_ex = ZenohTransport([router.endpoint], identity="ag_ex")
+    publisher = CameraPublisher(ag_ex.session, world, 20.0, make_camera=made)
+    subs: list[Any] = []
+    try:
+        assert publisher.feed.idle.wait(TIMEOUT) and made.cameras == []
+        images: queue.SimpleQueue[Any] = queue.SimpleQueue()
+        infos: queue.SimpleQueue[Any] = queue.SimpleQueue()
+        ros = {"router_ip": "127.0.0.1", "router_port": port}
+        subs.append(sdk.ROS2Subscriber("/head_camera/image_raw", "sensor_msgs/msg/Image", images.put, **ros))
+        assert subs[0].keyexpr == face._pubs[IMAGE_RAW].endpoint.key  # the SDK's own hash equals ours
+        subs.append(
+            sdk.ROS2Subscriber("/head_camera/camera_info", "sensor_msgs/msg/CameraInfo", infos.put, **ros)
+        )
+        assert subs[1].keyexpr == face._pubs[CAMERA_INFO].endpoint.key
+        image, info = images.get(timeout=TIMEOUT), infos.get(timeout=TIMEOUT)
+        publisher.feed.idle.clear()
+        for sub in subs:
+            sub.close()
+        assert publisher.feed.idle.wait(TIMEOUT), "ag_ex still renders after the ROS 2 node left"
+    finally:
+        publisher.close()
+        ag_ex.close()
+    assert (image.encoding, image.width, image.height, image.step) == ("rgb8", 320, 240, 960)
+    data = np.asarray(image.data, dtype=np.uint8).reshape(240, 320, 3)
+    assert list(data[5, :4, 0]) == [0, 1, 2, 3] and image.header.frame_id == "head_camera_optical_frame"
+    stamps = [s.header.stamp.sec + s.header.stamp.nanosec * 1e-9 for s in (image, info)]
+    assert all(min(abs(t - w) for w in world.times) < 1e-6 for t in stamps)  # a frame's robot time
+    k = Intrinsics.from_fovy(43.0, 320, 240)
+    assert list(info.k) == pytest.approx([k.fx, 0, k.cx, 0, k.fy, k.cy, 0, 0, 1])
+    assert (info.width, info.height, info.header.frame_id) == (320, 240, "head_camera_optical_frame")
+    assert face.counters["published.image_raw"] >= 1 and face.counters["published.camera_info"] >= 1
 
 
 def test_a_sentence_is_answered_with_a_his_report_and_its_progress(

@@ -1,17 +1,18 @@
 """``roco ros2`` on a running fleet, seen by zenoh-ros2-sdk (PyPI), an independent ROS 2-over-Zenoh
 client: the fleet's processes (router with access control, user/password over TCP, the SDK as the
 identity ``ros2_peer`` with its credentials in ``ZENOH_CONFIG_OVERRIDE``, recorder, one process
-per agent) and ``roco ros2 --joint-states --task-state`` as one more
-process of the fleet (Fleet.start_ros2, as ``--ros2`` starts it). The SDK receives
-/joint_states and /roco/task_state, calls /roco/say with "pour the jar into the bowl" and gets
-a_hi's outcome: the pour succeeds (requirement R1.5, channel C9). Meanwhile a call with a wrong
-type hash, one with a malformed CDR body and the same client's second call while its first is
-open (outside fipa-request's one request) are refused and counted, and `roco status` shows the
-face's counters with every agent alive, and `roco spec trace` of the run shows R1.5. The file's
-only pour: the whole test took 62 s, the call of the pour 48 s, on this project's 2-core VM
-(one run, 2026-11-27, shared with other work). a_ta's last task state may reach the SDK after
-a_hi's answer (seen once over mutual TLS, where the agents link to each other directly): the
-test waits for it."""
+per agent) and ``roco ros2 --joint-states --task-state --camera`` as one more process of the
+fleet (Fleet.start_ros2, as ``--ros2`` starts it). The SDK receives /joint_states, an image of
+ag_ex's head camera on /head_camera/image_raw (then leaves it, so that ag_ex renders no more
+during the pour) and /roco/task_state, calls /roco/say with "pour the jar into the bowl" and
+gets a_hi's outcome: the pour succeeds (requirement R1.5, channel C9). Meanwhile a call with a
+wrong type hash, one with a malformed CDR body and the same client's second call while its first
+is open (outside fipa-request's one request) are refused and counted, and `roco status` shows
+the face's counters with every agent alive, and `roco spec trace` of the run shows R1.5. The
+file's only pour: the whole test took 35–64 s, the pour's call 21–48 s, on this project's 2-core
+VM (2026-11-27, shared with other work). a_ta's last task state may reach the SDK after a_hi's
+answer (seen once over mutual TLS, where the agents link to each other directly): the test
+waits for it."""
 
 from __future__ import annotations
 
@@ -33,6 +34,7 @@ from services.ros2.face import say_store
 from services.runtime.session import open_client
 from tests.ros2.sdk import use_offline, write_definitions
 from tests.ros2.test_live_acl import override
+from tests.support.machine import missing_gl
 
 sdk = pytest.importorskip("zenoh_ros2_sdk", reason="the loopback test needs zenoh-ros2-sdk (PyPI)")
 pytestmark = [pytest.mark.slow, pytest.mark.fleet]
@@ -55,7 +57,7 @@ def fleet(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Fleet]:
             f.start_recorder()
             f.start_agents()
             f.wait_alive(session, ["recorder", *AGENT_ORDER], timeout=180)
-            f.start_ros2(["--joint-states", "--task-state"])
+            f.start_ros2(["--joint-states", "--task-state", "--camera"])
             f.wait_alive(session, [ROS2], timeout=60)
         finally:
             session.close()
@@ -71,7 +73,10 @@ def port(fleet: Fleet, tmp_path_factory: pytest.TempPathFactory) -> Iterator[int
     assert fleet.security is not None
     mp.setenv("ZENOH_CONFIG_OVERRIDE", override(fleet.security, fleet.endpoint))
     folder = tmp_path_factory.mktemp("msgs")
-    write_definitions(folder, ["sensor_msgs/msg/JointState", messages.TASK_STATE, messages.SAY_PROGRESS])
+    write_definitions(
+        folder,
+        ["sensor_msgs/msg/JointState", "sensor_msgs/msg/Image", messages.TASK_STATE, messages.SAY_PROGRESS],
+    )
     use_offline(folder, mp)
     try:
         yield int(fleet.endpoint.rsplit(":", 1)[1])
@@ -122,6 +127,15 @@ def test_a_ros2_node_gets_joint_states_and_the_pour_it_asked_for_while_bad_calls
     sdk.ROS2Subscriber("/roco/say/progress", messages.SAY_PROGRESS, progress.put, **at)
     state = _first(joints, "JointState on /joint_states")
     assert "torso_0_joint" in state.name and len(state.name) == len(state.position) > 10
+    if missing_gl() is None:  # ag_ex renders its head camera (else it perceives the truth: no world state)
+        images: queue.SimpleQueue[Any] = queue.SimpleQueue()
+        camera = sdk.ROS2Subscriber("/head_camera/image_raw", "sensor_msgs/msg/Image", images.put, **at)
+        image = _first(images, "Image on /head_camera/image_raw", timeout=120.0)
+        camera.close()  # ag_ex stops rendering: the pour runs as without the camera
+        assert (image.encoding, image.width, image.height, len(image.data)) == ("rgb8", 320, 240, 230_400)
+        assert image.header.frame_id == "head_camera_optical_frame"
+        assert image.header.stamp.sec + image.header.stamp.nanosec > 0  # the frame's robot time
+        assert len(set(bytes(image.data))) > 16, "a constant image: nothing rendered"
 
     # refused before the pour: another type's hash, a malformed body
     assert (

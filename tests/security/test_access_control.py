@@ -331,3 +331,30 @@ def test_the_operator_gets_a_report_a_hi_gave_before_it_listened(router: Fleet) 
     finally:
         op.close()
         hi.close()
+
+
+def test_ag_ex_renders_its_camera_for_roco_ros2_and_not_for_another_agent(router: Fleet) -> None:
+    """ag_ex's camera feed (a stand-in renderer) on a router with access control: roco ros2's
+    subscriber matches ag_ex's publisher (ag_ex learns of it: it renders, ros2 gets the images);
+    a_pl's subscriber is refused, so once ros2 leaves ag_ex renders no more."""
+    from services.agents.executor.camera_feed import CameraPublisher
+    from tests.support.camera import Made, World
+
+    ep = router.endpoint
+    ex, ros2, pl = (open_client(ep, identity=i) for i in ("ag_ex", "ros2", "a_pl"))
+    publisher = CameraPublisher(ex, World(), 20.0, make_camera=Made())
+    try:
+        camera = keys.camera_key("ag_ex")
+        assert publisher.feed.idle.wait(WAIT_S)
+        others, theirs = Inbox(), Inbox()
+        pl.declare_subscriber(camera, others)
+        sub = ros2.declare_subscriber(camera, theirs)
+        assert theirs.wait_for(camera), "roco ros2 got no image"
+        publisher.feed.idle.clear()
+        sub.undeclare()
+        assert publisher.feed.idle.wait(WAIT_S), "ag_ex renders on for a_pl, whose subscriber is refused"
+        assert others.keys == []
+    finally:
+        publisher.close()
+        for s in (pl, ros2, ex):
+            s.close()

@@ -294,3 +294,20 @@ def test_a_ros2_peer_reaches_only_the_faces_topics_service_and_graph(spec: Syste
     granted = [k for ks in g.allowed.values() for k in ks]
     assert not any(k in ("**", "*/**") or k.startswith(keys.PREFIX) for k in granted), granted
     assert not g.allowed.get(("ingress", "put")) and not g.allowed.get(("ingress", "reply"))
+
+
+def test_only_ag_ex_puts_its_camera_images_and_roco_ros2_hears_them(spec: SystemSpec) -> None:
+    """ag_ex puts roco/state/ag_ex/camera and learns of its subscribers (it renders only while one
+    matches); roco ros2 subscribes and is delivered it, and publishes Image and CameraInfo; no
+    other agent puts the images and none hears them."""
+    camera = keys.camera_key("ag_ex")
+    ex, g = agent_grants(spec, "ag_ex"), ros2_grants(spec)
+    assert ex.may("ingress", "put", camera) and ex.may("egress", "declare_subscriber", camera)
+    assert g.may("ingress", "declare_subscriber", camera) and g.may("egress", "put", camera)
+    assert not g.may("ingress", "put", camera)
+    for a in spec.agents:
+        if a.name != "ag_ex":
+            other = agent_grants(spec, a.name)
+            assert not other.may("ingress", "put", camera) and not other.may("egress", "put", camera)
+    for t in ("Image_", "CameraInfo_"):
+        assert g.may("ingress", "put", f"0/head_camera/image_raw/sensor_msgs::msg::dds_::{t}/RIHS01_ab")

@@ -196,6 +196,8 @@ class ExecutorAgent(Agent):
         """Executor token → conversation-id of each command with the loop (for the ledger)."""
         self.recalled: dict[str, Recalled] = {}
         """Conversation-id → command an earlier ag_ex's loop ended, with its result (the ledger)."""
+        self.camera_feed: Any = None
+        """The head camera's images on Zenoh (``_start_feed``), or None."""
         self.watchers: dict[str, Conversation] = {}
         """Per agent, its subscription to the robot's power-ons (L_EX ``PowerOns``)."""
         self.alive_peers: set[str] = set()  # commanding agents whose liveliness token is present
@@ -257,6 +259,7 @@ class ExecutorAgent(Agent):
         rerun = self.rerun
         if rerun is not None:
             rerun.stop_camera()
+        self._stop_feed()
         self.executor.stop()  # open commands end "stopped"
         self.recalled.clear()  # results of commands in the old kitchen
         self.ledger_runs.clear()
@@ -269,6 +272,7 @@ class ExecutorAgent(Agent):
             return
         self.log.info("control loop attached to the new world (link %s)", self.attached_world)
         self._start_camera()
+        self._start_feed()
         self.watch.rearm(self.executor)
         for watcher in self.watchers.values():
             watcher.reply(Performative.INFORM, PowerOn(world=self.attached_world))
@@ -316,6 +320,7 @@ class ExecutorAgent(Agent):
         self._open_ledger()
         self.executor.start()
         self._start_camera()
+        self._start_feed()
         for peer in self.commanders:
             self.transport.watch(keys.alive_key(peer), self._on_liveliness(peer))
         decoder = msgspec.json.Decoder(Disturbance)
@@ -346,6 +351,35 @@ class ExecutorAgent(Agent):
                 pose_seed=getattr(self.executor, "pose_seed", None),
             )
 
+    def _start_feed(self) -> None:
+        """The head camera's images on Zenoh for ``roco ros2 --camera`` (services/agents/executor/
+        camera_feed.py): rendered in a thread of this process from the world state the loop
+        copies, only while a subscriber matches; none without the world state or a Zenoh session."""
+        world = getattr(self.executor, "world", None)
+        transport = getattr(self.transport, "inner", self.transport)  # under the fault layer
+        session = getattr(transport, "session", None)
+        if world is None or session is None or not getattr(self.executor, "world_state", False):
+            return
+        from services.agents.executor.camera_feed import CameraPublisher
+
+        executor = self.executor
+        try:
+            self.camera_feed = CameraPublisher(
+                session,
+                world,
+                Settings.from_env(only=("camera_hz",)).camera_hz,
+                seed=getattr(executor, "seed", 0),
+                pose_seed=getattr(executor, "pose_seed", None),
+            )
+        except Exception:  # the robot goes on without the feed
+            self.log.exception("the camera feed could not start")
+
+    def _stop_feed(self) -> None:
+        """End the camera feed before the executor's world state goes away (idempotent)."""
+        feed, self.camera_feed = getattr(self, "camera_feed", None), None
+        if feed is not None:
+            feed.close()
+
     def _on_liveliness(self, peer: str) -> Callable[[str, bool], None]:
         def changed(_key: str, alive: bool) -> None:  # Zenoh thread: enqueue only
             self.post(PeerChange(peer, alive))
@@ -356,6 +390,7 @@ class ExecutorAgent(Agent):
         rerun = getattr(self, "rerun", None)
         if rerun is not None:  # Rerun: the camera reads the loop's shared memory: stop it first
             rerun.stop_camera()
+        self._stop_feed()
         self._write_timing_file()
         self.executor.stop()
         if self.ledger is not None:
