@@ -417,7 +417,7 @@ def main() -> int:
     transport.subscribe(faults.EVENT_ALL, loop.put, direct=True)
     transport.serve(keys.RECORDER_FLAGS, lambda: flags_reply(run_dir))
     # the processes' liveliness tokens: what is alive now, then each change (presence.jsonl)
-    transport.watch(keys.ALIVE_ALL, loop.alive, history=False)
+    transport.watch(keys.ALIVE_ALL, loop.alive, history=False, direct=True)
     loop.snapshot(alive_agents(transport.session, timeout=SNAPSHOT_S))
     transport.announce(keys.alive_key(RECORDER))
 

@@ -707,17 +707,21 @@ class ZenohTransport:
         for tok in gone:
             tok.undeclare()
 
-    def watch(self, key_expr: str, callback: AliveCallback, *, history: bool = True) -> None:
+    def watch(
+        self, key_expr: str, callback: AliveCallback, *, history: bool = True, direct: bool = False
+    ) -> None:
         """Call ``callback(key, alive)`` whenever a liveliness token matching ``key_expr``
         appears (True; with ``history``, tokens alive at the time of the call included) or
         disappears (False: undeclared, or its owner's session ended or was lost). Runs on
-        Zenoh's threads."""
+        Zenoh's threads; ``direct``: as :meth:`subscribe`'s (a token's change then reaches the
+        callback in its place among the direct subscriptions' samples)."""
 
         def on_sample(sample: zenoh.Sample) -> None:
             callback(str(sample.key_expr), sample.kind == zenoh.SampleKind.PUT)
 
+        handler = _on_network_thread(on_sample) if direct else on_sample
         with self._lock:
-            sub = self.session.liveliness().declare_subscriber(key_expr, on_sample, history=history)
+            sub = self.session.liveliness().declare_subscriber(key_expr, handler, history=history)
             self._subs.append(sub)
 
     def close(self) -> None:

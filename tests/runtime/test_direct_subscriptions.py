@@ -63,3 +63,55 @@ def test_two_direct_subscriptions_see_the_puts_of_one_session_in_order(router_en
     finally:
         sender.close()
         receiver.close()
+
+
+def test_a_direct_watch_sees_a_token_before_what_its_owner_put_next(
+    router_endpoint: str,
+) -> None:
+    """The recorder's presence record: a token that appeared before a communicate routed after it
+    is written before that communicate (on a thread of its own the liveliness subscriber let a
+    replayed a_ta see ag_ex appear after the request it had sent because ag_ex was there)."""
+    n = 1_000
+    receiver = ZenohTransport([router_endpoint])
+    sender = open_client(router_endpoint)
+    events: list[tuple[str, int]] = []
+    lock = threading.Lock()
+    all_in = threading.Event()
+    probe = threading.Event()
+
+    def on_alive(key: str, alive: bool) -> None:
+        with lock:
+            events.append(("token", int(key.rsplit("/", 1)[1])))
+
+    def on_data(key: str, payload: bytes) -> None:
+        i = int(payload)
+        if i < 0:
+            probe.set()
+            return
+        with lock:
+            events.append(("data", i))
+            if i == n - 1:
+                all_in.set()
+
+    tokens = []
+    try:
+        receiver.watch("test/presence/alive/*", on_alive, history=False, direct=True)
+        receiver.subscribe("test/presence/data", on_data, direct=True)
+        deadline = time.monotonic() + 30
+        while not probe.is_set():
+            assert time.monotonic() < deadline, "the data key is not routed to the receiver"
+            sender.put("test/presence/data", b"-1")
+            probe.wait(0.05)
+        for i in range(n):
+            tokens.append(sender.liveliness().declare_token(f"test/presence/alive/{i}"))
+            sender.put("test/presence/data", str(i).encode())
+        assert all_in.wait(60), "not every put arrived"
+        with lock:
+            place = {e: k for k, e in enumerate(events)}
+        late = [i for i in range(n) if place.get(("token", i), len(events)) > place[("data", i)]]
+        assert late == [], f"{len(late)} of {n} tokens reached the watch after their owner's put"
+    finally:
+        for token in tokens:
+            token.undeclare()
+        sender.close()
+        receiver.close()
