@@ -39,7 +39,7 @@ def ros2(
     task_state: Annotated[bool, typer.Option("--task-state", help="publish roco/task_state")] = False,
     camera: Annotated[
         bool,
-        typer.Option("--camera", help="publish head_camera/image_raw and head_camera/camera_info"),
+        typer.Option("--camera", help="publish the head camera (image_raw, camera_info)"),
     ] = False,
     all_topics: Annotated[bool, typer.Option("--all", help="publish every topic above")] = False,
     say: Annotated[bool, typer.Option(help="serve roco/say (a person's sentence to a_hi)")] = True,
