@@ -10,17 +10,13 @@ a line of counters when it stops (Ctrl-C, SIGTERM). Its log is one line per even
 
 from __future__ import annotations
 
-import logging
-import signal
-import sys
 import threading
 from dataclasses import dataclass
 from pathlib import Path
-from types import FrameType
 
 from services.gateway.bridge import GATEWAY, open_gateway
 from services.gateway.http_mtp import MTPError, check_address
-from services.runtime.log_format import OneLineFormatter
+from services.runtime.foreground import Counters, run_until_stopped
 from services.runtime.polling import max_poll_us
 from services.runtime.session import listening, port_in_use, refusal
 from services.runtime.transport import ZenohTransport
@@ -133,22 +129,8 @@ def serve(
 def main(config: GatewayConfig) -> int:
     """Run ``roco gateway`` in this process until SIGINT or SIGTERM; 0 when it ran, 1 (one line
     on stderr) when it could not start."""
-    if not logging.getLogger().handlers:  # run inside another program: its logging stays as it is
-        handler = logging.StreamHandler(sys.stderr)
-        handler.setFormatter(OneLineFormatter())
-        logging.basicConfig(level=logging.INFO, handlers=[handler])
-    stop = threading.Event()
 
-    def on_signal(signum: int, frame: FrameType | None) -> None:
-        stop.set()
+    def shown(counters: Counters) -> str:
+        return ", ".join(f"{k} {v}" for k, v in sorted(counters.items())) or "nothing"
 
-    signal.signal(signal.SIGINT, on_signal)
-    signal.signal(signal.SIGTERM, on_signal)
-    try:
-        counters = serve(config, stop)
-    except GatewayError as exc:
-        print(f"roco: gateway: {exc}", file=sys.stderr)
-        return 1
-    shown = ", ".join(f"{k} {v}" for k, v in sorted(counters.items())) or "nothing"
-    print(f"roco gateway: stopped; {shown}", flush=True)
-    return 0
+    return run_until_stopped("gateway", lambda stop: serve(config, stop), (GatewayError,), shown)

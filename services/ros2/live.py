@@ -6,17 +6,13 @@ its log is one line per event on stderr. The manual: docs/ros2.md.
 
 from __future__ import annotations
 
-import logging
-import signal
-import sys
 import threading
 from dataclasses import dataclass
 from pathlib import Path
-from types import FrameType
 
 from services.ros2.face import ROS2, FaceConfig, Ros2Face, summary
 from services.ros2.rmw import RmwError
-from services.runtime.log_format import OneLineFormatter
+from services.runtime.foreground import run_until_stopped
 from services.runtime.session import refusal
 from services.runtime.transport import ZenohTransport
 from services.security.context import security_for
@@ -93,21 +89,4 @@ def serve(config: LiveConfig, stop: threading.Event, ready: threading.Event | No
 def main(config: LiveConfig) -> int:
     """Run ``roco ros2`` until SIGINT or SIGTERM; 0 when it ran, 1 (one ``roco:`` line on
     stderr) when it could not start."""
-    if not logging.getLogger().handlers:
-        handler = logging.StreamHandler(sys.stderr)
-        handler.setFormatter(OneLineFormatter())
-        logging.basicConfig(level=logging.INFO, handlers=[handler])
-    stop = threading.Event()
-
-    def on_signal(signum: int, frame: FrameType | None) -> None:
-        stop.set()
-
-    signal.signal(signal.SIGINT, on_signal)
-    signal.signal(signal.SIGTERM, on_signal)
-    try:
-        counters = serve(config, stop)
-    except LiveError as exc:
-        print(f"roco: ros2: {exc}", file=sys.stderr)
-        return 1
-    print(f"roco ros2: stopped; {summary(counters)}", flush=True)
-    return 0
+    return run_until_stopped("ros2", lambda stop: serve(config, stop), (LiveError,), summary)
