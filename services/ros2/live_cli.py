@@ -18,6 +18,7 @@ def ros2_args(on: bool, domain: int, namespace: str) -> tuple[str, ...] | None:
     starts."""
     if not on:
         return None
+    _require_extra()
     if namespace != "/":
         from services.ros2.rmw import RmwError, fully_qualified
 
@@ -60,6 +61,7 @@ def ros2(
     if write_package is not None:
         _write_package(write_package)
         return
+    _require_extra()
     from services.ros2.face import CAMERA, JOINT_STATES, TASK_STATE, TF, TOPICS, FaceConfig
     from services.ros2.live import LiveConfig
     from services.ros2.live import main as run_live
@@ -71,6 +73,15 @@ def ros2(
     code = run_live(LiveConfig(endpoint_of(router, runs_dir), face, spec or DEFAULT_SPEC))
     if code:
         raise typer.Exit(code)
+
+
+def _require_extra() -> None:
+    """One ``roco:`` line (exit 2) when the ros2 extra the face needs is not installed."""
+    from services.ros2.messages import missing_extra
+
+    problem = missing_extra()
+    if problem is not None:
+        raise fail(problem, 2)
 
 
 def _write_package(out: Path) -> None:

@@ -109,6 +109,17 @@ class MissingExtra(RuntimeError):
     """The ``ros2`` extra (rosbags, mcap, mcap-ros2-support) is not installed."""
 
 
+def missing_extra(modules: tuple[str, ...] = ("rosbags",)) -> str | None:
+    """None when every one of ``modules`` (of the ``ros2`` extra; the live face needs rosbags)
+    can be imported; else one line naming the missing ones and how to install them."""
+    import importlib.util
+
+    missing = [m for m in modules if importlib.util.find_spec(m) is None]
+    if not missing:
+        return None
+    return f"ROS 2 needs the ros2 extra: {EXTRA_HINT} (missing: {', '.join(missing)})"
+
+
 @functools.cache
 def typestore() -> Typestore:
     """ROS 2 Jazzy's types (rosbags ``Stores.ROS2_JAZZY``) plus :data:`MESSAGES`, built once.

@@ -97,3 +97,25 @@ def test_a_bad_domain_or_namespace_is_refused_in_one_line(router: Fleet) -> None
     assert code == 2 and "--domain" in out  # typer's own range check: 0 to 232
     with pytest.raises(LiveError, match="'/bad name' is no ROS 2 topic or service name"):
         serve(LiveConfig(router.endpoint, FaceConfig(namespace="/bad name")), threading.Event())
+
+
+@pytest.mark.parametrize(
+    "args",
+    [["ros2", "--all"], ["run", "pour the jar into the bowl", "--ros2"], ["up", "--ros2"]],
+)
+def test_without_the_ros2_extra_the_face_is_one_line_and_nothing_starts(
+    args: list[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import importlib.util
+
+    real = importlib.util.find_spec
+    monkeypatch.setattr(
+        importlib.util, "find_spec", lambda name, *a: None if name == "rosbags" else real(name, *a)
+    )
+    started: list[str] = []
+    monkeypatch.setattr(Fleet, "start_router", lambda self, *a, **k: started.append("router"))
+    monkeypatch.setattr("services.ros2.live.main", lambda config: started.append("face") or 0)
+    code, out = invoke(args)
+    assert code == 2 and started == [], (code, out, started)
+    assert out.startswith("roco: ROS 2 needs the ros2 extra: pip install -e '.[ros2]'"), out
+    assert out.count("\n") == 1, out
