@@ -34,7 +34,7 @@ placement's facing.
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -165,19 +165,7 @@ BOWL_RIM_GRASP = GraspSpec(
 )
 """The bowl's rim grasp (velma/scenario.py, kitchen.ttl ``bowl_rim_grasp_right``)."""
 
-BOWL_TABLE_GRASP = GraspSpec(
-    arm=sc.BOWL_ARM,
-    grip=sc.BOWL_GRIP_IN_OBJECT,
-    approach=sc.BOWL_APPROACH_IN_OBJECT,
-    approach_distance=sc.BOWL_APPROACH_DISTANCE,
-    spread=sc.BOWL_SPREAD,
-    entry=(1.0, 0.0, 0.0),
-    entry_distance=sc.BOWL_ENTRY_DISTANCE,
-    lift=sc.BOWL_LIFT,
-    retreat=(-0.6, -0.8, 0.0),
-    retreat_distance=sc.BOWL_RETREAT,
-    posture=sc.RIGHT_PICK_POSTURE,
-)
+BOWL_TABLE_GRASP = replace(BOWL_RIM_GRASP, retreat=(-0.6, -0.8, 0.0))
 """The rim grasp for the bowl on the table (the tidy-up): BOWL_RIM_GRASP withdrawing back and
 to the robot's right (turned frame) instead of straight back. Straight back, the withdraw bends
 the right wrist until ``right_arm_5_link`` and ``right_arm_7_link`` all but touch (the least

@@ -43,3 +43,12 @@ def use_offline(root: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setattr(_cache, "clone_to_cache", no_clone)
     monkeypatch.setattr(message_registry, "clone_to_cache", no_clone)
     monkeypatch.setattr(message_registry, "_registry", message_registry.MessageRegistry(str(root)))
+
+
+def close_session() -> None:
+    """Close zenoh-ros2-sdk's process-wide session (it keeps one, ``ZenohSession._instance``),
+    so that the next fixture's SDK objects open their own on its router."""
+    from zenoh_ros2_sdk.session import ZenohSession
+
+    if ZenohSession._instance is not None:
+        ZenohSession._instance.close()

@@ -29,7 +29,7 @@ from services.runtime.transport import ZenohTransport
 from services.security import certs
 from services.spec.model import default_spec
 from services.spec_check.acl import ROS2_PEER, _includes
-from tests.ros2.sdk import use_offline, write_definitions
+from tests.ros2.sdk import close_session, use_offline, write_definitions
 from tests.ros2.test_live_face import StandInHi
 from tests.security.test_refusals import router_report
 from tests.support.router import router_fleet
@@ -84,10 +84,7 @@ def setup(
     try:
         yield face, hi, port
     finally:
-        from zenoh_ros2_sdk.session import ZenohSession
-
-        if ZenohSession._instance is not None:
-            ZenohSession._instance.close()
+        close_session()
         mp.undo()
         face.stop()
         face_transport.close()

@@ -44,7 +44,7 @@ from services.spec.model import default_spec
 from shared.fipa_codec import AgentIdentifier, Communicate, Performative, decode, encode
 from shared.fipa_codec.languages import decode_content, encode_content
 from shared.fipa_codec.languages.l_hc import Sentence, SentenceReport
-from tests.ros2.sdk import use_offline, write_definitions
+from tests.ros2.sdk import close_session, use_offline, write_definitions
 from tests.support.camera import Made, World
 from tests.support.router import router_fleet
 
@@ -127,10 +127,7 @@ def setup(
     try:
         yield face, hi, port
     finally:
-        from zenoh_ros2_sdk.session import ZenohSession
-
-        if ZenohSession._instance is not None:
-            ZenohSession._instance.close()
+        close_session()
         mp.undo()
         face.stop()
         face_transport.close()

@@ -32,7 +32,7 @@ from services.recorder.sync import sync_fleet
 from services.ros2 import messages
 from services.ros2.face import say_store
 from services.runtime.session import open_client
-from tests.ros2.sdk import use_offline, write_definitions
+from tests.ros2.sdk import close_session, use_offline, write_definitions
 from tests.ros2.test_live_acl import override
 from tests.support.machine import missing_gl
 
@@ -81,10 +81,7 @@ def port(fleet: Fleet, tmp_path_factory: pytest.TempPathFactory) -> Iterator[int
     try:
         yield int(fleet.endpoint.rsplit(":", 1)[1])
     finally:
-        from zenoh_ros2_sdk.session import ZenohSession
-
-        if ZenohSession._instance is not None:
-            ZenohSession._instance.close()
+        close_session()
         mp.undo()
 
 
