@@ -5,7 +5,7 @@ Source: rmw_zenoh's design document (Jazzy and later),
 https://github.com/ros2/rmw_zenoh/blob/rolling/docs/design.md: "Topic and Service name
 mapping to Zenoh key expressions", "Graph Cache", "Publishers", "Service Clients", "Service
 Servers"; and its
-``qos_to_keyexpr`` (liveliness_utils.cpp) with the defaults of qos.cpp; type hashes per REP-2016
+``qos_to_keyexpr`` (liveliness_utils.cpp) with the defaults of qos.cpp; type hashes per REP-2011
 (RIHS01), computed by rosbags' ``Typestore.hash_rihs01``. Nothing here opens a session.
 """
 
@@ -322,7 +322,7 @@ class Attachment:
         return cls(sequence, timestamp, bytes(data[17:]))
 
 
-# ---- type hashes (REP-2016) -----------------------------------------------------------------
+# ---- type hashes (REP-2011) -----------------------------------------------------------------
 _EVENT_INFO = "service_msgs/msg/ServiceEventInfo"
 
 
@@ -339,7 +339,7 @@ def register_service(store: Typestore, srv_type: str, request: str, response: st
     """Register service ``srv_type`` (``pkg/srv/Name``) with ``request`` and ``response``
     definitions (.msg text) in ``store``: ``Name_Request``, ``Name_Response``, ``Name_Event``
     and the service itself (request_message, response_message, event_message), as rosidl
-    describes a service for its hash (REP-2016). Raises RmwError for a bad ``srv_type``."""
+    describes a service for its hash (REP-2011). Raises RmwError for a bad ``srv_type``."""
     from rosbags.typesys import get_types_from_msg
 
     dds_type_name(srv_type)
