@@ -173,7 +173,7 @@ NO_FLEET = [
 def test_without_a_fleet_each_tool_names_the_router_and_the_fix(
     command: list[str], tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    monkeypatch.setattr("services.gateway.serve.signal.signal", lambda *args: None)
+    monkeypatch.setattr("services.runtime.foreground.signal.signal", lambda *args: None)
     monkeypatch.setattr("signal.signal", lambda *args: None)
     router = f"tcp/127.0.0.1:{free_port()}"
     args = [str(free_port()) if a == "PORT" else a for a in command]
@@ -236,7 +236,7 @@ def test_a_gateway_port_in_use_is_refused_before_anything_starts(
 def test_gateway_refuses_a_port_in_use_before_it_reaches_the_fleet(
     taken_port: int, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    monkeypatch.setattr("services.gateway.serve.signal.signal", lambda *args: None)
+    monkeypatch.setattr("services.runtime.foreground.signal.signal", lambda *args: None)
 
     def reached(*args: object, **kwargs: object) -> None:
         raise AssertionError("the gateway opened a session")
