@@ -32,7 +32,7 @@ import time
 import uuid
 from collections import Counter
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import msgspec
@@ -45,6 +45,7 @@ from services.ros2.rmw import Attachment, RmwError
 from services.runtime import keys
 from services.runtime.human import MAX_LINE_CHARS
 from services.runtime.log_format import escape_controls
+from services.runtime.protocol_state import ConversationError, CrossingTracker, follow
 from services.runtime.transport import ZenohTransport
 from services.spec.model import MessageKind, SystemSpec, channel_between, interface
 from shared.fipa_codec import AgentIdentifier, Communicate, DecodeError, Performative, decode, encode
@@ -53,6 +54,7 @@ from shared.fipa_codec.languages import LANGUAGES, ContentError, decode_content,
 from shared.fipa_codec.languages.common import Pose
 from shared.fipa_codec.languages.l_hc import Sentence, SentenceReport
 from shared.fipa_codec.languages.l_sw import SWStatus
+from shared.fipa_codec.protocols import INITIATOR, PARTICIPANT, ProtocolViolation
 from velma.executor.camera_feed import MAX_FRAME_OCTETS, CameraFrame
 
 ROS2 = "ros2"
@@ -86,13 +88,6 @@ REFUSE_REASONS: dict[str, str] = {
     "not_in_interface": "the specification gives x_ros2 no such request to a_hi",
 }
 """Why a call is refused, each counted ``refused.<reason>``."""
-_FINAL = {
-    Performative.INFORM: True,
-    Performative.FAILURE: False,
-    Performative.REFUSE: False,
-    Performative.NOT_UNDERSTOOD: False,
-}
-"""a_hi's answers that end a call, and the ``ok`` each gives."""
 
 log = logging.getLogger(ROS2)
 
@@ -152,6 +147,14 @@ class _Open:
     caller: str
     started: float
     command_id: str = ""
+    conversation: CrossingTracker = field(default_factory=lambda: _requested("fipa-request"))
+    """The call's conversation with a_hi, followed through its protocol (the face initiates)."""
+
+
+def _requested(protocol: str) -> CrossingTracker:
+    tracker = CrossingTracker(protocol, local_role=INITIATOR)
+    tracker.step(INITIATOR, Performative.REQUEST)
+    return tracker
 
 
 class Ros2Face:
@@ -585,14 +588,25 @@ class Ros2Face:
             if opened is None:
                 self.count("dropped.no_call")
                 continue
+            try:  # a_hi's answer as its protocol allows it (a not-understood ends it), or not at all
+                _, outcome = follow(
+                    opened.conversation,
+                    "fipa-request",
+                    PARTICIPANT,
+                    msg.performative,
+                    local_role=INITIATOR,
+                    in_reply_to=msg.in_reply_to,
+                )
+            except (ProtocolViolation, ConversationError):
+                outcome = "unchecked"
+            if outcome not in ("step", "crossing", "aborted"):
+                self.count("dropped.out_of_protocol")
+                continue
             report = self._report(msg)
-            if msg.performative is Performative.AGREE:
+            if not opened.conversation.is_finished:
                 self._progress(opened, report.kind, detail=report.text)
                 continue
-            ok = _FINAL.get(msg.performative)
-            if ok is None:
-                self.count("dropped.not_final")
-                continue
+            ok = msg.performative is Performative.INFORM  # fipa-request's one success
             del self._open[msg.conversation_id or ""]
             self._callers.discard(opened.caller)
             response = self.store.types[f"{messages.SAY}_Response"](

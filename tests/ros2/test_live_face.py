@@ -61,12 +61,14 @@ def router(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Fleet]:
 
 class StandInHi:
     """a_hi's side of C9 as the face sees it: every request a Sentence, answered agree then
-    inform (``succeeded``: "done: <sentence>"), unless ``hold`` is set: then only agree."""
+    inform (``succeeded``: "done: <sentence>"), unless ``hold`` is set: then only agree; with
+    ``agree_twice`` set, a second agree (outside fipa-request) before the inform."""
 
     def __init__(self, transport: ZenohTransport) -> None:
         self.transport = transport
         self.sentences: queue.SimpleQueue[str] = queue.SimpleQueue()
         self.hold = threading.Event()
+        self.agree_twice = threading.Event()
         transport.subscribe(f"{keys.FIPA_PREFIX}C9/$*@ros2/a_hi", self._take)
 
     def _take(self, key: str, payload: bytes) -> None:
@@ -75,6 +77,8 @@ class StandInHi:
         assert isinstance(term, Sentence) and msg.sender is not None
         self.sentences.put(term.text)
         self._answer(msg, Performative.AGREE, SentenceReport(kind="accepted", text="ok"))
+        if self.agree_twice.is_set():
+            self._answer(msg, Performative.AGREE, SentenceReport(kind="succeeded", text="not yet"))
         if not self.hold.is_set():
             self._answer(
                 msg, Performative.INFORM, SentenceReport(kind="succeeded", text=f"done: {term.text}")
@@ -269,6 +273,24 @@ def test_a_sentence_is_answered_with_a_his_report_and_its_progress(
     assert states == ["requested", "accepted", "succeeded"]
     counters = _counters(router)
     assert counters["forwarded"] >= 1 and counters["answered"] >= 1
+
+
+def test_an_answer_of_a_hi_outside_fipa_request_is_dropped_and_counted(
+    setup: tuple[Ros2Face, StandInHi, int], router: Fleet
+) -> None:
+    """a_hi's conversation is followed by the runtime's tracker: a second agree is no answer
+    fipa-request allows, so it is neither progress nor the call's end."""
+    _face, hi, port = setup
+    before = _counters(router).get("dropped.out_of_protocol", 0)
+    hi.agree_twice.set()
+    try:
+        response = _client(port, timeout=TIMEOUT).call(sentence="what are you doing?")
+    finally:
+        hi.agree_twice.clear()
+    assert hi.sentences.get(timeout=TIMEOUT) == "what are you doing?"
+    assert response is not None
+    assert (response.ok, response.outcome) == (True, "succeeded"), response
+    assert _counters(router)["dropped.out_of_protocol"] == before + 1
 
 
 def test_each_malformed_or_out_of_protocol_call_is_refused_counted_and_the_face_goes_on(
