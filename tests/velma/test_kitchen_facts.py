@@ -107,16 +107,22 @@ def test_the_bowls_table_place_is_the_scripts(world: WorldModel) -> None:
 
 
 @pytest.mark.parametrize(
-    ("name", "spec"),
-    [("jar_side_grasp_left", "JAR_SIDE_GRASP"), ("jar_side_grasp_left_from_above", "JAR_TABLE_GRASP")],
+    ("obj", "arm", "name", "spec"),
+    [
+        ("jar", "left", "jar_side_grasp_left", "JAR_SIDE_GRASP"),
+        ("jar", "left", "jar_side_grasp_left_from_above", "JAR_TABLE_GRASP"),
+        ("bowl", "right", "bowl_rim_grasp_right", "BOWL_RIM_GRASP"),
+        ("bowl", "right", "bowl_rim_grasp_right_on_table", "BOWL_TABLE_GRASP"),
+    ],
 )
-def test_the_jars_grasps_are_the_scripts(world: WorldModel, name: str, spec: str) -> None:
+def test_the_grasps_are_the_scripts(world: WorldModel, obj: str, arm: str, name: str, spec: str) -> None:
     """velma/scenario_kitchen.py scripts the kitchen tasks with the grasps a_km gives the
-    planner (the posture and the grasp from above: a change must be made in both places)."""
+    planner (the posture, the grasp from above, the bowl's withdraw from the table: a change
+    must be made in both places)."""
     import velma.scenario_kitchen as sk
 
     script = getattr(sk, spec)
-    (known,) = [gr for gr in world.grasps("jar", "left") if gr.name == name]
+    (known,) = [gr for gr in world.grasps(obj, arm) if gr.name == name]
     assert known.grip_in_object.position == script.grip[0]
     assert known.grip_in_object.orientation == pytest.approx(script.grip[1], abs=1e-15)
     assert (known.approach, known.distance, known.lift) == (
