@@ -114,4 +114,6 @@ def _runtime_extensions() -> list:  # type: ignore[type-arg]
 if os.environ.get("ROCO_BUILD_NATIVE", "1") != "0":
     ext_modules += _runtime_extensions()
 
-setup(ext_modules=ext_modules)
+# the extensions are built side by side, one per core (build_ext --parallel): the control law's one
+# C++ file takes most of the build, the runtime's C files compile beside it
+setup(ext_modules=ext_modules, options={"build_ext": {"parallel": os.cpu_count() or 1}})
