@@ -24,25 +24,13 @@ from services.recorder.recorder import TrafficWriter, _Loop
 from services.runtime import keys
 from services.runtime.faults import FaultEvent, event_key
 from services.runtime.transport import ZenohTransport
-
-
-@dataclass
-class _Payload:
-    data: bytes
-
-    def to_bytes(self) -> bytes:
-        return self.data
-
-
-@dataclass
-class _Sample:
-    payload: _Payload
+from tests.support.zenoh_sample import Sample, sample
 
 
 @dataclass
 class _Sub:
     owner: LossySession
-    callback: Callable[[_Sample], Any]
+    callback: Callable[[Sample], Any]
 
     def undeclare(self) -> None:
         self.owner.subs.remove(self)
@@ -69,7 +57,7 @@ class LossySession:
             self.losing[prefix] = n - 1
         return n > 0
 
-    def declare_subscriber(self, key: str, callback: Callable[[_Sample], Any]) -> _Sub:
+    def declare_subscriber(self, key: str, callback: Callable[[Sample], Any]) -> _Sub:
         assert key == keys.RECORDER_SYNCED
         sub = _Sub(self, callback)
         self.subs.append(sub)
@@ -85,7 +73,7 @@ class LossySession:
         self.answers.append(payload)
         if not self._lost(key):
             for sub in list(self.subs):
-                sub.callback(_Sample(_Payload(payload)))
+                sub.callback(sample(payload))
 
 
 @pytest.fixture

@@ -22,15 +22,13 @@ import pytest
 
 from services.fleet.launcher import Fleet
 from services.ros2 import messages
-from services.ros2.face import JOINT_STATES, SAY_PROGRESS, FaceConfig, Ros2Face
+from services.ros2.face import JOINT_STATES, SAY_PROGRESS, Ros2Face
 from services.runtime import keys
 from services.runtime.session import open_client
 from services.runtime.transport import ZenohTransport
 from services.security import certs
-from services.spec.model import default_spec
 from services.spec_check.acl import ROS2_PEER, _includes
-from tests.ros2.sdk import close_session, use_offline, write_definitions
-from tests.ros2.test_live_face import StandInHi
+from tests.ros2.test_live_face import StandInHi, face_and_sdk
 from tests.security.test_refusals import router_report
 from tests.support.router import router_fleet
 
@@ -70,25 +68,11 @@ def setup(
     router: Fleet, tmp_path_factory: pytest.TempPathFactory
 ) -> Iterator[tuple[Ros2Face, StandInHi, int]]:
     assert router.security is not None
-    port = int(router.endpoint.rsplit(":", 1)[1])
-    face_transport = ZenohTransport([router.endpoint], identity="ros2")
-    hi = StandInHi(ZenohTransport([router.endpoint], identity="a_hi"))
-    face = Ros2Face(face_transport, default_spec(), FaceConfig(topics=frozenset({JOINT_STATES})))
-    face.bind()
-    face.start()
-    mp = pytest.MonkeyPatch()
-    mp.setenv("ZENOH_CONFIG_OVERRIDE", override(router.security, router.endpoint))  # as rmw_zenoh reads it
+    env = {"ZENOH_CONFIG_OVERRIDE": override(router.security, router.endpoint)}  # as rmw_zenoh reads it
+    types = ["sensor_msgs/msg/JointState", messages.SAY_PROGRESS]
     folder = tmp_path_factory.mktemp("msgs")
-    write_definitions(folder, ["sensor_msgs/msg/JointState", messages.SAY_PROGRESS])
-    use_offline(folder, mp)
-    try:
-        yield face, hi, port
-    finally:
-        close_session()
-        mp.undo()
-        face.stop()
-        face_transport.close()
-        hi.transport.close()
+    with face_and_sdk(router, frozenset({JOINT_STATES}), types, folder, env) as made:
+        yield made
 
 
 def _joint_states(router: Fleet, got: queue.SimpleQueue[Any]) -> Any:

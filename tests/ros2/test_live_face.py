@@ -12,6 +12,7 @@ import queue
 import threading
 import time
 from collections.abc import Iterator
+from pathlib import Path
 from typing import Any
 
 import msgspec
@@ -101,32 +102,23 @@ class StandInHi:
         self.transport.publish(keys.fipa_key("C9", "a_hi", msg.sender.name), encode(answer))
 
 
-@pytest.fixture(scope="module")
-def setup(
-    router: Fleet, tmp_path_factory: pytest.TempPathFactory
+@contextlib.contextmanager
+def face_and_sdk(
+    router: Fleet, topics: frozenset[str], types: list[str], folder: Path, env: dict[str, str] | None = None
 ) -> Iterator[tuple[Ros2Face, StandInHi, int]]:
+    """A started Ros2Face (identity ``ros2``, publishing ``topics``) and a stand-in a_hi on
+    ``router``, and zenoh-ros2-sdk fed the definitions of ``types`` offline from ``folder``,
+    with ``env`` set while it runs; yields (face, a_hi, the router's port); closes all after."""
     port = int(router.endpoint.rsplit(":", 1)[1])
     face_transport = ZenohTransport([router.endpoint], identity="ros2")
     hi = StandInHi(ZenohTransport([router.endpoint], identity="a_hi"))
-    face = Ros2Face(
-        face_transport,
-        default_spec(),
-        FaceConfig(topics=frozenset({JOINT_STATES, TF, TASK_STATE, CAMERA})),
-    )
+    face = Ros2Face(face_transport, default_spec(), FaceConfig(topics=topics))
     face.bind()
     face.start()
     mp = pytest.MonkeyPatch()
-    folder = tmp_path_factory.mktemp("msgs")
-    write_definitions(
-        folder,
-        [
-            "sensor_msgs/msg/JointState",
-            "tf2_msgs/msg/TFMessage",
-            "sensor_msgs/msg/Image",
-            "sensor_msgs/msg/CameraInfo",
-            messages.SAY_PROGRESS,
-        ],
-    )
+    for name, value in (env or {}).items():
+        mp.setenv(name, value)
+    write_definitions(folder, types)
     use_offline(folder, mp)
     try:
         yield face, hi, port
@@ -136,6 +128,22 @@ def setup(
         face.stop()
         face_transport.close()
         hi.transport.close()
+
+
+@pytest.fixture(scope="module")
+def setup(
+    router: Fleet, tmp_path_factory: pytest.TempPathFactory
+) -> Iterator[tuple[Ros2Face, StandInHi, int]]:
+    types = [
+        "sensor_msgs/msg/JointState",
+        "tf2_msgs/msg/TFMessage",
+        "sensor_msgs/msg/Image",
+        "sensor_msgs/msg/CameraInfo",
+        messages.SAY_PROGRESS,
+    ]
+    topics = frozenset({JOINT_STATES, TF, TASK_STATE, CAMERA})
+    with face_and_sdk(router, topics, types, tmp_path_factory.mktemp("msgs")) as made:
+        yield made
 
 
 def _client(port: int, **kw: Any) -> Any:
