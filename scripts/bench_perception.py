@@ -71,8 +71,8 @@ def pours(first: int, n: int, remove: int) -> int:
     """The scripted pour with camera perception for seeds first..first+n−1 (module docstring)."""
     import math
 
-    from services.agents.planner.domain import CONTENT_SHARE_REQUIRED
     from shared.fipa_codec.languages.l_ex import CommandResult
+    from shared.fipa_codec.languages.l_hc import CONTENT_SHARE_REQUIRED
     from shared.fipa_codec.languages.l_sd import Observation
     from velma.executor import Executor
     from velma.executor.capture import WorldCapture
@@ -141,7 +141,7 @@ def _judged(observer, model, qpos, stamp: float, k: int, seed: int, spill: bool)
     """The bowl's count, the content seen outside and whether a_ta's check passes when
     ``observer`` (a ``CameraObserver``) observes ``qpos`` at ``stamp`` with ``k`` spheres taken
     from the bowl (``_take_from_bowl``)."""
-    from services.agents.planner.domain import CONTENT_SHARE_REQUIRED
+    from shared.fipa_codec.languages.l_hc import CONTENT_SHARE_REQUIRED
     from velma.executor.capture import WorldCapture
 
     changed = _take_from_bowl(model, qpos, k, seed, spill=spill)

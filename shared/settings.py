@@ -428,6 +428,15 @@ class Settings(msgspec.Struct, frozen=True, kw_only=True):
             "randomises the jar and bowl poses (as ROCO_SEED's readers); unset: the fixed poses",
         ),
     ] = None
+    content_removed: Annotated[
+        int,
+        About(
+            "ROCO_CONTENT_REMOVED",
+            "spheres taken out of the jar before the run: the world process lays that many of its 18 on "
+            "the floor behind the robot, out of reach and view (velma/model/scene.py remove_content): a "
+            "pour that cannot fill the bowl, for benchmarks",
+        ),
+    ] = 0
     perception: Annotated[
         Literal["camera", "truth"] | None,
         About(

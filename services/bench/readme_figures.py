@@ -293,27 +293,53 @@ def loop(docs: dict[str, Document]) -> Row:
 
 def pour_seeds(docs: dict[str, Document]) -> Row:
     """scripts/bench_pour_seeds.py --mode fleet: pours with the jar and bowl moved; reads its
-    ``Success (…): N of M`` and ``Verdict matches truth: N of M`` lines and the table's
-    ``spheres in bowl`` cells."""
+    ``Success (…): N of M`` and ``Verdict matches truth: N of M`` lines, the table's ``spheres
+    in bowl`` cells and, when it planted failures (its ``planted`` column: spheres removed from
+    the jar), the plain seeds' ``success`` cells, the planted seeds' spheres and its
+    ``Confusion: …`` line (the verdicts on true successes and on true failures)."""
     doc = docs[POUR_SEEDS]
     m = re.search(r"^Success \(([^)]*)\): (\d+) of (\d+)", doc.text, re.MULTILINE)
     if m is None:
         raise FiguresError(f"{doc.path}: no line 'Success (…): N of M'")
     t = doc.table("", "seed")
     spheres = t.column("spheres in bowl", POUR_SEEDS)
-    inside = sorted({r[spheres] for r in t.rows}, key=number)
-    counts = " or ".join(dict.fromkeys(c.split("/")[0] for c in inside))
-    total = inside[-1].split("/")[-1]
+    planted_at = next((i for i, h in enumerate(t.header) if h.startswith("planted")), None)
+    plain = [r for r in t.rows if planted_at is None or r[planted_at] == "—"]
+    planted = [r for r in t.rows if r not in plain]
+
+    def counts(rows: list[list[str]]) -> tuple[str, str]:
+        inside = sorted({r[spheres] for r in rows}, key=number)
+        return " or ".join(dict.fromkeys(c.split("/")[0] for c in inside)), inside[-1].split("/")[-1]
+
     v = re.search(r"^Verdict matches truth: (\d+) of (\d+)", doc.text, re.MULTILINE)
     if v is None:
         raise FiguresError(f"{doc.path}: no line 'Verdict matches truth: N of M'")
-    return Row(
-        "pours with the jar and bowl moved ±2 cm, turned ±10°",
-        f"{m[2]} of {m[3]} succeeded, {counts} of {total} spheres in the bowl; a_ta's verdict "
-        f"matched the simulation's truth in {v[1]} of {v[2]}",
-        f"success: {m[1]}",
-        doc,
-    )
+    inside, total = counts(plain)
+    if not planted:
+        value = (
+            f"{m[2]} of {m[3]} succeeded, {inside} of {total} spheres in the bowl; a_ta's verdict "
+            f"matched the simulation's truth in {v[1]} of {v[2]}"
+        )
+    else:
+        c = re.search(
+            r"^Confusion: .* in (\d+) of (\d+): (\d+ of \d+) successes, (\d+ of \d+) failures",
+            doc.text,
+            re.MULTILINE,
+        )
+        if c is None:
+            raise FiguresError(
+                f"{doc.path}: no line 'Confusion: … in N of M: X of X successes, Y of Y failures'"
+            )
+        success = t.column("success", POUR_SEEDS)
+        removed = " or ".join(dict.fromkeys(r[planted_at].split()[0] for r in planted))  # type: ignore[index]
+        planted_inside, _ = counts(planted)
+        value = (
+            f"{sum(r[success] == 'yes' for r in plain)} of {len(plain)} succeeded, {inside} of {total} "
+            f"spheres in the bowl; {len(planted)} more with {removed} of {total} spheres removed from the "
+            f"jar first, {planted_inside} in the bowl; a_ta's verdict matched the simulation's truth in "
+            f"{c[1]} of {c[2]}: {c[3]} successes, {c[4]} failures"
+        )
+    return Row("pours with the jar and bowl moved ±2 cm, turned ±10°", value, f"success: {m[1]}", doc)
 
 
 ROWS: list[Callable[[dict[str, Document]], Row]] = [

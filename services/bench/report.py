@@ -89,7 +89,8 @@ INTRO = [
     "",
     "`roco bench` (services/bench/) wrote it from the one run described below; `--only NAME` runs "
     "the parts named in brackets. The last section says how to reproduce the figures and what "
-    "limits them. The loop alone, physics, camera and pour over randomised scenes: "
+    "limits them. The loop alone, physics, camera and pour over randomised scenes (a_ta's verdict "
+    "against the simulation's truth, failures planted by spheres removed from the jar): "
     "[bench/loop.md](bench/loop.md), [bench/physics.md](bench/physics.md), "
     "[bench/observe.md](bench/observe.md), [bench/pour_seeds_fleet.md](bench/pour_seeds_fleet.md), "
     "[executor.md](executor.md).",

@@ -44,7 +44,6 @@ from services.fleet.launcher import (
     AGENT_ORDER,
     Fleet,
     LaunchError,
-    load_launch_env,
     process_environ,
     service_args,
     spawn_process,
@@ -53,7 +52,7 @@ from services.fleet.processes import proc_state
 from services.fleet_state import FLEET_FILE
 from services.recorder import sync
 from services.runtime.faults import FaultEvent
-from services.runtime.run_folder import read_run_info, write_run_info
+from services.runtime.run_folder import load_launch_env, read_run_info, write_run_info
 from services.runtime.session import alive_agents, open_client
 from services.security.context import register
 from velma.world.files import link_name

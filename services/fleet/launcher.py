@@ -32,6 +32,7 @@ from pathlib import Path
 
 import zenoh
 
+from services.runtime.run_folder import LAUNCH_ENV
 from services.runtime.session import alive_agents
 from services.security.context import ENV_SECURITY, acl_on, register, tls_on
 from services.spec.model import default_spec
@@ -47,10 +48,6 @@ GATEWAY = "gateway"  # services/gateway/bridge.py: GATEWAY
 """The ACL gateway's process name, which is also its identity (``roco gateway``)."""
 ROS2 = "ros2"  # services/ros2/face.py: ROS2
 """The ROS 2 face's process name, which is also its identity (``roco ros2``)."""
-
-
-LAUNCH_ENV = "launch_env.json"
-"""The run folder's record of the environment the launcher gives its processes."""
 
 
 class LaunchError(RuntimeError):
@@ -283,21 +280,6 @@ def save_launch_env(run_dir: Path, env: dict[str, str], extra: dict[str, str]) -
     tmp = run_dir / (LAUNCH_ENV + ".tmp")
     tmp.write_text(json.dumps(kept, indent=1, sort_keys=True))
     tmp.replace(run_dir / LAUNCH_ENV)
-
-
-def load_launch_env(run_dir: Path) -> dict[str, str] | None:
-    """The environment a fleet's processes were started with: this process's environment
-    without its ``ROCO_*`` variables, then those of ``launch_env.json``; None when the run
-    folder has no (readable) record."""
-    try:
-        kept = json.loads((run_dir / LAUNCH_ENV).read_text())
-    except (OSError, ValueError):
-        return None
-    if not isinstance(kept, dict):
-        return None
-    env = {k: v for k, v in os.environ.items() if not k.startswith(PREFIX)}
-    env.update({str(k): str(v) for k, v in kept.items()})
-    return env
 
 
 def _wait(proc: subprocess.Popen[bytes], timeout: float) -> None:

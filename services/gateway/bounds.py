@@ -105,6 +105,16 @@ class Limits:
     linger_s: float = 60.0
     """A name stays bound this long after its last conversation ended."""
 
+    # ---- conversations followed through their protocol (services/gateway/conversations.py)
+    max_followed: int = 4096
+    """Open conversations whose protocol state the gateway follows, all foreign names together;
+    one more forgets the oldest (an answer in it is then dropped, ``dropped.out_of_protocol``).
+    Four times what one agent follows (``ProtocolStates.max_open``, 1024): the conversations
+    a_hi still follows are among them."""
+    max_followed_ended: int = 1024
+    """Ended conversations kept for what crosses their end on the wire (a late cancel, FIPA
+    SC00026 §2) and to refuse what comes after it; the oldest beyond are forgotten."""
+
 
 DEFAULT_LIMITS = Limits()
 """The limits ``roco gateway`` runs with."""

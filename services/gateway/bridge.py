@@ -11,14 +11,19 @@ holds ``roco/alive/gateway`` and answers ``roco/counters/ask`` as agents do.
 In, per receiver of the envelope: a foreign sender, a receiver its role has a channel to
 (else ``refuse``, SC00037 §3.17), a performative, protocol, language and content (the JSON of
 the term, ``{"type": "sentence", …}``, within ``max_content`` octets and ``max_json_depth``)
-the role may send there (else ``not-understood``, SC00037 §3.12); re-encoded in msgpack and put.
-HTTP answers before that: 406 (services/gateway/bounds.py), 403 (``sender``, ``identity``:
-services/gateway/identity.py), 503 (``max_pending``, ``busy``). Out: an agent's communicate to
-a foreign name, checked against x_fipa's interface, content as JSON, the roco agent written
-with the gateway's address, posted (services/gateway/poster.py) to at most
+the role may send there, in a conversation whose protocol state allows it (else
+``not-understood``, SC00037 §3.12); re-encoded in msgpack and put. HTTP answers before that:
+406 (services/gateway/bounds.py), 403 (``sender``, ``identity``: services/gateway/identity.py),
+503 (``max_pending``, ``busy``). Out: an agent's communicate to a foreign name, checked against
+x_fipa's interface and its conversation's protocol state, content as JSON, the roco agent
+written with the gateway's address, posted (services/gateway/poster.py) to at most
 ``max_answer_addresses`` addresses bound to the name, never roco's own
-(services/gateway/addresses.py). A ``refuse``, ``failure`` or ``not-understood`` is never
-answered. Each refusal is logged (WARNING, one line) and counted (:data:`REFUSE_REASONS`).
+(services/gateway/addresses.py). Every conversation bridged is followed through its protocol's
+state machine (services/gateway/conversations.py: FIPA SC00026–SC00036, SC00061), which also
+says when a foreign name's conversation is over. A ``refuse``, ``failure`` or
+``not-understood`` is never answered. Each refusal is logged (WARNING, one line) and counted
+(:data:`REFUSE_REASONS`); so is each communicate an agent said out of its conversation's
+protocol (``dropped.out_of_protocol``), which is not posted.
 """
 
 from __future__ import annotations
@@ -35,6 +40,7 @@ import msgspec
 
 from services.gateway.addresses import Destinations
 from services.gateway.bounds import DEFAULT_LIMITS, BoundError, Limits, decode_payload, json_too_deep
+from services.gateway.conversations import Conversations
 from services.gateway.envelope import STRING_REPRESENTATION, Envelope
 from services.gateway.http_mtp import MTPError, MTPMessage
 from services.gateway.identity import Identities, IdentityError
@@ -70,6 +76,7 @@ REFUSE_REASONS: dict[str, str] = {
     "not_in_interface": "performative or protocol outside the sender's role on that channel",
     "language": "no content language, or one the channel does not give that performative",
     "content": "the content is not the JSON of a term the channel allows",
+    "protocol_state": "not allowed where its conversation stands in its interaction protocol",
 }
 """Why the gateway refuses a message, each counted as ``refused.<reason>``."""
 _REFUSE_AS = {"receiver": Performative.REFUSE}
@@ -143,6 +150,10 @@ class Gateway:
         self.counters: Counter[str] = Counter()
         self.destinations = destinations or Destinations.of(address, limits=limits)
         self.identities = Identities(limits, platforms)
+        self.conversations = Conversations(
+            spec, max_open=limits.max_followed, max_ended=limits.max_followed_ended
+        )
+        """Every conversation bridged, followed through its protocol (the gateway's thread)."""
         self._own_loop = loop is None
         self.loop = loop or LoopThread("gateway-post")
         self.poster = Poster(self.loop, self.count, limits=limits, destinations=self.destinations, post=post)
@@ -276,8 +287,14 @@ class Gateway:
             except EncodeError as exc:  # larger than any communicate may be
                 self._refuse(msg, receiver.name, Refusal("content", str(exc)))
                 continue
+            why = self.conversations.follow(communicate.sender.name, receiver.name, communicate, inbound=True)
+            if why is not None:  # last: only what is put on Zenoh is followed
+                self._refuse(msg, receiver.name, Refusal("protocol_state", why))
+                continue
             self.transport.publish(key, payload)
             self.count("forwarded")
+            if self._ended(communicate.sender.name, receiver.name, msg):  # e.g. roco-notify's inform
+                self.identities.ended(communicate.sender.name, msg.conversation_id)
             log.info(
                 "%s → %s on %s: %s (conversation %s)",
                 communicate.sender.name,
@@ -356,10 +373,24 @@ class Gateway:
             refusal.text[:300],
         )
 
+    def _ended(self, foreign: str, agent: str, msg: Communicate) -> bool:
+        """Whether ``msg``'s conversation between ``foreign`` and ``agent`` is over."""
+        return self.conversations.ended(foreign, agent, msg.protocol, msg.conversation_id)
+
     def _refuse(self, msg: Communicate, receiver: str, refusal: Refusal) -> None:
+        """Count and log ``refusal`` of ``msg`` for ``receiver``, and answer it in the sender's
+        conversation as the receiver: ``refuse`` (FIPA SC00037 §3.17) or ``not-understood``
+        (§3.12), the reason as content; never a refuse, failure or not-understood. The answer
+        is not followed in the conversation: it answers a message that never entered it, and
+        the roco agent's own answers in it still pass."""
         self._count_refusal(msg, receiver, refusal)
-        if msg.performative in _NOT_ANSWERED or msg.sender is None:
-            return  # never answer an answer (no loops); nobody to answer
+        if msg.sender is None:
+            return  # nobody to answer
+        ended = self._ended(msg.sender.name, receiver, msg)  # e.g. a refused opening: none began
+        if msg.performative in _NOT_ANSWERED:
+            if ended:
+                self.identities.ended(msg.sender.name, msg.conversation_id)
+            return  # never answer an answer (no loops)
         try:
             me = AgentIdentifier(receiver, (self.address,))
         except ValueError:  # the receiver's name is no agent name: answer as the gateway
@@ -373,7 +404,7 @@ class Gateway:
             conversation_id=msg.conversation_id,
             in_reply_to=msg.reply_with,
         )
-        self._send_out(answer, msg.sender.name)
+        self._send_out(answer, msg.sender.name, ended)
 
     # ---- out: Zenoh → HTTP ---------------------------------------------------------------
     def _receives(self, channel: str, sender: str, receiver: str, msg: Communicate) -> bool:
@@ -414,6 +445,18 @@ class Gateway:
             self.count("dropped.content")
             log.warning("dropped %s from %s: %s", msg.performative.value, sender, exc)
             return
+        why = self.conversations.follow(receiver, sender, msg, inbound=False)
+        if why is not None:  # last: only what is posted is followed
+            self.count("dropped.out_of_protocol")
+            log.warning(
+                "dropped %s from %s to %s (conversation %s): %s",
+                msg.performative.value,
+                sender,
+                receiver[:300],
+                (msg.conversation_id or "")[:300],
+                why[:300],
+            )
+            return
         answer = msgspec.structs.replace(
             msg,
             sender=AgentIdentifier(sender, (self.address,)),
@@ -422,14 +465,13 @@ class Gateway:
             encoding=encoding,
         )
         self.count("answered")  # taken to be posted (a failed post is counted post_failed)
-        self._send_out(answer, receiver)
+        self._send_out(answer, receiver, self._ended(receiver, sender, msg))
 
-    def _send_out(self, msg: Communicate, foreign: str) -> None:
+    def _send_out(self, msg: Communicate, foreign: str, ended: bool) -> None:
         """Post ``msg`` to the foreign agent ``foreign`` at the addresses bound to its name
-        that may be posted to (services/gateway/addresses.py), in order, until one takes it."""
-        self.identities.answered(
-            foreign, msg.conversation_id, final=msg.performative is not Performative.AGREE
-        )
+        that may be posted to (services/gateway/addresses.py), in order, until one takes it;
+        ``ended``: its conversation is over (the name's binding no longer holds it open)."""
+        self.identities.answered(foreign, msg.conversation_id, final=ended)
         given = self.identities.addresses(foreign)
         usable = self.destinations.usable(given)
         for reason, n in usable.skipped.items():
@@ -521,7 +563,8 @@ def summary(counters: dict[str, int]) -> str:
         answered 3, posted 2, post_failed 1, post_skipped 1 (roco_address 1)
 
     A part that is 0 is left out, but for received, forwarded, refused and answered; so is
-    ``dropped N (…)`` (what a_hi said that the specification does not let out) and
+    ``dropped N (…)`` (what a_hi said that the specification does not let out, or that its
+    conversation's protocol state does not allow: ``out_of_protocol``) and
     ``internal_errors``."""
 
     def group(prefix: str) -> dict[str, int]:

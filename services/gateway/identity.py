@@ -7,12 +7,13 @@ else its ``:sender``'s, else the envelope's ``from``'s). While the name is bound
 under it from another IP address, or giving other answer addresses, is refused (HTTP 403,
 counted ``refused.identity``): nobody can redirect the answers meant for the first peer, nor
 speak in its conversations. The binding lasts as long as the name has conversations open
-(a message opens its conversation; an answer other than ``agree`` ends it; one unanswered for
-``conversation_s``, or the oldest beyond ``max_conversations``, is taken as ended) and
-``linger_s`` after the last one ended; then the name is free again. Instead, the operator may
-bind every name of a platform to a fixed list of addresses (``roco gateway --platform``):
-answers to its agents go there only, whoever sent the message, and a message giving other
-addresses is refused.
+(a message opens its conversation; it ends when its protocol's state machine says so,
+services/gateway/conversations.py: after ``agree`` and ``inform``, after ``refuse``, not after
+``agree`` alone; one unanswered for ``conversation_s``, or the oldest beyond
+``max_conversations``, is taken as ended) and ``linger_s`` after the last one ended; then the
+name is free again. Instead, the operator may bind every name of a platform to a fixed list of
+addresses (``roco gateway --platform``): answers to its agents go there only, whoever sent the
+message, and a message giving other addresses is refused.
 
 At most ``max_names`` names are bound at once; a new name beyond them is refused (HTTP 503,
 counted ``refused.busy``) until one is free.
@@ -105,7 +106,8 @@ class Identities:
             return binding.addresses if binding is not None else ()
 
     def answered(self, name: str, conversation: str | None, final: bool) -> None:
-        """An answer to ``name`` in ``conversation`` went out; ``final`` ends the conversation."""
+        """An answer to ``name`` in ``conversation`` went out; ``final``: the conversation is
+        over (its tracker finished, services/gateway/conversations.py), so it ends here too."""
         with self._lock:
             binding = self._bound.get(name)
             if binding is None:
@@ -113,6 +115,11 @@ class Identities:
             binding.last = self.clock()
             if final:
                 binding.open.pop(_key(conversation), None)
+
+    def ended(self, name: str, conversation: str | None) -> None:
+        """``name``'s ``conversation`` is over without an answer going out (its own message
+        ended it, or was refused and not answered)."""
+        self.answered(name, conversation, final=True)
 
     def bound(self) -> int:
         """How many names are bound now."""

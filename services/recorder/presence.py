@@ -3,7 +3,11 @@ recorder from the processes' liveliness tokens (services/runtime/keys.py ``alive
 
 An agent acts on its peers' tokens as well as on communicates (a standing subscription opens when
 the peer's token appears: services/runtime/roles/subscriptions.py), so a replay that is to reproduce it
-(services/replay) feeds both, in the order the recorder saw them. Each recorder incarnation writes
+(services/replay) feeds both. A token carries no publisher's timestamp (a Zenoh liveliness sample
+has none, timestamping on or off), so an event's time is the recorder's, and a token reaches the
+recorder over a path of its own (through the router, while the agents are linked directly): it
+may be recorded after communicates that its appearance caused. The replay puts each event in its
+place by cause (services/replay/presence.py). Each recorder incarnation writes
 first a *snapshot*, the tokens alive when it began to watch (one line per token, ``snapshot``
 true; a token alive before the run's first recorder began was alive from the replay's start), then
 one line per token that appeared or disappeared. A token that changed while no recorder ran is
@@ -29,7 +33,8 @@ MAX_LINE_BYTES = 4096
 class PresenceEvent(msgspec.Struct, frozen=True, kw_only=True):
     """One process's liveliness token seen by the recorder: ``name`` the process (an agent's name,
     ``recorder``, ``world``…), ``alive`` whether its token appeared (True) or disappeared, ``t``
-    when the recorder saw it (POSIX s), ``seq`` how many communicates the traffic record held then
+    when the recorder saw it (POSIX s, the recorder's clock: the token carries none of its
+    owner's; module docstring), ``seq`` how many communicates the traffic record held then
     (the next ``traffic.jsonl`` ``seq``), ``incarnation`` the recorder incarnation that saw it
     (as in ``traffic.jsonl``), ``snapshot`` True for a token alive when that incarnation began to
     watch (``t`` is then that moment)."""

@@ -20,6 +20,7 @@ When faults were injected (docs/faults.md), ``faults.jsonl`` holds one
 
 from __future__ import annotations
 
+import json
 from collections.abc import Iterator
 from pathlib import Path
 from typing import NamedTuple
@@ -310,6 +311,24 @@ def read_link_bytes(run_dir: Path) -> list[LinkSecond]:
         except (msgspec.DecodeError, msgspec.ValidationError):
             continue
     return sorted(out, key=lambda s: s.t)
+
+
+MAX_HOSTS_BYTES = 1 << 20
+"""A larger ``hosts.json`` is not read (it names a few processes)."""
+
+
+def read_hosts(run_dir: Path) -> dict[str, str]:
+    """The host of each process of a run on several hosts (``hosts.json``: process → host
+    name), none for a run on one host, or when the file is too large or not as
+    services/hosts/fleet.py writes it."""
+    path = run_dir / HOSTS_JSON
+    try:
+        if path.stat().st_size > MAX_HOSTS_BYTES:
+            return {}
+        hosts = json.loads(path.read_text())["hosts"]
+        return {str(p): str(h) for h, host in hosts.items() for p in host["processes"]}
+    except (OSError, ValueError, LookupError, TypeError, AttributeError):
+        return {}
 
 
 def read_link_events(run_dir: Path) -> list[dict[str, object]]:

@@ -31,13 +31,14 @@ def replay(
 ) -> None:
     """Feed a fresh instance of AGENT, in this process, the communicates it received in the run,
     in causal order (an answer after what it answers, an answer to the agent after the agent has
-    sent what it answers) and at their recorded times, with every other agent a stub of the
+    sent what it answers) and at the times they reached it, with every other agent a stub of the
     record, and compare what it sends with what it sent there: equal up to conversation-ids,
     reply-withs, times and fields read from a clock. One line per difference (the recorded
     communicate, the field, recorded and replayed). Without --agent, each agent of the
     specification in turn, one line each (an agent that cannot be replayed says why; one with a
-    communicate of its own missing from the record says so). Exit 0 when equal, 1 with
-    differences or a communicate missing, 2 when no replay can be made."""
+    communicate of its own missing from the record says so, and one whose differences depend on an
+    order the record leaves open says it cannot decide it). Exit 0 when equal, 1 with
+    differences, an undecided order or a communicate missing, 2 when no replay can be made."""
     import logging
 
     from services.replay.driver import ReplayError, render

@@ -3,16 +3,18 @@
 The agent is built as its process builds it (the implementation the specification names), on
 an in-memory bus, with neither the run folder nor a viewer, its kept state (and a_km's
 knowledge store) in fresh folders of the replay's own: it starts as in the run, with nothing
-kept. Every other agent's liveliness token is on the bus when the recorder saw it, appearing
-and going away at the times it did (services/replay/presence.py). The driver owns the agent's time
-(:class:`~services.replay.sources.ReplaySources`) and runs its elementary actions on its own
-thread (``Agent.drive``): the agent starts at its first communicate's recorded time
-(``AgentRecord.start``), the clock moves to each input's recorded time, or first to whatever
-time the agent waits for before it (a period, a reply-by deadline, a retransmission), and
-stands still while the agent computes. After the last input the clock runs on to the record's
-end. Each communicate the agent sends is compared at once with the next one it sent on that key
-in the run (services/replay/compare.py), which pairs their identifiers: the inputs that
-follow carry the replayed identifiers where they answer the agent.
+kept. Every other agent's liveliness token is on the bus when the agent saw it appear and go
+away, as the presence record tells by its time and its cause (services/replay/presence.py). The
+driver owns the agent's time (:class:`~services.replay.sources.ReplaySources`) and runs its
+elementary actions on its own thread (``Agent.drive``): the agent starts at its first
+communicate's recorded time (``AgentRecord.start``), the clock moves to the time each input
+reached the agent (``Recorded.came``: its sender's timestamp and path, not the time the recorder
+saw it, which may be after the agent had answered it), or first to whatever time the agent waits
+for before it (a period, a reply-by deadline, a retransmission), and stands still while the
+agent computes. After the last input the clock runs on to the record's end. Each communicate
+the agent sends is compared at once with the next one it sent on that key in the run
+(services/replay/compare.py), which pairs their identifiers: the inputs that follow carry the
+replayed identifiers where they answer the agent.
 
 The inputs come in causal order (services/replay/record.py), and an input waits until the
 replayed agent has sent what came before it in the run, then goes in at once: the agent's
@@ -31,6 +33,15 @@ came (:meth:`_Replay.waits`):
 The send times are read on one clock: a run on several hosts trusts theirs to agree better than
 an agent takes to answer. An input whose predecessors the replayed agent never sends goes in
 after the last input.
+
+When an input reached the agent is known within a window only: from when its sender's timestamp
+and path say to when the recorder saw it. The replay takes the first; when it then differs, it is
+made again with each input of such a window that began before the first difference (the nearest
+first, :data:`MAX_ORDERS` of them) taken at the other end, as the agent's timer (a reply-by
+deadline) may have come before it or after. An order that reproduces the run is one the record
+allows, and the replay says which it took; when the replay differs in each order tried and the
+differences depend on the order, it says it cannot decide that order
+(:attr:`ReplayResult.undecided`) instead of reporting the differences of one.
 """
 
 from __future__ import annotations
@@ -41,7 +52,7 @@ import tempfile
 import time
 from bisect import bisect_left
 from collections import defaultdict, deque
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -50,7 +61,7 @@ import msgspec
 
 from services.recorder.presence import read_presence
 from services.replay.compare import Difference, IdMap, compare
-from services.replay.presence import Change, Timeline, lag_of, timeline
+from services.replay.presence import Change, Timeline, timeline
 from services.replay.record import AgentRecord, Recorded, agent_record
 from services.replay.sources import ReplaySources
 from services.runtime import keys
@@ -83,6 +94,11 @@ TROUBLE = (
 """The replayed agent's counters (services/runtime/agent.py) the result reports when not 0."""
 MAX_STEPS = 1_000_000
 """Steps the agent may take without input before the replay gives up on it (it never blocks)."""
+MAX_ORDERS = 3
+"""Inputs whose time the record leaves open that a replay that differs tries at the other end of
+their window (module docstring), the nearest its first difference first."""
+ORDER_TOLERANCE_S = 0.001
+"""How far apart (s) the two ends of an input's window must be for its order to be open."""
 
 
 class ReplayError(Exception):
@@ -98,8 +114,10 @@ class ReplayResult:
     ``missing`` what of the agent's communicates the record lacks (None: nothing; then the
     replay is made but cannot reproduce the run: :attr:`AgentRecord.missing`),
     ``counters`` of trouble the replayed agent counted (and ``run_counters``, the agent's
-    counters when the run ended, None when the run folder has none), ``notes`` on the record, and the wall
-    time (s) the replay took in all and to build the agent."""
+    counters when the run ended, None when the run folder has none), ``notes`` on the record and
+    on the order taken, ``undecided`` the order of the run the replay cannot decide (None: none;
+    its differences are then those of one order, not findings), and the wall time (s) the replay
+    took in all and to build the agent."""
 
     agent: str
     run_dir: Path
@@ -112,6 +130,7 @@ class ReplayResult:
     counters: dict[str, int] = field(default_factory=dict)
     run_counters: dict[str, int] | None = None
     notes: list[str] = field(default_factory=list)
+    undecided: str | None = None
     seconds: float = 0.0
     build_seconds: float = 0.0
 
@@ -170,9 +189,23 @@ def _sent_by(items: list[Recorded]) -> list[float]:
     return out
 
 
+def _in_time(
+    inputs: list[Recorded], moved: frozenset[int], at: Callable[[Recorded], float]
+) -> list[Recorded]:
+    """``inputs`` in the order they are fed: as given, but each of ``moved`` (``seq``) where its
+    time (``at``) puts it among the others (before the first fed later)."""
+    out = [item for item in inputs if item.seq not in moved]
+    for item in (item for item in inputs if item.seq in moved):
+        t = at(item)
+        out.insert(next((n for n, other in enumerate(out) if at(other) > t), len(out)), item)
+    return out
+
+
 class _Replay:
     """One replay under way (see the module docstring); ``causal`` False feeds the inputs as
-    they come in the record, none waiting for the agent."""
+    they come in the record, at the times the recorder saw them, none waiting for the agent;
+    ``arrival`` names (``seq``) inputs taken when the recorder saw them instead of when they
+    reached the agent (the other end of their window)."""
 
     def __init__(
         self,
@@ -182,14 +215,17 @@ class _Replay:
         transport: _Transport,
         causal: bool = True,
         changes: list[Change] | None = None,
+        arrival: frozenset[int] = frozenset(),
     ) -> None:
         self.record, self.agent, self.sources, self.transport = record, agent, sources, transport
+        self.arrival = arrival if causal else frozenset(item.seq for item in record.inputs)
+        self.inputs = _in_time(record.inputs, arrival if causal else frozenset(), self.at)
+        """The inputs in the order they are fed."""
+        self.first_at: float | None = None
+        """The replayed clock (POSIX s) when the first difference was found."""
         self.changes = deque(changes or [])
         """The peers' tokens that appear or go away during the replay, in time order."""
-        sent = (item.comm for items in record.outputs.values() for item in items)
-        self.asked: set[_Token] = (
-            {(c.conversation_id, c.reply_with) for c in sent if c.reply_with is not None} if causal else set()
-        )
+        self.asked: set[_Token] = _asked(record) if causal else set()
         """The tokens of the agent's recorded communicates an input may answer."""
         self.causal = causal
         self.sent_by = {key: _sent_by(items) for key, items in record.outputs.items()}
@@ -210,16 +246,22 @@ class _Replay:
         self.replayed_copies = 0
         transport.bus.subscribe(f"{keys.FIPA_PREFIX}*/{agent.name}/*", self._sent)
 
+    def at(self, item: Recorded) -> float:
+        """When input ``item`` is fed (POSIX s): when it reached the agent, or when the recorder
+        saw it (``arrival``)."""
+        return item.t if item.seq in self.arrival else item.came
+
     def run(self) -> None:
         wake = self.agent.drive()
         self._check_inputs()
-        for item in self.record.inputs:
-            wake = self._peers_until(item.t, wake)
-            wake = self._until(item.t, wake)
+        for item in self.inputs:
+            at = self.at(item)
+            wake = self._peers_until(at, wake)
+            wake = self._until(at, wake)
             if self.waits(item):
                 self.held.append(item)
                 continue
-            self.sources.set(item.t)
+            self.sources.set(at)
             self._put(item)
             wake = self._drive()
         self._until(self.record.end, self._peers_until(self.record.end, wake))
@@ -331,6 +373,13 @@ class _Replay:
             self.replayed_copies += 1
             return
         self.seen.add(digest)
+        self._compare(key, payload)
+        if self.first_at is None and self.differences:
+            self.first_at = self.sources.now
+
+    def _compare(self, key: str, payload: bytes) -> None:
+        """Compare a communicate the agent sent on ``key`` with the next one it sent there in the
+        run, the differences into :attr:`differences`."""
         at = self.sources.now
         recorded = self._next_recorded(key)
         if recorded is not None and recorded.comm.reply_with is not None:
@@ -368,14 +417,17 @@ class _Replay:
                         item.seq, item.t - self.record.t0, item.line, "communicate", "sent", "not sent"
                     )
                 )
+        if self.first_at is None and self.differences:
+            self.first_at = self.sources.now
 
 
 def replay(run_dir: Path, agent: str, spec: SystemSpec | None = None, *, causal: bool = True) -> ReplayResult:
     """Replay ``agent`` of the run in ``run_dir`` (see the module docstring; ``causal`` False
-    feeds the inputs in the order they reached the recorder, none waiting). Raises
-    FileNotFoundError for a folder that does not exist, and ReplayError (one line) when the
-    replay cannot be made: an agent the specification does not name, a record that holds
-    nothing of it, an agent that cannot be built here or takes input outside the record."""
+    feeds the inputs in the order and at the times they reached the recorder, none waiting, and
+    tries no other order). Raises FileNotFoundError for a folder that does not exist, and
+    ReplayError (one line) when the replay cannot be made: an agent the specification does not
+    name, a record that holds nothing of it, an agent that cannot be built here or takes input
+    outside the record."""
     started = time.perf_counter()
     spec = spec or default_spec()
     try:
@@ -383,42 +435,127 @@ def replay(run_dir: Path, agent: str, spec: SystemSpec | None = None, *, causal:
         record = agent_record(Path(run_dir), agent, causal)
     except (SpecError, ValueError) as exc:
         raise ReplayError(str(exc)) from None
-    result = ReplayResult(
-        agent, Path(run_dir), inputs=len(record.inputs), missing=record.missing, notes=list(record.notes)
-    )
-    if record.sessions > 1:
-        result.notes.append(
-            f"{agent} sent from {record.sessions} sessions (it was restarted): replayed as one"
-        )
-    sources = ReplaySources(record.start)
-    bus = MemoryBus()
-    peers = _peers(Path(run_dir), record, spec)
-    for name in sorted(peers.initial):
-        bus.announce(keys.alive_key(name))
-    with _isolated():
-        transport = _Transport(bus, sources)
-        try:
-            instance = cls(transport, spec)
-        except Exception as exc:
-            raise ReplayError(f"{agent} cannot be built outside its run: {exc}") from None
-        result.build_seconds = time.perf_counter() - started
-        try:
-            _run(_Replay(record, instance, sources, transport, causal, peers.changes), result)
-        finally:
-            close = getattr(instance, "close", None)
-            if callable(close):
-                close()
-    result.counters = {k: instance.counters[k] for k in TROUBLE if instance.counters[k]}
-    result.run_counters = _run_counters(Path(run_dir), agent)
+    made = _Made(Path(run_dir), cls, spec, record, _peers(Path(run_dir), record, spec, causal), causal)
+    result, first = made.once()
+    if causal and first is not None and result.failure is None and result.missing is None:
+        result = _other_orders(made, result, first)
     result.seconds = time.perf_counter() - started
     return result
 
 
-def _peers(run_dir: Path, record: AgentRecord, spec: SystemSpec) -> Timeline:
-    """The peers' tokens the replay of ``record``'s agent sees (services/replay/presence.py)."""
-    delays = [i.t - i.sent for items in record.outputs.values() for i in items]
+@dataclass
+class _Made:
+    """What every replay of one agent of one run is made of: the run folder, the agent's class,
+    the specification, the agent's record and the peers' tokens; ``causal`` as :func:`replay`'s."""
+
+    run_dir: Path
+    cls: type[Agent]
+    spec: SystemSpec
+    record: AgentRecord
+    peers: Timeline
+    causal: bool
+
+    def once(self, arrival: frozenset[int] = frozenset()) -> tuple[ReplayResult, float | None]:
+        """One replay, ``arrival`` the inputs (``seq``) fed when the recorder saw them; and the
+        replayed clock (POSIX s) at its first difference (None: none)."""
+        started = time.perf_counter()
+        record, agent = self.record, self.record.agent
+        result = ReplayResult(
+            agent, self.run_dir, inputs=len(record.inputs), missing=record.missing, notes=list(record.notes)
+        )
+        if record.sessions > 1:
+            result.notes.append(
+                f"{agent} sent from {record.sessions} sessions (it was restarted): replayed as one"
+            )
+        sources = ReplaySources(record.start)
+        bus = MemoryBus()
+        for name in sorted(self.peers.initial):
+            bus.announce(keys.alive_key(name))
+        with _isolated():
+            transport = _Transport(bus, sources)
+            try:
+                instance = self.cls(transport, self.spec)
+            except Exception as exc:
+                raise ReplayError(f"{agent} cannot be built outside its run: {exc}") from None
+            result.build_seconds = time.perf_counter() - started
+            run = _Replay(record, instance, sources, transport, self.causal, self.peers.changes, arrival)
+            try:
+                _run(run, result)
+            finally:
+                close = getattr(instance, "close", None)
+                if callable(close):
+                    close()
+        result.counters = {k: instance.counters[k] for k in TROUBLE if instance.counters[k]}
+        result.run_counters = _run_counters(self.run_dir, agent)
+        return result, run.first_at
+
+
+def _other_orders(made: _Made, base: ReplayResult, first: float) -> ReplayResult:
+    """``base`` (a replay that differs, first at the replayed clock's ``first``, POSIX s) or, when
+    an input whose time the record leaves open was fed at one end of its window before that, a
+    replay with it at the other end that reproduces the run (noted), or ``base`` saying it cannot
+    decide that input's order when the differences depend on it (module docstring)."""
+    record = made.record
+    open_ = [
+        item
+        for item in record.inputs
+        if abs(item.t - item.came) > ORDER_TOLERANCE_S and min(item.t, item.came) <= first
+    ]
+    depends: Recorded | None = None
+    for item in sorted(open_, key=lambda i: min(i.t, i.came), reverse=True)[:MAX_ORDERS]:
+        other, _ = made.once(frozenset({item.seq}))
+        if other.equal:
+            other.notes.append(
+                f"#{item.seq} {item.line} taken as reaching {record.agent} when the recorder saw it, "
+                f"at {item.t - record.t0:.3f} s, not at {item.came - record.t0:.3f} s: the record "
+                "allows both, and the run is reproduced in this order"
+            )
+            other.build_seconds = base.build_seconds
+            return other
+        if depends is None and _found(other) != _found(base):
+            depends = item
+    if depends is not None:
+        base.undecided = (
+            f"whether #{depends.seq} {depends.line} reached {record.agent} at "
+            f"{depends.came - record.t0:.3f} s (sent then, by its path) or at "
+            f"{depends.t - record.t0:.3f} s (when the recorder saw it): the replay differs either way"
+        )
+    return base
+
+
+def _found(result: ReplayResult) -> list[tuple[int | None, str]]:
+    """What ``result`` found, to tell two replays' findings apart."""
+    return [(d.seq, d.field) for d in result.differences] + [(None, result.failure or "")]
+
+
+def peers(run_dir: Path, agent: str, spec: SystemSpec | None = None) -> Timeline:
+    """The peers' tokens the replay of ``agent`` of the run in ``run_dir`` sees, and when
+    (:func:`_peers`). Raises as :func:`agent_record` does."""
+    return _peers(Path(run_dir), agent_record(Path(run_dir), agent), spec or default_spec())
+
+
+def _peers(run_dir: Path, record: AgentRecord, spec: SystemSpec, causal: bool = True) -> Timeline:
+    """The peers' tokens the replay of ``record``'s agent sees (services/replay/presence.py):
+    each change as the agent saw it (the recorder's time less the path from the token's owner
+    to the recorder, more the path to the agent), an appearance no later than the first of the
+    agent's communicates to the owner that it may have caused; ``causal`` False: each when the
+    recorder saw it."""
     names = [a.name for a in spec.agents]
-    return timeline(read_presence(run_dir), record.agent, record.start, names, lag_of(delays))
+    if not causal:
+        return timeline(read_presence(run_dir), record.agent, record.start, names)
+    sent: dict[str, list[float]] = defaultdict(list)
+    for key, items in record.outputs.items():
+        sent[keys.parse_fipa_key(key).receiver] += [i.sent for i in items]
+    return timeline(
+        read_presence(run_dir),
+        record.agent,
+        record.start,
+        names,
+        paths=record.paths,
+        sent={name: sorted(times) for name, times in sent.items()},
+        came=sorted(item.came for item in record.inputs),
+        window=record.lateness,
+    )
 
 
 def _run(run: _Replay, result: ReplayResult) -> None:
@@ -466,10 +603,12 @@ def _isolated() -> Iterator[None]:
 
 
 def render(result: ReplayResult, most: int = 50) -> str:
-    """The differences one per line (at most ``most``, then how many more), what the agent
+    """The order the replay cannot decide (then the differences are those of the order taken),
+    the differences one per line (at most ``most``, then how many more), what the agent
     raised, the notes, and a last line saying what was replayed and whether it was
     reproduced."""
-    lines = [d.line() for d in result.differences[:most]]
+    lines = [] if result.undecided is None else [f"cannot decide {result.undecided}; in the order taken:"]
+    lines += [d.line() for d in result.differences[:most]]
     if len(result.differences) > most:
         lines.append(f"… and {len(result.differences) - most} more")
     if result.failure is not None:
@@ -489,10 +628,13 @@ def render(result: ReplayResult, most: int = 50) -> str:
 def one_line(result: ReplayResult) -> str:
     """The replay of one agent in one line: ``a_pl: reproduced, 32 inputs, 32 outputs``,
     ``a_pl: cannot reproduce: 2 inputs missing from the record (…)`` when the record lacks
-    some of the agent's communicates (whatever the replay then differs in), or ``a_pl: 3
-    differences: <the first>`` (or what the agent raised)."""
+    some of the agent's communicates (whatever the replay then differs in), ``a_ta: cannot
+    decide whether #16 … reached a_ta at …`` when the differences depend on an order the record
+    leaves open, or ``a_pl: 3 differences: <the first>`` (or what the agent raised)."""
     if result.missing is not None:
         return f"{result.agent}: cannot reproduce: {result.missing}"
+    if result.undecided is not None:
+        return f"{result.agent}: cannot decide {result.undecided}"
     if result.equal:
         return f"{result.agent}: reproduced, {result.inputs} inputs, {result.compared} outputs"
     found = len(result.differences)
@@ -509,6 +651,8 @@ def _summary(result: ReplayResult) -> str:
     verdict = "reproduced" if result.equal else f"{len(result.differences)} difference(s)"
     if result.failure is not None:
         verdict += ", then it failed"
+    if result.undecided is not None:
+        verdict = f"cannot decide the order of the run ({verdict} in the order taken)"
     if result.missing is not None:
         verdict = f"cannot reproduce: {result.missing} ({verdict})"
     return (
@@ -516,3 +660,10 @@ def _summary(result: ReplayResult) -> str:
         f"{result.compared} compared{copies}; {verdict} "
         f"in {result.seconds:.2f} s ({result.build_seconds:.2f} s to build {result.agent})"
     )
+
+
+def _asked(record: AgentRecord) -> set[_Token]:
+    """The tokens (conversation-id, reply-with) of the agent's recorded communicates that an
+    input may answer."""
+    sent = (item.comm for items in record.outputs.values() for item in items)
+    return {(c.conversation_id, c.reply_with) for c in sent if c.reply_with is not None}

@@ -3,18 +3,32 @@ record (services/recorder/presence.py) turned into the tokens the replay's bus h
 
 An agent acts on its peers' liveliness tokens (a standing subscription opens when its peer's
 token appears, a conversation with a peer that went away is given up), so the replay puts each
-token on its bus and takes it off when the recorder saw that happen. The tokens alive when the
+token on its bus and takes it off when the agent saw that happen. The tokens alive when the
 run's first recorder incarnation began to watch were alive from the start; each later
 incarnation's snapshot says how things stood after a time no recorder watched (a token alive then
 and not in it went away, one in it and not alive appeared). A run recorded without a presence
 record has every agent of the specification alive from the start.
+
+When the agent saw a change is not when the recorder did. A token carries no publisher's
+timestamp (a Zenoh liveliness sample has none, timestamping on or off), and it reaches the
+recorder over a path of its own (through the router; the agents are linked directly): the
+recorder may see a token after the communicates the agent sent because it appeared (seen: ag_ex's
+token 3.4 ms after a_ta's subscription to its power-ons). So a change is taken when the paths
+say the agent saw it (:func:`timeline`, ``paths``), and a token's appearance no later than the
+first communicate the agent sent its owner, by the agent's own timestamps, that it may have
+caused: one sent in the time the recorder may lag behind (``window``) before the recorder saw the
+token, with no input reaching the agent in that time before it (an input would explain it).
 """
 
 from __future__ import annotations
 
+import math
+from bisect import bisect_left
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 from services.recorder.presence import PresenceEvent
+from services.replay.record import RECORDER, Paths
 
 
 @dataclass(frozen=True)
@@ -38,26 +52,88 @@ class Timeline:
 
 
 def timeline(
-    events: list[PresenceEvent] | None, agent: str, start: float, agents: list[str], lag: float = 0.0
+    events: list[PresenceEvent] | None,
+    agent: str,
+    start: float,
+    agents: list[str],
+    lag: float = 0.0,
+    *,
+    paths: Paths | None = None,
+    sent: dict[str, list[float]] | None = None,
+    came: list[float] | None = None,
+    window: float = 0.0,
 ) -> Timeline:
     """The tokens the replay of ``agent`` (which starts at POSIX time ``start``) sees, from the
     presence ``events`` in file order (None: no presence record; then ``agents`` are alive from
-    the start). The replayed agent's own token is never in it. ``lag`` (s): how much later the
-    recorder sees what happens at the agent (its communicates' least delay, :func:`lag_of`); each
-    change is taken that much earlier, as the agent saw it (on one host, or the recorder's, both
-    see a token at about the same time; across a link, the recorder later)."""
+    the start). The replayed agent's own token is never in it.
+
+    A change of a token is taken as the agent saw it: with ``paths`` (where the processes ran:
+    services/replay/record.py), the recorder's time less the path from the token's owner to the
+    recorder, more the path from the owner to the agent (on one host, the recorder's time; across
+    a link, the recorder sees a token of the agent's side later than the agent, one of its own
+    side earlier); without, the recorder's time less ``lag`` (s: how much later the recorder sees
+    what happens at the agent, its communicates' least delay, :func:`lag_of`). An appearance is
+    then taken no later than the first time in ``sent`` (per receiver: when the agent sent each
+    of its communicates to it, ascending) up to ``window`` (s) before it with no time in ``came``
+    (when each input reached the agent, ascending) in the ``window`` before that (module
+    docstring), and never before the token's change before it."""
     if events is None:
         return Timeline({a for a in agents if a != agent}, recorded=False)
     first = events[0].incarnation if events else ""
+    recorded = _changes([e for e in events if e.name != agent], first)
+    return _split(_placed(recorded, _seen_at(agent, paths, lag), sent or {}, came or [], window), start)
+
+
+def _placed(
+    recorded: list[Change],
+    seen_at: Callable[[Change], float],
+    sent: dict[str, list[float]],
+    came: list[float],
+    window: float,
+) -> list[Change]:
+    """The ``recorded`` changes at the times the agent saw them (:func:`timeline`)."""
+    changes: list[Change] = []
+    last: dict[str, float] = {}
+    for c in recorded:
+        t = seen_at(c)
+        if c.alive:
+            t = max(_caused(t, sent.get(c.name, []), came, window), last.get(c.name, -math.inf))
+        last[c.name] = t
+        changes.append(Change(t, c.name, c.alive))
+    return changes
+
+
+def _seen_at(agent: str, paths: Paths | None, lag: float) -> Callable[[Change], float]:
+    """When ``agent`` saw a change the recorder saw (:func:`timeline`)."""
+    if paths is None:
+        return lambda c: c.t - lag
+    return lambda c: c.t - paths.between(c.name, RECORDER) + paths.between(c.name, agent)
+
+
+def _split(changes: list[Change], start: float) -> Timeline:
+    """The tokens alive at ``start`` (POSIX s) after ``changes``, and the changes after it, in
+    time order."""
     initial: set[str] = set()
     later = []
-    for c in _changes([e for e in events if e.name != agent], first):
-        c = Change(c.t - lag, c.name, c.alive)
+    for c in sorted(changes, key=lambda c: c.t):
         if c.t <= start:
             (initial.add if c.alive else initial.discard)(c.name)
         else:
             later.append(c)
     return Timeline(initial, later)
+
+
+def _caused(t: float, sent: list[float], came: list[float], window: float) -> float:
+    """When a token that the agent is taken to have seen appear at ``t`` appeared at the
+    latest: the first of ``sent`` (ascending) in the ``window`` before ``t`` that no input
+    explains (none of ``came``, ascending, in the ``window`` before it), else ``t``."""
+    for s in sent[bisect_left(sent, t - window) :]:
+        if s >= t:
+            break
+        i = bisect_left(came, s - window)
+        if i == len(came) or came[i] > s:
+            return s
+    return t
 
 
 def _changes(events: list[PresenceEvent], first: str) -> list[Change]:

@@ -7,7 +7,7 @@ import random
 
 class ReplaySources:
     """A clock that stands still while the agent computes and moves only when the replay's
-    driver sets it (:meth:`set`: the recorded time of the next input, or the time the agent
+    driver sets it (:meth:`set`: the time the next input reached the agent, or the time the agent
     waits for), and random bytes from a generator seeded with ``seed``. Both clocks read the
     same value, in POSIX s: ``start`` at first."""
 

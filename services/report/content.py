@@ -59,3 +59,21 @@ def sphere_share(messages: Sequence[Message], container: str = "bowl") -> Conten
             look=_look(messages, i, container),
         )
     return ContentOutcome(container=container, observed=False)
+
+
+def content_line(c: ContentOutcome, world: tuple[int, int] | None = None) -> str:
+    """The content outcome in the few words `roco run`'s last line gives it, saying whose count
+    it is: the robot's (``c``, a_ta's last count of the container, the seen and the inferred
+    spheres) and beside it, when given, the simulation's (``world``: the spheres truly in the
+    container as the simulated world was left, and the content's total; services/scenario/
+    chaos.py ``world_content``). E.g. "18 of 18 spheres in the bowl by the robot's count (the
+    simulation's: 18)", "18 of 18 spheres in the bowl by the robot's count", "content not
+    observed by the robot (the simulation's: 17 of 18 in the bowl)"."""
+    if c.observed:
+        robot = f"{c.inside} of {c.total} spheres in the {c.container} by the robot's count"
+        return robot if world is None else f"{robot} (the simulation's: {world[0]})"
+    if world is None:
+        return "content not observed by the robot"
+    return (
+        f"content not observed by the robot (the simulation's: {world[0]} of {world[1]} in the {c.container})"
+    )

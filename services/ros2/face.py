@@ -598,7 +598,7 @@ class Ros2Face:
                     in_reply_to=msg.in_reply_to,
                 )
             except (ProtocolViolation, ConversationError):
-                outcome = "unchecked"
+                outcome = None
             if outcome not in ("step", "crossing", "aborted"):
                 self.count("dropped.out_of_protocol")
                 continue

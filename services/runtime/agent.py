@@ -680,12 +680,8 @@ class Agent:
     def conversation_stepped(
         self, peer: str, conversation_id: str, performative: Performative, outcome: str
     ) -> None:
-        """Log a conversation opened anew; count a communicate that crossed another on the wire."""
-        if outcome == "restart":
-            self.log.info(
-                "conversation %s with %s opened anew: %s", conversation_id, peer, performative.value
-            )
-        elif outcome == "crossing":
+        """Count a communicate that crossed another on the wire."""
+        if outcome == "crossing":
             self.counters["crossings"] += 1
 
     def emit(self, key: str, payload: bytes) -> None:
@@ -1052,17 +1048,26 @@ class Agent:
             self.on_ready(f"{self.name} ready: roles set up{seen}")
 
     def restore_conversation(
-        self, peer: str, conversation_id: str, protocol: str, history: list[tuple[Performative, bool]]
+        self,
+        peer: str,
+        conversation_id: str,
+        protocol: str,
+        history: list[tuple[Performative, bool]],
+        opening_reply_with: str | None = None,
     ) -> None:
         """Re-enter the protocol state of a conversation kept across a restart: replay its
         ``history`` of (performative, sent by this agent) in order; an ``inform`` counts as a
-        non-terminal report. Raises SpecViolation when the history is not a path of the
-        protocol."""
+        non-terminal report. ``opening_reply_with``: the reply-with of the communicate that
+        opened it, so that a retransmission of it is recognised (protocol_state ``judge``).
+        Raises SpecViolation when the history is not a path of the protocol."""
         for performative, sent in history:
             why = self._follow(peer, conversation_id, protocol, performative, sent, False)
             if why is not None:
                 self.protocol_states.rollback()
                 raise SpecViolation(f"cannot restore conversation {conversation_id} with {peer}: {why}")
+        tracker = self.protocol_states.get(peer, conversation_id)
+        if tracker is not None and opening_reply_with:
+            tracker.opening_reply_with = opening_reply_with
         self.protocol_states.commit()
 
     # ---- the loop -----------------------------------------------------------------------

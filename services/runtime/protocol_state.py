@@ -1,15 +1,16 @@
-"""The protocol state of every conversation, tolerant of communicates that cross on the wire;
+"""The protocol state of every conversation: FIPA's rules on a conversation, in one place;
 and the ontology a communicate's content language needs.
 
-Every communicate sent or received must be allowed in its conversation's current protocol
-state (FIPA SC00026/27/35 and the paper's coordinate protocol, §5.4).
+Every communicate sent or received must belong to its conversation (FIPA SC00026–SC00036,
+SC00037 §3.12, SC00061; the application's protocols, e.g. the paper's coordinate, §5.4, as the
+specification declares them). :func:`judge` decides it, the one home of those rules (see its
+docstring), for the agents' runtime, ``roco spec verify``, the coverage of the specification,
+the gateway and the ROS 2 face; :func:`follow` is the same, raising its refusal.
 :class:`CrossingTracker` follows one conversation through its protocol's state machine
-(:mod:`shared.fipa_codec.protocols`) while tolerating communicates that crossed on the wire;
-:func:`follow` adds what a conversation-id's life brings (a retry reusing it, a
-not-understood ending it); :class:`ProtocolStates` holds one tracker per peer and
-conversation-id for an agent, in bounded memory. ``services.spec_check.conformance`` follows
-recorded traffic with the same tracker. A communicate in a content language must name that
-language's ontology (:func:`expected_ontology`).
+(:class:`shared.fipa_codec.protocols.Protocol`) while placing communicates that crossed on the
+wire; :class:`ProtocolStates` holds one tracker per peer and conversation-id for an agent, in
+bounded memory. A communicate in a content language must name that language's ontology
+(:func:`expected_ontology`).
 
 The conversations themselves, as an agent's roles take part in them, are
 :class:`services.runtime.roles.Conversation`; the replies an agent awaits, with their reply-by
@@ -143,8 +144,8 @@ def _initial(protocol: Protocol) -> tuple[Reading, ...]:
 
 
 class CrossingTracker:
-    """Follows one conversation through ``protocol`` like
-    :class:`~shared.fipa_codec.protocols.ConversationTracker`, but accepts a communicate
+    """Follows one conversation through ``protocol`` (a state machine, or the name of one of
+    FIPA's library, :data:`~shared.fipa_codec.protocols.PROTOCOLS`), accepting a communicate
     when *some* order of the communicates consistent with the wire allows it.
 
     Two parties' communicates may cross (FIPA SC00026 §2, SC00027 §2, SC00035 §2: a
@@ -198,11 +199,20 @@ class CrossingTracker:
         cancel and its answer)."""
         self.aborted = False
         """True once a not-understood ended the conversation (see :meth:`abort`)."""
-        self.superseded: CrossingTracker | None = None
-        """The conversation before an opening communicate made it anew (:func:`follow`,
-        ``restart``), while the other party may not have seen that opening yet."""
-        self.reopened_by: Role | None = None
-        """Who sent the opening communicate that made the conversation anew."""
+        self.aborted_by: Role | None = None
+        """Who sent the not-understood that ended the conversation (None: none did)."""
+        self.initiator_heard = False
+        """The initiator has received a communicate of this conversation (followed or refused)
+        since it last sent one: only then may it send a not-understood (FIPA SC00037 §3.12: the
+        receiver of a communicate it did not understand)."""
+        self.aborted_reply_with: str | None = None
+        """The reply-with of the not-understood that ended the conversation: what names it in its
+        in-reply-to was sent after it was seen, so cannot have crossed it."""
+        self.participant_heard = False
+        """The same for the participant."""
+        self.opening_reply_with: str | None = None
+        """The reply-with of the communicate that opened the conversation (None: it had none,
+        or it is not known): the same communicate again, retransmitted, is recognised by it."""
         self.latest_initiator: str | None = None
         """The reply-with of the initiator's latest communicate (None when it had none)."""
         self.latest_participant: str | None = None
@@ -221,8 +231,11 @@ class CrossingTracker:
         other.messages = self.messages
         other.crossings = self.crossings
         other.aborted = self.aborted
-        other.superseded = self.superseded
-        other.reopened_by = self.reopened_by
+        other.aborted_by = self.aborted_by
+        other.aborted_reply_with = self.aborted_reply_with
+        other.initiator_heard = self.initiator_heard
+        other.participant_heard = self.participant_heard
+        other.opening_reply_with = self.opening_reply_with
         other.latest_initiator = self.latest_initiator
         other.latest_participant = self.latest_participant
         return other
@@ -266,10 +279,26 @@ class CrossingTracker:
         first = self.protocol.next_state(self.protocol.initial, _role(role), _performative(performative))
         return first is not None
 
-    def abort(self) -> None:
-        """A not-understood ended the conversation (FIPA SC00037 §3.12): it is no longer
-        followed; later communicates in it are not checked."""
+    def abort(self, by: Role | None = None) -> None:
+        """A not-understood sent by ``by`` ended the conversation (FIPA SC00037 §3.12): from
+        now on only what the other party sent before it saw the not-understood (a communicate
+        the protocol allowed where the conversation stood) belongs to it (:func:`follow`)."""
+        if not self.aborted:
+            self.aborted_by = by
         self.aborted = True
+
+    def heard(self, role: Role | str) -> bool:
+        """Whether ``role`` has received a communicate here that it has not answered with
+        not-understood (see :attr:`initiator_heard`)."""
+        return self.initiator_heard if role == INITIATOR else self.participant_heard
+
+    def hear(self, role: Role | str, heard: bool = True) -> None:
+        """``role`` received a communicate of this conversation (``heard`` True), or answered
+        what it received with not-understood (False)."""
+        if role == INITIATOR:
+            self.initiator_heard = heard
+        else:
+            self.participant_heard = heard
 
     def forgotten(self) -> None:
         """Begin with a ``cancel`` of a conversation never seen: the participant may answer it
@@ -290,8 +319,9 @@ class CrossingTracker:
         reply_with: str | None = None,
         in_reply_to: str | None = None,
     ) -> str:
-        """Record that ``role`` sent ``performative`` (``terminal`` as in
-        :meth:`ConversationTracker.step`; None when unknown). Returns the new state of the
+        """Record that ``role`` sent ``performative`` (``terminal``: whether an ``inform``
+        reports a terminal L_SW state, for a protocol with terminal transitions; None when
+        unknown). Returns the new state of the
         first reading. Raises ProtocolViolation (describing the arrival-order reading) when
         no reading allows it; the tracker is then unchanged.
 
@@ -390,39 +420,60 @@ class CrossingTracker:
             # communicates arrive in the order they were sent
             tip = self._tip(r)
             for cur in tip:
-                for _, done, plain in self._advance(cur, s, late_ok=not own):
+                for _, done, plain in self._advance(cur, s, late_ok=not own and not seen, crossing=not seen):
                     after = self._after(tip, done)
                     out.append((self._trim(Reading(r.base, s[0], (*r.run, done), after)), plain))
             return out
         # s is from the other side: it may have been sent before any suffix of the run arrived
         for i in range(len(r.run), len(r.run) - 1 if seen else -1, -1):
             for before in self._replay(r.base, r.run[:i]):
-                for nxt, done, plain in self._advance(before, s, late_ok=not own):
+                for nxt, done, plain in self._advance(
+                    before, s, late_ok=not own and not seen, crossing=not seen
+                ):
                     if i == len(r.run):
                         out.append((Reading(before, s[0], (done,)), plain))
                     elif self._replay(nxt, r.run[i:]):
                         out.append((Reading(nxt, r.side, r.run[i:]), False))
         return out
 
-    def _advance(self, at: Position, s: Step, *, late_ok: bool) -> list[tuple[Position, Step, bool]]:
+    def _advance(
+        self, at: Position, s: Step, *, late_ok: bool, crossing: bool = True
+    ) -> list[tuple[Position, Step, bool]]:
         """The ways ``s`` may follow ``at``: each the next position, ``s`` with its
         ``terminal`` flag resolved, and True when the plain protocol allows it (False for a
-        late cancel, its answer, or a failed cancel resuming the conversation)."""
+        late cancel, its answer, or a failed cancel resuming the conversation); ``crossing``:
+        ``s`` may have crossed the other party's latest on the wire, so the protocol's
+        crossing transitions are open to it."""
         role, perf, terminal = s
         out: list[tuple[Position, Step, bool]] = []
         for flag in (False, True) if terminal is None else (terminal,):
             nxt = self.protocol.next_state(at.state, role, perf, flag)
+            plain = nxt is not None
+            went: str | None = None
+            if nxt is None and crossing:
+                if at.state == "cancelling" and at.resume is not None:
+                    # the participant's communicate sent before the cancel arrived: what the
+                    # state the cancel found allows (not what any cancellable state would)
+                    went = (
+                        self.protocol.next_state(at.resume, role, perf, flag) if role == PARTICIPANT else None
+                    )
+                    if went is not None:
+                        nxt = went if went in self.protocol.final else "cancelling"
+                else:
+                    nxt = self.protocol.crossing_transitions.get((at.state, role, perf))
             if nxt is None or any(p.state == nxt for p, _, _ in out):
                 continue
             resume = at.resume
             if nxt == "cancelling" and at.state != "cancelling":
                 resume = at.state
+            elif nxt == "cancelling" and went is not None:
+                resume = went  # the conversation the cancel found has moved on
             elif nxt != "cancelling":
                 resume = None
-            out.append((Position(nxt, at.owed, resume), (role, perf, flag), True))
+            out.append((Position(nxt, at.owed, resume), (role, perf, flag), plain))
             if nxt == "cancel-failed" and at.resume is not None:
                 # could not cancel: the conversation goes on where the cancel found it
-                out.append((Position(at.resume, at.owed), (role, perf, flag), True))
+                out.append((Position(at.resume, at.owed), (role, perf, flag), plain))
         if out:
             return out
         done: Step = (role, perf, bool(terminal))
@@ -495,8 +546,159 @@ _NOT_UNDERSTOOD: Final = Performative.NOT_UNDERSTOOD
 """Members asked of every communicate followed, looked up once (a member's lookup on its enum
 class is a Python call on CPython 3.11)."""
 
-Outcome = Literal["step", "crossing", "forgotten", "restart", "aborted", "unchecked"]
+Outcome = Literal["step", "crossing", "forgotten", "aborted", "copy"]
 """What :func:`follow` did with a communicate."""
+
+Refusal = ProtocolViolation | ConversationError
+"""Why a communicate has no place in its conversation (:func:`judge`)."""
+
+
+def _other(role: Role) -> Role:
+    return PARTICIPANT if role == INITIATOR else INITIATOR
+
+
+def judge(
+    tracker: CrossingTracker | None,
+    protocol: Protocol | str,
+    role: Role,
+    performative: Performative,
+    *,
+    terminal: bool | None = False,
+    local_role: Role | None = None,
+    reply_with: str | None = None,
+    in_reply_to: str | None = None,
+    copies: bool = True,
+) -> tuple[CrossingTracker, Outcome | None, Refusal | None]:
+    """Judge one communicate of ``protocol`` (a state machine: the specification's,
+    services/spec/protocol_defs.py ``machine_of``; or the name of one of FIPA's library,
+    :data:`~shared.fipa_codec.protocols.PROTOCOLS`) sent by ``role`` in the conversation
+    ``tracker`` follows (None: one not seen before). The one home of FIPA's rules on a
+    conversation (SC00026–SC00036 "Exceptions to IP Flow", SC00061 conversation-id), used by
+    the runtime (:class:`ProtocolStates`), ``roco spec verify``, the coverage of the
+    specification and the ROS 2 face:
+
+    - a communicate must be allowed where the conversation stands, allowing for what crossed
+      on the wire (:class:`CrossingTracker`); after the conversation's end nothing more
+      belongs to it, whoever sends it (but a cancel that crossed the end, and its answer);
+    - an opening communicate in a conversation already open or ended is refused: a
+      conversation-id names one conversation (SC00061); a new one needs a new id (a
+      byte-identical copy, a retransmission, is filtered before: services/runtime/dedup.py,
+      :attr:`services.report.load.Message.copy_of`);
+    - ``not-understood`` comes only from the receiver of a communicate of the conversation
+      (one received since it last sent anything there; SC00037 §3.12) and ends the
+      conversation; after it, only what the other party sent before it saw the not-understood
+      belongs to it (not what names it in its in-reply-to);
+    - a communicate of another protocol than the conversation's is refused
+      (:class:`ConversationError`);
+    - a ``cancel`` received for a conversation never seen (it ended long ago, or before a
+      restart) is taken (``forgotten``): the participant may answer it with ``failure``;
+    - with ``copies``, the opening communicate again, recognised by its reply-with (FIPA
+      SC00061 §2.4), is a retransmission (``copy``: not followed again): what an agent that
+      restarted, and lost the bytes it had seen, receives; ``roco spec verify``, which has the
+      bytes, judges a copy by them and passes False.
+
+    Returns the conversation's tracker (new when ``tracker`` is None; changed in place
+    otherwise), the outcome (``step``: allowed in arrival order; ``crossing``: allowed only
+    as crossing a communicate on the wire; ``forgotten``; ``aborted``: a not-understood that
+    ended the conversation) and None; or the tracker, None and the refusal, the tracker then
+    unchanged but for noting that the receiver heard something it may answer with
+    not-understood. Raises ValueError for an unknown protocol name or role."""
+    if role != INITIATOR and role != PARTICIPANT:
+        raise ValueError(f"role must be 'initiator' or 'participant', not {role!r}")
+    if tracker is None:
+        tracker = CrossingTracker(protocol, local_role=local_role)
+        if performative is _CANCEL and role == INITIATOR and local_role != INITIATOR:
+            tracker.forgotten()
+            tracker.latest_initiator = reply_with
+            tracker.hear(PARTICIPANT)
+            return tracker, "forgotten", None
+    if performative is _NOT_UNDERSTOOD:
+        if not tracker.heard(role):
+            return (
+                tracker,
+                None,
+                ProtocolViolation(
+                    tracker.protocol.name,
+                    "not-understood" if tracker.aborted else tracker.state,
+                    role,
+                    performative,
+                    [],
+                    note=(
+                        f"the {role} has received nothing in this conversation since it last sent "
+                        "something: not-understood answers a communicate received (FIPA SC00037 §3.12)"
+                    ),
+                ),
+            )
+        tracker.hear(role, False)
+        if not tracker.aborted:
+            tracker.aborted_reply_with = reply_with
+        tracker.abort(role)
+        return tracker, "aborted", None
+    name = protocol if isinstance(protocol, str) else protocol.name
+    if tracker.protocol is not protocol and tracker.protocol.name != name:
+        tracker.hear(_other(role))
+        tracker.hear(role, False)
+        return (
+            tracker,
+            None,
+            ConversationError(
+                f"the conversation follows {tracker.protocol.name}, not {name}; a conversation-id names "
+                f"one conversation (FIPA SC00061): a {name} conversation needs an id of its own"
+            ),
+        )
+    if (
+        copies
+        and reply_with
+        and reply_with == tracker.opening_reply_with
+        and role == INITIATOR
+        and _opens(tracker.protocol, role, performative)
+    ):
+        return tracker, "copy", None
+    opening = tracker.messages == 0
+    crossings = tracker.crossings
+    try:
+        if tracker.aborted and (
+            role == tracker.aborted_by
+            or (in_reply_to is not None and in_reply_to == tracker.aborted_reply_with)
+        ):  # its sender saw the not-understood that ended the conversation
+            raise ProtocolViolation(
+                tracker.protocol.name,
+                "not-understood",
+                role,
+                performative,
+                [],
+                finished=True,
+            )
+        tracker.advance(role, _performative(performative), terminal, reply_with, in_reply_to)
+    except ProtocolViolation as exc:
+        tracker.hear(_other(role))
+        tracker.hear(role, False)
+        if _opens(tracker.protocol, role, performative) and tracker.messages > 0:
+            return (
+                tracker,
+                None,
+                ProtocolViolation(
+                    exc.protocol,
+                    exc.state,
+                    role,
+                    performative,
+                    exc.allowed,
+                    finished=tracker.is_finished,
+                    note=(
+                        f"{performative.value} opens a conversation, and conversation-id names one "
+                        "conversation (FIPA SC00061): a new conversation needs a new conversation-id"
+                    ),
+                ),
+            )
+        return tracker, None, exc
+    tracker.hear(_other(role))
+    tracker.hear(role, False)
+    if opening:
+        tracker.opening_reply_with = reply_with
+    if tracker.aborted:  # sent before the other party's not-understood arrived
+        tracker.crossings += 1
+        return tracker, "crossing", None
+    return tracker, "crossing" if tracker.crossings > crossings else "step", None
 
 
 def follow(
@@ -509,79 +711,27 @@ def follow(
     local_role: Role | None = None,
     reply_with: str | None = None,
     in_reply_to: str | None = None,
+    copies: bool = True,
 ) -> tuple[CrossingTracker, Outcome]:
-    """Advance a conversation by one communicate of ``protocol`` (a state machine, or a
-    name in :data:`~shared.fipa_codec.protocols.PROTOCOLS`) sent by ``role``.
-
-    Returns the conversation's tracker (a new one when ``tracker`` is None or the
-    communicate opens the conversation anew) and what happened:
-
-    - ``step``: allowed in arrival order; ``crossing``: allowed only as crossing an
-      earlier communicate on the wire;
-    - ``forgotten``: a ``cancel`` received for a conversation never seen (it ended long
-      ago, or before a restart): the participant may answer it with ``failure``;
-    - ``restart``: an opening communicate (e.g. ``subscribe``) that the current state does
-      not allow starts the conversation anew: a retry, or a peer that restarted and reuses
-      the conversation-id;
-    - ``aborted``: a ``not-understood``: the conversation ends and is no longer followed
-      (FIPA SC00037 §3.12); ``unchecked``: a communicate after that.
-
-    ``reply_with`` and ``in_reply_to`` are the communicate's (see
-    :meth:`CrossingTracker.step`). ``tracker`` is changed in place. Raises ProtocolViolation
-    when the communicate is not allowed in the conversation's state, ConversationError when
-    the conversation follows another protocol and the communicate does not open a new one.
-    """
-    if tracker is None:
-        tracker = CrossingTracker(protocol, local_role=local_role)
-        if performative is _CANCEL and role == INITIATOR and local_role != INITIATOR:
-            tracker.forgotten()
-            tracker.latest_initiator = reply_with
-            return tracker, "forgotten"
-    if performative is _NOT_UNDERSTOOD:
-        tracker.abort()
-        return tracker, "aborted"
-    name = protocol if isinstance(protocol, str) else protocol.name
-    if (tracker.protocol is protocol or tracker.protocol.name == name) and not tracker.aborted:
-        return _one_step(tracker, protocol, role, performative, terminal, local_role, reply_with, in_reply_to)
-    opener = _opens(protocol, role, performative)
-    if tracker.protocol.name != name:
-        if not opener:
-            raise ConversationError(
-                f"the conversation follows {tracker.protocol.name}, not {name}; "
-                f"{performative.value} does not open a {name} conversation"
-            )
-        return _restart(protocol, role, performative, terminal, local_role, None, reply_with), "restart"
-    if opener:  # after a not-understood
-        return _restart(protocol, role, performative, terminal, local_role, None, reply_with), "restart"
-    return tracker, "unchecked"
-
-
-def _one_step(
-    tracker: CrossingTracker,
-    protocol: Protocol | str,
-    role: Role,
-    performative: Performative,
-    terminal: bool | None,
-    local_role: Role | None,
-    reply_with: str | None,
-    in_reply_to: str | None,
-) -> tuple[CrossingTracker, Outcome]:
-    """:func:`follow` in the usual case: one communicate in a conversation of its protocol
-    not ended by a not-understood."""
-    crossings = tracker.crossings
-    if role != INITIATOR and role != PARTICIPANT:
-        raise ValueError(f"role must be 'initiator' or 'participant', not {role!r}")
-    try:
-        tracker.advance(role, _performative(performative), terminal, reply_with, in_reply_to)
-    except ProtocolViolation:
-        if _crossed_reopening(tracker, role, performative, terminal):
-            return tracker, "crossing"
-        if not _opens(protocol, role, performative):
-            raise
-        return _restart(protocol, role, performative, terminal, local_role, tracker, reply_with), "restart"
-    if role != tracker.reopened_by:  # the other party answers the new opening: it saw it
-        tracker.superseded = None
-    return tracker, "crossing" if tracker.crossings > crossings else "step"
+    """Advance a conversation by one communicate as :func:`judge` rules (the same arguments
+    and outcomes); raises its refusal instead of returning it: ProtocolViolation when the
+    communicate is not allowed where the conversation stands, ConversationError when the
+    conversation follows another protocol. ``tracker`` is changed in place."""
+    tracker, outcome, refusal = judge(
+        tracker,
+        protocol,
+        role,
+        performative,
+        terminal=terminal,
+        local_role=local_role,
+        reply_with=reply_with,
+        in_reply_to=in_reply_to,
+        copies=copies,
+    )
+    if refusal is not None:
+        raise refusal
+    assert outcome is not None
+    return tracker, outcome
 
 
 def _machine(protocol: Protocol | str) -> Protocol:
@@ -597,47 +747,6 @@ def _opens(protocol: Protocol | str, role: Role, performative: Performative) -> 
     if role not in (INITIATOR, PARTICIPANT):
         return False
     return machine.next_state(machine.initial, _role(role), _performative(performative)) is not None
-
-
-def _restart(
-    protocol: Protocol | str,
-    role: Role,
-    performative: Performative,
-    terminal: bool | None,
-    local_role: Role | None,
-    before: CrossingTracker | None = None,
-    reply_with: str | None = None,
-) -> CrossingTracker:
-    """A new tracker of ``protocol`` opened by ``performative`` from ``role``; ``before``:
-    the conversation it makes anew (still open), kept for what crosses the opening."""
-    fresh = CrossingTracker(_machine(protocol), local_role=local_role)
-    fresh.step(role, performative, terminal=terminal, reply_with=reply_with)
-    if before is not None and not before.is_finished:
-        before.superseded = None  # one opening back only: memory stays bounded
-        fresh.superseded, fresh.reopened_by = before, role
-    return fresh
-
-
-def _crossed_reopening(
-    tracker: CrossingTracker, role: Role, performative: Performative, terminal: bool | None
-) -> bool:
-    """Whether a communicate from the party that did not make the conversation anew was sent
-    before that party saw the new opening: the conversation as it was allows it. E.g. a_km
-    subscribes to a_ta again when a_ta's token reappears after the robot's router came back;
-    a_ta, which kept its subscription, had sent an update in it that arrives after the new
-    subscribe (before this, a protocol violation: a_km answered not-understood, which ended
-    the conversation, and lost what a_ta had perceived). Counted as a crossing."""
-    before = tracker.superseded
-    if before is None or role == tracker.reopened_by:
-        return False
-    went_on = before.copy()
-    try:
-        went_on.step(role, performative, terminal=terminal)
-    except ProtocolViolation:
-        return False
-    tracker.superseded = went_on
-    tracker.crossings += 1
-    return True
 
 
 ConversationKey = tuple[str, str]
@@ -694,7 +803,7 @@ class ProtocolStates:
         # a tracker already stepped since the last commit is a copy no undo holds: stepped in
         # place (the communicates of one stream taken in together copy it once)
         work = old if key in self._undo or old is None else old.copy()
-        tracker, outcome = follow(
+        tracker, outcome, refusal = judge(
             work,
             protocol,
             role,
@@ -704,9 +813,14 @@ class ProtocolStates:
             reply_with=reply_with,
             in_reply_to=in_reply_to,
         )
+        if refusal is not None and old is None:
+            raise refusal  # no such conversation: the table stays without it
         if key not in self._undo:
             self._undo[key] = old
-        self._put(key, tracker)
+        self._put(key, tracker)  # refused: only that its receiver heard it is kept
+        if refusal is not None:
+            raise refusal
+        assert outcome is not None
         return outcome
 
     def _put(self, key: ConversationKey, tracker: CrossingTracker) -> None:

@@ -18,12 +18,18 @@ A folder is a run folder when it holds ``run.json`` or ``traffic.jsonl``
 from __future__ import annotations
 
 import errno
+import json
+import os
 import time
 from pathlib import Path
 
 import msgspec
 
+from shared.settings import PREFIX
+
 RUN_INFO = "run.json"
+LAUNCH_ENV = "launch_env.json"
+"""The run folder's record of the environment the launcher gives its processes."""
 TRAFFIC_JSONL = "traffic.jsonl"
 """The traffic record's metadata (services/recorder/record.py writes it)."""
 
@@ -150,3 +156,18 @@ def write_run_info(run_dir: Path, info: RunInfo) -> None:
 def read_run_info(run_dir: Path) -> RunInfo:
     """Read ``run.json``; raises FileNotFoundError or msgspec.DecodeError."""
     return msgspec.json.decode((run_dir / RUN_INFO).read_bytes(), type=RunInfo)
+
+
+def load_launch_env(run_dir: Path) -> dict[str, str] | None:
+    """The environment a fleet's processes were started with: this process's environment
+    without its ``ROCO_*`` variables, then those of ``launch_env.json``; None when the run
+    folder has no (readable) record."""
+    try:
+        kept = json.loads((run_dir / LAUNCH_ENV).read_text())
+    except (OSError, ValueError):
+        return None
+    if not isinstance(kept, dict):
+        return None
+    env = {k: v for k, v in os.environ.items() if not k.startswith(PREFIX)}
+    env.update({str(k): str(v) for k, v in kept.items()})
+    return env

@@ -7,7 +7,13 @@ random seconds after the one before, of a random kind (kill, pause, restart) and
 scenario runner injects them. :func:`verdict` reads the run folder's traffic record and
 answers what a fault-tolerant system must keep:
 
-- **task done** — every command ended as expected (a_hi's final report);
+- **task done** — every command ended as expected (a_hi's final report), and the world
+  agrees (:class:`WorldCheck`): in the final world (below; without it, as ag_ex last observed
+  it) each pour's target holds at least ``CONTENT_SHARE_REQUIRED`` of the content (90 %,
+  shared/fipa_codec/languages/l_hc.py: the share the planner's goal and a_ta's content check ask
+  for), counted by the simulation, not by the robot, and each object the plans a_ta ran put
+  down stands where the plan put it (:func:`planned_places`); the report says which side
+  disagreed;
 - **no command lost** — every command got a final report;
 - **nothing executed twice** — no request got two different final answers from the same
   agent (a retransmission answered from memory is byte-identical, so only a second
@@ -34,18 +40,21 @@ from __future__ import annotations
 
 import hashlib
 import logging
+import math
 import random
 from collections import defaultdict
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from services.fleet.launcher import load_launch_env
+import msgspec
+
 from services.hosts.fleet import ROUTERS
 from services.recorder.integrity import Integrity
 from services.recorder.record import read_link_events
 from services.report.ledger import LedgerVerdict, judge_ledger
 from services.report.load import Message, load_run
+from services.report.world import judged_world
 from services.scenario.model import (
     AGENTS,
     DEFAULT_COMMAND,
@@ -58,14 +67,14 @@ from services.scenario.model import (
 )
 from services.scenario.runner import LINK, FaultRecord, ScenarioOutcome
 from services.spec.model import default_spec
-from shared.fipa_codec.languages.l_sd import Observation
-from shared.settings import Settings
+from shared.fipa_codec.languages.l_hc import CONTENT_SHARE_REQUIRED, HumanCommand, TaskAtom
+from shared.fipa_codec.languages.l_hfsm import Assert, ExpectedPosition, HierarchicalPlan, Perceive, PlanNode
+from shared.fipa_codec.languages.l_sd import ObjectObservation, Observation
+from shared.fipa_codec.languages.l_sw import SWStatus
 
 DROPPED_BELOW_M = 0.5
 """An object whose base is below this height (m, world z) has fallen off its furniture."""
 CHAOS_FILE = "chaos.md"
-MAX_SCENE_BYTES = 1 << 20
-"""Largest final scene read (1 MiB; the kitchen's is 1.4 kB)."""
 log = logging.getLogger(__name__)
 SERVICE_ORDER = default_spec().agent_names
 """Every agent, in the specification's order (the order a seed shuffles)."""
@@ -156,27 +165,63 @@ def chaos_scenario(
     )
 
 
+LAST_OBSERVED = "the last observations during the run"
+"""Where the world is judged from without the world's final scene (``ROCO_WORLD=loop``)."""
+
+
+@dataclass
+class WorldCheck:
+    """The world's side of "task done" (the module docstring): ``found``, what in the world
+    contradicts the tasks, in words (empty: the world agrees); ``held``, what was checked and
+    holds, in words; ``judged_on``, where the world comes from (the world's final scene, or
+    :data:`LAST_OBSERVED`)."""
+
+    found: list[str] = field(default_factory=list)
+    held: list[str] = field(default_factory=list)
+    judged_on: str = LAST_OBSERVED
+
+    @property
+    def agrees(self) -> bool:
+        """Nothing in the world contradicts the tasks."""
+        return not self.found
+
+    def summary(self) -> str:
+        """The world's answer in words: "agrees: the bowl holds 18 of 18 spheres; …" or
+        "**disagrees**: …", then where it was judged from."""
+        if self.agrees:
+            return f"agrees: {'; '.join(self.held) or 'nothing to check'} (judged on {self.judged_on})"
+        return f"**disagrees**: {'; '.join(self.found)} (judged on {self.judged_on})"
+
+
 @dataclass
 class Verdict:
-    """What a chaos run kept (see the module docstring). ``executed_twice``: requests
+    """What a chaos run kept (see the module docstring). ``reported_done``: a_hi's final
+    reports say every command ended as expected; ``world``: whether the world agrees that the
+    tasks are done; ``executed_twice``: requests
     answered twice differently, as "sender: conversation"; ``dropped``: objects found below
     ``DROPPED_BELOW_M``, with their height (m); ``last_observation``: every movable object's
     height is known; ``judged_on``: where the heights come from (the world's final scene, or the
     last observations during the run); ``record``: the traffic record's integrity; ``ledger``:
     ag_ex's ledger held against the record (its faults count as executed twice)."""
 
-    task_done: bool
+    reported_done: bool
+    world: WorldCheck
     commands_lost: int
     executed_twice: list[str] = field(default_factory=list)
     dropped: dict[str, float] = field(default_factory=dict)
     last_observation: bool = False
     faults_during_command: int = 0
     faults: int = 0
-    judged_on: str = "the last observations during the run"
+    judged_on: str = LAST_OBSERVED
     record: Integrity = field(default_factory=Integrity)
     raised: str = ""
     """What the agents raised (services/runtime/raised.py ``raised_text``); "" when none did."""
     ledger: LedgerVerdict = field(default_factory=LedgerVerdict)
+
+    @property
+    def task_done(self) -> bool:
+        """The messages say every command ended as expected, and the world agrees."""
+        return self.reported_done and self.world.agrees
 
     @property
     def once(self) -> bool:
@@ -212,31 +257,151 @@ def _executed_twice(messages: Sequence[Message]) -> list[str]:
     return sorted(f"{s}: {where[(s, r)]}" for (s, r), v in answers.items() if len(v) > 1)
 
 
-def _last_heights(messages: Sequence[Message]) -> dict[str, float]:
-    """Each movable object's height (m) at its last observation."""
-    last: dict[str, float] = {}
+def _heights(world: Observation | None) -> dict[str, float]:
+    """Height (m, world z) of each movable object in ``world`` (none when None)."""
+    return {o.name: o.pose.position[2] for o in world.objects if o.name in MOVABLE} if world else {}
+
+
+def last_observed(messages: Sequence[Message]) -> Observation | None:
+    """The world as last observed during the run (every L_SD ``Observation`` in the record, in
+    order): each object as its last observation saw it, a container's ``particles_inside`` from
+    the last observation that counted it, ``total_particles`` from the last that stated it; the
+    last one's ``stamp``. None when nothing was observed."""
+    objects: dict[str, ObjectObservation] = {}
+    counted: dict[str, int] = {}
+    total, stamp = 0, 0.0
     for m in messages:
-        if m.comm is not None and isinstance(m.content, Observation):
-            last.update({o.name: o.pose.position[2] for o in m.content.objects if o.name in MOVABLE})
-    return last
+        if m.comm is None or not isinstance(m.content, Observation):
+            continue
+        for o in m.content.objects:
+            objects[o.name] = o
+            if o.particles_inside is not None:
+                counted[o.name] = o.particles_inside
+        total, stamp = m.content.total_particles or total, m.content.stamp
+    if not objects:
+        return None
+    seen = tuple(msgspec.structs.replace(o, particles_inside=counted.get(o.name)) for o in objects.values())
+    return Observation(stamp=stamp, objects=seen, total_particles=total)
+
+
+def command_goals(messages: Sequence[Message]) -> list[TaskAtom]:
+    """The tasks the person's commands named (a_hi's C2 ``request`` of an L_HC
+    ``HumanCommand`` to a_co: its ``goal``), in the order first asked, each once."""
+    goals: list[TaskAtom] = []
+    for m in messages:
+        if (
+            m.is_("C2", "a_hi", "request")
+            and isinstance(m.content, HumanCommand)
+            and m.content.goal not in goals
+        ):
+            goals.append(m.content.goal)
+    return goals
+
+
+def planned_places(messages: Sequence[Message]) -> dict[str, ExpectedPosition]:
+    """Where the plans a_ta ran last put each object down: the expected position (world, m,
+    with its tolerance and upright limit) of each placement-judging Perceive leaf (L_HFSM
+    ``Perceive.judges``: the look after a set-down, services/agents/planner/hfsm.py) that a_ta
+    began, the set-down before it having run. a_ta tells a_co each leaf it begins (C1, L_SW
+    ``SWStatus.step``) of the plan it was sent (C1, ``HierarchicalPlan``; its safe stops'
+    leaves too). An object a leaf begun later asserts held (L_HFSM ``Assert`` ``heldBy``) was
+    taken again and has no place; a report of a plan not in the record is skipped."""
+    plans: dict[str, dict[str, PlanNode]] = {}
+    places: dict[str, ExpectedPosition] = {}
+    for m in messages:
+        if m.channel != "C1" or m.comm is None:
+            continue
+        if isinstance(m.content, HierarchicalPlan):
+            plans.setdefault(m.content.plan_id, _leaves(m.content))
+        elif isinstance(m.content, SWStatus) and m.content.step is not None:
+            node = plans.get(m.content.plan_id, {}).get(m.content.step)
+            _begun(places, node.action if node is not None else None)
+    return places
+
+
+def _leaves(plan: HierarchicalPlan) -> dict[str, PlanNode]:
+    """The leaves of ``plan`` and of its safe stops, by path."""
+    return dict([*plan.root.leaves(), *(leaf for stop in plan.safe_stops.values() for leaf in stop.leaves())])
+
+
+def _begun(places: dict[str, ExpectedPosition], action: object) -> None:
+    """What a leaf a_ta began changes in ``places``: a placement-judging look puts its objects
+    where it expects them; an assertion that an object is held takes it from its place."""
+    if isinstance(action, Perceive) and action.judges:
+        places.update({e.object: e for e in action.expect})
+    elif isinstance(action, Assert) and action.relation == "heldBy" and action.object:
+        places.pop(action.subject, None)
+
+
+def judge_world(
+    world: Observation | None,
+    goals: Sequence[TaskAtom],
+    places: dict[str, ExpectedPosition],
+    judged_on: str,
+) -> WorldCheck:
+    """Whether ``world`` (None: not known) shows the tasks done: the target of each pour in
+    ``goals`` (``TaskAtom("pour", (source, target))``) holds at least ``CONTENT_SHARE_REQUIRED``
+    of ``world.total_particles`` (the share a_ta's content check compares), and each object of
+    ``places`` stands within its ``tolerance`` (m) of its ``position`` (world, m) and, when
+    ``max_tilt`` is given, leans no more than that (rad) from upright (a_ta's judgement of a
+    placement). Other goals are judged by the places alone. ``judged_on`` names the world."""
+    check = WorldCheck(judged_on=judged_on)
+    seen = {o.name: o for o in world.objects} if world is not None else {}
+    total = world.total_particles if world is not None else 0
+    for goal in goals:
+        if goal.name == "pour" and len(goal.args) == 2:
+            _judge_pour(check, seen.get(goal.args[1]), goal.args[1], total)
+    for name, place in places.items():
+        _judge_place(check, seen.get(name), name, place)
+    return check
+
+
+def _judge_pour(check: WorldCheck, target: ObjectObservation | None, name: str, total: int) -> None:
+    """Whether the pour's ``target`` (``name``) holds its share of the ``total`` spheres."""
+    if target is None or target.particles_inside is None or total <= 0:
+        check.found.append(f"the {name}'s content is not known")
+        return
+    holds = f"the {target.name} holds {target.particles_inside} of {total} spheres"
+    if target.particles_inside / total >= CONTENT_SHARE_REQUIRED:
+        check.held.append(holds)
+    else:
+        check.found.append(f"{holds}, fewer than the {100 * CONTENT_SHARE_REQUIRED:.0f} % a pour needs")
+
+
+def _judge_place(check: WorldCheck, o: ObjectObservation | None, name: str, place: ExpectedPosition) -> None:
+    """Whether the object ``o`` (``name``) stands where the plan put it, upright enough."""
+    if o is None:
+        check.found.append(f"the {name} is not known (the plan put it down)")
+        return
+    wrong = []
+    if (d := math.dist(o.pose.position, place.position)) > place.tolerance:
+        wrong.append(f"the {name} stands {100 * d:.1f} cm from where the plan put it")
+    if place.max_tilt is not None and (tilt := o.pose.tilt()) > place.max_tilt:
+        wrong.append(f"the {name} leans {math.degrees(tilt):.0f}°")
+    if wrong:
+        check.found.extend(wrong)
+    else:
+        check.held.append(f"the {name} stands where the plan put it")
 
 
 def verdict(run_dir: Path, outcome: ScenarioOutcome) -> Verdict:
-    """Judge a chaos run from its outcome, its run folder's traffic record and ag_ex's ledger
-    (the six questions of the module docstring, the last from ``outcome``). Raises
-    FileNotFoundError when ``run_dir`` is not a folder; a missing or corrupt traffic record reads
-    as no traffic (services/report/load.py), a missing ledger as an empty one; OSError when the
-    ledger cannot be read."""
+    """Judge a chaos run from its outcome, its run folder's traffic record, the world's final
+    scene and ag_ex's ledger (the six questions of the module docstring, the last from
+    ``outcome``). Raises FileNotFoundError when ``run_dir`` is not a folder; a missing or
+    corrupt traffic record reads as no traffic (services/report/load.py), a missing or unfit
+    final scene as none (the world then as last observed), a missing ledger as an empty one;
+    OSError when the ledger cannot be read."""
     run = load_run(run_dir)
     twice = _executed_twice(run.messages)
-    last = _last_heights(run.messages)
-    final = final_heights(run_dir)
-    judged_on = Verdict.judged_on
-    if final is not None:
-        last, judged_on = final[0], f"the final world ({final[1]})"
+    judged = judged_world(run_dir)
+    world, judged_on = last_observed(run.messages), LAST_OBSERVED
+    if judged is not None:
+        world, judged_on = judged[0], f"the final world ({judged[1]})"
+    last = _heights(world)
     dropped = {name: round(z, 3) for name, z in last.items() if z < DROPPED_BELOW_M}
     return Verdict(
-        task_done=outcome.ok,
+        reported_done=outcome.ok,
+        world=judge_world(world, command_goals(run.messages), planned_places(run.messages), judged_on),
         commands_lost=sum(c.final is None for c in outcome.commands),
         executed_twice=twice,
         dropped=dropped,
@@ -250,36 +415,6 @@ def verdict(run_dir: Path, outcome: ScenarioOutcome) -> Verdict:
     )
 
 
-def final_world(run_dir: Path) -> Observation | None:
-    """The ground truth of the world as the run left it (``judged_world``), None without one."""
-    judged = judged_world(run_dir)
-    return None if judged is None else judged[0]
-
-
-def judged_world(run_dir: Path) -> tuple[Observation, str] | None:
-    """The ground truth of the world as the run left it in ``run_dir`` (every known object's
-    pose, containers' particle counts): the world process's final scene (velma/world/files.py
-    ``FINAL_FILE``) for the scene the launch environment names (ROCO_SEED, ROCO_POSE_SEED): for
-    judging a run, never for the agents; with where it comes from. None when there is none
-    (``ROCO_WORLD=loop``), or it does not fit (logged)."""
-    from velma.executor.checkpoint import observe_scene
-    from velma.world.files import FINAL_FILE
-
-    scene = run_dir / FINAL_FILE
-    if not scene.is_file():
-        return None
-    env = load_launch_env(run_dir) or {}
-    try:
-        read = Settings.from_env(env, only=("seed", "pose_seed"))
-        seed, pose_seed = read.seed, read.pose_seed
-        if (size := scene.stat().st_size) > MAX_SCENE_BYTES:
-            raise ValueError(f"{size} B: not a scene of the kitchen")
-        return observe_scene(scene.read_bytes(), seed=seed, pose_seed=pose_seed), "the world's final scene"
-    except (OSError, ValueError) as exc:
-        log.warning("final world not judged from %s: %s", scene, exc)
-        return None
-
-
 def final_heights(run_dir: Path) -> tuple[dict[str, float], str] | None:
     """Height (m, world z) of each movable object in ``judged_world``, and where it comes
     from; None without one."""
@@ -287,7 +422,7 @@ def final_heights(run_dir: Path) -> tuple[dict[str, float], str] | None:
     if judged is None:
         return None
     obs, source = judged
-    return {o.name: o.pose.position[2] for o in obs.objects if o.name in MOVABLE}, source
+    return _heights(obs), source
 
 
 def _mark(ok: bool) -> str:
@@ -316,7 +451,7 @@ def write_chaos_report(run_dir: Path, scenario: Scenario, outcome: ScenarioOutco
         "",
         "| question | answer |",
         "|---|---|",
-        f"| task done | {_mark(v.task_done)} |",
+        _task_row(v),
         f"| no command lost | {_mark(v.commands_lost == 0)} ({v.commands_lost} lost) |",
         _once_row(v),
         f"| no object dropped | {_mark(not v.dropped and v.last_observation)} "
@@ -338,6 +473,12 @@ def write_chaos_report(run_dir: Path, scenario: Scenario, outcome: ScenarioOutco
     path = run_dir / CHAOS_FILE
     path.write_text("\n".join(lines))
     return path
+
+
+def _task_row(v: Verdict) -> str:
+    """The "task done" row: what a_hi's reports said, then whether the world agrees."""
+    reports = "done" if v.reported_done else "**not done**"
+    return f"| task done | {_mark(v.task_done)} a_hi's reports: {reports}; the world: {v.world.summary()} |"
 
 
 def _once_row(v: Verdict) -> str:

@@ -13,6 +13,7 @@ concrete agent name plays (``da0@host:1099/JADE`` plays ``x_fipa``).
 
 from __future__ import annotations
 
+import datetime
 from collections.abc import Mapping
 from dataclasses import dataclass
 from functools import cache
@@ -63,10 +64,16 @@ class ExternalSpec(msgspec.Struct, frozen=True, forbid_unknown_fields=True):
 
 class ProtocolRoles(msgspec.Struct, frozen=True, forbid_unknown_fields=True):
     """Performatives each role of an interaction protocol may send, and optionally its state
-    machine (validated and built by services/spec/protocol_defs.py)."""
+    machine (validated and built by services/spec/protocol_defs.py; ``crossing``: the
+    transitions only a communicate that crossed the other party's latest may take).
 
-    initiator: tuple[str, ...]
-    participant: tuple[str, ...]
+    A ``[protocols.NAME]`` table may leave out ``initiator`` and ``participant``: :func:`load`
+    fills them with what the protocol's state machine lets each role send
+    (services/spec/protocol_defs.py ``role_lists``); a Struct built in Python gets what it is
+    given (empty by default)."""
+
+    initiator: tuple[str, ...] = ()
+    participant: tuple[str, ...] = ()
     initial: str | None = None
     final: tuple[str, ...] = ()
     transitions: tuple[tuple[str, str, str, str], ...] = ()
@@ -74,6 +81,7 @@ class ProtocolRoles(msgspec.Struct, frozen=True, forbid_unknown_fields=True):
     terminal: tuple[tuple[str, str, str, str], ...] = ()
     description: str = ""
     spec: str = ""
+    crossing: tuple[tuple[str, str, str, str], ...] = ()
 
 
 class ChannelProtocol(msgspec.Struct, frozen=True, forbid_unknown_fields=True):
@@ -266,23 +274,56 @@ def _check_channel(spec: SystemSpec, ch: ChannelSpec, path: Path) -> None:
 
 
 def load(path: Path = DEFAULT_SPEC) -> SystemSpec:
-    """Load and cross-check a specification and register its agents' own content terms
+    """Load and cross-check a specification, fill in the role lists a ``[protocols.NAME]``
+    table leaves out (:func:`_with_role_lists`) and register its agents' own content terms
     (``terms``: services/spec/terms.py), so that every process that loads it decodes them.
     Raises SpecError, one line naming the file and the place: line and column for TOML syntax,
     the key path (``$.channels[0].ends``) for a wrong type or unknown field, the channel for an
-    unknown agent or protocol, the agent for a terms module that cannot be registered."""
+    unknown agent or protocol, the protocol whose role lists cannot be derived (its declared
+    state machine breaks a rule, or it has none), the agent for a terms module that cannot be
+    registered."""
     text = read_text(path)
     try:
-        spec = msgspec.toml.decode(text, type=SystemSpec)
+        raw = msgspec.toml.decode(text)
+        # as msgspec.toml.decode(text, type=SystemSpec) converts, keeping the plain tables
+        spec = msgspec.convert(
+            raw, SystemSpec, str_keys=True, builtin_types=(datetime.datetime, datetime.date, datetime.time)
+        )
     except (msgspec.DecodeError, msgspec.ValidationError) as exc:
         raise SpecError(f"{path}: {one_line(exc)}") from None
     _check_agents(spec, path)
     for ch in spec.channels:
         _check_channel(spec, ch, path)
+    spec = _with_role_lists(spec, raw.get("protocols", {}), path)
     from services.spec.terms import register_terms  # it reads this module's types
 
     register_terms(spec, path)
     return spec
+
+
+def _with_role_lists(spec: SystemSpec, tables: Mapping[str, Mapping[str, object]], path: Path) -> SystemSpec:
+    """``spec`` with the ``initiator``/``participant`` lists its ``[protocols.NAME]``
+    ``tables`` leave out filled in: what the protocol's state machine (declared in the table,
+    else built in) lets each role send (services/spec/protocol_defs.py ``role_lists``). Raises
+    SpecError naming ``path`` and the protocol when its declared machine breaks a rule or it
+    has none."""
+    missing = [
+        name for name, table in tables.items() if "initiator" not in table or "participant" not in table
+    ]
+    if not missing:
+        return spec
+    from services.spec.protocol_defs import role_lists  # it reads this module's types
+
+    protocols = dict(spec.protocols)
+    for name in missing:
+        table, roles = tables[name], protocols[name]
+        initiator, participant = role_lists(name, table, source=path)
+        protocols[name] = msgspec.structs.replace(
+            roles,
+            initiator=roles.initiator if "initiator" in table else initiator,
+            participant=roles.participant if "participant" in table else participant,
+        )
+    return msgspec.structs.replace(spec, protocols=protocols)
 
 
 def spec_path(*environs: Mapping[str, str]) -> Path:

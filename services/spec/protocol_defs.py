@@ -1,13 +1,11 @@
 """Interaction protocols declared as data in a specification file (paper §4 step 3: "the
 interaction protocol specifies the pattern of communication between the agents").
 
-Besides the performatives each role may send, a ``[protocols.NAME]`` table may carry the
-protocol's state machine, with the meaning of :func:`shared.fipa_codec.protocols._build`
-(the builder of the FIPA SC00025 library in :mod:`shared.fipa_codec.protocols`)::
+A ``[protocols.NAME]`` table may carry the protocol's state machine, with the meaning of
+:func:`shared.fipa_codec.protocols._build` (the builder of the FIPA SC00025 library in
+:mod:`shared.fipa_codec.protocols`)::
 
     [protocols.ask]
-    initiator = ["request", "cancel"]            # what each role may send (services.spec.model)
-    participant = ["agree", "refuse", "failure", "inform"]
     initial = "start"                            # optional, default "start"
     final = ["refused", "failed", "done"]
     transitions = [                              # [state, sender's role, performative, next state]
@@ -18,28 +16,44 @@ protocol's state machine, with the meaning of :func:`shared.fipa_codec.protocols
       ["agreed", "participant", "failure", "failed"],
     ]
     cancellable = ["requested", "agreed"]        # optional: the cancel meta-protocol (SC00026 §2)
-    terminal = [["agreed", "participant", "inform", "done"]]   # optional: taken by an inform
-                                                 # flagged terminal (as in coordinate, paper §5.4)
+    terminal = []                                # optional: taken by an inform flagged terminal
+    crossing = []                                # optional: taken by a communicate that crossed
     description = "..."                          # optional
     spec = "FIPA SC00026"                        # optional: where the protocol comes from
+    initiator = ["request", "cancel"]            # optional: what each role may send
+    participant = ["agree", "refuse", "failure", "inform"]
+
+FIPA's protocols are built in (:data:`shared.fipa_codec.protocols.PROTOCOLS`; their table
+may be empty); the application's are declared (the shipped ``coordinate``, paper §5.4
+Figure 8, and ``roco-notify``). ``terminal`` and ``crossing`` are transitions as
+``transitions`` are: ``terminal`` ones taken by an ``inform`` that reports a terminal L_SW
+state (coordinate's), ``crossing`` ones only by a communicate that crossed the other party's
+latest on the wire (:attr:`shared.fipa_codec.protocols.Protocol.crossing_transitions`: the
+deadlock explorer takes them, the runtime's follower only for a communicate that does not
+answer that latest); a crossing transition joins states the transitions name, where no
+transition has its (state, role, performative).
+
+A table that leaves ``initiator`` or ``participant`` out gets what the machine's transitions
+(plain, terminal, crossing, the cancel meta-protocol's among them) let that role send, in the
+order they first appear, never ``not-understood`` (:func:`role_lists`, called by
+:func:`services.spec.model.load`, which fails when that machine breaks a rule or there is
+none). A list given is kept: it may narrow a built-in machine (:func:`role_mismatches` says
+where the two disagree); a declared machine's transitions must be ones it allows.
 
 ``cancellable`` adds, from each state listed, ``cancel`` by the initiator to ``cancelling``,
 answered by the participant's ``inform`` (``cancelled``) or ``failure`` (``cancel-failed``),
-and an ``agree`` crossing the ``cancel`` (when the participant may agree at all); further
-transitions out of ``cancelling`` may be listed, e.g. a ``refuse`` that crossed the cancel:
-``["cancelling", "participant", "refuse", "refused"]``. ``not-understood`` is implicit:
-either role may send it in every state after the first that is not final (FIPA SC00037
-§3.12), ending the conversation in the final state ``not-understood``; a table must not list
-it. A *one-message* protocol (FIPA's notifications: the initiator's ``inform`` ends the
-conversation) is valid and has no such state; a not-understood answering its one message
-ends the conversation in the runtime and in ``roco spec verify`` as any not-understood does
+and crossing transitions out of ``cancelling`` for what the participant may send in a
+cancellable state (a final answer ends the conversation, an ``agree`` leaves it cancelling),
+each replaced by a transition the table lists there. ``not-understood`` is implicit: either
+role may send it in every state after the first that is not final (FIPA SC00037 §3.12), ending
+the conversation in the final state ``not-understood``; a table must not list it. A
+*one-message* protocol (the initiator's ``inform`` ends it) has no such state; a
+not-understood answering its one message ends the conversation as any does
 (services/runtime/protocol_state.py :func:`~services.runtime.protocol_state.follow`).
 
 Every rule a table must satisfy, with the error that names it and what to change, is in
-docs/spec.md ("Declaring a protocol's state machine"); each error says what to change.
-
-:func:`protocols_of` gives, for every protocol a specification names, its declared state
-machine or else the built-in one of :data:`shared.fipa_codec.protocols.PROTOCOLS`.
+docs/spec.md ("Declaring a protocol's state machine"). :func:`protocols_of` gives, for every
+protocol a specification names, its declared state machine or else the built-in one.
 """
 
 from __future__ import annotations
@@ -72,11 +86,15 @@ __all__ = [
     "protocol_from_table",
     "protocols_of",
     "read_raw",
+    "role_lists",
     "role_mismatches",
+    "sends",
     "streams",
 ]
 
-MACHINE_KEYS: frozenset[str] = frozenset({"initial", "final", "transitions", "cancellable", "terminal"})
+MACHINE_KEYS: frozenset[str] = frozenset(
+    {"initial", "final", "transitions", "cancellable", "terminal", "crossing"}
+)
 """Keys of a ``[protocols.NAME]`` table that declare a state machine."""
 
 TABLE_KEYS: frozenset[str] = MACHINE_KEYS | {"initiator", "participant", "description", "spec"}
@@ -204,11 +222,13 @@ def _checked_build(
     table: Mapping[str, Any],
     where: str,
     edges: list[tuple[int, Edge]],
-    terminal: list[tuple[int, Edge]],
+    extra: tuple[list[tuple[int, Edge]], list[tuple[int, Edge]]],
     states: tuple[str, list[str], list[str]],
 ) -> Protocol:
-    """The machine built (``states``: initial, final, cancellable), every state reachable and a
-    final state reachable from every state."""
+    """The machine built (``extra``: the terminal and the crossing transitions; ``states``:
+    initial, final, cancellable), every state reachable and a final state reachable from every
+    state."""
+    terminal, crossing = extra
     initial, final, cancellable = states
     _check_reachable(initial, final, [*edges, *terminal], cancellable, where)
     try:
@@ -221,6 +241,7 @@ def _checked_build(
             cancellable=cancellable,
             terminal_edges=[edge for _, edge in terminal],
             initial=initial,
+            crossing_edges=[edge for _, edge in crossing],
         )
     except ValueError as exc:
         text = str(exc).removeprefix(f"protocol {name}: ").removeprefix(f"{name}: ")
@@ -276,7 +297,7 @@ def _table_of(roles: ProtocolRoles) -> dict[str, Any]:
     lists always, other keys when given)."""
     table: dict[str, Any] = {}
     for key, value in msgspec.structs.asdict(roles).items():
-        if key in ("transitions", "terminal"):
+        if key in ("transitions", "terminal", "crossing"):
             value = [list(t) for t in value]
         elif isinstance(value, tuple):
             value = list(value)
@@ -352,12 +373,14 @@ def _performative(perf_name: str, here: str) -> Performative:
 def protocol_from_table(name: str, table: Mapping[str, Any], *, source: str | Path | None = None) -> Protocol:
     """Build protocol ``name`` from its ``[protocols.NAME]`` table (see the module docstring).
 
-    Every transition is checked: four strings, a known role, a FIPA performative (FIPA
-    SC00037) that the role's ``initiator``/``participant`` list allows when the table has
-    that list, the initiator's out of the initial state, no second target for the same
-    (state, role, performative), no transition out of a final state; then the machine itself
-    (the initial state not final, every state reachable, a final state reachable from every
-    state; :class:`shared.fipa_codec.protocols.Protocol`). Raises
+    Every transition (plain, terminal or crossing) is checked: four strings, a known role, a
+    FIPA performative (FIPA SC00037) that the role's ``initiator``/``participant`` list
+    allows when the table has that list, the initiator's out of the initial state, no second
+    target for the same (state, role, performative), no transition out of a final state; a
+    crossing transition joins states the other transitions name and has no (state, role,
+    performative) of a transition's; then the machine itself (the initial state not final,
+    every state reachable, a final state reachable from every state;
+    :class:`shared.fipa_codec.protocols.Protocol`). Raises
     :class:`services.spec.model.SpecError` naming ``source`` (the file), the protocol and
     the offending entry, and saying what to change (docs/spec.md lists every rule).
     """
@@ -372,21 +395,61 @@ def protocol_from_table(name: str, table: Mapping[str, Any], *, source: str | Pa
             f'["{initial}", "initiator", performative, state]'
         )
     terminal = _edges(table.get("terminal", []), "terminal transition", where, lists)
+    crossing = _edges(table.get("crossing", []), "crossing transition", where, lists)
     cancellable = _names(table.get("cancellable", []), "cancellable", where)
     states = {initial} | set(final)
     for _, (source_state, _, _, target) in [*edges, *terminal]:
         states |= {source_state, target}
     _check_cancellable(cancellable, states, final, lists, where)
-    _check_group("transition", edges, (initial, final), _cancel_meta(cancellable, edges), where)
+    meta = _cancel_meta(cancellable)
+    _check_group("transition", edges, (initial, final), meta, where)
     _check_group("terminal transition", terminal, (initial, final), {}, where)
-    return _checked_build(name, table, where, edges, terminal, (initial, final, cancellable))
+    _check_group("crossing transition", crossing, (initial, final), {}, where)
+    if cancellable:
+        states |= {"cancelling", "cancelled", "cancel-failed"}
+    _check_crossing(crossing, edges, meta, states, where)
+    return _checked_build(name, table, where, edges, (terminal, crossing), (initial, final, cancellable))
+
+
+def _check_crossing(
+    crossing: list[tuple[int, Edge]],
+    edges: list[tuple[int, Edge]],
+    meta: Mapping[tuple[str, Role, Performative], str],
+    states: set[str],
+    where: str,
+) -> None:
+    """Each crossing transition joins ``states`` (those the other transitions name, the cancel
+    meta-protocol's included) and is taken only where no transition is: no transition of
+    ``edges`` nor of the cancel meta-protocol (``meta``) has its (state, role, performative)."""
+    plain = {(source, role, perf): n for n, (source, role, perf, _) in edges}
+    for n, edge in crossing:
+        source, role, perf, target = edge
+        here = f"{where}: crossing transition {n} {_show(edge)}"
+        for state in (source, target):
+            if state not in states:
+                raise SpecError(
+                    f"{here}: {state!r} is no state of the transitions; a crossing transition joins "
+                    "states the transitions name: name one of them, or add a transition into it"
+                )
+        key = (source, role, perf)
+        if key in plain:
+            raise SpecError(
+                f"{here} is also transition {plain[key]}: a crossing transition is taken only where "
+                "no transition is (by a communicate that crossed the other party's latest); remove "
+                "one of the two"
+            )
+        if key in meta:
+            raise SpecError(
+                f"{here} is also a transition of the cancel meta-protocol ('cancellable'), which "
+                f"leads there to {meta[key]!r}; remove it"
+            )
 
 
 def protocols_of(path: Path = DEFAULT_SPEC) -> dict[str, Protocol]:
     """Every protocol specification ``path`` names, by name, in the order of the file: the
     state machine its ``[protocols.NAME]`` table declares, or else the built-in one of
-    :data:`shared.fipa_codec.protocols.PROTOCOLS` (FIPA SC00026, SC00027, SC00035, ... and
-    the paper's ``coordinate``). Raises SpecError when the file is invalid
+    :data:`shared.fipa_codec.protocols.PROTOCOLS` (FIPA SC00026, SC00027, SC00035, ...; the
+    paper's ``coordinate`` is declared in the shipped file). Raises SpecError when the file is invalid
     (:func:`services.spec.model.load`), a declared machine is malformed, or a protocol has
     neither."""
     spec = load(path)
@@ -477,17 +540,45 @@ def _streams(machine: Protocol) -> bool:
     )
 
 
+def sends(machine: Protocol, role: Role) -> tuple[str, ...]:
+    """The performatives ``machine``'s transitions let ``role`` send: plain, terminal and
+    crossing (the cancel meta-protocol's are among the plain ones), each once, in the order
+    they first appear there; ``not-understood`` left out (always allowed, FIPA SC00037
+    §3.12)."""
+    found: dict[str, None] = {}
+    for table in (machine.transitions, machine.terminal_transitions, machine.crossing_transitions):
+        for _, sender, perf in table:
+            if sender == role and perf is not Performative.NOT_UNDERSTOOD:
+                found.setdefault(perf.value, None)
+    return tuple(found)
+
+
+def role_lists(
+    name: str, table: Mapping[str, Any], *, source: str | Path | None = None
+) -> tuple[tuple[str, ...], tuple[str, ...]]:
+    """What the initiator and the participant of protocol ``name`` may send by its state
+    machine (:func:`sends`): the one its ``[protocols.NAME]`` table declares, else the built-in
+    one of :data:`shared.fipa_codec.protocols.PROTOCOLS`; the lists a table that leaves them
+    out gets (:func:`services.spec.model.load`). Raises SpecError naming ``source`` (the
+    file) when the declared machine breaks a rule (:func:`protocol_from_table`) or there is
+    no machine."""
+    if declares_state_machine(table):
+        machine = protocol_from_table(name, table, source=source)
+    elif name in PROTOCOLS:
+        machine = PROTOCOLS[name]
+    else:
+        raise SpecError(f"{source}: {_no_machine(name)}" if source is not None else _no_machine(name))
+    return sends(machine, INITIATOR), sends(machine, PARTICIPANT)
+
+
 def role_mismatches(protocol: Protocol, roles: ProtocolRoles) -> list[str]:
     """Where a protocol's state machine and the spec's role lists disagree, as sentences:
     performatives a role may send by its list that no transition allows (a
-    ConversationTracker would reject them), and performatives a transition lets a role send
-    that its list does not name (the runtime's check against the spec would reject them).
-    ``not-understood`` is left out: it is always allowed."""
+    protocol state would refuse them), and performatives a transition (plain, terminal or
+    crossing) lets a role send that its list does not name (the runtime's check against the
+    spec would reject them). ``not-understood`` is left out: it is always allowed."""
     out: list[str] = []
-    machine: dict[str, set[str]] = {INITIATOR: set(), PARTICIPANT: set()}
-    for (_, role, perf), _ in [*protocol.transitions.items(), *protocol.terminal_transitions.items()]:
-        if perf is not Performative.NOT_UNDERSTOOD:
-            machine[role].add(perf.value)
+    machine = {role: set(sends(protocol, role)) for role in (INITIATOR, PARTICIPANT)}
     for role, listed in ((INITIATOR, roles.initiator), (PARTICIPANT, roles.participant)):
         declared = set(listed) - {Performative.NOT_UNDERSTOOD.value}
         only_list = sorted(declared - machine[role])
@@ -495,7 +586,7 @@ def role_mismatches(protocol: Protocol, roles: ProtocolRoles) -> list[str]:
         if only_list:
             out.append(
                 f"{protocol.name}: the {role} may send {_perfs(only_list)} by the spec's list, but no "
-                "transition of the state machine allows it (a ConversationTracker would reject it)"
+                "transition of the state machine allows it (the protocol state would refuse it)"
             )
         if only_machine:
             out.append(
@@ -524,10 +615,9 @@ def _dead_ends(protocol: Protocol) -> list[str]:
     return sorted(protocol.states - reach - {"not-understood"})
 
 
-def _cancel_meta(
-    cancellable: Sequence[str], edges: Sequence[tuple[int, Edge]]
-) -> dict[tuple[str, Role, Performative], str]:
-    """The transitions ``_build`` adds for the cancel meta-protocol."""
+def _cancel_meta(cancellable: Sequence[str]) -> dict[tuple[str, Role, Performative], str]:
+    """The transitions ``_build`` adds for the cancel meta-protocol (its crossing transitions
+    out of ``cancelling`` left out: a table's own take their place)."""
     if not cancellable:
         return {}
     meta: dict[tuple[str, Role, Performative], str] = {
@@ -535,8 +625,6 @@ def _cancel_meta(
     }
     meta[("cancelling", PARTICIPANT, Performative.INFORM)] = "cancelled"
     meta[("cancelling", PARTICIPANT, Performative.FAILURE)] = "cancel-failed"
-    if any(role == PARTICIPANT and perf is Performative.AGREE for _, (_, role, perf, _) in edges):
-        meta[("cancelling", PARTICIPANT, Performative.AGREE)] = "cancelling"
     return meta
 
 
@@ -586,7 +674,7 @@ def _edges(
     value: object, kind: str, where: str, lists: Mapping[str, set[str] | None]
 ) -> list[tuple[int, Edge]]:
     """Parse a list of [state, role, performative, state] entries, numbered from 1."""
-    plural = "terminal" if kind.startswith("terminal") else "transitions"
+    plural = kind.split()[0] if kind.startswith(("terminal", "crossing")) else "transitions"
     if not isinstance(value, list):
         raise SpecError(f"{where}: '{plural}' must be a list of [state, role, performative, state]")
     return [(n, _edge(n, entry, kind, where, lists)) for n, entry in enumerate(value, 1)]

@@ -109,7 +109,7 @@ def spec_deadlock(
     """Explore every channel protocol as two role automata over bounded FIFO queues, and the
     agents' wait-for graph; report reachable deadlocks with the trace that leads there
     (paper §4 step 3). With --library, every protocol of the built-in library (FIPA SC00026
-    to SC00036 and coordinate) instead. Exit 1 when one is found."""
+    to SC00036) instead. Exit 1 when one is found."""
     from services.spec.model import SpecError
     from services.spec_check.deadlock import deadlock_report, library_report
 

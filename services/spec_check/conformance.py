@@ -20,11 +20,16 @@ Every conversation (one conversation-id between two agents) follows its interact
 protocol's state machine (FIPA SC00026 fipa-request, SC00027 fipa-query, SC00035
 fipa-subscribe, the paper's coordinate protocol, or one the specification declares),
 message by message in causal order (arrival order, with an answer that arrived before what
-it answers moved after it: :mod:`services.recorder.causal`), as
-:class:`~services.runtime.protocol_state.CrossingTracker` follows it: communicates of the two
-agents that crossed on the wire are tolerated, as are the cancel meta-protocol's late
-cancels; an opening communicate that reuses a conversation-id begins it anew; a
-``not-understood`` ends it (the rest of it is not followed). A subscribe (fipa-subscribe, SC00035
+it answers moved after it: :mod:`services.recorder.causal`), by
+the rules the agents' runtime follows it by (:func:`services.runtime.protocol_state.judge`,
+the one home of FIPA's rules on a conversation): communicates of the two agents that crossed
+on the wire are tolerated, as are the cancel meta-protocol's late cancels; an opening
+communicate in a conversation already open or ended is a violation (a conversation-id names
+one conversation, SC00061; a byte-identical copy is a retransmission, judged once); so is
+anything after the conversation's end, whoever sends it; a ``not-understood`` comes only from
+the receiver of a communicate of the conversation it has not answered so already, and ends it:
+after it, only what the other agent sent before it saw the not-understood belongs there. A
+subscribe (fipa-subscribe, SC00035
 §2: the participant answers agree or refuse) that the record ends with no answer to is a
 violation (``unanswered``) once its reply-by has passed, or when it has none. Other conversations
 still open when the record ends are listed, not counted as violations: an agreed subscription
@@ -49,7 +54,7 @@ from services.runtime.protocol_state import (
     ConversationError,
     CrossingTracker,
     expected_ontology,
-    follow,
+    judge,
 )
 from services.spec.model import (
     DEFAULT_SPEC,
@@ -69,7 +74,6 @@ from shared.fipa_codec.protocols import (
     INITIATOR,
     PARTICIPANT,
     Protocol,
-    ProtocolViolation,
     Role,
     is_terminal_report,
 )
@@ -131,10 +135,10 @@ class ConversationResult:
     first when known), ``protocol``, number of ``messages``, final ``state`` (the first
     reading's; see :class:`~services.runtime.protocol_state.CrossingTracker`), whether it
     ``ended`` (some reading reached a final state), ``violations`` in it, ``crossings``
-    tolerated, ``restarts`` (an opening communicate reused its id), ``not_understood`` True
-    when a not-understood ended it, ``answered`` False when the participant sent nothing after
-    the latest opening communicate, ``unanswered`` True for a subscribe left so past its
-    reply-by (a violation), and the times ``first_t``/``last_t`` (s since run start)."""
+    tolerated, ``not_understood`` True when a not-understood ended it, ``answered`` False when
+    the participant sent nothing after the latest opening communicate, ``unanswered`` True for
+    a subscribe left so past its reply-by (a violation), and the times ``first_t``/``last_t``
+    (s since run start)."""
 
     conversation_id: str
     agents: tuple[str, str]
@@ -144,7 +148,6 @@ class ConversationResult:
     ended: bool = False
     violations: int = 0
     crossings: int = 0
-    restarts: int = 0
     not_understood: bool = False
     answered: bool = True
     unanswered: bool = False
@@ -467,12 +470,9 @@ def _performative(name: str) -> Performative | None:
         return None
 
 
-def _tally(result: ConversationResult, outcome: str, protocol: str) -> None:
+def _tally(result: ConversationResult, outcome: str) -> None:
     """Count the outcome of one step of the state machine in its conversation."""
-    if outcome == "restart":
-        result.restarts += 1
-        result.protocol = protocol
-    elif outcome in ("crossing", "forgotten"):
+    if outcome in ("crossing", "forgotten"):
         result.crossings += 1
     elif outcome == "aborted":
         result.not_understood = True
@@ -577,6 +577,8 @@ class _Checker:
         performative = _performative(rec.performative)
         if followed and machine is not None and performative is not None:
             self._step(key, m, (sender, receiver), machine, performative, result, problems)
+        elif key in self.trackers:  # outside the sender's interface: its receiver heard it all the same
+            self.trackers[key].hear(INITIATOR if receiver == result.agents[0] else PARTICIPANT)
         return result
 
     def _conversation(
@@ -611,27 +613,27 @@ class _Checker:
         sender, receiver = agents
         role: Role = INITIATOR if sender == result.agents[0] else PARTICIPANT
         terminal, reply_with, in_reply_to = _tracking(m.comm)
-        try:
-            tracker, outcome = follow(
-                self.trackers.get(key),
-                machine,
-                role,
-                performative,
-                terminal=terminal,
-                reply_with=reply_with,
-                in_reply_to=in_reply_to,
-            )
-        except ProtocolViolation as exc:
-            problems.append(("protocol-state", str(exc)))
+        tracker, outcome, refusal = judge(
+            self.trackers.get(key),
+            machine,
+            role,
+            performative,
+            terminal=terminal,
+            reply_with=reply_with,
+            in_reply_to=in_reply_to,
+            copies=False,  # a copy is judged by its bytes (Message.copy_of), not its reply-with
+        )
+        self.trackers[key] = tracker  # refused: its receiver heard it (it may answer not-understood)
+        if isinstance(refusal, ConversationError):
+            problems.append(("conversation", str(refusal)))
             return
-        except ConversationError as exc:
-            problems.append(("conversation", str(exc)))
+        if refusal is not None:
+            problems.append(("protocol-state", str(refusal)))
             return
-        self.trackers[key] = tracker
-        if role == INITIATOR and tracker.messages == 1 and outcome in ("step", "restart"):
+        if role == INITIATOR and tracker.messages == 1 and outcome == "step":
             self.openings[key] = (m, receiver, result.messages - 1)
-        assert m.rec.protocol is not None
-        _tally(result, outcome, m.rec.protocol)
+        assert outcome is not None
+        _tally(result, outcome)
 
     def _initiator(self, sender: str, receiver: str, protocol: str) -> str:
         """The initiator of ``protocol`` between the agents by the specification; else the
@@ -717,12 +719,8 @@ def _counts_lines(report: ConformanceReport) -> list[str]:
         )
     lines.append(f"conforming conversations: {report.conforming} of {n_conv}")
     crossings = sum(c.crossings for c in report.conversations)
-    restarts = sum(c.restarts for c in report.conversations)
-    if crossings or restarts:
-        lines.append(
-            f"tolerated: {crossings} communicate(s) crossing on the wire, "
-            f"{restarts} conversation(s) begun anew under the same id"
-        )
+    if crossings:
+        lines.append(f"tolerated: {crossings} communicate(s) crossing on the wire")
     if report.copies:
         lines.append(
             f"copies: {report.copies} communicate(s) recorded again byte for byte (retransmitted, "

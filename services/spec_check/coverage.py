@@ -304,10 +304,6 @@ class _Follower:
         if outcome == "forgotten":  # a cancel of a conversation never seen: it crossed its end
             self.cov.crossings += 1
             return
-        if outcome == "unchecked":  # after a not-understood: no longer followed
-            return
-        if outcome == "restart":
-            before = machine.initial
         self._edge(conv, machine, group, (before, role, perf, terminal))
 
     def _edge(

@@ -3,13 +3,14 @@ specifying new communication channels, an analysis targeted at communication dea
 mandatory"). The manual, with what each finding means: docs/spec.md "Deadlocks".
 
 **Conversations.** Each (channel, protocol) is one conversation of its protocol
-(:func:`services.spec.protocol_defs.protocols_of`; FIPA SC00026, SC00027, SC00035, the
-paper's coordinate, ...), explored breadth first as two communicating role automata over
-FIFO input queues bounded by :data:`QUEUE_CAPACITY`, so each trace reported is a shortest
-one. Findings: *deadlock* (no step enabled, a role not final), *unspecified reception* (a
-queue's head its role can never receive), *late message* (informational: it reaches an ended
-role). ``not-understood`` (SC00037 §3.12) is left out unless ``not_understood=True``;
-``cancel`` (SC00026 §2, SC00027 §2, SC00035 §2) is explored like any other performative.
+(:func:`services.spec.protocol_defs.protocols_of`; FIPA SC00026, SC00027, SC00035, the paper's
+coordinate declared in the specification, ...), explored breadth first as two communicating
+role automata over FIFO input queues bounded by :data:`QUEUE_CAPACITY`, so each trace reported
+is a shortest one. Findings: *deadlock* (no step enabled, a role not final), *unspecified
+reception* (a queue's head its role can never receive), *late message* (informational: it
+reaches an ended role). ``not-understood`` (SC00037 §3.12) is left out unless
+``not_understood=True``; ``cancel`` (SC00026 §2, SC00027 §2, SC00035 §2) is explored like any
+other performative.
 
 **Agents.** Each agent's ``waits = [{ serving = "C3:fipa-request", opens = ["C4:fipa-query"] }]``
 (``[[agents]]``, read from the raw TOML) makes a wait-for graph; every cycle is a potential
@@ -19,7 +20,7 @@ deadlock (a waiting agent is assumed to serve nothing else).
 :func:`deadlock_report` both for the CLI (a deadlock found: non-zero exit).
 :func:`analyse_library` and :func:`library_report` explore every protocol of
 :data:`shared.fipa_codec.protocols.PROTOCOLS` (the eleven of FIPA SC00025's library, SC00026
-to SC00036, and coordinate) for ``roco spec deadlock --library``.
+to SC00036) for ``roco spec deadlock --library``.
 """
 
 from __future__ import annotations
@@ -264,8 +265,10 @@ class _Roles:
         self._closure: dict[tuple[Role, str], frozenset[str]] = {}
 
     def receive(self, role: Role, state: str, msg: _Msg) -> str | None:
+        """The state of ``role`` after it takes ``msg`` in ``state``: what the other sent may
+        have crossed what ``role`` sent since (:attr:`Protocol.crossing_transitions`)."""
         perf, terminal = msg
-        return self.protocol.next_state(state, _other(role), perf, terminal)
+        return self.protocol.next_state(state, _other(role), perf, terminal, crossing=True)
 
     def accepts(self, role: Role, state: str) -> list[_Msg]:
         """What ``role`` can receive in ``state`` (of what the other role ever sends)."""

@@ -13,7 +13,7 @@ from services.cli_common import INTERRUPTED, fail, run_folder
 from services.runtime.run_folder import RunInfo
 
 if TYPE_CHECKING:
-    from services.report.model import CoverageSummary
+    from services.report.model import ContentOutcome, CoverageSummary
 
 report_app = typer.Typer()
 
@@ -34,14 +34,23 @@ def finish_report(run_dir: Path, info: RunInfo, *, interrupted: bool = False) ->
         return
     if interrupted:
         raise fail(f"interrupted; the fleet is stopped; report {path}", INTERRUPTED)
-    c = report.content
-    poured = any("pour" in text for text in info.commands)
-    share = f"{c.inside} of {c.total} spheres in the {c.container}" if c.observed else "content not observed"
-    share = share if poured else f"{len(info.commands)} command(s)"
+    share = _content_clause(run_dir, info, report.content)
     typer.echo(
         f"roco: {'succeeded' if info.succeeded else 'failed'} in {info.ended - info.started:.1f} s wall; "  # type: ignore[operator]
         f"{_raised_clause(info)}{report.sizes.count} communicates; {share}; report {path}"
     )
+
+
+def _content_clause(run_dir: Path, info: RunInfo, c: ContentOutcome) -> str:
+    """The last line's outcome of a run that poured: the robot's count of the spheres in the
+    container, and the simulation's beside it when the world left its final scene
+    (services/report/content.py ``content_line``); else how many commands there were."""
+    from services.report.content import content_line
+    from services.report.world import world_content
+
+    if not any("pour" in text for text in info.commands):
+        return f"{len(info.commands)} command(s)"
+    return content_line(c, world_content(run_dir, c.container))
 
 
 def _raised_clause(info: RunInfo) -> str:

@@ -2,48 +2,55 @@
 
 A :class:`Protocol` is data: states, an initial state, final states and a transition table
 ``(state, role, performative) -> state``, where ``role`` is ``"initiator"`` (the agent that
-sent the first message) or ``"participant"``. A :class:`ConversationTracker` follows one
-conversation (one ``conversation-id`` between one initiator and one participant) through it
-and raises :class:`ProtocolViolation` on a message the protocol does not allow.
+sent the first message) or ``"participant"``. The rules of following one conversation (one
+``conversation-id`` between one initiator and one participant) through it have one home,
+services/runtime/protocol_state.py (``judge``, ``follow``, ``CrossingTracker``: the agents'
+runtime and ``roco spec verify`` follow conversations with them), which raises
+:class:`ProtocolViolation` on a message the conversation does not allow.
 
 Conventions shared by all protocols (each after the FIPA specification cited):
 
-* ``not-understood`` (FIPA SC00037 §3.12) may be sent by either role in every state after
-  the first message that is not final; it ends the conversation in the final state
-  ``not-understood``. A protocol with no such state (a *one-message* protocol: the
-  initiator's ``inform`` ends it) has no state ``not-understood``. A not-understood that
-  answers the message which ended a conversation (a malformed final ``inform``, or the one
-  message of a one-message protocol) is outside the machine: a :class:`ConversationTracker`
-  rejects it as sent after the end, while the runtime's tracker, which the agents and
-  ``roco spec verify`` follow conversations with, takes a not-understood at any point as
-  ending the conversation.
+* ``not-understood`` (FIPA SC00037 §3.12): the machine has it from both roles in every
+  state after the first message that is not final, leading to the final state
+  ``not-understood``; a protocol with no such state (a *one-message* protocol: the
+  initiator's ``inform`` ends it) has no state ``not-understood``. Following a conversation
+  (``judge`` in services/runtime/protocol_state.py, where the rules of following live), a
+  not-understood comes only from the receiver of a communicate of the conversation that it
+  has not yet answered with not-understood, also one answering the message that ended the
+  conversation (a malformed final ``inform``, the one message of a one-message protocol);
+  it ends the conversation, after which only what the other party sent before it saw the
+  not-understood belongs to it.
 * The *cancel meta-protocol* (SC00026 §2, SC00027 §2, SC00028 §2, SC00029 §2, SC00030 §2,
   SC00033 §2, SC00034 §2, SC00035 §2):
   where a protocol allows it, the initiator may send ``cancel`` while the participant owes
   it an outcome; the participant answers ``inform`` (cancelled) or ``failure`` (could not
-  cancel), both ending the conversation (states ``cancelled``/``cancel-failed``). The
-  tracker cannot tell an outcome that crossed the ``cancel`` on the wire from the answer to
-  the ``cancel``: an ``inform`` in state ``cancelling`` is taken as the answer, an
-  ``agree`` there as one that crossed the ``cancel``, and any other final answer (``refuse``,
-  ``inform-ref`` …) as one that crossed it and ended the conversation.
+  cancel), both ending the conversation (states ``cancelled``/``cancel-failed``). What the
+  participant sent before the ``cancel`` arrived takes a crossing transition
+  (:attr:`Protocol.crossing_transitions`) in state ``cancelling``: an ``agree`` (a
+  ``propose``) leaves it cancelling, a final answer (``refuse``, ``inform-ref`` …) ends the
+  conversation as it would have.
 * FIPA's ``inform-done``/``inform-result``/``inform-t/f`` are all the performative
   ``inform``.
 
-The protocols, by their FIPA ``protocol`` parameter name (:data:`PROTOCOLS`): the eleven of
-the FIPA library, ``fipa-request`` (SC00026) to ``fipa-propose`` (SC00036), each after its
-specification; and roco's ``coordinate`` (paper §5.4, Figure 8).
+The library, by the FIPA ``protocol`` parameter name (:data:`PROTOCOLS`), is FIPA's: the
+eleven protocols of the FIPA SC00025 library, ``fipa-request`` (SC00026) to ``fipa-propose``
+(SC00036), each after its specification. The application's own protocols (the paper's
+``coordinate``, §5.4 Figure 8) are declared in its specification
+(services/spec/robot_companion.toml) and built by services/spec/protocol_defs.py with the
+same builder, :func:`_build`; this module holds none of them.
 
 A one-to-many protocol (the contract nets, the auctions, brokering and recruiting, where the
 initiator addresses several participants) is modelled, like the others, as the conversation
 between the initiator and one participant: one tracker per participant. Where the initiator
-goes on without waiting for the participant (an auction's next price, or its end), the
-machine takes a bid that crosses it on the wire.
+goes on without waiting for the participant (an auction's next price, or its end), a
+crossing transition takes a bid that crossed it on the wire.
 
-The ``coordinate`` protocol tells apart an ``inform`` that reports a terminal L_SW state
-(Succeeded, Error, Preempted, Replan) from one that reports any other state; the
-transition table has a second part, ``terminal_transitions``, used when
-:meth:`ConversationTracker.step` is called with ``terminal=True``
-(:meth:`ConversationTracker.observe` works the flag out from the content).
+A protocol may tell apart an ``inform`` that reports a terminal L_SW state (Succeeded,
+Error, Preempted, Replan) from one that reports any other state, as the specification's
+``coordinate`` does (paper §5.4); the transition table then has a second part,
+``terminal_transitions``, taken by an ``inform`` flagged terminal (:meth:`Protocol.next_state`
+with ``terminal=True``; :func:`is_terminal_report` works the flag out from a communicate's
+content). None of FIPA's protocols has any.
 """
 
 from __future__ import annotations
@@ -61,7 +68,6 @@ __all__ = [
     "INITIATOR",
     "PARTICIPANT",
     "PROTOCOLS",
-    "ConversationTracker",
     "Protocol",
     "ProtocolViolation",
     "Role",
@@ -83,11 +89,11 @@ class Protocol:
     """An interaction protocol as a finite state machine (FIPA SC00025 §2 IP library).
 
     ``transitions`` maps (state, sender's role, performative) to the next state;
-    ``terminal_transitions`` the same for an ``inform`` flagged ``terminal=True`` (only the
-    ``coordinate`` protocol has any). ``spec`` names the FIPA specification (or the paper
-    section). The machine is checked on construction: the initial and final states are
-    states, no transition leaves a final state, every state is reachable from ``initial``
-    and can reach a final state; ValueError otherwise.
+    ``terminal_transitions`` the same for an ``inform`` flagged ``terminal=True`` (none of
+    FIPA's protocols has any; the specification's ``coordinate`` has). ``spec`` names the
+    FIPA specification (or the paper section). The machine is checked on construction: the
+    initial and final states are states, no transition leaves a final state, every state is
+    reachable from ``initial`` and can reach a final state; ValueError otherwise.
     """
 
     name: str
@@ -98,10 +104,18 @@ class Protocol:
     terminal_transitions: Mapping[Key, str] = field(default_factory=dict)
     spec: str = ""
     description: str = ""
+    crossing_transitions: Mapping[Key, str] = field(default_factory=dict)
+    """Transitions taken only by a communicate sent before its sender saw the other party's
+    latest (the two crossed on the wire): e.g. the participant's ``agree`` arriving after the
+    initiator's ``cancel``. A party's own view of the conversation needs them (the deadlock
+    explorer's role automata); a follower that can reorder what crossed
+    (services/runtime/protocol_state.py) takes them only for a communicate that does not
+    name the other party's latest in its in-reply-to."""
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "transitions", MappingProxyType(dict(self.transitions)))
         object.__setattr__(self, "terminal_transitions", MappingProxyType(dict(self.terminal_transitions)))
+        object.__setattr__(self, "crossing_transitions", MappingProxyType(dict(self.crossing_transitions)))
         problems = self._problems()
         if problems:
             raise ValueError(f"protocol {self.name}: " + "; ".join(problems))
@@ -132,6 +146,16 @@ class Protocol:
                 problems.append(f"transition leaves final state {source!r}")
             if source in successors and target in self.states:
                 successors[source].add(target)
+        for (source, role, performative), target in self.crossing_transitions.items():
+            if (source, role, performative) in self.transitions:
+                problems.append(
+                    f"crossing transition {(source, role, performative.value)} is also a transition"
+                )
+            for s in (source, target):
+                if s not in self.states:
+                    problems.append(f"crossing transition uses unknown state {s!r}")
+            if source in self.final:
+                problems.append(f"crossing transition leaves final state {source!r}")
         if problems:
             return problems
         reached = _closure({self.initial}, successors)
@@ -153,14 +177,24 @@ class Protocol:
         return sorted(out, key=lambda x: (_ROLES.index(x[0]), x[1].value, x[2]))
 
     def next_state(
-        self, state: str, role: Role, performative: Performative, terminal: bool = False
+        self,
+        state: str,
+        role: Role,
+        performative: Performative,
+        terminal: bool = False,
+        crossing: bool = False,
     ) -> str | None:
         """The state after ``role`` sends ``performative`` in ``state``, or None when the
-        protocol does not allow it. With ``terminal`` a terminal transition is preferred."""
+        protocol does not allow it. With ``terminal`` a terminal transition is preferred; with
+        ``crossing`` (the communicate may have crossed the other party's latest on the wire) a
+        crossing transition is taken where no other is."""
         key = (state, role, performative)
         if terminal and key in self.terminal_transitions:
             return self.terminal_transitions[key]
-        return self.transitions.get(key)
+        target = self.transitions.get(key)
+        if target is None and crossing:
+            return self.crossing_transitions.get(key)
+        return target
 
     def to_dot(self, *, not_understood: bool = False) -> str:
         """The state machine in Graphviz DOT: the initial state marked by an arrow from a
@@ -212,7 +246,9 @@ class ProtocolViolation(ValueError):
     """A message the protocol does not allow in the conversation's current state.
 
     Attributes: ``protocol`` (name), ``state``, ``role``, ``performative`` of the offending
-    message, and ``allowed``: what :meth:`Protocol.allowed` permits in that state.
+    message, ``allowed``: what :meth:`Protocol.allowed` permits in that state, ``finished``:
+    the conversation had ended, and ``note``: the rule broken, when it is more than the state
+    machine's (e.g. an opening communicate in a conversation already open).
     """
 
     def __init__(
@@ -223,13 +259,18 @@ class ProtocolViolation(ValueError):
         performative: Performative,
         allowed: list[tuple[Role, Performative, bool]],
         finished: bool = False,
+        note: str = "",
     ) -> None:
         self.protocol = protocol
         self.state = state
         self.role = role
         self.performative = performative
         self.allowed = allowed
-        if finished:
+        self.finished = finished
+        self.note = note
+        if note:
+            text = f"{protocol}: the {role} may not send {performative.value!r} in state {state!r}: {note}"
+        elif finished:
             text = (
                 f"{protocol}: the conversation already ended in state {state!r}; "
                 f"the {role} may not send {performative.value!r}"
@@ -267,75 +308,6 @@ def is_terminal_report(msg: Communicate) -> bool:
     return isinstance(status, SWStatus) and status.state in TERMINAL_SW_STATES
 
 
-class ConversationTracker:
-    """Follows one conversation through ``protocol`` (a :class:`Protocol` or a name in
-    :data:`PROTOCOLS`), starting in its initial state.
-
-    ``state`` is the current state, ``history`` the accepted steps as (role, performative,
-    new state). A rejected message leaves the tracker unchanged.
-    """
-
-    def __init__(self, protocol: Protocol | str) -> None:
-        if isinstance(protocol, str):
-            if protocol not in PROTOCOLS:
-                raise ValueError(f"unknown interaction protocol {protocol!r}; known: {', '.join(PROTOCOLS)}")
-            protocol = PROTOCOLS[protocol]
-        self.protocol = protocol
-        self.state = protocol.initial
-        self.history: list[tuple[Role, Performative, str]] = []
-        self.initiator: str | None = None
-
-    @property
-    def is_finished(self) -> bool:
-        """True once the conversation is in a final state."""
-        return self.state in self.protocol.final
-
-    def allowed(self) -> list[tuple[Role, Performative, bool]]:
-        """What may be sent now (see :meth:`Protocol.allowed`)."""
-        return self.protocol.allowed(self.state)
-
-    def step(self, role: Role | str, performative: Performative | str, *, terminal: bool = False) -> str:
-        """Record that ``role`` sent ``performative``; returns the new state.
-
-        ``terminal`` matters only for an ``inform`` in a protocol with terminal
-        transitions (``coordinate``): True when the inform reports a terminal L_SW state
-        (Succeeded, Error, Preempted, Replan), False for any other state; other
-        protocols ignore it. Raises ProtocolViolation when the protocol does not allow the
-        message now (including any message after a final state), ValueError for an
-        unknown role or performative.
-        """
-        if role not in _ROLES:
-            raise ValueError(f"role must be 'initiator' or 'participant', not {role!r}")
-        perf = Performative(performative)
-        checked_role: Role = INITIATOR if role == INITIATOR else PARTICIPANT
-        target = self.protocol.next_state(self.state, checked_role, perf, terminal)
-        if target is None:
-            raise ProtocolViolation(
-                self.protocol.name,
-                self.state,
-                checked_role,
-                perf,
-                self.allowed(),
-                finished=self.is_finished,
-            )
-        self.state = target
-        self.history.append((checked_role, perf, target))
-        return target
-
-    def observe(self, msg: Communicate) -> str:
-        """Record communicate ``msg``: its role is ``initiator`` when its sender sent the
-        conversation's first message (or this is the first message), else ``participant``;
-        the ``terminal`` flag comes from :func:`is_terminal_report`. Returns the new state.
-        Raises ValueError when ``msg`` has no sender, ProtocolViolation as :meth:`step`."""
-        if msg.sender is None:
-            raise ValueError("cannot tell the role of a communicate without sender")
-        initiator = self.initiator if self.initiator is not None else msg.sender.name
-        role: Role = INITIATOR if msg.sender.name == initiator else PARTICIPANT
-        state = self.step(role, msg.performative, terminal=is_terminal_report(msg))
-        self.initiator = initiator
-        return state
-
-
 # ---------------------------------------------------------------------------------------------
 # The protocol library
 
@@ -354,12 +326,18 @@ def _build(
     cancellable: Iterable[str] = (),
     terminal_edges: Iterable[tuple[str, Role, Performative, str]] = (),
     initial: str = "start",
+    crossing_edges: Iterable[tuple[str, Role, Performative, str]] = (),
 ) -> Protocol:
     """A protocol from its edges, adding the cancel meta-protocol from the ``cancellable``
     states and ``not-understood`` from every state but the initial and the final ones (with
     the final state ``not-understood`` only when some state has it: not in a protocol whose
-    every state after the first is final, such as one ``inform`` that nothing answers)."""
+    every state after the first is final, such as one ``inform`` that nothing answers).
+    ``crossing_edges`` are :attr:`Protocol.crossing_transitions`; the cancel meta-protocol
+    adds its own: what the participant may send where a cancel found the conversation,
+    arriving after it (an ``agree`` leaves it cancelling, a final answer ends it as it would
+    have)."""
     transitions: dict[Key, str] = {}
+    crossing: dict[Key, str] = {}
     finals = set(final)
 
     def add(table: dict[Key, str], key: Key, target: str) -> None:
@@ -373,25 +351,21 @@ def _build(
     terminal: dict[Key, str] = {}
     for source, role, perf, target in terminal_edges:
         add(terminal, (source, role, perf), target)
+    for source, role, perf, target in crossing_edges:
+        add(crossing, (source, role, perf), target)
     cancellable = list(cancellable)
     if cancellable:
         for source in cancellable:
             add(transitions, (source, _I, _P.CANCEL), "cancelling")
         add(transitions, ("cancelling", _R, _P.INFORM), "cancelled")
         add(transitions, ("cancelling", _R, _P.FAILURE), "cancel-failed")
-        if any(role == _R and perf is _P.AGREE for _, role, perf in transitions):
-            # an agree sent before the cancel arrived, crossing it on the wire
-            add(transitions, ("cancelling", _R, _P.AGREE), "cancelling")
-        # any other final answer the participant sent before the cancel arrived (a refuse,
-        # an inform-ref …) crosses it too and ends the conversation as it would have
+        # what the participant sent before the cancel arrived crosses it: a final answer (a
+        # refuse, an inform-ref …) ends the conversation as it would have, any other (an
+        # agree, a propose) leaves it cancelling
         for (source, role, perf), target in list(transitions.items()):
-            if (
-                source in cancellable
-                and role == _R
-                and target in finals
-                and ("cancelling", _R, perf) not in transitions
-            ):
-                transitions[("cancelling", _R, perf)] = target
+            key: Key = ("cancelling", PARTICIPANT, perf)
+            if source in cancellable and role == _R and key not in transitions and key not in crossing:
+                crossing[key] = target if target in finals else "cancelling"
         finals |= {"cancelled", "cancel-failed"}
     states = {initial} | finals
     for (source, _, _), target in [*transitions.items(), *terminal.items()]:
@@ -412,6 +386,7 @@ def _build(
         terminal_transitions=terminal,
         spec=spec,
         description=description,
+        crossing_transitions=crossing,
     )
 
 
@@ -439,19 +414,26 @@ FIPA_QUERY = _build(
     "FIPA SC00027",
     "The initiator asks query-if (is it true?) or query-ref (which objects?); the "
     "participant refuses, or (optionally after agree) answers inform or reports failure "
-    "(SC00027 §2). The answer may also be inform-ref, as the paper's a_km sends it "
-    "(paper §5.4, Figure 9).",
+    "(SC00027 §2): a query-if is answered by inform (inform-t/f), a query-ref by inform "
+    "(inform-result) or inform-ref, as the paper's a_km sends it (paper §5.4, Figure 9).",
     [
-        ("start", _I, (_P.QUERY_IF, _P.QUERY_REF), "queried"),
+        ("start", _I, _P.QUERY_REF, "queried"),
         ("queried", _R, _P.REFUSE, "refused"),
         ("queried", _R, _P.AGREE, "agreed"),
         ("queried", _R, _P.FAILURE, "failed"),
         ("queried", _R, (_P.INFORM, _P.INFORM_REF), "answered"),
         ("agreed", _R, _P.FAILURE, "failed"),
         ("agreed", _R, (_P.INFORM, _P.INFORM_REF), "answered"),
+        ("start", _I, _P.QUERY_IF, "queried-if"),
+        ("queried-if", _R, _P.REFUSE, "refused"),
+        ("queried-if", _R, _P.AGREE, "agreed-if"),
+        ("queried-if", _R, _P.FAILURE, "failed"),
+        ("queried-if", _R, _P.INFORM, "answered"),
+        ("agreed-if", _R, _P.FAILURE, "failed"),
+        ("agreed-if", _R, _P.INFORM, "answered"),
     ],
     ["refused", "failed", "answered"],
-    cancellable=["queried", "agreed"],
+    cancellable=["queried", "agreed", "queried-if", "agreed-if"],
 )
 
 FIPA_REQUEST_WHEN = _build(
@@ -493,7 +475,9 @@ FIPA_CONTRACT_NET = _build(
     "FIPA SC00029",
     "The initiator calls for proposals (cfp); the participant refuses or proposes; the "
     "initiator rejects or accepts the proposal; an accepted participant reports failure "
-    "or inform (done/result). Tracked per participant (SC00029 §2).",
+    "or inform (done/result); the initiator may cancel at any point (the cancel "
+    "meta-protocol). A second cfp is fipa-iterated-contract-net's, not this protocol's. "
+    "Tracked per participant (SC00029 §2).",
     [
         ("start", _I, _P.CFP, "cfp-sent"),
         ("cfp-sent", _R, _P.REFUSE, "refused"),
@@ -504,7 +488,7 @@ FIPA_CONTRACT_NET = _build(
         ("accepted", _R, _P.INFORM, "done"),
     ],
     ["refused", "rejected", "failed", "done"],
-    cancellable=["accepted"],
+    cancellable=["cfp-sent", "proposed", "accepted"],
 )
 
 FIPA_ITERATED_CONTRACT_NET = _build(
@@ -512,8 +496,8 @@ FIPA_ITERATED_CONTRACT_NET = _build(
     "FIPA SC00030",
     "The initiator calls for proposals (cfp); the participant refuses or proposes; the "
     "initiator rejects or accepts the proposal, or re-iterates with a revised cfp (a new "
-    "round); an accepted participant reports failure or inform (done/result). Tracked per "
-    "participant (SC00030 §2).",
+    "round); an accepted participant reports failure or inform (done/result); the initiator "
+    "may cancel at any point (the cancel meta-protocol). Tracked per participant (SC00030 §2).",
     [
         ("start", _I, _P.CFP, "cfp-sent"),
         ("cfp-sent", _R, _P.REFUSE, "refused"),
@@ -525,7 +509,7 @@ FIPA_ITERATED_CONTRACT_NET = _build(
         ("accepted", _R, _P.INFORM, "done"),
     ],
     ["refused", "rejected", "failed", "done"],
-    cancellable=["accepted"],
+    cancellable=["cfp-sent", "proposed", "accepted"],
 )
 
 FIPA_ENGLISH_AUCTION = _build(
@@ -545,16 +529,18 @@ FIPA_ENGLISH_AUCTION = _build(
         ("called", _I, _P.CFP, "called"),  # a higher price: no bid from this participant
         ("called", _R, _P.PROPOSE, "bid"),
         ("called", _I, _P.INFORM, "ended"),  # inform(end-of-auction)
-        ("bid", _I, _P.CFP, "bid"),  # a higher price called before the bid arrived
         ("bid", _I, _P.ACCEPT_PROPOSAL, "leading"),
         ("bid", _I, _P.REJECT_PROPOSAL, "called"),
-        ("bid", _I, _P.INFORM, "ended"),  # the auction ended before the bid arrived
         ("leading", _I, _P.CFP, "leading"),  # a higher price called: nobody has outbid it yet
         ("leading", _I, _P.REJECT_PROPOSAL, "called"),  # outbid, or below the reservation price
         ("leading", _I, _P.INFORM, "won"),  # inform(end-of-auction) to the winner
         ("won", _I, _P.REQUEST, "requested"),  # the winner asked to complete the sale
     ],
     ["ended", "requested"],
+    crossing_edges=[
+        ("bid", _I, _P.CFP, "bid"),  # a higher price called before the bid arrived
+        ("bid", _I, _P.INFORM, "ended"),  # the auction ended before the bid arrived
+    ],
 )
 
 FIPA_DUTCH_AUCTION = _build(
@@ -572,15 +558,17 @@ FIPA_DUTCH_AUCTION = _build(
         ("called", _I, _P.CFP, "called"),  # a lower price: no bid from this participant
         ("called", _R, _P.PROPOSE, "bid"),
         ("called", _I, _P.INFORM, "ended"),  # inform(end-of-auction)
-        ("bid", _I, _P.CFP, "bid"),  # a lower price called before the bid arrived
         ("bid", _I, _P.ACCEPT_PROPOSAL, "accepted"),
         ("bid", _I, _P.REJECT_PROPOSAL, "rejected"),  # another bid came first
-        ("bid", _I, _P.INFORM, "ended"),  # the auction ended before the bid arrived
         ("rejected", _I, _P.INFORM, "ended"),
         ("accepted", _I, _P.INFORM, "won"),  # inform(end-of-auction) to the winner
         ("won", _I, _P.REQUEST, "requested"),  # the winner asked to complete the sale
     ],
     ["ended", "requested"],
+    crossing_edges=[
+        ("bid", _I, _P.CFP, "bid"),  # a lower price called before the bid arrived
+        ("bid", _I, _P.INFORM, "ended"),  # the auction ended before the bid arrived
+    ],
 )
 
 FIPA_BROKERING = _build(
@@ -633,39 +621,6 @@ FIPA_PROPOSE = _build(
     ["accepted", "rejected"],
 )
 
-COORDINATE = _build(
-    "coordinate",
-    "paper §5.4, Figure 8",
-    "a_co requests a_ta to execute a plan (L_HFSM); a_ta informs its supervised-worker "
-    "states (L_SW), each confirmed by a_co before the next; a_co may cancel at any time "
-    "while the plan runs (a_ta then goes on reporting, e.g. Terminating, Preempted); the "
-    "conversation ends when a terminal state (Succeeded, Error, Preempted, Replan) is "
-    "confirmed. A cancel that crosses the terminal inform on the wire is tolerated, as is a "
-    "confirm sent again while the plan runs. a_ta "
-    "may refuse a request it cannot run (no plan in it) or fail it at once.",
-    [
-        ("start", _I, _P.REQUEST, "requested"),
-        ("requested", _R, _P.REFUSE, "refused"),
-        ("requested", _R, _P.FAILURE, "failed"),
-        ("requested", _R, _P.INFORM, "reported"),
-        ("reported", _I, _P.CONFIRM, "running"),
-        ("running", _R, _P.INFORM, "reported"),
-        # a confirm sent again (a_co probes an a_ta that reappears) changes nothing
-        ("running", _I, _P.CONFIRM, "running"),
-        ("ending", _I, _P.CONFIRM, "finished"),
-        # cancel: a request to a_ta, not a state change of the conversation
-        ("requested", _I, _P.CANCEL, "requested"),
-        ("reported", _I, _P.CANCEL, "reported"),
-        ("running", _I, _P.CANCEL, "running"),
-        ("ending", _I, _P.CANCEL, "ending"),
-    ],
-    ["finished", "refused", "failed"],
-    terminal_edges=[
-        ("requested", _R, _P.INFORM, "ending"),
-        ("running", _R, _P.INFORM, "ending"),
-    ],
-)
-
 PROTOCOLS: dict[str, Protocol] = {
     p.name: p
     for p in (
@@ -680,7 +635,9 @@ PROTOCOLS: dict[str, Protocol] = {
         FIPA_BROKERING,
         FIPA_RECRUITING,
         FIPA_PROPOSE,
-        COORDINATE,
     )
 }
-"""The interaction protocols by their FIPA ``protocol`` parameter value."""
+"""The eleven interaction protocols of the FIPA library by their FIPA ``protocol`` parameter
+value (FIPA SC00025). The application's own protocols are declared in its specification
+(services/spec/robot_companion.toml: the paper's ``coordinate``, §5.4 Figure 8; built by
+services/spec/protocol_defs.py with :func:`_build`)."""

@@ -375,7 +375,7 @@ def test_every_conversation_of_a_preemption_and_a_stop_follows_its_protocol() ->
     from collections import defaultdict
 
     from shared.fipa_codec import Communicate
-    from shared.fipa_codec.protocols import PROTOCOLS, ConversationTracker
+    from tests.support.conversation import Walk
 
     robot = GatedExecutor(turning_to_pour)
     with Session(robot) as s:
@@ -398,12 +398,18 @@ def test_every_conversation_of_a_preemption_and_a_stop_follows_its_protocol() ->
             conversations[msg.conversation_id or ""].append(msg)
     seen = set()
     for cid, msgs in conversations.items():
-        tracker = ConversationTracker(PROTOCOLS[msgs[0].protocol or ""])
+        tracker = Walk(msgs[0].protocol or "")
         for msg in msgs:
             tracker.observe(msg)  # raises ProtocolViolation on a step outside the protocol
         seen.add((msgs[0].protocol, msgs[0].performative.value))
         if msgs[0].protocol != "fipa-subscribe":
-            assert tracker.is_finished, (cid, [m.performative.value for m in msgs])
+            # a cancel that failed (the command ran to its end: its result in the failure) ends
+            # the conversation in FIPA's machine, and may leave it going on by the runtime's
+            # rules (services/runtime/protocol_state.py): the first reading is FIPA's
+            assert tracker.is_finished or tracker.state == "cancel-failed", (
+                cid,
+                [m.performative.value for m in msgs],
+            )
     assert ("coordinate", "request") in seen and ("fipa-query", "query-ref") in seen
     cancels = [m for ms in conversations.values() for m in ms if m.performative is Performative.CANCEL]
     assert {m.protocol for m in cancels} >= {"coordinate"}

@@ -347,8 +347,8 @@ def test_a_state_a_co_cannot_read_is_not_understood_and_ends_the_command() -> No
 
 def test_an_environment_subscription_a_ta_ends_with_failure_is_made_again() -> None:
     """a_ta ends the agreed environment subscription with failure (FIPA SC00035 §2): a_km
-    subscribes again at once, in the same conversation, and keeps what a_ta sends in the new
-    one (a query answers from it)."""
+    subscribes again at once, in a new conversation (a conversation-id names one conversation,
+    FIPA SC00061), and keeps what a_ta sends in the new one (a query answers from it)."""
     bus = MemoryBus()
     km = KnowledgeManager(bus.transport())
     a_ta = Peer(bus, "a_ta", "a_km", "C6")
@@ -363,7 +363,7 @@ def test_an_environment_subscription_a_ta_ends_with_failure_is_made_again() -> N
         )
         a_ta.send(P.QUERY_REF, "fipa-query", "jar?", ObjectQuery(name="jar"))
         known = a_ta.next(P.INFORM_REF, cid="jar?")
-    assert again.conversation_id == first.conversation_id and again.reply_with != first.reply_with
+    assert again.conversation_id == f"{first.conversation_id}-2" and again.reply_with != first.reply_with
     told = decode_content("L_WM", known.content)
     assert isinstance(told, Answer) and [o.particles for o in told.objects] == [7], told
     assert km.environment.subscribed and km.counters["updates"] == 1

@@ -6,7 +6,7 @@ from __future__ import annotations
 from collections import defaultdict
 
 from shared.fipa_codec import Communicate, decode
-from shared.fipa_codec.protocols import PROTOCOLS, ConversationTracker
+from tests.support.conversation import Walk, known_protocols
 from tests.support.memory_fleet import MemoryFleet
 
 
@@ -19,12 +19,12 @@ def test_every_conversation_of_a_pour_follows_its_protocol() -> None:
     for key, payload in published:
         if key.startswith("roco/fipa/"):
             msg = decode(payload)
-            assert msg.protocol in PROTOCOLS, msg.protocol
+            assert msg.protocol in known_protocols(), msg.protocol
             assert msg.conversation_id
             conversations[msg.conversation_id].append(msg)
     protocols_seen = set()
     for cid, msgs in conversations.items():
-        tracker = ConversationTracker(PROTOCOLS[msgs[0].protocol or ""])
+        tracker = Walk(msgs[0].protocol or "")
         for msg in msgs:
             tracker.observe(msg)  # raises ProtocolViolation on a step outside the protocol
         protocols_seen.add(msgs[0].protocol)

@@ -9,13 +9,13 @@ from pathlib import Path
 import msgspec
 import pytest
 
-from services.fleet.launcher import LAUNCH_ENV, load_launch_env, process_environ, save_launch_env
+from services.fleet.launcher import process_environ, save_launch_env
 from services.recorder.record import FAULTS_JSONL, read_fault_events
 from services.recorder.recorder import TrafficWriter
 from services.report import build_report
 from services.report.markdown import render
 from services.runtime.faults import FaultEvent
-from services.runtime.run_folder import RunInfo, write_run_info
+from services.runtime.run_folder import LAUNCH_ENV, RunInfo, load_launch_env, write_run_info
 
 
 def ev(t: float, kind: str, agent: str = "a_km", **kw: str) -> bytes:

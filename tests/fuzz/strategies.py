@@ -31,6 +31,7 @@ from hypothesis import strategies as st
 from services.runtime import keys
 from services.runtime.protocol_state import CrossingTracker, expected_ontology
 from services.spec.model import MessageKind, default_spec, interface
+from services.spec.protocol_defs import machine_of
 from shared.fipa_codec import AgentIdentifier, Communicate, Performative, encode
 from shared.fipa_codec.encoding import MAX_COMMUNICATE_BYTES
 from shared.fipa_codec.languages import encode_content, load_all
@@ -76,9 +77,9 @@ def _is_opener(kind: MessageKind) -> bool:
     channel = next(c for c in spec.channels if c.name == kind.channel)
     cp = next(p for p in channel.protocols if p.protocol == kind.protocol)
     role = INITIATOR if cp.initiator == kind.sender else PARTICIPANT
-    try:
-        return CrossingTracker(kind.protocol).is_opener(role, kind.performative)
-    except ValueError:  # a protocol without a state machine
+    try:  # the machine the specification declares (coordinate) or names (FIPA's)
+        return CrossingTracker(machine_of(spec, kind.protocol)).is_opener(role, kind.performative)
+    except ValueError:  # a protocol without a state machine (SpecError is one)
         return True
 
 

@@ -6,7 +6,9 @@ with a FIPA refuse or not-understood and counted."""
 from __future__ import annotations
 
 import json
+import logging
 import queue
+import time
 from collections.abc import Iterator
 from dataclasses import dataclass
 
@@ -14,12 +16,19 @@ import msgspec
 import pytest
 
 from services.fleet.launcher import free_port
-from services.gateway.bridge import Gateway, open_gateway
+from services.gateway.bounds import Limits
+from services.gateway.bridge import GATEWAY, Gateway, open_gateway
+from services.gateway.envelope import Envelope
+from services.gateway.http_mtp import MTPMessage
+from services.gateway.server import Refused
 from services.runtime import keys
 from services.runtime.human import ReportKind
+from services.runtime.memory_transport import MemoryBus
 from services.spec.model import default_spec
-from shared.fipa_codec import Performative, decode
+from shared.fipa_codec import AgentIdentifier, Communicate, Performative, decode, encode
+from shared.fipa_codec.languages import encode_content
 from shared.fipa_codec.languages.l_hc import CommandOutcome, HumanCommand, SentenceReport, TaskAtom
+from shared.fipa_codec.string_form import parse
 from tests.agents.human_interface.test_agent import TIMEOUT, ScriptedCo, Stage
 from tests.support.jade_platform import JADE, JadePlatform, envelope_xml, jade_body, post
 
@@ -202,3 +211,224 @@ def test_a_ros2_callers_name_is_no_sender_the_gateway_speaks_for(b: Bridge) -> N
     assert post(b.url, body) == 403
     assert b.gateway.counters["refused.sender"] == 1
     assert not [k for k, _ in b.stage.bus.published if k.startswith(keys.FIPA_PREFIX) and "ros2" in k]
+
+
+# ---- conversations followed through their protocol (services/gateway/conversations.py) --------
+# A Gateway without HTTP: messages handed to ``deliver`` as the HTTP server would, a_hi's
+# communicates put on the MemoryBus, answers taken by a stand-in ``post``.
+
+FOREIGN_ADDRESS = "http://jade:7778/acc"
+
+
+@dataclass
+class Direct:
+    gateway: Gateway
+    bus: MemoryBus
+    posted: queue.SimpleQueue[tuple[str, MTPMessage]]
+    reports: queue.SimpleQueue[bytes]
+
+    def deliver(
+        self,
+        performative: str,
+        conversation: str | None,
+        reply_with: str,
+        *,
+        content: str | None = None,
+        protocol: str = "fipa-request",
+        peer: str = "1.2.3.4",
+    ) -> None:
+        """A message from the JADE agent to a_hi, as the HTTP server hands it over."""
+        parts = [
+            f"({performative} :sender (agent-identifier :name {JADE}",
+            f" :addresses (sequence {FOREIGN_ADDRESS}))",
+            " :receiver (set (agent-identifier :name a_hi))",
+        ]
+        if content is not None:
+            quoted = content.replace('"', '\\"')
+            parts.append(f' :content "{quoted}" :language L_HC :ontology O_RoCo')
+        parts.append(f" :protocol {protocol} :reply-with {reply_with}")
+        if conversation is not None:
+            parts.append(f" :conversation-id {conversation}")
+        acl = "".join(parts) + ")"
+        self.gateway.deliver(MTPMessage(Envelope(to=(AgentIdentifier("a_hi"),)), acl.encode()), peer)
+
+    def say(self, performative: Performative, conversation: str, in_reply_to: str, kind: str) -> None:
+        """a_hi's communicate to the JADE agent, put on Zenoh where the gateway hears it."""
+        name, data = encode_content(SentenceReport(kind=kind, text=kind))
+        msg = Communicate(
+            performative=performative,
+            sender=AgentIdentifier("a_hi"),
+            receiver=(AgentIdentifier(JADE),),
+            content=data,
+            language=name,
+            ontology="O_RoCo",
+            encoding="msgpack",
+            protocol="fipa-request",
+            conversation_id=conversation,
+            in_reply_to=in_reply_to,
+        )
+        self.bus.publish(keys.fipa_key("C8", "a_hi", JADE), encode(msg))
+
+    def settled(self) -> None:
+        """Return once the gateway has handled everything given to it so far (it handles its
+        inputs in order, and answers the counters' request among them) and posted what it
+        answered."""
+        self.bus.publish(keys.COUNTERS_ASK, b"")
+        self.reports.get(timeout=TIMEOUT)
+        deadline = time.monotonic() + TIMEOUT
+        while self.gateway.poster.outstanding() and time.monotonic() < deadline:
+            time.sleep(0.005)
+        assert not self.gateway.poster.outstanding()
+
+    def answers(self) -> list[Communicate]:
+        """The ACL messages posted to the JADE agent so far."""
+        out = []
+        while not self.posted.empty():
+            address, message = self.posted.get_nowait()
+            assert address == FOREIGN_ADDRESS
+            out.append(parse(message.payload))
+        return out
+
+    def put_by_jade(self) -> list[Communicate]:
+        """What the gateway put on Zenoh as the JADE agent."""
+        key = keys.fipa_key("C8", JADE, "a_hi")
+        return [decode(p) for k, p in self.bus.published if k == key]
+
+
+@pytest.fixture
+def direct() -> Iterator[Direct]:
+    bus = MemoryBus()
+    posted: queue.SimpleQueue[tuple[str, MTPMessage]] = queue.SimpleQueue()
+    reports: queue.SimpleQueue[bytes] = queue.SimpleQueue()
+
+    async def post(address: str, message: MTPMessage) -> None:
+        posted.put((address, message))
+
+    bus.subscribe(keys.counters_key(GATEWAY), lambda _key, payload: reports.put(payload))
+    limits = Limits(linger_s=0.0)  # a name is free as soon as its conversations are over
+    gateway = Gateway(bus.transport(), default_spec(), "http://127.0.0.1:1/acc", limits=limits, post=post)
+    gateway.bind()
+    gateway.start()
+    try:
+        yield Direct(gateway, bus, posted, reports)
+    finally:
+        gateway.stop()
+
+
+def test_the_same_request_again_in_one_conversation_is_not_understood(direct: Direct) -> None:
+    """A conversation-id names one conversation (FIPA SC00061): a second request in it, under a
+    reply-with of its own, is no retransmission but a protocol violation (FIPA SC00026): refused
+    not-understood with the state machine's reason, counted, not put on Zenoh. The request sent
+    again under its own reply-with (a retransmission) passes, for a_hi to answer as a copy."""
+    words = sentence("bring me the cup")
+    direct.deliver("REQUEST", "D1", "D1-r1", content=words)
+    direct.deliver("REQUEST", "D1", "D1-r2", content=words)
+    direct.deliver("REQUEST", "D1", "D1-r1", content=words)  # the first again: a copy
+    direct.settled()
+    put = direct.put_by_jade()
+    assert [(m.performative, m.reply_with) for m in put] == [
+        (Performative.REQUEST, "D1-r1"),
+        (Performative.REQUEST, "D1-r1"),
+    ]
+    key = keys.fipa_key("C8", JADE, "a_hi")
+    first, again = [p for k, p in direct.bus.published if k == key]
+    assert first == again  # byte for byte: a copy to a_hi (services/runtime/dedup.py)
+    (answer,) = direct.answers()
+    assert answer.performative is Performative.NOT_UNDERSTOOD
+    assert answer.sender is not None and answer.sender.name == "a_hi"
+    assert (answer.conversation_id, answer.in_reply_to) == ("D1", "D1-r2")
+    assert b"may not send 'request'" in answer.content and b"new conversation-id" in answer.content
+    counters = direct.gateway.counters
+    assert counters["refused.protocol_state"] == 1 and counters["refused"] == 1
+    assert counters["forwarded"] == 2
+    # a_hi's conversation is still open: the name stays bound to its peer
+    with pytest.raises(Refused):
+        direct.deliver("REQUEST", "D9", "D9-r1", content=words, peer="5.6.7.8")
+
+
+def test_a_request_without_conversation_id_is_not_understood(direct: Direct) -> None:
+    """roco follows each conversation by its conversation-id (FIPA SC00061 leaves it optional):
+    a request without one is refused at the gateway, as a_hi would refuse it."""
+    direct.deliver("REQUEST", None, "D2-r1", content=sentence("bring me the cup"))
+    direct.settled()
+    assert direct.put_by_jade() == []
+    (answer,) = direct.answers()
+    assert answer.performative is Performative.NOT_UNDERSTOOD and b"needs a conversation-id" in answer.content
+    assert direct.gateway.counters["refused.protocol_state"] == 1
+
+
+def test_a_not_understood_from_one_that_received_nothing_is_refused_unanswered(direct: Direct) -> None:
+    """not-understood answers a communicate received (FIPA SC00037 §3.12): from the foreign
+    agent before a_hi said anything in the conversation, or in a conversation never opened,
+    it is refused, counted and not put on Zenoh; and not answered (no answers to answers)."""
+    direct.deliver("REQUEST", "D3", "D3-r1", content=sentence("bring me the cup"))
+    direct.deliver("NOT-UNDERSTOOD", "D3", "D3-r2")  # a_hi has not answered yet
+    direct.deliver("NOT-UNDERSTOOD", "D4", "D4-r1")  # nothing at all in D4
+    direct.settled()
+    assert [m.performative for m in direct.put_by_jade()] == [Performative.REQUEST]
+    assert direct.answers() == []
+    counters = direct.gateway.counters
+    assert counters["refused.protocol_state"] == 2 and counters["forwarded"] == 1
+    assert not direct.gateway.conversations.ended(JADE, "a_hi", "fipa-request", "D3")
+
+
+def test_an_agents_inform_after_the_conversation_ended_is_dropped(
+    direct: Direct, caplog: pytest.LogCaptureFixture
+) -> None:
+    """a_hi refuses the request, which ends the conversation (FIPA SC00026); an inform after
+    that is out of the protocol: dropped, counted ``dropped.out_of_protocol``, one WARNING line,
+    not posted. So is an inform in a conversation the gateway never bridged."""
+    direct.deliver("REQUEST", "D5", "D5-r1", content=sentence("sing me a song"))
+    direct.settled()
+    direct.say(Performative.REFUSE, "D5", "D5-r1", "not-understood")
+    direct.settled()
+    assert [m.performative for m in direct.answers()] == [Performative.REFUSE]
+    with caplog.at_level(logging.WARNING, logger=GATEWAY):
+        direct.say(Performative.INFORM, "D5", "D5-r1", "succeeded")
+        direct.say(Performative.INFORM, "D6", "D6-r1", "succeeded")
+        direct.settled()
+    assert direct.answers() == []
+    counters = direct.gateway.counters
+    assert counters["dropped.out_of_protocol"] == 2 and counters["answered"] == 1
+    lines = [r.getMessage() for r in caplog.records if r.levelno == logging.WARNING]
+    dropped = [line for line in lines if line.startswith("dropped inform from a_hi")]
+    assert len(dropped) == 2 and "D5" in dropped[0] and "already ended" in dropped[0]
+    assert all("\n" not in line for line in dropped)
+
+
+def test_a_legal_request_agree_inform_goes_through_and_frees_the_conversation(direct: Direct) -> None:
+    """request → agree → inform, as fipa-request allows (FIPA SC00026): each passes; after the
+    agree the conversation is open (the name stays bound to its peer), after the inform it is
+    over (its tracker finished) and the name is free for another peer."""
+    words = sentence("bring me the cup")
+    direct.deliver("REQUEST", "D7", "D7-r1", content=words)
+    direct.settled()
+    direct.say(Performative.AGREE, "D7", "D7-r1", "accepted")
+    direct.settled()
+    conversations = direct.gateway.conversations
+    assert not conversations.ended(JADE, "a_hi", "fipa-request", "D7")
+    with pytest.raises(Refused):  # another peer, while the conversation is open
+        direct.deliver("REQUEST", "D8", "D8-r1", content=words, peer="5.6.7.8")
+    direct.say(Performative.INFORM, "D7", "D7-r1", "succeeded")
+    direct.settled()
+    assert [m.performative for m in direct.answers()] == [Performative.AGREE, Performative.INFORM]
+    assert conversations.ended(JADE, "a_hi", "fipa-request", "D7")
+    assert conversations.states.open_count == 0
+    counters = direct.gateway.counters
+    assert counters["forwarded"] == 1 and counters["answered"] == 2
+    assert counters["refused.identity"] == 1  # the other peer's only
+    assert {k for k in counters if k.startswith(("refused.", "dropped."))} == {"refused.identity"}
+    time.sleep(0.01)  # linger_s 0: over as soon as the clock moves
+    direct.deliver("REQUEST", "D8", "D8-r1", content=words, peer="5.6.7.8")  # the name is free
+
+
+def test_a_notice_ends_its_conversation_at_once(direct: Direct) -> None:
+    """roco-notify is one inform that nothing answers: its conversation is over once it is
+    put on Zenoh, and the foreign name is free again (not held until ``conversation_s``)."""
+    notice = json.dumps({"type": "notice", "text": "the jar tipped over"})
+    direct.deliver("INFORM", "N2", "N2-r1", content=notice, protocol="roco-notify")
+    direct.settled()
+    assert [m.protocol for m in direct.put_by_jade()] == ["roco-notify"]
+    time.sleep(0.01)  # linger_s 0: over as soon as the clock moves
+    direct.deliver("INFORM", "N3", "N3-r1", content=notice, protocol="roco-notify", peer="5.6.7.8")
+    assert direct.gateway.conversations.ended(JADE, "a_hi", "roco-notify", "N2")

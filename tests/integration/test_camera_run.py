@@ -17,7 +17,7 @@ import pytest
 from services.agents.knowledge.world_model import WorldModel
 from services.report import build_report
 from services.report.load import load_run
-from services.scenario.chaos import final_world
+from services.report.world import final_world
 from shared.fipa_codec.languages.l_sd import Observation
 from tests.support.machine import needs_gl
 

@@ -27,7 +27,10 @@ from services.recorder.record import read_records
 from services.report import build_report
 from services.report.load import load_run
 from services.runtime.run_folder import read_run_info
+from services.spec.model import default_spec
+from services.spec_check.conformance import verify_run
 from shared.fipa_codec import Performative
+from tests.support import forbidden
 from tests.support.jade_platform import JADE, JadePlatform, Received
 from tests.support.machine import needs_camera
 from tests.support.raised import assert_no_agent_raised
@@ -420,10 +423,12 @@ def test_the_presence_record_is_what_a_replayed_a_ta_needs(pour_run: PourRun, tm
     """The recorder's presence record (services/recorder/presence.py): each agent's token seen
     to appear, the recorder's own first. a_ta subscribes to ag_ex's power-ons when
     ag_ex's token appears (after the world is up, after a_ta's first observe): with the record
-    the replay reproduces that moment; without it (every agent alive from the start) the
-    replayed a_ta subscribes first and differs."""
+    the replay reproduces that moment, the token taken no later than that subscription (the
+    recorder may see the token after it: seen 3.4 ms after; tests/replay/test_when_it_came.py
+    builds that order); without it (every agent alive from the start) the replayed a_ta
+    subscribes first and differs."""
     from services.recorder.presence import read_presence
-    from services.replay.driver import replay
+    from services.replay.driver import peers, replay
     from services.runtime.run_folder import TRAFFIC_JSONL
     from tests.support.recorded_run import PRESENCE_JSONL, copy_record
 
@@ -431,13 +436,15 @@ def test_the_presence_record_is_what_a_replayed_a_ta_needs(pour_run: PourRun, tm
     assert events is not None and events[0].name == "recorder", events  # the fleet starts it first
     appeared = {e.name for e in events if e.alive}
     assert appeared >= set(AGENTS) | {"recorder"}, events
-    first = {e.name: e.t for e in reversed(events) if e.alive}
     subscribe = next(
         m
         for m in load_run(pour_run.run_dir).messages
         if m.sender == "a_ta" and m.comm is not None and m.comm.performative.value == "subscribe"
     )
-    assert first["ag_ex"] <= subscribe.rec.t, (first, subscribe.rec)
+    assert subscribe.rec.t_sent is not None
+    seen = peers(pour_run.run_dir, "a_ta")
+    came = [c.t for c in seen.changes if c.name == "ag_ex" and c.alive]
+    assert "ag_ex" in seen.initial or came[0] <= subscribe.rec.t_sent, (seen, subscribe.rec)
 
     bare = copy_record(pour_run.run_dir, tmp_path / "bare")
     (bare / PRESENCE_JSONL).unlink()
@@ -447,23 +454,20 @@ def test_the_presence_record_is_what_a_replayed_a_ta_needs(pour_run: PourRun, tm
 
 
 def test_an_answer_recorded_before_its_question_is_fed_after_it(pour_run: PourRun, tmp_path: Path) -> None:
-    """a_pl's part of the pour's record rewritten so that a_km's first answer to a_pl comes before the
-    request from a_co that made a_pl ask (as agents linked directly can reach the recorder):
-    a_pl still reproduces, the answer held until the replayed a_pl has asked; fed in the
-    record's order (the causal ordering off), a_pl answers it not-understood."""
+    """a_pl's part of the pour's record rewritten so that a_km's answer to a_pl's first question
+    comes before the request from a_co that made a_pl ask (as agents linked directly can reach
+    the recorder; the run's record may hold that order already, or not): a_pl still reproduces,
+    the answer held until the replayed a_pl has asked; fed in the record's order (the causal
+    ordering off), a_pl answers it not-understood."""
     from services.replay.driver import render, replay
-    from tests.support.recorded_run import STARTED, write_recorded_run
+    from tests.support.recorded_run import STARTED, answer_before_its_cause, write_recorded_run
 
     messages = [
         m
         for m in load_run(pour_run.run_dir).messages
         if m.comm is not None and "a_pl" in (m.sender, *m.rec.receivers[:1])
     ]
-    answer = next(m for m in messages if m.sender == "a_km" and m.rec.receivers[:1] == ("a_pl",))
-    ask = next(m for m in messages if m.sender == "a_co" and m.rec.receivers[:1] == ("a_pl",))
-    assert ask.rec.seq < answer.rec.seq
-    order = [m for m in messages if m is not answer]
-    order.insert(order.index(ask), answer)
+    order, ask, answer = answer_before_its_cause(messages, "a_co", "a_pl", "a_km")
     at = [(ask if m is answer else m).rec.t - STARTED for m in order]  # the run's clock: reply-by
     traffic = [(t, m.comm) for t, m in zip(at, order, strict=True) if m.comm is not None]
     moved = write_recorded_run(tmp_path / "run", traffic)
@@ -520,3 +524,19 @@ def test_what_if_ag_ex_ran_on_a_host_of_its_own(pour_run: PourRun) -> None:
     executions = [c for c in w.convs if c.kind == "C1:coordinate"]
     assert len(commands) == 1 and executions
     assert w.paths.half_trips(commands[0]) == sum(w.paths.half_trips(c) for c in executions) > 0
+
+
+@pytest.mark.parametrize("name", [n for n, case in forbidden.CASES.items() if case[0] not in forbidden.EXTRA])
+def test_a_forbidden_conversation_appended_to_the_pour_s_record_is_flagged(
+    pour_run: PourRun, name: str, tmp_path: Path
+) -> None:
+    """The planted faults of tests/spec_check/test_forbidden_conversations.py, each appended to
+    this fresh pour's record: verify flags exactly its forbidden communicates, naming the
+    conversation and the rule (the record itself verifies: the test above)."""
+    protocol, steps, flagged = forbidden.CASES[name]
+    run = forbidden.append_conversation(pour_run.run_dir, tmp_path / "run", "planted", protocol, steps)
+    report = verify_run(run, default_spec())
+    found = {v.position: v for v in report.violations}
+    assert set(found) == set(flagged), [(v.position, v.kind, v.text) for v in report.violations]
+    for position, words in flagged.items():
+        assert found[position].conversation == "planted" and words in found[position].text

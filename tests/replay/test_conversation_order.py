@@ -2,9 +2,10 @@
 
 a_ta's informs on a plan's run (coordinate protocol) all answer a_co's request (their
 in-reply-to), yet a_ta sends each after a_co's confirm of the one before. When the record holds
-a_ta's first informs before what made a_co send its request (a_pl's plan, whose path to the
-recorder was slow), the replay holds them until a_co has sent the request, and must then feed
-them one at a time, each after a_co's communicates to a_ta sent before it."""
+a_ta's first informs before what made a_co send its request (a_pl's plan, stamped by a clock
+behind the others and seen late by the recorder), the replay holds them until a_co has sent the
+request, and must then feed them one at a time, each after a_co's communicates to a_ta sent
+before it."""
 
 from __future__ import annotations
 
@@ -25,9 +26,11 @@ that confirm)."""
 
 
 def _plan_late(dest: Path) -> Path:
-    """A copy of the fixture with a_pl's first plan reaching the recorder just after a_ta's
-    second inform (and before anything else of a_pl's on its key): the order publishers on
-    paths of their own may reach it in."""
+    """A copy of the fixture with a_pl's first plan sent, by its timestamp, and reaching the
+    recorder just after a_ta's second inform (and before anything else of a_pl's on its key):
+    what a_pl's clock behind the others' (on a host of its own) and a slow path to the recorder
+    show. (The recorder's time alone would not do: the replay takes an input as reaching the
+    agent when its sender's timestamp says.)"""
     run = copy_record(FIXTURE, dest)
     path = run / TRAFFIC_JSONL
     records = [json.loads(line) for line in path.read_text().splitlines()]
@@ -40,6 +43,7 @@ def _plan_late(dest: Path) -> Path:
         "inform",
     ]
     by_seq[PLAN]["t"] = by_seq[SECOND]["t"] + 0.0001
+    by_seq[PLAN]["t_sent"] = by_seq[SECOND]["t_sent"] + 0.0001
     path.write_text("".join(json.dumps(r) + "\n" for r in records))
     return run
 

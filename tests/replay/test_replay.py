@@ -19,6 +19,7 @@ from typer.testing import CliRunner
 import services.cli as cli
 from services.recorder.record import RawEntry
 from services.replay.driver import ReplayError, render, replay
+from services.report.load import load_run
 from services.runtime.counters import CountersReport, save_counters
 from shared.fipa_codec import Communicate, Performative
 from shared.fipa_codec.languages.l_ex import Observe
@@ -26,7 +27,7 @@ from shared.fipa_codec.languages.l_hc import Status, StatusQuery, TaskState, Tas
 from shared.fipa_codec.languages.l_sd import Observation
 from shared.fipa_codec.languages.l_wm import Subscription, WorldUpdate
 from tests.support.messages import communicate
-from tests.support.recorded_run import STARTED, rewrite_record, write_recorded_run
+from tests.support.recorded_run import STARTED, answer_before_its_cause, rewrite_record, write_recorded_run
 
 
 def _query(n: int) -> Communicate:
@@ -204,6 +205,33 @@ def test_an_answer_recorded_before_the_question_is_fed_after_the_agent_asks(tmp_
     assert ("communicate", "sent") in sent and unordered.counters["protocol_violations"] == 1, render(
         unordered
     )
+
+
+@pytest.mark.parametrize("first", ["after", "before"])
+def test_an_answer_is_put_before_its_cause_whatever_order_the_record_holds_them_in(
+    tmp_path: Path, first: str
+) -> None:
+    """tests/support/recorded_run.py ``answer_before_its_cause`` (the pour's a_pl test builds its
+    record with it) finds cause, question and answer by cause, not by the order of arrival: on a
+    record where ag_ex's answer came after a_km's subscription that caused a_ta's question, and on
+    one where it came before (the very order it builds), it builds the same order, and the
+    replay takes the answer after a_ta asked."""
+    alive = ["a_km", "a_co"]
+    run = write_recorded_run(tmp_path / "run", [(1.0, m) for m in _observed(first)], alive)
+    messages = load_run(run).messages
+    order, cause, answer = answer_before_its_cause(messages, "a_km", "a_ta", "ag_ex")
+    assert (cause.sender, answer.sender) == ("a_km", "ag_ex")
+    assert [(m.sender, m.rec.performative) for m in order] == [
+        ("ag_ex", "inform"),
+        ("a_km", "subscribe"),
+        ("a_ta", "agree"),
+        ("a_ta", "request"),
+        ("a_ta", "inform"),
+    ]
+    built = write_recorded_run(
+        tmp_path / "built", [(1.0, m.comm) for m in order if m.comm is not None], alive
+    )
+    assert replay(built, "a_ta").equal
 
 
 def test_roco_replay_without_an_agent_says_in_one_line_each_whether_it_reproduced(tmp_path: Path) -> None:

@@ -49,11 +49,13 @@ class FakeRoles:
 
 @dataclass(eq=False)
 class FakeConversation:
-    """What ConfirmedInforms uses of a Conversation: ``send`` and ``last``."""
+    """What ConfirmedInforms uses of a Conversation: ``send``, ``last`` and ``finished`` (a
+    not-understood received ends it, as the protocol state would say)."""
 
     conversation_id: str = "plan-1"
     sent: list[tuple[int, float | None]] = field(default_factory=list)
     last: Received | None = None
+    finished: bool = False
 
     def send(self, performative: Performative, content: Status, *, retry_s: float | None = None) -> str:
         assert performative is Performative.INFORM
@@ -70,6 +72,7 @@ class FakeConversation:
             in_reply_to=in_reply_to,
         )
         self.last = Received.of(msg, None, "C1")
+        self.finished = self.finished or performative is Performative.NOT_UNDERSTOOD
 
 
 def reports() -> tuple[ConfirmedInforms, Any]:
@@ -97,15 +100,20 @@ def test_one_inform_at_a_time_until_confirmed() -> None:
     assert not r.final_confirmed(conv)
 
 
-def test_a_not_understood_ends_the_wait_and_other_communicates_go_to_the_handler() -> None:
+def test_a_not_understood_ends_the_conversation_and_other_communicates_go_to_the_handler() -> None:
+    """The peer's not-understood ends the wait and the conversation (FIPA SC00037 §3.12): the
+    informs still waiting in it are not sent, and a final one among them counts as confirmed
+    (nobody will confirm it)."""
     r, conv = reports()
-    r.inform(conv, Status(n=1), final=True)
-    r.inform(conv, Status(n=2))
+    r.inform(conv, Status(n=1))
+    r.inform(conv, Status(n=2), final=True)
     conv.receive(Performative.CANCEL, "")
     assert r.take(conv) is True  # the agent's cancel handler takes it
     conv.receive(Performative.NOT_UNDERSTOOD, "r1")
     assert r.take(conv) is False
-    assert r.final_confirmed(conv) and [n for n, _ in conv.sent] == [1, 2]
+    assert r.final_confirmed(conv) and [n for n, _ in conv.sent] == [1]
+    r.inform(conv, Status(n=3))
+    assert [n for n, _ in conv.sent] == [1] and not r.awaiting
 
 
 def test_only_a_participant_role_has_its_informs_confirmed() -> None:

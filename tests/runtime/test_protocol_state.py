@@ -16,6 +16,8 @@ from services.runtime.agent import Agent, SpecViolation
 from services.runtime.behaviour import FSM, Behaviour
 from services.runtime.memory_transport import MemoryBus
 from services.runtime.protocol_state import CrossingTracker, ProtocolStates, follow
+from services.spec.model import default_spec
+from services.spec.protocol_defs import machine_of
 from shared.fipa_codec import Communicate, Performative, decode, encode
 from shared.fipa_codec.languages.l_hc import CommandOutcome, HumanCommand, TaskAtom
 from shared.fipa_codec.languages.l_sw import SWState, SWStatus
@@ -31,7 +33,10 @@ INIT, PART = INITIATOR, PARTICIPANT
 
 
 def steps(protocol: str, *messages: tuple[str, Performative], local: str | None = None) -> CrossingTracker:
-    tracker = CrossingTracker(protocol, local_role=INIT if local == INIT else PART if local == PART else None)
+    """A tracker of ``protocol``'s machine in the shipped specification (FIPA's built in, the
+    paper's coordinate declared there) after ``messages``."""
+    machine = machine_of(default_spec(), protocol)
+    tracker = CrossingTracker(machine, local_role=INIT if local == INIT else PART if local == PART else None)
     for role, perf in messages:
         tracker.step(role, perf)
     return tracker
@@ -125,32 +130,77 @@ def test_a_cancel_of_a_conversation_never_seen_may_be_answered_once() -> None:
         follow(None, "fipa-query", PART, P.INFORM, local_role=INIT)
 
 
-def test_an_opening_communicate_begins_a_conversation_anew_and_not_understood_ends_it() -> None:
+def test_an_opening_communicate_in_an_open_or_ended_conversation_is_refused() -> None:
+    """A conversation-id names one conversation (FIPA SC00061): a second subscribe in it, open
+    or ended, is a violation, and so is anything after its end, whoever sends it."""
     t, _ = follow(None, "fipa-subscribe", INIT, P.SUBSCRIBE, local_role=INIT)
-    t, outcome = follow(t, "fipa-subscribe", INIT, P.SUBSCRIBE, local_role=INIT)  # a retry
-    assert outcome == "restart" and t.state == "subscribed"
-    t, outcome = follow(t, "fipa-subscribe", PART, P.NOT_UNDERSTOOD, local_role=INIT)
-    assert outcome == "aborted" and t.is_finished
-    assert follow(t, "fipa-subscribe", PART, P.INFORM, local_role=INIT)[1] == "unchecked"
-
-
-def test_what_the_other_party_sent_before_it_saw_a_new_opening_crosses_it() -> None:
-    """a_km subscribes to a_ta again (a_ta's token reappeared after the robot's router came
-    back); a_ta kept its subscription and had sent an update that arrives after the new
-    subscribe: a crossing, not a violation (chaos across hosts, seed 2, --realtime)."""
-    t, _ = follow(None, "fipa-subscribe", INIT, P.SUBSCRIBE, local_role=INIT)
-    t, _ = follow(t, "fipa-subscribe", PART, P.AGREE, local_role=INIT)
-    t, _ = follow(t, "fipa-subscribe", PART, P.INFORM, local_role=INIT)
-    t, outcome = follow(t, "fipa-subscribe", INIT, P.SUBSCRIBE, local_role=INIT)  # anew
-    assert outcome == "restart" and t.state == "subscribed"
-    t, outcome = follow(t, "fipa-subscribe", PART, P.INFORM, local_role=INIT)  # sent before it saw it
-    assert outcome == "crossing" and t.state == "subscribed"
-    t, outcome = follow(t, "fipa-subscribe", PART, P.AGREE, local_role=INIT)  # it saw it now
-    assert outcome == "step" and t.state == "active" and t.superseded is None
-    # an inform in a conversation opened anew from nothing (a_km restarted) is still refused
-    fresh, _ = follow(None, "fipa-subscribe", INIT, P.SUBSCRIBE, local_role=INIT)
+    with pytest.raises(ProtocolViolation, match="needs a new conversation-id"):
+        follow(t, "fipa-subscribe", INIT, P.SUBSCRIBE, local_role=INIT)
+    assert t.state == "subscribed" and t.messages == 1  # unchanged
+    t, outcome = follow(t, "fipa-subscribe", PART, P.REFUSE, local_role=INIT)
+    assert outcome == "step" and t.is_finished
+    for role, perf in ((INIT, P.SUBSCRIBE), (PART, P.AGREE), (PART, P.INFORM)):
+        with pytest.raises(ProtocolViolation, match="refused"):
+            follow(t, "fipa-subscribe", role, perf, local_role=INIT)
+    # a query answered, then asked again and answered again under the same id
+    q, _ = follow(None, "fipa-query", INIT, P.QUERY_REF)
+    follow(q, "fipa-query", PART, P.INFORM_REF)
+    with pytest.raises(ProtocolViolation, match="opens a conversation"):
+        follow(q, "fipa-query", INIT, P.QUERY_REF)
+    # the same query three times in one open conversation: the second is refused already
+    r, _ = follow(None, "fipa-query", INIT, P.QUERY_REF)
     with pytest.raises(ProtocolViolation):
-        follow(fresh, "fipa-subscribe", PART, P.INFORM, local_role=INIT)
+        follow(r, "fipa-query", INIT, P.QUERY_REF)
+
+
+def test_not_understood_comes_from_a_receiver_and_ends_the_conversation() -> None:
+    """Not-understood answers a communicate received (FIPA SC00037 §3.12): the initiator of a
+    query that received nothing may not send one; after the participant's agree it may, and the
+    conversation ends: the inform that crossed it still belongs there, a second inform does not,
+    nor anything its sender sends; a refused communicate may be answered not-understood once,
+    by its receiver."""
+    t, _ = follow(None, "fipa-query", INIT, P.QUERY_REF)
+    with pytest.raises(ProtocolViolation, match="not-understood answers a communicate received"):
+        follow(t, "fipa-query", INIT, P.NOT_UNDERSTOOD)
+    assert not t.is_finished
+    follow(t, "fipa-query", PART, P.AGREE)
+    t, outcome = follow(t, "fipa-query", INIT, P.NOT_UNDERSTOOD)
+    assert outcome == "aborted" and t.is_finished
+    t, outcome = follow(t, "fipa-query", PART, P.INFORM)  # sent before the not-understood arrived
+    assert outcome == "crossing"
+    with pytest.raises(ProtocolViolation, match="already ended"):
+        follow(t, "fipa-query", PART, P.INFORM)
+    with pytest.raises(ProtocolViolation, match="not-understood answers"):  # it heard nothing since
+        follow(t, "fipa-query", PART, P.NOT_UNDERSTOOD)
+    # the initiator heard the refused inform: it may answer it not-understood, once
+    assert follow(t, "fipa-query", INIT, P.NOT_UNDERSTOOD)[1] == "aborted"
+    with pytest.raises(ProtocolViolation, match="not-understood answers"):
+        follow(t, "fipa-query", INIT, P.NOT_UNDERSTOOD)
+    with pytest.raises(ProtocolViolation, match="already ended"):  # nor may its sender go on
+        follow(t, "fipa-query", INIT, P.CANCEL)
+    # what names a not-understood in its in-reply-to was sent after it: no crossing
+    u, _ = follow(None, "fipa-query", INIT, P.QUERY_REF, reply_with="q")
+    follow(u, "fipa-query", PART, P.AGREE, reply_with="a", in_reply_to="q")
+    follow(u, "fipa-query", INIT, P.NOT_UNDERSTOOD, reply_with="nu", in_reply_to="a")
+    with pytest.raises(ProtocolViolation, match="already ended"):
+        follow(u, "fipa-query", PART, P.INFORM, in_reply_to="nu")
+
+
+def test_a_refused_communicate_is_noted_for_its_receiver_only() -> None:
+    """``judge`` returns its refusal with the tracker, unchanged but for what its receiver
+    heard; ``ProtocolStates`` keeps that for a conversation it knows and nothing for one it
+    does not."""
+    t, outcome, refusal = protocol_state.judge(None, "fipa-request", PART, P.INFORM, local_role=INIT)
+    assert outcome is None and isinstance(refusal, ProtocolViolation) and t.initiator_heard
+    table = ProtocolStates()
+    with pytest.raises(ProtocolViolation):
+        table.observe("a_pl", "q", "fipa-request", PART, P.INFORM, local_role=INIT)
+    assert table.get("a_pl", "q") is None
+    table.observe("a_pl", "r", "fipa-request", INIT, P.REQUEST, local_role=INIT)
+    table.observe("a_pl", "r", "fipa-request", PART, P.INFORM, local_role=INIT)
+    with pytest.raises(ProtocolViolation):
+        table.observe("a_pl", "r", "fipa-request", PART, P.INFORM, local_role=INIT)
+    assert table.observe("a_pl", "r", "fipa-request", INIT, P.NOT_UNDERSTOOD, local_role=INIT) == "aborted"
 
 
 def test_a_long_subscription_keeps_bounded_memory() -> None:
@@ -169,6 +219,7 @@ def test_a_confirm_of_the_terminal_inform_closes_coordinate_at_both_ends() -> No
     plan's conversation ends at a_co and at a_ta; read without it, each stayed open (two
     readings, ``finished`` and ``ending``) until a_ta refused its 129th plan."""
     ends = {"a_ta": (ProtocolStates(), PART, "a_co"), "a_co": (ProtocolStates(), INIT, "a_ta")}
+    coordinate = machine_of(default_spec(), "coordinate")  # declared in the specification
     for plan in range(3):
         cid = f"exec{plan}"
         wire = [
@@ -181,7 +232,7 @@ def test_a_confirm_of_the_terminal_inform_closes_coordinate_at_both_ends() -> No
         for table, local, peer in ends.values():
             for role, perf, terminal, reply_with, in_reply_to in wire:
                 table.observe(
-                    peer, cid, "coordinate", role, perf, local_role=local, terminal=terminal,
+                    peer, cid, coordinate, role, perf, local_role=local, terminal=terminal,
                     reply_with=reply_with, in_reply_to=in_reply_to,
                 )  # fmt: skip
             tracker = table.get(peer, cid)
@@ -341,6 +392,38 @@ def test_a_communicate_without_the_languages_ontology_gets_not_understood(
     assert not w.agent.x and w.agent.counters["rejected"] == 1
 
 
+def test_the_runtime_refuses_what_fipa_forbids_live_and_counts_it() -> None:
+    """The sequences ``roco spec verify`` flags (tests/spec_check/test_forbidden_conversations.py)
+    are refused live: a query asked again in its answered conversation and a second query in an
+    open one get not-understood; an initiator's not-understood before it received anything is
+    counted and not answered (no not-understood answers one); a byte-identical copy is a
+    retransmission, taken once and not refused."""
+    w = Wire(Km)
+    query = communicate(P.QUERY_REF, "a_pl", "a_km", "fipa-query", "q", ObjectQuery("jar"))
+    w.deliver("C4", query)
+    (item,) = list(w.agent.x)
+    w.agent.reply(item, P.INFORM_REF, Answer())
+    w.agent.x.clear()
+    w.deliver("C4", query)  # the same bytes again: a copy, not a new opening
+    assert not w.agent.x and w.agent.counters["protocol_violations"] == 0
+    again = communicate(P.QUERY_REF, "a_pl", "a_km", "fipa-query", "q", ObjectQuery("jar"), reply_with="q-2")
+    w.deliver("C4", again)
+    second = communicate(P.QUERY_REF, "a_pl", "a_km", "fipa-query", "r", ObjectQuery("jar"))
+    w.deliver("C4", second)
+    w.deliver(
+        "C4",
+        communicate(P.QUERY_REF, "a_pl", "a_km", "fipa-query", "r", ObjectQuery("jar"), reply_with="r-2"),
+    )
+    refusals = [m for m in w.answers() if m.performative is P.NOT_UNDERSTOOD]
+    assert [m.conversation_id for m in refusals] == ["q", "r"], refusals
+    assert all("new conversation-id" in m.content.decode() for m in refusals)
+    nu = communicate(P.NOT_UNDERSTOOD, "a_pl", "a_km", "fipa-query", "s", encoding="utf-8")
+    w.deliver("C4", communicate(P.QUERY_REF, "a_pl", "a_km", "fipa-query", "s", ObjectQuery("jar")))
+    w.deliver("C4", nu)
+    assert w.agent.counters["protocol_violations"] == 3
+    assert len([m for m in w.answers() if m.performative is P.NOT_UNDERSTOOD]) == 2
+
+
 def test_sending_out_of_the_protocol_state_raises_and_is_counted() -> None:
     w = Wire(Km)
     with pytest.raises(SpecViolation, match="no such conversation of a_km with a_pl"):
@@ -383,16 +466,20 @@ def test_a_cancel_of_a_conversation_the_agent_never_saw_reaches_it() -> None:
     assert w.agent.counters["protocol_violations"] == 0
 
 
-def test_after_a_not_understood_the_conversation_is_no_longer_followed() -> None:
+def test_after_a_not_understood_only_what_crossed_it_belongs_to_the_conversation() -> None:
+    """a_ta answers a_km's subscribe not-understood: a_km's cancel, sent before it saw that,
+    still belongs there; a new subscribe under the same conversation-id does not (a
+    conversation-id names one conversation, FIPA SC00061): the runtime refuses to send it."""
     w = Wire(Km)
     km_sends(w, P.SUBSCRIBE)
     w.agent._dispatch()
     w.deliver("C6", communicate(P.NOT_UNDERSTOOD, "a_ta", "a_km", "fipa-subscribe", "env", encoding="utf-8"))
     km_sends(w, P.CANCEL)
-    # and a new subscribe in the same conversation-id begins it anew (a retry)
-    km_sends(w, P.SUBSCRIBE)
+    with pytest.raises(SpecViolation, match="new conversation-id"):
+        km_sends(w, P.SUBSCRIBE)
     tracker = w.agent.protocol_states.get("a_ta", "env")
-    assert tracker is not None and tracker.state == "subscribed"
+    assert tracker is not None and tracker.is_finished and tracker.aborted_by == PARTICIPANT
+    assert w.agent.counters["send_violations"] == 1
 
 
 class Replier(Km):
@@ -434,10 +521,10 @@ def _state_of(t: CrossingTracker) -> dict[str, object]:
 def test_a_copy_of_a_tracker_holds_all_its_state_and_is_independent() -> None:
     """``copy`` lists the attributes one by one (a compiled class has no ``__dict__``): a new
     attribute it forgets makes the copy differ here."""
-    earlier = CrossingTracker("fipa-subscribe", local_role=INITIATOR)
     t, _ = follow(None, "fipa-subscribe", INITIATOR, Performative.SUBSCRIBE, local_role=INITIATOR)
     t.step(PARTICIPANT, Performative.AGREE)
-    t.superseded, t.reopened_by, t.crossings = earlier, PARTICIPANT, 3
+    t.crossings, t.initiator_heard, t.participant_heard = 3, True, True
+    t.abort(PARTICIPANT)
     t.latest_initiator, t.latest_participant = "s1", "a1"
     copy = t.copy()
     assert _state_of(copy) == _state_of(t)

@@ -16,8 +16,7 @@ from services.runtime import keys
 from services.runtime.memory_transport import MemoryBus
 from services.runtime.roles import Conversation, handlers_of, role_problems
 from shared.fipa_codec import AgentIdentifier, Communicate, decode, encode
-from shared.fipa_codec.protocols import PROTOCOLS
-from tests.support.role_agents import NU, SPEC, TIMEOUT, P, Scripted
+from tests.support.role_agents import MACHINES, NU, SPEC, TIMEOUT, P, Scripted
 from tests.support.role_initiator import Initiator
 from tests.support.role_participant import Participant
 
@@ -73,7 +72,7 @@ def _open(a: Scripted, protocol: str) -> Conversation:
     return conv
 
 
-@pytest.mark.parametrize("protocol", list(PROTOCOLS))
+@pytest.mark.parametrize("protocol", list(MACHINES))
 def test_both_roles_of_every_protocol_run_from_its_state_machine(
     pair: tuple[MemoryBus, Initiator, Participant], protocol: str
 ) -> None:

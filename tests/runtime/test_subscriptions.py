@@ -103,8 +103,8 @@ def test_a_kms_subscription_goes_at_start_again_at_once_and_when_a_ta_is_back() 
     km.deliver(communicate(P.REFUSE, "a_ta", "a_km", "fipa-subscribe", cid, in_reply_to=rw))
     km.step("idle")
     (_, (cid2, rw2)) = [(m.conversation_id, m.reply_with) for m in km.mine(P.SUBSCRIBE)]
-    assert cid2 == cid and rw2 != rw  # at once, in the same conversation
-    km.deliver(communicate(P.AGREE, "a_ta", "a_km", "fipa-subscribe", cid, in_reply_to=rw2))
+    assert cid2 == "km-environment-2" and rw2 != rw  # at once, in a conversation of its own
+    km.deliver(communicate(P.AGREE, "a_ta", "a_km", "fipa-subscribe", cid2, in_reply_to=rw2))
     km.step("idle")
     assert km.agent.environment.subscribed
     ta = bus.transport()
@@ -121,7 +121,11 @@ def test_a_kms_subscription_goes_at_start_again_at_once_and_when_a_ta_is_back() 
     ta.announce(keys.alive_key("a_ta"))
     km.agent._acquire()
     km.agent._dispatch()
-    assert len(km.mine(P.SUBSCRIBE)) == 3  # back: a restarted a_ta has lost it
+    # back: a restarted a_ta has lost it; one that kept it is told to stop serving it (cancel)
+    assert [m.conversation_id for m in km.mine(P.SUBSCRIBE)][-1] == "km-environment-3"
+    (cancel,) = km.mine(P.CANCEL)
+    assert cancel.conversation_id == "km-environment-2"
+    assert km.agent.counters["send_violations"] == 0
 
 
 def test_one_role_keeps_two_subscriptions_apart_and_unsubscribe_ends_one() -> None:

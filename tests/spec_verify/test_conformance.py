@@ -273,7 +273,7 @@ def test_the_wrong_role_a_wrong_key_and_a_payload_that_is_no_communicate(tmp_pat
     assert found(report) == [(0, "performative", "q0", 0), (1, "key", "q1", 0), (2, "malformed", None, None)]
     assert report.violations[0].text == (
         "the participant of fipa-query on C4 (a_km) may not send query-ref "
-        "(allowed: agree, refuse, failure, inform, inform-ref, not-understood)"
+        "(allowed: refuse, agree, failure, inform, inform-ref, not-understood)"
     )
     assert report.violations[1].text == "the key names sender a_ta, the communicate a_pl"
 
@@ -285,12 +285,14 @@ def test_a_not_understood_ends_the_conversation_and_is_listed(tmp_path: Path) ->
         on(
             "C4", comm(P.NOT_UNDERSTOOD, "a_km", "a_pl", "fipa-query", "q1", content=b"why", encoding="utf-8")
         ),
-        on("C4", comm(P.INFORM_REF, "a_km", "a_pl", "fipa-query", "q1", Answer())),  # not followed
+        on("C4", comm(P.INFORM_REF, "a_km", "a_pl", "fipa-query", "q1", Answer())),  # after its own end
     )
-    assert report.full_conformance
     (nu,) = report.not_understood
     assert (nu.seq, nu.sender, nu.text) == (1, "a_km", "why")
     assert report.conversations[0].not_understood and report.open_conversations == []
+    # nothing belongs to the conversation after the not-understood that ended it, whoever sends it
+    (late,) = report.violations
+    assert (late.seq, late.kind) == (2, "protocol-state") and "already ended" in late.text
 
 
 def test_the_rendered_report_names_each_violation(tmp_path: Path) -> None:

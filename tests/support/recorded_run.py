@@ -16,6 +16,7 @@ import msgspec
 
 from services.recorder.presence import PRESENCE_JSONL, PresenceEvent
 from services.recorder.record import TRAFFIC_RAW, RawEntry, encode_entry, read_entries, record_of
+from services.report.load import Message
 from services.runtime import keys
 from services.runtime.run_folder import RUN_INFO, TRAFFIC_JSONL, RunInfo, write_run_info
 from services.runtime.transport import Arrival
@@ -27,13 +28,17 @@ STARTED = 1_800_000_000.0
 
 
 def write_recorded_run(
-    run_dir: Path, traffic: list[tuple[float, Communicate]], alive: list[str] | None = None
+    run_dir: Path,
+    traffic: list[tuple[float, Communicate]],
+    alive: list[str] | None = None,
+    sent: list[float | None] | None = None,
 ) -> Path:
     """``run_dir`` (made) with ``run.json`` and a traffic record of ``traffic``: (s after
     :data:`STARTED`, communicate) in the order they crossed Zenoh, each on the key of the
     specification's channel between its sender and its first receiver; with ``alive``, a
     presence record in which those processes were alive throughout (and no other), else none
-    (every agent alive, services/replay/presence.py)."""
+    (every agent alive, services/replay/presence.py). ``sent``: per communicate, when its
+    publisher stamped it (s after :data:`STARTED`; None, or no ``sent``: when it crossed)."""
     if alive is not None:
         write_presence(
             run_dir,
@@ -47,13 +52,16 @@ def write_recorded_run(
     spec = default_spec()
     sn: defaultdict[str, int] = defaultdict(int)
     lines, raw = [], []
-    for seq, (t, msg) in enumerate(traffic):
+    stamps = sent if sent is not None else [None] * len(traffic)
+    assert len(stamps) == len(traffic)
+    for seq, ((t, msg), stamp) in enumerate(zip(traffic, stamps, strict=True)):
         assert msg.sender is not None and msg.receiver
         sender, receiver = msg.sender.name, msg.receiver[0].name
         channel = channel_between(spec, sender, receiver)
         assert channel is not None, (sender, receiver)
         key = keys.fipa_key(channel.name, sender, receiver)
-        arrival = Arrival(STARTED + t, key, encode(msg), f"{sender}-session:{key}", sn[key], STARTED + t)
+        t_sent = STARTED + (t if stamp is None else stamp)
+        arrival = Arrival(STARTED + t, key, encode(msg), f"{sender}-session:{key}", sn[key], t_sent)
         sn[key] += 1
         entry = RawEntry("test", seq, arrival)
         lines.append(msgspec.json.encode(record_of(entry)) + b"\n")
@@ -94,6 +102,38 @@ def rewrite_record(run_dir: Path, change: Callable[[list[RawEntry]], list[RawEnt
     (run_dir / TRAFFIC_JSONL).write_bytes(b"".join(msgspec.json.encode(record_of(e)) + b"\n" for e in kept))
     (run_dir / TRAFFIC_RAW).write_bytes(b"".join(encode_entry(e) for e in kept))
     return run_dir
+
+
+def answer_before_its_cause(
+    messages: list[Message], cause_from: str, asker: str, answerer: str
+) -> tuple[list[Message], Message, Message]:
+    """``messages`` (as recorded) with an answer put just before what caused its question, as
+    publishers linked directly may reach the recorder: the cause, the first communicate from
+    ``cause_from`` to ``asker`` (by its sender's timestamp); the question, ``asker``'s first to
+    ``answerer`` sent after the cause was; the answer, ``answerer``'s that names the question's
+    reply-with (in-reply-to, in the same conversation). All three are found by cause, whatever
+    order the record holds them in (the answer may be recorded before the cause already).
+    Returns (that order, the cause, the answer)."""
+
+    def sent(m: Message) -> float:
+        return m.rec.t_sent if m.rec.t_sent is not None else m.rec.t
+
+    def between(a: str, b: str) -> list[Message]:
+        found = [m for m in messages if m.comm is not None and (m.sender, *m.rec.receivers[:1]) == (a, b)]
+        return sorted(found, key=sent)
+
+    cause = between(cause_from, asker)[0]
+    question = next(m for m in between(asker, answerer) if sent(m) >= sent(cause))
+    assert question.comm is not None and question.comm.reply_with is not None, question.rec
+    asked = (question.comm.conversation_id, question.comm.reply_with)
+    answer = next(
+        m
+        for m in between(answerer, asker)
+        if m.comm is not None and (m.comm.conversation_id, m.comm.in_reply_to) == asked
+    )
+    order = [m for m in messages if m is not answer]
+    order.insert(order.index(cause), answer)
+    return order, cause, answer
 
 
 def replay_lines(run_dir: Path) -> dict[str, str]:

@@ -23,10 +23,18 @@ from services.runtime.roles import (
     optional,
     outgoing,
 )
-from services.spec.model import AgentSpec, ChannelProtocol, ChannelSpec, ProtocolRoles, SystemSpec
+from services.spec.model import (
+    AgentSpec,
+    ChannelProtocol,
+    ChannelSpec,
+    ProtocolRoles,
+    SystemSpec,
+    default_spec,
+)
+from services.spec.protocol_defs import machine_of
 from shared.fipa_codec import Performative
 from shared.fipa_codec.languages.l_sw import SWState, SWStatus
-from shared.fipa_codec.protocols import PROTOCOLS, Role
+from shared.fipa_codec.protocols import PROTOCOLS, Protocol, Role
 
 P = Performative
 TIMEOUT = 10.0
@@ -34,10 +42,15 @@ NU = P.NOT_UNDERSTOOD
 CANCEL = "cancel"
 """In a script: cancel the conversation (awaiting the answer)."""
 Script = dict[tuple[str, str], list[tuple[Performative | Literal["cancel"], msgspec.Struct | None]]]
+COORDINATE = "coordinate"
+"""The paper's protocol (§5.4, Figure 8), declared in the shipped specification."""
+MACHINES: dict[str, Protocol] = {**PROTOCOLS, COORDINATE: machine_of(default_spec(), COORDINATE)}
+"""Every protocol roco knows: the eleven of the FIPA library and the specification's coordinate."""
 
 
 def _spec() -> SystemSpec:
-    """Two agents joined by C1, which carries every built-in protocol, a_i initiating."""
+    """Two agents joined by C1, which carries every protocol of :data:`MACHINES`, a_i
+    initiating; coordinate's table is the shipped specification's (its state machine)."""
     protocols = {
         name: ProtocolRoles(
             initiator=tuple(sorted(p.value for p in outgoing(m, INITIATOR) - {NU})),
@@ -45,6 +58,7 @@ def _spec() -> SystemSpec:
         )
         for name, m in PROTOCOLS.items()
     }
+    protocols[COORDINATE] = default_spec().protocols[COORDINATE]
     channel = ChannelSpec(
         name="C1",
         ends=("a_i", "a_p"),
@@ -55,7 +69,7 @@ def _spec() -> SystemSpec:
                 initiator="a_i",
                 languages={p.value: "L_SW" for p in outgoing(m, INITIATOR) | outgoing(m, PARTICIPANT) - {NU}},
             )
-            for name, m in PROTOCOLS.items()
+            for name, m in MACHINES.items()
         ),
     )
     agents = tuple(AgentSpec(name=n, group=n, implementation="tests:none") for n in ("a_i", "a_p"))
@@ -74,7 +88,7 @@ def handling_all(role: Role, fn: Callable[[Any, Conversation], None]) -> Callabl
     def handler(self: Any, conv: Conversation) -> None:
         fn(self, conv)
 
-    for name, machine in PROTOCOLS.items():
+    for name, machine in MACHINES.items():
         perfs = sorted(incoming(machine, role) - optional(machine, role), key=lambda p: p.value)
         handler = handles(name, role, *perfs)(handler)
     return handler

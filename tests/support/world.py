@@ -9,8 +9,8 @@ import math
 from pathlib import Path
 
 from services.agents.knowledge.world_model import WorldModel
-from services.agents.planner.domain import CONTENT_SHARE_REQUIRED
-from services.scenario.chaos import final_world
+from services.report.world import final_world
+from shared.fipa_codec.languages.l_hc import CONTENT_SHARE_REQUIRED
 from shared.fipa_codec.languages.l_sd import ObjectObservation
 from velma.model.scene import N_PARTICLES, load_kitchen
 

@@ -13,6 +13,14 @@ uniform angle within ±``POSE_YAW_MAX`` (10°), deterministically from the seed.
 content is placed in the moved jar's frame, so it starts inside it. ``scene_perturbation``
 returns what a seed applies, for benchmarks to print.
 
+Content removed (for benchmarks of the pour's verdict): ``initial_state(model, removed=k)``
+takes the top ``k`` spheres of the helix out of the jar before the content settles and lays
+them on the floor behind the robot (``remove_content``: from ``REMOVED_AT`` along y, ø18 mm
+apart by ``REMOVED_SPACING``), out of the arms' reach and the head camera's view. The model
+is unchanged (still ``n_particles`` spheres, so the content the camera judges by is still all
+of them): a pour then cannot put more than ``n_particles − k`` of them in the bowl. The world
+process does so with ``ROCO_CONTENT_REMOVED`` (shared/settings.py).
+
 Simplification (named): the content is rigid spheres of ø18 mm, 3 g each (density
 ≈ 1000 kg/m³, like dried peas or beans in size class), and every contact they make (with each
 other, the jar, the bowl, the table and the hand) is frictionless: a normal force only
@@ -61,6 +69,8 @@ HELIX_Z0 = 0.017  # m above the jar frame (bottom centre)
 PERTURBED_OBJECTS = ("jar", "bowl")
 POSE_OFFSET_MAX = 0.02  # m, |dx|, |dy| bound of the pose randomisation
 POSE_YAW_MAX = math.radians(10.0)  # rad, |yaw| bound of the pose randomisation
+REMOVED_AT = (-1.5, -0.2)  # m, world x, y on the floor (behind the robot) of the first removed sphere
+REMOVED_SPACING = 0.05  # m along world y between removed spheres
 
 # Home posture (rad), hands open. Left arm bent in front of the torso; right arm in the
 # palm-down "ready" posture above the shelf (velma/scenario.py RIGHT_PICK_POSTURE explains
@@ -209,11 +219,31 @@ def set_posture(model: mujoco.MjModel, data: mujoco.MjData, posture: dict[str, f
         data.qpos[model.jnt_qposadr[jid]] = value
 
 
-def initial_state(model: mujoco.MjModel, settle_steps: int = 300) -> mujoco.MjData:
+def remove_content(model: mujoco.MjModel, data: mujoco.MjData, count: int) -> list[str]:
+    """Lay the top ``count`` content spheres of ``data`` (the last of the helix) on the floor
+    behind the robot, at rest (module docstring); their names. Raises ``ValueError`` for a
+    ``count`` outside 0 … the spheres the model has."""
+    names = [model.body(b).name for b in range(model.nbody) if model.body(b).name.startswith(PARTICLE_PREFIX)]
+    if not 0 <= count <= len(names):
+        raise ValueError(f"cannot remove {count} spheres: the jar holds 0..{len(names)}")
+    removed = sorted(names, key=lambda n: int(n[len(PARTICLE_PREFIX) :]))[len(names) - count :]
+    for k, name in enumerate(removed):
+        target = (REMOVED_AT[0], REMOVED_AT[1] + k * REMOVED_SPACING, PARTICLE_RADIUS)
+        start = model.body(name).pos
+        for (axis, _), to, at in zip(PARTICLE_AXES.items(), target, start, strict=True):
+            joint = model.joint(f"{name}_{axis}")
+            data.qpos[joint.qposadr[0]] = to - at
+            data.qvel[joint.dofadr[0]] = 0.0
+    return removed
+
+
+def initial_state(model: mujoco.MjModel, settle_steps: int = 300, removed: int = 0) -> mujoco.MjData:
     """MjData in the home posture with the content settled (``settle_steps`` steps with the
-    robot's joints frozen in place, 1 ms each)."""
+    robot's joints frozen in place, 1 ms each); ``removed``: that many spheres taken out of the
+    jar first (``remove_content``; same error)."""
     data = mujoco.MjData(model)
     set_posture(model, data, HOME_POSTURE)
+    remove_content(model, data, removed)
     mujoco.mj_forward(model, data)
     robot_dofs = [
         model.jnt_dofadr[j] for j in range(model.njnt) if model.jnt_type[j] == mujoco.mjtJoint.mjJNT_HINGE

@@ -260,9 +260,12 @@ def count_spheres(
     not counted. ag_ex's Observation caps the count at
     what the content seen outside every container leaves (velma/perception/spill.py), so a
     sphere spilled in view is not counted in the bowl; one gone out of view from the hidden arc
-    still is, so the Observation says how many it inferred (L_SD ``particles_inferred``) and a_ta
-    judges on the seen ones (services/agents/task_executor/verdict.py). Measured
-    (scripts/bench_perception.py ``--pours --remove``, docs/bench/observe.md)."""
+    still is, so the Observation says how many it inferred (L_SD ``particles_inferred``). a_ta
+    judges on the seen and the inferred together, told apart: when the share its check asks for
+    is reached only with the inferred, it looks again, of the two looks the one that saw more
+    spheres decides, and a success that still rests on the inferred says so
+    (services/agents/task_executor/verdict.py).
+    Measured (scripts/bench_perception.py ``--pours --remove``, docs/bench/observe.md)."""
     if not estimate.seen or estimate.position is None:
         return None
     r = particle_radius

@@ -75,7 +75,8 @@ class SimulatedVelma:
     """The kitchen with Velma in it, seen from the controller's side as hardware.
 
     ``seed`` jitters the jar's content, ``pose_seed`` randomises the jar's and the bowl's
-    poses (velma/model/scene.py; None: those of kitchen.xml). ``compiled``: step in C++
+    poses (velma/model/scene.py; None: those of kitchen.xml), ``removed`` takes that many
+    spheres out of the jar before the start (scene.py ``remove_content``). ``compiled``: step in C++
     (module docstring): True (required), False (Python), None (as ``ROCO_PLANT`` says; unset:
     C++ where it can run). Raises KeyError when the model lacks one of Velma's joints,
     actuators or sensors, ValueError when the robot has another number of joints than the link
@@ -88,11 +89,12 @@ class SimulatedVelma:
         n_particles: int | None = None,
         pose_seed: int | None = None,
         compiled: bool | None = None,
+        removed: int = 0,
     ) -> None:
         model = load_kitchen(N_PARTICLES if n_particles is None else n_particles, seed, pose_seed)
         model.opt.timestep = DT
         self.model = model
-        self.data = initial_state(model)
+        self.data = initial_state(model, removed=removed)
         # Pinocchio's order without Pinocchio; ValueError: not the link's N_JOINTS (velma/control/joints.py)
         self.jmap = JointMap.build(model, robot_joints(model))
         held = [j for s in SIDES for j in arm_joints(s)] + [TORSO_JOINT]

@@ -10,8 +10,10 @@ the link it says so on stdout and writes ``ROCO_READY_FILE`` (shared/ready_file.
 container's health check reads it), which it removes when it stops.
 Settings come from the options, else from the fleet's environment: ``--run-dir``
 (``ROCO_RUN_DIR``), ``--realtime`` (``ROCO_REALTIME=1``), ``--seed`` (``ROCO_SEED``: the jar's
-content jitter), ``--pose-seed`` (``ROCO_POSE_SEED``: the jar's and the bowl's poses). A bad
-option or a run folder that does not exist: one line on stderr, exit code 2.
+content jitter), ``--pose-seed`` (``ROCO_POSE_SEED``: the jar's and the bowl's poses); from the
+environment only, ``ROCO_CONTENT_REMOVED`` (spheres taken out of the jar before the start,
+velma/model/scene.py ``remove_content``). A bad option, setting or a run folder that does not
+exist: one line on stderr, exit code 2.
 """
 
 from __future__ import annotations
@@ -52,24 +54,25 @@ def _parser() -> argparse.ArgumentParser:
     return ap
 
 
-def _inputs(args: argparse.Namespace) -> tuple[int, int | None, Path]:
-    """The seeds (the options', else the environment's) and the run folder of ``args``.
-    Raises ValueError for a seed that is not an integer ≥ 0 or a run folder that is not one."""
+def _inputs(args: argparse.Namespace) -> tuple[int, int | None, Path, int]:
+    """The seeds (the options', else the environment's), the run folder of ``args`` and the
+    spheres removed (the environment's). Raises ValueError for a seed or count that is not an
+    integer ≥ 0 or a run folder that is not one."""
     unset = [f for f, given in (("seed", args.seed), ("pose_seed", args.pose_seed)) if given is None]
-    read = Settings.from_env(only=unset)
+    read = Settings.from_env(only=[*unset, "content_removed"])
     seed = args.seed if args.seed is not None else read.seed
     pose_seed = args.pose_seed if args.pose_seed is not None else read.pose_seed
     run_dir: Path | None = args.run_dir
     if run_dir is None or not Path(run_dir).is_dir():
         raise ValueError(f"no run folder {run_dir or '(give --run-dir or ROCO_RUN_DIR)'}")
-    return seed, pose_seed, Path(run_dir)
+    return seed, pose_seed, Path(run_dir), read.content_removed
 
 
 def main(argv: list[str] | None = None) -> int:
     """Run the world (module docstring); the exit code."""
     args = _parser().parse_args(argv)
     try:
-        seed, pose_seed, run_dir = _inputs(args)
+        seed, pose_seed, run_dir, removed = _inputs(args)
     except ValueError as exc:
         print(f"velma.world: {exc}", file=sys.stderr)
         return 2
@@ -83,7 +86,11 @@ def main(argv: list[str] | None = None) -> int:
     signal.signal(signal.SIGTERM, on_signal)
     signal.signal(signal.SIGINT, on_signal)
     remove_orphans()  # the blocks of a world that was killed
-    sim = SimulatedVelma(seed=seed, pose_seed=pose_seed)
+    try:
+        sim = SimulatedVelma(seed=seed, pose_seed=pose_seed, removed=removed)
+    except ValueError as exc:  # more spheres removed than the jar holds
+        print(f"velma.world: {exc}", file=sys.stderr)
+        return 2
     link = RobotLink.create(MEASURED.size, COMMAND.size, sim.scene_size)
     named = run_dir / LINK_FILE
     try:

@@ -182,7 +182,6 @@ class KnowledgeManager(Agent):
             conversation_id="km-environment",
             retry_s=(0.0, 0.0),
             at_start=True,
-            same_id=True,
             while_away=False,
         )
 
@@ -266,7 +265,6 @@ class KnowledgeManager(Agent):
             subscription,
             conversation_id=self.roles.free_id("km-watch"),
             retry_s=(1.0, 10.0),
-            same_id=True,
             while_away=False,
         )
 

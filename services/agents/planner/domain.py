@@ -44,6 +44,7 @@ from typing import Any
 from services.agents.planner.clearance import Body, carry_meets, turn_meets
 from services.agents.planner.knowledge import ARMS, Knowledge
 from shared.fipa_codec.languages.common import Pose, Vec3
+from shared.fipa_codec.languages.l_hc import CONTENT_SHARE_REQUIRED
 from shared.fipa_codec.languages.l_wm import GraspAffordance
 from velma import frames as geo
 
@@ -56,8 +57,6 @@ SHORT_MOVE_S = 1.5
 """Duration of a move out of or along a cabinet shelf, or down to a placement (s)."""
 CONTACT_SPEED_M_S = 0.133
 """Speed of the final approach to a grasp (m/s); at least 1 s."""
-CONTENT_SHARE_REQUIRED = 0.9
-"""Share of the content that must end in the target for a pour to count as done."""
 GRASP_FACING = 0.0
 """Torso facing (rad) for which grasp affordances are given (the cabinet's)."""
 FREE_RADIUS_M = 0.12

@@ -21,10 +21,10 @@ from __future__ import annotations
 import math
 from typing import Any
 
-from services.agents.planner.domain import CONTENT_SHARE_REQUIRED
 from services.agents.planner.hfsm import KNOWLEDGE_ONLY
 from services.agents.planner.knowledge import Knowledge
 from shared.fipa_codec.languages.common import Pose
+from shared.fipa_codec.languages.l_hc import CONTENT_SHARE_REQUIRED
 from shared.fipa_codec.languages.l_wm import GraspStep, ObjectUpdate, PlanStep, PourStep, PutStep, SparqlQuery
 
 

@@ -281,7 +281,6 @@ class TaskExecutor(Agent):
             PowerOns(),
             conversation_id="ta-power-ons",
             retry_s=(1.0, 10.0),
-            same_id=True,
             while_away=False,
         )
 
@@ -376,7 +375,6 @@ class TaskExecutor(Agent):
             conversation_id=self.roles.free_id("ta-watch"),
             reply_by_s=WATCH_REPLY_BY_S,
             retry_s=(1.0, 10.0),
-            same_id=True,
             while_away=False,
         )
 

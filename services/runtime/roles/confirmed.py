@@ -18,8 +18,9 @@ The role owns the rest:
 - each inform is retransmitted every ``retry_s`` until it is answered (a restarted peer lost
   what it was sent; services/runtime/replies.py);
 - a ``not-understood`` that answers the inform awaited (a restarted peer that kept nothing does
-  not know the conversation) ends the wait as a confirm does: nobody will confirm it; it is
-  logged;
+  not know the conversation) ends the conversation: nobody will confirm it; it is logged, and
+  the informs still waiting in it are not sent (nothing belongs to a conversation after its
+  end, FIPA SC00037 §3.12);
 - the final inform confirmed (or answered not-understood) is what
   :meth:`ConfirmedInforms.final_confirmed` says.
 """
@@ -90,7 +91,7 @@ class ConfirmedInforms:
             return True
         if last.performative is Performative.NOT_UNDERSTOOD:
             self.roles.host.log.warning(
-                "%s does not know conversation %s: going on", self.peer, conv.conversation_id
+                "%s does not know conversation %s: it ended", self.peer, conv.conversation_id
             )
         awaited = self._awaited
         if awaited is not None and awaited[0] is conv and last.msg.in_reply_to == awaited[1]:
@@ -101,12 +102,22 @@ class ConfirmedInforms:
         return False
 
     def _next(self) -> None:
-        """Send the first inform waiting, when none awaits its confirm."""
-        if self._awaited is not None or not self._queue:
-            return
-        conv, content, final = self._queue.popleft()
-        reply_with = conv.send(Performative.INFORM, content, retry_s=self.retry_s)
-        self._awaited = (conv, reply_with, final)
+        """Send the first inform waiting, when none awaits its confirm. An inform of a
+        conversation that has ended meanwhile (the peer answered not-understood: it does not
+        know the conversation, e.g. restarted with nothing kept) is not sent: nothing belongs to
+        a conversation after its end (FIPA SC00037 §3.12); a final one counts as confirmed, so
+        that the agent does not wait for a confirm that cannot come."""
+        while self._awaited is None and self._queue:
+            conv, content, final = self._queue.popleft()
+            if conv.finished:
+                self.roles.host.log.info(
+                    "not informing %s in ended conversation %s", self.peer, conv.conversation_id
+                )
+                if final:
+                    self._confirmed.add(conv)
+                continue
+            reply_with = conv.send(Performative.INFORM, content, retry_s=self.retry_s)
+            self._awaited = (conv, reply_with, final)
 
     def peer_changed(self, alive: bool) -> None:
         """The peer's token came or went: nothing to do (retransmission resends on its return)."""

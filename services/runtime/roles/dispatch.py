@@ -120,7 +120,6 @@ class Roles:
         reply_by_s: float | None = None,
         retry_s: tuple[float, float] = (1.0, 60.0),
         at_start: bool = False,
-        same_id: bool = False,
         while_away: bool = True,
         on_subscribed: Callable[[Conversation], None] | None = None,
         on_lost: Callable[[Conversation], None] | None = None,
@@ -131,7 +130,7 @@ class Roles:
         back-off from ``retry_s[0]`` to ``retry_s[1]`` s after a refuse, failure, not-understood
         or passed reply-by deadline (``reply_by_s`` s, the role's when None), and again when
         the peer comes back; each attempt in conversation ``conversation_id`` (``-2``, ``-3``,
-        … added unless ``same_id``); ``while_away``: attempts go on while the peer's token is
+        …); ``while_away``: attempts go on while the peer's token is
         away. ``on_subscribed``/``on_lost``: called with the conversation when the peer agrees,
         and when an agreed subscription ends. Returns the handle (its ``subscribed``); the
         agent handles the stream's ``inform``\\s. A role keeps several subscriptions apart by
@@ -155,7 +154,6 @@ class Roles:
             reply_by_s=reply_by_s if reply_by_s is not None else decl.reply_by_s,
             retry_s=retry_s,
             at_start=at_start,
-            same_id=same_id,
             while_away=while_away,
             on_subscribed=on_subscribed,
             on_lost=on_lost,
@@ -398,7 +396,11 @@ class Roles:
         if path is None:
             raise RestoreError(f"{protocol} has no state {state!r} to restore a conversation in")
         self.host.restore_conversation(
-            peer, conversation_id, protocol, [(perf, role == decl.role) for role, perf in path]
+            peer,
+            conversation_id,
+            protocol,
+            [(perf, role == decl.role) for role, perf in path],
+            opening.msg.reply_with if opening is not None else None,
         )
         mine = opening is not None and opening.sender == self.host.name
         conv = Conversation(

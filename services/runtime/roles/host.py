@@ -79,9 +79,15 @@ class RoleHost(Protocol):
         ...
 
     def restore_conversation(
-        self, peer: str, conversation_id: str, protocol: str, history: list[tuple[Performative, bool]]
+        self,
+        peer: str,
+        conversation_id: str,
+        protocol: str,
+        history: list[tuple[Performative, bool]],
+        opening_reply_with: str | None = None,
     ) -> None:
-        """Re-enter the protocol state ``history`` leads to (raises SpecViolation)."""
+        """Re-enter the protocol state ``history`` leads to, the opening communicate's
+        reply-with known (raises SpecViolation)."""
         ...
 
 

@@ -19,12 +19,14 @@ handler of the stream's ``inform``\\s (and, if it wants them, the hooks ``on_sub
 - ``refuse``, ``failure``, ``not-understood`` or a passed reply-by deadline of the latest
   attempt: the next attempt after ``retry_s[0]`` s, the interval doubling up to ``retry_s[1]``
   (0: at once); each attempt in a new conversation (``-2``, ``-3``, … added to the
-  conversation-id) unless ``same_id``;
+  conversation-id: a conversation-id names one conversation, FIPA SC00061);
 - the peer's token disappears: the subscription is lost; with ``while_away`` the attempts go
   on with the back-off from its first interval, else the next one waits for the token;
 - the token appears: the back-off starts again from its first interval, and an attempt goes
   at once when none is subscribed or waiting (without ``while_away``: whenever the token had
-  disappeared since, since a restarted peer has lost the subscription);
+  disappeared since, since a restarted peer has lost the subscription); an agreed attempt
+  the new one replaces is cancelled (a peer that kept it stops serving it; one that restarted
+  answers that it knows no such conversation);
 - an earlier attempt that agrees after a later one was made is superfluous: the role cancels
   it (FIPA SC00026 §2 cancel meta-protocol); the ``inform`` answering that cancel does not
   reach the agent, other informs of any attempt do.
@@ -66,7 +68,6 @@ class StandingSubscription:
         reply_by_s: float | None,
         retry_s: tuple[float, float],
         at_start: bool,
-        same_id: bool,
         while_away: bool,
         on_subscribed: Hook | None,
         on_lost: Hook | None,
@@ -80,7 +81,6 @@ class StandingSubscription:
         self.base_id = conversation_id
         self.reply_by_s = reply_by_s
         self.retry_s = retry_s
-        self.same_id = same_id
         self.while_away = while_away
         self.on_subscribed = on_subscribed
         self.on_lost = on_lost
@@ -88,6 +88,8 @@ class StandingSubscription:
         """The peer agreed to the latest attempt (or informed in it) and has not gone since."""
         self.conversation: Conversation | None = None
         """The latest attempt (None before the first)."""
+        self.agreed: Conversation | None = None
+        """The latest attempt the peer agreed to (None: none yet)."""
         self.attempts = 0
         self.pending = False
         """The latest attempt awaits its answer."""
@@ -119,9 +121,12 @@ class StandingSubscription:
     def _open(self) -> None:
         self.attempts += 1
         n = self.attempts
-        cid = self.base_id if n == 1 or self.same_id else f"{self.base_id}-{n}"
-        if self.conversation is not None:  # the previous attempt is given up (or its peer gone)
-            self.conversation.stop_awaiting_replies()
+        cid = self.base_id if n == 1 else f"{self.base_id}-{n}"
+        before = self.conversation
+        if before is not None:  # the previous attempt is given up (or its peer gone)
+            before.stop_awaiting_replies()
+            if before is self.agreed and not before.finished and not before.cancels:
+                before.cancel(self.content)  # a peer that kept it stops serving it
         self.conversation = self.roles.open(
             self.decl.channel,
             self.decl.protocol,
@@ -143,6 +148,7 @@ class StandingSubscription:
         self.interval = min(self.interval * 2, self.retry_s[1])
 
     def _agreed(self, conv: Conversation) -> None:
+        self.agreed = conv
         self.subscribed = True
         self.pending = False
         self.retry_at = None

@@ -32,6 +32,11 @@ import msgspec
 from shared.fipa_codec.languages.base import Language, register
 from shared.fipa_codec.languages.common import CLOCK
 
+CONTENT_SHARE_REQUIRED = 0.9
+"""Share of the content that must end in the target for a pour ("pour X into Y") to count as
+done: the planner's goal, the plan's content check a_ta runs, and ``roco chaos``'s judgement
+of the world all ask it."""
+
 
 class TaskAtom(msgspec.Struct, frozen=True, array_like=True):
     """A task in a ground task network: ``name`` and object arguments, e.g. ("pour", ("jar", "bowl"))."""

@@ -45,6 +45,8 @@ class Peer:
         self.subscribes: queue.SimpleQueue[Communicate] = queue.SimpleQueue()
         bus.subscribe(keys.fipa_key("C6", "a_km", "a_ta"), lambda _k, p: self.subscribes.put(decode(p)))
         self.agreed = False
+        self.environment = ""
+        """The conversation-id of a_km's environment subscription agreed to."""
         self.n = 0
 
     def _send(self, channel: str, sender: str, msg: Communicate) -> None:
@@ -92,6 +94,7 @@ class Peer:
                 subscribe = self.subscribes.get_nowait()
             self._send("C6", "a_ta", subscribe.reply(Performative.AGREE, sender=AgentIdentifier("a_ta")))
             self.agreed = True
+            self.environment = subscribe.conversation_id or ""  # each attempt has an id of its own
         language, body = encode_content(update)
         self._send(
             "C6",
@@ -105,7 +108,7 @@ class Peer:
                 encoding="msgpack",
                 ontology="O_RoCo",
                 protocol="fipa-subscribe",
-                conversation_id="km-environment",
+                conversation_id=self.environment,
             ),
         )
 

@@ -12,9 +12,9 @@ import mujoco
 import numpy as np
 import pytest
 
-from services.agents.planner.domain import CONTENT_SHARE_REQUIRED
 from services.agents.task_executor.verdict import Answer, Do, Step, Verdict, judge
 from shared.fipa_codec.languages.common import Vec3
+from shared.fipa_codec.languages.l_hc import CONTENT_SHARE_REQUIRED
 from shared.fipa_codec.languages.l_hfsm import CheckContent, PlanNode
 from shared.fipa_codec.languages.l_sd import ObjectObservation
 from tests.support.machine import needs_gl
