@@ -29,17 +29,10 @@ sys.path.insert(0, str(ROOT))
 
 import benchlib  # noqa: E402  (scripts/benchlib.py, beside this file)
 
-from services.scenario.chaos import CHAOS_FILE, chaos_scenario  # noqa: E402
+from services.scenario.chaos import CHAOS_FILE, QUESTIONS, chaos_scenario  # noqa: E402
 from shared.settings import Settings  # noqa: E402
 
-ANSWERS = (
-    "task done",
-    "no command lost",
-    "nothing executed twice",
-    "no object dropped",
-    "record intact",
-    "no agent raised",
-)
+ANSWERS = QUESTIONS
 
 
 def main() -> int:

@@ -298,48 +298,57 @@ def pour_seeds(docs: dict[str, Document]) -> Row:
     the jar), the plain seeds' ``success`` cells, the planted seeds' spheres and its
     ``Confusion: …`` line (the verdicts on true successes and on true failures)."""
     doc = docs[POUR_SEEDS]
-    m = re.search(r"^Success \(([^)]*)\): (\d+) of (\d+)", doc.text, re.MULTILINE)
-    if m is None:
-        raise FiguresError(f"{doc.path}: no line 'Success (…): N of M'")
+    m = _line(doc, r"^Success \(([^)]*)\): (\d+) of (\d+)", "Success (…): N of M")
+    v = _line(doc, r"^Verdict matches truth: (\d+) of (\d+)", "Verdict matches truth: N of M")
     t = doc.table("", "seed")
-    spheres = t.column("spheres in bowl", POUR_SEEDS)
     planted_at = next((i for i, h in enumerate(t.header) if h.startswith("planted")), None)
     plain = [r for r in t.rows if planted_at is None or r[planted_at] == "—"]
     planted = [r for r in t.rows if r not in plain]
-
-    def counts(rows: list[list[str]]) -> tuple[str, str]:
-        inside = sorted({r[spheres] for r in rows}, key=number)
-        return " or ".join(dict.fromkeys(c.split("/")[0] for c in inside)), inside[-1].split("/")[-1]
-
-    v = re.search(r"^Verdict matches truth: (\d+) of (\d+)", doc.text, re.MULTILINE)
-    if v is None:
-        raise FiguresError(f"{doc.path}: no line 'Verdict matches truth: N of M'")
-    inside, total = counts(plain)
-    if not planted:
-        value = (
-            f"{m[2]} of {m[3]} succeeded, {inside} of {total} spheres in the bowl; a_ta's verdict "
-            f"matched the simulation's truth in {v[1]} of {v[2]}"
-        )
-    else:
-        c = re.search(
-            r"^Confusion: .* in (\d+) of (\d+): (\d+ of \d+) successes, (\d+ of \d+) failures",
-            doc.text,
-            re.MULTILINE,
-        )
-        if c is None:
-            raise FiguresError(
-                f"{doc.path}: no line 'Confusion: … in N of M: X of X successes, Y of Y failures'"
-            )
-        success = t.column("success", POUR_SEEDS)
-        removed = " or ".join(dict.fromkeys(r[planted_at].split()[0] for r in planted))  # type: ignore[index]
-        planted_inside, _ = counts(planted)
-        value = (
-            f"{sum(r[success] == 'yes' for r in plain)} of {len(plain)} succeeded, {inside} of {total} "
-            f"spheres in the bowl; {len(planted)} more with {removed} of {total} spheres removed from the "
-            f"jar first, {planted_inside} in the bowl; a_ta's verdict matched the simulation's truth in "
-            f"{c[1]} of {c[2]}: {c[3]} successes, {c[4]} failures"
-        )
+    inside, total = _spheres(t, plain)
+    value = (
+        f"{m[2]} of {m[3]} succeeded, {inside} of {total} spheres in the bowl; a_ta's verdict "
+        f"matched the simulation's truth in {v[1]} of {v[2]}"
+    )
+    if planted and planted_at is not None:
+        value = _with_planted(doc, t, plain, planted, planted_at)
     return Row("pours with the jar and bowl moved ±2 cm, turned ±10°", value, f"success: {m[1]}", doc)
+
+
+def _line(doc: Document, pattern: str, shape: str) -> re.Match[str]:
+    """The first line of ``doc`` that ``pattern`` matches; FiguresError naming ``shape``."""
+    found = re.search(pattern, doc.text, re.MULTILINE)
+    if found is None:
+        raise FiguresError(f"{doc.path}: no line '{shape}'")
+    return found
+
+
+def _spheres(t: Table, rows: list[list[str]]) -> tuple[str, str]:
+    """The counts of spheres in the bowl ``rows`` show (``17 or 18``), and the content's total."""
+    at = t.column("spheres in bowl", POUR_SEEDS)
+    inside = sorted({r[at] for r in rows}, key=number)
+    return " or ".join(dict.fromkeys(c.split("/")[0] for c in inside)), inside[-1].split("/")[-1]
+
+
+def _with_planted(
+    doc: Document, t: Table, plain: list[list[str]], planted: list[list[str]], planted_at: int
+) -> str:
+    """The row's value when failures were planted: both sides of the verdict (its
+    ``Confusion: …`` line)."""
+    c = _line(
+        doc,
+        r"^Confusion: .* in (\d+) of (\d+): (\d+ of \d+) successes, (\d+ of \d+) failures",
+        "Confusion: … in N of M: X of X successes, Y of Y failures",
+    )
+    success = t.column("success", POUR_SEEDS)
+    removed = " or ".join(dict.fromkeys(r[planted_at].split()[0] for r in planted))
+    inside, total = _spheres(t, plain)
+    planted_inside, _ = _spheres(t, planted)
+    return (
+        f"{sum(r[success] == 'yes' for r in plain)} of {len(plain)} plain pours succeeded, {inside} of "
+        f"{total} spheres in the bowl; {len(planted)} more with {removed} of {total} spheres removed "
+        f"from the jar first, {planted_inside} in the bowl; a_ta's verdict matched the simulation's "
+        f"truth in {c[1]} of {c[2]}: {c[3]} successes, {c[4]} failures"
+    )
 
 
 ROWS: list[Callable[[dict[str, Document]], Row]] = [

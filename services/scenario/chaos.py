@@ -425,6 +425,17 @@ def final_heights(run_dir: Path) -> tuple[dict[str, float], str] | None:
     return _heights(obs), source
 
 
+QUESTIONS = (
+    "task done",
+    "no command lost",
+    "nothing executed twice",
+    "no object dropped",
+    "record intact",
+    "no agent raised",
+)
+"""The questions ``chaos.md`` answers, in its order (the rows of :func:`write_chaos_report`)."""
+
+
 def _mark(ok: bool) -> str:
     return "yes" if ok else "**no**"
 

@@ -18,6 +18,7 @@ from services.runtime.human import HumanReport, ReportKind
 from services.runtime.run_folder import RunInfo, write_run_info
 from services.scenario.chaos import (
     LAST_OBSERVED,
+    QUESTIONS,
     Verdict,
     chaos_scenario,
     judge_world,
@@ -306,16 +307,6 @@ def _agent_raised(run: Path, b: RunBuilder, outcome: ScenarioOutcome) -> None:
     outcome.raised = {"a_ta": {"handler_errors": 1}}
 
 
-QUESTIONS = (
-    "task done",
-    "no command lost",
-    "nothing executed twice",
-    "no object dropped",
-    "record intact",
-    "no agent raised",
-)
-
-
 @pytest.mark.parametrize(
     ("plant", "twice", "no"),
     [
@@ -351,3 +342,20 @@ def test_the_run_the_faults_are_planted_in_keeps_everything(tmp_path: Path) -> N
     assert v.ok and all(
         a.startswith("yes") for q, a in _answers(run, _outcome(), v).items() if q in QUESTIONS
     )
+
+
+def test_an_object_ag_ex_never_observed_is_not_known_and_fails_no_object_dropped(tmp_path: Path) -> None:
+    """Without a final scene (ROCO_WORLD=loop) the objects are judged as ag_ex last observed
+    them: the cup it never observed is not known, and "no object dropped" says no."""
+    saw = _robot_saw(18)
+    no_cup = Observation(stamp=saw.stamp, objects=saw.objects[:2], total_particles=saw.total_particles)
+    b = RunBuilder()
+    answer = {"protocol": "fipa-request", "conversation": "c2", "in_reply_to": "q2"}
+    b.add(6.0, "C5", "ag_ex", "a_ta", "inform", no_cup, **answer)
+    run = _run_folder(tmp_path, b, in_bowl=None)
+    v = verdict(run, _outcome())
+    assert not v.last_observation and not v.dropped and not v.ok
+    answers = _answers(run, _outcome(), v)
+    assert {q for q in QUESTIONS if answers[q].startswith("**no**")} == {"no object dropped"}, answers
+    dropped = f"**no** (not every object was observed) (judged on {LAST_OBSERVED}) |"
+    assert answers["no object dropped"] == dropped
