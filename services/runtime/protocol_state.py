@@ -591,7 +591,9 @@ def judge(
     - a communicate of another protocol than the conversation's is refused
       (:class:`ConversationError`);
     - a ``cancel`` received for a conversation never seen (it ended long ago, or before a
-      restart) is taken (``forgotten``): the participant may answer it with ``failure``;
+      restart) is taken (``forgotten``): the participant may answer it with ``failure``; an
+      agent takes a ``not-understood`` of a conversation it does not know so too (an observer,
+      ``local_role`` None, which sees the whole record, does not);
     - with ``copies``, the opening communicate again, recognised by its reply-with (FIPA
       SC00061 §2.4), is a retransmission (``copy``: not followed again): what an agent that
       restarted, and lost the bytes it had seen, receives; ``roco spec verify``, which has the
@@ -605,6 +607,7 @@ def judge(
     not-understood. Raises ValueError for an unknown protocol name or role."""
     if role != INITIATOR and role != PARTICIPANT:
         raise ValueError(f"role must be 'initiator' or 'participant', not {role!r}")
+    unknown = tracker is None
     if tracker is None:
         tracker = CrossingTracker(protocol, local_role=local_role)
         if performative is _CANCEL and role == INITIATOR and local_role != INITIATOR:
@@ -613,6 +616,9 @@ def judge(
             tracker.hear(PARTICIPANT)
             return tracker, "forgotten", None
     if performative is _NOT_UNDERSTOOD:
+        if unknown and local_role is not None and role != local_role:
+            tracker.abort(role)  # of a conversation this agent no longer knows (ended and forgotten)
+            return tracker, "aborted", None
         if not tracker.heard(role):
             return (
                 tracker,

@@ -427,8 +427,11 @@ left to the machines (the same sets), in the order the machines' transitions nam
 def test_a_table_without_role_lists_gets_what_its_machine_lets_each_role_send() -> None:
     spec = load(DEFAULT_SPEC)
     tables = read_raw(DEFAULT_SPEC)["protocols"]
+    # the shipped protocols (a copy may add its own, as the new-agent walk-through's does)
     assert {
-        name: (roles.initiator, roles.participant) for name, roles in spec.protocols.items()
+        name: (roles.initiator, roles.participant)
+        for name, roles in spec.protocols.items()
+        if name in SHIPPED_LISTS
     } == SHIPPED_LISTS
     for name in ("fipa-request", "fipa-query", "fipa-subscribe", "coordinate"):
         assert "initiator" not in tables[name] and "participant" not in tables[name], name

@@ -325,12 +325,20 @@ runtime knows it did not open it (the other followers tolerate a cancel of a con
 forgotten, services/runtime/protocol_state.py ``judge``)."""
 
 
+FORGETTING = {"runtime at the initiator": I_, "runtime at the participant": R_}
+"""An agent's runtime (by the party it is) takes a not-understood of a conversation it does not
+know: one it forgot (ended long ago, or before a restart); it cannot tell it from one never
+opened (services/runtime/protocol_state.py ``judge``)."""
+
+
 def expected(follower: str, seq: tuple[Symbol, ...], allowed: bool) -> bool | None:
     """What ``follower`` must say of the last communicate of ``seq`` (the reading says
     ``allowed``); None: nothing (the initiator's runtime, which refused the first cancel, did not
     take the conversation up: what follows is another one for it)."""
     if follower == FORGETFUL and seq[0] == (I_, P.CANCEL, False):
         return False if len(seq) == 1 else None
+    if seq[0][1] is P.NOT_UNDERSTOOD and follower in FORGETTING and seq[0][0] != FORGETTING[follower]:
+        return True if len(seq) == 1 else None
     return allowed
 
 
