@@ -359,16 +359,21 @@ def test_a_request_without_conversation_id_is_not_understood(direct: Direct) -> 
 
 def test_a_not_understood_from_one_that_received_nothing_is_refused_unanswered(direct: Direct) -> None:
     """not-understood answers a communicate received (FIPA SC00037 §3.12): from the foreign
-    agent before a_hi said anything in the conversation, or in a conversation never opened,
-    it is refused, counted and not put on Zenoh; and not answered (no answers to answers)."""
+    agent before a_hi said anything in the conversation it is refused, counted and not put on
+    Zenoh, and not answered (no answers to answers). One in a conversation the gateway does not
+    know goes on to a_hi, as any agent takes one of a conversation it may have forgotten
+    (services/runtime/protocol_state.py ``judge``)."""
     direct.deliver("REQUEST", "D3", "D3-r1", content=sentence("bring me the cup"))
     direct.deliver("NOT-UNDERSTOOD", "D3", "D3-r2")  # a_hi has not answered yet
-    direct.deliver("NOT-UNDERSTOOD", "D4", "D4-r1")  # nothing at all in D4
+    direct.deliver("NOT-UNDERSTOOD", "D4", "D4-r1")  # nothing the gateway knows in D4
     direct.settled()
-    assert [m.performative for m in direct.put_by_jade()] == [Performative.REQUEST]
+    assert [m.performative for m in direct.put_by_jade()] == [
+        Performative.REQUEST,
+        Performative.NOT_UNDERSTOOD,
+    ]
     assert direct.answers() == []
     counters = direct.gateway.counters
-    assert counters["refused.protocol_state"] == 2 and counters["forwarded"] == 1
+    assert counters["refused.protocol_state"] == 1 and counters["forwarded"] == 2
     assert not direct.gateway.conversations.ended(JADE, "a_hi", "fipa-request", "D3")
 
 

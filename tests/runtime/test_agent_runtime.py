@@ -132,7 +132,8 @@ def test_bad_input_gets_not_understood_and_agent_keeps_serving(
 def test_not_understood_is_never_answered_with_not_understood(running: tuple) -> None:
     bus, _agent, to_pl = running
     bus.publish(KEY, encode(query(performative=Performative.NOT_UNDERSTOOD, content=b"", language=None)))
-    bus.publish(KEY, encode(query("q3")))
+    # the not-understood ended conversation c1 (one a_km no longer knows): a query opens another
+    bus.publish(KEY, encode(query("q3", conversation_id="c3")))
     first = to_pl.get(timeout=5)
     assert first.performative is Performative.INFORM_REF and first.in_reply_to == "q3"
 
