@@ -339,12 +339,6 @@ class Roles:
         conv.opening = Received.of(msg, content, decl.channel)
         if msg.reply_with is not None:
             conv.awaited.add(msg.reply_with)
-        before = self._open.get((conv.peer, conv.conversation_id)) if conversation_id else None
-        if before is not None and before.decl == decl and streams(machine):
-            # a stream opened anew (e.g. a_km subscribing again when a_ta's token reappears):
-            # what the peer sent in it before it saw the new opening still arrives, and is news
-            # (services/runtime/protocol_state.py: it crosses the opening), not a late reply
-            conv.awaited |= before.awaited
         self._keep(conv)
         self.settle(conv)  # forgotten at once when the opening ended it
         return conv
