@@ -380,6 +380,16 @@ PLAN_CHECK_REFUSALS = [
         "            return Answer(boolean=True)",
         (f"{_REFUSALS}::test_the_goal_check_answers_false_for_steps_that_run_but_miss_the_goal",),
     ),
+    Mutant(
+        "plan-check.goal.takes-declared-effects",
+        _WORLD_MODEL,
+        "                scratch._apply(effects(scratch, step), stamp=None)",
+        "                scratch._apply(step.changes, stamp=None)",
+        (
+            f"{_REFUSALS}::test_a_pour_whose_declared_effect_overstates_the_content_does_not_reach_the_goal",
+            f"{_REFUSALS}::test_a_grasp_whose_declared_effect_puts_something_elsewhere_does_not_reach_the_goal",
+        ),
+    ),
 ]
 """Every refusal of a_km's plan check (services/agents/knowledge/plan_check.py) and of the goal
 check built on it (``WorldModel.hypothetical``) deleted in turn: its condition made false, or

@@ -9,7 +9,10 @@ role automata over FIFO input queues bounded by :data:`QUEUE_CAPACITY`, so each 
 is a shortest one. Findings: *deadlock* (no step enabled, a role not final), *unspecified
 reception* (a queue's head its role can never receive), *late message* (informational: it
 reaches an ended role). ``not-understood`` (SC00037 §3.12) is left out unless
-``not_understood=True``; ``cancel`` (SC00026 §2, SC00027 §2, SC00035 §2) is explored like any
+``not_understood=True``; then a role sends it only when it has received a communicate since it
+last sent one (the rule :func:`services.runtime.protocol_state.judge` holds every agent to), or
+in answer to the head of its queue when it cannot take that one (which it takes off);
+``cancel`` (SC00026 §2, SC00027 §2, SC00035 §2) is explored like any
 other performative.
 
 **Agents.** Each agent's ``waits = [{ serving = "C3:fipa-request", opens = ["C4:fipa-query"] }]``
@@ -237,7 +240,10 @@ class DeadlockResult:
 # ------------------------------------------------------------------------- conversations
 
 _Msg = tuple[Performative, bool]
-_State = tuple[str, str, tuple[_Msg, ...], tuple[_Msg, ...]]
+_State = tuple[str, str, tuple[_Msg, ...], tuple[_Msg, ...], bool, bool]
+"""Initiator's and participant's protocol states, the queues to the participant and to the
+initiator, and whether the initiator and the participant received a communicate since they
+last sent one (kept False unless not-understood is explored: only it depends on them)."""
 _RawStep = tuple[Role, Event, _Msg, str]
 
 
@@ -250,6 +256,7 @@ class _Roles:
 
     def __init__(self, protocol: Protocol, not_understood: bool) -> None:
         self.protocol = protocol
+        self.not_understood = not_understood
         self.final = protocol.final
         self.sends: dict[tuple[Role, str], list[tuple[_Msg, str]]] = {}
         edges = [
@@ -332,7 +339,7 @@ class _Exploration:
     late: dict[_Key, Finding] = field(default_factory=dict)
 
     def run(self) -> None:
-        start: _State = (self.protocol.initial, self.protocol.initial, (), ())
+        start: _State = (self.protocol.initial, self.protocol.initial, (), (), False, False)
         self.parent[start] = None
         self.todo.append(start)
         while self.todo:
@@ -368,17 +375,26 @@ class _Exploration:
         a full queue, counted."""
         successors: list[tuple[_RawStep, _State]] = []
         blocked = 0
+        heard = {INITIATOR: state[4], PARTICIPANT: state[5]}
         for role in _ROLES:
             out = queues[_other(role)]
+            inbox = queues[role]
+            received = self.roles.receive(role, local[role], inbox[0]) if inbox else None
+            stray = bool(inbox) and received is None  # the head: a communicate it cannot take
             for msg, target in self.roles.sends.get((role, local[role]), ()):
+                answers_stray = msg[0] is Performative.NOT_UNDERSTOOD and stray
+                if msg[0] is Performative.NOT_UNDERSTOOD and not (heard[role] or stray):
+                    continue  # nothing received since it last spoke: nothing to not-understand
                 if len(out) >= self.queue_capacity:
                     blocked += 1
                     continue
-                successors.append(((role, "send", msg, target), _with(state, role, target, send=msg)))
-            inbox = queues[role]
-            received = self.roles.receive(role, local[role], inbox[0]) if inbox else None
+                nxt = _with(
+                    state, role, target, send=msg, track=self.roles.not_understood, take=answers_stray
+                )
+                successors.append(((role, "send", msg, target), nxt))
             if received is not None:
-                successors.append(((role, "receive", inbox[0], received), _with(state, role, received)))
+                nxt = _with(state, role, received, track=self.roles.not_understood)
+                successors.append(((role, "receive", inbox[0], received), nxt))
         return successors, blocked
 
     def unconsumed(
@@ -553,23 +569,34 @@ def explore(
     )
 
 
-def _with(state: _State, role: Role, target: str, *, send: _Msg | None = None) -> _State:
+def _with(
+    state: _State,
+    role: Role,
+    target: str,
+    *,
+    send: _Msg | None = None,
+    track: bool = False,
+    take: bool = False,
+) -> _State:
     """``state`` after ``role`` moves to ``target``, by sending ``send`` or else by receiving
-    the head of its queue."""
-    s_i, s_p, to_p, to_i = state
+    the head of its queue; ``take``: the send (a not-understood) answers that head, which it
+    takes off the queue; ``track``: keep whether each role received since it last sent."""
+    s_i, s_p, to_p, to_i, heard_i, heard_p = state
     if role == INITIATOR:
         s_i = target
         if send is not None:
             to_p = (*to_p, send)
-        else:
+        if send is None or take:
             to_i = to_i[1:]
+        heard_i = track and send is None
     else:
         s_p = target
         if send is not None:
             to_i = (*to_i, send)
-        else:
+        if send is None or take:
             to_p = to_p[1:]
-    return (s_i, s_p, to_p, to_i)
+        heard_p = track and send is None
+    return (s_i, s_p, to_p, to_i, heard_i, heard_p)
 
 
 # ----------------------------------------------------------------------------- agents

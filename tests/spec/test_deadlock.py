@@ -155,6 +155,32 @@ def test_not_understood_turns_the_deadlock_into_an_unspecified_reception() -> No
     assert escaped.states > plain.states
 
 
+def _spoke_without_hearing(trace: tuple[Step, ...]) -> bool:
+    """Some role sends not-understood with nothing received since it last sent (or at all)."""
+    last: dict[str, str] = {}
+    for step in trace:
+        if (
+            step.event == "send"
+            and step.performative == "not-understood"
+            and last.get(step.role) != "receive"
+        ):
+            return True
+        last[step.role] = step.event
+    return False
+
+
+def test_a_role_sends_not_understood_only_after_it_received_something_since_it_last_sent() -> None:
+    """The rule every agent is held to (services/runtime/protocol_state.py ``judge``), over the
+    library: before it, fipa-propose's and fipa-recruiting's initiators answered their own
+    opening with not-understood (112 traces of the findings)."""
+    findings = []
+    for protocol in PROTOCOLS.values():
+        result = explore(protocol, not_understood=True)
+        findings += [*result.deadlocks, *result.unspecified_receptions, *result.late_messages]
+    assert sum(any(s.performative == "not-understood" for s in f.trace) for f in findings) > 50
+    assert not [f.detail for f in findings if _spoke_without_hearing(f.trace)]
+
+
 def test_queue_bound() -> None:
     propose = explore(PROTOCOLS["fipa-propose"])
     assert propose.ok and not propose.bound_reached and propose.states == 7

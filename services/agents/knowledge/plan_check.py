@@ -12,7 +12,10 @@ base"), in its own terms: O_RoCo (o_roco.ttl) and the kitchen's facts (kitchen.t
 - pour(source, target): the source is held and holds particles (a_km's count); the target's
   ``roco:capacity`` takes what it holds plus what the source holds.
 
-:func:`refusal` returns the reason in words, or None when every precondition holds.
+:func:`refusal` returns the reason in words, or None when every precondition holds;
+:func:`effects` what a step that can run changes, by a_km's own reading of the operator. The
+hypothetical state takes these, not the ``changes`` a_pl declares in the step: a plan reaches
+its goal by what its steps do, not by what its author says they do.
 """
 
 from __future__ import annotations
@@ -20,8 +23,8 @@ from __future__ import annotations
 import math
 
 from services.agents.knowledge.world_model import ROCO, KnowledgeError, WorldModel
-from shared.fipa_codec.languages.common import Vec3
-from shared.fipa_codec.languages.l_wm import GraspStep, ObjectInfo, PlanStep, PourStep, PutStep
+from shared.fipa_codec.languages.common import Pose, Vec3
+from shared.fipa_codec.languages.l_wm import GraspStep, ObjectInfo, ObjectUpdate, PlanStep, PourStep, PutStep
 
 
 class StepRefused(KnowledgeError):
@@ -41,6 +44,31 @@ def refusal(world: WorldModel, step: PlanStep) -> str | None:
         return _pour(world, step)
     except KnowledgeError as exc:
         return str(exc)
+
+
+def effects(world: WorldModel, step: PlanStep) -> tuple[ObjectUpdate, ...]:
+    """What ``step``, which can run in the state ``world`` holds (:func:`refusal` gave None),
+    changes in it: a grasp puts the object in the hand of its arm; a put takes it out of the
+    hand and stands it ``relation`` the furniture at the step's position (world, m); a pour
+    empties the source into the target (a_km's counts of particles)."""
+    if isinstance(step, GraspStep):
+        return (ObjectUpdate(name=step.object, held_by=f"{step.arm}_gripper"),)
+    if isinstance(step, PutStep):
+        return (
+            ObjectUpdate(
+                name=step.object,
+                location=step.furniture,
+                relation=step.relation,
+                held_by="",
+                pose=Pose(step.position),
+            ),
+        )
+    poured = world.object_info(step.source).particles or 0
+    there = world.object_info(step.target).particles or 0
+    return (
+        ObjectUpdate(name=step.source, particles=0),
+        ObjectUpdate(name=step.target, particles=there + poured),
+    )
 
 
 def _hand(gripper: str) -> str:

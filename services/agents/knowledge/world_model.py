@@ -314,11 +314,12 @@ class WorldModel:
         """Answer ``query`` in the state after ``steps``, then ``changes`` (paper §5.7), applied
         in order to an in-memory copy; the real state is not touched. Each step's preconditions
         are checked (services/agents/knowledge/plan_check.py) in the state the steps before it
-        left, then its changes are applied; the first that fails raises ``StepRefused`` (a
+        left, then its effects, by a_km's reading of its operator (not the ``changes`` the step
+        declares), are applied; the first that fails raises ``StepRefused`` (a
         KnowledgeError) naming the step and the reason. A hypothetical pose is taken as known
         (localised) but unobserved: no stamp, so ``pose_stamp`` is None."""
         # imported here: plan_check reads the world model through this module's names
-        from services.agents.knowledge.plan_check import StepRefused, refusal
+        from services.agents.knowledge.plan_check import StepRefused, effects, refusal
 
         if isinstance(query, HypotheticalQuery):
             raise UnsupportedQuery("a hypothetical query inside a hypothetical query")
@@ -327,7 +328,7 @@ class WorldModel:
                 why = refusal(scratch, step)
                 if why is not None:
                     raise StepRefused(f"step {step.index} {step.operator}: {why}")
-                scratch._apply(step.changes, stamp=None)
+                scratch._apply(effects(scratch, step), stamp=None)
             scratch._apply(tuple(changes), stamp=None)
             return scratch.answer(query)
 

@@ -246,13 +246,8 @@ def test_a_plan_whose_step_cannot_run_is_answered_failure_with_the_step_and_the_
     """FIPA query (SC00027): a_km tried the query and could not answer it: ``failure``."""
     monkeypatch.delenv("ROCO_KM_STORE", raising=False)
     monkeypatch.delenv("ROCO_RUN_DIR", raising=False)
-    goal = SparqlQuery("ASK { roco:bowl roco:particles ?n . FILTER(?n >= 90) }")
-    pour = PourStep(
-        index=7,
-        source="jar",
-        target="bowl",
-        changes=(ObjectUpdate(name="jar", particles=0), ObjectUpdate(name="bowl", particles=90)),
-    )
+    goal = SparqlQuery("ASK { roco:bowl roco:particles ?n . FILTER(?n >= 84) }")
+    pour = PourStep(index=7, source="jar", target="bowl")
     with running_km() as (_km, peer):
         peer.update(
             WorldUpdate(
