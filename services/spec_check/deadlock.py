@@ -377,25 +377,38 @@ class _Exploration:
         blocked = 0
         heard = {INITIATOR: state[4], PARTICIPANT: state[5]}
         for role in _ROLES:
-            out = queues[_other(role)]
             inbox = queues[role]
             received = self.roles.receive(role, local[role], inbox[0]) if inbox else None
             stray = bool(inbox) and received is None  # the head: a communicate it cannot take
-            for msg, target in self.roles.sends.get((role, local[role]), ()):
-                answers_stray = msg[0] is Performative.NOT_UNDERSTOOD and stray
-                if msg[0] is Performative.NOT_UNDERSTOOD and not (heard[role] or stray):
-                    continue  # nothing received since it last spoke: nothing to not-understand
-                if len(out) >= self.queue_capacity:
-                    blocked += 1
-                    continue
-                nxt = _with(
-                    state, role, target, send=msg, track=self.roles.not_understood, take=answers_stray
-                )
-                successors.append(((role, "send", msg, target), nxt))
+            queued = len(queues[_other(role)])
+            sends, full = self.sends(state, role, local[role], queued, heard=heard[role], stray=stray)
+            successors += sends
+            blocked += full
             if received is not None:
                 nxt = _with(state, role, received, track=self.roles.not_understood)
                 successors.append(((role, "receive", inbox[0], received), nxt))
         return successors, blocked
+
+    def sends(
+        self, state: _State, role: Role, local: str, queued: int, *, heard: bool, stray: bool
+    ) -> tuple[list[tuple[_RawStep, _State]], int]:
+        """The sends ``role`` may make in ``local`` with ``queued`` messages in the other's
+        queue, and how many a full queue blocks. A not-understood only when the role ``heard``
+        something since it last sent, or answering a ``stray`` head of its queue (a
+        communicate it cannot take, which the not-understood takes off)."""
+        out: list[tuple[_RawStep, _State]] = []
+        blocked = 0
+        for msg, target in self.roles.sends.get((role, local), ()):
+            answers = msg[0] is Performative.NOT_UNDERSTOOD
+            if answers and not (heard or stray):
+                continue  # nothing received since it last spoke: nothing to not-understand
+            if queued >= self.queue_capacity:
+                blocked += 1
+                continue
+            take = answers and stray
+            nxt = _with(state, role, target, send=msg, track=self.roles.not_understood, take=take)
+            out.append(((role, "send", msg, target), nxt))
+        return out, blocked
 
     def unconsumed(
         self, state: _State, role: Role, local: str, inbox: tuple[_Msg, ...], *, finished: bool

@@ -23,6 +23,7 @@ from services.report import build_report
 from services.report.load import load_run
 from services.runtime.run_folder import read_run_info
 from services.scenario.model import LIBRARY
+from services.spec_check.conformance import verify_report
 from shared.fipa_codec.languages.l_sw import SWState, SWStatus
 from tests.support.machine import needs_camera
 from tests.support.recorded_run import replay_lines
@@ -55,6 +56,9 @@ def scenario(name: str, runs: Path, *options: str) -> Run:
     # self-collision is on: in no scenario does a command make the robot touch itself
     touched = [e.text for e in build_report(run_dir).events if e.kind == "self_contact"]
     assert touched == [], touched
+    # and every scenario's record conforms to the specification (roco spec verify)
+    conforms, text = verify_report(run_dir)
+    assert conforms, f"{name}: {text[-4000:]}"
     return proc, run_dir
 
 
@@ -104,10 +108,7 @@ def test_an_urgent_command_preempts_the_pour_which_resumes(urgent_mid_pour: Run)
     w = world(run_dir)
     assert stands_at(w["cup"], "table") and stands_at(w["bowl"], "table"), w
     assert (w["bowl"].particles_inside or 0) >= FULL, w["bowl"]
-    from services.spec_check.conformance import verify_report
-
-    conforms, text = verify_report(run_dir)
-    assert conforms, text  # cancel, Terminating, Preempted all within the coordinate protocol
+    # cancel, Terminating, Preempted all within the coordinate protocol: scenario() verified it
 
 
 def test_two_commands_in_a_row(two_commands: Run) -> None:

@@ -75,6 +75,8 @@ def test_the_pour_succeeds_across_two_hosts_over_a_shaped_link_with_mtls_and_acl
     assert events[0]["event"] == "shaping" and events[0]["delay_ms"] == 20 and events[0]["loss_pct"] == 1
     # C5 (a_ta ↔ ag_ex) stayed on the robot's host and still reached the brain's recorder
     assert any(r["sender"] == "ag_ex" for r in c5_record(hosts.run_dir))
+    conformance = verify_run(hosts.run_dir, default_spec())
+    assert conformance.full_conformance, render(conformance)
     # each agent that takes only communicates is reproduced from the record made on two hosts
     assert sync_fleet(hosts.endpoint, hosts.run_dir / "security")
     for agent in ("a_co", "a_pl", "a_km", "a_ta"):
