@@ -93,6 +93,28 @@ def test_a_his_subscription_waits_for_a_co_backs_off_and_cancels_a_late_agree() 
     assert [c for c, _ in _subscribes(hi)][-1] == "hi-progress-4" and sub.pending
 
 
+def test_a_restarted_agent_subscribes_in_a_conversation_its_earlier_process_did_not_open(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Where the agent keeps state (ROCO_STATE_DIR), the count of attempts is kept: a_km killed
+    after its second attempt and started again opens the third, not its first's conversation
+    again (which the peer still serves: an opening in an open conversation, FIPA SC00061)."""
+    monkeypatch.setenv(ENV_STATE_DIR, str(tmp_path))
+    bus = MemoryBus()
+    km = Wire(KnowledgeManager, bus)
+    km.agent.setup()
+    km.agent._dispatch()
+    ((cid, rw),) = [(m.conversation_id, m.reply_with) for m in km.mine(P.SUBSCRIBE)]
+    km.deliver(communicate(P.REFUSE, "a_ta", "a_km", "fipa-subscribe", cid, in_reply_to=rw))
+    km.step("idle")
+    assert [m.conversation_id for m in km.mine(P.SUBSCRIBE)] == ["km-environment", "km-environment-2"]
+    again = Wire(KnowledgeManager, MemoryBus())  # the restarted process
+    again.agent.setup()
+    again.agent._dispatch()
+    assert [m.conversation_id for m in again.mine(P.SUBSCRIBE)] == ["km-environment-3"]
+    assert (tmp_path / "a_km.subscriptions.json").is_file()
+
+
 def test_a_kms_subscription_goes_at_start_again_at_once_and_when_a_ta_is_back() -> None:
     bus = MemoryBus()
     km = Wire(KnowledgeManager, bus)

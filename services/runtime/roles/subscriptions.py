@@ -19,7 +19,10 @@ handler of the stream's ``inform``\\s (and, if it wants them, the hooks ``on_sub
 - ``refuse``, ``failure``, ``not-understood`` or a passed reply-by deadline of the latest
   attempt: the next attempt after ``retry_s[0]`` s, the interval doubling up to ``retry_s[1]``
   (0: at once); each attempt in a new conversation (``-2``, ``-3``, … added to the
-  conversation-id: a conversation-id names one conversation, FIPA SC00061);
+  conversation-id: a conversation-id names one conversation, FIPA SC00061). Where the agent
+  keeps state (services/runtime/state_store.py: a fleet's run folder, compose's volume), the
+  count of attempts is kept too (``<agent>.subscriptions.json``), so a restarted agent goes on
+  from the next number instead of opening its first attempt's conversation again;
 - the peer's token disappears: the subscription is lost; with ``while_away`` the attempts go
   on with the back-off from its first interval, else the next one waits for the token;
 - the token appears: the back-off starts again from its first interval, and an attempt goes
@@ -45,6 +48,7 @@ import msgspec
 from services.runtime.roles.conversation import Conversation
 from services.runtime.roles.declare import RoleDecl
 from services.runtime.roles.host import SubscriptionHost
+from services.runtime.state_store import StateFile
 from shared.fipa_codec.acts import Performative
 
 Hook = Callable[["Conversation"], None]
@@ -90,7 +94,11 @@ class StandingSubscription:
         """The latest attempt (None before the first)."""
         self.agreed: Conversation | None = None
         """The latest attempt the peer agreed to (None: none yet)."""
-        self.attempts = 0
+        self._kept: StateFile[dict[str, int]] = StateFile.for_agent(
+            f"{roles.host.name}.subscriptions", dict[str, int]
+        )
+        self.attempts = (self._kept.load() or {}).get(conversation_id, 0)
+        """Attempts made, by this process and, where kept, the agent's earlier ones."""
         self.pending = False
         """The latest attempt awaits its answer."""
         self.interval = retry_s[0]
@@ -122,6 +130,8 @@ class StandingSubscription:
         self.attempts += 1
         n = self.attempts
         cid = self.base_id if n == 1 else f"{self.base_id}-{n}"
+        if self._kept.path is not None:  # read again: the agent's other subscriptions count too
+            self._kept.save({**(self._kept.load() or {}), self.base_id: n})
         before = self.conversation
         if before is not None:  # the previous attempt is given up (or its peer gone)
             before.stop_awaiting_replies()
