@@ -38,7 +38,10 @@ When an input reached the agent is known within a window only: from when its sen
 and path say to when the recorder saw it. The replay takes the first; when it then differs, it is
 made again with each input of such a window that began before the first difference (the nearest
 first, :data:`MAX_ORDERS` of them) taken at the other end, as the agent's timer (a reply-by
-deadline) may have come before it or after. An order that reproduces the run is one the record
+deadline) may have come before it or after; then with each peer's token that appeared before
+the first difference (or within the record's lateness after it: a token carries no timestamp)
+taken that lateness earlier, as the agent's timer may have fired just after it, not before
+(tests/replay/fixtures/timer_beside_token). An order that reproduces the run is one the record
 allows, and the replay says which it took; when the replay differs in each order tried and the
 differences depend on the order, it says it cannot decide that order
 (:attr:`ReplayResult.undecided`) instead of reporting the differences of one.
@@ -455,9 +458,13 @@ class _Made:
     peers: Timeline
     causal: bool
 
-    def once(self, arrival: frozenset[int] = frozenset()) -> tuple[ReplayResult, float | None]:
-        """One replay, ``arrival`` the inputs (``seq``) fed when the recorder saw them; and the
-        replayed clock (POSIX s) at its first difference (None: none)."""
+    def once(
+        self, arrival: frozenset[int] = frozenset(), early: int | None = None
+    ) -> tuple[ReplayResult, float | None]:
+        """One replay, ``arrival`` the inputs (``seq``) fed when the recorder saw them, ``early``
+        the peers' token change (its place in :attr:`Timeline.changes`) taken at the early end
+        of its window (:meth:`changes`); and the replayed clock (POSIX s) at its first
+        difference (None: none)."""
         started = time.perf_counter()
         record, agent = self.record, self.record.agent
         result = ReplayResult(
@@ -478,7 +485,7 @@ class _Made:
             except Exception as exc:
                 raise ReplayError(f"{agent} cannot be built outside its run: {exc}") from None
             result.build_seconds = time.perf_counter() - started
-            run = _Replay(record, instance, sources, transport, self.causal, self.peers.changes, arrival)
+            run = _Replay(record, instance, sources, transport, self.causal, self.changes(early), arrival)
             try:
                 _run(run, result)
             finally:
@@ -488,6 +495,18 @@ class _Made:
         result.counters = {k: instance.counters[k] for k in TROUBLE if instance.counters[k]}
         result.run_counters = _run_counters(self.run_dir, agent)
         return result, run.first_at
+
+    def changes(self, early: int | None) -> list[Change]:
+        """The peers' token changes, the one at ``early`` (None: none) taken the record's
+        lateness earlier (the agent may have seen a token up to that long before the recorder
+        did: a token carries no timestamp), never before that peer's change before it."""
+        changes = list(self.peers.changes)
+        if early is None:
+            return changes
+        c = changes[early]
+        before = [d.t for d in changes[:early] if d.name == c.name]
+        changes[early] = Change(max(c.t - self.record.lateness, *before, self.record.start), c.name, c.alive)
+        return sorted(changes, key=lambda d: d.t)
 
 
 def _other_orders(made: _Made, base: ReplayResult, first: float) -> ReplayResult:
@@ -514,6 +533,17 @@ def _other_orders(made: _Made, base: ReplayResult, first: float) -> ReplayResult
             return other
         if depends is None and _found(other) != _found(base):
             depends = item
+    appeared = [i for i, c in enumerate(made.peers.changes) if c.alive and c.t - record.lateness <= first]
+    for i in reversed(appeared[-MAX_ORDERS:]):
+        other, _ = made.once(early=i)
+        if other.equal:
+            c = made.peers.changes[i]
+            other.notes.append(
+                f"{c.name}'s token taken as seen by {record.agent} up to {record.lateness * 1000:.1f} ms "
+                f"before {c.t - record.t0:.3f} s: the record allows it, and the run is reproduced so"
+            )
+            other.build_seconds = base.build_seconds
+            return other
     if depends is not None:
         base.undecided = (
             f"whether #{depends.seq} {depends.line} reached {record.agent} at "
