@@ -533,6 +533,23 @@ def _other_orders(made: _Made, base: ReplayResult, first: float) -> ReplayResult
             return other
         if depends is None and _found(other) != _found(base):
             depends = item
+    early = _token_order(made, base, first)
+    if early is not None:
+        return early
+    if depends is not None:
+        base.undecided = (
+            f"whether #{depends.seq} {depends.line} reached {record.agent} at "
+            f"{depends.came - record.t0:.3f} s (sent then, by its path) or at "
+            f"{depends.t - record.t0:.3f} s (when the recorder saw it): the replay differs either way"
+        )
+    return base
+
+
+def _token_order(made: _Made, base: ReplayResult, first: float) -> ReplayResult | None:
+    """A replay that reproduces the run with one peer's token that appeared around ``first``
+    (POSIX s, the first difference of ``base``) taken the record's lateness earlier (noted), or
+    None (module docstring)."""
+    record = made.record
     appeared = [i for i, c in enumerate(made.peers.changes) if c.alive and c.t - record.lateness <= first]
     for i in reversed(appeared[-MAX_ORDERS:]):
         other, _ = made.once(early=i)
@@ -544,13 +561,7 @@ def _other_orders(made: _Made, base: ReplayResult, first: float) -> ReplayResult
             )
             other.build_seconds = base.build_seconds
             return other
-    if depends is not None:
-        base.undecided = (
-            f"whether #{depends.seq} {depends.line} reached {record.agent} at "
-            f"{depends.came - record.t0:.3f} s (sent then, by its path) or at "
-            f"{depends.t - record.t0:.3f} s (when the recorder saw it): the replay differs either way"
-        )
-    return base
+    return None
 
 
 def _found(result: ReplayResult) -> list[tuple[int | None, str]]:
