@@ -23,7 +23,7 @@ from __future__ import annotations
 import math
 
 from services.agents.knowledge.world_model import ROCO, KnowledgeError, WorldModel
-from shared.fipa_codec.languages.common import Pose, Vec3
+from shared.fipa_codec.languages.common import Vec3
 from shared.fipa_codec.languages.l_wm import GraspStep, ObjectInfo, ObjectUpdate, PlanStep, PourStep, PutStep
 
 
@@ -51,18 +51,8 @@ def effects(world: WorldModel, step: PlanStep) -> tuple[ObjectUpdate, ...]:
     changes in it: a grasp puts the object in the hand of its arm; a put takes it out of the
     hand and stands it ``relation`` the furniture at the step's position (world, m); a pour
     empties the source into the target (a_km's counts of particles)."""
-    if isinstance(step, GraspStep):
-        return (ObjectUpdate(name=step.object, held_by=f"{step.arm}_gripper"),)
-    if isinstance(step, PutStep):
-        return (
-            ObjectUpdate(
-                name=step.object,
-                location=step.furniture,
-                relation=step.relation,
-                held_by="",
-                pose=Pose(step.position),
-            ),
-        )
+    if isinstance(step, GraspStep | PutStep):
+        return step.effects()  # the operator's meaning in L_WM, not the step's declared changes
     poured = world.object_info(step.source).particles or 0
     there = world.object_info(step.target).particles or 0
     return (

@@ -21,9 +21,10 @@ from __future__ import annotations
 import math
 from typing import Any
 
+import msgspec
+
 from services.agents.planner.hfsm import KNOWLEDGE_ONLY
 from services.agents.planner.knowledge import Knowledge
-from shared.fipa_codec.languages.common import Pose
 from shared.fipa_codec.languages.l_hc import CONTENT_SHARE_REQUIRED
 from shared.fipa_codec.languages.l_wm import GraspStep, ObjectUpdate, PlanStep, PourStep, PutStep, SparqlQuery
 
@@ -56,20 +57,15 @@ def _step(name: str, args: list[Any], index: dict[str, int]) -> PlanStep | None:
     numbered ``index[name]``."""
     if name == "a_held":
         obj, arm, _picked_from = args
-        held = ObjectUpdate(name=obj, held_by=f"{arm}_gripper")
-        return GraspStep(index=index[name], object=obj, arm=arm, changes=(held,))
+        grasp = GraspStep(index=index[name], object=obj, arm=arm)
+        return msgspec.structs.replace(grasp, changes=grasp.effects())
     if name == "a_put":
         obj, furniture, relation, (x, y, z) = args
         position = (float(x), float(y), float(z))
-        put = ObjectUpdate(name=obj, location=furniture, relation=relation, held_by="", pose=Pose(position))
-        return PutStep(
-            index=index[name],
-            object=obj,
-            furniture=furniture,
-            relation=relation,
-            position=position,
-            changes=(put,),
+        put = PutStep(
+            index=index[name], object=obj, furniture=furniture, relation=relation, position=position
         )
+        return msgspec.structs.replace(put, changes=put.effects())
     if name == "a_poured":
         src, dst, amount, into = args
         counts: tuple[ObjectUpdate, ...] = ()

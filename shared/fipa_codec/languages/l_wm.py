@@ -84,6 +84,10 @@ class GraspStep(msgspec.Struct, frozen=True, tag="grasp_step", kw_only=True):
     def operator(self) -> str:
         return f"grasp({self.object}, {self.arm})"
 
+    def effects(self) -> tuple[ObjectUpdate, ...]:
+        """What the grasp changes in the knowledge: ``object`` held by ``<arm>_gripper``."""
+        return (ObjectUpdate(name=self.object, held_by=f"{self.arm}_gripper"),)
+
 
 class PutStep(msgspec.Struct, frozen=True, tag="put_step", kw_only=True):
     """A plan's step in which the held ``object`` is put down ``relation`` (in/on)
@@ -99,6 +103,18 @@ class PutStep(msgspec.Struct, frozen=True, tag="put_step", kw_only=True):
     @property
     def operator(self) -> str:
         return f"put({self.object}, {self.furniture})"
+
+    def effects(self) -> tuple[ObjectUpdate, ...]:
+        """What the put changes in the knowledge: ``object`` out of the hand, standing
+        ``relation`` ``furniture`` with its frame at ``position`` (world, m)."""
+        put = ObjectUpdate(
+            name=self.object,
+            location=self.furniture,
+            relation=self.relation,
+            held_by="",
+            pose=Pose(self.position),
+        )
+        return (put,)
 
 
 class PourStep(msgspec.Struct, frozen=True, tag="pour_step", kw_only=True):
