@@ -222,6 +222,24 @@ VERIFY_KINDS = [
         _planted("unanswered", "a subscribe whose participant never answers"),
     ),
     Mutant(
+        "verify.unanswered.lost-with-the-receiver",
+        _CONFORMANCE,
+        "        if gone is not None:\n",
+        "        if False:\n",
+        (
+            f"{_EVERY_KIND}::test_a_subscribe_unanswered_because_its_receiver_was_away_is_lost_not_a_violation",
+        ),
+    ),
+    Mutant(
+        "verify.unanswered.lost-only-while-away",
+        _CONFORMANCE,
+        "        gone = away_between(self.absences.get(receiver, []), sent, until)\n",
+        "        gone = next(iter(self.absences.get(receiver, [])), None)\n",
+        (
+            f"{_EVERY_KIND}::test_a_subscribe_unanswered_by_a_receiver_that_stayed_is_a_violation_with_a_presence_record",
+        ),
+    ),
+    Mutant(
         "verify.kinds.conversation",
         _CONFORMANCE,
         """    "conversation": "the communicate cannot belong to its conversation",\n""",

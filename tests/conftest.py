@@ -36,7 +36,27 @@ def pytest_report_header() -> list[str]:
 FLEET_GROUP = pytest.mark.xdist_group("fleet")
 
 
+@pytest.hookimpl(tryfirst=True)
 def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
+    # first: pytest-xdist's own hook reads the xdist_group marks on the worker, and runs before a
+    # conftest's by default
     for item in items:
         if item.get_closest_marker("fleet") is not None:
             item.add_marker(FLEET_GROUP)
+
+
+def pytest_runtest_setup(item: pytest.Item) -> None:
+    """Under ``--dist loadgroup`` (an xdist worker), a fleet test fails at once unless xdist
+    grouped it: its node id carries the group. Ungrouped, xdist spreads the fleets over every
+    worker, whole fleets compete for the CPUs and each worker builds the module fixtures again.
+    pytest 9.2 with pytest-xdist 3.8 drops the group silently (pytest-xdist issue 1386), hence
+    the pin in pyproject.toml."""
+    if not getattr(item.config.option, "loadgroup", False) or item.get_closest_marker("fleet") is None:
+        return
+    if not item.nodeid.endswith("@fleet"):
+        pytest.fail(
+            f"pytest-xdist did not put this fleet test in its group (pytest {pytest.__version__}"
+            " ignores xdist_group with this pytest-xdist): install the versions pyproject.toml"
+            " pins, pip install -e '.[dev]'",
+            pytrace=False,
+        )

@@ -17,6 +17,7 @@ only the format, so that the recorder and the replay read it without importing e
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 from typing import BinaryIO
 
@@ -90,3 +91,79 @@ def read_presence(run_dir: Path) -> list[PresenceEvent] | None:
         except (msgspec.DecodeError, msgspec.ValidationError):
             continue
     return events
+
+
+def absences(events: list[PresenceEvent]) -> dict[str, list[tuple[float, float]]]:
+    """When each process's token was gone, from the presence ``events`` (in file order): for every
+    name the record shows alive at least once, its absences as ``(from, to)`` POSIX s, in time
+    order (``-inf``: absent before the record saw it first; ``inf``: still gone at its end).
+
+    Where no recorder watched (between one incarnation's last event and the next one's snapshot),
+    a token that disappeared is taken as gone from the earliest moment it may have gone, and one
+    that came back as back at the latest: the absences are as wide as the record allows. A token
+    in the first incarnation's snapshot was there from the start."""
+    watch = _Absences(events[0].incarnation if events else "")
+    for e in events:
+        watch.read(e)
+    return watch.finish()
+
+
+class _Absences:
+    """The reading of :func:`absences`: who is alive, since when each absent one is away, and
+    the snapshot of the recorder incarnation being read (None: its snapshot is over)."""
+
+    def __init__(self, first: str) -> None:
+        self.first = first
+        self.away: dict[str, list[tuple[float, float]]] = {}
+        self.gone_since: dict[str, float] = {}
+        self.alive: set[str] = set()
+        self.incarnation: str | None = None
+        self.snapshot: set[str] | None = None
+        self.last_t = -math.inf  # the latest event read
+        self.gap_start = -math.inf  # the previous incarnation's latest event
+
+    def read(self, e: PresenceEvent) -> None:
+        if e.snapshot and e.incarnation != self.incarnation:  # an incarnation begins to watch
+            self._end_snapshot()
+            self.incarnation, self.snapshot, self.gap_start = e.incarnation, set(), self.last_t
+        elif not e.snapshot:
+            self._end_snapshot()
+        if e.snapshot and self.snapshot is not None:
+            self.snapshot.add(e.name)
+        if e.alive:  # in the first incarnation's snapshot: alive before the record began
+            self._back(e.name, e.t, e.snapshot and e.incarnation == self.first)
+        elif e.name in self.alive:
+            self.alive.discard(e.name)
+            self.gone_since[e.name] = e.t
+        self.last_t = max(self.last_t, e.t)
+
+    def _back(self, name: str, t: float, from_start: bool) -> None:
+        since = self.gone_since.pop(name, -math.inf)
+        if name not in self.alive and not (from_start and since == -math.inf):
+            self.away.setdefault(name, []).append((since, t))
+        self.alive.add(name)
+
+    def _end_snapshot(self) -> None:
+        """A snapshot read in full: who was alive before and is not in it went while no
+        recorder watched, as early as the previous incarnation's last event."""
+        if self.snapshot is None:
+            return
+        for name in sorted(self.alive - self.snapshot):
+            self.alive.discard(name)
+            self.gone_since[name] = self.gap_start
+        self.snapshot = None
+
+    def finish(self) -> dict[str, list[tuple[float, float]]]:
+        self._end_snapshot()
+        for name, since in self.gone_since.items():
+            self.away.setdefault(name, []).append((since, math.inf))
+        return {name: sorted(spans) for name, spans in self.away.items()}
+
+
+def away_between(spans: list[tuple[float, float]], t0: float, t1: float) -> tuple[float, float] | None:
+    """The first absence of ``spans`` (:func:`absences`) that overlaps ``[t0, t1]`` (POSIX s),
+    None when the process was present throughout."""
+    for start, end in spans:
+        if start <= t1 and end >= t0:
+            return start, end
+    return None

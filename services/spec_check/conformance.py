@@ -31,7 +31,10 @@ the receiver of a communicate of the conversation it has not answered so already
 after it, only what the other agent sent before it saw the not-understood belongs there. A
 subscribe (fipa-subscribe, SC00035
 §2: the participant answers agree or refuse) that the record ends with no answer to is a
-violation (``unanswered``) once its reply-by has passed, or when it has none. Other conversations
+violation (``unanswered``) once its reply-by has passed, or when it has none, unless the presence
+record (``presence.jsonl``) shows its receiver away when it was sent or gone before its reply-by
+(or, with none, before the record's end): then it was lost with the receiver's process (a put to
+a process that is not there reaches nobody) and is listed as such, not counted. Other conversations
 still open when the record ends are listed, not counted as violations: an agreed subscription
 lasts while the system runs, and a run cut short leaves others.
 
@@ -41,6 +44,7 @@ lasts while the system runs, and a run cut short leaves others.
 
 from __future__ import annotations
 
+import math
 from collections import Counter
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -48,6 +52,7 @@ from pathlib import Path
 
 from services.recorder.causal import causal_order, send_order
 from services.recorder.integrity import Integrity
+from services.recorder.presence import absences, away_between, read_presence
 from services.report.load import Message, load_run
 from services.runtime import keys
 from services.runtime.protocol_state import (
@@ -137,8 +142,9 @@ class ConversationResult:
     ``ended`` (some reading reached a final state), ``violations`` in it, ``crossings``
     tolerated, ``not_understood`` True when a not-understood ended it, ``answered`` False when
     the participant sent nothing after the latest opening communicate, ``unanswered`` True for
-    a subscribe left so past its reply-by (a violation), and the times ``first_t``/``last_t``
-    (s since run start)."""
+    a subscribe left so past its reply-by (a violation), ``lost`` what says a subscribe left
+    unanswered was lost with its receiver's process instead (empty: not so), and the times
+    ``first_t``/``last_t`` (s since run start)."""
 
     conversation_id: str
     agents: tuple[str, str]
@@ -151,6 +157,7 @@ class ConversationResult:
     not_understood: bool = False
     answered: bool = True
     unanswered: bool = False
+    lost: str = ""
     first_t: float = 0.0
     last_t: float = 0.0
 
@@ -249,6 +256,12 @@ def verify_run(
             "in the same conversation; checked in the order they were sent"
         )
     checker = _Checker(spec, machines, report)
+    try:
+        presence = read_presence(Path(run_dir))
+    except OSError as e:
+        presence = None
+        notes.append(f"presence record unreadable ({e}): no subscribe is taken as lost with its receiver")
+    checker.absences = absences(presence) if presence else {}
     for message in messages:
         checker.check(message)
     checker.finish()
@@ -493,6 +506,8 @@ class _Checker:
         """The latest opening communicate of each conversation, its receiver and position, until
         the participant sends anything after it."""
         self.end = 0.0  # POSIX time of the last communicate recorded
+        self.absences: dict[str, list[tuple[float, float]]] = {}
+        """When each process was away, from the presence record (services/recorder/presence.py)."""
         self.outside_estimates = report.outside_estimates
 
     # ---- one communicate -----------------------------------------------------------------
@@ -671,6 +686,12 @@ class _Checker:
         reply_by = m.comm.reply_by if m.comm is not None else None
         if reply_by is not None and reply_by > self.end:
             return  # still in time when the record ended
+        sent = m.rec.t_sent if m.rec.t_sent is not None else m.rec.t
+        until = math.inf if reply_by is None else reply_by
+        gone = away_between(self.absences.get(receiver, []), sent, until)
+        if gone is not None:
+            result.lost = _lost_text(receiver, gone, sent, m.rec.t - m.t)
+            return
         result.unanswered = True
         result.violations += 1
         by = (
@@ -693,6 +714,15 @@ class _Checker:
                 text=f"{receiver} never agreed to nor refused the subscribe ({by})",
             )
         )
+
+
+def _lost_text(receiver: str, gone: tuple[float, float], sent: float, start: float) -> str:
+    """Why a subscribe was lost: when its receiver's process was away (POSIX s; ``start`` the
+    run's start, printed as s since it)."""
+    since, until = gone
+    when = "when it was sent" if since <= sent else f"from {since - start:.3f} s, before it answered"
+    back = "never came back" if math.isinf(until) else f"back at {until - start:.3f} s"
+    return f"lost with {receiver}'s process: away {when}, {back}"
 
 
 def _role_of(channel: ChannelSpec, protocol: str | None, agent: str) -> str:
@@ -756,6 +786,8 @@ def _open_why(c: ConversationResult) -> str:
         return " (an agreed subscription lasts while the system runs)"
     if c.unanswered:
         return " (never agreed nor refused: a violation)"
+    if c.lost:
+        return f" ({c.lost})"
     return ""
 
 

@@ -4,7 +4,8 @@ times during the pour, ends with the task done, no command lost, nothing execute
 object dropped and the traffic record intact (``roco chaos``; everything real: router,
 recorder, one process per agent, MuJoCo). The record then holds exactly what each agent's
 last process says it put on Zenoh (its ``published`` counter, ``counters.json``), each record
-paired with its own bytes. Faults of a_ta and ag_ex are in docs/recovery.md."""
+paired with its own bytes, and it conforms to the specification in full (``roco spec verify``).
+Faults of a_ta and ag_ex are in docs/recovery.md."""
 
 from __future__ import annotations
 
@@ -17,6 +18,7 @@ import pytest
 from services.report.load import load_run
 from services.runtime.counters import read_counters
 from services.scenario.chaos import CHAOS_FILE
+from services.spec_check.conformance import verify_report
 
 pytestmark = [pytest.mark.slow, pytest.mark.fleet]
 SERVICES = ("a_hi", "a_co", "a_pl", "a_km", "recorder")
@@ -90,3 +92,8 @@ def test_each_agent_that_does_not_move_the_robot_killed_or_restarted_during_a_po
 
     replayed = replay(run_dir, "a_ta")
     assert replayed.equal, render(replayed)
+
+    # and the record conforms to the specification: a subscribe that reached no process (its
+    # receiver killed) is listed as lost with it, not as unanswered
+    conforms, text = verify_report(run_dir)
+    assert conforms, text[-4000:]

@@ -22,6 +22,7 @@ import pytest
 from typer.testing import CliRunner
 
 from services import cli
+from services.recorder.presence import PresenceEvent, PresenceWriter
 from services.recorder.record import RawEntry, record_of
 from services.report.load import Message
 from services.runtime import keys
@@ -257,3 +258,51 @@ def test_roco_spec_verify_exits_1_naming_the_kind_of_a_planted_fault(kind: str, 
     lines = result.output.splitlines()
     assert any(line.startswith(f"  seq {seq} ") and f"[{kind}]" in line for line in lines), result.output
     assert result.output.rstrip().endswith("violation(s))")
+
+
+def _a_ta_away(run_dir: Path, since: float, until: float) -> None:
+    """A presence record in ``run_dir``: every agent there from the start, a_ta's token gone from
+    ``since`` to ``until`` (POSIX s)."""
+    start = Recorded.read(URGENT).messages[0].rec.t - 1
+    there = [
+        PresenceEvent(name=n, alive=True, t=start, seq=0, incarnation="r", snapshot=True)
+        for n in default_spec().agent_names
+    ]
+    went = PresenceEvent(name="a_ta", alive=False, t=since, seq=0, incarnation="r")
+    back = PresenceEvent(name="a_ta", alive=True, t=until, seq=0, incarnation="r")
+    writer = PresenceWriter(run_dir)
+    writer.write([*there, went, back])
+    writer.close()
+
+
+@pytest.mark.parametrize("gone", ["when it was sent", "before it answered"])
+def test_a_subscribe_unanswered_because_its_receiver_was_away_is_lost_not_a_violation(
+    gone: str, tmp_path: Path
+) -> None:
+    """The ``unanswered`` plant with a presence record that shows a_ta's process away when the
+    subscribe was sent, or gone after it and before any answer: the put reached no process, so
+    the conversation is listed as lost and the run conforms; a_ta away only after the record's
+    end (the same plant, a presence record where it never left before) stays a violation."""
+    plant = PLANTED["unanswered"][0]
+    run_dir, seq, conversation = planted_run(plant, tmp_path)
+    sent = Recorded.read(run_dir).messages[seq].rec
+    t = sent.t_sent if sent.t_sent is not None else sent.t
+    since = t - 0.5 if gone == "when it was sent" else t + 0.2
+    _a_ta_away(run_dir, since, t + 3.0)
+    report = verify(run_dir)
+    assert report.full_conformance, render(report)
+    (c,) = [c for c in report.conversations if c.conversation_id == conversation]
+    assert not c.unanswered and c.lost.startswith("lost with a_ta's process: away") and gone in c.lost
+    text = render(report)
+    assert f"{conversation} a_km→a_ta fipa-subscribe" in text and "(lost with a_ta" in text
+
+
+def test_a_subscribe_unanswered_by_a_receiver_that_stayed_is_a_violation_with_a_presence_record(
+    tmp_path: Path,
+) -> None:
+    plant = PLANTED["unanswered"][0]
+    run_dir, seq, _ = planted_run(plant, tmp_path)
+    last = Recorded.read(run_dir).messages[-1].rec.t
+    _a_ta_away(run_dir, last + 10, last + 20)  # away, but only after the record's end
+    report = verify(run_dir)
+    assert [v.kind for v in report.violations if v.seq == seq] == ["unanswered"], render(report)
