@@ -5,8 +5,9 @@ meshed over mutual TLS, access control on) and faults both hosts and the link du
 ag_ex holds position), a_ta restarted on the robot, the brain's router paused (1.1 s), the link
 cut (4.4 s). The verdict holds (task done, no command lost, nothing executed twice, no object
 dropped, record intact: what was put while a router was down is fetched from the robot-side
-publishers' caches), every fault fell during the command, and chaos.md says which host each
-fault hit and when the link was down (as link.jsonl recorded it). The robot-side kills come
+publishers' caches), the record conforms to the specification, every fault fell during the
+command, and chaos.md says which host each fault hit and when the link was down (as link.jsonl
+recorded it). The robot-side kills come
 first, before the pour's tilt: a tilt interrupted by them is not kept (docs/recovery.md,
 "Across two hosts").
 
@@ -24,6 +25,7 @@ import pytest
 
 from services.recorder.record import read_fault_events, read_link_events
 from services.scenario.chaos import CHAOS_FILE
+from services.spec_check.conformance import verify_report
 from tests.support.machine import needs_two_hosts
 
 pytestmark = [pytest.mark.slow, pytest.mark.fleet, needs_two_hosts]
@@ -77,3 +79,6 @@ def test_chaos_across_two_hosts_faults_both_hosts_and_the_link_and_keeps_everyth
     assert {"a_ta", "ag_ex"} <= set(placed["robot"]["processes"])
     left = subprocess.run(["ip", "netns", "list"], capture_output=True, text=True).stdout
     assert not [h for h in ("brain", "robot") if placed[h]["netns"] in left], "namespaces left behind"
+    # and the record both hosts' routers fed conforms to the specification in full
+    conforms, text = verify_report(run_dir)
+    assert conforms, text[-4000:]
