@@ -7,9 +7,8 @@ cut (4.4 s). The verdict holds (task done, no command lost, nothing executed twi
 dropped, record intact: what was put while a router was down is fetched from the robot-side
 publishers' caches), the record conforms to the specification, every fault fell during the
 command, and chaos.md says which host each fault hit and when the link was down (as link.jsonl
-recorded it). The robot-side kills come
-first, before the pour's tilt: a tilt interrupted by them is not kept (docs/recovery.md,
-"Across two hosts").
+recorded it). The robot-side kills come first, before the pour's tilt: a tilt interrupted by
+them is not kept (docs/recovery.md, "Across two hosts").
 
 Needs root and iproute2 + nftables (.ci/run installs them); skipped only where namespaces cannot
 be made. One run (≈ 30 s)."""
