@@ -49,8 +49,8 @@ def pytest_runtest_setup(item: pytest.Item) -> None:
     """Under ``--dist loadgroup`` (an xdist worker), a fleet test fails at once unless xdist
     grouped it: its node id carries the group. Ungrouped, xdist spreads the fleets over every
     worker, whole fleets compete for the CPUs and each worker builds the module fixtures again.
-    pytest 9.2 with pytest-xdist 3.8 drops the group silently (pytest-xdist issue 1386), hence
-    the pin in pyproject.toml."""
+    pytest 9.2 with pytest-xdist 3.8 drops the group silently (xdist marks it in the node id,
+    which pytest 9.2 no longer reads), hence the pin in pyproject.toml."""
     if not getattr(item.config.option, "loadgroup", False) or item.get_closest_marker("fleet") is None:
         return
     if not item.nodeid.endswith("@fleet"):

@@ -255,13 +255,12 @@ def verify_run(
             f"{crossed} communicate(s) reached the recorder after one the other party sent later "
             "in the same conversation; checked in the order they were sent"
         )
-    checker = _Checker(spec, machines, report)
     try:
         presence = read_presence(Path(run_dir))
     except OSError as e:
         presence = None
         notes.append(f"presence record unreadable ({e}): no subscribe is taken as lost with its receiver")
-    checker.absences = absences(presence) if presence else {}
+    checker = _Checker(spec, machines, report, absences(presence) if presence else {})
     for message in messages:
         checker.check(message)
     checker.finish()
@@ -494,7 +493,13 @@ def _tally(result: ConversationResult, outcome: str) -> None:
 class _Checker:
     """Checks communicates one by one, in arrival order, and follows their conversations."""
 
-    def __init__(self, spec: SystemSpec, machines: dict[str, Protocol], report: ConformanceReport) -> None:
+    def __init__(
+        self,
+        spec: SystemSpec,
+        machines: dict[str, Protocol],
+        report: ConformanceReport,
+        away: dict[str, list[tuple[float, float]]],
+    ) -> None:
         self.spec = spec
         self.machines = machines
         self.report = report
@@ -506,8 +511,9 @@ class _Checker:
         """The latest opening communicate of each conversation, its receiver and position, until
         the participant sends anything after it."""
         self.end = 0.0  # POSIX time of the last communicate recorded
-        self.absences: dict[str, list[tuple[float, float]]] = {}
-        """When each process was away, from the presence record (services/recorder/presence.py)."""
+        self.absences = away
+        """When each process was away, from the presence record (services/recorder/presence.py
+        ``absences``)."""
         self.outside_estimates = report.outside_estimates
 
     # ---- one communicate -----------------------------------------------------------------

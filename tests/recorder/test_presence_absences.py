@@ -17,6 +17,8 @@ def test_a_token_that_went_and_came_back_is_away_between() -> None:
     spans = absences([ev("a_km", True, 1, snapshot=True), ev("a_km", False, 5), ev("a_km", True, 7)])
     assert spans == {"a_km": [(5, 7)]}
     assert away_between(spans["a_km"], 6, 6) == (5, 7)
+    # sent before it went and not answered before it came back: away in between
+    assert away_between(spans["a_km"], 4, 6) == (5, 7) and away_between(spans["a_km"], 6, 9) == (5, 7)
     assert away_between(spans["a_km"], 4, 4.9) is None and away_between(spans["a_km"], 7.1, 9) is None
 
 

@@ -8,6 +8,7 @@ reproduced, and the replay says so (services/replay/driver.py ``_other_orders``)
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 from services.replay.driver import render, replay
@@ -24,8 +25,6 @@ def test_a_ta_s_timer_and_ag_ex_s_token_are_replayed_in_an_order_the_record_allo
 def test_the_record_shows_the_subscribe_before_the_timer_s_request() -> None:
     """What the test above asks of the replay, in the record itself: the subscribe is seq 9, the
     timer's request seq 11, both after ag_ex's token."""
-    import json
-
     sent = [
         (r["seq"], r["performative"], r["conversation_id"])
         for r in map(json.loads, (RUN / "traffic.jsonl").read_text().splitlines())
