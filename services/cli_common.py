@@ -85,7 +85,11 @@ FleetRunsDir = Annotated[
 ]
 RecordOption = Annotated[
     bool,
-    typer.Option("--record/--no-record", help="record robot, scene and traffic in RUN/recording.rrd (Rerun)"),
+    typer.Option(
+        "--record/--no-record",
+        envvar=Settings.env_name("rerun"),
+        help="record robot, scene and traffic in RUN/recording.rrd (Rerun)",
+    ),
 ]
 ViewOption = Annotated[
     bool, typer.Option("--view/--no-view", help="also show the recording live in a Rerun viewer")

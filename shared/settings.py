@@ -382,7 +382,8 @@ class Settings(msgspec.Struct, frozen=True, kw_only=True):
         bool,
         About(
             "ROCO_RERUN",
-            "1: every process records the run with Rerun, recording.rrd in the run folder (services/viewer)",
+            "1: every process records the run with Rerun, recording.rrd in the run folder (services/viewer); "
+            "roco run and roco scenario take --record/--no-record's default from it",
         ),
     ] = False
     rerun_id: Annotated[
@@ -404,6 +405,15 @@ class Settings(msgspec.Struct, frozen=True, kw_only=True):
         About(
             "ROCO_RERUN_CAMERA",
             "0: ag_ex renders no head camera for Rerun",
+        ),
+    ] = True
+    # --- the report
+    report_figures: Annotated[
+        bool,
+        About(
+            "ROCO_REPORT_FIGURES",
+            "0: a run's report.md is written without its figures, which take most of the time it takes "
+            "(services/report/figures.py)",
         ),
     ] = True
     # --- the robot

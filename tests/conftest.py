@@ -16,10 +16,12 @@ the other, so that no two of them compete for the CPUs while the other workers t
 from __future__ import annotations
 
 import os
+from collections.abc import Iterator
 
 import pytest
 
 import velma.gl  # noqa: F401  (chooses MUJOCO_GL before any test imports MuJoCo)
+from shared.settings import Settings
 from tests.support.machine import missing_gl
 
 if missing_gl() is not None:
@@ -31,6 +33,29 @@ def pytest_report_header() -> list[str]:
     if why is None:
         return []
     return [f"{why}: fleets perceive with the ground truth (ROCO_PERCEPTION=truth), camera tests skip"]
+
+
+LEAN = ("rerun", "report_figures")
+"""The settings a fleet test's run goes without unless its module is marked ``as_users_run``:
+the Rerun recording (``roco run --record``'s default; ag_ex's head-camera renders with it) and
+the report's figures, what a run spends most of its CPU on besides the robot and the agents."""
+
+
+@pytest.fixture(scope="module", autouse=True)
+def lean_fleets(request: pytest.FixtureRequest) -> Iterator[None]:
+    """In a module marked ``fleet`` (its ``pytestmark``), the fleets its tests start record
+    nothing with Rerun and draw no figures in their reports (:data:`LEAN` set to 0 in this
+    process's environment, which they inherit), unless the module is also marked
+    ``as_users_run``: the main pour (tests/integration/test_pour_run.py) checks those on the
+    run as users run it; tests/viewer and tests/report check them in depth."""
+    module = request.node
+    if module.get_closest_marker("fleet") is None or module.get_closest_marker("as_users_run") is not None:
+        yield
+        return
+    with pytest.MonkeyPatch.context() as patch:
+        for name in LEAN:
+            patch.setenv(Settings.env_name(name), "0")
+        yield
 
 
 FLEET_GROUP = pytest.mark.xdist_group("fleet")

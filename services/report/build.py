@@ -17,7 +17,7 @@ from services.recorder.record import (
 )
 from services.report.content import sphere_share
 from services.report.coordination import commands, coordination
-from services.report.figures import write_figures
+from services.report.figures import NOT_DRAWN, figures_wanted, write_figures
 from services.report.ledger import judge_ledger
 from services.report.load import Message, RunData, load_run
 from services.report.markdown import render
@@ -293,8 +293,12 @@ def write_run_report(
     run_dir = Path(run.run_dir)
     report = _assemble(run, tracer=tracer)
     report.coverage = coverage
-    figures, notes = write_figures(run, report, run_dir)
-    report.notes.extend(notes)
+    if figures_wanted():
+        figures, notes = write_figures(run, report, run_dir)
+        report.notes.extend(notes)
+    else:
+        figures = []
+        report.notes.append(NOT_DRAWN)
     path = run_dir / REPORT_MD
     path.write_text(render(report, figures), encoding="utf-8")
     return path, report

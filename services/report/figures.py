@@ -38,6 +38,7 @@ from services.report import paper
 from services.report.load import Message, RunData
 from services.report.model import AgentMatrix, Event, PlanPhase, Report
 from services.report.stats import SMALL_BYTES
+from shared.settings import Settings
 
 if TYPE_CHECKING:
     from matplotlib.axes import Axes
@@ -607,6 +608,16 @@ def _specs(run: RunData, report: Report) -> list[_Spec]:
             )
         )
     return specs
+
+
+def figures_wanted() -> bool:
+    """Whether a report draws its figures (setting ``report_figures``, default on), read now.
+    Off, report.md is written without them, and says so (:data:`NOT_DRAWN`)."""
+    return Settings.from_env(only=("report_figures",)).report_figures
+
+
+NOT_DRAWN = f"figures not drawn: {Settings.env_name('report_figures')}=0"
+"""The report's note when :func:`figures_wanted` is off."""
 
 
 def write_figures(run: RunData, report: Report, run_dir: Path) -> tuple[list[FigureFile], list[str]]:

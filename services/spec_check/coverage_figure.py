@@ -240,20 +240,23 @@ NEVER_SHOWN = 12
 def report_summary(run_dir: Path) -> CoverageSummary:
     """The coverage of run folder ``run_dir`` alone, for its report: counted
     (:func:`~services.spec_check.coverage.coverage_of`), its figure drawn to
-    ``figures/coverage.png``. Raises what :func:`coverage_of` and :func:`write_figure` raise."""
-    from services.report.figures import FIGURES_DIR
+    ``figures/coverage.png`` unless the report draws no figures (services/report/figures.py
+    ``figures_wanted``). Raises what :func:`coverage_of` and :func:`write_figure` raise."""
+    from services.report.figures import FIGURES_DIR, figures_wanted
     from services.spec_check.coverage import KINDS, coverage_of
 
     cov = coverage_of([run_dir])
-    (run_dir / FIGURES_DIR).mkdir(exist_ok=True)
-    write_figure(cov, run_dir / FIGURES_DIR / FIGURE)
+    drawn = figures_wanted()
+    if drawn:
+        (run_dir / FIGURES_DIR).mkdir(exist_ok=True)
+        write_figure(cov, run_dir / FIGURES_DIR / FIGURE)
     never = [i.key for i in cov.items if not cov.counts[i] and i.kind != "term"]
     notes = [_sentence(n.removeprefix(f"{run_dir}: ")) for n in cov.evidence.notes if "FSM record" in n]
     return CoverageSummary(
         exercised=cov.exercised,
         items=len(cov.items),
         kinds=[(KINDS[k], done, n) for k, (done, n) in cov.by_kind().items()],
-        figure=f"{FIGURES_DIR}/{FIGURE}",
+        figure=f"{FIGURES_DIR}/{FIGURE}" if drawn else "",
         never=never[:NEVER_SHOWN],
         notes=notes,
     )

@@ -18,6 +18,7 @@ import pytest
 from typer.testing import CliRunner
 
 from services.fleet.launcher import AGENT_ORDER, free_port
+from shared.settings import Settings
 from velma.world.mode import WORLD_SERVICE
 
 pytestmark = [pytest.mark.slow, pytest.mark.fleet]
@@ -84,7 +85,7 @@ def fleet(tmp_path: Path) -> Iterator[tuple[Path, int]]:
 
 
 def test_down_says_what_it_stops_and_writes_the_commands_and_the_report(
-    fleet: tuple[Path, int], tmp_path: Path
+    fleet: tuple[Path, int], tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     run_dir, port = fleet
     sent = roco("send", POUR, "--runs-dir", str(tmp_path))
@@ -93,6 +94,8 @@ def test_down_says_what_it_stops_and_writes_the_commands_and_the_report(
     assert f"router    at tls/127.0.0.1:{port}  refused 0" in status.stdout, status.stdout
     pids = json.loads((run_dir / "run.json").read_text())["processes"]
     assert set(pids.values()) <= set(processes_of(run_dir))  # the check below sees them
+    # this report draws its figures, as for users (the fleet tests' reports do not: tests/conftest.py)
+    monkeypatch.setenv(Settings.env_name("report_figures"), "1")
     down = roco("down", "--runs-dir", str(tmp_path))
     assert down.returncode == 0, down.stderr
     stopping, final = said(down.stdout)

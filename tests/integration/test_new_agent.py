@@ -31,7 +31,8 @@ from pathlib import Path
 import pytest
 
 from services.recorder.record import read_records
-from shared.settings import Settings
+from services.report.load import load_run
+from services.report.robot_clock import robot_clock
 from tests.spec_check.walkthrough import AGENT, NEXT, TERMS_MODULE, fill, walkthrough_spec, write_terms
 
 pytestmark = [pytest.mark.slow, pytest.mark.fleet]
@@ -288,21 +289,25 @@ def watched_throughout(run_dir: Path, start: float, end: float) -> bool:
     return any(t <= start for t in on) and not any(start <= t <= end for t in off)
 
 
-def knock_to_warning(run_dir: Path, told: float, pace: float) -> tuple[float, float]:
+def knock_to_warning(run_dir: Path, told: float) -> tuple[float, float]:
     """Robot s from the knock to the warning, bounded each way, as measured in the run folder:
 
     - at least: the robot time of the frame that saw the bowl tipped (a_wt's log: "told the
       person: … (seen at robot time S s)", a_km's ``SceneChange.stamp``) less the knock's
       (:func:`knocked_at_robot_time`): the warning cannot precede what it tells;
-    - at most: the wall time from ag_ex's knock log line to the warning's record (``told``,
-      POSIX s, when the recorder heard it) times ``pace``, the most robot s the loop runs per
-      wall s while the watch is on (ROCO_WATCH_PACE; :func:`watched_throughout` must hold),
-      plus the age of the robot state the knock's time came from (``STATE_MARGIN_S``)."""
+    - at most: the robot time of ag_ex's first answer on C5 recorded after the warning (its
+      ``CommandResult.sim_time`` or ``Observation.stamp``: services/report/robot_clock.py) less
+      the knock's: the robot's clock had not passed it when the warning was heard (``told``,
+      POSIX s, when the recorder heard it). While the robot watches, ag_ex answers a frame every
+      0.25 s of robot time, so the bound is that tight. AssertionError when no answer follows."""
     wt_log = (run_dir / "logs" / "a_wt.log").read_text().splitlines()
     seen = next(x for x in wt_log if f"told the person: {WARNING}" in x)
     seen_robot = float(seen.rsplit("seen at robot time ", 1)[1].split()[0])
     knocked = knocked_at_robot_time(run_dir)
-    return seen_robot - knocked, (told - disturbed_at(run_dir)) * pace + STATE_MARGIN_S
+    run = load_run(run_dir)
+    after = [robot for t, robot in robot_clock(run.messages).marks if t >= told - run.t0]
+    assert after, "ag_ex answered nothing on C5 after the warning: no robot time bounds it"
+    return seen_robot - knocked, after[0] - knocked
 
 
 @pytest.fixture(scope="module")
@@ -340,8 +345,7 @@ def test_it_runs_in_the_fleet_with_access_control_and_the_run_conforms(
     # the warning within 1 s of robot time of the knock: the robot watched (a_wt subscribed with
     # within_s), so it saw the knock within a camera frame or two (knock_to_warning)
     told = warnings[0].t
-    pace = Settings.from_env(checkout.env, only=("watch_pace",)).watch_pace
-    at_least, at_most = knock_to_warning(run_dir, told, pace)
+    at_least, at_most = knock_to_warning(run_dir, told)
     print(f"robot s from the knock to the warning: at least {at_least:.3f}, at most {at_most:.3f}")
     assert 0 <= at_least <= 1.0, (at_least, at_most)
     assert watched_throughout(run_dir, disturbed_at(run_dir), told)

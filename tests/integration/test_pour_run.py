@@ -37,7 +37,7 @@ from tests.support.raised import assert_no_agent_raised
 from tests.support.recorded_run import replay_lines
 from tests.support.world import FULL, stands_at, untouched, world
 
-pytestmark = [pytest.mark.slow, pytest.mark.fleet]
+pytestmark = [pytest.mark.slow, pytest.mark.fleet, pytest.mark.as_users_run]
 
 ASKED = "what are you doing?"
 """What the foreign agent asks a_hi while the robot pours."""

@@ -122,6 +122,10 @@ def test_two_commands_in_a_row(two_commands: Run) -> None:
     w = world(run_dir)
     assert stands_at(w["cup"], "table") and stands_at(w["bowl"], "table"), w
     assert (w["bowl"].particles_inside or 0) >= FULL, w["bowl"]
+    # a lean fleet (tests/conftest.py): `roco scenario` took --no-record from ROCO_RERUN=0, and
+    # its report drew no figures
+    assert not (run_dir / "recording.rrd").exists() and not (run_dir / "rerun").exists()
+    assert not (run_dir / "figures").exists()
 
 
 @pytest.mark.requirement("R1.4")

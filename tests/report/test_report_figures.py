@@ -23,6 +23,7 @@ from services.report.figures import (
     size_points,
 )
 from services.report.load import load_run
+from shared.settings import Settings
 
 STARTED = 1_700_000_000.0
 """conftest.py's run start (run.json ``started``); checked against the run folder below."""
@@ -180,6 +181,25 @@ def test_no_traffic_no_figures(tmp_path: Path) -> None:
     md = write_report(empty).read_text(encoding="utf-8")
     assert "figures/" not in md
     assert not (empty / FIGURES_DIR).exists()
+
+
+def test_with_figures_off_the_report_draws_none_and_says_so(
+    run_dir: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """``ROCO_REPORT_FIGURES=0``: report.md links no figure, notes why, and neither the report
+    nor the coverage count (``roco report``'s and a fleet's end) draws a PNG."""
+    from services.spec_check.coverage_figure import report_summary
+
+    monkeypatch.setenv(Settings.env_name("report_figures"), "0")
+    summary = report_summary(run_dir)
+    md = write_report(run_dir, coverage=summary).read_text(encoding="utf-8")
+    assert f"- {figures.NOT_DRAWN}" in md and "figures/" not in md
+    assert summary.figure == "" and "Specification coverage" in md
+    assert not (run_dir / FIGURES_DIR).exists()
+    monkeypatch.setenv(Settings.env_name("report_figures"), "1")
+    md = write_report(run_dir, coverage=report_summary(run_dir)).read_text(encoding="utf-8")
+    assert figures.NOT_DRAWN not in md and "(figures/coverage.png)" in md
+    assert len(list((run_dir / FIGURES_DIR).glob("*.png"))) == len(SECTIONS) + 1
 
 
 def test_byte_ticks() -> None:

@@ -6,6 +6,7 @@ from __future__ import annotations
 import socket
 import subprocess
 import sys
+import threading
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -58,11 +59,23 @@ def test_agent_by_liveliness_token(
     out = capsys.readouterr().out
     assert out.startswith("a_probe absent at ") and out.count("\n") == 1
     token = session.liveliness().declare_token(keys.alive_key("a_probe"))
+    # the token's withdrawal reaches the router asynchronously: a second client sees it go
+    # (through the router) before the probe asks again
+    watcher = open_client(endpoint)
+    gone = threading.Event()
+    watcher.liveliness().declare_subscriber(
+        keys.alive_key("a_probe"),
+        lambda sample: gone.set() if sample.kind == zenoh.SampleKind.DELETE else None,
+    )
     try:
         assert main(["a_probe", "--router", endpoint]) == 0
         assert capsys.readouterr().out == f"a_probe alive at {endpoint}\n"
     finally:
         token.undeclare()
+    try:
+        assert gone.wait(10), "the router never reported a_probe's token withdrawn"
+    finally:
+        watcher.close()
     assert check("a_probe", router=endpoint)[0] is False
 
 
