@@ -11,7 +11,9 @@ session's header says so.
 
 The suite runs on every CPU (pytest-xdist, pyproject.toml): tests marked ``fleet`` (a whole
 fleet with ag_ex simulating a task, about a core and a half each) go to one worker, one after
-the other, so that no two of them compete for the CPUs while the other workers take the rest."""
+the other, so that no two of them compete for the CPUs while the other workers take the rest.
+Their fleets run lean (:func:`lean_fleets`): no Rerun recording, no figures in the report,
+unless the module is marked ``as_users_run``."""
 
 from __future__ import annotations
 
