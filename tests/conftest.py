@@ -37,6 +37,8 @@ def pytest_report_header() -> list[str]:
     return [f"{why}: fleets perceive with the ground truth (ROCO_PERCEPTION=truth), camera tests skip"]
 
 
+FLEET_MODULES = pytest.StashKey[set[str]]()
+"""The node ids of the modules with a test marked ``fleet`` (found at collection)."""
 LEAN = ("rerun", "report_figures")
 """The settings a fleet test's run goes without unless its module is marked ``as_users_run``:
 the Rerun recording (``roco run --record``'s default; ag_ex's head-camera renders with it) and
@@ -45,13 +47,15 @@ the report's figures, what a run spends most of its CPU on besides the robot and
 
 @pytest.fixture(scope="module", autouse=True)
 def lean_fleets(request: pytest.FixtureRequest) -> Iterator[None]:
-    """In a module marked ``fleet`` (its ``pytestmark``), the fleets its tests start record
-    nothing with Rerun and draw no figures in their reports (:data:`LEAN` set to 0 in this
-    process's environment, which they inherit), unless the module is also marked
-    ``as_users_run``: the main pour (tests/integration/test_pour_run.py) checks those on the
-    run as users run it; tests/viewer and tests/report check them in depth."""
+    """In a module with a test marked ``fleet``, the fleets its tests start record nothing with
+    Rerun and draw no figures in their reports (:data:`LEAN` set to 0 in this process's
+    environment, which they inherit), unless the module is marked ``as_users_run``: the main
+    pour (tests/integration/test_pour_run.py) checks those on the run as users run it;
+    tests/viewer and tests/report check them in depth."""
     module = request.node
-    if module.get_closest_marker("fleet") is None or module.get_closest_marker("as_users_run") is not None:
+    if module.nodeid not in request.config.stash.get(FLEET_MODULES, set()) or module.get_closest_marker(
+        "as_users_run"
+    ):
         yield
         return
     with pytest.MonkeyPatch.context() as patch:
@@ -67,9 +71,15 @@ FLEET_GROUP = pytest.mark.xdist_group("fleet")
 def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
     # first: pytest-xdist's own hook reads the xdist_group marks on the worker, and runs before a
     # conftest's by default
+    modules: set[str] = set()
     for item in items:
         if item.get_closest_marker("fleet") is not None:
             item.add_marker(FLEET_GROUP)
+            module = item.getparent(pytest.Module)
+            if module is not None:
+                modules.add(module.nodeid)
+    if items:
+        items[0].config.stash[FLEET_MODULES] = modules
 
 
 def pytest_runtest_setup(item: pytest.Item) -> None:

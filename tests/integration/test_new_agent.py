@@ -35,7 +35,7 @@ from services.report.load import load_run
 from services.report.robot_clock import robot_clock
 from tests.spec_check.walkthrough import AGENT, NEXT, TERMS_MODULE, fill, walkthrough_spec, write_terms
 
-pytestmark = [pytest.mark.slow, pytest.mark.fleet]
+pytestmark = [pytest.mark.slow]
 
 ROOT = Path(__file__).resolve().parents[2]
 C = NEXT.channel_name
@@ -322,6 +322,7 @@ def pour(checkout: Checkout) -> tuple[subprocess.CompletedProcess[str], Path]:
     return done, run_dir
 
 
+@pytest.mark.fleet  # the only test here that runs a fleet: the others need no place in its group
 def test_it_runs_in_the_fleet_with_access_control_and_the_run_conforms(
     checkout: Checkout, pour: tuple[subprocess.CompletedProcess[str], Path]
 ) -> None:
