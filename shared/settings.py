@@ -383,7 +383,7 @@ class Settings(msgspec.Struct, frozen=True, kw_only=True):
         About(
             "ROCO_RERUN",
             "1: every process records the run with Rerun, recording.rrd in the run folder (services/viewer); "
-            "roco run and roco scenario take --record/--no-record's default from it",
+            "roco run, scenario and chaos take --record/--no-record's default from it",
         ),
     ] = False
     rerun_id: Annotated[
