@@ -412,7 +412,7 @@ class Settings(msgspec.Struct, frozen=True, kw_only=True):
         bool,
         About(
             "ROCO_REPORT_FIGURES",
-            "0: a run's report.md is written without its figures, which take most of the time it takes "
+            "0: a run's report.md is written without its PNG figures, most of the report's CPU time "
             "(services/report/figures.py)",
         ),
     ] = True
