@@ -47,8 +47,10 @@ def _watch_asks(peer: Peer, wait_s: float) -> list[tuple[Communicate, Subscripti
         except queue.Empty:
             return out
         content = decode_content(msg.language, msg.content) if msg.language else None
-        if msg.conversation_id != "km-environment":
-            out.append((msg, content if isinstance(content, Subscription) else None))
+        sub = content if isinstance(content, Subscription) else None
+        if (msg.conversation_id or "").startswith("km-environment"):
+            continue  # km-environment, km-environment-2, ...: each repeat has its own id
+        out.append((msg, sub))
         if msg.performative is Performative.CANCEL:
             return out
 
