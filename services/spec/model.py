@@ -46,6 +46,19 @@ class AgentSpec(msgspec.Struct, frozen=True, forbid_unknown_fields=True):
     terms: str = ""
 
 
+class LanguageSpec(msgspec.Struct, frozen=True, forbid_unknown_fields=True):
+    """A content language of the system (``[languages.NAME]``; paper §4 step 3 names one per
+    kind of content): the ``ontology`` its terms come from and the ``terms`` that form its
+    vocabulary, each a module that lists msgspec Structs in ``TERMS`` (``"cell.terms"``: all of
+    them) or one Struct of such a module (``"cell.terms:Order"``). Several languages and agents
+    may name the same module. A name roco's codec already has (``L_WM``) is extended by the
+    terms; a new name needs an ``ontology`` and at least one term (services/spec/terms.py)."""
+
+    ontology: str = ""
+    terms: tuple[str, ...] = ()
+    description: str = ""
+
+
 class ExternalSpec(msgspec.Struct, frozen=True, forbid_unknown_fields=True):
     """A role played by agents outside the platform (docs/gateway.md): agents of another FIPA
     platform, reached through ``roco gateway`` (FIPA SC00084 HTTP transport, SC00085 envelope).
@@ -126,6 +139,8 @@ class SystemSpec(msgspec.Struct, frozen=True, forbid_unknown_fields=True):
     names, in file order."""
     externals: tuple[ExternalSpec, ...] = ()
     """Roles of agents outside the platform (one per platform; see :class:`ExternalSpec`)."""
+    languages: dict[str, LanguageSpec] = {}
+    """The system's own content languages, or terms added to roco's (:class:`LanguageSpec`)."""
 
     @property
     def external_names(self) -> tuple[str, ...]:
@@ -275,12 +290,13 @@ def _check_channel(spec: SystemSpec, ch: ChannelSpec, path: Path) -> None:
 
 def load(path: Path = DEFAULT_SPEC) -> SystemSpec:
     """Load and cross-check a specification, fill in the role lists a ``[protocols.NAME]``
-    table leaves out (:func:`_with_role_lists`) and register its agents' own content terms
-    (``terms``: services/spec/terms.py), so that every process that loads it decodes them.
+    table leaves out (:func:`_with_role_lists`) and register its content languages
+    (``[languages.NAME]``) and its agents' own content terms (``terms``: services/spec/terms.py),
+    so that every process that loads it decodes them.
     Raises SpecError, one line naming the file and the place: line and column for TOML syntax,
     the key path (``$.channels[0].ends``) for a wrong type or unknown field, the channel for an
     unknown agent or protocol, the protocol whose role lists cannot be derived (its declared
-    state machine breaks a rule, or it has none), the agent for a terms module that cannot be
+    state machine breaks a rule, or it has none), the language or agent whose terms cannot be
     registered."""
     text = read_text(path)
     try:
@@ -295,8 +311,9 @@ def load(path: Path = DEFAULT_SPEC) -> SystemSpec:
     for ch in spec.channels:
         _check_channel(spec, ch, path)
     spec = _with_role_lists(spec, raw.get("protocols", {}), path)
-    from services.spec.terms import register_terms  # it reads this module's types
+    from services.spec.terms import register_languages, register_terms  # they read this module's types
 
+    register_languages(spec, path)
     register_terms(spec, path)
     return spec
 

@@ -1,4 +1,8 @@
-"""An agent's own content terms (docs/spec.md, "Content terms of a new agent").
+"""A system's content languages and an agent's own content terms (docs/spec.md, "Content
+languages" and "Content terms of a new agent").
+
+A specification may declare content languages (``[languages.NAME]``: an ontology and the
+terms modules that form the vocabulary); :func:`register_languages` registers them.
 
 An agent's entry in the specification may name a ``terms`` module (``terms =
 "services.agents.watcher.terms"``): a module of the agent's folder that declares msgspec
@@ -23,22 +27,70 @@ from pathlib import Path
 import msgspec
 
 from services.spec.model import SpecError, SystemSpec, one_line
-from shared.fipa_codec.languages import extend
+from shared.fipa_codec.languages import extend, load_all
 
 TERMS = "TERMS"
 """The name a terms module lists its terms under: a tuple of Struct types."""
+
+
+def register_languages(spec: SystemSpec, path: Path) -> None:
+    """Register the content languages ``spec`` declares (``[languages.NAME]``,
+    services/spec/model.py ``LanguageSpec``): a name the codec does not have becomes a language
+    of its ``ontology`` and ``terms``; a name it has (roco's ``L_WM``, or the same specification
+    loaded before) is extended by the terms (a term it has is skipped). Raises SpecError, one
+    line naming ``path`` and the language: a terms reference that cannot be imported or names no
+    Struct of ``TERMS``, a new language without an ontology or terms, an ontology other than the
+    registered language's, or a term the codec refuses (its name or tag taken)."""
+    from shared.fipa_codec.languages.base import declare
+
+    for name, table in spec.languages.items():
+        where = f"{path}: language {name}"
+        if not name or any(c.isspace() for c in name):
+            raise SpecError(f"{path}: language {name!r}: a language's name is one word")
+        terms = tuple(dict.fromkeys(t for ref in table.terms for t in referenced_terms(ref, where)))
+        known = load_all().get(name)
+        if known is None and (not table.ontology or not terms):
+            raise SpecError(f"{where}: a new language needs an ontology and at least one term")
+        if known is not None and table.ontology and table.ontology != known.ontology:
+            raise SpecError(f"{where}: ontology {table.ontology!r}, but it is {known.ontology!r}")
+        try:
+            if known is None:
+                declare(name, table.ontology, *terms)
+            else:
+                extend(name, *terms)
+        except ValueError as exc:
+            raise SpecError(f"{where}: {one_line(exc)}") from None
+
+
+def referenced_terms(ref: str, where: str = "") -> tuple[type[msgspec.Struct], ...]:
+    """The Struct types a ``terms`` reference of a language names: ``"module"``, every term its
+    ``TERMS`` lists; ``"module:Name"``, the one of them named ``Name``. Raises SpecError
+    (prefixed ``where``) as :func:`declared_terms` does, or when ``Name`` is not in ``TERMS``."""
+    module, _, name = ref.partition(":")
+    terms = declared_terms(module, where)
+    if not name:
+        return terms
+    chosen = tuple(t for t in terms if t.__name__ == name)
+    if not chosen:
+        prefix = f"{where}: " if where else ""
+        raise SpecError(f"{prefix}terms module {module!r} lists no term {name!r} in {TERMS}")
+    return chosen
 
 
 def register_terms(spec: SystemSpec, path: Path) -> None:
     """Import the ``terms`` module of every agent of ``spec`` that names one and add its terms
     to their languages (module docstring). Raises SpecError, one line naming ``path`` and the
     agent: a module that cannot be imported, no ``TERMS`` tuple of Struct types in it, a term
-    whose language the channels do not tell, or one the codec refuses (name or tag taken)."""
+    whose language the channels do not tell, or one the codec refuses (name or tag taken). A
+    term that has a language already (a ``[languages.NAME]`` lists it, or another agent names
+    the same module) keeps it."""
     for agent in spec.agents:
         if not agent.terms:
             continue
         where = f"{path}: agent {agent.name}"
         for term in declared_terms(agent.terms, where):
+            if any(term in lang.types for lang in load_all().values()):
+                continue  # declared by a language, or by another agent naming the same module
             languages = term_languages(spec, agent.name, term.__name__)
             if len(languages) != 1:
                 why = (

@@ -25,7 +25,7 @@ from services.report.load import Message
 from services.runtime.dedup import Dedup
 from services.runtime.run_folder import read_run_info
 from services.spec.decomposition import load_decomposition
-from services.spec.model import SpecError, spec_path
+from services.spec.model import SpecError, load, spec_path
 from services.spec.requirements import leaves, properties_of, served
 from services.spec_live.live import LiveMonitor, flag_of, live_properties
 from shared.fipa_codec import DecodeError, decode
@@ -103,7 +103,9 @@ class RequirementsSink:
 
 def watched(path: Path) -> LiveMonitor:
     """A monitor of the properties of ``path``'s leaf requirements that can be violated live.
-    Raises SpecError when the specification cannot be read."""
+    Raises SpecError when the specification cannot be read. Loading it registers its content
+    languages and terms, so the recorder decodes what the system's agents send."""
+    load(path)
     d = load_decomposition(path)
     serving = served(d)
     return LiveMonitor(live_properties((r.id, properties_of(r, serving[r.id])) for r in leaves(d)))

@@ -10,13 +10,15 @@
 | ``L_SD``   | C5 | sensor data: observations of the scene |
 
 Every language is a tagged union of msgspec Structs encoded as msgpack; decoding is strict.
-An agent's own terms join a language through :func:`extend` (docs/spec.md).
+A system's own languages are declared with :func:`declare`, and an agent's own terms join a
+language through :func:`extend` (both from the specification: docs/spec.md).
 """
 
 from shared.fipa_codec.languages.base import (
     LANGUAGES,
     ContentError,
     Language,
+    declare,
     decode_content,
     encode_content,
     encode_term,
@@ -29,6 +31,7 @@ __all__ = [
     "LANGUAGES",
     "ContentError",
     "Language",
+    "declare",
     "decode_content",
     "encode_content",
     "encode_term",

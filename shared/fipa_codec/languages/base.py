@@ -97,8 +97,46 @@ def extend(language: str, *terms: type[msgspec.Struct]) -> Language:
     new = tuple(dict.fromkeys(t for t in terms if t not in known.types))
     if not new:
         return known
+    _check_new_terms(language, known.types, new)
+    try:
+        extended = Language(known.name, known.ontology, known.types + new)
+    except TypeError as exc:  # msgspec refuses the union (e.g. another tag field)
+        raise ValueError(
+            f"{language}: {', '.join(t.__name__ for t in new)} cannot join it: {str(exc).split(' - ')[0]}"
+        ) from None
+    LANGUAGES[language] = extended
+    for t in extended.types:
+        _BY_TYPE[t] = extended
+    return extended
+
+
+def declare(language: str, ontology: str, *terms: type[msgspec.Struct]) -> Language:
+    """Register a new content language ``language`` of ``ontology`` whose vocabulary is
+    ``terms`` (msgspec Struct types, each with its own ``tag``): how a system declares its own
+    languages (services/spec/terms.py reads them from the specification's ``[languages.NAME]``).
+
+    Raises ValueError, nothing registered, when ``language`` is registered already, ``terms``
+    is empty, or a term is refused as :func:`extend` refuses it."""
+    _load_all()
+    if language in LANGUAGES:
+        raise ValueError(f"language {language} registered twice")
+    new = tuple(dict.fromkeys(terms))
+    if not new:
+        raise ValueError(f"{language}: a language has at least one term")
+    _check_new_terms(language, (), new)
+    try:
+        return register(Language(language, ontology, new))
+    except TypeError as exc:  # msgspec refuses the union (e.g. another tag field)
+        raise ValueError(f"{language}: its terms cannot form one union: {str(exc).split(' - ')[0]}") from None
+
+
+def _check_new_terms(
+    language: str, known: tuple[type[msgspec.Struct], ...], new: tuple[type[msgspec.Struct], ...]
+) -> None:
+    """Raise ValueError unless each of ``new`` may join ``language`` whose vocabulary is
+    ``known``: a tagged Struct type of no language, its name and tag free."""
     names = {t.__name__: lang.name for t, lang in _BY_TYPE.items()}
-    tags = {_tag(t): t.__name__ for t in known.types if _tagged(t)}
+    tags = {_tag(t): t.__name__ for t in known if _tagged(t)}
     for t in new:
         if not (isinstance(t, type) and issubclass(t, msgspec.Struct)):
             raise ValueError(f"{language}: a content term is a msgspec Struct type, not {t!r}")
@@ -112,16 +150,6 @@ def extend(language: str, *terms: type[msgspec.Struct]) -> Language:
             raise ValueError(f"{language}: term {t.__name__} has tag {_tag(t)!r}, the tag of {tags[_tag(t)]}")
         names[t.__name__] = language
         tags[_tag(t)] = t.__name__
-    try:
-        extended = Language(known.name, known.ontology, known.types + new)
-    except TypeError as exc:  # msgspec refuses the union (e.g. another tag field)
-        raise ValueError(
-            f"{language}: {', '.join(t.__name__ for t in new)} cannot join it: {str(exc).split(' - ')[0]}"
-        ) from None
-    LANGUAGES[language] = extended
-    for t in extended.types:
-        _BY_TYPE[t] = extended
-    return extended
 
 
 def _tagged(t: type[msgspec.Struct]) -> bool:
