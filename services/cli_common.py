@@ -133,9 +133,44 @@ LiveOption = Annotated[
     ),
 ]
 SpecFile = Annotated[
-    Path | None, typer.Option("--spec", help="a specification file (default: the shipped one)")
+    Path | None,
+    typer.Option(
+        "--spec",
+        envvar=Settings.env_name("spec"),
+        help="the system's specification file [default: $ROCO_SPEC, else the run's, else roco's kitchen]",
+        show_default=False,
+    ),
 ]
-"""``--spec FILE`` of the commands that read the specification."""
+"""``--spec FILE`` (or ``ROCO_SPEC``) of the commands that read the specification; resolve it
+with :func:`chosen_spec`."""
+
+
+def chosen_spec(given: Path | None, run_dir: Path | None = None) -> Path:
+    """The specification a command works with: ``given`` (``--spec`` or ``ROCO_SPEC``), else
+    the one run ``run_dir`` used (services/runtime/run_folder.py ``spec_of_run``), else the
+    shipped Robot Companion's. Raises :class:`typer.Exit` (one line, exit 1) when the file
+    cannot be loaded: what follows needs it."""
+    from services.runtime.run_folder import spec_of_run
+    from services.spec.model import DEFAULT_SPEC, SpecError, load
+
+    path = given or (spec_of_run(run_dir) if run_dir is not None else None) or DEFAULT_SPEC
+    try:
+        load(path)
+    except SpecError as exc:
+        raise fail(str(exc)) from None
+    return path
+
+
+def fleet_agents(given: Path | None, runs_dir: Path, router: str | None) -> tuple[str, ...]:
+    """The agents, in launch order, of the specification ``given`` (``--spec``), else of the
+    fleet ``roco up`` keeps in ``runs_dir`` (unless a ``router`` is named: then not that
+    fleet's), else the shipped one. Raises :class:`typer.Exit` as :func:`chosen_spec` does."""
+    from services.spec.model import load
+
+    state = fleet_state(runs_dir) if router is None else None
+    return load(chosen_spec(given, Path(state.run_dir) if state is not None else None)).launch_order
+
+
 CheckOnly = Annotated[
     bool, typer.Option("--check", help="only say whether the file is what the specification gives")
 ]

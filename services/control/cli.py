@@ -16,7 +16,9 @@ from services.cli_common import (
     Ros2DomainOption,
     Ros2NamespaceOption,
     Ros2Option,
+    SpecFile,
     TlsOption,
+    chosen_spec,
     fail,
     fleet_endpoint,
     fleet_state,
@@ -25,13 +27,14 @@ from services.cli_common import (
     security_switches,
     stop_on_signals,
 )
-from services.fleet.launcher import AGENT_ORDER, GATEWAY, ROS2, Fleet, LaunchError
+from services.fleet.launcher import AGENT_ORDER, GATEWAY, ROS2, Fleet, LaunchError, spec_env
 from services.fleet.processes import stop_pids
 from services.fleet_state import FLEET_FILE, FleetState, write_state
 from services.ros2.live_cli import ros2_args
 from services.runtime.run_folder import RunInfo, write_run_info
 from services.runtime.session import SessionRefused, open_client, open_operator
 from services.scenario.run_env import scene_env, viewer_env
+from services.spec.model import load
 from services.spec_check.report_cli import fleet_end
 from shared.settings import ROUTER_PORT, Settings
 
@@ -65,13 +68,16 @@ def up(
     ros2: Ros2Option = False,
     ros2_domain: Ros2DomainOption = 0,
     ros2_namespace: Ros2NamespaceOption = "/",
+    spec: SpecFile = None,
 ) -> None:
-    """Start router, recorder and all agents (and the ACL gateway with `--gateway`, the ROS 2
-    face with `--ros2`) in the
-    background; they keep running until `roco down`, which writes the run's report. A port in
-    use, or a runs folder that cannot be written, is refused before anything starts; a fleet
-    that does not come up is stopped (its report written)."""
+    """Start router, recorder and the agents of the specification (and the ACL gateway with
+    `--gateway`, the ROS 2 face with `--ros2`) in the background; they keep running until
+    `roco down`, which writes the run's report. The run folder keeps which specification it
+    runs, so later commands on it need no --spec. A port in use, a specification that cannot
+    be loaded, or a runs folder that cannot be written, is refused before anything starts; a
+    fleet that does not come up is stopped (its report written)."""
     security_switches(acl, tls)
+    system = chosen_spec(spec)
     state_file = runs_dir / FLEET_FILE
     if state_file.exists():
         raise fail(f"a fleet is already up ({state_file}); run 'roco down' first")
@@ -81,7 +87,7 @@ def up(
         port_free(gateway, "--gateway")
     scene = scene_env(realtime, seed, pose_seed)
     run_dir = new_run_folder(runs_dir)
-    env = scene | viewer_env(record, False)
+    env = scene | viewer_env(record, False) | spec_env(system)
     info = RunInfo(started=time.time(), realtime=realtime, seed=seed, pose_seed=pose_seed)
     stop_on_signals()
     fleet = Fleet(run_dir, f"tcp/127.0.0.1:{port}", env=env)
@@ -94,7 +100,7 @@ def up(
         fleet.start_recorder()
         fleet.wait_alive(session, ["recorder"], timeout=60)
         fleet.start_agents()
-        waited = fleet.wait_alive(session, AGENT_ORDER, timeout=120)
+        waited = fleet.wait_alive(session, fleet.agents, timeout=120)
         served = _start_faces(fleet, session, gateway, face)
     except (LaunchError, KeyboardInterrupt) as exc:
         if session is not None:
@@ -281,7 +287,8 @@ def _save_fleet_counters(state: FleetState) -> str:
     except SessionRefused:
         return ""
     try:
-        counters = ask_counters(session, [n for n in state.pids if n in AGENT_ORDER], timeout=5.0)
+        agents = load(chosen_spec(None, Path(state.run_dir))).agent_names
+        counters = ask_counters(session, [n for n in state.pids if n in agents], timeout=5.0)
     finally:
         session.close()
     save_counters(Path(state.run_dir), counters)

@@ -12,11 +12,12 @@ from services.cli_common import (
     CredentialsOption,
     FleetRunsDir,
     RouterOption,
+    SpecFile,
     endpoint_of,
+    fleet_agents,
     fleet_state,
     operator_session,
 )
-from services.fleet.launcher import AGENT_ORDER
 from services.runtime.session import alive_agents
 
 if TYPE_CHECKING:
@@ -71,36 +72,36 @@ def status(
         float, typer.Option(min=0.0, help="seconds to wait for the agents' counters")
     ] = 2.0,
     credentials: CredentialsOption = None,
+    spec: SpecFile = None,
 ) -> None:
-    """List the agents that hold a liveliness token, each alive agent with its counters of
-    received and rejected input (by reason; docs/security.md) and the handler and behaviour
-    errors it counted (when any), and what each router with
-    access control refused, named (identity, message, key, when); each router is named by its
-    host (brain, robot: `roco hosts`) or its endpoint; then one line per requirement property
-    the live monitor found violated, as the traffic recorder answers over Zenoh (requirement,
-    property, the communicate that violated it, when; docs/spec.md), or one line saying the
-    recorder did not answer. Exit 1 if any agent is missing."""
+    """List the agents of the specification (--spec, else the fleet's) that hold a liveliness
+    token, each alive agent with its counters of received and rejected input (by reason;
+    docs/security.md) and the handler and behaviour errors it counted (when any), and what each
+    router with access control refused, named (identity, message, key, when); each router is
+    named by its host (brain, robot: `roco hosts`) or its endpoint; then one line per
+    requirement property the live monitor found violated, as the traffic recorder answers over
+    Zenoh (requirement, property, the communicate that violated it, when; docs/spec.md), or one
+    line saying the recorder did not answer. Exit 1 if any agent is missing."""
     from services.recorder.flags import ask_flags
     from services.runtime.counters import ask_counters
     from services.runtime.refusals import RefusalReport, collect_reports
     from services.runtime.refusals import summary as refusal_summary
 
+    agents = fleet_agents(spec, runs_dir, router)
     endpoint = endpoint_of(router, runs_dir)
     session = operator_session(endpoint, credentials, None if router else runs_dir)
     refusals: list[RefusalReport] = []
     try:
         alive = alive_agents(session)
         with collect_reports(session, refusals):
-            reports = ask_counters(
-                session, alive & {*AGENT_ORDER, "gateway", "ros2"}, timeout=counters_timeout
-            )
+            reports = ask_counters(session, alive & {*agents, "gateway", "ros2"}, timeout=counters_timeout)
         flags = ask_flags(session, timeout=counters_timeout)
         mine = {str(z) for z in session.info.routers_zid()}  # the router this session reached
     finally:
         session.close()
     names = _routers_named(runs_dir, endpoint, mine)
     extra = [n for n in ("gateway", "ros2") if n in alive]
-    for name in (*AGENT_ORDER, "recorder", *extra):
+    for name in (*agents, "recorder", *extra):
         typer.echo(
             f"{name:9s} {'alive' if name in alive else 'absent'}{_counters_text(name, alive, reports)}"
         )
@@ -109,7 +110,7 @@ def status(
         typer.echo(f"{'router':9s} {name}  {refusal_summary(r)}")
     for line in _flag_lines(flags):
         typer.echo(line)
-    if not set(AGENT_ORDER) <= alive:
+    if not set(agents) <= alive:
         raise typer.Exit(1)
 
 

@@ -16,6 +16,7 @@ from services.cli_common import (
     CredentialsOption,
     FleetRunsDir,
     RouterOption,
+    SpecFile,
     endpoint_of,
     fail,
     operator_session,
@@ -33,6 +34,20 @@ def _show_notice(report: HumanReport) -> None:
     typer.echo(report.notice_line)
 
 
+def person_agent(given: Path | None, runs_dir: Path | None) -> str:
+    """The agent that plays the person's role in the specification ``given``, else the fleet's
+    in ``runs_dir``, else the shipped one (a_hi); exit 2 with one line when none plays it."""
+    from services.cli_common import chosen_spec, fleet_state
+    from services.spec.model import load
+
+    state = fleet_state(runs_dir) if runs_dir is not None else None
+    system = load(chosen_spec(given, Path(state.run_dir) if state is not None else None))
+    interface = system.playing("person")
+    if interface is None:
+        raise fail(f'no agent of {system.system} plays the person\'s role (role = "person")', code=2)
+    return interface
+
+
 @talk_app.command(short_help="Give a running fleet a command and wait for its outcome.")
 def send(
     command: Annotated[str, typer.Argument(help="what the person says")],
@@ -44,20 +59,23 @@ def send(
         str, typer.Option(help="who speaks: a_hi keeps a conversation per person ('it', questions back)")
     ] = "",
     credentials: CredentialsOption = None,
+    spec: SpecFile = None,
 ) -> None:
-    """Give a running fleet a command and wait for a_hi's final report; what agents tell the
-    person meanwhile (a_hi's notices) is shown with who said it. Reports a_hi gave
+    """Give a running fleet a command and wait for the final report of the agent that plays
+    the person's role in its specification (--spec, else the fleet's: a_hi in the kitchen);
+    what agents tell the person meanwhile (notices) is shown with who said it. Reports given
     while this session was cut off from it (the router restarted) come when it is back, each
-    shown once; after 10 s without one, a_hi is asked for the outcome, which it keeps across
-    its restarts (services/runtime/reports.py)."""
+    shown once; after 10 s without one, the agent is asked for the outcome, which a_hi keeps
+    across its restarts (services/runtime/reports.py)."""
+    interface = person_agent(spec, runs_dir if router is None else None)
     endpoint = endpoint_of(router, runs_dir)
     session = operator_session(endpoint, credentials, None if router else runs_dir)
     reports: queue.SimpleQueue[HumanReport] = queue.SimpleQueue()
     follow_reports(session, reports.put)  # also what a_hi said while the router was away
     shown = ReportFilter()
-    if "a_hi" not in alive_agents(session):
+    if interface not in alive_agents(session):
         session.close()
-        raise fail(f"a_hi is not alive at {endpoint}")
+        raise fail(f"{interface} is not alive at {endpoint}")
     request_id = uuid.uuid4().hex[:8]
     said = HumanInput(text=command, request_id=request_id, priority=priority, person=person)
     session.put(keys.HUMAN_IN, msgspec.json.encode(said))

@@ -35,13 +35,14 @@ import zenoh
 from services.runtime.run_folder import LAUNCH_ENV
 from services.runtime.session import alive_agents
 from services.security.context import ENV_SECURITY, acl_on, register, tls_on
-from services.spec.model import default_spec
+from services.spec.model import DEFAULT_SPEC, SystemSpec, default_spec, load, spec_path
 from shared.settings import PREFIX, Settings
 from velma.world.mode import WORLD_SERVICE, world_in_process
 
 AGENT_ORDER = default_spec().launch_order
-"""The order the agents are started in: the specification's ``start_order`` (servers before
-their clients, a_hi last: it accepts the human's command)."""
+"""The order the Robot Companion's agents are started in: its specification's ``start_order``
+(servers before their clients, a_hi last: it accepts the human's command). A fleet of another
+specification starts its own (:attr:`Fleet.agents`)."""
 
 
 GATEWAY = "gateway"  # services/gateway/bridge.py: GATEWAY
@@ -84,18 +85,29 @@ class Fleet:
     of services/hosts/); a process not named runs as it is."""
     args: dict[str, list[str]] = field(default_factory=dict)
     """The interpreter arguments each process was started with (:meth:`respawn`)."""
+    spec: Path = field(init=False)
+    """The specification the fleet runs (``ROCO_SPEC`` of ``env``, else of this process, else
+    the shipped one): every process is given it, and the run folder keeps it."""
+    system: SystemSpec = field(init=False, repr=False)
+    """The loaded :attr:`spec`. Raises SpecError from the constructor when it cannot be loaded."""
 
     def __post_init__(self) -> None:
         if self.tls and self.acl and self.endpoint.startswith("tcp/"):
             self.endpoint = "tls/" + self.endpoint.removeprefix("tcp/")
+        self.env = dict(self.env)
+        self.spec = spec_path(self.env, os.environ).resolve()
+        self.env.update(spec_env(self.spec))  # the run folder's launch_env.json keeps it
+        self.system = load(self.spec)
         if self.acl:
             from services.deploy.deploy import ensure
-            from services.spec.model import load, spec_path
 
-            self.security = ensure(
-                self.run_dir / "security", load(spec_path(self.env, os.environ)), tls=self.tls
-            )
+            self.security = ensure(self.run_dir / "security", self.system, tls=self.tls)
             register(self.endpoint, self.security)
+
+    @property
+    def agents(self) -> tuple[str, ...]:
+        """The agents of :attr:`spec`, in the order they are started (``launch_order``)."""
+        return self.system.launch_order
 
     def _environ(self) -> dict[str, str]:
         env = process_environ(self.run_dir, self.endpoint, self.env)
@@ -139,10 +151,11 @@ class Fleet:
     def start_recorder(self) -> None:
         self._spawn("recorder", service_args("recorder", self.endpoint))
 
-    def start_agents(self, names: Iterable[str] = AGENT_ORDER) -> None:
-        """Start the agents ``names``, and before ag_ex the world process unless it runs or
-        ``ROCO_WORLD=loop`` (velma/world/mode.py): it outlives ag_ex's restarts."""
-        for name in names:
+    def start_agents(self, names: Iterable[str] | None = None) -> None:
+        """Start the agents ``names`` (None: :attr:`agents`), and before ag_ex the world process
+        unless it runs or ``ROCO_WORLD=loop`` (velma/world/mode.py): it outlives ag_ex's
+        restarts. A system without ag_ex has no world process."""
+        for name in self.agents if names is None else names:
             if name == "ag_ex" and world_in_process(self._environ()):
                 world = self.processes.get(WORLD_SERVICE)
                 if world is None or world.poll() is not None:
@@ -233,6 +246,14 @@ class Fleet:
 
     def pids(self) -> dict[str, int]:
         return {n: p.pid for n, p in self.processes.items()}
+
+
+def spec_env(path: Path) -> dict[str, str]:
+    """The environment that gives a fleet's processes the specification ``path``: ``ROCO_SPEC``,
+    unless it is the shipped one (then nothing: a run folder then names no file of a checkout)."""
+    if path.resolve() == DEFAULT_SPEC.resolve():
+        return {}
+    return {Settings.env_name("spec"): str(path.resolve())}
 
 
 def process_environ(run_dir: Path, endpoint: str, extra: dict[str, str]) -> dict[str, str]:

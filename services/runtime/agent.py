@@ -74,6 +74,7 @@ from services.runtime.human import (
 from services.runtime.intake import Refusal
 from services.runtime.limits import MAX_OPEN_CONVERSATIONS_PER_PEER
 from services.runtime.lookups import Followed, Lookups
+from services.runtime.person import PersonFace, Told
 from services.runtime.protocol_state import ProtocolStates
 from services.runtime.replies import Pending, PendingReplies
 from services.runtime.roles import Conversation, RoleDecl, Roles
@@ -109,10 +110,12 @@ __all__ = [
     "Behaviour",
     "HumanInput",
     "HumanReport",
+    "PersonFace",
     "Received",
     "ReportKind",
     "RequestKind",
     "SpecViolation",
+    "Told",
     "Transport",
     "encode_sim_time",
     "keys",
@@ -122,8 +125,9 @@ __all__ = [
 """An agent's API besides its roles (services/runtime/roles/): the agent, its behaviours
 (services/runtime/behaviour.py), a received communicate and the agent's own send errors
 (services/runtime/values.py), the Zenoh keys (services/runtime/keys.py), the simulation
-clock's encoding (services/runtime/clock.py) and the person's side of a_hi
-(services/runtime/human.py), re-exported so that an agent imports from two runtime modules."""
+clock's encoding (services/runtime/clock.py) and the person's side of an interface agent
+(services/runtime/human.py, services/runtime/person.py), re-exported so that an agent imports
+from two runtime modules."""
 
 _FOLLOWED_MAX = 1024
 _ALIVE = "\x00alive"

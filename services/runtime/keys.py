@@ -45,7 +45,7 @@ liveliness token, heartbeat) and what the person's tools' advanced subscribers a
 (services/runtime/reports.py)."""
 HUMAN_OUTCOMES = f"{PREFIX}/human/outcomes"
 """a_hi's queryable of the final reports it gave last, kept across its restarts
-(services/agents/human_interface/told.py): what a person's tool asks when its wait for an
+(services/runtime/person.py): what a person's tool asks when its wait for an
 outcome runs long (services/runtime/reports.py ``ask_outcomes``)."""
 SIM_DISTURB = f"{PREFIX}/sim/disturb"
 SIM_CLOCK = f"{PREFIX}/sim/clock"

@@ -21,7 +21,7 @@ What a publisher's cache no longer holds (a_hi died after telling, or told more 
 keeps) a tool asks a_hi for with :func:`ask_outcomes` when it has heard nothing of a request
 for :data:`ASK_AFTER_S`: a_hi keeps the last final reports of commands across its restarts and
 answers a query of ``roco/human/outcomes`` with them
-(services/agents/human_interface/told.py).
+(services/runtime/person.py).
 """
 
 from __future__ import annotations

@@ -25,7 +25,7 @@ from pathlib import Path
 
 import msgspec
 
-from shared.settings import PREFIX
+from shared.settings import PREFIX, Settings
 
 RUN_INFO = "run.json"
 LAUNCH_ENV = "launch_env.json"
@@ -156,6 +156,18 @@ def write_run_info(run_dir: Path, info: RunInfo) -> None:
 def read_run_info(run_dir: Path) -> RunInfo:
     """Read ``run.json``; raises FileNotFoundError or msgspec.DecodeError."""
     return msgspec.json.decode((run_dir / RUN_INFO).read_bytes(), type=RunInfo)
+
+
+def spec_of_run(run_dir: Path) -> Path | None:
+    """The specification file a run's processes were given (``ROCO_SPEC`` in its
+    ``launch_env.json``, which the launcher sets whenever it is not the shipped one); None when
+    the run used the shipped one or the folder has no readable record."""
+    try:
+        kept = json.loads((run_dir / LAUNCH_ENV).read_text())
+    except (OSError, ValueError):
+        return None
+    named = kept.get(Settings.env_name("spec")) if isinstance(kept, dict) else None
+    return Path(named) if isinstance(named, str) and named else None
 
 
 def load_launch_env(run_dir: Path) -> dict[str, str] | None:

@@ -31,12 +31,23 @@ class SpecError(ValueError):
     """A specification file that is malformed or inconsistent; the message names file and place."""
 
 
+ROLES: dict[str, str] = {
+    "person": "hears a person's lines and answers them: the keys roco/human/* "
+    "(services/runtime/person.py); roco send, run and the scenarios talk to it",
+    "robot": "the robot's executor: publishes its state, camera and the simulation's clock and "
+    "hears disturbances of the simulated world (velma/, roco/sim/*)",
+}
+"""The roles an agent may play beyond its channels (``role = "person"``): what roco grants or
+expects of that agent follows the role, never its name. Each role is played by one agent at most."""
+
+
 class AgentSpec(msgspec.Struct, frozen=True, forbid_unknown_fields=True):
     """An agent: its ``name``, the decomposition ``group`` it substitutes, its ``job``, the
     ``implementation`` (``module:Class``) the launcher starts for it, ``waits``: the
     conversations it opens while serving another (validated by services/spec_check/deadlock.py),
-    and ``terms``: the module (``services.agents.x.terms``) declaring the agent's own content
-    terms, which :func:`load` registers (services/spec/terms.py; empty: none)."""
+    ``terms``: the module (``services.agents.x.terms``) declaring the agent's own content
+    terms, which :func:`load` registers (services/spec/terms.py; empty: none), and ``role``:
+    one of :data:`ROLES` (empty: none)."""
 
     name: str
     group: str
@@ -44,6 +55,7 @@ class AgentSpec(msgspec.Struct, frozen=True, forbid_unknown_fields=True):
     job: str = ""
     waits: tuple[dict[str, str | list[str]], ...] = ()
     terms: str = ""
+    role: str = ""
 
 
 class LanguageSpec(msgspec.Struct, frozen=True, forbid_unknown_fields=True):
@@ -160,6 +172,10 @@ class SystemSpec(msgspec.Struct, frozen=True, forbid_unknown_fields=True):
             return (named or anyone or [name])[0]
         return name
 
+    def playing(self, role: str) -> str | None:
+        """The agent that plays ``role`` (one of :data:`ROLES`), or None when none does."""
+        return next((a.name for a in self.agents if a.role == role), None)
+
     @property
     def agent_names(self) -> tuple[str, ...]:
         """The agents' names, in file order."""
@@ -260,10 +276,24 @@ def _check_platforms(spec: SystemSpec, path: Path) -> None:
             raise SpecError(f"{path}: platform {p!r} of an external role is no word")
 
 
+def _check_roles(spec: SystemSpec, path: Path) -> None:
+    """Each agent's role is one of :data:`ROLES`, each played by one agent at most."""
+    for a in spec.agents:
+        if a.role and a.role not in ROLES:
+            raise SpecError(f"{path}: agent {a.name}: unknown role {a.role!r} (roles: {', '.join(ROLES)})")
+    for role in ROLES:
+        playing = [a.name for a in spec.agents if a.role == role]
+        if len(playing) > 1:
+            raise SpecError(f"{path}: role {role!r} is played by {' and '.join(playing)}: one agent at most")
+
+
 def _check_agents(spec: SystemSpec, path: Path) -> None:
-    """The external roles (:func:`_check_externals`); ``start_order`` names known agents, each
-    once."""
+    """Agents named once, each role of :data:`ROLES` played once at most; the external roles
+    (:func:`_check_externals`); ``start_order`` names known agents, each once."""
     names = {a.name for a in spec.agents}
+    if len(names) != len(spec.agents):
+        raise SpecError(f"{path}: an agent is named twice")
+    _check_roles(spec, path)
     _check_externals(spec, names, path)
     unknown = [a for a in spec.start_order if a not in names]
     if unknown or len(set(spec.start_order)) != len(spec.start_order):

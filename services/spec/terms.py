@@ -26,7 +26,7 @@ from pathlib import Path
 
 import msgspec
 
-from services.spec.model import SpecError, SystemSpec, one_line
+from services.spec.model import LanguageSpec, SpecError, SystemSpec, one_line
 from shared.fipa_codec.languages import extend, load_all
 
 TERMS = "TERMS"
@@ -41,25 +41,35 @@ def register_languages(spec: SystemSpec, path: Path) -> None:
     line naming ``path`` and the language: a terms reference that cannot be imported or names no
     Struct of ``TERMS``, a new language without an ontology or terms, an ontology other than the
     registered language's, or a term the codec refuses (its name or tag taken)."""
-    from shared.fipa_codec.languages.base import declare
-
     for name, table in spec.languages.items():
-        where = f"{path}: language {name}"
         if not name or any(c.isspace() for c in name):
             raise SpecError(f"{path}: language {name!r}: a language's name is one word")
-        terms = tuple(dict.fromkeys(t for ref in table.terms for t in referenced_terms(ref, where)))
-        known = load_all().get(name)
-        if known is None and (not table.ontology or not terms):
-            raise SpecError(f"{where}: a new language needs an ontology and at least one term")
-        if known is not None and table.ontology and table.ontology != known.ontology:
-            raise SpecError(f"{where}: ontology {table.ontology!r}, but it is {known.ontology!r}")
-        try:
-            if known is None:
-                declare(name, table.ontology, *terms)
-            else:
-                extend(name, *terms)
-        except ValueError as exc:
-            raise SpecError(f"{where}: {one_line(exc)}") from None
+        _register_language(name, table, f"{path}: language {name}")
+
+
+def _check_table(table: LanguageSpec, ontology: str | None, has_terms: bool, where: str) -> None:
+    """A new language (``ontology`` None: the codec has none of the name) has an ontology and
+    terms; one the codec has keeps its ``ontology``."""
+    if ontology is None and (not table.ontology or not has_terms):
+        raise SpecError(f"{where}: a new language needs an ontology and at least one term")
+    if ontology is not None and table.ontology and table.ontology != ontology:
+        raise SpecError(f"{where}: ontology {table.ontology!r}, but it is {ontology!r}")
+
+
+def _register_language(name: str, table: LanguageSpec, where: str) -> None:
+    """Declare or extend language ``name`` as ``table`` says (:func:`register_languages`)."""
+    from shared.fipa_codec.languages.base import declare
+
+    terms = tuple(dict.fromkeys(t for ref in table.terms for t in referenced_terms(ref, where)))
+    known = load_all().get(name)
+    _check_table(table, known.ontology if known is not None else None, bool(terms), where)
+    try:
+        if known is None:
+            declare(name, table.ontology, *terms)
+        else:
+            extend(name, *terms)
+    except ValueError as exc:
+        raise SpecError(f"{where}: {one_line(exc)}") from None
 
 
 def referenced_terms(ref: str, where: str = "") -> tuple[type[msgspec.Struct], ...]:

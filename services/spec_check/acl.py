@@ -8,12 +8,12 @@ delivers to it). Agent ``A`` puts only on ``roco/fipa/<C>/A/<peer>`` for its cha
 subscribes to its inbox ``roco/fipa/*/*/A`` and is delivered only ``roco/fipa/<C>/<peer>/A``;
 holds only ``roco/alive/A``; has the fault layer's, the counters' and the clock's keys
 (services/runtime/faults.py, services/runtime/clock.py), its advanced publishers' ``@adv``
-keys below its own (services/runtime/transport.py), and :data:`AGENT_EXTRAS` (keys outside
-FIPA). A channel end that is an external role (``x_fipa``) is keyed ``$*@$*``
-(``keys.FOREIGN``: a chunk holding ``@``, as every foreign name has and no roco agent's);
-only the ``gateway`` puts as a foreign agent. The recorder hears ``roco/fipa/**`` and queries
-the publishers' caches; the operator hears ``roco/**`` but never puts on ``roco/fipa/**`` nor
-holds a liveliness token.
+keys below its own (services/runtime/transport.py), and the keys outside FIPA of the role it
+plays (:func:`role_extras`: the person's, the robot's). A channel end that is an external
+role (``x_fipa``) is keyed ``$*@$*`` (``keys.FOREIGN``: a chunk holding ``@``, as every
+foreign name has and no roco agent's); only the ``gateway`` puts as a foreign agent. The
+recorder hears ``roco/fipa/**`` and queries the publishers' caches; the operator hears
+``roco/**`` but never puts on ``roco/fipa/**`` nor holds a liveliness token.
 
 Zenoh (1.10) allows a message when an allow rule's key expression *includes* the message's key
 expression (a subscriber on ``roco/fipa/**`` is not allowed by rules naming single channels).
@@ -99,15 +99,18 @@ class Extras:
     says: tuple[str, ...] = ()
 
 
-AGENT_EXTRAS: dict[str, Extras] = {
-    "a_hi": Extras(hears=(keys.HUMAN_IN,), says=(keys.HUMAN_OUT,)),
-    "ag_ex": Extras(
-        hears=(keys.SIM_DISTURB,),
-        says=(keys.state_key("ag_ex"), keys.SIM_CLOCK, keys.camera_key("ag_ex")),
-    ),
-}
-"""Receptors and effectors outside the FIPA channels, by agent (services/agents/human_interface/agent.py,
-services/agents/executor/agent.py). An agent not named here has none."""
+def role_extras(role: str, agent: str) -> Extras:
+    """Receptors and effectors outside the FIPA channels of ``agent`` playing ``role``
+    (services/spec/model.py ``ROLES``): the person's keys (services/runtime/person.py), the
+    robot's state, clock and camera and the world's disturbances (services/agents/executor/
+    agent.py). An agent without a role has none."""
+    if role == "person":
+        return Extras(hears=(keys.HUMAN_IN,), says=(keys.HUMAN_OUT,))
+    if role == "robot":
+        return Extras(
+            hears=(keys.SIM_DISTURB,), says=(keys.state_key(agent), keys.SIM_CLOCK, keys.camera_key(agent))
+        )
+    return Extras()
 
 
 @dataclass
@@ -205,7 +208,8 @@ def route_key(spec: SystemSpec, channel: str, sender: str, receiver: str) -> str
 
 def agent_grants(spec: SystemSpec, agent: str) -> Grants:
     """The grants of ``agent``. Raises KeyError when the specification has no such agent."""
-    if agent not in {a.name for a in spec.agents}:
+    role = next((a.role for a in spec.agents if a.name == agent), None)
+    if role is None:
         raise KeyError(agent)
     g = Grants(agent)
     routes = channel_routes(spec)
@@ -221,10 +225,10 @@ def agent_grants(spec: SystemSpec, agent: str) -> Grants:
     g.hear(keys.COUNTERS_ASK)  # roco status asks every agent for its counters
     g.hear(keys.SIM_CLOCK)  # the simulation's time its periodic behaviours run on (runtime/clock.py)
     g.say(keys.counters_key(agent))
-    extra = AGENT_EXTRAS.get(agent, Extras())
+    extra = role_extras(role, agent)
     g.hear(*extra.hears)
     g.say(*extra.says)
-    if agent == "ag_ex":  # renders its camera only while a subscriber matches (the matching status)
+    if role == "robot":  # renders its camera only while a subscriber matches (the matching status)
         g.allow("egress", "declare_subscriber", keys.camera_key(agent))
     if keys.HUMAN_OUT in extra.says:
         _report_publisher(g)
@@ -483,9 +487,9 @@ def channel_table(spec: SystemSpec) -> str:
         n = a.name
         out = ", ".join(f"{c} → {r}" for c, s, r in routes if s == n)
         into = ", ".join(f"{c} ← {s}" for c, s, r in routes if r == n)
-        e = AGENT_EXTRAS.get(n)
+        e = role_extras(a.role, n)
         other = "—"
-        if e is not None:
+        if e.hears or e.says:
             other = (
                 f"hears {', '.join(f'`{k}`' for k in e.hears)}; says {', '.join(f'`{k}`' for k in e.says)}"
             )

@@ -28,10 +28,10 @@ from pathlib import Path
 import msgspec
 import pytest
 
-from services.agents.human_interface.told import Told
 from services.fleet.launcher import Fleet
 from services.runtime import keys
 from services.runtime.human import HumanInput, HumanReport, ReportKind, RequestKind
+from services.runtime.person import Told
 from services.runtime.transport import ZenohTransport
 from tests.support.lines import lines_of
 from tests.support.router import router_fleet

@@ -10,7 +10,6 @@ import pytest
 from services.runtime import keys
 from services.spec.model import DEFAULT_SPEC, SystemSpec, load
 from services.spec_check.acl import (
-    AGENT_EXTRAS,
     GATEWAY,
     OPERATOR,
     RECORDER,
@@ -107,11 +106,28 @@ def test_each_agent_subscribes_to_its_inbox_and_holds_only_its_own_token(spec: S
 
 
 def test_extras_are_the_receptors_and_effectors_of_a_hi_and_ag_ex(spec: SystemSpec) -> None:
-    assert set(AGENT_EXTRAS) <= {a.name for a in spec.agents}
+    assert (spec.playing("person"), spec.playing("robot")) == ("a_hi", "ag_ex")
     hi, ex, pl = agent_grants(spec, "a_hi"), agent_grants(spec, "ag_ex"), agent_grants(spec, "a_pl")
     assert hi.may("egress", "put", keys.HUMAN_IN) and hi.may("ingress", "put", keys.HUMAN_OUT)
     assert ex.may("ingress", "put", keys.state_key("ag_ex")) and ex.may("egress", "put", keys.SIM_DISTURB)
     assert not pl.may("ingress", "put", keys.HUMAN_OUT) and not pl.may("egress", "put", keys.HUMAN_IN)
+
+
+def test_the_person_s_keys_follow_the_role_not_the_name(spec: SystemSpec) -> None:
+    """A system whose interface agent is not named a_hi gets the person's keys for it."""
+    import msgspec
+
+    agents = tuple(
+        msgspec.structs.replace(
+            a, role="person" if a.name == "a_km" else "" if a.role == "person" else a.role
+        )
+        for a in spec.agents
+    )
+    moved = msgspec.structs.replace(spec, agents=agents)
+    km, hi = agent_grants(moved, "a_km"), agent_grants(moved, "a_hi")
+    assert km.may("egress", "put", keys.HUMAN_IN) and km.may("ingress", "put", keys.HUMAN_OUT)
+    assert km.may("ingress", "declare_queryable", keys.HUMAN_OUTCOMES)
+    assert not hi.may("egress", "put", keys.HUMAN_IN) and not hi.may("ingress", "put", keys.HUMAN_OUT)
 
 
 def test_recorder_hears_all_traffic_and_sends_none(spec: SystemSpec) -> None:
@@ -147,7 +163,7 @@ def test_only_its_owner_answers_a_queryable_and_the_operator_asks(
 ) -> None:
     """roco status asks the recorder for the live requirement flags (services/recorder/flags.py);
     roco send and the scenario runner ask a_hi for the outcomes it told
-    (services/agents/human_interface/told.py). Nobody else declares the queryable or replies on
+    (services/runtime/person.py). Nobody else declares the queryable or replies on
     its key."""
     identities = [agent_grants(spec, a.name) for a in spec.agents] + [recorder_grants()]
     owner = next(g for g in identities if g.identity == answerer)

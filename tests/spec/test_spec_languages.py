@@ -262,3 +262,40 @@ def test_the_recorder_s_live_monitor_loads_the_languages_of_the_specification(ce
     assert "L_BELT" not in load_all()
     watched(path)
     assert "L_BELT" in load_all()
+
+
+@pytest.mark.parametrize(
+    ("edit", "why"),
+    [
+        (('name = "a_cv"\n', 'name = "a_cv"\nrole = "pilot"\n'), "agent a_cv: unknown role 'pilot'"),
+        (
+            (
+                'name = "a_cv"\n',
+                'name = "a_cv"\nrole = "person"\n',
+                'name = "a_op"\n',
+                'name = "a_op"\nrole = "person"\n',
+            ),
+            "role 'person' is played by a_op and a_cv: one agent at most",
+        ),
+        (('name = "a_cv"\n', 'name = "a_so"\n'), "an agent is named twice"),
+    ],
+    ids=["unknown role", "two persons", "one name twice"],
+)
+def test_roles_are_known_and_played_once(cell_spec: Spec, edit: tuple[str, ...], why: str) -> None:
+    """What roco grants an agent beyond its channels follows a role (services/spec/model.py
+    ``ROLES``), which one agent at most plays."""
+    path = cell_spec()
+    text = path.read_text()
+    for old, new in zip(edit[::2], edit[1::2], strict=True):
+        text = text.replace(old, new, 1)
+    path.write_text(text)
+    with pytest.raises(SpecError) as caught:
+        load(path)
+    assert why in str(caught.value), caught.value
+
+
+def test_the_agent_playing_a_role_is_found_by_it(cell_spec: Spec) -> None:
+    path = cell_spec()
+    path.write_text(path.read_text().replace('name = "a_op"\n', 'name = "a_op"\nrole = "person"\n', 1))
+    spec = load(path)
+    assert (spec.playing("person"), spec.playing("robot")) == ("a_op", None)

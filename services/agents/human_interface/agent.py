@@ -30,8 +30,9 @@ string form).
 
 Restarts (docs/recovery.md): a command's request is retransmitted until a_co agrees; the
 fipa-request role keeps the open commands (``keep=CommandNote``), which a restarted a_hi takes
-back (:meth:`HumanInterface.on_restored`), and the outcomes it told (``NOTE``: told.py, asked
-on ``roco/human/outcomes``); open stops and status queries are not kept.
+back (:meth:`HumanInterface.on_restored`), and the outcomes it told (``NOTE``:
+services/runtime/person.py, asked on ``roco/human/outcomes``); open stops and status queries
+are not kept.
 """
 
 from __future__ import annotations
@@ -59,7 +60,6 @@ from services.agents.human_interface.notices import NoticeGate
 from services.agents.human_interface.reading import LineReader, Reading
 from services.agents.human_interface.stop import StopWords, command_openings
 from services.agents.human_interface.task_grammar import Grammar, default_grammar, load_grammar
-from services.agents.human_interface.told import Told
 from services.agents.human_interface.vocabulary import Vocabulary
 from services.agents.human_interface.wording import (
     NOTHING_TO_STOP,
@@ -80,10 +80,10 @@ from services.runtime.agent import (
     MAX_LINE_CHARS,
     Behaviour,
     HumanInput,
-    HumanReport,
+    PersonFace,
     ReportKind,
     RequestKind,
-    keys,
+    Told,
 )
 from services.runtime.roles import (
     EVERY_CHANNEL,
@@ -247,17 +247,8 @@ class HumanInterface(AskingKnowledge):
         return FSM([Behaviour("interact", self._interact, terminal=lambda: False, doc=what)])
 
     def setup(self) -> None:
-        decoder = msgspec.json.Decoder(HumanInput)
-
-        def on_text(key: str, payload: bytes) -> None:
-            try:
-                self.post(decoder.decode(payload))
-            except msgspec.DecodeError as exc:
-                self.log.warning("ignored malformed human input: %s", exc)
-
-        self.transport.subscribe(keys.HUMAN_IN, on_text)
-        if (serve := getattr(self.transport, "serve", None)) is not None:  # a ZenohTransport
-            serve(keys.HUMAN_OUTCOMES, self.note.answer)  # on Zenoh's thread: encoded under the GIL
+        self.person = PersonFace(self, self.note)  # the outcomes it told, kept across a restart
+        self.person.open()
         # opened when a_co's liveliness token is seen: it never waits on an a_co not there yet
         self.progress = self.roles.subscribe(
             C2,
@@ -296,10 +287,7 @@ class HumanInterface(AskingKnowledge):
         text = " ".join(filter(None, (self.read_as.pop(request_id, ""), text)))
         self.log.info("to person [%s] %s: %s", request_id, kind.value, text)
         request = self.asked.pop(request_id, None) if kind in FINAL_REPORTS else self.asked.get(request_id)
-        report = HumanReport(request_id=request_id, kind=kind, text=text, request=request)
-        self.emit(keys.HUMAN_OUT, msgspec.json.encode(report))
-        self.note.keep(report)
-        self.foreign.answer(report)
+        self.foreign.answer(self.person.tell(request_id, kind, text, request=request))
 
     # ---- notices (every notice protocol, participant, on every channel that gives a_hi one) ----
     @handles(EVERY_NOTICE, PARTICIPANT, Performative.INFORM)
@@ -328,15 +316,7 @@ class HumanInterface(AskingKnowledge):
         self.counters["notices"] += 1
         severity, about = (term.severity.value, term.about) if isinstance(term, Notice) else ("", ())
         self.log.info("to person: notice from %s (%s): %s", conv.peer, severity or "-", text)
-        report = HumanReport(
-            request_id="",
-            kind=ReportKind.NOTICE,
-            text=text,
-            sender=conv.peer,
-            severity=severity,
-            about=about,
-        )
-        self.emit(keys.HUMAN_OUT, msgspec.json.encode(report))
+        self.person.notice(conv.peer, text, severity=severity, about=about)
 
     # ---- from agents of other platforms (C8, fipa-request, participant: foreign.py) ---------
     @handles(FIPA_REQUEST, PARTICIPANT, Performative.REQUEST, channel=C8)
