@@ -213,27 +213,39 @@ def spec_new_agent(
     spec: SpecFile = None,
     root: Annotated[
         Path | None,
-        typer.Option(help="the folder the implementation's package path starts in (default: the project)"),
+        typer.Option(
+            help="the folder the implementation's package path starts in [default: this checkout for "
+            "roco's specification, else the specification's folder]",
+            show_default=False,
+        ),
     ] = None,
 ) -> None:
     """Write the folder of agent NAME from the specification: its protocol roles and one
     handler per performative its peers may send, each raising NotImplementedError until
-    written; render services/spec/names.py again with the names of its channels (`roco spec
-    names`), deploy/compose.yaml with a service for it and deploy/compose.netfault.yaml
-    (docs/spec.md, "Walk-through: adding an agent"). Exit 1 when the file exists or the
-    specification has no such agent."""
+    written, importing its names from the system's names module; render that module again
+    (`roco spec names`), and deploy/compose.yaml with a service for it and
+    deploy/compose.netfault.yaml where they exist (docs/spec.md, "Walk-through: adding an
+    agent"). Exit 1, nothing written, when the file exists, the specification has no such
+    agent, or a file cannot be rendered."""
     from services.deploy import netfault
-    from services.deploy.compose import ComposeError, bring_up_to_date
+    from services.deploy.compose import COMPOSE, ComposeError
     from services.spec import render_names
-    from services.spec_check.new_agent import PROJECT, write_agent
+    from services.spec_check.new_agent import write_agent
 
+    path = spec or DEFAULT_SPEC
     try:
-        system = load(spec or DEFAULT_SPEC)
-        scaffold = write_agent(system, name, root or PROJECT)
+        system = load(path)
+        home = root or render_names.system_root(path)
+        files = [(COMPOSE, home / COMPOSE.relative), (netfault.NETFAULT, home / netfault.NETFAULT.relative)]
+        for generated, at in files:  # what cannot be rendered is refused before anything is written
+            if at.is_file():
+                generated.render(system)
+        scaffold = write_agent(system, name, home)
         typer.echo(f"roco: wrote {scaffold.module}")
-        typer.echo(f"roco: {render_names.bring_up_to_date(root or PROJECT, system)}")
-        typer.echo(f"roco: {bring_up_to_date(root or PROJECT, system)}")
-        typer.echo(f"roco: {netfault.bring_up_to_date(root or PROJECT, system)}")
+        names = render_names.names_file(path, system) if root is None else home / render_names.NAMES.relative
+        typer.echo(f"roco: {render_names.NAMES.bring_up_to_date_at(names, system)}")
+        for generated, at in files:
+            typer.echo(f"roco: {generated.bring_up_to_date_at(at, system)}")
     except (SpecError, FileExistsError, ComposeError) as exc:
         raise fail(str(exc)) from None
     timer = f" and what {scaffold.timer} opens" if scaffold.timer else ""

@@ -152,11 +152,13 @@ class Fleet:
         self._spawn("recorder", service_args("recorder", self.endpoint))
 
     def start_agents(self, names: Iterable[str] | None = None) -> None:
-        """Start the agents ``names`` (None: :attr:`agents`), and before ag_ex the world process
-        unless it runs or ``ROCO_WORLD=loop`` (velma/world/mode.py): it outlives ag_ex's
-        restarts. A system without ag_ex has no world process."""
+        """Start the agents ``names`` (None: :attr:`agents`), and before the agent that plays the
+        robot (``role = "robot"``: ag_ex) the world process unless it runs or ``ROCO_WORLD=loop``
+        (velma/world/mode.py): it outlives ag_ex's restarts. A system without a robot has no
+        world process."""
+        robot = self.system.playing("robot")
         for name in self.agents if names is None else names:
-            if name == "ag_ex" and world_in_process(self._environ()):
+            if name == robot and world_in_process(self._environ()):
                 world = self.processes.get(WORLD_SERVICE)
                 if world is None or world.poll() is not None:
                     self._spawn(WORLD_SERVICE, service_args(WORLD_SERVICE, self.endpoint))

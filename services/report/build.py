@@ -15,14 +15,16 @@ from services.recorder.record import (
     read_link_bytes,
     read_link_events,
 )
+from services.report import paper
 from services.report.content import sphere_share
 from services.report.coordination import commands, coordination
-from services.report.figures import NOT_DRAWN, figures_wanted, write_figures
+from services.report.figures import NOT_DRAWN, FigureFile, figures_wanted, write_figures
 from services.report.ledger import judge_ledger
 from services.report.load import Message, RunData, load_run
 from services.report.markdown import render
 from services.report.model import (
     CommandRow,
+    ContentOutcome,
     CoverageSummary,
     FaultRow,
     Header,
@@ -34,9 +36,17 @@ from services.report.notices import notice_rows
 from services.report.planning import plan_phases
 from services.report.robot_clock import RobotClock, robot_clock
 from services.report.stats import agent_matrix, channel_stats, size_stats
-from services.report.timeline import command_text, find_command, find_outcome, link_events, timeline
+from services.report.timeline import (
+    command_text,
+    conversation_events,
+    find_command,
+    find_outcome,
+    link_events,
+    timeline,
+)
 from services.runtime.refusals import REFUSALS_JSONL, read_refusals
-from services.spec.model import SpecError, load, spec_path
+from services.runtime.run_folder import spec_for_run
+from services.spec.model import SpecError, SystemSpec, load, spec_path
 from services.spec.notices import notice_protocols
 from shared.fipa_codec.languages.l_hc import CommandOutcome
 from velma.executor.capture import PERCEPTION_LOG as PERCEPTION_JSONL
@@ -58,9 +68,31 @@ def build_report(run_dir: Path, container: str = "bowl") -> Report:
     return _assemble(load_run(Path(run_dir)), container)
 
 
+def _system(run_dir: Path, notes: list[str]) -> SystemSpec | None:
+    """The specification the run is read with (services/runtime/run_folder.py
+    ``spec_for_run``); None, with a note, when it does not load (the report is then the
+    paper's Robot Companion's)."""
+    try:
+        return load(spec_for_run(run_dir))
+    except SpecError as exc:
+        notes.append(f"specification not read ({exc}): the report is laid out for the Robot Companion")
+        return None
+
+
 def _assemble(run: RunData, container: str = "bowl", tracer: Tracer | None = None) -> Report:
     """The report of a run folder already read; its requirements traced by ``tracer`` (None:
-    not traced)."""
+    not traced). A system other than the paper's Robot Companion gets its own channels, agents
+    and conversations, and no kitchen section (:func:`_as_system`)."""
+    notes = list(run.notes)
+    system = _system(Path(run.run_dir), notes)
+    if system is not None and system.system != paper.SYSTEM:
+        return _as_system(run, system, tracer, notes)
+    return _as_robot_companion(run, container, tracer, notes)
+
+
+def _as_robot_companion(run: RunData, container: str, tracer: Tracer | None, notes: list[str]) -> Report:
+    """The report of a run of the paper's Robot Companion (:func:`_assemble`), compared with
+    the paper, with the kitchen's sections."""
     run_dir = run.run_dir
     wire = run.messages
     # a copy (the same bytes again on the same key: Message.copy_of) crossed the wire, so the
@@ -69,7 +101,6 @@ def _assemble(run: RunData, container: str = "bowl", tracer: Tracer | None = Non
     command = find_command(messages)
     outcome = find_outcome(messages)
     plans = plan_phases(messages)
-    notes = list(run.notes)
     if len(wire) > len(messages):
         notes.append(
             f"{len(wire) - len(messages)} communicate(s) recorded again byte for byte (retransmitted, "
@@ -109,6 +140,35 @@ def _assemble(run: RunData, container: str = "bowl", tracer: Tracer | None = Non
         requirements=_requirements(run, tracer, notes),
         flags=_flags(Path(run_dir), notes),
         notices=notice_rows(messages, _notice_protocols(notes)),
+    )
+
+
+def _as_system(run: RunData, system: SystemSpec, tracer: Tracer | None, notes: list[str]) -> Report:
+    """The report of a run of a system other than the paper's: its header, sizes, its own
+    channels and agents (Table 8 layout), its conversations as the timeline (Table 7 layout),
+    its requirements, notices, faults and live flags; no paper figures, no kitchen section."""
+    wire = run.messages
+    messages = [m for m in wire if m.copy_of is None]
+    header = _header(run, None, None)
+    header.record = run.integrity.summary() if run.integrity.records else ""
+    header.access_control = _access_control(run)
+    header.link = _link(Path(run.run_dir))
+    return Report(
+        header=header,
+        sizes=size_stats(wire),
+        channels=channel_stats(wire, [c.name for c in system.channels]),
+        matrix=agent_matrix(wire, system.agent_names),
+        events=conversation_events(messages),
+        plans=[],
+        content=ContentOutcome(container="", observed=False),
+        notes=notes,
+        faults=_faults(run, notes),
+        requirements=_requirements(run, tracer, notes),
+        flags=_flags(Path(run.run_dir), notes),
+        notices=notice_rows(messages, notice_protocols(system)),
+        system=system.system,
+        paper=False,
+        channel_ends={c.name: c.ends for c in system.channels},
     )
 
 
@@ -293,7 +353,13 @@ def write_run_report(
     run_dir = Path(run.run_dir)
     report = _assemble(run, tracer=tracer)
     report.coverage = coverage
-    if figures_wanted():
+    figures: list[FigureFile]
+    if not report.paper:
+        figures = []
+        report.notes.append(
+            f"figures not drawn: they compare a run with the paper's Robot Companion, not {report.system}"
+        )
+    elif figures_wanted():
         figures, notes = write_figures(run, report, run_dir)
         report.notes.extend(notes)
     else:

@@ -39,6 +39,11 @@ HOW_MEASURED = (
     "(`TrafficRecord.size`). The paper logged send times and sizes of its ROS 1 messages, "
     "so sizes compare in order of magnitude only."
 )
+HOW_MEASURED_SYSTEM = (
+    "**How measured.** Times are the arrival times of the communicates at the traffic recorder, "
+    "in seconds since the run start (`run.json` `started`, else the first record). Sizes are the "
+    "payload on the wire: the msgpack-encoded communicate (`TrafficRecord.size`)."
+)
 
 
 SECTION = "## § "
@@ -53,6 +58,8 @@ def render(report: Report, figures: Sequence[FigureFile] = ()) -> str:
     :func:`services.report.figures.write_figures`) is linked, with its caption, in its section:
     sizes over time, bandwidth and size histogram in 1, the matrix in 2, the timeline in 3."""
     figs = {f.name: f for f in figures}
+    if not report.paper:
+        return _numbered([p for p in _system_parts(report) if p]) + "\n"
     parts = [
         _header(report.header, report.perception, report.commands),
         _statistics(report, figs),
@@ -70,6 +77,75 @@ def render(report: Report, figures: Sequence[FigureFile] = ()) -> str:
         _notes(report.notes),
     ]
     return _numbered([p for p in parts if p]) + "\n"
+
+
+def _system_parts(report: Report) -> list[str]:
+    """The sections of the report of a system other than the paper's Robot Companion: its own
+    channels and agents, its conversations, requirements, notices, faults and coverage."""
+    h = report.header
+    rows = [
+        ["System", report.system],
+        ["Run started", _wall(h.started_wall)],
+        ["Run ended", _wall(h.ended_wall)],
+        ["Last communicate", f"{_s(h.last_record_t)} s after the start"],
+        ["Traffic record", h.record or "—"],
+        *([["Agents raised", h.raised]] if h.raised else []),
+        *([["Access control", h.access_control]] if h.access_control else []),
+        *([["Link between the hosts", h.link]] if h.link else []),
+    ]
+    title = f"# Experiment report: {Path(h.run_dir).name}"
+    head = "\n\n".join([title, f"Run folder: `{h.run_dir}`", _table(["", ""], rows), HOW_MEASURED_SYSTEM])
+    s = report.sizes
+    sizes = [
+        ["communicates", str(s.count)],
+        ["total size", _bytes(s.total_bytes)],
+        ["min size", _bytes(s.min_bytes)],
+        ["mean size", _bytes(s.mean_bytes)],
+        ["max size", _bytes(s.max_bytes)],
+    ]
+    per_channel = [
+        [c.channel, "–".join(report.channel_ends.get(c.channel, ())) or "—", str(c.count), _bytes(c.bytes)]
+        for c in report.channels
+    ]
+    statistics = "\n\n".join(
+        [
+            f"{SECTION}Communication statistics",
+            _table(["quantity", "this run"], sizes),
+            "### Per channel",
+            _table(["channel", "agents", "communicates", "bytes"], per_channel),
+        ]
+    )
+    m = report.matrix
+    matrix = "\n\n".join(
+        [
+            f"{SECTION}Communicates sent and received per agent (paper Table 8 layout)",
+            "Rows: receivers; columns: senders. A communicate with several receivers counts once "
+            "per receiver.",
+            _matrix_table(m.agents, m.agents, m.cells, m.received, m.sent, m.total),
+        ]
+    )
+    events = [[_span(e.start, e.end), e.text, ", ".join(e.channels) or "—"] for e in report.events]
+    timeline = "\n\n".join(
+        [
+            f"{SECTION}Conversations (paper Table 7 layout)",
+            "Each conversation from its first communicate to its last, s since the run start (wall "
+            "time, at the recorder), with the performatives it took in order.",
+            _table(["wall [s]", "conversation", "channels used"], events)
+            if events
+            else "No conversations: the traffic record is empty.",
+        ]
+    )
+    return [
+        head,
+        statistics,
+        matrix,
+        timeline,
+        _requirements(report.requirements, report.clock, report.flags, h.started_wall),
+        _notices(report),
+        _faults(report),
+        _coverage(report),
+        _notes(report.notes),
+    ]
 
 
 def _numbered(parts: list[str]) -> str:

@@ -317,3 +317,11 @@ class Report(msgspec.Struct, kw_only=True):
     order flagged (services/recorder/flags.py)."""
     notices: list[NoticeRow] = []
     """What agents told the person through a_hi, in order (services/report/notices.py)."""
+    system: str = "RoCo"
+    """The name of the system the run's specification specifies."""
+    paper: bool = True
+    """Whether that system is the paper's Robot Companion: the report then compares with the
+    paper (§5.7) and has the kitchen's sections (planning, content, control loop, commands,
+    perception); another system's report has its own channels and agents only."""
+    channel_ends: dict[str, tuple[str, str]] = {}
+    """Each channel of the specification with its two ends, in its order."""

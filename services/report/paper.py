@@ -10,6 +10,10 @@ from __future__ import annotations
 
 from typing import NamedTuple
 
+SYSTEM = "RoCo"
+"""The ``system`` of the paper's Robot Companion's specification: a run of it is compared with
+these figures; a run of another system is not."""
+
 AGENTS: tuple[str, ...] = ("a_co", "a_hi", "a_km", "a_pl", "a_ta", "ag_ex")
 """Agent order of Table 8 (columns, senders)."""
 

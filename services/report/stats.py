@@ -41,22 +41,24 @@ def size_stats(messages: Sequence[Message]) -> SizeStats:
     )
 
 
-def channel_stats(messages: Sequence[Message]) -> list[ChannelStats]:
-    """Communicates and bytes per channel: C1..C6 always (zero when unused), then any
-    other channel name the record holds, sorted."""
-    counts: dict[str, list[int]] = {c: [0, 0] for c in paper.CHANNEL_ENDS}
+def channel_stats(
+    messages: Sequence[Message], channels: Sequence[str] = tuple(paper.CHANNEL_ENDS)
+) -> list[ChannelStats]:
+    """Communicates and bytes per channel: ``channels`` always (zero when unused; default the
+    paper's C1..C6), then any other channel name the record holds, sorted."""
+    counts: dict[str, list[int]] = {c: [0, 0] for c in channels}
     for m in messages:
         acc = counts.setdefault(m.rec.channel or "?", [0, 0])
         acc[0] += 1
         acc[1] += m.rec.size
-    known = list(paper.CHANNEL_ENDS)
-    order = known + sorted(c for c in counts if c not in paper.CHANNEL_ENDS)
+    known = list(channels)
+    order = known + sorted(c for c in counts if c not in known)
     return [ChannelStats(channel=c, count=counts[c][0], bytes=counts[c][1]) for c in order]
 
 
-def agent_matrix(messages: Sequence[Message]) -> AgentMatrix:
-    """Table 8 of this run: rows receivers, columns senders. Agents in the paper's order
-    (a_co, a_hi, a_km, a_pl, a_ta, ag_ex), then any others sorted."""
+def agent_matrix(messages: Sequence[Message], order: Sequence[str] = tuple(paper.AGENTS)) -> AgentMatrix:
+    """Table 8 of this run: rows receivers, columns senders. Agents in ``order`` (default the
+    paper's: a_co, a_hi, a_km, a_pl, a_ta, ag_ex), then any others sorted."""
     cells: dict[str, dict[str, int]] = {}
     seen: set[str] = set()
     for m in messages:
@@ -65,7 +67,7 @@ def agent_matrix(messages: Sequence[Message]) -> AgentMatrix:
             seen.add(r)
             row = cells.setdefault(r, {})
             row[m.rec.sender] = row.get(m.rec.sender, 0) + 1
-    agents = list(paper.AGENTS) + sorted(seen - set(paper.AGENTS))
+    agents = list(order) + sorted(seen - set(order))
     for a in agents:
         cells.setdefault(a, {})
     received = {a: sum(cells[a].values()) for a in agents}

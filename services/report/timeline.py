@@ -433,3 +433,29 @@ def link_events(entries: Sequence[Mapping[str, object]], t0: float) -> list[Even
 
 def _float(x: object) -> float | None:
     return float(x) if isinstance(x, int | float) and not isinstance(x, bool) else None
+
+
+def conversation_events(messages: Sequence[Message]) -> list[Event]:
+    """The timeline of a system other than the paper's (paper Table 7 layout, generalised): one
+    row per conversation, from its first communicate to its last, saying who opened it, in which
+    protocol, and the performatives it took in order (``a_op → a_so fipa-request: request,
+    agree, inform``)."""
+    by_conversation: dict[str, list[Message]] = {}
+    for m in messages:
+        key = m.conversation or f"#{m.rec.seq}"
+        by_conversation.setdefault(key, []).append(m)
+    events = []
+    for group in by_conversation.values():
+        first, last = group[0], group[-1]
+        receiver = first.rec.receivers[0] if first.rec.receivers else "?"
+        said = ", ".join(m.performative for m in group)
+        events.append(
+            Event(
+                start=first.t,
+                end=last.t if len(group) > 1 else None,
+                text=f"{first.sender} → {receiver} {first.rec.protocol or 'no protocol'}: {said}",
+                channels=sorted({m.rec.channel for m in group if m.rec.channel}),
+                kind="conversation",
+            )
+        )
+    return events

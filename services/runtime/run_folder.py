@@ -170,6 +170,17 @@ def spec_of_run(run_dir: Path) -> Path | None:
     return Path(named) if isinstance(named, str) and named else None
 
 
+def spec_for_run(run_dir: Path | None) -> Path:
+    """The specification a tool reads a run with when no ``--spec`` is given: ``ROCO_SPEC``'s
+    file, else the one run ``run_dir`` used (:func:`spec_of_run`), else the shipped one."""
+    from services.spec.model import DEFAULT_SPEC, spec_path
+
+    named = spec_path()
+    if named != DEFAULT_SPEC:
+        return named
+    return (spec_of_run(run_dir) if run_dir is not None else None) or DEFAULT_SPEC
+
+
 def load_launch_env(run_dir: Path) -> dict[str, str] | None:
     """The environment a fleet's processes were started with: this process's environment
     without its ``ROCO_*`` variables, then those of ``launch_env.json``; None when the run

@@ -88,7 +88,11 @@ class GeneratedFile:
     def bring_up_to_date(self, root: Path, spec: SystemSpec) -> str:
         """Render checkout ``root``'s copy from ``spec`` (``roco spec new-agent``); the line
         that tells the user what was done. Raises ``error`` as :meth:`write`."""
-        path = root / self.relative
+        return self.bring_up_to_date_at(root / self.relative, spec)
+
+    def bring_up_to_date_at(self, path: Path, spec: SystemSpec) -> str:
+        """Render the copy at ``path`` from ``spec`` when there is one; the line that tells the
+        user what was done. Raises ``error`` as :meth:`write`."""
         if not path.is_file():
             return f"no {self.what} at {path}: `{self.command} --file F` writes one elsewhere"
         if self.write(path, spec):

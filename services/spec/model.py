@@ -14,6 +14,8 @@ concrete agent name plays (``da0@host:1099/JADE`` plays ``x_fipa``).
 from __future__ import annotations
 
 import datetime
+import importlib
+import sys
 from collections.abc import Mapping
 from dataclasses import dataclass
 from functools import cache
@@ -153,6 +155,18 @@ class SystemSpec(msgspec.Struct, frozen=True, forbid_unknown_fields=True):
     """Roles of agents outside the platform (one per platform; see :class:`ExternalSpec`)."""
     languages: dict[str, LanguageSpec] = {}
     """The system's own content languages, or terms added to roco's (:class:`LanguageSpec`)."""
+    names: str = ""
+    """The module of the system's names (``cell.names``): ``roco spec names`` writes it, the
+    agents ``roco spec new-agent`` writes import from it. Empty: :attr:`names_module`'s default."""
+
+    @property
+    def names_module(self) -> str:
+        """:attr:`names`, else ``<package>.names`` where ``<package>`` is the top-level package
+        of the first agent's ``implementation`` (``cell.operator:Operator`` → ``cell.names``)."""
+        if self.names:
+            return self.names
+        first = self.agents[0].implementation.partition(":")[0] if self.agents else ""
+        return f"{first.partition('.')[0] or 'system'}.names"
 
     @property
     def external_names(self) -> tuple[str, ...]:
@@ -343,9 +357,24 @@ def load(path: Path = DEFAULT_SPEC) -> SystemSpec:
     spec = _with_role_lists(spec, raw.get("protocols", {}), path)
     from services.spec.terms import register_languages, register_terms  # they read this module's types
 
+    system_package_importable(path)
     register_languages(spec, path)
     register_terms(spec, path)
     return spec
+
+
+def system_package_importable(path: Path) -> None:
+    """Make the system's package beside the specification ``path`` importable: its folder is
+    appended to ``sys.path`` (after roco's own packages: a package there never replaces one of
+    roco's), unless it is the shipped specification. A system is a specification plus a package
+    beside it (``cell.toml`` and ``cell/``: examples/sorting_cell/), so its agents
+    (``implementation``) and terms modules import in every process that loads it."""
+    if path.resolve() == DEFAULT_SPEC.resolve():
+        return
+    folder = str(path.resolve().parent)
+    if folder not in sys.path:
+        sys.path.append(folder)
+        importlib.invalidate_caches()
 
 
 def _with_role_lists(spec: SystemSpec, tables: Mapping[str, Mapping[str, object]], path: Path) -> SystemSpec:

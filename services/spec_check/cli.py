@@ -3,12 +3,13 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated
 
 import typer
 
-from services.cli_common import MARKUP, CheckOnly, SpecFile, fail, file_option, run_folder, shown
+from services.cli_common import MARKUP, CheckOnly, SpecFile, fail, run_folder, shown
 from shared.settings import Settings
 
 if TYPE_CHECKING:
@@ -46,6 +47,16 @@ def _readable_spec(path: Path | None, *, decomposition: bool = False) -> Path:
     except SpecError as exc:
         raise fail(str(exc), code=2) from None
     return path
+
+
+def _run_spec(spec: Path | None, run_dirs: Sequence[Path]) -> Path:
+    """``--spec``'s file (or ``ROCO_SPEC``'s), else the one the first of ``run_dirs`` that names
+    one used (its ``launch_env.json``: services/runtime/run_folder.py ``spec_of_run``), else the
+    shipped one, once it loads; else the one-line refusal, exit 2."""
+    from services.runtime.run_folder import spec_of_run
+
+    named = spec or next((used for r in run_dirs if (used := spec_of_run(r)) is not None), None)
+    return _readable_spec(named)
 
 
 @spec_app.command("show", short_help="The decomposition, channels, interfaces and agent graph.")
@@ -151,9 +162,10 @@ def spec_what_if(
     from services.spec_check.whatif_text import what_if_report
 
     try:
+        run = run_folder(run_dir)
         ok, text = what_if_report(
-            run_folder(run_dir), hosts=hosts, merges=merge or (), rtt=rtt, recorder_with=recorder_with,
-            spec_path=spec,
+            run, hosts=hosts, merges=merge or (), rtt=rtt, recorder_with=recorder_with,
+            spec_path=_run_spec(spec, [run]),
         )  # fmt: skip
     except (PlacementError, SpecError) as exc:
         raise fail(str(exc), code=2) from None
@@ -173,7 +185,8 @@ def spec_verify(
     load."""
     from services.spec_check.conformance import verify_report
 
-    ok, text = verify_report(run_folder(run_dir), spec and _readable_spec(spec))
+    run = run_folder(run_dir)
+    ok, text = verify_report(run, _run_spec(spec, [run]))
     typer.echo(text)
     if not ok:
         raise typer.Exit(1)
@@ -238,7 +251,7 @@ def _coverage(runs: list[Path], tap: Path | None, tests: bool, spec: Path | None
     if not folders and tapped is None:
         raise fail("nothing to count: give run folders, or --tests", 2)
     try:
-        return coverage_of(folders, tapped, spec)
+        return coverage_of(folders, tapped, _run_spec(spec, folders))
     except (SpecError, ValueError) as exc:
         raise fail(str(exc), 2) from None
     except FileNotFoundError as exc:
@@ -252,11 +265,20 @@ def spec_trace(
     require_shown: Annotated[
         bool, typer.Option("--require-shown", help="exit 1 also when a leaf requirement is not exercised")
     ] = False,
+    tests: Annotated[
+        Path | None,
+        typer.Option(
+            "--tests",
+            help="the folder of the system's tests, read for their requirement marks "
+            "[default: roco's tests/ for roco's specification, else tests/ beside the specification]",
+            show_default=False,
+        ),
+    ] = None,
 ) -> None:
     """The requirement tree (paper Figure 5) with, for each leaf requirement, the steps and
-    channels that serve it, the tests that name it (`@pytest.mark.requirement("R1.2")` in
-    tests/, read without running them), its `properties` in the specification evaluated over
-    each RUN's communicates in causal order (what must have happened, in order and linked by
+    channels that serve it, the tests that name it (`@pytest.mark.requirement("R1.2")` in the
+    system's tests, read without running them: --tests), its `properties` in the specification
+    evaluated over each RUN's communicates in causal order (what must have happened, in order and linked by
     conversation-id and in-reply-to) and a verdict: *shown* (every property held in one run),
     *violated* (a conformance violation on a channel serving it, a failed command for a
     requirement with `task = true`, or a property whose situation happened and whose rest did
@@ -264,12 +286,12 @@ def spec_trace(
     violated, and with --require-shown also when one is not exercised; 2 for a specification,
     run folder or marker that cannot be read (docs/spec.md, "Requirements traced to
     evidence")."""
-    from services.spec_check.trace import TraceError, trace_report
+    from services.spec_check.trace import TraceError, tests_beside, trace_report
 
+    runs = [run_folder(r) for r in run_dirs]
+    path = _run_spec(spec, runs)
     try:
-        code, text = trace_report(
-            [run_folder(r) for r in run_dirs], _spec_path(spec), require_shown=require_shown
-        )
+        code, text = trace_report(runs, path, require_shown=require_shown, tests=tests or tests_beside(path))
     except TraceError as exc:
         raise fail(str(exc), code=2) from None
     typer.echo(text)
@@ -299,7 +321,14 @@ def spec_verify_code(spec: SpecFile = None) -> None:
 @spec_app.command("names", short_help="Write services/spec/names.py from the specification, or check it.")
 def spec_names(
     check: CheckOnly = False,
-    file: Annotated[Path | None, file_option("names module", "services/spec/names.py")] = None,
+    file: Annotated[
+        Path | None,
+        typer.Option(
+            help="the names module [default: the specification's `names` module: services/spec/names.py "
+            "for roco's, cell/names.py beside cell.toml for a system of package cell]",
+            show_default=False,
+        ),
+    ] = None,
     spec: SpecFile = None,
 ) -> None:
     """Write the names module the specification gives: its channels, interaction protocols and
@@ -308,13 +337,13 @@ def spec_names(
     write nothing: exit 0 when the file is what the specification gives, 1 (one line saying
     how it differs) when not; exit 2 for a specification or file that cannot be read."""
     from services.spec.model import SpecError, load
-    from services.spec.render_names import NAMES_FILE, typed_names, write
     from services.spec.render_names import check as check_file
+    from services.spec.render_names import names_file, typed_names, write
 
-    path = file or NAMES_FILE
-    name = shown(path)
     try:
         system = load(_spec_path(spec))
+        path = file or names_file(_spec_path(spec), system)
+        name = shown(path)
         if check:
             problem = check_file(path, system, name)
             if problem is not None:

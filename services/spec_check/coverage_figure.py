@@ -243,9 +243,10 @@ def report_summary(run_dir: Path) -> CoverageSummary:
     ``figures/coverage.png`` unless the report draws no figures (services/report/figures.py
     ``figures_wanted``). Raises what :func:`coverage_of` and :func:`write_figure` raise."""
     from services.report.figures import FIGURES_DIR, figures_wanted
+    from services.runtime.run_folder import spec_for_run
     from services.spec_check.coverage import KINDS, coverage_of
 
-    cov = coverage_of([run_dir])
+    cov = coverage_of([run_dir], spec_path=spec_for_run(run_dir))
     drawn = figures_wanted()
     if drawn:
         (run_dir / FIGURES_DIR).mkdir(exist_ok=True)

@@ -434,6 +434,12 @@ def _role_imports(roles: list[RoleDecl]) -> str:
     return ", ".join([*role_names, "Conversation", "handles", *makers])
 
 
+def _imports_block(lines: dict[str, str]) -> str:
+    """The module's imports (module → its import statement) in the order isort gives them: by
+    module name (the system's names module among roco's)."""
+    return "\n".join(lines[module] for module in sorted(lines))
+
+
 def agent_source(spec: SystemSpec, agent: str, class_name: str, where: str) -> tuple[str, tuple[str, ...]]:
     """The module text of agent ``agent`` (class ``class_name``, written to ``where``) and
     the names of its handlers. Raises SpecError when the spec gives the agent no channel."""
@@ -450,6 +456,14 @@ def agent_source(spec: SystemSpec, agent: str, class_name: str, where: str) -> t
     job = entry.job or f"the agent that substitutes group {entry.group}"
     unused = "" if handlers else "  # noqa: F401  (the performatives handlers answer with)"
     behaviour_import, period, serve, timer = _behaviour(spec, agent, opens, modules)
+    imports_block = _imports_block(
+        {
+            "services.runtime.agent": f"from services.runtime.agent import {behaviour_import}",
+            "services.runtime.roles": f"from services.runtime.roles import {imports}",
+            spec.names_module: _import(spec.names_module, named),
+            "shared.fipa_codec": f"from shared.fipa_codec import Performative{unused}",
+        }
+    )
     text = f'''"""{_summary(agent, job)}
 
 Written by ``roco spec new-agent {agent}`` from the specification: its protocol roles (one per
@@ -461,10 +475,7 @@ without a handler, and passed reply-by deadlines (services/runtime/roles/).
 
 from __future__ import annotations
 
-from services.runtime.agent import {behaviour_import}
-from services.runtime.roles import {imports}
-{_import("services.spec.names", named)}
-from shared.fipa_codec import Performative{unused}
+{imports_block}
 {period}
 
 class {class_name}(Agent):

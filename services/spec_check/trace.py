@@ -41,8 +41,9 @@ from services.recorder.causal import causal_order, send_order
 from services.report.coordination import commands
 from services.report.load import Message, RunData, load_run
 from services.report.model import RequirementRow
+from services.runtime.run_folder import spec_for_run
 from services.spec.decomposition import Decomposition, Requirement, load_decomposition
-from services.spec.model import SpecError, SystemSpec, load, spec_path
+from services.spec.model import SpecError, SystemSpec, load
 from services.spec.protocol_defs import protocols_of
 from services.spec.requirements import Served, children, evidence_problems, leaves, properties_of, served
 from services.spec_check.conformance import verify_run
@@ -237,6 +238,14 @@ def load_spec(spec_path: Path) -> tuple[Decomposition, SystemSpec, dict[str, Pro
         raise TraceError(str(exc)) from None
 
 
+def tests_beside(spec_path: Path) -> Path:
+    """The tests of the system ``spec_path`` specifies: roco's ``tests/`` for the shipped
+    specification, else the ``tests/`` folder beside the specification."""
+    from services.spec.model import DEFAULT_SPEC
+
+    return TESTS if spec_path.resolve() == DEFAULT_SPEC.resolve() else spec_path.resolve().parent / "tests"
+
+
 def trace(spec_path: Path, run_dirs: Sequence[Path], tests: Path | None = TESTS) -> Trace:
     """Read the specification, the runs and the tests, and trace the tree (see the module
     docstring). Raises TraceError for anything that cannot be read."""
@@ -352,10 +361,12 @@ def _rows(t: Trace, r: Requirement, depth: int) -> list[RequirementRow]:
 
 def report_rows(run: RunData) -> list[RequirementRow]:
     """The requirement tree traced to one run already read, as the report's rows (parents
-    before their children), against the specification ``ROCO_SPEC`` names (else the
-    shipped one) and the project's tests. Raises TraceError (a ValueError) when the
+    before their children), against the specification ``ROCO_SPEC`` names, else the one the
+    run used, else the shipped one (services/runtime/run_folder.py ``spec_for_run``), and the
+    system's tests (:func:`tests_beside`). Raises TraceError (a ValueError) when the
     specification or a test marker cannot be read."""
-    path = spec_path()
+    path = spec_for_run(run.run_dir)
     d, spec, protocols = load_spec(path)
-    t = trace_runs(path, d, spec, [run_facts(run, spec, protocols)], TESTS if TESTS.is_dir() else None)
+    tests = tests_beside(path)
+    t = trace_runs(path, d, spec, [run_facts(run, spec, protocols)], tests if tests.is_dir() else None)
     return [row for root in children(d).get(None, []) for row in _rows(t, root, 0)]

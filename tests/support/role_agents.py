@@ -73,7 +73,11 @@ def _spec() -> SystemSpec:
         ),
     )
     agents = tuple(AgentSpec(name=n, group=n, implementation="tests:none") for n in ("a_i", "a_p"))
-    return SystemSpec(system="T", agents=agents, protocols=protocols, channels=(channel,))
+    # its stubs import roco's names module, which a test renders from this specification in its
+    # place (tests/support/spec_names.py): no module of the checkout has to be written for it
+    return SystemSpec(
+        system="T", agents=agents, protocols=protocols, channels=(channel,), names="services.spec.names"
+    )
 
 
 SPEC = _spec()

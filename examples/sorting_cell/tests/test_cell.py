@@ -1,0 +1,123 @@
+"""The sorting cell end to end, with roco's documented commands only (README.md beside cell.toml):
+its specification checked, its fleet up under access control and TLS, a person's orders sent,
+its run verified, its requirements traced (these tests' own marks), its report and its compose
+file. One fleet serves every test of the module."""
+
+from __future__ import annotations
+
+import json
+import shutil
+import socket
+import subprocess
+import sys
+from collections.abc import Iterator
+from dataclasses import dataclass
+from pathlib import Path
+
+import pytest
+
+pytestmark = pytest.mark.xdist_group("sorting_cell")  # one fleet for the module, under pytest-xdist
+
+SPEC = Path(__file__).resolve().parents[1] / "cell.toml"
+ROCO = [sys.executable, "-m", "services.cli"]
+"""``roco``, run by this interpreter (the console script of the same installation)."""
+TIMEOUT_S = 120
+
+
+def roco(*args: str, check: bool = False) -> subprocess.CompletedProcess[str]:
+    """Run ``roco args…``; its exit status, stdout and stderr."""
+    done = subprocess.run([*ROCO, *args], capture_output=True, text=True, timeout=TIMEOUT_S)
+    if check:
+        assert done.returncode == 0, done.stdout + done.stderr
+    return done
+
+
+def free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+@dataclass
+class CellRun:
+    """The fleet's run folder and what roco said to each command."""
+
+    run_dir: Path
+    said: dict[str, subprocess.CompletedProcess[str]]
+    status: subprocess.CompletedProcess[str]
+
+
+ORDERS = ("sort 3 bolts", "sort 2 apples", "hello")
+
+
+@pytest.fixture(scope="module")
+def cell_run(tmp_path_factory: pytest.TempPathFactory) -> Iterator[CellRun]:
+    """`roco up --spec cell.toml` (access control and TLS on, as by default), the three
+    ``ORDERS`` sent, `roco status`, `roco down`."""
+    runs = tmp_path_factory.mktemp("cell_runs")
+    up = roco("up", "--spec", str(SPEC), "--port", str(free_port()), "--runs-dir", str(runs))
+    assert up.returncode == 0, up.stdout + up.stderr
+    try:
+        said = {line: roco("send", line, "--runs-dir", str(runs)) for line in ORDERS}
+        status = roco("status", "--runs-dir", str(runs))
+    finally:
+        roco("down", "--runs-dir", str(runs), check=True)
+    (run_dir,) = [p for p in runs.iterdir() if p.is_dir()]
+    yield CellRun(run_dir, said, status)
+
+
+def test_the_specification_is_sound_deadlock_free_and_the_code_matches_it() -> None:
+    for tool in ("check", "deadlock", "verify-code"):
+        roco("spec", tool, "--spec", str(SPEC), check=True)
+    roco("spec", "names", "--check", "--spec", str(SPEC), check=True)
+
+
+@pytest.mark.requirement("R1")
+def test_a_person_s_order_is_taken_and_its_outcome_told(cell_run: CellRun) -> None:
+    done = cell_run.said["sort 3 bolts"]
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.splitlines() == [
+        "accepted: sorting 3 bolt(s)",
+        "succeeded: 3 bolt(s) sorted into bin 1",
+    ]
+    refused = cell_run.said["sort 2 apples"]
+    assert refused.returncode == 1 and refused.stdout.startswith("failed: the cell sorts bolt, nut")
+    unread = cell_run.said["hello"]
+    assert unread.returncode == 1 and unread.stdout.startswith("not-understood: say: sort <number> <item>")
+
+
+def test_status_lists_the_cell_s_agents_alive(cell_run: CellRun) -> None:
+    assert cell_run.status.returncode == 0, cell_run.status.stderr
+    alive = [line.split()[0] for line in cell_run.status.stdout.splitlines() if " alive" in line]
+    assert alive[:3] == ["a_cv", "a_so", "a_op"], cell_run.status.stdout
+
+
+@pytest.mark.requirement("R2.1", "R2.2")
+def test_the_run_conforms_and_its_requirements_are_shown(cell_run: CellRun) -> None:
+    verified = roco("spec", "verify", str(cell_run.run_dir))  # the run remembers its specification
+    assert verified.returncode == 0 and "full conformance: yes" in verified.stdout, verified.stdout
+    traced = roco("spec", "trace", str(cell_run.run_dir), "--require-shown")
+    assert traced.returncode == 0, traced.stdout + traced.stderr
+    assert "leaves: 3 shown, 0 not exercised, 0 violated" in traced.stdout
+    assert "tests: none" not in traced.stdout  # these tests' marks are read
+
+
+def test_a_mutated_record_does_not_verify(cell_run: CellRun, tmp_path: Path) -> None:
+    """The planted fault: the sorter's first agree rewritten as an inform in a copy of the record."""
+    copy = tmp_path / "run"
+    shutil.copytree(cell_run.run_dir, copy)
+    traffic = copy / "traffic.jsonl"
+    lines = traffic.read_text().splitlines()
+    i = next(i for i, line in enumerate(lines) if json.loads(line).get("performative") == "agree")
+    lines[i] = lines[i].replace('"performative":"agree"', '"performative":"inform"')
+    traffic.write_text("\n".join(lines) + "\n")
+    verified = roco("spec", "verify", str(copy))
+    assert verified.returncode == 1 and "full conformance: no" in verified.stdout, verified.stdout
+
+
+def test_the_report_is_the_cell_s_without_kitchen_sections(cell_run: CellRun) -> None:
+    report = (cell_run.run_dir / "report.md").read_text()
+    assert "| System | SortingCell |" in report
+    assert "| C1 | a_op–a_so |" in report and "| C2 | a_so–a_cv |" in report
+    for kitchen in ("Spheres", "ag_ex", "paper (§5.7)", "Planning phases", "Control loop", "a_co"):
+        assert kitchen not in report, kitchen
