@@ -154,6 +154,25 @@ wall-time budget turned inline receiving off for a third of them (docs/benchmark
 wake-ups per communicate")."""
 
 
+OVERRIDABLE = frozenset(
+    {
+        "ROLES",
+        "NOTE",
+        "period",
+        "RECEIVE_INLINE",
+        "build_fsm",
+        "setup",
+        "peer_changed",
+        "persist",
+        "on_restored",
+    }
+)
+"""The names of :class:`Agent` an agent's class may define again: its declarations and the hooks
+the runtime calls. Any other name of the runtime's that an agent's class defines replaces the
+runtime's own (an agent's helper named ``_ended`` would), which ``roco spec verify-code``
+refuses (services/spec_check/code_check.py)."""
+
+
 class Agent:
     """Base class of every roco agent (a purely computational agent: control subsystem only,
     paper §5.5). Subclasses set ``name`` and implement :meth:`build_fsm`."""

@@ -30,9 +30,13 @@ checks what a run actually sent.
 
 from __future__ import annotations
 
+import ast
 import importlib.util
+import inspect
+from functools import cache
 from pathlib import Path
 
+from services.runtime.agent import OVERRIDABLE, Agent
 from services.runtime.main import agent_class
 from services.runtime.roles import (
     EVERY_CHANNEL,
@@ -104,7 +108,7 @@ def _agent_lines(spec: SystemSpec, name: str, implementation: str) -> tuple[list
     whether they agree with the specification, each role's messages."""
     files = package_files(implementation)
     cls = agent_class(spec, name)
-    found = agent_problems(spec, name, cls, files)
+    found = shadowing(name, cls) + agent_problems(spec, name, cls, files)
     written = cls.ROLES or ()
     declared = expand_roles(spec, name, written)
     lines = [
@@ -116,6 +120,47 @@ def _agent_lines(spec: SystemSpec, name: str, implementation: str) -> tuple[list
     every = {(d.channel, d.protocol) for d in declared} - own
     lines += role_lines(spec, name, spec_roles(spec, name), unused, every)
     return found, lines
+
+
+def _self_attributes(node: ast.AST) -> set[str]:
+    """The names assigned as ``self.<name>`` anywhere under ``node``."""
+    found = set()
+    for n in ast.walk(node):
+        targets = (
+            n.targets if isinstance(n, ast.Assign) else [n.target] if isinstance(n, ast.AnnAssign) else []
+        )
+        for t in targets:
+            if isinstance(t, ast.Attribute) and isinstance(t.value, ast.Name) and t.value.id == "self":
+                found.add(t.attr)
+    return found
+
+
+@cache
+def runtime_names() -> frozenset[str]:
+    """The names an agent inherits from the runtime's :class:`~services.runtime.agent.Agent`:
+    its class attributes and methods, and the attributes its methods set on ``self`` (read from
+    its source: ``self._ended = False`` in ``__init__``), dunders left out."""
+    names = set(dir(Agent))
+    tree = ast.parse(Path(inspect.getfile(Agent)).read_text())
+    names |= _self_attributes(next(n for n in tree.body if isinstance(n, ast.ClassDef) and n.name == "Agent"))
+    return frozenset(n for n in names if not (n.startswith("__") and n.endswith("__")))
+
+
+def shadowing(agent: str, cls: type) -> list[str]:
+    """One problem per name of the runtime's :class:`~services.runtime.agent.Agent` that agent
+    ``agent``'s class ``cls`` (or a base of its own, not the runtime's) defines again, but those
+    it may (``OVERRIDABLE``): an agent's attribute or method that replaces one of the
+    runtime's breaks it, often far from the cause (a helper ``_ended`` made the runtime call a
+    bool)."""
+    runtime = runtime_names() - OVERRIDABLE
+    problems = []
+    for klass in cls.__mro__:
+        if klass is object or klass.__module__.startswith("services.runtime"):
+            continue
+        for attr in sorted(runtime & set(vars(klass))):
+            where = f"{klass.__name__}.{attr}"
+            problems.append(f"agent {agent}: {where} replaces the runtime's Agent.{attr}: name it otherwise")
+    return problems
 
 
 def verify_code_report(path: Path = DEFAULT_SPEC) -> tuple[bool, str]:
