@@ -9,8 +9,9 @@ from typing import TYPE_CHECKING, Annotated
 
 import typer
 
-from services.cli_common import INTERRUPTED, fail, run_folder
+from services.cli_common import INTERRUPTED, SpecFile, chosen_spec, fail, run_folder
 from services.runtime.run_folder import RunInfo
+from shared.settings import Settings
 
 if TYPE_CHECKING:
     from services.report.model import ContentOutcome, CoverageSummary
@@ -75,12 +76,20 @@ def _coverage_summary(run_dir: Path) -> CoverageSummary | None:
 
 
 @report_app.command(short_help="Write RUN/report.md from a run folder.")
-def report(run_dir: Annotated[Path, typer.Argument(metavar="RUN", help="a run folder")]) -> None:
+def report(
+    run_dir: Annotated[Path, typer.Argument(metavar="RUN", help="a run folder")], spec: SpecFile = None
+) -> None:
     """Write RUN/report.md from the run's traffic record and run.json, with the requirement
-    tree traced to the run (`roco spec trace RUN`). A folder that is not a run folder
+    tree traced to the run (`roco spec trace RUN`), laid out for the run's system (--spec, else
+    the specification the run used: docs/method.md). A folder that is not a run folder
     (neither run.json nor traffic.jsonl in it) is refused, exit 2, nothing written."""
+    import os
+
     from services.report import write_report
     from services.spec_check.trace import report_rows
+
+    if spec is not None:  # what every part of the report reads the run with (run_folder.spec_for_run)
+        os.environ[Settings.env_name("spec")] = str(chosen_spec(spec))
 
     try:
         typer.echo(
