@@ -318,6 +318,30 @@ def spec_verify_code(spec: SpecFile = None) -> None:
         raise typer.Exit(1)
 
 
+@spec_app.command("init", short_help="Write a new system's folder: specification, package, agents, a test.")
+def spec_init(
+    name: Annotated[
+        str, typer.Argument(metavar="NAME", help="the system's package name: lower-case, e.g. cell")
+    ],
+    folder: Annotated[Path, typer.Argument(metavar="DIR", help="a new or empty folder to write it in")],
+) -> None:
+    """Write a new system designed with the paper's method into DIR: NAME.toml (requirements,
+    one decomposition step, two agents, a channel, the system's own content language), the
+    package NAME/ (its terms, its names module, an interface agent that plays the person's role
+    and a worker) and tests/test_NAME.py (docs/method.md). `roco spec check`, `verify-code`,
+    `roco up --spec`, `roco send` and `roco spec verify` pass on it at once. Exit 1, nothing
+    written, for a name that cannot be a package's or a folder that is not empty."""
+    from services.spec.model import SpecError
+    from services.spec_check.new_system import write_system
+
+    try:
+        written = write_system(name, folder)
+    except SpecError as exc:
+        raise fail(str(exc)) from None
+    spec = folder / f"{name}.toml"
+    typer.echo(f"roco: wrote {len(written)} files in {folder}; next: roco spec check --spec {spec}")
+
+
 @spec_app.command("names", short_help="Write services/spec/names.py from the specification, or check it.")
 def spec_names(
     check: CheckOnly = False,
