@@ -42,6 +42,9 @@ class Ending:
     problem: str = ""
     uncounted: str = ""
     """Why the report has no coverage section, "" when it has one or none was asked."""
+    paper: bool = True
+    """The run is of the paper's Robot Companion, whose commands (C2) the line counts; another
+    system's are not read from its traffic."""
 
     def line(self) -> str:
         """``after 312.4 s; 2 commands: 2 succeeded; 1234 communicates; report RUN/report.md``
@@ -50,7 +53,7 @@ class Ending:
         info = self.info
         took = f"after {info.ended - info.started:.1f} s; " if info.ended and info.started else ""
         took = took or "(its start unknown); "
-        given = f"{took}{commands_summary(info.outcomes)}"
+        given = f"{took}{commands_summary(info.outcomes)}" if self.paper else took.removesuffix("; ")
         if self.path is None:
             return f"{given}; report not written: {self.problem}"
         left = f" (specification coverage not counted: {self.uncounted})" if self.uncounted else ""
@@ -86,7 +89,7 @@ def end(
         path, report = write_run_report(run, coverage=summary, tracer=tracer)
     except Exception as exc:  # the fleet has ended whether or not its report can be made
         return Ending(info, problem=_first_line(exc))
-    return Ending(info, path, report.sizes.count, uncounted=uncounted)
+    return Ending(info, path, report.sizes.count, uncounted=uncounted, paper=report.paper)
 
 
 def _run_commands(run: RunData) -> list[RunCommand]:

@@ -45,6 +45,7 @@ class CellRun:
     run_dir: Path
     said: dict[str, subprocess.CompletedProcess[str]]
     status: subprocess.CompletedProcess[str]
+    down: subprocess.CompletedProcess[str]
 
 
 ORDERS = ("sort 3 bolts", "sort 2 apples", "hello")
@@ -61,9 +62,9 @@ def cell_run(tmp_path_factory: pytest.TempPathFactory) -> Iterator[CellRun]:
         said = {line: roco("send", line, "--runs-dir", str(runs)) for line in ORDERS}
         status = roco("status", "--runs-dir", str(runs))
     finally:
-        roco("down", "--runs-dir", str(runs), check=True)
+        down = roco("down", "--runs-dir", str(runs), check=True)
     (run_dir,) = [p for p in runs.iterdir() if p.is_dir()]
-    yield CellRun(run_dir, said, status)
+    yield CellRun(run_dir, said, status, down)
 
 
 def test_the_specification_is_sound_deadlock_free_and_the_code_matches_it() -> None:
@@ -121,3 +122,5 @@ def test_the_report_is_the_cell_s_without_kitchen_sections(cell_run: CellRun) ->
     assert "| C1 | a_op–a_so |" in report and "| C2 | a_so–a_cv |" in report
     for kitchen in ("Spheres", "ag_ex", "paper (§5.7)", "Planning phases", "Control loop", "a_co"):
         assert kitchen not in report, kitchen
+    # roco down's last line counts the run's communicates, not the kitchen's commands
+    assert "8 communicates; report" in cell_run.down.stdout and "command" not in cell_run.down.stdout
