@@ -35,14 +35,16 @@ def replay(
     record, and compare what it sends with what it sent there: equal up to conversation-ids,
     reply-withs, times and fields read from a clock. One line per difference (the recorded
     communicate, the field, recorded and replayed). Without --agent, each agent of the
-    specification in turn, one line each (an agent that cannot be replayed says why; one with a
-    communicate of its own missing from the record says so, and one whose differences depend on an
-    order the record leaves open says it cannot decide it). Exit 0 when equal, 1 with
-    differences, an undecided order or a communicate missing, 2 when no replay can be made."""
+    specification (--spec, else the one the run used) in turn, one line each (an agent that
+    cannot be replayed says why; one with a communicate of its own missing from the record says
+    so, and one whose differences depend on an order the record leaves open says it cannot
+    decide it). Exit 0 when equal, 1 with differences, an undecided order or a communicate
+    missing, 2 when no replay can be made."""
     import logging
 
     from services.replay.driver import ReplayError, render
     from services.replay.driver import replay as replay_agent
+    from services.runtime.run_folder import spec_for_run
     from services.spec.model import SpecError, load
 
     if log:
@@ -50,11 +52,12 @@ def replay(
             level=logging.INFO, stream=sys.stderr, format="%(name)s %(levelname)s %(message)s"
         )
     try:
-        system = load(spec) if spec is not None else None
+        run = run_folder(run_dir)
+        system = load(spec or spec_for_run(run))  # --spec, else the one the run used
         if agent is None:
-            _replay_each(run_folder(run_dir), system)
+            _replay_each(run, system)
             return
-        result = replay_agent(run_folder(run_dir), agent, system)
+        result = replay_agent(run, agent, system)
     except (ReplayError, SpecError) as exc:
         raise fail(str(exc), code=2) from None
     typer.echo(render(result, most))

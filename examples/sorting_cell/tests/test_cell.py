@@ -124,3 +124,13 @@ def test_the_report_is_the_cell_s_without_kitchen_sections(cell_run: CellRun) ->
         assert kitchen not in report, kitchen
     # roco down's last line counts the run's communicates, not the kitchen's commands
     assert "8 communicates; report" in cell_run.down.stdout and "command" not in cell_run.down.stdout
+
+
+def test_the_agents_that_take_only_communicates_replay_as_they_ran(cell_run: CellRun) -> None:
+    """`roco replay RUN` with the run's own specification: the sorter and the conveyor send again
+    what they sent; the operator, whose input is the person's lines, is not replayed."""
+    replayed = roco("replay", str(cell_run.run_dir))
+    assert replayed.returncode == 0, replayed.stdout + replayed.stderr
+    lines = dict(line.split(": ", 1) for line in replayed.stdout.splitlines())
+    assert lines["a_so"].startswith("reproduced") and lines["a_cv"].startswith("reproduced")
+    assert lines["a_op"].startswith("not replayed")
