@@ -16,13 +16,13 @@ from services.spec.model import DEFAULT_SPEC, SpecError, load
 from services.spec.terms import term_languages
 from shared.fipa_codec.languages import (
     ContentError,
-    base,
     decode_content,
     encode_content,
     language_of,
     load_all,
 )
 from shared.fipa_codec.languages.l_wm import ObjectQuery
+from tests.support.codec_registry import languages_restored
 
 _ids = itertools.count()
 
@@ -58,15 +58,10 @@ transmits = "the kitchen watcher's reports of moved things"
 
 
 @pytest.fixture(autouse=True)
-def languages_restored() -> Iterator[None]:
-    """The codec's registry as it was before the test (a test's terms leave with it)."""
-    load_all()
-    languages, by_type = dict(base.LANGUAGES), dict(base._BY_TYPE)
-    yield
-    base.LANGUAGES.clear()
-    base.LANGUAGES.update(languages)
-    base._BY_TYPE.clear()
-    base._BY_TYPE.update(by_type)
+def registry_restored() -> Iterator[None]:
+    """The codec's registry as it was before the test (a test's languages leave with it)."""
+    with languages_restored():
+        yield
 
 
 Spec = Callable[..., Path]

@@ -15,7 +15,8 @@ import msgspec
 import pytest
 
 from services.spec.model import SpecError, load
-from shared.fipa_codec.languages import ContentError, base, decode_content, encode_content, load_all
+from shared.fipa_codec.languages import ContentError, decode_content, encode_content, load_all
+from tests.support.codec_registry import languages_restored
 
 _ids = itertools.count()
 
@@ -132,15 +133,10 @@ terms = ["{package}.terms:Jam"]
 
 
 @pytest.fixture(autouse=True)
-def languages_restored() -> Iterator[None]:
+def registry_restored() -> Iterator[None]:
     """The codec's registry as it was before the test (a test's languages leave with it)."""
-    load_all()
-    languages, by_type = dict(base.LANGUAGES), dict(base._BY_TYPE)
-    yield
-    base.LANGUAGES.clear()
-    base.LANGUAGES.update(languages)
-    base._BY_TYPE.clear()
-    base._BY_TYPE.update(by_type)
+    with languages_restored():
+        yield
 
 
 Spec = Callable[..., Path]
