@@ -46,11 +46,12 @@ id = "R1"
 parent = "R"
 text = "take a person's request, have it done and tell the outcome"
 [[requirements.properties]]
-text = "a task is agreed to and done, in reply to it"
+text = "a task agreed to is done, in reply to it, and never failed (a failure is flagged live)"
 exercised = 2
 steps = [
   {{ name = "task", channel = "C1", protocol = "fipa-request", performative = "request", content = "Task" }},
   {{ channel = "C1", protocol = "fipa-request", performative = "agree", answers = "task" }},
+  {failure_step},
   {done_step},
 ]
 
@@ -248,6 +249,8 @@ def files_of(name: str) -> dict[str, str]:
         "title": title,
         "language": language,
         "languages": ", ".join(f'{p} = "{language}"' for p in performatives),
+        "failure_step": '{ absent = true, channel = "C1", protocol = "fipa-request", '
+        'performative = "failure", same_conversation = "task" }',
         "done_step": '{ channel = "C1", protocol = "fipa-request", performative = "inform", '
         'content = "Done", same_conversation = "task" }',
     }
