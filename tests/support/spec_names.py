@@ -16,6 +16,7 @@ import pytest
 from services.spec.model import SystemSpec
 from services.spec.render_names import render
 
+
 def use_names(spec: SystemSpec, monkeypatch: pytest.MonkeyPatch) -> ModuleType:
     """Make ``import`` of ``spec``'s names module (``SystemSpec.names_module``: the one an agent
     ``roco spec new-agent`` writes imports) give the module rendered from ``spec`` until the test
