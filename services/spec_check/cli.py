@@ -147,8 +147,13 @@ def spec_what_if(
     ] = None,
     rtt: Annotated[str | None, typer.Option(help="the round-trip time of each link: 20ms, 0.5s")] = None,
     recorder_with: Annotated[
-        str, typer.Option(help="the agent whose host carries the traffic recorder, or none")
-    ] = "a_hi",
+        str | None,
+        typer.Option(
+            help="the agent whose host carries the traffic recorder, or none "
+            "[default: the agent that plays the person (a_hi), else none]",
+            show_default=False,
+        ),
+    ] = None,
     spec: SpecFile = None,
 ) -> None:
     """From a run's record, what a placement of the agents would put on each link between
@@ -157,16 +162,17 @@ def spec_what_if(
     RTT would break; or what merged agents take off Zenoh (docs/spec.md). Exit 1 when a
     deadline breaks at --rtt; exit 2 for an option that does not read or a folder that is not
     a run folder."""
-    from services.spec.model import SpecError
-    from services.spec_check.placement import PlacementError
+    from services.spec.model import SpecError, load
+    from services.spec_check.placement import NO_RECORDER, PlacementError
     from services.spec_check.whatif_text import what_if_report
 
     try:
         run = run_folder(run_dir)
+        path = _run_spec(spec, [run])
+        beside = recorder_with or load(path).playing("person") or NO_RECORDER
         ok, text = what_if_report(
-            run, hosts=hosts, merges=merge or (), rtt=rtt, recorder_with=recorder_with,
-            spec_path=_run_spec(spec, [run]),
-        )  # fmt: skip
+            run, hosts=hosts, merges=merge or (), rtt=rtt, recorder_with=beside, spec_path=path
+        )
     except (PlacementError, SpecError) as exc:
         raise fail(str(exc), code=2) from None
     typer.echo(text)
