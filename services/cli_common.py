@@ -24,6 +24,8 @@ from shared.settings import ROUTER_PORT, Settings
 if TYPE_CHECKING:
     import zenoh
 
+    from services.spec.model import SystemSpec
+
 MARKUP: Literal["markdown"] = "markdown"
 """Help texts are Markdown (typer's ``rich_markup_mode``): `code`, lists, indented examples."""
 INTERRUPTED = 130
@@ -161,14 +163,14 @@ def chosen_spec(given: Path | None, run_dir: Path | None = None) -> Path:
     return path
 
 
-def fleet_agents(given: Path | None, runs_dir: Path, router: str | None) -> tuple[str, ...]:
-    """The agents, in launch order, of the specification ``given`` (``--spec``), else of the
-    fleet ``roco up`` keeps in ``runs_dir`` (unless a ``router`` is named: then not that
-    fleet's), else the shipped one. Raises :class:`typer.Exit` as :func:`chosen_spec` does."""
+def fleet_system(given: Path | None, runs_dir: Path, router: str | None) -> SystemSpec:
+    """The specification ``given`` (``--spec``), else that of the fleet ``roco up`` keeps in
+    ``runs_dir`` (unless a ``router`` is named: then not that fleet's), else the shipped one,
+    loaded. Raises :class:`typer.Exit` as :func:`chosen_spec` does."""
     from services.spec.model import load
 
     state = fleet_state(runs_dir) if router is None else None
-    return load(chosen_spec(given, Path(state.run_dir) if state is not None else None)).launch_order
+    return load(chosen_spec(given, Path(state.run_dir) if state is not None else None))
 
 
 CheckOnly = Annotated[

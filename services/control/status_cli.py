@@ -14,8 +14,8 @@ from services.cli_common import (
     RouterOption,
     SpecFile,
     endpoint_of,
-    fleet_agents,
     fleet_state,
+    fleet_system,
     operator_session,
 )
 from services.runtime.session import alive_agents
@@ -87,7 +87,7 @@ def status(
     from services.runtime.refusals import RefusalReport, collect_reports
     from services.runtime.refusals import summary as refusal_summary
 
-    agents = fleet_agents(spec, runs_dir, router)
+    agents = fleet_system(spec, runs_dir, router).launch_order
     endpoint = endpoint_of(router, runs_dir)
     session = operator_session(endpoint, credentials, None if router else runs_dir)
     refusals: list[RefusalReport] = []

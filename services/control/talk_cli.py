@@ -19,6 +19,7 @@ from services.cli_common import (
     SpecFile,
     endpoint_of,
     fail,
+    fleet_system,
     operator_session,
 )
 from services.runtime import keys
@@ -32,20 +33,6 @@ talk_app = typer.Typer()
 def _show_notice(report: HumanReport) -> None:
     """What an agent told the person (a_hi's ``notice`` report), one line naming who said it."""
     typer.echo(report.notice_line)
-
-
-def person_agent(given: Path | None, runs_dir: Path | None) -> str:
-    """The agent that plays the person's role in the specification ``given``, else the fleet's
-    in ``runs_dir``, else the shipped one (a_hi); exit 2 with one line when none plays it."""
-    from services.cli_common import chosen_spec, fleet_state
-    from services.spec.model import load
-
-    state = fleet_state(runs_dir) if runs_dir is not None else None
-    system = load(chosen_spec(given, Path(state.run_dir) if state is not None else None))
-    interface = system.playing("person")
-    if interface is None:
-        raise fail(f'no agent of {system.system} plays the person\'s role (role = "person")', code=2)
-    return interface
 
 
 @talk_app.command(short_help="Give a running fleet a command and wait for its outcome.")
@@ -67,7 +54,10 @@ def send(
     while this session was cut off from it (the router restarted) come when it is back, each
     shown once; after 10 s without one, the agent is asked for the outcome, which a_hi keeps
     across its restarts (services/runtime/reports.py)."""
-    interface = person_agent(spec, runs_dir if router is None else None)
+    system = fleet_system(spec, runs_dir, router)
+    interface = system.playing("person")
+    if interface is None:
+        raise fail(f'no agent of {system.system} plays the person\'s role (role = "person")', code=2)
     endpoint = endpoint_of(router, runs_dir)
     session = operator_session(endpoint, credentials, None if router else runs_dir)
     reports: queue.SimpleQueue[HumanReport] = queue.SimpleQueue()

@@ -25,7 +25,7 @@ from typing import Annotated
 import typer
 
 from services.cli_common import MARKUP, CheckOnly, SpecFile, fail, file_option, shown
-from services.spec.model import DEFAULT_SPEC, SpecError, SystemSpec, load
+from services.spec.model import DEFAULT_SPEC, SpecError, SystemSpec, load, system_root
 
 deploy_app = typer.Typer(
     add_completion=False,
@@ -235,7 +235,7 @@ def spec_new_agent(
     path = spec or DEFAULT_SPEC
     try:
         system = load(path)
-        home = root or render_names.system_root(path)
+        home = root or system_root(path)
         files = [(COMPOSE, home / COMPOSE.relative), (netfault.NETFAULT, home / netfault.NETFAULT.relative)]
         for generated, at in files:  # what cannot be rendered is refused before anything is written
             if at.is_file():

@@ -46,7 +46,7 @@ from services.report.timeline import (
 )
 from services.runtime.refusals import REFUSALS_JSONL, read_refusals
 from services.runtime.run_folder import spec_for_run
-from services.spec.model import SpecError, SystemSpec, load, spec_path
+from services.spec.model import SpecError, SystemSpec, load
 from services.spec.notices import notice_protocols
 from shared.fipa_codec.languages.l_hc import CommandOutcome
 from velma.executor.capture import PERCEPTION_LOG as PERCEPTION_JSONL
@@ -87,10 +87,12 @@ def _assemble(run: RunData, container: str = "bowl", tracer: Tracer | None = Non
     system = _system(Path(run.run_dir), notes)
     if system is not None and system.system != paper.SYSTEM:
         return _as_system(run, system, tracer, notes)
-    return _as_robot_companion(run, container, tracer, notes)
+    return _as_robot_companion(run, container, tracer, notes, system)
 
 
-def _as_robot_companion(run: RunData, container: str, tracer: Tracer | None, notes: list[str]) -> Report:
+def _as_robot_companion(
+    run: RunData, container: str, tracer: Tracer | None, notes: list[str], system: SystemSpec | None
+) -> Report:
     """The report of a run of the paper's Robot Companion (:func:`_assemble`), compared with
     the paper, with the kitchen's sections."""
     run_dir = run.run_dir
@@ -139,7 +141,7 @@ def _as_robot_companion(run: RunData, container: str, tracer: Tracer | None, not
         perception=_perception(Path(run_dir), notes),
         requirements=_requirements(run, tracer, notes),
         flags=_flags(Path(run_dir), notes),
-        notices=notice_rows(messages, _notice_protocols(notes)),
+        notices=notice_rows(messages, notice_protocols(system) if system is not None else frozenset()),
     )
 
 
@@ -188,17 +190,6 @@ def _ledger(run_dir: Path, messages: list[Message], notes: list[str]) -> str:
         notes.append(f"ag_ex's ledger unreadable: {exc}")
         return ""
     return v.summary() if v.found or not v.ok else ""
-
-
-def _notice_protocols(notes: list[str]) -> frozenset[str]:
-    """The notice protocols of the specification ``ROCO_SPEC`` names (services/spec/notices.py);
-    none, with a note, when it does not load (the notices are then the informs carrying an
-    L_HC ``Notice``)."""
-    try:
-        return notice_protocols(load(spec_path()))
-    except SpecError as exc:
-        notes.append(f"notice protocols not read ({exc}): the notices are the informs carrying a Notice")
-        return frozenset()
 
 
 def _flags(run_dir: Path, notes: list[str]) -> list[LiveFlag]:

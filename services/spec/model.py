@@ -363,6 +363,14 @@ def load(path: Path = DEFAULT_SPEC) -> SystemSpec:
     return spec
 
 
+def system_root(path: Path) -> Path:
+    """The folder the packages of the system specified by ``path`` start in: roco's checkout
+    for the shipped specification, else the specification's own folder (a system is a
+    specification plus a package beside it: ``cell.toml`` and ``cell/``)."""
+    shipped = path.resolve() == DEFAULT_SPEC.resolve()
+    return DEFAULT_SPEC.resolve().parents[2] if shipped else path.resolve().parent
+
+
 def system_package_importable(path: Path) -> None:
     """Make the system's package beside the specification ``path`` importable: its folder is
     appended to ``sys.path`` (after roco's own packages: a package there never replaces one of
@@ -371,7 +379,7 @@ def system_package_importable(path: Path) -> None:
     (``implementation``) and terms modules import in every process that loads it."""
     if path.resolve() == DEFAULT_SPEC.resolve():
         return
-    folder = str(path.resolve().parent)
+    folder = str(system_root(path))
     if folder not in sys.path:
         sys.path.append(folder)
         importlib.invalidate_caches()

@@ -23,27 +23,16 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from services.spec.generated import GeneratedFile
-from services.spec.model import ProtocolRoles, SpecError, SystemSpec
+from services.spec.model import ProtocolRoles, SpecError, SystemSpec, system_root
 from shared.fipa_codec.protocols import PROTOCOLS
 
 NAMES_FILE = Path(__file__).with_name("names.py")
 """The project's generated names module."""
 
 
-def system_root(spec_path: Path) -> Path:
-    """The folder a system's packages start in: this checkout for the shipped specification,
-    else the specification's own folder (a system is a specification plus a package beside it:
-    services/spec/model.py ``system_package_importable``)."""
-    from services.spec.model import DEFAULT_SPEC
-
-    return (
-        NAMES_FILE.parents[2] if spec_path.resolve() == DEFAULT_SPEC.resolve() else spec_path.resolve().parent
-    )
-
-
 def names_file(spec_path: Path, spec: SystemSpec) -> Path:
     """The file of the names module of the system ``spec`` loaded from ``spec_path``
-    (``SystemSpec.names_module`` under :func:`system_root`): services/spec/names.py for the
+    (``SystemSpec.names_module`` under services/spec/model.py ``system_root``): services/spec/names.py for the
     shipped one, ``cell/names.py`` beside ``cell.toml`` for a system whose agents are ``cell.…``."""
     return system_root(spec_path).joinpath(*spec.names_module.split(".")).with_suffix(".py")
 

@@ -43,7 +43,7 @@ from services.report.load import Message, RunData, load_run
 from services.report.model import RequirementRow
 from services.runtime.run_folder import spec_for_run
 from services.spec.decomposition import Decomposition, Requirement, load_decomposition
-from services.spec.model import SpecError, SystemSpec, load
+from services.spec.model import SpecError, SystemSpec, load, system_root
 from services.spec.protocol_defs import protocols_of
 from services.spec.requirements import Served, children, evidence_problems, leaves, properties_of, served
 from services.spec_check.conformance import verify_run
@@ -239,11 +239,10 @@ def load_spec(spec_path: Path) -> tuple[Decomposition, SystemSpec, dict[str, Pro
 
 
 def tests_beside(spec_path: Path) -> Path:
-    """The tests of the system ``spec_path`` specifies: roco's ``tests/`` for the shipped
-    specification, else the ``tests/`` folder beside the specification."""
-    from services.spec.model import DEFAULT_SPEC
-
-    return TESTS if spec_path.resolve() == DEFAULT_SPEC.resolve() else spec_path.resolve().parent / "tests"
+    """The tests of the system ``spec_path`` specifies: ``tests/`` in its root
+    (services/spec/model.py ``system_root``): roco's for the shipped specification, else the
+    folder beside the specification."""
+    return system_root(spec_path) / "tests"
 
 
 def trace(spec_path: Path, run_dirs: Sequence[Path], tests: Path | None = TESTS) -> Trace:
