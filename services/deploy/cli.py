@@ -10,7 +10,9 @@
     roco deploy acl [--tls/--no-tls]                    print the ACL the specification gives
     roco deploy table [--full]                          who may send what where (Markdown)
     roco deploy compose [--check] [--file F]            deploy/compose.yaml from the specification,
-                                                        and compose.netfault.yaml beside it
+                                                        and compose.netfault.yaml beside it (another
+                                                        system's: in its folder, services/deploy/
+                                                        layout.py)
 
 Bad input: one line starting with ``roco:``, exit 2.
 """
@@ -20,12 +22,16 @@ from __future__ import annotations
 import json
 import os
 from pathlib import Path
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated
 
 import typer
 
-from services.cli_common import MARKUP, CheckOnly, SpecFile, fail, file_option, shown
+from services.cli_common import MARKUP, CheckOnly, SpecFile, fail, shown
 from services.spec.model import DEFAULT_SPEC, SpecError, SystemSpec, load, system_root
+
+if TYPE_CHECKING:
+    from services.deploy.layout import Layout
+    from services.spec.generated import GeneratedFile
 
 deploy_app = typer.Typer(
     add_completion=False,
@@ -52,15 +58,17 @@ def certs(
 ) -> None:
     """Issue a deployment's credentials: CA, router certificate, identities, passwords, ACL.
 
-    A folder it cannot write (e.g. the compose ``certs`` service's, not its user's): one
-    ``roco:`` line, exit 1."""
-    from services.deploy.deploy import prepare
-    from services.security.certs import ACL_FILE, identities
+    The identities are the specification's (--spec, ROCO_SPEC): one per agent, the recorder's
+    and the operator's. With --keep and a folder that lacks some of them (revoked, or another
+    system's), it says which and leaves the folder as it is. A folder it cannot write (e.g.
+    the compose ``certs`` service's, not its user's): one ``roco:`` line, exit 1."""
+    from services.deploy.deploy import kept_line, prepare
+    from services.security.certs import ACL_FILE
 
-    if keep and (out / ACL_FILE).is_file():
-        typer.echo(f"roco: kept the credentials in {out} ({', '.join(identities(out))})")
-        return
     system = _spec(spec)
+    if keep and (out / ACL_FILE).is_file():
+        typer.echo(f"roco: {kept_line(out, system)}")
+        return
     try:
         names = prepare(out, system, tls=tls, days=days)
     except OSError as exc:
@@ -157,39 +165,73 @@ def table(
     typer.echo((markdown_table if full else channel_table)(_spec(spec)), nl=False)
 
 
+ComposeFileOption = Annotated[
+    Path | None,
+    typer.Option(
+        "--file",
+        help="the compose file [default: deploy/compose.yaml of the system's folder: this checkout's for "
+        "roco's kitchen]",
+        show_default=False,
+    ),
+]
+
+
 @deploy_app.command(short_help="Write deploy/compose.yaml from the specification, or check it.")
-def compose(
-    check: CheckOnly = False,
-    file: Annotated[Path | None, file_option("compose file", "deploy/compose.yaml")] = None,
-    spec: SpecFile = None,
-) -> None:
+def compose(check: CheckOnly = False, file: ComposeFileOption = None, spec: SpecFile = None) -> None:
     """Write the compose file the specification gives: one service per agent (in its start
     order, the last one waiting for every other), beside the router, the recorder, the viewer
-    and the one-shot certs service (services/deploy/compose.py); and beside it the override
-    compose.netfault.yaml that grants NET_ADMIN for `roco fault net` (services/deploy/
-    netfault.py). With --check, write nothing: exit 0 when both files are what the
-    specification gives, 1 (one line saying how the first that differs does) when not."""
-    from services.deploy import netfault
-    from services.deploy.compose import COMPOSE_FILE, ComposeError, hardware, write
-    from services.deploy.compose import check as check_file
+    and the one-shot certs service, which issues the specification's identities
+    (services/deploy/compose.py); and beside it the override compose.netfault.yaml that grants
+    NET_ADMIN for `roco fault net` (services/deploy/netfault.py). For a system that is not
+    roco's kitchen, the file runs roco's images as they are, with the system's folder mounted
+    read-only and ROCO_SPEC naming its specification (services/deploy/layout.py). With
+    --check, write nothing: exit 0 when both files are what the specification gives (naming
+    the identities), 1 (one line saying how the first that differs does) when not."""
+    from services.deploy.compose import COMPOSE_FILE, ComposeError, compose_for
+    from services.deploy.layout import LayoutError, default_file, layout_for
 
-    path = file or COMPOSE_FILE
-    override = netfault.beside(path)
+    spec_file = spec or DEFAULT_SPEC
     system = _spec(spec)
+    path = file or default_file(spec_file, COMPOSE_FILE)
     try:
+        layout = layout_for(spec_file, path)
+        generated = compose_for(layout, f"roco deploy compose --spec {spec_file} --file {shown(path)}")
         if check:
-            problem = check_file(path, system, shown(path)) or netfault.check(
-                override, system, shown(override)
-            )
-            if problem is not None:
-                raise fail(problem)
-            typer.echo(f"roco: {shown(path)} is what the specification gives")
-            typer.echo(f"roco: {shown(override)} is what the specification gives")
-            return
-        changed = write(path, system)
-        override_changed = netfault.write(override, system)
-    except ComposeError as exc:
+            _check_compose(generated, path, system, layout)
+        else:
+            _write_compose(generated, path, system)
+    except (ComposeError, LayoutError) as exc:
         raise fail(str(exc), code=2) from None
+
+
+def _check_compose(generated: GeneratedFile, path: Path, system: SystemSpec, layout: Layout) -> None:
+    """``roco deploy compose --check``: one line per file when both are what ``system`` gives in
+    ``layout``; else raises :class:`typer.Exit` (1) after the line saying how the first
+    differs. Raises ComposeError as ``GeneratedFile.check``."""
+    from services.deploy import netfault
+    from services.deploy.compose import described
+
+    override = netfault.beside(path)
+    problem = generated.check(path, system, shown(path)) or netfault.check(override, system, shown(override))
+    if problem is not None:
+        raise fail(problem)
+    typer.echo(f"roco: {shown(path)} is what the specification gives ({described(system, layout)})")
+    typer.echo(f"roco: {shown(override)} is what the specification gives")
+
+
+def _write_compose(generated: GeneratedFile, path: Path, system: SystemSpec) -> None:
+    """``roco deploy compose``: write both files (the folder made when missing), saying what
+    each holds. Raises ComposeError when a file cannot be written or ``system`` rendered."""
+    from services.deploy import netfault
+    from services.deploy.compose import ComposeError, hardware
+
+    override = netfault.beside(path)
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise ComposeError(f"{path.parent}: cannot make the folder: {exc.strerror or exc}") from None
+    changed = generated.write(path, system)
+    override_changed = netfault.write(override, system)
     agents = ", ".join(system.launch_order)
     if changed:
         others = ", ".join(["router", "recorder", "viewer", *hardware(system)])
@@ -228,7 +270,8 @@ def spec_new_agent(
     agent"). Exit 1, nothing written, when the file exists, the specification has no such
     agent, or a file cannot be rendered."""
     from services.deploy import netfault
-    from services.deploy.compose import COMPOSE, ComposeError
+    from services.deploy.compose import COMPOSE, ComposeError, compose_for
+    from services.deploy.layout import KITCHEN, LayoutError, layout_for
     from services.spec import render_names
     from services.spec_check.new_agent import write_agent
 
@@ -236,7 +279,9 @@ def spec_new_agent(
     try:
         system = load(path)
         home = root or system_root(path)
-        files = [(COMPOSE, home / COMPOSE.relative), (netfault.NETFAULT, home / netfault.NETFAULT.relative)]
+        compose_at = home / COMPOSE.relative  # a checkout's (--root): the kitchen's layout, else the system's
+        compose_file = compose_for(KITCHEN if root is not None else layout_for(path, compose_at))
+        files = [(compose_file, compose_at), (netfault.NETFAULT, home / netfault.NETFAULT.relative)]
         for generated, at in files:  # what cannot be rendered is refused before anything is written
             if at.is_file():
                 generated.render(system)
@@ -246,7 +291,7 @@ def spec_new_agent(
         typer.echo(f"roco: {render_names.NAMES.bring_up_to_date_at(names, system)}")
         for generated, at in files:
             typer.echo(f"roco: {generated.bring_up_to_date_at(at, system)}")
-    except (SpecError, FileExistsError, ComposeError) as exc:
+    except (SpecError, FileExistsError, ComposeError, LayoutError) as exc:
         raise fail(str(exc)) from None
     timer = f" and what {scaffold.timer} opens" if scaffold.timer else ""
     typer.echo(f"roco: fill in {', '.join(scaffold.handlers)}{timer}; then: roco spec verify-code")

@@ -3,8 +3,8 @@
 The file runs the fleet in containers: the one-shot ``certs`` service, the Zenoh router, the
 traffic recorder, one service per agent of the specification, the ``world`` (the simulated
 kitchen, when an agent drives it) and a Rerun web viewer, from the images of deploy/Dockerfile
-(:data:`IMAGES`: the runtime image for most, the robot image for ag_ex, the viewer image for
-the viewer and the recorder). The services
+(:data:`IMAGES`: the runtime image for most, the robot image for the agent that plays the
+robot, ag_ex, the viewer image for the viewer and the recorder). The services
 that are not agents, the shared settings (the ``x-roco`` and ``x-env`` anchors) and the
 file's comments are this module's text; the agents' services follow from the specification:
 
@@ -14,13 +14,24 @@ file's comments are this module's text; the agents' services follow from the spe
   it writes :data:`READY_FILE`, which the check reads);
 - the agent the specification's ``start_order`` names last (a_hi: a person's command is taken
   once the others are there) waits until every other agent is healthy;
-- what an agent's container needs beyond that is stated here, once, in :data:`AGENT_EXTRAS`:
-  its image when not the runtime one (ag_ex's: the robot image, with Mesa for the head
-  camera), a named volume for what it keeps across restarts (a_km's knowledge, a_co's accepted
-  commands), Linux capabilities (none has one now: the services are not root) and the robot's hardware
-  it drives (ag_ex's: the ``world`` service, the simulated kitchen of velma/world/, whose
-  shared memory and processes its container shares, so that the robot link between them works
-  and neither takes the other's link for an orphan).
+- what an agent's container needs beyond that is stated here, once, in :data:`AGENT_EXTRAS`
+  and :data:`ROBOT_EXTRAS` (:func:`agent_extras`): its image when not the runtime one (the
+  robot's, ag_ex: the robot image, with Mesa for the head camera), a named volume for what it
+  keeps across restarts (a_km's knowledge, a_co's accepted commands), Linux capabilities (none
+  has one now: the services are not root) and the robot's hardware it drives (the robot's:
+  the ``world`` service, the simulated kitchen of velma/world/, whose shared memory and
+  processes its container shares, so that the robot link between them works and neither
+  takes the other's link for an orphan). A system without a robot has no world and no robot
+  image.
+
+Where the file finds the system and the host's folders is its :class:`~services.deploy.layout.
+Layout`: the kitchen's file (:data:`~services.deploy.layout.KITCHEN`) builds the images from
+roco's checkout; another system's runs them as they are, mounts the system's folder
+read-only in every roco service, sets ``ROCO_SPEC`` to its specification there (in ``x-env``
+and in ``certs``, which so issues that system's identities) and opens with
+:data:`SYSTEM_COMMENT` (services/deploy/layout.py). ``--check`` names the difference it can:
+an agent's service, an identity's mount, the system's folder, ``ROCO_SPEC``
+(:func:`named_difference`).
 
 Least privilege for the credentials (:func:`credentials`): only ``certs`` mounts the whole
 folder (it issues; the CA's key is there); an agent or the recorder mounts the CA's certificate
@@ -48,10 +59,11 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
+from services.deploy.layout import KITCHEN, SPEC_VARIABLE, SYSTEM_IN, Layout, project_name
 from services.security.folder import ACL_FILE, CA_CERT, PASSWORDS, ROUTER
 from services.spec.generated import GeneratedFile
 from services.spec.model import SystemSpec, asked
-from services.spec_check.acl import RECORDER
+from services.spec_check.acl import RECORDER, identities
 from shared.settings import Settings, deployment_name
 from velma.world.mode import WORLD_SERVICE
 
@@ -65,14 +77,12 @@ COMPOSE_FILE = PROJECT / IN_CHECKOUT
 MAX_COMPOSE_BYTES = 1 << 20
 """Largest compose file :func:`check` reads (1 MiB; the rendered file is ≈ 10 kB)."""
 
-MOUNTS = (
-    "${ROCO_RUNS:-../runs}:/runs",
-    "fleet:/var/lib/roco/fleet",
-)
-"""What every roco service mounts: the run folders and the fleet's run name."""
+MOUNTS = tuple(KITCHEN.mounts())
+"""What every roco service of the kitchen mounts: the run folders and the fleet's run name
+(another system's: its folder too, services/deploy/layout.py)."""
 
-CERTS_HOST = "${ROCO_CERTS:-./certs}"
-"""The credentials folder on the host (services/security/certs.py lays it out)."""
+CERTS_HOST = KITCHEN.certs_host
+"""The kitchen's credentials folder on the host (services/security/certs.py lays it out)."""
 CERTS_IN = "/certs"
 """Where a service finds its credentials (``ROCO_SECURITY``): the folder's layout, with only
 the files the service needs."""
@@ -80,26 +90,33 @@ MESH_IDENTITY = Settings.env_name("router_identity")
 """The variable naming a meshed router's identity (``router_<host>``, docs/deploy.md)."""
 
 
-def credentials(*entries: str) -> list[str]:
-    """Read-only mounts of ``entries`` (files or identity folders) of the credentials folder,
-    each at its own place below :data:`CERTS_IN`."""
-    return [f"{CERTS_HOST}/{e}:{CERTS_IN}/{e}:ro" for e in entries]
+def credentials(*entries: str, host: str = CERTS_HOST) -> list[str]:
+    """Read-only mounts of ``entries`` (files or identity folders) of the credentials folder
+    ``host`` (as the file names it), each at its own place below :data:`CERTS_IN`."""
+    return [f"{host}/{e}:{CERTS_IN}/{e}:ro" for e in entries]
 
 
-def identity_mounts(name: str) -> list[str]:
-    """What identity ``name``'s service mounts of the credentials folder: the CA's certificate
-    and ``name``'s own folder (certificate, key, password); no other key, no password table."""
-    return credentials(CA_CERT, name)
+def identity_mounts(name: str, host: str = CERTS_HOST) -> list[str]:
+    """What identity ``name``'s service mounts of the credentials folder ``host``: the CA's
+    certificate and ``name``'s own folder (certificate, key, password); no other key, no
+    password table."""
+    return credentials(CA_CERT, name, host=host)
 
 
-ROUTER_MOUNTS = [
-    *credentials(CA_CERT, f"{ROUTER}.pem", f"{ROUTER}.key", PASSWORDS, ACL_FILE),
-    # a meshed router's own identity folder; unset, the CA's certificate (public) at a path
-    # nothing reads: compose 1.29 has no conditional mount
-    f"{CERTS_HOST}/${{{MESH_IDENTITY}:-{CA_CERT}}}:{CERTS_IN}/${{{MESH_IDENTITY}:-unused-{CA_CERT}}}:ro",
-]
-"""What the router mounts of the credentials folder: the CA's certificate, its own certificate
-and key, the password table it checks, its ACL and, on a host of a mesh, its identity."""
+def router_mounts(host: str = CERTS_HOST) -> list[str]:
+    """What the router mounts of the credentials folder ``host``: the CA's certificate, its own
+    certificate and key, the password table it checks, its ACL and, on a host of a mesh, its
+    identity."""
+    return [
+        *credentials(CA_CERT, f"{ROUTER}.pem", f"{ROUTER}.key", PASSWORDS, ACL_FILE, host=host),
+        # a meshed router's own identity folder; unset, the CA's certificate (public) at a path
+        # nothing reads: compose 1.29 has no conditional mount
+        f"{host}/${{{MESH_IDENTITY}:-{CA_CERT}}}:{CERTS_IN}/${{{MESH_IDENTITY}:-unused-{CA_CERT}}}:ro",
+    ]
+
+
+ROUTER_MOUNTS = router_mounts()
+"""The kitchen's router's mounts of the credentials folder (:func:`router_mounts`)."""
 
 READY_FILE = "/tmp/roco.ready"
 """Where a roco service writes that it is ready (``ROCO_READY_FILE``, shared/ready_file.py): in
@@ -235,18 +252,30 @@ class AgentExtras:
 AGENT_EXTRAS: dict[str, AgentExtras] = {
     "a_km": AgentExtras(state=StateVolume("km_store", "/var/lib/roco/km", (Settings.env_name("km_store"),))),
     "a_co": AgentExtras(state=StateVolume("co_state", "/var/lib/roco/co", (Settings.env_name("state_dir"),))),
-    "ag_ex": AgentExtras(
-        hardware=WORLD_SERVICE,
-        image="robot",
-        why=(
-            "the 1 kHz loop asks for SCHED_FIFO, which its user (not root) is refused here: it runs",
-            "on with normal scheduling and says so in its log and report (velma/executor/timing.py;",
-            "docs/deploy.md: an override that grants it)",
-        ),
-    ),
 }
-"""Per agent, what its container needs beyond every agent's (an agent not named needs
-nothing more: its kept state, services/runtime/state_store.py, goes to the run folder)."""
+"""Per agent of the kitchen, what its container needs beyond every agent's (an agent not named
+needs nothing more: its kept state, services/runtime/state_store.py, goes to the run folder)."""
+
+ROBOT_EXTRAS = AgentExtras(
+    hardware=WORLD_SERVICE,
+    image="robot",
+    why=(
+        "the 1 kHz loop asks for SCHED_FIFO, which its user (not root) is refused here: it runs",
+        "on with normal scheduling and says so in its log and report (velma/executor/timing.py;",
+        "docs/deploy.md: an override that grants it)",
+    ),
+)
+"""What the agent that plays the robot (``role = "robot"``: ag_ex) needs: the robot image and
+the ``world`` it drives. A system without a robot has neither."""
+
+
+def agent_extras(spec: SystemSpec, name: str) -> AgentExtras:
+    """What agent ``name`` of ``spec`` needs beyond every agent's: :data:`ROBOT_EXTRAS` when it
+    plays the robot, else :data:`AGENT_EXTRAS`' (none when it names no such agent)."""
+    if name == spec.playing("robot"):
+        return ROBOT_EXTRAS
+    return AGENT_EXTRAS.get(name, AgentExtras())
+
 
 _SERVICE = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.-]*")
 """A compose service name (the Compose Specification's ``[a-zA-Z0-9._-]``)."""
@@ -254,7 +283,7 @@ _PLAIN = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
 _YAML_WORDS = frozenset({"y", "n", "yes", "no", "on", "off", "true", "false", "null"})
 """Plain YAML 1.1 scalars that are not strings (docker-compose 1.29 reads YAML 1.1)."""
 
-HEAD = """\
+COMMENT = """\
 # The roco fleet in containers: the Zenoh router, the traffic recorder, the agents of the
 # specification, the simulated world ag_ex drives and a Rerun web viewer, from three images, the
 # targets of deploy/Dockerfile: runtime (ROCO_IMAGE) for most, robot (ROCO_ROBOT_IMAGE: with Mesa,
@@ -330,8 +359,11 @@ HEAD = """\
 # Debian's `docker-compose` 1.29 (depends_on conditions, healthchecks, init, cap_add, mem_limit,
 # cpus, pids_limit).
 
-x-roco: &roco
-  image: ${ROCO_IMAGE:-roco:latest}
+"""
+"""The file's opening comment for roco's kitchen (:data:`KITCHEN`; another system's:
+:data:`SYSTEM_COMMENT`)."""
+
+BUILD = """\
   build: &build
     context: ..
     dockerfile: deploy/Dockerfile
@@ -339,6 +371,14 @@ x-roco: &roco
     args:
       BASE: ${ROCO_BASE:-python:3.11-slim}
       BUILD_BASE: ${ROCO_BUILD_BASE:-python:3.11-slim}
+"""
+"""How the kitchen's file builds the runtime image: roco's checkout is the context (the other
+images' anchors build their targets from it too). Another system's file builds nothing."""
+
+BODY = """\
+x-roco: &roco
+  image: ${ROCO_IMAGE:-roco:latest}
+@BUILD
   # the image's user roco, or the owner of the host's folders (ROCO_RUNS, ROCO_CERTS)
   user: "${ROCO_UID:-@UID}:${ROCO_GID:-@UID}"
   init: true  # tini as PID 1: signals reach the service, zombies are reaped
@@ -373,6 +413,7 @@ x-env: &env
   ROCO_READY_FILE: @READY_FILE
   ROCO_RERUN: ${ROCO_RERUN:-1}
   ROCO_RERUN_CONNECT: ${ROCO_RERUN_CONNECT-rerun+http://viewer:9876/proxy}
+@SPEC_ENV
 
 x-after-router: &after-router
   certs:
@@ -387,8 +428,7 @@ services:
     <<: *roco
     restart: "no"
     command: ["python", "-m", "services.cli", "deploy", "certs", "/certs", "--keep"]
-    volumes:
-      - ${ROCO_CERTS:-./certs}:/certs
+@CERTS_SERVICE
 @LIMITS certs
     healthcheck:
       disable: true
@@ -433,6 +473,10 @@ services:
       test: @READY_TEST
 
 """
+"""The file from its anchors to the recorder's service, with marks (``@MOUNTS``, …) that
+:func:`_head` fills for the layout."""
+HEAD = COMMENT + BODY
+"""The kitchen's opening comment and the body."""
 
 AGENTS_COMMENT = "  # The agents of the specification, in its start order (services/deploy/compose.py).\n"
 
@@ -453,7 +497,7 @@ VIEWER = """\
     environment:
       RUST_LOG: warn
     volumes:
-      - ${ROCO_RUNS:-../runs}:/runs:ro
+      - @RUNS_HOST:/runs:ro
     ports:
       - ${ROCO_VIEWER_BIND:-127.0.0.1}:${ROCO_VIEWER_WEB_PORT:-9090}:9090
       - ${ROCO_VIEWER_BIND:-127.0.0.1}:${ROCO_VIEWER_GRPC_PORT:-9876}:9876
@@ -495,7 +539,7 @@ def _key(name: str) -> str:
     return json.dumps(name)
 
 
-def _environment(name: str, state: StateVolume | None) -> list[str]:
+def _environment(name: str, state: StateVolume | None, layout: Layout) -> list[str]:
     """Agent ``name``'s environment and volumes: every service's, its credentials and its kept
     state."""
     env = ["    environment: *env"]
@@ -506,7 +550,8 @@ def _environment(name: str, state: StateVolume | None) -> list[str]:
             *(f"      {var}: {state.path}/{{run}}" for var in state.variables),
         ]
     kept = [f"{state.volume}:{state.path}"] if state is not None else []
-    return [*env, "    volumes:", *_list([*MOUNTS, *identity_mounts(name), *kept])]
+    mounts = [*layout.mounts(), *identity_mounts(name, layout.certs_host), *kept]
+    return [*env, "    volumes:", *_list(mounts)]
 
 
 def _list(items: list[str]) -> list[str]:
@@ -548,16 +593,16 @@ def _shared_with_hardware(hardware: str | None) -> list[str]:
     ]
 
 
-def _agent(spec: SystemSpec, name: str) -> list[str]:
+def _agent(spec: SystemSpec, name: str, layout: Layout) -> list[str]:
     """The lines of agent ``name``'s service."""
-    extras = AGENT_EXTRAS.get(name, AgentExtras())
+    extras = agent_extras(spec, name)
     key = json.dumps(name)
     lines = [
         f"  {_key(name)}:",
         f"    <<: *{IMAGES[extras.image].anchor}",
         f'    command: ["python", "-m", "services.runtime.main", {key}]',
     ]
-    lines += _environment(name, extras.state)
+    lines += _environment(name, extras.state, layout)
     lines += _depends_on(spec, name, extras)
     lines += _shared_with_hardware(extras.hardware)
     lines += [f"    # {why}" for why in extras.why]
@@ -574,16 +619,24 @@ def _agent(spec: SystemSpec, name: str) -> list[str]:
 
 def hardware(spec: SystemSpec) -> list[str]:
     """The hardware services the agents of ``spec`` drive (:attr:`AgentExtras.hardware`)."""
-    named = (AGENT_EXTRAS[n].hardware for n in spec.launch_order if n in AGENT_EXTRAS)
+    named = (agent_extras(spec, n).hardware for n in spec.launch_order)
     return sorted({h for h in named if h is not None})
+
+
+def images(spec: SystemSpec) -> list[str]:
+    """The keys of :data:`IMAGES` the file of ``spec`` runs, in that order: the runtime and the
+    viewer image, and the robot image when an agent plays the robot."""
+    used = {"runtime", "viewer", *(agent_extras(spec, n).image for n in spec.launch_order)}
+    return [key for key in IMAGES if key in used]
 
 
 _LIMITS_MARK = re.compile(r"^@LIMITS (\S+)\n", re.M)
 
 
-def _fill(text: str) -> str:
+def _fill(text: str, layout: Layout = KITCHEN) -> str:
     """``text`` with the settings of this module in place of their marks (``@READY_TEST``, …;
-    a line ``@LIMITS SERVICE``: that service's :data:`LIMITS`)."""
+    a line ``@LIMITS SERVICE``: that service's :data:`LIMITS`; ``@RUNS_HOST``: the run folders
+    on the host in ``layout``)."""
     text = _LIMITS_MARK.sub(lambda m: "\n".join(limits(m.group(1)).lines()) + "\n", text)
     values = {
         "@UID": str(UID),
@@ -592,42 +645,120 @@ def _fill(text: str) -> str:
         "@LOG_SIZE": LOG_SIZE,
         "@LOG_FILES": str(LOG_FILES),
         "@ROUTER_LOG": ROUTER_LOG,
+        "@RUNS_HOST": layout.runs_host,
     }
     for mark, value in values.items():
         text = text.replace(mark, value)
     return text
 
 
-def _image_anchors() -> str:
-    """The anchors of the images but the runtime one (``x-roco``'s): each is ``x-roco`` with
-    its own image and build target."""
+def _image_anchors(spec: SystemSpec, layout: Layout) -> str:
+    """The anchors of the images but the runtime one (``x-roco``'s) that ``spec``'s file runs:
+    each is ``x-roco`` with its own image and, when ``layout`` builds, its build target."""
     text = ""
-    for image in IMAGES.values():
+    for image in (IMAGES[key] for key in images(spec)):
         if image.target == "runtime":
             continue
+        build = f"  build:\n    <<: *build\n    target: {image.target}\n" if layout.builds else ""
         text += (
             f"x-{image.anchor}: &{image.anchor}\n"
             "  <<: *roco\n"
             f"  image: ${{{image.variable}:-{image.default}}}\n"
-            "  build:\n"
-            "    <<: *build\n"
-            f"    target: {image.target}\n\n"
+            f"{build}\n"
         )
     return text
 
 
-def _head() -> str:
-    """:data:`HEAD` with its mounts (every service's, the router's and the recorder's) and
-    settings."""
+def _certs_service(layout: Layout) -> list[str]:
+    """The ``certs`` service's environment and volumes: the whole credentials folder and, for
+    another system, its folder and ``ROCO_SPEC``, whose identities it issues."""
+    if layout.system_mount is None:
+        return ["    volumes:", f"      - {layout.certs_host}:{CERTS_IN}"]
+    return [
+        "    environment:  # the specification whose identities it issues",
+        f"      {SPEC_VARIABLE}: {layout.spec_in}",
+        "    volumes:",
+        *_list([f"{layout.certs_host}:{CERTS_IN}", layout.system_mount]),
+    ]
+
+
+def _head(spec: SystemSpec, layout: Layout) -> str:
+    """:data:`COMMENT` (another system's: :func:`system_comment`) and :data:`BODY` with its
+    mounts (every service's, the router's and the recorder's), images and settings for
+    ``layout``."""
+    host = layout.certs_host
+    spec_env = [] if layout.system is None else [f"  {SPEC_VARIABLE}: {layout.spec_in}"]
     lines = {
-        "@MOUNTS": [f"    - {m}" for m in MOUNTS],
-        "@ROUTER_MOUNTS": _list([*MOUNTS, *ROUTER_MOUNTS]),
-        "@RECORDER_MOUNTS": _list([*MOUNTS, *identity_mounts(RECORDER)]),
+        "@BUILD": BUILD.splitlines() if layout.builds else [],
+        "@MOUNTS": [f"    - {m}" for m in layout.mounts()],
+        "@ROUTER_MOUNTS": _list([*layout.mounts(), *router_mounts(host)]),
+        "@RECORDER_MOUNTS": _list([*layout.mounts(), *identity_mounts(RECORDER, host)]),
+        "@SPEC_ENV": spec_env,
+        "@CERTS_SERVICE": _certs_service(layout),
     }
-    head = HEAD.replace("@IMAGES\n", _image_anchors())
+    body = BODY.replace("@IMAGES\n", _image_anchors(spec, layout))
     for mark, mounts in lines.items():
-        head = head.replace(mark + "\n", "\n".join(mounts) + "\n")
-    return _fill(head)
+        body = body.replace(mark + "\n", "".join(f"{line}\n" for line in mounts))
+    comment = COMMENT if layout.system is None else system_comment(spec, layout)
+    return _fill(comment + body, layout)
+
+
+SYSTEM_COMMENT = """\
+# The fleet of @TITLE in containers: the Zenoh router, the traffic recorder, the agents of the
+# specification and a Rerun web viewer, in roco's images, which this file does not build
+# (scripts/build_image.sh builds them in roco's checkout): ROCO_IMAGE (roco:latest) for most,
+# ROCO_VIEWER_IMAGE (roco-viewer:latest) for the viewer and the recorder.@ROBOT
+#   agents:      @AGENTS
+#   identities:  @IDENTITIES
+#
+# The system's folder, @SYSTEM (a path here is relative to this file's folder), is mounted
+# read-only at @SYSTEM_IN in every roco service, and ROCO_SPEC names the specification there
+# (@SPEC_IN): the agents import the system's package from it, and the one-shot service
+# `certs` issues the identities into ROCO_CERTS, @CERTS unless set: outside the system's
+# folder, which every service sees.
+#
+# Rendered by `roco deploy compose --spec @SPEC_FILE --file THIS_FILE` (in this file's folder)
+# from the specification and roco's services/deploy/compose.py: change those, not this file;
+# `roco deploy compose --check` with the same options says whether this file is what they give.
+#
+#   docker compose -f THIS_FILE -p @PROJECT up -d      (or docker-compose 1.29: same flags)
+#   roco status --spec @SPEC_FILE --router tls/127.0.0.1:7447 --credentials @CERTS
+#
+# Configured by environment (shell or .env) as roco's own deploy/compose.yaml is (docs/deploy.md);
+# ROCO_RUNS, the host folder of the run folders, is @RUNS unless set.
+
+"""
+"""Another system's opening comment (:func:`system_comment` fills its ``@MARKS``)."""
+
+_COMMENT_MARK = re.compile(r"@([A-Z_]+)")
+
+
+def system_comment(spec: SystemSpec, layout: Layout) -> str:
+    """:data:`SYSTEM_COMMENT` for ``spec`` in ``layout`` (another system's)."""
+    robot = spec.playing("robot")
+    image = IMAGES["robot"]
+    values = {
+        "TITLE": " ".join(spec.system.split()) or "the system",
+        "AGENTS": ", ".join(spec.launch_order),
+        "ROBOT": f"\n# {image.variable} ({image.default}) runs {robot}, the robot, beside its world."
+        if robot
+        else "",
+        "SYSTEM": str(layout.system),
+        "SYSTEM_IN": SYSTEM_IN,
+        "SPEC_IN": layout.spec_in,
+        "SPEC_FILE": f"{layout.system}/{layout.spec}",
+        "IDENTITIES": ", ".join(issued(spec)),
+        "CERTS": layout.certs,
+        "RUNS": layout.runs,
+        "PROJECT": project_name(Path(layout.spec)),
+    }
+    return _COMMENT_MARK.sub(lambda m: values[m.group(1)], SYSTEM_COMMENT)
+
+
+def issued(spec: SystemSpec) -> list[str]:
+    """The identities the ``certs`` service issues for ``spec`` (services/spec_check/acl.py
+    ``identities``: its agents', the recorder's, the operator's, …) and the router's."""
+    return [*identities(spec), ROUTER]
 
 
 def _check_readiness(spec: SystemSpec) -> None:
@@ -644,11 +775,9 @@ def _check_readiness(spec: SystemSpec) -> None:
             )
 
 
-def render(spec: SystemSpec) -> str:
-    """The compose file ``spec`` gives (see the module docstring). Raises ComposeError for an
-    agent whose name cannot be a compose service's, or is one of :data:`NOT_AGENTS`, and when
-    an agent asks the last started one (:func:`last_started`, which waits for it to be healthy:
-    neither would ever be)."""
+def _volumes(spec: SystemSpec) -> list[str]:
+    """The file's named volumes: the fleet's and each agent's kept state's. Raises ComposeError
+    for an agent whose name cannot be a compose service's, or is one of :data:`NOT_AGENTS`."""
     volumes = ["fleet"]
     for name in spec.launch_order:
         if not _SERVICE.fullmatch(name) or name in NOT_AGENTS:
@@ -656,32 +785,97 @@ def render(spec: SystemSpec) -> str:
                 f"agent {name!r} cannot be a compose service: a service's name is letters, digits, "
                 f"'.', '_' and '-', not {', '.join(NOT_AGENTS)}"
             )
-        state = AGENT_EXTRAS.get(name, AgentExtras()).state
+        state = agent_extras(spec, name).state
         if state is not None and state.volume not in volumes:
             volumes.append(state.volume)
+    return volumes
+
+
+def render(spec: SystemSpec, layout: Layout = KITCHEN) -> str:
+    """The compose file ``spec`` gives in ``layout`` (see the module docstring; the kitchen's:
+    deploy/compose.yaml). Raises ComposeError for an agent whose name cannot be a compose
+    service's, or is one of :data:`NOT_AGENTS`, and when an agent asks the last started one
+    (:func:`last_started`, which waits for it to be healthy: neither would ever be)."""
+    volumes = _volumes(spec)
     _check_readiness(spec)
-    head = _head()
-    agents = "\n".join("\n".join(_agent(spec, name)) + "\n" for name in spec.launch_order)
+    head = _head(spec, layout)
+    agents = "\n".join("\n".join(_agent(spec, name, layout)) + "\n" for name in spec.launch_order)
     agents = AGENTS_COMMENT + agents
     if WORLD_SERVICE in hardware(spec):
-        agents = _fill(WORLD) + "\n" + agents
+        agents = _fill(WORLD, layout) + "\n" + agents
     tail = "volumes:\n" + "".join(f"  {v}: {{}}\n" for v in volumes)
-    return f"{head}{agents}\n{_fill(VIEWER)}\n{tail}"
+    return f"{head}{agents}\n{_fill(VIEWER, layout)}\n{tail}"
 
 
-_SERVICE_LINE = re.compile(r'^  "?([A-Za-z0-9][A-Za-z0-9_.-]*)"?:', re.M)
+_SERVICE_LINE = re.compile(r'^  "?([A-Za-z0-9][A-Za-z0-9_.-]*)"?:.*\n', re.M)
+_CREDENTIAL = re.compile(rf"^      - \S+:{CERTS_IN}/(\S+):ro$", re.M)
 
 
-def _named_difference(text: str, spec: SystemSpec) -> str | None:
-    """The agents with no service, or services of no agent, in compose file ``text``."""
+def services(text: str) -> dict[str, str]:
+    """The services of compose file ``text``, each with the text of its block (its lines below
+    its name), as rendered here (two spaces deep, between ``services:`` and ``volumes:``)."""
     body = text.split("\nservices:\n", 1)[-1].split("\nvolumes:\n", 1)[0]
-    found = set(_SERVICE_LINE.findall(body)) - set(NOT_AGENTS)
+    parts = _SERVICE_LINE.split(body)
+    return dict(zip(parts[1::2], parts[2::2], strict=True))
+
+
+def _agents_differ(found: dict[str, str], spec: SystemSpec) -> str | None:
+    """The agents with no service, or services of no agent, among ``found``."""
+    names = set(found) - set(NOT_AGENTS)
     agents = set(spec.launch_order)
-    if missing := sorted(agents - found):
+    if missing := sorted(agents - names):
         return f"no service for agent {', '.join(missing)}"
-    if extra := sorted(found - agents):
+    if extra := sorted(names - agents):
         return f"a service for {', '.join(extra)}, which the specification has no agent of"
     return None
+
+
+def _identities_differ(found: dict[str, str], spec: SystemSpec) -> str | None:
+    """An agent's or the recorder's service among ``found`` that does not mount its own
+    identity, or mounts another's credentials."""
+    for name in (*spec.launch_order, RECORDER):
+        mounted = set(_CREDENTIAL.findall(found.get(name, "")))
+        if name not in mounted:
+            return f"service {name} does not mount its identity {name}"
+        if others := sorted(mounted - {CA_CERT, name}):
+            return f"service {name} mounts credentials not its own ({', '.join(others)})"
+    return None
+
+
+def _system_differs(text: str, found: dict[str, str], spec: SystemSpec, layout: Layout) -> str | None:
+    """For another system: a roco service among ``found`` (or the ``x-roco`` anchor) without the
+    system's folder, or ``ROCO_SPEC`` not naming its specification in ``x-env`` or ``certs``."""
+    if layout.system_mount is None:
+        return None
+    mount = f"- {layout.system_mount}\n"
+    anchor = text.split("\nx-roco: &roco\n", 1)[-1].split("\nx-", 1)[0]
+    if mount not in anchor:
+        return f"x-roco does not mount the system's folder ({layout.system_mount})"
+    for name in ("certs", "router", "recorder", *spec.launch_order):
+        if mount not in found.get(name, mount):
+            return f"service {name} does not mount the system's folder ({layout.system_mount})"
+    setting = f"{SPEC_VARIABLE}: {layout.spec_in}\n"
+    env = text.split("\nx-env: &env\n", 1)[-1].split("\n\n", 1)[0]
+    if f"\n  {setting}" not in f"\n{env}\n":
+        return f"x-env does not set {SPEC_VARIABLE} to {layout.spec_in}"
+    if f"\n      {setting}" not in found.get("certs", ""):
+        return (
+            f"service certs does not set {SPEC_VARIABLE} to {layout.spec_in}: "
+            f"it would issue another system's identities"
+        )
+    return None
+
+
+def named_difference(text: str, spec: SystemSpec, layout: Layout = KITCHEN) -> str | None:
+    """What compose file ``text`` lacks, or has beyond what ``spec`` gives in ``layout``, that
+    can be named: an agent's service, an identity's mount, the system's folder or its
+    ``ROCO_SPEC``; None when none of these differs."""
+    found = services(text)
+    return (
+        _agents_differ(found, spec)
+        or _identities_differ(found, spec)
+        or _system_differs(text, found, spec, layout)
+    )
 
 
 def compose_generated(
@@ -690,13 +884,14 @@ def compose_generated(
     render: Callable[[SystemSpec], str],
     named_difference: Callable[[str, SystemSpec], str | None],
     wrote: Callable[[SystemSpec], str],
+    command: str = "roco deploy compose",
 ) -> GeneratedFile:
-    """A file of the compose deployment at ``relative`` in a checkout, written by `roco deploy
-    compose` (``GeneratedFile``'s other arguments), bounded and failing as the compose file."""
+    """A file of the compose deployment at ``relative`` in a checkout, written by ``command``
+    (``GeneratedFile``'s other arguments), bounded and failing as the compose file."""
     return GeneratedFile(
         what=what,
         relative=relative,
-        command="roco deploy compose",
+        command=command,
         max_bytes=MAX_COMPOSE_BYTES,
         error=ComposeError,
         render=render,
@@ -705,13 +900,11 @@ def compose_generated(
     )
 
 
-COMPOSE = compose_generated(
-    "compose file",
-    IN_CHECKOUT,
-    render,
-    _named_difference,
-    lambda spec: f"one service per agent ({', '.join(spec.launch_order)})",
-)
+def _wrote(spec: SystemSpec) -> str:
+    return f"one service per agent ({', '.join(spec.launch_order)})"
+
+
+COMPOSE = compose_generated("compose file", IN_CHECKOUT, render, named_difference, _wrote)
 """``deploy/compose.yaml`` (services/spec/generated.py): ``read``, ``difference``, ``check``,
 ``write``, ``bring_up_to_date``."""
 read = COMPOSE.read
@@ -719,3 +912,29 @@ difference = COMPOSE.difference
 check = COMPOSE.check
 write = COMPOSE.write
 bring_up_to_date = COMPOSE.bring_up_to_date
+
+
+def compose_for(layout: Layout, command: str = "roco deploy compose") -> GeneratedFile:
+    """The compose file in ``layout`` (services/deploy/layout.py ``layout_for``): :data:`COMPOSE`
+    for the kitchen's, else one that renders, checks and writes another system's, brought up
+    to date by ``command`` (e.g. with its ``--spec`` and ``--file``)."""
+    if layout == KITCHEN:
+        return COMPOSE
+    return compose_generated(
+        "compose file",
+        IN_CHECKOUT,
+        lambda spec: render(spec, layout),
+        lambda text, spec: named_difference(text, spec, layout),
+        _wrote,
+        command,
+    )
+
+
+def described(spec: SystemSpec, layout: Layout) -> str:
+    """What a compose file of ``spec`` in ``layout`` issues and mounts, for ``--check``'s line:
+    the identities and, for another system, its folder and ``ROCO_SPEC``."""
+    said = f"identities: {', '.join(issued(spec))}"
+    if layout.system_mount is not None:
+        said += f"; the system's folder ({layout.system}) read-only at {SYSTEM_IN}"
+        said += f", {SPEC_VARIABLE}={layout.spec_in}"
+    return said

@@ -52,6 +52,27 @@ def ensure(out: Path, spec: SystemSpec, *, tls: bool) -> Path:
     return out
 
 
+def missing(out: Path, spec: SystemSpec) -> list[str]:
+    """The identities of ``spec`` (its agents', the recorder's, the operator's, …) that the
+    credentials folder ``out`` holds none of, in the specification's order."""
+    held = set(certs.identities(out))
+    return [name for name in identities(spec) if name not in held]
+
+
+def kept_line(out: Path, spec: SystemSpec) -> str:
+    """What ``roco deploy certs --keep`` says of the folder ``out`` it keeps: the identities it
+    holds and those of ``spec`` it lacks (revoked, or the folder is another system's), which
+    are not issued: a revoked identity stays revoked."""
+    line = f"kept the credentials in {out} ({', '.join(certs.identities(out))})"
+    if lacking := missing(out, spec):
+        line += (
+            f"; none for {', '.join(lacking)} of the specification, whose services cannot connect "
+            f"(revoked, or the folder is another system's: `roco deploy issue {out} NAME`, or "
+            f"`roco deploy certs {out}` without --keep for a new deployment)"
+        )
+    return line
+
+
 def issue_identity(out: Path, spec: SystemSpec, name: str, days: int = 365) -> certs.Identity:
     """(Re-)issue one identity of ``spec`` in ``out`` and rewrite the ACL. Raises
     CredentialError when ``spec`` has no such identity or ``out`` no CA."""

@@ -21,13 +21,14 @@ from services.deploy.compose import (
     IMAGES,
     MOUNTS,
     READY_FILE,
-    AgentExtras,
     ComposeError,
+    agent_extras,
     check,
     difference,
     last_started,
     render,
 )
+from services.deploy.layout import layout_for
 from services.spec.model import DEFAULT_SPEC, AgentSpec, SpecError, default_spec, load
 from tests.spec_check.walkthrough import walkthrough_spec
 
@@ -79,7 +80,7 @@ def test_the_six_agents_services_are_what_the_fleet_needs() -> None:
     mounts = ["${ROCO_RUNS:-../runs}:/runs", "fleet:/var/lib/roco/fleet"]
     for name in AGENTS:
         service = services[name]
-        image = IMAGES[AGENT_EXTRAS.get(name, AgentExtras()).image]
+        image = IMAGES[agent_extras(SPEC, name).image]
         assert service["image"] == f"${{{image.variable}:-{image.default}}}"
         assert service["build"] == {
             "context": "..",
@@ -177,12 +178,15 @@ def test_roco_deploy_compose_writes_and_checks_the_file(tmp_path: Path) -> None:
     r = runner.invoke(deploy_app, ["compose", "--check", *args])
     assert r.exit_code == 1
     assert r.output.strip().endswith(
-        "differs from what the specification gives (no service for agent a_wt): run `roco deploy compose`"
+        "differs from what the specification gives (no service for agent a_wt): run "
+        f"`roco deploy compose --spec {spec_file} --file {target}`"
     )
     assert r.output.count("\n") == 1 and r.output.startswith("roco: ")
     r = runner.invoke(deploy_app, ["compose", *args])
     assert r.exit_code == 0 and r.output.startswith("roco: wrote "), r.output
-    assert target.read_text() == render(load(spec_file))
+    # a specification outside roco's tree is another system: its folder mounted, ROCO_SPEC there
+    assert target.read_text() == render(load(spec_file), layout_for(spec_file, target))
+    assert "    - .:/system:ro\n" in target.read_text()
     r = runner.invoke(deploy_app, ["compose", "--check", *args])
     assert r.exit_code == 0 and r.output.strip().endswith("is what the specification gives"), r.output
     r = runner.invoke(deploy_app, ["compose", *args])
