@@ -163,14 +163,19 @@ def chosen_spec(given: Path | None, run_dir: Path | None = None) -> Path:
     return path
 
 
+def fleet_spec(given: Path | None, runs_dir: Path, router: str | None) -> Path:
+    """The specification file ``given`` (``--spec``), else that of the fleet ``roco up`` keeps
+    in ``runs_dir`` (unless a ``router`` is named: then not that fleet's), else the shipped
+    one. Raises :class:`typer.Exit` as :func:`chosen_spec` does."""
+    state = fleet_state(runs_dir) if router is None else None
+    return chosen_spec(given, Path(state.run_dir) if state is not None else None)
+
+
 def fleet_system(given: Path | None, runs_dir: Path, router: str | None) -> SystemSpec:
-    """The specification ``given`` (``--spec``), else that of the fleet ``roco up`` keeps in
-    ``runs_dir`` (unless a ``router`` is named: then not that fleet's), else the shipped one,
-    loaded. Raises :class:`typer.Exit` as :func:`chosen_spec` does."""
+    """:func:`fleet_spec`, loaded."""
     from services.spec.model import load
 
-    state = fleet_state(runs_dir) if router is None else None
-    return load(chosen_spec(given, Path(state.run_dir) if state is not None else None))
+    return load(fleet_spec(given, runs_dir, router))
 
 
 CheckOnly = Annotated[

@@ -83,26 +83,33 @@ def check_run_folder(run_dir: Path, during: str) -> None:
 
 
 def check_fleet(runs_dir: Path, during: str, timeout: float = 10.0) -> None:
-    """:func:`check_agents` on every agent of the fleet ``roco up --runs-dir RUNS_DIR`` started,
-    through an operator's session with that fleet's credentials (``.fleet.json`` names its
-    endpoint and run folder; the credentials are the run folder's ``security``, as ``roco
-    status`` uses them). Raises SetupRefused also when the state cannot be read or the session
-    is refused."""
+    """:func:`check_agents` on every agent of the fleet ``roco up --runs-dir RUNS_DIR`` started
+    (those of the specification its run folder keeps: services/runtime/run_folder.py
+    ``spec_for_run``), through an operator's session with that fleet's credentials
+    (``.fleet.json`` names its endpoint and run folder; the credentials are the run folder's
+    ``security``, as ``roco status`` uses them). Raises SetupRefused also when the state or
+    the specification cannot be read or the session is refused."""
     import json
 
-    from services.fleet.launcher import AGENT_ORDER
+    from services.runtime.run_folder import spec_for_run
     from services.runtime.session import SessionRefused, open_operator
+    from services.spec.model import load
 
     try:
         state = json.loads((runs_dir / ".fleet.json").read_text())
-        endpoint, security = str(state["endpoint"]), Path(state["run_dir"]) / "security"
+        endpoint, run_dir = str(state["endpoint"]), Path(state["run_dir"])
     except (OSError, ValueError, KeyError, TypeError) as exc:
         raise SetupRefused(f"{during}: no fleet state in {runs_dir}: {exc}") from None
+    try:
+        agents = load(spec_for_run(run_dir)).launch_order
+    except ValueError as exc:  # SpecError
+        raise SetupRefused(f"{during}: {exc}") from None
+    security = run_dir / "security"
     try:
         session = open_operator(endpoint, credentials=security if security.is_dir() else None)
     except SessionRefused as exc:
         raise SetupRefused(f"{during}: {exc}") from None
     try:
-        check_agents(session, AGENT_ORDER, during, timeout)
+        check_agents(session, agents, during, timeout)
     finally:
         session.close()

@@ -27,7 +27,7 @@ from services.cli_common import (
     security_switches,
     stop_on_signals,
 )
-from services.fleet.launcher import AGENT_ORDER, GATEWAY, ROS2, Fleet, LaunchError, spec_env
+from services.fleet.launcher import GATEWAY, ROS2, Fleet, LaunchError, spec_env
 from services.fleet.processes import stop_pids
 from services.fleet_state import FLEET_FILE, FleetState, write_state
 from services.ros2.live_cli import ros2_args
@@ -164,6 +164,7 @@ def down(
             help="compose: the operator's credentials [default: deploy/certs beside the compose file]"
         ),
     ] = None,
+    spec: SpecFile = None,
 ) -> None:
     """Stop the fleet `roco up` started (only the processes it started, by PID), naming each
     as it stops: the agents (their counters kept first: what they raised is said and in the
@@ -175,13 +176,14 @@ def down(
     With --compose, the compose fleet: its agents' counters kept (when the router answers
     with the operator's credentials), `docker compose down` (or `docker-compose`), then
     run.json and the report of its run folder on the host, as above (writing there needs the
-    right to: the containers make its files as root)."""
+    right to: the containers make its files as root). The agents asked for their counters are
+    those of --spec, else of the specification the run used, else of the shipped one."""
     from services.hosts.cli import HOSTS_FILE
     from services.hosts.cli import down as hosts_down
     from services.recorder.sync import sync_fleet, sync_words
 
     if compose:
-        _compose_down(project, compose_file, volumes, router, credentials)
+        _compose_down(project, compose_file, volumes, router, credentials, spec)
         return
     if (runs_dir / HOSTS_FILE).exists():
         hosts_down(runs_dir)
@@ -189,7 +191,7 @@ def down(
     state = fleet_state(runs_dir)
     if state is None:
         raise fail(f"no fleet is up (no {runs_dir / FLEET_FILE})")
-    raised = _save_fleet_counters(state)
+    raised = _save_fleet_counters(state, spec)
     typer.echo("roco: stopping", nl=False)
     _stop({n: p for n, p in state.pids.items() if n not in ("recorder", "router")})
     # everything the agents sent before they stopped is in the traffic record before it closes
@@ -226,7 +228,12 @@ def _compose_target(project: str | None, file: Path | None) -> tuple[str, Path]:
 
 
 def _compose_down(
-    project: str | None, file: Path | None, volumes: bool, router: str, credentials: Path | None
+    project: str | None,
+    file: Path | None,
+    volumes: bool,
+    router: str,
+    credentials: Path | None,
+    spec: Path | None = None,
 ) -> None:
     """`roco down --compose`: find the fleet (services/deploy/engine.py), keep its agents'
     counters, stop it, then conclude its run folder and write the report
@@ -240,7 +247,8 @@ def _compose_down(
         name = engine.run_name(base, engine.run_command)
         runs = engine.runs_folder(base, engine.run_command)
         run_dir = runs / name if runs is not None and name is not None else None
-        kept = _save_compose_counters(router, credentials or file.parent / "certs", run_dir)
+        agents = load(chosen_spec(spec, run_dir)).agent_names
+        kept = _save_compose_counters(router, credentials or file.parent / "certs", run_dir, agents)
         engine.down(base, volumes, engine.run_command)
     except engine.ComposeFailed as exc:
         raise fail(str(exc)) from None
@@ -253,9 +261,11 @@ def _compose_down(
         raise typer.Exit(1)
 
 
-def _save_compose_counters(router: str, credentials: Path, run_dir: Path | None) -> str:
-    """Keep a compose fleet's agents' counters in its run folder (the report's "Agents raised");
-    the words that say whether they were kept."""
+def _save_compose_counters(
+    router: str, credentials: Path, run_dir: Path | None, agents: tuple[str, ...]
+) -> str:
+    """Keep the counters of a compose fleet's ``agents`` in its run folder (the report's
+    "Agents raised"); the words that say whether they were kept."""
     from services.runtime.counters import ask_counters, save_counters
 
     if run_dir is None:
@@ -265,7 +275,7 @@ def _save_compose_counters(router: str, credentials: Path, run_dir: Path | None)
     except SessionRefused as exc:
         return f" (agents' counters not kept: {exc})"
     try:
-        counters = ask_counters(session, AGENT_ORDER, timeout=5.0)
+        counters = ask_counters(session, agents, timeout=5.0)
     finally:
         session.close()
     try:
@@ -275,7 +285,7 @@ def _save_compose_counters(router: str, credentials: Path, run_dir: Path | None)
     return f" (counters of {', '.join(sorted(counters)) or 'no agent'} kept)"
 
 
-def _save_fleet_counters(state: FleetState) -> str:
+def _save_fleet_counters(state: FleetState, spec: Path | None = None) -> str:
     """Before `roco down` stops a fleet: its agents' counters into the run folder's
     counters.json (the report's "Agents raised" reads them) and what they raised, in words
     (services/runtime/raised.py; "" when nothing). Nothing is saved when no router answers."""
@@ -287,7 +297,7 @@ def _save_fleet_counters(state: FleetState) -> str:
     except SessionRefused:
         return ""
     try:
-        agents = load(chosen_spec(None, Path(state.run_dir))).agent_names
+        agents = load(chosen_spec(spec, Path(state.run_dir))).agent_names
         counters = ask_counters(session, [n for n in state.pids if n in agents], timeout=5.0)
     finally:
         session.close()

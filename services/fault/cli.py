@@ -11,26 +11,36 @@ Local fleet (``roco up``): process faults by PID, network and message faults thr
 agents' fault layer over Zenoh. Compose (``--compose``, ``ROCO_COMPOSE_PROJECT`` set, or no
 local fleet and one compose fleet running): process faults with ``docker compose``, network
 faults with ``docker network`` and ``tc netem``; message faults still over Zenoh
-(``--router``). Bad input: one line, exit 2.
+(``--router``). The agents, services and channels are those of the fleet's specification:
+``--spec`` (``ROCO_SPEC``), else the one a local fleet's run folder keeps, else the shipped
+one. Bad input: one line, exit 2.
 """
 
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import math
 from collections.abc import Callable, Iterator
 from pathlib import Path
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated
 
 import typer
 import zenoh
 
-from services.cli_common import MARKUP, CredentialsOption, RouterOption, fail
+from services.cli_common import (
+    MARKUP,
+    CredentialsOption,
+    RouterOption,
+    SpecFile,
+    chosen_spec,
+    fail,
+    fleet_system,
+)
 from services.deploy.engine import ComposeFleet, running_fleets
 from services.fault import process
-from services.fault.compose import COMPOSE_SERVICES, DEFAULT_FILE, Compose
-from services.fault.process import ACTIONS, LOCAL_SERVICES, FaultError, UpFleet
-from services.fleet.launcher import AGENT_ORDER
+from services.fault.compose import DEFAULT_FILE, Compose, compose_services
+from services.fault.process import ACTIONS, FaultError, UpFleet, local_services
 from services.fleet_state import FLEET_FILE
 from services.runtime.faults import (
     ANY_CHANNEL,
@@ -41,6 +51,9 @@ from services.runtime.faults import (
     NetFaults,
 )
 from shared.settings import Settings
+
+if TYPE_CHECKING:
+    from services.spec.model import SystemSpec
 
 fault_app = typer.Typer(
     add_completion=False,
@@ -81,6 +94,26 @@ def _compose(flag: bool | None, project: str | None, file: Path | None, runs_dir
     if running is not None:
         return _compose_of(running, file, runs_dir)
     return Compose(file=file or DEFAULT_FILE, state_dir=runs_dir) if flag else None
+
+
+def _fleet(
+    flag: bool | None,
+    project: str | None,
+    file: Path | None,
+    runs_dir: Path,
+    router: str | None,
+    spec: Path | None,
+) -> tuple[Compose | None, SystemSpec]:
+    """The fleet a fault command acts on (:func:`_compose`: None for the local one) and its
+    specification: ``spec`` (``--spec``), else the one the local fleet's run folder keeps, else
+    the shipped one; a compose fleet's services are that specification's."""
+    dc = _compose(flag, project, file, runs_dir)
+    if dc is None:
+        return None, fleet_system(spec, runs_dir, router)
+    from services.spec.model import load
+
+    system = load(chosen_spec(spec))
+    return dataclasses.replace(dc, services=compose_services(system)), system
 
 
 def _local(flag: bool | None, named: str | None, runs_dir: Path) -> bool:
@@ -174,6 +207,10 @@ def _compose_faults(endpoint: str, apply: Callable[[list[FaultEvent]], None]) ->
 
 
 # ---- process faults ----------------------------------------------------------------------
+SERVICE_HELP = (
+    "the router, the recorder or an agent of the fleet's specification (locally also world, "
+    "when an agent plays the robot; compose: viewer)"
+)
 _PAST = {
     "kill": "killed",
     "stop": "stopped",
@@ -186,7 +223,7 @@ _PAST = {
 
 def _process_fault(action: str) -> None:
     def command(
-        service: Annotated[str, typer.Argument(help=f"one of {', '.join(COMPOSE_SERVICES)}")],
+        service: Annotated[str, typer.Argument(help=SERVICE_HELP)],
         runs_dir: RunsDir = Path("runs"),
         compose: ComposeFlag = None,
         project: Project = None,
@@ -194,19 +231,16 @@ def _process_fault(action: str) -> None:
         router: RouterOption = None,
         credentials: CredentialsOption = None,
         timeout: Annotated[float, typer.Option(help="seconds to wait for the service")] = 60.0,
+        spec: SpecFile = None,
     ) -> None:
-        dc = _compose(compose, project, compose_file, runs_dir)
+        dc, system = _fleet(compose, project, compose_file, runs_dir, router, spec)
         try:
             if dc is not None:
                 event = dc.process(action, service)
                 endpoint = _endpoint(router, runs_dir, credentials)
             else:
-                if service not in LOCAL_SERVICES:
-                    raise fail(
-                        f"no service {service!r} in a local fleet (services: {', '.join(LOCAL_SERVICES)})",
-                        code=2,
-                    )
-                fleet = UpFleet.load(runs_dir)
+                _check_local(service, system)
+                fleet = UpFleet.load(runs_dir, spec)
                 event = process.apply(fleet, action, service, timeout)
                 endpoint = fleet.endpoint
         except FaultError as exc:
@@ -223,6 +257,13 @@ def _process_fault(action: str) -> None:
         "restart": "Stop SERVICE, then start it again.",
     }[action]
     fault_app.command(action)(command)
+
+
+def _check_local(service: str, system: SystemSpec) -> None:
+    """Exit 2 unless ``service`` is one of a local fleet of ``system``."""
+    known = local_services(system)
+    if service not in known:
+        raise fail(f"no service {service!r} in a local fleet (services: {', '.join(known)})", code=2)
 
 
 for _action in ACTIONS:
@@ -266,6 +307,7 @@ def net(
     compose_file: ComposeFile = None,
     router: RouterOption = None,
     credentials: CredentialsOption = None,
+    spec: SpecFile = None,
 ) -> None:
     """Network faults of one service: delay, loss, partition.
 
@@ -274,12 +316,12 @@ def net(
     _probability("--loss", loss)
     if delay is None and loss is None and partition is None:
         raise fail("nothing to change: give --delay, --loss, --partition or --heal", code=2)
-    dc = _compose(compose, project, compose_file, runs_dir)
+    dc, system = _fleet(compose, project, compose_file, runs_dir, router, spec)
     endpoint = _endpoint(router, runs_dir, credentials)
     if dc is not None:
         _compose_faults(endpoint, _container_net(dc, service, delay, loss, partition, dev))
         return
-    _agent_net(endpoint, service, delay, loss, partition)
+    _agent_net(endpoint, service, NetChange(delay, loss, partition), system.launch_order)
 
 
 def _container_net(
@@ -299,40 +341,47 @@ def _container_net(
     return apply
 
 
-def _agent_net(
-    endpoint: str, service: str, delay: float | None, loss: float | None, partition: bool | None
-) -> None:
-    """`roco fault net` on a local fleet: the agent's fault layer changes the options given,
-    keeping the others; one line says the agent's network faults now."""
-    if service not in AGENT_ORDER:
+@dataclasses.dataclass(frozen=True)
+class NetChange:
+    """What `roco fault net` changes of an agent's network faults (None: kept as it is)."""
+
+    delay: float | None
+    loss: float | None
+    partition: bool | None
+
+    def applied_to(self, now: NetFaults) -> NetFaults:
+        return NetFaults(
+            delay_s=now.delay_s if self.delay is None else self.delay,
+            loss=now.loss if self.loss is None else self.loss,
+            partition=now.partition if self.partition is None else self.partition,
+        )
+
+
+def _agent_net(endpoint: str, service: str, change: NetChange, agents: tuple[str, ...]) -> None:
+    """`roco fault net` on a local fleet whose agents are ``agents``: the agent's fault layer
+    changes the options given, keeping the others; one line says the agent's network faults now."""
+    if service not in agents:
         raise fail(
             f"network faults of {service!r} need --compose (locally only the agents "
-            f"{', '.join(AGENT_ORDER)} have the fault layer)",
+            f"{', '.join(agents)} have the fault layer)",
             code=2,
         )
     from services.fault.control import send_update
 
     with _session(endpoint) as session:
-        current, missing = send_update(session, FaultUpdate(), service)
+        current, missing = send_update(session, FaultUpdate(), service, agents=agents)
         if missing:
             raise fail(f"{service} did not answer at {endpoint}; is it running?")
-        now = current[service].net
-        new = NetFaults(
-            delay_s=now.delay_s if delay is None else delay,
-            loss=now.loss if loss is None else loss,
-            partition=now.partition if partition is None else partition,
-        )
-        got, missing = send_update(session, FaultUpdate(set_services={service: new}), service)
+        new = change.applied_to(current[service].net)
+        got, missing = send_update(session, FaultUpdate(set_services={service: new}), service, agents=agents)
     if missing:
         raise fail(f"{service} did not confirm the change")
     typer.echo(f"roco: {service} network faults: {_net_text(got[service].net)}")
 
 
 # ---- message faults ----------------------------------------------------------------------
-def _channels() -> list[str]:
-    from services.spec.model import default_spec
-
-    return [c.name for c in default_spec().channels]
+def _channels(system: SystemSpec) -> list[str]:
+    return [c.name for c in system.channels]
 
 
 def _msg_text(mf: MessageFaults) -> str:
@@ -351,9 +400,9 @@ def _msg_text(mf: MessageFaults) -> str:
     return ", ".join(parts) or "none"
 
 
-def _check_channel(channel: str) -> None:
-    """Exit 2 unless ``channel`` is one of the specification's, or '*'."""
-    known = _channels()
+def _check_channel(channel: str, system: SystemSpec) -> None:
+    """Exit 2 unless ``channel`` is one of ``system``'s, or '*'."""
+    known = _channels(system)
     if channel not in (*known, ANY_CHANNEL):
         raise fail(f"unknown channel {channel!r} (channels: {', '.join(known)}, or '*')", code=2)
 
@@ -395,7 +444,9 @@ def _message_faults(
 
 @fault_app.command()
 def msg(
-    channel: Annotated[str, typer.Argument(help="C1..C8, or '*' for every channel")],
+    channel: Annotated[
+        str, typer.Argument(help="a channel of the fleet's specification, or '*' for every one")
+    ],
     drop: Annotated[float, typer.Option(help="probability a communicate is dropped")] = 0.0,
     duplicate: Annotated[float, typer.Option(help="probability it is sent twice")] = 0.0,
     delay: Annotated[float | None, typer.Option(help="seconds a delayed communicate is late")] = None,
@@ -409,12 +460,14 @@ def msg(
     runs_dir: RunsDir = Path("runs"),
     router: RouterOption = None,
     credentials: CredentialsOption = None,
+    spec: SpecFile = None,
 ) -> None:
     """Message faults on one channel: drop, duplicate, delay, reorder, corrupt.
 
     Applied by the sending agent's transport, replacing the channel's previous ones; works
     on local and compose fleets alike (over Zenoh)."""
-    _check_channel(channel)
+    system = fleet_system(spec, runs_dir, router)
+    _check_channel(channel, system)
     mf = _message_faults(drop, duplicate, delay, delay_p, reorder, hold, corrupt)
     if not mf.active() and seed is None:
         raise fail(f"no fault given (use 'roco fault clear {channel}' to remove {channel}'s faults)", code=2)
@@ -423,7 +476,7 @@ def msg(
     endpoint = _endpoint(router, runs_dir, credentials)
     update = FaultUpdate(set_channels={channel: mf} if mf.active() else {}, seed=seed)
     with _session(endpoint) as session:
-        got, missing = send_update(session, update)
+        got, missing = send_update(session, update, agents=system.agent_names)
     if not got:
         raise fail(f"no agent answered at {endpoint}; is the fleet up?")
     if missing:
@@ -439,7 +492,7 @@ def _container_clear(dc: Compose, target: str | None, dev: str) -> Callable[[lis
     service): a partition healed, netem removed (every service: where it can be)."""
 
     def apply(events: list[FaultEvent]) -> None:
-        for service in [target] if target else COMPOSE_SERVICES:
+        for service in [target] if target else dc.services:
             if service in dc.partitioned():
                 events.append(dc.heal(service))
             if target is not None:
@@ -452,16 +505,18 @@ def _container_clear(dc: Compose, target: str | None, dev: str) -> Callable[[lis
     return apply
 
 
-def _check_target(target: str | None, channels: list[str]) -> None:
-    """Exit 2 unless ``target`` is None, a channel, '*' or a service."""
-    if target is not None and target not in (*channels, ANY_CHANNEL, *COMPOSE_SERVICES):
+def _check_target(target: str | None, system: SystemSpec) -> None:
+    """Exit 2 unless ``target`` is None, a channel of ``system``, '*' or a service."""
+    channels = _channels(system)
+    if target is not None and target not in (*channels, ANY_CHANNEL, *compose_services(system)):
         raise fail(f"{target!r} is neither a channel ({', '.join(channels)}) nor a service", code=2)
 
 
-def _clear_update(target: str | None, channels: list[str]) -> tuple[FaultUpdate, str | None] | None:
-    """The update that clears ``target``'s faults in the agents' fault layers, and the agent
-    it goes to (None: every agent); None when ``target`` is a service without one."""
-    if target in AGENT_ORDER:
+def _clear_update(target: str | None, system: SystemSpec) -> tuple[FaultUpdate, str | None] | None:
+    """The update that clears ``target``'s faults in the fault layers of ``system``'s agents,
+    and the agent it goes to (None: every agent); None when ``target`` is a service without one."""
+    channels = _channels(system)
+    if target in system.agent_names:
         return FaultUpdate(clear_services=[target]), target
     if target is None:
         return FaultUpdate(clear_channels=["*"], clear_services=["*"]), None
@@ -480,26 +535,26 @@ def clear(
     compose_file: ComposeFile = None,
     router: RouterOption = None,
     credentials: CredentialsOption = None,
+    spec: SpecFile = None,
 ) -> None:
     """Remove message and network faults of a channel, a service, or all.
 
     Processes stopped or paused stay so: start or unpause them."""
-    channels = _channels()
-    _check_target(target, channels)
-    dc = _compose(compose, project, compose_file, runs_dir)
+    dc, system = _fleet(compose, project, compose_file, runs_dir, router, spec)
+    _check_target(target, system)
     endpoint = _endpoint(router, runs_dir, credentials)
-    if dc is not None and (target is None or target in COMPOSE_SERVICES):
+    if dc is not None and (target is None or target in dc.services):
         _compose_faults(endpoint, _container_clear(dc, target, dev))
     from services.fault.control import send_update
 
-    clearing = _clear_update(target, channels)
+    clearing = _clear_update(target, system)
     if clearing is None:
         if dc is None:
             raise fail(f"{target} has no fault layer locally: nothing to clear", code=2)
         return
     update, to = clearing
     with _session(endpoint) as session:
-        got, missing = send_update(session, update, to)
+        got, missing = send_update(session, update, to, agents=system.agent_names)
     if not got:
         raise fail(f"no agent answered at {endpoint}")
     typer.echo(f"roco: faults of {target or 'every channel and service'} cleared on {', '.join(sorted(got))}")
@@ -522,23 +577,25 @@ def show(
     compose_file: ComposeFile = None,
     router: RouterOption = None,
     credentials: CredentialsOption = None,
+    spec: SpecFile = None,
 ) -> None:
     """Each agent's fault settings and the faults it applied so far.
 
     With --compose also each container's tc qdisc and the partitions."""
     from services.fault.control import send_update
 
+    dc, system = _fleet(compose, project, compose_file, runs_dir, router, spec)
+    order = system.launch_order
     endpoint = _endpoint(router, runs_dir, credentials)
     with _session(endpoint) as session:
-        got, missing = send_update(session, FaultUpdate())
-    for name in sorted(got, key=lambda n: AGENT_ORDER.index(n) if n in AGENT_ORDER else 99):
+        got, missing = send_update(session, FaultUpdate(), agents=order)
+    for name in sorted(got, key=lambda n: order.index(n) if n in order else len(order)):
         typer.echo(_report_line(got[name]))
     for name in missing:
         typer.echo(f"{name:6s} no answer")
-    dc = _compose(compose, project, compose_file, runs_dir)
     if dc is not None:
         typer.echo(f"partitioned (compose): {', '.join(dc.partitioned()) or 'none'}")
-        for service in COMPOSE_SERVICES:
+        for service in dc.services:
             try:
                 typer.echo(f"{service:8s} tc: {dc.tc_show(service, dev)}")
             except FaultError as exc:

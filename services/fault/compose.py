@@ -30,12 +30,18 @@ from pathlib import Path
 
 from services.deploy.engine import compose_command, last_line, run_command
 from services.fault.process import INJECTOR, FaultError
-from services.fleet.launcher import AGENT_ORDER
 from services.runtime.faults import FaultEvent
+from services.spec.model import SystemSpec, default_spec
 
-COMPOSE_SERVICES = ("router", *AGENT_ORDER, "recorder", "viewer")
-"""The services of deploy/compose.yaml a fault can reach: one per agent of the specification
-(services/deploy/compose.py renders them) and the router, recorder and viewer."""
+
+def compose_services(system: SystemSpec) -> tuple[str, ...]:
+    """The services of a compose deployment of ``system`` a fault can reach: the router, one
+    per agent (services/deploy/compose.py renders them), the recorder and the viewer."""
+    return ("router", *system.launch_order, "recorder", "viewer")
+
+
+COMPOSE_SERVICES = compose_services(default_spec())
+"""The services of the shipped deploy/compose.yaml (the Robot Companion's)."""
 DEFAULT_FILE = Path("deploy/compose.yaml")
 PARTITIONS_FILE = ".fault_partitions.json"
 
@@ -73,12 +79,14 @@ def netem_failure(service: str, out: subprocess.CompletedProcess[str]) -> str:
 @dataclass
 class Compose:
     """One compose deployment: its ``file``, ``project`` name (None: compose's default, the
-    file's folder name), where partitions are remembered (``state_dir``)."""
+    file's folder name), where partitions are remembered (``state_dir``), the ``services`` a
+    fault may reach (:func:`compose_services` of the specification it runs)."""
 
     file: Path = DEFAULT_FILE
     project: str | None = None
     state_dir: Path = Path("runs")
     run: Runner = run_command
+    services: tuple[str, ...] = COMPOSE_SERVICES
     _base: list[str] | None = field(default=None, init=False, repr=False)
 
     # ---- docker ---------------------------------------------------------------------------
@@ -108,7 +116,7 @@ class Compose:
 
     def container(self, service: str) -> str:
         """The id of ``service``'s container; FaultError when it has none."""
-        _check_service(service)
+        self._check_service(service)
         out = self._check([*self.base(), "ps", "-q", service], f"docker compose ps {service}")
         ids = out.split()
         if not ids:
@@ -118,7 +126,7 @@ class Compose:
     # ---- process faults -------------------------------------------------------------------
     def process(self, action: str, service: str) -> FaultEvent:
         """``docker compose ACTION SERVICE``."""
-        _check_service(service)
+        self._check_service(service)
         if action not in ("kill", "stop", "start", "pause", "unpause", "restart"):
             raise FaultError(f"unknown process fault {action!r}")
         self._check([*self.base(), action, service], f"docker compose {action} {service}")
@@ -207,10 +215,9 @@ class Compose:
         out = self.run([*TC_EXEC, cid, "tc", "qdisc", "show", "dev", dev])
         return out.stdout.strip() if out.returncode == 0 else f"(tc: {last_line(out.stderr)})"
 
-
-def _check_service(service: str) -> None:
-    if service not in COMPOSE_SERVICES:
-        raise FaultError(f"no service {service!r} (services: {', '.join(COMPOSE_SERVICES)})")
+    def _check_service(self, service: str) -> None:
+        if service not in self.services:
+            raise FaultError(f"no service {service!r} (services: {', '.join(self.services)})")
 
 
 def _event(kind: str, service: str, detail: str) -> FaultEvent:

@@ -9,11 +9,11 @@ from __future__ import annotations
 import queue
 import time
 import uuid
+from collections.abc import Collection
 
 import msgspec
 import zenoh
 
-from services.fleet.launcher import AGENT_ORDER
 from services.runtime.faults import (
     CONTROL_ALL,
     STATE_ALL,
@@ -25,16 +25,21 @@ from services.runtime.session import alive_agents
 
 
 def send_update(
-    session: zenoh.Session, update: FaultUpdate, target: str | None = None, timeout: float = 5.0
+    session: zenoh.Session,
+    update: FaultUpdate,
+    target: str | None = None,
+    timeout: float = 5.0,
+    *,
+    agents: Collection[str],
 ) -> tuple[dict[str, FaultReport], list[str]]:
     """Put ``update`` for ``target`` (None: every agent) and collect the agents' reports.
 
-    Waits until every agent expected has answered — ``target``, or every agent holding a
-    liveliness token — or ``timeout`` s passed. Returns the reports by agent and the agents
-    expected that did not answer."""
+    Waits until every agent expected has answered — ``target``, or every one of ``agents``
+    (the fleet's specification's) holding a liveliness token — or ``timeout`` s passed.
+    Returns the reports by agent and the agents expected that did not answer."""
     request = uuid.uuid4().hex[:12]
     update = msgspec.structs.replace(update, request=request)
-    expected = {target} if target is not None else alive_agents(session) & set(AGENT_ORDER)
+    expected = {target} if target is not None else alive_agents(session) & set(agents)
     answers: queue.SimpleQueue[FaultReport] = queue.SimpleQueue()
     dec = msgspec.json.Decoder(FaultReport)
 

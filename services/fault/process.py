@@ -34,6 +34,7 @@ import subprocess
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
+from functools import cached_property
 from pathlib import Path
 from typing import Any
 
@@ -41,7 +42,6 @@ import msgspec
 import zenoh
 
 from services.fleet.launcher import (
-    AGENT_ORDER,
     Fleet,
     LaunchError,
     process_environ,
@@ -52,22 +52,28 @@ from services.fleet.processes import proc_state
 from services.fleet_state import FLEET_FILE
 from services.recorder import sync
 from services.runtime.faults import FaultEvent
-from services.runtime.run_folder import load_launch_env, read_run_info, write_run_info
+from services.runtime.run_folder import load_launch_env, read_run_info, spec_of_run, write_run_info
 from services.runtime.session import alive_agents, open_client
 from services.security.context import register
+from services.spec.model import DEFAULT_SPEC, SpecError, SystemSpec, load
 from velma.world.files import link_name
 from velma.world.mode import WORLD_SERVICE
 
 ACTIONS = ("kill", "stop", "start", "pause", "unpause", "restart")
-LOCAL_SERVICES = ("router", "recorder", WORLD_SERVICE, *AGENT_ORDER)
-"""The services of a local fleet (a compose deployment adds ``viewer``); ``world`` runs unless
-``ROCO_WORLD=loop`` (velma/world/mode.py)."""
 INJECTOR = sync.INJECTOR
 """The ``agent`` of the fault events of ``roco fault`` and ``roco chaos``."""
 
 
 class FaultError(RuntimeError):
     """A fault could not be applied; the message is one line for the person."""
+
+
+def local_services(system: SystemSpec) -> tuple[str, ...]:
+    """The services of a local fleet of ``system``: the router, the recorder, the world when an
+    agent plays the robot (it runs unless ``ROCO_WORLD=loop``, velma/world/mode.py) and the
+    agents in their start order (a compose deployment adds ``viewer``)."""
+    world = (WORLD_SERVICE,) if system.playing("robot") is not None else ()
+    return ("router", "recorder", *world, *system.launch_order)
 
 
 @dataclass
@@ -79,19 +85,37 @@ class UpFleet:
     endpoint: str
     run_dir: Path
     pids: dict[str, int]
+    spec: Path | None = None
+    """The specification the fleet runs (``--spec``); None: the one its run folder keeps
+    (``launch_env.json``), else the shipped one."""
 
     def __post_init__(self) -> None:
         # the fleet's credentials (docs/security.md): this process's sessions to it use them
         if (self.run_dir / "security").is_dir():
             register(self.endpoint, self.run_dir / "security")
 
+    @cached_property
+    def system(self) -> SystemSpec:
+        """The loaded :attr:`spec` (else the run folder's, else the shipped one); FaultError
+        when it does not load."""
+        try:
+            return load(self.spec or spec_of_run(self.run_dir) or DEFAULT_SPEC)
+        except SpecError as exc:
+            raise FaultError(str(exc)) from None
+
+    @property
+    def agents(self) -> tuple[str, ...]:
+        """The agents of :attr:`system`, in their start order."""
+        return self.system.launch_order
+
     @classmethod
-    def load(cls, runs_dir: Path) -> UpFleet:
-        """Raises FaultError when no fleet is up there."""
+    def load(cls, runs_dir: Path, spec: Path | None = None) -> UpFleet:
+        """The fleet up in ``runs_dir``, running ``spec`` (None: the one its run folder keeps);
+        raises FaultError when no fleet is up there."""
         path = runs_dir / FLEET_FILE
         try:
             state = msgspec.json.decode(path.read_bytes())
-            return cls(runs_dir, str(state["endpoint"]), Path(state["run_dir"]), dict(state["pids"]))
+            return cls(runs_dir, str(state["endpoint"]), Path(state["run_dir"]), dict(state["pids"]), spec)
         except FileNotFoundError:
             raise FaultError(
                 f"no fleet is up (no {path}); start one with 'roco up' (a compose fleet: add --compose)"
@@ -125,9 +149,9 @@ LocalFleet = Fleet | UpFleet
 def _check_service(fleet: LocalFleet, service: str) -> None:
     if isinstance(fleet, Fleet) and service in fleet.processes:
         return  # e.g. the routers of the two hosts (services/hosts/fleet.py)
-    if service not in LOCAL_SERVICES:
-        known = ", ".join(LOCAL_SERVICES)
-        raise FaultError(f"no service {service!r} in a local fleet (services: {known})")
+    known = local_services(fleet.system)
+    if service not in known:
+        raise FaultError(f"no service {service!r} in a local fleet (services: {', '.join(known)})")
 
 
 def _cmdline(pid: int) -> list[str] | None:
@@ -268,7 +292,7 @@ def _relaunch(fleet: Fleet, service: str, timeout: float) -> subprocess.Popen[by
             fleet.start_router(timeout)
         elif service == "recorder":
             fleet.start_recorder()
-        elif service in AGENT_ORDER:
+        elif service in fleet.agents:
             fleet.start_agents([service])
         else:
             fleet.respawn(service)

@@ -7,7 +7,7 @@ from typing import Annotated
 
 import typer
 
-from services.cli_common import FleetRunsDir, RouterOption, endpoint_of
+from services.cli_common import FleetRunsDir, RouterOption, SpecFile, endpoint_of, fleet_spec
 from shared.settings import GATEWAY_PORT
 
 gateway_app = typer.Typer()
@@ -23,7 +23,7 @@ def gateway(
         str | None,
         typer.Option(help="the URL other platforms post to (default http://HOST:PORT/acc)"),
     ] = None,
-    spec: Annotated[Path | None, typer.Option("--spec", help="a specification file")] = None,
+    spec: SpecFile = None,
     platform: Annotated[
         list[str] | None,
         typer.Option(
@@ -36,14 +36,15 @@ def gateway(
     string form) for agents of other FIPA platforms (JADE…): what they send to a roco agent
     the specification lets them address (its external role, x_fipa: a_hi on C8) is put on
     the fleet's Zenoh under their own names, and the answers are posted back to them; anything
-    else is refused (FIPA refuse or not-understood) and counted. Runs until Ctrl-C
-    (docs/gateway.md)."""
+    else is refused (FIPA refuse or not-understood) and counted. The specification is --spec,
+    else that of the fleet of 'roco up' (unless --router), else the shipped one. Runs until
+    Ctrl-C (docs/gateway.md)."""
     from services.gateway.serve import GatewayConfig
     from services.gateway.serve import main as run_gateway
-    from services.spec.model import DEFAULT_SPEC
 
+    spec_file = fleet_spec(spec, runs_dir, router)
     config = GatewayConfig(
-        endpoint_of(router, runs_dir), host, port, address, spec or DEFAULT_SPEC, tuple(platform or ())
+        endpoint_of(router, runs_dir), host, port, address, spec_file, tuple(platform or ())
     )
     code = run_gateway(config)
     if code:

@@ -23,7 +23,7 @@ from typing import TYPE_CHECKING, Annotated
 import msgspec
 import typer
 
-from services.cli_common import INTERRUPTED, MARKUP, fail, interrupt, new_run_folder
+from services.cli_common import INTERRUPTED, MARKUP, SpecFile, chosen_spec, fail, interrupt, new_run_folder
 from services.fleet_state import FLEET_FILE
 from shared.settings import Settings
 
@@ -123,23 +123,26 @@ def up(
     loss_pct: Annotated[float, typer.Option(min=0, max=99, help="packets lost, each direction (%)")] = 1.0,
     realtime: Annotated[bool, typer.Option(help="pace the simulation to wall time")] = True,
     runs_dir: UpRunsDir = Path("runs"),
+    spec: SpecFile = None,
 ) -> None:
-    """Make the brain and robot hosts, shape the link, start the fleet across them (mutual TLS
+    """Make the brain and robot hosts, shape the link, start the fleet of the specification
+    across them (the robot's host runs ag_ex and a_ta, the brain every other agent; mutual TLS
     between the routers, access control on); it keeps running until `roco hosts down`, which
     writes the run's report. A fleet that does not come up is stopped, its hosts removed and
     its report written."""
-    from services.fleet.launcher import LaunchError
+    from services.fleet.launcher import LaunchError, spec_env
     from services.hosts.fleet import TwoHosts
     from services.hosts.netns import HostsError
     from services.runtime.run_folder import RunInfo, write_run_info
 
+    spec_file = chosen_spec(spec)
     shaping = _up_shaping(runs_dir, delay_ms, jitter_ms, loss_pct)
     run_dir = new_run_folder(runs_dir)
     info = RunInfo(started=time.time(), realtime=realtime)
     write_run_info(run_dir, info)
     signal.signal(signal.SIGTERM, interrupt)
     env = {Settings.env_name("realtime"): "1" if realtime else "0", Settings.env_name("rerun"): "0"}
-    hosts = TwoHosts(run_dir, shaping, env=env)
+    hosts = TwoHosts(run_dir, shaping, env=env | spec_env(spec_file))
     try:
         waited = hosts.start()  # stops what it started and removes the hosts when it fails
     except (HostsError, LaunchError, KeyboardInterrupt) as exc:
@@ -154,10 +157,20 @@ def up(
     fleet = {"endpoint": hosts.endpoint, "run_dir": str(run_dir), "pids": pids}
     (runs_dir / FLEET_FILE).write_text(json.dumps(fleet))
     typer.echo(
-        f"roco: two hosts up in {waited:.1f} s: "
-        f"brain {p.netns('brain')} (router, recorder, a_km, a_pl, a_co, a_hi), "
-        f"robot {p.netns('robot')} (router, ag_ex, a_ta); link {shaping} ({hosts.how}); "
+        f"roco: two hosts up in {waited:.1f} s: {_placed(hosts)}; link {shaping} ({hosts.how}); "
         f"operator endpoint {hosts.endpoint}; run folder {run_dir}"
+    )
+
+
+def _placed(hosts: TwoHosts) -> str:
+    """``brain NS (router, recorder, …), robot NS (router, …)``: what each host of ``hosts``
+    runs (services/hosts/fleet.py ``placement``)."""
+    from services.hosts.fleet import placement
+
+    assert hosts.pair is not None and hosts.fleet is not None
+    placed = placement(hosts.fleet.agents)
+    return ", ".join(
+        f"{host} {hosts.pair.netns(host)} ({', '.join(['router', *placed[host]])})" for host in placed
     )
 
 

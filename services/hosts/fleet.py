@@ -1,6 +1,7 @@
 """The fleet on two hosts (docs/deploy.md, "Two hosts on one machine"): the brain (router,
 recorder, a_km, a_pl, a_co, a_hi) and the robot (router, ag_ex, a_ta), each in its network
-namespace (services/hosts/netns.py), joined only by their routers over the shaped link.
+namespace (services/hosts/netns.py), joined only by their routers over the shaped link. Whatever
+the specification, every agent but ag_ex and a_ta runs on the brain (:func:`placement`).
 
 Every process talks to the router of its own host at ``tls/127.0.0.1:7447`` (its own
 loopback). The routers mesh over mutual TLS with identities of their own (``router_brain``,
@@ -19,7 +20,7 @@ import os
 import queue
 import time
 import uuid
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -28,7 +29,7 @@ import zenoh
 
 from services.deploy.deploy import issue_router
 from services.fault import process
-from services.fleet.launcher import AGENT_ORDER, Fleet, LaunchError
+from services.fleet.launcher import Fleet, LaunchError
 from services.hosts import link
 from services.hosts.link import Shaping
 from services.hosts.netns import HostPair, HostsError, netns_exec
@@ -56,6 +57,12 @@ liveliness tokens lost (docs/deploy.md)."""
 def host_of(name: str) -> str:
     """``robot`` for ag_ex, a_ta and the robot's router, else ``brain``."""
     return "robot" if name in ROBOT or name in ("router_robot",) else "brain"
+
+
+def placement(agents: Sequence[str]) -> dict[str, list[str]]:
+    """The services besides the routers each host runs for a fleet of ``agents`` (its
+    specification's, in start order): the recorder and the agents of :func:`host_of`."""
+    return {host: [n for n in ("recorder", *agents) if host_of(n) == host] for host in ("brain", "robot")}
 
 
 @dataclass
@@ -90,11 +97,12 @@ class TwoHosts:
             raise
 
     def _start(self, timeout: float) -> float:
+        spec = load(spec_path(self.env, os.environ))
         self.pair = pair = HostPair.create()
         brain, robot = pair.netns("brain"), pair.netns("robot")
         wrap = {
             n: netns_exec(robot if host_of(n) == "robot" else brain)
-            for n in (*AGENT_ORDER, "recorder", "relay")
+            for n in (*spec.launch_order, "recorder", "relay")
         }
         wrap["router_brain"], wrap["router_robot"] = netns_exec(brain), netns_exec(robot)
         local = f"tls/127.0.0.1:{PORT}"
@@ -103,7 +111,6 @@ class TwoHosts:
         env = {**self.env, Settings.env_name("links"): "router"}
         self.fleet = fleet = Fleet(self.run_dir, local, env=env, acl=True, tls=True, wrap=wrap)
         assert fleet.security is not None
-        spec = load(spec_path(self.env, os.environ))
         brain_link = pair.link_addr("brain")
         issue_router(fleet.security, spec, "router_brain", [], [brain_link, pair.uplink_addr])
         issue_router(fleet.security, spec, "router_robot", [], [pair.link_addr("robot")])
@@ -139,24 +146,22 @@ class TwoHosts:
             fleet.start_recorder()
             fleet.wait_alive(session, ["recorder"], timeout=60)
             fleet.start_agents()
-            return fleet.wait_alive(session, AGENT_ORDER, timeout=timeout)
+            return fleet.wait_alive(session, fleet.agents, timeout=timeout)
         finally:
             session.close()
 
     def _write_hosts(self, brain_link: str) -> None:
         """The run folder's ``hosts.json``: each host's namespace, addresses and processes, the
         link's devices and the routers' lease (what a reader of the run needs to place a log)."""
-        assert self.pair is not None
+        assert self.pair is not None and self.fleet is not None
         p = self.pair
+        placed = placement(self.fleet.agents)
         hosts = {
             host: {
                 "netns": p.netns(host),
                 "link_addr": p.link_addr(host),
                 "link_dev": p.link_dev[host],
-                "processes": [
-                    f"router_{host}",
-                    *([n for n in ("recorder", *AGENT_ORDER) if host_of(n) == host]),
-                ],
+                "processes": [f"router_{host}", *placed[host]],
             }
             for host in ("brain", "robot")
         }
@@ -264,7 +269,7 @@ class TwoHostsHosting:
         through the brain's router. Raises FaultError."""
         event = process.start(self.fleet, service, timeout, wait=False)
         behind = {
-            "router_brain": ["recorder", *AGENT_ORDER],  # the robot's through the mesh again
+            "router_brain": ["recorder", *self.fleet.agents],  # the robot's through the mesh again
             "router_robot": list(ROBOT),
         }
         try:

@@ -8,7 +8,7 @@ from typing import Annotated
 
 import typer
 
-from services.cli_common import fail
+from services.cli_common import SpecFile, chosen_spec, fail
 
 export_app = typer.Typer()
 
@@ -24,17 +24,22 @@ def export(
         typer.Argument(metavar="[OUT]", help="the bag folder to make [default: RUN/rosbag2]"),
     ] = None,
     mcap: Annotated[bool, typer.Option("--mcap", help="as a rosbag2 folder with one MCAP file")] = False,
+    spec: SpecFile = None,
 ) -> None:
     """Write RUN as a rosbag2 folder (metadata.yaml and one MCAP file, profile ros2, CDR) that
     Foxglove, rosbags or `ros2 bag` read without roco: the robot's state from the run's
     recording.rrd (/joint_states, /tf, /tf_static, the wrist wrenches, the head camera's
     images and camera info; robot time as stamps) and every communicate on /roco/traffic as
-    roco_msgs/msg/Communicate. `roco spec verify` and `roco report` take the folder. Exit 2
-    when RUN is no run folder, OUT is taken, or the ros2 extra is missing."""
+    roco_msgs/msg/Communicate, its content as the JSON of its term in the content languages of
+    the run's specification (--spec, else the one the run used). `roco spec verify` and `roco
+    report` take the folder. Exit 2 when RUN is no run folder, OUT is taken, or the ros2 extra
+    is missing."""
     from services.ros2.messages import MissingExtra
+    from services.spec.model import load
 
     if not mcap:
         raise fail("say the format: roco export RUN --mcap [OUT] (the one format so far)", code=2)
+    load(chosen_spec(spec, run_dir))  # registers the system's content languages
     try:
         from services.ros2.export import ExportError, export_run
     except ImportError as exc:  # pragma: no cover - the core dependencies are installed

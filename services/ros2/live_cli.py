@@ -7,7 +7,7 @@ from typing import Annotated
 
 import typer
 
-from services.cli_common import FleetRunsDir, RouterOption, endpoint_of, fail
+from services.cli_common import FleetRunsDir, RouterOption, SpecFile, endpoint_of, fail, fleet_spec
 
 ros2_app = typer.Typer()
 
@@ -44,7 +44,7 @@ def ros2(
     ] = False,
     all_topics: Annotated[bool, typer.Option("--all", help="publish every topic above")] = False,
     say: Annotated[bool, typer.Option(help="serve roco/say (a person's sentence to a_hi)")] = True,
-    spec: Annotated[Path | None, typer.Option("--spec", help="a specification file")] = None,
+    spec: SpecFile = None,
     write_package: Annotated[
         Path | None,
         typer.Option("--write-package", help="write ROS 2 package roco_msgs into this new folder; exit"),
@@ -65,12 +65,11 @@ def ros2(
     from services.ros2.face import CAMERA, JOINT_STATES, TASK_STATE, TF, TOPICS, FaceConfig
     from services.ros2.live import LiveConfig
     from services.ros2.live import main as run_live
-    from services.spec.model import DEFAULT_SPEC
 
     asked = {JOINT_STATES: joint_states, TF: tf, TASK_STATE: task_state, CAMERA: camera}
     topics = frozenset(TOPICS) if all_topics else frozenset(t for t, on in asked.items() if on)
     face = FaceConfig(domain=domain, namespace=namespace, topics=topics, say=say)
-    code = run_live(LiveConfig(endpoint_of(router, runs_dir), face, spec or DEFAULT_SPEC))
+    code = run_live(LiveConfig(endpoint_of(router, runs_dir), face, fleet_spec(spec, runs_dir, router)))
     if code:
         raise typer.Exit(code)
 

@@ -16,6 +16,7 @@ from services.cli_common import (
     LiveOption,
     RecordOption,
     RunsDirMade,
+    SpecFile,
     TlsOption,
     fail,
     new_run_folder,
@@ -24,8 +25,8 @@ from services.cli_common import (
 )
 from services.runtime.run_folder import RunInfo
 from services.scenario.model import DEFAULT_COMMAND
-from services.scenario.run_env import live_watch, scene_env, viewer_env
-from services.spec.model import default_spec
+from services.scenario.run_env import kitchen_spec, live_watch, scene_env, viewer_env
+from services.spec.model import default_spec, load
 from services.spec_check.report_cli import finish_report
 from shared.settings import Settings
 
@@ -38,6 +39,8 @@ chaos_app = typer.Typer()
 
 
 _CHAOS_DEFAULT = ",".join(default_spec().agent_names)
+CHAOS_NEEDS = "judges the kitchen's task (the content poured, no object dropped, ag_ex's ledger)"
+"""Why `roco chaos` runs the kitchen only (services/scenario/chaos.py ``verdict``)."""
 
 
 def _check_chaos_hosting(hosts: bool, acl: bool | None, tls: bool | None, link: tuple[object, ...]) -> None:
@@ -181,6 +184,7 @@ def chaos(
             show_default="2,6",
         ),
     ] = None,
+    spec: SpecFile = None,
 ) -> None:
     """Kill, pause or restart services at random times while the robot carries out a command
     (each service once by default), then say whether the task was done, no command was lost,
@@ -188,10 +192,12 @@ def chaos(
     agent raised (RUN/chaos.md). Exit 0 only if all six hold. With `--hosts` the fleet runs on the two
     hosts of `roco hosts` (link 20 ± 5 ms, 1 % loss unless told; mutual TLS between the
     routers, access control on) and the link is cut as well. On compose use `roco fault`
-    (docs/recovery.md)."""
+    (docs/recovery.md). The kitchen only: another system (--spec) is refused."""
+    from services.fleet.launcher import spec_env
     from services.scenario.chaos import verdict, write_chaos_report
     from services.scenario.runner import ScenarioRunner
 
+    path = kitchen_spec(spec, "roco chaos", CHAOS_NEEDS)
     _check_chaos_hosting(hosts, acl, tls, (delay_ms, jitter_ms, loss_pct, cut))
     low, high = _span("--gap", gap)
     cut_s = _span("--cut", cut) if cut is not None else (2.0, 6.0)
@@ -199,11 +205,11 @@ def chaos(
     shaping = _chaos_shaping(delay_ms, jitter_ms, loss_pct) if hosts else None
     scene = scene_env(realtime, 0, None)
     run_dir = new_run_folder(runs_dir)
-    env = scene | viewer_env(record, False)
+    env = scene | viewer_env(record, False) | spec_env(path)
     info = RunInfo(started=time.time(), realtime=realtime, seed=0, scenario=sc.name)
     stop_on_signals()
     hosting = _two_hosts(run_dir, shaping, env) if shaping is not None else None
-    watch = live_watch(f"roco chaos --seed {seed}", live, quiet)
+    watch = live_watch(f"roco chaos --seed {seed}", live, quiet, load(path))
     with watch if watch is not None else contextlib.nullcontext():
         runner = ScenarioRunner(
             sc,

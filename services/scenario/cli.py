@@ -1,5 +1,6 @@
 """``roco run`` and ``roco scenario``: the whole system on one command or a scripted session,
-each command's outcome checked (services/scenario/runner.py)."""
+each command's outcome checked (services/scenario/runner.py). ``roco run`` runs the system of
+its specification (``--spec``); ``roco scenario`` the kitchen's scenarios, so the kitchen only."""
 
 from __future__ import annotations
 
@@ -20,8 +21,10 @@ from services.cli_common import (
     Ros2NamespaceOption,
     Ros2Option,
     RunsDirMade,
+    SpecFile,
     TlsOption,
     ViewOption,
+    chosen_spec,
     fail,
     new_run_folder,
     port_free,
@@ -30,7 +33,8 @@ from services.cli_common import (
 )
 from services.ros2.live_cli import ros2_args
 from services.runtime.run_folder import RunInfo
-from services.scenario.run_env import live_watch, scene_env, viewer_env
+from services.scenario.run_env import kitchen_spec, live_watch, scene_env, viewer_env
+from services.spec.model import load
 from services.spec_check.report_cli import finish_report
 
 if TYPE_CHECKING:
@@ -59,23 +63,30 @@ def run(
     ros2: Ros2Option = False,
     ros2_domain: Ros2DomainOption = 0,
     ros2_namespace: Ros2NamespaceOption = "/",
+    spec: SpecFile = None,
 ) -> None:
-    """Start router, recorder and one process per agent (and the ACL gateway with
-    `--gateway`, the ROS 2 face with `--ros2`); give a_hi the command; wait for the outcome;
-    stop everything; write the run folder's report. Exit 0 only on success with no
-    requirement flagged violated during the run (docs/spec.md, the live monitor), 130 when
-    interrupted (Ctrl-C: the fleet is stopped, the report written)."""
+    """Start router, recorder and one process per agent of the specification (and the ACL
+    gateway with `--gateway`, the ROS 2 face with `--ros2`); give the command to the agent that
+    plays the person's role (a_hi in the kitchen); wait for the outcome; stop everything; write
+    the run folder's report. Exit 0 only on success with no requirement flagged violated
+    during the run (docs/spec.md, the live monitor), 130 when interrupted (Ctrl-C: the fleet
+    is stopped, the report written)."""
     from services.scenario.model import Scenario, Step
 
+    path = chosen_spec(spec)
+    system = load(path)
+    if system.playing("person") is None:
+        raise fail(f'no agent of {system.system} plays the person\'s role (role = "person")', code=2)
     security_switches(acl, tls)
     face = ros2_args(ros2, ros2_domain, ros2_namespace)
     scenario = Scenario(
         name="", steps=(Step(say=command),), seed=seed, pose_seed=pose_seed, timeout_s=timeout
     )
-    watch = live_watch("roco run", live, quiet)
+    watch = live_watch("roco run", live, quiet, system)
     _run_scenario(
         scenario,
         runs_dir,
+        spec=path,
         realtime=realtime,
         quiet=quiet,
         record=record,
@@ -104,12 +115,13 @@ def scenario(
     ros2: Ros2Option = False,
     ros2_domain: Ros2DomainOption = 0,
     ros2_namespace: Ros2NamespaceOption = "/",
+    spec: SpecFile = None,
 ) -> None:
     """Run a scenario (several commands, interruptions, disturbances, restarts; see
     services/scenario/model.py) headless, check every command's outcome against what the
     scenario expects, and write the report. Exit 0 only when everything went as expected and
     no requirement was flagged violated during the run (docs/spec.md, the live monitor), 130
-    when interrupted."""
+    when interrupted. Scenarios are the kitchen's: another system (--spec) is refused."""
     from services.scenario.model import ScenarioError, library, load_scenario
 
     security_switches(acl, tls)
@@ -119,15 +131,17 @@ def scenario(
         return
     if name is None:
         raise fail("name a scenario file or a library scenario (roco scenario --list)", code=2)
+    path = kitchen_spec(spec, "roco scenario", "plays the kitchen's scenarios, whose steps name its agents")
     try:
         sc = load_scenario(name)
     except ScenarioError as exc:
         raise fail(str(exc), code=2) from None
     face = ros2_args(ros2, ros2_domain, ros2_namespace)
-    watch = live_watch(f"roco scenario {sc.name}", live, quiet)
+    watch = live_watch(f"roco scenario {sc.name}", live, quiet, load(path))
     _run_scenario(
         sc,
         runs_dir,
+        spec=path,
         realtime=realtime,
         quiet=quiet,
         record=record,
@@ -139,14 +153,15 @@ def scenario(
 
 
 def _run_echo(say: Callable[[str], None], quiet: bool) -> Callable[[str], None]:
-    """The runner's progress lines to ``say`` (with ``quiet``: only a_hi's to the person)."""
-    return lambda line: say(line) if not quiet or "a_hi → person" in line else None
+    """The runner's progress lines to ``say`` (with ``quiet``: only those to the person)."""
+    return lambda line: say(line) if not quiet or "→ person" in line else None
 
 
 def _run_scenario(
     sc: object,
     runs_dir: Path,
     *,
+    spec: Path,
     realtime: bool,
     quiet: bool,
     record: bool = True,
@@ -155,10 +170,12 @@ def _run_scenario(
     gateway: int | None = None,
     ros2: tuple[str, ...] | None = None,
 ) -> None:
-    """Run scenario ``sc`` (services/scenario/model.py) in a new run folder under ``runs_dir``
+    """Run scenario ``sc`` (services/scenario/model.py) with a fleet of the specification
+    ``spec`` in a new run folder under ``runs_dir``
     and end as `roco run` and `roco scenario` do: the report written, one line of outcome,
     exit 1 on failure (:func:`_exit_on_failure`), 130 when interrupted. The port of
     ``gateway`` is checked free before anything starts."""
+    from services.fleet.launcher import spec_env
     from services.monitor import progress_line
     from services.scenario.model import Scenario
     from services.scenario.runner import ScenarioRunner
@@ -168,7 +185,7 @@ def _run_scenario(
         port_free(gateway, "--gateway")
     scene = scene_env(realtime, sc.seed, sc.pose_seed)
     run_dir = new_run_folder(runs_dir)
-    env = scene | viewer_env(record, view)
+    env = scene | viewer_env(record, view) | spec_env(spec)
     info = RunInfo(
         started=time.time(),
         realtime=realtime,

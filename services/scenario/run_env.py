@@ -1,33 +1,61 @@
 """What ``roco run``, ``scenario``, ``chaos`` and ``up`` set up before a fleet starts: the
-perception check, the scene's environment, Rerun recording and viewer, the live view."""
+specification it runs, the perception check, the scene's environment, Rerun recording and
+viewer, the live view."""
 
 from __future__ import annotations
 
+from pathlib import Path
 from typing import TYPE_CHECKING
 
 import typer
 
-from services.cli_common import fail
-from services.fleet.launcher import AGENT_ORDER
+from services.cli_common import chosen_spec, fail
 from shared.settings import Settings
 
 if TYPE_CHECKING:
     from services.live.watch import LiveWatch
+    from services.spec.model import SystemSpec
 
 
-def live_watch(title: str, live: bool | None, quiet: bool) -> LiveWatch | None:
-    """The live view (services/live/) when asked, or by default when stdout is a terminal and
-    not ``quiet``; None: plain lines."""
+def live_watch(title: str, live: bool | None, quiet: bool, system: SystemSpec) -> LiveWatch | None:
+    """The live view (services/live/) of a fleet of ``system`` when asked, or by default when
+    stdout is a terminal and not ``quiet``; None: plain lines."""
     from rich.console import Console
 
     from services.live.watch import LiveWatch
-    from services.spec.model import default_spec
     from services.spec.notices import notice_protocols
 
     console = Console(highlight=False)
     if live is False or (live is None and (quiet or not console.is_terminal)):
         return None
-    return LiveWatch(title, AGENT_ORDER, console=console, notice_protocols=notice_protocols(default_spec()))
+    return LiveWatch(title, system.launch_order, console=console, notice_protocols=notice_protocols(system))
+
+
+def missing_kitchen_agents(system: SystemSpec) -> tuple[str, ...]:
+    """The Robot Companion's agents ``system`` lacks: none for the kitchen, also grown by agents
+    of its own (docs/spec.md's walk-through)."""
+    from services.spec.model import default_spec
+
+    return tuple(a for a in default_spec().launch_order if a not in system.agent_names)
+
+
+def kitchen_spec(given: Path | None, command: str, why: str) -> Path:
+    """The specification ``command`` runs: ``given`` (``--spec``, ``ROCO_SPEC``), else the
+    shipped one (cli_common.py ``chosen_spec``). One line and exit 2 when it is another
+    system than the kitchen (:func:`missing_kitchen_agents`), saying ``why`` ``command``
+    needs the kitchen."""
+    from services.spec.model import load
+
+    path = chosen_spec(given)
+    system = load(path)
+    missing = missing_kitchen_agents(system)
+    if missing:
+        raise fail(
+            f"{command} {why}: {system.system} ({path}) has no {', '.join(missing)}; "
+            "run it with roco run --spec, or roco up --spec and roco send",
+            code=2,
+        )
+    return path
 
 
 def check_perception() -> None:

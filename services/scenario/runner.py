@@ -9,6 +9,7 @@ from __future__ import annotations
 import contextlib
 import json
 import math
+import os
 import queue
 import threading
 import time
@@ -22,7 +23,7 @@ import aiohttp
 import msgspec
 import zenoh
 
-from services.fleet.launcher import AGENT_ORDER, GATEWAY, ROS2, Fleet, LaunchError, free_port
+from services.fleet.launcher import GATEWAY, ROS2, Fleet, LaunchError, free_port
 from services.gateway.http_mtp import MTPError
 from services.gateway.platform import ForeignPlatform
 from services.recorder.sync import sync
@@ -35,6 +36,7 @@ from services.runtime.reports import MissedOutcomes, ReportFilter, follow_report
 from services.runtime.run_folder import RunCommand, RunInfo, write_run_info
 from services.runtime.session import open_client
 from services.scenario.model import Fault, Scenario, Step
+from services.spec.model import DEFAULT_SPEC, SystemSpec, channel_between, default_spec, load, spec_path
 from shared.fipa_codec import Communicate, DecodeError, Performative, decode
 from shared.fipa_codec.batch import unpack
 from shared.fipa_codec.languages import ContentError, decode_content
@@ -240,6 +242,14 @@ class ScenarioOutcome:
         return "\n".join(lines)
 
 
+def system_of(env: dict[str, str]) -> SystemSpec:
+    """The specification a fleet given the extra environment ``env`` runs (``ROCO_SPEC`` of
+    ``env``, else of this process, else the shipped one: services/fleet/launcher.py
+    ``Fleet.spec``)."""
+    path = spec_path(env, os.environ)
+    return default_spec() if path.resolve() == DEFAULT_SPEC.resolve() else load(path)
+
+
 def _watched(key: str) -> bool:
     """Whether the runner reads communicates on ``key``: a_ta's to a_co (C1: its L_SW plan
     steps) and to a_km (C6: knowledge)."""
@@ -284,6 +294,8 @@ class ScenarioRunner:
         self.on_session = on_session
         self.run_dir = run_dir
         self.hosting: Hosting = hosting if hosting is not None else LocalHosting(run_dir, env or {})
+        self.system = system_of(env or {})
+        """The specification the fleet runs (its agents, the person's, the start it waits for)."""
         self.echo = echo or (lambda line: None)
         self.traffic_lines = traffic_lines
         self.info = info or RunInfo()
@@ -318,6 +330,11 @@ class ScenarioRunner:
     @property
     def endpoint(self) -> str:
         return self.hosting.endpoint
+
+    @property
+    def person(self) -> str:
+        """The agent the person talks to: the one that plays the person's role (a_hi)."""
+        return self.system.playing("person") or "a_hi"
 
     # ---- events from Zenoh (callback threads: enqueue only) ----
     def _on_report(self, report: HumanReport) -> None:
@@ -406,7 +423,7 @@ class ScenarioRunner:
         (LaunchError)."""
         proc = self.fleet.processes[name]
         router = name.startswith("router")
-        restartable = name in AGENT_ORDER or name == "recorder" or router
+        restartable = name in self.system.agent_names or name == "recorder" or router
         if not restartable or len(self.crashed.get(name, [])) >= MAX_CRASHES:
             raise LaunchError(f"process {name} exited during the run (see {self.run_dir}/logs)")
         self.crashed.setdefault(name, []).append(proc.returncode)
@@ -433,7 +450,7 @@ class ScenarioRunner:
         person something unprompted) is said with its sender and kept in :attr:`notices`."""
         if item.kind is ReportKind.NOTICE:
             self.notices.append((round(time.time() - self.t0, 1), item))
-            self._say(f"a_hi → person: {item.notice_line}")
+            self._say(f"{self.person} → person: {item.notice_line}")
             return
         record = next((c for c in self.commands if c.request_id == item.request_id), None)
         if record is None or not self.shown.keep(item):
@@ -441,7 +458,7 @@ class ScenarioRunner:
         if self.missed is not None:
             self.missed.heard()
         record.reports.append(item)
-        self._say(f"a_hi → {to} (#{record.number}): {item.kind.value}: {item.text}")
+        self._say(f"{self.person} → {to} (#{record.number}): {item.kind.value}: {item.text}")
         if item.kind in FINAL_REPORTS:
             record.final = item
             record.ended = time.time()
@@ -490,7 +507,7 @@ class ScenarioRunner:
         self.info.commands.append(text)
         write_run_info(self.run_dir, self.info)
         speaker = "platform" if step.from_ == "gateway" else "person"
-        self._say(f"{speaker} → a_hi (#{record.number}): “{text}”")
+        self._say(f"{speaker} → {self.person} (#{record.number}): “{text}”")
 
     def _act(self, session: zenoh.Session, step: Step) -> None:
         if step.say is not None:
@@ -710,10 +727,11 @@ class ScenarioRunner:
         self.missed = MissedOutcomes(session)  # and what it no longer has a cache of
         self.session = session
         self.fleet.start_agents()
-        waited = self.fleet.wait_alive(session, AGENT_ORDER, timeout=120)
+        agents = self.system.launch_order
+        waited = self.fleet.wait_alive(session, agents, timeout=120)
         self.info.processes = self.fleet.pids()
         write_run_info(self.run_dir, self.info)
-        self._say(f"all agents alive after {waited:.1f} s: {', '.join(AGENT_ORDER)}")
+        self._say(f"all agents alive after {waited:.1f} s: {', '.join(agents)}")
         if self.gateway is not None:
             self._start_gateway(session, self.gateway)
         if self.ros2 is not None:
@@ -735,7 +753,10 @@ class ScenarioRunner:
 
     def _await_knowledge(self, deadline: float) -> None:
         """Paper Table 7: a_km receives initial knowledge about the environment first (within
-        60 s, else LaunchError)."""
+        60 s, else LaunchError). A system in which no a_ta informs an a_km (another than the
+        kitchen) starts without."""
+        if channel_between(self.system, "a_ta", "a_km") is None:
+            return
         knowledge_by = time.monotonic() + 60
         while not self.knowledge.is_set():
             if time.monotonic() > knowledge_by:
@@ -775,7 +796,7 @@ class ScenarioRunner:
         """The agents' counters (and the gateway's: what crossed it, said in one line as
         ``roco status`` shows it) into the run folder's counters.json."""
         asked = [
-            *AGENT_ORDER,
+            *self.system.launch_order,
             *([GATEWAY] if self.gateway is not None else []),
             *([ROS2] if self.ros2 is not None else []),
         ]

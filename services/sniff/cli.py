@@ -12,8 +12,10 @@ from services.cli_common import (
     CredentialsOption,
     FleetRunsDir,
     RouterOption,
+    SpecFile,
     endpoint_of,
     fail,
+    fleet_system,
     operator_session,
     stop_on_signals,
 )
@@ -26,20 +28,23 @@ def sniff(
     router: RouterOption = None,
     runs_dir: FleetRunsDir = Path("runs"),
     agent: Annotated[list[str] | None, typer.Option(help="only communicates from or to this agent")] = None,
-    channel: Annotated[list[str] | None, typer.Option(help="only this channel (C1..C8)")] = None,
+    channel: Annotated[list[str] | None, typer.Option(help="only this channel of the specification")] = None,
     performative: Annotated[list[str] | None, typer.Option(help="only this performative")] = None,
     conversation: Annotated[str | None, typer.Option(help="only this conversation-id")] = None,
     raw: Annotated[bool, typer.Option(help="print :content exactly as on the wire (SC00070)")] = False,
     credentials: CredentialsOption = None,
+    spec: SpecFile = None,
 ) -> None:
     """Print live communicates as they cross Zenoh, in FIPA SC00070 string form (like JADE's
-    Sniffer), until interrupted. Content is shown as its decoded term unless --raw."""
+    Sniffer), until interrupted. Content is shown as its decoded term unless --raw. Agents,
+    channels and content languages are those of --spec, else of the fleet's specification."""
     from services.sniff.sniffer import parse_filters
     from services.sniff.sniffer import sniff as run_sniff
 
+    system = fleet_system(spec, runs_dir, router)  # its content languages registered
     try:
         f = parse_filters(
-            agents=agent, channels=channel, performatives=performative, conversation=conversation
+            agents=agent, channels=channel, performatives=performative, conversation=conversation, spec=system
         )
     except ValueError as exc:
         raise fail(str(exc), code=2) from None

@@ -24,6 +24,7 @@ from services.live.watch import LiveWatch
 from services.runtime import keys
 from services.runtime.session import open_client
 from services.scenario.run_env import live_watch
+from services.spec.model import default_spec
 from shared.fipa_codec import Performative, encode
 from shared.fipa_codec.languages import extend
 from shared.fipa_codec.languages.l_hc import CommandOutcome, HumanCommand, Notice, Severity, TaskAtom
@@ -253,13 +254,14 @@ def test_the_watch_takes_traffic_state_and_tokens_from_zenoh(router: str) -> Non
 
 
 def test_off_a_terminal_or_quiet_there_is_no_live_view(monkeypatch: pytest.MonkeyPatch) -> None:
-    assert live_watch("roco run", None, quiet=False) is None  # pytest's stdout is no terminal
-    assert live_watch("roco run", True, quiet=True) is not None  # asked for
+    kitchen = default_spec()
+    assert live_watch("roco run", None, quiet=False, system=kitchen) is None  # stdout is no terminal
+    assert live_watch("roco run", True, quiet=True, system=kitchen) is not None  # asked for
     monkeypatch.setenv("FORCE_COLOR", "1")
     monkeypatch.setenv("TTY_COMPATIBLE", "1")
-    assert live_watch("roco run", None, quiet=True) is None
-    assert live_watch("roco run", False, quiet=False) is None
-    watch = live_watch("roco chaos", True, quiet=False)
+    assert live_watch("roco run", None, quiet=True, system=kitchen) is None
+    assert live_watch("roco run", False, quiet=False, system=kitchen) is None
+    watch = live_watch("roco chaos", True, quiet=False, system=kitchen)
     assert watch is not None and watch.state.expected == tuple(AGENT_ORDER)
 
 

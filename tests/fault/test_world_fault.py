@@ -9,14 +9,15 @@ from pathlib import Path
 
 import pytest
 
-from services.fault.process import LOCAL_SERVICES, FaultError, _wait_world
+from services.fault.process import FaultError, _wait_world, local_services
 from services.fleet.launcher import service_args
+from services.spec.model import default_spec
 from velma.world.files import LINK_FILE, write_whole
 from velma.world.mode import WORLD_SERVICE
 
 
 def test_the_world_is_a_service_of_a_local_fleet_run_as_the_launcher_runs_it() -> None:
-    assert WORLD_SERVICE in LOCAL_SERVICES
+    assert WORLD_SERVICE in local_services(default_spec())
     assert service_args(WORLD_SERVICE, "tcp/127.0.0.1:7447") == ["-m", "velma.world"]
 
 

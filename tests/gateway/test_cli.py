@@ -30,15 +30,20 @@ def test_no_router_is_one_line_and_exit_1(tmp_path: Path) -> None:
 
 
 def test_a_spec_without_external_role_is_refused(tmp_path: Path) -> None:
-    from services.spec.model import DEFAULT_SPEC
+    """The sorting cell has no external role: nobody of another platform may come in."""
+    from tests.support.cell_fleet import CELL
 
-    text = DEFAULT_SPEC.read_text()
-    start = text.index("[[externals]]")
+    done = gateway(tmp_path, "--spec", str(CELL), "--port", str(free_port()))
+    assert done.returncode == 1, done.stderr
+    assert done.stderr == f"roco: gateway: {CELL}: no external role ([[externals]]): nobody may come in\n"
+
+
+def test_a_spec_that_does_not_load_is_one_line(tmp_path: Path) -> None:
     spec = tmp_path / "spec.toml"
-    spec.write_text(text[:start] + text[text.index("# Interaction protocols") :])
+    spec.write_text('system = "x"\n')
     done = gateway(tmp_path, "--spec", str(spec), "--port", str(free_port()))
     assert done.returncode == 1 and done.stderr.count("\n") == 1, done.stderr
-    assert "roco: gateway:" in done.stderr
+    assert done.stderr.startswith(f"roco: {spec}: ")
 
 
 def test_a_port_in_use_is_one_line(tmp_path: Path) -> None:

@@ -1,7 +1,8 @@
 """The sorting cell end to end, with roco's documented commands only (README.md beside cell.toml):
 its specification checked, its fleet up under access control and TLS, a person's orders sent,
-its run verified, its requirements traced (these tests' own marks), its report and its compose
-file. One fleet serves every test of the module."""
+its sorter killed and started again with `roco fault`, its run verified, its requirements traced
+(these tests' own marks), its report, its export and its compose file. One fleet serves every
+test of the module."""
 
 from __future__ import annotations
 
@@ -13,6 +14,7 @@ import sys
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -45,28 +47,33 @@ class CellRun:
     run_dir: Path
     said: dict[str, subprocess.CompletedProcess[str]]
     status: subprocess.CompletedProcess[str]
+    faults: dict[str, subprocess.CompletedProcess[str]]
     down: subprocess.CompletedProcess[str]
 
 
 ORDERS = ("sort 3 bolts", "sort 2 apples", "hello", "sort 200 bolts")
 """Sorted; refused (no bin for apples); not understood; agreed, then failed: bin 1 holds 100
 (the planted fault that violates R2.1, flagged live)."""
+FAULTS = ("kill a_km", "kill a_so", "start a_so", "show")
+"""`roco fault` on the fleet once the orders are done, in order: the kitchen's a_km is no service
+of it; the sorter killed, then started again; every agent's fault settings."""
 
 
 @pytest.fixture(scope="module")
 def cell_run(tmp_path_factory: pytest.TempPathFactory) -> Iterator[CellRun]:
-    """`roco up --spec cell.toml` (access control and TLS on, as by default), the three
-    ``ORDERS`` sent, `roco status`, `roco down`."""
+    """`roco up --spec cell.toml` (access control and TLS on, as by default), the
+    ``ORDERS`` sent, `roco status`, the ``FAULTS``, `roco down`."""
     runs = tmp_path_factory.mktemp("cell_runs")
     up = roco("up", "--spec", str(SPEC), "--port", str(free_port()), "--runs-dir", str(runs))
     assert up.returncode == 0, up.stdout + up.stderr
     try:
         said = {line: roco("send", line, "--runs-dir", str(runs)) for line in ORDERS}
         status = roco("status", "--runs-dir", str(runs))
+        faults = {args: roco("fault", *args.split(), "--runs-dir", str(runs)) for args in FAULTS}
     finally:
         down = roco("down", "--runs-dir", str(runs), check=True)
     (run_dir,) = [p for p in runs.iterdir() if p.is_dir()]
-    yield CellRun(run_dir, said, status, down)
+    yield CellRun(run_dir, said, status, faults, down)
 
 
 def test_the_specification_is_sound_deadlock_free_and_the_code_matches_it() -> None:
@@ -105,6 +112,19 @@ def test_status_lists_the_cell_s_agents_alive_and_the_requirement_violated_live(
     )
 
 
+def test_roco_fault_kills_and_starts_the_cell_s_agents(cell_run: CellRun) -> None:
+    """`roco fault` with no --spec: the fleet's run folder keeps its specification, whose agents
+    are the services it knows."""
+    wrong, kill, start, show = (cell_run.faults[args] for args in FAULTS)
+    assert wrong.returncode == 2 and wrong.stderr.splitlines() == [
+        "roco: no service 'a_km' in a local fleet (services: router, recorder, a_cv, a_so, a_op)"
+    ]
+    assert kill.returncode == 0 and kill.stdout.startswith("roco: killed a_so (pid "), kill.stderr
+    assert start.returncode == 0 and start.stdout.startswith("roco: started a_so (pid "), start.stderr
+    assert show.returncode == 0, show.stderr
+    assert [line.split()[0] for line in show.stdout.splitlines()] == ["a_cv", "a_so", "a_op"]
+
+
 @pytest.mark.requirement("R2.1", "R2.2")
 def test_the_run_conforms_and_its_requirements_are_traced(cell_run: CellRun) -> None:
     """Every conversation followed its protocol (the failed order too); R1 and R2.2 are shown,
@@ -138,6 +158,25 @@ def test_the_report_is_the_cell_s_without_kitchen_sections(cell_run: CellRun) ->
         assert kitchen not in report, kitchen
     # roco down's last line counts the run's communicates, not the kitchen's commands
     assert "14 communicates; report" in cell_run.down.stdout and "command" not in cell_run.down.stdout
+
+
+def test_the_export_renders_the_cell_s_terms(cell_run: CellRun, tmp_path: Path) -> None:
+    """`roco export RUN --mcap` reads the content in the languages of the run's specification:
+    the person's first order is the JSON of the cell's Order term."""
+    reader = pytest.importorskip("mcap.reader", reason="the ros2 extra's mcap is not installed")
+    from services.ros2 import messages
+
+    roco("export", str(cell_run.run_dir), "--mcap", str(tmp_path / "bag"), check=True)
+    store = messages.typestore()
+    with next((tmp_path / "bag").glob("*.mcap")).open("rb") as f:
+        sent: list[Any] = [
+            store.deserialize_cdr(m.data, schema.name)
+            for schema, _, m in reader.make_reader(f).iter_messages()
+            if schema.name == messages.COMMUNICATE
+        ]
+    orders = [c.content for c in sent if c.language == "L_ORD" and c.performative == "request"]
+    assert orders, [(c.language, c.performative) for c in sent]
+    assert {"item": "bolt", "count": 3}.items() <= json.loads(orders[0]).items(), orders[0]
 
 
 def test_the_agents_that_take_only_communicates_replay_as_they_ran(cell_run: CellRun) -> None:
