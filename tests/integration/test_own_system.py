@@ -14,7 +14,6 @@ roco but its public API (services/runtime/agent.py, roles), no ``sitecustomize``
 
 from __future__ import annotations
 
-import json
 import re
 import subprocess
 import sys
@@ -219,9 +218,18 @@ def test_the_report_is_the_system_s_without_kitchen_sections(shop: Shop) -> None
 
 
 def test_its_compose_file_carries_it_and_check_names_its_identities(shop: Shop) -> None:
+    """`roco deploy compose --spec` writes the system's compose file in its folder; `--check`
+    names its identities and the system's folder it mounts; with the auditor's service taken out
+    of the file (the planted fault), `--check` exits 1."""
     compose = shop.spec.parent / "compose.yaml"
     ok(roco("deploy", "compose", "--spec", str(shop.spec), "--file", str(compose)))
     checked = ok(roco("deploy", "compose", "--spec", str(shop.spec), "--file", str(compose), "--check"))
-    for agent in ("a_wk", "a_au", "a_ui"):
-        assert agent in checked.stdout, checked.stdout
-    assert "a_km" not in compose.read_text() and "world" not in json.dumps(checked.stdout)
+    assert "(identities: a_ui, a_wk, a_au, recorder, operator, router;" in checked.stdout, checked.stdout
+    assert "read-only at /system, ROCO_SPEC=/system/shop.toml" in checked.stdout, checked.stdout
+    text = compose.read_text()
+    assert "a_km" not in text and "\n  world:" not in text and "build:" not in text
+    start = text.index("\n  a_au:\n")
+    end = text.index("\n  a_", start + 1)
+    compose.write_text(text[:start] + text[end:])
+    broken = roco("deploy", "compose", "--spec", str(shop.spec), "--file", str(compose), "--check")
+    assert broken.returncode == 1 and "a_au" in broken.stdout + broken.stderr, broken.stdout + broken.stderr
