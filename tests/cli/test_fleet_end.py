@@ -1,8 +1,8 @@
-"""Every way a fleet ends leaves its report and a run.json with the commands it was given and
-their outcomes, and says what it stops as it stops it: ``roco down`` after ``roco up`` and
-``roco send``; ``roco hosts down`` (the recorder-sync barrier, as ``roco down``); ``roco run``
-interrupted by Ctrl-C (one line, exit 130, none of its processes left). ``roco status`` names
-the fleet's router by its endpoint. Real fleets of processes: 20–60 s each."""
+"""Every way a fleet ends leaves its report and a run.json, and says what it stops as it stops
+it: ``roco hosts down`` (the recorder-sync barrier, as ``roco down``); ``roco run`` interrupted
+by Ctrl-C (one line, exit 130, none of its processes left). ``roco down`` after ``roco up`` and a
+pour sent: tests/integration/test_fleet_commands.py, in the fleet it checks the other commands
+with. Real fleets of processes: 20–60 s each."""
 
 from __future__ import annotations
 
@@ -18,7 +18,7 @@ import pytest
 from typer.testing import CliRunner
 
 from services.fleet.launcher import AGENT_ORDER, free_port
-from shared.settings import Settings
+from tests.support.processes import processes_of, running, said
 from velma.world.mode import WORLD_SERVICE
 
 pytestmark = [pytest.mark.slow, pytest.mark.fleet]
@@ -36,39 +36,6 @@ def roco(*args: str, timeout: float = 300) -> subprocess.CompletedProcess[str]:
     )
 
 
-def said(stream: str) -> list[str]:
-    """The lines roco said (a stale compiled module's warning of a development checkout aside)."""
-    return [line for line in stream.splitlines() if line.startswith("roco")]
-
-
-def running(pid: int) -> bool:
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    try:
-        return Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0] != "Z"
-    except OSError:
-        return False
-
-
-def processes_of(run_dir: Path) -> list[int]:
-    """Every process whose environment names ``run_dir`` as its run folder (a fleet's processes
-    and their children: ag_ex's loop and camera processes)."""
-    mark = f"ROCO_RUN_DIR={run_dir}".encode()
-    found = []
-    for entry in Path("/proc").iterdir():
-        if not entry.name.isdigit():
-            continue
-        try:
-            env = (entry / "environ").read_bytes().split(b"\0")
-        except OSError:
-            continue
-        if mark in env and running(int(entry.name)):
-            found.append(int(entry.name))
-    return found
-
-
 @pytest.fixture
 def fleet(tmp_path: Path) -> Iterator[tuple[Path, int]]:
     """A fleet of ``roco up`` (as fast as it can); its run folder and port. Stopped at the end
@@ -82,40 +49,6 @@ def fleet(tmp_path: Path) -> Iterator[tuple[Path, int]]:
     finally:
         if (tmp_path / ".fleet.json").exists():
             roco("down", "--runs-dir", str(tmp_path))
-
-
-def test_down_says_what_it_stops_and_writes_the_commands_and_the_report(
-    fleet: tuple[Path, int], tmp_path: Path, monkeypatch: pytest.MonkeyPatch
-) -> None:
-    run_dir, port = fleet
-    sent = roco("send", POUR, "--runs-dir", str(tmp_path))
-    assert sent.returncode == 0, sent.stdout + sent.stderr
-    status = roco("status", "--runs-dir", str(tmp_path))
-    assert f"router    at tls/127.0.0.1:{port}  refused 0" in status.stdout, status.stdout
-    pids = json.loads((run_dir / "run.json").read_text())["processes"]
-    assert set(pids.values()) <= set(processes_of(run_dir))  # the check below sees them
-    # this report draws its figures, as for users (the fleet tests' reports do not: tests/conftest.py)
-    monkeypatch.setenv(Settings.env_name("report_figures"), "1")
-    down = roco("down", "--runs-dir", str(tmp_path))
-    assert down.returncode == 0, down.stderr
-    stopping, final = said(down.stdout)
-    assert stopping.startswith("roco: stopping ") and stopping.endswith(
-        "; recorder: traffic record complete; router"
-    )
-    assert sorted(stopping.removeprefix("roco: stopping ").split(";")[0].split()) == sorted(
-        [*AGENT_ORDER, WORLD_SERVICE]
-    )
-    assert final.startswith("roco: fleet stopped after ") and "; 1 command: 1 succeeded; " in final
-    assert final.endswith(f"communicates; report {run_dir / 'report.md'}")
-    info = json.loads((run_dir / "run.json").read_text())
-    assert info["commands"] == [POUR] and info["command"] == POUR
-    assert [(c["text"], c["outcome"]) for c in info["outcomes"]] == [(POUR, "succeeded")]
-    assert info["succeeded"] is True and info["ended"] > info["started"] > 0
-    report = (run_dir / "report.md").read_text()
-    assert POUR in report and "Specification coverage" in report  # counted for roco down too
-    assert (run_dir / "figures" / "coverage.png").is_file()
-    assert not [name for name, pid in pids.items() if running(pid)]
-    assert processes_of(run_dir) == []
 
 
 def test_hosts_down_confirms_the_traffic_record_as_roco_down_does(

@@ -1,5 +1,9 @@
-"""`roco up`, `roco status`, `roco send`, `roco down` against a fleet of real processes (the ACL
-gateway one of them: `roco up --gateway`)."""
+"""`roco up`, `roco status`, `roco send`, `roco down` against one fleet of real processes (the ACL
+gateway one of them: `roco up --gateway`): commands a_hi does not understand, questions, a stop
+with nothing to stop, a foreign agent's notice, then a pour, and `roco down`, which says what it
+stops as it stops it and leaves the report and a run.json with the commands and their outcomes
+(the other ways a fleet ends: tests/cli/test_fleet_end.py). The commands are the subject, not the
+robot: ag_ex moves the kinematic robot double (tests/support/kinematic_ex.py)."""
 
 from __future__ import annotations
 
@@ -12,13 +16,19 @@ from pathlib import Path
 
 import pytest
 
-from services.fleet.launcher import free_port
+from services.fleet.launcher import AGENT_ORDER, free_port
 from services.report.build import NOTHING_RAISED
 from services.runtime.counters import read_counters
 from services.runtime.session import listening
+from shared.settings import Settings
 from tests.support.jade_platform import JADE, JadePlatform
+from tests.support.kinematic_ex import kinematic_spec, ran_kinematic
+from tests.support.processes import processes_of, running, said
+from velma.world.mode import WORLD_SERVICE
 
 pytestmark = [pytest.mark.slow, pytest.mark.fleet]
+ROOT = Path(__file__).resolve().parents[2]
+POUR = "pour the jar into the bowl"
 
 
 def roco(*args: str, timeout: float = 180) -> subprocess.CompletedProcess[str]:
@@ -51,10 +61,13 @@ def _a_foreign_notice_is_counted_and_shown(runs: str, gateway: int) -> None:
     assert f"notice from {JADE} (warning): the jar tipped over" in shown.stdout, shown.stdout
 
 
-def test_up_status_send_down(tmp_path: Path) -> None:
+def test_up_status_send_down(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     runs = str(tmp_path)
     gateway = free_port()
-    up = roco("up", "--port", str(free_port()), "--gateway", str(gateway), "--runs-dir", runs)
+    port = free_port()
+    spec = kinematic_spec(tmp_path / "kinematic.toml")
+    monkeypatch.setenv("PYTHONPATH", str(ROOT))  # the agents import the double from tests/support
+    up = roco("up", "--port", str(port), "--gateway", str(gateway), "--runs-dir", runs, "--spec", str(spec))
     assert up.returncode == 0, up.stderr
     try:
         assert "fleet up on tls/127.0.0.1:" in up.stdout
@@ -109,14 +122,18 @@ def test_up_status_send_down(tmp_path: Path) -> None:
         assert stopped.returncode == 0, stopped.stdout + stopped.stderr
         assert "nothing to stop" in stopped.stdout.lower()
         _a_foreign_notice_is_counted_and_shown(runs, gateway)
+        run_dir, pids = _a_pour(runs, port)
+        # this report draws its figures, as for users (the fleet tests' reports do not: tests/conftest.py)
+        monkeypatch.setenv(Settings.env_name("report_figures"), "1")
     finally:
         down = roco("down", "--runs-dir", runs)
     assert down.returncode == 0, down.stderr
-    assert "traffic record complete" in down.stdout, down.stdout  # the recorder answered the sync
-    assert " gateway" in down.stdout.split(";")[0] and not listening(f"tcp/127.0.0.1:{gateway}")
+    _down_said_what_it_stopped(down.stdout, run_dir)
+    assert not listening(f"tcp/127.0.0.1:{gateway}")
     assert not (tmp_path / ".fleet.json").exists()
+    _the_run_keeps_its_commands_and_report(run_dir, pids)
+    assert ran_kinematic(run_dir)
     # the agents' counters were kept before they stopped: the report says what they raised
-    (run_dir,) = [p for p in tmp_path.iterdir() if p.is_dir()]
     assert set(read_counters(run_dir)) >= {"a_hi", "a_co", "a_pl", "a_km", "a_ta", "ag_ex"}
     report = (run_dir / "report.md").read_text()
     assert f"| Agents raised | {NOTHING_RAISED} |" in report
@@ -124,3 +141,44 @@ def test_up_status_send_down(tmp_path: Path) -> None:
     assert f"| {JADE} | warning | — | the jar tipped over |" in notices
     after = roco("down", "--runs-dir", runs)
     assert after.returncode == 1 and after.stderr.startswith("roco: no fleet is up")
+
+
+def _a_pour(runs: str, port: int) -> tuple[Path, dict[str, int]]:
+    """`roco send` of the pour, which succeeds; `roco status` names the router by its endpoint.
+    The run folder and the fleet's processes (run.json), each of which :func:`processes_of` sees."""
+    sent = roco("send", POUR, "--runs-dir", runs, timeout=300)
+    assert sent.returncode == 0, sent.stdout + sent.stderr
+    status = roco("status", "--runs-dir", runs)
+    assert f"router    at tls/127.0.0.1:{port}  refused 0" in status.stdout, status.stdout
+    run_dir = Path(json.loads((Path(runs) / ".fleet.json").read_text())["run_dir"])
+    pids: dict[str, int] = json.loads((run_dir / "run.json").read_text())["processes"]
+    assert set(pids.values()) <= set(processes_of(run_dir))  # the check after `down` sees them
+    return run_dir, pids
+
+
+def _down_said_what_it_stopped(out: str, run_dir: Path) -> None:
+    """`roco down`'s two lines: what it stops (every agent, the world, the gateway; the recorder
+    answered the sync), then the commands' summary and the report."""
+    stopping, final = said(out)
+    assert stopping.startswith("roco: stopping ") and stopping.endswith(
+        "; recorder: traffic record complete; router"
+    ), stopping
+    assert sorted(stopping.removeprefix("roco: stopping ").split(";")[0].split()) == sorted(
+        [*AGENT_ORDER, WORLD_SERVICE, "gateway"]
+    )
+    assert final.startswith("roco: fleet stopped after ") and "; 1 command: 1 succeeded; " in final, final
+    assert final.endswith(f"communicates; report {run_dir / 'report.md'}")
+
+
+def _the_run_keeps_its_commands_and_report(run_dir: Path, pids: dict[str, int]) -> None:
+    """run.json holds the command with its outcome, the report counts the specification's
+    coverage and draws its figure, and none of the fleet's processes is left."""
+    info = json.loads((run_dir / "run.json").read_text())
+    assert info["commands"] == [POUR] and info["command"] == POUR
+    assert [(c["text"], c["outcome"]) for c in info["outcomes"]] == [(POUR, "succeeded")]
+    assert info["succeeded"] is True and info["ended"] > info["started"] > 0
+    report = (run_dir / "report.md").read_text()
+    assert POUR in report and "Specification coverage" in report  # counted for roco down too
+    assert (run_dir / "figures" / "coverage.png").is_file()
+    assert not [name for name, pid in pids.items() if running(pid)]
+    assert processes_of(run_dir) == []

@@ -10,16 +10,16 @@ knocks the bowl over as it is set down: the watcher, which asks to be told of ch
 subscribed), warns the person through a_hi (a ``Tipped`` in ``kitchen-warning``, which a_hi
 tells as the term says itself) within 1 s of robot time of the knock (:func:`knock_to_warning`),
 ``roco scenario``'s output and the report show the warning with its sender, and ``roco spec
-verify`` passes on the run. In the same copy, the tools and the fast part of roco's tests pass
-(:data:`FAST_PART`). No other agent's code is edited.
+verify`` passes on the run. In the same copy, with a second agent added besides (the scratch
+agent a_sc, which asks a_km and tells the person through a_hi: tests/support/checkout.py), the
+tools and the fast part of roco's tests pass (:data:`FAST_PART`). No other agent's code is
+edited.
 
-Every command runs in the copy (its working folder, first on PYTHONPATH), so that the copy's
-code runs, not this checkout's (which the virtual environment installs editable)."""
+Every command runs in the copy, by the copy's code (tests/support/checkout.py)."""
 
 from __future__ import annotations
 
 import json
-import os
 import shutil
 import subprocess
 import sys
@@ -33,11 +33,12 @@ import pytest
 from services.recorder.record import read_records
 from services.report.load import load_run
 from services.report.robot_clock import robot_clock
-from tests.spec_check.walkthrough import AGENT, NEXT, TERMS_MODULE, fill, walkthrough_spec, write_terms
+from tests.spec_check.walkthrough import NEXT
+from tests.spec_check.walkthrough.scratch import SCRATCH
+from tests.support.checkout import ROOT, Checkout, copy_checkout
 
 pytestmark = [pytest.mark.slow]
 
-ROOT = Path(__file__).resolve().parents[2]
 C = NEXT.channel_name
 """The new agent's channel to a_km (C10 in the shipped specification; the copy's is this
 checkout's)."""
@@ -62,83 +63,50 @@ expect = "answer"
 and knocked upside down while the arm parks; the robot's watch sees it, so a_km learns it and
 the watcher warns the person (and the set-down's last look sees it: the command fails); the
 question keeps the fleet running while the warning goes out."""
-BUILT = ("services/**/*.so", "velma/**/*.so", "shared/**/*.so", "services/runtime/_compiled.json")
-"""What ``pip install -e .`` built beside the sources (not tracked): the compiled control law
-and runtime, copied so that the copy runs as fast as this checkout."""
 
 
 @dataclass(frozen=True)
-class Checkout:
-    root: Path
-    env: dict[str, str]
+class Grown:
+    """The copy of the checkout with the watcher and the scratch agent added, and what
+    ``roco spec new-agent`` did for each."""
+
+    copy: Checkout
     new_agent: subprocess.CompletedProcess[str]
+    scratch: subprocess.CompletedProcess[str]
+
+    @property
+    def root(self) -> Path:
+        return self.copy.root
+
+    @property
+    def env(self) -> dict[str, str]:
+        return self.copy.env
+
+    def roco(self, *args: str, timeout: float = 300) -> subprocess.CompletedProcess[str]:
+        """``roco ARGS`` run in the copy, by the copy's code."""
+        return self.copy.roco(*args, timeout=timeout)
 
     def python(self, code: str) -> str:
         """What Python ``code`` prints, run in the copy by the copy's code (its specification
         imports the watcher's terms, which only the copy has)."""
-        done = subprocess.run(
-            [sys.executable, "-c", code],
-            cwd=self.root,
-            env=self.env,
-            capture_output=True,
-            text=True,
-            timeout=120,
-            check=True,
-        )
+        done = self.copy.run("-c", code, timeout=120)
+        done.check_returncode()
         return done.stdout.strip()
-
-    def roco(self, *args: str, timeout: float = 300) -> subprocess.CompletedProcess[str]:
-        """``roco ARGS`` run in the copy, by the copy's code."""
-        return subprocess.run(
-            [sys.executable, "-m", "services.cli", *args],
-            cwd=self.root,
-            env=self.env,
-            capture_output=True,
-            text=True,
-            timeout=timeout,
-        )
-
-
-def copy_checkout(to: Path) -> None:
-    """The checkout's files as git sees them (tracked, and new files not ignored) and what the
-    install built, copied to ``to``."""
-    listed = subprocess.run(
-        ["git", "ls-files", "-z", "--cached", "--others", "--exclude-standard"],
-        cwd=ROOT,
-        capture_output=True,
-        check=True,
-    ).stdout.decode()
-    files = [ROOT / name for name in listed.split("\0") if name]
-    files += [p for pattern in BUILT for p in ROOT.glob(pattern)]
-    for source in files:
-        if source.is_file() and ".venv" not in source.relative_to(ROOT).parts:
-            target = to / source.relative_to(ROOT)
-            target.parent.mkdir(parents=True, exist_ok=True)
-            shutil.copy2(source, target)
 
 
 @pytest.fixture(scope="module")
-def checkout(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Checkout]:
+def checkout(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Grown]:
     if shutil.which("git") is None or not (ROOT / ".git").exists():
         pytest.skip("needs this checkout's git repository and git (apt-get install git)")
     root = tmp_path_factory.mktemp("checkout")
     copy_checkout(root)
-    spec = root / "services" / "spec" / "robot_companion.toml"
-    doc = root / "docs" / "spec.md"
-    folder = root / "services" / "agents" / "watch"
-    write_terms(folder, doc)  # before the specification names it: loading it imports the module
-    walkthrough_spec(spec, base=spec, doc=doc, terms=TERMS_MODULE)
-    env = {k: v for k, v in os.environ.items() if k not in ("ROCO_ACL", "ROCO_SPEC", "ROCO_RUN_DIR")}
-    env["PYTHONPATH"] = str(root)
-    made = Checkout(root, env, subprocess.CompletedProcess([], 0))
-    new_agent = made.roco("spec", "new-agent", AGENT)
-    made = Checkout(root, env, new_agent)
-    if new_agent.returncode == 0:
-        fill(folder / "agent.py", doc, terms=TERMS_MODULE)
-    yield made
+    copy = Checkout(root)
+    new_agent = copy.add_watcher()
+    scratch = copy.add_scratch() if new_agent.returncode == 0 else subprocess.CompletedProcess([], 1, "", "")
+    yield Grown(copy, new_agent, scratch)
 
 
-def test_new_agent_writes_the_agent_and_the_compose_service_in_the_copy(checkout: Checkout) -> None:
+def test_new_agent_writes_the_agent_and_the_compose_service_in_the_copy(checkout: Grown) -> None:
     done = checkout.new_agent
     assert done.returncode == 0, done.stdout + done.stderr
     module = checkout.root / "services" / "agents" / "watch" / "agent.py"
@@ -161,7 +129,7 @@ def test_new_agent_writes_the_agent_and_the_compose_service_in_the_copy(checkout
     assert "roco: deploy/compose.yaml is what the specification gives" in done.stdout
 
 
-def test_spec_check_and_verify_code_pass_with_no_edit_of_another_agent(checkout: Checkout) -> None:
+def test_spec_check_and_verify_code_pass_with_no_edit_of_another_agent(checkout: Grown) -> None:
     done = checkout.roco("spec", "check")
     assert done.returncode == 0, done.stdout + done.stderr
     done = checkout.roco("spec", "verify-code")
@@ -174,7 +142,7 @@ def test_spec_check_and_verify_code_pass_with_no_edit_of_another_agent(checkout:
         assert copied.read_text() == (ROOT / "services" / "agents" / agent / "agent.py").read_text()
 
 
-def test_the_access_control_lets_it_send_on_its_channels_and_nowhere_else(checkout: Checkout) -> None:
+def test_the_access_control_lets_it_send_on_its_channels_and_nowhere_else(checkout: Grown) -> None:
     done = checkout.roco("deploy", "acl")
     assert done.returncode == 0, done.stderr
     rules = {r["id"]: r for r in json.loads(done.stdout)["rules"]}
@@ -219,13 +187,22 @@ test marked with it a new requirement keeps only once a test in tests/ names it;
 slower architecture tests of the whole package (import graph, lean processes, settings)."""
 
 
-def test_the_tools_and_the_fast_part_of_the_tests_pass_in_the_copy(checkout: Checkout) -> None:
-    """With the watcher added (the specification edited, its folder written), ``roco spec
-    check``, ``verify-code`` and ``deadlock`` pass in the copy, and so does :data:`FAST_PART`
-    (``-x -q -n 0 -p no:cacheprovider -m "not walkthrough"``), run by the copy's code on the
-    copy's specification; the watcher's ``Tipped`` is among the terms whose sample is built from
-    their declaration there."""
+def test_the_tools_and_the_fast_part_of_the_tests_pass_in_the_copy(checkout: Grown) -> None:
+    """With the watcher and the scratch agent added (the specification edited, their folders
+    written), ``roco spec check``, ``verify-code`` and ``deadlock`` pass in the copy, and so does
+    :data:`FAST_PART` (``-x -q -n 0 -p no:cacheprovider -m "not walkthrough"``), run by the
+    copy's code on the copy's specification; the watcher's ``Tipped`` is among the terms whose
+    sample is built from their declaration there. (scripts/check_growth.py runs all of roco's
+    fast tests so.)"""
     assert checkout.new_agent.returncode == 0, checkout.new_agent.stderr
+    assert checkout.scratch.returncode == 0, checkout.scratch.stdout + checkout.scratch.stderr
+    assert (
+        f"roco: wrote {checkout.root / 'services' / 'agents' / 'scratch' / 'agent.py'}"
+        in checkout.scratch.stdout
+    )
+    assert SCRATCH in checkout.python(
+        "from services.spec.model import default_spec; print(default_spec().agent_names)"
+    )
     for tool in ("check", "verify-code", "deadlock"):
         done = checkout.roco("spec", tool)
         assert done.returncode == 0, f"roco spec {tool}: " + done.stdout[-3000:] + done.stderr[-2000:]
@@ -311,7 +288,7 @@ def knock_to_warning(run_dir: Path, told: float) -> tuple[float, float]:
 
 
 @pytest.fixture(scope="module")
-def pour(checkout: Checkout) -> tuple[subprocess.CompletedProcess[str], Path]:
+def pour(checkout: Grown) -> tuple[subprocess.CompletedProcess[str], Path]:
     if checkout.new_agent.returncode != 0:
         pytest.fail("roco spec new-agent failed: " + checkout.new_agent.stderr)
     runs = checkout.root / "runs"
@@ -324,7 +301,7 @@ def pour(checkout: Checkout) -> tuple[subprocess.CompletedProcess[str], Path]:
 
 @pytest.mark.fleet  # the only test here that runs a fleet: the others need no place in its group
 def test_it_runs_in_the_fleet_with_access_control_and_the_run_conforms(
-    checkout: Checkout, pour: tuple[subprocess.CompletedProcess[str], Path]
+    checkout: Grown, pour: tuple[subprocess.CompletedProcess[str], Path]
 ) -> None:
     done, run_dir = pour
     assert done.returncode == 0, done.stdout[-3000:] + done.stderr[-2000:]

@@ -2,8 +2,9 @@
 (services/fault/process.py, as ``roco fault pause``): a_hi's subscribe and the person's
 command find no a_co listening, a_co takes the command when it runs again, before any
 subscription is agreed, and what it reports meanwhile must still reach the person
-(services/agents/coordinator/agent.py; FIPA SC00035). One pour, the robot perceiving with the
-ground truth; the router on a free loopback port, every service a process of its own."""
+(services/agents/coordinator/agent.py; FIPA SC00035). One pour, with the kinematic robot double
+as ag_ex (tests/support/kinematic_ex.py: the progress is the subject, not the robot); the router
+on a free loopback port, every service a process of its own."""
 
 from __future__ import annotations
 
@@ -28,8 +29,10 @@ from services.spec_check.conformance import render, verify_run
 from shared.fipa_codec import Performative, decode
 from shared.fipa_codec.batch import unpack
 from shared.fipa_codec.languages.l_sw import SWState, SWStatus
+from tests.support.kinematic_ex import kinematic_spec, ran_kinematic
 
 pytestmark = [pytest.mark.slow, pytest.mark.fleet]
+ROOT = Path(__file__).resolve().parents[2]
 
 PAUSE_S = 10.0
 """How long a_co stays paused from its start (s)."""
@@ -86,7 +89,8 @@ def in_order(wanted: list[str], seen: list[str]) -> list[str]:
 def test_every_progress_step_reaches_the_person_with_a_co_paused_at_its_start(tmp_path: Path) -> None:
     run_dir = tmp_path / "run"
     (run_dir / "logs").mkdir(parents=True)
-    env = {"ROCO_PERCEPTION": "truth", "ROCO_REALTIME": "0", "ROCO_RERUN": "0"}
+    spec = kinematic_spec(tmp_path / "kinematic.toml")
+    env = {"ROCO_SPEC": str(spec), "PYTHONPATH": str(ROOT), "ROCO_REALTIME": "0", "ROCO_RERUN": "0"}
     fleet = Fleet(run_dir, f"tcp/127.0.0.1:{free_port()}", env=env)
     session: zenoh.Session | None = None
     paused = False
@@ -122,6 +126,7 @@ def test_every_progress_step_reaches_the_person_with_a_co_paused_at_its_start(tm
             session.close()
         fleet.stop()
 
+    assert ran_kinematic(run_dir)
     mine = [r for r in person.reports if r.request_id == "pour"]
     assert mine[-1].kind is ReportKind.SUCCEEDED, [r.text for r in mine]
     progress = [r.text for r in mine if r.kind is ReportKind.PROGRESS]

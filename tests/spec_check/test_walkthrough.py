@@ -18,7 +18,8 @@ import shutil
 import subprocess
 import sys
 import threading
-from collections.abc import Iterator
+import tomllib
+from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import pytest
@@ -38,7 +39,6 @@ from tests.agents.knowledge.test_agent import Peer
 from tests.agents.knowledge.test_scene_subscription import ON_ITS_SIDE, at, seen, settled
 from tests.spec_check.walkthrough import (
     AS_WRITTEN,
-    GROUP_EDIT,
     NEXT,
     ROOT,
     TERMS_PACKAGE,
@@ -46,6 +46,7 @@ from tests.spec_check.walkthrough import (
     entries,
     fill,
     free_numbers,
+    group_edit,
     renumbered,
     shared_terms,
     snippet,
@@ -70,9 +71,9 @@ def _terms_leave_with_the_test() -> Iterator[None]:
         yield
 
 
-def stage(tmp_path: Path, *parts: str, edits: dict[str, str] | None = None) -> Path:
+def stage(tmp_path: Path, *parts: str, edit: Callable[[str], str] | None = None) -> Path:
     path = tmp_path / "spec.toml"
-    path.write_text(staged(DEFAULT_SPEC.read_text(), *parts, edits=edits))
+    path.write_text(staged(DEFAULT_SPEC.read_text(), *parts, edit=edit))
     return path
 
 
@@ -81,7 +82,7 @@ def watch_stage(tmp_path: Path, package: str, monkeypatch: pytest.MonkeyPatch) -
     (a package of its own per test: a module is imported once per process; ``tmp_path`` on the
     import path) and its terms module the process's (walkthrough.shared_terms)."""
     monkeypatch.syspath_prepend(str(tmp_path))
-    return stage(tmp_path, snippet(1), entries(agent=f"{package}.agent"), edits=GROUP_EDIT)
+    return stage(tmp_path, snippet(1), entries(agent=f"{package}.agent"), edit=group_edit)
 
 
 def test_stage_1_a_new_step_makes_check_list_what_is_missing(tmp_path: Path) -> None:
@@ -256,10 +257,43 @@ def test_the_walkthrough_takes_the_next_free_numbers_of_what_it_grows(tmp_path: 
     assert f'id = "{NEXT.requirement}"' in grown and f'name = "{C}"' in grown and f'name = "{N}"' in grown
     after = free_numbers(grown)
     assert after == Numbers(
-        f"R{int(NEXT.requirement[1:]) + 1}", NEXT.step + 1, NEXT.channel + 2, NEXT.km_group
+        f"R{int(NEXT.requirement[1:]) + 1}",
+        NEXT.step + 1,
+        NEXT.channel + 2,
+        NEXT.km_group,
+        "ui",  # a_hi's group after the split, with the watcher's channel to it besides its own
+        tuple(sorted((*NEXT.hi_channels, NEXT.channel + 1))),
     )
     moved = renumbered(snippet(1, numbers=AS_WRITTEN), Numbers("R7", 12, 11, "kx"))
     assert 'id = "R7"' in moved and 'requirements = ["R7"]' in moved and "\nnumber = 12\n" in moved
     assert "{ number = 11, ends" in moved and "{ number = 12, ends" in moved
     assert '{ number = 11, ends = ["wt", "kx"]' in moved
     assert '{ number = 2, from = "hi", to = "ui" }' in moved  # the reallocations keep their numbers
+    # a specification whose a_hi substitutes another group, with other channels: the split and
+    # its reallocations follow it
+    regrown = renumbered(snippet(1, numbers=AS_WRITTEN), Numbers("R7", 12, 11, "kx", "hx", (3, 5)))
+    assert 'split = "hx"' in regrown and 'split = "hi"' not in regrown
+    assert regrown.count("from =") == 2 and '{ number = 3, from = "hx", to = "ui" }' in regrown
+    assert '{ number = 5, from = "hx", to = "ui" }' in regrown
+
+
+def test_stage_2_s_edits_find_the_entries_through_the_data_wherever_the_file_has_them() -> None:
+    """a_hi's ``group`` line is changed in its own ``[[agents]]`` table only (another agent's
+    ``group = "hi"`` is left), and the watcher is started right after a_hi whatever the order
+    holds (an agent added after a_hi, the list on several lines)."""
+    text = DEFAULT_SPEC.read_text()
+    grown = text.replace(
+        'start_order = ["a_km", "a_pl", "a_co", "ag_ex", "a_ta", "a_hi"]',
+        'start_order = [\n  "a_km", "a_pl", "a_co", "ag_ex", "a_ta", "a_hi", "a_sc",\n]',
+    )
+    first = grown.index("\n[[agents]]\n")  # another agent of group "hi" before a_hi's table
+    zz = '\n[[agents]]\nname = "a_zz"\ngroup = "hi"\nimplementation = "x:Y"\njob = "x"\n'
+    grown = grown[:first] + zz + grown[first:]
+    edited = group_edit(grown)
+    data = tomllib.loads(edited)
+    assert data["start_order"] == ["a_km", "a_pl", "a_co", "ag_ex", "a_ta", "a_hi", "a_wt", "a_sc"]
+    groups = {a["name"]: a["group"] for a in data["agents"]}
+    assert groups["a_hi"] == "ui" and groups["a_zz"] == "hi"
+    assert {k: v for k, v in groups.items() if k != "a_hi"} == {
+        a["name"]: a["group"] for a in tomllib.loads(grown)["agents"] if a["name"] != "a_hi"
+    }

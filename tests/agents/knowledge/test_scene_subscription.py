@@ -35,7 +35,7 @@ from shared.fipa_codec.languages.l_wm import (
 )
 from tests.agents.knowledge.scene_watcher import Watcher
 from tests.agents.knowledge.test_agent import Peer
-from tests.spec_check.walkthrough import GROUP_EDIT, NEXT, entries, snippet, staged
+from tests.spec_check.walkthrough import NEXT, entries, group_edit, snippet, staged
 
 TIMEOUT_S = 10.0
 WT_CHANNEL = NEXT.channel_name
@@ -48,7 +48,7 @@ def watcher_spec(tmp_path: Path) -> SystemSpec:
     """The shipped specification with the walk-through's a_wt and its channels: WT_CHANNEL
     carries fipa-subscribe from a_wt to a_km as C7 carries it from a_hi (docs/spec.md)."""
     path = tmp_path / "spec.toml"
-    path.write_text(staged(DEFAULT_SPEC.read_text(), snippet(1), entries(), edits=GROUP_EDIT))
+    path.write_text(staged(DEFAULT_SPEC.read_text(), snippet(1), entries(), edit=group_edit))
     return load(path)
 
 

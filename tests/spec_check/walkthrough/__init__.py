@@ -5,20 +5,28 @@ tests/spec_check/test_walkthrough.py (stage by stage) and tests/integration/test
 (in a copy of the checkout, with a fleet).
 
 The document numbers its requirement, step and channels R4, 10, C10 (to a_km) and C11 (to a_hi),
-the next free ones of the shipped specification. A specification that has grown since takes
-them; so the snippets are renumbered to the next free numbers of the specification they are
-added to (:data:`NEXT` for this checkout's)."""
+the next free ones of the shipped specification, splits a_hi's group ``hi`` and reallocates its
+channels C2, C7, C8 and C9. A specification that has grown since (an agent, a channel, a step
+added the documented way) has other numbers, groups and channels; so the snippets are fitted to
+the specification they are added to, read through its data (:func:`free_numbers`;
+:data:`NEXT` for this checkout's), and stage 2's edits of the shipped entries are made where
+the data puts them (:func:`group_edit`), not by matching their text."""
 
 from __future__ import annotations
 
+import json
 import re
 import sys
 import tempfile
 import tomllib
+from collections.abc import Callable
 from dataclasses import dataclass
 from functools import cache
 from pathlib import Path
 
+import msgspec
+
+from services.spec.decomposition import Decomposition, replay
 from services.spec.model import DEFAULT_SPEC
 
 ROOT = Path(__file__).resolve().parents[3]
@@ -28,14 +36,8 @@ PACKAGE = "services.agents.watch"
 """The watcher's folder as the document names it (its agent and terms modules)."""
 MODULE = f"{PACKAGE}.agent"
 TERMS_MODULE = f"{PACKAGE}.terms"
-START_ORDER = 'start_order = ["a_km", "a_pl", "a_co", "ag_ex", "a_ta", "a_hi"]'
-GROUP_EDIT = {
-    'group = "hi"': 'group = "ui"',
-    START_ORDER: START_ORDER.replace('"a_hi"]', '"a_hi", "a_wt"]'),
-}
-"""Stage 2's edits of the shipped entries: a_hi substitutes ``ui`` now, and the watcher, which
-asks a_hi, starts after it (the agent started last waits for every other to be healthy, so
-none may ask it: services/deploy/compose.py ``_check_readiness``)."""
+UI = "ui"
+"""The group a_hi substitutes once the walk-through split its own (stage 1's ``into``)."""
 IMPORTS = (
     "import math\n\n",
     f"from {TERMS_MODULE} import Tipped\n",
@@ -50,13 +52,16 @@ RESUBSCRIBES = "reply_by_s=2.0, resubscribes=True"
 @dataclass(frozen=True)
 class Numbers:
     """A top-level requirement id (``R4``), a decomposition step number, the number of the
-    first of the two new channels (to a_km; the one to a_hi is the next), and the group a_km
-    substitutes (the first channel's other end)."""
+    first of the two new channels (to a_km; the one to a_hi is the next), the group a_km
+    substitutes (the first channel's other end), the group a_hi substitutes (the one stage 1
+    splits) and the channels that end there (stage 1 reallocates each)."""
 
     requirement: str
     step: int
     channel: int
     km_group: str = "km"
+    hi_group: str = "hi"
+    hi_channels: tuple[int, ...] = (2, 7, 8, 9)
 
     @property
     def channel_name(self) -> str:
@@ -69,22 +74,39 @@ class Numbers:
         return f"C{self.channel + 1}"
 
 
-AS_WRITTEN = Numbers("R4", 10, 10, "km")
-"""The numbers (and a_km's group) the document's snippets carry."""
+AS_WRITTEN = Numbers("R4", 10, 10)
+"""The numbers, groups and channels the document's snippets carry."""
+
+
+def group_of(data: dict[str, object], agent: str) -> str:
+    """The group ``agent`` substitutes in a specification's parsed ``data``."""
+    agents = data.get("agents", [])
+    assert isinstance(agents, list)
+    return str(next(a["group"] for a in agents if a["name"] == agent))
+
+
+def channels_at(data: dict[str, object], group: str) -> tuple[int, ...]:
+    """The numbers of the channels that end at ``group`` after the last decomposition step of
+    a specification's parsed ``data`` (services/spec/decomposition.py ``replay``)."""
+    parts = {k: data[k] for k in ("system", "requirements", "steps") if k in data}
+    states = replay(msgspec.convert(parts, Decomposition))
+    final = states[-1].channels if states else {}
+    return tuple(sorted(k for k, c in final.items() if group in c.ends))
 
 
 def free_numbers(spec_text: str) -> Numbers:
     """The next free top-level requirement (``R<n>``), step and channel numbers of a
     specification's text (one past the largest of each; a channel's number from the steps'
-    ``new_channels`` and the ``[[channels]]`` names), and the group a_km substitutes there."""
+    ``new_channels`` and the ``[[channels]]`` names), the groups a_km and a_hi substitute there
+    and the channels that end at a_hi's."""
     data = tomllib.loads(spec_text)
     tops = [int(m[1]) for r in data.get("requirements", []) if (m := re.fullmatch(r"R(\d+)", r["id"]))]
     steps = [int(s["number"]) for s in data.get("steps", [])]
     made = [int(c["number"]) for s in data.get("steps", []) for c in s.get("new_channels", [])]
     named = [int(m[1]) for c in data.get("channels", []) if (m := re.fullmatch(r"C(\d+)", c["name"]))]
     top, step, channel = (max(numbers, default=0) + 1 for numbers in (tops, steps, made + named))
-    km_group = next(a["group"] for a in data.get("agents", []) if a["name"] == "a_km")
-    return Numbers(f"R{top}", step, channel, km_group)
+    hi_group = group_of(data, "a_hi")
+    return Numbers(f"R{top}", step, channel, group_of(data, "a_km"), hi_group, channels_at(data, hi_group))
 
 
 NEXT = free_numbers(DEFAULT_SPEC.read_text())
@@ -93,10 +115,14 @@ NEXT = free_numbers(DEFAULT_SPEC.read_text())
 
 def renumbered(text: str, to: Numbers) -> str:
     """A snippet's ``text`` with :data:`AS_WRITTEN`'s requirement, step and two channel numbers
-    replaced by ``to``'s (the steps' other channel numbers, as in ``reallocated``, are kept), and
-    the new channel's end at a_km's group by ``to``'s."""
+    replaced by ``to``'s (the steps' other channel numbers are kept), the new channel's end at
+    a_km's group by ``to``'s, and the split of a_hi's group with its reallocations by ``to``'s
+    (each channel that ends there moved to ``ui``)."""
     was = AS_WRITTEN
     text = text.replace(f'ends = ["wt", "{was.km_group}"]', f'ends = ["wt", "{to.km_group}"]')
+    text = text.replace(f'split = "{was.hi_group}"', f'split = "{to.hi_group}"')
+    moved = "".join(f'  {{ number = {k}, from = "{to.hi_group}", to = "{UI}" }},\n' for k in to.hi_channels)
+    text = re.sub(r"(?ms)^reallocated = \[\n.*?^\]\n", lambda _: f"reallocated = [\n{moved}]\n", text)
     text = text.replace(f'"{was.requirement}"', f'"{to.requirement}"')
     text = re.sub(rf"(?m)^number = {was.step}$", f"number = {to.step}", text)
     numbers = {was.channel + k: to.channel + k for k in (0, 1)}
@@ -116,12 +142,44 @@ def snippet(n: int | str, kind: str = "toml", doc: Path = DOC, numbers: Numbers 
     return renumbered(m.group(1), numbers or NEXT)
 
 
-def staged(text: str, *parts: str, edits: dict[str, str] | None = None) -> str:
+def regrouped(text: str, agent: str, group: str) -> str:
+    """Specification ``text`` with ``agent`` substituting ``group``: the ``group`` line of its
+    own ``[[agents]]`` table changed (found by the table's ``name``, whatever the file holds
+    around it)."""
+    for m in re.finditer(r"(?m)^\[\[agents\]\]\n", text):
+        following = re.search(r"(?m)^\[", text[m.end() :])
+        end = m.end() + following.start() if following else len(text)
+        table = text[m.start() : end]
+        if re.search(rf'(?m)^name = "{agent}"$', table):
+            changed, n = re.subn(r'(?m)^group = "[^"]*"$', f'group = "{group}"', table)
+            assert n == 1, table
+            return text[: m.start()] + changed + text[end:]
+    raise AssertionError(f"no [[agents]] table names {agent}")
+
+
+def started_after(text: str, agent: str, new: str) -> str:
+    """Specification ``text`` with ``new`` in ``start_order`` right after ``agent`` (the list
+    read from the data, written back on one line)."""
+    order = list(tomllib.loads(text)["start_order"])
+    order.insert(order.index(agent) + 1, new)
+    line = f"start_order = {json.dumps(order)}"
+    changed, n = re.subn(r"(?ms)^start_order = \[.*?\]$", lambda _: line, text)
+    assert n == 1, "start_order"
+    return changed
+
+
+def group_edit(text: str) -> str:
+    """Stage 2's edits of the shipped entries: a_hi substitutes ``ui`` now, and the watcher,
+    which asks a_hi, starts right after it (the agent started last waits for every other to be
+    healthy, so none may ask it: services/deploy/compose.py ``_check_readiness``)."""
+    return started_after(regrouped(text, "a_hi", UI), "a_hi", AGENT)
+
+
+def staged(text: str, *parts: str, edit: Callable[[str], str] | None = None) -> str:
     """Specification ``text`` with ``parts`` added (requirements and steps before the agents,
-    as in the shipped file; the rest at its end) and each of ``edits`` made once."""
-    for old, new in (edits or {}).items():
-        assert text.count(old) == 1, old
-        text = text.replace(old, new)
+    as in the shipped file; the rest at its end), then ``edit`` applied (e.g. :func:`group_edit`)."""
+    if edit is not None:
+        text = edit(text)
     head, tail = text.split("\n[[agents]]", 1)
     decomposition = "\n".join(p for p in parts if "[[steps]]" in p or "[[requirements]]" in p)
     rest = "\n".join(p for p in parts if p not in decomposition)
@@ -170,7 +228,7 @@ def walkthrough_spec(
     text = base.read_text()
     numbers = free_numbers(text)
     stages = (snippet(1, doc=doc, numbers=numbers), entries(doc, numbers, terms=terms))
-    path.write_text(staged(text, *stages, edits=GROUP_EDIT))
+    path.write_text(staged(text, *stages, edit=group_edit))
     return path
 
 
