@@ -7,9 +7,7 @@ is in the outcome's summary and makes it not clean."""
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
 
 import pytest
 
@@ -18,46 +16,21 @@ from services.runtime.human import HumanReport, ReportKind
 from services.runtime.run_folder import read_run_info
 from services.scenario.model import Scenario, Step
 from services.scenario.runner import MAX_CRASHES, CommandRecord, ScenarioOutcome, ScenarioRunner
+from tests.support.fake_hosting import FakeFleet, FakeHosting, FakeProcess
 
 
-@dataclass
-class _Proc:
-    pid: int
-    returncode: int | None = None
-
-    def poll(self) -> int | None:
-        return self.returncode
-
-
-@dataclass
-class _Fleet:
-    """A fleet whose processes exit when a test says so; ``restart`` starts a new one."""
-
-    processes: dict[str, Any] = field(default_factory=dict)
-    restarted: list[str] = field(default_factory=list)
-
-    def dead(self) -> list[str]:
-        return [n for n, p in self.processes.items() if p.poll() is not None]
-
-    def restart(self, name: str) -> int:
-        self.restarted.append(name)
-        self.processes[name] = _Proc(self.processes[name].pid + 1)
-        return int(self.processes[name].pid)
-
-
-@dataclass
-class _Hosting:
-    """Starts a router again as the local hosting does (services/fault/process.py ``start``)."""
-
-    fleet: _Fleet
-
-    def start_again(self, session: object, service: str, timeout: float) -> None:
-        self.fleet.restart(service)
-
-
-def _runner(tmp_path: Path) -> tuple[ScenarioRunner, _Fleet]:
-    fleet = _Fleet({"a_ta": _Proc(100), "recorder": _Proc(200), "router": _Proc(300), "world": _Proc(400)})
-    runner = ScenarioRunner(Scenario(name="t", steps=(Step(say="pour"),)), tmp_path, hosting=_Hosting(fleet))  # type: ignore[arg-type]
+def _runner(tmp_path: Path) -> tuple[ScenarioRunner, FakeFleet]:
+    fleet = FakeFleet(
+        {
+            "a_ta": FakeProcess(100),
+            "recorder": FakeProcess(200),
+            "router": FakeProcess(300),
+            "world": FakeProcess(400),
+        }
+    )
+    runner = ScenarioRunner(
+        Scenario(name="t", steps=(Step(say="pour"),)), tmp_path, hosting=FakeHosting(fleet)
+    )  # type: ignore[arg-type]
     runner.session = object()  # type: ignore[assignment]  # the fleet has started
     return runner, fleet
 

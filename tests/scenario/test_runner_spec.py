@@ -7,7 +7,6 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -17,41 +16,14 @@ from services.scenario.runner import CommandRecord, ScenarioRunner, system_of
 from services.spec.model import default_spec
 from shared.settings import Settings
 from tests.support.cell_fleet import CELL, CELL_AGENTS
+from tests.support.fake_hosting import FakeFleet, FakeHosting, FakeProcess
 
 CELL_ENV = {Settings.env_name("spec"): str(CELL)}
 
 
-@dataclass
-class _Proc:
-    pid: int
-    returncode: int | None = None
-
-    def poll(self) -> int | None:
-        return self.returncode
-
-
-@dataclass
-class _Fleet:
-    processes: dict[str, Any] = field(default_factory=dict)
-    restarted: list[str] = field(default_factory=list)
-
-    def dead(self) -> list[str]:
-        return [n for n, p in self.processes.items() if p.poll() is not None]
-
-    def restart(self, name: str) -> int:
-        self.restarted.append(name)
-        self.processes[name] = _Proc(self.processes[name].pid + 1)
-        return int(self.processes[name].pid)
-
-
-@dataclass
-class _Hosting:
-    fleet: _Fleet
-
-
-def _cell_runner(tmp_path: Path, fleet: _Fleet, echo: list[str] | None = None) -> ScenarioRunner:
+def _cell_runner(tmp_path: Path, fleet: FakeFleet, echo: list[str] | None = None) -> ScenarioRunner:
     scenario = Scenario(name="", steps=(Step(say="sort 3 bolts"),))
-    hosting: Any = _Hosting(fleet)
+    hosting: Any = FakeHosting(fleet)
     return ScenarioRunner(
         scenario, tmp_path, env=CELL_ENV, hosting=hosting, echo=None if echo is None else echo.append
     )
@@ -63,7 +35,7 @@ def test_the_specification_of_the_fleet_s_environment() -> None:
 
 
 def test_a_cell_agent_that_exited_by_itself_is_started_again(tmp_path: Path) -> None:
-    fleet = _Fleet({"a_so": _Proc(100, returncode=1)})
+    fleet = FakeFleet({"a_so": FakeProcess(100, returncode=1)})
     runner = _cell_runner(tmp_path, fleet)
     runner._pump(0.0, math.inf)
     assert fleet.restarted == ["a_so"] and runner.crashed == {"a_so": [1]}
@@ -71,7 +43,7 @@ def test_a_cell_agent_that_exited_by_itself_is_started_again(tmp_path: Path) -> 
 
 def test_the_person_talks_to_the_cell_s_operator(tmp_path: Path) -> None:
     said: list[str] = []
-    runner = _cell_runner(tmp_path, _Fleet(), said)
+    runner = _cell_runner(tmp_path, FakeFleet(), said)
     assert runner.person == "a_op"
     runner.commands.append(CommandRecord(1, "sort 3 bolts", "r1"))
     runner._take("report", HumanReport(request_id="r1", kind=ReportKind.SUCCEEDED, text="sorted"))
@@ -79,7 +51,7 @@ def test_the_person_talks_to_the_cell_s_operator(tmp_path: Path) -> None:
 
 
 def test_the_cell_starts_without_the_kitchen_s_initial_knowledge(tmp_path: Path) -> None:
-    runner = _cell_runner(tmp_path, _Fleet())
+    runner = _cell_runner(tmp_path, FakeFleet())
     t0 = time.monotonic()
     runner._await_knowledge(math.inf)
     assert time.monotonic() - t0 < 1.0 and not runner.knowledge.is_set()
