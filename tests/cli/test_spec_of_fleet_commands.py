@@ -20,6 +20,7 @@ from services.hosts.fleet import placement
 from services.spec.model import default_spec, load
 from shared.settings import Settings
 from tests.support.cell_fleet import CELL, CELL_AGENTS, cell_fleet
+from tests.support.codec_registry import languages_leave_with_each_test  # noqa: F401  (autouse)
 
 ROOT = Path(__file__).resolve().parents[2]
 

@@ -31,6 +31,7 @@ from services.deploy.layout import KITCHEN, SYSTEM_IN, LayoutError, layout_for
 from services.security import certs
 from services.spec.model import DEFAULT_SPEC, default_spec
 from shared.settings import DEPLOYMENT, Settings, names
+from tests.support.codec_registry import languages_leave_with_each_test  # noqa: F401  (autouse)
 
 yaml = pytest.importorskip("yaml", reason="PyYAML reads the compose file: pip install -e '.[dev]'")
 

@@ -18,6 +18,7 @@ from services.fault.process import FaultError, UpFleet, local_services
 from services.fleet.launcher import AGENT_ORDER
 from services.spec.model import DEFAULT_SPEC, default_spec, load
 from tests.support.cell_fleet import CELL, CELL_AGENTS, cell_fleet
+from tests.support.codec_registry import languages_leave_with_each_test  # noqa: F401  (autouse)
 from velma.world.mode import WORLD_SERVICE
 
 

@@ -309,7 +309,8 @@ def test_it_runs_in_the_fleet_with_access_control_and_the_run_conforms(
     order = checkout.python(
         "from services.spec.model import default_spec; print(*default_spec().launch_order)"
     )
-    assert alive.endswith(", ".join(order.split())) and order.split()[-1] == "a_wt", alive
+    names = order.split()  # the watcher right after a_hi (the scratch agent after it)
+    assert alive.endswith(", ".join(names)) and names[names.index("a_hi") + 1] == "a_wt", alive
     assert (run_dir / "security" / "acl.json").is_file()  # access control was on
     # the traffic record: a_wt's subscription on C, a_km's changes, and one warning on N
     records = [r for r in read_records(run_dir) if r.channel in (C, N)]

@@ -16,6 +16,7 @@ from services.scenario.runner import CommandRecord, ScenarioRunner, system_of
 from services.spec.model import default_spec
 from shared.settings import Settings
 from tests.support.cell_fleet import CELL, CELL_AGENTS
+from tests.support.codec_registry import languages_leave_with_each_test  # noqa: F401  (autouse)
 from tests.support.fake_hosting import FakeFleet, FakeHosting, FakeProcess
 
 CELL_ENV = {Settings.env_name("spec"): str(CELL)}

@@ -7,6 +7,8 @@ from __future__ import annotations
 from collections.abc import Iterator
 from contextlib import contextmanager
 
+import pytest
+
 from shared.fipa_codec.languages import base, load_all
 
 
@@ -22,3 +24,12 @@ def languages_restored() -> Iterator[None]:
         base.LANGUAGES.update(languages)
         base._BY_TYPE.clear()
         base._BY_TYPE.update(by_type)
+
+
+@pytest.fixture(autouse=True)
+def languages_leave_with_each_test() -> Iterator[None]:
+    """Autouse in a test module that imports it: what a test's loading of a specification
+    registers in this process (another system's languages, an agent's terms) leaves with the test,
+    so that no later test in the same worker sees it."""
+    with languages_restored():
+        yield
