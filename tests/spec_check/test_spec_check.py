@@ -15,6 +15,8 @@ from services.spec.model import DEFAULT_SPEC, default_spec
 from services.spec.show import graph_dot, graph_svg, steps_markdown
 
 SHIPPED = DEFAULT_SPEC.read_text()
+KM_GROUP = next(a.group for a in default_spec().agents if a.name == "a_km")
+"""The group a_km substitutes in the shipped specification (``km``, until a step splits it)."""
 
 # (name, text replaced, replacement, expected message)
 BROKEN = [
@@ -128,7 +130,7 @@ BROKEN = [
     ),
     (
         "an agent substituting a group outside the system",
-        'knowledge.agent:KnowledgeManager"\ngroup = "km"',
+        f'knowledge.agent:KnowledgeManager"\ngroup = "{KM_GROUP}"',
         'knowledge.agent:KnowledgeManager"\ngroup = "xp"',
         "group 'xp' outside the system is substituted by agent a_km",
     ),
