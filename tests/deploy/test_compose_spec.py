@@ -6,6 +6,7 @@ specification gets a service and a_hi â€” the last agent ``start_order`` names â
 
 from __future__ import annotations
 
+import json
 import re
 from pathlib import Path
 from typing import Any
@@ -111,8 +112,9 @@ def test_the_six_agents_services_are_what_the_fleet_needs() -> None:
         assert service["volumes"] == mounts + own + extra_volume.get(name, [])
         assert service.get("cap_add") is None  # not root: a capability would not count
         assert {service["mem_limit"], service["cpus"], service["pids_limit"]} != {None}
-        others = (o for o in SPEC.launch_order if o != "a_hi")
-        waits = {o: {"condition": "service_healthy"} for o in others} if name == "a_hi" else {}
+        last = SPEC.launch_order[-1]  # a_hi in the shipped specification; an agent added since
+        others = (o for o in SPEC.launch_order if o != last)
+        waits = {o: {"condition": "service_healthy"} for o in others} if name == last else {}
         if name == "ag_ex":  # the robot it drives: the world, whose shared memory and processes it sees
             waits = {"world": {"condition": "service_healthy"}}
             assert service["ipc"] == service["pid"] == "service:world"
@@ -150,18 +152,20 @@ def test_the_other_services_keep_their_settings() -> None:
 
 def test_a_new_agent_gets_a_service_and_waits_for_the_others(tmp_path: Path) -> None:
     spec = load(walkthrough_spec(tmp_path / "spec.toml"))  # docs/spec.md's new agent a_wt
-    assert spec.launch_order[-1] == "a_wt" and last_started(spec) == "a_wt"  # it asks a_hi: after it
+    order = spec.launch_order
+    assert order[order.index("a_hi") + 1] == "a_wt"  # it asks a_hi: right after it
+    assert last_started(spec) == order[-1]  # a_wt in the shipped specification
     services = config(render(spec))["services"]
-    assert list(services) == ["certs", "router", "recorder", "world", *SPEC.launch_order, "a_wt", "viewer"]
+    assert list(services) == ["certs", "router", "recorder", "world", *order, "viewer"]
     new, plain = services["a_wt"], services["a_pl"]
     assert new["command"] == ["python", "-m", "services.runtime.main", "a_wt"]
     for key in set(plain) - {"command", "volumes", "depends_on"}:
         assert new[key] == plain[key], key
     assert new["volumes"] == [v.replace("a_pl", "a_wt") for v in plain["volumes"]]
-    # started last, it waits for every other agent to be healthy, a_hi among them
-    assert {a for a, c in new["depends_on"].items() if c == {"condition": "service_healthy"}} >= set(
-        SPEC.launch_order
-    )
+    # the agent started last (the watcher, unless the specification has grown since) waits for
+    # every other agent to be healthy, a_hi among them
+    waiting = services[order[-1]]["depends_on"]
+    assert {a for a, c in waiting.items() if c == {"condition": "service_healthy"}} >= set(order[:-1])
     # the committed file lacks it, and says how to bring it up to date
     assert difference(COMPOSE_FILE.read_text(), spec) == "no service for agent a_wt"
     assert check(COMPOSE_FILE, spec, "deploy/compose.yaml") == (
@@ -214,10 +218,16 @@ def test_each_agents_extras_are_for_an_agent_and_its_run_variables_are_the_entry
 
 def test_the_start_order_refuses_an_unknown_agent_and_starts_unnamed_ones_last(tmp_path: Path) -> None:
     text = DEFAULT_SPEC.read_text()
+    order = list(SPEC.start_order)
+
+    def with_order(names: list[str]) -> str:  # the start_order line as the data gives it
+        line = f"start_order = {json.dumps(names)}"
+        return re.sub(r"(?ms)^start_order = \[.*?\]$", lambda _: line, text, count=1)
+
     bad = tmp_path / "spec.toml"
-    bad.write_text(text.replace('"ag_ex", "a_ta", "a_hi"]', '"ag_ex", "a_tx", "a_hi"]', 1))
+    bad.write_text(with_order([n if n != "a_ta" else "a_tx" for n in order]))
     with pytest.raises(SpecError, match="start_order names unknown agent 'a_tx'"):
         load(bad)
-    bad.write_text(text.replace('"ag_ex", "a_ta", "a_hi"]', '"ag_ex", "a_hi"]', 1))
+    bad.write_text(with_order([n for n in order if n != "a_ta"]))
     unnamed = (a for a in SPEC.agent_names if a == "a_ta" or a not in SPEC.start_order)
-    assert load(bad).launch_order == ("a_km", "a_pl", "a_co", "ag_ex", "a_hi", *unnamed)
+    assert load(bad).launch_order == (*(n for n in order if n != "a_ta"), *unnamed)
