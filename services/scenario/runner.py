@@ -333,8 +333,13 @@ class ScenarioRunner:
 
     @property
     def person(self) -> str:
-        """The agent the person talks to: the one that plays the person's role (a_hi)."""
-        return self.system.playing("person") or "a_hi"
+        """The agent the person talks to: the one that plays the person's role (a_hi in the
+        kitchen). Raises LaunchError when no agent of the specification plays it (the CLI
+        refuses such a system before a runner is made)."""
+        agent = self.system.playing("person")
+        if agent is None:
+            raise LaunchError(f'no agent of {self.system.system} plays the person\'s role (role = "person")')
+        return agent
 
     # ---- events from Zenoh (callback threads: enqueue only) ----
     def _on_report(self, report: HumanReport) -> None:
