@@ -6,6 +6,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import pytest
 from typer.testing import CliRunner
 
 from services.cli import app
@@ -24,6 +25,7 @@ def test_roco_spec_names_checks_the_committed_module() -> None:
     )
 
 
+@pytest.mark.walkthrough
 def test_roco_spec_names_writes_and_checks_a_file(tmp_path: Path) -> None:
     spec = walkthrough_spec(tmp_path / "spec.toml")
     target = tmp_path / "names.py"

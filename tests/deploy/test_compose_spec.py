@@ -150,6 +150,7 @@ def test_the_other_services_keep_their_settings() -> None:
         assert services[name]["build"]["target"] == "runtime"
 
 
+@pytest.mark.walkthrough
 def test_a_new_agent_gets_a_service_and_waits_for_the_others(tmp_path: Path) -> None:
     spec = load(walkthrough_spec(tmp_path / "spec.toml"))  # docs/spec.md's new agent a_wt
     order = spec.launch_order
@@ -174,6 +175,7 @@ def test_a_new_agent_gets_a_service_and_waits_for_the_others(tmp_path: Path) -> 
     )
 
 
+@pytest.mark.walkthrough
 def test_roco_deploy_compose_writes_and_checks_the_file(tmp_path: Path) -> None:
     spec_file = walkthrough_spec(tmp_path / "spec.toml")
     target = tmp_path / "compose.yaml"

@@ -102,6 +102,7 @@ def test_an_agent_the_record_never_saw_goes_with_its_peers_or_is_refused_naming_
         assert str(caught.value).startswith(message), caught.value
 
 
+@pytest.mark.walkthrough
 def test_what_if_on_a_record_older_than_the_specification_places_the_new_agent_and_says_so(
     tmp_path: Path,
 ) -> None:

@@ -85,6 +85,7 @@ def watch_stage(tmp_path: Path, package: str, monkeypatch: pytest.MonkeyPatch) -
     return stage(tmp_path, snippet(1), entries(agent=f"{package}.agent"), edit=group_edit)
 
 
+@pytest.mark.walkthrough
 def test_stage_1_a_new_step_makes_check_list_what_is_missing(tmp_path: Path) -> None:
     ok, text = check_report(stage(tmp_path, snippet(1)))
     assert not ok
@@ -105,6 +106,7 @@ def test_stage_1_a_new_step_makes_check_list_what_is_missing(tmp_path: Path) -> 
         assert line in text, text
 
 
+@pytest.mark.walkthrough
 def test_stage_2_new_agent_writes_the_agent_and_its_service_and_verify_code_lists_its_handlers(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
@@ -185,6 +187,7 @@ def finished_watch(tmp_path: Path, package: str, monkeypatch: pytest.MonkeyPatch
     return path
 
 
+@pytest.mark.walkthrough
 def test_stage_3_the_finished_agent_conforms_and_warns_the_person_of_a_tipped_bowl(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
@@ -253,6 +256,7 @@ def test_stage_3_the_finished_agent_conforms_and_warns_the_person_of_a_tipped_bo
         km.close()  # type: ignore[attr-defined]
 
 
+@pytest.mark.walkthrough
 def test_the_walkthrough_takes_the_next_free_numbers_of_what_it_grows(tmp_path: Path) -> None:
     """Grown by the walk-through, a specification's next free numbers are one past its own."""
     grown = walkthrough_spec(tmp_path / "spec.toml").read_text()
@@ -279,6 +283,7 @@ def test_the_walkthrough_takes_the_next_free_numbers_of_what_it_grows(tmp_path: 
     assert '{ number = 5, from = "hx", to = "ui" }' in regrown
 
 
+@pytest.mark.walkthrough
 def test_stage_2_s_edits_find_the_entries_through_the_data_wherever_the_file_has_them() -> None:
     """a_hi's ``group`` line is changed in its own ``[[agents]]`` table only (another agent's
     ``group = "hi"`` is left), and the watcher is started right after a_hi whatever the order

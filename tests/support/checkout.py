@@ -14,7 +14,15 @@ import sys
 from dataclasses import dataclass
 from pathlib import Path
 
-from tests.spec_check.walkthrough import AGENT, TERMS_MODULE, fill, walkthrough_spec, write_terms
+from tests.spec_check.walkthrough import (
+    AGENT,
+    TERMS_MODULE,
+    WATCHER_REQUIREMENT,
+    fill,
+    requirement_test,
+    walkthrough_spec,
+    write_terms,
+)
 from tests.spec_check.walkthrough.scratch import SCRATCH, fill_scratch, scratch_spec, scratch_test
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -27,7 +35,9 @@ SPEC = Path("services/spec/robot_companion.toml")
 
 def copy_checkout(to: Path) -> None:
     """The checkout's files as git sees them (tracked, and new files not ignored) and what the
-    install built, copied to ``to``. Raises CalledProcessError when git cannot list them."""
+    install built, copied to ``to``, which becomes a repository of its own with those files
+    committed (what reads the checkout's commit, as the run headers do, reads the copy's).
+    Raises CalledProcessError when git cannot list or commit them."""
     listed = subprocess.run(
         ["git", "ls-files", "-z", "--cached", "--others", "--exclude-standard"],
         cwd=ROOT,
@@ -41,6 +51,10 @@ def copy_checkout(to: Path) -> None:
             target = to / source.relative_to(ROOT)
             target.parent.mkdir(parents=True, exist_ok=True)
             shutil.copy2(source, target)
+    git = ["git", "-c", "user.name=roco", "-c", "user.email=roco@localhost", "-c", "commit.gpgsign=false"]
+    commit = ["commit", "-q", "--no-verify", "-m", "a copy of the checkout"]
+    for args in (["init", "-q"], ["add", "-A"], commit):
+        subprocess.run([*git, *args], cwd=to, capture_output=True, check=True)
 
 
 @dataclass(frozen=True)
@@ -70,7 +84,8 @@ class Checkout:
     def add_watcher(self) -> subprocess.CompletedProcess[str]:
         """The walk-through's stages 1–3 in the copy: the watcher's terms module, its
         specification entries, ``roco spec new-agent a_wt``, its handlers as the document writes
-        them (when new-agent succeeded). What new-agent did."""
+        them and a test naming its requirement, as the document asks of a new agent (when
+        new-agent succeeded). What new-agent did."""
         doc = self.root / "docs" / "spec.md"
         folder = self.root / "services" / "agents" / "watch"
         write_terms(folder, doc)  # before the specification names it: loading it imports the module
@@ -78,6 +93,7 @@ class Checkout:
         done = self.roco("spec", "new-agent", AGENT)
         if done.returncode == 0:
             fill(folder / "agent.py", doc, terms=TERMS_MODULE)
+            requirement_test(self.root / "tests", (self.root / SPEC).read_text(), AGENT, WATCHER_REQUIREMENT)
         return done
 
     def add_scratch(self) -> subprocess.CompletedProcess[str]:

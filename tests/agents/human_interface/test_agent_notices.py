@@ -78,6 +78,7 @@ def _answers_to_watcher(stage: Stage) -> queue.SimpleQueue[Performative]:
     return got
 
 
+@pytest.mark.walkthrough
 def test_a_new_agent_on_a_channel_of_its_own_tells_the_person_with_its_name(stage: Stage) -> None:
     hi, watcher = _start(stage)
     assert (
@@ -111,6 +112,7 @@ def test_an_a_hi_that_named_its_channels_one_by_one_refuses_the_new_one() -> Non
         NamedChannels(Stage().bus.transport(), SPEC)
 
 
+@pytest.mark.walkthrough
 def test_a_notice_protocol_of_its_own_with_a_term_of_its_own_is_told_by_the_term(
     stage: Stage, watcher_terms: None
 ) -> None:
@@ -129,6 +131,7 @@ def test_a_notice_protocol_of_its_own_with_a_term_of_its_own_is_told_by_the_term
     assert hi.counters["notices"] == 2
 
 
+@pytest.mark.walkthrough
 def test_a_term_s_over_long_sentence_is_cut_to_a_notice_s_length(stage: Stage, watcher_terms: None) -> None:
     _, watcher = _start(stage, WARNING_SPEC, WarningWatcher)
     watcher.tell(Long(n=MAX_NOTICE_CHARS + 40), Long(n=MAX_NOTICE_CHARS))
@@ -136,6 +139,7 @@ def test_a_term_s_over_long_sentence_is_cut_to_a_notice_s_length(stage: Stage, w
     assert cut.text == "a" * (MAX_NOTICE_CHARS - 1) + CUT and whole.text == "a" * MAX_NOTICE_CHARS
 
 
+@pytest.mark.walkthrough
 def test_a_term_whose_told_fails_is_counted_and_a_hi_goes_on(
     stage: Stage, watcher_terms: None, caplog: pytest.LogCaptureFixture
 ) -> None:
@@ -161,6 +165,7 @@ def test_a_protocol_of_two_messages_is_no_notice_protocol() -> None:
         HumanInterface(Stage().bus.transport(), CHAT_SPEC)
 
 
+@pytest.mark.walkthrough
 def test_a_malformed_notice_is_answered_not_understood_and_a_hi_goes_on(stage: Stage) -> None:
     answers = _answers_to_watcher(stage)
     hi, watcher = _start(stage)
@@ -172,6 +177,7 @@ def test_a_malformed_notice_is_answered_not_understood_and_a_hi_goes_on(stage: S
     assert hi.counters["notices"] == 1 and hi.counters["rejected"] == 1
 
 
+@pytest.mark.walkthrough
 def test_another_l_hc_term_is_told_by_its_string_form(stage: Stage) -> None:
     """On a channel that names no ``contents``, another L_HC term passes the runtime's check:
     it has no ``told()``, so the person reads its string form."""
@@ -183,6 +189,7 @@ def test_another_l_hc_term_is_told_by_its_string_form(stage: Stage) -> None:
     assert hi.counters["notices_unreadable"] == 0 and hi.counters["notices"] == 2
 
 
+@pytest.mark.walkthrough
 def test_a_flood_is_bounded_per_sender_each_second(stage: Stage, caplog: pytest.LogCaptureFixture) -> None:
     """50 notices in one second of a_hi's gate: the first NOTICES_PER_S are passed on, the
     rest counted and dropped with one log line; the next second's first is passed on."""

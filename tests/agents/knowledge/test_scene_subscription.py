@@ -138,6 +138,7 @@ def settled(peer: Peer) -> None:
     peer.object("jar")
 
 
+@pytest.mark.walkthrough
 def test_a_subscriber_is_told_when_an_object_moves_or_tilts_and_not_otherwise(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
@@ -183,6 +184,7 @@ def test_a_subscriber_is_told_when_an_object_moves_or_tilts_and_not_otherwise(
         assert km.counters["scene_changes"] == 6
 
 
+@pytest.mark.walkthrough
 def test_a_malformed_or_out_of_range_subscription_is_refused_with_the_reason(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
@@ -216,6 +218,7 @@ def test_a_malformed_or_out_of_range_subscription_is_refused_with_the_reason(
         assert wt.subscribe(SceneSubscription(), "good")[0] is Performative.AGREE
 
 
+@pytest.mark.walkthrough
 def test_a_cancel_ends_the_informs(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     with running_km(watcher_spec(tmp_path), monkeypatch) as (km, bus):
         peer, wt = Peer(bus), Subscriber(bus, WT_CHANNEL, "a_wt")
@@ -232,6 +235,7 @@ def test_a_cancel_ends_the_informs(tmp_path: Path, monkeypatch: pytest.MonkeyPat
         assert not km.watches and km.counters["scene_changes"] == 1
 
 
+@pytest.mark.walkthrough
 def test_the_queue_drops_the_oldest_and_says_so(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     """A planted flood: one update moves eight objects for a subscriber that keeps two."""
     with running_km(watcher_spec(tmp_path), monkeypatch) as (km, bus):
@@ -249,6 +253,7 @@ def test_the_queue_drops_the_oldest_and_says_so(tmp_path: Path, monkeypatch: pyt
         assert km.counters["scene_changes_dropped"] == 6
 
 
+@pytest.mark.walkthrough
 def test_a_flood_larger_than_a_burst_arrives_whole_and_in_order(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
@@ -263,6 +268,7 @@ def test_a_flood_larger_than_a_burst_arrives_whole_and_in_order(
         assert km.counters["scene_changes_dropped"] == 0
 
 
+@pytest.mark.walkthrough
 def test_at_most_n_subscribers_and_one_per_channel(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setattr(scene_watch, "MAX_SUBSCRIBERS", 1)
     with running_km(watcher_spec(tmp_path), monkeypatch) as (km, bus):
@@ -280,6 +286,7 @@ def test_at_most_n_subscribers_and_one_per_channel(tmp_path: Path, monkeypatch: 
         assert list(km.watches) == [WT_CHANNEL]
 
 
+@pytest.mark.walkthrough
 def test_a_restarted_km_serves_the_subscription_the_subscriber_makes_again(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:

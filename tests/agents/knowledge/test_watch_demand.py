@@ -55,6 +55,7 @@ def _watch_asks(peer: Peer, wait_s: float) -> list[tuple[Communicate, Subscripti
             return out
 
 
+@pytest.mark.walkthrough
 def test_a_subscriber_within_a_time_has_the_robot_watch_until_it_cancels(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
@@ -73,6 +74,7 @@ def test_a_subscriber_within_a_time_has_the_robot_watch_until_it_cancels(
         assert km.watch_demand.period_s is None
 
 
+@pytest.mark.walkthrough
 def test_a_subscriber_with_no_time_asks_no_watch_and_an_impossible_time_is_refused(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:

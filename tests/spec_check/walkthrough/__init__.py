@@ -274,3 +274,33 @@ def fill(module: Path, doc: Path = DOC, numbers: Numbers | None = None, terms: s
     )
     text = text.replace(line, line + IMPORTS[2])
     module.write_text(text)
+
+
+REQUIREMENT_TEST = '''"""{agent}'s requirement, named by a test as docs/spec.md asks of a new agent."""
+
+import pytest
+
+
+@pytest.mark.requirement("{requirement}")
+def test_{agent}_is_in_the_specification() -> None:
+    from services.spec.model import default_spec
+
+    assert "{agent}" in [a.name for a in default_spec().agents]
+'''
+"""A test module marking a new agent's requirement (``roco spec trace``, test_trace.py)."""
+
+
+def requirement_test(folder: Path, spec_text: str, agent: str, text: str) -> Path:
+    """Write a test module naming the requirement of specification ``spec_text`` whose text
+    begins with ``text`` (the one ``agent`` was added for) into ``folder``, as
+    ``test_<agent>_requirement.py``; returns its path. Raises ValueError unless exactly one
+    requirement's text begins so."""
+    data = tomllib.loads(spec_text)
+    (requirement,) = [r["id"] for r in data["requirements"] if r["text"].startswith(text)]
+    path = folder / f"test_{agent}_requirement.py"
+    path.write_text(REQUIREMENT_TEST.format(requirement=requirement, agent=agent))
+    return path
+
+
+WATCHER_REQUIREMENT = "warn the person when a thing of the kitchen is knocked over"
+"""The text of the walk-through's requirement (its stage 1 snippet)."""

@@ -5,7 +5,7 @@ asks a_km (fipa-query in L_WM, as a_hi does on C7) and tells the person things t
 (roco-notify in L_HC, as a foreign agent does on C8). It splits a_km's group, so it can be added
 before or after the watcher (which splits a_hi's). Its module is what ``roco spec new-agent``
 writes for it with each handler written to log what came (:func:`fill_scratch`); a test names
-its requirement (:data:`TEST`), as a system's own tests do. tests/integration/test_new_agent.py
+its requirement (:func:`scratch_test`), as a system's own tests do. tests/integration/test_new_agent.py
 adds both to a copy of the checkout and runs the fast part of roco's tests there;
 scripts/check_growth.py runs all of them."""
 
@@ -15,30 +15,27 @@ import re
 import tomllib
 from pathlib import Path
 
-from tests.spec_check.walkthrough import channels_at, free_numbers, group_of, regrouped, staged, started_after
+from tests.spec_check.walkthrough import (
+    channels_at,
+    free_numbers,
+    group_of,
+    regrouped,
+    requirement_test,
+    staged,
+    started_after,
+)
 
 SCRATCH = "a_sc"
 PACKAGE = "services.agents.scratch"
 """The scratch agent's folder (its module ``agent.py`` is ``roco spec new-agent``'s)."""
 GROUP = "sc"
+REQUIREMENT = "a scratch agent asks a_km and tells the person through a_hi"
+"""The text of the scratch agent's requirement."""
 QUERY_PERFORMATIVES = (
     "query-ref", "query-if", "inform-ref", "inform", "failure", "refuse", "agree", "cancel",
 )  # fmt: skip
 QUERY_LANGUAGES = ", ".join(f'{p} = "L_WM"' for p in QUERY_PERFORMATIVES)
 """fipa-query's performatives in L_WM, as C7 declares them (each that may be sent has a language)."""
-
-TEST = '''"""The scratch agent's requirement, named by a test as docs/spec.md asks of a new one."""
-
-import pytest
-
-
-@pytest.mark.requirement("{requirement}")
-def test_the_scratch_agent_is_in_the_specification() -> None:
-    from services.spec.model import default_spec
-
-    assert "{agent}" in [a.name for a in default_spec().agents]
-'''
-"""A test module marking the scratch agent's requirement (``roco spec trace``, test_trace.py)."""
 
 
 def _parts(text: str) -> tuple[str, str]:
@@ -54,7 +51,7 @@ def _parts(text: str) -> tuple[str, str]:
     decomposition = f"""[[requirements]]
 id = "{n.requirement}"
 parent = "R"
-text = "a scratch agent asks a_km and tells the person through a_hi"
+text = "{REQUIREMENT}"
 
 [[steps]]
 number = {n.step}
@@ -115,13 +112,9 @@ def scratch_spec(path: Path, base: Path) -> Path:
 
 
 def scratch_test(folder: Path, spec_text: str) -> Path:
-    """Write :data:`TEST` for the scratch agent's requirement in specification ``spec_text``
-    into ``folder`` (``test_scratch_agent.py``); returns its path."""
-    data = tomllib.loads(spec_text)
-    (requirement,) = [r["id"] for r in data["requirements"] if r["text"].startswith("a scratch agent")]
-    path = folder / "test_scratch_agent.py"
-    path.write_text(TEST.format(requirement=requirement, agent=SCRATCH))
-    return path
+    """Write the test naming the scratch agent's requirement in specification ``spec_text``
+    into ``folder`` (:func:`~tests.spec_check.walkthrough.requirement_test`); returns its path."""
+    return requirement_test(folder, spec_text, SCRATCH, REQUIREMENT)
 
 
 def fill_scratch(module: Path) -> None:
