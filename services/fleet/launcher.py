@@ -229,6 +229,20 @@ class Fleet:
         for proc in self.processes.values():
             _wait(proc, max(0.1, deadline - time.monotonic()))
 
+    def stop_agents(self, timeout: float = 10.0) -> None:
+        """SIGTERM every started agent of the specification, leaving the recorder, the routers
+        and the rest (the world, a link's relay) running, and wait for their ends (SIGKILL
+        after ``timeout`` s): what they sent is then all on its way to the recorder, and the
+        record of a fleet whose agents never fall silent (a standing watch) can be read whole."""
+        agents = [n for n in self.system.launch_order if n in self.processes]
+        for name in agents:
+            proc = self.processes[name]
+            if proc.poll() is None:
+                proc.send_signal(signal.SIGTERM)
+        deadline = time.monotonic() + timeout
+        for name in agents:
+            _wait(self.processes[name], max(0.1, deadline - time.monotonic()))
+
     def restart(self, name: str, timeout: float = 10.0) -> int:
         """Stop process ``name`` (SIGTERM, then SIGKILL after ``timeout`` s) and start it again;
         returns the new PID. Raises KeyError for a process this fleet did not start."""

@@ -77,8 +77,11 @@ def test_the_pour_succeeds_across_two_hosts_over_a_shaped_link_with_mtls_and_acl
     assert events[0]["event"] == "shaping" and events[0]["delay_ms"] == 20 and events[0]["loss_pct"] == 1
     # C5 (a_ta ↔ ag_ex) stayed on the robot's host and still reached the brain's recorder
     assert any(r["sender"] == "ag_ex" for r in c5_record(hosts.run_dir))
-    # the record holds everything routed so far (the pour's last communicates may still be on
-    # their way to the recorder when a_hi's report comes) before it is verified and replayed
+    # the record is whole before it is verified and replayed: the agents are stopped (a grown
+    # fleet may never fall silent: a standing watch) and what they sent has reached the recorder
+    # (the pour's last communicates may still be on their way when a_hi's report comes)
+    assert hosts.fleet is not None
+    hosts.fleet.stop_agents()
     assert sync_fleet(hosts.endpoint, hosts.run_dir / "security")
     conformance = verify_run(hosts.run_dir, default_spec())
     assert conformance.full_conformance, render(conformance)
@@ -86,11 +89,14 @@ def test_the_pour_succeeds_across_two_hosts_over_a_shaped_link_with_mtls_and_acl
     for agent in ("a_co", "a_pl", "a_km", "a_ta"):
         replayed = replay(hosts.run_dir, agent)
         assert replayed.equal, replay_render(replayed)
-    # access control holds across the mesh: a robot-side process as a_ta may put on a_ta's own
-    # C1 key, not on a_pl's C4 key (nor as a_pl); the brain's operator sees only the first
+    # access control holds across the mesh (the routers still run): a robot-side process as a_ta
+    # may put on a_ta's own C1 key, not on a_pl's C4 key (nor as a_pl); the brain's operator sees
+    # only the first of those planted payloads
     seen: list[str] = []
     operator = open_client(hosts.endpoint)
-    operator.declare_subscriber("roco/fipa/**", lambda s: seen.append(str(s.key_expr)))
+    operator.declare_subscriber(
+        "roco/fipa/**", lambda s: seen.append(str(s.key_expr)) if s.payload.to_bytes() == PLANTED else None
+    )
     try:
         _robot_put(
             hosts, "a_ta", ["roco/fipa/C4/a_pl/a_km", "roco/fipa/C5/ag_ex/a_ta", "roco/fipa/C1/a_ta/a_co"]
@@ -104,14 +110,18 @@ def test_the_pour_succeeds_across_two_hosts_over_a_shaped_link_with_mtls_and_acl
     assert not {"roco/fipa/C4/a_pl/a_km", "roco/fipa/C5/ag_ex/a_ta"} & set(seen), seen
 
 
+PLANTED = b"planted by the test"
+"""The (malformed) payload :func:`_robot_put` puts."""
+
+
 def _robot_put(h: TwoHosts, identity: str, keys_: list[str]) -> None:
-    """Put one (malformed) payload on each of ``keys_`` from a process on the robot's host,
+    """Put :data:`PLANTED` on each of ``keys_`` from a process on the robot's host,
     authenticated as ``identity`` through the robot's router."""
     assert h.pair is not None and h.fleet is not None and h.fleet.security is not None
     code = (
         "import sys\nfrom services.runtime.session import open_client\n"
         f"s = open_client('tls/127.0.0.1:7447', identity={identity!r})\n"
-        f"for k in {keys_!r}:\n    s.put(k, b'x')\ns.close()\n"
+        f"for k in {keys_!r}:\n    s.put(k, {PLANTED!r})\ns.close()\n"
     )
     env = dict(os.environ, ROCO_SECURITY=str(h.fleet.security), PYTHONPATH=str(Path.cwd()))
     subprocess.run(
