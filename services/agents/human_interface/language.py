@@ -66,9 +66,11 @@ from services.agents.human_interface.intents import (
 )
 from services.agents.human_interface.meaning import Context, Reader, Reply, loc_count, loc_depth
 from services.agents.human_interface.questions import Resolve, read_question
+from services.agents.human_interface.script import unreadable
 from services.agents.human_interface.spelling import candidates, correctable, known_words
 from services.agents.human_interface.stop import StopWords, command_openings
 from services.agents.human_interface.task_grammar import Grammar, default_grammar
+from services.agents.human_interface.tolerance import readings
 from services.agents.human_interface.vocabulary import KNOWLEDGE_FILES, Vocabulary
 
 EXAMPLES = (
@@ -146,11 +148,16 @@ def _bad_deadline(words: tuple[Word, ...]) -> NotUnderstood | None:
 _RANK = {Command: 0, Stop: 0, StatusRequest: 0, Reply: 0, Ambiguous: 1, Incomplete: 2, UnknownReference: 3}
 
 
+class TooLong(NotUnderstood):
+    """A line of more than :data:`MAX_READ_TOKENS` tokens: refused unparsed, and not read in
+    any other way (tolerance.py)."""
+
+
 def _within_bound(words: tuple[Word, ...]) -> tuple[Word, ...]:
-    """``words``, when there are at most :data:`MAX_READ_TOKENS`; raises :class:`NotUnderstood`
+    """``words``, when there are at most :data:`MAX_READ_TOKENS`; raises :class:`TooLong`
     (one line for the person) otherwise, before any parse."""
     if len(words) > MAX_READ_TOKENS:
-        raise NotUnderstood(
+        raise TooLong(
             f"That is too long for one request ({len(words)} words and phrases, at most "
             f"{MAX_READ_TOKENS}); say one thing at a time, e.g. {EXAMPLES[0]}."
         )
@@ -256,6 +263,43 @@ def interpret(
     control = _control(sentence)
     if control is not None:
         raise control  # a refused line: the question asked, if any, stays open
+    other = unreadable(sentence)
+    if other is not None:
+        raise NotUnderstood(f"{other}; I understand English only, e.g. {EXAMPLES[0]}.")
+    try:
+        return _interpret_line(sentence, priority, vocab, talk, rules)
+    except (Ambiguous, Incomplete, Misspelt, TooLong):
+        raise  # a question back, a typo named (the person answers it) or a line too long
+    except NotUnderstood as exc:
+        intent = _read_otherwise(sentence, priority, vocab, talk, rules)
+        if intent is None:
+            raise exc from None
+        return intent
+
+
+def _read_otherwise(
+    sentence: str, priority: int, vocab: Vocabulary, talk: Dialogue, rules: Grammar
+) -> Intent | None:
+    """The intent of the first other reading of ``sentence`` (tolerance.py) that is understood,
+    saying what was read (``read_as``), or None; the dialogue as it was when none is. A line of
+    more than :data:`MAX_CORRECTED_TOKENS` tokens is not read otherwise (each reading is a parse)."""
+    if len(rules.tag(sentence, vocab)) > MAX_CORRECTED_TOKENS:
+        return None
+    said = (talk.last, talk.pending)
+    for text in readings(sentence, lambda t: rules.tag(t, vocab), rules.verb_kinds):
+        try:
+            intent = _interpret_line(text, priority, vocab, talk, rules)
+        except NotUnderstood:
+            talk.last, talk.pending = said
+            continue
+        return dataclasses.replace(intent, read_as=((sentence.strip(), text), *intent.read_as))
+    return None
+
+
+def _interpret_line(
+    sentence: str, priority: int, vocab: Vocabulary, talk: Dialogue, rules: Grammar
+) -> Intent:
+    """:func:`interpret` of a line that holds no control character and is in Latin letters."""
     question = read_question(sentence, _resolver(vocab, talk, rules))
     if question is not None:  # a question about the kitchen: any question asked back is dropped
         talk.pending = None
@@ -443,12 +487,18 @@ MAX_NAMED = 3
 """At most this many more unknown words are named in a refusal (:func:`_also_unknown`)."""
 
 
-def _also_unknown(exc: NotUnderstood, words: tuple[Word, ...]) -> NotUnderstood:
+def _also_unknown(exc: NotUnderstood, words: tuple[Word, ...], known: frozenset[str]) -> NotUnderstood:
     """``exc`` naming also the sentence's other unknown words, up to :data:`MAX_NAMED` ("I do
     not know the word 'or' here; … I do not know 'jra' either."): a typo the refusal does not
-    stop at is named too."""
+    stop at is named too. A word a_hi knows elsewhere (``known``: :func:`known_words`; a
+    number) but not where it stands is not named: it is not unknown ("2 minutes" after a
+    misspelt "within")."""
     said = str(exc)
-    others = [w.text for w in words if w.kind == "WORD" and f"'{w.text}'" not in said]
+    others = [
+        w.text
+        for w in words
+        if w.kind == "WORD" and f"'{w.text}'" not in said and w.text not in known and not w.text.isdigit()
+    ]
     others = list(dict.fromkeys(others))[:MAX_NAMED]
     if not others:
         return exc
@@ -498,7 +548,8 @@ def _interpret_words(
         if answering and pending is not None:  # "hmm", "I don't know": the question again
             talk.pending = pending
             raise _again(pending, "That does not answer my question.") from None
-        raise _also_unknown(_failure(exc, vocab, priority, ctx, rules), words) from None
+        known = known_words(rules.phrases, vocab)
+        raise _also_unknown(_failure(exc, vocab, priority, ctx, rules), words, known) from None
     except Ambiguous as exc:
         if answering and pending is not None:  # "the cup", when both were asked about
             talk.pending = pending

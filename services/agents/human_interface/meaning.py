@@ -135,6 +135,9 @@ class Reader:
     def __init__(self, ctx: Context) -> None:
         self.ctx = ctx
         self.v = ctx.vocabulary
+        self.by_content: set[str] = set()
+        """The containers a reference named by what is in them ("the beans", "the contents
+        of the jar"): moved into another container, that is a pour (:meth:`_moved`)."""
 
     # ---- references --------------------------------------------------------------------
     def ref(self, node: Node | None, place: str | None = None) -> str | None:
@@ -162,7 +165,10 @@ class Reader:
         if node.data == "contents":
             inner = next((c for c in node.children if isinstance(c, Tree) and c.data != "det"), None)
             if inner is not None:
-                return self.ref(inner, place)
+                name = self.ref(inner, place)
+                if name is not None:
+                    self.by_content.add(name)
+                return name
             contents = [t for t in self.v.things if t.content and t.place]
             return self._choose("contents", contents, at, [], None, place)
         adjectives = [
@@ -231,6 +237,7 @@ class Reader:
             raise Ambiguous(self._which(said, fitting), at, tuple(t.name for t in fitting))
         thing = fitting[0]
         if thing.content and thing.place:
+            self.by_content.add(thing.place)
             return thing.place  # "the beans": the container they are in
         return thing.name
 
@@ -350,6 +357,8 @@ class Reader:
         )
         if y == STORAGE and (back or prep.type == "IN"):
             return TaskAtom("return", (x,))
+        if x in self.by_content and prep.type == "IN" and y not in (SURFACE, STORAGE):
+            return TaskAtom("pour", (x, y))  # "put the beans into the bowl": what is in x goes
         if y == "table" and default == "bring":
             return TaskAtom("bring", (x,))
         return TaskAtom("place", (x, y))

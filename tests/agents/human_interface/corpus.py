@@ -595,3 +595,45 @@ BAD_INPUT: tuple[tuple[str, Expected], ...] = (
 )
 """Input refused with one line naming what is wrong (a negative or zero deadline, a control
 character), and vague places asked back ("Where should I put the cup?") rather than guessed."""
+
+
+VOICES: tuple[tuple[str, Expected], ...] = (
+    # what is in a container, moved into another: a pour, never the container put inside it
+    ("I'd like the beans in the bowl, please", Do("pour", "jar", "bowl")),
+    ("can you put the beans into the bowl", Do("pour", "jar", "bowl")),
+    ("put the contents of the jar into the bowl", Do("pour", "jar", "bowl")),
+    # self-corrections: the later words replace the earlier
+    ("bring me the jar, sorry, I mean the bowl", Do("bring", "bowl")),
+    ("put the cup, er, the bowl on the table", Do("place", "bowl", "table")),
+    ("bring me the cup, sorry, pour the jar into the bowl", Do("pour", "jar", "bowl")),
+    ("bring me the jar, um, actually the cup", Do("bring", "cup")),
+    # follow-ups, openers, endearments, a clause that carries nothing
+    ("and then bring me the cup", Do("bring", "cup")),
+    ("then put the cup away", Do("return", "cup")),
+    ("bring me the cup, would you, love?", Do("bring", "cup")),
+    ("Hiya robot! bring me the cup", Do("bring", "cup")),
+    ("I'm thirsty, bring me my cup", Do("bring", "cup")),
+    ("oh dear, bring me the jar", Do("bring", "jar")),
+    # word order of another language
+    ("Put please the bowl on table", Do("place", "bowl", "table")),
+    ("give to me the jar", Do("hand_over", "jar")),
+    ("bring me cup", Do("bring", "cup")),
+)
+"""Sentences in other voices (a hurried parent, a child, someone chatty, a non-native speaker),
+from a review by people who had read only the documentation: what people add around a command
+or correct in it (tolerance.py), and a content named for its container."""
+
+VOICES_REFUSED: tuple[tuple[str, Expected], ...] = (
+    # never a command the person did not mean: a negation, a second request, another script
+    ("don't, bring me the cup", Refuse("'dont'")),
+    ("no, bring me the cup", Refuse("'no'")),
+    ("pour the jar into the bowl. Then burn the house down", Refuse("'then'")),
+    ("pour the jar into the bowl, and then smash the window", Refuse("'smash'")),
+    ("bring me the cup, and the jar", Refuse("one object at a time")),
+    ("カップを持ってきて", Refuse("That line is in Japanese script")),
+    ("принеси чашку", Refuse("That line is in Cyrillic script")),
+    ("🍵🍵", Refuse("I heard no words in that line, only symbols")),
+    # a refusal names only words a_hi does not know
+    ("pour the jar into the bowl withim 2 minutes", Refuse("I do not know the word 'withim' here;")),
+)
+"""Lines of the same review that must still be refused, each with what the refusal names."""

@@ -35,6 +35,8 @@ from tests.agents.human_interface.corpus import (
     STATUS,
     STOP,
     TAG_QUESTIONS,
+    VOICES,
+    VOICES_REFUSED,
     WISHES,
     Ask,
     Do,
@@ -96,7 +98,11 @@ def test_ambiguous_unknown_and_located_references(sentence: str, expected: Expec
     check(sentence, expected, two_cups())
 
 
-@pytest.mark.parametrize(("sentence", "expected"), REFUSALS, ids=[s or "(empty)" for s, _ in REFUSALS])
+@pytest.mark.parametrize(
+    ("sentence", "expected"),
+    (*REFUSALS, *VOICES_REFUSED),
+    ids=[ascii(s) if s else "(empty)" for s, _ in (*REFUSALS, *VOICES_REFUSED)],
+)
 def test_sentences_that_must_be_refused(sentence: str, expected: Expected) -> None:
     check(sentence, expected, default_vocabulary())
 
@@ -109,6 +115,7 @@ EVERYDAY = {
     "tag": TAG_QUESTIONS,
     "deadline": DEADLINES,
     "localise": LOCALISE,
+    "voices": VOICES,
 }
 """The groups of everyday wordings beyond the first paraphrases (corpus.py), by name."""
 _EVERYDAY = [(f"{group}: {s}", s, e) for group, sentences in EVERYDAY.items() for s, e in sentences]
@@ -128,7 +135,7 @@ def test_bad_input_is_refused_and_a_vague_place_asked_back(sentence: str, expect
 
 
 def test_the_corpus_is_large_and_covers_every_task_a_pl_accepts() -> None:
-    groups = (PARAPHRASES, REFERENCES, REFUSALS, BAD_INPUT, *EVERYDAY.values())
+    groups = (PARAPHRASES, REFERENCES, REFUSALS, VOICES_REFUSED, BAD_INPUT, *EVERYDAY.values())
     paraphrases = {s.lower() for s, e in PARAPHRASES if isinstance(e, Do) or e in (STOP, STATUS)}
     unsure = [e for _, e in REFERENCES if not isinstance(e, Do)]
     sentences = [s for group in groups for s, _ in group]
