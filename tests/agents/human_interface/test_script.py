@@ -24,7 +24,9 @@ def test_a_line_without_latin_letters_is_named(line: str, said: str) -> None:
     assert unreadable(line) == said
 
 
-@pytest.mark.parametrize("line", ["bring me the cup", "bring me the café cup", "bring me the カップ", "", "  "])
+@pytest.mark.parametrize(
+    "line", ["bring me the cup", "bring me the café cup", "bring me the カップ", "", "  "]
+)
 def test_a_line_with_a_latin_letter_is_read(line: str) -> None:
     assert unreadable(line) is None
 
