@@ -20,7 +20,8 @@
 #            has sent a_ta plan #1 (the first request on C1 in the run folder's traffic.jsonl),
 #            `compose restart a_km`; the pour must end "succeeded" and the restarted a_km must
 #            have kept its knowledge (its store is a volume)
-#   power    `compose restart world` (a power cycle of the robot: a fresh kitchen), world and
+#   power    `roco fault restart world` (a power cycle of the robot: a fresh kitchen; it starts
+#            ag_ex again after the world, which shares its namespaces), world and
 #            ag_ex healthy again, then the same pour, which must end "succeeded"; a_ta must have
 #            reported the power cycle
 #   netfault under deploy/compose.netfault.yaml (the fleet is up with it): `roco fault net a_km
@@ -265,11 +266,16 @@ phase pour
 
 # --- a power cycle of the robot: the world restarted, then the pour again -------------------
 # (a fresh kitchen, its time from 0; ag_ex shares the world's PID namespace, so the restart
-# ends it too and compose starts it again; a_ta must renew a_km's picture of the kitchen)
+# ends it too: `roco fault restart world` starts it again once the world is back, which Docker's
+# restart manager does not do reliably; a_ta must renew a_km's picture of the kitchen)
 started_ag_ex=$(docker inspect -f '{{.State.StartedAt}}' "${cid[ag_ex]}")
-say "restarting the world (a power cycle of the robot)"
+say "restarting the world (a power cycle of the robot): roco fault restart world"
 r0=$(date +%s)
-$COMPOSE restart world >/dev/null 2>&1
+roco_host fault restart world --compose --project "$PROJECT" --compose-file deploy/compose.yaml \
+    --router "$endpoint" --credentials "$ROCO_CERTS" >"$work/power.log" 2>&1 ||
+    { cat "$work/power.log"; say "roco fault restart world failed"; exit 1; }
+grep -q "ag_ex started again after it" "$work/power.log" ||
+    { cat "$work/power.log"; say "roco fault restart world did not start ag_ex again"; exit 1; }
 until [ "$(health world)" = healthy ] && [ "$(health ag_ex)" = healthy ] &&
     [ "$(docker inspect -f '{{.State.StartedAt}}' "${cid[ag_ex]}")" != "$started_ag_ex" ]; do
     [ $(($(date +%s) - r0)) -le 180 ] || { say "world and ag_ex not back 180 s after the world's restart"; exit 1; }

@@ -39,7 +39,7 @@ from services.cli_common import (
 )
 from services.deploy.engine import ComposeFleet, running_fleets
 from services.fault import process
-from services.fault.compose import DEFAULT_FILE, Compose, compose_services
+from services.fault.compose import DEFAULT_FILE, Compose, compose_services, joined_services
 from services.fault.process import ACTIONS, FaultError, UpFleet, local_services
 from services.fleet_state import FLEET_FILE
 from services.runtime.faults import (
@@ -113,7 +113,7 @@ def _fleet(
     from services.spec.model import load
 
     system = load(chosen_spec(spec))
-    return dataclasses.replace(dc, services=compose_services(system)), system
+    return dataclasses.replace(dc, services=compose_services(system), joined=joined_services(system)), system
 
 
 def _local(flag: bool | None, named: str | None, runs_dir: Path) -> bool:

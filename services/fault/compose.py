@@ -28,6 +28,7 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from services.deploy.compose import agent_extras, hardware
 from services.deploy.engine import compose_command, last_line, run_command
 from services.fault.process import INJECTOR, FaultError
 from services.runtime.faults import FaultEvent
@@ -35,9 +36,21 @@ from services.spec.model import SystemSpec, default_spec
 
 
 def compose_services(system: SystemSpec) -> tuple[str, ...]:
-    """The services of a compose deployment of ``system`` a fault can reach: the router, one
-    per agent (services/deploy/compose.py renders them), the recorder and the viewer."""
-    return ("router", *system.launch_order, "recorder", "viewer")
+    """The services of a compose deployment of ``system`` a fault can reach: the router, the
+    hardware the agents drive (the world), one per agent (services/deploy/compose.py renders
+    them), the recorder and the viewer."""
+    return ("router", *hardware(system), *system.launch_order, "recorder", "viewer")
+
+
+def joined_services(system: SystemSpec) -> dict[str, tuple[str, ...]]:
+    """Per hardware service of ``system``, the agents that share its IPC and PID namespaces
+    (ag_ex the world's): they end with it, and Docker does not start them again when it tries
+    before the hardware is back ("can't join IPC of container …"), so a fault that starts the
+    hardware starts them after it."""
+    return {
+        h: tuple(n for n in system.launch_order if agent_extras(system, n).hardware == h)
+        for h in hardware(system)
+    }
 
 
 COMPOSE_SERVICES = compose_services(default_spec())
@@ -87,6 +100,8 @@ class Compose:
     state_dir: Path = Path("runs")
     run: Runner = run_command
     services: tuple[str, ...] = COMPOSE_SERVICES
+    joined: dict[str, tuple[str, ...]] = field(default_factory=lambda: joined_services(default_spec()))
+    """:func:`joined_services` of the deployment's specification."""
     _base: list[str] | None = field(default=None, init=False, repr=False)
 
     # ---- docker ---------------------------------------------------------------------------
@@ -130,6 +145,12 @@ class Compose:
         if action not in ("kill", "stop", "start", "pause", "unpause", "restart"):
             raise FaultError(f"unknown process fault {action!r}")
         self._check([*self.base(), action, service], f"docker compose {action} {service}")
+        again = self.joined.get(service, ()) if action in ("start", "restart") else ()
+        if again:  # they ended with it (one PID namespace): started once it is back
+            up = [*self.base(), "up", "-d", "--no-deps", *again]
+            self._check(up, f"docker compose up {' '.join(again)}")
+            said = f"; {', '.join(again)} started again after it (they share its namespaces)"
+            return _event(action, service, f"compose project {self.project_name}{said}")
         return _event(action, service, f"compose project {self.project_name}")
 
     # ---- network faults -------------------------------------------------------------------

@@ -5,6 +5,9 @@ runs) has the cell's, not the kitchen's; the kitchen's own are as before."""
 
 from __future__ import annotations
 
+import dataclasses
+import subprocess
+from collections.abc import Sequence
 from pathlib import Path
 
 import pytest
@@ -13,7 +16,7 @@ from typer.testing import CliRunner
 from services.cli import app
 from services.fault import process
 from services.fault.cli import _fleet
-from services.fault.compose import COMPOSE_SERVICES, Compose, compose_services
+from services.fault.compose import COMPOSE_SERVICES, Compose, compose_services, joined_services
 from services.fault.process import FaultError, UpFleet, local_services
 from services.fleet.launcher import AGENT_ORDER
 from services.spec.model import DEFAULT_SPEC, default_spec, load
@@ -34,7 +37,10 @@ def test_the_services_are_those_of_the_specification() -> None:
     assert compose_services(cell) == ("router", *CELL_AGENTS, "recorder", "viewer")
     kitchen = default_spec()
     assert local_services(kitchen) == ("router", "recorder", WORLD_SERVICE, *AGENT_ORDER)
-    assert compose_services(kitchen) == COMPOSE_SERVICES == ("router", *AGENT_ORDER, "recorder", "viewer")
+    assert compose_services(kitchen) == COMPOSE_SERVICES
+    assert ("router", WORLD_SERVICE, *AGENT_ORDER, "recorder", "viewer") == COMPOSE_SERVICES
+    # ag_ex shares the world's namespaces: a fault that starts the world starts it after
+    assert joined_services(kitchen) == {WORLD_SERVICE: ("ag_ex",)} and joined_services(cell) == {}
 
 
 def test_a_fleet_of_roco_up_runs_the_specification_its_run_folder_keeps(tmp_path: Path) -> None:
@@ -87,3 +93,30 @@ def test_a_compose_fleet_s_services_follow_spec(tmp_path: Path) -> None:
         dc.process("kill", "a_km")
     dc, system = _fleet(True, "roco", None, tmp_path, None, None)
     assert dc is not None and dc.services == COMPOSE_SERVICES and system == default_spec()
+
+
+def _recorded(dc: Compose, action: str, service: str) -> list[list[str]]:
+    """The docker commands ``dc.process(action, service)`` runs, after finding compose."""
+    calls: list[list[str]] = []
+
+    def run(args: Sequence[str]) -> subprocess.CompletedProcess[str]:
+        calls.append(list(args))
+        return subprocess.CompletedProcess(args, 0, "", "")
+
+    dataclasses.replace(dc, run=run).process(action, service)
+    return [c for c in calls if c[-1] != "version"]
+
+
+def test_a_restart_of_the_world_starts_ag_ex_again_once_the_world_is_back() -> None:
+    """Docker's restart manager gives up on a container that joins the namespaces of one that
+    is not running yet; the fault starts ag_ex itself, after the world."""
+    dc = Compose(project="p")
+    restart = _recorded(dc, "restart", WORLD_SERVICE)
+    assert [c[-2:] for c in restart] == [["restart", WORLD_SERVICE], ["--no-deps", "ag_ex"]]
+    assert restart[1][-4:] == ["up", "-d", "--no-deps", "ag_ex"]
+    assert [c[-2:] for c in _recorded(dc, "start", WORLD_SERVICE)][-1] == ["--no-deps", "ag_ex"]
+    assert [c[-2:] for c in _recorded(dc, "stop", WORLD_SERVICE)] == [["stop", WORLD_SERVICE]]
+    assert [c[-2:] for c in _recorded(dc, "restart", "a_km")] == [["restart", "a_km"]]
+    # planted: without the joined services, ag_ex would be left exited
+    alone = dataclasses.replace(dc, joined={})
+    assert [c[-2:] for c in _recorded(alone, "restart", WORLD_SERVICE)] == [["restart", WORLD_SERVICE]]
