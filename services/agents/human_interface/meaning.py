@@ -125,6 +125,20 @@ def loc_depth(tree: Node) -> int:
     return sum(_first_index(loc) for loc in tree.find_data("loc"))
 
 
+def _described(said: str, things: list[Thing]) -> list[str] | None:
+    """Each of ``things`` by a describing word that no other of them has and its noun ("the
+    blue bowl"), or None when one of them has no such word. ``said``: what the person said of
+    them (its last word their noun, unless it was "one")."""
+    out = []
+    for t in things:
+        own = sorted(a for a in t.adjectives if not all(a in o.adjectives for o in things))
+        if not own:
+            return None
+        noun = said.split()[-1] if said not in ("one", "contents") else " ".join(min(t.nouns))
+        out.append(f"the {own[0]} {noun}")
+    return out if len(set(out)) == len(out) else None
+
+
 def _or(items: list[str]) -> str:
     return items[0] if len(items) == 1 else ", ".join(items[:-1]) + " or " + items[-1]
 
@@ -243,9 +257,15 @@ class Reader:
 
     @staticmethod
     def _which(said: str, things: list[Thing]) -> str:
+        """The question back for ``things`` that all fit what was ``said``, naming what tells
+        them apart in the person's words: where each is, else a describing word only it has
+        ("the blue bowl or the white bowl?"), else its name."""
         wheres = [t.where() for t in things]
+        described = _described(said, things)
         if all(wheres) and len(set(wheres)) == len(wheres):
             options = [f"the one {w}" for w in wheres]
+        elif described is not None:
+            options = described
         elif len(set(wheres)) == 1:
             options = [show(t.name) for t in things]
         else:

@@ -618,6 +618,11 @@ VOICES: tuple[tuple[str, Expected], ...] = (
     ("Put please the bowl on table", Do("place", "bowl", "table")),
     ("give to me the jar", Do("hand_over", "jar")),
     ("bring me cup", Do("bring", "cup")),
+    # progress asked in other words
+    ("how much longer will you be?", STATUS),
+    ("any progress on that?", STATUS),
+    ("any progress on it yet?", STATUS),
+    ("what did you see just now?", Question("seen")),
 )
 """Sentences in other voices (a hurried parent, a child, someone chatty, a non-native speaker),
 from a review by people who had read only the documentation: what people add around a command
