@@ -139,6 +139,14 @@ def _described(said: str, things: list[Thing]) -> list[str] | None:
     return out if len(set(out)) == len(out) else None
 
 
+def _named(things: list[Thing]) -> list[str]:
+    """Each of ``things`` by its name, with where it is when they are not all in one place."""
+    wheres = {t.where() for t in things}
+    if len(wheres) == 1:
+        return [show(t.name) for t in things]
+    return [show(t.name) + (f" ({t.where()})" if t.where() else "") for t in things]
+
+
 def _or(items: list[str]) -> str:
     return items[0] if len(items) == 1 else ", ".join(items[:-1]) + " or " + items[-1]
 
@@ -261,15 +269,10 @@ class Reader:
         them apart in the person's words: where each is, else a describing word only it has
         ("the blue bowl or the white bowl?"), else its name."""
         wheres = [t.where() for t in things]
-        described = _described(said, things)
         if all(wheres) and len(set(wheres)) == len(wheres):
             options = [f"the one {w}" for w in wheres]
-        elif described is not None:
-            options = described
-        elif len(set(wheres)) == 1:
-            options = [show(t.name) for t in things]
         else:
-            options = [show(t.name) + (f" ({t.where()})" if t.where() else "") for t in things]
+            options = _described(said, things) or _named(things)
         noun = "one" if said in ("one", "contents") else said
         return f"Which {noun}: {_or(options)}?"
 
