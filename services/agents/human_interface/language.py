@@ -575,7 +575,7 @@ def _interpret_words(
                 f"I asked about {options}; which of them do you mean?", pending.at, pending.candidates
             )
         chosen = {**pending.chosen, pending.at: intent.name}
-        return _resume(pending, chosen, vocab, talk, rules)
+        return _with_reply(_resume(pending, chosen, vocab, talk, rules), intent)
     if isinstance(intent, Command) and intent.goal.args:
         talk.last = intent.goal.args[0]
     return intent
@@ -599,6 +599,16 @@ def _again(pending: Pending, why: str) -> Ambiguous:
     """The pending question asked again after an answer that names none of its candidates."""
     question = pending.question or "Which of " + ", ".join(show(c) for c in pending.candidates) + "?"
     return Ambiguous(f"{why} {question}", pending.at, pending.candidates)
+
+
+def _with_reply(intent: Intent, reply: Reply) -> Intent:
+    """``intent`` (the command an answer completed) with the urgency and deadline said in the
+    answer ("the small one, and make it quick"); a deadline said in the answer wins."""
+    if not isinstance(intent, Command):
+        return intent
+    priority = max(intent.priority, URGENT_PRIORITY) if reply.urgent else intent.priority
+    deadline = reply.deadline_s if reply.deadline_s is not None else intent.deadline_s
+    return dataclasses.replace(intent, priority=priority, deadline_s=deadline)
 
 
 def _resume(

@@ -84,9 +84,13 @@ class Context:
 
 @dataclass(frozen=True)
 class Reply:
-    """A bare reference, the answer to a question: the individual it names."""
+    """A bare reference, the answer to a question: the individual it names, and the urgency
+    or deadline said with it ("the small one, and make it quick"), which the command it
+    completes takes."""
 
     name: str
+    urgent: bool = False
+    deadline_s: float | None = None
 
 
 def _first_index(node: Node | Token) -> int:
@@ -298,7 +302,7 @@ class Reader:
             name = self.ref(request.children[0])  # type: ignore[arg-type]
             if name is None:
                 raise Incomplete("Which object do you mean? Say e.g. 'the cup on the table'.", "object")
-            return Reply(name)
+            return Reply(name, urgent, deadline)
         request = frame_node(request)
         said = self.ctx.frames.get(request.data)
         frame = _FRAMES.get(request.data)

@@ -132,3 +132,22 @@ def test_a_refused_line_keeps_the_question_and_a_new_request_drops_it(kitchen: V
         TaskAtom("localise", ("bowl",))
     )
     assert talk.pending is None
+
+
+@pytest.mark.parametrize(
+    ("answer", "priority", "deadline_s"),
+    [
+        ("the small one, and make it quick", 5, None),
+        ("the small one within 2 minutes", 0, 120.0),
+        ("the small one", 0, None),
+    ],
+)
+def test_an_urgency_or_deadline_said_in_the_answer_goes_to_the_command(
+    kitchen: Vocabulary, answer: str, priority: int, deadline_s: float | None
+) -> None:
+    talk = Dialogue()
+    with pytest.raises(Ambiguous):
+        interpret("bring me the cup", vocabulary=kitchen, dialogue=talk)
+    assert interpret(answer, vocabulary=kitchen, dialogue=talk) == Command(
+        TaskAtom("bring", ("cup",)), priority, deadline_s
+    )
