@@ -573,6 +573,7 @@ def tag(
     lexicon: dict[tuple[str, ...], str] = {}
     for adj in vocabulary.adjectives:
         lexicon[(adj,)] = "ADJ"
+    compared = _comparatives(vocabulary.adjectives)
     for noun in vocabulary.nouns:
         lexicon[noun] = "NOUN"
         if len(noun) == 1 and not noun[0].endswith("s"):
@@ -609,9 +610,36 @@ def tag(
                 i += n
                 break
         else:
-            out.append(Word("WORD", (words[i],), len(out)))
+            base = compared.get(read[i])  # "the smaller bowl": the small one
+            out.append(Word("ADJ", (base,), len(out)) if base else Word("WORD", (words[i],), len(out)))
             i += 1
     return tuple(out)
+
+
+def _comparatives(adjectives: frozenset[str]) -> dict[str, str]:
+    """The comparative and superlative of each short one of ``adjectives`` ("small": "smaller",
+    "smallest"; "big": "bigger", "biggest"; "large": "larger", "largest"; "tiny": "tinier"),
+    mapped to it: the person compares with the words a_km describes things with. "The smaller
+    bowl" is read as "the small bowl" (a simplification: not compared with the others)."""
+    out: dict[str, str] = {}
+    for adj in (a for a in adjectives if len(a) <= 6):  # "wooden", "ceramic": compared with "more"
+        for stem in _stems(adj):
+            out.setdefault(stem + "er", adj)
+            out.setdefault(stem + "est", adj)
+    return {word: adj for word, adj in out.items() if word not in adjectives}
+
+
+def _stems(adj: str) -> list[str]:
+    """What "-er" and "-est" follow in ``adj``'s comparison: "tini", "larg", "small", and
+    "bigg" beside "big" (a short word ending consonant, vowel, consonant)."""
+    if adj.endswith("y"):
+        return [adj[:-1] + "i"]
+    if adj.endswith("e"):
+        return [adj[:-1]]
+    doubled = (
+        len(adj) in (3, 4) and adj[-1] not in "aeiouwy" and adj[-2] in "aeiou" and adj[-3] not in "aeiou"
+    )
+    return [adj, adj + adj[-1]] if doubled else [adj]
 
 
 class _Tags(Lexer):

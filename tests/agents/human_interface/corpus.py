@@ -618,6 +618,10 @@ VOICES: tuple[tuple[str, Expected], ...] = (
     ("Put please the bowl on table", Do("place", "bowl", "table")),
     ("give to me the jar", Do("hand_over", "jar")),
     ("bring me cup", Do("bring", "cup")),
+    # a comparison with the words a_km describes things with
+    ("bring me the smaller cup", Do("bring", "cup")),
+    ("bring me the biggest jar", Do("bring", "jar")),
+    ("fetch the larger bowl", Do("bring", "bowl")),
     # progress asked in other words
     ("how much longer will you be?", STATUS),
     ("any progress on that?", STATUS),
@@ -640,5 +644,6 @@ VOICES_REFUSED: tuple[tuple[str, Expected], ...] = (
     ("🍵🍵", Refuse("I heard no words in that line, only symbols")),
     # a refusal names only words a_hi does not know
     ("pour the jar into the bowl withim 2 minutes", Refuse("I do not know the word 'withim' here;")),
+    ("bring me the smaller bowl", Refuse("I know of no small bowl: the bowl is ceramic, large, white")),
 )
 """Lines of the same review that must still be refused, each with what the refusal names."""
