@@ -147,8 +147,8 @@ class Compose:
         self._check([*self.base(), action, service], f"docker compose {action} {service}")
         again = self.joined.get(service, ()) if action in ("start", "restart") else ()
         if again:  # they ended with it (one PID namespace): started once it is back
-            up = [*self.base(), "up", "-d", "--no-deps", *again]
-            self._check(up, f"docker compose up {' '.join(again)}")
+            # start, not up: up would make them anew in this command's environment
+            self._check([*self.base(), "start", *again], f"docker compose start {' '.join(again)}")
             said = f"; {', '.join(again)} started again after it (they share its namespaces)"
             return _event(action, service, f"compose project {self.project_name}{said}")
         return _event(action, service, f"compose project {self.project_name}")
