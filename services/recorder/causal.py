@@ -22,7 +22,7 @@ inform names the confirm, so the send times (``t_sent``, each publisher's clock)
 evidence: a communicate recorded after one of the other party's in the same conversation, but
 sent before it, and not answering it, is checked first. The verdict is then that of a causal
 order the record allows; on two hosts that trusts their clocks within the few recorded
-communicates the move looks across (``SEND_ORDER_WINDOW``).
+communicates of the conversation the move looks across (``SEND_ORDER_WINDOW``).
 """
 
 from __future__ import annotations
@@ -115,7 +115,12 @@ def causal_order(messages: Sequence[Message]) -> tuple[list[Message], int]:
 
 
 SEND_ORDER_WINDOW = 16
-"""How many communicates after one :func:`send_order` looks for one sent before it."""
+"""How many communicates of the same conversation after one :func:`send_order` looks through
+for one sent before it."""
+SEND_ORDER_REACH = 8 * SEND_ORDER_WINDOW
+"""How many communicates of any conversation after one :func:`send_order` looks through at most
+(other conversations' traffic lies between a burst of one party's and the other's answers:
+seen in a test run, a_co's confirms recorded 38 places after a_ta's inform sent after them)."""
 
 _Pair = tuple[str | None, frozenset[str]]
 """(conversation-id, the two agents) of a communicate: its conversation."""
@@ -149,23 +154,39 @@ def _sent_first(m: Message, n: Message) -> bool:
 
 def send_order(messages: Sequence[Message]) -> tuple[list[Message], int]:
     """``messages`` (causal order by answers, :func:`causal_order`) with each communicate that
-    was sent before one of the other party's recorded up to ``SEND_ORDER_WINDOW`` places before
-    it moved before that one (module docstring), and how many were moved.
+    was sent before one of the other party's, and recorded after it within the next
+    ``SEND_ORDER_WINDOW`` communicates of their conversation (and ``SEND_ORDER_REACH`` of any),
+    moved before that one (module docstring), and how many were moved.
 
     Shapes: a list of the same length with the same elements. A move brings to a place a
-    communicate of the window after it sent before the one there, so each place takes at most
-    ``SEND_ORDER_WINDOW`` moves, whatever the record's send times: O(n · SEND_ORDER_WINDOW²) at
-    worst, O(n · SEND_ORDER_WINDOW) for a record with few crossings."""
+    communicate of the reach after it sent before the one there, so each place takes at most
+    ``SEND_ORDER_REACH`` moves, whatever the record's send times: O(n · SEND_ORDER_REACH²) at
+    worst, O(n · SEND_ORDER_REACH) for a record with few crossings."""
     ordered = list(messages)
     moved = 0
     i = 0
     while i < len(ordered):
-        m = ordered[i]
-        for j in range(i + 1, min(i + 1 + SEND_ORDER_WINDOW, len(ordered))):
-            if _sent_first(m, ordered[j]):
-                ordered.insert(i, ordered.pop(j))
-                moved += 1
-                break
-        else:
+        j = _first_sent_before(ordered, i)
+        if j is None:
             i += 1
+            continue
+        ordered.insert(i, ordered.pop(j))
+        moved += 1
     return ordered, moved
+
+
+def _first_sent_before(ordered: list[Message], i: int) -> int | None:
+    """The place of the first communicate after ``ordered[i]`` that belongs before it
+    (:func:`_sent_first`), looked for within the window and reach of :func:`send_order`."""
+    m = ordered[i]
+    pair = _pair(m)
+    same = 0
+    for j in range(i + 1, min(i + 1 + SEND_ORDER_REACH, len(ordered))):
+        if _pair(ordered[j]) != pair:
+            continue
+        if _sent_first(m, ordered[j]):
+            return j
+        same += 1
+        if same >= SEND_ORDER_WINDOW:
+            return None
+    return None
