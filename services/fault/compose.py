@@ -140,7 +140,9 @@ class Compose:
 
     # ---- process faults -------------------------------------------------------------------
     def process(self, action: str, service: str) -> FaultEvent:
-        """``docker compose ACTION SERVICE``."""
+        """``docker compose ACTION SERVICE``; after a start or restart of a hardware service,
+        ``docker compose start`` of the agents that share its namespaces (:attr:`joined`).
+        Raises FaultError for an unknown service or action, or a docker command that fails."""
         self._check_service(service)
         if action not in ("kill", "stop", "start", "pause", "unpause", "restart"):
             raise FaultError(f"unknown process fault {action!r}")

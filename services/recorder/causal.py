@@ -119,8 +119,8 @@ SEND_ORDER_WINDOW = 16
 for one sent before it."""
 SEND_ORDER_REACH = 8 * SEND_ORDER_WINDOW
 """How many communicates of any conversation after one :func:`send_order` looks through at most
-(other conversations' traffic lies between a burst of one party's and the other's answers:
-seen in a test run, a_co's confirms recorded 38 places after a_ta's inform sent after them)."""
+(other conversations' traffic lies between a burst of one party's communicates and the other's
+answers: seen in a test run, confirms recorded 38 places after the inform sent after them)."""
 
 _Pair = tuple[str | None, frozenset[str]]
 """(conversation-id, the two agents) of a communicate: its conversation."""

@@ -616,6 +616,7 @@ def tag(
     return tuple(out)
 
 
+@functools.cache
 def _comparatives(adjectives: frozenset[str]) -> dict[str, str]:
     """The comparative and superlative of each short one of ``adjectives`` ("small": "smaller",
     "smallest"; "big": "bigger", "biggest"; "large": "larger", "largest"; "tiny": "tinier"),

@@ -39,6 +39,7 @@ object the same person named. More than one left raises :class:`Ambiguous` (a qu
 
 from __future__ import annotations
 
+import re
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 
@@ -138,9 +139,14 @@ def _described(said: str, things: list[Thing]) -> list[str] | None:
         own = sorted(a for a in t.adjectives if not all(a in o.adjectives for o in things))
         if not own:
             return None
-        noun = said.split()[-1] if said not in ("one", "contents") else " ".join(min(t.nouns))
+        noun = said.split()[-1] if said not in ("one", "contents") else _kind(t.name)
         out.append(f"the {own[0]} {noun}")
     return out if len(set(out)) == len(out) else None
+
+
+def _kind(name: str) -> str:
+    """The noun an O_RoCo individual is named by: ``bowl_2`` → "bowl", ``tea_pot`` → "tea pot"."""
+    return re.sub(r"_\d+$", "", name).replace("_", " ")
 
 
 def _named(things: list[Thing]) -> list[str]:

@@ -5,8 +5,10 @@ grammar of commands, not of everything said around them).
 :func:`readings` gives, in order, the texts to read instead of the line, each at most once:
 
 1. **A self-correction** ("bring me the jar, sorry, I mean the bowl", "put the cup, er, the bowl
-   on the table"): what follows the last marker (:data:`CORRECTION`) replaces the last noun
+   on the table"): what follows the last marker (:data:`CORRECTION`) replaces the one noun
    phrase before the first one, or, when it begins with a verb of its own, the whole command.
+   With two noun phrases before it ("put the cup on the table, sorry, the bowl") which one is
+   corrected is not known: the line is not read otherwise.
 2. **An opener of a follow-up** ("and then bring me the cup", "also …", "after that …"):
    left out (:data:`OPENERS`).
 3. **Clauses that carry nothing a_hi needs** ("Hiya robot!", "I'm thirsty,", ", would you,
@@ -111,9 +113,9 @@ def self_corrected(line: str, tag: Tagger, verbs: frozenset[str]) -> str | None:
     if _is_verb(after, tag, verbs):
         return after  # a new command instead of the first
     phrases = list(DETERMINER.finditer(before))
-    if not phrases or not DETERMINER.match(after.strip()):
-        return None
-    return before[: phrases[-1].start()] + after.strip()
+    if len(phrases) != 1 or not DETERMINER.match(after.strip()):
+        return None  # with two objects named before, which one is corrected is not known
+    return before[: phrases[0].start()] + after.strip()
 
 
 def _droppable(clause: str, tag: Tagger, verbs: frozenset[str]) -> bool:

@@ -645,5 +645,7 @@ VOICES_REFUSED: tuple[tuple[str, Expected], ...] = (
     # a refusal names only words a_hi does not know
     ("pour the jar into the bowl withim 2 minutes", Refuse("I do not know the word 'withim' here;")),
     ("bring me the smaller bowl", Refuse("I know of no small bowl: the bowl is ceramic, large, white")),
+    # a correction after two objects: which one it corrects is not known
+    ("put the cup on the table, sorry, the bowl", Refuse("'sorry'")),
 )
 """Lines of the same review that must still be refused, each with what the refusal names."""

@@ -39,3 +39,9 @@ def test_things_no_word_tells_apart_are_named() -> None:
         'roco:bowl_2 a roco:Bowl ; roco:in roco:cabinet ; roco:adjective "large", "white", "ceramic" .'
     )
     assert _asked("bring me the bowl", v) == "Which bowl: the bowl or the bowl 2?"
+
+
+def test_one_said_of_things_of_several_kinds_names_each_by_its_kind() -> None:
+    v = _kitchen('roco:bowl_2 a roco:Bowl ; roco:in roco:cabinet ; roco:adjective "blue" , "ceramic" .')
+    asked = _asked("bring me the ceramic one", v)
+    assert asked == "Which one: the large bowl, the blue bowl or the little cup?", asked
