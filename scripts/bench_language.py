@@ -17,7 +17,8 @@ counted per group and in all:
 
 Figures, not checks: nothing is asserted (test_corpus_words.py asserts its own corpus). A corpus
 kept outside the project (``--file``, any number of times), such as sentences written by people
-who did not write the grammar, is measured the same way.
+who did not write the grammar, is measured the same way; by default the project's two:
+corpus.toml and other_hands.toml (sentences written by someone who read only README and docs/).
 
 Usage: ``python scripts/bench_language.py [--file corpus.toml ...] [--show-wrong]``
 """
@@ -37,6 +38,7 @@ from services.agents.human_interface.intents import Command, NotUnderstood  # no
 from services.agents.planner.domain import TASKS  # noqa: E402
 from tests.agents.human_interface.test_corpus_words import (  # noqa: E402
     CORPUS,
+    OTHER_HANDS,
     Case,
     as_meant,
     load,
@@ -104,10 +106,12 @@ def measure(paths: list[Path]) -> dict[str, Tally]:
 
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--file", type=Path, action="append", help="a corpus (default: the project's)")
+    parser.add_argument(
+        "--file", type=Path, action="append", help="a corpus (default: corpus.toml and other_hands.toml)"
+    )
     parser.add_argument("--show-wrong", action="store_true", help="print every wrong command")
     args = parser.parse_args()
-    paths = args.file or [CORPUS]
+    paths = args.file or [CORPUS, OTHER_HANDS]
     for path in paths:
         if not path.is_file():
             print(f"bench_language: {path}: no such corpus file", file=sys.stderr)

@@ -30,6 +30,7 @@ Usage: ``python scripts/bench_reading.py [--repeats 50]``
 from __future__ import annotations
 
 import argparse
+import itertools
 import logging
 import statistics
 import sys
@@ -97,6 +98,11 @@ def line(shape: str, length: int) -> str:
     return text.lstrip(" ,")
 
 
+_IDS = itertools.count()
+"""Request ids: each line opens a conversation of its own (FIPA SC00061: a conversation-id names
+one conversation)."""
+
+
 def reset(hi: HumanInterface) -> None:
     """Forget what the last line started (its request to a_co, its reports), so that every
     call reads against the same state."""
@@ -128,7 +134,7 @@ def timed(hi: HumanInterface, text: str, repeats: int, read: threading.Event, wa
     it (:func:`handle`), ``repeats`` times after ``warmup``."""
     out = []
     for n in range(warmup + repeats):
-        event = HumanInput(text=text, request_id=f"b{n}")
+        event = HumanInput(text=text, request_id=f"b{next(_IDS)}")  # a new conversation each
         t0 = time.perf_counter()
         handle(hi, event, read)
         elapsed = (time.perf_counter() - t0) * 1e3
@@ -167,6 +173,7 @@ def measure(repeats: int, on_row: Callable[[ReadingRow], None] | None = None) ->
     try:
         hi = HumanInterface(MemoryBus().transport())
         hi.bind()
+        hi.setup()  # what a_hi's loop does first: the person's face, the reader (its models loaded)
         hi.reader.on_done = read.set  # in place of posting ReadDone to a_hi's own (unstarted) loop
         handle(hi, HumanInput(text="stop", request_id="warm-up"), read)  # the kitchen's words, loaded once
         reset(hi)
@@ -177,7 +184,7 @@ def measure(repeats: int, on_row: Callable[[ReadingRow], None] | None = None) ->
                 before = hi.stop_words.examined
                 stop = hi.stop_words.match(text)
                 work = hi.stop_words.examined - before
-                readings = handle(hi, HumanInput(text=text, request_id="what"), read)
+                readings = handle(hi, HumanInput(text=text, request_id=f"what{next(_IDS)}"), read)
                 did = answer(text, stop is not None, readings)
                 whole = SHAPES[shape][1] in text and len(text) <= MAX_LINE_CHARS  # the command in full
                 if whole and shape in EXPECTED and not did.startswith("refused") and did != EXPECTED[shape]:

@@ -193,7 +193,7 @@ LIMITS: dict[str, Limits] = {
     "a_co": Limits(memory_mb=256, cpus=1, pids=128),
     "ag_ex": Limits(memory_mb=1152, cpus=2, pids=256),
     "a_ta": Limits(memory_mb=256, cpus=1, pids=128),
-    "a_hi": Limits(memory_mb=256, cpus=1, pids=128),
+    "a_hi": Limits(memory_mb=512, cpus=1, pids=128),
     "viewer": Limits(memory_mb=1280, cpus=1, pids=128),
 }
 """Each service's limits, from its peaks in the compose smoke test (scripts/compose_smoke.sh
@@ -208,7 +208,8 @@ sampled by scripts/container_peaks.sh; docs/deploy.md gives the peaks and the ma
   grow with the host's CPUs; ag_ex 256 (its camera renders with Mesa's llvmpipe, up to 32
   threads of its own).
 
-An agent not named here has :data:`AGENT_LIMITS`."""
+a_hi's memory is twice its peak with its language models loaded, measured in-process (242 MiB;
+docs/deploy.md). An agent not named here has :data:`AGENT_LIMITS`."""
 AGENT_LIMITS = Limits(memory_mb=256, cpus=1, pids=128)
 """The limits of an agent :data:`LIMITS` does not name (a new agent of the specification): an
 agent's but ag_ex's."""

@@ -258,6 +258,7 @@ class HumanInterface(AskingKnowledge):
             reply_by_s=SUBSCRIBE_REPLY_BY_S,
             retry_s=SUBSCRIBE_RETRY_S,
         )
+        self.reader.start()  # loads the word-similarity model meanwhile (reading.py)
 
     # ---- restarts ----------------------------------------------------------------------
     def on_restored(self, conversation: Conversation) -> None:
@@ -416,6 +417,10 @@ class HumanInterface(AskingKnowledge):
             self._ask_world(event.request_id, outcome)
 
     def _command(self, event: HumanInput, intent: Command) -> None:
+        if intent.instead_of is not None:  # "no, the other one": the command it replaces stops
+            for c in list(self.commands.values()):
+                if c.command.goal == intent.instead_of:
+                    self._cancel_command(c, "you asked for the other one")
         command = HumanCommand(
             text=event.text, goal=intent.goal, priority=intent.priority, deadline_s=intent.deadline_s
         )

@@ -7,9 +7,13 @@ a possessive "'s" split off, decimal points and a minus sign before a number kep
 before a noun or adjective of the :class:`~.vocabulary.Vocabulary` of the same length.
 "within N seconds|minutes|hours" and "in N …" become one ``DEADLINE`` token (its value in
 seconds, N digits or a number word of :data:`NUMBERS`; a negative or zero value is kept for
-language.py to refuse), "within" not followed by one ``WITHIN``; after "would you mind" a
+language.py to refuse), "within" not followed by one ``WITHIN``, and so is "N unit max" ("two
+minutes max", "ten seconds tops"); a first word "now" before others is a discourse marker
+("Now, put the bowl away"), not an urgency; after "would you mind" a
 gerund of a closed-class verb is read as the verb ("pouring" as "pour"); a plural of a known
-noun is ``PLURAL``; any other word is ``WORD``, which no rule accepts, so that the parse stops
+noun is ``PLURAL``; a word a_km does not use but near in meaning to a describing word it uses
+("tiny" to "small", similarity.py) is ``ADJ`` (meaning.py reads it as the one the thing has);
+any other word is ``WORD``, which no rule accepts, so that the parse stops
 at it and :class:`ParseFailure` names it. A run of courtesy words of one class
 (:data:`FOLDED`: "please please", "thanks, thank you") is one token: its repeats mean nothing
 more, and each token costs the parser a step.
@@ -34,6 +38,7 @@ from lark.exceptions import UnexpectedEOF, UnexpectedInput, UnexpectedToken
 from lark.lexer import Lexer
 from lark.visitors import CollapseAmbiguities
 
+from services.agents.human_interface.similarity import near_any
 from services.agents.human_interface.vocabulary import Vocabulary
 
 GRAMMAR_FILE = Path(__file__).with_name("grammar.lark")
@@ -60,11 +65,19 @@ WORDS: dict[str, tuple[str, ...]] = {
         "would you be so kind and",
         "be so kind and",
         "be a dear and",
+        "be a star and",
+        "be a love and",
+        "be an angel and",
+        "be a darling and",
+        "be a sweetheart and",
+        "be a pal and",
+        "be a good robot and",
         "do me a favour and",
         "do me a favor and",
         "would it be possible to",
         "would it be possible for you to",
         "is it possible to",
+        "is possible to",
         "is it possible for you to",
         "are you able to",
         "id appreciate it if you could",
@@ -107,6 +120,12 @@ WORDS: dict[str, tuple[str, ...]] = {
         "if you would",
         "if you can",
         "if you dont mind",
+        "if you wouldnt mind",
+        "if you please",
+        "if youd be so good",
+        "if youd be so kind",
+        "if you would be so good",
+        "if you would be so kind",
         "if possible",
         "ok",
         "okay",
@@ -172,6 +191,7 @@ WORDS: dict[str, tuple[str, ...]] = {
         "on the double",
         "chop chop",
         "pronto",
+        "sharpish",
         "promptly",
         "swiftly",
         "speedily",
@@ -232,6 +252,9 @@ WORDS: dict[str, tuple[str, ...]] = {
         "give me a status report",
         "tell me your status",
         "how are you getting on",
+        "how are you getting along",
+        "how are you getting along with it",
+        "how are you getting on with it",
         "how are you doing",
         "what is the status",
         "whats the status",
@@ -394,6 +417,10 @@ WORDS: dict[str, tuple[str, ...]] = {
         "its place",
         "where you found it",
         "where it came from",
+        "where it lives",
+        "where it usually goes",
+        "where it is kept",
+        "where it is usually kept",
     ),
     "ME": ("me", "us"),
     "HERE": ("here",),
@@ -474,6 +501,8 @@ _DEADLINE_WORDS = ("within", "in")
 _DEADLINE_FILLERS = (("the", "next"), ("less", "than"), ("under",), ("no", "more", "than"), ("at", "most"))
 """Words that may come between the first word of a deadline and its number ("within the next
 ten seconds", "in under a minute")."""
+_BOUND_WORDS = (("max",), ("maximum",), ("tops",), ("at", "most"), ("at", "the", "most"), ("or", "less"))
+"""Words after a duration that make it a deadline: "two minutes max"."""
 _NUMERAL = re.compile(r"-?\d+(?:\.\d+)?")
 _CONTRACTED = frozenset(
     ("what", "that", "it", "let", "where", "how", "here", "there", "who", "he", "she", "this", "everything")
@@ -537,6 +566,29 @@ def _deadline(words: list[str], i: int) -> tuple[int, float] | None:
         if tuple(words[j : j + len(filler)]) == filler:
             j += len(filler)
             break
+    found = _duration(words, j)
+    if found is None:
+        return None
+    end = found[0]  # "within five minutes at most": the bound words belong to it
+    end += next((len(b) for b in _BOUND_WORDS if tuple(words[end : end + len(b)]) == b), 0)
+    return end - i, found[1]
+
+
+def _bound_after(words: list[str], i: int) -> tuple[int, float] | None:
+    """At ``words[i]``: (words used, seconds) of "N unit max" ("two minutes max", "5 minutes
+    at most", "ten seconds tops": :data:`_BOUND_WORDS` after the duration), else None."""
+    found = _duration(words, i)
+    if found is None:
+        return None
+    j, seconds = found
+    for bound in _BOUND_WORDS:
+        if tuple(words[j : j + len(bound)]) == bound:
+            return j + len(bound) - i, seconds
+    return None
+
+
+def _duration(words: list[str], j: int) -> tuple[int, float] | None:
+    """At ``words[j]``: (the index after it, seconds) of "N unit", else None."""
     amount: float | None = None
     for n in range(_LONGEST_NUMBER, 0, -1):
         key = " ".join(words[j : j + n])
@@ -548,7 +600,7 @@ def _deadline(words: list[str], i: int) -> tuple[int, float] | None:
             amount, j = float(words[j]), j + 1
     if amount is None or j >= len(words) or words[j] not in UNITS:
         return None
-    return j + 1 - i, amount * UNITS[words[j]]
+    return j + 1, amount * UNITS[words[j]]
 
 
 def _base(word: str, phrases: Mapping[tuple[str, ...], str]) -> str | None:
@@ -587,14 +639,16 @@ def tag(
     while i < len(words):
         if gerund and (base := _base(read[i], phrases)) is not None:
             read[i], gerund = base, False
-        if read[i] in _DEADLINE_WORDS:
-            found = _deadline(read, i)
+        if read[i] in _DEADLINE_WORDS or (read[i] in NUMBERS or _NUMERAL.fullmatch(read[i])):
+            found = _deadline(read, i) if read[i] in _DEADLINE_WORDS else _bound_after(read, i)
             if found is not None:
                 n, seconds = found
                 out.append(Word("DEADLINE", tuple(words[i : i + n]), len(out), seconds))
                 i += n
                 continue
-            if read[i] == "within" or (i + 1 < len(read) and _NUMERAL.fullmatch(read[i + 1])):
+            if read[i] == "within" or (
+                read[i] in _DEADLINE_WORDS and i + 1 < len(read) and _NUMERAL.fullmatch(read[i + 1])
+            ):
                 out.append(Word("WITHIN", (words[i],), len(out)))  # a deadline not understood
                 i += 1
                 continue
@@ -611,8 +665,12 @@ def tag(
                 break
         else:
             base = compared.get(read[i])  # "the smaller bowl": the small one
+            if base is None and read[i].isalpha() and near_any(read[i], vocabulary.adjectives):
+                base = words[i]  # "the tiny bowl": a describing word meaning one a_km uses (meaning.py)
             out.append(Word("ADJ", (base,), len(out)) if base else Word("WORD", (words[i],), len(out)))
             i += 1
+    if len(out) > 1 and out[0].kind == "URGENT" and out[0].words == ("now",):
+        out[0] = Word("POLITE", out[0].words, 0)  # "Now, put the bowl away": a discourse marker
     return tuple(out)
 
 

@@ -44,11 +44,14 @@ class Read:
 
 @dataclass(frozen=True)
 class Command(Read):
-    """Do ``goal``; ``priority`` larger is more urgent; ``deadline_s`` seconds from acceptance."""
+    """Do ``goal``; ``priority`` larger is more urgent; ``deadline_s`` seconds from acceptance;
+    ``instead_of``: the command it replaces, when the person corrected a_hi's reading of an
+    answer ("no, the other one": that command is stopped first)."""
 
     goal: TaskAtom
     priority: int = 0
     deadline_s: float | None = None
+    instead_of: TaskAtom | None = None
 
 
 @dataclass(frozen=True)

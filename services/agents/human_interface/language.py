@@ -43,9 +43,17 @@ import functools
 import itertools
 import math
 import re
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
-from services.agents.human_interface.grammar import ParseFailure, Word
+from services.agents.human_interface.dialogue import (
+    OTHER_ONE,
+    Answered,
+    Dialogue,
+    Pending,
+    answer_to_offer,
+    odd_literal,
+)
+from services.agents.human_interface.grammar import ParseFailure, Word, normalise
 from services.agents.human_interface.intents import (
     STORAGE,
     URGENT_PRIORITY,
@@ -66,11 +74,12 @@ from services.agents.human_interface.intents import (
 )
 from services.agents.human_interface.meaning import Context, Reader, Reply, loc_count, loc_depth
 from services.agents.human_interface.questions import Resolve, read_question
-from services.agents.human_interface.script import unreadable
+from services.agents.human_interface.script import other_language, unreadable
+from services.agents.human_interface.similarity import is_word
 from services.agents.human_interface.spelling import candidates, correctable, known_words
 from services.agents.human_interface.stop import StopWords, command_openings
 from services.agents.human_interface.task_grammar import Grammar, default_grammar
-from services.agents.human_interface.tolerance import readings
+from services.agents.human_interface.tolerance import MAX_SENTENCES, NEGATIONS, TYPO, readings, sentences
 from services.agents.human_interface.vocabulary import KNOWLEDGE_FILES, Vocabulary
 
 EXAMPLES = (
@@ -84,30 +93,6 @@ EXAMPLES = (
     "'what are you doing?'",
 )
 """Example sentences, as the answers list them."""
-
-
-@dataclass(frozen=True)
-class Pending:
-    """A question a_hi asked: the ``sentence`` it was about (with its ``priority``), the token
-    index ``at`` of the ambiguous reference, and its ``candidates``; ``chosen`` the references
-    settled by earlier answers; ``question`` the question as asked (asked again when an answer
-    names nothing)."""
-
-    sentence: str
-    priority: int
-    at: int
-    candidates: tuple[str, ...]
-    chosen: dict[int, str] = field(default_factory=dict)
-    question: str = ""
-
-
-@dataclass
-class Dialogue:
-    """One person's conversation with a_hi: the last object named (for "it"/"that") and the
-    question waiting for an answer, if any."""
-
-    last: str | None = None
-    pending: Pending | None = None
 
 
 @functools.cache
@@ -273,8 +258,25 @@ def interpret(
     except NotUnderstood as exc:
         intent = _read_otherwise(sentence, priority, vocab, talk, rules)
         if intent is None:
-            raise exc from None
+            raise _in_other_language(sentence, vocab, rules) or exc from None
         return intent
+
+
+MIN_UNKNOWN_SHARE = 0.5
+"""A line is given to the language identifier only when at least this share of its words are
+words a_hi does not know."""
+
+
+def _in_other_language(sentence: str, vocab: Vocabulary, rules: Grammar) -> NotUnderstood | None:
+    """The refusal of a line a_hi did not understand that is likely in another language
+    (script.py :func:`~.script.other_language`), or None."""
+    words = rules.tag(sentence, vocab)
+    if not words or sum(w.kind == "WORD" for w in words) < MIN_UNKNOWN_SHARE * len(words):
+        return None
+    language = other_language(sentence)
+    if language is None:
+        return None
+    return NotUnderstood(f"That looks like {language}; I understand English only, e.g. {EXAMPLES[0]}.")
 
 
 def _read_otherwise(
@@ -285,27 +287,111 @@ def _read_otherwise(
     more than :data:`MAX_CORRECTED_TOKENS` tokens is not read otherwise (each reading is a parse)."""
     if len(rules.tag(sentence, vocab)) > MAX_CORRECTED_TOKENS:
         return None
-    said = (talk.last, talk.pending)
-    for text in readings(sentence, lambda t: rules.tag(t, vocab), rules.verb_kinds):
+    said = (talk.last, talk.pending, talk.answered)
+    typos = _possible_typos(rules.tag(sentence, vocab), vocab, rules)
+
+    def tag(text: str) -> tuple[Word, ...]:  # a word that may be a typo marked (tolerance.py TYPO)
+        return tuple(
+            Word(TYPO, w.words, w.index) if w.kind == "WORD" and w.text in typos else w
+            for w in rules.tag(text, vocab)
+        )
+
+    for text in readings(sentence, tag, rules.verb_kinds):
         try:
             intent = _interpret_line(text, priority, vocab, talk, rules)
         except NotUnderstood:
-            talk.last, talk.pending = said
+            talk.last, talk.pending, talk.answered = said
             continue
         return dataclasses.replace(intent, read_as=((sentence.strip(), text), *intent.read_as))
-    return None
+    return _said_again(sentence, priority, vocab, talk, rules)
+
+
+def _said_again(
+    sentence: str, priority: int, vocab: Vocabulary, talk: Dialogue, rules: Grammar
+) -> Intent | None:
+    """The command of a line of several sentences that each ask for it ("I want the bowl. Bring
+    it to me!": "it" the bowl the first names), the most urgent priority and the nearest
+    deadline said; None when one of them reads as anything else (the dialogue unchanged)."""
+    parts = sentences(sentence)
+    if not 1 < len(parts) <= MAX_SENTENCES:
+        return None
+    turn = dataclasses.replace(talk)
+    commands = _commands(parts, priority, vocab, turn, rules)
+    if commands is None or len({c.goal for c in commands}) != 1:
+        return None
+    talk.last, talk.pending, talk.answered = turn.last, turn.pending, turn.answered
+    return _merged(commands)
+
+
+def _merged(commands: list[Command]) -> Command:
+    """The last of ``commands`` (all of one goal) with the most urgent priority, the nearest
+    deadline and every reading said back of them all."""
+    deadlines = [c.deadline_s for c in commands if c.deadline_s is not None]
+    return dataclasses.replace(
+        commands[-1],
+        priority=max(c.priority for c in commands),
+        deadline_s=min(deadlines, default=None),
+        read_as=tuple(pair for c in commands for pair in c.read_as),
+    )
+
+
+def _commands(
+    parts: list[str], priority: int, vocab: Vocabulary, turn: Dialogue, rules: Grammar
+) -> list[Command] | None:
+    """The command each of ``parts`` reads as, in order, in the dialogue ``turn``; None when one
+    reads as anything else or is not understood."""
+    commands = []
+    for part in parts:
+        try:
+            intent = _interpret_line(part, priority, vocab, turn, rules)
+        except NotUnderstood:
+            return None
+        if not isinstance(intent, Command):
+            return None
+        commands.append(intent)
+    return commands
+
+
+CRITICAL_KINDS = frozenset({"STOP", "URGENT", "EVERYTHING"})
+"""Kinds of word whose misspelling must keep a clause (with the verbs and the negations)."""
+
+
+def _possible_typos(words: tuple[Word, ...], vocab: Vocabulary, rules: Grammar) -> frozenset[str]:
+    """The words of ``words`` a_hi does not know that may be typos of a word that changes what a
+    command means (a verb, a stop, an urgency, a negation: "dnot"), so that no other reading
+    leaves them out (tolerance.py ``TYPO``): no common English word (similarity.py ``is_word``:
+    "cant", "hands" are words), and, for at most :data:`MAX_TYPO_WORDS` of them, with such a
+    candidate (spelling.py); of more, every one that is no common word (the work of the
+    candidates is bounded as the corrections' is)."""
+    unknown = [w.text for w in words if w.kind == "WORD" and not is_word(w.text)]
+    if len(unknown) > MAX_TYPO_WORDS:
+        return frozenset(unknown)
+    return frozenset(u for u in unknown if correctable(u) and candidates(u, _critical_words(rules)))
+
+
+@functools.cache
+def _critical_words(rules: Grammar) -> frozenset[str]:
+    """The words of ``rules`` a misspelling of which must keep a clause (:func:`_possible_typos`)."""
+    kinds = rules.verb_kinds | CRITICAL_KINDS
+    return frozenset(w for phrase, kind in rules.phrases.items() if kind in kinds for w in phrase) | NEGATIONS
 
 
 def _interpret_line(
     sentence: str, priority: int, vocab: Vocabulary, talk: Dialogue, rules: Grammar
 ) -> Intent:
     """:func:`interpret` of a line that holds no control character and is in Latin letters."""
-    question = read_question(sentence, _resolver(vocab, talk, rules))
+    if OTHER_ONE.match(" ".join(normalise(sentence))):
+        return _the_other_one(vocab, talk, rules)
+    offered = answer_to_offer(sentence, talk)
+    if offered is not None:
+        return offered
+    corrected: list[tuple[str, str]] = []
+    question = read_question(sentence, _resolver(vocab, talk, rules, corrected))
     if question is not None:  # a question about the kitchen: any question asked back is dropped
         talk.pending = None
         if question.thing is not None:
             talk.last = question.thing
-        return question
+        return dataclasses.replace(question, read_as=tuple(corrected))
     words = _within_bound(rules.tag(sentence, vocab))
     fixed = _corrected(sentence, words, priority, vocab, talk, rules)
     if fixed is None:
@@ -318,7 +404,7 @@ def _interpret_line(
         intent = _interpret_words(text, words, priority, vocab, talk, rules)
     except NotUnderstood as exc:
         raise _prefixed(exc, said_back(read_as)) from None
-    return dataclasses.replace(intent, read_as=read_as)
+    return dataclasses.replace(intent, read_as=(*read_as, *intent.read_as))
 
 
 MAX_READ_TOKENS = 48
@@ -568,6 +654,9 @@ def _interpret_words(
             raise NotUnderstood(
                 f"What should I do with {show(intent.name)}? Say e.g. 'bring me {show(intent.name)}'."
             )
+        if pending.offer is not None:
+            talk.pending = pending
+            raise _again(pending, "Please say 'yes' or 'no'.")
         if intent.name not in pending.candidates:
             talk.pending = pending
             options = ", ".join(show(c) for c in pending.candidates)
@@ -575,24 +664,82 @@ def _interpret_words(
                 f"I asked about {options}; which of them do you mean?", pending.at, pending.candidates
             )
         chosen = {**pending.chosen, pending.at: intent.name}
-        return _with_reply(_resume(pending, chosen, vocab, talk, rules), intent)
-    if isinstance(intent, Command) and intent.goal.args:
-        talk.last = intent.goal.args[0]
+        resumed = _with_reply(_resume(pending, chosen, vocab, talk, rules), intent)
+        if isinstance(resumed, Command):
+            talk.answered = Answered(pending, chosen, resumed.goal)
+        return resumed
+    if isinstance(intent, Command):
+        talk.answered = None  # a new command: "the other one" no longer refers to an answer
+        if intent.goal.args:
+            talk.last = intent.goal.args[0]
+        odd = odd_literal(intent, vocab)
+        if odd is not None:
+            talk.pending = Pending(sentence, priority, -1, (), question=str(odd), offer=odd.offer)
+            raise odd
     return intent
 
 
-def _resolver(vocab: Vocabulary, talk: Dialogue, grammar: Grammar) -> Resolve:
+def _resolver(
+    vocab: Vocabulary, talk: Dialogue, grammar: Grammar, corrected: list[tuple[str, str]] | None = None
+) -> Resolve:
     """How a question's reference is resolved (questions.py): read with the command grammar as a
     bare reference, against ``vocab`` and the person's last object ("it"); None when the words
-    read as something else (a stop, a command)."""
+    read as something else (a stop, a command). A word it does not know with exactly one
+    candidate (spelling.py: "jsr", "jar") is read as that word when the reference then names a
+    thing, the correction added to ``corrected`` (said back)."""
 
     def resolve(words: str) -> str | None:
         tagged = grammar.tag(words, vocab)
         ctx = Context(vocab, last=talk.last, frames=grammar.frames)
-        outcome = _read(tagged, 0, ctx, grammar)
+        try:
+            outcome = _read(tagged, 0, ctx, grammar)
+        except ParseFailure:
+            fixed = _one_candidate_each(tagged, known_words(grammar.phrases, vocab))
+            if not fixed:
+                raise
+            outcome = _read(
+                grammar.tag(" ".join(fixed.get(w.text, w.text) for w in tagged), vocab), 0, ctx, grammar
+            )
+            if corrected is not None and isinstance(outcome, Reply):
+                corrected.extend(fixed.items())
         return outcome.name if isinstance(outcome, Reply) else None
 
     return resolve
+
+
+def _one_candidate_each(words: tuple[Word, ...], known: frozenset[str]) -> dict[str, str]:
+    """Each unknown word of ``words`` with the one word it may be a typo of; empty when one has
+    none or several."""
+    out: dict[str, str] = {}
+    for w in words:
+        if w.kind == "WORD":
+            found = candidates(w.text, known) if correctable(w.text) else ()
+            if len(found) != 1:
+                return {}
+            out[w.text] = found[0]
+    return out
+
+
+def _the_other_one(vocab: Vocabulary, talk: Dialogue, grammar: Grammar) -> Intent:
+    """The command of the person's last answer, with the other of the two things a_hi's
+    question offered ("no, the other one"), replacing it (``instead_of``). Raises
+    :class:`NotUnderstood` when no question of two was answered last, or one is open."""
+    answered = talk.answered
+    if talk.pending is not None:
+        raise _again(talk.pending, "Please say which one you mean.")
+    if answered is None or len(answered.pending.candidates) != 2:
+        raise NotUnderstood(
+            "I did not offer you a choice of two just now; say which one you mean, "
+            "e.g. 'bring me the cup on the table'."
+        )
+    at = answered.pending.at
+    other = next(c for c in answered.pending.candidates if c != answered.chosen.get(at))
+    chosen = {**answered.chosen, at: other}
+    intent = _resume(answered.pending, chosen, vocab, talk, grammar)
+    if not isinstance(intent, Command):  # pragma: no cover - a pending sentence is a command
+        return intent
+    talk.answered = Answered(answered.pending, chosen, intent.goal)
+    return dataclasses.replace(intent, instead_of=answered.goal)
 
 
 def _again(pending: Pending, why: str) -> Ambiguous:

@@ -59,6 +59,7 @@ from services.agents.human_interface.intents import (
     UnknownReference,
     show,
 )
+from services.agents.human_interface.similarity import MARGIN, nearest
 from services.agents.human_interface.task_grammar import SaidFrame, frame_node
 from services.agents.human_interface.task_words import MISSING, ROLE_RULES, Frame, TaskSaying
 from services.agents.human_interface.vocabulary import Thing, Vocabulary
@@ -157,6 +158,17 @@ def _named(things: list[Thing]) -> list[str]:
     return [show(t.name) + (f" ({t.where()})" if t.where() else "") for t in things]
 
 
+def _meant(adjectives: list[str], thing: Thing) -> tuple[float, list[tuple[str, str]]]:
+    """How near ``adjectives`` come to ``thing``'s (the least similarity of those it does not
+    have to the nearest it has) and each read as that one; (0.0, []) when one has none near
+    enough, or all are its own (similarity.py :func:`~.similarity.nearest`)."""
+    pairs = [(a, nearest(a, thing.adjectives)) for a in adjectives if a not in thing.adjectives]
+    found = [(a, hit) for a, hit in pairs if hit is not None]
+    if not pairs or len(found) < len(pairs):
+        return 0.0, []
+    return min(hit[1] for _, hit in found), [(a, hit[0]) for a, hit in found]
+
+
 def _or(items: list[str]) -> str:
     return items[0] if len(items) == 1 else ", ".join(items[:-1]) + " or " + items[-1]
 
@@ -167,6 +179,8 @@ class Reader:
     def __init__(self, ctx: Context) -> None:
         self.ctx = ctx
         self.v = ctx.vocabulary
+        self.took: list[tuple[str, str]] = []
+        """Describing words read as ones a_km uses ("little" as "small"), said back."""
         self.by_content: set[str] = set()
         """The containers a reference named by what is in them ("the beans", "the contents
         of the jar"): moved into another container, that is a pour (:meth:`_moved`)."""
@@ -250,6 +264,7 @@ class Reader:
         if not things:
             raise UnknownReference(f"I know of no {said}; I know {self.v.examples()}.")
         fitting = [t for t in things if set(adjectives) <= t.adjectives]
+        fitting = fitting or self._by_meaning(adjectives, things)
         if not fitting:
             them = "; ".join(
                 f"{show(t.name)} is {', '.join(sorted(t.adjectives)) or 'not described'}" for t in things
@@ -272,6 +287,20 @@ class Reader:
             self.by_content.add(thing.place)
             return thing.place  # "the beans": the container they are in
         return thing.name
+
+    def _by_meaning(self, adjectives: list[str], things: list[Thing]) -> list[Thing]:
+        """The ``things`` the describing words ``adjectives`` mean when a_km describes none of them
+        so (similarity.py): each word not among a thing's adjectives read as the nearest of them;
+        the things whose words are all near enough and nearly as near as the nearest thing's (all
+        of them: a question back), the words read said back (``took``). Empty when none is."""
+        scored = [(score, t, read) for t in things for score, read in [_meant(adjectives, t)] if read]
+        if not scored:
+            return []
+        best = max(s for s, _, _ in scored)
+        chosen = [(t, read) for s, t, read in scored if s > best - MARGIN]
+        if len(chosen) == 1:
+            self.took.extend(chosen[0][1])
+        return [t for t, _ in chosen]
 
     @staticmethod
     def _which(said: str, things: list[Thing]) -> str:
@@ -320,7 +349,7 @@ class Reader:
             raise NotUnderstood(f"I cannot do '{request.data}' yet.")
         if priority <= 0:
             priority = URGENT_PRIORITY if urgent else 0
-        return Command(goal, priority, deadline)
+        return Command(goal, priority, deadline, read_as=tuple(self.took))
 
     # ---- frames ------------------------------------------------------------------------
     def _need(self, name: str | None, question: str, missing: str) -> str:

@@ -18,6 +18,7 @@ import threading
 from collections.abc import Callable
 from dataclasses import dataclass
 
+from services.agents.human_interface import similarity
 from services.agents.human_interface.language import Dialogue, Intent, NotUnderstood, interpret
 from services.agents.human_interface.task_grammar import Grammar
 from services.agents.human_interface.vocabulary import Vocabulary
@@ -49,14 +50,23 @@ class LineReader:
         self._lines: queue.SimpleQueue[tuple[Reading, Vocabulary]] = queue.SimpleQueue()
         self._thread: threading.Thread | None = None
 
-    def read(self, reading: Reading, vocabulary: Vocabulary) -> None:
-        """Read ``reading``'s line with ``vocabulary`` after the lines given before it."""
+    def start(self) -> None:
+        """Start the reader's thread (if not started), which first loads the word-similarity
+        model (similarity.py, ≈ 0.4 s), so that the first line read does not wait for it."""
         if self._thread is None:
             self._thread = threading.Thread(target=self._run, name="a_hi-reader", daemon=True)
             self._thread.start()
+
+    def read(self, reading: Reading, vocabulary: Vocabulary) -> None:
+        """Read ``reading``'s line with ``vocabulary`` after the lines given before it."""
+        self.start()
         self._lines.put((reading, vocabulary))
 
     def _run(self) -> None:
+        try:
+            similarity.load()
+        except (ImportError, OSError):  # each line needing it is then refused, and logged
+            log.exception("the word-similarity model did not load")
         while True:
             reading, vocabulary = self._lines.get()
             event = reading.event

@@ -20,7 +20,8 @@ hyphen between spaces end a **clause**; quotes, brackets and other marks are ign
 
 - a **stop word** begins it: stop, cancel, halt, abort, freeze, pause, quit, cease, e-stop,
   never mind / nevermind, that's enough, enough, scratch that — whatever follows ("stop
-  pouring", "stop the pour", "cancel the command", "stop what you're doing");
+  pouring", "stop the pour", "cancel the command", "stop what you're doing"), except "enough
+  about …" (a change of topic: "anyway, enough about me");
 - a **waiting word** begins it: wait, hold on, hang on, hold up, one moment, a second, stand
   still, stay put, forget it / forget about it, cut it out — followed by nothing but fillers,
   "it"/"that"/"everything", or "a minute"-like words ("wait a second", "hold on a sec"). A
@@ -277,6 +278,8 @@ class StopWords:
         """The stop that ``words[i:]`` says: a stop word, or a waiting word followed by nothing
         but :data:`TAIL_WORDS` and fillers; else None."""
         role, n = self._at(words, i, frozenset({STRONG, WEAK}))
+        if words[i : i + n] == ["enough"] and words[i + 1 : i + 2] == ["about"]:
+            return None  # "enough about me": a change of topic
         if role == STRONG:
             return StopMatch(" ".join(words[i : i + n]), self._names(words, i + n))
         if role == WEAK and self._skip(words, i + n, _AFTER_WAIT) == len(words):

@@ -35,7 +35,11 @@ def test_it_is_the_last_object_the_same_person_named(kitchen: Vocabulary) -> Non
     assert interpret("put it on the table", vocabulary=kitchen, dialogue=ann) == Command(
         TaskAtom("place", ("cup", "table"))
     )
+    # "now" first is the next step, not haste (grammar.py); "… right now" is haste
     assert interpret("now put that back", vocabulary=kitchen, dialogue=bob) == Command(
+        TaskAtom("return", ("jar",))
+    )
+    assert interpret("put that back right now", vocabulary=kitchen, dialogue=bob) == Command(
         TaskAtom("return", ("jar",)), priority=5
     )
     with pytest.raises(Incomplete, match="Which object should I put on the table"):

@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import pytest
 
-from services.agents.human_interface.script import unreadable
+from services.agents.human_interface.language import NotUnderstood, default_vocabulary, interpret
+from services.agents.human_interface.script import other_language, unreadable
 
 
 @pytest.mark.parametrize(
@@ -34,3 +35,28 @@ def test_a_line_with_a_latin_letter_is_read(line: str) -> None:
 def test_only_the_first_characters_are_looked_at() -> None:
     assert unreadable("カ" * 2000 + "bring me the cup") == "That line is in Japanese script"
     assert unreadable("カ" * 1999 + "b") is None
+
+
+@pytest.mark.parametrize(
+    ("line", "language"),
+    [
+        ("tráeme la taza", "Spanish"),
+        ("Bitte gieß das Glas in die Schüssel", "German"),
+        ("portami la tazza per favore", "Italian"),
+        ("haal de beker", "Dutch"),
+    ],
+)
+def test_a_line_in_another_language_in_latin_letters_is_named(line: str, language: str) -> None:
+    with pytest.raises(NotUnderstood) as info:
+        interpret(line, vocabulary=default_vocabulary())
+    assert str(info.value).startswith(f"That looks like {language}; I understand English only")
+
+
+@pytest.mark.parametrize("line", ["cook dinner", "blah blah blah", "bring me the spoon", "gimme da cup"])
+def test_english_a_hi_does_not_understand_is_not_called_another_language(line: str) -> None:
+    """The planted fault of the check above: English (and nonsense) short lines, on which the
+    identifier is unsure, keep their unknown words named."""
+    with pytest.raises(NotUnderstood) as info:
+        interpret(line, vocabulary=default_vocabulary())
+    assert "looks like" not in str(info.value)
+    assert other_language("naïve robot, bring the cup") is None

@@ -182,6 +182,7 @@ NOT_STOPS = (
     "did you stop?",
     "is it stopped?",
     "is that enough?",
+    "anyway, enough about me. how's it going?",
     "it will stop",
     # no stop word
     "oh no",
