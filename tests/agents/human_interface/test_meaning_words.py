@@ -194,3 +194,26 @@ def test_sentences_asking_for_one_command_are_one_command() -> None:
     assert _bring("Bring me the cup. Quickly bring it!", v).priority > 0
     with pytest.raises(NotUnderstood):  # two commands in one line: not guessed
         interpret("I want the bowl. Bring me the cup.", vocabulary=v)
+
+
+def test_the_language_models_load_from_their_packages_with_no_network() -> None:
+    """Both models a_hi reads with come from installed packages: loaded in a process where every
+    socket fails (as on a machine with no network), they work."""
+    import subprocess
+    import sys
+
+    code = (
+        "import socket\n"
+        "def refuse(*a, **k):\n"
+        "    raise OSError('no network')\n"
+        "class NoNetwork(socket.socket):\n"
+        "    connect = connect_ex = refuse\n"
+        "socket.socket = NoNetwork\n"
+        "socket.getaddrinfo = refuse\n"
+        "from services.agents.human_interface import similarity, script\n"
+        "similarity.load()\n"
+        "assert similarity.nearest('little', ['small', 'large'])[0] == 'small'\n"
+        "assert script.other_language('haal de beker') == 'Dutch'\n"
+    )
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0, done.stderr
