@@ -4,7 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 import pinocchio as pin
+import pytest
 
+from velma.control.compiled import compiled_available
 from velma.control.ik import IkSearch, solve_ik_multi
 from velma.control.joints import arm_joints
 from velma.control.robot_model import RobotModel
@@ -33,6 +35,7 @@ def test_ik_search_is_resumable_and_agrees_with_solve_ik_multi() -> None:
     assert once.ok and np.allclose(once.q, result.q)
 
 
+@pytest.mark.skipif(not compiled_available(), reason="the compiled law is not built")
 def test_the_compiled_iteration_finds_what_the_python_one_finds() -> None:
     """With the compiled law's ``dls_step`` (velma/control/_impedance.cpp) the search takes
     the same steps as the Python iteration, its reference: per target (reachable from the

@@ -231,7 +231,13 @@ class Reader:
                 pool = [t for t in pool if t.name in self.ctx.among]
             return self._choose("one", pool, at, adjectives, where, place)
         noun = self._noun(node)
-        return self._choose(noun, self.v.named(tuple(noun.split())), at, adjectives, where, place)
+        things = self.v.named(tuple(noun.split()))
+        if node.data == "np_of":  # "the jar of beans": the jar the beans are in
+            held = _tokens(node, "NOUN")[1]
+            holders = {t.place for t in self.v.named(tuple(str(held).split())) if t.content}
+            things = [t for t in things if t.name in holders]
+            noun = f"{noun} of {held}"
+        return self._choose(noun, things, at, adjectives, where, place)
 
     def _noun(self, node: Node) -> str:
         """The noun of an ``np``, ``owner`` or ``compound`` node; a plural owner ("the jars'")

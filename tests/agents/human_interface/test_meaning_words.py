@@ -217,3 +217,11 @@ def test_the_language_models_load_from_their_packages_with_no_network() -> None:
     )
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
     assert done.returncode == 0, done.stderr
+
+
+def test_a_container_is_named_by_what_is_in_it() -> None:
+    """ "the jar of beans" is the jar the beans are in; "the bowl of beans" names nothing a_km
+    knows (the beans are in the jar), so it is refused, not read as the bowl."""
+    assert _bring("hand me the jar of beans", _kitchen()).goal == TaskAtom("hand_over", ("jar",))
+    with pytest.raises(UnknownReference):
+        interpret("bring me the bowl of beans", vocabulary=_kitchen())
