@@ -283,8 +283,10 @@ def _read_otherwise(
     sentence: str, priority: int, vocab: Vocabulary, talk: Dialogue, rules: Grammar
 ) -> Intent | None:
     """The intent of the first other reading of ``sentence`` (tolerance.py) that is understood,
-    saying what was read (``read_as``), or None; the dialogue as it was when none is. A line of
-    more than :data:`MAX_CORRECTED_TOKENS` tokens is not read otherwise (each reading is a parse)."""
+    saying what was read (``read_as``), or None; the dialogue as it was when none is. When no
+    reading is an intent but one is a question back (which of two bowls; "should I pour …?"),
+    that question is raised, saying what was read. A line of more than
+    :data:`MAX_CORRECTED_TOKENS` tokens is not read otherwise (each reading is a parse)."""
     if len(rules.tag(sentence, vocab)) > MAX_CORRECTED_TOKENS:
         return None
     said = (talk.last, talk.pending, talk.answered)
@@ -296,14 +298,24 @@ def _read_otherwise(
             for w in rules.tag(text, vocab)
         )
 
+    asked: tuple[NotUnderstood, Pending | None] | None = None
     for text in readings(sentence, tag, rules.verb_kinds):
         try:
             intent = _interpret_line(text, priority, vocab, talk, rules)
+        except (Ambiguous, Incomplete) as exc:  # a question back: asked if no reading is an intent
+            if asked is None:
+                asked = (_prefixed(exc, said_back(((sentence.strip(), text),))), talk.pending)
+            talk.last, talk.pending, talk.answered = said
+            continue
         except NotUnderstood:
             talk.last, talk.pending, talk.answered = said
             continue
         return dataclasses.replace(intent, read_as=((sentence.strip(), text), *intent.read_as))
-    return _said_again(sentence, priority, vocab, talk, rules)
+    again = _said_again(sentence, priority, vocab, talk, rules)
+    if again is None and asked is not None:
+        talk.pending = asked[1]
+        raise asked[0]
+    return again
 
 
 def _said_again(

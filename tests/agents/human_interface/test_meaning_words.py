@@ -225,3 +225,12 @@ def test_a_container_is_named_by_what_is_in_it() -> None:
     assert _bring("hand me the jar of beans", _kitchen()).goal == TaskAtom("hand_over", ("jar",))
     with pytest.raises(UnknownReference):
         interpret("bring me the bowl of beans", vocabulary=_kitchen())
+
+
+def test_a_question_back_from_a_reading_is_asked_saying_what_was_read() -> None:
+    v, talk = _kitchen(SMALL_BLUE_BOWL), Dialogue()
+    with pytest.raises(Ambiguous) as info:
+        interpret("Lovely day. Bring me the bowl, would you?", vocabulary=v, dialogue=talk)
+    assert str(info.value).startswith("I read 'Lovely day. Bring me the bowl, would you?' as ")
+    got = interpret("the small one", vocabulary=v, dialogue=talk)
+    assert isinstance(got, Command) and got.goal == TaskAtom("bring", ("bowl_2",))
