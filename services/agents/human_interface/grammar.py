@@ -120,6 +120,9 @@ WORDS: dict[str, tuple[str, ...]] = {
         "if you would",
         "if you can",
         "if you dont mind",
+        "if it is not too much trouble",
+        "if its not too much trouble",
+        "if it isnt too much trouble",
         "if you wouldnt mind",
         "if you please",
         "if youd be so good",
@@ -152,7 +155,33 @@ WORDS: dict[str, tuple[str, ...]] = {
         "when you get a chance",
         "for me",
     ),
-    "ADDRESS": ("robot", "velma"),
+    "ADDRESS": (
+        "robot",
+        "velma",
+        "dear",
+        "dearie",
+        "love",
+        "honey",
+        "sweetie",
+        "sweetheart",
+        "darling",
+        "hun",
+        "babe",
+        "mate",
+        "buddy",
+        "pal",
+        "bro",
+        "dude",
+        "man",
+        "fam",
+        "bruh",
+        "lol",
+        "haha",
+        "i guess",
+        "i suppose",
+        "or something",
+    ),
+    # (a word of address, or a word said around a command that carries nothing: "… lol")
     "URGENT": (
         "urgently",
         "urgent",
@@ -450,7 +479,17 @@ WORDS: dict[str, tuple[str, ...]] = {
     # references
     "IT": ("it", "them", "this one", "that one"),
     "THAT": ("that", "this"),
-    "ONE": ("one",),
+    "ONE": (
+        "one",
+        "thing",
+        "thingy",
+        "thingamajig",
+        "thingamabob",
+        "whatsit",
+        "whatchamacallit",
+        "object",
+        "item",
+    ),
     "CONTENTS": (
         "contents",
         "content",
@@ -501,6 +540,8 @@ _DEADLINE_WORDS = ("within", "in")
 _DEADLINE_FILLERS = (("the", "next"), ("less", "than"), ("under",), ("no", "more", "than"), ("at", "most"))
 """Words that may come between the first word of a deadline and its number ("within the next
 ten seconds", "in under a minute")."""
+_TIME_STARTS = frozenset({*_DEADLINE_WORDS, *NUMBERS, "you"})
+"""Words a deadline may begin with (besides a numeral)."""
 _BOUND_WORDS = (("max",), ("maximum",), ("tops",), ("at", "most"), ("at", "the", "most"), ("or", "less"))
 """Words after a duration that make it a deadline: "two minutes max"."""
 _NUMERAL = re.compile(r"-?\d+(?:\.\d+)?")
@@ -547,7 +588,8 @@ def normalise(sentence: str) -> list[str]:
     """The words of ``sentence``: lower case; a possessive "'s" a word of its own, ``s`` ("the
     jar's" → "the", "jar", "s"), other apostrophes dropped ("what's" → "whats", "don't" →
     "dont"); other punctuation a space; decimal points kept ("1.5") and a minus sign directly
-    before a number ("-5"); hyphens between words a space ("twenty-five")."""
+    before a number ("-5"); hyphens between words a space ("twenty-five"); a short form of
+    texting or speech as its words (:data:`SHORT_FORMS`: "u" → "you", "gimme" → "give me")."""
     text = sentence.lower().replace("’", "'").replace("‘", "'").replace("−", "-")
     text = re.sub(r"([a-z0-9]+)'s\b", lambda m: m[1] + ("s" if m[1] in _CONTRACTED else " s"), text)
     text = text.replace("'", "")
@@ -555,7 +597,20 @@ def normalise(sentence: str) -> list[str]:
     text = re.sub(r"(?<![0-9])\.|\.(?![0-9])", " ", text)
     text = re.sub(r"(?<!\S)-+(?=[0-9])", "-", text)
     text = re.sub(r"-(?![0-9])|(?<=\S)-", " ", text)
-    return text.split()
+    return [w for word in text.split() for w in SHORT_FORMS.get(word, (word,))]
+
+
+SHORT_FORMS: dict[str, tuple[str, ...]] = {
+    short: tuple(words.split())
+    for short, words in {
+        "u": "you", "ya": "you", "ur": "your", "yer": "your", "r": "are", "n": "and", "da": "the",
+        "tha": "the", "wat": "what", "wot": "what", "cud": "could", "wud": "would", "thx": "thanks",
+        "thnx": "thanks", "thanx": "thanks", "ty": "thank you", "tysm": "thank you so much",
+        "gimme": "give me", "lemme": "let me", "wanna": "want to", "gotta": "got to",
+        "rn": "right now", "cuz": "because", "coz": "because", "cos": "because",
+    }.items()
+}  # fmt: skip
+"""Short forms people type or say, read as the words they stand for."""
 
 
 def _deadline(words: list[str], i: int) -> tuple[int, float] | None:
@@ -572,6 +627,30 @@ def _deadline(words: list[str], i: int) -> tuple[int, float] | None:
     end = found[0]  # "within five minutes at most": the bound words belong to it
     end += next((len(b) for b in _BOUND_WORDS if tuple(words[end : end + len(b)]) == b), 0)
     return end - i, found[1]
+
+
+def _time_at(words: list[str], i: int) -> tuple[int, float] | None:
+    """At ``words[i]``: (words used, seconds) of a deadline said in any of the ways the tagger
+    reads ("within N unit", "in N unit", "N unit max", "you have N unit to"), else None."""
+    if words[i] == "you":
+        return _given_time(words, i)
+    return _deadline(words, i) if words[i] in _DEADLINE_WORDS else _bound_after(words, i)
+
+
+_GIVEN = (("you", "have", "got"), ("you", "have"), ("you", "got"), ("you", "get"))
+"""How a time given for a command begins: "you have two minutes to pour …"."""
+
+
+def _given_time(words: list[str], i: int) -> tuple[int, float] | None:
+    """At ``words[i]``: (words used, seconds) of "you have|got N unit [to]" ("u got 30 secs to
+    pour the beans …": a deadline before the command), else None."""
+    for given in _GIVEN:
+        if tuple(words[i : i + len(given)]) == given:
+            found = _duration(words, i + len(given))
+            if found is not None:
+                end = found[0] + (words[found[0] : found[0] + 1] == ["to"])
+                return end - i, found[1]
+    return None
 
 
 def _bound_after(words: list[str], i: int) -> tuple[int, float] | None:
@@ -639,8 +718,8 @@ def tag(
     while i < len(words):
         if gerund and (base := _base(read[i], phrases)) is not None:
             read[i], gerund = base, False
-        if read[i] in _DEADLINE_WORDS or (read[i] in NUMBERS or _NUMERAL.fullmatch(read[i])):
-            found = _deadline(read, i) if read[i] in _DEADLINE_WORDS else _bound_after(read, i)
+        if read[i] in _TIME_STARTS or _NUMERAL.fullmatch(read[i]):
+            found = _time_at(read, i)
             if found is not None:
                 n, seconds = found
                 out.append(Word("DEADLINE", tuple(words[i : i + n]), len(out), seconds))

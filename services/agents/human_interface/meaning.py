@@ -311,11 +311,15 @@ class Reader:
     @staticmethod
     def _which(said: str, things: list[Thing]) -> str:
         """The question back for ``things`` that all fit what was ``said``, naming what tells
-        them apart in the person's words: where each is, else a describing word only it has
-        ("the blue bowl or the white bowl?"), else its name."""
+        them apart in the person's words: where each is, else its kind when each is of another
+        ("the bowl, the cup or the jar?"), else a describing word only it has ("the blue bowl or
+        the white bowl?"), else its name."""
         wheres = [t.where() for t in things]
+        kinds = [_kind(t.name) for t in things]
         if all(wheres) and len(set(wheres)) == len(wheres):
             options = [f"the one {w}" for w in wheres]
+        elif len(set(kinds)) == len(kinds):  # "that thing": the bowl, the cup or the jar?
+            options = [f"the {k}" for k in kinds]
         else:
             options = _described(said, things) or _named(things)
         noun = "one" if said in ("one", "contents") else said

@@ -55,7 +55,7 @@ from __future__ import annotations
 import re
 from collections.abc import Callable
 
-from services.agents.human_interface.grammar import Word
+from services.agents.human_interface.grammar import UNITS, Word
 
 MAX_CLAUSES = 6
 """A line of more clauses is not shortened by clause (its runs grow with the square)."""
@@ -162,7 +162,7 @@ def without_tail(line: str, tag: Tagger, verbs: frozenset[str]) -> str:
 
 def _keeps(word: Word, verbs: frozenset[str]) -> bool:
     """Whether ``word`` in a tail makes it mean something (:func:`without_tail`)."""
-    if word.kind in TAIL_KEEPS or word.kind in verbs:
+    if word.kind in TAIL_KEEPS or word.kind in verbs or _timed(word):
         return True
     return any(x in NEGATIONS or x in CONDITIONS or x in CONTRACTED_NEGATIONS for x in word.words)
 
@@ -180,7 +180,7 @@ def sentences(line: str) -> list[str]:
 def _aside(sentence: str, tag: Tagger, verbs: frozenset[str]) -> bool:
     """Whether ``sentence`` carries nothing of a command (module docstring)."""
     words = tag(sentence)
-    if _looks_like_request(words) or any(w.kind in verbs or w.kind in ASIDE_STOPPERS for w in words):
+    if _looks_like_request(words) or any(_carries(w, verbs) for w in words):
         return False
     negated = any(x in NEGATIONS or x in CONTRACTED_NEGATIONS for w in words for x in w.words)
     return not (negated and any(w.kind in OBJECT for w in words))
@@ -270,6 +270,18 @@ OBJECT_SHAPES = frozenset({"DET", "IT", "ME", "NOUN", "PLURAL", "ONE", "EVERYTHI
 it", "tell me")."""
 
 
+def _timed(word: Word) -> bool:
+    """Whether ``word`` is a number or a unit of time a_hi's grammar did not take as a deadline
+    ("u got 30 secs to …"): what holds it may set when the command is due, so it is kept."""
+    return any(x[:1].isdigit() or (x in UNITS and len(x) > 1) for x in word.words)
+
+
+def _carries(word: Word, verbs: frozenset[str]) -> bool:
+    """Whether ``word`` carries a command's meaning wherever it stands: a verb, a stop, an
+    urgency, a deadline, a progress question, a possible typo, a time (:func:`_timed`)."""
+    return word.kind in verbs or word.kind in ASIDE_STOPPERS or _timed(word)
+
+
 def _looks_like_request(words: tuple[Word, ...]) -> bool:
     """Whether ``words`` may ask for something: they begin (after courtesy) with a follow-up
     word, or with a word a_hi does not know that no remark begins with (:data:`COMMENT_STARTS`)
@@ -289,6 +301,8 @@ def _droppable(clause: str, tag: Tagger, verbs: frozenset[str]) -> bool:
     if _looks_like_request(tag(clause)):
         return False
     for word in tag(clause):
+        if _timed(word):
+            return False
         if word.kind in MEANINGFUL or word.kind in verbs:
             return False
         if any(w in NEGATIONS for w in word.words):
@@ -304,7 +318,8 @@ def _droppable_after(clause: str, tag: Tagger, verbs: frozenset[str]) -> bool:
     """Whether ``clause``, after the command, carries nothing of it: as :func:`_droppable`, but
     "it" and a negation of something else may stand in it ("…, I can't see it anywhere")."""
     words = tag(clause)
-    return not _looks_like_request(words) and not any(w.kind in AFTER_KEEPS or w.kind in verbs for w in words)
+    keeps = any(w.kind in AFTER_KEEPS or w.kind in verbs or _timed(w) for w in words)
+    return not _looks_like_request(words) and not keeps
 
 
 def kept_clauses(line: str, tag: Tagger, verbs: frozenset[str]) -> list[str]:
@@ -346,7 +361,8 @@ def after_prefix(line: str, tag: Tagger, verbs: frozenset[str]) -> str:
 def _keeps_prefix(word: Word) -> bool:
     """Whether ``word`` before a command makes what it stands in mean something: an object,
     a command word, a negation (:func:`after_prefix`)."""
-    return word.kind in PREFIX_KEEPS or any(x in NEGATIONS or x in CONTRACTED_NEGATIONS for x in word.words)
+    negated = any(x in NEGATIONS or x in CONTRACTED_NEGATIONS for x in word.words)
+    return word.kind in PREFIX_KEEPS or negated or _timed(word)
 
 
 def reordered(line: str, tag: Tagger, verbs: frozenset[str]) -> str:

@@ -144,6 +144,8 @@ def test_everyday_shapes_are_read(line: str, task: TaskAtom) -> None:
         "Pour the jar into the bowl. Burn the house down.",
         "Feed the cat, bring me the cup.",
         "Pour the jar into the bowl, dnot.",
+        "She gave me 30 secs. Pour the beans in the bowl.",
+        "Honestly, 2 minutes, pour the jar into the bowl.",
     ],
 )
 def test_what_changes_the_meaning_is_never_left_out(line: str) -> None:
@@ -234,3 +236,23 @@ def test_a_question_back_from_a_reading_is_asked_saying_what_was_read() -> None:
     assert str(info.value).startswith("I read 'Lovely day. Bring me the bowl, would you?' as ")
     got = interpret("the small one", vocabulary=v, dialogue=talk)
     assert isinstance(got, Command) and got.goal == TaskAtom("bring", ("bowl_2",))
+
+
+@pytest.mark.parametrize(
+    ("line", "task"),
+    [
+        ("can u put the cup on the table thx", TaskAtom("place", ("cup", "table"))),
+        ("gimme the mug", TaskAtom("hand_over", ("cup",))),
+        ("put the jar on the table bro", TaskAtom("place", ("jar", "table"))),
+        ("Now, dearie, put the bowl back in the cupboard where it belongs.", TaskAtom("return", ("bowl",))),
+        ("If it is not too much trouble, please put the bowl back.", TaskAtom("return", ("bowl",))),
+    ],
+)
+def test_texting_short_forms_and_words_of_address_are_read(line: str, task: TaskAtom) -> None:
+    assert _bring(line, _kitchen()).goal == task
+
+
+def test_a_time_given_before_the_command_is_its_deadline() -> None:
+    got = _bring("u got 30 secs to pour the beans in the bowl", _kitchen())
+    assert (got.goal, got.deadline_s) == (TaskAtom("pour", ("jar", "bowl")), 30.0)
+    assert _bring("you have two minutes to bring me the cup", _kitchen()).deadline_s == 120.0

@@ -45,3 +45,13 @@ def test_one_said_of_things_of_several_kinds_names_each_by_its_kind() -> None:
     v = _kitchen('roco:bowl_2 a roco:Bowl ; roco:in roco:cabinet ; roco:adjective "blue" , "ceramic" .')
     asked = _asked("bring me the ceramic one", v)
     assert asked == "Which one: the large bowl, the blue bowl or the little cup?", asked
+
+
+def test_a_vague_thing_is_asked_back_by_the_kinds_of_the_things() -> None:
+    """ "that thing", "the thingy": a question back (not "I do not know 'thing'"), each thing
+    named by its kind when no two are of one kind."""
+    v = _kitchen("")
+    assert (
+        _asked("bring me that thing", v) == "Which one: the bowl, the cabinet, the cup, the jar or the table?"
+    )
+    assert _asked("bring me the thingy in the cabinet", v) == "Which one: the bowl, the cup or the jar?"
