@@ -321,10 +321,13 @@ def _read_otherwise(
 def _said_again(
     sentence: str, priority: int, vocab: Vocabulary, talk: Dialogue, rules: Grammar
 ) -> Intent | None:
-    """The command of a line of several sentences that each ask for it ("I want the bowl. Bring
-    it to me!": "it" the bowl the first names), the most urgent priority and the nearest
-    deadline said; None when one of them reads as anything else (the dialogue unchanged)."""
+    """The command of a line of several sentences, or of requests joined by "and", that each
+    ask for it ("I want the bowl. Bring it to me!": "it" the bowl the first names; "pick up the
+    bowl and hold it"), the most urgent priority and the nearest deadline said; None when one
+    of them reads as anything else (the dialogue unchanged)."""
     parts = sentences(sentence)
+    if len(parts) == 1:  # "pick up the bowl and hold it": one command said twice
+        parts = [p for p in AND.split(sentence) if p.strip()]
     if not 1 < len(parts) <= MAX_SENTENCES:
         return None
     turn = dataclasses.replace(talk)
@@ -333,6 +336,10 @@ def _said_again(
         return None
     talk.last, talk.pending, talk.answered = turn.last, turn.pending, turn.answered
     return _merged(commands)
+
+
+AND = re.compile(r",?\s+\band(?:\s+then)?\s+", re.IGNORECASE)
+"""Where a sentence joins two requests with "and" ("…, and then …")."""
 
 
 def _merged(commands: list[Command]) -> Command:

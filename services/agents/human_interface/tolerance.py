@@ -33,6 +33,9 @@ grammar of commands, not of everything said around them).
 6. **Terse commands without a verb** ("Bowl on table.", "Cup back in cabinet.", "Beans into
    the bowl, quick."): read with "put" before them, when the line names a place (on, in,
    back, away) and is no question ("?").
+7. **When, said apart** ("pour the jar into the bowl, I need it within a minute"): a clause
+   that holds only a deadline or an urgency and words of a wish ("I need it") is joined to the
+   command.
 
 Before these, a line of several sentences (:func:`sentences`) is read as each one of them
 alone whose other sentences are asides: they hold no command word (a verb, a stop, an
@@ -138,7 +141,34 @@ def readings(line: str, tag: Tagger, verbs: frozenset[str]) -> list[str]:
         add(reordered(base, tag, verbs))
         add(without_tail(base, tag, verbs))
         add(verbless(base, tag, verbs))
+        add(time_joined(base, tag))
     return out[:MAX_READINGS]
+
+
+TIME_KINDS = frozenset({"DEADLINE", "URGENT"})
+WISH_WORDS = frozenset({"i", "we", "need", "want", "it", "that", "this", "done", "ready", "by", "please"})
+"""Words a clause that only says when may hold besides the time ("I need it within a minute")."""
+
+
+def time_joined(line: str, tag: Tagger) -> str:
+    """``line`` with a clause that only says when the command is wanted joined to the command
+    ("pour the jar into the bowl, I need it within a minute" → "… within a minute"; module
+    docstring 7); else ``line``."""
+    clauses = [c for c in CLAUSE.split(line) if c.strip()]
+    for i, clause in enumerate(clauses[1:MAX_CLAUSES], start=1):
+        times = _only_when(tag(clause))
+        if times:
+            kept = clauses[:i] + clauses[i + 1 :]
+            return ", ".join(c.strip() for c in kept) + " " + times
+    return line
+
+
+def _only_when(words: tuple[Word, ...]) -> str:
+    """The deadline and urgency words of a clause that says nothing else but a wish ("I need it
+    within a minute" → "within a minute"); "" for any other clause."""
+    if not all(w.kind in TIME_KINDS or set(w.words) <= WISH_WORDS for w in words):
+        return ""
+    return " ".join(w.text for w in words if w.kind in TIME_KINDS)
 
 
 TAIL_OPENERS = frozenset({"for", "before", "because", "cause", "so", "when", "whenever", "once"})
@@ -177,13 +207,29 @@ def sentences(line: str) -> list[str]:
     return [part for part in SENTENCE.split(line.strip()) if part.strip()]
 
 
+QUESTION_WORDS = frozenset({"where", "what", "whats", "how", "hows", "why", "who", "when", "which"})
+"""Words a question the person asks aloud begins with ("Where did I leave my cup?")."""
+
+
 def _aside(sentence: str, tag: Tagger, verbs: frozenset[str]) -> bool:
-    """Whether ``sentence`` carries nothing of a command (module docstring)."""
+    """Whether ``sentence`` carries nothing of a command (module docstring): a remark, or a
+    question the person asks aloud, whatever its verb ("Where did I leave my cup?")."""
     words = tag(sentence)
-    if _looks_like_request(words) or any(_carries(w, verbs) for w in words):
+    asked = _asked_aloud(sentence, words)
+    stated = [w for w in words if not (asked and w.kind in verbs)]
+    if _looks_like_request(words) or any(_carries(w, verbs) for w in stated):
         return False
-    negated = any(x in NEGATIONS or x in CONTRACTED_NEGATIONS for w in words for x in w.words)
-    return not (negated and any(w.kind in OBJECT for w in words))
+    return not (_negated(words) and any(w.kind in OBJECT for w in words))
+
+
+def _asked_aloud(sentence: str, words: tuple[Word, ...]) -> bool:
+    """Whether ``sentence`` is a question beginning with a question word (:data:`QUESTION_WORDS`)."""
+    return sentence.rstrip().endswith("?") and bool(words) and words[0].words[0] in QUESTION_WORDS
+
+
+def _negated(words: tuple[Word, ...]) -> bool:
+    """Whether ``words`` hold a negation ("no", "not", "don't", "can't", …)."""
+    return any(x in NEGATIONS or x in CONTRACTED_NEGATIONS for w in words for x in w.words)
 
 
 def one_sentence(line: str, tag: Tagger, verbs: frozenset[str]) -> list[str]:

@@ -123,6 +123,7 @@ def test_the_other_one_after_another_command_is_not_guessed() -> None:
         ("The jar, please put on the table.", TaskAtom("place", ("jar", "table"))),
         ("Please, you pour beans from jar to bowl.", TaskAtom("pour", ("jar", "bowl"))),
         ("I need that you bring me the cup.", TaskAtom("bring", ("cup",))),
+        ("Where did I leave my cup? Could you find it for me, dear?", TaskAtom("localise", ("cup",))),
     ],
 )
 def test_everyday_shapes_are_read(line: str, task: TaskAtom) -> None:
@@ -256,3 +257,16 @@ def test_a_time_given_before_the_command_is_its_deadline() -> None:
     got = _bring("u got 30 secs to pour the beans in the bowl", _kitchen())
     assert (got.goal, got.deadline_s) == (TaskAtom("pour", ("jar", "bowl")), 30.0)
     assert _bring("you have two minutes to bring me the cup", _kitchen()).deadline_s == 120.0
+
+
+def test_when_said_apart_is_the_command_s() -> None:
+    got = _bring("Pour the jar into the bowl, I need it within a minute.", _kitchen())
+    assert (got.goal, got.deadline_s) == (TaskAtom("pour", ("jar", "bowl")), 60.0)
+    with pytest.raises(NotUnderstood):  # a negation in it: not joined
+        interpret("Pour the jar into the bowl, I don't need it within a minute.", vocabulary=_kitchen())
+
+
+def test_one_command_said_twice_with_and_is_one_command() -> None:
+    assert _bring("Pick up the bowl and hold it for me.", _kitchen()).goal == TaskAtom("fetch", ("bowl",))
+    with pytest.raises(NotUnderstood):  # two commands: not guessed
+        interpret("pick up the bowl and bring me the cup", vocabulary=_kitchen())
