@@ -154,6 +154,8 @@ WORDS: dict[str, tuple[str, ...]] = {
         "when you have a moment",
         "when you get a chance",
         "for me",
+        "please and thank you",
+        "please and thanks",
     ),
     "ADDRESS": (
         "robot",
@@ -607,7 +609,8 @@ SHORT_FORMS: dict[str, tuple[str, ...]] = {
         "tha": "the", "wat": "what", "wot": "what", "cud": "could", "wud": "would", "thx": "thanks",
         "thnx": "thanks", "thanx": "thanks", "ty": "thank you", "tysm": "thank you so much",
         "gimme": "give me", "lemme": "let me", "wanna": "want to", "gotta": "got to",
-        "rn": "right now", "cuz": "because", "coz": "because", "cos": "because",
+        "rn": "right now", "pls": "please", "plz": "please", "cuz": "because", "coz": "because",
+        "cos": "because",
     }.items()
 }  # fmt: skip
 """Short forms people type or say, read as the words they stand for."""

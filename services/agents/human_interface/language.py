@@ -284,8 +284,8 @@ def _read_otherwise(
 ) -> Intent | None:
     """The intent of the first other reading of ``sentence`` (tolerance.py) that is understood,
     saying what was read (``read_as``), or None; the dialogue as it was when none is. When no
-    reading is an intent but one is a question back (which of two bowls; "should I pour …?"),
-    that question is raised, saying what was read. A line of more than
+    reading is an intent but one asks which thing is meant (which of two bowls; "should I pour
+    …?"), that question is raised, saying what was read. A line of more than
     :data:`MAX_CORRECTED_TOKENS` tokens is not read otherwise (each reading is a parse)."""
     if len(rules.tag(sentence, vocab)) > MAX_CORRECTED_TOKENS:
         return None
@@ -302,7 +302,7 @@ def _read_otherwise(
     for text in readings(sentence, tag, rules.verb_kinds):
         try:
             intent = _interpret_line(text, priority, vocab, talk, rules)
-        except (Ambiguous, Incomplete) as exc:  # a question back: asked if no reading is an intent
+        except Ambiguous as exc:  # which thing, or "should I pour …?": asked if no reading is an intent
             if asked is None:
                 asked = (_prefixed(exc, said_back(((sentence.strip(), text),))), talk.pending)
             talk.last, talk.pending, talk.answered = said

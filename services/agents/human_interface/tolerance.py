@@ -300,7 +300,7 @@ COMMENT_STARTS = frozenset(
         "hello", "wow", "oops", "phew", "whew", "ugh", "gosh", "lovely", "great", "good", "nice",
         "brilliant", "perfect", "wonderful", "such", "cant", "dont", "isnt", "no", "sorry",
         "cheers", "ta", "anyway", "anyways", "well", "okay", "ok", "alright", "right", "honey",
-        "dear", "love", "sweetie", "darling", "mummy", "mum", "mom", "daddy", "dad", "big",
+        "dear", "love", "sweetie", "darling", "mummy", "mum", "mom", "daddy", "dad", "big", "bless",
     }
 )  # fmt: skip
 """Words a remark may begin with (pronouns, interjections, words of address, comments): a
