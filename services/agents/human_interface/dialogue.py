@@ -98,6 +98,26 @@ def odd_literal(intent: Command, vocab: Vocabulary) -> Offer | None:
     )
 
 
+TWO_WAYS = frozenset({"grab"})
+"""Verbs of bringing that as often mean only taking in a hand ("grab the bowl": bring it, or
+pick it up?): said bare, without a recipient or a place, they are asked back."""
+BARE_ONLY = frozenset(
+    {"BRING", "DET", "ADJ", "NOUN", "PLURAL", "ONE", "IT", "PLEASE", "ADDRESS", "ASK", "POLITE"}
+)
+"""Word kinds a bare "grab X" holds: anything else ("me", "here", "for me", "to the table")
+says where it goes."""
+
+
+def two_ways(intent: Command, kinds: list[str], verb: str) -> Offer | None:
+    """The question back for a ``bring`` said with a verb of :data:`TWO_WAYS` and nothing
+    saying where ("grab the bowl": ``kinds`` the line's word kinds, ``verb`` its bring verb);
+    a "yes" brings it, "pick it up" only takes it; None for any other command."""
+    if intent.goal.name != "bring" or verb not in TWO_WAYS or not set(kinds) <= BARE_ONLY:
+        return None
+    x = show(intent.goal.args[0])
+    return Offer(f"Should I bring you {x}? Say 'yes', or 'pick it up' to only take it in my hand.", intent)
+
+
 YES = re.compile(
     r"^(?:yes|yeah|yep|yup|sure|ok|okay|please|correct|right|exactly|do it|do that|go ahead|pour it)"
     r"(?: (?:please|thanks|thank you|do it|do that|go ahead|pour it|that is right|thats right))*$"
@@ -129,6 +149,7 @@ def answer_to_offer(sentence: str, talk: Dialogue) -> Intent | None:
 __all__ = [
     "NO",
     "OTHER_ONE",
+    "TWO_WAYS",
     "YES",
     "Answered",
     "Dialogue",
@@ -136,4 +157,5 @@ __all__ = [
     "Pending",
     "answer_to_offer",
     "odd_literal",
+    "two_ways",
 ]

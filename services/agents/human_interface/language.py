@@ -52,6 +52,7 @@ from services.agents.human_interface.dialogue import (
     Pending,
     answer_to_offer,
     odd_literal,
+    two_ways,
 )
 from services.agents.human_interface.grammar import ParseFailure, Word, normalise
 from services.agents.human_interface.intents import (
@@ -691,7 +692,8 @@ def _interpret_words(
         talk.answered = None  # a new command: "the other one" no longer refers to an answer
         if intent.goal.args:
             talk.last = intent.goal.args[0]
-        odd = odd_literal(intent, vocab)
+        verb = next((w.text for w in words if w.kind == "BRING"), "")
+        odd = odd_literal(intent, vocab) or two_ways(intent, [w.kind for w in words], verb)
         if odd is not None:
             talk.pending = Pending(sentence, priority, -1, (), question=str(odd), offer=odd.offer)
             raise odd

@@ -106,7 +106,8 @@ PARAPHRASES: tuple[tuple[str, Expected], ...] = (
     ("fetch me the coffee mug", Do("bring", "cup")),
     ("get me the jar", Do("bring", "jar")),
     ("get the jar for me", Do("bring", "jar")),
-    ("grab the bowl", Do("bring", "bowl")),
+    ("grab the bowl", Ask("which", "Should I bring you the bowl?")),  # bring it, or pick it up?
+    ("grab me the bowl", Do("bring", "bowl")),
     ("carry the bowl to the table", Do("bring", "bowl")),
     ("take the jar out of the cabinet", Do("bring", "jar")),
     ("take the jar from the cupboard", Do("bring", "jar")),
