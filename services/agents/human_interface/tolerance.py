@@ -453,9 +453,12 @@ def _without_you(words: list[Word], verbs: frozenset[str]) -> list[Word]:
 
 def _fronted(words: list[Word], verbs: frozenset[str]) -> list[Word]:
     """``words`` with an object said before its verb put after it: "the jar please put on the
-    table" → "put the jar on the table" (courtesy before the object stays first)."""
+    table" → "put the jar on the table", "jar on table put please" → "put jar on table please"
+    (courtesy before the object stays first)."""
     start = next((i for i, w in enumerate(words) if w.kind not in OPENING), len(words))
     end = _after(words, start, ("DET", "ADJ", "NOUN"))
+    if end < len(words) and words[end].kind in ("ON", "IN", "TO"):  # its place, said before the verb
+        end = _after(words, end + 1, ("DET", "ADJ", "NOUN"))
     verb = _after(words, end, (*OPENING, "W_YOU"))
     if end == start or words[end - 1].kind != "NOUN" or verb == len(words) or words[verb].kind not in verbs:
         return words

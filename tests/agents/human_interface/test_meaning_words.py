@@ -124,6 +124,8 @@ def test_the_other_one_after_another_command_is_not_guessed() -> None:
         ("Please, you pour beans from jar to bowl.", TaskAtom("pour", ("jar", "bowl"))),
         ("I need that you bring me the cup.", TaskAtom("bring", ("cup",))),
         ("Where did I leave my cup? Could you find it for me, dear?", TaskAtom("localise", ("cup",))),
+        ("Jar on table put please.", TaskAtom("place", ("jar", "table"))),
+        ("Please you search where is the jar.", TaskAtom("localise", ("jar",))),
     ],
 )
 def test_everyday_shapes_are_read(line: str, task: TaskAtom) -> None:
