@@ -125,6 +125,7 @@ def test_the_other_one_after_another_command_is_not_guessed() -> None:
         ("I need that you bring me the cup.", TaskAtom("bring", ("cup",))),
         ("Where did I leave my cup? Could you find it for me, dear?", TaskAtom("localise", ("cup",))),
         ("Jar on table put please.", TaskAtom("place", ("jar", "table"))),
+        ("jar into bowl... pour... zzz", TaskAtom("pour", ("jar", "bowl"))),
         ("Please you search where is the jar.", TaskAtom("localise", ("jar",))),
     ],
 )
