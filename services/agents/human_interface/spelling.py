@@ -55,7 +55,8 @@ NEIGHBOURS = _neighbours()
 
 MIN_LETTERS = 4
 """A word of fewer letters is not corrected (too many words are one edit from it), but for two
-adjacent letters swapped in a word of three ("teh", "jra", "cpu": :func:`candidates`)."""
+adjacent letters swapped in a word of three, or one of its letters typed with the key beside it
+("teh", "jra", "cpu", "cuo", "jsr": :func:`candidates`)."""
 LONG_LETTERS = 8
 """A word of this many letters or more may be two edits from its candidate."""
 MAX_LETTERS = 24
@@ -132,7 +133,8 @@ def candidates(word: str, known: Collection[str]) -> tuple[str, ...]:
     """The words of ``known`` nearest to ``word`` within :func:`max_distance` (sorted; empty when
     there is none, ``word`` is not corrected, or it is itself a known word: a word of a phrase,
     "what", is no typo); for a word of three letters, the known words it is with two adjacent
-    letters swapped."""
+    letters swapped or one letter on a neighbouring key (no letter added or left out: "hat" is
+    not read as "that")."""
     if word in known:
         return ()
     if len(word) == MIN_LETTERS - 1:
@@ -151,9 +153,16 @@ def candidates(word: str, known: Collection[str]) -> tuple[str, ...]:
 
 
 def _swapped(word: str, known: Collection[str]) -> tuple[str, ...]:
-    """The words of ``known`` that are ``word`` with two adjacent letters swapped (sorted)."""
-    swaps = {word[:i] + word[i + 1] + word[i] + word[i + 2 :] for i in range(len(word) - 1)}
-    return tuple(sorted(k for k in swaps if k != word and k in known))
+    """The words of ``known`` that are ``word`` with two adjacent letters swapped ("cpu": "cup"),
+    or, when none is, with one letter typed with the key beside it ("cuo": "cup"; sorted)."""
+    swaps = {word[:i] + word[i + 1] + word[i] + word[i + 2 :] for i in range(len(word) - 1)} - {word}
+    found = sorted(swaps & set(known)) or sorted(_slips(word) & set(known))  # "teh": "the", not "ten"
+    return tuple(found)
+
+
+def _slips(word: str) -> set[str]:
+    """``word`` with one letter typed with a key beside it, each way."""
+    return {word[:i] + b + word[i + 1 :] for i, a in enumerate(word) for x, b in NEIGHBOURS if x == a}
 
 
 __all__ = [

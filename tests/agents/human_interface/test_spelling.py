@@ -68,9 +68,11 @@ def test_candidates_are_the_nearest_known_words() -> None:
     assert candidates("doimg", known) == ("doing",)
     assert candidates("pout", known) == ("out", "pour", "put")
     assert candidates("stop", known) == ()  # a known word is no typo
-    # three letters: only two adjacent ones swapped ("jra" is one edit from many short words)
+    # three letters: two adjacent ones swapped, else one typed with the key beside it; never a
+    # letter added or left out ("jra" is one such edit from many short words)
     assert candidates("jra", known) == ("jar",) and candidates("teh", known) == ("the",)
-    assert candidates("jat", known) == () and candidates("cpu", known) == ("cup",)
+    assert candidates("jat", known) == ("jar",) and candidates("cpu", known) == ("cup",)
+    assert candidates("cuo", known) == ("cup",) and candidates("jaw", known) == ()
     assert candidates("smash", known) == ()
 
 
