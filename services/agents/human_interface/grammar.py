@@ -56,6 +56,7 @@ WORDS: dict[str, tuple[str, ...]] = {
         "i want you to",
         "i need you to",
         "i would like you to",
+        "i should like you to",
         "id like you to",
         "id love you to",
         "i wish you would",
@@ -124,6 +125,7 @@ WORDS: dict[str, tuple[str, ...]] = {
         "if its not too much trouble",
         "if it isnt too much trouble",
         "if you wouldnt mind",
+        "if youd",
         "if you please",
         "if youd be so good",
         "if youd be so kind",
@@ -153,6 +155,13 @@ WORDS: dict[str, tuple[str, ...]] = {
         "i would appreciate it",
         "when you have a moment",
         "when you get a chance",
+        "when you get a sec",
+        "when you get a second",
+        "when you get a minute",
+        "when you have a sec",
+        "when you have a second",
+        "when you have a minute",
+        "when you can",
         "for me",
         "please and thank you",
         "please and thanks",
@@ -404,6 +413,7 @@ WORDS: dict[str, tuple[str, ...]] = {
     "WANT": (
         "i want",
         "i would like",
+        "i should like",
         "id like",
         "i need",
         "i would love",
@@ -425,6 +435,9 @@ WORDS: dict[str, tuple[str, ...]] = {
         "can i please have",
         "could i please have",
         "may i please have",
+        "could i trouble you for",
+        "can i trouble you for",
+        "may i trouble you for",
     ),
     # prepositions and particles
     "IN": ("in", "into", "inside", "in to"),
@@ -609,8 +622,8 @@ SHORT_FORMS: dict[str, tuple[str, ...]] = {
         "tha": "the", "wat": "what", "wot": "what", "cud": "could", "wud": "would", "thx": "thanks",
         "thnx": "thanks", "thanx": "thanks", "ty": "thank you", "tysm": "thank you so much",
         "gimme": "give me", "lemme": "let me", "wanna": "want to", "gotta": "got to",
-        "rn": "right now", "pls": "please", "plz": "please", "cuz": "because", "coz": "because",
-        "cos": "because",
+        "rn": "right now", "pls": "please", "plz": "please", "youd": "you would", "cuz": "because",
+        "coz": "because", "cos": "because",
     }.items()
 }  # fmt: skip
 """Short forms people type or say, read as the words they stand for."""

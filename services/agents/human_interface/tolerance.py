@@ -31,8 +31,9 @@ grammar of commands, not of everything said around them).
    (:data:`TAIL_OPENERS`) to the end, when what it holds names no object a_km knows, no verb,
    stop, urgency or deadline, and no negation or condition (:data:`CONDITIONS`).
 6. **Terse commands without a verb** ("Bowl on table.", "Cup back in cabinet.", "Beans into
-   the bowl, quick."): read with "put" before them, when the line names a place (on, in,
-   back, away) and is no question ("?").
+   the bowl, quick.", "Bowl to me, now!"): read with "put" before them when the line names a
+   place (on, in, back, away), with "bring" when it says "to me" or "here", and is no question
+   ("?").
 7. **When, said apart** ("pour the jar into the bowl, I need it within a minute"): a clause
    that holds only a deadline or an urgency and words of a wish ("I need it") is joined to the
    command.
@@ -55,6 +56,7 @@ readings given."""
 
 from __future__ import annotations
 
+import itertools
 import re
 from collections.abc import Callable
 
@@ -261,14 +263,30 @@ PLACES = frozenset({"ON", "IN", "BACK", "AWAY"})
 
 
 def verbless(line: str, tag: Tagger, verbs: frozenset[str]) -> str:
-    """``line`` with "put" before it when it has no verb, names a place and is no question
-    ("Bowl on table." → "put Bowl on table."; module docstring 5); else ``line``."""
+    """``line`` with "put" or "bring" before it when it has no verb, names a place or "to me"
+    and is no question ("Bowl on table." → "put Bowl on table."; module docstring 6); else
+    ``line``."""
     words = tag(line)
     first = next((w.kind for w in words if w.kind not in OPENING), "")
-    terse = first in ("DET", "NOUN", "ADJ", "CONTENTS") and any(w.kind in PLACES for w in words)
+    verb = _terse_verb(words)
+    terse = first in ("DET", "NOUN", "ADJ", "CONTENTS") and verb
     if not terse or line.rstrip().endswith("?") or any(w.kind in verbs for w in words):
         return line
-    return "put " + " ".join(w.text for w in words)
+    return verb + " " + " ".join(w.text for w in words)
+
+
+def _terse_verb(words: tuple[Word, ...]) -> str:
+    """The verb a terse line means: "put" when it names a place, "bring" when it says "to me"
+    or "here", else ""."""
+    if any(w.kind in PLACES for w in words):
+        return "put"
+    return "bring" if _to_me(words) else ""
+
+
+def _to_me(words: tuple[Word, ...]) -> bool:
+    """Whether ``words`` say "to me" or "here" ("Bowl to me, now!": a terse bring)."""
+    kinds = [w.kind for w in words]
+    return "HERE" in kinds or any(a == "TO" and b == "ME" for a, b in itertools.pairwise(kinds))
 
 
 def _is_verb(text: str, tag: Tagger, verbs: frozenset[str]) -> bool:

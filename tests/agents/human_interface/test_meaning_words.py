@@ -250,6 +250,10 @@ def test_a_question_back_from_a_reading_is_asked_saying_what_was_read() -> None:
         ("put the jar on the table bro", TaskAtom("place", ("jar", "table"))),
         ("Now, dearie, put the bowl back in the cupboard where it belongs.", TaskAtom("return", ("bowl",))),
         ("If it is not too much trouble, please put the bowl back.", TaskAtom("return", ("bowl",))),
+        ("I'd be ever so grateful if you'd hand me the jar.", TaskAtom("hand_over", ("jar",))),
+        ("Could I trouble you for the jar?", TaskAtom("hand_over", ("jar",))),
+        ("Can you please pass me the mug when you get a sec?", TaskAtom("hand_over", ("cup",))),
+        ("Bowl to me, now!", TaskAtom("bring", ("bowl",))),
     ],
 )
 def test_texting_short_forms_and_words_of_address_are_read(line: str, task: TaskAtom) -> None:
