@@ -1,7 +1,7 @@
 """One person's conversation with a_hi (language.py): the question a_hi asked and is waiting
 for an answer to, the last one answered ("no, the other one"), the last object named ("it"),
-and the yes-or-no question a_hi asks when a sentence read literally asks for what a_pl cannot
-do (:func:`odd_literal`)."""
+and the yes-or-no questions a_hi asks when a sentence read literally asks for what a_pl cannot
+do (:func:`odd_literal`) or its verb means two tasks (:func:`two_ways`)."""
 
 from __future__ import annotations
 

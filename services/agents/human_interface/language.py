@@ -80,7 +80,7 @@ from services.agents.human_interface.similarity import is_word
 from services.agents.human_interface.spelling import candidates, correctable, known_words
 from services.agents.human_interface.stop import StopWords, command_openings
 from services.agents.human_interface.task_grammar import Grammar, default_grammar
-from services.agents.human_interface.tolerance import MAX_SENTENCES, NEGATIONS, TYPO, readings, sentences
+from services.agents.human_interface.tolerance import MAX_SENTENCES, NEGATING, TYPO, readings, sentences
 from services.agents.human_interface.vocabulary import KNOWLEDGE_FILES, Vocabulary
 
 EXAMPLES = (
@@ -288,10 +288,11 @@ def _read_otherwise(
     reading is an intent but one asks which thing is meant (which of two bowls; "should I pour
     …?"), that question is raised, saying what was read. A line of more than
     :data:`MAX_CORRECTED_TOKENS` tokens is not read otherwise (each reading is a parse)."""
-    if len(rules.tag(sentence, vocab)) > MAX_CORRECTED_TOKENS:
+    tagged = rules.tag(sentence, vocab)
+    if len(tagged) > MAX_CORRECTED_TOKENS:
         return None
     said = (talk.last, talk.pending, talk.answered)
-    typos = _possible_typos(rules.tag(sentence, vocab), vocab, rules)
+    typos = _possible_typos(tagged, vocab, rules)
 
     def tag(text: str) -> tuple[Word, ...]:  # a word that may be a typo marked (tolerance.py TYPO)
         return tuple(
@@ -393,7 +394,7 @@ def _possible_typos(words: tuple[Word, ...], vocab: Vocabulary, rules: Grammar) 
 def _critical_words(rules: Grammar) -> frozenset[str]:
     """The words of ``rules`` a misspelling of which must keep a clause (:func:`_possible_typos`)."""
     kinds = rules.verb_kinds | CRITICAL_KINDS
-    return frozenset(w for phrase, kind in rules.phrases.items() if kind in kinds for w in phrase) | NEGATIONS
+    return frozenset(w for phrase, kind in rules.phrases.items() if kind in kinds for w in phrase) | NEGATING
 
 
 def _interpret_line(
@@ -715,9 +716,9 @@ def _resolver(
         try:
             outcome = _read(tagged, 0, ctx, grammar)
         except ParseFailure:
-            fixed = _one_candidate_each(tagged, known_words(grammar.phrases, vocab))
+            fixed = _one_candidate_each(tagged, vocab, grammar)
             if not fixed:
-                raise
+                raise  # a word with no candidate, or with several: not guessed
             outcome = _read(
                 grammar.tag(" ".join(fixed.get(w.text, w.text) for w in tagged), vocab), 0, ctx, grammar
             )
@@ -728,17 +729,13 @@ def _resolver(
     return resolve
 
 
-def _one_candidate_each(words: tuple[Word, ...], known: frozenset[str]) -> dict[str, str]:
-    """Each unknown word of ``words`` with the one word it may be a typo of; empty when one has
-    none or several."""
-    out: dict[str, str] = {}
-    for w in words:
-        if w.kind == "WORD":
-            found = candidates(w.text, known) if correctable(w.text) else ()
-            if len(found) != 1:
-                return {}
-            out[w.text] = found[0]
-    return out
+def _one_candidate_each(words: tuple[Word, ...], vocab: Vocabulary, grammar: Grammar) -> dict[str, str]:
+    """Each unknown word of ``words`` with the one word it may be a typo of (:func:`_typo_options`);
+    empty when one has none or several."""
+    options = _typo_options(words, vocab, grammar)
+    if len(options) != sum(w.kind == "WORD" for w in words) or any(len(found) != 1 for _, found in options):
+        return {}
+    return {w.text: found[0] for w, found in options}
 
 
 def _the_other_one(vocab: Vocabulary, talk: Dialogue, grammar: Grammar) -> Intent:

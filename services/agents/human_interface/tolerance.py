@@ -88,6 +88,9 @@ CONTRACTED_NEGATIONS = frozenset(
     }
 )  # fmt: skip
 """Negations said with "n't" (apostrophes dropped: grammar.py ``normalise``)."""
+NEGATING = NEGATIONS | CONTRACTED_NEGATIONS
+"""Every word that negates: what holds one is left out only where a negation of something else
+cannot change the command (:func:`_negation`)."""
 TYPO = "TYPO"
 """The kind the tagger given to :func:`readings` gives a word a_hi does not know that may be a
 typo of one it knows (spelling.py): it may be a negation or a verb misspelt ("dnot"), so what
@@ -194,9 +197,9 @@ def without_tail(line: str, tag: Tagger, verbs: frozenset[str]) -> str:
 
 def _keeps(word: Word, verbs: frozenset[str]) -> bool:
     """Whether ``word`` in a tail makes it mean something (:func:`without_tail`)."""
-    if word.kind in TAIL_KEEPS or word.kind in verbs or _timed(word):
+    if word.kind in TAIL_KEEPS or word.kind in verbs or _timed(word) or _negation(word):
         return True
-    return any(x in NEGATIONS or x in CONDITIONS or x in CONTRACTED_NEGATIONS for x in word.words)
+    return any(x in CONDITIONS for x in word.words)
 
 
 SENTENCE = re.compile(r"(?<=[.!?])\s+")
@@ -231,7 +234,12 @@ def _asked_aloud(sentence: str, words: tuple[Word, ...]) -> bool:
 
 def _negated(words: tuple[Word, ...]) -> bool:
     """Whether ``words`` hold a negation ("no", "not", "don't", "can't", …)."""
-    return any(x in NEGATIONS or x in CONTRACTED_NEGATIONS for w in words for x in w.words)
+    return any(_negation(w) for w in words)
+
+
+def _negation(word: Word) -> bool:
+    """Whether ``word`` negates (:data:`NEGATING`)."""
+    return any(x in NEGATING for x in word.words)
 
 
 def one_sentence(line: str, tag: Tagger, verbs: frozenset[str]) -> list[str]:
@@ -364,14 +372,7 @@ def _droppable(clause: str, tag: Tagger, verbs: frozenset[str]) -> bool:
     """Whether ``clause`` carries nothing of a command and no negation."""
     if _looks_like_request(tag(clause)):
         return False
-    for word in tag(clause):
-        if _timed(word):
-            return False
-        if word.kind in MEANINGFUL or word.kind in verbs:
-            return False
-        if any(w in NEGATIONS for w in word.words):
-            return False
-    return True
+    return not any(w.kind in MEANINGFUL or w.kind in verbs or _timed(w) or _negation(w) for w in tag(clause))
 
 
 AFTER_KEEPS = OBJECT | ASIDE_STOPPERS | {"AND"}
@@ -425,8 +426,7 @@ def after_prefix(line: str, tag: Tagger, verbs: frozenset[str]) -> str:
 def _keeps_prefix(word: Word) -> bool:
     """Whether ``word`` before a command makes what it stands in mean something: an object,
     a command word, a negation (:func:`after_prefix`)."""
-    negated = any(x in NEGATIONS or x in CONTRACTED_NEGATIONS for x in word.words)
-    return word.kind in PREFIX_KEEPS or negated or _timed(word)
+    return word.kind in PREFIX_KEEPS or _negation(word) or _timed(word)
 
 
 def reordered(line: str, tag: Tagger, verbs: frozenset[str]) -> str:

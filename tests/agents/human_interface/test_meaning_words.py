@@ -150,6 +150,7 @@ def test_everyday_shapes_are_read(line: str, task: TaskAtom) -> None:
         "Pour the jar into the bowl, dnot.",
         "She gave me 30 secs. Pour the beans in the bowl.",
         "Honestly, 2 minutes, pour the jar into the bowl.",
+        "Won't, bring me the cup.",
     ],
 )
 def test_what_changes_the_meaning_is_never_left_out(line: str) -> None:
