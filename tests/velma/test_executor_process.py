@@ -20,6 +20,7 @@ from velma.control.compiled import compiled_available
 from velma.executor import ExecutorProcess
 from velma.executor.loop import ControlLoop
 from velma.executor.runtime import Runtime
+from velma.executor.state import RobotSnapshot
 from velma.rotations import quat_wxyz
 
 Result = CommandResult | Observation
@@ -39,6 +40,19 @@ def _submit(ex: ExecutorProcess, command: object) -> queue.SimpleQueue[Result]:
     return out
 
 
+def _state_after(ex: ExecutorProcess, sim_time: float) -> RobotSnapshot:
+    """The first state the loop published after ``sim_time`` (s; a result's time is that of the
+    cycle's start, a state published at that time is older than the result): the state is
+    rewritten every STATE_PERIOD cycles, so one read right after a result can still be older
+    than it and say what an earlier test left. Gives up after 10 s of wall time."""
+    deadline = time.monotonic() + 10.0
+    snap = ex.snapshot()
+    while (snap is None or snap.sim_time <= sim_time) and time.monotonic() < deadline:
+        snap = ex.snapshot()
+    assert snap is not None and snap.sim_time > sim_time, "the loop published no state after the result"
+    return snap
+
+
 @pytest.mark.requirement("R3.1")
 def test_commands_cross_and_state_is_published(ex: ExecutorProcess) -> None:
     assert ex.pid is not None and ex.pid != os.getpid()
@@ -47,13 +61,7 @@ def test_commands_cross_and_state_is_published(ex: ExecutorProcess) -> None:
     obs = _submit(ex, Observe(objects=("jar", "bowl"))).get(timeout=60)
     assert isinstance(obs, Observation)
     assert {o.name for o in obs.objects} >= {"jar", "bowl"}
-    # the state is rewritten every STATE_PERIOD cycles: read until it has caught up with the
-    # result (the loop keeps running), giving up after 10 s of wall time
-    deadline = time.monotonic() + 10.0
-    snap = ex.snapshot()
-    while (snap is None or snap.sim_time < r.sim_time) and time.monotonic() < deadline:
-        snap = ex.snapshot()
-    assert snap is not None and snap.sim_time >= r.sim_time
+    snap = _state_after(ex, r.sim_time)
     assert len(snap.joints) == 33 and snap.holding is None
     assert snap.timing is not None and snap.timing.cycles >= 200 and snap.timing.pacing == "fast"
     assert ex.setup is not None and ex.setup.notes == ("not requested",)
@@ -126,15 +134,10 @@ def test_hold_ends_commands_and_says_so(ex: ExecutorProcess) -> None:
     long = _submit(ex, Wait(duration=1000.0))
     queued = _submit(ex, Wait(duration=1.0))
     assert ex.hold("a_ta lost")
-    for q in (long, queued):
-        r = q.get(timeout=60)
-        assert isinstance(r, CommandResult) and not r.ok and r.reason == "held: a_ta lost"
-    first = ex.snapshot()
-    assert first is not None
-    snap = first
-    # the state is rewritten every 20 cycles: read until it says so, or 1 s of loop time later
-    while snap.holding is None and snap.sim_time < first.sim_time + 1.0:
-        snap = ex.snapshot() or snap
+    ended = [q.get(timeout=60) for q in (long, queued)]
+    results = [r for r in ended if isinstance(r, CommandResult)]
+    assert [(r.ok, r.reason) for r in results] == [(False, "held: a_ta lost")] * 2, ended
+    snap = _state_after(ex, max(r.sim_time for r in results))
     assert snap.holding == "a_ta lost"
     assert _submit(ex, Wait(duration=0.01)).get(timeout=60).ok  # type: ignore[union-attr]
 
@@ -219,11 +222,7 @@ def test_safe_mode_is_soft_and_gravity_compensated(ex: ExecutorProcess) -> None:
     assert ex.safe("operator")
     r = pending.get(timeout=60)
     assert isinstance(r, CommandResult) and r.reason == "safe mode: operator"
-    first = ex.snapshot()
-    assert first is not None
-    snap = first
-    while snap.holding is None and snap.sim_time < first.sim_time + 1.0:
-        snap = ex.snapshot() or snap
+    snap = _state_after(ex, r.sim_time)
     assert snap.holding == "safe mode: operator"
     later = snap
     while later.sim_time < snap.sim_time + 1.0:  # one simulated second in safe mode
